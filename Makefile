@@ -1,0 +1,30 @@
+# Two set-up commands on a fresh machine:  `make run`  and  `make test`.
+PYTHON ?= python3
+VENV   ?= .venv
+BIN     = $(VENV)/bin
+OUT    ?= out
+export OPENBLAS_NUM_THREADS ?= 1
+
+.PHONY: run test lint generate clean
+
+$(BIN)/kinegen: pyproject.toml
+	$(PYTHON) -m venv $(VENV)
+	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[test]'
+	touch $@
+
+## run: build every model in models/ and solve every case; summary on screen, CSV + PNG in $(OUT)/
+run: $(BIN)/kinegen
+	$(BIN)/python -m kinegen.demo --out $(OUT)
+
+## test: lint, then the whole test suite
+test: $(BIN)/kinegen
+	$(BIN)/ruff check kinegen tests generated
+	$(BIN)/python -m pytest -q
+
+## generate: rebuild every committed module in generated/ from models/
+generate: $(BIN)/kinegen
+	$(BIN)/python -m kinegen.demo --regenerate-only
+
+clean:
+	rm -rf $(VENV) $(OUT) .pytest_cache

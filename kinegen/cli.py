@@ -1,0 +1,197 @@
+"""The ``kinegen`` command: thin over the package.
+
+Exit codes: 0 success, 1 other kinegen error, 2 model error, 3 singular Jacobian,
+4 no convergence, 5 generated-module error, 6 input/output error, 64 usage.
+"""
+
+from __future__ import annotations
+
+import json
+import sys
+import time
+import traceback
+import warnings
+from pathlib import Path
+
+import click
+import numpy as np
+
+from kinegen import __version__, rotations
+from kinegen.errors import GeneratedModuleError, KinegenError
+
+IO_ERROR = 6
+
+
+class _Group(click.Group):
+    """Turns kinegen errors into one or two readable lines and a distinct exit code."""
+
+    def invoke(self, ctx: click.Context):
+        try:
+            return super().invoke(ctx)
+        except KinegenError as exc:
+            self._fail(ctx, f"error: {exc}", exc.exit_code)
+        except OSError as exc:
+            self._fail(ctx, f"error: {exc}", IO_ERROR)
+
+    @staticmethod
+    def _fail(ctx: click.Context, message: str, code: int) -> None:
+        if ctx.obj and ctx.obj.get("debug"):
+            traceback.print_exc()
+        click.echo(message, err=True)
+        ctx.exit(code)
+
+
+@click.group(cls=_Group)
+@click.version_option(__version__, prog_name="kinegen")
+@click.option("--debug", is_flag=True, help="Show Python tracebacks of errors.")
+@click.pass_context
+def main(ctx: click.Context, debug: bool) -> None:
+    """kinegen: mechanism YAML -> exact symbolic kinematics -> generated solvers."""
+    ctx.ensure_object(dict)
+    ctx.obj["debug"] = debug
+    warnings.simplefilter("always")
+    warnings.showwarning = lambda message, category, *_args, **_kw: click.echo(f"warning: {message}", err=True)
+
+
+PARAM_HELP = "Orientation parametrization: quaternion, euler-parameters or euler:<seq> (e.g. euler:zxz)."
+
+
+def _parametrization(name: str) -> rotations.Parametrization:
+    try:
+        return rotations.get(name)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), param_hint="--param") from None
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--param", "params", multiple=True, default=("quaternion",), show_default=True, help=PARAM_HELP + " Repeatable.")
+@click.option(
+    "--out-dir", default="generated", show_default=True, type=click.Path(file_okay=False), help="Where modules are written."
+)
+def build(model_file: str, params: tuple[str, ...], out_dir: str) -> None:
+    """Build MODEL_FILE into generated/<model>_<param>.py and check its initial pose."""
+    from kinegen.codegen import build as build_module
+    from kinegen.runtime import check_initial_pose, from_module, load_module
+
+    for name in params:
+        param = _parametrization(name)
+        start = time.perf_counter()
+        path = build_module(model_file, param.name, out_dir)
+        elapsed = time.perf_counter() - start
+        click.echo(f"wrote {path} ({param.name}, {elapsed:.2f} s)")
+        module = load_module(path)
+        for case in module.CASES:
+            click.echo("  " + check_initial_pose(from_module(module, case)))
+
+
+def _system(model_file: str, param: rotations.Parametrization, case: str | None, generated_dir: str):
+    """The numeric system of a case, from the generated module (rebuilt when missing or stale)."""
+    from kinegen.codegen import build as build_module
+    from kinegen.codegen import module_name
+    from kinegen.model import load
+    from kinegen.runtime import from_module, load_module
+
+    model = load(model_file)
+    path = Path(generated_dir) / f"{module_name(model, param)}.py"
+    try:
+        module = load_module(path, model_file)
+    except GeneratedModuleError:
+        click.echo(f"building {path} (missing or stale)", err=True)
+        module = load_module(build_module(model_file, param.name, generated_dir), model_file)
+    try:
+        return model, from_module(module, case)
+    except KeyError as exc:
+        raise click.BadParameter(str(exc.args[0]), param_hint="--case") from None
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--case", default=None, help="Case to solve (default: the first).")
+@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@click.option("--t0", type=float, default=None, help="Start time [s] (default: the case's).")
+@click.option("--t1", type=float, default=None, help="End time [s] (default: the case's).")
+@click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV file for all time histories.")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG file with point paths and time histories.")
+@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+def solve(
+    model_file: str,
+    case: str | None,
+    param: str,
+    t0: float | None,
+    t1: float | None,
+    steps: int | None,
+    out: str | None,
+    plot: str | None,
+    generated_dir: str,
+) -> None:
+    """Solve position, velocity and acceleration of a case over time."""
+    from kinegen.runtime import solve as run
+
+    parametrization = _parametrization(param)
+    _, system = _system(model_file, parametrization, case, generated_dir)
+    times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
+    start = time.perf_counter()
+    results = run(system, times)
+    elapsed = time.perf_counter() - start
+    click.echo(
+        f"{system.model}/{system.case} [{parametrization.name}]: {len(times)} time points, t = {times[0]:g} .. {times[-1]:g} s, "
+        f"Newton iterations mean {results.iterations.mean():.2f} max {results.iterations.max()}, "
+        f"max |Phi| {results.residuals.max():.1e}, {elapsed:.3f} s"
+    )
+    if out:
+        click.echo(f"wrote {results.to_csv(out)}")
+    if plot:
+        from kinegen.analysis.plots import plot_results
+
+        click.echo(f"wrote {plot_results(results, plot)}")
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@click.option("--case", default=None, help="Case whose drivers are used (default: the first).")
+@click.option("--at", "at", default=None, help="Time, exact expression allowed (e.g. 0, 1/2, pi/4). Default: the case start.")
+@click.option(
+    "--q",
+    "q_file",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="JSON file {coordinate name: value} of stored coordinates.",
+)
+@click.option("--latex", is_flag=True, help="Also print the determinant in LaTeX.")
+@click.option("--json", "as_json", is_flag=True, help="Print a JSON report instead of text.")
+def inspect(
+    model_file: str, param: str, case: str | None, at: str | None, q_file: str | None, latex: bool, as_json: bool
+) -> None:
+    """Exact rank, null spaces and symbolic determinant of Phi_q at one configuration."""
+    from kinegen.analysis import inspect as run
+    from kinegen.model import load
+
+    model = load(model_file)
+    parametrization = _parametrization(param)
+    if case is not None and case not in model.cases:
+        raise click.BadParameter(f"no case {case!r} (cases: {', '.join(model.cases)})", param_hint="--case")
+    chosen = case or next(iter(model.cases))
+    q = None
+    if q_file:
+        from kinegen.symbolic import coordinates
+
+        names = coordinates(model, parametrization).stored_names
+        data = json.loads(Path(q_file).read_text())
+        missing = [n for n in names if n not in data]
+        if missing:
+            raise click.BadParameter(f"{q_file} lacks {', '.join(missing)}", param_hint="--q")
+        q = np.array([float(data[n]) for n in names])
+    report = run(model, parametrization, chosen, at if at is not None else str(model.cases[chosen].t0), q)
+    if as_json:
+        click.echo(report.json_text())
+        return
+    click.echo(report.text())
+    if latex:
+        click.echo(report.latex())
+
+
+if __name__ == "__main__":  # pragma: no cover
+    sys.exit(main())

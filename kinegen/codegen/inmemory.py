@@ -1,0 +1,70 @@
+"""The in-memory path: ``sympy.lambdify`` of the symbolic system, no file written.
+
+It returns an object with the same attributes as a generated module, so the runtime
+treats both alike. Building is quicker (no printing); evaluation is slower.
+"""
+
+from __future__ import annotations
+
+from types import SimpleNamespace
+
+import numpy as np
+import sympy as sp
+
+from kinegen.codegen.writer import initial_q
+from kinegen.model import Model
+from kinegen.model.expressions import T
+from kinegen.rotations import Parametrization
+from kinegen.symbolic import build_systems
+
+
+def _stacked(function, m: int):
+    def evaluate(q, *rest):
+        values = function(q, *rest)
+        t = rest[-1]
+        out = np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+        for i, value in enumerate(values):
+            out[i] = value
+        return out
+
+    return evaluate
+
+
+def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleNamespace:
+    """A module-like namespace with every case of ``model`` compiled by ``lambdify``."""
+    systems = build_systems(model, parametrization)
+    first = next(iter(systems.values()))
+    coords = first.coordinates
+    q, v = coords.stored_symbols, coords.velocity_symbols
+    cases = {}
+    for name, system in systems.items():
+        rows, entries = system.rows, system.jacobian_entries
+        m = len(rows)
+
+        def compile_(args, exprs, size):
+            return _stacked(sp.lambdify(args, exprs, modules="numpy", cse=True), size)
+
+        cases[name] = {
+            "constraints": tuple(r.name for r in rows),
+            "drivers": tuple(r.name for r in rows if r.is_driver),
+            "jac_rows": tuple(i for i, _, _ in entries),
+            "jac_cols": tuple(j for _, j, _ in entries),
+            "t0": system.case.t0,
+            "t1": system.case.t1,
+            "steps": system.case.steps,
+            "phi": compile_([q, T], [r.phi for r in rows], m),
+            "jac": compile_([q, T], [e for _, _, e in entries], len(entries)),
+            "nu": compile_([q, T], [r.nu for r in rows], m),
+            "gamma": compile_([q, v, T], [r.gamma for r in rows], m),
+        }
+    return SimpleNamespace(
+        MODEL=model.name,
+        PARAMETRIZATION=parametrization.name,
+        SOURCE_SHA256=model.source_sha256,
+        STORED_NAMES=tuple(coords.stored_names),
+        VELOCITY_NAMES=tuple(coords.velocity_names),
+        BODIES={b.name: (b.stored_offset, b.velocity_offset) for b in coords.bodies},
+        POINTS={b.name: {k: tuple(float(sp.N(x, 30)) for x in p) for k, p in b.points.items()} for b in model.bodies},
+        INITIAL_Q=tuple(initial_q(model, parametrization)),
+        CASES=cases,
+    )

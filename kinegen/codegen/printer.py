@@ -1,0 +1,41 @@
+"""Printing SymPy expressions as NumPy-compatible Python source."""
+
+from __future__ import annotations
+
+import re
+
+import sympy as sp
+from sympy.printing.numpy import NumPyPrinter
+
+#: NumPy names a generated module may import (scalars and arrays alike).
+NUMPY_NAMES = (
+    "abs", "arccos", "arcsin", "arctan", "arctan2", "cos", "cosh", "exp", "log",
+    "pi", "sin", "sinh", "sqrt", "tan", "tanh",
+)  # fmt: skip
+
+
+class ModulePrinter(NumPyPrinter):
+    """NumPy printer with bare function names and round-trip float literals."""
+
+    def __init__(self) -> None:
+        super().__init__({"fully_qualified_modules": False, "inline": True})
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        return repr(float(expr))
+
+
+def freeze_numbers(expr: sp.Expr) -> sp.Expr:
+    """Replace irrational numeric subexpressions (``sqrt(2)/2``, ``cos(17/50)``, ``2*pi``) by floats.
+
+    Integers and rationals stay exact (Python folds ``89/50`` at compile time).
+    """
+
+    def is_constant(e: sp.Basic) -> bool:
+        return isinstance(e, sp.Expr) and e.is_number and not e.is_Rational and not e.is_Float
+
+    return expr.replace(is_constant, lambda e: sp.Float(float(sp.N(e, 30))))
+
+
+def used_numpy_names(source: str) -> list[str]:
+    """The NumPy names that ``source`` uses, sorted."""
+    return [n for n in NUMPY_NAMES if re.search(rf"(?<![\w.]){n}\b", source)]

@@ -1,0 +1,92 @@
+"""Typed errors raised by kinegen. Each carries a message meant for a person."""
+
+from __future__ import annotations
+
+
+class KinegenError(Exception):
+    """Base class of every error kinegen raises on purpose."""
+
+    exit_code = 1
+
+
+class ModelError(KinegenError):
+    """A model file is malformed: the message names the file, the entry and the problem."""
+
+    exit_code = 2
+
+    def __init__(self, file: str, entry: str, problem: str) -> None:
+        self.file = file
+        self.entry = entry
+        self.problem = problem
+        super().__init__(f"{file}: {entry}: {problem}")
+
+
+class ExpressionError(ValueError):
+    """An expression string is not allowed (raised inside the parser, wrapped in ModelError)."""
+
+
+class SingularJacobianError(KinegenError):
+    """Phi_q is singular (rank-deficient) at time ``t``."""
+
+    exit_code = 3
+
+    def __init__(
+        self,
+        t: float,
+        rank: int,
+        size: tuple[int, int],
+        dependent_constraints: list[str],
+        null_space: list[str],
+        detail: str = "",
+    ) -> None:
+        self.t = t
+        self.rank = rank
+        self.size = size
+        self.dependent_constraints = dependent_constraints
+        self.null_space = null_space
+        lines = [
+            f"singular Jacobian at t = {t:.6g}: rank {rank} of {size[0]}x{size[1]}" + (f" ({detail})" if detail else ""),
+            "  dependent constraints: " + (", ".join(dependent_constraints) or "-"),
+            "  null space (coordinates that move without changing Phi): " + ("; ".join(null_space) or "-"),
+        ]
+        super().__init__("\n".join(lines))
+
+
+class ConvergenceError(KinegenError):
+    """Newton-Raphson did not reach the tolerance within the iteration limit."""
+
+    exit_code = 4
+
+    def __init__(self, t: float, iterations: int, residual: float, worst: list[tuple[str, float]]) -> None:
+        self.t = t
+        self.iterations = iterations
+        self.residual = residual
+        self.worst = worst
+        worst_text = ", ".join(f"{name} = {value:.3e}" for name, value in worst)
+        super().__init__(
+            f"Newton-Raphson did not converge at t = {t:.6g} after {iterations} iterations: "
+            f"max |Phi| = {residual:.3e}; worst constraints: {worst_text}"
+        )
+
+
+class GeneratedModuleError(KinegenError):
+    """A generated module is missing, stale or was not written by kinegen."""
+
+    exit_code = 5
+
+
+class AssemblyError(ConvergenceError):
+    """The initial pose does not satisfy Phi and no assembled pose was found from it."""
+
+    def __init__(self, t: float, residual: float, worst: list[tuple[str, float]], cause: str) -> None:
+        self.t = t
+        self.iterations = 0
+        self.residual = residual
+        self.worst = worst
+        self.cause = cause
+        worst_text = ", ".join(f"{name} = {value:.3e}" for name, value in worst)
+        KinegenError.__init__(
+            self,
+            f"initial pose cannot be assembled at t = {t:.6g}: max |Phi| = {residual:.3e} at the given pose; "
+            f"largest residuals: {worst_text}\n  assembly solve: {cause}",
+        )

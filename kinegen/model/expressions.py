@@ -1,0 +1,167 @@
+"""Safe parsing of model expressions into exact SymPy expressions.
+
+Expressions are parsed with :mod:`ast` and translated node by node; nothing is ever
+passed to ``eval``, ``exec`` or ``sympify``. Allowed: numbers, the time ``t``, ``pi``,
+named parameters, ``+ - * / **``, unary minus and the functions in :data:`FUNCTIONS`.
+Decimal literals become exact rationals (``1.78`` -> ``89/50``).
+"""
+
+from __future__ import annotations
+
+import ast
+import math
+from collections.abc import Mapping
+
+import sympy as sp
+
+from kinegen.errors import ExpressionError
+
+#: Whitelisted functions, by the name used in model files.
+FUNCTIONS: dict[str, object] = {
+    "sin": sp.sin,
+    "cos": sp.cos,
+    "tan": sp.tan,
+    "asin": sp.asin,
+    "acos": sp.acos,
+    "atan": sp.atan,
+    "atan2": sp.atan2,
+    "sinh": sp.sinh,
+    "cosh": sp.cosh,
+    "tanh": sp.tanh,
+    "exp": sp.exp,
+    "log": sp.log,
+    "sqrt": sp.sqrt,
+    "abs": sp.Abs,
+}
+_ARITY = {"atan2": 2}
+
+#: Time symbol shared by every expression.
+T = sp.Symbol("t", real=True)
+
+MAX_LENGTH = 2000
+MAX_DEPTH = 40
+MAX_MAGNITUDE = 1e12
+_BINARY = {
+    ast.Add: lambda a, b: a + b,
+    ast.Sub: lambda a, b: a - b,
+    ast.Mult: lambda a, b: a * b,
+    ast.Div: lambda a, b: a / b,
+    ast.Pow: lambda a, b: a**b,
+}
+
+
+def number(value: float | int) -> sp.Expr:
+    """An exact SymPy number for a finite ``int`` or ``float`` (floats via their shortest repr)."""
+    if isinstance(value, bool) or not isinstance(value, (int, float)):
+        raise ExpressionError(f"expected a number, got {type(value).__name__} {value!r}")
+    if not math.isfinite(value):
+        raise ExpressionError(f"number {value!r} is not finite")
+    if abs(value) > MAX_MAGNITUDE:
+        raise ExpressionError(f"number {value!r} exceeds the allowed magnitude {MAX_MAGNITUDE:g}")
+    if isinstance(value, int):
+        return sp.Integer(value)
+    return sp.Rational(repr(value))
+
+
+def parse(
+    text: str | int | float,
+    parameters: Mapping[str, sp.Expr] | None = None,
+    allow_time: bool = True,
+) -> sp.Expr:
+    """Parse ``text`` into an exact SymPy expression.
+
+    ``parameters`` maps names to already-parsed values; ``t`` is the time symbol
+    :data:`T` when ``allow_time`` is true. Raises :class:`ExpressionError` on anything
+    outside the whitelist.
+    """
+    if isinstance(text, (int, float)) and not isinstance(text, bool):
+        return number(text)
+    if not isinstance(text, str):
+        raise ExpressionError(f"expected a number or an expression string, got {type(text).__name__}")
+    if len(text) > MAX_LENGTH:
+        raise ExpressionError(f"expression longer than {MAX_LENGTH} characters")
+    try:
+        tree = ast.parse(text.strip(), mode="eval")
+    except (SyntaxError, ValueError) as exc:
+        raise ExpressionError(f"cannot parse {text!r}: {exc.msg if hasattr(exc, 'msg') else exc}") from None
+    except RecursionError:
+        raise ExpressionError("expression nested too deeply") from None
+    return _Translator(parameters or {}, allow_time).visit(tree.body, 0)
+
+
+class _Translator:
+    def __init__(self, parameters: Mapping[str, sp.Expr], allow_time: bool) -> None:
+        self.parameters = parameters
+        self.allow_time = allow_time
+
+    def visit(self, node: ast.AST, depth: int) -> sp.Expr:
+        if depth > MAX_DEPTH:
+            raise ExpressionError(f"expression nested deeper than {MAX_DEPTH} levels")
+        if isinstance(node, ast.Constant):
+            return (
+                number(node.value)
+                if not isinstance(node.value, (str, bytes, complex))
+                else self._reject(f"constant {node.value!r} is not a real number")
+            )
+        if isinstance(node, ast.Name):
+            return self._name(node.id)
+        if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
+            operand = self.visit(node.operand, depth + 1)
+            return -operand if isinstance(node.op, ast.USub) else operand
+        if isinstance(node, ast.BinOp) and type(node.op) in _BINARY:
+            left = self.visit(node.left, depth + 1)
+            right = self.visit(node.right, depth + 1)
+            if isinstance(node.op, ast.Div) and right == 0:
+                raise ExpressionError("division by zero")
+            if isinstance(node.op, ast.Pow):
+                self._check_power(left, right)
+            return _BINARY[type(node.op)](left, right)
+        if isinstance(node, ast.Call):
+            return self._call(node, depth)
+        if isinstance(node, ast.Attribute):
+            return self._reject("attribute access is not allowed")
+        return self._reject(f"{type(node).__name__} is not allowed (only numbers, names, + - * / ** and math functions)")
+
+    def _name(self, name: str) -> sp.Expr:
+        if name.startswith("_"):
+            return self._reject(f"name {name!r} is not allowed")
+        if name == "t":
+            if not self.allow_time:
+                return self._reject("time 't' is not allowed here")
+            return T
+        if name == "pi":
+            return sp.pi
+        if name in self.parameters:
+            return self.parameters[name]
+        if name in FUNCTIONS:
+            return self._reject(f"function {name!r} must be called")
+        return self._reject(f"unknown name {name!r}")
+
+    def _call(self, node: ast.Call, depth: int) -> sp.Expr:
+        if not isinstance(node.func, ast.Name):
+            return self._reject("this call is not allowed: only direct calls of whitelisted functions")
+        name = node.func.id
+        if name not in FUNCTIONS:
+            return self._reject(f"function {name!r} is not allowed (allowed: {', '.join(sorted(FUNCTIONS))})")
+        if node.keywords:
+            return self._reject(f"keyword arguments in {name}() are not allowed")
+        arity = _ARITY.get(name, 1)
+        if len(node.args) != arity or any(isinstance(a, ast.Starred) for a in node.args):
+            return self._reject(f"{name}() takes {arity} argument(s)")
+        args = [self.visit(a, depth + 1) for a in node.args]
+        return FUNCTIONS[name](*args)
+
+    @staticmethod
+    def _check_power(base: sp.Expr, exponent: sp.Expr) -> None:
+        if not exponent.is_number:
+            return
+        try:
+            value = complex(exponent)
+        except (TypeError, ValueError):
+            raise ExpressionError(f"exponent {exponent} is not a real number") from None
+        if value.imag != 0 or not abs(value.real) <= 64:
+            raise ExpressionError(f"exponent {exponent} is not a real number of magnitude at most 64")
+
+    @staticmethod
+    def _reject(message: str) -> sp.Expr:
+        raise ExpressionError(message)

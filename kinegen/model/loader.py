@@ -1,0 +1,572 @@
+"""Load and validate a model file (YAML) into :class:`kinegen.model.schema.Model`.
+
+Every problem raises :class:`kinegen.errors.ModelError` naming the file, the entry
+(a dotted path such as ``joints.pivot.axis``) and what is wrong. Non-unit quaternions
+are normalized with a :class:`ModelWarning`; everything else that is off is rejected.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import re
+import warnings
+from collections.abc import Mapping
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import sympy as sp
+import yaml
+
+from kinegen.errors import ExpressionError, ModelError
+from kinegen.model import expressions
+from kinegen.model.schema import GROUND, Body, Case, Driver, Joint, Model, PointRef, Vector
+from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
+from kinegen.rotations.euler_parameters import quaternion_matrix
+
+NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
+RESERVED = {"t", "pi", "ground", *expressions.FUNCTIONS}
+#: Joint types and how many scalar equations each contributes.
+JOINT_EQUATIONS = {"spherical": 3, "revolute": 5, "cylindrical": 4, "prismatic": 5, "universal": 4, "fixed": 6, "distance": 1}
+JOINT_TYPES = tuple(JOINT_EQUATIONS)
+DRIVER_TYPES = ("joint_angle", "joint_translation", "distance", "coordinate", "body_angle")
+ORTHONORMAL_TOLERANCE = 1e-9
+MAX_FILE_BYTES = 5_000_000
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """SafeLoader that rejects duplicate keys (PyYAML would silently keep the last)."""
+
+
+def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
+    loader.flatten_mapping(node)
+    seen: dict = {}
+    for key_node, _ in node.value:
+        key = loader.construct_object(key_node, deep=deep)
+        try:
+            duplicate = key in seen
+        except TypeError:
+            raise yaml.constructor.ConstructorError(None, None, f"unhashable key {key!r}", key_node.start_mark) from None
+        if duplicate:
+            raise yaml.constructor.ConstructorError(None, None, f"duplicate name {key!r}", key_node.start_mark)
+        seen[key] = True
+    return loader.construct_mapping(node, deep=deep)
+
+
+_StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+class ModelWarning(UserWarning):
+    """Something in a model was accepted after a correction (e.g. a quaternion normalized)."""
+
+
+def load(path: str | Path) -> Model:
+    """Read, parse and validate the model file at ``path``."""
+    path = Path(path)
+    try:
+        raw = path.read_bytes()
+    except OSError as exc:
+        raise ModelError(str(path), "(file)", f"cannot read: {exc.strerror or exc}") from None
+    if len(raw) > MAX_FILE_BYTES:
+        raise ModelError(str(path), "(file)", f"larger than {MAX_FILE_BYTES} bytes")
+    return loads(raw, str(path))
+
+
+def loads(raw: bytes | str, file: str = "<string>") -> Model:
+    """Validate a model given as YAML text; ``file`` names it in error messages."""
+    data = raw.encode() if isinstance(raw, str) else raw
+    try:
+        document = yaml.load(data, Loader=_StrictLoader)
+    except yaml.YAMLError as exc:
+        mark = getattr(exc, "problem_mark", None)
+        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "(file)"
+        raise ModelError(file, where, f"invalid YAML: {getattr(exc, 'problem', None) or exc}") from None
+    except RecursionError:
+        raise ModelError(file, "(file)", "YAML nested too deeply") from None
+    return _Reader(file, hashlib.sha256(data).hexdigest()).model(document)
+
+
+class _Reader:
+    def __init__(self, file: str, sha256: str) -> None:
+        self.file = file
+        self.sha256 = sha256
+        self.parameters: dict[str, sp.Expr] = {}
+        self.bodies: dict[str, Body] = {}
+        self.ground_points: dict[str, Vector] = {}
+        self.ground_vectors: dict[str, Vector] = {}
+        self.joints: dict[str, Joint] = {}
+
+    # ---- helpers ---------------------------------------------------------------------
+    def fail(self, entry: str, problem: str) -> ModelError:
+        return ModelError(self.file, entry, problem)
+
+    def mapping(self, value: Any, entry: str, allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> dict:
+        if value is None and not required:
+            return {}
+        if not isinstance(value, Mapping):
+            raise self.fail(entry, f"expected a mapping, got {_kind(value)}")
+        for key in value:
+            if not isinstance(key, str):
+                raise self.fail(entry, f"key {key!r} is not a string")
+            if key not in allowed:
+                where = key if entry == "(top level)" else f"{entry}.{key}"
+                raise self.fail(where, f"unknown key (allowed: {', '.join(allowed)})")
+        for key in required:
+            if key not in value:
+                raise self.fail(entry, f"missing required key '{key}'")
+        return dict(value)
+
+    def name(self, value: Any, entry: str) -> str:
+        if not isinstance(value, str) or not NAME_PATTERN.match(value):
+            raise self.fail(entry, f"{value!r} is not a valid name (letter first, then letters, digits, _)")
+        if value in RESERVED:
+            raise self.fail(entry, f"{value!r} is a reserved name")
+        return value
+
+    def scalar(self, value: Any, entry: str, allow_time: bool = False) -> sp.Expr:
+        try:
+            expr = expressions.parse(value, self.parameters, allow_time=allow_time)
+        except ExpressionError as exc:
+            raise self.fail(entry, str(exc)) from None
+        if not allow_time:
+            if not (expr.is_number and expr.is_real is not False):
+                raise self.fail(entry, f"{value!r} is not a real constant")
+            numeric = complex(sp.N(expr))
+            if numeric.imag != 0 or not abs(numeric.real) < expressions.MAX_MAGNITUDE:
+                raise self.fail(entry, f"{value!r} is not a finite real number")
+        elif expr.has(sp.zoo, sp.oo, -sp.oo, sp.nan, sp.I):
+            raise self.fail(entry, f"{value!r} is not a finite real function of t")
+        return expr
+
+    def vector(self, value: Any, entry: str) -> Vector:
+        if not isinstance(value, (list, tuple)) or len(value) != 3:
+            raise self.fail(entry, f"expected a list of 3 numbers, got {_kind(value)}")
+        return sp.ImmutableMatrix([self.scalar(v, f"{entry}[{i}]") for i, v in enumerate(value)])
+
+    def unit(self, value: Any, entry: str) -> Vector:
+        v = self.vector(value, entry)
+        norm2 = sp.expand(sum(x**2 for x in v))
+        if float(norm2) < 1e-18:
+            raise self.fail(entry, "zero-length vector")
+        return sp.ImmutableMatrix(v / sp.sqrt(norm2))
+
+    # ---- sections --------------------------------------------------------------------
+    def model(self, document: Any) -> Model:
+        top = self.mapping(
+            document,
+            "(top level)",
+            ("model", "description", "parameters", "ground", "bodies", "joints", "drivers", "cases"),
+            ("model", "bodies"),
+        )
+        name = self.name(top["model"], "model")
+        description = top.get("description", "")
+        if not isinstance(description, str):
+            raise self.fail("description", "expected a string")
+        for key, value in self.mapping(top.get("parameters"), "parameters", tuple(_keys(top.get("parameters")))).items():
+            self.parameters[self.name(key, f"parameters.{key}")] = self.scalar(value, f"parameters.{key}")
+        ground = self.mapping(top.get("ground"), "ground", ("points", "vectors"))
+        identity = Body(GROUND, sp.ImmutableMatrix([0, 0, 0]), sp.ImmutableMatrix(sp.eye(3)))
+        self.ground_points = self.named_vectors(ground.get("points"), "ground.points", identity, False, False)
+        self.ground_vectors = self.named_vectors(ground.get("vectors"), "ground.vectors", identity, True, False)
+        bodies = self.mapping(top["bodies"], "bodies", tuple(_keys(top["bodies"])))
+        if not bodies:
+            raise self.fail("bodies", "a model needs at least one moving body")
+        for key, value in bodies.items():
+            self.bodies[key] = self.body(self.name(key, f"bodies.{key}"), value)
+        joints = self.mapping(top.get("joints"), "joints", tuple(_keys(top.get("joints"))))
+        for key, value in joints.items():
+            self.joints[key] = self.joint(self.name(key, f"joints.{key}"), value)
+        common = self.drivers(top.get("drivers"), "drivers")
+        cases = self.cases(top.get("cases"), common)
+        return Model(
+            name=name,
+            file=self.file,
+            source_sha256=self.sha256,
+            description=description,
+            parameters=dict(self.parameters),
+            bodies=tuple(self.bodies.values()),
+            joints=tuple(self.joints.values()),
+            cases=cases,
+        )
+
+    def body(self, name: str, value: Any) -> Body:
+        entry = f"bodies.{name}"
+        spec = self.mapping(
+            value,
+            entry,
+            ("position", "orientation", "points", "global_points", "vectors", "global_vectors"),
+            ("position",),
+        )
+        position = self.vector(spec["position"], f"{entry}.position")
+        rotation = self.orientation(spec.get("orientation"), f"{entry}.orientation")
+        pose = Body(name, position, rotation)
+        points = self.named_vectors(spec.get("points"), f"{entry}.points", pose, False, False)
+        vectors = self.named_vectors(spec.get("vectors"), f"{entry}.vectors", pose, True, False)
+        for key, local in self.named_vectors(spec.get("global_points"), f"{entry}.global_points", pose, False, True).items():
+            if key in points:
+                raise self.fail(f"{entry}.global_points.{key}", "duplicate point name (also in points)")
+            points[key] = local
+        for key, local in self.named_vectors(spec.get("global_vectors"), f"{entry}.global_vectors", pose, True, True).items():
+            if key in vectors:
+                raise self.fail(f"{entry}.global_vectors.{key}", "duplicate vector name (also in vectors)")
+            vectors[key] = local
+        return Body(name, position, rotation, points, vectors)
+
+    def named_vectors(self, value: Any, entry: str, pose: Body, unit: bool, is_global: bool) -> dict[str, Vector]:
+        result: dict[str, Vector] = {}
+        for key, item in self.mapping(value, entry, tuple(_keys(value))).items():
+            key_entry = f"{entry}.{key}"
+            self.name(key, key_entry)
+            vec = self.unit(item, key_entry) if unit else self.vector(item, key_entry)
+            if is_global:
+                vec = _to_local(pose, vec, unit)
+            result[key] = vec
+        return result
+
+    def orientation(self, value: Any, entry: str) -> sp.ImmutableMatrix:
+        if value is None:
+            return sp.ImmutableMatrix(sp.eye(3))
+        spec = self.mapping(value, entry, ("quaternion", "euler", "matrix", "axis", "angle"))
+        forms = [k for k in ("quaternion", "euler", "matrix") if k in spec] + (
+            ["axis/angle"] if {"axis", "angle"} & spec.keys() else []
+        )
+        if len(forms) != 1:
+            raise self.fail(entry, "give exactly one of: quaternion, euler, matrix, axis + angle")
+        if "quaternion" in spec:
+            q = spec["quaternion"]
+            if not isinstance(q, (list, tuple)) or len(q) != 4:
+                raise self.fail(f"{entry}.quaternion", f"expected [w, x, y, z], got {_kind(q)}")
+            quat = [self.scalar(v, f"{entry}.quaternion[{i}]") for i, v in enumerate(q)]
+            norm2 = sp.expand(sum(x**2 for x in quat))
+            if float(norm2) < 1e-18:
+                raise self.fail(f"{entry}.quaternion", "zero quaternion")
+            if abs(float(norm2) - 1.0) > 1e-12:
+                warnings.warn(
+                    f"{self.file}: {entry}.quaternion: norm {float(sp.sqrt(norm2)):.6g} != 1, normalized",
+                    ModelWarning,
+                    stacklevel=2,
+                )
+                quat = [x / sp.sqrt(norm2) for x in quat]
+            return sp.ImmutableMatrix(quaternion_matrix(sp.Matrix(quat)).applyfunc(sp.expand))
+        if "euler" in spec:
+            euler = self.mapping(spec["euler"], f"{entry}.euler", ("sequence", "angles"), ("sequence", "angles"))
+            sequence = str(euler["sequence"]).lower()
+            if sequence not in SEQUENCES:
+                raise self.fail(
+                    f"{entry}.euler.sequence",
+                    f"unknown sequence {euler['sequence']!r} (intrinsic, one of {', '.join(SEQUENCES)})",
+                )
+            angles = self.vector(euler["angles"], f"{entry}.euler.angles")
+            return sp.ImmutableMatrix(EulerAngles(sequence).matrix(sp.Matrix(angles)))
+        if "matrix" in spec:
+            rows = spec["matrix"]
+            if not isinstance(rows, (list, tuple)) or len(rows) != 3:
+                raise self.fail(f"{entry}.matrix", "expected 3 rows of 3 numbers")
+            matrix = sp.ImmutableMatrix([list(self.vector(r, f"{entry}.matrix[{i}]")) for i, r in enumerate(rows)])
+            numeric = sp.matrix2numpy(matrix.evalf(), dtype=float)
+            if np.abs(numeric.T @ numeric - np.eye(3)).max() > ORTHONORMAL_TOLERANCE or np.linalg.det(numeric) < 0:
+                raise self.fail(f"{entry}.matrix", f"not a rotation matrix (orthonormal to {ORTHONORMAL_TOLERANCE:g}, det +1)")
+            return matrix
+        if "axis" not in spec or "angle" not in spec:
+            raise self.fail(entry, "axis-angle needs both 'axis' and 'angle'")
+        k = self.unit(spec["axis"], f"{entry}.axis")
+        angle = self.scalar(spec["angle"], f"{entry}.angle")
+        kx = sp.Matrix([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
+        rodrigues = sp.eye(3) * sp.cos(angle) + sp.sin(angle) * kx + (1 - sp.cos(angle)) * (k * k.T)
+        return sp.ImmutableMatrix(rodrigues.applyfunc(sp.expand))
+
+    # ---- joints ----------------------------------------------------------------------
+    def pose(self, name: str) -> Body:
+        if name == GROUND:
+            return Body(
+                GROUND, sp.ImmutableMatrix([0, 0, 0]), sp.ImmutableMatrix(sp.eye(3)), self.ground_points, self.ground_vectors
+            )
+        return self.bodies[name]
+
+    def body_name(self, value: Any, entry: str) -> str:
+        if value != GROUND and value not in self.bodies:
+            raise self.fail(entry, f"unknown body {value!r} (known: ground, {', '.join(self.bodies)})")
+        return value
+
+    def joint(self, name: str, value: Any) -> Joint:
+        entry = f"joints.{name}"
+        spec = self.mapping(
+            value, entry, ("type", "bodies", "points", "at", "axes", "axis", "references", "length"), ("type", "bodies")
+        )
+        kind = spec["type"]
+        if kind not in JOINT_TYPES:
+            raise self.fail(f"{entry}.type", f"unknown joint type {kind!r} (one of {', '.join(JOINT_TYPES)})")
+        pair = spec["bodies"]
+        if not isinstance(pair, (list, tuple)) or len(pair) != 2:
+            raise self.fail(f"{entry}.bodies", "expected a list of two body names")
+        b1 = self.body_name(pair[0], f"{entry}.bodies[0]")
+        b2 = self.body_name(pair[1], f"{entry}.bodies[1]")
+        if b1 == b2:
+            raise self.fail(f"{entry}.bodies", f"a joint needs two different bodies, got {b1!r} twice")
+        pose1, pose2 = self.pose(b1), self.pose(b2)
+        needs_axis = kind in ("revolute", "cylindrical", "prismatic", "universal")
+        allowed = {"type", "bodies", "points", "at"} | ({"axes", "axis"} if needs_axis else set())
+        if kind in ("revolute", "cylindrical", "prismatic"):
+            allowed.add("references")
+        if kind == "distance":
+            allowed = {"type", "bodies", "points", "length"}
+        for key in spec:
+            if key not in allowed:
+                raise self.fail(f"{entry}.{key}", f"not used by a {kind} joint (allowed: {', '.join(sorted(allowed))})")
+        point1, point2 = self.joint_points(spec, entry, pose1, pose2, kind)
+        fields: dict[str, Any] = {"point1": point1, "point2": point2}
+        if needs_axis:
+            axis1, axis2 = self.joint_axes(spec, entry, pose1, pose2, kind)
+            fields.update(axis1=axis1, axis2=axis2)
+            if kind != "universal":
+                ref1, ref2 = self.references(spec, entry, pose1, pose2, axis1, axis2)
+                fields.update(reference1=ref1, reference2=ref2)
+                g1 = _cross(axis1, ref1)
+                fields["lock2"] = tuple(_carry(pose1, pose2, v) for v in (ref1, g1, axis1))
+            elif abs(float((_rotate(pose1, axis1).T * _rotate(pose2, axis2))[0])) > 1e-9:
+                raise self.fail(f"{entry}.axes", "the two universal-joint axes must be perpendicular at the initial pose")
+        if kind == "fixed":
+            e = [sp.ImmutableMatrix(sp.eye(3)[:, i]) for i in range(3)]
+            fields["lock2"] = tuple(_carry(pose1, pose2, v) for v in e)
+        if kind == "distance":
+            d = _global(pose1, point1) - _global(pose2, point2)
+            initial = sp.sqrt(sp.expand((d.T * d)[0]))
+            length = self.scalar(spec["length"], f"{entry}.length") if "length" in spec else initial
+            if float(length) <= 1e-9:
+                raise self.fail(
+                    f"{entry}.length" if "length" in spec else f"{entry}.points",
+                    "a distance joint needs a positive length (points must not coincide)",
+                )
+            fields["length"] = length
+        return Joint(name, kind, b1, b2, **fields)
+
+    def joint_points(self, spec: dict, entry: str, pose1: Body, pose2: Body, kind: str) -> tuple[Vector, Vector]:
+        if ("points" in spec) == ("at" in spec) and kind != "fixed":
+            raise self.fail(
+                entry, "give exactly one of 'points' (a point name on each body) or 'at' (a global position at the initial pose)"
+            )
+        if kind == "distance" and "at" in spec:
+            raise self.fail(f"{entry}.at", "a distance joint needs two different points: use 'points'")
+        if "points" in spec:
+            names = spec["points"]
+            if not isinstance(names, (list, tuple)) or len(names) != 2:
+                raise self.fail(f"{entry}.points", "expected two point names (one on each body)")
+            return (self.point_on(pose1, names[0], f"{entry}.points[0]"), self.point_on(pose2, names[1], f"{entry}.points[1]"))
+        at = self.vector(spec["at"], f"{entry}.at") if "at" in spec else pose2.position
+        return _to_local(pose1, at, False), _to_local(pose2, at, False)
+
+    def point_on(self, pose: Body, name: Any, entry: str) -> Vector:
+        if not isinstance(name, str) or name not in pose.points:
+            known = ", ".join(pose.points) or "none"
+            raise self.fail(entry, f"unknown point {name!r} on body {pose.name!r} (known: {known})")
+        return pose.points[name]
+
+    def vector_on(self, pose: Body, name: Any, entry: str) -> Vector:
+        if not isinstance(name, str) or name not in pose.vectors:
+            known = ", ".join(pose.vectors) or "none"
+            raise self.fail(entry, f"unknown vector {name!r} on body {pose.name!r} (known: {known})")
+        return pose.vectors[name]
+
+    def joint_axes(self, spec: dict, entry: str, pose1: Body, pose2: Body, kind: str) -> tuple[Vector, Vector]:
+        if ("axes" in spec) == ("axis" in spec):
+            raise self.fail(
+                entry,
+                "give exactly one of 'axes' (a vector name on each body) or 'axis' (a global direction at the initial pose)",
+            )
+        if "axes" in spec:
+            names = spec["axes"]
+            if not isinstance(names, (list, tuple)) or len(names) != 2:
+                raise self.fail(f"{entry}.axes", "expected two vector names (one on each body)")
+            axis1 = self.vector_on(pose1, names[0], f"{entry}.axes[0]")
+            axis2 = self.vector_on(pose2, names[1], f"{entry}.axes[1]")
+            if kind != "universal":
+                g1, g2 = _rotate(pose1, axis1), _rotate(pose2, axis2)
+                if float((_cross(g1, g2).T * _cross(g1, g2))[0]) > 1e-12:
+                    raise self.fail(f"{entry}.axes", "the two axes are not parallel at the initial pose")
+            return axis1, axis2
+        if kind == "universal":
+            axes = spec["axis"]
+            if not isinstance(axes, (list, tuple)) or len(axes) != 2:
+                raise self.fail(
+                    f"{entry}.axis", "a universal joint needs two global directions [[...], [...]] (body 1's, body 2's)"
+                )
+            a1 = self.unit(axes[0], f"{entry}.axis[0]")
+            a2 = self.unit(axes[1], f"{entry}.axis[1]")
+            return _to_local(pose1, a1, True), _to_local(pose2, a2, True)
+        axis = self.unit(spec["axis"], f"{entry}.axis")
+        return _to_local(pose1, axis, True), _to_local(pose2, axis, True)
+
+    def references(self, spec: dict, entry: str, pose1: Body, pose2: Body, axis1: Vector, axis2: Vector) -> tuple[Vector, Vector]:
+        if "references" not in spec:
+            return perpendicular(axis1), perpendicular(axis2)
+        names = spec["references"]
+        if not isinstance(names, (list, tuple)) or len(names) != 2:
+            raise self.fail(f"{entry}.references", "expected two vector names (one on each body)")
+        refs = []
+        for i, (pose, axis) in enumerate(((pose1, axis1), (pose2, axis2))):
+            ref = self.vector_on(pose, names[i], f"{entry}.references[{i}]")
+            if abs(float((ref.T * axis)[0])) > 1e-9:
+                raise self.fail(f"{entry}.references[{i}]", "a reference vector must be perpendicular to the joint axis")
+            refs.append(ref)
+        return refs[0], refs[1]
+
+    # ---- drivers and cases -------------------------------------------------------------
+    def drivers(self, value: Any, entry: str) -> list[Driver]:
+        return [
+            self.driver(self.name(k, f"{entry}.{k}"), v, f"{entry}.{k}")
+            for k, v in self.mapping(value, entry, tuple(_keys(value))).items()
+        ]
+
+    def point_ref(self, value: Any, entry: str) -> PointRef:
+        if not isinstance(value, str) or value.count(".") != 1:
+            raise self.fail(entry, f"expected 'body.point', got {value!r}")
+        body, point = value.split(".")
+        self.body_name(body, entry)
+        return PointRef(body, point, self.point_on(self.pose(body), point, entry))
+
+    def driver(self, name: str, value: Any, entry: str) -> Driver:
+        spec = self.mapping(
+            value,
+            entry,
+            ("type", "joint", "points", "point", "component", "body", "axis", "reference", "function"),
+            ("type", "function"),
+        )
+        kind = spec["type"]
+        if kind not in DRIVER_TYPES:
+            raise self.fail(f"{entry}.type", f"unknown driver type {kind!r} (one of {', '.join(DRIVER_TYPES)})")
+        needed = {
+            "joint_angle": {"joint"},
+            "joint_translation": {"joint"},
+            "distance": {"points"},
+            "coordinate": {"point", "component"},
+            "body_angle": {"body", "axis"},
+        }[kind]
+        optional = {"reference"} if kind == "body_angle" else set()
+        for key in spec:
+            if key not in needed | optional | {"type", "function"}:
+                raise self.fail(f"{entry}.{key}", f"not used by a {kind} driver")
+        for key in needed:
+            if key not in spec:
+                raise self.fail(entry, f"a {kind} driver needs '{key}'")
+        function = self.scalar(spec["function"], f"{entry}.function", allow_time=True)
+        if kind in ("joint_angle", "joint_translation"):
+            joint = self.joints.get(spec["joint"]) if isinstance(spec["joint"], str) else None
+            if joint is None:
+                raise self.fail(f"{entry}.joint", f"unknown joint {spec['joint']!r} (known: {', '.join(self.joints) or 'none'})")
+            ok = ("revolute", "cylindrical") if kind == "joint_angle" else ("prismatic", "cylindrical")
+            if joint.type not in ok:
+                raise self.fail(
+                    f"{entry}.joint", f"a {kind} driver needs a {' or '.join(ok)} joint, {joint.name!r} is {joint.type}"
+                )
+            return Driver(name, kind, function, joint=joint.name)
+        if kind == "distance":
+            refs = spec["points"]
+            if not isinstance(refs, (list, tuple)) or len(refs) != 2:
+                raise self.fail(f"{entry}.points", "expected two points 'body.point'")
+            p1, p2 = (self.point_ref(r, f"{entry}.points[{i}]") for i, r in enumerate(refs))
+            if p1.body == p2.body:
+                raise self.fail(f"{entry}.points", "the two points are on the same body")
+            gap = _global(self.pose(p1.body), p1.local) - _global(self.pose(p2.body), p2.local)
+            if float((gap.T * gap)[0]) < 1e-12:
+                raise self.fail(
+                    f"{entry}.points", "the two points coincide at the initial pose (a distance driver is singular there)"
+                )
+            return Driver(name, kind, function, points=(p1, p2))
+        if kind == "coordinate":
+            point = self.point_ref(spec["point"], f"{entry}.point")
+            if point.body == GROUND:
+                raise self.fail(f"{entry}.point", "a coordinate driver needs a point on a moving body")
+            component = spec["component"]
+            if component not in ("x", "y", "z"):
+                raise self.fail(f"{entry}.component", f"expected x, y or z, got {component!r}")
+            return Driver(name, kind, function, points=(point,), component="xyz".index(component))
+        body = self.body_name(spec["body"], f"{entry}.body")
+        if body == GROUND:
+            raise self.fail(f"{entry}.body", "a body_angle driver needs a moving body")
+        axis = self.unit(spec["axis"], f"{entry}.axis")
+        reference = perpendicular(axis) if "reference" not in spec else self.unit(spec["reference"], f"{entry}.reference")
+        if abs(float((reference.T * axis)[0])) > 1e-9:
+            raise self.fail(f"{entry}.reference", "must be perpendicular to the axis")
+        return Driver(name, kind, function, body=body, axis=axis, reference=reference, body_reference=reference)
+
+    def check_mobility(self, entry: str, drivers: list[Driver]) -> None:
+        """Coordinates (6 per body) must equal joint equations + drivers (no redundancy allowed)."""
+        coordinates = 6 * len(self.bodies)
+        equations = sum(JOINT_EQUATIONS[j.type] for j in self.joints.values())
+        mobility = coordinates - equations
+        if mobility != len(drivers):
+            raise self.fail(
+                f"{entry}.drivers" if entry != "drivers" else entry,
+                f"degree-of-freedom count does not match: {coordinates} coordinates (6 per body), "
+                f"{equations} joint equations, so mobility {mobility}, but {len(drivers)} driver(s)",
+            )
+
+    def cases(self, value: Any, common: list[Driver]) -> dict:
+        if value is None:
+            self.check_mobility("drivers", common)
+            return {"default": Case("default", tuple(common))}
+        cases = {}
+        for key, spec in self.mapping(value, "cases", tuple(_keys(value))).items():
+            entry = f"cases.{key}"
+            self.name(key, entry)
+            spec = self.mapping(spec, entry, ("description", "drivers", "t0", "t1", "steps"))
+            drivers = common + self.drivers(spec.get("drivers"), f"{entry}.drivers")
+            names = [d.name for d in drivers]
+            for n in names:
+                if names.count(n) > 1:
+                    raise self.fail(f"{entry}.drivers.{n}", "duplicate driver name (also in the common drivers)")
+            t0 = float(self.scalar(spec.get("t0", 0), f"{entry}.t0"))
+            t1 = float(self.scalar(spec.get("t1", 1), f"{entry}.t1"))
+            if not t1 > t0:
+                raise self.fail(f"{entry}.t1", f"t1 = {t1} must be greater than t0 = {t0}")
+            steps = spec.get("steps", 101)
+            if isinstance(steps, bool) or not isinstance(steps, int) or not 2 <= steps <= 10_000_000:
+                raise self.fail(f"{entry}.steps", f"expected a whole number of time points >= 2, got {steps!r}")
+            self.check_mobility(entry, drivers)
+            cases[key] = Case(key, tuple(drivers), t0, t1, steps)
+        if not cases:
+            raise self.fail("cases", "no case defined")
+        return cases
+
+
+def _keys(value: Any) -> list[str]:
+    return [k for k in value if isinstance(k, str)] if isinstance(value, Mapping) else []
+
+
+def _kind(value: Any) -> str:
+    return f"{type(value).__name__} {value!r}"[:80]
+
+
+def _cross(a: Vector, b: Vector) -> Vector:
+    return sp.ImmutableMatrix(sp.Matrix(a).cross(sp.Matrix(b)))
+
+
+def _rotate(pose: Body, local: Vector) -> Vector:
+    return sp.ImmutableMatrix(pose.rotation * local)
+
+
+def _global(pose: Body, local: Vector) -> Vector:
+    return sp.ImmutableMatrix(pose.position + pose.rotation * local)
+
+
+def _to_local(pose: Body, vec: Vector, is_direction: bool) -> Vector:
+    """Body coordinates of a global point (or direction) at the initial pose."""
+    relative = vec if is_direction else vec - pose.position
+    return sp.ImmutableMatrix((pose.rotation.T * relative).applyfunc(sp.expand))
+
+
+def _carry(pose1: Body, pose2: Body, local1: Vector) -> Vector:
+    """Body-2 coordinates of the vector that coincides with body-1's ``local1`` at the initial pose."""
+    return sp.ImmutableMatrix((pose2.rotation.T * pose1.rotation * local1).applyfunc(sp.expand))
+
+
+def perpendicular(axis: Vector) -> Vector:
+    """The default unit reference vector perpendicular to ``axis``.
+
+    It is the coordinate axis after the one ``axis`` is most aligned with (x -> y, y -> z,
+    z -> x), made perpendicular by Gram-Schmidt: for axis z this is x, as in the paper.
+    """
+    k = (max(range(3), key=lambda i: (abs(float(axis[i])), -i)) + 1) % 3
+    e = sp.Matrix([1 if i == k else 0 for i in range(3)])
+    u = e - axis * (axis.T * e)[0]
+    return sp.ImmutableMatrix((u / sp.sqrt(sp.expand((u.T * u)[0]))).applyfunc(sp.expand))

@@ -1,0 +1,52 @@
+"""Euler parameters: four values ``e = (e0, e1, e2, e3)`` per body (order w, x, y, z) plus
+the normalization constraint ``e·e - 1 = 0``. Velocity coordinates are ``de/dt``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+
+from kinegen.rotations import quaternion_algebra as qa
+from kinegen.rotations.base import Parametrization
+
+
+def quaternion_matrix(e: sp.Matrix) -> sp.Matrix:
+    """Symbolic rotation matrix of Euler parameters (valid for unit ``e``)."""
+    e0, e1, e2, e3 = e
+    half = sp.Rational(1, 2)
+    return 2 * sp.Matrix(
+        [
+            [e0**2 + e1**2 - half, e1 * e2 - e0 * e3, e1 * e3 + e0 * e2],
+            [e1 * e2 + e0 * e3, e0**2 + e2**2 - half, e2 * e3 - e0 * e1],
+            [e1 * e3 - e0 * e2, e2 * e3 + e0 * e1, e0**2 + e3**2 - half],
+        ]
+    )
+
+
+class EulerParameters(Parametrization):
+    """Four Euler parameters per body with a normalization constraint."""
+
+    name = "euler-parameters"
+    stored_names = ("e0", "e1", "e2", "e3")
+    velocity_names = ("e0", "e1", "e2", "e3")
+
+    def matrix(self, o: sp.Matrix) -> sp.Matrix:
+        return quaternion_matrix(o)
+
+    def normalization(self, o: sp.Matrix) -> list[sp.Expr]:
+        return [sum(x**2 for x in o) - 1]
+
+    def from_matrix(self, rotation: np.ndarray) -> np.ndarray:
+        return qa.from_matrix(rotation)
+
+    def to_matrix(self, o: np.ndarray) -> np.ndarray:
+        return qa.to_matrix(o)
+
+    def omega(self, o: np.ndarray, w: np.ndarray) -> np.ndarray:
+        # omega (global) = 2 vec(de/dt ⊗ e*)
+        return 2.0 * qa.multiply(w, qa.conjugate(o))[..., 1:]
+
+    def omega_dot(self, o: np.ndarray, w: np.ndarray, w_dot: np.ndarray) -> np.ndarray:
+        # d/dt 2 (de ⊗ e*) = 2 (dde ⊗ e*) + 2 (de ⊗ de*), whose second term is a scalar
+        return 2.0 * qa.multiply(w_dot, qa.conjugate(o))[..., 1:]

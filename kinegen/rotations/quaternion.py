@@ -1,0 +1,50 @@
+"""Unit quaternion with rotation increments (the paper's formulation, eq. 19).
+
+The stored orientation is a unit quaternion ``(qw, qx, qy, qz)``. Velocity coordinates
+are ``(theta_x, theta_y, theta_z)``: a small rotation about the *global* axes, so the
+Jacobian column of ``theta`` is ``dPhi/dtheta`` with ``A -> exp([theta]x) A``, the
+velocity is the global angular velocity ``omega`` and the acceleration ``omega_dot``.
+A Newton step updates the quaternion by the exponential map ``q <- exp(theta) ⊗ q``, which
+keeps it unit to rounding; it is never renormalized.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+
+from kinegen.rotations import quaternion_algebra as qa
+from kinegen.rotations.base import Parametrization
+from kinegen.rotations.euler_parameters import quaternion_matrix
+
+
+class Quaternion(Parametrization):
+    """Stored unit quaternion, tangent-space (global rotation increment) velocity coordinates."""
+
+    name = "quaternion"
+    stored_names = ("qw", "qx", "qy", "qz")
+    velocity_names = ("theta_x", "theta_y", "theta_z")
+
+    def matrix(self, o: sp.Matrix) -> sp.Matrix:
+        return quaternion_matrix(o)
+
+    def velocity_map(self, o: sp.Matrix) -> sp.Matrix:
+        # dq/dt = 1/2 [0, omega] ⊗ q = 1/2 [[-v^T], [w I - [v]x]] omega
+        w, x, y, z = o
+        half = sp.Rational(1, 2)
+        return half * sp.Matrix([[-x, -y, -z], [w, z, -y], [-z, w, x], [y, -x, w]])
+
+    def from_matrix(self, rotation: np.ndarray) -> np.ndarray:
+        return qa.from_matrix(rotation)
+
+    def to_matrix(self, o: np.ndarray) -> np.ndarray:
+        return qa.to_matrix(o)
+
+    def omega(self, o: np.ndarray, w: np.ndarray) -> np.ndarray:
+        return np.asarray(w, dtype=float)
+
+    def omega_dot(self, o: np.ndarray, w: np.ndarray, w_dot: np.ndarray) -> np.ndarray:
+        return np.asarray(w_dot, dtype=float)
+
+    def retract(self, o: np.ndarray, step: np.ndarray) -> np.ndarray:
+        return qa.multiply(qa.exp(step), o)

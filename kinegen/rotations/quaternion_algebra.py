@@ -1,0 +1,50 @@
+"""Numeric unit-quaternion algebra, order (w, x, y, z), Hamilton product.
+
+Arrays may carry leading batch dimensions: a quaternion is ``q[..., 0:4]``.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+
+def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Hamilton product ``p ⊗ q``."""
+    pw, pv = p[..., 0], p[..., 1:]
+    qw, qv = q[..., 0], q[..., 1:]
+    w = pw * qw - np.sum(pv * qv, axis=-1)
+    v = pw[..., None] * qv + qw[..., None] * pv + np.cross(pv, qv)
+    return np.concatenate([w[..., None], v], axis=-1)
+
+
+def conjugate(q: np.ndarray) -> np.ndarray:
+    """``q*`` = (w, -x, -y, -z)."""
+    return q * np.array([1.0, -1.0, -1.0, -1.0])
+
+
+def to_matrix(q: np.ndarray) -> np.ndarray:
+    """Rotation matrix of a (not necessarily unit) quaternion, via the Euler-parameter formula."""
+    w, x, y, z = (q[..., i] for i in range(4))
+    rows = [
+        [w * w + x * x - 0.5, x * y - w * z, x * z + w * y],
+        [x * y + w * z, w * w + y * y - 0.5, y * z - w * x],
+        [x * z - w * y, y * z + w * x, w * w + z * z - 0.5],
+    ]
+    return 2.0 * np.stack([np.stack(r, axis=-1) for r in rows], axis=-2)
+
+
+def from_matrix(rotation: np.ndarray) -> np.ndarray:
+    """Unit quaternion (w >= 0) of a rotation matrix, via SciPy."""
+    from scipy.spatial.transform import Rotation
+
+    q = Rotation.from_matrix(rotation).as_quat(scalar_first=True)
+    return np.where(q[..., :1] < 0, -q, q)
+
+
+def exp(rotation_vector: np.ndarray) -> np.ndarray:
+    """Unit quaternion of the rotation vector ``theta`` (axis * angle): exp(theta/2)."""
+    angle = np.linalg.norm(rotation_vector, axis=-1)
+    half = 0.5 * angle
+    # sin(half)/angle, with its Taylor series near zero
+    scale = np.where(angle > 1e-8, np.sin(half) / np.where(angle > 1e-8, angle, 1.0), 0.5 - angle**2 / 48.0)
+    return np.concatenate([np.cos(half)[..., None], scale[..., None] * rotation_vector], axis=-1)

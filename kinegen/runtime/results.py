@@ -1,0 +1,139 @@
+"""Results of a trajectory solve: per body and time, poses, velocities, accelerations.
+
+Arrays are indexed by time first. Rotation matrices map body to global coordinates;
+quaternions are (w, x, y, z); omega and omega_dot are global; point quantities are
+global positions, velocities and accelerations of named body points.
+"""
+
+from __future__ import annotations
+
+import csv
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from kinegen.runtime.system import NumericSystem
+
+
+@dataclass
+class Results:
+    """Time histories of one solve (the *data*; the system is the model)."""
+
+    system: NumericSystem
+    times: np.ndarray
+    q: np.ndarray  #: stored coordinates, (K, n)
+    v: np.ndarray  #: velocity coordinates, (K, nv)
+    a: np.ndarray  #: their time derivatives, (K, nv)
+    iterations: np.ndarray  #: Newton iterations per time point
+    residuals: np.ndarray  #: max |Phi| at convergence per time point
+
+    def _slices(self, body: str) -> tuple[int, int]:
+        if body not in self.system.bodies:
+            raise KeyError(f"no body {body!r} (bodies: {', '.join(self.system.bodies)})")
+        return self.system.bodies[body]
+
+    def _orientation(self, body: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        s, v = self._slices(body)
+        p = self.system.parametrization
+        k, kv = len(p.stored_names), len(p.velocity_names)
+        return self.q[:, s + 3 : s + 3 + k], self.v[:, v + 3 : v + 3 + kv], self.a[:, v + 3 : v + 3 + kv]
+
+    def position(self, body: str) -> np.ndarray:
+        """Body-frame origin, global, (K, 3)."""
+        s, _ = self._slices(body)
+        return self.q[:, s : s + 3]
+
+    def velocity(self, body: str) -> np.ndarray:
+        """Velocity of the body-frame origin, (K, 3)."""
+        _, v = self._slices(body)
+        return self.v[:, v : v + 3]
+
+    def acceleration(self, body: str) -> np.ndarray:
+        """Acceleration of the body-frame origin, (K, 3)."""
+        _, v = self._slices(body)
+        return self.a[:, v : v + 3]
+
+    def rotation_matrix(self, body: str) -> np.ndarray:
+        """Rotation matrices body -> global, (K, 3, 3)."""
+        o, _, _ = self._orientation(body)
+        return self.system.parametrization.to_matrix(o)
+
+    def quaternion(self, body: str) -> np.ndarray:
+        """Unit quaternions (w, x, y, z), (K, 4), sign chosen with w >= 0."""
+        from kinegen.rotations import quaternion_algebra as qa
+
+        return qa.from_matrix(self.rotation_matrix(body))
+
+    def euler_angles(self, body: str, sequence: str = "zxz") -> np.ndarray:
+        """Intrinsic Euler angles for display (SciPy ``as_euler(sequence.upper())``), (K, 3)."""
+        from kinegen.rotations import get
+
+        return get(f"euler:{sequence}").from_matrix(self.rotation_matrix(body))
+
+    def omega(self, body: str) -> np.ndarray:
+        """Global angular velocity, (K, 3)."""
+        o, w, _ = self._orientation(body)
+        return self.system.parametrization.omega(o, w)
+
+    def omega_dot(self, body: str) -> np.ndarray:
+        """Global angular acceleration, (K, 3)."""
+        o, w, wd = self._orientation(body)
+        return self.system.parametrization.omega_dot(o, w, wd)
+
+    def _arm(self, body: str, point: str) -> np.ndarray:
+        points = self.system.points.get(body, {})
+        if point not in points:
+            raise KeyError(f"no point {point!r} on body {body!r} (points: {', '.join(points) or 'none'})")
+        return np.einsum("kij,j->ki", self.rotation_matrix(body), np.array(points[point]))
+
+    def point_position(self, body: str, point: str) -> np.ndarray:
+        """Global position of a named body point, (K, 3)."""
+        return self.position(body) + self._arm(body, point)
+
+    def point_velocity(self, body: str, point: str) -> np.ndarray:
+        """Global velocity of a named body point: r' + omega x (A s'), (K, 3)."""
+        return self.velocity(body) + np.cross(self.omega(body), self._arm(body, point))
+
+    def point_acceleration(self, body: str, point: str) -> np.ndarray:
+        """Global acceleration: r'' + omega' x (A s') + omega x (omega x A s'), (K, 3)."""
+        arm = self._arm(body, point)
+        w = self.omega(body)
+        return self.acceleration(body) + np.cross(self.omega_dot(body), arm) + np.cross(w, np.cross(w, arm))
+
+    def table(self) -> tuple[list[str], np.ndarray]:
+        """Column names and values of the CSV export."""
+        columns = [self.times[:, None], self.iterations[:, None], self.residuals[:, None]]
+        names = ["t", "newton_iterations", "max_abs_phi"]
+        for body in self.system.bodies:
+            for label, values in (
+                ("", self.position(body)),
+                ("q", self.quaternion(body)),
+                ("v", self.velocity(body)),
+                ("a", self.acceleration(body)),
+                ("omega", self.omega(body)),
+                ("omega_dot", self.omega_dot(body)),
+            ):
+                axes = "wxyz" if label == "q" else "xyz"
+                names += [f"{body}.{label}{'_' if label else ''}{c}" for c in axes]
+                columns.append(values)
+            for point in self.system.points.get(body, {}):
+                for label, values in (
+                    ("", self.point_position(body, point)),
+                    ("v", self.point_velocity(body, point)),
+                    ("a", self.point_acceleration(body, point)),
+                ):
+                    names += [f"{body}.{point}.{label}{'_' if label else ''}{c}" for c in "xyz"]
+                    columns.append(values)
+        return names, np.hstack(columns)
+
+    def to_csv(self, path: str | Path) -> Path:
+        """Write every time history to a CSV file (one row per time point)."""
+        path = Path(path)
+        names, values = self.table()
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with path.open("w", newline="", encoding="utf-8") as handle:
+            writer = csv.writer(handle)
+            writer.writerow(names)
+            writer.writerows([[repr(float(x)) for x in row] for row in values])
+        return path

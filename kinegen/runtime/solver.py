@@ -1,0 +1,201 @@
+"""Newton-Raphson position solve, velocity and acceleration solves over a time grid.
+
+At each time point: predict q from the previous step (q, v, a), Newton-Raphson on
+Phi(q, t) = 0 until max|Phi| <= tolerance (full steps; a backtracking line search
+takes over only when full steps fail), then Phi_q v = nu and Phi_q a = gamma with one LU
+factorization of Phi_q shared by both. In the quaternion parametrization the steps,
+velocities and accelerations live in the tangent space and the quaternion is updated by
+the exponential map.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+import scipy.linalg
+
+from kinegen.errors import AssemblyError, ConvergenceError, SingularJacobianError
+from kinegen.rotations import quaternion_algebra as qa
+from kinegen.runtime.results import Results
+from kinegen.runtime.system import NumericSystem
+
+_getrf, _getrs = scipy.linalg.get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+
+
+def _lu_solve(factors: tuple[np.ndarray, np.ndarray], rhs: np.ndarray) -> np.ndarray:
+    x, _ = _getrs(factors[0], factors[1], rhs)
+    return x
+
+
+@dataclass(frozen=True)
+class SolverOptions:
+    """Tolerances and limits of the solver."""
+
+    tolerance: float = 1e-10  #: max |Phi_i| at convergence
+    max_iterations: int = 25  #: per time point, before emergency termination
+    singular_tolerance: float = 1e-10  #: sigma_min / sigma_max below which Phi_q is singular
+    line_search: bool = True  #: backtracking fallback when full Newton steps fail
+    divergence_limit: float = 1e8  #: max |Phi| beyond which Newton is stopped at once
+
+
+def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str], threshold: float = 1e-6) -> str:
+    """A null-space vector as a readable combination, largest coefficient scaled to 1."""
+    scale = vector[np.argmax(np.abs(vector))]
+    coefficients = vector / scale
+    terms = []
+    for c, name in zip(coefficients, names):
+        if abs(c) <= threshold:
+            continue
+        sign = "-" if c < 0 else "+"
+        magnitude = "" if abs(abs(c) - 1) < 1e-9 else f"{abs(c):.4g}*"
+        terms.append(f"{sign} {magnitude}{name}")
+    text = " ".join(terms)
+    return text[2:] if text.startswith("+ ") else text
+
+
+class Solver:
+    """Solves one :class:`NumericSystem` over time."""
+
+    def __init__(self, system: NumericSystem, options: SolverOptions | None = None) -> None:
+        self.system = system
+        self.options = options or SolverOptions()
+        m, n = len(system.constraint_names), system.n_velocity
+        if m != n:
+            raise ValueError(f"{system.model}/{system.case}: {m} constraints for {n} velocity coordinates")
+        self._tangent = system.parametrization.name == "quaternion"
+        positions_q, positions_v, rot_q, rot_v = [], [], [], []
+        for s_off, v_off in system.bodies.values():
+            positions_q += range(s_off, s_off + 3)
+            positions_v += range(v_off, v_off + 3)
+            rot_q += range(s_off + 3, s_off + 7)
+            rot_v += range(v_off + 3, v_off + 6)
+        self._pos_q, self._pos_v = np.array(positions_q), np.array(positions_v)
+        self._rot_q, self._rot_v = np.array(rot_q), np.array(rot_v)
+
+    # ---- building blocks ---------------------------------------------------------------
+    def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
+        """q moved by ``step`` (velocity coordinates); quaternions by the exponential map."""
+        if not self._tangent:
+            return q + step
+        out = q.copy()
+        out[self._pos_q] += step[self._pos_v]
+        quaternions = q[self._rot_q].reshape(-1, 4)
+        increments = step[self._rot_v].reshape(-1, 3)
+        out[self._rot_q] = qa.multiply(qa.exp(increments), quaternions).ravel()
+        return out
+
+    def factorize(self, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """LU factors of Phi_q at (q, t); raises SingularJacobianError when singular."""
+        jacobian = self.system.jacobian(q, t)
+        if not np.all(np.isfinite(jacobian)):
+            raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
+        lu, piv, info = _getrf(jacobian, overwrite_a=False)
+        diagonal = np.abs(np.diag(lu))
+        if info > 0 or diagonal.min() <= self.options.singular_tolerance * max(diagonal.max(), 1e-300):
+            self.check_singular(jacobian, t)
+        return lu, piv
+
+    def check_singular(self, jacobian: np.ndarray, t: float) -> None:
+        """Raise SingularJacobianError (naming the dependencies) if ``jacobian`` is singular."""
+        u, s, vt = np.linalg.svd(jacobian)
+        tol = self.options.singular_tolerance * s[0]
+        rank = int(np.sum(s > tol))
+        if rank == jacobian.shape[0]:
+            return
+        dependent: list[str] = []
+        for k in range(rank, jacobian.shape[0]):
+            dependent += [
+                self.system.constraint_names[i]
+                for i in np.flatnonzero(np.abs(u[:, k]) > 1e-6)
+                if self.system.constraint_names[i] not in dependent
+            ]
+        null = [describe_combination(vt[k], self.system.velocity_names) for k in range(rank, jacobian.shape[1])]
+        raise SingularJacobianError(t, rank, jacobian.shape, dependent, null, f"sigma_min/sigma_max = {s[-1] / s[0]:.2e}")
+
+    def _residual(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
+        phi = self.system.phi(q, t)
+        return phi, float(np.max(np.abs(phi))) if phi.size else 0.0
+
+    def _failure(self, q: np.ndarray, t: float, iterations: int) -> ConvergenceError:
+        phi, norm = self._residual(q, t)
+        order = np.argsort(-np.abs(phi))[:3]
+        return ConvergenceError(t, iterations, norm, [(self.system.constraint_names[i], float(phi[i])) for i in order])
+
+    # ---- position ------------------------------------------------------------------------
+    def position(self, q0: np.ndarray, t: float) -> tuple[np.ndarray, int, float]:
+        """Newton-Raphson from ``q0`` at time ``t``: (q, iterations, max |Phi|)."""
+        try:
+            return self._newton(q0, t, damped=False)
+        except ConvergenceError:
+            if not self.options.line_search:
+                raise
+            return self._newton(q0, t, damped=True)
+
+    def _newton(self, q: np.ndarray, t: float, damped: bool) -> tuple[np.ndarray, int, float]:
+        opts = self.options
+        phi, norm = self._residual(q, t)
+        iterations = 0
+        while norm > opts.tolerance:
+            if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
+                raise self._failure(q, t, iterations)
+            step = -_lu_solve(self.factorize(q, t), phi)
+            iterations += 1
+            trial = self.retract(q, step)
+            trial_phi, trial_norm = self._residual(trial, t)
+            if damped:
+                alpha = 1.0
+                while not trial_norm < norm and alpha > 1e-4:
+                    alpha *= 0.5
+                    trial = self.retract(q, alpha * step)
+                    trial_phi, trial_norm = self._residual(trial, t)
+            q, phi, norm = trial, trial_phi, trial_norm
+        return q, iterations, norm
+
+    # ---- trajectory ----------------------------------------------------------------------
+    def solve(self, times: np.ndarray | None = None, q0: np.ndarray | None = None) -> Results:
+        """Position, velocity and acceleration at every time of ``times`` (default: the case grid)."""
+        system = self.system
+        if times is None:
+            times = np.linspace(system.t0, system.t1, system.steps)
+        times = np.asarray(times, dtype=float)
+        k, n, nv = len(times), system.n_stored, system.n_velocity
+        qs, vs, accs = np.empty((k, n)), np.empty((k, nv)), np.empty((k, nv))
+        iterations, residuals = np.empty(k, dtype=int), np.empty(k)
+        q = system.initial_q.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
+        v = a = None
+        for i, t in enumerate(times):
+            if i > 0:
+                h = t - times[i - 1]
+                q = self.retract(q, v * h + 0.5 * a * h * h)
+            q, iterations[i], residuals[i] = self.position(q, t)
+            factors = self.factorize(q, t)
+            v = _lu_solve(factors, system.nu(q, t))
+            a = _lu_solve(factors, system.gamma(q, v, t))
+            qs[i], vs[i], accs[i] = q, v, a
+        return Results(system, times, qs, vs, accs, iterations, residuals)
+
+
+def solve(system: NumericSystem, times: np.ndarray | None = None, options: SolverOptions | None = None) -> Results:
+    """Convenience: ``Solver(system, options).solve(times)``."""
+    return Solver(system, options).solve(times)
+
+
+def check_initial_pose(system: NumericSystem, options: SolverOptions | None = None) -> str:
+    """Check the initial pose against Phi at the case start; assemble it if needed.
+
+    Returns a one-line report; raises ConvergenceError (naming the constraints with the
+    largest residuals) when no assembled pose can be found from it.
+    """
+    solver = Solver(system, options)
+    phi, norm = solver._residual(system.initial_q, system.t0)
+    prefix = f"case {system.case}: initial pose"
+    if norm <= solver.options.tolerance:
+        return f"{prefix} satisfies Phi at t0 = {system.t0:g} (max |Phi| = {norm:.1e})"
+    order = np.argsort(-np.abs(phi))[:3]
+    worst = [(system.constraint_names[i], float(phi[i])) for i in order]
+    try:
+        _, iterations, final = solver.position(system.initial_q, system.t0)
+    except (ConvergenceError, SingularJacobianError) as exc:
+        raise AssemblyError(system.t0, norm, worst, str(exc).splitlines()[0]) from exc
+    return f"{prefix} off by max |Phi| = {norm:.2e} ({worst[0][0]}); assembled in {iterations} Newton iterations (max |Phi| = {final:.1e})"

@@ -1,0 +1,126 @@
+"""A numeric system: one case of a generated module (or of the in-memory lambdify path).
+
+This is the *model* in the Pinocchio sense: immutable description plus the compiled
+functions. Solvers and results (the *data*) take it as an argument.
+"""
+
+from __future__ import annotations
+
+import hashlib
+import importlib.util
+import sys
+from collections.abc import Callable
+from dataclasses import dataclass
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from kinegen import rotations
+from kinegen.errors import GeneratedModuleError
+
+
+@dataclass(frozen=True)
+class NumericSystem:
+    """Compiled kinematics of one case: Phi, sparse Phi_q values, nu, gamma and metadata."""
+
+    model: str
+    case: str
+    parametrization: rotations.Parametrization
+    stored_names: tuple[str, ...]
+    velocity_names: tuple[str, ...]
+    constraint_names: tuple[str, ...]
+    driver_names: tuple[str, ...]
+    bodies: dict[str, tuple[int, int]]
+    points: dict[str, dict[str, tuple[float, float, float]]]
+    initial_q: np.ndarray
+    jac_rows: np.ndarray
+    jac_cols: np.ndarray
+    phi: Callable[[np.ndarray, Any], np.ndarray]
+    jac: Callable[[np.ndarray, Any], np.ndarray]
+    nu: Callable[[np.ndarray, Any], np.ndarray]
+    gamma: Callable[[np.ndarray, np.ndarray, Any], np.ndarray]
+    t0: float
+    t1: float
+    steps: int
+    source_sha256: str = ""
+
+    @property
+    def n_stored(self) -> int:
+        return len(self.stored_names)
+
+    @property
+    def n_velocity(self) -> int:
+        return len(self.velocity_names)
+
+    def jacobian(self, q: np.ndarray, t: float) -> np.ndarray:
+        """Dense Phi_q (constraints x velocity coordinates) at one configuration."""
+        dense = np.zeros((len(self.constraint_names), self.n_velocity))
+        dense[self.jac_rows, self.jac_cols] = self.jac(q, t)
+        return dense
+
+
+def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSystem:
+    """The numeric system of ``case`` (the first case by default) of a generated module."""
+    cases = module.CASES
+    if case is None:
+        case = next(iter(cases))
+    if case not in cases:
+        raise KeyError(f"model {module.MODEL!r} has no case {case!r} (cases: {', '.join(cases)})")
+    data = cases[case]
+    return NumericSystem(
+        model=module.MODEL,
+        case=case,
+        parametrization=rotations.get(module.PARAMETRIZATION),
+        stored_names=tuple(module.STORED_NAMES),
+        velocity_names=tuple(module.VELOCITY_NAMES),
+        constraint_names=tuple(data["constraints"]),
+        driver_names=tuple(data["drivers"]),
+        bodies=dict(module.BODIES),
+        points={b: dict(p) for b, p in module.POINTS.items()},
+        initial_q=np.array(module.INITIAL_Q, dtype=float),
+        jac_rows=np.array(data["jac_rows"], dtype=np.intp),
+        jac_cols=np.array(data["jac_cols"], dtype=np.intp),
+        phi=data["phi"],
+        jac=data["jac"],
+        nu=data["nu"],
+        gamma=data["gamma"],
+        t0=float(data["t0"]),
+        t1=float(data["t1"]),
+        steps=int(data["steps"]),
+        source_sha256=getattr(module, "SOURCE_SHA256", ""),
+    )
+
+
+def load_module(path: str | Path, model_file: str | Path | None = None) -> ModuleType:
+    """Import a generated module from ``path``.
+
+    With ``model_file``, the module's recorded source hash must match that file's bytes;
+    a stale module is refused with a message saying how to rebuild it.
+    """
+    path = Path(path)
+    if not path.is_file():
+        raise GeneratedModuleError(f"{path}: no such generated module (run `kinegen build`)")
+    name = f"kinegen_generated_{path.stem}_{hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:8]}"
+    spec = importlib.util.spec_from_file_location(name, path)
+    if spec is None or spec.loader is None:
+        raise GeneratedModuleError(f"{path}: cannot be imported")
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    try:
+        spec.loader.exec_module(module)
+    except Exception as exc:  # a broken file: say which and why
+        sys.modules.pop(name, None)
+        raise GeneratedModuleError(f"{path}: not a valid generated module ({type(exc).__name__}: {exc})") from exc
+    for attribute in ("MODEL", "PARAMETRIZATION", "CASES", "SOURCE_SHA256"):
+        if not hasattr(module, attribute):
+            raise GeneratedModuleError(f"{path}: not a kinegen generated module (no {attribute})")
+    if model_file is not None:
+        digest = hashlib.sha256(Path(model_file).read_bytes()).hexdigest()
+        if digest != module.SOURCE_SHA256:
+            raise GeneratedModuleError(
+                f"{path} is stale: it was built from a different version of {model_file}; "
+                f"rebuild with `kinegen build {model_file} --param {module.PARAMETRIZATION}`"
+            )
+    return module

@@ -1,0 +1,186 @@
+"""Assembly of the exact symbolic system of one model, parametrization and case.
+
+For every constraint row kinegen derives, *only in the coordinates of the (at most two)
+bodies the row touches*:
+
+* ``Phi`` (the row itself),
+* the sparse Jacobian ``Phi_q`` with respect to the velocity coordinates
+  (``Phi_q = dPhi/ds · B(s)``, with ``ds/dt = B(s) v`` the parametrization's velocity map),
+* ``nu = -Phi_t``,
+* ``gamma = -(Phi_q v)_s B(s) v - 2 (Phi_q v)_t - Phi_tt``.
+
+So build cost grows linearly with the number of constraints.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import sympy as sp
+
+from kinegen.constraints import GROUND_FRAME, Equation, Frame, driver_equation, joint_equations
+from kinegen.model.expressions import T
+from kinegen.model.schema import GROUND, Case, Model
+from kinegen.rotations import Parametrization
+
+
+@dataclass(frozen=True)
+class BodyCoordinates:
+    """Symbols of one body: stored ``s = [x, y, z, o...]``, velocity ``v``, map ``B``."""
+
+    name: str
+    stored: tuple[sp.Symbol, ...]
+    velocity: tuple[sp.Symbol, ...]
+    stored_offset: int
+    velocity_offset: int
+    velocity_map: sp.Matrix  # full (len(stored) x len(velocity)), block diag(I3, B(o))
+    frame: Frame
+
+
+@dataclass(frozen=True)
+class Coordinates:
+    """All bodies' coordinates in order: the layout of ``q`` (stored) and ``v`` (velocity)."""
+
+    parametrization: Parametrization
+    bodies: tuple[BodyCoordinates, ...]
+
+    @property
+    def stored_names(self) -> list[str]:
+        p = self.parametrization
+        return [f"{b.name}.{c}" for b in self.bodies for c in ("x", "y", "z", *p.stored_names)]
+
+    @property
+    def velocity_names(self) -> list[str]:
+        p = self.parametrization
+        return [f"{b.name}.{c}" for b in self.bodies for c in ("x", "y", "z", *p.velocity_names)]
+
+    @property
+    def stored_symbols(self) -> list[sp.Symbol]:
+        return [s for b in self.bodies for s in b.stored]
+
+    @property
+    def velocity_symbols(self) -> list[sp.Symbol]:
+        return [s for b in self.bodies for s in b.velocity]
+
+    def body(self, name: str) -> BodyCoordinates:
+        for b in self.bodies:
+            if b.name == name:
+                return b
+        raise KeyError(name)
+
+
+@dataclass(frozen=True)
+class Row:
+    """One constraint row with its derived quantities (Jacobian by velocity column)."""
+
+    name: str
+    phi: sp.Expr
+    jacobian: dict[int, sp.Expr]
+    nu: sp.Expr
+    gamma: sp.Expr
+    is_driver: bool = False
+
+
+@dataclass
+class System:
+    """The exact symbolic kinematics of one case."""
+
+    model: Model
+    case: Case
+    coordinates: Coordinates
+    rows: list[Row] = field(default_factory=list)
+
+    @property
+    def constraint_names(self) -> list[str]:
+        return [r.name for r in self.rows]
+
+    @property
+    def jacobian_entries(self) -> list[tuple[int, int, sp.Expr]]:
+        """Sparse ``Phi_q`` as (row, column, expression), row-major; the pattern is constant."""
+        return [(i, j, e) for i, r in enumerate(self.rows) for j, e in sorted(r.jacobian.items())]
+
+    def jacobian_matrix(self) -> sp.Matrix:
+        """Dense symbolic ``Phi_q`` (for inspection of small systems)."""
+        m = sp.zeros(len(self.rows), len(self.coordinates.velocity_symbols))
+        for i, j, e in self.jacobian_entries:
+            m[i, j] = e
+        return m
+
+
+def coordinates(model: Model, parametrization: Parametrization) -> Coordinates:
+    """Symbols and frames of every moving body of ``model``."""
+    bodies = []
+    s_off = v_off = 0
+    for body in model.bodies:
+        stored = tuple(sp.Symbol(f"{body.name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.stored_names))
+        velocity = tuple(sp.Symbol(f"v_{body.name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
+        o = sp.Matrix(stored[3:])
+        B = sp.diag(sp.eye(3), parametrization.velocity_map(o))
+        frame = Frame(sp.Matrix(stored[:3]), parametrization.matrix(o))
+        bodies.append(BodyCoordinates(body.name, stored, velocity, s_off, v_off, B, frame))
+        s_off += len(stored)
+        v_off += len(velocity)
+    return Coordinates(parametrization, tuple(bodies))
+
+
+def derive(equation: Equation, coords: Coordinates, is_driver: bool = False) -> Row:
+    """Jacobian, nu and gamma of one equation, in its bodies' coordinates only."""
+    phi = equation.expr
+    jacobian: dict[int, sp.Expr] = {}
+    psi = sp.Integer(0)  # Phi_q v
+    touched = [coords.body(name) for name in equation.bodies]
+    for body in touched:
+        grad = sp.Matrix([[sp.diff(phi, s) for s in body.stored]])
+        columns = grad * body.velocity_map
+        for k, entry in enumerate(columns):
+            if entry != 0:
+                jacobian[body.velocity_offset + k] = entry
+                psi += entry * body.velocity[k]
+    phi_t = sp.diff(phi, T)
+    gamma = -2 * sp.diff(psi, T) - sp.diff(phi_t, T)
+    for body in touched:
+        stored_rate = body.velocity_map * sp.Matrix(body.velocity)
+        for s, rate in zip(body.stored, stored_rate):
+            d = sp.diff(psi, s)
+            if d != 0:
+                gamma -= d * rate
+    return Row(equation.name, phi, jacobian, -phi_t, gamma, is_driver)
+
+
+def _moving(names: tuple[str, ...]) -> tuple[str, ...]:
+    return tuple(n for n in dict.fromkeys(names) if n != GROUND)
+
+
+def kinematic_rows(model: Model, coords: Coordinates) -> list[Row]:
+    """Rows of the joints and of the parametrization's normalization constraints (case-independent)."""
+    frames = {b.name: b.frame for b in coords.bodies}
+    rows = []
+    for joint in model.joints:
+        frame1 = GROUND_FRAME if joint.body1 == GROUND else frames[joint.body1]
+        frame2 = GROUND_FRAME if joint.body2 == GROUND else frames[joint.body2]
+        for eq in joint_equations(joint, frame1, frame2, _moving((joint.body1, joint.body2))):
+            rows.append(derive(eq, coords))
+    for body in coords.bodies:
+        for k, expr in enumerate(coords.parametrization.normalization(sp.Matrix(body.stored[3:]))):
+            rows.append(derive(Equation(f"{body.name}.norm{'' if k == 0 else k}", (body.name,), expr), coords))
+    return rows
+
+
+def build_systems(model: Model, parametrization: Parametrization, cases: list[str] | None = None) -> dict[str, System]:
+    """The symbolic system of each case (all cases by default); joint rows are derived once."""
+    coords = coordinates(model, parametrization)
+    shared = kinematic_rows(model, coords)
+    frames = {b.name: b.frame for b in coords.bodies}
+    joints = {j.name: j for j in model.joints}
+
+    def frame_of(name: str) -> Frame:
+        return GROUND_FRAME if name == GROUND else frames[name]
+
+    systems = {}
+    for name in cases or list(model.cases):
+        case = model.cases[name]
+        rows = list(shared)
+        for driver in case.drivers:
+            rows.append(derive(driver_equation(driver, joints, frame_of, _moving), coords, is_driver=True))
+        systems[name] = System(model, case, coords, rows)
+    return systems

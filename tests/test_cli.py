@@ -1,0 +1,82 @@
+"""The `kinegen` command: build, solve, inspect, and readable errors with distinct exit codes."""
+
+from __future__ import annotations
+
+import csv
+import json
+
+import numpy as np
+from click.testing import CliRunner
+
+from kinegen.cli import main
+from tests.conftest import MODELS
+
+BOOM = str(MODELS / "boom.yaml")
+
+
+def run(*args: str):
+    return CliRunner().invoke(main, list(args))
+
+
+def test_build_writes_the_module_and_checks_the_initial_pose(tmp_path):
+    result = run("build", BOOM, "--param", "quaternion", "--param", "euler:zxz", "--out-dir", str(tmp_path))
+    assert result.exit_code == 0, result.output
+    assert (tmp_path / "boom_quaternion.py").is_file() and (tmp_path / "boom_euler_zxz.py").is_file()
+    assert "initial pose satisfies Phi" in result.output
+
+
+def test_solve_writes_csv_with_poses_rates_and_points(tmp_path):
+    out = tmp_path / "boom.csv"
+    result = run(
+        "solve", BOOM, "--param", "quaternion", "--t1", "1", "--steps", "11", "--out", str(out), "--generated-dir", str(tmp_path)
+    )
+    assert result.exit_code == 0, result.output
+    assert "11 time points" in result.output
+    rows = list(csv.DictReader(out.open()))
+    assert len(rows) == 11
+    last = rows[-1]
+    assert float(last["t"]) == 1.0
+    assert abs(float(last["boom.omega_z"]) - 2.0) < 1e-10  # omega = 2t
+    tip = np.array([float(last[f"boom.tip.{c}"]) for c in "xyz"])
+    assert np.allclose(tip, 3.56 * np.array([np.cos(np.pi / 2 + 1), np.sin(np.pi / 2 + 1), 0]), atol=1e-10)
+
+
+def test_solve_with_euler_zxz_exits_with_the_singular_code(tmp_path):
+    result = run("solve", BOOM, "--param", "euler:zxz", "--generated-dir", str(tmp_path))
+    assert result.exit_code == 3
+    assert "singular Jacobian at t = 0" in result.output
+    assert "boom.alpha - boom.gamma" in result.output
+    assert "Traceback" not in result.output
+
+
+def test_inspect_proves_the_euler_singularity():
+    result = run("inspect", BOOM, "--param", "euler:zxz", "--at", "0", "--latex")
+    assert result.exit_code == 0, result.output
+    assert "exact rank 5 (singular)" in result.output
+    assert "vanishing factor: sin(boom_beta)" in result.output
+    assert "boom.alpha - boom.gamma" in result.output
+    assert r"\det \Phi_q" in result.output
+
+
+def test_inspect_json_for_tools():
+    result = run("inspect", BOOM, "--param", "quaternion", "--json")
+    assert result.exit_code == 0, result.output
+    report = json.loads(result.output)
+    assert report["rank"] == 6 and report["determinant_value"] in ("1", "-1")
+    assert report["jacobian"][0] == ["-1", "0", "0", "0", "0", "-89/50"]
+
+
+def test_model_error_is_one_readable_line_with_its_own_exit_code(tmp_path):
+    bad = tmp_path / "bad.yaml"
+    bad.write_text((MODELS / "boom.yaml").read_text().replace("function: pi/2 + t**2", "function: __import__('os').system('id')"))
+    result = run("build", str(bad), "--out-dir", str(tmp_path / "gen"))
+    assert result.exit_code == 2
+    assert result.output.startswith(f"error: {bad}: cases.swing.drivers.phi1.function: ")
+    assert len(result.output.strip().splitlines()) == 1
+    assert not (tmp_path / "gen").exists() or not any((tmp_path / "gen").iterdir())
+
+
+def test_missing_file_and_unknown_parametrization():
+    assert run("build", "no/such/model.yaml").exit_code == 2
+    result = run("build", BOOM, "--param", "euler:abc")
+    assert result.exit_code == 2 and "unknown Euler sequence" in result.output
