@@ -30,33 +30,43 @@ POINTS = {
 INITIAL_Q = (0.0, 1.78, 0.0, 0.7071067811865475, 0.0, 0.0, 0.7071067811865475)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_swing(q, t):
-    """Phi(q, t) of case 'swing': 7 residuals."""
+def inputs_swing(t):
+    """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = t**2 + 1.5707963267948966
+    out[1] = 2*t
+    out[2] = 2
+    return out
+
+
+def phi_swing(q, u):
+    """Phi(q, u) of case 'swing': 7 residuals."""
     boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    u0, = u
     c0 = boom_e0**2
     c1 = boom_e1**2
     c2 = (89/25)*boom_e0
     c3 = 2*boom_e0
-    c4 = t**2
-    out = _zeros(7, q, t)
+    out = _zeros(7, q, u)
     out[0] = -boom_x + (89/25)*c0 + (89/25)*c1 - 89/50
     out[1] = (89/25)*boom_e1*boom_e2 + boom_e3*c2 - boom_y
     out[2] = (89/25)*boom_e1*boom_e3 - boom_e2*c2 - boom_z
     out[3] = 2*boom_e1*boom_e3 - boom_e2*c3
     out[4] = boom_e1*c3 + 2*boom_e2*boom_e3
     out[5] = boom_e2**2 + boom_e3**2 + c0 + c1 - 1
-    out[6] = (2*boom_e1*boom_e2 + boom_e3*c3)*sin(c4) + (2*c0 + 2*c1 - 1)*cos(c4)
+    out[6] = -(2*boom_e1*boom_e2 + boom_e3*c3)*cos(u0) + (2*c0 + 2*c1 - 1)*sin(u0)
     return out
 
 
-def jac_swing(q, t):
-    """Values of the sparse Phi_q of case 'swing' at JAC_ROWS, JAC_COLS (29 entries)."""
+def jac_swing(q, u):
+    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (29 entries)."""
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    u0, = u
     c0 = (89/25)*boom_e3
     c1 = (89/25)*boom_e2
     c2 = (89/25)*boom_e1
@@ -65,10 +75,9 @@ def jac_swing(q, t):
     c5 = 2*boom_e3
     c6 = 2*boom_e0
     c7 = 2*boom_e1
-    c8 = t**2
-    c9 = 4*cos(c8)
-    c10 = sin(c8)
-    out = _zeros(29, q, t)
+    c8 = 4*sin(u0)
+    c9 = cos(u0)
+    out = _zeros(29, q, u)
     out[0] = -1
     out[1] = (178/25)*boom_e0
     out[2] = (178/25)*boom_e1
@@ -94,51 +103,53 @@ def jac_swing(q, t):
     out[22] = c7
     out[23] = c4
     out[24] = c5
-    out[25] = boom_e0*c9 + c10*c5
-    out[26] = boom_e1*c9 + c10*c4
-    out[27] = c10*c7
-    out[28] = c10*c6
+    out[25] = boom_e0*c8 - c5*c9
+    out[26] = boom_e1*c8 - c4*c9
+    out[27] = -c7*c9
+    out[28] = -c6*c9
     return out
 
 
-def nu_swing(q, t):
+def nu_swing(q, u, ud):
     """nu = -Phi_t of case 'swing'."""
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    c0 = t**2
-    out = _zeros(7, q, t)
-    out[6] = -2*t*(2*boom_e0*boom_e3 + 2*boom_e1*boom_e2)*cos(c0) + 2*t*(2*boom_e0**2 + 2*boom_e1**2 - 1)*sin(c0)
+    u0, = u
+    ud0, = ud
+    out = _zeros(7, q, u)
+    out[6] = -ud0*((2*boom_e0*boom_e3 + 2*boom_e1*boom_e2)*sin(u0) + (2*boom_e0**2 + 2*boom_e1**2 - 1)*cos(u0))
     return out
 
 
-def gamma_swing(q, v, t):
+def gamma_swing(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
     _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = v_boom_e0**2
     c1 = v_boom_e1**2
     c2 = (178/25)*v_boom_e3
     c3 = (178/25)*v_boom_e2
     c4 = 4*v_boom_e2
     c5 = 4*v_boom_e1
-    c6 = t**2
-    c7 = sin(c6)
-    c8 = 2*c7
-    c9 = c8*v_boom_e3
-    c10 = c8*v_boom_e2
-    c11 = cos(c6)
-    c12 = 8*t
-    c13 = c11*c12
-    c14 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
-    c15 = 2*boom_e0**2 + 2*boom_e1**2 - 1
-    c16 = c12*c7
-    out = _zeros(7, q, t)
+    c6 = cos(u0)
+    c7 = sin(u0)
+    c8 = 2*c6
+    c9 = 2*boom_e3
+    c10 = 2*boom_e2
+    c11 = boom_e0*c9 + boom_e1*c10
+    c12 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    c13 = 2*c7
+    c14 = 4*c6
+    out = _zeros(7, q, u)
     out[0] = -178/25*c0 - 178/25*c1
     out[1] = -c2*v_boom_e0 - c3*v_boom_e1
     out[2] = -c2*v_boom_e1 + c3*v_boom_e0
     out[3] = c4*v_boom_e0 - c5*v_boom_e3
     out[4] = -c4*v_boom_e3 - c5*v_boom_e0
     out[5] = -2*c0 - 2*c1 - 2*v_boom_e2**2 - 2*v_boom_e3**2
-    out[6] = -boom_e0*c13*v_boom_e3 - boom_e1*c13*v_boom_e2 - c10*v_boom_e1 - 2*c11*c14 + 4*c11*c15*c6 + 4*c14*c6*c7 + 2*c15*c7 - c9*v_boom_e0 - 2*v_boom_e0*(-boom_e0*c16 + 4*boom_e3*c11*t) - v_boom_e0*(4*c11*v_boom_e0 + c9) - v_boom_e1*(c10 + c11*c5) - 2*v_boom_e1*(-boom_e1*c16 + 4*boom_e2*c11*t)
+    out[6] = 2*c6*v_boom_e0*v_boom_e3 + 2*c6*v_boom_e1*v_boom_e2 - ud0**2*(c11*c6 - c12*c7) - 2*ud0*(boom_e0*c13*v_boom_e3 + boom_e1*c13*v_boom_e2 + v_boom_e0*(boom_e0*c14 + c7*c9) + v_boom_e1*(boom_e1*c14 + c10*c7)) - udd0*(c11*c7 + c12*c6) - v_boom_e0*(4*c7*v_boom_e0 - c8*v_boom_e3) - v_boom_e1*(c5*c7 - c8*v_boom_e2)
     return out
 
 
@@ -149,6 +160,6 @@ CASES = {
         'jac_rows': (0, 0, 0, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6),
         'jac_cols': (0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6),
         't0': 0.0, 't1': 2.0, 'steps': 201,
-        'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
+        'inputs': inputs_swing, 'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
     },
 }

@@ -30,14 +30,24 @@ POINTS = {
 INITIAL_Q = (0.0, 1.78, 0.0, 1.5707963267948966, 0.0, 0.0)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_swing(q, t):
-    """Phi(q, t) of case 'swing': 6 residuals."""
+def inputs_swing(t):
+    """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = t**2 + 1.5707963267948966
+    out[1] = 2*t
+    out[2] = 2
+    return out
+
+
+def phi_swing(q, u):
+    """Phi(q, u) of case 'swing': 6 residuals."""
     boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
+    u0, = u
     c0 = cos(boom_alpha)
     c1 = cos(boom_gamma)
     c2 = sin(boom_alpha)
@@ -47,20 +57,20 @@ def phi_swing(q, t):
     c6 = c1*c2
     c7 = c0*c4
     c8 = sin(boom_beta)
-    c9 = t**2
-    out = _zeros(6, q, t)
+    out = _zeros(6, q, u)
     out[0] = -boom_x + (89/50)*c0*c1 - 89/50*c5
     out[1] = -boom_y + (89/50)*c6 + (89/50)*c7
     out[2] = -boom_z + (89/50)*c3*c8
     out[3] = c3*c8
     out[4] = c1*c8
-    out[5] = (c6 + c7)*sin(c9) + (c0*c1 - c5)*cos(c9)
+    out[5] = -(c6 + c7)*cos(u0) + (c0*c1 - c5)*sin(u0)
     return out
 
 
-def jac_swing(q, t):
-    """Values of the sparse Phi_q of case 'swing' at JAC_ROWS, JAC_COLS (18 entries)."""
+def jac_swing(q, u):
+    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (18 entries)."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    u0, = u
     c0 = sin(boom_alpha)
     c1 = cos(boom_gamma)
     c2 = c0*c1
@@ -77,10 +87,9 @@ def jac_swing(q, t):
     c13 = c0*c12
     c14 = c0*c4
     c15 = c1*c8
-    c16 = t**2
-    c17 = sin(c16)
-    c18 = cos(c16)
-    out = _zeros(18, q, t)
+    c16 = sin(u0)
+    c17 = cos(u0)
+    out = _zeros(18, q, u)
     out[0] = -1
     out[1] = -89/50*c2 - c3*c7
     out[2] = c0*c10
@@ -96,29 +105,33 @@ def jac_swing(q, t):
     out[12] = c15
     out[13] = c12
     out[14] = -c9
-    out[15] = c17*(-c0*c6 + c1*c3) + c18*(-c2 - c3*c6)
-    out[16] = c0*c18*c9 - c17*c3*c9
-    out[17] = c17*(c1*c3*c5 - c14) + c18*(-c11 - c13)
+    out[15] = c16*(-c2 - c3*c6) - c17*(-c0*c6 + c1*c3)
+    out[16] = c0*c16*c9 + c17*c3*c9
+    out[17] = c16*(-c11 - c13) - c17*(c1*c3*c5 - c14)
     return out
 
 
-def nu_swing(q, t):
+def nu_swing(q, u, ud):
     """nu = -Phi_t of case 'swing'."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    u0, = u
+    ud0, = ud
     c0 = sin(boom_alpha)
     c1 = cos(boom_gamma)
     c2 = cos(boom_alpha)
     c3 = sin(boom_gamma)*cos(boom_beta)
-    c4 = t**2
-    out = _zeros(6, q, t)
-    out[5] = -2*t*(c0*c1 + c2*c3)*cos(c4) + 2*t*(-c0*c3 + c1*c2)*sin(c4)
+    out = _zeros(6, q, u)
+    out[5] = -ud0*((c0*c1 + c2*c3)*sin(u0) + (-c0*c3 + c1*c2)*cos(u0))
     return out
 
 
-def gamma_swing(q, v, t):
+def gamma_swing(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = sin(boom_beta)
     c1 = sin(boom_gamma)
     c2 = cos(boom_alpha)
@@ -148,33 +161,30 @@ def gamma_swing(q, v, t):
     c26 = c23*v_boom_gamma
     c27 = c0*c11
     c28 = c1*c6
-    c29 = c3*c6
-    c30 = c12 + c29
-    c31 = t**2
-    c32 = cos(c31)
-    c33 = 2*c32
-    c34 = sin(c31)
-    c35 = c6*c8
-    c36 = -c15 + c35
-    c37 = -c36
-    c38 = c33*t
-    c39 = -c30*c34
-    c40 = 2*t
-    c41 = -c15*c6 + c8
-    c42 = c34*(-c12*c6 - c3)
-    c43 = c0*c34
-    c44 = c0*c32
-    c45 = c3*c44 + c43*c8
-    c46 = c12*c44 - c15*c43
-    c47 = c32*c36 + c39
-    c48 = c32*c41 + c42
-    out = _zeros(6, q, t)
+    c29 = sin(u0)
+    c30 = c3*c6
+    c31 = c12 + c30
+    c32 = cos(u0)
+    c33 = c6*c8
+    c34 = -c11*c2 + c33
+    c35 = -c34
+    c36 = c29*c35
+    c37 = c0*c32
+    c38 = c0*c12*c29 + c15*c37
+    c39 = -c0*c1*c2*c29 + c37*c8
+    c40 = -c39
+    c41 = -c31*c32
+    c42 = -c15*c6 + c8
+    c43 = c32*(-c12*c6 - c3)
+    c44 = c29*c42 - c43
+    c45 = c29*c34 - c41
+    out = _zeros(6, q, u)
     out[0] = -v_boom_alpha*(c17*v_boom_alpha + c18*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c10*v_boom_beta + c14*v_boom_gamma + c5*v_boom_alpha) - v_boom_gamma*(c14*v_boom_beta + c17*v_boom_gamma + c18*v_boom_alpha)
     out[1] = -v_boom_alpha*(c0*c9*v_boom_beta + c21*v_boom_alpha + c22*v_boom_gamma) - v_boom_beta*((89/50)*c0*c1*c7*v_boom_alpha - c19*v_boom_beta - c20*v_boom_gamma) - v_boom_gamma*(-c20*v_boom_beta + c21*v_boom_gamma + c22*v_boom_alpha)
     out[2] = -v_boom_beta*((89/50)*c11*c6*v_boom_gamma - 89/50*c24) - v_boom_gamma*((89/50)*c25 - 89/50*c26)
     out[3] = -v_boom_beta*(c11*c6*v_boom_gamma - c24) - v_boom_gamma*(c25 - c26)
     out[4] = -v_boom_beta*(-c27*v_boom_beta - c28*v_boom_gamma) - v_boom_gamma*(-c27*v_boom_gamma - c28*v_boom_beta)
-    out[5] = 4*c30*c31*c34 - c30*c33 + 4*c31*c32*c37 + 2*c34*c37 - 2*v_boom_alpha*(2*c32*c37*t - c39*c40) - v_boom_alpha*(c45*v_boom_beta + c47*v_boom_alpha + c48*v_boom_gamma) - 2*v_boom_beta*(-c0*c3*c38 - 2*c0*c34*c8*t) - v_boom_beta*(c45*v_boom_alpha + c46*v_boom_gamma + v_boom_beta*(-c29*c34 + c32*c35)) - 2*v_boom_gamma*(-c38*c41 - c40*c42) - v_boom_gamma*(c46*v_boom_beta + c47*v_boom_gamma + c48*v_boom_alpha)
+    out[5] = -ud0**2*(c31*c32 - c36) - 2*ud0*(c39*v_boom_beta + v_boom_alpha*(c36 + c41) + v_boom_gamma*(-c29*c42 + c43)) - udd0*(c29*c31 + c32*c35) - v_boom_alpha*(c40*v_boom_beta + c44*v_boom_gamma + c45*v_boom_alpha) - v_boom_beta*(c38*v_boom_gamma + c40*v_boom_alpha + v_boom_beta*(c29*c33 + c30*c32)) - v_boom_gamma*(c38*v_boom_beta + c44*v_boom_alpha + c45*v_boom_gamma)
     return out
 
 
@@ -185,6 +195,6 @@ CASES = {
         'jac_rows': (0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5),
         'jac_cols': (0, 3, 4, 5, 1, 3, 4, 5, 2, 4, 5, 4, 5, 4, 5, 3, 4, 5),
         't0': 0.0, 't1': 2.0, 'steps': 201,
-        'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
+        'inputs': inputs_swing, 'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
     },
 }

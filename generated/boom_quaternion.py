@@ -30,32 +30,42 @@ POINTS = {
 INITIAL_Q = (0.0, 1.78, 0.0, 0.7071067811865475, 0.0, 0.0, 0.7071067811865475)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_swing(q, t):
-    """Phi(q, t) of case 'swing': 6 residuals."""
+def inputs_swing(t):
+    """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = t**2 + 1.5707963267948966
+    out[1] = 2*t
+    out[2] = 2
+    return out
+
+
+def phi_swing(q, u):
+    """Phi(q, u) of case 'swing': 6 residuals."""
     boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
+    u0, = u
     c0 = boom_qw**2
     c1 = boom_qx**2
     c2 = (89/25)*boom_qw
     c3 = 2*boom_qw
-    c4 = t**2
-    out = _zeros(6, q, t)
+    out = _zeros(6, q, u)
     out[0] = -boom_x + (89/25)*c0 + (89/25)*c1 - 89/50
     out[1] = (89/25)*boom_qx*boom_qy + boom_qz*c2 - boom_y
     out[2] = (89/25)*boom_qx*boom_qz - boom_qy*c2 - boom_z
     out[3] = 2*boom_qx*boom_qz - boom_qy*c3
     out[4] = boom_qx*c3 + 2*boom_qy*boom_qz
-    out[5] = (2*boom_qx*boom_qy + boom_qz*c3)*sin(c4) + (2*c0 + 2*c1 - 1)*cos(c4)
+    out[5] = -(2*boom_qx*boom_qy + boom_qz*c3)*cos(u0) + (2*c0 + 2*c1 - 1)*sin(u0)
     return out
 
 
-def jac_swing(q, t):
-    """Values of the sparse Phi_q of case 'swing' at JAC_ROWS, JAC_COLS (16 entries)."""
+def jac_swing(q, u):
+    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (16 entries)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    u0, = u
     c0 = (89/25)*boom_qw
     c1 = -89/25*boom_qx*boom_qz + boom_qy*c0
     c2 = (89/25)*boom_qx*boom_qy + boom_qz*c0
@@ -69,13 +79,11 @@ def jac_swing(q, t):
     c10 = 2*boom_qy
     c11 = boom_qx*c10
     c12 = c3 - c6
-    c13 = t**2
-    c14 = sin(c13)
-    c15 = 4*cos(c13)
-    c16 = boom_qx*c15 + c10*c14
-    c17 = (1/2)*c16
-    c18 = (1/2)*boom_qw*c15 + (1/2)*c14*c8
-    out = _zeros(16, q, t)
+    c13 = cos(u0)
+    c14 = 4*sin(u0)
+    c15 = boom_qx*c14 - c10*c13
+    c16 = (1/2)*boom_qw*c14 - 1/2*c13*c8
+    out = _zeros(16, q, u)
     out[0] = -1
     out[1] = -c1
     out[2] = -c2
@@ -89,25 +97,29 @@ def jac_swing(q, t):
     out[10] = -c12 - c4 + c5
     out[11] = c12 - c4 + c5
     out[12] = -c11 + c9
-    out[13] = boom_qw*boom_qy*c14 + boom_qw*c17 - boom_qx*boom_qz*c14 - boom_qx*c18
-    out[14] = -boom_qy*c18 + (1/2)*boom_qz*c16
-    out[15] = -boom_qy*c17 - boom_qz*c18 + c14*c3 + c14*c4
+    out[13] = -boom_qw*boom_qy*c13 + (1/2)*boom_qw*c15 + boom_qx*boom_qz*c13 - boom_qx*c16
+    out[14] = -boom_qy*c16 + (1/2)*boom_qz*c15
+    out[15] = -1/2*boom_qy*c15 - boom_qz*c16 - c13*c3 - c13*c4
     return out
 
 
-def nu_swing(q, t):
+def nu_swing(q, u, ud):
     """nu = -Phi_t of case 'swing'."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
-    c0 = t**2
-    out = _zeros(6, q, t)
-    out[5] = -2*t*(2*boom_qw*boom_qz + 2*boom_qx*boom_qy)*cos(c0) + 2*t*(2*boom_qw**2 + 2*boom_qx**2 - 1)*sin(c0)
+    u0, = u
+    ud0, = ud
+    out = _zeros(6, q, u)
+    out[5] = -ud0*((2*boom_qw*boom_qz + 2*boom_qx*boom_qy)*sin(u0) + (2*boom_qw**2 + 2*boom_qx**2 - 1)*cos(u0))
     return out
 
 
-def gamma_swing(q, v, t):
+def gamma_swing(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = boom_qw*v_boom_theta_y
     c1 = (89/25)*c0
     c2 = boom_qx*v_boom_theta_z
@@ -143,29 +155,27 @@ def gamma_swing(q, v, t):
     c32 = c30 + c31
     c33 = 2*c8
     c34 = 2*boom_qy*v_boom_theta_x - c33
-    c35 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    c36 = t**2
-    c37 = cos(c36)
-    c38 = 2*c37
-    c39 = sin(c36)
-    c40 = 2*boom_qw**2
-    c41 = 2*boom_qx**2
-    c42 = c40 + c41 - 1
-    c43 = 8*c39*t
-    c44 = -1/2*boom_qw*c43 + 2*boom_qz*c37*t
-    c45 = -boom_qx*c43 + 4*boom_qy*c37*t
-    c46 = 2*c39
-    c47 = boom_qx*c38
-    c48 = boom_qw*c38
-    c49 = (1/2)*c45
-    c50 = c37*t
-    out = _zeros(6, q, t)
+    c35 = sin(u0)
+    c36 = 2*boom_qw
+    c37 = 2*boom_qx
+    c38 = boom_qy*c37 + boom_qz*c36
+    c39 = cos(u0)
+    c40 = boom_qw**2
+    c41 = boom_qx**2
+    c42 = 2*c40 + 2*c41 - 1
+    c43 = 2*boom_qy*c35
+    c44 = 2*boom_qz*c35
+    c45 = 4*c39
+    c46 = (1/2)*boom_qw*c45 + (1/2)*c44
+    c47 = boom_qx*c45 + c43
+    c48 = (1/2)*c47
+    out = _zeros(6, q, u)
     out[0] = -c10*(-c7 + c9) - c15*(-c12 - c14) - c19*((89/25)*boom_qz*v_boom_theta_y - c17) - c5*(-c1 - c3)
     out[1] = -c10*(-c14 - c22) - c15*(boom_qy*c20 + c7) - c19*(c23 + c3) - c5*(-c17 + c21)
     out[2] = -c10*((89/25)*c18 + c21) - c15*(-c1 - c23) - c19*((89/25)*boom_qy*v_boom_theta_x - c9) - c5*(c12 + c22)
     out[3] = -c10*c27 + c15*c29 - c19*c34 - c32*c5
     out[4] = -c10*c29 - c15*c27 + c19*c32 - c34*c5
-    out[5] = -c10*(-c30*c39 + c33*c37 + v_boom_theta_z*(-boom_qz*c46 - c48)) - c15*(boom_qy*c24*c39 - c31*c37 + v_boom_theta_z*(boom_qw*c46 - boom_qz*c38)) - c19*(-boom_qz*c24*c39 + c26*c37 + v_boom_theta_z*(boom_qx*c46 - boom_qy*c38)) - c24*(boom_qw*c49 - boom_qx*c44 + boom_qy*c48*t - boom_qz*c47*t) + 4*c35*c36*c39 - c35*c38 + 4*c36*c37*c42 + 2*c39*c42 - c5*(c25*c39 - c28*c37 + v_boom_theta_z*(-boom_qy*c46 - c47)) - 2*v_boom_theta_y*(-boom_qy*c44 + (1/2)*boom_qz*c45) - 2*v_boom_theta_z*(-boom_qy*c49 - boom_qz*c44 + c40*c50 + c41*c50)
+    out[5] = -c10*(c30*c39 + c33*c35 + v_boom_theta_z*(2*boom_qz*c39 - c35*c36)) - c15*(-boom_qy*c24*c39 - c31*c35 + v_boom_theta_z*(-c36*c39 - c44)) - c19*(boom_qz*c24*c39 + c26*c35 + v_boom_theta_z*(-c37*c39 - c43)) - c5*(-c25*c39 - c28*c35 + v_boom_theta_z*(2*boom_qy*c39 - c35*c37)) - ud0**2*(-c35*c42 + c38*c39) - 2*ud0*(v_boom_theta_x*(boom_qw*boom_qy*c35 + boom_qw*c48 - boom_qx*boom_qz*c35 - boom_qx*c46) + v_boom_theta_y*(-boom_qy*c46 + (1/2)*boom_qz*c47) + v_boom_theta_z*(-boom_qy*c48 - boom_qz*c46 + c35*c40 + c35*c41)) - udd0*(c35*c38 + c39*c42)
     return out
 
 
@@ -176,6 +186,6 @@ CASES = {
         'jac_rows': (0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5),
         'jac_cols': (0, 4, 5, 1, 3, 5, 2, 3, 4, 3, 4, 3, 4, 3, 4, 5),
         't0': 0.0, 't1': 2.0, 'steps': 201,
-        'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
+        'inputs': inputs_swing, 'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
     },
 }

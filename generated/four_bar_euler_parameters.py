@@ -32,14 +32,26 @@ POINTS = {
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9689124217106447, 0.0, 0.0, 0.2474039592545229, 0.263275, 0.143828, 0.0, 0.9451759002226809, 0.0, 0.0, 0.32656165977996365, 1.0, 0.0, 0.0, 0.6924690606038826, 0.0, 0.0, 0.7214475726664942)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_crank_turn(q, t):
-    """Phi(q, t) of case 'crank_turn': 21 residuals."""
+def inputs_crank_turn(t):
+    """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 6.283185307179586*t
+    c1 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = c0 + (3/10)*c1 + 1/2
+    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
+    out[2] = -11.84352528130723*c1
+    return out
+
+
+def phi_crank_turn(q, u):
+    """Phi(q, u) of case 'crank_turn': 21 residuals."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    u0, = u
     c0 = -crank_z
     c1 = 2*crank_e0
     c2 = -coupler_x
@@ -60,9 +72,7 @@ def phi_crank_turn(q, t):
     c17 = rocker_e3**2
     c18 = c14*rocker_e1
     c19 = coupler_e2**2
-    c20 = 6.283185307179586*t
-    c21 = c20 + (3/10)*sin(c20) + 1/2
-    out = _zeros(21, q, t)
+    out = _zeros(21, q, u)
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = c0
@@ -83,13 +93,14 @@ def phi_crank_turn(q, t):
     out[17] = c3 + c4 + crank_e2**2 + crank_e3**2 - 1
     out[18] = c19 + c6 + c7 + coupler_e3**2 - 1
     out[19] = c17 + c8 + c9 + rocker_e2**2 - 1
-    out[20] = -(c1*crank_e3 + 2*crank_e1*crank_e2)*cos(c21) + (2*c3 + 2*c4 - 1)*sin(c21)
+    out[20] = -(c1*crank_e3 + 2*crank_e1*crank_e2)*cos(u0) + (2*c3 + 2*c4 - 1)*sin(u0)
     return out
 
 
-def jac_crank_turn(q, t):
-    """Values of the sparse Phi_q of case 'crank_turn' at JAC_ROWS, JAC_COLS (88 entries)."""
+def jac_crank_turn(q, u):
+    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (88 entries)."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    u0, = u
     c0 = 2*crank_e2
     c1 = 2*crank_e3
     c2 = 2*crank_e0
@@ -120,11 +131,9 @@ def jac_crank_turn(q, t):
     c27 = -c25*coupler_e3 + 2*coupler_e1*coupler_e2
     c28 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
     c29 = 2*rocker_e1
-    c30 = 6.283185307179586*t
-    c31 = c30 + (3/10)*sin(c30) + 1/2
-    c32 = 4*sin(c31)
-    c33 = cos(c31)
-    out = _zeros(88, q, t)
+    c30 = 4*sin(u0)
+    c31 = cos(u0)
+    out = _zeros(88, q, u)
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -209,28 +218,30 @@ def jac_crank_turn(q, t):
     out[81] = c29
     out[82] = c18
     out[83] = c19
-    out[84] = -c1*c33 + c32*crank_e0
-    out[85] = -c0*c33 + c32*crank_e1
-    out[86] = -c3*c33
-    out[87] = -c2*c33
+    out[84] = -c1*c31 + c30*crank_e0
+    out[85] = -c0*c31 + c30*crank_e1
+    out[86] = -c3*c31
+    out[87] = -c2*c31
     return out
 
 
-def nu_crank_turn(q, t):
+def nu_crank_turn(q, u, ud):
     """nu = -Phi_t of case 'crank_turn'."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    c0 = 6.283185307179586*t
-    c1 = 1.8849555921538759*cos(c0) + 6.283185307179586
-    c2 = c0 + (3/10)*sin(c0) + 1/2
-    out = _zeros(21, q, t)
-    out[20] = -c1*(2*crank_e0*crank_e3 + 2*crank_e1*crank_e2)*sin(c2) - c1*(2*crank_e0**2 + 2*crank_e1**2 - 1)*cos(c2)
+    u0, = u
+    ud0, = ud
+    out = _zeros(21, q, u)
+    out[20] = -ud0*((2*crank_e0*crank_e3 + 2*crank_e1*crank_e2)*sin(u0) + (2*crank_e0**2 + 2*crank_e1**2 - 1)*cos(u0))
     return out
 
 
-def gamma_crank_turn(q, v, t):
+def gamma_crank_turn(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, _, _, _, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
     c2 = v_crank_e0**2
@@ -281,23 +292,16 @@ def gamma_crank_turn(q, v, t):
     c47 = c21*coupler_e3 + c23*coupler_e1 + c44*coupler_e2
     c48 = 8*coupler_e0*coupler_e1 + 8*coupler_e2*coupler_e3
     c49 = 4*v_rocker_e1
-    c50 = 6.283185307179586*t
-    c51 = sin(c50)
-    c52 = c50 + (3/10)*c51 + 1/2
-    c53 = cos(c52)
-    c54 = sin(c52)
-    c55 = 4*c54
-    c56 = 1.8849555921538759*cos(c50) + 6.283185307179586
-    c57 = c56*crank_e0
-    c58 = c54*c56
-    c59 = 2*crank_e3
-    c60 = 2*crank_e2
-    c61 = c59*crank_e0 + c60*crank_e1
-    c62 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    c63 = c56**2
-    c64 = 2*c53
-    c65 = 4*c53
-    out = _zeros(21, q, t)
+    c50 = cos(u0)
+    c51 = sin(u0)
+    c52 = 2*c50
+    c53 = 2*crank_e3
+    c54 = 2*crank_e2
+    c55 = c53*crank_e0 + c54*crank_e1
+    c56 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    c57 = 2*c51
+    c58 = 4*c50
+    out = _zeros(21, q, u)
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[5] = -6/5*c2 - 6/5*c3
@@ -312,7 +316,7 @@ def gamma_crank_turn(q, v, t):
     out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[18] = -2*c6 - 2*c7 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2
     out[19] = -2*c8 - 2*c9 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
-    out[20] = -c0*c58*crank_e1 + 11.84352528130723*c51*c53*c62 + 11.84352528130723*c51*c54*c61 - c53*c61*c63 + 2*c53*v_crank_e0*v_crank_e3 + 2*c53*v_crank_e1*v_crank_e2 + c54*c62*c63 - c55*c57*v_crank_e3 - v_crank_e0*(c55*v_crank_e0 - c64*v_crank_e3) - 2*v_crank_e0*(c57*c65 + c58*c59) - v_crank_e1*(c1*c54 - c64*v_crank_e2) - 2*v_crank_e1*(c56*c65*crank_e1 + c58*c60)
+    out[20] = 2*c50*v_crank_e0*v_crank_e3 + 2*c50*v_crank_e1*v_crank_e2 - ud0**2*(c50*c55 - c51*c56) - 2*ud0*(c57*crank_e0*v_crank_e3 + c57*crank_e1*v_crank_e2 + v_crank_e0*(c51*c53 + c58*crank_e0) + v_crank_e1*(c51*c54 + c58*crank_e1)) - udd0*(c50*c56 + c51*c55) - v_crank_e0*(4*c51*v_crank_e0 - c52*v_crank_e3) - v_crank_e1*(c1*c51 - c52*v_crank_e2)
     return out
 
 
@@ -323,6 +327,6 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 12, 13, 14, 15, 15, 15, 15, 16, 16, 16, 16, 17, 17, 17, 17, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20),
         'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 17, 18, 8, 10, 11, 12, 13, 15, 17, 18, 19, 20, 9, 10, 11, 12, 13, 16, 17, 18, 19, 20, 10, 11, 12, 13, 17, 18, 19, 20, 14, 15, 16, 17, 18, 19, 20, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 3, 4, 5, 6),
         't0': 0.0, 't1': 1.0, 'steps': 201,
-        'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,
+        'inputs': inputs_crank_turn, 'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,
     },
 }

@@ -32,14 +32,26 @@ POINTS = {
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9689124217106447, 0.0, 0.0, 0.2474039592545229, 0.263275, 0.143828, 0.0, 0.9451759002226809, 0.0, 0.0, 0.32656165977996365, 1.0, 0.0, 0.0, 0.6924690606038826, 0.0, 0.0, 0.7214475726664942)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_crank_turn(q, t):
-    """Phi(q, t) of case 'crank_turn': 18 residuals."""
+def inputs_crank_turn(t):
+    """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 6.283185307179586*t
+    c1 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = c0 + (3/10)*c1 + 1/2
+    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
+    out[2] = -11.84352528130723*c1
+    return out
+
+
+def phi_crank_turn(q, u):
+    """Phi(q, u) of case 'crank_turn': 18 residuals."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    u0, = u
     c0 = -crank_z
     c1 = 2*crank_qw
     c2 = -coupler_x
@@ -56,9 +68,7 @@ def phi_crank_turn(q, t):
     c13 = c12*rocker_qy
     c14 = 2*rocker_qz
     c15 = c12*rocker_qx
-    c16 = 6.283185307179586*t
-    c17 = c16 + (3/10)*sin(c16) + 1/2
-    out = _zeros(18, q, t)
+    out = _zeros(18, q, u)
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = c0
@@ -76,13 +86,14 @@ def phi_crank_turn(q, t):
     out[14] = -rocker_z
     out[15] = -c13 + 2*rocker_qx*rocker_qz
     out[16] = c14*rocker_qy + c15
-    out[17] = -(c1*crank_qz + 2*crank_qx*crank_qy)*cos(c17) + (2*c3 + 2*c4 - 1)*sin(c17)
+    out[17] = -(c1*crank_qz + 2*crank_qx*crank_qy)*cos(u0) + (2*c3 + 2*c4 - 1)*sin(u0)
     return out
 
 
-def jac_crank_turn(q, t):
-    """Values of the sparse Phi_q of case 'crank_turn' at JAC_ROWS, JAC_COLS (53 entries)."""
+def jac_crank_turn(q, u):
+    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (53 entries)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    u0, = u
     c0 = crank_qw*crank_qz
     c1 = 2*c0
     c2 = crank_qx*crank_qy
@@ -142,14 +153,12 @@ def jac_crank_turn(q, t):
     c56 = c28*rocker_qz
     c57 = c52*rocker_qy
     c58 = c23 - c26
-    c59 = 6.283185307179586*t
-    c60 = c59 + (3/10)*sin(c59) + 1/2
-    c61 = cos(c60)
-    c62 = 4*sin(c60)
-    c63 = 2*c61
-    c64 = c62*crank_qx - c63*crank_qy
-    c65 = (1/2)*c62*crank_qw - 1/2*c63*crank_qz
-    out = _zeros(53, q, t)
+    c59 = cos(u0)
+    c60 = 4*sin(u0)
+    c61 = 2*c59
+    c62 = c60*crank_qx - c61*crank_qy
+    c63 = (1/2)*c60*crank_qw - 1/2*c61*crank_qz
+    out = _zeros(53, q, u)
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -200,27 +209,29 @@ def jac_crank_turn(q, t):
     out[47] = -c24 + c25 - c58
     out[48] = -c24 + c25 + c58
     out[49] = c56 - c57
-    out[50] = -c61*c9 + c61*crank_qx*crank_qz + (1/2)*c64*crank_qw - c65*crank_qx
-    out[51] = (1/2)*c64*crank_qz - c65*crank_qy
-    out[52] = -c4*c61 - c6*c61 - 1/2*c64*crank_qy - c65*crank_qz
+    out[50] = -c59*c9 + c59*crank_qx*crank_qz + (1/2)*c62*crank_qw - c63*crank_qx
+    out[51] = (1/2)*c62*crank_qz - c63*crank_qy
+    out[52] = -c4*c59 - c59*c6 - 1/2*c62*crank_qy - c63*crank_qz
     return out
 
 
-def nu_crank_turn(q, t):
+def nu_crank_turn(q, u, ud):
     """nu = -Phi_t of case 'crank_turn'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    c0 = 6.283185307179586*t
-    c1 = 1.8849555921538759*cos(c0) + 6.283185307179586
-    c2 = c0 + (3/10)*sin(c0) + 1/2
-    out = _zeros(18, q, t)
-    out[17] = -c1*(2*crank_qw*crank_qz + 2*crank_qx*crank_qy)*sin(c2) - c1*(2*crank_qw**2 + 2*crank_qx**2 - 1)*cos(c2)
+    u0, = u
+    ud0, = ud
+    out = _zeros(18, q, u)
+    out[17] = -ud0*((2*crank_qw*crank_qz + 2*crank_qx*crank_qy)*sin(u0) + (2*crank_qw**2 + 2*crank_qx**2 - 1)*cos(u0))
     return out
 
 
-def gamma_crank_turn(q, v, t):
+def gamma_crank_turn(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, _, _, _, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = 2*v_crank_theta_x
     c1 = c0*crank_qw
     c2 = 2*v_crank_theta_y
@@ -413,27 +424,21 @@ def gamma_crank_turn(q, v, t):
     c189 = 2*c53 - 2*rocker_qz*v_rocker_theta_x
     c190 = 2*c64 + 2*rocker_qx*v_rocker_theta_x
     c191 = -2*c61 + 2*rocker_qy*v_rocker_theta_x
-    c192 = 6.283185307179586*t
-    c193 = sin(c192)
-    c194 = 2*crank_qw
-    c195 = 2*crank_qx
-    c196 = c194*crank_qz + c195*crank_qy
-    c197 = c192 + (3/10)*c193 + 1/2
-    c198 = sin(c197)
-    c199 = cos(c197)
-    c200 = crank_qw**2
-    c201 = crank_qx**2
-    c202 = 2*c200 + 2*c201 - 1
-    c203 = 1.8849555921538759*cos(c192) + 6.283185307179586
-    c204 = c203**2
-    c205 = 2*c198*crank_qy
-    c206 = 2*c198*crank_qz
-    c207 = 4*c199*c203
-    c208 = (1/2)*c203*c206 + (1/2)*c207*crank_qw
-    c209 = c203*c205 + c207*crank_qx
-    c210 = c198*c203
-    c211 = (1/2)*c209
-    out = _zeros(18, q, t)
+    c192 = sin(u0)
+    c193 = 2*crank_qw
+    c194 = 2*crank_qx
+    c195 = c193*crank_qz + c194*crank_qy
+    c196 = cos(u0)
+    c197 = crank_qw**2
+    c198 = crank_qx**2
+    c199 = 2*c197 + 2*c198 - 1
+    c200 = 2*c192*crank_qy
+    c201 = 2*c192*crank_qz
+    c202 = 4*c196
+    c203 = (1/2)*c201 + (1/2)*c202*crank_qw
+    c204 = c200 + c202*crank_qx
+    c205 = (1/2)*c204
+    out = _zeros(18, q, u)
     out[3] = c10*c11 - c14*c15 - c17*c18 - c4*c8
     out[4] = -c10*c8 - c11*c4 + c14*c18 - c15*c17
     out[5] = -c11*(-c26 - c28) - c15*(-c20 - c22) - c18*(-c29 + (3/5)*crank_qz*v_crank_theta_y) - c8*(-c23 + c24)
@@ -445,7 +450,7 @@ def gamma_crank_turn(q, v, t):
     out[11] = -c38*(v_coupler_theta_x*(c102 - c104 + c106 - c176 + c99) + v_coupler_theta_y*(c103*coupler_qz + c112 - c113 - c114 + c159 + c174*coupler_qw) + v_coupler_theta_z*((1/2)*c100*coupler_qw - c157 - c175 - c98*coupler_qy) + v_rocker_theta_x*(-c121*c133 + c130*c164 - c180*rocker_qx + c185*rocker_qy) + v_rocker_theta_y*(c121*c130 + c133*c164 - c180*rocker_qy - c185*rocker_qx) + v_rocker_theta_z*(c121*c142 + c130*c184 - c141*c164 - c180*rocker_qz)) - c43*(v_coupler_theta_x*(-c160 - c161) + v_coupler_theta_y*(-c156 + c158) + v_coupler_theta_z*(-c115 - c155*coupler_qz - c159) + v_rocker_theta_x*(-c142*c152 + (1/2)*c153*rocker_qy) + v_rocker_theta_y*(-c141*c152 - c142*c153 - c94*coupler_qw - c96*coupler_qw) + v_rocker_theta_z*(-c133*c152 + (1/2)*c153*rocker_qw - c90*coupler_qw + 2*coupler_qw*rocker_qy*rocker_qz)) - c48*(v_coupler_theta_x*(c156 + c158 + c175) + v_coupler_theta_y*(-c160 + c161 - c174*coupler_qy) + v_coupler_theta_z*(-c102 - c107 + (1/2)*c154*coupler_qw - c176) + v_rocker_theta_x*(-c117*c133 + c130*c162 + c141*c173 - c142*c172) + v_rocker_theta_y*(c117*c130 + c133*c162 - c141*c172 - c142*c173) + v_rocker_theta_z*(c117*c142 + c130*c173 - c133*c172 - c141*c162)) - c52*(v_coupler_theta_x*(-c111 - c112 - c115) + v_coupler_theta_y*(-c102 + c107 + c99) + v_coupler_theta_z*(-c108 + c110 + c98*coupler_qx) + v_rocker_theta_x*(-c85*rocker_qx + (1/2)*c88*rocker_qy) + v_rocker_theta_y*(-c85*rocker_qy - c92*rocker_qx + c94*coupler_qy + c96*coupler_qy) + v_rocker_theta_z*(-c85*rocker_qz + c90*coupler_qy - c91*coupler_qy*rocker_qy + c92*rocker_qw)) - c58*(v_coupler_theta_x*(-c118*coupler_qx - c122*coupler_qz) + v_coupler_theta_y*(-c118*coupler_qy + c122*coupler_qw + c123*c89 + c124*c89) + v_coupler_theta_z*(-c118*coupler_qz + (1/2)*c121*coupler_qx - c126*rocker_qw - c128*rocker_qw) + v_rocker_theta_x*(c129*c141 - c143 + c145) + v_rocker_theta_y*(-c146 - c149) + v_rocker_theta_z*(c131 - c134 + c140)) - c63*(v_coupler_theta_x*(-c185*coupler_qz + c186*coupler_qy - c187*coupler_qx + c92*coupler_qw) + v_coupler_theta_y*(c185*coupler_qw - c186*coupler_qx - c187*coupler_qy + c92*coupler_qz) + v_coupler_theta_z*(c185*coupler_qx + c186*coupler_qw - c187*coupler_qz - c92*coupler_qy) + v_rocker_theta_x*(-c129*c133 + (1/2)*c132*rocker_qw - c168 - c182) + v_rocker_theta_y*(c131 + c134 - c136 + c139 - c183) + v_rocker_theta_z*(c146 - c149 + (1/2)*c181*rocker_qw)) - c68*(v_coupler_theta_x*(c177*coupler_qy - c178*coupler_qx - c180*coupler_qz + c85*coupler_qw) + v_coupler_theta_y*(-c177*coupler_qx - c178*coupler_qy + c180*coupler_qw + c85*coupler_qz) + v_coupler_theta_z*(c177*coupler_qw - c178*coupler_qz + c180*coupler_qx - c85*coupler_qy) + v_rocker_theta_x*(-c134 - c140 + (1/2)*c166*rocker_qw - c183) + v_rocker_theta_y*(c167 + c169 + c182) + v_rocker_theta_z*(-c133*c181 - c170 + c171)) - c72*(v_coupler_theta_x*(-c163*coupler_qx - c165*coupler_qz) + v_coupler_theta_y*(c123*c91 + c124*c91 - c163*coupler_qy + c165*coupler_qw) + v_coupler_theta_z*(-c126*rocker_qz - c128*rocker_qz - c163*coupler_qz + (1/2)*c164*coupler_qx) + v_rocker_theta_x*(-c142*c166 + c147 - c148) + v_rocker_theta_y*(-c170 - c171) + v_rocker_theta_z*(-c167 + c169))
     out[15] = -c188*c63 + c189*c68 - c190*c58 - c191*c72
     out[16] = -c188*c68 - c189*c63 + c190*c72 - c191*c58
-    out[17] = -c0*(-c208*crank_qx + c210*crank_qw*crank_qy - c210*crank_qx*crank_qz + c211*crank_qw) - c11*(-c0*c199*crank_qy - c13*c198 + v_crank_theta_z*(-c194*c199 - c206)) - c15*(-c1*c199 - c198*c9 + v_crank_theta_z*(-c195*c198 + 2*c199*crank_qy)) - c18*(c0*c199*crank_qz + c198*c3 + v_crank_theta_z*(-c195*c199 - c205)) + 11.84352528130723*c193*c196*c198 + 11.84352528130723*c193*c199*c202 - c196*c199*c204 + c198*c202*c204 - c2*(-c208*crank_qy + (1/2)*c209*crank_qz) - c8*(c12*c199 + c16*c198 + v_crank_theta_z*(-c194*c198 + 2*c199*crank_qz)) - 2*v_crank_theta_z*(c200*c210 + c201*c210 - c208*crank_qz - c211*crank_qy)
+    out[17] = -c11*(-c0*c196*crank_qy - c13*c192 + v_crank_theta_z*(-c193*c196 - c201)) - c15*(-c1*c196 - c192*c9 + v_crank_theta_z*(-c192*c194 + 2*c196*crank_qy)) - c18*(c0*c196*crank_qz + c192*c3 + v_crank_theta_z*(-c194*c196 - c200)) - c8*(c12*c196 + c16*c192 + v_crank_theta_z*(-c192*c193 + 2*c196*crank_qz)) - ud0**2*(-c192*c199 + c195*c196) - 2*ud0*(v_crank_theta_x*(c192*crank_qw*crank_qy - c192*crank_qx*crank_qz - c203*crank_qx + c205*crank_qw) + v_crank_theta_y*(-c203*crank_qy + (1/2)*c204*crank_qz) + v_crank_theta_z*(c192*c197 + c192*c198 - c203*crank_qz - c205*crank_qy)) - udd0*(c192*c195 + c196*c199)
     return out
 
 
@@ -456,6 +461,6 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 13, 14, 15, 15, 16, 16, 17, 17, 17),
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 16, 17, 7, 9, 11, 13, 15, 17, 8, 9, 10, 14, 15, 16, 9, 10, 11, 15, 16, 17, 12, 13, 14, 15, 16, 15, 16, 3, 4, 5),
         't0': 0.0, 't1': 1.0, 'steps': 201,
-        'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,
+        'inputs': inputs_crank_turn, 'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,
     },
 }

@@ -31,14 +31,27 @@ POINTS = {
 INITIAL_Q = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1, 0.35, 0.3, 1.0, 0.0, 0.0, 0.0)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_turn(q, t):
-    """Phi(q, t) of case 'turn': 14 residuals."""
+def inputs_turn(t):
+    """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 3.141592653589793*t
+    c1 = cos(c0)
+    c2 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
+    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
+    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
+    return out
+
+
+def phi_turn(q, u):
+    """Phi(q, u) of case 'turn': 14 residuals."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    u0, = u
     c0 = -crank_x
     c1 = 2*crank_e0
     c2 = 2*rocker_e0
@@ -52,8 +65,7 @@ def phi_turn(q, t):
     c10 = rocker_e0**2
     c11 = rocker_e3**2
     c12 = rocker_e2**2
-    c13 = 6.283185307179586*t*(1 - 1/5*cos(3.141592653589793*t))
-    out = _zeros(14, q, t)
+    out = _zeros(14, q, u)
     out[0] = c0
     out[1] = -crank_y
     out[2] = -crank_z
@@ -67,13 +79,14 @@ def phi_turn(q, t):
     out[10] = (-c0 - c3*rocker_e0 - c4*rocker_e3 - c5*rocker_e3 + (3/10)*c6 + (3/10)*c7 + (1100683/2500000)*rocker_e1*rocker_e2 - rocker_x - 3/20)**2 + (-10190667/25000000*c10 - 10190667/25000000*c11 + c4*rocker_e1 - c8*crank_e2 + c9*crank_e3 + crank_z + (1100683/2500000)*rocker_e2*rocker_e3 - rocker_z + 10190667/50000000)**2 + ((1100683/2500000)*c10 + (1100683/2500000)*c12 - c3*rocker_e3 + c5*rocker_e0 + c8*crank_e3 + c9*crank_e2 + crank_y - rocker_y - 1100683/5000000)**2 - 169/625
     out[11] = c6 + c7 + crank_e2**2 + crank_e3**2 - 1
     out[12] = c10 + c11 + c12 + rocker_e1**2 - 1
-    out[13] = -(c1*crank_e3 + 2*crank_e1*crank_e2)*cos(c13) + (2*c6 + 2*c7 - 1)*sin(c13)
+    out[13] = -(c1*crank_e3 + 2*crank_e1*crank_e2)*cos(u0) + (2*c6 + 2*c7 - 1)*sin(u0)
     return out
 
 
-def jac_turn(q, t):
-    """Values of the sparse Phi_q of case 'turn' at JAC_ROWS, JAC_COLS (48 entries)."""
+def jac_turn(q, u):
+    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (48 entries)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    u0, = u
     c0 = 2*crank_e2
     c1 = 2*crank_e3
     c2 = 2*crank_e0
@@ -110,10 +123,9 @@ def jac_turn(q, t):
     c33 = (10190667/12500000)*rocker_e0
     c34 = (1100683/1250000)*rocker_e2
     c35 = -10190667/12500000*rocker_e3
-    c36 = 6.283185307179586*t*(1 - 1/5*cos(3.141592653589793*t))
-    c37 = 4*sin(c36)
-    c38 = cos(c36)
-    out = _zeros(48, q, t)
+    c36 = 4*sin(u0)
+    c37 = cos(u0)
+    out = _zeros(48, q, u)
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -158,29 +170,30 @@ def jac_turn(q, t):
     out[41] = c6
     out[42] = c5
     out[43] = c4
-    out[44] = -c1*c38 + c37*crank_e0
-    out[45] = -c0*c38 + c37*crank_e1
-    out[46] = -c3*c38
-    out[47] = -c2*c38
+    out[44] = -c1*c37 + c36*crank_e0
+    out[45] = -c0*c37 + c36*crank_e1
+    out[46] = -c3*c37
+    out[47] = -c2*c37
     return out
 
 
-def nu_turn(q, t):
+def nu_turn(q, u, ud):
     """nu = -Phi_t of case 'turn'."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
-    c0 = 3.141592653589793*t
-    c1 = cos(c0)
-    c2 = 6.283185307179586*t*(1 - 1/5*c1)
-    c3 = -1.2566370614359172*c1 + 3.947841760435743*t*sin(c0) + 6.283185307179586
-    out = _zeros(14, q, t)
-    out[13] = -c3*(2*crank_e0*crank_e3 + 2*crank_e1*crank_e2)*sin(c2) - c3*(2*crank_e0**2 + 2*crank_e1**2 - 1)*cos(c2)
+    u0, = u
+    ud0, = ud
+    out = _zeros(14, q, u)
+    out[13] = -ud0*((2*crank_e0*crank_e3 + 2*crank_e1*crank_e2)*sin(u0) + (2*crank_e0**2 + 2*crank_e1**2 - 1)*cos(u0))
     return out
 
 
-def gamma_turn(q, v, t):
+def gamma_turn(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
     c2 = 4*v_rocker_e3
@@ -316,24 +329,14 @@ def gamma_turn(q, v, t):
     c132 = -c116 - c13
     c133 = c127 + c21
     c134 = -c123 - c130
-    c135 = 3.141592653589793*t
-    c136 = cos(c135)
-    c137 = 6.283185307179586*t*(1 - 1/5*c136)
-    c138 = cos(c137)
-    c139 = sin(c137)
-    c140 = 4*c139
-    c141 = sin(c135)
-    c142 = -1.2566370614359172*c136 + 3.947841760435743*c141*t + 6.283185307179586
-    c143 = c142*crank_e0
-    c144 = c139*c142
-    c145 = 2*c138
-    c146 = 2*c120 + 2*c121
-    c147 = 12.402510672119927*c136*t + 7.895683520871486*c141
-    c148 = c142**2
-    c149 = 2*c49 + 2*c50 - 1
-    c150 = 4*c138
-    c151 = 2*c144
-    out = _zeros(14, q, t)
+    c135 = cos(u0)
+    c136 = sin(u0)
+    c137 = 2*c135
+    c138 = 2*c120 + 2*c121
+    c139 = 2*c49 + 2*c50 - 1
+    c140 = 2*c136
+    c141 = 4*c135
+    out = _zeros(14, q, u)
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[8] = c2*v_rocker_e0 - c3*v_rocker_e1
@@ -341,7 +344,7 @@ def gamma_turn(q, v, t):
     out[10] = -v_crank_e0*(-c11*v_crank_z + c11*v_rocker_z + c12*v_crank_y - c12*v_rocker_y + c35*v_crank_x - c35*v_rocker_x + c66*v_crank_e2 + c76*v_crank_e3 + c78*v_crank_e1 + v_crank_e0*((27/25)*c49 + (9/25)*c50 + c90) + v_rocker_e0*(-c27*c85 + c40*c9 + c5*c83) + v_rocker_e1*(c41*c9 + c81) + v_rocker_e2*(c43*c9 + c7*c83 + c82) + v_rocker_e3*(-c29*c85 + (3/5)*c45*crank_e0 - c84)) - v_crank_e1*(c11*v_crank_y - c11*v_rocker_y + c12*v_crank_z - c12*v_rocker_z + c37*v_crank_x - c37*v_rocker_x + c70*v_crank_e2 + c77*v_crank_e3 + c78*v_crank_e0 + v_crank_e1*((9/25)*c49 + (27/25)*c50 + c90) + v_rocker_e0*(c10*c40 + c27*c83 + c5*c85) + v_rocker_e1*(c10*c41 + c93) + v_rocker_e2*(c10*c43 + c7*c85 + c94) + v_rocker_e3*(c10*c45 + c29*c83 + c95)) - v_crank_e2*(c10*v_crank_y - c10*v_rocker_y + c48*v_rocker_e1 + c51*v_crank_e2 + c66*v_crank_e0 + c70*v_crank_e1 - c9*v_crank_z + c9*v_rocker_z + v_rocker_e0*(-c27*c54 + (3/10)*c5*crank_e1) + v_rocker_e2*(-c52 + (3/10)*c7*crank_e1) + v_rocker_e3*(-c29*c54 - c53)) - v_crank_e3*(c10*v_crank_z - c10*v_rocker_z + c51*v_crank_e3 + c73*v_rocker_e1 + c76*v_crank_e0 + c77*v_crank_e1 + c9*v_crank_y - c9*v_rocker_y + v_rocker_e0*((3/10)*c27*crank_e1 + c5*c54) + v_rocker_e2*(c54*c7 + c74) + v_rocker_e3*((3/10)*c29*crank_e1 - c75)) - v_crank_x*(c33 - c34 + c36 + c38 + c40*v_rocker_e0 + c41*v_rocker_e1 + c43*v_rocker_e2 + c45*v_rocker_e3) - v_crank_y*(c14 + c5*v_rocker_e0 + c7*v_rocker_e2) - v_crank_z*(c15 - c16 - c17 + c18 - c19 + c20 + c22 + c24 + c27*v_rocker_e0 + c29*v_rocker_e3) - v_rocker_e0*(c26*v_rocker_z + c27*v_crank_z + c30*v_rocker_y + c39*v_rocker_x + c40*v_crank_x + c5*v_crank_y + v_crank_e0*(-c11*c132 + c12*c133 + c134*c35) + v_crank_e1*(c11*c133 + c12*c132 + c134*c37) + v_crank_e2*(-c132*c9 + (3/5)*c133*crank_e1) + v_crank_e3*(c10*c132 + c133*c9) + v_rocker_e0*(c122 + c129 + c132*c27 + c133*c5 + c134*c40 - 11216693925561/7812500000000*c60 + (225000000553789/156250000000000)*c62 - 225000000553789/312500000000000) + v_rocker_e1*(c114 + c13*c133 + c132*c21 + c134*c41) + v_rocker_e2*(c124 + c132*c23 + c133*c7 + c134*c43) + v_rocker_e3*(c131 + c132*c29 - c133*c8 + c134*c45)) - v_rocker_e1*(c13*v_crank_y - c13*v_rocker_y + c21*v_crank_z - c21*v_rocker_z + c41*v_crank_x + c46*v_rocker_x + c48*v_crank_e2 + c73*v_crank_e3 + v_crank_e0*(c35*c98 + c81) + v_crank_e1*(c37*c98 + c93) + v_rocker_e0*(c108*c27 + c114 + c40*c98 + c5*c99) + v_rocker_e1*(c41*c98 + (225000000553789/312500000000000)*c62) + v_rocker_e2*(c107 + c43*c98 + c7*c99) + v_rocker_e3*(c108*c29 + c109 + c45*c98)) - v_rocker_e2*(c23*v_crank_z - c23*v_rocker_z + c31*v_rocker_y + c42*v_rocker_x + c43*v_crank_x + c7*v_crank_y + v_crank_e0*(c115*c12 + c117*c35 + c82) + v_crank_e1*(c11*c115 + c117*c37 + c94) + v_crank_e2*((3/5)*c115*crank_e1 - c52) + v_crank_e3*(c115*c9 + c74) + v_rocker_e0*(c115*c5 + c117*c40 + c123*c27 + c124) + v_rocker_e1*(c107 + c115*c13 + c117*c41) + v_rocker_e2*(c115*c7 + c117*c43 + c118 + c119 + c122 + (1211503066489/1562500000000)*c62 + (1211503066489/3125000000000)*c64 - 1211503066489/3125000000000) + v_rocker_e3*(-c115*c8 + c117*c45 - c125 + (1100683/2500000)*c29*rocker_e3)) - v_rocker_e3*(c29*v_crank_z + c32*v_rocker_z + c44*v_rocker_x + c45*v_crank_x - c8*v_crank_y + c8*v_rocker_y + v_crank_e0*(-c11*c126 + (6/5)*c128*crank_e0 - c84) + v_crank_e1*(c12*c126 + c128*c37 + c95) + v_crank_e2*(-c126*c9 - c53) + v_crank_e3*((3/5)*c126*crank_e1 - c75) + v_rocker_e0*(c126*c27 + c128*c40 - c130*c5 + c131) + v_rocker_e1*(c109 + c126*c21 + c128*c41) + v_rocker_e2*(-c125 + (1100683/1250000)*c126*rocker_e3 + c128*c43 - c130*c7) + v_rocker_e3*(c118 - c119 + c126*c29 + c128*c45 + c129 + (103849693904889/156250000000000)*c62 + (103849693904889/312500000000000)*c68 - 103849693904889/312500000000000)) - v_rocker_x*(-c33 + c34 - c36 - c38 + c39*v_rocker_e0 + c42*v_rocker_e2 + c44*v_rocker_e3 + c46*v_rocker_e1) - v_rocker_y*(-c14 + c30*v_rocker_e0 + c31*v_rocker_e2) - v_rocker_z*(-c15 + c16 + c17 - c18 + c19 - c20 - c22 - c24 + c26*v_rocker_e0 + c32*v_rocker_e3)
     out[11] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[12] = -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
-    out[13] = -c0*c144*crank_e1 - c138*c146*c148 - c138*c147*c149 + 2*c138*v_crank_e0*v_crank_e3 + 2*c138*v_crank_e1*v_crank_e2 - c139*c146*c147 + c139*c148*c149 - c140*c143*v_crank_e3 - v_crank_e0*(c140*v_crank_e0 - c145*v_crank_e3) - 2*v_crank_e0*(c143*c150 + c151*crank_e3) - v_crank_e1*(c1*c139 - c145*v_crank_e2) - 2*v_crank_e1*(c142*c150*crank_e1 + c151*crank_e2)
+    out[13] = 2*c135*v_crank_e0*v_crank_e3 + 2*c135*v_crank_e1*v_crank_e2 - ud0**2*(c135*c138 - c136*c139) - 2*ud0*(c140*crank_e0*v_crank_e3 + c140*crank_e1*v_crank_e2 + v_crank_e0*(c140*crank_e3 + c141*crank_e0) + v_crank_e1*(c140*crank_e2 + c141*crank_e1)) - udd0*(c135*c139 + c136*c138) - v_crank_e0*(4*c136*v_crank_e0 - c137*v_crank_e3) - v_crank_e1*(c1*c136 - c137*v_crank_e2)
     return out
 
 
@@ -352,6 +355,6 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 6, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13),
         'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 10, 11, 12, 13, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 3, 4, 5, 6),
         't0': 0.0, 't1': 1.0, 'steps': 201,
-        'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,
+        'inputs': inputs_turn, 'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,
     },
 }

@@ -31,14 +31,27 @@ POINTS = {
 INITIAL_Q = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1, 0.35, 0.3, 1.0, 0.0, 0.0, 0.0)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_turn(q, t):
-    """Phi(q, t) of case 'turn': 12 residuals."""
+def inputs_turn(t):
+    """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 3.141592653589793*t
+    c1 = cos(c0)
+    c2 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
+    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
+    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
+    return out
+
+
+def phi_turn(q, u):
+    """Phi(q, u) of case 'turn': 12 residuals."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    u0, = u
     c0 = -crank_x
     c1 = 2*crank_qw
     c2 = 2*rocker_qw
@@ -50,8 +63,7 @@ def phi_turn(q, t):
     c8 = (3/10)*crank_qw
     c9 = (3/10)*crank_qx
     c10 = rocker_qw**2
-    c11 = 6.283185307179586*t*(1 - 1/5*cos(3.141592653589793*t))
-    out = _zeros(12, q, t)
+    out = _zeros(12, q, u)
     out[0] = c0
     out[1] = -crank_y
     out[2] = -crank_z
@@ -63,13 +75,14 @@ def phi_turn(q, t):
     out[8] = -c2*rocker_qz + 2*rocker_qx*rocker_qy
     out[9] = c2*rocker_qy + 2*rocker_qx*rocker_qz
     out[10] = (-c0 - c3*rocker_qw - c4*rocker_qz - c5*rocker_qz + (3/10)*c6 + (3/10)*c7 + (1100683/2500000)*rocker_qx*rocker_qy - rocker_x - 3/20)**2 + (-10190667/25000000*c10 + c4*rocker_qx - c8*crank_qy + c9*crank_qz + crank_z + (1100683/2500000)*rocker_qy*rocker_qz - 10190667/25000000*rocker_qz**2 - rocker_z + 10190667/50000000)**2 + ((1100683/2500000)*c10 - c3*rocker_qz + c5*rocker_qw + c8*crank_qz + c9*crank_qy + crank_y + (1100683/2500000)*rocker_qy**2 - rocker_y - 1100683/5000000)**2 - 169/625
-    out[11] = -(c1*crank_qz + 2*crank_qx*crank_qy)*cos(c11) + (2*c6 + 2*c7 - 1)*sin(c11)
+    out[11] = -(c1*crank_qz + 2*crank_qx*crank_qy)*cos(u0) + (2*c6 + 2*c7 - 1)*sin(u0)
     return out
 
 
-def jac_turn(q, t):
-    """Values of the sparse Phi_q of case 'turn' at JAC_ROWS, JAC_COLS (29 entries)."""
+def jac_turn(q, u):
+    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (29 entries)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    u0, = u
     c0 = crank_qw*crank_qz
     c1 = 2*c0
     c2 = crank_qx*crank_qy
@@ -123,13 +136,12 @@ def jac_turn(q, t):
     c50 = c26*(c43 + (1100683/625000)*rocker_qy) + c29*c48 + c35*(-c42 - c49)
     c51 = (1/2)*rocker_qz
     c52 = (1/2)*c26*(c20 + (1100683/625000)*rocker_qw) + (1/2)*c29*(-c49 - 10190667/6250000*rocker_qw) + (1/2)*c35*(-c16 - c48)
-    c53 = 6.283185307179586*t*(1 - 1/5*cos(3.141592653589793*t))
-    c54 = cos(c53)
-    c55 = 4*sin(c53)
-    c56 = 2*c54
-    c57 = c55*crank_qx - c56*crank_qy
-    c58 = c55*crank_qw - c56*crank_qz
-    out = _zeros(29, q, t)
+    c53 = cos(u0)
+    c54 = 4*sin(u0)
+    c55 = 2*c53
+    c56 = c54*crank_qx - c55*crank_qy
+    c57 = c54*crank_qw - c55*crank_qz
+    out = _zeros(29, q, u)
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -156,28 +168,29 @@ def jac_turn(q, t):
     out[23] = c44*c45 + c47*rocker_qy - c50*c51 - c52*rocker_qx
     out[24] = c44*c51 + c45*c50 - c47*rocker_qx - c52*rocker_qy
     out[25] = -1/2*c44*rocker_qy + c45*c46 + (1/2)*c50*rocker_qx - c52*rocker_qz
-    out[26] = -c28*c54 - c40*c58 + c54*crank_qx*crank_qz + (1/2)*c57*crank_qw
-    out[27] = -c41*c58 + (1/2)*c57*crank_qz
-    out[28] = -c34*c58 - c4*c54 - c41*c57 - c54*c6
+    out[26] = -c28*c53 - c40*c57 + c53*crank_qx*crank_qz + (1/2)*c56*crank_qw
+    out[27] = -c41*c57 + (1/2)*c56*crank_qz
+    out[28] = -c34*c57 - c4*c53 - c41*c56 - c53*c6
     return out
 
 
-def nu_turn(q, t):
+def nu_turn(q, u, ud):
     """nu = -Phi_t of case 'turn'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
-    c0 = 3.141592653589793*t
-    c1 = cos(c0)
-    c2 = 6.283185307179586*t*(1 - 1/5*c1)
-    c3 = -1.2566370614359172*c1 + 3.947841760435743*t*sin(c0) + 6.283185307179586
-    out = _zeros(12, q, t)
-    out[11] = -c3*(2*crank_qw*crank_qz + 2*crank_qx*crank_qy)*sin(c2) - c3*(2*crank_qw**2 + 2*crank_qx**2 - 1)*cos(c2)
+    u0, = u
+    ud0, = ud
+    out = _zeros(12, q, u)
+    out[11] = -ud0*((2*crank_qw*crank_qz + 2*crank_qx*crank_qy)*sin(u0) + (2*crank_qw**2 + 2*crank_qx**2 - 1)*cos(u0))
     return out
 
 
-def gamma_turn(q, v, t):
+def gamma_turn(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = 2*v_crank_theta_x
     c1 = c0*crank_qw
     c2 = 2*v_crank_theta_y
@@ -441,32 +454,24 @@ def gamma_turn(q, v, t):
     c260 = c250 - c252*c45 + c253*c67 + c256*c89
     c261 = -11216693925561/7812500000000*c104 + c235 + c248 + c252*c50 + c253*c70 + c256*c87 + (225000000553789/156250000000000)*c54 - 225000000553789/312500000000000
     c262 = c227 + c252*c48 + c253*c85 + c256*c92
-    c263 = 2*c233 + 2*c234
-    c264 = 3.141592653589793*t
-    c265 = cos(c264)
-    c266 = 6.283185307179586*t*(1 - 1/5*c265)
-    c267 = sin(c266)
-    c268 = sin(c264)
-    c269 = 12.402510672119927*c265*t + 7.895683520871486*c268
-    c270 = cos(c266)
-    c271 = -1.2566370614359172*c265 + 3.947841760435743*c268*t + 6.283185307179586
-    c272 = c271**2
-    c273 = 2*c38 + 2*c40 - 1
-    c274 = 2*crank_qx
-    c275 = 2*c267*crank_qy
-    c276 = 2*crank_qw
-    c277 = 2*c267*crank_qz
-    c278 = 4*c270*c271
-    c279 = c271*c277 + c278*crank_qw
-    c280 = c271*c275 + c278*crank_qx
-    c281 = c267*c271
-    out = _zeros(12, q, t)
+    c263 = sin(u0)
+    c264 = 2*c233 + 2*c234
+    c265 = cos(u0)
+    c266 = 2*c38 + 2*c40 - 1
+    c267 = 2*crank_qx
+    c268 = 2*c263*crank_qy
+    c269 = 2*crank_qw
+    c270 = 2*c263*crank_qz
+    c271 = 4*c265
+    c272 = c270 + c271*crank_qw
+    c273 = c268 + c271*crank_qx
+    out = _zeros(12, q, u)
     out[3] = c10*c11 - c14*c15 - c17*c18 - c4*c8
     out[4] = -c10*c8 - c11*c4 + c14*c18 - c15*c17
     out[8] = -c21*c25 + c26*c29 - c30*c31 - c32*c33
     out[9] = -c21*c29 - c25*c26 + c30*c33 - c31*c32
     out[10] = -c11*(-c157*v_crank_z + c157*v_rocker_z + c158*v_crank_y - c158*v_rocker_y + c178*v_crank_x - c178*v_rocker_x + v_crank_theta_x*(-c117*c188 - c134 + c135 + c153 + c168*crank_qx) + v_crank_theta_y*(c108*c116 - c128*c188 + c148 + c149 - c150 + c176) + v_crank_theta_z*(c108*c147 + c118 - c120*c188 + c127 - c175) + v_rocker_theta_x*(c182*c22 + c184*c23 - c186*c28 - c187*c27) + v_rocker_theta_y*(c182*c28 - c184*c27 + c186*c22 - c187*c23) + v_rocker_theta_z*(-c182*c23 + c184*c22 + c186*c27 - c187*c28)) - c15*(-c36*v_crank_z + c36*v_rocker_z + c61*v_crank_y - c61*v_rocker_y + v_crank_theta_x*(c107*c108 - c118 - c119*c120 + c127) + v_crank_theta_y*(c108*c119 - c116*c128 + c122*c125 + c129 - c132 - c133) + v_crank_theta_z*(-c107*c128 - c134 - c136) + v_rocker_theta_x*(-c100*c28 - c101*c27 + c22*c95 + c23*c98) + v_rocker_theta_y*(c100*c22 - c101*c23 - c27*c98 + c28*c95) + v_rocker_theta_z*(c100*c27 - c101*c28 + c22*c98 - c23*c95)) - c18*(c156*v_crank_x - c156*v_rocker_x + c157*v_crank_y - c157*v_rocker_y + c158*v_crank_z - c158*v_rocker_z + v_crank_theta_x*(-c129 + c154 - c155 + (1/2)*c174*crank_qw - c177*crank_qw) + v_crank_theta_y*((1/2)*c107*crank_qw - c127 - c152*crank_qx + (1/2)*c174*crank_qz - c175) + v_crank_theta_z*((1/2)*c107*crank_qx - c128*c174 + (1/2)*c146*crank_qw - c151 - c176) + v_rocker_theta_x*(c162*c22 + c164*c23 - c166*c28 - c167*c27) + v_rocker_theta_y*(c162*c28 - c164*c27 + c166*c22 - c167*c23) + v_rocker_theta_z*(-c162*c23 + c164*c22 + c166*c27 - c167*c28)) - c25*(c64*v_crank_z - c64*v_rocker_z + c84*v_crank_x + c90*v_crank_y - c90*v_rocker_y + c93*v_rocker_x + v_crank_theta_x*(c108*c191 - c117*c192 - c120*c95 + c128*c139) + v_crank_theta_y*(c108*c95 - c117*c139 + c120*c191 - c128*c192) + v_crank_theta_z*(c108*c139 + c117*c95 - c120*c192 - c128*c191) + v_rocker_theta_x*((1/2)*c194*rocker_qy - c200*c27 - c209*c28 + (1/2)*c210*rocker_qw - c218) + v_rocker_theta_y*(-c194*c27 - c200*c23 + (1/2)*c209*rocker_qw + (1/2)*c210*rocker_qz - c214) + v_rocker_theta_z*(c194*c22 - c200*c28 + c209*c27 - c210*c23 + c217)) - c29*(c50*v_crank_y + c69*v_rocker_z + c70*v_crank_z + c79*v_rocker_y + c86*v_rocker_x + c87*v_crank_x + v_crank_theta_x*(c108*c257 - c117*c258 - c120*c255 + c128*c254) + v_crank_theta_y*(c108*c255 - c117*c254 + c120*c257 - c128*c258) + v_crank_theta_z*(c108*c254 + c117*c255 - c120*c258 - c128*c257) + v_rocker_theta_x*(c22*c259 + c23*c260 + c237 - c261*c27 - c262*c28) + v_rocker_theta_y*(c217 + c22*c262 - c23*c261 + c259*c28 - c260*c27) + v_rocker_theta_z*(c214 + c22*c260 - c23*c259 - c261*c28 + c262*c27)) - c31*(-c45*v_crank_y + c45*v_rocker_y + c67*v_crank_z + c81*v_rocker_z + c88*v_rocker_x + c89*v_crank_x + v_crank_theta_x*(c108*c242 - c117*c243 - c120*c240 + c128*c239) + v_crank_theta_y*(c108*c240 - c117*c239 + c120*c242 - c128*c243) + v_crank_theta_z*(c108*c239 + c117*c240 - c120*c243 - c128*c242) + v_rocker_theta_x*(-c217 - c244*c28 + (1/2)*c245*rocker_qw + (1/2)*c249*rocker_qy - c251*c27) + v_rocker_theta_y*(c22*c244 - c23*c251 + c237 + c245*c28 - c249*c27) + v_rocker_theta_z*(-c218 - c23*c245 + (1/2)*c244*rocker_qx + (1/2)*c249*rocker_qw - c251*c28)) - c33*(c48*v_crank_y + c78*v_rocker_y + c85*v_crank_z - c85*v_rocker_z + c91*v_rocker_x + c92*v_crank_x + v_crank_theta_x*(c108*c224 - c117*c225 - c120*c221 + c128*c220) + v_crank_theta_y*(c108*c221 - c117*c220 + c120*c224 - c128*c225) + v_crank_theta_z*(c108*c220 + c117*c221 - c120*c225 - c128*c224) + v_rocker_theta_x*(c214 + c22*c226 - c228*c27 + c23*c230 - c236*c28) + v_rocker_theta_y*(-c218 + (1/2)*c226*rocker_qz - c228*c23 - c230*c27 + (1/2)*c236*rocker_qw) + v_rocker_theta_z*(-c226*c23 - c228*c28 + (1/2)*c230*rocker_qw + (1/2)*c236*rocker_qx - c237)) - c8*(c36*v_crank_y - c36*v_rocker_y + c61*v_crank_z - c61*v_rocker_z + v_crank_theta_x*(c108*c146 + c119*c128 + c148 + c151) + v_crank_theta_y*(c136 + c152*crank_qz - c153) + v_crank_theta_z*((1/2)*c119*crank_qw - c120*c147 - c154 - c155) + v_rocker_theta_x*(c139*c22 + c141*c23 - c143*c28 - c144*c27) + v_rocker_theta_y*(c139*c28 - c141*c27 + c143*c22 - c144*c23) + v_rocker_theta_z*(-c139*c23 + c141*c22 + c143*c27 - c144*c28)) - v_crank_x*(c77*v_crank_theta_y + c80*v_crank_theta_z + c82 - c83 + v_rocker_theta_x*(c22*c84 + c23*c89 - c27*c87 - c28*c92) + v_rocker_theta_y*(c22*c92 - c23*c87 - c27*c89 + c28*c84) + v_rocker_theta_z*(c22*c89 - c23*c84 + c27*c92 - c28*c87)) - v_crank_y*(c34 - c35 + c37*v_crank_theta_x + c44*v_crank_theta_z + v_rocker_theta_x*(-c27*c50 - c28*c48 - c56 - c58) + v_rocker_theta_y*(c22*c48 - c23*c50 + c53) + v_rocker_theta_z*(-c28*c50 - c46 + (1/2)*c48*rocker_qx)) - v_crank_z*(c59 - c60 + c62*v_crank_theta_x + c63*v_crank_theta_y + v_rocker_theta_x*(c23*c67 - c27*c70 + c76) + v_rocker_theta_y*(-c23*c70 - c27*c67 + c65) + v_rocker_theta_z*(-c28*c70 + (1/2)*c67*rocker_qw - c73)) - v_rocker_x*(c37*v_crank_theta_y + c62*v_crank_theta_z - c82 + c83 + v_rocker_theta_x*(c22*c93 + c23*c88 - c27*c86 - c28*c91) + v_rocker_theta_y*(c22*c91 - c23*c86 - c27*c88 + c28*c93) + v_rocker_theta_z*(c22*c88 - c23*c93 + c27*c91 - c28*c86)) - v_rocker_y*(-c34 + c35 + c63*v_crank_theta_z + c77*v_crank_theta_x + v_rocker_theta_x*(-c27*c79 - c28*c78 - c55 + c58) + v_rocker_theta_y*(-c23*c79 - c53 + (1/2)*c78*rocker_qw) + v_rocker_theta_z*(c27*c78 - c28*c79 + c46)) - v_rocker_z*(c44*v_crank_theta_y - c59 + c60 + c80*v_crank_theta_x + v_rocker_theta_x*(-c27*c69 - c76 + (1/2)*c81*rocker_qy) + v_rocker_theta_y*(-c23*c69 - c27*c81 - c65) + v_rocker_theta_z*(c22*c81 - c28*c69 + c73))
-    out[11] = -c0*(c108*c280 - c117*c279 - c246*c281 + c247*c281) - c11*(-c0*c270*crank_qy - c13*c267 + v_crank_theta_z*(-c270*c276 - c277)) - c15*(-c1*c270 - c267*c9 + v_crank_theta_z*(-c267*c274 + 2*c270*crank_qy)) - c18*(c0*c270*crank_qz + c267*c3 + v_crank_theta_z*(-c270*c274 - c275)) - c2*(-c128*c279 + (1/2)*c280*crank_qz) - c263*c267*c269 - c263*c270*c272 + c267*c272*c273 - c269*c270*c273 - c8*(c12*c270 + c16*c267 + v_crank_theta_z*(-c267*c276 + 2*c270*crank_qz)) - 2*v_crank_theta_z*(-c120*c279 - c128*c280 + c281*c38 + c281*c40)
+    out[11] = -c11*(-c0*c265*crank_qy - c13*c263 + v_crank_theta_z*(-c265*c269 - c270)) - c15*(-c1*c265 - c263*c9 + v_crank_theta_z*(-c263*c267 + 2*c265*crank_qy)) - c18*(c0*c265*crank_qz + c263*c3 + v_crank_theta_z*(-c265*c267 - c268)) - c8*(c12*c265 + c16*c263 + v_crank_theta_z*(-c263*c269 + 2*c265*crank_qz)) - ud0**2*(-c263*c266 + c264*c265) - 2*ud0*(v_crank_theta_x*(c108*c273 - c117*c272 - c246*c263 + c247*c263) + v_crank_theta_y*(-c128*c272 + (1/2)*c273*crank_qz) + v_crank_theta_z*(-c120*c272 - c128*c273 + c263*c38 + c263*c40)) - udd0*(c263*c264 + c265*c266)
     return out
 
 
@@ -477,6 +482,6 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 6, 7, 8, 8, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11),
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 6, 7, 8, 10, 11, 10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 3, 4, 5),
         't0': 0.0, 't1': 1.0, 'steps': 201,
-        'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,
+        'inputs': inputs_turn, 'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,
     },
 }

@@ -32,14 +32,24 @@ POINTS = {
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9887710779360424, 0.0, 0.0, 0.14943813247359924, 0.191067, 0.059104, 0.0, 0.9987833496752833, 0.0, 0.0, -0.04931349117048, 0.788149, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_run(q, t):
-    """Phi(q, t) of case 'run': 21 residuals."""
+def inputs_run(t):
+    """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
+    out[1] = t + 6.283185307179586
+    out[2] = 1
+    return out
+
+
+def phi_run(q, u):
+    """Phi(q, u) of case 'run': 21 residuals."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    u0, = u
     c0 = -crank_z
     c1 = 2*crank_e0
     c2 = crank_e0**2
@@ -55,8 +65,7 @@ def phi_run(q, t):
     c12 = slider_e3**2
     c13 = -c9*slider_e1 + 2*slider_e2*slider_e3
     c14 = rod_e2**2
-    c15 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out = _zeros(21, q, t)
+    out = _zeros(21, q, u)
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = c0
@@ -77,13 +86,14 @@ def phi_run(q, t):
     out[17] = c2 + c3 + crank_e2**2 + crank_e3**2 - 1
     out[18] = c14 + c5 + c6 + rod_e3**2 - 1
     out[19] = c11 + c12 + slider_e1**2 + slider_e2**2 - 1
-    out[20] = -(c1*crank_e3 + 2*crank_e1*crank_e2)*cos(c15) + (2*c2 + 2*c3 - 1)*sin(c15)
+    out[20] = -(c1*crank_e3 + 2*crank_e1*crank_e2)*cos(u0) + (2*c2 + 2*c3 - 1)*sin(u0)
     return out
 
 
-def jac_run(q, t):
-    """Values of the sparse Phi_q of case 'run' at JAC_ROWS, JAC_COLS (81 entries)."""
+def jac_run(q, u):
+    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (81 entries)."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    u0, = u
     c0 = 2*crank_e2
     c1 = 2*crank_e3
     c2 = 2*crank_e0
@@ -111,10 +121,9 @@ def jac_run(q, t):
     c24 = 2*rod_e0**2 + 2*rod_e2**2 - 1
     c25 = 2*slider_e0
     c26 = -c25
-    c27 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    c28 = 4*sin(c27)
-    c29 = cos(c27)
-    out = _zeros(81, q, t)
+    c27 = 4*sin(u0)
+    c28 = cos(u0)
+    out = _zeros(81, q, u)
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -192,27 +201,30 @@ def jac_run(q, t):
     out[74] = c12
     out[75] = c14
     out[76] = c15
-    out[77] = -c1*c29 + c28*crank_e0
-    out[78] = -c0*c29 + c28*crank_e1
-    out[79] = -c29*c3
-    out[80] = -c2*c29
+    out[77] = -c1*c28 + c27*crank_e0
+    out[78] = -c0*c28 + c27*crank_e1
+    out[79] = -c28*c3
+    out[80] = -c2*c28
     return out
 
 
-def nu_run(q, t):
+def nu_run(q, u, ud):
     """nu = -Phi_t of case 'run'."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    c0 = t + 6.283185307179586
-    c1 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out = _zeros(21, q, t)
-    out[20] = -c0*(2*crank_e0*crank_e3 + 2*crank_e1*crank_e2)*sin(c1) - c0*(2*crank_e0**2 + 2*crank_e1**2 - 1)*cos(c1)
+    u0, = u
+    ud0, = ud
+    out = _zeros(21, q, u)
+    out[20] = -ud0*((2*crank_e0*crank_e3 + 2*crank_e1*crank_e2)*sin(u0) + (2*crank_e0**2 + 2*crank_e1**2 - 1)*cos(u0))
     return out
 
 
-def gamma_run(q, v, t):
+def gamma_run(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
     c2 = v_crank_e0**2
@@ -261,21 +273,16 @@ def gamma_run(q, v, t):
     c45 = c19*rod_e3 + c21*rod_e1 + c42*rod_e2
     c46 = 8*rod_e0*rod_e1 + 8*rod_e2*rod_e3
     c47 = 4*v_slider_e3
-    c48 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    c49 = cos(c48)
-    c50 = sin(c48)
-    c51 = 4*c50
-    c52 = t + 6.283185307179586
-    c53 = c52*crank_e0
-    c54 = c50*c52
-    c55 = 2*crank_e3
-    c56 = 2*crank_e2
-    c57 = c55*crank_e0 + c56*crank_e1
-    c58 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    c59 = c52**2
-    c60 = 2*c49
-    c61 = 4*c49
-    out = _zeros(21, q, t)
+    c48 = cos(u0)
+    c49 = sin(u0)
+    c50 = 2*c48
+    c51 = 2*crank_e3
+    c52 = 2*crank_e2
+    c53 = c51*crank_e0 + c52*crank_e1
+    c54 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    c55 = 2*c49
+    c56 = 4*c48
+    out = _zeros(21, q, u)
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[5] = -4/5*c2 - 4/5*c3
@@ -291,7 +298,7 @@ def gamma_run(q, v, t):
     out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[18] = -2*c6 - 2*c7 - 2*v_rod_e2**2 - 2*v_rod_e3**2
     out[19] = -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2
-    out[20] = -c0*c54*crank_e1 - c49*c57*c59 - c49*c58 + 2*c49*v_crank_e0*v_crank_e3 + 2*c49*v_crank_e1*v_crank_e2 - c50*c57 + c50*c58*c59 - c51*c53*v_crank_e3 - v_crank_e0*(c51*v_crank_e0 - c60*v_crank_e3) - 2*v_crank_e0*(c53*c61 + c54*c55) - v_crank_e1*(c1*c50 - c60*v_crank_e2) - 2*v_crank_e1*(c52*c61*crank_e1 + c54*c56)
+    out[20] = 2*c48*v_crank_e0*v_crank_e3 + 2*c48*v_crank_e1*v_crank_e2 - ud0**2*(c48*c53 - c49*c54) - 2*ud0*(c55*crank_e0*v_crank_e3 + c55*crank_e1*v_crank_e2 + v_crank_e0*(c49*c51 + c56*crank_e0) + v_crank_e1*(c49*c52 + c56*crank_e1)) - udd0*(c48*c54 + c49*c53) - v_crank_e0*(4*c49*v_crank_e0 - c50*v_crank_e3) - v_crank_e1*(c1*c49 - c50*v_crank_e2)
     return out
 
 
@@ -302,6 +309,6 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 14, 15, 16, 16, 16, 16, 17, 17, 17, 17, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20),
         'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 8, 10, 11, 12, 13, 15, 9, 10, 11, 12, 13, 16, 10, 11, 12, 13, 17, 18, 19, 20, 17, 18, 19, 20, 17, 18, 19, 20, 15, 16, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 3, 4, 5, 6),
         't0': 0.0, 't1': 1.5, 'steps': 301,
-        'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
+        'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
     },
 }

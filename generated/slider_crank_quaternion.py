@@ -32,14 +32,24 @@ POINTS = {
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9887710779360424, 0.0, 0.0, 0.14943813247359924, 0.191067, 0.059104, 0.0, 0.9987833496752833, 0.0, 0.0, -0.04931349117048, 0.788149, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 
 
-def _zeros(m, q, t):
-    """Output array: m rows, then the batch shape of q[0] and t (none for one configuration)."""
-    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _zeros(m, q, u):
+    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""
+    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def phi_run(q, t):
-    """Phi(q, t) of case 'run': 18 residuals."""
+def inputs_run(t):
+    """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
+    out[1] = t + 6.283185307179586
+    out[2] = 1
+    return out
+
+
+def phi_run(q, u):
+    """Phi(q, u) of case 'run': 18 residuals."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
+    u0, = u
     c0 = -crank_z
     c1 = 2*crank_qw
     c2 = crank_qw**2
@@ -51,8 +61,7 @@ def phi_run(q, t):
     c8 = 2*slider_qw
     c9 = c8*slider_qy + 2*slider_qx*slider_qz
     c10 = -c8*slider_qx + 2*slider_qy*slider_qz
-    c11 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out = _zeros(18, q, t)
+    out = _zeros(18, q, u)
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = c0
@@ -70,13 +79,14 @@ def phi_run(q, t):
     out[14] = slider_y
     out[15] = slider_z
     out[16] = c10
-    out[17] = -(c1*crank_qz + 2*crank_qx*crank_qy)*cos(c11) + (2*c2 + 2*c3 - 1)*sin(c11)
+    out[17] = -(c1*crank_qz + 2*crank_qx*crank_qy)*cos(u0) + (2*c2 + 2*c3 - 1)*sin(u0)
     return out
 
 
-def jac_run(q, t):
-    """Values of the sparse Phi_q of case 'run' at JAC_ROWS, JAC_COLS (48 entries)."""
+def jac_run(q, u):
+    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (48 entries)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
+    u0, = u
     c0 = crank_qw*crank_qz
     c1 = 2*c0
     c2 = crank_qx*crank_qy
@@ -131,13 +141,12 @@ def jac_run(q, t):
     c51 = slider_qy**2
     c52 = c23 - slider_qx**2
     c53 = c24 - c51 + c52
-    c54 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    c55 = cos(c54)
-    c56 = 4*sin(c54)
-    c57 = 2*c55
-    c58 = c56*crank_qx - c57*crank_qy
-    c59 = (1/2)*c56*crank_qw - 1/2*c57*crank_qz
-    out = _zeros(48, q, t)
+    c54 = cos(u0)
+    c55 = 4*sin(u0)
+    c56 = 2*c54
+    c57 = c55*crank_qx - c56*crank_qy
+    c58 = (1/2)*c55*crank_qw - 1/2*c56*crank_qz
+    out = _zeros(48, q, u)
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -183,26 +192,29 @@ def jac_run(q, t):
     out[42] = 1
     out[43] = -c53
     out[44] = c21
-    out[45] = -c55*c9 + c55*crank_qx*crank_qz + (1/2)*c58*crank_qw - c59*crank_qx
-    out[46] = (1/2)*c58*crank_qz - c59*crank_qy
-    out[47] = -c4*c55 - c55*c6 - 1/2*c58*crank_qy - c59*crank_qz
+    out[45] = -c54*c9 + c54*crank_qx*crank_qz + (1/2)*c57*crank_qw - c58*crank_qx
+    out[46] = (1/2)*c57*crank_qz - c58*crank_qy
+    out[47] = -c4*c54 - c54*c6 - 1/2*c57*crank_qy - c58*crank_qz
     return out
 
 
-def nu_run(q, t):
+def nu_run(q, u, ud):
     """nu = -Phi_t of case 'run'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    c0 = t + 6.283185307179586
-    c1 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out = _zeros(18, q, t)
-    out[17] = -c0*(2*crank_qw*crank_qz + 2*crank_qx*crank_qy)*sin(c1) - c0*(2*crank_qw**2 + 2*crank_qx**2 - 1)*cos(c1)
+    u0, = u
+    ud0, = ud
+    out = _zeros(18, q, u)
+    out[17] = -ud0*((2*crank_qw*crank_qz + 2*crank_qx*crank_qy)*sin(u0) + (2*crank_qw**2 + 2*crank_qx**2 - 1)*cos(u0))
     return out
 
 
-def gamma_run(q, v, t):
+def gamma_run(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
     c0 = 2*v_crank_theta_x
     c1 = c0*crank_qw
     c2 = 2*v_crank_theta_y
@@ -380,25 +392,21 @@ def gamma_run(q, v, t):
     c174 = c172*v_slider_theta_y + c173
     c175 = c172*v_slider_theta_z
     c176 = -c175 + 2*slider_qz*v_slider_theta_y
-    c177 = 2*crank_qw
-    c178 = 2*crank_qx
-    c179 = c177*crank_qz + c178*crank_qy
-    c180 = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    c181 = sin(c180)
-    c182 = cos(c180)
-    c183 = crank_qw**2
-    c184 = crank_qx**2
-    c185 = 2*c183 + 2*c184 - 1
-    c186 = t + 6.283185307179586
-    c187 = c186**2
-    c188 = 2*c181*crank_qy
-    c189 = 2*c181*crank_qz
-    c190 = 4*c182*c186
-    c191 = (1/2)*c186*c189 + (1/2)*c190*crank_qw
-    c192 = c186*c188 + c190*crank_qx
-    c193 = c181*c186
-    c194 = (1/2)*c192
-    out = _zeros(18, q, t)
+    c177 = sin(u0)
+    c178 = 2*crank_qw
+    c179 = 2*crank_qx
+    c180 = c178*crank_qz + c179*crank_qy
+    c181 = cos(u0)
+    c182 = crank_qw**2
+    c183 = crank_qx**2
+    c184 = 2*c182 + 2*c183 - 1
+    c185 = 2*c177*crank_qy
+    c186 = 2*c177*crank_qz
+    c187 = 4*c181
+    c188 = (1/2)*c186 + (1/2)*c187*crank_qw
+    c189 = c185 + c187*crank_qx
+    c190 = (1/2)*c189
+    out = _zeros(18, q, u)
     out[3] = c10*c11 - c14*c15 - c17*c18 - c4*c8
     out[4] = -c10*c8 - c11*c4 + c14*c18 - c15*c17
     out[5] = -c11*(-c26 - c28) - c15*(-c20 - c22) - c18*(-c29 + (2/5)*crank_qz*v_crank_theta_y) - c8*(-c23 + c24)
@@ -411,7 +419,7 @@ def gamma_run(q, v, t):
     out[12] = -c138*c169 + c154*c171 - c164*c174 - c176*c94
     out[13] = -c138*c171 - c154*c169 - c164*c176 + c174*c94
     out[16] = -c138*(c167*v_slider_theta_x + c173) - c154*(c175 - c64*v_slider_theta_x) - c164*(c168 - c66*v_slider_theta_x) - c94*(c170 + c172*v_slider_theta_x)
-    out[17] = -c0*(-c191*crank_qx + c193*crank_qw*crank_qy - c193*crank_qx*crank_qz + c194*crank_qw) - c11*(-c0*c182*crank_qy - c13*c181 + v_crank_theta_z*(-c177*c182 - c189)) - c15*(-c1*c182 - c181*c9 + v_crank_theta_z*(-c178*c181 + 2*c182*crank_qy)) - c179*c181 - c179*c182*c187 - c18*(c0*c182*crank_qz + c181*c3 + v_crank_theta_z*(-c178*c182 - c188)) + c181*c185*c187 - c182*c185 - c2*(-c191*crank_qy + (1/2)*c192*crank_qz) - c8*(c12*c182 + c16*c181 + v_crank_theta_z*(-c177*c181 + 2*c182*crank_qz)) - 2*v_crank_theta_z*(c183*c193 + c184*c193 - c191*crank_qz - c194*crank_qy)
+    out[17] = -c11*(-c0*c181*crank_qy - c13*c177 + v_crank_theta_z*(-c178*c181 - c186)) - c15*(-c1*c181 - c177*c9 + v_crank_theta_z*(-c177*c179 + 2*c181*crank_qy)) - c18*(c0*c181*crank_qz + c177*c3 + v_crank_theta_z*(-c179*c181 - c185)) - c8*(c12*c181 + c16*c177 + v_crank_theta_z*(-c177*c178 + 2*c181*crank_qz)) - ud0**2*(-c177*c184 + c180*c181) - 2*ud0*(v_crank_theta_x*(c177*crank_qw*crank_qy - c177*crank_qx*crank_qz - c188*crank_qx + c190*crank_qw) + v_crank_theta_y*(-c188*crank_qy + (1/2)*c189*crank_qz) + v_crank_theta_z*(c177*c182 + c177*c183 - c188*crank_qz - c190*crank_qy)) - udd0*(c177*c180 + c181*c184)
     return out
 
 
@@ -422,6 +430,6 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 15, 16, 16, 17, 17, 17),
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 7, 9, 11, 13, 8, 9, 10, 14, 9, 10, 11, 15, 16, 17, 16, 17, 16, 17, 13, 14, 15, 17, 3, 4, 5),
         't0': 0.0, 't1': 1.5, 'steps': 301,
-        'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
+        'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
     },
 }

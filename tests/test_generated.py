@@ -106,13 +106,15 @@ def test_batch_evaluation_equals_single_evaluations():
     system = generated_system("rssr_quaternion")
     results = solve(system)
     q, v, t = results.q[::20].T, results.v[::20].T, results.times[::20]
-    phi, jac, nu, gamma = system.phi(q, t), system.jac(q, t), system.nu(q, t), system.gamma(q, v, t)
+    u, ud, udd = system.driver_inputs(t)
+    phi, jac, nu, gamma = system.phi(q, u), system.jac(q, u), system.nu(q, u, ud), system.gamma(q, v, u, ud, udd)
     assert phi.shape == (len(system.constraint_names), len(t))
     for k in range(len(t)):
-        assert np.array_equal(phi[:, k], system.phi(q[:, k], t[k]))
-        assert np.array_equal(jac[:, k], system.jac(q[:, k], t[k]))
-        assert np.array_equal(nu[:, k], system.nu(q[:, k], t[k]))
-        assert np.array_equal(gamma[:, k], system.gamma(q[:, k], v[:, k], t[k]))
+        uk, udk, uddk = system.driver_inputs(t[k])
+        assert np.array_equal(phi[:, k], system.phi(q[:, k], uk))
+        assert np.array_equal(jac[:, k], system.jac(q[:, k], uk))
+        assert np.array_equal(nu[:, k], system.nu(q[:, k], uk, udk))
+        assert np.array_equal(gamma[:, k], system.gamma(q[:, k], v[:, k], uk, udk, uddk))
 
 
 def test_in_memory_lambdify_path_agrees_with_generated_module():

@@ -17,7 +17,6 @@ import sympy as sp
 
 from kinegen.codegen.inmemory import lambdify_model
 from kinegen.model import Model
-from kinegen.model.expressions import T
 from kinegen.rotations import Parametrization
 from kinegen.runtime import Solver, from_module
 from kinegen.symbolic import System, build_systems
@@ -40,7 +39,7 @@ def configuration_at(model: Model, parametrization: Parametrization, case: str, 
     """Stored coordinates at time ``t``: the initial pose if it satisfies Phi there, else a solve."""
     system = from_module(lambdify_model(model, parametrization), case)
     q0 = system.initial_q
-    if np.max(np.abs(system.phi(q0, t))) <= 1e-10:
+    if np.max(np.abs(system.phi(q0, system.driver_inputs(t)[0]))) <= 1e-10:
         return q0
     steps = max(2, int(abs(t - system.t0) / max(system.t1 - system.t0, 1e-12) * (system.steps - 1)) + 1)
     return Solver(system).solve(np.linspace(system.t0, t, steps)).q[-1]
@@ -147,7 +146,7 @@ def inspect(
         q = configuration_at(model, parametrization, case, float(t_exact))
     q_exact = [exact_number(float(x)) for x in q]
     values = dict(zip(system.coordinates.stored_symbols, q_exact))
-    values[T] = t_exact
+    values.update(system.inputs.at_time(t_exact))
     symbolic = system.jacobian_matrix()
     exact = symbolic.xreplace(values).applyfunc(lambda e: sp.nsimplify(sp.simplify(e)))
     rank = exact.rank(simplify=True)
@@ -158,7 +157,9 @@ def inspect(
     inspection = Inspection(system, t_exact, q_exact, exact, rank, null, dependent)
     m, n = exact.shape
     if m == n and n <= MAX_DIRECT_DETERMINANT:
-        det = symbolic.det(method="berkowitz")
+        named = {u: sp.Symbol(name, real=True) for u, name in zip(system.inputs.u, system.inputs.names)}
+        values.update({named[u]: values[u] for u in system.inputs.u})
+        det = symbolic.xreplace(named).det(method="berkowitz")
         det = sp.factor(sp.trigsimp(sp.simplify(det)))
         inspection.determinant = det
         inspection.determinant_value = sp.simplify(det.xreplace(values))

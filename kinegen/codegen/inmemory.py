@@ -18,12 +18,26 @@ from kinegen.rotations import Parametrization
 from kinegen.symbolic import build_systems
 
 
-def _stacked(function, m: int):
-    def evaluate(q, *rest):
-        values = function(q, *rest)
-        t = rest[-1]
-        out = np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(t)))
+def _stacked(function, m: int, batch_args: tuple[int, ...] = (0,)):
+    """Wrap a lambdified list-returning function into one returning an (m, ...) array."""
+
+    def evaluate(*args):
+        values = function(*args)
+        shapes = [np.shape(args[i][0]) if len(args[i]) else () for i in batch_args if i < len(args)]
+        out = np.zeros((m,) + np.broadcast_shapes(*shapes))
         for i, value in enumerate(values):
+            out[i] = value
+        return out
+
+    return evaluate
+
+
+def _inputs(functions, t_symbol, m: int):
+    compiled = sp.lambdify([t_symbol], list(functions), modules="numpy")
+
+    def evaluate(t):
+        out = np.zeros((m,) + np.shape(t))
+        for i, value in enumerate(compiled(t)):
             out[i] = value
         return out
 
@@ -40,22 +54,26 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
     for name, system in systems.items():
         rows, entries = system.rows, system.jacobian_entries
         m = len(rows)
+        inputs = system.inputs
+        u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
+        functions = [*inputs.functions, *(sp.diff(f, T) for f in inputs.functions), *(sp.diff(f, T, 2) for f in inputs.functions)]
 
         def compile_(args, exprs, size):
-            return _stacked(sp.lambdify(args, exprs, modules="numpy", cse=True), size)
+            return _stacked(sp.lambdify(args, exprs, modules="numpy", cse=True), size, (0, 1))
 
         cases[name] = {
             "constraints": tuple(r.name for r in rows),
-            "drivers": tuple(r.name for r in rows if r.is_driver),
+            "drivers": inputs.names,
             "jac_rows": tuple(i for i, _, _ in entries),
             "jac_cols": tuple(j for _, j, _ in entries),
             "t0": system.case.t0,
             "t1": system.case.t1,
             "steps": system.case.steps,
-            "phi": compile_([q, T], [r.phi for r in rows], m),
-            "jac": compile_([q, T], [e for _, _, e in entries], len(entries)),
-            "nu": compile_([q, T], [r.nu for r in rows], m),
-            "gamma": compile_([q, v, T], [r.gamma for r in rows], m),
+            "inputs": _inputs(functions, T, len(functions)),
+            "phi": compile_([q, u], [r.phi for r in rows], m),
+            "jac": compile_([q, u], [e for _, _, e in entries], len(entries)),
+            "nu": compile_([q, u, ud], [r.nu for r in rows], m),
+            "gamma": compile_([q, v, u, ud, udd], [r.gamma for r in rows], m),
         }
     return SimpleNamespace(
         MODEL=model.name,

@@ -26,9 +26,14 @@ def driver_equation(
     joints: dict[str, Joint],
     frame_of: Callable[[str], Frame],
     moving: Callable[[tuple[str, ...]], tuple[str, ...]],
+    value: sp.Expr | None = None,
 ) -> Equation:
-    """The equation of ``driver``; ``frame_of`` gives a body's frame, ``moving`` filters ground."""
-    theta = driver.function
+    """The equation of ``driver``; ``frame_of`` gives a body's frame, ``moving`` filters ground.
+
+    ``value`` stands for the driver's input (an angle, a translation, a length or a
+    coordinate); by default it is the driver's time function.
+    """
+    theta = driver.function if value is None else value
     if driver.type in ("joint_angle", "joint_translation"):
         joint = joints[driver.joint]
         frame1, frame2 = frame_of(joint.body1), frame_of(joint.body2)

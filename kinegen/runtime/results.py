@@ -27,6 +27,8 @@ class Results:
     a: np.ndarray  #: their time derivatives, (K, nv)
     iterations: np.ndarray  #: Newton iterations per time point
     residuals: np.ndarray  #: max |Phi| at convergence per time point
+    conditions: np.ndarray  #: 1-norm condition estimate of Phi_q per time point
+    inputs: np.ndarray  #: driver inputs u per time point, (K, n_inputs)
 
     def _slices(self, body: str) -> tuple[int, int]:
         if body not in self.system.bodies:
@@ -103,8 +105,8 @@ class Results:
 
     def table(self) -> tuple[list[str], np.ndarray]:
         """Column names and values of the CSV export."""
-        columns = [self.times[:, None], self.iterations[:, None], self.residuals[:, None]]
-        names = ["t", "newton_iterations", "max_abs_phi"]
+        columns = [self.times[:, None], self.iterations[:, None], self.residuals[:, None], self.conditions[:, None], self.inputs]
+        names = ["t", "newton_iterations", "max_abs_phi", "jacobian_condition", *(f"input.{d}" for d in self.system.driver_names)]
         for body in self.system.bodies:
             for label, values in (
                 ("", self.position(body)),

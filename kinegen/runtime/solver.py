@@ -1,11 +1,12 @@
 """Newton-Raphson position solve, velocity and acceleration solves over a time grid.
 
 At each time point: predict q from the previous step (q, v, a), Newton-Raphson on
-Phi(q, t) = 0 until max|Phi| <= tolerance (full steps; a backtracking line search
-takes over only when full steps fail), then Phi_q v = nu and Phi_q a = gamma with one LU
-factorization of Phi_q shared by both. In the quaternion parametrization the steps,
-velocities and accelerations live in the tangent space and the quaternion is updated by
-the exponential map.
+Phi(q, u) = 0 until max|Phi| <= tolerance (full steps; when they fail, a backtracking
+line search, then a homotopy from the starting pose), then Phi_q v = nu and
+Phi_q a = gamma with one LU factorization of Phi_q shared by both. The driver inputs u
+(and their rates) come from the case's time functions or are supplied by the caller.
+In the quaternion parametrization the steps, velocities and accelerations live in the
+tangent space and the quaternion is updated by the exponential map.
 """
 
 from __future__ import annotations
@@ -20,7 +21,7 @@ from kinegen.rotations import quaternion_algebra as qa
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem
 
-_getrf, _getrs = scipy.linalg.get_lapack_funcs(("getrf", "getrs"), dtype=np.float64)
+_getrf, _getrs, _gecon = scipy.linalg.get_lapack_funcs(("getrf", "getrs", "gecon"), dtype=np.float64)
 
 
 def _lu_solve(factors: tuple[np.ndarray, np.ndarray], rhs: np.ndarray) -> np.ndarray:
@@ -35,7 +36,7 @@ class SolverOptions:
     tolerance: float = 1e-10  #: max |Phi_i| at convergence
     max_iterations: int = 25  #: per time point, before emergency termination
     singular_tolerance: float = 1e-10  #: sigma_min / sigma_max below which Phi_q is singular
-    line_search: bool = True  #: backtracking fallback when full Newton steps fail
+    line_search: bool = True  #: fallbacks (line search, homotopy) when full Newton steps fail
     divergence_limit: float = 1e8  #: max |Phi| beyond which Newton is stopped at once
 
 
@@ -85,9 +86,9 @@ class Solver:
         out[self._rot_q] = qa.multiply(qa.exp(increments), quaternions).ravel()
         return out
 
-    def factorize(self, q: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """LU factors of Phi_q at (q, t); raises SingularJacobianError when singular."""
-        jacobian = self.system.jacobian(q, t)
+    def factorize(self, q: np.ndarray, u: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """LU factors of Phi_q at (q, u); raises SingularJacobianError (at time t) when singular."""
+        jacobian = self.system.jacobian(q, u)
         if not np.all(np.isfinite(jacobian)):
             raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
         lu, piv, info = _getrf(jacobian, overwrite_a=False)
@@ -96,6 +97,14 @@ class Solver:
             self.check_singular(jacobian, t)
         return lu, piv
 
+    def condition(self, q: np.ndarray, u: np.ndarray, factors: tuple[np.ndarray, np.ndarray] | None = None) -> float:
+        """1-norm condition number estimate of Phi_q (LAPACK gecon on its LU factors)."""
+        jacobian = self.system.jacobian(q, u)
+        if factors is None:
+            factors = self.factorize(q, u, float("nan"))
+        rcond, _ = _gecon(factors[0], np.abs(jacobian).sum(axis=0).max(), norm="1")
+        return float("inf") if rcond == 0 else 1.0 / rcond
+
     def check_singular(self, jacobian: np.ndarray, t: float) -> None:
         """Raise SingularJacobianError (naming the dependencies) if ``jacobian`` is singular."""
         u, s, vt = np.linalg.svd(jacobian)
@@ -103,77 +112,122 @@ class Solver:
         rank = int(np.sum(s > tol))
         if rank == jacobian.shape[0]:
             return
+        names = self.system.constraint_names
         dependent: list[str] = []
         for k in range(rank, jacobian.shape[0]):
-            dependent += [
-                self.system.constraint_names[i]
-                for i in np.flatnonzero(np.abs(u[:, k]) > 1e-6)
-                if self.system.constraint_names[i] not in dependent
-            ]
+            dependent += [names[i] for i in np.flatnonzero(np.abs(u[:, k]) > 1e-6) if names[i] not in dependent]
         null = [describe_combination(vt[k], self.system.velocity_names) for k in range(rank, jacobian.shape[1])]
         raise SingularJacobianError(t, rank, jacobian.shape, dependent, null, f"sigma_min/sigma_max = {s[-1] / s[0]:.2e}")
 
-    def _residual(self, q: np.ndarray, t: float) -> tuple[np.ndarray, float]:
-        phi = self.system.phi(q, t)
+    def residual(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float]:
+        """Phi(q, u) and its max norm."""
+        phi = self.system.phi(q, u)
         return phi, float(np.max(np.abs(phi))) if phi.size else 0.0
 
-    def _failure(self, q: np.ndarray, t: float, iterations: int) -> ConvergenceError:
-        phi, norm = self._residual(q, t)
+    def _failure(self, q: np.ndarray, u: np.ndarray, t: float, iterations: int) -> ConvergenceError:
+        phi, norm = self.residual(q, u)
         order = np.argsort(-np.abs(phi))[:3]
         return ConvergenceError(t, iterations, norm, [(self.system.constraint_names[i], float(phi[i])) for i in order])
 
     # ---- position ------------------------------------------------------------------------
-    def position(self, q0: np.ndarray, t: float) -> tuple[np.ndarray, int, float]:
-        """Newton-Raphson from ``q0`` at time ``t``: (q, iterations, max |Phi|)."""
+    def position(self, q0: np.ndarray, u: np.ndarray, t: float = float("nan")) -> tuple[np.ndarray, int, float]:
+        """Newton-Raphson from ``q0`` for driver inputs ``u``: (q, iterations, max |Phi|).
+
+        Full steps first; if they fail, a backtracking line search; if that fails too, a
+        homotopy that moves the residual of ``q0`` to zero in stages.
+        """
         try:
-            return self._newton(q0, t, damped=False)
+            return self._newton(q0, u, t, damped=False)
         except ConvergenceError:
             if not self.options.line_search:
                 raise
-            return self._newton(q0, t, damped=True)
+        try:
+            return self._newton(q0, u, t, damped=True)
+        except ConvergenceError:
+            return self._homotopy(q0, u, t)
 
-    def _newton(self, q: np.ndarray, t: float, damped: bool) -> tuple[np.ndarray, int, float]:
+    def _newton(
+        self, q: np.ndarray, u: np.ndarray, t: float, damped: bool, offset: np.ndarray | None = None
+    ) -> tuple[np.ndarray, int, float]:
         opts = self.options
-        phi, norm = self._residual(q, t)
+
+        def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
+            phi = self.system.phi(x, u) if offset is None else self.system.phi(x, u) - offset
+            return phi, float(np.max(np.abs(phi))) if phi.size else 0.0
+
+        phi, norm = residual(q)
         iterations = 0
         while norm > opts.tolerance:
             if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
-                raise self._failure(q, t, iterations)
-            step = -_lu_solve(self.factorize(q, t), phi)
+                raise self._failure(q, u, t, iterations)
+            step = -_lu_solve(self.factorize(q, u, t), phi)
             iterations += 1
             trial = self.retract(q, step)
-            trial_phi, trial_norm = self._residual(trial, t)
+            trial_phi, trial_norm = residual(trial)
             if damped:
                 alpha = 1.0
                 while not trial_norm < norm and alpha > 1e-4:
                     alpha *= 0.5
                     trial = self.retract(q, alpha * step)
-                    trial_phi, trial_norm = self._residual(trial, t)
+                    trial_phi, trial_norm = residual(trial)
             q, phi, norm = trial, trial_phi, trial_norm
         return q, iterations, norm
 
+    def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> tuple[np.ndarray, int, float]:
+        """Solve Phi(q, u) = (1 - s) Phi(q0, u) for s = 0 -> 1 with adaptive stages."""
+        start, _ = self.residual(q, u)
+        s, ds, total = 0.0, 1.0 / 8, 0
+        while s < 1.0:
+            target = min(1.0, s + ds)
+            try:
+                q, iterations, _ = self._newton(q, u, t, damped=True, offset=(1.0 - target) * start)
+            except (ConvergenceError, SingularJacobianError):
+                ds /= 2
+                if ds < 1.0 / (8 * stages):
+                    raise self._failure(q, u, t, total) from None
+                continue
+            total += iterations
+            s = target
+            ds = min(2 * ds, 0.25)
+        _, norm = self.residual(q, u)
+        return q, total, norm
+
     # ---- trajectory ----------------------------------------------------------------------
-    def solve(self, times: np.ndarray | None = None, q0: np.ndarray | None = None) -> Results:
-        """Position, velocity and acceleration at every time of ``times`` (default: the case grid)."""
+    def solve(
+        self,
+        times: np.ndarray | None = None,
+        q0: np.ndarray | None = None,
+        inputs: tuple[np.ndarray, np.ndarray, np.ndarray] | None = None,
+    ) -> Results:
+        """Position, velocity and acceleration at every time of ``times`` (default: the case grid).
+
+        ``inputs`` = (u, ud, udd), each of shape (n_inputs, K), replaces the case's time
+        functions (e.g. cylinder lengths from another case or a controller).
+        """
         system = self.system
         if times is None:
             times = np.linspace(system.t0, system.t1, system.steps)
         times = np.asarray(times, dtype=float)
         k, n, nv = len(times), system.n_stored, system.n_velocity
+        if inputs is None:
+            inputs = system.driver_inputs(times)
+        u_all, ud_all, udd_all = (np.asarray(x, dtype=float).reshape(system.n_inputs, k) for x in inputs)
         qs, vs, accs = np.empty((k, n)), np.empty((k, nv)), np.empty((k, nv))
-        iterations, residuals = np.empty(k, dtype=int), np.empty(k)
+        iterations, residuals, conditions = np.empty(k, dtype=int), np.empty(k), np.empty(k)
         q = system.initial_q.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
         v = a = None
         for i, t in enumerate(times):
+            u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
             if i > 0:
                 h = t - times[i - 1]
                 q = self.retract(q, v * h + 0.5 * a * h * h)
-            q, iterations[i], residuals[i] = self.position(q, t)
-            factors = self.factorize(q, t)
-            v = _lu_solve(factors, system.nu(q, t))
-            a = _lu_solve(factors, system.gamma(q, v, t))
+            q, iterations[i], residuals[i] = self.position(q, u, t)
+            factors = self.factorize(q, u, t)
+            v = _lu_solve(factors, system.nu(q, u, ud))
+            a = _lu_solve(factors, system.gamma(q, v, u, ud, udd))
+            conditions[i] = self.condition(q, u, factors)
             qs[i], vs[i], accs[i] = q, v, a
-        return Results(system, times, qs, vs, accs, iterations, residuals)
+        return Results(system, times, qs, vs, accs, iterations, residuals, conditions, u_all.T.copy())
 
 
 def solve(system: NumericSystem, times: np.ndarray | None = None, options: SolverOptions | None = None) -> Results:
@@ -184,18 +238,19 @@ def solve(system: NumericSystem, times: np.ndarray | None = None, options: Solve
 def check_initial_pose(system: NumericSystem, options: SolverOptions | None = None) -> str:
     """Check the initial pose against Phi at the case start; assemble it if needed.
 
-    Returns a one-line report; raises ConvergenceError (naming the constraints with the
+    Returns a one-line report; raises AssemblyError (naming the constraints with the
     largest residuals) when no assembled pose can be found from it.
     """
     solver = Solver(system, options)
-    phi, norm = solver._residual(system.initial_q, system.t0)
+    u = system.driver_inputs(system.t0)[0]
+    phi, norm = solver.residual(system.initial_q, u)
     prefix = f"case {system.case}: initial pose"
     if norm <= solver.options.tolerance:
         return f"{prefix} satisfies Phi at t0 = {system.t0:g} (max |Phi| = {norm:.1e})"
     order = np.argsort(-np.abs(phi))[:3]
     worst = [(system.constraint_names[i], float(phi[i])) for i in order]
     try:
-        _, iterations, final = solver.position(system.initial_q, system.t0)
+        _, iterations, final = solver.position(system.initial_q, u, system.t0)
     except (ConvergenceError, SingularJacobianError) as exc:
         raise AssemblyError(system.t0, norm, worst, str(exc).splitlines()[0]) from exc
     return f"{prefix} off by max |Phi| = {norm:.2e} ({worst[0][0]}); assembled in {iterations} Newton iterations (max |Phi| = {final:.1e})"

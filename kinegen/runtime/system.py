@@ -37,10 +37,11 @@ class NumericSystem:
     initial_q: np.ndarray
     jac_rows: np.ndarray
     jac_cols: np.ndarray
-    phi: Callable[[np.ndarray, Any], np.ndarray]
-    jac: Callable[[np.ndarray, Any], np.ndarray]
-    nu: Callable[[np.ndarray, Any], np.ndarray]
-    gamma: Callable[[np.ndarray, np.ndarray, Any], np.ndarray]
+    inputs: Callable[[Any], np.ndarray]  #: t -> rows [u; du/dt; d2u/dt2]
+    phi: Callable[[np.ndarray, np.ndarray], np.ndarray]  #: (q, u)
+    jac: Callable[[np.ndarray, np.ndarray], np.ndarray]  #: (q, u) -> values at (jac_rows, jac_cols)
+    nu: Callable[[np.ndarray, np.ndarray, np.ndarray], np.ndarray]  #: (q, u, ud)
+    gamma: Callable[..., np.ndarray]  #: (q, v, u, ud, udd)
     t0: float
     t1: float
     steps: int
@@ -54,10 +55,20 @@ class NumericSystem:
     def n_velocity(self) -> int:
         return len(self.velocity_names)
 
-    def jacobian(self, q: np.ndarray, t: float) -> np.ndarray:
+    @property
+    def n_inputs(self) -> int:
+        return len(self.driver_names)
+
+    def driver_inputs(self, t: Any) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(u, du/dt, d2u/dt2) of the case's time functions at ``t`` (scalar or array)."""
+        rows = self.inputs(t)
+        k = self.n_inputs
+        return rows[:k], rows[k : 2 * k], rows[2 * k :]
+
+    def jacobian(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Dense Phi_q (constraints x velocity coordinates) at one configuration."""
         dense = np.zeros((len(self.constraint_names), self.n_velocity))
-        dense[self.jac_rows, self.jac_cols] = self.jac(q, t)
+        dense[self.jac_rows, self.jac_cols] = self.jac(q, u)
         return dense
 
 
@@ -82,6 +93,7 @@ def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSys
         initial_q=np.array(module.INITIAL_Q, dtype=float),
         jac_rows=np.array(data["jac_rows"], dtype=np.intp),
         jac_cols=np.array(data["jac_cols"], dtype=np.intp),
+        inputs=data["inputs"],
         phi=data["phi"],
         jac=data["jac"],
         nu=data["nu"],

@@ -10,6 +10,12 @@ bodies the row touches*:
 * ``gamma = -(Phi_q v)_s B(s) v - 2 (Phi_q v)_t - Phi_tt``.
 
 So build cost grows linearly with the number of constraints.
+
+Time enters only through the *driver inputs*: driver k's equation uses a symbol ``u_k``
+(its angle, translation, length or coordinate) with rate ``ud_k`` and acceleration
+``udd_k``; a case's time functions give ``u_k = f_k(t)``. The time derivative of an
+expression is therefore ``D(e) = sum_k de/du_k ud_k + de/dud_k udd_k``. Driving a case
+from tabulated values (a controller, a sweep, another case's results) needs no rebuild.
 """
 
 from __future__ import annotations
@@ -81,6 +87,45 @@ class Row:
     is_driver: bool = False
 
 
+@dataclass(frozen=True)
+class DriverInputs:
+    """Symbols of the driver inputs of a case and their time functions."""
+
+    names: tuple[str, ...]
+    u: tuple[sp.Symbol, ...]
+    ud: tuple[sp.Symbol, ...]
+    udd: tuple[sp.Symbol, ...]
+    functions: tuple[sp.Expr, ...]  # f_k(t)
+
+    def time_derivative(self, expr: sp.Expr) -> sp.Expr:
+        """D(expr) with u_k = f_k(t): sum_k de/du_k ud_k + de/dud_k udd_k."""
+        total = sp.Integer(0)
+        for u, ud, udd in zip(self.u, self.ud, self.udd):
+            total += sp.diff(expr, u) * ud + sp.diff(expr, ud) * udd
+        return total
+
+    def at_time(self, t: sp.Expr) -> dict[sp.Symbol, sp.Expr]:
+        """Exact substitution u, ud, udd <- f(t), f'(t), f''(t)."""
+        values: dict[sp.Symbol, sp.Expr] = {}
+        for u, ud, udd, f in zip(self.u, self.ud, self.udd, self.functions):
+            values[u] = f.subs(T, t)
+            values[ud] = sp.diff(f, T).subs(T, t)
+            values[udd] = sp.diff(f, T, 2).subs(T, t)
+        return values
+
+
+def driver_inputs(case: Case) -> DriverInputs:
+    """Input symbols ``u{k}``, ``ud{k}``, ``udd{k}`` of the drivers of ``case`` in order."""
+    n = len(case.drivers)
+    return DriverInputs(
+        names=tuple(d.name for d in case.drivers),
+        u=tuple(sp.Symbol(f"u{k}", real=True) for k in range(n)),
+        ud=tuple(sp.Symbol(f"ud{k}", real=True) for k in range(n)),
+        udd=tuple(sp.Symbol(f"udd{k}", real=True) for k in range(n)),
+        functions=tuple(d.function for d in case.drivers),
+    )
+
+
 @dataclass
 class System:
     """The exact symbolic kinematics of one case."""
@@ -88,6 +133,7 @@ class System:
     model: Model
     case: Case
     coordinates: Coordinates
+    inputs: DriverInputs
     rows: list[Row] = field(default_factory=list)
 
     @property
@@ -123,7 +169,7 @@ def coordinates(model: Model, parametrization: Parametrization) -> Coordinates:
     return Coordinates(parametrization, tuple(bodies))
 
 
-def derive(equation: Equation, coords: Coordinates, is_driver: bool = False) -> Row:
+def derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None = None, is_driver: bool = False) -> Row:
     """Jacobian, nu and gamma of one equation, in its bodies' coordinates only."""
     phi = equation.expr
     jacobian: dict[int, sp.Expr] = {}
@@ -136,8 +182,11 @@ def derive(equation: Equation, coords: Coordinates, is_driver: bool = False) -> 
             if entry != 0:
                 jacobian[body.velocity_offset + k] = entry
                 psi += entry * body.velocity[k]
-    phi_t = sp.diff(phi, T)
-    gamma = -2 * sp.diff(psi, T) - sp.diff(phi_t, T)
+    if inputs is None:  # a joint: no time dependence
+        phi_t, gamma = sp.Integer(0), sp.Integer(0)
+    else:
+        phi_t = inputs.time_derivative(phi)
+        gamma = -2 * inputs.time_derivative(psi) - inputs.time_derivative(phi_t)
     for body in touched:
         stored_rate = body.velocity_map * sp.Matrix(body.velocity)
         for s, rate in zip(body.stored, stored_rate):
@@ -179,8 +228,9 @@ def build_systems(model: Model, parametrization: Parametrization, cases: list[st
     systems = {}
     for name in cases or list(model.cases):
         case = model.cases[name]
+        inputs = driver_inputs(case)
         rows = list(shared)
-        for driver in case.drivers:
-            rows.append(derive(driver_equation(driver, joints, frame_of, _moving), coords, is_driver=True))
-        systems[name] = System(model, case, coords, rows)
+        for driver, u in zip(case.drivers, inputs.u):
+            rows.append(derive(driver_equation(driver, joints, frame_of, _moving, u), coords, inputs, is_driver=True))
+        systems[name] = System(model, case, coords, inputs, rows)
     return systems
