@@ -28,6 +28,9 @@ POINTS = {
     'boom': {'O': (-1.78, 0.0, 0.0), 'tip': (1.78, 0.0, 0.0)},
 }
 INITIAL_Q = (0.0, 1.78, 0.0, 0.7071067811865475, 0.0, 0.0, 0.7071067811865475)
+# reported lengths: name -> ((body, point), (body, point), (min, max) or None)
+ACTUATORS = {
+}
 
 
 def _zeros(m, q, u):
@@ -48,18 +51,18 @@ def phi_swing(q, u):
     """Phi(q, u) of case 'swing': 7 residuals."""
     boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
     u0, = u
-    c0 = boom_e0**2
-    c1 = boom_e1**2
-    c2 = (89/25)*boom_e0
-    c3 = 2*boom_e0
+    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
+    boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
+    boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
     out = _zeros(7, q, u)
-    out[0] = -boom_x + (89/25)*c0 + (89/25)*c1 - 89/50
-    out[1] = (89/25)*boom_e1*boom_e2 + boom_e3*c2 - boom_y
-    out[2] = (89/25)*boom_e1*boom_e3 - boom_e2*c2 - boom_z
-    out[3] = 2*boom_e1*boom_e3 - boom_e2*c3
-    out[4] = boom_e1*c3 + 2*boom_e2*boom_e3
-    out[5] = boom_e2**2 + boom_e3**2 + c0 + c1 - 1
-    out[6] = -(2*boom_e1*boom_e2 + boom_e3*c3)*cos(u0) + (2*c0 + 2*c1 - 1)*sin(u0)
+    out[0] = (89/50)*boom_a00 - boom_x
+    out[1] = (89/50)*boom_a10 - boom_y
+    out[2] = (89/50)*boom_a20 - boom_z
+    out[3] = boom_a20
+    out[4] = boom_a21
+    out[5] = boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2 - 1
+    out[6] = boom_a00*sin(u0) - boom_a10*cos(u0)
     return out
 
 
@@ -115,8 +118,10 @@ def nu_swing(q, u, ud):
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
     u0, = u
     ud0, = ud
+    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
     out = _zeros(7, q, u)
-    out[6] = -ud0*((2*boom_e0*boom_e3 + 2*boom_e1*boom_e2)*sin(u0) + (2*boom_e0**2 + 2*boom_e1**2 - 1)*cos(u0))
+    out[6] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
     return out
 
 
@@ -127,6 +132,8 @@ def gamma_swing(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
+    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
     c0 = v_boom_e0**2
     c1 = v_boom_e1**2
     c2 = (178/25)*v_boom_e3
@@ -136,12 +143,8 @@ def gamma_swing(q, v, u, ud, udd):
     c6 = cos(u0)
     c7 = sin(u0)
     c8 = 2*c6
-    c9 = 2*boom_e3
-    c10 = 2*boom_e2
-    c11 = boom_e0*c9 + boom_e1*c10
-    c12 = 2*boom_e0**2 + 2*boom_e1**2 - 1
-    c13 = 2*c7
-    c14 = 4*c6
+    c9 = 2*c7
+    c10 = 4*c6
     out = _zeros(7, q, u)
     out[0] = -178/25*c0 - 178/25*c1
     out[1] = -c2*v_boom_e0 - c3*v_boom_e1
@@ -149,7 +152,7 @@ def gamma_swing(q, v, u, ud, udd):
     out[3] = c4*v_boom_e0 - c5*v_boom_e3
     out[4] = -c4*v_boom_e3 - c5*v_boom_e0
     out[5] = -2*c0 - 2*c1 - 2*v_boom_e2**2 - 2*v_boom_e3**2
-    out[6] = 2*c6*v_boom_e0*v_boom_e3 + 2*c6*v_boom_e1*v_boom_e2 - ud0**2*(c11*c6 - c12*c7) - 2*ud0*(boom_e0*c13*v_boom_e3 + boom_e1*c13*v_boom_e2 + v_boom_e0*(boom_e0*c14 + c7*c9) + v_boom_e1*(boom_e1*c14 + c10*c7)) - udd0*(c11*c7 + c12*c6) - v_boom_e0*(4*c7*v_boom_e0 - c8*v_boom_e3) - v_boom_e1*(c5*c7 - c8*v_boom_e2)
+    out[6] = 2*c6*v_boom_e0*v_boom_e3 + 2*c6*v_boom_e1*v_boom_e2 - ud0**2*(-boom_a00*c7 + boom_a10*c6) - 2*ud0*(boom_e0*c9*v_boom_e3 + boom_e1*c9*v_boom_e2 + v_boom_e0*(boom_e0*c10 + boom_e3*c9) + v_boom_e1*(boom_e1*c10 + boom_e2*c9)) - udd0*(boom_a00*c6 + boom_a10*c7) - v_boom_e0*(4*c7*v_boom_e0 - c8*v_boom_e3) - v_boom_e1*(c5*c7 - c8*v_boom_e2)
     return out
 
 

@@ -28,6 +28,9 @@ POINTS = {
     'boom': {'O': (-1.78, 0.0, 0.0), 'tip': (1.78, 0.0, 0.0)},
 }
 INITIAL_Q = (0.0, 1.78, 0.0, 1.5707963267948966, 0.0, 0.0)
+# reported lengths: name -> ((body, point), (body, point), (min, max) or None)
+ACTUATORS = {
+}
 
 
 def _zeros(m, q, u):
@@ -48,22 +51,17 @@ def phi_swing(q, u):
     """Phi(q, u) of case 'swing': 6 residuals."""
     boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
-    c0 = cos(boom_alpha)
-    c1 = cos(boom_gamma)
-    c2 = sin(boom_alpha)
-    c3 = sin(boom_gamma)
-    c4 = c3*cos(boom_beta)
-    c5 = c2*c4
-    c6 = c1*c2
-    c7 = c0*c4
-    c8 = sin(boom_beta)
+    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
+    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a20 = sin(boom_beta)*sin(boom_gamma)
+    boom_a21 = sin(boom_beta)*cos(boom_gamma)
     out = _zeros(6, q, u)
-    out[0] = -boom_x + (89/50)*c0*c1 - 89/50*c5
-    out[1] = -boom_y + (89/50)*c6 + (89/50)*c7
-    out[2] = -boom_z + (89/50)*c3*c8
-    out[3] = c3*c8
-    out[4] = c1*c8
-    out[5] = -(c6 + c7)*cos(u0) + (c0*c1 - c5)*sin(u0)
+    out[0] = (89/50)*boom_a00 - boom_x
+    out[1] = (89/50)*boom_a10 - boom_y
+    out[2] = (89/50)*boom_a20 - boom_z
+    out[3] = boom_a20
+    out[4] = boom_a21
+    out[5] = boom_a00*sin(u0) - boom_a10*cos(u0)
     return out
 
 
@@ -116,12 +114,10 @@ def nu_swing(q, u, ud):
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
     ud0, = ud
-    c0 = sin(boom_alpha)
-    c1 = cos(boom_gamma)
-    c2 = cos(boom_alpha)
-    c3 = sin(boom_gamma)*cos(boom_beta)
+    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
+    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
     out = _zeros(6, q, u)
-    out[5] = -ud0*((c0*c1 + c2*c3)*sin(u0) + (-c0*c3 + c1*c2)*cos(u0))
+    out[5] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
     return out
 
 
@@ -132,6 +128,8 @@ def gamma_swing(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
+    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
+    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
     c0 = sin(boom_beta)
     c1 = sin(boom_gamma)
     c2 = cos(boom_alpha)
@@ -161,30 +159,27 @@ def gamma_swing(q, v, u, ud, udd):
     c26 = c23*v_boom_gamma
     c27 = c0*c11
     c28 = c1*c6
-    c29 = sin(u0)
-    c30 = c3*c6
-    c31 = c12 + c30
-    c32 = cos(u0)
-    c33 = c6*c8
-    c34 = -c11*c2 + c33
-    c35 = -c34
-    c36 = c29*c35
-    c37 = c0*c32
-    c38 = c0*c12*c29 + c15*c37
-    c39 = -c0*c1*c2*c29 + c37*c8
-    c40 = -c39
-    c41 = -c31*c32
-    c42 = -c15*c6 + c8
-    c43 = c32*(-c12*c6 - c3)
-    c44 = c29*c42 - c43
-    c45 = c29*c34 - c41
+    c29 = cos(u0)
+    c30 = sin(u0)
+    c31 = c6*c8
+    c32 = c3*c6
+    c33 = c0*c29
+    c34 = c0*c12*c30 + c15*c33
+    c35 = -c0*c1*c2*c30 + c33*c8
+    c36 = -c35
+    c37 = -c15 + c31
+    c38 = c29*(-c12 - c32)
+    c39 = -c15*c6 + c8
+    c40 = c29*(-c12*c6 - c3)
+    c41 = c30*c39 - c40
+    c42 = c30*c37 - c38
     out = _zeros(6, q, u)
     out[0] = -v_boom_alpha*(c17*v_boom_alpha + c18*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c10*v_boom_beta + c14*v_boom_gamma + c5*v_boom_alpha) - v_boom_gamma*(c14*v_boom_beta + c17*v_boom_gamma + c18*v_boom_alpha)
     out[1] = -v_boom_alpha*(c0*c9*v_boom_beta + c21*v_boom_alpha + c22*v_boom_gamma) - v_boom_beta*((89/50)*c0*c1*c7*v_boom_alpha - c19*v_boom_beta - c20*v_boom_gamma) - v_boom_gamma*(-c20*v_boom_beta + c21*v_boom_gamma + c22*v_boom_alpha)
     out[2] = -v_boom_beta*((89/50)*c11*c6*v_boom_gamma - 89/50*c24) - v_boom_gamma*((89/50)*c25 - 89/50*c26)
     out[3] = -v_boom_beta*(c11*c6*v_boom_gamma - c24) - v_boom_gamma*(c25 - c26)
     out[4] = -v_boom_beta*(-c27*v_boom_beta - c28*v_boom_gamma) - v_boom_gamma*(-c27*v_boom_gamma - c28*v_boom_beta)
-    out[5] = -ud0**2*(c31*c32 - c36) - 2*ud0*(c39*v_boom_beta + v_boom_alpha*(c36 + c41) + v_boom_gamma*(-c29*c42 + c43)) - udd0*(c29*c31 + c32*c35) - v_boom_alpha*(c40*v_boom_beta + c44*v_boom_gamma + c45*v_boom_alpha) - v_boom_beta*(c38*v_boom_gamma + c40*v_boom_alpha + v_boom_beta*(c29*c33 + c30*c32)) - v_boom_gamma*(c38*v_boom_beta + c44*v_boom_alpha + c45*v_boom_gamma)
+    out[5] = -ud0**2*(-boom_a00*c30 + boom_a10*c29) - 2*ud0*(c35*v_boom_beta + v_boom_alpha*(-c30*c37 + c38) + v_boom_gamma*(-c30*c39 + c40)) - udd0*(boom_a00*c29 + boom_a10*c30) - v_boom_alpha*(c36*v_boom_beta + c41*v_boom_gamma + c42*v_boom_alpha) - v_boom_beta*(c34*v_boom_gamma + c36*v_boom_alpha + v_boom_beta*(c29*c32 + c30*c31)) - v_boom_gamma*(c34*v_boom_beta + c41*v_boom_alpha + c42*v_boom_gamma)
     return out
 
 

@@ -28,6 +28,9 @@ POINTS = {
     'boom': {'O': (-1.78, 0.0, 0.0), 'tip': (1.78, 0.0, 0.0)},
 }
 INITIAL_Q = (0.0, 1.78, 0.0, 0.7071067811865475, 0.0, 0.0, 0.7071067811865475)
+# reported lengths: name -> ((body, point), (body, point), (min, max) or None)
+ACTUATORS = {
+}
 
 
 def _zeros(m, q, u):
@@ -48,17 +51,17 @@ def phi_swing(q, u):
     """Phi(q, u) of case 'swing': 6 residuals."""
     boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
     u0, = u
-    c0 = boom_qw**2
-    c1 = boom_qx**2
-    c2 = (89/25)*boom_qw
-    c3 = 2*boom_qw
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
     out = _zeros(6, q, u)
-    out[0] = -boom_x + (89/25)*c0 + (89/25)*c1 - 89/50
-    out[1] = (89/25)*boom_qx*boom_qy + boom_qz*c2 - boom_y
-    out[2] = (89/25)*boom_qx*boom_qz - boom_qy*c2 - boom_z
-    out[3] = 2*boom_qx*boom_qz - boom_qy*c3
-    out[4] = boom_qx*c3 + 2*boom_qy*boom_qz
-    out[5] = -(2*boom_qx*boom_qy + boom_qz*c3)*cos(u0) + (2*c0 + 2*c1 - 1)*sin(u0)
+    out[0] = (89/50)*boom_a00 - boom_x
+    out[1] = (89/50)*boom_a10 - boom_y
+    out[2] = (89/50)*boom_a20 - boom_z
+    out[3] = boom_a20
+    out[4] = boom_a21
+    out[5] = boom_a00*sin(u0) - boom_a10*cos(u0)
     return out
 
 
@@ -66,40 +69,33 @@ def jac_swing(q, u):
     """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (16 entries)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     u0, = u
-    c0 = (89/25)*boom_qw
-    c1 = -89/25*boom_qx*boom_qz + boom_qy*c0
-    c2 = (89/25)*boom_qx*boom_qy + boom_qz*c0
-    c3 = boom_qw**2
-    c4 = boom_qx**2
-    c5 = boom_qy**2
-    c6 = boom_qz**2
-    c7 = (89/50)*c3 + (89/50)*c4 - 89/50*c5 - 89/50*c6
-    c8 = 2*boom_qz
-    c9 = boom_qw*c8
-    c10 = 2*boom_qy
-    c11 = boom_qx*c10
-    c12 = c3 - c6
-    c13 = cos(u0)
-    c14 = 4*sin(u0)
-    c15 = boom_qx*c14 - c10*c13
-    c16 = (1/2)*boom_qw*c14 - 1/2*c13*c8
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    c0 = (89/50)*boom_a20
+    c1 = (89/50)*boom_a10
+    c2 = (89/50)*boom_a00
+    c3 = cos(u0)
+    c4 = sin(u0)
     out = _zeros(16, q, u)
     out[0] = -1
-    out[1] = -c1
-    out[2] = -c2
+    out[1] = c0
+    out[2] = -c1
     out[3] = -1
-    out[4] = c1
-    out[5] = c7
+    out[4] = -c0
+    out[5] = c2
     out[6] = -1
-    out[7] = c2
-    out[8] = -c7
-    out[9] = c11 + c9
-    out[10] = -c12 - c4 + c5
-    out[11] = c12 - c4 + c5
-    out[12] = -c11 + c9
-    out[13] = -boom_qw*boom_qy*c13 + (1/2)*boom_qw*c15 + boom_qx*boom_qz*c13 - boom_qx*c16
-    out[14] = -boom_qy*c16 + (1/2)*boom_qz*c15
-    out[15] = -1/2*boom_qy*c15 - boom_qz*c16 - c13*c3 - c13*c4
+    out[7] = c1
+    out[8] = -c2
+    out[9] = boom_a10
+    out[10] = -boom_a00
+    out[11] = boom_a11
+    out[12] = -boom_a01
+    out[13] = boom_a20*c3
+    out[14] = boom_a20*c4
+    out[15] = -boom_a00*c3 - boom_a10*c4
     return out
 
 
@@ -108,8 +104,10 @@ def nu_swing(q, u, ud):
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     u0, = u
     ud0, = ud
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     out = _zeros(6, q, u)
-    out[5] = -ud0*((2*boom_qw*boom_qz + 2*boom_qx*boom_qy)*sin(u0) + (2*boom_qw**2 + 2*boom_qx**2 - 1)*cos(u0))
+    out[5] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
     return out
 
 
@@ -120,62 +118,28 @@ def gamma_swing(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
-    c0 = boom_qw*v_boom_theta_y
-    c1 = (89/25)*c0
-    c2 = boom_qx*v_boom_theta_z
-    c3 = (89/25)*c2
-    c4 = (1/2)*v_boom_theta_x
-    c5 = -boom_qz*c4 + (1/2)*c0 + (1/2)*c2
-    c6 = boom_qw*v_boom_theta_z
-    c7 = (89/25)*c6
-    c8 = boom_qx*v_boom_theta_y
-    c9 = (89/25)*c8
-    c10 = boom_qy*c4 + (1/2)*c6 - 1/2*c8
-    c11 = boom_qy*v_boom_theta_y
-    c12 = (89/25)*c11
-    c13 = boom_qz*v_boom_theta_z
-    c14 = (89/25)*c13
-    c15 = -boom_qx*c4 - 1/2*c11 - 1/2*c13
-    c16 = boom_qy*v_boom_theta_z
-    c17 = (89/25)*c16
-    c18 = boom_qz*v_boom_theta_y
-    c19 = boom_qw*c4 - 1/2*c16 + (1/2)*c18
-    c20 = (89/25)*v_boom_theta_x
-    c21 = boom_qw*c20
-    c22 = boom_qx*c20
-    c23 = -boom_qz*c20
-    c24 = 2*v_boom_theta_x
-    c25 = boom_qw*c24
-    c26 = 2*c18
-    c27 = c25 + c26
-    c28 = 2*c0
-    c29 = -2*boom_qz*v_boom_theta_x + c28
-    c30 = boom_qx*c24
-    c31 = 2*c11
-    c32 = c30 + c31
-    c33 = 2*c8
-    c34 = 2*boom_qy*v_boom_theta_x - c33
-    c35 = sin(u0)
-    c36 = 2*boom_qw
-    c37 = 2*boom_qx
-    c38 = boom_qy*c37 + boom_qz*c36
-    c39 = cos(u0)
-    c40 = boom_qw**2
-    c41 = boom_qx**2
-    c42 = 2*c40 + 2*c41 - 1
-    c43 = 2*boom_qy*c35
-    c44 = 2*boom_qz*c35
-    c45 = 4*c39
-    c46 = (1/2)*boom_qw*c45 + (1/2)*c44
-    c47 = boom_qx*c45 + c43
-    c48 = (1/2)*c47
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    c0 = -boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x
+    c1 = (89/50)*c0
+    c2 = boom_a20*v_boom_theta_x
+    c3 = boom_a00*v_boom_theta_z - c2
+    c4 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
+    c5 = c3*v_boom_theta_x
+    c6 = cos(u0)
+    c7 = sin(u0)
+    c8 = boom_a00*c7 - boom_a10*c6
     out = _zeros(6, q, u)
-    out[0] = -c10*(-c7 + c9) - c15*(-c12 - c14) - c19*((89/25)*boom_qz*v_boom_theta_y - c17) - c5*(-c1 - c3)
-    out[1] = -c10*(-c14 - c22) - c15*(boom_qy*c20 + c7) - c19*(c23 + c3) - c5*(-c17 + c21)
-    out[2] = -c10*((89/25)*c18 + c21) - c15*(-c1 - c23) - c19*((89/25)*boom_qy*v_boom_theta_x - c9) - c5*(c12 + c22)
-    out[3] = -c10*c27 + c15*c29 - c19*c34 - c32*c5
-    out[4] = -c10*c29 - c15*c27 + c19*c32 - c34*c5
-    out[5] = -c10*(c30*c39 + c33*c35 + v_boom_theta_z*(2*boom_qz*c39 - c35*c36)) - c15*(-boom_qy*c24*c39 - c31*c35 + v_boom_theta_z*(-c36*c39 - c44)) - c19*(boom_qz*c24*c39 + c26*c35 + v_boom_theta_z*(-c37*c39 - c43)) - c5*(-c25*c39 - c28*c35 + v_boom_theta_z*(2*boom_qy*c39 - c35*c37)) - ud0**2*(-c35*c42 + c38*c39) - 2*ud0*(v_boom_theta_x*(boom_qw*boom_qy*c35 + boom_qw*c48 - boom_qx*boom_qz*c35 - boom_qx*c46) + v_boom_theta_y*(-boom_qy*c46 + (1/2)*boom_qz*c47) + v_boom_theta_z*(-boom_qy*c48 - boom_qz*c46 + c35*c40 + c35*c41)) - udd0*(c35*c38 + c39*c42)
+    out[0] = -c1*v_boom_theta_y + (89/50)*c3*v_boom_theta_z
+    out[1] = c1*v_boom_theta_x - 89/50*c4*v_boom_theta_z
+    out[2] = (89/50)*c4*v_boom_theta_y - 89/50*c5
+    out[3] = c4*v_boom_theta_y - c5
+    out[4] = -v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) + v_boom_theta_y*(-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)
+    out[5] = -c0*(c6*v_boom_theta_x + c7*v_boom_theta_y) + c3*c7*v_boom_theta_z + c4*c6*v_boom_theta_z + c8*ud0**2 - 2*ud0*(boom_a20*c6*v_boom_theta_y - c2*c7 + c8*v_boom_theta_z) - udd0*(boom_a00*c6 + boom_a10*c7)
     return out
 
 

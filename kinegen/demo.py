@@ -20,6 +20,7 @@ MAIN_JOB: dict[str, tuple[str, ...]] = {
     "slider_crank.yaml": ("quaternion", "euler-parameters"),
     "four_bar.yaml": ("quaternion", "euler-parameters"),
     "rssr.yaml": ("quaternion", "euler-parameters"),
+    "excavator.yaml": ("quaternion", "euler-parameters", "euler:zxz", "euler:zxy"),
 }
 
 

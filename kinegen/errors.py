@@ -44,10 +44,14 @@ class SingularJacobianError(KinegenError):
         self.size = size
         self.dependent_constraints = dependent_constraints
         self.null_space = null_space
+        self.bodies = sorted(
+            {term.split(".")[0].split("*")[-1].lstrip("+- ") for combo in null_space for term in combo.split(" ") if "." in term}
+        )
         lines = [
             f"singular Jacobian at t = {t:.6g}: rank {rank} of {size[0]}x{size[1]}" + (f" ({detail})" if detail else ""),
             "  dependent constraints: " + (", ".join(dependent_constraints) or "-"),
             "  null space (coordinates that move without changing Phi): " + ("; ".join(null_space) or "-"),
+            "  bodies whose coordinates are in the null space: " + (", ".join(self.bodies) or "-"),
         ]
         super().__init__("\n".join(lines))
 

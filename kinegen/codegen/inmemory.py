@@ -58,7 +58,10 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
         u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
         functions = [*inputs.functions, *(sp.diff(f, T) for f in inputs.functions), *(sp.diff(f, T, 2) for f in inputs.functions)]
 
-        def compile_(args, exprs, size):
+        definitions = coords.rotation_definitions
+
+        def compile_(args, exprs, size, definitions=definitions):
+            exprs = [e.xreplace(definitions) for e in exprs]
             return _stacked(sp.lambdify(args, exprs, modules="numpy", cse=True), size, (0, 1))
 
         cases[name] = {
@@ -84,5 +87,8 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
         BODIES={b.name: (b.stored_offset, b.velocity_offset) for b in coords.bodies},
         POINTS={b.name: {k: tuple(float(sp.N(x, 30)) for x in p) for k, p in b.points.items()} for b in model.bodies},
         INITIAL_Q=tuple(initial_q(model, parametrization)),
+        ACTUATORS={
+            a.name: ((a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.range) for a in model.actuators
+        },
         CASES=cases,
     )

@@ -23,6 +23,11 @@ class ModulePrinter(NumPyPrinter):
     def _print_Float(self, expr: sp.Float) -> str:
         return repr(float(expr))
 
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        if abs(expr.p) < 10**6 and expr.q < 10**6:
+            return super()._print_Rational(expr)
+        return repr(float(expr))  # a compacted geometry constant: the nearest double
+
 
 def freeze_numbers(expr: sp.Expr) -> sp.Expr:
     """Replace irrational numeric subexpressions (``sqrt(2)/2``, ``cos(17/50)``, ``2*pi``) by floats.

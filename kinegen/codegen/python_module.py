@@ -51,18 +51,27 @@ def _function(
     exprs: list[sp.Expr],
     printer: ModulePrinter,
     allocate: str = "_zeros({m}, q, u)",
+    definitions: dict[sp.Symbol, sp.Expr] | None = None,
 ) -> str:
-    """One function computing ``exprs`` into an array, with CSE, skipping exact zeros."""
+    """One function computing ``exprs`` into an array, with CSE, skipping exact zeros.
+
+    ``definitions`` (symbol -> expression of the arguments, e.g. rotation-matrix entries)
+    are assigned first, for the symbols the expressions use.
+    """
     frozen = [freeze_numbers(e) for e in exprs]
     replacements, reduced = sp.cse(frozen, symbols=sp.numbered_symbols("c"), order="canonical")
     arg_names = ", ".join(a for a, _ in args)
     lines = [f"def {name}({arg_names}):", f'    """{doc}"""']
     used = set().union(*(e.free_symbols for e in reduced), *(v.free_symbols for _, v in replacements))
+    defined = [(a, freeze_numbers(e)) for a, e in (definitions or {}).items() if a in used]
+    used |= set().union(*(e.free_symbols for _, e in defined))
     for arg, symbols in args:
         if any(s in used for s in symbols):
             targets = ", ".join(str(s) if s in used else "_" for s in symbols)
             if targets != arg:
                 lines.append(f"    {targets}{',' if len(symbols) == 1 else ''} = {arg}")
+    for symbol, value in defined:
+        lines.append(f"    {symbol} = {printer.doprint(value)}")
     for symbol, value in replacements:
         lines.append(f"    {symbol} = {printer.doprint(value)}")
     lines.append(f"    out = {allocate.format(m=len(exprs))}")
@@ -81,6 +90,7 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
     printer = ModulePrinter()
     q_syms = coords.stored_symbols
     v_syms = coords.velocity_symbols
+    rotation = coords.rotation_definitions
     header = HEADER.format(
         model=model.name,
         source=source_name,
@@ -108,6 +118,12 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
         body.append(f"    {b.name!r}: {{{pts}}},")
     body.append("}")
     body.append(f"INITIAL_Q = {_float_tuple(initial_q)}")
+    body.append("# reported lengths: name -> ((body, point), (body, point), (min, max) or None)")
+    body.append("ACTUATORS = {")
+    for a in model.actuators:
+        (p1, p2), limits = a.points, a.range
+        body.append(f"    {a.name!r}: (({p1.body!r}, {p1.name!r}), ({p2.body!r}, {p2.name!r}), {limits!r}),")
+    body.append("}")
     body.append("")
     body.append("")
     body.append("def _zeros(m, q, u):")
@@ -140,6 +156,7 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
                 [("q", q_syms), ("u", u)],
                 [r.phi for r in rows],
                 printer,
+                definitions=rotation,
             )
         )
         functions.append(
@@ -149,6 +166,7 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
                 [("q", q_syms), ("u", u)],
                 [e for _, _, e in entries],
                 printer,
+                definitions=rotation,
             )
         )
         functions.append(
@@ -158,6 +176,7 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
                 [("q", q_syms), ("u", u), ("ud", ud)],
                 [r.nu for r in rows],
                 printer,
+                definitions=rotation,
             )
         )
         functions.append(
@@ -167,6 +186,7 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
                 [("q", q_syms), ("v", v_syms), ("u", u), ("ud", ud), ("udd", udd)],
                 [r.gamma for r in rows],
                 printer,
+                definitions=rotation,
             )
         )
         case = system.case

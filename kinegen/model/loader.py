@@ -20,7 +20,7 @@ import yaml
 
 from kinegen.errors import ExpressionError, ModelError
 from kinegen.model import expressions
-from kinegen.model.schema import GROUND, Body, Case, Driver, Joint, Model, PointRef, Vector
+from kinegen.model.schema import GROUND, Actuator, Body, Case, Driver, Joint, Model, PointRef, Vector
 from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
 from kinegen.rotations.euler_parameters import quaternion_matrix
 
@@ -148,14 +148,14 @@ class _Reader:
         norm2 = sp.expand(sum(x**2 for x in v))
         if float(norm2) < 1e-18:
             raise self.fail(entry, "zero-length vector")
-        return sp.ImmutableMatrix(v / sp.sqrt(norm2))
+        return _compact_matrix(v / sp.sqrt(norm2))
 
     # ---- sections --------------------------------------------------------------------
     def model(self, document: Any) -> Model:
         top = self.mapping(
             document,
             "(top level)",
-            ("model", "description", "parameters", "ground", "bodies", "joints", "drivers", "cases"),
+            ("model", "description", "parameters", "ground", "bodies", "joints", "actuators", "drivers", "cases"),
             ("model", "bodies"),
         )
         name = self.name(top["model"], "model")
@@ -176,6 +176,7 @@ class _Reader:
         joints = self.mapping(top.get("joints"), "joints", tuple(_keys(top.get("joints"))))
         for key, value in joints.items():
             self.joints[key] = self.joint(self.name(key, f"joints.{key}"), value)
+        actuators = self.actuators(top.get("actuators"))
         common = self.drivers(top.get("drivers"), "drivers")
         cases = self.cases(top.get("cases"), common)
         return Model(
@@ -187,6 +188,7 @@ class _Reader:
             bodies=tuple(self.bodies.values()),
             joints=tuple(self.joints.values()),
             cases=cases,
+            actuators=actuators,
         )
 
     def body(self, name: str, value: Any) -> Body:
@@ -247,7 +249,7 @@ class _Reader:
                     stacklevel=2,
                 )
                 quat = [x / sp.sqrt(norm2) for x in quat]
-            return sp.ImmutableMatrix(quaternion_matrix(sp.Matrix(quat)).applyfunc(sp.expand))
+            return _compact_matrix(quaternion_matrix(sp.Matrix(quat)))
         if "euler" in spec:
             euler = self.mapping(spec["euler"], f"{entry}.euler", ("sequence", "angles"), ("sequence", "angles"))
             sequence = str(euler["sequence"]).lower()
@@ -257,7 +259,7 @@ class _Reader:
                     f"unknown sequence {euler['sequence']!r} (intrinsic, one of {', '.join(SEQUENCES)})",
                 )
             angles = self.vector(euler["angles"], f"{entry}.euler.angles")
-            return sp.ImmutableMatrix(EulerAngles(sequence).matrix(sp.Matrix(angles)))
+            return _compact_matrix(EulerAngles(sequence).matrix(sp.Matrix(angles)))
         if "matrix" in spec:
             rows = spec["matrix"]
             if not isinstance(rows, (list, tuple)) or len(rows) != 3:
@@ -273,7 +275,7 @@ class _Reader:
         angle = self.scalar(spec["angle"], f"{entry}.angle")
         kx = sp.Matrix([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
         rodrigues = sp.eye(3) * sp.cos(angle) + sp.sin(angle) * kx + (1 - sp.cos(angle)) * (k * k.T)
-        return sp.ImmutableMatrix(rodrigues.applyfunc(sp.expand))
+        return _compact_matrix(rodrigues)
 
     # ---- joints ----------------------------------------------------------------------
     def pose(self, name: str) -> Body:
@@ -410,6 +412,28 @@ class _Reader:
             refs.append(ref)
         return refs[0], refs[1]
 
+    def actuators(self, value: Any) -> tuple[Actuator, ...]:
+        result = []
+        for key, spec in self.mapping(value, "actuators", tuple(_keys(value))).items():
+            entry = f"actuators.{key}"
+            self.name(key, entry)
+            spec = self.mapping(spec, entry, ("points", "range"), ("points",))
+            refs = spec["points"]
+            if not isinstance(refs, (list, tuple)) or len(refs) != 2:
+                raise self.fail(f"{entry}.points", "expected two points 'body.point'")
+            p1, p2 = (self.point_ref(r, f"{entry}.points[{i}]") for i, r in enumerate(refs))
+            limits = None
+            if "range" in spec:
+                bounds = spec["range"]
+                if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+                    raise self.fail(f"{entry}.range", "expected [min, max]")
+                low, high = (float(self.scalar(b, f"{entry}.range[{i}]")) for i, b in enumerate(bounds))
+                if not 0 <= low < high:
+                    raise self.fail(f"{entry}.range", f"expected 0 <= min < max, got [{low}, {high}]")
+                limits = (low, high)
+            result.append(Actuator(key, (p1, p2), limits))
+        return tuple(result)
+
     # ---- drivers and cases -------------------------------------------------------------
     def drivers(self, value: Any, entry: str) -> list[Driver]:
         return [
@@ -529,6 +553,28 @@ class _Reader:
         return cases
 
 
+COMPACT_DIGITS = 34
+
+
+def compact(value: sp.Expr) -> sp.Expr:
+    """A geometry constant in compact exact form.
+
+    Rationals and small algebraic numbers (``sqrt(2)/2``) stay as they are; a constant
+    containing transcendental functions (``cos(3726279298/10**10)``), large numbers under a
+    root, or a large tree becomes
+    the exact decimal rational of its first 34 significant digits, so that it is one
+    number (not a tree) in every derivative, while evaluation stays exact rational.
+    """
+    small = all(abs(r.p) < 10**6 and r.q < 10**6 for r in value.atoms(sp.Rational))
+    if value.is_Rational or (small and not value.has(sp.Function) and sp.count_ops(value) <= 12):
+        return value
+    return sp.Rational(str(sp.N(value, COMPACT_DIGITS)))
+
+
+def _compact_matrix(matrix: sp.MatrixBase) -> sp.ImmutableMatrix:
+    return sp.ImmutableMatrix(matrix.applyfunc(lambda e: compact(sp.expand(e))))
+
+
 def _keys(value: Any) -> list[str]:
     return [k for k in value if isinstance(k, str)] if isinstance(value, Mapping) else []
 
@@ -552,12 +598,12 @@ def _global(pose: Body, local: Vector) -> Vector:
 def _to_local(pose: Body, vec: Vector, is_direction: bool) -> Vector:
     """Body coordinates of a global point (or direction) at the initial pose."""
     relative = vec if is_direction else vec - pose.position
-    return sp.ImmutableMatrix((pose.rotation.T * relative).applyfunc(sp.expand))
+    return _compact_matrix(pose.rotation.T * relative)
 
 
 def _carry(pose1: Body, pose2: Body, local1: Vector) -> Vector:
     """Body-2 coordinates of the vector that coincides with body-1's ``local1`` at the initial pose."""
-    return sp.ImmutableMatrix((pose2.rotation.T * pose1.rotation * local1).applyfunc(sp.expand))
+    return _compact_matrix(pose2.rotation.T * pose1.rotation * local1)
 
 
 def perpendicular(axis: Vector) -> Vector:

@@ -85,6 +85,18 @@ class Driver:
 
 
 @dataclass(frozen=True)
+class Actuator:
+    """A length between two body points that a run reports (e.g. a hydraulic cylinder).
+
+    ``range`` is its allowed (min, max) length; leaving it is reported, not an error.
+    """
+
+    name: str
+    points: tuple[PointRef, PointRef]
+    range: tuple[float, float] | None = None
+
+
+@dataclass(frozen=True)
 class Case:
     """A named way to drive the model, with its default time grid."""
 
@@ -107,6 +119,7 @@ class Model:
     bodies: tuple[Body, ...]
     joints: tuple[Joint, ...]
     cases: dict[str, Case]
+    actuators: tuple[Actuator, ...] = ()
 
     def body(self, name: str) -> Body:
         """The body called ``name`` (not ground)."""

@@ -40,6 +40,15 @@ class Parametrization(ABC):
         """B(o) with ``do/dt = B(o) w`` (identity unless overridden)."""
         return sp.eye(len(self.stored_names))
 
+    def rotation_derivatives(self, a: sp.Matrix, o: sp.Matrix) -> list[sp.Matrix]:
+        """dA/dw for each orientation velocity coordinate w.
+
+        ``a`` is the rotation matrix as a matrix of symbols, ``o`` the stored orientation
+        symbols; the result may use either. Default: dA(o)/do_k (velocity = stored rates).
+        """
+        matrix = self.matrix(o)
+        return [matrix.diff(x) for x in o]
+
     def normalization(self, o: sp.Matrix) -> list[sp.Expr]:
         """Extra constraints a body of this parametrization carries (none by default)."""
         return []

@@ -34,6 +34,15 @@ class Quaternion(Parametrization):
         half = sp.Rational(1, 2)
         return half * sp.Matrix([[-x, -y, -z], [w, z, -y], [-z, w, x], [y, -x, w]])
 
+    def rotation_derivatives(self, a: sp.Matrix, o: sp.Matrix) -> list[sp.Matrix]:
+        # A -> exp([theta]x) A: dA/dtheta_k = [e_k]x A, linear in the entries of A
+        axes = [
+            sp.Matrix([[0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+            sp.Matrix([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
+            sp.Matrix([[0, -1, 0], [1, 0, 0], [0, 0, 0]]),
+        ]
+        return [k * a for k in axes]
+
     def from_matrix(self, rotation: np.ndarray) -> np.ndarray:
         return qa.from_matrix(rotation)
 

@@ -103,6 +103,40 @@ class Results:
         w = self.omega(body)
         return self.acceleration(body) + np.cross(self.omega_dot(body), arm) + np.cross(w, np.cross(w, arm))
 
+    def _actuator(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        if name not in self.system.actuators:
+            raise KeyError(f"no actuator {name!r} (actuators: {', '.join(self.system.actuators) or 'none'})")
+        (b1, p1), (b2, p2), _ = self.system.actuators[name]
+        d = self.point_position(b2, p2) - self.point_position(b1, p1)
+        dv = self.point_velocity(b2, p2) - self.point_velocity(b1, p1)
+        da = self.point_acceleration(b2, p2) - self.point_acceleration(b1, p1)
+        length = np.linalg.norm(d, axis=1)
+        return d, dv, da, length, np.einsum("ki,ki->k", d, dv) / length, np.einsum("ki,ki->k", dv, dv)
+
+    def actuator_length(self, name: str) -> np.ndarray:
+        """Distance between the actuator's two points, (K,)."""
+        return self._actuator(name)[3]
+
+    def actuator_rate(self, name: str) -> np.ndarray:
+        """Extension rate dL/dt, (K,)."""
+        return self._actuator(name)[4]
+
+    def actuator_acceleration(self, name: str) -> np.ndarray:
+        """Extension acceleration d2L/dt2 = (|d'|^2 + d.d'' - L'^2) / L, (K,)."""
+        d, _, da, length, rate, speed2 = self._actuator(name)
+        return (speed2 + np.einsum("ki,ki->k", d, da) - rate**2) / length
+
+    def range_violations(self) -> list[tuple[float, str, float, tuple[float, float]]]:
+        """(time, actuator, length, range) for every time point where an actuator is outside its range."""
+        found = []
+        for name, (_, _, limits) in self.system.actuators.items():
+            if limits is None:
+                continue
+            length = self.actuator_length(name)
+            for k in np.flatnonzero((length < limits[0]) | (length > limits[1])):
+                found.append((float(self.times[k]), name, float(length[k]), tuple(limits)))
+        return sorted(found)
+
     def table(self) -> tuple[list[str], np.ndarray]:
         """Column names and values of the CSV export."""
         columns = [self.times[:, None], self.iterations[:, None], self.residuals[:, None], self.conditions[:, None], self.inputs]
@@ -127,6 +161,9 @@ class Results:
                 ):
                     names += [f"{body}.{point}.{label}{'_' if label else ''}{c}" for c in "xyz"]
                     columns.append(values)
+        for name in self.system.actuators:
+            names += [f"{name}.length", f"{name}.rate", f"{name}.acceleration"]
+            columns.append(np.c_[self.actuator_length(name), self.actuator_rate(name), self.actuator_acceleration(name)])
         return names, np.hstack(columns)
 
     def to_csv(self, path: str | Path) -> Path:

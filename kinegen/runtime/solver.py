@@ -42,8 +42,9 @@ class SolverOptions:
 
 def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str], threshold: float = 1e-6) -> str:
     """A null-space vector as a readable combination, largest coefficient scaled to 1."""
-    scale = vector[np.argmax(np.abs(vector))]
-    coefficients = vector / scale
+    coefficients = vector / np.abs(vector).max()
+    first = np.flatnonzero(np.abs(coefficients) > threshold)[0]
+    coefficients = coefficients * np.sign(coefficients[first])  # first term positive
     terms = []
     for c, name in zip(coefficients, names):
         if abs(c) <= threshold:

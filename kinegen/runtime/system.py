@@ -10,7 +10,7 @@ import hashlib
 import importlib.util
 import sys
 from collections.abc import Callable
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -46,6 +46,8 @@ class NumericSystem:
     t1: float
     steps: int
     source_sha256: str = ""
+    #: reported lengths: name -> ((body, point), (body, point), (min, max) or None)
+    actuators: dict[str, tuple] = field(default_factory=dict)
 
     @property
     def n_stored(self) -> int:
@@ -102,6 +104,7 @@ def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSys
         t1=float(data["t1"]),
         steps=int(data["steps"]),
         source_sha256=getattr(module, "SOURCE_SHA256", ""),
+        actuators=dict(getattr(module, "ACTUATORS", {})),
     )
 
 

@@ -32,7 +32,12 @@ from kinegen.rotations import Parametrization
 
 @dataclass(frozen=True)
 class BodyCoordinates:
-    """Symbols of one body: stored ``s = [x, y, z, o...]``, velocity ``v``, map ``B``."""
+    """Symbols of one body: stored ``s = [x, y, z, o...]``, velocity ``v``, map ``B``.
+
+    The rotation matrix enters the equations as the symbols ``a`` (``{body}_a{i}{j}``),
+    defined by ``rotation`` = A(o); ``rotation_derivatives[k]`` is dA/dw for the k-th
+    orientation velocity coordinate.
+    """
 
     name: str
     stored: tuple[sp.Symbol, ...]
@@ -40,7 +45,18 @@ class BodyCoordinates:
     stored_offset: int
     velocity_offset: int
     velocity_map: sp.Matrix  # full (len(stored) x len(velocity)), block diag(I3, B(o))
-    frame: Frame
+    frame: Frame  # r = position symbols, A = the symbols a
+    rotation: sp.Matrix  # A(o)
+    rotation_derivatives: tuple[sp.Matrix, ...]
+
+    @property
+    def rotation_symbols(self) -> list[sp.Symbol]:
+        return list(self.frame.A)
+
+    def rotation_rate(self) -> sp.Matrix:
+        """dA/dt = sum_k dA/dw_k * (velocity of w_k)."""
+        rates = self.velocity[3:]
+        return sum((d * w for d, w in zip(self.rotation_derivatives, rates)), sp.zeros(3, 3))
 
 
 @dataclass(frozen=True)
@@ -73,6 +89,11 @@ class Coordinates:
             if b.name == name:
                 return b
         raise KeyError(name)
+
+    @property
+    def rotation_definitions(self) -> dict[sp.Symbol, sp.Expr]:
+        """a_ij -> A(o)_ij for every body (to substitute the symbols away)."""
+        return {a: e for b in self.bodies for a, e in zip(b.rotation_symbols, b.rotation)}
 
 
 @dataclass(frozen=True)
@@ -145,11 +166,12 @@ class System:
         """Sparse ``Phi_q`` as (row, column, expression), row-major; the pattern is constant."""
         return [(i, j, e) for i, r in enumerate(self.rows) for j, e in sorted(r.jacobian.items())]
 
-    def jacobian_matrix(self) -> sp.Matrix:
-        """Dense symbolic ``Phi_q`` (for inspection of small systems)."""
+    def jacobian_matrix(self, substitute: bool = True) -> sp.Matrix:
+        """Dense symbolic ``Phi_q`` (for inspection of small systems), in the stored coordinates."""
+        definitions = self.coordinates.rotation_definitions if substitute else {}
         m = sp.zeros(len(self.rows), len(self.coordinates.velocity_symbols))
         for i, j, e in self.jacobian_entries:
-            m[i, j] = e
+            m[i, j] = e.xreplace(definitions)
         return m
 
 
@@ -162,23 +184,61 @@ def coordinates(model: Model, parametrization: Parametrization) -> Coordinates:
         velocity = tuple(sp.Symbol(f"v_{body.name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
         o = sp.Matrix(stored[3:])
         B = sp.diag(sp.eye(3), parametrization.velocity_map(o))
-        frame = Frame(sp.Matrix(stored[:3]), parametrization.matrix(o))
-        bodies.append(BodyCoordinates(body.name, stored, velocity, s_off, v_off, B, frame))
+        a = sp.Matrix(3, 3, [sp.Symbol(f"{body.name}_a{i}{j}", real=True) for i in range(3) for j in range(3)])
+        frame = Frame(sp.Matrix(stored[:3]), a)
+        derivatives = tuple(parametrization.rotation_derivatives(a, o))
+        bodies.append(
+            BodyCoordinates(body.name, stored, velocity, s_off, v_off, B, frame, parametrization.matrix(o), derivatives)
+        )
         s_off += len(stored)
         v_off += len(velocity)
     return Coordinates(parametrization, tuple(bodies))
 
 
 def derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None = None, is_driver: bool = False) -> Row:
-    """Jacobian, nu and gamma of one equation, in its bodies' coordinates only."""
+    """Jacobian, nu and gamma of one equation, in its bodies' coordinates only.
+
+    The equation is written in each body's position symbols, rotation-matrix symbols ``a``
+    and (for normalization rows) stored orientation symbols ``o``. With the chain rule,
+    dPhi/dw = dPhi/dr (positions) or sum_ij dPhi/da_ij (dA/dw)_ij + dPhi/do B(o)
+    (orientations), and the configuration part of the time derivative is
+    D_q(E) = dE/dr r' + sum_ij dE/da_ij A'_ij + dE/do B(o) w.
+    """
     phi = equation.expr
     jacobian: dict[int, sp.Expr] = {}
-    psi = sp.Integer(0)  # Phi_q v
     touched = [coords.body(name) for name in equation.bodies]
+
+    def column(expr: sp.Expr, body: BodyCoordinates, k: int) -> sp.Expr:
+        if k < 3:
+            return sp.diff(expr, body.stored[k])
+        total = sp.Integer(0)
+        derivative = body.rotation_derivatives[k - 3]
+        for symbol, entry in zip(body.rotation_symbols, derivative):
+            if entry != 0:
+                total += sp.diff(expr, symbol) * entry
+        for s, b in zip(body.stored[3:], body.velocity_map[3:, k]):
+            if b != 0:
+                total += sp.diff(expr, s) * b
+        return total
+
+    def configuration_rate(expr: sp.Expr) -> sp.Expr:
+        total = sp.Integer(0)
+        for body in touched:
+            for k in range(3):
+                total += sp.diff(expr, body.stored[k]) * body.velocity[k]
+            for symbol, rate in zip(body.rotation_symbols, body.rotation_rate()):
+                if rate != 0:
+                    total += sp.diff(expr, symbol) * rate
+            stored_rate = body.velocity_map[3:, :] * sp.Matrix(body.velocity)
+            for s, rate in zip(body.stored[3:], stored_rate):
+                if rate != 0:
+                    total += sp.diff(expr, s) * rate
+        return total
+
+    psi = sp.Integer(0)  # Phi_q v
     for body in touched:
-        grad = sp.Matrix([[sp.diff(phi, s) for s in body.stored]])
-        columns = grad * body.velocity_map
-        for k, entry in enumerate(columns):
+        for k in range(len(body.velocity)):
+            entry = column(phi, body, k)
             if entry != 0:
                 jacobian[body.velocity_offset + k] = entry
                 psi += entry * body.velocity[k]
@@ -187,12 +247,7 @@ def derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None 
     else:
         phi_t = inputs.time_derivative(phi)
         gamma = -2 * inputs.time_derivative(psi) - inputs.time_derivative(phi_t)
-    for body in touched:
-        stored_rate = body.velocity_map * sp.Matrix(body.velocity)
-        for s, rate in zip(body.stored, stored_rate):
-            d = sp.diff(psi, s)
-            if d != 0:
-                gamma -= d * rate
+    gamma -= configuration_rate(psi)
     return Row(equation.name, phi, jacobian, -phi_t, gamma, is_driver)
 
 
