@@ -29,6 +29,7 @@ class Results:
     residuals: np.ndarray  #: max |Phi| at convergence per time point
     conditions: np.ndarray  #: 1-norm condition estimate of Phi_q per time point
     inputs: np.ndarray  #: driver inputs u per time point, (K, n_inputs)
+    condition_kind: str = "estimate"  #: "estimate" (1-norm), "exact" (2-norm) or "none"
 
     def _slices(self, body: str) -> tuple[int, int]:
         if body not in self.system.bodies:

@@ -38,6 +38,9 @@ class SolverOptions:
     singular_tolerance: float = 1e-10  #: sigma_min / sigma_max below which Phi_q is singular
     line_search: bool = True  #: fallbacks (line search, homotopy) when full Newton steps fail
     divergence_limit: float = 1e8  #: max |Phi| beyond which Newton is stopped at once
+    #: condition number recorded per step: "estimate" (1-norm, LAPACK gecon on the LU
+    #: already computed), "exact" (2-norm, sigma_max/sigma_min by SVD) or "none"
+    condition: str = "estimate"
 
 
 def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str], threshold: float = 1e-6) -> str:
@@ -99,8 +102,13 @@ class Solver:
         return lu, piv
 
     def condition(self, q: np.ndarray, u: np.ndarray, factors: tuple[np.ndarray, np.ndarray] | None = None) -> float:
-        """1-norm condition number estimate of Phi_q (LAPACK gecon on its LU factors)."""
+        """Condition number of Phi_q as chosen by ``options.condition`` (NaN for "none")."""
+        kind = self.options.condition
+        if kind == "none":
+            return float("nan")
         jacobian = self.system.jacobian(q, u)
+        if kind == "exact":
+            return float(np.linalg.cond(jacobian))
         if factors is None:
             factors = self.factorize(q, u, float("nan"))
         rcond, _ = _gecon(factors[0], np.abs(jacobian).sum(axis=0).max(), norm="1")
@@ -228,7 +236,7 @@ class Solver:
             a = _lu_solve(factors, system.gamma(q, v, u, ud, udd))
             conditions[i] = self.condition(q, u, factors)
             qs[i], vs[i], accs[i] = q, v, a
-        return Results(system, times, qs, vs, accs, iterations, residuals, conditions, u_all.T.copy())
+        return Results(system, times, qs, vs, accs, iterations, residuals, conditions, u_all.T.copy(), self.options.condition)
 
 
 def solve(system: NumericSystem, times: np.ndarray | None = None, options: SolverOptions | None = None) -> Results:
