@@ -179,4 +179,5 @@ def test_a_cylinder_leaving_its_range_is_reported():
     violations = results.range_violations()
     assert violations and {v[1] for v in violations} == {"bucket_cylinder"}
     t, name, value, limits = violations[-1]
+    assert name == "bucket_cylinder"
     assert t == 1.0 and abs(value - 2.70) < 1e-9 and limits == (1.6529, 2.6613)

@@ -73,7 +73,7 @@ def plot_case(
             xyz = np.array([_in_frame(results, frame_body, results.point_position(body, p))[k] for p in points])
             closed = np.vstack([xyz, xyz[:1]]) if len(points) > 2 else xyz
             drawing.plot(closed[:, 0], closed[:, 2], "-o", color=colour, lw=1.6, ms=2.5)
-        for name, ((b1, p1), (b2, p2), _) in system.actuators.items():
+        for (b1, p1), (b2, p2), _ in system.actuators.values():
             ends = np.array([_in_frame(results, frame_body, results.point_position(b, p))[k] for b, p in ((b1, p1), (b2, p2))])
             drawing.plot(ends[:, 0], ends[:, 2], "-", color=colour, lw=4, alpha=0.45, solid_capstyle="round")
         drawing.annotate(
