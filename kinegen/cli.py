@@ -193,5 +193,51 @@ def inspect(
         click.echo(report.latex())
 
 
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@click.option("--grid", default=None, help="Samples per swept input, e.g. 25,13,25 (default: 21,11,21).")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of the working range.")
+@click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON.")
+@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as_json: bool, generated_dir: str) -> None:
+    """Working range of the model's `working_range` point over its input ranges."""
+    from kinegen.analysis.envelope import plot_envelope, working_range
+    from kinegen.errors import ModelError
+
+    parametrization = _parametrization(param)
+    model, _ = _system(model_file, parametrization, None, generated_dir)
+    if model.working_range is None:
+        raise ModelError(model_file, "working_range", "the model has no working_range section")
+    _, system = _system(model_file, parametrization, model.working_range.case, generated_dir)
+    counts = None
+    if grid:
+        try:
+            counts = tuple(int(x) for x in grid.split(","))
+        except ValueError:
+            raise click.BadParameter("expected whole numbers separated by commas", param_hint="--grid") from None
+        if any(c < 2 for c in counts):
+            raise click.BadParameter("at least 2 samples per input", param_hint="--grid")
+    result = working_range(system, model.working_range, counts)
+    if as_json:
+        click.echo(
+            json.dumps(
+                {
+                    "figures": result.figures,
+                    "inputs": result.arguments,
+                    "published_unverified": model.working_range.published,
+                    "samples": len(result.samples),
+                    "seconds": result.seconds,
+                },
+                indent=2,
+            )
+        )
+    else:
+        click.echo(result.table())
+        click.echo(f"{len(result.samples)} configurations sampled, {result.solves} Newton solves, {result.seconds:.1f} s")
+    if plot:
+        click.echo(f"wrote {plot_envelope(result, plot)}", err=as_json)
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -139,6 +139,18 @@ def main(argv: list[str] | None = None) -> int:
     except KinegenError as exc:
         print(f"FAILED: {exc}")
         return 1
+    from kinegen.analysis.envelope import plot_envelope, working_range
+    from kinegen.model import load
+
+    spec = load(args.models / "excavator.yaml").working_range
+    excavator = from_module(load_module(paths["excavator.yaml", "quaternion"]), spec.case)
+    result = working_range(excavator, spec)
+    print(
+        f"\nworking range (kinegen envelope models/excavator.yaml): {len(result.samples)} configurations, {result.seconds:.1f} s"
+    )
+    print(result.table())
+    plot_envelope(result, args.out / "excavator_envelope.png")
+    print()
     boom = load_module(paths["boom.yaml", "euler:zxz"])
     try:
         solve(from_module(boom))

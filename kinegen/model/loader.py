@@ -20,7 +20,7 @@ import yaml
 
 from kinegen.errors import ExpressionError, ModelError
 from kinegen.model import expressions
-from kinegen.model.schema import GROUND, Actuator, Body, Case, Driver, Joint, Model, PointRef, Vector
+from kinegen.model.schema import GROUND, Actuator, Body, Case, Driver, Joint, Model, PointRef, Vector, WorkingRange
 from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
 from kinegen.rotations.euler_parameters import quaternion_matrix
 
@@ -31,6 +31,7 @@ JOINT_EQUATIONS = {"spherical": 3, "revolute": 5, "cylindrical": 4, "prismatic":
 JOINT_TYPES = tuple(JOINT_EQUATIONS)
 DRIVER_TYPES = ("joint_angle", "joint_translation", "distance", "coordinate", "body_angle")
 ORTHONORMAL_TOLERANCE = 1e-9
+WORKING_RANGE_FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height")
 MAX_FILE_BYTES = 5_000_000
 
 
@@ -155,7 +156,18 @@ class _Reader:
         top = self.mapping(
             document,
             "(top level)",
-            ("model", "description", "parameters", "ground", "bodies", "joints", "actuators", "drivers", "cases"),
+            (
+                "model",
+                "description",
+                "parameters",
+                "ground",
+                "bodies",
+                "joints",
+                "actuators",
+                "drivers",
+                "cases",
+                "working_range",
+            ),
             ("model", "bodies"),
         )
         name = self.name(top["model"], "model")
@@ -179,6 +191,7 @@ class _Reader:
         actuators = self.actuators(top.get("actuators"))
         common = self.drivers(top.get("drivers"), "drivers")
         cases = self.cases(top.get("cases"), common)
+        working_range = self.working_range(top.get("working_range"), cases) if "working_range" in top else None
         return Model(
             name=name,
             file=self.file,
@@ -189,6 +202,7 @@ class _Reader:
             joints=tuple(self.joints.values()),
             cases=cases,
             actuators=actuators,
+            working_range=working_range,
         )
 
     def body(self, name: str, value: Any) -> Body:
@@ -433,6 +447,33 @@ class _Reader:
                 limits = (low, high)
             result.append(Actuator(key, (p1, p2), limits))
         return tuple(result)
+
+    def working_range(self, value: Any, cases: dict) -> WorkingRange:
+        entry = "working_range"
+        spec = self.mapping(value, entry, ("case", "point", "inputs", "dump_pivot", "published"), ("case", "point", "inputs"))
+        case = cases.get(spec["case"]) if isinstance(spec["case"], str) else None
+        if case is None:
+            raise self.fail(f"{entry}.case", f"unknown case {spec['case']!r} (cases: {', '.join(cases)})")
+        point = self.point_ref(spec["point"], f"{entry}.point")
+        drivers = [d.name for d in case.drivers]
+        raw = self.mapping(spec["inputs"], f"{entry}.inputs", tuple(drivers), tuple(drivers))
+        inputs: dict[str, float | tuple[float, float]] = {}
+        for name in drivers:
+            item, where = raw[name], f"{entry}.inputs.{name}"
+            if isinstance(item, (list, tuple)):
+                if len(item) != 2:
+                    raise self.fail(where, "expected a value or [min, max]")
+                low, high = (float(self.scalar(x, f"{where}[{i}]")) for i, x in enumerate(item))
+                if not low < high:
+                    raise self.fail(where, f"min {low} must be below max {high}")
+                inputs[name] = (low, high)
+            else:
+                inputs[name] = float(self.scalar(item, where))
+        pivot = self.point_ref(spec["dump_pivot"], f"{entry}.dump_pivot") if "dump_pivot" in spec else None
+        published = {}
+        for key, item in self.mapping(spec.get("published"), f"{entry}.published", WORKING_RANGE_FIGURES).items():
+            published[key] = float(self.scalar(item, f"{entry}.published.{key}"))
+        return WorkingRange(case.name, point, inputs, pivot, published)
 
     # ---- drivers and cases -------------------------------------------------------------
     def drivers(self, value: Any, entry: str) -> list[Driver]:

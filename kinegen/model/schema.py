@@ -108,6 +108,23 @@ class Case:
 
 
 @dataclass(frozen=True)
+class WorkingRange:
+    """How ``kinegen envelope`` sweeps a forward case.
+
+    ``inputs`` maps every driver of ``case`` to a fixed value or a (min, max) range;
+    ``dump_pivot`` is the point the tool hangs from when dumping (the dumping height is
+    the highest position of ``point`` directly below it); ``published`` holds reference
+    figures (reported as unverified).
+    """
+
+    case: str
+    point: PointRef
+    inputs: dict[str, float | tuple[float, float]]
+    dump_pivot: PointRef | None = None
+    published: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class Model:
     """A validated mechanism model."""
 
@@ -120,6 +137,7 @@ class Model:
     joints: tuple[Joint, ...]
     cases: dict[str, Case]
     actuators: tuple[Actuator, ...] = ()
+    working_range: WorkingRange | None = None
 
     def body(self, name: str) -> Body:
         """The body called ``name`` (not ground)."""
