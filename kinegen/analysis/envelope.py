@@ -197,12 +197,11 @@ def _refine(envelope: Envelope, evaluator: _Evaluator, ranges: list[tuple[float,
 
 def plot_envelope(envelope: Envelope, path: str | Path) -> Path:
     """The sampled working range in the vertical plane (horizontal reach, height) with the figures."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
     from scipy import ndimage
 
+    from kinegen.analysis.plots import pyplot, save
+
+    plt = pyplot()
     ok = np.isfinite(envelope.points[:, 0])
     reach = np.hypot(envelope.points[ok, 0], envelope.points[ok, 1])
     z = envelope.points[ok, 2]
@@ -244,9 +243,4 @@ def plot_envelope(envelope: Envelope, path: str | Path) -> Path:
     )
     ax.grid(True, alpha=0.3)
     ax.legend(loc="lower left", fontsize=8)
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save(fig, path)

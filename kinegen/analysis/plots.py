@@ -9,13 +9,29 @@ import numpy as np
 from kinegen.runtime.results import Results
 
 
-def plot_results(results: Results, path: str | Path) -> Path:
-    """Paths of every named point (top view x-y and side view x-z) and |omega| of every body."""
+def pyplot():
+    """matplotlib.pyplot on the non-interactive Agg backend."""
     import matplotlib
 
     matplotlib.use("Agg")
     import matplotlib.pyplot as plt
 
+    return plt
+
+
+def save(fig, path: str | Path, dpi: int = 100) -> Path:
+    """Lay out, write (creating the folder) and close a figure."""
+    fig.tight_layout()
+    path = Path(path)
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path, dpi=dpi)
+    pyplot().close(fig)
+    return path
+
+
+def plot_results(results: Results, path: str | Path) -> Path:
+    """Paths of every named point (top view x-y and side view x-z) and |omega| of every body."""
+    plt = pyplot()
     fig, (top, side, rates) = plt.subplots(1, 3, figsize=(15, 4.8))
     for body, points in results.system.points.items():
         for point in points:
@@ -32,12 +48,7 @@ def plot_results(results: Results, path: str | Path) -> Path:
     rates.legend(fontsize=7)
     system = results.system
     fig.suptitle(f"{system.model} / {system.case} [{system.parametrization.name}]")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=110)
-    plt.close(fig)
-    return path
+    return save(fig, path, dpi=110)
 
 
 def _in_frame(results: Results, frame_body: str | None, points: np.ndarray) -> np.ndarray:
@@ -54,11 +65,7 @@ def plot_case(
     """One PNG per case: the mechanism in a body's x-z plane at several instants with the
     traced point's path, actuator lengths against their ranges, their rates, and the
     Jacobian's condition number against time."""
-    import matplotlib
-
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     system = results.system
     fig = plt.figure(figsize=(15, 9))
     grid = fig.add_gridspec(3, 2, width_ratios=[1.35, 1])
@@ -107,9 +114,4 @@ def plot_case(
     if system.actuators:
         lengths.legend(fontsize=7)
     fig.suptitle(f"{system.model} / {system.case} [{system.parametrization.name}]")
-    fig.tight_layout()
-    path = Path(path)
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path, dpi=100)
-    plt.close(fig)
-    return path
+    return save(fig, path)
