@@ -2,7 +2,7 @@
 
 model:           slider_crank
 source:          slider_crank.yaml
-source sha256:   f2a0770b4d5e84296aece9535e33986b0daa4ea52204d9b9ec6826290db76eea
+source sha256:   b894fb623e375b440a652bc7a4832a788d6c448bc88a4b4ef674e4b0802186f9
 parametrization: euler-parameters
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -16,7 +16,7 @@ from numpy import cos, sin
 
 MODEL = 'slider_crank'
 SOURCE = 'slider_crank.yaml'
-SOURCE_SHA256 = 'f2a0770b4d5e84296aece9535e33986b0daa4ea52204d9b9ec6826290db76eea'
+SOURCE_SHA256 = 'b894fb623e375b440a652bc7a4832a788d6c448bc88a4b4ef674e4b0802186f9'
 PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.e0', 'crank.e1', 'crank.e2', 'crank.e3', 'rod.x', 'rod.y', 'rod.z', 'rod.e0', 'rod.e1', 'rod.e2', 'rod.e3', 'slider.x', 'slider.y', 'slider.z', 'slider.e0', 'slider.e1', 'slider.e2', 'slider.e3')
@@ -286,6 +286,233 @@ def gamma_run(q, v, u, ud, udd):
     return out
 
 
+def inputs_dead_centre(t):
+    """Driver inputs of case 'dead_centre' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = 4/5 - 1/10*t**2
+    out[1] = -1/5*t
+    out[2] = -1/5
+    return out
+
+
+def phi_dead_centre(q, u):
+    """Phi(q, u) of case 'dead_centre': 21 residuals."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    u0, = u
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    rod_a00 = 2*rod_e0**2 + 2*rod_e1**2 - 1
+    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a10 = 2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a20 = -2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
+    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
+    slider_a01 = -2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
+    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
+    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
+    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    out = _zeros(21, q, u)
+    out[0] = -crank_x
+    out[1] = -crank_y
+    out[2] = -crank_z
+    out[3] = crank_a20
+    out[4] = crank_a21
+    out[5] = (1/5)*crank_a00 + crank_x - rod_x
+    out[6] = (1/5)*crank_a10 + crank_y - rod_y
+    out[7] = (1/5)*crank_a20 + crank_z - rod_z
+    out[8] = (3/5)*rod_a00 + rod_x - slider_x
+    out[9] = (3/5)*rod_a10 + rod_y - slider_y
+    out[10] = (3/5)*rod_a20 + rod_z - slider_z
+    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
+    out[12] = slider_a01
+    out[13] = slider_a02
+    out[14] = slider_y
+    out[15] = slider_z
+    out[16] = slider_a12
+    out[17] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
+    out[18] = rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1
+    out[19] = slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1
+    out[20] = slider_x - u0
+    return out
+
+
+def jac_dead_centre(q, u):
+    """Values of the sparse Phi_q of case 'dead_centre' at jac_rows, jac_cols (78 entries)."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
+    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
+    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
+    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    c0 = 2*crank_e2
+    c1 = 2*crank_e3
+    c2 = 2*crank_e0
+    c3 = 2*crank_e1
+    c4 = (2/5)*crank_e3
+    c5 = (2/5)*crank_e2
+    c6 = (2/5)*crank_e1
+    c7 = (2/5)*crank_e0
+    c8 = (6/5)*rod_e3
+    c9 = (6/5)*rod_e2
+    c10 = (6/5)*rod_e1
+    c11 = (6/5)*rod_e0
+    c12 = 4*slider_a12
+    c13 = 2*rod_e1
+    c14 = 2*rod_e3
+    c15 = 2*rod_e0
+    c16 = 2*rod_e2
+    c17 = 2*slider_e2
+    c18 = 2*slider_e1
+    c19 = 4*rod_a21
+    c20 = 2*slider_e3
+    c21 = 2*slider_e0
+    c22 = -c21
+    out = _zeros(78, q, u)
+    out[0] = -1
+    out[1] = -1
+    out[2] = -1
+    out[3] = -c0
+    out[4] = c1
+    out[5] = -c2
+    out[6] = c3
+    out[7] = c3
+    out[8] = c2
+    out[9] = c1
+    out[10] = c0
+    out[11] = 1
+    out[12] = (4/5)*crank_e0
+    out[13] = (4/5)*crank_e1
+    out[14] = -1
+    out[15] = 1
+    out[16] = c4
+    out[17] = c5
+    out[18] = c6
+    out[19] = c7
+    out[20] = -1
+    out[21] = 1
+    out[22] = -c5
+    out[23] = c4
+    out[24] = -c7
+    out[25] = c6
+    out[26] = -1
+    out[27] = 1
+    out[28] = (12/5)*rod_e0
+    out[29] = (12/5)*rod_e1
+    out[30] = -1
+    out[31] = 1
+    out[32] = c8
+    out[33] = c9
+    out[34] = c10
+    out[35] = c11
+    out[36] = -1
+    out[37] = 1
+    out[38] = -c9
+    out[39] = c8
+    out[40] = -c11
+    out[41] = c10
+    out[42] = -1
+    out[43] = c12*rod_e0 + c13*slider_a22 - c14*slider_a02
+    out[44] = c15*slider_a22 + c16*slider_a02
+    out[45] = c12*rod_e2 + c13*slider_a02 + c14*slider_a22
+    out[46] = -c15*slider_a02 + 2*rod_e2*slider_a22
+    out[47] = c17*rod_a01 - c18*rod_a11 + c19*slider_e0
+    out[48] = c20*rod_a01 - c21*rod_a11
+    out[49] = c20*rod_a11 + c21*rod_a01
+    out[50] = c17*rod_a11 + c18*rod_a01 + c19*slider_e3
+    out[51] = -c20
+    out[52] = c17
+    out[53] = c18
+    out[54] = c22
+    out[55] = c17
+    out[56] = c20
+    out[57] = c21
+    out[58] = c18
+    out[59] = 1
+    out[60] = 1
+    out[61] = -c18
+    out[62] = c22
+    out[63] = c20
+    out[64] = c17
+    out[65] = c2
+    out[66] = c3
+    out[67] = c0
+    out[68] = c1
+    out[69] = c15
+    out[70] = c13
+    out[71] = c16
+    out[72] = c14
+    out[73] = c21
+    out[74] = c18
+    out[75] = c17
+    out[76] = c20
+    out[77] = 1
+    return out
+
+
+def nu_dead_centre(q, u, ud):
+    """nu = -Phi_t of case 'dead_centre'."""
+    ud0, = ud
+    out = _zeros(21, q, u)
+    out[20] = ud0
+    return out
+
+
+def gamma_dead_centre(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'."""
+    _, _, _, _, _, _, _, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
+    udd0, = udd
+    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
+    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
+    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
+    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    c0 = 4*v_crank_e2
+    c1 = 4*v_crank_e1
+    c2 = v_crank_e0**2
+    c3 = v_crank_e1**2
+    c4 = (4/5)*v_crank_e3
+    c5 = (4/5)*v_crank_e2
+    c6 = v_rod_e0**2
+    c7 = v_rod_e1**2
+    c8 = (12/5)*v_rod_e3
+    c9 = (12/5)*v_rod_e2
+    c10 = 2*slider_a02
+    c11 = 2*slider_a22
+    c12 = 2*rod_a01
+    c13 = 2*rod_a11
+    c14 = 4*slider_a12
+    c15 = 4*rod_a21
+    c16 = 2*slider_e0
+    c17 = 2*slider_e1
+    c18 = 4*v_slider_e0
+    c19 = 4*v_slider_e3
+    c20 = 2*rod_e0
+    c21 = 2*v_rod_e0
+    out = _zeros(21, q, u)
+    out[3] = c0*v_crank_e0 - c1*v_crank_e3
+    out[4] = -c0*v_crank_e3 - c1*v_crank_e0
+    out[5] = -4/5*c2 - 4/5*c3
+    out[6] = -c4*v_crank_e0 - c5*v_crank_e1
+    out[7] = -c4*v_crank_e1 + c5*v_crank_e0
+    out[8] = -12/5*c6 - 12/5*c7
+    out[9] = -c8*v_rod_e0 - c9*v_rod_e1
+    out[10] = -c8*v_rod_e1 + c9*v_rod_e0
+    out[11] = -v_rod_e0*(-c10*v_rod_e3 + c11*v_rod_e1 + c14*v_rod_e0) - v_rod_e1*(c10*v_rod_e2 + c11*v_rod_e0) - v_rod_e2*(c10*v_rod_e1 + c11*v_rod_e3 + c14*v_rod_e2) - v_rod_e3*(-c10*v_rod_e0 + 2*slider_a22*v_rod_e2) - v_slider_e0*(c12*v_slider_e2 - c13*v_slider_e1 + c15*v_slider_e0) - v_slider_e1*(c12*v_slider_e3 - c13*v_slider_e0) - v_slider_e2*(c12*v_slider_e0 + c13*v_slider_e3) - v_slider_e3*(c12*v_slider_e1 + c13*v_slider_e2 + c15*v_slider_e3) - 2*(c18*slider_e0 + c19*slider_e3)*(c20*v_rod_e1 + c21*rod_e1 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(-c16*v_slider_e1 - c17*v_slider_e0 + 2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2) - 2*(c16*v_slider_e2 + c17*v_slider_e3 + 2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1)*(-c20*v_rod_e3 - c21*rod_e3 + 2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1)
+    out[12] = c18*v_slider_e3 - 4*v_slider_e1*v_slider_e2
+    out[13] = -c18*v_slider_e2 - c19*v_slider_e1
+    out[16] = c18*v_slider_e1 - c19*v_slider_e2
+    out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
+    out[18] = -2*c6 - 2*c7 - 2*v_rod_e2**2 - 2*v_rod_e3**2
+    out[19] = -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2
+    out[20] = udd0
+    return out
+
+
 CASES = {
     'run': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'crank.norm', 'rod.norm', 'slider.norm', 'crank_angle'),
@@ -294,5 +521,13 @@ CASES = {
         'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 8, 10, 11, 12, 13, 15, 9, 10, 11, 12, 13, 16, 10, 11, 12, 13, 17, 18, 19, 20, 17, 18, 19, 20, 17, 18, 19, 20, 15, 16, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 3, 4, 5, 6),
         't0': 0.0, 't1': 1.5, 'steps': 301,
         'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
+    },
+    'dead_centre': {
+        'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'crank.norm', 'rod.norm', 'slider.norm', 'slider_x'),
+        'drivers': ('slider_x',),
+        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 14, 15, 16, 16, 16, 16, 17, 17, 17, 17, 18, 18, 18, 18, 19, 19, 19, 19, 20),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 8, 10, 11, 12, 13, 15, 9, 10, 11, 12, 13, 16, 10, 11, 12, 13, 17, 18, 19, 20, 17, 18, 19, 20, 17, 18, 19, 20, 15, 16, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 14),
+        't0': -1.0, 't1': 0.0, 'steps': 101,
+        'inputs': inputs_dead_centre, 'phi': phi_dead_centre, 'jac': jac_dead_centre, 'nu': nu_dead_centre, 'gamma': gamma_dead_centre,
     },
 }

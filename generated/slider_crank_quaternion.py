@@ -2,7 +2,7 @@
 
 model:           slider_crank
 source:          slider_crank.yaml
-source sha256:   f2a0770b4d5e84296aece9535e33986b0daa4ea52204d9b9ec6826290db76eea
+source sha256:   b894fb623e375b440a652bc7a4832a788d6c448bc88a4b4ef674e4b0802186f9
 parametrization: quaternion
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -16,7 +16,7 @@ from numpy import cos, sin
 
 MODEL = 'slider_crank'
 SOURCE = 'slider_crank.yaml'
-SOURCE_SHA256 = 'f2a0770b4d5e84296aece9535e33986b0daa4ea52204d9b9ec6826290db76eea'
+SOURCE_SHA256 = 'b894fb623e375b440a652bc7a4832a788d6c448bc88a4b4ef674e4b0802186f9'
 PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.qw', 'crank.qx', 'crank.qy', 'crank.qz', 'rod.x', 'rod.y', 'rod.z', 'rod.qw', 'rod.qx', 'rod.qy', 'rod.qz', 'slider.x', 'slider.y', 'slider.z', 'slider.qw', 'slider.qx', 'slider.qy', 'slider.qz')
@@ -247,6 +247,197 @@ def gamma_run(q, v, u, ud, udd):
     return out
 
 
+def inputs_dead_centre(t):
+    """Driver inputs of case 'dead_centre' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = 4/5 - 1/10*t**2
+    out[1] = -1/5*t
+    out[2] = -1/5
+    return out
+
+
+def phi_dead_centre(q, u):
+    """Phi(q, u) of case 'dead_centre': 18 residuals."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
+    u0, = u
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
+    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
+    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
+    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
+    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    out = _zeros(18, q, u)
+    out[0] = -crank_x
+    out[1] = -crank_y
+    out[2] = -crank_z
+    out[3] = crank_a20
+    out[4] = crank_a21
+    out[5] = (1/5)*crank_a00 + crank_x - rod_x
+    out[6] = (1/5)*crank_a10 + crank_y - rod_y
+    out[7] = (1/5)*crank_a20 + crank_z - rod_z
+    out[8] = (3/5)*rod_a00 + rod_x - slider_x
+    out[9] = (3/5)*rod_a10 + rod_y - slider_y
+    out[10] = (3/5)*rod_a20 + rod_z - slider_z
+    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
+    out[12] = slider_a01
+    out[13] = slider_a02
+    out[14] = slider_y
+    out[15] = slider_z
+    out[16] = slider_a12
+    out[17] = slider_x - u0
+    return out
+
+
+def jac_dead_centre(q, u):
+    """Values of the sparse Phi_q of case 'dead_centre' at jac_rows, jac_cols (46 entries)."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
+    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
+    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
+    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    c0 = (1/5)*crank_a20
+    c1 = (1/5)*crank_a10
+    c2 = (1/5)*crank_a00
+    c3 = (3/5)*rod_a20
+    c4 = (3/5)*rod_a10
+    c5 = (3/5)*rod_a00
+    c6 = rod_a11*slider_a22 - rod_a21*slider_a12
+    c7 = rod_a01*slider_a22 - rod_a21*slider_a02
+    c8 = rod_a01*slider_a12 - rod_a11*slider_a02
+    out = _zeros(46, q, u)
+    out[0] = -1
+    out[1] = -1
+    out[2] = -1
+    out[3] = crank_a10
+    out[4] = -crank_a00
+    out[5] = crank_a11
+    out[6] = -crank_a01
+    out[7] = 1
+    out[8] = c0
+    out[9] = -c1
+    out[10] = -1
+    out[11] = 1
+    out[12] = -c0
+    out[13] = c2
+    out[14] = -1
+    out[15] = 1
+    out[16] = c1
+    out[17] = -c2
+    out[18] = -1
+    out[19] = 1
+    out[20] = c3
+    out[21] = -c4
+    out[22] = -1
+    out[23] = 1
+    out[24] = -c3
+    out[25] = c5
+    out[26] = -1
+    out[27] = 1
+    out[28] = c4
+    out[29] = -c5
+    out[30] = -1
+    out[31] = c6
+    out[32] = -c7
+    out[33] = c8
+    out[34] = -c6
+    out[35] = c7
+    out[36] = -c8
+    out[37] = slider_a21
+    out[38] = -slider_a11
+    out[39] = slider_a22
+    out[40] = -slider_a12
+    out[41] = 1
+    out[42] = 1
+    out[43] = -slider_a22
+    out[44] = slider_a02
+    out[45] = 1
+    return out
+
+
+def nu_dead_centre(q, u, ud):
+    """nu = -Phi_t of case 'dead_centre'."""
+    ud0, = ud
+    out = _zeros(18, q, u)
+    out[17] = ud0
+    return out
+
+
+def gamma_dead_centre(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
+    udd0, = udd
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
+    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
+    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
+    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
+    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
+    c1 = c0*v_crank_theta_x
+    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c3 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
+    c4 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
+    c5 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
+    c6 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
+    c7 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
+    c8 = slider_a02*v_slider_theta_y
+    c9 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
+    c10 = slider_a22*v_slider_theta_x
+    c11 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
+    c12 = slider_a12*v_slider_theta_z
+    c13 = -c8 + slider_a12*v_slider_theta_x
+    c14 = -c10 + slider_a02*v_slider_theta_z
+    c15 = -c12 + slider_a22*v_slider_theta_y
+    out = _zeros(18, q, u)
+    out[3] = -c1 + c2*v_crank_theta_y
+    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
+    out[5] = (1/5)*c0*v_crank_theta_z - c3*v_crank_theta_y
+    out[6] = -1/5*c2*v_crank_theta_z + c3*v_crank_theta_x
+    out[7] = -1/5*c1 + (1/5)*c2*v_crank_theta_y
+    out[8] = -c4*v_rod_theta_y + (3/5)*c5*v_rod_theta_z
+    out[9] = c4*v_rod_theta_x - 3/5*c6*v_rod_theta_z
+    out[10] = -3/5*c5*v_rod_theta_x + (3/5)*c6*v_rod_theta_y
+    out[11] = c11*(-c12 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y) - c13*(-c7 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c14*(c9 - rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x) - c15*(-c11 + rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y) + c7*(-c8 + slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x) - c9*(-c10 - slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x)
+    out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x)
+    out[13] = -c13*v_slider_theta_y + c14*v_slider_theta_z
+    out[16] = c13*v_slider_theta_x - c15*v_slider_theta_z
+    out[17] = udd0
+    return out
+
+
 CASES = {
     'run': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'crank_angle'),
@@ -255,5 +446,13 @@ CASES = {
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 7, 9, 11, 13, 8, 9, 10, 14, 9, 10, 11, 15, 16, 17, 16, 17, 16, 17, 13, 14, 15, 17, 3, 4, 5),
         't0': 0.0, 't1': 1.5, 'steps': 301,
         'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
+    },
+    'dead_centre': {
+        'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'slider_x'),
+        'drivers': ('slider_x',),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 15, 16, 16, 17),
+        'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 7, 9, 11, 13, 8, 9, 10, 14, 9, 10, 11, 15, 16, 17, 16, 17, 16, 17, 13, 14, 15, 17, 12),
+        't0': -1.0, 't1': 0.0, 'steps': 101,
+        'inputs': inputs_dead_centre, 'phi': phi_dead_centre, 'jac': jac_dead_centre, 'nu': nu_dead_centre, 'gamma': gamma_dead_centre,
     },
 }

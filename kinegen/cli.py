@@ -162,8 +162,16 @@ def solve(
 )
 @click.option("--latex", is_flag=True, help="Also print the determinant in LaTeX.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON report instead of text.")
+@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def inspect(
-    model_file: str, param: str, case: str | None, at: str | None, q_file: str | None, latex: bool, as_json: bool
+    model_file: str,
+    param: str,
+    case: str | None,
+    at: str | None,
+    q_file: str | None,
+    latex: bool,
+    as_json: bool,
+    generated_dir: str,
 ) -> None:
     """Exact rank, null spaces and symbolic determinant of Phi_q at one configuration."""
     from kinegen.analysis import inspect as run
@@ -184,11 +192,30 @@ def inspect(
         if missing:
             raise click.BadParameter(f"{q_file} lacks {', '.join(missing)}", param_hint="--q")
         q = np.array([float(data[n]) for n in names])
-    report = run(model, parametrization, chosen, at if at is not None else str(model.cases[chosen].t0), q)
+    numeric = None
+    if q is None:  # the configuration is solved with the quaternion module of the case
+        _, numeric = _system(model_file, _parametrization("quaternion"), chosen, generated_dir)
+    when = at if at is not None else str(model.cases[chosen].t0)
+    report = run(model, parametrization, chosen, when, q, numeric)
+    verdict = None
+    if report.singular:
+        from kinegen.analysis.classify import classify
+        from kinegen.analysis.inspect import convert
+
+        quaternion = _parametrization("quaternion")
+        if numeric is None:
+            _, numeric = _system(model_file, quaternion, chosen, generated_dir)
+        physical = None if q is None else convert(q, parametrization, quaternion, len(model.bodies))
+        verdict = classify(model, parametrization, chosen, float(report.t), report, numeric, physical=physical)
     if as_json:
-        click.echo(report.json_text())
+        data = report.to_json()
+        if verdict:
+            data["classification"] = {"kind": verdict.kind, "evidence": verdict.evidence}
+        click.echo(json.dumps(data, indent=2))
         return
     click.echo(report.text())
+    if verdict:
+        click.echo(verdict.text())
     if latex:
         click.echo(report.latex())
 
@@ -237,6 +264,53 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as
         click.echo(f"{len(result.samples)} configurations sampled, {result.solves} Newton solves, {result.seconds:.1f} s")
     if plot:
         click.echo(f"wrote {plot_envelope(result, plot)}", err=as_json)
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--case", default=None, help="Case to scan (default: the first).")
+@click.option("--param", "params", multiple=True, default=("quaternion",), show_default=True, help=PARAM_HELP + " Repeatable.")
+@click.option(
+    "--warn",
+    "warn_ratio",
+    type=float,
+    default=1e-3,
+    show_default=True,
+    help="Warn when a diagonal block's sigma_min/sigma_max falls below this.",
+)
+@click.option(
+    "--horizon",
+    type=click.IntRange(min=1),
+    default=20,
+    show_default=True,
+    help="Warn when the trend reaches a singularity within this many steps.",
+)
+@click.option(
+    "--plot", type=click.Path(dir_okay=False), default=None, help="PNG of sigma_min/sigma_max and condition number against time."
+)
+@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+def scan(
+    model_file: str,
+    case: str | None,
+    params: tuple[str, ...],
+    warn_ratio: float,
+    horizon: int,
+    plot: str | None,
+    generated_dir: str,
+) -> None:
+    """Smallest singular value and condition of Phi_q along a case, per parametrization."""
+    from kinegen.analysis.scan import plot_scan
+    from kinegen.analysis.scan import scan as run
+
+    _, physical = _system(model_file, _parametrization("quaternion"), case, generated_dir)
+    systems = {}
+    for name in params:
+        parametrization = _parametrization(name)
+        systems[parametrization.name] = _system(model_file, parametrization, physical.case, generated_dir)[1]
+    result = run(physical, systems, warn_ratio=warn_ratio, horizon=horizon)
+    click.echo(f"{physical.model}/{physical.case}: " + result.text())
+    if plot:
+        click.echo(f"wrote {plot_scan(result, plot, f'{physical.model} / {physical.case}')}")
 
 
 if __name__ == "__main__":  # pragma: no cover

@@ -21,13 +21,25 @@ from kinegen.rotations import Parametrization
 from kinegen.runtime import Solver, from_module
 from kinegen.symbolic import System, build_systems
 
-#: Largest Phi_q whose determinant is expanded directly.
-MAX_DIRECT_DETERMINANT = 12
+#: Largest Phi_q analysed as one matrix (exact rank, null spaces, determinant).
+MAX_DIRECT = 12
+#: Largest diagonal block whose determinant is expanded symbolically even when non-zero
+#: (a vanishing block is always expanded).
+MAX_SYMBOLIC_BLOCK = 2
+#: Digits for values that are not rational or algebraic (trigonometric functions of decimals).
+DIGITS = 60
+
+
+#: Magnitudes below this are rounding noise of an exact zero (the solver stops at 1e-10).
+ZERO = 1e-13
 
 
 def exact_number(value: float) -> sp.Expr:
-    """The simple exact number (rational, surd, multiple of pi) equal to ``value`` to 1e-13."""
-    if value == 0:
+    """The simple exact number (rational, surd, multiple of pi) equal to ``value`` to 1e-13.
+
+    Values smaller than :data:`ZERO` in magnitude are taken as exactly 0.
+    """
+    if abs(value) < ZERO:
         return sp.Integer(0)
     guess = sp.nsimplify(value, [sp.pi], tolerance=1e-13, rational=False)
     if abs(float(guess) - value) <= 1e-12 * max(1.0, abs(value)):
@@ -35,20 +47,90 @@ def exact_number(value: float) -> sp.Expr:
     return sp.Rational(repr(float(value)))
 
 
-def configuration_at(model: Model, parametrization: Parametrization, case: str, t: float) -> np.ndarray:
-    """Stored coordinates at time ``t``: the initial pose if it satisfies Phi there, else a solve."""
-    system = from_module(lambdify_model(model, parametrization), case)
-    q0 = system.initial_q
-    if np.max(np.abs(system.phi(q0, system.driver_inputs(t)[0]))) <= 1e-10:
-        return q0
-    steps = max(2, int(abs(t - system.t0) / max(system.t1 - system.t0, 1e-12) * (system.steps - 1)) + 1)
-    return Solver(system).solve(np.linspace(system.t0, t, steps)).q[-1]
+def convert(q: np.ndarray, source: Parametrization, target: Parametrization, bodies: int) -> np.ndarray:
+    """The same physical configuration in another parametrization (via rotation matrices)."""
+    k = 3 + len(source.stored_names)
+    out = []
+    for b in range(bodies):
+        block = q[b * k : (b + 1) * k]
+        out += [*block[:3], *target.from_matrix(source.to_matrix(block[3:]))]
+    return np.array(out)
+
+
+def configuration_at(model: Model, parametrization: Parametrization, case: str, t: float, numeric=None) -> np.ndarray:
+    """Stored coordinates at time ``t`` in ``parametrization``.
+
+    The physical configuration is the initial pose if it satisfies Phi at ``t``, else it
+    is solved with the quaternion parametrization (regular for every orientation) and
+    converted, so that a singular parametrization can still be inspected.
+    """
+    from kinegen.rotations import get
+
+    quaternion = get("quaternion")
+    system = numeric if numeric is not None else from_module(lambdify_model(model, quaternion), case)
+    q = system.initial_q
+    if np.max(np.abs(system.phi(q, system.driver_inputs(t)[0]))) > 1e-10:
+        steps = max(2, int(abs(t - system.t0) / max(system.t1 - system.t0, 1e-12) * (system.steps - 1)) + 1)
+        q = Solver(system).solve(np.linspace(system.t0, t, steps)).q[-1]
+    return convert(q, quaternion, parametrization, len(model.bodies))
 
 
 def _combination(vector: sp.Matrix, names: list[str]) -> str:
     pivot = next(x for x in vector if x != 0)
     terms = [sp.nsimplify(sp.simplify(c / pivot)) * sp.Symbol(n) for c, n in zip(vector, names) if c != 0]
     return sp.sstr(sp.Add(*terms))
+
+
+def _is_zero(value: sp.Expr) -> bool:
+    """Zero test: a value clearly non-zero at 30 digits is non-zero; otherwise it is simplified
+    exactly, and values with transcendental parts left are decided to DIGITS digits."""
+    if value.is_Number:
+        return value == 0
+    if abs(sp.N(value, 30)) > 1e-20:
+        return False
+    value = sp.simplify(value)
+    if value.is_Number:
+        return value == 0
+    return abs(sp.N(value, DIGITS)) < sp.Float(10) ** (-(DIGITS - 10))
+
+
+#: Determinants with more operations than this are reported unfactored.
+MAX_FACTOR_OPS = 1500
+
+
+def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr:
+    """det, factored: polynomial determinants (quaternion, Euler parameters) by ``factor``;
+    trigonometric ones (Euler angles) simplified with sums and multiples expanded first."""
+    det = matrix.det(method="berkowitz")
+    if det.has(sp.sin, sp.cos, sp.tan):
+        det = sp.expand_trig(sp.simplify(det) if simplify and matrix.shape[0] <= 3 else det)
+    if sp.count_ops(det) > MAX_FACTOR_OPS:
+        return det
+    return sp.factor(det)
+
+
+@dataclass
+class BlockReport:
+    """One diagonal block of the block-triangular form of Phi_q."""
+
+    constraints: list[str]
+    coordinates: list[str]
+    value: sp.Expr  # det of the block at the configuration
+    determinant: sp.Expr | None = None  # symbolic, factored
+    vanishing_factors: list[sp.Expr] = field(default_factory=list)
+    null_space: list[str] = field(default_factory=list)
+
+    @property
+    def size(self) -> int:
+        return len(self.coordinates)
+
+    @property
+    def bodies(self) -> list[str]:
+        return sorted({c.split(".")[0] for c in self.coordinates})
+
+    @property
+    def singular(self) -> bool:
+        return _is_zero(self.value)
 
 
 @dataclass
@@ -65,6 +147,8 @@ class Inspection:
     determinant: sp.Expr | None = None  # symbolic, simplified and factored
     determinant_value: sp.Expr | None = None
     vanishing_factors: list[sp.Expr] = field(default_factory=list)
+    blocks: list[BlockReport] = field(default_factory=list)
+    rank_method: str = "exact"
 
     @property
     def velocity_names(self) -> list[str]:
@@ -72,7 +156,11 @@ class Inspection:
 
     @property
     def singular(self) -> bool:
-        return self.rank < min(self.jacobian.shape)
+        return self.rank < min(self.jacobian.shape) or self.rank < self.jacobian.shape[0]
+
+    @property
+    def singular_blocks(self) -> list[BlockReport]:
+        return [b for b in self.blocks if b.singular]
 
     def text(self) -> str:
         """Readable report; the matrix is printed in full when it is small."""
@@ -81,9 +169,16 @@ class Inspection:
         lines = [
             f"model {self.system.model.name}, case {self.system.case.name}, "
             f"parametrization {coords.parametrization.name}, t = {sp.sstr(self.t)}",
-            "configuration (exact): " + ", ".join(f"{k} = {sp.sstr(v)}" for k, v in zip(coords.stored_names, self.q)),
-            f"Phi_q: {m} x {n}, exact rank {self.rank}" + (" (singular)" if self.singular else " (full rank)"),
         ]
+        if n <= 16:
+            lines.append(
+                "configuration (exact): " + ", ".join(f"{k} = {sp.sstr(v)}" for k, v in zip(coords.stored_names, self.q))
+            )
+        verdict = "singular" if self.singular else "full rank"
+        if self.rank_method == "exact":
+            lines.append(f"Phi_q: {m} x {n}, exact rank {self.rank} ({verdict})")
+        else:
+            lines.append(f"Phi_q: {m} x {n}, rank {self.rank} ({verdict}; {self.rank_method})")
         if n <= 16:
             cells = [[sp.sstr(self.jacobian[i, j]) for j in range(n)] for i in range(m)]
             width = [max(len(self.velocity_names[j]), *(len(cells[i][j]) for i in range(m))) for j in range(n)]
@@ -96,21 +191,42 @@ class Inspection:
             lines.append(f"det Phi_q at this configuration = {sp.sstr(self.determinant_value)}")
             for factor in self.vanishing_factors:
                 lines.append(f"vanishing factor: {sp.sstr(factor)}")
-        elif m == n:
-            lines.append(f"det Phi_q: not expanded symbolically ({n} > {MAX_DIRECT_DETERMINANT} coordinates)")
-        if self.singular:
+        if self.blocks:
+            sizes = sorted((b.size for b in self.blocks), reverse=True)
+            lines.append(
+                f"block-triangular form: {len(self.blocks)} diagonal blocks (largest {sizes[0]}x{sizes[0]}); "
+                "det Phi_q = +-product of the block determinants"
+            )
+            if not self.singular_blocks:
+                lines.append("every block determinant is non-zero at this configuration: det Phi_q != 0")
+            for block in self.singular_blocks:
+                lines.append(f"singular block {block.size}x{block.size}: bodies {', '.join(block.bodies)}")
+                lines.append(f"  coordinates: {', '.join(block.coordinates)}")
+                lines.append(f"  constraints: {', '.join(block.constraints)}")
+                if block.determinant is not None:
+                    lines.append(f"  det (symbolic, factored) = {sp.sstr(block.determinant)}")
+                for factor in block.vanishing_factors:
+                    lines.append(f"  vanishing factor: {sp.sstr(factor)}")
+                if block.null_space:
+                    lines.append(f"  null space of the block: {'; '.join(block.null_space)}")
+        if self.singular and self.null_space:
             lines.append("null space (coordinate combinations Phi_q cannot see): " + "; ".join(self.null_space))
+        if self.singular and self.dependent_constraints:
             lines.append("dependent constraints (left null space): " + ", ".join(self.dependent_constraints))
         return "\n".join(lines)
 
     def latex(self) -> str:
-        """LaTeX of the determinant (or of Phi_q when there is no determinant)."""
+        """LaTeX of the determinant (or of the vanishing block determinants)."""
         if self.determinant is not None:
             return r"\det \Phi_q = " + sp.latex(self.determinant)
-        return r"\Phi_q = " + sp.latex(self.jacobian)
+        parts = [sp.latex(b.determinant) for b in self.singular_blocks if b.determinant is not None]
+        if parts:
+            return r"\det \Phi_q = \pm " + r" \cdot ".join(f"\\left({p}\\right)" for p in parts) + r" \cdot \ldots"
+        return r"\det \Phi_q \neq 0"
 
     def to_json(self) -> dict[str, Any]:
         """Machine-readable report (expressions as SymPy strings)."""
+        small = self.jacobian.shape[1] <= 16
         return {
             "model": self.system.model.name,
             "case": self.system.case.name,
@@ -119,50 +235,148 @@ class Inspection:
             "configuration": dict(zip(self.system.coordinates.stored_names, map(sp.sstr, self.q))),
             "constraints": self.system.constraint_names,
             "coordinates": self.velocity_names,
-            "jacobian": [[sp.sstr(x) for x in row] for row in self.jacobian.tolist()],
+            "jacobian": [[sp.sstr(x) for x in row] for row in self.jacobian.tolist()] if small else None,
             "rank": self.rank,
+            "rank_method": self.rank_method,
             "singular": self.singular,
             "null_space": self.null_space,
             "dependent_constraints": self.dependent_constraints,
             "determinant": None if self.determinant is None else sp.sstr(self.determinant),
             "determinant_value": None if self.determinant_value is None else sp.sstr(self.determinant_value),
             "vanishing_factors": [sp.sstr(f) for f in self.vanishing_factors],
+            "blocks": [
+                {
+                    "size": b.size,
+                    "bodies": b.bodies,
+                    "coordinates": b.coordinates,
+                    "constraints": b.constraints,
+                    "singular": b.singular,
+                    "determinant": None if b.determinant is None else sp.sstr(b.determinant),
+                    "vanishing_factors": [sp.sstr(f) for f in b.vanishing_factors],
+                    "null_space": b.null_space,
+                }
+                for b in self.blocks
+            ],
         }
 
     def json_text(self) -> str:
         return json.dumps(self.to_json(), indent=2)
 
 
+def _exact_values(system: System, q: np.ndarray, t_exact: sp.Expr) -> dict[sp.Symbol, sp.Expr]:
+    values: dict[sp.Symbol, sp.Expr] = dict(zip(system.coordinates.stored_symbols, (exact_number(float(x)) for x in q)))
+    values.update(system.inputs.at_time(t_exact))
+    return values
+
+
 def inspect(
-    model: Model, parametrization: Parametrization, case: str | None = None, t: str | float = 0, q: np.ndarray | None = None
+    model: Model,
+    parametrization: Parametrization,
+    case: str | None = None,
+    t: str | float = 0,
+    q: np.ndarray | None = None,
+    numeric=None,
 ) -> Inspection:
-    """Inspect Phi_q of ``model`` at time ``t`` (exact expression) or at the given coordinates ``q``."""
+    """Inspect Phi_q of ``model`` at time ``t`` (exact expression) or at the given coordinates ``q``.
+
+    ``numeric`` is an optional quaternion :class:`NumericSystem` of the case (e.g. from a
+    generated module) used to solve for the configuration; by default one is compiled.
+    """
     from kinegen.model.expressions import parse
 
     case = case or next(iter(model.cases))
     system = build_systems(model, parametrization, [case])[case]
     t_exact = parse(t, allow_time=False) if isinstance(t, str) else exact_number(float(t))
     if q is None:
-        q = configuration_at(model, parametrization, case, float(t_exact))
-    q_exact = [exact_number(float(x)) for x in q]
-    values = dict(zip(system.coordinates.stored_symbols, q_exact))
-    values.update(system.inputs.at_time(t_exact))
-    symbolic = system.jacobian_matrix()
-    exact = symbolic.xreplace(values).applyfunc(lambda e: sp.nsimplify(sp.simplify(e)))
+        q = configuration_at(model, parametrization, case, float(t_exact), numeric)
+    values = _exact_values(system, q, t_exact)
+    named = {u: sp.Symbol(name, real=True) for u, name in zip(system.inputs.u, system.inputs.names)}
+    values.update({named[u]: values[u] for u in system.inputs.u})
+    symbolic = system.jacobian_matrix().xreplace(named)
+    q_exact = [values[s] for s in system.coordinates.stored_symbols]
+    if symbolic.shape[1] <= MAX_DIRECT:
+        exact = symbolic.xreplace(values).applyfunc(lambda e: sp.nsimplify(sp.simplify(e)))
+        return _direct(system, t_exact, q_exact, exact, symbolic, values)
+    exact = symbolic.xreplace(values).applyfunc(_entry)
+    return _by_blocks(system, t_exact, q_exact, exact, symbolic, values)
+
+
+def _entry(value: sp.Expr) -> sp.Expr:
+    """An entry of a large Phi_q: exact if rational or a small surd, else a DIGITS-digit rational."""
+    value = sp.expand(value)
+    if value.is_Rational or (not value.has(sp.Function) and sp.count_ops(value) <= 8):
+        return value
+    return sp.Rational(str(sp.N(value, DIGITS)))
+
+
+def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values) -> Inspection:
+    """Exact rank, null spaces and the factored determinant of the whole (small) matrix."""
     rank = exact.rank(simplify=True)
     null = [_combination(v, system.coordinates.velocity_names) for v in exact.nullspace(simplify=True)]
     dependent: list[str] = []
     for v in exact.T.nullspace(simplify=True):
         dependent += [n for x, n in zip(v, system.constraint_names) if x != 0 and n not in dependent]
-    inspection = Inspection(system, t_exact, q_exact, exact, rank, null, dependent)
+    report = Inspection(system, t_exact, q_exact, exact, rank, null, dependent)
     m, n = exact.shape
-    if m == n and n <= MAX_DIRECT_DETERMINANT:
-        named = {u: sp.Symbol(name, real=True) for u, name in zip(system.inputs.u, system.inputs.names)}
-        values.update({named[u]: values[u] for u in system.inputs.u})
-        det = symbolic.xreplace(named).det(method="berkowitz")
-        det = sp.factor(sp.trigsimp(sp.simplify(det)))
-        inspection.determinant = det
-        inspection.determinant_value = sp.simplify(det.xreplace(values))
+    if m == n:
+        det = _factored_determinant(symbolic)
+        report.determinant = det
+        report.determinant_value = sp.simplify(det.xreplace(values))
         _, factors = sp.factor_list(det)
-        inspection.vanishing_factors = [f for f, _ in factors if sp.simplify(f.xreplace(values)) == 0]
-    return inspection
+        report.vanishing_factors = [f for f, _ in factors if _is_zero(f.xreplace(values))]
+    return report
+
+
+def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values) -> Inspection:
+    """Large systems: block-triangular form, determinants block by block."""
+    from kinegen.analysis.blocks import block_triangular
+
+    rows, cols = zip(*[(i, j) for i, j, _ in system.jacobian_entries])
+    blocks = block_triangular(exact.shape, np.array(rows), np.array(cols))
+    coordinate_names, constraint_names = system.coordinates.velocity_names, system.constraint_names
+    reports: list[BlockReport] = []
+    for block in blocks or []:
+        sub_exact = exact.extract(list(block.rows), list(block.cols))
+        report = BlockReport(
+            [constraint_names[i] for i in block.rows],
+            [coordinate_names[j] for j in block.cols],
+            sub_exact.det(method="berkowitz"),
+        )
+        if report.singular or block.size <= MAX_SYMBOLIC_BLOCK:
+            det = _factored_determinant(symbolic.extract(list(block.rows), list(block.cols)), simplify=report.singular)
+            report.determinant = det
+            _, factors = sp.factor_list(det)
+            report.vanishing_factors = [f for f, _ in factors if _is_zero(f.xreplace(values))]
+        if report.singular:
+            names = [coordinate_names[j] for j in block.cols]
+            report.null_space = [_combination(v, names) for v in sub_exact.nullspace(simplify=True)]
+        reports.append(report)
+    if blocks is not None and not any(r.singular for r in reports):
+        # det = +-product of non-zero block determinants: full rank, exactly
+        return Inspection(
+            system,
+            t_exact,
+            q_exact,
+            exact,
+            exact.shape[1],
+            [],
+            [],
+            blocks=reports,
+            rank_method="every block determinant non-zero",
+        )
+    # singular (or no block form): rank and null spaces named from an SVD of the exact entries
+    matrix = np.array(exact.evalf(20).tolist(), dtype=float)
+    u, sigma, vt = np.linalg.svd(matrix)
+    rank = int(np.sum(sigma > 1e-10 * sigma[0]))
+    null = [_float_combination(list(vt[k]), coordinate_names) for k in range(rank, matrix.shape[1])]
+    dependent: list[str] = []
+    for k in range(rank, matrix.shape[0]):
+        dependent += [constraint_names[i] for i in np.flatnonzero(np.abs(u[:, k]) > 1e-6) if constraint_names[i] not in dependent]
+    method = "double-precision SVD of the exact entries (the exact proof is the vanishing block determinant)"
+    return Inspection(system, t_exact, q_exact, exact, rank, null, dependent, blocks=reports, rank_method=method)
+
+
+def _float_combination(vector: list[float], names: list[str]) -> str:
+    from kinegen.runtime.solver import describe_combination
+
+    return describe_combination(np.array(vector), names)

@@ -159,6 +159,7 @@ class _Reader:
             (
                 "model",
                 "description",
+                "redundant",
                 "parameters",
                 "ground",
                 "bodies",
@@ -171,6 +172,9 @@ class _Reader:
             ("model", "bodies"),
         )
         name = self.name(top["model"], "model")
+        self.redundant = top.get("redundant", False)
+        if not isinstance(self.redundant, bool):
+            raise self.fail("redundant", "expected true or false")
         description = top.get("description", "")
         if not isinstance(description, str):
             raise self.fail("description", "expected a string")
@@ -203,6 +207,7 @@ class _Reader:
             cases=cases,
             actuators=actuators,
             working_range=working_range,
+            redundant=self.redundant,
         )
 
     def body(self, name: str, value: Any) -> Body:
@@ -559,11 +564,14 @@ class _Reader:
         coordinates = 6 * len(self.bodies)
         equations = sum(JOINT_EQUATIONS[j.type] for j in self.joints.values())
         mobility = coordinates - equations
+        if self.redundant and mobility <= len(drivers):
+            return  # declared redundant: more equations than coordinates is intended
         if mobility != len(drivers):
             raise self.fail(
                 f"{entry}.drivers" if entry != "drivers" else entry,
                 f"degree-of-freedom count does not match: {coordinates} coordinates (6 per body), "
-                f"{equations} joint equations, so mobility {mobility}, but {len(drivers)} driver(s)",
+                f"{equations} joint equations, so mobility {mobility}, but {len(drivers)} driver(s)"
+                + ("" if mobility > len(drivers) else "; if the constraints are redundant on purpose, declare `redundant: true`"),
             )
 
     def cases(self, value: Any, common: list[Driver]) -> dict:

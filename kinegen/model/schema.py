@@ -138,6 +138,7 @@ class Model:
     cases: dict[str, Case]
     actuators: tuple[Actuator, ...] = ()
     working_range: WorkingRange | None = None
+    redundant: bool = False  #: the model declares redundant (dependent) constraints
 
     def body(self, name: str) -> Body:
         """The body called ``name`` (not ground)."""

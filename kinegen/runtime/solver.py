@@ -25,6 +25,9 @@ _getrf, _getrs, _gecon = scipy.linalg.get_lapack_funcs(("getrf", "getrs", "gecon
 
 
 def _lu_solve(factors: tuple[np.ndarray, np.ndarray], rhs: np.ndarray) -> np.ndarray:
+    """Solve with LU factors, or in the least-squares sense with a (pinv,) pair."""
+    if factors[1] is None:  # redundant system: pseudo-inverse (consistent equations)
+        return factors[0] @ rhs
     x, _ = _getrs(factors[0], factors[1], rhs)
     return x
 
@@ -66,8 +69,10 @@ class Solver:
         self.system = system
         self.options = options or SolverOptions()
         m, n = len(system.constraint_names), system.n_velocity
-        if m != n:
+        if m < n:
             raise ValueError(f"{system.model}/{system.case}: {m} constraints for {n} velocity coordinates")
+        #: more equations than coordinates: a model with redundant constraints, solved by least squares
+        self.redundant = m > n
         self._tangent = system.parametrization.name == "quaternion"
         positions_q, positions_v, rot_q, rot_v = [], [], [], []
         for s_off, v_off in system.bodies.values():
@@ -95,6 +100,11 @@ class Solver:
         jacobian = self.system.jacobian(q, u)
         if not np.all(np.isfinite(jacobian)):
             raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
+        if self.redundant:
+            _, s, _ = np.linalg.svd(jacobian)
+            if s[-1] <= self.options.singular_tolerance * s[0]:  # column rank lost: a singular pose
+                self.check_singular(jacobian, t)
+            return np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance), None
         lu, piv, info = _getrf(jacobian, overwrite_a=False)
         diagonal = np.abs(np.diag(lu))
         if info > 0 or diagonal.min() <= self.options.singular_tolerance * max(diagonal.max(), 1e-300):
@@ -107,8 +117,9 @@ class Solver:
         if kind == "none":
             return float("nan")
         jacobian = self.system.jacobian(q, u)
-        if kind == "exact":
-            return float(np.linalg.cond(jacobian))
+        if kind == "exact" or self.redundant:
+            s = np.linalg.svd(jacobian, compute_uv=False)
+            return float(s[0] / s[min(jacobian.shape) - 1])
         if factors is None:
             factors = self.factorize(q, u, float("nan"))
         rcond, _ = _gecon(factors[0], np.abs(jacobian).sum(axis=0).max(), norm="1")
@@ -119,7 +130,7 @@ class Solver:
         u, s, vt = np.linalg.svd(jacobian)
         tol = self.options.singular_tolerance * s[0]
         rank = int(np.sum(s > tol))
-        if rank == jacobian.shape[0]:
+        if rank == min(jacobian.shape):
             return
         names = self.system.constraint_names
         dependent: list[str] = []
@@ -201,6 +212,11 @@ class Solver:
         _, norm = self.residual(q, u)
         return q, total, norm
 
+    def rates(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray, factors) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity and acceleration (velocity coordinates) from one factorization of Phi_q."""
+        v = _lu_solve(factors, self.system.nu(q, u, ud))
+        return v, _lu_solve(factors, self.system.gamma(q, v, u, ud, udd))
+
     # ---- trajectory ----------------------------------------------------------------------
     def solve(
         self,
@@ -232,8 +248,7 @@ class Solver:
                 q = self.retract(q, v * h + 0.5 * a * h * h)
             q, iterations[i], residuals[i] = self.position(q, u, t)
             factors = self.factorize(q, u, t)
-            v = _lu_solve(factors, system.nu(q, u, ud))
-            a = _lu_solve(factors, system.gamma(q, v, u, ud, udd))
+            v, a = self.rates(q, u, ud, udd, factors)
             conditions[i] = self.condition(q, u, factors)
             qs[i], vs[i], accs[i] = q, v, a
         return Results(system, times, qs, vs, accs, iterations, residuals, conditions, u_all.T.copy(), self.options.condition)

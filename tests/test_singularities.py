@@ -1,0 +1,152 @@
+"""Proving, locating and classifying singularities (issue 4).
+
+* the boom: euler:zxz is a representation singularity (exact rank 5, factor sin(beta));
+* a slider-crank at top dead centre: a mechanism singularity in every parametrization;
+* a spatial four-bar with four revolute joints: 3 redundant, consistent equations;
+* the excavator: euler:zxz singular in the upper structure's block (sin(upper_beta)),
+  quaternion provably non-singular (every block determinant non-zero);
+* the bucket linkage driven towards its toggle: the scan warns before the solve fails.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+
+from kinegen import rotations
+from kinegen.analysis import inspect
+from kinegen.analysis.blocks import block_triangular
+from kinegen.analysis.classify import MECHANISM, REDUNDANT, REPRESENTATION, classify
+from kinegen.analysis.scan import scan
+from kinegen.codegen.inmemory import lambdify_model
+from kinegen.model import loads
+from kinegen.runtime import from_module, solve
+from tests.conftest import generated_system, model
+
+ALL_REVOLUTE_FOUR_BAR = """\
+model: four_bar_rrrr
+redundant: true
+ground:
+  points: {A: [0, 0, 0], D: [1, 0, 0]}
+  vectors: {z: [0, 0, 1]}
+bodies:
+  crank: {position: [0, 0, 0], orientation: {axis: [0, 0, 1], angle: 0.5}, points: {A: [0, 0, 0], B: [0.3, 0, 0]}, vectors: {z: [0, 0, 1]}}
+  coupler: {position: [0.263275, 0.143828, 0], orientation: {axis: [0, 0, 1], angle: 0.665327}, points: {B: [0, 0, 0], C: [0.9, 0, 0]}, vectors: {z: [0, 0, 1]}}
+  rocker: {position: [1, 0, 0], orientation: {axis: [0, 0, 1], angle: 1.611781}, points: {D: [0, 0, 0], C: [0.7, 0, 0]}, vectors: {z: [0, 0, 1]}}
+joints:
+  A: {type: revolute, bodies: [ground, crank], points: [A, A], axes: [z, z]}
+  B: {type: revolute, bodies: [crank, coupler], points: [B, B], axes: [z, z]}
+  C: {type: revolute, bodies: [coupler, rocker], points: [C, C], axes: [z, z]}
+  D: {type: revolute, bodies: [ground, rocker], points: [D, D], axes: [z, z]}
+cases:
+  turn:
+    drivers:
+      crank_angle: {type: joint_angle, joint: A, function: 0.5 + 2*pi*t}
+    t1: 1
+    steps: 101
+"""
+
+
+def test_block_triangular_form_of_a_known_pattern():
+    # [[x, 0, 0], [x, x, 0], [0, x, x]] is lower triangular: three 1x1 blocks in order
+    rows, cols = np.array([0, 1, 1, 2, 2]), np.array([0, 0, 1, 1, 2])
+    blocks = block_triangular((3, 3), rows, cols)
+    assert [b.rows for b in blocks] == [(0,), (1,), (2,)]
+    # [[x, x], [x, 0]] permutes to triangular form; a full 2x2 is one block
+    assert [b.size for b in block_triangular((2, 2), np.array([0, 0, 1]), np.array([0, 1, 0]))] == [1, 1]
+    assert [b.size for b in block_triangular((2, 2), np.array([0, 0, 1, 1]), np.array([0, 1, 0, 1]))] == [2]
+    # an empty column is structurally singular
+    assert block_triangular((2, 2), np.array([0, 1]), np.array([0, 0])) is None
+
+
+def test_boom_euler_singularity_is_a_representation_singularity():
+    verdict = classify(model("boom"), rotations.get("euler:zxz"), "swing", 0.0)
+    assert verdict.kind == REPRESENTATION
+    assert any(line.startswith("quaternion: rank 6 of 6 x 6") for line in verdict.evidence)
+
+
+def test_slider_crank_dead_centre_is_a_mechanism_singularity_in_every_parametrization():
+    dead_centre = np.array([0, 0, 0, 1, 0, 0, 0, 0.2, 0, 0, 1, 0, 0, 0, 0.8, 0, 0, 1, 0, 0, 0.0])
+    slider_crank = model("slider_crank")
+    verdict = classify(
+        slider_crank,
+        rotations.get("quaternion"),
+        "dead_centre",
+        0.0,
+        physical=dead_centre,
+        others=("euler-parameters", "euler:xyz"),
+    )
+    assert verdict.kind == MECHANISM
+    assert verdict.evidence[0].startswith("quaternion: rank 17 of 18 x 18")
+    assert any(line.startswith("euler-parameters: rank 20 of 21 x 21") for line in verdict.evidence)
+    assert any(line.startswith("euler:xyz: rank 17 of 18 x 18") for line in verdict.evidence)
+    assert all("rank 18" in line for line in verdict.evidence if line.startswith("nearby"))  # regular a little away
+    report = inspect(slider_crank, rotations.get("quaternion"), "dead_centre", "0", dead_centre)
+    assert [b.bodies for b in report.singular_blocks] == [["crank", "rod"]]
+
+
+def test_spatial_all_revolute_four_bar_has_three_redundant_consistent_equations():
+    four_bar = loads(ALL_REVOLUTE_FOUR_BAR, "four_bar_rrrr.yaml")
+    quaternion = rotations.get("quaternion")
+    system = from_module(lambdify_model(four_bar, quaternion))
+    assert (len(system.constraint_names), system.n_velocity) == (21, 18)
+    results = solve(system)  # least squares on the consistent, redundant equations
+    assert results.residuals.max() <= 1e-10
+    verdict = classify(four_bar, quaternion, "turn", 0.3, numeric=system)
+    assert verdict.kind == REDUNDANT
+    assert "3 equation(s) depend on the others" in verdict.evidence[-1]
+    assert {"A.z", "B.z", "C.z", "D.z"} <= set(verdict.dependent_constraints)
+
+
+def test_excavator_euler_zxz_singular_block_names_the_upper_structure():
+    report = inspect(
+        model("excavator"),
+        rotations.get("euler:zxz"),
+        "digging",
+        "0",
+        numeric=generated_system("excavator_quaternion", "digging"),
+    )
+    assert report.singular
+    (block,) = report.singular_blocks
+    assert block.bodies == ["upper"]
+    beta = sp.Symbol("upper_beta", real=True)
+    assert block.vanishing_factors == [sp.sin(beta)]
+    assert report.null_space == ["upper.alpha - upper.gamma"]
+
+
+def test_excavator_quaternion_jacobian_is_provably_non_singular():
+    report = inspect(
+        model("excavator"),
+        rotations.get("quaternion"),
+        "digging",
+        "0",
+        numeric=generated_system("excavator_quaternion", "digging"),
+    )
+    assert not report.singular and report.rank == 84
+    assert report.blocks and not report.singular_blocks
+    assert all(b.value != 0 for b in report.blocks)
+
+
+def test_scan_warns_before_the_bucket_linkage_reaches_its_toggle():
+    physical = generated_system("excavator_quaternion", "bucket_toggle")
+    result = scan(
+        physical, {"quaternion": physical, "euler-parameters": generated_system("excavator_euler_parameters", "bucket_toggle")}
+    )
+    toggle_time = (2.7366037634564986 - 2.5) / 0.1  # bucket cylinder at the G-H-J toggle length
+    assert result.stopped is not None  # the solve cannot pass the toggle
+    assert result.ahead_time is not None and result.ahead_time < result.times[-1] < toggle_time + 0.01
+    assert "bucket_cyl_barrel, bucket_cyl_rod, side_link" in result.ahead
+    assert all(trace.warning is None for trace in result.traces)  # no parametrization is singular on the way
+
+
+def test_scan_flags_only_the_euler_singularity_in_the_digging_cycle():
+    physical = generated_system("excavator_quaternion", "digging")
+    systems = {
+        name: generated_system(f"excavator_{name.replace(':', '_').replace('-', '_')}", "digging")
+        for name in ("euler-parameters", "euler:zxz")
+    }
+    result = scan(physical, systems)
+    traces = {trace.parametrization: trace for trace in result.traces}
+    assert traces["euler:zxz"].warning_time == 0 and "upper" in traces["euler:zxz"].warning
+    assert traces["quaternion"].warning is None and traces["euler-parameters"].warning is None
+    assert result.ahead is None and result.stopped is None
