@@ -38,38 +38,35 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_swing(t):
-    """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = t**2 + 1.5707963267948966
-    out[1] = 2*t
-    out[2] = 2
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_swing(q, u):
-    """Phi(q, u) of case 'swing': 7 residuals."""
+def _joints_phi(q):
+    """Phi of the 6 joint (and normalization) rows, common to every case."""
     boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    u0, = u
     boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
     boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
     boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
     boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
-    out = _zeros(7, q, u)
+    out = _zeros(6, q, ())
     out[0] = (89/50)*boom_a00 - boom_x
     out[1] = (89/50)*boom_a10 - boom_y
     out[2] = (89/50)*boom_a20 - boom_z
     out[3] = boom_a20
     out[4] = boom_a21
     out[5] = boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2 - 1
-    out[6] = boom_a00*sin(u0) - boom_a10*cos(u0)
     return out
 
 
-def jac_swing(q, u):
-    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (29 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (25 entries)."""
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    u0, = u
     c0 = (89/25)*boom_e3
     c1 = (89/25)*boom_e2
     c2 = (89/25)*boom_e1
@@ -78,9 +75,7 @@ def jac_swing(q, u):
     c5 = 2*boom_e3
     c6 = 2*boom_e0
     c7 = 2*boom_e1
-    c8 = 4*sin(u0)
-    c9 = cos(u0)
-    out = _zeros(29, q, u)
+    out = _zeros(25, q, ())
     out[0] = -1
     out[1] = (178/25)*boom_e0
     out[2] = (178/25)*boom_e1
@@ -106,27 +101,76 @@ def jac_swing(q, u):
     out[22] = c7
     out[23] = c4
     out[24] = c5
-    out[25] = boom_e0*c8 - c5*c9
-    out[26] = boom_e1*c8 - c4*c9
-    out[27] = -c7*c9
-    out[28] = -c6*c9
     return out
 
 
-def nu_swing(q, u, ud):
-    """nu = -Phi_t of case 'swing'."""
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
+    _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
+    c0 = v_boom_e0**2
+    c1 = v_boom_e1**2
+    c2 = (178/25)*v_boom_e3
+    c3 = (178/25)*v_boom_e2
+    c4 = 4*v_boom_e2
+    c5 = 4*v_boom_e1
+    out = _zeros(6, q, ())
+    out[0] = -178/25*c0 - 178/25*c1
+    out[1] = -c2*v_boom_e0 - c3*v_boom_e1
+    out[2] = -c2*v_boom_e1 + c3*v_boom_e0
+    out[3] = c4*v_boom_e0 - c5*v_boom_e3
+    out[4] = -c4*v_boom_e3 - c5*v_boom_e0
+    out[5] = -2*c0 - 2*c1 - 2*v_boom_e2**2 - 2*v_boom_e3**2
+    return out
+
+
+def inputs_swing(t):
+    """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = t**2 + 1.5707963267948966
+    out[1] = 2*t
+    out[2] = 2
+    return out
+
+
+def _drivers_phi_swing(q, u):
+    """Phi of the driver rows of case 'swing'."""
+    _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    u0, = u
+    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
+    out = _zeros(1, q, u)
+    out[0] = boom_a00*sin(u0) - boom_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_swing(q, u):
+    """Phi_q values of the driver rows of case 'swing'."""
+    _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    u0, = u
+    c0 = 4*sin(u0)
+    c1 = 2*cos(u0)
+    out = _zeros(4, q, u)
+    out[0] = boom_e0*c0 - boom_e3*c1
+    out[1] = boom_e1*c0 - boom_e2*c1
+    out[2] = -boom_e1*c1
+    out[3] = -boom_e0*c1
+    return out
+
+
+def _drivers_nu_swing(q, u, ud):
+    """nu of the driver rows of case 'swing'."""
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
     u0, = u
     ud0, = ud
     boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
     boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
-    out = _zeros(7, q, u)
-    out[6] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
     return out
 
 
-def gamma_swing(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
+def _drivers_gamma_swing(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'swing'."""
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
     _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
     u0, = u
@@ -134,26 +178,36 @@ def gamma_swing(q, v, u, ud, udd):
     udd0, = udd
     boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
     boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
-    c0 = v_boom_e0**2
-    c1 = v_boom_e1**2
-    c2 = (178/25)*v_boom_e3
-    c3 = (178/25)*v_boom_e2
-    c4 = 4*v_boom_e2
-    c5 = 4*v_boom_e1
-    c6 = cos(u0)
-    c7 = sin(u0)
-    c8 = 2*c6
-    c9 = 2*c7
-    c10 = 4*c6
-    out = _zeros(7, q, u)
-    out[0] = -178/25*c0 - 178/25*c1
-    out[1] = -c2*v_boom_e0 - c3*v_boom_e1
-    out[2] = -c2*v_boom_e1 + c3*v_boom_e0
-    out[3] = c4*v_boom_e0 - c5*v_boom_e3
-    out[4] = -c4*v_boom_e3 - c5*v_boom_e0
-    out[5] = -2*c0 - 2*c1 - 2*v_boom_e2**2 - 2*v_boom_e3**2
-    out[6] = 2*c6*v_boom_e0*v_boom_e3 + 2*c6*v_boom_e1*v_boom_e2 - ud0**2*(-boom_a00*c7 + boom_a10*c6) - 2*ud0*(boom_e0*c9*v_boom_e3 + boom_e1*c9*v_boom_e2 + v_boom_e0*(boom_e0*c10 + boom_e3*c9) + v_boom_e1*(boom_e1*c10 + boom_e2*c9)) - udd0*(boom_a00*c6 + boom_a10*c7) - v_boom_e0*(4*c7*v_boom_e0 - c8*v_boom_e3) - v_boom_e1*(c5*c7 - c8*v_boom_e2)
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = 4*c1
+    c3 = 2*c0
+    c4 = 2*c1
+    c5 = 4*c0
+    out = _zeros(1, q, u)
+    out[0] = 2*c0*v_boom_e0*v_boom_e3 + 2*c0*v_boom_e1*v_boom_e2 - ud0**2*(-boom_a00*c1 + boom_a10*c0) - 2*ud0*(boom_e0*c4*v_boom_e3 + boom_e1*c4*v_boom_e2 + v_boom_e0*(boom_e0*c5 + boom_e3*c4) + v_boom_e1*(boom_e1*c5 + boom_e2*c4)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_e0*(c2*v_boom_e0 - c3*v_boom_e3) - v_boom_e1*(c2*v_boom_e1 - c3*v_boom_e2)
     return out
+
+
+def phi_swing(q, u):
+    """Phi(q, u) of case 'swing': 7 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_swing(q, u))
+
+
+def jac_swing(q, u):
+    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (29 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_swing(q, u))
+
+
+def nu_swing(q, u, ud):
+    """nu = -Phi_t of case 'swing' (zero in the joint rows)."""
+    drivers = _drivers_nu_swing(q, u, ud)
+    return _join(np.zeros((6,) + drivers.shape[1:]), drivers)
+
+
+def gamma_swing(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_swing(q, v, u, ud, udd))
 
 
 CASES = {

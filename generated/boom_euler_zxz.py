@@ -38,6 +38,104 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
+
+
+def _joints_phi(q):
+    """Phi of the 5 joint (and normalization) rows, common to every case."""
+    boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
+    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
+    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a20 = sin(boom_beta)*sin(boom_gamma)
+    boom_a21 = sin(boom_beta)*cos(boom_gamma)
+    out = _zeros(5, q, ())
+    out[0] = (89/50)*boom_a00 - boom_x
+    out[1] = (89/50)*boom_a10 - boom_y
+    out[2] = (89/50)*boom_a20 - boom_z
+    out[3] = boom_a20
+    out[4] = boom_a21
+    return out
+
+
+def _joints_jac(q):
+    """Phi_q values of the joint rows (15 entries)."""
+    _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    c0 = sin(boom_alpha)
+    c1 = cos(boom_gamma)
+    c2 = cos(boom_alpha)
+    c3 = sin(boom_gamma)
+    c4 = cos(boom_beta)
+    c5 = c3*c4
+    c6 = (89/50)*c5
+    c7 = sin(boom_beta)
+    c8 = c3*c7
+    c9 = (89/50)*c0
+    c10 = (89/50)*c3
+    c11 = c1*c4
+    c12 = c1*c7
+    out = _zeros(15, q, ())
+    out[0] = -1
+    out[1] = -89/50*c0*c1 - c2*c6
+    out[2] = c8*c9
+    out[3] = -c10*c2 - c11*c9
+    out[4] = -1
+    out[5] = -c0*c6 + (89/50)*c1*c2
+    out[6] = -89/50*c2*c8
+    out[7] = -c0*c10 + (89/50)*c1*c2*c4
+    out[8] = -1
+    out[9] = c6
+    out[10] = (89/50)*c12
+    out[11] = c5
+    out[12] = c12
+    out[13] = c11
+    out[14] = -c8
+    return out
+
+
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
+    _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma = v
+    c0 = sin(boom_beta)
+    c1 = cos(boom_alpha)
+    c2 = sin(boom_gamma)
+    c3 = (89/50)*c2
+    c4 = c1*c3
+    c5 = c0*c4
+    c6 = cos(boom_beta)
+    c7 = sin(boom_alpha)
+    c8 = c3*c7
+    c9 = c6*c8
+    c10 = cos(boom_gamma)
+    c11 = (89/50)*c10
+    c12 = c11*c7
+    c13 = c0*c12
+    c14 = c1*c11
+    c15 = -c14 + c9
+    c16 = -c14*c6 + c8
+    c17 = c4*c6
+    c18 = c0*c14
+    c19 = -c12 - c17
+    c20 = -c12*c6 - c4
+    c21 = c0*c3
+    c22 = c0*c2
+    c23 = c0*c10
+    c24 = c2*c6
+    out = _zeros(5, q, ())
+    out[0] = -v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha)
+    out[1] = -v_boom_alpha*(c0*c8*v_boom_beta + c19*v_boom_alpha + c20*v_boom_gamma) - v_boom_beta*((89/50)*c0*c2*c7*v_boom_alpha - c17*v_boom_beta - c18*v_boom_gamma) - v_boom_gamma*(-c18*v_boom_beta + c19*v_boom_gamma + c20*v_boom_alpha)
+    out[2] = -v_boom_beta*((89/50)*c10*c6*v_boom_gamma - c21*v_boom_beta) - v_boom_gamma*(c11*c6*v_boom_beta - c21*v_boom_gamma)
+    out[3] = -v_boom_beta*(c10*c6*v_boom_gamma - c22*v_boom_beta) - v_boom_gamma*(c10*c6*v_boom_beta - c22*v_boom_gamma)
+    out[4] = -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)
+    return out
+
+
 def inputs_swing(t):
     """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
@@ -47,82 +145,53 @@ def inputs_swing(t):
     return out
 
 
-def phi_swing(q, u):
-    """Phi(q, u) of case 'swing': 6 residuals."""
-    boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
+def _drivers_phi_swing(q, u):
+    """Phi of the driver rows of case 'swing'."""
+    _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
     boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
     boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
-    boom_a20 = sin(boom_beta)*sin(boom_gamma)
-    boom_a21 = sin(boom_beta)*cos(boom_gamma)
-    out = _zeros(6, q, u)
-    out[0] = (89/50)*boom_a00 - boom_x
-    out[1] = (89/50)*boom_a10 - boom_y
-    out[2] = (89/50)*boom_a20 - boom_z
-    out[3] = boom_a20
-    out[4] = boom_a21
-    out[5] = boom_a00*sin(u0) - boom_a10*cos(u0)
+    out = _zeros(1, q, u)
+    out[0] = boom_a00*sin(u0) - boom_a10*cos(u0)
     return out
 
 
-def jac_swing(q, u):
-    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (18 entries)."""
+def _drivers_jac_swing(q, u):
+    """Phi_q values of the driver rows of case 'swing'."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
-    c0 = sin(boom_alpha)
-    c1 = cos(boom_gamma)
-    c2 = c0*c1
-    c3 = cos(boom_alpha)
-    c4 = sin(boom_gamma)
-    c5 = cos(boom_beta)
-    c6 = c4*c5
-    c7 = (89/50)*c6
-    c8 = sin(boom_beta)
-    c9 = c4*c8
-    c10 = (89/50)*c9
-    c11 = c3*c4
-    c12 = c1*c5
-    c13 = c0*c12
-    c14 = c0*c4
-    c15 = c1*c8
-    c16 = sin(u0)
-    c17 = cos(u0)
-    out = _zeros(18, q, u)
-    out[0] = -1
-    out[1] = -89/50*c2 - c3*c7
-    out[2] = c0*c10
-    out[3] = -89/50*c11 - 89/50*c13
-    out[4] = -1
-    out[5] = -c0*c7 + (89/50)*c1*c3
-    out[6] = -c10*c3
-    out[7] = (89/50)*c1*c3*c5 - 89/50*c14
-    out[8] = -1
-    out[9] = c7
-    out[10] = (89/50)*c15
-    out[11] = c6
-    out[12] = c15
-    out[13] = c12
-    out[14] = -c9
-    out[15] = c16*(-c2 - c3*c6) - c17*(-c0*c6 + c1*c3)
-    out[16] = c0*c16*c9 + c17*c3*c9
-    out[17] = c16*(-c11 - c13) - c17*(c1*c3*c5 - c14)
+    c0 = sin(u0)
+    c1 = sin(boom_alpha)
+    c2 = cos(boom_gamma)
+    c3 = c1*c2
+    c4 = cos(boom_beta)
+    c5 = sin(boom_gamma)
+    c6 = cos(boom_alpha)
+    c7 = c5*c6
+    c8 = cos(u0)
+    c9 = c1*c5
+    c10 = sin(boom_beta)
+    out = _zeros(3, q, u)
+    out[0] = c0*(-c3 - c4*c7) - c8*(c2*c6 - c4*c9)
+    out[1] = c0*c10*c9 + c10*c7*c8
+    out[2] = c0*(-c3*c4 - c7) - c8*(c2*c4*c6 - c9)
     return out
 
 
-def nu_swing(q, u, ud):
-    """nu = -Phi_t of case 'swing'."""
+def _drivers_nu_swing(q, u, ud):
+    """nu of the driver rows of case 'swing'."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
     ud0, = ud
     boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
     boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
-    out = _zeros(6, q, u)
-    out[5] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
     return out
 
 
-def gamma_swing(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
+def _drivers_gamma_swing(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'swing'."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma = v
     u0, = u
@@ -130,57 +199,54 @@ def gamma_swing(q, v, u, ud, udd):
     udd0, = udd
     boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
     boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
-    c0 = sin(boom_beta)
-    c1 = sin(boom_gamma)
-    c2 = cos(boom_alpha)
-    c3 = c1*c2
-    c4 = (89/50)*c3
-    c5 = c0*c4
-    c6 = cos(boom_beta)
-    c7 = sin(boom_alpha)
-    c8 = c1*c7
-    c9 = (89/50)*c8
-    c10 = c6*c9
-    c11 = cos(boom_gamma)
-    c12 = c11*c7
-    c13 = (89/50)*c12
-    c14 = c0*c13
-    c15 = c11*c2
-    c16 = (89/50)*c15
-    c17 = c10 - c16
-    c18 = -c16*c6 + c9
-    c19 = c4*c6
-    c20 = c0*c16
-    c21 = -c13 - c19
-    c22 = -c13*c6 - c4
-    c23 = c0*c1
-    c24 = c23*v_boom_beta
-    c25 = c11*c6*v_boom_beta
-    c26 = c23*v_boom_gamma
-    c27 = c0*c11
-    c28 = c1*c6
-    c29 = cos(u0)
-    c30 = sin(u0)
-    c31 = c6*c8
-    c32 = c3*c6
-    c33 = c0*c29
-    c34 = c0*c12*c30 + c15*c33
-    c35 = -c0*c1*c2*c30 + c33*c8
-    c36 = -c35
-    c37 = -c15 + c31
-    c38 = c29*(-c12 - c32)
-    c39 = -c15*c6 + c8
-    c40 = c29*(-c12*c6 - c3)
-    c41 = c30*c39 - c40
-    c42 = c30*c37 - c38
-    out = _zeros(6, q, u)
-    out[0] = -v_boom_alpha*(c17*v_boom_alpha + c18*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c10*v_boom_beta + c14*v_boom_gamma + c5*v_boom_alpha) - v_boom_gamma*(c14*v_boom_beta + c17*v_boom_gamma + c18*v_boom_alpha)
-    out[1] = -v_boom_alpha*(c0*c9*v_boom_beta + c21*v_boom_alpha + c22*v_boom_gamma) - v_boom_beta*((89/50)*c0*c1*c7*v_boom_alpha - c19*v_boom_beta - c20*v_boom_gamma) - v_boom_gamma*(-c20*v_boom_beta + c21*v_boom_gamma + c22*v_boom_alpha)
-    out[2] = -v_boom_beta*((89/50)*c11*c6*v_boom_gamma - 89/50*c24) - v_boom_gamma*((89/50)*c25 - 89/50*c26)
-    out[3] = -v_boom_beta*(c11*c6*v_boom_gamma - c24) - v_boom_gamma*(c25 - c26)
-    out[4] = -v_boom_beta*(-c27*v_boom_beta - c28*v_boom_gamma) - v_boom_gamma*(-c27*v_boom_gamma - c28*v_boom_beta)
-    out[5] = -ud0**2*(-boom_a00*c30 + boom_a10*c29) - 2*ud0*(c35*v_boom_beta + v_boom_alpha*(-c30*c37 + c38) + v_boom_gamma*(-c30*c39 + c40)) - udd0*(boom_a00*c29 + boom_a10*c30) - v_boom_alpha*(c36*v_boom_beta + c41*v_boom_gamma + c42*v_boom_alpha) - v_boom_beta*(c34*v_boom_gamma + c36*v_boom_alpha + v_boom_beta*(c29*c32 + c30*c31)) - v_boom_gamma*(c34*v_boom_beta + c41*v_boom_alpha + c42*v_boom_gamma)
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = cos(boom_beta)
+    c3 = sin(boom_alpha)
+    c4 = sin(boom_gamma)
+    c5 = c3*c4
+    c6 = c2*c5
+    c7 = cos(boom_alpha)
+    c8 = c4*c7
+    c9 = c2*c8
+    c10 = cos(boom_gamma)
+    c11 = c10*c3
+    c12 = sin(boom_beta)
+    c13 = c10*c7
+    c14 = c0*c12
+    c15 = c1*c11*c12 + c13*c14
+    c16 = -c1*c12*c4*c7 + c14*c5
+    c17 = -c16
+    c18 = -c13 + c6
+    c19 = c0*(-c11 - c9)
+    c20 = -c13*c2 + c5
+    c21 = c0*(-c11*c2 - c8)
+    c22 = c1*c20 - c21
+    c23 = c1*c18 - c19
+    out = _zeros(1, q, u)
+    out[0] = -ud0**2*(-boom_a00*c1 + boom_a10*c0) - 2*ud0*(c16*v_boom_beta + v_boom_alpha*(-c1*c18 + c19) + v_boom_gamma*(-c1*c20 + c21)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma)
     return out
+
+
+def phi_swing(q, u):
+    """Phi(q, u) of case 'swing': 6 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_swing(q, u))
+
+
+def jac_swing(q, u):
+    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (18 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_swing(q, u))
+
+
+def nu_swing(q, u, ud):
+    """nu = -Phi_t of case 'swing' (zero in the joint rows)."""
+    drivers = _drivers_nu_swing(q, u, ud)
+    return _join(np.zeros((5,) + drivers.shape[1:]), drivers)
+
+
+def gamma_swing(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_swing(q, v, u, ud, udd))
 
 
 CASES = {

@@ -38,37 +38,34 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_swing(t):
-    """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = t**2 + 1.5707963267948966
-    out[1] = 2*t
-    out[2] = 2
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_swing(q, u):
-    """Phi(q, u) of case 'swing': 6 residuals."""
+def _joints_phi(q):
+    """Phi of the 5 joint (and normalization) rows, common to every case."""
     boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
-    u0, = u
     boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    out = _zeros(6, q, u)
+    out = _zeros(5, q, ())
     out[0] = (89/50)*boom_a00 - boom_x
     out[1] = (89/50)*boom_a10 - boom_y
     out[2] = (89/50)*boom_a20 - boom_z
     out[3] = boom_a20
     out[4] = boom_a21
-    out[5] = boom_a00*sin(u0) - boom_a10*cos(u0)
     return out
 
 
-def jac_swing(q, u):
-    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (16 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (13 entries)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
-    u0, = u
     boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
     boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
@@ -77,9 +74,7 @@ def jac_swing(q, u):
     c0 = (89/50)*boom_a20
     c1 = (89/50)*boom_a10
     c2 = (89/50)*boom_a00
-    c3 = cos(u0)
-    c4 = sin(u0)
-    out = _zeros(16, q, u)
+    out = _zeros(13, q, ())
     out[0] = -1
     out[1] = c0
     out[2] = -c1
@@ -93,54 +88,118 @@ def jac_swing(q, u):
     out[10] = -boom_a00
     out[11] = boom_a11
     out[12] = -boom_a01
-    out[13] = boom_a20*c3
-    out[14] = boom_a20*c4
-    out[15] = -boom_a00*c3 - boom_a10*c4
     return out
 
 
-def nu_swing(q, u, ud):
-    """nu = -Phi_t of case 'swing'."""
-    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
-    u0, = u
-    ud0, = ud
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    out = _zeros(6, q, u)
-    out[5] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
-    return out
-
-
-def gamma_swing(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
-    u0, = u
-    ud0, = ud
-    udd0, = udd
     boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
     boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    c0 = -boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x
-    c1 = (89/50)*c0
-    c2 = boom_a20*v_boom_theta_x
-    c3 = boom_a00*v_boom_theta_z - c2
-    c4 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
-    c5 = c3*v_boom_theta_x
-    c6 = cos(u0)
-    c7 = sin(u0)
-    c8 = boom_a00*c7 - boom_a10*c6
-    out = _zeros(6, q, u)
-    out[0] = -c1*v_boom_theta_y + (89/50)*c3*v_boom_theta_z
-    out[1] = c1*v_boom_theta_x - 89/50*c4*v_boom_theta_z
-    out[2] = (89/50)*c4*v_boom_theta_y - 89/50*c5
-    out[3] = c4*v_boom_theta_y - c5
+    c0 = -89/50*boom_a00*v_boom_theta_y + (89/50)*boom_a10*v_boom_theta_x
+    c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
+    c2 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
+    c3 = c1*v_boom_theta_x
+    out = _zeros(5, q, ())
+    out[0] = -c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z
+    out[1] = c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z
+    out[2] = (89/50)*c2*v_boom_theta_y - 89/50*c3
+    out[3] = c2*v_boom_theta_y - c3
     out[4] = -v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) + v_boom_theta_y*(-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)
-    out[5] = -c0*(c6*v_boom_theta_x + c7*v_boom_theta_y) + c3*c7*v_boom_theta_z + c4*c6*v_boom_theta_z + c8*ud0**2 - 2*ud0*(boom_a20*c6*v_boom_theta_y - c2*c7 + c8*v_boom_theta_z) - udd0*(boom_a00*c6 + boom_a10*c7)
     return out
+
+
+def inputs_swing(t):
+    """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = t**2 + 1.5707963267948966
+    out[1] = 2*t
+    out[2] = 2
+    return out
+
+
+def _drivers_phi_swing(q, u):
+    """Phi of the driver rows of case 'swing'."""
+    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    u0, = u
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    out = _zeros(1, q, u)
+    out[0] = boom_a00*sin(u0) - boom_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_swing(q, u):
+    """Phi_q values of the driver rows of case 'swing'."""
+    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    u0, = u
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    out = _zeros(3, q, u)
+    out[0] = boom_a20*c0
+    out[1] = boom_a20*c1
+    out[2] = -boom_a00*c0 - boom_a10*c1
+    return out
+
+
+def _drivers_nu_swing(q, u, ud):
+    """nu of the driver rows of case 'swing'."""
+    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    u0, = u
+    ud0, = ud
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
+    return out
+
+
+def _drivers_gamma_swing(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'swing'."""
+    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = boom_a20*v_boom_theta_x
+    c3 = boom_a00*c1 - boom_a10*c0
+    out = _zeros(1, q, u)
+    out[0] = c0*v_boom_theta_z*(-boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y) + c1*v_boom_theta_z*(boom_a00*v_boom_theta_z - c2) + c3*ud0**2 - 2*ud0*(boom_a20*c0*v_boom_theta_y - c1*c2 + c3*v_boom_theta_z) - udd0*(boom_a00*c0 + boom_a10*c1) - (-boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x)*(c0*v_boom_theta_x + c1*v_boom_theta_y)
+    return out
+
+
+def phi_swing(q, u):
+    """Phi(q, u) of case 'swing': 6 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_swing(q, u))
+
+
+def jac_swing(q, u):
+    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (16 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_swing(q, u))
+
+
+def nu_swing(q, u, ud):
+    """nu = -Phi_t of case 'swing' (zero in the joint rows)."""
+    drivers = _drivers_nu_swing(q, u, ud)
+    return _join(np.zeros((5,) + drivers.shape[1:]), drivers)
+
+
+def gamma_swing(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_swing(q, v, u, ud, udd))
 
 
 CASES = {

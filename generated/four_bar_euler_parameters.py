@@ -40,21 +40,18 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_crank_turn(t):
-    """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    c0 = 6.283185307179586*t
-    c1 = sin(c0)
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = c0 + (3/10)*c1 + 1/2
-    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
-    out[2] = -11.84352528130723*c1
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_crank_turn(q, u):
-    """Phi(q, u) of case 'crank_turn': 21 residuals."""
+def _joints_phi(q):
+    """Phi of the 20 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    u0, = u
     crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
@@ -74,7 +71,7 @@ def phi_crank_turn(q, u):
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
     c0 = -rocker_y
     c1 = -rocker_z
-    out = _zeros(21, q, u)
+    out = _zeros(20, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
@@ -95,14 +92,12 @@ def phi_crank_turn(q, u):
     out[17] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
     out[18] = coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2 - 1
     out[19] = rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1
-    out[20] = crank_a00*sin(u0) - crank_a10*cos(u0)
     return out
 
 
-def jac_crank_turn(q, u):
-    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (88 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (84 entries)."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    u0, = u
     coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
     coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
     coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
@@ -135,9 +130,7 @@ def jac_crank_turn(q, u):
     c23 = 4*coupler_a21
     c24 = 2*rocker_e3
     c25 = 2*rocker_e0
-    c26 = 4*sin(u0)
-    c27 = cos(u0)
-    out = _zeros(88, q, u)
+    out = _zeros(84, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -222,34 +215,13 @@ def jac_crank_turn(q, u):
     out[81] = c22
     out[82] = c21
     out[83] = c24
-    out[84] = -c1*c27 + c26*crank_e0
-    out[85] = -c0*c27 + c26*crank_e1
-    out[86] = -c27*c3
-    out[87] = -c2*c27
     return out
 
 
-def nu_crank_turn(q, u, ud):
-    """nu = -Phi_t of case 'crank_turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, = u
-    ud0, = ud
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    out = _zeros(21, q, u)
-    out[20] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
-    return out
-
-
-def gamma_crank_turn(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
+    _, _, _, _, _, _, _, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, _, _, _, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
-    u0, = u
-    ud0, = ud
-    udd0, = udd
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
     coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
     coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
@@ -280,12 +252,7 @@ def gamma_crank_turn(q, v, u, ud, udd):
     c21 = 4*v_rocker_e3
     c22 = 2*coupler_e0
     c23 = 2*v_coupler_e0
-    c24 = cos(u0)
-    c25 = sin(u0)
-    c26 = 2*c24
-    c27 = 2*c25
-    c28 = 4*c24
-    out = _zeros(21, q, u)
+    out = _zeros(20, q, ())
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[5] = -6/5*c2 - 6/5*c3
@@ -300,8 +267,96 @@ def gamma_crank_turn(q, v, u, ud, udd):
     out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[18] = -2*c6 - 2*c7 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2
     out[19] = -2*c8 - 2*c9 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
-    out[20] = 2*c24*v_crank_e0*v_crank_e3 + 2*c24*v_crank_e1*v_crank_e2 - ud0**2*(c24*crank_a10 - c25*crank_a00) - 2*ud0*(c27*crank_e0*v_crank_e3 + c27*crank_e1*v_crank_e2 + v_crank_e0*(c27*crank_e3 + c28*crank_e0) + v_crank_e1*(c27*crank_e2 + c28*crank_e1)) - udd0*(c24*crank_a00 + c25*crank_a10) - v_crank_e0*(4*c25*v_crank_e0 - c26*v_crank_e3) - v_crank_e1*(c1*c25 - c26*v_crank_e2)
     return out
+
+
+def inputs_crank_turn(t):
+    """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 6.283185307179586*t
+    c1 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = c0 + (3/10)*c1 + 1/2
+    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
+    out[2] = -11.84352528130723*c1
+    return out
+
+
+def _drivers_phi_crank_turn(q, u):
+    """Phi of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    out = _zeros(1, q, u)
+    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_crank_turn(q, u):
+    """Phi_q values of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = 4*sin(u0)
+    c1 = 2*cos(u0)
+    out = _zeros(4, q, u)
+    out[0] = c0*crank_e0 - c1*crank_e3
+    out[1] = c0*crank_e1 - c1*crank_e2
+    out[2] = -c1*crank_e1
+    out[3] = -c1*crank_e0
+    return out
+
+
+def _drivers_nu_crank_turn(q, u, ud):
+    """nu of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    return out
+
+
+def _drivers_gamma_crank_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = 4*c1
+    c3 = 2*c0
+    c4 = 2*c1
+    c5 = 4*c0
+    out = _zeros(1, q, u)
+    out[0] = 2*c0*v_crank_e0*v_crank_e3 + 2*c0*v_crank_e1*v_crank_e2 - ud0**2*(c0*crank_a10 - c1*crank_a00) - 2*ud0*(c4*crank_e0*v_crank_e3 + c4*crank_e1*v_crank_e2 + v_crank_e0*(c4*crank_e3 + c5*crank_e0) + v_crank_e1*(c4*crank_e2 + c5*crank_e1)) - udd0*(c0*crank_a00 + c1*crank_a10) - v_crank_e0*(c2*v_crank_e0 - c3*v_crank_e3) - v_crank_e1*(c2*v_crank_e1 - c3*v_crank_e2)
+    return out
+
+
+def phi_crank_turn(q, u):
+    """Phi(q, u) of case 'crank_turn': 21 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_crank_turn(q, u))
+
+
+def jac_crank_turn(q, u):
+    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (88 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_crank_turn(q, u))
+
+
+def nu_crank_turn(q, u, ud):
+    """nu = -Phi_t of case 'crank_turn' (zero in the joint rows)."""
+    drivers = _drivers_nu_crank_turn(q, u, ud)
+    return _join(np.zeros((20,) + drivers.shape[1:]), drivers)
+
+
+def gamma_crank_turn(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_crank_turn(q, v, u, ud, udd))
 
 
 CASES = {

@@ -40,21 +40,18 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_crank_turn(t):
-    """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    c0 = 6.283185307179586*t
-    c1 = sin(c0)
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = c0 + (3/10)*c1 + 1/2
-    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
-    out[2] = -11.84352528130723*c1
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_crank_turn(q, u):
-    """Phi(q, u) of case 'crank_turn': 18 residuals."""
+def _joints_phi(q):
+    """Phi of the 17 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    u0, = u
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
@@ -74,7 +71,7 @@ def phi_crank_turn(q, u):
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
     c0 = -rocker_y
     c1 = -rocker_z
-    out = _zeros(18, q, u)
+    out = _zeros(17, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
@@ -92,14 +89,12 @@ def phi_crank_turn(q, u):
     out[14] = c1
     out[15] = rocker_a20
     out[16] = rocker_a21
-    out[17] = crank_a00*sin(u0) - crank_a10*cos(u0)
     return out
 
 
-def jac_crank_turn(q, u):
-    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (53 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (50 entries)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    u0, = u
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
@@ -131,9 +126,7 @@ def jac_crank_turn(q, u):
     c9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
     c10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
     c11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    c12 = cos(u0)
-    c13 = sin(u0)
-    out = _zeros(53, q, u)
+    out = _zeros(50, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -184,31 +177,13 @@ def jac_crank_turn(q, u):
     out[47] = -rocker_a00
     out[48] = rocker_a11
     out[49] = -rocker_a01
-    out[50] = c12*crank_a20
-    out[51] = c13*crank_a20
-    out[52] = -c12*crank_a00 - c13*crank_a10
     return out
 
 
-def nu_crank_turn(q, u, ud):
-    """nu = -Phi_t of case 'crank_turn'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, = u
-    ud0, = ud
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    out = _zeros(18, q, u)
-    out[17] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
-    return out
-
-
-def gamma_crank_turn(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'."""
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, _, _, _, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    u0, = u
-    ud0, = ud
-    udd0, = udd
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
@@ -230,42 +205,126 @@ def gamma_crank_turn(q, v, u, ud, udd):
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = crank_a20*v_crank_theta_x
-    c1 = -c0 + crank_a00*v_crank_theta_z
-    c2 = c1*v_crank_theta_x
-    c3 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
-    c4 = -crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x
-    c5 = (3/10)*c4
-    c6 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
-    c7 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
-    c8 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
-    c9 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
-    c10 = (7/10)*v_rocker_theta_z
-    c11 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
-    c12 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
-    c13 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
-    c14 = rocker_a02*v_rocker_theta_y
-    c15 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
-    c16 = rocker_a22*v_rocker_theta_x
-    c17 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
-    c18 = rocker_a12*v_rocker_theta_z
-    c19 = cos(u0)
-    c20 = sin(u0)
-    c21 = -c19*crank_a10 + c20*crank_a00
-    out = _zeros(18, q, u)
-    out[3] = -c2 + c3*v_crank_theta_y
+    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
+    c1 = c0*v_crank_theta_x
+    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c3 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
+    c4 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
+    c5 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
+    c6 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
+    c7 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
+    c8 = (7/10)*v_rocker_theta_z
+    c9 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
+    c10 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
+    c11 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
+    c12 = rocker_a02*v_rocker_theta_y
+    c13 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
+    c14 = rocker_a22*v_rocker_theta_x
+    c15 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
+    c16 = rocker_a12*v_rocker_theta_z
+    out = _zeros(17, q, ())
+    out[3] = -c1 + c2*v_crank_theta_y
     out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
-    out[5] = (3/10)*c1*v_crank_theta_z - c5*v_crank_theta_y
-    out[6] = -3/10*c3*v_crank_theta_z + c5*v_crank_theta_x
-    out[7] = -3/10*c2 + (3/10)*c3*v_crank_theta_y
-    out[8] = -c10*c9 - c6*v_coupler_theta_y + (9/10)*c7*v_coupler_theta_z + (7/10)*c8*v_rocker_theta_y
-    out[9] = c10*c12 - 9/10*c11*v_coupler_theta_z + c6*v_coupler_theta_x - 7/10*c8*v_rocker_theta_x
-    out[10] = (9/10)*c11*v_coupler_theta_y - 7/10*c12*v_rocker_theta_y - 9/10*c7*v_coupler_theta_x + (7/10)*c9*v_rocker_theta_x
-    out[11] = c13*(-c14 + rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x) - c15*(-c16 - rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x) + c17*(-c18 + rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y) - (-c14 + rocker_a12*v_rocker_theta_x)*(-c13 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - (-c16 + rocker_a02*v_rocker_theta_z)*(c15 - coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x) - (-c18 + rocker_a22*v_rocker_theta_y)*(-c17 + coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y)
-    out[15] = c12*v_rocker_theta_y - c9*v_rocker_theta_x
+    out[5] = (3/10)*c0*v_crank_theta_z - c3*v_crank_theta_y
+    out[6] = -3/10*c2*v_crank_theta_z + c3*v_crank_theta_x
+    out[7] = -3/10*c1 + (3/10)*c2*v_crank_theta_y
+    out[8] = -c4*v_coupler_theta_y + (9/10)*c5*v_coupler_theta_z + (7/10)*c6*v_rocker_theta_y - c7*c8
+    out[9] = c10*c8 + c4*v_coupler_theta_x - 7/10*c6*v_rocker_theta_x - 9/10*c9*v_coupler_theta_z
+    out[10] = -7/10*c10*v_rocker_theta_y - 9/10*c5*v_coupler_theta_x + (7/10)*c7*v_rocker_theta_x + (9/10)*c9*v_coupler_theta_y
+    out[11] = c11*(-c12 + rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x) - c13*(-c14 - rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x) + c15*(-c16 + rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y) - (-c12 + rocker_a12*v_rocker_theta_x)*(-c11 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - (-c14 + rocker_a02*v_rocker_theta_z)*(c13 - coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x) - (-c16 + rocker_a22*v_rocker_theta_y)*(-c15 + coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y)
+    out[15] = c10*v_rocker_theta_y - c7*v_rocker_theta_x
     out[16] = -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)
-    out[17] = c1*c20*v_crank_theta_z + c19*c3*v_crank_theta_z + c21*ud0**2 - c4*(c19*v_crank_theta_x + c20*v_crank_theta_y) - 2*ud0*(-c0*c20 + c19*crank_a20*v_crank_theta_y + c21*v_crank_theta_z) - udd0*(c19*crank_a00 + c20*crank_a10)
     return out
+
+
+def inputs_crank_turn(t):
+    """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 6.283185307179586*t
+    c1 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = c0 + (3/10)*c1 + 1/2
+    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
+    out[2] = -11.84352528130723*c1
+    return out
+
+
+def _drivers_phi_crank_turn(q, u):
+    """Phi of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    out = _zeros(1, q, u)
+    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_crank_turn(q, u):
+    """Phi_q values of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    out = _zeros(3, q, u)
+    out[0] = c0*crank_a20
+    out[1] = c1*crank_a20
+    out[2] = -c0*crank_a00 - c1*crank_a10
+    return out
+
+
+def _drivers_nu_crank_turn(q, u, ud):
+    """nu of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    return out
+
+
+def _drivers_gamma_crank_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'crank_turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = crank_a20*v_crank_theta_x
+    c3 = -c0*crank_a10 + c1*crank_a00
+    out = _zeros(1, q, u)
+    out[0] = c0*v_crank_theta_z*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y) + c1*v_crank_theta_z*(-c2 + crank_a00*v_crank_theta_z) + c3*ud0**2 - 2*ud0*(c0*crank_a20*v_crank_theta_y - c1*c2 + c3*v_crank_theta_z) - udd0*(c0*crank_a00 + c1*crank_a10) - (c0*v_crank_theta_x + c1*v_crank_theta_y)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    return out
+
+
+def phi_crank_turn(q, u):
+    """Phi(q, u) of case 'crank_turn': 18 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_crank_turn(q, u))
+
+
+def jac_crank_turn(q, u):
+    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (53 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_crank_turn(q, u))
+
+
+def nu_crank_turn(q, u, ud):
+    """nu = -Phi_t of case 'crank_turn' (zero in the joint rows)."""
+    drivers = _drivers_nu_crank_turn(q, u, ud)
+    return _join(np.zeros((17,) + drivers.shape[1:]), drivers)
+
+
+def gamma_crank_turn(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_crank_turn(q, v, u, ud, udd))
 
 
 CASES = {

@@ -39,22 +39,18 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_turn(t):
-    """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    c0 = 3.141592653589793*t
-    c1 = cos(c0)
-    c2 = sin(c0)
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
-    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
-    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_turn(q, u):
-    """Phi(q, u) of case 'turn': 14 residuals."""
+def _joints_phi(q):
+    """Phi of the 13 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    u0, = u
     crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
@@ -65,7 +61,7 @@ def phi_turn(q, u):
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    out = _zeros(14, q, u)
+    out = _zeros(13, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
@@ -79,14 +75,12 @@ def phi_turn(q, u):
     out[10] = ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625
     out[11] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
     out[12] = rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1
-    out[13] = crank_a00*sin(u0) - crank_a10*cos(u0)
     return out
 
 
-def jac_turn(q, u):
-    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (48 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (44 entries)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    u0, = u
     crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
@@ -117,9 +111,7 @@ def jac_turn(q, u):
     c18 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
     c19 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
     c20 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
-    c21 = 4*sin(u0)
-    c22 = cos(u0)
-    out = _zeros(48, q, u)
+    out = _zeros(44, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -164,32 +156,13 @@ def jac_turn(q, u):
     out[41] = c6
     out[42] = c5
     out[43] = c4
-    out[44] = -c1*c22 + c21*crank_e0
-    out[45] = -c0*c22 + c21*crank_e1
-    out[46] = -c22*c3
-    out[47] = -c2*c22
     return out
 
 
-def nu_turn(q, u, ud):
-    """nu = -Phi_t of case 'turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
-    u0, = u
-    ud0, = ud
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    out = _zeros(14, q, u)
-    out[13] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
-    return out
-
-
-def gamma_turn(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'."""
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
-    u0, = u
-    ud0, = ud
-    udd0, = udd
     crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
@@ -266,46 +239,128 @@ def gamma_turn(q, v, u, ud, udd):
     c64 = -0.13208196*rocker_e1
     c65 = (0.13208196)*rocker_e0
     c66 = (0.122288004)*rocker_e1
-    c67 = 2*c44
-    c68 = 2*c45
-    c69 = 2*rocker_e0
-    c70 = 2*v_rocker_e0
-    c71 = c69*v_rocker_e1 + c70*rocker_e1
-    c72 = (0.1661595102478224)*rocker_e0
-    c73 = (0.358934205617952)*rocker_e0
-    c74 = (0.1661595102478224)*rocker_e1
-    c75 = -0.1661595102478224*rocker_e3
-    c76 = (0.19384049063824)*rocker_e0
-    c77 = (0.19384049063824)*rocker_e3
-    c78 = -0.19384049063824*rocker_e1
-    c79 = (0.19384049063824)*rocker_e2
-    c80 = (0.13208196)*crank_a00 + (0.8805464)*crank_x + (0.19384049063824)*rocker_a01 - 0.179467102808976*rocker_a02 - 0.8805464*rocker_x
-    c81 = -0.122288004*crank_a00 - 0.81525336*crank_x - 0.179467102808976*rocker_a01 + (0.1661595102478224)*rocker_a02 + (0.81525336)*rocker_x
-    c82 = (0.179467102808976)*rocker_a22
-    c83 = (0.8805464)*rocker_z
-    c84 = (0.122288004)*crank_a10 + (0.81525336)*crank_y + (0.179467102808976)*rocker_a11 - 0.1661595102478224*rocker_a12 - 0.81525336*rocker_y
-    c85 = -c82 - c83 + c84 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
-    c86 = (0.26416392)*crank_a10 + (1.7610928)*crank_y + (0.38768098127648)*rocker_a11 - 0.358934205617952*rocker_a12 - 1.7610928*rocker_y
-    c87 = -c82 - c83 - c84 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
-    c88 = -c80
-    c89 = (0.244576008)*crank_a20
-    c90 = (1.63050672)*crank_z
-    c91 = (0.358934205617952)*rocker_a21
-    c92 = cos(u0)
-    c93 = sin(u0)
-    c94 = 2*c92
-    c95 = 4*c92
-    c96 = 2*c93
-    out = _zeros(14, q, u)
+    c67 = 2*rocker_e0
+    c68 = 2*v_rocker_e0
+    c69 = c67*v_rocker_e1 + c68*rocker_e1
+    c70 = (0.1661595102478224)*rocker_e0
+    c71 = (0.358934205617952)*rocker_e0
+    c72 = (0.1661595102478224)*rocker_e1
+    c73 = -0.1661595102478224*rocker_e3
+    c74 = (0.19384049063824)*rocker_e0
+    c75 = (0.19384049063824)*rocker_e3
+    c76 = -0.19384049063824*rocker_e1
+    c77 = (0.19384049063824)*rocker_e2
+    c78 = (0.13208196)*crank_a00 + (0.8805464)*crank_x + (0.19384049063824)*rocker_a01 - 0.179467102808976*rocker_a02 - 0.8805464*rocker_x
+    c79 = -0.122288004*crank_a00 - 0.81525336*crank_x - 0.179467102808976*rocker_a01 + (0.1661595102478224)*rocker_a02 + (0.81525336)*rocker_x
+    c80 = (0.179467102808976)*rocker_a22
+    c81 = (0.8805464)*rocker_z
+    c82 = (0.122288004)*crank_a10 + (0.81525336)*crank_y + (0.179467102808976)*rocker_a11 - 0.1661595102478224*rocker_a12 - 0.81525336*rocker_y
+    c83 = -c80 - c81 + c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c84 = (0.26416392)*crank_a10 + (1.7610928)*crank_y + (0.38768098127648)*rocker_a11 - 0.358934205617952*rocker_a12 - 1.7610928*rocker_y
+    c85 = -c80 - c81 - c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c86 = -c78
+    c87 = (0.244576008)*crank_a20
+    c88 = (1.63050672)*crank_z
+    c89 = (0.358934205617952)*rocker_a21
+    out = _zeros(13, q, ())
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[8] = c2*v_rocker_e0 - c3*v_rocker_e1
     out[9] = -c2*v_rocker_e1 - c3*v_rocker_e0
-    out[10] = -v_crank_e0*(c42*v_crank_e0 + c5*v_crank_e2 + c6*v_crank_e3) - v_crank_e1*(c4*v_crank_e3 + c42*v_crank_e1 + c6*v_crank_e2) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c10*v_rocker_e2 + c17 + c8*v_rocker_e0) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c81*v_rocker_e2 + c85*v_rocker_e1 + c88*v_rocker_e3 + v_rocker_e0*(c86 - c89 - c90 - c91 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_e1*(c80*v_rocker_e2 + c81*v_rocker_e3 + c85*v_rocker_e0) - v_rocker_e2*(c80*v_rocker_e1 + c81*v_rocker_e0 + c86*v_rocker_e2 + c87*v_rocker_e3) - v_rocker_e3*(c81*v_rocker_e1 + c87*v_rocker_e2 + c88*v_rocker_e0 + v_rocker_e3*(-c89 - c90 - c91 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c10*v_rocker_e2 - c17 - c8*v_rocker_e0) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (c1*crank_e1 + 4*c34)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (c2*rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*(c58 + (0.3323190204956448)*rocker_e0) + v_rocker_e3*(-c50 + (0.3323190204956448)*rocker_e3) + (0.40762668)*v_rocker_z) - (c3*rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*(c51 + (0.38768098127648)*rocker_e0) + v_rocker_e2*(c53 + (0.38768098127648)*rocker_e2) - 0.4402732*v_rocker_y) - (-c71 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c72*v_rocker_e1 + (0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.40762668*v_crank_y + v_rocker_e0*(-c73 - c74) + v_rocker_e2*(-c75 - 0.358934205617952*rocker_e2) + (0.40762668)*v_rocker_y) - (c71 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c76*v_rocker_e1 + c77*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c73 - c78) + v_rocker_e3*(c79 - 0.358934205617952*rocker_e3) - 0.4402732*v_rocker_z) - (2*c46 + 2*c47 + c67 + c68)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*(c66 + (0.26416392)*rocker_e0) + v_rocker_e2*(c62 + (0.26416392)*rocker_e2) - 3/10*v_rocker_y) - (-2*c54 - 2*c56 + 2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-c64 - 0.244576008*rocker_e0) + v_rocker_e3*(c61 - 0.244576008*rocker_e3) - 3/10*v_rocker_z) - (c69*v_rocker_e2 + c70*rocker_e2 + 2*rocker_e1*v_rocker_e3 + 2*rocker_e3*v_rocker_e1)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*(c52 + (0.1661595102478224)*rocker_e2) + v_rocker_e1*(-c50 - c75) + v_rocker_e2*(c58 + c72) + v_rocker_e3*(c48 + c74) + (0.40762668)*v_rocker_x) - (-c69*v_rocker_e3 - c70*rocker_e3 + 2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c77) + v_rocker_e1*(c53 + c79) + v_rocker_e2*(-c48 - c78) + v_rocker_e3*(-c51 - c76) - 0.4402732*v_rocker_x)
+    out[10] = -v_crank_e0*(c42*v_crank_e0 + c5*v_crank_e2 + c6*v_crank_e3) - v_crank_e1*(c4*v_crank_e3 + c42*v_crank_e1 + c6*v_crank_e2) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c10*v_rocker_e2 + c17 + c8*v_rocker_e0) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*(c84 - c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*(-c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c10*v_rocker_e2 - c17 - c8*v_rocker_e0) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (c1*crank_e1 + 4*c34)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (c2*rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*(c58 + (0.3323190204956448)*rocker_e0) + v_rocker_e3*(-c50 + (0.3323190204956448)*rocker_e3) + (0.40762668)*v_rocker_z) - (c3*rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*(c51 + (0.38768098127648)*rocker_e0) + v_rocker_e2*(c53 + (0.38768098127648)*rocker_e2) - 0.4402732*v_rocker_y) - (-c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 + (0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-c73 - 0.358934205617952*rocker_e2) + (0.40762668)*v_rocker_y) - (c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(c77 - 0.358934205617952*rocker_e3) - 0.4402732*v_rocker_z) - (2*c44 + 2*c45 + 2*c46 + 2*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*(c66 + (0.26416392)*rocker_e0) + v_rocker_e2*(c62 + (0.26416392)*rocker_e2) - 3/10*v_rocker_y) - (-2*c54 - 2*c56 + 2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-c64 - 0.244576008*rocker_e0) + v_rocker_e3*(c61 - 0.244576008*rocker_e3) - 3/10*v_rocker_z) - (c67*v_rocker_e2 + c68*rocker_e2 + 2*rocker_e1*v_rocker_e3 + 2*rocker_e3*v_rocker_e1)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*(c52 + (0.1661595102478224)*rocker_e2) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x) - (-c67*v_rocker_e3 - c68*rocker_e3 + 2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x)
     out[11] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[12] = -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
-    out[13] = 2*c92*v_crank_e0*v_crank_e3 + 2*c92*v_crank_e1*v_crank_e2 - ud0**2*(c92*crank_a10 - c93*crank_a00) - 2*ud0*(c67*c93 + c68*c93 + v_crank_e0*(c95*crank_e0 + c96*crank_e3) + v_crank_e1*(c95*crank_e1 + c96*crank_e2)) - udd0*(c92*crank_a00 + c93*crank_a10) - v_crank_e0*(4*c93*v_crank_e0 - c94*v_crank_e3) - v_crank_e1*(c1*c93 - c94*v_crank_e2)
     return out
+
+
+def inputs_turn(t):
+    """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 3.141592653589793*t
+    c1 = cos(c0)
+    c2 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
+    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
+    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
+    return out
+
+
+def _drivers_phi_turn(q, u):
+    """Phi of the driver rows of case 'turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    out = _zeros(1, q, u)
+    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_turn(q, u):
+    """Phi_q values of the driver rows of case 'turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = 4*sin(u0)
+    c1 = 2*cos(u0)
+    out = _zeros(4, q, u)
+    out[0] = c0*crank_e0 - c1*crank_e3
+    out[1] = c0*crank_e1 - c1*crank_e2
+    out[2] = -c1*crank_e1
+    out[3] = -c1*crank_e0
+    return out
+
+
+def _drivers_nu_turn(q, u, ud):
+    """nu of the driver rows of case 'turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    return out
+
+
+def _drivers_gamma_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'turn'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = 4*c1
+    c3 = 2*c0
+    c4 = 2*c1
+    c5 = 4*c0
+    out = _zeros(1, q, u)
+    out[0] = 2*c0*v_crank_e0*v_crank_e3 + 2*c0*v_crank_e1*v_crank_e2 - ud0**2*(c0*crank_a10 - c1*crank_a00) - 2*ud0*(c4*crank_e0*v_crank_e3 + c4*crank_e1*v_crank_e2 + v_crank_e0*(c4*crank_e3 + c5*crank_e0) + v_crank_e1*(c4*crank_e2 + c5*crank_e1)) - udd0*(c0*crank_a00 + c1*crank_a10) - v_crank_e0*(c2*v_crank_e0 - c3*v_crank_e3) - v_crank_e1*(c2*v_crank_e1 - c3*v_crank_e2)
+    return out
+
+
+def phi_turn(q, u):
+    """Phi(q, u) of case 'turn': 14 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_turn(q, u))
+
+
+def jac_turn(q, u):
+    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (48 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_turn(q, u))
+
+
+def nu_turn(q, u, ud):
+    """nu = -Phi_t of case 'turn' (zero in the joint rows)."""
+    drivers = _drivers_nu_turn(q, u, ud)
+    return _join(np.zeros((13,) + drivers.shape[1:]), drivers)
+
+
+def gamma_turn(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_turn(q, v, u, ud, udd))
 
 
 CASES = {

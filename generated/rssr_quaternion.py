@@ -39,22 +39,18 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_turn(t):
-    """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    c0 = 3.141592653589793*t
-    c1 = cos(c0)
-    c2 = sin(c0)
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
-    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
-    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_turn(q, u):
-    """Phi(q, u) of case 'turn': 12 residuals."""
+def _joints_phi(q):
+    """Phi of the 11 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    u0, = u
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
@@ -65,7 +61,7 @@ def phi_turn(q, u):
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    out = _zeros(12, q, u)
+    out = _zeros(11, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
@@ -77,14 +73,12 @@ def phi_turn(q, u):
     out[8] = rocker_a01
     out[9] = rocker_a02
     out[10] = ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625
-    out[11] = crank_a00*sin(u0) - crank_a10*cos(u0)
     return out
 
 
-def jac_turn(q, u):
-    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (29 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (26 entries)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    u0, = u
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
@@ -108,9 +102,7 @@ def jac_turn(q, u):
     c9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
     c10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
     c11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    c12 = cos(u0)
-    c13 = sin(u0)
-    out = _zeros(29, q, u)
+    out = _zeros(26, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -137,31 +129,13 @@ def jac_turn(q, u):
     out[23] = c6*rocker_a11 + c7*rocker_a12 - c8*rocker_a21 - c9*rocker_a22
     out[24] = c10*rocker_a21 + c11*rocker_a22 - c6*rocker_a01 - c7*rocker_a02
     out[25] = -c10*rocker_a11 - c11*rocker_a12 + c8*rocker_a01 + c9*rocker_a02
-    out[26] = c12*crank_a20
-    out[27] = c13*crank_a20
-    out[28] = -c12*crank_a00 - c13*crank_a10
     return out
 
 
-def nu_turn(q, u, ud):
-    """nu = -Phi_t of case 'turn'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
-    u0, = u
-    ud0, = ud
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    out = _zeros(12, q, u)
-    out[11] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
-    return out
-
-
-def gamma_turn(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'."""
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    u0, = u
-    ud0, = ud
-    udd0, = udd
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
@@ -210,24 +184,110 @@ def gamma_turn(q, v, u, ud, udd):
     c33 = (0.061144002)*crank_a10 + (0.40762668)*crank_y - 0.40762668*rocker_y
     c34 = (0.061144002)*crank_a00 + (0.40762668)*crank_x - 0.40762668*rocker_x
     c35 = (0.061144002)*crank_a20 + (0.40762668)*crank_z - 0.40762668*rocker_z
-    c36 = -c25 + crank_a10*v_crank_theta_x
-    c37 = (0.06604098)*rocker_a11 - 0.061144002*rocker_a12
-    c38 = (0.06604098)*rocker_a01 - 0.061144002*rocker_a02
-    c39 = c37 + (3/10)*crank_y - 3/10*rocker_y
-    c40 = c38 + (3/10)*crank_x - 3/10*rocker_x
-    c41 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
-    c42 = c41 + (3/10)*crank_z - 3/10*rocker_z
-    c43 = cos(u0)
-    c44 = sin(u0)
-    c45 = -c43*crank_a10 + c44*crank_a00
-    out = _zeros(12, q, u)
+    c36 = (0.06604098)*rocker_a11 - 0.061144002*rocker_a12
+    c37 = (0.06604098)*rocker_a01 - 0.061144002*rocker_a02
+    c38 = c36 + (3/10)*crank_y - 3/10*rocker_y
+    c39 = c37 + (3/10)*crank_x - 3/10*rocker_x
+    c40 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
+    c41 = c40 + (3/10)*crank_z - 3/10*rocker_z
+    out = _zeros(11, q, ())
     out[3] = -c2*v_crank_theta_x + c4*v_crank_theta_y
     out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
     out[8] = -c5*v_rocker_theta_y + c6*v_rocker_theta_z
     out[9] = -c7*v_rocker_theta_y + c8*v_rocker_theta_z
-    out[10] = -c2*(c38*v_rocker_theta_z - c40*v_crank_theta_z - c41*v_rocker_theta_x + c42*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - c36*(c37*v_rocker_theta_x - c38*v_rocker_theta_y - c39*v_crank_theta_x + c40*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - c4*(-c37*v_rocker_theta_z + c39*v_crank_theta_z + c41*v_rocker_theta_y - c42*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - c5*(-0.06604098*c25 + (0.06604098)*c27 - c30*v_rocker_theta_x + c31*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - c6*((0.06604098)*c0 - 0.06604098*c1 - c31*v_rocker_theta_z + c32*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - c7*((0.061144002)*c25 - 0.061144002*c27 + c33*v_rocker_theta_x - c34*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - c8*(-0.061144002*c0 + (0.061144002)*c1 + c34*v_rocker_theta_z - c35*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - v_crank_x*(-c10 - c11 + c13 + c14*v_rocker_theta_y + c16*v_rocker_theta_z + c9) - v_crank_y*(c17 - c18 + c19 - c20 + c21*v_rocker_theta_x + c22*v_rocker_theta_z) - v_crank_z*(c15*v_rocker_theta_x + c23 - c24 - c26 + c28 + c29*v_rocker_theta_y) - v_rocker_x*(c10 + c11 - c13 + c15*v_rocker_theta_z + c21*v_rocker_theta_y - c9) - v_rocker_y*(c14*v_rocker_theta_x - c17 + c18 - c19 + c20 + c29*v_rocker_theta_z) - v_rocker_z*(c16*v_rocker_theta_x + c22*v_rocker_theta_y - c23 + c24 + c26 - c28) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*((0.06604098)*c12 - 0.06604098*c3 + c30*v_rocker_theta_z - c32*v_rocker_theta_y + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(-0.061144002*c12 + (0.061144002)*c3 - c33*v_rocker_theta_z + c35*v_rocker_theta_y - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)
-    out[11] = c2*c44*v_crank_theta_z - c36*(c43*v_crank_theta_x + c44*v_crank_theta_y) + c4*c43*v_crank_theta_z + c45*ud0**2 - 2*ud0*(-c1*c44 + c12*c43 + c45*v_crank_theta_z) - udd0*(c43*crank_a00 + c44*crank_a10)
+    out[10] = -c2*(c37*v_rocker_theta_z - c39*v_crank_theta_z - c40*v_rocker_theta_x + c41*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - c4*(-c36*v_rocker_theta_z + c38*v_crank_theta_z + c40*v_rocker_theta_y - c41*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - c5*(-0.06604098*c25 + (0.06604098)*c27 - c30*v_rocker_theta_x + c31*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - c6*((0.06604098)*c0 - 0.06604098*c1 - c31*v_rocker_theta_z + c32*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - c7*((0.061144002)*c25 - 0.061144002*c27 + c33*v_rocker_theta_x - c34*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - c8*(-0.061144002*c0 + (0.061144002)*c1 + c34*v_rocker_theta_z - c35*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - v_crank_x*(-c10 - c11 + c13 + c14*v_rocker_theta_y + c16*v_rocker_theta_z + c9) - v_crank_y*(c17 - c18 + c19 - c20 + c21*v_rocker_theta_x + c22*v_rocker_theta_z) - v_crank_z*(c15*v_rocker_theta_x + c23 - c24 - c26 + c28 + c29*v_rocker_theta_y) - v_rocker_x*(c10 + c11 - c13 + c15*v_rocker_theta_z + c21*v_rocker_theta_y - c9) - v_rocker_y*(c14*v_rocker_theta_x - c17 + c18 - c19 + c20 + c29*v_rocker_theta_z) - v_rocker_z*(c16*v_rocker_theta_x + c22*v_rocker_theta_y - c23 + c24 + c26 - c28) - (-c25 + crank_a10*v_crank_theta_x)*(c36*v_rocker_theta_x - c37*v_rocker_theta_y - c38*v_crank_theta_x + c39*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*((0.06604098)*c12 - 0.06604098*c3 + c30*v_rocker_theta_z - c32*v_rocker_theta_y + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(-0.061144002*c12 + (0.061144002)*c3 - c33*v_rocker_theta_z + c35*v_rocker_theta_y - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)
     return out
+
+
+def inputs_turn(t):
+    """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    c0 = 3.141592653589793*t
+    c1 = cos(c0)
+    c2 = sin(c0)
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
+    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
+    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
+    return out
+
+
+def _drivers_phi_turn(q, u):
+    """Phi of the driver rows of case 'turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    out = _zeros(1, q, u)
+    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_turn(q, u):
+    """Phi_q values of the driver rows of case 'turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    out = _zeros(3, q, u)
+    out[0] = c0*crank_a20
+    out[1] = c1*crank_a20
+    out[2] = -c0*crank_a00 - c1*crank_a10
+    return out
+
+
+def _drivers_nu_turn(q, u, ud):
+    """nu of the driver rows of case 'turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    return out
+
+
+def _drivers_gamma_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'turn'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = crank_a20*v_crank_theta_x
+    c3 = -c0*crank_a10 + c1*crank_a00
+    out = _zeros(1, q, u)
+    out[0] = c0*v_crank_theta_z*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y) + c1*v_crank_theta_z*(-c2 + crank_a00*v_crank_theta_z) + c3*ud0**2 - 2*ud0*(c0*crank_a20*v_crank_theta_y - c1*c2 + c3*v_crank_theta_z) - udd0*(c0*crank_a00 + c1*crank_a10) - (c0*v_crank_theta_x + c1*v_crank_theta_y)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    return out
+
+
+def phi_turn(q, u):
+    """Phi(q, u) of case 'turn': 12 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_turn(q, u))
+
+
+def jac_turn(q, u):
+    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (29 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_turn(q, u))
+
+
+def nu_turn(q, u, ud):
+    """nu = -Phi_t of case 'turn' (zero in the joint rows)."""
+    drivers = _drivers_nu_turn(q, u, ud)
+    return _join(np.zeros((11,) + drivers.shape[1:]), drivers)
+
+
+def gamma_turn(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_turn(q, v, u, ud, udd))
 
 
 CASES = {

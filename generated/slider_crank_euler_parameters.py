@@ -40,19 +40,18 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_run(t):
-    """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out[1] = t + 6.283185307179586
-    out[2] = 1
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_run(q, u):
-    """Phi(q, u) of case 'run': 21 residuals."""
+def _joints_phi(q):
+    """Phi of the 20 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    u0, = u
     crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
@@ -67,7 +66,7 @@ def phi_run(q, u):
     slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
     slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
-    out = _zeros(21, q, u)
+    out = _zeros(20, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
@@ -88,14 +87,12 @@ def phi_run(q, u):
     out[17] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
     out[18] = rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1
     out[19] = slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1
-    out[20] = crank_a00*sin(u0) - crank_a10*cos(u0)
     return out
 
 
-def jac_run(q, u):
-    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (81 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (77 entries)."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    u0, = u
     rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
     rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
     rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
@@ -125,9 +122,7 @@ def jac_run(q, u):
     c20 = 2*slider_e3
     c21 = 2*slider_e0
     c22 = -c21
-    c23 = 4*sin(u0)
-    c24 = cos(u0)
-    out = _zeros(81, q, u)
+    out = _zeros(77, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -205,34 +200,13 @@ def jac_run(q, u):
     out[74] = c18
     out[75] = c17
     out[76] = c20
-    out[77] = -c1*c24 + c23*crank_e0
-    out[78] = -c0*c24 + c23*crank_e1
-    out[79] = -c24*c3
-    out[80] = -c2*c24
     return out
 
 
-def nu_run(q, u, ud):
-    """nu = -Phi_t of case 'run'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, = u
-    ud0, = ud
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    out = _zeros(21, q, u)
-    out[20] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
-    return out
-
-
-def gamma_run(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
+    _, _, _, _, _, _, _, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
-    u0, = u
-    ud0, = ud
-    udd0, = udd
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
     rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
     rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
@@ -261,12 +235,7 @@ def gamma_run(q, v, u, ud, udd):
     c19 = 4*v_slider_e3
     c20 = 2*rod_e0
     c21 = 2*v_rod_e0
-    c22 = cos(u0)
-    c23 = sin(u0)
-    c24 = 2*c22
-    c25 = 2*c23
-    c26 = 4*c22
-    out = _zeros(21, q, u)
+    out = _zeros(20, q, ())
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[5] = -4/5*c2 - 4/5*c3
@@ -282,8 +251,94 @@ def gamma_run(q, v, u, ud, udd):
     out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[18] = -2*c6 - 2*c7 - 2*v_rod_e2**2 - 2*v_rod_e3**2
     out[19] = -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2
-    out[20] = 2*c22*v_crank_e0*v_crank_e3 + 2*c22*v_crank_e1*v_crank_e2 - ud0**2*(c22*crank_a10 - c23*crank_a00) - 2*ud0*(c25*crank_e0*v_crank_e3 + c25*crank_e1*v_crank_e2 + v_crank_e0*(c25*crank_e3 + c26*crank_e0) + v_crank_e1*(c25*crank_e2 + c26*crank_e1)) - udd0*(c22*crank_a00 + c23*crank_a10) - v_crank_e0*(4*c23*v_crank_e0 - c24*v_crank_e3) - v_crank_e1*(c1*c23 - c24*v_crank_e2)
     return out
+
+
+def inputs_run(t):
+    """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
+    out[1] = t + 6.283185307179586
+    out[2] = 1
+    return out
+
+
+def _drivers_phi_run(q, u):
+    """Phi of the driver rows of case 'run'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    out = _zeros(1, q, u)
+    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_run(q, u):
+    """Phi_q values of the driver rows of case 'run'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = 4*sin(u0)
+    c1 = 2*cos(u0)
+    out = _zeros(4, q, u)
+    out[0] = c0*crank_e0 - c1*crank_e3
+    out[1] = c0*crank_e1 - c1*crank_e2
+    out[2] = -c1*crank_e1
+    out[3] = -c1*crank_e0
+    return out
+
+
+def _drivers_nu_run(q, u, ud):
+    """nu of the driver rows of case 'run'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    return out
+
+
+def _drivers_gamma_run(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'run'."""
+    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = 4*c1
+    c3 = 2*c0
+    c4 = 2*c1
+    c5 = 4*c0
+    out = _zeros(1, q, u)
+    out[0] = 2*c0*v_crank_e0*v_crank_e3 + 2*c0*v_crank_e1*v_crank_e2 - ud0**2*(c0*crank_a10 - c1*crank_a00) - 2*ud0*(c4*crank_e0*v_crank_e3 + c4*crank_e1*v_crank_e2 + v_crank_e0*(c4*crank_e3 + c5*crank_e0) + v_crank_e1*(c4*crank_e2 + c5*crank_e1)) - udd0*(c0*crank_a00 + c1*crank_a10) - v_crank_e0*(c2*v_crank_e0 - c3*v_crank_e3) - v_crank_e1*(c2*v_crank_e1 - c3*v_crank_e2)
+    return out
+
+
+def phi_run(q, u):
+    """Phi(q, u) of case 'run': 21 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_run(q, u))
+
+
+def jac_run(q, u):
+    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (81 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_run(q, u))
+
+
+def nu_run(q, u, ud):
+    """nu = -Phi_t of case 'run' (zero in the joint rows)."""
+    drivers = _drivers_nu_run(q, u, ud)
+    return _join(np.zeros((20,) + drivers.shape[1:]), drivers)
+
+
+def gamma_run(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_run(q, v, u, ud, udd))
 
 
 def inputs_dead_centre(t):
@@ -295,222 +350,57 @@ def inputs_dead_centre(t):
     return out
 
 
+def _drivers_phi_dead_centre(q, u):
+    """Phi of the driver rows of case 'dead_centre'."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
+    u0, = u
+    out = _zeros(1, q, u)
+    out[0] = slider_x - u0
+    return out
+
+
+def _drivers_jac_dead_centre(q, u):
+    """Phi_q values of the driver rows of case 'dead_centre'."""
+    out = _zeros(1, q, u)
+    out[0] = 1
+    return out
+
+
+def _drivers_nu_dead_centre(q, u, ud):
+    """nu of the driver rows of case 'dead_centre'."""
+    ud0, = ud
+    out = _zeros(1, q, u)
+    out[0] = ud0
+    return out
+
+
+def _drivers_gamma_dead_centre(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'dead_centre'."""
+    udd0, = udd
+    out = _zeros(1, q, u)
+    out[0] = udd0
+    return out
+
+
 def phi_dead_centre(q, u):
     """Phi(q, u) of case 'dead_centre': 21 residuals."""
-    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    u0, = u
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
-    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    rod_a00 = 2*rod_e0**2 + 2*rod_e1**2 - 1
-    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a10 = 2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
-    rod_a20 = -2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
-    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
-    slider_a01 = -2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
-    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
-    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
-    out = _zeros(21, q, u)
-    out[0] = -crank_x
-    out[1] = -crank_y
-    out[2] = -crank_z
-    out[3] = crank_a20
-    out[4] = crank_a21
-    out[5] = (1/5)*crank_a00 + crank_x - rod_x
-    out[6] = (1/5)*crank_a10 + crank_y - rod_y
-    out[7] = (1/5)*crank_a20 + crank_z - rod_z
-    out[8] = (3/5)*rod_a00 + rod_x - slider_x
-    out[9] = (3/5)*rod_a10 + rod_y - slider_y
-    out[10] = (3/5)*rod_a20 + rod_z - slider_z
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
-    out[12] = slider_a01
-    out[13] = slider_a02
-    out[14] = slider_y
-    out[15] = slider_z
-    out[16] = slider_a12
-    out[17] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
-    out[18] = rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1
-    out[19] = slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1
-    out[20] = slider_x - u0
-    return out
+    return _join(_joints_phi(q), _drivers_phi_dead_centre(q, u))
 
 
 def jac_dead_centre(q, u):
     """Values of the sparse Phi_q of case 'dead_centre' at jac_rows, jac_cols (78 entries)."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
-    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
-    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
-    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
-    c0 = 2*crank_e2
-    c1 = 2*crank_e3
-    c2 = 2*crank_e0
-    c3 = 2*crank_e1
-    c4 = (2/5)*crank_e3
-    c5 = (2/5)*crank_e2
-    c6 = (2/5)*crank_e1
-    c7 = (2/5)*crank_e0
-    c8 = (6/5)*rod_e3
-    c9 = (6/5)*rod_e2
-    c10 = (6/5)*rod_e1
-    c11 = (6/5)*rod_e0
-    c12 = 4*slider_a12
-    c13 = 2*rod_e1
-    c14 = 2*rod_e3
-    c15 = 2*rod_e0
-    c16 = 2*rod_e2
-    c17 = 2*slider_e2
-    c18 = 2*slider_e1
-    c19 = 4*rod_a21
-    c20 = 2*slider_e3
-    c21 = 2*slider_e0
-    c22 = -c21
-    out = _zeros(78, q, u)
-    out[0] = -1
-    out[1] = -1
-    out[2] = -1
-    out[3] = -c0
-    out[4] = c1
-    out[5] = -c2
-    out[6] = c3
-    out[7] = c3
-    out[8] = c2
-    out[9] = c1
-    out[10] = c0
-    out[11] = 1
-    out[12] = (4/5)*crank_e0
-    out[13] = (4/5)*crank_e1
-    out[14] = -1
-    out[15] = 1
-    out[16] = c4
-    out[17] = c5
-    out[18] = c6
-    out[19] = c7
-    out[20] = -1
-    out[21] = 1
-    out[22] = -c5
-    out[23] = c4
-    out[24] = -c7
-    out[25] = c6
-    out[26] = -1
-    out[27] = 1
-    out[28] = (12/5)*rod_e0
-    out[29] = (12/5)*rod_e1
-    out[30] = -1
-    out[31] = 1
-    out[32] = c8
-    out[33] = c9
-    out[34] = c10
-    out[35] = c11
-    out[36] = -1
-    out[37] = 1
-    out[38] = -c9
-    out[39] = c8
-    out[40] = -c11
-    out[41] = c10
-    out[42] = -1
-    out[43] = c12*rod_e0 + c13*slider_a22 - c14*slider_a02
-    out[44] = c15*slider_a22 + c16*slider_a02
-    out[45] = c12*rod_e2 + c13*slider_a02 + c14*slider_a22
-    out[46] = -c15*slider_a02 + 2*rod_e2*slider_a22
-    out[47] = c17*rod_a01 - c18*rod_a11 + c19*slider_e0
-    out[48] = c20*rod_a01 - c21*rod_a11
-    out[49] = c20*rod_a11 + c21*rod_a01
-    out[50] = c17*rod_a11 + c18*rod_a01 + c19*slider_e3
-    out[51] = -c20
-    out[52] = c17
-    out[53] = c18
-    out[54] = c22
-    out[55] = c17
-    out[56] = c20
-    out[57] = c21
-    out[58] = c18
-    out[59] = 1
-    out[60] = 1
-    out[61] = -c18
-    out[62] = c22
-    out[63] = c20
-    out[64] = c17
-    out[65] = c2
-    out[66] = c3
-    out[67] = c0
-    out[68] = c1
-    out[69] = c15
-    out[70] = c13
-    out[71] = c16
-    out[72] = c14
-    out[73] = c21
-    out[74] = c18
-    out[75] = c17
-    out[76] = c20
-    out[77] = 1
-    return out
+    return _join(_joints_jac(q), _drivers_jac_dead_centre(q, u))
 
 
 def nu_dead_centre(q, u, ud):
-    """nu = -Phi_t of case 'dead_centre'."""
-    ud0, = ud
-    out = _zeros(21, q, u)
-    out[20] = ud0
-    return out
+    """nu = -Phi_t of case 'dead_centre' (zero in the joint rows)."""
+    drivers = _drivers_nu_dead_centre(q, u, ud)
+    return _join(np.zeros((20,) + drivers.shape[1:]), drivers)
 
 
 def gamma_dead_centre(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'."""
-    _, _, _, _, _, _, _, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
-    udd0, = udd
-    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
-    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
-    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
-    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
-    c0 = 4*v_crank_e2
-    c1 = 4*v_crank_e1
-    c2 = v_crank_e0**2
-    c3 = v_crank_e1**2
-    c4 = (4/5)*v_crank_e3
-    c5 = (4/5)*v_crank_e2
-    c6 = v_rod_e0**2
-    c7 = v_rod_e1**2
-    c8 = (12/5)*v_rod_e3
-    c9 = (12/5)*v_rod_e2
-    c10 = 2*slider_a02
-    c11 = 2*slider_a22
-    c12 = 2*rod_a01
-    c13 = 2*rod_a11
-    c14 = 4*slider_a12
-    c15 = 4*rod_a21
-    c16 = 2*slider_e0
-    c17 = 2*slider_e1
-    c18 = 4*v_slider_e0
-    c19 = 4*v_slider_e3
-    c20 = 2*rod_e0
-    c21 = 2*v_rod_e0
-    out = _zeros(21, q, u)
-    out[3] = c0*v_crank_e0 - c1*v_crank_e3
-    out[4] = -c0*v_crank_e3 - c1*v_crank_e0
-    out[5] = -4/5*c2 - 4/5*c3
-    out[6] = -c4*v_crank_e0 - c5*v_crank_e1
-    out[7] = -c4*v_crank_e1 + c5*v_crank_e0
-    out[8] = -12/5*c6 - 12/5*c7
-    out[9] = -c8*v_rod_e0 - c9*v_rod_e1
-    out[10] = -c8*v_rod_e1 + c9*v_rod_e0
-    out[11] = -v_rod_e0*(-c10*v_rod_e3 + c11*v_rod_e1 + c14*v_rod_e0) - v_rod_e1*(c10*v_rod_e2 + c11*v_rod_e0) - v_rod_e2*(c10*v_rod_e1 + c11*v_rod_e3 + c14*v_rod_e2) - v_rod_e3*(-c10*v_rod_e0 + 2*slider_a22*v_rod_e2) - v_slider_e0*(c12*v_slider_e2 - c13*v_slider_e1 + c15*v_slider_e0) - v_slider_e1*(c12*v_slider_e3 - c13*v_slider_e0) - v_slider_e2*(c12*v_slider_e0 + c13*v_slider_e3) - v_slider_e3*(c12*v_slider_e1 + c13*v_slider_e2 + c15*v_slider_e3) - 2*(c18*slider_e0 + c19*slider_e3)*(c20*v_rod_e1 + c21*rod_e1 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(-c16*v_slider_e1 - c17*v_slider_e0 + 2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2) - 2*(c16*v_slider_e2 + c17*v_slider_e3 + 2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1)*(-c20*v_rod_e3 - c21*rod_e3 + 2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1)
-    out[12] = c18*v_slider_e3 - 4*v_slider_e1*v_slider_e2
-    out[13] = -c18*v_slider_e2 - c19*v_slider_e1
-    out[16] = c18*v_slider_e1 - c19*v_slider_e2
-    out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
-    out[18] = -2*c6 - 2*c7 - 2*v_rod_e2**2 - 2*v_rod_e3**2
-    out[19] = -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2
-    out[20] = udd0
-    return out
+    return _join(_joints_gamma(q, v), _drivers_gamma_dead_centre(q, v, u, ud, udd))
 
 
 CASES = {

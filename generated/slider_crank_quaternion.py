@@ -40,19 +40,18 @@ def _zeros(m, q, u):
     return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))
 
 
-def inputs_run(t):
-    """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out[1] = t + 6.283185307179586
-    out[2] = 1
-    return out
+def _join(joints, drivers):
+    """Joint rows, then driver rows (broadcast to one batch shape)."""
+    if joints.shape[1:] != drivers.shape[1:]:
+        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])
+        joints = np.broadcast_to(joints, joints.shape[:1] + shape)
+        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)
+    return np.concatenate((joints, drivers))
 
 
-def phi_run(q, u):
-    """Phi(q, u) of case 'run': 18 residuals."""
+def _joints_phi(q):
+    """Phi of the 17 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
-    u0, = u
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
@@ -67,7 +66,7 @@ def phi_run(q, u):
     slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
-    out = _zeros(18, q, u)
+    out = _zeros(17, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
@@ -85,14 +84,12 @@ def phi_run(q, u):
     out[14] = slider_y
     out[15] = slider_z
     out[16] = slider_a12
-    out[17] = crank_a00*sin(u0) - crank_a10*cos(u0)
     return out
 
 
-def jac_run(q, u):
-    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (48 entries)."""
+def _joints_jac(q):
+    """Phi_q values of the joint rows (45 entries)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
-    u0, = u
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
@@ -118,9 +115,7 @@ def jac_run(q, u):
     c6 = rod_a11*slider_a22 - rod_a21*slider_a12
     c7 = rod_a01*slider_a22 - rod_a21*slider_a02
     c8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    c9 = cos(u0)
-    c10 = sin(u0)
-    out = _zeros(48, q, u)
+    out = _zeros(45, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
@@ -166,227 +161,13 @@ def jac_run(q, u):
     out[42] = 1
     out[43] = -slider_a22
     out[44] = slider_a02
-    out[45] = c9*crank_a20
-    out[46] = c10*crank_a20
-    out[47] = -c10*crank_a10 - c9*crank_a00
     return out
 
 
-def nu_run(q, u, ud):
-    """nu = -Phi_t of case 'run'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    u0, = u
-    ud0, = ud
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    out = _zeros(18, q, u)
-    out[17] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
-    return out
-
-
-def gamma_run(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
+def _joints_gamma(q, v):
+    """gamma of the joint rows (they do not depend on time)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
-    u0, = u
-    ud0, = ud
-    udd0, = udd
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
-    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
-    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
-    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
-    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
-    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
-    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
-    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
-    c0 = crank_a20*v_crank_theta_x
-    c1 = -c0 + crank_a00*v_crank_theta_z
-    c2 = c1*v_crank_theta_x
-    c3 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
-    c4 = -crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x
-    c5 = (1/5)*c4
-    c6 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
-    c7 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
-    c8 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
-    c9 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
-    c10 = slider_a02*v_slider_theta_y
-    c11 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
-    c12 = slider_a22*v_slider_theta_x
-    c13 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
-    c14 = slider_a12*v_slider_theta_z
-    c15 = -c10 + slider_a12*v_slider_theta_x
-    c16 = -c12 + slider_a02*v_slider_theta_z
-    c17 = -c14 + slider_a22*v_slider_theta_y
-    c18 = cos(u0)
-    c19 = sin(u0)
-    c20 = -c18*crank_a10 + c19*crank_a00
-    out = _zeros(18, q, u)
-    out[3] = -c2 + c3*v_crank_theta_y
-    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
-    out[5] = (1/5)*c1*v_crank_theta_z - c5*v_crank_theta_y
-    out[6] = -1/5*c3*v_crank_theta_z + c5*v_crank_theta_x
-    out[7] = -1/5*c2 + (1/5)*c3*v_crank_theta_y
-    out[8] = -c6*v_rod_theta_y + (3/5)*c7*v_rod_theta_z
-    out[9] = c6*v_rod_theta_x - 3/5*c8*v_rod_theta_z
-    out[10] = -3/5*c7*v_rod_theta_x + (3/5)*c8*v_rod_theta_y
-    out[11] = -c11*(-c12 - slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x) + c13*(-c14 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y) - c15*(-c9 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c16*(c11 - rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x) - c17*(-c13 + rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y) + c9*(-c10 + slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x)
-    out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x)
-    out[13] = -c15*v_slider_theta_y + c16*v_slider_theta_z
-    out[16] = c15*v_slider_theta_x - c17*v_slider_theta_z
-    out[17] = c1*c19*v_crank_theta_z + c18*c3*v_crank_theta_z + c20*ud0**2 - c4*(c18*v_crank_theta_x + c19*v_crank_theta_y) - 2*ud0*(-c0*c19 + c18*crank_a20*v_crank_theta_y + c20*v_crank_theta_z) - udd0*(c18*crank_a00 + c19*crank_a10)
-    return out
-
-
-def inputs_dead_centre(t):
-    """Driver inputs of case 'dead_centre' at time t: rows u (1), then du/dt, then d2u/dt2."""
-    out = np.zeros((3,) + np.shape(t))
-    out[0] = 4/5 - 1/10*t**2
-    out[1] = -1/5*t
-    out[2] = -1/5
-    return out
-
-
-def phi_dead_centre(q, u):
-    """Phi(q, u) of case 'dead_centre': 18 residuals."""
-    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
-    u0, = u
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
-    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
-    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
-    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
-    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
-    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
-    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
-    out = _zeros(18, q, u)
-    out[0] = -crank_x
-    out[1] = -crank_y
-    out[2] = -crank_z
-    out[3] = crank_a20
-    out[4] = crank_a21
-    out[5] = (1/5)*crank_a00 + crank_x - rod_x
-    out[6] = (1/5)*crank_a10 + crank_y - rod_y
-    out[7] = (1/5)*crank_a20 + crank_z - rod_z
-    out[8] = (3/5)*rod_a00 + rod_x - slider_x
-    out[9] = (3/5)*rod_a10 + rod_y - slider_y
-    out[10] = (3/5)*rod_a20 + rod_z - slider_z
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
-    out[12] = slider_a01
-    out[13] = slider_a02
-    out[14] = slider_y
-    out[15] = slider_z
-    out[16] = slider_a12
-    out[17] = slider_x - u0
-    return out
-
-
-def jac_dead_centre(q, u):
-    """Values of the sparse Phi_q of case 'dead_centre' at jac_rows, jac_cols (46 entries)."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
-    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
-    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
-    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
-    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
-    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
-    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
-    c0 = (1/5)*crank_a20
-    c1 = (1/5)*crank_a10
-    c2 = (1/5)*crank_a00
-    c3 = (3/5)*rod_a20
-    c4 = (3/5)*rod_a10
-    c5 = (3/5)*rod_a00
-    c6 = rod_a11*slider_a22 - rod_a21*slider_a12
-    c7 = rod_a01*slider_a22 - rod_a21*slider_a02
-    c8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    out = _zeros(46, q, u)
-    out[0] = -1
-    out[1] = -1
-    out[2] = -1
-    out[3] = crank_a10
-    out[4] = -crank_a00
-    out[5] = crank_a11
-    out[6] = -crank_a01
-    out[7] = 1
-    out[8] = c0
-    out[9] = -c1
-    out[10] = -1
-    out[11] = 1
-    out[12] = -c0
-    out[13] = c2
-    out[14] = -1
-    out[15] = 1
-    out[16] = c1
-    out[17] = -c2
-    out[18] = -1
-    out[19] = 1
-    out[20] = c3
-    out[21] = -c4
-    out[22] = -1
-    out[23] = 1
-    out[24] = -c3
-    out[25] = c5
-    out[26] = -1
-    out[27] = 1
-    out[28] = c4
-    out[29] = -c5
-    out[30] = -1
-    out[31] = c6
-    out[32] = -c7
-    out[33] = c8
-    out[34] = -c6
-    out[35] = c7
-    out[36] = -c8
-    out[37] = slider_a21
-    out[38] = -slider_a11
-    out[39] = slider_a22
-    out[40] = -slider_a12
-    out[41] = 1
-    out[42] = 1
-    out[43] = -slider_a22
-    out[44] = slider_a02
-    out[45] = 1
-    return out
-
-
-def nu_dead_centre(q, u, ud):
-    """nu = -Phi_t of case 'dead_centre'."""
-    ud0, = ud
-    out = _zeros(18, q, u)
-    out[17] = ud0
-    return out
-
-
-def gamma_dead_centre(q, v, u, ud, udd):
-    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
-    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
-    udd0, = udd
     crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
@@ -421,7 +202,7 @@ def gamma_dead_centre(q, v, u, ud, udd):
     c13 = -c8 + slider_a12*v_slider_theta_x
     c14 = -c10 + slider_a02*v_slider_theta_z
     c15 = -c12 + slider_a22*v_slider_theta_y
-    out = _zeros(18, q, u)
+    out = _zeros(17, q, ())
     out[3] = -c1 + c2*v_crank_theta_y
     out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
     out[5] = (1/5)*c0*v_crank_theta_z - c3*v_crank_theta_y
@@ -434,8 +215,157 @@ def gamma_dead_centre(q, v, u, ud, udd):
     out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x)
     out[13] = -c13*v_slider_theta_y + c14*v_slider_theta_z
     out[16] = c13*v_slider_theta_x - c15*v_slider_theta_z
-    out[17] = udd0
     return out
+
+
+def inputs_run(t):
+    """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
+    out[1] = t + 6.283185307179586
+    out[2] = 1
+    return out
+
+
+def _drivers_phi_run(q, u):
+    """Phi of the driver rows of case 'run'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    out = _zeros(1, q, u)
+    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    return out
+
+
+def _drivers_jac_run(q, u):
+    """Phi_q values of the driver rows of case 'run'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    out = _zeros(3, q, u)
+    out[0] = c0*crank_a20
+    out[1] = c1*crank_a20
+    out[2] = -c0*crank_a00 - c1*crank_a10
+    return out
+
+
+def _drivers_nu_run(q, u, ud):
+    """nu of the driver rows of case 'run'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    out = _zeros(1, q, u)
+    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    return out
+
+
+def _drivers_gamma_run(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'run'."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = crank_a20*v_crank_theta_x
+    c3 = -c0*crank_a10 + c1*crank_a00
+    out = _zeros(1, q, u)
+    out[0] = c0*v_crank_theta_z*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y) + c1*v_crank_theta_z*(-c2 + crank_a00*v_crank_theta_z) + c3*ud0**2 - 2*ud0*(c0*crank_a20*v_crank_theta_y - c1*c2 + c3*v_crank_theta_z) - udd0*(c0*crank_a00 + c1*crank_a10) - (c0*v_crank_theta_x + c1*v_crank_theta_y)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    return out
+
+
+def phi_run(q, u):
+    """Phi(q, u) of case 'run': 18 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_run(q, u))
+
+
+def jac_run(q, u):
+    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (48 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_run(q, u))
+
+
+def nu_run(q, u, ud):
+    """nu = -Phi_t of case 'run' (zero in the joint rows)."""
+    drivers = _drivers_nu_run(q, u, ud)
+    return _join(np.zeros((17,) + drivers.shape[1:]), drivers)
+
+
+def gamma_run(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_run(q, v, u, ud, udd))
+
+
+def inputs_dead_centre(t):
+    """Driver inputs of case 'dead_centre' at time t: rows u (1), then du/dt, then d2u/dt2."""
+    out = np.zeros((3,) + np.shape(t))
+    out[0] = 4/5 - 1/10*t**2
+    out[1] = -1/5*t
+    out[2] = -1/5
+    return out
+
+
+def _drivers_phi_dead_centre(q, u):
+    """Phi of the driver rows of case 'dead_centre'."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
+    u0, = u
+    out = _zeros(1, q, u)
+    out[0] = slider_x - u0
+    return out
+
+
+def _drivers_jac_dead_centre(q, u):
+    """Phi_q values of the driver rows of case 'dead_centre'."""
+    out = _zeros(1, q, u)
+    out[0] = 1
+    return out
+
+
+def _drivers_nu_dead_centre(q, u, ud):
+    """nu of the driver rows of case 'dead_centre'."""
+    ud0, = ud
+    out = _zeros(1, q, u)
+    out[0] = ud0
+    return out
+
+
+def _drivers_gamma_dead_centre(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'dead_centre'."""
+    udd0, = udd
+    out = _zeros(1, q, u)
+    out[0] = udd0
+    return out
+
+
+def phi_dead_centre(q, u):
+    """Phi(q, u) of case 'dead_centre': 18 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_dead_centre(q, u))
+
+
+def jac_dead_centre(q, u):
+    """Values of the sparse Phi_q of case 'dead_centre' at jac_rows, jac_cols (46 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_dead_centre(q, u))
+
+
+def nu_dead_centre(q, u, ud):
+    """nu = -Phi_t of case 'dead_centre' (zero in the joint rows)."""
+    drivers = _drivers_nu_dead_centre(q, u, ud)
+    return _join(np.zeros((17,) + drivers.shape[1:]), drivers)
+
+
+def gamma_dead_centre(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_dead_centre(q, v, u, ud, udd))
 
 
 CASES = {

@@ -1,6 +1,8 @@
 """Rendering one model + parametrization (all its cases) as a Python module.
 
-The module is straight-line NumPy code with common subexpressions hoisted. Per case:
+The module is straight-line NumPy code with common subexpressions hoisted. The joint
+rows, the same in every case, are generated once (``_joints_*``); per case only the
+driver rows are (``_drivers_*_<case>``), joined by the public functions. Per case:
 ``inputs(t)`` gives the driver inputs u, du/dt, d2u/dt2 stacked in rows; ``phi(q, u)``,
 ``jac(q, u)``, ``nu(q, u, ud)`` and ``gamma(q, v, u, ud, udd)`` take them. Every function
 accepts a single configuration (``q`` of shape (n,)) or a batch (``q`` of shape (n, K),
@@ -129,11 +131,54 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
     body.append("def _zeros(m, q, u):")
     body.append('    """Output array: m rows, then the batch shape of q[0] and u[0] (none for one configuration)."""')
     body.append("    return np.zeros((m,) + np.broadcast_shapes(np.shape(q[0]), np.shape(u[0]) if len(u) else ()))")
-    functions: list[str] = []
+    body.append("")
+    body.append("")
+    body.append("def _join(joints, drivers):")
+    body.append('    """Joint rows, then driver rows (broadcast to one batch shape)."""')
+    body.append("    if joints.shape[1:] != drivers.shape[1:]:")
+    body.append("        shape = np.broadcast_shapes(joints.shape[1:], drivers.shape[1:])")
+    body.append("        joints = np.broadcast_to(joints, joints.shape[:1] + shape)")
+    body.append("        drivers = np.broadcast_to(drivers, drivers.shape[:1] + shape)")
+    body.append("    return np.concatenate((joints, drivers))")
+    # joint (and normalization) rows are the same in every case: generated once
+    joints = [r for r in first.rows if not r.is_driver]
+    mj = len(joints)
+    joint_entries = [(i, j, e) for i, j, e in first.jacobian_entries if i < mj]
+    functions: list[str] = [
+        _function(
+            "_joints_phi",
+            f"Phi of the {mj} joint (and normalization) rows, common to every case.",
+            [("q", q_syms)],
+            [r.phi for r in joints],
+            printer,
+            "_zeros({m}, q, ())",
+            rotation,
+        ),
+        _function(
+            "_joints_jac",
+            f"Phi_q values of the joint rows ({len(joint_entries)} entries).",
+            [("q", q_syms)],
+            [e for _, _, e in joint_entries],
+            printer,
+            "_zeros({m}, q, ())",
+            rotation,
+        ),
+        _function(
+            "_joints_gamma",
+            "gamma of the joint rows (they do not depend on time).",
+            [("q", q_syms), ("v", v_syms)],
+            [r.gamma for r in joints],
+            printer,
+            "_zeros({m}, q, ())",
+            rotation,
+        ),
+    ]
     case_table: list[str] = []
     for name, system in systems.items():
         rows = system.rows
         entries = system.jacobian_entries
+        drivers = rows[mj:]
+        driver_entries = [e for i, _, e in entries if i >= mj]
         inputs = system.inputs
         u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
         m, nd = len(rows), len(u)
@@ -149,46 +194,55 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
                 allocate="np.zeros(({m},) + np.shape(t))",
             ).replace(f"def inputs_{name}():", f"def inputs_{name}(t):")
         )
-        functions.append(
+        q_u, q_u_ud = [("q", q_syms), ("u", u)], [("q", q_syms), ("u", u), ("ud", ud)]
+        q_v_inputs = [("q", q_syms), ("v", v_syms), ("u", u), ("ud", ud), ("udd", udd)]
+        functions += [
             _function(
-                f"phi_{name}",
-                f"Phi(q, u) of case {name!r}: {m} residuals.",
-                [("q", q_syms), ("u", u)],
-                [r.phi for r in rows],
+                f"_drivers_phi_{name}",
+                f"Phi of the driver rows of case {name!r}.",
+                q_u,
+                [r.phi for r in drivers],
                 printer,
                 definitions=rotation,
-            )
-        )
-        functions.append(
+            ),
             _function(
-                f"jac_{name}",
-                f"Values of the sparse Phi_q of case {name!r} at jac_rows, jac_cols ({len(entries)} entries).",
-                [("q", q_syms), ("u", u)],
-                [e for _, _, e in entries],
+                f"_drivers_jac_{name}",
+                f"Phi_q values of the driver rows of case {name!r}.",
+                q_u,
+                driver_entries,
                 printer,
                 definitions=rotation,
-            )
-        )
-        functions.append(
+            ),
             _function(
-                f"nu_{name}",
-                f"nu = -Phi_t of case {name!r}.",
-                [("q", q_syms), ("u", u), ("ud", ud)],
-                [r.nu for r in rows],
+                f"_drivers_nu_{name}",
+                f"nu of the driver rows of case {name!r}.",
+                q_u_ud,
+                [r.nu for r in drivers],
                 printer,
                 definitions=rotation,
-            )
-        )
-        functions.append(
+            ),
             _function(
-                f"gamma_{name}",
-                f"gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case {name!r}.",
-                [("q", q_syms), ("v", v_syms), ("u", u), ("ud", ud), ("udd", udd)],
-                [r.gamma for r in rows],
+                f"_drivers_gamma_{name}",
+                f"gamma of the driver rows of case {name!r}.",
+                q_v_inputs,
+                [r.gamma for r in drivers],
                 printer,
                 definitions=rotation,
-            )
-        )
+            ),
+            f"def phi_{name}(q, u):\n"
+            f'    """Phi(q, u) of case {name!r}: {m} residuals."""\n'
+            f"    return _join(_joints_phi(q), _drivers_phi_{name}(q, u))",
+            f"def jac_{name}(q, u):\n"
+            f'    """Values of the sparse Phi_q of case {name!r} at jac_rows, jac_cols ({len(entries)} entries)."""\n'
+            f"    return _join(_joints_jac(q), _drivers_jac_{name}(q, u))",
+            f"def nu_{name}(q, u, ud):\n"
+            f'    """nu = -Phi_t of case {name!r} (zero in the joint rows)."""\n'
+            f"    drivers = _drivers_nu_{name}(q, u, ud)\n"
+            f"    return _join(np.zeros(({mj},) + drivers.shape[1:]), drivers)",
+            f"def gamma_{name}(q, v, u, ud, udd):\n"
+            f'    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case {name!r}."""\n'
+            f"    return _join(_joints_gamma(q, v), _drivers_gamma_{name}(q, v, u, ud, udd))",
+        ]
         case = system.case
         case_table.append(
             f"    {name!r}: {{\n"
