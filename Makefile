@@ -5,7 +5,7 @@ BIN     = $(VENV)/bin
 OUT    ?= out
 export OPENBLAS_NUM_THREADS ?= 1
 
-.PHONY: run test lint generate clean
+.PHONY: run test bench generate clean
 
 $(BIN)/kinegen: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -21,6 +21,10 @@ run: $(BIN)/kinegen
 test: $(BIN)/kinegen
 	$(BIN)/ruff check kinegen tests generated
 	$(BIN)/python -m pytest -q
+
+## bench: chain-N contenders, one process each, ratios to kinegen in the same run
+bench: $(BIN)/kinegen
+	$(BIN)/python -m kinegen.bench $(BENCH_ARGS)
 
 ## generate: rebuild every committed module in generated/ from models/
 generate: $(BIN)/kinegen

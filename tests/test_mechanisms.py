@@ -13,9 +13,10 @@ import numpy as np
 import pytest
 import sympy as sp
 
+from kinegen.bench.chain import tip_reference
 from kinegen.errors import SingularJacobianError
 from kinegen.runtime import Solver, SolverOptions, solve
-from tests.conftest import chain_angles, chain_system, generated_system
+from tests.conftest import chain_system, generated_system
 
 PARAMS = ["quaternion", "euler_parameters"]
 t = sp.Symbol("t")
@@ -115,20 +116,6 @@ def test_rssr_parametrizations_agree():
     assert np.abs(a.omega_dot("rocker") - b.omega_dot("rocker")).max() < 1e-6
 
 
-def chain_tip_reference(n: int, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    position, velocity, acceleration = (np.zeros((len(times), 3)) for _ in range(3))
-    s = sd = sdd = 0.0
-    for k in range(1, n + 1):
-        s = s + chain_angles(k, times)
-        sd = sd + 0.5 * np.cos(times + 0.1 * k)
-        sdd = sdd - 0.5 * np.sin(times + 0.1 * k)
-        c, si = np.cos(s), np.sin(s)
-        position[:, :2] += np.c_[c, si]
-        velocity[:, :2] += sd[:, None] * np.c_[-si, c]
-        acceleration[:, :2] += sdd[:, None] * np.c_[-si, c] - (sd**2)[:, None] * np.c_[c, si]
-    return position, velocity, acceleration
-
-
 REGULAR = ["quaternion", "euler-parameters", "euler:xyz", "euler:zyx"]
 
 
@@ -140,7 +127,7 @@ def test_chain_tip_matches_closed_form(param):
     """
     n = 4
     results = solve(chain_system(n, param))
-    position, velocity, acceleration = chain_tip_reference(n, results.times)
+    position, velocity, acceleration = tip_reference(n, results.times)
     assert np.abs(results.point_position(f"link{n}", "tip") - position).max() < 1e-9
     assert np.abs(results.point_velocity(f"link{n}", "tip") - velocity).max() < 1e-9
     assert np.abs(results.point_acceleration(f"link{n}", "tip") - acceleration).max() < 1e-8

@@ -44,6 +44,8 @@ class SolverOptions:
     #: condition number recorded per step: "estimate" (1-norm, LAPACK gecon on the LU
     #: already computed), "exact" (2-norm, sigma_max/sigma_min by SVD) or "none"
     condition: str = "estimate"
+    #: predict each step from the previous q, v, a (else: start from the previous q)
+    predictor: bool = True
 
 
 def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str], threshold: float = 1e-6) -> str:
@@ -243,7 +245,7 @@ class Solver:
         v = a = None
         for i, t in enumerate(times):
             u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
-            if i > 0:
+            if i > 0 and self.options.predictor:
                 h = t - times[i - 1]
                 q = self.retract(q, v * h + 0.5 * a * h * h)
             q, iterations[i], residuals[i] = self.position(q, u, t)
