@@ -3,6 +3,13 @@
 from __future__ import annotations
 
 
+def bodies_in(combinations: list[str]) -> list[str]:
+    """Bodies named in coordinate combinations such as ``upper.alpha - 0.5*upper.gamma``."""
+    return sorted(
+        {term.split(".")[0].split("*")[-1].lstrip("+- ") for combo in combinations for term in combo.split(" ") if "." in term}
+    )
+
+
 class KinegenError(Exception):
     """Base class of every error kinegen raises on purpose."""
 
@@ -44,9 +51,7 @@ class SingularJacobianError(KinegenError):
         self.size = size
         self.dependent_constraints = dependent_constraints
         self.null_space = null_space
-        self.bodies = sorted(
-            {term.split(".")[0].split("*")[-1].lstrip("+- ") for combo in null_space for term in combo.split(" ") if "." in term}
-        )
+        self.bodies = bodies_in(null_space)
         lines = [
             f"singular Jacobian at t = {t:.6g}: rank {rank} of {size[0]}x{size[1]}" + (f" ({detail})" if detail else ""),
             "  dependent constraints: " + (", ".join(dependent_constraints) or "-"),

@@ -20,7 +20,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from kinegen.analysis.inspect import Inspection, configuration_at, convert, inspect
-from kinegen.errors import ConvergenceError, SingularJacobianError
+from kinegen.errors import ConvergenceError, SingularJacobianError, bodies_in
 from kinegen.model import Model
 from kinegen.rotations import Parametrization, get
 from kinegen.runtime import NumericSystem, Solver
@@ -117,14 +117,7 @@ def classify(
             if rank == system.n_velocity:
                 regular_elsewhere.append(other.name)
         if regular_elsewhere:
-            bodies = sorted({b for block in report.singular_blocks for b in block.bodies}) or sorted(
-                {
-                    c.split(".")[0]
-                    for combo in report.null_space
-                    for c in combo.replace("-", " ").replace("+", " ").split()
-                    if "." in c
-                }
-            )
+            bodies = sorted({b for block in report.singular_blocks for b in block.bodies}) or bodies_in(report.null_space)
             evidence.append(
                 f"singular only in {name}: its coordinates of {', '.join(bodies) or 'the bodies named above'} are degenerate here"
             )

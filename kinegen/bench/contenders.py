@@ -62,20 +62,28 @@ def kinegen_run(n: int, predictor: bool) -> dict[str, Any]:
     }
 
 
-def _naive_functions(n: int, cse: bool):
-    """Dense Phi(q, t), Phi_q, Phi_t, gamma by Matrix.jacobian + lambdify on the whole system."""
+def _symbolic_phi(n: int):
+    """kinegen's Phi of chain-N as one SymPy column in the stored coordinates and t."""
     import sympy as sp
 
     from kinegen import rotations
-    from kinegen.model.expressions import T
     from kinegen.symbolic import build_systems
 
     system = build_systems(_model(n), rotations.get(PARAMETRIZATION))["drive"]
     coords = system.coordinates
-    q = sp.Matrix(coords.stored_symbols)
-    qd = sp.Matrix([sp.Symbol(f"qd{i}") for i in range(len(q))])
     time_functions = dict(zip(system.inputs.u, system.inputs.functions))
     phi = sp.Matrix([r.phi.xreplace(coords.rotation_definitions).xreplace(time_functions) for r in system.rows])
+    return sp.Matrix(coords.stored_symbols), phi
+
+
+def _naive_functions(n: int, cse: bool):
+    """Dense Phi(q, t), Phi_q, Phi_t, gamma by Matrix.jacobian + lambdify on the whole system."""
+    import sympy as sp
+
+    from kinegen.model.expressions import T
+
+    q, phi = _symbolic_phi(n)
+    qd = sp.Matrix([sp.Symbol(f"qd{i}") for i in range(len(q))])
     jacobian = phi.jacobian(q)
     phi_t = phi.diff(T)
     gamma = -(jacobian * qd).jacobian(q) * qd - 2 * phi_t.jacobian(q) * qd - phi_t.diff(T)
@@ -85,7 +93,6 @@ def _naive_functions(n: int, cse: bool):
         compile_([q, T], jacobian),
         compile_([q, T], phi_t),
         compile_([q, qd, T], gamma),
-        system,
     )
 
 
@@ -106,7 +113,7 @@ def _tip(q: np.ndarray, n: int) -> np.ndarray:
 def naive_sympy_run(n: int, cse: bool) -> dict[str, Any]:
     """Naive SymPy: dense Matrix.jacobian + lambdify, dense LU per Newton iteration."""
     start = time.perf_counter()
-    phi, jacobian, phi_t, gamma, _ = _naive_functions(n, cse)
+    phi, jacobian, phi_t, gamma = _naive_functions(n, cse)
     build = time.perf_counter() - start
     times = np.linspace(0, T1, STEPS)
     q = _initial(n)
@@ -139,20 +146,13 @@ def scipy_hybr_run(n: int) -> dict[str, Any]:
     Phi is the lambdified residual (no symbolic Jacobian is used); velocity and
     acceleration by finite-difference Jacobians as such a user would.
     """
+    import sympy as sp
     from scipy.optimize import approx_fprime, root
 
-    start = time.perf_counter()
-    import sympy as sp
-
-    from kinegen import rotations
     from kinegen.model.expressions import T
-    from kinegen.symbolic import build_systems
 
-    system = build_systems(_model(n), rotations.get(PARAMETRIZATION))["drive"]
-    coords = system.coordinates
-    q_syms = sp.Matrix(coords.stored_symbols)
-    time_functions = dict(zip(system.inputs.u, system.inputs.functions))
-    exprs = sp.Matrix([r.phi.xreplace(coords.rotation_definitions).xreplace(time_functions) for r in system.rows])
+    start = time.perf_counter()
+    q_syms, exprs = _symbolic_phi(n)
     phi_numeric = sp.lambdify([q_syms, T], exprs, "numpy", cse=True)
     build = time.perf_counter() - start
 
