@@ -11,6 +11,8 @@ Coordinates q (stored, 7) and v (velocity, 7) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -67,40 +69,40 @@ def _joints_phi(q):
 def _joints_jac(q):
     """Phi_q values of the joint rows (25 entries)."""
     _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    c0 = (89/25)*boom_e3
-    c1 = (89/25)*boom_e2
-    c2 = (89/25)*boom_e1
-    c3 = (89/25)*boom_e0
-    c4 = 2*boom_e2
-    c5 = 2*boom_e3
-    c6 = 2*boom_e0
-    c7 = 2*boom_e1
+    d0 = (89/25)*boom_e3
+    d1 = (89/25)*boom_e2
+    d2 = (89/25)*boom_e1
+    d3 = (89/25)*boom_e0
+    d4 = 2*boom_e2
+    d5 = 2*boom_e3
+    d6 = 2*boom_e0
+    d7 = 2*boom_e1
     out = _zeros(25, q, ())
     out[0] = -1
     out[1] = (178/25)*boom_e0
     out[2] = (178/25)*boom_e1
     out[3] = -1
-    out[4] = c0
-    out[5] = c1
-    out[6] = c2
-    out[7] = c3
+    out[4] = d0
+    out[5] = d1
+    out[6] = d2
+    out[7] = d3
     out[8] = -1
-    out[9] = -c1
-    out[10] = c0
-    out[11] = -c3
-    out[12] = c2
-    out[13] = -c4
-    out[14] = c5
-    out[15] = -c6
-    out[16] = c7
-    out[17] = c7
-    out[18] = c6
-    out[19] = c5
-    out[20] = c4
-    out[21] = c6
-    out[22] = c7
-    out[23] = c4
-    out[24] = c5
+    out[9] = -d1
+    out[10] = d0
+    out[11] = -d3
+    out[12] = d2
+    out[13] = -d4
+    out[14] = d5
+    out[15] = -d6
+    out[16] = d7
+    out[17] = d7
+    out[18] = d6
+    out[19] = d5
+    out[20] = d4
+    out[21] = d6
+    out[22] = d7
+    out[23] = d4
+    out[24] = d5
     return out
 
 
@@ -123,6 +125,36 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
+    boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
+    boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
+    d0 = (89/25)*boom_e3
+    d1 = (89/25)*boom_e2
+    d2 = (89/25)*boom_e1
+    d3 = (89/25)*boom_e0
+    d4 = 2*boom_e2
+    d5 = 2*boom_e3
+    d6 = 2*boom_e0
+    d7 = 2*boom_e1
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21, boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2 - 1], [-1, (178/25)*boom_e0, (178/25)*boom_e1, -1, d0, d1, d2, d3, -1, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, d6, d7, d4, d5]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
+    c0 = v_boom_e0**2
+    c1 = v_boom_e1**2
+    c2 = (178/25)*v_boom_e3
+    c3 = (178/25)*v_boom_e2
+    c4 = 4*v_boom_e2
+    c5 = 4*v_boom_e1
+    return [-178/25*c0 - 178/25*c1, -c2*v_boom_e0 - c3*v_boom_e1, -c2*v_boom_e1 + c3*v_boom_e0, c4*v_boom_e0 - c5*v_boom_e3, -c4*v_boom_e3 - c5*v_boom_e0, -2*c0 - 2*c1 - 2*v_boom_e2**2 - 2*v_boom_e3**2]
+
+
 def inputs_swing(t):
     """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
@@ -134,59 +166,79 @@ def inputs_swing(t):
 
 def _drivers_phi_swing(q, u):
     """Phi of the driver rows of case 'swing'."""
-    _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    _, _, _, boom_e0, _, _, boom_e3 = q
     u0, = u
-    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
-    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = boom_a00*sin(u0) - boom_a10*cos(u0)
+    out[0] = 2*boom_e0*sin(c0) - 2*boom_e3*cos(c0)
     return out
 
 
 def _drivers_jac_swing(q, u):
     """Phi_q values of the driver rows of case 'swing'."""
-    _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
     u0, = u
-    c0 = 4*sin(u0)
-    c1 = 2*cos(u0)
-    out = _zeros(4, q, u)
-    out[0] = boom_e0*c0 - boom_e3*c1
-    out[1] = boom_e1*c0 - boom_e2*c1
-    out[2] = -boom_e1*c1
-    out[3] = -boom_e0*c1
+    d0 = (1/2)*u0
+    out = _zeros(2, q, u)
+    out[0] = 2*sin(d0)
+    out[1] = -2*cos(d0)
     return out
 
 
 def _drivers_nu_swing(q, u, ud):
     """nu of the driver rows of case 'swing'."""
-    _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    _, _, _, boom_e0, _, _, boom_e3 = q
     u0, = u
     ud0, = ud
-    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
-    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
+    out[0] = -ud0*(boom_e0*cos(c0) + boom_e3*sin(c0))
     return out
 
 
 def _drivers_gamma_swing(q, v, u, ud, udd):
     """gamma of the driver rows of case 'swing'."""
-    _, _, _, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
+    _, _, _, boom_e0, _, _, boom_e3 = q
+    _, _, _, v_boom_e0, _, _, v_boom_e3 = v
     u0, = u
     ud0, = ud
     udd0, = udd
-    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
-    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = 4*c1
-    c3 = 2*c0
-    c4 = 2*c1
-    c5 = 4*c0
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = 2*c0*v_boom_e0*v_boom_e3 + 2*c0*v_boom_e1*v_boom_e2 - ud0**2*(-boom_a00*c1 + boom_a10*c0) - 2*ud0*(boom_e0*c4*v_boom_e3 + boom_e1*c4*v_boom_e2 + v_boom_e0*(boom_e0*c5 + boom_e3*c4) + v_boom_e1*(boom_e1*c5 + boom_e2*c4)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_e0*(c2*v_boom_e0 - c3*v_boom_e3) - v_boom_e1*(c2*v_boom_e1 - c3*v_boom_e2)
+    out[0] = -ud0**2*(-1/2*boom_e0*c2 + (1/2)*boom_e3*c1) - 2*ud0*(c1*v_boom_e0 + c2*v_boom_e3) - udd0*(boom_e0*c1 + boom_e3*c2)
     return out
+
+
+def _drivers_phi_jac_s_swing(q, u):
+    """Phi and Phi_q values of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_e0, _, _, boom_e3 = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    return [2*boom_e0*math.sin(c0) - 2*boom_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+
+
+def _drivers_nu_s_swing(q, u, ud):
+    """nu of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_e0, _, _, boom_e3 = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(boom_e0*math.cos(c0) + boom_e3*math.sin(c0))]
+
+
+def _drivers_gamma_s_swing(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_e0, _, _, boom_e3 = q
+    _, _, _, v_boom_e0, _, _, v_boom_e3 = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    return [-ud0**2*(-1/2*boom_e0*c2 + (1/2)*boom_e3*c1) - 2*ud0*(c1*v_boom_e0 + c2*v_boom_e3) - udd0*(boom_e0*c1 + boom_e3*c2)]
 
 
 def phi_swing(q, u):
@@ -195,7 +247,7 @@ def phi_swing(q, u):
 
 
 def jac_swing(q, u):
-    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (29 entries)."""
+    """Values of the sparse Phi_q of case 'swing' at jac_rows, jac_cols (27 entries)."""
     return _join(_joints_jac(q), _drivers_jac_swing(q, u))
 
 
@@ -210,13 +262,31 @@ def gamma_swing(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_swing(q, v, u, ud, udd))
 
 
+def phi_jac_s_swing(q, u):
+    """Phi and the Phi_q values of case 'swing' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_swing(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_swing(q, u, ud):
+    """nu of case 'swing' at one configuration (list of floats)."""
+    return [0.0] * 6 + _drivers_nu_s_swing(q, u, ud)
+
+
+def gamma_s_swing(q, v, u, ud, udd):
+    """gamma of case 'swing' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_swing(q, v, u, ud, udd)
+
+
 CASES = {
     'swing': {
         'constraints': ('pivot.x', 'pivot.y', 'pivot.z', 'pivot.axis_f', 'pivot.axis_g', 'boom.norm', 'phi1'),
         'drivers': ('phi1',),
-        'jac_rows': (0, 0, 0, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6),
-        'jac_cols': (0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6),
+        'jac_rows': (0, 0, 0, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6),
+        'jac_cols': (0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 6),
         't0': 0.0, 't1': 2.0, 'steps': 201,
         'inputs': inputs_swing, 'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
+        'phi_jac_s': phi_jac_s_swing, 'nu_s': nu_s_swing, 'gamma_s': gamma_s_swing,
     },
 }

@@ -11,6 +11,8 @@ Coordinates q (stored, 6) and v (velocity, 6) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -66,35 +68,35 @@ def _joints_phi(q):
 def _joints_jac(q):
     """Phi_q values of the joint rows (15 entries)."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
-    c0 = sin(boom_alpha)
-    c1 = cos(boom_gamma)
-    c2 = cos(boom_alpha)
-    c3 = sin(boom_gamma)
-    c4 = cos(boom_beta)
-    c5 = c3*c4
-    c6 = (89/50)*c5
-    c7 = sin(boom_beta)
-    c8 = c3*c7
-    c9 = (89/50)*c0
-    c10 = (89/50)*c3
-    c11 = c1*c4
-    c12 = c1*c7
+    d0 = sin(boom_alpha)
+    d1 = cos(boom_gamma)
+    d2 = cos(boom_alpha)
+    d3 = sin(boom_gamma)
+    d4 = cos(boom_beta)
+    d5 = d3*d4
+    d6 = (89/50)*d5
+    d7 = sin(boom_beta)
+    d8 = d3*d7
+    d9 = (89/50)*d0
+    d10 = (89/50)*d3
+    d11 = d1*d4
+    d12 = d1*d7
     out = _zeros(15, q, ())
     out[0] = -1
-    out[1] = -89/50*c0*c1 - c2*c6
-    out[2] = c8*c9
-    out[3] = -c10*c2 - c11*c9
+    out[1] = -89/50*d0*d1 - d2*d6
+    out[2] = d8*d9
+    out[3] = -d10*d2 - d11*d9
     out[4] = -1
-    out[5] = -c0*c6 + (89/50)*c1*c2
-    out[6] = -89/50*c2*c8
-    out[7] = -c0*c10 + (89/50)*c1*c2*c4
+    out[5] = -d0*d6 + (89/50)*d1*d2
+    out[6] = -89/50*d2*d8
+    out[7] = -d0*d10 + (89/50)*d1*d2*d4
     out[8] = -1
-    out[9] = c6
-    out[10] = (89/50)*c12
-    out[11] = c5
-    out[12] = c12
-    out[13] = c11
-    out[14] = -c8
+    out[9] = d6
+    out[10] = (89/50)*d12
+    out[11] = d5
+    out[12] = d12
+    out[13] = d11
+    out[14] = -d8
     return out
 
 
@@ -136,6 +138,61 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
+    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
+    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    boom_a20 = math.sin(boom_beta)*math.sin(boom_gamma)
+    boom_a21 = math.sin(boom_beta)*math.cos(boom_gamma)
+    d0 = math.sin(boom_alpha)
+    d1 = math.cos(boom_gamma)
+    d2 = math.cos(boom_alpha)
+    d3 = math.sin(boom_gamma)
+    d4 = math.cos(boom_beta)
+    d5 = d3*d4
+    d6 = (89/50)*d5
+    d7 = math.sin(boom_beta)
+    d8 = d3*d7
+    d9 = (89/50)*d0
+    d10 = (89/50)*d3
+    d11 = d1*d4
+    d12 = d1*d7
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1, -89/50*d0*d1 - d2*d6, d8*d9, -d10*d2 - d11*d9, -1, -d0*d6 + (89/50)*d1*d2, -89/50*d2*d8, -d0*d10 + (89/50)*d1*d2*d4, -1, d6, (89/50)*d12, d5, d12, d11, -d8]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma = v
+    c0 = math.sin(boom_beta)
+    c1 = math.cos(boom_alpha)
+    c2 = math.sin(boom_gamma)
+    c3 = (89/50)*c2
+    c4 = c1*c3
+    c5 = c0*c4
+    c6 = math.cos(boom_beta)
+    c7 = math.sin(boom_alpha)
+    c8 = c3*c7
+    c9 = c6*c8
+    c10 = math.cos(boom_gamma)
+    c11 = (89/50)*c10
+    c12 = c11*c7
+    c13 = c0*c12
+    c14 = c1*c11
+    c15 = -c14 + c9
+    c16 = -c14*c6 + c8
+    c17 = c4*c6
+    c18 = c0*c14
+    c19 = -c12 - c17
+    c20 = -c12*c6 - c4
+    c21 = c0*c3
+    c22 = c0*c2
+    c23 = c0*c10
+    c24 = c2*c6
+    return [-v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha), -v_boom_alpha*(c0*c8*v_boom_beta + c19*v_boom_alpha + c20*v_boom_gamma) - v_boom_beta*((89/50)*c0*c2*c7*v_boom_alpha - c17*v_boom_beta - c18*v_boom_gamma) - v_boom_gamma*(-c18*v_boom_beta + c19*v_boom_gamma + c20*v_boom_alpha), -v_boom_beta*((89/50)*c10*c6*v_boom_gamma - c21*v_boom_beta) - v_boom_gamma*(c11*c6*v_boom_beta - c21*v_boom_gamma), -v_boom_beta*(c10*c6*v_boom_gamma - c22*v_boom_beta) - v_boom_gamma*(c10*c6*v_boom_beta - c22*v_boom_gamma), -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)]
+
+
 def inputs_swing(t):
     """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
@@ -160,21 +217,21 @@ def _drivers_jac_swing(q, u):
     """Phi_q values of the driver rows of case 'swing'."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
-    c0 = sin(u0)
-    c1 = sin(boom_alpha)
-    c2 = cos(boom_gamma)
-    c3 = c1*c2
-    c4 = cos(boom_beta)
-    c5 = sin(boom_gamma)
-    c6 = cos(boom_alpha)
-    c7 = c5*c6
-    c8 = cos(u0)
-    c9 = c1*c5
-    c10 = sin(boom_beta)
+    d0 = sin(u0)
+    d1 = sin(boom_alpha)
+    d2 = cos(boom_gamma)
+    d3 = d1*d2
+    d4 = cos(boom_beta)
+    d5 = sin(boom_gamma)
+    d6 = cos(boom_alpha)
+    d7 = d5*d6
+    d8 = cos(u0)
+    d9 = d1*d5
+    d10 = sin(boom_beta)
     out = _zeros(3, q, u)
-    out[0] = c0*(-c3 - c4*c7) - c8*(c2*c6 - c4*c9)
-    out[1] = c0*c10*c9 + c10*c7*c8
-    out[2] = c0*(-c3*c4 - c7) - c8*(c2*c4*c6 - c9)
+    out[0] = d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9)
+    out[1] = d0*d10*d9 + d10*d7*d8
+    out[2] = d0*(-d3*d4 - d7) - d8*(d2*d4*d6 - d9)
     return out
 
 
@@ -228,6 +285,72 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     return out
 
 
+def _drivers_phi_jac_s_swing(q, u):
+    """Phi and Phi_q values of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    u0, = u
+    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
+    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    d0 = math.sin(u0)
+    d1 = math.sin(boom_alpha)
+    d2 = math.cos(boom_gamma)
+    d3 = d1*d2
+    d4 = math.cos(boom_beta)
+    d5 = math.sin(boom_gamma)
+    d6 = math.cos(boom_alpha)
+    d7 = d5*d6
+    d8 = math.cos(u0)
+    d9 = d1*d5
+    d10 = math.sin(boom_beta)
+    return [boom_a00*math.sin(u0) - boom_a10*math.cos(u0)], [d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9), d0*d10*d9 + d10*d7*d8, d0*(-d3*d4 - d7) - d8*(d2*d4*d6 - d9)]
+
+
+def _drivers_nu_s_swing(q, u, ud):
+    """nu of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    u0, = u
+    ud0, = ud
+    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
+    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    return [-ud0*(boom_a00*math.cos(u0) + boom_a10*math.sin(u0))]
+
+
+def _drivers_gamma_s_swing(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_alpha, boom_beta, boom_gamma = q
+    _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
+    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    c0 = math.cos(u0)
+    c1 = math.sin(u0)
+    c2 = math.cos(boom_beta)
+    c3 = math.sin(boom_alpha)
+    c4 = math.sin(boom_gamma)
+    c5 = c3*c4
+    c6 = c2*c5
+    c7 = math.cos(boom_alpha)
+    c8 = c4*c7
+    c9 = c2*c8
+    c10 = math.cos(boom_gamma)
+    c11 = c10*c3
+    c12 = math.sin(boom_beta)
+    c13 = c10*c7
+    c14 = c0*c12
+    c15 = c1*c11*c12 + c13*c14
+    c16 = -c1*c12*c4*c7 + c14*c5
+    c17 = -c16
+    c18 = -c13 + c6
+    c19 = c0*(-c11 - c9)
+    c20 = -c13*c2 + c5
+    c21 = c0*(-c11*c2 - c8)
+    c22 = c1*c20 - c21
+    c23 = c1*c18 - c19
+    return [-ud0**2*(-boom_a00*c1 + boom_a10*c0) - 2*ud0*(c16*v_boom_beta + v_boom_alpha*(-c1*c18 + c19) + v_boom_gamma*(-c1*c20 + c21)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma)]
+
+
 def phi_swing(q, u):
     """Phi(q, u) of case 'swing': 6 residuals."""
     return _join(_joints_phi(q), _drivers_phi_swing(q, u))
@@ -249,6 +372,23 @@ def gamma_swing(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_swing(q, v, u, ud, udd))
 
 
+def phi_jac_s_swing(q, u):
+    """Phi and the Phi_q values of case 'swing' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_swing(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_swing(q, u, ud):
+    """nu of case 'swing' at one configuration (list of floats)."""
+    return [0.0] * 5 + _drivers_nu_s_swing(q, u, ud)
+
+
+def gamma_s_swing(q, v, u, ud, udd):
+    """gamma of case 'swing' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_swing(q, v, u, ud, udd)
+
+
 CASES = {
     'swing': {
         'constraints': ('pivot.x', 'pivot.y', 'pivot.z', 'pivot.axis_f', 'pivot.axis_g', 'phi1'),
@@ -257,5 +397,6 @@ CASES = {
         'jac_cols': (0, 3, 4, 5, 1, 3, 4, 5, 2, 4, 5, 4, 5, 4, 5, 3, 4, 5),
         't0': 0.0, 't1': 2.0, 'steps': 201,
         'inputs': inputs_swing, 'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
+        'phi_jac_s': phi_jac_s_swing, 'nu_s': nu_s_swing, 'gamma_s': gamma_s_swing,
     },
 }

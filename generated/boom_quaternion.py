@@ -11,6 +11,8 @@ Coordinates q (stored, 7) and v (velocity, 6) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -71,19 +73,19 @@ def _joints_jac(q):
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    c0 = (89/50)*boom_a20
-    c1 = (89/50)*boom_a10
-    c2 = (89/50)*boom_a00
+    d0 = (89/50)*boom_a20
+    d1 = (89/50)*boom_a10
+    d2 = (89/50)*boom_a00
     out = _zeros(13, q, ())
     out[0] = -1
-    out[1] = c0
-    out[2] = -c1
+    out[1] = d0
+    out[2] = -d1
     out[3] = -1
-    out[4] = -c0
-    out[5] = c2
+    out[4] = -d0
+    out[5] = d2
     out[6] = -1
-    out[7] = c1
-    out[8] = -c2
+    out[7] = d1
+    out[8] = -d2
     out[9] = boom_a10
     out[10] = -boom_a00
     out[11] = boom_a11
@@ -114,6 +116,38 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    d0 = (89/50)*boom_a20
+    d1 = (89/50)*boom_a10
+    d2 = (89/50)*boom_a00
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1, d0, -d1, -1, -d0, d2, -1, d1, -d2, boom_a10, -boom_a00, boom_a11, -boom_a01]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    c0 = -89/50*boom_a00*v_boom_theta_y + (89/50)*boom_a10*v_boom_theta_x
+    c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
+    c2 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
+    c3 = c1*v_boom_theta_x
+    return [-c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z, c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z, (89/50)*c2*v_boom_theta_y - 89/50*c3, c2*v_boom_theta_y - c3, -v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) + v_boom_theta_y*(-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)]
+
+
 def inputs_swing(t):
     """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
@@ -125,12 +159,11 @@ def inputs_swing(t):
 
 def _drivers_phi_swing(q, u):
     """Phi of the driver rows of case 'swing'."""
-    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    _, _, _, boom_qw, _, _, boom_qz = q
     u0, = u
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = boom_a00*sin(u0) - boom_a10*cos(u0)
+    out[0] = 2*boom_qw*sin(c0) - 2*boom_qz*cos(c0)
     return out
 
 
@@ -138,27 +171,24 @@ def _drivers_jac_swing(q, u):
     """Phi_q values of the driver rows of case 'swing'."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     u0, = u
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
+    d0 = (1/2)*u0
+    d1 = sin(d0)
+    d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = boom_a20*c0
-    out[1] = boom_a20*c1
-    out[2] = -boom_a00*c0 - boom_a10*c1
+    out[0] = -boom_qx*d1 - boom_qy*d2
+    out[1] = boom_qx*d2 - boom_qy*d1
+    out[2] = -boom_qw*d2 - boom_qz*d1
     return out
 
 
 def _drivers_nu_swing(q, u, ud):
     """nu of the driver rows of case 'swing'."""
-    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    _, _, _, boom_qw, _, _, boom_qz = q
     u0, = u
     ud0, = ud
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
+    out[0] = -ud0*(boom_qw*cos(c0) + boom_qz*sin(c0))
     return out
 
 
@@ -169,16 +199,59 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = boom_a20*v_boom_theta_x
-    c3 = boom_a00*c1 - boom_a10*c0
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*boom_qw
+    c4 = -1/2*boom_qz*c1 + c2*c3
+    c5 = (1/2)*v_boom_theta_y
+    c6 = (1/2)*v_boom_theta_x
+    c7 = (1/2)*boom_qz
+    c8 = (1/2)*v_boom_theta_z
+    c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c0*v_boom_theta_z*(-boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y) + c1*v_boom_theta_z*(boom_a00*v_boom_theta_z - c2) + c3*ud0**2 - 2*ud0*(boom_a20*c0*v_boom_theta_y - c1*c2 + c3*v_boom_theta_z) - udd0*(boom_a00*c0 + boom_a10*c1) - (-boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x)*(c0*v_boom_theta_x + c1*v_boom_theta_y)
+    out[0] = c1*v_boom_theta_z*(-boom_qx*c6 - boom_qy*c5 - c7*v_boom_theta_z) + c2*v_boom_theta_z*(-boom_qx*c5 + boom_qy*c6 + c3*v_boom_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_boom_theta_z + v_boom_theta_x*(-boom_qx*c9 + (1/2)*boom_qy*c2) + v_boom_theta_y*(-1/2*boom_qx*c2 - boom_qy*c9)) - udd0*(boom_qw*c1 + boom_qz*c2) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(boom_qx*c8 + c3*v_boom_theta_y - c7*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-boom_qy*c8 + c3*v_boom_theta_x + c7*v_boom_theta_y)
     return out
+
+
+def _drivers_phi_jac_s_swing(q, u):
+    """Phi and Phi_q values of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    return [2*boom_qw*math.sin(c0) - 2*boom_qz*math.cos(c0)], [-boom_qx*d1 - boom_qy*d2, boom_qx*d2 - boom_qy*d1, -boom_qw*d2 - boom_qz*d1]
+
+
+def _drivers_nu_s_swing(q, u, ud):
+    """nu of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_qw, _, _, boom_qz = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(boom_qw*math.cos(c0) + boom_qz*math.sin(c0))]
+
+
+def _drivers_gamma_s_swing(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'swing' at one configuration."""
+    _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
+    _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*boom_qw
+    c4 = -1/2*boom_qz*c1 + c2*c3
+    c5 = (1/2)*v_boom_theta_y
+    c6 = (1/2)*v_boom_theta_x
+    c7 = (1/2)*boom_qz
+    c8 = (1/2)*v_boom_theta_z
+    c9 = (1/2)*c1
+    return [c1*v_boom_theta_z*(-boom_qx*c6 - boom_qy*c5 - c7*v_boom_theta_z) + c2*v_boom_theta_z*(-boom_qx*c5 + boom_qy*c6 + c3*v_boom_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_boom_theta_z + v_boom_theta_x*(-boom_qx*c9 + (1/2)*boom_qy*c2) + v_boom_theta_y*(-1/2*boom_qx*c2 - boom_qy*c9)) - udd0*(boom_qw*c1 + boom_qz*c2) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(boom_qx*c8 + c3*v_boom_theta_y - c7*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-boom_qy*c8 + c3*v_boom_theta_x + c7*v_boom_theta_y)]
 
 
 def phi_swing(q, u):
@@ -202,6 +275,23 @@ def gamma_swing(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_swing(q, v, u, ud, udd))
 
 
+def phi_jac_s_swing(q, u):
+    """Phi and the Phi_q values of case 'swing' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_swing(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_swing(q, u, ud):
+    """nu of case 'swing' at one configuration (list of floats)."""
+    return [0.0] * 5 + _drivers_nu_s_swing(q, u, ud)
+
+
+def gamma_s_swing(q, v, u, ud, udd):
+    """gamma of case 'swing' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_swing(q, v, u, ud, udd)
+
+
 CASES = {
     'swing': {
         'constraints': ('pivot.x', 'pivot.y', 'pivot.z', 'pivot.axis_f', 'pivot.axis_g', 'phi1'),
@@ -210,5 +300,6 @@ CASES = {
         'jac_cols': (0, 4, 5, 1, 3, 5, 2, 3, 4, 3, 4, 3, 4, 3, 4, 5),
         't0': 0.0, 't1': 2.0, 'steps': 201,
         'inputs': inputs_swing, 'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
+        'phi_jac_s': phi_jac_s_swing, 'nu_s': nu_s_swing, 'gamma_s': gamma_s_swing,
     },
 }

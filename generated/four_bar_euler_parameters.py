@@ -11,6 +11,8 @@ Coordinates q (stored, 21) and v (velocity, 21) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -104,59 +106,59 @@ def _joints_jac(q):
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    c0 = 2*crank_e2
-    c1 = 2*crank_e3
-    c2 = 2*crank_e0
-    c3 = 2*crank_e1
-    c4 = (3/5)*crank_e3
-    c5 = (3/5)*crank_e2
-    c6 = (3/5)*crank_e1
-    c7 = (3/5)*crank_e0
-    c8 = (9/5)*coupler_e3
-    c9 = (9/5)*coupler_e2
-    c10 = (9/5)*coupler_e1
-    c11 = (9/5)*coupler_e0
-    c12 = -7/5*rocker_e3
-    c13 = (7/5)*rocker_e2
-    c14 = -7/5*rocker_e1
-    c15 = (7/5)*rocker_e0
-    c16 = 4*rocker_a12
-    c17 = 2*coupler_e1
-    c18 = 2*coupler_e3
-    c19 = 2*coupler_e0
-    c20 = 2*coupler_e2
-    c21 = 2*rocker_e2
-    c22 = 2*rocker_e1
-    c23 = 4*coupler_a21
-    c24 = 2*rocker_e3
-    c25 = 2*rocker_e0
+    d0 = 2*crank_e2
+    d1 = 2*crank_e3
+    d2 = 2*crank_e0
+    d3 = 2*crank_e1
+    d4 = (3/5)*crank_e3
+    d5 = (3/5)*crank_e2
+    d6 = (3/5)*crank_e1
+    d7 = (3/5)*crank_e0
+    d8 = (9/5)*coupler_e3
+    d9 = (9/5)*coupler_e2
+    d10 = (9/5)*coupler_e1
+    d11 = (9/5)*coupler_e0
+    d12 = -7/5*rocker_e3
+    d13 = (7/5)*rocker_e2
+    d14 = -7/5*rocker_e1
+    d15 = (7/5)*rocker_e0
+    d16 = 4*rocker_a12
+    d17 = 2*coupler_e1
+    d18 = 2*coupler_e3
+    d19 = 2*coupler_e0
+    d20 = 2*coupler_e2
+    d21 = 2*rocker_e2
+    d22 = 2*rocker_e1
+    d23 = 4*coupler_a21
+    d24 = 2*rocker_e3
+    d25 = 2*rocker_e0
     out = _zeros(84, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
-    out[3] = -c0
-    out[4] = c1
-    out[5] = -c2
-    out[6] = c3
-    out[7] = c3
-    out[8] = c2
-    out[9] = c1
-    out[10] = c0
+    out[3] = -d0
+    out[4] = d1
+    out[5] = -d2
+    out[6] = d3
+    out[7] = d3
+    out[8] = d2
+    out[9] = d1
+    out[10] = d0
     out[11] = 1
     out[12] = (6/5)*crank_e0
     out[13] = (6/5)*crank_e1
     out[14] = -1
     out[15] = 1
-    out[16] = c4
-    out[17] = c5
-    out[18] = c6
-    out[19] = c7
+    out[16] = d4
+    out[17] = d5
+    out[18] = d6
+    out[19] = d7
     out[20] = -1
     out[21] = 1
-    out[22] = -c5
-    out[23] = c4
-    out[24] = -c7
-    out[25] = c6
+    out[22] = -d5
+    out[23] = d4
+    out[24] = -d7
+    out[25] = d6
     out[26] = -1
     out[27] = 1
     out[28] = (18/5)*coupler_e0
@@ -165,56 +167,56 @@ def _joints_jac(q):
     out[31] = -14/5*rocker_e0
     out[32] = -14/5*rocker_e1
     out[33] = 1
-    out[34] = c8
-    out[35] = c9
-    out[36] = c10
-    out[37] = c11
+    out[34] = d8
+    out[35] = d9
+    out[36] = d10
+    out[37] = d11
     out[38] = -1
-    out[39] = c12
-    out[40] = -c13
-    out[41] = c14
-    out[42] = -c15
+    out[39] = d12
+    out[40] = -d13
+    out[41] = d14
+    out[42] = -d15
     out[43] = 1
-    out[44] = -c9
-    out[45] = c8
-    out[46] = -c11
-    out[47] = c10
+    out[44] = -d9
+    out[45] = d8
+    out[46] = -d11
+    out[47] = d10
     out[48] = -1
-    out[49] = c13
-    out[50] = c12
-    out[51] = c15
-    out[52] = c14
-    out[53] = c16*coupler_e0 + c17*rocker_a22 - c18*rocker_a02
-    out[54] = c19*rocker_a22 + c20*rocker_a02
-    out[55] = c16*coupler_e2 + c17*rocker_a02 + c18*rocker_a22
-    out[56] = -c19*rocker_a02 + 2*coupler_e2*rocker_a22
-    out[57] = c21*coupler_a01 - c22*coupler_a11 + c23*rocker_e0
-    out[58] = c24*coupler_a01 - c25*coupler_a11
-    out[59] = c24*coupler_a11 + c25*coupler_a01
-    out[60] = c21*coupler_a11 + c22*coupler_a01 + c23*rocker_e3
+    out[49] = d13
+    out[50] = d12
+    out[51] = d15
+    out[52] = d14
+    out[53] = coupler_e0*d16 + d17*rocker_a22 - d18*rocker_a02
+    out[54] = d19*rocker_a22 + d20*rocker_a02
+    out[55] = coupler_e2*d16 + d17*rocker_a02 + d18*rocker_a22
+    out[56] = 2*coupler_e2*rocker_a22 - d19*rocker_a02
+    out[57] = coupler_a01*d21 - coupler_a11*d22 + d23*rocker_e0
+    out[58] = coupler_a01*d24 - coupler_a11*d25
+    out[59] = coupler_a01*d25 + coupler_a11*d24
+    out[60] = coupler_a01*d22 + coupler_a11*d21 + d23*rocker_e3
     out[61] = -1
     out[62] = -1
     out[63] = -1
-    out[64] = -c21
-    out[65] = c24
-    out[66] = -c25
-    out[67] = c22
-    out[68] = c22
-    out[69] = c25
-    out[70] = c24
-    out[71] = c21
-    out[72] = c2
-    out[73] = c3
-    out[74] = c0
-    out[75] = c1
-    out[76] = c19
-    out[77] = c17
-    out[78] = c20
-    out[79] = c18
-    out[80] = c25
-    out[81] = c22
-    out[82] = c21
-    out[83] = c24
+    out[64] = -d21
+    out[65] = d24
+    out[66] = -d25
+    out[67] = d22
+    out[68] = d22
+    out[69] = d25
+    out[70] = d24
+    out[71] = d21
+    out[72] = d2
+    out[73] = d3
+    out[74] = d0
+    out[75] = d1
+    out[76] = d19
+    out[77] = d17
+    out[78] = d20
+    out[79] = d18
+    out[80] = d25
+    out[81] = d22
+    out[82] = d21
+    out[83] = d24
     return out
 
 
@@ -270,6 +272,94 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    coupler_a00 = 2*coupler_e0**2 + 2*coupler_e1**2 - 1
+    coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
+    coupler_a10 = 2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
+    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
+    coupler_a20 = -2*coupler_e0*coupler_e2 + 2*coupler_e1*coupler_e3
+    coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
+    rocker_a00 = 2*rocker_e0**2 + 2*rocker_e1**2 - 1
+    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a10 = 2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
+    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    c0 = -rocker_y
+    c1 = -rocker_z
+    d0 = 2*crank_e2
+    d1 = 2*crank_e3
+    d2 = 2*crank_e0
+    d3 = 2*crank_e1
+    d4 = (3/5)*crank_e3
+    d5 = (3/5)*crank_e2
+    d6 = (3/5)*crank_e1
+    d7 = (3/5)*crank_e0
+    d8 = (9/5)*coupler_e3
+    d9 = (9/5)*coupler_e2
+    d10 = (9/5)*coupler_e1
+    d11 = (9/5)*coupler_e0
+    d12 = -7/5*rocker_e3
+    d13 = (7/5)*rocker_e2
+    d14 = -7/5*rocker_e1
+    d15 = (7/5)*rocker_e0
+    d16 = 4*rocker_a12
+    d17 = 2*coupler_e1
+    d18 = 2*coupler_e3
+    d19 = 2*coupler_e0
+    d20 = 2*coupler_e2
+    d21 = 2*rocker_e2
+    d22 = 2*rocker_e1
+    d23 = 4*coupler_a21
+    d24 = 2*rocker_e3
+    d25 = 2*rocker_e0
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, -coupler_x + (3/10)*crank_a00 + crank_x, -coupler_y + (3/10)*crank_a10 + crank_y, -coupler_z + (3/10)*crank_a20 + crank_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, c0 + (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10, c1 + (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, c0, c1, rocker_a20, rocker_a21, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (6/5)*crank_e0, (6/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (18/5)*coupler_e0, (18/5)*coupler_e1, -1, -14/5*rocker_e0, -14/5*rocker_e1, 1, d8, d9, d10, d11, -1, d12, -d13, d14, -d15, 1, -d9, d8, -d11, d10, -1, d13, d12, d15, d14, coupler_e0*d16 + d17*rocker_a22 - d18*rocker_a02, d19*rocker_a22 + d20*rocker_a02, coupler_e2*d16 + d17*rocker_a02 + d18*rocker_a22, 2*coupler_e2*rocker_a22 - d19*rocker_a02, coupler_a01*d21 - coupler_a11*d22 + d23*rocker_e0, coupler_a01*d24 - coupler_a11*d25, coupler_a01*d25 + coupler_a11*d24, coupler_a01*d22 + coupler_a11*d21 + d23*rocker_e3, -1, -1, -1, -d21, d24, -d25, d22, d22, d25, d24, d21, d2, d3, d0, d1, d19, d17, d20, d18, d25, d22, d21, d24]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    _, _, _, _, _, _, _, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, _, _, _, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
+    coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
+    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
+    coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
+    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    c0 = 4*v_crank_e2
+    c1 = 4*v_crank_e1
+    c2 = v_crank_e0**2
+    c3 = v_crank_e1**2
+    c4 = (6/5)*v_crank_e3
+    c5 = (6/5)*v_crank_e2
+    c6 = v_coupler_e0**2
+    c7 = v_coupler_e1**2
+    c8 = v_rocker_e0**2
+    c9 = v_rocker_e1**2
+    c10 = (18/5)*v_coupler_e3
+    c11 = (18/5)*v_coupler_e2
+    c12 = 2*rocker_a02
+    c13 = 2*rocker_a22
+    c14 = 2*coupler_a01
+    c15 = 2*coupler_a11
+    c16 = 4*rocker_a12
+    c17 = 4*coupler_a21
+    c18 = 2*rocker_e0
+    c19 = 2*rocker_e1
+    c20 = 4*v_rocker_e0
+    c21 = 4*v_rocker_e3
+    c22 = 2*coupler_e0
+    c23 = 2*v_coupler_e0
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*c2 - 6/5*c3, -c4*v_crank_e0 - c5*v_crank_e1, -c4*v_crank_e1 + c5*v_crank_e0, -18/5*c6 - 18/5*c7 + (14/5)*c8 + (14/5)*c9, -c10*v_coupler_e0 - c11*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, -c10*v_coupler_e1 + c11*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(-c12*v_coupler_e3 + c13*v_coupler_e1 + c16*v_coupler_e0) - v_coupler_e1*(c12*v_coupler_e2 + c13*v_coupler_e0) - v_coupler_e2*(c12*v_coupler_e1 + c13*v_coupler_e3 + c16*v_coupler_e2) - v_coupler_e3*(-c12*v_coupler_e0 + 2*rocker_a22*v_coupler_e2) - v_rocker_e0*(c14*v_rocker_e2 - c15*v_rocker_e1 + c17*v_rocker_e0) - v_rocker_e1*(c14*v_rocker_e3 - c15*v_rocker_e0) - v_rocker_e2*(c14*v_rocker_e0 + c15*v_rocker_e3) - v_rocker_e3*(c14*v_rocker_e1 + c15*v_rocker_e2 + c17*v_rocker_e3) - 2*(c20*rocker_e0 + c21*rocker_e3)*(c22*v_coupler_e1 + c23*coupler_e1 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(-c18*v_rocker_e1 - c19*v_rocker_e0 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2) - 2*(c18*v_rocker_e2 + c19*v_rocker_e3 + 2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1)*(-c22*v_coupler_e3 - c23*coupler_e3 + 2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1), 0.0, 0.0, 0.0, c20*v_rocker_e2 - c21*v_rocker_e1, -c20*v_rocker_e1 - c21*v_rocker_e2, -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*c6 - 2*c7 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2, -2*c8 - 2*c9 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
+
+
 def inputs_crank_turn(t):
     """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
     c0 = 6.283185307179586*t
@@ -283,59 +373,79 @@ def inputs_crank_turn(t):
 
 def _drivers_phi_crank_turn(q, u):
     """Phi of the driver rows of case 'crank_turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    out[0] = 2*crank_e0*sin(c0) - 2*crank_e3*cos(c0)
     return out
 
 
 def _drivers_jac_crank_turn(q, u):
     """Phi_q values of the driver rows of case 'crank_turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    c0 = 4*sin(u0)
-    c1 = 2*cos(u0)
-    out = _zeros(4, q, u)
-    out[0] = c0*crank_e0 - c1*crank_e3
-    out[1] = c0*crank_e1 - c1*crank_e2
-    out[2] = -c1*crank_e1
-    out[3] = -c1*crank_e0
+    d0 = (1/2)*u0
+    out = _zeros(2, q, u)
+    out[0] = 2*sin(d0)
+    out[1] = -2*cos(d0)
     return out
 
 
 def _drivers_nu_crank_turn(q, u, ud):
     """nu of the driver rows of case 'crank_turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
     ud0, = ud
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0))
     return out
 
 
 def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     """gamma of the driver rows of case 'crank_turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, _, _, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, = u
     ud0, = ud
     udd0, = udd
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = 4*c1
-    c3 = 2*c0
-    c4 = 2*c1
-    c5 = 4*c0
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = 2*c0*v_crank_e0*v_crank_e3 + 2*c0*v_crank_e1*v_crank_e2 - ud0**2*(c0*crank_a10 - c1*crank_a00) - 2*ud0*(c4*crank_e0*v_crank_e3 + c4*crank_e1*v_crank_e2 + v_crank_e0*(c4*crank_e3 + c5*crank_e0) + v_crank_e1*(c4*crank_e2 + c5*crank_e1)) - udd0*(c0*crank_a00 + c1*crank_a10) - v_crank_e0*(c2*v_crank_e0 - c3*v_crank_e3) - v_crank_e1*(c2*v_crank_e1 - c3*v_crank_e2)
+    out[0] = -ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)
     return out
+
+
+def _drivers_phi_jac_s_crank_turn(q, u):
+    """Phi and Phi_q values of the driver rows of case 'crank_turn' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    return [2*crank_e0*math.sin(c0) - 2*crank_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+
+
+def _drivers_nu_s_crank_turn(q, u, ud):
+    """nu of the driver rows of case 'crank_turn' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(crank_e0*math.cos(c0) + crank_e3*math.sin(c0))]
+
+
+def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'crank_turn' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, _, _, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    return [-ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)]
 
 
 def phi_crank_turn(q, u):
@@ -344,7 +454,7 @@ def phi_crank_turn(q, u):
 
 
 def jac_crank_turn(q, u):
-    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (88 entries)."""
+    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (86 entries)."""
     return _join(_joints_jac(q), _drivers_jac_crank_turn(q, u))
 
 
@@ -359,13 +469,31 @@ def gamma_crank_turn(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_crank_turn(q, v, u, ud, udd))
 
 
+def phi_jac_s_crank_turn(q, u):
+    """Phi and the Phi_q values of case 'crank_turn' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_crank_turn(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_crank_turn(q, u, ud):
+    """nu of case 'crank_turn' at one configuration (list of floats)."""
+    return [0.0] * 20 + _drivers_nu_s_crank_turn(q, u, ud)
+
+
+def gamma_s_crank_turn(q, v, u, ud, udd):
+    """gamma of case 'crank_turn' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_crank_turn(q, v, u, ud, udd)
+
+
 CASES = {
     'crank_turn': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'D.x', 'D.y', 'D.z', 'D.axis_f', 'D.axis_g', 'crank.norm', 'coupler.norm', 'rocker.norm', 'crank_angle'),
         'drivers': ('crank_angle',),
-        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 12, 13, 14, 15, 15, 15, 15, 16, 16, 16, 16, 17, 17, 17, 17, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20),
-        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 17, 18, 8, 10, 11, 12, 13, 15, 17, 18, 19, 20, 9, 10, 11, 12, 13, 16, 17, 18, 19, 20, 10, 11, 12, 13, 17, 18, 19, 20, 14, 15, 16, 17, 18, 19, 20, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 3, 4, 5, 6),
+        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 12, 13, 14, 15, 15, 15, 15, 16, 16, 16, 16, 17, 17, 17, 17, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 17, 18, 8, 10, 11, 12, 13, 15, 17, 18, 19, 20, 9, 10, 11, 12, 13, 16, 17, 18, 19, 20, 10, 11, 12, 13, 17, 18, 19, 20, 14, 15, 16, 17, 18, 19, 20, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 3, 6),
         't0': 0.0, 't1': 1.0, 'steps': 201,
         'inputs': inputs_crank_turn, 'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,
+        'phi_jac_s': phi_jac_s_crank_turn, 'nu_s': nu_s_crank_turn, 'gamma_s': gamma_s_crank_turn,
     },
 }

@@ -11,6 +11,8 @@ Coordinates q (stored, 21) and v (velocity, 18) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -114,18 +116,18 @@ def _joints_jac(q):
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = (3/10)*crank_a20
-    c1 = (3/10)*crank_a10
-    c2 = (3/10)*crank_a00
-    c3 = (9/10)*coupler_a20
-    c4 = (9/10)*coupler_a10
-    c5 = (7/10)*rocker_a20
-    c6 = (7/10)*rocker_a10
-    c7 = (9/10)*coupler_a00
-    c8 = (7/10)*rocker_a00
-    c9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
-    c10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
-    c11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
+    d0 = (3/10)*crank_a20
+    d1 = (3/10)*crank_a10
+    d2 = (3/10)*crank_a00
+    d3 = (9/10)*coupler_a20
+    d4 = (9/10)*coupler_a10
+    d5 = (7/10)*rocker_a20
+    d6 = (7/10)*rocker_a10
+    d7 = (9/10)*coupler_a00
+    d8 = (7/10)*rocker_a00
+    d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
+    d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
+    d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
     out = _zeros(50, q, ())
     out[0] = -1
     out[1] = -1
@@ -135,41 +137,41 @@ def _joints_jac(q):
     out[5] = crank_a11
     out[6] = -crank_a01
     out[7] = 1
-    out[8] = c0
-    out[9] = -c1
+    out[8] = d0
+    out[9] = -d1
     out[10] = -1
     out[11] = 1
-    out[12] = -c0
-    out[13] = c2
+    out[12] = -d0
+    out[13] = d2
     out[14] = -1
     out[15] = 1
-    out[16] = c1
-    out[17] = -c2
+    out[16] = d1
+    out[17] = -d2
     out[18] = -1
     out[19] = 1
-    out[20] = c3
-    out[21] = -c4
+    out[20] = d3
+    out[21] = -d4
     out[22] = -1
-    out[23] = -c5
-    out[24] = c6
+    out[23] = -d5
+    out[24] = d6
     out[25] = 1
-    out[26] = -c3
-    out[27] = c7
+    out[26] = -d3
+    out[27] = d7
     out[28] = -1
-    out[29] = c5
-    out[30] = -c8
+    out[29] = d5
+    out[30] = -d8
     out[31] = 1
-    out[32] = c4
-    out[33] = -c7
+    out[32] = d4
+    out[33] = -d7
     out[34] = -1
-    out[35] = -c6
-    out[36] = c8
-    out[37] = c9
-    out[38] = -c10
-    out[39] = c11
-    out[40] = -c9
-    out[41] = c10
-    out[42] = -c11
+    out[35] = -d6
+    out[36] = d8
+    out[37] = d9
+    out[38] = -d10
+    out[39] = d11
+    out[40] = -d9
+    out[41] = d10
+    out[42] = -d11
     out[43] = -1
     out[44] = -1
     out[45] = -1
@@ -237,6 +239,92 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
+    coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
+    coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
+    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
+    coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
+    coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
+    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    c0 = -rocker_y
+    c1 = -rocker_z
+    d0 = (3/10)*crank_a20
+    d1 = (3/10)*crank_a10
+    d2 = (3/10)*crank_a00
+    d3 = (9/10)*coupler_a20
+    d4 = (9/10)*coupler_a10
+    d5 = (7/10)*rocker_a20
+    d6 = (7/10)*rocker_a10
+    d7 = (9/10)*coupler_a00
+    d8 = (7/10)*rocker_a00
+    d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
+    d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
+    d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, -coupler_x + (3/10)*crank_a00 + crank_x, -coupler_y + (3/10)*crank_a10 + crank_y, -coupler_z + (3/10)*crank_a20 + crank_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, c0 + (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10, c1 + (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, c0, c1, rocker_a20, rocker_a21], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, 1, d0, -d1, -1, 1, -d0, d2, -1, 1, d1, -d2, -1, 1, d3, -d4, -1, -d5, d6, 1, -d3, d7, -1, d5, -d8, 1, d4, -d7, -1, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1, -1, -1, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, _, _, _, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
+    coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
+    coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
+    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
+    coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
+    coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
+    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
+    c1 = c0*v_crank_theta_x
+    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c3 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
+    c4 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
+    c5 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
+    c6 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
+    c7 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
+    c8 = (7/10)*v_rocker_theta_z
+    c9 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
+    c10 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
+    c11 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
+    c12 = rocker_a02*v_rocker_theta_y
+    c13 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
+    c14 = rocker_a22*v_rocker_theta_x
+    c15 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
+    c16 = rocker_a12*v_rocker_theta_z
+    return [0.0, 0.0, 0.0, -c1 + c2*v_crank_theta_y, -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), (3/10)*c0*v_crank_theta_z - c3*v_crank_theta_y, -3/10*c2*v_crank_theta_z + c3*v_crank_theta_x, -3/10*c1 + (3/10)*c2*v_crank_theta_y, -c4*v_coupler_theta_y + (9/10)*c5*v_coupler_theta_z + (7/10)*c6*v_rocker_theta_y - c7*c8, c10*c8 + c4*v_coupler_theta_x - 7/10*c6*v_rocker_theta_x - 9/10*c9*v_coupler_theta_z, -7/10*c10*v_rocker_theta_y - 9/10*c5*v_coupler_theta_x + (7/10)*c7*v_rocker_theta_x + (9/10)*c9*v_coupler_theta_y, c11*(-c12 + rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x) - c13*(-c14 - rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x) + c15*(-c16 + rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y) - (-c12 + rocker_a12*v_rocker_theta_x)*(-c11 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - (-c14 + rocker_a02*v_rocker_theta_z)*(c13 - coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x) - (-c16 + rocker_a22*v_rocker_theta_y)*(-c15 + coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y), 0.0, 0.0, 0.0, c10*v_rocker_theta_y - c7*v_rocker_theta_x, -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)]
+
+
 def inputs_crank_turn(t):
     """Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
     c0 = 6.283185307179586*t
@@ -250,12 +338,11 @@ def inputs_crank_turn(t):
 
 def _drivers_phi_crank_turn(q, u):
     """Phi of the driver rows of case 'crank_turn'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    out[0] = 2*crank_qw*sin(c0) - 2*crank_qz*cos(c0)
     return out
 
 
@@ -263,27 +350,24 @@ def _drivers_jac_crank_turn(q, u):
     """Phi_q values of the driver rows of case 'crank_turn'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
+    d0 = (1/2)*u0
+    d1 = sin(d0)
+    d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = c0*crank_a20
-    out[1] = c1*crank_a20
-    out[2] = -c0*crank_a00 - c1*crank_a10
+    out[0] = -crank_qx*d1 - crank_qy*d2
+    out[1] = crank_qx*d2 - crank_qy*d1
+    out[2] = -crank_qw*d2 - crank_qz*d1
     return out
 
 
 def _drivers_nu_crank_turn(q, u, ud):
     """nu of the driver rows of case 'crank_turn'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
     ud0, = ud
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0))
     return out
 
 
@@ -294,16 +378,59 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = crank_a20*v_crank_theta_x
-    c3 = -c0*crank_a10 + c1*crank_a00
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*crank_qw
+    c4 = -1/2*c1*crank_qz + c2*c3
+    c5 = (1/2)*v_crank_theta_y
+    c6 = (1/2)*v_crank_theta_x
+    c7 = (1/2)*crank_qz
+    c8 = (1/2)*v_crank_theta_z
+    c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c0*v_crank_theta_z*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y) + c1*v_crank_theta_z*(-c2 + crank_a00*v_crank_theta_z) + c3*ud0**2 - 2*ud0*(c0*crank_a20*v_crank_theta_y - c1*c2 + c3*v_crank_theta_z) - udd0*(c0*crank_a00 + c1*crank_a10) - (c0*v_crank_theta_x + c1*v_crank_theta_y)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    out[0] = c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)
     return out
+
+
+def _drivers_phi_jac_s_crank_turn(q, u):
+    """Phi and Phi_q values of the driver rows of case 'crank_turn' at one configuration."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    return [2*crank_qw*math.sin(c0) - 2*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+
+
+def _drivers_nu_s_crank_turn(q, u, ud):
+    """nu of the driver rows of case 'crank_turn' at one configuration."""
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(crank_qw*math.cos(c0) + crank_qz*math.sin(c0))]
+
+
+def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'crank_turn' at one configuration."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*crank_qw
+    c4 = -1/2*c1*crank_qz + c2*c3
+    c5 = (1/2)*v_crank_theta_y
+    c6 = (1/2)*v_crank_theta_x
+    c7 = (1/2)*crank_qz
+    c8 = (1/2)*v_crank_theta_z
+    c9 = (1/2)*c1
+    return [c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)]
 
 
 def phi_crank_turn(q, u):
@@ -327,6 +454,23 @@ def gamma_crank_turn(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_crank_turn(q, v, u, ud, udd))
 
 
+def phi_jac_s_crank_turn(q, u):
+    """Phi and the Phi_q values of case 'crank_turn' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_crank_turn(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_crank_turn(q, u, ud):
+    """nu of case 'crank_turn' at one configuration (list of floats)."""
+    return [0.0] * 17 + _drivers_nu_s_crank_turn(q, u, ud)
+
+
+def gamma_s_crank_turn(q, v, u, ud, udd):
+    """gamma of case 'crank_turn' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_crank_turn(q, v, u, ud, udd)
+
+
 CASES = {
     'crank_turn': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'D.x', 'D.y', 'D.z', 'D.axis_f', 'D.axis_g', 'crank_angle'),
@@ -335,5 +479,6 @@ CASES = {
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 16, 17, 7, 9, 11, 13, 15, 17, 8, 9, 10, 14, 15, 16, 9, 10, 11, 15, 16, 17, 12, 13, 14, 15, 16, 15, 16, 3, 4, 5),
         't0': 0.0, 't1': 1.0, 'steps': 201,
         'inputs': inputs_crank_turn, 'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,
+        'phi_jac_s': phi_jac_s_crank_turn, 'nu_s': nu_s_crank_turn, 'gamma_s': gamma_s_crank_turn,
     },
 }

@@ -11,6 +11,8 @@ Coordinates q (stored, 14) and v (velocity, 14) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -90,72 +92,72 @@ def _joints_jac(q):
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    c0 = 2*crank_e2
-    c1 = 2*crank_e3
-    c2 = 2*crank_e0
-    c3 = 2*crank_e1
-    c4 = 2*rocker_e3
-    c5 = 2*rocker_e2
-    c6 = 2*rocker_e1
-    c7 = 2*rocker_e0
-    c8 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
-    c9 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
-    c10 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
-    c11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
-    c12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
-    c13 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
-    c14 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
-    c15 = 4*rocker_e0
-    c16 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    c17 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
-    c18 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    c19 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    c20 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d0 = 2*crank_e2
+    d1 = 2*crank_e3
+    d2 = 2*crank_e0
+    d3 = 2*crank_e1
+    d4 = 2*rocker_e3
+    d5 = 2*rocker_e2
+    d6 = 2*rocker_e1
+    d7 = 2*rocker_e0
+    d8 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
+    d9 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
+    d10 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
+    d11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
+    d12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
+    d13 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d14 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d15 = 4*rocker_e0
+    d16 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
+    d17 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d18 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
+    d19 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    d20 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
     out = _zeros(44, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
-    out[3] = -c0
-    out[4] = c1
-    out[5] = -c2
-    out[6] = c3
-    out[7] = c3
-    out[8] = c2
-    out[9] = c1
-    out[10] = c0
+    out[3] = -d0
+    out[4] = d1
+    out[5] = -d2
+    out[6] = d3
+    out[7] = d3
+    out[8] = d2
+    out[9] = d1
+    out[10] = d0
     out[11] = -1
     out[12] = -1
     out[13] = -1
-    out[14] = -c4
-    out[15] = c5
-    out[16] = c6
-    out[17] = -c7
-    out[18] = c5
-    out[19] = c4
-    out[20] = c7
-    out[21] = c6
-    out[22] = c8
-    out[23] = c9
-    out[24] = c10
-    out[25] = -c0*c12 + c1*c13 + c11*crank_e0
-    out[26] = c0*c13 + c1*c12 + c11*crank_e1
-    out[27] = -c12*c2 + 2*c13*crank_e1
-    out[28] = c12*c3 + c13*c2
-    out[29] = -c8
-    out[30] = -c9
-    out[31] = -c10
-    out[32] = c14*c15 + c15*c16 - c17*c6 + c18*c6 + c19*c5 - c20*c4
-    out[33] = -c17*c7 + c18*c7 + c19*c4 + c20*c5
-    out[34] = 4*c14*rocker_e2 + c17*c4 + c18*c4 + c19*c7 + c20*c6
-    out[35] = 4*c16*rocker_e3 + c17*c5 + c18*c5 + c19*c6 - c20*c7
-    out[36] = c2
-    out[37] = c3
-    out[38] = c0
-    out[39] = c1
-    out[40] = c7
-    out[41] = c6
-    out[42] = c5
-    out[43] = c4
+    out[14] = -d4
+    out[15] = d5
+    out[16] = d6
+    out[17] = -d7
+    out[18] = d5
+    out[19] = d4
+    out[20] = d7
+    out[21] = d6
+    out[22] = d8
+    out[23] = d9
+    out[24] = d10
+    out[25] = crank_e0*d11 - d0*d12 + d1*d13
+    out[26] = crank_e1*d11 + d0*d13 + d1*d12
+    out[27] = 2*crank_e1*d13 - d12*d2
+    out[28] = d12*d3 + d13*d2
+    out[29] = -d8
+    out[30] = -d9
+    out[31] = -d10
+    out[32] = d14*d15 + d15*d16 - d17*d6 + d18*d6 + d19*d5 - d20*d4
+    out[33] = -d17*d7 + d18*d7 + d19*d4 + d20*d5
+    out[34] = 4*d14*rocker_e2 + d17*d4 + d18*d4 + d19*d7 + d20*d6
+    out[35] = 4*d16*rocker_e3 + d17*d5 + d18*d5 + d19*d6 - d20*d7
+    out[36] = d2
+    out[37] = d3
+    out[38] = d0
+    out[39] = d1
+    out[40] = d7
+    out[41] = d6
+    out[42] = d5
+    out[43] = d4
     return out
 
 
@@ -273,6 +275,149 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
+    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    d0 = 2*crank_e2
+    d1 = 2*crank_e3
+    d2 = 2*crank_e0
+    d3 = 2*crank_e1
+    d4 = 2*rocker_e3
+    d5 = 2*rocker_e2
+    d6 = 2*rocker_e1
+    d7 = 2*rocker_e0
+    d8 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
+    d9 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
+    d10 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
+    d11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
+    d12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
+    d13 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d14 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d15 = 4*rocker_e0
+    d16 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
+    d17 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d18 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
+    d19 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    d20 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, -1, -1, -1, -d4, d5, d6, -d7, d5, d4, d7, d6, d8, d9, d10, crank_e0*d11 - d0*d12 + d1*d13, crank_e1*d11 + d0*d13 + d1*d12, 2*crank_e1*d13 - d12*d2, d12*d3 + d13*d2, -d8, -d9, -d10, d14*d15 + d15*d16 - d17*d6 + d18*d6 + d19*d5 - d20*d4, -d17*d7 + d18*d7 + d19*d4 + d20*d5, 4*d14*rocker_e2 + d17*d4 + d18*d4 + d19*d7 + d20*d6, 4*d16*rocker_e3 + d17*d5 + d18*d5 + d19*d6 - d20*d7, d2, d3, d0, d1, d7, d6, d5, d4]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
+    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    c0 = 4*v_crank_e2
+    c1 = 4*v_crank_e1
+    c2 = 4*v_rocker_e3
+    c3 = 4*v_rocker_e2
+    c4 = (9/100)*crank_a20 + (3/5)*crank_z + (0.13208196)*rocker_a21 - 0.122288004*rocker_a22 - 3/5*rocker_z
+    c5 = -c4
+    c6 = (9/100)*crank_a10 + (3/5)*crank_y + (0.13208196)*rocker_a11 - 0.122288004*rocker_a12 - 3/5*rocker_y
+    c7 = (0.81525336)*rocker_e1
+    c8 = c7 + (1.7610928)*rocker_e0
+    c9 = -0.81525336*rocker_e3
+    c10 = c9 + (1.7610928)*rocker_e2
+    c11 = (0.81525336)*rocker_e2
+    c12 = (3/5)*crank_e0
+    c13 = (3/5)*crank_e1
+    c14 = (3/5)*crank_e2
+    c15 = (3/5)*crank_e3
+    c16 = (0.81525336)*rocker_e0
+    c17 = -c11*v_rocker_e3 + c12*v_crank_e3 + c13*v_crank_e2 + c14*v_crank_e1 + c15*v_crank_e0 + c16*v_rocker_e1 + 2*v_crank_y - 2*v_rocker_y
+    c18 = 2*v_crank_z
+    c19 = 2*v_rocker_z
+    c20 = c12*v_crank_e2
+    c21 = c13*v_crank_e3
+    c22 = c14*v_crank_e0
+    c23 = c15*v_crank_e1
+    c24 = (0.8805464)*rocker_e0
+    c25 = c24*v_rocker_e1
+    c26 = (0.8805464)*rocker_e3
+    c27 = c26*v_rocker_e2
+    c28 = -0.8805464*rocker_e1
+    c29 = c28 + (1.63050672)*rocker_e0
+    c30 = (0.8805464)*rocker_e2
+    c31 = c30 - 1.63050672*rocker_e3
+    c32 = 2*v_crank_x
+    c33 = 2*v_rocker_x
+    c34 = crank_e0*v_crank_e0
+    c35 = (6/5)*c34
+    c36 = crank_e1*v_crank_e1
+    c37 = (6/5)*c36
+    c38 = c11 + c26
+    c39 = c30 + c9
+    c40 = c16 + c28
+    c41 = c24 + c7
+    c42 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
+    c43 = 4*rocker_e0*v_rocker_e0
+    c44 = crank_e0*v_crank_e3
+    c45 = crank_e1*v_crank_e2
+    c46 = crank_e2*v_crank_e1
+    c47 = crank_e3*v_crank_e0
+    c48 = (0.179467102808976)*rocker_e0
+    c49 = c48*v_rocker_e1
+    c50 = (0.179467102808976)*rocker_e2
+    c51 = (0.179467102808976)*rocker_e1
+    c52 = (0.179467102808976)*rocker_e3
+    c53 = -c52
+    c54 = crank_e0*v_crank_e2
+    c55 = crank_e1*v_crank_e3
+    c56 = crank_e2*v_crank_e0
+    c57 = crank_e3*v_crank_e1
+    c58 = -c51
+    c59 = (0.122288004)*rocker_e2
+    c60 = (0.13208196)*rocker_e3
+    c61 = (0.13208196)*rocker_e2
+    c62 = -0.122288004*rocker_e3
+    c63 = (0.122288004)*rocker_e0
+    c64 = -0.13208196*rocker_e1
+    c65 = (0.13208196)*rocker_e0
+    c66 = (0.122288004)*rocker_e1
+    c67 = 2*rocker_e0
+    c68 = 2*v_rocker_e0
+    c69 = c67*v_rocker_e1 + c68*rocker_e1
+    c70 = (0.1661595102478224)*rocker_e0
+    c71 = (0.358934205617952)*rocker_e0
+    c72 = (0.1661595102478224)*rocker_e1
+    c73 = -0.1661595102478224*rocker_e3
+    c74 = (0.19384049063824)*rocker_e0
+    c75 = (0.19384049063824)*rocker_e3
+    c76 = -0.19384049063824*rocker_e1
+    c77 = (0.19384049063824)*rocker_e2
+    c78 = (0.13208196)*crank_a00 + (0.8805464)*crank_x + (0.19384049063824)*rocker_a01 - 0.179467102808976*rocker_a02 - 0.8805464*rocker_x
+    c79 = -0.122288004*crank_a00 - 0.81525336*crank_x - 0.179467102808976*rocker_a01 + (0.1661595102478224)*rocker_a02 + (0.81525336)*rocker_x
+    c80 = (0.179467102808976)*rocker_a22
+    c81 = (0.8805464)*rocker_z
+    c82 = (0.122288004)*crank_a10 + (0.81525336)*crank_y + (0.179467102808976)*rocker_a11 - 0.1661595102478224*rocker_a12 - 0.81525336*rocker_y
+    c83 = -c80 - c81 + c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c84 = (0.26416392)*crank_a10 + (1.7610928)*crank_y + (0.38768098127648)*rocker_a11 - 0.358934205617952*rocker_a12 - 1.7610928*rocker_y
+    c85 = -c80 - c81 - c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c86 = -c78
+    c87 = (0.244576008)*crank_a20
+    c88 = (1.63050672)*crank_z
+    c89 = (0.358934205617952)*rocker_a21
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(c42*v_crank_e0 + c5*v_crank_e2 + c6*v_crank_e3) - v_crank_e1*(c4*v_crank_e3 + c42*v_crank_e1 + c6*v_crank_e2) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c10*v_rocker_e2 + c17 + c8*v_rocker_e0) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*(c84 - c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*(-c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c10*v_rocker_e2 - c17 - c8*v_rocker_e0) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (c1*crank_e1 + 4*c34)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (c2*rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*(c58 + (0.3323190204956448)*rocker_e0) + v_rocker_e3*(-c50 + (0.3323190204956448)*rocker_e3) + (0.40762668)*v_rocker_z) - (c3*rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*(c51 + (0.38768098127648)*rocker_e0) + v_rocker_e2*(c53 + (0.38768098127648)*rocker_e2) - 0.4402732*v_rocker_y) - (-c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 + (0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-c73 - 0.358934205617952*rocker_e2) + (0.40762668)*v_rocker_y) - (c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(c77 - 0.358934205617952*rocker_e3) - 0.4402732*v_rocker_z) - (2*c44 + 2*c45 + 2*c46 + 2*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*(c66 + (0.26416392)*rocker_e0) + v_rocker_e2*(c62 + (0.26416392)*rocker_e2) - 3/10*v_rocker_y) - (-2*c54 - 2*c56 + 2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-c64 - 0.244576008*rocker_e0) + v_rocker_e3*(c61 - 0.244576008*rocker_e3) - 3/10*v_rocker_z) - (c67*v_rocker_e2 + c68*rocker_e2 + 2*rocker_e1*v_rocker_e3 + 2*rocker_e3*v_rocker_e1)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*(c52 + (0.1661595102478224)*rocker_e2) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x) - (-c67*v_rocker_e3 - c68*rocker_e3 + 2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x), -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
+
+
 def inputs_turn(t):
     """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
     c0 = 3.141592653589793*t
@@ -287,59 +432,79 @@ def inputs_turn(t):
 
 def _drivers_phi_turn(q, u):
     """Phi of the driver rows of case 'turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    out[0] = 2*crank_e0*sin(c0) - 2*crank_e3*cos(c0)
     return out
 
 
 def _drivers_jac_turn(q, u):
     """Phi_q values of the driver rows of case 'turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
     u0, = u
-    c0 = 4*sin(u0)
-    c1 = 2*cos(u0)
-    out = _zeros(4, q, u)
-    out[0] = c0*crank_e0 - c1*crank_e3
-    out[1] = c0*crank_e1 - c1*crank_e2
-    out[2] = -c1*crank_e1
-    out[3] = -c1*crank_e0
+    d0 = (1/2)*u0
+    out = _zeros(2, q, u)
+    out[0] = 2*sin(d0)
+    out[1] = -2*cos(d0)
     return out
 
 
 def _drivers_nu_turn(q, u, ud):
     """nu of the driver rows of case 'turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _ = q
     u0, = u
     ud0, = ud
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0))
     return out
 
 
 def _drivers_gamma_turn(q, v, u, ud, udd):
     """gamma of the driver rows of case 'turn'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _ = q
-    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, _, _, _, _ = v
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, _, _, v_crank_e3, _, _, _, _, _, _, _ = v
     u0, = u
     ud0, = ud
     udd0, = udd
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = 4*c1
-    c3 = 2*c0
-    c4 = 2*c1
-    c5 = 4*c0
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = 2*c0*v_crank_e0*v_crank_e3 + 2*c0*v_crank_e1*v_crank_e2 - ud0**2*(c0*crank_a10 - c1*crank_a00) - 2*ud0*(c4*crank_e0*v_crank_e3 + c4*crank_e1*v_crank_e2 + v_crank_e0*(c4*crank_e3 + c5*crank_e0) + v_crank_e1*(c4*crank_e2 + c5*crank_e1)) - udd0*(c0*crank_a00 + c1*crank_a10) - v_crank_e0*(c2*v_crank_e0 - c3*v_crank_e3) - v_crank_e1*(c2*v_crank_e1 - c3*v_crank_e2)
+    out[0] = -ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)
     return out
+
+
+def _drivers_phi_jac_s_turn(q, u):
+    """Phi and Phi_q values of the driver rows of case 'turn' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    return [2*crank_e0*math.sin(c0) - 2*crank_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+
+
+def _drivers_nu_s_turn(q, u, ud):
+    """nu of the driver rows of case 'turn' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(crank_e0*math.cos(c0) + crank_e3*math.sin(c0))]
+
+
+def _drivers_gamma_s_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'turn' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, _, _, v_crank_e3, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    return [-ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)]
 
 
 def phi_turn(q, u):
@@ -348,7 +513,7 @@ def phi_turn(q, u):
 
 
 def jac_turn(q, u):
-    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (48 entries)."""
+    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (46 entries)."""
     return _join(_joints_jac(q), _drivers_jac_turn(q, u))
 
 
@@ -363,13 +528,31 @@ def gamma_turn(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_turn(q, v, u, ud, udd))
 
 
+def phi_jac_s_turn(q, u):
+    """Phi and the Phi_q values of case 'turn' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_turn(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_turn(q, u, ud):
+    """nu of case 'turn' at one configuration (list of floats)."""
+    return [0.0] * 13 + _drivers_nu_s_turn(q, u, ud)
+
+
+def gamma_s_turn(q, v, u, ud, udd):
+    """gamma of case 'turn' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_turn(q, v, u, ud, udd)
+
+
 CASES = {
     'turn': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'D.x', 'D.y', 'D.z', 'D.axis_f', 'D.axis_g', 'coupler.length', 'crank.norm', 'rocker.norm', 'crank_angle'),
         'drivers': ('crank_angle',),
-        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 6, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13),
-        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 10, 11, 12, 13, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 3, 4, 5, 6),
+        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 6, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 10, 11, 12, 13, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 3, 6),
         't0': 0.0, 't1': 1.0, 'steps': 201,
         'inputs': inputs_turn, 'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,
+        'phi_jac_s': phi_jac_s_turn, 'nu_s': nu_s_turn, 'gamma_s': gamma_s_turn,
     },
 }

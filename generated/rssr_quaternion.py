@@ -11,6 +11,8 @@ Coordinates q (stored, 14) and v (velocity, 12) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -90,18 +92,18 @@ def _joints_jac(q):
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
-    c1 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
-    c2 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
-    c3 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
-    c4 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
-    c5 = (9/200)*crank_a00 + (3/10)*crank_x + (0.06604098)*rocker_a01 - 0.061144002*rocker_a02 - 3/10*rocker_x
-    c6 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    c7 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    c8 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
-    c9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
-    c10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
-    c11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    d0 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
+    d1 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
+    d2 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
+    d3 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
+    d4 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d5 = (9/200)*crank_a00 + (3/10)*crank_x + (0.06604098)*rocker_a01 - 0.061144002*rocker_a02 - 3/10*rocker_x
+    d6 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
+    d7 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
+    d8 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
     out = _zeros(26, q, ())
     out[0] = -1
     out[1] = -1
@@ -117,18 +119,18 @@ def _joints_jac(q):
     out[11] = -rocker_a11
     out[12] = rocker_a22
     out[13] = -rocker_a12
-    out[14] = c0
-    out[15] = c1
-    out[16] = c2
-    out[17] = c3*crank_a10 - c4*crank_a20
-    out[18] = -c3*crank_a00 + c5*crank_a20
-    out[19] = c4*crank_a00 - c5*crank_a10
-    out[20] = -c0
-    out[21] = -c1
-    out[22] = -c2
-    out[23] = c6*rocker_a11 + c7*rocker_a12 - c8*rocker_a21 - c9*rocker_a22
-    out[24] = c10*rocker_a21 + c11*rocker_a22 - c6*rocker_a01 - c7*rocker_a02
-    out[25] = -c10*rocker_a11 - c11*rocker_a12 + c8*rocker_a01 + c9*rocker_a02
+    out[14] = d0
+    out[15] = d1
+    out[16] = d2
+    out[17] = crank_a10*d3 - crank_a20*d4
+    out[18] = -crank_a00*d3 + crank_a20*d5
+    out[19] = crank_a00*d4 - crank_a10*d5
+    out[20] = -d0
+    out[21] = -d1
+    out[22] = -d2
+    out[23] = d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22
+    out[24] = d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02
+    out[25] = -d10*rocker_a11 - d11*rocker_a12 + d8*rocker_a01 + d9*rocker_a02
     return out
 
 
@@ -199,6 +201,97 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    d0 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
+    d1 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
+    d2 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
+    d3 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
+    d4 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d5 = (9/200)*crank_a00 + (3/10)*crank_x + (0.06604098)*rocker_a01 - 0.061144002*rocker_a02 - 3/10*rocker_x
+    d6 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
+    d7 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
+    d8 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, -1, -1, -1, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, crank_a10*d3 - crank_a20*d4, -crank_a00*d3 + crank_a20*d5, crank_a00*d4 - crank_a10*d5, -d0, -d1, -d2, d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22, d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02, -d10*rocker_a11 - d11*rocker_a12 + d8*rocker_a01 + d9*rocker_a02]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    c0 = crank_a00*v_crank_theta_z
+    c1 = crank_a20*v_crank_theta_x
+    c2 = c0 - c1
+    c3 = crank_a10*v_crank_theta_z
+    c4 = -c3 + crank_a20*v_crank_theta_y
+    c5 = -rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x
+    c6 = rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x
+    c7 = -rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x
+    c8 = rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x
+    c9 = 2*v_crank_x
+    c10 = 2*v_rocker_x
+    c11 = (3/10)*c3
+    c12 = crank_a20*v_crank_theta_y
+    c13 = (3/10)*c12
+    c14 = (0.4402732)*rocker_a21 - 0.40762668*rocker_a22
+    c15 = (0.4402732)*rocker_a11 - 0.40762668*rocker_a12
+    c16 = -c15
+    c17 = 2*v_crank_y
+    c18 = 2*v_rocker_y
+    c19 = (3/10)*c0
+    c20 = (3/10)*c1
+    c21 = -c14
+    c22 = (0.4402732)*rocker_a01 - 0.40762668*rocker_a02
+    c23 = 2*v_crank_z
+    c24 = 2*v_rocker_z
+    c25 = crank_a00*v_crank_theta_y
+    c26 = (3/10)*c25
+    c27 = crank_a10*v_crank_theta_x
+    c28 = (3/10)*c27
+    c29 = -c22
+    c30 = (0.06604098)*crank_a10 + (0.4402732)*crank_y - 0.4402732*rocker_y
+    c31 = (0.06604098)*crank_a00 + (0.4402732)*crank_x - 0.4402732*rocker_x
+    c32 = (0.06604098)*crank_a20 + (0.4402732)*crank_z - 0.4402732*rocker_z
+    c33 = (0.061144002)*crank_a10 + (0.40762668)*crank_y - 0.40762668*rocker_y
+    c34 = (0.061144002)*crank_a00 + (0.40762668)*crank_x - 0.40762668*rocker_x
+    c35 = (0.061144002)*crank_a20 + (0.40762668)*crank_z - 0.40762668*rocker_z
+    c36 = (0.06604098)*rocker_a11 - 0.061144002*rocker_a12
+    c37 = (0.06604098)*rocker_a01 - 0.061144002*rocker_a02
+    c38 = c36 + (3/10)*crank_y - 3/10*rocker_y
+    c39 = c37 + (3/10)*crank_x - 3/10*rocker_x
+    c40 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
+    c41 = c40 + (3/10)*crank_z - 3/10*rocker_z
+    return [0.0, 0.0, 0.0, -c2*v_crank_theta_x + c4*v_crank_theta_y, -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), 0.0, 0.0, 0.0, -c5*v_rocker_theta_y + c6*v_rocker_theta_z, -c7*v_rocker_theta_y + c8*v_rocker_theta_z, -c2*(c37*v_rocker_theta_z - c39*v_crank_theta_z - c40*v_rocker_theta_x + c41*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - c4*(-c36*v_rocker_theta_z + c38*v_crank_theta_z + c40*v_rocker_theta_y - c41*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - c5*(-0.06604098*c25 + (0.06604098)*c27 - c30*v_rocker_theta_x + c31*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - c6*((0.06604098)*c0 - 0.06604098*c1 - c31*v_rocker_theta_z + c32*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - c7*((0.061144002)*c25 - 0.061144002*c27 + c33*v_rocker_theta_x - c34*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - c8*(-0.061144002*c0 + (0.061144002)*c1 + c34*v_rocker_theta_z - c35*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - v_crank_x*(-c10 - c11 + c13 + c14*v_rocker_theta_y + c16*v_rocker_theta_z + c9) - v_crank_y*(c17 - c18 + c19 - c20 + c21*v_rocker_theta_x + c22*v_rocker_theta_z) - v_crank_z*(c15*v_rocker_theta_x + c23 - c24 - c26 + c28 + c29*v_rocker_theta_y) - v_rocker_x*(c10 + c11 - c13 + c15*v_rocker_theta_z + c21*v_rocker_theta_y - c9) - v_rocker_y*(c14*v_rocker_theta_x - c17 + c18 - c19 + c20 + c29*v_rocker_theta_z) - v_rocker_z*(c16*v_rocker_theta_x + c22*v_rocker_theta_y - c23 + c24 + c26 - c28) - (-c25 + crank_a10*v_crank_theta_x)*(c36*v_rocker_theta_x - c37*v_rocker_theta_y - c38*v_crank_theta_x + c39*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*((0.06604098)*c12 - 0.06604098*c3 + c30*v_rocker_theta_z - c32*v_rocker_theta_y + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(-0.061144002*c12 + (0.061144002)*c3 - c33*v_rocker_theta_z + c35*v_rocker_theta_y - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)]
+
+
 def inputs_turn(t):
     """Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2."""
     c0 = 3.141592653589793*t
@@ -213,12 +306,11 @@ def inputs_turn(t):
 
 def _drivers_phi_turn(q, u):
     """Phi of the driver rows of case 'turn'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    out[0] = 2*crank_qw*sin(c0) - 2*crank_qz*cos(c0)
     return out
 
 
@@ -226,27 +318,24 @@ def _drivers_jac_turn(q, u):
     """Phi_q values of the driver rows of case 'turn'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
+    d0 = (1/2)*u0
+    d1 = sin(d0)
+    d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = c0*crank_a20
-    out[1] = c1*crank_a20
-    out[2] = -c0*crank_a00 - c1*crank_a10
+    out[0] = -crank_qx*d1 - crank_qy*d2
+    out[1] = crank_qx*d2 - crank_qy*d1
+    out[2] = -crank_qw*d2 - crank_qz*d1
     return out
 
 
 def _drivers_nu_turn(q, u, ud):
     """nu of the driver rows of case 'turn'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _ = q
     u0, = u
     ud0, = ud
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0))
     return out
 
 
@@ -257,16 +346,59 @@ def _drivers_gamma_turn(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = crank_a20*v_crank_theta_x
-    c3 = -c0*crank_a10 + c1*crank_a00
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*crank_qw
+    c4 = -1/2*c1*crank_qz + c2*c3
+    c5 = (1/2)*v_crank_theta_y
+    c6 = (1/2)*v_crank_theta_x
+    c7 = (1/2)*crank_qz
+    c8 = (1/2)*v_crank_theta_z
+    c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c0*v_crank_theta_z*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y) + c1*v_crank_theta_z*(-c2 + crank_a00*v_crank_theta_z) + c3*ud0**2 - 2*ud0*(c0*crank_a20*v_crank_theta_y - c1*c2 + c3*v_crank_theta_z) - udd0*(c0*crank_a00 + c1*crank_a10) - (c0*v_crank_theta_x + c1*v_crank_theta_y)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    out[0] = c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)
     return out
+
+
+def _drivers_phi_jac_s_turn(q, u):
+    """Phi and Phi_q values of the driver rows of case 'turn' at one configuration."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    return [2*crank_qw*math.sin(c0) - 2*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+
+
+def _drivers_nu_s_turn(q, u, ud):
+    """nu of the driver rows of case 'turn' at one configuration."""
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(crank_qw*math.cos(c0) + crank_qz*math.sin(c0))]
+
+
+def _drivers_gamma_s_turn(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'turn' at one configuration."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*crank_qw
+    c4 = -1/2*c1*crank_qz + c2*c3
+    c5 = (1/2)*v_crank_theta_y
+    c6 = (1/2)*v_crank_theta_x
+    c7 = (1/2)*crank_qz
+    c8 = (1/2)*v_crank_theta_z
+    c9 = (1/2)*c1
+    return [c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)]
 
 
 def phi_turn(q, u):
@@ -290,6 +422,23 @@ def gamma_turn(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_turn(q, v, u, ud, udd))
 
 
+def phi_jac_s_turn(q, u):
+    """Phi and the Phi_q values of case 'turn' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_turn(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_turn(q, u, ud):
+    """nu of case 'turn' at one configuration (list of floats)."""
+    return [0.0] * 11 + _drivers_nu_s_turn(q, u, ud)
+
+
+def gamma_s_turn(q, v, u, ud, udd):
+    """gamma of case 'turn' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_turn(q, v, u, ud, udd)
+
+
 CASES = {
     'turn': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'D.x', 'D.y', 'D.z', 'D.axis_f', 'D.axis_g', 'coupler.length', 'crank_angle'),
@@ -298,5 +447,6 @@ CASES = {
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 6, 7, 8, 10, 11, 10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 3, 4, 5),
         't0': 0.0, 't1': 1.0, 'steps': 201,
         'inputs': inputs_turn, 'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,
+        'phi_jac_s': phi_jac_s_turn, 'nu_s': nu_s_turn, 'gamma_s': gamma_s_turn,
     },
 }

@@ -11,6 +11,8 @@ Coordinates q (stored, 21) and v (velocity, 21) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -99,107 +101,107 @@ def _joints_jac(q):
     slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
     slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
-    c0 = 2*crank_e2
-    c1 = 2*crank_e3
-    c2 = 2*crank_e0
-    c3 = 2*crank_e1
-    c4 = (2/5)*crank_e3
-    c5 = (2/5)*crank_e2
-    c6 = (2/5)*crank_e1
-    c7 = (2/5)*crank_e0
-    c8 = (6/5)*rod_e3
-    c9 = (6/5)*rod_e2
-    c10 = (6/5)*rod_e1
-    c11 = (6/5)*rod_e0
-    c12 = 4*slider_a12
-    c13 = 2*rod_e1
-    c14 = 2*rod_e3
-    c15 = 2*rod_e0
-    c16 = 2*rod_e2
-    c17 = 2*slider_e2
-    c18 = 2*slider_e1
-    c19 = 4*rod_a21
-    c20 = 2*slider_e3
-    c21 = 2*slider_e0
-    c22 = -c21
+    d0 = 2*crank_e2
+    d1 = 2*crank_e3
+    d2 = 2*crank_e0
+    d3 = 2*crank_e1
+    d4 = (2/5)*crank_e3
+    d5 = (2/5)*crank_e2
+    d6 = (2/5)*crank_e1
+    d7 = (2/5)*crank_e0
+    d8 = (6/5)*rod_e3
+    d9 = (6/5)*rod_e2
+    d10 = (6/5)*rod_e1
+    d11 = (6/5)*rod_e0
+    d12 = 4*slider_a12
+    d13 = 2*rod_e1
+    d14 = 2*rod_e3
+    d15 = 2*rod_e0
+    d16 = 2*rod_e2
+    d17 = 2*slider_e2
+    d18 = 2*slider_e1
+    d19 = 4*rod_a21
+    d20 = 2*slider_e3
+    d21 = 2*slider_e0
+    d22 = -d21
     out = _zeros(77, q, ())
     out[0] = -1
     out[1] = -1
     out[2] = -1
-    out[3] = -c0
-    out[4] = c1
-    out[5] = -c2
-    out[6] = c3
-    out[7] = c3
-    out[8] = c2
-    out[9] = c1
-    out[10] = c0
+    out[3] = -d0
+    out[4] = d1
+    out[5] = -d2
+    out[6] = d3
+    out[7] = d3
+    out[8] = d2
+    out[9] = d1
+    out[10] = d0
     out[11] = 1
     out[12] = (4/5)*crank_e0
     out[13] = (4/5)*crank_e1
     out[14] = -1
     out[15] = 1
-    out[16] = c4
-    out[17] = c5
-    out[18] = c6
-    out[19] = c7
+    out[16] = d4
+    out[17] = d5
+    out[18] = d6
+    out[19] = d7
     out[20] = -1
     out[21] = 1
-    out[22] = -c5
-    out[23] = c4
-    out[24] = -c7
-    out[25] = c6
+    out[22] = -d5
+    out[23] = d4
+    out[24] = -d7
+    out[25] = d6
     out[26] = -1
     out[27] = 1
     out[28] = (12/5)*rod_e0
     out[29] = (12/5)*rod_e1
     out[30] = -1
     out[31] = 1
-    out[32] = c8
-    out[33] = c9
-    out[34] = c10
-    out[35] = c11
+    out[32] = d8
+    out[33] = d9
+    out[34] = d10
+    out[35] = d11
     out[36] = -1
     out[37] = 1
-    out[38] = -c9
-    out[39] = c8
-    out[40] = -c11
-    out[41] = c10
+    out[38] = -d9
+    out[39] = d8
+    out[40] = -d11
+    out[41] = d10
     out[42] = -1
-    out[43] = c12*rod_e0 + c13*slider_a22 - c14*slider_a02
-    out[44] = c15*slider_a22 + c16*slider_a02
-    out[45] = c12*rod_e2 + c13*slider_a02 + c14*slider_a22
-    out[46] = -c15*slider_a02 + 2*rod_e2*slider_a22
-    out[47] = c17*rod_a01 - c18*rod_a11 + c19*slider_e0
-    out[48] = c20*rod_a01 - c21*rod_a11
-    out[49] = c20*rod_a11 + c21*rod_a01
-    out[50] = c17*rod_a11 + c18*rod_a01 + c19*slider_e3
-    out[51] = -c20
-    out[52] = c17
-    out[53] = c18
-    out[54] = c22
-    out[55] = c17
-    out[56] = c20
-    out[57] = c21
-    out[58] = c18
+    out[43] = d12*rod_e0 + d13*slider_a22 - d14*slider_a02
+    out[44] = d15*slider_a22 + d16*slider_a02
+    out[45] = d12*rod_e2 + d13*slider_a02 + d14*slider_a22
+    out[46] = -d15*slider_a02 + 2*rod_e2*slider_a22
+    out[47] = d17*rod_a01 - d18*rod_a11 + d19*slider_e0
+    out[48] = d20*rod_a01 - d21*rod_a11
+    out[49] = d20*rod_a11 + d21*rod_a01
+    out[50] = d17*rod_a11 + d18*rod_a01 + d19*slider_e3
+    out[51] = -d20
+    out[52] = d17
+    out[53] = d18
+    out[54] = d22
+    out[55] = d17
+    out[56] = d20
+    out[57] = d21
+    out[58] = d18
     out[59] = 1
     out[60] = 1
-    out[61] = -c18
-    out[62] = c22
-    out[63] = c20
-    out[64] = c17
-    out[65] = c2
-    out[66] = c3
-    out[67] = c0
-    out[68] = c1
-    out[69] = c15
-    out[70] = c13
-    out[71] = c16
-    out[72] = c14
-    out[73] = c21
-    out[74] = c18
-    out[75] = c17
-    out[76] = c20
+    out[61] = -d18
+    out[62] = d22
+    out[63] = d20
+    out[64] = d17
+    out[65] = d2
+    out[66] = d3
+    out[67] = d0
+    out[68] = d1
+    out[69] = d15
+    out[70] = d13
+    out[71] = d16
+    out[72] = d14
+    out[73] = d21
+    out[74] = d18
+    out[75] = d17
+    out[76] = d20
     return out
 
 
@@ -254,6 +256,84 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    rod_a00 = 2*rod_e0**2 + 2*rod_e1**2 - 1
+    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a10 = 2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a20 = -2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
+    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
+    slider_a01 = -2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
+    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
+    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
+    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    d0 = 2*crank_e2
+    d1 = 2*crank_e3
+    d2 = 2*crank_e0
+    d3 = 2*crank_e1
+    d4 = (2/5)*crank_e3
+    d5 = (2/5)*crank_e2
+    d6 = (2/5)*crank_e1
+    d7 = (2/5)*crank_e0
+    d8 = (6/5)*rod_e3
+    d9 = (6/5)*rod_e2
+    d10 = (6/5)*rod_e1
+    d11 = (6/5)*rod_e0
+    d12 = 4*slider_a12
+    d13 = 2*rod_e1
+    d14 = 2*rod_e3
+    d15 = 2*rod_e0
+    d16 = 2*rod_e2
+    d17 = 2*slider_e2
+    d18 = 2*slider_e1
+    d19 = 4*rod_a21
+    d20 = 2*slider_e3
+    d21 = 2*slider_e0
+    d22 = -d21
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1, slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (4/5)*crank_e0, (4/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (12/5)*rod_e0, (12/5)*rod_e1, -1, 1, d8, d9, d10, d11, -1, 1, -d9, d8, -d11, d10, -1, d12*rod_e0 + d13*slider_a22 - d14*slider_a02, d15*slider_a22 + d16*slider_a02, d12*rod_e2 + d13*slider_a02 + d14*slider_a22, -d15*slider_a02 + 2*rod_e2*slider_a22, d17*rod_a01 - d18*rod_a11 + d19*slider_e0, d20*rod_a01 - d21*rod_a11, d20*rod_a11 + d21*rod_a01, d17*rod_a11 + d18*rod_a01 + d19*slider_e3, -d20, d17, d18, d22, d17, d20, d21, d18, 1, 1, -d18, d22, d20, d17, d2, d3, d0, d1, d15, d13, d16, d14, d21, d18, d17, d20]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    _, _, _, _, _, _, _, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
+    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
+    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
+    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
+    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    c0 = 4*v_crank_e2
+    c1 = 4*v_crank_e1
+    c2 = v_crank_e0**2
+    c3 = v_crank_e1**2
+    c4 = (4/5)*v_crank_e3
+    c5 = (4/5)*v_crank_e2
+    c6 = v_rod_e0**2
+    c7 = v_rod_e1**2
+    c8 = (12/5)*v_rod_e3
+    c9 = (12/5)*v_rod_e2
+    c10 = 2*slider_a02
+    c11 = 2*slider_a22
+    c12 = 2*rod_a01
+    c13 = 2*rod_a11
+    c14 = 4*slider_a12
+    c15 = 4*rod_a21
+    c16 = 2*slider_e0
+    c17 = 2*slider_e1
+    c18 = 4*v_slider_e0
+    c19 = 4*v_slider_e3
+    c20 = 2*rod_e0
+    c21 = 2*v_rod_e0
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*c2 - 4/5*c3, -c4*v_crank_e0 - c5*v_crank_e1, -c4*v_crank_e1 + c5*v_crank_e0, -12/5*c6 - 12/5*c7, -c8*v_rod_e0 - c9*v_rod_e1, -c8*v_rod_e1 + c9*v_rod_e0, -v_rod_e0*(-c10*v_rod_e3 + c11*v_rod_e1 + c14*v_rod_e0) - v_rod_e1*(c10*v_rod_e2 + c11*v_rod_e0) - v_rod_e2*(c10*v_rod_e1 + c11*v_rod_e3 + c14*v_rod_e2) - v_rod_e3*(-c10*v_rod_e0 + 2*slider_a22*v_rod_e2) - v_slider_e0*(c12*v_slider_e2 - c13*v_slider_e1 + c15*v_slider_e0) - v_slider_e1*(c12*v_slider_e3 - c13*v_slider_e0) - v_slider_e2*(c12*v_slider_e0 + c13*v_slider_e3) - v_slider_e3*(c12*v_slider_e1 + c13*v_slider_e2 + c15*v_slider_e3) - 2*(c18*slider_e0 + c19*slider_e3)*(c20*v_rod_e1 + c21*rod_e1 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(-c16*v_slider_e1 - c17*v_slider_e0 + 2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2) - 2*(c16*v_slider_e2 + c17*v_slider_e3 + 2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1)*(-c20*v_rod_e3 - c21*rod_e3 + 2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1), c18*v_slider_e3 - 4*v_slider_e1*v_slider_e2, -c18*v_slider_e2 - c19*v_slider_e1, 0.0, 0.0, c18*v_slider_e1 - c19*v_slider_e2, -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*c6 - 2*c7 - 2*v_rod_e2**2 - 2*v_rod_e3**2, -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2]
+
+
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
@@ -265,59 +345,79 @@ def inputs_run(t):
 
 def _drivers_phi_run(q, u):
     """Phi of the driver rows of case 'run'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    out[0] = 2*crank_e0*sin(c0) - 2*crank_e3*cos(c0)
     return out
 
 
 def _drivers_jac_run(q, u):
     """Phi_q values of the driver rows of case 'run'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    c0 = 4*sin(u0)
-    c1 = 2*cos(u0)
-    out = _zeros(4, q, u)
-    out[0] = c0*crank_e0 - c1*crank_e3
-    out[1] = c0*crank_e1 - c1*crank_e2
-    out[2] = -c1*crank_e1
-    out[3] = -c1*crank_e0
+    d0 = (1/2)*u0
+    out = _zeros(2, q, u)
+    out[0] = 2*sin(d0)
+    out[1] = -2*cos(d0)
     return out
 
 
 def _drivers_nu_run(q, u, ud):
     """nu of the driver rows of case 'run'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
     ud0, = ud
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0))
     return out
 
 
 def _drivers_gamma_run(q, v, u, ud, udd):
     """gamma of the driver rows of case 'run'."""
-    _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
-    _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, _, _, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
     u0, = u
     ud0, = ud
     udd0, = udd
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = 4*c1
-    c3 = 2*c0
-    c4 = 2*c1
-    c5 = 4*c0
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = 2*c0*v_crank_e0*v_crank_e3 + 2*c0*v_crank_e1*v_crank_e2 - ud0**2*(c0*crank_a10 - c1*crank_a00) - 2*ud0*(c4*crank_e0*v_crank_e3 + c4*crank_e1*v_crank_e2 + v_crank_e0*(c4*crank_e3 + c5*crank_e0) + v_crank_e1*(c4*crank_e2 + c5*crank_e1)) - udd0*(c0*crank_a00 + c1*crank_a10) - v_crank_e0*(c2*v_crank_e0 - c3*v_crank_e3) - v_crank_e1*(c2*v_crank_e1 - c3*v_crank_e2)
+    out[0] = -ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)
     return out
+
+
+def _drivers_phi_jac_s_run(q, u):
+    """Phi and Phi_q values of the driver rows of case 'run' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    return [2*crank_e0*math.sin(c0) - 2*crank_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+
+
+def _drivers_nu_s_run(q, u, ud):
+    """nu of the driver rows of case 'run' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(crank_e0*math.cos(c0) + crank_e3*math.sin(c0))]
+
+
+def _drivers_gamma_s_run(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'run' at one configuration."""
+    _, _, _, crank_e0, _, _, crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_e0, _, _, v_crank_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    return [-ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)]
 
 
 def phi_run(q, u):
@@ -326,7 +426,7 @@ def phi_run(q, u):
 
 
 def jac_run(q, u):
-    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (81 entries)."""
+    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (79 entries)."""
     return _join(_joints_jac(q), _drivers_jac_run(q, u))
 
 
@@ -339,6 +439,23 @@ def nu_run(q, u, ud):
 def gamma_run(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
     return _join(_joints_gamma(q, v), _drivers_gamma_run(q, v, u, ud, udd))
+
+
+def phi_jac_s_run(q, u):
+    """Phi and the Phi_q values of case 'run' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_run(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_run(q, u, ud):
+    """nu of case 'run' at one configuration (list of floats)."""
+    return [0.0] * 20 + _drivers_nu_s_run(q, u, ud)
+
+
+def gamma_s_run(q, v, u, ud, udd):
+    """gamma of case 'run' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_run(q, v, u, ud, udd)
 
 
 def inputs_dead_centre(t):
@@ -382,6 +499,25 @@ def _drivers_gamma_dead_centre(q, v, u, ud, udd):
     return out
 
 
+def _drivers_phi_jac_s_dead_centre(q, u):
+    """Phi and Phi_q values of the driver rows of case 'dead_centre' at one configuration."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
+    u0, = u
+    return [slider_x - u0], [1]
+
+
+def _drivers_nu_s_dead_centre(q, u, ud):
+    """nu of the driver rows of case 'dead_centre' at one configuration."""
+    ud0, = ud
+    return [ud0]
+
+
+def _drivers_gamma_s_dead_centre(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'dead_centre' at one configuration."""
+    udd0, = udd
+    return [udd0]
+
+
 def phi_dead_centre(q, u):
     """Phi(q, u) of case 'dead_centre': 21 residuals."""
     return _join(_joints_phi(q), _drivers_phi_dead_centre(q, u))
@@ -403,14 +539,32 @@ def gamma_dead_centre(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_dead_centre(q, v, u, ud, udd))
 
 
+def phi_jac_s_dead_centre(q, u):
+    """Phi and the Phi_q values of case 'dead_centre' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_dead_centre(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_dead_centre(q, u, ud):
+    """nu of case 'dead_centre' at one configuration (list of floats)."""
+    return [0.0] * 20 + _drivers_nu_s_dead_centre(q, u, ud)
+
+
+def gamma_s_dead_centre(q, v, u, ud, udd):
+    """gamma of case 'dead_centre' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_dead_centre(q, v, u, ud, udd)
+
+
 CASES = {
     'run': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'crank.norm', 'rod.norm', 'slider.norm', 'crank_angle'),
         'drivers': ('crank_angle',),
-        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 14, 15, 16, 16, 16, 16, 17, 17, 17, 17, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20),
-        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 8, 10, 11, 12, 13, 15, 9, 10, 11, 12, 13, 16, 10, 11, 12, 13, 17, 18, 19, 20, 17, 18, 19, 20, 17, 18, 19, 20, 15, 16, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 3, 4, 5, 6),
+        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 14, 15, 16, 16, 16, 16, 17, 17, 17, 17, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 8, 10, 11, 12, 13, 15, 9, 10, 11, 12, 13, 16, 10, 11, 12, 13, 17, 18, 19, 20, 17, 18, 19, 20, 17, 18, 19, 20, 15, 16, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 3, 6),
         't0': 0.0, 't1': 1.5, 'steps': 301,
         'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
+        'phi_jac_s': phi_jac_s_run, 'nu_s': nu_s_run, 'gamma_s': gamma_s_run,
     },
     'dead_centre': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'crank.norm', 'rod.norm', 'slider.norm', 'slider_x'),
@@ -419,5 +573,6 @@ CASES = {
         'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 7, 10, 11, 14, 8, 10, 11, 12, 13, 15, 9, 10, 11, 12, 13, 16, 10, 11, 12, 13, 17, 18, 19, 20, 17, 18, 19, 20, 17, 18, 19, 20, 15, 16, 17, 18, 19, 20, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 14),
         't0': -1.0, 't1': 0.0, 'steps': 101,
         'inputs': inputs_dead_centre, 'phi': phi_dead_centre, 'jac': jac_dead_centre, 'nu': nu_dead_centre, 'gamma': gamma_dead_centre,
+        'phi_jac_s': phi_jac_s_dead_centre, 'nu_s': nu_s_dead_centre, 'gamma_s': gamma_s_dead_centre,
     },
 }

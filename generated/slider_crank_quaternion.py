@@ -11,6 +11,8 @@ Coordinates q (stored, 21) and v (velocity, 18) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
 """
 
+import math
+
 import numpy as np
 from numpy import cos, sin
 
@@ -106,15 +108,15 @@ def _joints_jac(q):
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
-    c0 = (1/5)*crank_a20
-    c1 = (1/5)*crank_a10
-    c2 = (1/5)*crank_a00
-    c3 = (3/5)*rod_a20
-    c4 = (3/5)*rod_a10
-    c5 = (3/5)*rod_a00
-    c6 = rod_a11*slider_a22 - rod_a21*slider_a12
-    c7 = rod_a01*slider_a22 - rod_a21*slider_a02
-    c8 = rod_a01*slider_a12 - rod_a11*slider_a02
+    d0 = (1/5)*crank_a20
+    d1 = (1/5)*crank_a10
+    d2 = (1/5)*crank_a00
+    d3 = (3/5)*rod_a20
+    d4 = (3/5)*rod_a10
+    d5 = (3/5)*rod_a00
+    d6 = rod_a11*slider_a22 - rod_a21*slider_a12
+    d7 = rod_a01*slider_a22 - rod_a21*slider_a02
+    d8 = rod_a01*slider_a12 - rod_a11*slider_a02
     out = _zeros(45, q, ())
     out[0] = -1
     out[1] = -1
@@ -124,35 +126,35 @@ def _joints_jac(q):
     out[5] = crank_a11
     out[6] = -crank_a01
     out[7] = 1
-    out[8] = c0
-    out[9] = -c1
+    out[8] = d0
+    out[9] = -d1
     out[10] = -1
     out[11] = 1
-    out[12] = -c0
-    out[13] = c2
+    out[12] = -d0
+    out[13] = d2
     out[14] = -1
     out[15] = 1
-    out[16] = c1
-    out[17] = -c2
+    out[16] = d1
+    out[17] = -d2
     out[18] = -1
     out[19] = 1
-    out[20] = c3
-    out[21] = -c4
+    out[20] = d3
+    out[21] = -d4
     out[22] = -1
     out[23] = 1
-    out[24] = -c3
-    out[25] = c5
+    out[24] = -d3
+    out[25] = d5
     out[26] = -1
     out[27] = 1
-    out[28] = c4
-    out[29] = -c5
+    out[28] = d4
+    out[29] = -d5
     out[30] = -1
-    out[31] = c6
-    out[32] = -c7
-    out[33] = c8
-    out[34] = -c6
-    out[35] = c7
-    out[36] = -c8
+    out[31] = d6
+    out[32] = -d7
+    out[33] = d8
+    out[34] = -d6
+    out[35] = d7
+    out[36] = -d8
     out[37] = slider_a21
     out[38] = -slider_a11
     out[39] = slider_a22
@@ -218,6 +220,80 @@ def _joints_gamma(q, v):
     return out
 
 
+def _joints_phi_jac_s(q):
+    """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
+    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
+    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
+    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
+    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    d0 = (1/5)*crank_a20
+    d1 = (1/5)*crank_a10
+    d2 = (1/5)*crank_a00
+    d3 = (3/5)*rod_a20
+    d4 = (3/5)*rod_a10
+    d5 = (3/5)*rod_a00
+    d6 = rod_a11*slider_a22 - rod_a21*slider_a12
+    d7 = rod_a01*slider_a22 - rod_a21*slider_a02
+    d8 = rod_a01*slider_a12 - rod_a11*slider_a02
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, 1, d0, -d1, -1, 1, -d0, d2, -1, 1, d1, -d2, -1, 1, d3, -d4, -1, 1, -d3, d5, -1, 1, d4, -d5, -1, d6, -d7, d8, -d6, d7, -d8, slider_a21, -slider_a11, slider_a22, -slider_a12, 1, 1, -slider_a22, slider_a02]
+
+
+def _joints_gamma_s(q, v):
+    """gamma of the joint rows at one configuration (list of floats)."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
+    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
+    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
+    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
+    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
+    c1 = c0*v_crank_theta_x
+    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c3 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
+    c4 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
+    c5 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
+    c6 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
+    c7 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
+    c8 = slider_a02*v_slider_theta_y
+    c9 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
+    c10 = slider_a22*v_slider_theta_x
+    c11 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
+    c12 = slider_a12*v_slider_theta_z
+    c13 = -c8 + slider_a12*v_slider_theta_x
+    c14 = -c10 + slider_a02*v_slider_theta_z
+    c15 = -c12 + slider_a22*v_slider_theta_y
+    return [0.0, 0.0, 0.0, -c1 + c2*v_crank_theta_y, -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), (1/5)*c0*v_crank_theta_z - c3*v_crank_theta_y, -1/5*c2*v_crank_theta_z + c3*v_crank_theta_x, -1/5*c1 + (1/5)*c2*v_crank_theta_y, -c4*v_rod_theta_y + (3/5)*c5*v_rod_theta_z, c4*v_rod_theta_x - 3/5*c6*v_rod_theta_z, -3/5*c5*v_rod_theta_x + (3/5)*c6*v_rod_theta_y, c11*(-c12 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y) - c13*(-c7 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c14*(c9 - rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x) - c15*(-c11 + rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y) + c7*(-c8 + slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x) - c9*(-c10 - slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x), -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x), -c13*v_slider_theta_y + c14*v_slider_theta_z, 0.0, 0.0, c13*v_slider_theta_x - c15*v_slider_theta_z]
+
+
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
@@ -229,12 +305,11 @@ def inputs_run(t):
 
 def _drivers_phi_run(q, u):
     """Phi of the driver rows of case 'run'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = crank_a00*sin(u0) - crank_a10*cos(u0)
+    out[0] = 2*crank_qw*sin(c0) - 2*crank_qz*cos(c0)
     return out
 
 
@@ -242,27 +317,24 @@ def _drivers_jac_run(q, u):
     """Phi_q values of the driver rows of case 'run'."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
+    d0 = (1/2)*u0
+    d1 = sin(d0)
+    d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = c0*crank_a20
-    out[1] = c1*crank_a20
-    out[2] = -c0*crank_a00 - c1*crank_a10
+    out[0] = -crank_qx*d1 - crank_qy*d2
+    out[1] = crank_qx*d2 - crank_qy*d1
+    out[2] = -crank_qw*d2 - crank_qz*d1
     return out
 
 
 def _drivers_nu_run(q, u, ud):
     """nu of the driver rows of case 'run'."""
-    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, = u
     ud0, = ud
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_a00*cos(u0) + crank_a10*sin(u0))
+    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0))
     return out
 
 
@@ -273,16 +345,59 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    c0 = cos(u0)
-    c1 = sin(u0)
-    c2 = crank_a20*v_crank_theta_x
-    c3 = -c0*crank_a10 + c1*crank_a00
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*crank_qw
+    c4 = -1/2*c1*crank_qz + c2*c3
+    c5 = (1/2)*v_crank_theta_y
+    c6 = (1/2)*v_crank_theta_x
+    c7 = (1/2)*crank_qz
+    c8 = (1/2)*v_crank_theta_z
+    c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c0*v_crank_theta_z*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y) + c1*v_crank_theta_z*(-c2 + crank_a00*v_crank_theta_z) + c3*ud0**2 - 2*ud0*(c0*crank_a20*v_crank_theta_y - c1*c2 + c3*v_crank_theta_z) - udd0*(c0*crank_a00 + c1*crank_a10) - (c0*v_crank_theta_x + c1*v_crank_theta_y)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    out[0] = c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)
     return out
+
+
+def _drivers_phi_jac_s_run(q, u):
+    """Phi and Phi_q values of the driver rows of case 'run' at one configuration."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    return [2*crank_qw*math.sin(c0) - 2*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+
+
+def _drivers_nu_s_run(q, u, ud):
+    """nu of the driver rows of case 'run' at one configuration."""
+    _, _, _, crank_qw, _, _, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, = u
+    ud0, = ud
+    c0 = (1/2)*u0
+    return [-ud0*(crank_qw*math.cos(c0) + crank_qz*math.sin(c0))]
+
+
+def _drivers_gamma_s_run(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'run' at one configuration."""
+    _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, = u
+    ud0, = ud
+    udd0, = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*crank_qw
+    c4 = -1/2*c1*crank_qz + c2*c3
+    c5 = (1/2)*v_crank_theta_y
+    c6 = (1/2)*v_crank_theta_x
+    c7 = (1/2)*crank_qz
+    c8 = (1/2)*v_crank_theta_z
+    c9 = (1/2)*c1
+    return [c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)]
 
 
 def phi_run(q, u):
@@ -304,6 +419,23 @@ def nu_run(q, u, ud):
 def gamma_run(q, v, u, ud, udd):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'."""
     return _join(_joints_gamma(q, v), _drivers_gamma_run(q, v, u, ud, udd))
+
+
+def phi_jac_s_run(q, u):
+    """Phi and the Phi_q values of case 'run' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_run(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_run(q, u, ud):
+    """nu of case 'run' at one configuration (list of floats)."""
+    return [0.0] * 17 + _drivers_nu_s_run(q, u, ud)
+
+
+def gamma_s_run(q, v, u, ud, udd):
+    """gamma of case 'run' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_run(q, v, u, ud, udd)
 
 
 def inputs_dead_centre(t):
@@ -347,6 +479,25 @@ def _drivers_gamma_dead_centre(q, v, u, ud, udd):
     return out
 
 
+def _drivers_phi_jac_s_dead_centre(q, u):
+    """Phi and Phi_q values of the driver rows of case 'dead_centre' at one configuration."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
+    u0, = u
+    return [slider_x - u0], [1]
+
+
+def _drivers_nu_s_dead_centre(q, u, ud):
+    """nu of the driver rows of case 'dead_centre' at one configuration."""
+    ud0, = ud
+    return [ud0]
+
+
+def _drivers_gamma_s_dead_centre(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'dead_centre' at one configuration."""
+    udd0, = udd
+    return [udd0]
+
+
 def phi_dead_centre(q, u):
     """Phi(q, u) of case 'dead_centre': 18 residuals."""
     return _join(_joints_phi(q), _drivers_phi_dead_centre(q, u))
@@ -368,6 +519,23 @@ def gamma_dead_centre(q, v, u, ud, udd):
     return _join(_joints_gamma(q, v), _drivers_gamma_dead_centre(q, v, u, ud, udd))
 
 
+def phi_jac_s_dead_centre(q, u):
+    """Phi and the Phi_q values of case 'dead_centre' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_dead_centre(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_dead_centre(q, u, ud):
+    """nu of case 'dead_centre' at one configuration (list of floats)."""
+    return [0.0] * 17 + _drivers_nu_s_dead_centre(q, u, ud)
+
+
+def gamma_s_dead_centre(q, v, u, ud, udd):
+    """gamma of case 'dead_centre' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_dead_centre(q, v, u, ud, udd)
+
+
 CASES = {
     'run': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'crank_angle'),
@@ -376,6 +544,7 @@ CASES = {
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 7, 9, 11, 13, 8, 9, 10, 14, 9, 10, 11, 15, 16, 17, 16, 17, 16, 17, 13, 14, 15, 17, 3, 4, 5),
         't0': 0.0, 't1': 1.5, 'steps': 301,
         'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
+        'phi_jac_s': phi_jac_s_run, 'nu_s': nu_s_run, 'gamma_s': gamma_s_run,
     },
     'dead_centre': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'slider_x'),
@@ -384,5 +553,6 @@ CASES = {
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 7, 9, 11, 13, 8, 9, 10, 14, 9, 10, 11, 15, 16, 17, 16, 17, 16, 17, 13, 14, 15, 17, 12),
         't0': -1.0, 't1': 0.0, 'steps': 101,
         'inputs': inputs_dead_centre, 'phi': phi_dead_centre, 'jac': jac_dead_centre, 'nu': nu_dead_centre, 'gamma': gamma_dead_centre,
+        'phi_jac_s': phi_jac_s_dead_centre, 'nu_s': nu_s_dead_centre, 'gamma_s': gamma_s_dead_centre,
     },
 }

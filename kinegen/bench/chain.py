@@ -6,8 +6,12 @@ theta_i(t) = 0.3 + 0.5 sin(t + 0.1 i). The initial pose is assembled but off the
 solution: relative angles theta_i(0) + 0.05 (-1)^i. The tip of link N is at
 sum_k (cos S_k, sin S_k, 0) with S_k = theta_1 + ... + theta_k.
 
-kinegen writes its own revolute and driver equations (see ``kinegen.constraints``); they
-describe the same joints and motion as the benchmark's, not the same expressions.
+Each joint lists the child link first (``bodies: [link_i, link_{i-1}]``) and drives the
+parent's angle relative to the child, -theta_i. kinegen's revolute rows (``h1·f2``,
+``h1·g2``) then are the benchmark's ``x_a·z_b``, ``y_a·z_b``; its point rows are the
+benchmark's negated, and its half-angle joint-angle driver (Euler parameters, quaternion)
+is the benchmark's driver times -2. Row signs, scale and order do not change Newton's
+iterates: kinegen solves the benchmark's equations.
 """
 
 from __future__ import annotations
@@ -43,10 +47,10 @@ def chain_yaml(n: int, t1: float = 10.0, steps: int = 1000) -> str:
     lines.append("joints:")
     for i in range(1, n + 1):
         parent, point = ("ground", "O") if i == 1 else (f"link{i - 1}", "tip")
-        lines.append(f"  J{i}: {{type: revolute, bodies: [{parent}, link{i}], points: [{point}, O], axes: [z, z]}}")
+        lines.append(f"  J{i}: {{type: revolute, bodies: [link{i}, {parent}], points: [O, {point}], axes: [z, z]}}")
     lines += ["cases:", "  drive:", "    drivers:"]
     for i in range(1, n + 1):
-        lines.append(f"      theta{i}: {{type: joint_angle, joint: J{i}, function: 0.3 + 0.5*sin(t + {0.1 * i!r})}}")
+        lines.append(f"      theta{i}: {{type: joint_angle, joint: J{i}, function: -(0.3 + 0.5*sin(t + {0.1 * i!r}))}}")
     lines += ["    t0: 0", f"    t1: {t1!r}", f"    steps: {steps}"]
     return "\n".join(lines) + "\n"
 

@@ -6,6 +6,7 @@ import re
 
 import sympy as sp
 from sympy.printing.numpy import NumPyPrinter
+from sympy.printing.pycode import PythonCodePrinter
 
 #: NumPy names a generated module may import (scalars and arrays alike).
 NUMPY_NAMES = (
@@ -21,12 +22,34 @@ class ModulePrinter(NumPyPrinter):
         super().__init__({"fully_qualified_modules": False, "inline": True})
 
     def _print_Float(self, expr: sp.Float) -> str:
-        return repr(float(expr))
+        return _float(expr)
 
     def _print_Rational(self, expr: sp.Rational) -> str:
-        if abs(expr.p) < 10**6 and expr.q < 10**6:
-            return super()._print_Rational(expr)
-        return repr(float(expr))  # a compacted geometry constant: the nearest double
+        return _rational(self, expr, NumPyPrinter)
+
+
+class ScalarPrinter(PythonCodePrinter):
+    """Plain Python with ``math.<function>`` and round-trip float literals (one configuration)."""
+
+    def __init__(self) -> None:
+        super().__init__({"fully_qualified_modules": True, "inline": True})
+
+    def _print_Float(self, expr: sp.Float) -> str:
+        return _float(expr)
+
+    def _print_Rational(self, expr: sp.Rational) -> str:
+        return _rational(self, expr, PythonCodePrinter)
+
+
+def _float(expr: sp.Float) -> str:
+    return repr(float(expr))
+
+
+def _rational(printer: PythonCodePrinter, expr: sp.Rational, base: type) -> str:
+    """Small rationals as ``p/q`` (folded by Python at compile time), others as the nearest double."""
+    if abs(expr.p) < 10**6 and expr.q < 10**6:
+        return base._print_Rational(printer, expr)
+    return repr(float(expr))  # a compacted geometry constant
 
 
 def freeze_numbers(expr: sp.Expr) -> sp.Expr:

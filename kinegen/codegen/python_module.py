@@ -7,18 +7,23 @@ driver rows are (``_drivers_*_<case>``), joined by the public functions. Per cas
 ``jac(q, u)``, ``nu(q, u, ud)`` and ``gamma(q, v, u, ud, udd)`` take them. Every function
 accepts a single configuration (``q`` of shape (n,)) or a batch (``q`` of shape (n, K),
 inputs of shape (nd,) or (nd, K)) and returns arrays whose leading axis is the row (or
-Jacobian entry) index.
+Jacobian entry) index. The ``*_s`` functions (``phi_jac_s``, ``nu_s``, ``gamma_s``) are
+the same expressions as plain ``math`` code for one configuration: they take and return
+lists of floats and are several times faster than NumPy code on scalars, which is what a
+Newton step on one configuration needs.
 """
 
 from __future__ import annotations
 
 from collections.abc import Sequence
+from dataclasses import dataclass
 
 import numpy as np
 import sympy as sp
+from sympy.printing.codeprinter import CodePrinter
 
 import kinegen
-from kinegen.codegen.printer import ModulePrinter, freeze_numbers, used_numpy_names
+from kinegen.codegen.printer import ModulePrinter, ScalarPrinter, freeze_numbers, used_numpy_names
 from kinegen.model.expressions import T
 from kinegen.symbolic.assembly import System
 
@@ -46,27 +51,35 @@ def _float_tuple(values: Sequence[float]) -> str:
     return _tuple([float(v) for v in values])
 
 
-def _function(
-    name: str,
-    doc: str,
-    args: list[tuple[str, list[sp.Symbol]]],
-    exprs: list[sp.Expr],
-    printer: ModulePrinter,
-    allocate: str = "_zeros({m}, q, u)",
-    definitions: dict[sp.Symbol, sp.Expr] | None = None,
-) -> str:
-    """One function computing ``exprs`` into an array, with CSE, skipping exact zeros.
+@dataclass(frozen=True)
+class _Block:
+    """Expressions after common-subexpression elimination (temporaries ``{prefix}0, ...``)."""
 
-    ``definitions`` (symbol -> expression of the arguments, e.g. rotation-matrix entries)
-    are assigned first, for the symbols the expressions use.
-    """
+    replacements: list[tuple[sp.Symbol, sp.Expr]]
+    reduced: list[sp.Expr]
+
+    @property
+    def symbols(self) -> set[sp.Symbol]:
+        return set().union(*(e.free_symbols for e in self.reduced), *(v.free_symbols for _, v in self.replacements))
+
+
+def _cse(exprs: list[sp.Expr], prefix: str = "c") -> _Block:
     frozen = [freeze_numbers(e) for e in exprs]
-    replacements, reduced = sp.cse(frozen, symbols=sp.numbered_symbols("c"), order="canonical")
-    arg_names = ", ".join(a for a, _ in args)
-    lines = [f"def {name}({arg_names}):", f'    """{doc}"""']
-    used = set().union(*(e.free_symbols for e in reduced), *(v.free_symbols for _, v in replacements))
+    replacements, reduced = sp.cse(frozen, symbols=sp.numbered_symbols(prefix), order="canonical")
+    return _Block(replacements, reduced)
+
+
+def _prologue(
+    args: list[tuple[str, list[sp.Symbol]]],
+    blocks: list[_Block],
+    printer: CodePrinter,
+    definitions: dict[sp.Symbol, sp.Expr] | None,
+) -> list[str]:
+    """Unpacking of the arguments and the ``definitions`` the blocks use, then their temporaries."""
+    used = set().union(*(b.symbols for b in blocks))
     defined = [(a, freeze_numbers(e)) for a, e in (definitions or {}).items() if a in used]
     used |= set().union(*(e.free_symbols for _, e in defined))
+    lines = []
     for arg, symbols in args:
         if any(s in used for s in symbols):
             targets = ", ".join(str(s) if s in used else "_" for s in symbols)
@@ -74,13 +87,52 @@ def _function(
                 lines.append(f"    {targets}{',' if len(symbols) == 1 else ''} = {arg}")
     for symbol, value in defined:
         lines.append(f"    {symbol} = {printer.doprint(value)}")
-    for symbol, value in replacements:
-        lines.append(f"    {symbol} = {printer.doprint(value)}")
-    lines.append(f"    out = {allocate.format(m=len(exprs))}")
-    for i, e in enumerate(reduced):
-        if e != 0:
-            lines.append(f"    out[{i}] = {printer.doprint(e)}")
+    for block in blocks:
+        for symbol, value in block.replacements:
+            lines.append(f"    {symbol} = {printer.doprint(value)}")
+    return lines
+
+
+def _signature(name: str, doc: str, args: list[tuple[str, list[sp.Symbol]]]) -> list[str]:
+    return [f"def {name}({', '.join(a for a, _ in args)}):", f'    """{doc}"""']
+
+
+def _array_function(
+    name: str,
+    doc: str,
+    args: list[tuple[str, list[sp.Symbol]]],
+    block: _Block,
+    printer: CodePrinter,
+    allocate: str = "_zeros({m}, q, u)",
+    definitions: dict[sp.Symbol, sp.Expr] | None = None,
+) -> str:
+    """NumPy function filling an array (one configuration or a batch), skipping exact zeros.
+
+    ``definitions`` (symbol -> expression of the arguments, e.g. rotation-matrix entries)
+    are assigned first, for the symbols the expressions use.
+    """
+    lines = _signature(name, doc, args) + _prologue(args, [block], printer, definitions)
+    lines.append(f"    out = {allocate.format(m=len(block.reduced))}")
+    lines += [f"    out[{i}] = {printer.doprint(e)}" for i, e in enumerate(block.reduced) if e != 0]
     lines.append("    return out")
+    return "\n".join(lines)
+
+
+def _scalar_function(
+    name: str,
+    doc: str,
+    args: list[tuple[str, list[sp.Symbol]]],
+    blocks: list[_Block],
+    printer: CodePrinter,
+    definitions: dict[sp.Symbol, sp.Expr] | None = None,
+) -> str:
+    """Plain-float function (``math``) of one configuration returning one list per block."""
+    lines = _signature(name, doc, args) + _prologue(args, blocks, printer, definitions)
+    results = []
+    for block in blocks:
+        items = ", ".join("0.0" if e == 0 else printer.doprint(e) for e in block.reduced)
+        results.append(f"[{items}]")
+    lines.append(f"    return {', '.join(results)}")
     return "\n".join(lines)
 
 
@@ -144,35 +196,38 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
     joints = [r for r in first.rows if not r.is_driver]
     mj = len(joints)
     joint_entries = [(i, j, e) for i, j, e in first.jacobian_entries if i < mj]
+    scalar = ScalarPrinter()
+    q_only, q_v = [("q", q_syms)], [("q", q_syms), ("v", v_syms)]
+    joints_phi = _cse([r.phi for r in joints], "c")
+    joints_jac = _cse([e for _, _, e in joint_entries], "d")
+    joints_gamma = _cse([r.gamma for r in joints], "c")
     functions: list[str] = [
-        _function(
+        _array_function(
             "_joints_phi",
             f"Phi of the {mj} joint (and normalization) rows, common to every case.",
-            [("q", q_syms)],
-            [r.phi for r in joints],
-            printer,
-            "_zeros({m}, q, ())",
-            rotation,
+            q_only, joints_phi, printer, "_zeros({m}, q, ())", rotation,
         ),
-        _function(
+        _array_function(
             "_joints_jac",
             f"Phi_q values of the joint rows ({len(joint_entries)} entries).",
-            [("q", q_syms)],
-            [e for _, _, e in joint_entries],
-            printer,
-            "_zeros({m}, q, ())",
-            rotation,
+            q_only, joints_jac, printer, "_zeros({m}, q, ())", rotation,
         ),
-        _function(
+        _array_function(
             "_joints_gamma",
             "gamma of the joint rows (they do not depend on time).",
-            [("q", q_syms), ("v", v_syms)],
-            [r.gamma for r in joints],
-            printer,
-            "_zeros({m}, q, ())",
-            rotation,
+            q_v, joints_gamma, printer, "_zeros({m}, q, ())", rotation,
         ),
-    ]
+        _scalar_function(
+            "_joints_phi_jac_s",
+            "Phi and Phi_q values of the joint rows at one configuration (lists of floats).",
+            q_only, [joints_phi, joints_jac], scalar, rotation,
+        ),
+        _scalar_function(
+            "_joints_gamma_s",
+            "gamma of the joint rows at one configuration (list of floats).",
+            q_v, [joints_gamma], scalar, rotation,
+        ),
+    ]  # fmt: skip
     case_table: list[str] = []
     for name, system in systems.items():
         rows = system.rows
@@ -185,49 +240,50 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
         rates = [sp.diff(f, T) for f in inputs.functions]
         accelerations = [sp.diff(f, T, 2) for f in inputs.functions]
         functions.append(
-            _function(
+            _array_function(
                 f"inputs_{name}",
                 f"Driver inputs of case {name!r} at time t: rows u ({nd}), then du/dt, then d2u/dt2.",
                 [("t", [T])] if nd else [],
-                [*inputs.functions, *rates, *accelerations],
+                _cse([*inputs.functions, *rates, *accelerations]),
                 printer,
                 allocate="np.zeros(({m},) + np.shape(t))",
             ).replace(f"def inputs_{name}():", f"def inputs_{name}(t):")
         )
         q_u, q_u_ud = [("q", q_syms), ("u", u)], [("q", q_syms), ("u", u), ("ud", ud)]
         q_v_inputs = [("q", q_syms), ("v", v_syms), ("u", u), ("ud", ud), ("udd", udd)]
+        drivers_phi = _cse([r.phi for r in drivers], "c")
+        drivers_jac = _cse(driver_entries, "d")
+        drivers_nu = _cse([r.nu for r in drivers], "c")
+        drivers_gamma = _cse([r.gamma for r in drivers], "c")
         functions += [
-            _function(
-                f"_drivers_phi_{name}",
-                f"Phi of the driver rows of case {name!r}.",
-                q_u,
-                [r.phi for r in drivers],
-                printer,
-                definitions=rotation,
+            _array_function(
+                f"_drivers_phi_{name}", f"Phi of the driver rows of case {name!r}.",
+                q_u, drivers_phi, printer, definitions=rotation,
             ),
-            _function(
-                f"_drivers_jac_{name}",
-                f"Phi_q values of the driver rows of case {name!r}.",
-                q_u,
-                driver_entries,
-                printer,
-                definitions=rotation,
+            _array_function(
+                f"_drivers_jac_{name}", f"Phi_q values of the driver rows of case {name!r}.",
+                q_u, drivers_jac, printer, definitions=rotation,
             ),
-            _function(
-                f"_drivers_nu_{name}",
-                f"nu of the driver rows of case {name!r}.",
-                q_u_ud,
-                [r.nu for r in drivers],
-                printer,
-                definitions=rotation,
+            _array_function(
+                f"_drivers_nu_{name}", f"nu of the driver rows of case {name!r}.",
+                q_u_ud, drivers_nu, printer, definitions=rotation,
             ),
-            _function(
-                f"_drivers_gamma_{name}",
-                f"gamma of the driver rows of case {name!r}.",
-                q_v_inputs,
-                [r.gamma for r in drivers],
-                printer,
-                definitions=rotation,
+            _array_function(
+                f"_drivers_gamma_{name}", f"gamma of the driver rows of case {name!r}.",
+                q_v_inputs, drivers_gamma, printer, definitions=rotation,
+            ),
+            _scalar_function(
+                f"_drivers_phi_jac_s_{name}",
+                f"Phi and Phi_q values of the driver rows of case {name!r} at one configuration.",
+                q_u, [drivers_phi, drivers_jac], scalar, rotation,
+            ),
+            _scalar_function(
+                f"_drivers_nu_s_{name}", f"nu of the driver rows of case {name!r} at one configuration.",
+                q_u_ud, [drivers_nu], scalar, rotation,
+            ),
+            _scalar_function(
+                f"_drivers_gamma_s_{name}", f"gamma of the driver rows of case {name!r} at one configuration.",
+                q_v_inputs, [drivers_gamma], scalar, rotation,
             ),
             f"def phi_{name}(q, u):\n"
             f'    """Phi(q, u) of case {name!r}: {m} residuals."""\n'
@@ -242,7 +298,18 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
             f"def gamma_{name}(q, v, u, ud, udd):\n"
             f'    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case {name!r}."""\n'
             f"    return _join(_joints_gamma(q, v), _drivers_gamma_{name}(q, v, u, ud, udd))",
-        ]
+            f"def phi_jac_s_{name}(q, u):\n"
+            f'    """Phi and the Phi_q values of case {name!r} at one configuration (q, u: lists of floats)."""\n'
+            f"    phi, jac = _joints_phi_jac_s(q)\n"
+            f"    driver_phi, driver_jac = _drivers_phi_jac_s_{name}(q, u)\n"
+            f"    return phi + driver_phi, jac + driver_jac",
+            f"def nu_s_{name}(q, u, ud):\n"
+            f'    """nu of case {name!r} at one configuration (list of floats)."""\n'
+            f"    return [0.0] * {mj} + _drivers_nu_s_{name}(q, u, ud)",
+            f"def gamma_s_{name}(q, v, u, ud, udd):\n"
+            f'    """gamma of case {name!r} at one configuration (list of floats)."""\n'
+            f"    return _joints_gamma_s(q, v) + _drivers_gamma_s_{name}(q, v, u, ud, udd)",
+        ]  # fmt: skip
         case = system.case
         case_table.append(
             f"    {name!r}: {{\n"
@@ -252,10 +319,11 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
             f"        'jac_cols': {_tuple([j for _, j, _ in entries])},\n"
             f"        't0': {float(case.t0)!r}, 't1': {float(case.t1)!r}, 'steps': {case.steps},\n"
             f"        'inputs': inputs_{name}, 'phi': phi_{name}, 'jac': jac_{name}, 'nu': nu_{name}, 'gamma': gamma_{name},\n"
+            f"        'phi_jac_s': phi_jac_s_{name}, 'nu_s': nu_s_{name}, 'gamma_s': gamma_s_{name},\n"
             "    },"
         )
     code = "\n\n\n".join(functions)
     names = used_numpy_names(code)
-    imports = "import numpy as np\n" + (f"from numpy import {', '.join(names)}\n" if names else "")
+    imports = "import math\n\nimport numpy as np\n" + (f"from numpy import {', '.join(names)}\n" if names else "")
     parts = [header, imports, "\n".join(body), "", "", code, "", "", "CASES = {", *case_table, "}", ""]
     return "\n".join(parts)

@@ -13,6 +13,8 @@ class Frame:
 
     r: sp.Matrix
     A: sp.Matrix
+    #: unit quaternion (w, x, y, z) of A when the parametrization stores one, else None
+    e: sp.Matrix | None = None
 
     def point(self, local: sp.Matrix) -> sp.Matrix:
         """Global position of a body point given in body coordinates."""
@@ -23,7 +25,7 @@ class Frame:
         return self.A * local
 
 
-GROUND_FRAME = Frame(sp.zeros(3, 1), sp.eye(3))
+GROUND_FRAME = Frame(sp.zeros(3, 1), sp.eye(3), sp.Matrix([1, 0, 0, 0]))
 
 
 def dot(a: sp.Matrix, b: sp.Matrix) -> sp.Expr:
@@ -34,6 +36,18 @@ def dot(a: sp.Matrix, b: sp.Matrix) -> sp.Expr:
 def cross(a: sp.Matrix, b: sp.Matrix) -> sp.Matrix:
     """Vector product of two 3x1 columns."""
     return sp.Matrix(a).cross(sp.Matrix(b))
+
+
+def quaternion_product(p: sp.Matrix, q: sp.Matrix) -> sp.Matrix:
+    """Hamilton product p ⊗ q of quaternions (w, x, y, z)."""
+    pw, pv, qw, qv = p[0], sp.Matrix(p[1:]), q[0], sp.Matrix(q[1:])
+    vector = pw * qv + qw * pv + pv.cross(qv)
+    return sp.Matrix([pw * qw - (pv.T * qv)[0], *vector])
+
+
+def conjugate(q: sp.Matrix) -> sp.Matrix:
+    """Conjugate (w, -x, -y, -z)."""
+    return sp.Matrix([q[0], -q[1], -q[2], -q[3]])
 
 
 @dataclass(frozen=True)

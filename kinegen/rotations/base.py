@@ -25,6 +25,8 @@ class Parametrization(ABC):
     stored_names: tuple[str, ...]
     #: Names of the orientation velocity coordinates of one body.
     velocity_names: tuple[str, ...]
+    #: True when the stored orientation values are a unit quaternion (w, x, y, z)
+    stores_quaternion: bool = False
 
     @property
     def file_tag(self) -> str:

@@ -29,6 +29,7 @@ class EulerParameters(Parametrization):
 
     name = "euler-parameters"
     stored_names = ("e0", "e1", "e2", "e3")
+    stores_quaternion = True
     velocity_names = ("e0", "e1", "e2", "e3")
 
     def matrix(self, o: sp.Matrix) -> sp.Matrix:

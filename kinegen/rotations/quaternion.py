@@ -23,6 +23,7 @@ class Quaternion(Parametrization):
 
     name = "quaternion"
     stored_names = ("qw", "qx", "qy", "qz")
+    stores_quaternion = True
     velocity_names = ("theta_x", "theta_y", "theta_z")
 
     def matrix(self, o: sp.Matrix) -> sp.Matrix:

@@ -99,7 +99,10 @@ class Solver:
 
     def factorize(self, q: np.ndarray, u: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
         """LU factors of Phi_q at (q, u); raises SingularJacobianError (at time t) when singular."""
-        jacobian = self.system.jacobian(q, u)
+        return self._factor(self.system.jacobian(q, u), t)
+
+    def _factor(self, jacobian: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """LU factors of a dense Phi_q (pseudo-inverse for a redundant system)."""
         if not np.all(np.isfinite(jacobian)):
             raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
         if self.redundant:
@@ -115,15 +118,18 @@ class Solver:
 
     def condition(self, q: np.ndarray, u: np.ndarray, factors: tuple[np.ndarray, np.ndarray] | None = None) -> float:
         """Condition number of Phi_q as chosen by ``options.condition`` (NaN for "none")."""
+        if self.options.condition == "none":
+            return float("nan")
+        jacobian = self.system.jacobian(q, u)
+        return self._condition(jacobian, factors if factors is not None else self._factor(jacobian, float("nan")))
+
+    def _condition(self, jacobian: np.ndarray, factors: tuple[np.ndarray, np.ndarray]) -> float:
         kind = self.options.condition
         if kind == "none":
             return float("nan")
-        jacobian = self.system.jacobian(q, u)
         if kind == "exact" or self.redundant:
             s = np.linalg.svd(jacobian, compute_uv=False)
             return float(s[0] / s[min(jacobian.shape) - 1])
-        if factors is None:
-            factors = self.factorize(q, u, float("nan"))
         rcond, _ = _gecon(factors[0], np.abs(jacobian).sum(axis=0).max(), norm="1")
         return float("inf") if rcond == 0 else 1.0 / rcond
 
@@ -158,6 +164,11 @@ class Solver:
         Full steps first; if they fail, a backtracking line search; if that fails too, a
         homotopy that moves the residual of ``q0`` to zero in stages.
         """
+        q, iterations, norm, _ = self._position(q0, u, t)
+        return q, iterations, norm
+
+    def _position(self, q0: np.ndarray, u: np.ndarray, t: float) -> tuple[np.ndarray, int, float, np.ndarray]:
+        """:meth:`position`, also returning Phi_q at the solution."""
         try:
             return self._newton(q0, u, t, damped=False)
         except ConvergenceError:
@@ -170,39 +181,43 @@ class Solver:
 
     def _newton(
         self, q: np.ndarray, u: np.ndarray, t: float, damped: bool, offset: np.ndarray | None = None
-    ) -> tuple[np.ndarray, int, float]:
+    ) -> tuple[np.ndarray, int, float, np.ndarray]:
+        """Newton iterations; each evaluates Phi and Phi_q in one call (Phi_q at the solution is returned)."""
         opts = self.options
+        evaluate = self.system.evaluate
 
-        def residual(x: np.ndarray) -> tuple[np.ndarray, float]:
-            phi = self.system.phi(x, u) if offset is None else self.system.phi(x, u) - offset
-            return phi, float(np.max(np.abs(phi))) if phi.size else 0.0
+        def residual(x: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
+            phi, jacobian = evaluate(x, u)
+            if offset is not None:
+                phi = phi - offset
+            return phi, float(np.max(np.abs(phi))) if phi.size else 0.0, jacobian
 
-        phi, norm = residual(q)
+        phi, norm, jacobian = residual(q)
         iterations = 0
         while norm > opts.tolerance:
             if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
                 raise self._failure(q, u, t, iterations)
-            step = -_lu_solve(self.factorize(q, u, t), phi)
+            step = -_lu_solve(self._factor(jacobian, t), phi)
             iterations += 1
             trial = self.retract(q, step)
-            trial_phi, trial_norm = residual(trial)
+            trial_phi, trial_norm, trial_jacobian = residual(trial)
             if damped:
                 alpha = 1.0
                 while not trial_norm < norm and alpha > 1e-4:
                     alpha *= 0.5
                     trial = self.retract(q, alpha * step)
-                    trial_phi, trial_norm = residual(trial)
-            q, phi, norm = trial, trial_phi, trial_norm
-        return q, iterations, norm
+                    trial_phi, trial_norm, trial_jacobian = residual(trial)
+            q, phi, norm, jacobian = trial, trial_phi, trial_norm, trial_jacobian
+        return q, iterations, norm, jacobian
 
-    def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> tuple[np.ndarray, int, float]:
+    def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> tuple[np.ndarray, int, float, np.ndarray]:
         """Solve Phi(q, u) = (1 - s) Phi(q0, u) for s = 0 -> 1 with adaptive stages."""
         start, _ = self.residual(q, u)
         s, ds, total = 0.0, 1.0 / 8, 0
         while s < 1.0:
             target = min(1.0, s + ds)
             try:
-                q, iterations, _ = self._newton(q, u, t, damped=True, offset=(1.0 - target) * start)
+                q, iterations, _, _ = self._newton(q, u, t, damped=True, offset=(1.0 - target) * start)
             except (ConvergenceError, SingularJacobianError):
                 ds /= 2
                 if ds < 1.0 / (8 * stages):
@@ -211,13 +226,13 @@ class Solver:
             total += iterations
             s = target
             ds = min(2 * ds, 0.25)
-        _, norm = self.residual(q, u)
-        return q, total, norm
+        phi, jacobian = self.system.evaluate(q, u)
+        return q, total, float(np.max(np.abs(phi))) if phi.size else 0.0, jacobian
 
     def rates(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray, factors) -> tuple[np.ndarray, np.ndarray]:
         """Velocity and acceleration (velocity coordinates) from one factorization of Phi_q."""
-        v = _lu_solve(factors, self.system.nu(q, u, ud))
-        return v, _lu_solve(factors, self.system.gamma(q, v, u, ud, udd))
+        v = _lu_solve(factors, self.system.velocity_rhs(q, u, ud))
+        return v, _lu_solve(factors, self.system.acceleration_rhs(q, v, u, ud, udd))
 
     # ---- trajectory ----------------------------------------------------------------------
     def solve(
@@ -248,10 +263,10 @@ class Solver:
             if i > 0 and self.options.predictor:
                 h = t - times[i - 1]
                 q = self.retract(q, v * h + 0.5 * a * h * h)
-            q, iterations[i], residuals[i] = self.position(q, u, t)
-            factors = self.factorize(q, u, t)
+            q, iterations[i], residuals[i], jacobian = self._position(q, u, t)
+            factors = self._factor(jacobian, t)
             v, a = self.rates(q, u, ud, udd, factors)
-            conditions[i] = self.condition(q, u, factors)
+            conditions[i] = self._condition(jacobian, factors)
             qs[i], vs[i], accs[i] = q, v, a
         return Results(system, times, qs, vs, accs, iterations, residuals, conditions, u_all.T.copy(), self.options.condition)
 

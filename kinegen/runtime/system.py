@@ -11,6 +11,7 @@ import importlib.util
 import sys
 from collections.abc import Callable
 from dataclasses import dataclass, field
+from functools import cached_property
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -48,6 +49,11 @@ class NumericSystem:
     source_sha256: str = ""
     #: reported lengths: name -> ((body, point), (body, point), (min, max) or None)
     actuators: dict[str, tuple] = field(default_factory=dict)
+    #: the same functions as plain-float code for one configuration (lists in, lists out):
+    #: (q, u) -> (Phi, Phi_q values), (q, u, ud) -> nu, (q, v, u, ud, udd) -> gamma; None if absent
+    phi_jac_s: Callable[[list, list], tuple[list, list]] | None = None
+    nu_s: Callable[..., list] | None = None
+    gamma_s: Callable[..., list] | None = None
 
     @property
     def n_stored(self) -> int:
@@ -69,9 +75,35 @@ class NumericSystem:
 
     def jacobian(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Dense Phi_q (constraints x velocity coordinates) at one configuration."""
+        return self._dense(self.jac(q, u))
+
+    @cached_property
+    def _flat_index(self) -> np.ndarray:
+        return self.jac_rows * self.n_velocity + self.jac_cols
+
+    def _dense(self, values: Any) -> np.ndarray:
         dense = np.zeros((len(self.constraint_names), self.n_velocity))
-        dense[self.jac_rows, self.jac_cols] = self.jac(q, u)
+        dense.flat[self._flat_index] = values
         return dense
+
+    def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Phi and dense Phi_q at one configuration in one call (the plain-float code if present)."""
+        if self.phi_jac_s is None:
+            return self.phi(q, u), self.jacobian(q, u)
+        phi, values = self.phi_jac_s(q.tolist(), u.tolist())
+        return np.array(phi), self._dense(values)
+
+    def velocity_rhs(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
+        """nu = -Phi_t at one configuration."""
+        if self.nu_s is None:
+            return self.nu(q, u, ud)
+        return np.array(self.nu_s(q.tolist(), u.tolist(), ud.tolist()))
+
+    def acceleration_rhs(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
+        """gamma at one configuration."""
+        if self.gamma_s is None:
+            return self.gamma(q, v, u, ud, udd)
+        return np.array(self.gamma_s(q.tolist(), v.tolist(), u.tolist(), ud.tolist(), udd.tolist()))
 
 
 def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSystem:
@@ -105,6 +137,9 @@ def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSys
         steps=int(data["steps"]),
         source_sha256=getattr(module, "SOURCE_SHA256", ""),
         actuators=dict(getattr(module, "ACTUATORS", {})),
+        phi_jac_s=data.get("phi_jac_s"),
+        nu_s=data.get("nu_s"),
+        gamma_s=data.get("gamma_s"),
     )
 
 

@@ -9,7 +9,10 @@ bodies the row touches*:
 * ``nu = -Phi_t``,
 * ``gamma = -(Phi_q v)_s B(s) v - 2 (Phi_q v)_t - Phi_tt``.
 
-So build cost grows linearly with the number of constraints.
+So build cost grows linearly with the number of constraints. Constraints of the same
+shape (the same equation up to the names of their bodies and inputs: the links of a chain,
+the two sides of an excavator's symmetric pins) are derived once, in placeholder bodies,
+and renamed (:class:`Templates`).
 
 Time enters only through the *driver inputs*: driver k's equation uses a symbol ``u_k``
 (its angle, translation, length or coordinate) with rate ``ud_k`` and acceleration
@@ -180,22 +183,125 @@ def coordinates(model: Model, parametrization: Parametrization) -> Coordinates:
     bodies = []
     s_off = v_off = 0
     for body in model.bodies:
-        stored = tuple(sp.Symbol(f"{body.name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.stored_names))
-        velocity = tuple(sp.Symbol(f"v_{body.name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
-        o = sp.Matrix(stored[3:])
-        B = sp.diag(sp.eye(3), parametrization.velocity_map(o))
-        a = sp.Matrix(3, 3, [sp.Symbol(f"{body.name}_a{i}{j}", real=True) for i in range(3) for j in range(3)])
-        frame = Frame(sp.Matrix(stored[:3]), a)
-        derivatives = tuple(parametrization.rotation_derivatives(a, o))
-        bodies.append(
-            BodyCoordinates(body.name, stored, velocity, s_off, v_off, B, frame, parametrization.matrix(o), derivatives)
-        )
-        s_off += len(stored)
-        v_off += len(velocity)
+        coordinates = _body_coordinates(body.name, parametrization, s_off, v_off)
+        bodies.append(coordinates)
+        s_off += len(coordinates.stored)
+        v_off += len(coordinates.velocity)
     return Coordinates(parametrization, tuple(bodies))
 
 
-def derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None = None, is_driver: bool = False) -> Row:
+def _body_coordinates(name: str, parametrization: Parametrization, s_off: int, v_off: int) -> BodyCoordinates:
+    stored = tuple(sp.Symbol(f"{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.stored_names))
+    velocity = tuple(sp.Symbol(f"v_{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
+    o = sp.Matrix(stored[3:])
+    B = sp.diag(sp.eye(3), parametrization.velocity_map(o))
+    a = sp.Matrix(3, 3, [sp.Symbol(f"{name}_a{i}{j}", real=True) for i in range(3) for j in range(3)])
+    quaternion = sp.Matrix(stored[3:]) if parametrization.stores_quaternion else None
+    frame = Frame(sp.Matrix(stored[:3]), a, quaternion)
+    derivatives = tuple(parametrization.rotation_derivatives(a, o))
+    return BodyCoordinates(name, stored, velocity, s_off, v_off, B, frame, parametrization.matrix(o), derivatives)
+
+
+class Templates:
+    """Derived rows by shape: an equation is renamed to placeholder bodies ``_b0``, ``_b1``
+    and inputs ``_u0``..., derived once per distinct renamed expression, and renamed back.
+
+    Renaming symbols is exact (SymPy re-canonicalizes the same expression tree), so the
+    rows are identical to deriving every equation on its own.
+    """
+
+    def __init__(self, parametrization: Parametrization) -> None:
+        self.parametrization = parametrization
+        self._placeholders: list[BodyCoordinates] = []
+        self._rows: dict[tuple, Row] = {}
+        self.hits = 0
+
+    def _placeholder(self, k: int, template: BodyCoordinates) -> BodyCoordinates:
+        while len(self._placeholders) <= k:
+            i = len(self._placeholders)
+            self._placeholders.append(_body_coordinates(f"_b{i}", self.parametrization, 0, 0))
+        placeholder = self._placeholders[k]
+        return BodyCoordinates(
+            placeholder.name, placeholder.stored, placeholder.velocity, template.stored_offset, template.velocity_offset,
+            placeholder.velocity_map, placeholder.frame, placeholder.rotation, placeholder.rotation_derivatives,
+        )  # fmt: skip
+
+    def derive(self, equation: Equation, coords: Coordinates, inputs: DriverInputs | None, is_driver: bool) -> Row:
+        touched = [coords.body(name) for name in equation.bodies]
+        forward: dict[sp.Symbol, sp.Symbol] = {}
+        placeholders = []
+        for k, body in enumerate(touched):
+            placeholder = self._placeholder(k, body)
+            placeholders.append(placeholder)
+            for real, generic in (
+                (body.stored, placeholder.stored),
+                (body.velocity, placeholder.velocity),
+                (body.rotation_symbols, placeholder.rotation_symbols),
+            ):
+                forward.update(zip(real, generic))
+        generic_inputs = None
+        if inputs is not None:
+            used = [k for k, u in enumerate(inputs.u) if u in equation.expr.free_symbols]
+            generic_inputs = _generic_inputs(len(used))
+            for k, g in zip(used, range(len(used))):
+                forward[inputs.u[k]] = generic_inputs.u[g]
+                forward[inputs.ud[k]] = generic_inputs.ud[g]
+                forward[inputs.udd[k]] = generic_inputs.udd[g]
+        generic_expr = equation.expr.xreplace(forward)
+        offsets = tuple((b.velocity_offset) for b in touched)
+        key = (generic_expr, len(touched), is_driver, generic_inputs is not None)
+        row = self._rows.get(key)
+        if row is None:
+            generic_coords = Coordinates(self.parametrization, tuple(self._placeholder(k, touched[k]) for k in range(len(touched))))
+            generic = Equation("", tuple(p.name for p in generic_coords.bodies), generic_expr)
+            row = _derive(generic, generic_coords, generic_inputs, is_driver)
+            # store with column offsets relative to each placeholder body
+            row = Row("", row.phi, _relative_columns(row.jacobian, offsets, touched), row.nu, row.gamma, is_driver)
+            self._rows[key] = row
+        else:
+            self.hits += 1
+        backward = {g: r for r, g in forward.items()}
+        jacobian = {
+            touched[b].velocity_offset + k: e.xreplace(backward) for (b, k), e in row.jacobian.items()
+        }
+        return Row(equation.name, equation.expr, jacobian, row.nu.xreplace(backward), row.gamma.xreplace(backward), is_driver)
+
+
+def _relative_columns(jacobian: dict[int, sp.Expr], offsets: tuple[int, ...], touched: list[BodyCoordinates]) -> dict:
+    """Columns as (body index, coordinate index) pairs."""
+    out = {}
+    for column, e in jacobian.items():
+        for b, body in enumerate(touched):
+            if offsets[b] <= column < offsets[b] + len(body.velocity):
+                out[(b, column - offsets[b])] = e
+                break
+    return out
+
+
+def _generic_inputs(n: int) -> DriverInputs:
+    return DriverInputs(
+        names=tuple(f"_u{k}" for k in range(n)),
+        u=tuple(sp.Symbol(f"_u{k}", real=True) for k in range(n)),
+        ud=tuple(sp.Symbol(f"_ud{k}", real=True) for k in range(n)),
+        udd=tuple(sp.Symbol(f"_udd{k}", real=True) for k in range(n)),
+        functions=tuple(sp.Integer(0) for _ in range(n)),
+    )
+
+
+def derive(
+    equation: Equation,
+    coords: Coordinates,
+    inputs: DriverInputs | None = None,
+    is_driver: bool = False,
+    templates: Templates | None = None,
+) -> Row:
+    """Jacobian, nu and gamma of one equation (through ``templates`` when given)."""
+    if templates is not None:
+        return templates.derive(equation, coords, inputs, is_driver)
+    return _derive(equation, coords, inputs, is_driver)
+
+
+def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None = None, is_driver: bool = False) -> Row:
     """Jacobian, nu and gamma of one equation, in its bodies' coordinates only.
 
     The equation is written in each body's position symbols, rotation-matrix symbols ``a``
@@ -255,7 +361,7 @@ def _moving(names: tuple[str, ...]) -> tuple[str, ...]:
     return tuple(n for n in dict.fromkeys(names) if n != GROUND)
 
 
-def kinematic_rows(model: Model, coords: Coordinates) -> list[Row]:
+def kinematic_rows(model: Model, coords: Coordinates, templates: Templates | None = None) -> list[Row]:
     """Rows of the joints and of the parametrization's normalization constraints (case-independent)."""
     frames = {b.name: b.frame for b in coords.bodies}
     rows = []
@@ -263,17 +369,19 @@ def kinematic_rows(model: Model, coords: Coordinates) -> list[Row]:
         frame1 = GROUND_FRAME if joint.body1 == GROUND else frames[joint.body1]
         frame2 = GROUND_FRAME if joint.body2 == GROUND else frames[joint.body2]
         for eq in joint_equations(joint, frame1, frame2, _moving((joint.body1, joint.body2))):
-            rows.append(derive(eq, coords))
+            rows.append(derive(eq, coords, templates=templates))
     for body in coords.bodies:
         for k, expr in enumerate(coords.parametrization.normalization(sp.Matrix(body.stored[3:]))):
-            rows.append(derive(Equation(f"{body.name}.norm{'' if k == 0 else k}", (body.name,), expr), coords))
+            equation = Equation(f"{body.name}.norm{'' if k == 0 else k}", (body.name,), expr)
+            rows.append(derive(equation, coords, templates=templates))
     return rows
 
 
 def build_systems(model: Model, parametrization: Parametrization, cases: list[str] | None = None) -> dict[str, System]:
     """The symbolic system of each case (all cases by default); joint rows are derived once."""
     coords = coordinates(model, parametrization)
-    shared = kinematic_rows(model, coords)
+    templates = Templates(parametrization)
+    shared = kinematic_rows(model, coords, templates)
     frames = {b.name: b.frame for b in coords.bodies}
     joints = {j.name: j for j in model.joints}
 
@@ -286,6 +394,7 @@ def build_systems(model: Model, parametrization: Parametrization, cases: list[st
         inputs = driver_inputs(case)
         rows = list(shared)
         for driver, u in zip(case.drivers, inputs.u):
-            rows.append(derive(driver_equation(driver, joints, frame_of, _moving, u), coords, inputs, is_driver=True))
+            equation = driver_equation(driver, joints, frame_of, _moving, u)
+            rows.append(derive(equation, coords, inputs, is_driver=True, templates=templates))
         systems[name] = System(model, case, coords, inputs, rows)
     return systems
