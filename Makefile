@@ -10,7 +10,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 $(BIN)/kinegen: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test]'
+	$(BIN)/pip install --quiet -e '.[test,bench]'
 	touch $@
 
 ## run: build every model in models/ and solve every case; summary on screen, CSV + PNG in $(OUT)/
@@ -22,7 +22,7 @@ test: $(BIN)/kinegen
 	$(BIN)/ruff check kinegen tests generated
 	$(BIN)/python -m pytest -q
 
-## bench: chain-N contenders, one process each, ratios to kinegen in the same run
+## bench: kinegen vs CasADi, SymEngine, naive SymPy, SciPy on chain-N and the excavator (BENCH_ARGS="--sizes 14 50 100")
 bench: $(BIN)/kinegen
 	$(BIN)/python -m kinegen.bench $(BENCH_ARGS)
 

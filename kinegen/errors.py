@@ -78,6 +78,37 @@ class ConvergenceError(KinegenError):
         )
 
 
+class UnreachableError(ConvergenceError):
+    """No configuration satisfies Phi: the least-squares closest one leaves a residual."""
+
+    def __init__(self, t: float, iterations: int, residual: float, worst: list[tuple[str, float]]) -> None:
+        self.t = t
+        self.iterations = iterations
+        self.residual = residual
+        self.worst = worst
+        worst_text = ", ".join(f"{name} = {value:.3e}" for name, value in worst)
+        KinegenError.__init__(
+            self,
+            f"no configuration satisfies the constraints at t = {t:.6g}: the target is outside the workspace. "
+            f"The closest reachable configuration (least squares, {iterations} iterations) leaves max |Phi| = {residual:.3e}; "
+            f"constraints that cannot be met: {worst_text}",
+        )
+
+
+class BranchError(KinegenError):
+    """The solution would leave its assembly branch: det(Phi_q) changes sign however small the step."""
+
+    exit_code = 3
+
+    def __init__(self, t0: float, t1: float, step: float) -> None:
+        self.t0, self.t1, self.step = t0, t1, step
+        super().__init__(
+            f"the solution would leave its assembly branch between t = {t0:.6g} and t = {t1:.6g}: det(Phi_q) changes "
+            f"sign even over a step of {step:.2e} s, so a singular configuration (a toggle or dead point) lies in "
+            f"between; the run stops at t = {t0:.6g}"
+        )
+
+
 class GeneratedModuleError(KinegenError):
     """A generated module is missing, stale or was not written by kinegen."""
 

@@ -1,12 +1,115 @@
-"""The benchmark contenders still run and agree with the analytic chain-N tip (N = 3)."""
+"""The benchmark: kinegen solves chain-N's literal equations, and every contender still runs
+and agrees with the analytic tip (N = 3) or with kinegen's quaternion solution (excavator)."""
 
 from __future__ import annotations
 
-from kinegen.bench.contenders import kinegen_run, naive_sympy_run
+import numpy as np
+import pytest
+import sympy as sp
+
+from kinegen.bench.contenders import kinegen_run, naive_sympy_run, symbolic_phi, workload
+from kinegen.runtime.linear import BandLU, DenseLU, choose
+
+
+def benchmark_equations(n: int, q: list[sp.Symbol], t: sp.Symbol) -> list[sp.Expr]:
+    """chain-N's equations exactly as ../shared/bench/chain-N.md writes them."""
+
+    def matrix(e):
+        e0, e1, e2, e3 = e
+        return 2 * sp.Matrix(
+            [
+                [e0**2 + e1**2 - sp.Rational(1, 2), e1 * e2 - e0 * e3, e1 * e3 + e0 * e2],
+                [e1 * e2 + e0 * e3, e0**2 + e2**2 - sp.Rational(1, 2), e2 * e3 - e0 * e1],
+                [e1 * e3 - e0 * e2, e2 * e3 + e0 * e1, e0**2 + e3**2 - sp.Rational(1, 2)],
+            ]
+        )
+
+    rows = []
+    for i in range(1, n + 1):
+        rb, eb = sp.Matrix(q[7 * (i - 1) : 7 * i - 4]), list(q[7 * i - 4 : 7 * i])
+        if i == 1:
+            ra, ea, Aa = sp.zeros(3, 1), [1, 0, 0, 0], sp.eye(3)
+            rows += list(-rb)
+        else:
+            ra, ea = sp.Matrix(q[7 * (i - 2) : 7 * i - 11]), list(q[7 * i - 11 : 7 * i - 7])
+            Aa = matrix(ea)
+            rows += list(ra + Aa * sp.Matrix([1, 0, 0]) - rb)
+        zb = matrix(eb)[:, 2]
+        rows += [(Aa[:, 0].T * zb)[0], (Aa[:, 1].T * zb)[0]]
+        rows.append(sum(e**2 for e in eb) - 1)
+        theta = sp.Rational(3, 10) + sp.sin(t + sp.Rational(i, 10)) / 2
+        a0, a1, a2, a3 = ea
+        b0, b1, b2, b3 = eb
+        p0 = a0 * b0 + a1 * b1 + a2 * b2 + a3 * b3
+        p3 = a0 * b3 - b0 * a3 - (a1 * b2 - a2 * b1)
+        rows.append(sp.sin(theta / 2) * p0 - sp.cos(theta / 2) * p3)
+    return rows
+
+
+def test_kinegen_solves_the_benchmarks_literal_equations():
+    """Each kinegen row of chain-3 is a benchmark row times -2, -1, 1 or 2 (same Newton iterates).
+
+    Compared at random points (q, t) to 30 digits: two different functions agree to 1e-25
+    at three random points only by accident."""
+    from kinegen.model.expressions import T
+
+    q, phi = symbolic_phi(workload("chain-3"))
+    reference = benchmark_equations(3, q, T)
+    assert len(phi) == len(reference) == 21
+    rng = np.random.default_rng(2)
+    points = [dict(zip([*q, T], (sp.Rational(int(x * 10**6), 10**6) for x in rng.normal(size=len(q) + 1)))) for _ in range(3)]
+
+    def values(expr):
+        return [sp.N(expr.subs(point), 30) for point in points]
+
+    reference_values = [values(e) for e in reference]
+    unmatched = list(range(len(reference)))
+    for row in phi:
+        row_values = values(row)
+        match = next(
+            (k for k in unmatched for f in (1, -1, 2, -2) if all(abs(a - f * b) < 1e-25 for a, b in zip(row_values, reference_values[k]))),
+            None,
+        )
+        assert match is not None, row
+        unmatched.remove(match)
 
 
 def test_chain3_contenders_match_the_analytic_tip():
-    for row in (kinegen_run(3, True), kinegen_run(3, False), naive_sympy_run(3, True)):
+    for row in (kinegen_run("chain-3", True), kinegen_run("chain-3", False), naive_sympy_run("chain-3", True)):
         assert row["error"] < 1e-9
         assert row["build"] > 0 and row["trajectory"] > 0
-    assert kinegen_run(3, False)["iterations"] > 2  # plain previous-q starts need more Newton steps
+    assert kinegen_run("chain-3", False)["iterations"] > 2  # plain previous-q starts need more Newton steps
+
+
+def test_optional_contenders_match_the_analytic_tip():
+    pytest.importorskip("casadi")
+    pytest.importorskip("symengine")
+    from kinegen.bench.contenders import casadi_run, symengine_run
+
+    for row in (casadi_run("chain-3", False), casadi_run("chain-3", True), symengine_run("chain-3")):
+        assert row["error"] < 1e-9
+
+
+def test_band_lu_solves_like_dense_lu_on_a_chain_pattern():
+    """Band LU after the bandwidth-reducing permutation = dense LU (random values on chain-14's pattern)."""
+    from kinegen.bench.chain import chain_yaml
+    from kinegen.codegen.inmemory import lambdify_model
+    from kinegen.model import loads
+    from kinegen.rotations import get
+    from kinegen.runtime import from_module
+
+    system = from_module(lambdify_model(loads(chain_yaml(14, 1.0, 3), "chain14.yaml"), get("euler-parameters")))
+    n = system.n_velocity
+    shape = (n, n)
+    chosen = choose(system.jac_rows, system.jac_cols, shape)
+    assert isinstance(chosen, BandLU) and chosen.kl + chosen.ku < 30  # two links' coordinates, not 98
+    rng = np.random.default_rng(5)
+    values = rng.normal(size=len(system.jac_rows)) + 5 * (system.jac_rows == system.jac_cols)
+    dense = DenseLU(system.jac_rows, system.jac_cols, shape)
+    matrix = dense.dense(values)
+    rhs = rng.normal(size=n)
+    expected = np.linalg.solve(matrix, rhs)
+    for solver in (chosen, dense):
+        factors, _ = solver.factor(values)
+        assert np.abs(solver.solve(factors, rhs) - expected).max() < 1e-9 * np.abs(expected).max()
+        assert abs(1 / solver.rcond(factors, values) / np.linalg.cond(matrix, 1) - 1) < 10  # an estimate

@@ -1,11 +1,15 @@
-"""``make bench``: chain-N contenders, one fresh process each, ratios measured in one run.
+"""``make bench``: kinegen and its baselines, one fresh process per row, ratios in one run.
 
-Usage: python -m kinegen.bench [--sizes 3 14] [--quick]
+Usage: python -m kinegen.bench [--sizes 3 14] [--excavator digging level_cut] [--quick]
 
-Every row: build time, 1000-step trajectory time, Newton iterations per step, largest tip
-error against the analytic solution (the run fails if any exceeds 1e-9 m), and the
-ratios to kinegen's own run in the same invocation (the machines are shared and noisy:
-absolute times alone mean little). ``--quick`` leaves out the slow SciPy baseline.
+Workloads: chain-N (``../shared/bench/chain-N.md``) and the excavator's cases, 1000 time
+points each, Newton to max|Phi| < 1e-10 from the previous solution, then velocity and
+acceleration. Every row: build time, trajectory time, Newton iterations per step, the
+largest error of the tracked point (the run fails if any exceeds 1e-9 m) and the ratio of
+its trajectory time to kinegen's on the same previous-q workload. The machines are shared
+and noisy: ratios measured in one run are what counts. Then the targets of issue 5, each
+checked on this run's figures, and the working-range sweep rate.
+``--quick`` leaves out the slow baselines (SciPy finite differences, naive SymPy).
 """
 
 from __future__ import annotations
@@ -16,22 +20,56 @@ import os
 import subprocess
 import sys
 
-CONTENDERS = {
-    "kinegen (own predictor)": "kinegen_run({n}, True)",
-    "kinegen (previous q, as specified)": "kinegen_run({n}, False)",
-    "naive SymPy lambdify (cse)": "naive_sympy_run({n}, True)",
-    "naive SymPy lambdify": "naive_sympy_run({n}, False)",
-    "SciPy hybr + finite differences": "scipy_hybr_run({n})",
+KINEGEN_OWN = "kinegen (own predictor)"
+KINEGEN = "kinegen (previous q, as specified)"
+CASADI = "CasADi SX, Python Newton loop"
+CONTENDERS = {  # name -> (call, largest chain N it runs on, runs on the excavator, slow)
+    KINEGEN_OWN: ("kinegen_run({w!r}, True)", 10**6, True, False),
+    KINEGEN: ("kinegen_run({w!r}, False)", 10**6, True, False),
+    "kinegen quaternion (own predictor)": ("kinegen_run({w!r}, True, 'quaternion')", 0, True, False),
+    CASADI: ("casadi_run({w!r}, False)", 10**6, True, False),
+    "CasADi SX, rootfinder('newton')": ("casadi_run({w!r}, True)", 14, True, False),
+    "SymEngine Lambdify (LLVM, sparse)": ("symengine_run({w!r})", 50, True, False),
+    "naive SymPy lambdify (cse)": ("naive_sympy_run({w!r}, True)", 50, False, True),
+    "naive SymPy lambdify": ("naive_sympy_run({w!r}, False)", 14, False, True),
+    "SciPy hybr + finite differences": ("scipy_hybr_run({w!r})", 14, True, True),
 }
 TOLERANCE = 1e-9
+PRELUDE = (
+    "import json, resource\n"
+    "from kinegen.bench.contenders import *\n"
+    "row = {call}\n"
+    "row['peak_mb'] = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1024\n"
+    "print(json.dumps(row))\n"
+)
 
 
-def run_contender(call: str, n: int) -> dict:
-    code = f"import json; from kinegen.bench.contenders import *; print(json.dumps({call.format(n=n)}))"
+def run_contender(call: str) -> dict:
     env = dict(os.environ, OPENBLAS_NUM_THREADS="1", OMP_NUM_THREADS="1")
+    done = subprocess.run([sys.executable, "-c", PRELUDE.format(call=call)], env=env, capture_output=True, text=True, timeout=3600)
+    if done.returncode != 0:
+        lines = done.stderr.strip().splitlines()
+        return {"failed": lines[-1] if lines else f"exit {done.returncode}"}
+    return json.loads(done.stdout.strip().splitlines()[-1])
+
+
+def sweep_rate() -> dict:
+    """The excavator working range (models/excavator.yaml), quaternion: configurations solved per second."""
+    code = (
+        "import json\n"
+        "from kinegen.bench.contenders import ROOT\n"
+        "from kinegen.model import load\n"
+        "from kinegen.runtime import from_module, load_module\n"
+        "from kinegen.analysis.envelope import working_range\n"
+        "model = load(ROOT / 'models' / 'excavator.yaml')\n"
+        "module = load_module(ROOT / 'generated' / 'excavator_quaternion.py', ROOT / 'models' / 'excavator.yaml')\n"
+        "e = working_range(from_module(module, model.working_range.case), model.working_range)\n"
+        "print(json.dumps({'solves': e.solves, 'seconds': e.seconds}))\n"
+    )
+    env = dict(os.environ, OPENBLAS_NUM_THREADS="1")
     done = subprocess.run([sys.executable, "-c", code], env=env, capture_output=True, text=True, timeout=3600)
     if done.returncode != 0:
-        return {"failed": done.stderr.strip().splitlines()[-1] if done.stderr.strip() else f"exit {done.returncode}"}
+        return {"failed": done.stderr.strip().splitlines()[-1]}
     return json.loads(done.stdout.strip().splitlines()[-1])
 
 
@@ -39,34 +77,90 @@ def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(
         prog="python -m kinegen.bench", description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter
     )
-    parser.add_argument("--sizes", type=int, nargs="+", default=[3, 14])
-    parser.add_argument("--quick", action="store_true", help="leave out the SciPy finite-difference baseline")
+    parser.add_argument("--sizes", type=int, nargs="*", default=[3, 14])
+    parser.add_argument("--excavator", nargs="*", default=["digging", "level_cut"], help="excavator cases")
+    parser.add_argument("--quick", action="store_true", help="leave out SciPy finite differences and naive SymPy")
+    parser.add_argument("--no-sweep", action="store_true", help="leave out the working-range sweep")
     args = parser.parse_args(argv)
+    workloads = [f"chain-{n}" for n in args.sizes] + [f"excavator-{c}" for c in args.excavator]
     failures = 0
-    header = f"{'N':>3} {'contender':<36} {'build s':>8} {'x kinegen':>9} {'traj. s':>8} {'x kinegen':>9} {'it/step':>7} {'tip error':>9}"
-    print("chain-N, Euler parameters, 1000 steps on [0, 10] s, Newton to max|Phi| < 1e-10 (one process per row)")
+    rows: dict[tuple[str, str], dict] = {}
+    header = (
+        f"{'workload':<19} {'contender':<36} {'build s':>8} {'traj. s':>8} {'x kinegen':>9} {'it/step':>7} "
+        f"{'error m':>8} {'peak MB':>7}"
+    )
+    print("1000 time points, Newton to max|Phi| < 1e-10, velocity + acceleration; Euler parameters unless named")
+    print("x kinegen = trajectory time / kinegen's on the same previous-q workload (one process per row)")
     print(header)
     print("-" * len(header))
-    for n in args.sizes:
-        reference = None
-        for name, call in CONTENDERS.items():
-            if args.quick and name.startswith("SciPy"):
+    for w in workloads:
+        size = int(w.split("-")[1]) if w.startswith("chain") else None
+        for name, (call, largest, excavator, slow) in CONTENDERS.items():
+            if (size is not None and size > largest) or (size is None and not excavator) or (args.quick and slow):
                 continue
-            row = run_contender(call, n)
+            row = run_contender(call.format(w=w))
+            rows[(w, name)] = row
             if "failed" in row:
                 failures += 1
-                print(f"{n:>3} {name:<36} FAILED: {row['failed']}")
+                print(f"{w:<19} {name:<36} FAILED: {row['failed']}")
                 continue
-            reference = reference or row
+            base = rows.get((w, KINEGEN), row)
             ok = row["error"] < TOLERANCE
             failures += not ok
             print(
-                f"{n:>3} {name:<36} {row['build']:>8.3f} {row['build'] / reference['build']:>9.2f} {row['trajectory']:>8.3f} "
-                f"{row['trajectory'] / reference['trajectory']:>9.2f} {row['iterations']:>7.2f} {row['error']:>9.1e}"
+                f"{w:<19} {name:<36} {row['build']:>8.3f} {row['trajectory']:>8.3f} "
+                f"{row['trajectory'] / base.get('trajectory', row['trajectory']):>9.2f} {row['iterations']:>7.2f} "
+                f"{row['error']:>8.1e} {row['peak_mb']:>7.0f}"
                 + ("" if ok else "  ERROR > 1e-9")
                 + (f"  ({row['note']})" if "note" in row else "")
             )
+    sweep = None if args.no_sweep else sweep_rate()
+    print()
+    print("Targets (issue 5), on this run's figures:")
+    for line in targets(rows, sweep):
+        print("  " + line)
     return 1 if failures else 0
+
+
+def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
+    """One line per target that this run measured: the figure, the target, met or not."""
+
+    def get(w: str, name: str, key: str) -> float | None:
+        row = rows.get((w, name))
+        return None if row is None or "failed" in row else row[key]
+
+    def line(text: str, value: float | None, limit: float, below: bool, unit: str = "") -> str | None:
+        if value is None:
+            return None
+        met = value <= limit if below else value >= limit
+        return f"{text}: {value:.3g}{unit} ({'<=' if below else '>='} {limit:g}{unit}) {'met' if met else 'NOT met'}"
+
+    out = []
+    workloads = sorted({w for w, _ in rows})
+    for w in workloads:
+        casadi = get(w, CASADI, "trajectory")
+        for name in (KINEGEN, KINEGEN_OWN, "kinegen quaternion (own predictor)"):
+            mine = get(w, name, "trajectory")
+            if mine is not None and casadi is not None:
+                out.append(line(f"{w} {name} trajectory / CasADi Python loop", mine / casadi, 1.0, True))
+        scipy_time, mine = get(w, "SciPy hybr + finite differences", "trajectory"), get(w, KINEGEN, "trajectory")
+        if scipy_time is not None and mine is not None:
+            out.append(line(f"{w} SciPy finite differences / kinegen trajectory", scipy_time / mine, 50, False))
+    out.append(line("chain-14 kinegen build", get("chain-14", KINEGEN, "build"), 1.0, True, " s"))
+    b14, b100 = get("chain-14", KINEGEN, "build"), get("chain-100", KINEGEN, "build")
+    if b14 and b100:
+        out.append(line("chain-100 / chain-14 build", b100 / b14, 8, True))
+    naive50, mine50 = get("chain-50", "naive SymPy lambdify (cse)", "build"), get("chain-50", KINEGEN, "build")
+    if naive50 and mine50:
+        out.append(line("chain-50 naive SymPy build / kinegen build", naive50 / mine50, 10, False))
+    for w in workloads:
+        if w.startswith("excavator"):
+            out.append(line(f"{w} kinegen build peak memory", get(w, KINEGEN, "peak_mb"), 300, True, " MB"))
+            break
+    if sweep and "failed" not in sweep:
+        rate = sweep["solves"] / sweep["seconds"]
+        out.append(line(f"working-range sweep ({sweep['solves']} solves incl. refinement, sequential)", rate, 20000, False, "/s"))
+    return [x for x in out if x]
 
 
 if __name__ == "__main__":

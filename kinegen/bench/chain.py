@@ -50,7 +50,7 @@ def chain_yaml(n: int, t1: float = 10.0, steps: int = 1000) -> str:
         lines.append(f"  J{i}: {{type: revolute, bodies: [link{i}, {parent}], points: [O, {point}], axes: [z, z]}}")
     lines += ["cases:", "  drive:", "    drivers:"]
     for i in range(1, n + 1):
-        lines.append(f"      theta{i}: {{type: joint_angle, joint: J{i}, function: -(0.3 + 0.5*sin(t + {0.1 * i!r}))}}")
+        lines.append(f"      theta{i}: {{type: joint_angle, joint: J{i}, function: -(0.3 + 0.5*sin(t + {i}/10))}}")
     lines += ["    t0: 0", f"    t1: {t1!r}", f"    steps: {steps}"]
     return "\n".join(lines) + "\n"
 

@@ -1,146 +1,328 @@
-"""One contender of the chain-N benchmark per function; each runs in its own process.
+"""One contender of the benchmark per function; each runs in its own process.
 
-Every contender solves the same equations (kinegen's Phi of the chain-N model in Euler
-parameters, the benchmark's coordinates) on the same workload: 1000 time points on
-[0, 10], Newton to max |Phi| < 1e-10 (at most 25 iterations), then velocity and
-acceleration, and reports build time, trajectory time, Newton iterations per step and the
-largest tip-position error against the analytic solution.
+A *workload* is ``chain-N`` (``../shared/bench/chain-N.md``) or ``excavator-<case>``.
+Every contender solves the same equations (kinegen's Phi of the model in Euler
+parameters: for chain-N these are the benchmark's literal equations up to row sign, scale
+and order) on the same work: 1000 time points, Newton to max |Phi| < 1e-10 (at most 25
+iterations) from the previous solution, then velocity and acceleration. Each reports build
+time, trajectory time, Newton iterations per step and the largest error of a tracked point:
+against the analytic tip for chain-N, against kinegen's quaternion solution (another
+parametrization, other generated code) of the bucket tip for the excavator.
 """
 
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
+from dataclasses import dataclass
+from functools import cache
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
 PARAMETRIZATION = "euler-parameters"
 STEPS = 1000
-T1 = 10.0
+TOLERANCE = 1e-10
+MAX_ITERATIONS = 25
+ROOT = Path(__file__).resolve().parents[2]
 
 
-def _model(n: int):
-    from kinegen.bench.chain import chain_yaml
-    from kinegen.model import loads
+@dataclass(frozen=True)
+class Workload:
+    """A model, case, time grid and the point whose path is checked."""
 
-    return loads(chain_yaml(n, T1, STEPS), f"chain{n}.yaml")
+    name: str
+    model: Any  # kinegen.model.Model
+    case: str
+    times: np.ndarray
+    body: str
+    point: str
+    reference: Callable[[], np.ndarray]  #: (K, 3) path of the point the errors are measured against
 
 
-def _tip_error(n: int, times: np.ndarray, tips: np.ndarray) -> float:
-    from kinegen.bench.chain import tip_reference
+@cache
+def workload(name: str) -> Workload:
+    """``chain-14`` or ``excavator-digging`` (any case of models/excavator.yaml)."""
+    from kinegen.model import load, loads
 
-    return float(np.abs(tips - tip_reference(n, times)[0]).max())
+    kind, _, arg = name.partition("-")
+    if kind == "chain":
+        from kinegen.bench.chain import chain_yaml, tip_reference
+
+        n = int(arg)
+        times = np.linspace(0, 10.0, STEPS)
+        model = loads(chain_yaml(n, 10.0, STEPS), f"chain{n}.yaml")
+        return Workload(name, model, "drive", times, f"link{n}", "tip", lambda: tip_reference(n, times)[0])
+    if kind == "excavator":
+        model = load(ROOT / "models" / "excavator.yaml")
+        case = model.cases[arg]
+        times = np.linspace(float(case.t0), float(case.t1), STEPS)
+        spec = model.working_range
+        body, point = spec.point.body, spec.point.name
+
+        def reference() -> np.ndarray:
+            from kinegen.runtime import Solver, SolverOptions, from_module, load_module
+
+            module = load_module(ROOT / "generated" / "excavator_quaternion.py", ROOT / "models" / "excavator.yaml")
+            solved = Solver(from_module(module, arg), SolverOptions(condition="none", tolerance=1e-12)).solve(times)
+            return solved.point_position(body, point)
+
+        return Workload(name, model, arg, times, body, point, reference)
+    raise ValueError(f"unknown workload {name!r} (chain-N or excavator-<case>)")
 
 
-def kinegen_run(n: int, predictor: bool) -> dict[str, Any]:
-    """kinegen: generated module (build = symbolic derivation + code generation), sparse Phi_q values."""
+def _error(w: Workload, qs: np.ndarray) -> float:
+    """Largest distance of the tracked point (from Euler-parameter coordinates) to the reference."""
+    from kinegen.rotations import quaternion_algebra as qa
+
+    k = [b.name for b in w.model.bodies].index(w.body)
+    local = np.array([float(x) for x in w.model.bodies[k].points[w.point]])
+    body = np.asarray(qs)[:, 7 * k : 7 * k + 7]
+    path = body[:, :3] + np.einsum("kij,j->ki", np.array([qa.to_matrix(e) for e in body[:, 3:]]), local)
+    return float(np.abs(path - w.reference()).max())
+
+
+def _initial(w: Workload) -> np.ndarray:
+    from kinegen import rotations
+    from kinegen.codegen import initial_q
+
+    return initial_q(w.model, rotations.get(PARAMETRIZATION))
+
+
+def _result(build: float, trajectory: float, iterations: list[int] | np.ndarray, w: Workload, qs, **extra) -> dict[str, Any]:
+    return {
+        "build": build,
+        "trajectory": trajectory,
+        "iterations": float(np.mean(iterations)),
+        "error": _error(w, qs),
+        **extra,
+    }
+
+
+# ---- kinegen ---------------------------------------------------------------------------
+def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATION) -> dict[str, Any]:
+    """kinegen: generated module (build = symbolic derivation + code generation)."""
     import tempfile
-    from pathlib import Path
 
     from kinegen import rotations
     from kinegen.codegen import generate_source
     from kinegen.runtime import Solver, SolverOptions, from_module, load_module
 
-    model = _model(n)
+    w = workload(name)
     start = time.perf_counter()
-    source = generate_source(model, rotations.get(PARAMETRIZATION))
+    source = generate_source(w.model, rotations.get(parametrization))
     build = time.perf_counter() - start
     with tempfile.TemporaryDirectory() as folder:
-        path = Path(folder) / f"chain{n}.py"
+        path = Path(folder) / "module.py"
         path.write_text(source)
-        system = from_module(load_module(path))
-    solver = Solver(system, SolverOptions(condition="none", predictor=predictor))
+        system = from_module(load_module(path), w.case)
+    # "as specified": previous-q starts and no polish; own: predictor + polishing correction
+    solver = Solver(system, SolverOptions(condition="none", predictor=predictor, polish=predictor))
     start = time.perf_counter()
-    results = solver.solve()
+    results = solver.solve(w.times)
     trajectory = time.perf_counter() - start
-    tips = results.point_position(f"link{n}", "tip")
-    return {
-        "build": build,
-        "trajectory": trajectory,
-        "iterations": float(results.iterations.mean()),
-        "error": _tip_error(n, results.times, tips),
-    }
+    path = results.point_position(w.body, w.point)
+    error = float(np.abs(path - w.reference()).max())
+    return {"build": build, "trajectory": trajectory, "iterations": float(results.iterations.mean()), "error": error}
 
 
-def _symbolic_phi(n: int):
-    """kinegen's Phi of chain-N as one SymPy column in the stored coordinates and t."""
-    import sympy as sp
-
+# ---- the same Phi for the other contenders ---------------------------------------------
+def symbolic_phi(w: Workload):
+    """kinegen's Phi(q, t) of the workload as SymPy expressions in the stored coordinates."""
     from kinegen import rotations
     from kinegen.symbolic import build_systems
 
-    system = build_systems(_model(n), rotations.get(PARAMETRIZATION))["drive"]
+    system = build_systems(w.model, rotations.get(PARAMETRIZATION), [w.case])[w.case]
     coords = system.coordinates
     time_functions = dict(zip(system.inputs.u, system.inputs.functions))
-    phi = sp.Matrix([r.phi.xreplace(coords.rotation_definitions).xreplace(time_functions) for r in system.rows])
-    return sp.Matrix(coords.stored_symbols), phi
+    phi = [r.phi.xreplace(coords.rotation_definitions).xreplace(time_functions) for r in system.rows]
+    return list(coords.stored_symbols), phi
 
 
-def _naive_functions(n: int, cse: bool):
-    """Dense Phi(q, t), Phi_q, Phi_t, gamma by Matrix.jacobian + lambdify on the whole system."""
+def _newton_trajectory(w: Workload, evaluate, rates) -> tuple[np.ndarray, list[int]]:
+    """Full-step Newton from the previous solution; ``evaluate(q, t) -> (Phi, dense Phi_q)``,
+    ``rates(q, Phi_q, t) -> None`` computes velocity and acceleration."""
+    q = _initial(w)
+    qs, iterations = [], []
+    for t in w.times:
+        phi, jacobian = evaluate(q, t)
+        count = 0
+        while np.abs(phi).max() >= TOLERANCE and count < MAX_ITERATIONS:
+            q = q - np.linalg.solve(jacobian, phi)
+            phi, jacobian = evaluate(q, t)
+            count += 1
+        rates(q, jacobian, t)
+        qs.append(q)
+        iterations.append(count)
+    return np.array(qs), iterations
+
+
+# ---- naive SymPy ---------------------------------------------------------------------------
+def naive_sympy_run(name: str, cse: bool) -> dict[str, Any]:
+    """Naive SymPy: dense Matrix.jacobian + lambdify on the whole system, dense LU per iteration."""
     import sympy as sp
 
     from kinegen.model.expressions import T
 
-    q, phi = _symbolic_phi(n)
+    w = workload(name)
+    start = time.perf_counter()
+    q_list, phi_list = symbolic_phi(w)
+    q, phi = sp.Matrix(q_list), sp.Matrix(phi_list)
     qd = sp.Matrix([sp.Symbol(f"qd{i}") for i in range(len(q))])
     jacobian = phi.jacobian(q)
     phi_t = phi.diff(T)
     gamma = -(jacobian * qd).jacobian(q) * qd - 2 * phi_t.jacobian(q) * qd - phi_t.diff(T)
     compile_ = lambda args, expr: sp.lambdify(args, expr, "numpy", cse=cse)  # noqa: E731
-    return (
-        compile_([q, T], phi),
-        compile_([q, T], jacobian),
-        compile_([q, T], phi_t),
-        compile_([q, qd, T], gamma),
-    )
-
-
-def _initial(n: int) -> np.ndarray:
-    from kinegen import rotations
-    from kinegen.codegen import initial_q
-
-    return initial_q(_model(n), rotations.get(PARAMETRIZATION))
-
-
-def _tip(q: np.ndarray, n: int) -> np.ndarray:
-    from kinegen.rotations import quaternion_algebra as qa
-
-    body = q[7 * (n - 1) : 7 * n]
-    return body[:3] + qa.to_matrix(body[3:]) @ np.array([1.0, 0, 0])
-
-
-def naive_sympy_run(n: int, cse: bool) -> dict[str, Any]:
-    """Naive SymPy: dense Matrix.jacobian + lambdify, dense LU per Newton iteration."""
-    start = time.perf_counter()
-    phi, jacobian, phi_t, gamma = _naive_functions(n, cse)
+    f_phi, f_jac = compile_([q, T], phi), compile_([q, T], jacobian)
+    f_phi_t, f_gamma = compile_([q, T], phi_t), compile_([q, qd, T], gamma)
     build = time.perf_counter() - start
-    times = np.linspace(0, T1, STEPS)
-    q = _initial(n)
-    tips, iterations = [], []
+
+    def evaluate(q, t):
+        return np.asarray(f_phi(q, t), dtype=float).ravel(), np.asarray(f_jac(q, t), dtype=float)
+
+    def rates(q, jacobian, t):
+        velocity = np.linalg.solve(jacobian, -np.asarray(f_phi_t(q, t), dtype=float).ravel())
+        np.linalg.solve(jacobian, np.asarray(f_gamma(q, velocity, t), dtype=float).ravel())
+
     start = time.perf_counter()
-    for t in times:
-        residual = np.asarray(phi(q, t), dtype=float).ravel()
-        count = 0
-        while np.abs(residual).max() >= 1e-10 and count < 25:
-            q = q - np.linalg.solve(np.asarray(jacobian(q, t), dtype=float), residual)
-            residual = np.asarray(phi(q, t), dtype=float).ravel()
-            count += 1
-        matrix = np.asarray(jacobian(q, t), dtype=float)
-        qd = np.linalg.solve(matrix, -np.asarray(phi_t(q, t), dtype=float).ravel())
-        np.linalg.solve(matrix, np.asarray(gamma(q, qd, t), dtype=float).ravel())
-        tips.append(_tip(q, n))
-        iterations.append(count)
-    trajectory = time.perf_counter() - start
-    return {
-        "build": build,
-        "trajectory": trajectory,
-        "iterations": float(np.mean(iterations)),
-        "error": _tip_error(n, times, np.array(tips)),
-    }
+    qs, iterations = _newton_trajectory(w, evaluate, rates)
+    return _result(build, time.perf_counter() - start, iterations, w, qs)
 
 
-def scipy_hybr_run(n: int) -> dict[str, Any]:
+# ---- SymEngine -------------------------------------------------------------------------------
+def symengine_run(name: str) -> dict[str, Any]:
+    """SymEngine: Phi converted from SymPy, Jacobian and gamma differentiated by SymEngine,
+    Lambdify (LLVM backend, cse) of Phi + the non-zero Phi_q entries, of Phi_t and of gamma."""
+    import symengine as se
+
+    w = workload(name)
+    q_sympy, phi_sympy = symbolic_phi(w)
+    start = time.perf_counter()
+    q = [se.Symbol(str(s)) for s in q_sympy]
+    qd = [se.Symbol(f"qd{i}") for i in range(len(q))]
+    t = se.Symbol("t")
+    phi = [se.sympify(e) for e in phi_sympy]
+    entries = [(i, j, d) for i, e in enumerate(phi) for j, s in enumerate(q) if (d := e.diff(s)) != 0]
+    phi_t = [e.diff(t) for e in phi]
+    psi = [sum((d * qd[j] for i2, j, d in entries if i2 == i), se.Integer(0)) for i in range(len(phi))]  # Phi_q qd
+    gamma = [
+        -sum((p.diff(s) * qd[j] for j, s in enumerate(q)), se.Integer(0)) - 2 * p.diff(t) - ft.diff(t)
+        for p, ft in zip(psi, phi_t)
+    ]
+    backend = "llvm"
+    f_eval = se.Lambdify([*q, t], [*phi, *(d for _, _, d in entries)], backend=backend, cse=True)
+    f_phi_t = se.Lambdify([*q, t], phi_t, backend=backend, cse=True)
+    f_gamma = se.Lambdify([*q, *qd, t], gamma, backend=backend, cse=True)
+    build = time.perf_counter() - start
+    m, n = len(phi), len(q)
+    flat = np.array([i * n + j for i, j, _ in entries])
+
+    def evaluate(qv, tv):
+        values = f_eval(np.append(qv, tv))
+        dense = np.zeros((m, n))
+        dense.flat[flat] = values[m:]
+        return values[:m], dense
+
+    def rates(qv, jacobian, tv):
+        velocity = np.linalg.solve(jacobian, -f_phi_t(np.append(qv, tv)))
+        np.linalg.solve(jacobian, f_gamma(np.concatenate((qv, velocity, [tv]))))
+
+    start = time.perf_counter()
+    qs, iterations = _newton_trajectory(w, evaluate, rates)
+    return _result(build, time.perf_counter() - start, iterations, w, qs, note=f"{len(entries)} Jacobian entries, {backend}")
+
+
+# ---- CasADi ------------------------------------------------------------------------------------
+def _casadi_functions(w: Workload):
+    """Phi in CasADi SX (translated from SymPy by lambdify with CasADi's functions), its
+    sparse Jacobian, Phi_t and gamma; returns (SX q, SX t, phi, Function eval, Function gamma)."""
+    import casadi as ca
+    import sympy as sp
+
+    from kinegen.model.expressions import T
+
+    q_sympy, phi_sympy = symbolic_phi(w)
+    start = time.perf_counter()
+    names = {"sin": ca.sin, "cos": ca.cos, "tan": ca.tan, "sqrt": ca.sqrt, "exp": ca.exp, "log": ca.log, "tanh": ca.tanh}
+    translate = sp.lambdify([q_sympy, T], phi_sympy, modules=[names, "math"])
+    n = len(q_sympy)
+    q, qd, t = ca.SX.sym("q", n), ca.SX.sym("qd", n), ca.SX.sym("t")
+    phi = ca.vertcat(*translate(ca.vertsplit(q), t))
+    jacobian = ca.jacobian(phi, q)
+    phi_t = ca.jacobian(phi, t)
+    psi = ca.mtimes(jacobian, qd)
+    gamma = -ca.mtimes(ca.jacobian(psi, q), qd) - 2 * ca.jacobian(psi, t) - ca.jacobian(phi_t, t)
+    evaluate = ca.Function("evaluate", [q, t], [phi, ca.densify(jacobian), phi_t])
+    acceleration = ca.Function("gamma", [q, qd, t], [gamma])
+    return start, q, t, phi, evaluate, acceleration
+
+
+class _Buffered:
+    """A CasADi Function called through its buffer interface: NumPy arrays bound once.
+
+    (Converting a dense 98x98 result with ``DM.full()`` costs ~290 us; the buffer call ~20 us.)
+    """
+
+    def __init__(self, function, arg_sizes: list[int], res_shapes: list[tuple[int, ...]]) -> None:
+        self.buffer, self.call = function.buffer()
+        self.args = [np.zeros(k) for k in arg_sizes]
+        self.results = [np.zeros(shape, order="F") for shape in res_shapes]
+        for i, a in enumerate(self.args):
+            self.buffer.set_arg(i, memoryview(a))
+        for i, r in enumerate(self.results):
+            self.buffer.set_res(i, memoryview(r.reshape(-1, order="F")))
+
+    def __call__(self, *args) -> list[np.ndarray]:
+        for target, value in zip(self.args, args):
+            target[:] = value
+        self.call()
+        return self.results
+
+
+def casadi_run(name: str, rootfinder: bool) -> dict[str, Any]:
+    """CasADi SX: a Python Newton loop calling one Function (Phi, Phi_q, Phi_t) per iteration
+    through NumPy buffers, or ``rootfinder('newton')`` per step; then velocity and acceleration."""
+    import casadi as ca
+
+    w = workload(name)
+    start, q_sym, t_sym, phi, evaluate, acceleration = _casadi_functions(w)
+    n = q_sym.numel()
+    m = phi.numel()
+    fused = _Buffered(evaluate, [n, 1], [(m,), (m, n), (m,)])
+    gamma = _Buffered(acceleration, [n, n, 1], [(m,)])
+    solve_step = None
+    if rootfinder:
+        residual = ca.Function("residual", [q_sym, t_sym], [phi])
+        solve_step = ca.rootfinder("step", "newton", residual, {"abstol": TOLERANCE, "max_iter": MAX_ITERATIONS})
+    build = time.perf_counter() - start
+
+    def evaluate_phi(q, t):
+        phi_value, jacobian, _ = fused(q, t)
+        return phi_value.copy(), jacobian.copy()
+
+    def rates(q, jacobian, t):
+        velocity = np.linalg.solve(jacobian, -fused.results[2])
+        np.linalg.solve(jacobian, gamma(q, velocity, t)[0])
+
+    start = time.perf_counter()
+    if solve_step is None:
+        qs, iterations = _newton_trajectory(w, evaluate_phi, rates)
+    else:
+        q = _initial(w)
+        qs, iterations = [], []
+        for t in w.times:
+            q = solve_step(q, t).full().ravel()
+            iterations.append(solve_step.stats().get("iter_count", 0))
+            _, jacobian = evaluate_phi(q, t)
+            rates(q, jacobian, t)
+            qs.append(q)
+        qs = np.array(qs)
+    return _result(build, time.perf_counter() - start, iterations, w, qs)
+
+
+# ---- SciPy only ----------------------------------------------------------------------------------
+def scipy_hybr_run(name: str) -> dict[str, Any]:
     """SciPy only: NumPy Phi + scipy.optimize.root(method='hybr') with finite differences.
 
     Phi is the lambdified residual (no symbolic Jacobian is used); velocity and
@@ -151,32 +333,28 @@ def scipy_hybr_run(n: int) -> dict[str, Any]:
 
     from kinegen.model.expressions import T
 
+    w = workload(name)
     start = time.perf_counter()
-    q_syms, exprs = _symbolic_phi(n)
+    q_syms, exprs = symbolic_phi(w)
     phi_numeric = sp.lambdify([q_syms, T], exprs, "numpy", cse=True)
     build = time.perf_counter() - start
 
     def phi(q: np.ndarray, t: float) -> np.ndarray:
         return np.asarray(phi_numeric(q, t), dtype=float).ravel()
 
-    times = np.linspace(0, T1, STEPS)
-    q = _initial(n)
-    tips, evaluations, velocities = [], [], []
+    q = _initial(w)
+    qs, evaluations = [], []
     h = 1e-6
     start = time.perf_counter()
-    for t in times:
+    for t in w.times:
         solution = root(phi, q, args=(t,), method="hybr", options={"xtol": 1e-13})
         q = solution.x
         matrix = approx_fprime(q, phi, 1e-8, t)
         phi_t = (phi(q, t + h) - phi(q, t - h)) / (2 * h)
-        velocities.append(np.linalg.solve(matrix, -phi_t))
-        tips.append(_tip(q, n))
+        np.linalg.solve(matrix, -phi_t)
+        qs.append(q)
         evaluations.append(solution.nfev)
-    trajectory = time.perf_counter() - start
-    return {
-        "build": build,
-        "trajectory": trajectory,
-        "iterations": float(np.mean(evaluations)),
-        "error": _tip_error(n, times, np.array(tips)),
-        "note": "iterations = Phi evaluations per step; acceleration not computed",
-    }
+    return _result(
+        build, time.perf_counter() - start, evaluations, w, np.array(qs),
+        note="iterations = Phi evaluations per step; acceleration not computed",
+    )  # fmt: skip

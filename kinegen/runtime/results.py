@@ -30,6 +30,19 @@ class Results:
     conditions: np.ndarray  #: 1-norm condition estimate of Phi_q per time point
     inputs: np.ndarray  #: driver inputs u per time point, (K, n_inputs)
     condition_kind: str = "estimate"  #: "estimate" (1-norm), "exact" (2-norm) or "none"
+    #: per time point: True where Newton reached the tolerance (False only for the last
+    #: point of a run stopped with ``on_failure="stop"``; its q, v, a are NaN)
+    converged: np.ndarray | None = None
+    failure: Exception | None = None  #: the error that stopped the run, if it stopped
+
+    def __post_init__(self) -> None:
+        if self.converged is None:
+            self.converged = np.ones(len(self.times), dtype=bool)
+
+    @property
+    def complete(self) -> bool:
+        """True when every time point converged."""
+        return self.failure is None and bool(np.all(self.converged))
 
     def _slices(self, body: str) -> tuple[int, int]:
         if body not in self.system.bodies:

@@ -12,24 +12,41 @@ tangent space and the quaternion is updated by the exponential map.
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any, NamedTuple
 
 import numpy as np
-import scipy.linalg
 
-from kinegen.errors import AssemblyError, ConvergenceError, SingularJacobianError
+from kinegen.errors import (
+    AssemblyError,
+    BranchError,
+    ConvergenceError,
+    KinegenError,
+    SingularJacobianError,
+    UnreachableError,
+)
 from kinegen.rotations import quaternion_algebra as qa
+from kinegen.runtime import linear
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem
 
-_getrf, _getrs, _gecon = scipy.linalg.get_lapack_funcs(("getrf", "getrs", "gecon"), dtype=np.float64)
+
+class Solution(NamedTuple):
+    """A converged position: q, Newton iterations, max |Phi|, Phi_q values and Phi at q."""
+
+    q: np.ndarray
+    iterations: int
+    norm: float
+    values: Any
+    phi: np.ndarray
 
 
-def _lu_solve(factors: tuple[np.ndarray, np.ndarray], rhs: np.ndarray) -> np.ndarray:
-    """Solve with LU factors, or in the least-squares sense with a (pinv,) pair."""
-    if factors[1] is None:  # redundant system: pseudo-inverse (consistent equations)
-        return factors[0] @ rhs
-    x, _ = _getrs(factors[0], factors[1], rhs)
-    return x
+@dataclass(frozen=True)
+class Factors:
+    """A factorized Phi_q: its values, and LU factors or (redundant systems) a pseudo-inverse."""
+
+    values: np.ndarray
+    lu: Any = None
+    pinv: np.ndarray | None = None
 
 
 @dataclass(frozen=True)
@@ -46,6 +63,17 @@ class SolverOptions:
     condition: str = "estimate"
     #: predict each step from the previous q, v, a (else: start from the previous q)
     predictor: bool = True
+    #: stay on the assembly branch: when det(Phi_q) changes sign over a step (a jump to
+    #: another branch, or a singular pose passed), halve the step, up to ``max_refinements``
+    #: times, then raise BranchError
+    keep_branch: bool = True
+    max_refinements: int = 12
+    #: after convergence, one more Newton correction with the factorization made for the
+    #: velocity solve (no extra Phi_q evaluation): a residual at the tolerance becomes ~its square
+    polish: bool = True
+    #: "raise": a step that fails raises; "stop": the run stops there and the results end
+    #: with that step marked not converged (``Results.converged``, ``Results.failure``)
+    on_failure: str = "raise"
 
 
 def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str], threshold: float = 1e-6) -> str:
@@ -84,6 +112,8 @@ class Solver:
             rot_v += range(v_off + 3, v_off + 6)
         self._pos_q, self._pos_v = np.array(positions_q), np.array(positions_v)
         self._rot_q, self._rot_v = np.array(rot_q), np.array(rot_v)
+        #: factorization of Phi_q chosen once for its pattern (dense or band LU)
+        self.linear = linear.choose(system.jac_rows, system.jac_cols, (m, n))
 
     # ---- building blocks ---------------------------------------------------------------
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -97,40 +127,45 @@ class Solver:
         out[self._rot_q] = qa.multiply(qa.exp(increments), quaternions).ravel()
         return out
 
-    def factorize(self, q: np.ndarray, u: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """LU factors of Phi_q at (q, u); raises SingularJacobianError (at time t) when singular."""
-        return self._factor(self.system.jacobian(q, u), t)
+    def factorize(self, q: np.ndarray, u: np.ndarray, t: float) -> Factors:
+        """Factors of Phi_q at (q, u); raises SingularJacobianError (at time t) when singular."""
+        return self._factor(self.system.jac(q, u), t)
 
-    def _factor(self, jacobian: np.ndarray, t: float) -> tuple[np.ndarray, np.ndarray]:
-        """LU factors of a dense Phi_q (pseudo-inverse for a redundant system)."""
-        if not np.all(np.isfinite(jacobian)):
+    def _factor(self, values: Any, t: float) -> Factors:
+        """Factors of Phi_q given its values (a pseudo-inverse for a redundant system)."""
+        values = np.asarray(values, dtype=float)
+        if not np.all(np.isfinite(values)):
             raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
         if self.redundant:
+            jacobian = self.linear.dense(values)
             _, s, _ = np.linalg.svd(jacobian)
             if s[-1] <= self.options.singular_tolerance * s[0]:  # column rank lost: a singular pose
                 self.check_singular(jacobian, t)
-            return np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance), None
-        lu, piv, info = _getrf(jacobian, overwrite_a=False)
-        diagonal = np.abs(np.diag(lu))
-        if info > 0 or diagonal.min() <= self.options.singular_tolerance * max(diagonal.max(), 1e-300):
-            self.check_singular(jacobian, t)
-        return lu, piv
+            return Factors(values, pinv=np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance))
+        lu, diagonal = self.linear.factor(values)
+        if diagonal.min() <= self.options.singular_tolerance * max(diagonal.max(), 1e-300):
+            self.check_singular(self.linear.dense(values), t)
+        return Factors(values, lu=lu)
 
-    def condition(self, q: np.ndarray, u: np.ndarray, factors: tuple[np.ndarray, np.ndarray] | None = None) -> float:
+    def _solve(self, factors: Factors, rhs: np.ndarray) -> np.ndarray:
+        if factors.pinv is not None:  # redundant system: least squares (consistent equations)
+            return factors.pinv @ rhs
+        return self.linear.solve(factors.lu, rhs)
+
+    def condition(self, q: np.ndarray, u: np.ndarray, factors: Factors | None = None) -> float:
         """Condition number of Phi_q as chosen by ``options.condition`` (NaN for "none")."""
         if self.options.condition == "none":
             return float("nan")
-        jacobian = self.system.jacobian(q, u)
-        return self._condition(jacobian, factors if factors is not None else self._factor(jacobian, float("nan")))
+        return self._condition(factors if factors is not None else self._factor(self.system.jac(q, u), float("nan")))
 
-    def _condition(self, jacobian: np.ndarray, factors: tuple[np.ndarray, np.ndarray]) -> float:
+    def _condition(self, factors: Factors) -> float:
         kind = self.options.condition
         if kind == "none":
             return float("nan")
         if kind == "exact" or self.redundant:
-            s = np.linalg.svd(jacobian, compute_uv=False)
-            return float(s[0] / s[min(jacobian.shape) - 1])
-        rcond, _ = _gecon(factors[0], np.abs(jacobian).sum(axis=0).max(), norm="1")
+            s = np.linalg.svd(self.linear.dense(factors.values), compute_uv=False)
+            return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+        rcond = self.linear.rcond(factors.lu, factors.values)
         return float("inf") if rcond == 0 else 1.0 / rcond
 
     def check_singular(self, jacobian: np.ndarray, t: float) -> None:
@@ -164,10 +199,10 @@ class Solver:
         Full steps first; if they fail, a backtracking line search; if that fails too, a
         homotopy that moves the residual of ``q0`` to zero in stages.
         """
-        q, iterations, norm, _ = self._position(q0, u, t)
-        return q, iterations, norm
+        solution = self._position(q0, u, t)
+        return solution.q, solution.iterations, solution.norm
 
-    def _position(self, q0: np.ndarray, u: np.ndarray, t: float) -> tuple[np.ndarray, int, float, np.ndarray]:
+    def _position(self, q0: np.ndarray, u: np.ndarray, t: float) -> Solution:
         """:meth:`position`, also returning Phi_q at the solution."""
         try:
             return self._newton(q0, u, t, damped=False)
@@ -177,27 +212,64 @@ class Solver:
         try:
             return self._newton(q0, u, t, damped=True)
         except ConvergenceError:
+            pass
+        try:
             return self._homotopy(q0, u, t)
+        except ConvergenceError:
+            return self._least_squares(q0, u, t)
+
+    def _least_squares(self, q: np.ndarray, u: np.ndarray, t: float, max_iterations: int = 300) -> Solution:
+        """Levenberg-Marquardt on |Phi|^2: the solution if one exists nearby; otherwise raises
+        UnreachableError with the closest reachable residual (the target is outside the workspace)."""
+        phi, values = self.system.evaluate(q, u)
+        cost, damping, iterations = float(phi @ phi), 1e-3, 0
+        for iterations in range(1, max_iterations + 1):  # noqa: B007
+            if np.max(np.abs(phi)) <= self.options.tolerance or not np.isfinite(cost):
+                break
+            jacobian = self.linear.dense(values)
+            gradient = jacobian.T @ phi
+            normal = jacobian.T @ jacobian
+            scale = np.diag(normal) + 1e-12 * max(1.0, float(np.diag(normal).max()))
+            while damping < 1e12:
+                step = -np.linalg.solve(normal + damping * np.diag(scale), gradient)
+                trial = self.retract(q, step)
+                trial_phi, trial_values = self.system.evaluate(trial, u)
+                trial_cost = float(trial_phi @ trial_phi)
+                if trial_cost < cost:
+                    break
+                damping *= 4
+            else:
+                break  # no descent in any direction: a (local) minimum of |Phi|
+            improvement = cost - trial_cost
+            q, phi, values, cost = trial, trial_phi, trial_values, trial_cost
+            damping = max(damping / 3, 1e-12)
+            if improvement <= 1e-15 * cost:
+                break
+        norm = float(np.max(np.abs(phi))) if phi.size else 0.0
+        if norm <= self.options.tolerance:
+            return Solution(q, iterations, norm, values, phi)
+        order = np.argsort(-np.abs(phi))[:3]
+        raise UnreachableError(t, iterations, norm, [(self.system.constraint_names[i], float(phi[i])) for i in order])
 
     def _newton(
         self, q: np.ndarray, u: np.ndarray, t: float, damped: bool, offset: np.ndarray | None = None
-    ) -> tuple[np.ndarray, int, float, np.ndarray]:
+    ) -> Solution:
         """Newton iterations; each evaluates Phi and Phi_q in one call (Phi_q at the solution is returned)."""
         opts = self.options
         evaluate = self.system.evaluate
 
-        def residual(x: np.ndarray) -> tuple[np.ndarray, float, np.ndarray]:
-            phi, jacobian = evaluate(x, u)
+        def residual(x: np.ndarray) -> tuple[np.ndarray, float, Any]:
+            phi, values = evaluate(x, u)  # values of Phi_q at the pattern
             if offset is not None:
                 phi = phi - offset
-            return phi, float(np.max(np.abs(phi))) if phi.size else 0.0, jacobian
+            return phi, float(np.max(np.abs(phi))) if phi.size else 0.0, values
 
         phi, norm, jacobian = residual(q)
         iterations = 0
         while norm > opts.tolerance:
             if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
                 raise self._failure(q, u, t, iterations)
-            step = -_lu_solve(self._factor(jacobian, t), phi)
+            step = -self._solve(self._factor(jacobian, t), phi)
             iterations += 1
             trial = self.retract(q, step)
             trial_phi, trial_norm, trial_jacobian = residual(trial)
@@ -208,16 +280,16 @@ class Solver:
                     trial = self.retract(q, alpha * step)
                     trial_phi, trial_norm, trial_jacobian = residual(trial)
             q, phi, norm, jacobian = trial, trial_phi, trial_norm, trial_jacobian
-        return q, iterations, norm, jacobian
+        return Solution(q, iterations, norm, jacobian, phi)
 
-    def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> tuple[np.ndarray, int, float, np.ndarray]:
+    def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> Solution:
         """Solve Phi(q, u) = (1 - s) Phi(q0, u) for s = 0 -> 1 with adaptive stages."""
         start, _ = self.residual(q, u)
         s, ds, total = 0.0, 1.0 / 8, 0
         while s < 1.0:
             target = min(1.0, s + ds)
             try:
-                q, iterations, _, _ = self._newton(q, u, t, damped=True, offset=(1.0 - target) * start)
+                q, iterations = self._newton(q, u, t, damped=True, offset=(1.0 - target) * start)[:2]
             except (ConvergenceError, SingularJacobianError):
                 ds /= 2
                 if ds < 1.0 / (8 * stages):
@@ -226,13 +298,15 @@ class Solver:
             total += iterations
             s = target
             ds = min(2 * ds, 0.25)
-        phi, jacobian = self.system.evaluate(q, u)
-        return q, total, float(np.max(np.abs(phi))) if phi.size else 0.0, jacobian
+        phi, values = self.system.evaluate(q, u)
+        return Solution(q, total, float(np.max(np.abs(phi))) if phi.size else 0.0, values, phi)
 
-    def rates(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray, factors) -> tuple[np.ndarray, np.ndarray]:
+    def rates(
+        self, q: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray, factors: Factors
+    ) -> tuple[np.ndarray, np.ndarray]:
         """Velocity and acceleration (velocity coordinates) from one factorization of Phi_q."""
-        v = _lu_solve(factors, self.system.velocity_rhs(q, u, ud))
-        return v, _lu_solve(factors, self.system.acceleration_rhs(q, v, u, ud, udd))
+        v = self._solve(factors, self.system.velocity_rhs(q, u, ud))
+        return v, self._solve(factors, self.system.acceleration_rhs(q, v, u, ud, udd))
 
     # ---- trajectory ----------------------------------------------------------------------
     def solve(
@@ -251,24 +325,81 @@ class Solver:
             times = np.linspace(system.t0, system.t1, system.steps)
         times = np.asarray(times, dtype=float)
         k, n, nv = len(times), system.n_stored, system.n_velocity
+        tabulated = inputs is not None
         if inputs is None:
             inputs = system.driver_inputs(times)
         u_all, ud_all, udd_all = (np.asarray(x, dtype=float).reshape(system.n_inputs, k) for x in inputs)
-        qs, vs, accs = np.empty((k, n)), np.empty((k, nv)), np.empty((k, nv))
-        iterations, residuals, conditions = np.empty(k, dtype=int), np.empty(k), np.empty(k)
+
+        def inputs_at(t: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+            """Inputs at a refinement time between samples i-1 and i (interpolated if tabulated)."""
+            if not tabulated:
+                return tuple(x[:, 0] for x in system.driver_inputs(np.array([t])))
+            s = (t - times[i - 1]) / (times[i] - times[i - 1])
+            return tuple((1 - s) * x[:, i - 1] + s * x[:, i] for x in (u_all, ud_all, udd_all))
+
+        qs, vs, accs = np.full((k, n), np.nan), np.full((k, nv), np.nan), np.full((k, nv), np.nan)
+        iterations, residuals, conditions = np.zeros(k, dtype=int), np.full(k, np.nan), np.full(k, np.nan)
+        converged = np.zeros(k, dtype=bool)
         q = system.initial_q.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
         v = a = None
+        sign = None
+        failure: KinegenError | None = None
         for i, t in enumerate(times):
             u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
-            if i > 0 and self.options.predictor:
-                h = t - times[i - 1]
-                q = self.retract(q, v * h + 0.5 * a * h * h)
-            q, iterations[i], residuals[i], jacobian = self._position(q, u, t)
-            factors = self._factor(jacobian, t)
+            try:
+                if i == 0:
+                    solution = self._position(q, u, t)
+                    factors = self._factor(solution.values, t)
+                else:
+                    solution, factors = self._step(q, v, a, sign, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i))
+                q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
+                if self.options.polish and solution.iterations > 0 and factors.lu is not None:
+                    q = self.retract(q, -self._solve(factors, solution.phi))
+            except KinegenError as error:
+                if self.options.on_failure != "stop":
+                    raise
+                failure = error
+                residuals[i] = getattr(error, "residual", np.nan)
+                k = i + 1
+                break
+            sign = self.linear.sign(factors.lu) if factors.lu is not None else None
             v, a = self.rates(q, u, ud, udd, factors)
-            conditions[i] = self._condition(jacobian, factors)
+            conditions[i] = self._condition(factors)
             qs[i], vs[i], accs[i] = q, v, a
-        return Results(system, times, qs, vs, accs, iterations, residuals, conditions, u_all.T.copy(), self.options.condition)
+            converged[i] = True
+        return Results(
+            system, times[:k], qs[:k], vs[:k], accs[:k], iterations[:k], residuals[:k], conditions[:k],
+            u_all.T[:k].copy(), self.options.condition, converged[:k], failure,
+        )  # fmt: skip
+
+    def _step(self, q, v, a, sign, t0: float, t1: float, inputs, inputs_at, depth: int = 0) -> tuple:
+        """Position at t1 from the solved state (q, v, a) at t0 on the same assembly branch.
+
+        Returns the solution and the factors of its Phi_q. When det(Phi_q) changes sign (or
+        Newton fails), the interval is halved and both halves are solved in turn.
+        """
+        h = t1 - t0
+        guess = self.retract(q, v * h + 0.5 * a * h * h) if self.options.predictor else q
+        u = inputs[0]
+        try:
+            solution = self._position(guess, u, t1)
+            factors = self._factor(solution.values, t1)
+            same = sign is None or factors.lu is None or not self.options.keep_branch or self.linear.sign(factors.lu) == sign
+        except (ConvergenceError, SingularJacobianError):
+            if depth >= self.options.max_refinements or not self.options.keep_branch:
+                raise
+            same = None
+        if same:
+            return solution, factors
+        if depth >= self.options.max_refinements:
+            raise BranchError(t0, t1, h)
+        middle = 0.5 * (t0 + t1)
+        mid_inputs = inputs_at(middle)
+        first, factors_m = self._step(q, v, a, sign, t0, middle, mid_inputs, inputs_at, depth + 1)
+        vm, am = self.rates(first.q, *mid_inputs, factors_m)
+        sign_m = self.linear.sign(factors_m.lu) if factors_m.lu is not None else None
+        second, factors = self._step(first.q, vm, am, sign_m, middle, t1, inputs, inputs_at, depth + 1)
+        return second._replace(iterations=first.iterations + second.iterations), factors
 
 
 def solve(system: NumericSystem, times: np.ndarray | None = None, options: SolverOptions | None = None) -> Results:

@@ -86,12 +86,13 @@ class NumericSystem:
         dense.flat[self._flat_index] = values
         return dense
 
-    def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Phi and dense Phi_q at one configuration in one call (the plain-float code if present)."""
+    def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, Any]:
+        """Phi and the Phi_q values (at jac_rows, jac_cols) at one configuration in one call
+        (the plain-float code when the module has it)."""
         if self.phi_jac_s is None:
-            return self.phi(q, u), self.jacobian(q, u)
+            return self.phi(q, u), self.jac(q, u)
         phi, values = self.phi_jac_s(q.tolist(), u.tolist())
-        return np.array(phi), self._dense(values)
+        return np.array(phi), values
 
     def velocity_rhs(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
         """nu = -Phi_t at one configuration."""
