@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   8a67273963cfdeb256fd74ac328df64e7d7171290ea869e1313850af7e9b81ec
+source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
 parametrization: euler-parameters
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -18,7 +18,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '8a67273963cfdeb256fd74ac328df64e7d7171290ea869e1313850af7e9b81ec'
+SOURCE_SHA256 = 'cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c'
 PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.e0', 'upper.e1', 'upper.e2', 'upper.e3', 'boom.x', 'boom.y', 'boom.z', 'boom.e0', 'boom.e1', 'boom.e2', 'boom.e3', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.e0', 'boom_cyl_l_barrel.e1', 'boom_cyl_l_barrel.e2', 'boom_cyl_l_barrel.e3', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.e0', 'boom_cyl_l_rod.e1', 'boom_cyl_l_rod.e2', 'boom_cyl_l_rod.e3', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.e0', 'boom_cyl_r_barrel.e1', 'boom_cyl_r_barrel.e2', 'boom_cyl_r_barrel.e3', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.e0', 'boom_cyl_r_rod.e1', 'boom_cyl_r_rod.e2', 'boom_cyl_r_rod.e3', 'arm.x', 'arm.y', 'arm.z', 'arm.e0', 'arm.e1', 'arm.e2', 'arm.e3', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.e0', 'arm_cyl_barrel.e1', 'arm_cyl_barrel.e2', 'arm_cyl_barrel.e3', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.e0', 'arm_cyl_rod.e1', 'arm_cyl_rod.e2', 'arm_cyl_rod.e3', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.e0', 'bucket_cyl_barrel.e1', 'bucket_cyl_barrel.e2', 'bucket_cyl_barrel.e3', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.e0', 'bucket_cyl_rod.e1', 'bucket_cyl_rod.e2', 'bucket_cyl_rod.e3', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.e0', 'side_link.e1', 'side_link.e2', 'side_link.e3', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.e0', 'bucket_link.e1', 'bucket_link.e2', 'bucket_link.e3', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.e0', 'bucket.e1', 'bucket.e2', 'bucket.e3')
@@ -4232,6 +4232,309 @@ def gamma_s_bucket_toggle(q, v, u, ud, udd):
     return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd)
 
 
+def inputs_bucket_near_toggle(t):
+    """Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2."""
+    c0 = 1.5707963267948966*t
+    c1 = sin(c0)
+    out = np.zeros((12,) + np.shape(t))
+    out[1] = 626973/250000
+    out[2] = 485803/250000
+    out[3] = (47/200)*c1 + 5/2
+    out[7] = 0.36913713679680066*cos(c0)
+    out[11] = -0.5798392585639998*c1
+    return out
+
+
+def _drivers_phi_bucket_near_toggle(q, u):
+    """Phi of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = 2*upper_e0*sin(c0) - 2*upper_e3*cos(c0)
+    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1
+    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2
+    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3
+    return out
+
+
+def _drivers_jac_bucket_near_toggle(q, u):
+    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    d0 = (1/2)*u0
+    d1 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
+    d2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    d3 = 2*boom_cyl_l_barrel_e2
+    d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    d5 = 2*boom_cyl_l_barrel_e3
+    d6 = 2*boom_cyl_l_barrel_e0
+    d7 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
+    d8 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    d9 = 2*arm_cyl_barrel_e2
+    d10 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    d11 = 2*arm_cyl_barrel_e3
+    d12 = 2*arm_cyl_barrel_e0
+    d13 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
+    d14 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    d15 = 2*bucket_cyl_barrel_e2
+    d16 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    d17 = 2*bucket_cyl_barrel_e3
+    d18 = 2*bucket_cyl_barrel_e0
+    out = _zeros(32, q, u)
+    out[0] = 2*sin(d0)
+    out[1] = -2*cos(d0)
+    out[2] = -boom_cyl_l_barrel_a00
+    out[3] = -boom_cyl_l_barrel_a10
+    out[4] = -boom_cyl_l_barrel_a20
+    out[5] = boom_cyl_l_barrel_e0*d1 - d2*d3 + d4*d5
+    out[6] = boom_cyl_l_barrel_e1*d1 + d2*d5 + d3*d4
+    out[7] = 2*boom_cyl_l_barrel_e1*d4 - d2*d6
+    out[8] = 2*boom_cyl_l_barrel_e1*d2 + d4*d6
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = arm_cyl_barrel_e0*d7 + d10*d11 - d8*d9
+    out[16] = arm_cyl_barrel_e1*d7 + d10*d9 + d11*d8
+    out[17] = 2*arm_cyl_barrel_e1*d10 - d12*d8
+    out[18] = 2*arm_cyl_barrel_e1*d8 + d10*d12
+    out[19] = arm_cyl_barrel_a00
+    out[20] = arm_cyl_barrel_a10
+    out[21] = arm_cyl_barrel_a20
+    out[22] = -bucket_cyl_barrel_a00
+    out[23] = -bucket_cyl_barrel_a10
+    out[24] = -bucket_cyl_barrel_a20
+    out[25] = bucket_cyl_barrel_e0*d13 - d14*d15 + d16*d17
+    out[26] = bucket_cyl_barrel_e1*d13 + d14*d17 + d15*d16
+    out[27] = 2*bucket_cyl_barrel_e1*d16 - d14*d18
+    out[28] = 2*bucket_cyl_barrel_e1*d14 + d16*d18
+    out[29] = bucket_cyl_barrel_a00
+    out[30] = bucket_cyl_barrel_a10
+    out[31] = bucket_cyl_barrel_a20
+    return out
+
+
+def _drivers_nu_bucket_near_toggle(q, u, ud):
+    """nu of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
+    c4 = 2*v_boom_cyl_l_barrel_e3
+    c5 = 2*v_boom_cyl_l_barrel_e2
+    c6 = 2*v_boom_cyl_l_barrel_e1
+    c7 = 2*v_boom_cyl_l_barrel_e0
+    c8 = boom_cyl_l_barrel_e0*c4 + boom_cyl_l_barrel_e1*c5 + boom_cyl_l_barrel_e2*c6 + boom_cyl_l_barrel_e3*c7
+    c9 = boom_cyl_l_barrel_e0*c5 - boom_cyl_l_barrel_e1*c4 + boom_cyl_l_barrel_e2*c7 - boom_cyl_l_barrel_e3*c6
+    c10 = -c9
+    c11 = 2*boom_cyl_l_barrel_z - 2*boom_cyl_l_rod_z
+    c12 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
+    c13 = -c11
+    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
+    c15 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
+    c16 = 2*v_arm_cyl_barrel_e3
+    c17 = 2*v_arm_cyl_barrel_e2
+    c18 = 2*v_arm_cyl_barrel_e1
+    c19 = 2*v_arm_cyl_barrel_e0
+    c20 = arm_cyl_barrel_e0*c16 + arm_cyl_barrel_e1*c17 + arm_cyl_barrel_e2*c18 + arm_cyl_barrel_e3*c19
+    c21 = arm_cyl_barrel_e0*c17 - arm_cyl_barrel_e1*c16 + arm_cyl_barrel_e2*c19 - arm_cyl_barrel_e3*c18
+    c22 = -c21
+    c23 = 2*arm_cyl_barrel_z - 2*arm_cyl_rod_z
+    c24 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
+    c25 = -c23
+    c26 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
+    c27 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
+    c28 = 2*v_bucket_cyl_barrel_e3
+    c29 = 2*v_bucket_cyl_barrel_e2
+    c30 = 2*v_bucket_cyl_barrel_e1
+    c31 = 2*v_bucket_cyl_barrel_e0
+    c32 = bucket_cyl_barrel_e0*c28 + bucket_cyl_barrel_e1*c29 + bucket_cyl_barrel_e2*c30 + bucket_cyl_barrel_e3*c31
+    c33 = bucket_cyl_barrel_e0*c29 - bucket_cyl_barrel_e1*c28 + bucket_cyl_barrel_e2*c31 - bucket_cyl_barrel_e3*c30
+    c34 = -c33
+    c35 = 2*bucket_cyl_barrel_z - 2*bucket_cyl_rod_z
+    c36 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
+    c37 = -c35
+    c38 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
+    out = _zeros(4, q, u)
+    out[0] = -ud0**2*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2*ud0*(c1*v_upper_e0 + c2*v_upper_e3) - udd0*(c1*upper_e0 + c2*upper_e3)
+    out[1] = -c10*v_boom_cyl_l_rod_z - c10*(-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + c3*v_boom_cyl_l_barrel_x - c3*v_boom_cyl_l_rod_x - c3*(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) + c8*v_boom_cyl_l_barrel_y - c8*v_boom_cyl_l_rod_y - c8*(-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c9*v_boom_cyl_l_barrel_z + udd1 - v_boom_cyl_l_barrel_e0*(c11*v_boom_cyl_l_barrel_e2 + c12*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(c12*v_boom_cyl_l_barrel_e2 + c13*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(c11*v_boom_cyl_l_barrel_e0 + c12*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(c12*v_boom_cyl_l_barrel_e0 + c13*v_boom_cyl_l_barrel_e1)
+    out[2] = c15*v_arm_cyl_barrel_x - c15*v_arm_cyl_rod_x - c15*(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x) + c20*v_arm_cyl_barrel_y - c20*v_arm_cyl_rod_y - c20*(-v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(-v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2 - v_arm_cyl_barrel_e0*(c23*v_arm_cyl_barrel_e2 + c24*v_arm_cyl_barrel_e3 + c26*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(c24*v_arm_cyl_barrel_e2 + c25*v_arm_cyl_barrel_e3 + c26*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(c23*v_arm_cyl_barrel_e0 + c24*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(c24*v_arm_cyl_barrel_e0 + c25*v_arm_cyl_barrel_e1)
+    out[3] = c27*v_bucket_cyl_barrel_x - c27*v_bucket_cyl_rod_x - c27*(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) + c32*v_bucket_cyl_barrel_y - c32*v_bucket_cyl_rod_y - c32*(-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c33*v_bucket_cyl_barrel_z - c34*v_bucket_cyl_rod_z - c34*(-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3 - v_bucket_cyl_barrel_e0*(c35*v_bucket_cyl_barrel_e2 + c36*v_bucket_cyl_barrel_e3 + c38*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(c36*v_bucket_cyl_barrel_e2 + c37*v_bucket_cyl_barrel_e3 + c38*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(c35*v_bucket_cyl_barrel_e0 + c36*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(c36*v_bucket_cyl_barrel_e0 + c37*v_bucket_cyl_barrel_e1)
+    return out
+
+
+def _drivers_phi_jac_s_bucket_near_toggle(q, u):
+    """Phi and Phi_q values of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
+    d2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    d3 = 2*boom_cyl_l_barrel_e2
+    d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    d5 = 2*boom_cyl_l_barrel_e3
+    d6 = 2*boom_cyl_l_barrel_e0
+    d7 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
+    d8 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    d9 = 2*arm_cyl_barrel_e2
+    d10 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    d11 = 2*arm_cyl_barrel_e3
+    d12 = 2*arm_cyl_barrel_e0
+    d13 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
+    d14 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    d15 = 2*bucket_cyl_barrel_e2
+    d16 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    d17 = 2*bucket_cyl_barrel_e3
+    d18 = 2*bucket_cyl_barrel_e0
+    return [2*upper_e0*math.sin(c0) - 2*upper_e3*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [2*math.sin(d0), -2*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_e0*d1 - d2*d3 + d4*d5, boom_cyl_l_barrel_e1*d1 + d2*d5 + d3*d4, 2*boom_cyl_l_barrel_e1*d4 - d2*d6, 2*boom_cyl_l_barrel_e1*d2 + d4*d6, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_e0*d7 + d10*d11 - d8*d9, arm_cyl_barrel_e1*d7 + d10*d9 + d11*d8, 2*arm_cyl_barrel_e1*d10 - d12*d8, 2*arm_cyl_barrel_e1*d8 + d10*d12, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_e0*d13 - d14*d15 + d16*d17, bucket_cyl_barrel_e1*d13 + d14*d17 + d15*d16, 2*bucket_cyl_barrel_e1*d16 - d14*d18, 2*bucket_cyl_barrel_e1*d14 + d16*d18, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def _drivers_nu_s_bucket_near_toggle(q, u, ud):
+    """nu of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, ud3]
+
+
+def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = 4*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + 4*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1
+    c4 = 2*v_boom_cyl_l_barrel_e3
+    c5 = 2*v_boom_cyl_l_barrel_e2
+    c6 = 2*v_boom_cyl_l_barrel_e1
+    c7 = 2*v_boom_cyl_l_barrel_e0
+    c8 = boom_cyl_l_barrel_e0*c4 + boom_cyl_l_barrel_e1*c5 + boom_cyl_l_barrel_e2*c6 + boom_cyl_l_barrel_e3*c7
+    c9 = boom_cyl_l_barrel_e0*c5 - boom_cyl_l_barrel_e1*c4 + boom_cyl_l_barrel_e2*c7 - boom_cyl_l_barrel_e3*c6
+    c10 = -c9
+    c11 = 2*boom_cyl_l_barrel_z - 2*boom_cyl_l_rod_z
+    c12 = -2*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y
+    c13 = -c11
+    c14 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
+    c15 = 4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4*arm_cyl_barrel_e1*v_arm_cyl_barrel_e1
+    c16 = 2*v_arm_cyl_barrel_e3
+    c17 = 2*v_arm_cyl_barrel_e2
+    c18 = 2*v_arm_cyl_barrel_e1
+    c19 = 2*v_arm_cyl_barrel_e0
+    c20 = arm_cyl_barrel_e0*c16 + arm_cyl_barrel_e1*c17 + arm_cyl_barrel_e2*c18 + arm_cyl_barrel_e3*c19
+    c21 = arm_cyl_barrel_e0*c17 - arm_cyl_barrel_e1*c16 + arm_cyl_barrel_e2*c19 - arm_cyl_barrel_e3*c18
+    c22 = -c21
+    c23 = 2*arm_cyl_barrel_z - 2*arm_cyl_rod_z
+    c24 = -2*arm_cyl_barrel_y + 2*arm_cyl_rod_y
+    c25 = -c23
+    c26 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
+    c27 = 4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1
+    c28 = 2*v_bucket_cyl_barrel_e3
+    c29 = 2*v_bucket_cyl_barrel_e2
+    c30 = 2*v_bucket_cyl_barrel_e1
+    c31 = 2*v_bucket_cyl_barrel_e0
+    c32 = bucket_cyl_barrel_e0*c28 + bucket_cyl_barrel_e1*c29 + bucket_cyl_barrel_e2*c30 + bucket_cyl_barrel_e3*c31
+    c33 = bucket_cyl_barrel_e0*c29 - bucket_cyl_barrel_e1*c28 + bucket_cyl_barrel_e2*c31 - bucket_cyl_barrel_e3*c30
+    c34 = -c33
+    c35 = 2*bucket_cyl_barrel_z - 2*bucket_cyl_rod_z
+    c36 = -2*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y
+    c37 = -c35
+    c38 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
+    return [-ud0**2*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2*ud0*(c1*v_upper_e0 + c2*v_upper_e3) - udd0*(c1*upper_e0 + c2*upper_e3), -c10*v_boom_cyl_l_rod_z - c10*(-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + c3*v_boom_cyl_l_barrel_x - c3*v_boom_cyl_l_rod_x - c3*(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) + c8*v_boom_cyl_l_barrel_y - c8*v_boom_cyl_l_rod_y - c8*(-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c9*v_boom_cyl_l_barrel_z + udd1 - v_boom_cyl_l_barrel_e0*(c11*v_boom_cyl_l_barrel_e2 + c12*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(c12*v_boom_cyl_l_barrel_e2 + c13*v_boom_cyl_l_barrel_e3 + c14*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(c11*v_boom_cyl_l_barrel_e0 + c12*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(c12*v_boom_cyl_l_barrel_e0 + c13*v_boom_cyl_l_barrel_e1), c15*v_arm_cyl_barrel_x - c15*v_arm_cyl_rod_x - c15*(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x) + c20*v_arm_cyl_barrel_y - c20*v_arm_cyl_rod_y - c20*(-v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(-v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2 - v_arm_cyl_barrel_e0*(c23*v_arm_cyl_barrel_e2 + c24*v_arm_cyl_barrel_e3 + c26*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(c24*v_arm_cyl_barrel_e2 + c25*v_arm_cyl_barrel_e3 + c26*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(c23*v_arm_cyl_barrel_e0 + c24*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(c24*v_arm_cyl_barrel_e0 + c25*v_arm_cyl_barrel_e1), c27*v_bucket_cyl_barrel_x - c27*v_bucket_cyl_rod_x - c27*(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) + c32*v_bucket_cyl_barrel_y - c32*v_bucket_cyl_rod_y - c32*(-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c33*v_bucket_cyl_barrel_z - c34*v_bucket_cyl_rod_z - c34*(-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3 - v_bucket_cyl_barrel_e0*(c35*v_bucket_cyl_barrel_e2 + c36*v_bucket_cyl_barrel_e3 + c38*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(c36*v_bucket_cyl_barrel_e2 + c37*v_bucket_cyl_barrel_e3 + c38*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(c35*v_bucket_cyl_barrel_e0 + c36*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(c36*v_bucket_cyl_barrel_e0 + c37*v_bucket_cyl_barrel_e1)]
+
+
+def phi_bucket_near_toggle(q, u):
+    """Phi(q, u) of case 'bucket_near_toggle': 98 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_bucket_near_toggle(q, u))
+
+
+def jac_bucket_near_toggle(q, u):
+    """Values of the sparse Phi_q of case 'bucket_near_toggle' at jac_rows, jac_cols (643 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_bucket_near_toggle(q, u))
+
+
+def nu_bucket_near_toggle(q, u, ud):
+    """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
+    drivers = _drivers_nu_bucket_near_toggle(q, u, ud)
+    return _join(np.zeros((94,) + drivers.shape[1:]), drivers)
+
+
+def gamma_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd))
+
+
+def phi_jac_s_bucket_near_toggle(q, u):
+    """Phi and the Phi_q values of case 'bucket_near_toggle' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_bucket_near_toggle(q, u, ud):
+    """nu of case 'bucket_near_toggle' at one configuration (list of floats)."""
+    return [0.0] * 94 + _drivers_nu_s_bucket_near_toggle(q, u, ud)
+
+
+def gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of case 'bucket_near_toggle' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd)
+
+
 CASES = {
     'digging': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'upper.norm', 'boom.norm', 'boom_cyl_l_barrel.norm', 'boom_cyl_l_rod.norm', 'boom_cyl_r_barrel.norm', 'boom_cyl_r_rod.norm', 'arm.norm', 'arm_cyl_barrel.norm', 'arm_cyl_rod.norm', 'bucket_cyl_barrel.norm', 'bucket_cyl_rod.norm', 'side_link.norm', 'bucket_link.norm', 'bucket.norm', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
@@ -4268,5 +4571,14 @@ CASES = {
         't0': 0.0, 't1': 3.0, 'steps': 301,
         'inputs': inputs_bucket_toggle, 'phi': phi_bucket_toggle, 'jac': jac_bucket_toggle, 'nu': nu_bucket_toggle, 'gamma': gamma_bucket_toggle,
         'phi_jac_s': phi_jac_s_bucket_toggle, 'nu_s': nu_s_bucket_toggle, 'gamma_s': gamma_s_bucket_toggle,
+    },
+    'bucket_near_toggle': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'upper.norm', 'boom.norm', 'boom_cyl_l_barrel.norm', 'boom_cyl_l_rod.norm', 'boom_cyl_r_barrel.norm', 'boom_cyl_r_rod.norm', 'arm.norm', 'arm_cyl_barrel.norm', 'arm_cyl_rod.norm', 'bucket_cyl_barrel.norm', 'bucket_cyl_rod.norm', 'side_link.norm', 'bucket_link.norm', 'bucket.norm', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 96, 96, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 97, 97),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 5, 6, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 3, 4, 5, 6, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 0, 3, 4, 5, 6, 14, 1, 3, 4, 5, 6, 15, 2, 3, 4, 5, 6, 16, 3, 4, 5, 6, 17, 18, 19, 20, 17, 18, 19, 20, 24, 25, 26, 27, 17, 18, 19, 20, 24, 25, 26, 27, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 17, 18, 19, 20, 24, 25, 26, 27, 7, 10, 11, 12, 13, 21, 8, 10, 11, 12, 13, 22, 9, 10, 11, 12, 13, 23, 0, 3, 4, 5, 6, 28, 1, 3, 4, 5, 6, 29, 2, 3, 4, 5, 6, 30, 3, 4, 5, 6, 31, 32, 33, 34, 31, 32, 33, 34, 38, 39, 40, 41, 31, 32, 33, 34, 38, 39, 40, 41, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 31, 32, 33, 34, 38, 39, 40, 41, 7, 10, 11, 12, 13, 35, 8, 10, 11, 12, 13, 36, 9, 10, 11, 12, 13, 37, 7, 10, 11, 12, 13, 42, 8, 10, 11, 12, 13, 43, 9, 10, 11, 12, 13, 44, 10, 11, 12, 13, 45, 46, 47, 48, 10, 11, 12, 13, 45, 46, 47, 48, 7, 10, 11, 12, 13, 49, 8, 10, 11, 12, 13, 50, 9, 10, 11, 12, 13, 51, 10, 11, 12, 13, 52, 53, 54, 55, 52, 53, 54, 55, 59, 60, 61, 62, 52, 53, 54, 55, 59, 60, 61, 62, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 52, 53, 54, 55, 59, 60, 61, 62, 42, 45, 46, 47, 48, 56, 43, 45, 46, 47, 48, 57, 44, 45, 46, 47, 48, 58, 42, 45, 46, 47, 48, 91, 43, 45, 46, 47, 48, 92, 44, 45, 46, 47, 48, 93, 45, 46, 47, 48, 94, 95, 96, 97, 45, 46, 47, 48, 94, 95, 96, 97, 42, 45, 46, 47, 48, 77, 43, 45, 46, 47, 48, 78, 44, 45, 46, 47, 48, 79, 45, 46, 47, 48, 80, 81, 82, 83, 45, 46, 47, 48, 80, 81, 82, 83, 77, 80, 81, 82, 83, 84, 87, 88, 89, 90, 78, 80, 81, 82, 83, 85, 87, 88, 89, 90, 79, 80, 81, 82, 83, 86, 87, 88, 89, 90, 84, 91, 94, 95, 96, 97, 85, 92, 94, 95, 96, 97, 86, 93, 94, 95, 96, 97, 87, 88, 89, 90, 94, 95, 96, 97, 42, 45, 46, 47, 48, 63, 43, 45, 46, 47, 48, 64, 44, 45, 46, 47, 48, 65, 45, 46, 47, 48, 66, 67, 68, 69, 66, 67, 68, 69, 73, 74, 75, 76, 66, 67, 68, 69, 73, 74, 75, 76, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 66, 67, 68, 69, 73, 74, 75, 76, 70, 77, 80, 81, 82, 83, 71, 78, 80, 81, 82, 83, 72, 79, 80, 81, 82, 83, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 24, 25, 26, 27, 31, 32, 33, 34, 38, 39, 40, 41, 45, 46, 47, 48, 52, 53, 54, 55, 59, 60, 61, 62, 66, 67, 68, 69, 73, 74, 75, 76, 80, 81, 82, 83, 87, 88, 89, 90, 94, 95, 96, 97, 3, 6, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72),
+        't0': 0.0, 't1': 2.0, 'steps': 9,
+        'inputs': inputs_bucket_near_toggle, 'phi': phi_bucket_near_toggle, 'jac': jac_bucket_near_toggle, 'nu': nu_bucket_near_toggle, 'gamma': gamma_bucket_near_toggle,
+        'phi_jac_s': phi_jac_s_bucket_near_toggle, 'nu_s': nu_s_bucket_near_toggle, 'gamma_s': gamma_s_bucket_near_toggle,
     },
 }

@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   8a67273963cfdeb256fd74ac328df64e7d7171290ea869e1313850af7e9b81ec
+source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
 parametrization: euler:zxy
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -18,7 +18,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '8a67273963cfdeb256fd74ac328df64e7d7171290ea869e1313850af7e9b81ec'
+SOURCE_SHA256 = 'cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c'
 PARAMETRIZATION = 'euler:zxy'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.alpha', 'upper.beta', 'upper.gamma', 'boom.x', 'boom.y', 'boom.z', 'boom.alpha', 'boom.beta', 'boom.gamma', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.alpha', 'boom_cyl_l_barrel.beta', 'boom_cyl_l_barrel.gamma', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.alpha', 'boom_cyl_l_rod.beta', 'boom_cyl_l_rod.gamma', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.alpha', 'boom_cyl_r_barrel.beta', 'boom_cyl_r_barrel.gamma', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.alpha', 'boom_cyl_r_rod.beta', 'boom_cyl_r_rod.gamma', 'arm.x', 'arm.y', 'arm.z', 'arm.alpha', 'arm.beta', 'arm.gamma', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.alpha', 'arm_cyl_barrel.beta', 'arm_cyl_barrel.gamma', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.alpha', 'arm_cyl_rod.beta', 'arm_cyl_rod.gamma', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.alpha', 'bucket_cyl_barrel.beta', 'bucket_cyl_barrel.gamma', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.alpha', 'bucket_cyl_rod.beta', 'bucket_cyl_rod.gamma', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.alpha', 'side_link.beta', 'side_link.gamma', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.alpha', 'bucket_link.beta', 'bucket_link.gamma', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.alpha', 'bucket.beta', 'bucket.gamma')
@@ -6078,6 +6078,545 @@ def gamma_s_bucket_toggle(q, v, u, ud, udd):
     return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd)
 
 
+def inputs_bucket_near_toggle(t):
+    """Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2."""
+    c0 = 1.5707963267948966*t
+    c1 = sin(c0)
+    out = np.zeros((12,) + np.shape(t))
+    out[1] = 626973/250000
+    out[2] = 485803/250000
+    out[3] = (47/200)*c1 + 5/2
+    out[7] = 0.36913713679680066*cos(c0)
+    out[11] = -0.5798392585639998*c1
+    return out
+
+
+def _drivers_phi_bucket_near_toggle(q, u):
+    """Phi of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    upper_a00 = -sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma) + cos(upper_alpha)*cos(upper_gamma)
+    upper_a10 = sin(upper_alpha)*cos(upper_gamma) + sin(upper_beta)*sin(upper_gamma)*cos(upper_alpha)
+    boom_cyl_l_barrel_a00 = -sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a10 = sin(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) + sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)*cos(boom_cyl_l_barrel_alpha)
+    boom_cyl_l_barrel_a20 = -sin(boom_cyl_l_barrel_gamma)*cos(boom_cyl_l_barrel_beta)
+    arm_cyl_barrel_a00 = -sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a10 = sin(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) + sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)*cos(arm_cyl_barrel_alpha)
+    arm_cyl_barrel_a20 = -sin(arm_cyl_barrel_gamma)*cos(arm_cyl_barrel_beta)
+    bucket_cyl_barrel_a00 = -sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a10 = sin(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) + sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)*cos(bucket_cyl_barrel_alpha)
+    bucket_cyl_barrel_a20 = -sin(bucket_cyl_barrel_gamma)*cos(bucket_cyl_barrel_beta)
+    out = _zeros(4, q, u)
+    out[0] = upper_a00*sin(u0) - upper_a10*cos(u0)
+    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1
+    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2
+    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3
+    return out
+
+
+def _drivers_jac_bucket_near_toggle(q, u):
+    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = -sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a10 = sin(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) + sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)*cos(boom_cyl_l_barrel_alpha)
+    boom_cyl_l_barrel_a20 = -sin(boom_cyl_l_barrel_gamma)*cos(boom_cyl_l_barrel_beta)
+    arm_cyl_barrel_a00 = -sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a10 = sin(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) + sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)*cos(arm_cyl_barrel_alpha)
+    arm_cyl_barrel_a20 = -sin(arm_cyl_barrel_gamma)*cos(arm_cyl_barrel_beta)
+    bucket_cyl_barrel_a00 = -sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a10 = sin(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) + sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)*cos(bucket_cyl_barrel_alpha)
+    bucket_cyl_barrel_a20 = -sin(bucket_cyl_barrel_gamma)*cos(bucket_cyl_barrel_beta)
+    d0 = sin(u0)
+    d1 = sin(upper_alpha)
+    d2 = cos(upper_gamma)
+    d3 = d1*d2
+    d4 = sin(upper_beta)
+    d5 = sin(upper_gamma)
+    d6 = cos(upper_alpha)
+    d7 = d5*d6
+    d8 = cos(u0)
+    d9 = d1*d5
+    d10 = cos(upper_beta)
+    d11 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    d12 = cos(boom_cyl_l_barrel_alpha)
+    d13 = cos(boom_cyl_l_barrel_gamma)
+    d14 = sin(boom_cyl_l_barrel_beta)
+    d15 = sin(boom_cyl_l_barrel_alpha)
+    d16 = sin(boom_cyl_l_barrel_gamma)
+    d17 = d15*d16
+    d18 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
+    d19 = d13*d15
+    d20 = d12*d16
+    d21 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    d22 = cos(boom_cyl_l_barrel_beta)
+    d23 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    d24 = cos(arm_cyl_barrel_alpha)
+    d25 = cos(arm_cyl_barrel_gamma)
+    d26 = sin(arm_cyl_barrel_beta)
+    d27 = sin(arm_cyl_barrel_alpha)
+    d28 = sin(arm_cyl_barrel_gamma)
+    d29 = d27*d28
+    d30 = -arm_cyl_barrel_x + arm_cyl_rod_x
+    d31 = d25*d27
+    d32 = d24*d28
+    d33 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    d34 = cos(arm_cyl_barrel_beta)
+    d35 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    d36 = cos(bucket_cyl_barrel_alpha)
+    d37 = cos(bucket_cyl_barrel_gamma)
+    d38 = sin(bucket_cyl_barrel_beta)
+    d39 = sin(bucket_cyl_barrel_alpha)
+    d40 = sin(bucket_cyl_barrel_gamma)
+    d41 = d39*d40
+    d42 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
+    d43 = d37*d39
+    d44 = d36*d40
+    d45 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    d46 = cos(bucket_cyl_barrel_beta)
+    out = _zeros(30, q, u)
+    out[0] = d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9)
+    out[1] = -d0*d10*d9 - d10*d7*d8
+    out[2] = d0*(-d3*d4 - d7) - d8*(d2*d4*d6 - d9)
+    out[3] = -boom_cyl_l_barrel_a00
+    out[4] = -boom_cyl_l_barrel_a10
+    out[5] = -boom_cyl_l_barrel_a20
+    out[6] = d11*(d12*d13 - d14*d17) + d18*(-d14*d20 - d19)
+    out[7] = d11*d20*d22 + d14*d16*d21 - d17*d18*d22
+    out[8] = d11*(d12*d13*d14 - d17) - d13*d21*d22 + d18*(-d14*d19 - d20)
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = d23*(d24*d25 - d26*d29) + d30*(-d26*d32 - d31)
+    out[16] = d23*d32*d34 + d26*d28*d33 - d29*d30*d34
+    out[17] = d23*(d24*d25*d26 - d29) - d25*d33*d34 + d30*(-d26*d31 - d32)
+    out[18] = arm_cyl_barrel_a00
+    out[19] = arm_cyl_barrel_a10
+    out[20] = arm_cyl_barrel_a20
+    out[21] = -bucket_cyl_barrel_a00
+    out[22] = -bucket_cyl_barrel_a10
+    out[23] = -bucket_cyl_barrel_a20
+    out[24] = d35*(d36*d37 - d38*d41) + d42*(-d38*d44 - d43)
+    out[25] = d35*d44*d46 + d38*d40*d45 - d41*d42*d46
+    out[26] = d35*(d36*d37*d38 - d41) - d37*d45*d46 + d42*(-d38*d43 - d44)
+    out[27] = bucket_cyl_barrel_a00
+    out[28] = bucket_cyl_barrel_a10
+    out[29] = bucket_cyl_barrel_a20
+    return out
+
+
+def _drivers_nu_bucket_near_toggle(q, u, ud):
+    """nu of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    upper_a00 = -sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma) + cos(upper_alpha)*cos(upper_gamma)
+    upper_a10 = sin(upper_alpha)*cos(upper_gamma) + sin(upper_beta)*sin(upper_gamma)*cos(upper_alpha)
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_a00*cos(u0) + upper_a10*sin(u0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    upper_a00 = -sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma) + cos(upper_alpha)*cos(upper_gamma)
+    upper_a10 = sin(upper_alpha)*cos(upper_gamma) + sin(upper_beta)*sin(upper_gamma)*cos(upper_alpha)
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = sin(upper_beta)
+    c3 = sin(upper_alpha)
+    c4 = sin(upper_gamma)
+    c5 = c3*c4
+    c6 = c2*c5
+    c7 = cos(upper_alpha)
+    c8 = c4*c7
+    c9 = c2*c8
+    c10 = cos(upper_beta)
+    c11 = c1*c10
+    c12 = -c0*c10*c3*c4 + c11*c8
+    c13 = -c12
+    c14 = cos(upper_gamma)
+    c15 = c14*c3
+    c16 = c14*c7
+    c17 = -c0*c10*c16 - c11*c15
+    c18 = -c16 + c6
+    c19 = c0*(-c15 - c9)
+    c20 = -c16*c2 + c5
+    c21 = c0*(-c15*c2 - c8)
+    c22 = c1*c18 - c19
+    c23 = c1*c20 - c21
+    c24 = sin(boom_cyl_l_barrel_beta)
+    c25 = sin(boom_cyl_l_barrel_gamma)
+    c26 = cos(boom_cyl_l_barrel_beta)
+    c27 = cos(boom_cyl_l_barrel_gamma)
+    c28 = c24*c25*v_boom_cyl_l_barrel_beta - c26*c27*v_boom_cyl_l_barrel_gamma
+    c29 = sin(boom_cyl_l_barrel_alpha)
+    c30 = c25*c29
+    c31 = c26*v_boom_cyl_l_barrel_beta
+    c32 = c30*c31
+    c33 = c27*c29
+    c34 = cos(boom_cyl_l_barrel_alpha)
+    c35 = c25*c34
+    c36 = c24*c35
+    c37 = c33 + c36
+    c38 = c24*c33 + c35
+    c39 = c31*c35
+    c40 = c27*c34
+    c41 = c24*c30
+    c42 = -c40 + c41
+    c43 = -c24*c40 + c30
+    c44 = c39 - c42*v_boom_cyl_l_barrel_alpha - c43*v_boom_cyl_l_barrel_gamma
+    c45 = -c37
+    c46 = -c38
+    c47 = -c32 + c45*v_boom_cyl_l_barrel_alpha + c46*v_boom_cyl_l_barrel_gamma
+    c48 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
+    c49 = c26*c48
+    c50 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    c51 = c26*c50
+    c52 = -c30*c51 - c35*c49
+    c53 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    c54 = c25*c26*c53
+    c55 = c24*c27*c53 - c33*c49 + c40*c51
+    c56 = c42*c48 + c45*c50
+    c57 = c43*c48 + c46*c50
+    c58 = sin(arm_cyl_barrel_beta)
+    c59 = sin(arm_cyl_barrel_gamma)
+    c60 = cos(arm_cyl_barrel_beta)
+    c61 = cos(arm_cyl_barrel_gamma)
+    c62 = c58*c59*v_arm_cyl_barrel_beta - c60*c61*v_arm_cyl_barrel_gamma
+    c63 = sin(arm_cyl_barrel_alpha)
+    c64 = c59*c63
+    c65 = c60*v_arm_cyl_barrel_beta
+    c66 = c64*c65
+    c67 = c61*c63
+    c68 = cos(arm_cyl_barrel_alpha)
+    c69 = c59*c68
+    c70 = c58*c69
+    c71 = c67 + c70
+    c72 = c58*c67 + c69
+    c73 = c65*c69
+    c74 = c61*c68
+    c75 = c58*c64
+    c76 = -c74 + c75
+    c77 = -c58*c74 + c64
+    c78 = c73 - c76*v_arm_cyl_barrel_alpha - c77*v_arm_cyl_barrel_gamma
+    c79 = -c71
+    c80 = -c72
+    c81 = -c66 + c79*v_arm_cyl_barrel_alpha + c80*v_arm_cyl_barrel_gamma
+    c82 = -arm_cyl_barrel_x + arm_cyl_rod_x
+    c83 = c60*c82
+    c84 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    c85 = c60*c84
+    c86 = -c64*c85 - c69*c83
+    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    c88 = c59*c60*c87
+    c89 = c58*c61*c87 - c67*c83 + c74*c85
+    c90 = c76*c82 + c79*c84
+    c91 = c77*c82 + c80*c84
+    c92 = sin(bucket_cyl_barrel_beta)
+    c93 = sin(bucket_cyl_barrel_gamma)
+    c94 = cos(bucket_cyl_barrel_beta)
+    c95 = cos(bucket_cyl_barrel_gamma)
+    c96 = c92*c93*v_bucket_cyl_barrel_beta - c94*c95*v_bucket_cyl_barrel_gamma
+    c97 = sin(bucket_cyl_barrel_alpha)
+    c98 = c93*c97
+    c99 = c94*v_bucket_cyl_barrel_beta
+    c100 = c98*c99
+    c101 = c95*c97
+    c102 = cos(bucket_cyl_barrel_alpha)
+    c103 = c102*c93
+    c104 = c103*c92
+    c105 = c101 + c104
+    c106 = c101*c92 + c103
+    c107 = c103*c99
+    c108 = c102*c95
+    c109 = c92*c98
+    c110 = -c108 + c109
+    c111 = -c108*c92 + c98
+    c112 = c107 - c110*v_bucket_cyl_barrel_alpha - c111*v_bucket_cyl_barrel_gamma
+    c113 = -c105
+    c114 = -c106
+    c115 = -c100 + c113*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma
+    c116 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
+    c117 = c116*c94
+    c118 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    c119 = c118*c94
+    c120 = -c103*c117 - c119*c98
+    c121 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    c122 = c121*c93*c94
+    c123 = -c101*c117 + c108*c119 + c121*c92*c95
+    c124 = c110*c116 + c113*c118
+    c125 = c111*c116 + c114*c118
+    out = _zeros(4, q, u)
+    out[0] = -ud0**2*(c0*upper_a10 - c1*upper_a00) - 2*ud0*(c12*v_upper_beta + v_upper_alpha*(-c1*c18 + c19) + v_upper_gamma*(-c1*c20 + c21)) - udd0*(c0*upper_a00 + c1*upper_a10) - v_upper_alpha*(c13*v_upper_beta + c22*v_upper_alpha + c23*v_upper_gamma) - v_upper_beta*(c13*v_upper_alpha + c17*v_upper_gamma + v_upper_beta*(c0*c9 + c1*c6)) - v_upper_gamma*(c17*v_upper_beta + c22*v_upper_gamma + c23*v_upper_alpha)
+    out[1] = c28*v_boom_cyl_l_barrel_z - c28*v_boom_cyl_l_rod_z - c28*(-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) - c44*v_boom_cyl_l_rod_y - c44*(-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c47*v_boom_cyl_l_rod_x - c47*(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) + udd1 - v_boom_cyl_l_barrel_alpha*(c52*v_boom_cyl_l_barrel_beta + c56*v_boom_cyl_l_barrel_alpha + c57*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_beta*(c52*v_boom_cyl_l_barrel_alpha + c55*v_boom_cyl_l_barrel_gamma + v_boom_cyl_l_barrel_beta*(-c36*c50 + c41*c48 + c54)) - v_boom_cyl_l_barrel_gamma*(c55*v_boom_cyl_l_barrel_beta + c57*v_boom_cyl_l_barrel_alpha + v_boom_cyl_l_barrel_gamma*(c54 + c56)) - v_boom_cyl_l_barrel_x*(c32 + c37*v_boom_cyl_l_barrel_alpha + c38*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_y*(-c39 + c42*v_boom_cyl_l_barrel_alpha + c43*v_boom_cyl_l_barrel_gamma)
+    out[2] = c62*v_arm_cyl_barrel_z - c62*v_arm_cyl_rod_z - c62*(-v_arm_cyl_barrel_z + v_arm_cyl_rod_z) - c78*v_arm_cyl_rod_y - c78*(-v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c81*v_arm_cyl_rod_x - c81*(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x) + udd2 - v_arm_cyl_barrel_alpha*(c86*v_arm_cyl_barrel_beta + c90*v_arm_cyl_barrel_alpha + c91*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_beta*(c86*v_arm_cyl_barrel_alpha + c89*v_arm_cyl_barrel_gamma + v_arm_cyl_barrel_beta*(-c70*c84 + c75*c82 + c88)) - v_arm_cyl_barrel_gamma*(c89*v_arm_cyl_barrel_beta + c91*v_arm_cyl_barrel_alpha + v_arm_cyl_barrel_gamma*(c88 + c90)) - v_arm_cyl_barrel_x*(c66 + c71*v_arm_cyl_barrel_alpha + c72*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_y*(-c73 + c76*v_arm_cyl_barrel_alpha + c77*v_arm_cyl_barrel_gamma)
+    out[3] = -c112*v_bucket_cyl_rod_y - c112*(-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c115*v_bucket_cyl_rod_x - c115*(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) + c96*v_bucket_cyl_barrel_z - c96*v_bucket_cyl_rod_z - c96*(-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3 - v_bucket_cyl_barrel_alpha*(c120*v_bucket_cyl_barrel_beta + c124*v_bucket_cyl_barrel_alpha + c125*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_beta*(c120*v_bucket_cyl_barrel_alpha + c123*v_bucket_cyl_barrel_gamma + v_bucket_cyl_barrel_beta*(-c104*c118 + c109*c116 + c122)) - v_bucket_cyl_barrel_gamma*(c123*v_bucket_cyl_barrel_beta + c125*v_bucket_cyl_barrel_alpha + v_bucket_cyl_barrel_gamma*(c122 + c124)) - v_bucket_cyl_barrel_x*(c100 + c105*v_bucket_cyl_barrel_alpha + c106*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_y*(-c107 + c110*v_bucket_cyl_barrel_alpha + c111*v_bucket_cyl_barrel_gamma)
+    return out
+
+
+def _drivers_phi_jac_s_bucket_near_toggle(q, u):
+    """Phi and Phi_q values of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    upper_a00 = -math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma) + math.cos(upper_alpha)*math.cos(upper_gamma)
+    upper_a10 = math.sin(upper_alpha)*math.cos(upper_gamma) + math.sin(upper_beta)*math.sin(upper_gamma)*math.cos(upper_alpha)
+    boom_cyl_l_barrel_a00 = -math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a10 = math.sin(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) + math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)*math.cos(boom_cyl_l_barrel_alpha)
+    boom_cyl_l_barrel_a20 = -math.sin(boom_cyl_l_barrel_gamma)*math.cos(boom_cyl_l_barrel_beta)
+    arm_cyl_barrel_a00 = -math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a10 = math.sin(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) + math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)*math.cos(arm_cyl_barrel_alpha)
+    arm_cyl_barrel_a20 = -math.sin(arm_cyl_barrel_gamma)*math.cos(arm_cyl_barrel_beta)
+    bucket_cyl_barrel_a00 = -math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a10 = math.sin(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) + math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)*math.cos(bucket_cyl_barrel_alpha)
+    bucket_cyl_barrel_a20 = -math.sin(bucket_cyl_barrel_gamma)*math.cos(bucket_cyl_barrel_beta)
+    d0 = math.sin(u0)
+    d1 = math.sin(upper_alpha)
+    d2 = math.cos(upper_gamma)
+    d3 = d1*d2
+    d4 = math.sin(upper_beta)
+    d5 = math.sin(upper_gamma)
+    d6 = math.cos(upper_alpha)
+    d7 = d5*d6
+    d8 = math.cos(u0)
+    d9 = d1*d5
+    d10 = math.cos(upper_beta)
+    d11 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    d12 = math.cos(boom_cyl_l_barrel_alpha)
+    d13 = math.cos(boom_cyl_l_barrel_gamma)
+    d14 = math.sin(boom_cyl_l_barrel_beta)
+    d15 = math.sin(boom_cyl_l_barrel_alpha)
+    d16 = math.sin(boom_cyl_l_barrel_gamma)
+    d17 = d15*d16
+    d18 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
+    d19 = d13*d15
+    d20 = d12*d16
+    d21 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    d22 = math.cos(boom_cyl_l_barrel_beta)
+    d23 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    d24 = math.cos(arm_cyl_barrel_alpha)
+    d25 = math.cos(arm_cyl_barrel_gamma)
+    d26 = math.sin(arm_cyl_barrel_beta)
+    d27 = math.sin(arm_cyl_barrel_alpha)
+    d28 = math.sin(arm_cyl_barrel_gamma)
+    d29 = d27*d28
+    d30 = -arm_cyl_barrel_x + arm_cyl_rod_x
+    d31 = d25*d27
+    d32 = d24*d28
+    d33 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    d34 = math.cos(arm_cyl_barrel_beta)
+    d35 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    d36 = math.cos(bucket_cyl_barrel_alpha)
+    d37 = math.cos(bucket_cyl_barrel_gamma)
+    d38 = math.sin(bucket_cyl_barrel_beta)
+    d39 = math.sin(bucket_cyl_barrel_alpha)
+    d40 = math.sin(bucket_cyl_barrel_gamma)
+    d41 = d39*d40
+    d42 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
+    d43 = d37*d39
+    d44 = d36*d40
+    d45 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    d46 = math.cos(bucket_cyl_barrel_beta)
+    return [upper_a00*math.sin(u0) - upper_a10*math.cos(u0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9), -d0*d10*d9 - d10*d7*d8, d0*(-d3*d4 - d7) - d8*(d2*d4*d6 - d9), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d11*(d12*d13 - d14*d17) + d18*(-d14*d20 - d19), d11*d20*d22 + d14*d16*d21 - d17*d18*d22, d11*(d12*d13*d14 - d17) - d13*d21*d22 + d18*(-d14*d19 - d20), boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d23*(d24*d25 - d26*d29) + d30*(-d26*d32 - d31), d23*d32*d34 + d26*d28*d33 - d29*d30*d34, d23*(d24*d25*d26 - d29) - d25*d33*d34 + d30*(-d26*d31 - d32), arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d35*(d36*d37 - d38*d41) + d42*(-d38*d44 - d43), d35*d44*d46 + d38*d40*d45 - d41*d42*d46, d35*(d36*d37*d38 - d41) - d37*d45*d46 + d42*(-d38*d43 - d44), bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def _drivers_nu_s_bucket_near_toggle(q, u, ud):
+    """nu of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    upper_a00 = -math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma) + math.cos(upper_alpha)*math.cos(upper_gamma)
+    upper_a10 = math.sin(upper_alpha)*math.cos(upper_gamma) + math.sin(upper_beta)*math.sin(upper_gamma)*math.cos(upper_alpha)
+    return [-ud0*(upper_a00*math.cos(u0) + upper_a10*math.sin(u0)), ud1, ud2, ud3]
+
+
+def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    upper_a00 = -math.sin(upper_alpha)*math.sin(upper_beta)*math.sin(upper_gamma) + math.cos(upper_alpha)*math.cos(upper_gamma)
+    upper_a10 = math.sin(upper_alpha)*math.cos(upper_gamma) + math.sin(upper_beta)*math.sin(upper_gamma)*math.cos(upper_alpha)
+    c0 = math.cos(u0)
+    c1 = math.sin(u0)
+    c2 = math.sin(upper_beta)
+    c3 = math.sin(upper_alpha)
+    c4 = math.sin(upper_gamma)
+    c5 = c3*c4
+    c6 = c2*c5
+    c7 = math.cos(upper_alpha)
+    c8 = c4*c7
+    c9 = c2*c8
+    c10 = math.cos(upper_beta)
+    c11 = c1*c10
+    c12 = -c0*c10*c3*c4 + c11*c8
+    c13 = -c12
+    c14 = math.cos(upper_gamma)
+    c15 = c14*c3
+    c16 = c14*c7
+    c17 = -c0*c10*c16 - c11*c15
+    c18 = -c16 + c6
+    c19 = c0*(-c15 - c9)
+    c20 = -c16*c2 + c5
+    c21 = c0*(-c15*c2 - c8)
+    c22 = c1*c18 - c19
+    c23 = c1*c20 - c21
+    c24 = math.sin(boom_cyl_l_barrel_beta)
+    c25 = math.sin(boom_cyl_l_barrel_gamma)
+    c26 = math.cos(boom_cyl_l_barrel_beta)
+    c27 = math.cos(boom_cyl_l_barrel_gamma)
+    c28 = c24*c25*v_boom_cyl_l_barrel_beta - c26*c27*v_boom_cyl_l_barrel_gamma
+    c29 = math.sin(boom_cyl_l_barrel_alpha)
+    c30 = c25*c29
+    c31 = c26*v_boom_cyl_l_barrel_beta
+    c32 = c30*c31
+    c33 = c27*c29
+    c34 = math.cos(boom_cyl_l_barrel_alpha)
+    c35 = c25*c34
+    c36 = c24*c35
+    c37 = c33 + c36
+    c38 = c24*c33 + c35
+    c39 = c31*c35
+    c40 = c27*c34
+    c41 = c24*c30
+    c42 = -c40 + c41
+    c43 = -c24*c40 + c30
+    c44 = c39 - c42*v_boom_cyl_l_barrel_alpha - c43*v_boom_cyl_l_barrel_gamma
+    c45 = -c37
+    c46 = -c38
+    c47 = -c32 + c45*v_boom_cyl_l_barrel_alpha + c46*v_boom_cyl_l_barrel_gamma
+    c48 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
+    c49 = c26*c48
+    c50 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    c51 = c26*c50
+    c52 = -c30*c51 - c35*c49
+    c53 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    c54 = c25*c26*c53
+    c55 = c24*c27*c53 - c33*c49 + c40*c51
+    c56 = c42*c48 + c45*c50
+    c57 = c43*c48 + c46*c50
+    c58 = math.sin(arm_cyl_barrel_beta)
+    c59 = math.sin(arm_cyl_barrel_gamma)
+    c60 = math.cos(arm_cyl_barrel_beta)
+    c61 = math.cos(arm_cyl_barrel_gamma)
+    c62 = c58*c59*v_arm_cyl_barrel_beta - c60*c61*v_arm_cyl_barrel_gamma
+    c63 = math.sin(arm_cyl_barrel_alpha)
+    c64 = c59*c63
+    c65 = c60*v_arm_cyl_barrel_beta
+    c66 = c64*c65
+    c67 = c61*c63
+    c68 = math.cos(arm_cyl_barrel_alpha)
+    c69 = c59*c68
+    c70 = c58*c69
+    c71 = c67 + c70
+    c72 = c58*c67 + c69
+    c73 = c65*c69
+    c74 = c61*c68
+    c75 = c58*c64
+    c76 = -c74 + c75
+    c77 = -c58*c74 + c64
+    c78 = c73 - c76*v_arm_cyl_barrel_alpha - c77*v_arm_cyl_barrel_gamma
+    c79 = -c71
+    c80 = -c72
+    c81 = -c66 + c79*v_arm_cyl_barrel_alpha + c80*v_arm_cyl_barrel_gamma
+    c82 = -arm_cyl_barrel_x + arm_cyl_rod_x
+    c83 = c60*c82
+    c84 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    c85 = c60*c84
+    c86 = -c64*c85 - c69*c83
+    c87 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    c88 = c59*c60*c87
+    c89 = c58*c61*c87 - c67*c83 + c74*c85
+    c90 = c76*c82 + c79*c84
+    c91 = c77*c82 + c80*c84
+    c92 = math.sin(bucket_cyl_barrel_beta)
+    c93 = math.sin(bucket_cyl_barrel_gamma)
+    c94 = math.cos(bucket_cyl_barrel_beta)
+    c95 = math.cos(bucket_cyl_barrel_gamma)
+    c96 = c92*c93*v_bucket_cyl_barrel_beta - c94*c95*v_bucket_cyl_barrel_gamma
+    c97 = math.sin(bucket_cyl_barrel_alpha)
+    c98 = c93*c97
+    c99 = c94*v_bucket_cyl_barrel_beta
+    c100 = c98*c99
+    c101 = c95*c97
+    c102 = math.cos(bucket_cyl_barrel_alpha)
+    c103 = c102*c93
+    c104 = c103*c92
+    c105 = c101 + c104
+    c106 = c101*c92 + c103
+    c107 = c103*c99
+    c108 = c102*c95
+    c109 = c92*c98
+    c110 = -c108 + c109
+    c111 = -c108*c92 + c98
+    c112 = c107 - c110*v_bucket_cyl_barrel_alpha - c111*v_bucket_cyl_barrel_gamma
+    c113 = -c105
+    c114 = -c106
+    c115 = -c100 + c113*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma
+    c116 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
+    c117 = c116*c94
+    c118 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    c119 = c118*c94
+    c120 = -c103*c117 - c119*c98
+    c121 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    c122 = c121*c93*c94
+    c123 = -c101*c117 + c108*c119 + c121*c92*c95
+    c124 = c110*c116 + c113*c118
+    c125 = c111*c116 + c114*c118
+    return [-ud0**2*(c0*upper_a10 - c1*upper_a00) - 2*ud0*(c12*v_upper_beta + v_upper_alpha*(-c1*c18 + c19) + v_upper_gamma*(-c1*c20 + c21)) - udd0*(c0*upper_a00 + c1*upper_a10) - v_upper_alpha*(c13*v_upper_beta + c22*v_upper_alpha + c23*v_upper_gamma) - v_upper_beta*(c13*v_upper_alpha + c17*v_upper_gamma + v_upper_beta*(c0*c9 + c1*c6)) - v_upper_gamma*(c17*v_upper_beta + c22*v_upper_gamma + c23*v_upper_alpha), c28*v_boom_cyl_l_barrel_z - c28*v_boom_cyl_l_rod_z - c28*(-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) - c44*v_boom_cyl_l_rod_y - c44*(-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c47*v_boom_cyl_l_rod_x - c47*(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) + udd1 - v_boom_cyl_l_barrel_alpha*(c52*v_boom_cyl_l_barrel_beta + c56*v_boom_cyl_l_barrel_alpha + c57*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_beta*(c52*v_boom_cyl_l_barrel_alpha + c55*v_boom_cyl_l_barrel_gamma + v_boom_cyl_l_barrel_beta*(-c36*c50 + c41*c48 + c54)) - v_boom_cyl_l_barrel_gamma*(c55*v_boom_cyl_l_barrel_beta + c57*v_boom_cyl_l_barrel_alpha + v_boom_cyl_l_barrel_gamma*(c54 + c56)) - v_boom_cyl_l_barrel_x*(c32 + c37*v_boom_cyl_l_barrel_alpha + c38*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_y*(-c39 + c42*v_boom_cyl_l_barrel_alpha + c43*v_boom_cyl_l_barrel_gamma), c62*v_arm_cyl_barrel_z - c62*v_arm_cyl_rod_z - c62*(-v_arm_cyl_barrel_z + v_arm_cyl_rod_z) - c78*v_arm_cyl_rod_y - c78*(-v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c81*v_arm_cyl_rod_x - c81*(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x) + udd2 - v_arm_cyl_barrel_alpha*(c86*v_arm_cyl_barrel_beta + c90*v_arm_cyl_barrel_alpha + c91*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_beta*(c86*v_arm_cyl_barrel_alpha + c89*v_arm_cyl_barrel_gamma + v_arm_cyl_barrel_beta*(-c70*c84 + c75*c82 + c88)) - v_arm_cyl_barrel_gamma*(c89*v_arm_cyl_barrel_beta + c91*v_arm_cyl_barrel_alpha + v_arm_cyl_barrel_gamma*(c88 + c90)) - v_arm_cyl_barrel_x*(c66 + c71*v_arm_cyl_barrel_alpha + c72*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_y*(-c73 + c76*v_arm_cyl_barrel_alpha + c77*v_arm_cyl_barrel_gamma), -c112*v_bucket_cyl_rod_y - c112*(-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c115*v_bucket_cyl_rod_x - c115*(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) + c96*v_bucket_cyl_barrel_z - c96*v_bucket_cyl_rod_z - c96*(-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3 - v_bucket_cyl_barrel_alpha*(c120*v_bucket_cyl_barrel_beta + c124*v_bucket_cyl_barrel_alpha + c125*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_beta*(c120*v_bucket_cyl_barrel_alpha + c123*v_bucket_cyl_barrel_gamma + v_bucket_cyl_barrel_beta*(-c104*c118 + c109*c116 + c122)) - v_bucket_cyl_barrel_gamma*(c123*v_bucket_cyl_barrel_beta + c125*v_bucket_cyl_barrel_alpha + v_bucket_cyl_barrel_gamma*(c122 + c124)) - v_bucket_cyl_barrel_x*(c100 + c105*v_bucket_cyl_barrel_alpha + c106*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_y*(-c107 + c110*v_bucket_cyl_barrel_alpha + c111*v_bucket_cyl_barrel_gamma)]
+
+
+def phi_bucket_near_toggle(q, u):
+    """Phi(q, u) of case 'bucket_near_toggle': 84 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_bucket_near_toggle(q, u))
+
+
+def jac_bucket_near_toggle(q, u):
+    """Values of the sparse Phi_q of case 'bucket_near_toggle' at jac_rows, jac_cols (437 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_bucket_near_toggle(q, u))
+
+
+def nu_bucket_near_toggle(q, u, ud):
+    """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
+    drivers = _drivers_nu_bucket_near_toggle(q, u, ud)
+    return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
+
+
+def gamma_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd))
+
+
+def phi_jac_s_bucket_near_toggle(q, u):
+    """Phi and the Phi_q values of case 'bucket_near_toggle' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_bucket_near_toggle(q, u, ud):
+    """nu of case 'bucket_near_toggle' at one configuration (list of floats)."""
+    return [0.0] * 80 + _drivers_nu_s_bucket_near_toggle(q, u, ud)
+
+
+def gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of case 'bucket_near_toggle' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd)
+
+
 CASES = {
     'digging': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
@@ -6114,5 +6653,14 @@ CASES = {
         't0': 0.0, 't1': 3.0, 'steps': 301,
         'inputs': inputs_bucket_toggle, 'phi': phi_bucket_toggle, 'jac': jac_bucket_toggle, 'nu': nu_bucket_toggle, 'gamma': gamma_bucket_toggle,
         'phi_jac_s': phi_jac_s_bucket_toggle, 'nu_s': nu_s_bucket_toggle, 'gamma_s': gamma_s_bucket_toggle,
+    },
+    'bucket_near_toggle': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83),
+        'jac_cols': (0, 1, 2, 4, 5, 4, 0, 3, 4, 5, 6, 1, 3, 4, 5, 7, 2, 4, 5, 8, 3, 4, 9, 10, 11, 3, 4, 9, 10, 11, 0, 3, 4, 5, 12, 1, 3, 4, 5, 13, 2, 4, 5, 14, 3, 4, 15, 16, 17, 15, 16, 17, 21, 22, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 21, 22, 23, 6, 9, 10, 11, 18, 7, 9, 10, 11, 19, 8, 10, 11, 20, 0, 3, 4, 5, 24, 1, 3, 4, 5, 25, 2, 4, 5, 26, 3, 4, 27, 28, 29, 27, 28, 29, 33, 34, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 33, 34, 35, 6, 9, 10, 11, 30, 7, 9, 10, 11, 31, 8, 10, 11, 32, 6, 9, 10, 11, 36, 7, 9, 10, 11, 37, 8, 10, 11, 38, 9, 10, 39, 40, 41, 9, 10, 39, 40, 41, 6, 9, 10, 11, 42, 7, 9, 10, 11, 43, 8, 10, 11, 44, 9, 10, 45, 46, 47, 45, 46, 47, 51, 52, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 51, 52, 53, 36, 39, 40, 41, 48, 37, 39, 40, 41, 49, 38, 40, 41, 50, 36, 39, 40, 41, 78, 37, 39, 40, 41, 79, 38, 40, 41, 80, 39, 40, 81, 82, 83, 39, 40, 81, 82, 83, 36, 39, 40, 41, 66, 37, 39, 40, 41, 67, 38, 40, 41, 68, 39, 40, 69, 70, 71, 39, 40, 69, 70, 71, 66, 69, 70, 71, 72, 75, 76, 77, 67, 69, 70, 71, 73, 75, 76, 77, 68, 70, 71, 74, 76, 77, 72, 78, 81, 82, 83, 73, 79, 81, 82, 83, 74, 80, 82, 83, 75, 76, 77, 81, 82, 36, 39, 40, 41, 54, 37, 39, 40, 41, 55, 38, 40, 41, 56, 39, 40, 57, 58, 59, 57, 58, 59, 63, 64, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 63, 64, 65, 60, 66, 69, 70, 71, 61, 67, 69, 70, 71, 62, 68, 70, 71, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        't0': 0.0, 't1': 2.0, 'steps': 9,
+        'inputs': inputs_bucket_near_toggle, 'phi': phi_bucket_near_toggle, 'jac': jac_bucket_near_toggle, 'nu': nu_bucket_near_toggle, 'gamma': gamma_bucket_near_toggle,
+        'phi_jac_s': phi_jac_s_bucket_near_toggle, 'nu_s': nu_s_bucket_near_toggle, 'gamma_s': gamma_s_bucket_near_toggle,
     },
 }

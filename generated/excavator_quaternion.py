@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   8a67273963cfdeb256fd74ac328df64e7d7171290ea869e1313850af7e9b81ec
+source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
 parametrization: quaternion
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -18,7 +18,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '8a67273963cfdeb256fd74ac328df64e7d7171290ea869e1313850af7e9b81ec'
+SOURCE_SHA256 = 'cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c'
 PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.qw', 'upper.qx', 'upper.qy', 'upper.qz', 'boom.x', 'boom.y', 'boom.z', 'boom.qw', 'boom.qx', 'boom.qy', 'boom.qz', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.qw', 'boom_cyl_l_barrel.qx', 'boom_cyl_l_barrel.qy', 'boom_cyl_l_barrel.qz', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.qw', 'boom_cyl_l_rod.qx', 'boom_cyl_l_rod.qy', 'boom_cyl_l_rod.qz', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.qw', 'boom_cyl_r_barrel.qx', 'boom_cyl_r_barrel.qy', 'boom_cyl_r_barrel.qz', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.qw', 'boom_cyl_r_rod.qx', 'boom_cyl_r_rod.qy', 'boom_cyl_r_rod.qz', 'arm.x', 'arm.y', 'arm.z', 'arm.qw', 'arm.qx', 'arm.qy', 'arm.qz', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.qw', 'arm_cyl_barrel.qx', 'arm_cyl_barrel.qy', 'arm_cyl_barrel.qz', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.qw', 'arm_cyl_rod.qx', 'arm_cyl_rod.qy', 'arm_cyl_rod.qz', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.qw', 'bucket_cyl_barrel.qx', 'bucket_cyl_barrel.qy', 'bucket_cyl_barrel.qz', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.qw', 'bucket_cyl_rod.qx', 'bucket_cyl_rod.qy', 'bucket_cyl_rod.qz', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.qw', 'side_link.qx', 'side_link.qy', 'side_link.qz', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.qw', 'bucket_link.qx', 'bucket_link.qy', 'bucket_link.qz', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.qw', 'bucket.qx', 'bucket.qy', 'bucket.qz')
@@ -3370,6 +3370,301 @@ def gamma_s_bucket_toggle(q, v, u, ud, udd):
     return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd)
 
 
+def inputs_bucket_near_toggle(t):
+    """Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2."""
+    c0 = 1.5707963267948966*t
+    c1 = sin(c0)
+    out = np.zeros((12,) + np.shape(t))
+    out[1] = 626973/250000
+    out[2] = 485803/250000
+    out[3] = (47/200)*c1 + 5/2
+    out[7] = 0.36913713679680066*cos(c0)
+    out[11] = -0.5798392585639998*c1
+    return out
+
+
+def _drivers_phi_bucket_near_toggle(q, u):
+    """Phi of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = 2*upper_qw*sin(c0) - 2*upper_qz*cos(c0)
+    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1
+    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2
+    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3
+    return out
+
+
+def _drivers_jac_bucket_near_toggle(q, u):
+    """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    d0 = (1/2)*u0
+    d1 = sin(d0)
+    d2 = cos(d0)
+    d3 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    d5 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
+    d6 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    d7 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    d8 = -arm_cyl_barrel_x + arm_cyl_rod_x
+    d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
+    out = _zeros(30, q, u)
+    out[0] = -d1*upper_qx - d2*upper_qy
+    out[1] = -d1*upper_qy + d2*upper_qx
+    out[2] = -d1*upper_qz - d2*upper_qw
+    out[3] = -boom_cyl_l_barrel_a00
+    out[4] = -boom_cyl_l_barrel_a10
+    out[5] = -boom_cyl_l_barrel_a20
+    out[6] = boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4
+    out[7] = -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5
+    out[8] = boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7
+    out[16] = -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8
+    out[17] = arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8
+    out[18] = arm_cyl_barrel_a00
+    out[19] = arm_cyl_barrel_a10
+    out[20] = arm_cyl_barrel_a20
+    out[21] = -bucket_cyl_barrel_a00
+    out[22] = -bucket_cyl_barrel_a10
+    out[23] = -bucket_cyl_barrel_a20
+    out[24] = bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10
+    out[25] = -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11
+    out[26] = bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11
+    out[27] = bucket_cyl_barrel_a00
+    out[28] = bucket_cyl_barrel_a10
+    out[29] = bucket_cyl_barrel_a20
+    return out
+
+
+def _drivers_nu_bucket_near_toggle(q, u, ud):
+    """nu of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_qw*cos(c0) + upper_qz*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*upper_qw
+    c4 = -1/2*c1*upper_qz + c2*c3
+    c5 = (1/2)*v_upper_theta_y
+    c6 = (1/2)*v_upper_theta_x
+    c7 = (1/2)*upper_qz
+    c8 = (1/2)*v_upper_theta_z
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = -c10
+    c14 = -c12
+    c15 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c16 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c17 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c18 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c19 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c20 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c21 = -c18
+    c22 = -c20
+    c23 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c24 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c25 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c26 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c27 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c28 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c29 = -c26
+    c30 = -c28
+    c31 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c32 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c33 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    out = _zeros(4, q, u)
+    out[0] = c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z - c5*upper_qx + c6*upper_qy) + c4*ud0**2 - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-1/2*c2*upper_qx - c9*upper_qy)) - udd0*(c1*upper_qw + c2*upper_qz) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y - c7*v_upper_theta_x + c8*upper_qx) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy)
+    out[1] = -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1
+    out[2] = -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2
+    out[3] = -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3
+    return out
+
+
+def _drivers_phi_jac_s_bucket_near_toggle(q, u):
+    """Phi and Phi_q values of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    d3 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
+    d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
+    d5 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
+    d6 = -arm_cyl_barrel_z + arm_cyl_rod_z
+    d7 = -arm_cyl_barrel_y + arm_cyl_rod_y
+    d8 = -arm_cyl_barrel_x + arm_cyl_rod_x
+    d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
+    d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
+    d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
+    return [2*upper_qw*math.sin(c0) - 2*upper_qz*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [-d1*upper_qx - d2*upper_qy, -d1*upper_qy + d2*upper_qx, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4, -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5, boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7, -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8, arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10, -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11, bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def _drivers_nu_s_bucket_near_toggle(q, u, ud):
+    """nu of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, ud3]
+
+
+def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of the driver rows of case 'bucket_near_toggle' at one configuration."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*upper_qw
+    c4 = -1/2*c1*upper_qz + c2*c3
+    c5 = (1/2)*v_upper_theta_y
+    c6 = (1/2)*v_upper_theta_x
+    c7 = (1/2)*upper_qz
+    c8 = (1/2)*v_upper_theta_z
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = -c10
+    c14 = -c12
+    c15 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c16 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c17 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c18 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c19 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c20 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c21 = -c18
+    c22 = -c20
+    c23 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c24 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c25 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c26 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c27 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c28 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c29 = -c26
+    c30 = -c28
+    c31 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c32 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c33 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    return [c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z - c5*upper_qx + c6*upper_qy) + c4*ud0**2 - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-1/2*c2*upper_qx - c9*upper_qy)) - udd0*(c1*upper_qw + c2*upper_qz) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y - c7*v_upper_theta_x + c8*upper_qx) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy), -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1, -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2, -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3]
+
+
+def phi_bucket_near_toggle(q, u):
+    """Phi(q, u) of case 'bucket_near_toggle': 84 residuals."""
+    return _join(_joints_phi(q), _drivers_phi_bucket_near_toggle(q, u))
+
+
+def jac_bucket_near_toggle(q, u):
+    """Values of the sparse Phi_q of case 'bucket_near_toggle' at jac_rows, jac_cols (433 entries)."""
+    return _join(_joints_jac(q), _drivers_jac_bucket_near_toggle(q, u))
+
+
+def nu_bucket_near_toggle(q, u, ud):
+    """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
+    drivers = _drivers_nu_bucket_near_toggle(q, u, ud)
+    return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
+
+
+def gamma_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
+    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd))
+
+
+def phi_jac_s_bucket_near_toggle(q, u):
+    """Phi and the Phi_q values of case 'bucket_near_toggle' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_bucket_near_toggle(q, u, ud):
+    """nu of case 'bucket_near_toggle' at one configuration (list of floats)."""
+    return [0.0] * 80 + _drivers_nu_s_bucket_near_toggle(q, u, ud)
+
+
+def gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+    """gamma of case 'bucket_near_toggle' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd)
+
+
 CASES = {
     'digging': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
@@ -3406,5 +3701,14 @@ CASES = {
         't0': 0.0, 't1': 3.0, 'steps': 301,
         'inputs': inputs_bucket_toggle, 'phi': phi_bucket_toggle, 'jac': jac_bucket_toggle, 'nu': nu_bucket_toggle, 'gamma': gamma_bucket_toggle,
         'phi_jac_s': phi_jac_s_bucket_toggle, 'nu_s': nu_s_bucket_toggle, 'gamma_s': gamma_s_bucket_toggle,
+    },
+    'bucket_near_toggle': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83),
+        'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 0, 4, 5, 12, 1, 3, 5, 13, 2, 3, 4, 14, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 6, 10, 11, 18, 7, 9, 11, 19, 8, 9, 10, 20, 0, 4, 5, 24, 1, 3, 5, 25, 2, 3, 4, 26, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 6, 10, 11, 30, 7, 9, 11, 31, 8, 9, 10, 32, 6, 10, 11, 36, 7, 9, 11, 37, 8, 9, 10, 38, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 6, 10, 11, 42, 7, 9, 11, 43, 8, 9, 10, 44, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 36, 40, 41, 48, 37, 39, 41, 49, 38, 39, 40, 50, 36, 40, 41, 78, 37, 39, 41, 79, 38, 39, 40, 80, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 36, 40, 41, 66, 37, 39, 41, 67, 38, 39, 40, 68, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 66, 70, 71, 72, 76, 77, 67, 69, 71, 73, 75, 77, 68, 69, 70, 74, 75, 76, 72, 78, 82, 83, 73, 79, 81, 83, 74, 80, 81, 82, 75, 76, 77, 81, 82, 83, 36, 40, 41, 54, 37, 39, 41, 55, 38, 39, 40, 56, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 60, 66, 70, 71, 61, 67, 69, 71, 62, 68, 69, 70, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        't0': 0.0, 't1': 2.0, 'steps': 9,
+        'inputs': inputs_bucket_near_toggle, 'phi': phi_bucket_near_toggle, 'jac': jac_bucket_near_toggle, 'nu': nu_bucket_near_toggle, 'gamma': gamma_bucket_near_toggle,
+        'phi_jac_s': phi_jac_s_bucket_near_toggle, 'nu_s': nu_s_bucket_near_toggle, 'gamma_s': gamma_s_bucket_near_toggle,
     },
 }

@@ -6,7 +6,7 @@ from __future__ import annotations
 def bodies_in(combinations: list[str]) -> list[str]:
     """Bodies named in coordinate combinations such as ``upper.alpha - 0.5*upper.gamma``."""
     return sorted(
-        {term.split(".")[0].split("*")[-1].lstrip("+- ") for combo in combinations for term in combo.split(" ") if "." in term}
+        {term.split("*")[-1].split(".")[0].lstrip("+- ") for combo in combinations for term in combo.split(" ") if "." in term}
     )
 
 
@@ -61,20 +61,26 @@ class SingularJacobianError(KinegenError):
         super().__init__("\n".join(lines))
 
 
+def _listed(worst: list[tuple[str, float]]) -> str:
+    return ", ".join(f"{name} = {value:.3e}" for name, value in worst)
+
+
 class ConvergenceError(KinegenError):
     """Newton-Raphson did not reach the tolerance within the iteration limit."""
 
     exit_code = 4
 
-    def __init__(self, t: float, iterations: int, residual: float, worst: list[tuple[str, float]]) -> None:
+    def __init__(
+        self, t: float, iterations: int, residual: float, worst: list[tuple[str, float]], message: str | None = None
+    ) -> None:
         self.t = t
         self.iterations = iterations
         self.residual = residual
         self.worst = worst
-        worst_text = ", ".join(f"{name} = {value:.3e}" for name, value in worst)
         super().__init__(
-            f"Newton-Raphson did not converge at t = {t:.6g} after {iterations} iterations: "
-            f"max |Phi| = {residual:.3e}; worst constraints: {worst_text}"
+            message
+            or f"Newton-Raphson did not converge at t = {t:.6g} after {iterations} iterations: "
+            f"max |Phi| = {residual:.3e}; worst constraints: {_listed(worst)}"
         )
 
 
@@ -82,17 +88,13 @@ class UnreachableError(ConvergenceError):
     """No configuration satisfies Phi: the least-squares closest one leaves a residual."""
 
     def __init__(self, t: float, iterations: int, residual: float, worst: list[tuple[str, float]]) -> None:
-        self.t = t
-        self.iterations = iterations
-        self.residual = residual
-        self.worst = worst
-        worst_text = ", ".join(f"{name} = {value:.3e}" for name, value in worst)
-        KinegenError.__init__(
-            self,
-            f"no configuration satisfies the constraints at t = {t:.6g}: the target is outside the workspace. "
-            f"The closest reachable configuration (least squares, {iterations} iterations) leaves max |Phi| = {residual:.3e}; "
-            f"constraints that cannot be met: {worst_text}",
-        )
+        super().__init__(
+            t, iterations, residual, worst,
+            f"no configuration satisfies the constraints at t = {t:.6g}: the target is outside the workspace "
+            f"(or, from a rough start, beyond a local minimum). The closest reachable configuration (least squares, "
+            f"{iterations} iterations, joints kept assembled) leaves max |Phi| = {residual:.3e}; "
+            f"constraints that cannot be met: {_listed(worst)}",
+        )  # fmt: skip
 
 
 class BranchError(KinegenError):
@@ -119,14 +121,9 @@ class AssemblyError(ConvergenceError):
     """The initial pose does not satisfy Phi and no assembled pose was found from it."""
 
     def __init__(self, t: float, residual: float, worst: list[tuple[str, float]], cause: str) -> None:
-        self.t = t
-        self.iterations = 0
-        self.residual = residual
-        self.worst = worst
         self.cause = cause
-        worst_text = ", ".join(f"{name} = {value:.3e}" for name, value in worst)
-        KinegenError.__init__(
-            self,
+        super().__init__(
+            t, 0, residual, worst,
             f"initial pose cannot be assembled at t = {t:.6g}: max |Phi| = {residual:.3e} at the given pose; "
-            f"largest residuals: {worst_text}\n  assembly solve: {cause}",
-        )
+            f"largest residuals: {_listed(worst)}\n  assembly solve: {cause}",
+        )  # fmt: skip

@@ -31,13 +31,15 @@ from kinegen.runtime.system import NumericSystem
 
 
 class Solution(NamedTuple):
-    """A converged position: q, Newton iterations, max |Phi|, Phi_q values and Phi at q."""
+    """A converged position: q, Newton iterations, max |Phi|, Phi_q values and Phi at q,
+    and ``travel``: the summed max-norm of the Newton steps from the start (inf after a fallback)."""
 
     q: np.ndarray
     iterations: int
     norm: float
     values: Any
     phi: np.ndarray
+    travel: float = float("inf")
 
 
 @dataclass(frozen=True)
@@ -64,9 +66,12 @@ class SolverOptions:
     #: predict each step from the previous q, v, a (else: start from the previous q)
     predictor: bool = True
     #: stay on the assembly branch: when det(Phi_q) changes sign over a step (a jump to
-    #: another branch, or a singular pose passed), halve the step, up to ``max_refinements``
-    #: times, then raise BranchError
+    #: another branch, or a singular pose passed) or Newton's correction of the predicted
+    #: pose exceeds ``jump_ratio`` times the predicted motion (and ``jump_floor``), halve
+    #: the step, up to ``max_refinements`` times, then raise BranchError
     keep_branch: bool = True
+    jump_ratio: float = 0.5
+    jump_floor: float = 1e-3
     max_refinements: int = 12
     #: after convergence, one more Newton correction with the factorization made for the
     #: velocity solve (no extra Phi_q evaluation): a residual at the tolerance becomes ~its square
@@ -196,8 +201,10 @@ class Solver:
     def position(self, q0: np.ndarray, u: np.ndarray, t: float = float("nan")) -> tuple[np.ndarray, int, float]:
         """Newton-Raphson from ``q0`` for driver inputs ``u``: (q, iterations, max |Phi|).
 
-        Full steps first; if they fail, a backtracking line search; if that fails too, a
-        homotopy that moves the residual of ``q0`` to zero in stages.
+        Full steps first; if they fail (or meet a singular Phi_q), a backtracking line search;
+        then a homotopy that moves the residual of ``q0`` to zero in stages; last,
+        Levenberg-Marquardt, which either finds a solution or raises UnreachableError with
+        the closest reachable residual.
         """
         solution = self._position(q0, u, t)
         return solution.q, solution.iterations, solution.norm
@@ -206,40 +213,48 @@ class Solver:
         """:meth:`position`, also returning Phi_q at the solution."""
         try:
             return self._newton(q0, u, t, damped=False)
-        except ConvergenceError:
+        except (ConvergenceError, SingularJacobianError):
             if not self.options.line_search:
                 raise
         try:
             return self._newton(q0, u, t, damped=True)
-        except ConvergenceError:
+        except (ConvergenceError, SingularJacobianError):
             pass
         try:
             return self._homotopy(q0, u, t)
-        except ConvergenceError:
+        except (ConvergenceError, SingularJacobianError):
             return self._least_squares(q0, u, t)
 
     def _least_squares(self, q: np.ndarray, u: np.ndarray, t: float, max_iterations: int = 300) -> Solution:
-        """Levenberg-Marquardt on |Phi|^2: the solution if one exists nearby; otherwise raises
-        UnreachableError with the closest reachable residual (the target is outside the workspace)."""
-        phi, values = self.system.evaluate(q, u)
-        cost, damping, iterations = float(phi @ phi), 1e-3, 0
+        """Levenberg-Marquardt on sum(w_i Phi_i^2), joint rows weighted 1e4 over driver rows:
+        the solution if one exists nearby; otherwise the assembled configuration closest to
+        the drivers' targets, reported by UnreachableError (the target is outside the workspace)."""
+        m = len(self.system.constraint_names)
+        weights = np.ones(m)
+        weights[: m - self.system.n_inputs] = 1e4
+
+        def evaluate(x: np.ndarray) -> tuple[np.ndarray, Any, float]:
+            phi, values = self.system.evaluate(x, u)
+            return phi, values, float(np.sum((weights * phi) ** 2))
+
+        phi, values, cost = evaluate(q)
+        damping, iterations = 1e-3, 0
         for iterations in range(1, max_iterations + 1):  # noqa: B007
             if np.max(np.abs(phi)) <= self.options.tolerance or not np.isfinite(cost):
                 break
-            jacobian = self.linear.dense(values)
-            gradient = jacobian.T @ phi
+            jacobian = weights[:, None] * self.linear.dense(values)
+            gradient = jacobian.T @ (weights * phi)
             normal = jacobian.T @ jacobian
             scale = np.diag(normal) + 1e-12 * max(1.0, float(np.diag(normal).max()))
             while damping < 1e12:
                 step = -np.linalg.solve(normal + damping * np.diag(scale), gradient)
                 trial = self.retract(q, step)
-                trial_phi, trial_values = self.system.evaluate(trial, u)
-                trial_cost = float(trial_phi @ trial_phi)
+                trial_phi, trial_values, trial_cost = evaluate(trial)
                 if trial_cost < cost:
                     break
                 damping *= 4
             else:
-                break  # no descent in any direction: a (local) minimum of |Phi|
+                break  # no descent in any direction: a (local) minimum
             improvement = cost - trial_cost
             q, phi, values, cost = trial, trial_phi, trial_values, trial_cost
             damping = max(damping / 3, 1e-12)
@@ -265,12 +280,13 @@ class Solver:
             return phi, float(np.max(np.abs(phi))) if phi.size else 0.0, values
 
         phi, norm, jacobian = residual(q)
-        iterations = 0
+        iterations, travel = 0, 0.0
         while norm > opts.tolerance:
             if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
                 raise self._failure(q, u, t, iterations)
             step = -self._solve(self._factor(jacobian, t), phi)
             iterations += 1
+            travel += float(np.max(np.abs(step)))
             trial = self.retract(q, step)
             trial_phi, trial_norm, trial_jacobian = residual(trial)
             if damped:
@@ -280,7 +296,7 @@ class Solver:
                     trial = self.retract(q, alpha * step)
                     trial_phi, trial_norm, trial_jacobian = residual(trial)
             q, phi, norm, jacobian = trial, trial_phi, trial_norm, trial_jacobian
-        return Solution(q, iterations, norm, jacobian, phi)
+        return Solution(q, iterations, norm, jacobian, phi, travel if not damped else float("inf"))
 
     def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> Solution:
         """Solve Phi(q, u) = (1 - s) Phi(q0, u) for s = 0 -> 1 with adaptive stages."""
@@ -331,11 +347,17 @@ class Solver:
         u_all, ud_all, udd_all = (np.asarray(x, dtype=float).reshape(system.n_inputs, k) for x in inputs)
 
         def inputs_at(t: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-            """Inputs at a refinement time between samples i-1 and i (interpolated if tabulated)."""
+            """Inputs at a refinement time between samples i-1 and i: the case's functions, or for
+            tabulated inputs the cubic Hermite interpolant of (u, du/dt) and its derivatives."""
             if not tabulated:
                 return tuple(x[:, 0] for x in system.driver_inputs(np.array([t])))
-            s = (t - times[i - 1]) / (times[i] - times[i - 1])
-            return tuple((1 - s) * x[:, i - 1] + s * x[:, i] for x in (u_all, ud_all, udd_all))
+            d = times[i] - times[i - 1]
+            s = (t - times[i - 1]) / d
+            u0, u1, m0, m1 = u_all[:, i - 1], u_all[:, i], d * ud_all[:, i - 1], d * ud_all[:, i]
+            u = (2 * s**3 - 3 * s**2 + 1) * u0 + (s**3 - 2 * s**2 + s) * m0 + (3 * s**2 - 2 * s**3) * u1 + (s**3 - s**2) * m1
+            ud = ((6 * s**2 - 6 * s) * (u0 - u1) + (3 * s**2 - 4 * s + 1) * m0 + (3 * s**2 - 2 * s) * m1) / d
+            udd = ((12 * s - 6) * (u0 - u1) + (6 * s - 4) * m0 + (6 * s - 2) * m1) / d**2
+            return u, ud, udd
 
         qs, vs, accs = np.full((k, n), np.nan), np.full((k, nv), np.nan), np.full((k, nv), np.nan)
         iterations, residuals, conditions = np.zeros(k, dtype=int), np.full(k, np.nan), np.full(k, np.nan)
@@ -378,13 +400,17 @@ class Solver:
         Returns the solution and the factors of its Phi_q. When det(Phi_q) changes sign (or
         Newton fails), the interval is halved and both halves are solved in turn.
         """
+        opts = self.options
         h = t1 - t0
-        guess = self.retract(q, v * h + 0.5 * a * h * h) if self.options.predictor else q
+        motion = v * h + 0.5 * a * h * h
+        guess = self.retract(q, motion) if opts.predictor else q
         u = inputs[0]
         try:
             solution = self._position(guess, u, t1)
             factors = self._factor(solution.values, t1)
-            same = sign is None or factors.lu is None or not self.options.keep_branch or self.linear.sign(factors.lu) == sign
+            same_sign = sign is None or factors.lu is None or self.linear.sign(factors.lu) == sign
+            plausible = not opts.predictor or solution.travel <= max(opts.jump_ratio * np.max(np.abs(motion)), opts.jump_floor)
+            same = not opts.keep_branch or (same_sign and plausible)
         except (ConvergenceError, SingularJacobianError):
             if depth >= self.options.max_refinements or not self.options.keep_branch:
                 raise
