@@ -5,7 +5,7 @@ BIN     = $(VENV)/bin
 OUT    ?= out
 export OPENBLAS_NUM_THREADS ?= 1
 
-.PHONY: run test bench generate clean
+.PHONY: run test bench fuzz generate clean
 
 $(BIN)/kinegen: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
@@ -25,6 +25,13 @@ test: $(BIN)/kinegen
 ## bench: kinegen vs CasADi, SymEngine, naive SymPy, SciPy on chain-N and the excavator (BENCH_ARGS="--sizes 14 50 100")
 bench: $(BIN)/kinegen
 	$(BIN)/python -m kinegen.bench $(BENCH_ARGS)
+
+## fuzz: 10,000 fuzzed model files (Hypothesis); each must end in a ModelError naming file and entry
+fuzz: $(BIN)/kinegen
+	mkdir -p $(OUT)
+	KINEGEN_FUZZ_EXAMPLES=$${KINEGEN_FUZZ_EXAMPLES:-10000} KINEGEN_FUZZ_REPORT=$(OUT)/fuzz.txt \
+		$(BIN)/python -m pytest -q -s -p no:randomly tests/test_fuzz.py
+	@cat $(OUT)/fuzz.txt
 
 ## generate: rebuild every committed module in generated/ from models/
 generate: $(BIN)/kinegen

@@ -23,9 +23,16 @@ class ModelError(KinegenError):
 
     def __init__(self, file: str, entry: str, problem: str) -> None:
         self.file = file
-        self.entry = entry
-        self.problem = problem
-        super().__init__(f"{file}: {entry}: {problem}")
+        self.entry = _shortened(entry, 200)
+        self.problem = _shortened(problem, 400)
+        super().__init__(f"{file}: {self.entry}: {self.problem}")
+
+
+def _shortened(text: str, limit: int) -> str:
+    """``text`` cut in the middle when longer than ``limit`` (a model may hold enormous values)."""
+    if len(text) <= limit:
+        return text
+    return f"{text[: limit * 3 // 4]} …[{len(text)} characters]… {text[-limit // 8 :]}"
 
 
 class ExpressionError(ValueError):

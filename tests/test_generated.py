@@ -137,3 +137,18 @@ def test_in_memory_lambdify_path_agrees_with_generated_module():
     a, b = solve(generated), solve(in_memory)
     assert np.abs(a.q - b.q).max() < 1e-12
     assert np.abs(a.a - b.a).max() < 1e-9
+
+
+def test_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path, monkeypatch):
+    """Ctrl-C while the module is being written (before the atomic replace): nothing changes."""
+    target = tmp_path / "module.py"
+    target.write_text("old")
+
+    def interrupted(fd):
+        raise KeyboardInterrupt
+
+    monkeypatch.setattr(os, "fsync", interrupted)
+    with pytest.raises(KeyboardInterrupt):
+        write_atomic(target, "new")
+    assert target.read_text() == "old"
+    assert [p.name for p in tmp_path.iterdir()] == ["module.py"]

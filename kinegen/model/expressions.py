@@ -54,10 +54,11 @@ def number(value: float | int) -> sp.Expr:
     """An exact SymPy number for a finite ``int`` or ``float`` (floats via their shortest repr)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
         raise ExpressionError(f"expected a number, got {type(value).__name__} {value!r}")
-    if not math.isfinite(value):
+    if isinstance(value, float) and not math.isfinite(value):
         raise ExpressionError(f"number {value!r} is not finite")
     if abs(value) > MAX_MAGNITUDE:
-        raise ExpressionError(f"number {value!r} exceeds the allowed magnitude {MAX_MAGNITUDE:g}")
+        shown = f"{value!r}" if isinstance(value, float) or abs(value) < 10**30 else f"with {len(str(abs(value)))} digits"
+        raise ExpressionError(f"number {shown} exceeds the allowed magnitude {MAX_MAGNITUDE:g}")
     if isinstance(value, int):
         return sp.Integer(value)
     return sp.Rational(repr(value))

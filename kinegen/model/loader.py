@@ -305,7 +305,7 @@ class _Reader:
         return self.bodies[name]
 
     def body_name(self, value: Any, entry: str) -> str:
-        if value != GROUND and value not in self.bodies:
+        if not isinstance(value, str) or (value != GROUND and value not in self.bodies):
             raise self.fail(entry, f"unknown body {value!r} (known: ground, {', '.join(self.bodies)})")
         return value
 
