@@ -99,29 +99,27 @@ def _joints_jac(q):
     out[18] = d6
     out[19] = d5
     out[20] = d4
-    out[21] = d6
-    out[22] = d7
-    out[23] = d4
-    out[24] = d5
+    out[21] = 2*boom_e0
+    out[22] = 2*boom_e1
+    out[23] = 2*boom_e2
+    out[24] = 2*boom_e3
     return out
 
 
 def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
-    c0 = v_boom_e0**2
-    c1 = v_boom_e1**2
-    c2 = (178/25)*v_boom_e3
-    c3 = (178/25)*v_boom_e2
-    c4 = 4*v_boom_e2
-    c5 = 4*v_boom_e1
+    c0 = (178/25)*v_boom_e3
+    c1 = (178/25)*v_boom_e2
+    c2 = 4*v_boom_e2
+    c3 = 4*v_boom_e1
     out = _zeros(6, q, ())
-    out[0] = -178/25*c0 - 178/25*c1
-    out[1] = -c2*v_boom_e0 - c3*v_boom_e1
-    out[2] = -c2*v_boom_e1 + c3*v_boom_e0
-    out[3] = c4*v_boom_e0 - c5*v_boom_e3
-    out[4] = -c4*v_boom_e3 - c5*v_boom_e0
-    out[5] = -2*c0 - 2*c1 - 2*v_boom_e2**2 - 2*v_boom_e3**2
+    out[0] = -178/25*v_boom_e0**2 - 178/25*v_boom_e1**2
+    out[1] = -c0*v_boom_e0 - c1*v_boom_e1
+    out[2] = -c0*v_boom_e1 + c1*v_boom_e0
+    out[3] = c2*v_boom_e0 - c3*v_boom_e3
+    out[4] = -c2*v_boom_e3 - c3*v_boom_e0
+    out[5] = -2*v_boom_e0**2 - 2*v_boom_e1**2 - 2*v_boom_e2**2 - 2*v_boom_e3**2
     return out
 
 
@@ -140,19 +138,17 @@ def _joints_phi_jac_s(q):
     d5 = 2*boom_e3
     d6 = 2*boom_e0
     d7 = 2*boom_e1
-    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21, boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2 - 1], [-1, (178/25)*boom_e0, (178/25)*boom_e1, -1, d0, d1, d2, d3, -1, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, d6, d7, d4, d5]
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21, boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2 - 1], [-1, (178/25)*boom_e0, (178/25)*boom_e1, -1, d0, d1, d2, d3, -1, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, 2*boom_e0, 2*boom_e1, 2*boom_e2, 2*boom_e3]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
-    c0 = v_boom_e0**2
-    c1 = v_boom_e1**2
-    c2 = (178/25)*v_boom_e3
-    c3 = (178/25)*v_boom_e2
-    c4 = 4*v_boom_e2
-    c5 = 4*v_boom_e1
-    return [-178/25*c0 - 178/25*c1, -c2*v_boom_e0 - c3*v_boom_e1, -c2*v_boom_e1 + c3*v_boom_e0, c4*v_boom_e0 - c5*v_boom_e3, -c4*v_boom_e3 - c5*v_boom_e0, -2*c0 - 2*c1 - 2*v_boom_e2**2 - 2*v_boom_e3**2]
+    c0 = (178/25)*v_boom_e3
+    c1 = (178/25)*v_boom_e2
+    c2 = 4*v_boom_e2
+    c3 = 4*v_boom_e1
+    return [-178/25*v_boom_e0**2 - 178/25*v_boom_e1**2, -c0*v_boom_e0 - c1*v_boom_e1, -c0*v_boom_e1 + c1*v_boom_e0, c2*v_boom_e0 - c3*v_boom_e3, -c2*v_boom_e3 - c3*v_boom_e0, -2*v_boom_e0**2 - 2*v_boom_e1**2 - 2*v_boom_e2**2 - 2*v_boom_e3**2]
 
 
 def inputs_swing(t):

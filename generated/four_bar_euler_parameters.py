@@ -71,24 +71,22 @@ def _joints_phi(q):
     rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    c0 = -rocker_y
-    c1 = -rocker_z
     out = _zeros(20, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = -coupler_x + (3/10)*crank_a00 + crank_x
-    out[6] = -coupler_y + (3/10)*crank_a10 + crank_y
-    out[7] = -coupler_z + (3/10)*crank_a20 + crank_z
+    out[5] = (3/10)*crank_a00 + crank_x - coupler_x
+    out[6] = (3/10)*crank_a10 + crank_y - coupler_y
+    out[7] = (3/10)*crank_a20 + crank_z - coupler_z
     out[8] = (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x
-    out[9] = c0 + (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10
-    out[10] = c1 + (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20
+    out[9] = (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y
+    out[10] = (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z
     out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22
     out[12] = 1 - rocker_x
-    out[13] = c0
-    out[14] = c1
+    out[13] = -rocker_y
+    out[14] = -rocker_z
     out[15] = rocker_a20
     out[16] = rocker_a21
     out[17] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
@@ -123,15 +121,15 @@ def _joints_jac(q):
     d14 = -7/5*rocker_e1
     d15 = (7/5)*rocker_e0
     d16 = 4*rocker_a12
-    d17 = 2*coupler_e1
-    d18 = 2*coupler_e3
-    d19 = 2*coupler_e0
-    d20 = 2*coupler_e2
-    d21 = 2*rocker_e2
-    d22 = 2*rocker_e1
-    d23 = 4*coupler_a21
-    d24 = 2*rocker_e3
-    d25 = 2*rocker_e0
+    d17 = 2*rocker_a22
+    d18 = 2*rocker_a02
+    d19 = 2*coupler_a01
+    d20 = 2*coupler_a11
+    d21 = 4*coupler_a21
+    d22 = 2*rocker_e2
+    d23 = 2*rocker_e3
+    d24 = 2*rocker_e0
+    d25 = 2*rocker_e1
     out = _zeros(84, q, ())
     out[0] = -1
     out[1] = -1
@@ -186,37 +184,37 @@ def _joints_jac(q):
     out[50] = d12
     out[51] = d15
     out[52] = d14
-    out[53] = coupler_e0*d16 + d17*rocker_a22 - d18*rocker_a02
-    out[54] = d19*rocker_a22 + d20*rocker_a02
-    out[55] = coupler_e2*d16 + d17*rocker_a02 + d18*rocker_a22
-    out[56] = 2*coupler_e2*rocker_a22 - d19*rocker_a02
-    out[57] = coupler_a01*d21 - coupler_a11*d22 + d23*rocker_e0
-    out[58] = coupler_a01*d24 - coupler_a11*d25
-    out[59] = coupler_a01*d25 + coupler_a11*d24
-    out[60] = coupler_a01*d22 + coupler_a11*d21 + d23*rocker_e3
+    out[53] = coupler_e0*d16 + coupler_e1*d17 - coupler_e3*d18
+    out[54] = coupler_e0*d17 + coupler_e2*d18
+    out[55] = coupler_e1*d18 + coupler_e2*d16 + coupler_e3*d17
+    out[56] = -coupler_e0*d18 + 2*coupler_e2*rocker_a22
+    out[57] = rocker_e0*d21 - rocker_e1*d20 + rocker_e2*d19
+    out[58] = -rocker_e0*d20 + rocker_e3*d19
+    out[59] = rocker_e0*d19 + rocker_e3*d20
+    out[60] = rocker_e1*d19 + rocker_e2*d20 + rocker_e3*d21
     out[61] = -1
     out[62] = -1
     out[63] = -1
-    out[64] = -d21
-    out[65] = d24
-    out[66] = -d25
-    out[67] = d22
-    out[68] = d22
-    out[69] = d25
-    out[70] = d24
-    out[71] = d21
-    out[72] = d2
-    out[73] = d3
-    out[74] = d0
-    out[75] = d1
-    out[76] = d19
-    out[77] = d17
-    out[78] = d20
-    out[79] = d18
-    out[80] = d25
-    out[81] = d22
-    out[82] = d21
-    out[83] = d24
+    out[64] = -d22
+    out[65] = d23
+    out[66] = -d24
+    out[67] = d25
+    out[68] = d25
+    out[69] = d24
+    out[70] = d23
+    out[71] = d22
+    out[72] = 2*crank_e0
+    out[73] = 2*crank_e1
+    out[74] = 2*crank_e2
+    out[75] = 2*crank_e3
+    out[76] = 2*coupler_e0
+    out[77] = 2*coupler_e1
+    out[78] = 2*coupler_e2
+    out[79] = 2*coupler_e3
+    out[80] = 2*rocker_e0
+    out[81] = 2*rocker_e1
+    out[82] = 2*rocker_e2
+    out[83] = 2*rocker_e3
     return out
 
 
@@ -232,43 +230,37 @@ def _joints_gamma(q, v):
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
-    c2 = v_crank_e0**2
-    c3 = v_crank_e1**2
-    c4 = (6/5)*v_crank_e3
-    c5 = (6/5)*v_crank_e2
-    c6 = v_coupler_e0**2
-    c7 = v_coupler_e1**2
-    c8 = v_rocker_e0**2
-    c9 = v_rocker_e1**2
-    c10 = (18/5)*v_coupler_e3
-    c11 = (18/5)*v_coupler_e2
-    c12 = 2*rocker_a02
-    c13 = 2*rocker_a22
-    c14 = 2*coupler_a01
-    c15 = 2*coupler_a11
-    c16 = 4*rocker_a12
-    c17 = 4*coupler_a21
-    c18 = 2*rocker_e0
-    c19 = 2*rocker_e1
-    c20 = 4*v_rocker_e0
-    c21 = 4*v_rocker_e3
-    c22 = 2*coupler_e0
-    c23 = 2*v_coupler_e0
+    c2 = (6/5)*v_crank_e3
+    c3 = (6/5)*v_crank_e2
+    c4 = (18/5)*v_coupler_e3
+    c5 = (18/5)*v_coupler_e2
+    c6 = 2*rocker_a02
+    c7 = 2*rocker_a22
+    c8 = 2*coupler_a01
+    c9 = 2*coupler_a11
+    c10 = 4*rocker_a12
+    c11 = 4*coupler_a21
+    c12 = 2*rocker_e0
+    c13 = 2*rocker_e1
+    c14 = 2*coupler_e0
+    c15 = 2*v_coupler_e0
+    c16 = 4*v_rocker_e2
+    c17 = 4*v_rocker_e1
     out = _zeros(20, q, ())
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
-    out[5] = -6/5*c2 - 6/5*c3
-    out[6] = -c4*v_crank_e0 - c5*v_crank_e1
-    out[7] = -c4*v_crank_e1 + c5*v_crank_e0
-    out[8] = -18/5*c6 - 18/5*c7 + (14/5)*c8 + (14/5)*c9
-    out[9] = -c10*v_coupler_e0 - c11*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2
-    out[10] = -c10*v_coupler_e1 + c11*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3
-    out[11] = -v_coupler_e0*(-c12*v_coupler_e3 + c13*v_coupler_e1 + c16*v_coupler_e0) - v_coupler_e1*(c12*v_coupler_e2 + c13*v_coupler_e0) - v_coupler_e2*(c12*v_coupler_e1 + c13*v_coupler_e3 + c16*v_coupler_e2) - v_coupler_e3*(-c12*v_coupler_e0 + 2*rocker_a22*v_coupler_e2) - v_rocker_e0*(c14*v_rocker_e2 - c15*v_rocker_e1 + c17*v_rocker_e0) - v_rocker_e1*(c14*v_rocker_e3 - c15*v_rocker_e0) - v_rocker_e2*(c14*v_rocker_e0 + c15*v_rocker_e3) - v_rocker_e3*(c14*v_rocker_e1 + c15*v_rocker_e2 + c17*v_rocker_e3) - 2*(c20*rocker_e0 + c21*rocker_e3)*(c22*v_coupler_e1 + c23*coupler_e1 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(-c18*v_rocker_e1 - c19*v_rocker_e0 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2) - 2*(c18*v_rocker_e2 + c19*v_rocker_e3 + 2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1)*(-c22*v_coupler_e3 - c23*coupler_e3 + 2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1)
-    out[15] = c20*v_rocker_e2 - c21*v_rocker_e1
-    out[16] = -c20*v_rocker_e1 - c21*v_rocker_e2
-    out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
-    out[18] = -2*c6 - 2*c7 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2
-    out[19] = -2*c8 - 2*c9 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
+    out[5] = -6/5*v_crank_e0**2 - 6/5*v_crank_e1**2
+    out[6] = -c2*v_crank_e0 - c3*v_crank_e1
+    out[7] = -c2*v_crank_e1 + c3*v_crank_e0
+    out[8] = -18/5*v_coupler_e0**2 - 18/5*v_coupler_e1**2 + (14/5)*v_rocker_e0**2 + (14/5)*v_rocker_e1**2
+    out[9] = -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2
+    out[10] = -c4*v_coupler_e1 + c5*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3
+    out[11] = -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2*(4*rocker_e0*v_rocker_e0 + 4*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2*(2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3)
+    out[15] = c16*v_rocker_e0 - c17*v_rocker_e3
+    out[16] = -c16*v_rocker_e3 - c17*v_rocker_e0
+    out[17] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
+    out[18] = -2*v_coupler_e0**2 - 2*v_coupler_e1**2 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2
+    out[19] = -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
     return out
 
 
@@ -292,8 +284,6 @@ def _joints_phi_jac_s(q):
     rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    c0 = -rocker_y
-    c1 = -rocker_z
     d0 = 2*crank_e2
     d1 = 2*crank_e3
     d2 = 2*crank_e0
@@ -311,16 +301,16 @@ def _joints_phi_jac_s(q):
     d14 = -7/5*rocker_e1
     d15 = (7/5)*rocker_e0
     d16 = 4*rocker_a12
-    d17 = 2*coupler_e1
-    d18 = 2*coupler_e3
-    d19 = 2*coupler_e0
-    d20 = 2*coupler_e2
-    d21 = 2*rocker_e2
-    d22 = 2*rocker_e1
-    d23 = 4*coupler_a21
-    d24 = 2*rocker_e3
-    d25 = 2*rocker_e0
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, -coupler_x + (3/10)*crank_a00 + crank_x, -coupler_y + (3/10)*crank_a10 + crank_y, -coupler_z + (3/10)*crank_a20 + crank_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, c0 + (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10, c1 + (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, c0, c1, rocker_a20, rocker_a21, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (6/5)*crank_e0, (6/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (18/5)*coupler_e0, (18/5)*coupler_e1, -1, -14/5*rocker_e0, -14/5*rocker_e1, 1, d8, d9, d10, d11, -1, d12, -d13, d14, -d15, 1, -d9, d8, -d11, d10, -1, d13, d12, d15, d14, coupler_e0*d16 + d17*rocker_a22 - d18*rocker_a02, d19*rocker_a22 + d20*rocker_a02, coupler_e2*d16 + d17*rocker_a02 + d18*rocker_a22, 2*coupler_e2*rocker_a22 - d19*rocker_a02, coupler_a01*d21 - coupler_a11*d22 + d23*rocker_e0, coupler_a01*d24 - coupler_a11*d25, coupler_a01*d25 + coupler_a11*d24, coupler_a01*d22 + coupler_a11*d21 + d23*rocker_e3, -1, -1, -1, -d21, d24, -d25, d22, d22, d25, d24, d21, d2, d3, d0, d1, d19, d17, d20, d18, d25, d22, d21, d24]
+    d17 = 2*rocker_a22
+    d18 = 2*rocker_a02
+    d19 = 2*coupler_a01
+    d20 = 2*coupler_a11
+    d21 = 4*coupler_a21
+    d22 = 2*rocker_e2
+    d23 = 2*rocker_e3
+    d24 = 2*rocker_e0
+    d25 = 2*rocker_e1
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (6/5)*crank_e0, (6/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (18/5)*coupler_e0, (18/5)*coupler_e1, -1, -14/5*rocker_e0, -14/5*rocker_e1, 1, d8, d9, d10, d11, -1, d12, -d13, d14, -d15, 1, -d9, d8, -d11, d10, -1, d13, d12, d15, d14, coupler_e0*d16 + coupler_e1*d17 - coupler_e3*d18, coupler_e0*d17 + coupler_e2*d18, coupler_e1*d18 + coupler_e2*d16 + coupler_e3*d17, -coupler_e0*d18 + 2*coupler_e2*rocker_a22, rocker_e0*d21 - rocker_e1*d20 + rocker_e2*d19, -rocker_e0*d20 + rocker_e3*d19, rocker_e0*d19 + rocker_e3*d20, rocker_e1*d19 + rocker_e2*d20 + rocker_e3*d21, -1, -1, -1, -d22, d23, -d24, d25, d25, d24, d23, d22, 2*crank_e0, 2*crank_e1, 2*crank_e2, 2*crank_e3, 2*coupler_e0, 2*coupler_e1, 2*coupler_e2, 2*coupler_e3, 2*rocker_e0, 2*rocker_e1, 2*rocker_e2, 2*rocker_e3]
 
 
 def _joints_gamma_s(q, v):
@@ -335,29 +325,23 @@ def _joints_gamma_s(q, v):
     rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
-    c2 = v_crank_e0**2
-    c3 = v_crank_e1**2
-    c4 = (6/5)*v_crank_e3
-    c5 = (6/5)*v_crank_e2
-    c6 = v_coupler_e0**2
-    c7 = v_coupler_e1**2
-    c8 = v_rocker_e0**2
-    c9 = v_rocker_e1**2
-    c10 = (18/5)*v_coupler_e3
-    c11 = (18/5)*v_coupler_e2
-    c12 = 2*rocker_a02
-    c13 = 2*rocker_a22
-    c14 = 2*coupler_a01
-    c15 = 2*coupler_a11
-    c16 = 4*rocker_a12
-    c17 = 4*coupler_a21
-    c18 = 2*rocker_e0
-    c19 = 2*rocker_e1
-    c20 = 4*v_rocker_e0
-    c21 = 4*v_rocker_e3
-    c22 = 2*coupler_e0
-    c23 = 2*v_coupler_e0
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*c2 - 6/5*c3, -c4*v_crank_e0 - c5*v_crank_e1, -c4*v_crank_e1 + c5*v_crank_e0, -18/5*c6 - 18/5*c7 + (14/5)*c8 + (14/5)*c9, -c10*v_coupler_e0 - c11*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, -c10*v_coupler_e1 + c11*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(-c12*v_coupler_e3 + c13*v_coupler_e1 + c16*v_coupler_e0) - v_coupler_e1*(c12*v_coupler_e2 + c13*v_coupler_e0) - v_coupler_e2*(c12*v_coupler_e1 + c13*v_coupler_e3 + c16*v_coupler_e2) - v_coupler_e3*(-c12*v_coupler_e0 + 2*rocker_a22*v_coupler_e2) - v_rocker_e0*(c14*v_rocker_e2 - c15*v_rocker_e1 + c17*v_rocker_e0) - v_rocker_e1*(c14*v_rocker_e3 - c15*v_rocker_e0) - v_rocker_e2*(c14*v_rocker_e0 + c15*v_rocker_e3) - v_rocker_e3*(c14*v_rocker_e1 + c15*v_rocker_e2 + c17*v_rocker_e3) - 2*(c20*rocker_e0 + c21*rocker_e3)*(c22*v_coupler_e1 + c23*coupler_e1 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(-c18*v_rocker_e1 - c19*v_rocker_e0 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2) - 2*(c18*v_rocker_e2 + c19*v_rocker_e3 + 2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1)*(-c22*v_coupler_e3 - c23*coupler_e3 + 2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1), 0.0, 0.0, 0.0, c20*v_rocker_e2 - c21*v_rocker_e1, -c20*v_rocker_e1 - c21*v_rocker_e2, -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*c6 - 2*c7 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2, -2*c8 - 2*c9 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
+    c2 = (6/5)*v_crank_e3
+    c3 = (6/5)*v_crank_e2
+    c4 = (18/5)*v_coupler_e3
+    c5 = (18/5)*v_coupler_e2
+    c6 = 2*rocker_a02
+    c7 = 2*rocker_a22
+    c8 = 2*coupler_a01
+    c9 = 2*coupler_a11
+    c10 = 4*rocker_a12
+    c11 = 4*coupler_a21
+    c12 = 2*rocker_e0
+    c13 = 2*rocker_e1
+    c14 = 2*coupler_e0
+    c15 = 2*v_coupler_e0
+    c16 = 4*v_rocker_e2
+    c17 = 4*v_rocker_e1
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*v_crank_e0**2 - 6/5*v_crank_e1**2, -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -18/5*v_coupler_e0**2 - 18/5*v_coupler_e1**2 + (14/5)*v_rocker_e0**2 + (14/5)*v_rocker_e1**2, -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, -c4*v_coupler_e1 + c5*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2*(4*rocker_e0*v_rocker_e0 + 4*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2*(2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3), 0.0, 0.0, 0.0, c16*v_rocker_e0 - c17*v_rocker_e3, -c16*v_rocker_e3 - c17*v_rocker_e0, -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_coupler_e0**2 - 2*v_coupler_e1**2 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2, -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
 
 
 def inputs_crank_turn(t):
@@ -413,7 +397,7 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)
+    out[0] = -ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)
     return out
 
 
@@ -445,7 +429,7 @@ def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)]
+    return [-ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
 
 
 def phi_crank_turn(q, u):

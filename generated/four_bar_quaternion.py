@@ -71,24 +71,22 @@ def _joints_phi(q):
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = -rocker_y
-    c1 = -rocker_z
     out = _zeros(17, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = -coupler_x + (3/10)*crank_a00 + crank_x
-    out[6] = -coupler_y + (3/10)*crank_a10 + crank_y
-    out[7] = -coupler_z + (3/10)*crank_a20 + crank_z
+    out[5] = (3/10)*crank_a00 + crank_x - coupler_x
+    out[6] = (3/10)*crank_a10 + crank_y - coupler_y
+    out[7] = (3/10)*crank_a20 + crank_z - coupler_z
     out[8] = (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x
-    out[9] = c0 + (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10
-    out[10] = c1 + (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20
+    out[9] = (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y
+    out[10] = (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z
     out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22
     out[12] = 1 - rocker_x
-    out[13] = c0
-    out[14] = c1
+    out[13] = -rocker_y
+    out[14] = -rocker_z
     out[15] = rocker_a20
     out[16] = rocker_a21
     return out
@@ -207,34 +205,33 @@ def _joints_gamma(q, v):
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c1 = c0*v_crank_theta_x
+    c0 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
+    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
     c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
-    c3 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
-    c4 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
-    c5 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
-    c6 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
-    c7 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
-    c8 = (7/10)*v_rocker_theta_z
-    c9 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
-    c10 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
-    c11 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
-    c12 = rocker_a02*v_rocker_theta_y
-    c13 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
-    c14 = rocker_a22*v_rocker_theta_x
-    c15 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
-    c16 = rocker_a12*v_rocker_theta_z
+    c3 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
+    c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
+    c5 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
+    c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
+    c7 = (7/10)*v_rocker_theta_z
+    c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
+    c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
+    c10 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
+    c11 = rocker_a02*v_rocker_theta_y
+    c12 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
+    c13 = rocker_a22*v_rocker_theta_x
+    c14 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
+    c15 = rocker_a12*v_rocker_theta_z
     out = _zeros(17, q, ())
-    out[3] = -c1 + c2*v_crank_theta_y
+    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
     out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
-    out[5] = (3/10)*c0*v_crank_theta_z - c3*v_crank_theta_y
-    out[6] = -3/10*c2*v_crank_theta_z + c3*v_crank_theta_x
-    out[7] = -3/10*c1 + (3/10)*c2*v_crank_theta_y
-    out[8] = -c4*v_coupler_theta_y + (9/10)*c5*v_coupler_theta_z + (7/10)*c6*v_rocker_theta_y - c7*c8
-    out[9] = c10*c8 + c4*v_coupler_theta_x - 7/10*c6*v_rocker_theta_x - 9/10*c9*v_coupler_theta_z
-    out[10] = -7/10*c10*v_rocker_theta_y - 9/10*c5*v_coupler_theta_x + (7/10)*c7*v_rocker_theta_x + (9/10)*c9*v_coupler_theta_y
-    out[11] = c11*(-c12 + rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x) - c13*(-c14 - rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x) + c15*(-c16 + rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y) - (-c12 + rocker_a12*v_rocker_theta_x)*(-c11 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - (-c14 + rocker_a02*v_rocker_theta_z)*(c13 - coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x) - (-c16 + rocker_a22*v_rocker_theta_y)*(-c15 + coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y)
-    out[15] = c10*v_rocker_theta_y - c7*v_rocker_theta_x
+    out[5] = -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z
+    out[6] = c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z
+    out[7] = -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y
+    out[8] = -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7
+    out[9] = c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z
+    out[10] = -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y
+    out[11] = c14*(rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y - c15) + c10*(rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x - c11) - c12*(-rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x - c13) - (rocker_a02*v_rocker_theta_z - c13)*(-coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x + c12) - (rocker_a12*v_rocker_theta_x - c11)*(coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x - c10) - (rocker_a22*v_rocker_theta_y - c15)*(coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y - c14)
+    out[15] = -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)
     out[16] = -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)
     return out
 
@@ -263,8 +260,6 @@ def _joints_phi_jac_s(q):
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = -rocker_y
-    c1 = -rocker_z
     d0 = (3/10)*crank_a20
     d1 = (3/10)*crank_a10
     d2 = (3/10)*crank_a00
@@ -277,7 +272,7 @@ def _joints_phi_jac_s(q):
     d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
     d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
     d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, -coupler_x + (3/10)*crank_a00 + crank_x, -coupler_y + (3/10)*crank_a10 + crank_y, -coupler_z + (3/10)*crank_a20 + crank_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, c0 + (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10, c1 + (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, c0, c1, rocker_a20, rocker_a21], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, 1, d0, -d1, -1, 1, -d0, d2, -1, 1, d1, -d2, -1, 1, d3, -d4, -1, -d5, d6, 1, -d3, d7, -1, d5, -d8, 1, d4, -d7, -1, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1, -1, -1, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, 1, d0, -d1, -1, 1, -d0, d2, -1, 1, d1, -d2, -1, 1, d3, -d4, -1, -d5, d6, 1, -d3, d7, -1, d5, -d8, 1, d4, -d7, -1, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1, -1, -1, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
 
 
 def _joints_gamma_s(q, v):
@@ -305,24 +300,23 @@ def _joints_gamma_s(q, v):
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c1 = c0*v_crank_theta_x
+    c0 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
+    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
     c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
-    c3 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
-    c4 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
-    c5 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
-    c6 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
-    c7 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
-    c8 = (7/10)*v_rocker_theta_z
-    c9 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
-    c10 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
-    c11 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
-    c12 = rocker_a02*v_rocker_theta_y
-    c13 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
-    c14 = rocker_a22*v_rocker_theta_x
-    c15 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
-    c16 = rocker_a12*v_rocker_theta_z
-    return [0.0, 0.0, 0.0, -c1 + c2*v_crank_theta_y, -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), (3/10)*c0*v_crank_theta_z - c3*v_crank_theta_y, -3/10*c2*v_crank_theta_z + c3*v_crank_theta_x, -3/10*c1 + (3/10)*c2*v_crank_theta_y, -c4*v_coupler_theta_y + (9/10)*c5*v_coupler_theta_z + (7/10)*c6*v_rocker_theta_y - c7*c8, c10*c8 + c4*v_coupler_theta_x - 7/10*c6*v_rocker_theta_x - 9/10*c9*v_coupler_theta_z, -7/10*c10*v_rocker_theta_y - 9/10*c5*v_coupler_theta_x + (7/10)*c7*v_rocker_theta_x + (9/10)*c9*v_coupler_theta_y, c11*(-c12 + rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x) - c13*(-c14 - rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x) + c15*(-c16 + rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y) - (-c12 + rocker_a12*v_rocker_theta_x)*(-c11 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - (-c14 + rocker_a02*v_rocker_theta_z)*(c13 - coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x) - (-c16 + rocker_a22*v_rocker_theta_y)*(-c15 + coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y), 0.0, 0.0, 0.0, c10*v_rocker_theta_y - c7*v_rocker_theta_x, -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)]
+    c3 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
+    c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
+    c5 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
+    c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
+    c7 = (7/10)*v_rocker_theta_z
+    c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
+    c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
+    c10 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
+    c11 = rocker_a02*v_rocker_theta_y
+    c12 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
+    c13 = rocker_a22*v_rocker_theta_x
+    c14 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
+    c15 = rocker_a12*v_rocker_theta_z
+    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z, c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z, -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y, -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7, c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z, -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y, c14*(rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y - c15) + c10*(rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x - c11) - c12*(-rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x - c13) - (rocker_a02*v_rocker_theta_z - c13)*(-coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x + c12) - (rocker_a12*v_rocker_theta_x - c11)*(coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x - c10) - (rocker_a22*v_rocker_theta_y - c15)*(coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y - c14), 0.0, 0.0, 0.0, -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y), -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)]
 
 
 def inputs_crank_turn(t):
@@ -382,14 +376,14 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*c1*crank_qz + c2*c3
+    c4 = -1/2*crank_qz*c1 + c2*c3
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)
+    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)
     return out
 
 
@@ -424,13 +418,13 @@ def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
     c1 = math.cos(c0)
     c2 = math.sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*c1*crank_qz + c2*c3
+    c4 = -1/2*crank_qz*c1 + c2*c3
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)]
+    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
 
 
 def phi_crank_turn(q, u):

@@ -105,14 +105,23 @@ def _joints_jac(q):
     d10 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
     d11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
     d12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
-    d13 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
-    d14 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
-    d15 = 4*rocker_e0
-    d16 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    d17 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
-    d18 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    d19 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    d20 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d13 = 2*crank_e2
+    d14 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d15 = 2*crank_e3
+    d16 = 2*crank_e0
+    d17 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d18 = 4*rocker_e0
+    d19 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
+    d20 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d21 = 2*rocker_e1
+    d22 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
+    d23 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    d24 = 2*d23
+    d25 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d26 = 2*d25
+    d27 = 2*rocker_e0
+    d28 = 2*rocker_e3
+    d29 = 2*rocker_e2
     out = _zeros(44, q, ())
     out[0] = -1
     out[1] = -1
@@ -139,25 +148,25 @@ def _joints_jac(q):
     out[22] = d8
     out[23] = d9
     out[24] = d10
-    out[25] = crank_e0*d11 - d0*d12 + d1*d13
-    out[26] = crank_e1*d11 + d0*d13 + d1*d12
-    out[27] = 2*crank_e1*d13 - d12*d2
-    out[28] = d12*d3 + d13*d2
+    out[25] = crank_e0*d11 - d12*d13 + d14*d15
+    out[26] = crank_e1*d11 + d12*d15 + d13*d14
+    out[27] = 2*crank_e1*d14 - d12*d16
+    out[28] = 2*crank_e1*d12 + d14*d16
     out[29] = -d8
     out[30] = -d9
     out[31] = -d10
-    out[32] = d14*d15 + d15*d16 - d17*d6 + d18*d6 + d19*d5 - d20*d4
-    out[33] = -d17*d7 + d18*d7 + d19*d4 + d20*d5
-    out[34] = 4*d14*rocker_e2 + d17*d4 + d18*d4 + d19*d7 + d20*d6
-    out[35] = 4*d16*rocker_e3 + d17*d5 + d18*d5 + d19*d6 - d20*d7
-    out[36] = d2
-    out[37] = d3
-    out[38] = d0
-    out[39] = d1
-    out[40] = d7
-    out[41] = d6
-    out[42] = d5
-    out[43] = d4
+    out[32] = rocker_e2*d24 - rocker_e3*d26 + d18*d19 + d18*d17 - d20*d21 + d21*d22
+    out[33] = rocker_e2*d26 + rocker_e3*d24 - d20*d27 + d22*d27
+    out[34] = rocker_e0*d24 + 4*rocker_e2*d17 + d20*d28 + d21*d25 + d22*d28
+    out[35] = -rocker_e0*d26 + 4*rocker_e3*d19 + d20*d29 + d21*d23 + d22*d29
+    out[36] = 2*crank_e0
+    out[37] = 2*crank_e1
+    out[38] = 2*crank_e2
+    out[39] = 2*crank_e3
+    out[40] = 2*rocker_e0
+    out[41] = 2*rocker_e1
+    out[42] = 2*rocker_e2
+    out[43] = 2*rocker_e3
     return out
 
 
@@ -182,16 +191,16 @@ def _joints_gamma(q, v):
     c5 = -c4
     c6 = (9/100)*crank_a10 + (3/5)*crank_y + (0.13208196)*rocker_a11 - 0.122288004*rocker_a12 - 3/5*rocker_y
     c7 = (0.81525336)*rocker_e1
-    c8 = c7 + (1.7610928)*rocker_e0
+    c8 = (1.7610928)*rocker_e0 + c7
     c9 = -0.81525336*rocker_e3
-    c10 = c9 + (1.7610928)*rocker_e2
+    c10 = (1.7610928)*rocker_e2 + c9
     c11 = (0.81525336)*rocker_e2
     c12 = (3/5)*crank_e0
     c13 = (3/5)*crank_e1
     c14 = (3/5)*crank_e2
     c15 = (3/5)*crank_e3
     c16 = (0.81525336)*rocker_e0
-    c17 = -c11*v_rocker_e3 + c12*v_crank_e3 + c13*v_crank_e2 + c14*v_crank_e1 + c15*v_crank_e0 + c16*v_rocker_e1 + 2*v_crank_y - 2*v_rocker_y
+    c17 = c14*v_crank_e1 + c15*v_crank_e0 + c16*v_rocker_e1 - c11*v_rocker_e3 + c12*v_crank_e3 + c13*v_crank_e2 + 2*v_crank_y - 2*v_rocker_y
     c18 = 2*v_crank_z
     c19 = 2*v_rocker_z
     c20 = c12*v_crank_e2
@@ -203,16 +212,16 @@ def _joints_gamma(q, v):
     c26 = (0.8805464)*rocker_e3
     c27 = c26*v_rocker_e2
     c28 = -0.8805464*rocker_e1
-    c29 = c28 + (1.63050672)*rocker_e0
+    c29 = (1.63050672)*rocker_e0 + c28
     c30 = (0.8805464)*rocker_e2
-    c31 = c30 - 1.63050672*rocker_e3
+    c31 = -1.63050672*rocker_e3 + c30
     c32 = 2*v_crank_x
     c33 = 2*v_rocker_x
     c34 = crank_e0*v_crank_e0
     c35 = (6/5)*c34
     c36 = crank_e1*v_crank_e1
     c37 = (6/5)*c36
-    c38 = c11 + c26
+    c38 = c26 + c11
     c39 = c30 + c9
     c40 = c16 + c28
     c41 = c24 + c7
@@ -243,7 +252,7 @@ def _joints_gamma(q, v):
     c66 = (0.122288004)*rocker_e1
     c67 = 2*rocker_e0
     c68 = 2*v_rocker_e0
-    c69 = c67*v_rocker_e1 + c68*rocker_e1
+    c69 = rocker_e1*c68 + c67*v_rocker_e1
     c70 = (0.1661595102478224)*rocker_e0
     c71 = (0.358934205617952)*rocker_e0
     c72 = (0.1661595102478224)*rocker_e1
@@ -257,9 +266,9 @@ def _joints_gamma(q, v):
     c80 = (0.179467102808976)*rocker_a22
     c81 = (0.8805464)*rocker_z
     c82 = (0.122288004)*crank_a10 + (0.81525336)*crank_y + (0.179467102808976)*rocker_a11 - 0.1661595102478224*rocker_a12 - 0.81525336*rocker_y
-    c83 = -c80 - c81 + c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c83 = (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21 - c80 - c81 + c82
     c84 = (0.26416392)*crank_a10 + (1.7610928)*crank_y + (0.38768098127648)*rocker_a11 - 0.358934205617952*rocker_a12 - 1.7610928*rocker_y
-    c85 = -c80 - c81 - c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c85 = (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21 - c80 - c81 - c82
     c86 = -c78
     c87 = (0.244576008)*crank_a20
     c88 = (1.63050672)*crank_z
@@ -269,7 +278,7 @@ def _joints_gamma(q, v):
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[8] = c2*v_rocker_e0 - c3*v_rocker_e1
     out[9] = -c2*v_rocker_e1 - c3*v_rocker_e0
-    out[10] = -v_crank_e0*(c42*v_crank_e0 + c5*v_crank_e2 + c6*v_crank_e3) - v_crank_e1*(c4*v_crank_e3 + c42*v_crank_e1 + c6*v_crank_e2) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c10*v_rocker_e2 + c17 + c8*v_rocker_e0) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*(c84 - c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*(-c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c10*v_rocker_e2 - c17 - c8*v_rocker_e0) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (c1*crank_e1 + 4*c34)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (c2*rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*(c58 + (0.3323190204956448)*rocker_e0) + v_rocker_e3*(-c50 + (0.3323190204956448)*rocker_e3) + (0.40762668)*v_rocker_z) - (c3*rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*(c51 + (0.38768098127648)*rocker_e0) + v_rocker_e2*(c53 + (0.38768098127648)*rocker_e2) - 0.4402732*v_rocker_y) - (-c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 + (0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-c73 - 0.358934205617952*rocker_e2) + (0.40762668)*v_rocker_y) - (c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(c77 - 0.358934205617952*rocker_e3) - 0.4402732*v_rocker_z) - (2*c44 + 2*c45 + 2*c46 + 2*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*(c66 + (0.26416392)*rocker_e0) + v_rocker_e2*(c62 + (0.26416392)*rocker_e2) - 3/10*v_rocker_y) - (-2*c54 - 2*c56 + 2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-c64 - 0.244576008*rocker_e0) + v_rocker_e3*(c61 - 0.244576008*rocker_e3) - 3/10*v_rocker_z) - (c67*v_rocker_e2 + c68*rocker_e2 + 2*rocker_e1*v_rocker_e3 + 2*rocker_e3*v_rocker_e1)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*(c52 + (0.1661595102478224)*rocker_e2) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x) - (-c67*v_rocker_e3 - c68*rocker_e3 + 2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x)
+    out[10] = -v_crank_e0*(c5*v_crank_e2 + c6*v_crank_e3 + c42*v_crank_e0) - v_crank_e1*(c4*v_crank_e3 + c6*v_crank_e2 + c42*v_crank_e1) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c17 + c8*v_rocker_e0 + c10*v_rocker_e2) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z + c84 - c87 - c88 - c89)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z - c87 - c88 - c89)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c17 - c8*v_rocker_e0 - c10*v_rocker_e2) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (4*c34 + 4*c36)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (4*rocker_e2*v_rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*((0.38768098127648)*rocker_e0 + c51) + v_rocker_e2*((0.38768098127648)*rocker_e2 + c53) - 0.4402732*v_rocker_y) - (4*rocker_e3*v_rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*((0.3323190204956448)*rocker_e0 + c58) + v_rocker_e3*((0.3323190204956448)*rocker_e3 - c50) + (0.40762668)*v_rocker_z) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c69)*((0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-0.358934205617952*rocker_e2 - c73) + (0.40762668)*v_rocker_y) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 + c69)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(-0.358934205617952*rocker_e3 + c77) - 0.4402732*v_rocker_z) - (2*c44 + 2*c45 + 2*c46 + 2*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*((0.26416392)*rocker_e0 + c66) + v_rocker_e2*((0.26416392)*rocker_e2 + c62) - 3/10*v_rocker_y) - (2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1 - 2*c54 - 2*c56)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-0.244576008*rocker_e0 - c64) + v_rocker_e3*(-0.244576008*rocker_e3 + c61) - 3/10*v_rocker_z) - (2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1 - rocker_e3*c68 - c67*v_rocker_e3)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x) - (2*rocker_e1*v_rocker_e3 + rocker_e2*c68 + 2*rocker_e3*v_rocker_e1 + c67*v_rocker_e2)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*((0.1661595102478224)*rocker_e2 + c52) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x)
     out[11] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[12] = -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
     return out
@@ -301,15 +310,24 @@ def _joints_phi_jac_s(q):
     d10 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
     d11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
     d12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
-    d13 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
-    d14 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
-    d15 = 4*rocker_e0
-    d16 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    d17 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
-    d18 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    d19 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    d20 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, -1, -1, -1, -d4, d5, d6, -d7, d5, d4, d7, d6, d8, d9, d10, crank_e0*d11 - d0*d12 + d1*d13, crank_e1*d11 + d0*d13 + d1*d12, 2*crank_e1*d13 - d12*d2, d12*d3 + d13*d2, -d8, -d9, -d10, d14*d15 + d15*d16 - d17*d6 + d18*d6 + d19*d5 - d20*d4, -d17*d7 + d18*d7 + d19*d4 + d20*d5, 4*d14*rocker_e2 + d17*d4 + d18*d4 + d19*d7 + d20*d6, 4*d16*rocker_e3 + d17*d5 + d18*d5 + d19*d6 - d20*d7, d2, d3, d0, d1, d7, d6, d5, d4]
+    d13 = 2*crank_e2
+    d14 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d15 = 2*crank_e3
+    d16 = 2*crank_e0
+    d17 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d18 = 4*rocker_e0
+    d19 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
+    d20 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d21 = 2*rocker_e1
+    d22 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
+    d23 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    d24 = 2*d23
+    d25 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d26 = 2*d25
+    d27 = 2*rocker_e0
+    d28 = 2*rocker_e3
+    d29 = 2*rocker_e2
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, -1, -1, -1, -d4, d5, d6, -d7, d5, d4, d7, d6, d8, d9, d10, crank_e0*d11 - d12*d13 + d14*d15, crank_e1*d11 + d12*d15 + d13*d14, 2*crank_e1*d14 - d12*d16, 2*crank_e1*d12 + d14*d16, -d8, -d9, -d10, rocker_e2*d24 - rocker_e3*d26 + d18*d19 + d18*d17 - d20*d21 + d21*d22, rocker_e2*d26 + rocker_e3*d24 - d20*d27 + d22*d27, rocker_e0*d24 + 4*rocker_e2*d17 + d20*d28 + d21*d25 + d22*d28, -rocker_e0*d26 + 4*rocker_e3*d19 + d20*d29 + d21*d23 + d22*d29, 2*crank_e0, 2*crank_e1, 2*crank_e2, 2*crank_e3, 2*rocker_e0, 2*rocker_e1, 2*rocker_e2, 2*rocker_e3]
 
 
 def _joints_gamma_s(q, v):
@@ -333,16 +351,16 @@ def _joints_gamma_s(q, v):
     c5 = -c4
     c6 = (9/100)*crank_a10 + (3/5)*crank_y + (0.13208196)*rocker_a11 - 0.122288004*rocker_a12 - 3/5*rocker_y
     c7 = (0.81525336)*rocker_e1
-    c8 = c7 + (1.7610928)*rocker_e0
+    c8 = (1.7610928)*rocker_e0 + c7
     c9 = -0.81525336*rocker_e3
-    c10 = c9 + (1.7610928)*rocker_e2
+    c10 = (1.7610928)*rocker_e2 + c9
     c11 = (0.81525336)*rocker_e2
     c12 = (3/5)*crank_e0
     c13 = (3/5)*crank_e1
     c14 = (3/5)*crank_e2
     c15 = (3/5)*crank_e3
     c16 = (0.81525336)*rocker_e0
-    c17 = -c11*v_rocker_e3 + c12*v_crank_e3 + c13*v_crank_e2 + c14*v_crank_e1 + c15*v_crank_e0 + c16*v_rocker_e1 + 2*v_crank_y - 2*v_rocker_y
+    c17 = c14*v_crank_e1 + c15*v_crank_e0 + c16*v_rocker_e1 - c11*v_rocker_e3 + c12*v_crank_e3 + c13*v_crank_e2 + 2*v_crank_y - 2*v_rocker_y
     c18 = 2*v_crank_z
     c19 = 2*v_rocker_z
     c20 = c12*v_crank_e2
@@ -354,16 +372,16 @@ def _joints_gamma_s(q, v):
     c26 = (0.8805464)*rocker_e3
     c27 = c26*v_rocker_e2
     c28 = -0.8805464*rocker_e1
-    c29 = c28 + (1.63050672)*rocker_e0
+    c29 = (1.63050672)*rocker_e0 + c28
     c30 = (0.8805464)*rocker_e2
-    c31 = c30 - 1.63050672*rocker_e3
+    c31 = -1.63050672*rocker_e3 + c30
     c32 = 2*v_crank_x
     c33 = 2*v_rocker_x
     c34 = crank_e0*v_crank_e0
     c35 = (6/5)*c34
     c36 = crank_e1*v_crank_e1
     c37 = (6/5)*c36
-    c38 = c11 + c26
+    c38 = c26 + c11
     c39 = c30 + c9
     c40 = c16 + c28
     c41 = c24 + c7
@@ -394,7 +412,7 @@ def _joints_gamma_s(q, v):
     c66 = (0.122288004)*rocker_e1
     c67 = 2*rocker_e0
     c68 = 2*v_rocker_e0
-    c69 = c67*v_rocker_e1 + c68*rocker_e1
+    c69 = rocker_e1*c68 + c67*v_rocker_e1
     c70 = (0.1661595102478224)*rocker_e0
     c71 = (0.358934205617952)*rocker_e0
     c72 = (0.1661595102478224)*rocker_e1
@@ -408,14 +426,14 @@ def _joints_gamma_s(q, v):
     c80 = (0.179467102808976)*rocker_a22
     c81 = (0.8805464)*rocker_z
     c82 = (0.122288004)*crank_a10 + (0.81525336)*crank_y + (0.179467102808976)*rocker_a11 - 0.1661595102478224*rocker_a12 - 0.81525336*rocker_y
-    c83 = -c80 - c81 + c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c83 = (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21 - c80 - c81 + c82
     c84 = (0.26416392)*crank_a10 + (1.7610928)*crank_y + (0.38768098127648)*rocker_a11 - 0.358934205617952*rocker_a12 - 1.7610928*rocker_y
-    c85 = -c80 - c81 - c82 + (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21
+    c85 = (0.13208196)*crank_a20 + (0.8805464)*crank_z + (0.19384049063824)*rocker_a21 - c80 - c81 - c82
     c86 = -c78
     c87 = (0.244576008)*crank_a20
     c88 = (1.63050672)*crank_z
     c89 = (0.358934205617952)*rocker_a21
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(c42*v_crank_e0 + c5*v_crank_e2 + c6*v_crank_e3) - v_crank_e1*(c4*v_crank_e3 + c42*v_crank_e1 + c6*v_crank_e2) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c10*v_rocker_e2 + c17 + c8*v_rocker_e0) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*(c84 - c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*(-c87 - c88 - c89 + (0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c10*v_rocker_e2 - c17 - c8*v_rocker_e0) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (c1*crank_e1 + 4*c34)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (c2*rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*(c58 + (0.3323190204956448)*rocker_e0) + v_rocker_e3*(-c50 + (0.3323190204956448)*rocker_e3) + (0.40762668)*v_rocker_z) - (c3*rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*(c51 + (0.38768098127648)*rocker_e0) + v_rocker_e2*(c53 + (0.38768098127648)*rocker_e2) - 0.4402732*v_rocker_y) - (-c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 + (0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-c73 - 0.358934205617952*rocker_e2) + (0.40762668)*v_rocker_y) - (c69 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(c77 - 0.358934205617952*rocker_e3) - 0.4402732*v_rocker_z) - (2*c44 + 2*c45 + 2*c46 + 2*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*(c66 + (0.26416392)*rocker_e0) + v_rocker_e2*(c62 + (0.26416392)*rocker_e2) - 3/10*v_rocker_y) - (-2*c54 - 2*c56 + 2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-c64 - 0.244576008*rocker_e0) + v_rocker_e3*(c61 - 0.244576008*rocker_e3) - 3/10*v_rocker_z) - (c67*v_rocker_e2 + c68*rocker_e2 + 2*rocker_e1*v_rocker_e3 + 2*rocker_e3*v_rocker_e1)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*(c52 + (0.1661595102478224)*rocker_e2) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x) - (-c67*v_rocker_e3 - c68*rocker_e3 + 2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x), -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(c5*v_crank_e2 + c6*v_crank_e3 + c42*v_crank_e0) - v_crank_e1*(c4*v_crank_e3 + c6*v_crank_e2 + c42*v_crank_e1) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c17 + c8*v_rocker_e0 + c10*v_rocker_e2) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z + c84 - c87 - c88 - c89)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z - c87 - c88 - c89)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c17 - c8*v_rocker_e0 - c10*v_rocker_e2) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (4*c34 + 4*c36)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (4*rocker_e2*v_rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*((0.38768098127648)*rocker_e0 + c51) + v_rocker_e2*((0.38768098127648)*rocker_e2 + c53) - 0.4402732*v_rocker_y) - (4*rocker_e3*v_rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*((0.3323190204956448)*rocker_e0 + c58) + v_rocker_e3*((0.3323190204956448)*rocker_e3 - c50) + (0.40762668)*v_rocker_z) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c69)*((0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-0.358934205617952*rocker_e2 - c73) + (0.40762668)*v_rocker_y) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 + c69)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(-0.358934205617952*rocker_e3 + c77) - 0.4402732*v_rocker_z) - (2*c44 + 2*c45 + 2*c46 + 2*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*((0.26416392)*rocker_e0 + c66) + v_rocker_e2*((0.26416392)*rocker_e2 + c62) - 3/10*v_rocker_y) - (2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1 - 2*c54 - 2*c56)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-0.244576008*rocker_e0 - c64) + v_rocker_e3*(-0.244576008*rocker_e3 + c61) - 3/10*v_rocker_z) - (2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1 - rocker_e3*c68 - c67*v_rocker_e3)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x) - (2*rocker_e1*v_rocker_e3 + rocker_e2*c68 + 2*rocker_e3*v_rocker_e1 + c67*v_rocker_e2)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*((0.1661595102478224)*rocker_e2 + c52) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x), -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
 
 
 def inputs_turn(t):
@@ -472,7 +490,7 @@ def _drivers_gamma_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)
+    out[0] = -ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)
     return out
 
 
@@ -504,7 +522,7 @@ def _drivers_gamma_s_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)]
+    return [-ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
 
 
 def phi_turn(q, u):

@@ -128,9 +128,9 @@ def _joints_jac(q):
     out[20] = -d0
     out[21] = -d1
     out[22] = -d2
-    out[23] = d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22
-    out[24] = d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02
-    out[25] = -d10*rocker_a11 - d11*rocker_a12 + d8*rocker_a01 + d9*rocker_a02
+    out[23] = rocker_a11*d6 + rocker_a12*d7 - rocker_a21*d8 - rocker_a22*d9
+    out[24] = -rocker_a01*d6 - rocker_a02*d7 + rocker_a21*d10 + rocker_a22*d11
+    out[25] = rocker_a01*d8 + rocker_a02*d9 - rocker_a11*d10 - rocker_a12*d11
     return out
 
 
@@ -150,54 +150,48 @@ def _joints_gamma(q, v):
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = crank_a00*v_crank_theta_z
-    c1 = crank_a20*v_crank_theta_x
-    c2 = c0 - c1
-    c3 = crank_a10*v_crank_theta_z
-    c4 = -c3 + crank_a20*v_crank_theta_y
-    c5 = -rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x
-    c6 = rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x
-    c7 = -rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x
-    c8 = rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x
-    c9 = 2*v_crank_x
-    c10 = 2*v_rocker_x
-    c11 = (3/10)*c3
-    c12 = crank_a20*v_crank_theta_y
-    c13 = (3/10)*c12
-    c14 = (0.4402732)*rocker_a21 - 0.40762668*rocker_a22
-    c15 = (0.4402732)*rocker_a11 - 0.40762668*rocker_a12
-    c16 = -c15
-    c17 = 2*v_crank_y
-    c18 = 2*v_rocker_y
-    c19 = (3/10)*c0
-    c20 = (3/10)*c1
-    c21 = -c14
-    c22 = (0.4402732)*rocker_a01 - 0.40762668*rocker_a02
-    c23 = 2*v_crank_z
-    c24 = 2*v_rocker_z
-    c25 = crank_a00*v_crank_theta_y
-    c26 = (3/10)*c25
-    c27 = crank_a10*v_crank_theta_x
-    c28 = (3/10)*c27
-    c29 = -c22
-    c30 = (0.06604098)*crank_a10 + (0.4402732)*crank_y - 0.4402732*rocker_y
-    c31 = (0.06604098)*crank_a00 + (0.4402732)*crank_x - 0.4402732*rocker_x
-    c32 = (0.06604098)*crank_a20 + (0.4402732)*crank_z - 0.4402732*rocker_z
-    c33 = (0.061144002)*crank_a10 + (0.40762668)*crank_y - 0.40762668*rocker_y
-    c34 = (0.061144002)*crank_a00 + (0.40762668)*crank_x - 0.40762668*rocker_x
-    c35 = (0.061144002)*crank_a20 + (0.40762668)*crank_z - 0.40762668*rocker_z
-    c36 = (0.06604098)*rocker_a11 - 0.061144002*rocker_a12
-    c37 = (0.06604098)*rocker_a01 - 0.061144002*rocker_a02
-    c38 = c36 + (3/10)*crank_y - 3/10*rocker_y
-    c39 = c37 + (3/10)*crank_x - 3/10*rocker_x
-    c40 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
-    c41 = c40 + (3/10)*crank_z - 3/10*rocker_z
+    c0 = 2*v_crank_x
+    c1 = 2*v_rocker_x
+    c2 = crank_a10*v_crank_theta_z
+    c3 = (3/10)*c2
+    c4 = crank_a20*v_crank_theta_y
+    c5 = (3/10)*c4
+    c6 = (0.4402732)*rocker_a21 - 0.40762668*rocker_a22
+    c7 = (0.4402732)*rocker_a11 - 0.40762668*rocker_a12
+    c8 = -c7
+    c9 = 2*v_crank_y
+    c10 = 2*v_rocker_y
+    c11 = crank_a00*v_crank_theta_z
+    c12 = (3/10)*c11
+    c13 = crank_a20*v_crank_theta_x
+    c14 = (3/10)*c13
+    c15 = -c6
+    c16 = (0.4402732)*rocker_a01 - 0.40762668*rocker_a02
+    c17 = 2*v_crank_z
+    c18 = 2*v_rocker_z
+    c19 = crank_a00*v_crank_theta_y
+    c20 = (3/10)*c19
+    c21 = crank_a10*v_crank_theta_x
+    c22 = (3/10)*c21
+    c23 = -c16
+    c24 = (0.06604098)*crank_a10 + (0.4402732)*crank_y - 0.4402732*rocker_y
+    c25 = (0.06604098)*crank_a00 + (0.4402732)*crank_x - 0.4402732*rocker_x
+    c26 = (0.06604098)*crank_a20 + (0.4402732)*crank_z - 0.4402732*rocker_z
+    c27 = (0.061144002)*crank_a10 + (0.40762668)*crank_y - 0.40762668*rocker_y
+    c28 = (0.061144002)*crank_a00 + (0.40762668)*crank_x - 0.40762668*rocker_x
+    c29 = (0.061144002)*crank_a20 + (0.40762668)*crank_z - 0.40762668*rocker_z
+    c30 = (0.06604098)*rocker_a11 - 0.061144002*rocker_a12
+    c31 = (0.06604098)*rocker_a01 - 0.061144002*rocker_a02
+    c32 = (3/10)*crank_y - 3/10*rocker_y + c30
+    c33 = (3/10)*crank_x - 3/10*rocker_x + c31
+    c34 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
+    c35 = (3/10)*crank_z - 3/10*rocker_z + c34
     out = _zeros(11, q, ())
-    out[3] = -c2*v_crank_theta_x + c4*v_crank_theta_y
+    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
     out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
-    out[8] = -c5*v_rocker_theta_y + c6*v_rocker_theta_z
-    out[9] = -c7*v_rocker_theta_y + c8*v_rocker_theta_z
-    out[10] = -c2*(c37*v_rocker_theta_z - c39*v_crank_theta_z - c40*v_rocker_theta_x + c41*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - c4*(-c36*v_rocker_theta_z + c38*v_crank_theta_z + c40*v_rocker_theta_y - c41*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - c5*(-0.06604098*c25 + (0.06604098)*c27 - c30*v_rocker_theta_x + c31*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - c6*((0.06604098)*c0 - 0.06604098*c1 - c31*v_rocker_theta_z + c32*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - c7*((0.061144002)*c25 - 0.061144002*c27 + c33*v_rocker_theta_x - c34*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - c8*(-0.061144002*c0 + (0.061144002)*c1 + c34*v_rocker_theta_z - c35*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - v_crank_x*(-c10 - c11 + c13 + c14*v_rocker_theta_y + c16*v_rocker_theta_z + c9) - v_crank_y*(c17 - c18 + c19 - c20 + c21*v_rocker_theta_x + c22*v_rocker_theta_z) - v_crank_z*(c15*v_rocker_theta_x + c23 - c24 - c26 + c28 + c29*v_rocker_theta_y) - v_rocker_x*(c10 + c11 - c13 + c15*v_rocker_theta_z + c21*v_rocker_theta_y - c9) - v_rocker_y*(c14*v_rocker_theta_x - c17 + c18 - c19 + c20 + c29*v_rocker_theta_z) - v_rocker_z*(c16*v_rocker_theta_x + c22*v_rocker_theta_y - c23 + c24 + c26 - c28) - (-c25 + crank_a10*v_crank_theta_x)*(c36*v_rocker_theta_x - c37*v_rocker_theta_y - c38*v_crank_theta_x + c39*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*((0.06604098)*c12 - 0.06604098*c3 + c30*v_rocker_theta_z - c32*v_rocker_theta_y + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(-0.061144002*c12 + (0.061144002)*c3 - c33*v_rocker_theta_z + c35*v_rocker_theta_y - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)
+    out[8] = -v_rocker_theta_y*(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)
+    out[9] = -v_rocker_theta_y*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x)
+    out[10] = -v_crank_x*(c0 - c1 - c3 + c5 + c6*v_rocker_theta_y + c8*v_rocker_theta_z) - v_crank_y*(-c10 + c12 - c14 + c15*v_rocker_theta_x + c16*v_rocker_theta_z + c9) - v_crank_z*(c17 - c18 - c20 + c22 + c23*v_rocker_theta_y + c7*v_rocker_theta_x) - v_rocker_x*(-c0 + c1 + c15*v_rocker_theta_y + c3 - c5 + c7*v_rocker_theta_z) - v_rocker_y*(c10 - c12 + c14 + c23*v_rocker_theta_z + c6*v_rocker_theta_x - c9) - v_rocker_z*(c16*v_rocker_theta_y - c17 + c18 + c20 - c22 + c8*v_rocker_theta_x) - (c11 - c13)*(c31*v_rocker_theta_z - c33*v_crank_theta_z - c34*v_rocker_theta_x + c35*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - (crank_a10*v_crank_theta_x - c19)*(c30*v_rocker_theta_x - c31*v_rocker_theta_y - c32*v_crank_theta_x + c33*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - (crank_a20*v_crank_theta_y - c2)*(-c30*v_rocker_theta_z + c32*v_crank_theta_z + c34*v_rocker_theta_y - c35*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - (-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*(-0.06604098*c19 + (0.06604098)*c21 - c24*v_rocker_theta_x + c25*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)*((0.06604098)*c11 - 0.06604098*c13 - c25*v_rocker_theta_z + c26*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*((0.061144002)*c19 - 0.061144002*c21 + c27*v_rocker_theta_x - c28*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x)*(-0.061144002*c11 + (0.061144002)*c13 + c28*v_rocker_theta_z - c29*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*(-0.06604098*c2 + c24*v_rocker_theta_z - c26*v_rocker_theta_y + (0.06604098)*c4 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*((0.061144002)*c2 - c27*v_rocker_theta_z + c29*v_rocker_theta_y - 0.061144002*c4 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)
     return out
 
 
@@ -228,7 +222,7 @@ def _joints_phi_jac_s(q):
     d9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
     d10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
     d11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, -1, -1, -1, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, crank_a10*d3 - crank_a20*d4, -crank_a00*d3 + crank_a20*d5, crank_a00*d4 - crank_a10*d5, -d0, -d1, -d2, d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22, d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02, -d10*rocker_a11 - d11*rocker_a12 + d8*rocker_a01 + d9*rocker_a02]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, -1, -1, -1, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, crank_a10*d3 - crank_a20*d4, -crank_a00*d3 + crank_a20*d5, crank_a00*d4 - crank_a10*d5, -d0, -d1, -d2, rocker_a11*d6 + rocker_a12*d7 - rocker_a21*d8 - rocker_a22*d9, -rocker_a01*d6 - rocker_a02*d7 + rocker_a21*d10 + rocker_a22*d11, rocker_a01*d8 + rocker_a02*d9 - rocker_a11*d10 - rocker_a12*d11]
 
 
 def _joints_gamma_s(q, v):
@@ -247,49 +241,43 @@ def _joints_gamma_s(q, v):
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = crank_a00*v_crank_theta_z
-    c1 = crank_a20*v_crank_theta_x
-    c2 = c0 - c1
-    c3 = crank_a10*v_crank_theta_z
-    c4 = -c3 + crank_a20*v_crank_theta_y
-    c5 = -rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x
-    c6 = rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x
-    c7 = -rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x
-    c8 = rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x
-    c9 = 2*v_crank_x
-    c10 = 2*v_rocker_x
-    c11 = (3/10)*c3
-    c12 = crank_a20*v_crank_theta_y
-    c13 = (3/10)*c12
-    c14 = (0.4402732)*rocker_a21 - 0.40762668*rocker_a22
-    c15 = (0.4402732)*rocker_a11 - 0.40762668*rocker_a12
-    c16 = -c15
-    c17 = 2*v_crank_y
-    c18 = 2*v_rocker_y
-    c19 = (3/10)*c0
-    c20 = (3/10)*c1
-    c21 = -c14
-    c22 = (0.4402732)*rocker_a01 - 0.40762668*rocker_a02
-    c23 = 2*v_crank_z
-    c24 = 2*v_rocker_z
-    c25 = crank_a00*v_crank_theta_y
-    c26 = (3/10)*c25
-    c27 = crank_a10*v_crank_theta_x
-    c28 = (3/10)*c27
-    c29 = -c22
-    c30 = (0.06604098)*crank_a10 + (0.4402732)*crank_y - 0.4402732*rocker_y
-    c31 = (0.06604098)*crank_a00 + (0.4402732)*crank_x - 0.4402732*rocker_x
-    c32 = (0.06604098)*crank_a20 + (0.4402732)*crank_z - 0.4402732*rocker_z
-    c33 = (0.061144002)*crank_a10 + (0.40762668)*crank_y - 0.40762668*rocker_y
-    c34 = (0.061144002)*crank_a00 + (0.40762668)*crank_x - 0.40762668*rocker_x
-    c35 = (0.061144002)*crank_a20 + (0.40762668)*crank_z - 0.40762668*rocker_z
-    c36 = (0.06604098)*rocker_a11 - 0.061144002*rocker_a12
-    c37 = (0.06604098)*rocker_a01 - 0.061144002*rocker_a02
-    c38 = c36 + (3/10)*crank_y - 3/10*rocker_y
-    c39 = c37 + (3/10)*crank_x - 3/10*rocker_x
-    c40 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
-    c41 = c40 + (3/10)*crank_z - 3/10*rocker_z
-    return [0.0, 0.0, 0.0, -c2*v_crank_theta_x + c4*v_crank_theta_y, -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), 0.0, 0.0, 0.0, -c5*v_rocker_theta_y + c6*v_rocker_theta_z, -c7*v_rocker_theta_y + c8*v_rocker_theta_z, -c2*(c37*v_rocker_theta_z - c39*v_crank_theta_z - c40*v_rocker_theta_x + c41*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - c4*(-c36*v_rocker_theta_z + c38*v_crank_theta_z + c40*v_rocker_theta_y - c41*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - c5*(-0.06604098*c25 + (0.06604098)*c27 - c30*v_rocker_theta_x + c31*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - c6*((0.06604098)*c0 - 0.06604098*c1 - c31*v_rocker_theta_z + c32*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - c7*((0.061144002)*c25 - 0.061144002*c27 + c33*v_rocker_theta_x - c34*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - c8*(-0.061144002*c0 + (0.061144002)*c1 + c34*v_rocker_theta_z - c35*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - v_crank_x*(-c10 - c11 + c13 + c14*v_rocker_theta_y + c16*v_rocker_theta_z + c9) - v_crank_y*(c17 - c18 + c19 - c20 + c21*v_rocker_theta_x + c22*v_rocker_theta_z) - v_crank_z*(c15*v_rocker_theta_x + c23 - c24 - c26 + c28 + c29*v_rocker_theta_y) - v_rocker_x*(c10 + c11 - c13 + c15*v_rocker_theta_z + c21*v_rocker_theta_y - c9) - v_rocker_y*(c14*v_rocker_theta_x - c17 + c18 - c19 + c20 + c29*v_rocker_theta_z) - v_rocker_z*(c16*v_rocker_theta_x + c22*v_rocker_theta_y - c23 + c24 + c26 - c28) - (-c25 + crank_a10*v_crank_theta_x)*(c36*v_rocker_theta_x - c37*v_rocker_theta_y - c38*v_crank_theta_x + c39*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*((0.06604098)*c12 - 0.06604098*c3 + c30*v_rocker_theta_z - c32*v_rocker_theta_y + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(-0.061144002*c12 + (0.061144002)*c3 - c33*v_rocker_theta_z + c35*v_rocker_theta_y - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)]
+    c0 = 2*v_crank_x
+    c1 = 2*v_rocker_x
+    c2 = crank_a10*v_crank_theta_z
+    c3 = (3/10)*c2
+    c4 = crank_a20*v_crank_theta_y
+    c5 = (3/10)*c4
+    c6 = (0.4402732)*rocker_a21 - 0.40762668*rocker_a22
+    c7 = (0.4402732)*rocker_a11 - 0.40762668*rocker_a12
+    c8 = -c7
+    c9 = 2*v_crank_y
+    c10 = 2*v_rocker_y
+    c11 = crank_a00*v_crank_theta_z
+    c12 = (3/10)*c11
+    c13 = crank_a20*v_crank_theta_x
+    c14 = (3/10)*c13
+    c15 = -c6
+    c16 = (0.4402732)*rocker_a01 - 0.40762668*rocker_a02
+    c17 = 2*v_crank_z
+    c18 = 2*v_rocker_z
+    c19 = crank_a00*v_crank_theta_y
+    c20 = (3/10)*c19
+    c21 = crank_a10*v_crank_theta_x
+    c22 = (3/10)*c21
+    c23 = -c16
+    c24 = (0.06604098)*crank_a10 + (0.4402732)*crank_y - 0.4402732*rocker_y
+    c25 = (0.06604098)*crank_a00 + (0.4402732)*crank_x - 0.4402732*rocker_x
+    c26 = (0.06604098)*crank_a20 + (0.4402732)*crank_z - 0.4402732*rocker_z
+    c27 = (0.061144002)*crank_a10 + (0.40762668)*crank_y - 0.40762668*rocker_y
+    c28 = (0.061144002)*crank_a00 + (0.40762668)*crank_x - 0.40762668*rocker_x
+    c29 = (0.061144002)*crank_a20 + (0.40762668)*crank_z - 0.40762668*rocker_z
+    c30 = (0.06604098)*rocker_a11 - 0.061144002*rocker_a12
+    c31 = (0.06604098)*rocker_a01 - 0.061144002*rocker_a02
+    c32 = (3/10)*crank_y - 3/10*rocker_y + c30
+    c33 = (3/10)*crank_x - 3/10*rocker_x + c31
+    c34 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
+    c35 = (3/10)*crank_z - 3/10*rocker_z + c34
+    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), 0.0, 0.0, 0.0, -v_rocker_theta_y*(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x), -v_rocker_theta_y*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x), -v_crank_x*(c0 - c1 - c3 + c5 + c6*v_rocker_theta_y + c8*v_rocker_theta_z) - v_crank_y*(-c10 + c12 - c14 + c15*v_rocker_theta_x + c16*v_rocker_theta_z + c9) - v_crank_z*(c17 - c18 - c20 + c22 + c23*v_rocker_theta_y + c7*v_rocker_theta_x) - v_rocker_x*(-c0 + c1 + c15*v_rocker_theta_y + c3 - c5 + c7*v_rocker_theta_z) - v_rocker_y*(c10 - c12 + c14 + c23*v_rocker_theta_z + c6*v_rocker_theta_x - c9) - v_rocker_z*(c16*v_rocker_theta_y - c17 + c18 + c20 - c22 + c8*v_rocker_theta_x) - (c11 - c13)*(c31*v_rocker_theta_z - c33*v_crank_theta_z - c34*v_rocker_theta_x + c35*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - (crank_a10*v_crank_theta_x - c19)*(c30*v_rocker_theta_x - c31*v_rocker_theta_y - c32*v_crank_theta_x + c33*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - (crank_a20*v_crank_theta_y - c2)*(-c30*v_rocker_theta_z + c32*v_crank_theta_z + c34*v_rocker_theta_y - c35*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - (-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*(-0.06604098*c19 + (0.06604098)*c21 - c24*v_rocker_theta_x + c25*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)*((0.06604098)*c11 - 0.06604098*c13 - c25*v_rocker_theta_z + c26*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*((0.061144002)*c19 - 0.061144002*c21 + c27*v_rocker_theta_x - c28*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x)*(-0.061144002*c11 + (0.061144002)*c13 + c28*v_rocker_theta_z - c29*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*(-0.06604098*c2 + c24*v_rocker_theta_z - c26*v_rocker_theta_y + (0.06604098)*c4 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*((0.061144002)*c2 - c27*v_rocker_theta_z + c29*v_rocker_theta_y - 0.061144002*c4 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)]
 
 
 def inputs_turn(t):
@@ -350,14 +338,14 @@ def _drivers_gamma_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*c1*crank_qz + c2*c3
+    c4 = -1/2*crank_qz*c1 + c2*c3
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)
+    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)
     return out
 
 
@@ -392,13 +380,13 @@ def _drivers_gamma_s_turn(q, v, u, ud, udd):
     c1 = math.cos(c0)
     c2 = math.sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*c1*crank_qz + c2*c3
+    c4 = -1/2*crank_qz*c1 + c2*c3
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)]
+    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
 
 
 def phi_turn(q, u):

@@ -114,14 +114,14 @@ def _joints_jac(q):
     d10 = (6/5)*rod_e1
     d11 = (6/5)*rod_e0
     d12 = 4*slider_a12
-    d13 = 2*rod_e1
-    d14 = 2*rod_e3
-    d15 = 2*rod_e0
-    d16 = 2*rod_e2
-    d17 = 2*slider_e2
-    d18 = 2*slider_e1
-    d19 = 4*rod_a21
-    d20 = 2*slider_e3
+    d13 = 2*slider_a22
+    d14 = 2*slider_a02
+    d15 = 2*rod_a01
+    d16 = 2*rod_a11
+    d17 = 4*rod_a21
+    d18 = 2*slider_e3
+    d19 = 2*slider_e2
+    d20 = 2*slider_e1
     d21 = 2*slider_e0
     d22 = -d21
     out = _zeros(77, q, ())
@@ -168,40 +168,40 @@ def _joints_jac(q):
     out[40] = -d11
     out[41] = d10
     out[42] = -1
-    out[43] = d12*rod_e0 + d13*slider_a22 - d14*slider_a02
-    out[44] = d15*slider_a22 + d16*slider_a02
-    out[45] = d12*rod_e2 + d13*slider_a02 + d14*slider_a22
-    out[46] = -d15*slider_a02 + 2*rod_e2*slider_a22
-    out[47] = d17*rod_a01 - d18*rod_a11 + d19*slider_e0
-    out[48] = d20*rod_a01 - d21*rod_a11
-    out[49] = d20*rod_a11 + d21*rod_a01
-    out[50] = d17*rod_a11 + d18*rod_a01 + d19*slider_e3
-    out[51] = -d20
-    out[52] = d17
-    out[53] = d18
+    out[43] = rod_e0*d12 + rod_e1*d13 - rod_e3*d14
+    out[44] = rod_e0*d13 + rod_e2*d14
+    out[45] = rod_e1*d14 + rod_e2*d12 + rod_e3*d13
+    out[46] = -rod_e0*d14 + 2*rod_e2*slider_a22
+    out[47] = slider_e0*d17 - slider_e1*d16 + slider_e2*d15
+    out[48] = -slider_e0*d16 + slider_e3*d15
+    out[49] = slider_e0*d15 + slider_e3*d16
+    out[50] = slider_e1*d15 + slider_e2*d16 + slider_e3*d17
+    out[51] = -d18
+    out[52] = d19
+    out[53] = d20
     out[54] = d22
-    out[55] = d17
-    out[56] = d20
+    out[55] = d19
+    out[56] = d18
     out[57] = d21
-    out[58] = d18
+    out[58] = d20
     out[59] = 1
     out[60] = 1
-    out[61] = -d18
+    out[61] = -d20
     out[62] = d22
-    out[63] = d20
-    out[64] = d17
-    out[65] = d2
-    out[66] = d3
-    out[67] = d0
-    out[68] = d1
-    out[69] = d15
-    out[70] = d13
-    out[71] = d16
-    out[72] = d14
-    out[73] = d21
-    out[74] = d18
-    out[75] = d17
-    out[76] = d20
+    out[63] = d18
+    out[64] = d19
+    out[65] = 2*crank_e0
+    out[66] = 2*crank_e1
+    out[67] = 2*crank_e2
+    out[68] = 2*crank_e3
+    out[69] = 2*rod_e0
+    out[70] = 2*rod_e1
+    out[71] = 2*rod_e2
+    out[72] = 2*rod_e3
+    out[73] = 2*slider_e0
+    out[74] = 2*slider_e1
+    out[75] = 2*slider_e2
+    out[76] = 2*slider_e3
     return out
 
 
@@ -217,41 +217,37 @@ def _joints_gamma(q, v):
     slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
-    c2 = v_crank_e0**2
-    c3 = v_crank_e1**2
-    c4 = (4/5)*v_crank_e3
-    c5 = (4/5)*v_crank_e2
-    c6 = v_rod_e0**2
-    c7 = v_rod_e1**2
-    c8 = (12/5)*v_rod_e3
-    c9 = (12/5)*v_rod_e2
-    c10 = 2*slider_a02
-    c11 = 2*slider_a22
-    c12 = 2*rod_a01
-    c13 = 2*rod_a11
-    c14 = 4*slider_a12
-    c15 = 4*rod_a21
-    c16 = 2*slider_e0
-    c17 = 2*slider_e1
-    c18 = 4*v_slider_e0
-    c19 = 4*v_slider_e3
-    c20 = 2*rod_e0
-    c21 = 2*v_rod_e0
+    c2 = (4/5)*v_crank_e3
+    c3 = (4/5)*v_crank_e2
+    c4 = (12/5)*v_rod_e3
+    c5 = (12/5)*v_rod_e2
+    c6 = 2*slider_a02
+    c7 = 2*slider_a22
+    c8 = 2*rod_a01
+    c9 = 2*rod_a11
+    c10 = 4*slider_a12
+    c11 = 4*rod_a21
+    c12 = 2*slider_e0
+    c13 = 2*slider_e1
+    c14 = 2*rod_e0
+    c15 = 2*v_rod_e0
+    c16 = 4*v_slider_e3
+    c17 = 4*v_slider_e2
     out = _zeros(20, q, ())
     out[3] = c0*v_crank_e0 - c1*v_crank_e3
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
-    out[5] = -4/5*c2 - 4/5*c3
-    out[6] = -c4*v_crank_e0 - c5*v_crank_e1
-    out[7] = -c4*v_crank_e1 + c5*v_crank_e0
-    out[8] = -12/5*c6 - 12/5*c7
-    out[9] = -c8*v_rod_e0 - c9*v_rod_e1
-    out[10] = -c8*v_rod_e1 + c9*v_rod_e0
-    out[11] = -v_rod_e0*(-c10*v_rod_e3 + c11*v_rod_e1 + c14*v_rod_e0) - v_rod_e1*(c10*v_rod_e2 + c11*v_rod_e0) - v_rod_e2*(c10*v_rod_e1 + c11*v_rod_e3 + c14*v_rod_e2) - v_rod_e3*(-c10*v_rod_e0 + 2*slider_a22*v_rod_e2) - v_slider_e0*(c12*v_slider_e2 - c13*v_slider_e1 + c15*v_slider_e0) - v_slider_e1*(c12*v_slider_e3 - c13*v_slider_e0) - v_slider_e2*(c12*v_slider_e0 + c13*v_slider_e3) - v_slider_e3*(c12*v_slider_e1 + c13*v_slider_e2 + c15*v_slider_e3) - 2*(c18*slider_e0 + c19*slider_e3)*(c20*v_rod_e1 + c21*rod_e1 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(-c16*v_slider_e1 - c17*v_slider_e0 + 2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2) - 2*(c16*v_slider_e2 + c17*v_slider_e3 + 2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1)*(-c20*v_rod_e3 - c21*rod_e3 + 2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1)
-    out[12] = c18*v_slider_e3 - 4*v_slider_e1*v_slider_e2
-    out[13] = -c18*v_slider_e2 - c19*v_slider_e1
-    out[16] = c18*v_slider_e1 - c19*v_slider_e2
-    out[17] = -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2
-    out[18] = -2*c6 - 2*c7 - 2*v_rod_e2**2 - 2*v_rod_e3**2
+    out[5] = -4/5*v_crank_e0**2 - 4/5*v_crank_e1**2
+    out[6] = -c2*v_crank_e0 - c3*v_crank_e1
+    out[7] = -c2*v_crank_e1 + c3*v_crank_e0
+    out[8] = -12/5*v_rod_e0**2 - 12/5*v_rod_e1**2
+    out[9] = -c4*v_rod_e0 - c5*v_rod_e1
+    out[10] = -c4*v_rod_e1 + c5*v_rod_e0
+    out[11] = -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2*(4*slider_e0*v_slider_e0 + 4*slider_e3*v_slider_e3)*(rod_e1*c15 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2*(2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3)
+    out[12] = c16*v_slider_e0 - c17*v_slider_e1
+    out[13] = -c16*v_slider_e1 - c17*v_slider_e0
+    out[16] = -c17*v_slider_e3 + 4*v_slider_e0*v_slider_e1
+    out[17] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
+    out[18] = -2*v_rod_e0**2 - 2*v_rod_e1**2 - 2*v_rod_e2**2 - 2*v_rod_e3**2
     out[19] = -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2
     return out
 
@@ -286,17 +282,17 @@ def _joints_phi_jac_s(q):
     d10 = (6/5)*rod_e1
     d11 = (6/5)*rod_e0
     d12 = 4*slider_a12
-    d13 = 2*rod_e1
-    d14 = 2*rod_e3
-    d15 = 2*rod_e0
-    d16 = 2*rod_e2
-    d17 = 2*slider_e2
-    d18 = 2*slider_e1
-    d19 = 4*rod_a21
-    d20 = 2*slider_e3
+    d13 = 2*slider_a22
+    d14 = 2*slider_a02
+    d15 = 2*rod_a01
+    d16 = 2*rod_a11
+    d17 = 4*rod_a21
+    d18 = 2*slider_e3
+    d19 = 2*slider_e2
+    d20 = 2*slider_e1
     d21 = 2*slider_e0
     d22 = -d21
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1, slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (4/5)*crank_e0, (4/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (12/5)*rod_e0, (12/5)*rod_e1, -1, 1, d8, d9, d10, d11, -1, 1, -d9, d8, -d11, d10, -1, d12*rod_e0 + d13*slider_a22 - d14*slider_a02, d15*slider_a22 + d16*slider_a02, d12*rod_e2 + d13*slider_a02 + d14*slider_a22, -d15*slider_a02 + 2*rod_e2*slider_a22, d17*rod_a01 - d18*rod_a11 + d19*slider_e0, d20*rod_a01 - d21*rod_a11, d20*rod_a11 + d21*rod_a01, d17*rod_a11 + d18*rod_a01 + d19*slider_e3, -d20, d17, d18, d22, d17, d20, d21, d18, 1, 1, -d18, d22, d20, d17, d2, d3, d0, d1, d15, d13, d16, d14, d21, d18, d17, d20]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1, slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (4/5)*crank_e0, (4/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (12/5)*rod_e0, (12/5)*rod_e1, -1, 1, d8, d9, d10, d11, -1, 1, -d9, d8, -d11, d10, -1, rod_e0*d12 + rod_e1*d13 - rod_e3*d14, rod_e0*d13 + rod_e2*d14, rod_e1*d14 + rod_e2*d12 + rod_e3*d13, -rod_e0*d14 + 2*rod_e2*slider_a22, slider_e0*d17 - slider_e1*d16 + slider_e2*d15, -slider_e0*d16 + slider_e3*d15, slider_e0*d15 + slider_e3*d16, slider_e1*d15 + slider_e2*d16 + slider_e3*d17, -d18, d19, d20, d22, d19, d18, d21, d20, 1, 1, -d20, d22, d18, d19, 2*crank_e0, 2*crank_e1, 2*crank_e2, 2*crank_e3, 2*rod_e0, 2*rod_e1, 2*rod_e2, 2*rod_e3, 2*slider_e0, 2*slider_e1, 2*slider_e2, 2*slider_e3]
 
 
 def _joints_gamma_s(q, v):
@@ -311,27 +307,23 @@ def _joints_gamma_s(q, v):
     slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
-    c2 = v_crank_e0**2
-    c3 = v_crank_e1**2
-    c4 = (4/5)*v_crank_e3
-    c5 = (4/5)*v_crank_e2
-    c6 = v_rod_e0**2
-    c7 = v_rod_e1**2
-    c8 = (12/5)*v_rod_e3
-    c9 = (12/5)*v_rod_e2
-    c10 = 2*slider_a02
-    c11 = 2*slider_a22
-    c12 = 2*rod_a01
-    c13 = 2*rod_a11
-    c14 = 4*slider_a12
-    c15 = 4*rod_a21
-    c16 = 2*slider_e0
-    c17 = 2*slider_e1
-    c18 = 4*v_slider_e0
-    c19 = 4*v_slider_e3
-    c20 = 2*rod_e0
-    c21 = 2*v_rod_e0
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*c2 - 4/5*c3, -c4*v_crank_e0 - c5*v_crank_e1, -c4*v_crank_e1 + c5*v_crank_e0, -12/5*c6 - 12/5*c7, -c8*v_rod_e0 - c9*v_rod_e1, -c8*v_rod_e1 + c9*v_rod_e0, -v_rod_e0*(-c10*v_rod_e3 + c11*v_rod_e1 + c14*v_rod_e0) - v_rod_e1*(c10*v_rod_e2 + c11*v_rod_e0) - v_rod_e2*(c10*v_rod_e1 + c11*v_rod_e3 + c14*v_rod_e2) - v_rod_e3*(-c10*v_rod_e0 + 2*slider_a22*v_rod_e2) - v_slider_e0*(c12*v_slider_e2 - c13*v_slider_e1 + c15*v_slider_e0) - v_slider_e1*(c12*v_slider_e3 - c13*v_slider_e0) - v_slider_e2*(c12*v_slider_e0 + c13*v_slider_e3) - v_slider_e3*(c12*v_slider_e1 + c13*v_slider_e2 + c15*v_slider_e3) - 2*(c18*slider_e0 + c19*slider_e3)*(c20*v_rod_e1 + c21*rod_e1 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(-c16*v_slider_e1 - c17*v_slider_e0 + 2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2) - 2*(c16*v_slider_e2 + c17*v_slider_e3 + 2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1)*(-c20*v_rod_e3 - c21*rod_e3 + 2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1), c18*v_slider_e3 - 4*v_slider_e1*v_slider_e2, -c18*v_slider_e2 - c19*v_slider_e1, 0.0, 0.0, c18*v_slider_e1 - c19*v_slider_e2, -2*c2 - 2*c3 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*c6 - 2*c7 - 2*v_rod_e2**2 - 2*v_rod_e3**2, -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2]
+    c2 = (4/5)*v_crank_e3
+    c3 = (4/5)*v_crank_e2
+    c4 = (12/5)*v_rod_e3
+    c5 = (12/5)*v_rod_e2
+    c6 = 2*slider_a02
+    c7 = 2*slider_a22
+    c8 = 2*rod_a01
+    c9 = 2*rod_a11
+    c10 = 4*slider_a12
+    c11 = 4*rod_a21
+    c12 = 2*slider_e0
+    c13 = 2*slider_e1
+    c14 = 2*rod_e0
+    c15 = 2*v_rod_e0
+    c16 = 4*v_slider_e3
+    c17 = 4*v_slider_e2
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*v_crank_e0**2 - 4/5*v_crank_e1**2, -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -12/5*v_rod_e0**2 - 12/5*v_rod_e1**2, -c4*v_rod_e0 - c5*v_rod_e1, -c4*v_rod_e1 + c5*v_rod_e0, -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2*(4*slider_e0*v_slider_e0 + 4*slider_e3*v_slider_e3)*(rod_e1*c15 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2*(2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3), c16*v_slider_e0 - c17*v_slider_e1, -c16*v_slider_e1 - c17*v_slider_e0, 0.0, 0.0, -c17*v_slider_e3 + 4*v_slider_e0*v_slider_e1, -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_rod_e0**2 - 2*v_rod_e1**2 - 2*v_rod_e2**2 - 2*v_rod_e3**2, -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2]
 
 
 def inputs_run(t):
@@ -385,7 +377,7 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)
+    out[0] = -ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)
     return out
 
 
@@ -417,7 +409,7 @@ def _drivers_gamma_s_run(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(c1*crank_e0 + c2*crank_e3)]
+    return [-ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
 
 
 def phi_run(q, u):

@@ -188,35 +188,32 @@ def _joints_gamma(q, v):
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
-    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c1 = c0*v_crank_theta_x
+    c0 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
+    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
     c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
-    c3 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
-    c4 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
-    c5 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
-    c6 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
-    c7 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
-    c8 = slider_a02*v_slider_theta_y
-    c9 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
-    c10 = slider_a22*v_slider_theta_x
-    c11 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
-    c12 = slider_a12*v_slider_theta_z
-    c13 = -c8 + slider_a12*v_slider_theta_x
-    c14 = -c10 + slider_a02*v_slider_theta_z
-    c15 = -c12 + slider_a22*v_slider_theta_y
+    c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
+    c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
+    c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
+    c6 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
+    c7 = slider_a02*v_slider_theta_y
+    c8 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
+    c9 = slider_a22*v_slider_theta_x
+    c10 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
+    c11 = slider_a12*v_slider_theta_z
+    c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
     out = _zeros(17, q, ())
-    out[3] = -c1 + c2*v_crank_theta_y
+    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
     out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
-    out[5] = (1/5)*c0*v_crank_theta_z - c3*v_crank_theta_y
-    out[6] = -1/5*c2*v_crank_theta_z + c3*v_crank_theta_x
-    out[7] = -1/5*c1 + (1/5)*c2*v_crank_theta_y
-    out[8] = -c4*v_rod_theta_y + (3/5)*c5*v_rod_theta_z
-    out[9] = c4*v_rod_theta_x - 3/5*c6*v_rod_theta_z
-    out[10] = -3/5*c5*v_rod_theta_x + (3/5)*c6*v_rod_theta_y
-    out[11] = c11*(-c12 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y) - c13*(-c7 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c14*(c9 - rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x) - c15*(-c11 + rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y) + c7*(-c8 + slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x) - c9*(-c10 - slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x)
+    out[5] = -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z
+    out[6] = c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z
+    out[7] = -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y
+    out[8] = -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z
+    out[9] = c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z
+    out[10] = -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y
+    out[11] = c6*(slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x - c7) - c8*(-slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x - c9) + c10*(slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y - c11) - (slider_a02*v_slider_theta_z - c9)*(-rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x + c8) - (slider_a12*v_slider_theta_x - c7)*(rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x - c6) - (slider_a22*v_slider_theta_y - c11)*(rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y - c10)
     out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x)
-    out[13] = -c13*v_slider_theta_y + c14*v_slider_theta_z
-    out[16] = c13*v_slider_theta_x - c15*v_slider_theta_z
+    out[13] = -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x)
+    out[16] = c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)
     return out
 
 
@@ -275,23 +272,20 @@ def _joints_gamma_s(q, v):
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
-    c0 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c1 = c0*v_crank_theta_x
+    c0 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
+    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
     c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
-    c3 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
-    c4 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
-    c5 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
-    c6 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
-    c7 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
-    c8 = slider_a02*v_slider_theta_y
-    c9 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
-    c10 = slider_a22*v_slider_theta_x
-    c11 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
-    c12 = slider_a12*v_slider_theta_z
-    c13 = -c8 + slider_a12*v_slider_theta_x
-    c14 = -c10 + slider_a02*v_slider_theta_z
-    c15 = -c12 + slider_a22*v_slider_theta_y
-    return [0.0, 0.0, 0.0, -c1 + c2*v_crank_theta_y, -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), (1/5)*c0*v_crank_theta_z - c3*v_crank_theta_y, -1/5*c2*v_crank_theta_z + c3*v_crank_theta_x, -1/5*c1 + (1/5)*c2*v_crank_theta_y, -c4*v_rod_theta_y + (3/5)*c5*v_rod_theta_z, c4*v_rod_theta_x - 3/5*c6*v_rod_theta_z, -3/5*c5*v_rod_theta_x + (3/5)*c6*v_rod_theta_y, c11*(-c12 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y) - c13*(-c7 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c14*(c9 - rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x) - c15*(-c11 + rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y) + c7*(-c8 + slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x) - c9*(-c10 - slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x), -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x), -c13*v_slider_theta_y + c14*v_slider_theta_z, 0.0, 0.0, c13*v_slider_theta_x - c15*v_slider_theta_z]
+    c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
+    c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
+    c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
+    c6 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
+    c7 = slider_a02*v_slider_theta_y
+    c8 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
+    c9 = slider_a22*v_slider_theta_x
+    c10 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
+    c11 = slider_a12*v_slider_theta_z
+    c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
+    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z, c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z, -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y, -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z, c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z, -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y, c6*(slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x - c7) - c8*(-slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x - c9) + c10*(slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y - c11) - (slider_a02*v_slider_theta_z - c9)*(-rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x + c8) - (slider_a12*v_slider_theta_x - c7)*(rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x - c6) - (slider_a22*v_slider_theta_y - c11)*(rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y - c10), -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x), -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x), 0.0, 0.0, c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)]
 
 
 def inputs_run(t):
@@ -349,14 +343,14 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*c1*crank_qz + c2*c3
+    c4 = -1/2*crank_qz*c1 + c2*c3
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)
+    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)
     return out
 
 
@@ -391,13 +385,13 @@ def _drivers_gamma_s_run(q, v, u, ud, udd):
     c1 = math.cos(c0)
     c2 = math.sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*c1*crank_qz + c2*c3
+    c4 = -1/2*crank_qz*c1 + c2*c3
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z - c5*crank_qx + c6*crank_qy) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-1/2*c2*crank_qx - c9*crank_qy)) - udd0*(c1*crank_qw + c2*crank_qz) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y - c7*v_crank_theta_x + c8*crank_qx) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy)]
+    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
 
 
 def phi_run(q, u):

@@ -34,10 +34,30 @@ def to_matrix(q: np.ndarray) -> np.ndarray:
 
 
 def from_matrix(rotation: np.ndarray) -> np.ndarray:
-    """Unit quaternion (w >= 0) of a rotation matrix, via SciPy."""
-    from scipy.spatial.transform import Rotation
+    """Unit quaternion (w >= 0) of rotation matrices (..., 3, 3), by Shepperd's method: the
+    largest of w², x², y², z² is taken from the diagonal, the others from off-diagonal sums.
 
-    q = Rotation.from_matrix(rotation).as_quat(scalar_first=True)
+    (SciPy's ``Rotation.from_matrix`` gives the same to rounding — tested — but importing
+    ``scipy.spatial`` costs ~0.5 s, which a build in a fresh process would pay.)
+    """
+    m = np.asarray(rotation, dtype=float)
+    trace = m[..., 0, 0] + m[..., 1, 1] + m[..., 2, 2]
+    candidates = np.stack([trace, m[..., 0, 0], m[..., 1, 1], m[..., 2, 2]], axis=-1)
+    k = np.argmax(candidates, axis=-1)
+    d = 1.0 + 2.0 * np.take_along_axis(candidates, k[..., None], axis=-1)[..., 0] - trace  # 4 * (largest)^2
+    wx, wy, wz = m[..., 2, 1] - m[..., 1, 2], m[..., 0, 2] - m[..., 2, 0], m[..., 1, 0] - m[..., 0, 1]
+    xy, xz, yz = m[..., 0, 1] + m[..., 1, 0], m[..., 0, 2] + m[..., 2, 0], m[..., 1, 2] + m[..., 2, 1]
+    by_largest = np.stack(
+        [
+            np.stack([d, wx, wy, wz], axis=-1),  # w largest: 4w * (w, x, y, z)
+            np.stack([wx, d, xy, xz], axis=-1),  # x largest: 4x * (w, x, y, z)
+            np.stack([wy, xy, d, yz], axis=-1),
+            np.stack([wz, xz, yz, d], axis=-1),
+        ],
+        axis=-2,
+    )
+    q = np.take_along_axis(by_largest, k[..., None, None], axis=-2)[..., 0, :]
+    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
     return np.where(q[..., :1] < 0, -q, q)
 
 

@@ -109,6 +109,13 @@ class Row:
     nu: sp.Expr
     gamma: sp.Expr
     is_driver: bool = False
+    #: the joint, driver or body ("norm:<body>") the row belongs to
+    group: str = ""
+    #: derived through :class:`Templates`: the shape's key, the renaming generic -> real
+    #: symbol, and each real Jacobian column's (placeholder body, coordinate)
+    shape: tuple | None = None
+    rename: dict[sp.Symbol, sp.Symbol] = field(default_factory=dict)
+    columns: dict[int, tuple[int, int]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -159,6 +166,7 @@ class System:
     coordinates: Coordinates
     inputs: DriverInputs
     rows: list[Row] = field(default_factory=list)
+    templates: Templates | None = None  #: the shapes the rows were derived from
 
     @property
     def constraint_names(self) -> list[str]:
@@ -191,15 +199,40 @@ def coordinates(model: Model, parametrization: Parametrization) -> Coordinates:
 
 
 def _body_coordinates(name: str, parametrization: Parametrization, s_off: int, v_off: int) -> BodyCoordinates:
-    stored = tuple(sp.Symbol(f"{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.stored_names))
-    velocity = tuple(sp.Symbol(f"v_{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
-    o = sp.Matrix(stored[3:])
-    B = sp.diag(sp.eye(3), parametrization.velocity_map(o))
-    a = sp.Matrix(3, 3, [sp.Symbol(f"{name}_a{i}{j}", real=True) for i in range(3) for j in range(3)])
-    quaternion = sp.Matrix(stored[3:]) if parametrization.stores_quaternion else None
-    frame = Frame(sp.Matrix(stored[:3]), a, quaternion)
-    derivatives = tuple(parametrization.rotation_derivatives(a, o))
-    return BodyCoordinates(name, stored, velocity, s_off, v_off, B, frame, parametrization.matrix(o), derivatives)
+    """A body's symbols, velocity map and rotation derivatives: those of a generic body, renamed."""
+    generic = _generic_body(parametrization)
+    names = {s: sp.Symbol(str(s).replace(_GENERIC, name, 1), real=True) for s in (*generic.stored, *generic.velocity, *generic.frame.A)}
+
+    def rename(m: sp.Matrix | None) -> sp.Matrix | None:
+        return None if m is None else m.xreplace(names)
+
+    frame = Frame(rename(generic.frame.r), rename(generic.frame.A), rename(generic.frame.e))
+    return BodyCoordinates(
+        name, tuple(names[s] for s in generic.stored), tuple(names[s] for s in generic.velocity), s_off, v_off,
+        rename(generic.velocity_map), frame, rename(generic.rotation), tuple(rename(d) for d in generic.rotation_derivatives),
+    )  # fmt: skip
+
+
+_GENERIC = "_generic"  # not a valid model name: "v__generic_x" -> "v_<body>_x"
+_GENERIC_BODIES: dict[str, BodyCoordinates] = {}
+
+
+def _generic_body(parametrization: Parametrization) -> BodyCoordinates:
+    """The coordinates of a body named ``_generic`` (derived once per parametrization)."""
+    if parametrization.name not in _GENERIC_BODIES:
+        name = _GENERIC
+        stored = tuple(sp.Symbol(f"{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.stored_names))
+        velocity = tuple(sp.Symbol(f"v_{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
+        o = sp.Matrix(stored[3:])
+        B = sp.diag(sp.eye(3), parametrization.velocity_map(o))
+        a = sp.Matrix(3, 3, [sp.Symbol(f"{name}_a{i}{j}", real=True) for i in range(3) for j in range(3)])
+        quaternion = sp.Matrix(stored[3:]) if parametrization.stores_quaternion else None
+        frame = Frame(sp.Matrix(stored[:3]), a, quaternion)
+        derivatives = tuple(parametrization.rotation_derivatives(a, o))
+        _GENERIC_BODIES[parametrization.name] = BodyCoordinates(
+            name, stored, velocity, 0, 0, B, frame, parametrization.matrix(o), derivatives
+        )
+    return _GENERIC_BODIES[parametrization.name]
 
 
 class Templates:
@@ -226,7 +259,9 @@ class Templates:
             placeholder.velocity_map, placeholder.frame, placeholder.rotation, placeholder.rotation_derivatives,
         )  # fmt: skip
 
-    def derive(self, equation: Equation, coords: Coordinates, inputs: DriverInputs | None, is_driver: bool) -> Row:
+    def derive(
+        self, equation: Equation, coords: Coordinates, inputs: DriverInputs | None, is_driver: bool, group: str = ""
+    ) -> Row:
         touched = [coords.body(name) for name in equation.bodies]
         forward: dict[sp.Symbol, sp.Symbol] = {}
         placeholders = []
@@ -261,10 +296,16 @@ class Templates:
         else:
             self.hits += 1
         backward = {g: r for r, g in forward.items()}
-        jacobian = {
-            touched[b].velocity_offset + k: e.xreplace(backward) for (b, k), e in row.jacobian.items()
-        }
-        return Row(equation.name, equation.expr, jacobian, row.nu.xreplace(backward), row.gamma.xreplace(backward), is_driver)
+        jacobian = {touched[b].velocity_offset + k: e.xreplace(backward) for (b, k), e in row.jacobian.items()}
+        columns = {touched[b].velocity_offset + k: (b, k) for (b, k) in row.jacobian}
+        return Row(
+            equation.name, equation.expr, jacobian, row.nu.xreplace(backward), row.gamma.xreplace(backward), is_driver,
+            group, key, backward, columns,
+        )  # fmt: skip
+
+    def generic(self, key: tuple) -> Row:
+        """The row of a shape in placeholder symbols (Jacobian keyed by (placeholder body, coordinate))."""
+        return self._rows[key]
 
 
 def _relative_columns(jacobian: dict[int, sp.Expr], offsets: tuple[int, ...], touched: list[BodyCoordinates]) -> dict:
@@ -294,11 +335,13 @@ def derive(
     inputs: DriverInputs | None = None,
     is_driver: bool = False,
     templates: Templates | None = None,
+    group: str = "",
 ) -> Row:
     """Jacobian, nu and gamma of one equation (through ``templates`` when given)."""
     if templates is not None:
-        return templates.derive(equation, coords, inputs, is_driver)
-    return _derive(equation, coords, inputs, is_driver)
+        return templates.derive(equation, coords, inputs, is_driver, group)
+    row = _derive(equation, coords, inputs, is_driver)
+    return Row(row.name, row.phi, row.jacobian, row.nu, row.gamma, is_driver, group)
 
 
 def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None = None, is_driver: bool = False) -> Row:
@@ -369,11 +412,11 @@ def kinematic_rows(model: Model, coords: Coordinates, templates: Templates | Non
         frame1 = GROUND_FRAME if joint.body1 == GROUND else frames[joint.body1]
         frame2 = GROUND_FRAME if joint.body2 == GROUND else frames[joint.body2]
         for eq in joint_equations(joint, frame1, frame2, _moving((joint.body1, joint.body2))):
-            rows.append(derive(eq, coords, templates=templates))
+            rows.append(derive(eq, coords, templates=templates, group=joint.name))
     for body in coords.bodies:
         for k, expr in enumerate(coords.parametrization.normalization(sp.Matrix(body.stored[3:]))):
             equation = Equation(f"{body.name}.norm{'' if k == 0 else k}", (body.name,), expr)
-            rows.append(derive(equation, coords, templates=templates))
+            rows.append(derive(equation, coords, templates=templates, group=f"norm:{body.name}"))
     return rows
 
 
@@ -395,6 +438,6 @@ def build_systems(model: Model, parametrization: Parametrization, cases: list[st
         rows = list(shared)
         for driver, u in zip(case.drivers, inputs.u):
             equation = driver_equation(driver, joints, frame_of, _moving, u)
-            rows.append(derive(equation, coords, inputs, is_driver=True, templates=templates))
-        systems[name] = System(model, case, coords, inputs, rows)
+            rows.append(derive(equation, coords, inputs, is_driver=True, templates=templates, group=f"driver:{driver.name}"))
+        systems[name] = System(model, case, coords, inputs, rows, templates)
     return systems
