@@ -261,7 +261,10 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as
         )
     else:
         click.echo(result.table())
-        click.echo(f"{len(result.samples)} configurations sampled, {result.solves} Newton solves, {result.seconds:.1f} s")
+        click.echo(
+            f"{len(result.samples)} configurations sampled in batches ({result.grid_seconds:.2f} s), "
+            f"{result.solves} Newton solves, {result.seconds:.1f} s in all"
+        )
     if plot:
         click.echo(f"wrote {plot_envelope(result, plot)}", err=as_json)
 

@@ -1,10 +1,10 @@
 """Working range ("envelope") of a point of a mechanism, by sweeping driver inputs.
 
 The forward case named in the model's ``working_range`` section is driven over the box
-of its input ranges: a serpentine grid (consecutive samples one grid step apart, so
-each Newton solve starts one small step from the last) gives the sampled reachable
-set; each working-range figure is then refined by SLSQP over the inputs, every
-evaluation a solver call. The standard figures (ISO 7135 style, from the swing axis
+of its input ranges: a grid solved in batches (:func:`kinegen.runtime.batch.sweep_grid`:
+each slice of the grid one grid step from the last, all its configurations in one
+vectorized Newton) gives the sampled reachable set; each working-range figure is then
+refined by SLSQP over the inputs from the best grid sample, every evaluation a solver call. The standard figures (ISO 7135 style, from the swing axis
 and the ground plane z = 0):
 
 * max_reach: largest horizontal distance of the point from the z axis;
@@ -23,9 +23,9 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
-from kinegen.errors import ConvergenceError, SingularJacobianError
 from kinegen.model.schema import WorkingRange
 from kinegen.runtime import NumericSystem, Solver
+from kinegen.runtime.batch import sweep_grid
 
 STAGE = 0.065  # of an input's range, per continuation stage
 FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height")
@@ -44,6 +44,8 @@ class Envelope:
     arguments: dict[str, dict[str, float]] = field(default_factory=dict)  # figure -> inputs
     seconds: float = 0.0
     solves: int = 0
+    grid_seconds: float = 0.0  #: time of the batched grid sweep (continuation to its corner included)
+    grid_solved: int = 0  #: grid configurations solved
 
     def table(self) -> str:
         """The figures beside the published (unverified) values."""
@@ -54,18 +56,6 @@ class Envelope:
             where = ", ".join(f"{k} {v:.4f}" for k, v in self.arguments.get(name, {}).items())
             lines.append(f"{name:<22} {self.figures.get(name, float('nan')):>11.3f} {ref}  {where}")
         return "\n".join(lines)
-
-
-def _serpentine(counts: list[int]) -> list[tuple[int, ...]]:
-    """Grid indices ordered so that consecutive entries differ by one step in one index."""
-    if len(counts) == 1:
-        return [(i,) for i in range(counts[0])]
-    inner = _serpentine(counts[1:])
-    order = []
-    for i in range(counts[0]):
-        block = inner if i % 2 == 0 else inner[::-1]
-        order += [(i, *rest) for rest in block]
-    return order
 
 
 class _Evaluator:
@@ -125,24 +115,29 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     counts = list(grid or [21, 11, 21][: len(names)] + [11] * max(0, len(names) - 3))
     ranges = [spec.inputs[n] for n in names]
     axes = [np.linspace(lo, hi, c) for (lo, hi), c in zip(ranges, counts)]
-    order = _serpentine(counts)
-    samples = np.array([[axes[d][i] for d, i in enumerate(idx)] for idx in order])
+    corner = np.array([a[0] for a in axes])
+    evaluator.move_to(corner)  # continuation from the model's pose to the grid's first corner
+    swept = [system.driver_names.index(n) for n in names]
+    sweep = sweep_grid(system, evaluator.inputs(corner), swept, axes, evaluator.q)
+    grid_seconds = time.perf_counter() - start
+    index = np.indices(counts).reshape(len(counts), -1)
+    samples = np.array([axes[d][index[d]] for d in range(len(counts))]).T
+    q = sweep.q.reshape(system.n_stored, -1)
+    ok = sweep.converged.ravel()
     tracked = np.full((len(samples), 2, 3), np.nan)
-    evaluator.move_to(samples[0])
-    for k, values in enumerate(samples):
-        try:
-            found = evaluator.move_to(values)
-        except (ConvergenceError, SingularJacobianError):
-            continue
+    for k in np.flatnonzero(ok):
+        found = evaluator.points(q[:, k])
         tracked[k, : len(found)] = found
     envelope = Envelope(spec, names, samples, tracked[:, 0], tracked[:, 1])
-    _refine(envelope, evaluator, ranges)
+    envelope.grid_seconds = grid_seconds
+    envelope.grid_solved = int(ok.sum())
+    _refine(envelope, evaluator, ranges, q)
     envelope.seconds = time.perf_counter() - start
-    envelope.solves = evaluator.solves
+    envelope.solves = evaluator.solves + int(ok.sum())
     return envelope
 
 
-def _refine(envelope: Envelope, evaluator: _Evaluator, ranges: list[tuple[float, float]]) -> None:
+def _refine(envelope: Envelope, evaluator: _Evaluator, ranges: list[tuple[float, float]], grid_q: np.ndarray) -> None:
     samples, points, pivots = envelope.samples, envelope.points, envelope.pivots
     reach = np.hypot(points[:, 0], points[:, 1])
     z = points[:, 2]
@@ -156,7 +151,7 @@ def _refine(envelope: Envelope, evaluator: _Evaluator, ranges: list[tuple[float,
         def full(x: np.ndarray) -> np.ndarray:
             return lows + spans * np.clip(x, 0, 1)
 
-        evaluator.move_to(samples[seed])
+        evaluator.q, evaluator.u = grid_q[:, seed].copy(), evaluator.inputs(samples[seed])  # the grid's solution
 
         def value(x: np.ndarray) -> np.ndarray:
             return evaluator.move_to(full(x))
