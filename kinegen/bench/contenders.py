@@ -12,6 +12,7 @@ parametrization, other generated code) of the bucket tip for the excavator.
 
 from __future__ import annotations
 
+import gc
 import time
 from collections.abc import Callable
 from dataclasses import dataclass
@@ -90,6 +91,14 @@ def _initial(w: Workload) -> np.ndarray:
     return initial_q(w.model, rotations.get(PARAMETRIZATION))
 
 
+def _settle() -> None:
+    """Before a timed trajectory: collect, then freeze every object alive (the SymPy objects
+    this harness made to give each contender the same Phi) so that no contender's Python
+    loop pays garbage-collector passes over them (they cost 20-40 % of a chain-14 loop)."""
+    gc.collect()
+    gc.freeze()
+
+
 def _result(build: float, trajectory: float, iterations: list[int] | np.ndarray, w: Workload, qs, **extra) -> dict[str, Any]:
     return {
         "build": build,
@@ -119,6 +128,7 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
         system = from_module(load_module(path), w.case)
     # "as specified": previous-q starts and no polish; own: predictor + polishing correction
     solver = Solver(system, SolverOptions(condition="none", predictor=predictor, polish=predictor))
+    _settle()
     start = time.perf_counter()
     results = solver.solve(w.times)
     trajectory = time.perf_counter() - start
@@ -185,6 +195,7 @@ def naive_sympy_run(name: str, cse: bool) -> dict[str, Any]:
         velocity = np.linalg.solve(jacobian, -np.asarray(f_phi_t(q, t), dtype=float).ravel())
         np.linalg.solve(jacobian, np.asarray(f_gamma(q, velocity, t), dtype=float).ravel())
 
+    _settle()
     start = time.perf_counter()
     qs, iterations = _newton_trajectory(w, evaluate, rates)
     return _result(build, time.perf_counter() - start, iterations, w, qs)
@@ -228,6 +239,7 @@ def symengine_run(name: str) -> dict[str, Any]:
         velocity = np.linalg.solve(jacobian, -f_phi_t(np.append(qv, tv)))
         np.linalg.solve(jacobian, f_gamma(np.concatenate((qv, velocity, [tv]))))
 
+    _settle()
     start = time.perf_counter()
     qs, iterations = _newton_trajectory(w, evaluate, rates)
     return _result(build, time.perf_counter() - start, iterations, w, qs, note=f"{len(entries)} Jacobian entries, {backend}")
@@ -305,6 +317,7 @@ def casadi_run(name: str, rootfinder: bool) -> dict[str, Any]:
         velocity = np.linalg.solve(jacobian, -fused.results[2])
         np.linalg.solve(jacobian, gamma(q, velocity, t)[0])
 
+    _settle()
     start = time.perf_counter()
     if solve_step is None:
         qs, iterations = _newton_trajectory(w, evaluate_phi, rates)
@@ -345,6 +358,7 @@ def scipy_hybr_run(name: str) -> dict[str, Any]:
     q = _initial(w)
     qs, evaluations = [], []
     h = 1e-6
+    _settle()
     start = time.perf_counter()
     for t in w.times:
         solution = root(phi, q, args=(t,), method="hybr", options={"xtol": 1e-13})

@@ -139,17 +139,20 @@ class Solver:
 
     def _factor(self, values: Any, t: float) -> Factors:
         """Factors of Phi_q given its values (a pseudo-inverse for a redundant system)."""
-        values = np.asarray(values, dtype=float)
-        if not np.all(np.isfinite(values)):
-            raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
         if self.redundant:
+            values = np.asarray(values, dtype=float)
+            if not np.all(np.isfinite(values)):
+                raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
             jacobian = self.linear.dense(values)
             _, s, _ = np.linalg.svd(jacobian)
             if s[-1] <= self.options.singular_tolerance * s[0]:  # column rank lost: a singular pose
                 self.check_singular(jacobian, t)
             return Factors(values, pinv=np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance))
         lu, diagonal = self.linear.factor(values)
-        if diagonal.min() <= self.options.singular_tolerance * max(diagonal.max(), 1e-300):
+        low, high = diagonal.min(), diagonal.max()
+        if not low > self.options.singular_tolerance * max(high, 1e-300):  # also for NaN (a NaN in Phi_q reaches U)
+            if not np.all(np.isfinite(np.asarray(values, dtype=float))):
+                raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
             self.check_singular(self.linear.dense(values), t)
         return Factors(values, lu=lu)
 
