@@ -14,10 +14,12 @@ and so duplicate names, truncation, stray characters).
 
 from __future__ import annotations
 
+import atexit
 import copy
 import json
 import os
 import re
+import shutil
 import tempfile
 import time
 import warnings
@@ -37,6 +39,7 @@ TREES = {name: yaml.safe_load(text) for name, text in BASES.items()}
 EXAMPLES = int(os.environ.get("KINEGEN_FUZZ_EXAMPLES", "150"))
 TIME_LIMIT = 2.0  # CPU seconds per model (process time: other load on the machine does not count)
 WORK = Path(tempfile.mkdtemp(prefix="kinegen-fuzz-"))
+atexit.register(shutil.rmtree, WORK, ignore_errors=True)
 SENTINEL = WORK / "EXECUTED"  # hostile expressions try to create this file
 STATS: dict = {"models": 0, "accepted": 0, "kinds": Counter(), "longest": 0.0, "longest_kind": ""}
 
