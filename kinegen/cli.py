@@ -114,6 +114,12 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
 @click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
 @click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV file for all time histories.")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG file with point paths and time histories.")
+@click.option(
+    "--keep-going",
+    is_flag=True,
+    help="On a failed step, stop there but still write the results so far (the failed step marked "
+    "converged = 0), then report the error and exit with its code.",
+)
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def solve(
     model_file: str,
@@ -124,21 +130,24 @@ def solve(
     steps: int | None,
     out: str | None,
     plot: str | None,
+    keep_going: bool,
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time."""
+    from kinegen.runtime import SolverOptions
     from kinegen.runtime import solve as run
 
     parametrization = _parametrization(param)
     _, system = _system(model_file, parametrization, case, generated_dir)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
-    results = run(system, times)
+    results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise"))
     elapsed = time.perf_counter() - start
+    done = results.converged
     click.echo(
-        f"{system.model}/{system.case} [{parametrization.name}]: {len(times)} time points, t = {times[0]:g} .. {times[-1]:g} s, "
-        f"Newton iterations mean {results.iterations.mean():.2f} max {results.iterations.max()}, "
-        f"max |Phi| {results.residuals.max():.1e}, {elapsed:.3f} s"
+        f"{system.model}/{system.case} [{parametrization.name}]: {int(done.sum())} of {len(times)} time points, "
+        f"t = {times[0]:g} .. {results.times[-1]:g} s, Newton iterations mean {results.iterations[done].mean():.2f} "
+        f"max {results.iterations[done].max()}, max |Phi| {results.residuals[done].max():.1e}, {elapsed:.3f} s"
     )
     if out:
         click.echo(f"wrote {results.to_csv(out)}")
@@ -146,6 +155,8 @@ def solve(
         from kinegen.analysis.plots import plot_results
 
         click.echo(f"wrote {plot_results(results, plot)}")
+    if results.failure is not None:
+        raise results.failure
 
 
 @main.command()

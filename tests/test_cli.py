@@ -80,3 +80,18 @@ def test_missing_file_and_unknown_parametrization():
     assert run("build", "no/such/model.yaml").exit_code == 2
     result = run("build", BOOM, "--param", "euler:abc")
     assert result.exit_code == 2 and "unknown Euler sequence" in result.output
+
+
+def test_keep_going_writes_the_results_so_far_and_exits_with_the_error_code(tmp_path):
+    """bucket_toggle passes the linkage's toggle: the CSV ends with the failed step marked."""
+    out = tmp_path / "toggle.csv"
+    model_file = str(MODELS / "excavator.yaml")
+    result = run("solve", model_file, "--case", "bucket_toggle", "--keep-going", "--out", str(out))
+    assert result.exit_code in (3, 4), result.output
+    lines = result.output.strip().splitlines()
+    assert lines[0].startswith("excavator/bucket_toggle [quaternion]: ") and " of 301 time points" in lines[0]
+    assert lines[-1].startswith("error: ")
+    rows = list(csv.DictReader(out.open()))
+    assert [float(r["converged"]) for r in rows[-2:]] == [1.0, 0.0]
+    assert 2.2 < float(rows[-1]["t"]) < 2.4
+    assert run("solve", model_file, "--case", "bucket_toggle").exit_code in (3, 4)

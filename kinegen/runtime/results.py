@@ -153,8 +153,14 @@ class Results:
 
     def table(self) -> tuple[list[str], np.ndarray]:
         """Column names and values of the CSV export."""
-        columns = [self.times[:, None], self.iterations[:, None], self.residuals[:, None], self.conditions[:, None], self.inputs]
-        names = ["t", "newton_iterations", "max_abs_phi", "jacobian_condition", *(f"input.{d}" for d in self.system.driver_names)]
+        columns = [
+            self.times[:, None], self.converged[:, None].astype(float), self.iterations[:, None], self.residuals[:, None],
+            self.conditions[:, None], self.inputs,
+        ]  # fmt: skip
+        names = [
+            "t", "converged", "newton_iterations", "max_abs_phi", "jacobian_condition",
+            *(f"input.{d}" for d in self.system.driver_names),
+        ]  # fmt: skip
         for body in self.system.bodies:
             for label, values in (
                 ("", self.position(body)),

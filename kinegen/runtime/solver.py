@@ -213,23 +213,32 @@ class Solver:
         solution = self._position(q0, u, t)
         return solution.q, solution.iterations, solution.norm
 
-    def _position(self, q0: np.ndarray, u: np.ndarray, t: float) -> Solution:
-        """:meth:`position`, also returning Phi_q at the solution."""
+    def _position(self, q0: np.ndarray, u: np.ndarray, t: float, thorough: bool = True) -> Solution:
+        """:meth:`position`, also returning Phi_q at the solution (``thorough=False``: no homotopy,
+        for the short sub-steps of a refined step, where it rarely helps and costs most)."""
         try:
             return self._newton(q0, u, t, damped=False)
-        except (ConvergenceError, SingularJacobianError):
+        except (ConvergenceError, SingularJacobianError) as error:
             if not self.options.line_search:
                 raise
+            first = error
         try:
             return self._newton(q0, u, t, damped=True)
         except (ConvergenceError, SingularJacobianError):
             pass
+        if thorough:
+            try:
+                return self._homotopy(q0, u, t)
+            except (ConvergenceError, SingularJacobianError):
+                pass
         try:
-            return self._homotopy(q0, u, t)
-        except (ConvergenceError, SingularJacobianError):
             return self._least_squares(q0, u, t)
+        except UnreachableError:
+            if isinstance(first, SingularJacobianError):
+                raise first from None  # a singular Phi_q is the finding, not an unreachable target
+            raise
 
-    def _least_squares(self, q: np.ndarray, u: np.ndarray, t: float, max_iterations: int = 300) -> Solution:
+    def _least_squares(self, q: np.ndarray, u: np.ndarray, t: float, max_iterations: int = 100) -> Solution:
         """Levenberg-Marquardt on sum(w_i Phi_i^2), joint rows weighted 1e4 over driver rows:
         the solution if one exists nearby; otherwise the assembled configuration closest to
         the drivers' targets, reported by UnreachableError (the target is outside the workspace)."""
@@ -429,7 +438,7 @@ class Solver:
         guess = self.retract(q, motion) if opts.predictor else q
         u = inputs[0]
         try:
-            solution = self._position(guess, u, t1)
+            solution = self._position(guess, u, t1, thorough=depth == 0)
             factors = self._factor(solution.values, t1)
             same_sign = sign is None or factors.lu is None or self.linear.sign(factors.lu) == sign
             plausible = not opts.predictor or solution.travel <= max(opts.jump_ratio * np.max(np.abs(motion)), opts.jump_floor)
