@@ -120,6 +120,12 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
     help="On a failed step, stop there but still write the results so far (the failed step marked "
     "converged = 0), then report the error and exit with its code.",
 )
+@click.option(
+    "--compiled",
+    is_flag=True,
+    help="Evaluate Phi, Phi_q, nu and gamma through C translated from the generated module "
+    "(compiled once with the machine's C compiler, cached in ~/.cache/kinegen).",
+)
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def solve(
     model_file: str,
@@ -131,6 +137,7 @@ def solve(
     out: str | None,
     plot: str | None,
     keep_going: bool,
+    compiled: bool,
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time."""
@@ -139,6 +146,12 @@ def solve(
 
     parametrization = _parametrization(param)
     _, system = _system(model_file, parametrization, case, generated_dir)
+    if compiled:
+        import sys
+
+        from kinegen.runtime.compiled import attach
+
+        system = attach(system, sys.modules[system.phi.__module__])
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise"))

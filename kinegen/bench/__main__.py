@@ -23,10 +23,13 @@ import sys
 KINEGEN_OWN = "kinegen (own predictor)"
 KINEGEN = "kinegen (previous q, as specified)"
 CASADI = "CasADi SX, Python Newton loop"
+KINEGEN_C = "kinegen compiled C (previous q)"
 CONTENDERS = {  # name -> (call, largest chain N it runs on, runs on the excavator, slow)
     KINEGEN_OWN: ("kinegen_run({w!r}, True)", 10**6, True, False),
     KINEGEN: ("kinegen_run({w!r}, False)", 10**6, True, False),
     "kinegen quaternion (own predictor)": ("kinegen_run({w!r}, True, 'quaternion')", 0, True, False),
+    KINEGEN_C: ("kinegen_run({w!r}, False, compiled=True)", 10**6, True, False),
+    "kinegen compiled C (own predictor)": ("kinegen_run({w!r}, True, compiled=True)", 10**6, True, False),
     CASADI: ("casadi_run({w!r}, False)", 10**6, True, False),
     "CasADi SX, rootfinder('newton')": ("casadi_run({w!r}, True)", 14, True, False),
     "SymEngine Lambdify (LLVM, sparse)": ("symengine_run({w!r})", 50, True, False),
@@ -139,13 +142,15 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
     workloads = sorted({w for w, _ in rows})
     for w in workloads:
         casadi = get(w, CASADI, "trajectory")
-        for name in (KINEGEN, KINEGEN_OWN, "kinegen quaternion (own predictor)"):
+        for name in (KINEGEN, KINEGEN_OWN, "kinegen quaternion (own predictor)", KINEGEN_C, "kinegen compiled C (own predictor)"):
             mine = get(w, name, "trajectory")
             if mine is not None and casadi is not None:
                 out.append(line(f"{w} {name} trajectory / CasADi Python loop", mine / casadi, 1.0, True))
-        scipy_time, mine = get(w, "SciPy hybr + finite differences", "trajectory"), get(w, KINEGEN, "trajectory")
-        if scipy_time is not None and mine is not None:
-            out.append(line(f"{w} SciPy finite differences / kinegen trajectory", scipy_time / mine, 50, False))
+        scipy_time = get(w, "SciPy hybr + finite differences", "trajectory")
+        for name in (KINEGEN, KINEGEN_C):
+            mine = get(w, name, "trajectory")
+            if scipy_time is not None and mine is not None:
+                out.append(line(f"{w} SciPy finite differences / {name} trajectory", scipy_time / mine, 50, False))
     out.append(line("chain-14 kinegen build", get("chain-14", KINEGEN, "build"), 1.0, True, " s"))
     b14, b100 = get("chain-14", KINEGEN, "build"), get("chain-100", KINEGEN, "build")
     if b14 and b100:

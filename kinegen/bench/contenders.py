@@ -110,8 +110,9 @@ def _result(build: float, trajectory: float, iterations: list[int] | np.ndarray,
 
 
 # ---- kinegen ---------------------------------------------------------------------------
-def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATION) -> dict[str, Any]:
-    """kinegen: generated module (build = symbolic derivation + code generation)."""
+def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATION, compiled: bool = False) -> dict[str, Any]:
+    """kinegen: generated module (build = symbolic derivation + code generation, and with
+    ``compiled`` the translation to C and its compilation, ``kinegen.runtime.compiled``)."""
     import tempfile
 
     from kinegen import rotations
@@ -122,10 +123,20 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
     start = time.perf_counter()
     source = generate_source(w.model, rotations.get(parametrization))
     build = time.perf_counter() - start
-    with tempfile.TemporaryDirectory() as folder:
+    with tempfile.TemporaryDirectory() as folder, tempfile.TemporaryDirectory() as cache:
         path = Path(folder) / "module.py"
         path.write_text(source)
-        system = from_module(load_module(path), w.case)
+        module = load_module(path)
+        system = from_module(module, w.case)
+        if compiled:
+            import os
+
+            from kinegen.runtime.compiled import attach
+
+            os.environ["KINEGEN_CACHE"] = cache  # a fresh compilation, timed as part of the build
+            start = time.perf_counter()
+            system = attach(system, module)
+            build += time.perf_counter() - start
     # "as specified": previous-q starts and no polish; own: predictor + polishing correction
     solver = Solver(system, SolverOptions(condition="none", predictor=predictor, polish=predictor))
     _settle()

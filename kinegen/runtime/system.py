@@ -54,6 +54,8 @@ class NumericSystem:
     phi_jac_s: Callable[[list, list], tuple[list, list]] | None = None
     nu_s: Callable[..., list] | None = None
     gamma_s: Callable[..., list] | None = None
+    #: optional compiled implementation of the same three (``kinegen.runtime.compiled.attach``)
+    native: Any = None
 
     @property
     def n_stored(self) -> int:
@@ -89,6 +91,8 @@ class NumericSystem:
     def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, Any]:
         """Phi and the Phi_q values (at jac_rows, jac_cols) at one configuration in one call
         (the plain-float code when the module has it)."""
+        if self.native is not None:
+            return self.native.evaluate(q, u)
         if self.phi_jac_s is None:
             return self.phi(q, u), self.jac(q, u)
         phi, values = self.phi_jac_s(q.tolist(), u.tolist())
@@ -96,12 +100,16 @@ class NumericSystem:
 
     def velocity_rhs(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
         """nu = -Phi_t at one configuration."""
+        if self.native is not None:
+            return self.native.nu(q, u, ud)
         if self.nu_s is None:
             return self.nu(q, u, ud)
         return np.array(self.nu_s(q.tolist(), u.tolist(), ud.tolist()))
 
     def acceleration_rhs(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
         """gamma at one configuration."""
+        if self.native is not None:
+            return self.native.gamma(q, v, u, ud, udd)
         if self.gamma_s is None:
             return self.gamma(q, v, u, ud, udd)
         return np.array(self.gamma_s(q.tolist(), v.tolist(), u.tolist(), ud.tolist(), udd.tolist()))
