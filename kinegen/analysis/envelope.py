@@ -85,14 +85,17 @@ class _Evaluator:
         return u
 
     def points(self, q: np.ndarray) -> np.ndarray:
-        """Global positions of the tracked point (and of the dump pivot), (1 or 2, 3)."""
+        """Global positions of the tracked point (and of the dump pivot): (1 or 2, 3) for
+        q of shape (n,), (K, 1 or 2, 3) for a batch (n, K)."""
+        batch = q.reshape(q.shape[0], -1)
         out = []
         k = len(self.system.parametrization.stored_names)
         for body, name in self.tracked:
             offset = self.system.bodies[body][0]
-            rotation = self.system.parametrization.to_matrix(q[offset + 3 : offset + 3 + k])
-            out.append(q[offset : offset + 3] + rotation @ np.array(self.system.points[body][name]))
-        return np.array(out)
+            rotation = self.system.parametrization.to_matrix(batch[offset + 3 : offset + 3 + k].T)  # (K, 3, 3)
+            out.append(batch[offset : offset + 3].T + rotation @ np.array(self.system.points[body][name]))
+        points = np.stack(out, axis=1)
+        return points[0] if q.ndim == 1 else points
 
     def move_to(self, values: np.ndarray) -> np.ndarray:
         """Solve at the swept ``values`` by continuation from the last solve; the tracked points."""
@@ -125,9 +128,8 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     q = sweep.q.reshape(system.n_stored, -1)
     ok = sweep.converged.ravel()
     tracked = np.full((len(samples), 2, 3), np.nan)
-    for k in np.flatnonzero(ok):
-        found = evaluator.points(q[:, k])
-        tracked[k, : len(found)] = found
+    found = evaluator.points(q[:, ok])
+    tracked[ok, : found.shape[1]] = found
     envelope = Envelope(spec, names, samples, tracked[:, 0], tracked[:, 1])
     envelope.grid_seconds = grid_seconds
     envelope.grid_solved = int(ok.sum())

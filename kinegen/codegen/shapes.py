@@ -62,7 +62,6 @@ class Shapes:
     def __init__(self, array_printer: CodePrinter, scalar_printer: CodePrinter) -> None:
         self.printers = (array_printer, scalar_printer)
         self._printed: dict[tuple, _Printed] = {}
-        self.hits = 0
 
     def _print(self, expressions: list[sp.Expr]) -> _Printed:
         frozen = [freeze_numbers(e) for e in expressions]
@@ -87,8 +86,6 @@ class Shapes:
                 printed = self._print(group.expressions())
                 if group.key is not None:
                     self._printed[group.key] = printed
-            else:
-                self.hits += 1
             names = {str(g): str(group.rename.get(g, g)) for g in printed.used}
             start = len(out.temporaries)
             names.update({f"_t{k}": f"{prefix}{start + k}" for k in range(len(printed.temporaries))})

@@ -16,7 +16,6 @@ import numpy as np
 
 from kinegen.analysis.blocks import block_triangular
 from kinegen.errors import KinegenError
-from kinegen.rotations import quaternion_algebra as qa
 from kinegen.runtime.solver import Solver, SolverOptions
 from kinegen.runtime.system import NumericSystem
 
@@ -97,23 +96,6 @@ class BatchResult:
     iterations: np.ndarray  #: (K,) Newton iterations
 
 
-def retract_batch(system: NumericSystem, q: np.ndarray, step: np.ndarray) -> np.ndarray:
-    """q (n, K) moved by ``step`` (velocity coordinates, (nv, K)); quaternions by the exponential map."""
-    if system.parametrization.name != "quaternion":
-        return q + step
-    offsets = np.array(list(system.bodies.values()))  # (bodies, 2): stored, velocity offsets
-    position_q = (offsets[:, :1] + np.arange(3)).ravel()
-    position_v = (offsets[:, 1:] + np.arange(3)).ravel()
-    rotation_q = offsets[:, :1] + 3 + np.arange(4)  # (bodies, 4)
-    rotation_v = offsets[:, 1:] + 3 + np.arange(3)  # (bodies, 3)
-    out = q.copy()
-    out[position_q] += step[position_v]
-    increments = np.moveaxis(step[rotation_v], -1, 0)  # (K, bodies, 3)
-    quaternions = np.moveaxis(q[rotation_q], -1, 0)  # (K, bodies, 4)
-    out[rotation_q] = np.moveaxis(qa.multiply(qa.exp(increments), quaternions), 0, -1)
-    return out
-
-
 def solve_batch(
     system: NumericSystem,
     u: np.ndarray,
@@ -139,7 +121,7 @@ def solve_batch(
             break
         values = system.jac(q[:, active], u[:, active])
         step = solver.solve(values, -phi)
-        q[:, active] = retract_batch(system, q[:, active], step)
+        q[:, active] = system.retract(q[:, active], step)
         iterations[active] += 1
     return BatchResult(q, residuals <= tolerance, residuals, iterations)
 

@@ -181,24 +181,24 @@ class _Native:
             function.restype = None
             function.argtypes = [ctypes.c_void_p] * count
 
+    @staticmethod
+    def _call(function, arguments: tuple, *sizes: int) -> list[np.ndarray]:
+        """``function`` on contiguous double copies of ``arguments``, into new arrays of ``sizes``."""
+        arrays = [np.ascontiguousarray(x, dtype=float) for x in arguments]
+        outputs = [np.empty(size) for size in sizes]
+        function(*(a.ctypes.data for a in (*arrays, *outputs)))
+        return outputs
+
     def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Phi and the Phi_q values at one configuration."""
-        q, u = np.ascontiguousarray(q, dtype=float), np.ascontiguousarray(u, dtype=float)
-        phi, jac = np.empty(self.rows), np.empty(self.entries)
-        self._phi_jac(q.ctypes.data, u.ctypes.data, phi.ctypes.data, jac.ctypes.data)
+        phi, jac = self._call(self._phi_jac, (q, u), self.rows, self.entries)
         return phi, jac
 
     def nu(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
-        q, u, ud = (np.ascontiguousarray(x, dtype=float) for x in (q, u, ud))
-        out = np.empty(self.rows)
-        self._nu(q.ctypes.data, u.ctypes.data, ud.ctypes.data, out.ctypes.data)
-        return out
+        return self._call(self._nu, (q, u, ud), self.rows)[0]
 
     def gamma(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
-        q, v, u, ud, udd = (np.ascontiguousarray(x, dtype=float) for x in (q, v, u, ud, udd))
-        out = np.empty(self.rows)
-        self._gamma(q.ctypes.data, v.ctypes.data, u.ctypes.data, ud.ctypes.data, udd.ctypes.data, out.ctypes.data)
-        return out
+        return self._call(self._gamma, (q, v, u, ud, udd), self.rows)[0]
 
 
 def attach(system: NumericSystem, module: ModuleType) -> NumericSystem:

@@ -35,19 +35,24 @@ def _lu_sign(diagonal: np.ndarray, pivots: np.ndarray) -> int:
     return -1 if (swaps + negative) % 2 else 1
 
 
-class DenseLU:
-    """Dense LU with partial pivoting."""
-
-    kind = "dense"
+class Pattern:
+    """Phi_q given as its values at the constant pattern (``rows``, ``cols``)."""
 
     def __init__(self, rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int]) -> None:
         self.shape = shape
-        self._flat = np.asarray(rows) * shape[1] + np.asarray(cols)
+        self._dense_flat = np.asarray(rows) * shape[1] + np.asarray(cols)
 
     def dense(self, values: Any) -> np.ndarray:
+        """The dense matrix of ``values``."""
         matrix = np.zeros(self.shape)
-        matrix.flat[self._flat] = values
+        matrix.flat[self._dense_flat] = values
         return matrix
+
+
+class DenseLU(Pattern):
+    """Dense LU with partial pivoting."""
+
+    kind = "dense"
 
     def factor(self, values: Any) -> tuple[tuple, np.ndarray]:
         """(factors, |diagonal of U|)."""
@@ -68,13 +73,13 @@ class DenseLU:
         return float(rcond)
 
 
-class BandLU:
+class BandLU(Pattern):
     """Band LU of the permuted matrix (see the module docstring)."""
 
     kind = "band"
 
     def __init__(self, rows: np.ndarray, cols: np.ndarray, shape: tuple[int, int], row_order, col_order) -> None:
-        self.shape = shape
+        super().__init__(rows, cols, shape)
         n = shape[0]
         self.row_order, self.col_order = np.asarray(row_order), np.asarray(col_order)
         new_row = np.empty(n, dtype=np.intp)
@@ -86,12 +91,6 @@ class BandLU:
         self._ldab = 2 * self.kl + self.ku + 1
         # LAPACK band storage (Fortran order): AB[kl + ku + i - j, j] = A[i, j]
         self._flat = (self.kl + self.ku + i - j) + j * self._ldab
-        self._dense_flat = np.asarray(rows) * shape[1] + np.asarray(cols)
-
-    def dense(self, values: Any) -> np.ndarray:
-        matrix = np.zeros(self.shape)
-        matrix.flat[self._dense_flat] = values
-        return matrix
 
     def factor(self, values: Any) -> tuple[tuple, np.ndarray]:
         band = np.zeros((self._ldab, self.shape[1]), order="F")

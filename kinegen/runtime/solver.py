@@ -25,7 +25,6 @@ from kinegen.errors import (
     SingularJacobianError,
     UnreachableError,
 )
-from kinegen.rotations import quaternion_algebra as qa
 from kinegen.runtime import linear
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem
@@ -98,6 +97,11 @@ def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str],
     return text[2:] if text.startswith("+ ") else text
 
 
+def _max_norm(phi: np.ndarray) -> float:
+    """max |Phi_i| (0 for no rows)."""
+    return float(np.max(np.abs(phi))) if phi.size else 0.0
+
+
 class Solver:
     """Solves one :class:`NumericSystem` over time."""
 
@@ -109,29 +113,13 @@ class Solver:
             raise ValueError(f"{system.model}/{system.case}: {m} constraints for {n} velocity coordinates")
         #: more equations than coordinates: a model with redundant constraints, solved by least squares
         self.redundant = m > n
-        self._tangent = system.parametrization.name == "quaternion"
-        positions_q, positions_v, rot_q, rot_v = [], [], [], []
-        for s_off, v_off in system.bodies.values():
-            positions_q += range(s_off, s_off + 3)
-            positions_v += range(v_off, v_off + 3)
-            rot_q += range(s_off + 3, s_off + 7)
-            rot_v += range(v_off + 3, v_off + 6)
-        self._pos_q, self._pos_v = np.array(positions_q), np.array(positions_v)
-        self._rot_q, self._rot_v = np.array(rot_q), np.array(rot_v)
         #: factorization of Phi_q chosen once for its pattern (dense or band LU)
         self.linear = linear.choose(system.jac_rows, system.jac_cols, (m, n))
 
     # ---- building blocks ---------------------------------------------------------------
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
         """q moved by ``step`` (velocity coordinates); quaternions by the exponential map."""
-        if not self._tangent:
-            return q + step
-        out = q.copy()
-        out[self._pos_q] += step[self._pos_v]
-        quaternions = q[self._rot_q].reshape(-1, 4)
-        increments = step[self._rot_v].reshape(-1, 3)
-        out[self._rot_q] = qa.multiply(qa.exp(increments), quaternions).ravel()
-        return out
+        return self.system.retract(q, step)
 
     def factorize(self, q: np.ndarray, u: np.ndarray, t: float) -> Factors:
         """Factors of Phi_q at (q, u); raises SingularJacobianError (at time t) when singular."""
@@ -194,12 +182,19 @@ class Solver:
     def residual(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float]:
         """Phi(q, u) and its max norm."""
         phi = self.system.phi(q, u)
-        return phi, float(np.max(np.abs(phi))) if phi.size else 0.0
+        return phi, _max_norm(phi)
+
+    def worst(self, phi: np.ndarray, count: int = 3) -> list[tuple[str, float]]:
+        """The ``count`` constraints with the largest |Phi_i|, with their values."""
+        return [(self.system.constraint_names[i], float(phi[i])) for i in np.argsort(-np.abs(phi))[:count]]
+
+    def _sign(self, factors: Factors) -> int | None:
+        """Sign of det(Phi_q) from its LU factors (None for a redundant system)."""
+        return None if factors.lu is None else self.linear.sign(factors.lu)
 
     def _failure(self, q: np.ndarray, u: np.ndarray, t: float, iterations: int) -> ConvergenceError:
         phi, norm = self.residual(q, u)
-        order = np.argsort(-np.abs(phi))[:3]
-        return ConvergenceError(t, iterations, norm, [(self.system.constraint_names[i], float(phi[i])) for i in order])
+        return ConvergenceError(t, iterations, norm, self.worst(phi))
 
     # ---- position ------------------------------------------------------------------------
     def position(self, q0: np.ndarray, u: np.ndarray, t: float = float("nan")) -> tuple[np.ndarray, int, float]:
@@ -273,11 +268,10 @@ class Solver:
             damping = max(damping / 3, 1e-12)
             if improvement <= 1e-15 * cost:
                 break
-        norm = float(np.max(np.abs(phi))) if phi.size else 0.0
+        norm = _max_norm(phi)
         if norm <= self.options.tolerance:
             return Solution(q, iterations, norm, values, phi)
-        order = np.argsort(-np.abs(phi))[:3]
-        raise UnreachableError(t, iterations, norm, [(self.system.constraint_names[i], float(phi[i])) for i in order])
+        raise UnreachableError(t, iterations, norm, self.worst(phi))
 
     def _newton(
         self, q: np.ndarray, u: np.ndarray, t: float, damped: bool, offset: np.ndarray | None = None
@@ -290,7 +284,7 @@ class Solver:
             phi, values = evaluate(x, u)  # values of Phi_q at the pattern
             if offset is not None:
                 phi = phi - offset
-            return phi, float(np.max(np.abs(phi))) if phi.size else 0.0, values
+            return phi, _max_norm(phi), values
 
         phi, norm, jacobian = residual(q)
         iterations, travel = 0, 0.0
@@ -328,7 +322,7 @@ class Solver:
             s = target
             ds = min(2 * ds, 0.25)
         phi, values = self.system.evaluate(q, u)
-        return Solution(q, total, float(np.max(np.abs(phi))) if phi.size else 0.0, values, phi)
+        return Solution(q, total, _max_norm(phi), values, phi)
 
     def rates(
         self, q: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray, factors: Factors
@@ -416,7 +410,7 @@ class Solver:
                 residuals[i] = getattr(error, "residual", np.nan)
                 k = i + 1
                 break
-            sign = self.linear.sign(factors.lu) if factors.lu is not None else None
+            sign = self._sign(factors)
             v, a = self.rates(q, u, ud, udd, factors)
             conditions[i] = self._condition(factors)
             qs[i], vs[i], accs[i] = q, v, a
@@ -440,7 +434,7 @@ class Solver:
         try:
             solution = self._position(guess, u, t1, thorough=depth == 0)
             factors = self._factor(solution.values, t1)
-            same_sign = sign is None or factors.lu is None or self.linear.sign(factors.lu) == sign
+            same_sign = sign is None or self._sign(factors) in (None, sign)
             plausible = not opts.predictor or solution.travel <= max(opts.jump_ratio * np.max(np.abs(motion)), opts.jump_floor)
             same = not opts.keep_branch or (same_sign and plausible)
         except (ConvergenceError, SingularJacobianError):
@@ -455,8 +449,7 @@ class Solver:
         mid_inputs = inputs_at(middle)
         first, factors_m = self._step(q, v, a, sign, t0, middle, mid_inputs, inputs_at, depth + 1)
         vm, am = self.rates(first.q, *mid_inputs, factors_m)
-        sign_m = self.linear.sign(factors_m.lu) if factors_m.lu is not None else None
-        second, factors = self._step(first.q, vm, am, sign_m, middle, t1, inputs, inputs_at, depth + 1)
+        second, factors = self._step(first.q, vm, am, self._sign(factors_m), middle, t1, inputs, inputs_at, depth + 1)
         return second._replace(iterations=first.iterations + second.iterations), factors
 
 
@@ -477,8 +470,7 @@ def check_initial_pose(system: NumericSystem, options: SolverOptions | None = No
     prefix = f"case {system.case}: initial pose"
     if norm <= solver.options.tolerance:
         return f"{prefix} satisfies Phi at t0 = {system.t0:g} (max |Phi| = {norm:.1e})"
-    order = np.argsort(-np.abs(phi))[:3]
-    worst = [(system.constraint_names[i], float(phi[i])) for i in order]
+    worst = solver.worst(phi)
     try:
         _, iterations, final = solver.position(system.initial_q, u, system.t0)
     except (ConvergenceError, SingularJacobianError) as exc:

@@ -20,6 +20,8 @@ import numpy as np
 
 from kinegen import rotations
 from kinegen.errors import GeneratedModuleError
+from kinegen.rotations import quaternion_algebra as qa
+from kinegen.runtime.linear import Pattern
 
 
 @dataclass(frozen=True)
@@ -77,16 +79,44 @@ class NumericSystem:
 
     def jacobian(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Dense Phi_q (constraints x velocity coordinates) at one configuration."""
-        return self._dense(self.jac(q, u))
+        return self._pattern.dense(self.jac(q, u))
 
     @cached_property
-    def _flat_index(self) -> np.ndarray:
-        return self.jac_rows * self.n_velocity + self.jac_cols
+    def _retraction_indices(self) -> tuple[np.ndarray, ...] | None:
+        """Positions (stored, velocity) and quaternion/increment (stored, velocity) indices, or
+        None when the velocity coordinates are the stored ones' rates (q + step)."""
+        if self.parametrization.name != "quaternion":
+            return None
+        offsets = np.array(list(self.bodies.values()), dtype=np.intp).reshape(-1, 2)  # stored, velocity offset
+        return (
+            (offsets[:, :1] + np.arange(3)).ravel(),
+            (offsets[:, 1:] + np.arange(3)).ravel(),
+            (offsets[:, :1] + 3 + np.arange(4)).ravel(),
+            (offsets[:, 1:] + 3 + np.arange(3)).ravel(),
+        )
 
-    def _dense(self, values: Any) -> np.ndarray:
-        dense = np.zeros((len(self.constraint_names), self.n_velocity))
-        dense.flat[self._flat_index] = values
-        return dense
+    def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
+        """q (n,) or (n, K) moved by ``step`` (velocity coordinates); quaternions by the
+        exponential map (global rotation increments), so they stay unit."""
+        indices = self._retraction_indices
+        if indices is None:
+            return q + step
+        position_q, position_v, rotation_q, rotation_v = indices
+        out = q.copy()
+        out[position_q] += step[position_v]
+        if q.ndim == 1:
+            quaternions, increments = q[rotation_q].reshape(-1, 4), step[rotation_v].reshape(-1, 3)
+            out[rotation_q] = qa.multiply(qa.exp(increments), quaternions).ravel()
+            return out
+        batch = q.shape[1:]  # (bodies, 4 or 3, K) -> (bodies, K, 4 or 3) for the quaternion algebra
+        quaternions = np.moveaxis(q[rotation_q].reshape(-1, 4, *batch), 1, -1)
+        increments = np.moveaxis(step[rotation_v].reshape(-1, 3, *batch), 1, -1)
+        out[rotation_q] = np.moveaxis(qa.multiply(qa.exp(increments), quaternions), -1, 1).reshape(-1, *batch)
+        return out
+
+    @cached_property
+    def _pattern(self) -> Pattern:
+        return Pattern(self.jac_rows, self.jac_cols, (len(self.constraint_names), self.n_velocity))
 
     def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, Any]:
         """Phi and the Phi_q values (at jac_rows, jac_cols) at one configuration in one call

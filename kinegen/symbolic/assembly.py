@@ -247,27 +247,23 @@ class Templates:
         self.parametrization = parametrization
         self._placeholders: list[BodyCoordinates] = []
         self._rows: dict[tuple, Row] = {}
-        self.hits = 0
 
-    def _placeholder(self, k: int, template: BodyCoordinates) -> BodyCoordinates:
+    def _placeholder(self, k: int) -> BodyCoordinates:
+        """Placeholder body ``_b{k}``; its velocity columns start at k * (coordinates per body),
+        so a generic row's column c is (body c // size, coordinate c % size)."""
+        size = 3 + len(self.parametrization.velocity_names)
         while len(self._placeholders) <= k:
             i = len(self._placeholders)
-            self._placeholders.append(_body_coordinates(f"_b{i}", self.parametrization, 0, 0))
-        placeholder = self._placeholders[k]
-        return BodyCoordinates(
-            placeholder.name, placeholder.stored, placeholder.velocity, template.stored_offset, template.velocity_offset,
-            placeholder.velocity_map, placeholder.frame, placeholder.rotation, placeholder.rotation_derivatives,
-        )  # fmt: skip
+            self._placeholders.append(_body_coordinates(f"_b{i}", self.parametrization, 0, i * size))
+        return self._placeholders[k]
 
     def derive(
         self, equation: Equation, coords: Coordinates, inputs: DriverInputs | None, is_driver: bool, group: str = ""
     ) -> Row:
         touched = [coords.body(name) for name in equation.bodies]
+        placeholders = tuple(self._placeholder(k) for k in range(len(touched)))
         forward: dict[sp.Symbol, sp.Symbol] = {}
-        placeholders = []
-        for k, body in enumerate(touched):
-            placeholder = self._placeholder(k, body)
-            placeholders.append(placeholder)
+        for body, placeholder in zip(touched, placeholders):
             for real, generic in (
                 (body.stored, placeholder.stored),
                 (body.velocity, placeholder.velocity),
@@ -278,23 +274,19 @@ class Templates:
         if inputs is not None:
             used = [k for k, u in enumerate(inputs.u) if u in equation.expr.free_symbols]
             generic_inputs = _generic_inputs(len(used))
-            for k, g in zip(used, range(len(used))):
+            for g, k in enumerate(used):
                 forward[inputs.u[k]] = generic_inputs.u[g]
                 forward[inputs.ud[k]] = generic_inputs.ud[g]
                 forward[inputs.udd[k]] = generic_inputs.udd[g]
         generic_expr = equation.expr.xreplace(forward)
-        offsets = tuple((b.velocity_offset) for b in touched)
         key = (generic_expr, len(touched), is_driver, generic_inputs is not None)
         row = self._rows.get(key)
         if row is None:
-            generic_coords = Coordinates(self.parametrization, tuple(self._placeholder(k, touched[k]) for k in range(len(touched))))
-            generic = Equation("", tuple(p.name for p in generic_coords.bodies), generic_expr)
-            row = _derive(generic, generic_coords, generic_inputs, is_driver)
-            # store with column offsets relative to each placeholder body
-            row = Row("", row.phi, _relative_columns(row.jacobian, offsets, touched), row.nu, row.gamma, is_driver)
+            generic = Equation("", tuple(p.name for p in placeholders), generic_expr)
+            row = _derive(generic, Coordinates(self.parametrization, placeholders), generic_inputs, is_driver)
+            size = 3 + len(self.parametrization.velocity_names)
+            row = Row("", row.phi, {divmod(c, size): e for c, e in row.jacobian.items()}, row.nu, row.gamma, is_driver)
             self._rows[key] = row
-        else:
-            self.hits += 1
         backward = {g: r for r, g in forward.items()}
         jacobian = {touched[b].velocity_offset + k: e.xreplace(backward) for (b, k), e in row.jacobian.items()}
         columns = {touched[b].velocity_offset + k: (b, k) for (b, k) in row.jacobian}
@@ -306,17 +298,6 @@ class Templates:
     def generic(self, key: tuple) -> Row:
         """The row of a shape in placeholder symbols (Jacobian keyed by (placeholder body, coordinate))."""
         return self._rows[key]
-
-
-def _relative_columns(jacobian: dict[int, sp.Expr], offsets: tuple[int, ...], touched: list[BodyCoordinates]) -> dict:
-    """Columns as (body index, coordinate index) pairs."""
-    out = {}
-    for column, e in jacobian.items():
-        for b, body in enumerate(touched):
-            if offsets[b] <= column < offsets[b] + len(body.velocity):
-                out[(b, column - offsets[b])] = e
-                break
-    return out
 
 
 def _generic_inputs(n: int) -> DriverInputs:
