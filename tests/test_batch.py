@@ -3,9 +3,10 @@
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from kinegen.runtime import Solver
-from kinegen.runtime.batch import BlockSolve, solve_batch, sweep_grid
+from kinegen.runtime.batch import BlockSolve, _lagrange_weights, solve_batch, sweep_grid
 from tests.conftest import generated_system, model
 from tests.excavator_reference import planar_pins, spatial
 
@@ -36,14 +37,16 @@ def test_batch_newton_equals_the_sequential_solver():
         assert np.abs(solver.position(start, u[:, k], 0.0)[0] - result.q[:, k]).max() < 1e-10
 
 
-def test_grid_sweep_matches_the_closed_form_planar_excavator():
-    """A 7 x 4 x 7 grid over the three cylinder ranges at zero swing: every bucket tip equals
-    the law-of-cosines reference to 1e-9 m."""
+@pytest.mark.parametrize("counts", [(7, 4, 7), (21, 3, 21)])
+def test_grid_sweep_matches_the_closed_form_planar_excavator(counts):
+    """Grids over the three cylinder ranges at zero swing, solved by slice continuation only
+    (7 x 4 x 7) and coarse to fine (21 x 3 x 21: an 11 x 3 x 11 continuation, then two
+    interpolated fills): every bucket tip equals the law-of-cosines reference to 1e-9 m."""
     system = generated_system("excavator_quaternion", "digging")
     spec = model("excavator").working_range
     names = list(system.driver_names)
     swept = [names.index(n) for n in ("boom_length", "arm_length", "bucket_length")]
-    axes = [np.linspace(*spec.inputs[names[i]], c) for i, c in zip(swept, (7, 4, 7))]
+    axes = [np.linspace(*spec.inputs[names[i]], c) for i, c in zip(swept, counts)]
     base = np.zeros(len(names))
     base[swept] = [a[0] for a in axes]
     solver = Solver(system)
@@ -61,3 +64,14 @@ def test_grid_sweep_matches_the_closed_form_planar_excavator():
         pins, _ = planar_pins(*(axes[d][i] for d, i in enumerate(index)))
         worst = max(worst, np.abs(position - spatial(pins["T"], 0.0)).max())
     assert worst < 1e-9, worst
+
+
+def test_interpolation_weights_reproduce_quintics():
+    """The fill's start values: quintic Lagrange weights from six known values are exact for
+    any quintic, also next to the ends of an axis and on an uneven grid."""
+    values = np.cumsum(np.random.default_rng(3).uniform(0.5, 1.5, 11))
+    known, wanted = np.array([0, 2, 4, 6, 8, 10]), np.array([1, 3, 5, 7, 9])
+    weights = _lagrange_weights(values, known, wanted)
+    quintic = 1e-3 * values**5 - 0.3 * values**3 - 2.0 * values**2 + values - 5.0
+    assert np.abs(weights @ quintic[known] - quintic[wanted]).max() < 1e-9 * np.abs(quintic).max()
+    assert np.allclose(weights.sum(axis=1), 1.0)

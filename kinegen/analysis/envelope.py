@@ -2,8 +2,8 @@
 
 The forward case named in the model's ``working_range`` section is driven over the box
 of its input ranges: a grid solved in batches (:func:`kinegen.runtime.batch.sweep_grid`:
-each slice of the grid one grid step from the last, all its configurations in one
-vectorized Newton) gives the sampled reachable set; each working-range figure is then
+continuation on every other grid line, then the lines between from interpolated starts,
+each batch one vectorized Newton) gives the sampled reachable set; each working-range figure is then
 refined by SLSQP over the inputs from the best grid sample, every evaluation a solver call. The standard figures (ISO 7135 style, from the swing axis
 and the ground plane z = 0):
 

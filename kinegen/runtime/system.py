@@ -84,15 +84,16 @@ class NumericSystem:
     @cached_property
     def _retraction_indices(self) -> tuple[np.ndarray, ...] | None:
         """Positions (stored, velocity) and quaternion/increment (stored, velocity) indices, or
-        None when the velocity coordinates are the stored ones' rates (q + step)."""
+        None when the velocity coordinates are the stored ones' rates (q + step). The rotation
+        indices are (4, bodies) and (3, bodies): q[index] has the components first."""
         if self.parametrization.name != "quaternion":
             return None
         offsets = np.array(list(self.bodies.values()), dtype=np.intp).reshape(-1, 2)  # stored, velocity offset
         return (
             (offsets[:, :1] + np.arange(3)).ravel(),
             (offsets[:, 1:] + np.arange(3)).ravel(),
-            (offsets[:, :1] + 3 + np.arange(4)).ravel(),
-            (offsets[:, 1:] + 3 + np.arange(3)).ravel(),
+            offsets[:, 0] + 3 + np.arange(4)[:, None],
+            offsets[:, 1] + 3 + np.arange(3)[:, None],
         )
 
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -104,14 +105,7 @@ class NumericSystem:
         position_q, position_v, rotation_q, rotation_v = indices
         out = q.copy()
         out[position_q] += step[position_v]
-        if q.ndim == 1:
-            quaternions, increments = q[rotation_q].reshape(-1, 4), step[rotation_v].reshape(-1, 3)
-            out[rotation_q] = qa.multiply(qa.exp(increments), quaternions).ravel()
-            return out
-        batch = q.shape[1:]  # (bodies, 4 or 3, K) -> (bodies, K, 4 or 3) for the quaternion algebra
-        quaternions = np.moveaxis(q[rotation_q].reshape(-1, 4, *batch), 1, -1)
-        increments = np.moveaxis(step[rotation_v].reshape(-1, 3, *batch), 1, -1)
-        out[rotation_q] = np.moveaxis(qa.multiply(qa.exp(increments), quaternions), -1, 1).reshape(-1, *batch)
+        out[rotation_q] = qa.increment(step[rotation_v], q[rotation_q])
         return out
 
     @cached_property
