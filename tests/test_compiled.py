@@ -20,7 +20,9 @@ def _cache(tmp_path, monkeypatch):
     monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path))
 
 
-@pytest.mark.parametrize("name,case", [("excavator_euler_parameters", "digging"), ("rssr_quaternion", None), ("boom_euler_zxz", None)])
+@pytest.mark.parametrize(
+    "name,case", [("excavator_euler_parameters", "digging"), ("rssr_quaternion", None), ("boom_euler_zxz", None)]
+)
 def test_compiled_functions_equal_the_python_ones(name, case):
     module = load_module(GENERATED / f"{name}.py")
     system = from_module(module, case)
@@ -64,5 +66,9 @@ def test_cli_solve_compiled_gives_the_same_csv(tmp_path):
         out = tmp_path / f"run{len(flags)}.csv"
         result = CliRunner().invoke(main, ["solve", str(MODELS / "rssr.yaml"), "--out", str(out), *flags])
         assert result.exit_code == 0, result.output
-        outputs.append(np.genfromtxt(out, delimiter=",", skip_header=1))
-    assert np.abs(outputs[0] - outputs[1]).max() < 1e-9
+        header = out.read_text().splitlines()[0].split(",")
+        table = np.genfromtxt(out, delimiter=",", skip_header=1)
+        # iteration counts differ: with cheap compiled evaluations the solver takes chord steps
+        outputs.append(np.delete(table, header.index("newton_iterations"), axis=1))
+    # so the poses agree to the Newton tolerance (1e-10), rates to it times cond(Phi_q) (~12)
+    assert np.abs(outputs[0] - outputs[1]).max() < 1e-10 * 20 * max(1.0, np.abs(outputs[0]).max())

@@ -181,3 +181,28 @@ def test_a_cylinder_leaving_its_range_is_reported():
     t, name, value, limits = violations[-1]
     assert name == "bucket_cylinder"
     assert t == 1.0 and abs(value - 2.70) < 1e-9 and limits == (1.6529, 2.6613)
+
+
+def test_chord_iterations_reach_the_same_poses_with_fewer_factorizations():
+    """From previous-step starts (no predictor) the chord iterations (each step starts with
+    the factorization made at the last solution) end where full Newton ends, every pose and
+    the bucket tip's path to the tolerance, and factorize Phi_q less often."""
+    system = generated_system("excavator_euler_parameters", "digging")
+    times = np.linspace(0.0, 2.0, 101)
+    runs = {}
+    for chord in (False, True):
+        solver = Solver(system, SolverOptions(predictor=False, chord=chord))
+        factor, count = solver.linear.factor, [0]
+
+        def counted(values, factor=factor, count=count):
+            count[0] += 1
+            return factor(values)
+
+        solver.linear.factor = counted
+        runs[chord] = (solver.solve(times), count[0])
+    (newton, newton_factors), (chord, chord_factors) = runs[False], runs[True]
+    assert chord.residuals.max() <= 1e-10
+    assert np.abs(chord.q - newton.q).max() < 1e-9
+    tip = [r.point_position("bucket", "T") for r in (newton, chord)]
+    assert np.abs(tip[0] - tip[1]).max() < 1e-9
+    assert chord_factors < 0.5 * newton_factors, (chord_factors, newton_factors)

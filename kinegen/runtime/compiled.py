@@ -164,41 +164,63 @@ def build_library(source: str) -> Path:
             [compiler, "-O2", "-shared", "-fPIC", "-o", str(built), str(c_file), "-lm"], capture_output=True, text=True
         )
         if done.returncode != 0:
-            raise CompileError(f"the C compiler failed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}")
+            raise CompileError(
+                f"the C compiler failed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}"
+            )
         os.replace(built, library)  # atomic: a concurrent build finds a whole library or none
     return library
 
 
 class _Native:
-    """Calls into the compiled case: the same results as the ``*_s`` functions, as arrays."""
+    """Calls into the compiled case: the same results as the ``*_s`` functions, as arrays.
 
-    def __init__(self, library: ctypes.CDLL, case: str, rows: int, entries: int) -> None:
+    Arguments are copied into buffers allocated once (their addresses computed once: asking
+    an array for its address costs more than the C call at chain-3 size); results are
+    written into buffers and returned as fresh copies, so a caller may keep them. (One
+    object per system: not for concurrent calls from several threads.)
+    """
+
+    def __init__(
+        self, library: ctypes.CDLL, case: str, rows: int, entries: int, n_stored: int, n_velocity: int, n_inputs: int
+    ) -> None:
         self.rows, self.entries = rows, entries
+        self._q, self._v = np.zeros(n_stored), np.zeros(n_velocity)
+        self._u, self._ud, self._udd = np.zeros(n_inputs), np.zeros(n_inputs), np.zeros(n_inputs)
+        self._phi, self._jac = np.zeros(rows), np.zeros(entries)
+        address = {name: getattr(self, name).ctypes.data for name in ("_q", "_v", "_u", "_ud", "_udd", "_phi", "_jac")}
         self._phi_jac = getattr(library, f"phi_jac_{case}")
         self._nu = getattr(library, f"nu_{case}")
         self._gamma = getattr(library, f"gamma_{case}")
-        for function, count in ((self._phi_jac, 4), (self._nu, 4), (self._gamma, 6)):
+        for function in (self._phi_jac, self._nu, self._gamma):
             function.restype = None
-            function.argtypes = [ctypes.c_void_p] * count
-
-    @staticmethod
-    def _call(function, arguments: tuple, *sizes: int) -> list[np.ndarray]:
-        """``function`` on contiguous double copies of ``arguments``, into new arrays of ``sizes``."""
-        arrays = [np.ascontiguousarray(x, dtype=float) for x in arguments]
-        outputs = [np.empty(size) for size in sizes]
-        function(*(a.ctypes.data for a in (*arrays, *outputs)))
-        return outputs
+        self._phi_jac.argtypes = self._nu.argtypes = [ctypes.c_void_p] * 4
+        self._gamma.argtypes = [ctypes.c_void_p] * 6
+        self._phi_jac_args = (address["_q"], address["_u"], address["_phi"], address["_jac"])
+        self._nu_args = (address["_q"], address["_u"], address["_ud"], address["_phi"])
+        self._gamma_args = (address["_q"], address["_v"], address["_u"], address["_ud"], address["_udd"], address["_phi"])
 
     def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Phi and the Phi_q values at one configuration."""
-        phi, jac = self._call(self._phi_jac, (q, u), self.rows, self.entries)
-        return phi, jac
+        self._q[:] = q
+        self._u[:] = u
+        self._phi_jac(*self._phi_jac_args)
+        return self._phi.copy(), self._jac.copy()
 
     def nu(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
-        return self._call(self._nu, (q, u, ud), self.rows)[0]
+        self._q[:] = q
+        self._u[:] = u
+        self._ud[:] = ud
+        self._nu(*self._nu_args)
+        return self._phi.copy()
 
     def gamma(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
-        return self._call(self._gamma, (q, v, u, ud, udd), self.rows)[0]
+        self._q[:] = q
+        self._v[:] = v
+        self._u[:] = u
+        self._ud[:] = ud
+        self._udd[:] = udd
+        self._gamma(*self._gamma_args)
+        return self._phi.copy()
 
 
 def attach(system: NumericSystem, module: ModuleType) -> NumericSystem:
@@ -206,4 +228,5 @@ def attach(system: NumericSystem, module: ModuleType) -> NumericSystem:
     source, sizes = c_source(module)
     library = ctypes.CDLL(str(build_library(source)))
     size = sizes[system.case]
-    return replace(system, native=_Native(library, system.case, size["rows"], size["entries"]))
+    native = _Native(library, system.case, size["rows"], size["entries"], system.n_stored, system.n_velocity, system.n_inputs)
+    return replace(system, native=native)

@@ -57,7 +57,7 @@ class DenseLU(Pattern):
     def factor(self, values: Any) -> tuple[tuple, np.ndarray]:
         """(factors, |diagonal of U|)."""
         lu, piv, info = _getrf(self.dense(values), overwrite_a=True)
-        return (lu, piv), np.abs(np.diag(lu)) if info == 0 else np.zeros(1)
+        return (lu, piv), abs(lu.diagonal()) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
         x, _ = _getrs(factors[0], factors[1], rhs)
@@ -65,7 +65,7 @@ class DenseLU(Pattern):
 
     def sign(self, factors: tuple) -> int:
         """Sign of det(Phi_q)."""
-        return _lu_sign(np.diag(factors[0]), factors[1])
+        return _lu_sign(factors[0].diagonal(), factors[1])
 
     def rcond(self, factors: tuple, values: Any) -> float:
         """Reciprocal 1-norm condition estimate from the factors."""
@@ -93,10 +93,11 @@ class BandLU(Pattern):
         self._flat = (self.kl + self.ku + i - j) + j * self._ldab
 
     def factor(self, values: Any) -> tuple[tuple, np.ndarray]:
+        """(factors, |diagonal of U|)."""
         band = np.zeros((self._ldab, self.shape[1]), order="F")
         band.ravel(order="F")[self._flat] = values
         lu, piv, info = _gbtrf(band, self.kl, self.ku, overwrite_ab=True)
-        return (lu, piv), np.abs(lu[self.kl + self.ku]) if info == 0 else np.zeros(1)
+        return (lu, piv), abs(lu[self.kl + self.ku]) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
         x, _ = _gbtrs(factors[0], self.kl, self.ku, rhs[self.row_order], factors[1])

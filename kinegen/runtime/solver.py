@@ -42,13 +42,14 @@ class Solution(NamedTuple):
     travel: float = float("inf")
 
 
-@dataclass(frozen=True)
+@dataclass
 class Factors:
     """A factorized Phi_q: its values, and LU factors or (redundant systems) a pseudo-inverse."""
 
     values: np.ndarray
     lu: Any = None
     pinv: np.ndarray | None = None
+    sign: int | None = None  #: sign of det(Phi_q), once asked for (see Solver._sign)
 
 
 @dataclass(frozen=True)
@@ -73,6 +74,15 @@ class SolverOptions:
     jump_ratio: float = 0.5
     jump_floor: float = 1e-3
     max_refinements: int = 12
+    #: chord iterations within a time step: start from the factorization of Phi_q made at the
+    #: previous step's solution (for its velocity solve) and keep a factorization while each
+    #: iteration cuts max |Phi| by at least ``chord_rate``; otherwise factorize afresh. They
+    #: trade factorizations for evaluations, which pays when an evaluation is cheap (compiled
+    #: code) or the start is far (no predictor: ~3 iterations a step). None: exactly then.
+    #: Their convergence is linear, so such a step always ends with the polishing correction
+    #: below (a pose only just within the tolerance would carry ~cond(Phi_q) x 1e-10 errors).
+    chord: bool | None = None
+    chord_rate: float = 0.1
     #: after convergence, one more Newton correction with the factorization made for the
     #: velocity solve (no extra Phi_q evaluation): a residual at the tolerance becomes ~its square
     polish: bool = True
@@ -99,7 +109,7 @@ def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str],
 
 def _max_norm(phi: np.ndarray) -> float:
     """max |Phi_i| (0 for no rows)."""
-    return float(np.max(np.abs(phi))) if phi.size else 0.0
+    return float(abs(phi).max()) if phi.size else 0.0
 
 
 class Solver:
@@ -115,6 +125,9 @@ class Solver:
         self.redundant = m > n
         #: factorization of Phi_q chosen once for its pattern (dense or band LU)
         self.linear = linear.choose(system.jac_rows, system.jac_cols, (m, n))
+        chord = self.options.chord
+        #: chord iterations within a step (see SolverOptions.chord)
+        self.chord = chord if chord is not None else (system.native is not None or not self.options.predictor)
 
     # ---- building blocks ---------------------------------------------------------------
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -137,7 +150,7 @@ class Solver:
                 self.check_singular(jacobian, t)
             return Factors(values, pinv=np.linalg.pinv(jacobian, rcond=self.options.singular_tolerance))
         lu, diagonal = self.linear.factor(values)
-        low, high = diagonal.min(), diagonal.max()
+        low, high = diagonal.min(), diagonal.max()  # NaN propagates (unlike Python's min)
         if not low > self.options.singular_tolerance * max(high, 1e-300):  # also for NaN (a NaN in Phi_q reaches U)
             if not np.all(np.isfinite(np.asarray(values, dtype=float))):
                 raise ConvergenceError(t, 0, float("nan"), [("Phi_q", float("nan"))])
@@ -190,7 +203,9 @@ class Solver:
 
     def _sign(self, factors: Factors) -> int | None:
         """Sign of det(Phi_q) from its LU factors (None for a redundant system)."""
-        return None if factors.lu is None else self.linear.sign(factors.lu)
+        if factors.sign is None and factors.lu is not None:
+            factors.sign = self.linear.sign(factors.lu)
+        return factors.sign
 
     def _failure(self, q: np.ndarray, u: np.ndarray, t: float, iterations: int) -> ConvergenceError:
         phi, norm = self.residual(q, u)
@@ -208,11 +223,14 @@ class Solver:
         solution = self._position(q0, u, t)
         return solution.q, solution.iterations, solution.norm
 
-    def _position(self, q0: np.ndarray, u: np.ndarray, t: float, thorough: bool = True) -> Solution:
+    def _position(
+        self, q0: np.ndarray, u: np.ndarray, t: float, thorough: bool = True, factors: Factors | None = None
+    ) -> Solution:
         """:meth:`position`, also returning Phi_q at the solution (``thorough=False``: no homotopy,
-        for the short sub-steps of a refined step, where it rarely helps and costs most)."""
+        for the short sub-steps of a refined step, where it rarely helps and costs most;
+        ``factors``: a factorized Phi_q near ``q0`` for the first, chord iterations)."""
         try:
-            return self._newton(q0, u, t, damped=False)
+            return self._newton(q0, u, t, damped=False, factors=factors if self.chord else None)
         except (ConvergenceError, SingularJacobianError) as error:
             if not self.options.line_search:
                 raise
@@ -274,9 +292,17 @@ class Solver:
         raise UnreachableError(t, iterations, norm, self.worst(phi))
 
     def _newton(
-        self, q: np.ndarray, u: np.ndarray, t: float, damped: bool, offset: np.ndarray | None = None
+        self,
+        q: np.ndarray,
+        u: np.ndarray,
+        t: float,
+        damped: bool,
+        offset: np.ndarray | None = None,
+        factors: Factors | None = None,
     ) -> Solution:
-        """Newton iterations; each evaluates Phi and Phi_q in one call (Phi_q at the solution is returned)."""
+        """Newton iterations; each evaluates Phi and Phi_q in one call (Phi_q at the solution is
+        returned). With ``factors`` (full steps only): chord iterations with them, and with each
+        later factorization, while max |Phi| falls by ``chord_rate`` per iteration."""
         opts = self.options
         evaluate = self.system.evaluate
 
@@ -291,9 +317,11 @@ class Solver:
         while norm > opts.tolerance:
             if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
                 raise self._failure(q, u, t, iterations)
-            step = -self._solve(self._factor(jacobian, t), phi)
+            if factors is None:
+                factors = self._factor(jacobian, t)
+            step = -self._solve(factors, phi)
             iterations += 1
-            travel += float(np.max(np.abs(step)))
+            travel += float(abs(step).max())
             trial = self.retract(q, step)
             trial_phi, trial_norm, trial_jacobian = residual(trial)
             if damped:
@@ -302,6 +330,8 @@ class Solver:
                     alpha *= 0.5
                     trial = self.retract(q, alpha * step)
                     trial_phi, trial_norm, trial_jacobian = residual(trial)
+            if damped or not self.chord or not trial_norm <= self.options.chord_rate * norm:
+                factors = None  # Newton: factorize at the new point
             q, phi, norm, jacobian = trial, trial_phi, trial_norm, trial_jacobian
         return Solution(q, iterations, norm, jacobian, phi, travel if not damped else float("inf"))
 
@@ -390,7 +420,7 @@ class Solver:
         converged = np.zeros(k, dtype=bool)
         q = system.initial_q.copy() if q0 is None else np.asarray(q0, dtype=float).copy()
         v = a = None
-        sign = None
+        factors: Factors | None = None
         failure: KinegenError | None = None
         for i, t in enumerate(times):
             u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
@@ -399,9 +429,11 @@ class Solver:
                     solution = self._position(q, u, t)
                     factors = self._factor(solution.values, t)
                 else:
-                    solution, factors = self._step(q, v, a, sign, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i))
+                    solution, factors = self._step(
+                        q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i)
+                    )
                 q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
-                if self.options.polish and solution.iterations > 0 and factors.lu is not None:
+                if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
                     q = self.retract(q, -self._solve(factors, solution.phi))
             except KinegenError as error:
                 if self.options.on_failure != "stop":
@@ -410,7 +442,6 @@ class Solver:
                 residuals[i] = getattr(error, "residual", np.nan)
                 k = i + 1
                 break
-            sign = self._sign(factors)
             v, a = self.rates(q, u, ud, udd, factors)
             conditions[i] = self._condition(factors)
             qs[i], vs[i], accs[i] = q, v, a
@@ -420,8 +451,9 @@ class Solver:
             u_all.T[:k].copy(), self.options.condition, converged[:k], failure,
         )  # fmt: skip
 
-    def _step(self, q, v, a, sign, t0: float, t1: float, inputs, inputs_at, depth: int = 0) -> tuple:
-        """Position at t1 from the solved state (q, v, a) at t0 on the same assembly branch.
+    def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, depth: int = 0) -> tuple:
+        """Position at t1 from the solved state (q, v, a) at t0, whose Phi_q is factorized in
+        ``previous``, on the same assembly branch.
 
         Returns the solution and the factors of its Phi_q. When det(Phi_q) changes sign (or
         Newton fails), the interval is halved and both halves are solved in turn.
@@ -432,10 +464,11 @@ class Solver:
         guess = self.retract(q, motion) if opts.predictor else q
         u = inputs[0]
         try:
-            solution = self._position(guess, u, t1, thorough=depth == 0)
+            solution = self._position(guess, u, t1, thorough=depth == 0, factors=previous)
             factors = self._factor(solution.values, t1)
+            sign = self._sign(previous)
             same_sign = sign is None or self._sign(factors) in (None, sign)
-            plausible = not opts.predictor or solution.travel <= max(opts.jump_ratio * np.max(np.abs(motion)), opts.jump_floor)
+            plausible = not opts.predictor or solution.travel <= max(opts.jump_ratio * abs(motion).max(), opts.jump_floor)
             same = not opts.keep_branch or (same_sign and plausible)
         except (ConvergenceError, SingularJacobianError):
             if depth >= self.options.max_refinements or not self.options.keep_branch:
@@ -447,9 +480,9 @@ class Solver:
             raise BranchError(t0, t1, h)
         middle = 0.5 * (t0 + t1)
         mid_inputs = inputs_at(middle)
-        first, factors_m = self._step(q, v, a, sign, t0, middle, mid_inputs, inputs_at, depth + 1)
+        first, factors_m = self._step(q, v, a, previous, t0, middle, mid_inputs, inputs_at, depth + 1)
         vm, am = self.rates(first.q, *mid_inputs, factors_m)
-        second, factors = self._step(first.q, vm, am, self._sign(factors_m), middle, t1, inputs, inputs_at, depth + 1)
+        second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, depth + 1)
         return second._replace(iterations=first.iterations + second.iterations), factors
 
 
