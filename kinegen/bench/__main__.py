@@ -24,14 +24,17 @@ KINEGEN_OWN = "kinegen (own predictor)"
 KINEGEN = "kinegen (previous q, as specified)"
 CASADI = "CasADi SX, Python Newton loop"
 KINEGEN_C = "kinegen compiled C (previous q)"
+KINEGEN_C_OWN = "kinegen compiled C (own predictor)"
+CASADI_C = "CasADi generated C, whole trajectory"
 CONTENDERS = {  # name -> (call, largest chain N it runs on, runs on the excavator, slow)
     KINEGEN_OWN: ("kinegen_run({w!r}, True)", 10**6, True, False),
     KINEGEN: ("kinegen_run({w!r}, False)", 10**6, True, False),
     "kinegen quaternion (own predictor)": ("kinegen_run({w!r}, True, 'quaternion')", 0, True, False),
     KINEGEN_C: ("kinegen_run({w!r}, False, compiled=True)", 10**6, True, False),
-    "kinegen compiled C (own predictor)": ("kinegen_run({w!r}, True, compiled=True)", 10**6, True, False),
+    KINEGEN_C_OWN: ("kinegen_run({w!r}, True, compiled=True)", 10**6, True, False),
     CASADI: ("casadi_run({w!r}, False)", 10**6, True, False),
     "CasADi SX, rootfinder('newton')": ("casadi_run({w!r}, True)", 14, True, False),
+    CASADI_C: ("casadi_c_run({w!r})", 50, True, False),
     "SymEngine Lambdify (LLVM, sparse)": ("symengine_run({w!r})", 50, True, False),
     "naive SymPy lambdify (cse)": ("naive_sympy_run({w!r}, True)", 50, False, True),
     "naive SymPy lambdify": ("naive_sympy_run({w!r}, False)", 14, False, True),
@@ -149,10 +152,15 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
     workloads = sorted({w for w, _ in rows})
     for w in workloads:
         casadi = get(w, CASADI, "trajectory")
-        for name in (KINEGEN, KINEGEN_OWN, "kinegen quaternion (own predictor)", KINEGEN_C, "kinegen compiled C (own predictor)"):
+        for name in (KINEGEN, KINEGEN_OWN, "kinegen quaternion (own predictor)", KINEGEN_C, KINEGEN_C_OWN):
             mine = get(w, name, "trajectory")
             if mine is not None and casadi is not None:
                 out.append(line(f"{w} {name} trajectory / CasADi Python loop", mine / casadi, 1.0, True))
+        whole_c = get(w, CASADI_C, "trajectory")
+        for name in (KINEGEN_C, KINEGEN_C_OWN):
+            mine = get(w, name, "trajectory")
+            if mine is not None and whole_c is not None:
+                out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C (stretch)", mine / whole_c, 1.0, True))
         scipy_time = get(w, "SciPy hybr + finite differences", "trajectory")
         for name in (KINEGEN, KINEGEN_C):
             mine = get(w, name, "trajectory")

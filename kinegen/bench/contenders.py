@@ -345,6 +345,54 @@ def casadi_run(name: str, rootfinder: bool) -> dict[str, Any]:
     return _result(build, time.perf_counter() - start, iterations, w, qs)
 
 
+def casadi_c_run(name: str) -> dict[str, Any]:
+    """CasADi, whole trajectory in generated C: one step = ``rootfinder('fast_newton')`` (the
+    Newton plugin that supports code generation; abstol 1e-10, at most 25 iterations) from
+    the previous solution, then velocity and acceleration by QR solves; ``mapaccum`` over
+    the 1000 time points, C generated, compiled with the machine's C compiler and loaded
+    with ``external`` (all of that is its build). Iterations per step are not reported."""
+    import os
+    import shutil
+    import subprocess
+    import tempfile
+
+    import casadi as ca
+
+    w = workload(name)
+    start, q, t, phi, _, acceleration = _casadi_functions(w)
+    n = q.numel()
+    residual = ca.Function("residual", [q, t], [phi])
+    newton = ca.rootfinder("newton", "fast_newton", residual, {"abstol": TOLERANCE, "max_iter": MAX_ITERATIONS})
+    jacobians = ca.Function("jacobians", [q, t], [ca.jacobian(phi, q), ca.jacobian(phi, t)])
+    q_previous, time_point = ca.MX.sym("q", n), ca.MX.sym("t")
+    q_next = newton(q_previous, time_point)
+    jacobian, phi_t = jacobians(q_next, time_point)
+    velocity = ca.solve(jacobian, -phi_t, "qr")
+    accel = ca.solve(jacobian, acceleration(q_next, velocity, time_point), "qr")
+    step = ca.Function("step", [q_previous, time_point], [q_next, velocity, accel])
+    trajectory = step.mapaccum("trajectory", len(w.times))
+    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    with tempfile.TemporaryDirectory() as folder:
+        here = os.getcwd()
+        os.chdir(folder)  # CasADi writes the C file into the working directory
+        try:
+            trajectory.generate("trajectory.c")
+        finally:
+            os.chdir(here)
+        library = Path(folder) / "trajectory.so"
+        subprocess.run(
+            [compiler, "-O2", "-shared", "-fPIC", "-o", str(library), str(Path(folder) / "trajectory.c"), "-lm"], check=True
+        )
+        compiled = ca.external(trajectory.name(), str(library))
+        build = time.perf_counter() - start
+        q0 = _initial(w)
+        _settle()
+        start = time.perf_counter()
+        qs = np.array(compiled(q0, w.times.reshape(1, -1))[0]).T
+        elapsed = time.perf_counter() - start
+    return _result(build, elapsed, [np.nan], w, qs)
+
+
 # ---- SciPy only ----------------------------------------------------------------------------------
 def scipy_hybr_run(name: str) -> dict[str, Any]:
     """SciPy only: NumPy Phi + scipy.optimize.root(method='hybr') with finite differences.

@@ -183,6 +183,7 @@ class _Native:
     def __init__(
         self, library: ctypes.CDLL, case: str, rows: int, entries: int, n_stored: int, n_velocity: int, n_inputs: int
     ) -> None:
+        self.library, self.case = library, case  #: also for the C trajectory loop (compiled_trajectory)
         self.rows, self.entries = rows, entries
         self._q, self._v = np.zeros(n_stored), np.zeros(n_velocity)
         self._u, self._ud, self._udd = np.zeros(n_inputs), np.zeros(n_inputs), np.zeros(n_inputs)
@@ -223,10 +224,15 @@ class _Native:
         return self._phi.copy()
 
 
+#: the solver's step loop in C (kinegen.runtime.compiled_trajectory), built into every library
+TRAJECTORY_C = Path(__file__).with_name("trajectory.c")
+
+
 def attach(system: NumericSystem, module: ModuleType) -> NumericSystem:
-    """``system`` evaluating its one-configuration functions through the compiled module."""
+    """``system`` evaluating its one-configuration functions through the compiled module
+    (and solving its trajectories with the C step loop, ``trajectory.c``)."""
     source, sizes = c_source(module)
-    library = ctypes.CDLL(str(build_library(source)))
+    library = ctypes.CDLL(str(build_library(source + "\n" + TRAJECTORY_C.read_text())))
     size = sizes[system.case]
     native = _Native(library, system.case, size["rows"], size["entries"], system.n_stored, system.n_velocity, system.n_inputs)
     return replace(system, native=native)

@@ -126,6 +126,7 @@ class Solver:
         #: factorization of Phi_q chosen once for its pattern (dense or band LU)
         self.linear = linear.choose(system.jac_rows, system.jac_cols, (m, n))
         chord = self.options.chord
+        self._compiled: Any = None  # the C step loop, made on first use (_compiled_steps)
         #: chord iterations within a step (see SolverOptions.chord)
         self.chord = chord if chord is not None else (system.native is not None or not self.options.predictor)
 
@@ -422,7 +423,24 @@ class Solver:
         v = a = None
         factors: Factors | None = None
         failure: KinegenError | None = None
-        for i, t in enumerate(times):
+        compiled = self._compiled_steps()
+        if compiled is not None:
+            c_inputs = tuple(np.ascontiguousarray(x.T) for x in (u_all, ud_all, udd_all))
+            c_iterations = np.zeros(k, dtype=np.intc)
+        i = 0
+        while i < k:
+            if compiled is not None and factors is not None:
+                # the C loop takes the usual steps; it returns at the first step that needs Python
+                done = compiled.run(i, times, c_inputs, (qs, vs, accs, c_iterations, residuals, conditions), self._sign(factors))
+                if done > i:
+                    converged[i:done], iterations[i:done] = True, c_iterations[i:done]
+                    q, v, a = qs[done - 1].copy(), vs[done - 1].copy(), accs[done - 1].copy()
+                    factors = self._factor(system.evaluate(q, u_all[:, done - 1])[1], times[done - 1])
+                    i = done
+                if i >= k:
+                    break
+                qs[i] = np.nan  # the C loop's unfinished try
+            t = times[i]
             u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
             try:
                 if i == 0:
@@ -446,10 +464,21 @@ class Solver:
             conditions[i] = self._condition(factors)
             qs[i], vs[i], accs[i] = q, v, a
             converged[i] = True
+            i += 1
         return Results(
             system, times[:k], qs[:k], vs[:k], accs[:k], iterations[:k], residuals[:k], conditions[:k],
             u_all.T[:k].copy(), self.options.condition, converged[:k], failure,
         )  # fmt: skip
+
+    def _compiled_steps(self) -> Any:
+        """The C step loop (kinegen.runtime.compiled_trajectory) when the system is compiled, else None."""
+        from kinegen.runtime import compiled_trajectory
+
+        if not compiled_trajectory.usable(self):
+            return None
+        if self._compiled is None:
+            self._compiled = compiled_trajectory.CompiledSteps(self, self.system.native.library, self.system.native.case)
+        return self._compiled
 
     def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, depth: int = 0) -> tuple:
         """Position at t1 from the solved state (q, v, a) at t0, whose Phi_q is factorized in
@@ -464,7 +493,9 @@ class Solver:
         guess = self.retract(q, motion) if opts.predictor else q
         u = inputs[0]
         try:
-            solution = self._position(guess, u, t1, thorough=depth == 0, factors=previous)
+            # chord iterations only on whole steps: a refined sub-step is where Phi_q changes fast
+            # (a singular pose, a branch point), and full Newton reports a singular Phi_q there
+            solution = self._position(guess, u, t1, thorough=depth == 0, factors=previous if depth == 0 else None)
             factors = self._factor(solution.values, t1)
             sign = self._sign(previous)
             same_sign = sign is None or self._sign(factors) in (None, sign)
