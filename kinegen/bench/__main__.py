@@ -162,7 +162,7 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
             if mine is not None and whole_c is not None:
                 out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C (stretch)", mine / whole_c, 1.0, True))
         scipy_time = get(w, "SciPy hybr + finite differences", "trajectory")
-        for name in (KINEGEN, KINEGEN_C):
+        for name in (KINEGEN, KINEGEN_OWN, KINEGEN_C, KINEGEN_C_OWN):
             mine = get(w, name, "trajectory")
             if scipy_time is not None and mine is not None:
                 out.append(line(f"{w} SciPy finite differences / {name} trajectory", scipy_time / mine, 50, False))
