@@ -10,7 +10,7 @@ import pytest
 
 from kinegen.errors import KinegenError
 from kinegen.runtime import Solver, SolverOptions, from_module, load_module
-from kinegen.runtime.compiled import attach, c_source
+from kinegen.runtime.compiled import PART, attach, c_source
 from tests.conftest import GENERATED
 
 pytestmark = pytest.mark.skipif(shutil.which("cc") is None and shutil.which("gcc") is None, reason="no C compiler")
@@ -54,6 +54,9 @@ def test_the_c_source_is_plain_arithmetic():
     source, sizes = c_source(module)
     assert "pow(" not in source and "#include <math.h>" in source
     assert sizes["digging"] == {"rows": 98, "entries": len(module.CASES["digging"]["jac_rows"])}
+    # no C function longer than PART statements: compile time stays linear in the model's size
+    bodies = [block.split("}")[0] for block in source.split(") {")[1:]]
+    assert max(body.count(";") for body in bodies) <= PART + 1
 
 
 def test_cli_solve_compiled_gives_the_same_csv(tmp_path):

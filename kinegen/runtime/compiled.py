@@ -40,18 +40,19 @@ class CompileError(KinegenError):
     exit_code = 5
 
 
-def _expression(node: ast.expr) -> str:
-    """C text of a Python arithmetic expression of the generated code (every number a double)."""
+def _expression(node: ast.expr, names: dict[str, str]) -> str:
+    """C text of a Python arithmetic expression of the generated code (every number a double;
+    each name replaced by where ``names`` keeps it)."""
     if isinstance(node, ast.Constant) and isinstance(node.value, (int, float)) and not isinstance(node.value, bool):
         return repr(float(node.value))
     if isinstance(node, ast.Name):
-        return node.id
+        return names.get(node.id, node.id)
     if isinstance(node, ast.Attribute) and isinstance(node.value, ast.Name) and node.value.id == "math" and node.attr == "pi":
         return "M_PI"
     if isinstance(node, ast.UnaryOp) and isinstance(node.op, (ast.USub, ast.UAdd)):
-        return f"({'-' if isinstance(node.op, ast.USub) else '+'}{_expression(node.operand)})"
+        return f"({'-' if isinstance(node.op, ast.USub) else '+'}{_expression(node.operand, names)})"
     if isinstance(node, ast.BinOp):
-        left, right = _expression(node.left), _expression(node.right)
+        left, right = _expression(node.left, names), _expression(node.right, names)
         if isinstance(node.op, ast.Pow):
             exponent = node.right.value if isinstance(node.right, ast.Constant) else None
             if isinstance(exponent, (int, float)) and float(exponent).is_integer() and 1 <= abs(exponent) <= 4:
@@ -64,7 +65,7 @@ def _expression(node: ast.expr) -> str:
         return f"({left} {operator} {right})"
     if isinstance(node, ast.Call) and not node.keywords:
         function = node.func
-        args = ", ".join(_expression(a) for a in node.args)
+        args = ", ".join(_expression(a, names) for a in node.args)
         if isinstance(function, ast.Attribute) and isinstance(function.value, ast.Name) and function.value.id == "math":
             if function.attr in _C_FUNCTIONS:
                 return f"{_C_FUNCTIONS[function.attr]}({args})"
@@ -78,13 +79,15 @@ class _Function:
     name: str
     arguments: list[str]
     outputs: list[int]  # lengths of the returned lists
-    body: list[str]
+    names: dict[str, str]  # unpacked argument name -> its element, e.g. q[3]
+    statements: list[tuple[str, ast.expr]]  # (intermediate's name or output element, expression), in order
 
 
 def _translate(function: ast.FunctionDef) -> _Function:
     """One generated ``*_s`` function: unpacking, assignments, ``return [..], [..]``."""
     arguments = [a.arg for a in function.args.args]
-    body: list[str] = []
+    names: dict[str, str] = {}
+    statements: list[tuple[str, ast.expr]] = []
     outputs: list[int] = []
     for statement in function.body:
         if isinstance(statement, ast.Expr) and isinstance(statement.value, ast.Constant):
@@ -94,10 +97,10 @@ def _translate(function: ast.FunctionDef) -> _Function:
             if isinstance(target, ast.Tuple) and isinstance(value, ast.Name):
                 for i, element in enumerate(target.elts):
                     if isinstance(element, ast.Name) and element.id != "_":
-                        body.append(f"const double {element.id} = {value.id}[{i}];")
+                        names[element.id] = f"{value.id}[{i}]"
                 continue
             if isinstance(target, ast.Name):
-                body.append(f"const double {target.id} = {_expression(value)};")
+                statements.append((target.id, value))
                 continue
         if isinstance(statement, ast.Return):
             lists = statement.value.elts if isinstance(statement.value, ast.Tuple) else [statement.value]
@@ -105,15 +108,53 @@ def _translate(function: ast.FunctionDef) -> _Function:
                 if not isinstance(items, ast.List):
                     raise CompileError(f"{function.name}: return of {type(items).__name__}")
                 outputs.append(len(items.elts))
-                body += [f"out{k}[{i}] = {_expression(e)};" for i, e in enumerate(items.elts)]
+                statements += [(f"out{k}[{i}]", e) for i, e in enumerate(items.elts)]
             continue
         raise CompileError(f"{function.name}: cannot translate {type(statement).__name__}")
-    return _Function(function.name, arguments, outputs, body)
+    return _Function(function.name, arguments, outputs, names, statements)
+
+
+#: statements per C function: a generated function is cut into parts of this size, so that
+#: the compiler's register allocation (superlinear in a function's live values) stays linear
+#: in the model's size; an intermediate used by a later part is passed in a work array ``w``
+PART = 250
 
 
 def _c_function(f: _Function, name: str) -> str:
-    parameters = [f"const double *{a}" for a in f.arguments] + [f"double *out{k}" for k in range(len(f.outputs))]
-    return f"static void {name}({', '.join(parameters)}) {{\n    " + "\n    ".join(f.body) + "\n}\n"
+    """C of a translated function: parts of :data:`PART` statements, and ``name`` calling them."""
+    parts = [f.statements[start : start + PART] for start in range(0, len(f.statements), PART)] or [[]]
+    defined = {target: p for p, part in enumerate(parts) for target, _ in part if not target.startswith("out")}
+    slots: dict[str, str] = {}
+    for p, part in enumerate(parts):
+        for _, value in part:
+            for node in ast.walk(value):
+                if isinstance(node, ast.Name) and defined.get(node.id, p) != p and node.id not in slots:
+                    slots[node.id] = f"w[{len(slots)}]"
+    names = {**f.names, **slots}
+    parameters = [f"const double *restrict {a}" for a in f.arguments] + [
+        f"double *restrict out{k}" for k in range(len(f.outputs))
+    ]
+    arguments = [*f.arguments, *(f"out{k}" for k in range(len(f.outputs)))]
+    text, calls = [], []
+    for p, part in enumerate(parts):
+        lines = []
+        for target, value in part:
+            expression = _expression(value, names)
+            if target.startswith("out") or target in slots:
+                lines.append(f"{names.get(target, target)} = {expression};")
+            else:
+                lines.append(f"const double {target} = {expression};")
+        body = "\n    ".join(lines)
+        text.append(
+            f"static __attribute__((noinline)) void {name}_part{p}({', '.join(parameters)}, double *restrict w) {{\n    {body}\n}}\n"
+        )
+        calls.append(f"    {name}_part{p}({', '.join(arguments)}, w);\n")
+    return (
+        "".join(text)
+        + f"static void {name}({', '.join(parameters)}) {{\n    double w[{max(1, len(slots))}];\n"
+        + "".join(calls)
+        + "}\n"
+    )
 
 
 def c_source(module: ModuleType) -> tuple[str, dict[str, dict[str, int]]]:
@@ -161,7 +202,9 @@ def build_library(source: str) -> Path:
         c_file.write_text(source)
         built = Path(folder) / library.name
         done = subprocess.run(
-            [compiler, "-O2", "-shared", "-fPIC", "-o", str(built), str(c_file), "-lm"], capture_output=True, text=True
+            [compiler, "-O2", "-fno-tree-slp-vectorize", "-shared", "-fPIC", "-o", str(built), str(c_file), "-lm"],
+            capture_output=True,
+            text=True,
         )
         if done.returncode != 0:
             raise CompileError(
