@@ -85,13 +85,13 @@ class CompiledSteps:
         problem.cols = pointer(cols)
         if isinstance(linear, BandLU):
             problem.band, problem.kl, problem.ku, problem.ld = 1, linear.kl, linear.ku, 2 * linear.kl + linear.ku + 1
-            problem.flat = pointer(linear._flat)
+            problem.flat = pointer(linear.band_index)
             problem.row_order, problem.col_order = pointer(linear.row_order), pointer(linear.col_order)
         else:  # column-major dense matrix
             problem.band, problem.kl, problem.ku, problem.ld = 0, 0, 0, n
             problem.flat = pointer(cols * n + rows)
             problem.row_order = problem.col_order = pointer(np.arange(n))
-        indices = system._retraction_indices
+        indices = system.retraction_indices
         if indices is None:
             problem.n_positions = problem.n_rotations = 0
             problem.position_q = problem.position_v = problem.rotation_q = problem.rotation_v = pointer([0])

@@ -89,13 +89,14 @@ class BandLU(Pattern):
         i, j = new_row[np.asarray(rows)], new_col[np.asarray(cols)]
         self.kl, self.ku = int(max(0, (i - j).max())), int(max(0, (j - i).max()))
         self._ldab = 2 * self.kl + self.ku + 1
-        # LAPACK band storage (Fortran order): AB[kl + ku + i - j, j] = A[i, j]
-        self._flat = (self.kl + self.ku + i - j) + j * self._ldab
+        #: where each value goes in LAPACK's band storage (Fortran order, leading dimension
+        #: 2 kl + ku + 1): AB[kl + ku + i - j, j] = A[i, j], i and j in the permuted order
+        self.band_index = (self.kl + self.ku + i - j) + j * self._ldab
 
     def factor(self, values: Any) -> tuple[tuple, np.ndarray]:
         """(factors, |diagonal of U|)."""
         band = np.zeros((self._ldab, self.shape[1]), order="F")
-        band.ravel(order="F")[self._flat] = values
+        band.ravel(order="F")[self.band_index] = values
         lu, piv, info = _gbtrf(band, self.kl, self.ku, overwrite_ab=True)
         return (lu, piv), abs(lu[self.kl + self.ku]) if info == 0 else np.zeros(1)
 

@@ -82,7 +82,7 @@ class NumericSystem:
         return self._pattern.dense(self.jac(q, u))
 
     @cached_property
-    def _retraction_indices(self) -> tuple[np.ndarray, ...] | None:
+    def retraction_indices(self) -> tuple[np.ndarray, ...] | None:
         """Positions (stored, velocity) and quaternion/increment (stored, velocity) indices, or
         None when the velocity coordinates are the stored ones' rates (q + step). The rotation
         indices are (4, bodies) and (3, bodies): q[index] has the components first."""
@@ -99,7 +99,7 @@ class NumericSystem:
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
         """q (n,) or (n, K) moved by ``step`` (velocity coordinates); quaternions by the
         exponential map (global rotation increments), so they stay unit."""
-        indices = self._retraction_indices
+        indices = self.retraction_indices
         if indices is None:
             return q + step
         position_q, position_v, rotation_q, rotation_v = indices
