@@ -126,19 +126,19 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
-    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
-    boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
-    boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
+    boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0
+    boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2
+    boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3
+    boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3
     d0 = (89/25)*boom_e3
     d1 = (89/25)*boom_e2
     d2 = (89/25)*boom_e1
     d3 = (89/25)*boom_e0
-    d4 = 2*boom_e2
-    d5 = 2*boom_e3
-    d6 = 2*boom_e0
-    d7 = 2*boom_e1
-    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21, boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2 - 1], [-1, (178/25)*boom_e0, (178/25)*boom_e1, -1, d0, d1, d2, d3, -1, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, 2*boom_e0, 2*boom_e1, 2*boom_e2, 2*boom_e3]
+    d4 = 2.0*boom_e2
+    d5 = 2.0*boom_e3
+    d6 = 2.0*boom_e0
+    d7 = 2.0*boom_e1
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21, (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3) - 1.0], [-1.0, (178/25)*boom_e0, (178/25)*boom_e1, -1.0, d0, d1, d2, d3, -1.0, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, 2.0*boom_e0, 2.0*boom_e1, 2.0*boom_e2, 2.0*boom_e3]
 
 
 def _joints_gamma_s(q, v):
@@ -146,9 +146,9 @@ def _joints_gamma_s(q, v):
     _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
     c0 = (178/25)*v_boom_e3
     c1 = (178/25)*v_boom_e2
-    c2 = 4*v_boom_e2
-    c3 = 4*v_boom_e1
-    return [-178/25*v_boom_e0**2 - 178/25*v_boom_e1**2, -c0*v_boom_e0 - c1*v_boom_e1, -c0*v_boom_e1 + c1*v_boom_e0, c2*v_boom_e0 - c3*v_boom_e3, -c2*v_boom_e3 - c3*v_boom_e0, -2*v_boom_e0**2 - 2*v_boom_e1**2 - 2*v_boom_e2**2 - 2*v_boom_e3**2]
+    c2 = 4.0*v_boom_e2
+    c3 = 4.0*v_boom_e1
+    return [-178/25*(v_boom_e0*v_boom_e0) - 178/25*(v_boom_e1*v_boom_e1), -c0*v_boom_e0 - c1*v_boom_e1, -c0*v_boom_e1 + c1*v_boom_e0, c2*v_boom_e0 - c3*v_boom_e3, -c2*v_boom_e3 - c3*v_boom_e0, -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3)]
 
 
 def inputs_swing(t):
@@ -212,7 +212,7 @@ def _drivers_phi_jac_s_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2*boom_e0*math.sin(c0) - 2*boom_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+    return [2.0*boom_e0*math.sin(c0) - 2.0*boom_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_swing(q, u, ud):
@@ -234,7 +234,7 @@ def _drivers_gamma_s_swing(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-ud0**2*(-1/2*boom_e0*c2 + (1/2)*boom_e3*c1) - 2*ud0*(c1*v_boom_e0 + c2*v_boom_e3) - udd0*(boom_e0*c1 + boom_e3*c2)]
+    return [-(ud0*ud0)*(-1/2*boom_e0*c2 + (1/2)*boom_e3*c1) - 2.0*ud0*(c1*v_boom_e0 + c2*v_boom_e3) - udd0*(boom_e0*c1 + boom_e3*c2)]
 
 
 def phi_swing(q, u):

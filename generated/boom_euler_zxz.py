@@ -158,7 +158,7 @@ def _joints_phi_jac_s(q):
     d10 = (89/50)*d3
     d11 = d1*d4
     d12 = d1*d7
-    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1, -89/50*d0*d1 - d2*d6, d8*d9, -d10*d2 - d11*d9, -1, -d0*d6 + (89/50)*d1*d2, -89/50*d2*d8, -d0*d10 + (89/50)*d1*d2*d4, -1, d6, (89/50)*d12, d5, d12, d11, -d8]
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1.0, -89/50*d0*d1 - d2*d6, d8*d9, -d10*d2 - d11*d9, -1.0, -d0*d6 + (89/50)*d1*d2, -89/50*d2*d8, -d0*d10 + (89/50)*d1*d2*d4, -1.0, d6, (89/50)*d12, d5, d12, d11, -d8]
 
 
 def _joints_gamma_s(q, v):
@@ -348,7 +348,7 @@ def _drivers_gamma_s_swing(q, v, u, ud, udd):
     c21 = c0*(-c11*c2 - c8)
     c22 = c1*c20 - c21
     c23 = c1*c18 - c19
-    return [-ud0**2*(-boom_a00*c1 + boom_a10*c0) - 2*ud0*(c16*v_boom_beta + v_boom_alpha*(-c1*c18 + c19) + v_boom_gamma*(-c1*c20 + c21)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma)]
+    return [-(ud0*ud0)*(-boom_a00*c1 + boom_a10*c0) - 2.0*ud0*(c16*v_boom_beta + v_boom_alpha*(-c1*c18 + c19) + v_boom_gamma*(-c1*c20 + c21)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma)]
 
 
 def phi_swing(q, u):

@@ -119,28 +119,28 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
-    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0
+    boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0
+    boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
+    boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
     d0 = (89/50)*boom_a20
     d1 = (89/50)*boom_a10
     d2 = (89/50)*boom_a00
-    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1, d0, -d1, -1, -d0, d2, -1, d1, -d2, boom_a10, -boom_a00, boom_a11, -boom_a01]
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1.0, d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, boom_a10, -boom_a00, boom_a11, -boom_a01]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
-    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0
+    boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0
+    boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
+    boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
     c0 = -89/50*boom_a00*v_boom_theta_y + (89/50)*boom_a10*v_boom_theta_x
     c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
     c2 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
@@ -222,7 +222,7 @@ def _drivers_phi_jac_s_swing(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2*boom_qw*math.sin(c0) - 2*boom_qz*math.cos(c0)], [-boom_qx*d1 - boom_qy*d2, boom_qx*d2 - boom_qy*d1, -boom_qw*d2 - boom_qz*d1]
+    return [2.0*boom_qw*math.sin(c0) - 2.0*boom_qz*math.cos(c0)], [-boom_qx*d1 - boom_qy*d2, boom_qx*d2 - boom_qy*d1, -boom_qw*d2 - boom_qz*d1]
 
 
 def _drivers_nu_s_swing(q, u, ud):
@@ -251,7 +251,7 @@ def _drivers_gamma_s_swing(q, v, u, ud, udd):
     c7 = (1/2)*boom_qz
     c8 = (1/2)*v_boom_theta_z
     c9 = (1/2)*c1
-    return [c1*v_boom_theta_z*(-boom_qx*c6 - boom_qy*c5 - c7*v_boom_theta_z) + c2*v_boom_theta_z*(-boom_qx*c5 + boom_qy*c6 + c3*v_boom_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_boom_theta_z + v_boom_theta_x*(-boom_qx*c9 + (1/2)*boom_qy*c2) + v_boom_theta_y*(-1/2*boom_qx*c2 - boom_qy*c9)) - udd0*(boom_qw*c1 + boom_qz*c2) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(boom_qx*c8 + c3*v_boom_theta_y - c7*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-boom_qy*c8 + c3*v_boom_theta_x + c7*v_boom_theta_y)]
+    return [c1*v_boom_theta_z*(-boom_qx*c6 - boom_qy*c5 - c7*v_boom_theta_z) + c2*v_boom_theta_z*(-boom_qx*c5 + boom_qy*c6 + c3*v_boom_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_boom_theta_z + v_boom_theta_x*(-boom_qx*c9 + (1/2)*boom_qy*c2) + v_boom_theta_y*(-1/2*boom_qx*c2 - boom_qy*c9)) - udd0*(boom_qw*c1 + boom_qz*c2) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(boom_qx*c8 + c3*v_boom_theta_y - c7*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-boom_qy*c8 + c3*v_boom_theta_x + c7*v_boom_theta_y)]
 
 
 def phi_swing(q, u):

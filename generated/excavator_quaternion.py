@@ -1507,114 +1507,114 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     upper_x, upper_y, upper_z, upper_qw, upper_qx, upper_qy, upper_qz, boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, arm_x, arm_y, arm_z, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, side_link_x, side_link_y, side_link_z, side_link_qw, side_link_qx, side_link_qy, side_link_qz, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, bucket_x, bucket_y, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    upper_a00 = 2*upper_qw**2 + 2*upper_qx**2 - 1
-    upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
-    upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
-    upper_a10 = 2*upper_qw*upper_qz + 2*upper_qx*upper_qy
-    upper_a11 = 2*upper_qw**2 + 2*upper_qy**2 - 1
-    upper_a12 = -2*upper_qw*upper_qx + 2*upper_qy*upper_qz
-    upper_a20 = -2*upper_qw*upper_qy + 2*upper_qx*upper_qz
-    upper_a21 = 2*upper_qw*upper_qx + 2*upper_qy*upper_qz
-    upper_a22 = 2*upper_qw**2 + 2*upper_qz**2 - 1
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
-    boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    boom_a22 = 2*boom_qw**2 + 2*boom_qz**2 - 1
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a01 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a02 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a11 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qy**2 - 1
-    boom_cyl_l_barrel_a12 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a21 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a22 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qz**2 - 1
-    boom_cyl_l_rod_a01 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
-    boom_cyl_l_rod_a02 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
-    boom_cyl_l_rod_a11 = 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qy**2 - 1
-    boom_cyl_l_rod_a12 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
-    boom_cyl_l_rod_a21 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
-    boom_cyl_l_rod_a22 = 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qz**2 - 1
-    boom_cyl_r_barrel_a00 = 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qx**2 - 1
-    boom_cyl_r_barrel_a01 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
-    boom_cyl_r_barrel_a02 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a10 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
-    boom_cyl_r_barrel_a11 = 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qy**2 - 1
-    boom_cyl_r_barrel_a12 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a20 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a21 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a22 = 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qz**2 - 1
-    boom_cyl_r_rod_a01 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
-    boom_cyl_r_rod_a02 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
-    boom_cyl_r_rod_a11 = 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qy**2 - 1
-    boom_cyl_r_rod_a12 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
-    boom_cyl_r_rod_a21 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
-    boom_cyl_r_rod_a22 = 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qz**2 - 1
-    arm_a00 = 2*arm_qw**2 + 2*arm_qx**2 - 1
-    arm_a01 = -2*arm_qw*arm_qz + 2*arm_qx*arm_qy
-    arm_a02 = 2*arm_qw*arm_qy + 2*arm_qx*arm_qz
-    arm_a10 = 2*arm_qw*arm_qz + 2*arm_qx*arm_qy
-    arm_a11 = 2*arm_qw**2 + 2*arm_qy**2 - 1
-    arm_a12 = -2*arm_qw*arm_qx + 2*arm_qy*arm_qz
-    arm_a20 = -2*arm_qw*arm_qy + 2*arm_qx*arm_qz
-    arm_a21 = 2*arm_qw*arm_qx + 2*arm_qy*arm_qz
-    arm_a22 = 2*arm_qw**2 + 2*arm_qz**2 - 1
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a01 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a02 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a11 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qy**2 - 1
-    arm_cyl_barrel_a12 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    arm_cyl_barrel_a21 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
-    arm_cyl_barrel_a22 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qz**2 - 1
-    arm_cyl_rod_a01 = -2*arm_cyl_rod_qw*arm_cyl_rod_qz + 2*arm_cyl_rod_qx*arm_cyl_rod_qy
-    arm_cyl_rod_a02 = 2*arm_cyl_rod_qw*arm_cyl_rod_qy + 2*arm_cyl_rod_qx*arm_cyl_rod_qz
-    arm_cyl_rod_a11 = 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qy**2 - 1
-    arm_cyl_rod_a12 = -2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
-    arm_cyl_rod_a21 = 2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
-    arm_cyl_rod_a22 = 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qz**2 - 1
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a01 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a02 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a11 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qy**2 - 1
-    bucket_cyl_barrel_a12 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a21 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a22 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qz**2 - 1
-    bucket_cyl_rod_a01 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qy
-    bucket_cyl_rod_a02 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qz
-    bucket_cyl_rod_a11 = 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qy**2 - 1
-    bucket_cyl_rod_a12 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
-    bucket_cyl_rod_a21 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
-    bucket_cyl_rod_a22 = 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qz**2 - 1
-    side_link_a00 = 2*side_link_qw**2 + 2*side_link_qx**2 - 1
-    side_link_a02 = 2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
-    side_link_a10 = 2*side_link_qw*side_link_qz + 2*side_link_qx*side_link_qy
-    side_link_a12 = -2*side_link_qw*side_link_qx + 2*side_link_qy*side_link_qz
-    side_link_a20 = -2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
-    side_link_a22 = 2*side_link_qw**2 + 2*side_link_qz**2 - 1
-    bucket_link_a00 = 2*bucket_link_qw**2 + 2*bucket_link_qx**2 - 1
-    bucket_link_a02 = 2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
-    bucket_link_a10 = 2*bucket_link_qw*bucket_link_qz + 2*bucket_link_qx*bucket_link_qy
-    bucket_link_a12 = -2*bucket_link_qw*bucket_link_qx + 2*bucket_link_qy*bucket_link_qz
-    bucket_link_a20 = -2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
-    bucket_link_a22 = 2*bucket_link_qw**2 + 2*bucket_link_qz**2 - 1
-    bucket_a00 = 2*bucket_qw**2 + 2*bucket_qx**2 - 1
-    bucket_a01 = -2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a11 = 2*bucket_qw**2 + 2*bucket_qy**2 - 1
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a21 = 2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    upper_a00 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx) - 1.0
+    upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
+    upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
+    upper_a10 = 2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
+    upper_a11 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy) - 1.0
+    upper_a12 = -2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz
+    upper_a20 = -2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
+    upper_a21 = 2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz
+    upper_a22 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz) - 1.0
+    boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0
+    boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
+    boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0
+    boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
+    boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
+    boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
+    boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy) - 1.0
+    boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz) - 1.0
+    boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
+    boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy) - 1.0
+    boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz) - 1.0
+    boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx) - 1.0
+    boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy) - 1.0
+    boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz) - 1.0
+    boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
+    boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy) - 1.0
+    boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz) - 1.0
+    arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0
+    arm_a01 = -2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy
+    arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz
+    arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy
+    arm_a11 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy) - 1.0
+    arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz
+    arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz
+    arm_a21 = 2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz
+    arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy) - 1.0
+    arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz) - 1.0
+    arm_cyl_rod_a01 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qz + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qy
+    arm_cyl_rod_a02 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qy + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qz
+    arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy) - 1.0
+    arm_cyl_rod_a12 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a21 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz) - 1.0
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy) - 1.0
+    bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz) - 1.0
+    bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qy
+    bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qz
+    bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy) - 1.0
+    bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz) - 1.0
+    side_link_a00 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx) - 1.0
+    side_link_a02 = 2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz
+    side_link_a10 = 2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy
+    side_link_a12 = -2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz
+    side_link_a20 = -2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz
+    side_link_a22 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz) - 1.0
+    bucket_link_a00 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx) - 1.0
+    bucket_link_a02 = 2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz
+    bucket_link_a10 = 2.0*bucket_link_qw*bucket_link_qz + 2.0*bucket_link_qx*bucket_link_qy
+    bucket_link_a12 = -2.0*bucket_link_qw*bucket_link_qx + 2.0*bucket_link_qy*bucket_link_qz
+    bucket_link_a20 = -2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz
+    bucket_link_a22 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz) - 1.0
+    bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0
+    bucket_a01 = -2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a11 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy) - 1.0
+    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a21 = 2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x
     c1 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y
     c2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z
@@ -1767,121 +1767,121 @@ def _joints_phi_jac_s(q):
     d137 = (166329/500000)*side_link_a20 - 96247/200000*side_link_a22
     d138 = (166329/500000)*side_link_a10 - 96247/200000*side_link_a12
     d139 = (166329/500000)*side_link_a00 - 96247/200000*side_link_a02
-    return [-upper_x, -upper_y, -upper_z, upper_a20, upper_a21, (22767/100000)*upper_a00 + (195729/100000)*upper_a02 + upper_x - boom_x, (22767/100000)*upper_a10 + (195729/100000)*upper_a12 + upper_y - boom_y, (22767/100000)*upper_a20 + (195729/100000)*upper_a22 + upper_z - boom_z, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, (4307/6250)*upper_a00 + (8/25)*upper_a01 + (67739/50000)*upper_a02 + upper_x - boom_cyl_l_barrel_x, (4307/6250)*upper_a10 + (8/25)*upper_a11 + (67739/50000)*upper_a12 + upper_y - boom_cyl_l_barrel_y, (4307/6250)*upper_a20 + (8/25)*upper_a21 + (67739/50000)*upper_a22 + upper_z - boom_cyl_l_barrel_z, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22, boom_cyl_l_barrel_a01*c0 + boom_cyl_l_barrel_a11*c1 + boom_cyl_l_barrel_a21*c2, boom_cyl_l_barrel_a02*c0 + boom_cyl_l_barrel_a12*c1 + boom_cyl_l_barrel_a22*c2, (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_x - 139283/100000*boom_a00 - 8/25*boom_a01 - 2.001922*boom_a02 - boom_x, boom_cyl_l_rod_y - 139283/100000*boom_a10 - 8/25*boom_a11 - 2.001922*boom_a12 - boom_y, boom_cyl_l_rod_z - 139283/100000*boom_a20 - 8/25*boom_a21 - 2.001922*boom_a22 - boom_z, (4307/6250)*upper_a00 - 8/25*upper_a01 + (67739/50000)*upper_a02 + upper_x - boom_cyl_r_barrel_x, (4307/6250)*upper_a10 - 8/25*upper_a11 + (67739/50000)*upper_a12 + upper_y - boom_cyl_r_barrel_y, (4307/6250)*upper_a20 - 8/25*upper_a21 + (67739/50000)*upper_a22 + upper_z - boom_cyl_r_barrel_z, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22, boom_cyl_r_barrel_a01*c3 + boom_cyl_r_barrel_a11*c4 + boom_cyl_r_barrel_a21*c5, boom_cyl_r_barrel_a02*c3 + boom_cyl_r_barrel_a12*c4 + boom_cyl_r_barrel_a22*c5, (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_x - 139283/100000*boom_a00 + (8/25)*boom_a01 - 2.001922*boom_a02 - boom_x, boom_cyl_r_rod_y - 139283/100000*boom_a10 + (8/25)*boom_a11 - 2.001922*boom_a12 - boom_y, boom_cyl_r_rod_z - 139283/100000*boom_a20 + (8/25)*boom_a21 - 2.001922*boom_a22 - boom_z, (23939/5000)*boom_a00 + (29959/10000)*boom_a02 + boom_x - arm_x, (23939/5000)*boom_a10 + (29959/10000)*boom_a12 + boom_y - arm_y, (23939/5000)*boom_a20 + (29959/10000)*boom_a22 + boom_z - arm_z, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, (183/80)*boom_a00 + (557/200)*boom_a02 + boom_x - arm_cyl_barrel_x, (183/80)*boom_a10 + (557/200)*boom_a12 + boom_y - arm_cyl_barrel_y, (183/80)*boom_a20 + (557/200)*boom_a22 + boom_z - arm_cyl_barrel_z, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21, arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22, arm_cyl_barrel_a01*c6 + arm_cyl_barrel_a11*c7 + arm_cyl_barrel_a21*c8, arm_cyl_barrel_a02*c6 + arm_cyl_barrel_a12*c7 + arm_cyl_barrel_a22*c8, (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_x + (393281/500000)*arm_a00 + (0.369691)*arm_a02 - arm_x, arm_cyl_rod_y + (393281/500000)*arm_a10 + (0.369691)*arm_a12 - arm_y, arm_cyl_rod_z + (393281/500000)*arm_a20 + (0.369691)*arm_a22 - arm_z, (9477/5000)*arm_a00 + (21809/10000)*arm_a02 + arm_x - bucket_x, (9477/5000)*arm_a10 + (21809/10000)*arm_a12 + arm_y - bucket_y, (9477/5000)*arm_a20 + (21809/10000)*arm_a22 + arm_z - bucket_z, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, (7877/5000)*arm_a00 + (18799/10000)*arm_a02 + arm_x - side_link_x, (7877/5000)*arm_a10 + (18799/10000)*arm_a12 + arm_y - side_link_y, (7877/5000)*arm_a20 + (18799/10000)*arm_a22 + arm_z - side_link_z, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, -166329/500000*side_link_a00 + (96247/200000)*side_link_a02 + side_link_x + (85607/250000)*bucket_link_a00 + (0.450737)*bucket_link_a02 - bucket_link_x, -166329/500000*side_link_a10 + (96247/200000)*side_link_a12 + side_link_y + (85607/250000)*bucket_link_a10 + (0.450737)*bucket_link_a12 - bucket_link_y, -166329/500000*side_link_a20 + (96247/200000)*side_link_a22 + side_link_z + (85607/250000)*bucket_link_a20 + (0.450737)*bucket_link_a22 - bucket_link_z, bucket_link_x + (8101/25000)*bucket_a00 - 16927/50000*bucket_a02 - bucket_x, bucket_link_y + (8101/25000)*bucket_a10 - 16927/50000*bucket_a12 - bucket_y, bucket_link_z + (8101/25000)*bucket_a20 - 16927/50000*bucket_a22 - bucket_z, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), -24687/100000*arm_a00 + (36797/50000)*arm_a02 + arm_x - bucket_cyl_barrel_x, -24687/100000*arm_a10 + (36797/50000)*arm_a12 + arm_y - bucket_cyl_barrel_y, -24687/100000*arm_a20 + (36797/50000)*arm_a22 + arm_z - bucket_cyl_barrel_z, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21, bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22, bucket_cyl_barrel_a01*c9 + bucket_cyl_barrel_a11*c10 + bucket_cyl_barrel_a21*c11, bucket_cyl_barrel_a02*c9 + bucket_cyl_barrel_a12*c10 + bucket_cyl_barrel_a22*c11, (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_x + (166329/500000)*side_link_a00 - 96247/200000*side_link_a02 - side_link_x, bucket_cyl_rod_y + (166329/500000)*side_link_a10 - 96247/200000*side_link_a12 - side_link_y, bucket_cyl_rod_z + (166329/500000)*side_link_a20 - 96247/200000*side_link_a22 - side_link_z], [-1, -1, -1, upper_a10, -upper_a00, upper_a11, -upper_a01, 1, d0, -d1, -1, 1, -d0, d2, -1, 1, d1, -d2, -1, d3, -d4, d5, -d3, d4, -d5, d6, -d7, d8, -d6, d7, -d8, 1, d9, -d10, -1, 1, -d9, d11, -1, 1, d10, -d11, -1, d12, -d13, d14, -d12, d13, -d14, d15, -d16, d17, -d15, d16, -d17, d18, -d19, d20, -d18, d19, -d20, -boom_cyl_l_barrel_a01, -boom_cyl_l_barrel_a11, -boom_cyl_l_barrel_a21, boom_cyl_l_barrel_a11*d21 - boom_cyl_l_barrel_a21*d22, -boom_cyl_l_barrel_a01*d21 + boom_cyl_l_barrel_a21*d23, boom_cyl_l_barrel_a01*d22 - boom_cyl_l_barrel_a11*d23, boom_cyl_l_barrel_a01, boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a21, -boom_cyl_l_barrel_a02, -boom_cyl_l_barrel_a12, -boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a12*d21 - boom_cyl_l_barrel_a22*d22, -boom_cyl_l_barrel_a02*d21 + boom_cyl_l_barrel_a22*d23, boom_cyl_l_barrel_a02*d22 - boom_cyl_l_barrel_a12*d23, boom_cyl_l_barrel_a02, boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a22, d25, -d26, d27, -d25, d26, -d27, -1, -d28, d29, 1, -1, d28, -d30, 1, -1, -d29, d30, 1, 1, d31, -d32, -1, 1, -d31, d33, -1, 1, d32, -d33, -1, d34, -d35, d36, -d34, d35, -d36, d37, -d38, d39, -d37, d38, -d39, d40, -d41, d42, -d40, d41, -d42, -boom_cyl_r_barrel_a01, -boom_cyl_r_barrel_a11, -boom_cyl_r_barrel_a21, boom_cyl_r_barrel_a11*d43 - boom_cyl_r_barrel_a21*d44, -boom_cyl_r_barrel_a01*d43 + boom_cyl_r_barrel_a21*d45, boom_cyl_r_barrel_a01*d44 - boom_cyl_r_barrel_a11*d45, boom_cyl_r_barrel_a01, boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a21, -boom_cyl_r_barrel_a02, -boom_cyl_r_barrel_a12, -boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a12*d43 - boom_cyl_r_barrel_a22*d44, -boom_cyl_r_barrel_a02*d43 + boom_cyl_r_barrel_a22*d45, boom_cyl_r_barrel_a02*d44 - boom_cyl_r_barrel_a12*d45, boom_cyl_r_barrel_a02, boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a22, d47, -d48, d49, -d47, d48, -d49, -1, -d50, d51, 1, -1, d50, -d52, 1, -1, -d51, d52, 1, 1, d53, -d54, -1, 1, -d53, d55, -1, 1, d54, -d55, -1, d56, -d57, d58, -d56, d57, -d58, d59, -d60, d61, -d59, d60, -d61, 1, d62, -d63, -1, 1, -d62, d64, -1, 1, d63, -d64, -1, d65, -d66, d67, -d65, d66, -d67, d68, -d69, d70, -d68, d69, -d70, d71, -d72, d73, -d71, d72, -d73, -arm_cyl_barrel_a01, -arm_cyl_barrel_a11, -arm_cyl_barrel_a21, arm_cyl_barrel_a11*d74 - arm_cyl_barrel_a21*d75, -arm_cyl_barrel_a01*d74 + arm_cyl_barrel_a21*d76, arm_cyl_barrel_a01*d75 - arm_cyl_barrel_a11*d76, arm_cyl_barrel_a01, arm_cyl_barrel_a11, arm_cyl_barrel_a21, -arm_cyl_barrel_a02, -arm_cyl_barrel_a12, -arm_cyl_barrel_a22, arm_cyl_barrel_a12*d74 - arm_cyl_barrel_a22*d75, -arm_cyl_barrel_a02*d74 + arm_cyl_barrel_a22*d76, arm_cyl_barrel_a02*d75 - arm_cyl_barrel_a12*d76, arm_cyl_barrel_a02, arm_cyl_barrel_a12, arm_cyl_barrel_a22, d78, -d79, d80, -d78, d79, -d80, -1, d81, -d82, 1, -1, -d81, d83, 1, -1, d82, -d83, 1, 1, d84, -d85, -1, 1, -d84, d86, -1, 1, d85, -d86, -1, d87, -d88, d89, -d87, d88, -d89, d90, -d91, d92, -d90, d91, -d92, 1, d93, -d94, -1, 1, -d93, d95, -1, 1, d94, -d95, -1, d96, -d97, d98, -d96, d97, -d98, d99, -d100, d101, -d99, d100, -d101, 1, -d102, d103, -1, d104, -d105, 1, d102, -d106, -1, -d104, d107, 1, -d103, d106, -1, d105, -d107, 1, -1, d108, -d109, 1, -1, -d108, d110, 1, -1, d109, -d110, (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11 - bucket_a11*d112 - bucket_a21*d111, -0.6049353083260941*bucket_link_a02*bucket_a21 + bucket_a01*d112 - bucket_a01*d114 + bucket_a21*d113, (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01 - 0.6049353083260941*bucket_link_a12*bucket_a01 - bucket_a11*d113, bucket_a11*d115 - bucket_a21*d116, -bucket_a01*d115 + bucket_a21*d117, bucket_a01*d116 - bucket_a11*d117, 1, -d118, d119, -1, 1, d118, -d120, -1, 1, -d119, d120, -1, d121, -d122, d123, -d121, d122, -d123, d124, -d125, d126, -d124, d125, -d126, d127, -d128, d129, -d127, d128, -d129, -bucket_cyl_barrel_a01, -bucket_cyl_barrel_a11, -bucket_cyl_barrel_a21, bucket_cyl_barrel_a11*d130 - bucket_cyl_barrel_a21*d131, -bucket_cyl_barrel_a01*d130 + bucket_cyl_barrel_a21*d132, bucket_cyl_barrel_a01*d131 - bucket_cyl_barrel_a11*d132, bucket_cyl_barrel_a01, bucket_cyl_barrel_a11, bucket_cyl_barrel_a21, -bucket_cyl_barrel_a02, -bucket_cyl_barrel_a12, -bucket_cyl_barrel_a22, bucket_cyl_barrel_a12*d130 - bucket_cyl_barrel_a22*d131, -bucket_cyl_barrel_a02*d130 + bucket_cyl_barrel_a22*d132, bucket_cyl_barrel_a02*d131 - bucket_cyl_barrel_a12*d132, bucket_cyl_barrel_a02, bucket_cyl_barrel_a12, bucket_cyl_barrel_a22, d134, -d135, d136, -d134, d135, -d136, 1, -1, d137, -d138, 1, -1, -d137, d139, 1, -1, d138, -d139]
+    return [-upper_x, -upper_y, -upper_z, upper_a20, upper_a21, (22767/100000)*upper_a00 + (195729/100000)*upper_a02 + upper_x - boom_x, (22767/100000)*upper_a10 + (195729/100000)*upper_a12 + upper_y - boom_y, (22767/100000)*upper_a20 + (195729/100000)*upper_a22 + upper_z - boom_z, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, (4307/6250)*upper_a00 + (8/25)*upper_a01 + (67739/50000)*upper_a02 + upper_x - boom_cyl_l_barrel_x, (4307/6250)*upper_a10 + (8/25)*upper_a11 + (67739/50000)*upper_a12 + upper_y - boom_cyl_l_barrel_y, (4307/6250)*upper_a20 + (8/25)*upper_a21 + (67739/50000)*upper_a22 + upper_z - boom_cyl_l_barrel_z, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22, boom_cyl_l_barrel_a01*c0 + boom_cyl_l_barrel_a11*c1 + boom_cyl_l_barrel_a21*c2, boom_cyl_l_barrel_a02*c0 + boom_cyl_l_barrel_a12*c1 + boom_cyl_l_barrel_a22*c2, (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_x - 139283/100000*boom_a00 - 8/25*boom_a01 - 2.001922*boom_a02 - boom_x, boom_cyl_l_rod_y - 139283/100000*boom_a10 - 8/25*boom_a11 - 2.001922*boom_a12 - boom_y, boom_cyl_l_rod_z - 139283/100000*boom_a20 - 8/25*boom_a21 - 2.001922*boom_a22 - boom_z, (4307/6250)*upper_a00 - 8/25*upper_a01 + (67739/50000)*upper_a02 + upper_x - boom_cyl_r_barrel_x, (4307/6250)*upper_a10 - 8/25*upper_a11 + (67739/50000)*upper_a12 + upper_y - boom_cyl_r_barrel_y, (4307/6250)*upper_a20 - 8/25*upper_a21 + (67739/50000)*upper_a22 + upper_z - boom_cyl_r_barrel_z, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22, boom_cyl_r_barrel_a01*c3 + boom_cyl_r_barrel_a11*c4 + boom_cyl_r_barrel_a21*c5, boom_cyl_r_barrel_a02*c3 + boom_cyl_r_barrel_a12*c4 + boom_cyl_r_barrel_a22*c5, (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_x - 139283/100000*boom_a00 + (8/25)*boom_a01 - 2.001922*boom_a02 - boom_x, boom_cyl_r_rod_y - 139283/100000*boom_a10 + (8/25)*boom_a11 - 2.001922*boom_a12 - boom_y, boom_cyl_r_rod_z - 139283/100000*boom_a20 + (8/25)*boom_a21 - 2.001922*boom_a22 - boom_z, (23939/5000)*boom_a00 + (29959/10000)*boom_a02 + boom_x - arm_x, (23939/5000)*boom_a10 + (29959/10000)*boom_a12 + boom_y - arm_y, (23939/5000)*boom_a20 + (29959/10000)*boom_a22 + boom_z - arm_z, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, (183/80)*boom_a00 + (557/200)*boom_a02 + boom_x - arm_cyl_barrel_x, (183/80)*boom_a10 + (557/200)*boom_a12 + boom_y - arm_cyl_barrel_y, (183/80)*boom_a20 + (557/200)*boom_a22 + boom_z - arm_cyl_barrel_z, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21, arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22, arm_cyl_barrel_a01*c6 + arm_cyl_barrel_a11*c7 + arm_cyl_barrel_a21*c8, arm_cyl_barrel_a02*c6 + arm_cyl_barrel_a12*c7 + arm_cyl_barrel_a22*c8, (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_x + (393281/500000)*arm_a00 + (0.369691)*arm_a02 - arm_x, arm_cyl_rod_y + (393281/500000)*arm_a10 + (0.369691)*arm_a12 - arm_y, arm_cyl_rod_z + (393281/500000)*arm_a20 + (0.369691)*arm_a22 - arm_z, (9477/5000)*arm_a00 + (21809/10000)*arm_a02 + arm_x - bucket_x, (9477/5000)*arm_a10 + (21809/10000)*arm_a12 + arm_y - bucket_y, (9477/5000)*arm_a20 + (21809/10000)*arm_a22 + arm_z - bucket_z, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, (7877/5000)*arm_a00 + (18799/10000)*arm_a02 + arm_x - side_link_x, (7877/5000)*arm_a10 + (18799/10000)*arm_a12 + arm_y - side_link_y, (7877/5000)*arm_a20 + (18799/10000)*arm_a22 + arm_z - side_link_z, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, -166329/500000*side_link_a00 + (96247/200000)*side_link_a02 + side_link_x + (85607/250000)*bucket_link_a00 + (0.450737)*bucket_link_a02 - bucket_link_x, -166329/500000*side_link_a10 + (96247/200000)*side_link_a12 + side_link_y + (85607/250000)*bucket_link_a10 + (0.450737)*bucket_link_a12 - bucket_link_y, -166329/500000*side_link_a20 + (96247/200000)*side_link_a22 + side_link_z + (85607/250000)*bucket_link_a20 + (0.450737)*bucket_link_a22 - bucket_link_z, bucket_link_x + (8101/25000)*bucket_a00 - 16927/50000*bucket_a02 - bucket_x, bucket_link_y + (8101/25000)*bucket_a10 - 16927/50000*bucket_a12 - bucket_y, bucket_link_z + (8101/25000)*bucket_a20 - 16927/50000*bucket_a22 - bucket_z, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), -24687/100000*arm_a00 + (36797/50000)*arm_a02 + arm_x - bucket_cyl_barrel_x, -24687/100000*arm_a10 + (36797/50000)*arm_a12 + arm_y - bucket_cyl_barrel_y, -24687/100000*arm_a20 + (36797/50000)*arm_a22 + arm_z - bucket_cyl_barrel_z, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21, bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22, bucket_cyl_barrel_a01*c9 + bucket_cyl_barrel_a11*c10 + bucket_cyl_barrel_a21*c11, bucket_cyl_barrel_a02*c9 + bucket_cyl_barrel_a12*c10 + bucket_cyl_barrel_a22*c11, (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_x + (166329/500000)*side_link_a00 - 96247/200000*side_link_a02 - side_link_x, bucket_cyl_rod_y + (166329/500000)*side_link_a10 - 96247/200000*side_link_a12 - side_link_y, bucket_cyl_rod_z + (166329/500000)*side_link_a20 - 96247/200000*side_link_a22 - side_link_z], [-1.0, -1.0, -1.0, upper_a10, -upper_a00, upper_a11, -upper_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, d3, -d4, d5, -d3, d4, -d5, d6, -d7, d8, -d6, d7, -d8, 1.0, d9, -d10, -1.0, 1.0, -d9, d11, -1.0, 1.0, d10, -d11, -1.0, d12, -d13, d14, -d12, d13, -d14, d15, -d16, d17, -d15, d16, -d17, d18, -d19, d20, -d18, d19, -d20, -boom_cyl_l_barrel_a01, -boom_cyl_l_barrel_a11, -boom_cyl_l_barrel_a21, boom_cyl_l_barrel_a11*d21 - boom_cyl_l_barrel_a21*d22, -boom_cyl_l_barrel_a01*d21 + boom_cyl_l_barrel_a21*d23, boom_cyl_l_barrel_a01*d22 - boom_cyl_l_barrel_a11*d23, boom_cyl_l_barrel_a01, boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a21, -boom_cyl_l_barrel_a02, -boom_cyl_l_barrel_a12, -boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a12*d21 - boom_cyl_l_barrel_a22*d22, -boom_cyl_l_barrel_a02*d21 + boom_cyl_l_barrel_a22*d23, boom_cyl_l_barrel_a02*d22 - boom_cyl_l_barrel_a12*d23, boom_cyl_l_barrel_a02, boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a22, d25, -d26, d27, -d25, d26, -d27, -1.0, -d28, d29, 1.0, -1.0, d28, -d30, 1.0, -1.0, -d29, d30, 1.0, 1.0, d31, -d32, -1.0, 1.0, -d31, d33, -1.0, 1.0, d32, -d33, -1.0, d34, -d35, d36, -d34, d35, -d36, d37, -d38, d39, -d37, d38, -d39, d40, -d41, d42, -d40, d41, -d42, -boom_cyl_r_barrel_a01, -boom_cyl_r_barrel_a11, -boom_cyl_r_barrel_a21, boom_cyl_r_barrel_a11*d43 - boom_cyl_r_barrel_a21*d44, -boom_cyl_r_barrel_a01*d43 + boom_cyl_r_barrel_a21*d45, boom_cyl_r_barrel_a01*d44 - boom_cyl_r_barrel_a11*d45, boom_cyl_r_barrel_a01, boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a21, -boom_cyl_r_barrel_a02, -boom_cyl_r_barrel_a12, -boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a12*d43 - boom_cyl_r_barrel_a22*d44, -boom_cyl_r_barrel_a02*d43 + boom_cyl_r_barrel_a22*d45, boom_cyl_r_barrel_a02*d44 - boom_cyl_r_barrel_a12*d45, boom_cyl_r_barrel_a02, boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a22, d47, -d48, d49, -d47, d48, -d49, -1.0, -d50, d51, 1.0, -1.0, d50, -d52, 1.0, -1.0, -d51, d52, 1.0, 1.0, d53, -d54, -1.0, 1.0, -d53, d55, -1.0, 1.0, d54, -d55, -1.0, d56, -d57, d58, -d56, d57, -d58, d59, -d60, d61, -d59, d60, -d61, 1.0, d62, -d63, -1.0, 1.0, -d62, d64, -1.0, 1.0, d63, -d64, -1.0, d65, -d66, d67, -d65, d66, -d67, d68, -d69, d70, -d68, d69, -d70, d71, -d72, d73, -d71, d72, -d73, -arm_cyl_barrel_a01, -arm_cyl_barrel_a11, -arm_cyl_barrel_a21, arm_cyl_barrel_a11*d74 - arm_cyl_barrel_a21*d75, -arm_cyl_barrel_a01*d74 + arm_cyl_barrel_a21*d76, arm_cyl_barrel_a01*d75 - arm_cyl_barrel_a11*d76, arm_cyl_barrel_a01, arm_cyl_barrel_a11, arm_cyl_barrel_a21, -arm_cyl_barrel_a02, -arm_cyl_barrel_a12, -arm_cyl_barrel_a22, arm_cyl_barrel_a12*d74 - arm_cyl_barrel_a22*d75, -arm_cyl_barrel_a02*d74 + arm_cyl_barrel_a22*d76, arm_cyl_barrel_a02*d75 - arm_cyl_barrel_a12*d76, arm_cyl_barrel_a02, arm_cyl_barrel_a12, arm_cyl_barrel_a22, d78, -d79, d80, -d78, d79, -d80, -1.0, d81, -d82, 1.0, -1.0, -d81, d83, 1.0, -1.0, d82, -d83, 1.0, 1.0, d84, -d85, -1.0, 1.0, -d84, d86, -1.0, 1.0, d85, -d86, -1.0, d87, -d88, d89, -d87, d88, -d89, d90, -d91, d92, -d90, d91, -d92, 1.0, d93, -d94, -1.0, 1.0, -d93, d95, -1.0, 1.0, d94, -d95, -1.0, d96, -d97, d98, -d96, d97, -d98, d99, -d100, d101, -d99, d100, -d101, 1.0, -d102, d103, -1.0, d104, -d105, 1.0, d102, -d106, -1.0, -d104, d107, 1.0, -d103, d106, -1.0, d105, -d107, 1.0, -1.0, d108, -d109, 1.0, -1.0, -d108, d110, 1.0, -1.0, d109, -d110, (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11 - bucket_a11*d112 - bucket_a21*d111, -0.6049353083260941*bucket_link_a02*bucket_a21 + bucket_a01*d112 - bucket_a01*d114 + bucket_a21*d113, (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01 - 0.6049353083260941*bucket_link_a12*bucket_a01 - bucket_a11*d113, bucket_a11*d115 - bucket_a21*d116, -bucket_a01*d115 + bucket_a21*d117, bucket_a01*d116 - bucket_a11*d117, 1.0, -d118, d119, -1.0, 1.0, d118, -d120, -1.0, 1.0, -d119, d120, -1.0, d121, -d122, d123, -d121, d122, -d123, d124, -d125, d126, -d124, d125, -d126, d127, -d128, d129, -d127, d128, -d129, -bucket_cyl_barrel_a01, -bucket_cyl_barrel_a11, -bucket_cyl_barrel_a21, bucket_cyl_barrel_a11*d130 - bucket_cyl_barrel_a21*d131, -bucket_cyl_barrel_a01*d130 + bucket_cyl_barrel_a21*d132, bucket_cyl_barrel_a01*d131 - bucket_cyl_barrel_a11*d132, bucket_cyl_barrel_a01, bucket_cyl_barrel_a11, bucket_cyl_barrel_a21, -bucket_cyl_barrel_a02, -bucket_cyl_barrel_a12, -bucket_cyl_barrel_a22, bucket_cyl_barrel_a12*d130 - bucket_cyl_barrel_a22*d131, -bucket_cyl_barrel_a02*d130 + bucket_cyl_barrel_a22*d132, bucket_cyl_barrel_a02*d131 - bucket_cyl_barrel_a12*d132, bucket_cyl_barrel_a02, bucket_cyl_barrel_a12, bucket_cyl_barrel_a22, d134, -d135, d136, -d134, d135, -d136, 1.0, -1.0, d137, -d138, 1.0, -1.0, -d137, d139, 1.0, -1.0, d138, -d139]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    upper_a00 = 2*upper_qw**2 + 2*upper_qx**2 - 1
-    upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
-    upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
-    upper_a10 = 2*upper_qw*upper_qz + 2*upper_qx*upper_qy
-    upper_a11 = 2*upper_qw**2 + 2*upper_qy**2 - 1
-    upper_a12 = -2*upper_qw*upper_qx + 2*upper_qy*upper_qz
-    upper_a20 = -2*upper_qw*upper_qy + 2*upper_qx*upper_qz
-    upper_a21 = 2*upper_qw*upper_qx + 2*upper_qy*upper_qz
-    upper_a22 = 2*upper_qw**2 + 2*upper_qz**2 - 1
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
-    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
-    boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
-    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    boom_a22 = 2*boom_qw**2 + 2*boom_qz**2 - 1
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a01 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a02 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a11 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qy**2 - 1
-    boom_cyl_l_barrel_a12 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a21 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
-    boom_cyl_l_barrel_a22 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qz**2 - 1
-    boom_cyl_l_rod_a01 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
-    boom_cyl_l_rod_a02 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
-    boom_cyl_l_rod_a11 = 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qy**2 - 1
-    boom_cyl_l_rod_a12 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
-    boom_cyl_l_rod_a21 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
-    boom_cyl_l_rod_a22 = 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qz**2 - 1
-    boom_cyl_r_barrel_a00 = 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qx**2 - 1
-    boom_cyl_r_barrel_a01 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
-    boom_cyl_r_barrel_a02 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a10 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
-    boom_cyl_r_barrel_a11 = 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qy**2 - 1
-    boom_cyl_r_barrel_a12 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a20 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a21 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
-    boom_cyl_r_barrel_a22 = 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qz**2 - 1
-    boom_cyl_r_rod_a01 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
-    boom_cyl_r_rod_a02 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
-    boom_cyl_r_rod_a11 = 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qy**2 - 1
-    boom_cyl_r_rod_a12 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
-    boom_cyl_r_rod_a21 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
-    boom_cyl_r_rod_a22 = 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qz**2 - 1
-    arm_a00 = 2*arm_qw**2 + 2*arm_qx**2 - 1
-    arm_a01 = -2*arm_qw*arm_qz + 2*arm_qx*arm_qy
-    arm_a02 = 2*arm_qw*arm_qy + 2*arm_qx*arm_qz
-    arm_a10 = 2*arm_qw*arm_qz + 2*arm_qx*arm_qy
-    arm_a11 = 2*arm_qw**2 + 2*arm_qy**2 - 1
-    arm_a12 = -2*arm_qw*arm_qx + 2*arm_qy*arm_qz
-    arm_a20 = -2*arm_qw*arm_qy + 2*arm_qx*arm_qz
-    arm_a21 = 2*arm_qw*arm_qx + 2*arm_qy*arm_qz
-    arm_a22 = 2*arm_qw**2 + 2*arm_qz**2 - 1
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a01 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a02 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a11 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qy**2 - 1
-    arm_cyl_barrel_a12 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    arm_cyl_barrel_a21 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
-    arm_cyl_barrel_a22 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qz**2 - 1
-    arm_cyl_rod_a01 = -2*arm_cyl_rod_qw*arm_cyl_rod_qz + 2*arm_cyl_rod_qx*arm_cyl_rod_qy
-    arm_cyl_rod_a02 = 2*arm_cyl_rod_qw*arm_cyl_rod_qy + 2*arm_cyl_rod_qx*arm_cyl_rod_qz
-    arm_cyl_rod_a11 = 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qy**2 - 1
-    arm_cyl_rod_a12 = -2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
-    arm_cyl_rod_a21 = 2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
-    arm_cyl_rod_a22 = 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qz**2 - 1
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a01 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a02 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a11 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qy**2 - 1
-    bucket_cyl_barrel_a12 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a21 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
-    bucket_cyl_barrel_a22 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qz**2 - 1
-    bucket_cyl_rod_a01 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qy
-    bucket_cyl_rod_a02 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qz
-    bucket_cyl_rod_a11 = 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qy**2 - 1
-    bucket_cyl_rod_a12 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
-    bucket_cyl_rod_a21 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
-    bucket_cyl_rod_a22 = 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qz**2 - 1
-    side_link_a00 = 2*side_link_qw**2 + 2*side_link_qx**2 - 1
-    side_link_a02 = 2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
-    side_link_a10 = 2*side_link_qw*side_link_qz + 2*side_link_qx*side_link_qy
-    side_link_a12 = -2*side_link_qw*side_link_qx + 2*side_link_qy*side_link_qz
-    side_link_a20 = -2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
-    side_link_a22 = 2*side_link_qw**2 + 2*side_link_qz**2 - 1
-    bucket_link_a00 = 2*bucket_link_qw**2 + 2*bucket_link_qx**2 - 1
-    bucket_link_a02 = 2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
-    bucket_link_a10 = 2*bucket_link_qw*bucket_link_qz + 2*bucket_link_qx*bucket_link_qy
-    bucket_link_a12 = -2*bucket_link_qw*bucket_link_qx + 2*bucket_link_qy*bucket_link_qz
-    bucket_link_a20 = -2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
-    bucket_link_a22 = 2*bucket_link_qw**2 + 2*bucket_link_qz**2 - 1
-    bucket_a00 = 2*bucket_qw**2 + 2*bucket_qx**2 - 1
-    bucket_a01 = -2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a11 = 2*bucket_qw**2 + 2*bucket_qy**2 - 1
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a21 = 2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    upper_a00 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx) - 1.0
+    upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
+    upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
+    upper_a10 = 2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
+    upper_a11 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy) - 1.0
+    upper_a12 = -2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz
+    upper_a20 = -2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
+    upper_a21 = 2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz
+    upper_a22 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz) - 1.0
+    boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0
+    boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
+    boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
+    boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0
+    boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
+    boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
+    boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
+    boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy) - 1.0
+    boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz) - 1.0
+    boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
+    boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy) - 1.0
+    boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz) - 1.0
+    boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx) - 1.0
+    boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy) - 1.0
+    boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz) - 1.0
+    boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
+    boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy) - 1.0
+    boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz) - 1.0
+    arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0
+    arm_a01 = -2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy
+    arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz
+    arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy
+    arm_a11 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy) - 1.0
+    arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz
+    arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz
+    arm_a21 = 2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz
+    arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy) - 1.0
+    arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz) - 1.0
+    arm_cyl_rod_a01 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qz + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qy
+    arm_cyl_rod_a02 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qy + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qz
+    arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy) - 1.0
+    arm_cyl_rod_a12 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a21 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz) - 1.0
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy) - 1.0
+    bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz) - 1.0
+    bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qy
+    bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qz
+    bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy) - 1.0
+    bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz) - 1.0
+    side_link_a00 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx) - 1.0
+    side_link_a02 = 2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz
+    side_link_a10 = 2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy
+    side_link_a12 = -2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz
+    side_link_a20 = -2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz
+    side_link_a22 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz) - 1.0
+    bucket_link_a00 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx) - 1.0
+    bucket_link_a02 = 2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz
+    bucket_link_a10 = 2.0*bucket_link_qw*bucket_link_qz + 2.0*bucket_link_qx*bucket_link_qy
+    bucket_link_a12 = -2.0*bucket_link_qw*bucket_link_qx + 2.0*bucket_link_qy*bucket_link_qz
+    bucket_link_a20 = -2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz
+    bucket_link_a22 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz) - 1.0
+    bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0
+    bucket_a01 = -2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a11 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy) - 1.0
+    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a21 = 2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = -22767/100000*upper_a00*v_upper_theta_y + (22767/100000)*upper_a10*v_upper_theta_x
     c1 = -195729/100000*upper_a02*v_upper_theta_y + (195729/100000)*upper_a12*v_upper_theta_x
     c2 = upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x
@@ -2461,15 +2461,15 @@ def _drivers_phi_jac_s_digging(q, u):
     """Phi and Phi_q values of the driver rows of case 'digging' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
     c0 = (1/2)*u0
     d0 = (1/2)*u0
     d1 = math.sin(d0)
@@ -2483,7 +2483,7 @@ def _drivers_phi_jac_s_digging(q, u):
     d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
     d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
     d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    return [2*upper_qw*math.sin(c0) - 2*upper_qz*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4, -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5, boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7, -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8, arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10, -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11, bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return [2.0*upper_qw*math.sin(c0) - 2.0*upper_qz*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4, -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5, boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7, -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8, arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10, -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11, bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
 def _drivers_nu_s_digging(q, u, ud):
@@ -2502,15 +2502,15 @@ def _drivers_gamma_s_digging(q, v, u, ud, udd):
     u0, _, _, _ = u
     ud0, _, _, _ = ud
     udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
@@ -2545,7 +2545,7 @@ def _drivers_gamma_s_digging(q, v, u, ud, udd):
     c31 = bucket_cyl_barrel_y - bucket_cyl_rod_y
     c32 = bucket_cyl_barrel_x - bucket_cyl_rod_x
     c33 = bucket_cyl_barrel_z - bucket_cyl_rod_z
-    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1, -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2, -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3]
+    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1, -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2, -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3]
 
 
 def phi_digging(q, u):
@@ -2703,19 +2703,19 @@ def _drivers_phi_jac_s_level_cut(q, u):
     """Phi and Phi_q values of the driver rows of case 'level_cut' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
-    bucket_a00 = 2*bucket_qw**2 + 2*bucket_qx**2 - 1
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = (1/2)*u0
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
     d3 = math.sin(u3)
     d4 = math.cos(u3)
-    return [2*upper_qw*math.sin(c0) - 2*upper_qz*math.cos(c0), (32/25)*bucket_a00 + (403/500)*bucket_a02 + bucket_x - u1, (32/25)*bucket_a20 + (403/500)*bucket_a22 + bucket_z - u2, -bucket_a02*math.cos(u3) + bucket_a22*math.sin(u3)], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, 1, (32/25)*bucket_a20 + (403/500)*bucket_a22, -32/25*bucket_a10 - 403/500*bucket_a12, 1, (32/25)*bucket_a10 + (403/500)*bucket_a12, -32/25*bucket_a00 - 403/500*bucket_a02, bucket_a12*d3, -bucket_a02*d3 - bucket_a22*d4, bucket_a12*d4]
+    return [2.0*upper_qw*math.sin(c0) - 2.0*upper_qz*math.cos(c0), (32/25)*bucket_a00 + (403/500)*bucket_a02 + bucket_x - u1, (32/25)*bucket_a20 + (403/500)*bucket_a22 + bucket_z - u2, -bucket_a02*math.cos(u3) + bucket_a22*math.sin(u3)], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, 1.0, (32/25)*bucket_a20 + (403/500)*bucket_a22, -32/25*bucket_a10 - 403/500*bucket_a12, 1.0, (32/25)*bucket_a10 + (403/500)*bucket_a12, -32/25*bucket_a00 - 403/500*bucket_a02, bucket_a12*d3, -bucket_a02*d3 - bucket_a22*d4, bucket_a12*d4]
 
 
 def _drivers_nu_s_level_cut(q, u, ud):
@@ -2723,8 +2723,8 @@ def _drivers_nu_s_level_cut(q, u, ud):
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = (1/2)*u0
     return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
@@ -2736,12 +2736,12 @@ def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
     u0, _, _, u3 = u
     ud0, _, _, ud3 = ud
     udd0, udd1, udd2, udd3 = udd
-    bucket_a00 = 2*bucket_qw**2 + 2*bucket_qx**2 - 1
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
@@ -2756,7 +2756,7 @@ def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
     c11 = math.cos(u3)
     c12 = bucket_a12*v_bucket_theta_z
     c13 = bucket_a02*c11 - bucket_a22*c10
-    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), udd1 - 32/25*v_bucket_theta_y*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x) - 403/500*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) + (32/25)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403/500)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x), udd2 - 32/25*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - 403/500*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) + (32/25)*v_bucket_theta_y*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y) + (403/500)*v_bucket_theta_y*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y), c10*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - c12) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) - c13*ud3**2 - 2*ud3*(bucket_a12*c11*v_bucket_theta_x - c10*c12 - c13*v_bucket_theta_y) - udd3*(bucket_a02*c10 + bucket_a22*c11) - (bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x)*(c10*v_bucket_theta_x + c11*v_bucket_theta_z)]
+    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), udd1 - 32/25*v_bucket_theta_y*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x) - 403/500*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) + (32/25)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403/500)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x), udd2 - 32/25*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - 403/500*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) + (32/25)*v_bucket_theta_y*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y) + (403/500)*v_bucket_theta_y*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y), c10*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - c12) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) - c13*(ud3*ud3) - 2.0*ud3*(bucket_a12*c11*v_bucket_theta_x - c10*c12 - c13*v_bucket_theta_y) - udd3*(bucket_a02*c10 + bucket_a22*c11) - (bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x)*(c10*v_bucket_theta_x + c11*v_bucket_theta_z)]
 
 
 def phi_level_cut(q, u):
@@ -2914,19 +2914,19 @@ def _drivers_phi_jac_s_trench_wall(q, u):
     """Phi and Phi_q values of the driver rows of case 'trench_wall' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
-    bucket_a00 = 2*bucket_qw**2 + 2*bucket_qx**2 - 1
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = (1/2)*u0
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
     d3 = math.sin(u3)
     d4 = math.cos(u3)
-    return [2*upper_qw*math.sin(c0) - 2*upper_qz*math.cos(c0), (32/25)*bucket_a00 + (403/500)*bucket_a02 + bucket_x - u1, (32/25)*bucket_a20 + (403/500)*bucket_a22 + bucket_z - u2, -bucket_a02*math.cos(u3) + bucket_a22*math.sin(u3)], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, 1, (32/25)*bucket_a20 + (403/500)*bucket_a22, -32/25*bucket_a10 - 403/500*bucket_a12, 1, (32/25)*bucket_a10 + (403/500)*bucket_a12, -32/25*bucket_a00 - 403/500*bucket_a02, bucket_a12*d3, -bucket_a02*d3 - bucket_a22*d4, bucket_a12*d4]
+    return [2.0*upper_qw*math.sin(c0) - 2.0*upper_qz*math.cos(c0), (32/25)*bucket_a00 + (403/500)*bucket_a02 + bucket_x - u1, (32/25)*bucket_a20 + (403/500)*bucket_a22 + bucket_z - u2, -bucket_a02*math.cos(u3) + bucket_a22*math.sin(u3)], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, 1.0, (32/25)*bucket_a20 + (403/500)*bucket_a22, -32/25*bucket_a10 - 403/500*bucket_a12, 1.0, (32/25)*bucket_a10 + (403/500)*bucket_a12, -32/25*bucket_a00 - 403/500*bucket_a02, bucket_a12*d3, -bucket_a02*d3 - bucket_a22*d4, bucket_a12*d4]
 
 
 def _drivers_nu_s_trench_wall(q, u, ud):
@@ -2934,8 +2934,8 @@ def _drivers_nu_s_trench_wall(q, u, ud):
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
     ud0, ud1, ud2, ud3 = ud
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = (1/2)*u0
     return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
@@ -2947,12 +2947,12 @@ def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
     u0, _, _, u3 = u
     ud0, _, _, ud3 = ud
     udd0, udd1, udd2, udd3 = udd
-    bucket_a00 = 2*bucket_qw**2 + 2*bucket_qx**2 - 1
-    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
-    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
-    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
-    bucket_a22 = 2*bucket_qw**2 + 2*bucket_qz**2 - 1
+    bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0
+    bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy
+    bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz
+    bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz
+    bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
@@ -2967,7 +2967,7 @@ def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
     c11 = math.cos(u3)
     c12 = bucket_a12*v_bucket_theta_z
     c13 = bucket_a02*c11 - bucket_a22*c10
-    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), udd1 - 32/25*v_bucket_theta_y*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x) - 403/500*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) + (32/25)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403/500)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x), udd2 - 32/25*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - 403/500*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) + (32/25)*v_bucket_theta_y*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y) + (403/500)*v_bucket_theta_y*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y), c10*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - c12) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) - c13*ud3**2 - 2*ud3*(bucket_a12*c11*v_bucket_theta_x - c10*c12 - c13*v_bucket_theta_y) - udd3*(bucket_a02*c10 + bucket_a22*c11) - (bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x)*(c10*v_bucket_theta_x + c11*v_bucket_theta_z)]
+    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), udd1 - 32/25*v_bucket_theta_y*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x) - 403/500*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) + (32/25)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403/500)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x), udd2 - 32/25*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - 403/500*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) + (32/25)*v_bucket_theta_y*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y) + (403/500)*v_bucket_theta_y*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y), c10*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - c12) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) - c13*(ud3*ud3) - 2.0*ud3*(bucket_a12*c11*v_bucket_theta_x - c10*c12 - c13*v_bucket_theta_y) - udd3*(bucket_a02*c10 + bucket_a22*c11) - (bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x)*(c10*v_bucket_theta_x + c11*v_bucket_theta_z)]
 
 
 def phi_trench_wall(q, u):
@@ -3175,15 +3175,15 @@ def _drivers_phi_jac_s_bucket_toggle(q, u):
     """Phi and Phi_q values of the driver rows of case 'bucket_toggle' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
     c0 = (1/2)*u0
     d0 = (1/2)*u0
     d1 = math.sin(d0)
@@ -3197,7 +3197,7 @@ def _drivers_phi_jac_s_bucket_toggle(q, u):
     d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
     d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
     d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    return [2*upper_qw*math.sin(c0) - 2*upper_qz*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4, -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5, boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7, -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8, arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10, -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11, bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return [2.0*upper_qw*math.sin(c0) - 2.0*upper_qz*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4, -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5, boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7, -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8, arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10, -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11, bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
 def _drivers_nu_s_bucket_toggle(q, u, ud):
@@ -3216,15 +3216,15 @@ def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
     u0, _, _, _ = u
     ud0, _, _, _ = ud
     udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
@@ -3259,7 +3259,7 @@ def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
     c31 = bucket_cyl_barrel_y - bucket_cyl_rod_y
     c32 = bucket_cyl_barrel_x - bucket_cyl_rod_x
     c33 = bucket_cyl_barrel_z - bucket_cyl_rod_z
-    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1, -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2, -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3]
+    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1, -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2, -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3]
 
 
 def phi_bucket_toggle(q, u):
@@ -3470,15 +3470,15 @@ def _drivers_phi_jac_s_bucket_near_toggle(q, u):
     """Phi and Phi_q values of the driver rows of case 'bucket_near_toggle' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
     c0 = (1/2)*u0
     d0 = (1/2)*u0
     d1 = math.sin(d0)
@@ -3492,7 +3492,7 @@ def _drivers_phi_jac_s_bucket_near_toggle(q, u):
     d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z
     d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y
     d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x
-    return [2*upper_qw*math.sin(c0) - 2*upper_qz*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4, -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5, boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7, -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8, arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10, -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11, bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+    return [2.0*upper_qw*math.sin(c0) - 2.0*upper_qz*math.cos(c0), boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1, arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2, bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3], [-upper_qx*d1 - upper_qy*d2, upper_qx*d2 - upper_qy*d1, -upper_qw*d2 - upper_qz*d1, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4, -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5, boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7, -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8, arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10, -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11, bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
 def _drivers_nu_s_bucket_near_toggle(q, u, ud):
@@ -3511,15 +3511,15 @@ def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
     u0, _, _, _ = u
     ud0, _, _, _ = ud
     udd0, udd1, udd2, udd3 = udd
-    boom_cyl_l_barrel_a00 = 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2 - 1
-    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
-    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
-    arm_cyl_barrel_a00 = 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2 - 1
-    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
-    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
-    bucket_cyl_barrel_a00 = 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2 - 1
-    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
-    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
@@ -3554,7 +3554,7 @@ def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
     c31 = bucket_cyl_barrel_y - bucket_cyl_rod_y
     c32 = bucket_cyl_barrel_x - bucket_cyl_rod_x
     c33 = bucket_cyl_barrel_z - bucket_cyl_rod_z
-    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1, -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2, -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3]
+    return [c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1/2)*upper_qy*c2) + v_upper_theta_y*(-1/2*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y), -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(c16*v_boom_cyl_l_barrel_theta_z - c17*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-c15*v_boom_cyl_l_barrel_theta_z + c17*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(c15*v_boom_cyl_l_barrel_theta_x - c16*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1, -c18*v_arm_cyl_barrel_x + c19*v_arm_cyl_barrel_y - c19*v_arm_cyl_rod_y - c19*(c24*v_arm_cyl_barrel_theta_z - c25*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c20*v_arm_cyl_barrel_z - c21*v_arm_cyl_rod_x - c21*(-c23*v_arm_cyl_barrel_theta_z + c25*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c22*v_arm_cyl_rod_z - c22*(c23*v_arm_cyl_barrel_theta_x - c24*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2, -c26*v_bucket_cyl_barrel_x + c27*v_bucket_cyl_barrel_y - c27*v_bucket_cyl_rod_y - c27*(c32*v_bucket_cyl_barrel_theta_z - c33*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c28*v_bucket_cyl_barrel_z - c29*v_bucket_cyl_rod_x - c29*(-c31*v_bucket_cyl_barrel_theta_z + c33*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c30*v_bucket_cyl_rod_z - c30*(c31*v_bucket_cyl_barrel_theta_x - c32*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3]
 
 
 def phi_bucket_near_toggle(q, u):

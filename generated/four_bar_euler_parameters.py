@@ -267,27 +267,27 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
-    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    coupler_a00 = 2*coupler_e0**2 + 2*coupler_e1**2 - 1
-    coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
-    coupler_a10 = 2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
-    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
-    coupler_a20 = -2*coupler_e0*coupler_e2 + 2*coupler_e1*coupler_e3
-    coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
-    rocker_a00 = 2*rocker_e0**2 + 2*rocker_e1**2 - 1
-    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a10 = 2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
-    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    d0 = 2*crank_e2
-    d1 = 2*crank_e3
-    d2 = 2*crank_e0
-    d3 = 2*crank_e1
+    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
+    crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
+    crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3
+    coupler_a00 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e1*coupler_e1) - 1.0
+    coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2
+    coupler_a10 = 2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2
+    coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0
+    coupler_a20 = -2.0*coupler_e0*coupler_e2 + 2.0*coupler_e1*coupler_e3
+    coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3
+    rocker_a00 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e1*rocker_e1) - 1.0
+    rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
+    rocker_a10 = 2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2
+    rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
+    rocker_a20 = -2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
+    rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
+    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    d0 = 2.0*crank_e2
+    d1 = 2.0*crank_e3
+    d2 = 2.0*crank_e0
+    d3 = 2.0*crank_e1
     d4 = (3/5)*crank_e3
     d5 = (3/5)*crank_e2
     d6 = (3/5)*crank_e1
@@ -300,48 +300,48 @@ def _joints_phi_jac_s(q):
     d13 = (7/5)*rocker_e2
     d14 = -7/5*rocker_e1
     d15 = (7/5)*rocker_e0
-    d16 = 4*rocker_a12
-    d17 = 2*rocker_a22
-    d18 = 2*rocker_a02
-    d19 = 2*coupler_a01
-    d20 = 2*coupler_a11
-    d21 = 4*coupler_a21
-    d22 = 2*rocker_e2
-    d23 = 2*rocker_e3
-    d24 = 2*rocker_e0
-    d25 = 2*rocker_e1
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (6/5)*crank_e0, (6/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (18/5)*coupler_e0, (18/5)*coupler_e1, -1, -14/5*rocker_e0, -14/5*rocker_e1, 1, d8, d9, d10, d11, -1, d12, -d13, d14, -d15, 1, -d9, d8, -d11, d10, -1, d13, d12, d15, d14, coupler_e0*d16 + coupler_e1*d17 - coupler_e3*d18, coupler_e0*d17 + coupler_e2*d18, coupler_e1*d18 + coupler_e2*d16 + coupler_e3*d17, -coupler_e0*d18 + 2*coupler_e2*rocker_a22, rocker_e0*d21 - rocker_e1*d20 + rocker_e2*d19, -rocker_e0*d20 + rocker_e3*d19, rocker_e0*d19 + rocker_e3*d20, rocker_e1*d19 + rocker_e2*d20 + rocker_e3*d21, -1, -1, -1, -d22, d23, -d24, d25, d25, d24, d23, d22, 2*crank_e0, 2*crank_e1, 2*crank_e2, 2*crank_e3, 2*coupler_e0, 2*coupler_e1, 2*coupler_e2, 2*coupler_e3, 2*rocker_e0, 2*rocker_e1, 2*rocker_e2, 2*rocker_e3]
+    d16 = 4.0*rocker_a12
+    d17 = 2.0*rocker_a22
+    d18 = 2.0*rocker_a02
+    d19 = 2.0*coupler_a01
+    d20 = 2.0*coupler_a11
+    d21 = 4.0*coupler_a21
+    d22 = 2.0*rocker_e2
+    d23 = 2.0*rocker_e3
+    d24 = 2.0*rocker_e0
+    d25 = 2.0*rocker_e1
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21, (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0, (coupler_e0*coupler_e0) + (coupler_e1*coupler_e1) + (coupler_e2*coupler_e2) + (coupler_e3*coupler_e3) - 1.0, (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3) - 1.0], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (6/5)*crank_e0, (6/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (18/5)*coupler_e0, (18/5)*coupler_e1, -1.0, -14/5*rocker_e0, -14/5*rocker_e1, 1.0, d8, d9, d10, d11, -1.0, d12, -d13, d14, -d15, 1.0, -d9, d8, -d11, d10, -1.0, d13, d12, d15, d14, coupler_e0*d16 + coupler_e1*d17 - coupler_e3*d18, coupler_e0*d17 + coupler_e2*d18, coupler_e1*d18 + coupler_e2*d16 + coupler_e3*d17, -coupler_e0*d18 + 2.0*coupler_e2*rocker_a22, rocker_e0*d21 - rocker_e1*d20 + rocker_e2*d19, -rocker_e0*d20 + rocker_e3*d19, rocker_e0*d19 + rocker_e3*d20, rocker_e1*d19 + rocker_e2*d20 + rocker_e3*d21, -1.0, -1.0, -1.0, -d22, d23, -d24, d25, d25, d24, d23, d22, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*coupler_e0, 2.0*coupler_e1, 2.0*coupler_e2, 2.0*coupler_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, _, _, _, _, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, _, _, _, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
-    coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
-    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
-    coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
-    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    c0 = 4*v_crank_e2
-    c1 = 4*v_crank_e1
+    coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2
+    coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0
+    coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3
+    rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
+    rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
+    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    c0 = 4.0*v_crank_e2
+    c1 = 4.0*v_crank_e1
     c2 = (6/5)*v_crank_e3
     c3 = (6/5)*v_crank_e2
     c4 = (18/5)*v_coupler_e3
     c5 = (18/5)*v_coupler_e2
-    c6 = 2*rocker_a02
-    c7 = 2*rocker_a22
-    c8 = 2*coupler_a01
-    c9 = 2*coupler_a11
-    c10 = 4*rocker_a12
-    c11 = 4*coupler_a21
-    c12 = 2*rocker_e0
-    c13 = 2*rocker_e1
-    c14 = 2*coupler_e0
-    c15 = 2*v_coupler_e0
-    c16 = 4*v_rocker_e2
-    c17 = 4*v_rocker_e1
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*v_crank_e0**2 - 6/5*v_crank_e1**2, -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -18/5*v_coupler_e0**2 - 18/5*v_coupler_e1**2 + (14/5)*v_rocker_e0**2 + (14/5)*v_rocker_e1**2, -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, -c4*v_coupler_e1 + c5*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2*(4*rocker_e0*v_rocker_e0 + 4*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2*(2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3), 0.0, 0.0, 0.0, c16*v_rocker_e0 - c17*v_rocker_e3, -c16*v_rocker_e3 - c17*v_rocker_e0, -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_coupler_e0**2 - 2*v_coupler_e1**2 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2, -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
+    c6 = 2.0*rocker_a02
+    c7 = 2.0*rocker_a22
+    c8 = 2.0*coupler_a01
+    c9 = 2.0*coupler_a11
+    c10 = 4.0*rocker_a12
+    c11 = 4.0*coupler_a21
+    c12 = 2.0*rocker_e0
+    c13 = 2.0*rocker_e1
+    c14 = 2.0*coupler_e0
+    c15 = 2.0*v_coupler_e0
+    c16 = 4.0*v_rocker_e2
+    c17 = 4.0*v_rocker_e1
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*(v_crank_e0*v_crank_e0) - 6/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -18/5*(v_coupler_e0*v_coupler_e0) - 18/5*(v_coupler_e1*v_coupler_e1) + (14/5)*(v_rocker_e0*v_rocker_e0) + (14/5)*(v_rocker_e1*v_rocker_e1), -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, -c4*v_coupler_e1 + c5*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2.0*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2.0*(2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3), 0.0, 0.0, 0.0, c16*v_rocker_e0 - c17*v_rocker_e3, -c16*v_rocker_e3 - c17*v_rocker_e0, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_coupler_e0*v_coupler_e0) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e3*v_coupler_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
 
 
 def inputs_crank_turn(t):
@@ -407,7 +407,7 @@ def _drivers_phi_jac_s_crank_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2*crank_e0*math.sin(c0) - 2*crank_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+    return [2.0*crank_e0*math.sin(c0) - 2.0*crank_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_crank_turn(q, u, ud):
@@ -429,7 +429,7 @@ def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
+    return [-(ud0*ud0)*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
 
 
 def phi_crank_turn(q, u):

@@ -239,27 +239,27 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
-    coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
-    coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
-    coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
-    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
-    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
-    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
+    crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
+    coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0
+    coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
+    coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
+    coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0
+    coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz
+    coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz
+    rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0
+    rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
+    rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
+    rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
+    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
+    rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
     d0 = (3/10)*crank_a20
     d1 = (3/10)*crank_a10
     d2 = (3/10)*crank_a00
@@ -272,34 +272,34 @@ def _joints_phi_jac_s(q):
     d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
     d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
     d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, 1, d0, -d1, -1, 1, -d0, d2, -1, 1, d1, -d2, -1, 1, d3, -d4, -1, -d5, d6, 1, -d3, d7, -1, d5, -d8, 1, d4, -d7, -1, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1, -1, -1, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, -d5, d6, 1.0, -d3, d7, -1.0, d5, -d8, 1.0, d4, -d7, -1.0, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, _, _, _, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
-    coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
-    coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
-    coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
-    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
-    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
-    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
+    crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
+    coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0
+    coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
+    coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
+    coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0
+    coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz
+    coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz
+    rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0
+    rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
+    rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
+    rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
+    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
+    rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
     c0 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
     c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
     c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
@@ -395,7 +395,7 @@ def _drivers_phi_jac_s_crank_turn(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2*crank_qw*math.sin(c0) - 2*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+    return [2.0*crank_qw*math.sin(c0) - 2.0*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
 
 
 def _drivers_nu_s_crank_turn(q, u, ud):
@@ -424,7 +424,7 @@ def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
+    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
 
 
 def phi_crank_turn(q, u):

@@ -287,66 +287,66 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
-    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
-    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
-    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    d0 = 2*crank_e2
-    d1 = 2*crank_e3
-    d2 = 2*crank_e0
-    d3 = 2*crank_e1
-    d4 = 2*rocker_e3
-    d5 = 2*rocker_e2
-    d6 = 2*rocker_e1
-    d7 = 2*rocker_e0
-    d8 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
-    d9 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
-    d10 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
+    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
+    crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
+    crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3
+    rocker_a01 = -2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2
+    rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
+    rocker_a11 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2) - 1.0
+    rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
+    rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
+    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    d0 = 2.0*crank_e2
+    d1 = 2.0*crank_e3
+    d2 = 2.0*crank_e0
+    d3 = 2.0*crank_e1
+    d4 = 2.0*rocker_e3
+    d5 = 2.0*rocker_e2
+    d6 = 2.0*rocker_e1
+    d7 = 2.0*rocker_e0
+    d8 = (3/10)*crank_a00 + 2.0*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2.0*rocker_x
+    d9 = (3/10)*crank_a10 + 2.0*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2.0*rocker_y
+    d10 = (3/10)*crank_a20 + 2.0*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2.0*rocker_z
     d11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
     d12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
-    d13 = 2*crank_e2
+    d13 = 2.0*crank_e2
     d14 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
-    d15 = 2*crank_e3
-    d16 = 2*crank_e0
+    d15 = 2.0*crank_e3
+    d16 = 2.0*crank_e0
     d17 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
-    d18 = 4*rocker_e0
+    d18 = 4.0*rocker_e0
     d19 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
     d20 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
-    d21 = 2*rocker_e1
+    d21 = 2.0*rocker_e1
     d22 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
     d23 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    d24 = 2*d23
+    d24 = 2.0*d23
     d25 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
-    d26 = 2*d25
-    d27 = 2*rocker_e0
-    d28 = 2*rocker_e3
-    d29 = 2*rocker_e2
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, -1, -1, -1, -d4, d5, d6, -d7, d5, d4, d7, d6, d8, d9, d10, crank_e0*d11 - d12*d13 + d14*d15, crank_e1*d11 + d12*d15 + d13*d14, 2*crank_e1*d14 - d12*d16, 2*crank_e1*d12 + d14*d16, -d8, -d9, -d10, rocker_e2*d24 - rocker_e3*d26 + d18*d19 + d18*d17 - d20*d21 + d21*d22, rocker_e2*d26 + rocker_e3*d24 - d20*d27 + d22*d27, rocker_e0*d24 + 4*rocker_e2*d17 + d20*d28 + d21*d25 + d22*d28, -rocker_e0*d26 + 4*rocker_e3*d19 + d20*d29 + d21*d23 + d22*d29, 2*crank_e0, 2*crank_e1, 2*crank_e2, 2*crank_e3, 2*rocker_e0, 2*rocker_e1, 2*rocker_e2, 2*rocker_e3]
+    d26 = 2.0*d25
+    d27 = 2.0*rocker_e0
+    d28 = 2.0*rocker_e3
+    d29 = 2.0*rocker_e2
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2.0 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2.0 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2.0 - 169/625, (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0, (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3) - 1.0], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, -1.0, -1.0, -1.0, -d4, d5, d6, -d7, d5, d4, d7, d6, d8, d9, d10, crank_e0*d11 - d12*d13 + d14*d15, crank_e1*d11 + d12*d15 + d13*d14, 2.0*crank_e1*d14 - d12*d16, 2.0*crank_e1*d12 + d14*d16, -d8, -d9, -d10, rocker_e2*d24 - rocker_e3*d26 + d18*d19 + d18*d17 - d20*d21 + d21*d22, rocker_e2*d26 + rocker_e3*d24 - d20*d27 + d22*d27, rocker_e0*d24 + 4.0*rocker_e2*d17 + d20*d28 + d21*d25 + d22*d28, -rocker_e0*d26 + 4.0*rocker_e3*d19 + d20*d29 + d21*d23 + d22*d29, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
-    rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
-    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
-    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
-    c0 = 4*v_crank_e2
-    c1 = 4*v_crank_e1
-    c2 = 4*v_rocker_e3
-    c3 = 4*v_rocker_e2
+    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
+    crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
+    rocker_a01 = -2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2
+    rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
+    rocker_a11 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2) - 1.0
+    rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
+    rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
+    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    c0 = 4.0*v_crank_e2
+    c1 = 4.0*v_crank_e1
+    c2 = 4.0*v_rocker_e3
+    c3 = 4.0*v_rocker_e2
     c4 = (9/100)*crank_a20 + (3/5)*crank_z + (0.13208196)*rocker_a21 - 0.122288004*rocker_a22 - 3/5*rocker_z
     c5 = -c4
     c6 = (9/100)*crank_a10 + (3/5)*crank_y + (0.13208196)*rocker_a11 - 0.122288004*rocker_a12 - 3/5*rocker_y
@@ -360,9 +360,9 @@ def _joints_gamma_s(q, v):
     c14 = (3/5)*crank_e2
     c15 = (3/5)*crank_e3
     c16 = (0.81525336)*rocker_e0
-    c17 = c14*v_crank_e1 + c15*v_crank_e0 + c16*v_rocker_e1 - c11*v_rocker_e3 + c12*v_crank_e3 + c13*v_crank_e2 + 2*v_crank_y - 2*v_rocker_y
-    c18 = 2*v_crank_z
-    c19 = 2*v_rocker_z
+    c17 = c14*v_crank_e1 + c15*v_crank_e0 + c16*v_rocker_e1 - c11*v_rocker_e3 + c12*v_crank_e3 + c13*v_crank_e2 + 2.0*v_crank_y - 2.0*v_rocker_y
+    c18 = 2.0*v_crank_z
+    c19 = 2.0*v_rocker_z
     c20 = c12*v_crank_e2
     c21 = c13*v_crank_e3
     c22 = c14*v_crank_e0
@@ -375,8 +375,8 @@ def _joints_gamma_s(q, v):
     c29 = (1.63050672)*rocker_e0 + c28
     c30 = (0.8805464)*rocker_e2
     c31 = -1.63050672*rocker_e3 + c30
-    c32 = 2*v_crank_x
-    c33 = 2*v_rocker_x
+    c32 = 2.0*v_crank_x
+    c33 = 2.0*v_rocker_x
     c34 = crank_e0*v_crank_e0
     c35 = (6/5)*c34
     c36 = crank_e1*v_crank_e1
@@ -386,7 +386,7 @@ def _joints_gamma_s(q, v):
     c40 = c16 + c28
     c41 = c24 + c7
     c42 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
-    c43 = 4*rocker_e0*v_rocker_e0
+    c43 = 4.0*rocker_e0*v_rocker_e0
     c44 = crank_e0*v_crank_e3
     c45 = crank_e1*v_crank_e2
     c46 = crank_e2*v_crank_e1
@@ -410,8 +410,8 @@ def _joints_gamma_s(q, v):
     c64 = -0.13208196*rocker_e1
     c65 = (0.13208196)*rocker_e0
     c66 = (0.122288004)*rocker_e1
-    c67 = 2*rocker_e0
-    c68 = 2*v_rocker_e0
+    c67 = 2.0*rocker_e0
+    c68 = 2.0*v_rocker_e0
     c69 = rocker_e1*c68 + c67*v_rocker_e1
     c70 = (0.1661595102478224)*rocker_e0
     c71 = (0.358934205617952)*rocker_e0
@@ -433,7 +433,7 @@ def _joints_gamma_s(q, v):
     c87 = (0.244576008)*crank_a20
     c88 = (1.63050672)*crank_z
     c89 = (0.358934205617952)*rocker_a21
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(c5*v_crank_e2 + c6*v_crank_e3 + c42*v_crank_e0) - v_crank_e1*(c4*v_crank_e3 + c6*v_crank_e2 + c42*v_crank_e1) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c17 + c8*v_rocker_e0 + c10*v_rocker_e2) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z + c84 - c87 - c88 - c89)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z - c87 - c88 - c89)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c17 - c8*v_rocker_e0 - c10*v_rocker_e2) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (4*c34 + 4*c36)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (4*rocker_e2*v_rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*((0.38768098127648)*rocker_e0 + c51) + v_rocker_e2*((0.38768098127648)*rocker_e2 + c53) - 0.4402732*v_rocker_y) - (4*rocker_e3*v_rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*((0.3323190204956448)*rocker_e0 + c58) + v_rocker_e3*((0.3323190204956448)*rocker_e3 - c50) + (0.40762668)*v_rocker_z) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c69)*((0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-0.358934205617952*rocker_e2 - c73) + (0.40762668)*v_rocker_y) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 + c69)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(-0.358934205617952*rocker_e3 + c77) - 0.4402732*v_rocker_z) - (2*c44 + 2*c45 + 2*c46 + 2*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*((0.26416392)*rocker_e0 + c66) + v_rocker_e2*((0.26416392)*rocker_e2 + c62) - 3/10*v_rocker_y) - (2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1 - 2*c54 - 2*c56)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-0.244576008*rocker_e0 - c64) + v_rocker_e3*(-0.244576008*rocker_e3 + c61) - 3/10*v_rocker_z) - (2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1 - rocker_e3*c68 - c67*v_rocker_e3)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x) - (2*rocker_e1*v_rocker_e3 + rocker_e2*c68 + 2*rocker_e3*v_rocker_e1 + c67*v_rocker_e2)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*((0.1661595102478224)*rocker_e2 + c52) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x), -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2]
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(c5*v_crank_e2 + c6*v_crank_e3 + c42*v_crank_e0) - v_crank_e1*(c4*v_crank_e3 + c6*v_crank_e2 + c42*v_crank_e1) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c17 + c8*v_rocker_e0 + c10*v_rocker_e2) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z + c84 - c87 - c88 - c89)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z - c87 - c88 - c89)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c17 - c8*v_rocker_e0 - c10*v_rocker_e2) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (4.0*c34 + 4.0*c36)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (4.0*rocker_e2*v_rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*((0.38768098127648)*rocker_e0 + c51) + v_rocker_e2*((0.38768098127648)*rocker_e2 + c53) - 0.4402732*v_rocker_y) - (4.0*rocker_e3*v_rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*((0.3323190204956448)*rocker_e0 + c58) + v_rocker_e3*((0.3323190204956448)*rocker_e3 - c50) + (0.40762668)*v_rocker_z) - (2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 - c69)*((0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-0.358934205617952*rocker_e2 - c73) + (0.40762668)*v_rocker_y) - (2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 + c69)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(-0.358934205617952*rocker_e3 + c77) - 0.4402732*v_rocker_z) - (2.0*c44 + 2.0*c45 + 2.0*c46 + 2.0*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*((0.26416392)*rocker_e0 + c66) + v_rocker_e2*((0.26416392)*rocker_e2 + c62) - 3/10*v_rocker_y) - (2.0*crank_e1*v_crank_e3 + 2.0*crank_e3*v_crank_e1 - 2.0*c54 - 2.0*c56)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-0.244576008*rocker_e0 - c64) + v_rocker_e3*(-0.244576008*rocker_e3 + c61) - 3/10*v_rocker_z) - (2.0*rocker_e1*v_rocker_e2 + 2.0*rocker_e2*v_rocker_e1 - rocker_e3*c68 - c67*v_rocker_e3)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x) - (2.0*rocker_e1*v_rocker_e3 + rocker_e2*c68 + 2.0*rocker_e3*v_rocker_e1 + c67*v_rocker_e2)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*((0.1661595102478224)*rocker_e2 + c52) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x), -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
 
 
 def inputs_turn(t):
@@ -500,7 +500,7 @@ def _drivers_phi_jac_s_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2*crank_e0*math.sin(c0) - 2*crank_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+    return [2.0*crank_e0*math.sin(c0) - 2.0*crank_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_turn(q, u, ud):
@@ -522,7 +522,7 @@ def _drivers_gamma_s_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
+    return [-(ud0*ud0)*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
 
 
 def phi_turn(q, u):

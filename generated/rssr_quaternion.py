@@ -198,21 +198,21 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
-    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    d0 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
-    d1 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
-    d2 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
+    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
+    crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
+    rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
+    rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
+    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
+    d0 = (3/10)*crank_a00 + 2.0*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2.0*rocker_x
+    d1 = (3/10)*crank_a10 + 2.0*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2.0*rocker_y
+    d2 = (3/10)*crank_a20 + 2.0*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2.0*rocker_z
     d3 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
     d4 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
     d5 = (9/200)*crank_a00 + (3/10)*crank_x + (0.06604098)*rocker_a01 - 0.061144002*rocker_a02 - 3/10*rocker_x
@@ -222,27 +222,27 @@ def _joints_phi_jac_s(q):
     d9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
     d10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
     d11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, -1, -1, -1, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, crank_a10*d3 - crank_a20*d4, -crank_a00*d3 + crank_a20*d5, crank_a00*d4 - crank_a10*d5, -d0, -d1, -d2, rocker_a11*d6 + rocker_a12*d7 - rocker_a21*d8 - rocker_a22*d9, -rocker_a01*d6 - rocker_a02*d7 + rocker_a21*d10 + rocker_a22*d11, rocker_a01*d8 + rocker_a02*d9 - rocker_a11*d10 - rocker_a12*d11]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2.0 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2.0 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2.0 - 169/625], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, crank_a10*d3 - crank_a20*d4, -crank_a00*d3 + crank_a20*d5, crank_a00*d4 - crank_a10*d5, -d0, -d1, -d2, rocker_a11*d6 + rocker_a12*d7 - rocker_a21*d8 - rocker_a22*d9, -rocker_a01*d6 - rocker_a02*d7 + rocker_a21*d10 + rocker_a22*d11, rocker_a01*d8 + rocker_a02*d9 - rocker_a11*d10 - rocker_a12*d11]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
-    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    c0 = 2*v_crank_x
-    c1 = 2*v_rocker_x
+    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
+    crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
+    rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
+    rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
+    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
+    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
+    c0 = 2.0*v_crank_x
+    c1 = 2.0*v_rocker_x
     c2 = crank_a10*v_crank_theta_z
     c3 = (3/10)*c2
     c4 = crank_a20*v_crank_theta_y
@@ -250,16 +250,16 @@ def _joints_gamma_s(q, v):
     c6 = (0.4402732)*rocker_a21 - 0.40762668*rocker_a22
     c7 = (0.4402732)*rocker_a11 - 0.40762668*rocker_a12
     c8 = -c7
-    c9 = 2*v_crank_y
-    c10 = 2*v_rocker_y
+    c9 = 2.0*v_crank_y
+    c10 = 2.0*v_rocker_y
     c11 = crank_a00*v_crank_theta_z
     c12 = (3/10)*c11
     c13 = crank_a20*v_crank_theta_x
     c14 = (3/10)*c13
     c15 = -c6
     c16 = (0.4402732)*rocker_a01 - 0.40762668*rocker_a02
-    c17 = 2*v_crank_z
-    c18 = 2*v_rocker_z
+    c17 = 2.0*v_crank_z
+    c18 = 2.0*v_rocker_z
     c19 = crank_a00*v_crank_theta_y
     c20 = (3/10)*c19
     c21 = crank_a10*v_crank_theta_x
@@ -357,7 +357,7 @@ def _drivers_phi_jac_s_turn(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2*crank_qw*math.sin(c0) - 2*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+    return [2.0*crank_qw*math.sin(c0) - 2.0*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
 
 
 def _drivers_nu_s_turn(q, u, ud):
@@ -386,7 +386,7 @@ def _drivers_gamma_s_turn(q, v, u, ud, udd):
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
+    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
 
 
 def phi_turn(q, u):

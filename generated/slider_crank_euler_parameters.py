@@ -255,24 +255,24 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
-    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
-    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    rod_a00 = 2*rod_e0**2 + 2*rod_e1**2 - 1
-    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a10 = 2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
-    rod_a20 = -2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
-    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
-    slider_a01 = -2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
-    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
-    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
-    d0 = 2*crank_e2
-    d1 = 2*crank_e3
-    d2 = 2*crank_e0
-    d3 = 2*crank_e1
+    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
+    crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
+    crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3
+    rod_a00 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e1*rod_e1) - 1.0
+    rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2
+    rod_a10 = 2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2
+    rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0
+    rod_a20 = -2.0*rod_e0*rod_e2 + 2.0*rod_e1*rod_e3
+    rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3
+    slider_a01 = -2.0*slider_e0*slider_e3 + 2.0*slider_e1*slider_e2
+    slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3
+    slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3
+    slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0
+    d0 = 2.0*crank_e2
+    d1 = 2.0*crank_e3
+    d2 = 2.0*crank_e0
+    d3 = 2.0*crank_e1
     d4 = (2/5)*crank_e3
     d5 = (2/5)*crank_e2
     d6 = (2/5)*crank_e1
@@ -281,49 +281,49 @@ def _joints_phi_jac_s(q):
     d9 = (6/5)*rod_e2
     d10 = (6/5)*rod_e1
     d11 = (6/5)*rod_e0
-    d12 = 4*slider_a12
-    d13 = 2*slider_a22
-    d14 = 2*slider_a02
-    d15 = 2*rod_a01
-    d16 = 2*rod_a11
-    d17 = 4*rod_a21
-    d18 = 2*slider_e3
-    d19 = 2*slider_e2
-    d20 = 2*slider_e1
-    d21 = 2*slider_e0
+    d12 = 4.0*slider_a12
+    d13 = 2.0*slider_a22
+    d14 = 2.0*slider_a02
+    d15 = 2.0*rod_a01
+    d16 = 2.0*rod_a11
+    d17 = 4.0*rod_a21
+    d18 = 2.0*slider_e3
+    d19 = 2.0*slider_e2
+    d20 = 2.0*slider_e1
+    d21 = 2.0*slider_e0
     d22 = -d21
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1, rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1, slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1], [-1, -1, -1, -d0, d1, -d2, d3, d3, d2, d1, d0, 1, (4/5)*crank_e0, (4/5)*crank_e1, -1, 1, d4, d5, d6, d7, -1, 1, -d5, d4, -d7, d6, -1, 1, (12/5)*rod_e0, (12/5)*rod_e1, -1, 1, d8, d9, d10, d11, -1, 1, -d9, d8, -d11, d10, -1, rod_e0*d12 + rod_e1*d13 - rod_e3*d14, rod_e0*d13 + rod_e2*d14, rod_e1*d14 + rod_e2*d12 + rod_e3*d13, -rod_e0*d14 + 2*rod_e2*slider_a22, slider_e0*d17 - slider_e1*d16 + slider_e2*d15, -slider_e0*d16 + slider_e3*d15, slider_e0*d15 + slider_e3*d16, slider_e1*d15 + slider_e2*d16 + slider_e3*d17, -d18, d19, d20, d22, d19, d18, d21, d20, 1, 1, -d20, d22, d18, d19, 2*crank_e0, 2*crank_e1, 2*crank_e2, 2*crank_e3, 2*rod_e0, 2*rod_e1, 2*rod_e2, 2*rod_e3, 2*slider_e0, 2*slider_e1, 2*slider_e2, 2*slider_e3]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0, (rod_e0*rod_e0) + (rod_e1*rod_e1) + (rod_e2*rod_e2) + (rod_e3*rod_e3) - 1.0, (slider_e0*slider_e0) + (slider_e1*slider_e1) + (slider_e2*slider_e2) + (slider_e3*slider_e3) - 1.0], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (4/5)*crank_e0, (4/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (12/5)*rod_e0, (12/5)*rod_e1, -1.0, 1.0, d8, d9, d10, d11, -1.0, 1.0, -d9, d8, -d11, d10, -1.0, rod_e0*d12 + rod_e1*d13 - rod_e3*d14, rod_e0*d13 + rod_e2*d14, rod_e1*d14 + rod_e2*d12 + rod_e3*d13, -rod_e0*d14 + 2.0*rod_e2*slider_a22, slider_e0*d17 - slider_e1*d16 + slider_e2*d15, -slider_e0*d16 + slider_e3*d15, slider_e0*d15 + slider_e3*d16, slider_e1*d15 + slider_e2*d16 + slider_e3*d17, -d18, d19, d20, d22, d19, d18, d21, d20, 1.0, 1.0, -d20, d22, d18, d19, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rod_e0, 2.0*rod_e1, 2.0*rod_e2, 2.0*rod_e3, 2.0*slider_e0, 2.0*slider_e1, 2.0*slider_e2, 2.0*slider_e3]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, _, _, _, _, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
-    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
-    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
-    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
-    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
-    c0 = 4*v_crank_e2
-    c1 = 4*v_crank_e1
+    rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2
+    rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0
+    rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3
+    slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3
+    slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3
+    slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0
+    c0 = 4.0*v_crank_e2
+    c1 = 4.0*v_crank_e1
     c2 = (4/5)*v_crank_e3
     c3 = (4/5)*v_crank_e2
     c4 = (12/5)*v_rod_e3
     c5 = (12/5)*v_rod_e2
-    c6 = 2*slider_a02
-    c7 = 2*slider_a22
-    c8 = 2*rod_a01
-    c9 = 2*rod_a11
-    c10 = 4*slider_a12
-    c11 = 4*rod_a21
-    c12 = 2*slider_e0
-    c13 = 2*slider_e1
-    c14 = 2*rod_e0
-    c15 = 2*v_rod_e0
-    c16 = 4*v_slider_e3
-    c17 = 4*v_slider_e2
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*v_crank_e0**2 - 4/5*v_crank_e1**2, -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -12/5*v_rod_e0**2 - 12/5*v_rod_e1**2, -c4*v_rod_e0 - c5*v_rod_e1, -c4*v_rod_e1 + c5*v_rod_e0, -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2*(4*slider_e0*v_slider_e0 + 4*slider_e3*v_slider_e3)*(rod_e1*c15 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2*(2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3), c16*v_slider_e0 - c17*v_slider_e1, -c16*v_slider_e1 - c17*v_slider_e0, 0.0, 0.0, -c17*v_slider_e3 + 4*v_slider_e0*v_slider_e1, -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2, -2*v_rod_e0**2 - 2*v_rod_e1**2 - 2*v_rod_e2**2 - 2*v_rod_e3**2, -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2]
+    c6 = 2.0*slider_a02
+    c7 = 2.0*slider_a22
+    c8 = 2.0*rod_a01
+    c9 = 2.0*rod_a11
+    c10 = 4.0*slider_a12
+    c11 = 4.0*rod_a21
+    c12 = 2.0*slider_e0
+    c13 = 2.0*slider_e1
+    c14 = 2.0*rod_e0
+    c15 = 2.0*v_rod_e0
+    c16 = 4.0*v_slider_e3
+    c17 = 4.0*v_slider_e2
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*(v_crank_e0*v_crank_e0) - 4/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -12/5*(v_rod_e0*v_rod_e0) - 12/5*(v_rod_e1*v_rod_e1), -c4*v_rod_e0 - c5*v_rod_e1, -c4*v_rod_e1 + c5*v_rod_e0, -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2.0*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(rod_e1*c15 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2.0*(2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3), c16*v_slider_e0 - c17*v_slider_e1, -c16*v_slider_e1 - c17*v_slider_e0, 0.0, 0.0, -c17*v_slider_e3 + 4.0*v_slider_e0*v_slider_e1, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rod_e0*v_rod_e0) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e3*v_rod_e3), -2.0*(v_slider_e0*v_slider_e0) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e3*v_slider_e3)]
 
 
 def inputs_run(t):
@@ -387,7 +387,7 @@ def _drivers_phi_jac_s_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2*crank_e0*math.sin(c0) - 2*crank_e3*math.cos(c0)], [2*math.sin(d0), -2*math.cos(d0)]
+    return [2.0*crank_e0*math.sin(c0) - 2.0*crank_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_run(q, u, ud):
@@ -409,7 +409,7 @@ def _drivers_gamma_s_run(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
+    return [-(ud0*ud0)*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
 
 
 def phi_run(q, u):
@@ -495,7 +495,7 @@ def _drivers_phi_jac_s_dead_centre(q, u):
     """Phi and Phi_q values of the driver rows of case 'dead_centre' at one configuration."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
     u0, = u
-    return [slider_x - u0], [1]
+    return [slider_x - u0], [1.0]
 
 
 def _drivers_nu_s_dead_centre(q, u, ud):

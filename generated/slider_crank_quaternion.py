@@ -220,24 +220,24 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
-    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
-    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
-    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
-    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
-    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
-    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
-    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
+    crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
+    rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0
+    rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
+    rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
+    rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0
+    rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz
+    rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz
+    slider_a01 = -2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy
+    slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz
+    slider_a11 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy) - 1.0
+    slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
+    slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
+    slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0
     d0 = (1/5)*crank_a20
     d1 = (1/5)*crank_a10
     d2 = (1/5)*crank_a00
@@ -247,31 +247,31 @@ def _joints_phi_jac_s(q):
     d6 = rod_a11*slider_a22 - rod_a21*slider_a12
     d7 = rod_a01*slider_a22 - rod_a21*slider_a02
     d8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12], [-1, -1, -1, crank_a10, -crank_a00, crank_a11, -crank_a01, 1, d0, -d1, -1, 1, -d0, d2, -1, 1, d1, -d2, -1, 1, d3, -d4, -1, 1, -d3, d5, -1, 1, d4, -d5, -1, d6, -d7, d8, -d6, d7, -d8, slider_a21, -slider_a11, slider_a22, -slider_a12, 1, 1, -slider_a22, slider_a02]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, 1.0, -d3, d5, -1.0, 1.0, d4, -d5, -1.0, d6, -d7, d8, -d6, d7, -d8, slider_a21, -slider_a11, slider_a22, -slider_a12, 1.0, 1.0, -slider_a22, slider_a02]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
-    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
-    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
-    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
-    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
-    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
-    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
-    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
-    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
-    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
+    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
+    crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
+    rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0
+    rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
+    rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
+    rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0
+    rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz
+    rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz
+    slider_a01 = -2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy
+    slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz
+    slider_a11 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy) - 1.0
+    slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
+    slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
+    slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0
     c0 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
     c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
     c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
@@ -362,7 +362,7 @@ def _drivers_phi_jac_s_run(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2*crank_qw*math.sin(c0) - 2*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+    return [2.0*crank_qw*math.sin(c0) - 2.0*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
 
 
 def _drivers_nu_s_run(q, u, ud):
@@ -391,7 +391,7 @@ def _drivers_gamma_s_run(q, v, u, ud, udd):
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
+    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
 
 
 def phi_run(q, u):
@@ -477,7 +477,7 @@ def _drivers_phi_jac_s_dead_centre(q, u):
     """Phi and Phi_q values of the driver rows of case 'dead_centre' at one configuration."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
     u0, = u
-    return [slider_x - u0], [1]
+    return [slider_x - u0], [1.0]
 
 
 def _drivers_nu_s_dead_centre(q, u, ud):
