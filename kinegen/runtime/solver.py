@@ -432,17 +432,19 @@ class Solver:
             if compiled is not None and factors is not None:
                 # the C loop takes the usual steps; it returns at the first step that needs Python
                 done = compiled.run(i, times, c_inputs, (qs, vs, accs, c_iterations, residuals, conditions), self._sign(factors))
-                if done > i:
-                    converged[i:done], iterations[i:done] = True, c_iterations[i:done]
-                    q, v, a = qs[done - 1].copy(), vs[done - 1].copy(), accs[done - 1].copy()
-                    factors = self._factor(system.evaluate(q, u_all[:, done - 1])[1], times[done - 1])
-                    i = done
-                if i >= k:
+                converged[i:done], iterations[i:done] = True, c_iterations[i:done]
+                if done >= k:
                     break
+                if done > i:  # Python takes step done from the state the C loop reached
+                    q, v, a = qs[done - 1].copy(), vs[done - 1].copy(), accs[done - 1].copy()
+                    factors = None
+                    i = done
                 qs[i] = np.nan  # the C loop's unfinished try
             t = times[i]
             u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
             try:
+                if factors is None and i > 0:  # Phi_q at the C loop's last pose
+                    factors = self._factor(system.evaluate(q, u_all[:, i - 1])[1], times[i - 1])
                 if i == 0:
                     solution = self._position(q, u, t)
                     factors = self._factor(solution.values, t)
