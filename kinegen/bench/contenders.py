@@ -352,11 +352,12 @@ def casadi_c_run(name: str) -> dict[str, Any]:
     the 1000 time points, C generated, compiled with the machine's C compiler and loaded
     with ``external`` (all of that is its build). Iterations per step are not reported."""
     import os
-    import shutil
     import subprocess
     import tempfile
 
     import casadi as ca
+
+    from kinegen.runtime.compiled import c_compiler
 
     w = workload(name)
     start, q, t, phi, _, acceleration = _casadi_functions(w)
@@ -371,7 +372,7 @@ def casadi_c_run(name: str) -> dict[str, Any]:
     accel = ca.solve(jacobian, acceleration(q_next, velocity, time_point), "qr")
     step = ca.Function("step", [q_previous, time_point], [q_next, velocity, accel])
     trajectory = step.mapaccum("trajectory", len(w.times))
-    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    compiler = c_compiler()
     with tempfile.TemporaryDirectory() as folder:
         here = os.getcwd()
         os.chdir(folder)  # CasADi writes the C file into the working directory

@@ -267,12 +267,7 @@ class _Grid:
             return self.continuation(axes, q_start)
         picks = [_every_other(c) if c >= 2 * FEWEST_VALUES - 1 else np.arange(c) for c in counts]
         coarse = self.solve([a[p] for a, p in zip(axes, picks)], q_start)
-        result = BatchResult(
-            np.full((len(q_start), *counts), np.nan),
-            np.zeros(counts, dtype=bool),
-            np.full(counts, np.inf),
-            np.zeros(counts, dtype=int),
-        )
+        result = _unsolved(len(q_start), counts)
         _store(result, np.ix_(*picks), coarse)
         for d in range(len(counts)):
             wanted = np.setdiff1d(np.arange(counts[d]), picks[d])
@@ -297,12 +292,7 @@ class _Grid:
         time, slice j along axis d solved in one batch from the quadratic extrapolation of
         slices j-1, j-2, j-3."""
         counts = [len(a) for a in axes]
-        result = BatchResult(
-            np.full((len(q_start), *counts), np.nan),
-            np.zeros(counts, dtype=bool),
-            np.full(counts, np.inf),
-            np.zeros(counts, dtype=int),
-        )
+        result = _unsolved(len(q_start), counts)
 
         def solve(index: tuple, guess: np.ndarray) -> None:
             done = self.batch([a[i] for a, i in zip(axes, index)], guess)
@@ -334,6 +324,13 @@ class _Grid:
 def _along(weights: np.ndarray, values: np.ndarray, axis: int) -> np.ndarray:
     """``weights`` (m, k) applied along grid axis ``axis`` of ``values`` (n, ..., k, ...)."""
     return np.moveaxis(np.tensordot(weights, values, axes=([1], [1 + axis])), 0, 1 + axis)
+
+
+def _unsolved(n: int, counts: list[int]) -> BatchResult:
+    """A grid result with nothing solved yet: q NaN (n, *counts), not converged, residuals inf."""
+    return BatchResult(
+        np.full((n, *counts), np.nan), np.zeros(counts, dtype=bool), np.full(counts, np.inf), np.zeros(counts, dtype=int)
+    )
 
 
 def _store(result: BatchResult, index: tuple, done: BatchResult, shape: tuple | None = None) -> None:

@@ -186,11 +186,17 @@ def c_source(module: ModuleType) -> tuple[str, dict[str, dict[str, int]]]:
     return "\n".join(parts), sizes
 
 
-def build_library(source: str) -> Path:
-    """The shared library of ``source``, compiled once per source (cached by its hash)."""
+def c_compiler() -> str:
+    """The machine's C compiler: ``$CC``, else ``cc``, else ``gcc``; CompileError if none."""
     compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
         raise CompileError("no C compiler found (set CC, or install gcc); the Python functions are used instead")
+    return compiler
+
+
+def build_library(source: str) -> Path:
+    """The shared library of ``source``, compiled once per source (cached by its hash)."""
+    compiler = c_compiler()
     cache = Path(os.environ.get("KINEGEN_CACHE", Path.home() / ".cache" / "kinegen"))
     cache.mkdir(parents=True, exist_ok=True)
     digest = hashlib.sha256(source.encode()).hexdigest()[:20]

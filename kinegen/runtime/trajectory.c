@@ -86,6 +86,11 @@ static void retract(const struct kinegen_problem *p, double *q, const double *st
     }
 }
 
+/* Entry j of U's diagonal in the factors (dense: lu[j, j]; band: row kl + ku of AB). */
+static double u_diagonal(const struct kinegen_problem *p, const struct workspace *ws, int j) {
+    return p->band ? ws->lu[p->kl + p->ku + j * p->ld] : ws->lu[j * p->ld + j];
+}
+
 /* LU factors of Phi_q (values) into ws->lu / ws->ipiv; 0, or 1 when (nearly) singular. */
 static int factor(const struct kinegen_problem *p, struct workspace *ws, const double *values) {
     int n = p->n, ld = p->ld, info = 0, kl = p->kl, ku = p->ku;
@@ -102,10 +107,9 @@ static int factor(const struct kinegen_problem *p, struct workspace *ws, const d
         ((getrf_fn)p->getrf)(&n, &n, ws->lu, &ld, ws->ipiv, &info);
     }
     if (info != 0) return 1;
-    int offset = p->band ? kl + ku : 0;
     double low = INFINITY, high = 0.0;
     for (int j = 0; j < n; ++j) {
-        double d = fabs(ws->lu[offset + j * ld + (p->band ? 0 : j)]);
+        double d = fabs(u_diagonal(p, ws, j));
         if (!(d >= low)) low = d;
         if (!(d <= high)) high = d;
     }
@@ -114,10 +118,10 @@ static int factor(const struct kinegen_problem *p, struct workspace *ws, const d
 
 /* Sign of det(P L U): row interchanges and negative pivots. */
 static int sign_of(const struct kinegen_problem *p, const struct workspace *ws) {
-    int odd = 0, offset = p->band ? p->kl + p->ku : 0;
+    int odd = 0;
     for (int j = 0; j < p->n; ++j) {
         odd ^= ws->ipiv[j] != j + 1;
-        odd ^= ws->lu[offset + j * p->ld + (p->band ? 0 : j)] < 0.0;
+        odd ^= u_diagonal(p, ws, j) < 0.0;
     }
     return odd ? -1 : 1;
 }
