@@ -29,6 +29,8 @@ BODIES = {'boom': (0, 0)}
 POINTS = {
     'boom': {'O': (-1.78, 0.0, 0.0), 'tip': (1.78, 0.0, 0.0)},
 }
+# named points of the ground, global coordinates
+GROUND_POINTS = {'O': (0.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 1.78, 0.0, 1.5707963267948966, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
@@ -396,6 +398,7 @@ CASES = {
         'jac_rows': (0, 0, 0, 0, 1, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5),
         'jac_cols': (0, 3, 4, 5, 1, 3, 4, 5, 2, 4, 5, 4, 5, 4, 5, 3, 4, 5),
         't0': 0.0, 't1': 2.0, 'steps': 201,
+        'driver_sources': (('cases.swing.drivers.phi1.function', 'pi/2 + t**2'),),
         'inputs': inputs_swing, 'phi': phi_swing, 'jac': jac_swing, 'nu': nu_swing, 'gamma': gamma_swing,
         'phi_jac_s': phi_jac_s_swing, 'nu_s': nu_s_swing, 'gamma_s': gamma_s_swing,
     },

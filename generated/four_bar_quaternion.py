@@ -31,6 +31,8 @@ POINTS = {
     'coupler': {'B': (0.0, 0.0, 0.0), 'C': (0.9, 0.0, 0.0), 'M': (0.45, 0.2, 0.0)},
     'rocker': {'D': (0.0, 0.0, 0.0), 'C': (0.7, 0.0, 0.0)},
 }
+# named points of the ground, global coordinates
+GROUND_POINTS = {'A': (0.0, 0.0, 0.0), 'D': (1.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9689124217106447, 0.0, 0.0, 0.2474039592545229, 0.263275, 0.143828, 0.0, 0.9451759002226809, 0.0, 0.0, 0.32656165977996365, 1.0, 0.0, 0.0, 0.6924690606038826, 0.0, 0.0, 0.7214475726664942)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
@@ -472,6 +474,7 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 13, 14, 15, 15, 16, 16, 17, 17, 17),
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 16, 17, 7, 9, 11, 13, 15, 17, 8, 9, 10, 14, 15, 16, 9, 10, 11, 15, 16, 17, 12, 13, 14, 15, 16, 15, 16, 3, 4, 5),
         't0': 0.0, 't1': 1.0, 'steps': 201,
+        'driver_sources': (('cases.crank_turn.drivers.crank_angle.function', '0.5 + 2*pi*t + 0.3*sin(2*pi*t)'),),
         'inputs': inputs_crank_turn, 'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,
         'phi_jac_s': phi_jac_s_crank_turn, 'nu_s': nu_s_crank_turn, 'gamma_s': gamma_s_crank_turn,
     },

@@ -30,6 +30,8 @@ POINTS = {
     'crank': {'A': (0.0, 0.0, 0.0), 'B': (0.15, 0.0, 0.0)},
     'rocker': {'D': (0.0, 0.0, 0.0), 'C': (0.0, -0.2201366, 0.20381334)},
 }
+# named points of the ground, global coordinates
+GROUND_POINTS = {'A': (0.0, 0.0, 0.0), 'D': (0.1, 0.35, 0.3)}
 INITIAL_Q = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1, 0.35, 0.3, 1.0, 0.0, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
@@ -570,6 +572,7 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 6, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13),
         'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 10, 11, 12, 13, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 3, 6),
         't0': 0.0, 't1': 1.0, 'steps': 201,
+        'driver_sources': (('cases.turn.drivers.crank_angle.function', '2*pi*t*(1 - 0.2*cos(pi*t))'),),
         'inputs': inputs_turn, 'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,
         'phi_jac_s': phi_jac_s_turn, 'nu_s': nu_s_turn, 'gamma_s': gamma_s_turn,
     },

@@ -31,6 +31,8 @@ POINTS = {
     'rod': {'B': (0.0, 0.0, 0.0), 'C': (0.6, 0.0, 0.0)},
     'slider': {'C': (0.0, 0.0, 0.0)},
 }
+# named points of the ground, global coordinates
+GROUND_POINTS = {'A': (0.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9887710779360424, 0.0, 0.0, 0.14943813247359924, 0.191067, 0.059104, 0.0, 0.9987833496752833, 0.0, 0.0, -0.04931349117048, 0.788149, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
@@ -537,6 +539,7 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 15, 16, 16, 17, 17, 17),
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 7, 9, 11, 13, 8, 9, 10, 14, 9, 10, 11, 15, 16, 17, 16, 17, 16, 17, 13, 14, 15, 17, 3, 4, 5),
         't0': 0.0, 't1': 1.5, 'steps': 301,
+        'driver_sources': (('cases.run.drivers.crank_angle.function', '0.3 + 2*pi*t + 0.5*t**2'),),
         'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
         'phi_jac_s': phi_jac_s_run, 'nu_s': nu_s_run, 'gamma_s': gamma_s_run,
     },
@@ -546,6 +549,7 @@ CASES = {
         'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 15, 16, 16, 17),
         'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 6, 10, 11, 12, 7, 9, 11, 13, 8, 9, 10, 14, 9, 10, 11, 15, 16, 17, 16, 17, 16, 17, 13, 14, 15, 17, 12),
         't0': -1.0, 't1': 0.0, 'steps': 101,
+        'driver_sources': (('cases.dead_centre.drivers.slider_x.function', '0.8 - 0.1*t**2'),),
         'inputs': inputs_dead_centre, 'phi': phi_dead_centre, 'jac': jac_dead_centre, 'nu': nu_dead_centre, 'gamma': gamma_dead_centre,
         'phi_jac_s': phi_jac_s_dead_centre, 'nu_s': nu_s_dead_centre, 'gamma_s': gamma_s_dead_centre,
     },

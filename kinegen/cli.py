@@ -6,6 +6,7 @@ Exit codes: 0 success, 1 other kinegen error, 2 model error, 3 singular Jacobian
 
 from __future__ import annotations
 
+import dataclasses
 import json
 import sys
 import time
@@ -70,19 +71,23 @@ def _parametrization(name: str) -> rotations.Parametrization:
     "--out-dir", default="generated", show_default=True, type=click.Path(file_okay=False), help="Where modules are written."
 )
 def build(model_file: str, params: tuple[str, ...], out_dir: str) -> None:
-    """Build MODEL_FILE into generated/<model>_<param>.py and check its initial pose."""
+    """Build MODEL_FILE into generated/<model>_<param>.py.
+
+    Before the module is written, every case's time functions are checked on its time grid
+    and its initial pose is checked (assembled if needed): a build that fails either check
+    writes nothing."""
     from kinegen.codegen import build as build_module
-    from kinegen.runtime import check_initial_pose, from_module, load_module
+    from kinegen.runtime import check_source
 
     for name in params:
         param = _parametrization(name)
         start = time.perf_counter()
-        path = build_module(model_file, param.name, out_dir)
+        reports: list[str] = []
+        path = build_module(model_file, param.name, out_dir, check=lambda source, model, reports=reports: reports.extend(check_source(source, model)))
         elapsed = time.perf_counter() - start
         click.echo(f"wrote {path} ({param.name}, {elapsed:.2f} s)")
-        module = load_module(path)
-        for case in module.CASES:
-            click.echo("  " + check_initial_pose(from_module(module, case)))
+        for line in reports:
+            click.echo("  " + line)
 
 
 def _system(model_file: str, param: rotations.Parametrization, case: str | None, generated_dir: str):
@@ -90,7 +95,7 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
     from kinegen.codegen import build as build_module
     from kinegen.codegen import module_name
     from kinegen.model import load
-    from kinegen.runtime import from_module, load_module
+    from kinegen.runtime import check_source, from_module, load_module
 
     model = load(model_file)
     path = Path(generated_dir) / f"{module_name(model, param)}.py"
@@ -98,9 +103,9 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
         module = load_module(path, model_file)
     except GeneratedModuleError:
         click.echo(f"building {path} (missing or stale)", err=True)
-        module = load_module(build_module(model_file, param.name, generated_dir), model_file)
+        module = load_module(build_module(model_file, param.name, generated_dir, check=check_source), model_file)
     try:
-        return model, from_module(module, case)
+        return model, dataclasses.replace(from_module(module, case), source=model_file)
     except KeyError as exc:
         raise click.BadParameter(str(exc.args[0]), param_hint="--case") from None
 
@@ -147,11 +152,12 @@ def solve(
     parametrization = _parametrization(param)
     _, system = _system(model_file, parametrization, case, generated_dir)
     if compiled:
-        import sys
+        from kinegen.runtime.compiled import CompileError, attach
 
-        from kinegen.runtime.compiled import attach
-
-        system = attach(system, sys.modules[system.phi.__module__])
+        try:
+            system = attach(system, sys.modules[system.phi.__module__])
+        except CompileError as exc:
+            click.echo(f"warning: no compiled code ({exc}); solving with the Python functions", err=True)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise"))

@@ -2,6 +2,9 @@
 
 from __future__ import annotations
 
+import reprlib
+from typing import Any
+
 
 def bodies_in(combinations: list[str]) -> list[str]:
     """Bodies named in coordinate combinations such as ``upper.alpha - 0.5*upper.gamma``."""
@@ -17,15 +20,43 @@ class KinegenError(Exception):
 
 
 class ModelError(KinegenError):
-    """A model file is malformed: the message names the file, the entry and the problem."""
+    """A model file is malformed: the message names the file, the line (where known), the
+    entry (a dotted path such as ``joints.pivot.axis``) and the problem:
+    ``models/boom.yaml:21: joints.pivot.axes: ...`` (the line as compilers print it)."""
 
     exit_code = 2
 
-    def __init__(self, file: str, entry: str, problem: str) -> None:
+    def __init__(self, file: str, entry: str, problem: str, line: int | None = None) -> None:
         self.file = file
+        self.line = line
         self.entry = _shortened(entry, 200)
         self.problem = _shortened(problem, 400)
-        super().__init__(f"{file}: {self.entry}: {self.problem}")
+        where = file if line is None else f"{file}:{line}"
+        super().__init__(f"{where}: {self.entry}: {self.problem}")
+
+
+class _BoundedRepr(reprlib.Repr):
+    """``reprlib`` limits, plus integers shown by their size: ``repr`` of a 10,000-digit
+    integer is quadratic work (and refused beyond Python's 4,300-digit limit)."""
+
+    def repr_int(self, x: int, level: int) -> str:
+        if x.bit_length() > 128:
+            return f"<integer of {int(x.bit_length() * 0.30103) + 1} digits>"
+        return super().repr_int(x, level)
+
+
+_REPR = _BoundedRepr()
+_REPR.maxlevel = 2
+_REPR.maxdict = _REPR.maxlist = _REPR.maxtuple = _REPR.maxset = 4
+_REPR.maxstring = _REPR.maxother = 80
+
+
+def shown(value: Any) -> str:
+    """A short ``repr`` of a value from a model file, bounded in the work it does as well as
+    in its length: nested containers (which YAML aliases can make enormous when expanded)
+    are cut after 2 levels and 4 items, strings after 80 characters, huge integers shown by
+    their number of digits."""
+    return _REPR.repr(value)
 
 
 def _shortened(text: str, limit: int) -> str:

@@ -17,6 +17,25 @@ ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
 GENERATED = ROOT / "generated"
 
+#: A four-bar whose links cannot close (coupler 0.5 between points 2.3 m apart): no assembled pose.
+OPEN_LOOP = """\
+model: open_loop
+ground:
+  points: {A: [0, 0, 0], D: [3, 0, 0]}
+  vectors: {z: [0, 0, 1]}
+bodies:
+  crank: {position: [0, 0, 0], points: {A: [0, 0, 0], B: [0.3, 0, 0]}, vectors: {z: [0, 0, 1]}}
+  rocker: {position: [3, 0, 0], points: {D: [0, 0, 0], C: [0, 0.4, 0]}, vectors: {z: [0, 0, 1]}}
+joints:
+  A: {type: revolute, bodies: [ground, crank], points: [A, A], axes: [z, z]}
+  D: {type: revolute, bodies: [ground, rocker], points: [D, D], axes: [z, z]}
+  coupler: {type: distance, bodies: [crank, rocker], points: [B, C], length: 0.5}
+cases:
+  turn:
+    drivers:
+      crank: {type: joint_angle, joint: A, function: t}
+"""
+
 
 @functools.cache
 def generated_system(stem: str, case: str | None = None):

@@ -9,7 +9,7 @@ from __future__ import annotations
 
 import numpy as np
 
-# pins in their body frames (x forward, z up), from ../shared/excavator/zx200_geometry.json
+# pins in their body frames (x forward, z up), from the PWRI ZX200 geometry (docs/excavator-geometry.md)
 A, B = np.array([0.22767, 1.95729]), np.array([0.68912, 1.35478])  # upper structure
 BOOM = {"C": np.array([1.39283, 2.001922]), "D": np.array([2.2875, 2.785]), "E": np.array([4.7878, 2.9959])}
 ARM = {

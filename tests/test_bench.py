@@ -12,7 +12,7 @@ from kinegen.runtime.linear import BandLU, DenseLU, choose
 
 
 def benchmark_equations(n: int, q: list[sp.Symbol], t: sp.Symbol) -> list[sp.Expr]:
-    """chain-N's equations exactly as ../shared/bench/chain-N.md writes them."""
+    """chain-N's equations exactly as docs/chain-N.md states them."""
 
     def matrix(e):
         e0, e1, e2, e3 = e

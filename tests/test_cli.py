@@ -71,7 +71,7 @@ def test_model_error_is_one_readable_line_with_its_own_exit_code(tmp_path):
     bad.write_text((MODELS / "boom.yaml").read_text().replace("function: pi/2 + t**2", "function: __import__('os').system('id')"))
     result = run("build", str(bad), "--out-dir", str(tmp_path / "gen"))
     assert result.exit_code == 2
-    assert result.output.startswith(f"error: {bad}: cases.swing.drivers.phi1.function: ")
+    assert result.output.startswith(f"error: {bad}:29: cases.swing.drivers.phi1.function: ")  # file:line: entry
     assert len(result.output.strip().splitlines()) == 1
     assert not (tmp_path / "gen").exists() or not any((tmp_path / "gen").iterdir())
 

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import re
 import warnings
 
 import pytest
@@ -11,6 +12,7 @@ from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import AssemblyError, ModelError
 from kinegen.model import ModelWarning, loads
 from kinegen.runtime import check_initial_pose, from_module
+from tests.conftest import OPEN_LOOP
 
 BASE = """\
 model: m
@@ -98,7 +100,9 @@ def test_malformed_model_is_rejected_with_file_entry_and_problem(old, new, entry
     assert error.file == "variant.yaml"
     assert error.entry == entry, str(error)
     assert problem in error.problem, str(error)
-    assert str(error).startswith(f"variant.yaml: {entry}: ")
+    assert str(error).startswith(f"variant.yaml:{error.line}: {entry}: ")  # file:line: entry: problem
+    last_key = re.findall(r"[A-Za-z_]\w*", entry)[-1]
+    assert last_key in BASE.replace(old, new).splitlines()[error.line - 1]  # the line that holds the entry
 
 
 def test_degree_of_freedom_message_reports_the_counts():
@@ -126,24 +130,7 @@ def test_non_unit_quaternion_is_normalized_with_a_warning():
 
 def test_initial_pose_that_cannot_be_assembled_names_the_worst_constraints():
     """A four-bar whose links cannot close: the assembly solve fails and says where."""
-    text = """\
-model: open_loop
-ground:
-  points: {A: [0, 0, 0], D: [3, 0, 0]}
-  vectors: {z: [0, 0, 1]}
-bodies:
-  crank: {position: [0, 0, 0], points: {A: [0, 0, 0], B: [0.3, 0, 0]}, vectors: {z: [0, 0, 1]}}
-  rocker: {position: [3, 0, 0], points: {D: [0, 0, 0], C: [0, 0.4, 0]}, vectors: {z: [0, 0, 1]}}
-joints:
-  A: {type: revolute, bodies: [ground, crank], points: [A, A], axes: [z, z]}
-  D: {type: revolute, bodies: [ground, rocker], points: [D, D], axes: [z, z]}
-  coupler: {type: distance, bodies: [crank, rocker], points: [B, C], length: 0.5}
-cases:
-  turn:
-    drivers:
-      crank: {type: joint_angle, joint: A, function: t}
-"""
-    system = from_module(lambdify_model(loads(text, "open_loop.yaml"), rotations.get("quaternion")))
+    system = from_module(lambdify_model(loads(OPEN_LOOP, "open_loop.yaml"), rotations.get("quaternion")))
     with pytest.raises(AssemblyError) as info:
         check_initial_pose(system)
     assert info.value.worst[0][0] == "coupler.length"

@@ -2,7 +2,7 @@
 
 Usage: python -m kinegen.bench [--sizes 3 14] [--excavator digging level_cut] [--quick]
 
-Workloads: chain-N (``../shared/bench/chain-N.md``) and the excavator's cases, 1000 time
+Workloads: chain-N (``docs/chain-N.md``) and the excavator's cases, 1000 time
 points each, Newton to max|Phi| < 1e-10 from the previous solution, then velocity and
 acceleration. Every row: build time, trajectory time, Newton iterations per step, the
 largest error of the tracked point (the run fails if any exceeds 1e-9 m) and the ratio of

@@ -1,4 +1,4 @@
-"""The chain-N benchmark mechanism (``../shared/bench/chain-N.md``) in kinegen's model format.
+"""The chain-N benchmark mechanism (``docs/chain-N.md``) in kinegen's model format.
 
 N unit links in series, every joint axis parallel to global z. Link i has its frame at
 joint i and its tip at (1, 0, 0); the relative joint angle is driven by

@@ -1,6 +1,6 @@
 """One contender of the benchmark per function; each runs in its own process.
 
-A *workload* is ``chain-N`` (``../shared/bench/chain-N.md``) or ``excavator-<case>``.
+A *workload* is ``chain-N`` (``docs/chain-N.md``) or ``excavator-<case>``.
 Every contender solves the same equations (kinegen's Phi of the model in Euler
 parameters: for chain-N these are the benchmark's literal equations up to row sign, scale
 and order) on the same work: 1000 time points, Newton to max |Phi| < 1e-10 (at most 25

@@ -6,6 +6,7 @@ treats both alike. Building is quicker (no printing); evaluation is slower.
 
 from __future__ import annotations
 
+from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
@@ -56,7 +57,7 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
         m = len(rows)
         inputs = system.inputs
         u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
-        functions = [*inputs.functions, *(sp.diff(f, T) for f in inputs.functions), *(sp.diff(f, T, 2) for f in inputs.functions)]
+        functions = inputs.stacked()
 
         definitions = coords.rotation_definitions
 
@@ -72,6 +73,7 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
             "t0": system.case.t0,
             "t1": system.case.t1,
             "steps": system.case.steps,
+            "driver_sources": inputs.sources,
             "inputs": _inputs(functions, T, len(functions)),
             "phi": compile_([q, u], [r.phi for r in rows], m),
             "jac": compile_([q, u], [e for _, _, e in entries], len(entries)),
@@ -81,11 +83,13 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
     return SimpleNamespace(
         MODEL=model.name,
         PARAMETRIZATION=parametrization.name,
+        SOURCE=Path(model.file).name,
         SOURCE_SHA256=model.source_sha256,
         STORED_NAMES=tuple(coords.stored_names),
         VELOCITY_NAMES=tuple(coords.velocity_names),
         BODIES={b.name: (b.stored_offset, b.velocity_offset) for b in coords.bodies},
         POINTS={b.name: {k: tuple(float(sp.N(x, 30)) for x in p) for k, p in b.points.items()} for b in model.bodies},
+        GROUND_POINTS={k: tuple(float(sp.N(x, 30)) for x in p) for k, p in model.ground_points.items()},
         INITIAL_Q=tuple(initial_q(model, parametrization)),
         ACTUATORS={
             a.name: ((a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.range) for a in model.actuators

@@ -11,7 +11,7 @@ from sympy.printing.pycode import PythonCodePrinter
 #: NumPy names a generated module may import (scalars and arrays alike).
 NUMPY_NAMES = (
     "abs", "arccos", "arcsin", "arctan", "arctan2", "cos", "cosh", "exp", "log",
-    "pi", "sin", "sinh", "sqrt", "tan", "tanh",
+    "pi", "sign", "sin", "sinh", "sqrt", "tan", "tanh",
 )  # fmt: skip
 
 
@@ -81,4 +81,8 @@ def freeze_numbers(expr: sp.Expr) -> sp.Expr:
 
 def used_numpy_names(source: str) -> list[str]:
     """The NumPy names that ``source`` uses, sorted."""
-    return [n for n in NUMPY_NAMES if re.search(rf"(?<![\w.]){n}\b", source)]
+    found = set(_NUMPY_NAME.findall(source))
+    return [n for n in NUMPY_NAMES if n in found]
+
+
+_NUMPY_NAME = re.compile(rf"(?<![\w.])({'|'.join(NUMPY_NAMES)})\b")

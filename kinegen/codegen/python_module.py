@@ -25,7 +25,7 @@ import kinegen
 from kinegen.codegen.printer import ModulePrinter, ScalarPrinter, freeze_numbers, used_numpy_names
 from kinegen.codegen.shapes import Block, Group, Shapes
 from kinegen.model.expressions import T
-from kinegen.symbolic.assembly import Row, System, Templates
+from kinegen.symbolic.assembly import GENERIC_NAME, Coordinates, Row, System, Templates, generic_body
 
 ARRAY, SCALAR = 0, 1  # the two printed styles: NumPy (batches) and plain math (one configuration)
 
@@ -68,7 +68,7 @@ def _groups(rows: list[Row], templates: Templates | None, kind: str) -> list[Gro
         if templates is None or any(r.shape is None for r in members):
             out.append(Group(None, lambda members=members: _real(members, kind), {}))
             continue
-        orders = tuple(tuple(r.columns[c] for c in sorted(r.jacobian)) for r in members) if kind == "jac" else ()
+        orders = tuple(tuple(r.columns[c] for c in r.jacobian_columns) for r in members) if kind == "jac" else ()
         key = (kind, tuple(r.shape for r in members), orders)
         rename: dict = {}
         for r in members:
@@ -91,22 +91,25 @@ def _real(rows: list[Row], kind: str) -> list[sp.Expr]:
 
 
 class _Definitions:
-    """Printed definitions (rotation-matrix entries), each printed once per style."""
+    """Printed definitions of the rotation-matrix entries, each printed once per style.
 
-    def __init__(self, definitions: dict[sp.Symbol, sp.Expr], printers: tuple[CodePrinter, CodePrinter]) -> None:
-        self.definitions = definitions
-        self.printers = printers
-        self._texts: dict[tuple[sp.Symbol, int], str] = {}
+    Every body's definitions are the generic body's renamed (the same argument that lets
+    :mod:`kinegen.codegen.shapes` print a shape once): they are printed once for the generic
+    body and renamed as text."""
+
+    def __init__(self, coords: Coordinates, printers: tuple[CodePrinter, CodePrinter]) -> None:
+        self.bodies = coords.bodies
+        generic = generic_body(coords.parametrization)
+        self._texts = [[printer.doprint(freeze_numbers(e)) for e in generic.rotation] for printer in printers]
 
     def lines(self, used: set[sp.Symbol], style: int) -> tuple[list[str], set[sp.Symbol]]:
         """Assignments of the used definitions, and the argument symbols they use."""
         lines, needs = [], set()
-        for symbol, value in self.definitions.items():
-            if symbol in used:
-                if (symbol, style) not in self._texts:
-                    self._texts[(symbol, style)] = self.printers[style].doprint(freeze_numbers(value))
-                lines.append(f"    {symbol} = {self._texts[(symbol, style)]}")
-                needs |= value.free_symbols
+        for body in self.bodies:
+            for k, (symbol, value) in enumerate(zip(body.rotation_symbols, body.rotation)):
+                if symbol in used:
+                    lines.append(f"    {symbol} = {self._texts[style][k].replace(GENERIC_NAME, body.name)}")
+                    needs |= value.free_symbols
         return lines, needs
 
 
@@ -144,12 +147,28 @@ def _array_function(
     """NumPy function filling an array (one configuration or a batch), skipping exact zeros.
 
     The ``definitions`` (e.g. rotation-matrix entries) the block uses are assigned first.
+    A block of more than :data:`PART_STATEMENTS` statements is filled by part functions
+    ``{name}_part<k>(..., out)``.
     """
-    lines = _signature(name, doc, args) + _prologue(args, [block], ARRAY, definitions)
+    parts = block.parts()
+    lines = _signature(name, doc, args)
+    if len(parts) == 1:
+        lines += _prologue(args, [block], ARRAY, definitions)
     lines.append(f"    out = {allocate.format(m=len(block))}")
-    lines += [f"    out[{i}] = {texts[ARRAY]}" for i, texts in enumerate(block.outputs) if texts is not None]
+    if len(parts) == 1:
+        lines += [f"    out[{i}] = {texts[ARRAY]}" for i, texts in enumerate(block.outputs) if texts is not None]
+        lines.append("    return out")
+        return "\n".join(lines)
+    names = ", ".join(a for a, _ in args)
+    lines += [f"    {name}_part{k}({names}, out)" for k in range(len(parts))]
     lines.append("    return out")
-    return "\n".join(lines)
+    functions = ["\n".join(lines)]
+    for k, part in enumerate(parts):
+        body = _signature(f"{name}_part{k}", f"Rows {part.offset} to {part.offset + len(part) - 1} of {name}.", [*args, ("out", [])])
+        body += _prologue(args, [part], ARRAY, definitions)
+        body += [f"    out[{part.offset + i}] = {texts[ARRAY]}" for i, texts in enumerate(part.outputs) if texts is not None]
+        functions.append("\n".join(body))
+    return "\n\n\n".join(functions)
 
 
 def _scalar_function(
@@ -159,14 +178,33 @@ def _scalar_function(
     blocks: list[Block],
     definitions: _Definitions | None = None,
 ) -> str:
-    """Plain-float function (``math``) of one configuration returning one list per block."""
-    lines = _signature(name, doc, args) + _prologue(args, blocks, SCALAR, definitions)
-    results = []
-    for block in blocks:
-        items = ", ".join("0.0" if texts is None else texts[SCALAR] for texts in block.outputs)
-        results.append(f"[{items}]")
-    lines.append(f"    return {', '.join(results)}")
-    return "\n".join(lines)
+    """Plain-float function (``math``) of one configuration returning one list per block
+    (a block of more than :data:`PART_STATEMENTS` statements as the concatenated lists of
+    part functions ``{name}_part<k>``)."""
+    split = [block.parts() for block in blocks]
+    if all(len(parts) == 1 for parts in split):
+        lines = _signature(name, doc, args) + _prologue(args, blocks, SCALAR, definitions)
+        results = [_scalar_list(block) for block in blocks]
+        lines.append(f"    return {', '.join(results)}")
+        return "\n".join(lines)
+    names = ", ".join(a for a, _ in args)
+    functions, results, k = [], [], 0
+    for parts in split:
+        calls = []
+        for part in parts:
+            body = _signature(f"{name}_part{k}", f"Items {part.offset} to {part.offset + len(part) - 1} of a list of {name}.", args)
+            body += _prologue(args, [part], SCALAR, definitions)
+            body.append(f"    return {_scalar_list(part)}")
+            functions.append("\n".join(body))
+            calls.append(f"{name}_part{k}({names})")
+            k += 1
+        results.append(" + ".join(calls))
+    main = _signature(name, doc, args) + [f"    return {', '.join(results)}"]
+    return "\n\n\n".join(["\n".join(main), *functions])
+
+
+def _scalar_list(block: Block) -> str:
+    return "[" + ", ".join("0.0" if texts is None else texts[SCALAR] for texts in block.outputs) + "]"
 
 
 def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) -> str:
@@ -177,7 +215,6 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
     printer = ModulePrinter()
     q_syms = coords.stored_symbols
     v_syms = coords.velocity_symbols
-    rotation = coords.rotation_definitions
     header = HEADER.format(
         model=model.name,
         source=source_name,
@@ -204,6 +241,9 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
         pts = ", ".join(f"{k!r}: {_float_tuple([sp.N(x, 30) for x in v])}" for k, v in b.points.items())
         body.append(f"    {b.name!r}: {{{pts}}},")
     body.append("}")
+    body.append("# named points of the ground, global coordinates")
+    ground = ", ".join(f"{k!r}: {_float_tuple([sp.N(x, 30) for x in v])}" for k, v in model.ground_points.items())
+    body.append(f"GROUND_POINTS = {{{ground}}}")
     body.append(f"INITIAL_Q = {_float_tuple(initial_q)}")
     body.append("# reported lengths: name -> ((body, point), (body, point), (min, max) or None)")
     body.append("ACTUATORS = {")
@@ -228,9 +268,9 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
     # joint (and normalization) rows are the same in every case: generated once
     joints = [r for r in first.rows if not r.is_driver]
     mj = len(joints)
-    joint_entries = [(i, j, e) for i, j, e in first.jacobian_entries if i < mj]
+    joint_entries = [(i, j) for i, j in first.jacobian_pattern if i < mj]
     shapes = Shapes(printer, ScalarPrinter())
-    defs = _Definitions(rotation, shapes.printers)
+    defs = _Definitions(coords, shapes.printers)
     templates = first.templates
     q_only, q_v = [("q", q_syms)], [("q", q_syms), ("v", v_syms)]
     joints_phi = shapes.block(_groups(joints, templates, "phi"), "c")
@@ -266,19 +306,17 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
     case_table: list[str] = []
     for name, system in systems.items():
         rows = system.rows
-        entries = system.jacobian_entries
+        entries = system.jacobian_pattern
         drivers = rows[mj:]
         inputs = system.inputs
         u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
         m, nd = len(rows), len(u)
-        rates = [sp.diff(f, T) for f in inputs.functions]
-        accelerations = [sp.diff(f, T, 2) for f in inputs.functions]
         functions.append(
             _array_function(
                 f"inputs_{name}",
                 f"Driver inputs of case {name!r} at time t: rows u ({nd}), then du/dt, then d2u/dt2.",
                 [("t", [T])] if nd else [],
-                shapes.block([Group(None, lambda inputs=inputs, rates=rates, accelerations=accelerations: [*inputs.functions, *rates, *accelerations], {})]),
+                shapes.block([Group(None, inputs.stacked, {})]),
                 allocate="np.zeros(({m},) + np.shape(t))",
             ).replace(f"def inputs_{name}():", f"def inputs_{name}(t):")
         )
@@ -348,9 +386,10 @@ def render(systems: dict[str, System], initial_q: np.ndarray, source_name: str) 
             f"    {name!r}: {{\n"
             f"        'constraints': {_tuple([r.name for r in rows])},\n"
             f"        'drivers': {_tuple(list(inputs.names))},\n"
-            f"        'jac_rows': {_tuple([i for i, _, _ in entries])},\n"
-            f"        'jac_cols': {_tuple([j for _, j, _ in entries])},\n"
+            f"        'jac_rows': {_tuple([i for i, _ in entries])},\n"
+            f"        'jac_cols': {_tuple([j for _, j in entries])},\n"
             f"        't0': {float(case.t0)!r}, 't1': {float(case.t1)!r}, 'steps': {case.steps},\n"
+            f"        'driver_sources': {_tuple(list(inputs.sources))},\n"
             f"        'inputs': inputs_{name}, 'phi': phi_{name}, 'jac': jac_{name}, 'nu': nu_{name}, 'gamma': gamma_{name},\n"
             f"        'phi_jac_s': phi_jac_s_{name}, 'nu_s': nu_s_{name}, 'gamma_s': gamma_s_{name},\n"
             "    },"

@@ -23,6 +23,10 @@ from kinegen.codegen.printer import freeze_numbers
 
 Kind = str  # "phi", "jac", "nu", "gamma", ...
 
+#: Statements per generated function part: Python's compiler needs ~60 bytes of memory per
+#: byte of a function it compiles, so the functions of very large models are cut in parts.
+PART_STATEMENTS = 5000
+
 
 @dataclass(frozen=True)
 class _Printed:
@@ -36,14 +40,42 @@ class _Printed:
 
 @dataclass
 class Block:
-    """Expressions of one generated function, as text for both styles, and the symbols they use."""
+    """Expressions of one generated function, as text for both styles, and the symbols they use.
+
+    ``offset`` is the index of the first output in the whole block when this is a part of
+    one; ``groups`` the end (temporaries, outputs) and the symbols used of each group.
+    """
 
     temporaries: list[tuple[str, str, str]] = field(default_factory=list)  # (name, array text, scalar text)
     outputs: list[tuple[str, str] | None] = field(default_factory=list)
     symbols: set[sp.Symbol] = field(default_factory=set)
+    offset: int = 0
+    groups: list[tuple[int, int, frozenset[sp.Symbol]]] = field(default_factory=list)
 
     def __len__(self) -> int:
         return len(self.outputs)
+
+    def parts(self, limit: int = PART_STATEMENTS) -> list[Block]:
+        """The block cut at group boundaries into parts of at most about ``limit`` statements
+        (one group is never cut: its temporaries are its own). A part's outputs keep their
+        indices through ``offset``. A block within the limit is its own only part."""
+        if len(self.temporaries) + len(self.outputs) <= limit or len(self.groups) < 2:
+            return [self]
+        parts: list[Block] = []
+        t0 = o0 = 0
+        current = Block(offset=0)
+        for t1, o1, symbols in self.groups:
+            size = len(current.temporaries) + len(current.outputs)
+            if size and size + (t1 - t0) + (o1 - o0) > limit:
+                parts.append(current)
+                current = Block(offset=o0)
+            current.temporaries += self.temporaries[t0:t1]
+            current.outputs += self.outputs[o0:o1]
+            current.symbols |= symbols
+            current.groups.append((len(current.temporaries), len(current.outputs), symbols))
+            t0, o0 = t1, o1
+        parts.append(current)
+        return parts
 
 
 @dataclass(frozen=True)
@@ -96,5 +128,7 @@ class Shapes:
             for k, (array_text, scalar_text) in enumerate(printed.temporaries):
                 out.temporaries.append((f"{prefix}{start + k}", rename(array_text), rename(scalar_text)))
             out.outputs += [None if o is None else (rename(o[0]), rename(o[1])) for o in printed.outputs]
-            out.symbols |= {group.rename.get(g, g) for g in printed.used}
+            symbols = frozenset(group.rename.get(g, g) for g in printed.used)
+            out.symbols |= symbols
+            out.groups.append((len(out.temporaries), len(out.outputs), symbols))
         return out

@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import os
 import tempfile
+from collections.abc import Callable
 from pathlib import Path
 
 import numpy as np
@@ -51,11 +52,23 @@ def write_atomic(path: Path, text: str) -> None:
         raise
 
 
-def build(model_path: str | Path, parametrization: str, out_dir: str | Path = "generated") -> Path:
-    """Build ``model_path`` in ``parametrization`` and write ``<out_dir>/<model>_<param>.py``."""
+def build(
+    model_path: str | Path,
+    parametrization: str,
+    out_dir: str | Path = "generated",
+    check: Callable[[str, str | Path], list[str]] | None = None,
+) -> Path:
+    """Build ``model_path`` in ``parametrization`` and write ``<out_dir>/<model>_<param>.py``.
+
+    ``check(source, model_path)`` (e.g. :func:`kinegen.runtime.check_source`) runs on the
+    new module's text before it is written; if it raises, nothing is written. Everything
+    that can fail happens before the (atomic) write.
+    """
     model = load(model_path)
     param = get(parametrization)
-    source = generate_source(model, param)  # everything that can fail happens before the write
+    source = generate_source(model, param)
+    if check is not None:
+        check(source, model_path)
     path = Path(out_dir) / f"{module_name(model, param)}.py"
     write_atomic(path, source)
     return path

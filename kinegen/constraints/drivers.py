@@ -6,7 +6,7 @@ relative rotation at zero angle, from the joint's references):
 ``2 (sin(theta/2) p_w - cos(theta/2) h1·p_v) = 2 sin((theta - phi)/2)``. It is polynomial
 in q, valid for every angle and has the single root phi = theta (mod 2 pi); the factor 2
 gives it unit slope at the root, like ``sin(theta - phi)``. This is the chain-N
-benchmark's driver (``../shared/bench/chain-N.md``).
+benchmark's driver (``docs/chain-N.md``).
 
 Otherwise (Euler angles; body angles) rotation drivers use ``sin(theta(t) - phi) = 0``
 written with dot products (``sin(theta) f1.f2 - cos(theta) g1.f2``), where ``phi`` is the

@@ -9,12 +9,13 @@ Decimal literals become exact rationals (``1.78`` -> ``89/50``).
 from __future__ import annotations
 
 import ast
+import functools
 import math
 from collections.abc import Mapping
 
 import sympy as sp
 
-from kinegen.errors import ExpressionError
+from kinegen.errors import ExpressionError, shown
 
 #: Whitelisted functions, by the name used in model files.
 FUNCTIONS: dict[str, object] = {
@@ -34,6 +35,9 @@ FUNCTIONS: dict[str, object] = {
     "abs": sp.Abs,
 }
 _ARITY = {"atan2": 2}
+#: SymPy functions the code generators print: the whitelist and what their derivatives bring
+#: (``sign`` from ``abs``); a time function whose derivatives hold anything else is refused.
+PRINTABLE = frozenset({"sin", "cos", "tan", "asin", "acos", "atan", "atan2", "sinh", "cosh", "tanh", "exp", "log", "Abs", "sign"})
 
 #: Time symbol shared by every expression.
 T = sp.Symbol("t", real=True)
@@ -53,15 +57,68 @@ _BINARY = {
 def number(value: float | int) -> sp.Expr:
     """An exact SymPy number for a finite ``int`` or ``float`` (floats via their shortest repr)."""
     if isinstance(value, bool) or not isinstance(value, (int, float)):
-        raise ExpressionError(f"expected a number, got {type(value).__name__} {value!r}")
+        raise ExpressionError(f"expected a number, got {type(value).__name__} {shown(value)}")
     if isinstance(value, float) and not math.isfinite(value):
-        raise ExpressionError(f"number {value!r} is not finite")
+        raise ExpressionError(f"number {shown(value)} is not finite")
     if abs(value) > MAX_MAGNITUDE:
-        shown = f"{value!r}" if isinstance(value, float) or abs(value) < 10**30 else f"with {len(str(abs(value)))} digits"
-        raise ExpressionError(f"number {shown} exceeds the allowed magnitude {MAX_MAGNITUDE:g}")
+        raise ExpressionError(f"number {shown(value)} exceeds the allowed magnitude {MAX_MAGNITUDE:g}")
     if isinstance(value, int):
         return sp.Integer(value)
     return sp.Rational(repr(value))
+
+
+_FLOAT_FUNCTIONS = {
+    sp.sin: math.sin, sp.cos: math.cos, sp.tan: math.tan, sp.asin: math.asin, sp.acos: math.acos, sp.atan: math.atan,
+    sp.sinh: math.sinh, sp.cosh: math.cosh, sp.tanh: math.tanh, sp.exp: math.exp, sp.log: math.log, sp.Abs: abs,
+    sp.atan2: math.atan2, sp.sign: lambda x: math.copysign(1.0, x) if x else 0.0,
+}  # fmt: skip
+
+
+def float_value(expr: sp.Expr) -> float:
+    """A constant expression in double precision, innermost first; ExpressionError where any
+    part of it is not a finite real double (``asin(2)``, ``log(0)``, ``sinh(sinh(20))``).
+
+    It bounds the work of exact evaluation: SymPy evaluating ``sin(sinh(sinh(20)))`` to
+    a few digits needs the argument to 10^8 digits and does not return for minutes."""
+    try:
+        value = _float(expr)
+    except (ArithmeticError, ValueError, TypeError):
+        value = float("nan")
+    if not math.isfinite(value):
+        raise ExpressionError(f"{sp.sstr(expr)[:80]} is not a finite real number (in double precision)")
+    return value
+
+
+def _float(e: sp.Expr) -> float:
+    if not e.args:
+        return float(e)  # numbers, pi, E (zoo, nan, I raise TypeError)
+    args = [_float(a) for a in e.args]
+    if e.is_Add:
+        return math.fsum(args)
+    if e.is_Mul:
+        return math.prod(args)
+    if e.is_Pow:
+        return math.pow(*args)
+    function = _FLOAT_FUNCTIONS.get(e.func)
+    if function is None:
+        raise ValueError(f"no double-precision evaluation of {e.func}")
+    return float(function(*args))
+
+
+@functools.lru_cache(maxsize=1 << 16)  # the loader's checks and the code generator ask for the same ones
+def time_derivative(function: sp.Expr) -> sp.Expr:
+    """d/dt of a time function, without impulses: where ``abs`` makes a kink, the second
+    derivative's ``DiracDelta`` is dropped (a driver's rate jumps there; its acceleration is
+    taken as the one on either side, 0 at the kink itself as ``sign(0) = 0``). A function is
+    real wherever it is valid, so the real and imaginary parts SymPy keeps for the derivative
+    of ``abs`` of an expression it cannot prove real are the expression and 0."""
+    derivative = sp.diff(function, T)
+    if derivative.has(sp.DiracDelta):
+        derivative = derivative.replace(sp.DiracDelta, lambda *_: sp.Integer(0))
+    if derivative.has(sp.re, sp.im, sp.conjugate):  # d|f|/dt of an f SymPy cannot prove real (asin(t))
+        derivative = derivative.replace(sp.re, lambda x: x).replace(sp.im, lambda x: sp.Integer(0))
+        derivative = derivative.replace(sp.conjugate, lambda x: x)  # real where f is (elsewhere: nan, refused)
+    return derivative
 
 
 def parse(
@@ -84,7 +141,7 @@ def parse(
     try:
         tree = ast.parse(text.strip(), mode="eval")
     except (SyntaxError, ValueError) as exc:
-        raise ExpressionError(f"cannot parse {text!r}: {exc.msg if hasattr(exc, 'msg') else exc}") from None
+        raise ExpressionError(f"cannot parse {shown(text)}: {exc.msg if hasattr(exc, 'msg') else exc}") from None
     except RecursionError:
         raise ExpressionError("expression nested too deeply") from None
     return _Translator(parameters or {}, allow_time).visit(tree.body, 0)
@@ -102,7 +159,7 @@ class _Translator:
             return (
                 number(node.value)
                 if not isinstance(node.value, (str, bytes, complex))
-                else self._reject(f"constant {node.value!r} is not a real number")
+                else self._reject(f"constant {shown(node.value)} is not a real number")
             )
         if isinstance(node, ast.Name):
             return self._name(node.id)
@@ -125,7 +182,7 @@ class _Translator:
 
     def _name(self, name: str) -> sp.Expr:
         if name.startswith("_"):
-            return self._reject(f"name {name!r} is not allowed")
+            return self._reject(f"name {shown(name)} is not allowed")
         if name == "t":
             if not self.allow_time:
                 return self._reject("time 't' is not allowed here")
@@ -135,15 +192,15 @@ class _Translator:
         if name in self.parameters:
             return self.parameters[name]
         if name in FUNCTIONS:
-            return self._reject(f"function {name!r} must be called")
-        return self._reject(f"unknown name {name!r}")
+            return self._reject(f"function {shown(name)} must be called")
+        return self._reject(f"unknown name {shown(name)}")
 
     def _call(self, node: ast.Call, depth: int) -> sp.Expr:
         if not isinstance(node.func, ast.Name):
             return self._reject("this call is not allowed: only direct calls of whitelisted functions")
         name = node.func.id
         if name not in FUNCTIONS:
-            return self._reject(f"function {name!r} is not allowed (allowed: {', '.join(sorted(FUNCTIONS))})")
+            return self._reject(f"function {shown(name)} is not allowed (allowed: {', '.join(sorted(FUNCTIONS))})")
         if node.keywords:
             return self._reject(f"keyword arguments in {name}() are not allowed")
         arity = _ARITY.get(name, 1)

@@ -18,7 +18,7 @@ import numpy as np
 import sympy as sp
 import yaml
 
-from kinegen.errors import ExpressionError, ModelError
+from kinegen.errors import ExpressionError, ModelError, shown
 from kinegen.model import expressions
 from kinegen.model.schema import GROUND, Actuator, Body, Case, Driver, Joint, Model, PointRef, Vector, WorkingRange
 from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
@@ -33,10 +33,35 @@ DRIVER_TYPES = ("joint_angle", "joint_translation", "distance", "coordinate", "b
 ORTHONORMAL_TOLERANCE = 1e-9
 WORKING_RANGE_FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height")
 MAX_FILE_BYTES = 5_000_000
+#: Nodes that anchors and aliases may add to a document when expanded (each use of an
+#: alias counts its whole subtree): enough to share pieces, far too few for a "billion laughs".
+MAX_ALIAS_NODES = 10_000
+#: Nodes (scalars and collections, aliases expanded) a model file may hold: the parser's
+#: node graph takes ~500 bytes a node, so this bounds a load to ~250 MB.
+MAX_NODES = 500_000
+_EventLoader = getattr(yaml, "CSafeLoader", yaml.SafeLoader)
 
 
-class _StrictLoader(yaml.SafeLoader):
-    """SafeLoader that rejects duplicate keys (PyYAML would silently keep the last)."""
+class _StrictLoader(getattr(yaml, "CSafeLoader", yaml.SafeLoader)):  # libyaml's parser when PyYAML has it
+    """SafeLoader that rejects duplicate keys (PyYAML would silently keep the last) and turns
+    every failure of a constructor (``!!float abc``, ``!!timestamp 2001-99-99``, an integer
+    beyond Python's digit limit, ``!!bool maybe``) into a YAML error at the value's line."""
+
+    def construct_object(self, node: yaml.Node, deep: bool = False) -> Any:
+        try:
+            return super().construct_object(node, deep=deep)
+        except (yaml.YAMLError, RecursionError):
+            raise
+        except Exception as exc:  # a standard constructor raising ValueError, KeyError, ...
+            raise yaml.constructor.ConstructorError(None, None, _construct_problem(node, exc), node.start_mark) from None
+
+
+def _construct_problem(node: yaml.Node, exc: Exception) -> str:
+    tag = str(node.tag).replace("tag:yaml.org,2002:", "!!")
+    value = node.value if isinstance(node, yaml.ScalarNode) else "..."
+    if isinstance(value, str) and value.lstrip("+-").isdigit() and len(value) > 4000:
+        return f"{tag} value of {len(value)} digits is too long"
+    return f"{tag} value {shown(value)} cannot be read: {str(exc)[:200]}"
 
 
 def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool = False) -> dict:
@@ -47,14 +72,77 @@ def _construct_mapping(loader: _StrictLoader, node: yaml.MappingNode, deep: bool
         try:
             duplicate = key in seen
         except TypeError:
-            raise yaml.constructor.ConstructorError(None, None, f"unhashable key {key!r}", key_node.start_mark) from None
+            raise yaml.constructor.ConstructorError(None, None, f"unhashable key {shown(key)}", key_node.start_mark) from None
         if duplicate:
-            raise yaml.constructor.ConstructorError(None, None, f"duplicate name {key!r}", key_node.start_mark)
+            raise yaml.constructor.ConstructorError(None, None, f"duplicate name {shown(key)}", key_node.start_mark)
         seen[key] = True
     return loader.construct_mapping(node, deep=deep)
 
 
 _StrictLoader.add_constructor(yaml.resolver.BaseResolver.DEFAULT_MAPPING_TAG, _construct_mapping)
+
+
+def _check_size(data: bytes, file: str) -> None:
+    """Refuse, from the parser's events and before any node is built, a document of more than
+    :data:`MAX_NODES` nodes, one whose aliases would expand it by more than
+    :data:`MAX_ALIAS_NODES` nodes (a "billion laughs" document), or one that refers to itself
+    through an alias. Each alias counts the whole subtree of its anchor, known from the events
+    between the anchor's start and end; nothing is expanded."""
+    sizes: dict[str, int] = {}  # anchor -> nodes of its subtree
+    open_nodes: list[tuple[str | None, int]] = []  # (anchor, count at its start) of unfinished collections
+    count = added = 0
+    for event in yaml.parse(data, Loader=_EventLoader):
+        if isinstance(event, (yaml.ScalarEvent, yaml.CollectionStartEvent)):
+            count += 1
+            if isinstance(event, yaml.CollectionStartEvent):
+                open_nodes.append((event.anchor, count - 1))
+            elif event.anchor is not None:
+                sizes[event.anchor] = 1
+        elif isinstance(event, yaml.CollectionEndEvent):
+            anchor, start = open_nodes.pop()
+            if anchor is not None:
+                sizes[anchor] = count - start
+        elif isinstance(event, yaml.AliasEvent):
+            line = event.start_mark.line + 1 if event.start_mark else None
+            if any(anchor == event.anchor for anchor, _ in open_nodes):
+                raise ModelError(file, "(file)", f"alias *{event.anchor} refers to the node that contains it (recursive document)", line)
+            size = sizes.get(event.anchor, 0)  # an undefined alias: the composer names it
+            count += size
+            added += size
+            if added > MAX_ALIAS_NODES:
+                raise ModelError(
+                    file, "(file)", f"aliases expand the document by more than {MAX_ALIAS_NODES:,} nodes here "
+                    f"(alias *{event.anchor} alone adds {size:,}); anchors and aliases are for sharing small pieces",
+                    line,
+                )  # fmt: skip
+        if count > MAX_NODES:
+            line = event.start_mark.line + 1 if event.start_mark else None
+            raise ModelError(file, "(file)", f"more than {MAX_NODES:,} YAML nodes (a 5,000-body chain has 295,000)", line)
+
+
+def _entry_lines(root: yaml.Node) -> dict[str, int]:
+    """Line (1-based) of every entry of the document, by the dotted path the reader names it
+    with (``joints.pivot.axes[0]``); a node shared through an alias is listed once."""
+    lines: dict[str, int] = {}
+    seen: set[int] = set()
+    stack: list[tuple[yaml.Node, str]] = [(root, "")]
+    while stack:
+        node, prefix = stack.pop()
+        if id(node) in seen:
+            continue
+        seen.add(id(node))
+        if isinstance(node, yaml.MappingNode):
+            for key, value in node.value:
+                if isinstance(key, yaml.ScalarNode):
+                    path = f"{prefix}.{key.value}" if prefix else str(key.value)
+                    lines.setdefault(path, key.start_mark.line + 1)
+                    stack.append((value, path))
+        elif isinstance(node, yaml.SequenceNode):
+            for index, item in enumerate(node.value):
+                path = f"{prefix}[{index}]"
+                lines.setdefault(path, item.start_mark.line + 1)
+                stack.append((item, path))
+    return lines
 
 
 class ModelWarning(UserWarning):
@@ -76,21 +164,29 @@ def load(path: str | Path) -> Model:
 def loads(raw: bytes | str, file: str = "<string>") -> Model:
     """Validate a model given as YAML text; ``file`` names it in error messages."""
     data = raw.encode() if isinstance(raw, str) else raw
+    loader = None
     try:
-        document = yaml.load(data, Loader=_StrictLoader)
+        _check_size(data, file)
+        loader = _StrictLoader(data)
+        root = loader.get_single_node()
+        document = None if root is None else loader.construct_document(root)
     except yaml.YAMLError as exc:
         mark = getattr(exc, "problem_mark", None)
-        where = f"line {mark.line + 1}, column {mark.column + 1}" if mark else "(file)"
-        raise ModelError(file, where, f"invalid YAML: {getattr(exc, 'problem', None) or exc}") from None
+        where, line = (f"column {mark.column + 1}", mark.line + 1) if mark else ("(file)", None)
+        raise ModelError(file, where, f"invalid YAML: {getattr(exc, 'problem', None) or exc}", line) from None
     except RecursionError:
         raise ModelError(file, "(file)", "YAML nested too deeply") from None
-    return _Reader(file, hashlib.sha256(data).hexdigest()).model(document)
+    finally:
+        if loader is not None:
+            loader.dispose()
+    return _Reader(file, hashlib.sha256(data).hexdigest(), root).model(document)
 
 
 class _Reader:
-    def __init__(self, file: str, sha256: str) -> None:
+    def __init__(self, file: str, sha256: str, root: yaml.Node | None = None) -> None:
         self.file = file
         self.sha256 = sha256
+        self.root = root  # the document's node graph: where each entry stands (read only for an error)
         self.parameters: dict[str, sp.Expr] = {}
         self.bodies: dict[str, Body] = {}
         self.ground_points: dict[str, Vector] = {}
@@ -99,7 +195,16 @@ class _Reader:
 
     # ---- helpers ---------------------------------------------------------------------
     def fail(self, entry: str, problem: str) -> ModelError:
-        return ModelError(self.file, entry, problem)
+        return ModelError(self.file, entry, problem, self.line(entry))
+
+    def line(self, entry: str) -> int | None:
+        """Line of ``entry`` in the file, or of the nearest entry that contains it."""
+        lines = _entry_lines(self.root) if self.root is not None else {}
+        while entry:
+            if entry in lines:
+                return lines[entry]
+            entry = entry[: max(entry.rfind("."), entry.rfind("["), 0)]
+        return None
 
     def mapping(self, value: Any, entry: str, allowed: tuple[str, ...], required: tuple[str, ...] = ()) -> dict:
         if value is None and not required:
@@ -108,9 +213,10 @@ class _Reader:
             raise self.fail(entry, f"expected a mapping, got {_kind(value)}")
         for key in value:
             if not isinstance(key, str):
-                raise self.fail(entry, f"key {key!r} is not a string")
+                raise self.fail(entry, f"key {shown(key)} is not a string")
             if key not in allowed:
-                where = key if entry == "(top level)" else f"{entry}.{key}"
+                shown_key = key if key.strip() else shown(key)  # an empty key still names an entry
+                where = shown_key if entry == "(top level)" else f"{entry}.{shown_key}"
                 raise self.fail(where, f"unknown key (allowed: {', '.join(allowed)})")
         for key in required:
             if key not in value:
@@ -119,9 +225,9 @@ class _Reader:
 
     def name(self, value: Any, entry: str) -> str:
         if not isinstance(value, str) or not NAME_PATTERN.match(value):
-            raise self.fail(entry, f"{value!r} is not a valid name (letter first, then letters, digits, _)")
+            raise self.fail(entry, f"{shown(value)} is not a valid name (letter first, then letters, digits, _)")
         if value in RESERVED:
-            raise self.fail(entry, f"{value!r} is a reserved name")
+            raise self.fail(entry, f"{shown(value)} is a reserved name")
         return value
 
     def scalar(self, value: Any, entry: str, allow_time: bool = False) -> sp.Expr:
@@ -130,13 +236,29 @@ class _Reader:
         except ExpressionError as exc:
             raise self.fail(entry, str(exc)) from None
         if not allow_time:
-            if not (expr.is_number and expr.is_real is not False):
-                raise self.fail(entry, f"{value!r} is not a real constant")
+            if not expr.is_number:
+                raise self.fail(entry, f"{shown(value)} is not a real constant")
+            try:
+                expressions.float_value(expr)  # bounded first: exact evaluation of a huge part never returns
+            except ExpressionError:
+                raise self.fail(entry, f"{shown(value)} is not a real constant (in double precision)") from None
             numeric = complex(sp.N(expr))
             if numeric.imag != 0 or not abs(numeric.real) < expressions.MAX_MAGNITUDE:
-                raise self.fail(entry, f"{value!r} is not a finite real number")
-        elif expr.has(sp.zoo, sp.oo, -sp.oo, sp.nan, sp.I):
-            raise self.fail(entry, f"{value!r} is not a finite real function of t")
+                raise self.fail(entry, f"{shown(value)} is not a finite real number")
+        else:
+            if not _constants_real(expr):
+                raise self.fail(entry, f"{shown(value)} is not a real function of t (a constant part of it is not real)")
+            rate = expressions.time_derivative(expr)
+            for what, e in (("", expr), (" (its first time derivative)", rate), (" (its second time derivative)", None)):
+                e = expressions.time_derivative(rate) if e is None else e
+                if e.has(sp.zoo, sp.oo, -sp.oo, sp.nan, sp.I):
+                    raise self.fail(entry, f"{shown(value)} is not a finite real function of t{what}")
+                unwritten = {type(f).__name__ for f in e.atoms(sp.Function, sp.Derivative)} - expressions.PRINTABLE
+                if unwritten:
+                    raise self.fail(
+                        entry, f"{shown(value)}: SymPy cannot write {what.strip(' ()') or 'it'} in closed form "
+                        f"({', '.join(sorted(unwritten))}); write the function so that its arguments are real for every t",
+                    )  # fmt: skip
         return expr
 
     def vector(self, value: Any, entry: str) -> Vector:
@@ -208,6 +330,7 @@ class _Reader:
             actuators=actuators,
             working_range=working_range,
             redundant=self.redundant,
+            ground_points=dict(self.ground_points),
         )
 
     def body(self, name: str, value: Any) -> Body:
@@ -271,11 +394,11 @@ class _Reader:
             return _compact_matrix(quaternion_matrix(sp.Matrix(quat)))
         if "euler" in spec:
             euler = self.mapping(spec["euler"], f"{entry}.euler", ("sequence", "angles"), ("sequence", "angles"))
-            sequence = str(euler["sequence"]).lower()
+            sequence = euler["sequence"].lower() if isinstance(euler["sequence"], str) else ""
             if sequence not in SEQUENCES:
                 raise self.fail(
                     f"{entry}.euler.sequence",
-                    f"unknown sequence {euler['sequence']!r} (intrinsic, one of {', '.join(SEQUENCES)})",
+                    f"unknown sequence {shown(euler['sequence'])} (intrinsic, one of {', '.join(SEQUENCES)})",
                 )
             angles = self.vector(euler["angles"], f"{entry}.euler.angles")
             return _compact_matrix(EulerAngles(sequence).matrix(sp.Matrix(angles)))
@@ -306,7 +429,7 @@ class _Reader:
 
     def body_name(self, value: Any, entry: str) -> str:
         if not isinstance(value, str) or (value != GROUND and value not in self.bodies):
-            raise self.fail(entry, f"unknown body {value!r} (known: ground, {', '.join(self.bodies)})")
+            raise self.fail(entry, f"unknown body {shown(value)} (known: ground, {', '.join(self.bodies)})")
         return value
 
     def joint(self, name: str, value: Any) -> Joint:
@@ -316,14 +439,14 @@ class _Reader:
         )
         kind = spec["type"]
         if kind not in JOINT_TYPES:
-            raise self.fail(f"{entry}.type", f"unknown joint type {kind!r} (one of {', '.join(JOINT_TYPES)})")
+            raise self.fail(f"{entry}.type", f"unknown joint type {shown(kind)} (one of {', '.join(JOINT_TYPES)})")
         pair = spec["bodies"]
         if not isinstance(pair, (list, tuple)) or len(pair) != 2:
             raise self.fail(f"{entry}.bodies", "expected a list of two body names")
         b1 = self.body_name(pair[0], f"{entry}.bodies[0]")
         b2 = self.body_name(pair[1], f"{entry}.bodies[1]")
         if b1 == b2:
-            raise self.fail(f"{entry}.bodies", f"a joint needs two different bodies, got {b1!r} twice")
+            raise self.fail(f"{entry}.bodies", f"a joint needs two different bodies, got {shown(b1)} twice")
         pose1, pose2 = self.pose(b1), self.pose(b2)
         needs_axis = kind in ("revolute", "cylindrical", "prismatic", "universal")
         allowed = {"type", "bodies", "points", "at"} | ({"axes", "axis"} if needs_axis else set())
@@ -379,13 +502,13 @@ class _Reader:
     def point_on(self, pose: Body, name: Any, entry: str) -> Vector:
         if not isinstance(name, str) or name not in pose.points:
             known = ", ".join(pose.points) or "none"
-            raise self.fail(entry, f"unknown point {name!r} on body {pose.name!r} (known: {known})")
+            raise self.fail(entry, f"unknown point {shown(name)} on body {shown(pose.name)} (known: {known})")
         return pose.points[name]
 
     def vector_on(self, pose: Body, name: Any, entry: str) -> Vector:
         if not isinstance(name, str) or name not in pose.vectors:
             known = ", ".join(pose.vectors) or "none"
-            raise self.fail(entry, f"unknown vector {name!r} on body {pose.name!r} (known: {known})")
+            raise self.fail(entry, f"unknown vector {shown(name)} on body {shown(pose.name)} (known: {known})")
         return pose.vectors[name]
 
     def joint_axes(self, spec: dict, entry: str, pose1: Body, pose2: Body, kind: str) -> tuple[Vector, Vector]:
@@ -458,7 +581,7 @@ class _Reader:
         spec = self.mapping(value, entry, ("case", "point", "inputs", "dump_pivot", "published"), ("case", "point", "inputs"))
         case = cases.get(spec["case"]) if isinstance(spec["case"], str) else None
         if case is None:
-            raise self.fail(f"{entry}.case", f"unknown case {spec['case']!r} (cases: {', '.join(cases)})")
+            raise self.fail(f"{entry}.case", f"unknown case {shown(spec['case'])} (cases: {', '.join(cases)})")
         point = self.point_ref(spec["point"], f"{entry}.point")
         drivers = [d.name for d in case.drivers]
         raw = self.mapping(spec["inputs"], f"{entry}.inputs", tuple(drivers), tuple(drivers))
@@ -489,7 +612,7 @@ class _Reader:
 
     def point_ref(self, value: Any, entry: str) -> PointRef:
         if not isinstance(value, str) or value.count(".") != 1:
-            raise self.fail(entry, f"expected 'body.point', got {value!r}")
+            raise self.fail(entry, f"expected 'body.point', got {shown(value)}")
         body, point = value.split(".")
         self.body_name(body, entry)
         return PointRef(body, point, self.point_on(self.pose(body), point, entry))
@@ -503,7 +626,7 @@ class _Reader:
         )
         kind = spec["type"]
         if kind not in DRIVER_TYPES:
-            raise self.fail(f"{entry}.type", f"unknown driver type {kind!r} (one of {', '.join(DRIVER_TYPES)})")
+            raise self.fail(f"{entry}.type", f"unknown driver type {shown(kind)} (one of {', '.join(DRIVER_TYPES)})")
         needed = {
             "joint_angle": {"joint"},
             "joint_translation": {"joint"},
@@ -519,16 +642,17 @@ class _Reader:
             if key not in spec:
                 raise self.fail(entry, f"a {kind} driver needs '{key}'")
         function = self.scalar(spec["function"], f"{entry}.function", allow_time=True)
+        source = {"entry": f"{entry}.function", "text": str(spec["function"])}
         if kind in ("joint_angle", "joint_translation"):
             joint = self.joints.get(spec["joint"]) if isinstance(spec["joint"], str) else None
             if joint is None:
-                raise self.fail(f"{entry}.joint", f"unknown joint {spec['joint']!r} (known: {', '.join(self.joints) or 'none'})")
+                raise self.fail(f"{entry}.joint", f"unknown joint {shown(spec['joint'])} (known: {', '.join(self.joints) or 'none'})")
             ok = ("revolute", "cylindrical") if kind == "joint_angle" else ("prismatic", "cylindrical")
             if joint.type not in ok:
                 raise self.fail(
-                    f"{entry}.joint", f"a {kind} driver needs a {' or '.join(ok)} joint, {joint.name!r} is {joint.type}"
+                    f"{entry}.joint", f"a {kind} driver needs a {' or '.join(ok)} joint, {shown(joint.name)} is {joint.type}"
                 )
-            return Driver(name, kind, function, joint=joint.name)
+            return Driver(name, kind, function, joint=joint.name, **source)
         if kind == "distance":
             refs = spec["points"]
             if not isinstance(refs, (list, tuple)) or len(refs) != 2:
@@ -541,15 +665,15 @@ class _Reader:
                 raise self.fail(
                     f"{entry}.points", "the two points coincide at the initial pose (a distance driver is singular there)"
                 )
-            return Driver(name, kind, function, points=(p1, p2))
+            return Driver(name, kind, function, points=(p1, p2), **source)
         if kind == "coordinate":
             point = self.point_ref(spec["point"], f"{entry}.point")
             if point.body == GROUND:
                 raise self.fail(f"{entry}.point", "a coordinate driver needs a point on a moving body")
             component = spec["component"]
             if component not in ("x", "y", "z"):
-                raise self.fail(f"{entry}.component", f"expected x, y or z, got {component!r}")
-            return Driver(name, kind, function, points=(point,), component="xyz".index(component))
+                raise self.fail(f"{entry}.component", f"expected x, y or z, got {shown(component)}")
+            return Driver(name, kind, function, points=(point,), component="xyz".index(component), **source)
         body = self.body_name(spec["body"], f"{entry}.body")
         if body == GROUND:
             raise self.fail(f"{entry}.body", "a body_angle driver needs a moving body")
@@ -557,7 +681,7 @@ class _Reader:
         reference = perpendicular(axis) if "reference" not in spec else self.unit(spec["reference"], f"{entry}.reference")
         if abs(float((reference.T * axis)[0])) > 1e-9:
             raise self.fail(f"{entry}.reference", "must be perpendicular to the axis")
-        return Driver(name, kind, function, body=body, axis=axis, reference=reference, body_reference=reference)
+        return Driver(name, kind, function, body=body, axis=axis, reference=reference, body_reference=reference, **source)
 
     def check_mobility(self, entry: str, drivers: list[Driver]) -> None:
         """Coordinates (6 per body) must equal joint equations + drivers (no redundancy allowed)."""
@@ -594,7 +718,7 @@ class _Reader:
                 raise self.fail(f"{entry}.t1", f"t1 = {t1} must be greater than t0 = {t0}")
             steps = spec.get("steps", 101)
             if isinstance(steps, bool) or not isinstance(steps, int) or not 2 <= steps <= 10_000_000:
-                raise self.fail(f"{entry}.steps", f"expected a whole number of time points >= 2, got {steps!r}")
+                raise self.fail(f"{entry}.steps", f"expected a whole number of time points >= 2, got {shown(steps)}")
             self.check_mobility(entry, drivers)
             cases[key] = Case(key, tuple(drivers), t0, t1, steps)
         if not cases:
@@ -624,12 +748,29 @@ def _compact_matrix(matrix: sp.MatrixBase) -> sp.ImmutableMatrix:
     return sp.ImmutableMatrix(matrix.applyfunc(lambda e: compact(sp.expand(e))))
 
 
+def _constants_real(expr: sp.Expr) -> bool:
+    """Every constant subexpression of ``expr`` (``asin(-2)``, ``log(-1)``), at every depth, is a
+    finite real number: the code printer evaluates them innermost first (``cosh(acos(3))`` is
+    real, its ``acos(3)`` is not)."""
+    stack = [expr]
+    while stack:
+        e = stack.pop()
+        if e.is_number:
+            try:
+                expressions.float_value(e)  # every inner constant is evaluated (in doubles) on the way
+            except ExpressionError:
+                return False
+        else:
+            stack.extend(e.args)
+    return True
+
+
 def _keys(value: Any) -> list[str]:
     return [k for k in value if isinstance(k, str)] if isinstance(value, Mapping) else []
 
 
 def _kind(value: Any) -> str:
-    return f"{type(value).__name__} {value!r}"[:80]
+    return f"{type(value).__name__} {shown(value)}"[:80]
 
 
 def _cross(a: Vector, b: Vector) -> Vector:

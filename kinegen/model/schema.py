@@ -82,6 +82,8 @@ class Driver:
     axis: Vector | None = None
     reference: Vector | None = None
     body_reference: Vector | None = None
+    entry: str = ""  #: where the function stands in the model file, e.g. ``cases.swing.drivers.phi1.function``
+    text: str = ""  #: the function as written there
 
 
 @dataclass(frozen=True)
@@ -139,6 +141,7 @@ class Model:
     actuators: tuple[Actuator, ...] = ()
     working_range: WorkingRange | None = None
     redundant: bool = False  #: the model declares redundant (dependent) constraints
+    ground_points: dict[str, Vector] = field(default_factory=dict)  #: named fixed points, global
 
     def body(self, name: str) -> Body:
         """The body called ``name`` (not ground)."""

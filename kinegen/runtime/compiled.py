@@ -188,9 +188,15 @@ def c_source(module: ModuleType) -> tuple[str, dict[str, dict[str, int]]]:
 
 def c_compiler() -> str:
     """The machine's C compiler: ``$CC``, else ``cc``, else ``gcc``; CompileError if none."""
-    compiler = os.environ.get("CC") or shutil.which("cc") or shutil.which("gcc")
+    chosen = os.environ.get("CC")
+    if chosen:
+        compiler = shutil.which(chosen)
+        if compiler is None:
+            raise CompileError(f"CC={chosen!r} is not an executable C compiler")
+        return compiler
+    compiler = shutil.which("cc") or shutil.which("gcc")
     if compiler is None:
-        raise CompileError("no C compiler found (set CC, or install gcc); the Python functions are used instead")
+        raise CompileError("no C compiler found (set CC, or install gcc)")
     return compiler
 
 
@@ -207,11 +213,14 @@ def build_library(source: str) -> Path:
         c_file = Path(folder) / "module.c"
         c_file.write_text(source)
         built = Path(folder) / library.name
-        done = subprocess.run(
-            [compiler, "-O2", "-fno-tree-slp-vectorize", "-shared", "-fPIC", "-o", str(built), str(c_file), "-lm"],
-            capture_output=True,
-            text=True,
-        )
+        try:
+            done = subprocess.run(
+                [compiler, "-O2", "-fno-tree-slp-vectorize", "-shared", "-fPIC", "-o", str(built), str(c_file), "-lm"],
+                capture_output=True,
+                text=True,
+            )
+        except OSError as exc:
+            raise CompileError(f"the C compiler {compiler} cannot be run: {exc.strerror or exc}") from None
         if done.returncode != 0:
             raise CompileError(
                 f"the C compiler failed: {done.stderr.strip().splitlines()[-1] if done.stderr.strip() else done.returncode}"

@@ -13,6 +13,7 @@ from pathlib import Path
 
 import numpy as np
 
+from kinegen.model.schema import GROUND
 from kinegen.runtime.system import NumericSystem
 
 
@@ -103,16 +104,28 @@ class Results:
             raise KeyError(f"no point {point!r} on body {body!r} (points: {', '.join(points) or 'none'})")
         return np.einsum("kij,j->ki", self.rotation_matrix(body), np.array(points[point]))
 
+    def _ground_point(self, point: str) -> np.ndarray:
+        points = self.system.ground_points
+        if point not in points:
+            raise KeyError(f"no point {point!r} on body 'ground' (points: {', '.join(points) or 'none'})")
+        return np.tile(np.array(points[point], dtype=float), (len(self.times), 1))
+
     def point_position(self, body: str, point: str) -> np.ndarray:
-        """Global position of a named body point, (K, 3)."""
+        """Global position of a named body point (``ground`` allowed), (K, 3)."""
+        if body == GROUND:
+            return self._ground_point(point)
         return self.position(body) + self._arm(body, point)
 
     def point_velocity(self, body: str, point: str) -> np.ndarray:
         """Global velocity of a named body point: r' + omega x (A s'), (K, 3)."""
+        if body == GROUND:
+            return 0.0 * self._ground_point(point)
         return self.velocity(body) + np.cross(self.omega(body), self._arm(body, point))
 
     def point_acceleration(self, body: str, point: str) -> np.ndarray:
         """Global acceleration: r'' + omega' x (A s') + omega x (omega x A s'), (K, 3)."""
+        if body == GROUND:
+            return 0.0 * self._ground_point(point)
         arm = self._arm(body, point)
         w = self.omega(body)
         return self.acceleration(body) + np.cross(self.omega_dot(body), arm) + np.cross(w, np.cross(w, arm))

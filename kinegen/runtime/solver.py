@@ -11,8 +11,10 @@ tangent space and the quaternion is updated by the exponential map.
 
 from __future__ import annotations
 
+import dataclasses
 import gc
 from dataclasses import dataclass
+from pathlib import Path
 from typing import Any, NamedTuple
 
 import numpy as np
@@ -27,7 +29,7 @@ from kinegen.errors import (
 )
 from kinegen.runtime import linear
 from kinegen.runtime.results import Results
-from kinegen.runtime.system import NumericSystem
+from kinegen.runtime.system import NumericSystem, from_module, module_from_source
 
 
 class Solution(NamedTuple):
@@ -400,8 +402,11 @@ class Solver:
         k, n, nv = len(times), system.n_stored, system.n_velocity
         tabulated = inputs is not None
         if inputs is None:
-            inputs = system.driver_inputs(times)
+            inputs = system.checked_inputs(times)  # a ModelError before any step where a function leaves its domain
         u_all, ud_all, udd_all = (np.asarray(x, dtype=float).reshape(system.n_inputs, k) for x in inputs)
+        if tabulated and not all(np.isfinite(x).all() for x in (u_all, ud_all, udd_all)):
+            first = int(np.argmax(~np.isfinite(np.vstack((u_all, ud_all, udd_all))).all(axis=0)))
+            raise ValueError(f"tabulated driver inputs are not finite at t = {times[first]:.6g} (index {first})")
 
         def inputs_at(t: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             """Inputs at a refinement time between samples i-1 and i: the case's functions, or for
@@ -522,6 +527,20 @@ class Solver:
 def solve(system: NumericSystem, times: np.ndarray | None = None, options: SolverOptions | None = None) -> Results:
     """Convenience: ``Solver(system, options).solve(times)``."""
     return Solver(system, options).solve(times)
+
+
+def check_source(source: str, model_file: str | Path) -> list[str]:
+    """Check the source of a generated module built from ``model_file`` before it is
+    written: every case's time functions are finite on its time grid (else
+    :class:`ModelError`) and its initial pose satisfies Phi or can be assembled (else
+    :class:`AssemblyError`). Returns one report line per case."""
+    module = module_from_source(source, filename=f"<generated from {model_file}>")
+    reports = []
+    for case in module.CASES:
+        system = dataclasses.replace(from_module(module, case), source=str(model_file))
+        system.checked_inputs(np.linspace(system.t0, system.t1, system.steps))
+        reports.append(check_initial_pose(system))
+    return reports
 
 
 def check_initial_pose(system: NumericSystem, options: SolverOptions | None = None) -> str:

@@ -9,6 +9,7 @@ from __future__ import annotations
 import hashlib
 import importlib.util
 import sys
+import warnings
 from collections.abc import Callable
 from dataclasses import dataclass, field
 from functools import cached_property
@@ -19,7 +20,7 @@ from typing import Any
 import numpy as np
 
 from kinegen import rotations
-from kinegen.errors import GeneratedModuleError
+from kinegen.errors import GeneratedModuleError, ModelError, shown
 from kinegen.rotations import quaternion_algebra as qa
 from kinegen.runtime.linear import Pattern
 
@@ -58,6 +59,11 @@ class NumericSystem:
     gamma_s: Callable[..., list] | None = None
     #: optional compiled implementation of the same three (``kinegen.runtime.compiled.attach``)
     native: Any = None
+    #: the model file's name and, per driver, (entry, text) of its time function there
+    source: str = ""
+    driver_sources: tuple[tuple[str, str], ...] = ()
+    #: named points of the ground (global, fixed)
+    ground_points: dict[str, tuple[float, float, float]] = field(default_factory=dict)
 
     @property
     def n_stored(self) -> int:
@@ -76,6 +82,52 @@ class NumericSystem:
         rows = self.inputs(t)
         k = self.n_inputs
         return rows[:k], rows[k : 2 * k], rows[2 * k :]
+
+    def checked_inputs(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`driver_inputs` on a time grid, refused with a :class:`ModelError` where a
+        time function or one of its first two derivatives is not a finite real number
+        (``sqrt(t - 1)`` before t = 1, ``1/t`` at 0, ``exp(1000*t)``): the message names the
+        driver's entry in the model file, its expression and the first failing time."""
+        times = np.asarray(times, dtype=float)
+        with np.errstate(all="ignore"), warnings.catch_warnings():
+            warnings.simplefilter("ignore")
+            try:
+                rows = np.asarray(self.inputs(times), dtype=float).reshape(3 * self.n_inputs, -1)
+                bad = ~np.isfinite(rows)
+            except (ArithmeticError, ValueError, TypeError) as exc:  # a generated expression refusing a value
+                rows, bad = None, None
+                failure = f"{type(exc).__name__}: {exc}"
+        if bad is None or bad.any():
+            if bad is None:  # locate the failure point by point
+                column, row = self._first_failure(times)
+            else:
+                column = int(np.argmax(bad.any(axis=0)))
+                row = int(np.argmax(bad[:, column]))
+                failure = str(rows[row, column])  # nan, inf or -inf
+            order, driver = divmod(row, max(self.n_inputs, 1))
+            entry, text = self.driver_sources[driver] if driver < len(self.driver_sources) else (
+                f"driver {self.driver_names[driver]}", "")  # fmt: skip
+            what = ("its value", "its first time derivative", "its second time derivative")[order]
+            count = int(bad.any(axis=0).sum()) if bad is not None else None
+            raise ModelError(
+                self.source or self.model, entry,
+                f"{shown(text)}: {what} is not a finite real number at t = {times[column]:.6g} ({failure})"
+                + (f"; {count} of the {len(times)} time points fail" if count else "")
+                + " -- the function leaves its domain on this time grid",
+            )  # fmt: skip
+        k = self.n_inputs
+        return rows[:k], rows[k : 2 * k], rows[2 * k :]
+
+    def _first_failure(self, times: np.ndarray) -> tuple[int, int]:
+        """(time index, input row) of the first time point whose inputs cannot be evaluated or are not finite."""
+        for column, t in enumerate(times):
+            try:
+                values = np.asarray(self.inputs(np.array([t])), dtype=float).ravel()
+            except (ArithmeticError, ValueError, TypeError):
+                return column, 0
+            if not np.isfinite(values).all():
+                return column, int(np.argmax(~np.isfinite(values)))
+        return 0, 0
 
     def jacobian(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Dense Phi_q (constraints x velocity coordinates) at one configuration."""
@@ -173,7 +225,28 @@ def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSys
         phi_jac_s=data.get("phi_jac_s"),
         nu_s=data.get("nu_s"),
         gamma_s=data.get("gamma_s"),
+        source=getattr(module, "SOURCE", ""),
+        driver_sources=tuple(data.get("driver_sources", ())),
+        ground_points=dict(getattr(module, "GROUND_POINTS", {})),
     )
+
+
+def module_from_source(source: str, name: str = "kinegen_generated", filename: str = "<generated>") -> ModuleType:
+    """A generated module made from its source text without a file (e.g. to check a build
+    before it is written).
+
+    The source is compiled one top-level definition at a time: Python's compiler needs
+    ~50 bytes of memory per byte of source it compiles at once, so a 40 MB module of a
+    2,000-body chain would need 2 GB in one piece and needs a small part of it this way.
+    """
+    module = ModuleType(name)
+    module.__file__ = filename
+    line = 0
+    for index, chunk in enumerate(source.split("\n\n\ndef ")):
+        text = chunk if index == 0 else "def " + chunk
+        exec(compile("\n" * line + text, filename, "exec"), module.__dict__)  # generated by kinegen, not user text
+        line += chunk.count("\n") + 3
+    return module
 
 
 def load_module(path: str | Path, model_file: str | Path | None = None) -> ModuleType:

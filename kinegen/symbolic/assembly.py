@@ -24,11 +24,12 @@ from tabulated values (a controller, a sweep, another case's results) needs no r
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from functools import cached_property
 
 import sympy as sp
 
 from kinegen.constraints import GROUND_FRAME, Equation, Frame, driver_equation, joint_equations
-from kinegen.model.expressions import T
+from kinegen.model.expressions import T, time_derivative
 from kinegen.model.schema import GROUND, Case, Model
 from kinegen.rotations import Parametrization
 
@@ -88,10 +89,11 @@ class Coordinates:
         return [s for b in self.bodies for s in b.velocity]
 
     def body(self, name: str) -> BodyCoordinates:
-        for b in self.bodies:
-            if b.name == name:
-                return b
-        raise KeyError(name)
+        return self._by_name[name]
+
+    @cached_property
+    def _by_name(self) -> dict[str, BodyCoordinates]:
+        return {b.name: b for b in self.bodies}
 
     @property
     def rotation_definitions(self) -> dict[sp.Symbol, sp.Expr]:
@@ -99,23 +101,58 @@ class Coordinates:
         return {a: e for b in self.bodies for a, e in zip(b.rotation_symbols, b.rotation)}
 
 
-@dataclass(frozen=True)
 class Row:
-    """One constraint row with its derived quantities (Jacobian by velocity column)."""
+    """One constraint row with its derived quantities (Jacobian by velocity column).
 
-    name: str
-    phi: sp.Expr
-    jacobian: dict[int, sp.Expr]
-    nu: sp.Expr
-    gamma: sp.Expr
-    is_driver: bool = False
-    #: the joint, driver or body ("norm:<body>") the row belongs to
-    group: str = ""
-    #: derived through :class:`Templates`: the shape's key, the renaming generic -> real
-    #: symbol, and each real Jacobian column's (placeholder body, coordinate)
-    shape: tuple | None = None
-    rename: dict[sp.Symbol, sp.Symbol] = field(default_factory=dict)
-    columns: dict[int, tuple[int, int]] = field(default_factory=dict)
+    A row derived through :class:`Templates` holds its shape's key, the renaming generic ->
+    real symbol and each real Jacobian column's (placeholder body, coordinate); its own
+    Jacobian, nu and gamma are renamed from the shape's only when first asked for (code
+    generation prints the shape once and renames the printed text instead).
+    """
+
+    __slots__ = ("_gamma", "_jacobian", "_nu", "columns", "generic", "group", "is_driver", "name", "phi", "rename", "shape")
+
+    def __init__(
+        self,
+        name: str,
+        phi: sp.Expr,
+        jacobian: dict[int, sp.Expr] | None,
+        nu: sp.Expr | None,
+        gamma: sp.Expr | None,
+        is_driver: bool = False,
+        group: str = "",
+        shape: tuple | None = None,
+        rename: dict[sp.Symbol, sp.Symbol] | None = None,
+        columns: dict[int, tuple[int, int]] | None = None,
+        generic: Row | None = None,
+    ) -> None:
+        self.name, self.phi, self.is_driver = name, phi, is_driver
+        self.group = group  #: the joint, driver or body ("norm:<body>") the row belongs to
+        self.shape, self.rename, self.columns, self.generic = shape, rename or {}, columns or {}, generic
+        self._jacobian, self._nu, self._gamma = jacobian, nu, gamma
+
+    @property
+    def jacobian(self) -> dict[int, sp.Expr]:
+        if self._jacobian is None:
+            self._jacobian = {c: self.generic.jacobian[bk].xreplace(self.rename) for c, bk in self.columns.items()}
+        return self._jacobian
+
+    @property
+    def jacobian_columns(self) -> list[int]:
+        """The velocity columns of the row's non-zero Jacobian entries, ascending."""
+        return sorted(self.columns if self.generic is not None else self.jacobian)
+
+    @property
+    def nu(self) -> sp.Expr:
+        if self._nu is None:
+            self._nu = self.generic.nu.xreplace(self.rename)
+        return self._nu
+
+    @property
+    def gamma(self) -> sp.Expr:
+        if self._gamma is None:
+            self._gamma = self.generic.gamma.xreplace(self.rename)
+        return self._gamma
 
 
 @dataclass(frozen=True)
@@ -127,6 +164,18 @@ class DriverInputs:
     ud: tuple[sp.Symbol, ...]
     udd: tuple[sp.Symbol, ...]
     functions: tuple[sp.Expr, ...]  # f_k(t)
+    #: (entry, text) of each function in the model file, for messages
+    sources: tuple[tuple[str, str], ...] = ()
+
+    @cached_property
+    def index(self) -> dict[sp.Symbol, int]:
+        """Input symbol u_k -> k."""
+        return {u: k for k, u in enumerate(self.u)}
+
+    def stacked(self) -> list[sp.Expr]:
+        """The functions, then their first and then their second time derivatives (the rows of ``inputs(t)``)."""
+        rates = [time_derivative(f) for f in self.functions]
+        return [*self.functions, *rates, *(time_derivative(r) for r in rates)]
 
     def time_derivative(self, expr: sp.Expr) -> sp.Expr:
         """D(expr) with u_k = f_k(t): sum_k de/du_k ud_k + de/dud_k udd_k."""
@@ -154,6 +203,7 @@ def driver_inputs(case: Case) -> DriverInputs:
         ud=tuple(sp.Symbol(f"ud{k}", real=True) for k in range(n)),
         udd=tuple(sp.Symbol(f"udd{k}", real=True) for k in range(n)),
         functions=tuple(d.function for d in case.drivers),
+        sources=tuple((d.entry, d.text) for d in case.drivers),
     )
 
 
@@ -171,6 +221,11 @@ class System:
     @property
     def constraint_names(self) -> list[str]:
         return [r.name for r in self.rows]
+
+    @property
+    def jacobian_pattern(self) -> list[tuple[int, int]]:
+        """(row, column) of every non-zero of ``Phi_q``, row-major (without deriving the expressions)."""
+        return [(i, j) for i, r in enumerate(self.rows) for j in r.jacobian_columns]
 
     @property
     def jacobian_entries(self) -> list[tuple[int, int, sp.Expr]]:
@@ -200,8 +255,8 @@ def coordinates(model: Model, parametrization: Parametrization) -> Coordinates:
 
 def _body_coordinates(name: str, parametrization: Parametrization, s_off: int, v_off: int) -> BodyCoordinates:
     """A body's symbols, velocity map and rotation derivatives: those of a generic body, renamed."""
-    generic = _generic_body(parametrization)
-    names = {s: sp.Symbol(str(s).replace(_GENERIC, name, 1), real=True) for s in (*generic.stored, *generic.velocity, *generic.frame.A)}
+    generic = generic_body(parametrization)
+    names = {s: sp.Symbol(str(s).replace(GENERIC_NAME, name, 1), real=True) for s in (*generic.stored, *generic.velocity, *generic.frame.A)}
 
     def rename(m: sp.Matrix | None) -> sp.Matrix | None:
         return None if m is None else m.xreplace(names)
@@ -213,14 +268,14 @@ def _body_coordinates(name: str, parametrization: Parametrization, s_off: int, v
     )  # fmt: skip
 
 
-_GENERIC = "_generic"  # not a valid model name: "v__generic_x" -> "v_<body>_x"
+GENERIC_NAME = "_generic"  # not a valid model name: "v__generic_x" -> "v_<body>_x"
 _GENERIC_BODIES: dict[str, BodyCoordinates] = {}
 
 
-def _generic_body(parametrization: Parametrization) -> BodyCoordinates:
+def generic_body(parametrization: Parametrization) -> BodyCoordinates:
     """The coordinates of a body named ``_generic`` (derived once per parametrization)."""
     if parametrization.name not in _GENERIC_BODIES:
-        name = _GENERIC
+        name = GENERIC_NAME
         stored = tuple(sp.Symbol(f"{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.stored_names))
         velocity = tuple(sp.Symbol(f"v_{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
         o = sp.Matrix(stored[3:])
@@ -272,7 +327,7 @@ class Templates:
                 forward.update(zip(real, generic))
         generic_inputs = None
         if inputs is not None:
-            used = [k for k, u in enumerate(inputs.u) if u in equation.expr.free_symbols]
+            used = sorted(inputs.index[s] for s in equation.expr.free_symbols if s in inputs.index)
             generic_inputs = _generic_inputs(len(used))
             for g, k in enumerate(used):
                 forward[inputs.u[k]] = generic_inputs.u[g]
@@ -288,12 +343,8 @@ class Templates:
             row = Row("", row.phi, {divmod(c, size): e for c, e in row.jacobian.items()}, row.nu, row.gamma, is_driver)
             self._rows[key] = row
         backward = {g: r for r, g in forward.items()}
-        jacobian = {touched[b].velocity_offset + k: e.xreplace(backward) for (b, k), e in row.jacobian.items()}
         columns = {touched[b].velocity_offset + k: (b, k) for (b, k) in row.jacobian}
-        return Row(
-            equation.name, equation.expr, jacobian, row.nu.xreplace(backward), row.gamma.xreplace(backward), is_driver,
-            group, key, backward, columns,
-        )  # fmt: skip
+        return Row(equation.name, equation.expr, None, None, None, is_driver, group, key, backward, columns, row)
 
     def generic(self, key: tuple) -> Row:
         """The row of a shape in placeholder symbols (Jacobian keyed by (placeholder body, coordinate))."""
