@@ -23,7 +23,7 @@ PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('boom.x', 'boom.y', 'boom.z', 'boom.e0', 'boom.e1', 'boom.e2', 'boom.e3')
 VELOCITY_NAMES = ('boom.x', 'boom.y', 'boom.z', 'boom.e0', 'boom.e1', 'boom.e2', 'boom.e3')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 7 velocity coordinates
 BODIES = {'boom': (0, 0)}
 # named points in body coordinates
 POINTS = {
@@ -34,6 +34,14 @@ GROUND_POINTS = {'O': (0.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 1.78, 0.0, 0.7071067811865475, 0.0, 0.0, 0.7071067811865475)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -151,6 +159,54 @@ def _joints_gamma_s(q, v):
     c2 = 4.0*v_boom_e2
     c3 = 4.0*v_boom_e1
     return [-178/25*(v_boom_e0*v_boom_e0) - 178/25*(v_boom_e1*v_boom_e1), -c0*v_boom_e0 - c1*v_boom_e1, -c0*v_boom_e1 + c1*v_boom_e0, c2*v_boom_e0 - c3*v_boom_e3, -c2*v_boom_e3 - c3*v_boom_e0, -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
+    v_boom_x, v_boom_y, v_boom_z, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
+    dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_e0, dv_boom_e1, dv_boom_e2, dv_boom_e3 = a
+    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a01 = -2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
+    boom_a02 = 2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
+    boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
+    boom_a11 = 2*boom_e0**2 + 2*boom_e2**2 - 1
+    boom_a12 = -2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
+    boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
+    boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
+    boom_a22 = 2*boom_e0**2 + 2*boom_e3**2 - 1
+    c0 = 2*v_boom_e1
+    c1 = 2*boom_e1
+    c2 = 2*boom_e2
+    c3 = 2*v_boom_e2
+    c4 = 2*boom_e0
+    c5 = 2*boom_e3
+    out = _zeros(24, q, ())
+    out[0] = boom_x
+    out[1] = boom_y
+    out[2] = boom_z
+    out[3] = boom_a00
+    out[4] = boom_a01
+    out[5] = boom_a02
+    out[6] = boom_a10
+    out[7] = boom_a11
+    out[8] = boom_a12
+    out[9] = boom_a20
+    out[10] = boom_a21
+    out[11] = boom_a22
+    out[12] = v_boom_x
+    out[13] = v_boom_y
+    out[14] = v_boom_z
+    out[15] = boom_e0*c0 - boom_e3*c3 - c1*v_boom_e0 + c2*v_boom_e3
+    out[16] = boom_e0*c3 + boom_e3*c0 - c1*v_boom_e3 - c2*v_boom_e0
+    out[17] = -boom_e2*c0 + c1*v_boom_e2 + c4*v_boom_e3 - c5*v_boom_e0
+    out[18] = dv_boom_x
+    out[19] = dv_boom_y
+    out[20] = dv_boom_z
+    out[21] = -c1*dv_boom_e0 + c2*dv_boom_e3 + c4*dv_boom_e1 - c5*dv_boom_e2
+    out[22] = -c1*dv_boom_e3 - c2*dv_boom_e0 + c4*dv_boom_e2 + c5*dv_boom_e1
+    out[23] = c1*dv_boom_e2 - c2*dv_boom_e1 + c4*dv_boom_e3 - c5*dv_boom_e0
+    return out
 
 
 def inputs_swing(t):

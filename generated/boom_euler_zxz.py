@@ -23,7 +23,7 @@ PARAMETRIZATION = 'euler:zxz'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('boom.x', 'boom.y', 'boom.z', 'boom.alpha', 'boom.beta', 'boom.gamma')
 VELOCITY_NAMES = ('boom.x', 'boom.y', 'boom.z', 'boom.alpha', 'boom.beta', 'boom.gamma')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 6 stored and 6 velocity coordinates
 BODIES = {'boom': (0, 0)}
 # named points in body coordinates
 POINTS = {
@@ -34,6 +34,14 @@ GROUND_POINTS = {'O': (0.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 1.78, 0.0, 1.5707963267948966, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -193,6 +201,56 @@ def _joints_gamma_s(q, v):
     c23 = c0*c10
     c24 = c2*c6
     return [-v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha), -v_boom_alpha*(c0*c8*v_boom_beta + c19*v_boom_alpha + c20*v_boom_gamma) - v_boom_beta*((89/50)*c0*c2*c7*v_boom_alpha - c17*v_boom_beta - c18*v_boom_gamma) - v_boom_gamma*(-c18*v_boom_beta + c19*v_boom_gamma + c20*v_boom_alpha), -v_boom_beta*((89/50)*c10*c6*v_boom_gamma - c21*v_boom_beta) - v_boom_gamma*(c11*c6*v_boom_beta - c21*v_boom_gamma), -v_boom_beta*(c10*c6*v_boom_gamma - c22*v_boom_beta) - v_boom_gamma*(c10*c6*v_boom_beta - c22*v_boom_gamma), -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
+    v_boom_x, v_boom_y, v_boom_z, v_boom_alpha, v_boom_beta, v_boom_gamma = v
+    dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_alpha, dv_boom_beta, dv_boom_gamma = a
+    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
+    boom_a01 = -sin(boom_alpha)*cos(boom_beta)*cos(boom_gamma) - sin(boom_gamma)*cos(boom_alpha)
+    boom_a02 = sin(boom_alpha)*sin(boom_beta)
+    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a11 = -sin(boom_alpha)*sin(boom_gamma) + cos(boom_alpha)*cos(boom_beta)*cos(boom_gamma)
+    boom_a12 = -sin(boom_beta)*cos(boom_alpha)
+    boom_a20 = sin(boom_beta)*sin(boom_gamma)
+    boom_a21 = sin(boom_beta)*cos(boom_gamma)
+    boom_a22 = cos(boom_beta)
+    c0 = cos(boom_alpha)
+    c1 = c0*v_boom_beta
+    c2 = sin(boom_alpha)
+    c3 = sin(boom_beta)
+    c4 = c3*v_boom_gamma
+    c5 = c2*v_boom_beta
+    c6 = c3*dv_boom_gamma
+    c7 = c3*v_boom_beta
+    out = _zeros(24, q, ())
+    out[0] = boom_x
+    out[1] = boom_y
+    out[2] = boom_z
+    out[3] = boom_a00
+    out[4] = boom_a01
+    out[5] = boom_a02
+    out[6] = boom_a10
+    out[7] = boom_a11
+    out[8] = boom_a12
+    out[9] = boom_a20
+    out[10] = boom_a21
+    out[11] = boom_a22
+    out[12] = v_boom_x
+    out[13] = v_boom_y
+    out[14] = v_boom_z
+    out[15] = c1 + c2*c4
+    out[16] = -c0*c4 + c5
+    out[17] = boom_a22*v_boom_gamma + v_boom_alpha
+    out[18] = dv_boom_x
+    out[19] = dv_boom_y
+    out[20] = dv_boom_z
+    out[21] = c0*dv_boom_beta + c2*c6 - c5*v_boom_alpha + v_boom_gamma*(boom_a22*c5 + c0*c3*v_boom_alpha)
+    out[22] = -c0*c6 + c1*v_boom_alpha + c2*dv_boom_beta + v_boom_gamma*(-boom_a22*c1 + c2*c3*v_boom_alpha)
+    out[23] = boom_a22*dv_boom_gamma + dv_boom_alpha + v_boom_gamma*(-c0**2*c7 - c2**2*c7)
+    return out
 
 
 def inputs_swing(t):

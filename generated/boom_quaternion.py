@@ -23,7 +23,7 @@ PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('boom.x', 'boom.y', 'boom.z', 'boom.qw', 'boom.qx', 'boom.qy', 'boom.qz')
 VELOCITY_NAMES = ('boom.x', 'boom.y', 'boom.z', 'boom.theta_x', 'boom.theta_y', 'boom.theta_z')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 6 velocity coordinates
 BODIES = {'boom': (0, 0)}
 # named points in body coordinates
 POINTS = {
@@ -34,6 +34,14 @@ GROUND_POINTS = {'O': (0.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 1.78, 0.0, 0.7071067811865475, 0.0, 0.0, 0.7071067811865475)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -148,6 +156,48 @@ def _joints_gamma_s(q, v):
     c2 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
     c3 = c1*v_boom_theta_x
     return [-c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z, c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z, (89/50)*c2*v_boom_theta_y - 89/50*c3, c2*v_boom_theta_y - c3, -v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) + v_boom_theta_y*(-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
+    v_boom_x, v_boom_y, v_boom_z, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
+    dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_theta_x, dv_boom_theta_y, dv_boom_theta_z = a
+    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a22 = 2*boom_qw**2 + 2*boom_qz**2 - 1
+    out = _zeros(24, q, ())
+    out[0] = boom_x
+    out[1] = boom_y
+    out[2] = boom_z
+    out[3] = boom_a00
+    out[4] = boom_a01
+    out[5] = boom_a02
+    out[6] = boom_a10
+    out[7] = boom_a11
+    out[8] = boom_a12
+    out[9] = boom_a20
+    out[10] = boom_a21
+    out[11] = boom_a22
+    out[12] = v_boom_x
+    out[13] = v_boom_y
+    out[14] = v_boom_z
+    out[15] = v_boom_theta_x
+    out[16] = v_boom_theta_y
+    out[17] = v_boom_theta_z
+    out[18] = dv_boom_x
+    out[19] = dv_boom_y
+    out[20] = dv_boom_z
+    out[21] = dv_boom_theta_x
+    out[22] = dv_boom_theta_y
+    out[23] = dv_boom_theta_z
+    return out
 
 
 def inputs_swing(t):

@@ -23,7 +23,7 @@ PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.e0', 'crank.e1', 'crank.e2', 'crank.e3', 'coupler.x', 'coupler.y', 'coupler.z', 'coupler.e0', 'coupler.e1', 'coupler.e2', 'coupler.e3', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.e0', 'rocker.e1', 'rocker.e2', 'rocker.e3')
 VELOCITY_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.e0', 'crank.e1', 'crank.e2', 'crank.e3', 'coupler.x', 'coupler.y', 'coupler.z', 'coupler.e0', 'coupler.e1', 'coupler.e2', 'coupler.e3', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.e0', 'rocker.e1', 'rocker.e2', 'rocker.e3')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 7 velocity coordinates
 BODIES = {'crank': (0, 0), 'coupler': (7, 7), 'rocker': (14, 14)}
 # named points in body coordinates
 POINTS = {
@@ -36,6 +36,14 @@ GROUND_POINTS = {'A': (0.0, 0.0, 0.0), 'D': (1.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9689124217106447, 0.0, 0.0, 0.2474039592545229, 0.263275, 0.143828, 0.0, 0.9451759002226809, 0.0, 0.0, 0.32656165977996365, 1.0, 0.0, 0.0, 0.6924690606038826, 0.0, 0.0, 0.7214475726664942)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -344,6 +352,132 @@ def _joints_gamma_s(q, v):
     c16 = 4.0*v_rocker_e2
     c17 = 4.0*v_rocker_e1
     return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*(v_crank_e0*v_crank_e0) - 6/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -18/5*(v_coupler_e0*v_coupler_e0) - 18/5*(v_coupler_e1*v_coupler_e1) + (14/5)*(v_rocker_e0*v_rocker_e0) + (14/5)*(v_rocker_e1*v_rocker_e1), -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, -c4*v_coupler_e1 + c5*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2.0*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2.0*(2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3), 0.0, 0.0, 0.0, c16*v_rocker_e0 - c17*v_rocker_e3, -c16*v_rocker_e3 - c17*v_rocker_e0, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_coupler_e0*v_coupler_e0) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e3*v_coupler_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_coupler_x, v_coupler_y, v_coupler_z, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
+    dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_e0, dv_crank_e1, dv_crank_e2, dv_crank_e3, dv_coupler_x, dv_coupler_y, dv_coupler_z, dv_coupler_e0, dv_coupler_e1, dv_coupler_e2, dv_coupler_e3, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_e0, dv_rocker_e1, dv_rocker_e2, dv_rocker_e3 = a
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a01 = -2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a02 = 2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a11 = 2*crank_e0**2 + 2*crank_e2**2 - 1
+    crank_a12 = -2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    crank_a22 = 2*crank_e0**2 + 2*crank_e3**2 - 1
+    coupler_a00 = 2*coupler_e0**2 + 2*coupler_e1**2 - 1
+    coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
+    coupler_a02 = 2*coupler_e0*coupler_e2 + 2*coupler_e1*coupler_e3
+    coupler_a10 = 2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
+    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
+    coupler_a12 = -2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
+    coupler_a20 = -2*coupler_e0*coupler_e2 + 2*coupler_e1*coupler_e3
+    coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
+    coupler_a22 = 2*coupler_e0**2 + 2*coupler_e3**2 - 1
+    rocker_a00 = 2*rocker_e0**2 + 2*rocker_e1**2 - 1
+    rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
+    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a10 = 2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
+    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    c0 = 2*v_crank_e1
+    c1 = 2*crank_e1
+    c2 = 2*crank_e2
+    c3 = 2*v_crank_e2
+    c4 = 2*crank_e0
+    c5 = 2*crank_e3
+    c6 = 2*v_coupler_e1
+    c7 = 2*coupler_e1
+    c8 = 2*coupler_e2
+    c9 = 2*v_coupler_e2
+    c10 = 2*coupler_e0
+    c11 = 2*coupler_e3
+    c12 = 2*v_rocker_e1
+    c13 = 2*rocker_e1
+    c14 = 2*rocker_e2
+    c15 = 2*v_rocker_e2
+    c16 = 2*rocker_e0
+    c17 = 2*rocker_e3
+    out = _zeros(72, q, ())
+    out[0] = crank_x
+    out[1] = crank_y
+    out[2] = crank_z
+    out[3] = crank_a00
+    out[4] = crank_a01
+    out[5] = crank_a02
+    out[6] = crank_a10
+    out[7] = crank_a11
+    out[8] = crank_a12
+    out[9] = crank_a20
+    out[10] = crank_a21
+    out[11] = crank_a22
+    out[12] = v_crank_x
+    out[13] = v_crank_y
+    out[14] = v_crank_z
+    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3
+    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0
+    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0
+    out[18] = dv_crank_x
+    out[19] = dv_crank_y
+    out[20] = dv_crank_z
+    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2
+    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1
+    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0
+    out[24] = coupler_x
+    out[25] = coupler_y
+    out[26] = coupler_z
+    out[27] = coupler_a00
+    out[28] = coupler_a01
+    out[29] = coupler_a02
+    out[30] = coupler_a10
+    out[31] = coupler_a11
+    out[32] = coupler_a12
+    out[33] = coupler_a20
+    out[34] = coupler_a21
+    out[35] = coupler_a22
+    out[36] = v_coupler_x
+    out[37] = v_coupler_y
+    out[38] = v_coupler_z
+    out[39] = coupler_e0*c6 - coupler_e3*c9 - c7*v_coupler_e0 + c8*v_coupler_e3
+    out[40] = coupler_e0*c9 + coupler_e3*c6 - c7*v_coupler_e3 - c8*v_coupler_e0
+    out[41] = -coupler_e2*c6 + c7*v_coupler_e2 + c10*v_coupler_e3 - c11*v_coupler_e0
+    out[42] = dv_coupler_x
+    out[43] = dv_coupler_y
+    out[44] = dv_coupler_z
+    out[45] = -c7*dv_coupler_e0 + c8*dv_coupler_e3 + c10*dv_coupler_e1 - c11*dv_coupler_e2
+    out[46] = -c7*dv_coupler_e3 - c8*dv_coupler_e0 + c10*dv_coupler_e2 + c11*dv_coupler_e1
+    out[47] = c7*dv_coupler_e2 - c8*dv_coupler_e1 + c10*dv_coupler_e3 - c11*dv_coupler_e0
+    out[48] = rocker_x
+    out[49] = rocker_y
+    out[50] = rocker_z
+    out[51] = rocker_a00
+    out[52] = rocker_a01
+    out[53] = rocker_a02
+    out[54] = rocker_a10
+    out[55] = rocker_a11
+    out[56] = rocker_a12
+    out[57] = rocker_a20
+    out[58] = rocker_a21
+    out[59] = rocker_a22
+    out[60] = v_rocker_x
+    out[61] = v_rocker_y
+    out[62] = v_rocker_z
+    out[63] = rocker_e0*c12 - rocker_e3*c15 - c13*v_rocker_e0 + c14*v_rocker_e3
+    out[64] = rocker_e0*c15 + rocker_e3*c12 - c13*v_rocker_e3 - c14*v_rocker_e0
+    out[65] = -rocker_e2*c12 + c13*v_rocker_e2 + c16*v_rocker_e3 - c17*v_rocker_e0
+    out[66] = dv_rocker_x
+    out[67] = dv_rocker_y
+    out[68] = dv_rocker_z
+    out[69] = -c13*dv_rocker_e0 + c14*dv_rocker_e3 + c16*dv_rocker_e1 - c17*dv_rocker_e2
+    out[70] = -c13*dv_rocker_e3 - c14*dv_rocker_e0 + c16*dv_rocker_e2 + c17*dv_rocker_e1
+    out[71] = c13*dv_rocker_e2 - c14*dv_rocker_e1 + c16*dv_rocker_e3 - c17*dv_rocker_e0
+    return out
 
 
 def inputs_crank_turn(t):

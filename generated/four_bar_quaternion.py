@@ -23,7 +23,7 @@ PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.qw', 'crank.qx', 'crank.qy', 'crank.qz', 'coupler.x', 'coupler.y', 'coupler.z', 'coupler.qw', 'coupler.qx', 'coupler.qy', 'coupler.qz', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.qw', 'rocker.qx', 'rocker.qy', 'rocker.qz')
 VELOCITY_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.theta_x', 'crank.theta_y', 'crank.theta_z', 'coupler.x', 'coupler.y', 'coupler.z', 'coupler.theta_x', 'coupler.theta_y', 'coupler.theta_z', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.theta_x', 'rocker.theta_y', 'rocker.theta_z')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 6 velocity coordinates
 BODIES = {'crank': (0, 0), 'coupler': (7, 6), 'rocker': (14, 12)}
 # named points in body coordinates
 POINTS = {
@@ -36,6 +36,14 @@ GROUND_POINTS = {'A': (0.0, 0.0, 0.0), 'D': (1.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9689124217106447, 0.0, 0.0, 0.2474039592545229, 0.263275, 0.143828, 0.0, 0.9451759002226809, 0.0, 0.0, 0.32656165977996365, 1.0, 0.0, 0.0, 0.6924690606038826, 0.0, 0.0, 0.7214475726664942)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -319,6 +327,114 @@ def _joints_gamma_s(q, v):
     c14 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
     c15 = rocker_a12*v_rocker_theta_z
     return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z, c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z, -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y, -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7, c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z, -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y, c14*(rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y - c15) + c10*(rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x - c11) - c12*(-rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x - c13) - (rocker_a02*v_rocker_theta_z - c13)*(-coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x + c12) - (rocker_a12*v_rocker_theta_x - c11)*(coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x - c10) - (rocker_a22*v_rocker_theta_y - c15)*(coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y - c14), 0.0, 0.0, 0.0, -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y), -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_coupler_x, v_coupler_y, v_coupler_z, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
+    dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_theta_x, dv_crank_theta_y, dv_crank_theta_z, dv_coupler_x, dv_coupler_y, dv_coupler_z, dv_coupler_theta_x, dv_coupler_theta_y, dv_coupler_theta_z, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_theta_x, dv_rocker_theta_y, dv_rocker_theta_z = a
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a02 = 2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a12 = -2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    crank_a22 = 2*crank_qw**2 + 2*crank_qz**2 - 1
+    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
+    coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
+    coupler_a02 = 2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
+    coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
+    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
+    coupler_a12 = -2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
+    coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
+    coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
+    coupler_a22 = 2*coupler_qw**2 + 2*coupler_qz**2 - 1
+    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    out = _zeros(72, q, ())
+    out[0] = crank_x
+    out[1] = crank_y
+    out[2] = crank_z
+    out[3] = crank_a00
+    out[4] = crank_a01
+    out[5] = crank_a02
+    out[6] = crank_a10
+    out[7] = crank_a11
+    out[8] = crank_a12
+    out[9] = crank_a20
+    out[10] = crank_a21
+    out[11] = crank_a22
+    out[12] = v_crank_x
+    out[13] = v_crank_y
+    out[14] = v_crank_z
+    out[15] = v_crank_theta_x
+    out[16] = v_crank_theta_y
+    out[17] = v_crank_theta_z
+    out[18] = dv_crank_x
+    out[19] = dv_crank_y
+    out[20] = dv_crank_z
+    out[21] = dv_crank_theta_x
+    out[22] = dv_crank_theta_y
+    out[23] = dv_crank_theta_z
+    out[24] = coupler_x
+    out[25] = coupler_y
+    out[26] = coupler_z
+    out[27] = coupler_a00
+    out[28] = coupler_a01
+    out[29] = coupler_a02
+    out[30] = coupler_a10
+    out[31] = coupler_a11
+    out[32] = coupler_a12
+    out[33] = coupler_a20
+    out[34] = coupler_a21
+    out[35] = coupler_a22
+    out[36] = v_coupler_x
+    out[37] = v_coupler_y
+    out[38] = v_coupler_z
+    out[39] = v_coupler_theta_x
+    out[40] = v_coupler_theta_y
+    out[41] = v_coupler_theta_z
+    out[42] = dv_coupler_x
+    out[43] = dv_coupler_y
+    out[44] = dv_coupler_z
+    out[45] = dv_coupler_theta_x
+    out[46] = dv_coupler_theta_y
+    out[47] = dv_coupler_theta_z
+    out[48] = rocker_x
+    out[49] = rocker_y
+    out[50] = rocker_z
+    out[51] = rocker_a00
+    out[52] = rocker_a01
+    out[53] = rocker_a02
+    out[54] = rocker_a10
+    out[55] = rocker_a11
+    out[56] = rocker_a12
+    out[57] = rocker_a20
+    out[58] = rocker_a21
+    out[59] = rocker_a22
+    out[60] = v_rocker_x
+    out[61] = v_rocker_y
+    out[62] = v_rocker_z
+    out[63] = v_rocker_theta_x
+    out[64] = v_rocker_theta_y
+    out[65] = v_rocker_theta_z
+    out[66] = dv_rocker_x
+    out[67] = dv_rocker_y
+    out[68] = dv_rocker_z
+    out[69] = dv_rocker_theta_x
+    out[70] = dv_rocker_theta_y
+    out[71] = dv_rocker_theta_z
+    return out
 
 
 def inputs_crank_turn(t):

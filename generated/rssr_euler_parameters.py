@@ -23,7 +23,7 @@ PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.e0', 'crank.e1', 'crank.e2', 'crank.e3', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.e0', 'rocker.e1', 'rocker.e2', 'rocker.e3')
 VELOCITY_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.e0', 'crank.e1', 'crank.e2', 'crank.e3', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.e0', 'rocker.e1', 'rocker.e2', 'rocker.e3')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 7 velocity coordinates
 BODIES = {'crank': (0, 0), 'rocker': (7, 7)}
 # named points in body coordinates
 POINTS = {
@@ -35,6 +35,14 @@ GROUND_POINTS = {'A': (0.0, 0.0, 0.0), 'D': (0.1, 0.35, 0.3)}
 INITIAL_Q = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1, 0.35, 0.3, 1.0, 0.0, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -436,6 +444,93 @@ def _joints_gamma_s(q, v):
     c88 = (1.63050672)*crank_z
     c89 = (0.358934205617952)*rocker_a21
     return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(c5*v_crank_e2 + c6*v_crank_e3 + c42*v_crank_e0) - v_crank_e1*(c4*v_crank_e3 + c6*v_crank_e2 + c42*v_crank_e1) - v_crank_e2*(c5*v_crank_e0 + c6*v_crank_e1) - v_crank_e3*(c4*v_crank_e1 + c6*v_crank_e0) - v_crank_x*(c32 - c33 + c35 + c37 - c38*v_rocker_e0 + c39*v_rocker_e1 - c40*v_rocker_e2 - c41*v_rocker_e3) - v_crank_y*(c17 + c8*v_rocker_e0 + c10*v_rocker_e2) - v_crank_z*(c18 - c19 - c20 + c21 - c22 + c23 + c25 + c27 - c29*v_rocker_e0 + c31*v_rocker_e3) - v_rocker_e0*(c79*v_rocker_e2 + c83*v_rocker_e1 + c86*v_rocker_e3 + v_rocker_e0*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z + c84 - c87 - c88 - c89)) - v_rocker_e1*(c78*v_rocker_e2 + c79*v_rocker_e3 + c83*v_rocker_e0) - v_rocker_e2*(c78*v_rocker_e1 + c79*v_rocker_e0 + c84*v_rocker_e2 + c85*v_rocker_e3) - v_rocker_e3*(c79*v_rocker_e1 + c85*v_rocker_e2 + c86*v_rocker_e0 + v_rocker_e3*((0.3323190204956448)*rocker_a22 + (1.63050672)*rocker_z - c87 - c88 - c89)) - v_rocker_x*(-c32 + c33 - c35 - c37 + c38*v_rocker_e0 - c39*v_rocker_e1 + c40*v_rocker_e2 + c41*v_rocker_e3) - v_rocker_y*(-c17 - c8*v_rocker_e0 - c10*v_rocker_e2) - v_rocker_z*(-c18 + c19 + c20 - c21 + c22 - c23 - c25 - c27 + c29*v_rocker_e0 - c31*v_rocker_e3) - (4.0*c34 + 4.0*c36)*((9/50)*c34 + (9/50)*c36 + (3/10)*v_crank_x + v_rocker_e0*(-c59 - c60) + v_rocker_e1*(c61 + c62) + v_rocker_e2*(-c63 - c64) + v_rocker_e3*(-c65 - c66) - 3/10*v_rocker_x) - (4.0*rocker_e2*v_rocker_e2 + c43)*((0.13208196)*c44 + (0.13208196)*c45 + (0.13208196)*c46 + (0.13208196)*c47 + c49 - c50*v_rocker_e3 + (0.4402732)*v_crank_y + v_rocker_e0*((0.38768098127648)*rocker_e0 + c51) + v_rocker_e2*((0.38768098127648)*rocker_e2 + c53) - 0.4402732*v_rocker_y) - (4.0*rocker_e3*v_rocker_e3 + c43)*(-c49 - c52*v_rocker_e2 + (0.122288004)*c54 - 0.122288004*c55 + (0.122288004)*c56 - 0.122288004*c57 - 0.40762668*v_crank_z + v_rocker_e0*((0.3323190204956448)*rocker_e0 + c58) + v_rocker_e3*((0.3323190204956448)*rocker_e3 - c50) + (0.40762668)*v_rocker_z) - (2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 - c69)*((0.1661595102478224)*rocker_e2*v_rocker_e3 - 0.122288004*c44 - 0.122288004*c45 - 0.122288004*c46 - 0.122288004*c47 - c70*v_rocker_e1 - 0.40762668*v_crank_y + v_rocker_e0*(-c71 - c72) + v_rocker_e2*(-0.358934205617952*rocker_e2 - c73) + (0.40762668)*v_rocker_y) - (2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 + c69)*(-0.13208196*c54 + (0.13208196)*c55 - 0.13208196*c56 + (0.13208196)*c57 + c74*v_rocker_e1 + c75*v_rocker_e2 + (0.4402732)*v_crank_z + v_rocker_e0*(-c71 - c76) + v_rocker_e3*(-0.358934205617952*rocker_e3 + c77) - 0.4402732*v_rocker_z) - (2.0*c44 + 2.0*c45 + 2.0*c46 + 2.0*c47)*((9/100)*c44 + (9/100)*c45 + (9/100)*c46 + (9/100)*c47 - c59*v_rocker_e3 + c63*v_rocker_e1 + (3/10)*v_crank_y + v_rocker_e0*((0.26416392)*rocker_e0 + c66) + v_rocker_e2*((0.26416392)*rocker_e2 + c62) - 3/10*v_rocker_y) - (2.0*crank_e1*v_crank_e3 + 2.0*crank_e3*v_crank_e1 - 2.0*c54 - 2.0*c56)*(-9/100*c54 + (9/100)*c55 - 9/100*c56 + (9/100)*c57 + c60*v_rocker_e2 + c65*v_rocker_e1 + (3/10)*v_crank_z + v_rocker_e0*(-0.244576008*rocker_e0 - c64) + v_rocker_e3*(-0.244576008*rocker_e3 + c61) - 3/10*v_rocker_z) - (2.0*rocker_e1*v_rocker_e2 + 2.0*rocker_e2*v_rocker_e1 - rocker_e3*c68 - c67*v_rocker_e3)*((0.26416392)*c34 + (0.26416392)*c36 + (0.4402732)*v_crank_x + v_rocker_e0*(-c50 - c75) + v_rocker_e1*(c53 + c77) + v_rocker_e2*(-c48 - c76) + v_rocker_e3*(-c51 - c74) - 0.4402732*v_rocker_x) - (2.0*rocker_e1*v_rocker_e3 + rocker_e2*c68 + 2.0*rocker_e3*v_rocker_e1 + c67*v_rocker_e2)*(-0.244576008*c34 - 0.244576008*c36 - 0.40762668*v_crank_x + v_rocker_e0*((0.1661595102478224)*rocker_e2 + c52) + v_rocker_e1*(-c50 - c73) + v_rocker_e2*(c58 + c70) + v_rocker_e3*(c48 + c72) + (0.40762668)*v_rocker_x), -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
+    dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_e0, dv_crank_e1, dv_crank_e2, dv_crank_e3, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_e0, dv_rocker_e1, dv_rocker_e2, dv_rocker_e3 = a
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a01 = -2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a02 = 2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a11 = 2*crank_e0**2 + 2*crank_e2**2 - 1
+    crank_a12 = -2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    crank_a22 = 2*crank_e0**2 + 2*crank_e3**2 - 1
+    rocker_a00 = 2*rocker_e0**2 + 2*rocker_e1**2 - 1
+    rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
+    rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a10 = 2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
+    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
+    rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
+    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    c0 = 2*v_crank_e1
+    c1 = 2*crank_e1
+    c2 = 2*crank_e2
+    c3 = 2*v_crank_e2
+    c4 = 2*crank_e0
+    c5 = 2*crank_e3
+    c6 = 2*v_rocker_e1
+    c7 = 2*rocker_e1
+    c8 = 2*rocker_e2
+    c9 = 2*v_rocker_e2
+    c10 = 2*rocker_e0
+    c11 = 2*rocker_e3
+    out = _zeros(48, q, ())
+    out[0] = crank_x
+    out[1] = crank_y
+    out[2] = crank_z
+    out[3] = crank_a00
+    out[4] = crank_a01
+    out[5] = crank_a02
+    out[6] = crank_a10
+    out[7] = crank_a11
+    out[8] = crank_a12
+    out[9] = crank_a20
+    out[10] = crank_a21
+    out[11] = crank_a22
+    out[12] = v_crank_x
+    out[13] = v_crank_y
+    out[14] = v_crank_z
+    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3
+    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0
+    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0
+    out[18] = dv_crank_x
+    out[19] = dv_crank_y
+    out[20] = dv_crank_z
+    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2
+    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1
+    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0
+    out[24] = rocker_x
+    out[25] = rocker_y
+    out[26] = rocker_z
+    out[27] = rocker_a00
+    out[28] = rocker_a01
+    out[29] = rocker_a02
+    out[30] = rocker_a10
+    out[31] = rocker_a11
+    out[32] = rocker_a12
+    out[33] = rocker_a20
+    out[34] = rocker_a21
+    out[35] = rocker_a22
+    out[36] = v_rocker_x
+    out[37] = v_rocker_y
+    out[38] = v_rocker_z
+    out[39] = rocker_e0*c6 - rocker_e3*c9 - c7*v_rocker_e0 + c8*v_rocker_e3
+    out[40] = rocker_e0*c9 + rocker_e3*c6 - c7*v_rocker_e3 - c8*v_rocker_e0
+    out[41] = -rocker_e2*c6 + c7*v_rocker_e2 + c10*v_rocker_e3 - c11*v_rocker_e0
+    out[42] = dv_rocker_x
+    out[43] = dv_rocker_y
+    out[44] = dv_rocker_z
+    out[45] = -c7*dv_rocker_e0 + c8*dv_rocker_e3 + c10*dv_rocker_e1 - c11*dv_rocker_e2
+    out[46] = -c7*dv_rocker_e3 - c8*dv_rocker_e0 + c10*dv_rocker_e2 + c11*dv_rocker_e1
+    out[47] = c7*dv_rocker_e2 - c8*dv_rocker_e1 + c10*dv_rocker_e3 - c11*dv_rocker_e0
+    return out
 
 
 def inputs_turn(t):

@@ -23,7 +23,7 @@ PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.qw', 'crank.qx', 'crank.qy', 'crank.qz', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.qw', 'rocker.qx', 'rocker.qy', 'rocker.qz')
 VELOCITY_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.theta_x', 'crank.theta_y', 'crank.theta_z', 'rocker.x', 'rocker.y', 'rocker.z', 'rocker.theta_x', 'rocker.theta_y', 'rocker.theta_z')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 6 velocity coordinates
 BODIES = {'crank': (0, 0), 'rocker': (7, 6)}
 # named points in body coordinates
 POINTS = {
@@ -35,6 +35,14 @@ GROUND_POINTS = {'A': (0.0, 0.0, 0.0), 'D': (0.1, 0.35, 0.3)}
 INITIAL_Q = (0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1, 0.35, 0.3, 1.0, 0.0, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -280,6 +288,81 @@ def _joints_gamma_s(q, v):
     c34 = (0.06604098)*rocker_a21 - 0.061144002*rocker_a22
     c35 = (3/10)*crank_z - 3/10*rocker_z + c34
     return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), 0.0, 0.0, 0.0, -v_rocker_theta_y*(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x), -v_rocker_theta_y*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x), -v_crank_x*(c0 - c1 - c3 + c5 + c6*v_rocker_theta_y + c8*v_rocker_theta_z) - v_crank_y*(-c10 + c12 - c14 + c15*v_rocker_theta_x + c16*v_rocker_theta_z + c9) - v_crank_z*(c17 - c18 - c20 + c22 + c23*v_rocker_theta_y + c7*v_rocker_theta_x) - v_rocker_x*(-c0 + c1 + c15*v_rocker_theta_y + c3 - c5 + c7*v_rocker_theta_z) - v_rocker_y*(c10 - c12 + c14 + c23*v_rocker_theta_z + c6*v_rocker_theta_x - c9) - v_rocker_z*(c16*v_rocker_theta_y - c17 + c18 + c20 - c22 + c8*v_rocker_theta_x) - (c11 - c13)*(c31*v_rocker_theta_z - c33*v_crank_theta_z - c34*v_rocker_theta_x + c35*v_crank_theta_x + (3/10)*v_crank_y - 3/10*v_rocker_y) - (crank_a10*v_crank_theta_x - c19)*(c30*v_rocker_theta_x - c31*v_rocker_theta_y - c32*v_crank_theta_x + c33*v_crank_theta_y + (3/10)*v_crank_z - 3/10*v_rocker_z) - (crank_a20*v_crank_theta_y - c2)*(-c30*v_rocker_theta_z + c32*v_crank_theta_z + c34*v_rocker_theta_y - c35*v_crank_theta_y + (3/10)*v_crank_x - 3/10*v_rocker_x) - (-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*(-0.06604098*c19 + (0.06604098)*c21 - c24*v_rocker_theta_x + c25*v_rocker_theta_y + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)*((0.06604098)*c11 - 0.06604098*c13 - c25*v_rocker_theta_z + c26*v_rocker_theta_x + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*((0.061144002)*c19 - 0.061144002*c21 + c27*v_rocker_theta_x - c28*v_rocker_theta_y - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x)*(-0.061144002*c11 + (0.061144002)*c13 + c28*v_rocker_theta_z - c29*v_rocker_theta_x - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*(-0.06604098*c2 + c24*v_rocker_theta_z - c26*v_rocker_theta_y + (0.06604098)*c4 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*((0.061144002)*c2 - c27*v_rocker_theta_z + c29*v_rocker_theta_y - 0.061144002*c4 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
+    dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_theta_x, dv_crank_theta_y, dv_crank_theta_z, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_theta_x, dv_rocker_theta_y, dv_rocker_theta_z = a
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a02 = 2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a12 = -2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    crank_a22 = 2*crank_qw**2 + 2*crank_qz**2 - 1
+    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
+    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
+    rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
+    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    out = _zeros(48, q, ())
+    out[0] = crank_x
+    out[1] = crank_y
+    out[2] = crank_z
+    out[3] = crank_a00
+    out[4] = crank_a01
+    out[5] = crank_a02
+    out[6] = crank_a10
+    out[7] = crank_a11
+    out[8] = crank_a12
+    out[9] = crank_a20
+    out[10] = crank_a21
+    out[11] = crank_a22
+    out[12] = v_crank_x
+    out[13] = v_crank_y
+    out[14] = v_crank_z
+    out[15] = v_crank_theta_x
+    out[16] = v_crank_theta_y
+    out[17] = v_crank_theta_z
+    out[18] = dv_crank_x
+    out[19] = dv_crank_y
+    out[20] = dv_crank_z
+    out[21] = dv_crank_theta_x
+    out[22] = dv_crank_theta_y
+    out[23] = dv_crank_theta_z
+    out[24] = rocker_x
+    out[25] = rocker_y
+    out[26] = rocker_z
+    out[27] = rocker_a00
+    out[28] = rocker_a01
+    out[29] = rocker_a02
+    out[30] = rocker_a10
+    out[31] = rocker_a11
+    out[32] = rocker_a12
+    out[33] = rocker_a20
+    out[34] = rocker_a21
+    out[35] = rocker_a22
+    out[36] = v_rocker_x
+    out[37] = v_rocker_y
+    out[38] = v_rocker_z
+    out[39] = v_rocker_theta_x
+    out[40] = v_rocker_theta_y
+    out[41] = v_rocker_theta_z
+    out[42] = dv_rocker_x
+    out[43] = dv_rocker_y
+    out[44] = dv_rocker_z
+    out[45] = dv_rocker_theta_x
+    out[46] = dv_rocker_theta_y
+    out[47] = dv_rocker_theta_z
+    return out
 
 
 def inputs_turn(t):

@@ -23,7 +23,7 @@ PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.e0', 'crank.e1', 'crank.e2', 'crank.e3', 'rod.x', 'rod.y', 'rod.z', 'rod.e0', 'rod.e1', 'rod.e2', 'rod.e3', 'slider.x', 'slider.y', 'slider.z', 'slider.e0', 'slider.e1', 'slider.e2', 'slider.e3')
 VELOCITY_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.e0', 'crank.e1', 'crank.e2', 'crank.e3', 'rod.x', 'rod.y', 'rod.z', 'rod.e0', 'rod.e1', 'rod.e2', 'rod.e3', 'slider.x', 'slider.y', 'slider.z', 'slider.e0', 'slider.e1', 'slider.e2', 'slider.e3')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 7 velocity coordinates
 BODIES = {'crank': (0, 0), 'rod': (7, 7), 'slider': (14, 14)}
 # named points in body coordinates
 POINTS = {
@@ -36,6 +36,14 @@ GROUND_POINTS = {'A': (0.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9887710779360424, 0.0, 0.0, 0.14943813247359924, 0.191067, 0.059104, 0.0, 0.9987833496752833, 0.0, 0.0, -0.04931349117048, 0.788149, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -326,6 +334,132 @@ def _joints_gamma_s(q, v):
     c16 = 4.0*v_slider_e3
     c17 = 4.0*v_slider_e2
     return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*(v_crank_e0*v_crank_e0) - 4/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -12/5*(v_rod_e0*v_rod_e0) - 12/5*(v_rod_e1*v_rod_e1), -c4*v_rod_e0 - c5*v_rod_e1, -c4*v_rod_e1 + c5*v_rod_e0, -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2.0*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(rod_e1*c15 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2.0*(2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3), c16*v_slider_e0 - c17*v_slider_e1, -c16*v_slider_e1 - c17*v_slider_e0, 0.0, 0.0, -c17*v_slider_e3 + 4.0*v_slider_e0*v_slider_e1, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rod_e0*v_rod_e0) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e3*v_rod_e3), -2.0*(v_slider_e0*v_slider_e0) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e3*v_slider_e3)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rod_x, v_rod_y, v_rod_z, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, v_slider_x, v_slider_y, v_slider_z, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
+    dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_e0, dv_crank_e1, dv_crank_e2, dv_crank_e3, dv_rod_x, dv_rod_y, dv_rod_z, dv_rod_e0, dv_rod_e1, dv_rod_e2, dv_rod_e3, dv_slider_x, dv_slider_y, dv_slider_z, dv_slider_e0, dv_slider_e1, dv_slider_e2, dv_slider_e3 = a
+    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a01 = -2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a02 = 2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
+    crank_a11 = 2*crank_e0**2 + 2*crank_e2**2 - 1
+    crank_a12 = -2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
+    crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
+    crank_a22 = 2*crank_e0**2 + 2*crank_e3**2 - 1
+    rod_a00 = 2*rod_e0**2 + 2*rod_e1**2 - 1
+    rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a02 = 2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
+    rod_a10 = 2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
+    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a12 = -2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
+    rod_a20 = -2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
+    rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
+    rod_a22 = 2*rod_e0**2 + 2*rod_e3**2 - 1
+    slider_a00 = 2*slider_e0**2 + 2*slider_e1**2 - 1
+    slider_a01 = -2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
+    slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
+    slider_a10 = 2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
+    slider_a11 = 2*slider_e0**2 + 2*slider_e2**2 - 1
+    slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
+    slider_a20 = -2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
+    slider_a21 = 2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
+    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    c0 = 2*v_crank_e1
+    c1 = 2*crank_e1
+    c2 = 2*crank_e2
+    c3 = 2*v_crank_e2
+    c4 = 2*crank_e0
+    c5 = 2*crank_e3
+    c6 = 2*v_rod_e1
+    c7 = 2*rod_e1
+    c8 = 2*rod_e2
+    c9 = 2*v_rod_e2
+    c10 = 2*rod_e0
+    c11 = 2*rod_e3
+    c12 = 2*v_slider_e1
+    c13 = 2*slider_e1
+    c14 = 2*slider_e2
+    c15 = 2*v_slider_e2
+    c16 = 2*slider_e0
+    c17 = 2*slider_e3
+    out = _zeros(72, q, ())
+    out[0] = crank_x
+    out[1] = crank_y
+    out[2] = crank_z
+    out[3] = crank_a00
+    out[4] = crank_a01
+    out[5] = crank_a02
+    out[6] = crank_a10
+    out[7] = crank_a11
+    out[8] = crank_a12
+    out[9] = crank_a20
+    out[10] = crank_a21
+    out[11] = crank_a22
+    out[12] = v_crank_x
+    out[13] = v_crank_y
+    out[14] = v_crank_z
+    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3
+    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0
+    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0
+    out[18] = dv_crank_x
+    out[19] = dv_crank_y
+    out[20] = dv_crank_z
+    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2
+    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1
+    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0
+    out[24] = rod_x
+    out[25] = rod_y
+    out[26] = rod_z
+    out[27] = rod_a00
+    out[28] = rod_a01
+    out[29] = rod_a02
+    out[30] = rod_a10
+    out[31] = rod_a11
+    out[32] = rod_a12
+    out[33] = rod_a20
+    out[34] = rod_a21
+    out[35] = rod_a22
+    out[36] = v_rod_x
+    out[37] = v_rod_y
+    out[38] = v_rod_z
+    out[39] = rod_e0*c6 - rod_e3*c9 - c7*v_rod_e0 + c8*v_rod_e3
+    out[40] = rod_e0*c9 + rod_e3*c6 - c7*v_rod_e3 - c8*v_rod_e0
+    out[41] = -rod_e2*c6 + c7*v_rod_e2 + c10*v_rod_e3 - c11*v_rod_e0
+    out[42] = dv_rod_x
+    out[43] = dv_rod_y
+    out[44] = dv_rod_z
+    out[45] = -c7*dv_rod_e0 + c8*dv_rod_e3 + c10*dv_rod_e1 - c11*dv_rod_e2
+    out[46] = -c7*dv_rod_e3 - c8*dv_rod_e0 + c10*dv_rod_e2 + c11*dv_rod_e1
+    out[47] = c7*dv_rod_e2 - c8*dv_rod_e1 + c10*dv_rod_e3 - c11*dv_rod_e0
+    out[48] = slider_x
+    out[49] = slider_y
+    out[50] = slider_z
+    out[51] = slider_a00
+    out[52] = slider_a01
+    out[53] = slider_a02
+    out[54] = slider_a10
+    out[55] = slider_a11
+    out[56] = slider_a12
+    out[57] = slider_a20
+    out[58] = slider_a21
+    out[59] = slider_a22
+    out[60] = v_slider_x
+    out[61] = v_slider_y
+    out[62] = v_slider_z
+    out[63] = slider_e0*c12 - slider_e3*c15 - c13*v_slider_e0 + c14*v_slider_e3
+    out[64] = slider_e0*c15 + slider_e3*c12 - c13*v_slider_e3 - c14*v_slider_e0
+    out[65] = -slider_e2*c12 + c13*v_slider_e2 + c16*v_slider_e3 - c17*v_slider_e0
+    out[66] = dv_slider_x
+    out[67] = dv_slider_y
+    out[68] = dv_slider_z
+    out[69] = -c13*dv_slider_e0 + c14*dv_slider_e3 + c16*dv_slider_e1 - c17*dv_slider_e2
+    out[70] = -c13*dv_slider_e3 - c14*dv_slider_e0 + c16*dv_slider_e2 + c17*dv_slider_e1
+    out[71] = c13*dv_slider_e2 - c14*dv_slider_e1 + c16*dv_slider_e3 - c17*dv_slider_e0
+    return out
 
 
 def inputs_run(t):

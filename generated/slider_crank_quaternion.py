@@ -23,7 +23,7 @@ PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.qw', 'crank.qx', 'crank.qy', 'crank.qz', 'rod.x', 'rod.y', 'rod.z', 'rod.qw', 'rod.qx', 'rod.qy', 'rod.qz', 'slider.x', 'slider.y', 'slider.z', 'slider.qw', 'slider.qx', 'slider.qy', 'slider.qz')
 VELOCITY_NAMES = ('crank.x', 'crank.y', 'crank.z', 'crank.theta_x', 'crank.theta_y', 'crank.theta_z', 'rod.x', 'rod.y', 'rod.z', 'rod.theta_x', 'rod.theta_y', 'rod.theta_z', 'slider.x', 'slider.y', 'slider.z', 'slider.theta_x', 'slider.theta_y', 'slider.theta_z')
-# body name -> (offset in q, offset in v); q holds [x, y, z, orientation...] per body
+# body name -> (offset in q, offset in v); each body has 7 stored and 6 velocity coordinates
 BODIES = {'crank': (0, 0), 'rod': (7, 6), 'slider': (14, 12)}
 # named points in body coordinates
 POINTS = {
@@ -36,6 +36,14 @@ GROUND_POINTS = {'A': (0.0, 0.0, 0.0)}
 INITIAL_Q = (0.0, 0.0, 0.0, 0.9887710779360424, 0.0, 0.0, 0.14943813247359924, 0.191067, 0.059104, 0.0, 0.9987833496752833, 0.0, 0.0, -0.04931349117048, 0.788149, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0)
 # reported lengths: name -> ((body, point), (body, point), (min, max) or None)
 ACTUATORS = {
+}
+# kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
+KERNELS = {
+    'phi_jac': (('q', 'u'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'inputs': (('t',), ('inputs',)),
+    'frames': (('q', 'v', 'a'), ('frames',)),
 }
 
 
@@ -288,6 +296,114 @@ def _joints_gamma_s(q, v):
     c11 = slider_a12*v_slider_theta_z
     c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
     return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z, c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z, -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y, -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z, c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z, -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y, c6*(slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x - c7) - c8*(-slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x - c9) + c10*(slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y - c11) - (slider_a02*v_slider_theta_z - c9)*(-rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x + c8) - (slider_a12*v_slider_theta_x - c7)*(rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x - c6) - (slider_a22*v_slider_theta_y - c11)*(rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y - c10), -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x), -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x), 0.0, 0.0, c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)]
+
+
+def frames(q, v, a):
+    """Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global)."""
+    crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
+    v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rod_x, v_rod_y, v_rod_z, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, v_slider_x, v_slider_y, v_slider_z, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
+    dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_theta_x, dv_crank_theta_y, dv_crank_theta_z, dv_rod_x, dv_rod_y, dv_rod_z, dv_rod_theta_x, dv_rod_theta_y, dv_rod_theta_z, dv_slider_x, dv_slider_y, dv_slider_z, dv_slider_theta_x, dv_slider_theta_y, dv_slider_theta_z = a
+    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a02 = 2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
+    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a12 = -2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
+    crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
+    crank_a22 = 2*crank_qw**2 + 2*crank_qz**2 - 1
+    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a02 = 2*rod_qw*rod_qy + 2*rod_qx*rod_qz
+    rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
+    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a12 = -2*rod_qw*rod_qx + 2*rod_qy*rod_qz
+    rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
+    rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
+    rod_a22 = 2*rod_qw**2 + 2*rod_qz**2 - 1
+    slider_a00 = 2*slider_qw**2 + 2*slider_qx**2 - 1
+    slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
+    slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
+    slider_a10 = 2*slider_qw*slider_qz + 2*slider_qx*slider_qy
+    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a20 = -2*slider_qw*slider_qy + 2*slider_qx*slider_qz
+    slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
+    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    out = _zeros(72, q, ())
+    out[0] = crank_x
+    out[1] = crank_y
+    out[2] = crank_z
+    out[3] = crank_a00
+    out[4] = crank_a01
+    out[5] = crank_a02
+    out[6] = crank_a10
+    out[7] = crank_a11
+    out[8] = crank_a12
+    out[9] = crank_a20
+    out[10] = crank_a21
+    out[11] = crank_a22
+    out[12] = v_crank_x
+    out[13] = v_crank_y
+    out[14] = v_crank_z
+    out[15] = v_crank_theta_x
+    out[16] = v_crank_theta_y
+    out[17] = v_crank_theta_z
+    out[18] = dv_crank_x
+    out[19] = dv_crank_y
+    out[20] = dv_crank_z
+    out[21] = dv_crank_theta_x
+    out[22] = dv_crank_theta_y
+    out[23] = dv_crank_theta_z
+    out[24] = rod_x
+    out[25] = rod_y
+    out[26] = rod_z
+    out[27] = rod_a00
+    out[28] = rod_a01
+    out[29] = rod_a02
+    out[30] = rod_a10
+    out[31] = rod_a11
+    out[32] = rod_a12
+    out[33] = rod_a20
+    out[34] = rod_a21
+    out[35] = rod_a22
+    out[36] = v_rod_x
+    out[37] = v_rod_y
+    out[38] = v_rod_z
+    out[39] = v_rod_theta_x
+    out[40] = v_rod_theta_y
+    out[41] = v_rod_theta_z
+    out[42] = dv_rod_x
+    out[43] = dv_rod_y
+    out[44] = dv_rod_z
+    out[45] = dv_rod_theta_x
+    out[46] = dv_rod_theta_y
+    out[47] = dv_rod_theta_z
+    out[48] = slider_x
+    out[49] = slider_y
+    out[50] = slider_z
+    out[51] = slider_a00
+    out[52] = slider_a01
+    out[53] = slider_a02
+    out[54] = slider_a10
+    out[55] = slider_a11
+    out[56] = slider_a12
+    out[57] = slider_a20
+    out[58] = slider_a21
+    out[59] = slider_a22
+    out[60] = v_slider_x
+    out[61] = v_slider_y
+    out[62] = v_slider_z
+    out[63] = v_slider_theta_x
+    out[64] = v_slider_theta_y
+    out[65] = v_slider_theta_z
+    out[66] = dv_slider_x
+    out[67] = dv_slider_y
+    out[68] = dv_slider_z
+    out[69] = dv_slider_theta_x
+    out[70] = dv_slider_theta_y
+    out[71] = dv_slider_theta_z
+    return out
 
 
 def inputs_run(t):

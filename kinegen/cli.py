@@ -68,30 +68,54 @@ def _parametrization(name: str) -> rotations.Parametrization:
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--param", "params", multiple=True, default=("quaternion",), show_default=True, help=PARAM_HELP + " Repeatable.")
 @click.option(
-    "--out-dir", default="generated", show_default=True, type=click.Path(file_okay=False), help="Where modules are written."
+    "--target",
+    type=click.Choice(["python", "c"]),
+    default="python",
+    show_default=True,
+    help="python: the importable module and the model's C (compiled by the runtime on first use); "
+    "c: a standalone C directory (model, kinegen's C solver, Makefile, CMakeLists.txt, example_main.c).",
 )
-def build(model_file: str, params: tuple[str, ...], out_dir: str) -> None:
-    """Build MODEL_FILE into generated/<model>_<param>.py.
+@click.option(
+    "--out-dir",
+    default=None,
+    type=click.Path(file_okay=False),
+    help="Where files are written (default: generated/ for python, <model>_<param>_c/ for c).",
+)
+def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | None) -> None:
+    """Build MODEL_FILE into generated/<model>_<param>.py (and .c/.h), or a standalone C directory.
 
-    Before the module is written, every case's time functions are checked on its time grid
+    Before anything is written, every case's time functions are checked on its time grid
     and its initial pose is checked (assembled if needed): a build that fails either check
     writes nothing."""
     from kinegen.codegen import build as build_module
+    from kinegen.codegen import module_name
+    from kinegen.model import load
     from kinegen.runtime import check_source
 
     for name in params:
         param = _parametrization(name)
         start = time.perf_counter()
         reports: list[str] = []
-        path = build_module(model_file, param.name, out_dir, check=lambda source, model, reports=reports: reports.extend(check_source(source, model)))
+
+        def check(source: str, model: str, reports: list[str] = reports) -> None:
+            reports.extend(check_source(source, model))
+
+        if target == "c":
+            folder = out_dir or f"{module_name(load(model_file), param)}_c"
+            path = build_module(model_file, param.name, folder, check=check, targets=("c",))
+        else:
+            path = build_module(model_file, param.name, out_dir or "generated", check=check)
         elapsed = time.perf_counter() - start
         click.echo(f"wrote {path} ({param.name}, {elapsed:.2f} s)")
         for line in reports:
             click.echo("  " + line)
+        if target == "c":
+            click.echo(f"  build and run it: make -C {path} && {path}/{module_name(load(model_file), param)}_example > out.csv")
 
 
-def _system(model_file: str, param: rotations.Parametrization, case: str | None, generated_dir: str):
-    """The numeric system of a case, from the generated module (rebuilt when missing or stale)."""
+def _system(model_file: str, param: rotations.Parametrization, case: str | None, generated_dir: str, compiled: bool | None = None):
+    """The numeric system of a case, from the generated module (rebuilt when missing or stale);
+    its compiled C when there is a compiler (``compiled`` None), or not (False)."""
     from kinegen.codegen import build as build_module
     from kinegen.codegen import module_name
     from kinegen.model import load
@@ -105,7 +129,7 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
         click.echo(f"building {path} (missing or stale)", err=True)
         module = load_module(build_module(model_file, param.name, generated_dir, check=check_source), model_file)
     try:
-        return model, dataclasses.replace(from_module(module, case), source=model_file)
+        return model, dataclasses.replace(from_module(module, case, compiled), source=model_file)
     except KeyError as exc:
         raise click.BadParameter(str(exc.args[0]), param_hint="--case") from None
 
@@ -126,10 +150,10 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
     "converged = 0), then report the error and exit with its code.",
 )
 @click.option(
-    "--compiled",
+    "--no-compile",
     is_flag=True,
-    help="Evaluate Phi, Phi_q, nu and gamma through C translated from the generated module "
-    "(compiled once with the machine's C compiler, cached in ~/.cache/kinegen).",
+    help="Solve with the generated Python functions only (by default the module's C is compiled once with "
+    "the machine's C compiler, cached in ~/.cache/kinegen, and solves; without a compiler kinegen says so and uses Python).",
 )
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def solve(
@@ -142,7 +166,7 @@ def solve(
     out: str | None,
     plot: str | None,
     keep_going: bool,
-    compiled: bool,
+    no_compile: bool,
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time."""
@@ -150,17 +174,10 @@ def solve(
     from kinegen.runtime import solve as run
 
     parametrization = _parametrization(param)
-    _, system = _system(model_file, parametrization, case, generated_dir)
-    if compiled:
-        from kinegen.runtime.compiled import CompileError, attach
-
-        try:
-            system = attach(system, sys.modules[system.phi.__module__])
-        except CompileError as exc:
-            click.echo(f"warning: no compiled code ({exc}); solving with the Python functions", err=True)
+    _, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
-    results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise"))
+    results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
     elapsed = time.perf_counter() - start
     done = results.converged
     click.echo(

@@ -38,9 +38,10 @@ cases:
 
 
 @functools.cache
-def generated_system(stem: str, case: str | None = None):
-    """The numeric system of a committed generated module (e.g. ``boom_quaternion``)."""
-    return from_module(load_module(GENERATED / f"{stem}.py"), case)
+def generated_system(stem: str, case: str | None = None, compiled: bool = False):
+    """The numeric system of a committed generated module (e.g. ``boom_quaternion``): its Python
+    functions, or (``compiled``) its C compiled with kinegen's C solver."""
+    return from_module(load_module(GENERATED / f"{stem}.py"), case, compiled)
 
 
 @functools.cache

@@ -86,7 +86,7 @@ def test_quaternion_velocity_map_is_the_tangent_of_the_exponential_map():
     for k in range(3):
         step = np.zeros(3)
         step[k] = h
-        derivative = (p.retract(q, step) - p.retract(q, -step)) / (2 * h)
+        derivative = (p.retract_orientation(q, step) - p.retract_orientation(q, -step)) / (2 * h)
         assert np.allclose(derivative, b[:, k], atol=1e-9)
 
 

@@ -15,12 +15,12 @@ import sympy as sp
 
 from kinegen import rotations
 from kinegen.analysis import inspect
-from kinegen.analysis.blocks import block_triangular
 from kinegen.analysis.classify import MECHANISM, REDUNDANT, REPRESENTATION, classify
 from kinegen.analysis.scan import scan
 from kinegen.codegen.inmemory import lambdify_model
 from kinegen.model import loads
 from kinegen.runtime import from_module, solve
+from kinegen.symbolic.blocks import block_triangular
 from tests.conftest import generated_system, model
 
 ALL_REVOLUTE_FOUR_BAR = """\

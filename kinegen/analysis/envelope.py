@@ -89,11 +89,9 @@ class _Evaluator:
         q of shape (n,), (K, 1 or 2, 3) for a batch (n, K)."""
         batch = q.reshape(q.shape[0], -1)
         out = []
-        k = len(self.system.parametrization.stored_names)
         for body, name in self.tracked:
-            offset = self.system.bodies[body][0]
-            rotation = self.system.parametrization.to_matrix(batch[offset + 3 : offset + 3 + k].T)  # (K, 3, 3)
-            out.append(batch[offset : offset + 3].T + rotation @ np.array(self.system.points[body][name]))
+            origin, rotation = self.system.parametrization.pose(self.system.body_coordinates(batch.T, body))  # (K, 3), (K, 3, 3)
+            out.append(origin + rotation @ np.array(self.system.points[body][name]))
         points = np.stack(out, axis=1)
         return points[0] if q.ndim == 1 else points
 

@@ -49,12 +49,8 @@ def exact_number(value: float) -> sp.Expr:
 
 def convert(q: np.ndarray, source: Parametrization, target: Parametrization, bodies: int) -> np.ndarray:
     """The same physical configuration in another parametrization (via rotation matrices)."""
-    k = 3 + len(source.stored_names)
-    out = []
-    for b in range(bodies):
-        block = q[b * k : (b + 1) * k]
-        out += [*block[:3], *target.from_matrix(source.to_matrix(block[3:]))]
-    return np.array(out)
+    poses = source.pose(np.asarray(q, dtype=float).reshape(bodies, source.nq))
+    return np.concatenate([target.from_pose(r, a) for r, a in zip(*poses)])
 
 
 def configuration_at(model: Model, parametrization: Parametrization, case: str, t: float, numeric=None) -> np.ndarray:
@@ -329,7 +325,7 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
 
 def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values) -> Inspection:
     """Large systems: block-triangular form, determinants block by block."""
-    from kinegen.analysis.blocks import block_triangular
+    from kinegen.symbolic.blocks import block_triangular
 
     rows, cols = zip(*[(i, j) for i, j, _ in system.jacobian_entries])
     blocks = block_triangular(exact.shape, np.array(rows), np.array(cols))

@@ -25,10 +25,10 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegen.analysis.blocks import block_triangular
 from kinegen.analysis.inspect import convert
 from kinegen.errors import ConvergenceError, SingularJacobianError
 from kinegen.runtime import NumericSystem, Solver
+from kinegen.symbolic.blocks import block_triangular
 
 
 @dataclass

@@ -75,12 +75,13 @@ def workload(name: str) -> Workload:
 
 def _error(w: Workload, qs: np.ndarray) -> float:
     """Largest distance of the tracked point (from Euler-parameter coordinates) to the reference."""
-    from kinegen.rotations import quaternion_algebra as qa
+    from kinegen import rotations
 
+    parametrization = rotations.get("euler-parameters")
     k = [b.name for b in w.model.bodies].index(w.body)
     local = np.array([float(x) for x in w.model.bodies[k].points[w.point]])
-    body = np.asarray(qs)[:, 7 * k : 7 * k + 7]
-    path = body[:, :3] + np.einsum("kij,j->ki", np.array([qa.to_matrix(e) for e in body[:, 3:]]), local)
+    origin, rotation = parametrization.pose(np.asarray(qs)[:, k * parametrization.nq : (k + 1) * parametrization.nq])
+    path = origin + np.einsum("kij,j->ki", rotation, local)
     return float(np.abs(path - w.reference()).max())
 
 
@@ -112,33 +113,30 @@ def _result(build: float, trajectory: float, iterations: list[int] | np.ndarray,
 # ---- kinegen ---------------------------------------------------------------------------
 def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATION, compiled: bool = False) -> dict[str, Any]:
     """kinegen: generated module (build = symbolic derivation + code generation, and with
-    ``compiled`` the translation to C and its compilation, ``kinegen.runtime.compiled``)."""
+    ``compiled`` the compilation of the model's C with kinegen's C solver, which then solves)."""
+    import os
     import tempfile
 
     from kinegen import rotations
-    from kinegen.codegen import generate_source
+    from kinegen.codegen import generate, module_name
     from kinegen.runtime import Solver, SolverOptions, from_module, load_module
 
     w = workload(name)
+    param = rotations.get(parametrization)
     start = time.perf_counter()
-    source = generate_source(w.model, rotations.get(parametrization))
+    made = generate(w.model, param, ("python", "c-model") if compiled else ("python",))
     build = time.perf_counter() - start
     with tempfile.TemporaryDirectory() as folder, tempfile.TemporaryDirectory() as cache:
-        path = Path(folder) / "module.py"
-        path.write_text(source)
-        module = load_module(path)
-        system = from_module(module, w.case)
-        if compiled:
-            import os
-
-            from kinegen.runtime.compiled import attach
-
-            os.environ["KINEGEN_CACHE"] = cache  # a fresh compilation, timed as part of the build
-            start = time.perf_counter()
-            system = attach(system, module)
-            build += time.perf_counter() - start
+        for files in made.values():
+            for file, text in files.items():
+                (Path(folder) / file).write_text(text)
+        module = load_module(Path(folder) / f"{module_name(w.model, param)}.py")
+        os.environ["KINEGEN_CACHE"] = cache  # a fresh compilation, timed as part of the build
+        start = time.perf_counter()
+        system = from_module(module, w.case, compiled=compiled)
+        build += time.perf_counter() - start
     # "as specified": previous-q starts and no polish; own: predictor + polishing correction
-    solver = Solver(system, SolverOptions(condition="none", predictor=predictor, polish=predictor))
+    solver = Solver(system, SolverOptions(condition="none", predictor=predictor, polish=predictor, compiled=compiled))
     _settle()
     start = time.perf_counter()
     results = solver.solve(w.times)
@@ -357,7 +355,7 @@ def casadi_c_run(name: str) -> dict[str, Any]:
 
     import casadi as ca
 
-    from kinegen.runtime.compiled import c_compiler
+    from kinegen.runtime.native import c_compiler
 
     w = workload(name)
     start, q, t, phi, _, acceleration = _casadi_functions(w)

@@ -1,5 +1,8 @@
-"""Code generation: generated Python modules (files) and the in-memory lambdify path."""
+"""Code generation: a target-neutral kernel description (:mod:`kernels`) printed by one
+backend per target (:mod:`backends`), written atomically (:mod:`writer`); and the in-memory
+lambdify path (:mod:`inmemory`)."""
 
-from kinegen.codegen.writer import build, generate_source, initial_q, module_name, write_atomic
+from kinegen.codegen.kernels import describe, initial_q
+from kinegen.codegen.writer import build, generate, generate_source, module_name, write_atomic
 
-__all__ = ["build", "generate_source", "initial_q", "module_name", "write_atomic"]
+__all__ = ["build", "describe", "generate", "generate_source", "initial_q", "module_name", "write_atomic"]

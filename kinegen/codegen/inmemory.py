@@ -12,7 +12,7 @@ from types import SimpleNamespace
 import numpy as np
 import sympy as sp
 
-from kinegen.codegen.writer import initial_q
+from kinegen.codegen.kernels import initial_q
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.rotations import Parametrization

@@ -1,13 +1,17 @@
-"""Common-subexpression elimination and printing once per constraint shape.
+"""Common-subexpression elimination and printing once per constraint shape, for any printers.
 
 Rows derived through :class:`kinegen.symbolic.assembly.Templates` carry their shape (the
 same equation up to the names of their bodies and inputs) and the renaming from the
 shape's placeholder symbols to their own. A *group* (the rows of one joint, one driver or
-one body's normalization) is eliminated and printed once per distinct shape, in
-placeholder names, by both printers (NumPy and plain ``math``); every group of that
-shape then only renames the printed text (placeholders -> its symbols, temporaries ->
-the function's next ``c<k>``). The links of a chain or the two sides of a symmetric pin
-cost one CSE and one printing, however many there are.
+one body's normalization) is eliminated once per distinct shape, in placeholder names, and
+printed once per shape by each printer of a backend (Python: NumPy and plain ``math``; C:
+one); every group of that shape then only renames the printed text (placeholders -> its
+symbols, temporaries -> the function's next ``c<k>``). The links of a chain or the two sides
+of a symmetric pin cost one CSE and one printing, however many there are.
+
+The eliminated statements themselves (:class:`Statements`, SymPy) are target-neutral and
+live in the kernel description (:mod:`kinegen.codegen.kernels`); a :class:`Printing` is one
+backend's printed text of them.
 """
 
 from __future__ import annotations
@@ -15,39 +19,65 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import sympy as sp
 from sympy.printing.codeprinter import CodePrinter
 
-from kinegen.codegen.printer import freeze_numbers
+from kinegen.codegen.expressions import freeze_numbers
 
-Kind = str  # "phi", "jac", "nu", "gamma", ...
+if TYPE_CHECKING:
+    from kinegen.codegen.kernels import Definitions
 
 #: Statements per generated function part: Python's compiler needs ~60 bytes of memory per
-#: byte of a function it compiles, so the functions of very large models are cut in parts.
+#: byte of a function it compiles, and C compilers grow faster than linearly with a
+#: function's length, so the functions of large models are cut in parts.
 PART_STATEMENTS = 5000
 
 
 @dataclass(frozen=True)
-class _Printed:
-    """One shape after CSE, printed by both printers in placeholder names."""
+class Statements:
+    """One group's expressions after CSE, in placeholder symbols: temporaries ``_t<k>`` in
+    order, then the outputs (an exact zero stays ``0``)."""
 
-    temporaries: list[tuple[str, str]]  # (array text, scalar text), temporaries named _t0, _t1, ...
-    outputs: list[tuple[str, str] | None]  # per expression; None for an exact zero
-    used: frozenset[sp.Symbol]  # placeholder symbols the texts use
-    pattern: re.Pattern | None  # every placeholder or temporary name in the texts
+    temporaries: tuple[tuple[sp.Symbol, sp.Expr], ...]
+    outputs: tuple[sp.Expr, ...]
+
+    @property
+    def used(self) -> frozenset[sp.Symbol]:
+        """Placeholder (argument) symbols the statements use."""
+        names = {t for t, _ in self.temporaries}
+        found = set().union(*(e.free_symbols for e in self.outputs), *(v.free_symbols for _, v in self.temporaries))
+        return frozenset(found - names)
+
+
+def eliminate(expressions: Sequence[sp.Expr]) -> Statements:
+    """CSE of ``expressions`` (irrational constants frozen to doubles first), canonical order."""
+    frozen = [freeze_numbers(e) for e in expressions]
+    replacements, reduced = sp.cse(frozen, symbols=sp.numbered_symbols("_t"), order="canonical")
+    return Statements(tuple(replacements), tuple(reduced))
+
+
+@dataclass(frozen=True)
+class Group:
+    """Expressions to emit together: a key naming their shape (None: not shared), a thunk
+    giving them in placeholder symbols, and the renaming placeholder -> real symbol."""
+
+    key: tuple | None
+    expressions: Callable[[], list[sp.Expr]]
+    rename: dict[sp.Symbol, sp.Symbol]
 
 
 @dataclass
 class Block:
-    """Expressions of one generated function, as text for both styles, and the symbols they use.
+    """Expressions of one generated function, as text per printer (style), and the symbols they use.
 
     ``offset`` is the index of the first output in the whole block when this is a part of
     one; ``groups`` the end (temporaries, outputs) and the symbols used of each group.
     """
 
-    temporaries: list[tuple[str, str, str]] = field(default_factory=list)  # (name, array text, scalar text)
-    outputs: list[tuple[str, str] | None] = field(default_factory=list)
+    temporaries: list[tuple[str, ...]] = field(default_factory=list)  # (name, text per style)
+    outputs: list[tuple[str, ...] | None] = field(default_factory=list)  # text per style; None: an exact zero
     symbols: set[sp.Symbol] = field(default_factory=set)
     offset: int = 0
     groups: list[tuple[int, int, frozenset[sp.Symbol]]] = field(default_factory=list)
@@ -79,35 +109,65 @@ class Block:
 
 
 @dataclass(frozen=True)
-class Group:
-    """Expressions to emit together: a key naming their shape (None: not shared), a thunk
-    giving them in placeholder symbols, and the renaming placeholder -> real symbol."""
+class _Printed:
+    """One shape's statements printed by every printer, in placeholder names."""
 
-    key: tuple | None
-    expressions: Callable[[], list[sp.Expr]]
-    rename: dict[sp.Symbol, sp.Symbol]
+    temporaries: list[tuple[str, ...]]  # text per style, temporaries named _t0, _t1, ...
+    outputs: list[tuple[str, ...] | None]  # per expression; None for an exact zero
+    used: frozenset[sp.Symbol]  # placeholder symbols the texts use
+    pattern: re.Pattern | None  # every placeholder or temporary name in the texts
 
 
 class Shapes:
-    """Cache of eliminated and printed shapes for one generated module."""
+    """Cache of eliminated statements (shared by every backend) and of their printed text
+    (one per backend: its printers)."""
 
-    def __init__(self, array_printer: CodePrinter, scalar_printer: CodePrinter) -> None:
-        self.printers = (array_printer, scalar_printer)
+    def __init__(self) -> None:
+        self._statements: dict[tuple, Statements] = {}
+
+    def statements(self, group: Group) -> Statements:
+        """The group's statements, eliminated once per shape."""
+        if group.key is None:
+            return eliminate(group.expressions())
+        if group.key not in self._statements:
+            self._statements[group.key] = eliminate(group.expressions())
+        return self._statements[group.key]
+
+    def printing(self, printers: Sequence[CodePrinter]) -> Printing:
+        """A printing of these statements by ``printers`` (one text per printer: the styles)."""
+        return Printing(self, tuple(printers))
+
+
+class Printing:
+    """Printed blocks for one backend: each shape printed once per printer."""
+
+    def __init__(self, shapes: Shapes, printers: tuple[CodePrinter, ...]) -> None:
+        self.shapes = shapes
+        self.printers = printers
         self._printed: dict[tuple, _Printed] = {}
+        self._generic_definitions: list[tuple[str, ...]] | None = None
 
-    def _print(self, expressions: list[sp.Expr]) -> _Printed:
-        frozen = [freeze_numbers(e) for e in expressions]
-        replacements, reduced = sp.cse(frozen, symbols=sp.numbered_symbols("_t"), order="canonical")
-        array, scalar = self.printers
-        temporaries = [(array.doprint(v), scalar.doprint(v)) for _, v in replacements]
-        outputs = [None if e == 0 else (array.doprint(e), scalar.doprint(e)) for e in reduced]
-        names = {t for t, _ in replacements}
-        used = frozenset(
-            set().union(*(e.free_symbols for e in reduced), *(v.free_symbols for _, v in replacements)) - names
-        )
-        words = sorted({str(s) for s in used} | {str(t) for t in names}, key=len, reverse=True)
+    def _print(self, statements: Statements) -> _Printed:
+        temporaries = [tuple(p.doprint(v) for p in self.printers) for _, v in statements.temporaries]
+        outputs = [None if e == 0 else tuple(p.doprint(e) for p in self.printers) for e in statements.outputs]
+        used = statements.used
+        names = {str(t) for t, _ in statements.temporaries}
+        words = sorted({str(s) for s in used} | names, key=len, reverse=True)
         pattern = re.compile(r"\b(" + "|".join(map(re.escape, words)) + r")\b") if words else None
         return _Printed(temporaries, outputs, used, pattern)
+
+    def definitions(self, definitions: Definitions, used: set[sp.Symbol]) -> tuple[list[tuple[str, ...]], set[sp.Symbol]]:
+        """(name, text per style) of the rotation-matrix entries among ``used``, body by body,
+        and the argument symbols they need. Each text is the generic body's, printed once and renamed."""
+        if self._generic_definitions is None:
+            self._generic_definitions = [tuple(p.doprint(freeze_numbers(e)) for p in self.printers) for e in definitions.generic]
+        lines, needs = [], set()
+        for body, symbols, values in definitions.bodies:
+            for k, (symbol, value) in enumerate(zip(symbols, values)):
+                if symbol in used:
+                    lines.append((str(symbol), *(t.replace(definitions.generic_name, body) for t in self._generic_definitions[k])))
+                    needs |= value.free_symbols
+        return lines, needs
 
     def block(self, groups: Sequence[Group], prefix: str = "c") -> Block:
         """The groups' expressions in order, temporaries ``{prefix}0, ...`` numbered through the block."""
@@ -115,7 +175,7 @@ class Shapes:
         for group in groups:
             printed = self._printed.get(group.key) if group.key is not None else None
             if printed is None:
-                printed = self._print(group.expressions())
+                printed = self._print(self.shapes.statements(group))
                 if group.key is not None:
                     self._printed[group.key] = printed
             names = {str(g): str(group.rename.get(g, g)) for g in printed.used}
@@ -125,9 +185,9 @@ class Shapes:
             def rename(text: str, names: dict[str, str] = names, printed: _Printed = printed) -> str:
                 return printed.pattern.sub(lambda m: names[m.group(0)], text) if printed.pattern else text
 
-            for k, (array_text, scalar_text) in enumerate(printed.temporaries):
-                out.temporaries.append((f"{prefix}{start + k}", rename(array_text), rename(scalar_text)))
-            out.outputs += [None if o is None else (rename(o[0]), rename(o[1])) for o in printed.outputs]
+            for k, texts in enumerate(printed.temporaries):
+                out.temporaries.append((f"{prefix}{start + k}", *(rename(t) for t in texts)))
+            out.outputs += [None if o is None else tuple(rename(t) for t in o) for o in printed.outputs]
             symbols = frozenset(group.rename.get(g, g) for g in printed.used)
             out.symbols |= symbols
             out.groups.append((len(out.temporaries), len(out.outputs), symbols))

@@ -7,23 +7,14 @@ import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
-import numpy as np
-import sympy as sp
-
-from kinegen.codegen.python_module import render
+from kinegen.codegen import backends
+from kinegen.codegen.kernels import describe
 from kinegen.model import Model, load
 from kinegen.rotations import Parametrization, get
-from kinegen.symbolic import build_systems
 
-
-def initial_q(model: Model, parametrization: Parametrization) -> np.ndarray:
-    """Stored coordinates of the model's initial pose in ``parametrization``."""
-    values: list[float] = []
-    for body in model.bodies:
-        rotation = np.array(body.rotation.evalf(30), dtype=float)
-        values += [float(sp.N(x, 30)) for x in body.position]
-        values += [float(x) for x in parametrization.from_matrix(rotation)]
-    return np.array(values)
+#: What ``kinegen build`` writes into generated/: the Python module and the model's C (which
+#: the runtime compiles with kinegen's C solver on first use).
+DEFAULT_TARGETS = ("python", "c-model")
 
 
 def module_name(model: Model, parametrization: Parametrization) -> str:
@@ -31,10 +22,26 @@ def module_name(model: Model, parametrization: Parametrization) -> str:
     return f"{model.name}_{parametrization.file_tag}"
 
 
+def generate(
+    model: Model, parametrization: Parametrization, targets: tuple[str, ...] = DEFAULT_TARGETS
+) -> dict[str, dict[str, str]]:
+    """Per target, file name -> text of what it makes for ``model`` (all cases) in
+    ``parametrization``: ``python`` (the module), ``c`` (a standalone C directory), ``c-model``
+    (only the model's C, as generated/ holds it). The kernel description is made once."""
+    description = describe(model, parametrization)
+    stem = module_name(model, parametrization)
+    files: dict[str, dict[str, str]] = {}
+    for target in targets:
+        if target == "c-model":
+            files[target] = backends.get("c")(description, stem, standalone=False)
+        else:
+            files[target] = backends.get(target)(description, stem)
+    return files
+
+
 def generate_source(model: Model, parametrization: Parametrization) -> str:
-    """Source of the generated module for ``model`` (all cases) in ``parametrization``."""
-    systems = build_systems(model, parametrization)
-    return render(systems, initial_q(model, parametrization), Path(model.file).name)
+    """Source of the generated Python module for ``model`` (all cases) in ``parametrization``."""
+    return generate(model, parametrization, ("python",))["python"][f"{module_name(model, parametrization)}.py"]
 
 
 def write_atomic(path: Path, text: str) -> None:
@@ -57,18 +64,25 @@ def build(
     parametrization: str,
     out_dir: str | Path = "generated",
     check: Callable[[str, str | Path], list[str]] | None = None,
+    targets: tuple[str, ...] = DEFAULT_TARGETS,
 ) -> Path:
-    """Build ``model_path`` in ``parametrization`` and write ``<out_dir>/<model>_<param>.py``.
+    """Build ``model_path`` in ``parametrization`` into ``out_dir``: by default
+    ``<model>_<param>.py`` and the model's C (``.c``, ``.h``); ``targets=("c",)``: a standalone C
+    directory. Returns the Python module's path (without the python target: ``out_dir``).
 
     ``check(source, model_path)`` (e.g. :func:`kinegen.runtime.check_source`) runs on the
-    new module's text before it is written; if it raises, nothing is written. Everything
-    that can fail happens before the (atomic) write.
+    Python module's text (made for it whatever the targets) before anything is written; if it
+    raises, nothing is written. Everything that can fail happens before the (atomic, file by
+    file) writes.
     """
     model = load(model_path)
     param = get(parametrization)
-    source = generate_source(model, param)
+    made = generate(model, param, tuple(dict.fromkeys((*targets, "python"))) if check is not None else targets)
+    python = f"{module_name(model, param)}.py"
     if check is not None:
-        check(source, model_path)
-    path = Path(out_dir) / f"{module_name(model, param)}.py"
-    write_atomic(path, source)
-    return path
+        check(made["python"][python], model_path)
+    out = Path(out_dir)
+    for target in targets:
+        for name, text in made[target].items():
+            write_atomic(out / name, text)
+    return out / python if "python" in targets else out

@@ -1,11 +1,23 @@
 """The interface every orientation parametrization implements.
 
-A body's *stored* coordinates are ``s = [r, o]`` (position ``r``, 3 values, then the
-orientation values ``o``). Its *velocity* coordinates ``v`` are what the Jacobian's
-columns, the Newton step and the velocity/acceleration solves use. They coincide for
-Euler angles and Euler parameters; for the ``quaternion`` parametrization ``o`` is a unit
-quaternion and ``v`` holds global rotation increments / the angular velocity.
-The two are linked by ``ds/dt = B(s) v`` (the *velocity map*).
+A parametrization owns the layout of one body's coordinates, as Pinocchio's model owns
+``nq``/``nv`` and ``integrate``: every body of a model has ``nq`` *stored* coordinates and
+``nv`` *velocity* coordinates, body after body (body b at ``b * nq`` in q and ``b * nv`` in
+v), and only this package knows what they are. Velocity coordinates are what the Jacobian's
+columns, the Newton step and the velocity/acceleration solves use; a Newton step or a
+predicted motion is applied by :meth:`Parametrization.retract` (in Python) and by the C of
+:meth:`Parametrization.c_retract` (in generated C); results read poses, velocities and
+accelerations through :meth:`pose`, :meth:`frame_velocity` and :meth:`frame_acceleration`.
+
+The parametrizations here store ``s = [r, o]`` (position ``r``, 3 values, then the
+orientation values ``o``) with velocity ``[r', w]``. ``w`` is ``o'`` for Euler angles and
+Euler parameters; for the ``quaternion`` parametrization ``o`` is a unit quaternion and
+``w`` holds global rotation increments / the angular velocity. The two are linked by
+``ds/dt = B(s) v`` (the *velocity map*).
+
+Array conventions: :meth:`retract` and :meth:`project` take components first (``(nq, ...)``,
+any batch shape after them, as the solvers hold q); the pose accessors take components last
+(``(..., nq)``, as results hold time histories).
 """
 
 from __future__ import annotations
@@ -51,11 +63,79 @@ class Parametrization(ABC):
         matrix = self.matrix(o)
         return [matrix.diff(x) for x in o]
 
+    def omega_expression(self, o: sp.Matrix, w: sp.Matrix) -> sp.Matrix:
+        """Global angular velocity (3x1) of stored orientation symbols ``o`` and orientation
+        velocity symbols ``w`` (the symbolic twin of :meth:`omega`)."""
+        raise NotImplementedError
+
+    def omega_dot_expression(self, o: sp.Matrix, w: sp.Matrix, w_dot: sp.Matrix) -> sp.Matrix:
+        """Global angular acceleration (3x1), the symbolic twin of :meth:`omega_dot`."""
+        raise NotImplementedError
+
+    def frame_expressions(self, q: sp.Matrix, v: sp.Matrix, a: sp.Matrix) -> list[sp.Expr]:
+        """A body's frame as expressions of its stored ``q``, velocity ``v`` and acceleration
+        ``a`` symbols: origin (3), rotation matrix (9, row by row), origin velocity (3), angular
+        velocity (3), origin acceleration (3), angular acceleration (3) -- 24 values, all global."""
+        o, w, w_dot = q[3:, :], v[3:, :], a[3:, :]
+        return [
+            *q[:3], *self.matrix(o), *v[:3], *self.omega_expression(o, w), *a[:3], *self.omega_dot_expression(o, w, w_dot)
+        ]
+
     def normalization(self, o: sp.Matrix) -> list[sp.Expr]:
         """Extra constraints a body of this parametrization carries (none by default)."""
         return []
 
-    # ---- numeric --------------------------------------------------------------------
+    # ---- body layout ------------------------------------------------------------------
+    @property
+    def nq(self) -> int:
+        """Stored coordinates per body."""
+        return 3 + len(self.stored_names)
+
+    @property
+    def nv(self) -> int:
+        """Velocity coordinates per body."""
+        return 3 + len(self.velocity_names)
+
+    def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
+        """A body's stored coordinates ``q`` (nq, ...) moved by ``step`` (nv, ...) in velocity
+        coordinates: positions added, the orientation by :meth:`retract_orientation`."""
+        out = np.array(q, dtype=float, copy=True)
+        out[:3] += step[:3]
+        out[3:] = self.retract_orientation(q[3:], step[3:])
+        return out
+
+    def retract_orientation(self, o: np.ndarray, step: np.ndarray) -> np.ndarray:
+        """Orientation values (components first) moved by an increment of the orientation
+        velocity coordinates: added, unless the parametrization says otherwise."""
+        return o + step
+
+    def c_retract(self) -> str:
+        """Body of the C function ``retract_body(double *q, const double *step)`` that does what
+        :meth:`retract` does for one body (C99 and ``math.h``; the generated C loops it over the bodies)."""
+        return "\n".join(f"q[{i}] += step[{i}];" for i in range(self.nq))
+
+    def project(self, q: np.ndarray) -> np.ndarray:
+        """Stored coordinates (nq, ...) that interpolation may have moved off the set of valid
+        values, moved back onto it (e.g. a quaternion normalized); unchanged by default."""
+        return q
+
+    def pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Frame origin (..., 3) and rotation matrix (..., 3, 3) of stored coordinates (..., nq)."""
+        return q[..., :3], self.to_matrix(q[..., 3:])
+
+    def frame_velocity(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Velocity of the frame origin and global angular velocity (..., 3) each."""
+        return v[..., :3], self.omega(q[..., 3:], v[..., 3:])
+
+    def frame_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Acceleration of the frame origin and global angular acceleration (..., 3) each."""
+        return a[..., :3], self.omega_dot(q[..., 3:], v[..., 3:], a[..., 3:])
+
+    def from_pose(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        """Stored coordinates (nq,) of a frame at ``position`` with rotation matrix ``rotation``."""
+        return np.concatenate([np.asarray(position, dtype=float), self.from_matrix(rotation)])
+
+    # ---- numeric orientation ------------------------------------------------------------
     @abstractmethod
     def from_matrix(self, rotation: np.ndarray) -> np.ndarray:
         """Stored orientation values for a rotation matrix."""
@@ -71,7 +151,3 @@ class Parametrization(ABC):
     @abstractmethod
     def omega_dot(self, o: np.ndarray, w: np.ndarray, w_dot: np.ndarray) -> np.ndarray:
         """Global angular acceleration from ``o``, ``w`` and their derivative ``w_dot``."""
-
-    def retract(self, o: np.ndarray, step: np.ndarray) -> np.ndarray:
-        """Apply a Newton step / increment in velocity coordinates to stored values."""
-        return o + step

@@ -68,6 +68,22 @@ class EulerAngles(Parametrization):
         unit = np.eye(3)
         return [np.broadcast_to(unit[a], np.shape(o)[:-1] + (3,)), r1[..., :, b], r12[..., :, c]]
 
+    def _global_axes_expression(self, o: sp.Matrix) -> list[sp.Matrix]:
+        a, b, c = self.axes
+        r1 = _elementary(a, o[0])
+        r12 = r1 * _elementary(b, o[1])
+        unit = sp.eye(3)
+        return [unit[:, a], r1[:, b], r12[:, c]]
+
+    def omega_expression(self, o: sp.Matrix, w: sp.Matrix) -> sp.Matrix:
+        k1, k2, k3 = self._global_axes_expression(o)
+        return k1 * w[0] + k2 * w[1] + k3 * w[2]
+
+    def omega_dot_expression(self, o: sp.Matrix, w: sp.Matrix, w_dot: sp.Matrix) -> sp.Matrix:
+        k1, k2, k3 = self._global_axes_expression(o)
+        w1, w2 = k1 * w[0], k2 * w[1]
+        return k1 * w_dot[0] + k2 * w_dot[1] + k3 * w_dot[2] + w1.cross(k2) * w[1] + (w1 + w2).cross(k3) * w[2]
+
     def omega(self, o: np.ndarray, w: np.ndarray) -> np.ndarray:
         k1, k2, k3 = self._global_axes(o)
         return k1 * w[..., 0:1] + k2 * w[..., 1:2] + k3 * w[..., 2:3]

@@ -24,6 +24,12 @@ def quaternion_matrix(e: sp.Matrix) -> sp.Matrix:
     )
 
 
+def _vector_of_product_with_conjugate(p: sp.Matrix, e: sp.Matrix) -> sp.Matrix:
+    """Vector part of p ⊗ conj(e) (Hamilton product, w first), symbolic."""
+    pw, pv, ew, ev = p[0], sp.Matrix(p[1:]), e[0], -sp.Matrix(e[1:])
+    return pw * ev + ew * pv + pv.cross(ev)
+
+
 class EulerParameters(Parametrization):
     """Four Euler parameters per body with a normalization constraint."""
 
@@ -35,8 +41,19 @@ class EulerParameters(Parametrization):
     def matrix(self, o: sp.Matrix) -> sp.Matrix:
         return quaternion_matrix(o)
 
+    def omega_expression(self, o: sp.Matrix, w: sp.Matrix) -> sp.Matrix:
+        return 2 * _vector_of_product_with_conjugate(w, o)
+
+    def omega_dot_expression(self, o: sp.Matrix, w: sp.Matrix, w_dot: sp.Matrix) -> sp.Matrix:
+        return 2 * _vector_of_product_with_conjugate(w_dot, o)
+
     def normalization(self, o: sp.Matrix) -> list[sp.Expr]:
         return [sum(x**2 for x in o) - 1]
+
+    def project(self, q: np.ndarray) -> np.ndarray:
+        out = np.array(q, dtype=float, copy=True)
+        out[3:] /= np.linalg.norm(out[3:], axis=0)
+        return out
 
     def from_matrix(self, rotation: np.ndarray) -> np.ndarray:
         return qa.from_matrix(rotation)

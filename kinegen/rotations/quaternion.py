@@ -44,6 +44,12 @@ class Quaternion(Parametrization):
         ]
         return [k * a for k in axes]
 
+    def omega_expression(self, o: sp.Matrix, w: sp.Matrix) -> sp.Matrix:
+        return sp.Matrix(w)
+
+    def omega_dot_expression(self, o: sp.Matrix, w: sp.Matrix, w_dot: sp.Matrix) -> sp.Matrix:
+        return sp.Matrix(w_dot)
+
     def from_matrix(self, rotation: np.ndarray) -> np.ndarray:
         return qa.from_matrix(rotation)
 
@@ -56,5 +62,30 @@ class Quaternion(Parametrization):
     def omega_dot(self, o: np.ndarray, w: np.ndarray, w_dot: np.ndarray) -> np.ndarray:
         return np.asarray(w_dot, dtype=float)
 
-    def retract(self, o: np.ndarray, step: np.ndarray) -> np.ndarray:
-        return qa.multiply(qa.exp(step), o)
+    def retract_orientation(self, o: np.ndarray, step: np.ndarray) -> np.ndarray:
+        # exp(theta/2) ⊗ q: stays unit to rounding, never renormalized
+        return qa.increment(step, o)
+
+    def c_retract(self) -> str:
+        return _C_RETRACT
+
+    def project(self, q: np.ndarray) -> np.ndarray:
+        out = np.array(q, dtype=float, copy=True)
+        out[3:] /= np.linalg.norm(out[3:], axis=0)
+        return out
+
+
+#: retract_body in C: positions added, q <- exp(theta/2) ⊗ q (as quaternion_algebra.increment)
+_C_RETRACT = """\
+double tx = step[3], ty = step[4], tz = step[5];
+double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
+double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
+double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
+double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
+q[0] += step[0];
+q[1] += step[1];
+q[2] += step[2];
+q[3] = pw * qw - px * qx - py * qy - pz * qz;
+q[4] = pw * qx + px * qw + py * qz - pz * qy;
+q[5] = pw * qy - px * qz + py * qw + pz * qx;
+q[6] = pw * qz + px * qy - py * qx + pz * qw;"""

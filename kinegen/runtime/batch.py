@@ -15,10 +15,10 @@ from dataclasses import dataclass
 import numpy as np
 from scipy.sparse import csr_matrix
 
-from kinegen.analysis.blocks import block_triangular
 from kinegen.errors import KinegenError
 from kinegen.runtime.solver import Solver, SolverOptions
 from kinegen.runtime.system import NumericSystem
+from kinegen.symbolic.blocks import block_triangular
 
 
 class BlockSolve:
@@ -253,13 +253,6 @@ class _Grid:
             return _one_by_one(self.sequential, u, guess)
         return solve_batch(self.system, u, guess, self.tolerance, block_solve=self.block_solve)
 
-    def normalized(self, guess: np.ndarray) -> np.ndarray:
-        """``guess`` (n, ...) with its interpolated quaternions back at unit length."""
-        if self.system.parametrization.stores_quaternion:
-            for s_off, _ in self.system.bodies.values():
-                part = guess[s_off + 3 : s_off + 7]
-                guess[s_off + 3 : s_off + 7] = part / np.linalg.norm(part, axis=0)
-        return guess
 
     def solve(self, axes: list[np.ndarray], q_start: np.ndarray) -> BatchResult:
         counts = [len(a) for a in axes]
@@ -282,7 +275,7 @@ class _Grid:
             guess = np.where(np.isfinite(guess), guess, np.take(solved, nearest, axis=1 + d))
             target = [*known[:d], wanted, *known[d + 1 :]]
             mesh = np.meshgrid(*(a[i] for a, i in zip(axes, target)), indexing="ij")
-            flat = self.normalized(guess).reshape(len(q_start), -1)
+            flat = self.system.project(guess).reshape(len(q_start), -1)
             _store(result, np.ix_(*target), self.batch([m.ravel() for m in mesh], flat), mesh[0].shape)
             picks[d] = np.arange(counts[d])
         return result
@@ -316,7 +309,7 @@ class _Grid:
                     guess = 2 * previous - q[(slice(None), *at(0))]
                 else:  # quadratic extrapolation from the last three slices
                     guess = 3 * previous - 3 * q[(slice(None), *at(j - 2))] + q[(slice(None), *at(j - 3))]
-                guess = np.where(np.isfinite(guess), self.normalized(guess), previous)
+                guess = np.where(np.isfinite(guess), self.system.project(guess), previous)
                 solve(at(j), guess)
         return result
 

@@ -45,36 +45,28 @@ class Results:
         """True when every time point converged."""
         return self.failure is None and bool(np.all(self.converged))
 
-    def _slices(self, body: str) -> tuple[int, int]:
+    def _body(self, body: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The body's stored, velocity and acceleration coordinates over time (K, nq), (K, nv), (K, nv)."""
         if body not in self.system.bodies:
             raise KeyError(f"no body {body!r} (bodies: {', '.join(self.system.bodies)})")
-        return self.system.bodies[body]
-
-    def _orientation(self, body: str) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        s, v = self._slices(body)
-        p = self.system.parametrization
-        k, kv = len(p.stored_names), len(p.velocity_names)
-        return self.q[:, s + 3 : s + 3 + k], self.v[:, v + 3 : v + 3 + kv], self.a[:, v + 3 : v + 3 + kv]
+        coordinates = self.system.body_coordinates
+        return coordinates(self.q, body), coordinates(self.v, body, velocity=True), coordinates(self.a, body, velocity=True)
 
     def position(self, body: str) -> np.ndarray:
         """Body-frame origin, global, (K, 3)."""
-        s, _ = self._slices(body)
-        return self.q[:, s : s + 3]
+        return self.system.parametrization.pose(self._body(body)[0])[0]
 
     def velocity(self, body: str) -> np.ndarray:
         """Velocity of the body-frame origin, (K, 3)."""
-        _, v = self._slices(body)
-        return self.v[:, v : v + 3]
+        return self.system.parametrization.frame_velocity(*self._body(body)[:2])[0]
 
     def acceleration(self, body: str) -> np.ndarray:
         """Acceleration of the body-frame origin, (K, 3)."""
-        _, v = self._slices(body)
-        return self.a[:, v : v + 3]
+        return self.system.parametrization.frame_acceleration(*self._body(body))[0]
 
     def rotation_matrix(self, body: str) -> np.ndarray:
         """Rotation matrices body -> global, (K, 3, 3)."""
-        o, _, _ = self._orientation(body)
-        return self.system.parametrization.to_matrix(o)
+        return self.system.parametrization.pose(self._body(body)[0])[1]
 
     def quaternion(self, body: str) -> np.ndarray:
         """Unit quaternions (w, x, y, z), (K, 4), sign chosen with w >= 0."""
@@ -90,13 +82,11 @@ class Results:
 
     def omega(self, body: str) -> np.ndarray:
         """Global angular velocity, (K, 3)."""
-        o, w, _ = self._orientation(body)
-        return self.system.parametrization.omega(o, w)
+        return self.system.parametrization.frame_velocity(*self._body(body)[:2])[1]
 
     def omega_dot(self, body: str) -> np.ndarray:
         """Global angular acceleration, (K, 3)."""
-        o, w, wd = self._orientation(body)
-        return self.system.parametrization.omega_dot(o, w, wd)
+        return self.system.parametrization.frame_acceleration(*self._body(body))[1]
 
     def _arm(self, body: str, point: str) -> np.ndarray:
         points = self.system.points.get(body, {})

@@ -79,8 +79,9 @@ class SolverOptions:
     #: chord iterations within a time step: start from the factorization of Phi_q made at the
     #: previous step's solution (for its velocity solve) and keep a factorization while each
     #: iteration cuts max |Phi| by at least ``chord_rate``; otherwise factorize afresh. They
-    #: trade factorizations for evaluations, which pays when an evaluation is cheap (compiled
-    #: code) or the start is far (no predictor: ~3 iterations a step). None: exactly then.
+    #: trade factorizations for evaluations, which pays in Python when the start is far (no
+    #: predictor: ~3 iterations a step). None: exactly then. (The C solver's block
+    #: factorization costs about one evaluation, so compiled systems leave them off.)
     #: Their convergence is linear, so such a step always ends with the polishing correction
     #: below (a pose only just within the tolerance would carry ~cond(Phi_q) x 1e-10 errors).
     chord: bool | None = None
@@ -91,6 +92,9 @@ class SolverOptions:
     #: "raise": a step that fails raises; "stop": the run stops there and the results end
     #: with that step marked not converged (``Results.converged``, ``Results.failure``)
     on_failure: str = "raise"
+    #: use the system's compiled C (kernels and the C step loop) when it has it; False: the
+    #: Python functions and loop only
+    compiled: bool = True
 
 
 def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str], threshold: float = 1e-6) -> str:
@@ -118,8 +122,10 @@ class Solver:
     """Solves one :class:`NumericSystem` over time."""
 
     def __init__(self, system: NumericSystem, options: SolverOptions | None = None) -> None:
-        self.system = system
         self.options = options or SolverOptions()
+        if not self.options.compiled and system.native is not None:
+            system = dataclasses.replace(system, native=None)
+        self.system = system
         m, n = len(system.constraint_names), system.n_velocity
         if m < n:
             raise ValueError(f"{system.model}/{system.case}: {m} constraints for {n} velocity coordinates")
@@ -128,9 +134,8 @@ class Solver:
         #: factorization of Phi_q chosen once for its pattern (dense or band LU)
         self.linear = linear.choose(system.jac_rows, system.jac_cols, (m, n))
         chord = self.options.chord
-        self._compiled: Any = None  # the C step loop, made on first use (_compiled_steps)
         #: chord iterations within a step (see SolverOptions.chord)
-        self.chord = chord if chord is not None else (system.native is not None or not self.options.predictor)
+        self.chord = chord if chord is not None else (system.native is None and not self.options.predictor)
 
     # ---- building blocks ---------------------------------------------------------------
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -428,15 +433,15 @@ class Solver:
         v = a = None
         factors: Factors | None = None
         failure: KinegenError | None = None
-        compiled = self._compiled_steps()
-        if compiled is not None:
+        native = self._native_steps()
+        if native is not None:
             c_inputs = tuple(np.ascontiguousarray(x.T) for x in (u_all, ud_all, udd_all))
             c_iterations = np.zeros(k, dtype=np.intc)
         i = 0
         while i < k:
-            if compiled is not None and factors is not None:
+            if native is not None:
                 # the C loop takes the usual steps; it returns at the first step that needs Python
-                done = compiled.run(i, times, c_inputs, (qs, vs, accs, c_iterations, residuals, conditions), self._sign(factors))
+                done = native.run(i, times, q, c_inputs, (qs, vs, accs, c_iterations, residuals, conditions))
                 converged[i:done], iterations[i:done] = True, c_iterations[i:done]
                 if done >= k:
                     break
@@ -444,7 +449,7 @@ class Solver:
                     q, v, a = qs[done - 1].copy(), vs[done - 1].copy(), accs[done - 1].copy()
                     factors = None
                     i = done
-                qs[i] = np.nan  # the C loop's unfinished try
+                qs[i], vs[i], accs[i] = np.nan, np.nan, np.nan  # the C loop's unfinished try
             t = times[i]
             u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
             try:
@@ -471,21 +476,21 @@ class Solver:
             conditions[i] = self._condition(factors)
             qs[i], vs[i], accs[i] = q, v, a
             converged[i] = True
+            if native is not None:
+                native.resume(t, q, v, a, u)
             i += 1
         return Results(
             system, times[:k], qs[:k], vs[:k], accs[:k], iterations[:k], residuals[:k], conditions[:k],
             u_all.T[:k].copy(), self.options.condition, converged[:k], failure,
         )  # fmt: skip
 
-    def _compiled_steps(self) -> Any:
-        """The C step loop (kinegen.runtime.compiled_trajectory) when the system is compiled, else None."""
-        from kinegen.runtime import compiled_trajectory
-
-        if not compiled_trajectory.usable(self):
+    def _native_steps(self) -> _NativeSteps | None:
+        """The C step loop of the system's compiled code, when it can stand in for the Python
+        one: compiled code, a square Phi_q, a condition number it can record (the estimate or none)."""
+        native = self.system.native
+        if native is None or self.redundant or self.options.condition not in ("estimate", "none"):
             return None
-        if self._compiled is None:
-            self._compiled = compiled_trajectory.CompiledSteps(self, self.system.native.library, self.system.native.case)
-        return self._compiled
+        return _NativeSteps(native, self.options, self.chord)
 
     def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, depth: int = 0) -> tuple:
         """Position at t1 from the solved state (q, v, a) at t0, whose Phi_q is factorized in
@@ -522,6 +527,45 @@ class Solver:
         vm, am = self.rates(first.q, *mid_inputs, factors_m)
         second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, depth + 1)
         return second._replace(iterations=first.iterations + second.iterations), factors
+
+
+class _NativeSteps:
+    """The C solver (kinegen_solver.c) for one trajectory, with this solver's options."""
+
+    def __init__(self, native: Any, options: SolverOptions, chord: bool) -> None:
+        from kinegen.runtime.native import Options
+
+        self.options = Options(
+            options.tolerance, options.singular_tolerance, options.divergence_limit, options.chord_rate, options.jump_ratio,
+            options.jump_floor, options.max_iterations, options.predictor, chord, options.polish, options.keep_branch,
+            options.condition == "estimate",
+        )  # fmt: skip
+        self.solver = native.solver(self.options)
+
+    def run(self, first: int, times: np.ndarray, q0: np.ndarray, inputs: tuple, out: tuple) -> int:
+        """Steps ``first``, ``first + 1``, ... into ``out`` (rows per step); step 0 from ``q0``.
+        Returns the first step not solved."""
+        if first == 0:
+            u, ud, udd = (x[0] for x in inputs)
+            if self.solver.start(times[0], q0, u, ud, udd) != 0:
+                return 0
+            self._store(0, out)
+            first = 1
+        if first >= len(times):
+            return first
+        rows = tuple(np.ascontiguousarray(x[first:]) for x in inputs)
+        views = tuple(o[first:] for o in out)
+        done, _ = self.solver.trajectory(np.ascontiguousarray(times[first:]), rows, views)
+        return first + done
+
+    def _store(self, i: int, out: tuple) -> None:
+        q, v, a = self.solver.state_arrays()
+        state = self.solver.state
+        out[0][i], out[1][i], out[2][i] = q, v, a
+        out[3][i], out[4][i], out[5][i] = state.iterations, state.residual, state.condition
+
+    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray) -> None:
+        self.solver.resume(t, q, v, a, u)
 
 
 def solve(system: NumericSystem, times: np.ndarray | None = None, options: SolverOptions | None = None) -> Results:

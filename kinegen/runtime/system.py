@@ -21,7 +21,6 @@ import numpy as np
 
 from kinegen import rotations
 from kinegen.errors import GeneratedModuleError, ModelError, shown
-from kinegen.rotations import quaternion_algebra as qa
 from kinegen.runtime.linear import Pattern
 
 
@@ -57,7 +56,7 @@ class NumericSystem:
     phi_jac_s: Callable[[list, list], tuple[list, list]] | None = None
     nu_s: Callable[..., list] | None = None
     gamma_s: Callable[..., list] | None = None
-    #: optional compiled implementation of the same three (``kinegen.runtime.compiled.attach``)
+    #: the case compiled from the module's C (:class:`kinegen.runtime.native.NativeCase`), or None
     native: Any = None
     #: the model file's name and, per driver, (entry, text) of its time function there
     source: str = ""
@@ -133,32 +132,30 @@ class NumericSystem:
         """Dense Phi_q (constraints x velocity coordinates) at one configuration."""
         return self._pattern.dense(self.jac(q, u))
 
-    @cached_property
-    def retraction_indices(self) -> tuple[np.ndarray, ...] | None:
-        """Positions (stored, velocity) and quaternion/increment (stored, velocity) indices, or
-        None when the velocity coordinates are the stored ones' rates (q + step). The rotation
-        indices are (4, bodies) and (3, bodies): q[index] has the components first."""
-        if self.parametrization.name != "quaternion":
-            return None
-        offsets = np.array(list(self.bodies.values()), dtype=np.intp).reshape(-1, 2)  # stored, velocity offset
-        return (
-            (offsets[:, :1] + np.arange(3)).ravel(),
-            (offsets[:, 1:] + np.arange(3)).ravel(),
-            offsets[:, 0] + 3 + np.arange(4)[:, None],
-            offsets[:, 1] + 3 + np.arange(3)[:, None],
-        )
-
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
-        """q (n,) or (n, K) moved by ``step`` (velocity coordinates); quaternions by the
-        exponential map (global rotation increments), so they stay unit."""
-        indices = self.retraction_indices
-        if indices is None:
-            return q + step
-        position_q, position_v, rotation_q, rotation_v = indices
-        out = q.copy()
-        out[position_q] += step[position_v]
-        out[rotation_q] = qa.increment(step[rotation_v], q[rotation_q])
-        return out
+        """q (n,) or (n, K) moved by ``step`` (velocity coordinates) body by body, as the
+        parametrization says (quaternions by the exponential map, so they stay unit)."""
+        p = self.parametrization
+        bodies = len(self.bodies)
+        batch = q.shape[1:]
+        moved = p.retract(
+            np.moveaxis(q.reshape(bodies, p.nq, *batch), 0, 1), np.moveaxis(step.reshape(bodies, p.nv, *batch), 0, 1)
+        )
+        return np.moveaxis(moved, 1, 0).reshape(q.shape)
+
+    def project(self, q: np.ndarray) -> np.ndarray:
+        """q (n, ...) whose bodies' coordinates interpolation may have moved off their valid set
+        (a quaternion's unit length) put back on it."""
+        p = self.parametrization
+        bodies = len(self.bodies)
+        batch = q.shape[1:]
+        return np.moveaxis(p.project(np.moveaxis(q.reshape(bodies, p.nq, *batch), 0, 1)), 1, 0).reshape(q.shape)
+
+    def body_coordinates(self, values: np.ndarray, body: str, velocity: bool = False) -> np.ndarray:
+        """The coordinates of ``body`` in ``values`` (K, n) (stored, or velocity when ``velocity``)."""
+        p = self.parametrization
+        offset = self.bodies[body][1 if velocity else 0]
+        return values[..., offset : offset + (p.nv if velocity else p.nq)]
 
     @cached_property
     def _pattern(self) -> Pattern:
@@ -191,8 +188,16 @@ class NumericSystem:
         return np.array(self.gamma_s(q.tolist(), v.tolist(), u.tolist(), ud.tolist(), udd.tolist()))
 
 
-def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSystem:
-    """The numeric system of ``case`` (the first case by default) of a generated module."""
+def from_module(module: ModuleType | Any, case: str | None = None, compiled: bool | None = None) -> NumericSystem:
+    """The numeric system of ``case`` (the first case by default) of a generated module.
+
+    ``compiled``: evaluate the kernels and solve trajectories through the module's C (the
+    ``.c``/``.h`` beside it, compiled once with kinegen's C solver and cached,
+    :mod:`kinegen.runtime.native`). None (default): when the C is there and a compiler is
+    found, else the Python functions (a missing compiler is said once, as a warning); True:
+    the same, but a missing compiler is an error (:class:`~kinegen.runtime.native.CompileError`);
+    False: the Python functions.
+    """
     cases = module.CASES
     if case is None:
         case = next(iter(cases))
@@ -228,7 +233,21 @@ def from_module(module: ModuleType | Any, case: str | None = None) -> NumericSys
         source=getattr(module, "SOURCE", ""),
         driver_sources=tuple(data.get("driver_sources", ())),
         ground_points=dict(getattr(module, "GROUND_POINTS", {})),
+        native=_native(module, case, compiled),
     )
+
+
+def _native(module: ModuleType | Any, case: str, compiled: bool | None) -> Any:
+    if compiled is False or not hasattr(module, "KERNELS"):
+        return None
+    from kinegen.runtime import native
+
+    if compiled:
+        sources = native._model_sources(module)
+        if sources is None:
+            raise native.CompileError(f"{getattr(module, '__file__', module)}: no fresh generated C beside the module")
+        native.build_library(sources)  # raises CompileError without a compiler
+    return native.native_case(module, case)
 
 
 def module_from_source(source: str, name: str = "kinegen_generated", filename: str = "<generated>") -> ModuleType:

@@ -1,4 +1,4 @@
-"""Printing SymPy expressions as NumPy-compatible Python source."""
+"""The Python backend's printers: NumPy code (batches) and plain ``math`` code (one configuration)."""
 
 from __future__ import annotations
 
@@ -65,18 +65,6 @@ def _rational(printer: PythonCodePrinter, expr: sp.Rational, base: type) -> str:
     if abs(expr.p) < 10**6 and expr.q < 10**6:
         return base._print_Rational(printer, expr)
     return repr(float(expr))  # a compacted geometry constant
-
-
-def freeze_numbers(expr: sp.Expr) -> sp.Expr:
-    """Replace irrational numeric subexpressions (``sqrt(2)/2``, ``cos(17/50)``, ``2*pi``) by floats.
-
-    Integers and rationals stay exact (Python folds ``89/50`` at compile time).
-    """
-
-    def is_constant(e: sp.Basic) -> bool:
-        return isinstance(e, sp.Expr) and e.is_number and not e.is_Rational and not e.is_Float
-
-    return expr.replace(is_constant, lambda e: sp.Float(float(sp.N(e, 30))))
 
 
 def used_numpy_names(source: str) -> list[str]:

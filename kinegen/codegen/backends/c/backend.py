@@ -1,0 +1,254 @@
+"""Printing a kernel description as C: ``<stem>.h`` / ``<stem>.c`` (the model: kernels of every
+case, their factorization plans, names, points, actuators), and for the standalone target the
+runtime (``kinegen_solver.h/.c``), a ``Makefile``, a ``CMakeLists.txt`` and ``example_main.c``.
+
+Every section is one straight-line ``static`` function (split into parts of at most
+:data:`config.PART_STATEMENTS` statements, which keeps compile time linear in the model's
+size); a case's kernels call the sections in turn. C99 and ``math.h`` only.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from types import SimpleNamespace
+
+import sympy as sp
+
+from kinegen.codegen.backends.c import config
+from kinegen.codegen.backends.c.printer import CPrinter
+from kinegen.codegen.kernels import CaseDescription, ModuleDescription, Plan, Zeros
+from kinegen.codegen.shapes import Block, Printing
+from kinegen.codegen.templates import environment
+from kinegen.model.expressions import T
+
+TEXT = 1  # position of the printed text in a Block's temporaries (after the name)
+
+
+@dataclass
+class _Function:
+    """One generated C function for a template macro."""
+
+    name: str
+    params: list[str]
+    prologue: list[str] = field(default_factory=list)
+    statements: list[str] = field(default_factory=list)
+    doc: str = ""
+    static: bool = True
+
+
+def _parameter(slot: str) -> str:
+    return "double t" if slot == "t" else f"const double *{slot}"
+
+
+def _int_array(values) -> str:
+    values = list(values)
+    return "{" + ", ".join(str(int(v)) for v in values) + "}" if values else "{0}"
+
+
+def _string_array(values) -> str:
+    values = list(values)
+    return "{" + ", ".join(_c_string(v) for v in values) + "}" if values else "{0}"
+
+
+def _c_string(text: str) -> str:
+    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
+
+
+def _double(value: float) -> str:
+    text = repr(float(value))
+    return text if any(c in text for c in ".en") else text + ".0"
+
+
+@dataclass(frozen=True)
+class _PlanArrays:
+    """A case's plan as the arrays of ``kinegen_model``."""
+
+    block_start: list[int]
+    block_store: list[int]
+    n_store: int
+    row_order: list[int]
+    col_order: list[int]
+    diag_value: list[int]
+    diag_slot: list[int]
+    off_start: list[int]
+    off_col: list[int]
+    off_value: list[int]
+
+
+def plan_arrays(case: CaseDescription, plan: Plan) -> _PlanArrays:
+    """Where each Phi_q value goes: into a diagonal block's dense storage (column-major) or,
+    below the blocks, into the list of its permuted row."""
+    n = len(plan.row_order)
+    position_of_row = [0] * n
+    position_of_col = [0] * n
+    for i, r in enumerate(plan.row_order):
+        position_of_row[r] = i
+    for j, c in enumerate(plan.col_order):
+        position_of_col[c] = j
+    block_of = [0] * n
+    stores, offset = [], 0
+    for b, (start, end) in enumerate(zip(plan.block_start, plan.block_start[1:])):
+        for i in range(start, end):
+            block_of[i] = b
+        stores.append(offset)
+        offset += (end - start) ** 2
+    diag_value, diag_slot = [], []
+    below: list[list[tuple[int, int]]] = [[] for _ in range(n)]
+    for k, (r, c) in enumerate(zip(case.jac_rows, case.jac_cols)):
+        i, j = position_of_row[r], position_of_col[c]
+        b = block_of[i]
+        if block_of[j] == b:
+            start, size = plan.block_start[b], plan.block_start[b + 1] - plan.block_start[b]
+            diag_value.append(k)
+            diag_slot.append(stores[b] + (i - start) + (j - start) * size)
+        elif block_of[j] < b:
+            below[i].append((j, k))
+        else:  # pragma: no cover -- block_triangular guarantees a lower block-triangular form
+            raise ValueError(f"{case.name}: Phi_q entry ({r}, {c}) above the block diagonal")
+    off_start, off_col, off_value = [0], [], []
+    for entries in below:
+        for j, k in sorted(entries):
+            off_col.append(j)
+            off_value.append(k)
+        off_start.append(len(off_col))
+    return _PlanArrays(list(plan.block_start), stores, offset, list(plan.row_order), list(plan.col_order),
+                       diag_value, diag_slot, off_start, off_col, off_value)  # fmt: skip
+
+
+def work_sizes(description: ModuleDescription, case: CaseDescription, arrays: _PlanArrays) -> tuple[int, int]:
+    """(doubles, ints) one solver of ``case`` needs (see kinegen_init)."""
+    nq, nv = len(description.stored_names), len(description.velocity_names)
+    # q, trial; v, a, phi, rhs, step, motion, y, x; the Phi_q values; the blocks' factors and the entries below them
+    return 2 * nq + 8 * nv + len(case.jac_rows) + arrays.n_store + len(arrays.off_col), 2 * nv  # pivots, signs
+
+
+class _Model:
+    """The C functions and tables of one model."""
+
+    def __init__(self, description: ModuleDescription, stem: str) -> None:
+        self.d = description
+        self.stem = stem
+        self.printing: Printing = description.shapes.printing((CPrinter(),))
+        self.functions: list[_Function] = []
+        self.sections: dict[str, list[str]] = {}
+
+    def slot_symbols(self, slot: str, case: str | None) -> tuple[sp.Symbol, ...]:
+        if case is not None and slot in self.d.cases[case].slots:
+            return self.d.cases[case].slots[slot]
+        return self.d.slots[slot]
+
+    def prologue(self, slots: tuple[str, ...], block: Block, case: str | None) -> list[str]:
+        """Reads of the used arguments, the definitions the block uses, its temporaries;
+        ``(void)`` for arguments it does not use (the code compiles with -Wextra -Werror)."""
+        used = set(block.symbols)
+        defined, needs = self.printing.definitions(self.d.definitions, used)
+        used |= needs
+        lines = []
+        for slot in slots:
+            symbols = self.slot_symbols(slot, case)
+            if slot == "t":
+                if T not in used:
+                    lines.append("(void)t;")
+                continue
+            reads = [f"const double {s} = {slot}[{i}];" for i, s in enumerate(symbols) if s in used]
+            lines += reads or [f"(void){slot};"]
+        lines += [f"const double {name} = {texts[0]};" for name, *texts in defined]
+        lines += [f"const double {name} = {texts[0]};" for name, *texts in block.temporaries]
+        return lines
+
+    def section(self, name: str, case: str | None) -> list[str]:
+        """The function(s) of a section, made once; returns the names to call, in order (one per part)."""
+        if name in self.sections:
+            return self.sections[name]
+        section = self.d.sections[name]
+        block = self.printing.block(section.groups, "d" if "jac" in name else "c")
+        params = [*(_parameter(s) for s in section.slots), "double *out"]
+        parts = block.parts(config.PART_STATEMENTS)
+        names = [f"compute_{name}"] if len(parts) == 1 else [f"compute_{name}_part{k}" for k in range(len(parts))]
+        for function_name, part in zip(names, parts):
+            statements = [f"out[{part.offset + i}] = {'0.0' if texts is None else texts[0]};" for i, texts in enumerate(part.outputs)]
+            if not part.outputs:
+                statements.append("(void)out;")
+            doc = section.doc if len(parts) == 1 else f"{section.doc} Rows {part.offset} to {part.offset + len(part) - 1}."
+            self.functions.append(_Function(function_name, params, self.prologue(section.slots, part, case), statements, doc))
+        self.sections[name] = names
+        return names
+
+    def kernel(self, name: str, kernel, case: str | None, static: bool = True) -> None:
+        """A kernel: its outputs filled section by section (zeros where the description says so)."""
+        params = [*(_parameter(s) for s in kernel.slots), *(f"double *{o.name}" for o in kernel.outputs)]
+        statements = []
+        for output in kernel.outputs:
+            offset = 0
+            for part in output.parts:
+                if isinstance(part, Zeros):
+                    statements.append(f"for (int i = 0; i < {part.size}; ++i) {output.name}[{offset} + i] = 0.0;")
+                    offset += part.size
+                    continue
+                section = self.d.sections[part]
+                for function in self.section(part, case):
+                    args = ", ".join([*section.slots, f"{output.name} + {offset}" if offset else output.name])
+                    statements.append(f"{function}({args});")
+                offset += section.size
+            if offset == 0:
+                statements.append(f"(void){output.name};")
+        used = {s for o in kernel.outputs for p in o.parts if not isinstance(p, Zeros) for s in self.d.sections[p].slots}
+        statements = [f"(void){s};" for s in kernel.slots if s not in used] + statements
+        self.functions.append(_Function(name, params, [], statements, kernel.doc, static))
+
+    def render(self, templates) -> dict[str, str]:
+        d, stem = self.d, self.stem
+        cases = []
+        for name, case in d.cases.items():
+            if case.plan is None:
+                raise ValueError(
+                    f"{d.model}/{name}: the C target needs a square, structurally regular Phi_q "
+                    "(this case's is redundant or structurally singular)"
+                )
+            for kernel in case.kernels.values():
+                self.kernel(f"{kernel.name}_{name}", kernel, name)
+            arrays = plan_arrays(case, case.plan)
+            doubles, ints = work_sizes(d, case, arrays)
+            cases.append(SimpleNamespace(case=case, plan=arrays, doubles=doubles, ints=ints))
+        self.kernel(f"{stem}_frames", d.kernels["frames"], None, static=False)
+        points, index = [], {}
+        bodies = [b for b, _, _ in d.bodies]
+        for body, named in d.points.items():
+            for point, local in named.items():
+                index[body, point] = len(points)
+                points.append((bodies.index(body), f"{body}.{point}", local))
+        for point, position in d.ground_points.items():
+            index["ground", point] = len(points)
+            points.append((-1, f"ground.{point}", position))
+        actuators = [(name, index[p1], index[p2], limits) for name, p1, p2, limits in d.actuators]
+        macros = templates.get_template("functions.c.jinja").module
+        context = {
+            "d": d, "stem": stem, "prefix": stem.upper(), "cases": cases, "points": points, "actuators": actuators,
+            "param": d.parametrization, "retract": d.parametrization.c_retract().splitlines(),
+            "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__,
+            "work_doubles": max(c.doubles for c in cases), "work_ints": max(c.ints for c in cases),
+            "max_inputs": max(1, *(len(c.case.drivers) for c in cases)),
+        }  # fmt: skip
+        return {
+            f"{stem}.h": templates.get_template("model.h.jinja").render(context),
+            f"{stem}.c": templates.get_template("model.c.jinja").render(context),
+        }
+
+
+def render(description: ModuleDescription, stem: str, standalone: bool = True) -> dict[str, str]:
+    """The model's C (``<stem>.h``, ``<stem>.c``) and, ``standalone``, everything that builds it
+    into a program with nothing but a C99 compiler: the runtime, a Makefile, a CMakeLists.txt
+    and example_main.c."""
+    templates = environment(config.TEMPLATES)
+    templates.filters.update(FILTERS)
+    files = _Model(description, stem).render(templates)
+    if standalone:
+        for name in config.RUNTIME:
+            files[name] = (config.SOLVER / name).read_text()
+        context = {"stem": stem, "prefix": stem.upper(), "d": description, "cases": list(description.cases), "cflags": config.CFLAGS}
+        for name in ("Makefile", "CMakeLists.txt", "example_main.c"):
+            files[name] = templates.get_template(f"{name}.jinja").render(context)
+    return files
+
+
+FILTERS = {"c_string": _c_string, "int_array": _int_array, "string_array": _string_array, "double": _double}

@@ -1,0 +1,446 @@
+/* kinegen_solver.c -- the runtime of kinegen's C target (see kinegen_solver.h).
+ *
+ * The same step as kinegen.runtime.solver.Solver's usual step, in C: predictor from the last
+ * step's velocity and acceleration, Newton or chord iterations until max |Phi| <= tolerance,
+ * the factors of Phi_q at the solution (branch check on the sign of det Phi_q and on the
+ * length of Newton's correction), one polishing correction, then velocity and acceleration
+ * with those factors. What Python adds around it (line search, homotopy, least squares,
+ * step halving near a toggle) it does not do: it returns a status and keeps its state.
+ *
+ * Phi_q: the values of its pattern, scattered into the dense diagonal blocks of its block
+ * lower triangular form (found at build time); the entries below the blocks are kept beside
+ * the blocks' factors, so that a chord step solves with the Jacobian it factorized.
+ * Each block is LU-factorized with partial pivoting; a solve is a forward substitution over
+ * the blocks. The 1-norm condition estimate is Hager's method (as LAPACK's xLACN2) with solves
+ * by Phi_q and its transpose.
+ */
+#include "kinegen_solver.h"
+
+#include <math.h>
+#include <string.h>
+
+void kinegen_default_options(kinegen_options *o) {
+    o->tolerance = 1e-10;
+    o->singular_tolerance = 1e-10;
+    o->divergence_limit = 1e8;
+    o->chord_rate = 0.1;
+    o->jump_ratio = 0.5;
+    o->jump_floor = 1e-3;
+    o->max_iterations = 25;
+    o->predictor = 1;
+    o->chord = 0;
+    o->polish = 1;
+    o->keep_branch = 1;
+    o->condition = 1;
+}
+
+void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_options *options, double *doubles,
+                  int *ints) {
+    int nq = m->n_q, nv = m->n_v;
+    memset(s, 0, sizeof(*s));
+    s->model = m;
+    if (options != NULL) {
+        s->options = *options;
+    } else {
+        kinegen_default_options(&s->options);
+    }
+    s->q = doubles;
+    s->v = s->q + nq;
+    s->a = s->v + nv;
+    s->trial = s->a + nv;
+    s->phi = s->trial + nq;
+    s->jac = s->phi + nv;
+    s->store = s->jac + m->n_jac;
+    s->off = s->store + m->n_store;
+    s->rhs = s->off + m->n_off;
+    s->step = s->rhs + nv;
+    s->motion = s->step + nv;
+    s->y = s->motion + nv;
+    s->x = s->y + nv;
+    s->pivots = ints;
+    s->t = m->t0;
+    s->residual = NAN;
+    s->condition = NAN;
+    s->sign = 1;
+}
+
+static double max_abs(const double *x, int n) {
+    double m = 0.0;
+    for (int i = 0; i < n; ++i) {
+        double a = fabs(x[i]);
+        if (!(a <= m)) m = a; /* NaN wins, as in NumPy's max */
+    }
+    return m;
+}
+
+/* LU factors of every diagonal block of Phi_q (values jac). Returns 1 when singular. */
+static int factor(kinegen_solver *s, const double *jac) {
+    const kinegen_model *m = s->model;
+    double low = INFINITY, high = 0.0;
+    int odd = 0;
+    memset(s->store, 0, sizeof(double) * (size_t)m->n_store);
+    for (int k = 0; k < m->n_diag; ++k) s->store[m->diag_slot[k]] = jac[m->diag_value[k]];
+    for (int e = 0; e < m->n_off; ++e) s->off[e] = jac[m->off_value[e]]; /* kept with the factors (chord steps) */
+    for (int b = 0; b < m->n_blocks; ++b) {
+        int first = m->block_start[b], n = m->block_start[b + 1] - first;
+        double *A = s->store + m->block_store[b];
+        int *piv = s->pivots + first;
+        for (int k = 0; k < n; ++k) {
+            int p = k;
+            double best = fabs(A[k + k * n]);
+            for (int i = k + 1; i < n; ++i) {
+                double c = fabs(A[i + k * n]);
+                if (c > best) {
+                    best = c;
+                    p = i;
+                }
+            }
+            piv[k] = p;
+            if (p != k) {
+                odd ^= 1;
+                for (int j = 0; j < n; ++j) {
+                    double tmp = A[k + j * n];
+                    A[k + j * n] = A[p + j * n];
+                    A[p + j * n] = tmp;
+                }
+            }
+            double pivot = A[k + k * n];
+            if (!(best >= low)) low = best; /* NaN propagates */
+            if (!(best <= high)) high = best;
+            if (pivot == 0.0 || !isfinite(pivot)) {
+                s->have_factors = 0;
+                return 1;
+            }
+            if (pivot < 0.0) odd ^= 1;
+            for (int i = k + 1; i < n; ++i) A[i + k * n] /= pivot;
+            for (int j = k + 1; j < n; ++j) {
+                double f = A[k + j * n];
+                if (f != 0.0)
+                    for (int i = k + 1; i < n; ++i) A[i + j * n] -= A[i + k * n] * f;
+            }
+        }
+    }
+    s->factor_sign = odd ? -1 : 1;
+    s->have_factors = 1;
+    return !(low > s->options.singular_tolerance * fmax(high, 1e-300));
+}
+
+/* x = Phi_q^-1 b with the current factors (x and b may alias). */
+static void solve(kinegen_solver *s, const double *b, double *x) {
+    const kinegen_model *m = s->model;
+    double *y = s->y; /* the solution in the permuted order */
+    for (int blk = 0; blk < m->n_blocks; ++blk) {
+        int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
+        const double *A = s->store + m->block_store[blk];
+        const int *piv = s->pivots + first;
+        double *r = y + first;
+        for (int i = 0; i < n; ++i) {
+            int row = first + i;
+            double acc = b[m->row_order[row]];
+            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) acc -= s->off[e] * y[m->off_col[e]];
+            r[i] = acc;
+        }
+        for (int k = 0; k < n; ++k) {
+            if (piv[k] != k) {
+                double tmp = r[k];
+                r[k] = r[piv[k]];
+                r[piv[k]] = tmp;
+            }
+        }
+        for (int k = 0; k < n; ++k)
+            for (int i = k + 1; i < n; ++i) r[i] -= A[i + k * n] * r[k];
+        for (int k = n - 1; k >= 0; --k) {
+            r[k] /= A[k + k * n];
+            for (int i = 0; i < k; ++i) r[i] -= A[i + k * n] * r[k];
+        }
+    }
+    for (int j = 0; j < m->n_v; ++j) x[m->col_order[j]] = y[j];
+}
+
+/* x = Phi_q^-T c (for the condition estimate; x and c may alias). */
+static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
+    const kinegen_model *m = s->model;
+    double *w = s->y;
+    for (int j = 0; j < m->n_v; ++j) w[j] = c[m->col_order[j]];
+    for (int blk = m->n_blocks - 1; blk >= 0; --blk) {
+        int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
+        const double *A = s->store + m->block_store[blk];
+        const int *piv = s->pivots + first;
+        double *r = w + first;
+        for (int k = 0; k < n; ++k) { /* U^T */
+            double acc = r[k];
+            for (int i = 0; i < k; ++i) acc -= A[i + k * n] * r[i];
+            r[k] = acc / A[k + k * n];
+        }
+        for (int k = n - 1; k >= 0; --k) { /* L^T */
+            double acc = r[k];
+            for (int i = k + 1; i < n; ++i) acc -= A[i + k * n] * r[i];
+            r[k] = acc;
+        }
+        for (int k = n - 1; k >= 0; --k) {
+            if (piv[k] != k) {
+                double tmp = r[k];
+                r[k] = r[piv[k]];
+                r[piv[k]] = tmp;
+            }
+        }
+        /* the entries below the blocks couple this block's rows to earlier blocks' columns */
+        for (int i = 0; i < n; ++i) {
+            int row = first + i;
+            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) w[m->off_col[e]] -= s->off[e] * r[i];
+        }
+    }
+    for (int i = 0; i < m->n_v; ++i) x[m->row_order[i]] = w[i];
+}
+
+/* 1-norm condition estimate of Phi_q from its factors: ||Phi_q||_1 times Higham's estimate of
+ * ||Phi_q^-1||_1 (the iteration of LAPACK's xLACN2: at most 5 sign-vector steps, then the
+ * alternating vector's estimate if larger). */
+static double condition_estimate(kinegen_solver *s) {
+    const kinegen_model *m = s->model;
+    int n = m->n_v, *isgn = s->pivots + n; /* the sign vector, after the pivots */
+    double *x = s->x, anorm, estimate, previous;
+    memset(x, 0, sizeof(double) * (size_t)n);
+    for (int k = 0; k < m->n_jac; ++k) x[m->jac_cols[k]] += fabs(s->jac[k]);
+    anorm = max_abs(x, n);
+    for (int i = 0; i < n; ++i) x[i] = 1.0 / n;
+    solve(s, x, x);
+    if (n == 1) return anorm * fabs(x[0]);
+    estimate = 0.0;
+    for (int i = 0; i < n; ++i) {
+        estimate += fabs(x[i]);
+        x[i] = copysign(1.0, x[i]);
+        isgn[i] = (int)x[i];
+    }
+    solve_transposed(s, x, x);
+    int j = 0;
+    for (int i = 1; i < n; ++i)
+        if (fabs(x[i]) > fabs(x[j])) j = i;
+    for (int iteration = 2;; ++iteration) {
+        memset(x, 0, sizeof(double) * (size_t)n);
+        x[j] = 1.0;
+        solve(s, x, x);
+        previous = estimate;
+        estimate = 0.0;
+        int changed = 0;
+        for (int i = 0; i < n; ++i) {
+            estimate += fabs(x[i]);
+            if ((int)copysign(1.0, x[i]) != isgn[i]) changed = 1;
+        }
+        if (!changed || estimate <= previous) break; /* a repeated sign vector, or no progress */
+        for (int i = 0; i < n; ++i) {
+            x[i] = copysign(1.0, x[i]);
+            isgn[i] = (int)x[i];
+        }
+        solve_transposed(s, x, x);
+        int last = j;
+        j = 0;
+        for (int i = 1; i < n; ++i)
+            if (fabs(x[i]) > fabs(x[j])) j = i;
+        if (x[last] == fabs(x[j]) || iteration >= 5) break;
+    }
+    double sign = 1.0;
+    for (int i = 0; i < n; ++i) {
+        x[i] = sign * (1.0 + (double)i / (n - 1));
+        sign = -sign;
+    }
+    solve(s, x, x);
+    double alternative = 0.0;
+    for (int i = 0; i < n; ++i) alternative += fabs(x[i]);
+    alternative = 2.0 * alternative / (3.0 * n);
+    return anorm * (alternative > estimate ? alternative : estimate);
+}
+
+/* Newton from s->trial for inputs u; with have_factors and chord, chord iterations first.
+ * On KINEGEN_OK: phi and jac at the solution, *count iterations, *travel summed max-norm steps. */
+static int newton(kinegen_solver *s, const double *u, int chord, int *count, double *travel, double *norm) {
+    const kinegen_model *m = s->model;
+    const kinegen_options *o = &s->options;
+    int n = m->n_v, have = chord && s->have_factors;
+    m->phi_jac(s->trial, u, s->phi, s->jac);
+    *norm = max_abs(s->phi, n);
+    *count = 0;
+    *travel = 0.0;
+    while (!(*norm <= o->tolerance)) {
+        if (*count >= o->max_iterations || !isfinite(*norm) || *norm > o->divergence_limit) return KINEGEN_NOT_CONVERGED;
+        if (!have) {
+            if (factor(s, s->jac)) return KINEGEN_SINGULAR;
+            have = 1;
+        }
+        solve(s, s->phi, s->step);
+        for (int j = 0; j < n; ++j) s->step[j] = -s->step[j];
+        ++*count;
+        *travel += max_abs(s->step, n);
+        m->retract(s->trial, s->step);
+        m->phi_jac(s->trial, u, s->phi, s->jac);
+        double next = max_abs(s->phi, n);
+        if (!chord || !(next <= o->chord_rate * *norm)) have = 0;
+        *norm = next;
+    }
+    return KINEGEN_OK;
+}
+
+/* From a converged s->trial (phi, jac at it): factors, branch checks, polish, v, a; commit. */
+static int finish(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int count,
+                  double travel, double largest_motion, double norm, int check_branch) {
+    const kinegen_model *m = s->model;
+    const kinegen_options *o = &s->options;
+    int n = m->n_v;
+    if (factor(s, s->jac)) return KINEGEN_SINGULAR;
+    if (check_branch && o->keep_branch) {
+        if (s->factor_sign != s->sign || (o->predictor && travel > fmax(o->jump_ratio * largest_motion, o->jump_floor))) {
+            s->have_factors = 0;
+            return KINEGEN_BRANCH;
+        }
+    }
+    double condition = o->condition ? condition_estimate(s) : NAN;
+    if ((o->polish || o->chord) && count > 0) {
+        solve(s, s->phi, s->step);
+        for (int j = 0; j < n; ++j) s->step[j] = -s->step[j];
+        m->retract(s->trial, s->step);
+    }
+    memcpy(s->q, s->trial, sizeof(double) * (size_t)m->n_q);
+    m->nu(s->q, u, ud, s->rhs);
+    solve(s, s->rhs, s->v);
+    m->gamma(s->q, s->v, u, ud, udd, s->rhs);
+    solve(s, s->rhs, s->a);
+    s->t = t;
+    s->sign = s->factor_sign;
+    s->iterations = count;
+    s->residual = norm;
+    s->condition = condition;
+    s->started = 1;
+    return KINEGEN_OK;
+}
+
+int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u, const double *ud, const double *udd) {
+    int count, status;
+    double travel, norm;
+    memcpy(s->trial, q0, sizeof(double) * (size_t)s->model->n_q);
+    status = newton(s, u, 0, &count, &travel, &norm);
+    if (status != KINEGEN_OK) {
+        s->have_factors = 0;
+        return status;
+    }
+    return finish(s, t, u, ud, udd, count, travel, 0.0, norm, 0);
+}
+
+int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd) {
+    const kinegen_model *m = s->model;
+    int n = m->n_v, count, status;
+    double travel, norm, largest_motion = 0.0, h = t - s->t;
+    if (!s->started) return KINEGEN_NOT_STARTED;
+    memcpy(s->trial, s->q, sizeof(double) * (size_t)m->n_q);
+    if (s->options.predictor) {
+        for (int j = 0; j < n; ++j) s->motion[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
+        largest_motion = max_abs(s->motion, n);
+        m->retract(s->trial, s->motion);
+    }
+    status = newton(s, u, s->options.chord, &count, &travel, &norm);
+    if (status != KINEGEN_OK) {
+        s->have_factors = 0;
+        return status;
+    }
+    return finish(s, t, u, ud, udd, count, travel, largest_motion, norm, 1);
+}
+
+int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u) {
+    const kinegen_model *m = s->model;
+    memcpy(s->q, q, sizeof(double) * (size_t)m->n_q);
+    memcpy(s->v, v, sizeof(double) * (size_t)m->n_v);
+    memcpy(s->a, a, sizeof(double) * (size_t)m->n_v);
+    s->t = t;
+    m->phi_jac(s->q, u, s->phi, s->jac);
+    if (factor(s, s->jac)) return KINEGEN_SINGULAR;
+    s->sign = s->factor_sign;
+    s->started = 1;
+    return KINEGEN_OK;
+}
+
+int kinegen_trajectory(kinegen_solver *s, int count, const double *times, const double *U, const double *UD,
+                       const double *UDD, double *Q, double *V, double *A, int *iterations, double *residuals,
+                       double *conditions, int *status) {
+    const kinegen_model *m = s->model;
+    int ni = m->n_inputs, nq = m->n_q, nv = m->n_v;
+    *status = KINEGEN_OK;
+    for (int i = 0; i < count; ++i) {
+        const double *u = U + (size_t)i * ni, *ud = UD + (size_t)i * ni, *udd = UDD + (size_t)i * ni;
+        *status = s->started ? kinegen_step(s, times[i], u, ud, udd) : kinegen_start(s, times[i], m->initial_q, u, ud, udd);
+        if (*status != KINEGEN_OK) return i;
+        memcpy(Q + (size_t)i * nq, s->q, sizeof(double) * (size_t)nq);
+        memcpy(V + (size_t)i * nv, s->v, sizeof(double) * (size_t)nv);
+        memcpy(A + (size_t)i * nv, s->a, sizeof(double) * (size_t)nv);
+        iterations[i] = s->iterations;
+        residuals[i] = s->residual;
+        conditions[i] = s->condition;
+    }
+    return count;
+}
+
+int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q, int *converged, int *iterations,
+                        double *residuals) {
+    const kinegen_model *m = s->model;
+    int ni = m->n_inputs, nq = m->n_q, solved = 0;
+    double *u = s->motion; /* n_inputs <= n_v: a driver adds one row each */
+    for (int k = 0; k < count; ++k) {
+        int n_iterations;
+        double travel, norm;
+        for (int i = 0; i < ni; ++i) u[i] = U[(size_t)i * count + k];
+        for (int j = 0; j < nq; ++j) s->trial[j] = Q[(size_t)j * count + k];
+        int status = newton(s, u, 0, &n_iterations, &travel, &norm);
+        converged[k] = status == KINEGEN_OK;
+        iterations[k] = n_iterations;
+        residuals[k] = norm;
+        solved += converged[k];
+        for (int j = 0; j < nq; ++j) Q[(size_t)j * count + k] = s->trial[j];
+    }
+    s->have_factors = 0;
+    return solved;
+}
+
+const char *kinegen_status_text(int status) {
+    switch (status) {
+    case KINEGEN_OK:
+        return "ok";
+    case KINEGEN_NOT_CONVERGED:
+        return "Newton-Raphson did not converge";
+    case KINEGEN_SINGULAR:
+        return "singular Jacobian";
+    case KINEGEN_BRANCH:
+        return "the solution would leave its assembly branch (a singular pose lies within the step)";
+    case KINEGEN_NOT_STARTED:
+        return "no initial pose solved yet (kinegen_start)";
+    default:
+        return "unknown status";
+    }
+}
+
+void kinegen_quaternion_from_matrix(const double *r, double *q) {
+    /* the largest of w^2, x^2, y^2, z^2 from the diagonal, the others from off-diagonal sums */
+    double trace = r[0] + r[4] + r[8];
+    double candidates[4] = {trace, r[0], r[4], r[8]};
+    int k = 0;
+    for (int i = 1; i < 4; ++i)
+        if (candidates[i] > candidates[k]) k = i;
+    double d = 1.0 + 2.0 * candidates[k] - trace;
+    double wx = r[7] - r[5], wy = r[2] - r[6], wz = r[3] - r[1];
+    double xy = r[1] + r[3], xz = r[2] + r[6], yz = r[5] + r[7];
+    double rows[4][4] = {{d, wx, wy, wz}, {wx, d, xy, xz}, {wy, xy, d, yz}, {wz, xz, yz, d}};
+    double norm = sqrt(rows[k][0] * rows[k][0] + rows[k][1] * rows[k][1] + rows[k][2] * rows[k][2] + rows[k][3] * rows[k][3]);
+    double sign = rows[k][0] < 0.0 ? -1.0 : 1.0;
+    for (int i = 0; i < 4; ++i) q[i] = sign * rows[k][i] / norm;
+}
+
+void kinegen_point_kinematics(const double *f, const double *s, double *p, double *v, double *a) {
+    /* f: origin r (0-2), A row by row (3-11), r' (12-14), omega (15-17), r'' (18-20), omega' (21-23) */
+    double arm[3], w[3] = {f[15], f[16], f[17]}, wd[3] = {f[21], f[22], f[23]};
+    for (int i = 0; i < 3; ++i) arm[i] = f[3 + 3 * i] * s[0] + f[4 + 3 * i] * s[1] + f[5 + 3 * i] * s[2];
+    double wa[3] = {w[1] * arm[2] - w[2] * arm[1], w[2] * arm[0] - w[0] * arm[2], w[0] * arm[1] - w[1] * arm[0]};
+    double wwa[3] = {w[1] * wa[2] - w[2] * wa[1], w[2] * wa[0] - w[0] * wa[2], w[0] * wa[1] - w[1] * wa[0]};
+    double wda[3] = {wd[1] * arm[2] - wd[2] * arm[1], wd[2] * arm[0] - wd[0] * arm[2], wd[0] * arm[1] - wd[1] * arm[0]};
+    for (int i = 0; i < 3; ++i) {
+        p[i] = f[i] + arm[i];
+        v[i] = f[12 + i] + wa[i];
+        a[i] = f[18 + i] + wda[i] + wwa[i];
+    }
+}

@@ -1,0 +1,177 @@
+/* kinegen_solver.h -- the runtime of kinegen's C target.
+ *
+ * Position (Newton-Raphson), velocity and acceleration of a mechanism over time, for the
+ * kernels a generated <model>_<param>.c provides. C99 and libm only; no heap allocation and
+ * no global state: every solver instance lives in memory its caller passes (one workspace
+ * struct, sized at build time by the generated header), so instances are independent and the
+ * functions re-entrant.
+ *
+ * Conventions: SI units, angles in radians, quaternions (w, x, y, z). q holds the stored
+ * coordinates, v and a the velocity coordinates and their time derivatives (for the
+ * quaternion parametrization: global angular velocity and acceleration). Phi_q is square and
+ * given by its values at a fixed pattern; it is factorized block by block in the
+ * block-triangular order found at build time (partial pivoting within each block).
+ *
+ * Typical use (see example_main.c):
+ *     excavator_quaternion_workspace w;
+ *     kinegen_solver s;
+ *     kinegen_init(&s, &excavator_quaternion_digging, NULL, w.doubles, w.ints);
+ *     status = kinegen_start(&s, t0, model->initial_q, u, ud, udd);
+ *     while (...) status = kinegen_step(&s, t, u, ud, udd);   -- s.q, s.v, s.a: the solution
+ */
+#ifndef KINEGEN_SOLVER_H
+#define KINEGEN_SOLVER_H
+
+#ifdef __cplusplus
+extern "C" {
+#endif
+
+/* What a call returns. On anything but KINEGEN_OK the solver keeps its last solved state. */
+enum kinegen_status {
+    KINEGEN_OK = 0,
+    KINEGEN_NOT_CONVERGED = 1, /* Newton did not reach the tolerance (iteration limit, divergence, NaN) */
+    KINEGEN_SINGULAR = 2,      /* Phi_q is (nearly) singular: min |U_ii| <= singular_tolerance * max |U_ii| */
+    KINEGEN_BRANCH = 3,        /* det(Phi_q) changed sign over the step (a toggle or dead point lies in
+                                  between) or Newton's correction exceeded the plausible: a shorter step is needed */
+    KINEGEN_NOT_STARTED = 4    /* kinegen_step before a successful kinegen_start */
+};
+
+typedef struct kinegen_options {
+    double tolerance;          /* max |Phi_i| at convergence (1e-10) */
+    double singular_tolerance; /* see KINEGEN_SINGULAR (1e-10) */
+    double divergence_limit;   /* max |Phi| beyond which Newton stops at once (1e8) */
+    double chord_rate;         /* chord iterations continue while max |Phi| falls by this factor (0.1) */
+    double jump_ratio;         /* KINEGEN_BRANCH when Newton travels more than jump_ratio x the predicted */
+    double jump_floor;         /*   motion and more than jump_floor (0.5, 1e-3) */
+    int max_iterations;        /* Newton iterations per step (25) */
+    int predictor;             /* 1: start each step from q moved by v h + a h^2 / 2 (1) */
+    int chord;                 /* 1: reuse the last factorization while Newton converges fast (0) */
+    int polish;                /* 1: one more correction with the factors at the solution (1) */
+    int keep_branch;           /* 1: refuse steps that change the assembly branch (1) */
+    int condition;             /* 1: estimate the 1-norm condition number of Phi_q at every step (1) */
+} kinegen_options;
+
+/* A named point: on a body (body >= 0, local = body coordinates) or the ground (body = -1, global). */
+typedef struct kinegen_point {
+    int body;
+    const char *name;
+    double local[3];
+} kinegen_point;
+
+/* A reported length between two points (e.g. a hydraulic cylinder), with its allowed range. */
+typedef struct kinegen_actuator {
+    const char *name;
+    int point1, point2; /* indices into the layout's points */
+    int has_range;
+    double min, max;
+} kinegen_actuator;
+
+/* What a model is, whatever the case: names, bodies, points, actuators, and the frames kernel
+ * (per body 24 values: origin, rotation matrix row by row, origin velocity, angular velocity,
+ * origin acceleration, angular acceleration; all global). */
+typedef struct kinegen_layout {
+    const char *model, *parametrization, *source, *source_sha256, *kinegen_version;
+    int n_q, n_v, n_bodies;
+    const char *const *body_names;
+    const char *const *stored_names;
+    const char *const *velocity_names;
+    int n_points;
+    const kinegen_point *points;
+    int n_actuators;
+    const kinegen_actuator *actuators;
+    void (*frames)(const double *q, const double *v, const double *a, double *out);
+} kinegen_layout;
+
+/* One case of a model: its kernels and the factorization plan of its Phi_q. */
+typedef struct kinegen_model {
+    const kinegen_layout *layout;
+    const char *case_name;
+    int n_q, n_v, n_inputs, n_jac; /* n_v constraints, n_jac values of Phi_q */
+    double t0, t1;
+    int steps;
+    const double *initial_q;
+    const char *const *constraint_names;
+    const char *const *driver_names;
+    const int *jac_rows, *jac_cols;
+    void (*phi_jac)(const double *q, const double *u, double *phi, double *jac);
+    void (*nu)(const double *q, const double *u, const double *ud, double *nu);
+    void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma);
+    void (*inputs)(double t, double *out); /* the case's own time functions: u, du/dt, d2u/dt2 (3 n_inputs) */
+    void (*retract)(double *q, const double *step);              /* q moved by a velocity-coordinate step */
+    /* Phi_q permuted to block lower triangular form: position i holds constraint row_order[i]
+     * and coordinate col_order[i]; block k spans positions block_start[k] .. block_start[k+1]-1
+     * and keeps its LU factors at block_store[k] (column-major). */
+    int n_blocks;
+    const int *block_start, *block_store;
+    const int *row_order, *col_order;
+    int n_store;
+    int n_diag;                    /* Phi_q values inside diagonal blocks: */
+    const int *diag_value, *diag_slot; /*   value diag_value[k] goes to store[diag_slot[k]] */
+    int n_off;                     /* values below the block diagonal, by permuted row (CSR): */
+    const int *off_start, *off_col, *off_value;
+    int work_doubles, work_ints;   /* what kinegen_init needs for this case */
+} kinegen_model;
+
+/* One solver instance. After a call returning KINEGEN_OK: q, v, a at time t, and the step's
+ * Newton iterations, final max |Phi| and condition estimate. All arrays point into the
+ * caller's memory (kinegen_init). */
+typedef struct kinegen_solver {
+    const kinegen_model *model;
+    kinegen_options options;
+    double t;
+    double *q, *v, *a;
+    int started, iterations;
+    double residual, condition;
+    int sign;         /* sign of det(Phi_q) at the solution, up to the plan's fixed permutations */
+    int have_factors; /* store holds factors (of the last solution, or of a Newton iterate) */
+    int factor_sign;  /* sign of det(Phi_q) of the factors in store */
+    /* workspace */
+    double *trial, *phi, *jac, *store, *off, *rhs, *step, *motion, *y, *x;
+    int *pivots; /* and the condition estimate's sign vector after them */
+} kinegen_solver;
+
+void kinegen_default_options(kinegen_options *options);
+
+/* Set up a solver for one case in caller-provided memory: at least model->work_doubles
+ * doubles and model->work_ints ints (the generated header's *_WORK_DOUBLES / *_WORK_INTS
+ * cover every case of the model). options NULL: kinegen_default_options. */
+void kinegen_init(kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles,
+                  int *ints);
+
+/* Assemble the pose at time t from q0 (Newton without predictor), then velocity and acceleration. */
+int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u, const double *ud, const double *udd);
+
+/* Advance to time t with driver inputs u (and their rates ud, udd): predictor, Newton or chord
+ * iterations, branch check, polishing, velocity, acceleration. */
+int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd);
+
+/* Take (t, q, v, a) solved elsewhere as the current state (u: the inputs at t). */
+int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u);
+
+/* Steps at times[0..count-1] (after a start or a resume) with inputs rows U, UD, UDD
+ * (count x n_inputs, row-major); rows of Q (count x n_q), V, A (count x n_v) and the per-step
+ * iterations, residuals and conditions are written. Returns the number of steps solved; when
+ * less than count, *status says why the next one failed. */
+int kinegen_trajectory(kinegen_solver *s, int count, const double *times, const double *U, const double *UD,
+                       const double *UDD, double *Q, double *V, double *A, int *iterations, double *residuals,
+                       double *conditions, int *status);
+
+/* Newton (full steps, no predictor) on many configurations: column k of U (n_inputs x count,
+ * row-major: input i of configuration k at U[i * count + k]) from column k of Q (n_q x count,
+ * likewise), solved in place; converged[k], iterations[k], residuals[k] per configuration.
+ * Returns how many converged. Leaves the solver's state as it was, but not its factors. */
+int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q, int *converged, int *iterations,
+                        double *residuals);
+
+const char *kinegen_status_text(int status);
+
+/* Reporting helpers: unit quaternion (w >= 0) of a rotation matrix (row by row; Shepperd's
+ * method), and position, velocity, acceleration of a body point from a body's 24 frame values. */
+void kinegen_quaternion_from_matrix(const double *matrix, double *quaternion);
+void kinegen_point_kinematics(const double *frame, const double *local, double *position, double *velocity,
+                              double *acceleration);
+
+#ifdef __cplusplus
+}
+#endif
+#endif

@@ -1,0 +1,6 @@
+"""The Python backend: one importable module per model and parametrization (NumPy batch code
+and plain-float code for one configuration)."""
+
+from kinegen.codegen.backends.python.backend import render
+
+__all__ = ["render"]

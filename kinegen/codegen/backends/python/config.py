@@ -1,0 +1,10 @@
+"""Settings of the Python backend."""
+
+from pathlib import Path
+
+#: File name suffix of the generated module.
+SUFFIX = ".py"
+#: Folder of the file skeletons (Jinja).
+TEMPLATES = Path(__file__).with_name("templates")
+#: Statements per function before it is split into parts (Python's compiler memory grows with it).
+PART_STATEMENTS = 5000

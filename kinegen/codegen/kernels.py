@@ -1,0 +1,329 @@
+"""The kernel description of a generated module: what is computed, from which arguments,
+into which outputs -- target-neutral. The backends (``kinegen/codegen/backends/<target>/``)
+print it; nothing here knows Python or C.
+
+* **Slots** are the kernels' arguments: ``q`` (stored coordinates), ``v`` (velocity
+  coordinates), ``a`` (their time derivatives), ``u``, ``ud``, ``udd`` (driver inputs and
+  their first two time derivatives, per case), ``t`` (time) -- and room for ``p`` (design
+  parameters).
+* **Sections** are runs of rows computed together: the joint rows' Phi, a case's driver
+  rows' gamma, the body frames. A section is a list of groups (one joint, driver or body
+  each), eliminated (CSE) once per shape (:class:`kinegen.codegen.shapes.Shapes`).
+* **Kernels** are what a runtime calls, per case: ``phi_jac`` (q, u -> Phi, Phi_q values at
+  the case's pattern), ``nu`` (q, u, ud -> nu = -Phi_t), ``gamma`` (q, v, u, ud, udd ->
+  gamma), ``inputs`` (t -> u, ud, udd); and ``frames`` (q, v, a -> per body origin, rotation
+  matrix, velocity, angular velocity, acceleration, angular acceleration). A kernel's output
+  is the concatenation of sections (or zeros).
+* The **plan** of a case is the block-triangular order of its Phi_q (rows and columns
+  permuted, block boundaries): found once at build time, so that a solver factorizes Phi_q
+  block by block (the excavator's 84 x 84: 41 blocks of at most 9).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+import sympy as sp
+
+import kinegen
+from kinegen.codegen.shapes import Group, Shapes
+from kinegen.model import Model
+from kinegen.model.expressions import T
+from kinegen.rotations import Parametrization
+from kinegen.symbolic.assembly import GENERIC_NAME, Coordinates, Row, System, Templates, build_systems, generic_body
+from kinegen.symbolic.blocks import block_triangular
+
+#: What each slot holds (units SI, angles in radians, quaternions w, x, y, z).
+SLOTS = {
+    "t": "time [s]",
+    "q": "stored coordinates",
+    "v": "velocity coordinates",
+    "a": "accelerations (time derivatives of the velocity coordinates)",
+    "u": "driver inputs (angles, lengths, coordinates)",
+    "ud": "their first time derivatives",
+    "udd": "their second time derivatives",
+}
+#: Values per body in the ``frames`` kernel: origin, rotation matrix (row by row), origin
+#: velocity, angular velocity, origin acceleration, angular acceleration; all global.
+FRAME_VALUES = 24
+
+
+@dataclass(frozen=True)
+class Section:
+    """Rows computed together: ``groups`` in order, using the arguments ``slots``."""
+
+    name: str
+    slots: tuple[str, ...]
+    groups: tuple[Group, ...]
+    size: int
+    doc: str
+
+
+@dataclass(frozen=True)
+class Zeros:
+    """Rows that are exactly zero (the joint rows of nu)."""
+
+    size: int
+
+
+@dataclass(frozen=True)
+class Output:
+    """One output array of a kernel: its parts (section names or zeros) concatenated."""
+
+    name: str
+    parts: tuple[str | Zeros, ...]
+    size: int
+
+
+@dataclass(frozen=True)
+class Kernel:
+    """A function a runtime calls: its argument slots, in order, and its outputs."""
+
+    name: str
+    slots: tuple[str, ...]
+    outputs: tuple[Output, ...]
+    doc: str
+
+
+@dataclass(frozen=True)
+class Plan:
+    """Block-triangular order of Phi_q: ``row_order[i]``/``col_order[i]`` are the constraint and
+    velocity coordinate at position i of the permuted matrix; block k spans positions
+    ``block_start[k]`` to ``block_start[k + 1]``; no entry lies above the block diagonal."""
+
+    row_order: tuple[int, ...]
+    col_order: tuple[int, ...]
+    block_start: tuple[int, ...]
+
+    @property
+    def largest_block(self) -> int:
+        return max(b - a for a, b in zip(self.block_start, self.block_start[1:]))
+
+
+@dataclass(frozen=True)
+class CaseDescription:
+    """One case: names, time grid, sparsity pattern, input symbols, kernels and plan."""
+
+    name: str
+    t0: float
+    t1: float
+    steps: int
+    constraints: tuple[str, ...]
+    drivers: tuple[str, ...]
+    driver_sources: tuple[tuple[str, str], ...]
+    jac_rows: tuple[int, ...]
+    jac_cols: tuple[int, ...]
+    slots: dict[str, tuple[sp.Symbol, ...]]
+    kernels: dict[str, Kernel]
+    plan: Plan | None  #: None for a redundant (non-square) or structurally singular Phi_q
+
+
+@dataclass(frozen=True)
+class Definitions:
+    """The rotation-matrix entries ``<body>_a<ij>`` as expressions of the stored coordinates,
+    the same for every body up to its name: printed once for the generic body, renamed as text."""
+
+    bodies: tuple[tuple[str, tuple[sp.Symbol, ...], tuple[sp.Expr, ...]], ...]  # name, symbols, expressions
+    generic: tuple[sp.Expr, ...]
+    generic_name: str = GENERIC_NAME
+
+
+@dataclass
+class ModuleDescription:
+    """Everything a backend prints for one model in one parametrization (all its cases)."""
+
+    model: str
+    source: str
+    sha256: str
+    parametrization: Parametrization
+    version: str
+    stored_names: tuple[str, ...]
+    velocity_names: tuple[str, ...]
+    bodies: tuple[tuple[str, int, int], ...]  #: name, offset in q, offset in v
+    points: dict[str, dict[str, tuple[float, float, float]]]
+    ground_points: dict[str, tuple[float, float, float]]
+    actuators: tuple[tuple[str, tuple[str, str], tuple[str, str], tuple[float, float] | None], ...]
+    initial_q: tuple[float, ...]
+    slots: dict[str, tuple[sp.Symbol, ...]]
+    definitions: Definitions
+    sections: dict[str, Section]
+    cases: dict[str, CaseDescription]
+    kernels: dict[str, Kernel]  #: kernels shared by every case (frames)
+    shapes: Shapes = field(default_factory=Shapes)
+
+    @property
+    def joint_rows(self) -> int:
+        """Rows common to every case (joints and normalizations), first in each case."""
+        return self.sections["joints_phi"].size
+
+
+def _groups(rows: list[Row], templates: Templates | None, kind: str) -> tuple[Group, ...]:
+    """Rows in groups (one joint, driver or normalization each) with their shape keys.
+
+    ``kind`` is "phi", "jac" (the row's non-zero entries by column), "nu" or "gamma"."""
+    out: list[Group] = []
+    start = 0
+    while start < len(rows):
+        end = start + 1
+        while end < len(rows) and rows[end].group and rows[end].group == rows[start].group:
+            end += 1
+        members = rows[start:end]
+        start = end
+        if templates is None or any(r.shape is None for r in members):
+            out.append(Group(None, lambda members=members: _real(members, kind), {}))
+            continue
+        orders = tuple(tuple(r.columns[c] for c in r.jacobian_columns) for r in members) if kind == "jac" else ()
+        key = (kind, tuple(r.shape for r in members), orders)
+        rename: dict = {}
+        for r in members:
+            rename.update(r.rename)
+
+        def generic(members=members, orders=orders) -> list[sp.Expr]:
+            shapes = [templates.generic(r.shape) for r in members]
+            if kind == "jac":
+                return [g.jacobian[c] for g, order in zip(shapes, orders) for c in order]
+            return [getattr(g, kind) for g in shapes]
+
+        out.append(Group(key, generic, rename))
+    return tuple(out)
+
+
+def _real(rows: list[Row], kind: str) -> list[sp.Expr]:
+    if kind == "jac":
+        return [e for r in rows for _, e in sorted(r.jacobian.items())]
+    return [getattr(r, kind) for r in rows]
+
+
+def _acceleration_symbols(coords: Coordinates) -> tuple[sp.Symbol, ...]:
+    """``dv_<body>_<coordinate>``: the time derivatives of the velocity coordinates."""
+    return tuple(sp.Symbol("d" + str(s), real=True) for s in coords.velocity_symbols)
+
+
+def _frame_groups(coords: Coordinates) -> tuple[Group, ...]:
+    """One group per body, all of one shape: the generic body's frame, renamed."""
+    param = coords.parametrization
+    generic = generic_body(param)
+    q = sp.Matrix(generic.stored)
+    v = sp.Matrix(generic.velocity)
+    a = sp.Matrix([sp.Symbol("d" + str(s), real=True) for s in generic.velocity])
+    generic_symbols = [*q, *v, *a]
+
+    def expressions() -> list[sp.Expr]:
+        values = param.frame_expressions(q, v, a)
+        return [e.xreplace(dict(zip(generic.rotation, generic.frame.A))) for e in values]  # A(o) -> the symbols a_ij
+
+    groups = []
+    for body in coords.bodies:
+        real = [*body.stored, *body.velocity, *(sp.Symbol("d" + str(s), real=True) for s in body.velocity)]
+        rename = dict(zip(generic_symbols, real))
+        rename.update(zip(generic.frame.A, body.frame.A))
+        groups.append(Group(("frames", param.name), expressions, rename))
+    return tuple(groups)
+
+
+def plan(rows: tuple[int, ...], cols: tuple[int, ...], shape: tuple[int, int]) -> Plan | None:
+    """The block-triangular plan of a pattern, or None (not square, structurally singular)."""
+    blocks = block_triangular(shape, np.array(rows, dtype=np.intp), np.array(cols, dtype=np.intp))
+    if blocks is None:
+        return None
+    starts = np.cumsum([0] + [b.size for b in blocks])
+    return Plan(
+        tuple(r for b in blocks for r in b.rows), tuple(c for b in blocks for c in b.cols), tuple(int(s) for s in starts)
+    )
+
+
+def initial_q(model: Model, parametrization: Parametrization) -> np.ndarray:
+    """Stored coordinates of the model's initial pose in ``parametrization``."""
+    return np.concatenate(
+        [
+            parametrization.from_pose([float(sp.N(x, 30)) for x in body.position], np.array(body.rotation.evalf(30), dtype=float))
+            for body in model.bodies
+        ]
+    )
+
+
+def describe(model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None) -> ModuleDescription:
+    """The kernel description of ``model`` (every case) in ``parametrization``."""
+    systems = systems or build_systems(model, parametrization)
+    first = next(iter(systems.values()))
+    coords = first.coordinates
+    templates = first.templates
+    joints = [r for r in first.rows if not r.is_driver]
+    mj = len(joints)
+    sections: dict[str, Section] = {}
+
+    def section(name: str, slots: tuple[str, ...], groups: tuple[Group, ...], size: int, doc: str) -> str:
+        sections[name] = Section(name, slots, groups, size, doc)
+        return name
+
+    n_joint_entries = sum(len(r.jacobian_columns) for r in joints)
+    section("joints_phi", ("q",), _groups(joints, templates, "phi"), mj, f"Phi of the {mj} joint (and normalization) rows, common to every case.")
+    section("joints_jac", ("q",), _groups(joints, templates, "jac"), n_joint_entries, f"Phi_q values of the joint rows ({n_joint_entries} entries).")
+    section("joints_gamma", ("q", "v"), _groups(joints, templates, "gamma"), mj, "gamma of the joint rows (they do not depend on time).")
+    frames = section(
+        "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
+        "Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, "
+        "angular acceleration (24 values, global).",
+    )  # fmt: skip
+    cases: dict[str, CaseDescription] = {}
+    for name, system in systems.items():
+        rows = system.rows
+        drivers = rows[mj:]
+        inputs = system.inputs
+        m, nd = len(rows), len(inputs.u)
+        pattern = system.jacobian_pattern
+        n_driver_entries = len(pattern) - n_joint_entries
+        section(f"inputs_{name}", ("t",), (Group(None, inputs.stacked, {}),), 3 * nd,
+                f"Driver inputs of case {name!r} at time t: rows u ({nd}), then du/dt, then d2u/dt2.")  # fmt: skip
+        section(f"drivers_phi_{name}", ("q", "u"), _groups(drivers, templates, "phi"), m - mj, f"Phi of the driver rows of case {name!r}.")
+        section(f"drivers_jac_{name}", ("q", "u"), _groups(drivers, templates, "jac"), n_driver_entries,
+                f"Phi_q values of the driver rows of case {name!r}.")  # fmt: skip
+        section(f"drivers_nu_{name}", ("q", "u", "ud"), _groups(drivers, templates, "nu"), m - mj, f"nu of the driver rows of case {name!r}.")
+        section(f"drivers_gamma_{name}", ("q", "v", "u", "ud", "udd"), _groups(drivers, templates, "gamma"), m - mj,
+                f"gamma of the driver rows of case {name!r}.")  # fmt: skip
+        kernels = {
+            "phi_jac": Kernel(
+                "phi_jac", ("q", "u"),
+                (Output("phi", ("joints_phi", f"drivers_phi_{name}"), m), Output("jac", ("joints_jac", f"drivers_jac_{name}"), len(pattern))),
+                f"Phi and the Phi_q values (at jac_rows, jac_cols) of case {name!r}.",
+            ),
+            "nu": Kernel("nu", ("q", "u", "ud"), (Output("nu", (Zeros(mj), f"drivers_nu_{name}"), m),),
+                         f"nu = -Phi_t of case {name!r} (zero in the joint rows)."),
+            "gamma": Kernel("gamma", ("q", "v", "u", "ud", "udd"), (Output("gamma", ("joints_gamma", f"drivers_gamma_{name}"), m),),
+                            f"gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case {name!r}."),
+            "inputs": Kernel("inputs", ("t",), (Output("inputs", (f"inputs_{name}",), 3 * nd),),
+                             f"Driver inputs of case {name!r} at time t: u, then du/dt, then d2u/dt2."),
+        }  # fmt: skip
+        rows_, cols_ = tuple(i for i, _ in pattern), tuple(j for _, j in pattern)
+        case = system.case
+        cases[name] = CaseDescription(
+            name, float(case.t0), float(case.t1), case.steps, tuple(r.name for r in rows), tuple(inputs.names),
+            tuple(inputs.sources), rows_, cols_, {"u": tuple(inputs.u), "ud": tuple(inputs.ud), "udd": tuple(inputs.udd)},
+            kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))),
+        )  # fmt: skip
+    definitions = Definitions(
+        tuple((b.name, tuple(b.rotation_symbols), tuple(b.rotation)) for b in coords.bodies), tuple(generic_body(parametrization).rotation)
+    )
+    return ModuleDescription(
+        model=model.name,
+        source=Path(model.file).name,
+        sha256=model.source_sha256,
+        parametrization=parametrization,
+        version=kinegen.__version__,
+        stored_names=tuple(coords.stored_names),
+        velocity_names=tuple(coords.velocity_names),
+        bodies=tuple((b.name, b.stored_offset, b.velocity_offset) for b in coords.bodies),
+        points={b.name: {k: tuple(float(sp.N(x, 30)) for x in v) for k, v in b.points.items()} for b in model.bodies},
+        ground_points={k: tuple(float(sp.N(x, 30)) for x in v) for k, v in model.ground_points.items()},
+        actuators=tuple(
+            (a.name, (a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.range) for a in model.actuators
+        ),
+        initial_q=tuple(float(x) for x in initial_q(model, parametrization)),
+        slots={"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)},
+        definitions=definitions,
+        sections=sections,
+        cases=cases,
+        kernels={"frames": Kernel("frames", ("q", "v", "a"), (Output(frames, (frames,), sections[frames].size),), sections[frames].doc)},
+    )

@@ -1,0 +1,296 @@
+"""The C backend as the runtime's fast path: a generated module's C (``<stem>.c`` beside its
+``.py``) compiled with kinegen's C solver (``kinegen_solver.c``) into a shared library, loaded
+with ctypes.
+
+* The library is built once and cached (``$KINEGEN_CACHE``, default ``~/.cache/kinegen``) under
+  a key that covers the C sources, the compiler (its path and ``--version``) and the flags.
+* The kernels are called through the function pointers of the case's ``kinegen_model``; their
+  ctypes signatures come from the module's kernel description (``KERNELS``: argument slots and
+  outputs), not from a hand-written list.
+* :class:`NativeCase` evaluates the kernels at one configuration, runs the solver's step loop
+  in C (:meth:`NativeCase.trajectory`, handing any step it cannot take back to Python) and
+  Newton on many configurations (:meth:`NativeCase.solve_batch`).
+
+Without a C compiler :func:`native_case` says so once (a warning) and returns None: the
+pure-Python functions remain.
+"""
+
+from __future__ import annotations
+
+import ctypes
+import hashlib
+import os
+import shutil
+import subprocess
+import tempfile
+import warnings
+from functools import cache
+from pathlib import Path
+from types import ModuleType
+from typing import Any
+
+import numpy as np
+
+from kinegen.errors import KinegenError
+
+SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
+#: flags of the runtime's library (the standalone target's Makefile has its own)
+FLAGS = ("-O2", "-std=c99", "-fPIC", "-shared")
+_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
+_INT_P = ctypes.POINTER(ctypes.c_int)
+_WARNED: set[str] = set()
+
+
+class CompileError(KinegenError):
+    """No usable C compiler, or the generated C did not compile."""
+
+    exit_code = 5
+
+
+class Options(ctypes.Structure):
+    """``kinegen_options`` of kinegen_solver.h, field by field."""
+
+    _fields_ = [
+        ("tolerance", ctypes.c_double), ("singular_tolerance", ctypes.c_double), ("divergence_limit", ctypes.c_double),
+        ("chord_rate", ctypes.c_double), ("jump_ratio", ctypes.c_double), ("jump_floor", ctypes.c_double),
+        ("max_iterations", ctypes.c_int), ("predictor", ctypes.c_int), ("chord", ctypes.c_int), ("polish", ctypes.c_int),
+        ("keep_branch", ctypes.c_int), ("condition", ctypes.c_int),
+    ]  # fmt: skip
+
+
+class Model(ctypes.Structure):
+    """``kinegen_model`` of kinegen_solver.h (the fields Python reads; the rest as opaque pointers)."""
+
+    _fields_ = [
+        ("layout", ctypes.c_void_p), ("case_name", ctypes.c_char_p),
+        ("n_q", ctypes.c_int), ("n_v", ctypes.c_int), ("n_inputs", ctypes.c_int), ("n_jac", ctypes.c_int),
+        ("t0", ctypes.c_double), ("t1", ctypes.c_double), ("steps", ctypes.c_int),
+        ("initial_q", ctypes.c_void_p), ("constraint_names", ctypes.c_void_p), ("driver_names", ctypes.c_void_p),
+        ("jac_rows", ctypes.c_void_p), ("jac_cols", ctypes.c_void_p),
+        ("phi_jac", ctypes.c_void_p), ("nu", ctypes.c_void_p), ("gamma", ctypes.c_void_p), ("inputs", ctypes.c_void_p),
+        ("retract", ctypes.c_void_p),
+        ("n_blocks", ctypes.c_int), ("block_start", ctypes.c_void_p), ("block_store", ctypes.c_void_p),
+        ("row_order", ctypes.c_void_p), ("col_order", ctypes.c_void_p), ("n_store", ctypes.c_int),
+        ("n_diag", ctypes.c_int), ("diag_value", ctypes.c_void_p), ("diag_slot", ctypes.c_void_p),
+        ("n_off", ctypes.c_int), ("off_start", ctypes.c_void_p), ("off_col", ctypes.c_void_p), ("off_value", ctypes.c_void_p),
+        ("work_doubles", ctypes.c_int), ("work_ints", ctypes.c_int),
+    ]  # fmt: skip
+
+
+class Solver(ctypes.Structure):
+    """``kinegen_solver`` of kinegen_solver.h."""
+
+    _fields_ = [
+        ("model", ctypes.c_void_p), ("options", Options), ("t", ctypes.c_double),
+        ("q", _DOUBLE_P), ("v", _DOUBLE_P), ("a", _DOUBLE_P),
+        ("started", ctypes.c_int), ("iterations", ctypes.c_int), ("residual", ctypes.c_double), ("condition", ctypes.c_double),
+        ("sign", ctypes.c_int), ("have_factors", ctypes.c_int), ("factor_sign", ctypes.c_int),
+        *((name, _DOUBLE_P) for name in ("trial", "phi", "jac", "store", "off", "rhs", "step", "motion", "y", "x")),
+        ("pivots", _INT_P),
+    ]  # fmt: skip
+
+
+#: kinegen_status codes
+OK, NOT_CONVERGED, SINGULAR, BRANCH, NOT_STARTED = range(5)
+
+
+def c_compiler() -> str:
+    """The machine's C compiler: ``$CC``, else ``cc``, else ``gcc``; CompileError if none."""
+    chosen = os.environ.get("CC")
+    if chosen:
+        compiler = shutil.which(chosen)
+        if compiler is None:
+            raise CompileError(f"CC={chosen!r} is not an executable C compiler")
+        return compiler
+    compiler = shutil.which("cc") or shutil.which("gcc")
+    if compiler is None:
+        raise CompileError("no C compiler found (set CC, or install gcc)")
+    return compiler
+
+
+@cache
+def _compiler_identity(compiler: str) -> str:
+    try:
+        done = subprocess.run([compiler, "--version"], capture_output=True, text=True, timeout=30)
+    except (OSError, subprocess.SubprocessError) as exc:
+        raise CompileError(f"the C compiler {compiler} cannot be run: {exc}") from None
+    return f"{compiler}\n{done.stdout}"
+
+
+def cache_folder() -> Path:
+    return Path(os.environ.get("KINEGEN_CACHE", Path.home() / ".cache" / "kinegen"))
+
+
+def build_library(sources: dict[str, str]) -> Path:
+    """The shared library of the C ``sources`` (file name -> text), compiled once: cached by a
+    key over the sources, the compiler and the flags. The build is atomic (a temporary
+    folder, then ``os.replace``): a concurrent or interrupted build leaves a whole library or none."""
+    compiler = c_compiler()
+    key = hashlib.sha256()
+    for part in (_compiler_identity(compiler), " ".join(FLAGS), *(f"{n}\n{t}" for n, t in sorted(sources.items()))):
+        key.update(part.encode())
+    folder = cache_folder()
+    library = folder / f"kinegen_{key.hexdigest()[:24]}.so"
+    if library.exists():
+        return library
+    folder.mkdir(parents=True, exist_ok=True)
+    with tempfile.TemporaryDirectory(dir=folder) as work:
+        for name, text in sources.items():
+            (Path(work) / name).write_text(text)
+        built = Path(work) / library.name
+        c_files = [str(Path(work) / n) for n in sorted(sources) if n.endswith(".c")]
+        try:
+            done = subprocess.run([compiler, *FLAGS, "-o", str(built), *c_files, "-lm"], capture_output=True, text=True)
+        except OSError as exc:
+            raise CompileError(f"the C compiler {compiler} cannot be run: {exc.strerror or exc}") from None
+        if done.returncode != 0:
+            last = done.stderr.strip().splitlines()[-1] if done.stderr.strip() else f"exit {done.returncode}"
+            raise CompileError(f"the C compiler failed: {last}")
+        os.replace(built, library)
+    return library
+
+
+def _model_sources(module: ModuleType) -> dict[str, str] | None:
+    """The module's C and the solver's, if the module's ``.c``/``.h`` lie beside it and are fresh."""
+    path = Path(getattr(module, "__file__", "") or "")
+    c_file, h_file = path.with_suffix(".c"), path.with_suffix(".h")
+    if not (path.suffix == ".py" and c_file.is_file() and h_file.is_file()):
+        return None
+    text = c_file.read_text()
+    if f"source sha256:   {module.SOURCE_SHA256}" not in text or f"parametrization: {module.PARAMETRIZATION}" not in text:
+        return None  # built from another model version: not the kernels of this module
+    sources = {c_file.name: text, h_file.name: h_file.read_text()}
+    for name in ("kinegen_solver.c", "kinegen_solver.h"):
+        sources[name] = (SOLVER_SOURCES / name).read_text()
+    return sources
+
+
+@cache
+def _library(path: str) -> ctypes.CDLL:
+    library = ctypes.CDLL(path)
+    for name, restype, argtypes in (
+        ("kinegen_init", None, [ctypes.c_void_p] * 5),
+        ("kinegen_start", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 4]),
+        ("kinegen_resume", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 4]),
+        ("kinegen_trajectory", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 11]),
+        ("kinegen_solve_batch", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 5]),
+    ):
+        function = getattr(library, name)
+        function.restype, function.argtypes = restype, argtypes
+    return library
+
+
+def _kernel_type(slots: tuple[str, ...], outputs: tuple[str, ...]) -> Any:
+    """The C signature of a kernel from its slots (``t`` a double, the others arrays) and outputs."""
+    return ctypes.CFUNCTYPE(None, *(ctypes.c_double if s == "t" else ctypes.c_void_p for s in slots), *[ctypes.c_void_p] * len(outputs))
+
+
+def native_case(module: ModuleType, case: str, quiet: bool = False) -> NativeCase | None:
+    """The compiled kernels and C solver of ``case`` of a generated module, or None (no C beside
+    the module, or no usable compiler: said once per reason as a warning unless ``quiet``)."""
+    sources = _model_sources(module)
+    if sources is None:
+        return None
+    try:
+        library = build_library(sources)
+    except CompileError as exc:
+        reason = str(exc)
+        if not quiet and reason not in _WARNED:
+            _WARNED.add(reason)
+            warnings.warn(f"no compiled code ({reason}); kinegen solves with the Python functions", RuntimeWarning, stacklevel=2)
+        return None
+    stem = Path(module.__file__).stem
+    return NativeCase(_library(str(library)), f"{stem}_{case}", module.KERNELS)
+
+
+class NativeCase:
+    """One case's compiled kernels and C solver (see the module docstring)."""
+
+    def __init__(self, library: ctypes.CDLL, symbol: str, kernels: dict) -> None:
+        self.library = library
+        self.model = Model.in_dll(library, symbol)
+        self.address = ctypes.addressof(self.model)
+        m = self.model
+        self.n_q, self.n_v, self.n_inputs, self.n_jac = m.n_q, m.n_v, m.n_inputs, m.n_jac
+        self.kernels = {
+            name: ctypes.cast(getattr(m, name), _kernel_type(*kernels[name]))
+            for name in ("phi_jac", "nu", "gamma", "inputs")
+        }
+        # buffers for one configuration; addresses computed once
+        self._q, self._v, self._u, self._ud, self._udd = (np.zeros(n) for n in (m.n_q, m.n_v, m.n_inputs, m.n_inputs, m.n_inputs))
+        self._phi, self._jac, self._inputs = np.zeros(m.n_v), np.zeros(m.n_jac), np.zeros(3 * m.n_inputs)
+        self._address = {name: getattr(self, name).ctypes.data for name in ("_q", "_v", "_u", "_ud", "_udd", "_phi", "_jac", "_inputs")}
+
+    def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Phi and the Phi_q values at one configuration."""
+        self._q[:], self._u[:] = q, u
+        a = self._address
+        self.kernels["phi_jac"](a["_q"], a["_u"], a["_phi"], a["_jac"])
+        return self._phi.copy(), self._jac.copy()
+
+    def nu(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
+        self._q[:], self._u[:], self._ud[:] = q, u, ud
+        a = self._address
+        self.kernels["nu"](a["_q"], a["_u"], a["_ud"], a["_phi"])
+        return self._phi.copy()
+
+    def gamma(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
+        self._q[:], self._v[:], self._u[:], self._ud[:], self._udd[:] = q, v, u, ud, udd
+        a = self._address
+        self.kernels["gamma"](a["_q"], a["_v"], a["_u"], a["_ud"], a["_udd"], a["_phi"])
+        return self._phi.copy()
+
+    def solver(self, options: Options) -> NativeSolver:
+        """A C solver instance of this case (its own workspace)."""
+        return NativeSolver(self, options)
+
+    def solve_batch(self, u: np.ndarray, q0: np.ndarray, options: Options) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """Newton on every column of ``q0`` (n_q, K) for inputs ``u`` (n_inputs, K): (q, converged, iterations, residuals)."""
+        solver = self.solver(options)
+        q = np.array(q0, dtype=float, order="C", copy=True)
+        u = np.ascontiguousarray(u, dtype=float).reshape(self.n_inputs, -1)
+        k = q.shape[1]
+        converged, iterations, residuals = np.zeros(k, dtype=np.intc), np.zeros(k, dtype=np.intc), np.zeros(k)
+        self.library.kinegen_solve_batch(
+            solver.pointer, k, u.ctypes.data, q.ctypes.data, converged.ctypes.data, iterations.ctypes.data, residuals.ctypes.data
+        )
+        return q, converged.astype(bool), iterations.astype(int), residuals
+
+
+class NativeSolver:
+    """A ``kinegen_solver`` with its workspace, for one trajectory."""
+
+    def __init__(self, case: NativeCase, options: Options) -> None:
+        self.case = case
+        self.library = case.library
+        self.state = Solver()
+        self.pointer = ctypes.addressof(self.state)
+        self._doubles = np.zeros(case.model.work_doubles)
+        self._ints = np.zeros(case.model.work_ints, dtype=np.intc)
+        self._options = options
+        self.library.kinegen_init(self.pointer, case.address, ctypes.addressof(options), self._doubles.ctypes.data, self._ints.ctypes.data)
+
+    def start(self, t: float, q0: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> int:
+        arrays = [np.ascontiguousarray(x, dtype=float) for x in (q0, u, ud, udd)]
+        return self.library.kinegen_start(self.pointer, t, *(x.ctypes.data for x in arrays))
+
+    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray) -> int:
+        arrays = [np.ascontiguousarray(x, dtype=float) for x in (q, v, a, u)]
+        return self.library.kinegen_resume(self.pointer, t, *(x.ctypes.data for x in arrays))
+
+    def state_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Copies of the solver's q, v, a."""
+        c = self.case
+        return (np.ctypeslib.as_array(self.state.q, (c.n_q,)).copy(), np.ctypeslib.as_array(self.state.v, (c.n_v,)).copy(),
+                np.ctypeslib.as_array(self.state.a, (c.n_v,)).copy())  # fmt: skip
+
+    def trajectory(self, times: np.ndarray, inputs: tuple[np.ndarray, ...], out: tuple[np.ndarray, ...]) -> tuple[int, int]:
+        """Steps at ``times`` (after a start or resume), inputs (u, ud, udd) each (steps, n_inputs)
+        C-contiguous, into ``out`` = (q, v, a, iterations (C int), residuals, conditions), rows per
+        step. Returns (steps solved, status of the first one not solved)."""
+        status = ctypes.c_int(0)
+        done = self.library.kinegen_trajectory(
+            self.pointer, len(times), times.ctypes.data, *(x.ctypes.data for x in inputs), *(o.ctypes.data for o in out),
+            ctypes.addressof(status),
+        )
+        return done, status.value

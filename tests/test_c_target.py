@@ -1,0 +1,222 @@
+"""The C backend: kernels printed from the same SymPy statements as the Python ones, kinegen's C
+solver (kinegen_solver.c) driving them, the runtime's compiled path, and the standalone C
+target built with nothing but a C99 compiler -- compiled for real with the machine's ``cc``."""
+
+from __future__ import annotations
+
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kinegen.cli import main
+from kinegen.codegen.backends.c import config
+from kinegen.errors import KinegenError
+from kinegen.runtime import Solver, from_module, load_module
+from kinegen.runtime.native import build_library
+from tests.conftest import GENERATED, MODELS, chain_yaml
+
+CC = shutil.which("cc") or shutil.which("gcc")
+pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler")
+STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
+
+
+def systems(stem: str, case: str | None = None):
+    """(Python, compiled) systems of a committed module's case."""
+    module = load_module(GENERATED / f"{stem}.py")
+    return from_module(module, case, compiled=False), from_module(module, case, compiled=True)
+
+
+@pytest.mark.parametrize(
+    ("stem", "case"),
+    [("excavator_euler_parameters", "digging"), ("excavator_quaternion", "level_cut"), ("rssr_quaternion", None),
+     ("boom_euler_zxz", None), ("four_bar_euler_parameters", None)],
+)  # fmt: skip
+def test_c_kernels_equal_the_python_ones(stem, case):
+    """Phi, Phi_q, nu, gamma and the driver inputs at random configurations and times."""
+    python, native = systems(stem, case)
+    assert native.native is not None
+    rng = np.random.default_rng(3)
+    for t in (python.t0, 0.37 * python.t0 + 0.63 * python.t1):
+        q = python.initial_q + 0.01 * rng.normal(size=python.n_stored)
+        v = rng.normal(size=python.n_velocity)
+        u, ud, udd = (x[:, 0] for x in python.driver_inputs(np.array([t])))
+        phi, values = python.evaluate(q, u)
+        c_phi, c_values = native.evaluate(q, u)
+        scale = 1e-14 * max(1.0, np.abs(values).max())
+        assert np.abs(c_phi - phi).max() <= scale and np.abs(c_values - np.asarray(values)).max() <= scale
+        assert np.abs(native.velocity_rhs(q, u, ud) - python.velocity_rhs(q, u, ud)).max() <= scale
+        gamma = python.acceleration_rhs(q, v, u, ud, udd)
+        assert np.abs(native.acceleration_rhs(q, v, u, ud, udd) - gamma).max() <= 1e-14 * max(1.0, np.abs(gamma).max())
+
+
+def test_the_compiled_path_is_the_default_and_matches_python():
+    """The digging cycle through one call into the C loop equals the Python loop: poses to
+    1e-12, rates to 1e-12 of their scale, the same Newton iterations; the 1-norm condition
+    estimates (LAPACK's on the whole matrix, kinegen's on the block form) mostly to rounding."""
+    module = load_module(GENERATED / "excavator_quaternion.py")
+    assert from_module(module, "digging").native is not None  # compiled unless told otherwise
+    python, native = systems("excavator_quaternion", "digging")
+    a, b = Solver(python).solve(), Solver(native).solve()
+    assert np.abs(a.q - b.q).max() < 1e-12
+    for x, y in ((a.v, b.v), (a.a, b.a)):
+        assert (np.abs(x - y).max(axis=0) <= 1e-12 * np.maximum(1.0, np.abs(x).max(axis=0))).all()
+    assert (a.iterations == b.iterations).all()
+    ratio = np.abs(np.log(a.conditions / b.conditions))
+    assert np.median(ratio) < 1e-12 and ratio.max() < np.log(3.0)
+
+
+def test_near_the_toggle_the_c_loop_hands_over_and_the_branch_is_kept():
+    """bucket_near_toggle (0.25 s steps): C returns at the step that needs halving (a sign change
+    or an implausible jump), Python refines it and hands back; every pose equals Python's."""
+    python, native = systems("excavator_quaternion", "bucket_near_toggle")
+    solver = Solver(native)
+    calls = []
+    steps = solver._native_steps
+    original = steps()
+
+    def recorded():
+        run = original.run
+
+        def counted(first, *args):
+            done = run(first, *args)
+            calls.append((first, done))
+            return done
+
+        original.run = counted
+        return original
+
+    solver._native_steps = recorded
+    reference, compiled = Solver(python).solve(), solver.solve()
+    assert compiled.converged.all() and len(calls) >= 2 and any(done < len(reference.times) for _, done in calls)
+    assert np.abs(reference.q - compiled.q).max() < 1e-9
+
+
+def test_a_failure_is_the_same_error_at_the_same_time_compiled():
+    errors = []
+    for system in systems("excavator_quaternion", "bucket_toggle"):
+        with pytest.raises(KinegenError) as caught:
+            Solver(system).solve()
+        errors.append(caught.value)
+    assert type(errors[0]) is type(errors[1]) and errors[0].t == errors[1].t
+
+
+def test_the_c_is_straight_line_in_short_functions_with_no_heap():
+    source = (GENERATED / "excavator_euler_parameters.c").read_text()
+    joints = source.split("static void compute_joints_phi")[1].split("\n}\n")[0]
+    assert "pow(" not in joints and "(bucket_e0*bucket_e0)" in joints  # squares as products
+    bodies = re.findall(r"\) \{\n(.*?)\n\}", source, re.DOTALL)
+    module = load_module(GENERATED / "excavator_euler_parameters.py")
+    reads = len(module.STORED_NAMES) + 9 * len(module.BODIES)  # the argument reads and rotation-matrix entries
+    assert max(body.count(";") for body in bodies) <= config.PART_STATEMENTS + reads + 20  # a group is never cut
+    solver = (config.SOLVER / "kinegen_solver.c").read_text()
+    assert not re.search(r"\b(malloc|calloc|realloc|free)\s*\(", solver)
+    assert not re.search(r"^static [^(]*;", solver, re.MULTILINE)  # no global state
+
+
+def test_the_library_cache_key_covers_the_compiler(tmp_path, monkeypatch):
+    wrapper = tmp_path / "wrapped-cc"
+    wrapper.write_text(f'#!/bin/sh\nexec {CC} "$@"\n')
+    wrapper.chmod(0o755)
+    sources = {"k.c": "double kinegen_probe(void) { return 1.0; }\n"}
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    first = build_library(sources)
+    monkeypatch.setenv("CC", str(wrapper))
+    second = build_library(sources)
+    assert first != second and first.exists() and second.exists()
+    assert build_library(sources) == second  # cached
+
+
+def _standalone(tmp_path: Path, model: Path, param: str) -> Path:
+    result = CliRunner().invoke(main, ["build", str(model), "--param", param, "--target", "c", "--out-dir", str(tmp_path / "c")])
+    assert result.exit_code == 0, result.output
+    return tmp_path / "c"
+
+
+def _compile(folder: Path, stem: str, flags: list[str]) -> Path:
+    program = folder / f"{stem}_test"
+    sources = [str(folder / name) for name in ("example_main.c", f"{stem}.c", "kinegen_solver.c")]
+    done = subprocess.run([CC, *STRICT, *flags, "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    return program
+
+
+def _compare(program: Path, python_system, case: str) -> None:
+    """Every row of the C program's CSV against the Python runtime (Python functions, same options)."""
+    done = subprocess.run([str(program), case], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    header, *rows = done.stdout.splitlines()
+    c = np.array([[float(x) for x in row.split(",")] for row in rows])
+    names, table = Solver(python_system).solve().table()
+    assert header.split(",") == names
+    assert c.shape == table.shape
+    exact = [i for i, n in enumerate(names) if n not in ("jacobian_condition",)]
+    scale = np.maximum(1.0, np.abs(table[:, exact]).max(axis=0))
+    assert (np.abs(c[:, exact] - table[:, exact]).max(axis=0) <= 1e-12 * scale).all(), [
+        names[exact[i]] for i in np.flatnonzero(np.abs(c[:, exact] - table[:, exact]).max(axis=0) > 1e-12 * scale)
+    ]
+    condition = names.index("jacobian_condition")
+    assert np.abs(np.log(c[:, condition] / table[:, condition])).max() < np.log(3.0)
+
+
+def test_standalone_excavator_builds_strictly_and_matches_python_in_every_case(tmp_path):
+    folder = _standalone(tmp_path, MODELS / "excavator.yaml", "quaternion")
+    assert {p.name for p in folder.iterdir()} >= {"excavator_quaternion.c", "excavator_quaternion.h", "kinegen_solver.c",
+                                                   "kinegen_solver.h", "Makefile", "CMakeLists.txt", "example_main.c"}  # fmt: skip
+    program = _compile(folder, "excavator_quaternion", ["-O2"])
+    module = load_module(GENERATED / "excavator_quaternion.py")
+    for case in ("digging", "level_cut", "trench_wall"):
+        _compare(program, from_module(module, case, compiled=False), case)
+
+
+def test_standalone_chain_and_boom_match_python(tmp_path):
+    model = tmp_path / "chain14.yaml"
+    model.write_text(chain_yaml(14))
+    for path, param, case in ((model, "euler-parameters", "drive"), (MODELS / "boom.yaml", "quaternion", "swing")):
+        folder = _standalone(tmp_path / path.stem, path, param)
+        stem = next(p.stem for p in folder.glob("*.h") if p.name != "kinegen_solver.h")
+        program = _compile(folder, stem, ["-O2"])
+        module = load_module(next(folder.parent.glob("*.py"), None) or _python_module(tmp_path / path.stem, path, param))
+        _compare(program, from_module(module, case, compiled=False), case)
+
+
+def _python_module(folder: Path, model: Path, param: str) -> Path:
+    result = CliRunner().invoke(main, ["build", str(model), "--param", param, "--out-dir", str(folder / "py")])
+    assert result.exit_code == 0, result.output
+    return next((folder / "py").glob("*.py"))
+
+
+def test_standalone_runs_clean_under_address_and_undefined_behaviour_sanitizers(tmp_path):
+    folder = _standalone(tmp_path, MODELS / "excavator.yaml", "euler-parameters")
+    program = _compile(folder, "excavator_euler_parameters", ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"])
+    done = subprocess.run([str(program), "digging", "101"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0 and "runtime error" not in done.stderr, done.stderr
+    assert len(done.stdout.splitlines()) == 102
+
+
+def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path):
+    """Inputs from a CSV on stdin give the same rows as the case's own functions; the toggle
+    case ends with the solver's status as the exit code."""
+    folder = _standalone(tmp_path, MODELS / "excavator.yaml", "quaternion")
+    assert subprocess.run(["make", "-s", "-C", str(folder)], capture_output=True).returncode == 0
+    program = folder / "excavator_quaternion_example"
+    own = subprocess.run([str(program), "level_cut"], capture_output=True, text=True, check=True).stdout
+    system = from_module(load_module(GENERATED / "excavator_quaternion.py"), "level_cut", compiled=False)
+    times = np.linspace(system.t0, system.t1, system.steps)
+    rows = np.vstack([times, *system.driver_inputs(times)]).T
+    text = "t,inputs...\n" + "\n".join(",".join(repr(float(x)) for x in row) for row in rows) + "\n"
+    piped = subprocess.run([str(program), "level_cut", "-"], input=text, capture_output=True, text=True, check=True).stdout
+    assert piped.splitlines()[0] == own.splitlines()[0]
+    a, b = (np.array([[float(x) for x in row.split(",")] for row in out.splitlines()[1:]]) for out in (own, piped))
+    assert np.abs(a - b).max() <= 1e-12 * max(1.0, np.abs(a).max())  # NumPy's and libm's sin differ in the last bit
+    failed = subprocess.run([str(program), "bucket_toggle"], capture_output=True, text=True)
+    assert failed.returncode in (1, 2, 3) and failed.stderr.startswith("error: excavator/bucket_toggle at t = ")
