@@ -293,12 +293,12 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double c7 = (7.0/10.0)*v_rocker_theta_z;
     const double c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y;
     const double c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y;
-    const double c10 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x;
-    const double c11 = rocker_a02*v_rocker_theta_y;
-    const double c12 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x;
-    const double c13 = rocker_a22*v_rocker_theta_x;
-    const double c14 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y;
-    const double c15 = rocker_a12*v_rocker_theta_z;
+    const double c10 = v_coupler_theta_y - v_rocker_theta_y;
+    const double c11 = v_coupler_theta_x - v_rocker_theta_x;
+    const double c12 = -c11;
+    const double c13 = v_coupler_theta_z - v_rocker_theta_z;
+    const double c14 = -c13;
+    const double c15 = -c10;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
@@ -310,7 +310,7 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     out[8] = -c3*v_coupler_theta_y + (9.0/10.0)*c4*v_coupler_theta_z + (7.0/10.0)*c5*v_rocker_theta_y - c6*c7;
     out[9] = c3*v_coupler_theta_x - 7.0/10.0*c5*v_rocker_theta_x + c7*c9 - 9.0/10.0*c8*v_coupler_theta_z;
     out[10] = -9.0/10.0*c4*v_coupler_theta_x + (7.0/10.0)*c6*v_rocker_theta_x + (9.0/10.0)*c8*v_coupler_theta_y - 7.0/10.0*c9*v_rocker_theta_y;
-    out[11] = c14*(rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y - c15) + c10*(rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x - c11) - c12*(-rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x - c13) - (rocker_a02*v_rocker_theta_z - c13)*(-coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x + c12) - (rocker_a12*v_rocker_theta_x - c11)*(coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x - c10) - (rocker_a22*v_rocker_theta_y - c15)*(coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y - c14);
+    out[11] = -(coupler_a01*c13 + coupler_a21*c12)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (coupler_a01*c15 + coupler_a11*c11)*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) - (-coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x)*(rocker_a02*c10 + rocker_a12*c12) - (coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x)*(rocker_a02*c14 + rocker_a22*c11) - (coupler_a11*c14 + coupler_a21*c10)*(-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y) - (-coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y)*(rocker_a12*c13 + rocker_a22*c15);
     out[12] = 0.0;
     out[13] = 0.0;
     out[14] = 0.0;

@@ -225,12 +225,12 @@ def _joints_gamma(q, v):
     c7 = (7/10)*v_rocker_theta_z
     c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
     c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
-    c10 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
-    c11 = rocker_a02*v_rocker_theta_y
-    c12 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
-    c13 = rocker_a22*v_rocker_theta_x
-    c14 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
-    c15 = rocker_a12*v_rocker_theta_z
+    c10 = v_coupler_theta_y - v_rocker_theta_y
+    c11 = v_coupler_theta_x - v_rocker_theta_x
+    c12 = -c11
+    c13 = v_coupler_theta_z - v_rocker_theta_z
+    c14 = -c13
+    c15 = -c10
     out = _zeros(17, q, ())
     out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
     out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
@@ -240,7 +240,7 @@ def _joints_gamma(q, v):
     out[8] = -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7
     out[9] = c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z
     out[10] = -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y
-    out[11] = c14*(rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y - c15) + c10*(rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x - c11) - c12*(-rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x - c13) - (rocker_a02*v_rocker_theta_z - c13)*(-coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x + c12) - (rocker_a12*v_rocker_theta_x - c11)*(coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x - c10) - (rocker_a22*v_rocker_theta_y - c15)*(coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y - c14)
+    out[11] = -(coupler_a01*c13 + coupler_a21*c12)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (coupler_a01*c15 + coupler_a11*c11)*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) - (-coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x)*(rocker_a02*c10 + rocker_a12*c12) - (coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x)*(rocker_a02*c14 + rocker_a22*c11) - (coupler_a11*c14 + coupler_a21*c10)*(-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y) - (-coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y)*(rocker_a12*c13 + rocker_a22*c15)
     out[15] = -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)
     out[16] = -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)
     return out
@@ -320,13 +320,13 @@ def _joints_gamma_s(q, v):
     c7 = (7/10)*v_rocker_theta_z
     c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
     c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
-    c10 = coupler_a01*v_coupler_theta_y - coupler_a11*v_coupler_theta_x
-    c11 = rocker_a02*v_rocker_theta_y
-    c12 = coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x
-    c13 = rocker_a22*v_rocker_theta_x
-    c14 = coupler_a11*v_coupler_theta_z - coupler_a21*v_coupler_theta_y
-    c15 = rocker_a12*v_rocker_theta_z
-    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z, c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z, -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y, -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7, c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z, -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y, c14*(rocker_a12*v_coupler_theta_z - rocker_a22*v_coupler_theta_y + rocker_a22*v_rocker_theta_y - c15) + c10*(rocker_a02*v_coupler_theta_y - rocker_a12*v_coupler_theta_x + rocker_a12*v_rocker_theta_x - c11) - c12*(-rocker_a02*v_coupler_theta_z + rocker_a02*v_rocker_theta_z + rocker_a22*v_coupler_theta_x - c13) - (rocker_a02*v_rocker_theta_z - c13)*(-coupler_a01*v_rocker_theta_z + coupler_a21*v_rocker_theta_x + c12) - (rocker_a12*v_rocker_theta_x - c11)*(coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x - c10) - (rocker_a22*v_rocker_theta_y - c15)*(coupler_a11*v_rocker_theta_z - coupler_a21*v_rocker_theta_y - c14), 0.0, 0.0, 0.0, -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y), -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)]
+    c10 = v_coupler_theta_y - v_rocker_theta_y
+    c11 = v_coupler_theta_x - v_rocker_theta_x
+    c12 = -c11
+    c13 = v_coupler_theta_z - v_rocker_theta_z
+    c14 = -c13
+    c15 = -c10
+    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z, c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z, -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y, -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7, c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z, -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y, -(coupler_a01*c13 + coupler_a21*c12)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (coupler_a01*c15 + coupler_a11*c11)*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) - (-coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x)*(rocker_a02*c10 + rocker_a12*c12) - (coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x)*(rocker_a02*c14 + rocker_a22*c11) - (coupler_a11*c14 + coupler_a21*c10)*(-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y) - (-coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y)*(rocker_a12*c13 + rocker_a22*c15), 0.0, 0.0, 0.0, -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y), -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)]
 
 
 def frames(q, v, a):

@@ -272,12 +272,12 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double c3 = -3.0/5.0*rod_a00*v_rod_theta_y + (3.0/5.0)*rod_a10*v_rod_theta_x;
     const double c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x;
     const double c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y;
-    const double c6 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x;
-    const double c7 = slider_a02*v_slider_theta_y;
-    const double c8 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x;
-    const double c9 = slider_a22*v_slider_theta_x;
-    const double c10 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y;
-    const double c11 = slider_a12*v_slider_theta_z;
+    const double c6 = v_rod_theta_y - v_slider_theta_y;
+    const double c7 = v_rod_theta_x - v_slider_theta_x;
+    const double c8 = -c7;
+    const double c9 = v_rod_theta_z - v_slider_theta_z;
+    const double c10 = -c9;
+    const double c11 = -c6;
     const double c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x;
     out[0] = 0.0;
     out[1] = 0.0;
@@ -290,7 +290,7 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     out[8] = -c3*v_rod_theta_y + (3.0/5.0)*c4*v_rod_theta_z;
     out[9] = c3*v_rod_theta_x - 3.0/5.0*c5*v_rod_theta_z;
     out[10] = -3.0/5.0*c4*v_rod_theta_x + (3.0/5.0)*c5*v_rod_theta_y;
-    out[11] = c6*(slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x - c7) - c8*(-slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x - c9) + c10*(slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y - c11) - (slider_a02*v_slider_theta_z - c9)*(-rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x + c8) - (slider_a12*v_slider_theta_x - c7)*(rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x - c6) - (slider_a22*v_slider_theta_y - c11)*(rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y - c10);
+    out[11] = -(rod_a01*c9 + rod_a21*c8)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (rod_a01*c11 + rod_a11*c7)*(-slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x) - (-rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x)*(slider_a02*c6 + slider_a12*c8) - (rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x)*(slider_a02*c10 + slider_a22*c7) - (rod_a11*c10 + rod_a21*c6)*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y) - (-rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y)*(slider_a12*c9 + slider_a22*c11);
     out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x);
     out[13] = -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x);
     out[14] = 0.0;

@@ -204,12 +204,12 @@ def _joints_gamma(q, v):
     c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
     c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
     c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
-    c6 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
-    c7 = slider_a02*v_slider_theta_y
-    c8 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
-    c9 = slider_a22*v_slider_theta_x
-    c10 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
-    c11 = slider_a12*v_slider_theta_z
+    c6 = v_rod_theta_y - v_slider_theta_y
+    c7 = v_rod_theta_x - v_slider_theta_x
+    c8 = -c7
+    c9 = v_rod_theta_z - v_slider_theta_z
+    c10 = -c9
+    c11 = -c6
     c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
     out = _zeros(17, q, ())
     out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
@@ -220,7 +220,7 @@ def _joints_gamma(q, v):
     out[8] = -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z
     out[9] = c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z
     out[10] = -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y
-    out[11] = c6*(slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x - c7) - c8*(-slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x - c9) + c10*(slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y - c11) - (slider_a02*v_slider_theta_z - c9)*(-rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x + c8) - (slider_a12*v_slider_theta_x - c7)*(rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x - c6) - (slider_a22*v_slider_theta_y - c11)*(rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y - c10)
+    out[11] = -(rod_a01*c9 + rod_a21*c8)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (rod_a01*c11 + rod_a11*c7)*(-slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x) - (-rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x)*(slider_a02*c6 + slider_a12*c8) - (rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x)*(slider_a02*c10 + slider_a22*c7) - (rod_a11*c10 + rod_a21*c6)*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y) - (-rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y)*(slider_a12*c9 + slider_a22*c11)
     out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x)
     out[13] = -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x)
     out[16] = c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)
@@ -288,14 +288,14 @@ def _joints_gamma_s(q, v):
     c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
     c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
     c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
-    c6 = rod_a01*v_rod_theta_y - rod_a11*v_rod_theta_x
-    c7 = slider_a02*v_slider_theta_y
-    c8 = rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x
-    c9 = slider_a22*v_slider_theta_x
-    c10 = rod_a11*v_rod_theta_z - rod_a21*v_rod_theta_y
-    c11 = slider_a12*v_slider_theta_z
+    c6 = v_rod_theta_y - v_slider_theta_y
+    c7 = v_rod_theta_x - v_slider_theta_x
+    c8 = -c7
+    c9 = v_rod_theta_z - v_slider_theta_z
+    c10 = -c9
+    c11 = -c6
     c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
-    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z, c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z, -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y, -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z, c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z, -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y, c6*(slider_a02*v_rod_theta_y - slider_a12*v_rod_theta_x + slider_a12*v_slider_theta_x - c7) - c8*(-slider_a02*v_rod_theta_z + slider_a02*v_slider_theta_z + slider_a22*v_rod_theta_x - c9) + c10*(slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y + slider_a22*v_slider_theta_y - c11) - (slider_a02*v_slider_theta_z - c9)*(-rod_a01*v_slider_theta_z + rod_a21*v_slider_theta_x + c8) - (slider_a12*v_slider_theta_x - c7)*(rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x - c6) - (slider_a22*v_slider_theta_y - c11)*(rod_a11*v_slider_theta_z - rod_a21*v_slider_theta_y - c10), -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x), -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x), 0.0, 0.0, c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)]
+    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z, c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z, -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y, -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z, c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z, -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y, -(rod_a01*c9 + rod_a21*c8)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (rod_a01*c11 + rod_a11*c7)*(-slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x) - (-rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x)*(slider_a02*c6 + slider_a12*c8) - (rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x)*(slider_a02*c10 + slider_a22*c7) - (rod_a11*c10 + rod_a21*c6)*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y) - (-rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y)*(slider_a12*c9 + slider_a22*c11), -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x), -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x), 0.0, 0.0, c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)]
 
 
 def frames(q, v, a):

@@ -103,8 +103,18 @@ def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | 
         if target == "c":
             folder = out_dir or f"{module_name(load(model_file), param)}_c"
             path = build_module(model_file, param.name, folder, check=check, targets=("c",))
-        else:
-            path = build_module(model_file, param.name, out_dir or "generated", check=check)
+        else:  # the model's C compiles for the runtime (cached) while the Python is printed and checked
+            compiling: list = []
+
+            def ready(target: str, files: dict[str, str], compiling: list = compiling) -> None:
+                if target == "c-model":
+                    from kinegen.runtime.native import compile_in_background
+
+                    compiling.append(compile_in_background(files))
+
+            path = build_module(model_file, param.name, out_dir or "generated", check=check, ready=ready)
+            for thread in compiling:
+                thread.join()
         elapsed = time.perf_counter() - start
         click.echo(f"wrote {path} ({param.name}, {elapsed:.2f} s)")
         for line in reports:

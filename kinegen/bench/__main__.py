@@ -7,8 +7,9 @@ points each, Newton to max|Phi| < 1e-10 from the previous solution, then velocit
 acceleration. Every row: build time, trajectory time, Newton iterations per step, the
 largest error of the tracked point (the run fails if any exceeds 1e-9 m) and the ratio of
 its trajectory time to kinegen's on the same previous-q workload. The machines are shared
-and noisy: ratios measured in one run are what counts. Then the targets of issue 5, each
-checked on this run's figures, and the working-range sweep rate.
+and noisy: ratios measured in one run are what counts. Then the working-range sweep rate,
+the C target's memory per solver instance, and the targets (issues 5 and 11), each checked
+on this run's figures.
 ``--quick`` leaves out the slow baselines (SciPy finite differences, naive SymPy).
 """
 
@@ -34,7 +35,7 @@ CONTENDERS = {  # name -> (call, largest chain N it runs on, runs on the excavat
     KINEGEN_C_OWN: ("kinegen_run({w!r}, True, compiled=True)", 10**6, True, False),
     CASADI: ("casadi_run({w!r}, False)", 10**6, True, False),
     "CasADi SX, rootfinder('newton')": ("casadi_run({w!r}, True)", 14, True, False),
-    CASADI_C: ("casadi_c_run({w!r})", 50, True, False),
+    CASADI_C: ("casadi_c_run({w!r})", 100, True, False),
     "SymEngine Lambdify (LLVM, sparse)": ("symengine_run({w!r})", 50, True, False),
     "naive SymPy lambdify (cse)": ("naive_sympy_run({w!r}, True)", 50, False, True),
     "naive SymPy lambdify": ("naive_sympy_run({w!r}, False)", 14, False, True),
@@ -128,8 +129,20 @@ def main(argv: list[str] | None = None) -> int:
                 + (f"  ({row['note']})" if "note" in row else "")
             )
     sweep = None if args.no_sweep else sweep_rate()
+    memory = {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")}
     print()
-    print("Targets (issue 5), on this run's figures:")
+    for w, m in list(memory.items())[:1]:
+        if "failed" in m:
+            print(f"C target memory ({w}): FAILED: {m['failed']}")
+            continue
+        total = m["workspace"] + m["struct"] + m["stack"]
+        print(
+            f"C target, one solver instance ({w.split('-')[0]}, Euler parameters): workspace {m['workspace']:,} B + "
+            f"struct {m['struct']} B + stack of a step <= {m['stack']:,} B = {total:,} B; the model's tables "
+            f"{m['static']:,} B, shared by every instance"
+        )
+    print()
+    print("Targets, on this run's figures:")
     for line in targets(rows, sweep):
         print("  " + line)
     return 1 if failures else 0
@@ -159,8 +172,10 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
         whole_c = get(w, CASADI_C, "trajectory")
         for name in (KINEGEN_C, KINEGEN_C_OWN):
             mine = get(w, name, "trajectory")
-            if mine is not None and whole_c is not None:
-                out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C (stretch)", mine / whole_c, 1.0, True))
+            if mine is not None and whole_c is not None and (w.startswith("excavator") or w in ("chain-50", "chain-100")):
+                out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C (issue 11)", mine / whole_c, 0.33, True))
+            elif mine is not None and whole_c is not None:
+                out.append(line(f"{w} {name} trajectory / CasADi whole-trajectory C", mine / whole_c, 1.0, True))
         scipy_time = get(w, "SciPy hybr + finite differences", "trajectory")
         for name in (KINEGEN, KINEGEN_OWN, KINEGEN_C, KINEGEN_C_OWN):
             mine = get(w, name, "trajectory")
@@ -176,11 +191,13 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
     for w in workloads:
         if w.startswith("excavator"):
             out.append(line(f"{w} kinegen build peak memory", get(w, KINEGEN, "peak_mb"), 300, True, " MB"))
+            out.append(line(f"{w} kinegen build with the C compilation (issue 11)", get(w, KINEGEN_C, "build"), 3.0, True, " s"))
             break
+    out.append(line("chain-100 kinegen build with the C compilation (issue 11)", get("chain-100", KINEGEN_C, "build"), 10.0, True, " s"))
     if sweep and "failed" not in sweep:
         rate = sweep["grid"] / sweep["grid_seconds"]
         out.append(
-            line(f"working-range sweep, batched grid ({sweep['grid']} configurations, median of 5)", rate, 20000, False, "/s")
+            line(f"working-range sweep, batched grid in C ({sweep['grid']} configurations, median of 5; issue 11)", rate, 100000, False, "/s")
         )
         cold = sweep["grid"] / sweep["cold_seconds"]
         total = f"{sweep['seconds']:.2f} s with the SLSQP refinement of the five figures ({sweep['solves']} solves)"

@@ -23,20 +23,27 @@ def module_name(model: Model, parametrization: Parametrization) -> str:
 
 
 def generate(
-    model: Model, parametrization: Parametrization, targets: tuple[str, ...] = DEFAULT_TARGETS
+    model: Model,
+    parametrization: Parametrization,
+    targets: tuple[str, ...] = DEFAULT_TARGETS,
+    ready: Callable[[str, dict[str, str]], None] | None = None,
 ) -> dict[str, dict[str, str]]:
     """Per target, file name -> text of what it makes for ``model`` (all cases) in
     ``parametrization``: ``python`` (the module), ``c`` (a standalone C directory), ``c-model``
-    (only the model's C, as generated/ holds it). The kernel description is made once."""
+    (only the model's C, as generated/ holds it). The kernel description is made once; the C
+    targets are printed first, and ``ready(target, files)`` is called as each target is done
+    (e.g. to start compiling the C while the Python is printed)."""
     description = describe(model, parametrization)
     stem = module_name(model, parametrization)
     files: dict[str, dict[str, str]] = {}
-    for target in targets:
+    for target in sorted(targets, key=lambda t: not t.startswith("c")):
         if target == "c-model":
             files[target] = backends.get("c")(description, stem, standalone=False)
         else:
             files[target] = backends.get(target)(description, stem)
-    return files
+        if ready is not None:
+            ready(target, files[target])
+    return {target: files[target] for target in targets}
 
 
 def generate_source(model: Model, parametrization: Parametrization) -> str:
@@ -65,6 +72,7 @@ def build(
     out_dir: str | Path = "generated",
     check: Callable[[str, str | Path], list[str]] | None = None,
     targets: tuple[str, ...] = DEFAULT_TARGETS,
+    ready: Callable[[str, dict[str, str]], None] | None = None,
 ) -> Path:
     """Build ``model_path`` in ``parametrization`` into ``out_dir``: by default
     ``<model>_<param>.py`` and the model's C (``.c``, ``.h``); ``targets=("c",)``: a standalone C
@@ -72,12 +80,12 @@ def build(
 
     ``check(source, model_path)`` (e.g. :func:`kinegen.runtime.check_source`) runs on the
     Python module's text (made for it whatever the targets) before anything is written; if it
-    raises, nothing is written. Everything that can fail happens before the (atomic, file by
+    raises, nothing is written. ``ready`` as for :func:`generate`. Everything that can fail happens before the (atomic, file by
     file) writes.
     """
     model = load(model_path)
     param = get(parametrization)
-    made = generate(model, param, tuple(dict.fromkeys((*targets, "python"))) if check is not None else targets)
+    made = generate(model, param, tuple(dict.fromkeys((*targets, "python"))) if check is not None else targets, ready)
     python = f"{module_name(model, param)}.py"
     if check is not None:
         check(made["python"][python], model_path)

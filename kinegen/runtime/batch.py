@@ -142,7 +142,14 @@ def solve_batch(
     max_iterations: int = 25,
     block_solve: BlockSolve | None = None,
 ) -> BatchResult:
-    """Full-step Newton on every column of ``q0`` (n, K) for inputs ``u`` (n_inputs, K)."""
+    """Full-step Newton on every column of ``q0`` (n, K) for inputs ``u`` (n_inputs, K): in C
+    (kinegen_solve_batch) when the system is compiled, else batched NumPy."""
+    if system.native is not None:
+        from kinegen.runtime.native import Options
+
+        options = Options(tolerance, 1e-300, 1e8, 0.1, 0.5, 1e-3, max_iterations, 0, 0, 0, 0, 0)  # full Newton per configuration
+        q, converged, iterations, residuals = system.native.solve_batch(u, q0, options)
+        return BatchResult(q, converged, residuals, iterations)
     solver = block_solve or BlockSolve(system)
     q = np.array(q0, dtype=float, copy=True)
     k = q.shape[1]
@@ -236,7 +243,7 @@ class _Grid:
 
     def __init__(self, system: NumericSystem, base: np.ndarray, swept: list[int], tolerance: float) -> None:
         self.system, self.base, self.swept, self.tolerance = system, np.asarray(base, dtype=float), swept, tolerance
-        self.block_solve = BlockSolve(system)
+        self.block_solve = BlockSolve(system) if system.native is None else None
         self.sequential = Solver(system, SolverOptions(tolerance=tolerance))
 
     def inputs(self, values: list[np.ndarray]) -> np.ndarray:
@@ -249,9 +256,15 @@ class _Grid:
     def batch(self, values: list[np.ndarray], guess: np.ndarray) -> BatchResult:
         """Solve the configurations ``values`` (swept inputs, each (K,)) from ``guess`` (n, K)."""
         u = self.inputs(values)
-        if len(values[0]) < SMALL_BATCH:  # few configurations: the plain-float code one by one is quicker
+        if self.system.native is None and len(values[0]) < SMALL_BATCH:  # few: plain-float Python one by one is quicker
             return _one_by_one(self.sequential, u, guess)
-        return solve_batch(self.system, u, guess, self.tolerance, block_solve=self.block_solve)
+        done = solve_batch(self.system, u, guess, self.tolerance, block_solve=self.block_solve)
+        missed = np.flatnonzero(~done.converged)
+        if self.system.native is not None and len(missed):  # full Newton in C failed: the fallbacks of the sequential solver
+            retry = _one_by_one(self.sequential, u[:, missed], guess[:, missed])
+            done.q[:, missed], done.converged[missed] = retry.q, retry.converged
+            done.residuals[missed], done.iterations[missed] = retry.residuals, retry.iterations
+        return done
 
 
     def solve(self, axes: list[np.ndarray], q_start: np.ndarray) -> BatchResult:

@@ -14,6 +14,7 @@ from __future__ import annotations
 import dataclasses
 import gc
 from dataclasses import dataclass
+from functools import cached_property
 from pathlib import Path
 from typing import Any, NamedTuple
 
@@ -313,6 +314,13 @@ class Solver:
         later factorization, while max |Phi| falls by ``chord_rate`` per iteration."""
         opts = self.options
         evaluate = self.system.evaluate
+        if not damped and offset is None and factors is None and self.system.native is not None:
+            status, x, iterations, norm, travel = self._native_newton(q, u)
+            if status == 0:  # converged in C: Phi and Phi_q at the solution for the caller
+                phi, values = evaluate(x, u)
+                return Solution(x, iterations, _max_norm(phi), values, phi, travel)
+            if status != 2:  # not converged (a singular Phi_q on the way: the Python loop below names it)
+                raise self._failure(x, u, t, iterations)
 
         def residual(x: np.ndarray) -> tuple[np.ndarray, float, Any]:
             phi, values = evaluate(x, u)  # values of Phi_q at the pattern
@@ -484,6 +492,13 @@ class Solver:
             u_all.T[:k].copy(), self.options.condition, converged[:k], failure,
         )  # fmt: skip
 
+    @cached_property
+    def _native_newton(self) -> Any:
+        """Full Newton on one configuration in C (kinegen_newton) with this solver's options."""
+        from kinegen.runtime.native import Newton
+
+        return Newton(self.system.native, _native_options(self.options, False))
+
     def _native_steps(self) -> _NativeSteps | None:
         """The C step loop of the system's compiled code, when it can stand in for the Python
         one: compiled code, a square Phi_q, a condition number it can record (the estimate or none)."""
@@ -529,17 +544,22 @@ class Solver:
         return second._replace(iterations=first.iterations + second.iterations), factors
 
 
+def _native_options(options: SolverOptions, chord: bool) -> Any:
+    """The C solver's options (kinegen_options) for these."""
+    from kinegen.runtime.native import Options
+
+    return Options(
+        options.tolerance, options.singular_tolerance, options.divergence_limit, options.chord_rate, options.jump_ratio,
+        options.jump_floor, options.max_iterations, options.predictor, chord, options.polish, options.keep_branch,
+        options.condition == "estimate",
+    )  # fmt: skip
+
+
 class _NativeSteps:
     """The C solver (kinegen_solver.c) for one trajectory, with this solver's options."""
 
     def __init__(self, native: Any, options: SolverOptions, chord: bool) -> None:
-        from kinegen.runtime.native import Options
-
-        self.options = Options(
-            options.tolerance, options.singular_tolerance, options.divergence_limit, options.chord_rate, options.jump_ratio,
-            options.jump_floor, options.max_iterations, options.predictor, chord, options.polish, options.keep_branch,
-            options.condition == "estimate",
-        )  # fmt: skip
+        self.options = _native_options(options, chord)
         self.solver = native.solver(self.options)
 
     def run(self, first: int, times: np.ndarray, q0: np.ndarray, inputs: tuple, out: tuple) -> int:

@@ -388,38 +388,43 @@ def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None
     phi = equation.expr
     jacobian: dict[int, sp.Expr] = {}
     touched = [coords.body(name) for name in equation.bodies]
+    configuration = [s for body in touched for s in (*body.stored, *body.rotation_symbols)]
 
-    def column(expr: sp.Expr, body: BodyCoordinates, k: int) -> sp.Expr:
+    def column(derivatives: dict[sp.Symbol, sp.Expr], body: BodyCoordinates, k: int) -> sp.Expr:
+        zero = sp.Integer(0)
         if k < 3:
-            return sp.diff(expr, body.stored[k])
-        total = sp.Integer(0)
+            return derivatives.get(body.stored[k], zero)
+        total = zero
         derivative = body.rotation_derivatives[k - 3]
         for symbol, entry in zip(body.rotation_symbols, derivative):
             if entry != 0:
-                total += sp.diff(expr, symbol) * entry
+                total += derivatives.get(symbol, zero) * entry
         for s, b in zip(body.stored[3:], body.velocity_map[3:, k]):
             if b != 0:
-                total += sp.diff(expr, s) * b
+                total += derivatives.get(s, zero) * b
         return total
 
     def configuration_rate(expr: sp.Expr) -> sp.Expr:
-        total = sp.Integer(0)
+        derivatives = _gradient(expr, configuration)
+        zero = sp.Integer(0)
+        total = zero
         for body in touched:
             for k in range(3):
-                total += sp.diff(expr, body.stored[k]) * body.velocity[k]
+                total += derivatives.get(body.stored[k], zero) * body.velocity[k]
             for symbol, rate in zip(body.rotation_symbols, body.rotation_rate()):
                 if rate != 0:
-                    total += sp.diff(expr, symbol) * rate
+                    total += derivatives.get(symbol, zero) * rate
             stored_rate = body.velocity_map[3:, :] * sp.Matrix(body.velocity)
             for s, rate in zip(body.stored[3:], stored_rate):
                 if rate != 0:
-                    total += sp.diff(expr, s) * rate
+                    total += derivatives.get(s, zero) * rate
         return total
 
     psi = sp.Integer(0)  # Phi_q v
+    gradient = _gradient(phi, configuration)
     for body in touched:
         for k in range(len(body.velocity)):
-            entry = column(phi, body, k)
+            entry = column(gradient, body, k)
             if entry != 0:
                 jacobian[body.velocity_offset + k] = entry
                 psi += entry * body.velocity[k]
@@ -430,6 +435,20 @@ def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None
         gamma = -2 * inputs.time_derivative(psi) - inputs.time_derivative(phi_t)
     gamma -= configuration_rate(psi)
     return Row(equation.name, phi, jacobian, -phi_t, gamma, is_driver)
+
+
+def _gradient(expr: sp.Expr, symbols: list[sp.Symbol]) -> dict[sp.Symbol, sp.Expr]:
+    """The derivatives of ``expr`` with respect to those of ``symbols`` it contains. A polynomial
+    in them (the rows of quaternion parametrizations, written in positions and rotation-matrix
+    entries) is differentiated as one (``Poly``: its terms at once); anything else by ``diff``."""
+    free = expr.free_symbols
+    present = [s for s in symbols if s in free]
+    if not present:
+        return {}
+    if expr.is_polynomial(*present):
+        poly = sp.Poly(expr, *present)
+        return {s: poly.diff(s).as_expr() for s in present}
+    return {s: sp.diff(expr, s) for s in present}
 
 
 def _moving(names: tuple[str, ...]) -> tuple[str, ...]:

@@ -73,52 +73,87 @@ static double max_abs(const double *x, int n) {
     return m;
 }
 
+/* LU with partial pivoting of one n x n block (column-major, in place); pivots in piv.
+ * Updates the smallest and largest |pivot| and the parity of interchanges and negative
+ * pivots; returns 1 at a zero or non-finite pivot. Called with literal sizes (below), so
+ * that the compiler unrolls the loops of the common small blocks. */
+static inline int lu_block(double *A, int *piv, const int n, double *low, double *high, int *odd) {
+    for (int k = 0; k < n; ++k) {
+        int p = k;
+        double best = fabs(A[k + k * n]);
+        for (int i = k + 1; i < n; ++i) {
+            double c = fabs(A[i + k * n]);
+            if (c > best) {
+                best = c;
+                p = i;
+            }
+        }
+        piv[k] = p;
+        if (p != k) {
+            *odd ^= 1;
+            for (int j = 0; j < n; ++j) {
+                double tmp = A[k + j * n];
+                A[k + j * n] = A[p + j * n];
+                A[p + j * n] = tmp;
+            }
+        }
+        double pivot = A[k + k * n];
+        if (!(best >= *low)) *low = best; /* NaN propagates */
+        if (!(best <= *high)) *high = best;
+        if (pivot == 0.0 || !isfinite(pivot)) return 1;
+        if (pivot < 0.0) *odd ^= 1;
+        double inverse = 1.0 / pivot;
+        for (int i = k + 1; i < n; ++i) A[i + k * n] *= inverse;
+        for (int j = k + 1; j < n; ++j) {
+            double f = A[k + j * n];
+            if (f != 0.0)
+                for (int i = k + 1; i < n; ++i) A[i + j * n] -= A[i + k * n] * f;
+        }
+    }
+    return 0;
+}
+
 /* LU factors of every diagonal block of Phi_q (values jac). Returns 1 when singular. */
 static int factor(kinegen_solver *s, const double *jac) {
     const kinegen_model *m = s->model;
     double low = INFINITY, high = 0.0;
-    int odd = 0;
+    int odd = 0, failed = 0;
     memset(s->store, 0, sizeof(double) * (size_t)m->n_store);
     for (int k = 0; k < m->n_diag; ++k) s->store[m->diag_slot[k]] = jac[m->diag_value[k]];
     for (int e = 0; e < m->n_off; ++e) s->off[e] = jac[m->off_value[e]]; /* kept with the factors (chord steps) */
-    for (int b = 0; b < m->n_blocks; ++b) {
+    for (int b = 0; b < m->n_blocks && !failed; ++b) {
         int first = m->block_start[b], n = m->block_start[b + 1] - first;
         double *A = s->store + m->block_store[b];
         int *piv = s->pivots + first;
-        for (int k = 0; k < n; ++k) {
-            int p = k;
-            double best = fabs(A[k + k * n]);
-            for (int i = k + 1; i < n; ++i) {
-                double c = fabs(A[i + k * n]);
-                if (c > best) {
-                    best = c;
-                    p = i;
-                }
-            }
-            piv[k] = p;
-            if (p != k) {
-                odd ^= 1;
-                for (int j = 0; j < n; ++j) {
-                    double tmp = A[k + j * n];
-                    A[k + j * n] = A[p + j * n];
-                    A[p + j * n] = tmp;
-                }
-            }
-            double pivot = A[k + k * n];
-            if (!(best >= low)) low = best; /* NaN propagates */
-            if (!(best <= high)) high = best;
-            if (pivot == 0.0 || !isfinite(pivot)) {
-                s->have_factors = 0;
-                return 1;
-            }
-            if (pivot < 0.0) odd ^= 1;
-            for (int i = k + 1; i < n; ++i) A[i + k * n] /= pivot;
-            for (int j = k + 1; j < n; ++j) {
-                double f = A[k + j * n];
-                if (f != 0.0)
-                    for (int i = k + 1; i < n; ++i) A[i + j * n] -= A[i + k * n] * f;
-            }
+        switch (n) {
+        case 1:
+            failed = lu_block(A, piv, 1, &low, &high, &odd);
+            break;
+        case 2:
+            failed = lu_block(A, piv, 2, &low, &high, &odd);
+            break;
+        case 3:
+            failed = lu_block(A, piv, 3, &low, &high, &odd);
+            break;
+        case 4:
+            failed = lu_block(A, piv, 4, &low, &high, &odd);
+            break;
+        case 6:
+            failed = lu_block(A, piv, 6, &low, &high, &odd);
+            break;
+        case 7:
+            failed = lu_block(A, piv, 7, &low, &high, &odd);
+            break;
+        case 9:
+            failed = lu_block(A, piv, 9, &low, &high, &odd);
+            break;
+        default:
+            failed = lu_block(A, piv, n, &low, &high, &odd);
         }
+    }
+    if (failed) {
+        s->have_factors = 0;
+        return 1;
     }
     s->factor_sign = odd ? -1 : 1;
     s->have_factors = 1;
@@ -139,6 +174,10 @@ static void solve(kinegen_solver *s, const double *b, double *x) {
             double acc = b[m->row_order[row]];
             for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) acc -= s->off[e] * y[m->off_col[e]];
             r[i] = acc;
+        }
+        if (n == 1) {
+            r[0] /= A[0];
+            continue;
         }
         for (int k = 0; k < n; ++k) {
             if (piv[k] != k) {
@@ -381,21 +420,28 @@ int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q
                         double *residuals) {
     const kinegen_model *m = s->model;
     int ni = m->n_inputs, nq = m->n_q, solved = 0;
-    double *u = s->motion; /* n_inputs <= n_v: a driver adds one row each */
+    s->have_factors = 0; /* with chord iterations, each configuration starts from the last one's factors */
     for (int k = 0; k < count; ++k) {
         int n_iterations;
         double travel, norm;
-        for (int i = 0; i < ni; ++i) u[i] = U[(size_t)i * count + k];
-        for (int j = 0; j < nq; ++j) s->trial[j] = Q[(size_t)j * count + k];
-        int status = newton(s, u, 0, &n_iterations, &travel, &norm);
+        memcpy(s->trial, Q + (size_t)k * nq, sizeof(double) * (size_t)nq);
+        int status = newton(s, U + (size_t)k * ni, s->options.chord, &n_iterations, &travel, &norm);
         converged[k] = status == KINEGEN_OK;
         iterations[k] = n_iterations;
         residuals[k] = norm;
         solved += converged[k];
-        for (int j = 0; j < nq; ++j) Q[(size_t)j * count + k] = s->trial[j];
+        memcpy(Q + (size_t)k * nq, s->trial, sizeof(double) * (size_t)nq);
     }
     s->have_factors = 0;
     return solved;
+}
+
+int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iterations, double *residual, double *travel) {
+    memcpy(s->trial, q, sizeof(double) * (size_t)s->model->n_q);
+    int status = newton(s, u, 0, iterations, travel, residual);
+    memcpy(q, s->trial, sizeof(double) * (size_t)s->model->n_q);
+    s->have_factors = 0;
+    return status;
 }
 
 const char *kinegen_status_text(int status) {

@@ -156,12 +156,17 @@ int kinegen_trajectory(kinegen_solver *s, int count, const double *times, const 
                        const double *UDD, double *Q, double *V, double *A, int *iterations, double *residuals,
                        double *conditions, int *status);
 
-/* Newton (full steps, no predictor) on many configurations: column k of U (n_inputs x count,
- * row-major: input i of configuration k at U[i * count + k]) from column k of Q (n_q x count,
- * likewise), solved in place; converged[k], iterations[k], residuals[k] per configuration.
- * Returns how many converged. Leaves the solver's state as it was, but not its factors. */
+/* Newton (no predictor; with options.chord, chord iterations that start each configuration from
+ * the factors of the one before) on many configurations: row k of U
+ * (count x n_inputs, row-major) from row k of Q (count x n_q), solved in place; converged[k],
+ * iterations[k], residuals[k] per configuration. Returns how many converged. Leaves the
+ * solver's state as it was, but not its factors. */
 int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q, int *converged, int *iterations,
                         double *residuals);
+
+/* Full Newton from q (in place) for inputs u: its iterations, final max |Phi| and the summed
+ * max-norm of its steps. The solver's state stays as it was (not its factors). */
+int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iterations, double *residual, double *travel);
 
 const char *kinegen_status_text(int status);
 
