@@ -15,21 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
-static void retract_body(double *q, const double *step) {
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] += step[3];
-    q[4] += step[4];
-    q[5] += step[5];
-    q[6] += step[6];
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < BOOM_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
-}
-
 /* Phi of the 6 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double boom_x = q[0];
@@ -39,16 +24,16 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_e1 = q[4];
     const double boom_e2 = q[5];
     const double boom_e3 = q[6];
-    const double boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1);
     const double boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
-    out[0] = (89.0/50.0)*boom_a00 - boom_x;
-    out[1] = (89.0/50.0)*boom_a10 - boom_y;
-    out[2] = (89.0/50.0)*boom_a20 - boom_z;
+    out[0] = -boom_x + (89.0/50.0)*boom_a00;
+    out[1] = -boom_y + (89.0/50.0)*boom_a10;
+    out[2] = -boom_z + (89.0/50.0)*boom_a20;
     out[3] = boom_a20;
     out[4] = boom_a21;
-    out[5] = (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3) - 1.0;
+    out[5] = -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3);
 }
 
 /* Phi of the driver rows of case 'swing'. */
@@ -57,7 +42,7 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double boom_e3 = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*boom_e0*sin(c0) - 2.0*boom_e3*cos(c0);
+    out[0] = -2.0*boom_e3*cos(c0) + 2.0*boom_e0*sin(c0);
 }
 
 /* Phi_q values of the joint rows (25 entries). */
@@ -110,14 +95,6 @@ static void compute_drivers_jac_swing(const double *q, const double *u, double *
     out[1] = -2.0*cos(d0);
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'swing'. */
-static void phi_jac_swing(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_swing(q, u, phi + 6);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_swing(q, u, jac + 25);
-}
-
 /* nu of the driver rows of case 'swing'. */
 static void compute_drivers_nu_swing(const double *q, const double *u, const double *ud, double *out) {
     const double boom_e0 = q[3];
@@ -126,12 +103,6 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(boom_e0*cos(c0) + boom_e3*sin(c0));
-}
-
-/* nu = -Phi_t of case 'swing' (zero in the joint rows). */
-static void nu_swing(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 6; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_swing(q, u, ud, nu + 6);
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -147,7 +118,7 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double c3 = 4.0*v_boom_e1;
     out[0] = -178.0/25.0*(v_boom_e0*v_boom_e0) - 178.0/25.0*(v_boom_e1*v_boom_e1);
     out[1] = -c0*v_boom_e0 - c1*v_boom_e1;
-    out[2] = -c0*v_boom_e1 + c1*v_boom_e0;
+    out[2] = c1*v_boom_e0 - c0*v_boom_e1;
     out[3] = c2*v_boom_e0 - c3*v_boom_e3;
     out[4] = -c2*v_boom_e3 - c3*v_boom_e0;
     out[5] = -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3);
@@ -165,25 +136,14 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    out[0] = -(ud0*ud0)*(-1.0/2.0*boom_e0*c2 + (1.0/2.0)*boom_e3*c1) - 2.0*ud0*(c1*v_boom_e0 + c2*v_boom_e3) - udd0*(boom_e0*c1 + boom_e3*c2);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'. */
-static void gamma_swing(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_swing(q, v, u, ud, udd, gamma + 6);
+    out[0] = -udd0*(c1*boom_e0 + c2*boom_e3) - (ud0*ud0)*((1.0/2.0)*c1*boom_e3 - 1.0/2.0*c2*boom_e0) - 2.0*ud0*(c1*v_boom_e0 + c2*v_boom_e3);
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_swing(double t, double *out) {
-    out[0] = (t*t) + 1.5707963267948966;
+    out[0] = 1.5707963267948966 + (t*t);
     out[1] = 2.0*t;
     out[2] = 2.0;
-}
-
-/* Driver inputs of case 'swing' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_swing(double t, double *inputs) {
-    compute_inputs_swing(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -209,15 +169,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_boom_e1 = a[4];
     const double dv_boom_e2 = a[5];
     const double dv_boom_e3 = a[6];
-    const double boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1);
     const double boom_a01 = -2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a02 = 2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
-    const double boom_a11 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2);
     const double boom_a12 = -2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
-    const double boom_a22 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3);
     const double c0 = 2.0*v_boom_e1;
     const double c1 = 2.0*boom_e1;
     const double c2 = 2.0*boom_e2;
@@ -239,15 +199,55 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[12] = v_boom_x;
     out[13] = v_boom_y;
     out[14] = v_boom_z;
-    out[15] = boom_e0*c0 - boom_e3*c3 - c1*v_boom_e0 + c2*v_boom_e3;
-    out[16] = boom_e0*c3 + boom_e3*c0 - c1*v_boom_e3 - c2*v_boom_e0;
-    out[17] = -boom_e2*c0 + c1*v_boom_e2 + c4*v_boom_e3 - c5*v_boom_e0;
+    out[15] = c0*boom_e0 + c2*v_boom_e3 - c1*v_boom_e0 - c3*boom_e3;
+    out[16] = c0*boom_e3 + c3*boom_e0 - c1*v_boom_e3 - c2*v_boom_e0;
+    out[17] = c1*v_boom_e2 + c4*v_boom_e3 - c0*boom_e2 - c5*v_boom_e0;
     out[18] = dv_boom_x;
     out[19] = dv_boom_y;
     out[20] = dv_boom_z;
-    out[21] = -c1*dv_boom_e0 + c2*dv_boom_e3 + c4*dv_boom_e1 - c5*dv_boom_e2;
-    out[22] = -c1*dv_boom_e3 - c2*dv_boom_e0 + c4*dv_boom_e2 + c5*dv_boom_e1;
-    out[23] = c1*dv_boom_e2 - c2*dv_boom_e1 + c4*dv_boom_e3 - c5*dv_boom_e0;
+    out[21] = c2*dv_boom_e3 + c4*dv_boom_e1 - c1*dv_boom_e0 - c5*dv_boom_e2;
+    out[22] = c4*dv_boom_e2 + c5*dv_boom_e1 - c1*dv_boom_e3 - c2*dv_boom_e0;
+    out[23] = c1*dv_boom_e2 + c4*dv_boom_e3 - c2*dv_boom_e1 - c5*dv_boom_e0;
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
+static void retract_body(double *q, const double *step) {
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] += step[3];
+    q[4] += step[4];
+    q[5] += step[5];
+    q[6] += step[6];
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < BOOM_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'swing'. */
+static void phi_jac_swing(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_swing(q, u, phi + 6);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_swing(q, u, jac + 25);
+}
+
+/* nu = -Phi_t of case 'swing' (zero in the joint rows). */
+static void nu_swing(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 6; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_swing(q, u, ud, nu + 6);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'. */
+static void gamma_swing(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_swing(q, v, u, ud, udd, gamma + 6);
+}
+
+/* Driver inputs of case 'swing' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_swing(double t, double *inputs) {
+    compute_inputs_swing(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

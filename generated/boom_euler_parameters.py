@@ -62,17 +62,17 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 6 joint (and normalization) rows, common to every case."""
     boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a00 = -1 + 2*boom_e0**2 + 2*boom_e1**2
     boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
     boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
     boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
     out = _zeros(6, q, ())
-    out[0] = (89/50)*boom_a00 - boom_x
-    out[1] = (89/50)*boom_a10 - boom_y
-    out[2] = (89/50)*boom_a20 - boom_z
+    out[0] = -boom_x + (89/50)*boom_a00
+    out[1] = -boom_y + (89/50)*boom_a10
+    out[2] = -boom_z + (89/50)*boom_a20
     out[3] = boom_a20
     out[4] = boom_a21
-    out[5] = boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2 - 1
+    out[5] = -1 + boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2
     return out
 
 
@@ -126,7 +126,7 @@ def _joints_gamma(q, v):
     out = _zeros(6, q, ())
     out[0] = -178/25*v_boom_e0**2 - 178/25*v_boom_e1**2
     out[1] = -c0*v_boom_e0 - c1*v_boom_e1
-    out[2] = -c0*v_boom_e1 + c1*v_boom_e0
+    out[2] = c1*v_boom_e0 - c0*v_boom_e1
     out[3] = c2*v_boom_e0 - c3*v_boom_e3
     out[4] = -c2*v_boom_e3 - c3*v_boom_e0
     out[5] = -2*v_boom_e0**2 - 2*v_boom_e1**2 - 2*v_boom_e2**2 - 2*v_boom_e3**2
@@ -136,7 +136,7 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
-    boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0
+    boom_a00 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1)
     boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2
     boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3
     boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3
@@ -148,7 +148,7 @@ def _joints_phi_jac_s(q):
     d5 = 2.0*boom_e3
     d6 = 2.0*boom_e0
     d7 = 2.0*boom_e1
-    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21, (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3) - 1.0], [-1.0, (178/25)*boom_e0, (178/25)*boom_e1, -1.0, d0, d1, d2, d3, -1.0, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, 2.0*boom_e0, 2.0*boom_e1, 2.0*boom_e2, 2.0*boom_e3]
+    return [-boom_x + (89/50)*boom_a00, -boom_y + (89/50)*boom_a10, -boom_z + (89/50)*boom_a20, boom_a20, boom_a21, -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3)], [-1.0, (178/25)*boom_e0, (178/25)*boom_e1, -1.0, d0, d1, d2, d3, -1.0, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, 2.0*boom_e0, 2.0*boom_e1, 2.0*boom_e2, 2.0*boom_e3]
 
 
 def _joints_gamma_s(q, v):
@@ -158,7 +158,7 @@ def _joints_gamma_s(q, v):
     c1 = (178/25)*v_boom_e2
     c2 = 4.0*v_boom_e2
     c3 = 4.0*v_boom_e1
-    return [-178/25*(v_boom_e0*v_boom_e0) - 178/25*(v_boom_e1*v_boom_e1), -c0*v_boom_e0 - c1*v_boom_e1, -c0*v_boom_e1 + c1*v_boom_e0, c2*v_boom_e0 - c3*v_boom_e3, -c2*v_boom_e3 - c3*v_boom_e0, -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3)]
+    return [-178/25*(v_boom_e0*v_boom_e0) - 178/25*(v_boom_e1*v_boom_e1), -c0*v_boom_e0 - c1*v_boom_e1, c1*v_boom_e0 - c0*v_boom_e1, c2*v_boom_e0 - c3*v_boom_e3, -c2*v_boom_e3 - c3*v_boom_e0, -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3)]
 
 
 def frames(q, v, a):
@@ -166,15 +166,15 @@ def frames(q, v, a):
     boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3 = q
     v_boom_x, v_boom_y, v_boom_z, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
     dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_e0, dv_boom_e1, dv_boom_e2, dv_boom_e3 = a
-    boom_a00 = 2*boom_e0**2 + 2*boom_e1**2 - 1
+    boom_a00 = -1 + 2*boom_e0**2 + 2*boom_e1**2
     boom_a01 = -2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
     boom_a02 = 2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
     boom_a10 = 2*boom_e0*boom_e3 + 2*boom_e1*boom_e2
-    boom_a11 = 2*boom_e0**2 + 2*boom_e2**2 - 1
+    boom_a11 = -1 + 2*boom_e0**2 + 2*boom_e2**2
     boom_a12 = -2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
     boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
     boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
-    boom_a22 = 2*boom_e0**2 + 2*boom_e3**2 - 1
+    boom_a22 = -1 + 2*boom_e0**2 + 2*boom_e3**2
     c0 = 2*v_boom_e1
     c1 = 2*boom_e1
     c2 = 2*boom_e2
@@ -197,22 +197,22 @@ def frames(q, v, a):
     out[12] = v_boom_x
     out[13] = v_boom_y
     out[14] = v_boom_z
-    out[15] = boom_e0*c0 - boom_e3*c3 - c1*v_boom_e0 + c2*v_boom_e3
-    out[16] = boom_e0*c3 + boom_e3*c0 - c1*v_boom_e3 - c2*v_boom_e0
-    out[17] = -boom_e2*c0 + c1*v_boom_e2 + c4*v_boom_e3 - c5*v_boom_e0
+    out[15] = c0*boom_e0 + c2*v_boom_e3 - c1*v_boom_e0 - c3*boom_e3
+    out[16] = c0*boom_e3 + c3*boom_e0 - c1*v_boom_e3 - c2*v_boom_e0
+    out[17] = c1*v_boom_e2 + c4*v_boom_e3 - c0*boom_e2 - c5*v_boom_e0
     out[18] = dv_boom_x
     out[19] = dv_boom_y
     out[20] = dv_boom_z
-    out[21] = -c1*dv_boom_e0 + c2*dv_boom_e3 + c4*dv_boom_e1 - c5*dv_boom_e2
-    out[22] = -c1*dv_boom_e3 - c2*dv_boom_e0 + c4*dv_boom_e2 + c5*dv_boom_e1
-    out[23] = c1*dv_boom_e2 - c2*dv_boom_e1 + c4*dv_boom_e3 - c5*dv_boom_e0
+    out[21] = c2*dv_boom_e3 + c4*dv_boom_e1 - c1*dv_boom_e0 - c5*dv_boom_e2
+    out[22] = c4*dv_boom_e2 + c5*dv_boom_e1 - c1*dv_boom_e3 - c2*dv_boom_e0
+    out[23] = c1*dv_boom_e2 + c4*dv_boom_e3 - c2*dv_boom_e1 - c5*dv_boom_e0
     return out
 
 
 def inputs_swing(t):
     """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = t**2 + 1.5707963267948966
+    out[0] = 1.5707963267948966 + t**2
     out[1] = 2*t
     out[2] = 2
     return out
@@ -224,7 +224,7 @@ def _drivers_phi_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*boom_e0*sin(c0) - 2*boom_e3*cos(c0)
+    out[0] = -2*boom_e3*cos(c0) + 2*boom_e0*sin(c0)
     return out
 
 
@@ -260,7 +260,7 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*(-1/2*boom_e0*c2 + (1/2)*boom_e3*c1) - 2*ud0*(c1*v_boom_e0 + c2*v_boom_e3) - udd0*(boom_e0*c1 + boom_e3*c2)
+    out[0] = -udd0*(c1*boom_e0 + c2*boom_e3) - ud0**2*((1/2)*c1*boom_e3 - 1/2*c2*boom_e0) - 2*ud0*(c1*v_boom_e0 + c2*v_boom_e3)
     return out
 
 
@@ -270,7 +270,7 @@ def _drivers_phi_jac_s_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2.0*boom_e0*math.sin(c0) - 2.0*boom_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [-2.0*boom_e3*math.cos(c0) + 2.0*boom_e0*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_swing(q, u, ud):
@@ -292,7 +292,7 @@ def _drivers_gamma_s_swing(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-(ud0*ud0)*(-1/2*boom_e0*c2 + (1/2)*boom_e3*c1) - 2.0*ud0*(c1*v_boom_e0 + c2*v_boom_e3) - udd0*(boom_e0*c1 + boom_e3*c2)]
+    return [-udd0*(c1*boom_e0 + c2*boom_e3) - (ud0*ud0)*((1/2)*c1*boom_e3 - 1/2*c2*boom_e0) - 2.0*ud0*(c1*v_boom_e0 + c2*v_boom_e3)]
 
 
 def phi_swing(q, u):

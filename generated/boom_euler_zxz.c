@@ -15,20 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (euler:zxz) */
-static void retract_body(double *q, const double *step) {
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] += step[3];
-    q[4] += step[4];
-    q[5] += step[5];
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < BOOM_EULER_ZXZ_N_BODIES; ++b) retract_body(q + 6 * b, step + 6 * b);
-}
-
 /* Phi of the 5 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double boom_x = q[0];
@@ -37,13 +23,13 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_alpha = q[3];
     const double boom_beta = q[4];
     const double boom_gamma = q[5];
-    const double boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma);
-    const double boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta);
+    const double boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma);
+    const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
     const double boom_a20 = sin(boom_beta)*sin(boom_gamma);
-    const double boom_a21 = sin(boom_beta)*cos(boom_gamma);
-    out[0] = (89.0/50.0)*boom_a00 - boom_x;
-    out[1] = (89.0/50.0)*boom_a10 - boom_y;
-    out[2] = (89.0/50.0)*boom_a20 - boom_z;
+    const double boom_a21 = cos(boom_gamma)*sin(boom_beta);
+    out[0] = -boom_x + (89.0/50.0)*boom_a00;
+    out[1] = -boom_y + (89.0/50.0)*boom_a10;
+    out[2] = -boom_z + (89.0/50.0)*boom_a20;
     out[3] = boom_a20;
     out[4] = boom_a21;
 }
@@ -54,8 +40,8 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double boom_beta = q[4];
     const double boom_gamma = q[5];
     const double u0 = u[0];
-    const double boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma);
-    const double boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta);
+    const double boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma);
+    const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
     out[0] = boom_a00*sin(u0) - boom_a10*cos(u0);
 }
 
@@ -78,7 +64,7 @@ static void compute_joints_jac(const double *q, double *out) {
     const double d11 = d1*d4;
     const double d12 = d1*d7;
     out[0] = -1.0;
-    out[1] = -89.0/50.0*d0*d1 - d2*d6;
+    out[1] = -d2*d6 - 89.0/50.0*d0*d1;
     out[2] = d8*d9;
     out[3] = -d10*d2 - d11*d9;
     out[4] = -1.0;
@@ -113,15 +99,7 @@ static void compute_drivers_jac_swing(const double *q, const double *u, double *
     const double d10 = sin(boom_beta);
     out[0] = d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9);
     out[1] = d0*d10*d9 + d10*d7*d8;
-    out[2] = d0*(-d3*d4 - d7) - d8*(d2*d4*d6 - d9);
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'swing'. */
-static void phi_jac_swing(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_swing(q, u, phi + 5);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_swing(q, u, jac + 15);
+    out[2] = d0*(-d7 - d3*d4) - d8*(-d9 + d2*d4*d6);
 }
 
 /* nu of the driver rows of case 'swing'. */
@@ -131,15 +109,9 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     const double boom_gamma = q[5];
     const double u0 = u[0];
     const double ud0 = ud[0];
-    const double boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma);
-    const double boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta);
+    const double boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma);
+    const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
     out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0));
-}
-
-/* nu = -Phi_t of case 'swing' (zero in the joint rows). */
-static void nu_swing(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 5; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_swing(q, u, ud, nu + 5);
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -165,20 +137,20 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double c12 = c11*c7;
     const double c13 = c0*c12;
     const double c14 = c1*c11;
-    const double c15 = -c14 + c9;
-    const double c16 = -c14*c6 + c8;
+    const double c15 = c9 - c14;
+    const double c16 = c8 - c14*c6;
     const double c17 = c4*c6;
     const double c18 = c0*c14;
     const double c19 = -c12 - c17;
-    const double c20 = -c12*c6 - c4;
+    const double c20 = -c4 - c12*c6;
     const double c21 = c0*c3;
     const double c22 = c0*c2;
     const double c23 = c0*c10;
     const double c24 = c2*c6;
     out[0] = -v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha);
-    out[1] = -v_boom_alpha*(c0*c8*v_boom_beta + c19*v_boom_alpha + c20*v_boom_gamma) - v_boom_beta*((89.0/50.0)*c0*c2*c7*v_boom_alpha - c17*v_boom_beta - c18*v_boom_gamma) - v_boom_gamma*(-c18*v_boom_beta + c19*v_boom_gamma + c20*v_boom_alpha);
-    out[2] = -v_boom_beta*((89.0/50.0)*c10*c6*v_boom_gamma - c21*v_boom_beta) - v_boom_gamma*(c11*c6*v_boom_beta - c21*v_boom_gamma);
-    out[3] = -v_boom_beta*(c10*c6*v_boom_gamma - c22*v_boom_beta) - v_boom_gamma*(c10*c6*v_boom_beta - c22*v_boom_gamma);
+    out[1] = -v_boom_alpha*(c19*v_boom_alpha + c20*v_boom_gamma + c0*c8*v_boom_beta) - v_boom_beta*(-c17*v_boom_beta - c18*v_boom_gamma + (89.0/50.0)*c0*c2*c7*v_boom_alpha) - v_boom_gamma*(c19*v_boom_gamma + c20*v_boom_alpha - c18*v_boom_beta);
+    out[2] = -v_boom_beta*(-c21*v_boom_beta + (89.0/50.0)*c10*c6*v_boom_gamma) - v_boom_gamma*(-c21*v_boom_gamma + c11*c6*v_boom_beta);
+    out[3] = -v_boom_beta*(-c22*v_boom_beta + c10*c6*v_boom_gamma) - v_boom_gamma*(-c22*v_boom_gamma + c10*c6*v_boom_beta);
     out[4] = -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta);
 }
 
@@ -193,8 +165,8 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double udd0 = udd[0];
-    const double boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma);
-    const double boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta);
+    const double boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma);
+    const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
     const double c0 = cos(u0);
     const double c1 = sin(u0);
     const double c2 = cos(boom_beta);
@@ -210,34 +182,23 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double c12 = sin(boom_beta);
     const double c13 = c10*c7;
     const double c14 = c0*c12;
-    const double c15 = c1*c11*c12 + c13*c14;
-    const double c16 = -c1*c12*c4*c7 + c14*c5;
+    const double c15 = c13*c14 + c1*c11*c12;
+    const double c16 = c14*c5 - c1*c12*c4*c7;
     const double c17 = -c16;
-    const double c18 = -c13 + c6;
+    const double c18 = c6 - c13;
     const double c19 = c0*(-c11 - c9);
-    const double c20 = -c13*c2 + c5;
-    const double c21 = c0*(-c11*c2 - c8);
-    const double c22 = c1*c20 - c21;
-    const double c23 = c1*c18 - c19;
-    out[0] = -(ud0*ud0)*(-boom_a00*c1 + boom_a10*c0) - 2.0*ud0*(c16*v_boom_beta + v_boom_alpha*(-c1*c18 + c19) + v_boom_gamma*(-c1*c20 + c21)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'. */
-static void gamma_swing(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_swing(q, v, u, ud, udd, gamma + 5);
+    const double c20 = c5 - c13*c2;
+    const double c21 = c0*(-c8 - c11*c2);
+    const double c22 = -c21 + c1*c20;
+    const double c23 = -c19 + c1*c18;
+    out[0] = -udd0*(c0*boom_a00 + c1*boom_a10) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma) - (ud0*ud0)*(c0*boom_a10 - c1*boom_a00) - 2.0*ud0*(c16*v_boom_beta + v_boom_alpha*(c19 - c1*c18) + v_boom_gamma*(c21 - c1*c20));
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_swing(double t, double *out) {
-    out[0] = (t*t) + 1.5707963267948966;
+    out[0] = 1.5707963267948966 + (t*t);
     out[1] = 2.0*t;
     out[2] = 2.0;
-}
-
-/* Driver inputs of case 'swing' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_swing(double t, double *inputs) {
-    compute_inputs_swing(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -260,14 +221,14 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_boom_alpha = a[3];
     const double dv_boom_beta = a[4];
     const double dv_boom_gamma = a[5];
-    const double boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma);
-    const double boom_a01 = -sin(boom_alpha)*cos(boom_beta)*cos(boom_gamma) - sin(boom_gamma)*cos(boom_alpha);
+    const double boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma);
+    const double boom_a01 = -cos(boom_alpha)*sin(boom_gamma) - cos(boom_beta)*cos(boom_gamma)*sin(boom_alpha);
     const double boom_a02 = sin(boom_alpha)*sin(boom_beta);
-    const double boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta);
+    const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
     const double boom_a11 = -sin(boom_alpha)*sin(boom_gamma) + cos(boom_alpha)*cos(boom_beta)*cos(boom_gamma);
-    const double boom_a12 = -sin(boom_beta)*cos(boom_alpha);
+    const double boom_a12 = -cos(boom_alpha)*sin(boom_beta);
     const double boom_a20 = sin(boom_beta)*sin(boom_gamma);
-    const double boom_a21 = sin(boom_beta)*cos(boom_gamma);
+    const double boom_a21 = cos(boom_gamma)*sin(boom_beta);
     const double boom_a22 = cos(boom_beta);
     const double c0 = cos(boom_alpha);
     const double c1 = c0*v_boom_beta;
@@ -293,14 +254,53 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[13] = v_boom_y;
     out[14] = v_boom_z;
     out[15] = c1 + c2*c4;
-    out[16] = -c0*c4 + c5;
-    out[17] = boom_a22*v_boom_gamma + v_boom_alpha;
+    out[16] = c5 - c0*c4;
+    out[17] = v_boom_alpha + boom_a22*v_boom_gamma;
     out[18] = dv_boom_x;
     out[19] = dv_boom_y;
     out[20] = dv_boom_z;
-    out[21] = c0*dv_boom_beta + c2*c6 - c5*v_boom_alpha + v_boom_gamma*(boom_a22*c5 + c0*c3*v_boom_alpha);
-    out[22] = -c0*c6 + c1*v_boom_alpha + c2*dv_boom_beta + v_boom_gamma*(-boom_a22*c1 + c2*c3*v_boom_alpha);
-    out[23] = boom_a22*dv_boom_gamma + dv_boom_alpha + v_boom_gamma*(-(c0*c0)*c7 - (c2*c2)*c7);
+    out[21] = c0*dv_boom_beta + c2*c6 + v_boom_gamma*(c5*boom_a22 + c0*c3*v_boom_alpha) - c5*v_boom_alpha;
+    out[22] = c1*v_boom_alpha + c2*dv_boom_beta + v_boom_gamma*(-c1*boom_a22 + c2*c3*v_boom_alpha) - c0*c6;
+    out[23] = dv_boom_alpha + boom_a22*dv_boom_gamma + v_boom_gamma*(-c7*(c0*c0) - c7*(c2*c2));
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (euler:zxz) */
+static void retract_body(double *q, const double *step) {
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] += step[3];
+    q[4] += step[4];
+    q[5] += step[5];
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < BOOM_EULER_ZXZ_N_BODIES; ++b) retract_body(q + 6 * b, step + 6 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'swing'. */
+static void phi_jac_swing(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_swing(q, u, phi + 5);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_swing(q, u, jac + 15);
+}
+
+/* nu = -Phi_t of case 'swing' (zero in the joint rows). */
+static void nu_swing(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 5; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_swing(q, u, ud, nu + 5);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'. */
+static void gamma_swing(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_swing(q, v, u, ud, udd, gamma + 5);
+}
+
+/* Driver inputs of case 'swing' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_swing(double t, double *inputs) {
+    compute_inputs_swing(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

@@ -62,14 +62,14 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 5 joint (and normalization) rows, common to every case."""
     boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
-    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
-    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma)
+    boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     boom_a20 = sin(boom_beta)*sin(boom_gamma)
-    boom_a21 = sin(boom_beta)*cos(boom_gamma)
+    boom_a21 = cos(boom_gamma)*sin(boom_beta)
     out = _zeros(5, q, ())
-    out[0] = (89/50)*boom_a00 - boom_x
-    out[1] = (89/50)*boom_a10 - boom_y
-    out[2] = (89/50)*boom_a20 - boom_z
+    out[0] = -boom_x + (89/50)*boom_a00
+    out[1] = -boom_y + (89/50)*boom_a10
+    out[2] = -boom_z + (89/50)*boom_a20
     out[3] = boom_a20
     out[4] = boom_a21
     return out
@@ -93,7 +93,7 @@ def _joints_jac(q):
     d12 = d1*d7
     out = _zeros(15, q, ())
     out[0] = -1
-    out[1] = -89/50*d0*d1 - d2*d6
+    out[1] = -d2*d6 - 89/50*d0*d1
     out[2] = d8*d9
     out[3] = -d10*d2 - d11*d9
     out[4] = -1
@@ -129,21 +129,21 @@ def _joints_gamma(q, v):
     c12 = c11*c7
     c13 = c0*c12
     c14 = c1*c11
-    c15 = -c14 + c9
-    c16 = -c14*c6 + c8
+    c15 = c9 - c14
+    c16 = c8 - c14*c6
     c17 = c4*c6
     c18 = c0*c14
     c19 = -c12 - c17
-    c20 = -c12*c6 - c4
+    c20 = -c4 - c12*c6
     c21 = c0*c3
     c22 = c0*c2
     c23 = c0*c10
     c24 = c2*c6
     out = _zeros(5, q, ())
     out[0] = -v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha)
-    out[1] = -v_boom_alpha*(c0*c8*v_boom_beta + c19*v_boom_alpha + c20*v_boom_gamma) - v_boom_beta*((89/50)*c0*c2*c7*v_boom_alpha - c17*v_boom_beta - c18*v_boom_gamma) - v_boom_gamma*(-c18*v_boom_beta + c19*v_boom_gamma + c20*v_boom_alpha)
-    out[2] = -v_boom_beta*((89/50)*c10*c6*v_boom_gamma - c21*v_boom_beta) - v_boom_gamma*(c11*c6*v_boom_beta - c21*v_boom_gamma)
-    out[3] = -v_boom_beta*(c10*c6*v_boom_gamma - c22*v_boom_beta) - v_boom_gamma*(c10*c6*v_boom_beta - c22*v_boom_gamma)
+    out[1] = -v_boom_alpha*(c19*v_boom_alpha + c20*v_boom_gamma + c0*c8*v_boom_beta) - v_boom_beta*(-c17*v_boom_beta - c18*v_boom_gamma + (89/50)*c0*c2*c7*v_boom_alpha) - v_boom_gamma*(c19*v_boom_gamma + c20*v_boom_alpha - c18*v_boom_beta)
+    out[2] = -v_boom_beta*(-c21*v_boom_beta + (89/50)*c10*c6*v_boom_gamma) - v_boom_gamma*(-c21*v_boom_gamma + c11*c6*v_boom_beta)
+    out[3] = -v_boom_beta*(-c22*v_boom_beta + c10*c6*v_boom_gamma) - v_boom_gamma*(-c22*v_boom_gamma + c10*c6*v_boom_beta)
     out[4] = -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)
     return out
 
@@ -151,10 +151,10 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
-    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
-    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    boom_a00 = math.cos(boom_alpha)*math.cos(boom_gamma) - math.cos(boom_beta)*math.sin(boom_alpha)*math.sin(boom_gamma)
+    boom_a10 = math.cos(boom_gamma)*math.sin(boom_alpha) + math.cos(boom_alpha)*math.cos(boom_beta)*math.sin(boom_gamma)
     boom_a20 = math.sin(boom_beta)*math.sin(boom_gamma)
-    boom_a21 = math.sin(boom_beta)*math.cos(boom_gamma)
+    boom_a21 = math.cos(boom_gamma)*math.sin(boom_beta)
     d0 = math.sin(boom_alpha)
     d1 = math.cos(boom_gamma)
     d2 = math.cos(boom_alpha)
@@ -168,7 +168,7 @@ def _joints_phi_jac_s(q):
     d10 = (89/50)*d3
     d11 = d1*d4
     d12 = d1*d7
-    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1.0, -89/50*d0*d1 - d2*d6, d8*d9, -d10*d2 - d11*d9, -1.0, -d0*d6 + (89/50)*d1*d2, -89/50*d2*d8, -d0*d10 + (89/50)*d1*d2*d4, -1.0, d6, (89/50)*d12, d5, d12, d11, -d8]
+    return [-boom_x + (89/50)*boom_a00, -boom_y + (89/50)*boom_a10, -boom_z + (89/50)*boom_a20, boom_a20, boom_a21], [-1.0, -d2*d6 - 89/50*d0*d1, d8*d9, -d10*d2 - d11*d9, -1.0, -d0*d6 + (89/50)*d1*d2, -89/50*d2*d8, -d0*d10 + (89/50)*d1*d2*d4, -1.0, d6, (89/50)*d12, d5, d12, d11, -d8]
 
 
 def _joints_gamma_s(q, v):
@@ -190,17 +190,17 @@ def _joints_gamma_s(q, v):
     c12 = c11*c7
     c13 = c0*c12
     c14 = c1*c11
-    c15 = -c14 + c9
-    c16 = -c14*c6 + c8
+    c15 = c9 - c14
+    c16 = c8 - c14*c6
     c17 = c4*c6
     c18 = c0*c14
     c19 = -c12 - c17
-    c20 = -c12*c6 - c4
+    c20 = -c4 - c12*c6
     c21 = c0*c3
     c22 = c0*c2
     c23 = c0*c10
     c24 = c2*c6
-    return [-v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha), -v_boom_alpha*(c0*c8*v_boom_beta + c19*v_boom_alpha + c20*v_boom_gamma) - v_boom_beta*((89/50)*c0*c2*c7*v_boom_alpha - c17*v_boom_beta - c18*v_boom_gamma) - v_boom_gamma*(-c18*v_boom_beta + c19*v_boom_gamma + c20*v_boom_alpha), -v_boom_beta*((89/50)*c10*c6*v_boom_gamma - c21*v_boom_beta) - v_boom_gamma*(c11*c6*v_boom_beta - c21*v_boom_gamma), -v_boom_beta*(c10*c6*v_boom_gamma - c22*v_boom_beta) - v_boom_gamma*(c10*c6*v_boom_beta - c22*v_boom_gamma), -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)]
+    return [-v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha), -v_boom_alpha*(c19*v_boom_alpha + c20*v_boom_gamma + c0*c8*v_boom_beta) - v_boom_beta*(-c17*v_boom_beta - c18*v_boom_gamma + (89/50)*c0*c2*c7*v_boom_alpha) - v_boom_gamma*(c19*v_boom_gamma + c20*v_boom_alpha - c18*v_boom_beta), -v_boom_beta*(-c21*v_boom_beta + (89/50)*c10*c6*v_boom_gamma) - v_boom_gamma*(-c21*v_boom_gamma + c11*c6*v_boom_beta), -v_boom_beta*(-c22*v_boom_beta + c10*c6*v_boom_gamma) - v_boom_gamma*(-c22*v_boom_gamma + c10*c6*v_boom_beta), -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)]
 
 
 def frames(q, v, a):
@@ -208,14 +208,14 @@ def frames(q, v, a):
     boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma = q
     v_boom_x, v_boom_y, v_boom_z, v_boom_alpha, v_boom_beta, v_boom_gamma = v
     dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_alpha, dv_boom_beta, dv_boom_gamma = a
-    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
-    boom_a01 = -sin(boom_alpha)*cos(boom_beta)*cos(boom_gamma) - sin(boom_gamma)*cos(boom_alpha)
+    boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma)
+    boom_a01 = -cos(boom_alpha)*sin(boom_gamma) - cos(boom_beta)*cos(boom_gamma)*sin(boom_alpha)
     boom_a02 = sin(boom_alpha)*sin(boom_beta)
-    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     boom_a11 = -sin(boom_alpha)*sin(boom_gamma) + cos(boom_alpha)*cos(boom_beta)*cos(boom_gamma)
-    boom_a12 = -sin(boom_beta)*cos(boom_alpha)
+    boom_a12 = -cos(boom_alpha)*sin(boom_beta)
     boom_a20 = sin(boom_beta)*sin(boom_gamma)
-    boom_a21 = sin(boom_beta)*cos(boom_gamma)
+    boom_a21 = cos(boom_gamma)*sin(boom_beta)
     boom_a22 = cos(boom_beta)
     c0 = cos(boom_alpha)
     c1 = c0*v_boom_beta
@@ -242,21 +242,21 @@ def frames(q, v, a):
     out[13] = v_boom_y
     out[14] = v_boom_z
     out[15] = c1 + c2*c4
-    out[16] = -c0*c4 + c5
-    out[17] = boom_a22*v_boom_gamma + v_boom_alpha
+    out[16] = c5 - c0*c4
+    out[17] = v_boom_alpha + boom_a22*v_boom_gamma
     out[18] = dv_boom_x
     out[19] = dv_boom_y
     out[20] = dv_boom_z
-    out[21] = c0*dv_boom_beta + c2*c6 - c5*v_boom_alpha + v_boom_gamma*(boom_a22*c5 + c0*c3*v_boom_alpha)
-    out[22] = -c0*c6 + c1*v_boom_alpha + c2*dv_boom_beta + v_boom_gamma*(-boom_a22*c1 + c2*c3*v_boom_alpha)
-    out[23] = boom_a22*dv_boom_gamma + dv_boom_alpha + v_boom_gamma*(-c0**2*c7 - c2**2*c7)
+    out[21] = c0*dv_boom_beta + c2*c6 + v_boom_gamma*(c5*boom_a22 + c0*c3*v_boom_alpha) - c5*v_boom_alpha
+    out[22] = c1*v_boom_alpha + c2*dv_boom_beta + v_boom_gamma*(-c1*boom_a22 + c2*c3*v_boom_alpha) - c0*c6
+    out[23] = dv_boom_alpha + boom_a22*dv_boom_gamma + v_boom_gamma*(-c7*c0**2 - c7*c2**2)
     return out
 
 
 def inputs_swing(t):
     """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = t**2 + 1.5707963267948966
+    out[0] = 1.5707963267948966 + t**2
     out[1] = 2*t
     out[2] = 2
     return out
@@ -266,8 +266,8 @@ def _drivers_phi_swing(q, u):
     """Phi of the driver rows of case 'swing'."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
-    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
-    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma)
+    boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     out = _zeros(1, q, u)
     out[0] = boom_a00*sin(u0) - boom_a10*cos(u0)
     return out
@@ -291,7 +291,7 @@ def _drivers_jac_swing(q, u):
     out = _zeros(3, q, u)
     out[0] = d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9)
     out[1] = d0*d10*d9 + d10*d7*d8
-    out[2] = d0*(-d3*d4 - d7) - d8*(d2*d4*d6 - d9)
+    out[2] = d0*(-d7 - d3*d4) - d8*(-d9 + d2*d4*d6)
     return out
 
 
@@ -300,8 +300,8 @@ def _drivers_nu_swing(q, u, ud):
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
     ud0, = ud
-    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
-    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma)
+    boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     out = _zeros(1, q, u)
     out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
     return out
@@ -314,8 +314,8 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
-    boom_a00 = -sin(boom_alpha)*sin(boom_gamma)*cos(boom_beta) + cos(boom_alpha)*cos(boom_gamma)
-    boom_a10 = sin(boom_alpha)*cos(boom_gamma) + sin(boom_gamma)*cos(boom_alpha)*cos(boom_beta)
+    boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma)
+    boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     c0 = cos(u0)
     c1 = sin(u0)
     c2 = cos(boom_beta)
@@ -331,17 +331,17 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     c12 = sin(boom_beta)
     c13 = c10*c7
     c14 = c0*c12
-    c15 = c1*c11*c12 + c13*c14
-    c16 = -c1*c12*c4*c7 + c14*c5
+    c15 = c13*c14 + c1*c11*c12
+    c16 = c14*c5 - c1*c12*c4*c7
     c17 = -c16
-    c18 = -c13 + c6
+    c18 = c6 - c13
     c19 = c0*(-c11 - c9)
-    c20 = -c13*c2 + c5
-    c21 = c0*(-c11*c2 - c8)
-    c22 = c1*c20 - c21
-    c23 = c1*c18 - c19
+    c20 = c5 - c13*c2
+    c21 = c0*(-c8 - c11*c2)
+    c22 = -c21 + c1*c20
+    c23 = -c19 + c1*c18
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*(-boom_a00*c1 + boom_a10*c0) - 2*ud0*(c16*v_boom_beta + v_boom_alpha*(-c1*c18 + c19) + v_boom_gamma*(-c1*c20 + c21)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma)
+    out[0] = -udd0*(c0*boom_a00 + c1*boom_a10) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma) - ud0**2*(c0*boom_a10 - c1*boom_a00) - 2*ud0*(c16*v_boom_beta + v_boom_alpha*(c19 - c1*c18) + v_boom_gamma*(c21 - c1*c20))
     return out
 
 
@@ -349,8 +349,8 @@ def _drivers_phi_jac_s_swing(q, u):
     """Phi and Phi_q values of the driver rows of case 'swing' at one configuration."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
-    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
-    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    boom_a00 = math.cos(boom_alpha)*math.cos(boom_gamma) - math.cos(boom_beta)*math.sin(boom_alpha)*math.sin(boom_gamma)
+    boom_a10 = math.cos(boom_gamma)*math.sin(boom_alpha) + math.cos(boom_alpha)*math.cos(boom_beta)*math.sin(boom_gamma)
     d0 = math.sin(u0)
     d1 = math.sin(boom_alpha)
     d2 = math.cos(boom_gamma)
@@ -362,7 +362,7 @@ def _drivers_phi_jac_s_swing(q, u):
     d8 = math.cos(u0)
     d9 = d1*d5
     d10 = math.sin(boom_beta)
-    return [boom_a00*math.sin(u0) - boom_a10*math.cos(u0)], [d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9), d0*d10*d9 + d10*d7*d8, d0*(-d3*d4 - d7) - d8*(d2*d4*d6 - d9)]
+    return [boom_a00*math.sin(u0) - boom_a10*math.cos(u0)], [d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9), d0*d10*d9 + d10*d7*d8, d0*(-d7 - d3*d4) - d8*(-d9 + d2*d4*d6)]
 
 
 def _drivers_nu_s_swing(q, u, ud):
@@ -370,8 +370,8 @@ def _drivers_nu_s_swing(q, u, ud):
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     u0, = u
     ud0, = ud
-    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
-    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    boom_a00 = math.cos(boom_alpha)*math.cos(boom_gamma) - math.cos(boom_beta)*math.sin(boom_alpha)*math.sin(boom_gamma)
+    boom_a10 = math.cos(boom_gamma)*math.sin(boom_alpha) + math.cos(boom_alpha)*math.cos(boom_beta)*math.sin(boom_gamma)
     return [-ud0*(boom_a00*math.cos(u0) + boom_a10*math.sin(u0))]
 
 
@@ -382,8 +382,8 @@ def _drivers_gamma_s_swing(q, v, u, ud, udd):
     u0, = u
     ud0, = ud
     udd0, = udd
-    boom_a00 = -math.sin(boom_alpha)*math.sin(boom_gamma)*math.cos(boom_beta) + math.cos(boom_alpha)*math.cos(boom_gamma)
-    boom_a10 = math.sin(boom_alpha)*math.cos(boom_gamma) + math.sin(boom_gamma)*math.cos(boom_alpha)*math.cos(boom_beta)
+    boom_a00 = math.cos(boom_alpha)*math.cos(boom_gamma) - math.cos(boom_beta)*math.sin(boom_alpha)*math.sin(boom_gamma)
+    boom_a10 = math.cos(boom_gamma)*math.sin(boom_alpha) + math.cos(boom_alpha)*math.cos(boom_beta)*math.sin(boom_gamma)
     c0 = math.cos(u0)
     c1 = math.sin(u0)
     c2 = math.cos(boom_beta)
@@ -399,16 +399,16 @@ def _drivers_gamma_s_swing(q, v, u, ud, udd):
     c12 = math.sin(boom_beta)
     c13 = c10*c7
     c14 = c0*c12
-    c15 = c1*c11*c12 + c13*c14
-    c16 = -c1*c12*c4*c7 + c14*c5
+    c15 = c13*c14 + c1*c11*c12
+    c16 = c14*c5 - c1*c12*c4*c7
     c17 = -c16
-    c18 = -c13 + c6
+    c18 = c6 - c13
     c19 = c0*(-c11 - c9)
-    c20 = -c13*c2 + c5
-    c21 = c0*(-c11*c2 - c8)
-    c22 = c1*c20 - c21
-    c23 = c1*c18 - c19
-    return [-(ud0*ud0)*(-boom_a00*c1 + boom_a10*c0) - 2.0*ud0*(c16*v_boom_beta + v_boom_alpha*(-c1*c18 + c19) + v_boom_gamma*(-c1*c20 + c21)) - udd0*(boom_a00*c0 + boom_a10*c1) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma)]
+    c20 = c5 - c13*c2
+    c21 = c0*(-c8 - c11*c2)
+    c22 = -c21 + c1*c20
+    c23 = -c19 + c1*c18
+    return [-udd0*(c0*boom_a00 + c1*boom_a10) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma) - (ud0*ud0)*(c0*boom_a10 - c1*boom_a00) - 2.0*ud0*(c16*v_boom_beta + v_boom_alpha*(c19 - c1*c18) + v_boom_gamma*(c21 - c1*c20))]
 
 
 def phi_swing(q, u):

@@ -15,26 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
-static void retract_body(double *q, const double *step) {
-    double tx = step[3], ty = step[4], tz = step[5];
-    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
-    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
-    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
-    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] = pw * qw - px * qx - py * qy - pz * qz;
-    q[4] = pw * qx + px * qw + py * qz - pz * qy;
-    q[5] = pw * qy - px * qz + py * qw + pz * qx;
-    q[6] = pw * qz + px * qy - py * qx + pz * qw;
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < BOOM_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
-}
-
 /* Phi of the 5 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double boom_x = q[0];
@@ -44,13 +24,13 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_qx = q[4];
     const double boom_qy = q[5];
     const double boom_qz = q[6];
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    out[0] = (89.0/50.0)*boom_a00 - boom_x;
-    out[1] = (89.0/50.0)*boom_a10 - boom_y;
-    out[2] = (89.0/50.0)*boom_a20 - boom_z;
+    out[0] = -boom_x + (89.0/50.0)*boom_a00;
+    out[1] = -boom_y + (89.0/50.0)*boom_a10;
+    out[2] = -boom_z + (89.0/50.0)*boom_a20;
     out[3] = boom_a20;
     out[4] = boom_a21;
 }
@@ -61,7 +41,7 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double boom_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*boom_qw*sin(c0) - 2.0*boom_qz*cos(c0);
+    out[0] = -2.0*boom_qz*cos(c0) + 2.0*boom_qw*sin(c0);
 }
 
 /* Phi_q values of the joint rows (13 entries). */
@@ -70,10 +50,10 @@ static void compute_joints_jac(const double *q, double *out) {
     const double boom_qx = q[4];
     const double boom_qy = q[5];
     const double boom_qz = q[6];
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double d0 = (89.0/50.0)*boom_a20;
     const double d1 = (89.0/50.0)*boom_a10;
@@ -103,17 +83,9 @@ static void compute_drivers_jac_swing(const double *q, const double *u, double *
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
-    out[0] = -boom_qx*d1 - boom_qy*d2;
-    out[1] = boom_qx*d2 - boom_qy*d1;
-    out[2] = -boom_qw*d2 - boom_qz*d1;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'swing'. */
-static void phi_jac_swing(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_swing(q, u, phi + 5);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_swing(q, u, jac + 13);
+    out[0] = -d1*boom_qx - d2*boom_qy;
+    out[1] = d2*boom_qx - d1*boom_qy;
+    out[2] = -d1*boom_qz - d2*boom_qw;
 }
 
 /* nu of the driver rows of case 'swing'. */
@@ -126,12 +98,6 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     out[0] = -ud0*(boom_qw*cos(c0) + boom_qz*sin(c0));
 }
 
-/* nu = -Phi_t of case 'swing' (zero in the joint rows). */
-static void nu_swing(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 5; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_swing(q, u, ud, nu + 5);
-}
-
 /* gamma of the joint rows (they do not depend on time). */
 static void compute_joints_gamma(const double *q, const double *v, double *out) {
     const double boom_qw = q[3];
@@ -141,21 +107,21 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_boom_theta_x = v[3];
     const double v_boom_theta_y = v[4];
     const double v_boom_theta_z = v[5];
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
     const double c0 = -89.0/50.0*boom_a00*v_boom_theta_y + (89.0/50.0)*boom_a10*v_boom_theta_x;
     const double c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x;
-    const double c2 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y;
+    const double c2 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z;
     const double c3 = c1*v_boom_theta_x;
     out[0] = -c0*v_boom_theta_y + (89.0/50.0)*c1*v_boom_theta_z;
     out[1] = c0*v_boom_theta_x - 89.0/50.0*c2*v_boom_theta_z;
-    out[2] = (89.0/50.0)*c2*v_boom_theta_y - 89.0/50.0*c3;
-    out[3] = c2*v_boom_theta_y - c3;
-    out[4] = -v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) + v_boom_theta_y*(-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y);
+    out[2] = -89.0/50.0*c3 + (89.0/50.0)*c2*v_boom_theta_y;
+    out[3] = -c3 + c2*v_boom_theta_y;
+    out[4] = v_boom_theta_y*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x);
 }
 
 /* gamma of the driver rows of case 'swing'. */
@@ -174,31 +140,20 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*boom_qw;
-    const double c4 = -1.0/2.0*boom_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*boom_qz;
     const double c5 = (1.0/2.0)*v_boom_theta_y;
     const double c6 = (1.0/2.0)*v_boom_theta_x;
     const double c7 = (1.0/2.0)*boom_qz;
     const double c8 = (1.0/2.0)*v_boom_theta_z;
     const double c9 = (1.0/2.0)*c1;
-    out[0] = c1*v_boom_theta_z*(-boom_qx*c6 - boom_qy*c5 - c7*v_boom_theta_z) + c2*v_boom_theta_z*(-boom_qx*c5 + boom_qy*c6 + c3*v_boom_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_boom_theta_z + v_boom_theta_x*(-boom_qx*c9 + (1.0/2.0)*boom_qy*c2) + v_boom_theta_y*(-1.0/2.0*boom_qx*c2 - boom_qy*c9)) - udd0*(boom_qw*c1 + boom_qz*c2) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(boom_qx*c8 + c3*v_boom_theta_y - c7*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-boom_qy*c8 + c3*v_boom_theta_x + c7*v_boom_theta_y);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'. */
-static void gamma_swing(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_swing(q, v, u, ud, udd, gamma + 5);
+    out[0] = c4*(ud0*ud0) - udd0*(c1*boom_qw + c2*boom_qz) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(c3*v_boom_theta_x + c7*v_boom_theta_y - c8*boom_qy) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(c3*v_boom_theta_y + c8*boom_qx - c7*v_boom_theta_x) - 2.0*ud0*(c4*v_boom_theta_z + v_boom_theta_x*((1.0/2.0)*c2*boom_qy - c9*boom_qx) + v_boom_theta_y*(-c9*boom_qy - 1.0/2.0*c2*boom_qx)) + c1*v_boom_theta_z*(-c5*boom_qy - c6*boom_qx - c7*v_boom_theta_z) + c2*v_boom_theta_z*(c3*v_boom_theta_z + c6*boom_qy - c5*boom_qx);
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_swing(double t, double *out) {
-    out[0] = (t*t) + 1.5707963267948966;
+    out[0] = 1.5707963267948966 + (t*t);
     out[1] = 2.0*t;
     out[2] = 2.0;
-}
-
-/* Driver inputs of case 'swing' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_swing(double t, double *inputs) {
-    compute_inputs_swing(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -222,15 +177,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_boom_theta_x = a[3];
     const double dv_boom_theta_y = a[4];
     const double dv_boom_theta_z = a[5];
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    const double boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz);
     out[0] = boom_x;
     out[1] = boom_y;
     out[2] = boom_z;
@@ -255,6 +210,51 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[21] = dv_boom_theta_x;
     out[22] = dv_boom_theta_y;
     out[23] = dv_boom_theta_z;
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
+static void retract_body(double *q, const double *step) {
+    double tx = step[3], ty = step[4], tz = step[5];
+    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
+    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
+    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
+    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] = pw * qw - px * qx - py * qy - pz * qz;
+    q[4] = pw * qx + px * qw + py * qz - pz * qy;
+    q[5] = pw * qy - px * qz + py * qw + pz * qx;
+    q[6] = pw * qz + px * qy - py * qx + pz * qw;
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < BOOM_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'swing'. */
+static void phi_jac_swing(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_swing(q, u, phi + 5);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_swing(q, u, jac + 13);
+}
+
+/* nu = -Phi_t of case 'swing' (zero in the joint rows). */
+static void nu_swing(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 5; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_swing(q, u, ud, nu + 5);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'swing'. */
+static void gamma_swing(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_swing(q, v, u, ud, udd, gamma + 5);
+}
+
+/* Driver inputs of case 'swing' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_swing(double t, double *inputs) {
+    compute_inputs_swing(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

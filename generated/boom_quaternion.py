@@ -62,14 +62,14 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 5 joint (and normalization) rows, common to every case."""
     boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
     out = _zeros(5, q, ())
-    out[0] = (89/50)*boom_a00 - boom_x
-    out[1] = (89/50)*boom_a10 - boom_y
-    out[2] = (89/50)*boom_a20 - boom_z
+    out[0] = -boom_x + (89/50)*boom_a00
+    out[1] = -boom_y + (89/50)*boom_a10
+    out[2] = -boom_z + (89/50)*boom_a20
     out[3] = boom_a20
     out[4] = boom_a21
     return out
@@ -78,10 +78,10 @@ def _joints_phi(q):
 def _joints_jac(q):
     """Phi_q values of the joint rows (13 entries)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
     boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a11 = -1 + 2*boom_qw**2 + 2*boom_qy**2
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     d0 = (89/50)*boom_a20
     d1 = (89/50)*boom_a10
@@ -107,55 +107,55 @@ def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
     boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a11 = -1 + 2*boom_qw**2 + 2*boom_qy**2
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
     c0 = -89/50*boom_a00*v_boom_theta_y + (89/50)*boom_a10*v_boom_theta_x
     c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c2 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
+    c2 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
     c3 = c1*v_boom_theta_x
     out = _zeros(5, q, ())
     out[0] = -c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z
     out[1] = c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z
-    out[2] = (89/50)*c2*v_boom_theta_y - 89/50*c3
-    out[3] = c2*v_boom_theta_y - c3
-    out[4] = -v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) + v_boom_theta_y*(-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)
+    out[2] = -89/50*c3 + (89/50)*c2*v_boom_theta_y
+    out[3] = -c3 + c2*v_boom_theta_y
+    out[4] = v_boom_theta_y*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x)
     return out
 
 
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
-    boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0
+    boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx)
     boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
     boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
-    boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0
+    boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy)
     boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
     boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
     d0 = (89/50)*boom_a20
     d1 = (89/50)*boom_a10
     d2 = (89/50)*boom_a00
-    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1.0, d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, boom_a10, -boom_a00, boom_a11, -boom_a01]
+    return [-boom_x + (89/50)*boom_a00, -boom_y + (89/50)*boom_a10, -boom_z + (89/50)*boom_a20, boom_a20, boom_a21], [-1.0, d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, boom_a10, -boom_a00, boom_a11, -boom_a01]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, boom_qw, boom_qx, boom_qy, boom_qz = q
     _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
-    boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0
+    boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx)
     boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
     boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy
-    boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0
+    boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy)
     boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
     boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
     c0 = -89/50*boom_a00*v_boom_theta_y + (89/50)*boom_a10*v_boom_theta_x
     c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c2 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
+    c2 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
     c3 = c1*v_boom_theta_x
-    return [-c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z, c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z, (89/50)*c2*v_boom_theta_y - 89/50*c3, c2*v_boom_theta_y - c3, -v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) + v_boom_theta_y*(-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)]
+    return [-c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z, c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z, -89/50*c3 + (89/50)*c2*v_boom_theta_y, -c3 + c2*v_boom_theta_y, v_boom_theta_y*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x)]
 
 
 def frames(q, v, a):
@@ -163,15 +163,15 @@ def frames(q, v, a):
     boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz = q
     v_boom_x, v_boom_y, v_boom_z, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z = v
     dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_theta_x, dv_boom_theta_y, dv_boom_theta_z = a
-    boom_a00 = 2*boom_qw**2 + 2*boom_qx**2 - 1
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
     boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
     boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
-    boom_a11 = 2*boom_qw**2 + 2*boom_qy**2 - 1
+    boom_a11 = -1 + 2*boom_qw**2 + 2*boom_qy**2
     boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    boom_a22 = 2*boom_qw**2 + 2*boom_qz**2 - 1
+    boom_a22 = -1 + 2*boom_qw**2 + 2*boom_qz**2
     out = _zeros(24, q, ())
     out[0] = boom_x
     out[1] = boom_y
@@ -203,7 +203,7 @@ def frames(q, v, a):
 def inputs_swing(t):
     """Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = t**2 + 1.5707963267948966
+    out[0] = 1.5707963267948966 + t**2
     out[1] = 2*t
     out[2] = 2
     return out
@@ -215,7 +215,7 @@ def _drivers_phi_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*boom_qw*sin(c0) - 2*boom_qz*cos(c0)
+    out[0] = -2*boom_qz*cos(c0) + 2*boom_qw*sin(c0)
     return out
 
 
@@ -227,9 +227,9 @@ def _drivers_jac_swing(q, u):
     d1 = sin(d0)
     d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = -boom_qx*d1 - boom_qy*d2
-    out[1] = boom_qx*d2 - boom_qy*d1
-    out[2] = -boom_qw*d2 - boom_qz*d1
+    out[0] = -d1*boom_qx - d2*boom_qy
+    out[1] = d2*boom_qx - d1*boom_qy
+    out[2] = -d1*boom_qz - d2*boom_qw
     return out
 
 
@@ -255,14 +255,14 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     c3 = (1/2)*boom_qw
-    c4 = -1/2*boom_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*boom_qz
     c5 = (1/2)*v_boom_theta_y
     c6 = (1/2)*v_boom_theta_x
     c7 = (1/2)*boom_qz
     c8 = (1/2)*v_boom_theta_z
     c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c1*v_boom_theta_z*(-boom_qx*c6 - boom_qy*c5 - c7*v_boom_theta_z) + c2*v_boom_theta_z*(-boom_qx*c5 + boom_qy*c6 + c3*v_boom_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_boom_theta_z + v_boom_theta_x*(-boom_qx*c9 + (1/2)*boom_qy*c2) + v_boom_theta_y*(-1/2*boom_qx*c2 - boom_qy*c9)) - udd0*(boom_qw*c1 + boom_qz*c2) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(boom_qx*c8 + c3*v_boom_theta_y - c7*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-boom_qy*c8 + c3*v_boom_theta_x + c7*v_boom_theta_y)
+    out[0] = c4*ud0**2 - udd0*(c1*boom_qw + c2*boom_qz) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(c3*v_boom_theta_x + c7*v_boom_theta_y - c8*boom_qy) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(c3*v_boom_theta_y + c8*boom_qx - c7*v_boom_theta_x) - 2*ud0*(c4*v_boom_theta_z + v_boom_theta_x*((1/2)*c2*boom_qy - c9*boom_qx) + v_boom_theta_y*(-c9*boom_qy - 1/2*c2*boom_qx)) + c1*v_boom_theta_z*(-c5*boom_qy - c6*boom_qx - c7*v_boom_theta_z) + c2*v_boom_theta_z*(c3*v_boom_theta_z + c6*boom_qy - c5*boom_qx)
     return out
 
 
@@ -274,7 +274,7 @@ def _drivers_phi_jac_s_swing(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2.0*boom_qw*math.sin(c0) - 2.0*boom_qz*math.cos(c0)], [-boom_qx*d1 - boom_qy*d2, boom_qx*d2 - boom_qy*d1, -boom_qw*d2 - boom_qz*d1]
+    return [-2.0*boom_qz*math.cos(c0) + 2.0*boom_qw*math.sin(c0)], [-d1*boom_qx - d2*boom_qy, d2*boom_qx - d1*boom_qy, -d1*boom_qz - d2*boom_qw]
 
 
 def _drivers_nu_s_swing(q, u, ud):
@@ -297,13 +297,13 @@ def _drivers_gamma_s_swing(q, v, u, ud, udd):
     c1 = math.cos(c0)
     c2 = math.sin(c0)
     c3 = (1/2)*boom_qw
-    c4 = -1/2*boom_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*boom_qz
     c5 = (1/2)*v_boom_theta_y
     c6 = (1/2)*v_boom_theta_x
     c7 = (1/2)*boom_qz
     c8 = (1/2)*v_boom_theta_z
     c9 = (1/2)*c1
-    return [c1*v_boom_theta_z*(-boom_qx*c6 - boom_qy*c5 - c7*v_boom_theta_z) + c2*v_boom_theta_z*(-boom_qx*c5 + boom_qy*c6 + c3*v_boom_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_boom_theta_z + v_boom_theta_x*(-boom_qx*c9 + (1/2)*boom_qy*c2) + v_boom_theta_y*(-1/2*boom_qx*c2 - boom_qy*c9)) - udd0*(boom_qw*c1 + boom_qz*c2) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(boom_qx*c8 + c3*v_boom_theta_y - c7*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-boom_qy*c8 + c3*v_boom_theta_x + c7*v_boom_theta_y)]
+    return [c4*(ud0*ud0) - udd0*(c1*boom_qw + c2*boom_qz) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(c3*v_boom_theta_x + c7*v_boom_theta_y - c8*boom_qy) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(c3*v_boom_theta_y + c8*boom_qx - c7*v_boom_theta_x) - 2.0*ud0*(c4*v_boom_theta_z + v_boom_theta_x*((1/2)*c2*boom_qy - c9*boom_qx) + v_boom_theta_y*(-c9*boom_qy - 1/2*c2*boom_qx)) + c1*v_boom_theta_z*(-c5*boom_qy - c6*boom_qx - c7*v_boom_theta_z) + c2*v_boom_theta_z*(c3*v_boom_theta_z + c6*boom_qy - c5*boom_qx)]
 
 
 def phi_swing(q, u):

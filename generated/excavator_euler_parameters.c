@@ -15,23 +15,50 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
-static void retract_body(double *q, const double *step) {
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] += step[3];
-    q[4] += step[4];
-    q[5] += step[5];
-    q[6] += step[6];
-}
+/* The section functions come in 3 groups, each under its KINEGEN_PART value
+ * (1 to 3; the retraction, kernels and tables under 0): the file compiles whole, or
+ * part by part with -DKINEGEN_PART=k, in parallel. */
+void excavator_euler_parameters_compute_joints_phi(const double *q, double *out);
+void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_joints_jac_part0(const double *q, double *out);
+void excavator_euler_parameters_compute_joints_jac_part1(const double *q, double *out);
+void excavator_euler_parameters_compute_joints_jac_part2(const double *q, double *out);
+void excavator_euler_parameters_compute_joints_jac_part3(const double *q, double *out);
+void excavator_euler_parameters_compute_joints_jac_part4(const double *q, double *out);
+void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out);
+void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, const double *v, double *out);
+void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, const double *v, double *out);
+void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, const double *v, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_inputs_digging(double t, double *out);
+void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_inputs_level_cut(double t, double *out);
+void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_inputs_trench_wall(double t, double *out);
+void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_inputs_bucket_toggle(double t, double *out);
+void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out);
+void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_inputs_bucket_near_toggle(double t, double *out);
+void excavator_euler_parameters_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
+void excavator_euler_parameters_compute_frames_part1(const double *q, const double *v, const double *a, double *out);
 
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < EXCAVATOR_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
-}
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 1
 
 /* Phi of the 94 joint (and normalization) rows, common to every case. */
-static void compute_joints_phi(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_phi(const double *q, double *out) {
     const double upper_x = q[0];
     const double upper_y = q[1];
     const double upper_z = q[2];
@@ -130,224 +157,224 @@ static void compute_joints_phi(const double *q, double *out) {
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
-    const double upper_a00 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e1*upper_e1) - 1.0;
+    const double upper_a00 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e1*upper_e1);
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
     const double upper_a02 = 2.0*upper_e0*upper_e2 + 2.0*upper_e1*upper_e3;
     const double upper_a10 = 2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
-    const double upper_a11 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a12 = -2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
     const double upper_a20 = -2.0*upper_e0*upper_e2 + 2.0*upper_e1*upper_e3;
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
-    const double upper_a22 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e3*upper_e3) - 1.0;
-    const double boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0;
+    const double upper_a22 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e3*upper_e3);
+    const double boom_a00 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1);
     const double boom_a01 = -2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a02 = 2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
-    const double boom_a11 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2);
     const double boom_a12 = -2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
-    const double boom_a22 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e2;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e3;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3) - 1.0;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3);
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2);
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3);
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e2;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e3;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3) - 1.0;
-    const double arm_a00 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3);
+    const double arm_a00 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1);
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
     const double arm_a02 = 2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
     const double arm_a10 = 2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
-    const double arm_a11 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a12 = -2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
     const double arm_a20 = -2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
-    const double arm_a22 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3) - 1.0;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3);
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e2;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e3;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3) - 1.0;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3);
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e2;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e3;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1);
     const double side_link_a02 = 2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
     const double side_link_a10 = 2.0*side_link_e0*side_link_e3 + 2.0*side_link_e1*side_link_e2;
     const double side_link_a12 = -2.0*side_link_e0*side_link_e1 + 2.0*side_link_e2*side_link_e3;
     const double side_link_a20 = -2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
-    const double side_link_a22 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1);
     const double bucket_link_a02 = 2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
     const double bucket_link_a10 = 2.0*bucket_link_e0*bucket_link_e3 + 2.0*bucket_link_e1*bucket_link_e2;
     const double bucket_link_a12 = -2.0*bucket_link_e0*bucket_link_e1 + 2.0*bucket_link_e2*bucket_link_e3;
     const double bucket_link_a20 = -2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
-    const double bucket_link_a22 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a01 = -2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a10 = 2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
-    const double bucket_a11 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2);
     const double bucket_a12 = -2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a21 = 2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
-    const double c0 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c1 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c3 = -boom_cyl_r_barrel_x + boom_cyl_r_rod_x;
-    const double c4 = -boom_cyl_r_barrel_y + boom_cyl_r_rod_y;
-    const double c5 = -boom_cyl_r_barrel_z + boom_cyl_r_rod_z;
-    const double c6 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c7 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c8 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c9 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c11 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
+    const double c0 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double c1 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double c2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double c3 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x;
+    const double c4 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y;
+    const double c5 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z;
+    const double c6 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double c8 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double c9 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double c11 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
     out[0] = -upper_x;
     out[1] = -upper_y;
     out[2] = -upper_z;
     out[3] = upper_a20;
     out[4] = upper_a21;
-    out[5] = (22767.0/100000.0)*upper_a00 + (195729.0/100000.0)*upper_a02 + upper_x - boom_x;
-    out[6] = (22767.0/100000.0)*upper_a10 + (195729.0/100000.0)*upper_a12 + upper_y - boom_y;
-    out[7] = (22767.0/100000.0)*upper_a20 + (195729.0/100000.0)*upper_a22 + upper_z - boom_z;
+    out[5] = upper_x - boom_x + (22767.0/100000.0)*upper_a00 + (195729.0/100000.0)*upper_a02;
+    out[6] = upper_y - boom_y + (22767.0/100000.0)*upper_a10 + (195729.0/100000.0)*upper_a12;
+    out[7] = upper_z - boom_z + (22767.0/100000.0)*upper_a20 + (195729.0/100000.0)*upper_a22;
     out[8] = upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22;
     out[9] = upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20;
-    out[10] = (4307.0/6250.0)*upper_a00 + (8.0/25.0)*upper_a01 + (67739.0/50000.0)*upper_a02 + upper_x - boom_cyl_l_barrel_x;
-    out[11] = (4307.0/6250.0)*upper_a10 + (8.0/25.0)*upper_a11 + (67739.0/50000.0)*upper_a12 + upper_y - boom_cyl_l_barrel_y;
-    out[12] = (4307.0/6250.0)*upper_a20 + (8.0/25.0)*upper_a21 + (67739.0/50000.0)*upper_a22 + upper_z - boom_cyl_l_barrel_z;
+    out[10] = upper_x - boom_cyl_l_barrel_x + (8.0/25.0)*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
+    out[11] = upper_y - boom_cyl_l_barrel_y + (8.0/25.0)*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
+    out[12] = upper_z - boom_cyl_l_barrel_z + (8.0/25.0)*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
     out[13] = upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22;
     out[14] = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21;
     out[15] = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22;
-    out[16] = boom_cyl_l_barrel_a01*c0 + boom_cyl_l_barrel_a11*c1 + boom_cyl_l_barrel_a21*c2;
-    out[17] = boom_cyl_l_barrel_a02*c0 + boom_cyl_l_barrel_a12*c1 + boom_cyl_l_barrel_a22*c2;
+    out[16] = c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21;
+    out[17] = c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22;
     out[18] = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22;
-    out[19] = boom_cyl_l_rod_x - 139283.0/100000.0*boom_a00 - 8.0/25.0*boom_a01 - 2.001922*boom_a02 - boom_x;
-    out[20] = boom_cyl_l_rod_y - 139283.0/100000.0*boom_a10 - 8.0/25.0*boom_a11 - 2.001922*boom_a12 - boom_y;
-    out[21] = boom_cyl_l_rod_z - 139283.0/100000.0*boom_a20 - 8.0/25.0*boom_a21 - 2.001922*boom_a22 - boom_z;
-    out[22] = (4307.0/6250.0)*upper_a00 - 8.0/25.0*upper_a01 + (67739.0/50000.0)*upper_a02 + upper_x - boom_cyl_r_barrel_x;
-    out[23] = (4307.0/6250.0)*upper_a10 - 8.0/25.0*upper_a11 + (67739.0/50000.0)*upper_a12 + upper_y - boom_cyl_r_barrel_y;
-    out[24] = (4307.0/6250.0)*upper_a20 - 8.0/25.0*upper_a21 + (67739.0/50000.0)*upper_a22 + upper_z - boom_cyl_r_barrel_z;
+    out[19] = boom_cyl_l_rod_x - boom_x - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 - 8.0/25.0*boom_a01;
+    out[20] = boom_cyl_l_rod_y - boom_y - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 - 8.0/25.0*boom_a11;
+    out[21] = boom_cyl_l_rod_z - boom_z - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 - 8.0/25.0*boom_a21;
+    out[22] = upper_x - boom_cyl_r_barrel_x - 8.0/25.0*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
+    out[23] = upper_y - boom_cyl_r_barrel_y - 8.0/25.0*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
+    out[24] = upper_z - boom_cyl_r_barrel_z - 8.0/25.0*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
     out[25] = upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22;
     out[26] = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21;
     out[27] = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22;
-    out[28] = boom_cyl_r_barrel_a01*c3 + boom_cyl_r_barrel_a11*c4 + boom_cyl_r_barrel_a21*c5;
-    out[29] = boom_cyl_r_barrel_a02*c3 + boom_cyl_r_barrel_a12*c4 + boom_cyl_r_barrel_a22*c5;
+    out[28] = c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21;
+    out[29] = c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22;
     out[30] = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22;
-    out[31] = boom_cyl_r_rod_x - 139283.0/100000.0*boom_a00 + (8.0/25.0)*boom_a01 - 2.001922*boom_a02 - boom_x;
-    out[32] = boom_cyl_r_rod_y - 139283.0/100000.0*boom_a10 + (8.0/25.0)*boom_a11 - 2.001922*boom_a12 - boom_y;
-    out[33] = boom_cyl_r_rod_z - 139283.0/100000.0*boom_a20 + (8.0/25.0)*boom_a21 - 2.001922*boom_a22 - boom_z;
-    out[34] = (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02 + boom_x - arm_x;
-    out[35] = (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12 + boom_y - arm_y;
-    out[36] = (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22 + boom_z - arm_z;
+    out[31] = boom_cyl_r_rod_x - boom_x - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 + (8.0/25.0)*boom_a01;
+    out[32] = boom_cyl_r_rod_y - boom_y - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 + (8.0/25.0)*boom_a11;
+    out[33] = boom_cyl_r_rod_z - boom_z - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 + (8.0/25.0)*boom_a21;
+    out[34] = boom_x - arm_x + (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02;
+    out[35] = boom_y - arm_y + (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12;
+    out[36] = boom_z - arm_z + (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22;
     out[37] = boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22;
     out[38] = boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20;
-    out[39] = (183.0/80.0)*boom_a00 + (557.0/200.0)*boom_a02 + boom_x - arm_cyl_barrel_x;
-    out[40] = (183.0/80.0)*boom_a10 + (557.0/200.0)*boom_a12 + boom_y - arm_cyl_barrel_y;
-    out[41] = (183.0/80.0)*boom_a20 + (557.0/200.0)*boom_a22 + boom_z - arm_cyl_barrel_z;
+    out[39] = boom_x - arm_cyl_barrel_x + (183.0/80.0)*boom_a00 + (557.0/200.0)*boom_a02;
+    out[40] = boom_y - arm_cyl_barrel_y + (183.0/80.0)*boom_a10 + (557.0/200.0)*boom_a12;
+    out[41] = boom_z - arm_cyl_barrel_z + (183.0/80.0)*boom_a20 + (557.0/200.0)*boom_a22;
     out[42] = boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22;
     out[43] = arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21;
     out[44] = arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22;
-    out[45] = arm_cyl_barrel_a01*c6 + arm_cyl_barrel_a11*c7 + arm_cyl_barrel_a21*c8;
-    out[46] = arm_cyl_barrel_a02*c6 + arm_cyl_barrel_a12*c7 + arm_cyl_barrel_a22*c8;
+    out[45] = c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21;
+    out[46] = c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22;
     out[47] = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22;
-    out[48] = arm_cyl_rod_x + (393281.0/500000.0)*arm_a00 + (0.369691)*arm_a02 - arm_x;
-    out[49] = arm_cyl_rod_y + (393281.0/500000.0)*arm_a10 + (0.369691)*arm_a12 - arm_y;
-    out[50] = arm_cyl_rod_z + (393281.0/500000.0)*arm_a20 + (0.369691)*arm_a22 - arm_z;
-    out[51] = (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02 + arm_x - bucket_x;
-    out[52] = (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12 + arm_y - bucket_y;
-    out[53] = (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22 + arm_z - bucket_z;
+    out[48] = arm_cyl_rod_x - arm_x + (0.369691)*arm_a02 + (393281.0/500000.0)*arm_a00;
+    out[49] = arm_cyl_rod_y - arm_y + (0.369691)*arm_a12 + (393281.0/500000.0)*arm_a10;
+    out[50] = arm_cyl_rod_z - arm_z + (0.369691)*arm_a22 + (393281.0/500000.0)*arm_a20;
+    out[51] = arm_x - bucket_x + (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02;
+    out[52] = arm_y - bucket_y + (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12;
+    out[53] = arm_z - bucket_z + (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22;
     out[54] = arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22;
     out[55] = arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20;
-    out[56] = (7877.0/5000.0)*arm_a00 + (18799.0/10000.0)*arm_a02 + arm_x - side_link_x;
-    out[57] = (7877.0/5000.0)*arm_a10 + (18799.0/10000.0)*arm_a12 + arm_y - side_link_y;
-    out[58] = (7877.0/5000.0)*arm_a20 + (18799.0/10000.0)*arm_a22 + arm_z - side_link_z;
+    out[56] = arm_x - side_link_x + (7877.0/5000.0)*arm_a00 + (18799.0/10000.0)*arm_a02;
+    out[57] = arm_y - side_link_y + (7877.0/5000.0)*arm_a10 + (18799.0/10000.0)*arm_a12;
+    out[58] = arm_z - side_link_z + (7877.0/5000.0)*arm_a20 + (18799.0/10000.0)*arm_a22;
     out[59] = arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22;
     out[60] = arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20;
-    out[61] = -166329.0/500000.0*side_link_a00 + (96247.0/200000.0)*side_link_a02 + side_link_x + (85607.0/250000.0)*bucket_link_a00 + (0.450737)*bucket_link_a02 - bucket_link_x;
-    out[62] = -166329.0/500000.0*side_link_a10 + (96247.0/200000.0)*side_link_a12 + side_link_y + (85607.0/250000.0)*bucket_link_a10 + (0.450737)*bucket_link_a12 - bucket_link_y;
-    out[63] = -166329.0/500000.0*side_link_a20 + (96247.0/200000.0)*side_link_a22 + side_link_z + (85607.0/250000.0)*bucket_link_a20 + (0.450737)*bucket_link_a22 - bucket_link_z;
-    out[64] = bucket_link_x + (8101.0/25000.0)*bucket_a00 - 16927.0/50000.0*bucket_a02 - bucket_x;
-    out[65] = bucket_link_y + (8101.0/25000.0)*bucket_a10 - 16927.0/50000.0*bucket_a12 - bucket_y;
-    out[66] = bucket_link_z + (8101.0/25000.0)*bucket_a20 - 16927.0/50000.0*bucket_a22 - bucket_z;
+    out[61] = side_link_x - bucket_link_x - 166329.0/500000.0*side_link_a00 + (85607.0/250000.0)*bucket_link_a00 + (96247.0/200000.0)*side_link_a02 + (0.450737)*bucket_link_a02;
+    out[62] = side_link_y - bucket_link_y - 166329.0/500000.0*side_link_a10 + (85607.0/250000.0)*bucket_link_a10 + (96247.0/200000.0)*side_link_a12 + (0.450737)*bucket_link_a12;
+    out[63] = side_link_z - bucket_link_z - 166329.0/500000.0*side_link_a20 + (85607.0/250000.0)*bucket_link_a20 + (96247.0/200000.0)*side_link_a22 + (0.450737)*bucket_link_a22;
+    out[64] = bucket_link_x - bucket_x - 16927.0/50000.0*bucket_a02 + (8101.0/25000.0)*bucket_a00;
+    out[65] = bucket_link_y - bucket_y - 16927.0/50000.0*bucket_a12 + (8101.0/25000.0)*bucket_a10;
+    out[66] = bucket_link_z - bucket_z - 16927.0/50000.0*bucket_a22 + (8101.0/25000.0)*bucket_a20;
     out[67] = bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22);
-    out[68] = -24687.0/100000.0*arm_a00 + (36797.0/50000.0)*arm_a02 + arm_x - bucket_cyl_barrel_x;
-    out[69] = -24687.0/100000.0*arm_a10 + (36797.0/50000.0)*arm_a12 + arm_y - bucket_cyl_barrel_y;
-    out[70] = -24687.0/100000.0*arm_a20 + (36797.0/50000.0)*arm_a22 + arm_z - bucket_cyl_barrel_z;
+    out[68] = arm_x - bucket_cyl_barrel_x - 24687.0/100000.0*arm_a00 + (36797.0/50000.0)*arm_a02;
+    out[69] = arm_y - bucket_cyl_barrel_y - 24687.0/100000.0*arm_a10 + (36797.0/50000.0)*arm_a12;
+    out[70] = arm_z - bucket_cyl_barrel_z - 24687.0/100000.0*arm_a20 + (36797.0/50000.0)*arm_a22;
     out[71] = arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22;
     out[72] = bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21;
     out[73] = bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22;
-    out[74] = bucket_cyl_barrel_a01*c9 + bucket_cyl_barrel_a11*c10 + bucket_cyl_barrel_a21*c11;
-    out[75] = bucket_cyl_barrel_a02*c9 + bucket_cyl_barrel_a12*c10 + bucket_cyl_barrel_a22*c11;
+    out[74] = c9*bucket_cyl_barrel_a01 + c10*bucket_cyl_barrel_a11 + c11*bucket_cyl_barrel_a21;
+    out[75] = c9*bucket_cyl_barrel_a02 + c10*bucket_cyl_barrel_a12 + c11*bucket_cyl_barrel_a22;
     out[76] = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22;
-    out[77] = bucket_cyl_rod_x + (166329.0/500000.0)*side_link_a00 - 96247.0/200000.0*side_link_a02 - side_link_x;
-    out[78] = bucket_cyl_rod_y + (166329.0/500000.0)*side_link_a10 - 96247.0/200000.0*side_link_a12 - side_link_y;
-    out[79] = bucket_cyl_rod_z + (166329.0/500000.0)*side_link_a20 - 96247.0/200000.0*side_link_a22 - side_link_z;
-    out[80] = (upper_e0*upper_e0) + (upper_e1*upper_e1) + (upper_e2*upper_e2) + (upper_e3*upper_e3) - 1.0;
-    out[81] = (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3) - 1.0;
-    out[82] = (boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + (boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) + (boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) + (boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3) - 1.0;
-    out[83] = (boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + (boom_cyl_l_rod_e1*boom_cyl_l_rod_e1) + (boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) + (boom_cyl_l_rod_e3*boom_cyl_l_rod_e3) - 1.0;
-    out[84] = (boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + (boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) + (boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) + (boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3) - 1.0;
-    out[85] = (boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + (boom_cyl_r_rod_e1*boom_cyl_r_rod_e1) + (boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) + (boom_cyl_r_rod_e3*boom_cyl_r_rod_e3) - 1.0;
-    out[86] = (arm_e0*arm_e0) + (arm_e1*arm_e1) + (arm_e2*arm_e2) + (arm_e3*arm_e3) - 1.0;
-    out[87] = (arm_cyl_barrel_e0*arm_cyl_barrel_e0) + (arm_cyl_barrel_e1*arm_cyl_barrel_e1) + (arm_cyl_barrel_e2*arm_cyl_barrel_e2) + (arm_cyl_barrel_e3*arm_cyl_barrel_e3) - 1.0;
-    out[88] = (arm_cyl_rod_e0*arm_cyl_rod_e0) + (arm_cyl_rod_e1*arm_cyl_rod_e1) + (arm_cyl_rod_e2*arm_cyl_rod_e2) + (arm_cyl_rod_e3*arm_cyl_rod_e3) - 1.0;
-    out[89] = (bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + (bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) + (bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) + (bucket_cyl_barrel_e3*bucket_cyl_barrel_e3) - 1.0;
-    out[90] = (bucket_cyl_rod_e0*bucket_cyl_rod_e0) + (bucket_cyl_rod_e1*bucket_cyl_rod_e1) + (bucket_cyl_rod_e2*bucket_cyl_rod_e2) + (bucket_cyl_rod_e3*bucket_cyl_rod_e3) - 1.0;
-    out[91] = (side_link_e0*side_link_e0) + (side_link_e1*side_link_e1) + (side_link_e2*side_link_e2) + (side_link_e3*side_link_e3) - 1.0;
-    out[92] = (bucket_link_e0*bucket_link_e0) + (bucket_link_e1*bucket_link_e1) + (bucket_link_e2*bucket_link_e2) + (bucket_link_e3*bucket_link_e3) - 1.0;
-    out[93] = (bucket_e0*bucket_e0) + (bucket_e1*bucket_e1) + (bucket_e2*bucket_e2) + (bucket_e3*bucket_e3) - 1.0;
+    out[77] = bucket_cyl_rod_x - side_link_x - 96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
+    out[78] = bucket_cyl_rod_y - side_link_y - 96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
+    out[79] = bucket_cyl_rod_z - side_link_z - 96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
+    out[80] = -1.0 + (upper_e0*upper_e0) + (upper_e1*upper_e1) + (upper_e2*upper_e2) + (upper_e3*upper_e3);
+    out[81] = -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3);
+    out[82] = -1.0 + (boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + (boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) + (boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) + (boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3);
+    out[83] = -1.0 + (boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + (boom_cyl_l_rod_e1*boom_cyl_l_rod_e1) + (boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) + (boom_cyl_l_rod_e3*boom_cyl_l_rod_e3);
+    out[84] = -1.0 + (boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + (boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) + (boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) + (boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3);
+    out[85] = -1.0 + (boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + (boom_cyl_r_rod_e1*boom_cyl_r_rod_e1) + (boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) + (boom_cyl_r_rod_e3*boom_cyl_r_rod_e3);
+    out[86] = -1.0 + (arm_e0*arm_e0) + (arm_e1*arm_e1) + (arm_e2*arm_e2) + (arm_e3*arm_e3);
+    out[87] = -1.0 + (arm_cyl_barrel_e0*arm_cyl_barrel_e0) + (arm_cyl_barrel_e1*arm_cyl_barrel_e1) + (arm_cyl_barrel_e2*arm_cyl_barrel_e2) + (arm_cyl_barrel_e3*arm_cyl_barrel_e3);
+    out[88] = -1.0 + (arm_cyl_rod_e0*arm_cyl_rod_e0) + (arm_cyl_rod_e1*arm_cyl_rod_e1) + (arm_cyl_rod_e2*arm_cyl_rod_e2) + (arm_cyl_rod_e3*arm_cyl_rod_e3);
+    out[89] = -1.0 + (bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + (bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) + (bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) + (bucket_cyl_barrel_e3*bucket_cyl_barrel_e3);
+    out[90] = -1.0 + (bucket_cyl_rod_e0*bucket_cyl_rod_e0) + (bucket_cyl_rod_e1*bucket_cyl_rod_e1) + (bucket_cyl_rod_e2*bucket_cyl_rod_e2) + (bucket_cyl_rod_e3*bucket_cyl_rod_e3);
+    out[91] = -1.0 + (side_link_e0*side_link_e0) + (side_link_e1*side_link_e1) + (side_link_e2*side_link_e2) + (side_link_e3*side_link_e3);
+    out[92] = -1.0 + (bucket_link_e0*bucket_link_e0) + (bucket_link_e1*bucket_link_e1) + (bucket_link_e2*bucket_link_e2) + (bucket_link_e3*bucket_link_e3);
+    out[93] = -1.0 + (bucket_e0*bucket_e0) + (bucket_e1*bucket_e1) + (bucket_e2*bucket_e2) + (bucket_e3*bucket_e3);
 }
 
 /* Phi of the driver rows of case 'digging'. */
-static void compute_drivers_phi_digging(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -384,24 +411,24 @@ static void compute_drivers_phi_digging(const double *q, const double *u, double
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_e0*sin(c0) - 2.0*upper_e3*cos(c0);
-    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1;
-    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2;
-    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3;
+    out[0] = -2.0*upper_e3*cos(c0) + 2.0*upper_e0*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 0 to 132. */
-static void compute_joints_jac_part0(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part0(const double *q, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
@@ -425,29 +452,29 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     const double boom_cyl_l_rod_e2 = q[26];
     const double boom_cyl_l_rod_e3 = q[27];
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
-    const double upper_a11 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
-    const double boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1);
     const double boom_a02 = 2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a12 = -2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
-    const double boom_a22 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e2;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e3;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3);
     const double d0 = 2.0*upper_e2;
     const double d1 = 2.0*upper_e3;
     const double d2 = 2.0*upper_e0;
@@ -464,11 +491,11 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     const double d13 = 2.0*boom_a02;
     const double d14 = 2.0*upper_a01;
     const double d15 = 2.0*upper_a11;
-    const double d16 = boom_e1*d15;
+    const double d16 = d15*boom_e1;
     const double d17 = 4.0*upper_a21;
-    const double d18 = boom_e0*d15;
-    const double d19 = boom_e3*d15;
-    const double d20 = boom_e2*d15;
+    const double d18 = d15*boom_e0;
+    const double d19 = d15*boom_e3;
+    const double d20 = d15*boom_e2;
     const double d21 = 4.0*boom_a10;
     const double d22 = 2.0*boom_a20;
     const double d23 = 2.0*boom_a00;
@@ -498,19 +525,19 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     const double d47 = 2.0*boom_cyl_l_barrel_e0;
     const double d48 = 2.0*boom_cyl_l_barrel_e1;
     const double d49 = 2.0*boom_cyl_l_barrel_a00;
-    const double d50 = boom_cyl_l_rod_e3*d49;
+    const double d50 = d49*boom_cyl_l_rod_e3;
     const double d51 = 4.0*boom_cyl_l_barrel_a10;
     const double d52 = 2.0*boom_cyl_l_barrel_a20;
-    const double d53 = boom_cyl_l_rod_e2*d49;
-    const double d54 = boom_cyl_l_rod_e1*d49;
-    const double d55 = boom_cyl_l_rod_e0*d49;
+    const double d53 = d49*boom_cyl_l_rod_e2;
+    const double d54 = d49*boom_cyl_l_rod_e1;
+    const double d55 = d49*boom_cyl_l_rod_e0;
     const double d56 = 4.0*boom_cyl_l_rod_a02;
     const double d57 = 2.0*boom_cyl_l_barrel_a10;
     const double d58 = 4.0*boom_cyl_l_barrel_a20;
-    const double d59 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
+    const double d59 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
     const double d60 = 4.0*d59;
-    const double d61 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double d62 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
+    const double d61 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double d62 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
     const double d63 = -d62*d46;
     const double d64 = d45*d62;
     const double d65 = d62*d48;
@@ -546,131 +573,131 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     out[9] = d1;
     out[10] = d0;
     out[11] = 1.0;
-    out[12] = (22767.0/25000.0)*upper_e0 + d4;
-    out[13] = (22767.0/25000.0)*upper_e1 + d5;
+    out[12] = d4 + (22767.0/25000.0)*upper_e0;
+    out[13] = d5 + (22767.0/25000.0)*upper_e1;
     out[14] = d6;
     out[15] = d7;
     out[16] = -1.0;
     out[17] = 1.0;
-    out[18] = (22767.0/50000.0)*upper_e3 - d7;
+    out[18] = -d7 + (22767.0/50000.0)*upper_e3;
     out[19] = -d6 - d8;
     out[20] = d5 + d9;
     out[21] = d4 + d10;
     out[22] = -1.0;
     out[23] = 1.0;
-    out[24] = (195729.0/25000.0)*upper_e0 + d8;
+    out[24] = d8 + (195729.0/25000.0)*upper_e0;
     out[25] = (22767.0/50000.0)*upper_e3;
     out[26] = -d10;
-    out[27] = (195729.0/25000.0)*upper_e3 + d9;
+    out[27] = d9 + (195729.0/25000.0)*upper_e3;
     out[28] = -1.0;
-    out[29] = upper_e0*d11 + upper_e1*d12 - upper_e3*d13;
-    out[30] = upper_e0*d12 + upper_e2*d13;
-    out[31] = upper_e1*d13 + upper_e2*d11 + upper_e3*d12;
-    out[32] = -upper_e0*d13 + 2.0*upper_e2*boom_a22;
-    out[33] = boom_e0*d17 + boom_e2*d14 - d16;
-    out[34] = boom_e3*d14 - d18;
-    out[35] = boom_e0*d14 + d19;
-    out[36] = boom_e1*d14 + boom_e3*d17 + d20;
-    out[37] = upper_e0*d21 + upper_e1*d22 - upper_e3*d23;
-    out[38] = upper_e0*d22 + upper_e2*d23;
-    out[39] = upper_e1*d23 + upper_e2*d21 + upper_e3*d22;
-    out[40] = -upper_e0*d23 + 2.0*upper_e2*boom_a20;
-    out[41] = boom_e0*d24 - boom_e2*d25 + d19;
-    out[42] = boom_e1*d24 + boom_e3*d25 + d20;
-    out[43] = -boom_e0*d25 + d16;
-    out[44] = boom_e1*d25 + d18;
+    out[29] = d11*upper_e0 + d12*upper_e1 - d13*upper_e3;
+    out[30] = d12*upper_e0 + d13*upper_e2;
+    out[31] = d11*upper_e2 + d12*upper_e3 + d13*upper_e1;
+    out[32] = -d13*upper_e0 + 2.0*upper_e2*boom_a22;
+    out[33] = -d16 + d14*boom_e2 + d17*boom_e0;
+    out[34] = -d18 + d14*boom_e3;
+    out[35] = d19 + d14*boom_e0;
+    out[36] = d20 + d14*boom_e1 + d17*boom_e3;
+    out[37] = d21*upper_e0 + d22*upper_e1 - d23*upper_e3;
+    out[38] = d22*upper_e0 + d23*upper_e2;
+    out[39] = d21*upper_e2 + d22*upper_e3 + d23*upper_e1;
+    out[40] = -d23*upper_e0 + 2.0*upper_e2*boom_a20;
+    out[41] = d19 + d24*boom_e0 - d25*boom_e2;
+    out[42] = d20 + d24*boom_e1 + d25*boom_e3;
+    out[43] = d16 - d25*boom_e0;
+    out[44] = d18 + d25*boom_e1;
     out[45] = 1.0;
-    out[46] = (8614.0/3125.0)*upper_e0 + d26 + d27;
-    out[47] = (8614.0/3125.0)*upper_e1 + d28 + d29;
+    out[46] = d26 + d27 + (8614.0/3125.0)*upper_e0;
+    out[47] = d28 + d29 + (8614.0/3125.0)*upper_e1;
     out[48] = d30 + d31;
     out[49] = -d32 - d33;
     out[50] = -1.0;
     out[51] = 1.0;
-    out[52] = (32.0/25.0)*upper_e0 + d33 + d34;
+    out[52] = d33 + d34 + (32.0/25.0)*upper_e0;
     out[53] = -d30 - d35;
-    out[54] = (32.0/25.0)*upper_e2 + d36 + d29;
+    out[54] = d36 + d29 + (32.0/25.0)*upper_e2;
     out[55] = d26 + d37;
     out[56] = -1.0;
     out[57] = 1.0;
-    out[58] = (67739.0/12500.0)*upper_e0 + d31 + d35;
+    out[58] = d31 + d35 + (67739.0/12500.0)*upper_e0;
     out[59] = d32 + d34;
     out[60] = -d27 - d37;
-    out[61] = (67739.0/12500.0)*upper_e3 + d36 + d28;
+    out[61] = d36 + d28 + (67739.0/12500.0)*upper_e3;
     out[62] = -1.0;
-    out[63] = upper_e0*d38 + upper_e1*d39 - upper_e3*d40;
-    out[64] = upper_e0*d39 + upper_e2*d40;
-    out[65] = upper_e1*d40 + upper_e2*d38 + upper_e3*d39;
-    out[66] = -upper_e0*d40 + 2.0*upper_e2*boom_cyl_l_barrel_a22;
-    out[67] = boom_cyl_l_barrel_e0*d43 - boom_cyl_l_barrel_e1*d42 + boom_cyl_l_barrel_e2*d41;
-    out[68] = -boom_cyl_l_barrel_e0*d42 + boom_cyl_l_barrel_e3*d41;
-    out[69] = boom_cyl_l_barrel_e0*d41 + boom_cyl_l_barrel_e3*d42;
-    out[70] = boom_cyl_l_barrel_e1*d41 + boom_cyl_l_barrel_e2*d42 + boom_cyl_l_barrel_e3*d43;
-    out[71] = boom_cyl_l_barrel_e0*d44 + boom_cyl_l_rod_a11*d46 - boom_cyl_l_rod_a21*d45;
-    out[72] = boom_cyl_l_barrel_e1*d44 + boom_cyl_l_rod_a11*d45 + boom_cyl_l_rod_a21*d46;
-    out[73] = 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a11 - boom_cyl_l_rod_a21*d47;
-    out[74] = boom_cyl_l_rod_a11*d47 + boom_cyl_l_rod_a21*d48;
-    out[75] = boom_cyl_l_rod_e0*d51 + boom_cyl_l_rod_e1*d52 - d50;
-    out[76] = boom_cyl_l_rod_e0*d52 + d53;
-    out[77] = boom_cyl_l_rod_e2*d51 + boom_cyl_l_rod_e3*d52 + d54;
-    out[78] = 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_rod_e2 - d55;
-    out[79] = boom_cyl_l_barrel_e0*d56 + boom_cyl_l_rod_a12*d46 - boom_cyl_l_rod_a22*d45;
-    out[80] = boom_cyl_l_barrel_e1*d56 + boom_cyl_l_rod_a12*d45 + boom_cyl_l_rod_a22*d46;
-    out[81] = 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a12 - boom_cyl_l_rod_a22*d47;
-    out[82] = boom_cyl_l_rod_a12*d47 + boom_cyl_l_rod_a22*d48;
-    out[83] = boom_cyl_l_rod_e0*d58 - boom_cyl_l_rod_e1*d57 + d53;
-    out[84] = -boom_cyl_l_rod_e0*d57 + d50;
-    out[85] = boom_cyl_l_rod_e3*d57 + d55;
-    out[86] = boom_cyl_l_rod_e2*d57 + boom_cyl_l_rod_e3*d58 + d54;
+    out[63] = d38*upper_e0 + d39*upper_e1 - d40*upper_e3;
+    out[64] = d39*upper_e0 + d40*upper_e2;
+    out[65] = d38*upper_e2 + d39*upper_e3 + d40*upper_e1;
+    out[66] = -d40*upper_e0 + 2.0*upper_e2*boom_cyl_l_barrel_a22;
+    out[67] = d41*boom_cyl_l_barrel_e2 + d43*boom_cyl_l_barrel_e0 - d42*boom_cyl_l_barrel_e1;
+    out[68] = d41*boom_cyl_l_barrel_e3 - d42*boom_cyl_l_barrel_e0;
+    out[69] = d41*boom_cyl_l_barrel_e0 + d42*boom_cyl_l_barrel_e3;
+    out[70] = d41*boom_cyl_l_barrel_e1 + d42*boom_cyl_l_barrel_e2 + d43*boom_cyl_l_barrel_e3;
+    out[71] = d44*boom_cyl_l_barrel_e0 + d46*boom_cyl_l_rod_a11 - d45*boom_cyl_l_rod_a21;
+    out[72] = d44*boom_cyl_l_barrel_e1 + d45*boom_cyl_l_rod_a11 + d46*boom_cyl_l_rod_a21;
+    out[73] = -d47*boom_cyl_l_rod_a21 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a11;
+    out[74] = d47*boom_cyl_l_rod_a11 + d48*boom_cyl_l_rod_a21;
+    out[75] = -d50 + d51*boom_cyl_l_rod_e0 + d52*boom_cyl_l_rod_e1;
+    out[76] = d53 + d52*boom_cyl_l_rod_e0;
+    out[77] = d54 + d51*boom_cyl_l_rod_e2 + d52*boom_cyl_l_rod_e3;
+    out[78] = -d55 + 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_rod_e2;
+    out[79] = d56*boom_cyl_l_barrel_e0 + d46*boom_cyl_l_rod_a12 - d45*boom_cyl_l_rod_a22;
+    out[80] = d45*boom_cyl_l_rod_a12 + d56*boom_cyl_l_barrel_e1 + d46*boom_cyl_l_rod_a22;
+    out[81] = -d47*boom_cyl_l_rod_a22 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a12;
+    out[82] = d47*boom_cyl_l_rod_a12 + d48*boom_cyl_l_rod_a22;
+    out[83] = d53 + d58*boom_cyl_l_rod_e0 - d57*boom_cyl_l_rod_e1;
+    out[84] = d50 - d57*boom_cyl_l_rod_e0;
+    out[85] = d55 + d57*boom_cyl_l_rod_e3;
+    out[86] = d54 + d57*boom_cyl_l_rod_e2 + d58*boom_cyl_l_rod_e3;
     out[87] = -boom_cyl_l_barrel_a01;
     out[88] = -boom_cyl_l_barrel_a11;
     out[89] = -boom_cyl_l_barrel_a21;
-    out[90] = boom_cyl_l_barrel_e0*d60 + d61*d48 + d63;
-    out[91] = d61*d47 + d64;
-    out[92] = boom_cyl_l_barrel_e2*d60 + d61*d46 + d65;
-    out[93] = 2.0*boom_cyl_l_barrel_e2*d61 - d66;
+    out[90] = d63 + d60*boom_cyl_l_barrel_e0 + d61*d48;
+    out[91] = d64 + d61*d47;
+    out[92] = d65 + d60*boom_cyl_l_barrel_e2 + d61*d46;
+    out[93] = -d66 + 2.0*d61*boom_cyl_l_barrel_e2;
     out[94] = boom_cyl_l_barrel_a01;
     out[95] = boom_cyl_l_barrel_a11;
     out[96] = boom_cyl_l_barrel_a21;
     out[97] = -boom_cyl_l_barrel_a02;
     out[98] = -boom_cyl_l_barrel_a12;
     out[99] = -boom_cyl_l_barrel_a22;
-    out[100] = boom_cyl_l_barrel_e0*d67 - d59*d48 + d64;
-    out[101] = -d59*d47 - d63;
-    out[102] = d59*d46 + d66;
-    out[103] = boom_cyl_l_barrel_e3*d67 + d45*d59 + d65;
+    out[100] = d64 + d67*boom_cyl_l_barrel_e0 - d59*d48;
+    out[101] = -d63 - d59*d47;
+    out[102] = d66 + d59*d46;
+    out[103] = d65 + d45*d59 + d67*boom_cyl_l_barrel_e3;
     out[104] = boom_cyl_l_barrel_a02;
     out[105] = boom_cyl_l_barrel_a12;
     out[106] = boom_cyl_l_barrel_a22;
-    out[107] = boom_cyl_l_barrel_e0*d68 + boom_cyl_l_barrel_e1*d69 - boom_cyl_l_barrel_e3*d70;
-    out[108] = boom_cyl_l_barrel_e0*d69 + boom_cyl_l_barrel_e2*d70;
-    out[109] = boom_cyl_l_barrel_e1*d70 + boom_cyl_l_barrel_e2*d68 + boom_cyl_l_barrel_e3*d69;
-    out[110] = -boom_cyl_l_barrel_e0*d70 + (2.0)*boom_cyl_l_barrel_e2*boom_cyl_l_rod_a22;
-    out[111] = boom_cyl_l_rod_e0*d73 - boom_cyl_l_rod_e1*d72 + boom_cyl_l_rod_e2*d71;
-    out[112] = -boom_cyl_l_rod_e0*d72 + boom_cyl_l_rod_e3*d71;
-    out[113] = boom_cyl_l_rod_e0*d71 + boom_cyl_l_rod_e3*d72;
-    out[114] = boom_cyl_l_rod_e1*d71 + boom_cyl_l_rod_e2*d72 + boom_cyl_l_rod_e3*d73;
+    out[107] = d68*boom_cyl_l_barrel_e0 + d69*boom_cyl_l_barrel_e1 - d70*boom_cyl_l_barrel_e3;
+    out[108] = d69*boom_cyl_l_barrel_e0 + d70*boom_cyl_l_barrel_e2;
+    out[109] = d68*boom_cyl_l_barrel_e2 + d69*boom_cyl_l_barrel_e3 + d70*boom_cyl_l_barrel_e1;
+    out[110] = -d70*boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_barrel_e2*boom_cyl_l_rod_a22;
+    out[111] = d71*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e0 - d72*boom_cyl_l_rod_e1;
+    out[112] = d71*boom_cyl_l_rod_e3 - d72*boom_cyl_l_rod_e0;
+    out[113] = d71*boom_cyl_l_rod_e0 + d72*boom_cyl_l_rod_e3;
+    out[114] = d71*boom_cyl_l_rod_e1 + d72*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e3;
     out[115] = -1.0;
-    out[116] = -139283.0/25000.0*boom_e0 - d74 - d75;
-    out[117] = -139283.0/25000.0*boom_e1 - d76 - d77;
+    out[116] = -d74 - d75 - 139283.0/25000.0*boom_e0;
+    out[117] = -d76 - d77 - 139283.0/25000.0*boom_e1;
     out[118] = -d78 - d79;
     out[119] = d80 + d81;
     out[120] = 1.0;
     out[121] = -1.0;
-    out[122] = -32.0/25.0*boom_e0 - d81 - d82;
+    out[122] = -d81 - d82 - 32.0/25.0*boom_e0;
     out[123] = d78 + d83;
-    out[124] = -32.0/25.0*boom_e2 - d84 - d77;
+    out[124] = -d84 - d77 - 32.0/25.0*boom_e2;
     out[125] = -d74 - d85;
     out[126] = 1.0;
     out[127] = -1.0;
-    out[128] = -8.007688*boom_e0 - d79 - d83;
+    out[128] = -d79 - d83 - 8.007688*boom_e0;
     out[129] = -d80 - d82;
     out[130] = d75 + d85;
-    out[131] = -8.007688*boom_e3 - d84 - d76;
+    out[131] = -d84 - d76 - 8.007688*boom_e3;
     out[132] = 1.0;
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 133 to 280. */
-static void compute_joints_jac_part1(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part1(const double *q, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
@@ -702,35 +729,35 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     const double arm_cyl_barrel_e2 = q[54];
     const double arm_cyl_barrel_e3 = q[55];
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
-    const double upper_a11 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
     const double boom_a01 = -2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
-    const double boom_a11 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2);
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) - 1.0;
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2);
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3);
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e2;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e3;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3) - 1.0;
-    const double arm_a00 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3);
+    const double arm_a00 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1);
     const double arm_a02 = 2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
     const double arm_a10 = 2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
     const double arm_a12 = -2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
     const double arm_a20 = -2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
-    const double arm_a22 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3);
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3);
     const double d86 = (67739.0/25000.0)*upper_e2;
     const double d87 = (16.0/25.0)*upper_e3;
     const double d88 = -16.0/25.0*upper_e2;
@@ -755,19 +782,19 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     const double d107 = 2.0*boom_cyl_r_barrel_e0;
     const double d108 = 2.0*boom_cyl_r_barrel_e1;
     const double d109 = 2.0*boom_cyl_r_barrel_a00;
-    const double d110 = boom_cyl_r_rod_e3*d109;
+    const double d110 = d109*boom_cyl_r_rod_e3;
     const double d111 = 4.0*boom_cyl_r_barrel_a10;
     const double d112 = 2.0*boom_cyl_r_barrel_a20;
-    const double d113 = boom_cyl_r_rod_e2*d109;
-    const double d114 = boom_cyl_r_rod_e1*d109;
-    const double d115 = boom_cyl_r_rod_e0*d109;
+    const double d113 = d109*boom_cyl_r_rod_e2;
+    const double d114 = d109*boom_cyl_r_rod_e1;
+    const double d115 = d109*boom_cyl_r_rod_e0;
     const double d116 = 4.0*boom_cyl_r_rod_a02;
     const double d117 = 2.0*boom_cyl_r_barrel_a10;
     const double d118 = 4.0*boom_cyl_r_barrel_a20;
-    const double d119 = -boom_cyl_r_barrel_y + boom_cyl_r_rod_y;
+    const double d119 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y;
     const double d120 = 4.0*d119;
-    const double d121 = -boom_cyl_r_barrel_z + boom_cyl_r_rod_z;
-    const double d122 = -boom_cyl_r_barrel_x + boom_cyl_r_rod_x;
+    const double d121 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z;
+    const double d122 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x;
     const double d123 = -d122*d106;
     const double d124 = d105*d122;
     const double d125 = d122*d108;
@@ -802,11 +829,11 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     const double d154 = 2.0*arm_a02;
     const double d155 = 2.0*boom_a01;
     const double d156 = 2.0*boom_a11;
-    const double d157 = arm_e1*d156;
+    const double d157 = d156*arm_e1;
     const double d158 = 4.0*boom_a21;
-    const double d159 = arm_e0*d156;
-    const double d160 = arm_e3*d156;
-    const double d161 = arm_e2*d156;
+    const double d159 = d156*arm_e0;
+    const double d160 = d156*arm_e3;
+    const double d161 = d156*arm_e2;
     const double d162 = 4.0*arm_a10;
     const double d163 = 2.0*arm_a20;
     const double d164 = 2.0*arm_a00;
@@ -826,157 +853,157 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     const double d178 = 2.0*boom_a11;
     const double d179 = 4.0*boom_a21;
     out[133] = 1.0;
-    out[134] = (8614.0/3125.0)*upper_e0 + d86 + d87;
-    out[135] = (8614.0/3125.0)*upper_e1 + d88 + d89;
+    out[134] = d86 + d87 + (8614.0/3125.0)*upper_e0;
+    out[135] = d88 + d89 + (8614.0/3125.0)*upper_e1;
     out[136] = d90 - d91;
     out[137] = d92 + d93;
     out[138] = -1.0;
     out[139] = 1.0;
-    out[140] = -32.0/25.0*upper_e0 - d93 - d94;
-    out[141] = -d90 + d95;
-    out[142] = -32.0/25.0*upper_e2 + d96 + d89;
+    out[140] = -d93 - d94 - 32.0/25.0*upper_e0;
+    out[141] = d95 - d90;
+    out[142] = d96 + d89 - 32.0/25.0*upper_e2;
     out[143] = d86 + d97;
     out[144] = -1.0;
     out[145] = 1.0;
-    out[146] = (67739.0/12500.0)*upper_e0 - d91 - d95;
+    out[146] = -d91 - d95 + (67739.0/12500.0)*upper_e0;
     out[147] = -d92 - d94;
     out[148] = -d87 - d97;
-    out[149] = (67739.0/12500.0)*upper_e3 + d96 + d88;
+    out[149] = d96 + d88 + (67739.0/12500.0)*upper_e3;
     out[150] = -1.0;
-    out[151] = upper_e0*d98 + upper_e1*d99 - upper_e3*d100;
-    out[152] = upper_e0*d99 + upper_e2*d100;
-    out[153] = upper_e1*d100 + upper_e2*d98 + upper_e3*d99;
-    out[154] = -upper_e0*d100 + 2.0*upper_e2*boom_cyl_r_barrel_a22;
-    out[155] = boom_cyl_r_barrel_e0*d103 - boom_cyl_r_barrel_e1*d102 + boom_cyl_r_barrel_e2*d101;
-    out[156] = -boom_cyl_r_barrel_e0*d102 + boom_cyl_r_barrel_e3*d101;
-    out[157] = boom_cyl_r_barrel_e0*d101 + boom_cyl_r_barrel_e3*d102;
-    out[158] = boom_cyl_r_barrel_e1*d101 + boom_cyl_r_barrel_e2*d102 + boom_cyl_r_barrel_e3*d103;
-    out[159] = boom_cyl_r_barrel_e0*d104 + boom_cyl_r_rod_a11*d106 - boom_cyl_r_rod_a21*d105;
-    out[160] = boom_cyl_r_barrel_e1*d104 + boom_cyl_r_rod_a11*d105 + boom_cyl_r_rod_a21*d106;
-    out[161] = 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11 - boom_cyl_r_rod_a21*d107;
-    out[162] = boom_cyl_r_rod_a11*d107 + boom_cyl_r_rod_a21*d108;
-    out[163] = boom_cyl_r_rod_e0*d111 + boom_cyl_r_rod_e1*d112 - d110;
-    out[164] = boom_cyl_r_rod_e0*d112 + d113;
-    out[165] = boom_cyl_r_rod_e2*d111 + boom_cyl_r_rod_e3*d112 + d114;
-    out[166] = 2.0*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2 - d115;
-    out[167] = boom_cyl_r_barrel_e0*d116 + boom_cyl_r_rod_a12*d106 - boom_cyl_r_rod_a22*d105;
-    out[168] = boom_cyl_r_barrel_e1*d116 + boom_cyl_r_rod_a12*d105 + boom_cyl_r_rod_a22*d106;
-    out[169] = 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12 - boom_cyl_r_rod_a22*d107;
-    out[170] = boom_cyl_r_rod_a12*d107 + boom_cyl_r_rod_a22*d108;
-    out[171] = boom_cyl_r_rod_e0*d118 - boom_cyl_r_rod_e1*d117 + d113;
-    out[172] = -boom_cyl_r_rod_e0*d117 + d110;
-    out[173] = boom_cyl_r_rod_e3*d117 + d115;
-    out[174] = boom_cyl_r_rod_e2*d117 + boom_cyl_r_rod_e3*d118 + d114;
+    out[151] = d98*upper_e0 + d99*upper_e1 - d100*upper_e3;
+    out[152] = d99*upper_e0 + d100*upper_e2;
+    out[153] = d98*upper_e2 + d99*upper_e3 + d100*upper_e1;
+    out[154] = -d100*upper_e0 + 2.0*upper_e2*boom_cyl_r_barrel_a22;
+    out[155] = d101*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e0 - d102*boom_cyl_r_barrel_e1;
+    out[156] = d101*boom_cyl_r_barrel_e3 - d102*boom_cyl_r_barrel_e0;
+    out[157] = d101*boom_cyl_r_barrel_e0 + d102*boom_cyl_r_barrel_e3;
+    out[158] = d101*boom_cyl_r_barrel_e1 + d102*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e3;
+    out[159] = d104*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a11 - d105*boom_cyl_r_rod_a21;
+    out[160] = d104*boom_cyl_r_barrel_e1 + d105*boom_cyl_r_rod_a11 + d106*boom_cyl_r_rod_a21;
+    out[161] = -d107*boom_cyl_r_rod_a21 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11;
+    out[162] = d107*boom_cyl_r_rod_a11 + d108*boom_cyl_r_rod_a21;
+    out[163] = -d110 + d111*boom_cyl_r_rod_e0 + d112*boom_cyl_r_rod_e1;
+    out[164] = d113 + d112*boom_cyl_r_rod_e0;
+    out[165] = d114 + d111*boom_cyl_r_rod_e2 + d112*boom_cyl_r_rod_e3;
+    out[166] = -d115 + 2.0*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2;
+    out[167] = d116*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a12 - d105*boom_cyl_r_rod_a22;
+    out[168] = d105*boom_cyl_r_rod_a12 + d116*boom_cyl_r_barrel_e1 + d106*boom_cyl_r_rod_a22;
+    out[169] = -d107*boom_cyl_r_rod_a22 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12;
+    out[170] = d107*boom_cyl_r_rod_a12 + d108*boom_cyl_r_rod_a22;
+    out[171] = d113 + d118*boom_cyl_r_rod_e0 - d117*boom_cyl_r_rod_e1;
+    out[172] = d110 - d117*boom_cyl_r_rod_e0;
+    out[173] = d115 + d117*boom_cyl_r_rod_e3;
+    out[174] = d114 + d117*boom_cyl_r_rod_e2 + d118*boom_cyl_r_rod_e3;
     out[175] = -boom_cyl_r_barrel_a01;
     out[176] = -boom_cyl_r_barrel_a11;
     out[177] = -boom_cyl_r_barrel_a21;
-    out[178] = boom_cyl_r_barrel_e0*d120 + d121*d108 + d123;
-    out[179] = d121*d107 + d124;
-    out[180] = boom_cyl_r_barrel_e2*d120 + d121*d106 + d125;
-    out[181] = 2.0*boom_cyl_r_barrel_e2*d121 - d126;
+    out[178] = d123 + d120*boom_cyl_r_barrel_e0 + d121*d108;
+    out[179] = d124 + d121*d107;
+    out[180] = d125 + d120*boom_cyl_r_barrel_e2 + d121*d106;
+    out[181] = -d126 + 2.0*d121*boom_cyl_r_barrel_e2;
     out[182] = boom_cyl_r_barrel_a01;
     out[183] = boom_cyl_r_barrel_a11;
     out[184] = boom_cyl_r_barrel_a21;
     out[185] = -boom_cyl_r_barrel_a02;
     out[186] = -boom_cyl_r_barrel_a12;
     out[187] = -boom_cyl_r_barrel_a22;
-    out[188] = boom_cyl_r_barrel_e0*d127 - d119*d108 + d124;
-    out[189] = -d119*d107 - d123;
-    out[190] = d119*d106 + d126;
-    out[191] = boom_cyl_r_barrel_e3*d127 + d105*d119 + d125;
+    out[188] = d124 + d127*boom_cyl_r_barrel_e0 - d119*d108;
+    out[189] = -d123 - d119*d107;
+    out[190] = d126 + d119*d106;
+    out[191] = d125 + d105*d119 + d127*boom_cyl_r_barrel_e3;
     out[192] = boom_cyl_r_barrel_a02;
     out[193] = boom_cyl_r_barrel_a12;
     out[194] = boom_cyl_r_barrel_a22;
-    out[195] = boom_cyl_r_barrel_e0*d128 + boom_cyl_r_barrel_e1*d129 - boom_cyl_r_barrel_e3*d130;
-    out[196] = boom_cyl_r_barrel_e0*d129 + boom_cyl_r_barrel_e2*d130;
-    out[197] = boom_cyl_r_barrel_e1*d130 + boom_cyl_r_barrel_e2*d128 + boom_cyl_r_barrel_e3*d129;
-    out[198] = -boom_cyl_r_barrel_e0*d130 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22;
-    out[199] = boom_cyl_r_rod_e0*d133 - boom_cyl_r_rod_e1*d132 + boom_cyl_r_rod_e2*d131;
-    out[200] = -boom_cyl_r_rod_e0*d132 + boom_cyl_r_rod_e3*d131;
-    out[201] = boom_cyl_r_rod_e0*d131 + boom_cyl_r_rod_e3*d132;
-    out[202] = boom_cyl_r_rod_e1*d131 + boom_cyl_r_rod_e2*d132 + boom_cyl_r_rod_e3*d133;
+    out[195] = d128*boom_cyl_r_barrel_e0 + d129*boom_cyl_r_barrel_e1 - d130*boom_cyl_r_barrel_e3;
+    out[196] = d129*boom_cyl_r_barrel_e0 + d130*boom_cyl_r_barrel_e2;
+    out[197] = d128*boom_cyl_r_barrel_e2 + d129*boom_cyl_r_barrel_e3 + d130*boom_cyl_r_barrel_e1;
+    out[198] = -d130*boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22;
+    out[199] = d131*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e0 - d132*boom_cyl_r_rod_e1;
+    out[200] = d131*boom_cyl_r_rod_e3 - d132*boom_cyl_r_rod_e0;
+    out[201] = d131*boom_cyl_r_rod_e0 + d132*boom_cyl_r_rod_e3;
+    out[202] = d131*boom_cyl_r_rod_e1 + d132*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e3;
     out[203] = -1.0;
-    out[204] = -139283.0/25000.0*boom_e0 - d134 - d135;
-    out[205] = -139283.0/25000.0*boom_e1 - d136 - d137;
-    out[206] = (16.0/25.0)*boom_e1 - d138;
+    out[204] = -d134 - d135 - 139283.0/25000.0*boom_e0;
+    out[205] = -d136 - d137 - 139283.0/25000.0*boom_e1;
+    out[206] = -d138 + (16.0/25.0)*boom_e1;
     out[207] = -d139 - d140;
     out[208] = 1.0;
     out[209] = -1.0;
-    out[210] = (32.0/25.0)*boom_e0 + d140 + d141;
+    out[210] = d140 + d141 + (32.0/25.0)*boom_e0;
     out[211] = d138 - d142;
-    out[212] = (32.0/25.0)*boom_e2 - d137 - d143;
+    out[212] = -d137 - d143 + (32.0/25.0)*boom_e2;
     out[213] = -d134 - d144;
     out[214] = 1.0;
     out[215] = -1.0;
-    out[216] = -8.007688*boom_e0 + (16.0/25.0)*boom_e1 + d142;
+    out[216] = d142 - 8.007688*boom_e0 + (16.0/25.0)*boom_e1;
     out[217] = d139 + d141;
     out[218] = d135 + d144;
-    out[219] = -8.007688*boom_e3 - d136 - d143;
+    out[219] = -d136 - d143 - 8.007688*boom_e3;
     out[220] = 1.0;
     out[221] = 1.0;
-    out[222] = (23939.0/1250.0)*boom_e0 + d145;
-    out[223] = (23939.0/1250.0)*boom_e1 + d146;
+    out[222] = d145 + (23939.0/1250.0)*boom_e0;
+    out[223] = d146 + (23939.0/1250.0)*boom_e1;
     out[224] = d147;
     out[225] = d148;
     out[226] = -1.0;
     out[227] = 1.0;
-    out[228] = (23939.0/2500.0)*boom_e3 - d148;
+    out[228] = -d148 + (23939.0/2500.0)*boom_e3;
     out[229] = -d147 - d149;
     out[230] = d146 + d150;
     out[231] = d145 + d151;
     out[232] = -1.0;
     out[233] = 1.0;
-    out[234] = (29959.0/2500.0)*boom_e0 + d149;
+    out[234] = d149 + (29959.0/2500.0)*boom_e0;
     out[235] = (23939.0/2500.0)*boom_e3;
     out[236] = -d151;
-    out[237] = (29959.0/2500.0)*boom_e3 + d150;
+    out[237] = d150 + (29959.0/2500.0)*boom_e3;
     out[238] = -1.0;
-    out[239] = boom_e0*d152 + boom_e1*d153 - boom_e3*d154;
-    out[240] = boom_e0*d153 + boom_e2*d154;
-    out[241] = boom_e1*d154 + boom_e2*d152 + boom_e3*d153;
-    out[242] = -boom_e0*d154 + 2.0*boom_e2*arm_a22;
-    out[243] = arm_e0*d158 + arm_e2*d155 - d157;
-    out[244] = arm_e3*d155 - d159;
-    out[245] = arm_e0*d155 + d160;
-    out[246] = arm_e1*d155 + arm_e3*d158 + d161;
-    out[247] = boom_e0*d162 + boom_e1*d163 - boom_e3*d164;
-    out[248] = boom_e0*d163 + boom_e2*d164;
-    out[249] = boom_e1*d164 + boom_e2*d162 + boom_e3*d163;
-    out[250] = -boom_e0*d164 + 2.0*boom_e2*arm_a20;
-    out[251] = arm_e0*d165 - arm_e2*d166 + d160;
-    out[252] = arm_e1*d165 + arm_e3*d166 + d161;
-    out[253] = -arm_e0*d166 + d157;
-    out[254] = arm_e1*d166 + d159;
+    out[239] = d152*boom_e0 + d153*boom_e1 - d154*boom_e3;
+    out[240] = d153*boom_e0 + d154*boom_e2;
+    out[241] = d152*boom_e2 + d153*boom_e3 + d154*boom_e1;
+    out[242] = -d154*boom_e0 + 2.0*boom_e2*arm_a22;
+    out[243] = -d157 + d155*arm_e2 + d158*arm_e0;
+    out[244] = -d159 + d155*arm_e3;
+    out[245] = d160 + d155*arm_e0;
+    out[246] = d161 + d155*arm_e1 + d158*arm_e3;
+    out[247] = d162*boom_e0 + d163*boom_e1 - d164*boom_e3;
+    out[248] = d163*boom_e0 + d164*boom_e2;
+    out[249] = d162*boom_e2 + d163*boom_e3 + d164*boom_e1;
+    out[250] = -d164*boom_e0 + 2.0*boom_e2*arm_a20;
+    out[251] = d160 + d165*arm_e0 - d166*arm_e2;
+    out[252] = d161 + d165*arm_e1 + d166*arm_e3;
+    out[253] = d157 - d166*arm_e0;
+    out[254] = d159 + d166*arm_e1;
     out[255] = 1.0;
-    out[256] = (183.0/20.0)*boom_e0 + d167;
-    out[257] = (183.0/20.0)*boom_e1 + d168;
+    out[256] = d167 + (183.0/20.0)*boom_e0;
+    out[257] = d168 + (183.0/20.0)*boom_e1;
     out[258] = d169;
     out[259] = d170;
     out[260] = -1.0;
     out[261] = 1.0;
-    out[262] = (183.0/40.0)*boom_e3 - d170;
+    out[262] = -d170 + (183.0/40.0)*boom_e3;
     out[263] = -d169 - d171;
     out[264] = d168 + d172;
     out[265] = d167 + d173;
     out[266] = -1.0;
     out[267] = 1.0;
-    out[268] = (557.0/50.0)*boom_e0 + d171;
+    out[268] = d171 + (557.0/50.0)*boom_e0;
     out[269] = (183.0/40.0)*boom_e3;
     out[270] = -d173;
-    out[271] = (557.0/50.0)*boom_e3 + d172;
+    out[271] = d172 + (557.0/50.0)*boom_e3;
     out[272] = -1.0;
-    out[273] = boom_e0*d174 + boom_e1*d175 - boom_e3*d176;
-    out[274] = boom_e0*d175 + boom_e2*d176;
-    out[275] = boom_e1*d176 + boom_e2*d174 + boom_e3*d175;
-    out[276] = -boom_e0*d176 + 2.0*boom_e2*arm_cyl_barrel_a22;
-    out[277] = arm_cyl_barrel_e0*d179 - arm_cyl_barrel_e1*d178 + arm_cyl_barrel_e2*d177;
-    out[278] = -arm_cyl_barrel_e0*d178 + arm_cyl_barrel_e3*d177;
-    out[279] = arm_cyl_barrel_e0*d177 + arm_cyl_barrel_e3*d178;
-    out[280] = arm_cyl_barrel_e1*d177 + arm_cyl_barrel_e2*d178 + arm_cyl_barrel_e3*d179;
+    out[273] = d174*boom_e0 + d175*boom_e1 - d176*boom_e3;
+    out[274] = d175*boom_e0 + d176*boom_e2;
+    out[275] = d174*boom_e2 + d175*boom_e3 + d176*boom_e1;
+    out[276] = -d176*boom_e0 + 2.0*boom_e2*arm_cyl_barrel_a22;
+    out[277] = d177*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e0 - d178*arm_cyl_barrel_e1;
+    out[278] = d177*arm_cyl_barrel_e3 - d178*arm_cyl_barrel_e0;
+    out[279] = d177*arm_cyl_barrel_e0 + d178*arm_cyl_barrel_e3;
+    out[280] = d177*arm_cyl_barrel_e1 + d178*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e3;
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 281 to 410. */
-static void compute_joints_jac_part2(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part2(const double *q, double *out) {
     const double arm_e0 = q[45];
     const double arm_e1 = q[46];
     const double arm_e2 = q[47];
@@ -1004,54 +1031,54 @@ static void compute_joints_jac_part2(const double *q, double *out) {
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
-    const double arm_a11 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e2;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e3;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1);
     const double side_link_a02 = 2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
     const double side_link_a10 = 2.0*side_link_e0*side_link_e3 + 2.0*side_link_e1*side_link_e2;
     const double side_link_a12 = -2.0*side_link_e0*side_link_e1 + 2.0*side_link_e2*side_link_e3;
     const double side_link_a20 = -2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
-    const double side_link_a22 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a10 = 2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
     const double bucket_a12 = -2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double d180 = 4.0*arm_cyl_rod_a01;
     const double d181 = 2.0*arm_cyl_barrel_e2;
     const double d182 = 2.0*arm_cyl_barrel_e3;
     const double d183 = 2.0*arm_cyl_barrel_e0;
     const double d184 = 2.0*arm_cyl_barrel_e1;
     const double d185 = 2.0*arm_cyl_barrel_a00;
-    const double d186 = arm_cyl_rod_e3*d185;
+    const double d186 = d185*arm_cyl_rod_e3;
     const double d187 = 4.0*arm_cyl_barrel_a10;
     const double d188 = 2.0*arm_cyl_barrel_a20;
-    const double d189 = arm_cyl_rod_e2*d185;
-    const double d190 = arm_cyl_rod_e1*d185;
-    const double d191 = arm_cyl_rod_e0*d185;
+    const double d189 = d185*arm_cyl_rod_e2;
+    const double d190 = d185*arm_cyl_rod_e1;
+    const double d191 = d185*arm_cyl_rod_e0;
     const double d192 = 4.0*arm_cyl_rod_a02;
     const double d193 = 2.0*arm_cyl_barrel_a10;
     const double d194 = 4.0*arm_cyl_barrel_a20;
-    const double d195 = -arm_cyl_barrel_y + arm_cyl_rod_y;
+    const double d195 = arm_cyl_rod_y - arm_cyl_barrel_y;
     const double d196 = 4.0*d195;
-    const double d197 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double d198 = -arm_cyl_barrel_x + arm_cyl_rod_x;
+    const double d197 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double d198 = arm_cyl_rod_x - arm_cyl_barrel_x;
     const double d199 = -d198*d182;
     const double d200 = d181*d198;
     const double d201 = d198*d184;
@@ -1082,11 +1109,11 @@ static void compute_joints_jac_part2(const double *q, double *out) {
     const double d226 = 2.0*bucket_a02;
     const double d227 = 2.0*arm_a01;
     const double d228 = 2.0*arm_a11;
-    const double d229 = bucket_e1*d228;
+    const double d229 = d228*bucket_e1;
     const double d230 = 4.0*arm_a21;
-    const double d231 = bucket_e0*d228;
-    const double d232 = bucket_e3*d228;
-    const double d233 = bucket_e2*d228;
+    const double d231 = d228*bucket_e0;
+    const double d232 = d228*bucket_e3;
+    const double d233 = d228*bucket_e2;
     const double d234 = 4.0*bucket_a10;
     const double d235 = 2.0*bucket_a20;
     const double d236 = 2.0*bucket_a00;
@@ -1104,150 +1131,150 @@ static void compute_joints_jac_part2(const double *q, double *out) {
     const double d248 = 2.0*side_link_a02;
     const double d249 = 2.0*arm_a01;
     const double d250 = 2.0*arm_a11;
-    const double d251 = side_link_e1*d250;
+    const double d251 = d250*side_link_e1;
     const double d252 = 4.0*arm_a21;
-    const double d253 = side_link_e0*d250;
-    const double d254 = side_link_e3*d250;
-    const double d255 = side_link_e2*d250;
+    const double d253 = d250*side_link_e0;
+    const double d254 = d250*side_link_e3;
+    const double d255 = d250*side_link_e2;
     const double d256 = 4.0*side_link_a10;
     const double d257 = 2.0*side_link_a20;
     const double d258 = 2.0*side_link_a00;
     const double d259 = 4.0*arm_a01;
     const double d260 = 2.0*arm_a21;
-    out[281] = arm_cyl_barrel_e0*d180 + arm_cyl_rod_a11*d182 - arm_cyl_rod_a21*d181;
-    out[282] = arm_cyl_barrel_e1*d180 + arm_cyl_rod_a11*d181 + arm_cyl_rod_a21*d182;
-    out[283] = 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a11 - arm_cyl_rod_a21*d183;
-    out[284] = arm_cyl_rod_a11*d183 + arm_cyl_rod_a21*d184;
-    out[285] = arm_cyl_rod_e0*d187 + arm_cyl_rod_e1*d188 - d186;
-    out[286] = arm_cyl_rod_e0*d188 + d189;
-    out[287] = arm_cyl_rod_e2*d187 + arm_cyl_rod_e3*d188 + d190;
-    out[288] = 2.0*arm_cyl_barrel_a20*arm_cyl_rod_e2 - d191;
-    out[289] = arm_cyl_barrel_e0*d192 + arm_cyl_rod_a12*d182 - arm_cyl_rod_a22*d181;
-    out[290] = arm_cyl_barrel_e1*d192 + arm_cyl_rod_a12*d181 + arm_cyl_rod_a22*d182;
-    out[291] = 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a12 - arm_cyl_rod_a22*d183;
-    out[292] = arm_cyl_rod_a12*d183 + arm_cyl_rod_a22*d184;
-    out[293] = arm_cyl_rod_e0*d194 - arm_cyl_rod_e1*d193 + d189;
-    out[294] = -arm_cyl_rod_e0*d193 + d186;
-    out[295] = arm_cyl_rod_e3*d193 + d191;
-    out[296] = arm_cyl_rod_e2*d193 + arm_cyl_rod_e3*d194 + d190;
+    out[281] = d180*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a11 - d181*arm_cyl_rod_a21;
+    out[282] = d180*arm_cyl_barrel_e1 + d181*arm_cyl_rod_a11 + d182*arm_cyl_rod_a21;
+    out[283] = -d183*arm_cyl_rod_a21 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a11;
+    out[284] = d183*arm_cyl_rod_a11 + d184*arm_cyl_rod_a21;
+    out[285] = -d186 + d187*arm_cyl_rod_e0 + d188*arm_cyl_rod_e1;
+    out[286] = d189 + d188*arm_cyl_rod_e0;
+    out[287] = d190 + d187*arm_cyl_rod_e2 + d188*arm_cyl_rod_e3;
+    out[288] = -d191 + 2.0*arm_cyl_barrel_a20*arm_cyl_rod_e2;
+    out[289] = d192*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a12 - d181*arm_cyl_rod_a22;
+    out[290] = d181*arm_cyl_rod_a12 + d192*arm_cyl_barrel_e1 + d182*arm_cyl_rod_a22;
+    out[291] = -d183*arm_cyl_rod_a22 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a12;
+    out[292] = d183*arm_cyl_rod_a12 + d184*arm_cyl_rod_a22;
+    out[293] = d189 + d194*arm_cyl_rod_e0 - d193*arm_cyl_rod_e1;
+    out[294] = d186 - d193*arm_cyl_rod_e0;
+    out[295] = d191 + d193*arm_cyl_rod_e3;
+    out[296] = d190 + d193*arm_cyl_rod_e2 + d194*arm_cyl_rod_e3;
     out[297] = -arm_cyl_barrel_a01;
     out[298] = -arm_cyl_barrel_a11;
     out[299] = -arm_cyl_barrel_a21;
-    out[300] = arm_cyl_barrel_e0*d196 + d197*d184 + d199;
-    out[301] = d197*d183 + d200;
-    out[302] = arm_cyl_barrel_e2*d196 + d197*d182 + d201;
-    out[303] = 2.0*arm_cyl_barrel_e2*d197 - d202;
+    out[300] = d199 + d196*arm_cyl_barrel_e0 + d197*d184;
+    out[301] = d200 + d197*d183;
+    out[302] = d201 + d196*arm_cyl_barrel_e2 + d197*d182;
+    out[303] = -d202 + 2.0*d197*arm_cyl_barrel_e2;
     out[304] = arm_cyl_barrel_a01;
     out[305] = arm_cyl_barrel_a11;
     out[306] = arm_cyl_barrel_a21;
     out[307] = -arm_cyl_barrel_a02;
     out[308] = -arm_cyl_barrel_a12;
     out[309] = -arm_cyl_barrel_a22;
-    out[310] = arm_cyl_barrel_e0*d203 - d195*d184 + d200;
-    out[311] = -d195*d183 - d199;
-    out[312] = d195*d182 + d202;
-    out[313] = arm_cyl_barrel_e3*d203 + d181*d195 + d201;
+    out[310] = d200 + d203*arm_cyl_barrel_e0 - d195*d184;
+    out[311] = -d199 - d195*d183;
+    out[312] = d202 + d195*d182;
+    out[313] = d201 + d181*d195 + d203*arm_cyl_barrel_e3;
     out[314] = arm_cyl_barrel_a02;
     out[315] = arm_cyl_barrel_a12;
     out[316] = arm_cyl_barrel_a22;
-    out[317] = arm_cyl_barrel_e0*d204 + arm_cyl_barrel_e1*d205 - arm_cyl_barrel_e3*d206;
-    out[318] = arm_cyl_barrel_e0*d205 + arm_cyl_barrel_e2*d206;
-    out[319] = arm_cyl_barrel_e1*d206 + arm_cyl_barrel_e2*d204 + arm_cyl_barrel_e3*d205;
-    out[320] = -arm_cyl_barrel_e0*d206 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22;
-    out[321] = arm_cyl_rod_e0*d209 - arm_cyl_rod_e1*d208 + arm_cyl_rod_e2*d207;
-    out[322] = -arm_cyl_rod_e0*d208 + arm_cyl_rod_e3*d207;
-    out[323] = arm_cyl_rod_e0*d207 + arm_cyl_rod_e3*d208;
-    out[324] = arm_cyl_rod_e1*d207 + arm_cyl_rod_e2*d208 + arm_cyl_rod_e3*d209;
+    out[317] = d204*arm_cyl_barrel_e0 + d205*arm_cyl_barrel_e1 - d206*arm_cyl_barrel_e3;
+    out[318] = d205*arm_cyl_barrel_e0 + d206*arm_cyl_barrel_e2;
+    out[319] = d204*arm_cyl_barrel_e2 + d205*arm_cyl_barrel_e3 + d206*arm_cyl_barrel_e1;
+    out[320] = -d206*arm_cyl_barrel_e0 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22;
+    out[321] = d207*arm_cyl_rod_e2 + d209*arm_cyl_rod_e0 - d208*arm_cyl_rod_e1;
+    out[322] = d207*arm_cyl_rod_e3 - d208*arm_cyl_rod_e0;
+    out[323] = d207*arm_cyl_rod_e0 + d208*arm_cyl_rod_e3;
+    out[324] = d207*arm_cyl_rod_e1 + d208*arm_cyl_rod_e2 + d209*arm_cyl_rod_e3;
     out[325] = -1.0;
-    out[326] = (393281.0/125000.0)*arm_e0 + d210;
-    out[327] = (393281.0/125000.0)*arm_e1 + d211;
+    out[326] = d210 + (393281.0/125000.0)*arm_e0;
+    out[327] = d211 + (393281.0/125000.0)*arm_e1;
     out[328] = d212;
     out[329] = d213;
     out[330] = 1.0;
     out[331] = -1.0;
-    out[332] = (393281.0/250000.0)*arm_e3 - d213;
+    out[332] = -d213 + (393281.0/250000.0)*arm_e3;
     out[333] = -d212 - d214;
     out[334] = d211 + d215;
     out[335] = d210 + d216;
     out[336] = 1.0;
     out[337] = -1.0;
-    out[338] = (369691.0/250000.0)*arm_e0 + d214;
+    out[338] = d214 + (369691.0/250000.0)*arm_e0;
     out[339] = (393281.0/250000.0)*arm_e3;
     out[340] = -d216;
-    out[341] = (369691.0/250000.0)*arm_e3 + d215;
+    out[341] = d215 + (369691.0/250000.0)*arm_e3;
     out[342] = 1.0;
     out[343] = 1.0;
-    out[344] = (9477.0/1250.0)*arm_e0 + d217;
-    out[345] = (9477.0/1250.0)*arm_e1 + d218;
+    out[344] = d217 + (9477.0/1250.0)*arm_e0;
+    out[345] = d218 + (9477.0/1250.0)*arm_e1;
     out[346] = d219;
     out[347] = d220;
     out[348] = -1.0;
     out[349] = 1.0;
-    out[350] = (9477.0/2500.0)*arm_e3 - d220;
+    out[350] = -d220 + (9477.0/2500.0)*arm_e3;
     out[351] = -d219 - d221;
     out[352] = d218 + d222;
     out[353] = d217 + d223;
     out[354] = -1.0;
     out[355] = 1.0;
-    out[356] = (21809.0/2500.0)*arm_e0 + d221;
+    out[356] = d221 + (21809.0/2500.0)*arm_e0;
     out[357] = (9477.0/2500.0)*arm_e3;
     out[358] = -d223;
-    out[359] = (21809.0/2500.0)*arm_e3 + d222;
+    out[359] = d222 + (21809.0/2500.0)*arm_e3;
     out[360] = -1.0;
-    out[361] = arm_e0*d224 + arm_e1*d225 - arm_e3*d226;
-    out[362] = arm_e0*d225 + arm_e2*d226;
-    out[363] = arm_e1*d226 + arm_e2*d224 + arm_e3*d225;
-    out[364] = -arm_e0*d226 + 2.0*arm_e2*bucket_a22;
-    out[365] = bucket_e0*d230 + bucket_e2*d227 - d229;
-    out[366] = bucket_e3*d227 - d231;
-    out[367] = bucket_e0*d227 + d232;
-    out[368] = bucket_e1*d227 + bucket_e3*d230 + d233;
-    out[369] = arm_e0*d234 + arm_e1*d235 - arm_e3*d236;
-    out[370] = arm_e0*d235 + arm_e2*d236;
-    out[371] = arm_e1*d236 + arm_e2*d234 + arm_e3*d235;
-    out[372] = -arm_e0*d236 + 2.0*arm_e2*bucket_a20;
-    out[373] = bucket_e0*d237 - bucket_e2*d238 + d232;
-    out[374] = bucket_e1*d237 + bucket_e3*d238 + d233;
-    out[375] = -bucket_e0*d238 + d229;
-    out[376] = bucket_e1*d238 + d231;
+    out[361] = d224*arm_e0 + d225*arm_e1 - d226*arm_e3;
+    out[362] = d225*arm_e0 + d226*arm_e2;
+    out[363] = d224*arm_e2 + d225*arm_e3 + d226*arm_e1;
+    out[364] = -d226*arm_e0 + 2.0*arm_e2*bucket_a22;
+    out[365] = -d229 + d227*bucket_e2 + d230*bucket_e0;
+    out[366] = -d231 + d227*bucket_e3;
+    out[367] = d232 + d227*bucket_e0;
+    out[368] = d233 + d227*bucket_e1 + d230*bucket_e3;
+    out[369] = d234*arm_e0 + d235*arm_e1 - d236*arm_e3;
+    out[370] = d235*arm_e0 + d236*arm_e2;
+    out[371] = d234*arm_e2 + d235*arm_e3 + d236*arm_e1;
+    out[372] = -d236*arm_e0 + 2.0*arm_e2*bucket_a20;
+    out[373] = d232 + d237*bucket_e0 - d238*bucket_e2;
+    out[374] = d233 + d237*bucket_e1 + d238*bucket_e3;
+    out[375] = d229 - d238*bucket_e0;
+    out[376] = d231 + d238*bucket_e1;
     out[377] = 1.0;
-    out[378] = (7877.0/1250.0)*arm_e0 + d239;
-    out[379] = (7877.0/1250.0)*arm_e1 + d240;
+    out[378] = d239 + (7877.0/1250.0)*arm_e0;
+    out[379] = d240 + (7877.0/1250.0)*arm_e1;
     out[380] = d241;
     out[381] = d242;
     out[382] = -1.0;
     out[383] = 1.0;
-    out[384] = (7877.0/2500.0)*arm_e3 - d242;
+    out[384] = -d242 + (7877.0/2500.0)*arm_e3;
     out[385] = -d241 - d243;
     out[386] = d240 + d244;
     out[387] = d239 + d245;
     out[388] = -1.0;
     out[389] = 1.0;
-    out[390] = (18799.0/2500.0)*arm_e0 + d243;
+    out[390] = d243 + (18799.0/2500.0)*arm_e0;
     out[391] = (7877.0/2500.0)*arm_e3;
     out[392] = -d245;
-    out[393] = (18799.0/2500.0)*arm_e3 + d244;
+    out[393] = d244 + (18799.0/2500.0)*arm_e3;
     out[394] = -1.0;
-    out[395] = arm_e0*d246 + arm_e1*d247 - arm_e3*d248;
-    out[396] = arm_e0*d247 + arm_e2*d248;
-    out[397] = arm_e1*d248 + arm_e2*d246 + arm_e3*d247;
-    out[398] = -arm_e0*d248 + 2.0*arm_e2*side_link_a22;
-    out[399] = side_link_e0*d252 + side_link_e2*d249 - d251;
-    out[400] = side_link_e3*d249 - d253;
-    out[401] = side_link_e0*d249 + d254;
-    out[402] = side_link_e1*d249 + side_link_e3*d252 + d255;
-    out[403] = arm_e0*d256 + arm_e1*d257 - arm_e3*d258;
-    out[404] = arm_e0*d257 + arm_e2*d258;
-    out[405] = arm_e1*d258 + arm_e2*d256 + arm_e3*d257;
-    out[406] = -arm_e0*d258 + 2.0*arm_e2*side_link_a20;
-    out[407] = side_link_e0*d259 - side_link_e2*d260 + d254;
-    out[408] = side_link_e1*d259 + side_link_e3*d260 + d255;
-    out[409] = -side_link_e0*d260 + d251;
-    out[410] = side_link_e1*d260 + d253;
+    out[395] = d246*arm_e0 + d247*arm_e1 - d248*arm_e3;
+    out[396] = d247*arm_e0 + d248*arm_e2;
+    out[397] = d246*arm_e2 + d247*arm_e3 + d248*arm_e1;
+    out[398] = -d248*arm_e0 + 2.0*arm_e2*side_link_a22;
+    out[399] = -d251 + d249*side_link_e2 + d252*side_link_e0;
+    out[400] = -d253 + d249*side_link_e3;
+    out[401] = d254 + d249*side_link_e0;
+    out[402] = d255 + d249*side_link_e1 + d252*side_link_e3;
+    out[403] = d256*arm_e0 + d257*arm_e1 - d258*arm_e3;
+    out[404] = d257*arm_e0 + d258*arm_e2;
+    out[405] = d256*arm_e2 + d257*arm_e3 + d258*arm_e1;
+    out[406] = -d258*arm_e0 + 2.0*arm_e2*side_link_a20;
+    out[407] = d254 + d259*side_link_e0 - d260*side_link_e2;
+    out[408] = d255 + d259*side_link_e1 + d260*side_link_e3;
+    out[409] = d251 - d260*side_link_e0;
+    out[410] = d253 + d260*side_link_e1;
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 411 to 574. */
-static void compute_joints_jac_part3(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part3(const double *q, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
@@ -1299,31 +1326,31 @@ static void compute_joints_jac_part3(const double *q, double *out) {
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
-    const double arm_a11 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e2;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e3;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1);
     const double bucket_link_a02 = 2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
     const double bucket_link_a10 = 2.0*bucket_link_e0*bucket_link_e3 + 2.0*bucket_link_e1*bucket_link_e2;
     const double bucket_link_a12 = -2.0*bucket_link_e0*bucket_link_e1 + 2.0*bucket_link_e2*bucket_link_e3;
     const double bucket_link_a20 = -2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
-    const double bucket_link_a22 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3);
     const double bucket_a01 = -2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
-    const double bucket_a11 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2);
     const double bucket_a21 = 2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
     const double d261 = -96247.0/100000.0*side_link_e2;
     const double d262 = -96247.0/100000.0*side_link_e3;
@@ -1377,19 +1404,19 @@ static void compute_joints_jac_part3(const double *q, double *out) {
     const double d310 = 2.0*bucket_cyl_barrel_e0;
     const double d311 = 2.0*bucket_cyl_barrel_e1;
     const double d312 = 2.0*bucket_cyl_barrel_a00;
-    const double d313 = bucket_cyl_rod_e3*d312;
+    const double d313 = d312*bucket_cyl_rod_e3;
     const double d314 = 4.0*bucket_cyl_barrel_a10;
     const double d315 = 2.0*bucket_cyl_barrel_a20;
-    const double d316 = bucket_cyl_rod_e2*d312;
-    const double d317 = bucket_cyl_rod_e1*d312;
-    const double d318 = bucket_cyl_rod_e0*d312;
+    const double d316 = d312*bucket_cyl_rod_e2;
+    const double d317 = d312*bucket_cyl_rod_e1;
+    const double d318 = d312*bucket_cyl_rod_e0;
     const double d319 = 4.0*bucket_cyl_rod_a02;
     const double d320 = 2.0*bucket_cyl_barrel_a10;
     const double d321 = 4.0*bucket_cyl_barrel_a20;
-    const double d322 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
+    const double d322 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
     const double d323 = 4.0*d322;
-    const double d324 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double d325 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
+    const double d324 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double d325 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
     const double d326 = -d325*d309;
     const double d327 = d308*d325;
     const double d328 = d325*d311;
@@ -1410,13 +1437,13 @@ static void compute_joints_jac_part3(const double *q, double *out) {
     const double d343 = (166329.0/250000.0)*side_link_e1;
     const double d344 = (166329.0/250000.0)*side_link_e0;
     out[411] = 1.0;
-    out[412] = -166329.0/125000.0*side_link_e0 - d261;
-    out[413] = -166329.0/125000.0*side_link_e1 - d262;
+    out[412] = -d261 - 166329.0/125000.0*side_link_e0;
+    out[413] = -d262 - 166329.0/125000.0*side_link_e1;
     out[414] = d263;
     out[415] = d264;
     out[416] = -1.0;
-    out[417] = (85607.0/62500.0)*bucket_link_e0 + d265;
-    out[418] = (85607.0/62500.0)*bucket_link_e1 + d266;
+    out[417] = d265 + (85607.0/62500.0)*bucket_link_e0;
+    out[418] = d266 + (85607.0/62500.0)*bucket_link_e1;
     out[419] = d267;
     out[420] = d268;
     out[421] = 1.0;
@@ -1425,24 +1452,24 @@ static void compute_joints_jac_part3(const double *q, double *out) {
     out[424] = -d262 - d271;
     out[425] = -d261 - d272;
     out[426] = -1.0;
-    out[427] = (85607.0/125000.0)*bucket_link_e3 - d268;
+    out[427] = -d268 + (85607.0/125000.0)*bucket_link_e3;
     out[428] = -d273 - d267;
     out[429] = d274 + d266;
     out[430] = d275 + d265;
     out[431] = 1.0;
-    out[432] = (96247.0/50000.0)*side_link_e0 + d270;
+    out[432] = d270 + (96247.0/50000.0)*side_link_e0;
     out[433] = -d269;
     out[434] = d272;
-    out[435] = (96247.0/50000.0)*side_link_e3 - d271;
+    out[435] = -d271 + (96247.0/50000.0)*side_link_e3;
     out[436] = -1.0;
-    out[437] = (450737.0/250000.0)*bucket_link_e0 + d273;
+    out[437] = d273 + (450737.0/250000.0)*bucket_link_e0;
     out[438] = (85607.0/125000.0)*bucket_link_e3;
     out[439] = -d275;
-    out[440] = (450737.0/250000.0)*bucket_link_e3 + d274;
+    out[440] = d274 + (450737.0/250000.0)*bucket_link_e3;
     out[441] = 1.0;
     out[442] = -1.0;
-    out[443] = (8101.0/6250.0)*bucket_e0 + d276;
-    out[444] = (8101.0/6250.0)*bucket_e1 + d277;
+    out[443] = d276 + (8101.0/6250.0)*bucket_e0;
+    out[444] = d277 + (8101.0/6250.0)*bucket_e1;
     out[445] = -d278;
     out[446] = -d279;
     out[447] = 1.0;
@@ -1453,21 +1480,21 @@ static void compute_joints_jac_part3(const double *q, double *out) {
     out[452] = d276 + d283;
     out[453] = 1.0;
     out[454] = -1.0;
-    out[455] = -16927.0/12500.0*bucket_e0 - d281;
+    out[455] = -d281 - 16927.0/12500.0*bucket_e0;
     out[456] = d280;
     out[457] = -d283;
-    out[458] = -16927.0/12500.0*bucket_e3 + d282;
-    out[459] = (2.4197412333043764)*bucket_link_e0*bucket_a21 - bucket_link_e0*d284 - bucket_link_e1*d285 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21 - bucket_link_e3*d286;
-    out[460] = -bucket_link_e0*d285 - bucket_link_e1*d284 - bucket_link_e2*d286 + (1.2098706166521882)*bucket_link_e3*bucket_a01 - bucket_link_e3*d287;
-    out[461] = (1.5925492428686951)*bucket_link_e0*bucket_a21 + bucket_link_e0*d288 - bucket_link_e1*d286 + bucket_link_e3*d285;
-    out[462] = -bucket_link_e0*d286 - bucket_link_e1*d287 + bucket_link_e1*d288 + bucket_link_e2*d285 + (2.4197412333043764)*bucket_link_e3*bucket_a21;
-    out[463] = bucket_e0*d289 + bucket_e1*d291 - bucket_e3*d292;
-    out[464] = bucket_e0*d291 + bucket_e2*d292;
-    out[465] = bucket_e1*d292 + bucket_e2*d289 + bucket_e3*d291;
-    out[466] = -bucket_e0*d292 + 2.0*bucket_e2*d290;
+    out[458] = d282 - 16927.0/12500.0*bucket_e3;
+    out[459] = -d286*bucket_link_e3 - d284*bucket_link_e0 - d285*bucket_link_e1 + (2.4197412333043764)*bucket_link_e0*bucket_a21 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21;
+    out[460] = -d286*bucket_link_e2 - d287*bucket_link_e3 - d284*bucket_link_e1 - d285*bucket_link_e0 + (1.2098706166521882)*bucket_link_e3*bucket_a01;
+    out[461] = d288*bucket_link_e0 + d285*bucket_link_e3 - d286*bucket_link_e1 + (1.5925492428686951)*bucket_link_e0*bucket_a21;
+    out[462] = d288*bucket_link_e1 + d285*bucket_link_e2 - d286*bucket_link_e0 - d287*bucket_link_e1 + (2.4197412333043764)*bucket_link_e3*bucket_a21;
+    out[463] = d289*bucket_e0 + d291*bucket_e1 - d292*bucket_e3;
+    out[464] = d291*bucket_e0 + d292*bucket_e2;
+    out[465] = d289*bucket_e2 + d291*bucket_e3 + d292*bucket_e1;
+    out[466] = -d292*bucket_e0 + 2.0*d290*bucket_e2;
     out[467] = 1.0;
-    out[468] = -24687.0/25000.0*arm_e0 - d293;
-    out[469] = -24687.0/25000.0*arm_e1 - d294;
+    out[468] = -d293 - 24687.0/25000.0*arm_e0;
+    out[469] = -d294 - 24687.0/25000.0*arm_e1;
     out[470] = d295;
     out[471] = d296;
     out[472] = -1.0;
@@ -1478,67 +1505,67 @@ static void compute_joints_jac_part3(const double *q, double *out) {
     out[477] = -d293 - d300;
     out[478] = -1.0;
     out[479] = 1.0;
-    out[480] = (36797.0/12500.0)*arm_e0 + d298;
+    out[480] = d298 + (36797.0/12500.0)*arm_e0;
     out[481] = -d297;
     out[482] = d300;
-    out[483] = (36797.0/12500.0)*arm_e3 - d299;
+    out[483] = -d299 + (36797.0/12500.0)*arm_e3;
     out[484] = -1.0;
-    out[485] = arm_e0*d301 + arm_e1*d302 - arm_e3*d303;
-    out[486] = arm_e0*d302 + arm_e2*d303;
-    out[487] = arm_e1*d303 + arm_e2*d301 + arm_e3*d302;
-    out[488] = -arm_e0*d303 + 2.0*arm_e2*bucket_cyl_barrel_a22;
-    out[489] = bucket_cyl_barrel_e0*d306 - bucket_cyl_barrel_e1*d305 + bucket_cyl_barrel_e2*d304;
-    out[490] = -bucket_cyl_barrel_e0*d305 + bucket_cyl_barrel_e3*d304;
-    out[491] = bucket_cyl_barrel_e0*d304 + bucket_cyl_barrel_e3*d305;
-    out[492] = bucket_cyl_barrel_e1*d304 + bucket_cyl_barrel_e2*d305 + bucket_cyl_barrel_e3*d306;
-    out[493] = bucket_cyl_barrel_e0*d307 + bucket_cyl_rod_a11*d309 - bucket_cyl_rod_a21*d308;
-    out[494] = bucket_cyl_barrel_e1*d307 + bucket_cyl_rod_a11*d308 + bucket_cyl_rod_a21*d309;
-    out[495] = 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a11 - bucket_cyl_rod_a21*d310;
-    out[496] = bucket_cyl_rod_a11*d310 + bucket_cyl_rod_a21*d311;
-    out[497] = bucket_cyl_rod_e0*d314 + bucket_cyl_rod_e1*d315 - d313;
-    out[498] = bucket_cyl_rod_e0*d315 + d316;
-    out[499] = bucket_cyl_rod_e2*d314 + bucket_cyl_rod_e3*d315 + d317;
-    out[500] = 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_e2 - d318;
-    out[501] = bucket_cyl_barrel_e0*d319 + bucket_cyl_rod_a12*d309 - bucket_cyl_rod_a22*d308;
-    out[502] = bucket_cyl_barrel_e1*d319 + bucket_cyl_rod_a12*d308 + bucket_cyl_rod_a22*d309;
-    out[503] = 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a12 - bucket_cyl_rod_a22*d310;
-    out[504] = bucket_cyl_rod_a12*d310 + bucket_cyl_rod_a22*d311;
-    out[505] = bucket_cyl_rod_e0*d321 - bucket_cyl_rod_e1*d320 + d316;
-    out[506] = -bucket_cyl_rod_e0*d320 + d313;
-    out[507] = bucket_cyl_rod_e3*d320 + d318;
-    out[508] = bucket_cyl_rod_e2*d320 + bucket_cyl_rod_e3*d321 + d317;
+    out[485] = d301*arm_e0 + d302*arm_e1 - d303*arm_e3;
+    out[486] = d303*arm_e2 + d302*arm_e0;
+    out[487] = d303*arm_e1 + d301*arm_e2 + d302*arm_e3;
+    out[488] = -d303*arm_e0 + 2.0*arm_e2*bucket_cyl_barrel_a22;
+    out[489] = d304*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e0 - d305*bucket_cyl_barrel_e1;
+    out[490] = d304*bucket_cyl_barrel_e3 - d305*bucket_cyl_barrel_e0;
+    out[491] = d304*bucket_cyl_barrel_e0 + d305*bucket_cyl_barrel_e3;
+    out[492] = d304*bucket_cyl_barrel_e1 + d305*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e3;
+    out[493] = d307*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a11 - d308*bucket_cyl_rod_a21;
+    out[494] = d307*bucket_cyl_barrel_e1 + d308*bucket_cyl_rod_a11 + d309*bucket_cyl_rod_a21;
+    out[495] = -d310*bucket_cyl_rod_a21 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a11;
+    out[496] = d310*bucket_cyl_rod_a11 + d311*bucket_cyl_rod_a21;
+    out[497] = -d313 + d314*bucket_cyl_rod_e0 + d315*bucket_cyl_rod_e1;
+    out[498] = d316 + d315*bucket_cyl_rod_e0;
+    out[499] = d317 + d314*bucket_cyl_rod_e2 + d315*bucket_cyl_rod_e3;
+    out[500] = -d318 + 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_e2;
+    out[501] = d319*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a12 - d308*bucket_cyl_rod_a22;
+    out[502] = d308*bucket_cyl_rod_a12 + d319*bucket_cyl_barrel_e1 + d309*bucket_cyl_rod_a22;
+    out[503] = -d310*bucket_cyl_rod_a22 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a12;
+    out[504] = d310*bucket_cyl_rod_a12 + d311*bucket_cyl_rod_a22;
+    out[505] = d316 + d321*bucket_cyl_rod_e0 - d320*bucket_cyl_rod_e1;
+    out[506] = d313 - d320*bucket_cyl_rod_e0;
+    out[507] = d318 + d320*bucket_cyl_rod_e3;
+    out[508] = d317 + d320*bucket_cyl_rod_e2 + d321*bucket_cyl_rod_e3;
     out[509] = -bucket_cyl_barrel_a01;
     out[510] = -bucket_cyl_barrel_a11;
     out[511] = -bucket_cyl_barrel_a21;
-    out[512] = bucket_cyl_barrel_e0*d323 + d324*d311 + d326;
-    out[513] = d324*d310 + d327;
-    out[514] = bucket_cyl_barrel_e2*d323 + d324*d309 + d328;
-    out[515] = 2.0*bucket_cyl_barrel_e2*d324 - d329;
+    out[512] = d326 + d323*bucket_cyl_barrel_e0 + d324*d311;
+    out[513] = d327 + d324*d310;
+    out[514] = d328 + d323*bucket_cyl_barrel_e2 + d324*d309;
+    out[515] = -d329 + 2.0*d324*bucket_cyl_barrel_e2;
     out[516] = bucket_cyl_barrel_a01;
     out[517] = bucket_cyl_barrel_a11;
     out[518] = bucket_cyl_barrel_a21;
     out[519] = -bucket_cyl_barrel_a02;
     out[520] = -bucket_cyl_barrel_a12;
     out[521] = -bucket_cyl_barrel_a22;
-    out[522] = bucket_cyl_barrel_e0*d330 - d322*d311 + d327;
-    out[523] = -d322*d310 - d326;
-    out[524] = d322*d309 + d329;
-    out[525] = bucket_cyl_barrel_e3*d330 + d308*d322 + d328;
+    out[522] = d327 + d330*bucket_cyl_barrel_e0 - d322*d311;
+    out[523] = -d326 - d322*d310;
+    out[524] = d329 + d322*d309;
+    out[525] = d328 + d308*d322 + d330*bucket_cyl_barrel_e3;
     out[526] = bucket_cyl_barrel_a02;
     out[527] = bucket_cyl_barrel_a12;
     out[528] = bucket_cyl_barrel_a22;
-    out[529] = bucket_cyl_barrel_e0*d331 + bucket_cyl_barrel_e1*d332 - bucket_cyl_barrel_e3*d333;
-    out[530] = bucket_cyl_barrel_e0*d332 + bucket_cyl_barrel_e2*d333;
-    out[531] = bucket_cyl_barrel_e1*d333 + bucket_cyl_barrel_e2*d331 + bucket_cyl_barrel_e3*d332;
-    out[532] = -bucket_cyl_barrel_e0*d333 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22;
-    out[533] = bucket_cyl_rod_e0*d336 - bucket_cyl_rod_e1*d335 + bucket_cyl_rod_e2*d334;
-    out[534] = -bucket_cyl_rod_e0*d335 + bucket_cyl_rod_e3*d334;
-    out[535] = bucket_cyl_rod_e0*d334 + bucket_cyl_rod_e3*d335;
-    out[536] = bucket_cyl_rod_e1*d334 + bucket_cyl_rod_e2*d335 + bucket_cyl_rod_e3*d336;
+    out[529] = d331*bucket_cyl_barrel_e0 + d332*bucket_cyl_barrel_e1 - d333*bucket_cyl_barrel_e3;
+    out[530] = d332*bucket_cyl_barrel_e0 + d333*bucket_cyl_barrel_e2;
+    out[531] = d331*bucket_cyl_barrel_e2 + d332*bucket_cyl_barrel_e3 + d333*bucket_cyl_barrel_e1;
+    out[532] = -d333*bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22;
+    out[533] = d334*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e0 - d335*bucket_cyl_rod_e1;
+    out[534] = d334*bucket_cyl_rod_e3 - d335*bucket_cyl_rod_e0;
+    out[535] = d334*bucket_cyl_rod_e0 + d335*bucket_cyl_rod_e3;
+    out[536] = d334*bucket_cyl_rod_e1 + d335*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e3;
     out[537] = 1.0;
     out[538] = -1.0;
-    out[539] = (166329.0/125000.0)*side_link_e0 + d337;
-    out[540] = (166329.0/125000.0)*side_link_e1 + d338;
+    out[539] = d337 + (166329.0/125000.0)*side_link_e0;
+    out[540] = d338 + (166329.0/125000.0)*side_link_e1;
     out[541] = -d339;
     out[542] = -d340;
     out[543] = 1.0;
@@ -1549,10 +1576,10 @@ static void compute_joints_jac_part3(const double *q, double *out) {
     out[548] = d337 + d344;
     out[549] = 1.0;
     out[550] = -1.0;
-    out[551] = -96247.0/50000.0*side_link_e0 - d342;
+    out[551] = -d342 - 96247.0/50000.0*side_link_e0;
     out[552] = d341;
     out[553] = -d344;
-    out[554] = -96247.0/50000.0*side_link_e3 + d343;
+    out[554] = d343 - 96247.0/50000.0*side_link_e3;
     out[555] = 2.0*upper_e0;
     out[556] = 2.0*upper_e1;
     out[557] = 2.0*upper_e2;
@@ -1576,7 +1603,7 @@ static void compute_joints_jac_part3(const double *q, double *out) {
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 575 to 610. */
-static void compute_joints_jac_part4(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part4(const double *q, double *out) {
     const double boom_cyl_r_rod_e0 = q[38];
     const double boom_cyl_r_rod_e1 = q[39];
     const double boom_cyl_r_rod_e2 = q[40];
@@ -1652,7 +1679,7 @@ static void compute_joints_jac_part4(const double *q, double *out) {
 }
 
 /* Phi_q values of the driver rows of case 'digging'. */
-static void compute_drivers_jac_digging(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
     const double boom_cyl_l_barrel_z = q[16];
@@ -1684,32 +1711,32 @@ static void compute_drivers_jac_digging(const double *q, const double *u, double
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double d2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
+    const double d2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
     const double d3 = 2.0*boom_cyl_l_barrel_e2;
-    const double d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
+    const double d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
     const double d5 = 2.0*boom_cyl_l_barrel_e3;
     const double d6 = 2.0*boom_cyl_l_barrel_e0;
     const double d7 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double d8 = -arm_cyl_barrel_z + arm_cyl_rod_z;
+    const double d8 = arm_cyl_rod_z - arm_cyl_barrel_z;
     const double d9 = 2.0*arm_cyl_barrel_e2;
-    const double d10 = -arm_cyl_barrel_y + arm_cyl_rod_y;
+    const double d10 = arm_cyl_rod_y - arm_cyl_barrel_y;
     const double d11 = 2.0*arm_cyl_barrel_e3;
     const double d12 = 2.0*arm_cyl_barrel_e0;
     const double d13 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double d14 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
+    const double d14 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
     const double d15 = 2.0*bucket_cyl_barrel_e2;
-    const double d16 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
+    const double d16 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
     const double d17 = 2.0*bucket_cyl_barrel_e3;
     const double d18 = 2.0*bucket_cyl_barrel_e0;
     out[0] = 2.0*sin(d0);
@@ -1717,49 +1744,37 @@ static void compute_drivers_jac_digging(const double *q, const double *u, double
     out[2] = -boom_cyl_l_barrel_a00;
     out[3] = -boom_cyl_l_barrel_a10;
     out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = boom_cyl_l_barrel_e0*d1 - d2*d3 + d4*d5;
-    out[6] = boom_cyl_l_barrel_e1*d1 + d2*d5 + d3*d4;
-    out[7] = 2.0*boom_cyl_l_barrel_e1*d4 - d2*d6;
-    out[8] = 2.0*boom_cyl_l_barrel_e1*d2 + d4*d6;
+    out[5] = d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3;
+    out[6] = d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4;
+    out[7] = -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1;
+    out[8] = d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1;
     out[9] = boom_cyl_l_barrel_a00;
     out[10] = boom_cyl_l_barrel_a10;
     out[11] = boom_cyl_l_barrel_a20;
     out[12] = -arm_cyl_barrel_a00;
     out[13] = -arm_cyl_barrel_a10;
     out[14] = -arm_cyl_barrel_a20;
-    out[15] = arm_cyl_barrel_e0*d7 - d8*d9 + d10*d11;
-    out[16] = arm_cyl_barrel_e1*d7 + d8*d11 + d9*d10;
-    out[17] = 2.0*arm_cyl_barrel_e1*d10 - d8*d12;
-    out[18] = 2.0*arm_cyl_barrel_e1*d8 + d10*d12;
+    out[15] = d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9;
+    out[16] = d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10;
+    out[17] = -d8*d12 + 2.0*d10*arm_cyl_barrel_e1;
+    out[18] = d10*d12 + 2.0*d8*arm_cyl_barrel_e1;
     out[19] = arm_cyl_barrel_a00;
     out[20] = arm_cyl_barrel_a10;
     out[21] = arm_cyl_barrel_a20;
     out[22] = -bucket_cyl_barrel_a00;
     out[23] = -bucket_cyl_barrel_a10;
     out[24] = -bucket_cyl_barrel_a20;
-    out[25] = bucket_cyl_barrel_e0*d13 - d14*d15 + d16*d17;
-    out[26] = bucket_cyl_barrel_e1*d13 + d14*d17 + d15*d16;
-    out[27] = 2.0*bucket_cyl_barrel_e1*d16 - d14*d18;
-    out[28] = 2.0*bucket_cyl_barrel_e1*d14 + d16*d18;
+    out[25] = d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15;
+    out[26] = d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16;
+    out[27] = -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1;
+    out[28] = d16*d18 + 2.0*d14*bucket_cyl_barrel_e1;
     out[29] = bucket_cyl_barrel_a00;
     out[30] = bucket_cyl_barrel_a10;
     out[31] = bucket_cyl_barrel_a20;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging'. */
-static void phi_jac_digging(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_digging(q, u, phi + 94);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_joints_jac_part3(q, jac);
-    compute_joints_jac_part4(q, jac);
-    compute_drivers_jac_digging(q, u, jac + 611);
-}
-
 /* nu of the driver rows of case 'digging'. */
-static void compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double u0 = u[0];
@@ -1774,14 +1789,8 @@ static void compute_drivers_nu_digging(const double *q, const double *u, const d
     out[3] = ud3;
 }
 
-/* nu = -Phi_t of case 'digging' (zero in the joint rows). */
-static void nu_digging(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_digging(q, u, ud, nu + 94);
-}
-
 /* gamma of the joint rows (they do not depend on time). Rows 0 to 25. */
-static void compute_joints_gamma_part0(const double *q, const double *v, double *out) {
+void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, const double *v, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
@@ -1835,32 +1844,32 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double v_boom_cyl_r_barrel_e2 = v[33];
     const double v_boom_cyl_r_barrel_e3 = v[34];
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
-    const double upper_a11 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
-    const double boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1);
     const double boom_a02 = 2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a12 = -2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
-    const double boom_a22 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e2;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e3;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3);
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3);
     const double c0 = 4.0*v_upper_e2;
     const double c1 = 4.0*v_upper_e1;
     const double c2 = (195729.0/50000.0)*v_upper_e2;
@@ -1881,17 +1890,17 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c17 = 2.0*boom_e1;
     const double c18 = 4.0*v_upper_e0;
     const double c19 = 4.0*v_upper_e2;
-    const double c20 = 2.0*upper_e0*c18 + 2.0*upper_e2*c19;
+    const double c20 = 2.0*c18*upper_e0 + 2.0*c19*upper_e2;
     const double c21 = 4.0*v_boom_e0;
-    const double c22 = boom_e0*c21;
+    const double c22 = c21*boom_e0;
     const double c23 = 2.0*upper_e0;
     const double c24 = 2.0*v_upper_e0;
     const double c25 = 2.0*v_upper_e2;
-    const double c26 = 2.0*upper_e1*c24 + 4.0*upper_e2*v_upper_e3 + 2.0*upper_e3*c25 + 2.0*c23*v_upper_e1;
+    const double c26 = 2.0*c23*v_upper_e1 + 2.0*c24*upper_e1 + 2.0*c25*upper_e3 + 4.0*upper_e2*v_upper_e3;
     const double c27 = 2.0*boom_e3;
     const double c28 = 2.0*boom_e2;
     const double c29 = c16*v_boom_e2 + c28*v_boom_e0;
-    const double c30 = 4.0*upper_e1*v_upper_e2 + 4.0*upper_e2*v_upper_e1 - 2.0*upper_e3*c24 - 2.0*c23*v_upper_e3;
+    const double c30 = -2.0*c23*v_upper_e3 - 2.0*c24*upper_e3 + 4.0*upper_e1*v_upper_e2 + 4.0*upper_e2*v_upper_e1;
     const double c31 = 2.0*upper_a21;
     const double c32 = 2.0*boom_a00;
     const double c33 = 2.0*boom_a20;
@@ -1933,47 +1942,47 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c69 = 2.0*boom_cyl_l_rod_e0;
     const double c70 = 2.0*v_boom_cyl_l_rod_e0;
     const double c71 = 4.0*v_boom_cyl_l_barrel_e0;
-    const double c72 = boom_cyl_l_barrel_e0*c71;
+    const double c72 = c71*boom_cyl_l_barrel_e0;
     const double c73 = 4.0*v_boom_cyl_l_barrel_e1;
-    const double c74 = 2.0*boom_cyl_l_barrel_e1*c73 + 2.0*c72;
+    const double c74 = 2.0*c72 + 2.0*c73*boom_cyl_l_barrel_e1;
     const double c75 = 4.0*v_boom_cyl_l_rod_e0;
-    const double c76 = boom_cyl_l_rod_e0*c75;
-    const double c77 = boom_cyl_l_barrel_e1*c65;
-    const double c78 = boom_cyl_l_barrel_e2*c57;
-    const double c79 = boom_cyl_l_barrel_e0*c64 + boom_cyl_l_barrel_e3*c58;
+    const double c76 = c75*boom_cyl_l_rod_e0;
+    const double c77 = c65*boom_cyl_l_barrel_e1;
+    const double c78 = c57*boom_cyl_l_barrel_e2;
+    const double c79 = c58*boom_cyl_l_barrel_e3 + c64*boom_cyl_l_barrel_e0;
     const double c80 = 2.0*c77 + 2.0*c78 + 2.0*c79;
     const double c81 = 2.0*v_boom_cyl_l_rod_e2;
-    const double c82 = boom_cyl_l_rod_e1*c70 + c69*v_boom_cyl_l_rod_e1;
-    const double c83 = boom_cyl_l_barrel_e1*c64;
-    const double c84 = boom_cyl_l_barrel_e3*c57;
-    const double c85 = boom_cyl_l_barrel_e0*c65 + boom_cyl_l_barrel_e2*c58;
-    const double c86 = 2.0*c83 + 2.0*c84 - 2.0*c85;
+    const double c82 = c69*v_boom_cyl_l_rod_e1 + c70*boom_cyl_l_rod_e1;
+    const double c83 = c64*boom_cyl_l_barrel_e1;
+    const double c84 = c57*boom_cyl_l_barrel_e3;
+    const double c85 = c58*boom_cyl_l_barrel_e2 + c65*boom_cyl_l_barrel_e0;
+    const double c86 = -2.0*c85 + 2.0*c83 + 2.0*c84;
     const double c87 = 2.0*boom_cyl_l_barrel_a10;
     const double c88 = 4.0*v_boom_cyl_l_rod_e3;
     const double c89 = boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e3;
     const double c90 = boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e1;
-    const double c91 = boom_cyl_l_rod_e2*c70 + c69*v_boom_cyl_l_rod_e2 + 2.0*c89 + 2.0*c90;
-    const double c92 = boom_cyl_l_rod_e3*c88 + c76;
-    const double c93 = 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2 - c82;
+    const double c91 = 2.0*c89 + 2.0*c90 + c69*v_boom_cyl_l_rod_e2 + c70*boom_cyl_l_rod_e2;
+    const double c92 = c76 + c88*boom_cyl_l_rod_e3;
+    const double c93 = -c82 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2;
     const double c94 = 4.0*v_boom_cyl_l_barrel_e2;
-    const double c95 = boom_cyl_l_barrel_e2*c94 + c72;
-    const double c96 = -v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y;
-    const double c97 = boom_cyl_l_barrel_x*c65 - 2.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e2;
-    const double c98 = boom_cyl_l_barrel_x*c58 - boom_cyl_l_rod_x*c58;
-    const double c99 = -c77 - c78 + c79;
-    const double c100 = boom_cyl_l_barrel_e2*c64;
-    const double c101 = boom_cyl_l_barrel_e3*c65;
-    const double c102 = boom_cyl_l_barrel_e0*c57 + boom_cyl_l_barrel_e1*c58;
+    const double c95 = c72 + c94*boom_cyl_l_barrel_e2;
+    const double c96 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y;
+    const double c97 = c65*boom_cyl_l_barrel_x - 2.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e2;
+    const double c98 = c58*boom_cyl_l_barrel_x - c58*boom_cyl_l_rod_x;
+    const double c99 = c79 - c77 - c78;
+    const double c100 = c64*boom_cyl_l_barrel_e2;
+    const double c101 = c65*boom_cyl_l_barrel_e3;
+    const double c102 = c57*boom_cyl_l_barrel_e0 + c58*boom_cyl_l_barrel_e1;
     const double c103 = c100 + c101 + c102;
     const double c104 = -c99;
-    const double c105 = -v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
-    const double c106 = -v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z;
-    const double c107 = boom_cyl_l_barrel_x*c64 - boom_cyl_l_rod_x*c64;
-    const double c108 = boom_cyl_l_barrel_x*c57 - 2.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1;
+    const double c105 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x;
+    const double c106 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z;
+    const double c107 = c64*boom_cyl_l_barrel_x - c64*boom_cyl_l_rod_x;
+    const double c108 = c57*boom_cyl_l_barrel_x - 2.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1;
     const double c109 = 4.0*v_boom_cyl_l_barrel_e3;
-    const double c110 = boom_cyl_l_barrel_e3*c109 + c72;
+    const double c110 = c72 + c109*boom_cyl_l_barrel_e3;
     const double c111 = c83 + c84 + c85;
-    const double c112 = -c100 - c101 + c102;
+    const double c112 = c102 - c100 - c101;
     const double c113 = -c112;
     const double c114 = (2.0)*boom_cyl_l_rod_a02;
     const double c115 = (2.0)*boom_cyl_l_rod_a22;
@@ -2026,29 +2035,33 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     out[4] = -c0*v_upper_e3 - c1*v_upper_e0;
     out[5] = -c2*v_upper_e0 - c3*v_upper_e1 - v_upper_e0*(c2 + (22767.0/25000.0)*v_upper_e0) - v_upper_e1*(c3 + (22767.0/25000.0)*v_upper_e1);
     out[6] = -v_upper_e0*(-195729.0/50000.0*v_upper_e1 + (22767.0/50000.0)*v_upper_e3) - v_upper_e1*(-c4 - 195729.0/50000.0*v_upper_e0) - v_upper_e2*(c3 + c5) - v_upper_e3*(c2 + (22767.0/50000.0)*v_upper_e0);
-    out[7] = (22767.0/50000.0)*v_upper_e0*v_upper_e2 - v_upper_e0*(c4 + (195729.0/25000.0)*v_upper_e0) - 22767.0/50000.0*v_upper_e1*v_upper_e3 - v_upper_e3*(c5 + (195729.0/25000.0)*v_upper_e3);
-    out[8] = -c20*(2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2 - c16*v_boom_e1 - c17*v_boom_e0) - c26*(4.0*boom_e3*v_boom_e3 + c22) - c30*(c17*v_boom_e3 + c27*v_boom_e1 + c29) - v_upper_e0*(c12*v_upper_e0 - c6*v_upper_e3 + c7*v_upper_e1) - v_upper_e1*(c6*v_upper_e2 + c7*v_upper_e0) - v_upper_e2*(c12*v_upper_e2 + c6*v_upper_e1 + c7*v_upper_e3) - v_upper_e3*(2.0*boom_a22*v_upper_e2 - c6*v_upper_e0) - v_boom_e0*(-c13 + c14*v_boom_e0 + c8*v_boom_e2) - v_boom_e1*(c8*v_boom_e3 - c10) - v_boom_e2*(c8*v_boom_e0 + c11) - v_boom_e3*(c14*v_boom_e3 + c15 + c8*v_boom_e1);
-    out[9] = -c20*(c16*v_boom_e3 + c17*v_boom_e2 + c27*v_boom_e0 + c28*v_boom_e1) - c26*(2.0*boom_e1*v_boom_e3 + 2.0*boom_e3*v_boom_e1 - c29) - c30*(boom_e1*c34 + c22) - v_upper_e0*(boom_a10*c18 - c32*v_upper_e3 + c33*v_upper_e1) - v_upper_e1*(boom_a00*c25 + boom_a20*c24) - v_upper_e2*(boom_a10*c19 + c32*v_upper_e1 + c33*v_upper_e3) - v_upper_e3*(-boom_a00*c24 + 2.0*boom_a20*v_upper_e2) - v_boom_e0*(upper_a01*c21 - c31*v_boom_e2 + c11) - v_boom_e1*(upper_a01*c34 + c15 + c31*v_boom_e3) - v_boom_e2*(c13 - c31*v_boom_e0) - v_boom_e3*(c31*v_boom_e1 + c10);
+    out[7] = -v_upper_e0*(c4 + (195729.0/25000.0)*v_upper_e0) - v_upper_e3*(c5 + (195729.0/25000.0)*v_upper_e3) - 22767.0/50000.0*v_upper_e1*v_upper_e3 + (22767.0/50000.0)*v_upper_e0*v_upper_e2;
+    out[8] = -c20*(-c16*v_boom_e1 - c17*v_boom_e0 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - c26*(c22 + 4.0*boom_e3*v_boom_e3) - c30*(c29 + c17*v_boom_e3 + c27*v_boom_e1) - v_upper_e0*(c12*v_upper_e0 + c7*v_upper_e1 - c6*v_upper_e3) - v_upper_e1*(c6*v_upper_e2 + c7*v_upper_e0) - v_upper_e2*(c12*v_upper_e2 + c6*v_upper_e1 + c7*v_upper_e3) - v_upper_e3*(-c6*v_upper_e0 + 2.0*boom_a22*v_upper_e2) - v_boom_e0*(-c13 + c14*v_boom_e0 + c8*v_boom_e2) - v_boom_e1*(-c10 + c8*v_boom_e3) - v_boom_e2*(c11 + c8*v_boom_e0) - v_boom_e3*(c15 + c14*v_boom_e3 + c8*v_boom_e1);
+    out[9] = -c20*(c16*v_boom_e3 + c17*v_boom_e2 + c27*v_boom_e0 + c28*v_boom_e1) - c26*(-c29 + 2.0*boom_e1*v_boom_e3 + 2.0*boom_e3*v_boom_e1) - c30*(c22 + c34*boom_e1) - v_upper_e0*(c18*boom_a10 + c33*v_upper_e1 - c32*v_upper_e3) - v_upper_e1*(c24*boom_a20 + c25*boom_a00) - v_upper_e2*(c19*boom_a10 + c32*v_upper_e1 + c33*v_upper_e3) - v_upper_e3*(-c24*boom_a00 + 2.0*boom_a20*v_upper_e2) - v_boom_e0*(c11 + c21*upper_a01 - c31*v_boom_e2) - v_boom_e1*(c15 + c31*v_boom_e3 + c34*upper_a01) - v_boom_e2*(c13 - c31*v_boom_e0) - v_boom_e3*(c10 + c31*v_boom_e1);
     out[10] = -v_upper_e0*(c39 + c40 + (8614.0/3125.0)*v_upper_e0) - v_upper_e1*(c41 + c42 + (8614.0/3125.0)*v_upper_e1) - v_upper_e2*(c35 + c36) - v_upper_e3*(-c37 - c38);
     out[11] = -v_upper_e0*(c45 + c38 + (32.0/25.0)*v_upper_e0) - v_upper_e1*(-c35 - c43) - v_upper_e2*(c46 + c42 + (32.0/25.0)*v_upper_e2) - v_upper_e3*(c39 + c44);
     out[12] = -v_upper_e0*(c36 + c43 + (67739.0/12500.0)*v_upper_e0) - v_upper_e1*(c45 + c37) - v_upper_e2*(-c40 - c44) - v_upper_e3*(c46 + c41 + (67739.0/12500.0)*v_upper_e3);
-    out[13] = -v_upper_e0*(-c47*v_upper_e3 + c48*v_upper_e1 + c51*v_upper_e0) - v_upper_e1*(c47*v_upper_e2 + c48*v_upper_e0) - v_upper_e2*(c47*v_upper_e1 + c48*v_upper_e3 + c51*v_upper_e2) - v_upper_e3*(2.0*boom_cyl_l_barrel_a22*v_upper_e2 - c47*v_upper_e0) - v_boom_cyl_l_barrel_e0*(c49*v_boom_cyl_l_barrel_e2 - c50*v_boom_cyl_l_barrel_e1 + c52*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(c49*v_boom_cyl_l_barrel_e3 - c50*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c49*v_boom_cyl_l_barrel_e0 + c50*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(c49*v_boom_cyl_l_barrel_e1 + c50*v_boom_cyl_l_barrel_e2 + c52*v_boom_cyl_l_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2 - c53*v_boom_cyl_l_barrel_e1 - c54*v_boom_cyl_l_barrel_e0) - 2.0*(4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + 4.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3)*(upper_e1*c56 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2 + c55*v_upper_e1) - 2.0*(2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1 - upper_e3*c56 - c55*v_upper_e3)*(2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e1 + c53*v_boom_cyl_l_barrel_e2 + c54*v_boom_cyl_l_barrel_e3);
-    out[14] = -c74*(2.0*boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e1 - boom_cyl_l_rod_e3*c70 - c69*v_boom_cyl_l_rod_e3) - c80*(4.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e2 + c76) - c86*(2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + boom_cyl_l_rod_e3*c81 + c82) - v_boom_cyl_l_barrel_e0*(boom_cyl_l_rod_a11*c64 - boom_cyl_l_rod_a21*c65 + c63*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(boom_cyl_l_rod_a11*c65 + boom_cyl_l_rod_a21*c64 + c63*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(boom_cyl_l_rod_a11*c57 - boom_cyl_l_rod_a21*c58) - v_boom_cyl_l_barrel_e3*(boom_cyl_l_rod_a11*c58 + boom_cyl_l_rod_a21*c57) - v_boom_cyl_l_rod_e0*(c67*v_boom_cyl_l_rod_e0 + c61*v_boom_cyl_l_rod_e1 - c66) - v_boom_cyl_l_rod_e1*(c60 + c61*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c67*v_boom_cyl_l_rod_e2 + c68 + c61*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_e2 - c62);
-    out[15] = -c74*c91 - c80*c93 - c86*c92 - v_boom_cyl_l_barrel_e0*(boom_cyl_l_rod_a02*c71 + boom_cyl_l_rod_a12*c64 - boom_cyl_l_rod_a22*c65) - v_boom_cyl_l_barrel_e1*(boom_cyl_l_rod_a02*c73 + boom_cyl_l_rod_a12*c65 + boom_cyl_l_rod_a22*c64) - v_boom_cyl_l_barrel_e2*(boom_cyl_l_rod_a12*c57 - boom_cyl_l_rod_a22*c58) - v_boom_cyl_l_barrel_e3*(boom_cyl_l_rod_a12*c58 + boom_cyl_l_rod_a22*c57) - v_boom_cyl_l_rod_e0*(boom_cyl_l_barrel_a20*c75 + c60 - c87*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(-boom_cyl_l_barrel_a10*c70 + c66) - v_boom_cyl_l_rod_e2*(c87*v_boom_cyl_l_rod_e3 + c62) - v_boom_cyl_l_rod_e3*(boom_cyl_l_barrel_a10*c81 + boom_cyl_l_barrel_a20*c88 + c68);
-    out[16] = -c95*c96 + c95*v_boom_cyl_l_barrel_y - c95*v_boom_cyl_l_rod_y - c99*v_boom_cyl_l_barrel_x - c103*c106 + c103*v_boom_cyl_l_barrel_z - c103*v_boom_cyl_l_rod_z - c104*c105 - c104*v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_e0*(-boom_cyl_l_barrel_y*c71 - boom_cyl_l_barrel_z*c57 + boom_cyl_l_rod_y*c71 + boom_cyl_l_rod_z*c57 + c107) - v_boom_cyl_l_barrel_e1*(-boom_cyl_l_barrel_z*c58 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0 - c97) - v_boom_cyl_l_barrel_e2*(-boom_cyl_l_barrel_y*c94 - boom_cyl_l_barrel_z*c64 + 4.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 - c108) - v_boom_cyl_l_barrel_e3*(-boom_cyl_l_barrel_z*c65 + boom_cyl_l_rod_z*c65 + c98);
-    out[17] = -c96*c113 - c105*c111 - c106*c110 + c110*v_boom_cyl_l_barrel_z - c110*v_boom_cyl_l_rod_z + c111*v_boom_cyl_l_barrel_x - c111*v_boom_cyl_l_rod_x - c112*v_boom_cyl_l_barrel_y - c113*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_e0*(2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e1 - boom_cyl_l_barrel_z*c71 - boom_cyl_l_rod_y*c57 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0 - c97) - v_boom_cyl_l_barrel_e1*(2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e0 - boom_cyl_l_rod_y*c58 - c107) - v_boom_cyl_l_barrel_e2*(-boom_cyl_l_barrel_y*c64 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 - c98) - v_boom_cyl_l_barrel_e3*(-boom_cyl_l_barrel_y*c65 - boom_cyl_l_barrel_z*c109 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 - c108);
-    out[18] = -c91*((2.0)*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e2 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e1 - boom_cyl_l_barrel_e3*c123 - c122*v_boom_cyl_l_barrel_e3) - c92*(boom_cyl_l_barrel_e1*c123 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2 + c122*v_boom_cyl_l_barrel_e1) - c93*((4.0)*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + (4.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - c95*(-boom_cyl_l_rod_e1*c121 + (2.0)*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + (2.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2 - c120*v_boom_cyl_l_rod_e1) - c103*((4.0)*boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0 + (4.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3) - c104*(boom_cyl_l_rod_e2*c121 + (2.0)*c89 + (2.0)*c90 + c120*v_boom_cyl_l_rod_e2) - v_boom_cyl_l_barrel_e0*(-c114*v_boom_cyl_l_barrel_e3 + c115*v_boom_cyl_l_barrel_e1 + c118*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(c114*v_boom_cyl_l_barrel_e2 + c115*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c114*v_boom_cyl_l_barrel_e1 + c115*v_boom_cyl_l_barrel_e3 + c118*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*((2.0)*boom_cyl_l_rod_a22*v_boom_cyl_l_barrel_e2 - c114*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_rod_e0*(c116*v_boom_cyl_l_rod_e2 - c117*v_boom_cyl_l_rod_e1 + c119*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e1*(c116*v_boom_cyl_l_rod_e3 - c117*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c116*v_boom_cyl_l_rod_e0 + c117*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c116*v_boom_cyl_l_rod_e1 + c117*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e3);
+    out[13] = -v_upper_e0*(c48*v_upper_e1 + c51*v_upper_e0 - c47*v_upper_e3) - v_upper_e1*(c47*v_upper_e2 + c48*v_upper_e0) - v_upper_e2*(c47*v_upper_e1 + c48*v_upper_e3 + c51*v_upper_e2) - v_upper_e3*(-c47*v_upper_e0 + 2.0*boom_cyl_l_barrel_a22*v_upper_e2) - v_boom_cyl_l_barrel_e0*(c49*v_boom_cyl_l_barrel_e2 + c52*v_boom_cyl_l_barrel_e0 - c50*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e1*(c49*v_boom_cyl_l_barrel_e3 - c50*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c49*v_boom_cyl_l_barrel_e0 + c50*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(c49*v_boom_cyl_l_barrel_e1 + c50*v_boom_cyl_l_barrel_e2 + c52*v_boom_cyl_l_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c53*v_boom_cyl_l_barrel_e1 - c54*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - 2.0*(4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + 4.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3)*(c55*v_upper_e1 + c56*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c53*v_boom_cyl_l_barrel_e2 + c54*v_boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e1)*(-c55*v_upper_e3 - c56*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1);
+    out[14] = -c74*(-c69*v_boom_cyl_l_rod_e3 - c70*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e1) - c80*(c76 + 4.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e2) - c86*(c82 + c81*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_barrel_e0*(c63*v_boom_cyl_l_barrel_e0 + c64*boom_cyl_l_rod_a11 - c65*boom_cyl_l_rod_a21) - v_boom_cyl_l_barrel_e1*(c63*v_boom_cyl_l_barrel_e1 + c64*boom_cyl_l_rod_a21 + c65*boom_cyl_l_rod_a11) - v_boom_cyl_l_barrel_e2*(c57*boom_cyl_l_rod_a11 - c58*boom_cyl_l_rod_a21) - v_boom_cyl_l_barrel_e3*(c57*boom_cyl_l_rod_a21 + c58*boom_cyl_l_rod_a11) - v_boom_cyl_l_rod_e0*(-c66 + c67*v_boom_cyl_l_rod_e0 + c61*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c60 + c61*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c68 + c67*v_boom_cyl_l_rod_e2 + c61*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(-c62 + 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_e2);
+    out[15] = -c74*c91 - c80*c93 - c86*c92 - v_boom_cyl_l_barrel_e0*(c71*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a12 - c65*boom_cyl_l_rod_a22) - v_boom_cyl_l_barrel_e1*(c73*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a22 + c65*boom_cyl_l_rod_a12) - v_boom_cyl_l_barrel_e2*(c57*boom_cyl_l_rod_a12 - c58*boom_cyl_l_rod_a22) - v_boom_cyl_l_barrel_e3*(c57*boom_cyl_l_rod_a22 + c58*boom_cyl_l_rod_a12) - v_boom_cyl_l_rod_e0*(c60 + c75*boom_cyl_l_barrel_a20 - c87*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c66 - c70*boom_cyl_l_barrel_a10) - v_boom_cyl_l_rod_e2*(c62 + c87*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c68 + c81*boom_cyl_l_barrel_a10 + c88*boom_cyl_l_barrel_a20);
+    out[16] = c95*v_boom_cyl_l_barrel_y + c103*v_boom_cyl_l_barrel_z - c95*c96 - c95*v_boom_cyl_l_rod_y - c99*v_boom_cyl_l_barrel_x - c103*c106 - c103*v_boom_cyl_l_rod_z - c104*c105 - c104*v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_e0*(c107 + c57*boom_cyl_l_rod_z + c71*boom_cyl_l_rod_y - c57*boom_cyl_l_barrel_z - c71*boom_cyl_l_barrel_y) - v_boom_cyl_l_barrel_e1*(-c97 - c58*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c108 - c94*boom_cyl_l_barrel_y - c64*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(c98 + c65*boom_cyl_l_rod_z - c65*boom_cyl_l_barrel_z);
+    out[17] = c110*v_boom_cyl_l_barrel_z + c111*v_boom_cyl_l_barrel_x - c96*c113 - c105*c111 - c106*c110 - c110*v_boom_cyl_l_rod_z - c111*v_boom_cyl_l_rod_x - c112*v_boom_cyl_l_barrel_y - c113*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_e0*(-c97 - c57*boom_cyl_l_rod_y - c71*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e1 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c107 - c58*boom_cyl_l_rod_y + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c98 - c64*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(-c108 - c109*boom_cyl_l_barrel_z - c65*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3);
+    out[18] = -c91*(-c122*v_boom_cyl_l_barrel_e3 - c123*boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e2 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e1) - c92*(c122*v_boom_cyl_l_barrel_e1 + c123*boom_cyl_l_barrel_e1 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - c93*((4.0)*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + (4.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - c95*(-c120*v_boom_cyl_l_rod_e1 - c121*boom_cyl_l_rod_e1 + (2.0)*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + (2.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2) - c103*((4.0)*boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0 + (4.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3) - c104*((2.0)*c89 + (2.0)*c90 + c120*v_boom_cyl_l_rod_e2 + c121*boom_cyl_l_rod_e2) - v_boom_cyl_l_barrel_e0*(c115*v_boom_cyl_l_barrel_e1 + c118*v_boom_cyl_l_barrel_e0 - c114*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e1*(c114*v_boom_cyl_l_barrel_e2 + c115*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c114*v_boom_cyl_l_barrel_e1 + c115*v_boom_cyl_l_barrel_e3 + c118*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(-c114*v_boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_rod_a22*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_rod_e0*(c116*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e0 - c117*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c116*v_boom_cyl_l_rod_e3 - c117*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c116*v_boom_cyl_l_rod_e0 + c117*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c116*v_boom_cyl_l_rod_e1 + c117*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e3);
     out[19] = -v_boom_e0*(-c128 - c129 - 139283.0/25000.0*v_boom_e0) - v_boom_e1*(-c130 - c131 - 139283.0/25000.0*v_boom_e1) - v_boom_e2*(-c124 - c125) - v_boom_e3*(c126 + c127);
     out[20] = -v_boom_e0*(-c134 - c127 - 32.0/25.0*v_boom_e0) - v_boom_e1*(c124 + c132) - v_boom_e2*(-c135 - c131 - 32.0/25.0*v_boom_e2) - v_boom_e3*(-c128 - c133);
     out[21] = -v_boom_e0*(-c125 - c132 - 8.007688*v_boom_e0) - v_boom_e1*(-c134 - c126) - v_boom_e2*(c129 + c133) - v_boom_e3*(-c135 - c130 - 8.007688*v_boom_e3);
     out[22] = -v_upper_e0*(c140 + c141 + (8614.0/3125.0)*v_upper_e0) - v_upper_e1*(c142 + c143 + (8614.0/3125.0)*v_upper_e1) - v_upper_e2*(c136 - c137) - v_upper_e3*(c138 + c139);
-    out[23] = -v_upper_e0*(-c146 - c139 - 32.0/25.0*v_upper_e0) - v_upper_e1*(-c136 + c144) - v_upper_e2*(c147 + c143 - 32.0/25.0*v_upper_e2) - v_upper_e3*(c140 + c145);
+    out[23] = -v_upper_e0*(-c146 - c139 - 32.0/25.0*v_upper_e0) - v_upper_e1*(c144 - c136) - v_upper_e2*(c147 + c143 - 32.0/25.0*v_upper_e2) - v_upper_e3*(c140 + c145);
     out[24] = -v_upper_e0*(-c137 - c144 + (67739.0/12500.0)*v_upper_e0) - v_upper_e1*(-c146 - c138) - v_upper_e2*(-c141 - c145) - v_upper_e3*(c147 + c142 + (67739.0/12500.0)*v_upper_e3);
-    out[25] = -v_upper_e0*(-c148*v_upper_e3 + c149*v_upper_e1 + c152*v_upper_e0) - v_upper_e1*(c148*v_upper_e2 + c149*v_upper_e0) - v_upper_e2*(c148*v_upper_e1 + c149*v_upper_e3 + c152*v_upper_e2) - v_upper_e3*(2.0*boom_cyl_r_barrel_a22*v_upper_e2 - c148*v_upper_e0) - v_boom_cyl_r_barrel_e0*(c150*v_boom_cyl_r_barrel_e2 - c151*v_boom_cyl_r_barrel_e1 + c153*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(c150*v_boom_cyl_r_barrel_e3 - c151*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c150*v_boom_cyl_r_barrel_e0 + c151*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c150*v_boom_cyl_r_barrel_e1 + c151*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2 - c154*v_boom_cyl_r_barrel_e1 - c155*v_boom_cyl_r_barrel_e0) - 2.0*(4.0*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(upper_e1*c157 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2 + c156*v_upper_e1) - 2.0*(2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1 - upper_e3*c157 - c156*v_upper_e3)*(2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1 + c154*v_boom_cyl_r_barrel_e2 + c155*v_boom_cyl_r_barrel_e3);
+    out[25] = -v_upper_e0*(c149*v_upper_e1 + c152*v_upper_e0 - c148*v_upper_e3) - v_upper_e1*(c148*v_upper_e2 + c149*v_upper_e0) - v_upper_e2*(c148*v_upper_e1 + c149*v_upper_e3 + c152*v_upper_e2) - v_upper_e3*(-c148*v_upper_e0 + 2.0*boom_cyl_r_barrel_a22*v_upper_e2) - v_boom_cyl_r_barrel_e0*(c150*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e0 - c151*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e1*(c150*v_boom_cyl_r_barrel_e3 - c151*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c150*v_boom_cyl_r_barrel_e0 + c151*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c150*v_boom_cyl_r_barrel_e1 + c151*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c154*v_boom_cyl_r_barrel_e1 - c155*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - 2.0*(4.0*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(c156*v_upper_e1 + c157*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c154*v_boom_cyl_r_barrel_e2 + c155*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1)*(-c156*v_upper_e3 - c157*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1);
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 2
+
 /* gamma of the joint rows (they do not depend on time). Rows 26 to 50. */
-static void compute_joints_gamma_part1(const double *q, const double *v, double *out) {
+void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, const double *v, double *out) {
     const double boom_e0 = q[10];
     const double boom_e1 = q[11];
     const double boom_e2 = q[12];
@@ -2122,41 +2135,41 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double v_arm_cyl_rod_e2 = v[61];
     const double v_arm_cyl_rod_e3 = v[62];
     const double boom_a01 = -2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
-    const double boom_a11 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2);
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) - 1.0;
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2);
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e2;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e3;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3) - 1.0;
-    const double arm_a00 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3);
+    const double arm_a00 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1);
     const double arm_a02 = 2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
     const double arm_a10 = 2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
     const double arm_a12 = -2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
     const double arm_a20 = -2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
-    const double arm_a22 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3) - 1.0;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3);
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e2;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e3;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3);
     const double c158 = 2.0*v_boom_cyl_r_barrel_e1;
     const double c159 = 2.0*v_boom_cyl_r_barrel_e0;
     const double c160 = 2.0*boom_cyl_r_barrel_a00;
@@ -2172,47 +2185,47 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double c170 = 2.0*boom_cyl_r_rod_e0;
     const double c171 = 2.0*v_boom_cyl_r_rod_e0;
     const double c172 = 4.0*v_boom_cyl_r_barrel_e0;
-    const double c173 = boom_cyl_r_barrel_e0*c172;
+    const double c173 = c172*boom_cyl_r_barrel_e0;
     const double c174 = 4.0*v_boom_cyl_r_barrel_e1;
-    const double c175 = 2.0*boom_cyl_r_barrel_e1*c174 + 2.0*c173;
+    const double c175 = 2.0*c173 + 2.0*c174*boom_cyl_r_barrel_e1;
     const double c176 = 4.0*v_boom_cyl_r_rod_e0;
-    const double c177 = boom_cyl_r_rod_e0*c176;
-    const double c178 = boom_cyl_r_barrel_e1*c166;
-    const double c179 = boom_cyl_r_barrel_e2*c158;
-    const double c180 = boom_cyl_r_barrel_e0*c165 + boom_cyl_r_barrel_e3*c159;
+    const double c177 = c176*boom_cyl_r_rod_e0;
+    const double c178 = c166*boom_cyl_r_barrel_e1;
+    const double c179 = c158*boom_cyl_r_barrel_e2;
+    const double c180 = c159*boom_cyl_r_barrel_e3 + c165*boom_cyl_r_barrel_e0;
     const double c181 = 2.0*c178 + 2.0*c179 + 2.0*c180;
     const double c182 = 2.0*v_boom_cyl_r_rod_e2;
-    const double c183 = boom_cyl_r_rod_e1*c171 + c170*v_boom_cyl_r_rod_e1;
-    const double c184 = boom_cyl_r_barrel_e1*c165;
-    const double c185 = boom_cyl_r_barrel_e3*c158;
-    const double c186 = boom_cyl_r_barrel_e0*c166 + boom_cyl_r_barrel_e2*c159;
-    const double c187 = 2.0*c184 + 2.0*c185 - 2.0*c186;
+    const double c183 = c170*v_boom_cyl_r_rod_e1 + c171*boom_cyl_r_rod_e1;
+    const double c184 = c165*boom_cyl_r_barrel_e1;
+    const double c185 = c158*boom_cyl_r_barrel_e3;
+    const double c186 = c159*boom_cyl_r_barrel_e2 + c166*boom_cyl_r_barrel_e0;
+    const double c187 = -2.0*c186 + 2.0*c184 + 2.0*c185;
     const double c188 = 2.0*boom_cyl_r_barrel_a10;
     const double c189 = 4.0*v_boom_cyl_r_rod_e3;
     const double c190 = boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e3;
     const double c191 = boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e1;
-    const double c192 = boom_cyl_r_rod_e2*c171 + c170*v_boom_cyl_r_rod_e2 + 2.0*c190 + 2.0*c191;
-    const double c193 = boom_cyl_r_rod_e3*c189 + c177;
-    const double c194 = 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2 - c183;
+    const double c192 = 2.0*c190 + 2.0*c191 + c170*v_boom_cyl_r_rod_e2 + c171*boom_cyl_r_rod_e2;
+    const double c193 = c177 + c189*boom_cyl_r_rod_e3;
+    const double c194 = -c183 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2;
     const double c195 = 4.0*v_boom_cyl_r_barrel_e2;
-    const double c196 = boom_cyl_r_barrel_e2*c195 + c173;
-    const double c197 = -v_boom_cyl_r_barrel_y + v_boom_cyl_r_rod_y;
-    const double c198 = boom_cyl_r_barrel_x*c166 - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2;
-    const double c199 = boom_cyl_r_barrel_x*c159 - boom_cyl_r_rod_x*c159;
-    const double c200 = -c178 - c179 + c180;
-    const double c201 = boom_cyl_r_barrel_e2*c165;
-    const double c202 = boom_cyl_r_barrel_e3*c166;
-    const double c203 = boom_cyl_r_barrel_e0*c158 + boom_cyl_r_barrel_e1*c159;
+    const double c196 = c173 + c195*boom_cyl_r_barrel_e2;
+    const double c197 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y;
+    const double c198 = c166*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2;
+    const double c199 = c159*boom_cyl_r_barrel_x - c159*boom_cyl_r_rod_x;
+    const double c200 = c180 - c178 - c179;
+    const double c201 = c165*boom_cyl_r_barrel_e2;
+    const double c202 = c166*boom_cyl_r_barrel_e3;
+    const double c203 = c158*boom_cyl_r_barrel_e0 + c159*boom_cyl_r_barrel_e1;
     const double c204 = c201 + c202 + c203;
     const double c205 = -c200;
-    const double c206 = -v_boom_cyl_r_barrel_x + v_boom_cyl_r_rod_x;
-    const double c207 = -v_boom_cyl_r_barrel_z + v_boom_cyl_r_rod_z;
-    const double c208 = boom_cyl_r_barrel_x*c165 - boom_cyl_r_rod_x*c165;
-    const double c209 = boom_cyl_r_barrel_x*c158 - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1;
+    const double c206 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x;
+    const double c207 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z;
+    const double c208 = c165*boom_cyl_r_barrel_x - c165*boom_cyl_r_rod_x;
+    const double c209 = c158*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1;
     const double c210 = 4.0*v_boom_cyl_r_barrel_e3;
-    const double c211 = boom_cyl_r_barrel_e3*c210 + c173;
+    const double c211 = c173 + c210*boom_cyl_r_barrel_e3;
     const double c212 = c184 + c185 + c186;
-    const double c213 = -c201 - c202 + c203;
+    const double c213 = c203 - c201 - c202;
     const double c214 = -c213;
     const double c215 = (2.0)*boom_cyl_r_rod_a02;
     const double c216 = (2.0)*boom_cyl_r_rod_a22;
@@ -2253,17 +2266,17 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double c251 = 2.0*arm_e1;
     const double c252 = 4.0*v_boom_e0;
     const double c253 = 4.0*v_boom_e2;
-    const double c254 = 2.0*boom_e0*c252 + 2.0*boom_e2*c253;
+    const double c254 = 2.0*c252*boom_e0 + 2.0*c253*boom_e2;
     const double c255 = 4.0*v_arm_e0;
-    const double c256 = arm_e0*c255;
+    const double c256 = c255*arm_e0;
     const double c257 = 2.0*boom_e0;
     const double c258 = 2.0*v_boom_e0;
     const double c259 = 2.0*v_boom_e2;
-    const double c260 = 2.0*boom_e1*c258 + 4.0*boom_e2*v_boom_e3 + 2.0*boom_e3*c259 + 2.0*c257*v_boom_e1;
+    const double c260 = 2.0*c257*v_boom_e1 + 2.0*c258*boom_e1 + 2.0*c259*boom_e3 + 4.0*boom_e2*v_boom_e3;
     const double c261 = 2.0*arm_e3;
     const double c262 = 2.0*arm_e2;
     const double c263 = c250*v_arm_e2 + c262*v_arm_e0;
-    const double c264 = 4.0*boom_e1*v_boom_e2 + 4.0*boom_e2*v_boom_e1 - 2.0*boom_e3*c258 - 2.0*c257*v_boom_e3;
+    const double c264 = -2.0*c257*v_boom_e3 - 2.0*c258*boom_e3 + 4.0*boom_e1*v_boom_e2 + 4.0*boom_e2*v_boom_e1;
     const double c265 = 2.0*boom_a21;
     const double c266 = 2.0*arm_a00;
     const double c267 = 2.0*arm_a20;
@@ -2297,47 +2310,47 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double c295 = 2.0*arm_cyl_rod_e0;
     const double c296 = 2.0*v_arm_cyl_rod_e0;
     const double c297 = 4.0*v_arm_cyl_barrel_e0;
-    const double c298 = arm_cyl_barrel_e0*c297;
+    const double c298 = c297*arm_cyl_barrel_e0;
     const double c299 = 4.0*v_arm_cyl_barrel_e1;
-    const double c300 = 2.0*arm_cyl_barrel_e1*c299 + 2.0*c298;
+    const double c300 = 2.0*c298 + 2.0*c299*arm_cyl_barrel_e1;
     const double c301 = 4.0*v_arm_cyl_rod_e0;
-    const double c302 = arm_cyl_rod_e0*c301;
-    const double c303 = arm_cyl_barrel_e1*c291;
-    const double c304 = arm_cyl_barrel_e2*c283;
-    const double c305 = arm_cyl_barrel_e0*c290 + arm_cyl_barrel_e3*c284;
+    const double c302 = c301*arm_cyl_rod_e0;
+    const double c303 = c291*arm_cyl_barrel_e1;
+    const double c304 = c283*arm_cyl_barrel_e2;
+    const double c305 = c284*arm_cyl_barrel_e3 + c290*arm_cyl_barrel_e0;
     const double c306 = 2.0*c303 + 2.0*c304 + 2.0*c305;
     const double c307 = 2.0*v_arm_cyl_rod_e2;
-    const double c308 = arm_cyl_rod_e1*c296 + c295*v_arm_cyl_rod_e1;
-    const double c309 = arm_cyl_barrel_e1*c290;
-    const double c310 = arm_cyl_barrel_e3*c283;
-    const double c311 = arm_cyl_barrel_e0*c291 + arm_cyl_barrel_e2*c284;
-    const double c312 = 2.0*c309 + 2.0*c310 - 2.0*c311;
+    const double c308 = c295*v_arm_cyl_rod_e1 + c296*arm_cyl_rod_e1;
+    const double c309 = c290*arm_cyl_barrel_e1;
+    const double c310 = c283*arm_cyl_barrel_e3;
+    const double c311 = c284*arm_cyl_barrel_e2 + c291*arm_cyl_barrel_e0;
+    const double c312 = -2.0*c311 + 2.0*c309 + 2.0*c310;
     const double c313 = 2.0*arm_cyl_barrel_a10;
     const double c314 = 4.0*v_arm_cyl_rod_e3;
     const double c315 = arm_cyl_rod_e1*v_arm_cyl_rod_e3;
     const double c316 = arm_cyl_rod_e3*v_arm_cyl_rod_e1;
-    const double c317 = arm_cyl_rod_e2*c296 + c295*v_arm_cyl_rod_e2 + 2.0*c315 + 2.0*c316;
-    const double c318 = arm_cyl_rod_e3*c314 + c302;
-    const double c319 = 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e3*v_arm_cyl_rod_e2 - c308;
+    const double c317 = 2.0*c315 + 2.0*c316 + c295*v_arm_cyl_rod_e2 + c296*arm_cyl_rod_e2;
+    const double c318 = c302 + c314*arm_cyl_rod_e3;
+    const double c319 = -c308 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e3*v_arm_cyl_rod_e2;
     const double c320 = 4.0*v_arm_cyl_barrel_e2;
-    const double c321 = arm_cyl_barrel_e2*c320 + c298;
-    const double c322 = -v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c323 = arm_cyl_barrel_x*c291 - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e2;
-    const double c324 = arm_cyl_barrel_x*c284 - arm_cyl_rod_x*c284;
-    const double c325 = -c303 - c304 + c305;
-    const double c326 = arm_cyl_barrel_e2*c290;
-    const double c327 = arm_cyl_barrel_e3*c291;
-    const double c328 = arm_cyl_barrel_e0*c283 + arm_cyl_barrel_e1*c284;
+    const double c321 = c298 + c320*arm_cyl_barrel_e2;
+    const double c322 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y;
+    const double c323 = c291*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e2;
+    const double c324 = c284*arm_cyl_barrel_x - c284*arm_cyl_rod_x;
+    const double c325 = c305 - c303 - c304;
+    const double c326 = c290*arm_cyl_barrel_e2;
+    const double c327 = c291*arm_cyl_barrel_e3;
+    const double c328 = c283*arm_cyl_barrel_e0 + c284*arm_cyl_barrel_e1;
     const double c329 = c326 + c327 + c328;
     const double c330 = -c325;
-    const double c331 = -v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
-    const double c332 = -v_arm_cyl_barrel_z + v_arm_cyl_rod_z;
-    const double c333 = arm_cyl_barrel_x*c290 - arm_cyl_rod_x*c290;
-    const double c334 = arm_cyl_barrel_x*c283 - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1;
+    const double c331 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x;
+    const double c332 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z;
+    const double c333 = c290*arm_cyl_barrel_x - c290*arm_cyl_rod_x;
+    const double c334 = c283*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1;
     const double c335 = 4.0*v_arm_cyl_barrel_e3;
-    const double c336 = arm_cyl_barrel_e3*c335 + c298;
+    const double c336 = c298 + c335*arm_cyl_barrel_e3;
     const double c337 = c309 + c310 + c311;
-    const double c338 = -c326 - c327 + c328;
+    const double c338 = c328 - c326 - c327;
     const double c339 = -c338;
     const double c340 = (2.0)*arm_cyl_rod_a02;
     const double c341 = (2.0)*arm_cyl_rod_a22;
@@ -2353,35 +2366,35 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double c351 = (369691.0/500000.0)*v_arm_e3;
     const double c352 = -393281.0/250000.0*v_arm_e2;
     const double c353 = (393281.0/250000.0)*v_arm_e1;
-    out[26] = -c175*(2.0*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1 - boom_cyl_r_rod_e3*c171 - c170*v_boom_cyl_r_rod_e3) - c181*(4.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2 + c177) - c187*(2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + boom_cyl_r_rod_e3*c182 + c183) - v_boom_cyl_r_barrel_e0*(boom_cyl_r_rod_a11*c165 - boom_cyl_r_rod_a21*c166 + c164*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(boom_cyl_r_rod_a11*c166 + boom_cyl_r_rod_a21*c165 + c164*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e2*(boom_cyl_r_rod_a11*c158 - boom_cyl_r_rod_a21*c159) - v_boom_cyl_r_barrel_e3*(boom_cyl_r_rod_a11*c159 + boom_cyl_r_rod_a21*c158) - v_boom_cyl_r_rod_e0*(c168*v_boom_cyl_r_rod_e0 + c162*v_boom_cyl_r_rod_e1 - c167) - v_boom_cyl_r_rod_e1*(c161 + c162*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c168*v_boom_cyl_r_rod_e2 + c169 + c162*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(2.0*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2 - c163);
-    out[27] = -c175*c192 - c181*c194 - c187*c193 - v_boom_cyl_r_barrel_e0*(boom_cyl_r_rod_a02*c172 + boom_cyl_r_rod_a12*c165 - boom_cyl_r_rod_a22*c166) - v_boom_cyl_r_barrel_e1*(boom_cyl_r_rod_a02*c174 + boom_cyl_r_rod_a12*c166 + boom_cyl_r_rod_a22*c165) - v_boom_cyl_r_barrel_e2*(boom_cyl_r_rod_a12*c158 - boom_cyl_r_rod_a22*c159) - v_boom_cyl_r_barrel_e3*(boom_cyl_r_rod_a12*c159 + boom_cyl_r_rod_a22*c158) - v_boom_cyl_r_rod_e0*(boom_cyl_r_barrel_a20*c176 + c161 - c188*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(-boom_cyl_r_barrel_a10*c171 + c167) - v_boom_cyl_r_rod_e2*(c188*v_boom_cyl_r_rod_e3 + c163) - v_boom_cyl_r_rod_e3*(boom_cyl_r_barrel_a10*c182 + boom_cyl_r_barrel_a20*c189 + c169);
-    out[28] = -c196*c197 + c196*v_boom_cyl_r_barrel_y - c196*v_boom_cyl_r_rod_y - c200*v_boom_cyl_r_barrel_x - c204*c207 + c204*v_boom_cyl_r_barrel_z - c204*v_boom_cyl_r_rod_z - c205*c206 - c205*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(-boom_cyl_r_barrel_y*c172 - boom_cyl_r_barrel_z*c158 + boom_cyl_r_rod_y*c172 + boom_cyl_r_rod_z*c158 + c208) - v_boom_cyl_r_barrel_e1*(-boom_cyl_r_barrel_z*c159 + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0 - c198) - v_boom_cyl_r_barrel_e2*(-boom_cyl_r_barrel_y*c195 - boom_cyl_r_barrel_z*c165 + 4.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 - c209) - v_boom_cyl_r_barrel_e3*(-boom_cyl_r_barrel_z*c166 + boom_cyl_r_rod_z*c166 + c199);
-    out[29] = -c197*c214 - c206*c212 - c207*c211 + c211*v_boom_cyl_r_barrel_z - c211*v_boom_cyl_r_rod_z + c212*v_boom_cyl_r_barrel_x - c212*v_boom_cyl_r_rod_x - c213*v_boom_cyl_r_barrel_y - c214*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 - boom_cyl_r_barrel_z*c172 - boom_cyl_r_rod_y*c158 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0 - c198) - v_boom_cyl_r_barrel_e1*(2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0 - boom_cyl_r_rod_y*c159 - c208) - v_boom_cyl_r_barrel_e2*(-boom_cyl_r_barrel_y*c165 + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3 - c199) - v_boom_cyl_r_barrel_e3*(-boom_cyl_r_barrel_y*c166 - boom_cyl_r_barrel_z*c210 + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 - c209);
-    out[30] = -c192*((2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1 - boom_cyl_r_barrel_e3*c224 - c223*v_boom_cyl_r_barrel_e3) - c193*(boom_cyl_r_barrel_e1*c224 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2 + c223*v_boom_cyl_r_barrel_e1) - c194*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c196*(-boom_cyl_r_rod_e1*c222 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2 - c221*v_boom_cyl_r_rod_e1) - c204*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c205*(boom_cyl_r_rod_e2*c222 + (2.0)*c190 + (2.0)*c191 + c221*v_boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(-c215*v_boom_cyl_r_barrel_e3 + c216*v_boom_cyl_r_barrel_e1 + c219*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(c215*v_boom_cyl_r_barrel_e2 + c216*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c215*v_boom_cyl_r_barrel_e1 + c216*v_boom_cyl_r_barrel_e3 + c219*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*((2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2 - c215*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_rod_e0*(c217*v_boom_cyl_r_rod_e2 - c218*v_boom_cyl_r_rod_e1 + c220*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e1*(c217*v_boom_cyl_r_rod_e3 - c218*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c217*v_boom_cyl_r_rod_e0 + c218*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c217*v_boom_cyl_r_rod_e1 + c218*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e3);
+    out[26] = -c175*(-c170*v_boom_cyl_r_rod_e3 - c171*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1) - c181*(c177 + 4.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - c187*(c183 + c182*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_barrel_e0*(c164*v_boom_cyl_r_barrel_e0 + c165*boom_cyl_r_rod_a11 - c166*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e1*(c164*v_boom_cyl_r_barrel_e1 + c165*boom_cyl_r_rod_a21 + c166*boom_cyl_r_rod_a11) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a11 - c159*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a21 + c159*boom_cyl_r_rod_a11) - v_boom_cyl_r_rod_e0*(-c167 + c168*v_boom_cyl_r_rod_e0 + c162*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c161 + c162*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c169 + c168*v_boom_cyl_r_rod_e2 + c162*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(-c163 + 2.0*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2);
+    out[27] = -c175*c192 - c181*c194 - c187*c193 - v_boom_cyl_r_barrel_e0*(c172*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a12 - c166*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e1*(c174*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a22 + c166*boom_cyl_r_rod_a12) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a12 - c159*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a22 + c159*boom_cyl_r_rod_a12) - v_boom_cyl_r_rod_e0*(c161 + c176*boom_cyl_r_barrel_a20 - c188*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c167 - c171*boom_cyl_r_barrel_a10) - v_boom_cyl_r_rod_e2*(c163 + c188*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c169 + c182*boom_cyl_r_barrel_a10 + c189*boom_cyl_r_barrel_a20);
+    out[28] = c196*v_boom_cyl_r_barrel_y + c204*v_boom_cyl_r_barrel_z - c196*c197 - c196*v_boom_cyl_r_rod_y - c200*v_boom_cyl_r_barrel_x - c204*c207 - c204*v_boom_cyl_r_rod_z - c205*c206 - c205*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(c208 + c158*boom_cyl_r_rod_z + c172*boom_cyl_r_rod_y - c158*boom_cyl_r_barrel_z - c172*boom_cyl_r_barrel_y) - v_boom_cyl_r_barrel_e1*(-c198 - c159*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c209 - c195*boom_cyl_r_barrel_y - c165*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 + 4.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(c199 + c166*boom_cyl_r_rod_z - c166*boom_cyl_r_barrel_z);
+    out[29] = c211*v_boom_cyl_r_barrel_z + c212*v_boom_cyl_r_barrel_x - c197*c214 - c206*c212 - c207*c211 - c211*v_boom_cyl_r_rod_z - c212*v_boom_cyl_r_rod_x - c213*v_boom_cyl_r_barrel_y - c214*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(-c198 - c158*boom_cyl_r_rod_y - c172*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(-c208 - c159*boom_cyl_r_rod_y + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c199 - c165*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(-c209 - c210*boom_cyl_r_barrel_z - c166*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3);
+    out[30] = -c192*(-c223*v_boom_cyl_r_barrel_e3 - c224*boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1) - c193*(c223*v_boom_cyl_r_barrel_e1 + c224*boom_cyl_r_barrel_e1 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - c194*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c196*(-c221*v_boom_cyl_r_rod_e1 - c222*boom_cyl_r_rod_e1 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2) - c204*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c205*((2.0)*c190 + (2.0)*c191 + c221*v_boom_cyl_r_rod_e2 + c222*boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(c216*v_boom_cyl_r_barrel_e1 + c219*v_boom_cyl_r_barrel_e0 - c215*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e1*(c215*v_boom_cyl_r_barrel_e2 + c216*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c215*v_boom_cyl_r_barrel_e1 + c216*v_boom_cyl_r_barrel_e3 + c219*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(-c215*v_boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_rod_e0*(c217*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e0 - c218*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c217*v_boom_cyl_r_rod_e3 - c218*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c217*v_boom_cyl_r_rod_e0 + c218*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c217*v_boom_cyl_r_rod_e1 + c218*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e3);
     out[31] = -v_boom_e0*(-c228 - c229 - 139283.0/25000.0*v_boom_e0) - v_boom_e1*(-c230 - c231 - 139283.0/25000.0*v_boom_e1) - v_boom_e2*(-c225 + (16.0/25.0)*v_boom_e1) - v_boom_e3*(-c226 - c227);
     out[32] = -v_boom_e0*(c227 + c234 + (32.0/25.0)*v_boom_e0) - v_boom_e1*(c225 - c232) - v_boom_e2*(-c235 - c231 + (32.0/25.0)*v_boom_e2) - v_boom_e3*(-c228 - c233);
     out[33] = -v_boom_e0*(c232 - 8.007688*v_boom_e0 + (16.0/25.0)*v_boom_e1) - v_boom_e1*(c226 + c234) - v_boom_e2*(c229 + c233) - v_boom_e3*(-c235 - c230 - 8.007688*v_boom_e3);
     out[34] = -c236*v_boom_e0 - c237*v_boom_e1 - v_boom_e0*(c236 + (23939.0/1250.0)*v_boom_e0) - v_boom_e1*(c237 + (23939.0/1250.0)*v_boom_e1);
     out[35] = -v_boom_e0*(-29959.0/5000.0*v_boom_e1 + (23939.0/2500.0)*v_boom_e3) - v_boom_e1*(-c238 - 29959.0/5000.0*v_boom_e0) - v_boom_e2*(c237 + c239) - v_boom_e3*(c236 + (23939.0/2500.0)*v_boom_e0);
-    out[36] = (23939.0/2500.0)*v_boom_e0*v_boom_e2 - v_boom_e0*(c238 + (29959.0/2500.0)*v_boom_e0) - 23939.0/2500.0*v_boom_e1*v_boom_e3 - v_boom_e3*(c239 + (29959.0/2500.0)*v_boom_e3);
-    out[37] = -c254*(2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2 - c250*v_arm_e1 - c251*v_arm_e0) - c260*(4.0*arm_e3*v_arm_e3 + c256) - c264*(c251*v_arm_e3 + c261*v_arm_e1 + c263) - v_boom_e0*(c246*v_boom_e0 - c240*v_boom_e3 + c241*v_boom_e1) - v_boom_e1*(c240*v_boom_e2 + c241*v_boom_e0) - v_boom_e2*(c246*v_boom_e2 + c240*v_boom_e1 + c241*v_boom_e3) - v_boom_e3*(2.0*arm_a22*v_boom_e2 - c240*v_boom_e0) - v_arm_e0*(-c247 + c248*v_arm_e0 + c242*v_arm_e2) - v_arm_e1*(c242*v_arm_e3 - c244) - v_arm_e2*(c242*v_arm_e0 + c245) - v_arm_e3*(c248*v_arm_e3 + c249 + c242*v_arm_e1);
-    out[38] = -c254*(c250*v_arm_e3 + c251*v_arm_e2 + c261*v_arm_e0 + c262*v_arm_e1) - c260*(2.0*arm_e1*v_arm_e3 + 2.0*arm_e3*v_arm_e1 - c263) - c264*(arm_e1*c268 + c256) - v_boom_e0*(arm_a10*c252 - c266*v_boom_e3 + c267*v_boom_e1) - v_boom_e1*(arm_a00*c259 + arm_a20*c258) - v_boom_e2*(arm_a10*c253 + c266*v_boom_e1 + c267*v_boom_e3) - v_boom_e3*(-arm_a00*c258 + 2.0*arm_a20*v_boom_e2) - v_arm_e0*(boom_a01*c255 - c265*v_arm_e2 + c245) - v_arm_e1*(boom_a01*c268 + c249 + c265*v_arm_e3) - v_arm_e2*(c247 - c265*v_arm_e0) - v_arm_e3*(c265*v_arm_e1 + c244);
+    out[36] = -v_boom_e0*(c238 + (29959.0/2500.0)*v_boom_e0) - v_boom_e3*(c239 + (29959.0/2500.0)*v_boom_e3) - 23939.0/2500.0*v_boom_e1*v_boom_e3 + (23939.0/2500.0)*v_boom_e0*v_boom_e2;
+    out[37] = -c254*(-c250*v_arm_e1 - c251*v_arm_e0 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - c260*(c256 + 4.0*arm_e3*v_arm_e3) - c264*(c263 + c251*v_arm_e3 + c261*v_arm_e1) - v_boom_e0*(c246*v_boom_e0 + c241*v_boom_e1 - c240*v_boom_e3) - v_boom_e1*(c240*v_boom_e2 + c241*v_boom_e0) - v_boom_e2*(c246*v_boom_e2 + c240*v_boom_e1 + c241*v_boom_e3) - v_boom_e3*(-c240*v_boom_e0 + 2.0*arm_a22*v_boom_e2) - v_arm_e0*(-c247 + c248*v_arm_e0 + c242*v_arm_e2) - v_arm_e1*(-c244 + c242*v_arm_e3) - v_arm_e2*(c245 + c242*v_arm_e0) - v_arm_e3*(c249 + c248*v_arm_e3 + c242*v_arm_e1);
+    out[38] = -c254*(c250*v_arm_e3 + c251*v_arm_e2 + c261*v_arm_e0 + c262*v_arm_e1) - c260*(-c263 + 2.0*arm_e1*v_arm_e3 + 2.0*arm_e3*v_arm_e1) - c264*(c256 + c268*arm_e1) - v_boom_e0*(c252*arm_a10 + c267*v_boom_e1 - c266*v_boom_e3) - v_boom_e1*(c258*arm_a20 + c259*arm_a00) - v_boom_e2*(c253*arm_a10 + c266*v_boom_e1 + c267*v_boom_e3) - v_boom_e3*(-c258*arm_a00 + 2.0*arm_a20*v_boom_e2) - v_arm_e0*(c245 + c255*boom_a01 - c265*v_arm_e2) - v_arm_e1*(c249 + c265*v_arm_e3 + c268*boom_a01) - v_arm_e2*(c247 - c265*v_arm_e0) - v_arm_e3*(c244 + c265*v_arm_e1);
     out[39] = -c269*v_boom_e0 - c270*v_boom_e1 - v_boom_e0*(c269 + (183.0/20.0)*v_boom_e0) - v_boom_e1*(c270 + (183.0/20.0)*v_boom_e1);
     out[40] = -v_boom_e0*(-557.0/100.0*v_boom_e1 + (183.0/40.0)*v_boom_e3) - v_boom_e1*(-c271 - 557.0/100.0*v_boom_e0) - v_boom_e2*(c270 + c272) - v_boom_e3*(c269 + (183.0/40.0)*v_boom_e0);
-    out[41] = (183.0/40.0)*v_boom_e0*v_boom_e2 - v_boom_e0*(c271 + (557.0/50.0)*v_boom_e0) - 183.0/40.0*v_boom_e1*v_boom_e3 - v_boom_e3*(c272 + (557.0/50.0)*v_boom_e3);
-    out[42] = -v_boom_e0*(-c273*v_boom_e3 + c274*v_boom_e1 + c277*v_boom_e0) - v_boom_e1*(c273*v_boom_e2 + c274*v_boom_e0) - v_boom_e2*(c273*v_boom_e1 + c274*v_boom_e3 + c277*v_boom_e2) - v_boom_e3*(2.0*arm_cyl_barrel_a22*v_boom_e2 - c273*v_boom_e0) - v_arm_cyl_barrel_e0*(c275*v_arm_cyl_barrel_e2 - c276*v_arm_cyl_barrel_e1 + c278*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(c275*v_arm_cyl_barrel_e3 - c276*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c275*v_arm_cyl_barrel_e0 + c276*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c275*v_arm_cyl_barrel_e1 + c276*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e3) - 2.0*(4.0*boom_e0*v_boom_e0 + 4.0*boom_e2*v_boom_e2)*(2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2 - c279*v_arm_cyl_barrel_e1 - c280*v_arm_cyl_barrel_e0) - 2.0*(4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(boom_e1*c282 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2 + c281*v_boom_e1) - 2.0*(2.0*boom_e1*v_boom_e2 + 2.0*boom_e2*v_boom_e1 - boom_e3*c282 - c281*v_boom_e3)*(2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1 + c279*v_arm_cyl_barrel_e2 + c280*v_arm_cyl_barrel_e3);
-    out[43] = -c300*(2.0*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e1 - arm_cyl_rod_e3*c296 - c295*v_arm_cyl_rod_e3) - c306*(4.0*arm_cyl_rod_e2*v_arm_cyl_rod_e2 + c302) - c312*(2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + arm_cyl_rod_e3*c307 + c308) - v_arm_cyl_barrel_e0*(arm_cyl_rod_a11*c290 - arm_cyl_rod_a21*c291 + c289*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(arm_cyl_rod_a11*c291 + arm_cyl_rod_a21*c290 + c289*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(arm_cyl_rod_a11*c283 - arm_cyl_rod_a21*c284) - v_arm_cyl_barrel_e3*(arm_cyl_rod_a11*c284 + arm_cyl_rod_a21*c283) - v_arm_cyl_rod_e0*(c293*v_arm_cyl_rod_e0 + c287*v_arm_cyl_rod_e1 - c292) - v_arm_cyl_rod_e1*(c286 + c287*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c293*v_arm_cyl_rod_e2 + c294 + c287*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_e2 - c288);
-    out[44] = -c300*c317 - c306*c319 - c312*c318 - v_arm_cyl_barrel_e0*(arm_cyl_rod_a02*c297 + arm_cyl_rod_a12*c290 - arm_cyl_rod_a22*c291) - v_arm_cyl_barrel_e1*(arm_cyl_rod_a02*c299 + arm_cyl_rod_a12*c291 + arm_cyl_rod_a22*c290) - v_arm_cyl_barrel_e2*(arm_cyl_rod_a12*c283 - arm_cyl_rod_a22*c284) - v_arm_cyl_barrel_e3*(arm_cyl_rod_a12*c284 + arm_cyl_rod_a22*c283) - v_arm_cyl_rod_e0*(arm_cyl_barrel_a20*c301 + c286 - c313*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(-arm_cyl_barrel_a10*c296 + c292) - v_arm_cyl_rod_e2*(c313*v_arm_cyl_rod_e3 + c288) - v_arm_cyl_rod_e3*(arm_cyl_barrel_a10*c307 + arm_cyl_barrel_a20*c314 + c294);
-    out[45] = -c321*c322 + c321*v_arm_cyl_barrel_y - c321*v_arm_cyl_rod_y - c325*v_arm_cyl_barrel_x - c329*c332 + c329*v_arm_cyl_barrel_z - c329*v_arm_cyl_rod_z - c330*c331 - c330*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(-arm_cyl_barrel_y*c297 - arm_cyl_barrel_z*c283 + arm_cyl_rod_y*c297 + arm_cyl_rod_z*c283 + c333) - v_arm_cyl_barrel_e1*(-arm_cyl_barrel_z*c284 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0 - c323) - v_arm_cyl_barrel_e2*(-arm_cyl_barrel_y*c320 - arm_cyl_barrel_z*c290 + 4.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 - c334) - v_arm_cyl_barrel_e3*(-arm_cyl_barrel_z*c291 + arm_cyl_rod_z*c291 + c324);
-    out[46] = -c322*c339 - c331*c337 - c332*c336 + c336*v_arm_cyl_barrel_z - c336*v_arm_cyl_rod_z + c337*v_arm_cyl_barrel_x - c337*v_arm_cyl_rod_x - c338*v_arm_cyl_barrel_y - c339*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 - arm_cyl_barrel_z*c297 - arm_cyl_rod_y*c283 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0 - c323) - v_arm_cyl_barrel_e1*(2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e0 - arm_cyl_rod_y*c284 - c333) - v_arm_cyl_barrel_e2*(-arm_cyl_barrel_y*c290 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 - c324) - v_arm_cyl_barrel_e3*(-arm_cyl_barrel_y*c291 - arm_cyl_barrel_z*c335 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 - c334);
-    out[47] = -c317*((2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1 - arm_cyl_barrel_e3*c349 - c348*v_arm_cyl_barrel_e3) - c318*(arm_cyl_barrel_e1*c349 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2 + c348*v_arm_cyl_barrel_e1) - c319*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c321*(-arm_cyl_rod_e1*c347 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2 - c346*v_arm_cyl_rod_e1) - c329*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c330*(arm_cyl_rod_e2*c347 + (2.0)*c315 + (2.0)*c316 + c346*v_arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(-c340*v_arm_cyl_barrel_e3 + c341*v_arm_cyl_barrel_e1 + c344*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(c340*v_arm_cyl_barrel_e2 + c341*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c340*v_arm_cyl_barrel_e1 + c341*v_arm_cyl_barrel_e3 + c344*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*((2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2 - c340*v_arm_cyl_barrel_e0) - v_arm_cyl_rod_e0*(c342*v_arm_cyl_rod_e2 - c343*v_arm_cyl_rod_e1 + c345*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e1*(c342*v_arm_cyl_rod_e3 - c343*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c342*v_arm_cyl_rod_e0 + c343*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c342*v_arm_cyl_rod_e1 + c343*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e3);
+    out[41] = -v_boom_e0*(c271 + (557.0/50.0)*v_boom_e0) - v_boom_e3*(c272 + (557.0/50.0)*v_boom_e3) - 183.0/40.0*v_boom_e1*v_boom_e3 + (183.0/40.0)*v_boom_e0*v_boom_e2;
+    out[42] = -v_boom_e0*(c274*v_boom_e1 + c277*v_boom_e0 - c273*v_boom_e3) - v_boom_e1*(c273*v_boom_e2 + c274*v_boom_e0) - v_boom_e2*(c273*v_boom_e1 + c274*v_boom_e3 + c277*v_boom_e2) - v_boom_e3*(-c273*v_boom_e0 + 2.0*arm_cyl_barrel_a22*v_boom_e2) - v_arm_cyl_barrel_e0*(c275*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e0 - c276*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e1*(c275*v_arm_cyl_barrel_e3 - c276*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c275*v_arm_cyl_barrel_e0 + c276*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c275*v_arm_cyl_barrel_e1 + c276*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e3) - 2.0*(4.0*boom_e0*v_boom_e0 + 4.0*boom_e2*v_boom_e2)*(-c279*v_arm_cyl_barrel_e1 - c280*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - 2.0*(4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(c281*v_boom_e1 + c282*boom_e1 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - 2.0*(c279*v_arm_cyl_barrel_e2 + c280*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1)*(-c281*v_boom_e3 - c282*boom_e3 + 2.0*boom_e1*v_boom_e2 + 2.0*boom_e2*v_boom_e1);
+    out[43] = -c300*(-c295*v_arm_cyl_rod_e3 - c296*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e1) - c306*(c302 + 4.0*arm_cyl_rod_e2*v_arm_cyl_rod_e2) - c312*(c308 + c307*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3) - v_arm_cyl_barrel_e0*(c289*v_arm_cyl_barrel_e0 + c290*arm_cyl_rod_a11 - c291*arm_cyl_rod_a21) - v_arm_cyl_barrel_e1*(c289*v_arm_cyl_barrel_e1 + c290*arm_cyl_rod_a21 + c291*arm_cyl_rod_a11) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a11 - c284*arm_cyl_rod_a21) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a21 + c284*arm_cyl_rod_a11) - v_arm_cyl_rod_e0*(-c292 + c293*v_arm_cyl_rod_e0 + c287*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c286 + c287*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c294 + c293*v_arm_cyl_rod_e2 + c287*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(-c288 + 2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_e2);
+    out[44] = -c300*c317 - c306*c319 - c312*c318 - v_arm_cyl_barrel_e0*(c297*arm_cyl_rod_a02 + c290*arm_cyl_rod_a12 - c291*arm_cyl_rod_a22) - v_arm_cyl_barrel_e1*(c299*arm_cyl_rod_a02 + c290*arm_cyl_rod_a22 + c291*arm_cyl_rod_a12) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a12 - c284*arm_cyl_rod_a22) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a22 + c284*arm_cyl_rod_a12) - v_arm_cyl_rod_e0*(c286 + c301*arm_cyl_barrel_a20 - c313*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c292 - c296*arm_cyl_barrel_a10) - v_arm_cyl_rod_e2*(c288 + c313*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c294 + c307*arm_cyl_barrel_a10 + c314*arm_cyl_barrel_a20);
+    out[45] = c321*v_arm_cyl_barrel_y + c329*v_arm_cyl_barrel_z - c321*c322 - c321*v_arm_cyl_rod_y - c325*v_arm_cyl_barrel_x - c329*c332 - c329*v_arm_cyl_rod_z - c330*c331 - c330*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(c333 + c283*arm_cyl_rod_z + c297*arm_cyl_rod_y - c283*arm_cyl_barrel_z - c297*arm_cyl_barrel_y) - v_arm_cyl_barrel_e1*(-c323 - c284*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c334 - c320*arm_cyl_barrel_y - c290*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(c324 + c291*arm_cyl_rod_z - c291*arm_cyl_barrel_z);
+    out[46] = c336*v_arm_cyl_barrel_z + c337*v_arm_cyl_barrel_x - c322*c339 - c331*c337 - c332*c336 - c336*v_arm_cyl_rod_z - c337*v_arm_cyl_rod_x - c338*v_arm_cyl_barrel_y - c339*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(-c323 - c283*arm_cyl_rod_y - c297*arm_cyl_barrel_z + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c333 - c284*arm_cyl_rod_y + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c324 - c290*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(-c334 - c335*arm_cyl_barrel_z - c291*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3);
+    out[47] = -c317*(-c348*v_arm_cyl_barrel_e3 - c349*arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1) - c318*(c348*v_arm_cyl_barrel_e1 + c349*arm_cyl_barrel_e1 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - c319*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c321*(-c346*v_arm_cyl_rod_e1 - c347*arm_cyl_rod_e1 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2) - c329*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c330*((2.0)*c315 + (2.0)*c316 + c346*v_arm_cyl_rod_e2 + c347*arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(c341*v_arm_cyl_barrel_e1 + c344*v_arm_cyl_barrel_e0 - c340*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e1*(c340*v_arm_cyl_barrel_e2 + c341*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c340*v_arm_cyl_barrel_e1 + c341*v_arm_cyl_barrel_e3 + c344*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(-c340*v_arm_cyl_barrel_e0 + (2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2) - v_arm_cyl_rod_e0*(c342*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e0 - c343*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c342*v_arm_cyl_rod_e3 - c343*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c342*v_arm_cyl_rod_e0 + c343*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c342*v_arm_cyl_rod_e1 + c343*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e3);
     out[48] = -c350*v_arm_e0 - c351*v_arm_e1 - v_arm_e0*(c350 + (393281.0/125000.0)*v_arm_e0) - v_arm_e1*(c351 + (393281.0/125000.0)*v_arm_e1);
     out[49] = -v_arm_e0*(-369691.0/500000.0*v_arm_e1 + (393281.0/250000.0)*v_arm_e3) - v_arm_e1*(-c352 - 369691.0/500000.0*v_arm_e0) - v_arm_e2*(c351 + c353) - v_arm_e3*(c350 + (393281.0/250000.0)*v_arm_e0);
-    out[50] = (393281.0/250000.0)*v_arm_e0*v_arm_e2 - v_arm_e0*(c352 + (369691.0/250000.0)*v_arm_e0) - 393281.0/250000.0*v_arm_e1*v_arm_e3 - v_arm_e3*(c353 + (369691.0/250000.0)*v_arm_e3);
+    out[50] = -v_arm_e0*(c352 + (369691.0/250000.0)*v_arm_e0) - v_arm_e3*(c353 + (369691.0/250000.0)*v_arm_e3) - 393281.0/250000.0*v_arm_e1*v_arm_e3 + (393281.0/250000.0)*v_arm_e0*v_arm_e2;
 }
 
 /* gamma of the joint rows (they do not depend on time). Rows 51 to 93. */
-static void compute_joints_gamma_part2(const double *q, const double *v, double *out) {
+void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, const double *v, double *out) {
     const double arm_e0 = q[45];
     const double arm_e1 = q[46];
     const double arm_e2 = q[47];
@@ -2475,44 +2488,44 @@ static void compute_joints_gamma_part2(const double *q, const double *v, double 
     const double v_bucket_e2 = v[96];
     const double v_bucket_e3 = v[97];
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
-    const double arm_a11 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e2;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e3;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1);
     const double side_link_a02 = 2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
     const double side_link_a10 = 2.0*side_link_e0*side_link_e3 + 2.0*side_link_e1*side_link_e2;
     const double side_link_a12 = -2.0*side_link_e0*side_link_e1 + 2.0*side_link_e2*side_link_e3;
     const double side_link_a20 = -2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
-    const double side_link_a22 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1);
     const double bucket_link_a02 = 2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
     const double bucket_link_a10 = 2.0*bucket_link_e0*bucket_link_e3 + 2.0*bucket_link_e1*bucket_link_e2;
     const double bucket_link_a12 = -2.0*bucket_link_e0*bucket_link_e1 + 2.0*bucket_link_e2*bucket_link_e3;
     const double bucket_link_a20 = -2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
-    const double bucket_link_a22 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a01 = -2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a10 = 2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
-    const double bucket_a11 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2);
     const double bucket_a12 = -2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a21 = 2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c354 = (21809.0/5000.0)*v_arm_e2;
     const double c355 = (21809.0/5000.0)*v_arm_e3;
     const double c356 = -9477.0/2500.0*v_arm_e2;
@@ -2531,17 +2544,17 @@ static void compute_joints_gamma_part2(const double *q, const double *v, double 
     const double c369 = 2.0*bucket_e1;
     const double c370 = 4.0*v_arm_e0;
     const double c371 = 4.0*v_arm_e2;
-    const double c372 = 2.0*arm_e0*c370 + 2.0*arm_e2*c371;
+    const double c372 = 2.0*c370*arm_e0 + 2.0*c371*arm_e2;
     const double c373 = 4.0*v_bucket_e0;
-    const double c374 = bucket_e0*c373;
+    const double c374 = c373*bucket_e0;
     const double c375 = 2.0*arm_e0;
     const double c376 = 2.0*v_arm_e0;
     const double c377 = 2.0*v_arm_e2;
-    const double c378 = 2.0*arm_e1*c376 + 4.0*arm_e2*v_arm_e3 + 2.0*arm_e3*c377 + 2.0*c375*v_arm_e1;
+    const double c378 = 2.0*c375*v_arm_e1 + 2.0*c376*arm_e1 + 2.0*c377*arm_e3 + 4.0*arm_e2*v_arm_e3;
     const double c379 = 2.0*bucket_e3;
     const double c380 = 2.0*bucket_e2;
     const double c381 = c368*v_bucket_e2 + c380*v_bucket_e0;
-    const double c382 = 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1 - 2.0*arm_e3*c376 - 2.0*c375*v_arm_e3;
+    const double c382 = -2.0*c375*v_arm_e3 - 2.0*c376*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1;
     const double c383 = 2.0*arm_a21;
     const double c384 = 2.0*bucket_a00;
     const double c385 = 2.0*bucket_a20;
@@ -2564,17 +2577,17 @@ static void compute_joints_gamma_part2(const double *q, const double *v, double 
     const double c402 = 2.0*side_link_e1;
     const double c403 = 4.0*v_arm_e0;
     const double c404 = 4.0*v_arm_e2;
-    const double c405 = 2.0*arm_e0*c403 + 2.0*arm_e2*c404;
+    const double c405 = 2.0*c403*arm_e0 + 2.0*c404*arm_e2;
     const double c406 = 4.0*v_side_link_e0;
-    const double c407 = side_link_e0*c406;
+    const double c407 = c406*side_link_e0;
     const double c408 = 2.0*arm_e0;
     const double c409 = 2.0*v_arm_e0;
     const double c410 = 2.0*v_arm_e2;
-    const double c411 = 2.0*arm_e1*c409 + 4.0*arm_e2*v_arm_e3 + 2.0*arm_e3*c410 + 2.0*c408*v_arm_e1;
+    const double c411 = 2.0*c408*v_arm_e1 + 2.0*c409*arm_e1 + 2.0*c410*arm_e3 + 4.0*arm_e2*v_arm_e3;
     const double c412 = 2.0*side_link_e3;
     const double c413 = 2.0*side_link_e2;
     const double c414 = c401*v_side_link_e2 + c413*v_side_link_e0;
-    const double c415 = 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1 - 2.0*arm_e3*c409 - 2.0*c408*v_arm_e3;
+    const double c415 = -2.0*c408*v_arm_e3 - 2.0*c409*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1;
     const double c416 = 2.0*arm_a21;
     const double c417 = 2.0*side_link_a00;
     const double c418 = 2.0*side_link_a20;
@@ -2658,47 +2671,47 @@ static void compute_joints_gamma_part2(const double *q, const double *v, double 
     const double c496 = 2.0*bucket_cyl_rod_e0;
     const double c497 = 2.0*v_bucket_cyl_rod_e0;
     const double c498 = 4.0*v_bucket_cyl_barrel_e0;
-    const double c499 = bucket_cyl_barrel_e0*c498;
+    const double c499 = c498*bucket_cyl_barrel_e0;
     const double c500 = 4.0*v_bucket_cyl_barrel_e1;
-    const double c501 = 2.0*bucket_cyl_barrel_e1*c500 + 2.0*c499;
+    const double c501 = 2.0*c499 + 2.0*c500*bucket_cyl_barrel_e1;
     const double c502 = 4.0*v_bucket_cyl_rod_e0;
-    const double c503 = bucket_cyl_rod_e0*c502;
-    const double c504 = bucket_cyl_barrel_e1*c492;
-    const double c505 = bucket_cyl_barrel_e2*c484;
-    const double c506 = bucket_cyl_barrel_e0*c491 + bucket_cyl_barrel_e3*c485;
+    const double c503 = c502*bucket_cyl_rod_e0;
+    const double c504 = c492*bucket_cyl_barrel_e1;
+    const double c505 = c484*bucket_cyl_barrel_e2;
+    const double c506 = c485*bucket_cyl_barrel_e3 + c491*bucket_cyl_barrel_e0;
     const double c507 = 2.0*c504 + 2.0*c505 + 2.0*c506;
     const double c508 = 2.0*v_bucket_cyl_rod_e2;
-    const double c509 = bucket_cyl_rod_e1*c497 + c496*v_bucket_cyl_rod_e1;
-    const double c510 = bucket_cyl_barrel_e1*c491;
-    const double c511 = bucket_cyl_barrel_e3*c484;
-    const double c512 = bucket_cyl_barrel_e0*c492 + bucket_cyl_barrel_e2*c485;
-    const double c513 = 2.0*c510 + 2.0*c511 - 2.0*c512;
+    const double c509 = c496*v_bucket_cyl_rod_e1 + c497*bucket_cyl_rod_e1;
+    const double c510 = c491*bucket_cyl_barrel_e1;
+    const double c511 = c484*bucket_cyl_barrel_e3;
+    const double c512 = c485*bucket_cyl_barrel_e2 + c492*bucket_cyl_barrel_e0;
+    const double c513 = -2.0*c512 + 2.0*c510 + 2.0*c511;
     const double c514 = 2.0*bucket_cyl_barrel_a10;
     const double c515 = 4.0*v_bucket_cyl_rod_e3;
     const double c516 = bucket_cyl_rod_e1*v_bucket_cyl_rod_e3;
     const double c517 = bucket_cyl_rod_e3*v_bucket_cyl_rod_e1;
-    const double c518 = bucket_cyl_rod_e2*c497 + c496*v_bucket_cyl_rod_e2 + 2.0*c516 + 2.0*c517;
-    const double c519 = bucket_cyl_rod_e3*c515 + c503;
-    const double c520 = 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2 - c509;
+    const double c518 = 2.0*c516 + 2.0*c517 + c496*v_bucket_cyl_rod_e2 + c497*bucket_cyl_rod_e2;
+    const double c519 = c503 + c515*bucket_cyl_rod_e3;
+    const double c520 = -c509 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2;
     const double c521 = 4.0*v_bucket_cyl_barrel_e2;
-    const double c522 = bucket_cyl_barrel_e2*c521 + c499;
-    const double c523 = -v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c524 = bucket_cyl_barrel_x*c492 - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2;
-    const double c525 = bucket_cyl_barrel_x*c485 - bucket_cyl_rod_x*c485;
-    const double c526 = -c504 - c505 + c506;
-    const double c527 = bucket_cyl_barrel_e2*c491;
-    const double c528 = bucket_cyl_barrel_e3*c492;
-    const double c529 = bucket_cyl_barrel_e0*c484 + bucket_cyl_barrel_e1*c485;
+    const double c522 = c499 + c521*bucket_cyl_barrel_e2;
+    const double c523 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y;
+    const double c524 = c492*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2;
+    const double c525 = c485*bucket_cyl_barrel_x - c485*bucket_cyl_rod_x;
+    const double c526 = c506 - c504 - c505;
+    const double c527 = c491*bucket_cyl_barrel_e2;
+    const double c528 = c492*bucket_cyl_barrel_e3;
+    const double c529 = c484*bucket_cyl_barrel_e0 + c485*bucket_cyl_barrel_e1;
     const double c530 = c527 + c528 + c529;
     const double c531 = -c526;
-    const double c532 = -v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
-    const double c533 = -v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c534 = bucket_cyl_barrel_x*c491 - bucket_cyl_rod_x*c491;
-    const double c535 = bucket_cyl_barrel_x*c484 - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1;
+    const double c532 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x;
+    const double c533 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z;
+    const double c534 = c491*bucket_cyl_barrel_x - c491*bucket_cyl_rod_x;
+    const double c535 = c484*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1;
     const double c536 = 4.0*v_bucket_cyl_barrel_e3;
-    const double c537 = bucket_cyl_barrel_e3*c536 + c499;
+    const double c537 = c499 + c536*bucket_cyl_barrel_e3;
     const double c538 = c510 + c511 + c512;
-    const double c539 = -c527 - c528 + c529;
+    const double c539 = c529 - c527 - c528;
     const double c540 = -c539;
     const double c541 = (2.0)*bucket_cyl_rod_a02;
     const double c542 = (2.0)*bucket_cyl_rod_a22;
@@ -2719,33 +2732,33 @@ static void compute_joints_gamma_part2(const double *q, const double *v, double 
     const double c557 = (166329.0/250000.0)*v_side_link_e1;
     out[51] = -c354*v_arm_e0 - c355*v_arm_e1 - v_arm_e0*(c354 + (9477.0/1250.0)*v_arm_e0) - v_arm_e1*(c355 + (9477.0/1250.0)*v_arm_e1);
     out[52] = -v_arm_e0*(-21809.0/5000.0*v_arm_e1 + (9477.0/2500.0)*v_arm_e3) - v_arm_e1*(-c356 - 21809.0/5000.0*v_arm_e0) - v_arm_e2*(c355 + c357) - v_arm_e3*(c354 + (9477.0/2500.0)*v_arm_e0);
-    out[53] = (9477.0/2500.0)*v_arm_e0*v_arm_e2 - v_arm_e0*(c356 + (21809.0/2500.0)*v_arm_e0) - 9477.0/2500.0*v_arm_e1*v_arm_e3 - v_arm_e3*(c357 + (21809.0/2500.0)*v_arm_e3);
-    out[54] = -c372*(2.0*bucket_e2*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e2 - c368*v_bucket_e1 - c369*v_bucket_e0) - c378*(4.0*bucket_e3*v_bucket_e3 + c374) - c382*(c369*v_bucket_e3 + c379*v_bucket_e1 + c381) - v_arm_e0*(c364*v_arm_e0 - c358*v_arm_e3 + c359*v_arm_e1) - v_arm_e1*(c358*v_arm_e2 + c359*v_arm_e0) - v_arm_e2*(c364*v_arm_e2 + c358*v_arm_e1 + c359*v_arm_e3) - v_arm_e3*(2.0*bucket_a22*v_arm_e2 - c358*v_arm_e0) - v_bucket_e0*(-c365 + c366*v_bucket_e0 + c360*v_bucket_e2) - v_bucket_e1*(c360*v_bucket_e3 - c362) - v_bucket_e2*(c360*v_bucket_e0 + c363) - v_bucket_e3*(c366*v_bucket_e3 + c367 + c360*v_bucket_e1);
-    out[55] = -c372*(c368*v_bucket_e3 + c369*v_bucket_e2 + c379*v_bucket_e0 + c380*v_bucket_e1) - c378*(2.0*bucket_e1*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e1 - c381) - c382*(bucket_e1*c386 + c374) - v_arm_e0*(bucket_a10*c370 - c384*v_arm_e3 + c385*v_arm_e1) - v_arm_e1*(bucket_a00*c377 + bucket_a20*c376) - v_arm_e2*(bucket_a10*c371 + c384*v_arm_e1 + c385*v_arm_e3) - v_arm_e3*(-bucket_a00*c376 + 2.0*bucket_a20*v_arm_e2) - v_bucket_e0*(arm_a01*c373 - c383*v_bucket_e2 + c363) - v_bucket_e1*(arm_a01*c386 + c367 + c383*v_bucket_e3) - v_bucket_e2*(c365 - c383*v_bucket_e0) - v_bucket_e3*(c383*v_bucket_e1 + c362);
+    out[53] = -v_arm_e0*(c356 + (21809.0/2500.0)*v_arm_e0) - v_arm_e3*(c357 + (21809.0/2500.0)*v_arm_e3) - 9477.0/2500.0*v_arm_e1*v_arm_e3 + (9477.0/2500.0)*v_arm_e0*v_arm_e2;
+    out[54] = -c372*(-c368*v_bucket_e1 - c369*v_bucket_e0 + 2.0*bucket_e2*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e2) - c378*(c374 + 4.0*bucket_e3*v_bucket_e3) - c382*(c381 + c369*v_bucket_e3 + c379*v_bucket_e1) - v_arm_e0*(c364*v_arm_e0 + c359*v_arm_e1 - c358*v_arm_e3) - v_arm_e1*(c358*v_arm_e2 + c359*v_arm_e0) - v_arm_e2*(c364*v_arm_e2 + c358*v_arm_e1 + c359*v_arm_e3) - v_arm_e3*(-c358*v_arm_e0 + 2.0*bucket_a22*v_arm_e2) - v_bucket_e0*(-c365 + c366*v_bucket_e0 + c360*v_bucket_e2) - v_bucket_e1*(-c362 + c360*v_bucket_e3) - v_bucket_e2*(c363 + c360*v_bucket_e0) - v_bucket_e3*(c367 + c366*v_bucket_e3 + c360*v_bucket_e1);
+    out[55] = -c372*(c368*v_bucket_e3 + c369*v_bucket_e2 + c379*v_bucket_e0 + c380*v_bucket_e1) - c378*(-c381 + 2.0*bucket_e1*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e1) - c382*(c374 + c386*bucket_e1) - v_arm_e0*(c370*bucket_a10 + c385*v_arm_e1 - c384*v_arm_e3) - v_arm_e1*(c376*bucket_a20 + c377*bucket_a00) - v_arm_e2*(c371*bucket_a10 + c384*v_arm_e1 + c385*v_arm_e3) - v_arm_e3*(-c376*bucket_a00 + 2.0*bucket_a20*v_arm_e2) - v_bucket_e0*(c363 + c373*arm_a01 - c383*v_bucket_e2) - v_bucket_e1*(c367 + c383*v_bucket_e3 + c386*arm_a01) - v_bucket_e2*(c365 - c383*v_bucket_e0) - v_bucket_e3*(c362 + c383*v_bucket_e1);
     out[56] = -c387*v_arm_e0 - c388*v_arm_e1 - v_arm_e0*(c387 + (7877.0/1250.0)*v_arm_e0) - v_arm_e1*(c388 + (7877.0/1250.0)*v_arm_e1);
     out[57] = -v_arm_e0*(-18799.0/5000.0*v_arm_e1 + (7877.0/2500.0)*v_arm_e3) - v_arm_e1*(-c389 - 18799.0/5000.0*v_arm_e0) - v_arm_e2*(c388 + c390) - v_arm_e3*(c387 + (7877.0/2500.0)*v_arm_e0);
-    out[58] = (7877.0/2500.0)*v_arm_e0*v_arm_e2 - v_arm_e0*(c389 + (18799.0/2500.0)*v_arm_e0) - 7877.0/2500.0*v_arm_e1*v_arm_e3 - v_arm_e3*(c390 + (18799.0/2500.0)*v_arm_e3);
-    out[59] = -c405*(2.0*side_link_e2*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e2 - c401*v_side_link_e1 - c402*v_side_link_e0) - c411*(4.0*side_link_e3*v_side_link_e3 + c407) - c415*(c402*v_side_link_e3 + c412*v_side_link_e1 + c414) - v_arm_e0*(c397*v_arm_e0 - c391*v_arm_e3 + c392*v_arm_e1) - v_arm_e1*(c391*v_arm_e2 + c392*v_arm_e0) - v_arm_e2*(c397*v_arm_e2 + c391*v_arm_e1 + c392*v_arm_e3) - v_arm_e3*(2.0*side_link_a22*v_arm_e2 - c391*v_arm_e0) - v_side_link_e0*(-c398 + c399*v_side_link_e0 + c393*v_side_link_e2) - v_side_link_e1*(c393*v_side_link_e3 - c395) - v_side_link_e2*(c393*v_side_link_e0 + c396) - v_side_link_e3*(c399*v_side_link_e3 + c400 + c393*v_side_link_e1);
-    out[60] = -c405*(c401*v_side_link_e3 + c402*v_side_link_e2 + c412*v_side_link_e0 + c413*v_side_link_e1) - c411*(2.0*side_link_e1*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e1 - c414) - c415*(side_link_e1*c419 + c407) - v_arm_e0*(side_link_a10*c403 - c417*v_arm_e3 + c418*v_arm_e1) - v_arm_e1*(side_link_a00*c410 + side_link_a20*c409) - v_arm_e2*(side_link_a10*c404 + c417*v_arm_e1 + c418*v_arm_e3) - v_arm_e3*(-side_link_a00*c409 + 2.0*side_link_a20*v_arm_e2) - v_side_link_e0*(arm_a01*c406 - c416*v_side_link_e2 + c396) - v_side_link_e1*(arm_a01*c419 + c400 + c416*v_side_link_e3) - v_side_link_e2*(c398 - c416*v_side_link_e0) - v_side_link_e3*(c416*v_side_link_e1 + c395);
-    out[61] = -c420*v_bucket_link_e0 - c421*v_bucket_link_e1 - 96247.0/100000.0*v_side_link_e0*v_side_link_e2 - v_side_link_e0*(-c422 - 166329.0/125000.0*v_side_link_e0) - 96247.0/100000.0*v_side_link_e1*v_side_link_e3 - v_side_link_e1*(-c423 - 166329.0/125000.0*v_side_link_e1) - v_bucket_link_e0*(c420 + (85607.0/62500.0)*v_bucket_link_e0) - v_bucket_link_e1*(c421 + (85607.0/62500.0)*v_bucket_link_e1);
-    out[62] = -v_side_link_e0*(-96247.0/100000.0*v_side_link_e1 - 166329.0/250000.0*v_side_link_e3) - v_side_link_e1*(-c424 - 96247.0/100000.0*v_side_link_e0) - v_side_link_e2*(-c423 - c425) - v_side_link_e3*(-c422 - 166329.0/250000.0*v_side_link_e0) - v_bucket_link_e0*(-450737.0/500000.0*v_bucket_link_e1 + (85607.0/125000.0)*v_bucket_link_e3) - v_bucket_link_e1*(-c426 - 450737.0/500000.0*v_bucket_link_e0) - v_bucket_link_e2*(c421 + c427) - v_bucket_link_e3*(c420 + (85607.0/125000.0)*v_bucket_link_e0);
-    out[63] = -c424*v_side_link_e0 - v_side_link_e0*(c424 + (96247.0/50000.0)*v_side_link_e0) + (166329.0/250000.0)*v_side_link_e1*v_side_link_e3 - v_side_link_e3*(-c425 + (96247.0/50000.0)*v_side_link_e3) + (85607.0/125000.0)*v_bucket_link_e0*v_bucket_link_e2 - v_bucket_link_e0*(c426 + (450737.0/250000.0)*v_bucket_link_e0) - 85607.0/125000.0*v_bucket_link_e1*v_bucket_link_e3 - v_bucket_link_e3*(c427 + (450737.0/250000.0)*v_bucket_link_e3);
+    out[58] = -v_arm_e0*(c389 + (18799.0/2500.0)*v_arm_e0) - v_arm_e3*(c390 + (18799.0/2500.0)*v_arm_e3) - 7877.0/2500.0*v_arm_e1*v_arm_e3 + (7877.0/2500.0)*v_arm_e0*v_arm_e2;
+    out[59] = -c405*(-c401*v_side_link_e1 - c402*v_side_link_e0 + 2.0*side_link_e2*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e2) - c411*(c407 + 4.0*side_link_e3*v_side_link_e3) - c415*(c414 + c402*v_side_link_e3 + c412*v_side_link_e1) - v_arm_e0*(c397*v_arm_e0 + c392*v_arm_e1 - c391*v_arm_e3) - v_arm_e1*(c391*v_arm_e2 + c392*v_arm_e0) - v_arm_e2*(c397*v_arm_e2 + c391*v_arm_e1 + c392*v_arm_e3) - v_arm_e3*(-c391*v_arm_e0 + 2.0*side_link_a22*v_arm_e2) - v_side_link_e0*(-c398 + c399*v_side_link_e0 + c393*v_side_link_e2) - v_side_link_e1*(-c395 + c393*v_side_link_e3) - v_side_link_e2*(c396 + c393*v_side_link_e0) - v_side_link_e3*(c400 + c399*v_side_link_e3 + c393*v_side_link_e1);
+    out[60] = -c405*(c401*v_side_link_e3 + c402*v_side_link_e2 + c412*v_side_link_e0 + c413*v_side_link_e1) - c411*(-c414 + 2.0*side_link_e1*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e1) - c415*(c407 + c419*side_link_e1) - v_arm_e0*(c403*side_link_a10 + c418*v_arm_e1 - c417*v_arm_e3) - v_arm_e1*(c409*side_link_a20 + c410*side_link_a00) - v_arm_e2*(c404*side_link_a10 + c417*v_arm_e1 + c418*v_arm_e3) - v_arm_e3*(-c409*side_link_a00 + 2.0*side_link_a20*v_arm_e2) - v_side_link_e0*(c396 + c406*arm_a01 - c416*v_side_link_e2) - v_side_link_e1*(c400 + c416*v_side_link_e3 + c419*arm_a01) - v_side_link_e2*(c398 - c416*v_side_link_e0) - v_side_link_e3*(c395 + c416*v_side_link_e1);
+    out[61] = -c420*v_bucket_link_e0 - c421*v_bucket_link_e1 - v_side_link_e0*(-c422 - 166329.0/125000.0*v_side_link_e0) - v_side_link_e1*(-c423 - 166329.0/125000.0*v_side_link_e1) - v_bucket_link_e0*(c420 + (85607.0/62500.0)*v_bucket_link_e0) - v_bucket_link_e1*(c421 + (85607.0/62500.0)*v_bucket_link_e1) - 96247.0/100000.0*v_side_link_e0*v_side_link_e2 - 96247.0/100000.0*v_side_link_e1*v_side_link_e3;
+    out[62] = -v_side_link_e0*(-166329.0/250000.0*v_side_link_e3 - 96247.0/100000.0*v_side_link_e1) - v_side_link_e1*(-c424 - 96247.0/100000.0*v_side_link_e0) - v_side_link_e2*(-c423 - c425) - v_side_link_e3*(-c422 - 166329.0/250000.0*v_side_link_e0) - v_bucket_link_e0*(-450737.0/500000.0*v_bucket_link_e1 + (85607.0/125000.0)*v_bucket_link_e3) - v_bucket_link_e1*(-c426 - 450737.0/500000.0*v_bucket_link_e0) - v_bucket_link_e2*(c421 + c427) - v_bucket_link_e3*(c420 + (85607.0/125000.0)*v_bucket_link_e0);
+    out[63] = -c424*v_side_link_e0 - v_side_link_e0*(c424 + (96247.0/50000.0)*v_side_link_e0) - v_side_link_e3*(-c425 + (96247.0/50000.0)*v_side_link_e3) - v_bucket_link_e0*(c426 + (450737.0/250000.0)*v_bucket_link_e0) - v_bucket_link_e3*(c427 + (450737.0/250000.0)*v_bucket_link_e3) - 85607.0/125000.0*v_bucket_link_e1*v_bucket_link_e3 + (85607.0/125000.0)*v_bucket_link_e0*v_bucket_link_e2 + (166329.0/250000.0)*v_side_link_e1*v_side_link_e3;
     out[64] = c428*v_bucket_e0 + c429*v_bucket_e1 - v_bucket_e0*(c430 + (8101.0/6250.0)*v_bucket_e0) - v_bucket_e1*(c431 + (8101.0/6250.0)*v_bucket_e1);
     out[65] = -v_bucket_e0*(c432 + (16927.0/25000.0)*v_bucket_e1) - v_bucket_e1*(c433 + (16927.0/25000.0)*v_bucket_e0) - v_bucket_e2*(c431 + c434) - v_bucket_e3*(c430 + (8101.0/12500.0)*v_bucket_e0);
-    out[66] = -c432*v_bucket_e1 + (8101.0/12500.0)*v_bucket_e0*v_bucket_e2 - v_bucket_e0*(-c433 - 16927.0/12500.0*v_bucket_e0) - v_bucket_e3*(c434 - 16927.0/12500.0*v_bucket_e3);
-    out[67] = -v_bucket_link_e0*(bucket_a01*c466 + bucket_a11*c467 + bucket_a21*c468) - v_bucket_link_e1*(bucket_a01*c445 + bucket_a11*c447 - bucket_a21*c444) - v_bucket_link_e2*(bucket_a01*c439 + bucket_a11*c443 + bucket_a21*c440) - v_bucket_link_e3*(bucket_a01*c448 + bucket_a11*c450 + bucket_a21*c451) - v_bucket_e0*((2.4197412333043764)*bucket_link_a12*v_bucket_e0 + c438*v_bucket_e1 - c452*v_bucket_e0 + c435*v_bucket_e3 - c436*v_bucket_e1 - c437*v_bucket_e3) - v_bucket_e1*((1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0 - c435*v_bucket_e2 - c436*v_bucket_e0) - v_bucket_e2*((1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3 - c452*v_bucket_e2 - c435*v_bucket_e1 - c436*v_bucket_e3) - v_bucket_e3*(c438*v_bucket_e2 + c435*v_bucket_e0 - c436*v_bucket_e2 - c437*v_bucket_e0) - (-3.1850984857373903*c460 - 3.1850984857373903*c461)*(c462*v_bucket_link_e3 + c463*v_bucket_link_e2 + c464*v_bucket_link_e1 + c465*v_bucket_link_e0) - ((2.4197412333043764)*c460 + (2.4197412333043764)*c461)*(2.0*bucket_link_e2*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e2 - c462*v_bucket_link_e1 - c463*v_bucket_link_e0) - (4.0*c460 + 4.0*c461)*(bucket_link_e0*c467 + bucket_link_e1*c447 + bucket_link_e2*c443 + bucket_link_e3*c450) - (4.0*bucket_link_e1*v_bucket_link_e1 + c453)*(-1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1 + (1.5925492428686951)*c454 + (1.5925492428686951)*c455) - (4.0*bucket_link_e3*v_bucket_link_e3 + c453)*((1.2098706166521882)*c456 + (1.2098706166521882)*c457 + (1.2098706166521882)*c458 + (1.2098706166521882)*c459) - (2.0*bucket_link_e1*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e1 - c469)*(-1.5925492428686951*c456 - 1.5925492428686951*c457 - 1.5925492428686951*c458 - 1.5925492428686951*c459) - (c463*v_bucket_link_e3 + c465*v_bucket_link_e1 + c469)*((1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1 - 1.2098706166521882*c454 - 1.2098706166521882*c455) - (2.0*c456 + 2.0*c457 + 2.0*c458 + 2.0*c459)*(bucket_link_e0*c468 - bucket_link_e1*c444 + bucket_link_e2*c440 + bucket_link_e3*c451) - (bucket_link_e0*c466 + bucket_link_e1*c445 + bucket_link_e2*c439 + bucket_link_e3*c448)*(2.0*bucket_e1*v_bucket_e2 + 2.0*bucket_e2*v_bucket_e1 - 2.0*c454 - 2.0*c455);
-    out[68] = -36797.0/25000.0*v_arm_e0*v_arm_e2 - v_arm_e0*(-c470 - 24687.0/25000.0*v_arm_e0) - 36797.0/25000.0*v_arm_e1*v_arm_e3 - v_arm_e1*(-c471 - 24687.0/25000.0*v_arm_e1);
+    out[66] = -c432*v_bucket_e1 - v_bucket_e0*(-c433 - 16927.0/12500.0*v_bucket_e0) - v_bucket_e3*(c434 - 16927.0/12500.0*v_bucket_e3) + (8101.0/12500.0)*v_bucket_e0*v_bucket_e2;
+    out[67] = -v_bucket_link_e0*(c466*bucket_a01 + c467*bucket_a11 + c468*bucket_a21) - v_bucket_link_e1*(c445*bucket_a01 + c447*bucket_a11 - c444*bucket_a21) - v_bucket_link_e2*(c439*bucket_a01 + c440*bucket_a21 + c443*bucket_a11) - v_bucket_link_e3*(c448*bucket_a01 + c450*bucket_a11 + c451*bucket_a21) - v_bucket_e0*(c438*v_bucket_e1 + c435*v_bucket_e3 - c452*v_bucket_e0 - c436*v_bucket_e1 - c437*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e0) - v_bucket_e1*(-c435*v_bucket_e2 - c436*v_bucket_e0 + (1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0) - v_bucket_e2*(-c452*v_bucket_e2 - c435*v_bucket_e1 - c436*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3) - v_bucket_e3*(c438*v_bucket_e2 + c435*v_bucket_e0 - c436*v_bucket_e2 - c437*v_bucket_e0) - (c453 + 4.0*bucket_link_e1*v_bucket_link_e1)*((1.5925492428686951)*c454 + (1.5925492428686951)*c455 - 1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1) - (c453 + 4.0*bucket_link_e3*v_bucket_link_e3)*((1.2098706166521882)*c456 + (1.2098706166521882)*c457 + (1.2098706166521882)*c458 + (1.2098706166521882)*c459) - (4.0*c460 + 4.0*c461)*(c443*bucket_link_e2 + c447*bucket_link_e1 + c450*bucket_link_e3 + c467*bucket_link_e0) - (-3.1850984857373903*c460 - 3.1850984857373903*c461)*(c462*v_bucket_link_e3 + c463*v_bucket_link_e2 + c464*v_bucket_link_e1 + c465*v_bucket_link_e0) - ((2.4197412333043764)*c460 + (2.4197412333043764)*c461)*(-c462*v_bucket_link_e1 - c463*v_bucket_link_e0 + 2.0*bucket_link_e2*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e2) - (c469 + c463*v_bucket_link_e3 + c465*v_bucket_link_e1)*(-1.2098706166521882*c454 - 1.2098706166521882*c455 + (1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1) - (-c469 + 2.0*bucket_link_e1*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e1)*(-1.5925492428686951*c456 - 1.5925492428686951*c457 - 1.5925492428686951*c458 - 1.5925492428686951*c459) - (-2.0*c454 - 2.0*c455 + 2.0*bucket_e1*v_bucket_e2 + 2.0*bucket_e2*v_bucket_e1)*(c439*bucket_link_e2 + c445*bucket_link_e1 + c448*bucket_link_e3 + c466*bucket_link_e0) - (2.0*c456 + 2.0*c457 + 2.0*c458 + 2.0*c459)*(c440*bucket_link_e2 + c451*bucket_link_e3 + c468*bucket_link_e0 - c444*bucket_link_e1);
+    out[68] = -v_arm_e0*(-c470 - 24687.0/25000.0*v_arm_e0) - v_arm_e1*(-c471 - 24687.0/25000.0*v_arm_e1) - 36797.0/25000.0*v_arm_e0*v_arm_e2 - 36797.0/25000.0*v_arm_e1*v_arm_e3;
     out[69] = -v_arm_e0*(-36797.0/25000.0*v_arm_e1 - 24687.0/50000.0*v_arm_e3) - v_arm_e1*(-c472 - 36797.0/25000.0*v_arm_e0) - v_arm_e2*(-c471 - c473) - v_arm_e3*(-c470 - 24687.0/50000.0*v_arm_e0);
-    out[70] = -c472*v_arm_e0 - v_arm_e0*(c472 + (36797.0/12500.0)*v_arm_e0) + (24687.0/50000.0)*v_arm_e1*v_arm_e3 - v_arm_e3*(-c473 + (36797.0/12500.0)*v_arm_e3);
-    out[71] = -v_arm_e0*(-c474*v_arm_e3 + c475*v_arm_e1 + c478*v_arm_e0) - v_arm_e1*(c474*v_arm_e2 + c475*v_arm_e0) - v_arm_e2*(c474*v_arm_e1 + c475*v_arm_e3 + c478*v_arm_e2) - v_arm_e3*(2.0*bucket_cyl_barrel_a22*v_arm_e2 - c474*v_arm_e0) - v_bucket_cyl_barrel_e0*(c476*v_bucket_cyl_barrel_e2 - c477*v_bucket_cyl_barrel_e1 + c479*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(c476*v_bucket_cyl_barrel_e3 - c477*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c476*v_bucket_cyl_barrel_e0 + c477*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c476*v_bucket_cyl_barrel_e1 + c477*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e3) - 2.0*(4.0*arm_e0*v_arm_e0 + 4.0*arm_e2*v_arm_e2)*(2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2 - c480*v_bucket_cyl_barrel_e1 - c481*v_bucket_cyl_barrel_e0) - 2.0*(4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(arm_e1*c483 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2 + c482*v_arm_e1) - 2.0*(2.0*arm_e1*v_arm_e2 + 2.0*arm_e2*v_arm_e1 - arm_e3*c483 - c482*v_arm_e3)*(2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1 + c480*v_bucket_cyl_barrel_e2 + c481*v_bucket_cyl_barrel_e3);
-    out[72] = -c501*(2.0*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1 - bucket_cyl_rod_e3*c497 - c496*v_bucket_cyl_rod_e3) - c507*(4.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2 + c503) - c513*(2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + bucket_cyl_rod_e3*c508 + c509) - v_bucket_cyl_barrel_e0*(bucket_cyl_rod_a11*c491 - bucket_cyl_rod_a21*c492 + c490*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(bucket_cyl_rod_a11*c492 + bucket_cyl_rod_a21*c491 + c490*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(bucket_cyl_rod_a11*c484 - bucket_cyl_rod_a21*c485) - v_bucket_cyl_barrel_e3*(bucket_cyl_rod_a11*c485 + bucket_cyl_rod_a21*c484) - v_bucket_cyl_rod_e0*(c494*v_bucket_cyl_rod_e0 + c488*v_bucket_cyl_rod_e1 - c493) - v_bucket_cyl_rod_e1*(c487 + c488*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c494*v_bucket_cyl_rod_e2 + c495 + c488*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2 - c489);
-    out[73] = -c501*c518 - c507*c520 - c513*c519 - v_bucket_cyl_barrel_e0*(bucket_cyl_rod_a02*c498 + bucket_cyl_rod_a12*c491 - bucket_cyl_rod_a22*c492) - v_bucket_cyl_barrel_e1*(bucket_cyl_rod_a02*c500 + bucket_cyl_rod_a12*c492 + bucket_cyl_rod_a22*c491) - v_bucket_cyl_barrel_e2*(bucket_cyl_rod_a12*c484 - bucket_cyl_rod_a22*c485) - v_bucket_cyl_barrel_e3*(bucket_cyl_rod_a12*c485 + bucket_cyl_rod_a22*c484) - v_bucket_cyl_rod_e0*(bucket_cyl_barrel_a20*c502 + c487 - c514*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(-bucket_cyl_barrel_a10*c497 + c493) - v_bucket_cyl_rod_e2*(c514*v_bucket_cyl_rod_e3 + c489) - v_bucket_cyl_rod_e3*(bucket_cyl_barrel_a10*c508 + bucket_cyl_barrel_a20*c515 + c495);
-    out[74] = -c522*c523 + c522*v_bucket_cyl_barrel_y - c522*v_bucket_cyl_rod_y - c526*v_bucket_cyl_barrel_x - c530*c533 + c530*v_bucket_cyl_barrel_z - c530*v_bucket_cyl_rod_z - c531*c532 - c531*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(-bucket_cyl_barrel_y*c498 - bucket_cyl_barrel_z*c484 + bucket_cyl_rod_y*c498 + bucket_cyl_rod_z*c484 + c534) - v_bucket_cyl_barrel_e1*(-bucket_cyl_barrel_z*c485 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0 - c524) - v_bucket_cyl_barrel_e2*(-bucket_cyl_barrel_y*c521 - bucket_cyl_barrel_z*c491 + 4.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 - c535) - v_bucket_cyl_barrel_e3*(-bucket_cyl_barrel_z*c492 + bucket_cyl_rod_z*c492 + c525);
-    out[75] = -c523*c540 - c532*c538 - c533*c537 + c537*v_bucket_cyl_barrel_z - c537*v_bucket_cyl_rod_z + c538*v_bucket_cyl_barrel_x - c538*v_bucket_cyl_rod_x - c539*v_bucket_cyl_barrel_y - c540*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 - bucket_cyl_barrel_z*c498 - bucket_cyl_rod_y*c484 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0 - c524) - v_bucket_cyl_barrel_e1*(2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0 - bucket_cyl_rod_y*c485 - c534) - v_bucket_cyl_barrel_e2*(-bucket_cyl_barrel_y*c491 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 - c525) - v_bucket_cyl_barrel_e3*(-bucket_cyl_barrel_y*c492 - bucket_cyl_barrel_z*c536 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 - c535);
-    out[76] = -c518*((2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1 - bucket_cyl_barrel_e3*c550 - c549*v_bucket_cyl_barrel_e3) - c519*(bucket_cyl_barrel_e1*c550 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2 + c549*v_bucket_cyl_barrel_e1) - c520*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c522*(-bucket_cyl_rod_e1*c548 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2 - c547*v_bucket_cyl_rod_e1) - c530*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c531*(bucket_cyl_rod_e2*c548 + (2.0)*c516 + (2.0)*c517 + c547*v_bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(-c541*v_bucket_cyl_barrel_e3 + c542*v_bucket_cyl_barrel_e1 + c545*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(c541*v_bucket_cyl_barrel_e2 + c542*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c541*v_bucket_cyl_barrel_e1 + c542*v_bucket_cyl_barrel_e3 + c545*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*((2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2 - c541*v_bucket_cyl_barrel_e0) - v_bucket_cyl_rod_e0*(c543*v_bucket_cyl_rod_e2 - c544*v_bucket_cyl_rod_e1 + c546*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e1*(c543*v_bucket_cyl_rod_e3 - c544*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c543*v_bucket_cyl_rod_e0 + c544*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c543*v_bucket_cyl_rod_e1 + c544*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e3);
+    out[70] = -c472*v_arm_e0 - v_arm_e0*(c472 + (36797.0/12500.0)*v_arm_e0) - v_arm_e3*(-c473 + (36797.0/12500.0)*v_arm_e3) + (24687.0/50000.0)*v_arm_e1*v_arm_e3;
+    out[71] = -v_arm_e0*(c475*v_arm_e1 + c478*v_arm_e0 - c474*v_arm_e3) - v_arm_e1*(c474*v_arm_e2 + c475*v_arm_e0) - v_arm_e2*(c474*v_arm_e1 + c475*v_arm_e3 + c478*v_arm_e2) - v_arm_e3*(-c474*v_arm_e0 + 2.0*bucket_cyl_barrel_a22*v_arm_e2) - v_bucket_cyl_barrel_e0*(c476*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e0 - c477*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e1*(c476*v_bucket_cyl_barrel_e3 - c477*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c476*v_bucket_cyl_barrel_e0 + c477*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c476*v_bucket_cyl_barrel_e1 + c477*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e3) - 2.0*(4.0*arm_e0*v_arm_e0 + 4.0*arm_e2*v_arm_e2)*(-c480*v_bucket_cyl_barrel_e1 - c481*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - 2.0*(4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(c482*v_arm_e1 + c483*arm_e1 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - 2.0*(c480*v_bucket_cyl_barrel_e2 + c481*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1)*(-c482*v_arm_e3 - c483*arm_e3 + 2.0*arm_e1*v_arm_e2 + 2.0*arm_e2*v_arm_e1);
+    out[72] = -c501*(-c496*v_bucket_cyl_rod_e3 - c497*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1) - c507*(c503 + 4.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - c513*(c509 + c508*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3) - v_bucket_cyl_barrel_e0*(c490*v_bucket_cyl_barrel_e0 + c491*bucket_cyl_rod_a11 - c492*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e1*(c490*v_bucket_cyl_barrel_e1 + c491*bucket_cyl_rod_a21 + c492*bucket_cyl_rod_a11) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a11 - c485*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a21 + c485*bucket_cyl_rod_a11) - v_bucket_cyl_rod_e0*(-c493 + c494*v_bucket_cyl_rod_e0 + c488*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c487 + c488*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c495 + c494*v_bucket_cyl_rod_e2 + c488*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(-c489 + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2);
+    out[73] = -c501*c518 - c507*c520 - c513*c519 - v_bucket_cyl_barrel_e0*(c498*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a12 - c492*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e1*(c500*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a22 + c492*bucket_cyl_rod_a12) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a12 - c485*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a22 + c485*bucket_cyl_rod_a12) - v_bucket_cyl_rod_e0*(c487 + c502*bucket_cyl_barrel_a20 - c514*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c493 - c497*bucket_cyl_barrel_a10) - v_bucket_cyl_rod_e2*(c489 + c514*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c495 + c508*bucket_cyl_barrel_a10 + c515*bucket_cyl_barrel_a20);
+    out[74] = c522*v_bucket_cyl_barrel_y + c530*v_bucket_cyl_barrel_z - c522*c523 - c522*v_bucket_cyl_rod_y - c526*v_bucket_cyl_barrel_x - c530*c533 - c530*v_bucket_cyl_rod_z - c531*c532 - c531*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(c534 + c484*bucket_cyl_rod_z + c498*bucket_cyl_rod_y - c484*bucket_cyl_barrel_z - c498*bucket_cyl_barrel_y) - v_bucket_cyl_barrel_e1*(-c524 - c485*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c535 - c521*bucket_cyl_barrel_y - c491*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(c525 + c492*bucket_cyl_rod_z - c492*bucket_cyl_barrel_z);
+    out[75] = c537*v_bucket_cyl_barrel_z + c538*v_bucket_cyl_barrel_x - c523*c540 - c532*c538 - c533*c537 - c537*v_bucket_cyl_rod_z - c538*v_bucket_cyl_rod_x - c539*v_bucket_cyl_barrel_y - c540*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(-c524 - c484*bucket_cyl_rod_y - c498*bucket_cyl_barrel_z + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c534 - c485*bucket_cyl_rod_y + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c525 - c491*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(-c535 - c536*bucket_cyl_barrel_z - c492*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3);
+    out[76] = -c518*(-c549*v_bucket_cyl_barrel_e3 - c550*bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1) - c519*(c549*v_bucket_cyl_barrel_e1 + c550*bucket_cyl_barrel_e1 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - c520*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c522*(-c547*v_bucket_cyl_rod_e1 - c548*bucket_cyl_rod_e1 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2) - c530*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c531*((2.0)*c516 + (2.0)*c517 + c547*v_bucket_cyl_rod_e2 + c548*bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(c542*v_bucket_cyl_barrel_e1 + c545*v_bucket_cyl_barrel_e0 - c541*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e1*(c541*v_bucket_cyl_barrel_e2 + c542*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c541*v_bucket_cyl_barrel_e1 + c542*v_bucket_cyl_barrel_e3 + c545*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(-c541*v_bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2) - v_bucket_cyl_rod_e0*(c543*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e0 - c544*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c543*v_bucket_cyl_rod_e3 - c544*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c543*v_bucket_cyl_rod_e0 + c544*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c543*v_bucket_cyl_rod_e1 + c544*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e3);
     out[77] = c551*v_side_link_e0 + c552*v_side_link_e1 - v_side_link_e0*(c553 + (166329.0/125000.0)*v_side_link_e0) - v_side_link_e1*(c554 + (166329.0/125000.0)*v_side_link_e1);
     out[78] = -v_side_link_e0*(c555 + (96247.0/100000.0)*v_side_link_e1) - v_side_link_e1*(c556 + (96247.0/100000.0)*v_side_link_e0) - v_side_link_e2*(c554 + c557) - v_side_link_e3*(c553 + (166329.0/250000.0)*v_side_link_e0);
-    out[79] = -c555*v_side_link_e1 + (166329.0/250000.0)*v_side_link_e0*v_side_link_e2 - v_side_link_e0*(-c556 - 96247.0/50000.0*v_side_link_e0) - v_side_link_e3*(c557 - 96247.0/50000.0*v_side_link_e3);
+    out[79] = -c555*v_side_link_e1 - v_side_link_e0*(-c556 - 96247.0/50000.0*v_side_link_e0) - v_side_link_e3*(c557 - 96247.0/50000.0*v_side_link_e3) + (166329.0/250000.0)*v_side_link_e0*v_side_link_e2;
     out[80] = -2.0*(v_upper_e0*v_upper_e0) - 2.0*(v_upper_e1*v_upper_e1) - 2.0*(v_upper_e2*v_upper_e2) - 2.0*(v_upper_e3*v_upper_e3);
     out[81] = -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3);
     out[82] = -2.0*(v_boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0) - 2.0*(v_boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1) - 2.0*(v_boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - 2.0*(v_boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3);
@@ -2763,7 +2776,7 @@ static void compute_joints_gamma_part2(const double *q, const double *v, double 
 }
 
 /* gamma of the driver rows of case 'digging'. */
-static void compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -2839,59 +2852,51 @@ static void compute_drivers_gamma_digging(const double *q, const double *v, cons
     const double c2 = sin(c0);
     const double c3 = 4.0*v_boom_cyl_l_barrel_e0;
     const double c4 = 4.0*v_boom_cyl_l_barrel_e1;
-    const double c5 = boom_cyl_l_barrel_e0*c3 + boom_cyl_l_barrel_e1*c4;
+    const double c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1;
     const double c6 = 2.0*v_boom_cyl_l_barrel_e1;
     const double c7 = 2.0*v_boom_cyl_l_barrel_e0;
     const double c8 = 2.0*v_boom_cyl_l_barrel_e3;
     const double c9 = 2.0*v_boom_cyl_l_barrel_e2;
-    const double c10 = boom_cyl_l_barrel_e0*c8 + boom_cyl_l_barrel_e1*c9 + boom_cyl_l_barrel_e2*c6 + boom_cyl_l_barrel_e3*c7;
-    const double c11 = boom_cyl_l_barrel_e0*c9 - boom_cyl_l_barrel_e1*c8 + boom_cyl_l_barrel_e2*c7 - boom_cyl_l_barrel_e3*c6;
+    const double c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1;
+    const double c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1;
     const double c12 = -c11;
     const double c13 = 4.0*v_arm_cyl_barrel_e0;
     const double c14 = 4.0*v_arm_cyl_barrel_e1;
-    const double c15 = arm_cyl_barrel_e0*c13 + arm_cyl_barrel_e1*c14;
+    const double c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1;
     const double c16 = 2.0*v_arm_cyl_barrel_e1;
     const double c17 = 2.0*v_arm_cyl_barrel_e0;
     const double c18 = 2.0*v_arm_cyl_barrel_e3;
     const double c19 = 2.0*v_arm_cyl_barrel_e2;
-    const double c20 = arm_cyl_barrel_e0*c18 + arm_cyl_barrel_e1*c19 + arm_cyl_barrel_e2*c16 + arm_cyl_barrel_e3*c17;
-    const double c21 = arm_cyl_barrel_e0*c19 - arm_cyl_barrel_e1*c18 + arm_cyl_barrel_e2*c17 - arm_cyl_barrel_e3*c16;
+    const double c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1;
+    const double c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1;
     const double c22 = -c21;
     const double c23 = 4.0*v_bucket_cyl_barrel_e0;
     const double c24 = 4.0*v_bucket_cyl_barrel_e1;
-    const double c25 = bucket_cyl_barrel_e0*c23 + bucket_cyl_barrel_e1*c24;
+    const double c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1;
     const double c26 = 2.0*v_bucket_cyl_barrel_e1;
     const double c27 = 2.0*v_bucket_cyl_barrel_e0;
     const double c28 = 2.0*v_bucket_cyl_barrel_e3;
     const double c29 = 2.0*v_bucket_cyl_barrel_e2;
-    const double c30 = bucket_cyl_barrel_e0*c28 + bucket_cyl_barrel_e1*c29 + bucket_cyl_barrel_e2*c26 + bucket_cyl_barrel_e3*c27;
-    const double c31 = bucket_cyl_barrel_e0*c29 - bucket_cyl_barrel_e1*c28 + bucket_cyl_barrel_e2*c27 - bucket_cyl_barrel_e3*c26;
+    const double c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1;
+    const double c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1;
     const double c32 = -c31;
-    out[0] = -(ud0*ud0)*(-1.0/2.0*upper_e0*c2 + (1.0/2.0)*upper_e3*c1) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3) - udd0*(upper_e0*c1 + upper_e3*c2);
-    out[1] = c5*v_boom_cyl_l_barrel_x - c5*v_boom_cyl_l_rod_x - c5*(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) + c10*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_rod_y - c10*(-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1 - v_boom_cyl_l_barrel_e0*(-boom_cyl_l_barrel_x*c3 - boom_cyl_l_barrel_y*c8 + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 - boom_cyl_l_rod_z*c9) - v_boom_cyl_l_barrel_e1*(-boom_cyl_l_barrel_x*c4 - boom_cyl_l_barrel_y*c9 - boom_cyl_l_barrel_z*c8 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e2*(-boom_cyl_l_barrel_y*c6 + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1 - boom_cyl_l_rod_z*c7) - v_boom_cyl_l_barrel_e3*(-boom_cyl_l_barrel_y*c7 - boom_cyl_l_barrel_z*c6 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
-    out[2] = c15*v_arm_cyl_barrel_x - c15*v_arm_cyl_rod_x - c15*(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x) + c20*v_arm_cyl_barrel_y - c20*v_arm_cyl_rod_y - c20*(-v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(-v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2 - v_arm_cyl_barrel_e0*(-arm_cyl_barrel_x*c13 - arm_cyl_barrel_y*c18 + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 - arm_cyl_rod_z*c19) - v_arm_cyl_barrel_e1*(-arm_cyl_barrel_x*c14 - arm_cyl_barrel_y*c19 - arm_cyl_barrel_z*c18 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e2*(-arm_cyl_barrel_y*c16 + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1 - arm_cyl_rod_z*c17) - v_arm_cyl_barrel_e3*(-arm_cyl_barrel_y*c17 - arm_cyl_barrel_z*c16 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
-    out[3] = c25*v_bucket_cyl_barrel_x - c25*v_bucket_cyl_rod_x - c25*(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) + c30*v_bucket_cyl_barrel_y - c30*v_bucket_cyl_rod_y - c30*(-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3 - v_bucket_cyl_barrel_e0*(-bucket_cyl_barrel_x*c23 - bucket_cyl_barrel_y*c28 + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 - bucket_cyl_rod_z*c29) - v_bucket_cyl_barrel_e1*(-bucket_cyl_barrel_x*c24 - bucket_cyl_barrel_y*c29 - bucket_cyl_barrel_z*c28 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e2*(-bucket_cyl_barrel_y*c26 + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1 - bucket_cyl_rod_z*c27) - v_bucket_cyl_barrel_e3*(-bucket_cyl_barrel_y*c27 - bucket_cyl_barrel_z*c26 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'. */
-static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_joints_gamma_part2(q, v, gamma);
-    compute_drivers_gamma_digging(q, v, u, ud, udd, gamma + 94);
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1.0/2.0)*c1*upper_e3 - 1.0/2.0*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3);
+    out[1] = udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
+    out[2] = udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
+    out[3] = udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
 }
 
 /* Driver inputs of case 'digging' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_digging(double t, double *out) {
+void excavator_euler_parameters_compute_inputs_digging(double t, double *out) {
     const double c0 = 2.0*t;
-    const double c1 = tanh(c0 - 27.0);
-    const double c2 = tanh(c0 - 17.0);
-    const double c3 = tanh(c0 - 29.0);
-    const double c4 = tanh(c0 - 14.0);
-    const double c5 = tanh(c0 - 3.0);
+    const double c1 = tanh(-27.0 + c0);
+    const double c2 = tanh(-17.0 + c0);
+    const double c3 = tanh(-29.0 + c0);
+    const double c4 = tanh(-14.0 + c0);
+    const double c5 = tanh(-3.0 + c0);
     const double c6 = (9.0/40.0)*c5;
-    const double c7 = tanh(c0 - 23.0);
-    const double c8 = tanh(c0 - 9.0);
+    const double c7 = tanh(-23.0 + c0);
+    const double c8 = tanh(-9.0 + c0);
     const double c9 = (c1*c1);
     const double c10 = (c2*c2);
     const double c11 = (c3*c3);
@@ -2904,27 +2909,22 @@ static void compute_inputs_digging(double t, double *out) {
     const double c18 = (9.0/20.0)*c5*(4.0 - 4.0*c13);
     const double c19 = 4.0 - 4.0*c15;
     const double c20 = c8*(4.0 - 4.0*c16);
-    out[0] = -0.7853981633974483*c1 + 0.7853981633974483*c2;
-    out[1] = -1.0/5.0*c3 + (17.0/40.0)*c4 - c6 + 626973.0/250000.0;
-    out[2] = -7.0/40.0*c3 + c6 - 17.0/40.0*c7 + (3.0/8.0)*c8 + 485803.0/250000.0;
-    out[3] = (1.0/20.0)*c3 - 3.0/8.0*c7 + (13.0/40.0)*c8 + 928949.0/500000.0;
-    out[4] = -1.5707963267948966*c10 + 1.5707963267948966*c9;
-    out[5] = (2.0/5.0)*c11 - 17.0/20.0*c12 + c14;
-    out[6] = (7.0/20.0)*c11 - c14 + (17.0/20.0)*c15 - 3.0/4.0*c16;
-    out[7] = -1.0/10.0*c11 + (3.0/4.0)*c15 - 13.0/20.0*c16;
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1;
+    out[1] = 626973.0/250000.0 - c6 - 1.0/5.0*c3 + (17.0/40.0)*c4;
+    out[2] = 485803.0/250000.0 + c6 - 17.0/40.0*c7 - 7.0/40.0*c3 + (3.0/8.0)*c8;
+    out[3] = 928949.0/500000.0 - 3.0/8.0*c7 + (1.0/20.0)*c3 + (13.0/40.0)*c8;
+    out[4] = 1.5707963267948966*c9 - 1.5707963267948966*c10;
+    out[5] = c14 - 17.0/20.0*c12 + (2.0/5.0)*c11;
+    out[6] = -c14 - 3.0/4.0*c16 + (7.0/20.0)*c11 + (17.0/20.0)*c15;
+    out[7] = -13.0/20.0*c16 - 1.0/10.0*c11 + (3.0/4.0)*c15;
     out[8] = 1.5707963267948966*c1*(4.0 - 4.0*c9) - 1.5707963267948966*c2*(4.0 - 4.0*c10);
-    out[9] = (2.0/5.0)*c17 + c18 - 17.0/20.0*c4*(4.0 - 4.0*c12);
-    out[10] = (7.0/20.0)*c17 - c18 + (17.0/20.0)*c19*c7 - 3.0/4.0*c20;
-    out[11] = -1.0/10.0*c17 + (3.0/4.0)*c19*c7 - 13.0/20.0*c20;
-}
-
-/* Driver inputs of case 'digging' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_digging(double t, double *inputs) {
-    compute_inputs_digging(t, inputs);
+    out[9] = c18 + (2.0/5.0)*c17 - 17.0/20.0*c4*(4.0 - 4.0*c12);
+    out[10] = -c18 - 3.0/4.0*c20 + (7.0/20.0)*c17 + (17.0/20.0)*c19*c7;
+    out[11] = -13.0/20.0*c20 - 1.0/10.0*c17 + (3.0/4.0)*c19*c7;
 }
 
 /* Phi of the driver rows of case 'level_cut'. */
-static void compute_drivers_phi_level_cut(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_x = q[91];
@@ -2937,19 +2937,19 @@ static void compute_drivers_phi_level_cut(const double *q, const double *u, doub
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double bucket_a00 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_e0*sin(c0) - 2.0*upper_e3*cos(c0);
-    out[1] = (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02 + bucket_x - u1;
-    out[2] = (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22 + bucket_z - u2;
-    out[3] = -bucket_a02*cos(u3) + bucket_a22*sin(u3);
+    out[0] = -2.0*upper_e3*cos(c0) + 2.0*upper_e0*sin(c0);
+    out[1] = bucket_x - u1 + (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02;
+    out[2] = bucket_z - u2 + (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22;
+    out[3] = bucket_a22*sin(u3) - bucket_a02*cos(u3);
 }
 
 /* Phi_q values of the driver rows of case 'level_cut'. */
-static void compute_drivers_jac_level_cut(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, double *out) {
     const double bucket_e0 = q[94];
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
@@ -2967,30 +2967,18 @@ static void compute_drivers_jac_level_cut(const double *q, const double *u, doub
     out[5] = (403.0/250.0)*bucket_e0;
     out[6] = (403.0/250.0)*bucket_e1;
     out[7] = 1.0;
-    out[8] = (403.0/125.0)*bucket_e0 - 64.0/25.0*bucket_e2;
+    out[8] = -64.0/25.0*bucket_e2 + (403.0/125.0)*bucket_e0;
     out[9] = (64.0/25.0)*bucket_e3;
     out[10] = -64.0/25.0*bucket_e0;
     out[11] = (64.0/25.0)*bucket_e1 + (403.0/125.0)*bucket_e3;
-    out[12] = 4.0*bucket_e0*d1 - bucket_e2*d2;
-    out[13] = -bucket_e3*d2;
-    out[14] = -bucket_e0*d2;
-    out[15] = -bucket_e1*d2 + 4.0*bucket_e3*d1;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'level_cut'. */
-static void phi_jac_level_cut(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_level_cut(q, u, phi + 94);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_joints_jac_part3(q, jac);
-    compute_joints_jac_part4(q, jac);
-    compute_drivers_jac_level_cut(q, u, jac + 611);
+    out[12] = -d2*bucket_e2 + 4.0*d1*bucket_e0;
+    out[13] = -d2*bucket_e3;
+    out[14] = -d2*bucket_e0;
+    out[15] = -d2*bucket_e1 + 4.0*d1*bucket_e3;
 }
 
 /* nu of the driver rows of case 'level_cut'. */
-static void compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -3004,7 +2992,7 @@ static void compute_drivers_nu_level_cut(const double *q, const double *u, const
     const double ud2 = ud[2];
     const double ud3 = ud[3];
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0));
     out[1] = ud1;
@@ -3012,14 +3000,8 @@ static void compute_drivers_nu_level_cut(const double *q, const double *u, const
     out[3] = -ud3*(bucket_a02*sin(u3) + bucket_a22*cos(u3));
 }
 
-/* nu = -Phi_t of case 'level_cut' (zero in the joint rows). */
-static void nu_level_cut(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_level_cut(q, u, ud, nu + 94);
-}
-
 /* gamma of the driver rows of case 'level_cut'. */
-static void compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -3041,7 +3023,7 @@ static void compute_drivers_gamma_level_cut(const double *q, const double *v, co
     const double udd2 = udd[2];
     const double udd3 = udd[3];
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
@@ -3053,46 +3035,33 @@ static void compute_drivers_gamma_level_cut(const double *q, const double *v, co
     const double c8 = 2.0*c6;
     const double c9 = 2.0*c7;
     const double c10 = 4.0*c6;
-    out[0] = -(ud0*ud0)*(-1.0/2.0*upper_e0*c2 + (1.0/2.0)*upper_e3*c1) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3) - udd0*(upper_e0*c1 + upper_e3*c2);
-    out[1] = -c3*v_bucket_e0 - c4*v_bucket_e1 + udd1 - v_bucket_e0*(c3 + (128.0/25.0)*v_bucket_e0) - v_bucket_e1*(c4 + (128.0/25.0)*v_bucket_e1);
-    out[2] = -c5*v_bucket_e3 + udd2 + (64.0/25.0)*v_bucket_e0*v_bucket_e2 - v_bucket_e0*((403.0/125.0)*v_bucket_e0 - 64.0/25.0*v_bucket_e2) - v_bucket_e3*(c5 + (403.0/125.0)*v_bucket_e3);
-    out[3] = 2.0*c6*v_bucket_e0*v_bucket_e2 + 2.0*c6*v_bucket_e1*v_bucket_e3 - (ud3*ud3)*(bucket_a02*c6 - bucket_a22*c7) - 2.0*ud3*(bucket_e0*c9*v_bucket_e2 + bucket_e3*c9*v_bucket_e1 + v_bucket_e0*(bucket_e0*c10 + bucket_e2*c9) + v_bucket_e3*(bucket_e1*c9 + bucket_e3*c10)) - udd3*(bucket_a02*c7 + bucket_a22*c6) - v_bucket_e0*(4.0*c7*v_bucket_e0 - c8*v_bucket_e2) - v_bucket_e3*(4.0*c7*v_bucket_e3 - c8*v_bucket_e1);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'. */
-static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_joints_gamma_part2(q, v, gamma);
-    compute_drivers_gamma_level_cut(q, v, u, ud, udd, gamma + 94);
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1.0/2.0)*c1*upper_e3 - 1.0/2.0*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3);
+    out[1] = udd1 - c3*v_bucket_e0 - c4*v_bucket_e1 - v_bucket_e0*(c3 + (128.0/25.0)*v_bucket_e0) - v_bucket_e1*(c4 + (128.0/25.0)*v_bucket_e1);
+    out[2] = udd2 - c5*v_bucket_e3 - v_bucket_e0*(-64.0/25.0*v_bucket_e2 + (403.0/125.0)*v_bucket_e0) - v_bucket_e3*(c5 + (403.0/125.0)*v_bucket_e3) + (64.0/25.0)*v_bucket_e0*v_bucket_e2;
+    out[3] = -udd3*(c6*bucket_a22 + c7*bucket_a02) - v_bucket_e0*(-c8*v_bucket_e2 + 4.0*c7*v_bucket_e0) - v_bucket_e3*(-c8*v_bucket_e1 + 4.0*c7*v_bucket_e3) - (ud3*ud3)*(c6*bucket_a02 - c7*bucket_a22) - 2.0*ud3*(v_bucket_e0*(c9*bucket_e2 + c10*bucket_e0) + v_bucket_e3*(c9*bucket_e1 + c10*bucket_e3) + c9*bucket_e0*v_bucket_e2 + c9*bucket_e3*v_bucket_e1) + 2.0*c6*v_bucket_e0*v_bucket_e2 + 2.0*c6*v_bucket_e1*v_bucket_e3;
 }
 
 /* Driver inputs of case 'level_cut' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_level_cut(double t, double *out) {
+void excavator_euler_parameters_compute_inputs_level_cut(double t, double *out) {
     const double c0 = pow(t, 3.0);
     const double c1 = pow(t, 4.0);
     const double c2 = (t*t);
     out[0] = 0.0;
-    out[1] = -17.0/32.0*c0 + (51.0/256.0)*c1 - 51.0/2560.0*pow(t, 5.0) + 79.0/10.0;
+    out[1] = 79.0/10.0 - 51.0/2560.0*pow(t, 5.0) - 17.0/32.0*c0 + (51.0/256.0)*c1;
     out[2] = -1.0;
     out[3] = 2.2689280275926285;
     out[4] = 0.0;
-    out[5] = (51.0/64.0)*c0 - 51.0/512.0*c1 - 51.0/32.0*c2;
+    out[5] = -51.0/32.0*c2 - 51.0/512.0*c1 + (51.0/64.0)*c0;
     out[6] = 0.0;
     out[7] = 0.0;
     out[8] = 0.0;
-    out[9] = -51.0/128.0*c0 + (153.0/64.0)*c2 - 51.0/16.0*t;
+    out[9] = -51.0/16.0*t - 51.0/128.0*c0 + (153.0/64.0)*c2;
     out[10] = 0.0;
     out[11] = 0.0;
 }
 
-/* Driver inputs of case 'level_cut' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_level_cut(double t, double *inputs) {
-    compute_inputs_level_cut(t, inputs);
-}
-
 /* Phi of the driver rows of case 'trench_wall'. */
-static void compute_drivers_phi_trench_wall(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_x = q[91];
@@ -3105,19 +3074,19 @@ static void compute_drivers_phi_trench_wall(const double *q, const double *u, do
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double bucket_a00 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_e0*sin(c0) - 2.0*upper_e3*cos(c0);
-    out[1] = (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02 + bucket_x - u1;
-    out[2] = (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22 + bucket_z - u2;
-    out[3] = -bucket_a02*cos(u3) + bucket_a22*sin(u3);
+    out[0] = -2.0*upper_e3*cos(c0) + 2.0*upper_e0*sin(c0);
+    out[1] = bucket_x - u1 + (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02;
+    out[2] = bucket_z - u2 + (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22;
+    out[3] = bucket_a22*sin(u3) - bucket_a02*cos(u3);
 }
 
 /* Phi_q values of the driver rows of case 'trench_wall'. */
-static void compute_drivers_jac_trench_wall(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out) {
     const double bucket_e0 = q[94];
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
@@ -3135,30 +3104,18 @@ static void compute_drivers_jac_trench_wall(const double *q, const double *u, do
     out[5] = (403.0/250.0)*bucket_e0;
     out[6] = (403.0/250.0)*bucket_e1;
     out[7] = 1.0;
-    out[8] = (403.0/125.0)*bucket_e0 - 64.0/25.0*bucket_e2;
+    out[8] = -64.0/25.0*bucket_e2 + (403.0/125.0)*bucket_e0;
     out[9] = (64.0/25.0)*bucket_e3;
     out[10] = -64.0/25.0*bucket_e0;
     out[11] = (64.0/25.0)*bucket_e1 + (403.0/125.0)*bucket_e3;
-    out[12] = 4.0*bucket_e0*d1 - bucket_e2*d2;
-    out[13] = -bucket_e3*d2;
-    out[14] = -bucket_e0*d2;
-    out[15] = -bucket_e1*d2 + 4.0*bucket_e3*d1;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
-static void phi_jac_trench_wall(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_trench_wall(q, u, phi + 94);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_joints_jac_part3(q, jac);
-    compute_joints_jac_part4(q, jac);
-    compute_drivers_jac_trench_wall(q, u, jac + 611);
+    out[12] = -d2*bucket_e2 + 4.0*d1*bucket_e0;
+    out[13] = -d2*bucket_e3;
+    out[14] = -d2*bucket_e0;
+    out[15] = -d2*bucket_e1 + 4.0*d1*bucket_e3;
 }
 
 /* nu of the driver rows of case 'trench_wall'. */
-static void compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -3172,7 +3129,7 @@ static void compute_drivers_nu_trench_wall(const double *q, const double *u, con
     const double ud2 = ud[2];
     const double ud3 = ud[3];
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0));
     out[1] = ud1;
@@ -3180,14 +3137,8 @@ static void compute_drivers_nu_trench_wall(const double *q, const double *u, con
     out[3] = -ud3*(bucket_a02*sin(u3) + bucket_a22*cos(u3));
 }
 
-/* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
-static void nu_trench_wall(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_trench_wall(q, u, ud, nu + 94);
-}
-
 /* gamma of the driver rows of case 'trench_wall'. */
-static void compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -3209,7 +3160,7 @@ static void compute_drivers_gamma_trench_wall(const double *q, const double *v, 
     const double udd2 = udd[2];
     const double udd3 = udd[3];
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
@@ -3221,46 +3172,33 @@ static void compute_drivers_gamma_trench_wall(const double *q, const double *v, 
     const double c8 = 2.0*c6;
     const double c9 = 2.0*c7;
     const double c10 = 4.0*c6;
-    out[0] = -(ud0*ud0)*(-1.0/2.0*upper_e0*c2 + (1.0/2.0)*upper_e3*c1) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3) - udd0*(upper_e0*c1 + upper_e3*c2);
-    out[1] = -c3*v_bucket_e0 - c4*v_bucket_e1 + udd1 - v_bucket_e0*(c3 + (128.0/25.0)*v_bucket_e0) - v_bucket_e1*(c4 + (128.0/25.0)*v_bucket_e1);
-    out[2] = -c5*v_bucket_e3 + udd2 + (64.0/25.0)*v_bucket_e0*v_bucket_e2 - v_bucket_e0*((403.0/125.0)*v_bucket_e0 - 64.0/25.0*v_bucket_e2) - v_bucket_e3*(c5 + (403.0/125.0)*v_bucket_e3);
-    out[3] = 2.0*c6*v_bucket_e0*v_bucket_e2 + 2.0*c6*v_bucket_e1*v_bucket_e3 - (ud3*ud3)*(bucket_a02*c6 - bucket_a22*c7) - 2.0*ud3*(bucket_e0*c9*v_bucket_e2 + bucket_e3*c9*v_bucket_e1 + v_bucket_e0*(bucket_e0*c10 + bucket_e2*c9) + v_bucket_e3*(bucket_e1*c9 + bucket_e3*c10)) - udd3*(bucket_a02*c7 + bucket_a22*c6) - v_bucket_e0*(4.0*c7*v_bucket_e0 - c8*v_bucket_e2) - v_bucket_e3*(4.0*c7*v_bucket_e3 - c8*v_bucket_e1);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
-static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_joints_gamma_part2(q, v, gamma);
-    compute_drivers_gamma_trench_wall(q, v, u, ud, udd, gamma + 94);
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1.0/2.0)*c1*upper_e3 - 1.0/2.0*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3);
+    out[1] = udd1 - c3*v_bucket_e0 - c4*v_bucket_e1 - v_bucket_e0*(c3 + (128.0/25.0)*v_bucket_e0) - v_bucket_e1*(c4 + (128.0/25.0)*v_bucket_e1);
+    out[2] = udd2 - c5*v_bucket_e3 - v_bucket_e0*(-64.0/25.0*v_bucket_e2 + (403.0/125.0)*v_bucket_e0) - v_bucket_e3*(c5 + (403.0/125.0)*v_bucket_e3) + (64.0/25.0)*v_bucket_e0*v_bucket_e2;
+    out[3] = -udd3*(c6*bucket_a22 + c7*bucket_a02) - v_bucket_e0*(-c8*v_bucket_e2 + 4.0*c7*v_bucket_e0) - v_bucket_e3*(-c8*v_bucket_e1 + 4.0*c7*v_bucket_e3) - (ud3*ud3)*(c6*bucket_a02 - c7*bucket_a22) - 2.0*ud3*(v_bucket_e0*(c9*bucket_e2 + c10*bucket_e0) + v_bucket_e3*(c9*bucket_e1 + c10*bucket_e3) + c9*bucket_e0*v_bucket_e2 + c9*bucket_e3*v_bucket_e1) + 2.0*c6*v_bucket_e0*v_bucket_e2 + 2.0*c6*v_bucket_e1*v_bucket_e3;
 }
 
 /* Driver inputs of case 'trench_wall' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_trench_wall(double t, double *out) {
+void excavator_euler_parameters_compute_inputs_trench_wall(double t, double *out) {
     const double c0 = pow(t, 3.0);
     const double c1 = pow(t, 4.0);
     const double c2 = (t*t);
     out[0] = 0.0;
     out[1] = 6.0;
-    out[2] = -15.0/32.0*c0 + (45.0/256.0)*c1 - 9.0/512.0*pow(t, 5.0) + 1.0/2.0;
+    out[2] = 1.0/2.0 - 15.0/32.0*c0 - 9.0/512.0*pow(t, 5.0) + (45.0/256.0)*c1;
     out[3] = 2.2689280275926285;
     out[4] = 0.0;
     out[5] = 0.0;
-    out[6] = (45.0/64.0)*c0 - 45.0/512.0*c1 - 45.0/32.0*c2;
+    out[6] = -45.0/32.0*c2 - 45.0/512.0*c1 + (45.0/64.0)*c0;
     out[7] = 0.0;
     out[8] = 0.0;
     out[9] = 0.0;
-    out[10] = -45.0/128.0*c0 + (135.0/64.0)*c2 - 45.0/16.0*t;
+    out[10] = -45.0/16.0*t - 45.0/128.0*c0 + (135.0/64.0)*c2;
     out[11] = 0.0;
 }
 
-/* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_trench_wall(double t, double *inputs) {
-    compute_inputs_trench_wall(t, inputs);
-}
-
 /* Phi of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3297,24 +3235,24 @@ static void compute_drivers_phi_bucket_toggle(const double *q, const double *u, 
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_e0*sin(c0) - 2.0*upper_e3*cos(c0);
-    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1;
-    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2;
-    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3;
+    out[0] = -2.0*upper_e3*cos(c0) + 2.0*upper_e0*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
 }
 
 /* Phi_q values of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
     const double boom_cyl_l_barrel_z = q[16];
@@ -3346,32 +3284,32 @@ static void compute_drivers_jac_bucket_toggle(const double *q, const double *u, 
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double d2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
+    const double d2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
     const double d3 = 2.0*boom_cyl_l_barrel_e2;
-    const double d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
+    const double d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
     const double d5 = 2.0*boom_cyl_l_barrel_e3;
     const double d6 = 2.0*boom_cyl_l_barrel_e0;
     const double d7 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double d8 = -arm_cyl_barrel_z + arm_cyl_rod_z;
+    const double d8 = arm_cyl_rod_z - arm_cyl_barrel_z;
     const double d9 = 2.0*arm_cyl_barrel_e2;
-    const double d10 = -arm_cyl_barrel_y + arm_cyl_rod_y;
+    const double d10 = arm_cyl_rod_y - arm_cyl_barrel_y;
     const double d11 = 2.0*arm_cyl_barrel_e3;
     const double d12 = 2.0*arm_cyl_barrel_e0;
     const double d13 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double d14 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
+    const double d14 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
     const double d15 = 2.0*bucket_cyl_barrel_e2;
-    const double d16 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
+    const double d16 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
     const double d17 = 2.0*bucket_cyl_barrel_e3;
     const double d18 = 2.0*bucket_cyl_barrel_e0;
     out[0] = 2.0*sin(d0);
@@ -3379,49 +3317,37 @@ static void compute_drivers_jac_bucket_toggle(const double *q, const double *u, 
     out[2] = -boom_cyl_l_barrel_a00;
     out[3] = -boom_cyl_l_barrel_a10;
     out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = boom_cyl_l_barrel_e0*d1 - d2*d3 + d4*d5;
-    out[6] = boom_cyl_l_barrel_e1*d1 + d2*d5 + d3*d4;
-    out[7] = 2.0*boom_cyl_l_barrel_e1*d4 - d2*d6;
-    out[8] = 2.0*boom_cyl_l_barrel_e1*d2 + d4*d6;
+    out[5] = d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3;
+    out[6] = d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4;
+    out[7] = -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1;
+    out[8] = d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1;
     out[9] = boom_cyl_l_barrel_a00;
     out[10] = boom_cyl_l_barrel_a10;
     out[11] = boom_cyl_l_barrel_a20;
     out[12] = -arm_cyl_barrel_a00;
     out[13] = -arm_cyl_barrel_a10;
     out[14] = -arm_cyl_barrel_a20;
-    out[15] = arm_cyl_barrel_e0*d7 - d8*d9 + d10*d11;
-    out[16] = arm_cyl_barrel_e1*d7 + d8*d11 + d9*d10;
-    out[17] = 2.0*arm_cyl_barrel_e1*d10 - d8*d12;
-    out[18] = 2.0*arm_cyl_barrel_e1*d8 + d10*d12;
+    out[15] = d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9;
+    out[16] = d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10;
+    out[17] = -d8*d12 + 2.0*d10*arm_cyl_barrel_e1;
+    out[18] = d10*d12 + 2.0*d8*arm_cyl_barrel_e1;
     out[19] = arm_cyl_barrel_a00;
     out[20] = arm_cyl_barrel_a10;
     out[21] = arm_cyl_barrel_a20;
     out[22] = -bucket_cyl_barrel_a00;
     out[23] = -bucket_cyl_barrel_a10;
     out[24] = -bucket_cyl_barrel_a20;
-    out[25] = bucket_cyl_barrel_e0*d13 - d14*d15 + d16*d17;
-    out[26] = bucket_cyl_barrel_e1*d13 + d14*d17 + d15*d16;
-    out[27] = 2.0*bucket_cyl_barrel_e1*d16 - d14*d18;
-    out[28] = 2.0*bucket_cyl_barrel_e1*d14 + d16*d18;
+    out[25] = d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15;
+    out[26] = d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16;
+    out[27] = -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1;
+    out[28] = d16*d18 + 2.0*d14*bucket_cyl_barrel_e1;
     out[29] = bucket_cyl_barrel_a00;
     out[30] = bucket_cyl_barrel_a10;
     out[31] = bucket_cyl_barrel_a20;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
-static void phi_jac_bucket_toggle(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_bucket_toggle(q, u, phi + 94);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_joints_jac_part3(q, jac);
-    compute_joints_jac_part4(q, jac);
-    compute_drivers_jac_bucket_toggle(q, u, jac + 611);
-}
-
 /* nu of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double u0 = u[0];
@@ -3436,14 +3362,8 @@ static void compute_drivers_nu_bucket_toggle(const double *q, const double *u, c
     out[3] = ud3;
 }
 
-/* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
-static void nu_bucket_toggle(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_bucket_toggle(q, u, ud, nu + 94);
-}
-
 /* gamma of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3519,54 +3439,46 @@ static void compute_drivers_gamma_bucket_toggle(const double *q, const double *v
     const double c2 = sin(c0);
     const double c3 = 4.0*v_boom_cyl_l_barrel_e0;
     const double c4 = 4.0*v_boom_cyl_l_barrel_e1;
-    const double c5 = boom_cyl_l_barrel_e0*c3 + boom_cyl_l_barrel_e1*c4;
+    const double c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1;
     const double c6 = 2.0*v_boom_cyl_l_barrel_e1;
     const double c7 = 2.0*v_boom_cyl_l_barrel_e0;
     const double c8 = 2.0*v_boom_cyl_l_barrel_e3;
     const double c9 = 2.0*v_boom_cyl_l_barrel_e2;
-    const double c10 = boom_cyl_l_barrel_e0*c8 + boom_cyl_l_barrel_e1*c9 + boom_cyl_l_barrel_e2*c6 + boom_cyl_l_barrel_e3*c7;
-    const double c11 = boom_cyl_l_barrel_e0*c9 - boom_cyl_l_barrel_e1*c8 + boom_cyl_l_barrel_e2*c7 - boom_cyl_l_barrel_e3*c6;
+    const double c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1;
+    const double c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1;
     const double c12 = -c11;
     const double c13 = 4.0*v_arm_cyl_barrel_e0;
     const double c14 = 4.0*v_arm_cyl_barrel_e1;
-    const double c15 = arm_cyl_barrel_e0*c13 + arm_cyl_barrel_e1*c14;
+    const double c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1;
     const double c16 = 2.0*v_arm_cyl_barrel_e1;
     const double c17 = 2.0*v_arm_cyl_barrel_e0;
     const double c18 = 2.0*v_arm_cyl_barrel_e3;
     const double c19 = 2.0*v_arm_cyl_barrel_e2;
-    const double c20 = arm_cyl_barrel_e0*c18 + arm_cyl_barrel_e1*c19 + arm_cyl_barrel_e2*c16 + arm_cyl_barrel_e3*c17;
-    const double c21 = arm_cyl_barrel_e0*c19 - arm_cyl_barrel_e1*c18 + arm_cyl_barrel_e2*c17 - arm_cyl_barrel_e3*c16;
+    const double c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1;
+    const double c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1;
     const double c22 = -c21;
     const double c23 = 4.0*v_bucket_cyl_barrel_e0;
     const double c24 = 4.0*v_bucket_cyl_barrel_e1;
-    const double c25 = bucket_cyl_barrel_e0*c23 + bucket_cyl_barrel_e1*c24;
+    const double c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1;
     const double c26 = 2.0*v_bucket_cyl_barrel_e1;
     const double c27 = 2.0*v_bucket_cyl_barrel_e0;
     const double c28 = 2.0*v_bucket_cyl_barrel_e3;
     const double c29 = 2.0*v_bucket_cyl_barrel_e2;
-    const double c30 = bucket_cyl_barrel_e0*c28 + bucket_cyl_barrel_e1*c29 + bucket_cyl_barrel_e2*c26 + bucket_cyl_barrel_e3*c27;
-    const double c31 = bucket_cyl_barrel_e0*c29 - bucket_cyl_barrel_e1*c28 + bucket_cyl_barrel_e2*c27 - bucket_cyl_barrel_e3*c26;
+    const double c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1;
+    const double c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1;
     const double c32 = -c31;
-    out[0] = -(ud0*ud0)*(-1.0/2.0*upper_e0*c2 + (1.0/2.0)*upper_e3*c1) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3) - udd0*(upper_e0*c1 + upper_e3*c2);
-    out[1] = c5*v_boom_cyl_l_barrel_x - c5*v_boom_cyl_l_rod_x - c5*(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) + c10*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_rod_y - c10*(-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1 - v_boom_cyl_l_barrel_e0*(-boom_cyl_l_barrel_x*c3 - boom_cyl_l_barrel_y*c8 + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 - boom_cyl_l_rod_z*c9) - v_boom_cyl_l_barrel_e1*(-boom_cyl_l_barrel_x*c4 - boom_cyl_l_barrel_y*c9 - boom_cyl_l_barrel_z*c8 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e2*(-boom_cyl_l_barrel_y*c6 + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1 - boom_cyl_l_rod_z*c7) - v_boom_cyl_l_barrel_e3*(-boom_cyl_l_barrel_y*c7 - boom_cyl_l_barrel_z*c6 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
-    out[2] = c15*v_arm_cyl_barrel_x - c15*v_arm_cyl_rod_x - c15*(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x) + c20*v_arm_cyl_barrel_y - c20*v_arm_cyl_rod_y - c20*(-v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(-v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2 - v_arm_cyl_barrel_e0*(-arm_cyl_barrel_x*c13 - arm_cyl_barrel_y*c18 + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 - arm_cyl_rod_z*c19) - v_arm_cyl_barrel_e1*(-arm_cyl_barrel_x*c14 - arm_cyl_barrel_y*c19 - arm_cyl_barrel_z*c18 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e2*(-arm_cyl_barrel_y*c16 + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1 - arm_cyl_rod_z*c17) - v_arm_cyl_barrel_e3*(-arm_cyl_barrel_y*c17 - arm_cyl_barrel_z*c16 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
-    out[3] = c25*v_bucket_cyl_barrel_x - c25*v_bucket_cyl_rod_x - c25*(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) + c30*v_bucket_cyl_barrel_y - c30*v_bucket_cyl_rod_y - c30*(-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3 - v_bucket_cyl_barrel_e0*(-bucket_cyl_barrel_x*c23 - bucket_cyl_barrel_y*c28 + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 - bucket_cyl_rod_z*c29) - v_bucket_cyl_barrel_e1*(-bucket_cyl_barrel_x*c24 - bucket_cyl_barrel_y*c29 - bucket_cyl_barrel_z*c28 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e2*(-bucket_cyl_barrel_y*c26 + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1 - bucket_cyl_rod_z*c27) - v_bucket_cyl_barrel_e3*(-bucket_cyl_barrel_y*c27 - bucket_cyl_barrel_z*c26 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
-static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_joints_gamma_part2(q, v, gamma);
-    compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, gamma + 94);
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1.0/2.0)*c1*upper_e3 - 1.0/2.0*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3);
+    out[1] = udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
+    out[2] = udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
+    out[3] = udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_bucket_toggle(double t, double *out) {
+void excavator_euler_parameters_compute_inputs_bucket_toggle(double t, double *out) {
     out[0] = 0.0;
     out[1] = 626973.0/250000.0;
     out[2] = 485803.0/250000.0;
-    out[3] = (1.0/10.0)*t + 5.0/2.0;
+    out[3] = 5.0/2.0 + (1.0/10.0)*t;
     out[4] = 0.0;
     out[5] = 0.0;
     out[6] = 0.0;
@@ -3577,13 +3489,8 @@ static void compute_inputs_bucket_toggle(double t, double *out) {
     out[11] = 0.0;
 }
 
-/* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_bucket_toggle(double t, double *inputs) {
-    compute_inputs_bucket_toggle(t, inputs);
-}
-
 /* Phi of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3620,24 +3527,24 @@ static void compute_drivers_phi_bucket_near_toggle(const double *q, const double
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_e0*sin(c0) - 2.0*upper_e3*cos(c0);
-    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1;
-    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2;
-    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3;
+    out[0] = -2.0*upper_e3*cos(c0) + 2.0*upper_e0*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
 }
 
 /* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
     const double boom_cyl_l_barrel_z = q[16];
@@ -3669,32 +3576,32 @@ static void compute_drivers_jac_bucket_near_toggle(const double *q, const double
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
-    const double d2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
+    const double d2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
     const double d3 = 2.0*boom_cyl_l_barrel_e2;
-    const double d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
+    const double d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
     const double d5 = 2.0*boom_cyl_l_barrel_e3;
     const double d6 = 2.0*boom_cyl_l_barrel_e0;
     const double d7 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
-    const double d8 = -arm_cyl_barrel_z + arm_cyl_rod_z;
+    const double d8 = arm_cyl_rod_z - arm_cyl_barrel_z;
     const double d9 = 2.0*arm_cyl_barrel_e2;
-    const double d10 = -arm_cyl_barrel_y + arm_cyl_rod_y;
+    const double d10 = arm_cyl_rod_y - arm_cyl_barrel_y;
     const double d11 = 2.0*arm_cyl_barrel_e3;
     const double d12 = 2.0*arm_cyl_barrel_e0;
     const double d13 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
-    const double d14 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
+    const double d14 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
     const double d15 = 2.0*bucket_cyl_barrel_e2;
-    const double d16 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
+    const double d16 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
     const double d17 = 2.0*bucket_cyl_barrel_e3;
     const double d18 = 2.0*bucket_cyl_barrel_e0;
     out[0] = 2.0*sin(d0);
@@ -3702,49 +3609,37 @@ static void compute_drivers_jac_bucket_near_toggle(const double *q, const double
     out[2] = -boom_cyl_l_barrel_a00;
     out[3] = -boom_cyl_l_barrel_a10;
     out[4] = -boom_cyl_l_barrel_a20;
-    out[5] = boom_cyl_l_barrel_e0*d1 - d2*d3 + d4*d5;
-    out[6] = boom_cyl_l_barrel_e1*d1 + d2*d5 + d3*d4;
-    out[7] = 2.0*boom_cyl_l_barrel_e1*d4 - d2*d6;
-    out[8] = 2.0*boom_cyl_l_barrel_e1*d2 + d4*d6;
+    out[5] = d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3;
+    out[6] = d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4;
+    out[7] = -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1;
+    out[8] = d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1;
     out[9] = boom_cyl_l_barrel_a00;
     out[10] = boom_cyl_l_barrel_a10;
     out[11] = boom_cyl_l_barrel_a20;
     out[12] = -arm_cyl_barrel_a00;
     out[13] = -arm_cyl_barrel_a10;
     out[14] = -arm_cyl_barrel_a20;
-    out[15] = arm_cyl_barrel_e0*d7 - d8*d9 + d10*d11;
-    out[16] = arm_cyl_barrel_e1*d7 + d8*d11 + d9*d10;
-    out[17] = 2.0*arm_cyl_barrel_e1*d10 - d8*d12;
-    out[18] = 2.0*arm_cyl_barrel_e1*d8 + d10*d12;
+    out[15] = d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9;
+    out[16] = d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10;
+    out[17] = -d8*d12 + 2.0*d10*arm_cyl_barrel_e1;
+    out[18] = d10*d12 + 2.0*d8*arm_cyl_barrel_e1;
     out[19] = arm_cyl_barrel_a00;
     out[20] = arm_cyl_barrel_a10;
     out[21] = arm_cyl_barrel_a20;
     out[22] = -bucket_cyl_barrel_a00;
     out[23] = -bucket_cyl_barrel_a10;
     out[24] = -bucket_cyl_barrel_a20;
-    out[25] = bucket_cyl_barrel_e0*d13 - d14*d15 + d16*d17;
-    out[26] = bucket_cyl_barrel_e1*d13 + d14*d17 + d15*d16;
-    out[27] = 2.0*bucket_cyl_barrel_e1*d16 - d14*d18;
-    out[28] = 2.0*bucket_cyl_barrel_e1*d14 + d16*d18;
+    out[25] = d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15;
+    out[26] = d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16;
+    out[27] = -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1;
+    out[28] = d16*d18 + 2.0*d14*bucket_cyl_barrel_e1;
     out[29] = bucket_cyl_barrel_a00;
     out[30] = bucket_cyl_barrel_a10;
     out[31] = bucket_cyl_barrel_a20;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
-static void phi_jac_bucket_near_toggle(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_bucket_near_toggle(q, u, phi + 94);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_joints_jac_part3(q, jac);
-    compute_joints_jac_part4(q, jac);
-    compute_drivers_jac_bucket_near_toggle(q, u, jac + 611);
-}
-
 /* nu of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double u0 = u[0];
@@ -3759,14 +3654,8 @@ static void compute_drivers_nu_bucket_near_toggle(const double *q, const double 
     out[3] = ud3;
 }
 
-/* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
-static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_bucket_near_toggle(q, u, ud, nu + 94);
-}
-
 /* gamma of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3842,56 +3731,48 @@ static void compute_drivers_gamma_bucket_near_toggle(const double *q, const doub
     const double c2 = sin(c0);
     const double c3 = 4.0*v_boom_cyl_l_barrel_e0;
     const double c4 = 4.0*v_boom_cyl_l_barrel_e1;
-    const double c5 = boom_cyl_l_barrel_e0*c3 + boom_cyl_l_barrel_e1*c4;
+    const double c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1;
     const double c6 = 2.0*v_boom_cyl_l_barrel_e1;
     const double c7 = 2.0*v_boom_cyl_l_barrel_e0;
     const double c8 = 2.0*v_boom_cyl_l_barrel_e3;
     const double c9 = 2.0*v_boom_cyl_l_barrel_e2;
-    const double c10 = boom_cyl_l_barrel_e0*c8 + boom_cyl_l_barrel_e1*c9 + boom_cyl_l_barrel_e2*c6 + boom_cyl_l_barrel_e3*c7;
-    const double c11 = boom_cyl_l_barrel_e0*c9 - boom_cyl_l_barrel_e1*c8 + boom_cyl_l_barrel_e2*c7 - boom_cyl_l_barrel_e3*c6;
+    const double c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1;
+    const double c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1;
     const double c12 = -c11;
     const double c13 = 4.0*v_arm_cyl_barrel_e0;
     const double c14 = 4.0*v_arm_cyl_barrel_e1;
-    const double c15 = arm_cyl_barrel_e0*c13 + arm_cyl_barrel_e1*c14;
+    const double c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1;
     const double c16 = 2.0*v_arm_cyl_barrel_e1;
     const double c17 = 2.0*v_arm_cyl_barrel_e0;
     const double c18 = 2.0*v_arm_cyl_barrel_e3;
     const double c19 = 2.0*v_arm_cyl_barrel_e2;
-    const double c20 = arm_cyl_barrel_e0*c18 + arm_cyl_barrel_e1*c19 + arm_cyl_barrel_e2*c16 + arm_cyl_barrel_e3*c17;
-    const double c21 = arm_cyl_barrel_e0*c19 - arm_cyl_barrel_e1*c18 + arm_cyl_barrel_e2*c17 - arm_cyl_barrel_e3*c16;
+    const double c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1;
+    const double c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1;
     const double c22 = -c21;
     const double c23 = 4.0*v_bucket_cyl_barrel_e0;
     const double c24 = 4.0*v_bucket_cyl_barrel_e1;
-    const double c25 = bucket_cyl_barrel_e0*c23 + bucket_cyl_barrel_e1*c24;
+    const double c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1;
     const double c26 = 2.0*v_bucket_cyl_barrel_e1;
     const double c27 = 2.0*v_bucket_cyl_barrel_e0;
     const double c28 = 2.0*v_bucket_cyl_barrel_e3;
     const double c29 = 2.0*v_bucket_cyl_barrel_e2;
-    const double c30 = bucket_cyl_barrel_e0*c28 + bucket_cyl_barrel_e1*c29 + bucket_cyl_barrel_e2*c26 + bucket_cyl_barrel_e3*c27;
-    const double c31 = bucket_cyl_barrel_e0*c29 - bucket_cyl_barrel_e1*c28 + bucket_cyl_barrel_e2*c27 - bucket_cyl_barrel_e3*c26;
+    const double c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1;
+    const double c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1;
     const double c32 = -c31;
-    out[0] = -(ud0*ud0)*(-1.0/2.0*upper_e0*c2 + (1.0/2.0)*upper_e3*c1) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3) - udd0*(upper_e0*c1 + upper_e3*c2);
-    out[1] = c5*v_boom_cyl_l_barrel_x - c5*v_boom_cyl_l_rod_x - c5*(-v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) + c10*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_rod_y - c10*(-v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(-v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1 - v_boom_cyl_l_barrel_e0*(-boom_cyl_l_barrel_x*c3 - boom_cyl_l_barrel_y*c8 + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 - boom_cyl_l_rod_z*c9) - v_boom_cyl_l_barrel_e1*(-boom_cyl_l_barrel_x*c4 - boom_cyl_l_barrel_y*c9 - boom_cyl_l_barrel_z*c8 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e2*(-boom_cyl_l_barrel_y*c6 + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1 - boom_cyl_l_rod_z*c7) - v_boom_cyl_l_barrel_e3*(-boom_cyl_l_barrel_y*c7 - boom_cyl_l_barrel_z*c6 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
-    out[2] = c15*v_arm_cyl_barrel_x - c15*v_arm_cyl_rod_x - c15*(-v_arm_cyl_barrel_x + v_arm_cyl_rod_x) + c20*v_arm_cyl_barrel_y - c20*v_arm_cyl_rod_y - c20*(-v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(-v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2 - v_arm_cyl_barrel_e0*(-arm_cyl_barrel_x*c13 - arm_cyl_barrel_y*c18 + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 - arm_cyl_rod_z*c19) - v_arm_cyl_barrel_e1*(-arm_cyl_barrel_x*c14 - arm_cyl_barrel_y*c19 - arm_cyl_barrel_z*c18 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e2*(-arm_cyl_barrel_y*c16 + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1 - arm_cyl_rod_z*c17) - v_arm_cyl_barrel_e3*(-arm_cyl_barrel_y*c17 - arm_cyl_barrel_z*c16 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
-    out[3] = c25*v_bucket_cyl_barrel_x - c25*v_bucket_cyl_rod_x - c25*(-v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) + c30*v_bucket_cyl_barrel_y - c30*v_bucket_cyl_rod_y - c30*(-v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(-v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3 - v_bucket_cyl_barrel_e0*(-bucket_cyl_barrel_x*c23 - bucket_cyl_barrel_y*c28 + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 - bucket_cyl_rod_z*c29) - v_bucket_cyl_barrel_e1*(-bucket_cyl_barrel_x*c24 - bucket_cyl_barrel_y*c29 - bucket_cyl_barrel_z*c28 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e2*(-bucket_cyl_barrel_y*c26 + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1 - bucket_cyl_rod_z*c27) - v_bucket_cyl_barrel_e3*(-bucket_cyl_barrel_y*c27 - bucket_cyl_barrel_z*c26 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
-static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_joints_gamma_part2(q, v, gamma);
-    compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, gamma + 94);
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1.0/2.0)*c1*upper_e3 - 1.0/2.0*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3);
+    out[1] = udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
+    out[2] = udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
+    out[3] = udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_bucket_near_toggle(double t, double *out) {
+void excavator_euler_parameters_compute_inputs_bucket_near_toggle(double t, double *out) {
     const double c0 = 1.5707963267948966*t;
     const double c1 = sin(c0);
     out[0] = 0.0;
     out[1] = 626973.0/250000.0;
     out[2] = 485803.0/250000.0;
-    out[3] = (47.0/200.0)*c1 + 5.0/2.0;
+    out[3] = 5.0/2.0 + (47.0/200.0)*c1;
     out[4] = 0.0;
     out[5] = 0.0;
     out[6] = 0.0;
@@ -3902,13 +3783,12 @@ static void compute_inputs_bucket_near_toggle(double t, double *out) {
     out[11] = -0.5798392585639998*c1;
 }
 
-/* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_bucket_near_toggle(double t, double *inputs) {
-    compute_inputs_bucket_near_toggle(t, inputs);
-}
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). Rows 0 to 191. */
-static void compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
+void excavator_euler_parameters_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
     const double upper_x = q[0];
     const double upper_y = q[1];
     const double upper_z = q[2];
@@ -4077,78 +3957,78 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     const double dv_arm_cyl_barrel_e1 = a[53];
     const double dv_arm_cyl_barrel_e2 = a[54];
     const double dv_arm_cyl_barrel_e3 = a[55];
-    const double upper_a00 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e1*upper_e1) - 1.0;
+    const double upper_a00 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e1*upper_e1);
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
     const double upper_a02 = 2.0*upper_e0*upper_e2 + 2.0*upper_e1*upper_e3;
     const double upper_a10 = 2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
-    const double upper_a11 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a12 = -2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
     const double upper_a20 = -2.0*upper_e0*upper_e2 + 2.0*upper_e1*upper_e3;
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
-    const double upper_a22 = 2.0*(upper_e0*upper_e0) + 2.0*(upper_e3*upper_e3) - 1.0;
-    const double boom_a00 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1) - 1.0;
+    const double upper_a22 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e3*upper_e3);
+    const double boom_a00 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e1*boom_e1);
     const double boom_a01 = -2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a02 = 2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
-    const double boom_a11 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2);
     const double boom_a12 = -2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
-    const double boom_a22 = 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e1 + 2.0*boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e3;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3) - 1.0;
-    const double boom_cyl_l_rod_a00 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e1*boom_cyl_l_rod_e1) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3);
+    const double boom_cyl_l_rod_a00 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e1*boom_cyl_l_rod_e1);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e2;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e3;
     const double boom_cyl_l_rod_a10 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e2;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e2*boom_cyl_l_rod_e2);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
     const double boom_cyl_l_rod_a20 = -2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e1*boom_cyl_l_rod_e3;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_e0*boom_cyl_l_rod_e1 + 2.0*boom_cyl_l_rod_e2*boom_cyl_l_rod_e3;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3) - 1.0;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + 2.0*(boom_cyl_l_rod_e3*boom_cyl_l_rod_e3);
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e2;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2);
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e2 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e3;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e1 + 2.0*boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e3;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3) - 1.0;
-    const double boom_cyl_r_rod_a00 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e1*boom_cyl_r_rod_e1) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + 2.0*(boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3);
+    const double boom_cyl_r_rod_a00 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e1*boom_cyl_r_rod_e1);
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e2;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e3;
     const double boom_cyl_r_rod_a10 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e2;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e2*boom_cyl_r_rod_e2);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
     const double boom_cyl_r_rod_a20 = -2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e1*boom_cyl_r_rod_e3;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_e0*boom_cyl_r_rod_e1 + 2.0*boom_cyl_r_rod_e2*boom_cyl_r_rod_e3;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3) - 1.0;
-    const double arm_a00 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + 2.0*(boom_cyl_r_rod_e3*boom_cyl_r_rod_e3);
+    const double arm_a00 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e1*arm_e1);
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
     const double arm_a02 = 2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
     const double arm_a10 = 2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
-    const double arm_a11 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a12 = -2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
     const double arm_a20 = -2.0*arm_e0*arm_e2 + 2.0*arm_e1*arm_e3;
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
-    const double arm_a22 = 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3) - 1.0;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e3*arm_e3);
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e2*arm_cyl_barrel_e2);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3);
     const double c0 = 2.0*v_upper_e1;
     const double c1 = 2.0*upper_e1;
     const double c2 = 2.0*upper_e2;
@@ -4212,15 +4092,15 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[12] = v_upper_x;
     out[13] = v_upper_y;
     out[14] = v_upper_z;
-    out[15] = upper_e0*c0 - upper_e3*c3 - c1*v_upper_e0 + c2*v_upper_e3;
-    out[16] = upper_e0*c3 + upper_e3*c0 - c1*v_upper_e3 - c2*v_upper_e0;
-    out[17] = -upper_e2*c0 + c1*v_upper_e2 + c4*v_upper_e3 - c5*v_upper_e0;
+    out[15] = c0*upper_e0 + c2*v_upper_e3 - c1*v_upper_e0 - c3*upper_e3;
+    out[16] = c0*upper_e3 + c3*upper_e0 - c1*v_upper_e3 - c2*v_upper_e0;
+    out[17] = c1*v_upper_e2 + c4*v_upper_e3 - c0*upper_e2 - c5*v_upper_e0;
     out[18] = dv_upper_x;
     out[19] = dv_upper_y;
     out[20] = dv_upper_z;
-    out[21] = -c1*dv_upper_e0 + c2*dv_upper_e3 + c4*dv_upper_e1 - c5*dv_upper_e2;
-    out[22] = -c1*dv_upper_e3 - c2*dv_upper_e0 + c4*dv_upper_e2 + c5*dv_upper_e1;
-    out[23] = c1*dv_upper_e2 - c2*dv_upper_e1 + c4*dv_upper_e3 - c5*dv_upper_e0;
+    out[21] = c2*dv_upper_e3 + c4*dv_upper_e1 - c1*dv_upper_e0 - c5*dv_upper_e2;
+    out[22] = c4*dv_upper_e2 + c5*dv_upper_e1 - c1*dv_upper_e3 - c2*dv_upper_e0;
+    out[23] = c1*dv_upper_e2 + c4*dv_upper_e3 - c2*dv_upper_e1 - c5*dv_upper_e0;
     out[24] = boom_x;
     out[25] = boom_y;
     out[26] = boom_z;
@@ -4236,15 +4116,15 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[36] = v_boom_x;
     out[37] = v_boom_y;
     out[38] = v_boom_z;
-    out[39] = boom_e0*c6 - boom_e3*c9 - c7*v_boom_e0 + c8*v_boom_e3;
-    out[40] = boom_e0*c9 + boom_e3*c6 - c7*v_boom_e3 - c8*v_boom_e0;
-    out[41] = -boom_e2*c6 + c7*v_boom_e2 + c10*v_boom_e3 - c11*v_boom_e0;
+    out[39] = c6*boom_e0 + c8*v_boom_e3 - c7*v_boom_e0 - c9*boom_e3;
+    out[40] = c6*boom_e3 + c9*boom_e0 - c7*v_boom_e3 - c8*v_boom_e0;
+    out[41] = c7*v_boom_e2 + c10*v_boom_e3 - c6*boom_e2 - c11*v_boom_e0;
     out[42] = dv_boom_x;
     out[43] = dv_boom_y;
     out[44] = dv_boom_z;
-    out[45] = -c7*dv_boom_e0 + c8*dv_boom_e3 + c10*dv_boom_e1 - c11*dv_boom_e2;
-    out[46] = -c7*dv_boom_e3 - c8*dv_boom_e0 + c10*dv_boom_e2 + c11*dv_boom_e1;
-    out[47] = c7*dv_boom_e2 - c8*dv_boom_e1 + c10*dv_boom_e3 - c11*dv_boom_e0;
+    out[45] = c8*dv_boom_e3 + c10*dv_boom_e1 - c7*dv_boom_e0 - c11*dv_boom_e2;
+    out[46] = c10*dv_boom_e2 + c11*dv_boom_e1 - c7*dv_boom_e3 - c8*dv_boom_e0;
+    out[47] = c7*dv_boom_e2 + c10*dv_boom_e3 - c8*dv_boom_e1 - c11*dv_boom_e0;
     out[48] = boom_cyl_l_barrel_x;
     out[49] = boom_cyl_l_barrel_y;
     out[50] = boom_cyl_l_barrel_z;
@@ -4260,15 +4140,15 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[60] = v_boom_cyl_l_barrel_x;
     out[61] = v_boom_cyl_l_barrel_y;
     out[62] = v_boom_cyl_l_barrel_z;
-    out[63] = boom_cyl_l_barrel_e0*c12 - boom_cyl_l_barrel_e3*c15 - c13*v_boom_cyl_l_barrel_e0 + c14*v_boom_cyl_l_barrel_e3;
-    out[64] = boom_cyl_l_barrel_e0*c15 + boom_cyl_l_barrel_e3*c12 - c13*v_boom_cyl_l_barrel_e3 - c14*v_boom_cyl_l_barrel_e0;
-    out[65] = -boom_cyl_l_barrel_e2*c12 + c13*v_boom_cyl_l_barrel_e2 + c16*v_boom_cyl_l_barrel_e3 - c17*v_boom_cyl_l_barrel_e0;
+    out[63] = c12*boom_cyl_l_barrel_e0 + c14*v_boom_cyl_l_barrel_e3 - c13*v_boom_cyl_l_barrel_e0 - c15*boom_cyl_l_barrel_e3;
+    out[64] = c12*boom_cyl_l_barrel_e3 + c15*boom_cyl_l_barrel_e0 - c13*v_boom_cyl_l_barrel_e3 - c14*v_boom_cyl_l_barrel_e0;
+    out[65] = c13*v_boom_cyl_l_barrel_e2 + c16*v_boom_cyl_l_barrel_e3 - c12*boom_cyl_l_barrel_e2 - c17*v_boom_cyl_l_barrel_e0;
     out[66] = dv_boom_cyl_l_barrel_x;
     out[67] = dv_boom_cyl_l_barrel_y;
     out[68] = dv_boom_cyl_l_barrel_z;
-    out[69] = -c13*dv_boom_cyl_l_barrel_e0 + c14*dv_boom_cyl_l_barrel_e3 + c16*dv_boom_cyl_l_barrel_e1 - c17*dv_boom_cyl_l_barrel_e2;
-    out[70] = -c13*dv_boom_cyl_l_barrel_e3 - c14*dv_boom_cyl_l_barrel_e0 + c16*dv_boom_cyl_l_barrel_e2 + c17*dv_boom_cyl_l_barrel_e1;
-    out[71] = c13*dv_boom_cyl_l_barrel_e2 - c14*dv_boom_cyl_l_barrel_e1 + c16*dv_boom_cyl_l_barrel_e3 - c17*dv_boom_cyl_l_barrel_e0;
+    out[69] = c14*dv_boom_cyl_l_barrel_e3 + c16*dv_boom_cyl_l_barrel_e1 - c13*dv_boom_cyl_l_barrel_e0 - c17*dv_boom_cyl_l_barrel_e2;
+    out[70] = c16*dv_boom_cyl_l_barrel_e2 + c17*dv_boom_cyl_l_barrel_e1 - c13*dv_boom_cyl_l_barrel_e3 - c14*dv_boom_cyl_l_barrel_e0;
+    out[71] = c13*dv_boom_cyl_l_barrel_e2 + c16*dv_boom_cyl_l_barrel_e3 - c14*dv_boom_cyl_l_barrel_e1 - c17*dv_boom_cyl_l_barrel_e0;
     out[72] = boom_cyl_l_rod_x;
     out[73] = boom_cyl_l_rod_y;
     out[74] = boom_cyl_l_rod_z;
@@ -4284,15 +4164,15 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[84] = v_boom_cyl_l_rod_x;
     out[85] = v_boom_cyl_l_rod_y;
     out[86] = v_boom_cyl_l_rod_z;
-    out[87] = boom_cyl_l_rod_e0*c18 - boom_cyl_l_rod_e3*c21 - c19*v_boom_cyl_l_rod_e0 + c20*v_boom_cyl_l_rod_e3;
-    out[88] = boom_cyl_l_rod_e0*c21 + boom_cyl_l_rod_e3*c18 - c19*v_boom_cyl_l_rod_e3 - c20*v_boom_cyl_l_rod_e0;
-    out[89] = -boom_cyl_l_rod_e2*c18 + c19*v_boom_cyl_l_rod_e2 + c22*v_boom_cyl_l_rod_e3 - c23*v_boom_cyl_l_rod_e0;
+    out[87] = c18*boom_cyl_l_rod_e0 + c20*v_boom_cyl_l_rod_e3 - c19*v_boom_cyl_l_rod_e0 - c21*boom_cyl_l_rod_e3;
+    out[88] = c18*boom_cyl_l_rod_e3 + c21*boom_cyl_l_rod_e0 - c19*v_boom_cyl_l_rod_e3 - c20*v_boom_cyl_l_rod_e0;
+    out[89] = c19*v_boom_cyl_l_rod_e2 + c22*v_boom_cyl_l_rod_e3 - c18*boom_cyl_l_rod_e2 - c23*v_boom_cyl_l_rod_e0;
     out[90] = dv_boom_cyl_l_rod_x;
     out[91] = dv_boom_cyl_l_rod_y;
     out[92] = dv_boom_cyl_l_rod_z;
-    out[93] = -c19*dv_boom_cyl_l_rod_e0 + c20*dv_boom_cyl_l_rod_e3 + c22*dv_boom_cyl_l_rod_e1 - c23*dv_boom_cyl_l_rod_e2;
-    out[94] = -c19*dv_boom_cyl_l_rod_e3 - c20*dv_boom_cyl_l_rod_e0 + c22*dv_boom_cyl_l_rod_e2 + c23*dv_boom_cyl_l_rod_e1;
-    out[95] = c19*dv_boom_cyl_l_rod_e2 - c20*dv_boom_cyl_l_rod_e1 + c22*dv_boom_cyl_l_rod_e3 - c23*dv_boom_cyl_l_rod_e0;
+    out[93] = c20*dv_boom_cyl_l_rod_e3 + c22*dv_boom_cyl_l_rod_e1 - c19*dv_boom_cyl_l_rod_e0 - c23*dv_boom_cyl_l_rod_e2;
+    out[94] = c22*dv_boom_cyl_l_rod_e2 + c23*dv_boom_cyl_l_rod_e1 - c19*dv_boom_cyl_l_rod_e3 - c20*dv_boom_cyl_l_rod_e0;
+    out[95] = c19*dv_boom_cyl_l_rod_e2 + c22*dv_boom_cyl_l_rod_e3 - c20*dv_boom_cyl_l_rod_e1 - c23*dv_boom_cyl_l_rod_e0;
     out[96] = boom_cyl_r_barrel_x;
     out[97] = boom_cyl_r_barrel_y;
     out[98] = boom_cyl_r_barrel_z;
@@ -4308,15 +4188,15 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[108] = v_boom_cyl_r_barrel_x;
     out[109] = v_boom_cyl_r_barrel_y;
     out[110] = v_boom_cyl_r_barrel_z;
-    out[111] = boom_cyl_r_barrel_e0*c24 - boom_cyl_r_barrel_e3*c27 - c25*v_boom_cyl_r_barrel_e0 + c26*v_boom_cyl_r_barrel_e3;
-    out[112] = boom_cyl_r_barrel_e0*c27 + boom_cyl_r_barrel_e3*c24 - c25*v_boom_cyl_r_barrel_e3 - c26*v_boom_cyl_r_barrel_e0;
-    out[113] = -boom_cyl_r_barrel_e2*c24 + c25*v_boom_cyl_r_barrel_e2 + c28*v_boom_cyl_r_barrel_e3 - c29*v_boom_cyl_r_barrel_e0;
+    out[111] = c24*boom_cyl_r_barrel_e0 + c26*v_boom_cyl_r_barrel_e3 - c25*v_boom_cyl_r_barrel_e0 - c27*boom_cyl_r_barrel_e3;
+    out[112] = c24*boom_cyl_r_barrel_e3 + c27*boom_cyl_r_barrel_e0 - c25*v_boom_cyl_r_barrel_e3 - c26*v_boom_cyl_r_barrel_e0;
+    out[113] = c25*v_boom_cyl_r_barrel_e2 + c28*v_boom_cyl_r_barrel_e3 - c24*boom_cyl_r_barrel_e2 - c29*v_boom_cyl_r_barrel_e0;
     out[114] = dv_boom_cyl_r_barrel_x;
     out[115] = dv_boom_cyl_r_barrel_y;
     out[116] = dv_boom_cyl_r_barrel_z;
-    out[117] = -c25*dv_boom_cyl_r_barrel_e0 + c26*dv_boom_cyl_r_barrel_e3 + c28*dv_boom_cyl_r_barrel_e1 - c29*dv_boom_cyl_r_barrel_e2;
-    out[118] = -c25*dv_boom_cyl_r_barrel_e3 - c26*dv_boom_cyl_r_barrel_e0 + c28*dv_boom_cyl_r_barrel_e2 + c29*dv_boom_cyl_r_barrel_e1;
-    out[119] = c25*dv_boom_cyl_r_barrel_e2 - c26*dv_boom_cyl_r_barrel_e1 + c28*dv_boom_cyl_r_barrel_e3 - c29*dv_boom_cyl_r_barrel_e0;
+    out[117] = c26*dv_boom_cyl_r_barrel_e3 + c28*dv_boom_cyl_r_barrel_e1 - c25*dv_boom_cyl_r_barrel_e0 - c29*dv_boom_cyl_r_barrel_e2;
+    out[118] = c28*dv_boom_cyl_r_barrel_e2 + c29*dv_boom_cyl_r_barrel_e1 - c25*dv_boom_cyl_r_barrel_e3 - c26*dv_boom_cyl_r_barrel_e0;
+    out[119] = c25*dv_boom_cyl_r_barrel_e2 + c28*dv_boom_cyl_r_barrel_e3 - c26*dv_boom_cyl_r_barrel_e1 - c29*dv_boom_cyl_r_barrel_e0;
     out[120] = boom_cyl_r_rod_x;
     out[121] = boom_cyl_r_rod_y;
     out[122] = boom_cyl_r_rod_z;
@@ -4332,15 +4212,15 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[132] = v_boom_cyl_r_rod_x;
     out[133] = v_boom_cyl_r_rod_y;
     out[134] = v_boom_cyl_r_rod_z;
-    out[135] = boom_cyl_r_rod_e0*c30 - boom_cyl_r_rod_e3*c33 - c31*v_boom_cyl_r_rod_e0 + c32*v_boom_cyl_r_rod_e3;
-    out[136] = boom_cyl_r_rod_e0*c33 + boom_cyl_r_rod_e3*c30 - c31*v_boom_cyl_r_rod_e3 - c32*v_boom_cyl_r_rod_e0;
-    out[137] = -boom_cyl_r_rod_e2*c30 + c31*v_boom_cyl_r_rod_e2 + c34*v_boom_cyl_r_rod_e3 - c35*v_boom_cyl_r_rod_e0;
+    out[135] = c30*boom_cyl_r_rod_e0 + c32*v_boom_cyl_r_rod_e3 - c31*v_boom_cyl_r_rod_e0 - c33*boom_cyl_r_rod_e3;
+    out[136] = c30*boom_cyl_r_rod_e3 + c33*boom_cyl_r_rod_e0 - c31*v_boom_cyl_r_rod_e3 - c32*v_boom_cyl_r_rod_e0;
+    out[137] = c31*v_boom_cyl_r_rod_e2 + c34*v_boom_cyl_r_rod_e3 - c30*boom_cyl_r_rod_e2 - c35*v_boom_cyl_r_rod_e0;
     out[138] = dv_boom_cyl_r_rod_x;
     out[139] = dv_boom_cyl_r_rod_y;
     out[140] = dv_boom_cyl_r_rod_z;
-    out[141] = -c31*dv_boom_cyl_r_rod_e0 + c32*dv_boom_cyl_r_rod_e3 + c34*dv_boom_cyl_r_rod_e1 - c35*dv_boom_cyl_r_rod_e2;
-    out[142] = -c31*dv_boom_cyl_r_rod_e3 - c32*dv_boom_cyl_r_rod_e0 + c34*dv_boom_cyl_r_rod_e2 + c35*dv_boom_cyl_r_rod_e1;
-    out[143] = c31*dv_boom_cyl_r_rod_e2 - c32*dv_boom_cyl_r_rod_e1 + c34*dv_boom_cyl_r_rod_e3 - c35*dv_boom_cyl_r_rod_e0;
+    out[141] = c32*dv_boom_cyl_r_rod_e3 + c34*dv_boom_cyl_r_rod_e1 - c31*dv_boom_cyl_r_rod_e0 - c35*dv_boom_cyl_r_rod_e2;
+    out[142] = c34*dv_boom_cyl_r_rod_e2 + c35*dv_boom_cyl_r_rod_e1 - c31*dv_boom_cyl_r_rod_e3 - c32*dv_boom_cyl_r_rod_e0;
+    out[143] = c31*dv_boom_cyl_r_rod_e2 + c34*dv_boom_cyl_r_rod_e3 - c32*dv_boom_cyl_r_rod_e1 - c35*dv_boom_cyl_r_rod_e0;
     out[144] = arm_x;
     out[145] = arm_y;
     out[146] = arm_z;
@@ -4356,15 +4236,15 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[156] = v_arm_x;
     out[157] = v_arm_y;
     out[158] = v_arm_z;
-    out[159] = arm_e0*c36 - arm_e3*c39 - c37*v_arm_e0 + c38*v_arm_e3;
-    out[160] = arm_e0*c39 + arm_e3*c36 - c37*v_arm_e3 - c38*v_arm_e0;
-    out[161] = -arm_e2*c36 + c37*v_arm_e2 + c40*v_arm_e3 - c41*v_arm_e0;
+    out[159] = c36*arm_e0 + c38*v_arm_e3 - c37*v_arm_e0 - c39*arm_e3;
+    out[160] = c36*arm_e3 + c39*arm_e0 - c37*v_arm_e3 - c38*v_arm_e0;
+    out[161] = c37*v_arm_e2 + c40*v_arm_e3 - c36*arm_e2 - c41*v_arm_e0;
     out[162] = dv_arm_x;
     out[163] = dv_arm_y;
     out[164] = dv_arm_z;
-    out[165] = -c37*dv_arm_e0 + c38*dv_arm_e3 + c40*dv_arm_e1 - c41*dv_arm_e2;
-    out[166] = -c37*dv_arm_e3 - c38*dv_arm_e0 + c40*dv_arm_e2 + c41*dv_arm_e1;
-    out[167] = c37*dv_arm_e2 - c38*dv_arm_e1 + c40*dv_arm_e3 - c41*dv_arm_e0;
+    out[165] = c38*dv_arm_e3 + c40*dv_arm_e1 - c37*dv_arm_e0 - c41*dv_arm_e2;
+    out[166] = c40*dv_arm_e2 + c41*dv_arm_e1 - c37*dv_arm_e3 - c38*dv_arm_e0;
+    out[167] = c37*dv_arm_e2 + c40*dv_arm_e3 - c38*dv_arm_e1 - c41*dv_arm_e0;
     out[168] = arm_cyl_barrel_x;
     out[169] = arm_cyl_barrel_y;
     out[170] = arm_cyl_barrel_z;
@@ -4380,19 +4260,19 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     out[180] = v_arm_cyl_barrel_x;
     out[181] = v_arm_cyl_barrel_y;
     out[182] = v_arm_cyl_barrel_z;
-    out[183] = arm_cyl_barrel_e0*c42 - arm_cyl_barrel_e3*c45 - c43*v_arm_cyl_barrel_e0 + c44*v_arm_cyl_barrel_e3;
-    out[184] = arm_cyl_barrel_e0*c45 + arm_cyl_barrel_e3*c42 - c43*v_arm_cyl_barrel_e3 - c44*v_arm_cyl_barrel_e0;
-    out[185] = -arm_cyl_barrel_e2*c42 + c43*v_arm_cyl_barrel_e2 + c46*v_arm_cyl_barrel_e3 - c47*v_arm_cyl_barrel_e0;
+    out[183] = c42*arm_cyl_barrel_e0 + c44*v_arm_cyl_barrel_e3 - c43*v_arm_cyl_barrel_e0 - c45*arm_cyl_barrel_e3;
+    out[184] = c42*arm_cyl_barrel_e3 + c45*arm_cyl_barrel_e0 - c43*v_arm_cyl_barrel_e3 - c44*v_arm_cyl_barrel_e0;
+    out[185] = c43*v_arm_cyl_barrel_e2 + c46*v_arm_cyl_barrel_e3 - c42*arm_cyl_barrel_e2 - c47*v_arm_cyl_barrel_e0;
     out[186] = dv_arm_cyl_barrel_x;
     out[187] = dv_arm_cyl_barrel_y;
     out[188] = dv_arm_cyl_barrel_z;
-    out[189] = -c43*dv_arm_cyl_barrel_e0 + c44*dv_arm_cyl_barrel_e3 + c46*dv_arm_cyl_barrel_e1 - c47*dv_arm_cyl_barrel_e2;
-    out[190] = -c43*dv_arm_cyl_barrel_e3 - c44*dv_arm_cyl_barrel_e0 + c46*dv_arm_cyl_barrel_e2 + c47*dv_arm_cyl_barrel_e1;
-    out[191] = c43*dv_arm_cyl_barrel_e2 - c44*dv_arm_cyl_barrel_e1 + c46*dv_arm_cyl_barrel_e3 - c47*dv_arm_cyl_barrel_e0;
+    out[189] = c44*dv_arm_cyl_barrel_e3 + c46*dv_arm_cyl_barrel_e1 - c43*dv_arm_cyl_barrel_e0 - c47*dv_arm_cyl_barrel_e2;
+    out[190] = c46*dv_arm_cyl_barrel_e2 + c47*dv_arm_cyl_barrel_e1 - c43*dv_arm_cyl_barrel_e3 - c44*dv_arm_cyl_barrel_e0;
+    out[191] = c43*dv_arm_cyl_barrel_e2 + c46*dv_arm_cyl_barrel_e3 - c44*dv_arm_cyl_barrel_e1 - c47*dv_arm_cyl_barrel_e0;
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). Rows 192 to 335. */
-static void compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
+void excavator_euler_parameters_compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
     const double arm_cyl_rod_x = q[56];
     const double arm_cyl_rod_y = q[57];
     const double arm_cyl_rod_z = q[58];
@@ -4519,60 +4399,60 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     const double dv_bucket_e1 = a[95];
     const double dv_bucket_e2 = a[96];
     const double dv_bucket_e3 = a[97];
-    const double arm_cyl_rod_a00 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e1*arm_cyl_rod_e1) - 1.0;
+    const double arm_cyl_rod_a00 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e1*arm_cyl_rod_e1);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e2;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e3;
     const double arm_cyl_rod_a10 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e2;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e2*arm_cyl_rod_e2);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
     const double arm_cyl_rod_a20 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e1*arm_cyl_rod_e3;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3) - 1.0;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3);
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e2*bucket_cyl_barrel_e2);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e1 + 2.0*bucket_cyl_barrel_e2*bucket_cyl_barrel_e3;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3) - 1.0;
-    const double bucket_cyl_rod_a00 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e1*bucket_cyl_rod_e1) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e3*bucket_cyl_barrel_e3);
+    const double bucket_cyl_rod_a00 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e1*bucket_cyl_rod_e1);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e2;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e3;
     const double bucket_cyl_rod_a10 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e2;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e2*bucket_cyl_rod_e2);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
     const double bucket_cyl_rod_a20 = -2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e1*bucket_cyl_rod_e3;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_e0*bucket_cyl_rod_e1 + 2.0*bucket_cyl_rod_e2*bucket_cyl_rod_e3;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_e0*bucket_cyl_rod_e0) + 2.0*(bucket_cyl_rod_e3*bucket_cyl_rod_e3);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e1*side_link_e1);
     const double side_link_a01 = -2.0*side_link_e0*side_link_e3 + 2.0*side_link_e1*side_link_e2;
     const double side_link_a02 = 2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
     const double side_link_a10 = 2.0*side_link_e0*side_link_e3 + 2.0*side_link_e1*side_link_e2;
-    const double side_link_a11 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e2*side_link_e2) - 1.0;
+    const double side_link_a11 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e2*side_link_e2);
     const double side_link_a12 = -2.0*side_link_e0*side_link_e1 + 2.0*side_link_e2*side_link_e3;
     const double side_link_a20 = -2.0*side_link_e0*side_link_e2 + 2.0*side_link_e1*side_link_e3;
     const double side_link_a21 = 2.0*side_link_e0*side_link_e1 + 2.0*side_link_e2*side_link_e3;
-    const double side_link_a22 = 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_e0*side_link_e0) + 2.0*(side_link_e3*side_link_e3);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e1*bucket_link_e1);
     const double bucket_link_a01 = -2.0*bucket_link_e0*bucket_link_e3 + 2.0*bucket_link_e1*bucket_link_e2;
     const double bucket_link_a02 = 2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
     const double bucket_link_a10 = 2.0*bucket_link_e0*bucket_link_e3 + 2.0*bucket_link_e1*bucket_link_e2;
-    const double bucket_link_a11 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e2*bucket_link_e2) - 1.0;
+    const double bucket_link_a11 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e2*bucket_link_e2);
     const double bucket_link_a12 = -2.0*bucket_link_e0*bucket_link_e1 + 2.0*bucket_link_e2*bucket_link_e3;
     const double bucket_link_a20 = -2.0*bucket_link_e0*bucket_link_e2 + 2.0*bucket_link_e1*bucket_link_e3;
     const double bucket_link_a21 = 2.0*bucket_link_e0*bucket_link_e1 + 2.0*bucket_link_e2*bucket_link_e3;
-    const double bucket_link_a22 = 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_e0*bucket_link_e0) + 2.0*(bucket_link_e3*bucket_link_e3);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a01 = -2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a10 = 2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
-    const double bucket_a11 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2);
     const double bucket_a12 = -2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a21 = 2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
-    const double bucket_a22 = 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c48 = 2.0*v_arm_cyl_rod_e1;
     const double c49 = 2.0*arm_cyl_rod_e1;
     const double c50 = 2.0*arm_cyl_rod_e2;
@@ -4624,15 +4504,15 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     out[204] = v_arm_cyl_rod_x;
     out[205] = v_arm_cyl_rod_y;
     out[206] = v_arm_cyl_rod_z;
-    out[207] = arm_cyl_rod_e0*c48 - arm_cyl_rod_e3*c51 - c49*v_arm_cyl_rod_e0 + c50*v_arm_cyl_rod_e3;
-    out[208] = arm_cyl_rod_e0*c51 + arm_cyl_rod_e3*c48 - c49*v_arm_cyl_rod_e3 - c50*v_arm_cyl_rod_e0;
-    out[209] = -arm_cyl_rod_e2*c48 + c49*v_arm_cyl_rod_e2 + c52*v_arm_cyl_rod_e3 - c53*v_arm_cyl_rod_e0;
+    out[207] = c48*arm_cyl_rod_e0 + c50*v_arm_cyl_rod_e3 - c49*v_arm_cyl_rod_e0 - c51*arm_cyl_rod_e3;
+    out[208] = c48*arm_cyl_rod_e3 + c51*arm_cyl_rod_e0 - c49*v_arm_cyl_rod_e3 - c50*v_arm_cyl_rod_e0;
+    out[209] = c49*v_arm_cyl_rod_e2 + c52*v_arm_cyl_rod_e3 - c48*arm_cyl_rod_e2 - c53*v_arm_cyl_rod_e0;
     out[210] = dv_arm_cyl_rod_x;
     out[211] = dv_arm_cyl_rod_y;
     out[212] = dv_arm_cyl_rod_z;
-    out[213] = -c49*dv_arm_cyl_rod_e0 + c50*dv_arm_cyl_rod_e3 + c52*dv_arm_cyl_rod_e1 - c53*dv_arm_cyl_rod_e2;
-    out[214] = -c49*dv_arm_cyl_rod_e3 - c50*dv_arm_cyl_rod_e0 + c52*dv_arm_cyl_rod_e2 + c53*dv_arm_cyl_rod_e1;
-    out[215] = c49*dv_arm_cyl_rod_e2 - c50*dv_arm_cyl_rod_e1 + c52*dv_arm_cyl_rod_e3 - c53*dv_arm_cyl_rod_e0;
+    out[213] = c50*dv_arm_cyl_rod_e3 + c52*dv_arm_cyl_rod_e1 - c49*dv_arm_cyl_rod_e0 - c53*dv_arm_cyl_rod_e2;
+    out[214] = c52*dv_arm_cyl_rod_e2 + c53*dv_arm_cyl_rod_e1 - c49*dv_arm_cyl_rod_e3 - c50*dv_arm_cyl_rod_e0;
+    out[215] = c49*dv_arm_cyl_rod_e2 + c52*dv_arm_cyl_rod_e3 - c50*dv_arm_cyl_rod_e1 - c53*dv_arm_cyl_rod_e0;
     out[216] = bucket_cyl_barrel_x;
     out[217] = bucket_cyl_barrel_y;
     out[218] = bucket_cyl_barrel_z;
@@ -4648,15 +4528,15 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     out[228] = v_bucket_cyl_barrel_x;
     out[229] = v_bucket_cyl_barrel_y;
     out[230] = v_bucket_cyl_barrel_z;
-    out[231] = bucket_cyl_barrel_e0*c54 - bucket_cyl_barrel_e3*c57 - c55*v_bucket_cyl_barrel_e0 + c56*v_bucket_cyl_barrel_e3;
-    out[232] = bucket_cyl_barrel_e0*c57 + bucket_cyl_barrel_e3*c54 - c55*v_bucket_cyl_barrel_e3 - c56*v_bucket_cyl_barrel_e0;
-    out[233] = -bucket_cyl_barrel_e2*c54 + c55*v_bucket_cyl_barrel_e2 + c58*v_bucket_cyl_barrel_e3 - c59*v_bucket_cyl_barrel_e0;
+    out[231] = c54*bucket_cyl_barrel_e0 + c56*v_bucket_cyl_barrel_e3 - c55*v_bucket_cyl_barrel_e0 - c57*bucket_cyl_barrel_e3;
+    out[232] = c54*bucket_cyl_barrel_e3 + c57*bucket_cyl_barrel_e0 - c55*v_bucket_cyl_barrel_e3 - c56*v_bucket_cyl_barrel_e0;
+    out[233] = c55*v_bucket_cyl_barrel_e2 + c58*v_bucket_cyl_barrel_e3 - c54*bucket_cyl_barrel_e2 - c59*v_bucket_cyl_barrel_e0;
     out[234] = dv_bucket_cyl_barrel_x;
     out[235] = dv_bucket_cyl_barrel_y;
     out[236] = dv_bucket_cyl_barrel_z;
-    out[237] = -c55*dv_bucket_cyl_barrel_e0 + c56*dv_bucket_cyl_barrel_e3 + c58*dv_bucket_cyl_barrel_e1 - c59*dv_bucket_cyl_barrel_e2;
-    out[238] = -c55*dv_bucket_cyl_barrel_e3 - c56*dv_bucket_cyl_barrel_e0 + c58*dv_bucket_cyl_barrel_e2 + c59*dv_bucket_cyl_barrel_e1;
-    out[239] = c55*dv_bucket_cyl_barrel_e2 - c56*dv_bucket_cyl_barrel_e1 + c58*dv_bucket_cyl_barrel_e3 - c59*dv_bucket_cyl_barrel_e0;
+    out[237] = c56*dv_bucket_cyl_barrel_e3 + c58*dv_bucket_cyl_barrel_e1 - c55*dv_bucket_cyl_barrel_e0 - c59*dv_bucket_cyl_barrel_e2;
+    out[238] = c58*dv_bucket_cyl_barrel_e2 + c59*dv_bucket_cyl_barrel_e1 - c55*dv_bucket_cyl_barrel_e3 - c56*dv_bucket_cyl_barrel_e0;
+    out[239] = c55*dv_bucket_cyl_barrel_e2 + c58*dv_bucket_cyl_barrel_e3 - c56*dv_bucket_cyl_barrel_e1 - c59*dv_bucket_cyl_barrel_e0;
     out[240] = bucket_cyl_rod_x;
     out[241] = bucket_cyl_rod_y;
     out[242] = bucket_cyl_rod_z;
@@ -4672,15 +4552,15 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     out[252] = v_bucket_cyl_rod_x;
     out[253] = v_bucket_cyl_rod_y;
     out[254] = v_bucket_cyl_rod_z;
-    out[255] = bucket_cyl_rod_e0*c60 - bucket_cyl_rod_e3*c63 - c61*v_bucket_cyl_rod_e0 + c62*v_bucket_cyl_rod_e3;
-    out[256] = bucket_cyl_rod_e0*c63 + bucket_cyl_rod_e3*c60 - c61*v_bucket_cyl_rod_e3 - c62*v_bucket_cyl_rod_e0;
-    out[257] = -bucket_cyl_rod_e2*c60 + c61*v_bucket_cyl_rod_e2 + c64*v_bucket_cyl_rod_e3 - c65*v_bucket_cyl_rod_e0;
+    out[255] = c60*bucket_cyl_rod_e0 + c62*v_bucket_cyl_rod_e3 - c61*v_bucket_cyl_rod_e0 - c63*bucket_cyl_rod_e3;
+    out[256] = c60*bucket_cyl_rod_e3 + c63*bucket_cyl_rod_e0 - c61*v_bucket_cyl_rod_e3 - c62*v_bucket_cyl_rod_e0;
+    out[257] = c61*v_bucket_cyl_rod_e2 + c64*v_bucket_cyl_rod_e3 - c60*bucket_cyl_rod_e2 - c65*v_bucket_cyl_rod_e0;
     out[258] = dv_bucket_cyl_rod_x;
     out[259] = dv_bucket_cyl_rod_y;
     out[260] = dv_bucket_cyl_rod_z;
-    out[261] = -c61*dv_bucket_cyl_rod_e0 + c62*dv_bucket_cyl_rod_e3 + c64*dv_bucket_cyl_rod_e1 - c65*dv_bucket_cyl_rod_e2;
-    out[262] = -c61*dv_bucket_cyl_rod_e3 - c62*dv_bucket_cyl_rod_e0 + c64*dv_bucket_cyl_rod_e2 + c65*dv_bucket_cyl_rod_e1;
-    out[263] = c61*dv_bucket_cyl_rod_e2 - c62*dv_bucket_cyl_rod_e1 + c64*dv_bucket_cyl_rod_e3 - c65*dv_bucket_cyl_rod_e0;
+    out[261] = c62*dv_bucket_cyl_rod_e3 + c64*dv_bucket_cyl_rod_e1 - c61*dv_bucket_cyl_rod_e0 - c65*dv_bucket_cyl_rod_e2;
+    out[262] = c64*dv_bucket_cyl_rod_e2 + c65*dv_bucket_cyl_rod_e1 - c61*dv_bucket_cyl_rod_e3 - c62*dv_bucket_cyl_rod_e0;
+    out[263] = c61*dv_bucket_cyl_rod_e2 + c64*dv_bucket_cyl_rod_e3 - c62*dv_bucket_cyl_rod_e1 - c65*dv_bucket_cyl_rod_e0;
     out[264] = side_link_x;
     out[265] = side_link_y;
     out[266] = side_link_z;
@@ -4696,15 +4576,15 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     out[276] = v_side_link_x;
     out[277] = v_side_link_y;
     out[278] = v_side_link_z;
-    out[279] = side_link_e0*c66 - side_link_e3*c69 - c67*v_side_link_e0 + c68*v_side_link_e3;
-    out[280] = side_link_e0*c69 + side_link_e3*c66 - c67*v_side_link_e3 - c68*v_side_link_e0;
-    out[281] = -side_link_e2*c66 + c67*v_side_link_e2 + c70*v_side_link_e3 - c71*v_side_link_e0;
+    out[279] = c66*side_link_e0 + c68*v_side_link_e3 - c67*v_side_link_e0 - c69*side_link_e3;
+    out[280] = c66*side_link_e3 + c69*side_link_e0 - c67*v_side_link_e3 - c68*v_side_link_e0;
+    out[281] = c67*v_side_link_e2 + c70*v_side_link_e3 - c66*side_link_e2 - c71*v_side_link_e0;
     out[282] = dv_side_link_x;
     out[283] = dv_side_link_y;
     out[284] = dv_side_link_z;
-    out[285] = -c67*dv_side_link_e0 + c68*dv_side_link_e3 + c70*dv_side_link_e1 - c71*dv_side_link_e2;
-    out[286] = -c67*dv_side_link_e3 - c68*dv_side_link_e0 + c70*dv_side_link_e2 + c71*dv_side_link_e1;
-    out[287] = c67*dv_side_link_e2 - c68*dv_side_link_e1 + c70*dv_side_link_e3 - c71*dv_side_link_e0;
+    out[285] = c68*dv_side_link_e3 + c70*dv_side_link_e1 - c67*dv_side_link_e0 - c71*dv_side_link_e2;
+    out[286] = c70*dv_side_link_e2 + c71*dv_side_link_e1 - c67*dv_side_link_e3 - c68*dv_side_link_e0;
+    out[287] = c67*dv_side_link_e2 + c70*dv_side_link_e3 - c68*dv_side_link_e1 - c71*dv_side_link_e0;
     out[288] = bucket_link_x;
     out[289] = bucket_link_y;
     out[290] = bucket_link_z;
@@ -4720,15 +4600,15 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     out[300] = v_bucket_link_x;
     out[301] = v_bucket_link_y;
     out[302] = v_bucket_link_z;
-    out[303] = bucket_link_e0*c72 - bucket_link_e3*c75 - c73*v_bucket_link_e0 + c74*v_bucket_link_e3;
-    out[304] = bucket_link_e0*c75 + bucket_link_e3*c72 - c73*v_bucket_link_e3 - c74*v_bucket_link_e0;
-    out[305] = -bucket_link_e2*c72 + c73*v_bucket_link_e2 + c76*v_bucket_link_e3 - c77*v_bucket_link_e0;
+    out[303] = c72*bucket_link_e0 + c74*v_bucket_link_e3 - c73*v_bucket_link_e0 - c75*bucket_link_e3;
+    out[304] = c72*bucket_link_e3 + c75*bucket_link_e0 - c73*v_bucket_link_e3 - c74*v_bucket_link_e0;
+    out[305] = c73*v_bucket_link_e2 + c76*v_bucket_link_e3 - c72*bucket_link_e2 - c77*v_bucket_link_e0;
     out[306] = dv_bucket_link_x;
     out[307] = dv_bucket_link_y;
     out[308] = dv_bucket_link_z;
-    out[309] = -c73*dv_bucket_link_e0 + c74*dv_bucket_link_e3 + c76*dv_bucket_link_e1 - c77*dv_bucket_link_e2;
-    out[310] = -c73*dv_bucket_link_e3 - c74*dv_bucket_link_e0 + c76*dv_bucket_link_e2 + c77*dv_bucket_link_e1;
-    out[311] = c73*dv_bucket_link_e2 - c74*dv_bucket_link_e1 + c76*dv_bucket_link_e3 - c77*dv_bucket_link_e0;
+    out[309] = c74*dv_bucket_link_e3 + c76*dv_bucket_link_e1 - c73*dv_bucket_link_e0 - c77*dv_bucket_link_e2;
+    out[310] = c76*dv_bucket_link_e2 + c77*dv_bucket_link_e1 - c73*dv_bucket_link_e3 - c74*dv_bucket_link_e0;
+    out[311] = c73*dv_bucket_link_e2 + c76*dv_bucket_link_e3 - c74*dv_bucket_link_e1 - c77*dv_bucket_link_e0;
     out[312] = bucket_x;
     out[313] = bucket_y;
     out[314] = bucket_z;
@@ -4744,21 +4624,195 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     out[324] = v_bucket_x;
     out[325] = v_bucket_y;
     out[326] = v_bucket_z;
-    out[327] = bucket_e0*c78 - bucket_e3*c81 - c79*v_bucket_e0 + c80*v_bucket_e3;
-    out[328] = bucket_e0*c81 + bucket_e3*c78 - c79*v_bucket_e3 - c80*v_bucket_e0;
-    out[329] = -bucket_e2*c78 + c79*v_bucket_e2 + c82*v_bucket_e3 - c83*v_bucket_e0;
+    out[327] = c78*bucket_e0 + c80*v_bucket_e3 - c79*v_bucket_e0 - c81*bucket_e3;
+    out[328] = c78*bucket_e3 + c81*bucket_e0 - c79*v_bucket_e3 - c80*v_bucket_e0;
+    out[329] = c79*v_bucket_e2 + c82*v_bucket_e3 - c78*bucket_e2 - c83*v_bucket_e0;
     out[330] = dv_bucket_x;
     out[331] = dv_bucket_y;
     out[332] = dv_bucket_z;
-    out[333] = -c79*dv_bucket_e0 + c80*dv_bucket_e3 + c82*dv_bucket_e1 - c83*dv_bucket_e2;
-    out[334] = -c79*dv_bucket_e3 - c80*dv_bucket_e0 + c82*dv_bucket_e2 + c83*dv_bucket_e1;
-    out[335] = c79*dv_bucket_e2 - c80*dv_bucket_e1 + c82*dv_bucket_e3 - c83*dv_bucket_e0;
+    out[333] = c80*dv_bucket_e3 + c82*dv_bucket_e1 - c79*dv_bucket_e0 - c83*dv_bucket_e2;
+    out[334] = c82*dv_bucket_e2 + c83*dv_bucket_e1 - c79*dv_bucket_e3 - c80*dv_bucket_e0;
+    out[335] = c79*dv_bucket_e2 + c82*dv_bucket_e3 - c80*dv_bucket_e1 - c83*dv_bucket_e0;
+}
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 0
+
+/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
+static void retract_body(double *q, const double *step) {
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] += step[3];
+    q[4] += step[4];
+    q[5] += step[5];
+    q[6] += step[6];
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < EXCAVATOR_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging'. */
+static void phi_jac_digging(const double *q, const double *u, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, phi);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, jac + 611);
+}
+
+/* nu = -Phi_t of case 'digging' (zero in the joint rows). */
+static void nu_digging(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, nu + 94);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'. */
+static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, gamma + 94);
+}
+
+/* Driver inputs of case 'digging' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_digging(double t, double *inputs) {
+    excavator_euler_parameters_compute_inputs_digging(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'level_cut'. */
+static void phi_jac_level_cut(const double *q, const double *u, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, phi);
+    excavator_euler_parameters_compute_drivers_phi_level_cut(q, u, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
+    excavator_euler_parameters_compute_drivers_jac_level_cut(q, u, jac + 611);
+}
+
+/* nu = -Phi_t of case 'level_cut' (zero in the joint rows). */
+static void nu_level_cut(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
+    excavator_euler_parameters_compute_drivers_nu_level_cut(q, u, ud, nu + 94);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'. */
+static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_level_cut(q, v, u, ud, udd, gamma + 94);
+}
+
+/* Driver inputs of case 'level_cut' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_level_cut(double t, double *inputs) {
+    excavator_euler_parameters_compute_inputs_level_cut(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
+static void phi_jac_trench_wall(const double *q, const double *u, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, phi);
+    excavator_euler_parameters_compute_drivers_phi_trench_wall(q, u, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
+    excavator_euler_parameters_compute_drivers_jac_trench_wall(q, u, jac + 611);
+}
+
+/* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
+static void nu_trench_wall(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
+    excavator_euler_parameters_compute_drivers_nu_trench_wall(q, u, ud, nu + 94);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
+static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, gamma + 94);
+}
+
+/* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_trench_wall(double t, double *inputs) {
+    excavator_euler_parameters_compute_inputs_trench_wall(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
+static void phi_jac_bucket_toggle(const double *q, const double *u, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, phi);
+    excavator_euler_parameters_compute_drivers_phi_bucket_toggle(q, u, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
+    excavator_euler_parameters_compute_drivers_jac_bucket_toggle(q, u, jac + 611);
+}
+
+/* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
+static void nu_bucket_toggle(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
+    excavator_euler_parameters_compute_drivers_nu_bucket_toggle(q, u, ud, nu + 94);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
+static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, gamma + 94);
+}
+
+/* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_bucket_toggle(double t, double *inputs) {
+    excavator_euler_parameters_compute_inputs_bucket_toggle(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
+static void phi_jac_bucket_near_toggle(const double *q, const double *u, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, phi);
+    excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(q, u, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
+    excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(q, u, jac + 611);
+}
+
+/* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
+static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
+    excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(q, u, ud, nu + 94);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
+static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, gamma + 94);
+}
+
+/* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_bucket_near_toggle(double t, double *inputs) {
+    excavator_euler_parameters_compute_inputs_bucket_near_toggle(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
 void excavator_euler_parameters_frames(const double *q, const double *v, const double *a, double *frames) {
-    compute_frames_part0(q, v, a, frames);
-    compute_frames_part1(q, v, a, frames);
+    excavator_euler_parameters_compute_frames_part0(q, v, a, frames);
+    excavator_euler_parameters_compute_frames_part1(q, v, a, frames);
 }
 
 static const char *const body_names[] = {"upper", "boom", "boom_cyl_l_barrel", "boom_cyl_l_rod", "boom_cyl_r_barrel", "boom_cyl_r_rod", "arm", "arm_cyl_barrel", "arm_cyl_rod", "bucket_cyl_barrel", "bucket_cyl_rod", "side_link", "bucket_link", "bucket"};
@@ -4952,3 +5006,5 @@ const kinegen_model excavator_euler_parameters_bucket_near_toggle = {
 };
 
 const kinegen_model *const excavator_euler_parameters_cases[EXCAVATOR_EULER_PARAMETERS_N_CASES] = {&excavator_euler_parameters_digging, &excavator_euler_parameters_level_cut, &excavator_euler_parameters_trench_wall, &excavator_euler_parameters_bucket_toggle, &excavator_euler_parameters_bucket_near_toggle};
+
+#endif

@@ -15,28 +15,47 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
-static void retract_body(double *q, const double *step) {
-    double tx = step[3], ty = step[4], tz = step[5];
-    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
-    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
-    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
-    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] = pw * qw - px * qx - py * qy - pz * qz;
-    q[4] = pw * qx + px * qw + py * qz - pz * qy;
-    q[5] = pw * qy - px * qz + py * qw + pz * qx;
-    q[6] = pw * qz + px * qy - py * qx + pz * qw;
-}
+/* The section functions come in 2 groups, each under its KINEGEN_PART value
+ * (1 to 2; the retraction, kernels and tables under 0): the file compiles whole, or
+ * part by part with -DKINEGEN_PART=k, in parallel. */
+void excavator_quaternion_compute_joints_phi(const double *q, double *out);
+void excavator_quaternion_compute_drivers_phi_digging(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_joints_jac_part0(const double *q, double *out);
+void excavator_quaternion_compute_joints_jac_part1(const double *q, double *out);
+void excavator_quaternion_compute_joints_jac_part2(const double *q, double *out);
+void excavator_quaternion_compute_drivers_jac_digging(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out);
+void excavator_quaternion_compute_joints_gamma_part0(const double *q, const double *v, double *out);
+void excavator_quaternion_compute_joints_gamma_part1(const double *q, const double *v, double *out);
+void excavator_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_quaternion_compute_inputs_digging(double t, double *out);
+void excavator_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out);
+void excavator_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_quaternion_compute_inputs_level_cut(double t, double *out);
+void excavator_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out);
+void excavator_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_quaternion_compute_inputs_trench_wall(double t, double *out);
+void excavator_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out);
+void excavator_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_quaternion_compute_inputs_bucket_toggle(double t, double *out);
+void excavator_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out);
+void excavator_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out);
+void excavator_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_quaternion_compute_inputs_bucket_near_toggle(double t, double *out);
+void excavator_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
+void excavator_quaternion_compute_frames_part1(const double *q, const double *v, const double *a, double *out);
 
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < EXCAVATOR_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
-}
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 1
 
 /* Phi of the 80 joint (and normalization) rows, common to every case. */
-static void compute_joints_phi(const double *q, double *out) {
+void excavator_quaternion_compute_joints_phi(const double *q, double *out) {
     const double upper_x = q[0];
     const double upper_y = q[1];
     const double upper_z = q[2];
@@ -135,210 +154,210 @@ static void compute_joints_phi(const double *q, double *out) {
     const double bucket_qx = q[95];
     const double bucket_qy = q[96];
     const double bucket_qz = q[97];
-    const double upper_a00 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx) - 1.0;
+    const double upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx);
     const double upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
     const double upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a10 = 2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
-    const double upper_a11 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy);
     const double upper_a12 = -2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
     const double upper_a20 = -2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a21 = 2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
-    const double upper_a22 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz) - 1.0;
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double upper_a22 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz);
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    const double boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz) - 1.0;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz);
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy);
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz);
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz) - 1.0;
-    const double arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz);
+    const double arm_a00 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx);
     const double arm_a01 = -2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
     const double arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
-    const double arm_a11 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy);
     const double arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
     const double arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a21 = 2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
-    const double arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz);
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qz + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qy;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qy + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qz;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz) - 1.0;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz);
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qy;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qz;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx);
     const double side_link_a02 = 2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
     const double side_link_a10 = 2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy;
     const double side_link_a12 = -2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz;
     const double side_link_a20 = -2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
-    const double side_link_a22 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx);
     const double bucket_link_a02 = 2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
     const double bucket_link_a10 = 2.0*bucket_link_qw*bucket_link_qz + 2.0*bucket_link_qx*bucket_link_qy;
     const double bucket_link_a12 = -2.0*bucket_link_qw*bucket_link_qx + 2.0*bucket_link_qy*bucket_link_qz;
     const double bucket_link_a20 = -2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
-    const double bucket_link_a22 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a01 = -2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a11 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy);
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a21 = 2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
-    const double c0 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double c1 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double c2 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double c3 = -boom_cyl_r_barrel_x + boom_cyl_r_rod_x;
-    const double c4 = -boom_cyl_r_barrel_y + boom_cyl_r_rod_y;
-    const double c5 = -boom_cyl_r_barrel_z + boom_cyl_r_rod_z;
-    const double c6 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double c7 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double c8 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double c9 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    const double c10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double c11 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
+    const double c0 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double c1 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double c2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double c3 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x;
+    const double c4 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y;
+    const double c5 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z;
+    const double c6 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double c8 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double c9 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double c11 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
     out[0] = -upper_x;
     out[1] = -upper_y;
     out[2] = -upper_z;
     out[3] = upper_a20;
     out[4] = upper_a21;
-    out[5] = (22767.0/100000.0)*upper_a00 + (195729.0/100000.0)*upper_a02 + upper_x - boom_x;
-    out[6] = (22767.0/100000.0)*upper_a10 + (195729.0/100000.0)*upper_a12 + upper_y - boom_y;
-    out[7] = (22767.0/100000.0)*upper_a20 + (195729.0/100000.0)*upper_a22 + upper_z - boom_z;
+    out[5] = upper_x - boom_x + (22767.0/100000.0)*upper_a00 + (195729.0/100000.0)*upper_a02;
+    out[6] = upper_y - boom_y + (22767.0/100000.0)*upper_a10 + (195729.0/100000.0)*upper_a12;
+    out[7] = upper_z - boom_z + (22767.0/100000.0)*upper_a20 + (195729.0/100000.0)*upper_a22;
     out[8] = upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22;
     out[9] = upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20;
-    out[10] = (4307.0/6250.0)*upper_a00 + (8.0/25.0)*upper_a01 + (67739.0/50000.0)*upper_a02 + upper_x - boom_cyl_l_barrel_x;
-    out[11] = (4307.0/6250.0)*upper_a10 + (8.0/25.0)*upper_a11 + (67739.0/50000.0)*upper_a12 + upper_y - boom_cyl_l_barrel_y;
-    out[12] = (4307.0/6250.0)*upper_a20 + (8.0/25.0)*upper_a21 + (67739.0/50000.0)*upper_a22 + upper_z - boom_cyl_l_barrel_z;
+    out[10] = upper_x - boom_cyl_l_barrel_x + (8.0/25.0)*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
+    out[11] = upper_y - boom_cyl_l_barrel_y + (8.0/25.0)*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
+    out[12] = upper_z - boom_cyl_l_barrel_z + (8.0/25.0)*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
     out[13] = upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22;
     out[14] = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21;
     out[15] = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22;
-    out[16] = boom_cyl_l_barrel_a01*c0 + boom_cyl_l_barrel_a11*c1 + boom_cyl_l_barrel_a21*c2;
-    out[17] = boom_cyl_l_barrel_a02*c0 + boom_cyl_l_barrel_a12*c1 + boom_cyl_l_barrel_a22*c2;
+    out[16] = c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21;
+    out[17] = c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22;
     out[18] = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22;
-    out[19] = boom_cyl_l_rod_x - 139283.0/100000.0*boom_a00 - 8.0/25.0*boom_a01 - 2.001922*boom_a02 - boom_x;
-    out[20] = boom_cyl_l_rod_y - 139283.0/100000.0*boom_a10 - 8.0/25.0*boom_a11 - 2.001922*boom_a12 - boom_y;
-    out[21] = boom_cyl_l_rod_z - 139283.0/100000.0*boom_a20 - 8.0/25.0*boom_a21 - 2.001922*boom_a22 - boom_z;
-    out[22] = (4307.0/6250.0)*upper_a00 - 8.0/25.0*upper_a01 + (67739.0/50000.0)*upper_a02 + upper_x - boom_cyl_r_barrel_x;
-    out[23] = (4307.0/6250.0)*upper_a10 - 8.0/25.0*upper_a11 + (67739.0/50000.0)*upper_a12 + upper_y - boom_cyl_r_barrel_y;
-    out[24] = (4307.0/6250.0)*upper_a20 - 8.0/25.0*upper_a21 + (67739.0/50000.0)*upper_a22 + upper_z - boom_cyl_r_barrel_z;
+    out[19] = boom_cyl_l_rod_x - boom_x - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 - 8.0/25.0*boom_a01;
+    out[20] = boom_cyl_l_rod_y - boom_y - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 - 8.0/25.0*boom_a11;
+    out[21] = boom_cyl_l_rod_z - boom_z - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 - 8.0/25.0*boom_a21;
+    out[22] = upper_x - boom_cyl_r_barrel_x - 8.0/25.0*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
+    out[23] = upper_y - boom_cyl_r_barrel_y - 8.0/25.0*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
+    out[24] = upper_z - boom_cyl_r_barrel_z - 8.0/25.0*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
     out[25] = upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22;
     out[26] = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21;
     out[27] = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22;
-    out[28] = boom_cyl_r_barrel_a01*c3 + boom_cyl_r_barrel_a11*c4 + boom_cyl_r_barrel_a21*c5;
-    out[29] = boom_cyl_r_barrel_a02*c3 + boom_cyl_r_barrel_a12*c4 + boom_cyl_r_barrel_a22*c5;
+    out[28] = c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21;
+    out[29] = c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22;
     out[30] = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22;
-    out[31] = boom_cyl_r_rod_x - 139283.0/100000.0*boom_a00 + (8.0/25.0)*boom_a01 - 2.001922*boom_a02 - boom_x;
-    out[32] = boom_cyl_r_rod_y - 139283.0/100000.0*boom_a10 + (8.0/25.0)*boom_a11 - 2.001922*boom_a12 - boom_y;
-    out[33] = boom_cyl_r_rod_z - 139283.0/100000.0*boom_a20 + (8.0/25.0)*boom_a21 - 2.001922*boom_a22 - boom_z;
-    out[34] = (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02 + boom_x - arm_x;
-    out[35] = (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12 + boom_y - arm_y;
-    out[36] = (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22 + boom_z - arm_z;
+    out[31] = boom_cyl_r_rod_x - boom_x - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 + (8.0/25.0)*boom_a01;
+    out[32] = boom_cyl_r_rod_y - boom_y - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 + (8.0/25.0)*boom_a11;
+    out[33] = boom_cyl_r_rod_z - boom_z - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 + (8.0/25.0)*boom_a21;
+    out[34] = boom_x - arm_x + (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02;
+    out[35] = boom_y - arm_y + (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12;
+    out[36] = boom_z - arm_z + (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22;
     out[37] = boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22;
     out[38] = boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20;
-    out[39] = (183.0/80.0)*boom_a00 + (557.0/200.0)*boom_a02 + boom_x - arm_cyl_barrel_x;
-    out[40] = (183.0/80.0)*boom_a10 + (557.0/200.0)*boom_a12 + boom_y - arm_cyl_barrel_y;
-    out[41] = (183.0/80.0)*boom_a20 + (557.0/200.0)*boom_a22 + boom_z - arm_cyl_barrel_z;
+    out[39] = boom_x - arm_cyl_barrel_x + (183.0/80.0)*boom_a00 + (557.0/200.0)*boom_a02;
+    out[40] = boom_y - arm_cyl_barrel_y + (183.0/80.0)*boom_a10 + (557.0/200.0)*boom_a12;
+    out[41] = boom_z - arm_cyl_barrel_z + (183.0/80.0)*boom_a20 + (557.0/200.0)*boom_a22;
     out[42] = boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22;
     out[43] = arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21;
     out[44] = arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22;
-    out[45] = arm_cyl_barrel_a01*c6 + arm_cyl_barrel_a11*c7 + arm_cyl_barrel_a21*c8;
-    out[46] = arm_cyl_barrel_a02*c6 + arm_cyl_barrel_a12*c7 + arm_cyl_barrel_a22*c8;
+    out[45] = c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21;
+    out[46] = c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22;
     out[47] = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22;
-    out[48] = arm_cyl_rod_x + (393281.0/500000.0)*arm_a00 + (0.369691)*arm_a02 - arm_x;
-    out[49] = arm_cyl_rod_y + (393281.0/500000.0)*arm_a10 + (0.369691)*arm_a12 - arm_y;
-    out[50] = arm_cyl_rod_z + (393281.0/500000.0)*arm_a20 + (0.369691)*arm_a22 - arm_z;
-    out[51] = (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02 + arm_x - bucket_x;
-    out[52] = (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12 + arm_y - bucket_y;
-    out[53] = (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22 + arm_z - bucket_z;
+    out[48] = arm_cyl_rod_x - arm_x + (0.369691)*arm_a02 + (393281.0/500000.0)*arm_a00;
+    out[49] = arm_cyl_rod_y - arm_y + (0.369691)*arm_a12 + (393281.0/500000.0)*arm_a10;
+    out[50] = arm_cyl_rod_z - arm_z + (0.369691)*arm_a22 + (393281.0/500000.0)*arm_a20;
+    out[51] = arm_x - bucket_x + (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02;
+    out[52] = arm_y - bucket_y + (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12;
+    out[53] = arm_z - bucket_z + (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22;
     out[54] = arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22;
     out[55] = arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20;
-    out[56] = (7877.0/5000.0)*arm_a00 + (18799.0/10000.0)*arm_a02 + arm_x - side_link_x;
-    out[57] = (7877.0/5000.0)*arm_a10 + (18799.0/10000.0)*arm_a12 + arm_y - side_link_y;
-    out[58] = (7877.0/5000.0)*arm_a20 + (18799.0/10000.0)*arm_a22 + arm_z - side_link_z;
+    out[56] = arm_x - side_link_x + (7877.0/5000.0)*arm_a00 + (18799.0/10000.0)*arm_a02;
+    out[57] = arm_y - side_link_y + (7877.0/5000.0)*arm_a10 + (18799.0/10000.0)*arm_a12;
+    out[58] = arm_z - side_link_z + (7877.0/5000.0)*arm_a20 + (18799.0/10000.0)*arm_a22;
     out[59] = arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22;
     out[60] = arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20;
-    out[61] = -166329.0/500000.0*side_link_a00 + (96247.0/200000.0)*side_link_a02 + side_link_x + (85607.0/250000.0)*bucket_link_a00 + (0.450737)*bucket_link_a02 - bucket_link_x;
-    out[62] = -166329.0/500000.0*side_link_a10 + (96247.0/200000.0)*side_link_a12 + side_link_y + (85607.0/250000.0)*bucket_link_a10 + (0.450737)*bucket_link_a12 - bucket_link_y;
-    out[63] = -166329.0/500000.0*side_link_a20 + (96247.0/200000.0)*side_link_a22 + side_link_z + (85607.0/250000.0)*bucket_link_a20 + (0.450737)*bucket_link_a22 - bucket_link_z;
-    out[64] = bucket_link_x + (8101.0/25000.0)*bucket_a00 - 16927.0/50000.0*bucket_a02 - bucket_x;
-    out[65] = bucket_link_y + (8101.0/25000.0)*bucket_a10 - 16927.0/50000.0*bucket_a12 - bucket_y;
-    out[66] = bucket_link_z + (8101.0/25000.0)*bucket_a20 - 16927.0/50000.0*bucket_a22 - bucket_z;
+    out[61] = side_link_x - bucket_link_x - 166329.0/500000.0*side_link_a00 + (85607.0/250000.0)*bucket_link_a00 + (96247.0/200000.0)*side_link_a02 + (0.450737)*bucket_link_a02;
+    out[62] = side_link_y - bucket_link_y - 166329.0/500000.0*side_link_a10 + (85607.0/250000.0)*bucket_link_a10 + (96247.0/200000.0)*side_link_a12 + (0.450737)*bucket_link_a12;
+    out[63] = side_link_z - bucket_link_z - 166329.0/500000.0*side_link_a20 + (85607.0/250000.0)*bucket_link_a20 + (96247.0/200000.0)*side_link_a22 + (0.450737)*bucket_link_a22;
+    out[64] = bucket_link_x - bucket_x - 16927.0/50000.0*bucket_a02 + (8101.0/25000.0)*bucket_a00;
+    out[65] = bucket_link_y - bucket_y - 16927.0/50000.0*bucket_a12 + (8101.0/25000.0)*bucket_a10;
+    out[66] = bucket_link_z - bucket_z - 16927.0/50000.0*bucket_a22 + (8101.0/25000.0)*bucket_a20;
     out[67] = bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22);
-    out[68] = -24687.0/100000.0*arm_a00 + (36797.0/50000.0)*arm_a02 + arm_x - bucket_cyl_barrel_x;
-    out[69] = -24687.0/100000.0*arm_a10 + (36797.0/50000.0)*arm_a12 + arm_y - bucket_cyl_barrel_y;
-    out[70] = -24687.0/100000.0*arm_a20 + (36797.0/50000.0)*arm_a22 + arm_z - bucket_cyl_barrel_z;
+    out[68] = arm_x - bucket_cyl_barrel_x - 24687.0/100000.0*arm_a00 + (36797.0/50000.0)*arm_a02;
+    out[69] = arm_y - bucket_cyl_barrel_y - 24687.0/100000.0*arm_a10 + (36797.0/50000.0)*arm_a12;
+    out[70] = arm_z - bucket_cyl_barrel_z - 24687.0/100000.0*arm_a20 + (36797.0/50000.0)*arm_a22;
     out[71] = arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22;
     out[72] = bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21;
     out[73] = bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22;
-    out[74] = bucket_cyl_barrel_a01*c9 + bucket_cyl_barrel_a11*c10 + bucket_cyl_barrel_a21*c11;
-    out[75] = bucket_cyl_barrel_a02*c9 + bucket_cyl_barrel_a12*c10 + bucket_cyl_barrel_a22*c11;
+    out[74] = c9*bucket_cyl_barrel_a01 + c10*bucket_cyl_barrel_a11 + c11*bucket_cyl_barrel_a21;
+    out[75] = c9*bucket_cyl_barrel_a02 + c10*bucket_cyl_barrel_a12 + c11*bucket_cyl_barrel_a22;
     out[76] = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22;
-    out[77] = bucket_cyl_rod_x + (166329.0/500000.0)*side_link_a00 - 96247.0/200000.0*side_link_a02 - side_link_x;
-    out[78] = bucket_cyl_rod_y + (166329.0/500000.0)*side_link_a10 - 96247.0/200000.0*side_link_a12 - side_link_y;
-    out[79] = bucket_cyl_rod_z + (166329.0/500000.0)*side_link_a20 - 96247.0/200000.0*side_link_a22 - side_link_z;
+    out[77] = bucket_cyl_rod_x - side_link_x - 96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
+    out[78] = bucket_cyl_rod_y - side_link_y - 96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
+    out[79] = bucket_cyl_rod_z - side_link_z - 96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
 }
 
 /* Phi of the driver rows of case 'digging'. */
-static void compute_drivers_phi_digging(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_phi_digging(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -375,24 +394,24 @@ static void compute_drivers_phi_digging(const double *q, const double *u, double
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_qw*sin(c0) - 2.0*upper_qz*cos(c0);
-    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1;
-    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2;
-    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3;
+    out[0] = -2.0*upper_qz*cos(c0) + 2.0*upper_qw*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
 }
 
 /* Phi_q values of the joint rows (403 entries). Rows 0 to 186. */
-static void compute_joints_jac_part0(const double *q, double *out) {
+void excavator_quaternion_compute_joints_jac_part0(const double *q, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -433,60 +452,60 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     const double arm_qx = q[46];
     const double arm_qy = q[47];
     const double arm_qz = q[48];
-    const double upper_a00 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx) - 1.0;
+    const double upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx);
     const double upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
     const double upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a10 = 2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
-    const double upper_a11 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy);
     const double upper_a12 = -2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
     const double upper_a20 = -2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a21 = 2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
-    const double upper_a22 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz) - 1.0;
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double upper_a22 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz);
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    const double boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz) - 1.0;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz);
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy);
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz);
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz) - 1.0;
-    const double arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz);
+    const double arm_a00 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx);
     const double arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
     const double arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
     const double arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
-    const double arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz);
     const double d0 = (22767.0/100000.0)*upper_a20 + (195729.0/100000.0)*upper_a22;
     const double d1 = (22767.0/100000.0)*upper_a10 + (195729.0/100000.0)*upper_a12;
     const double d2 = (22767.0/100000.0)*upper_a00 + (195729.0/100000.0)*upper_a02;
@@ -496,9 +515,9 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     const double d6 = upper_a11*boom_a20 - upper_a21*boom_a10;
     const double d7 = upper_a01*boom_a20 - upper_a21*boom_a00;
     const double d8 = upper_a01*boom_a10 - upper_a11*boom_a00;
-    const double d9 = (4307.0/6250.0)*upper_a20 + (8.0/25.0)*upper_a21 + (67739.0/50000.0)*upper_a22;
-    const double d10 = (4307.0/6250.0)*upper_a10 + (8.0/25.0)*upper_a11 + (67739.0/50000.0)*upper_a12;
-    const double d11 = (4307.0/6250.0)*upper_a00 + (8.0/25.0)*upper_a01 + (67739.0/50000.0)*upper_a02;
+    const double d9 = (8.0/25.0)*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
+    const double d10 = (8.0/25.0)*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
+    const double d11 = (8.0/25.0)*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
     const double d12 = upper_a11*boom_cyl_l_barrel_a22 - upper_a21*boom_cyl_l_barrel_a12;
     const double d13 = upper_a01*boom_cyl_l_barrel_a22 - upper_a21*boom_cyl_l_barrel_a02;
     const double d14 = upper_a01*boom_cyl_l_barrel_a12 - upper_a11*boom_cyl_l_barrel_a02;
@@ -508,19 +527,19 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     const double d18 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a22 - boom_cyl_l_barrel_a20*boom_cyl_l_rod_a12;
     const double d19 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a22 - boom_cyl_l_barrel_a20*boom_cyl_l_rod_a02;
     const double d20 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a12 - boom_cyl_l_barrel_a10*boom_cyl_l_rod_a02;
-    const double d21 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double d22 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double d23 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
+    const double d21 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double d22 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double d23 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
     const double d24 = (1.0)*boom_cyl_l_rod_a22;
-    const double d25 = boom_cyl_l_barrel_a11*d24 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a12;
-    const double d26 = boom_cyl_l_barrel_a01*d24 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02;
-    const double d27 = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a12 - 1.0*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02;
-    const double d28 = (139283.0/100000.0)*boom_a20 + (8.0/25.0)*boom_a21 + (2.001922)*boom_a22;
-    const double d29 = (139283.0/100000.0)*boom_a10 + (8.0/25.0)*boom_a11 + (2.001922)*boom_a12;
-    const double d30 = (139283.0/100000.0)*boom_a00 + (8.0/25.0)*boom_a01 + (2.001922)*boom_a02;
-    const double d31 = (4307.0/6250.0)*upper_a20 - 8.0/25.0*upper_a21 + (67739.0/50000.0)*upper_a22;
-    const double d32 = (4307.0/6250.0)*upper_a10 - 8.0/25.0*upper_a11 + (67739.0/50000.0)*upper_a12;
-    const double d33 = (4307.0/6250.0)*upper_a00 - 8.0/25.0*upper_a01 + (67739.0/50000.0)*upper_a02;
+    const double d25 = d24*boom_cyl_l_barrel_a11 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a12;
+    const double d26 = d24*boom_cyl_l_barrel_a01 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02;
+    const double d27 = -1.0*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a12;
+    const double d28 = (8.0/25.0)*boom_a21 + (139283.0/100000.0)*boom_a20 + (2.001922)*boom_a22;
+    const double d29 = (8.0/25.0)*boom_a11 + (139283.0/100000.0)*boom_a10 + (2.001922)*boom_a12;
+    const double d30 = (8.0/25.0)*boom_a01 + (139283.0/100000.0)*boom_a00 + (2.001922)*boom_a02;
+    const double d31 = -8.0/25.0*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
+    const double d32 = -8.0/25.0*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
+    const double d33 = -8.0/25.0*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
     const double d34 = upper_a11*boom_cyl_r_barrel_a22 - upper_a21*boom_cyl_r_barrel_a12;
     const double d35 = upper_a01*boom_cyl_r_barrel_a22 - upper_a21*boom_cyl_r_barrel_a02;
     const double d36 = upper_a01*boom_cyl_r_barrel_a12 - upper_a11*boom_cyl_r_barrel_a02;
@@ -530,16 +549,16 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     const double d40 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a22 - boom_cyl_r_barrel_a20*boom_cyl_r_rod_a12;
     const double d41 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a22 - boom_cyl_r_barrel_a20*boom_cyl_r_rod_a02;
     const double d42 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a12 - boom_cyl_r_barrel_a10*boom_cyl_r_rod_a02;
-    const double d43 = -boom_cyl_r_barrel_z + boom_cyl_r_rod_z;
-    const double d44 = -boom_cyl_r_barrel_y + boom_cyl_r_rod_y;
-    const double d45 = -boom_cyl_r_barrel_x + boom_cyl_r_rod_x;
+    const double d43 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z;
+    const double d44 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y;
+    const double d45 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x;
     const double d46 = (1.0)*boom_cyl_r_rod_a22;
-    const double d47 = boom_cyl_r_barrel_a11*d46 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a12;
-    const double d48 = boom_cyl_r_barrel_a01*d46 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a02;
-    const double d49 = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a12 - 1.0*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a02;
-    const double d50 = (139283.0/100000.0)*boom_a20 - 8.0/25.0*boom_a21 + (2.001922)*boom_a22;
-    const double d51 = (139283.0/100000.0)*boom_a10 - 8.0/25.0*boom_a11 + (2.001922)*boom_a12;
-    const double d52 = (139283.0/100000.0)*boom_a00 - 8.0/25.0*boom_a01 + (2.001922)*boom_a02;
+    const double d47 = d46*boom_cyl_r_barrel_a11 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a12;
+    const double d48 = d46*boom_cyl_r_barrel_a01 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a02;
+    const double d49 = -1.0*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a12;
+    const double d50 = -8.0/25.0*boom_a21 + (139283.0/100000.0)*boom_a20 + (2.001922)*boom_a22;
+    const double d51 = -8.0/25.0*boom_a11 + (139283.0/100000.0)*boom_a10 + (2.001922)*boom_a12;
+    const double d52 = -8.0/25.0*boom_a01 + (139283.0/100000.0)*boom_a00 + (2.001922)*boom_a02;
     const double d53 = (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22;
     const double d54 = (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12;
     const double d55 = (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02;
@@ -613,18 +632,18 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     out[61] = -boom_cyl_l_barrel_a01;
     out[62] = -boom_cyl_l_barrel_a11;
     out[63] = -boom_cyl_l_barrel_a21;
-    out[64] = boom_cyl_l_barrel_a11*d21 - boom_cyl_l_barrel_a21*d22;
-    out[65] = -boom_cyl_l_barrel_a01*d21 + boom_cyl_l_barrel_a21*d23;
-    out[66] = boom_cyl_l_barrel_a01*d22 - boom_cyl_l_barrel_a11*d23;
+    out[64] = d21*boom_cyl_l_barrel_a11 - d22*boom_cyl_l_barrel_a21;
+    out[65] = d23*boom_cyl_l_barrel_a21 - d21*boom_cyl_l_barrel_a01;
+    out[66] = d22*boom_cyl_l_barrel_a01 - d23*boom_cyl_l_barrel_a11;
     out[67] = boom_cyl_l_barrel_a01;
     out[68] = boom_cyl_l_barrel_a11;
     out[69] = boom_cyl_l_barrel_a21;
     out[70] = -boom_cyl_l_barrel_a02;
     out[71] = -boom_cyl_l_barrel_a12;
     out[72] = -boom_cyl_l_barrel_a22;
-    out[73] = boom_cyl_l_barrel_a12*d21 - boom_cyl_l_barrel_a22*d22;
-    out[74] = -boom_cyl_l_barrel_a02*d21 + boom_cyl_l_barrel_a22*d23;
-    out[75] = boom_cyl_l_barrel_a02*d22 - boom_cyl_l_barrel_a12*d23;
+    out[73] = d21*boom_cyl_l_barrel_a12 - d22*boom_cyl_l_barrel_a22;
+    out[74] = d23*boom_cyl_l_barrel_a22 - d21*boom_cyl_l_barrel_a02;
+    out[75] = d22*boom_cyl_l_barrel_a02 - d23*boom_cyl_l_barrel_a12;
     out[76] = boom_cyl_l_barrel_a02;
     out[77] = boom_cyl_l_barrel_a12;
     out[78] = boom_cyl_l_barrel_a22;
@@ -679,18 +698,18 @@ static void compute_joints_jac_part0(const double *q, double *out) {
     out[127] = -boom_cyl_r_barrel_a01;
     out[128] = -boom_cyl_r_barrel_a11;
     out[129] = -boom_cyl_r_barrel_a21;
-    out[130] = boom_cyl_r_barrel_a11*d43 - boom_cyl_r_barrel_a21*d44;
-    out[131] = -boom_cyl_r_barrel_a01*d43 + boom_cyl_r_barrel_a21*d45;
-    out[132] = boom_cyl_r_barrel_a01*d44 - boom_cyl_r_barrel_a11*d45;
+    out[130] = d43*boom_cyl_r_barrel_a11 - d44*boom_cyl_r_barrel_a21;
+    out[131] = d45*boom_cyl_r_barrel_a21 - d43*boom_cyl_r_barrel_a01;
+    out[132] = d44*boom_cyl_r_barrel_a01 - d45*boom_cyl_r_barrel_a11;
     out[133] = boom_cyl_r_barrel_a01;
     out[134] = boom_cyl_r_barrel_a11;
     out[135] = boom_cyl_r_barrel_a21;
     out[136] = -boom_cyl_r_barrel_a02;
     out[137] = -boom_cyl_r_barrel_a12;
     out[138] = -boom_cyl_r_barrel_a22;
-    out[139] = boom_cyl_r_barrel_a12*d43 - boom_cyl_r_barrel_a22*d44;
-    out[140] = -boom_cyl_r_barrel_a02*d43 + boom_cyl_r_barrel_a22*d45;
-    out[141] = boom_cyl_r_barrel_a02*d44 - boom_cyl_r_barrel_a12*d45;
+    out[139] = d43*boom_cyl_r_barrel_a12 - d44*boom_cyl_r_barrel_a22;
+    out[140] = d45*boom_cyl_r_barrel_a22 - d43*boom_cyl_r_barrel_a02;
+    out[141] = d44*boom_cyl_r_barrel_a02 - d45*boom_cyl_r_barrel_a12;
     out[142] = boom_cyl_r_barrel_a02;
     out[143] = boom_cyl_r_barrel_a12;
     out[144] = boom_cyl_r_barrel_a22;
@@ -739,7 +758,7 @@ static void compute_joints_jac_part0(const double *q, double *out) {
 }
 
 /* Phi_q values of the joint rows (403 entries). Rows 187 to 354. */
-static void compute_joints_jac_part1(const double *q, double *out) {
+void excavator_quaternion_compute_joints_jac_part1(const double *q, double *out) {
     const double boom_qw = q[10];
     const double boom_qx = q[11];
     const double boom_qy = q[12];
@@ -778,63 +797,63 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     const double bucket_qx = q[95];
     const double bucket_qy = q[96];
     const double bucket_qz = q[97];
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    const double boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0;
-    const double arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz);
+    const double arm_a00 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx);
     const double arm_a01 = -2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
     const double arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
-    const double arm_a11 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy);
     const double arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
     const double arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a21 = 2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
-    const double arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz);
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qz + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qy;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qy + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qz;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz);
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx);
     const double side_link_a02 = 2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
     const double side_link_a10 = 2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy;
     const double side_link_a12 = -2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz;
     const double side_link_a20 = -2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
-    const double side_link_a22 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx);
     const double bucket_link_a02 = 2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
     const double bucket_link_a10 = 2.0*bucket_link_qw*bucket_link_qz + 2.0*bucket_link_qx*bucket_link_qy;
     const double bucket_link_a12 = -2.0*bucket_link_qw*bucket_link_qx + 2.0*bucket_link_qy*bucket_link_qz;
     const double bucket_link_a20 = -2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
-    const double bucket_link_a22 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a01 = -2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a11 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy);
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a21 = 2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double d62 = (183.0/80.0)*boom_a20 + (557.0/200.0)*boom_a22;
     const double d63 = (183.0/80.0)*boom_a10 + (557.0/200.0)*boom_a12;
     const double d64 = (183.0/80.0)*boom_a00 + (557.0/200.0)*boom_a02;
@@ -847,16 +866,16 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     const double d71 = arm_cyl_barrel_a10*arm_cyl_rod_a22 - arm_cyl_barrel_a20*arm_cyl_rod_a12;
     const double d72 = arm_cyl_barrel_a00*arm_cyl_rod_a22 - arm_cyl_barrel_a20*arm_cyl_rod_a02;
     const double d73 = arm_cyl_barrel_a00*arm_cyl_rod_a12 - arm_cyl_barrel_a10*arm_cyl_rod_a02;
-    const double d74 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double d75 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double d76 = -arm_cyl_barrel_x + arm_cyl_rod_x;
+    const double d74 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double d75 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double d76 = arm_cyl_rod_x - arm_cyl_barrel_x;
     const double d77 = (1.0)*arm_cyl_rod_a22;
-    const double d78 = arm_cyl_barrel_a11*d77 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a12;
-    const double d79 = arm_cyl_barrel_a01*d77 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a02;
-    const double d80 = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a12 - 1.0*arm_cyl_barrel_a11*arm_cyl_rod_a02;
-    const double d81 = (393281.0/500000.0)*arm_a20 + (0.369691)*arm_a22;
-    const double d82 = (393281.0/500000.0)*arm_a10 + (0.369691)*arm_a12;
-    const double d83 = (393281.0/500000.0)*arm_a00 + (0.369691)*arm_a02;
+    const double d78 = d77*arm_cyl_barrel_a11 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a12;
+    const double d79 = d77*arm_cyl_barrel_a01 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a02;
+    const double d80 = -1.0*arm_cyl_barrel_a11*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a12;
+    const double d81 = (0.369691)*arm_a22 + (393281.0/500000.0)*arm_a20;
+    const double d82 = (0.369691)*arm_a12 + (393281.0/500000.0)*arm_a10;
+    const double d83 = (0.369691)*arm_a02 + (393281.0/500000.0)*arm_a00;
     const double d84 = (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22;
     const double d85 = (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12;
     const double d86 = (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02;
@@ -875,25 +894,25 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     const double d99 = arm_a11*side_link_a20 - arm_a21*side_link_a10;
     const double d100 = arm_a01*side_link_a20 - arm_a21*side_link_a00;
     const double d101 = arm_a01*side_link_a10 - arm_a11*side_link_a00;
-    const double d102 = (166329.0/500000.0)*side_link_a20 - 96247.0/200000.0*side_link_a22;
-    const double d103 = (166329.0/500000.0)*side_link_a10 - 96247.0/200000.0*side_link_a12;
+    const double d102 = -96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
+    const double d103 = -96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
     const double d104 = (85607.0/250000.0)*bucket_link_a20 + (0.450737)*bucket_link_a22;
     const double d105 = (85607.0/250000.0)*bucket_link_a10 + (0.450737)*bucket_link_a12;
-    const double d106 = (166329.0/500000.0)*side_link_a00 - 96247.0/200000.0*side_link_a02;
+    const double d106 = -96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
     const double d107 = (85607.0/250000.0)*bucket_link_a00 + (0.450737)*bucket_link_a02;
-    const double d108 = (8101.0/25000.0)*bucket_a20 - 16927.0/50000.0*bucket_a22;
-    const double d109 = (8101.0/25000.0)*bucket_a10 - 16927.0/50000.0*bucket_a12;
-    const double d110 = (8101.0/25000.0)*bucket_a00 - 16927.0/50000.0*bucket_a02;
+    const double d108 = -16927.0/50000.0*bucket_a22 + (8101.0/25000.0)*bucket_a20;
+    const double d109 = -16927.0/50000.0*bucket_a12 + (8101.0/25000.0)*bucket_a10;
+    const double d110 = -16927.0/50000.0*bucket_a02 + (8101.0/25000.0)*bucket_a00;
     const double d111 = (0.7962746214343476)*bucket_link_a10;
     const double d112 = (0.6049353083260941)*bucket_link_a22;
     const double d113 = (0.7962746214343476)*bucket_link_a00;
     const double d114 = (0.7962746214343476)*bucket_link_a20;
-    const double d115 = (0.6049353083260941)*bucket_link_a22 - d114;
-    const double d116 = (0.6049353083260941)*bucket_link_a12 - d111;
-    const double d117 = (0.6049353083260941)*bucket_link_a02 - d113;
-    const double d118 = (24687.0/100000.0)*arm_a20 - 36797.0/50000.0*arm_a22;
-    const double d119 = (24687.0/100000.0)*arm_a10 - 36797.0/50000.0*arm_a12;
-    const double d120 = (24687.0/100000.0)*arm_a00 - 36797.0/50000.0*arm_a02;
+    const double d115 = -d114 + (0.6049353083260941)*bucket_link_a22;
+    const double d116 = -d111 + (0.6049353083260941)*bucket_link_a12;
+    const double d117 = -d113 + (0.6049353083260941)*bucket_link_a02;
+    const double d118 = -36797.0/50000.0*arm_a22 + (24687.0/100000.0)*arm_a20;
+    const double d119 = -36797.0/50000.0*arm_a12 + (24687.0/100000.0)*arm_a10;
+    const double d120 = -36797.0/50000.0*arm_a02 + (24687.0/100000.0)*arm_a00;
     const double d121 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12;
     const double d122 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02;
     const double d123 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02;
@@ -930,18 +949,18 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     out[217] = -arm_cyl_barrel_a01;
     out[218] = -arm_cyl_barrel_a11;
     out[219] = -arm_cyl_barrel_a21;
-    out[220] = arm_cyl_barrel_a11*d74 - arm_cyl_barrel_a21*d75;
-    out[221] = -arm_cyl_barrel_a01*d74 + arm_cyl_barrel_a21*d76;
-    out[222] = arm_cyl_barrel_a01*d75 - arm_cyl_barrel_a11*d76;
+    out[220] = d74*arm_cyl_barrel_a11 - d75*arm_cyl_barrel_a21;
+    out[221] = d76*arm_cyl_barrel_a21 - d74*arm_cyl_barrel_a01;
+    out[222] = d75*arm_cyl_barrel_a01 - d76*arm_cyl_barrel_a11;
     out[223] = arm_cyl_barrel_a01;
     out[224] = arm_cyl_barrel_a11;
     out[225] = arm_cyl_barrel_a21;
     out[226] = -arm_cyl_barrel_a02;
     out[227] = -arm_cyl_barrel_a12;
     out[228] = -arm_cyl_barrel_a22;
-    out[229] = arm_cyl_barrel_a12*d74 - arm_cyl_barrel_a22*d75;
-    out[230] = -arm_cyl_barrel_a02*d74 + arm_cyl_barrel_a22*d76;
-    out[231] = arm_cyl_barrel_a02*d75 - arm_cyl_barrel_a12*d76;
+    out[229] = d74*arm_cyl_barrel_a12 - d75*arm_cyl_barrel_a22;
+    out[230] = d76*arm_cyl_barrel_a22 - d74*arm_cyl_barrel_a02;
+    out[231] = d75*arm_cyl_barrel_a02 - d76*arm_cyl_barrel_a12;
     out[232] = arm_cyl_barrel_a02;
     out[233] = arm_cyl_barrel_a12;
     out[234] = arm_cyl_barrel_a22;
@@ -1041,12 +1060,12 @@ static void compute_joints_jac_part1(const double *q, double *out) {
     out[328] = -1.0;
     out[329] = d109;
     out[330] = -d110;
-    out[331] = (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11 - bucket_a11*d112 - bucket_a21*d111;
-    out[332] = -0.6049353083260941*bucket_link_a02*bucket_a21 + bucket_a01*d112 - bucket_a01*d114 + bucket_a21*d113;
-    out[333] = (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01 - 0.6049353083260941*bucket_link_a12*bucket_a01 - bucket_a11*d113;
-    out[334] = bucket_a11*d115 - bucket_a21*d116;
-    out[335] = -bucket_a01*d115 + bucket_a21*d117;
-    out[336] = bucket_a01*d116 - bucket_a11*d117;
+    out[331] = -d111*bucket_a21 - d112*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11;
+    out[332] = d112*bucket_a01 + d113*bucket_a21 - d114*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21;
+    out[333] = -d113*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01;
+    out[334] = d115*bucket_a11 - d116*bucket_a21;
+    out[335] = d117*bucket_a21 - d115*bucket_a01;
+    out[336] = d116*bucket_a01 - d117*bucket_a11;
     out[337] = 1.0;
     out[338] = -d118;
     out[339] = d119;
@@ -1068,7 +1087,7 @@ static void compute_joints_jac_part1(const double *q, double *out) {
 }
 
 /* Phi_q values of the joint rows (403 entries). Rows 355 to 402. */
-static void compute_joints_jac_part2(const double *q, double *out) {
+void excavator_quaternion_compute_joints_jac_part2(const double *q, double *out) {
     const double bucket_cyl_barrel_x = q[63];
     const double bucket_cyl_barrel_y = q[64];
     const double bucket_cyl_barrel_z = q[65];
@@ -1087,43 +1106,43 @@ static void compute_joints_jac_part2(const double *q, double *out) {
     const double side_link_qx = q[81];
     const double side_link_qy = q[82];
     const double side_link_qz = q[83];
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qy;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qz;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx);
     const double side_link_a02 = 2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
     const double side_link_a10 = 2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy;
     const double side_link_a12 = -2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz;
     const double side_link_a20 = -2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
-    const double side_link_a22 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz);
     const double d124 = bucket_cyl_barrel_a10*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a11;
     const double d125 = bucket_cyl_barrel_a00*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a01;
     const double d126 = bucket_cyl_barrel_a00*bucket_cyl_rod_a11 - bucket_cyl_barrel_a10*bucket_cyl_rod_a01;
     const double d127 = bucket_cyl_barrel_a10*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a12;
     const double d128 = bucket_cyl_barrel_a00*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a02;
     const double d129 = bucket_cyl_barrel_a00*bucket_cyl_rod_a12 - bucket_cyl_barrel_a10*bucket_cyl_rod_a02;
-    const double d130 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double d131 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double d132 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
+    const double d130 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double d131 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double d132 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
     const double d133 = (1.0)*bucket_cyl_rod_a22;
-    const double d134 = bucket_cyl_barrel_a11*d133 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12;
-    const double d135 = bucket_cyl_barrel_a01*d133 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02;
-    const double d136 = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12 - 1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02;
-    const double d137 = (166329.0/500000.0)*side_link_a20 - 96247.0/200000.0*side_link_a22;
-    const double d138 = (166329.0/500000.0)*side_link_a10 - 96247.0/200000.0*side_link_a12;
-    const double d139 = (166329.0/500000.0)*side_link_a00 - 96247.0/200000.0*side_link_a02;
+    const double d134 = d133*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12;
+    const double d135 = d133*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02;
+    const double d136 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12;
+    const double d137 = -96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
+    const double d138 = -96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
+    const double d139 = -96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
     out[355] = d124;
     out[356] = -d125;
     out[357] = d126;
@@ -1139,18 +1158,18 @@ static void compute_joints_jac_part2(const double *q, double *out) {
     out[367] = -bucket_cyl_barrel_a01;
     out[368] = -bucket_cyl_barrel_a11;
     out[369] = -bucket_cyl_barrel_a21;
-    out[370] = bucket_cyl_barrel_a11*d130 - bucket_cyl_barrel_a21*d131;
-    out[371] = -bucket_cyl_barrel_a01*d130 + bucket_cyl_barrel_a21*d132;
-    out[372] = bucket_cyl_barrel_a01*d131 - bucket_cyl_barrel_a11*d132;
+    out[370] = d130*bucket_cyl_barrel_a11 - d131*bucket_cyl_barrel_a21;
+    out[371] = d132*bucket_cyl_barrel_a21 - d130*bucket_cyl_barrel_a01;
+    out[372] = d131*bucket_cyl_barrel_a01 - d132*bucket_cyl_barrel_a11;
     out[373] = bucket_cyl_barrel_a01;
     out[374] = bucket_cyl_barrel_a11;
     out[375] = bucket_cyl_barrel_a21;
     out[376] = -bucket_cyl_barrel_a02;
     out[377] = -bucket_cyl_barrel_a12;
     out[378] = -bucket_cyl_barrel_a22;
-    out[379] = bucket_cyl_barrel_a12*d130 - bucket_cyl_barrel_a22*d131;
-    out[380] = -bucket_cyl_barrel_a02*d130 + bucket_cyl_barrel_a22*d132;
-    out[381] = bucket_cyl_barrel_a02*d131 - bucket_cyl_barrel_a12*d132;
+    out[379] = d130*bucket_cyl_barrel_a12 - d131*bucket_cyl_barrel_a22;
+    out[380] = d132*bucket_cyl_barrel_a22 - d130*bucket_cyl_barrel_a02;
+    out[381] = d131*bucket_cyl_barrel_a02 - d132*bucket_cyl_barrel_a12;
     out[382] = bucket_cyl_barrel_a02;
     out[383] = bucket_cyl_barrel_a12;
     out[384] = bucket_cyl_barrel_a22;
@@ -1175,7 +1194,7 @@ static void compute_joints_jac_part2(const double *q, double *out) {
 }
 
 /* Phi_q values of the driver rows of case 'digging'. */
-static void compute_drivers_jac_digging(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_jac_digging(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -1211,71 +1230,61 @@ static void compute_drivers_jac_digging(const double *q, const double *u, double
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
-    const double d3 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double d5 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double d6 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double d7 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double d8 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    out[0] = -upper_qx*d1 - upper_qy*d2;
-    out[1] = upper_qx*d2 - upper_qy*d1;
-    out[2] = -upper_qw*d2 - upper_qz*d1;
+    const double d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double d6 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double d7 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double d8 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    out[0] = -d1*upper_qx - d2*upper_qy;
+    out[1] = d2*upper_qx - d1*upper_qy;
+    out[2] = -d1*upper_qz - d2*upper_qw;
     out[3] = -boom_cyl_l_barrel_a00;
     out[4] = -boom_cyl_l_barrel_a10;
     out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4;
-    out[7] = -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5;
-    out[8] = boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5;
+    out[6] = d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20;
+    out[7] = d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00;
+    out[8] = d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10;
     out[9] = boom_cyl_l_barrel_a00;
     out[10] = boom_cyl_l_barrel_a10;
     out[11] = boom_cyl_l_barrel_a20;
     out[12] = -arm_cyl_barrel_a00;
     out[13] = -arm_cyl_barrel_a10;
     out[14] = -arm_cyl_barrel_a20;
-    out[15] = arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7;
-    out[16] = -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8;
-    out[17] = arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8;
+    out[15] = d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20;
+    out[16] = d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00;
+    out[17] = d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10;
     out[18] = arm_cyl_barrel_a00;
     out[19] = arm_cyl_barrel_a10;
     out[20] = arm_cyl_barrel_a20;
     out[21] = -bucket_cyl_barrel_a00;
     out[22] = -bucket_cyl_barrel_a10;
     out[23] = -bucket_cyl_barrel_a20;
-    out[24] = bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10;
-    out[25] = -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11;
-    out[26] = bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11;
+    out[24] = d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20;
+    out[25] = d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00;
+    out[26] = d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10;
     out[27] = bucket_cyl_barrel_a00;
     out[28] = bucket_cyl_barrel_a10;
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging'. */
-static void phi_jac_digging(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_digging(q, u, phi + 80);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_drivers_jac_digging(q, u, jac + 403);
-}
-
 /* nu of the driver rows of case 'digging'. */
-static void compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out) {
+void excavator_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double u0 = u[0];
@@ -1290,14 +1299,8 @@ static void compute_drivers_nu_digging(const double *q, const double *u, const d
     out[3] = ud3;
 }
 
-/* nu = -Phi_t of case 'digging' (zero in the joint rows). */
-static void nu_digging(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_digging(q, u, ud, nu + 80);
-}
-
 /* gamma of the joint rows (they do not depend on time). Rows 0 to 47. */
-static void compute_joints_gamma_part0(const double *q, const double *v, double *out) {
+void excavator_quaternion_compute_joints_gamma_part0(const double *q, const double *v, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -1397,82 +1400,82 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double v_arm_cyl_rod_theta_x = v[51];
     const double v_arm_cyl_rod_theta_y = v[52];
     const double v_arm_cyl_rod_theta_z = v[53];
-    const double upper_a00 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx) - 1.0;
+    const double upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx);
     const double upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
     const double upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a10 = 2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
-    const double upper_a11 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy);
     const double upper_a12 = -2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
     const double upper_a20 = -2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a21 = 2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
-    const double upper_a22 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz) - 1.0;
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double upper_a22 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz);
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    const double boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz) - 1.0;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz);
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy);
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz);
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz) - 1.0;
-    const double arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz);
+    const double arm_a00 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx);
     const double arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
     const double arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
     const double arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
-    const double arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz);
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qz + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qy;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qy + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qz;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz);
     const double c0 = -22767.0/100000.0*upper_a00*v_upper_theta_y + (22767.0/100000.0)*upper_a10*v_upper_theta_x;
     const double c1 = -195729.0/100000.0*upper_a02*v_upper_theta_y + (195729.0/100000.0)*upper_a12*v_upper_theta_x;
     const double c2 = upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x;
     const double c3 = upper_a02*v_upper_theta_z - upper_a22*v_upper_theta_x;
-    const double c4 = -upper_a10*v_upper_theta_z + upper_a20*v_upper_theta_y;
-    const double c5 = -upper_a12*v_upper_theta_z + upper_a22*v_upper_theta_y;
-    const double c6 = -upper_a01*v_upper_theta_y + upper_a11*v_upper_theta_x;
+    const double c4 = upper_a20*v_upper_theta_y - upper_a10*v_upper_theta_z;
+    const double c5 = upper_a22*v_upper_theta_y - upper_a12*v_upper_theta_z;
+    const double c6 = upper_a11*v_upper_theta_x - upper_a01*v_upper_theta_y;
     const double c7 = v_upper_theta_y - v_boom_theta_y;
     const double c8 = v_upper_theta_x - v_boom_theta_x;
     const double c9 = -c8;
@@ -1480,27 +1483,27 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c11 = v_upper_theta_z - v_boom_theta_z;
     const double c12 = -c11;
     const double c13 = -c7;
-    const double c14 = upper_a01*c13 + upper_a11*c8;
-    const double c15 = upper_a01*c11 + upper_a21*c9;
-    const double c16 = -upper_a11*v_upper_theta_z + upper_a21*v_upper_theta_y;
-    const double c17 = upper_a11*c12 + upper_a21*c7;
+    const double c14 = c13*upper_a01 + c8*upper_a11;
+    const double c15 = c11*upper_a01 + c9*upper_a21;
+    const double c16 = upper_a21*v_upper_theta_y - upper_a11*v_upper_theta_z;
+    const double c17 = c12*upper_a11 + c7*upper_a21;
     const double c18 = -4307.0/6250.0*upper_a00*v_upper_theta_y + (4307.0/6250.0)*upper_a10*v_upper_theta_x;
-    const double c19 = -upper_a01*v_upper_theta_y + upper_a11*v_upper_theta_x;
+    const double c19 = upper_a11*v_upper_theta_x - upper_a01*v_upper_theta_y;
     const double c20 = (8.0/25.0)*c19;
     const double c21 = -67739.0/50000.0*upper_a02*v_upper_theta_y + (67739.0/50000.0)*upper_a12*v_upper_theta_x;
     const double c22 = upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x;
     const double c23 = upper_a01*v_upper_theta_z - upper_a21*v_upper_theta_x;
     const double c24 = upper_a02*v_upper_theta_z - upper_a22*v_upper_theta_x;
-    const double c25 = -upper_a10*v_upper_theta_z + upper_a20*v_upper_theta_y;
-    const double c26 = -upper_a11*v_upper_theta_z + upper_a21*v_upper_theta_y;
-    const double c27 = -upper_a12*v_upper_theta_z + upper_a22*v_upper_theta_y;
+    const double c25 = upper_a20*v_upper_theta_y - upper_a10*v_upper_theta_z;
+    const double c26 = upper_a21*v_upper_theta_y - upper_a11*v_upper_theta_z;
+    const double c27 = upper_a22*v_upper_theta_y - upper_a12*v_upper_theta_z;
     const double c28 = v_upper_theta_y - v_boom_cyl_l_barrel_theta_y;
     const double c29 = v_upper_theta_x - v_boom_cyl_l_barrel_theta_x;
     const double c30 = -c29;
     const double c31 = v_upper_theta_z - v_boom_cyl_l_barrel_theta_z;
     const double c32 = -c31;
     const double c33 = -c28;
-    const double c34 = -boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
+    const double c34 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
     const double c35 = v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_rod_theta_y;
     const double c36 = v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_rod_theta_x;
     const double c37 = -c36;
@@ -1508,30 +1511,30 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c39 = v_boom_cyl_l_barrel_theta_z - v_boom_cyl_l_rod_theta_z;
     const double c40 = -c39;
     const double c41 = -c35;
-    const double c42 = boom_cyl_l_barrel_a00*c41 + boom_cyl_l_barrel_a10*c36;
-    const double c43 = boom_cyl_l_barrel_a00*c39 + boom_cyl_l_barrel_a20*c37;
-    const double c44 = -boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
-    const double c45 = boom_cyl_l_barrel_a10*c40 + boom_cyl_l_barrel_a20*c35;
-    const double c46 = -boom_cyl_l_rod_a02*v_boom_cyl_l_rod_theta_y + boom_cyl_l_rod_a12*v_boom_cyl_l_rod_theta_x;
+    const double c42 = c36*boom_cyl_l_barrel_a10 + c41*boom_cyl_l_barrel_a00;
+    const double c43 = c37*boom_cyl_l_barrel_a20 + c39*boom_cyl_l_barrel_a00;
+    const double c44 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
+    const double c45 = c35*boom_cyl_l_barrel_a20 + c40*boom_cyl_l_barrel_a10;
+    const double c46 = boom_cyl_l_rod_a12*v_boom_cyl_l_rod_theta_x - boom_cyl_l_rod_a02*v_boom_cyl_l_rod_theta_y;
     const double c47 = boom_cyl_l_rod_a02*v_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a22*v_boom_cyl_l_rod_theta_x;
-    const double c48 = -boom_cyl_l_rod_a12*v_boom_cyl_l_rod_theta_z + boom_cyl_l_rod_a22*v_boom_cyl_l_rod_theta_y;
+    const double c48 = boom_cyl_l_rod_a22*v_boom_cyl_l_rod_theta_y - boom_cyl_l_rod_a12*v_boom_cyl_l_rod_theta_z;
     const double c49 = boom_cyl_l_barrel_a11*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_y;
     const double c50 = boom_cyl_l_barrel_a01*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_x;
     const double c51 = boom_cyl_l_barrel_a01*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a11*v_boom_cyl_l_barrel_theta_x;
     const double c52 = -c49;
     const double c53 = -c51;
-    const double c54 = -boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z;
-    const double c55 = boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y;
-    const double c56 = -boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x;
+    const double c54 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x;
+    const double c55 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z;
+    const double c56 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y;
     const double c57 = boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_y;
     const double c58 = boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_x;
     const double c59 = boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_x;
     const double c60 = -c57;
     const double c61 = -c59;
-    const double c62 = (1.0)*v_boom_cyl_l_barrel_theta_y - 1.0*v_boom_cyl_l_rod_theta_y;
-    const double c63 = (1.0)*v_boom_cyl_l_barrel_theta_x - 1.0*v_boom_cyl_l_rod_theta_x;
+    const double c62 = -1.0*v_boom_cyl_l_rod_theta_y + (1.0)*v_boom_cyl_l_barrel_theta_y;
+    const double c63 = -1.0*v_boom_cyl_l_rod_theta_x + (1.0)*v_boom_cyl_l_barrel_theta_x;
     const double c64 = -c63;
-    const double c65 = (1.0)*v_boom_cyl_l_barrel_theta_z - 1.0*v_boom_cyl_l_rod_theta_z;
+    const double c65 = -1.0*v_boom_cyl_l_rod_theta_z + (1.0)*v_boom_cyl_l_barrel_theta_z;
     const double c66 = -c65;
     const double c67 = -c62;
     const double c68 = -139283.0/100000.0*boom_a00*v_boom_theta_y + (139283.0/100000.0)*boom_a10*v_boom_theta_x;
@@ -1540,26 +1543,26 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c71 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x;
     const double c72 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x;
     const double c73 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x;
-    const double c74 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y;
-    const double c75 = -boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y;
-    const double c76 = -boom_a12*v_boom_theta_z + boom_a22*v_boom_theta_y;
+    const double c74 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z;
+    const double c75 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z;
+    const double c76 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z;
     const double c77 = -4307.0/6250.0*upper_a00*v_upper_theta_y + (4307.0/6250.0)*upper_a10*v_upper_theta_x;
-    const double c78 = -upper_a01*v_upper_theta_y + upper_a11*v_upper_theta_x;
+    const double c78 = upper_a11*v_upper_theta_x - upper_a01*v_upper_theta_y;
     const double c79 = -67739.0/50000.0*upper_a02*v_upper_theta_y + (67739.0/50000.0)*upper_a12*v_upper_theta_x;
     const double c80 = upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x;
     const double c81 = upper_a01*v_upper_theta_z - upper_a21*v_upper_theta_x;
     const double c82 = (8.0/25.0)*v_upper_theta_z;
     const double c83 = upper_a02*v_upper_theta_z - upper_a22*v_upper_theta_x;
-    const double c84 = -upper_a10*v_upper_theta_z + upper_a20*v_upper_theta_y;
-    const double c85 = -upper_a11*v_upper_theta_z + upper_a21*v_upper_theta_y;
-    const double c86 = -upper_a12*v_upper_theta_z + upper_a22*v_upper_theta_y;
+    const double c84 = upper_a20*v_upper_theta_y - upper_a10*v_upper_theta_z;
+    const double c85 = upper_a21*v_upper_theta_y - upper_a11*v_upper_theta_z;
+    const double c86 = upper_a22*v_upper_theta_y - upper_a12*v_upper_theta_z;
     const double c87 = v_upper_theta_y - v_boom_cyl_r_barrel_theta_y;
     const double c88 = v_upper_theta_x - v_boom_cyl_r_barrel_theta_x;
     const double c89 = -c88;
     const double c90 = v_upper_theta_z - v_boom_cyl_r_barrel_theta_z;
     const double c91 = -c90;
     const double c92 = -c87;
-    const double c93 = -boom_cyl_r_barrel_a00*v_boom_cyl_r_barrel_theta_y + boom_cyl_r_barrel_a10*v_boom_cyl_r_barrel_theta_x;
+    const double c93 = boom_cyl_r_barrel_a10*v_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_a00*v_boom_cyl_r_barrel_theta_y;
     const double c94 = v_boom_cyl_r_barrel_theta_y - v_boom_cyl_r_rod_theta_y;
     const double c95 = v_boom_cyl_r_barrel_theta_x - v_boom_cyl_r_rod_theta_x;
     const double c96 = -c95;
@@ -1567,49 +1570,49 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c98 = v_boom_cyl_r_barrel_theta_z - v_boom_cyl_r_rod_theta_z;
     const double c99 = -c98;
     const double c100 = -c94;
-    const double c101 = boom_cyl_r_barrel_a00*c100 + boom_cyl_r_barrel_a10*c95;
-    const double c102 = boom_cyl_r_barrel_a00*c98 + boom_cyl_r_barrel_a20*c96;
-    const double c103 = -boom_cyl_r_barrel_a10*v_boom_cyl_r_barrel_theta_z + boom_cyl_r_barrel_a20*v_boom_cyl_r_barrel_theta_y;
-    const double c104 = boom_cyl_r_barrel_a10*c99 + boom_cyl_r_barrel_a20*c94;
-    const double c105 = -boom_cyl_r_rod_a02*v_boom_cyl_r_rod_theta_y + boom_cyl_r_rod_a12*v_boom_cyl_r_rod_theta_x;
+    const double c101 = c95*boom_cyl_r_barrel_a10 + c100*boom_cyl_r_barrel_a00;
+    const double c102 = c96*boom_cyl_r_barrel_a20 + c98*boom_cyl_r_barrel_a00;
+    const double c103 = boom_cyl_r_barrel_a20*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a10*v_boom_cyl_r_barrel_theta_z;
+    const double c104 = c94*boom_cyl_r_barrel_a20 + c99*boom_cyl_r_barrel_a10;
+    const double c105 = boom_cyl_r_rod_a12*v_boom_cyl_r_rod_theta_x - boom_cyl_r_rod_a02*v_boom_cyl_r_rod_theta_y;
     const double c106 = boom_cyl_r_rod_a02*v_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a22*v_boom_cyl_r_rod_theta_x;
-    const double c107 = -boom_cyl_r_rod_a12*v_boom_cyl_r_rod_theta_z + boom_cyl_r_rod_a22*v_boom_cyl_r_rod_theta_y;
+    const double c107 = boom_cyl_r_rod_a22*v_boom_cyl_r_rod_theta_y - boom_cyl_r_rod_a12*v_boom_cyl_r_rod_theta_z;
     const double c108 = boom_cyl_r_barrel_a11*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_y;
     const double c109 = boom_cyl_r_barrel_a01*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_x;
     const double c110 = boom_cyl_r_barrel_a01*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a11*v_boom_cyl_r_barrel_theta_x;
     const double c111 = -c108;
     const double c112 = -c110;
-    const double c113 = -boom_cyl_r_barrel_x*v_boom_cyl_r_barrel_theta_y + boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_theta_x + boom_cyl_r_rod_x*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_rod_y*v_boom_cyl_r_barrel_theta_x - v_boom_cyl_r_barrel_z + v_boom_cyl_r_rod_z;
-    const double c114 = boom_cyl_r_barrel_x*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_z*v_boom_cyl_r_barrel_theta_x - boom_cyl_r_rod_x*v_boom_cyl_r_barrel_theta_z + boom_cyl_r_rod_z*v_boom_cyl_r_barrel_theta_x - v_boom_cyl_r_barrel_y + v_boom_cyl_r_rod_y;
-    const double c115 = -boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_theta_z + boom_cyl_r_barrel_z*v_boom_cyl_r_barrel_theta_y + boom_cyl_r_rod_y*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_rod_z*v_boom_cyl_r_barrel_theta_y - v_boom_cyl_r_barrel_x + v_boom_cyl_r_rod_x;
+    const double c113 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z + boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_theta_x + boom_cyl_r_rod_x*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_x*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_rod_y*v_boom_cyl_r_barrel_theta_x;
+    const double c114 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y + boom_cyl_r_barrel_x*v_boom_cyl_r_barrel_theta_z + boom_cyl_r_rod_z*v_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_z*v_boom_cyl_r_barrel_theta_x - boom_cyl_r_rod_x*v_boom_cyl_r_barrel_theta_z;
+    const double c115 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x + boom_cyl_r_barrel_z*v_boom_cyl_r_barrel_theta_y + boom_cyl_r_rod_y*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_rod_z*v_boom_cyl_r_barrel_theta_y;
     const double c116 = boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_y;
     const double c117 = boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_x;
     const double c118 = boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_x;
     const double c119 = -c116;
     const double c120 = -c118;
-    const double c121 = (1.0)*v_boom_cyl_r_barrel_theta_y - 1.0*v_boom_cyl_r_rod_theta_y;
-    const double c122 = (1.0)*v_boom_cyl_r_barrel_theta_x - 1.0*v_boom_cyl_r_rod_theta_x;
+    const double c121 = -1.0*v_boom_cyl_r_rod_theta_y + (1.0)*v_boom_cyl_r_barrel_theta_y;
+    const double c122 = -1.0*v_boom_cyl_r_rod_theta_x + (1.0)*v_boom_cyl_r_barrel_theta_x;
     const double c123 = -c122;
-    const double c124 = (1.0)*v_boom_cyl_r_barrel_theta_z - 1.0*v_boom_cyl_r_rod_theta_z;
+    const double c124 = -1.0*v_boom_cyl_r_rod_theta_z + (1.0)*v_boom_cyl_r_barrel_theta_z;
     const double c125 = -c124;
     const double c126 = -c121;
     const double c127 = -139283.0/100000.0*boom_a00*v_boom_theta_y + (139283.0/100000.0)*boom_a10*v_boom_theta_x;
-    const double c128 = -boom_a01*v_boom_theta_y + boom_a11*v_boom_theta_x;
+    const double c128 = boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y;
     const double c129 = -2.001922*boom_a02*v_boom_theta_y + (2.001922)*boom_a12*v_boom_theta_x;
     const double c130 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x;
     const double c131 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x;
     const double c132 = (8.0/25.0)*v_boom_theta_z;
     const double c133 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x;
-    const double c134 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y;
-    const double c135 = -boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y;
-    const double c136 = -boom_a12*v_boom_theta_z + boom_a22*v_boom_theta_y;
+    const double c134 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z;
+    const double c135 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z;
+    const double c136 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z;
     const double c137 = -23939.0/5000.0*boom_a00*v_boom_theta_y + (23939.0/5000.0)*boom_a10*v_boom_theta_x;
     const double c138 = -29959.0/10000.0*boom_a02*v_boom_theta_y + (29959.0/10000.0)*boom_a12*v_boom_theta_x;
     const double c139 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x;
     const double c140 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x;
-    const double c141 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y;
-    const double c142 = -boom_a12*v_boom_theta_z + boom_a22*v_boom_theta_y;
-    const double c143 = -boom_a01*v_boom_theta_y + boom_a11*v_boom_theta_x;
+    const double c141 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z;
+    const double c142 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z;
+    const double c143 = boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y;
     const double c144 = v_boom_theta_y - v_arm_theta_y;
     const double c145 = v_boom_theta_x - v_arm_theta_x;
     const double c146 = -c145;
@@ -1617,23 +1620,23 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c148 = v_boom_theta_z - v_arm_theta_z;
     const double c149 = -c148;
     const double c150 = -c144;
-    const double c151 = boom_a01*c150 + boom_a11*c145;
-    const double c152 = boom_a01*c148 + boom_a21*c146;
-    const double c153 = -boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y;
-    const double c154 = boom_a11*c149 + boom_a21*c144;
+    const double c151 = c150*boom_a01 + c145*boom_a11;
+    const double c152 = c148*boom_a01 + c146*boom_a21;
+    const double c153 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z;
+    const double c154 = c149*boom_a11 + c144*boom_a21;
     const double c155 = -183.0/80.0*boom_a00*v_boom_theta_y + (183.0/80.0)*boom_a10*v_boom_theta_x;
     const double c156 = -557.0/200.0*boom_a02*v_boom_theta_y + (557.0/200.0)*boom_a12*v_boom_theta_x;
     const double c157 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x;
     const double c158 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x;
-    const double c159 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y;
-    const double c160 = -boom_a12*v_boom_theta_z + boom_a22*v_boom_theta_y;
+    const double c159 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z;
+    const double c160 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z;
     const double c161 = v_boom_theta_y - v_arm_cyl_barrel_theta_y;
     const double c162 = v_boom_theta_x - v_arm_cyl_barrel_theta_x;
     const double c163 = -c162;
     const double c164 = v_boom_theta_z - v_arm_cyl_barrel_theta_z;
     const double c165 = -c164;
     const double c166 = -c161;
-    const double c167 = -arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y + arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
+    const double c167 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
     const double c168 = v_arm_cyl_barrel_theta_y - v_arm_cyl_rod_theta_y;
     const double c169 = v_arm_cyl_barrel_theta_x - v_arm_cyl_rod_theta_x;
     const double c170 = -c169;
@@ -1641,84 +1644,84 @@ static void compute_joints_gamma_part0(const double *q, const double *v, double 
     const double c172 = v_arm_cyl_barrel_theta_z - v_arm_cyl_rod_theta_z;
     const double c173 = -c172;
     const double c174 = -c168;
-    const double c175 = arm_cyl_barrel_a00*c174 + arm_cyl_barrel_a10*c169;
-    const double c176 = arm_cyl_barrel_a00*c172 + arm_cyl_barrel_a20*c170;
-    const double c177 = -arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
-    const double c178 = arm_cyl_barrel_a10*c173 + arm_cyl_barrel_a20*c168;
-    const double c179 = -arm_cyl_rod_a02*v_arm_cyl_rod_theta_y + arm_cyl_rod_a12*v_arm_cyl_rod_theta_x;
+    const double c175 = c169*arm_cyl_barrel_a10 + c174*arm_cyl_barrel_a00;
+    const double c176 = c170*arm_cyl_barrel_a20 + c172*arm_cyl_barrel_a00;
+    const double c177 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
+    const double c178 = c168*arm_cyl_barrel_a20 + c173*arm_cyl_barrel_a10;
+    const double c179 = arm_cyl_rod_a12*v_arm_cyl_rod_theta_x - arm_cyl_rod_a02*v_arm_cyl_rod_theta_y;
     const double c180 = arm_cyl_rod_a02*v_arm_cyl_rod_theta_z - arm_cyl_rod_a22*v_arm_cyl_rod_theta_x;
-    const double c181 = -arm_cyl_rod_a12*v_arm_cyl_rod_theta_z + arm_cyl_rod_a22*v_arm_cyl_rod_theta_y;
+    const double c181 = arm_cyl_rod_a22*v_arm_cyl_rod_theta_y - arm_cyl_rod_a12*v_arm_cyl_rod_theta_z;
     const double c182 = arm_cyl_barrel_a11*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_y;
     const double c183 = arm_cyl_barrel_a01*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_x;
     const double c184 = arm_cyl_barrel_a01*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a11*v_arm_cyl_barrel_theta_x;
     const double c185 = -c182;
     const double c186 = -c184;
-    const double c187 = -arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + v_arm_cyl_rod_z;
-    const double c188 = arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y;
-    const double c189 = -arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x;
+    const double c187 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x;
+    const double c188 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z;
+    const double c189 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y;
     const double c190 = arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_y;
     const double c191 = arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_x;
     const double c192 = arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_x;
     const double c193 = -c190;
     const double c194 = -c192;
-    const double c195 = (1.0)*v_arm_cyl_barrel_theta_y - 1.0*v_arm_cyl_rod_theta_y;
-    const double c196 = (1.0)*v_arm_cyl_barrel_theta_x - 1.0*v_arm_cyl_rod_theta_x;
+    const double c195 = -1.0*v_arm_cyl_rod_theta_y + (1.0)*v_arm_cyl_barrel_theta_y;
+    const double c196 = -1.0*v_arm_cyl_rod_theta_x + (1.0)*v_arm_cyl_barrel_theta_x;
     const double c197 = -c196;
-    const double c198 = (1.0)*v_arm_cyl_barrel_theta_z - 1.0*v_arm_cyl_rod_theta_z;
+    const double c198 = -1.0*v_arm_cyl_rod_theta_z + (1.0)*v_arm_cyl_barrel_theta_z;
     const double c199 = -c198;
     const double c200 = -c195;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = -v_upper_theta_x*(upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x) + v_upper_theta_y*(-upper_a10*v_upper_theta_z + upper_a20*v_upper_theta_y);
-    out[4] = -v_upper_theta_x*(upper_a01*v_upper_theta_z - upper_a21*v_upper_theta_x) + v_upper_theta_y*(-upper_a11*v_upper_theta_z + upper_a21*v_upper_theta_y);
+    out[3] = v_upper_theta_y*(upper_a20*v_upper_theta_y - upper_a10*v_upper_theta_z) - v_upper_theta_x*(upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x);
+    out[4] = v_upper_theta_y*(upper_a21*v_upper_theta_y - upper_a11*v_upper_theta_z) - v_upper_theta_x*(upper_a01*v_upper_theta_z - upper_a21*v_upper_theta_x);
     out[5] = -c0*v_upper_theta_y - c1*v_upper_theta_y + (22767.0/100000.0)*c2*v_upper_theta_z + (195729.0/100000.0)*c3*v_upper_theta_z;
-    out[6] = c0*v_upper_theta_x + c1*v_upper_theta_x - 22767.0/100000.0*c4*v_upper_theta_z - 195729.0/100000.0*c5*v_upper_theta_z;
-    out[7] = -22767.0/100000.0*c2*v_upper_theta_x - 195729.0/100000.0*c3*v_upper_theta_x + (22767.0/100000.0)*c4*v_upper_theta_y + (195729.0/100000.0)*c5*v_upper_theta_y;
-    out[8] = -c10*(boom_a02*c12 + boom_a22*c8) - c14*(-boom_a02*v_boom_theta_y + boom_a12*v_boom_theta_x) - c15*(boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x) - c16*(boom_a12*c11 + boom_a22*c13) - c17*(-boom_a12*v_boom_theta_z + boom_a22*v_boom_theta_y) - c6*(boom_a02*c7 + boom_a12*c9);
-    out[9] = -c10*(boom_a00*c12 + boom_a20*c8) - c14*(-boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x) - c15*(boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x) - c16*(boom_a10*c11 + boom_a20*c13) - c17*(-boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y) - c6*(boom_a00*c7 + boom_a10*c9);
-    out[10] = -c18*v_upper_theta_y - c20*v_upper_theta_y - c21*v_upper_theta_y + (4307.0/6250.0)*c22*v_upper_theta_z + (8.0/25.0)*c23*v_upper_theta_z + (67739.0/50000.0)*c24*v_upper_theta_z;
-    out[11] = c18*v_upper_theta_x + c20*v_upper_theta_x + c21*v_upper_theta_x - 4307.0/6250.0*c25*v_upper_theta_z - 8.0/25.0*c26*v_upper_theta_z - 67739.0/50000.0*c27*v_upper_theta_z;
-    out[12] = -4307.0/6250.0*c22*v_upper_theta_x - 8.0/25.0*c23*v_upper_theta_x - 67739.0/50000.0*c24*v_upper_theta_x + (4307.0/6250.0)*c25*v_upper_theta_y + (8.0/25.0)*c26*v_upper_theta_y + (67739.0/50000.0)*c27*v_upper_theta_y;
-    out[13] = -c19*(boom_cyl_l_barrel_a02*c28 + boom_cyl_l_barrel_a12*c30) - c23*(boom_cyl_l_barrel_a02*c32 + boom_cyl_l_barrel_a22*c29) - c26*(boom_cyl_l_barrel_a12*c31 + boom_cyl_l_barrel_a22*c33) - (upper_a01*c31 + upper_a21*c30)*(boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_x) - (upper_a01*c33 + upper_a11*c29)*(-boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_x) - (upper_a11*c32 + upper_a21*c28)*(-boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_y);
-    out[14] = -c34*(boom_cyl_l_rod_a01*c35 + boom_cyl_l_rod_a11*c37) - c44*(boom_cyl_l_rod_a11*c39 + boom_cyl_l_rod_a21*c41) - c45*(-boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_z + boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_y) - c38*(boom_cyl_l_rod_a01*c40 + boom_cyl_l_rod_a21*c36) - c42*(-boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_y + boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_x) - c43*(boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_x);
-    out[15] = -c34*(boom_cyl_l_rod_a02*c35 + boom_cyl_l_rod_a12*c37) - c44*(boom_cyl_l_rod_a12*c39 + boom_cyl_l_rod_a22*c41) - c45*c48 - c46*c42 - c47*c43 - c38*(boom_cyl_l_rod_a02*c40 + boom_cyl_l_rod_a22*c36);
-    out[16] = -c49*v_boom_cyl_l_barrel_x - c50*c55 + c50*v_boom_cyl_l_barrel_y - c50*v_boom_cyl_l_rod_y - c51*v_boom_cyl_l_barrel_z - c52*c56 - c52*v_boom_cyl_l_rod_x - c53*c54 - c53*v_boom_cyl_l_rod_z;
-    out[17] = -c54*c61 - c55*c58 - c56*c60 - c57*v_boom_cyl_l_barrel_x + c58*v_boom_cyl_l_barrel_y - c58*v_boom_cyl_l_rod_y - c59*v_boom_cyl_l_barrel_z - c60*v_boom_cyl_l_rod_x - c61*v_boom_cyl_l_rod_z;
-    out[18] = -c46*(boom_cyl_l_barrel_a01*c67 + boom_cyl_l_barrel_a11*c63) - c47*(boom_cyl_l_barrel_a01*c65 + boom_cyl_l_barrel_a21*c64) - c48*(boom_cyl_l_barrel_a11*c66 + boom_cyl_l_barrel_a21*c62) - c50*(boom_cyl_l_rod_a02*c66 + boom_cyl_l_rod_a22*c63) - c52*(boom_cyl_l_rod_a12*c65 + boom_cyl_l_rod_a22*c67) - c53*(boom_cyl_l_rod_a02*c62 + boom_cyl_l_rod_a12*c64);
-    out[19] = c68*v_boom_theta_y + c69*v_boom_theta_y + c70*v_boom_theta_y - 139283.0/100000.0*c71*v_boom_theta_z - 8.0/25.0*c72*v_boom_theta_z - 2.001922*c73*v_boom_theta_z;
-    out[20] = -c68*v_boom_theta_x - c69*v_boom_theta_x - c70*v_boom_theta_x + (139283.0/100000.0)*c74*v_boom_theta_z + (8.0/25.0)*c75*v_boom_theta_z + (2.001922)*c76*v_boom_theta_z;
-    out[21] = (139283.0/100000.0)*c71*v_boom_theta_x + (8.0/25.0)*c72*v_boom_theta_x + (2.001922)*c73*v_boom_theta_x - 139283.0/100000.0*c74*v_boom_theta_y - 8.0/25.0*c75*v_boom_theta_y - 2.001922*c76*v_boom_theta_y;
-    out[22] = -c77*v_upper_theta_y + (8.0/25.0)*c78*v_upper_theta_y - c79*v_upper_theta_y + (4307.0/6250.0)*c80*v_upper_theta_z - c81*c82 + (67739.0/50000.0)*c83*v_upper_theta_z;
-    out[23] = c77*v_upper_theta_x - 8.0/25.0*c78*v_upper_theta_x + c79*v_upper_theta_x + c82*c85 - 4307.0/6250.0*c84*v_upper_theta_z - 67739.0/50000.0*c86*v_upper_theta_z;
-    out[24] = -4307.0/6250.0*c80*v_upper_theta_x + (8.0/25.0)*c81*v_upper_theta_x - 67739.0/50000.0*c83*v_upper_theta_x + (4307.0/6250.0)*c84*v_upper_theta_y - 8.0/25.0*c85*v_upper_theta_y + (67739.0/50000.0)*c86*v_upper_theta_y;
-    out[25] = -c78*(boom_cyl_r_barrel_a02*c87 + boom_cyl_r_barrel_a12*c89) - c81*(boom_cyl_r_barrel_a02*c91 + boom_cyl_r_barrel_a22*c88) - c85*(boom_cyl_r_barrel_a12*c90 + boom_cyl_r_barrel_a22*c92) - (upper_a01*c90 + upper_a21*c89)*(boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_x) - (upper_a01*c92 + upper_a11*c88)*(-boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_y + boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_x) - (upper_a11*c91 + upper_a21*c87)*(-boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_z + boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_y);
-    out[26] = -c93*(boom_cyl_r_rod_a01*c94 + boom_cyl_r_rod_a11*c96) - c103*(boom_cyl_r_rod_a11*c98 + boom_cyl_r_rod_a21*c100) - c104*(-boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_z + boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_y) - c97*(boom_cyl_r_rod_a01*c99 + boom_cyl_r_rod_a21*c95) - c101*(-boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_y + boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_x) - c102*(boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_x);
-    out[27] = -c93*(boom_cyl_r_rod_a02*c94 + boom_cyl_r_rod_a12*c96) - c103*(boom_cyl_r_rod_a12*c98 + boom_cyl_r_rod_a22*c100) - c104*c107 - c105*c101 - c106*c102 - c97*(boom_cyl_r_rod_a02*c99 + boom_cyl_r_rod_a22*c95);
-    out[28] = -c108*v_boom_cyl_r_barrel_x - c109*c114 + c109*v_boom_cyl_r_barrel_y - c109*v_boom_cyl_r_rod_y - c110*v_boom_cyl_r_barrel_z - c111*c115 - c111*v_boom_cyl_r_rod_x - c112*c113 - c112*v_boom_cyl_r_rod_z;
-    out[29] = -c113*c120 - c114*c117 - c115*c119 - c116*v_boom_cyl_r_barrel_x + c117*v_boom_cyl_r_barrel_y - c117*v_boom_cyl_r_rod_y - c118*v_boom_cyl_r_barrel_z - c119*v_boom_cyl_r_rod_x - c120*v_boom_cyl_r_rod_z;
-    out[30] = -c105*(boom_cyl_r_barrel_a01*c126 + boom_cyl_r_barrel_a11*c122) - c106*(boom_cyl_r_barrel_a01*c124 + boom_cyl_r_barrel_a21*c123) - c107*(boom_cyl_r_barrel_a11*c125 + boom_cyl_r_barrel_a21*c121) - c109*(boom_cyl_r_rod_a02*c125 + boom_cyl_r_rod_a22*c122) - c111*(boom_cyl_r_rod_a12*c124 + boom_cyl_r_rod_a22*c126) - c112*(boom_cyl_r_rod_a02*c121 + boom_cyl_r_rod_a12*c123);
-    out[31] = c127*v_boom_theta_y - 8.0/25.0*c128*v_boom_theta_y + c129*v_boom_theta_y - 139283.0/100000.0*c130*v_boom_theta_z + c131*c132 - 2.001922*c133*v_boom_theta_z;
-    out[32] = -c127*v_boom_theta_x + (8.0/25.0)*c128*v_boom_theta_x - c129*v_boom_theta_x - c132*c135 + (139283.0/100000.0)*c134*v_boom_theta_z + (2.001922)*c136*v_boom_theta_z;
-    out[33] = (139283.0/100000.0)*c130*v_boom_theta_x - 8.0/25.0*c131*v_boom_theta_x + (2.001922)*c133*v_boom_theta_x - 139283.0/100000.0*c134*v_boom_theta_y + (8.0/25.0)*c135*v_boom_theta_y - 2.001922*c136*v_boom_theta_y;
+    out[6] = c0*v_upper_theta_x + c1*v_upper_theta_x - 195729.0/100000.0*c5*v_upper_theta_z - 22767.0/100000.0*c4*v_upper_theta_z;
+    out[7] = -195729.0/100000.0*c3*v_upper_theta_x - 22767.0/100000.0*c2*v_upper_theta_x + (22767.0/100000.0)*c4*v_upper_theta_y + (195729.0/100000.0)*c5*v_upper_theta_y;
+    out[8] = -c10*(c12*boom_a02 + c8*boom_a22) - c14*(boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y) - c15*(boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x) - c16*(c11*boom_a12 + c13*boom_a22) - c17*(boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z) - c6*(c7*boom_a02 + c9*boom_a12);
+    out[9] = -c10*(c12*boom_a00 + c8*boom_a20) - c14*(boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y) - c15*(boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x) - c16*(c11*boom_a10 + c13*boom_a20) - c17*(boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z) - c6*(c7*boom_a00 + c9*boom_a10);
+    out[10] = -c18*v_upper_theta_y - c20*v_upper_theta_y - c21*v_upper_theta_y + (8.0/25.0)*c23*v_upper_theta_z + (4307.0/6250.0)*c22*v_upper_theta_z + (67739.0/50000.0)*c24*v_upper_theta_z;
+    out[11] = c18*v_upper_theta_x + c20*v_upper_theta_x + c21*v_upper_theta_x - 67739.0/50000.0*c27*v_upper_theta_z - 4307.0/6250.0*c25*v_upper_theta_z - 8.0/25.0*c26*v_upper_theta_z;
+    out[12] = -67739.0/50000.0*c24*v_upper_theta_x - 4307.0/6250.0*c22*v_upper_theta_x - 8.0/25.0*c23*v_upper_theta_x + (8.0/25.0)*c26*v_upper_theta_y + (4307.0/6250.0)*c25*v_upper_theta_y + (67739.0/50000.0)*c27*v_upper_theta_y;
+    out[13] = -c19*(c28*boom_cyl_l_barrel_a02 + c30*boom_cyl_l_barrel_a12) - c23*(c29*boom_cyl_l_barrel_a22 + c32*boom_cyl_l_barrel_a02) - c26*(c31*boom_cyl_l_barrel_a12 + c33*boom_cyl_l_barrel_a22) - (c28*upper_a21 + c32*upper_a11)*(boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_z) - (c29*upper_a11 + c33*upper_a01)*(boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_y) - (c30*upper_a21 + c31*upper_a01)*(boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_x);
+    out[14] = -c34*(c35*boom_cyl_l_rod_a01 + c37*boom_cyl_l_rod_a11) - c44*(c39*boom_cyl_l_rod_a11 + c41*boom_cyl_l_rod_a21) - c45*(boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_y - boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_z) - c38*(c36*boom_cyl_l_rod_a21 + c40*boom_cyl_l_rod_a01) - c42*(boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_x - boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_y) - c43*(boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_x);
+    out[15] = -c34*(c35*boom_cyl_l_rod_a02 + c37*boom_cyl_l_rod_a12) - c44*(c39*boom_cyl_l_rod_a12 + c41*boom_cyl_l_rod_a22) - c45*c48 - c46*c42 - c47*c43 - c38*(c36*boom_cyl_l_rod_a22 + c40*boom_cyl_l_rod_a02);
+    out[16] = c50*v_boom_cyl_l_barrel_y - c49*v_boom_cyl_l_barrel_x - c50*c55 - c50*v_boom_cyl_l_rod_y - c51*v_boom_cyl_l_barrel_z - c52*c56 - c52*v_boom_cyl_l_rod_x - c53*c54 - c53*v_boom_cyl_l_rod_z;
+    out[17] = c58*v_boom_cyl_l_barrel_y - c54*c61 - c55*c58 - c56*c60 - c57*v_boom_cyl_l_barrel_x - c58*v_boom_cyl_l_rod_y - c59*v_boom_cyl_l_barrel_z - c60*v_boom_cyl_l_rod_x - c61*v_boom_cyl_l_rod_z;
+    out[18] = -c46*(c63*boom_cyl_l_barrel_a11 + c67*boom_cyl_l_barrel_a01) - c47*(c64*boom_cyl_l_barrel_a21 + c65*boom_cyl_l_barrel_a01) - c48*(c62*boom_cyl_l_barrel_a21 + c66*boom_cyl_l_barrel_a11) - c50*(c63*boom_cyl_l_rod_a22 + c66*boom_cyl_l_rod_a02) - c52*(c65*boom_cyl_l_rod_a12 + c67*boom_cyl_l_rod_a22) - c53*(c62*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a12);
+    out[19] = c68*v_boom_theta_y + c69*v_boom_theta_y + c70*v_boom_theta_y - 2.001922*c73*v_boom_theta_z - 139283.0/100000.0*c71*v_boom_theta_z - 8.0/25.0*c72*v_boom_theta_z;
+    out[20] = -c68*v_boom_theta_x - c69*v_boom_theta_x - c70*v_boom_theta_x + (8.0/25.0)*c75*v_boom_theta_z + (139283.0/100000.0)*c74*v_boom_theta_z + (2.001922)*c76*v_boom_theta_z;
+    out[21] = -2.001922*c76*v_boom_theta_y - 139283.0/100000.0*c74*v_boom_theta_y - 8.0/25.0*c75*v_boom_theta_y + (8.0/25.0)*c72*v_boom_theta_x + (139283.0/100000.0)*c71*v_boom_theta_x + (2.001922)*c73*v_boom_theta_x;
+    out[22] = -c77*v_upper_theta_y - c79*v_upper_theta_y - c81*c82 + (8.0/25.0)*c78*v_upper_theta_y + (4307.0/6250.0)*c80*v_upper_theta_z + (67739.0/50000.0)*c83*v_upper_theta_z;
+    out[23] = c77*v_upper_theta_x + c79*v_upper_theta_x + c82*c85 - 67739.0/50000.0*c86*v_upper_theta_z - 4307.0/6250.0*c84*v_upper_theta_z - 8.0/25.0*c78*v_upper_theta_x;
+    out[24] = -67739.0/50000.0*c83*v_upper_theta_x - 4307.0/6250.0*c80*v_upper_theta_x - 8.0/25.0*c85*v_upper_theta_y + (8.0/25.0)*c81*v_upper_theta_x + (4307.0/6250.0)*c84*v_upper_theta_y + (67739.0/50000.0)*c86*v_upper_theta_y;
+    out[25] = -c78*(c87*boom_cyl_r_barrel_a02 + c89*boom_cyl_r_barrel_a12) - c81*(c88*boom_cyl_r_barrel_a22 + c91*boom_cyl_r_barrel_a02) - c85*(c90*boom_cyl_r_barrel_a12 + c92*boom_cyl_r_barrel_a22) - (c87*upper_a21 + c91*upper_a11)*(boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_z) - (c88*upper_a11 + c92*upper_a01)*(boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_y) - (c89*upper_a21 + c90*upper_a01)*(boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_x);
+    out[26] = -c93*(c94*boom_cyl_r_rod_a01 + c96*boom_cyl_r_rod_a11) - c103*(c98*boom_cyl_r_rod_a11 + c100*boom_cyl_r_rod_a21) - c104*(boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_y - boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_z) - c97*(c95*boom_cyl_r_rod_a21 + c99*boom_cyl_r_rod_a01) - c101*(boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_x - boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_y) - c102*(boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_x);
+    out[27] = -c93*(c94*boom_cyl_r_rod_a02 + c96*boom_cyl_r_rod_a12) - c103*(c98*boom_cyl_r_rod_a12 + c100*boom_cyl_r_rod_a22) - c104*c107 - c105*c101 - c106*c102 - c97*(c95*boom_cyl_r_rod_a22 + c99*boom_cyl_r_rod_a02);
+    out[28] = c109*v_boom_cyl_r_barrel_y - c108*v_boom_cyl_r_barrel_x - c109*c114 - c109*v_boom_cyl_r_rod_y - c110*v_boom_cyl_r_barrel_z - c111*c115 - c111*v_boom_cyl_r_rod_x - c112*c113 - c112*v_boom_cyl_r_rod_z;
+    out[29] = c117*v_boom_cyl_r_barrel_y - c113*c120 - c114*c117 - c115*c119 - c116*v_boom_cyl_r_barrel_x - c117*v_boom_cyl_r_rod_y - c118*v_boom_cyl_r_barrel_z - c119*v_boom_cyl_r_rod_x - c120*v_boom_cyl_r_rod_z;
+    out[30] = -c105*(c122*boom_cyl_r_barrel_a11 + c126*boom_cyl_r_barrel_a01) - c106*(c123*boom_cyl_r_barrel_a21 + c124*boom_cyl_r_barrel_a01) - c107*(c121*boom_cyl_r_barrel_a21 + c125*boom_cyl_r_barrel_a11) - c109*(c122*boom_cyl_r_rod_a22 + c125*boom_cyl_r_rod_a02) - c111*(c124*boom_cyl_r_rod_a12 + c126*boom_cyl_r_rod_a22) - c112*(c121*boom_cyl_r_rod_a02 + c123*boom_cyl_r_rod_a12);
+    out[31] = c127*v_boom_theta_y + c129*v_boom_theta_y + c131*c132 - 2.001922*c133*v_boom_theta_z - 139283.0/100000.0*c130*v_boom_theta_z - 8.0/25.0*c128*v_boom_theta_y;
+    out[32] = -c127*v_boom_theta_x - c129*v_boom_theta_x - c132*c135 + (8.0/25.0)*c128*v_boom_theta_x + (139283.0/100000.0)*c134*v_boom_theta_z + (2.001922)*c136*v_boom_theta_z;
+    out[33] = -2.001922*c136*v_boom_theta_y - 139283.0/100000.0*c134*v_boom_theta_y - 8.0/25.0*c131*v_boom_theta_x + (8.0/25.0)*c135*v_boom_theta_y + (139283.0/100000.0)*c130*v_boom_theta_x + (2.001922)*c133*v_boom_theta_x;
     out[34] = -c137*v_boom_theta_y - c138*v_boom_theta_y + (23939.0/5000.0)*c139*v_boom_theta_z + (29959.0/10000.0)*c140*v_boom_theta_z;
-    out[35] = c137*v_boom_theta_x + c138*v_boom_theta_x - 23939.0/5000.0*c141*v_boom_theta_z - 29959.0/10000.0*c142*v_boom_theta_z;
-    out[36] = -23939.0/5000.0*c139*v_boom_theta_x - 29959.0/10000.0*c140*v_boom_theta_x + (23939.0/5000.0)*c141*v_boom_theta_y + (29959.0/10000.0)*c142*v_boom_theta_y;
-    out[37] = -c147*(arm_a02*c149 + arm_a22*c145) - c151*(-arm_a02*v_arm_theta_y + arm_a12*v_arm_theta_x) - c152*(arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x) - c153*(arm_a12*c148 + arm_a22*c150) - c154*(-arm_a12*v_arm_theta_z + arm_a22*v_arm_theta_y) - c143*(arm_a02*c144 + arm_a12*c146);
-    out[38] = -c147*(arm_a00*c149 + arm_a20*c145) - c151*(-arm_a00*v_arm_theta_y + arm_a10*v_arm_theta_x) - c152*(arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x) - c153*(arm_a10*c148 + arm_a20*c150) - c154*(-arm_a10*v_arm_theta_z + arm_a20*v_arm_theta_y) - c143*(arm_a00*c144 + arm_a10*c146);
+    out[35] = c137*v_boom_theta_x + c138*v_boom_theta_x - 29959.0/10000.0*c142*v_boom_theta_z - 23939.0/5000.0*c141*v_boom_theta_z;
+    out[36] = -29959.0/10000.0*c140*v_boom_theta_x - 23939.0/5000.0*c139*v_boom_theta_x + (23939.0/5000.0)*c141*v_boom_theta_y + (29959.0/10000.0)*c142*v_boom_theta_y;
+    out[37] = -c147*(c149*arm_a02 + c145*arm_a22) - c151*(arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y) - c152*(arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x) - c153*(c148*arm_a12 + c150*arm_a22) - c154*(arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z) - c143*(c144*arm_a02 + c146*arm_a12);
+    out[38] = -c147*(c149*arm_a00 + c145*arm_a20) - c151*(arm_a10*v_arm_theta_x - arm_a00*v_arm_theta_y) - c152*(arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x) - c153*(c148*arm_a10 + c150*arm_a20) - c154*(arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z) - c143*(c144*arm_a00 + c146*arm_a10);
     out[39] = -c155*v_boom_theta_y - c156*v_boom_theta_y + (183.0/80.0)*c157*v_boom_theta_z + (557.0/200.0)*c158*v_boom_theta_z;
-    out[40] = c155*v_boom_theta_x + c156*v_boom_theta_x - 183.0/80.0*c159*v_boom_theta_z - 557.0/200.0*c160*v_boom_theta_z;
-    out[41] = -183.0/80.0*c157*v_boom_theta_x - 557.0/200.0*c158*v_boom_theta_x + (183.0/80.0)*c159*v_boom_theta_y + (557.0/200.0)*c160*v_boom_theta_y;
-    out[42] = -(boom_a01*c166 + boom_a11*c162)*(-arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_y + arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_x) - (boom_a01*c164 + boom_a21*c163)*(arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_x) - (-boom_a01*v_boom_theta_y + boom_a11*v_boom_theta_x)*(arm_cyl_barrel_a02*c161 + arm_cyl_barrel_a12*c163) - (boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x)*(arm_cyl_barrel_a02*c165 + arm_cyl_barrel_a22*c162) - (boom_a11*c165 + boom_a21*c161)*(-arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_z + arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_y) - (-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)*(arm_cyl_barrel_a12*c164 + arm_cyl_barrel_a22*c166);
-    out[43] = -c167*(arm_cyl_rod_a01*c168 + arm_cyl_rod_a11*c170) - c177*(arm_cyl_rod_a11*c172 + arm_cyl_rod_a21*c174) - c178*(-arm_cyl_rod_a11*v_arm_cyl_rod_theta_z + arm_cyl_rod_a21*v_arm_cyl_rod_theta_y) - c171*(arm_cyl_rod_a01*c173 + arm_cyl_rod_a21*c169) - c175*(-arm_cyl_rod_a01*v_arm_cyl_rod_theta_y + arm_cyl_rod_a11*v_arm_cyl_rod_theta_x) - c176*(arm_cyl_rod_a01*v_arm_cyl_rod_theta_z - arm_cyl_rod_a21*v_arm_cyl_rod_theta_x);
-    out[44] = -c167*(arm_cyl_rod_a02*c168 + arm_cyl_rod_a12*c170) - c177*(arm_cyl_rod_a12*c172 + arm_cyl_rod_a22*c174) - c178*c181 - c179*c175 - c180*c176 - c171*(arm_cyl_rod_a02*c173 + arm_cyl_rod_a22*c169);
-    out[45] = -c182*v_arm_cyl_barrel_x - c183*c188 + c183*v_arm_cyl_barrel_y - c183*v_arm_cyl_rod_y - c184*v_arm_cyl_barrel_z - c185*c189 - c185*v_arm_cyl_rod_x - c186*c187 - c186*v_arm_cyl_rod_z;
-    out[46] = -c187*c194 - c188*c191 - c189*c193 - c190*v_arm_cyl_barrel_x + c191*v_arm_cyl_barrel_y - c191*v_arm_cyl_rod_y - c192*v_arm_cyl_barrel_z - c193*v_arm_cyl_rod_x - c194*v_arm_cyl_rod_z;
-    out[47] = -c179*(arm_cyl_barrel_a01*c200 + arm_cyl_barrel_a11*c196) - c180*(arm_cyl_barrel_a01*c198 + arm_cyl_barrel_a21*c197) - c181*(arm_cyl_barrel_a11*c199 + arm_cyl_barrel_a21*c195) - c183*(arm_cyl_rod_a02*c199 + arm_cyl_rod_a22*c196) - c185*(arm_cyl_rod_a12*c198 + arm_cyl_rod_a22*c200) - c186*(arm_cyl_rod_a02*c195 + arm_cyl_rod_a12*c197);
+    out[40] = c155*v_boom_theta_x + c156*v_boom_theta_x - 557.0/200.0*c160*v_boom_theta_z - 183.0/80.0*c159*v_boom_theta_z;
+    out[41] = -557.0/200.0*c158*v_boom_theta_x - 183.0/80.0*c157*v_boom_theta_x + (183.0/80.0)*c159*v_boom_theta_y + (557.0/200.0)*c160*v_boom_theta_y;
+    out[42] = -(c165*boom_a11 + c161*boom_a21)*(arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_z) - (c165*arm_cyl_barrel_a02 + c162*arm_cyl_barrel_a22)*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) - (c166*boom_a01 + c162*boom_a11)*(arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_y) - (c166*arm_cyl_barrel_a22 + c164*arm_cyl_barrel_a12)*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - (c161*arm_cyl_barrel_a02 + c163*arm_cyl_barrel_a12)*(boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y) - (c163*boom_a21 + c164*boom_a01)*(arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_x);
+    out[43] = -c167*(c168*arm_cyl_rod_a01 + c170*arm_cyl_rod_a11) - c177*(c172*arm_cyl_rod_a11 + c174*arm_cyl_rod_a21) - c178*(arm_cyl_rod_a21*v_arm_cyl_rod_theta_y - arm_cyl_rod_a11*v_arm_cyl_rod_theta_z) - c171*(c169*arm_cyl_rod_a21 + c173*arm_cyl_rod_a01) - c175*(arm_cyl_rod_a11*v_arm_cyl_rod_theta_x - arm_cyl_rod_a01*v_arm_cyl_rod_theta_y) - c176*(arm_cyl_rod_a01*v_arm_cyl_rod_theta_z - arm_cyl_rod_a21*v_arm_cyl_rod_theta_x);
+    out[44] = -c167*(c168*arm_cyl_rod_a02 + c170*arm_cyl_rod_a12) - c177*(c172*arm_cyl_rod_a12 + c174*arm_cyl_rod_a22) - c178*c181 - c179*c175 - c180*c176 - c171*(c169*arm_cyl_rod_a22 + c173*arm_cyl_rod_a02);
+    out[45] = c183*v_arm_cyl_barrel_y - c182*v_arm_cyl_barrel_x - c183*c188 - c183*v_arm_cyl_rod_y - c184*v_arm_cyl_barrel_z - c185*c189 - c185*v_arm_cyl_rod_x - c186*c187 - c186*v_arm_cyl_rod_z;
+    out[46] = c191*v_arm_cyl_barrel_y - c187*c194 - c188*c191 - c189*c193 - c190*v_arm_cyl_barrel_x - c191*v_arm_cyl_rod_y - c192*v_arm_cyl_barrel_z - c193*v_arm_cyl_rod_x - c194*v_arm_cyl_rod_z;
+    out[47] = -c179*(c196*arm_cyl_barrel_a11 + c200*arm_cyl_barrel_a01) - c180*(c197*arm_cyl_barrel_a21 + c198*arm_cyl_barrel_a01) - c181*(c195*arm_cyl_barrel_a21 + c199*arm_cyl_barrel_a11) - c183*(c196*arm_cyl_rod_a22 + c199*arm_cyl_rod_a02) - c185*(c198*arm_cyl_rod_a12 + c200*arm_cyl_rod_a22) - c186*(c195*arm_cyl_rod_a02 + c197*arm_cyl_rod_a12);
 }
 
 /* gamma of the joint rows (they do not depend on time). Rows 48 to 79. */
-static void compute_joints_gamma_part1(const double *q, const double *v, double *out) {
+void excavator_quaternion_compute_joints_gamma_part1(const double *q, const double *v, double *out) {
     const double arm_qw = q[45];
     const double arm_qx = q[46];
     const double arm_qy = q[47];
@@ -1773,64 +1776,64 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double v_bucket_theta_x = v[81];
     const double v_bucket_theta_y = v[82];
     const double v_bucket_theta_z = v[83];
-    const double arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0;
+    const double arm_a00 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx);
     const double arm_a01 = -2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
     const double arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
-    const double arm_a11 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy);
     const double arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
     const double arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a21 = 2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
-    const double arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz);
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qy;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qz;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx);
     const double side_link_a02 = 2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
     const double side_link_a10 = 2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy;
     const double side_link_a12 = -2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz;
     const double side_link_a20 = -2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
-    const double side_link_a22 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx);
     const double bucket_link_a02 = 2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
     const double bucket_link_a10 = 2.0*bucket_link_qw*bucket_link_qz + 2.0*bucket_link_qx*bucket_link_qy;
     const double bucket_link_a12 = -2.0*bucket_link_qw*bucket_link_qx + 2.0*bucket_link_qy*bucket_link_qz;
     const double bucket_link_a20 = -2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
-    const double bucket_link_a22 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a01 = -2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a11 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy);
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a21 = 2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double c201 = -393281.0/500000.0*arm_a00*v_arm_theta_y + (393281.0/500000.0)*arm_a10*v_arm_theta_x;
     const double c202 = -0.369691*arm_a02*v_arm_theta_y + (0.369691)*arm_a12*v_arm_theta_x;
     const double c203 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x;
     const double c204 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x;
-    const double c205 = -arm_a10*v_arm_theta_z + arm_a20*v_arm_theta_y;
-    const double c206 = -arm_a12*v_arm_theta_z + arm_a22*v_arm_theta_y;
+    const double c205 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z;
+    const double c206 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z;
     const double c207 = -9477.0/5000.0*arm_a00*v_arm_theta_y + (9477.0/5000.0)*arm_a10*v_arm_theta_x;
     const double c208 = -21809.0/10000.0*arm_a02*v_arm_theta_y + (21809.0/10000.0)*arm_a12*v_arm_theta_x;
     const double c209 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x;
     const double c210 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x;
-    const double c211 = -arm_a10*v_arm_theta_z + arm_a20*v_arm_theta_y;
-    const double c212 = -arm_a12*v_arm_theta_z + arm_a22*v_arm_theta_y;
-    const double c213 = -arm_a01*v_arm_theta_y + arm_a11*v_arm_theta_x;
+    const double c211 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z;
+    const double c212 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z;
+    const double c213 = arm_a11*v_arm_theta_x - arm_a01*v_arm_theta_y;
     const double c214 = v_arm_theta_y - v_bucket_theta_y;
     const double c215 = v_arm_theta_x - v_bucket_theta_x;
     const double c216 = -c215;
@@ -1838,17 +1841,17 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double c218 = v_arm_theta_z - v_bucket_theta_z;
     const double c219 = -c218;
     const double c220 = -c214;
-    const double c221 = arm_a01*c220 + arm_a11*c215;
-    const double c222 = arm_a01*c218 + arm_a21*c216;
-    const double c223 = -arm_a11*v_arm_theta_z + arm_a21*v_arm_theta_y;
-    const double c224 = arm_a11*c219 + arm_a21*c214;
+    const double c221 = c220*arm_a01 + c215*arm_a11;
+    const double c222 = c218*arm_a01 + c216*arm_a21;
+    const double c223 = arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z;
+    const double c224 = c219*arm_a11 + c214*arm_a21;
     const double c225 = -7877.0/5000.0*arm_a00*v_arm_theta_y + (7877.0/5000.0)*arm_a10*v_arm_theta_x;
     const double c226 = -18799.0/10000.0*arm_a02*v_arm_theta_y + (18799.0/10000.0)*arm_a12*v_arm_theta_x;
     const double c227 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x;
     const double c228 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x;
-    const double c229 = -arm_a10*v_arm_theta_z + arm_a20*v_arm_theta_y;
-    const double c230 = -arm_a12*v_arm_theta_z + arm_a22*v_arm_theta_y;
-    const double c231 = -arm_a01*v_arm_theta_y + arm_a11*v_arm_theta_x;
+    const double c229 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z;
+    const double c230 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z;
+    const double c231 = arm_a11*v_arm_theta_x - arm_a01*v_arm_theta_y;
     const double c232 = v_arm_theta_y - v_side_link_theta_y;
     const double c233 = v_arm_theta_x - v_side_link_theta_x;
     const double c234 = -c233;
@@ -1856,58 +1859,58 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double c236 = v_arm_theta_z - v_side_link_theta_z;
     const double c237 = -c236;
     const double c238 = -c232;
-    const double c239 = arm_a01*c238 + arm_a11*c233;
-    const double c240 = arm_a01*c236 + arm_a21*c234;
-    const double c241 = -arm_a11*v_arm_theta_z + arm_a21*v_arm_theta_y;
-    const double c242 = arm_a11*c237 + arm_a21*c232;
+    const double c239 = c238*arm_a01 + c233*arm_a11;
+    const double c240 = c236*arm_a01 + c234*arm_a21;
+    const double c241 = arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z;
+    const double c242 = c237*arm_a11 + c232*arm_a21;
     const double c243 = -166329.0/500000.0*side_link_a00*v_side_link_theta_y + (166329.0/500000.0)*side_link_a10*v_side_link_theta_x;
-    const double c244 = -side_link_a02*v_side_link_theta_y + side_link_a12*v_side_link_theta_x;
+    const double c244 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y;
     const double c245 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x;
     const double c246 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x;
     const double c247 = (96247.0/200000.0)*v_side_link_theta_z;
-    const double c248 = -bucket_link_a00*v_bucket_link_theta_y + bucket_link_a10*v_bucket_link_theta_x;
-    const double c249 = -bucket_link_a02*v_bucket_link_theta_y + bucket_link_a12*v_bucket_link_theta_x;
+    const double c248 = bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y;
+    const double c249 = bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y;
     const double c250 = bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x;
     const double c251 = (85607.0/250000.0)*v_bucket_link_theta_z;
     const double c252 = bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x;
     const double c253 = (0.450737)*v_bucket_link_theta_z;
-    const double c254 = -side_link_a10*v_side_link_theta_z + side_link_a20*v_side_link_theta_y;
-    const double c255 = -side_link_a12*v_side_link_theta_z + side_link_a22*v_side_link_theta_y;
-    const double c256 = -bucket_link_a10*v_bucket_link_theta_z + bucket_link_a20*v_bucket_link_theta_y;
-    const double c257 = -bucket_link_a12*v_bucket_link_theta_z + bucket_link_a22*v_bucket_link_theta_y;
+    const double c254 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z;
+    const double c255 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z;
+    const double c256 = bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z;
+    const double c257 = bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z;
     const double c258 = -8101.0/25000.0*bucket_a00*v_bucket_theta_y + (8101.0/25000.0)*bucket_a10*v_bucket_theta_x;
-    const double c259 = -bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x;
+    const double c259 = bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y;
     const double c260 = bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x;
     const double c261 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x;
     const double c262 = (16927.0/50000.0)*v_bucket_theta_z;
-    const double c263 = -bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y;
-    const double c264 = -bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y;
-    const double c265 = (0.7962746214343476)*v_bucket_link_theta_y - 0.7962746214343476*v_bucket_theta_y;
+    const double c263 = bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z;
+    const double c264 = bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z;
+    const double c265 = -0.7962746214343476*v_bucket_theta_y + (0.7962746214343476)*v_bucket_link_theta_y;
     const double c266 = -c265;
-    const double c267 = (0.7962746214343476)*v_bucket_link_theta_x - 0.7962746214343476*v_bucket_theta_x;
-    const double c268 = (0.7962746214343476)*v_bucket_link_theta_z - 0.7962746214343476*v_bucket_theta_z;
+    const double c267 = -0.7962746214343476*v_bucket_theta_x + (0.7962746214343476)*v_bucket_link_theta_x;
+    const double c268 = -0.7962746214343476*v_bucket_theta_z + (0.7962746214343476)*v_bucket_link_theta_z;
     const double c269 = -c267;
-    const double c270 = (0.6049353083260941)*v_bucket_link_theta_y - 0.6049353083260941*v_bucket_theta_y;
-    const double c271 = (0.6049353083260941)*v_bucket_link_theta_x - 0.6049353083260941*v_bucket_theta_x;
+    const double c270 = -0.6049353083260941*v_bucket_theta_y + (0.6049353083260941)*v_bucket_link_theta_y;
+    const double c271 = -0.6049353083260941*v_bucket_theta_x + (0.6049353083260941)*v_bucket_link_theta_x;
     const double c272 = -c271;
-    const double c273 = (0.6049353083260941)*v_bucket_link_theta_z - 0.6049353083260941*v_bucket_theta_z;
+    const double c273 = -0.6049353083260941*v_bucket_theta_z + (0.6049353083260941)*v_bucket_link_theta_z;
     const double c274 = -c273;
     const double c275 = -c268;
     const double c276 = -c270;
     const double c277 = -24687.0/100000.0*arm_a00*v_arm_theta_y + (24687.0/100000.0)*arm_a10*v_arm_theta_x;
-    const double c278 = -arm_a02*v_arm_theta_y + arm_a12*v_arm_theta_x;
+    const double c278 = arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y;
     const double c279 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x;
     const double c280 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x;
     const double c281 = (36797.0/50000.0)*v_arm_theta_z;
-    const double c282 = -arm_a10*v_arm_theta_z + arm_a20*v_arm_theta_y;
-    const double c283 = -arm_a12*v_arm_theta_z + arm_a22*v_arm_theta_y;
+    const double c282 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z;
+    const double c283 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z;
     const double c284 = v_arm_theta_y - v_bucket_cyl_barrel_theta_y;
     const double c285 = v_arm_theta_x - v_bucket_cyl_barrel_theta_x;
     const double c286 = -c285;
     const double c287 = v_arm_theta_z - v_bucket_cyl_barrel_theta_z;
     const double c288 = -c287;
     const double c289 = -c284;
-    const double c290 = -bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
+    const double c290 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
     const double c291 = v_bucket_cyl_barrel_theta_y - v_bucket_cyl_rod_theta_y;
     const double c292 = v_bucket_cyl_barrel_theta_x - v_bucket_cyl_rod_theta_x;
     const double c293 = -c292;
@@ -1915,75 +1918,79 @@ static void compute_joints_gamma_part1(const double *q, const double *v, double 
     const double c295 = v_bucket_cyl_barrel_theta_z - v_bucket_cyl_rod_theta_z;
     const double c296 = -c295;
     const double c297 = -c291;
-    const double c298 = bucket_cyl_barrel_a00*c297 + bucket_cyl_barrel_a10*c292;
-    const double c299 = bucket_cyl_barrel_a00*c295 + bucket_cyl_barrel_a20*c293;
-    const double c300 = -bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
-    const double c301 = bucket_cyl_barrel_a10*c296 + bucket_cyl_barrel_a20*c291;
-    const double c302 = -bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_y + bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_x;
+    const double c298 = c292*bucket_cyl_barrel_a10 + c297*bucket_cyl_barrel_a00;
+    const double c299 = c293*bucket_cyl_barrel_a20 + c295*bucket_cyl_barrel_a00;
+    const double c300 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
+    const double c301 = c291*bucket_cyl_barrel_a20 + c296*bucket_cyl_barrel_a10;
+    const double c302 = bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_y;
     const double c303 = bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_x;
-    const double c304 = -bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_z + bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_y;
+    const double c304 = bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_z;
     const double c305 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_y;
     const double c306 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x;
     const double c307 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_x;
     const double c308 = -c305;
     const double c309 = -c307;
-    const double c310 = -bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z;
-    const double c311 = bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y;
-    const double c312 = -bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x;
+    const double c310 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x;
+    const double c311 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z;
+    const double c312 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y;
     const double c313 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y;
     const double c314 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x;
     const double c315 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x;
     const double c316 = -c313;
     const double c317 = -c315;
-    const double c318 = (1.0)*v_bucket_cyl_barrel_theta_y - 1.0*v_bucket_cyl_rod_theta_y;
-    const double c319 = (1.0)*v_bucket_cyl_barrel_theta_x - 1.0*v_bucket_cyl_rod_theta_x;
+    const double c318 = -1.0*v_bucket_cyl_rod_theta_y + (1.0)*v_bucket_cyl_barrel_theta_y;
+    const double c319 = -1.0*v_bucket_cyl_rod_theta_x + (1.0)*v_bucket_cyl_barrel_theta_x;
     const double c320 = -c319;
-    const double c321 = (1.0)*v_bucket_cyl_barrel_theta_z - 1.0*v_bucket_cyl_rod_theta_z;
+    const double c321 = -1.0*v_bucket_cyl_rod_theta_z + (1.0)*v_bucket_cyl_barrel_theta_z;
     const double c322 = -c321;
     const double c323 = -c318;
     const double c324 = -166329.0/500000.0*side_link_a00*v_side_link_theta_y + (166329.0/500000.0)*side_link_a10*v_side_link_theta_x;
-    const double c325 = -side_link_a02*v_side_link_theta_y + side_link_a12*v_side_link_theta_x;
+    const double c325 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y;
     const double c326 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x;
     const double c327 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x;
     const double c328 = (96247.0/200000.0)*v_side_link_theta_z;
-    const double c329 = -side_link_a10*v_side_link_theta_z + side_link_a20*v_side_link_theta_y;
-    const double c330 = -side_link_a12*v_side_link_theta_z + side_link_a22*v_side_link_theta_y;
-    out[48] = -c201*v_arm_theta_y - c202*v_arm_theta_y + (393281.0/500000.0)*c203*v_arm_theta_z + (0.369691)*c204*v_arm_theta_z;
+    const double c329 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z;
+    const double c330 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z;
+    out[48] = -c201*v_arm_theta_y - c202*v_arm_theta_y + (0.369691)*c204*v_arm_theta_z + (393281.0/500000.0)*c203*v_arm_theta_z;
     out[49] = c201*v_arm_theta_x + c202*v_arm_theta_x - 393281.0/500000.0*c205*v_arm_theta_z - 0.369691*c206*v_arm_theta_z;
-    out[50] = -393281.0/500000.0*c203*v_arm_theta_x - 0.369691*c204*v_arm_theta_x + (393281.0/500000.0)*c205*v_arm_theta_y + (0.369691)*c206*v_arm_theta_y;
+    out[50] = -393281.0/500000.0*c203*v_arm_theta_x - 0.369691*c204*v_arm_theta_x + (0.369691)*c206*v_arm_theta_y + (393281.0/500000.0)*c205*v_arm_theta_y;
     out[51] = -c207*v_arm_theta_y - c208*v_arm_theta_y + (9477.0/5000.0)*c209*v_arm_theta_z + (21809.0/10000.0)*c210*v_arm_theta_z;
-    out[52] = c207*v_arm_theta_x + c208*v_arm_theta_x - 9477.0/5000.0*c211*v_arm_theta_z - 21809.0/10000.0*c212*v_arm_theta_z;
-    out[53] = -9477.0/5000.0*c209*v_arm_theta_x - 21809.0/10000.0*c210*v_arm_theta_x + (9477.0/5000.0)*c211*v_arm_theta_y + (21809.0/10000.0)*c212*v_arm_theta_y;
-    out[54] = -c217*(bucket_a02*c219 + bucket_a22*c215) - c221*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) - c222*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - c223*(bucket_a12*c218 + bucket_a22*c220) - c224*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y) - c213*(bucket_a02*c214 + bucket_a12*c216);
-    out[55] = -c217*(bucket_a00*c219 + bucket_a20*c215) - c221*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x) - c222*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - c223*(bucket_a10*c218 + bucket_a20*c220) - c224*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y) - c213*(bucket_a00*c214 + bucket_a10*c216);
+    out[52] = c207*v_arm_theta_x + c208*v_arm_theta_x - 21809.0/10000.0*c212*v_arm_theta_z - 9477.0/5000.0*c211*v_arm_theta_z;
+    out[53] = -21809.0/10000.0*c210*v_arm_theta_x - 9477.0/5000.0*c209*v_arm_theta_x + (9477.0/5000.0)*c211*v_arm_theta_y + (21809.0/10000.0)*c212*v_arm_theta_y;
+    out[54] = -c217*(c219*bucket_a02 + c215*bucket_a22) - c221*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) - c222*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - c223*(c218*bucket_a12 + c220*bucket_a22) - c224*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z) - c213*(c214*bucket_a02 + c216*bucket_a12);
+    out[55] = -c217*(c219*bucket_a00 + c215*bucket_a20) - c221*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y) - c222*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - c223*(c218*bucket_a10 + c220*bucket_a20) - c224*(bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z) - c213*(c214*bucket_a00 + c216*bucket_a10);
     out[56] = -c225*v_arm_theta_y - c226*v_arm_theta_y + (7877.0/5000.0)*c227*v_arm_theta_z + (18799.0/10000.0)*c228*v_arm_theta_z;
-    out[57] = c225*v_arm_theta_x + c226*v_arm_theta_x - 7877.0/5000.0*c229*v_arm_theta_z - 18799.0/10000.0*c230*v_arm_theta_z;
-    out[58] = -7877.0/5000.0*c227*v_arm_theta_x - 18799.0/10000.0*c228*v_arm_theta_x + (7877.0/5000.0)*c229*v_arm_theta_y + (18799.0/10000.0)*c230*v_arm_theta_y;
-    out[59] = -c235*(side_link_a02*c237 + side_link_a22*c233) - c239*(-side_link_a02*v_side_link_theta_y + side_link_a12*v_side_link_theta_x) - c240*(side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x) - c241*(side_link_a12*c236 + side_link_a22*c238) - c242*(-side_link_a12*v_side_link_theta_z + side_link_a22*v_side_link_theta_y) - c231*(side_link_a02*c232 + side_link_a12*c234);
-    out[60] = -c235*(side_link_a00*c237 + side_link_a20*c233) - c239*(-side_link_a00*v_side_link_theta_y + side_link_a10*v_side_link_theta_x) - c240*(side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x) - c241*(side_link_a10*c236 + side_link_a20*c238) - c242*(-side_link_a10*v_side_link_theta_z + side_link_a20*v_side_link_theta_y) - c231*(side_link_a00*c232 + side_link_a10*c234);
-    out[61] = c243*v_side_link_theta_y - 96247.0/200000.0*c244*v_side_link_theta_y + c253*c252 - 166329.0/500000.0*c245*v_side_link_theta_z + c246*c247 - 85607.0/250000.0*c248*v_bucket_link_theta_y - 0.450737*c249*v_bucket_link_theta_y + c250*c251;
-    out[62] = -c243*v_side_link_theta_x + (96247.0/200000.0)*c244*v_side_link_theta_x - c253*c257 + (166329.0/500000.0)*c254*v_side_link_theta_z - c255*c247 - c256*c251 + (85607.0/250000.0)*c248*v_bucket_link_theta_x + (0.450737)*c249*v_bucket_link_theta_x;
-    out[63] = -166329.0/500000.0*c254*v_side_link_theta_y + (96247.0/200000.0)*c255*v_side_link_theta_y + (85607.0/250000.0)*c256*v_bucket_link_theta_y + (0.450737)*c257*v_bucket_link_theta_y + (166329.0/500000.0)*c245*v_side_link_theta_x - 96247.0/200000.0*c246*v_side_link_theta_x - 85607.0/250000.0*c250*v_bucket_link_theta_x - 0.450737*c252*v_bucket_link_theta_x;
-    out[64] = -c258*v_bucket_theta_y + (16927.0/50000.0)*c259*v_bucket_theta_y + (8101.0/25000.0)*c260*v_bucket_theta_z - c261*c262;
-    out[65] = c258*v_bucket_theta_x - 16927.0/50000.0*c259*v_bucket_theta_x + c262*c264 - 8101.0/25000.0*c263*v_bucket_theta_z;
-    out[66] = -8101.0/25000.0*c260*v_bucket_theta_x + (16927.0/50000.0)*c261*v_bucket_theta_x + (8101.0/25000.0)*c263*v_bucket_theta_y - 16927.0/50000.0*c264*v_bucket_theta_y;
-    out[67] = -(-bucket_link_a00*v_bucket_link_theta_y + bucket_link_a10*v_bucket_link_theta_x)*(bucket_a01*c266 + bucket_a11*c267) - (bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x)*(bucket_a01*c268 + bucket_a21*c269) - (-bucket_link_a02*v_bucket_link_theta_y + bucket_link_a12*v_bucket_link_theta_x)*(bucket_a01*c270 + bucket_a11*c272) - (bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x)*(bucket_a01*c274 + bucket_a21*c271) - (-bucket_link_a10*v_bucket_link_theta_z + bucket_link_a20*v_bucket_link_theta_y)*(bucket_a11*c275 + bucket_a21*c265) - (-bucket_link_a12*v_bucket_link_theta_z + bucket_link_a22*v_bucket_link_theta_y)*(bucket_a11*c273 + bucket_a21*c276) - (-bucket_a01*v_bucket_theta_y + bucket_a11*v_bucket_theta_x)*(bucket_link_a00*c265 + bucket_link_a02*c276 + bucket_link_a10*c269 + bucket_link_a12*c271) - (bucket_a01*v_bucket_theta_z - bucket_a21*v_bucket_theta_x)*(bucket_link_a00*c275 + bucket_link_a02*c273 + bucket_link_a20*c267 + bucket_link_a22*c272) - (-bucket_a11*v_bucket_theta_z + bucket_a21*v_bucket_theta_y)*(bucket_link_a10*c268 + bucket_link_a12*c274 + bucket_link_a20*c266 + bucket_link_a22*c270);
-    out[68] = c277*v_arm_theta_y - 36797.0/50000.0*c278*v_arm_theta_y - 24687.0/100000.0*c279*v_arm_theta_z + c280*c281;
-    out[69] = -c277*v_arm_theta_x + (36797.0/50000.0)*c278*v_arm_theta_x - c281*c283 + (24687.0/100000.0)*c282*v_arm_theta_z;
-    out[70] = (24687.0/100000.0)*c279*v_arm_theta_x - 36797.0/50000.0*c280*v_arm_theta_x - 24687.0/100000.0*c282*v_arm_theta_y + (36797.0/50000.0)*c283*v_arm_theta_y;
-    out[71] = -(arm_a01*c287 + arm_a21*c286)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x) - (arm_a01*c289 + arm_a11*c285)*(-bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x) - (-arm_a01*v_arm_theta_y + arm_a11*v_arm_theta_x)*(bucket_cyl_barrel_a02*c284 + bucket_cyl_barrel_a12*c286) - (arm_a01*v_arm_theta_z - arm_a21*v_arm_theta_x)*(bucket_cyl_barrel_a02*c288 + bucket_cyl_barrel_a22*c285) - (arm_a11*c288 + arm_a21*c284)*(-bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y) - (-arm_a11*v_arm_theta_z + arm_a21*v_arm_theta_y)*(bucket_cyl_barrel_a12*c287 + bucket_cyl_barrel_a22*c289);
-    out[72] = -c290*(bucket_cyl_rod_a01*c291 + bucket_cyl_rod_a11*c293) - c300*(bucket_cyl_rod_a11*c295 + bucket_cyl_rod_a21*c297) - c301*(-bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_z + bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_y) - c294*(bucket_cyl_rod_a01*c296 + bucket_cyl_rod_a21*c292) - c298*(-bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_y + bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_x) - c299*(bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_x);
-    out[73] = -c290*(bucket_cyl_rod_a02*c291 + bucket_cyl_rod_a12*c293) - c300*(bucket_cyl_rod_a12*c295 + bucket_cyl_rod_a22*c297) - c301*c304 - c302*c298 - c303*c299 - c294*(bucket_cyl_rod_a02*c296 + bucket_cyl_rod_a22*c292);
-    out[74] = -c305*v_bucket_cyl_barrel_x - c306*c311 + c306*v_bucket_cyl_barrel_y - c306*v_bucket_cyl_rod_y - c307*v_bucket_cyl_barrel_z - c308*c312 - c308*v_bucket_cyl_rod_x - c309*c310 - c309*v_bucket_cyl_rod_z;
-    out[75] = -c310*c317 - c311*c314 - c312*c316 - c313*v_bucket_cyl_barrel_x + c314*v_bucket_cyl_barrel_y - c314*v_bucket_cyl_rod_y - c315*v_bucket_cyl_barrel_z - c316*v_bucket_cyl_rod_x - c317*v_bucket_cyl_rod_z;
-    out[76] = -c302*(bucket_cyl_barrel_a01*c323 + bucket_cyl_barrel_a11*c319) - c303*(bucket_cyl_barrel_a01*c321 + bucket_cyl_barrel_a21*c320) - c304*(bucket_cyl_barrel_a11*c322 + bucket_cyl_barrel_a21*c318) - c306*(bucket_cyl_rod_a02*c322 + bucket_cyl_rod_a22*c319) - c308*(bucket_cyl_rod_a12*c321 + bucket_cyl_rod_a22*c323) - c309*(bucket_cyl_rod_a02*c318 + bucket_cyl_rod_a12*c320);
-    out[77] = -c324*v_side_link_theta_y + (96247.0/200000.0)*c325*v_side_link_theta_y + (166329.0/500000.0)*c326*v_side_link_theta_z - c327*c328;
-    out[78] = c324*v_side_link_theta_x - 96247.0/200000.0*c325*v_side_link_theta_x + c328*c330 - 166329.0/500000.0*c329*v_side_link_theta_z;
-    out[79] = -166329.0/500000.0*c326*v_side_link_theta_x + (96247.0/200000.0)*c327*v_side_link_theta_x + (166329.0/500000.0)*c329*v_side_link_theta_y - 96247.0/200000.0*c330*v_side_link_theta_y;
+    out[57] = c225*v_arm_theta_x + c226*v_arm_theta_x - 18799.0/10000.0*c230*v_arm_theta_z - 7877.0/5000.0*c229*v_arm_theta_z;
+    out[58] = -18799.0/10000.0*c228*v_arm_theta_x - 7877.0/5000.0*c227*v_arm_theta_x + (7877.0/5000.0)*c229*v_arm_theta_y + (18799.0/10000.0)*c230*v_arm_theta_y;
+    out[59] = -c235*(c237*side_link_a02 + c233*side_link_a22) - c239*(side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y) - c240*(side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x) - c241*(c236*side_link_a12 + c238*side_link_a22) - c242*(side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z) - c231*(c232*side_link_a02 + c234*side_link_a12);
+    out[60] = -c235*(c237*side_link_a00 + c233*side_link_a20) - c239*(side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y) - c240*(side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x) - c241*(c236*side_link_a10 + c238*side_link_a20) - c242*(side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z) - c231*(c232*side_link_a00 + c234*side_link_a10);
+    out[61] = c243*v_side_link_theta_y + c253*c252 + c246*c247 + c250*c251 - 0.450737*c249*v_bucket_link_theta_y - 166329.0/500000.0*c245*v_side_link_theta_z - 96247.0/200000.0*c244*v_side_link_theta_y - 85607.0/250000.0*c248*v_bucket_link_theta_y;
+    out[62] = -c243*v_side_link_theta_x - c253*c257 - c255*c247 - c256*c251 + (85607.0/250000.0)*c248*v_bucket_link_theta_x + (96247.0/200000.0)*c244*v_side_link_theta_x + (166329.0/500000.0)*c254*v_side_link_theta_z + (0.450737)*c249*v_bucket_link_theta_x;
+    out[63] = -0.450737*c252*v_bucket_link_theta_x - 166329.0/500000.0*c254*v_side_link_theta_y - 96247.0/200000.0*c246*v_side_link_theta_x - 85607.0/250000.0*c250*v_bucket_link_theta_x + (85607.0/250000.0)*c256*v_bucket_link_theta_y + (96247.0/200000.0)*c255*v_side_link_theta_y + (166329.0/500000.0)*c245*v_side_link_theta_x + (0.450737)*c257*v_bucket_link_theta_y;
+    out[64] = -c258*v_bucket_theta_y - c261*c262 + (8101.0/25000.0)*c260*v_bucket_theta_z + (16927.0/50000.0)*c259*v_bucket_theta_y;
+    out[65] = c258*v_bucket_theta_x + c262*c264 - 16927.0/50000.0*c259*v_bucket_theta_x - 8101.0/25000.0*c263*v_bucket_theta_z;
+    out[66] = -16927.0/50000.0*c264*v_bucket_theta_y - 8101.0/25000.0*c260*v_bucket_theta_x + (8101.0/25000.0)*c263*v_bucket_theta_y + (16927.0/50000.0)*c261*v_bucket_theta_x;
+    out[67] = -(c268*bucket_a01 + c269*bucket_a21)*(bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x) - (c270*bucket_a01 + c272*bucket_a11)*(bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y) - (c271*bucket_a21 + c274*bucket_a01)*(bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x) - (c273*bucket_a11 + c276*bucket_a21)*(bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z) - (c275*bucket_a11 + c265*bucket_a21)*(bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z) - (c266*bucket_a01 + c267*bucket_a11)*(bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y) - (bucket_a01*v_bucket_theta_z - bucket_a21*v_bucket_theta_x)*(c272*bucket_link_a22 + c273*bucket_link_a02 + c275*bucket_link_a00 + c267*bucket_link_a20) - (bucket_a11*v_bucket_theta_x - bucket_a01*v_bucket_theta_y)*(c269*bucket_link_a10 + c271*bucket_link_a12 + c276*bucket_link_a02 + c265*bucket_link_a00) - (bucket_a21*v_bucket_theta_y - bucket_a11*v_bucket_theta_z)*(c268*bucket_link_a10 + c270*bucket_link_a22 + c274*bucket_link_a12 + c266*bucket_link_a20);
+    out[68] = c277*v_arm_theta_y + c280*c281 - 36797.0/50000.0*c278*v_arm_theta_y - 24687.0/100000.0*c279*v_arm_theta_z;
+    out[69] = -c277*v_arm_theta_x - c281*c283 + (24687.0/100000.0)*c282*v_arm_theta_z + (36797.0/50000.0)*c278*v_arm_theta_x;
+    out[70] = -36797.0/50000.0*c280*v_arm_theta_x - 24687.0/100000.0*c282*v_arm_theta_y + (24687.0/100000.0)*c279*v_arm_theta_x + (36797.0/50000.0)*c283*v_arm_theta_y;
+    out[71] = -(c287*arm_a01 + c286*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x) - (c287*bucket_cyl_barrel_a12 + c289*bucket_cyl_barrel_a22)*(arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z) - (c288*arm_a11 + c284*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z) - (c288*bucket_cyl_barrel_a02 + c285*bucket_cyl_barrel_a22)*(arm_a01*v_arm_theta_z - arm_a21*v_arm_theta_x) - (c289*arm_a01 + c285*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y) - (c284*bucket_cyl_barrel_a02 + c286*bucket_cyl_barrel_a12)*(arm_a11*v_arm_theta_x - arm_a01*v_arm_theta_y);
+    out[72] = -c290*(c291*bucket_cyl_rod_a01 + c293*bucket_cyl_rod_a11) - c300*(c295*bucket_cyl_rod_a11 + c297*bucket_cyl_rod_a21) - c301*(bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_z) - c294*(c292*bucket_cyl_rod_a21 + c296*bucket_cyl_rod_a01) - c298*(bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_y) - c299*(bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_x);
+    out[73] = -c290*(c291*bucket_cyl_rod_a02 + c293*bucket_cyl_rod_a12) - c300*(c295*bucket_cyl_rod_a12 + c297*bucket_cyl_rod_a22) - c301*c304 - c302*c298 - c303*c299 - c294*(c292*bucket_cyl_rod_a22 + c296*bucket_cyl_rod_a02);
+    out[74] = c306*v_bucket_cyl_barrel_y - c305*v_bucket_cyl_barrel_x - c306*c311 - c306*v_bucket_cyl_rod_y - c307*v_bucket_cyl_barrel_z - c308*c312 - c308*v_bucket_cyl_rod_x - c309*c310 - c309*v_bucket_cyl_rod_z;
+    out[75] = c314*v_bucket_cyl_barrel_y - c310*c317 - c311*c314 - c312*c316 - c313*v_bucket_cyl_barrel_x - c314*v_bucket_cyl_rod_y - c315*v_bucket_cyl_barrel_z - c316*v_bucket_cyl_rod_x - c317*v_bucket_cyl_rod_z;
+    out[76] = -c302*(c319*bucket_cyl_barrel_a11 + c323*bucket_cyl_barrel_a01) - c303*(c320*bucket_cyl_barrel_a21 + c321*bucket_cyl_barrel_a01) - c304*(c318*bucket_cyl_barrel_a21 + c322*bucket_cyl_barrel_a11) - c306*(c319*bucket_cyl_rod_a22 + c322*bucket_cyl_rod_a02) - c308*(c321*bucket_cyl_rod_a12 + c323*bucket_cyl_rod_a22) - c309*(c318*bucket_cyl_rod_a02 + c320*bucket_cyl_rod_a12);
+    out[77] = -c324*v_side_link_theta_y - c327*c328 + (96247.0/200000.0)*c325*v_side_link_theta_y + (166329.0/500000.0)*c326*v_side_link_theta_z;
+    out[78] = c324*v_side_link_theta_x + c328*c330 - 166329.0/500000.0*c329*v_side_link_theta_z - 96247.0/200000.0*c325*v_side_link_theta_x;
+    out[79] = -166329.0/500000.0*c326*v_side_link_theta_x - 96247.0/200000.0*c330*v_side_link_theta_y + (96247.0/200000.0)*c327*v_side_link_theta_x + (166329.0/500000.0)*c329*v_side_link_theta_y;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 2
+
 /* gamma of the driver rows of case 'digging'. */
-static void compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2054,20 +2061,20 @@ static void compute_drivers_gamma_digging(const double *q, const double *v, cons
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*upper_qw;
-    const double c4 = -1.0/2.0*upper_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_qz;
     const double c5 = (1.0/2.0)*v_upper_theta_y;
     const double c6 = (1.0/2.0)*v_upper_theta_x;
     const double c7 = (1.0/2.0)*upper_qz;
@@ -2088,30 +2095,23 @@ static void compute_drivers_gamma_digging(const double *q, const double *v, cons
     const double c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
     const double c23 = -c20;
     const double c24 = -c22;
-    out[0] = c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1.0/2.0)*upper_qy*c2) + v_upper_theta_y*(-1.0/2.0*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y);
-    out[1] = -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(-boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1;
-    out[2] = -c15*v_arm_cyl_barrel_x + c16*v_arm_cyl_barrel_y - c16*v_arm_cyl_rod_y - c16*(arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(-arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c19*v_arm_cyl_rod_z - c19*(-arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2;
-    out[3] = -c20*v_bucket_cyl_barrel_x + c21*v_bucket_cyl_barrel_y - c21*v_bucket_cyl_rod_y - c21*(bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(-bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c24*v_bucket_cyl_rod_z - c24*(-bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3;
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'. */
-static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_drivers_gamma_digging(q, v, u, ud, udd, gamma + 80);
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1.0/2.0)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1.0/2.0*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx);
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x);
+    out[2] = udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x);
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x);
 }
 
 /* Driver inputs of case 'digging' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_digging(double t, double *out) {
+void excavator_quaternion_compute_inputs_digging(double t, double *out) {
     const double c0 = 2.0*t;
-    const double c1 = tanh(c0 - 27.0);
-    const double c2 = tanh(c0 - 17.0);
-    const double c3 = tanh(c0 - 29.0);
-    const double c4 = tanh(c0 - 14.0);
-    const double c5 = tanh(c0 - 3.0);
+    const double c1 = tanh(-27.0 + c0);
+    const double c2 = tanh(-17.0 + c0);
+    const double c3 = tanh(-29.0 + c0);
+    const double c4 = tanh(-14.0 + c0);
+    const double c5 = tanh(-3.0 + c0);
     const double c6 = (9.0/40.0)*c5;
-    const double c7 = tanh(c0 - 23.0);
-    const double c8 = tanh(c0 - 9.0);
+    const double c7 = tanh(-23.0 + c0);
+    const double c8 = tanh(-9.0 + c0);
     const double c9 = (c1*c1);
     const double c10 = (c2*c2);
     const double c11 = (c3*c3);
@@ -2124,27 +2124,22 @@ static void compute_inputs_digging(double t, double *out) {
     const double c18 = (9.0/20.0)*c5*(4.0 - 4.0*c13);
     const double c19 = 4.0 - 4.0*c15;
     const double c20 = c8*(4.0 - 4.0*c16);
-    out[0] = -0.7853981633974483*c1 + 0.7853981633974483*c2;
-    out[1] = -1.0/5.0*c3 + (17.0/40.0)*c4 - c6 + 626973.0/250000.0;
-    out[2] = -7.0/40.0*c3 + c6 - 17.0/40.0*c7 + (3.0/8.0)*c8 + 485803.0/250000.0;
-    out[3] = (1.0/20.0)*c3 - 3.0/8.0*c7 + (13.0/40.0)*c8 + 928949.0/500000.0;
-    out[4] = -1.5707963267948966*c10 + 1.5707963267948966*c9;
-    out[5] = (2.0/5.0)*c11 - 17.0/20.0*c12 + c14;
-    out[6] = (7.0/20.0)*c11 - c14 + (17.0/20.0)*c15 - 3.0/4.0*c16;
-    out[7] = -1.0/10.0*c11 + (3.0/4.0)*c15 - 13.0/20.0*c16;
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1;
+    out[1] = 626973.0/250000.0 - c6 - 1.0/5.0*c3 + (17.0/40.0)*c4;
+    out[2] = 485803.0/250000.0 + c6 - 17.0/40.0*c7 - 7.0/40.0*c3 + (3.0/8.0)*c8;
+    out[3] = 928949.0/500000.0 - 3.0/8.0*c7 + (1.0/20.0)*c3 + (13.0/40.0)*c8;
+    out[4] = 1.5707963267948966*c9 - 1.5707963267948966*c10;
+    out[5] = c14 - 17.0/20.0*c12 + (2.0/5.0)*c11;
+    out[6] = -c14 - 3.0/4.0*c16 + (7.0/20.0)*c11 + (17.0/20.0)*c15;
+    out[7] = -13.0/20.0*c16 - 1.0/10.0*c11 + (3.0/4.0)*c15;
     out[8] = 1.5707963267948966*c1*(4.0 - 4.0*c9) - 1.5707963267948966*c2*(4.0 - 4.0*c10);
-    out[9] = (2.0/5.0)*c17 + c18 - 17.0/20.0*c4*(4.0 - 4.0*c12);
-    out[10] = (7.0/20.0)*c17 - c18 + (17.0/20.0)*c19*c7 - 3.0/4.0*c20;
-    out[11] = -1.0/10.0*c17 + (3.0/4.0)*c19*c7 - 13.0/20.0*c20;
-}
-
-/* Driver inputs of case 'digging' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_digging(double t, double *inputs) {
-    compute_inputs_digging(t, inputs);
+    out[9] = c18 + (2.0/5.0)*c17 - 17.0/20.0*c4*(4.0 - 4.0*c12);
+    out[10] = -c18 - 3.0/4.0*c20 + (7.0/20.0)*c17 + (17.0/20.0)*c19*c7;
+    out[11] = -13.0/20.0*c20 - 1.0/10.0*c17 + (3.0/4.0)*c19*c7;
 }
 
 /* Phi of the driver rows of case 'level_cut'. */
-static void compute_drivers_phi_level_cut(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double bucket_x = q[91];
@@ -2157,19 +2152,19 @@ static void compute_drivers_phi_level_cut(const double *q, const double *u, doub
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_qw*sin(c0) - 2.0*upper_qz*cos(c0);
-    out[1] = (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02 + bucket_x - u1;
-    out[2] = (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22 + bucket_z - u2;
-    out[3] = -bucket_a02*cos(u3) + bucket_a22*sin(u3);
+    out[0] = -2.0*upper_qz*cos(c0) + 2.0*upper_qw*sin(c0);
+    out[1] = bucket_x - u1 + (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02;
+    out[2] = bucket_z - u2 + (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22;
+    out[3] = bucket_a22*sin(u3) - bucket_a02*cos(u3);
 }
 
 /* Phi_q values of the driver rows of case 'level_cut'. */
-static void compute_drivers_jac_level_cut(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2180,43 +2175,33 @@ static void compute_drivers_jac_level_cut(const double *q, const double *u, doub
     const double bucket_qz = q[97];
     const double u0 = u[0];
     const double u3 = u[3];
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
     const double d3 = sin(u3);
     const double d4 = cos(u3);
-    out[0] = -upper_qx*d1 - upper_qy*d2;
-    out[1] = upper_qx*d2 - upper_qy*d1;
-    out[2] = -upper_qw*d2 - upper_qz*d1;
+    out[0] = -d1*upper_qx - d2*upper_qy;
+    out[1] = d2*upper_qx - d1*upper_qy;
+    out[2] = -d1*upper_qz - d2*upper_qw;
     out[3] = 1.0;
     out[4] = (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22;
-    out[5] = -32.0/25.0*bucket_a10 - 403.0/500.0*bucket_a12;
+    out[5] = -403.0/500.0*bucket_a12 - 32.0/25.0*bucket_a10;
     out[6] = 1.0;
     out[7] = (32.0/25.0)*bucket_a10 + (403.0/500.0)*bucket_a12;
-    out[8] = -32.0/25.0*bucket_a00 - 403.0/500.0*bucket_a02;
-    out[9] = bucket_a12*d3;
-    out[10] = -bucket_a02*d3 - bucket_a22*d4;
-    out[11] = bucket_a12*d4;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'level_cut'. */
-static void phi_jac_level_cut(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_level_cut(q, u, phi + 80);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_drivers_jac_level_cut(q, u, jac + 403);
+    out[8] = -403.0/500.0*bucket_a02 - 32.0/25.0*bucket_a00;
+    out[9] = d3*bucket_a12;
+    out[10] = -d3*bucket_a02 - d4*bucket_a22;
+    out[11] = d4*bucket_a12;
 }
 
 /* nu of the driver rows of case 'level_cut'. */
-static void compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out) {
+void excavator_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double bucket_qw = q[94];
@@ -2230,7 +2215,7 @@ static void compute_drivers_nu_level_cut(const double *q, const double *u, const
     const double ud2 = ud[2];
     const double ud3 = ud[3];
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_qw*cos(c0) + upper_qz*sin(c0));
     out[1] = ud1;
@@ -2238,14 +2223,8 @@ static void compute_drivers_nu_level_cut(const double *q, const double *u, const
     out[3] = -ud3*(bucket_a02*sin(u3) + bucket_a22*cos(u3));
 }
 
-/* nu = -Phi_t of case 'level_cut' (zero in the joint rows). */
-static void nu_level_cut(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_level_cut(q, u, ud, nu + 80);
-}
-
 /* gamma of the driver rows of case 'level_cut'. */
-static void compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2268,17 +2247,17 @@ static void compute_drivers_gamma_level_cut(const double *q, const double *v, co
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*upper_qw;
-    const double c4 = -1.0/2.0*upper_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_qz;
     const double c5 = (1.0/2.0)*v_upper_theta_y;
     const double c6 = (1.0/2.0)*v_upper_theta_x;
     const double c7 = (1.0/2.0)*upper_qz;
@@ -2287,46 +2266,34 @@ static void compute_drivers_gamma_level_cut(const double *q, const double *v, co
     const double c10 = sin(u3);
     const double c11 = cos(u3);
     const double c12 = bucket_a12*v_bucket_theta_z;
-    const double c13 = bucket_a02*c11 - bucket_a22*c10;
-    out[0] = c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1.0/2.0)*upper_qy*c2) + v_upper_theta_y*(-1.0/2.0*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y);
-    out[1] = udd1 - 32.0/25.0*v_bucket_theta_y*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x) - 403.0/500.0*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) + (32.0/25.0)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403.0/500.0)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x);
-    out[2] = udd2 - 32.0/25.0*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - 403.0/500.0*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) + (32.0/25.0)*v_bucket_theta_y*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y) + (403.0/500.0)*v_bucket_theta_y*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y);
-    out[3] = c10*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - c12) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) - c13*(ud3*ud3) - 2.0*ud3*(bucket_a12*c11*v_bucket_theta_x - c10*c12 - c13*v_bucket_theta_y) - udd3*(bucket_a02*c10 + bucket_a22*c11) - (bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x)*(c10*v_bucket_theta_x + c11*v_bucket_theta_z);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'. */
-static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_drivers_gamma_level_cut(q, v, u, ud, udd, gamma + 80);
+    const double c13 = c11*bucket_a02 - c10*bucket_a22;
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1.0/2.0)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1.0/2.0*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx);
+    out[1] = udd1 - 403.0/500.0*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) - 32.0/25.0*v_bucket_theta_y*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y) + (32.0/25.0)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403.0/500.0)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x);
+    out[2] = udd2 - 403.0/500.0*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 32.0/25.0*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (32.0/25.0)*v_bucket_theta_y*(bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z) + (403.0/500.0)*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z);
+    out[3] = -c13*(ud3*ud3) - udd3*(c10*bucket_a02 + c11*bucket_a22) - (c10*v_bucket_theta_x + c11*v_bucket_theta_z)*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 2.0*ud3*(-c10*c12 - c13*v_bucket_theta_y + c11*bucket_a12*v_bucket_theta_x) + c10*v_bucket_theta_y*(-c12 + bucket_a22*v_bucket_theta_y) + c11*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y);
 }
 
 /* Driver inputs of case 'level_cut' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_level_cut(double t, double *out) {
+void excavator_quaternion_compute_inputs_level_cut(double t, double *out) {
     const double c0 = pow(t, 3.0);
     const double c1 = pow(t, 4.0);
     const double c2 = (t*t);
     out[0] = 0.0;
-    out[1] = -17.0/32.0*c0 + (51.0/256.0)*c1 - 51.0/2560.0*pow(t, 5.0) + 79.0/10.0;
+    out[1] = 79.0/10.0 - 51.0/2560.0*pow(t, 5.0) - 17.0/32.0*c0 + (51.0/256.0)*c1;
     out[2] = -1.0;
     out[3] = 2.2689280275926285;
     out[4] = 0.0;
-    out[5] = (51.0/64.0)*c0 - 51.0/512.0*c1 - 51.0/32.0*c2;
+    out[5] = -51.0/32.0*c2 - 51.0/512.0*c1 + (51.0/64.0)*c0;
     out[6] = 0.0;
     out[7] = 0.0;
     out[8] = 0.0;
-    out[9] = -51.0/128.0*c0 + (153.0/64.0)*c2 - 51.0/16.0*t;
+    out[9] = -51.0/16.0*t - 51.0/128.0*c0 + (153.0/64.0)*c2;
     out[10] = 0.0;
     out[11] = 0.0;
 }
 
-/* Driver inputs of case 'level_cut' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_level_cut(double t, double *inputs) {
-    compute_inputs_level_cut(t, inputs);
-}
-
 /* Phi of the driver rows of case 'trench_wall'. */
-static void compute_drivers_phi_trench_wall(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double bucket_x = q[91];
@@ -2339,19 +2306,19 @@ static void compute_drivers_phi_trench_wall(const double *q, const double *u, do
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_qw*sin(c0) - 2.0*upper_qz*cos(c0);
-    out[1] = (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02 + bucket_x - u1;
-    out[2] = (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22 + bucket_z - u2;
-    out[3] = -bucket_a02*cos(u3) + bucket_a22*sin(u3);
+    out[0] = -2.0*upper_qz*cos(c0) + 2.0*upper_qw*sin(c0);
+    out[1] = bucket_x - u1 + (32.0/25.0)*bucket_a00 + (403.0/500.0)*bucket_a02;
+    out[2] = bucket_z - u2 + (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22;
+    out[3] = bucket_a22*sin(u3) - bucket_a02*cos(u3);
 }
 
 /* Phi_q values of the driver rows of case 'trench_wall'. */
-static void compute_drivers_jac_trench_wall(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2362,43 +2329,33 @@ static void compute_drivers_jac_trench_wall(const double *q, const double *u, do
     const double bucket_qz = q[97];
     const double u0 = u[0];
     const double u3 = u[3];
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
     const double d3 = sin(u3);
     const double d4 = cos(u3);
-    out[0] = -upper_qx*d1 - upper_qy*d2;
-    out[1] = upper_qx*d2 - upper_qy*d1;
-    out[2] = -upper_qw*d2 - upper_qz*d1;
+    out[0] = -d1*upper_qx - d2*upper_qy;
+    out[1] = d2*upper_qx - d1*upper_qy;
+    out[2] = -d1*upper_qz - d2*upper_qw;
     out[3] = 1.0;
     out[4] = (32.0/25.0)*bucket_a20 + (403.0/500.0)*bucket_a22;
-    out[5] = -32.0/25.0*bucket_a10 - 403.0/500.0*bucket_a12;
+    out[5] = -403.0/500.0*bucket_a12 - 32.0/25.0*bucket_a10;
     out[6] = 1.0;
     out[7] = (32.0/25.0)*bucket_a10 + (403.0/500.0)*bucket_a12;
-    out[8] = -32.0/25.0*bucket_a00 - 403.0/500.0*bucket_a02;
-    out[9] = bucket_a12*d3;
-    out[10] = -bucket_a02*d3 - bucket_a22*d4;
-    out[11] = bucket_a12*d4;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
-static void phi_jac_trench_wall(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_trench_wall(q, u, phi + 80);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_drivers_jac_trench_wall(q, u, jac + 403);
+    out[8] = -403.0/500.0*bucket_a02 - 32.0/25.0*bucket_a00;
+    out[9] = d3*bucket_a12;
+    out[10] = -d3*bucket_a02 - d4*bucket_a22;
+    out[11] = d4*bucket_a12;
 }
 
 /* nu of the driver rows of case 'trench_wall'. */
-static void compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out) {
+void excavator_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double bucket_qw = q[94];
@@ -2412,7 +2369,7 @@ static void compute_drivers_nu_trench_wall(const double *q, const double *u, con
     const double ud2 = ud[2];
     const double ud3 = ud[3];
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_qw*cos(c0) + upper_qz*sin(c0));
     out[1] = ud1;
@@ -2420,14 +2377,8 @@ static void compute_drivers_nu_trench_wall(const double *q, const double *u, con
     out[3] = -ud3*(bucket_a02*sin(u3) + bucket_a22*cos(u3));
 }
 
-/* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
-static void nu_trench_wall(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_trench_wall(q, u, ud, nu + 80);
-}
-
 /* gamma of the driver rows of case 'trench_wall'. */
-static void compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2450,17 +2401,17 @@ static void compute_drivers_gamma_trench_wall(const double *q, const double *v, 
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*upper_qw;
-    const double c4 = -1.0/2.0*upper_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_qz;
     const double c5 = (1.0/2.0)*v_upper_theta_y;
     const double c6 = (1.0/2.0)*v_upper_theta_x;
     const double c7 = (1.0/2.0)*upper_qz;
@@ -2469,46 +2420,34 @@ static void compute_drivers_gamma_trench_wall(const double *q, const double *v, 
     const double c10 = sin(u3);
     const double c11 = cos(u3);
     const double c12 = bucket_a12*v_bucket_theta_z;
-    const double c13 = bucket_a02*c11 - bucket_a22*c10;
-    out[0] = c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1.0/2.0)*upper_qy*c2) + v_upper_theta_y*(-1.0/2.0*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y);
-    out[1] = udd1 - 32.0/25.0*v_bucket_theta_y*(-bucket_a00*v_bucket_theta_y + bucket_a10*v_bucket_theta_x) - 403.0/500.0*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) + (32.0/25.0)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403.0/500.0)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x);
-    out[2] = udd2 - 32.0/25.0*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - 403.0/500.0*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) + (32.0/25.0)*v_bucket_theta_y*(-bucket_a10*v_bucket_theta_z + bucket_a20*v_bucket_theta_y) + (403.0/500.0)*v_bucket_theta_y*(-bucket_a12*v_bucket_theta_z + bucket_a22*v_bucket_theta_y);
-    out[3] = c10*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - c12) + c11*v_bucket_theta_y*(-bucket_a02*v_bucket_theta_y + bucket_a12*v_bucket_theta_x) - c13*(ud3*ud3) - 2.0*ud3*(bucket_a12*c11*v_bucket_theta_x - c10*c12 - c13*v_bucket_theta_y) - udd3*(bucket_a02*c10 + bucket_a22*c11) - (bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x)*(c10*v_bucket_theta_x + c11*v_bucket_theta_z);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
-static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_drivers_gamma_trench_wall(q, v, u, ud, udd, gamma + 80);
+    const double c13 = c11*bucket_a02 - c10*bucket_a22;
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1.0/2.0)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1.0/2.0*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx);
+    out[1] = udd1 - 403.0/500.0*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) - 32.0/25.0*v_bucket_theta_y*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y) + (32.0/25.0)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403.0/500.0)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x);
+    out[2] = udd2 - 403.0/500.0*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 32.0/25.0*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (32.0/25.0)*v_bucket_theta_y*(bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z) + (403.0/500.0)*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z);
+    out[3] = -c13*(ud3*ud3) - udd3*(c10*bucket_a02 + c11*bucket_a22) - (c10*v_bucket_theta_x + c11*v_bucket_theta_z)*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 2.0*ud3*(-c10*c12 - c13*v_bucket_theta_y + c11*bucket_a12*v_bucket_theta_x) + c10*v_bucket_theta_y*(-c12 + bucket_a22*v_bucket_theta_y) + c11*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y);
 }
 
 /* Driver inputs of case 'trench_wall' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_trench_wall(double t, double *out) {
+void excavator_quaternion_compute_inputs_trench_wall(double t, double *out) {
     const double c0 = pow(t, 3.0);
     const double c1 = pow(t, 4.0);
     const double c2 = (t*t);
     out[0] = 0.0;
     out[1] = 6.0;
-    out[2] = -15.0/32.0*c0 + (45.0/256.0)*c1 - 9.0/512.0*pow(t, 5.0) + 1.0/2.0;
+    out[2] = 1.0/2.0 - 15.0/32.0*c0 - 9.0/512.0*pow(t, 5.0) + (45.0/256.0)*c1;
     out[3] = 2.2689280275926285;
     out[4] = 0.0;
     out[5] = 0.0;
-    out[6] = (45.0/64.0)*c0 - 45.0/512.0*c1 - 45.0/32.0*c2;
+    out[6] = -45.0/32.0*c2 - 45.0/512.0*c1 + (45.0/64.0)*c0;
     out[7] = 0.0;
     out[8] = 0.0;
     out[9] = 0.0;
-    out[10] = -45.0/128.0*c0 + (135.0/64.0)*c2 - 45.0/16.0*t;
+    out[10] = -45.0/16.0*t - 45.0/128.0*c0 + (135.0/64.0)*c2;
     out[11] = 0.0;
 }
 
-/* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_trench_wall(double t, double *inputs) {
-    compute_inputs_trench_wall(t, inputs);
-}
-
 /* Phi of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -2545,24 +2484,24 @@ static void compute_drivers_phi_bucket_toggle(const double *q, const double *u, 
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_qw*sin(c0) - 2.0*upper_qz*cos(c0);
-    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1;
-    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2;
-    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3;
+    out[0] = -2.0*upper_qz*cos(c0) + 2.0*upper_qw*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
 }
 
 /* Phi_q values of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2598,71 +2537,61 @@ static void compute_drivers_jac_bucket_toggle(const double *q, const double *u, 
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
-    const double d3 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double d5 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double d6 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double d7 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double d8 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    out[0] = -upper_qx*d1 - upper_qy*d2;
-    out[1] = upper_qx*d2 - upper_qy*d1;
-    out[2] = -upper_qw*d2 - upper_qz*d1;
+    const double d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double d6 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double d7 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double d8 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    out[0] = -d1*upper_qx - d2*upper_qy;
+    out[1] = d2*upper_qx - d1*upper_qy;
+    out[2] = -d1*upper_qz - d2*upper_qw;
     out[3] = -boom_cyl_l_barrel_a00;
     out[4] = -boom_cyl_l_barrel_a10;
     out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4;
-    out[7] = -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5;
-    out[8] = boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5;
+    out[6] = d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20;
+    out[7] = d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00;
+    out[8] = d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10;
     out[9] = boom_cyl_l_barrel_a00;
     out[10] = boom_cyl_l_barrel_a10;
     out[11] = boom_cyl_l_barrel_a20;
     out[12] = -arm_cyl_barrel_a00;
     out[13] = -arm_cyl_barrel_a10;
     out[14] = -arm_cyl_barrel_a20;
-    out[15] = arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7;
-    out[16] = -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8;
-    out[17] = arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8;
+    out[15] = d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20;
+    out[16] = d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00;
+    out[17] = d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10;
     out[18] = arm_cyl_barrel_a00;
     out[19] = arm_cyl_barrel_a10;
     out[20] = arm_cyl_barrel_a20;
     out[21] = -bucket_cyl_barrel_a00;
     out[22] = -bucket_cyl_barrel_a10;
     out[23] = -bucket_cyl_barrel_a20;
-    out[24] = bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10;
-    out[25] = -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11;
-    out[26] = bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11;
+    out[24] = d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20;
+    out[25] = d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00;
+    out[26] = d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10;
     out[27] = bucket_cyl_barrel_a00;
     out[28] = bucket_cyl_barrel_a10;
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
-static void phi_jac_bucket_toggle(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_bucket_toggle(q, u, phi + 80);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_drivers_jac_bucket_toggle(q, u, jac + 403);
-}
-
 /* nu of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out) {
+void excavator_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double u0 = u[0];
@@ -2677,14 +2606,8 @@ static void compute_drivers_nu_bucket_toggle(const double *q, const double *u, c
     out[3] = ud3;
 }
 
-/* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
-static void nu_bucket_toggle(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_bucket_toggle(q, u, ud, nu + 80);
-}
-
 /* gamma of the driver rows of case 'bucket_toggle'. */
-static void compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2755,20 +2678,20 @@ static void compute_drivers_gamma_bucket_toggle(const double *q, const double *v
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*upper_qw;
-    const double c4 = -1.0/2.0*upper_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_qz;
     const double c5 = (1.0/2.0)*v_upper_theta_y;
     const double c6 = (1.0/2.0)*v_upper_theta_x;
     const double c7 = (1.0/2.0)*upper_qz;
@@ -2789,25 +2712,18 @@ static void compute_drivers_gamma_bucket_toggle(const double *q, const double *v
     const double c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
     const double c23 = -c20;
     const double c24 = -c22;
-    out[0] = c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1.0/2.0)*upper_qy*c2) + v_upper_theta_y*(-1.0/2.0*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y);
-    out[1] = -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(-boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1;
-    out[2] = -c15*v_arm_cyl_barrel_x + c16*v_arm_cyl_barrel_y - c16*v_arm_cyl_rod_y - c16*(arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(-arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c19*v_arm_cyl_rod_z - c19*(-arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2;
-    out[3] = -c20*v_bucket_cyl_barrel_x + c21*v_bucket_cyl_barrel_y - c21*v_bucket_cyl_rod_y - c21*(bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(-bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c24*v_bucket_cyl_rod_z - c24*(-bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3;
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
-static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, gamma + 80);
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1.0/2.0)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1.0/2.0*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx);
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x);
+    out[2] = udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x);
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_bucket_toggle(double t, double *out) {
+void excavator_quaternion_compute_inputs_bucket_toggle(double t, double *out) {
     out[0] = 0.0;
     out[1] = 626973.0/250000.0;
     out[2] = 485803.0/250000.0;
-    out[3] = (1.0/10.0)*t + 5.0/2.0;
+    out[3] = 5.0/2.0 + (1.0/10.0)*t;
     out[4] = 0.0;
     out[5] = 0.0;
     out[6] = 0.0;
@@ -2818,13 +2734,8 @@ static void compute_inputs_bucket_toggle(double t, double *out) {
     out[11] = 0.0;
 }
 
-/* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_bucket_toggle(double t, double *inputs) {
-    compute_inputs_bucket_toggle(t, inputs);
-}
-
 /* Phi of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -2861,24 +2772,24 @@ static void compute_drivers_phi_bucket_near_toggle(const double *q, const double
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*upper_qw*sin(c0) - 2.0*upper_qz*cos(c0);
-    out[1] = boom_cyl_l_barrel_a00*(-boom_cyl_l_barrel_x + boom_cyl_l_rod_x) + boom_cyl_l_barrel_a10*(-boom_cyl_l_barrel_y + boom_cyl_l_rod_y) + boom_cyl_l_barrel_a20*(-boom_cyl_l_barrel_z + boom_cyl_l_rod_z) - u1;
-    out[2] = arm_cyl_barrel_a00*(-arm_cyl_barrel_x + arm_cyl_rod_x) + arm_cyl_barrel_a10*(-arm_cyl_barrel_y + arm_cyl_rod_y) + arm_cyl_barrel_a20*(-arm_cyl_barrel_z + arm_cyl_rod_z) - u2;
-    out[3] = bucket_cyl_barrel_a00*(-bucket_cyl_barrel_x + bucket_cyl_rod_x) + bucket_cyl_barrel_a10*(-bucket_cyl_barrel_y + bucket_cyl_rod_y) + bucket_cyl_barrel_a20*(-bucket_cyl_barrel_z + bucket_cyl_rod_z) - u3;
+    out[0] = -2.0*upper_qz*cos(c0) + 2.0*upper_qw*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
 }
 
 /* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out) {
+void excavator_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -2914,71 +2825,61 @@ static void compute_drivers_jac_bucket_near_toggle(const double *q, const double
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
-    const double d3 = -boom_cyl_l_barrel_z + boom_cyl_l_rod_z;
-    const double d4 = -boom_cyl_l_barrel_y + boom_cyl_l_rod_y;
-    const double d5 = -boom_cyl_l_barrel_x + boom_cyl_l_rod_x;
-    const double d6 = -arm_cyl_barrel_z + arm_cyl_rod_z;
-    const double d7 = -arm_cyl_barrel_y + arm_cyl_rod_y;
-    const double d8 = -arm_cyl_barrel_x + arm_cyl_rod_x;
-    const double d9 = -bucket_cyl_barrel_z + bucket_cyl_rod_z;
-    const double d10 = -bucket_cyl_barrel_y + bucket_cyl_rod_y;
-    const double d11 = -bucket_cyl_barrel_x + bucket_cyl_rod_x;
-    out[0] = -upper_qx*d1 - upper_qy*d2;
-    out[1] = upper_qx*d2 - upper_qy*d1;
-    out[2] = -upper_qw*d2 - upper_qz*d1;
+    const double d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double d6 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double d7 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double d8 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    out[0] = -d1*upper_qx - d2*upper_qy;
+    out[1] = d2*upper_qx - d1*upper_qy;
+    out[2] = -d1*upper_qz - d2*upper_qw;
     out[3] = -boom_cyl_l_barrel_a00;
     out[4] = -boom_cyl_l_barrel_a10;
     out[5] = -boom_cyl_l_barrel_a20;
-    out[6] = boom_cyl_l_barrel_a10*d3 - boom_cyl_l_barrel_a20*d4;
-    out[7] = -boom_cyl_l_barrel_a00*d3 + boom_cyl_l_barrel_a20*d5;
-    out[8] = boom_cyl_l_barrel_a00*d4 - boom_cyl_l_barrel_a10*d5;
+    out[6] = d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20;
+    out[7] = d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00;
+    out[8] = d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10;
     out[9] = boom_cyl_l_barrel_a00;
     out[10] = boom_cyl_l_barrel_a10;
     out[11] = boom_cyl_l_barrel_a20;
     out[12] = -arm_cyl_barrel_a00;
     out[13] = -arm_cyl_barrel_a10;
     out[14] = -arm_cyl_barrel_a20;
-    out[15] = arm_cyl_barrel_a10*d6 - arm_cyl_barrel_a20*d7;
-    out[16] = -arm_cyl_barrel_a00*d6 + arm_cyl_barrel_a20*d8;
-    out[17] = arm_cyl_barrel_a00*d7 - arm_cyl_barrel_a10*d8;
+    out[15] = d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20;
+    out[16] = d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00;
+    out[17] = d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10;
     out[18] = arm_cyl_barrel_a00;
     out[19] = arm_cyl_barrel_a10;
     out[20] = arm_cyl_barrel_a20;
     out[21] = -bucket_cyl_barrel_a00;
     out[22] = -bucket_cyl_barrel_a10;
     out[23] = -bucket_cyl_barrel_a20;
-    out[24] = bucket_cyl_barrel_a10*d9 - bucket_cyl_barrel_a20*d10;
-    out[25] = -bucket_cyl_barrel_a00*d9 + bucket_cyl_barrel_a20*d11;
-    out[26] = bucket_cyl_barrel_a00*d10 - bucket_cyl_barrel_a10*d11;
+    out[24] = d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20;
+    out[25] = d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00;
+    out[26] = d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10;
     out[27] = bucket_cyl_barrel_a00;
     out[28] = bucket_cyl_barrel_a10;
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
-static void phi_jac_bucket_near_toggle(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_bucket_near_toggle(q, u, phi + 80);
-    compute_joints_jac_part0(q, jac);
-    compute_joints_jac_part1(q, jac);
-    compute_joints_jac_part2(q, jac);
-    compute_drivers_jac_bucket_near_toggle(q, u, jac + 403);
-}
-
 /* nu of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out) {
+void excavator_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out) {
     const double upper_qw = q[3];
     const double upper_qz = q[6];
     const double u0 = u[0];
@@ -2993,14 +2894,8 @@ static void compute_drivers_nu_bucket_near_toggle(const double *q, const double 
     out[3] = ud3;
 }
 
-/* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
-static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_bucket_near_toggle(q, u, ud, nu + 80);
-}
-
 /* gamma of the driver rows of case 'bucket_near_toggle'. */
-static void compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
     const double upper_qw = q[3];
     const double upper_qx = q[4];
     const double upper_qy = q[5];
@@ -3071,20 +2966,20 @@ static void compute_drivers_gamma_bucket_near_toggle(const double *q, const doub
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*upper_qw;
-    const double c4 = -1.0/2.0*upper_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_qz;
     const double c5 = (1.0/2.0)*v_upper_theta_y;
     const double c6 = (1.0/2.0)*v_upper_theta_x;
     const double c7 = (1.0/2.0)*upper_qz;
@@ -3105,27 +3000,20 @@ static void compute_drivers_gamma_bucket_near_toggle(const double *q, const doub
     const double c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
     const double c23 = -c20;
     const double c24 = -c22;
-    out[0] = c1*v_upper_theta_z*(-upper_qx*c6 - upper_qy*c5 - c7*v_upper_theta_z) + c2*v_upper_theta_z*(-upper_qx*c5 + upper_qy*c6 + c3*v_upper_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*(-upper_qx*c9 + (1.0/2.0)*upper_qy*c2) + v_upper_theta_y*(-1.0/2.0*upper_qx*c2 - upper_qy*c9)) - udd0*(upper_qw*c1 + upper_qz*c2) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(upper_qx*c8 + c3*v_upper_theta_y - c7*v_upper_theta_x) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(-upper_qy*c8 + c3*v_upper_theta_x + c7*v_upper_theta_y);
-    out[1] = -c10*v_boom_cyl_l_barrel_x + c11*v_boom_cyl_l_barrel_y - c11*v_boom_cyl_l_rod_y - c11*(boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_y + v_boom_cyl_l_rod_y) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(-boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y - v_boom_cyl_l_barrel_x + v_boom_cyl_l_rod_x) - c14*v_boom_cyl_l_rod_z - c14*(-boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x - v_boom_cyl_l_barrel_z + v_boom_cyl_l_rod_z) + udd1;
-    out[2] = -c15*v_arm_cyl_barrel_x + c16*v_arm_cyl_barrel_y - c16*v_arm_cyl_rod_y - c16*(arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_y + v_arm_cyl_rod_y) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(-arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y - v_arm_cyl_barrel_x + v_arm_cyl_rod_x) - c19*v_arm_cyl_rod_z - c19*(-arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x - v_arm_cyl_barrel_z + v_arm_cyl_rod_z) + udd2;
-    out[3] = -c20*v_bucket_cyl_barrel_x + c21*v_bucket_cyl_barrel_y - c21*v_bucket_cyl_rod_y - c21*(bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_y + v_bucket_cyl_rod_y) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(-bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y - v_bucket_cyl_barrel_x + v_bucket_cyl_rod_x) - c24*v_bucket_cyl_rod_z - c24*(-bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x - v_bucket_cyl_barrel_z + v_bucket_cyl_rod_z) + udd3;
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
-static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma_part0(q, v, gamma);
-    compute_joints_gamma_part1(q, v, gamma);
-    compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, gamma + 80);
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1.0/2.0)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1.0/2.0*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx);
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x);
+    out[2] = udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x);
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: rows u (4), then du/dt, then d2u/dt2. */
-static void compute_inputs_bucket_near_toggle(double t, double *out) {
+void excavator_quaternion_compute_inputs_bucket_near_toggle(double t, double *out) {
     const double c0 = 1.5707963267948966*t;
     const double c1 = sin(c0);
     out[0] = 0.0;
     out[1] = 626973.0/250000.0;
     out[2] = 485803.0/250000.0;
-    out[3] = (47.0/200.0)*c1 + 5.0/2.0;
+    out[3] = 5.0/2.0 + (47.0/200.0)*c1;
     out[4] = 0.0;
     out[5] = 0.0;
     out[6] = 0.0;
@@ -3136,13 +3024,8 @@ static void compute_inputs_bucket_near_toggle(double t, double *out) {
     out[11] = -0.5798392585639998*c1;
 }
 
-/* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_bucket_near_toggle(double t, double *inputs) {
-    compute_inputs_bucket_near_toggle(t, inputs);
-}
-
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). Rows 0 to 239. */
-static void compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
+void excavator_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
     const double upper_x = q[0];
     const double upper_y = q[1];
     const double upper_z = q[2];
@@ -3333,96 +3216,96 @@ static void compute_frames_part0(const double *q, const double *v, const double 
     const double dv_bucket_cyl_barrel_theta_x = a[57];
     const double dv_bucket_cyl_barrel_theta_y = a[58];
     const double dv_bucket_cyl_barrel_theta_z = a[59];
-    const double upper_a00 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx) - 1.0;
+    const double upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx);
     const double upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
     const double upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a10 = 2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy;
-    const double upper_a11 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy) - 1.0;
+    const double upper_a11 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qy*upper_qy);
     const double upper_a12 = -2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
     const double upper_a20 = -2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz;
     const double upper_a21 = 2.0*upper_qw*upper_qx + 2.0*upper_qy*upper_qz;
-    const double upper_a22 = 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz) - 1.0;
-    const double boom_a00 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx) - 1.0;
+    const double upper_a22 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qz*upper_qz);
+    const double boom_a00 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qx*boom_qx);
     const double boom_a01 = -2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a02 = 2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
-    const double boom_a11 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy) - 1.0;
+    const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a12 = -2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    const double boom_a22 = 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz) - 1.0;
-    const double boom_cyl_l_barrel_a00 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx) - 1.0;
+    const double boom_a22 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qz*boom_qz);
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
     const double boom_cyl_l_barrel_a01 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
     const double boom_cyl_l_barrel_a02 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
-    const double boom_cyl_l_barrel_a11 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy) - 1.0;
+    const double boom_cyl_l_barrel_a11 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qy);
     const double boom_cyl_l_barrel_a12 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
     const double boom_cyl_l_barrel_a21 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2.0*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz;
-    const double boom_cyl_l_barrel_a22 = 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz) - 1.0;
-    const double boom_cyl_l_rod_a00 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qx*boom_cyl_l_rod_qx) - 1.0;
+    const double boom_cyl_l_barrel_a22 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qz*boom_cyl_l_barrel_qz);
+    const double boom_cyl_l_rod_a00 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qx*boom_cyl_l_rod_qx);
     const double boom_cyl_l_rod_a01 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy;
     const double boom_cyl_l_rod_a02 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz;
     const double boom_cyl_l_rod_a10 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy;
-    const double boom_cyl_l_rod_a11 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy) - 1.0;
+    const double boom_cyl_l_rod_a11 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qy*boom_cyl_l_rod_qy);
     const double boom_cyl_l_rod_a12 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
     const double boom_cyl_l_rod_a20 = -2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2.0*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz;
     const double boom_cyl_l_rod_a21 = 2.0*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2.0*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz;
-    const double boom_cyl_l_rod_a22 = 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz) - 1.0;
-    const double boom_cyl_r_barrel_a00 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx) - 1.0;
+    const double boom_cyl_l_rod_a22 = -1.0 + 2.0*(boom_cyl_l_rod_qw*boom_cyl_l_rod_qw) + 2.0*(boom_cyl_l_rod_qz*boom_cyl_l_rod_qz);
+    const double boom_cyl_r_barrel_a00 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qx);
     const double boom_cyl_r_barrel_a01 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
     const double boom_cyl_r_barrel_a02 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a10 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy;
-    const double boom_cyl_r_barrel_a11 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy) - 1.0;
+    const double boom_cyl_r_barrel_a11 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qy);
     const double boom_cyl_r_barrel_a12 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a20 = -2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2.0*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz;
     const double boom_cyl_r_barrel_a21 = 2.0*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2.0*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz;
-    const double boom_cyl_r_barrel_a22 = 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz) - 1.0;
-    const double boom_cyl_r_rod_a00 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qx*boom_cyl_r_rod_qx) - 1.0;
+    const double boom_cyl_r_barrel_a22 = -1.0 + 2.0*(boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qw) + 2.0*(boom_cyl_r_barrel_qz*boom_cyl_r_barrel_qz);
+    const double boom_cyl_r_rod_a00 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qx*boom_cyl_r_rod_qx);
     const double boom_cyl_r_rod_a01 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy;
     const double boom_cyl_r_rod_a02 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz;
     const double boom_cyl_r_rod_a10 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy;
-    const double boom_cyl_r_rod_a11 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy) - 1.0;
+    const double boom_cyl_r_rod_a11 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qy*boom_cyl_r_rod_qy);
     const double boom_cyl_r_rod_a12 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
     const double boom_cyl_r_rod_a20 = -2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2.0*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz;
     const double boom_cyl_r_rod_a21 = 2.0*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2.0*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz;
-    const double boom_cyl_r_rod_a22 = 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz) - 1.0;
-    const double arm_a00 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx) - 1.0;
+    const double boom_cyl_r_rod_a22 = -1.0 + 2.0*(boom_cyl_r_rod_qw*boom_cyl_r_rod_qw) + 2.0*(boom_cyl_r_rod_qz*boom_cyl_r_rod_qz);
+    const double arm_a00 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qx*arm_qx);
     const double arm_a01 = -2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
     const double arm_a02 = 2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a10 = 2.0*arm_qw*arm_qz + 2.0*arm_qx*arm_qy;
-    const double arm_a11 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy) - 1.0;
+    const double arm_a11 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qy*arm_qy);
     const double arm_a12 = -2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
     const double arm_a20 = -2.0*arm_qw*arm_qy + 2.0*arm_qx*arm_qz;
     const double arm_a21 = 2.0*arm_qw*arm_qx + 2.0*arm_qy*arm_qz;
-    const double arm_a22 = 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz) - 1.0;
-    const double arm_cyl_barrel_a00 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx) - 1.0;
+    const double arm_a22 = -1.0 + 2.0*(arm_qw*arm_qw) + 2.0*(arm_qz*arm_qz);
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
     const double arm_cyl_barrel_a01 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
-    const double arm_cyl_barrel_a11 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy) - 1.0;
+    const double arm_cyl_barrel_a11 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qy*arm_cyl_barrel_qy);
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
     const double arm_cyl_barrel_a21 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2.0*arm_cyl_barrel_qy*arm_cyl_barrel_qz;
-    const double arm_cyl_barrel_a22 = 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz) - 1.0;
-    const double arm_cyl_rod_a00 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qx*arm_cyl_rod_qx) - 1.0;
+    const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qz*arm_cyl_barrel_qz);
+    const double arm_cyl_rod_a00 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qx*arm_cyl_rod_qx);
     const double arm_cyl_rod_a01 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qz + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qy;
     const double arm_cyl_rod_a02 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qy + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qz;
     const double arm_cyl_rod_a10 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qz + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qy;
-    const double arm_cyl_rod_a11 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy) - 1.0;
+    const double arm_cyl_rod_a11 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qy*arm_cyl_rod_qy);
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
     const double arm_cyl_rod_a20 = -2.0*arm_cyl_rod_qw*arm_cyl_rod_qy + 2.0*arm_cyl_rod_qx*arm_cyl_rod_qz;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_qw*arm_cyl_rod_qx + 2.0*arm_cyl_rod_qy*arm_cyl_rod_qz;
-    const double arm_cyl_rod_a22 = 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz) - 1.0;
-    const double bucket_cyl_barrel_a00 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx) - 1.0;
+    const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_qw*arm_cyl_rod_qw) + 2.0*(arm_cyl_rod_qz*arm_cyl_rod_qz);
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
     const double bucket_cyl_barrel_a01 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
     const double bucket_cyl_barrel_a02 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
-    const double bucket_cyl_barrel_a11 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy) - 1.0;
+    const double bucket_cyl_barrel_a11 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qy*bucket_cyl_barrel_qy);
     const double bucket_cyl_barrel_a12 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
     const double bucket_cyl_barrel_a21 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2.0*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz;
-    const double bucket_cyl_barrel_a22 = 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz) - 1.0;
+    const double bucket_cyl_barrel_a22 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qz*bucket_cyl_barrel_qz);
     out[0] = upper_x;
     out[1] = upper_y;
     out[2] = upper_z;
@@ -3666,7 +3549,7 @@ static void compute_frames_part0(const double *q, const double *v, const double 
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). Rows 240 to 335. */
-static void compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
+void excavator_quaternion_compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
     const double bucket_cyl_rod_x = q[70];
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
@@ -3743,42 +3626,42 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     const double dv_bucket_theta_x = a[81];
     const double dv_bucket_theta_y = a[82];
     const double dv_bucket_theta_z = a[83];
-    const double bucket_cyl_rod_a00 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qx*bucket_cyl_rod_qx) - 1.0;
+    const double bucket_cyl_rod_a00 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qx*bucket_cyl_rod_qx);
     const double bucket_cyl_rod_a01 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qy;
     const double bucket_cyl_rod_a02 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qz;
     const double bucket_cyl_rod_a10 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qy;
-    const double bucket_cyl_rod_a11 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy) - 1.0;
+    const double bucket_cyl_rod_a11 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qy*bucket_cyl_rod_qy);
     const double bucket_cyl_rod_a12 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
     const double bucket_cyl_rod_a20 = -2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2.0*bucket_cyl_rod_qx*bucket_cyl_rod_qz;
     const double bucket_cyl_rod_a21 = 2.0*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2.0*bucket_cyl_rod_qy*bucket_cyl_rod_qz;
-    const double bucket_cyl_rod_a22 = 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz) - 1.0;
-    const double side_link_a00 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx) - 1.0;
+    const double bucket_cyl_rod_a22 = -1.0 + 2.0*(bucket_cyl_rod_qw*bucket_cyl_rod_qw) + 2.0*(bucket_cyl_rod_qz*bucket_cyl_rod_qz);
+    const double side_link_a00 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qx*side_link_qx);
     const double side_link_a01 = -2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy;
     const double side_link_a02 = 2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
     const double side_link_a10 = 2.0*side_link_qw*side_link_qz + 2.0*side_link_qx*side_link_qy;
-    const double side_link_a11 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qy*side_link_qy) - 1.0;
+    const double side_link_a11 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qy*side_link_qy);
     const double side_link_a12 = -2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz;
     const double side_link_a20 = -2.0*side_link_qw*side_link_qy + 2.0*side_link_qx*side_link_qz;
     const double side_link_a21 = 2.0*side_link_qw*side_link_qx + 2.0*side_link_qy*side_link_qz;
-    const double side_link_a22 = 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz) - 1.0;
-    const double bucket_link_a00 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx) - 1.0;
+    const double side_link_a22 = -1.0 + 2.0*(side_link_qw*side_link_qw) + 2.0*(side_link_qz*side_link_qz);
+    const double bucket_link_a00 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qx*bucket_link_qx);
     const double bucket_link_a01 = -2.0*bucket_link_qw*bucket_link_qz + 2.0*bucket_link_qx*bucket_link_qy;
     const double bucket_link_a02 = 2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
     const double bucket_link_a10 = 2.0*bucket_link_qw*bucket_link_qz + 2.0*bucket_link_qx*bucket_link_qy;
-    const double bucket_link_a11 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qy*bucket_link_qy) - 1.0;
+    const double bucket_link_a11 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qy*bucket_link_qy);
     const double bucket_link_a12 = -2.0*bucket_link_qw*bucket_link_qx + 2.0*bucket_link_qy*bucket_link_qz;
     const double bucket_link_a20 = -2.0*bucket_link_qw*bucket_link_qy + 2.0*bucket_link_qx*bucket_link_qz;
     const double bucket_link_a21 = 2.0*bucket_link_qw*bucket_link_qx + 2.0*bucket_link_qy*bucket_link_qz;
-    const double bucket_link_a22 = 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz) - 1.0;
-    const double bucket_a00 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx) - 1.0;
+    const double bucket_link_a22 = -1.0 + 2.0*(bucket_link_qw*bucket_link_qw) + 2.0*(bucket_link_qz*bucket_link_qz);
+    const double bucket_a00 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qx*bucket_qx);
     const double bucket_a01 = -2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
     const double bucket_a02 = 2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a10 = 2.0*bucket_qw*bucket_qz + 2.0*bucket_qx*bucket_qy;
-    const double bucket_a11 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy) - 1.0;
+    const double bucket_a11 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qy*bucket_qy);
     const double bucket_a12 = -2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
     const double bucket_a20 = -2.0*bucket_qw*bucket_qy + 2.0*bucket_qx*bucket_qz;
     const double bucket_a21 = 2.0*bucket_qw*bucket_qx + 2.0*bucket_qy*bucket_qz;
-    const double bucket_a22 = 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz) - 1.0;
+    const double bucket_a22 = -1.0 + 2.0*(bucket_qw*bucket_qw) + 2.0*(bucket_qz*bucket_qz);
     out[240] = bucket_cyl_rod_x;
     out[241] = bucket_cyl_rod_y;
     out[242] = bucket_cyl_rod_z;
@@ -3877,10 +3760,174 @@ static void compute_frames_part1(const double *q, const double *v, const double 
     out[335] = dv_bucket_theta_z;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 0
+
+/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
+static void retract_body(double *q, const double *step) {
+    double tx = step[3], ty = step[4], tz = step[5];
+    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
+    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
+    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
+    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] = pw * qw - px * qx - py * qy - pz * qz;
+    q[4] = pw * qx + px * qw + py * qz - pz * qy;
+    q[5] = pw * qy - px * qz + py * qw + pz * qx;
+    q[6] = pw * qz + px * qy - py * qx + pz * qw;
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < EXCAVATOR_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging'. */
+static void phi_jac_digging(const double *q, const double *u, double *phi, double *jac) {
+    excavator_quaternion_compute_joints_phi(q, phi);
+    excavator_quaternion_compute_drivers_phi_digging(q, u, phi + 80);
+    excavator_quaternion_compute_joints_jac_part0(q, jac);
+    excavator_quaternion_compute_joints_jac_part1(q, jac);
+    excavator_quaternion_compute_joints_jac_part2(q, jac);
+    excavator_quaternion_compute_drivers_jac_digging(q, u, jac + 403);
+}
+
+/* nu = -Phi_t of case 'digging' (zero in the joint rows). */
+static void nu_digging(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_quaternion_compute_drivers_nu_digging(q, u, ud, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'. */
+static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_quaternion_compute_joints_gamma_part0(q, v, gamma);
+    excavator_quaternion_compute_joints_gamma_part1(q, v, gamma);
+    excavator_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, gamma + 80);
+}
+
+/* Driver inputs of case 'digging' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_digging(double t, double *inputs) {
+    excavator_quaternion_compute_inputs_digging(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'level_cut'. */
+static void phi_jac_level_cut(const double *q, const double *u, double *phi, double *jac) {
+    excavator_quaternion_compute_joints_phi(q, phi);
+    excavator_quaternion_compute_drivers_phi_level_cut(q, u, phi + 80);
+    excavator_quaternion_compute_joints_jac_part0(q, jac);
+    excavator_quaternion_compute_joints_jac_part1(q, jac);
+    excavator_quaternion_compute_joints_jac_part2(q, jac);
+    excavator_quaternion_compute_drivers_jac_level_cut(q, u, jac + 403);
+}
+
+/* nu = -Phi_t of case 'level_cut' (zero in the joint rows). */
+static void nu_level_cut(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_quaternion_compute_drivers_nu_level_cut(q, u, ud, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'. */
+static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_quaternion_compute_joints_gamma_part0(q, v, gamma);
+    excavator_quaternion_compute_joints_gamma_part1(q, v, gamma);
+    excavator_quaternion_compute_drivers_gamma_level_cut(q, v, u, ud, udd, gamma + 80);
+}
+
+/* Driver inputs of case 'level_cut' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_level_cut(double t, double *inputs) {
+    excavator_quaternion_compute_inputs_level_cut(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
+static void phi_jac_trench_wall(const double *q, const double *u, double *phi, double *jac) {
+    excavator_quaternion_compute_joints_phi(q, phi);
+    excavator_quaternion_compute_drivers_phi_trench_wall(q, u, phi + 80);
+    excavator_quaternion_compute_joints_jac_part0(q, jac);
+    excavator_quaternion_compute_joints_jac_part1(q, jac);
+    excavator_quaternion_compute_joints_jac_part2(q, jac);
+    excavator_quaternion_compute_drivers_jac_trench_wall(q, u, jac + 403);
+}
+
+/* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
+static void nu_trench_wall(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_quaternion_compute_drivers_nu_trench_wall(q, u, ud, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
+static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_quaternion_compute_joints_gamma_part0(q, v, gamma);
+    excavator_quaternion_compute_joints_gamma_part1(q, v, gamma);
+    excavator_quaternion_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, gamma + 80);
+}
+
+/* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_trench_wall(double t, double *inputs) {
+    excavator_quaternion_compute_inputs_trench_wall(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
+static void phi_jac_bucket_toggle(const double *q, const double *u, double *phi, double *jac) {
+    excavator_quaternion_compute_joints_phi(q, phi);
+    excavator_quaternion_compute_drivers_phi_bucket_toggle(q, u, phi + 80);
+    excavator_quaternion_compute_joints_jac_part0(q, jac);
+    excavator_quaternion_compute_joints_jac_part1(q, jac);
+    excavator_quaternion_compute_joints_jac_part2(q, jac);
+    excavator_quaternion_compute_drivers_jac_bucket_toggle(q, u, jac + 403);
+}
+
+/* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
+static void nu_bucket_toggle(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_quaternion_compute_drivers_nu_bucket_toggle(q, u, ud, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
+static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_quaternion_compute_joints_gamma_part0(q, v, gamma);
+    excavator_quaternion_compute_joints_gamma_part1(q, v, gamma);
+    excavator_quaternion_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, gamma + 80);
+}
+
+/* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_bucket_toggle(double t, double *inputs) {
+    excavator_quaternion_compute_inputs_bucket_toggle(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
+static void phi_jac_bucket_near_toggle(const double *q, const double *u, double *phi, double *jac) {
+    excavator_quaternion_compute_joints_phi(q, phi);
+    excavator_quaternion_compute_drivers_phi_bucket_near_toggle(q, u, phi + 80);
+    excavator_quaternion_compute_joints_jac_part0(q, jac);
+    excavator_quaternion_compute_joints_jac_part1(q, jac);
+    excavator_quaternion_compute_joints_jac_part2(q, jac);
+    excavator_quaternion_compute_drivers_jac_bucket_near_toggle(q, u, jac + 403);
+}
+
+/* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
+static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_quaternion_compute_drivers_nu_bucket_near_toggle(q, u, ud, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
+static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    excavator_quaternion_compute_joints_gamma_part0(q, v, gamma);
+    excavator_quaternion_compute_joints_gamma_part1(q, v, gamma);
+    excavator_quaternion_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, gamma + 80);
+}
+
+/* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_bucket_near_toggle(double t, double *inputs) {
+    excavator_quaternion_compute_inputs_bucket_near_toggle(t, inputs);
+}
+
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
 void excavator_quaternion_frames(const double *q, const double *v, const double *a, double *frames) {
-    compute_frames_part0(q, v, a, frames);
-    compute_frames_part1(q, v, a, frames);
+    excavator_quaternion_compute_frames_part0(q, v, a, frames);
+    excavator_quaternion_compute_frames_part1(q, v, a, frames);
 }
 
 static const char *const body_names[] = {"upper", "boom", "boom_cyl_l_barrel", "boom_cyl_l_rod", "boom_cyl_r_barrel", "boom_cyl_r_rod", "arm", "arm_cyl_barrel", "arm_cyl_rod", "bucket_cyl_barrel", "bucket_cyl_rod", "side_link", "bucket_link", "bucket"};
@@ -4074,3 +4121,5 @@ const kinegen_model excavator_quaternion_bucket_near_toggle = {
 };
 
 const kinegen_model *const excavator_quaternion_cases[EXCAVATOR_QUATERNION_N_CASES] = {&excavator_quaternion_digging, &excavator_quaternion_level_cut, &excavator_quaternion_trench_wall, &excavator_quaternion_bucket_toggle, &excavator_quaternion_bucket_near_toggle};
+
+#endif

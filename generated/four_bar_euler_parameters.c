@@ -15,21 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
-static void retract_body(double *q, const double *step) {
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] += step[3];
-    q[4] += step[4];
-    q[5] += step[5];
-    q[6] += step[6];
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < FOUR_BAR_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
-}
-
 /* Phi of the 20 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double crank_x = q[0];
@@ -53,43 +38,43 @@ static void compute_joints_phi(const double *q, double *out) {
     const double rocker_e1 = q[18];
     const double rocker_e2 = q[19];
     const double rocker_e3 = q[20];
-    const double crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1);
     const double crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2;
     const double crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3;
     const double crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3;
-    const double coupler_a00 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e1*coupler_e1) - 1.0;
+    const double coupler_a00 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e1*coupler_e1);
     const double coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2;
     const double coupler_a10 = 2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2;
-    const double coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2);
     const double coupler_a20 = -2.0*coupler_e0*coupler_e2 + 2.0*coupler_e1*coupler_e3;
     const double coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3;
-    const double rocker_a00 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e1*rocker_e1) - 1.0;
+    const double rocker_a00 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e1*rocker_e1);
     const double rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a10 = 2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2;
     const double rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
     const double rocker_a20 = -2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
-    const double rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3);
     out[0] = -crank_x;
     out[1] = -crank_y;
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = (3.0/10.0)*crank_a00 + crank_x - coupler_x;
-    out[6] = (3.0/10.0)*crank_a10 + crank_y - coupler_y;
-    out[7] = (3.0/10.0)*crank_a20 + crank_z - coupler_z;
-    out[8] = (9.0/10.0)*coupler_a00 + coupler_x - 7.0/10.0*rocker_a00 - rocker_x;
-    out[9] = (9.0/10.0)*coupler_a10 + coupler_y - 7.0/10.0*rocker_a10 - rocker_y;
-    out[10] = (9.0/10.0)*coupler_a20 + coupler_z - 7.0/10.0*rocker_a20 - rocker_z;
+    out[5] = crank_x - coupler_x + (3.0/10.0)*crank_a00;
+    out[6] = crank_y - coupler_y + (3.0/10.0)*crank_a10;
+    out[7] = crank_z - coupler_z + (3.0/10.0)*crank_a20;
+    out[8] = coupler_x - rocker_x - 7.0/10.0*rocker_a00 + (9.0/10.0)*coupler_a00;
+    out[9] = coupler_y - rocker_y - 7.0/10.0*rocker_a10 + (9.0/10.0)*coupler_a10;
+    out[10] = coupler_z - rocker_z - 7.0/10.0*rocker_a20 + (9.0/10.0)*coupler_a20;
     out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22;
     out[12] = 1.0 - rocker_x;
     out[13] = -rocker_y;
     out[14] = -rocker_z;
     out[15] = rocker_a20;
     out[16] = rocker_a21;
-    out[17] = (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0;
-    out[18] = (coupler_e0*coupler_e0) + (coupler_e1*coupler_e1) + (coupler_e2*coupler_e2) + (coupler_e3*coupler_e3) - 1.0;
-    out[19] = (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3) - 1.0;
+    out[17] = -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3);
+    out[18] = -1.0 + (coupler_e0*coupler_e0) + (coupler_e1*coupler_e1) + (coupler_e2*coupler_e2) + (coupler_e3*coupler_e3);
+    out[19] = -1.0 + (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3);
 }
 
 /* Phi of the driver rows of case 'crank_turn'. */
@@ -98,7 +83,7 @@ static void compute_drivers_phi_crank_turn(const double *q, const double *u, dou
     const double crank_e3 = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*crank_e0*sin(c0) - 2.0*crank_e3*cos(c0);
+    out[0] = -2.0*crank_e3*cos(c0) + 2.0*crank_e0*sin(c0);
 }
 
 /* Phi_q values of the joint rows (84 entries). */
@@ -116,11 +101,11 @@ static void compute_joints_jac(const double *q, double *out) {
     const double rocker_e2 = q[19];
     const double rocker_e3 = q[20];
     const double coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2;
-    const double coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2);
     const double coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3;
     const double rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
-    const double rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3);
     const double d0 = 2.0*crank_e2;
     const double d1 = 2.0*crank_e3;
     const double d2 = 2.0*crank_e0;
@@ -200,14 +185,14 @@ static void compute_joints_jac(const double *q, double *out) {
     out[50] = d12;
     out[51] = d15;
     out[52] = d14;
-    out[53] = coupler_e0*d16 + coupler_e1*d17 - coupler_e3*d18;
-    out[54] = coupler_e0*d17 + coupler_e2*d18;
-    out[55] = coupler_e1*d18 + coupler_e2*d16 + coupler_e3*d17;
-    out[56] = -coupler_e0*d18 + 2.0*coupler_e2*rocker_a22;
-    out[57] = rocker_e0*d21 - rocker_e1*d20 + rocker_e2*d19;
-    out[58] = -rocker_e0*d20 + rocker_e3*d19;
-    out[59] = rocker_e0*d19 + rocker_e3*d20;
-    out[60] = rocker_e1*d19 + rocker_e2*d20 + rocker_e3*d21;
+    out[53] = d16*coupler_e0 + d17*coupler_e1 - d18*coupler_e3;
+    out[54] = d18*coupler_e2 + d17*coupler_e0;
+    out[55] = d18*coupler_e1 + d16*coupler_e2 + d17*coupler_e3;
+    out[56] = -d18*coupler_e0 + 2.0*coupler_e2*rocker_a22;
+    out[57] = d19*rocker_e2 + d21*rocker_e0 - d20*rocker_e1;
+    out[58] = d19*rocker_e3 - d20*rocker_e0;
+    out[59] = d19*rocker_e0 + d20*rocker_e3;
+    out[60] = d19*rocker_e1 + d20*rocker_e2 + d21*rocker_e3;
     out[61] = -1.0;
     out[62] = -1.0;
     out[63] = -1.0;
@@ -242,14 +227,6 @@ static void compute_drivers_jac_crank_turn(const double *q, const double *u, dou
     out[1] = -2.0*cos(d0);
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'crank_turn'. */
-static void phi_jac_crank_turn(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_crank_turn(q, u, phi + 20);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_crank_turn(q, u, jac + 84);
-}
-
 /* nu of the driver rows of case 'crank_turn'. */
 static void compute_drivers_nu_crank_turn(const double *q, const double *u, const double *ud, double *out) {
     const double crank_e0 = q[3];
@@ -258,12 +235,6 @@ static void compute_drivers_nu_crank_turn(const double *q, const double *u, cons
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0));
-}
-
-/* nu = -Phi_t of case 'crank_turn' (zero in the joint rows). */
-static void nu_crank_turn(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 20; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_crank_turn(q, u, ud, nu + 20);
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -289,11 +260,11 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_rocker_e2 = v[19];
     const double v_rocker_e3 = v[20];
     const double coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2;
-    const double coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2);
     const double coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3;
     const double rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
-    const double rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3);
     const double c0 = 4.0*v_crank_e2;
     const double c1 = 4.0*v_crank_e1;
     const double c2 = (6.0/5.0)*v_crank_e3;
@@ -319,11 +290,11 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0;
     out[5] = -6.0/5.0*(v_crank_e0*v_crank_e0) - 6.0/5.0*(v_crank_e1*v_crank_e1);
     out[6] = -c2*v_crank_e0 - c3*v_crank_e1;
-    out[7] = -c2*v_crank_e1 + c3*v_crank_e0;
+    out[7] = c3*v_crank_e0 - c2*v_crank_e1;
     out[8] = -18.0/5.0*(v_coupler_e0*v_coupler_e0) - 18.0/5.0*(v_coupler_e1*v_coupler_e1) + (14.0/5.0)*(v_rocker_e0*v_rocker_e0) + (14.0/5.0)*(v_rocker_e1*v_rocker_e1);
     out[9] = -c4*v_coupler_e0 - c5*v_coupler_e1 + (14.0/5.0)*v_rocker_e0*v_rocker_e3 + (14.0/5.0)*v_rocker_e1*v_rocker_e2;
-    out[10] = -c4*v_coupler_e1 + c5*v_coupler_e0 - 14.0/5.0*v_rocker_e0*v_rocker_e2 + (14.0/5.0)*v_rocker_e1*v_rocker_e3;
-    out[11] = -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2.0*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2.0*(2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3);
+    out[10] = c5*v_coupler_e0 - c4*v_coupler_e1 - 14.0/5.0*v_rocker_e0*v_rocker_e2 + (14.0/5.0)*v_rocker_e1*v_rocker_e3;
+    out[11] = -v_coupler_e0*(c7*v_coupler_e1 + c10*v_coupler_e0 - c6*v_coupler_e3) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(-c6*v_coupler_e0 + 2.0*rocker_a22*v_coupler_e2) - v_rocker_e0*(c8*v_rocker_e2 + c11*v_rocker_e0 - c9*v_rocker_e1) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(-c12*v_rocker_e1 - c13*v_rocker_e0 + 2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(c14*v_coupler_e1 + c15*coupler_e1 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2) - 2.0*(c12*v_rocker_e2 + c13*v_rocker_e3 + 2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1)*(-c14*v_coupler_e3 - c15*coupler_e3 + 2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1);
     out[12] = 0.0;
     out[13] = 0.0;
     out[14] = 0.0;
@@ -346,27 +317,16 @@ static void compute_drivers_gamma_crank_turn(const double *q, const double *v, c
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    out[0] = -(ud0*ud0)*(-1.0/2.0*crank_e0*c2 + (1.0/2.0)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'. */
-static void gamma_crank_turn(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_crank_turn(q, v, u, ud, udd, gamma + 20);
+    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1.0/2.0)*c1*crank_e3 - 1.0/2.0*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3);
 }
 
 /* Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_crank_turn(double t, double *out) {
     const double c0 = 6.283185307179586*t;
     const double c1 = sin(c0);
-    out[0] = c0 + (3.0/10.0)*c1 + 1.0/2.0;
-    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586;
+    out[0] = 1.0/2.0 + c0 + (3.0/10.0)*c1;
+    out[1] = 6.283185307179586 + 1.8849555921538759*cos(c0);
     out[2] = -11.84352528130723*c1;
-}
-
-/* Driver inputs of case 'crank_turn' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_crank_turn(double t, double *inputs) {
-    compute_inputs_crank_turn(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -434,33 +394,33 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_rocker_e1 = a[18];
     const double dv_rocker_e2 = a[19];
     const double dv_rocker_e3 = a[20];
-    const double crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1);
     const double crank_a01 = -2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2;
     const double crank_a02 = 2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3;
     const double crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2;
-    const double crank_a11 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e2*crank_e2) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e2*crank_e2);
     const double crank_a12 = -2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3;
     const double crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3;
     const double crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3;
-    const double crank_a22 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e3*crank_e3) - 1.0;
-    const double coupler_a00 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e1*coupler_e1) - 1.0;
+    const double crank_a22 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e3*crank_e3);
+    const double coupler_a00 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e1*coupler_e1);
     const double coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2;
     const double coupler_a02 = 2.0*coupler_e0*coupler_e2 + 2.0*coupler_e1*coupler_e3;
     const double coupler_a10 = 2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2;
-    const double coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2);
     const double coupler_a12 = -2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3;
     const double coupler_a20 = -2.0*coupler_e0*coupler_e2 + 2.0*coupler_e1*coupler_e3;
     const double coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3;
-    const double coupler_a22 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e3*coupler_e3) - 1.0;
-    const double rocker_a00 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e1*rocker_e1) - 1.0;
+    const double coupler_a22 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e3*coupler_e3);
+    const double rocker_a00 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e1*rocker_e1);
     const double rocker_a01 = -2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2;
     const double rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a10 = 2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2;
-    const double rocker_a11 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2);
     const double rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
     const double rocker_a20 = -2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
-    const double rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3);
     const double c0 = 2.0*v_crank_e1;
     const double c1 = 2.0*crank_e1;
     const double c2 = 2.0*crank_e2;
@@ -494,15 +454,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[12] = v_crank_x;
     out[13] = v_crank_y;
     out[14] = v_crank_z;
-    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3;
-    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0;
-    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0;
+    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3;
+    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0;
+    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0;
     out[18] = dv_crank_x;
     out[19] = dv_crank_y;
     out[20] = dv_crank_z;
-    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2;
-    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1;
-    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0;
+    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2;
+    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0;
+    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0;
     out[24] = coupler_x;
     out[25] = coupler_y;
     out[26] = coupler_z;
@@ -518,15 +478,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[36] = v_coupler_x;
     out[37] = v_coupler_y;
     out[38] = v_coupler_z;
-    out[39] = coupler_e0*c6 - coupler_e3*c9 - c7*v_coupler_e0 + c8*v_coupler_e3;
-    out[40] = coupler_e0*c9 + coupler_e3*c6 - c7*v_coupler_e3 - c8*v_coupler_e0;
-    out[41] = -coupler_e2*c6 + c7*v_coupler_e2 + c10*v_coupler_e3 - c11*v_coupler_e0;
+    out[39] = c6*coupler_e0 + c8*v_coupler_e3 - c7*v_coupler_e0 - c9*coupler_e3;
+    out[40] = c6*coupler_e3 + c9*coupler_e0 - c7*v_coupler_e3 - c8*v_coupler_e0;
+    out[41] = c7*v_coupler_e2 + c10*v_coupler_e3 - c6*coupler_e2 - c11*v_coupler_e0;
     out[42] = dv_coupler_x;
     out[43] = dv_coupler_y;
     out[44] = dv_coupler_z;
-    out[45] = -c7*dv_coupler_e0 + c8*dv_coupler_e3 + c10*dv_coupler_e1 - c11*dv_coupler_e2;
-    out[46] = -c7*dv_coupler_e3 - c8*dv_coupler_e0 + c10*dv_coupler_e2 + c11*dv_coupler_e1;
-    out[47] = c7*dv_coupler_e2 - c8*dv_coupler_e1 + c10*dv_coupler_e3 - c11*dv_coupler_e0;
+    out[45] = c8*dv_coupler_e3 + c10*dv_coupler_e1 - c7*dv_coupler_e0 - c11*dv_coupler_e2;
+    out[46] = c10*dv_coupler_e2 + c11*dv_coupler_e1 - c7*dv_coupler_e3 - c8*dv_coupler_e0;
+    out[47] = c7*dv_coupler_e2 + c10*dv_coupler_e3 - c8*dv_coupler_e1 - c11*dv_coupler_e0;
     out[48] = rocker_x;
     out[49] = rocker_y;
     out[50] = rocker_z;
@@ -542,15 +502,55 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[60] = v_rocker_x;
     out[61] = v_rocker_y;
     out[62] = v_rocker_z;
-    out[63] = rocker_e0*c12 - rocker_e3*c15 - c13*v_rocker_e0 + c14*v_rocker_e3;
-    out[64] = rocker_e0*c15 + rocker_e3*c12 - c13*v_rocker_e3 - c14*v_rocker_e0;
-    out[65] = -rocker_e2*c12 + c13*v_rocker_e2 + c16*v_rocker_e3 - c17*v_rocker_e0;
+    out[63] = c12*rocker_e0 + c14*v_rocker_e3 - c13*v_rocker_e0 - c15*rocker_e3;
+    out[64] = c12*rocker_e3 + c15*rocker_e0 - c13*v_rocker_e3 - c14*v_rocker_e0;
+    out[65] = c13*v_rocker_e2 + c16*v_rocker_e3 - c12*rocker_e2 - c17*v_rocker_e0;
     out[66] = dv_rocker_x;
     out[67] = dv_rocker_y;
     out[68] = dv_rocker_z;
-    out[69] = -c13*dv_rocker_e0 + c14*dv_rocker_e3 + c16*dv_rocker_e1 - c17*dv_rocker_e2;
-    out[70] = -c13*dv_rocker_e3 - c14*dv_rocker_e0 + c16*dv_rocker_e2 + c17*dv_rocker_e1;
-    out[71] = c13*dv_rocker_e2 - c14*dv_rocker_e1 + c16*dv_rocker_e3 - c17*dv_rocker_e0;
+    out[69] = c14*dv_rocker_e3 + c16*dv_rocker_e1 - c13*dv_rocker_e0 - c17*dv_rocker_e2;
+    out[70] = c16*dv_rocker_e2 + c17*dv_rocker_e1 - c13*dv_rocker_e3 - c14*dv_rocker_e0;
+    out[71] = c13*dv_rocker_e2 + c16*dv_rocker_e3 - c14*dv_rocker_e1 - c17*dv_rocker_e0;
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
+static void retract_body(double *q, const double *step) {
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] += step[3];
+    q[4] += step[4];
+    q[5] += step[5];
+    q[6] += step[6];
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < FOUR_BAR_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'crank_turn'. */
+static void phi_jac_crank_turn(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_crank_turn(q, u, phi + 20);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_crank_turn(q, u, jac + 84);
+}
+
+/* nu = -Phi_t of case 'crank_turn' (zero in the joint rows). */
+static void nu_crank_turn(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 20; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_crank_turn(q, u, ud, nu + 20);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'. */
+static void gamma_crank_turn(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_crank_turn(q, v, u, ud, udd, gamma + 20);
+}
+
+/* Driver inputs of case 'crank_turn' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_crank_turn(double t, double *inputs) {
+    compute_inputs_crank_turn(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

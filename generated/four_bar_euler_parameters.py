@@ -64,44 +64,44 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 20 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    coupler_a00 = 2*coupler_e0**2 + 2*coupler_e1**2 - 1
+    coupler_a00 = -1 + 2*coupler_e0**2 + 2*coupler_e1**2
     coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
     coupler_a10 = 2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
-    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
+    coupler_a11 = -1 + 2*coupler_e0**2 + 2*coupler_e2**2
     coupler_a20 = -2*coupler_e0*coupler_e2 + 2*coupler_e1*coupler_e3
     coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
-    rocker_a00 = 2*rocker_e0**2 + 2*rocker_e1**2 - 1
+    rocker_a00 = -1 + 2*rocker_e0**2 + 2*rocker_e1**2
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a10 = 2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     out = _zeros(20, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = (3/10)*crank_a00 + crank_x - coupler_x
-    out[6] = (3/10)*crank_a10 + crank_y - coupler_y
-    out[7] = (3/10)*crank_a20 + crank_z - coupler_z
-    out[8] = (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x
-    out[9] = (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y
-    out[10] = (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z
+    out[5] = crank_x - coupler_x + (3/10)*crank_a00
+    out[6] = crank_y - coupler_y + (3/10)*crank_a10
+    out[7] = crank_z - coupler_z + (3/10)*crank_a20
+    out[8] = coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00
+    out[9] = coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10
+    out[10] = coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20
     out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22
     out[12] = 1 - rocker_x
     out[13] = -rocker_y
     out[14] = -rocker_z
     out[15] = rocker_a20
     out[16] = rocker_a21
-    out[17] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
-    out[18] = coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2 - 1
-    out[19] = rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1
+    out[17] = -1 + crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2
+    out[18] = -1 + coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2
+    out[19] = -1 + rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2
     return out
 
 
@@ -109,11 +109,11 @@ def _joints_jac(q):
     """Phi_q values of the joint rows (84 entries)."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
-    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
+    coupler_a11 = -1 + 2*coupler_e0**2 + 2*coupler_e2**2
     coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     d0 = 2*crank_e2
     d1 = 2*crank_e3
     d2 = 2*crank_e0
@@ -194,14 +194,14 @@ def _joints_jac(q):
     out[50] = d12
     out[51] = d15
     out[52] = d14
-    out[53] = coupler_e0*d16 + coupler_e1*d17 - coupler_e3*d18
-    out[54] = coupler_e0*d17 + coupler_e2*d18
-    out[55] = coupler_e1*d18 + coupler_e2*d16 + coupler_e3*d17
-    out[56] = -coupler_e0*d18 + 2*coupler_e2*rocker_a22
-    out[57] = rocker_e0*d21 - rocker_e1*d20 + rocker_e2*d19
-    out[58] = -rocker_e0*d20 + rocker_e3*d19
-    out[59] = rocker_e0*d19 + rocker_e3*d20
-    out[60] = rocker_e1*d19 + rocker_e2*d20 + rocker_e3*d21
+    out[53] = d16*coupler_e0 + d17*coupler_e1 - d18*coupler_e3
+    out[54] = d18*coupler_e2 + d17*coupler_e0
+    out[55] = d18*coupler_e1 + d16*coupler_e2 + d17*coupler_e3
+    out[56] = -d18*coupler_e0 + 2*coupler_e2*rocker_a22
+    out[57] = d19*rocker_e2 + d21*rocker_e0 - d20*rocker_e1
+    out[58] = d19*rocker_e3 - d20*rocker_e0
+    out[59] = d19*rocker_e0 + d20*rocker_e3
+    out[60] = d19*rocker_e1 + d20*rocker_e2 + d21*rocker_e3
     out[61] = -1
     out[62] = -1
     out[63] = -1
@@ -233,11 +233,11 @@ def _joints_gamma(q, v):
     _, _, _, _, _, _, _, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, _, _, _, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
     coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
-    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
+    coupler_a11 = -1 + 2*coupler_e0**2 + 2*coupler_e2**2
     coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
     c2 = (6/5)*v_crank_e3
@@ -261,11 +261,11 @@ def _joints_gamma(q, v):
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[5] = -6/5*v_crank_e0**2 - 6/5*v_crank_e1**2
     out[6] = -c2*v_crank_e0 - c3*v_crank_e1
-    out[7] = -c2*v_crank_e1 + c3*v_crank_e0
+    out[7] = c3*v_crank_e0 - c2*v_crank_e1
     out[8] = -18/5*v_coupler_e0**2 - 18/5*v_coupler_e1**2 + (14/5)*v_rocker_e0**2 + (14/5)*v_rocker_e1**2
     out[9] = -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2
-    out[10] = -c4*v_coupler_e1 + c5*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3
-    out[11] = -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2*(4*rocker_e0*v_rocker_e0 + 4*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2*(2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3)
+    out[10] = c5*v_coupler_e0 - c4*v_coupler_e1 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3
+    out[11] = -v_coupler_e0*(c7*v_coupler_e1 + c10*v_coupler_e0 - c6*v_coupler_e3) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(-c6*v_coupler_e0 + 2*rocker_a22*v_coupler_e2) - v_rocker_e0*(c8*v_rocker_e2 + c11*v_rocker_e0 - c9*v_rocker_e1) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(-c12*v_rocker_e1 - c13*v_rocker_e0 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2) - 2*(4*rocker_e0*v_rocker_e0 + 4*rocker_e3*v_rocker_e3)*(c14*v_coupler_e1 + c15*coupler_e1 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2) - 2*(c12*v_rocker_e2 + c13*v_rocker_e3 + 2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1)*(-c14*v_coupler_e3 - c15*coupler_e3 + 2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1)
     out[15] = c16*v_rocker_e0 - c17*v_rocker_e3
     out[16] = -c16*v_rocker_e3 - c17*v_rocker_e0
     out[17] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
@@ -277,23 +277,23 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1)
     crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
     crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
     crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3
-    coupler_a00 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e1*coupler_e1) - 1.0
+    coupler_a00 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e1*coupler_e1)
     coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2
     coupler_a10 = 2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2
-    coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0
+    coupler_a11 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2)
     coupler_a20 = -2.0*coupler_e0*coupler_e2 + 2.0*coupler_e1*coupler_e3
     coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3
-    rocker_a00 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e1*rocker_e1) - 1.0
+    rocker_a00 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e1*rocker_e1)
     rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
     rocker_a10 = 2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2
     rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
     rocker_a20 = -2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
     rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
-    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3)
     d0 = 2.0*crank_e2
     d1 = 2.0*crank_e3
     d2 = 2.0*crank_e0
@@ -320,7 +320,7 @@ def _joints_phi_jac_s(q):
     d23 = 2.0*rocker_e3
     d24 = 2.0*rocker_e0
     d25 = 2.0*rocker_e1
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21, (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0, (coupler_e0*coupler_e0) + (coupler_e1*coupler_e1) + (coupler_e2*coupler_e2) + (coupler_e3*coupler_e3) - 1.0, (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3) - 1.0], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (6/5)*crank_e0, (6/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (18/5)*coupler_e0, (18/5)*coupler_e1, -1.0, -14/5*rocker_e0, -14/5*rocker_e1, 1.0, d8, d9, d10, d11, -1.0, d12, -d13, d14, -d15, 1.0, -d9, d8, -d11, d10, -1.0, d13, d12, d15, d14, coupler_e0*d16 + coupler_e1*d17 - coupler_e3*d18, coupler_e0*d17 + coupler_e2*d18, coupler_e1*d18 + coupler_e2*d16 + coupler_e3*d17, -coupler_e0*d18 + 2.0*coupler_e2*rocker_a22, rocker_e0*d21 - rocker_e1*d20 + rocker_e2*d19, -rocker_e0*d20 + rocker_e3*d19, rocker_e0*d19 + rocker_e3*d20, rocker_e1*d19 + rocker_e2*d20 + rocker_e3*d21, -1.0, -1.0, -1.0, -d22, d23, -d24, d25, d25, d24, d23, d22, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*coupler_e0, 2.0*coupler_e1, 2.0*coupler_e2, 2.0*coupler_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - coupler_x + (3/10)*crank_a00, crank_y - coupler_y + (3/10)*crank_a10, crank_z - coupler_z + (3/10)*crank_a20, coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00, coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10, coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21, -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3), -1.0 + (coupler_e0*coupler_e0) + (coupler_e1*coupler_e1) + (coupler_e2*coupler_e2) + (coupler_e3*coupler_e3), -1.0 + (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (6/5)*crank_e0, (6/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (18/5)*coupler_e0, (18/5)*coupler_e1, -1.0, -14/5*rocker_e0, -14/5*rocker_e1, 1.0, d8, d9, d10, d11, -1.0, d12, -d13, d14, -d15, 1.0, -d9, d8, -d11, d10, -1.0, d13, d12, d15, d14, d16*coupler_e0 + d17*coupler_e1 - d18*coupler_e3, d18*coupler_e2 + d17*coupler_e0, d18*coupler_e1 + d16*coupler_e2 + d17*coupler_e3, -d18*coupler_e0 + 2.0*coupler_e2*rocker_a22, d19*rocker_e2 + d21*rocker_e0 - d20*rocker_e1, d19*rocker_e3 - d20*rocker_e0, d19*rocker_e0 + d20*rocker_e3, d19*rocker_e1 + d20*rocker_e2 + d21*rocker_e3, -1.0, -1.0, -1.0, -d22, d23, -d24, d25, d25, d24, d23, d22, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*coupler_e0, 2.0*coupler_e1, 2.0*coupler_e2, 2.0*coupler_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
 
 
 def _joints_gamma_s(q, v):
@@ -328,11 +328,11 @@ def _joints_gamma_s(q, v):
     _, _, _, _, _, _, _, _, _, _, coupler_e0, coupler_e1, coupler_e2, coupler_e3, _, _, _, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, _, _, _, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
     coupler_a01 = -2.0*coupler_e0*coupler_e3 + 2.0*coupler_e1*coupler_e2
-    coupler_a11 = 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2) - 1.0
+    coupler_a11 = -1.0 + 2.0*(coupler_e0*coupler_e0) + 2.0*(coupler_e2*coupler_e2)
     coupler_a21 = 2.0*coupler_e0*coupler_e1 + 2.0*coupler_e2*coupler_e3
     rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
     rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
-    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3)
     c0 = 4.0*v_crank_e2
     c1 = 4.0*v_crank_e1
     c2 = (6/5)*v_crank_e3
@@ -351,7 +351,7 @@ def _joints_gamma_s(q, v):
     c15 = 2.0*v_coupler_e0
     c16 = 4.0*v_rocker_e2
     c17 = 4.0*v_rocker_e1
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*(v_crank_e0*v_crank_e0) - 6/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -18/5*(v_coupler_e0*v_coupler_e0) - 18/5*(v_coupler_e1*v_coupler_e1) + (14/5)*(v_rocker_e0*v_rocker_e0) + (14/5)*(v_rocker_e1*v_rocker_e1), -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, -c4*v_coupler_e1 + c5*v_coupler_e0 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(-c6*v_coupler_e3 + c7*v_coupler_e1 + c10*v_coupler_e0) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(2.0*rocker_a22*v_coupler_e2 - c6*v_coupler_e0) - v_rocker_e0*(c8*v_rocker_e2 - c9*v_rocker_e1 + c11*v_rocker_e0) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 - c12*v_rocker_e1 - c13*v_rocker_e0) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(coupler_e1*c15 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2 + c14*v_coupler_e1) - 2.0*(2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1 - coupler_e3*c15 - c14*v_coupler_e3)*(2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1 + c12*v_rocker_e2 + c13*v_rocker_e3), 0.0, 0.0, 0.0, c16*v_rocker_e0 - c17*v_rocker_e3, -c16*v_rocker_e3 - c17*v_rocker_e0, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_coupler_e0*v_coupler_e0) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e3*v_coupler_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*(v_crank_e0*v_crank_e0) - 6/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, c3*v_crank_e0 - c2*v_crank_e1, -18/5*(v_coupler_e0*v_coupler_e0) - 18/5*(v_coupler_e1*v_coupler_e1) + (14/5)*(v_rocker_e0*v_rocker_e0) + (14/5)*(v_rocker_e1*v_rocker_e1), -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, c5*v_coupler_e0 - c4*v_coupler_e1 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(c7*v_coupler_e1 + c10*v_coupler_e0 - c6*v_coupler_e3) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(-c6*v_coupler_e0 + 2.0*rocker_a22*v_coupler_e2) - v_rocker_e0*(c8*v_rocker_e2 + c11*v_rocker_e0 - c9*v_rocker_e1) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(-c12*v_rocker_e1 - c13*v_rocker_e0 + 2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(c14*v_coupler_e1 + c15*coupler_e1 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2) - 2.0*(c12*v_rocker_e2 + c13*v_rocker_e3 + 2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1)*(-c14*v_coupler_e3 - c15*coupler_e3 + 2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1), 0.0, 0.0, 0.0, c16*v_rocker_e0 - c17*v_rocker_e3, -c16*v_rocker_e3 - c17*v_rocker_e0, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_coupler_e0*v_coupler_e0) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e3*v_coupler_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
 
 
 def frames(q, v, a):
@@ -359,33 +359,33 @@ def frames(q, v, a):
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, coupler_x, coupler_y, coupler_z, coupler_e0, coupler_e1, coupler_e2, coupler_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_coupler_x, v_coupler_y, v_coupler_z, v_coupler_e0, v_coupler_e1, v_coupler_e2, v_coupler_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
     dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_e0, dv_crank_e1, dv_crank_e2, dv_crank_e3, dv_coupler_x, dv_coupler_y, dv_coupler_z, dv_coupler_e0, dv_coupler_e1, dv_coupler_e2, dv_coupler_e3, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_e0, dv_rocker_e1, dv_rocker_e2, dv_rocker_e3 = a
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a01 = -2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a02 = 2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a11 = 2*crank_e0**2 + 2*crank_e2**2 - 1
+    crank_a11 = -1 + 2*crank_e0**2 + 2*crank_e2**2
     crank_a12 = -2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    crank_a22 = 2*crank_e0**2 + 2*crank_e3**2 - 1
-    coupler_a00 = 2*coupler_e0**2 + 2*coupler_e1**2 - 1
+    crank_a22 = -1 + 2*crank_e0**2 + 2*crank_e3**2
+    coupler_a00 = -1 + 2*coupler_e0**2 + 2*coupler_e1**2
     coupler_a01 = -2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
     coupler_a02 = 2*coupler_e0*coupler_e2 + 2*coupler_e1*coupler_e3
     coupler_a10 = 2*coupler_e0*coupler_e3 + 2*coupler_e1*coupler_e2
-    coupler_a11 = 2*coupler_e0**2 + 2*coupler_e2**2 - 1
+    coupler_a11 = -1 + 2*coupler_e0**2 + 2*coupler_e2**2
     coupler_a12 = -2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
     coupler_a20 = -2*coupler_e0*coupler_e2 + 2*coupler_e1*coupler_e3
     coupler_a21 = 2*coupler_e0*coupler_e1 + 2*coupler_e2*coupler_e3
-    coupler_a22 = 2*coupler_e0**2 + 2*coupler_e3**2 - 1
-    rocker_a00 = 2*rocker_e0**2 + 2*rocker_e1**2 - 1
+    coupler_a22 = -1 + 2*coupler_e0**2 + 2*coupler_e3**2
+    rocker_a00 = -1 + 2*rocker_e0**2 + 2*rocker_e1**2
     rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a10 = 2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
-    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a11 = -1 + 2*rocker_e0**2 + 2*rocker_e2**2
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     c0 = 2*v_crank_e1
     c1 = 2*crank_e1
     c2 = 2*crank_e2
@@ -420,15 +420,15 @@ def frames(q, v, a):
     out[12] = v_crank_x
     out[13] = v_crank_y
     out[14] = v_crank_z
-    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3
-    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0
-    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0
+    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3
+    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0
+    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0
     out[18] = dv_crank_x
     out[19] = dv_crank_y
     out[20] = dv_crank_z
-    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2
-    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1
-    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0
+    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2
+    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0
+    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0
     out[24] = coupler_x
     out[25] = coupler_y
     out[26] = coupler_z
@@ -444,15 +444,15 @@ def frames(q, v, a):
     out[36] = v_coupler_x
     out[37] = v_coupler_y
     out[38] = v_coupler_z
-    out[39] = coupler_e0*c6 - coupler_e3*c9 - c7*v_coupler_e0 + c8*v_coupler_e3
-    out[40] = coupler_e0*c9 + coupler_e3*c6 - c7*v_coupler_e3 - c8*v_coupler_e0
-    out[41] = -coupler_e2*c6 + c7*v_coupler_e2 + c10*v_coupler_e3 - c11*v_coupler_e0
+    out[39] = c6*coupler_e0 + c8*v_coupler_e3 - c7*v_coupler_e0 - c9*coupler_e3
+    out[40] = c6*coupler_e3 + c9*coupler_e0 - c7*v_coupler_e3 - c8*v_coupler_e0
+    out[41] = c7*v_coupler_e2 + c10*v_coupler_e3 - c6*coupler_e2 - c11*v_coupler_e0
     out[42] = dv_coupler_x
     out[43] = dv_coupler_y
     out[44] = dv_coupler_z
-    out[45] = -c7*dv_coupler_e0 + c8*dv_coupler_e3 + c10*dv_coupler_e1 - c11*dv_coupler_e2
-    out[46] = -c7*dv_coupler_e3 - c8*dv_coupler_e0 + c10*dv_coupler_e2 + c11*dv_coupler_e1
-    out[47] = c7*dv_coupler_e2 - c8*dv_coupler_e1 + c10*dv_coupler_e3 - c11*dv_coupler_e0
+    out[45] = c8*dv_coupler_e3 + c10*dv_coupler_e1 - c7*dv_coupler_e0 - c11*dv_coupler_e2
+    out[46] = c10*dv_coupler_e2 + c11*dv_coupler_e1 - c7*dv_coupler_e3 - c8*dv_coupler_e0
+    out[47] = c7*dv_coupler_e2 + c10*dv_coupler_e3 - c8*dv_coupler_e1 - c11*dv_coupler_e0
     out[48] = rocker_x
     out[49] = rocker_y
     out[50] = rocker_z
@@ -468,15 +468,15 @@ def frames(q, v, a):
     out[60] = v_rocker_x
     out[61] = v_rocker_y
     out[62] = v_rocker_z
-    out[63] = rocker_e0*c12 - rocker_e3*c15 - c13*v_rocker_e0 + c14*v_rocker_e3
-    out[64] = rocker_e0*c15 + rocker_e3*c12 - c13*v_rocker_e3 - c14*v_rocker_e0
-    out[65] = -rocker_e2*c12 + c13*v_rocker_e2 + c16*v_rocker_e3 - c17*v_rocker_e0
+    out[63] = c12*rocker_e0 + c14*v_rocker_e3 - c13*v_rocker_e0 - c15*rocker_e3
+    out[64] = c12*rocker_e3 + c15*rocker_e0 - c13*v_rocker_e3 - c14*v_rocker_e0
+    out[65] = c13*v_rocker_e2 + c16*v_rocker_e3 - c12*rocker_e2 - c17*v_rocker_e0
     out[66] = dv_rocker_x
     out[67] = dv_rocker_y
     out[68] = dv_rocker_z
-    out[69] = -c13*dv_rocker_e0 + c14*dv_rocker_e3 + c16*dv_rocker_e1 - c17*dv_rocker_e2
-    out[70] = -c13*dv_rocker_e3 - c14*dv_rocker_e0 + c16*dv_rocker_e2 + c17*dv_rocker_e1
-    out[71] = c13*dv_rocker_e2 - c14*dv_rocker_e1 + c16*dv_rocker_e3 - c17*dv_rocker_e0
+    out[69] = c14*dv_rocker_e3 + c16*dv_rocker_e1 - c13*dv_rocker_e0 - c17*dv_rocker_e2
+    out[70] = c16*dv_rocker_e2 + c17*dv_rocker_e1 - c13*dv_rocker_e3 - c14*dv_rocker_e0
+    out[71] = c13*dv_rocker_e2 + c16*dv_rocker_e3 - c14*dv_rocker_e1 - c17*dv_rocker_e0
     return out
 
 
@@ -485,8 +485,8 @@ def inputs_crank_turn(t):
     c0 = 6.283185307179586*t
     c1 = sin(c0)
     out = np.zeros((3,) + np.shape(t))
-    out[0] = c0 + (3/10)*c1 + 1/2
-    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
+    out[0] = 1/2 + c0 + (3/10)*c1
+    out[1] = 6.283185307179586 + 1.8849555921538759*cos(c0)
     out[2] = -11.84352528130723*c1
     return out
 
@@ -497,7 +497,7 @@ def _drivers_phi_crank_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*crank_e0*sin(c0) - 2*crank_e3*cos(c0)
+    out[0] = -2*crank_e3*cos(c0) + 2*crank_e0*sin(c0)
     return out
 
 
@@ -533,7 +533,7 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)
+    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3)
     return out
 
 
@@ -543,7 +543,7 @@ def _drivers_phi_jac_s_crank_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2.0*crank_e0*math.sin(c0) - 2.0*crank_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [-2.0*crank_e3*math.cos(c0) + 2.0*crank_e0*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_crank_turn(q, u, ud):
@@ -565,7 +565,7 @@ def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-(ud0*ud0)*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
+    return [-udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3)]
 
 
 def phi_crank_turn(q, u):

@@ -15,26 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
-static void retract_body(double *q, const double *step) {
-    double tx = step[3], ty = step[4], tz = step[5];
-    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
-    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
-    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
-    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] = pw * qw - px * qx - py * qy - pz * qz;
-    q[4] = pw * qx + px * qw + py * qz - pz * qy;
-    q[5] = pw * qy - px * qz + py * qw + pz * qx;
-    q[6] = pw * qz + px * qy - py * qx + pz * qw;
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < FOUR_BAR_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
-}
-
 /* Phi of the 17 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double crank_x = q[0];
@@ -58,34 +38,34 @@ static void compute_joints_phi(const double *q, double *out) {
     const double rocker_qx = q[18];
     const double rocker_qy = q[19];
     const double rocker_qz = q[20];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
-    const double coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0;
+    const double coupler_a00 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx);
     const double coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
     const double coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
-    const double coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy);
     const double coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz;
     const double coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz;
-    const double rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0;
+    const double rocker_a00 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx);
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
     out[0] = -crank_x;
     out[1] = -crank_y;
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = (3.0/10.0)*crank_a00 + crank_x - coupler_x;
-    out[6] = (3.0/10.0)*crank_a10 + crank_y - coupler_y;
-    out[7] = (3.0/10.0)*crank_a20 + crank_z - coupler_z;
-    out[8] = (9.0/10.0)*coupler_a00 + coupler_x - 7.0/10.0*rocker_a00 - rocker_x;
-    out[9] = (9.0/10.0)*coupler_a10 + coupler_y - 7.0/10.0*rocker_a10 - rocker_y;
-    out[10] = (9.0/10.0)*coupler_a20 + coupler_z - 7.0/10.0*rocker_a20 - rocker_z;
+    out[5] = crank_x - coupler_x + (3.0/10.0)*crank_a00;
+    out[6] = crank_y - coupler_y + (3.0/10.0)*crank_a10;
+    out[7] = crank_z - coupler_z + (3.0/10.0)*crank_a20;
+    out[8] = coupler_x - rocker_x - 7.0/10.0*rocker_a00 + (9.0/10.0)*coupler_a00;
+    out[9] = coupler_y - rocker_y - 7.0/10.0*rocker_a10 + (9.0/10.0)*coupler_a10;
+    out[10] = coupler_z - rocker_z - 7.0/10.0*rocker_a20 + (9.0/10.0)*coupler_a20;
     out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22;
     out[12] = 1.0 - rocker_x;
     out[13] = -rocker_y;
@@ -100,7 +80,7 @@ static void compute_drivers_phi_crank_turn(const double *q, const double *u, dou
     const double crank_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*crank_qw*sin(c0) - 2.0*crank_qz*cos(c0);
+    out[0] = -2.0*crank_qz*cos(c0) + 2.0*crank_qw*sin(c0);
 }
 
 /* Phi_q values of the joint rows (50 entries). */
@@ -117,25 +97,25 @@ static void compute_joints_jac(const double *q, double *out) {
     const double rocker_qx = q[18];
     const double rocker_qy = q[19];
     const double rocker_qz = q[20];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
-    const double coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0;
+    const double coupler_a00 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx);
     const double coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
     const double coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
-    const double coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy);
     const double coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz;
     const double coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz;
-    const double rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0;
+    const double rocker_a00 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx);
     const double rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
-    const double rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy);
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
     const double d0 = (3.0/10.0)*crank_a20;
     const double d1 = (3.0/10.0)*crank_a10;
     const double d2 = (3.0/10.0)*crank_a00;
@@ -210,17 +190,9 @@ static void compute_drivers_jac_crank_turn(const double *q, const double *u, dou
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
-    out[0] = -crank_qx*d1 - crank_qy*d2;
-    out[1] = crank_qx*d2 - crank_qy*d1;
-    out[2] = -crank_qw*d2 - crank_qz*d1;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'crank_turn'. */
-static void phi_jac_crank_turn(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_crank_turn(q, u, phi + 17);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_crank_turn(q, u, jac + 50);
+    out[0] = -d1*crank_qx - d2*crank_qy;
+    out[1] = d2*crank_qx - d1*crank_qy;
+    out[2] = -d1*crank_qz - d2*crank_qw;
 }
 
 /* nu of the driver rows of case 'crank_turn'. */
@@ -231,12 +203,6 @@ static void compute_drivers_nu_crank_turn(const double *q, const double *u, cons
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0));
-}
-
-/* nu = -Phi_t of case 'crank_turn' (zero in the joint rows). */
-static void nu_crank_turn(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 17; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_crank_turn(q, u, ud, nu + 17);
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -262,37 +228,37 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_rocker_theta_x = v[15];
     const double v_rocker_theta_y = v[16];
     const double v_rocker_theta_z = v[17];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
-    const double coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0;
+    const double coupler_a00 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx);
     const double coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
     const double coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
-    const double coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy);
     const double coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz;
     const double coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz;
-    const double rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0;
+    const double rocker_a00 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx);
     const double rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
-    const double rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy);
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
     const double c0 = -3.0/10.0*crank_a00*v_crank_theta_y + (3.0/10.0)*crank_a10*v_crank_theta_x;
     const double c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x;
-    const double c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y;
+    const double c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z;
     const double c3 = -9.0/10.0*coupler_a00*v_coupler_theta_y + (9.0/10.0)*coupler_a10*v_coupler_theta_x;
     const double c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x;
-    const double c5 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x;
+    const double c5 = rocker_a10*v_rocker_theta_x - rocker_a00*v_rocker_theta_y;
     const double c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x;
     const double c7 = (7.0/10.0)*v_rocker_theta_z;
-    const double c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y;
-    const double c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y;
+    const double c8 = coupler_a20*v_coupler_theta_y - coupler_a10*v_coupler_theta_z;
+    const double c9 = rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z;
     const double c10 = v_coupler_theta_y - v_rocker_theta_y;
     const double c11 = v_coupler_theta_x - v_rocker_theta_x;
     const double c12 = -c11;
@@ -302,20 +268,20 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y);
-    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y);
+    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x);
+    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x);
     out[5] = -c0*v_crank_theta_y + (3.0/10.0)*c1*v_crank_theta_z;
     out[6] = c0*v_crank_theta_x - 3.0/10.0*c2*v_crank_theta_z;
     out[7] = -3.0/10.0*c1*v_crank_theta_x + (3.0/10.0)*c2*v_crank_theta_y;
-    out[8] = -c3*v_coupler_theta_y + (9.0/10.0)*c4*v_coupler_theta_z + (7.0/10.0)*c5*v_rocker_theta_y - c6*c7;
-    out[9] = c3*v_coupler_theta_x - 7.0/10.0*c5*v_rocker_theta_x + c7*c9 - 9.0/10.0*c8*v_coupler_theta_z;
-    out[10] = -9.0/10.0*c4*v_coupler_theta_x + (7.0/10.0)*c6*v_rocker_theta_x + (9.0/10.0)*c8*v_coupler_theta_y - 7.0/10.0*c9*v_rocker_theta_y;
-    out[11] = -(coupler_a01*c13 + coupler_a21*c12)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (coupler_a01*c15 + coupler_a11*c11)*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) - (-coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x)*(rocker_a02*c10 + rocker_a12*c12) - (coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x)*(rocker_a02*c14 + rocker_a22*c11) - (coupler_a11*c14 + coupler_a21*c10)*(-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y) - (-coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y)*(rocker_a12*c13 + rocker_a22*c15);
+    out[8] = -c3*v_coupler_theta_y - c6*c7 + (7.0/10.0)*c5*v_rocker_theta_y + (9.0/10.0)*c4*v_coupler_theta_z;
+    out[9] = c3*v_coupler_theta_x + c7*c9 - 9.0/10.0*c8*v_coupler_theta_z - 7.0/10.0*c5*v_rocker_theta_x;
+    out[10] = -9.0/10.0*c4*v_coupler_theta_x - 7.0/10.0*c9*v_rocker_theta_y + (7.0/10.0)*c6*v_rocker_theta_x + (9.0/10.0)*c8*v_coupler_theta_y;
+    out[11] = -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_theta_y - coupler_a11*v_coupler_theta_z) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_theta_x - coupler_a01*v_coupler_theta_y);
     out[12] = 0.0;
     out[13] = 0.0;
     out[14] = 0.0;
-    out[15] = -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y);
-    out[16] = -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y);
+    out[15] = v_rocker_theta_y*(rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x);
+    out[16] = v_rocker_theta_y*(rocker_a21*v_rocker_theta_y - rocker_a11*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x);
 }
 
 /* gamma of the driver rows of case 'crank_turn'. */
@@ -334,33 +300,22 @@ static void compute_drivers_gamma_crank_turn(const double *q, const double *v, c
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*crank_qw;
-    const double c4 = -1.0/2.0*crank_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*crank_qz;
     const double c5 = (1.0/2.0)*v_crank_theta_y;
     const double c6 = (1.0/2.0)*v_crank_theta_x;
     const double c7 = (1.0/2.0)*crank_qz;
     const double c8 = (1.0/2.0)*v_crank_theta_z;
     const double c9 = (1.0/2.0)*c1;
-    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1.0/2.0)*crank_qy*c2) + v_crank_theta_y*(-1.0/2.0*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'. */
-static void gamma_crank_turn(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_crank_turn(q, v, u, ud, udd, gamma + 17);
+    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1.0/2.0)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1.0/2.0*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx);
 }
 
 /* Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_crank_turn(double t, double *out) {
     const double c0 = 6.283185307179586*t;
     const double c1 = sin(c0);
-    out[0] = c0 + (3.0/10.0)*c1 + 1.0/2.0;
-    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586;
+    out[0] = 1.0/2.0 + c0 + (3.0/10.0)*c1;
+    out[1] = 6.283185307179586 + 1.8849555921538759*cos(c0);
     out[2] = -11.84352528130723*c1;
-}
-
-/* Driver inputs of case 'crank_turn' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_crank_turn(double t, double *inputs) {
-    compute_inputs_crank_turn(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -422,33 +377,33 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_rocker_theta_x = a[15];
     const double dv_rocker_theta_y = a[16];
     const double dv_rocker_theta_z = a[17];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a02 = 2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a12 = -2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
-    const double crank_a22 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qz*crank_qz) - 1.0;
-    const double coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0;
+    const double crank_a22 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qz*crank_qz);
+    const double coupler_a00 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx);
     const double coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
     const double coupler_a02 = 2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz;
     const double coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy;
-    const double coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0;
+    const double coupler_a11 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy);
     const double coupler_a12 = -2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz;
     const double coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz;
     const double coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz;
-    const double coupler_a22 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qz*coupler_qz) - 1.0;
-    const double rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0;
+    const double coupler_a22 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qz*coupler_qz);
+    const double rocker_a00 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx);
     const double rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
-    const double rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy);
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
     out[0] = crank_x;
     out[1] = crank_y;
     out[2] = crank_z;
@@ -521,6 +476,51 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[69] = dv_rocker_theta_x;
     out[70] = dv_rocker_theta_y;
     out[71] = dv_rocker_theta_z;
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
+static void retract_body(double *q, const double *step) {
+    double tx = step[3], ty = step[4], tz = step[5];
+    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
+    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
+    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
+    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] = pw * qw - px * qx - py * qy - pz * qz;
+    q[4] = pw * qx + px * qw + py * qz - pz * qy;
+    q[5] = pw * qy - px * qz + py * qw + pz * qx;
+    q[6] = pw * qz + px * qy - py * qx + pz * qw;
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < FOUR_BAR_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'crank_turn'. */
+static void phi_jac_crank_turn(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_crank_turn(q, u, phi + 17);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_crank_turn(q, u, jac + 50);
+}
+
+/* nu = -Phi_t of case 'crank_turn' (zero in the joint rows). */
+static void nu_crank_turn(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 17; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_crank_turn(q, u, ud, nu + 17);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'crank_turn'. */
+static void gamma_crank_turn(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_crank_turn(q, v, u, ud, udd, gamma + 17);
+}
+
+/* Driver inputs of case 'crank_turn' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_crank_turn(double t, double *inputs) {
+    compute_inputs_crank_turn(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

@@ -64,35 +64,35 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 17 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
+    coupler_a00 = -1 + 2*coupler_qw**2 + 2*coupler_qx**2
     coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
     coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
+    coupler_a11 = -1 + 2*coupler_qw**2 + 2*coupler_qy**2
     coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
     coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
-    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    rocker_a00 = -1 + 2*rocker_qw**2 + 2*rocker_qx**2
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
     out = _zeros(17, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = (3/10)*crank_a00 + crank_x - coupler_x
-    out[6] = (3/10)*crank_a10 + crank_y - coupler_y
-    out[7] = (3/10)*crank_a20 + crank_z - coupler_z
-    out[8] = (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x
-    out[9] = (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y
-    out[10] = (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z
+    out[5] = crank_x - coupler_x + (3/10)*crank_a00
+    out[6] = crank_y - coupler_y + (3/10)*crank_a10
+    out[7] = crank_z - coupler_z + (3/10)*crank_a20
+    out[8] = coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00
+    out[9] = coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10
+    out[10] = coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20
     out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22
     out[12] = 1 - rocker_x
     out[13] = -rocker_y
@@ -105,25 +105,25 @@ def _joints_phi(q):
 def _joints_jac(q):
     """Phi_q values of the joint rows (50 entries)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
+    coupler_a00 = -1 + 2*coupler_qw**2 + 2*coupler_qx**2
     coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
     coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
+    coupler_a11 = -1 + 2*coupler_qw**2 + 2*coupler_qy**2
     coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
     coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
-    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    rocker_a00 = -1 + 2*rocker_qw**2 + 2*rocker_qx**2
     rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a11 = -1 + 2*rocker_qw**2 + 2*rocker_qy**2
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
     d0 = (3/10)*crank_a20
     d1 = (3/10)*crank_a10
     d2 = (3/10)*crank_a00
@@ -194,37 +194,37 @@ def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, _, _, _, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
+    coupler_a00 = -1 + 2*coupler_qw**2 + 2*coupler_qx**2
     coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
     coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
+    coupler_a11 = -1 + 2*coupler_qw**2 + 2*coupler_qy**2
     coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
     coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
-    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    rocker_a00 = -1 + 2*rocker_qw**2 + 2*rocker_qx**2
     rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a11 = -1 + 2*rocker_qw**2 + 2*rocker_qy**2
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
     c0 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
     c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
     c3 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
     c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
-    c5 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
+    c5 = rocker_a10*v_rocker_theta_x - rocker_a00*v_rocker_theta_y
     c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
     c7 = (7/10)*v_rocker_theta_z
-    c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
-    c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
+    c8 = coupler_a20*v_coupler_theta_y - coupler_a10*v_coupler_theta_z
+    c9 = rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z
     c10 = v_coupler_theta_y - v_rocker_theta_y
     c11 = v_coupler_theta_x - v_rocker_theta_x
     c12 = -c11
@@ -232,44 +232,44 @@ def _joints_gamma(q, v):
     c14 = -c13
     c15 = -c10
     out = _zeros(17, q, ())
-    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
-    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
+    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x)
+    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x)
     out[5] = -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z
     out[6] = c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z
     out[7] = -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y
-    out[8] = -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7
-    out[9] = c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z
-    out[10] = -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y
-    out[11] = -(coupler_a01*c13 + coupler_a21*c12)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (coupler_a01*c15 + coupler_a11*c11)*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) - (-coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x)*(rocker_a02*c10 + rocker_a12*c12) - (coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x)*(rocker_a02*c14 + rocker_a22*c11) - (coupler_a11*c14 + coupler_a21*c10)*(-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y) - (-coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y)*(rocker_a12*c13 + rocker_a22*c15)
-    out[15] = -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)
-    out[16] = -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)
+    out[8] = -c3*v_coupler_theta_y - c6*c7 + (7/10)*c5*v_rocker_theta_y + (9/10)*c4*v_coupler_theta_z
+    out[9] = c3*v_coupler_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z - 7/10*c5*v_rocker_theta_x
+    out[10] = -9/10*c4*v_coupler_theta_x - 7/10*c9*v_rocker_theta_y + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y
+    out[11] = -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_theta_y - coupler_a11*v_coupler_theta_z) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_theta_x - coupler_a01*v_coupler_theta_y)
+    out[15] = v_rocker_theta_y*(rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x)
+    out[16] = v_rocker_theta_y*(rocker_a21*v_rocker_theta_y - rocker_a11*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)
     return out
 
 
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx)
     crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
     crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
-    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy)
     crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
     crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
-    coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0
+    coupler_a00 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx)
     coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
     coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
-    coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0
+    coupler_a11 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy)
     coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz
     coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz
-    rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0
+    rocker_a00 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx)
     rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
     rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
     rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
-    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy)
     rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
     rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
-    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
+    rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz)
     d0 = (3/10)*crank_a20
     d1 = (3/10)*crank_a10
     d2 = (3/10)*crank_a00
@@ -282,51 +282,51 @@ def _joints_phi_jac_s(q):
     d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
     d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
     d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 + crank_x - coupler_x, (3/10)*crank_a10 + crank_y - coupler_y, (3/10)*crank_a20 + crank_z - coupler_z, (9/10)*coupler_a00 + coupler_x - 7/10*rocker_a00 - rocker_x, (9/10)*coupler_a10 + coupler_y - 7/10*rocker_a10 - rocker_y, (9/10)*coupler_a20 + coupler_z - 7/10*rocker_a20 - rocker_z, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, -d5, d6, 1.0, -d3, d7, -1.0, d5, -d8, 1.0, d4, -d7, -1.0, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - coupler_x + (3/10)*crank_a00, crank_y - coupler_y + (3/10)*crank_a10, crank_z - coupler_z + (3/10)*crank_a20, coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00, coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10, coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, -d5, d6, 1.0, -d3, d7, -1.0, d5, -d8, 1.0, d4, -d7, -1.0, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, coupler_qw, coupler_qx, coupler_qy, coupler_qz, _, _, _, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, _, _, _, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx)
     crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
     crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
-    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy)
     crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
     crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
-    coupler_a00 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx) - 1.0
+    coupler_a00 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qx*coupler_qx)
     coupler_a01 = -2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
     coupler_a10 = 2.0*coupler_qw*coupler_qz + 2.0*coupler_qx*coupler_qy
-    coupler_a11 = 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy) - 1.0
+    coupler_a11 = -1.0 + 2.0*(coupler_qw*coupler_qw) + 2.0*(coupler_qy*coupler_qy)
     coupler_a20 = -2.0*coupler_qw*coupler_qy + 2.0*coupler_qx*coupler_qz
     coupler_a21 = 2.0*coupler_qw*coupler_qx + 2.0*coupler_qy*coupler_qz
-    rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0
+    rocker_a00 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx)
     rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
     rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
     rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
-    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy)
     rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
     rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
-    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
+    rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz)
     c0 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
     c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
     c3 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
     c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
-    c5 = -rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x
+    c5 = rocker_a10*v_rocker_theta_x - rocker_a00*v_rocker_theta_y
     c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
     c7 = (7/10)*v_rocker_theta_z
-    c8 = -coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y
-    c9 = -rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y
+    c8 = coupler_a20*v_coupler_theta_y - coupler_a10*v_coupler_theta_z
+    c9 = rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z
     c10 = v_coupler_theta_y - v_rocker_theta_y
     c11 = v_coupler_theta_x - v_rocker_theta_x
     c12 = -c11
     c13 = v_coupler_theta_z - v_rocker_theta_z
     c14 = -c13
     c15 = -c10
-    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z, c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z, -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y, -c3*v_coupler_theta_y + (9/10)*c4*v_coupler_theta_z + (7/10)*c5*v_rocker_theta_y - c6*c7, c3*v_coupler_theta_x - 7/10*c5*v_rocker_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z, -9/10*c4*v_coupler_theta_x + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y - 7/10*c9*v_rocker_theta_y, -(coupler_a01*c13 + coupler_a21*c12)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (coupler_a01*c15 + coupler_a11*c11)*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) - (-coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x)*(rocker_a02*c10 + rocker_a12*c12) - (coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x)*(rocker_a02*c14 + rocker_a22*c11) - (coupler_a11*c14 + coupler_a21*c10)*(-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y) - (-coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y)*(rocker_a12*c13 + rocker_a22*c15), 0.0, 0.0, 0.0, -v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y), -v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) + v_rocker_theta_y*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)]
+    return [0.0, 0.0, 0.0, v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x), v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x), -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z, c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z, -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y, -c3*v_coupler_theta_y - c6*c7 + (7/10)*c5*v_rocker_theta_y + (9/10)*c4*v_coupler_theta_z, c3*v_coupler_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z - 7/10*c5*v_rocker_theta_x, -9/10*c4*v_coupler_theta_x - 7/10*c9*v_rocker_theta_y + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y, -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_theta_y - coupler_a11*v_coupler_theta_z) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_theta_x - coupler_a01*v_coupler_theta_y), 0.0, 0.0, 0.0, v_rocker_theta_y*(rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x), v_rocker_theta_y*(rocker_a21*v_rocker_theta_y - rocker_a11*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)]
 
 
 def frames(q, v, a):
@@ -334,33 +334,33 @@ def frames(q, v, a):
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, coupler_x, coupler_y, coupler_z, coupler_qw, coupler_qx, coupler_qy, coupler_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_coupler_x, v_coupler_y, v_coupler_z, v_coupler_theta_x, v_coupler_theta_y, v_coupler_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
     dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_theta_x, dv_crank_theta_y, dv_crank_theta_z, dv_coupler_x, dv_coupler_y, dv_coupler_z, dv_coupler_theta_x, dv_coupler_theta_y, dv_coupler_theta_z, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_theta_x, dv_rocker_theta_y, dv_rocker_theta_z = a
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a02 = 2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a12 = -2*crank_qw*crank_qx + 2*crank_qy*crank_qz
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    crank_a22 = 2*crank_qw**2 + 2*crank_qz**2 - 1
-    coupler_a00 = 2*coupler_qw**2 + 2*coupler_qx**2 - 1
+    crank_a22 = -1 + 2*crank_qw**2 + 2*crank_qz**2
+    coupler_a00 = -1 + 2*coupler_qw**2 + 2*coupler_qx**2
     coupler_a01 = -2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
     coupler_a02 = 2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
     coupler_a10 = 2*coupler_qw*coupler_qz + 2*coupler_qx*coupler_qy
-    coupler_a11 = 2*coupler_qw**2 + 2*coupler_qy**2 - 1
+    coupler_a11 = -1 + 2*coupler_qw**2 + 2*coupler_qy**2
     coupler_a12 = -2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
     coupler_a20 = -2*coupler_qw*coupler_qy + 2*coupler_qx*coupler_qz
     coupler_a21 = 2*coupler_qw*coupler_qx + 2*coupler_qy*coupler_qz
-    coupler_a22 = 2*coupler_qw**2 + 2*coupler_qz**2 - 1
-    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    coupler_a22 = -1 + 2*coupler_qw**2 + 2*coupler_qz**2
+    rocker_a00 = -1 + 2*rocker_qw**2 + 2*rocker_qx**2
     rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a11 = -1 + 2*rocker_qw**2 + 2*rocker_qy**2
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
     out = _zeros(72, q, ())
     out[0] = crank_x
     out[1] = crank_y
@@ -442,8 +442,8 @@ def inputs_crank_turn(t):
     c0 = 6.283185307179586*t
     c1 = sin(c0)
     out = np.zeros((3,) + np.shape(t))
-    out[0] = c0 + (3/10)*c1 + 1/2
-    out[1] = 1.8849555921538759*cos(c0) + 6.283185307179586
+    out[0] = 1/2 + c0 + (3/10)*c1
+    out[1] = 6.283185307179586 + 1.8849555921538759*cos(c0)
     out[2] = -11.84352528130723*c1
     return out
 
@@ -454,7 +454,7 @@ def _drivers_phi_crank_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*crank_qw*sin(c0) - 2*crank_qz*cos(c0)
+    out[0] = -2*crank_qz*cos(c0) + 2*crank_qw*sin(c0)
     return out
 
 
@@ -466,9 +466,9 @@ def _drivers_jac_crank_turn(q, u):
     d1 = sin(d0)
     d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = -crank_qx*d1 - crank_qy*d2
-    out[1] = crank_qx*d2 - crank_qy*d1
-    out[2] = -crank_qw*d2 - crank_qz*d1
+    out[0] = -d1*crank_qx - d2*crank_qy
+    out[1] = d2*crank_qx - d1*crank_qy
+    out[2] = -d1*crank_qz - d2*crank_qw
     return out
 
 
@@ -494,14 +494,14 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*crank_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*crank_qz
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)
+    out[0] = c4*ud0**2 - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)
     return out
 
 
@@ -513,7 +513,7 @@ def _drivers_phi_jac_s_crank_turn(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2.0*crank_qw*math.sin(c0) - 2.0*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+    return [-2.0*crank_qz*math.cos(c0) + 2.0*crank_qw*math.sin(c0)], [-d1*crank_qx - d2*crank_qy, d2*crank_qx - d1*crank_qy, -d1*crank_qz - d2*crank_qw]
 
 
 def _drivers_nu_s_crank_turn(q, u, ud):
@@ -536,13 +536,13 @@ def _drivers_gamma_s_crank_turn(q, v, u, ud, udd):
     c1 = math.cos(c0)
     c2 = math.sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*crank_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*crank_qz
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
+    return [c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)]
 
 
 def phi_crank_turn(q, u):

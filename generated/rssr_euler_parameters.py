@@ -63,16 +63,16 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 13 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
     rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a11 = -1 + 2*rocker_e0**2 + 2*rocker_e2**2
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     out = _zeros(13, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
@@ -84,24 +84,24 @@ def _joints_phi(q):
     out[7] = 3/10 - rocker_z
     out[8] = rocker_a01
     out[9] = rocker_a02
-    out[10] = ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625
-    out[11] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
-    out[12] = rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2 - 1
+    out[10] = -169/625 + (crank_x - rocker_x - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2 + (crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2 + (crank_z - rocker_z - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2
+    out[11] = -1 + crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2
+    out[12] = -1 + rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2
     return out
 
 
 def _joints_jac(q):
     """Phi_q values of the joint rows (44 entries)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a11 = -1 + 2*rocker_e0**2 + 2*rocker_e2**2
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     d0 = 2*crank_e2
     d1 = 2*crank_e3
     d2 = 2*crank_e0
@@ -110,24 +110,24 @@ def _joints_jac(q):
     d5 = 2*rocker_e2
     d6 = 2*rocker_e1
     d7 = 2*rocker_e0
-    d8 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
-    d9 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
-    d10 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
-    d11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
-    d12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
+    d8 = -2*rocker_x + 2*crank_x - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d9 = -2*rocker_y + 2*crank_y - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
+    d10 = -2*rocker_z + 2*crank_z - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
+    d11 = -0.244576008*rocker_a02 - 6/5*rocker_x + (6/5)*crank_x + (9/50)*crank_a00 + (0.26416392)*rocker_a01
+    d12 = -0.061144002*rocker_a22 - 3/10*rocker_z + (3/10)*crank_z + (9/200)*crank_a20 + (0.06604098)*rocker_a21
     d13 = 2*crank_e2
-    d14 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d14 = -0.061144002*rocker_a12 - 3/10*rocker_y + (3/10)*crank_y + (9/200)*crank_a10 + (0.06604098)*rocker_a11
     d15 = 2*crank_e3
     d16 = 2*crank_e0
-    d17 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d17 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
     d18 = 4*rocker_e0
-    d19 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    d20 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d19 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22
+    d20 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12
     d21 = 2*rocker_e1
-    d22 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    d23 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    d22 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
+    d23 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02
     d24 = 2*d23
-    d25 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d25 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
     d26 = 2*d25
     d27 = 2*rocker_e0
     d28 = 2*rocker_e3
@@ -158,17 +158,17 @@ def _joints_jac(q):
     out[22] = d8
     out[23] = d9
     out[24] = d10
-    out[25] = crank_e0*d11 - d12*d13 + d14*d15
-    out[26] = crank_e1*d11 + d12*d15 + d13*d14
-    out[27] = 2*crank_e1*d14 - d12*d16
-    out[28] = 2*crank_e1*d12 + d14*d16
+    out[25] = d11*crank_e0 + d14*d15 - d12*d13
+    out[26] = d11*crank_e1 + d12*d15 + d13*d14
+    out[27] = -d12*d16 + 2*d14*crank_e1
+    out[28] = d14*d16 + 2*d12*crank_e1
     out[29] = -d8
     out[30] = -d9
     out[31] = -d10
-    out[32] = rocker_e2*d24 - rocker_e3*d26 + d18*d19 + d18*d17 - d20*d21 + d21*d22
-    out[33] = rocker_e2*d26 + rocker_e3*d24 - d20*d27 + d22*d27
-    out[34] = rocker_e0*d24 + 4*rocker_e2*d17 + d20*d28 + d21*d25 + d22*d28
-    out[35] = -rocker_e0*d26 + 4*rocker_e3*d19 + d20*d29 + d21*d23 + d22*d29
+    out[32] = d18*d19 + d18*d17 + d21*d22 + d24*rocker_e2 - d20*d21 - d26*rocker_e3
+    out[33] = d22*d27 + d24*rocker_e3 + d26*rocker_e2 - d20*d27
+    out[34] = d20*d28 + d21*d25 + d22*d28 + d24*rocker_e0 + 4*d17*rocker_e2
+    out[35] = d20*d29 + d21*d23 + d22*d29 - d26*rocker_e0 + 4*d19*rocker_e3
     out[36] = 2*crank_e0
     out[37] = 2*crank_e1
     out[38] = 2*crank_e2
@@ -184,15 +184,15 @@ def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
-    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a11 = -1 + 2*rocker_e0**2 + 2*rocker_e2**2
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
     c2 = 4*v_rocker_e3
@@ -213,17 +213,17 @@ def _joints_gamma(q, v):
     c17 = (3/5)*v_crank_e3
     c18 = (3/5)*v_crank_e2
     c19 = (0.81525336)*v_rocker_e0
-    c20 = crank_e0*c17 + crank_e1*c18 + crank_e2*c6 + crank_e3*c7 + rocker_e1*c19 - rocker_e3*c16 + 2*v_crank_y - 2*v_rocker_y
+    c20 = -2*v_rocker_y + 2*v_crank_y + c17*crank_e0 + c18*crank_e1 + c19*rocker_e1 + c6*crank_e2 + c7*crank_e3 - c16*rocker_e3
     c21 = 2*v_crank_z
     c22 = 2*v_rocker_z
-    c23 = crank_e0*c18
-    c24 = crank_e1*c17
-    c25 = crank_e2*c7
-    c26 = crank_e3*c6
+    c23 = c18*crank_e0
+    c24 = c17*crank_e1
+    c25 = c7*crank_e2
+    c26 = c6*crank_e3
     c27 = (0.8805464)*v_rocker_e0
-    c28 = rocker_e1*c27
+    c28 = c27*rocker_e1
     c29 = (0.8805464)*v_rocker_e3
-    c30 = rocker_e2*c29
+    c30 = c29*rocker_e2
     c31 = -0.8805464*v_rocker_e1
     c32 = c31 + (1.63050672)*v_rocker_e0
     c33 = -c32
@@ -235,9 +235,9 @@ def _joints_gamma(q, v):
     c39 = 2*v_crank_x
     c40 = 2*v_rocker_x
     c41 = (6/5)*v_crank_e0
-    c42 = crank_e0*c41
+    c42 = c41*crank_e0
     c43 = (6/5)*v_crank_e1
-    c44 = crank_e1*c43
+    c44 = c43*crank_e1
     c45 = c16 + c29
     c46 = -c45
     c47 = c14 + c34
@@ -250,7 +250,7 @@ def _joints_gamma(q, v):
     c54 = (0.13208196)*v_crank_e3
     c55 = (0.13208196)*v_crank_e2
     c56 = (0.179467102808976)*v_rocker_e0
-    c57 = rocker_e1*c56
+    c57 = c56*rocker_e1
     c58 = (0.179467102808976)*v_rocker_e2
     c59 = (0.179467102808976)*v_rocker_e1
     c60 = c59 + (0.38768098127648)*v_rocker_e0
@@ -291,7 +291,7 @@ def _joints_gamma(q, v):
     c95 = c75 + (0.26416392)*v_rocker_e2
     c96 = 2*rocker_e0
     c97 = 2*v_rocker_e0
-    c98 = rocker_e1*c97 + c96*v_rocker_e1
+    c98 = c96*v_rocker_e1 + c97*rocker_e1
     c99 = (0.1661595102478224)*v_rocker_e0
     c100 = (0.358934205617952)*v_rocker_e0
     c101 = (0.1661595102478224)*v_rocker_e1
@@ -318,7 +318,7 @@ def _joints_gamma(q, v):
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[8] = c2*v_rocker_e0 - c3*v_rocker_e1
     out[9] = -c2*v_rocker_e1 - c3*v_rocker_e0
-    out[10] = -v_crank_e0*(crank_a10*c84 - crank_a20*c85 + crank_x*c41 + crank_y*c17 - crank_z*c18 + rocker_a11*c54 - rocker_a21*c55 - rocker_x*c41 - rocker_y*c17 + rocker_z*c18 - c9*v_crank_e3 + c11*v_crank_e2 + c83*v_crank_e0 + c86*v_crank_e0 - c87*v_crank_e0) - v_crank_e1*(crank_a10*c85 + crank_a20*c84 + crank_x*c43 + crank_y*c18 + crank_z*c17 + rocker_a11*c55 + rocker_a21*c54 - rocker_x*c43 - rocker_y*c18 - rocker_z*c17 - c9*v_crank_e2 - c11*v_crank_e3 + c83*v_crank_e1 + c86*v_crank_e1 - c87*v_crank_e1) - v_crank_e2*(crank_a10*c4 - crank_a20*c5 + crank_y*c6 - crank_z*c7 + rocker_a11*c8 - rocker_a21*c10 - rocker_y*c6 + rocker_z*c7 - c9*v_crank_e1 + c11*v_crank_e0) - v_crank_e3*(crank_a10*c5 + crank_a20*c4 + crank_y*c7 + crank_z*c6 + rocker_a11*c10 + rocker_a21*c8 - rocker_y*c7 - rocker_z*c6 - c9*v_crank_e0 - c11*v_crank_e1) - v_crank_x*(rocker_e0*c46 + rocker_e1*c47 + rocker_e2*c49 + rocker_e3*c51 + c39 - c40 + c42 + c44) - v_crank_y*(rocker_e0*c13 + rocker_e2*c15 + c20) - v_crank_z*(rocker_e0*c33 + rocker_e3*c35 + c21 - c22 - c23 + c24 - c25 + c26 + c28 + c30) - v_rocker_e0*(crank_a00*c73 + crank_a10*c94 + crank_a20*c88 + crank_x*c46 + crank_y*c13 + crank_z*c33 + rocker_a01*c116 + rocker_a02*c112 + rocker_a11*c60 + rocker_a12*c102 + rocker_a21*c108 + rocker_a22*c67 + rocker_x*c45 + rocker_y*c36 + rocker_z*c32) - v_rocker_e1*(crank_a00*c76 + crank_a10*c77 + crank_a20*c80 + crank_x*c47 + crank_y*c19 + crank_z*c27 + rocker_a01*c117 + rocker_a02*c113 + rocker_a11*c56 - rocker_a12*c99 + rocker_a21*c105 - rocker_a22*c56 + rocker_x*c52 - rocker_y*c19 - rocker_z*c27) - v_rocker_e2*(crank_a00*c79 + crank_a10*c95 + crank_a20*c72 + crank_x*c49 + crank_y*c15 + crank_z*c29 + rocker_a01*c118 + rocker_a02*c114 + rocker_a11*c63 + rocker_a12*c104 + rocker_a21*c106 - rocker_a22*c61 + rocker_x*c48 + rocker_y*c37 - rocker_z*c29) - v_rocker_e3*(crank_a00*c82 - crank_a10*c71 + crank_a20*c89 + crank_x*c51 - crank_y*c16 + crank_z*c35 + rocker_a01*c119 + rocker_a02*c115 - rocker_a11*c58 + rocker_a12*c111 + rocker_a21*c110 + rocker_a22*c68 + rocker_x*c50 + rocker_y*c16 + rocker_z*c38) - v_rocker_x*(rocker_e0*c45 + rocker_e1*c52 + rocker_e2*c48 + rocker_e3*c50 - c39 + c40 - c42 - c44) - v_rocker_y*(rocker_e0*c36 + rocker_e2*c37 - c20) - v_rocker_z*(rocker_e0*c32 + rocker_e3*c38 - c21 + c22 + c23 - c24 + c25 - c26 - c28 - c30) - (4*c69 + 4*c70)*(rocker_e0*c73 + rocker_e1*c76 + rocker_e2*c79 + rocker_e3*c82 + (9/50)*c69 + (9/50)*c70 + (3/10)*v_crank_x - 3/10*v_rocker_x) - (4*rocker_e2*v_rocker_e2 + c53)*(crank_e0*c54 + crank_e1*c55 + crank_e2*c8 + crank_e3*c10 + rocker_e0*c60 + rocker_e2*c63 - rocker_e3*c58 + c57 + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (4*rocker_e3*v_rocker_e3 + c53)*(-0.122288004*crank_e1*v_crank_e3 - 0.122288004*crank_e3*v_crank_e1 + rocker_e0*c67 - rocker_e2*c61 + rocker_e3*c68 - c57 + (0.122288004)*c64 + (0.122288004)*c65 - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 - c98)*(rocker_e0*c102 - rocker_e1*c99 + rocker_e2*c104 + (0.1661595102478224)*rocker_e3*v_rocker_e2 - 0.122288004*c90 - 0.122288004*c91 - 0.122288004*c92 - 0.122288004*c93 - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2 + c98)*(-crank_e0*c55 + crank_e1*c54 - crank_e2*c10 + crank_e3*c8 + rocker_e0*c108 + rocker_e1*c105 + rocker_e2*c106 + rocker_e3*c110 + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (2*c90 + 2*c91 + 2*c92 + 2*c93)*(crank_e0*c84 + crank_e1*c85 + crank_e2*c4 + crank_e3*c5 + rocker_e0*c94 + rocker_e1*c77 + rocker_e2*c95 - rocker_e3*c71 + (3/10)*v_crank_y - 3/10*v_rocker_y) - (2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1 - 2*c64 - 2*c65)*(-crank_e0*c85 + crank_e1*c84 - crank_e2*c5 + crank_e3*c4 + rocker_e0*c88 + rocker_e1*c80 + rocker_e2*c72 + rocker_e3*c89 + (3/10)*v_crank_z - 3/10*v_rocker_z) - (2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1 - rocker_e3*c97 - c96*v_rocker_e3)*(rocker_e0*c116 + rocker_e1*c117 + rocker_e2*c118 + rocker_e3*c119 + (0.26416392)*c69 + (0.26416392)*c70 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (2*rocker_e1*v_rocker_e3 + rocker_e2*c97 + 2*rocker_e3*v_rocker_e1 + c96*v_rocker_e2)*(rocker_e0*c112 + rocker_e1*c113 + rocker_e2*c114 + rocker_e3*c115 - 0.244576008*c69 - 0.244576008*c70 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x)
+    out[10] = -v_crank_e0*(c17*crank_y + c18*rocker_z + c41*crank_x + c54*rocker_a11 + c11*v_crank_e2 + c83*v_crank_e0 + c84*crank_a10 + c86*v_crank_e0 - c17*rocker_y - c18*crank_z - c41*rocker_x - c9*v_crank_e3 - c55*rocker_a21 - c85*crank_a20 - c87*v_crank_e0) - v_crank_e1*(c17*crank_z + c18*crank_y + c43*crank_x + c54*rocker_a21 + c55*rocker_a11 + c83*v_crank_e1 + c84*crank_a20 + c85*crank_a10 + c86*v_crank_e1 - c17*rocker_z - c18*rocker_y - c43*rocker_x - c9*v_crank_e2 - c11*v_crank_e3 - c87*v_crank_e1) - v_crank_e2*(c4*crank_a10 + c6*crank_y + c7*rocker_z + c8*rocker_a11 + c11*v_crank_e0 - c5*crank_a20 - c6*rocker_y - c7*crank_z - c9*v_crank_e1 - c10*rocker_a21) - v_crank_e3*(c4*crank_a20 + c5*crank_a10 + c6*crank_z + c7*crank_y + c8*rocker_a21 + c10*rocker_a11 - c6*rocker_z - c7*rocker_y - c9*v_crank_e0 - c11*v_crank_e1) - v_crank_x*(c39 + c42 + c44 - c40 + c46*rocker_e0 + c47*rocker_e1 + c49*rocker_e2 + c51*rocker_e3) - v_crank_y*(c20 + c15*rocker_e2 + c13*rocker_e0) - v_crank_z*(c21 + c24 + c26 + c28 + c30 - c22 - c23 - c25 + c33*rocker_e0 + c35*rocker_e3) - v_rocker_e0*(c108*rocker_a21 + c112*rocker_a02 + c116*rocker_a01 + c32*rocker_z + c33*crank_z + c36*rocker_y + c45*rocker_x + c46*crank_x + c60*rocker_a11 + c67*rocker_a22 + c73*crank_a00 + c88*crank_a20 + c13*crank_y + c94*crank_a10 + c102*rocker_a12) - v_rocker_e1*(c105*rocker_a21 + c113*rocker_a02 + c117*rocker_a01 + c19*crank_y + c27*crank_z + c47*crank_x + c52*rocker_x + c56*rocker_a11 + c76*crank_a00 + c77*crank_a10 + c80*crank_a20 - c19*rocker_y - c27*rocker_z - c56*rocker_a22 - c99*rocker_a12) - v_rocker_e2*(c104*rocker_a12 + c106*rocker_a21 + c15*crank_y + c114*rocker_a02 + c118*rocker_a01 + c29*crank_z + c37*rocker_y + c48*rocker_x + c49*crank_x + c63*rocker_a11 + c72*crank_a20 + c79*crank_a00 + c95*crank_a10 - c29*rocker_z - c61*rocker_a22) - v_rocker_e3*(c110*rocker_a21 + c111*rocker_a12 + c115*rocker_a02 + c119*rocker_a01 + c16*rocker_y + c35*crank_z + c38*rocker_z + c50*rocker_x + c51*crank_x + c68*rocker_a22 + c82*crank_a00 + c89*crank_a20 - c16*crank_y - c58*rocker_a11 - c71*crank_a10) - v_rocker_x*(c40 - c39 - c42 - c44 + c45*rocker_e0 + c48*rocker_e2 + c50*rocker_e3 + c52*rocker_e1) - v_rocker_y*(-c20 + c36*rocker_e0 + c37*rocker_e2) - v_rocker_z*(c22 + c23 + c25 - c21 - c24 - c26 - c28 - c30 + c32*rocker_e0 + c38*rocker_e3) - (c53 + 4*rocker_e2*v_rocker_e2)*(c57 - 0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c8*crank_e2 + c54*crank_e0 + c55*crank_e1 + c60*rocker_e0 + c63*rocker_e2 + c10*crank_e3 - c58*rocker_e3) - (c53 + 4*rocker_e3*v_rocker_e3)*(-c57 - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z + (0.122288004)*c64 + (0.122288004)*c65 + c67*rocker_e0 + c68*rocker_e3 - c61*rocker_e2 - 0.122288004*crank_e1*v_crank_e3 - 0.122288004*crank_e3*v_crank_e1) - (4*c69 + 4*c70)*(-3/10*v_rocker_x + (3/10)*v_crank_x + (9/50)*c69 + (9/50)*c70 + c73*rocker_e0 + c76*rocker_e1 + c79*rocker_e2 + c82*rocker_e3) - (c98 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c105*rocker_e1 + c106*rocker_e2 + c108*rocker_e0 + c110*rocker_e3 + c8*crank_e3 + c54*crank_e1 - c55*crank_e0 - c10*crank_e2) - (-c98 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2)*(-0.122288004*c90 - 0.122288004*c91 - 0.122288004*c92 - 0.122288004*c93 - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c104*rocker_e2 + c102*rocker_e0 - c99*rocker_e1 + (0.1661595102478224)*rocker_e3*v_rocker_e2) - (-2*c64 - 2*c65 + 2*crank_e1*v_crank_e3 + 2*crank_e3*v_crank_e1)*(-3/10*v_rocker_z + (3/10)*v_crank_z + c4*crank_e3 + c72*rocker_e2 + c80*rocker_e1 + c84*crank_e1 + c88*rocker_e0 + c89*rocker_e3 - c5*crank_e2 - c85*crank_e0) - (2*c90 + 2*c91 + 2*c92 + 2*c93)*(-3/10*v_rocker_y + (3/10)*v_crank_y + c4*crank_e2 + c5*crank_e3 + c77*rocker_e1 + c84*crank_e0 + c85*crank_e1 + c94*rocker_e0 + c95*rocker_e2 - c71*rocker_e3) - (c96*v_rocker_e2 + c97*rocker_e2 + 2*rocker_e1*v_rocker_e3 + 2*rocker_e3*v_rocker_e1)*(-0.244576008*c69 - 0.244576008*c70 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c112*rocker_e0 + c113*rocker_e1 + c114*rocker_e2 + c115*rocker_e3) - (-c96*v_rocker_e3 - c97*rocker_e3 + 2*rocker_e1*v_rocker_e2 + 2*rocker_e2*v_rocker_e1)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + (0.26416392)*c69 + (0.26416392)*c70 + c116*rocker_e0 + c117*rocker_e1 + c118*rocker_e2 + c119*rocker_e3)
     out[11] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
     out[12] = -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
     return out
@@ -327,16 +327,16 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
-    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1)
     crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
     crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
     crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3
     rocker_a01 = -2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2
     rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
-    rocker_a11 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2) - 1.0
+    rocker_a11 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2)
     rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
     rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
-    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3)
     d0 = 2.0*crank_e2
     d1 = 2.0*crank_e3
     d2 = 2.0*crank_e0
@@ -345,44 +345,44 @@ def _joints_phi_jac_s(q):
     d5 = 2.0*rocker_e2
     d6 = 2.0*rocker_e1
     d7 = 2.0*rocker_e0
-    d8 = (3/10)*crank_a00 + 2.0*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2.0*rocker_x
-    d9 = (3/10)*crank_a10 + 2.0*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2.0*rocker_y
-    d10 = (3/10)*crank_a20 + 2.0*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2.0*rocker_z
-    d11 = (9/50)*crank_a00 + (6/5)*crank_x + (0.26416392)*rocker_a01 - 0.244576008*rocker_a02 - 6/5*rocker_x
-    d12 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
+    d8 = -2.0*rocker_x + 2.0*crank_x - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d9 = -2.0*rocker_y + 2.0*crank_y - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
+    d10 = -2.0*rocker_z + 2.0*crank_z - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
+    d11 = -0.244576008*rocker_a02 - 6/5*rocker_x + (6/5)*crank_x + (9/50)*crank_a00 + (0.26416392)*rocker_a01
+    d12 = -0.061144002*rocker_a22 - 3/10*rocker_z + (3/10)*crank_z + (9/200)*crank_a20 + (0.06604098)*rocker_a21
     d13 = 2.0*crank_e2
-    d14 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
+    d14 = -0.061144002*rocker_a12 - 3/10*rocker_y + (3/10)*crank_y + (9/200)*crank_a10 + (0.06604098)*rocker_a11
     d15 = 2.0*crank_e3
     d16 = 2.0*crank_e0
-    d17 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
+    d17 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
     d18 = 4.0*rocker_e0
-    d19 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    d20 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
+    d19 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22
+    d20 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12
     d21 = 2.0*rocker_e1
-    d22 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    d23 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    d22 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
+    d23 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02
     d24 = 2.0*d23
-    d25 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
+    d25 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
     d26 = 2.0*d25
     d27 = 2.0*rocker_e0
     d28 = 2.0*rocker_e3
     d29 = 2.0*rocker_e2
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2.0 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2.0 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2.0 - 169/625, (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0, (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3) - 1.0], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, -1.0, -1.0, -1.0, -d4, d5, d6, -d7, d5, d4, d7, d6, d8, d9, d10, crank_e0*d11 - d12*d13 + d14*d15, crank_e1*d11 + d12*d15 + d13*d14, 2.0*crank_e1*d14 - d12*d16, 2.0*crank_e1*d12 + d14*d16, -d8, -d9, -d10, rocker_e2*d24 - rocker_e3*d26 + d18*d19 + d18*d17 - d20*d21 + d21*d22, rocker_e2*d26 + rocker_e3*d24 - d20*d27 + d22*d27, rocker_e0*d24 + 4.0*rocker_e2*d17 + d20*d28 + d21*d25 + d22*d28, -rocker_e0*d26 + 4.0*rocker_e3*d19 + d20*d29 + d21*d23 + d22*d29, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, -169/625 + (crank_x - rocker_x - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2.0 + (crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2.0 + (crank_z - rocker_z - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2.0, -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3), -1.0 + (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, -1.0, -1.0, -1.0, -d4, d5, d6, -d7, d5, d4, d7, d6, d8, d9, d10, d11*crank_e0 + d14*d15 - d12*d13, d11*crank_e1 + d12*d15 + d13*d14, -d12*d16 + 2.0*d14*crank_e1, d14*d16 + 2.0*d12*crank_e1, -d8, -d9, -d10, d18*d19 + d18*d17 + d21*d22 + d24*rocker_e2 - d20*d21 - d26*rocker_e3, d22*d27 + d24*rocker_e3 + d26*rocker_e2 - d20*d27, d20*d28 + d21*d25 + d22*d28 + d24*rocker_e0 + 4.0*d17*rocker_e2, d20*d29 + d21*d23 + d22*d29 - d26*rocker_e0 + 4.0*d19*rocker_e3, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
-    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1)
     crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
     crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
     rocker_a01 = -2.0*rocker_e0*rocker_e3 + 2.0*rocker_e1*rocker_e2
     rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
-    rocker_a11 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2) - 1.0
+    rocker_a11 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e2*rocker_e2)
     rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
     rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
-    rocker_a22 = 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3) - 1.0
+    rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3)
     c0 = 4.0*v_crank_e2
     c1 = 4.0*v_crank_e1
     c2 = 4.0*v_rocker_e3
@@ -403,17 +403,17 @@ def _joints_gamma_s(q, v):
     c17 = (3/5)*v_crank_e3
     c18 = (3/5)*v_crank_e2
     c19 = (0.81525336)*v_rocker_e0
-    c20 = crank_e0*c17 + crank_e1*c18 + crank_e2*c6 + crank_e3*c7 + rocker_e1*c19 - rocker_e3*c16 + 2.0*v_crank_y - 2.0*v_rocker_y
+    c20 = -2.0*v_rocker_y + 2.0*v_crank_y + c17*crank_e0 + c18*crank_e1 + c19*rocker_e1 + c6*crank_e2 + c7*crank_e3 - c16*rocker_e3
     c21 = 2.0*v_crank_z
     c22 = 2.0*v_rocker_z
-    c23 = crank_e0*c18
-    c24 = crank_e1*c17
-    c25 = crank_e2*c7
-    c26 = crank_e3*c6
+    c23 = c18*crank_e0
+    c24 = c17*crank_e1
+    c25 = c7*crank_e2
+    c26 = c6*crank_e3
     c27 = (0.8805464)*v_rocker_e0
-    c28 = rocker_e1*c27
+    c28 = c27*rocker_e1
     c29 = (0.8805464)*v_rocker_e3
-    c30 = rocker_e2*c29
+    c30 = c29*rocker_e2
     c31 = -0.8805464*v_rocker_e1
     c32 = c31 + (1.63050672)*v_rocker_e0
     c33 = -c32
@@ -425,9 +425,9 @@ def _joints_gamma_s(q, v):
     c39 = 2.0*v_crank_x
     c40 = 2.0*v_rocker_x
     c41 = (6/5)*v_crank_e0
-    c42 = crank_e0*c41
+    c42 = c41*crank_e0
     c43 = (6/5)*v_crank_e1
-    c44 = crank_e1*c43
+    c44 = c43*crank_e1
     c45 = c16 + c29
     c46 = -c45
     c47 = c14 + c34
@@ -440,7 +440,7 @@ def _joints_gamma_s(q, v):
     c54 = (0.13208196)*v_crank_e3
     c55 = (0.13208196)*v_crank_e2
     c56 = (0.179467102808976)*v_rocker_e0
-    c57 = rocker_e1*c56
+    c57 = c56*rocker_e1
     c58 = (0.179467102808976)*v_rocker_e2
     c59 = (0.179467102808976)*v_rocker_e1
     c60 = c59 + (0.38768098127648)*v_rocker_e0
@@ -481,7 +481,7 @@ def _joints_gamma_s(q, v):
     c95 = c75 + (0.26416392)*v_rocker_e2
     c96 = 2.0*rocker_e0
     c97 = 2.0*v_rocker_e0
-    c98 = rocker_e1*c97 + c96*v_rocker_e1
+    c98 = c96*v_rocker_e1 + c97*rocker_e1
     c99 = (0.1661595102478224)*v_rocker_e0
     c100 = (0.358934205617952)*v_rocker_e0
     c101 = (0.1661595102478224)*v_rocker_e1
@@ -503,7 +503,7 @@ def _joints_gamma_s(q, v):
     c117 = c109 + c62
     c118 = -c107 - c56
     c119 = -c105 - c59
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(crank_a10*c84 - crank_a20*c85 + crank_x*c41 + crank_y*c17 - crank_z*c18 + rocker_a11*c54 - rocker_a21*c55 - rocker_x*c41 - rocker_y*c17 + rocker_z*c18 - c9*v_crank_e3 + c11*v_crank_e2 + c83*v_crank_e0 + c86*v_crank_e0 - c87*v_crank_e0) - v_crank_e1*(crank_a10*c85 + crank_a20*c84 + crank_x*c43 + crank_y*c18 + crank_z*c17 + rocker_a11*c55 + rocker_a21*c54 - rocker_x*c43 - rocker_y*c18 - rocker_z*c17 - c9*v_crank_e2 - c11*v_crank_e3 + c83*v_crank_e1 + c86*v_crank_e1 - c87*v_crank_e1) - v_crank_e2*(crank_a10*c4 - crank_a20*c5 + crank_y*c6 - crank_z*c7 + rocker_a11*c8 - rocker_a21*c10 - rocker_y*c6 + rocker_z*c7 - c9*v_crank_e1 + c11*v_crank_e0) - v_crank_e3*(crank_a10*c5 + crank_a20*c4 + crank_y*c7 + crank_z*c6 + rocker_a11*c10 + rocker_a21*c8 - rocker_y*c7 - rocker_z*c6 - c9*v_crank_e0 - c11*v_crank_e1) - v_crank_x*(rocker_e0*c46 + rocker_e1*c47 + rocker_e2*c49 + rocker_e3*c51 + c39 - c40 + c42 + c44) - v_crank_y*(rocker_e0*c13 + rocker_e2*c15 + c20) - v_crank_z*(rocker_e0*c33 + rocker_e3*c35 + c21 - c22 - c23 + c24 - c25 + c26 + c28 + c30) - v_rocker_e0*(crank_a00*c73 + crank_a10*c94 + crank_a20*c88 + crank_x*c46 + crank_y*c13 + crank_z*c33 + rocker_a01*c116 + rocker_a02*c112 + rocker_a11*c60 + rocker_a12*c102 + rocker_a21*c108 + rocker_a22*c67 + rocker_x*c45 + rocker_y*c36 + rocker_z*c32) - v_rocker_e1*(crank_a00*c76 + crank_a10*c77 + crank_a20*c80 + crank_x*c47 + crank_y*c19 + crank_z*c27 + rocker_a01*c117 + rocker_a02*c113 + rocker_a11*c56 - rocker_a12*c99 + rocker_a21*c105 - rocker_a22*c56 + rocker_x*c52 - rocker_y*c19 - rocker_z*c27) - v_rocker_e2*(crank_a00*c79 + crank_a10*c95 + crank_a20*c72 + crank_x*c49 + crank_y*c15 + crank_z*c29 + rocker_a01*c118 + rocker_a02*c114 + rocker_a11*c63 + rocker_a12*c104 + rocker_a21*c106 - rocker_a22*c61 + rocker_x*c48 + rocker_y*c37 - rocker_z*c29) - v_rocker_e3*(crank_a00*c82 - crank_a10*c71 + crank_a20*c89 + crank_x*c51 - crank_y*c16 + crank_z*c35 + rocker_a01*c119 + rocker_a02*c115 - rocker_a11*c58 + rocker_a12*c111 + rocker_a21*c110 + rocker_a22*c68 + rocker_x*c50 + rocker_y*c16 + rocker_z*c38) - v_rocker_x*(rocker_e0*c45 + rocker_e1*c52 + rocker_e2*c48 + rocker_e3*c50 - c39 + c40 - c42 - c44) - v_rocker_y*(rocker_e0*c36 + rocker_e2*c37 - c20) - v_rocker_z*(rocker_e0*c32 + rocker_e3*c38 - c21 + c22 + c23 - c24 + c25 - c26 - c28 - c30) - (4.0*c69 + 4.0*c70)*(rocker_e0*c73 + rocker_e1*c76 + rocker_e2*c79 + rocker_e3*c82 + (9/50)*c69 + (9/50)*c70 + (3/10)*v_crank_x - 3/10*v_rocker_x) - (4.0*rocker_e2*v_rocker_e2 + c53)*(crank_e0*c54 + crank_e1*c55 + crank_e2*c8 + crank_e3*c10 + rocker_e0*c60 + rocker_e2*c63 - rocker_e3*c58 + c57 + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (4.0*rocker_e3*v_rocker_e3 + c53)*(-0.122288004*crank_e1*v_crank_e3 - 0.122288004*crank_e3*v_crank_e1 + rocker_e0*c67 - rocker_e2*c61 + rocker_e3*c68 - c57 + (0.122288004)*c64 + (0.122288004)*c65 - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 - c98)*(rocker_e0*c102 - rocker_e1*c99 + rocker_e2*c104 + (0.1661595102478224)*rocker_e3*v_rocker_e2 - 0.122288004*c90 - 0.122288004*c91 - 0.122288004*c92 - 0.122288004*c93 - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2 + c98)*(-crank_e0*c55 + crank_e1*c54 - crank_e2*c10 + crank_e3*c8 + rocker_e0*c108 + rocker_e1*c105 + rocker_e2*c106 + rocker_e3*c110 + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (2.0*c90 + 2.0*c91 + 2.0*c92 + 2.0*c93)*(crank_e0*c84 + crank_e1*c85 + crank_e2*c4 + crank_e3*c5 + rocker_e0*c94 + rocker_e1*c77 + rocker_e2*c95 - rocker_e3*c71 + (3/10)*v_crank_y - 3/10*v_rocker_y) - (2.0*crank_e1*v_crank_e3 + 2.0*crank_e3*v_crank_e1 - 2.0*c64 - 2.0*c65)*(-crank_e0*c85 + crank_e1*c84 - crank_e2*c5 + crank_e3*c4 + rocker_e0*c88 + rocker_e1*c80 + rocker_e2*c72 + rocker_e3*c89 + (3/10)*v_crank_z - 3/10*v_rocker_z) - (2.0*rocker_e1*v_rocker_e2 + 2.0*rocker_e2*v_rocker_e1 - rocker_e3*c97 - c96*v_rocker_e3)*(rocker_e0*c116 + rocker_e1*c117 + rocker_e2*c118 + rocker_e3*c119 + (0.26416392)*c69 + (0.26416392)*c70 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x) - (2.0*rocker_e1*v_rocker_e3 + rocker_e2*c97 + 2.0*rocker_e3*v_rocker_e1 + c96*v_rocker_e2)*(rocker_e0*c112 + rocker_e1*c113 + rocker_e2*c114 + rocker_e3*c115 - 0.244576008*c69 - 0.244576008*c70 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x), -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, 0.0, 0.0, 0.0, c2*v_rocker_e0 - c3*v_rocker_e1, -c2*v_rocker_e1 - c3*v_rocker_e0, -v_crank_e0*(c17*crank_y + c18*rocker_z + c41*crank_x + c54*rocker_a11 + c11*v_crank_e2 + c83*v_crank_e0 + c84*crank_a10 + c86*v_crank_e0 - c17*rocker_y - c18*crank_z - c41*rocker_x - c9*v_crank_e3 - c55*rocker_a21 - c85*crank_a20 - c87*v_crank_e0) - v_crank_e1*(c17*crank_z + c18*crank_y + c43*crank_x + c54*rocker_a21 + c55*rocker_a11 + c83*v_crank_e1 + c84*crank_a20 + c85*crank_a10 + c86*v_crank_e1 - c17*rocker_z - c18*rocker_y - c43*rocker_x - c9*v_crank_e2 - c11*v_crank_e3 - c87*v_crank_e1) - v_crank_e2*(c4*crank_a10 + c6*crank_y + c7*rocker_z + c8*rocker_a11 + c11*v_crank_e0 - c5*crank_a20 - c6*rocker_y - c7*crank_z - c9*v_crank_e1 - c10*rocker_a21) - v_crank_e3*(c4*crank_a20 + c5*crank_a10 + c6*crank_z + c7*crank_y + c8*rocker_a21 + c10*rocker_a11 - c6*rocker_z - c7*rocker_y - c9*v_crank_e0 - c11*v_crank_e1) - v_crank_x*(c39 + c42 + c44 - c40 + c46*rocker_e0 + c47*rocker_e1 + c49*rocker_e2 + c51*rocker_e3) - v_crank_y*(c20 + c15*rocker_e2 + c13*rocker_e0) - v_crank_z*(c21 + c24 + c26 + c28 + c30 - c22 - c23 - c25 + c33*rocker_e0 + c35*rocker_e3) - v_rocker_e0*(c108*rocker_a21 + c112*rocker_a02 + c116*rocker_a01 + c32*rocker_z + c33*crank_z + c36*rocker_y + c45*rocker_x + c46*crank_x + c60*rocker_a11 + c67*rocker_a22 + c73*crank_a00 + c88*crank_a20 + c13*crank_y + c94*crank_a10 + c102*rocker_a12) - v_rocker_e1*(c105*rocker_a21 + c113*rocker_a02 + c117*rocker_a01 + c19*crank_y + c27*crank_z + c47*crank_x + c52*rocker_x + c56*rocker_a11 + c76*crank_a00 + c77*crank_a10 + c80*crank_a20 - c19*rocker_y - c27*rocker_z - c56*rocker_a22 - c99*rocker_a12) - v_rocker_e2*(c104*rocker_a12 + c106*rocker_a21 + c15*crank_y + c114*rocker_a02 + c118*rocker_a01 + c29*crank_z + c37*rocker_y + c48*rocker_x + c49*crank_x + c63*rocker_a11 + c72*crank_a20 + c79*crank_a00 + c95*crank_a10 - c29*rocker_z - c61*rocker_a22) - v_rocker_e3*(c110*rocker_a21 + c111*rocker_a12 + c115*rocker_a02 + c119*rocker_a01 + c16*rocker_y + c35*crank_z + c38*rocker_z + c50*rocker_x + c51*crank_x + c68*rocker_a22 + c82*crank_a00 + c89*crank_a20 - c16*crank_y - c58*rocker_a11 - c71*crank_a10) - v_rocker_x*(c40 - c39 - c42 - c44 + c45*rocker_e0 + c48*rocker_e2 + c50*rocker_e3 + c52*rocker_e1) - v_rocker_y*(-c20 + c36*rocker_e0 + c37*rocker_e2) - v_rocker_z*(c22 + c23 + c25 - c21 - c24 - c26 - c28 - c30 + c32*rocker_e0 + c38*rocker_e3) - (c53 + 4.0*rocker_e2*v_rocker_e2)*(c57 - 0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c8*crank_e2 + c54*crank_e0 + c55*crank_e1 + c60*rocker_e0 + c63*rocker_e2 + c10*crank_e3 - c58*rocker_e3) - (c53 + 4.0*rocker_e3*v_rocker_e3)*(-c57 - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z + (0.122288004)*c64 + (0.122288004)*c65 + c67*rocker_e0 + c68*rocker_e3 - c61*rocker_e2 - 0.122288004*crank_e1*v_crank_e3 - 0.122288004*crank_e3*v_crank_e1) - (4.0*c69 + 4.0*c70)*(-3/10*v_rocker_x + (3/10)*v_crank_x + (9/50)*c69 + (9/50)*c70 + c73*rocker_e0 + c76*rocker_e1 + c79*rocker_e2 + c82*rocker_e3) - (c98 + 2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c105*rocker_e1 + c106*rocker_e2 + c108*rocker_e0 + c110*rocker_e3 + c8*crank_e3 + c54*crank_e1 - c55*crank_e0 - c10*crank_e2) - (-c98 + 2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2)*(-0.122288004*c90 - 0.122288004*c91 - 0.122288004*c92 - 0.122288004*c93 - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c104*rocker_e2 + c102*rocker_e0 - c99*rocker_e1 + (0.1661595102478224)*rocker_e3*v_rocker_e2) - (-2.0*c64 - 2.0*c65 + 2.0*crank_e1*v_crank_e3 + 2.0*crank_e3*v_crank_e1)*(-3/10*v_rocker_z + (3/10)*v_crank_z + c4*crank_e3 + c72*rocker_e2 + c80*rocker_e1 + c84*crank_e1 + c88*rocker_e0 + c89*rocker_e3 - c5*crank_e2 - c85*crank_e0) - (2.0*c90 + 2.0*c91 + 2.0*c92 + 2.0*c93)*(-3/10*v_rocker_y + (3/10)*v_crank_y + c4*crank_e2 + c5*crank_e3 + c77*rocker_e1 + c84*crank_e0 + c85*crank_e1 + c94*rocker_e0 + c95*rocker_e2 - c71*rocker_e3) - (c96*v_rocker_e2 + c97*rocker_e2 + 2.0*rocker_e1*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e1)*(-0.244576008*c69 - 0.244576008*c70 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c112*rocker_e0 + c113*rocker_e1 + c114*rocker_e2 + c115*rocker_e3) - (-c96*v_rocker_e3 - c97*rocker_e3 + 2.0*rocker_e1*v_rocker_e2 + 2.0*rocker_e2*v_rocker_e1)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + (0.26416392)*c69 + (0.26416392)*c70 + c116*rocker_e0 + c117*rocker_e1 + c118*rocker_e2 + c119*rocker_e3), -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
 
 
 def frames(q, v, a):
@@ -511,24 +511,24 @@ def frames(q, v, a):
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rocker_x, rocker_y, rocker_z, rocker_e0, rocker_e1, rocker_e2, rocker_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_e0, v_rocker_e1, v_rocker_e2, v_rocker_e3 = v
     dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_e0, dv_crank_e1, dv_crank_e2, dv_crank_e3, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_e0, dv_rocker_e1, dv_rocker_e2, dv_rocker_e3 = a
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a01 = -2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a02 = 2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a11 = 2*crank_e0**2 + 2*crank_e2**2 - 1
+    crank_a11 = -1 + 2*crank_e0**2 + 2*crank_e2**2
     crank_a12 = -2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    crank_a22 = 2*crank_e0**2 + 2*crank_e3**2 - 1
-    rocker_a00 = 2*rocker_e0**2 + 2*rocker_e1**2 - 1
+    crank_a22 = -1 + 2*crank_e0**2 + 2*crank_e3**2
+    rocker_a00 = -1 + 2*rocker_e0**2 + 2*rocker_e1**2
     rocker_a01 = -2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a10 = 2*rocker_e0*rocker_e3 + 2*rocker_e1*rocker_e2
-    rocker_a11 = 2*rocker_e0**2 + 2*rocker_e2**2 - 1
+    rocker_a11 = -1 + 2*rocker_e0**2 + 2*rocker_e2**2
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
-    rocker_a22 = 2*rocker_e0**2 + 2*rocker_e3**2 - 1
+    rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
     c0 = 2*v_crank_e1
     c1 = 2*crank_e1
     c2 = 2*crank_e2
@@ -557,15 +557,15 @@ def frames(q, v, a):
     out[12] = v_crank_x
     out[13] = v_crank_y
     out[14] = v_crank_z
-    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3
-    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0
-    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0
+    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3
+    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0
+    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0
     out[18] = dv_crank_x
     out[19] = dv_crank_y
     out[20] = dv_crank_z
-    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2
-    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1
-    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0
+    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2
+    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0
+    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0
     out[24] = rocker_x
     out[25] = rocker_y
     out[26] = rocker_z
@@ -581,15 +581,15 @@ def frames(q, v, a):
     out[36] = v_rocker_x
     out[37] = v_rocker_y
     out[38] = v_rocker_z
-    out[39] = rocker_e0*c6 - rocker_e3*c9 - c7*v_rocker_e0 + c8*v_rocker_e3
-    out[40] = rocker_e0*c9 + rocker_e3*c6 - c7*v_rocker_e3 - c8*v_rocker_e0
-    out[41] = -rocker_e2*c6 + c7*v_rocker_e2 + c10*v_rocker_e3 - c11*v_rocker_e0
+    out[39] = c6*rocker_e0 + c8*v_rocker_e3 - c7*v_rocker_e0 - c9*rocker_e3
+    out[40] = c6*rocker_e3 + c9*rocker_e0 - c7*v_rocker_e3 - c8*v_rocker_e0
+    out[41] = c7*v_rocker_e2 + c10*v_rocker_e3 - c6*rocker_e2 - c11*v_rocker_e0
     out[42] = dv_rocker_x
     out[43] = dv_rocker_y
     out[44] = dv_rocker_z
-    out[45] = -c7*dv_rocker_e0 + c8*dv_rocker_e3 + c10*dv_rocker_e1 - c11*dv_rocker_e2
-    out[46] = -c7*dv_rocker_e3 - c8*dv_rocker_e0 + c10*dv_rocker_e2 + c11*dv_rocker_e1
-    out[47] = c7*dv_rocker_e2 - c8*dv_rocker_e1 + c10*dv_rocker_e3 - c11*dv_rocker_e0
+    out[45] = c8*dv_rocker_e3 + c10*dv_rocker_e1 - c7*dv_rocker_e0 - c11*dv_rocker_e2
+    out[46] = c10*dv_rocker_e2 + c11*dv_rocker_e1 - c7*dv_rocker_e3 - c8*dv_rocker_e0
+    out[47] = c7*dv_rocker_e2 + c10*dv_rocker_e3 - c8*dv_rocker_e1 - c11*dv_rocker_e0
     return out
 
 
@@ -600,8 +600,8 @@ def inputs_turn(t):
     c2 = sin(c0)
     out = np.zeros((3,) + np.shape(t))
     out[0] = 6.283185307179586*t*(1 - 1/5*c1)
-    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
-    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
+    out[1] = 6.283185307179586 - 1.2566370614359172*c1 + 3.947841760435743*c2*t
+    out[2] = 7.895683520871486*c2 + 12.402510672119927*c1*t
     return out
 
 
@@ -611,7 +611,7 @@ def _drivers_phi_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*crank_e0*sin(c0) - 2*crank_e3*cos(c0)
+    out[0] = -2*crank_e3*cos(c0) + 2*crank_e0*sin(c0)
     return out
 
 
@@ -647,7 +647,7 @@ def _drivers_gamma_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)
+    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3)
     return out
 
 
@@ -657,7 +657,7 @@ def _drivers_phi_jac_s_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2.0*crank_e0*math.sin(c0) - 2.0*crank_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [-2.0*crank_e3*math.cos(c0) + 2.0*crank_e0*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_turn(q, u, ud):
@@ -679,7 +679,7 @@ def _drivers_gamma_s_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-(ud0*ud0)*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
+    return [-udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3)]
 
 
 def phi_turn(q, u):

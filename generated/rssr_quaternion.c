@@ -15,26 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
-static void retract_body(double *q, const double *step) {
-    double tx = step[3], ty = step[4], tz = step[5];
-    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
-    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
-    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
-    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] = pw * qw - px * qx - py * qy - pz * qz;
-    q[4] = pw * qx + px * qw + py * qz - pz * qy;
-    q[5] = pw * qy - px * qz + py * qw + pz * qx;
-    q[6] = pw * qz + px * qy - py * qx + pz * qw;
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < RSSR_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
-}
-
 /* Phi of the 11 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double crank_x = q[0];
@@ -51,16 +31,16 @@ static void compute_joints_phi(const double *q, double *out) {
     const double rocker_qx = q[11];
     const double rocker_qy = q[12];
     const double rocker_qz = q[13];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
     const double rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
-    const double rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy);
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
     out[0] = -crank_x;
     out[1] = -crank_y;
     out[2] = -crank_z;
@@ -71,7 +51,7 @@ static void compute_joints_phi(const double *q, double *out) {
     out[7] = 3.0/10.0 - rocker_z;
     out[8] = rocker_a01;
     out[9] = rocker_a02;
-    out[10] = pow((3.0/20.0)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x, 2.0) + pow((3.0/20.0)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y, 2.0) + pow((3.0/20.0)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z, 2.0) - 169.0/625.0;
+    out[10] = -169.0/625.0 + pow(crank_x - rocker_x - 0.20381334*rocker_a02 + (3.0/20.0)*crank_a00 + (0.2201366)*rocker_a01, 2.0) + pow(crank_y - rocker_y - 0.20381334*rocker_a12 + (3.0/20.0)*crank_a10 + (0.2201366)*rocker_a11, 2.0) + pow(crank_z - rocker_z - 0.20381334*rocker_a22 + (3.0/20.0)*crank_a20 + (0.2201366)*rocker_a21, 2.0);
 }
 
 /* Phi of the driver rows of case 'turn'. */
@@ -80,7 +60,7 @@ static void compute_drivers_phi_turn(const double *q, const double *u, double *o
     const double crank_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*crank_qw*sin(c0) - 2.0*crank_qz*cos(c0);
+    out[0] = -2.0*crank_qz*cos(c0) + 2.0*crank_qw*sin(c0);
 }
 
 /* Phi_q values of the joint rows (26 entries). */
@@ -99,29 +79,29 @@ static void compute_joints_jac(const double *q, double *out) {
     const double rocker_qx = q[11];
     const double rocker_qy = q[12];
     const double rocker_qz = q[13];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
-    const double rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy);
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
-    const double d0 = (3.0/10.0)*crank_a00 + 2.0*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2.0*rocker_x;
-    const double d1 = (3.0/10.0)*crank_a10 + 2.0*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2.0*rocker_y;
-    const double d2 = (3.0/10.0)*crank_a20 + 2.0*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2.0*rocker_z;
-    const double d3 = (9.0/200.0)*crank_a20 + (3.0/10.0)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3.0/10.0*rocker_z;
-    const double d4 = (9.0/200.0)*crank_a10 + (3.0/10.0)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3.0/10.0*rocker_y;
-    const double d5 = (9.0/200.0)*crank_a00 + (3.0/10.0)*crank_x + (0.06604098)*rocker_a01 - 0.061144002*rocker_a02 - 3.0/10.0*rocker_x;
-    const double d6 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z;
-    const double d7 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z;
-    const double d8 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y;
-    const double d9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y;
-    const double d10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x;
-    const double d11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
+    const double d0 = -2.0*rocker_x + 2.0*crank_x - 0.40762668*rocker_a02 + (3.0/10.0)*crank_a00 + (0.4402732)*rocker_a01;
+    const double d1 = -2.0*rocker_y + 2.0*crank_y - 0.40762668*rocker_a12 + (3.0/10.0)*crank_a10 + (0.4402732)*rocker_a11;
+    const double d2 = -2.0*rocker_z + 2.0*crank_z - 0.40762668*rocker_a22 + (3.0/10.0)*crank_a20 + (0.4402732)*rocker_a21;
+    const double d3 = -0.061144002*rocker_a22 - 3.0/10.0*rocker_z + (3.0/10.0)*crank_z + (9.0/200.0)*crank_a20 + (0.06604098)*rocker_a21;
+    const double d4 = -0.061144002*rocker_a12 - 3.0/10.0*rocker_y + (3.0/10.0)*crank_y + (9.0/200.0)*crank_a10 + (0.06604098)*rocker_a11;
+    const double d5 = -0.061144002*rocker_a02 - 3.0/10.0*rocker_x + (3.0/10.0)*crank_x + (9.0/200.0)*crank_a00 + (0.06604098)*rocker_a01;
+    const double d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21;
+    const double d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22;
+    const double d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11;
+    const double d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12;
+    const double d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01;
+    const double d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -139,15 +119,15 @@ static void compute_joints_jac(const double *q, double *out) {
     out[14] = d0;
     out[15] = d1;
     out[16] = d2;
-    out[17] = crank_a10*d3 - crank_a20*d4;
-    out[18] = -crank_a00*d3 + crank_a20*d5;
-    out[19] = crank_a00*d4 - crank_a10*d5;
+    out[17] = d3*crank_a10 - d4*crank_a20;
+    out[18] = d5*crank_a20 - d3*crank_a00;
+    out[19] = d4*crank_a00 - d5*crank_a10;
     out[20] = -d0;
     out[21] = -d1;
     out[22] = -d2;
-    out[23] = rocker_a11*d6 + rocker_a12*d7 - rocker_a21*d8 - rocker_a22*d9;
-    out[24] = -rocker_a01*d6 - rocker_a02*d7 + rocker_a21*d10 + rocker_a22*d11;
-    out[25] = rocker_a01*d8 + rocker_a02*d9 - rocker_a11*d10 - rocker_a12*d11;
+    out[23] = d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22;
+    out[24] = d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02;
+    out[25] = d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12;
 }
 
 /* Phi_q values of the driver rows of case 'turn'. */
@@ -160,17 +140,9 @@ static void compute_drivers_jac_turn(const double *q, const double *u, double *o
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
-    out[0] = -crank_qx*d1 - crank_qy*d2;
-    out[1] = crank_qx*d2 - crank_qy*d1;
-    out[2] = -crank_qw*d2 - crank_qz*d1;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'turn'. */
-static void phi_jac_turn(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_turn(q, u, phi + 11);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_turn(q, u, jac + 26);
+    out[0] = -d1*crank_qx - d2*crank_qy;
+    out[1] = d2*crank_qx - d1*crank_qy;
+    out[2] = -d1*crank_qz - d2*crank_qw;
 }
 
 /* nu of the driver rows of case 'turn'. */
@@ -181,12 +153,6 @@ static void compute_drivers_nu_turn(const double *q, const double *u, const doub
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0));
-}
-
-/* nu = -Phi_t of case 'turn' (zero in the joint rows). */
-static void nu_turn(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 11; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_turn(q, u, ud, nu + 11);
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -217,46 +183,46 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_rocker_theta_x = v[9];
     const double v_rocker_theta_y = v[10];
     const double v_rocker_theta_z = v[11];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
     const double rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
-    const double rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy);
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
     const double c0 = crank_a10*v_crank_theta_z;
     const double c1 = rocker_a11*v_rocker_theta_z;
-    const double c2 = -3.0/10.0*crank_a20*v_crank_theta_y - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y + (3.0/10.0)*c0 + (0.4402732)*c1 - 2.0*v_crank_x + 2.0*v_rocker_x;
+    const double c2 = -2.0*v_crank_x + 2.0*v_rocker_x + (3.0/10.0)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y - 3.0/10.0*crank_a20*v_crank_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y;
     const double c3 = crank_a00*v_crank_theta_z;
     const double c4 = crank_a20*v_crank_theta_x;
     const double c5 = rocker_a01*v_rocker_theta_z;
     const double c6 = rocker_a02*v_rocker_theta_z;
     const double c7 = rocker_a21*v_rocker_theta_x;
     const double c8 = rocker_a22*v_rocker_theta_x;
-    const double c9 = (3.0/10.0)*c3 - 3.0/10.0*c4 + (0.4402732)*c5 - 0.40762668*c6 - 0.4402732*c7 + (0.40762668)*c8 + 2.0*v_crank_y - 2.0*v_rocker_y;
+    const double c9 = -2.0*v_rocker_y + 2.0*v_crank_y - 0.40762668*c6 - 0.4402732*c7 - 3.0/10.0*c4 + (3.0/10.0)*c3 + (0.4402732)*c5 + (0.40762668)*c8;
     const double c10 = crank_a00*v_crank_theta_y;
     const double c11 = rocker_a01*v_rocker_theta_y;
-    const double c12 = -3.0/10.0*crank_a10*v_crank_theta_x - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x + (3.0/10.0)*c10 + (0.4402732)*c11 - 2.0*v_crank_z + 2.0*v_rocker_z;
+    const double c12 = -2.0*v_crank_z + 2.0*v_rocker_z + (3.0/10.0)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x - 3.0/10.0*crank_a10*v_crank_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x;
     const double c13 = (0.4402732)*v_rocker_theta_y;
     const double c14 = (0.4402732)*v_rocker_theta_x;
-    const double c15 = (0.06604098)*v_crank_theta_y - 0.06604098*v_rocker_theta_y;
+    const double c15 = -0.06604098*v_rocker_theta_y + (0.06604098)*v_crank_theta_y;
     const double c16 = -c15;
-    const double c17 = (0.06604098)*v_crank_theta_x - 0.06604098*v_rocker_theta_x;
+    const double c17 = -0.06604098*v_rocker_theta_x + (0.06604098)*v_crank_theta_x;
     const double c18 = (0.4402732)*v_rocker_theta_z;
-    const double c19 = (0.06604098)*v_crank_theta_z - 0.06604098*v_rocker_theta_z;
+    const double c19 = -0.06604098*v_rocker_theta_z + (0.06604098)*v_crank_theta_z;
     const double c20 = -c17;
     const double c21 = (0.40762668)*v_rocker_theta_y;
     const double c22 = (0.40762668)*v_rocker_theta_x;
-    const double c23 = (0.061144002)*v_crank_theta_y - 0.061144002*v_rocker_theta_y;
-    const double c24 = (0.061144002)*v_crank_theta_x - 0.061144002*v_rocker_theta_x;
+    const double c23 = -0.061144002*v_rocker_theta_y + (0.061144002)*v_crank_theta_y;
+    const double c24 = -0.061144002*v_rocker_theta_x + (0.061144002)*v_crank_theta_x;
     const double c25 = -c24;
     const double c26 = (0.40762668)*v_rocker_theta_z;
-    const double c27 = (0.061144002)*v_crank_theta_z - 0.061144002*v_rocker_theta_z;
+    const double c27 = -0.061144002*v_rocker_theta_z + (0.061144002)*v_crank_theta_z;
     const double c28 = -c27;
     const double c29 = -c19;
     const double c30 = -c23;
@@ -266,14 +232,14 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y);
-    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y);
+    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x);
+    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x);
     out[5] = 0.0;
     out[6] = 0.0;
     out[7] = 0.0;
-    out[8] = -v_rocker_theta_y*(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x);
-    out[9] = -v_rocker_theta_y*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x);
-    out[10] = c12*v_crank_z - c12*v_rocker_z + c2*v_crank_x - c2*v_rocker_x - c9*v_crank_y + c9*v_rocker_y - (c3 - c4)*(-crank_x*c33 + crank_z*c32 + rocker_a01*c29 + rocker_a02*c27 + rocker_a21*c17 + rocker_a22*c25 + rocker_x*c33 - rocker_z*c32 + (3.0/10.0)*v_crank_y - 3.0/10.0*v_rocker_y) - (c5 - c7)*(crank_a00*c19 + crank_a20*c20 - crank_x*c18 + crank_z*c14 + rocker_x*c18 - rocker_z*c14 + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (c6 - c8)*(crank_a00*c28 + crank_a20*c24 + crank_x*c26 - crank_z*c22 - rocker_x*c26 + rocker_z*c22 - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (crank_a10*v_crank_theta_x - c10)*(crank_x*c31 - crank_y*c32 + rocker_a01*c15 + rocker_a02*c30 + rocker_a11*c20 + rocker_a12*c24 - rocker_x*c31 + rocker_y*c32 + (3.0/10.0)*v_crank_z - 3.0/10.0*v_rocker_z) - (crank_a20*v_crank_theta_y - c0)*(crank_y*c33 - crank_z*c31 + rocker_a11*c19 + rocker_a12*c28 + rocker_a21*c16 + rocker_a22*c23 - rocker_y*c33 + rocker_z*c31 + (3.0/10.0)*v_crank_x - 3.0/10.0*v_rocker_x) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*(crank_a00*c23 + crank_a10*c25 - crank_x*c21 + crank_y*c22 + rocker_x*c21 - rocker_y*c22 - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (rocker_a11*v_rocker_theta_x - c11)*(crank_a00*c16 + crank_a10*c17 + crank_x*c13 - crank_y*c14 - rocker_x*c13 + rocker_y*c14 + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(crank_a10*c27 + crank_a20*c30 - crank_y*c26 + crank_z*c21 + rocker_y*c26 - rocker_z*c21 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x) - (rocker_a21*v_rocker_theta_y - c1)*(crank_a10*c29 + crank_a20*c15 + crank_y*c18 - crank_z*c13 - rocker_y*c18 + rocker_z*c13 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x);
+    out[8] = v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a11*v_rocker_theta_x - rocker_a01*v_rocker_theta_y);
+    out[9] = v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y);
+    out[10] = c12*v_crank_z + c2*v_crank_x + c9*v_rocker_y - c12*v_rocker_z - c2*v_rocker_x - c9*v_crank_y - (c3 - c4)*(-3.0/10.0*v_rocker_y + (3.0/10.0)*v_crank_y + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_z + c33*rocker_x - c32*rocker_z - c33*crank_x) - (c5 - c7)*(-0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c14*crank_z + c18*rocker_x + c19*crank_a00 + c20*crank_a20 - c14*rocker_z - c18*crank_x) - (c6 - c8)*(-0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c22*rocker_z + c24*crank_a20 + c26*crank_x + c28*crank_a00 - c22*crank_z - c26*rocker_x) - (-c0 + crank_a20*v_crank_theta_y)*(-3.0/10.0*v_rocker_x + (3.0/10.0)*v_crank_x + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_z + c33*crank_y - c31*crank_z - c33*rocker_y) - (-c1 + rocker_a21*v_rocker_theta_y)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + c13*rocker_z + c15*crank_a20 + c18*crank_y + c29*crank_a10 - c13*crank_z - c18*rocker_y) - (-c10 + crank_a10*v_crank_theta_x)*(-3.0/10.0*v_rocker_z + (3.0/10.0)*v_crank_z + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_x + c32*rocker_y - c31*rocker_x - c32*crank_y) - (-c11 + rocker_a11*v_rocker_theta_x)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c13*crank_x + c14*rocker_y + c16*crank_a00 + c17*crank_a10 - c13*rocker_x - c14*crank_y) - (rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + c21*rocker_x + c22*crank_y + c23*crank_a00 + c25*crank_a10 - c21*crank_x - c22*rocker_y) - (rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z)*(-0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c21*crank_z + c26*rocker_y + c27*crank_a10 + c30*crank_a20 - c21*rocker_z - c26*crank_y);
 }
 
 /* gamma of the driver rows of case 'turn'. */
@@ -292,19 +258,13 @@ static void compute_drivers_gamma_turn(const double *q, const double *v, const d
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*crank_qw;
-    const double c4 = -1.0/2.0*crank_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*crank_qz;
     const double c5 = (1.0/2.0)*v_crank_theta_y;
     const double c6 = (1.0/2.0)*v_crank_theta_x;
     const double c7 = (1.0/2.0)*crank_qz;
     const double c8 = (1.0/2.0)*v_crank_theta_z;
     const double c9 = (1.0/2.0)*c1;
-    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1.0/2.0)*crank_qy*c2) + v_crank_theta_y*(-1.0/2.0*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'. */
-static void gamma_turn(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_turn(q, v, u, ud, udd, gamma + 11);
+    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1.0/2.0)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1.0/2.0*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx);
 }
 
 /* Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -313,13 +273,8 @@ static void compute_inputs_turn(double t, double *out) {
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     out[0] = 6.283185307179586*t*(1.0 - 1.0/5.0*c1);
-    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586;
-    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2;
-}
-
-/* Driver inputs of case 'turn' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_turn(double t, double *inputs) {
-    compute_inputs_turn(t, inputs);
+    out[1] = 6.283185307179586 - 1.2566370614359172*c1 + 3.947841760435743*c2*t;
+    out[2] = 7.895683520871486*c2 + 12.402510672119927*c1*t;
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -362,24 +317,24 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_rocker_theta_x = a[9];
     const double dv_rocker_theta_y = a[10];
     const double dv_rocker_theta_z = a[11];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a02 = 2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a12 = -2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
-    const double crank_a22 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qz*crank_qz) - 1.0;
-    const double rocker_a00 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx) - 1.0;
+    const double crank_a22 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qz*crank_qz);
+    const double rocker_a00 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qx*rocker_qx);
     const double rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
     const double rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a10 = 2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy;
-    const double rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0;
+    const double rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy);
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
-    const double rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0;
+    const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
     out[0] = crank_x;
     out[1] = crank_y;
     out[2] = crank_z;
@@ -428,6 +383,51 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[45] = dv_rocker_theta_x;
     out[46] = dv_rocker_theta_y;
     out[47] = dv_rocker_theta_z;
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
+static void retract_body(double *q, const double *step) {
+    double tx = step[3], ty = step[4], tz = step[5];
+    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
+    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
+    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
+    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] = pw * qw - px * qx - py * qy - pz * qz;
+    q[4] = pw * qx + px * qw + py * qz - pz * qy;
+    q[5] = pw * qy - px * qz + py * qw + pz * qx;
+    q[6] = pw * qz + px * qy - py * qx + pz * qw;
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < RSSR_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'turn'. */
+static void phi_jac_turn(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_turn(q, u, phi + 11);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_turn(q, u, jac + 26);
+}
+
+/* nu = -Phi_t of case 'turn' (zero in the joint rows). */
+static void nu_turn(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 11; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_turn(q, u, ud, nu + 11);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'turn'. */
+static void gamma_turn(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_turn(q, v, u, ud, udd, gamma + 11);
+}
+
+/* Driver inputs of case 'turn' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_turn(double t, double *inputs) {
+    compute_inputs_turn(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

@@ -63,16 +63,16 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 11 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
     rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a11 = -1 + 2*rocker_qw**2 + 2*rocker_qy**2
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
     out = _zeros(11, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
@@ -84,36 +84,36 @@ def _joints_phi(q):
     out[7] = 3/10 - rocker_z
     out[8] = rocker_a01
     out[9] = rocker_a02
-    out[10] = ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2 - 169/625
+    out[10] = -169/625 + (crank_x - rocker_x - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2 + (crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2 + (crank_z - rocker_z - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2
     return out
 
 
 def _joints_jac(q):
     """Phi_q values of the joint rows (26 entries)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a11 = -1 + 2*rocker_qw**2 + 2*rocker_qy**2
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
-    d0 = (3/10)*crank_a00 + 2*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2*rocker_x
-    d1 = (3/10)*crank_a10 + 2*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2*rocker_y
-    d2 = (3/10)*crank_a20 + 2*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2*rocker_z
-    d3 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
-    d4 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
-    d5 = (9/200)*crank_a00 + (3/10)*crank_x + (0.06604098)*rocker_a01 - 0.061144002*rocker_a02 - 3/10*rocker_x
-    d6 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    d7 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    d8 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
-    d9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
-    d10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
-    d11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
+    d0 = -2*rocker_x + 2*crank_x - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d1 = -2*rocker_y + 2*crank_y - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
+    d2 = -2*rocker_z + 2*crank_z - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
+    d3 = -0.061144002*rocker_a22 - 3/10*rocker_z + (3/10)*crank_z + (9/200)*crank_a20 + (0.06604098)*rocker_a21
+    d4 = -0.061144002*rocker_a12 - 3/10*rocker_y + (3/10)*crank_y + (9/200)*crank_a10 + (0.06604098)*rocker_a11
+    d5 = -0.061144002*rocker_a02 - 3/10*rocker_x + (3/10)*crank_x + (9/200)*crank_a00 + (0.06604098)*rocker_a01
+    d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
+    d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22
+    d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
+    d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12
+    d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
+    d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02
     out = _zeros(26, q, ())
     out[0] = -1
     out[1] = -1
@@ -132,15 +132,15 @@ def _joints_jac(q):
     out[14] = d0
     out[15] = d1
     out[16] = d2
-    out[17] = crank_a10*d3 - crank_a20*d4
-    out[18] = -crank_a00*d3 + crank_a20*d5
-    out[19] = crank_a00*d4 - crank_a10*d5
+    out[17] = d3*crank_a10 - d4*crank_a20
+    out[18] = d5*crank_a20 - d3*crank_a00
+    out[19] = d4*crank_a00 - d5*crank_a10
     out[20] = -d0
     out[21] = -d1
     out[22] = -d2
-    out[23] = rocker_a11*d6 + rocker_a12*d7 - rocker_a21*d8 - rocker_a22*d9
-    out[24] = -rocker_a01*d6 - rocker_a02*d7 + rocker_a21*d10 + rocker_a22*d11
-    out[25] = rocker_a01*d8 + rocker_a02*d9 - rocker_a11*d10 - rocker_a12*d11
+    out[23] = d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22
+    out[24] = d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02
+    out[25] = d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12
     return out
 
 
@@ -148,46 +148,46 @@ def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
     rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a11 = -1 + 2*rocker_qw**2 + 2*rocker_qy**2
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
     c0 = crank_a10*v_crank_theta_z
     c1 = rocker_a11*v_rocker_theta_z
-    c2 = -3/10*crank_a20*v_crank_theta_y - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y + (3/10)*c0 + (0.4402732)*c1 - 2*v_crank_x + 2*v_rocker_x
+    c2 = -2*v_crank_x + 2*v_rocker_x + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y - 3/10*crank_a20*v_crank_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y
     c3 = crank_a00*v_crank_theta_z
     c4 = crank_a20*v_crank_theta_x
     c5 = rocker_a01*v_rocker_theta_z
     c6 = rocker_a02*v_rocker_theta_z
     c7 = rocker_a21*v_rocker_theta_x
     c8 = rocker_a22*v_rocker_theta_x
-    c9 = (3/10)*c3 - 3/10*c4 + (0.4402732)*c5 - 0.40762668*c6 - 0.4402732*c7 + (0.40762668)*c8 + 2*v_crank_y - 2*v_rocker_y
+    c9 = -2*v_rocker_y + 2*v_crank_y - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
     c10 = crank_a00*v_crank_theta_y
     c11 = rocker_a01*v_rocker_theta_y
-    c12 = -3/10*crank_a10*v_crank_theta_x - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x + (3/10)*c10 + (0.4402732)*c11 - 2*v_crank_z + 2*v_rocker_z
+    c12 = -2*v_crank_z + 2*v_rocker_z + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x - 3/10*crank_a10*v_crank_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x
     c13 = (0.4402732)*v_rocker_theta_y
     c14 = (0.4402732)*v_rocker_theta_x
-    c15 = (0.06604098)*v_crank_theta_y - 0.06604098*v_rocker_theta_y
+    c15 = -0.06604098*v_rocker_theta_y + (0.06604098)*v_crank_theta_y
     c16 = -c15
-    c17 = (0.06604098)*v_crank_theta_x - 0.06604098*v_rocker_theta_x
+    c17 = -0.06604098*v_rocker_theta_x + (0.06604098)*v_crank_theta_x
     c18 = (0.4402732)*v_rocker_theta_z
-    c19 = (0.06604098)*v_crank_theta_z - 0.06604098*v_rocker_theta_z
+    c19 = -0.06604098*v_rocker_theta_z + (0.06604098)*v_crank_theta_z
     c20 = -c17
     c21 = (0.40762668)*v_rocker_theta_y
     c22 = (0.40762668)*v_rocker_theta_x
-    c23 = (0.061144002)*v_crank_theta_y - 0.061144002*v_rocker_theta_y
-    c24 = (0.061144002)*v_crank_theta_x - 0.061144002*v_rocker_theta_x
+    c23 = -0.061144002*v_rocker_theta_y + (0.061144002)*v_crank_theta_y
+    c24 = -0.061144002*v_rocker_theta_x + (0.061144002)*v_crank_theta_x
     c25 = -c24
     c26 = (0.40762668)*v_rocker_theta_z
-    c27 = (0.061144002)*v_crank_theta_z - 0.061144002*v_rocker_theta_z
+    c27 = -0.061144002*v_rocker_theta_z + (0.061144002)*v_crank_theta_z
     c28 = -c27
     c29 = -c19
     c30 = -c23
@@ -195,95 +195,95 @@ def _joints_gamma(q, v):
     c32 = (3/10)*v_crank_theta_x
     c33 = (3/10)*v_crank_theta_z
     out = _zeros(11, q, ())
-    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
-    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
-    out[8] = -v_rocker_theta_y*(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)
-    out[9] = -v_rocker_theta_y*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x)
-    out[10] = c12*v_crank_z - c12*v_rocker_z + c2*v_crank_x - c2*v_rocker_x - c9*v_crank_y + c9*v_rocker_y - (c3 - c4)*(-crank_x*c33 + crank_z*c32 + rocker_a01*c29 + rocker_a02*c27 + rocker_a21*c17 + rocker_a22*c25 + rocker_x*c33 - rocker_z*c32 + (3/10)*v_crank_y - 3/10*v_rocker_y) - (c5 - c7)*(crank_a00*c19 + crank_a20*c20 - crank_x*c18 + crank_z*c14 + rocker_x*c18 - rocker_z*c14 + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (c6 - c8)*(crank_a00*c28 + crank_a20*c24 + crank_x*c26 - crank_z*c22 - rocker_x*c26 + rocker_z*c22 - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (crank_a10*v_crank_theta_x - c10)*(crank_x*c31 - crank_y*c32 + rocker_a01*c15 + rocker_a02*c30 + rocker_a11*c20 + rocker_a12*c24 - rocker_x*c31 + rocker_y*c32 + (3/10)*v_crank_z - 3/10*v_rocker_z) - (crank_a20*v_crank_theta_y - c0)*(crank_y*c33 - crank_z*c31 + rocker_a11*c19 + rocker_a12*c28 + rocker_a21*c16 + rocker_a22*c23 - rocker_y*c33 + rocker_z*c31 + (3/10)*v_crank_x - 3/10*v_rocker_x) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*(crank_a00*c23 + crank_a10*c25 - crank_x*c21 + crank_y*c22 + rocker_x*c21 - rocker_y*c22 - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (rocker_a11*v_rocker_theta_x - c11)*(crank_a00*c16 + crank_a10*c17 + crank_x*c13 - crank_y*c14 - rocker_x*c13 + rocker_y*c14 + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(crank_a10*c27 + crank_a20*c30 - crank_y*c26 + crank_z*c21 + rocker_y*c26 - rocker_z*c21 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x) - (rocker_a21*v_rocker_theta_y - c1)*(crank_a10*c29 + crank_a20*c15 + crank_y*c18 - crank_z*c13 - rocker_y*c18 + rocker_z*c13 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x)
+    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x)
+    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x)
+    out[8] = v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a11*v_rocker_theta_x - rocker_a01*v_rocker_theta_y)
+    out[9] = v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)
+    out[10] = c12*v_crank_z + c2*v_crank_x + c9*v_rocker_y - c12*v_rocker_z - c2*v_rocker_x - c9*v_crank_y - (c3 - c4)*(-3/10*v_rocker_y + (3/10)*v_crank_y + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_z + c33*rocker_x - c32*rocker_z - c33*crank_x) - (c5 - c7)*(-0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c14*crank_z + c18*rocker_x + c19*crank_a00 + c20*crank_a20 - c14*rocker_z - c18*crank_x) - (c6 - c8)*(-0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c22*rocker_z + c24*crank_a20 + c26*crank_x + c28*crank_a00 - c22*crank_z - c26*rocker_x) - (-c0 + crank_a20*v_crank_theta_y)*(-3/10*v_rocker_x + (3/10)*v_crank_x + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_z + c33*crank_y - c31*crank_z - c33*rocker_y) - (-c1 + rocker_a21*v_rocker_theta_y)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + c13*rocker_z + c15*crank_a20 + c18*crank_y + c29*crank_a10 - c13*crank_z - c18*rocker_y) - (-c10 + crank_a10*v_crank_theta_x)*(-3/10*v_rocker_z + (3/10)*v_crank_z + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_x + c32*rocker_y - c31*rocker_x - c32*crank_y) - (-c11 + rocker_a11*v_rocker_theta_x)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c13*crank_x + c14*rocker_y + c16*crank_a00 + c17*crank_a10 - c13*rocker_x - c14*crank_y) - (rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + c21*rocker_x + c22*crank_y + c23*crank_a00 + c25*crank_a10 - c21*crank_x - c22*rocker_y) - (rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z)*(-0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c21*crank_z + c26*rocker_y + c27*crank_a10 + c30*crank_a20 - c21*rocker_z - c26*crank_y)
     return out
 
 
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
-    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx)
     crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
     crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
-    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy)
     crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
     crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
     rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
     rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
-    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy)
     rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
-    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
-    d0 = (3/10)*crank_a00 + 2.0*crank_x + (0.4402732)*rocker_a01 - 0.40762668*rocker_a02 - 2.0*rocker_x
-    d1 = (3/10)*crank_a10 + 2.0*crank_y + (0.4402732)*rocker_a11 - 0.40762668*rocker_a12 - 2.0*rocker_y
-    d2 = (3/10)*crank_a20 + 2.0*crank_z + (0.4402732)*rocker_a21 - 0.40762668*rocker_a22 - 2.0*rocker_z
-    d3 = (9/200)*crank_a20 + (3/10)*crank_z + (0.06604098)*rocker_a21 - 0.061144002*rocker_a22 - 3/10*rocker_z
-    d4 = (9/200)*crank_a10 + (3/10)*crank_y + (0.06604098)*rocker_a11 - 0.061144002*rocker_a12 - 3/10*rocker_y
-    d5 = (9/200)*crank_a00 + (3/10)*crank_x + (0.06604098)*rocker_a01 - 0.061144002*rocker_a02 - 3/10*rocker_x
-    d6 = (0.06604098)*crank_a20 + (0.4402732)*crank_z + (0.09692024531912)*rocker_a21 - 0.089733551404488*rocker_a22 - 0.4402732*rocker_z
-    d7 = -0.061144002*crank_a20 - 0.40762668*crank_z - 0.089733551404488*rocker_a21 + (0.0830797551239112)*rocker_a22 + (0.40762668)*rocker_z
-    d8 = (0.06604098)*crank_a10 + (0.4402732)*crank_y + (0.09692024531912)*rocker_a11 - 0.089733551404488*rocker_a12 - 0.4402732*rocker_y
-    d9 = -0.061144002*crank_a10 - 0.40762668*crank_y - 0.089733551404488*rocker_a11 + (0.0830797551239112)*rocker_a12 + (0.40762668)*rocker_y
-    d10 = (0.06604098)*crank_a00 + (0.4402732)*crank_x + (0.09692024531912)*rocker_a01 - 0.089733551404488*rocker_a02 - 0.4402732*rocker_x
-    d11 = -0.061144002*crank_a00 - 0.40762668*crank_x - 0.089733551404488*rocker_a01 + (0.0830797551239112)*rocker_a02 + (0.40762668)*rocker_x
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, ((3/20)*crank_a00 + crank_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 - rocker_x)**2.0 + ((3/20)*crank_a10 + crank_y + (0.2201366)*rocker_a11 - 0.20381334*rocker_a12 - rocker_y)**2.0 + ((3/20)*crank_a20 + crank_z + (0.2201366)*rocker_a21 - 0.20381334*rocker_a22 - rocker_z)**2.0 - 169/625], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, crank_a10*d3 - crank_a20*d4, -crank_a00*d3 + crank_a20*d5, crank_a00*d4 - crank_a10*d5, -d0, -d1, -d2, rocker_a11*d6 + rocker_a12*d7 - rocker_a21*d8 - rocker_a22*d9, -rocker_a01*d6 - rocker_a02*d7 + rocker_a21*d10 + rocker_a22*d11, rocker_a01*d8 + rocker_a02*d9 - rocker_a11*d10 - rocker_a12*d11]
+    rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz)
+    d0 = -2.0*rocker_x + 2.0*crank_x - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d1 = -2.0*rocker_y + 2.0*crank_y - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
+    d2 = -2.0*rocker_z + 2.0*crank_z - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
+    d3 = -0.061144002*rocker_a22 - 3/10*rocker_z + (3/10)*crank_z + (9/200)*crank_a20 + (0.06604098)*rocker_a21
+    d4 = -0.061144002*rocker_a12 - 3/10*rocker_y + (3/10)*crank_y + (9/200)*crank_a10 + (0.06604098)*rocker_a11
+    d5 = -0.061144002*rocker_a02 - 3/10*rocker_x + (3/10)*crank_x + (9/200)*crank_a00 + (0.06604098)*rocker_a01
+    d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
+    d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22
+    d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
+    d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12
+    d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
+    d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, -169/625 + (crank_x - rocker_x - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2.0 + (crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2.0 + (crank_z - rocker_z - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2.0], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, d3*crank_a10 - d4*crank_a20, d5*crank_a20 - d3*crank_a00, d4*crank_a00 - d5*crank_a10, -d0, -d1, -d2, d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22, d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02, d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
-    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx)
     crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
     crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
-    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy)
     crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
     crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
     rocker_a01 = -2.0*rocker_qw*rocker_qz + 2.0*rocker_qx*rocker_qy
     rocker_a02 = 2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
-    rocker_a11 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy) - 1.0
+    rocker_a11 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qy*rocker_qy)
     rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
-    rocker_a22 = 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz) - 1.0
+    rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz)
     c0 = crank_a10*v_crank_theta_z
     c1 = rocker_a11*v_rocker_theta_z
-    c2 = -3/10*crank_a20*v_crank_theta_y - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y + (3/10)*c0 + (0.4402732)*c1 - 2.0*v_crank_x + 2.0*v_rocker_x
+    c2 = -2.0*v_crank_x + 2.0*v_rocker_x + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y - 3/10*crank_a20*v_crank_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y
     c3 = crank_a00*v_crank_theta_z
     c4 = crank_a20*v_crank_theta_x
     c5 = rocker_a01*v_rocker_theta_z
     c6 = rocker_a02*v_rocker_theta_z
     c7 = rocker_a21*v_rocker_theta_x
     c8 = rocker_a22*v_rocker_theta_x
-    c9 = (3/10)*c3 - 3/10*c4 + (0.4402732)*c5 - 0.40762668*c6 - 0.4402732*c7 + (0.40762668)*c8 + 2.0*v_crank_y - 2.0*v_rocker_y
+    c9 = -2.0*v_rocker_y + 2.0*v_crank_y - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
     c10 = crank_a00*v_crank_theta_y
     c11 = rocker_a01*v_rocker_theta_y
-    c12 = -3/10*crank_a10*v_crank_theta_x - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x + (3/10)*c10 + (0.4402732)*c11 - 2.0*v_crank_z + 2.0*v_rocker_z
+    c12 = -2.0*v_crank_z + 2.0*v_rocker_z + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x - 3/10*crank_a10*v_crank_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x
     c13 = (0.4402732)*v_rocker_theta_y
     c14 = (0.4402732)*v_rocker_theta_x
-    c15 = (0.06604098)*v_crank_theta_y - 0.06604098*v_rocker_theta_y
+    c15 = -0.06604098*v_rocker_theta_y + (0.06604098)*v_crank_theta_y
     c16 = -c15
-    c17 = (0.06604098)*v_crank_theta_x - 0.06604098*v_rocker_theta_x
+    c17 = -0.06604098*v_rocker_theta_x + (0.06604098)*v_crank_theta_x
     c18 = (0.4402732)*v_rocker_theta_z
-    c19 = (0.06604098)*v_crank_theta_z - 0.06604098*v_rocker_theta_z
+    c19 = -0.06604098*v_rocker_theta_z + (0.06604098)*v_crank_theta_z
     c20 = -c17
     c21 = (0.40762668)*v_rocker_theta_y
     c22 = (0.40762668)*v_rocker_theta_x
-    c23 = (0.061144002)*v_crank_theta_y - 0.061144002*v_rocker_theta_y
-    c24 = (0.061144002)*v_crank_theta_x - 0.061144002*v_rocker_theta_x
+    c23 = -0.061144002*v_rocker_theta_y + (0.061144002)*v_crank_theta_y
+    c24 = -0.061144002*v_rocker_theta_x + (0.061144002)*v_crank_theta_x
     c25 = -c24
     c26 = (0.40762668)*v_rocker_theta_z
-    c27 = (0.061144002)*v_crank_theta_z - 0.061144002*v_rocker_theta_z
+    c27 = -0.061144002*v_rocker_theta_z + (0.061144002)*v_crank_theta_z
     c28 = -c27
     c29 = -c19
     c30 = -c23
     c31 = (3/10)*v_crank_theta_y
     c32 = (3/10)*v_crank_theta_x
     c33 = (3/10)*v_crank_theta_z
-    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), 0.0, 0.0, 0.0, -v_rocker_theta_y*(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x), -v_rocker_theta_y*(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x) + v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x), c12*v_crank_z - c12*v_rocker_z + c2*v_crank_x - c2*v_rocker_x - c9*v_crank_y + c9*v_rocker_y - (c3 - c4)*(-crank_x*c33 + crank_z*c32 + rocker_a01*c29 + rocker_a02*c27 + rocker_a21*c17 + rocker_a22*c25 + rocker_x*c33 - rocker_z*c32 + (3/10)*v_crank_y - 3/10*v_rocker_y) - (c5 - c7)*(crank_a00*c19 + crank_a20*c20 - crank_x*c18 + crank_z*c14 + rocker_x*c18 - rocker_z*c14 + (0.4402732)*v_crank_y - 0.4402732*v_rocker_y) - (c6 - c8)*(crank_a00*c28 + crank_a20*c24 + crank_x*c26 - crank_z*c22 - rocker_x*c26 + rocker_z*c22 - 0.40762668*v_crank_y + (0.40762668)*v_rocker_y) - (crank_a10*v_crank_theta_x - c10)*(crank_x*c31 - crank_y*c32 + rocker_a01*c15 + rocker_a02*c30 + rocker_a11*c20 + rocker_a12*c24 - rocker_x*c31 + rocker_y*c32 + (3/10)*v_crank_z - 3/10*v_rocker_z) - (crank_a20*v_crank_theta_y - c0)*(crank_y*c33 - crank_z*c31 + rocker_a11*c19 + rocker_a12*c28 + rocker_a21*c16 + rocker_a22*c23 - rocker_y*c33 + rocker_z*c31 + (3/10)*v_crank_x - 3/10*v_rocker_x) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*(crank_a00*c23 + crank_a10*c25 - crank_x*c21 + crank_y*c22 + rocker_x*c21 - rocker_y*c22 - 0.40762668*v_crank_z + (0.40762668)*v_rocker_z) - (rocker_a11*v_rocker_theta_x - c11)*(crank_a00*c16 + crank_a10*c17 + crank_x*c13 - crank_y*c14 - rocker_x*c13 + rocker_y*c14 + (0.4402732)*v_crank_z - 0.4402732*v_rocker_z) - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*(crank_a10*c27 + crank_a20*c30 - crank_y*c26 + crank_z*c21 + rocker_y*c26 - rocker_z*c21 - 0.40762668*v_crank_x + (0.40762668)*v_rocker_x) - (rocker_a21*v_rocker_theta_y - c1)*(crank_a10*c29 + crank_a20*c15 + crank_y*c18 - crank_z*c13 - rocker_y*c18 + rocker_z*c13 + (0.4402732)*v_crank_x - 0.4402732*v_rocker_x)]
+    return [0.0, 0.0, 0.0, v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x), v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x), 0.0, 0.0, 0.0, v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a11*v_rocker_theta_x - rocker_a01*v_rocker_theta_y), v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y), c12*v_crank_z + c2*v_crank_x + c9*v_rocker_y - c12*v_rocker_z - c2*v_rocker_x - c9*v_crank_y - (c3 - c4)*(-3/10*v_rocker_y + (3/10)*v_crank_y + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_z + c33*rocker_x - c32*rocker_z - c33*crank_x) - (c5 - c7)*(-0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c14*crank_z + c18*rocker_x + c19*crank_a00 + c20*crank_a20 - c14*rocker_z - c18*crank_x) - (c6 - c8)*(-0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c22*rocker_z + c24*crank_a20 + c26*crank_x + c28*crank_a00 - c22*crank_z - c26*rocker_x) - (-c0 + crank_a20*v_crank_theta_y)*(-3/10*v_rocker_x + (3/10)*v_crank_x + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_z + c33*crank_y - c31*crank_z - c33*rocker_y) - (-c1 + rocker_a21*v_rocker_theta_y)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + c13*rocker_z + c15*crank_a20 + c18*crank_y + c29*crank_a10 - c13*crank_z - c18*rocker_y) - (-c10 + crank_a10*v_crank_theta_x)*(-3/10*v_rocker_z + (3/10)*v_crank_z + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_x + c32*rocker_y - c31*rocker_x - c32*crank_y) - (-c11 + rocker_a11*v_rocker_theta_x)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c13*crank_x + c14*rocker_y + c16*crank_a00 + c17*crank_a10 - c13*rocker_x - c14*crank_y) - (rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + c21*rocker_x + c22*crank_y + c23*crank_a00 + c25*crank_a10 - c21*crank_x - c22*rocker_y) - (rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z)*(-0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c21*crank_z + c26*rocker_y + c27*crank_a10 + c30*crank_a20 - c21*rocker_z - c26*crank_y)]
 
 
 def frames(q, v, a):
@@ -291,24 +291,24 @@ def frames(q, v, a):
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rocker_x, rocker_y, rocker_z, rocker_qw, rocker_qx, rocker_qy, rocker_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rocker_x, v_rocker_y, v_rocker_z, v_rocker_theta_x, v_rocker_theta_y, v_rocker_theta_z = v
     dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_theta_x, dv_crank_theta_y, dv_crank_theta_z, dv_rocker_x, dv_rocker_y, dv_rocker_z, dv_rocker_theta_x, dv_rocker_theta_y, dv_rocker_theta_z = a
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a02 = 2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a12 = -2*crank_qw*crank_qx + 2*crank_qy*crank_qz
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    crank_a22 = 2*crank_qw**2 + 2*crank_qz**2 - 1
-    rocker_a00 = 2*rocker_qw**2 + 2*rocker_qx**2 - 1
+    crank_a22 = -1 + 2*crank_qw**2 + 2*crank_qz**2
+    rocker_a00 = -1 + 2*rocker_qw**2 + 2*rocker_qx**2
     rocker_a01 = -2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
     rocker_a02 = 2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a10 = 2*rocker_qw*rocker_qz + 2*rocker_qx*rocker_qy
-    rocker_a11 = 2*rocker_qw**2 + 2*rocker_qy**2 - 1
+    rocker_a11 = -1 + 2*rocker_qw**2 + 2*rocker_qy**2
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
-    rocker_a22 = 2*rocker_qw**2 + 2*rocker_qz**2 - 1
+    rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
     out = _zeros(48, q, ())
     out[0] = crank_x
     out[1] = crank_y
@@ -368,8 +368,8 @@ def inputs_turn(t):
     c2 = sin(c0)
     out = np.zeros((3,) + np.shape(t))
     out[0] = 6.283185307179586*t*(1 - 1/5*c1)
-    out[1] = -1.2566370614359172*c1 + 3.947841760435743*c2*t + 6.283185307179586
-    out[2] = 12.402510672119927*c1*t + 7.895683520871486*c2
+    out[1] = 6.283185307179586 - 1.2566370614359172*c1 + 3.947841760435743*c2*t
+    out[2] = 7.895683520871486*c2 + 12.402510672119927*c1*t
     return out
 
 
@@ -379,7 +379,7 @@ def _drivers_phi_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*crank_qw*sin(c0) - 2*crank_qz*cos(c0)
+    out[0] = -2*crank_qz*cos(c0) + 2*crank_qw*sin(c0)
     return out
 
 
@@ -391,9 +391,9 @@ def _drivers_jac_turn(q, u):
     d1 = sin(d0)
     d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = -crank_qx*d1 - crank_qy*d2
-    out[1] = crank_qx*d2 - crank_qy*d1
-    out[2] = -crank_qw*d2 - crank_qz*d1
+    out[0] = -d1*crank_qx - d2*crank_qy
+    out[1] = d2*crank_qx - d1*crank_qy
+    out[2] = -d1*crank_qz - d2*crank_qw
     return out
 
 
@@ -419,14 +419,14 @@ def _drivers_gamma_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*crank_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*crank_qz
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)
+    out[0] = c4*ud0**2 - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)
     return out
 
 
@@ -438,7 +438,7 @@ def _drivers_phi_jac_s_turn(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2.0*crank_qw*math.sin(c0) - 2.0*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+    return [-2.0*crank_qz*math.cos(c0) + 2.0*crank_qw*math.sin(c0)], [-d1*crank_qx - d2*crank_qy, d2*crank_qx - d1*crank_qy, -d1*crank_qz - d2*crank_qw]
 
 
 def _drivers_nu_s_turn(q, u, ud):
@@ -461,13 +461,13 @@ def _drivers_gamma_s_turn(q, v, u, ud, udd):
     c1 = math.cos(c0)
     c2 = math.sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*crank_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*crank_qz
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
+    return [c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)]
 
 
 def phi_turn(q, u):

@@ -15,21 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
-static void retract_body(double *q, const double *step) {
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] += step[3];
-    q[4] += step[4];
-    q[5] += step[5];
-    q[6] += step[6];
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < SLIDER_CRANK_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
-}
-
 /* Phi of the 20 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double crank_x = q[0];
@@ -53,40 +38,40 @@ static void compute_joints_phi(const double *q, double *out) {
     const double slider_e1 = q[18];
     const double slider_e2 = q[19];
     const double slider_e3 = q[20];
-    const double crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1);
     const double crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2;
     const double crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3;
     const double crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3;
-    const double rod_a00 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e1*rod_e1) - 1.0;
+    const double rod_a00 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e1*rod_e1);
     const double rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2;
     const double rod_a10 = 2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2;
-    const double rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2);
     const double rod_a20 = -2.0*rod_e0*rod_e2 + 2.0*rod_e1*rod_e3;
     const double rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3;
     const double slider_a01 = -2.0*slider_e0*slider_e3 + 2.0*slider_e1*slider_e2;
     const double slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3;
     const double slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3;
-    const double slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3);
     out[0] = -crank_x;
     out[1] = -crank_y;
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = (1.0/5.0)*crank_a00 + crank_x - rod_x;
-    out[6] = (1.0/5.0)*crank_a10 + crank_y - rod_y;
-    out[7] = (1.0/5.0)*crank_a20 + crank_z - rod_z;
-    out[8] = (3.0/5.0)*rod_a00 + rod_x - slider_x;
-    out[9] = (3.0/5.0)*rod_a10 + rod_y - slider_y;
-    out[10] = (3.0/5.0)*rod_a20 + rod_z - slider_z;
+    out[5] = crank_x - rod_x + (1.0/5.0)*crank_a00;
+    out[6] = crank_y - rod_y + (1.0/5.0)*crank_a10;
+    out[7] = crank_z - rod_z + (1.0/5.0)*crank_a20;
+    out[8] = rod_x - slider_x + (3.0/5.0)*rod_a00;
+    out[9] = rod_y - slider_y + (3.0/5.0)*rod_a10;
+    out[10] = rod_z - slider_z + (3.0/5.0)*rod_a20;
     out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22;
     out[12] = slider_a01;
     out[13] = slider_a02;
     out[14] = slider_y;
     out[15] = slider_z;
     out[16] = slider_a12;
-    out[17] = (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0;
-    out[18] = (rod_e0*rod_e0) + (rod_e1*rod_e1) + (rod_e2*rod_e2) + (rod_e3*rod_e3) - 1.0;
-    out[19] = (slider_e0*slider_e0) + (slider_e1*slider_e1) + (slider_e2*slider_e2) + (slider_e3*slider_e3) - 1.0;
+    out[17] = -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3);
+    out[18] = -1.0 + (rod_e0*rod_e0) + (rod_e1*rod_e1) + (rod_e2*rod_e2) + (rod_e3*rod_e3);
+    out[19] = -1.0 + (slider_e0*slider_e0) + (slider_e1*slider_e1) + (slider_e2*slider_e2) + (slider_e3*slider_e3);
 }
 
 /* Phi of the driver rows of case 'run'. */
@@ -95,7 +80,7 @@ static void compute_drivers_phi_run(const double *q, const double *u, double *ou
     const double crank_e3 = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*crank_e0*sin(c0) - 2.0*crank_e3*cos(c0);
+    out[0] = -2.0*crank_e3*cos(c0) + 2.0*crank_e0*sin(c0);
 }
 
 /* Phi_q values of the joint rows (77 entries). */
@@ -113,11 +98,11 @@ static void compute_joints_jac(const double *q, double *out) {
     const double slider_e2 = q[19];
     const double slider_e3 = q[20];
     const double rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2;
-    const double rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2);
     const double rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3;
     const double slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3;
     const double slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3;
-    const double slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3);
     const double d0 = 2.0*crank_e2;
     const double d1 = 2.0*crank_e3;
     const double d2 = 2.0*crank_e0;
@@ -184,14 +169,14 @@ static void compute_joints_jac(const double *q, double *out) {
     out[40] = -d11;
     out[41] = d10;
     out[42] = -1.0;
-    out[43] = rod_e0*d12 + rod_e1*d13 - rod_e3*d14;
-    out[44] = rod_e0*d13 + rod_e2*d14;
-    out[45] = rod_e1*d14 + rod_e2*d12 + rod_e3*d13;
-    out[46] = -rod_e0*d14 + 2.0*rod_e2*slider_a22;
-    out[47] = slider_e0*d17 - slider_e1*d16 + slider_e2*d15;
-    out[48] = -slider_e0*d16 + slider_e3*d15;
-    out[49] = slider_e0*d15 + slider_e3*d16;
-    out[50] = slider_e1*d15 + slider_e2*d16 + slider_e3*d17;
+    out[43] = d12*rod_e0 + d13*rod_e1 - d14*rod_e3;
+    out[44] = d13*rod_e0 + d14*rod_e2;
+    out[45] = d12*rod_e2 + d13*rod_e3 + d14*rod_e1;
+    out[46] = -d14*rod_e0 + 2.0*rod_e2*slider_a22;
+    out[47] = d15*slider_e2 + d17*slider_e0 - d16*slider_e1;
+    out[48] = d15*slider_e3 - d16*slider_e0;
+    out[49] = d15*slider_e0 + d16*slider_e3;
+    out[50] = d15*slider_e1 + d16*slider_e2 + d17*slider_e3;
     out[51] = -d18;
     out[52] = d19;
     out[53] = d20;
@@ -229,14 +214,6 @@ static void compute_drivers_jac_run(const double *q, const double *u, double *ou
     out[1] = -2.0*cos(d0);
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'run'. */
-static void phi_jac_run(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_run(q, u, phi + 20);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_run(q, u, jac + 77);
-}
-
 /* nu of the driver rows of case 'run'. */
 static void compute_drivers_nu_run(const double *q, const double *u, const double *ud, double *out) {
     const double crank_e0 = q[3];
@@ -245,12 +222,6 @@ static void compute_drivers_nu_run(const double *q, const double *u, const doubl
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0));
-}
-
-/* nu = -Phi_t of case 'run' (zero in the joint rows). */
-static void nu_run(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 20; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_run(q, u, ud, nu + 20);
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -276,11 +247,11 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_slider_e2 = v[19];
     const double v_slider_e3 = v[20];
     const double rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2;
-    const double rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2);
     const double rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3;
     const double slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3;
     const double slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3;
-    const double slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3);
     const double c0 = 4.0*v_crank_e2;
     const double c1 = 4.0*v_crank_e1;
     const double c2 = (4.0/5.0)*v_crank_e3;
@@ -306,11 +277,11 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0;
     out[5] = -4.0/5.0*(v_crank_e0*v_crank_e0) - 4.0/5.0*(v_crank_e1*v_crank_e1);
     out[6] = -c2*v_crank_e0 - c3*v_crank_e1;
-    out[7] = -c2*v_crank_e1 + c3*v_crank_e0;
+    out[7] = c3*v_crank_e0 - c2*v_crank_e1;
     out[8] = -12.0/5.0*(v_rod_e0*v_rod_e0) - 12.0/5.0*(v_rod_e1*v_rod_e1);
     out[9] = -c4*v_rod_e0 - c5*v_rod_e1;
-    out[10] = -c4*v_rod_e1 + c5*v_rod_e0;
-    out[11] = -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2.0*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(rod_e1*c15 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2.0*(2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3);
+    out[10] = c5*v_rod_e0 - c4*v_rod_e1;
+    out[11] = -v_rod_e0*(c7*v_rod_e1 + c10*v_rod_e0 - c6*v_rod_e3) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(-c6*v_rod_e0 + 2.0*slider_a22*v_rod_e2) - v_slider_e0*(c8*v_slider_e2 + c11*v_slider_e0 - c9*v_slider_e1) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(-c12*v_slider_e1 - c13*v_slider_e0 + 2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(c14*v_rod_e1 + c15*rod_e1 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2) - 2.0*(c12*v_slider_e2 + c13*v_slider_e3 + 2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1)*(-c14*v_rod_e3 - c15*rod_e3 + 2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1);
     out[12] = c16*v_slider_e0 - c17*v_slider_e1;
     out[13] = -c16*v_slider_e1 - c17*v_slider_e0;
     out[14] = 0.0;
@@ -333,25 +304,14 @@ static void compute_drivers_gamma_run(const double *q, const double *v, const do
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    out[0] = -(ud0*ud0)*(-1.0/2.0*crank_e0*c2 + (1.0/2.0)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'. */
-static void gamma_run(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_run(q, v, u, ud, udd, gamma + 20);
+    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1.0/2.0)*c1*crank_e3 - 1.0/2.0*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3);
 }
 
 /* Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_run(double t, double *out) {
-    out[0] = (1.0/2.0)*(t*t) + 6.283185307179586*t + 3.0/10.0;
-    out[1] = t + 6.283185307179586;
+    out[0] = 3.0/10.0 + (1.0/2.0)*(t*t) + 6.283185307179586*t;
+    out[1] = 6.283185307179586 + t;
     out[2] = 1.0;
-}
-
-/* Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_run(double t, double *inputs) {
-    compute_inputs_run(t, inputs);
 }
 
 /* Phi of the driver rows of case 'dead_centre'. */
@@ -368,26 +328,12 @@ static void compute_drivers_jac_dead_centre(const double *q, const double *u, do
     out[0] = 1.0;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'dead_centre'. */
-static void phi_jac_dead_centre(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_dead_centre(q, u, phi + 20);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_dead_centre(q, u, jac + 77);
-}
-
 /* nu of the driver rows of case 'dead_centre'. */
 static void compute_drivers_nu_dead_centre(const double *q, const double *u, const double *ud, double *out) {
     (void)q;
     (void)u;
     const double ud0 = ud[0];
     out[0] = ud0;
-}
-
-/* nu = -Phi_t of case 'dead_centre' (zero in the joint rows). */
-static void nu_dead_centre(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 20; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_dead_centre(q, u, ud, nu + 20);
 }
 
 /* gamma of the driver rows of case 'dead_centre'. */
@@ -400,22 +346,11 @@ static void compute_drivers_gamma_dead_centre(const double *q, const double *v, 
     out[0] = udd0;
 }
 
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'. */
-static void gamma_dead_centre(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_dead_centre(q, v, u, ud, udd, gamma + 20);
-}
-
 /* Driver inputs of case 'dead_centre' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_dead_centre(double t, double *out) {
     out[0] = 4.0/5.0 - 1.0/10.0*(t*t);
     out[1] = -1.0/5.0*t;
     out[2] = -1.0/5.0;
-}
-
-/* Driver inputs of case 'dead_centre' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_dead_centre(double t, double *inputs) {
-    compute_inputs_dead_centre(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -483,33 +418,33 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_slider_e1 = a[18];
     const double dv_slider_e2 = a[19];
     const double dv_slider_e3 = a[20];
-    const double crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1);
     const double crank_a01 = -2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2;
     const double crank_a02 = 2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3;
     const double crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2;
-    const double crank_a11 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e2*crank_e2) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e2*crank_e2);
     const double crank_a12 = -2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3;
     const double crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3;
     const double crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3;
-    const double crank_a22 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e3*crank_e3) - 1.0;
-    const double rod_a00 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e1*rod_e1) - 1.0;
+    const double crank_a22 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e3*crank_e3);
+    const double rod_a00 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e1*rod_e1);
     const double rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2;
     const double rod_a02 = 2.0*rod_e0*rod_e2 + 2.0*rod_e1*rod_e3;
     const double rod_a10 = 2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2;
-    const double rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2);
     const double rod_a12 = -2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3;
     const double rod_a20 = -2.0*rod_e0*rod_e2 + 2.0*rod_e1*rod_e3;
     const double rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3;
-    const double rod_a22 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e3*rod_e3) - 1.0;
-    const double slider_a00 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e1*slider_e1) - 1.0;
+    const double rod_a22 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e3*rod_e3);
+    const double slider_a00 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e1*slider_e1);
     const double slider_a01 = -2.0*slider_e0*slider_e3 + 2.0*slider_e1*slider_e2;
     const double slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3;
     const double slider_a10 = 2.0*slider_e0*slider_e3 + 2.0*slider_e1*slider_e2;
-    const double slider_a11 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e2*slider_e2) - 1.0;
+    const double slider_a11 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e2*slider_e2);
     const double slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3;
     const double slider_a20 = -2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3;
     const double slider_a21 = 2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3;
-    const double slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3);
     const double c0 = 2.0*v_crank_e1;
     const double c1 = 2.0*crank_e1;
     const double c2 = 2.0*crank_e2;
@@ -543,15 +478,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[12] = v_crank_x;
     out[13] = v_crank_y;
     out[14] = v_crank_z;
-    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3;
-    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0;
-    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0;
+    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3;
+    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0;
+    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0;
     out[18] = dv_crank_x;
     out[19] = dv_crank_y;
     out[20] = dv_crank_z;
-    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2;
-    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1;
-    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0;
+    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2;
+    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0;
+    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0;
     out[24] = rod_x;
     out[25] = rod_y;
     out[26] = rod_z;
@@ -567,15 +502,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[36] = v_rod_x;
     out[37] = v_rod_y;
     out[38] = v_rod_z;
-    out[39] = rod_e0*c6 - rod_e3*c9 - c7*v_rod_e0 + c8*v_rod_e3;
-    out[40] = rod_e0*c9 + rod_e3*c6 - c7*v_rod_e3 - c8*v_rod_e0;
-    out[41] = -rod_e2*c6 + c7*v_rod_e2 + c10*v_rod_e3 - c11*v_rod_e0;
+    out[39] = c6*rod_e0 + c8*v_rod_e3 - c7*v_rod_e0 - c9*rod_e3;
+    out[40] = c6*rod_e3 + c9*rod_e0 - c7*v_rod_e3 - c8*v_rod_e0;
+    out[41] = c7*v_rod_e2 + c10*v_rod_e3 - c6*rod_e2 - c11*v_rod_e0;
     out[42] = dv_rod_x;
     out[43] = dv_rod_y;
     out[44] = dv_rod_z;
-    out[45] = -c7*dv_rod_e0 + c8*dv_rod_e3 + c10*dv_rod_e1 - c11*dv_rod_e2;
-    out[46] = -c7*dv_rod_e3 - c8*dv_rod_e0 + c10*dv_rod_e2 + c11*dv_rod_e1;
-    out[47] = c7*dv_rod_e2 - c8*dv_rod_e1 + c10*dv_rod_e3 - c11*dv_rod_e0;
+    out[45] = c8*dv_rod_e3 + c10*dv_rod_e1 - c7*dv_rod_e0 - c11*dv_rod_e2;
+    out[46] = c10*dv_rod_e2 + c11*dv_rod_e1 - c7*dv_rod_e3 - c8*dv_rod_e0;
+    out[47] = c7*dv_rod_e2 + c10*dv_rod_e3 - c8*dv_rod_e1 - c11*dv_rod_e0;
     out[48] = slider_x;
     out[49] = slider_y;
     out[50] = slider_z;
@@ -591,15 +526,80 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[60] = v_slider_x;
     out[61] = v_slider_y;
     out[62] = v_slider_z;
-    out[63] = slider_e0*c12 - slider_e3*c15 - c13*v_slider_e0 + c14*v_slider_e3;
-    out[64] = slider_e0*c15 + slider_e3*c12 - c13*v_slider_e3 - c14*v_slider_e0;
-    out[65] = -slider_e2*c12 + c13*v_slider_e2 + c16*v_slider_e3 - c17*v_slider_e0;
+    out[63] = c12*slider_e0 + c14*v_slider_e3 - c13*v_slider_e0 - c15*slider_e3;
+    out[64] = c12*slider_e3 + c15*slider_e0 - c13*v_slider_e3 - c14*v_slider_e0;
+    out[65] = c13*v_slider_e2 + c16*v_slider_e3 - c12*slider_e2 - c17*v_slider_e0;
     out[66] = dv_slider_x;
     out[67] = dv_slider_y;
     out[68] = dv_slider_z;
-    out[69] = -c13*dv_slider_e0 + c14*dv_slider_e3 + c16*dv_slider_e1 - c17*dv_slider_e2;
-    out[70] = -c13*dv_slider_e3 - c14*dv_slider_e0 + c16*dv_slider_e2 + c17*dv_slider_e1;
-    out[71] = c13*dv_slider_e2 - c14*dv_slider_e1 + c16*dv_slider_e3 - c17*dv_slider_e0;
+    out[69] = c14*dv_slider_e3 + c16*dv_slider_e1 - c13*dv_slider_e0 - c17*dv_slider_e2;
+    out[70] = c16*dv_slider_e2 + c17*dv_slider_e1 - c13*dv_slider_e3 - c14*dv_slider_e0;
+    out[71] = c13*dv_slider_e2 + c16*dv_slider_e3 - c14*dv_slider_e1 - c17*dv_slider_e0;
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
+static void retract_body(double *q, const double *step) {
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] += step[3];
+    q[4] += step[4];
+    q[5] += step[5];
+    q[6] += step[6];
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < SLIDER_CRANK_EULER_PARAMETERS_N_BODIES; ++b) retract_body(q + 7 * b, step + 7 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'run'. */
+static void phi_jac_run(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_run(q, u, phi + 20);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_run(q, u, jac + 77);
+}
+
+/* nu = -Phi_t of case 'run' (zero in the joint rows). */
+static void nu_run(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 20; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_run(q, u, ud, nu + 20);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'. */
+static void gamma_run(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_run(q, v, u, ud, udd, gamma + 20);
+}
+
+/* Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_run(double t, double *inputs) {
+    compute_inputs_run(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'dead_centre'. */
+static void phi_jac_dead_centre(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_dead_centre(q, u, phi + 20);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_dead_centre(q, u, jac + 77);
+}
+
+/* nu = -Phi_t of case 'dead_centre' (zero in the joint rows). */
+static void nu_dead_centre(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 20; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_dead_centre(q, u, ud, nu + 20);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'. */
+static void gamma_dead_centre(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_dead_centre(q, v, u, ud, udd, gamma + 20);
+}
+
+/* Driver inputs of case 'dead_centre' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_dead_centre(double t, double *inputs) {
+    compute_inputs_dead_centre(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

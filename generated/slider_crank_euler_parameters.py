@@ -64,41 +64,41 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 20 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    rod_a00 = 2*rod_e0**2 + 2*rod_e1**2 - 1
+    rod_a00 = -1 + 2*rod_e0**2 + 2*rod_e1**2
     rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
     rod_a10 = 2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a11 = -1 + 2*rod_e0**2 + 2*rod_e2**2
     rod_a20 = -2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
     rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
     slider_a01 = -2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
     slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    slider_a22 = -1 + 2*slider_e0**2 + 2*slider_e3**2
     out = _zeros(20, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = (1/5)*crank_a00 + crank_x - rod_x
-    out[6] = (1/5)*crank_a10 + crank_y - rod_y
-    out[7] = (1/5)*crank_a20 + crank_z - rod_z
-    out[8] = (3/5)*rod_a00 + rod_x - slider_x
-    out[9] = (3/5)*rod_a10 + rod_y - slider_y
-    out[10] = (3/5)*rod_a20 + rod_z - slider_z
+    out[5] = crank_x - rod_x + (1/5)*crank_a00
+    out[6] = crank_y - rod_y + (1/5)*crank_a10
+    out[7] = crank_z - rod_z + (1/5)*crank_a20
+    out[8] = rod_x - slider_x + (3/5)*rod_a00
+    out[9] = rod_y - slider_y + (3/5)*rod_a10
+    out[10] = rod_z - slider_z + (3/5)*rod_a20
     out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
     out[12] = slider_a01
     out[13] = slider_a02
     out[14] = slider_y
     out[15] = slider_z
     out[16] = slider_a12
-    out[17] = crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2 - 1
-    out[18] = rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2 - 1
-    out[19] = slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2 - 1
+    out[17] = -1 + crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2
+    out[18] = -1 + rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2
+    out[19] = -1 + slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2
     return out
 
 
@@ -106,11 +106,11 @@ def _joints_jac(q):
     """Phi_q values of the joint rows (77 entries)."""
     _, _, _, crank_e0, crank_e1, crank_e2, crank_e3, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
     rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a11 = -1 + 2*rod_e0**2 + 2*rod_e2**2
     rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
     slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    slider_a22 = -1 + 2*slider_e0**2 + 2*slider_e3**2
     d0 = 2*crank_e2
     d1 = 2*crank_e3
     d2 = 2*crank_e0
@@ -178,14 +178,14 @@ def _joints_jac(q):
     out[40] = -d11
     out[41] = d10
     out[42] = -1
-    out[43] = rod_e0*d12 + rod_e1*d13 - rod_e3*d14
-    out[44] = rod_e0*d13 + rod_e2*d14
-    out[45] = rod_e1*d14 + rod_e2*d12 + rod_e3*d13
-    out[46] = -rod_e0*d14 + 2*rod_e2*slider_a22
-    out[47] = slider_e0*d17 - slider_e1*d16 + slider_e2*d15
-    out[48] = -slider_e0*d16 + slider_e3*d15
-    out[49] = slider_e0*d15 + slider_e3*d16
-    out[50] = slider_e1*d15 + slider_e2*d16 + slider_e3*d17
+    out[43] = d12*rod_e0 + d13*rod_e1 - d14*rod_e3
+    out[44] = d13*rod_e0 + d14*rod_e2
+    out[45] = d12*rod_e2 + d13*rod_e3 + d14*rod_e1
+    out[46] = -d14*rod_e0 + 2*rod_e2*slider_a22
+    out[47] = d15*slider_e2 + d17*slider_e0 - d16*slider_e1
+    out[48] = d15*slider_e3 - d16*slider_e0
+    out[49] = d15*slider_e0 + d16*slider_e3
+    out[50] = d15*slider_e1 + d16*slider_e2 + d17*slider_e3
     out[51] = -d18
     out[52] = d19
     out[53] = d20
@@ -220,11 +220,11 @@ def _joints_gamma(q, v):
     _, _, _, _, _, _, _, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
     rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a11 = -1 + 2*rod_e0**2 + 2*rod_e2**2
     rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
     slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    slider_a22 = -1 + 2*slider_e0**2 + 2*slider_e3**2
     c0 = 4*v_crank_e2
     c1 = 4*v_crank_e1
     c2 = (4/5)*v_crank_e3
@@ -248,11 +248,11 @@ def _joints_gamma(q, v):
     out[4] = -c0*v_crank_e3 - c1*v_crank_e0
     out[5] = -4/5*v_crank_e0**2 - 4/5*v_crank_e1**2
     out[6] = -c2*v_crank_e0 - c3*v_crank_e1
-    out[7] = -c2*v_crank_e1 + c3*v_crank_e0
+    out[7] = c3*v_crank_e0 - c2*v_crank_e1
     out[8] = -12/5*v_rod_e0**2 - 12/5*v_rod_e1**2
     out[9] = -c4*v_rod_e0 - c5*v_rod_e1
-    out[10] = -c4*v_rod_e1 + c5*v_rod_e0
-    out[11] = -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2*(4*slider_e0*v_slider_e0 + 4*slider_e3*v_slider_e3)*(rod_e1*c15 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2*(2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3)
+    out[10] = c5*v_rod_e0 - c4*v_rod_e1
+    out[11] = -v_rod_e0*(c7*v_rod_e1 + c10*v_rod_e0 - c6*v_rod_e3) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(-c6*v_rod_e0 + 2*slider_a22*v_rod_e2) - v_slider_e0*(c8*v_slider_e2 + c11*v_slider_e0 - c9*v_slider_e1) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(-c12*v_slider_e1 - c13*v_slider_e0 + 2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2) - 2*(4*slider_e0*v_slider_e0 + 4*slider_e3*v_slider_e3)*(c14*v_rod_e1 + c15*rod_e1 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2) - 2*(c12*v_slider_e2 + c13*v_slider_e3 + 2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1)*(-c14*v_rod_e3 - c15*rod_e3 + 2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1)
     out[12] = c16*v_slider_e0 - c17*v_slider_e1
     out[13] = -c16*v_slider_e1 - c17*v_slider_e0
     out[16] = -c17*v_slider_e3 + 4*v_slider_e0*v_slider_e1
@@ -265,20 +265,20 @@ def _joints_gamma(q, v):
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
-    crank_a00 = 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_e0*crank_e0) + 2.0*(crank_e1*crank_e1)
     crank_a10 = 2.0*crank_e0*crank_e3 + 2.0*crank_e1*crank_e2
     crank_a20 = -2.0*crank_e0*crank_e2 + 2.0*crank_e1*crank_e3
     crank_a21 = 2.0*crank_e0*crank_e1 + 2.0*crank_e2*crank_e3
-    rod_a00 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e1*rod_e1) - 1.0
+    rod_a00 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e1*rod_e1)
     rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2
     rod_a10 = 2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2
-    rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0
+    rod_a11 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2)
     rod_a20 = -2.0*rod_e0*rod_e2 + 2.0*rod_e1*rod_e3
     rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3
     slider_a01 = -2.0*slider_e0*slider_e3 + 2.0*slider_e1*slider_e2
     slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3
     slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3
-    slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0
+    slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3)
     d0 = 2.0*crank_e2
     d1 = 2.0*crank_e3
     d2 = 2.0*crank_e0
@@ -302,7 +302,7 @@ def _joints_phi_jac_s(q):
     d20 = 2.0*slider_e1
     d21 = 2.0*slider_e0
     d22 = -d21
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3) - 1.0, (rod_e0*rod_e0) + (rod_e1*rod_e1) + (rod_e2*rod_e2) + (rod_e3*rod_e3) - 1.0, (slider_e0*slider_e0) + (slider_e1*slider_e1) + (slider_e2*slider_e2) + (slider_e3*slider_e3) - 1.0], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (4/5)*crank_e0, (4/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (12/5)*rod_e0, (12/5)*rod_e1, -1.0, 1.0, d8, d9, d10, d11, -1.0, 1.0, -d9, d8, -d11, d10, -1.0, rod_e0*d12 + rod_e1*d13 - rod_e3*d14, rod_e0*d13 + rod_e2*d14, rod_e1*d14 + rod_e2*d12 + rod_e3*d13, -rod_e0*d14 + 2.0*rod_e2*slider_a22, slider_e0*d17 - slider_e1*d16 + slider_e2*d15, -slider_e0*d16 + slider_e3*d15, slider_e0*d15 + slider_e3*d16, slider_e1*d15 + slider_e2*d16 + slider_e3*d17, -d18, d19, d20, d22, d19, d18, d21, d20, 1.0, 1.0, -d20, d22, d18, d19, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rod_e0, 2.0*rod_e1, 2.0*rod_e2, 2.0*rod_e3, 2.0*slider_e0, 2.0*slider_e1, 2.0*slider_e2, 2.0*slider_e3]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - rod_x + (1/5)*crank_a00, crank_y - rod_y + (1/5)*crank_a10, crank_z - rod_z + (1/5)*crank_a20, rod_x - slider_x + (3/5)*rod_a00, rod_y - slider_y + (3/5)*rod_a10, rod_z - slider_z + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3), -1.0 + (rod_e0*rod_e0) + (rod_e1*rod_e1) + (rod_e2*rod_e2) + (rod_e3*rod_e3), -1.0 + (slider_e0*slider_e0) + (slider_e1*slider_e1) + (slider_e2*slider_e2) + (slider_e3*slider_e3)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (4/5)*crank_e0, (4/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (12/5)*rod_e0, (12/5)*rod_e1, -1.0, 1.0, d8, d9, d10, d11, -1.0, 1.0, -d9, d8, -d11, d10, -1.0, d12*rod_e0 + d13*rod_e1 - d14*rod_e3, d13*rod_e0 + d14*rod_e2, d12*rod_e2 + d13*rod_e3 + d14*rod_e1, -d14*rod_e0 + 2.0*rod_e2*slider_a22, d15*slider_e2 + d17*slider_e0 - d16*slider_e1, d15*slider_e3 - d16*slider_e0, d15*slider_e0 + d16*slider_e3, d15*slider_e1 + d16*slider_e2 + d17*slider_e3, -d18, d19, d20, d22, d19, d18, d21, d20, 1.0, 1.0, -d20, d22, d18, d19, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rod_e0, 2.0*rod_e1, 2.0*rod_e2, 2.0*rod_e3, 2.0*slider_e0, 2.0*slider_e1, 2.0*slider_e2, 2.0*slider_e3]
 
 
 def _joints_gamma_s(q, v):
@@ -310,11 +310,11 @@ def _joints_gamma_s(q, v):
     _, _, _, _, _, _, _, _, _, _, rod_e0, rod_e1, rod_e2, rod_e3, _, _, _, slider_e0, slider_e1, slider_e2, slider_e3 = q
     _, _, _, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, _, _, _, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, _, _, _, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
     rod_a01 = -2.0*rod_e0*rod_e3 + 2.0*rod_e1*rod_e2
-    rod_a11 = 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2) - 1.0
+    rod_a11 = -1.0 + 2.0*(rod_e0*rod_e0) + 2.0*(rod_e2*rod_e2)
     rod_a21 = 2.0*rod_e0*rod_e1 + 2.0*rod_e2*rod_e3
     slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3
     slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3
-    slider_a22 = 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3) - 1.0
+    slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3)
     c0 = 4.0*v_crank_e2
     c1 = 4.0*v_crank_e1
     c2 = (4/5)*v_crank_e3
@@ -333,7 +333,7 @@ def _joints_gamma_s(q, v):
     c15 = 2.0*v_rod_e0
     c16 = 4.0*v_slider_e3
     c17 = 4.0*v_slider_e2
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*(v_crank_e0*v_crank_e0) - 4/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, -c2*v_crank_e1 + c3*v_crank_e0, -12/5*(v_rod_e0*v_rod_e0) - 12/5*(v_rod_e1*v_rod_e1), -c4*v_rod_e0 - c5*v_rod_e1, -c4*v_rod_e1 + c5*v_rod_e0, -v_rod_e0*(-c6*v_rod_e3 + c7*v_rod_e1 + c10*v_rod_e0) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(2.0*slider_a22*v_rod_e2 - c6*v_rod_e0) - v_slider_e0*(c8*v_slider_e2 - c9*v_slider_e1 + c11*v_slider_e0) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2 - c12*v_slider_e1 - c13*v_slider_e0) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(rod_e1*c15 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2 + c14*v_rod_e1) - 2.0*(2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1 - rod_e3*c15 - c14*v_rod_e3)*(2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1 + c12*v_slider_e2 + c13*v_slider_e3), c16*v_slider_e0 - c17*v_slider_e1, -c16*v_slider_e1 - c17*v_slider_e0, 0.0, 0.0, -c17*v_slider_e3 + 4.0*v_slider_e0*v_slider_e1, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rod_e0*v_rod_e0) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e3*v_rod_e3), -2.0*(v_slider_e0*v_slider_e0) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e3*v_slider_e3)]
+    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*(v_crank_e0*v_crank_e0) - 4/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, c3*v_crank_e0 - c2*v_crank_e1, -12/5*(v_rod_e0*v_rod_e0) - 12/5*(v_rod_e1*v_rod_e1), -c4*v_rod_e0 - c5*v_rod_e1, c5*v_rod_e0 - c4*v_rod_e1, -v_rod_e0*(c7*v_rod_e1 + c10*v_rod_e0 - c6*v_rod_e3) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(-c6*v_rod_e0 + 2.0*slider_a22*v_rod_e2) - v_slider_e0*(c8*v_slider_e2 + c11*v_slider_e0 - c9*v_slider_e1) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(-c12*v_slider_e1 - c13*v_slider_e0 + 2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(c14*v_rod_e1 + c15*rod_e1 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2) - 2.0*(c12*v_slider_e2 + c13*v_slider_e3 + 2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1)*(-c14*v_rod_e3 - c15*rod_e3 + 2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1), c16*v_slider_e0 - c17*v_slider_e1, -c16*v_slider_e1 - c17*v_slider_e0, 0.0, 0.0, -c17*v_slider_e3 + 4.0*v_slider_e0*v_slider_e1, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rod_e0*v_rod_e0) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e3*v_rod_e3), -2.0*(v_slider_e0*v_slider_e0) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e3*v_slider_e3)]
 
 
 def frames(q, v, a):
@@ -341,33 +341,33 @@ def frames(q, v, a):
     crank_x, crank_y, crank_z, crank_e0, crank_e1, crank_e2, crank_e3, rod_x, rod_y, rod_z, rod_e0, rod_e1, rod_e2, rod_e3, slider_x, slider_y, slider_z, slider_e0, slider_e1, slider_e2, slider_e3 = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_e0, v_crank_e1, v_crank_e2, v_crank_e3, v_rod_x, v_rod_y, v_rod_z, v_rod_e0, v_rod_e1, v_rod_e2, v_rod_e3, v_slider_x, v_slider_y, v_slider_z, v_slider_e0, v_slider_e1, v_slider_e2, v_slider_e3 = v
     dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_e0, dv_crank_e1, dv_crank_e2, dv_crank_e3, dv_rod_x, dv_rod_y, dv_rod_z, dv_rod_e0, dv_rod_e1, dv_rod_e2, dv_rod_e3, dv_slider_x, dv_slider_y, dv_slider_z, dv_slider_e0, dv_slider_e1, dv_slider_e2, dv_slider_e3 = a
-    crank_a00 = 2*crank_e0**2 + 2*crank_e1**2 - 1
+    crank_a00 = -1 + 2*crank_e0**2 + 2*crank_e1**2
     crank_a01 = -2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
     crank_a02 = 2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a10 = 2*crank_e0*crank_e3 + 2*crank_e1*crank_e2
-    crank_a11 = 2*crank_e0**2 + 2*crank_e2**2 - 1
+    crank_a11 = -1 + 2*crank_e0**2 + 2*crank_e2**2
     crank_a12 = -2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
     crank_a20 = -2*crank_e0*crank_e2 + 2*crank_e1*crank_e3
     crank_a21 = 2*crank_e0*crank_e1 + 2*crank_e2*crank_e3
-    crank_a22 = 2*crank_e0**2 + 2*crank_e3**2 - 1
-    rod_a00 = 2*rod_e0**2 + 2*rod_e1**2 - 1
+    crank_a22 = -1 + 2*crank_e0**2 + 2*crank_e3**2
+    rod_a00 = -1 + 2*rod_e0**2 + 2*rod_e1**2
     rod_a01 = -2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
     rod_a02 = 2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
     rod_a10 = 2*rod_e0*rod_e3 + 2*rod_e1*rod_e2
-    rod_a11 = 2*rod_e0**2 + 2*rod_e2**2 - 1
+    rod_a11 = -1 + 2*rod_e0**2 + 2*rod_e2**2
     rod_a12 = -2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
     rod_a20 = -2*rod_e0*rod_e2 + 2*rod_e1*rod_e3
     rod_a21 = 2*rod_e0*rod_e1 + 2*rod_e2*rod_e3
-    rod_a22 = 2*rod_e0**2 + 2*rod_e3**2 - 1
-    slider_a00 = 2*slider_e0**2 + 2*slider_e1**2 - 1
+    rod_a22 = -1 + 2*rod_e0**2 + 2*rod_e3**2
+    slider_a00 = -1 + 2*slider_e0**2 + 2*slider_e1**2
     slider_a01 = -2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
     slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a10 = 2*slider_e0*slider_e3 + 2*slider_e1*slider_e2
-    slider_a11 = 2*slider_e0**2 + 2*slider_e2**2 - 1
+    slider_a11 = -1 + 2*slider_e0**2 + 2*slider_e2**2
     slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
     slider_a20 = -2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a21 = 2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
-    slider_a22 = 2*slider_e0**2 + 2*slider_e3**2 - 1
+    slider_a22 = -1 + 2*slider_e0**2 + 2*slider_e3**2
     c0 = 2*v_crank_e1
     c1 = 2*crank_e1
     c2 = 2*crank_e2
@@ -402,15 +402,15 @@ def frames(q, v, a):
     out[12] = v_crank_x
     out[13] = v_crank_y
     out[14] = v_crank_z
-    out[15] = crank_e0*c0 - crank_e3*c3 - c1*v_crank_e0 + c2*v_crank_e3
-    out[16] = crank_e0*c3 + crank_e3*c0 - c1*v_crank_e3 - c2*v_crank_e0
-    out[17] = -crank_e2*c0 + c1*v_crank_e2 + c4*v_crank_e3 - c5*v_crank_e0
+    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3
+    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0
+    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0
     out[18] = dv_crank_x
     out[19] = dv_crank_y
     out[20] = dv_crank_z
-    out[21] = -c1*dv_crank_e0 + c2*dv_crank_e3 + c4*dv_crank_e1 - c5*dv_crank_e2
-    out[22] = -c1*dv_crank_e3 - c2*dv_crank_e0 + c4*dv_crank_e2 + c5*dv_crank_e1
-    out[23] = c1*dv_crank_e2 - c2*dv_crank_e1 + c4*dv_crank_e3 - c5*dv_crank_e0
+    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2
+    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0
+    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0
     out[24] = rod_x
     out[25] = rod_y
     out[26] = rod_z
@@ -426,15 +426,15 @@ def frames(q, v, a):
     out[36] = v_rod_x
     out[37] = v_rod_y
     out[38] = v_rod_z
-    out[39] = rod_e0*c6 - rod_e3*c9 - c7*v_rod_e0 + c8*v_rod_e3
-    out[40] = rod_e0*c9 + rod_e3*c6 - c7*v_rod_e3 - c8*v_rod_e0
-    out[41] = -rod_e2*c6 + c7*v_rod_e2 + c10*v_rod_e3 - c11*v_rod_e0
+    out[39] = c6*rod_e0 + c8*v_rod_e3 - c7*v_rod_e0 - c9*rod_e3
+    out[40] = c6*rod_e3 + c9*rod_e0 - c7*v_rod_e3 - c8*v_rod_e0
+    out[41] = c7*v_rod_e2 + c10*v_rod_e3 - c6*rod_e2 - c11*v_rod_e0
     out[42] = dv_rod_x
     out[43] = dv_rod_y
     out[44] = dv_rod_z
-    out[45] = -c7*dv_rod_e0 + c8*dv_rod_e3 + c10*dv_rod_e1 - c11*dv_rod_e2
-    out[46] = -c7*dv_rod_e3 - c8*dv_rod_e0 + c10*dv_rod_e2 + c11*dv_rod_e1
-    out[47] = c7*dv_rod_e2 - c8*dv_rod_e1 + c10*dv_rod_e3 - c11*dv_rod_e0
+    out[45] = c8*dv_rod_e3 + c10*dv_rod_e1 - c7*dv_rod_e0 - c11*dv_rod_e2
+    out[46] = c10*dv_rod_e2 + c11*dv_rod_e1 - c7*dv_rod_e3 - c8*dv_rod_e0
+    out[47] = c7*dv_rod_e2 + c10*dv_rod_e3 - c8*dv_rod_e1 - c11*dv_rod_e0
     out[48] = slider_x
     out[49] = slider_y
     out[50] = slider_z
@@ -450,23 +450,23 @@ def frames(q, v, a):
     out[60] = v_slider_x
     out[61] = v_slider_y
     out[62] = v_slider_z
-    out[63] = slider_e0*c12 - slider_e3*c15 - c13*v_slider_e0 + c14*v_slider_e3
-    out[64] = slider_e0*c15 + slider_e3*c12 - c13*v_slider_e3 - c14*v_slider_e0
-    out[65] = -slider_e2*c12 + c13*v_slider_e2 + c16*v_slider_e3 - c17*v_slider_e0
+    out[63] = c12*slider_e0 + c14*v_slider_e3 - c13*v_slider_e0 - c15*slider_e3
+    out[64] = c12*slider_e3 + c15*slider_e0 - c13*v_slider_e3 - c14*v_slider_e0
+    out[65] = c13*v_slider_e2 + c16*v_slider_e3 - c12*slider_e2 - c17*v_slider_e0
     out[66] = dv_slider_x
     out[67] = dv_slider_y
     out[68] = dv_slider_z
-    out[69] = -c13*dv_slider_e0 + c14*dv_slider_e3 + c16*dv_slider_e1 - c17*dv_slider_e2
-    out[70] = -c13*dv_slider_e3 - c14*dv_slider_e0 + c16*dv_slider_e2 + c17*dv_slider_e1
-    out[71] = c13*dv_slider_e2 - c14*dv_slider_e1 + c16*dv_slider_e3 - c17*dv_slider_e0
+    out[69] = c14*dv_slider_e3 + c16*dv_slider_e1 - c13*dv_slider_e0 - c17*dv_slider_e2
+    out[70] = c16*dv_slider_e2 + c17*dv_slider_e1 - c13*dv_slider_e3 - c14*dv_slider_e0
+    out[71] = c13*dv_slider_e2 + c16*dv_slider_e3 - c14*dv_slider_e1 - c17*dv_slider_e0
     return out
 
 
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out[1] = t + 6.283185307179586
+    out[0] = 3/10 + (1/2)*t**2 + 6.283185307179586*t
+    out[1] = 6.283185307179586 + t
     out[2] = 1
     return out
 
@@ -477,7 +477,7 @@ def _drivers_phi_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*crank_e0*sin(c0) - 2*crank_e3*cos(c0)
+    out[0] = -2*crank_e3*cos(c0) + 2*crank_e0*sin(c0)
     return out
 
 
@@ -513,7 +513,7 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -ud0**2*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)
+    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3)
     return out
 
 
@@ -523,7 +523,7 @@ def _drivers_phi_jac_s_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [2.0*crank_e0*math.sin(c0) - 2.0*crank_e3*math.cos(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [-2.0*crank_e3*math.cos(c0) + 2.0*crank_e0*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def _drivers_nu_s_run(q, u, ud):
@@ -545,7 +545,7 @@ def _drivers_gamma_s_run(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-(ud0*ud0)*(-1/2*crank_e0*c2 + (1/2)*crank_e3*c1) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3) - udd0*(crank_e0*c1 + crank_e3*c2)]
+    return [-udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3)]
 
 
 def phi_run(q, u):

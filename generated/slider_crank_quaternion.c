@@ -15,26 +15,6 @@
 #include <math.h>
 #include <stddef.h>
 
-/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
-static void retract_body(double *q, const double *step) {
-    double tx = step[3], ty = step[4], tz = step[5];
-    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
-    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
-    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
-    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
-    q[0] += step[0];
-    q[1] += step[1];
-    q[2] += step[2];
-    q[3] = pw * qw - px * qx - py * qy - pz * qz;
-    q[4] = pw * qx + px * qw + py * qz - pz * qy;
-    q[5] = pw * qy - px * qz + py * qw + pz * qx;
-    q[6] = pw * qz + px * qy - py * qx + pz * qw;
-}
-
-static void retract(double *q, const double *step) {
-    for (int b = 0; b < SLIDER_CRANK_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
-}
-
 /* Phi of the 17 joint (and normalization) rows, common to every case. */
 static void compute_joints_phi(const double *q, double *out) {
     const double crank_x = q[0];
@@ -58,31 +38,31 @@ static void compute_joints_phi(const double *q, double *out) {
     const double slider_qx = q[18];
     const double slider_qy = q[19];
     const double slider_qz = q[20];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
-    const double rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0;
+    const double rod_a00 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx);
     const double rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
     const double rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
-    const double rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy);
     const double rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz;
     const double rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz;
     const double slider_a01 = -2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy;
     const double slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz;
     const double slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
-    const double slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz);
     out[0] = -crank_x;
     out[1] = -crank_y;
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = (1.0/5.0)*crank_a00 + crank_x - rod_x;
-    out[6] = (1.0/5.0)*crank_a10 + crank_y - rod_y;
-    out[7] = (1.0/5.0)*crank_a20 + crank_z - rod_z;
-    out[8] = (3.0/5.0)*rod_a00 + rod_x - slider_x;
-    out[9] = (3.0/5.0)*rod_a10 + rod_y - slider_y;
-    out[10] = (3.0/5.0)*rod_a20 + rod_z - slider_z;
+    out[5] = crank_x - rod_x + (1.0/5.0)*crank_a00;
+    out[6] = crank_y - rod_y + (1.0/5.0)*crank_a10;
+    out[7] = crank_z - rod_z + (1.0/5.0)*crank_a20;
+    out[8] = rod_x - slider_x + (3.0/5.0)*rod_a00;
+    out[9] = rod_y - slider_y + (3.0/5.0)*rod_a10;
+    out[10] = rod_z - slider_z + (3.0/5.0)*rod_a20;
     out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22;
     out[12] = slider_a01;
     out[13] = slider_a02;
@@ -97,7 +77,7 @@ static void compute_drivers_phi_run(const double *q, const double *u, double *ou
     const double crank_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = 2.0*crank_qw*sin(c0) - 2.0*crank_qz*cos(c0);
+    out[0] = -2.0*crank_qz*cos(c0) + 2.0*crank_qw*sin(c0);
 }
 
 /* Phi_q values of the joint rows (45 entries). */
@@ -114,22 +94,22 @@ static void compute_joints_jac(const double *q, double *out) {
     const double slider_qx = q[18];
     const double slider_qy = q[19];
     const double slider_qz = q[20];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
-    const double rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0;
+    const double rod_a00 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx);
     const double rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
     const double rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
-    const double rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy);
     const double rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz;
     const double rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz;
     const double slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz;
-    const double slider_a11 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy) - 1.0;
+    const double slider_a11 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy);
     const double slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
     const double slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
-    const double slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz);
     const double d0 = (1.0/5.0)*crank_a20;
     const double d1 = (1.0/5.0)*crank_a10;
     const double d2 = (1.0/5.0)*crank_a00;
@@ -196,17 +176,9 @@ static void compute_drivers_jac_run(const double *q, const double *u, double *ou
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(d0);
     const double d2 = cos(d0);
-    out[0] = -crank_qx*d1 - crank_qy*d2;
-    out[1] = crank_qx*d2 - crank_qy*d1;
-    out[2] = -crank_qw*d2 - crank_qz*d1;
-}
-
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'run'. */
-static void phi_jac_run(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_run(q, u, phi + 17);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_run(q, u, jac + 45);
+    out[0] = -d1*crank_qx - d2*crank_qy;
+    out[1] = d2*crank_qx - d1*crank_qy;
+    out[2] = -d1*crank_qz - d2*crank_qw;
 }
 
 /* nu of the driver rows of case 'run'. */
@@ -217,12 +189,6 @@ static void compute_drivers_nu_run(const double *q, const double *u, const doubl
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0));
-}
-
-/* nu = -Phi_t of case 'run' (zero in the joint rows). */
-static void nu_run(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 17; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_run(q, u, ud, nu + 17);
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -248,54 +214,54 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_slider_theta_x = v[15];
     const double v_slider_theta_y = v[16];
     const double v_slider_theta_z = v[17];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
-    const double rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0;
+    const double rod_a00 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx);
     const double rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
     const double rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
-    const double rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy);
     const double rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz;
     const double rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz;
     const double slider_a01 = -2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy;
     const double slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz;
-    const double slider_a11 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy) - 1.0;
+    const double slider_a11 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy);
     const double slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
     const double slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
-    const double slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz);
     const double c0 = -1.0/5.0*crank_a00*v_crank_theta_y + (1.0/5.0)*crank_a10*v_crank_theta_x;
     const double c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x;
-    const double c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y;
+    const double c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z;
     const double c3 = -3.0/5.0*rod_a00*v_rod_theta_y + (3.0/5.0)*rod_a10*v_rod_theta_x;
     const double c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x;
-    const double c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y;
+    const double c5 = rod_a20*v_rod_theta_y - rod_a10*v_rod_theta_z;
     const double c6 = v_rod_theta_y - v_slider_theta_y;
     const double c7 = v_rod_theta_x - v_slider_theta_x;
     const double c8 = -c7;
     const double c9 = v_rod_theta_z - v_slider_theta_z;
     const double c10 = -c9;
     const double c11 = -c6;
-    const double c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x;
+    const double c12 = slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y);
-    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y);
+    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x);
+    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x);
     out[5] = -c0*v_crank_theta_y + (1.0/5.0)*c1*v_crank_theta_z;
     out[6] = c0*v_crank_theta_x - 1.0/5.0*c2*v_crank_theta_z;
     out[7] = -1.0/5.0*c1*v_crank_theta_x + (1.0/5.0)*c2*v_crank_theta_y;
     out[8] = -c3*v_rod_theta_y + (3.0/5.0)*c4*v_rod_theta_z;
     out[9] = c3*v_rod_theta_x - 3.0/5.0*c5*v_rod_theta_z;
     out[10] = -3.0/5.0*c4*v_rod_theta_x + (3.0/5.0)*c5*v_rod_theta_y;
-    out[11] = -(rod_a01*c9 + rod_a21*c8)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (rod_a01*c11 + rod_a11*c7)*(-slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x) - (-rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x)*(slider_a02*c6 + slider_a12*c8) - (rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x)*(slider_a02*c10 + slider_a22*c7) - (rod_a11*c10 + rod_a21*c6)*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y) - (-rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y)*(slider_a12*c9 + slider_a22*c11);
-    out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x);
-    out[13] = -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x);
+    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_theta_x - rod_a01*v_rod_theta_y) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_theta_y - rod_a11*v_rod_theta_z);
+    out[12] = v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x) - v_slider_theta_y*(slider_a11*v_slider_theta_x - slider_a01*v_slider_theta_y);
+    out[13] = v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - c12*v_slider_theta_y;
     out[14] = 0.0;
     out[15] = 0.0;
-    out[16] = c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y);
+    out[16] = c12*v_slider_theta_x - v_slider_theta_z*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z);
 }
 
 /* gamma of the driver rows of case 'run'. */
@@ -314,31 +280,20 @@ static void compute_drivers_gamma_run(const double *q, const double *v, const do
     const double c1 = cos(c0);
     const double c2 = sin(c0);
     const double c3 = (1.0/2.0)*crank_qw;
-    const double c4 = -1.0/2.0*crank_qz*c1 + c2*c3;
+    const double c4 = c2*c3 - 1.0/2.0*c1*crank_qz;
     const double c5 = (1.0/2.0)*v_crank_theta_y;
     const double c6 = (1.0/2.0)*v_crank_theta_x;
     const double c7 = (1.0/2.0)*crank_qz;
     const double c8 = (1.0/2.0)*v_crank_theta_z;
     const double c9 = (1.0/2.0)*c1;
-    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1.0/2.0)*crank_qy*c2) + v_crank_theta_y*(-1.0/2.0*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y);
-}
-
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'. */
-static void gamma_run(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_run(q, v, u, ud, udd, gamma + 17);
+    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1.0/2.0)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1.0/2.0*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx);
 }
 
 /* Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_run(double t, double *out) {
-    out[0] = (1.0/2.0)*(t*t) + 6.283185307179586*t + 3.0/10.0;
-    out[1] = t + 6.283185307179586;
+    out[0] = 3.0/10.0 + (1.0/2.0)*(t*t) + 6.283185307179586*t;
+    out[1] = 6.283185307179586 + t;
     out[2] = 1.0;
-}
-
-/* Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_run(double t, double *inputs) {
-    compute_inputs_run(t, inputs);
 }
 
 /* Phi of the driver rows of case 'dead_centre'. */
@@ -355,26 +310,12 @@ static void compute_drivers_jac_dead_centre(const double *q, const double *u, do
     out[0] = 1.0;
 }
 
-/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'dead_centre'. */
-static void phi_jac_dead_centre(const double *q, const double *u, double *phi, double *jac) {
-    compute_joints_phi(q, phi);
-    compute_drivers_phi_dead_centre(q, u, phi + 17);
-    compute_joints_jac(q, jac);
-    compute_drivers_jac_dead_centre(q, u, jac + 45);
-}
-
 /* nu of the driver rows of case 'dead_centre'. */
 static void compute_drivers_nu_dead_centre(const double *q, const double *u, const double *ud, double *out) {
     (void)q;
     (void)u;
     const double ud0 = ud[0];
     out[0] = ud0;
-}
-
-/* nu = -Phi_t of case 'dead_centre' (zero in the joint rows). */
-static void nu_dead_centre(const double *q, const double *u, const double *ud, double *nu) {
-    for (int i = 0; i < 17; ++i) nu[0 + i] = 0.0;
-    compute_drivers_nu_dead_centre(q, u, ud, nu + 17);
 }
 
 /* gamma of the driver rows of case 'dead_centre'. */
@@ -387,22 +328,11 @@ static void compute_drivers_gamma_dead_centre(const double *q, const double *v, 
     out[0] = udd0;
 }
 
-/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'. */
-static void gamma_dead_centre(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    compute_joints_gamma(q, v, gamma);
-    compute_drivers_gamma_dead_centre(q, v, u, ud, udd, gamma + 17);
-}
-
 /* Driver inputs of case 'dead_centre' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_dead_centre(double t, double *out) {
     out[0] = 4.0/5.0 - 1.0/10.0*(t*t);
     out[1] = -1.0/5.0*t;
     out[2] = -1.0/5.0;
-}
-
-/* Driver inputs of case 'dead_centre' at time t: u, then du/dt, then d2u/dt2. */
-static void inputs_dead_centre(double t, double *inputs) {
-    compute_inputs_dead_centre(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */
@@ -464,33 +394,33 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double dv_slider_theta_x = a[15];
     const double dv_slider_theta_y = a[16];
     const double dv_slider_theta_z = a[17];
-    const double crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0;
+    const double crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx);
     const double crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
     const double crank_a02 = 2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy;
-    const double crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0;
+    const double crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy);
     const double crank_a12 = -2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
     const double crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz;
     const double crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz;
-    const double crank_a22 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qz*crank_qz) - 1.0;
-    const double rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0;
+    const double crank_a22 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qz*crank_qz);
+    const double rod_a00 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx);
     const double rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
     const double rod_a02 = 2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz;
     const double rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy;
-    const double rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0;
+    const double rod_a11 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy);
     const double rod_a12 = -2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz;
     const double rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz;
     const double rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz;
-    const double rod_a22 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qz*rod_qz) - 1.0;
-    const double slider_a00 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qx*slider_qx) - 1.0;
+    const double rod_a22 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qz*rod_qz);
+    const double slider_a00 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qx*slider_qx);
     const double slider_a01 = -2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy;
     const double slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz;
     const double slider_a10 = 2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy;
-    const double slider_a11 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy) - 1.0;
+    const double slider_a11 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy);
     const double slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
     const double slider_a20 = -2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz;
     const double slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
-    const double slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0;
+    const double slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz);
     out[0] = crank_x;
     out[1] = crank_y;
     out[2] = crank_z;
@@ -563,6 +493,76 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[69] = dv_slider_theta_x;
     out[70] = dv_slider_theta_y;
     out[71] = dv_slider_theta_z;
+}
+
+/* one body's coordinates moved by a step in velocity coordinates (quaternion) */
+static void retract_body(double *q, const double *step) {
+    double tx = step[3], ty = step[4], tz = step[5];
+    double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
+    double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
+    double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
+    double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
+    q[0] += step[0];
+    q[1] += step[1];
+    q[2] += step[2];
+    q[3] = pw * qw - px * qx - py * qy - pz * qz;
+    q[4] = pw * qx + px * qw + py * qz - pz * qy;
+    q[5] = pw * qy - px * qz + py * qw + pz * qx;
+    q[6] = pw * qz + px * qy - py * qx + pz * qw;
+}
+
+static void retract(double *q, const double *step) {
+    for (int b = 0; b < SLIDER_CRANK_QUATERNION_N_BODIES; ++b) retract_body(q + 7 * b, step + 6 * b);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'run'. */
+static void phi_jac_run(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_run(q, u, phi + 17);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_run(q, u, jac + 45);
+}
+
+/* nu = -Phi_t of case 'run' (zero in the joint rows). */
+static void nu_run(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 17; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_run(q, u, ud, nu + 17);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'run'. */
+static void gamma_run(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_run(q, v, u, ud, udd, gamma + 17);
+}
+
+/* Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_run(double t, double *inputs) {
+    compute_inputs_run(t, inputs);
+}
+
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'dead_centre'. */
+static void phi_jac_dead_centre(const double *q, const double *u, double *phi, double *jac) {
+    compute_joints_phi(q, phi);
+    compute_drivers_phi_dead_centre(q, u, phi + 17);
+    compute_joints_jac(q, jac);
+    compute_drivers_jac_dead_centre(q, u, jac + 45);
+}
+
+/* nu = -Phi_t of case 'dead_centre' (zero in the joint rows). */
+static void nu_dead_centre(const double *q, const double *u, const double *ud, double *nu) {
+    for (int i = 0; i < 17; ++i) nu[0 + i] = 0.0;
+    compute_drivers_nu_dead_centre(q, u, ud, nu + 17);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'dead_centre'. */
+static void gamma_dead_centre(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
+    compute_joints_gamma(q, v, gamma);
+    compute_drivers_gamma_dead_centre(q, v, u, ud, udd, gamma + 17);
+}
+
+/* Driver inputs of case 'dead_centre' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_dead_centre(double t, double *inputs) {
+    compute_inputs_dead_centre(t, inputs);
 }
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). */

@@ -64,32 +64,32 @@ def _join(joints, drivers):
 def _joints_phi(q):
     """Phi of the 17 joint (and normalization) rows, common to every case."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a00 = -1 + 2*rod_qw**2 + 2*rod_qx**2
     rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
     rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a11 = -1 + 2*rod_qw**2 + 2*rod_qy**2
     rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
     rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
     slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
     slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    slider_a22 = -1 + 2*slider_qw**2 + 2*slider_qz**2
     out = _zeros(17, q, ())
     out[0] = -crank_x
     out[1] = -crank_y
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = (1/5)*crank_a00 + crank_x - rod_x
-    out[6] = (1/5)*crank_a10 + crank_y - rod_y
-    out[7] = (1/5)*crank_a20 + crank_z - rod_z
-    out[8] = (3/5)*rod_a00 + rod_x - slider_x
-    out[9] = (3/5)*rod_a10 + rod_y - slider_y
-    out[10] = (3/5)*rod_a20 + rod_z - slider_z
+    out[5] = crank_x - rod_x + (1/5)*crank_a00
+    out[6] = crank_y - rod_y + (1/5)*crank_a10
+    out[7] = crank_z - rod_z + (1/5)*crank_a20
+    out[8] = rod_x - slider_x + (3/5)*rod_a00
+    out[9] = rod_y - slider_y + (3/5)*rod_a10
+    out[10] = rod_z - slider_z + (3/5)*rod_a20
     out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
     out[12] = slider_a01
     out[13] = slider_a02
@@ -102,22 +102,22 @@ def _joints_phi(q):
 def _joints_jac(q):
     """Phi_q values of the joint rows (45 entries)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a00 = -1 + 2*rod_qw**2 + 2*rod_qx**2
     rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
     rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a11 = -1 + 2*rod_qw**2 + 2*rod_qy**2
     rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
     rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
     slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
-    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a11 = -1 + 2*slider_qw**2 + 2*slider_qy**2
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    slider_a22 = -1 + 2*slider_qw**2 + 2*slider_qz**2
     d0 = (1/5)*crank_a20
     d1 = (1/5)*crank_a10
     d2 = (1/5)*crank_a00
@@ -180,74 +180,74 @@ def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    rod_a00 = -1 + 2*rod_qw**2 + 2*rod_qx**2
     rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
     rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a11 = -1 + 2*rod_qw**2 + 2*rod_qy**2
     rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
     rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
     slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
     slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
-    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a11 = -1 + 2*slider_qw**2 + 2*slider_qy**2
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    slider_a22 = -1 + 2*slider_qw**2 + 2*slider_qz**2
     c0 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
     c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
     c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
     c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
-    c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
+    c5 = rod_a20*v_rod_theta_y - rod_a10*v_rod_theta_z
     c6 = v_rod_theta_y - v_slider_theta_y
     c7 = v_rod_theta_x - v_slider_theta_x
     c8 = -c7
     c9 = v_rod_theta_z - v_slider_theta_z
     c10 = -c9
     c11 = -c6
-    c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
+    c12 = slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y
     out = _zeros(17, q, ())
-    out[3] = -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
-    out[4] = -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)
+    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x)
+    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x)
     out[5] = -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z
     out[6] = c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z
     out[7] = -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y
     out[8] = -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z
     out[9] = c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z
     out[10] = -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y
-    out[11] = -(rod_a01*c9 + rod_a21*c8)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (rod_a01*c11 + rod_a11*c7)*(-slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x) - (-rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x)*(slider_a02*c6 + slider_a12*c8) - (rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x)*(slider_a02*c10 + slider_a22*c7) - (rod_a11*c10 + rod_a21*c6)*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y) - (-rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y)*(slider_a12*c9 + slider_a22*c11)
-    out[12] = -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x)
-    out[13] = -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x)
-    out[16] = c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)
+    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_theta_x - rod_a01*v_rod_theta_y) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_theta_y - rod_a11*v_rod_theta_z)
+    out[12] = v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x) - v_slider_theta_y*(slider_a11*v_slider_theta_x - slider_a01*v_slider_theta_y)
+    out[13] = v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - c12*v_slider_theta_y
+    out[16] = c12*v_slider_theta_x - v_slider_theta_z*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z)
     return out
 
 
 def _joints_phi_jac_s(q):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
-    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx)
     crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
     crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
-    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy)
     crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
     crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
-    rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0
+    rod_a00 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx)
     rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
     rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
-    rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0
+    rod_a11 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy)
     rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz
     rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz
     slider_a01 = -2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy
     slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz
-    slider_a11 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy) - 1.0
+    slider_a11 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy)
     slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
     slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
-    slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0
+    slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz)
     d0 = (1/5)*crank_a20
     d1 = (1/5)*crank_a10
     d2 = (1/5)*crank_a00
@@ -257,45 +257,45 @@ def _joints_phi_jac_s(q):
     d6 = rod_a11*slider_a22 - rod_a21*slider_a12
     d7 = rod_a01*slider_a22 - rod_a21*slider_a02
     d8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 + crank_x - rod_x, (1/5)*crank_a10 + crank_y - rod_y, (1/5)*crank_a20 + crank_z - rod_z, (3/5)*rod_a00 + rod_x - slider_x, (3/5)*rod_a10 + rod_y - slider_y, (3/5)*rod_a20 + rod_z - slider_z, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, 1.0, -d3, d5, -1.0, 1.0, d4, -d5, -1.0, d6, -d7, d8, -d6, d7, -d8, slider_a21, -slider_a11, slider_a22, -slider_a12, 1.0, 1.0, -slider_a22, slider_a02]
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - rod_x + (1/5)*crank_a00, crank_y - rod_y + (1/5)*crank_a10, crank_z - rod_z + (1/5)*crank_a20, rod_x - slider_x + (3/5)*rod_a00, rod_y - slider_y + (3/5)*rod_a10, rod_z - slider_z + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, 1.0, -d3, d5, -1.0, 1.0, d4, -d5, -1.0, d6, -d7, d8, -d6, d7, -d8, slider_a21, -slider_a11, slider_a22, -slider_a12, 1.0, 1.0, -slider_a22, slider_a02]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, crank_qw, crank_qx, crank_qy, crank_qz, _, _, _, rod_qw, rod_qx, rod_qy, rod_qz, _, _, _, slider_qw, slider_qx, slider_qy, slider_qz = q
     _, _, _, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, _, _, _, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, _, _, _, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
-    crank_a00 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx) - 1.0
+    crank_a00 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qx*crank_qx)
     crank_a01 = -2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
     crank_a10 = 2.0*crank_qw*crank_qz + 2.0*crank_qx*crank_qy
-    crank_a11 = 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy) - 1.0
+    crank_a11 = -1.0 + 2.0*(crank_qw*crank_qw) + 2.0*(crank_qy*crank_qy)
     crank_a20 = -2.0*crank_qw*crank_qy + 2.0*crank_qx*crank_qz
     crank_a21 = 2.0*crank_qw*crank_qx + 2.0*crank_qy*crank_qz
-    rod_a00 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx) - 1.0
+    rod_a00 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qx*rod_qx)
     rod_a01 = -2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
     rod_a10 = 2.0*rod_qw*rod_qz + 2.0*rod_qx*rod_qy
-    rod_a11 = 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy) - 1.0
+    rod_a11 = -1.0 + 2.0*(rod_qw*rod_qw) + 2.0*(rod_qy*rod_qy)
     rod_a20 = -2.0*rod_qw*rod_qy + 2.0*rod_qx*rod_qz
     rod_a21 = 2.0*rod_qw*rod_qx + 2.0*rod_qy*rod_qz
     slider_a01 = -2.0*slider_qw*slider_qz + 2.0*slider_qx*slider_qy
     slider_a02 = 2.0*slider_qw*slider_qy + 2.0*slider_qx*slider_qz
-    slider_a11 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy) - 1.0
+    slider_a11 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qy*slider_qy)
     slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
     slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
-    slider_a22 = 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz) - 1.0
+    slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz)
     c0 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
     c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = -crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y
+    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
     c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
     c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
-    c5 = -rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y
+    c5 = rod_a20*v_rod_theta_y - rod_a10*v_rod_theta_z
     c6 = v_rod_theta_y - v_slider_theta_y
     c7 = v_rod_theta_x - v_slider_theta_x
     c8 = -c7
     c9 = v_rod_theta_z - v_slider_theta_z
     c10 = -c9
     c11 = -c6
-    c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
-    return [0.0, 0.0, 0.0, -v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x) + v_crank_theta_y*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y), -v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x) + v_crank_theta_y*(-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y), -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z, c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z, -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y, -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z, c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z, -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y, -(rod_a01*c9 + rod_a21*c8)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (rod_a01*c11 + rod_a11*c7)*(-slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x) - (-rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x)*(slider_a02*c6 + slider_a12*c8) - (rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x)*(slider_a02*c10 + slider_a22*c7) - (rod_a11*c10 + rod_a21*c6)*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y) - (-rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y)*(slider_a12*c9 + slider_a22*c11), -v_slider_theta_y*(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x) + v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x), -c12*v_slider_theta_y + v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x), 0.0, 0.0, c12*v_slider_theta_x - v_slider_theta_z*(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)]
+    c12 = slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y
+    return [0.0, 0.0, 0.0, v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x), v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x), -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z, c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z, -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y, -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z, c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z, -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y, -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_theta_x - rod_a01*v_rod_theta_y) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_theta_y - rod_a11*v_rod_theta_z), v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x) - v_slider_theta_y*(slider_a11*v_slider_theta_x - slider_a01*v_slider_theta_y), v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - c12*v_slider_theta_y, 0.0, 0.0, c12*v_slider_theta_x - v_slider_theta_z*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z)]
 
 
 def frames(q, v, a):
@@ -303,33 +303,33 @@ def frames(q, v, a):
     crank_x, crank_y, crank_z, crank_qw, crank_qx, crank_qy, crank_qz, rod_x, rod_y, rod_z, rod_qw, rod_qx, rod_qy, rod_qz, slider_x, slider_y, slider_z, slider_qw, slider_qx, slider_qy, slider_qz = q
     v_crank_x, v_crank_y, v_crank_z, v_crank_theta_x, v_crank_theta_y, v_crank_theta_z, v_rod_x, v_rod_y, v_rod_z, v_rod_theta_x, v_rod_theta_y, v_rod_theta_z, v_slider_x, v_slider_y, v_slider_z, v_slider_theta_x, v_slider_theta_y, v_slider_theta_z = v
     dv_crank_x, dv_crank_y, dv_crank_z, dv_crank_theta_x, dv_crank_theta_y, dv_crank_theta_z, dv_rod_x, dv_rod_y, dv_rod_z, dv_rod_theta_x, dv_rod_theta_y, dv_rod_theta_z, dv_slider_x, dv_slider_y, dv_slider_z, dv_slider_theta_x, dv_slider_theta_y, dv_slider_theta_z = a
-    crank_a00 = 2*crank_qw**2 + 2*crank_qx**2 - 1
+    crank_a00 = -1 + 2*crank_qw**2 + 2*crank_qx**2
     crank_a01 = -2*crank_qw*crank_qz + 2*crank_qx*crank_qy
     crank_a02 = 2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a10 = 2*crank_qw*crank_qz + 2*crank_qx*crank_qy
-    crank_a11 = 2*crank_qw**2 + 2*crank_qy**2 - 1
+    crank_a11 = -1 + 2*crank_qw**2 + 2*crank_qy**2
     crank_a12 = -2*crank_qw*crank_qx + 2*crank_qy*crank_qz
     crank_a20 = -2*crank_qw*crank_qy + 2*crank_qx*crank_qz
     crank_a21 = 2*crank_qw*crank_qx + 2*crank_qy*crank_qz
-    crank_a22 = 2*crank_qw**2 + 2*crank_qz**2 - 1
-    rod_a00 = 2*rod_qw**2 + 2*rod_qx**2 - 1
+    crank_a22 = -1 + 2*crank_qw**2 + 2*crank_qz**2
+    rod_a00 = -1 + 2*rod_qw**2 + 2*rod_qx**2
     rod_a01 = -2*rod_qw*rod_qz + 2*rod_qx*rod_qy
     rod_a02 = 2*rod_qw*rod_qy + 2*rod_qx*rod_qz
     rod_a10 = 2*rod_qw*rod_qz + 2*rod_qx*rod_qy
-    rod_a11 = 2*rod_qw**2 + 2*rod_qy**2 - 1
+    rod_a11 = -1 + 2*rod_qw**2 + 2*rod_qy**2
     rod_a12 = -2*rod_qw*rod_qx + 2*rod_qy*rod_qz
     rod_a20 = -2*rod_qw*rod_qy + 2*rod_qx*rod_qz
     rod_a21 = 2*rod_qw*rod_qx + 2*rod_qy*rod_qz
-    rod_a22 = 2*rod_qw**2 + 2*rod_qz**2 - 1
-    slider_a00 = 2*slider_qw**2 + 2*slider_qx**2 - 1
+    rod_a22 = -1 + 2*rod_qw**2 + 2*rod_qz**2
+    slider_a00 = -1 + 2*slider_qw**2 + 2*slider_qx**2
     slider_a01 = -2*slider_qw*slider_qz + 2*slider_qx*slider_qy
     slider_a02 = 2*slider_qw*slider_qy + 2*slider_qx*slider_qz
     slider_a10 = 2*slider_qw*slider_qz + 2*slider_qx*slider_qy
-    slider_a11 = 2*slider_qw**2 + 2*slider_qy**2 - 1
+    slider_a11 = -1 + 2*slider_qw**2 + 2*slider_qy**2
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a20 = -2*slider_qw*slider_qy + 2*slider_qx*slider_qz
     slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
-    slider_a22 = 2*slider_qw**2 + 2*slider_qz**2 - 1
+    slider_a22 = -1 + 2*slider_qw**2 + 2*slider_qz**2
     out = _zeros(72, q, ())
     out[0] = crank_x
     out[1] = crank_y
@@ -409,8 +409,8 @@ def frames(q, v, a):
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = (1/2)*t**2 + 6.283185307179586*t + 3/10
-    out[1] = t + 6.283185307179586
+    out[0] = 3/10 + (1/2)*t**2 + 6.283185307179586*t
+    out[1] = 6.283185307179586 + t
     out[2] = 1
     return out
 
@@ -421,7 +421,7 @@ def _drivers_phi_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = 2*crank_qw*sin(c0) - 2*crank_qz*cos(c0)
+    out[0] = -2*crank_qz*cos(c0) + 2*crank_qw*sin(c0)
     return out
 
 
@@ -433,9 +433,9 @@ def _drivers_jac_run(q, u):
     d1 = sin(d0)
     d2 = cos(d0)
     out = _zeros(3, q, u)
-    out[0] = -crank_qx*d1 - crank_qy*d2
-    out[1] = crank_qx*d2 - crank_qy*d1
-    out[2] = -crank_qw*d2 - crank_qz*d1
+    out[0] = -d1*crank_qx - d2*crank_qy
+    out[1] = d2*crank_qx - d1*crank_qy
+    out[2] = -d1*crank_qz - d2*crank_qw
     return out
 
 
@@ -461,14 +461,14 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*crank_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*crank_qz
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
     out = _zeros(1, q, u)
-    out[0] = c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*ud0**2 - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)
+    out[0] = c4*ud0**2 - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)
     return out
 
 
@@ -480,7 +480,7 @@ def _drivers_phi_jac_s_run(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [2.0*crank_qw*math.sin(c0) - 2.0*crank_qz*math.cos(c0)], [-crank_qx*d1 - crank_qy*d2, crank_qx*d2 - crank_qy*d1, -crank_qw*d2 - crank_qz*d1]
+    return [-2.0*crank_qz*math.cos(c0) + 2.0*crank_qw*math.sin(c0)], [-d1*crank_qx - d2*crank_qy, d2*crank_qx - d1*crank_qy, -d1*crank_qz - d2*crank_qw]
 
 
 def _drivers_nu_s_run(q, u, ud):
@@ -503,13 +503,13 @@ def _drivers_gamma_s_run(q, v, u, ud, udd):
     c1 = math.cos(c0)
     c2 = math.sin(c0)
     c3 = (1/2)*crank_qw
-    c4 = -1/2*crank_qz*c1 + c2*c3
+    c4 = c2*c3 - 1/2*c1*crank_qz
     c5 = (1/2)*v_crank_theta_y
     c6 = (1/2)*v_crank_theta_x
     c7 = (1/2)*crank_qz
     c8 = (1/2)*v_crank_theta_z
     c9 = (1/2)*c1
-    return [c1*v_crank_theta_z*(-crank_qx*c6 - crank_qy*c5 - c7*v_crank_theta_z) + c2*v_crank_theta_z*(-crank_qx*c5 + crank_qy*c6 + c3*v_crank_theta_z) + c4*(ud0*ud0) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*(-crank_qx*c9 + (1/2)*crank_qy*c2) + v_crank_theta_y*(-1/2*crank_qx*c2 - crank_qy*c9)) - udd0*(crank_qw*c1 + crank_qz*c2) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(crank_qx*c8 + c3*v_crank_theta_y - c7*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-crank_qy*c8 + c3*v_crank_theta_x + c7*v_crank_theta_y)]
+    return [c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)]
 
 
 def phi_run(q, u):

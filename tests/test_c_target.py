@@ -112,12 +112,14 @@ def test_a_failure_is_the_same_error_at_the_same_time_compiled():
 
 def test_the_c_is_straight_line_in_short_functions_with_no_heap():
     source = (GENERATED / "excavator_euler_parameters.c").read_text()
-    joints = source.split("static void compute_joints_phi")[1].split("\n}\n")[0]
+    joints = re.search(r"void \w*compute_joints_phi\w*\([^)]*\) \{\n(.*?)\n\}", source, re.DOTALL).group(1)
     assert "pow(" not in joints and "(bucket_e0*bucket_e0)" in joints  # squares as products
     bodies = re.findall(r"\) \{\n(.*?)\n\}", source, re.DOTALL)
     module = load_module(GENERATED / "excavator_euler_parameters.py")
     reads = len(module.STORED_NAMES) + 9 * len(module.BODIES)  # the argument reads and rotation-matrix entries
     assert max(body.count(";") for body in bodies) <= config.PART_STATEMENTS + reads + 20  # a group is never cut
+    # compiled whole by the standalone Makefile (test_standalone_*), in parallel parts by the runtime
+    assert config.source_parts(source) == [0, 1, 2, 3]
     solver = (config.SOLVER / "kinegen_solver.c").read_text()
     assert not re.search(r"\b(malloc|calloc|realloc|free)\s*\(", solver)
     assert not re.search(r"^static [^(]*;", solver, re.MULTILINE)  # no global state
@@ -159,6 +161,12 @@ def _compare(program: Path, python_system, case: str) -> None:
     names, table = Solver(python_system).solve().table()
     assert header.split(",") == names
     assert c.shape == table.shape
+    _same_rows(c, table, names)
+
+
+def _same_rows(c: np.ndarray, table: np.ndarray, names: list[str]) -> None:
+    """Every column to 1e-12 of its scale, except the 1-norm condition estimate: a local search
+    (Hager's) that may stop at another vertex after a last-bit change, to within a factor 3."""
     exact = [i for i, n in enumerate(names) if n not in ("jacobian_condition",)]
     scale = np.maximum(1.0, np.abs(table[:, exact]).max(axis=0))
     assert (np.abs(c[:, exact] - table[:, exact]).max(axis=0) <= 1e-12 * scale).all(), [
@@ -217,6 +225,6 @@ def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path
     piped = subprocess.run([str(program), "level_cut", "-"], input=text, capture_output=True, text=True, check=True).stdout
     assert piped.splitlines()[0] == own.splitlines()[0]
     a, b = (np.array([[float(x) for x in row.split(",")] for row in out.splitlines()[1:]]) for out in (own, piped))
-    assert np.abs(a - b).max() <= 1e-12 * max(1.0, np.abs(a).max())  # NumPy's and libm's sin differ in the last bit
+    _same_rows(b, a, own.splitlines()[0].split(","))  # NumPy's and libm's sin differ in the last bit
     failed = subprocess.run([str(program), "bucket_toggle"], capture_output=True, text=True)
     assert failed.returncode in (1, 2, 3) and failed.stderr.startswith("error: excavator/bucket_toggle at t = ")

@@ -96,6 +96,13 @@ class Parametrization(ABC):
         """Velocity coordinates per body."""
         return 3 + len(self.velocity_names)
 
+    @property
+    def additive(self) -> bool:
+        """True when :meth:`retract` is plain addition (nq == nv, neither :meth:`retract` nor
+        :meth:`retract_orientation` overridden): the runtime then adds whole vectors at once."""
+        kind = type(self)
+        return kind.retract is Parametrization.retract and kind.retract_orientation is Parametrization.retract_orientation
+
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
         """A body's stored coordinates ``q`` (nq, ...) moved by ``step`` (nv, ...) in velocity
         coordinates: positions added, the orientation by :meth:`retract_orientation`."""

@@ -33,6 +33,7 @@ from typing import Any
 
 import numpy as np
 
+from kinegen.codegen.backends.c.config import source_parts
 from kinegen.errors import KinegenError
 
 SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
@@ -154,11 +155,15 @@ def build_library(sources: dict[str, str]) -> Path:
         for name, text in sources.items():
             (Path(work) / name).write_text(text)
         built = Path(work) / library.name
-        objects = [Path(work) / f"{Path(n).stem}.o" for n in sorted(sources) if n.endswith(".c")]
-        commands = [
-            [compiler, *COMMON_FLAGS, *(SOLVER_FLAGS if o.stem == "kinegen_solver" else MODEL_FLAGS), "-c", "-o", str(o), str(o.with_suffix(".c"))]
-            for o in objects
-        ]
+        objects, commands = [], []
+        for name in sorted(n for n in sources if n.endswith(".c")):
+            source, flags = Path(work) / name, SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
+            # a large model's C in its parts, compiled in parallel (see backends.c.backend)
+            for part in source_parts(sources[name]) or [None]:
+                suffix = "" if part is None else f"_part{part}"
+                objects.append(Path(work) / f"{source.stem}{suffix}.o")
+                defines = [] if part is None else [f"-DKINEGEN_PART={part}"]
+                commands.append([compiler, *COMMON_FLAGS, *flags, *defines, "-c", "-o", str(objects[-1]), str(source)])
         _run_all(compiler, commands)
         _run_all(compiler, [[compiler, "-shared", "-o", str(built), *map(str, objects), "-lm"]])
         os.replace(built, library)

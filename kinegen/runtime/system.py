@@ -136,12 +136,12 @@ class NumericSystem:
         """q (n,) or (n, K) moved by ``step`` (velocity coordinates) body by body, as the
         parametrization says (quaternions by the exponential map, so they stay unit)."""
         p = self.parametrization
+        if self._additive:
+            return q + step
         bodies = len(self.bodies)
         batch = q.shape[1:]
-        moved = p.retract(
-            np.moveaxis(q.reshape(bodies, p.nq, *batch), 0, 1), np.moveaxis(step.reshape(bodies, p.nv, *batch), 0, 1)
-        )
-        return np.moveaxis(moved, 1, 0).reshape(q.shape)
+        moved = p.retract(q.reshape(bodies, p.nq, *batch).swapaxes(0, 1), step.reshape(bodies, p.nv, *batch).swapaxes(0, 1))
+        return moved.swapaxes(0, 1).reshape(q.shape)
 
     def project(self, q: np.ndarray) -> np.ndarray:
         """q (n, ...) whose bodies' coordinates interpolation may have moved off their valid set
@@ -149,13 +149,17 @@ class NumericSystem:
         p = self.parametrization
         bodies = len(self.bodies)
         batch = q.shape[1:]
-        return np.moveaxis(p.project(np.moveaxis(q.reshape(bodies, p.nq, *batch), 0, 1)), 1, 0).reshape(q.shape)
+        return p.project(q.reshape(bodies, p.nq, *batch).swapaxes(0, 1)).swapaxes(0, 1).reshape(q.shape)
 
     def body_coordinates(self, values: np.ndarray, body: str, velocity: bool = False) -> np.ndarray:
         """The coordinates of ``body`` in ``values`` (K, n) (stored, or velocity when ``velocity``)."""
         p = self.parametrization
         offset = self.bodies[body][1 if velocity else 0]
         return values[..., offset : offset + (p.nv if velocity else p.nq)]
+
+    @cached_property
+    def _additive(self) -> bool:
+        return self.parametrization.additive
 
     @cached_property
     def _pattern(self) -> Pattern:

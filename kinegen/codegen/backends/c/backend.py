@@ -5,6 +5,11 @@ runtime (``kinegen_solver.h/.c``), a ``Makefile``, a ``CMakeLists.txt`` and ``ex
 Every section is one straight-line ``static`` function (split into parts of at most
 :data:`config.PART_STATEMENTS` statements, which keeps compile time linear in the model's
 size); a case's kernels call the sections in turn. C99 and ``math.h`` only.
+
+A large model's ``<stem>.c`` is still one file that compiles whole, but its section functions
+are grouped under ``#if !defined(KINEGEN_PART) || KINEGEN_PART == k`` (k = 1, 2, ...; the
+tables and kernels under k = 0), so that the runtime compiles the parts in parallel
+(:func:`config.source_parts`); the grouped functions then have external linkage and the stem as prefix.
 """
 
 from __future__ import annotations
@@ -129,7 +134,8 @@ class _Model:
         self.d = description
         self.stem = stem
         self.printing: Printing = description.shapes.printing((CPrinter(),))
-        self.functions: list[_Function] = []
+        self.functions: list[_Function] = []  # kernels and frames
+        self.section_functions: list[_Function] = []
         self.sections: dict[str, list[str]] = {}
 
     def slot_symbols(self, slot: str, case: str | None) -> tuple[sp.Symbol, ...]:
@@ -170,7 +176,7 @@ class _Model:
             if not part.outputs:
                 statements.append("(void)out;")
             doc = section.doc if len(parts) == 1 else f"{section.doc} Rows {part.offset} to {part.offset + len(part) - 1}."
-            self.functions.append(_Function(function_name, params, self.prologue(section.slots, part, case), statements, doc))
+            self.section_functions.append(_Function(function_name, params, self.prologue(section.slots, part, case), statements, doc))
         self.sections[name] = names
         return names
 
@@ -195,6 +201,28 @@ class _Model:
         used = {s for o in kernel.outputs for p in o.parts if not isinstance(p, Zeros) for s in self.d.sections[p].slots}
         statements = [f"(void){s};" for s in kernel.slots if s not in used] + statements
         self.functions.append(_Function(name, params, [], statements, kernel.doc, static))
+
+    def source_groups(self) -> list[list[_Function]]:
+        """The section functions in groups of about :data:`config.FILE_STATEMENTS` statements
+        (one group: a small model, all ``static`` as they are); with more than one, the
+        functions are made external with the stem as prefix and the kernels' calls renamed."""
+        groups: list[list[_Function]] = [[]]
+        size = 0
+        for f in self.section_functions:
+            length = len(f.prologue) + len(f.statements)
+            if groups[-1] and size + length > config.FILE_STATEMENTS:
+                groups.append([])
+                size = 0
+            groups[-1].append(f)
+            size += length
+        if len(groups) == 1:
+            return groups
+        renamed = {f.name: f"{self.stem}_{f.name}" for f in self.section_functions}
+        for f in self.section_functions:
+            f.name, f.static = renamed[f.name], False
+        for f in self.functions:
+            f.statements = [_renamed_call(line, renamed) for line in f.statements]
+        return groups
 
     def render(self, templates) -> dict[str, str]:
         d, stem = self.d, self.stem
@@ -222,10 +250,13 @@ class _Model:
             points.append((-1, f"ground.{point}", position))
         actuators = [(name, index[p1], index[p2], limits) for name, p1, p2, limits in d.actuators]
         macros = templates.get_template("functions.c.jinja").module
+        groups = self.source_groups()
         context = {
             "d": d, "stem": stem, "prefix": stem.upper(), "cases": cases, "points": points, "actuators": actuators,
             "param": d.parametrization, "retract": d.parametrization.c_retract().splitlines(),
             "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__,
+            "groups": [[macros.function(f) for f in group] for group in groups],
+            "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
             "work_doubles": max(c.doubles for c in cases), "work_ints": max(c.ints for c in cases),
             "max_inputs": max(1, *(len(c.case.drivers) for c in cases)),
         }  # fmt: skip
@@ -233,6 +264,12 @@ class _Model:
             f"{stem}.h": templates.get_template("model.h.jinja").render(context),
             f"{stem}.c": templates.get_template("model.c.jinja").render(context),
         }
+
+
+def _renamed_call(line: str, renamed: dict[str, str]) -> str:
+    """``line`` with the function it calls (a statement ``name(args);``) renamed."""
+    name, paren, rest = line.partition("(")
+    return f"{renamed[name]}{paren}{rest}" if paren and name in renamed else line
 
 
 def render(description: ModuleDescription, stem: str, standalone: bool = True) -> dict[str, str]:

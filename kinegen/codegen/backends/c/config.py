@@ -1,5 +1,6 @@
 """Settings of the C backend."""
 
+import re
 from pathlib import Path
 
 #: Folder of the file skeletons (Jinja).
@@ -9,5 +10,15 @@ SOLVER = Path(__file__).with_name("solver")
 RUNTIME = ("kinegen_solver.h", "kinegen_solver.c")
 #: Statements per C function before it is split into parts (compile time grows faster than linearly with a function's length).
 PART_STATEMENTS = 250
+#: Statements of section functions per part of a model's C compiled apart (in parallel) by the runtime.
+FILE_STATEMENTS = 2000
 #: Flags of the standalone Makefile / CMakeLists.txt and of the runtime's compiled library.
 CFLAGS = "-std=c99 -O2 -Wall -Wextra -pedantic"
+
+
+def source_parts(text: str) -> list[int]:
+    """The values of ``KINEGEN_PART`` a generated ``<stem>.c`` is split by (empty: compile it whole)."""
+    return sorted({int(k) for k in _PART.findall(text)})
+
+
+_PART = re.compile(r"^#if !defined\(KINEGEN_PART\) \|\| KINEGEN_PART == (\d+)$", re.MULTILINE)

@@ -15,7 +15,7 @@ class CPrinter(C99CodePrinter):
     ``1.0/sqrt(x)``; ``sign`` as a comparison (0 at 0, as NumPy)."""
 
     def __init__(self) -> None:
-        super().__init__({"strict": True})
+        super().__init__({"strict": True, "order": "none"})
 
     def _print_Float(self, expr: sp.Float) -> str:
         return repr(float(expr))

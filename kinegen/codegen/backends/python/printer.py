@@ -19,7 +19,7 @@ class ModulePrinter(NumPyPrinter):
     """NumPy printer with bare function names and round-trip float literals."""
 
     def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": False, "inline": True})
+        super().__init__({"fully_qualified_modules": False, "inline": True, "order": "none"})
 
     def _print_Float(self, expr: sp.Float) -> str:
         return _float(expr)
@@ -38,7 +38,7 @@ class ScalarPrinter(PythonCodePrinter):
     """
 
     def __init__(self) -> None:
-        super().__init__({"fully_qualified_modules": True, "inline": True})
+        super().__init__({"fully_qualified_modules": True, "inline": True, "order": "none"})
 
     def _print_Integer(self, expr: sp.Integer) -> str:
         return repr(float(expr)) if abs(expr.p) < 2**53 else str(expr.p)
