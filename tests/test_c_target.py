@@ -17,7 +17,7 @@ from kinegen.cli import main
 from kinegen.codegen.backends.c import config
 from kinegen.errors import KinegenError
 from kinegen.runtime import Solver, from_module, load_module
-from kinegen.runtime.native import build_library
+from kinegen.runtime.native import build_library, with_solver
 from tests.conftest import GENERATED, MODELS, chain_yaml
 
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -136,6 +136,19 @@ def test_the_library_cache_key_covers_the_compiler(tmp_path, monkeypatch):
     second = build_library(sources)
     assert first != second and first.exists() and second.exists()
     assert build_library(sources) == second  # cached
+
+
+def test_the_solver_object_is_compiled_once_for_every_model(tmp_path, monkeypatch):
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    objects = tmp_path / "cache" / "objects"
+    build_library(with_solver(_model_files("excavator_euler_parameters")))
+    assert len(list(objects.glob("*.o"))) == 5  # the solver and the model's parts 0 to 3
+    build_library(with_solver(_model_files("boom_quaternion")))
+    assert len(list(objects.glob("*.o"))) == 6  # the boom's one object; the solver's reused
+
+
+def _model_files(stem: str) -> dict[str, str]:
+    return {name: (GENERATED / name).read_text() for name in (f"{stem}.c", f"{stem}.h")}
 
 
 def _standalone(tmp_path: Path, model: Path, param: str) -> Path:

@@ -21,6 +21,7 @@ import ctypes
 import hashlib
 import os
 import platform
+import re
 import shutil
 import subprocess
 import tempfile
@@ -139,35 +140,79 @@ def cache_folder() -> Path:
 
 def build_library(sources: dict[str, str]) -> Path:
     """The shared library of the C ``sources`` (file name -> text), compiled once: cached by a
-    key over the sources, the compiler and the flags. The build is atomic (a temporary
-    folder, then ``os.replace``): a concurrent or interrupted build leaves a whole library or none."""
+    key over the sources, the compiler and the flags. Each object file is cached too, by its
+    source, the headers it includes, the compiler and its flags: the solver's object is built
+    once per machine and shared by every model. Builds are atomic (a temporary folder, then ``os.replace``): a
+    concurrent or interrupted build leaves a whole library or none."""
     compiler = c_compiler()
+    identity = _compiler_identity(compiler)
     key = hashlib.sha256()
-    for part in (_compiler_identity(compiler), " ".join((*COMMON_FLAGS, *SOLVER_FLAGS, *MODEL_FLAGS)),
+    for part in (identity, " ".join((*COMMON_FLAGS, *SOLVER_FLAGS, *MODEL_FLAGS)),
                  *(f"{n}\n{t}" for n, t in sorted(sources.items()))):  # fmt: skip
         key.update(part.encode())
     folder = cache_folder()
     library = folder / f"kinegen_{key.hexdigest()[:24]}.so"
     if library.exists():
         return library
-    folder.mkdir(parents=True, exist_ok=True)
+    (folder / "objects").mkdir(parents=True, exist_ok=True)
     with tempfile.TemporaryDirectory(dir=folder) as work:
         for name, text in sources.items():
             (Path(work) / name).write_text(text)
         built = Path(work) / library.name
-        objects, commands = [], []
+        objects, commands, fresh = [], [], []
         for name in sorted(n for n in sources if n.endswith(".c")):
-            source, flags = Path(work) / name, SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
+            flags = SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
             # a large model's C in its parts, compiled in parallel (see backends.c.backend)
             for part in source_parts(sources[name]) or [None]:
-                suffix = "" if part is None else f"_part{part}"
-                objects.append(Path(work) / f"{source.stem}{suffix}.o")
                 defines = [] if part is None else [f"-DKINEGEN_PART={part}"]
-                commands.append([compiler, *COMMON_FLAGS, *flags, *defines, "-c", "-o", str(objects[-1]), str(source)])
+                command = [*COMMON_FLAGS, *flags, *defines]
+                cached = folder / "objects" / f"{_object_key(identity, command, name, sources)}.o"
+                objects.append(cached)
+                if not cached.exists():
+                    made = Path(work) / f"{Path(name).stem}{'' if part is None else f'_part{part}'}.o"
+                    commands.append([compiler, *command, "-c", "-o", str(made), str(Path(work) / name)])
+                    fresh.append((made, cached))
         _run_all(compiler, commands)
+        for made, cached in fresh:
+            os.replace(made, cached)
         _run_all(compiler, [[compiler, "-shared", "-o", str(built), *map(str, objects), "-lm"]])
         os.replace(built, library)
     return library
+
+
+def build_solver_object() -> Path:
+    """The C solver's object file, compiled once per machine and compiler into the cache
+    (:func:`build_library` takes it from there for every model)."""
+    compiler = c_compiler()
+    sources = with_solver({})
+    command = [*COMMON_FLAGS, *SOLVER_FLAGS]
+    cached = cache_folder() / "objects" / f"{_object_key(_compiler_identity(compiler), command, 'kinegen_solver.c', sources)}.o"
+    if not cached.exists():
+        cached.parent.mkdir(parents=True, exist_ok=True)
+        with tempfile.TemporaryDirectory(dir=cached.parent) as work:
+            for name, text in sources.items():
+                (Path(work) / name).write_text(text)
+            made = Path(work) / "kinegen_solver.o"
+            _run_all(compiler, [[compiler, *command, "-c", "-o", str(made), str(Path(work) / "kinegen_solver.c")]])
+            os.replace(made, cached)
+    return cached
+
+
+def _object_key(identity: str, command: list[str], name: str, sources: dict[str, str]) -> str:
+    """Cache key of one object: compiler, flags, the source and the headers it includes (transitively)."""
+    key = hashlib.sha256(f"{identity}\n{' '.join(command)}".encode())
+    pending, seen = [name], set()
+    while pending:
+        file = pending.pop()
+        if file in seen or file not in sources:
+            continue
+        seen.add(file)
+        key.update(f"\n{file}\n{sources[file]}".encode())
+        pending += _INCLUDE.findall(sources[file])
+    return key.hexdigest()[:32]
+
+
+_INCLUDE = re.compile(r'^#include "([^"]+)"', re.MULTILINE)
 
 
 def with_solver(model_files: dict[str, str]) -> dict[str, str]:
