@@ -25,11 +25,11 @@ OPERATING_CASES = ("digging", "level_cut", "trench_wall")
 
 #: What the main job builds: model file -> parametrizations (committed in generated/).
 MAIN_JOB: dict[str, tuple[str, ...]] = {
-    "boom.yaml": ("quaternion", "euler-parameters", "euler:zxz"),
-    "slider_crank.yaml": ("quaternion", "euler-parameters"),
-    "four_bar.yaml": ("quaternion", "euler-parameters"),
-    "rssr.yaml": ("quaternion", "euler-parameters"),
-    "excavator.yaml": ("quaternion", "euler-parameters", "euler:zxz", "euler:zxy"),
+    "boom.yaml": ("quaternion", "euler-parameters", "euler:zxz", "dual-quaternion", "dual-euler-parameters"),
+    "slider_crank.yaml": ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters"),
+    "four_bar.yaml": ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters"),
+    "rssr.yaml": ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters"),
+    "excavator.yaml": ("quaternion", "euler-parameters", "euler:zxz", "euler:zxy", "dual-quaternion", "dual-euler-parameters"),
 }
 
 

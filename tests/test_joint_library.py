@@ -59,7 +59,7 @@ cases:
 """
 
 
-@pytest.mark.parametrize("param", ["quaternion", "euler-parameters", "euler:xyz"])
+@pytest.mark.parametrize("param", ["quaternion", "euler-parameters", "euler:xyz", "dual-quaternion", "dual-euler-parameters"])
 def test_every_joint_and_driver_follows_its_closed_form(param):
     model = loads(GADGET, "gadget.yaml")
     results = solve(from_module(lambdify_model(model, rotations.get(param))))

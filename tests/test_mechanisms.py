@@ -18,7 +18,7 @@ from kinegen.errors import SingularJacobianError
 from kinegen.runtime import Solver, SolverOptions, solve
 from tests.conftest import chain_system, generated_system
 
-PARAMS = ["quaternion", "euler_parameters"]
+PARAMS = ["quaternion", "euler_parameters", "dual_quaternion", "dual_euler_parameters"]
 t = sp.Symbol("t")
 
 
@@ -108,16 +108,17 @@ def test_rssr_velocity_and_acceleration_match_central_differences(param):
     assert checked == 6
 
 
-def test_rssr_parametrizations_agree():
+@pytest.mark.parametrize("other", ["rssr_euler_parameters", "rssr_dual_quaternion", "rssr_dual_euler_parameters"])
+def test_rssr_parametrizations_agree(other):
     a = solve(generated_system("rssr_quaternion"))
-    b = solve(generated_system("rssr_euler_parameters"))
+    b = solve(generated_system(other))
     for body, point in (("crank", "B"), ("rocker", "C")):
         assert np.abs(a.point_position(body, point) - b.point_position(body, point)).max() < 1e-9
     assert np.abs(a.omega("rocker") - b.omega("rocker")).max() < 1e-8
     assert np.abs(a.omega_dot("rocker") - b.omega_dot("rocker")).max() < 1e-6
 
 
-REGULAR = ["quaternion", "euler-parameters", "euler:xyz", "euler:zyx"]
+REGULAR = ["quaternion", "euler-parameters", "euler:xyz", "euler:zyx", "dual-quaternion", "dual-euler-parameters"]
 
 
 @pytest.mark.parametrize("param", REGULAR)

@@ -211,7 +211,7 @@ def symbolic_phi(w: Workload):
     system = build_systems(w.model, rotations.get(PARAMETRIZATION), [w.case])[w.case]
     coords = system.coordinates
     time_functions = dict(zip(system.inputs.u, system.inputs.functions))
-    phi = [r.phi.xreplace(coords.rotation_definitions).xreplace(time_functions) for r in system.rows]
+    phi = [r.phi.xreplace(coords.frame_definitions).xreplace(time_functions) for r in system.rows]
     return list(coords.stored_symbols), phi
 
 

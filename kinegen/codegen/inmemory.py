@@ -59,7 +59,7 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
         u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
         functions = inputs.stacked()
 
-        definitions = coords.rotation_definitions
+        definitions = coords.frame_definitions
 
         def compile_(args, exprs, size, definitions=definitions):
             exprs = [e.xreplace(definitions) for e in exprs]

@@ -122,8 +122,9 @@ class CaseDescription:
 
 @dataclass(frozen=True)
 class Definitions:
-    """The rotation-matrix entries ``<body>_a<ij>`` as expressions of the stored coordinates,
-    the same for every body up to its name: printed once for the generic body, renamed as text."""
+    """The rotation-matrix entries ``<body>_a<ij>`` (and an origin that is not stored,
+    ``<body>_o<x,y,z>``) as expressions of the stored coordinates, the same for every body up
+    to its name: printed once for the generic body, renamed as text."""
 
     bodies: tuple[tuple[str, tuple[sp.Symbol, ...], tuple[sp.Expr, ...]], ...]  # name, symbols, expressions
     generic: tuple[sp.Expr, ...]
@@ -212,13 +213,14 @@ def _frame_groups(coords: Coordinates) -> tuple[Group, ...]:
 
     def expressions() -> list[sp.Expr]:
         values = param.frame_expressions(q, v, a)
-        return [e.xreplace(dict(zip(generic.rotation, generic.frame.A))) for e in values]  # A(o) -> the symbols a_ij
+        # A(s) -> the symbols a_ij, and an origin that is not stored -> its symbols
+        return [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values]
 
     groups = []
     for body in coords.bodies:
         real = [*body.stored, *body.velocity, *(sp.Symbol("d" + str(s), real=True) for s in body.velocity)]
         rename = dict(zip(generic_symbols, real))
-        rename.update(zip(generic.frame.A, body.frame.A))
+        rename.update(zip(generic.frame_symbols, body.frame_symbols))
         groups.append(Group(("frames", param.name), expressions, rename))
     return tuple(groups)
 
@@ -304,7 +306,7 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
             kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))),
         )  # fmt: skip
     definitions = Definitions(
-        tuple((b.name, tuple(b.rotation_symbols), tuple(b.rotation)) for b in coords.bodies), tuple(generic_body(parametrization).rotation)
+        tuple((b.name, tuple(b.frame_symbols), tuple(b.frame_values)) for b in coords.bodies), tuple(generic_body(parametrization).frame_values)
     )
     return ModuleDescription(
         model=model.name,

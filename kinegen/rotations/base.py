@@ -85,16 +85,56 @@ class Parametrization(ABC):
         """Extra constraints a body of this parametrization carries (none by default)."""
         return []
 
+    # ---- a body's symbols (the symbolic side of the layout) -----------------------------
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        """Names of a body's ``nq`` stored coordinates (default: x, y, z, then the orientation's)."""
+        return ("x", "y", "z", *self.stored_names)
+
+    @property
+    def velocity_coordinate_names(self) -> tuple[str, ...]:
+        """Names of a body's ``nv`` velocity coordinates (default: x, y, z, then the orientation's)."""
+        return ("x", "y", "z", *self.velocity_names)
+
+    def body_velocity_map(self, s: sp.Matrix) -> sp.Matrix:
+        """B(s) (nq x nv) with ``ds/dt = B(s) v`` for a body's stored symbols ``s``."""
+        return sp.diag(sp.eye(3), self.velocity_map(s[3:, :]))
+
+    def body_rotation(self, s: sp.Matrix) -> sp.Matrix:
+        """The body's rotation matrix A(s) (body -> global)."""
+        return self.matrix(s[3:, :])
+
+    def body_rotation_derivatives(self, a: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
+        """dA/dv_k for each of the ``nv`` velocity coordinates (``a``: A as symbols)."""
+        return [sp.zeros(3, 3)] * 3 + list(self.rotation_derivatives(a, s[3:, :]))
+
+    def body_origin(self, s: sp.Matrix) -> sp.Matrix:
+        """The frame origin (3x1) as an expression of the stored symbols."""
+        return s[:3, :]
+
+    def body_origin_derivatives(self, r: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix] | None:
+        """dr/dv_k (3x1) for each velocity coordinate, where the origin is not stored (``r``:
+        the origin as symbols); None (default) when the origin is among the stored coordinates."""
+        return None
+
+    def body_quaternion(self, s: sp.Matrix) -> sp.Matrix | None:
+        """The unit quaternion (w, x, y, z) of the rotation among the stored symbols, if stored."""
+        return s[3:, :] if self.stores_quaternion else None
+
+    def body_normalization(self, s: sp.Matrix) -> list[sp.Expr]:
+        """Extra constraints on one body's stored symbols ``s``."""
+        return self.normalization(s[3:, :])
+
     # ---- body layout ------------------------------------------------------------------
     @property
     def nq(self) -> int:
         """Stored coordinates per body."""
-        return 3 + len(self.stored_names)
+        return len(self.coordinate_names)
 
     @property
     def nv(self) -> int:
         """Velocity coordinates per body."""
-        return 3 + len(self.velocity_names)
+        return len(self.velocity_coordinate_names)
 
     @property
     def additive(self) -> bool:

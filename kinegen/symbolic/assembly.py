@@ -36,11 +36,14 @@ from kinegen.rotations import Parametrization
 
 @dataclass(frozen=True)
 class BodyCoordinates:
-    """Symbols of one body: stored ``s = [x, y, z, o...]``, velocity ``v``, map ``B``.
+    """Symbols of one body: stored ``s`` and velocity ``v`` (as the parametrization names
+    them), the velocity map ``B`` (``ds/dt = B(s) v``).
 
     The rotation matrix enters the equations as the symbols ``a`` (``{body}_a{i}{j}``),
-    defined by ``rotation`` = A(o); ``rotation_derivatives[k]`` is dA/dw for the k-th
-    orientation velocity coordinate.
+    defined by ``rotation`` = A(s); ``rotation_derivatives[k]`` is dA/dv_k for every
+    velocity coordinate k (zero for a pure translation). Where the frame origin is not among
+    the stored coordinates (dual quaternions) it enters as the symbols ``origin_symbols``
+    (``{body}_o{x,y,z}``), defined by ``origin``, with dr/dv_k ``origin_derivatives[k]``.
     """
 
     name: str
@@ -48,19 +51,41 @@ class BodyCoordinates:
     velocity: tuple[sp.Symbol, ...]
     stored_offset: int
     velocity_offset: int
-    velocity_map: sp.Matrix  # full (len(stored) x len(velocity)), block diag(I3, B(o))
-    frame: Frame  # r = position symbols, A = the symbols a
-    rotation: sp.Matrix  # A(o)
+    velocity_map: sp.Matrix  # nq x nv
+    frame: Frame  # r = the origin's expression, A = the symbols a
+    rotation: sp.Matrix  # A(s)
     rotation_derivatives: tuple[sp.Matrix, ...]
+    origin_symbols: tuple[sp.Symbol, ...] = ()
+    origin: tuple[sp.Expr, ...] = ()
+    origin_derivatives: tuple[sp.Matrix, ...] = ()
 
     @property
     def rotation_symbols(self) -> list[sp.Symbol]:
         return list(self.frame.A)
 
-    def rotation_rate(self) -> sp.Matrix:
-        """dA/dt = sum_k dA/dw_k * (velocity of w_k)."""
-        rates = self.velocity[3:]
-        return sum((d * w for d, w in zip(self.rotation_derivatives, rates)), sp.zeros(3, 3))
+    @property
+    def frame_symbols(self) -> list[sp.Symbol]:
+        """The symbols defined from the stored coordinates: origin (if not stored), then A."""
+        return [*self.origin_symbols, *self.frame.A]
+
+    @property
+    def frame_values(self) -> list[sp.Expr]:
+        """Their definitions, in the same order."""
+        return [*self.origin, *self.rotation]
+
+    def frame_derivatives(self, k: int) -> list[sp.Expr]:
+        """d(frame symbol)/dv_k for each frame symbol, in order."""
+        origin = list(self.origin_derivatives[k]) if self.origin_symbols else []
+        return [*origin, *self.rotation_derivatives[k]]
+
+    def frame_rates(self) -> list[sp.Expr]:
+        """d(frame symbol)/dt = sum_k d/dv_k v_k, in order."""
+        rates = [sp.Integer(0)] * len(self.frame_symbols)
+        for k, w in enumerate(self.velocity):
+            for i, d in enumerate(self.frame_derivatives(k)):
+                if d != 0:
+                    rates[i] += d * w
+        return rates
 
 
 @dataclass(frozen=True)
@@ -73,12 +98,12 @@ class Coordinates:
     @property
     def stored_names(self) -> list[str]:
         p = self.parametrization
-        return [f"{b.name}.{c}" for b in self.bodies for c in ("x", "y", "z", *p.stored_names)]
+        return [f"{b.name}.{c}" for b in self.bodies for c in p.coordinate_names]
 
     @property
     def velocity_names(self) -> list[str]:
         p = self.parametrization
-        return [f"{b.name}.{c}" for b in self.bodies for c in ("x", "y", "z", *p.velocity_names)]
+        return [f"{b.name}.{c}" for b in self.bodies for c in p.velocity_coordinate_names]
 
     @property
     def stored_symbols(self) -> list[sp.Symbol]:
@@ -96,9 +121,10 @@ class Coordinates:
         return {b.name: b for b in self.bodies}
 
     @property
-    def rotation_definitions(self) -> dict[sp.Symbol, sp.Expr]:
-        """a_ij -> A(o)_ij for every body (to substitute the symbols away)."""
-        return {a: e for b in self.bodies for a, e in zip(b.rotation_symbols, b.rotation)}
+    def frame_definitions(self) -> dict[sp.Symbol, sp.Expr]:
+        """a_ij -> A(s)_ij (and origin symbols -> their expressions) for every body, to
+        substitute the symbols away."""
+        return {a: e for b in self.bodies for a, e in zip(b.frame_symbols, b.frame_values)}
 
 
 class Row:
@@ -234,7 +260,7 @@ class System:
 
     def jacobian_matrix(self, substitute: bool = True) -> sp.Matrix:
         """Dense symbolic ``Phi_q`` (for inspection of small systems), in the stored coordinates."""
-        definitions = self.coordinates.rotation_definitions if substitute else {}
+        definitions = self.coordinates.frame_definitions if substitute else {}
         m = sp.zeros(len(self.rows), len(self.coordinates.velocity_symbols))
         for i, j, e in self.jacobian_entries:
             m[i, j] = e.xreplace(definitions)
@@ -256,7 +282,10 @@ def coordinates(model: Model, parametrization: Parametrization) -> Coordinates:
 def _body_coordinates(name: str, parametrization: Parametrization, s_off: int, v_off: int) -> BodyCoordinates:
     """A body's symbols, velocity map and rotation derivatives: those of a generic body, renamed."""
     generic = generic_body(parametrization)
-    names = {s: sp.Symbol(str(s).replace(GENERIC_NAME, name, 1), real=True) for s in (*generic.stored, *generic.velocity, *generic.frame.A)}
+    names = {
+        s: sp.Symbol(str(s).replace(GENERIC_NAME, name, 1), real=True)
+        for s in (*generic.stored, *generic.velocity, *generic.frame.A, *generic.origin_symbols)
+    }
 
     def rename(m: sp.Matrix | None) -> sp.Matrix | None:
         return None if m is None else m.xreplace(names)
@@ -265,6 +294,8 @@ def _body_coordinates(name: str, parametrization: Parametrization, s_off: int, v
     return BodyCoordinates(
         name, tuple(names[s] for s in generic.stored), tuple(names[s] for s in generic.velocity), s_off, v_off,
         rename(generic.velocity_map), frame, rename(generic.rotation), tuple(rename(d) for d in generic.rotation_derivatives),
+        tuple(names[s] for s in generic.origin_symbols), tuple(e.xreplace(names) for e in generic.origin),
+        tuple(rename(d) for d in generic.origin_derivatives),
     )  # fmt: skip
 
 
@@ -276,17 +307,21 @@ def generic_body(parametrization: Parametrization) -> BodyCoordinates:
     """The coordinates of a body named ``_generic`` (derived once per parametrization)."""
     if parametrization.name not in _GENERIC_BODIES:
         name = GENERIC_NAME
-        stored = tuple(sp.Symbol(f"{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.stored_names))
-        velocity = tuple(sp.Symbol(f"v_{name}_{c}", real=True) for c in ("x", "y", "z", *parametrization.velocity_names))
-        o = sp.Matrix(stored[3:])
-        B = sp.diag(sp.eye(3), parametrization.velocity_map(o))
+        p = parametrization
+        stored = tuple(sp.Symbol(f"{name}_{c}", real=True) for c in p.coordinate_names)
+        velocity = tuple(sp.Symbol(f"v_{name}_{c}", real=True) for c in p.velocity_coordinate_names)
+        s = sp.Matrix(stored)
         a = sp.Matrix(3, 3, [sp.Symbol(f"{name}_a{i}{j}", real=True) for i in range(3) for j in range(3)])
-        quaternion = sp.Matrix(stored[3:]) if parametrization.stores_quaternion else None
-        frame = Frame(sp.Matrix(stored[:3]), a, quaternion)
-        derivatives = tuple(parametrization.rotation_derivatives(a, o))
+        r = sp.Matrix([sp.Symbol(f"{name}_o{c}", real=True) for c in "xyz"])
+        origin_derivatives = p.body_origin_derivatives(r, s)
+        stored_origin = origin_derivatives is None
+        frame = Frame(p.body_origin(s) if stored_origin else r, a, p.body_quaternion(s))
+        derivatives = tuple(p.body_rotation_derivatives(a, s))
         _GENERIC_BODIES[parametrization.name] = BodyCoordinates(
-            name, stored, velocity, 0, 0, B, frame, parametrization.matrix(o), derivatives
-        )
+            name, stored, velocity, 0, 0, p.body_velocity_map(s), frame, p.body_rotation(s), derivatives,
+            () if stored_origin else tuple(r), () if stored_origin else tuple(p.body_origin(s)),
+            () if stored_origin else tuple(origin_derivatives),
+        )  # fmt: skip
     return _GENERIC_BODIES[parametrization.name]
 
 
@@ -306,7 +341,7 @@ class Templates:
     def _placeholder(self, k: int) -> BodyCoordinates:
         """Placeholder body ``_b{k}``; its velocity columns start at k * (coordinates per body),
         so a generic row's column c is (body c // size, coordinate c % size)."""
-        size = 3 + len(self.parametrization.velocity_names)
+        size = self.parametrization.nv
         while len(self._placeholders) <= k:
             i = len(self._placeholders)
             self._placeholders.append(_body_coordinates(f"_b{i}", self.parametrization, 0, i * size))
@@ -322,7 +357,7 @@ class Templates:
             for real, generic in (
                 (body.stored, placeholder.stored),
                 (body.velocity, placeholder.velocity),
-                (body.rotation_symbols, placeholder.rotation_symbols),
+                (body.frame_symbols, placeholder.frame_symbols),
             ):
                 forward.update(zip(real, generic))
         generic_inputs = None
@@ -339,7 +374,7 @@ class Templates:
         if row is None:
             generic = Equation("", tuple(p.name for p in placeholders), generic_expr)
             row = _derive(generic, Coordinates(self.parametrization, placeholders), generic_inputs, is_driver)
-            size = 3 + len(self.parametrization.velocity_names)
+            size = self.parametrization.nv
             row = Row("", row.phi, {divmod(c, size): e for c, e in row.jacobian.items()}, row.nu, row.gamma, is_driver)
             self._rows[key] = row
         backward = {g: r for r, g in forward.items()}
@@ -379,27 +414,24 @@ def derive(
 def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None = None, is_driver: bool = False) -> Row:
     """Jacobian, nu and gamma of one equation, in its bodies' coordinates only.
 
-    The equation is written in each body's position symbols, rotation-matrix symbols ``a``
-    and (for normalization rows) stored orientation symbols ``o``. With the chain rule,
-    dPhi/dw = dPhi/dr (positions) or sum_ij dPhi/da_ij (dA/dw)_ij + dPhi/do B(o)
-    (orientations), and the configuration part of the time derivative is
-    D_q(E) = dE/dr r' + sum_ij dE/da_ij A'_ij + dE/do B(o) w.
+    The equation is written in each body's stored symbols ``s`` (its origin is an expression
+    of them: the positions themselves, or a dual quaternion's translation) and rotation-matrix
+    symbols ``a``. With the chain rule, for velocity coordinate k,
+    dPhi/dv_k = sum_ij dPhi/da_ij (dA/dv_k)_ij + dPhi/ds B(s)[:, k], and the configuration
+    part of the time derivative is D_q(E) = sum_ij dE/da_ij A'_ij + dE/ds B(s) v.
     """
     phi = equation.expr
     jacobian: dict[int, sp.Expr] = {}
     touched = [coords.body(name) for name in equation.bodies]
-    configuration = [s for body in touched for s in (*body.stored, *body.rotation_symbols)]
+    configuration = [s for body in touched for s in (*body.stored, *body.frame_symbols)]
 
     def column(derivatives: dict[sp.Symbol, sp.Expr], body: BodyCoordinates, k: int) -> sp.Expr:
         zero = sp.Integer(0)
-        if k < 3:
-            return derivatives.get(body.stored[k], zero)
         total = zero
-        derivative = body.rotation_derivatives[k - 3]
-        for symbol, entry in zip(body.rotation_symbols, derivative):
+        for symbol, entry in zip(body.frame_symbols, body.frame_derivatives(k)):
             if entry != 0:
                 total += derivatives.get(symbol, zero) * entry
-        for s, b in zip(body.stored[3:], body.velocity_map[3:, k]):
+        for s, b in zip(body.stored, body.velocity_map[:, k]):
             if b != 0:
                 total += derivatives.get(s, zero) * b
         return total
@@ -409,13 +441,11 @@ def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None
         zero = sp.Integer(0)
         total = zero
         for body in touched:
-            for k in range(3):
-                total += derivatives.get(body.stored[k], zero) * body.velocity[k]
-            for symbol, rate in zip(body.rotation_symbols, body.rotation_rate()):
+            for symbol, rate in zip(body.frame_symbols, body.frame_rates()):
                 if rate != 0:
                     total += derivatives.get(symbol, zero) * rate
-            stored_rate = body.velocity_map[3:, :] * sp.Matrix(body.velocity)
-            for s, rate in zip(body.stored[3:], stored_rate):
+            stored_rate = body.velocity_map * sp.Matrix(body.velocity)
+            for s, rate in zip(body.stored, stored_rate):
                 if rate != 0:
                     total += derivatives.get(s, zero) * rate
         return total
@@ -465,7 +495,7 @@ def kinematic_rows(model: Model, coords: Coordinates, templates: Templates | Non
         for eq in joint_equations(joint, frame1, frame2, _moving((joint.body1, joint.body2))):
             rows.append(derive(eq, coords, templates=templates, group=joint.name))
     for body in coords.bodies:
-        for k, expr in enumerate(coords.parametrization.normalization(sp.Matrix(body.stored[3:]))):
+        for k, expr in enumerate(coords.parametrization.body_normalization(sp.Matrix(body.stored))):
             equation = Equation(f"{body.name}.norm{'' if k == 0 else k}", (body.name,), expr)
             rows.append(derive(equation, coords, templates=templates, group=f"norm:{body.name}"))
     return rows

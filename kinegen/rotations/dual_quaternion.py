@@ -1,0 +1,229 @@
+"""Dual quaternions: a body's whole pose as one unit dual quaternion σ = q_r + ε q_d.
+
+Stored per body: the 8 values ``(rw, rx, ry, rz, dw, dx, dy, dz)`` = (q_r, q_d), each in
+w-x-y-z order, with ``q_d = ½ t ⊗ q_r`` (``t``: the frame origin as a pure quaternion). The
+constraint equations see a body point ``p`` moved by σ, ``A(q_r) p + 2 vec(q_d ⊗ q_r*)`` (the
+rotation matrix entries enter as symbols, as in every parametrization), and a joint angle as
+the relative rotation ``q_r1* ⊗ q_r2``.
+
+Two ways to move through the 8 values (chosen at build time):
+
+``dual-quaternion`` — velocity coordinates in the tangent space se(3): the spatial twist
+``ξ = (ω, v)``, angular then linear, both in the global frame, ``v = ṙ − ω × r`` the velocity of
+the body point passing through the global origin; ``σ̇ = ½ ξ̂ ⊗ σ``. A Newton step ``ξ`` moves σ
+to ``exp(ξ) ⊗ σ`` (the SE(3) exponential map as a dual quaternion): σ stays unit to rounding
+and is never renormalized. 6 columns per body, no extra equations.
+
+``dual-euler-parameters`` — the 8 values are plain coordinates (velocity = σ̇) with the two
+algebraic constraints ``|q_r|² − 1 = 0`` and ``q_r · q_d = 0`` per body: the analogue of Euler
+parameters for quaternions. 8 columns and 2 more equations per body.
+
+Results: ω and ω̇ global, v and a of the frame origin, as for every parametrization.
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+
+from kinegen.rotations import dual_quaternion_algebra as dq
+from kinegen.rotations import quaternion_algebra as qa
+from kinegen.rotations.base import Parametrization
+from kinegen.rotations.euler_parameters import quaternion_matrix
+
+_STORED = ("rw", "rx", "ry", "rz", "dw", "dx", "dy", "dz")
+
+
+def _vector(m: sp.Matrix) -> sp.Matrix:
+    return sp.Matrix(m[1:, :])
+
+
+class _DualQuaternionPose(Parametrization):
+    """What both dual-quaternion parametrizations share: the stored σ and its pose."""
+
+    stored_names = _STORED
+    stores_quaternion = True
+
+    @property
+    def coordinate_names(self) -> tuple[str, ...]:
+        return _STORED
+
+    # ---- symbolic ------------------------------------------------------------------------
+    def matrix(self, o: sp.Matrix) -> sp.Matrix:
+        return quaternion_matrix(o)
+
+    def body_rotation(self, s: sp.Matrix) -> sp.Matrix:
+        return quaternion_matrix(s[:4, :])
+
+    def body_origin(self, s: sp.Matrix) -> sp.Matrix:
+        return dq.symbolic_translation(s)
+
+    def body_quaternion(self, s: sp.Matrix) -> sp.Matrix:
+        return s[:4, :]
+
+    def frame_expressions(self, q: sp.Matrix, v: sp.Matrix, a: sp.Matrix) -> list[sp.Expr]:
+        origin = dq.symbolic_translation(q)
+        omega, omega_dot, velocity, acceleration = self._rates(q, v, a, origin)
+        return [*origin, *self.body_rotation(q), *velocity, *omega, *acceleration, *omega_dot]
+
+    def _rates(self, q: sp.Matrix, v: sp.Matrix, a: sp.Matrix, origin: sp.Matrix) -> tuple[sp.Matrix, ...]:
+        """(ω, ω̇, ṙ, r̈) of the frame, symbolic."""
+        raise NotImplementedError
+
+    # ---- numeric -------------------------------------------------------------------------
+    def from_matrix(self, rotation: np.ndarray) -> np.ndarray:
+        return qa.from_matrix(rotation)
+
+    def to_matrix(self, o: np.ndarray) -> np.ndarray:
+        return qa.to_matrix(np.asarray(o)[..., :4])
+
+    def pose(self, q: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        q = np.asarray(q, dtype=float)
+        return dq.translation(q), qa.to_matrix(q[..., :4])
+
+    def from_pose(self, position: np.ndarray, rotation: np.ndarray) -> np.ndarray:
+        return dq.from_pose(position, qa.from_matrix(rotation))
+
+    def project(self, q: np.ndarray) -> np.ndarray:
+        return np.moveaxis(dq.project(np.moveaxis(q, 0, -1)), -1, 0)
+
+    def omega(self, o: np.ndarray, w: np.ndarray) -> np.ndarray:  # pragma: no cover -- frame_velocity is used
+        raise NotImplementedError("dual quaternions report rates through frame_velocity")
+
+    def omega_dot(self, o: np.ndarray, w: np.ndarray, w_dot: np.ndarray) -> np.ndarray:  # pragma: no cover
+        raise NotImplementedError("dual quaternions report rates through frame_acceleration")
+
+
+class DualQuaternion(_DualQuaternionPose):
+    """Unit dual quaternion, spatial-twist velocity coordinates (ω, v), SE(3) exponential updates."""
+
+    name = "dual-quaternion"
+    velocity_names = ("wx", "wy", "wz", "vx", "vy", "vz")
+
+    @property
+    def velocity_coordinate_names(self) -> tuple[str, ...]:
+        return self.velocity_names
+
+    def body_velocity_map(self, s: sp.Matrix) -> sp.Matrix:
+        # σ̇ = ½ ξ̂ ⊗ σ: real ½ (0, ω) ⊗ q_r; dual ½ ((0, ω) ⊗ q_d + (0, v) ⊗ q_r)
+        real, dual = dq.left_pure(s[:4, :]), dq.left_pure(s[4:, :])
+        return sp.Rational(1, 2) * sp.Matrix(sp.BlockMatrix([[real, sp.zeros(4, 3)], [dual, real]]))
+
+    def body_rotation_derivatives(self, a: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
+        # A -> exp([ω]x) A: dA/dω_k = [e_k]x A; a translation leaves A alone
+        axes = [
+            sp.Matrix([[0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+            sp.Matrix([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
+            sp.Matrix([[0, -1, 0], [1, 0, 0], [0, 0, 0]]),
+        ]
+        return [k * a for k in axes] + [sp.zeros(3, 3)] * 3
+
+    def body_origin_derivatives(self, r: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
+        # a twist (ω, v) moves the origin at v + ω x r
+        return [sp.eye(3)[:, k].cross(r) for k in range(3)] + [sp.eye(3)[:, k] for k in range(3)]
+
+    def _rates(self, q, v, a, origin):
+        omega, linear = sp.Matrix(v[:3, :]), sp.Matrix(v[3:, :])
+        omega_dot, linear_dot = sp.Matrix(a[:3, :]), sp.Matrix(a[3:, :])
+        velocity = linear + omega.cross(origin)
+        acceleration = linear_dot + omega_dot.cross(origin) + omega.cross(velocity)
+        return omega, omega_dot, velocity, acceleration
+
+    def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
+        moved = dq.multiply(dq.exp(np.moveaxis(step, 0, -1)), np.moveaxis(q, 0, -1))
+        return np.moveaxis(moved, -1, 0)
+
+    def c_retract(self) -> str:
+        return _C_RETRACT
+
+    def frame_velocity(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        omega = np.asarray(v, dtype=float)[..., :3]
+        return v[..., 3:] + np.cross(omega, dq.translation(q)), omega
+
+    def frame_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        origin = dq.translation(q)
+        omega, omega_dot = np.asarray(v, dtype=float)[..., :3], np.asarray(a, dtype=float)[..., :3]
+        velocity = v[..., 3:] + np.cross(omega, origin)
+        return a[..., 3:] + np.cross(omega_dot, origin) + np.cross(omega, velocity), omega_dot
+
+
+class DualEulerParameters(_DualQuaternionPose):
+    """The 8 values of σ as plain coordinates (velocity σ̇) with |q_r|² = 1 and q_r · q_d = 0."""
+
+    name = "dual-euler-parameters"
+    velocity_names = _STORED
+
+    @property
+    def velocity_coordinate_names(self) -> tuple[str, ...]:
+        return _STORED
+
+    def body_velocity_map(self, s: sp.Matrix) -> sp.Matrix:
+        return sp.eye(8)
+
+    def body_rotation_derivatives(self, a: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
+        matrix = quaternion_matrix(s[:4, :])
+        return [matrix.diff(x) for x in s[:4]] + [sp.zeros(3, 3)] * 4
+
+    def body_origin_derivatives(self, r: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
+        origin = dq.symbolic_translation(s)
+        return [origin.diff(x) for x in s]
+
+    def body_normalization(self, s: sp.Matrix) -> list[sp.Expr]:
+        real, dual = s[:4, :], s[4:, :]
+        return [(real.T * real)[0] - 1, (real.T * dual)[0]]
+
+    def _rates(self, q, v, a, origin):
+        real, dual = q[:4, :], q[4:, :]
+        conj = dq.symbolic_conjugate
+        product = dq.symbolic_product
+        omega = 2 * _vector(product(v[:4, :], conj(real)))
+        omega_dot = 2 * _vector(product(a[:4, :], conj(real)))  # + 2 vec(ṙ_r ⊗ ṙ_r*) = 0
+        velocity = 2 * _vector(product(v[4:, :], conj(real)) + product(dual, conj(v[:4, :])))
+        acceleration = 2 * _vector(
+            product(a[4:, :], conj(real)) + 2 * product(v[4:, :], conj(v[:4, :])) + product(dual, conj(a[:4, :]))
+        )
+        return omega, omega_dot, velocity, acceleration
+
+    def frame_velocity(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        q, v = np.asarray(q, dtype=float), np.asarray(v, dtype=float)
+        real = qa.conjugate(q[..., :4])
+        omega = 2.0 * qa.multiply(v[..., :4], real)[..., 1:]
+        velocity = 2.0 * (qa.multiply(v[..., 4:], real) + qa.multiply(q[..., 4:], qa.conjugate(v[..., :4])))[..., 1:]
+        return velocity, omega
+
+    def frame_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        q, v, a = (np.asarray(x, dtype=float) for x in (q, v, a))
+        real = qa.conjugate(q[..., :4])
+        omega_dot = 2.0 * qa.multiply(a[..., :4], real)[..., 1:]
+        terms = (
+            qa.multiply(a[..., 4:], real)
+            + 2.0 * qa.multiply(v[..., 4:], qa.conjugate(v[..., :4]))
+            + qa.multiply(q[..., 4:], qa.conjugate(a[..., :4]))
+        )
+        return 2.0 * terms[..., 1:], omega_dot
+
+
+#: retract_body in C: σ <- exp(ξ) ⊗ σ (as dual_quaternion_algebra.exp and multiply)
+_C_RETRACT = """\
+double ax = 0.5 * step[0], ay = 0.5 * step[1], az = 0.5 * step[2];
+double bx = 0.5 * step[3], by = 0.5 * step[4], bz = 0.5 * step[5];
+double h2 = ax * ax + ay * ay + az * az, h = sqrt(h2), ab = ax * bx + ay * by + az * bz;
+double sinc, bend;
+if (h < 1e-4) {
+    sinc = 1.0 - h2 / 6.0 + h2 * h2 / 120.0;
+    bend = -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0;
+} else {
+    sinc = sin(h) / h;
+    bend = (cos(h) - sin(h) / h) / h2;
+}
+double pw = cos(h), px = sinc * ax, py = sinc * ay, pz = sinc * az;
+double dw = -sinc * ab, dx = sinc * bx + bend * ab * ax, dy = sinc * by + bend * ab * ay, dz = sinc * bz + bend * ab * az;
+double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
+q[0] = pw * rw - px * rx - py * ry - pz * rz;
+q[1] = pw * rx + px * rw + py * rz - pz * ry;
+q[2] = pw * ry - px * rz + py * rw + pz * rx;
+q[3] = pw * rz + px * ry - py * rx + pz * rw;
+q[4] = (pw * sw - px * sx - py * sy - pz * sz) + (dw * rw - dx * rx - dy * ry - dz * rz);
+q[5] = (pw * sx + px * sw + py * sz - pz * sy) + (dw * rx + dx * rw + dy * rz - dz * ry);
+q[6] = (pw * sy - px * sz + py * sw + pz * sx) + (dw * ry - dx * rz + dy * rw + dz * rx);
+q[7] = (pw * sz + px * sy - py * sx + pz * sw) + (dw * rz + dx * ry - dy * rx + dz * rw);"""

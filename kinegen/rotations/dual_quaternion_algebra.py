@@ -1,0 +1,132 @@
+"""Unit dual quaternions, numeric (NumPy), components last: ``σ = q_r + ε q_d`` stored as the
+8 values ``(q_r, q_d)``, each quaternion in w-x-y-z order, ``q_d = ½ t ⊗ q_r`` with ``t`` the
+frame origin (a pure quaternion). A point ``p`` (body coordinates) is moved to
+``vec(q_r ⊗ p ⊗ q_r*) + 2 vec(q_d ⊗ q_r*)``.
+
+Twists are *spatial* (global frame) and ordered angular then linear: ``ξ = (ω, v)`` with
+``v = ṙ − ω × r`` the velocity of the body point passing through the global origin; then
+``σ̇ = ½ ξ̂ ⊗ σ`` with ``ξ̂ = (0, ω) + ε (0, v)``, and a step ``ξ`` moves ``σ`` to
+``exp(ξ) ⊗ σ`` where ``exp(ξ) = exp(ξ̂ / 2)`` is the SE(3) exponential map written as a
+dual quaternion (a screw motion: rotation ``|ω|`` about, and translation along, one line).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+import sympy as sp
+
+from kinegen.rotations import quaternion_algebra as qa
+
+#: below this half-angle the exponential's coefficients use their Taylor series
+_SMALL = 1e-4
+
+
+def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
+    """Dual quaternion product p ⊗ q = p_r q_r + ε (p_r q_d + p_d q_r) (components last)."""
+    p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
+    real = qa.multiply(p[..., :4], q[..., :4])
+    dual = qa.multiply(p[..., :4], q[..., 4:]) + qa.multiply(p[..., 4:], q[..., :4])
+    return np.concatenate([real, dual], axis=-1)
+
+
+def conjugate(s: np.ndarray) -> np.ndarray:
+    """Quaternion conjugate of both parts (the inverse of a unit dual quaternion)."""
+    s = np.asarray(s, dtype=float)
+    return np.concatenate([qa.conjugate(s[..., :4]), qa.conjugate(s[..., 4:])], axis=-1)
+
+
+def from_pose(position: np.ndarray, rotation_quaternion: np.ndarray) -> np.ndarray:
+    """σ of a frame at ``position`` with orientation ``rotation_quaternion`` (w, x, y, z)."""
+    position = np.asarray(position, dtype=float)
+    q = np.asarray(rotation_quaternion, dtype=float)
+    t = np.concatenate([np.zeros(position.shape[:-1] + (1,)), position], axis=-1)
+    return np.concatenate([q, 0.5 * qa.multiply(t, q)], axis=-1)
+
+
+def translation(s: np.ndarray) -> np.ndarray:
+    """Frame origin ``2 vec(q_d ⊗ q_r*)`` (..., 3)."""
+    s = np.asarray(s, dtype=float)
+    return 2.0 * qa.multiply(s[..., 4:], qa.conjugate(s[..., :4]))[..., 1:]
+
+
+def transform_point(s: np.ndarray, point: np.ndarray) -> np.ndarray:
+    """The global position of body point ``point`` (3,) for pose σ."""
+    return qa.to_matrix(np.asarray(s)[..., :4]) @ np.asarray(point, dtype=float) + translation(s)
+
+
+def exp(twist: np.ndarray) -> np.ndarray:
+    """exp(ξ̂/2) for twists ``twist`` (..., 6) = (ω, v) (components last): a unit dual quaternion."""
+    twist = np.asarray(twist, dtype=float)
+    a, b = 0.5 * twist[..., :3], 0.5 * twist[..., 3:]
+    h = np.linalg.norm(a, axis=-1)
+    small = h < _SMALL
+    safe = np.where(small, 1.0, h)
+    h2 = h * h
+    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(safe) / safe)
+    # (cos h - sin h / h) / h^2, the derivative of sinc divided by h
+    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (np.cos(safe) - np.sin(safe) / safe) / (safe * safe))
+    ab = np.sum(a * b, axis=-1)
+    real = np.concatenate([np.cos(h)[..., None], sinc[..., None] * a], axis=-1)
+    dual = np.concatenate([(-sinc * ab)[..., None], sinc[..., None] * b + (bend * ab)[..., None] * a], axis=-1)
+    return np.concatenate([real, dual], axis=-1)
+
+
+def log(s: np.ndarray) -> np.ndarray:
+    """The twist ξ (..., 6) with exp(ξ) = σ (rotation angle in [0, π], σ taken with q_r.w ≥ 0)."""
+    s = np.asarray(s, dtype=float)
+    s = np.where((s[..., :1] < 0), -s, s)
+    real, dual = s[..., :4], s[..., 4:]
+    vector = real[..., 1:]
+    sin_h = np.linalg.norm(vector, axis=-1)
+    h = np.arctan2(sin_h, real[..., 0])
+    small = h < _SMALL
+    safe = np.where(small, 1.0, h)
+    h2 = h * h
+    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(safe) / safe)
+    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (np.cos(safe) - np.sin(safe) / safe) / (safe * safe))
+    a = vector / sinc[..., None]
+    ab = -dual[..., 0] / sinc
+    b = (dual[..., 1:] - (bend * ab)[..., None] * a) / sinc[..., None]
+    return np.concatenate([2.0 * a, 2.0 * b], axis=-1)
+
+
+def project(s: np.ndarray) -> np.ndarray:
+    """The nearest unit dual quaternion in the sense kinegen needs after interpolation:
+    q_r normalized, q_d scaled alike and made orthogonal to it (components last)."""
+    s = np.asarray(s, dtype=float)
+    norm = np.linalg.norm(s[..., :4], axis=-1, keepdims=True)
+    real, dual = s[..., :4] / norm, s[..., 4:] / norm
+    dual = dual - np.sum(real * dual, axis=-1, keepdims=True) * real
+    return np.concatenate([real, dual], axis=-1)
+
+
+def to_homogeneous(s: np.ndarray) -> np.ndarray:
+    """The 4x4 homogeneous matrix [[A, r], [0, 1]] of σ (..., 8)."""
+    s = np.asarray(s, dtype=float)
+    out = np.zeros(s.shape[:-1] + (4, 4))
+    out[..., :3, :3] = qa.to_matrix(s[..., :4])
+    out[..., :3, 3] = translation(s)
+    out[..., 3, 3] = 1.0
+    return out
+
+
+# ---- symbolic ----------------------------------------------------------------------------
+def symbolic_product(p: sp.Matrix, q: sp.Matrix) -> sp.Matrix:
+    """Hamilton product of symbolic quaternions (w, x, y, z) as 4x1 matrices."""
+    pw, pv, qw, qv = p[0], sp.Matrix(p[1:]), q[0], sp.Matrix(q[1:])
+    return sp.Matrix([pw * qw - (pv.T * qv)[0], *(pw * qv + qw * pv + pv.cross(qv))])
+
+
+def symbolic_conjugate(q: sp.Matrix) -> sp.Matrix:
+    return sp.Matrix([q[0], -q[1], -q[2], -q[3]])
+
+
+def symbolic_translation(s: sp.Matrix) -> sp.Matrix:
+    """The frame origin 2 vec(q_d ⊗ q_r*) of symbolic σ = (q_r, q_d) (8x1)."""
+    return 2 * symbolic_product(s[4:8, :], symbolic_conjugate(s[0:4, :]))[1:, :]
+
+
+def left_pure(q: sp.Matrix) -> sp.Matrix:
+    """M(q) (4x3) with (0, w) ⊗ q = M(q) w."""
+    w, x, y, z = q
+    return sp.Matrix([[-x, -y, -z], [w, z, -y], [-z, w, x], [y, -x, w]])

@@ -1,0 +1,134 @@
+"""Dual quaternions: conventions against independent references (4x4 homogeneous matrices
+built with SciPy's ``Rotation`` and ``expm``), and both dual-quaternion parametrizations on
+the excavator against the quaternion run."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+import sympy as sp
+from hypothesis import given, settings
+from hypothesis import strategies as st
+from hypothesis.extra.numpy import arrays
+from scipy.linalg import expm
+from scipy.spatial.transform import Rotation
+
+from kinegen import rotations
+from kinegen.rotations import dual_quaternion_algebra as dq
+from kinegen.runtime import Solver
+from tests.conftest import generated_system
+
+finite = st.floats(-3.0, 3.0, allow_nan=False, allow_infinity=False)
+twists = arrays(np.float64, 6, elements=finite)
+vectors = arrays(np.float64, 3, elements=finite)
+quaternions = arrays(np.float64, 4, elements=st.floats(-1.0, 1.0)).filter(lambda q: np.linalg.norm(q) > 0.1)
+
+
+def homogeneous(rotation: Rotation, position: np.ndarray) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3], out[:3, 3] = rotation.as_matrix(), position
+    return out
+
+
+def pose(q: np.ndarray, position: np.ndarray) -> tuple[np.ndarray, Rotation]:
+    """σ of a frame from SciPy (its quaternions are x-y-z-w; kinegen's w-x-y-z)."""
+    rotation = Rotation.from_quat(q[[1, 2, 3, 0]])
+    w_first = rotation.as_quat()[[3, 0, 1, 2]]
+    return dq.from_pose(position, w_first), rotation
+
+
+def twist_matrix(twist: np.ndarray) -> np.ndarray:
+    """[ξ] = [[ω]x, v; 0, 0] (spatial twist, angular then linear)."""
+    (wx, wy, wz), v = twist[:3], twist[3:]
+    out = np.zeros((4, 4))
+    out[:3, :3] = [[0.0, -wz, wy], [wz, 0.0, -wx], [-wy, wx, 0.0]]
+    out[:3, 3] = v
+    return out
+
+
+@settings(max_examples=200, deadline=None)
+@given(twists)
+def test_the_exponential_is_the_matrix_exponential_of_the_twist(twist):
+    assert np.abs(dq.to_homogeneous(dq.exp(twist)) - expm(twist_matrix(twist))).max() < 1e-12
+
+
+def test_the_exponential_near_zero_uses_its_series_without_a_jump():
+    direction = np.array([0.3, -0.5, 0.8, 1.0, 2.0, -1.0])
+    for scale in (1e-9, 1e-6, 1.99e-4, 2.01e-4, 1e-3):
+        twist = scale * direction
+        assert np.abs(dq.to_homogeneous(dq.exp(twist)) - expm(twist_matrix(twist))).max() < 1e-15
+
+
+@settings(max_examples=200, deadline=None)
+@given(quaternions, vectors, quaternions, vectors)
+def test_composition_and_point_transformation_follow_the_homogeneous_matrices(q1, r1, q2, r2):
+    s1, rot1 = pose(q1, r1)
+    s2, rot2 = pose(q2, r2)
+    product = homogeneous(rot1, r1) @ homogeneous(rot2, r2)
+    assert np.abs(dq.to_homogeneous(dq.multiply(s1, s2)) - product).max() < 1e-12
+    point = np.array([0.7, -1.3, 2.1])
+    assert np.abs(dq.transform_point(s1, point) - (rot1.apply(point) + r1)).max() < 1e-12
+    inverse = dq.conjugate(s1)
+    assert np.abs(dq.to_homogeneous(inverse) @ homogeneous(rot1, r1) - np.eye(4)).max() < 1e-12
+
+
+@settings(max_examples=200, deadline=None)
+@given(quaternions, vectors)
+def test_round_trips_between_dual_quaternion_pose_and_quaternion(q, r):
+    s, rotation = pose(q, r)
+    assert abs(np.linalg.norm(s[:4]) - 1.0) < 1e-15 and abs(s[:4] @ s[4:]) < 1e-15
+    assert np.abs(dq.translation(s) - r).max() < 1e-14
+    for param in (rotations.get("dual-quaternion"), rotations.get("dual-euler-parameters")):
+        origin, matrix = param.pose(s)
+        assert np.abs(origin - r).max() < 1e-14 and np.abs(matrix - rotation.as_matrix()).max() < 1e-15
+        again = param.from_pose(origin, matrix)
+        assert min(np.abs(again - s).max(), np.abs(again + s).max()) < 1e-14  # σ and -σ are one pose
+
+
+@settings(max_examples=200, deadline=None)
+@given(twists.filter(lambda x: np.linalg.norm(x[:3]) < 0.99 * 2 * np.pi))
+def test_log_inverts_exp(twist):
+    angle = np.linalg.norm(twist[:3])
+    if angle > np.pi:  # the same motion by the shorter turn: ω' = ω (1 - 2π/|ω|), same screw
+        return
+    assert np.abs(dq.log(dq.exp(twist)) - twist).max() < 1e-9
+
+
+def test_the_velocity_map_and_frame_rates_are_the_derivatives_of_the_exponential_motion():
+    """σ(t) = exp(t ξ) ⊗ σ0: σ̇(0) = B(σ0) ξ (the symbolic map), and the frame's origin
+    velocity and ω from the parametrization equal central differences of its pose."""
+    param = rotations.get("dual-quaternion")
+    sigma0, _ = pose(np.array([0.9, 0.2, -0.3, 0.25]), np.array([1.5, -0.4, 2.0]))
+    twist = np.array([0.4, -0.2, 0.7, 0.3, 1.1, -0.5])
+    symbols = sp.Matrix(sp.symbols("s0:8", real=True))
+    velocity_map = sp.lambdify(list(symbols), param.body_velocity_map(symbols))(*sigma0)
+    h = 1e-6
+    ahead, behind = (dq.multiply(dq.exp(sign * h * twist), sigma0) for sign in (1.0, -1.0))
+    assert np.abs((ahead - behind) / (2 * h) - np.asarray(velocity_map) @ twist).max() < 1e-9
+    velocity, omega = param.frame_velocity(sigma0, twist)
+    (o1, a1), (o0, a0) = param.pose(ahead), param.pose(behind)
+    assert np.abs((o1 - o0) / (2 * h) - velocity).max() < 1e-9
+    spin = (a1 - a0) / (2 * h) @ param.pose(sigma0)[1].T
+    assert np.abs(np.array([spin[2, 1], spin[0, 2], spin[1, 0]]) - omega).max() < 1e-9
+
+
+def test_the_retraction_keeps_the_dual_quaternion_unit_without_renormalizing():
+    param = rotations.get("dual-quaternion")
+    sigma, _ = pose(np.array([0.5, 0.5, -0.5, 0.5]), np.array([3.0, 1.0, -2.0]))
+    rng = np.random.default_rng(7)
+    for _ in range(10_000):
+        sigma = param.retract(sigma, rng.normal(scale=0.1, size=6))
+    assert abs(np.linalg.norm(sigma[:4]) - 1.0) < 1e-12 and abs(sigma[:4] @ sigma[4:]) < 1e-12
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+@pytest.mark.parametrize("param", ["dual_quaternion", "dual_euler_parameters"])
+@pytest.mark.parametrize("case", ["digging", "level_cut", "trench_wall"])
+def test_every_excavator_point_agrees_with_the_quaternion_run(case, param, compiled):
+    reference = Solver(generated_system("excavator_quaternion", case)).solve()
+    results = Solver(generated_system(f"excavator_{param}", case, compiled=compiled)).solve()
+    assert results.converged.all()
+    points = [(body, name) for body, named in results.system.points.items() for name in named]
+    assert len(points) == 29  # every named point of the excavator
+    for body, name in points:
+        assert np.abs(results.point_position(body, name) - reference.point_position(body, name)).max() < 1e-12, (body, name)
