@@ -279,6 +279,35 @@ def inspect(
 
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--case", default=None, help="Case to solve (default: the first).")
+@click.option(
+    "--param", "params", multiple=True, default=None,
+    help="Parametrizations to compare (repeatable; default: quaternion, euler-parameters, dual-quaternion, "
+    "dual-euler-parameters, euler:zxz, euler:zxy).",
+)  # fmt: skip
+@click.option("--no-compile", is_flag=True, help="Leave out the compiled solve time.")
+@click.option("--json", "as_json", is_flag=True, help="Print the table as JSON.")
+def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compile: bool, as_json: bool) -> None:
+    """Build and solve one case in every parametrization; one table of sizes, build and solve
+    costs, Newton iterations, scaled condition numbers, the largest converging step, and where
+    each parametrization is singular."""
+    from kinegen.analysis import compare as comparison
+    from kinegen.model import load
+
+    model = load(model_file)
+    if case is not None and case not in model.cases:
+        raise click.BadParameter(f"no case {case!r} (cases: {', '.join(model.cases)})", param_hint="--case")
+    chosen = case or next(iter(model.cases))
+    names = tuple(_parametrization(p).name for p in params) if params else comparison.DEFAULT
+    rows = comparison.compare(model, chosen, names, compiled=not no_compile)
+    if as_json:
+        click.echo(json.dumps({"model": model.name, "case": chosen, "rows": comparison.to_json(rows)}, indent=2))
+        return
+    click.echo(comparison.table(rows, model.name, chosen))
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
 @click.option("--grid", default=None, help="Samples per swept input, e.g. 25,13,25 (default: 21,11,21).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of the working range.")

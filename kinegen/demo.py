@@ -99,7 +99,7 @@ def _excavator(paths: dict, out: Path) -> int:
 
         plot_case(results, out / f"{stem}.png", frame_body="upper", trace=("bucket", "T"))
     print()
-    for param in ("euler-parameters", "euler:zxy", "euler:zxz"):
+    for param in ("euler-parameters", "dual-quaternion", "dual-euler-parameters", "euler:zxy", "euler:zxz"):
         other = load_module(paths["excavator.yaml", param])
         worst = 0.0
         try:
@@ -192,6 +192,14 @@ def main(argv: list[str] | None = None) -> int:
         failures += 1
     except SingularJacobianError as exc:
         print(f"boom (paper)      euler:zxz singular at t = {exc.t:g} as the paper shows: null space {'; '.join(exc.null_space)}")
+    print("\nkinegen compare models/excavator.yaml (every parametrization built and solved; the paper's question):\n")
+    from kinegen.analysis.compare import compare, table
+    from kinegen.model import load
+
+    excavator = load(args.models / "excavator.yaml")
+    rows = compare(excavator, "digging")
+    failures += sum(r.failure is not None for r in rows if not r.parametrization.startswith("euler:zx"))
+    print(table(rows, excavator.name, "digging"))
     print(f"\noutputs (CSV + PNG per case) in {args.out.resolve()}")
     return 1 if failures else 0
 

@@ -41,9 +41,11 @@ def exact_number(value: float) -> sp.Expr:
     """
     if abs(value) < ZERO:
         return sp.Integer(0)
-    guess = sp.nsimplify(value, [sp.pi], tolerance=1e-13, rational=False)
-    if abs(float(guess) - value) <= 1e-12 * max(1.0, abs(value)):
-        return guess
+    for constants in ([], [sp.pi]):
+        guess = sp.nsimplify(value, constants, tolerance=1e-13, rational=False)
+        # a simple form only: a guess like 27*2**(7/25)*...*pi**(62/5) is a coincidence, not the value
+        if abs(float(guess) - value) <= 1e-12 * max(1.0, abs(value)) and sp.count_ops(guess) <= 8:
+            return guess
     return sp.Rational(repr(float(value)))
 
 
@@ -92,16 +94,26 @@ def _is_zero(value: sp.Expr) -> bool:
 
 #: Determinants with more operations than this are reported unfactored.
 MAX_FACTOR_OPS = 1500
+#: ... and with more than this not expanded or reported at all (dual Euler parameters' 8 x 8
+#: boom determinant: ~10^6 operations before expansion).
+MAX_EXPAND_OPS = 50_000
 
 
-def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr:
+def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr | None:
     """det, factored: polynomial determinants (quaternion, Euler parameters) by ``factor``;
-    trigonometric ones (Euler angles) simplified with sums and multiples expanded first."""
+    trigonometric ones (Euler angles) simplified with sums and multiples expanded first.
+    None when the expression is too large to expand (the value at the configuration is then
+    the exact matrix's determinant)."""
     det = matrix.det(method="berkowitz")
     if det.has(sp.sin, sp.cos, sp.tan):
         det = sp.expand_trig(sp.simplify(det) if simplify and matrix.shape[0] <= 3 else det)
-    if sp.count_ops(det) > MAX_FACTOR_OPS:
-        return det
+    ops = sp.count_ops(det)
+    if ops > MAX_EXPAND_OPS:
+        return None
+    if ops > MAX_FACTOR_OPS:
+        det = sp.expand(det)  # products of long sums often cancel when multiplied out
+        if sp.count_ops(det) > MAX_FACTOR_OPS:
+            return det
     return sp.factor(det)
 
 
@@ -182,6 +194,9 @@ class Inspection:
             lines.append(" " * (label + 2) + "  ".join(h.rjust(w) for h, w in zip(self.velocity_names, width)))
             for i in range(m):
                 lines.append(f"{names[i].ljust(label)}  " + "  ".join(c.rjust(w) for c, w in zip(cells[i], width)))
+        if self.determinant is None and self.determinant_value is not None:
+            lines.append("det Phi_q (symbolic): too large to expand and factor here")
+            lines.append(f"det Phi_q at this configuration (exact) = {sp.sstr(self.determinant_value)}")
         if self.determinant is not None:
             lines.append(f"det Phi_q (symbolic, factored) = {sp.sstr(self.determinant)}")
             lines.append(f"det Phi_q at this configuration = {sp.sstr(self.determinant_value)}")
@@ -261,6 +276,14 @@ class Inspection:
 
 def _exact_values(system: System, q: np.ndarray, t_exact: sp.Expr) -> dict[sp.Symbol, sp.Expr]:
     values: dict[sp.Symbol, sp.Expr] = dict(zip(system.coordinates.stored_symbols, (exact_number(float(x)) for x in q)))
+    param = system.coordinates.parametrization
+    for body in system.coordinates.bodies:  # stored values that are functions of the pose: from the exact pose
+        if body.origin_symbols:
+            stored = sp.Matrix(body.stored)
+            origin = [float(sp.N(e.xreplace(values))) for e in body.origin]
+            exact_origin = sp.Matrix([exact_number(x) for x in origin])
+            for symbol, expr in param.pose_substitution(stored, exact_origin).items():
+                values[symbol] = sp.nsimplify(sp.expand(expr.xreplace(values)))
     values.update(system.inputs.at_time(t_exact))
     return values
 
@@ -290,11 +313,32 @@ def inspect(
     values.update({named[u]: values[u] for u in system.inputs.u})
     symbolic = system.jacobian_matrix().xreplace(named)
     q_exact = [values[s] for s in system.coordinates.stored_symbols]
+    on_poses, origins = _pose_substitution(system)
+    values.update({r: sp.nsimplify(sp.simplify(e.xreplace(values))) for r, e in origins.items()})
     if symbolic.shape[1] <= MAX_DIRECT:
         exact = symbolic.xreplace(values).applyfunc(lambda e: sp.nsimplify(sp.simplify(e)))
-        return _direct(system, t_exact, q_exact, exact, symbolic, values)
+        return _direct(system, t_exact, q_exact, exact, on_poses(symbolic), values)
     exact = symbolic.xreplace(values).applyfunc(_entry)
-    return _by_blocks(system, t_exact, q_exact, exact, symbolic, values)
+    return _by_blocks(system, t_exact, q_exact, exact, on_poses(symbolic), values)
+
+
+def _pose_substitution(system: System):
+    """(matrix -> the matrix on the set of valid poses, origin symbol -> its expression): where
+    the stored values are functions of the pose (dual quaternions: q_d = ½ (0, r) ⊗ q_r), the
+    determinants are written in the origin r and q_r, which makes them factor."""
+    substitution: dict[sp.Symbol, sp.Expr] = {}
+    origins: dict[sp.Symbol, sp.Expr] = {}
+    param = system.coordinates.parametrization
+    for body in system.coordinates.bodies:
+        if not body.origin_symbols:
+            continue
+        found = param.pose_substitution(sp.Matrix(body.stored), sp.Matrix(body.origin_symbols))
+        substitution.update(found)
+        if found:
+            origins.update(zip(body.origin_symbols, body.origin))
+    if not substitution:
+        return (lambda matrix: matrix), origins
+    return (lambda matrix: matrix.xreplace(substitution).applyfunc(sp.expand)), origins
 
 
 def _entry(value: sp.Expr) -> sp.Expr:
@@ -317,6 +361,9 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
     if m == n:
         det = _factored_determinant(symbolic)
         report.determinant = det
+        if det is None:
+            report.determinant_value = sp.nsimplify(sp.simplify(exact.det(method="berkowitz")))
+            return report
         report.determinant_value = sp.simplify(det.xreplace(values))
         _, factors = sp.factor_list(det)
         report.vanishing_factors = [f for f, _ in factors if _is_zero(f.xreplace(values))]
@@ -341,8 +388,9 @@ def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.
         if report.singular or block.size <= MAX_SYMBOLIC_BLOCK:
             det = _factored_determinant(symbolic.extract(list(block.rows), list(block.cols)), simplify=report.singular)
             report.determinant = det
-            _, factors = sp.factor_list(det)
-            report.vanishing_factors = [f for f, _ in factors if _is_zero(f.xreplace(values))]
+            if det is not None:
+                _, factors = sp.factor_list(det)
+                report.vanishing_factors = [f for f, _ in factors if _is_zero(f.xreplace(values))]
         if report.singular:
             names = [coordinate_names[j] for j in block.cols]
             report.null_space = [_combination(v, names) for v in sub_exact.nullspace(simplify=True)]

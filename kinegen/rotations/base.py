@@ -39,6 +39,8 @@ class Parametrization(ABC):
     velocity_names: tuple[str, ...]
     #: True when the stored orientation values are a unit quaternion (w, x, y, z)
     stores_quaternion: bool = False
+    #: Where the parametrization itself makes Phi_q singular (what `kinegen compare` prints)
+    singular_set: str = "not stated"
 
     @property
     def file_tag(self) -> str:
@@ -120,6 +122,12 @@ class Parametrization(ABC):
     def body_quaternion(self, s: sp.Matrix) -> sp.Matrix | None:
         """The unit quaternion (w, x, y, z) of the rotation among the stored symbols, if stored."""
         return s[3:, :] if self.stores_quaternion else None
+
+    def pose_substitution(self, s: sp.Matrix, origin: sp.Matrix) -> dict[sp.Symbol, sp.Expr]:
+        """Stored symbols that are functions of the pose, as expressions of the origin symbols
+        ``origin`` and the others (none by default): inspection factors determinants on the
+        set of valid poses with them."""
+        return {}
 
     def body_normalization(self, s: sp.Matrix) -> list[sp.Expr]:
         """Extra constraints on one body's stored symbols ``s``."""

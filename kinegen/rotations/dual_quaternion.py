@@ -61,6 +61,11 @@ class _DualQuaternionPose(Parametrization):
     def body_quaternion(self, s: sp.Matrix) -> sp.Matrix:
         return s[:4, :]
 
+    def pose_substitution(self, s: sp.Matrix, origin: sp.Matrix) -> dict[sp.Symbol, sp.Expr]:
+        # q_d = ½ (0, r) ⊗ q_r: determinants in the origin r and q_r
+        dual = dq.symbolic_product(sp.Matrix([0, *origin]), s[:4, :]) / 2
+        return dict(zip(s[4:], dual))
+
     def frame_expressions(self, q: sp.Matrix, v: sp.Matrix, a: sp.Matrix) -> list[sp.Expr]:
         origin = dq.symbolic_translation(q)
         omega, omega_dot, velocity, acceleration = self._rates(q, v, a, origin)
@@ -99,6 +104,10 @@ class DualQuaternion(_DualQuaternionPose):
 
     name = "dual-quaternion"
     velocity_names = ("wx", "wy", "wz", "vx", "vy", "vz")
+    singular_set = (
+        "nowhere: the twist columns are the quaternion's (r', omega) columns times a unit-determinant "
+        "matrix (v = r' - omega x r), so det Phi_q is the quaternion's up to sign"
+    )
 
     @property
     def velocity_coordinate_names(self) -> tuple[str, ...]:
@@ -130,8 +139,7 @@ class DualQuaternion(_DualQuaternionPose):
         return omega, omega_dot, velocity, acceleration
 
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
-        moved = dq.multiply(dq.exp(np.moveaxis(step, 0, -1)), np.moveaxis(q, 0, -1))
-        return np.moveaxis(moved, -1, 0)
+        return dq.increment(step, q)
 
     def c_retract(self) -> str:
         return _C_RETRACT
@@ -152,6 +160,7 @@ class DualEulerParameters(_DualQuaternionPose):
 
     name = "dual-euler-parameters"
     velocity_names = _STORED
+    singular_set = "nowhere on |q_r| = 1, q_r . q_d = 0: the two algebraic rows are normal to that set"
 
     @property
     def velocity_coordinate_names(self) -> tuple[str, ...]:

@@ -130,3 +130,34 @@ def left_pure(q: sp.Matrix) -> sp.Matrix:
     """M(q) (4x3) with (0, w) ⊗ q = M(q) w."""
     w, x, y, z = q
     return sp.Matrix([[-x, -y, -z], [w, z, -y], [-z, w, x], [y, -x, w]])
+
+
+def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """``exp(ξ) ⊗ σ`` with the components on the FIRST axis: ``twist`` (6, ...), ``s`` (8, ...)
+    -> (8, ...). The same as ``multiply(exp(ξ), σ)``, written out component by component (the
+    retraction of every Newton step, where NumPy's per-call cost outweighs the arithmetic;
+    the generated C's ``retract_body`` is the same code)."""
+    ax, ay, az, bx, by, bz = 0.5 * np.asarray(twist, dtype=float)
+    rw, rx, ry, rz, sw, sx, sy, sz = s
+    h2 = ax * ax + ay * ay + az * az
+    h = np.sqrt(h2)
+    small = h < _SMALL
+    safe = np.where(small, 1.0, h)
+    sin_h, cos_h = np.sin(h), np.cos(h)
+    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, sin_h / safe)
+    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (cos_h - sin_h / safe) / (safe * safe))
+    ab = ax * bx + ay * by + az * bz
+    pw, px, py, pz = cos_h, sinc * ax, sinc * ay, sinc * az
+    dw, dx, dy, dz = -sinc * ab, sinc * bx + bend * ab * ax, sinc * by + bend * ab * ay, sinc * bz + bend * ab * az
+    return np.stack(
+        [
+            pw * rw - px * rx - py * ry - pz * rz,
+            pw * rx + px * rw + py * rz - pz * ry,
+            pw * ry - px * rz + py * rw + pz * rx,
+            pw * rz + px * ry - py * rx + pz * rw,
+            (pw * sw - px * sx - py * sy - pz * sz) + (dw * rw - dx * rx - dy * ry - dz * rz),
+            (pw * sx + px * sw + py * sz - pz * sy) + (dw * rx + dx * rw + dy * rz - dz * ry),
+            (pw * sy - px * sz + py * sw + pz * sx) + (dw * ry - dx * rz + dy * rw + dz * rx),
+            (pw * sz + px * sy - py * sx + pz * sw) + (dw * rz + dx * ry - dy * rx + dz * rw),
+        ]
+    )

@@ -45,6 +45,12 @@ class EulerAngles(Parametrization):
         self.sequence = sequence
         self.axes = tuple(_AXIS[c] for c in sequence)
         self.name = f"euler:{sequence}"
+        proper = sequence[0] == sequence[2]  # e.g. zxz: beta = 0 or pi; Tait-Bryan e.g. zxy: beta = +-pi/2
+        self.singular_set = (
+            f"where beta = 0 or pi: the first and third axes ({sequence[0]}) align (a body's {sequence[0]} axis parallel to global {sequence[0]})"
+            if proper
+            else f"where beta = +-pi/2: the first ({sequence[0]}) and third ({sequence[2]}) axes align (gimbal lock)"
+        )
 
     def matrix(self, o: sp.Matrix) -> sp.Matrix:
         a, b, c = self.axes

@@ -37,6 +37,7 @@ class EulerParameters(Parametrization):
     stored_names = ("e0", "e1", "e2", "e3")
     stores_quaternion = True
     velocity_names = ("e0", "e1", "e2", "e3")
+    singular_set = "nowhere on |e| = 1: the normalization row is normal to the unit sphere the rotation rows are tangent to"
 
     def matrix(self, o: sp.Matrix) -> sp.Matrix:
         return quaternion_matrix(o)

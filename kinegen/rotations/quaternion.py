@@ -25,6 +25,7 @@ class Quaternion(Parametrization):
     stored_names = ("qw", "qx", "qy", "qz")
     stores_quaternion = True
     velocity_names = ("theta_x", "theta_y", "theta_z")
+    singular_set = "nowhere: rotation increments span every rotation; Phi_q is singular only where the mechanism is"
 
     def matrix(self, o: sp.Matrix) -> sp.Matrix:
         return quaternion_matrix(o)
