@@ -31,6 +31,11 @@ CONTENDERS = {  # name -> (call, largest chain N it runs on, runs on the excavat
     KINEGEN_OWN: ("kinegen_run({w!r}, True)", 10**6, True, False),
     KINEGEN: ("kinegen_run({w!r}, False)", 10**6, True, False),
     "kinegen quaternion (own predictor)": ("kinegen_run({w!r}, True, 'quaternion')", 0, True, False),
+    "kinegen dual-quaternion (own)": ("kinegen_run({w!r}, True, 'dual-quaternion')", 0, True, False),
+    "kinegen dual-euler-parameters (own)": ("kinegen_run({w!r}, True, 'dual-euler-parameters')", 0, True, False),
+    "kinegen quaternion compiled C (own)": ("kinegen_run({w!r}, True, 'quaternion', compiled=True)", 0, True, False),
+    "kinegen dual-quaternion compiled C": ("kinegen_run({w!r}, True, 'dual-quaternion', compiled=True)", 0, True, False),
+    "kinegen dual-euler-params compiled C": ("kinegen_run({w!r}, True, 'dual-euler-parameters', compiled=True)", 0, True, False),
     KINEGEN_C: ("kinegen_run({w!r}, False, compiled=True)", 10**6, True, False),
     KINEGEN_C_OWN: ("kinegen_run({w!r}, True, compiled=True)", 10**6, True, False),
     CASADI: ("casadi_run({w!r}, False)", 10**6, True, False),
@@ -181,6 +186,20 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
             mine = get(w, name, "trajectory")
             if scipy_time is not None and mine is not None:
                 out.append(line(f"{w} SciPy finite differences / {name} trajectory", scipy_time / mine, 50, False))
+    for w in workloads:  # issue 12: the dual-quaternion parametrizations against the quaternion, same workload
+        pairs = (
+            ("kinegen quaternion (own predictor)", "kinegen dual-quaternion (own)"),
+            ("kinegen quaternion (own predictor)", "kinegen dual-euler-parameters (own)"),
+            ("kinegen quaternion compiled C (own)", "kinegen dual-quaternion compiled C"),
+            ("kinegen quaternion compiled C (own)", "kinegen dual-euler-params compiled C"),
+        )
+        for base, new in pairs:
+            b_build, n_build = get(w, base, "build"), get(w, new, "build")
+            b_time, n_time = get(w, base, "trajectory"), get(w, new, "trajectory")
+            if "compiled" not in base and b_build and n_build:
+                out.append(line(f"{w} {new} build / quaternion's (issue 12)", n_build / b_build, 1.5, True))
+            if b_time and n_time:
+                out.append(line(f"{w} {new} trajectory / quaternion's (issue 12)", n_time / b_time, 1.3, True))
     out.append(line("chain-14 kinegen build", get("chain-14", KINEGEN, "build"), 1.0, True, " s"))
     b14, b100 = get("chain-14", KINEGEN, "build"), get("chain-100", KINEGEN, "build")
     if b14 and b100:
