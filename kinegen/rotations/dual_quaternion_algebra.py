@@ -134,30 +134,26 @@ def left_pure(q: sp.Matrix) -> sp.Matrix:
 
 def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
     """``exp(ξ) ⊗ σ`` with the components on the FIRST axis: ``twist`` (6, ...), ``s`` (8, ...)
-    -> (8, ...). The same as ``multiply(exp(ξ), σ)``, written out component by component (the
-    retraction of every Newton step, where NumPy's per-call cost outweighs the arithmetic;
-    the generated C's ``retract_body`` is the same code)."""
-    ax, ay, az, bx, by, bz = 0.5 * np.asarray(twist, dtype=float)
-    rw, rx, ry, rz, sw, sx, sy, sz = s
-    h2 = ax * ax + ay * ay + az * az
+    -> (8, ...). The same as ``multiply(exp(ξ), σ)`` in few NumPy calls (the retraction of every
+    Newton step, where NumPy's per-call cost outweighs the arithmetic): the products through the
+    Hamilton product's structure tensor. The generated C's ``retract_body`` writes it out."""
+    twist, s = np.asarray(twist, dtype=float), np.asarray(s, dtype=float)
+    a, b = 0.5 * twist[:3], 0.5 * twist[3:]
+    h2 = np.einsum("i...,i...->...", a, a)
     h = np.sqrt(h2)
+    sinc = np.sinc(h / np.pi)  # sin(h)/h, exact 1 at 0
+    cos_h = np.cos(h)
     small = h < _SMALL
-    safe = np.where(small, 1.0, h)
-    sin_h, cos_h = np.sin(h), np.cos(h)
-    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, sin_h / safe)
-    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (cos_h - sin_h / safe) / (safe * safe))
-    ab = ax * bx + ay * by + az * bz
-    pw, px, py, pz = cos_h, sinc * ax, sinc * ay, sinc * az
-    dw, dx, dy, dz = -sinc * ab, sinc * bx + bend * ab * ax, sinc * by + bend * ab * ay, sinc * bz + bend * ab * az
-    return np.stack(
-        [
-            pw * rw - px * rx - py * ry - pz * rz,
-            pw * rx + px * rw + py * rz - pz * ry,
-            pw * ry - px * rz + py * rw + pz * rx,
-            pw * rz + px * ry - py * rx + pz * rw,
-            (pw * sw - px * sx - py * sy - pz * sz) + (dw * rw - dx * rx - dy * ry - dz * rz),
-            (pw * sx + px * sw + py * sz - pz * sy) + (dw * rx + dx * rw + dy * rz - dz * ry),
-            (pw * sy - px * sz + py * sw + pz * sx) + (dw * ry - dx * rz + dy * rw + dz * rx),
-            (pw * sz + px * sy - py * sx + pz * sw) + (dw * rz + dx * ry - dy * rx + dz * rw),
-        ]
-    )
+    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (cos_h - sinc) / np.where(small, 1.0, h2))
+    ab = np.einsum("i...,i...->...", a, b)
+    p = np.empty((8, *h.shape))
+    p[0], p[1:4] = cos_h, sinc * a
+    p[4], p[5:8] = -sinc * ab, sinc * b + (bend * ab) * a
+    out = np.empty_like(p)
+    out[:4] = np.einsum("ijk,j...,k...->i...", _HAMILTON, p[:4], s[:4])
+    out[4:] = np.einsum("ijk,j...,k...->i...", _HAMILTON, p[:4], s[4:]) + np.einsum("ijk,j...,k...->i...", _HAMILTON, p[4:], s[:4])
+    return out
+
+
+#: (p ⊗ q)_i = sum_jk _HAMILTON[i, j, k] p_j q_k
+_HAMILTON = np.stack([np.stack([qa.multiply(np.eye(4)[j], np.eye(4)[k]) for k in range(4)], axis=-1) for j in range(4)], axis=1)
