@@ -22,8 +22,10 @@ from collections.abc import Callable
 import mpmath
 import sympy as sp
 
-from kinegen.constraints.frames import Equation, Frame, conjugate, cross, dot, quaternion_product
+from kinegen.constraints.frames import Equation, Frame, cross, dot
 from kinegen.model.schema import Driver, Joint
+from kinegen.rotations.quaternion_algebra import symbolic_conjugate as conjugate
+from kinegen.rotations.quaternion_algebra import symbolic_product as quaternion_product
 
 
 def _angle_residual(theta: sp.Expr, f1: sp.Matrix, g1: sp.Matrix, f2: sp.Matrix) -> sp.Expr:

@@ -38,18 +38,6 @@ def cross(a: sp.Matrix, b: sp.Matrix) -> sp.Matrix:
     return sp.Matrix(a).cross(sp.Matrix(b))
 
 
-def quaternion_product(p: sp.Matrix, q: sp.Matrix) -> sp.Matrix:
-    """Hamilton product p ⊗ q of quaternions (w, x, y, z)."""
-    pw, pv, qw, qv = p[0], sp.Matrix(p[1:]), q[0], sp.Matrix(q[1:])
-    vector = pw * qv + qw * pv + pv.cross(qv)
-    return sp.Matrix([pw * qw - (pv.T * qv)[0], *vector])
-
-
-def conjugate(q: sp.Matrix) -> sp.Matrix:
-    """Conjugate (w, -x, -y, -z)."""
-    return sp.Matrix([q[0], -q[1], -q[2], -q[3]])
-
-
 @dataclass(frozen=True)
 class Equation:
     """One scalar constraint equation ``expr(q, t) = 0`` and the moving bodies it touches."""

@@ -63,7 +63,7 @@ class _DualQuaternionPose(Parametrization):
 
     def pose_substitution(self, s: sp.Matrix, origin: sp.Matrix) -> dict[sp.Symbol, sp.Expr]:
         # q_d = ½ (0, r) ⊗ q_r: determinants in the origin r and q_r
-        dual = dq.symbolic_product(sp.Matrix([0, *origin]), s[:4, :]) / 2
+        dual = qa.symbolic_product(sp.Matrix([0, *origin]), s[:4, :]) / 2
         return dict(zip(s[4:], dual))
 
     def frame_expressions(self, q: sp.Matrix, v: sp.Matrix, a: sp.Matrix) -> list[sp.Expr]:
@@ -115,17 +115,12 @@ class DualQuaternion(_DualQuaternionPose):
 
     def body_velocity_map(self, s: sp.Matrix) -> sp.Matrix:
         # σ̇ = ½ ξ̂ ⊗ σ: real ½ (0, ω) ⊗ q_r; dual ½ ((0, ω) ⊗ q_d + (0, v) ⊗ q_r)
-        real, dual = dq.left_pure(s[:4, :]), dq.left_pure(s[4:, :])
+        real, dual = qa.left_pure(s[:4, :]), qa.left_pure(s[4:, :])
         return sp.Rational(1, 2) * sp.Matrix(sp.BlockMatrix([[real, sp.zeros(4, 3)], [dual, real]]))
 
     def body_rotation_derivatives(self, a: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
         # A -> exp([ω]x) A: dA/dω_k = [e_k]x A; a translation leaves A alone
-        axes = [
-            sp.Matrix([[0, 0, 0], [0, 0, -1], [0, 1, 0]]),
-            sp.Matrix([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
-            sp.Matrix([[0, -1, 0], [1, 0, 0], [0, 0, 0]]),
-        ]
-        return [k * a for k in axes] + [sp.zeros(3, 3)] * 3
+        return qa.spin_derivatives(a) + [sp.zeros(3, 3)] * 3
 
     def body_origin_derivatives(self, r: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
         # a twist (ω, v) moves the origin at v + ω x r
@@ -183,8 +178,8 @@ class DualEulerParameters(_DualQuaternionPose):
 
     def _rates(self, q, v, a, origin):
         real, dual = q[:4, :], q[4:, :]
-        conj = dq.symbolic_conjugate
-        product = dq.symbolic_product
+        conj = qa.symbolic_conjugate
+        product = qa.symbolic_product
         omega = 2 * _vector(product(v[:4, :], conj(real)))
         omega_dot = 2 * _vector(product(a[:4, :], conj(real)))  # + 2 vec(ṙ_r ⊗ ṙ_r*) = 0
         velocity = 2 * _vector(product(v[4:, :], conj(real)) + product(dual, conj(v[:4, :])))

@@ -21,6 +21,17 @@ from kinegen.rotations import quaternion_algebra as qa
 _SMALL = 1e-4
 
 
+def _coefficients(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """sin(h)/h and (cos h − sin h / h)/h² (the derivative of sin(h)/h divided by h) at the
+    half-angles ``h``; the second by its Taylor series where it would cancel."""
+    h = np.asarray(h, dtype=float)
+    h2 = h * h
+    sinc = np.sinc(h / np.pi)  # exact 1 at 0
+    small = h < _SMALL
+    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (np.cos(h) - sinc) / np.where(small, 1.0, h2))
+    return sinc, bend
+
+
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
     """Dual quaternion product p ⊗ q = p_r q_r + ε (p_r q_d + p_d q_r) (components last)."""
     p, q = np.asarray(p, dtype=float), np.asarray(q, dtype=float)
@@ -59,12 +70,7 @@ def exp(twist: np.ndarray) -> np.ndarray:
     twist = np.asarray(twist, dtype=float)
     a, b = 0.5 * twist[..., :3], 0.5 * twist[..., 3:]
     h = np.linalg.norm(a, axis=-1)
-    small = h < _SMALL
-    safe = np.where(small, 1.0, h)
-    h2 = h * h
-    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(safe) / safe)
-    # (cos h - sin h / h) / h^2, the derivative of sinc divided by h
-    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (np.cos(safe) - np.sin(safe) / safe) / (safe * safe))
+    sinc, bend = _coefficients(h)
     ab = np.sum(a * b, axis=-1)
     real = np.concatenate([np.cos(h)[..., None], sinc[..., None] * a], axis=-1)
     dual = np.concatenate([(-sinc * ab)[..., None], sinc[..., None] * b + (bend * ab)[..., None] * a], axis=-1)
@@ -79,11 +85,7 @@ def log(s: np.ndarray) -> np.ndarray:
     vector = real[..., 1:]
     sin_h = np.linalg.norm(vector, axis=-1)
     h = np.arctan2(sin_h, real[..., 0])
-    small = h < _SMALL
-    safe = np.where(small, 1.0, h)
-    h2 = h * h
-    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(safe) / safe)
-    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (np.cos(safe) - np.sin(safe) / safe) / (safe * safe))
+    sinc, bend = _coefficients(h)
     a = vector / sinc[..., None]
     ab = -dual[..., 0] / sinc
     b = (dual[..., 1:] - (bend * ab)[..., None] * a) / sinc[..., None]
@@ -111,25 +113,9 @@ def to_homogeneous(s: np.ndarray) -> np.ndarray:
 
 
 # ---- symbolic ----------------------------------------------------------------------------
-def symbolic_product(p: sp.Matrix, q: sp.Matrix) -> sp.Matrix:
-    """Hamilton product of symbolic quaternions (w, x, y, z) as 4x1 matrices."""
-    pw, pv, qw, qv = p[0], sp.Matrix(p[1:]), q[0], sp.Matrix(q[1:])
-    return sp.Matrix([pw * qw - (pv.T * qv)[0], *(pw * qv + qw * pv + pv.cross(qv))])
-
-
-def symbolic_conjugate(q: sp.Matrix) -> sp.Matrix:
-    return sp.Matrix([q[0], -q[1], -q[2], -q[3]])
-
-
 def symbolic_translation(s: sp.Matrix) -> sp.Matrix:
     """The frame origin 2 vec(q_d ⊗ q_r*) of symbolic σ = (q_r, q_d) (8x1)."""
-    return 2 * symbolic_product(s[4:8, :], symbolic_conjugate(s[0:4, :]))[1:, :]
-
-
-def left_pure(q: sp.Matrix) -> sp.Matrix:
-    """M(q) (4x3) with (0, w) ⊗ q = M(q) w."""
-    w, x, y, z = q
-    return sp.Matrix([[-x, -y, -z], [w, z, -y], [-z, w, x], [y, -x, w]])
+    return 2 * qa.symbolic_product(s[4:8, :], qa.symbolic_conjugate(s[0:4, :]))[1:, :]
 
 
 def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
@@ -139,15 +125,11 @@ def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
     Hamilton product's structure tensor. The generated C's ``retract_body`` writes it out."""
     twist, s = np.asarray(twist, dtype=float), np.asarray(s, dtype=float)
     a, b = 0.5 * twist[:3], 0.5 * twist[3:]
-    h2 = np.einsum("i...,i...->...", a, a)
-    h = np.sqrt(h2)
-    sinc = np.sinc(h / np.pi)  # sin(h)/h, exact 1 at 0
-    cos_h = np.cos(h)
-    small = h < _SMALL
-    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (cos_h - sinc) / np.where(small, 1.0, h2))
+    h = np.sqrt(np.einsum("i...,i...->...", a, a))
+    sinc, bend = _coefficients(h)
     ab = np.einsum("i...,i...->...", a, b)
     p = np.empty((8, *h.shape))
-    p[0], p[1:4] = cos_h, sinc * a
+    p[0], p[1:4] = np.cos(h), sinc * a
     p[4], p[5:8] = -sinc * ab, sinc * b + (bend * ab) * a
     out = np.empty_like(p)
     out[:4] = np.einsum("ijk,j...,k...->i...", _HAMILTON, p[:4], s[:4])

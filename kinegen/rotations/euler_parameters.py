@@ -26,8 +26,7 @@ def quaternion_matrix(e: sp.Matrix) -> sp.Matrix:
 
 def _vector_of_product_with_conjugate(p: sp.Matrix, e: sp.Matrix) -> sp.Matrix:
     """Vector part of p ⊗ conj(e) (Hamilton product, w first), symbolic."""
-    pw, pv, ew, ev = p[0], sp.Matrix(p[1:]), e[0], -sp.Matrix(e[1:])
-    return pw * ev + ew * pv + pv.cross(ev)
+    return qa.symbolic_product(p, qa.symbolic_conjugate(e))[1:, :]
 
 
 class EulerParameters(Parametrization):

@@ -32,18 +32,11 @@ class Quaternion(Parametrization):
 
     def velocity_map(self, o: sp.Matrix) -> sp.Matrix:
         # dq/dt = 1/2 [0, omega] ⊗ q = 1/2 [[-v^T], [w I - [v]x]] omega
-        w, x, y, z = o
-        half = sp.Rational(1, 2)
-        return half * sp.Matrix([[-x, -y, -z], [w, z, -y], [-z, w, x], [y, -x, w]])
+        return sp.Rational(1, 2) * qa.left_pure(o)
 
     def rotation_derivatives(self, a: sp.Matrix, o: sp.Matrix) -> list[sp.Matrix]:
         # A -> exp([theta]x) A: dA/dtheta_k = [e_k]x A, linear in the entries of A
-        axes = [
-            sp.Matrix([[0, 0, 0], [0, 0, -1], [0, 1, 0]]),
-            sp.Matrix([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
-            sp.Matrix([[0, -1, 0], [1, 0, 0], [0, 0, 0]]),
-        ]
-        return [k * a for k in axes]
+        return qa.spin_derivatives(a)
 
     def omega_expression(self, o: sp.Matrix, w: sp.Matrix) -> sp.Matrix:
         return sp.Matrix(w)

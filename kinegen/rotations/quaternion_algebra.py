@@ -1,4 +1,5 @@
-"""Numeric unit-quaternion algebra, order (w, x, y, z), Hamilton product.
+"""Unit-quaternion algebra, order (w, x, y, z), Hamilton product: numeric (NumPy) and, at the
+end, the few symbolic (SymPy) forms the parametrizations and constraints share.
 
 Arrays may carry leading batch dimensions: a quaternion is ``q[..., 0:4]``.
 """
@@ -6,6 +7,7 @@ Arrays may carry leading batch dimensions: a quaternion is ``q[..., 0:4]``.
 from __future__ import annotations
 
 import numpy as np
+import sympy as sp
 
 
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -92,3 +94,31 @@ def exp(rotation_vector: np.ndarray) -> np.ndarray:
     # sin(half)/angle, with its Taylor series near zero
     scale = np.where(angle > 1e-8, np.sin(half) / np.where(angle > 1e-8, angle, 1.0), 0.5 - angle**2 / 48.0)
     return np.concatenate([np.cos(half)[..., None], scale[..., None] * rotation_vector], axis=-1)
+
+
+# ---- symbolic ----------------------------------------------------------------------------
+def symbolic_product(p: sp.Matrix, q: sp.Matrix) -> sp.Matrix:
+    """Hamilton product p ⊗ q of symbolic quaternions (w, x, y, z) as 4x1 matrices."""
+    pw, pv, qw, qv = p[0], sp.Matrix(p[1:]), q[0], sp.Matrix(q[1:])
+    return sp.Matrix([pw * qw - (pv.T * qv)[0], *(pw * qv + qw * pv + pv.cross(qv))])
+
+
+def symbolic_conjugate(q: sp.Matrix) -> sp.Matrix:
+    """Conjugate (w, -x, -y, -z)."""
+    return sp.Matrix([q[0], -q[1], -q[2], -q[3]])
+
+
+def left_pure(q: sp.Matrix) -> sp.Matrix:
+    """M(q) (4x3) with (0, w) ⊗ q = M(q) w."""
+    w, x, y, z = q
+    return sp.Matrix([[-x, -y, -z], [w, z, -y], [-z, w, x], [y, -x, w]])
+
+
+def spin_derivatives(a: sp.Matrix) -> list[sp.Matrix]:
+    """dA/dθ_k = [e_k]x A (k = x, y, z) for A -> exp([θ]x) A: global rotation increments."""
+    axes = [
+        sp.Matrix([[0, 0, 0], [0, 0, -1], [0, 1, 0]]),
+        sp.Matrix([[0, 0, 1], [0, 0, 0], [-1, 0, 0]]),
+        sp.Matrix([[0, -1, 0], [1, 0, 0], [0, 0, 0]]),
+    ]
+    return [k * a for k in axes]

@@ -140,41 +140,22 @@ def cache_folder() -> Path:
 
 def build_library(sources: dict[str, str]) -> Path:
     """The shared library of the C ``sources`` (file name -> text), compiled once: cached by a
-    key over the sources, the compiler and the flags. Each object file is cached too, by its
-    source, the headers it includes, the compiler and its flags: the solver's object is built
-    once per machine and shared by every model. Builds are atomic (a temporary folder, then ``os.replace``): a
-    concurrent or interrupted build leaves a whole library or none."""
+    key over the sources, the compiler and the flags. Each object file is cached too
+    (:func:`_objects`): the solver's object is built once per machine and shared by every
+    model. Builds are atomic (a temporary folder, then ``os.replace``): a concurrent or
+    interrupted build leaves a whole library or none."""
     compiler = c_compiler()
-    identity = _compiler_identity(compiler)
     key = hashlib.sha256()
-    for part in (identity, " ".join((*COMMON_FLAGS, *SOLVER_FLAGS, *MODEL_FLAGS)),
+    for part in (_compiler_identity(compiler), " ".join((*COMMON_FLAGS, *SOLVER_FLAGS, *MODEL_FLAGS)),
                  *(f"{n}\n{t}" for n, t in sorted(sources.items()))):  # fmt: skip
         key.update(part.encode())
     folder = cache_folder()
     library = folder / f"kinegen_{key.hexdigest()[:24]}.so"
     if library.exists():
         return library
-    (folder / "objects").mkdir(parents=True, exist_ok=True)
+    objects = _objects(compiler, sources, sorted(n for n in sources if n.endswith(".c")))
     with tempfile.TemporaryDirectory(dir=folder) as work:
-        for name, text in sources.items():
-            (Path(work) / name).write_text(text)
         built = Path(work) / library.name
-        objects, commands, fresh = [], [], []
-        for name in sorted(n for n in sources if n.endswith(".c")):
-            flags = SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
-            # a large model's C in its parts, compiled in parallel (see backends.c.backend)
-            for part in source_parts(sources[name]) or [None]:
-                defines = [] if part is None else [f"-DKINEGEN_PART={part}"]
-                command = [*COMMON_FLAGS, *flags, *defines]
-                cached = folder / "objects" / f"{_object_key(identity, command, name, sources)}.o"
-                objects.append(cached)
-                if not cached.exists():
-                    made = Path(work) / f"{Path(name).stem}{'' if part is None else f'_part{part}'}.o"
-                    commands.append([compiler, *command, "-c", "-o", str(made), str(Path(work) / name)])
-                    fresh.append((made, cached))
-        _run_all(compiler, commands)
-        for made, cached in fresh:
-            os.replace(made, cached)
         _run_all(compiler, [[compiler, "-shared", "-o", str(built), *map(str, objects), "-lm"]])
         os.replace(built, library)
     return library
@@ -183,19 +164,35 @@ def build_library(sources: dict[str, str]) -> Path:
 def build_solver_object() -> Path:
     """The C solver's object file, compiled once per machine and compiler into the cache
     (:func:`build_library` takes it from there for every model)."""
-    compiler = c_compiler()
-    sources = with_solver({})
-    command = [*COMMON_FLAGS, *SOLVER_FLAGS]
-    cached = cache_folder() / "objects" / f"{_object_key(_compiler_identity(compiler), command, 'kinegen_solver.c', sources)}.o"
-    if not cached.exists():
-        cached.parent.mkdir(parents=True, exist_ok=True)
-        with tempfile.TemporaryDirectory(dir=cached.parent) as work:
-            for name, text in sources.items():
-                (Path(work) / name).write_text(text)
-            made = Path(work) / "kinegen_solver.o"
-            _run_all(compiler, [[compiler, *command, "-c", "-o", str(made), str(Path(work) / "kinegen_solver.c")]])
-            os.replace(made, cached)
-    return cached
+    return _objects(c_compiler(), with_solver({}), ["kinegen_solver.c"])[0]
+
+
+def _objects(compiler: str, sources: dict[str, str], names: list[str]) -> list[Path]:
+    """The object files of the C files ``names`` among ``sources``, from the cache
+    (``objects/``, keyed by :func:`_object_key`); the missing ones compiled in parallel, a large
+    model's C in its ``KINEGEN_PART`` parts (see backends.c.backend), and moved in atomically."""
+    identity = _compiler_identity(compiler)
+    store = cache_folder() / "objects"
+    store.mkdir(parents=True, exist_ok=True)
+    objects, missing = [], []
+    for name in names:
+        flags = SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
+        for part in source_parts(sources[name]) or [None]:
+            command = [*COMMON_FLAGS, *flags, *([] if part is None else [f"-DKINEGEN_PART={part}"])]
+            objects.append(store / f"{_object_key(identity, command, name, sources)}.o")
+            if not objects[-1].exists():
+                missing.append((name, part, command, objects[-1]))
+    if not missing:
+        return objects
+    with tempfile.TemporaryDirectory(dir=store) as work:
+        for name, text in sources.items():
+            (Path(work) / name).write_text(text)
+        made = [Path(work) / f"{Path(name).stem}{'' if part is None else f'_part{part}'}.o" for name, part, _, _ in missing]
+        _run_all(compiler, [[compiler, *command, "-c", "-o", str(o), str(Path(work) / name)]
+                            for o, (name, _, command, _) in zip(made, missing)])  # fmt: skip
+        for o, (_, _, _, cached) in zip(made, missing):
+            os.replace(o, cached)
+    return objects
 
 
 def _object_key(identity: str, command: list[str], name: str, sources: dict[str, str]) -> str:

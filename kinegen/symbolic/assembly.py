@@ -60,10 +60,6 @@ class BodyCoordinates:
     origin_derivatives: tuple[sp.Matrix, ...] = ()
 
     @property
-    def rotation_symbols(self) -> list[sp.Symbol]:
-        return list(self.frame.A)
-
-    @property
     def frame_symbols(self) -> list[sp.Symbol]:
         """The symbols defined from the stored coordinates: origin (if not stored), then A."""
         return [*self.origin_symbols, *self.frame.A]
