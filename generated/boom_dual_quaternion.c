@@ -54,21 +54,14 @@ static void compute_joints_jac(const double *q, double *out) {
     const double boom_rx = q[1];
     const double boom_ry = q[2];
     const double boom_rz = q[3];
-    const double boom_dw = q[4];
-    const double boom_dx = q[5];
-    const double boom_dy = q[6];
-    const double boom_dz = q[7];
-    const double boom_ox = -2.0*boom_dw*boom_rx - 2.0*boom_dy*boom_rz + 2.0*boom_dx*boom_rw + 2.0*boom_dz*boom_ry;
-    const double boom_oy = -2.0*boom_dw*boom_ry - 2.0*boom_dz*boom_rx + 2.0*boom_dx*boom_rz + 2.0*boom_dy*boom_rw;
-    const double boom_oz = -2.0*boom_dw*boom_rz - 2.0*boom_dx*boom_ry + 2.0*boom_dy*boom_rx + 2.0*boom_dz*boom_rw;
     const double boom_a00 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_rx*boom_rx);
     const double boom_a01 = -2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
     const double boom_a10 = 2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
     const double boom_a11 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_ry*boom_ry);
     const double boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz;
-    const double d0 = -boom_oz + (89.0/50.0)*boom_a20;
-    const double d1 = -boom_oy + (89.0/50.0)*boom_a10;
-    const double d2 = -boom_ox + (89.0/50.0)*boom_a00;
+    const double d0 = (89.0/50.0)*boom_a20;
+    const double d1 = (89.0/50.0)*boom_a10;
+    const double d2 = (89.0/50.0)*boom_a00;
     out[0] = d0;
     out[1] = -d1;
     out[2] = -1.0;
@@ -115,19 +108,9 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double boom_rx = q[1];
     const double boom_ry = q[2];
     const double boom_rz = q[3];
-    const double boom_dw = q[4];
-    const double boom_dx = q[5];
-    const double boom_dy = q[6];
-    const double boom_dz = q[7];
     const double v_boom_wx = v[0];
     const double v_boom_wy = v[1];
     const double v_boom_wz = v[2];
-    const double v_boom_vx = v[3];
-    const double v_boom_vy = v[4];
-    const double v_boom_vz = v[5];
-    const double boom_ox = -2.0*boom_dw*boom_rx - 2.0*boom_dy*boom_rz + 2.0*boom_dx*boom_rw + 2.0*boom_dz*boom_ry;
-    const double boom_oy = -2.0*boom_dw*boom_ry - 2.0*boom_dz*boom_rx + 2.0*boom_dx*boom_rz + 2.0*boom_dy*boom_rw;
-    const double boom_oz = -2.0*boom_dw*boom_rz - 2.0*boom_dx*boom_ry + 2.0*boom_dy*boom_rx + 2.0*boom_dz*boom_rw;
     const double boom_a00 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_rx*boom_rx);
     const double boom_a01 = -2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
     const double boom_a10 = 2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
@@ -136,15 +119,12 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz;
     const double c0 = -89.0/50.0*boom_a00*v_boom_wy + (89.0/50.0)*boom_a10*v_boom_wx;
     const double c1 = boom_a00*v_boom_wz - boom_a20*v_boom_wx;
-    const double c2 = v_boom_vy + boom_ox*v_boom_wz - boom_oz*v_boom_wx;
-    const double c3 = v_boom_vz + boom_oy*v_boom_wx - boom_ox*v_boom_wy;
-    const double c4 = boom_a20*v_boom_wy - boom_a10*v_boom_wz;
-    const double c5 = v_boom_vx + boom_oz*v_boom_wy - boom_oy*v_boom_wz;
-    const double c6 = c1*v_boom_wx;
-    out[0] = c3*v_boom_wy - c0*v_boom_wy - c2*v_boom_wz + (89.0/50.0)*c1*v_boom_wz;
-    out[1] = c0*v_boom_wx + c5*v_boom_wz - c3*v_boom_wx - 89.0/50.0*c4*v_boom_wz;
-    out[2] = -89.0/50.0*c6 + c2*v_boom_wx - c5*v_boom_wy + (89.0/50.0)*c4*v_boom_wy;
-    out[3] = -c6 + c4*v_boom_wy;
+    const double c2 = boom_a20*v_boom_wy - boom_a10*v_boom_wz;
+    const double c3 = c1*v_boom_wx;
+    out[0] = -c0*v_boom_wy + (89.0/50.0)*c1*v_boom_wz;
+    out[1] = c0*v_boom_wx - 89.0/50.0*c2*v_boom_wz;
+    out[2] = -89.0/50.0*c3 + (89.0/50.0)*c2*v_boom_wy;
+    out[3] = -c3 + c2*v_boom_wy;
     out[4] = v_boom_wy*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - v_boom_wx*(boom_a01*v_boom_wz - boom_a21*v_boom_wx);
 }
 
@@ -214,9 +194,6 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz;
     const double boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz;
     const double boom_a22 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_rz*boom_rz);
-    const double c0 = v_boom_vx + boom_oz*v_boom_wy - boom_oy*v_boom_wz;
-    const double c1 = v_boom_vy + boom_ox*v_boom_wz - boom_oz*v_boom_wx;
-    const double c2 = v_boom_vz + boom_oy*v_boom_wx - boom_ox*v_boom_wy;
     out[0] = boom_ox;
     out[1] = boom_oy;
     out[2] = boom_oz;
@@ -229,15 +206,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[9] = boom_a20;
     out[10] = boom_a21;
     out[11] = boom_a22;
-    out[12] = c0;
-    out[13] = c1;
-    out[14] = c2;
+    out[12] = v_boom_vx;
+    out[13] = v_boom_vy;
+    out[14] = v_boom_vz;
     out[15] = v_boom_wx;
     out[16] = v_boom_wy;
     out[17] = v_boom_wz;
-    out[18] = dv_boom_vx + c2*v_boom_wy + boom_oz*dv_boom_wy - c1*v_boom_wz - boom_oy*dv_boom_wz;
-    out[19] = dv_boom_vy + c0*v_boom_wz + boom_ox*dv_boom_wz - c2*v_boom_wx - boom_oz*dv_boom_wx;
-    out[20] = dv_boom_vz + c1*v_boom_wx + boom_oy*dv_boom_wx - c0*v_boom_wy - boom_ox*dv_boom_wy;
+    out[18] = dv_boom_vx;
+    out[19] = dv_boom_vy;
+    out[20] = dv_boom_vz;
     out[21] = dv_boom_wx;
     out[22] = dv_boom_wy;
     out[23] = dv_boom_wz;
@@ -245,8 +222,14 @@ static void compute_frames(const double *q, const double *v, const double *a, do
 
 /* one body's coordinates moved by a step in velocity coordinates (dual-quaternion) */
 static void retract_body(double *q, const double *step) {
+    double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
+    double ox = 2.0 * (rw * sx - sw * rx + ry * sz - rz * sy) + 0.5 * step[3];
+    double oy = 2.0 * (rw * sy - sw * ry + rz * sx - rx * sz) + 0.5 * step[4];
+    double oz = 2.0 * (rw * sz - sw * rz + rx * sy - ry * sx) + 0.5 * step[5];
     double ax = 0.5 * step[0], ay = 0.5 * step[1], az = 0.5 * step[2];
-    double bx = 0.5 * step[3], by = 0.5 * step[4], bz = 0.5 * step[5];
+    double bx = 0.5 * (step[3] + oy * step[2] - oz * step[1]);
+    double by = 0.5 * (step[4] + oz * step[0] - ox * step[2]);
+    double bz = 0.5 * (step[5] + ox * step[1] - oy * step[0]);
     double h2 = ax * ax + ay * ay + az * az, h = sqrt(h2), ab = ax * bx + ay * by + az * bz;
     double sinc, bend;
     if (h < 1e-4) {
@@ -258,7 +241,6 @@ static void retract_body(double *q, const double *step) {
     }
     double pw = cos(h), px = sinc * ax, py = sinc * ay, pz = sinc * az;
     double dw = -sinc * ab, dx = sinc * bx + bend * ab * ax, dy = sinc * by + bend * ab * ay, dz = sinc * bz + bend * ab * az;
-    double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
     q[0] = pw * rw - px * rx - py * ry - pz * rz;
     q[1] = pw * rx + px * rw + py * rz - pz * ry;
     q[2] = pw * ry - px * rz + py * rw + pz * rx;

@@ -80,18 +80,15 @@ def _joints_phi(q):
 
 def _joints_jac(q):
     """Phi_q values of the joint rows (13 entries)."""
-    boom_rw, boom_rx, boom_ry, boom_rz, boom_dw, boom_dx, boom_dy, boom_dz = q
-    boom_ox = -2*boom_dw*boom_rx - 2*boom_dy*boom_rz + 2*boom_dx*boom_rw + 2*boom_dz*boom_ry
-    boom_oy = -2*boom_dw*boom_ry - 2*boom_dz*boom_rx + 2*boom_dx*boom_rz + 2*boom_dy*boom_rw
-    boom_oz = -2*boom_dw*boom_rz - 2*boom_dx*boom_ry + 2*boom_dy*boom_rx + 2*boom_dz*boom_rw
+    boom_rw, boom_rx, boom_ry, boom_rz, _, _, _, _ = q
     boom_a00 = -1 + 2*boom_rw**2 + 2*boom_rx**2
     boom_a01 = -2*boom_rw*boom_rz + 2*boom_rx*boom_ry
     boom_a10 = 2*boom_rw*boom_rz + 2*boom_rx*boom_ry
     boom_a11 = -1 + 2*boom_rw**2 + 2*boom_ry**2
     boom_a20 = -2*boom_rw*boom_ry + 2*boom_rx*boom_rz
-    d0 = -boom_oz + (89/50)*boom_a20
-    d1 = -boom_oy + (89/50)*boom_a10
-    d2 = -boom_ox + (89/50)*boom_a00
+    d0 = (89/50)*boom_a20
+    d1 = (89/50)*boom_a10
+    d2 = (89/50)*boom_a00
     out = _zeros(13, q, ())
     out[0] = d0
     out[1] = -d1
@@ -111,11 +108,8 @@ def _joints_jac(q):
 
 def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
-    boom_rw, boom_rx, boom_ry, boom_rz, boom_dw, boom_dx, boom_dy, boom_dz = q
-    v_boom_wx, v_boom_wy, v_boom_wz, v_boom_vx, v_boom_vy, v_boom_vz = v
-    boom_ox = -2*boom_dw*boom_rx - 2*boom_dy*boom_rz + 2*boom_dx*boom_rw + 2*boom_dz*boom_ry
-    boom_oy = -2*boom_dw*boom_ry - 2*boom_dz*boom_rx + 2*boom_dx*boom_rz + 2*boom_dy*boom_rw
-    boom_oz = -2*boom_dw*boom_rz - 2*boom_dx*boom_ry + 2*boom_dy*boom_rx + 2*boom_dz*boom_rw
+    boom_rw, boom_rx, boom_ry, boom_rz, _, _, _, _ = q
+    v_boom_wx, v_boom_wy, v_boom_wz, _, _, _ = v
     boom_a00 = -1 + 2*boom_rw**2 + 2*boom_rx**2
     boom_a01 = -2*boom_rw*boom_rz + 2*boom_rx*boom_ry
     boom_a10 = 2*boom_rw*boom_rz + 2*boom_rx*boom_ry
@@ -124,16 +118,13 @@ def _joints_gamma(q, v):
     boom_a21 = 2*boom_rw*boom_rx + 2*boom_ry*boom_rz
     c0 = -89/50*boom_a00*v_boom_wy + (89/50)*boom_a10*v_boom_wx
     c1 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c2 = v_boom_vy + boom_ox*v_boom_wz - boom_oz*v_boom_wx
-    c3 = v_boom_vz + boom_oy*v_boom_wx - boom_ox*v_boom_wy
-    c4 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c5 = v_boom_vx + boom_oz*v_boom_wy - boom_oy*v_boom_wz
-    c6 = c1*v_boom_wx
+    c2 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
+    c3 = c1*v_boom_wx
     out = _zeros(5, q, ())
-    out[0] = c3*v_boom_wy - c0*v_boom_wy - c2*v_boom_wz + (89/50)*c1*v_boom_wz
-    out[1] = c0*v_boom_wx + c5*v_boom_wz - c3*v_boom_wx - 89/50*c4*v_boom_wz
-    out[2] = -89/50*c6 + c2*v_boom_wx - c5*v_boom_wy + (89/50)*c4*v_boom_wy
-    out[3] = -c6 + c4*v_boom_wy
+    out[0] = -c0*v_boom_wy + (89/50)*c1*v_boom_wz
+    out[1] = c0*v_boom_wx - 89/50*c2*v_boom_wz
+    out[2] = -89/50*c3 + (89/50)*c2*v_boom_wy
+    out[3] = -c3 + c2*v_boom_wy
     out[4] = v_boom_wy*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - v_boom_wx*(boom_a01*v_boom_wz - boom_a21*v_boom_wx)
     return out
 
@@ -150,19 +141,16 @@ def _joints_phi_jac_s(q):
     boom_a11 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_ry*boom_ry)
     boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz
     boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz
-    d0 = -boom_oz + (89/50)*boom_a20
-    d1 = -boom_oy + (89/50)*boom_a10
-    d2 = -boom_ox + (89/50)*boom_a00
+    d0 = (89/50)*boom_a20
+    d1 = (89/50)*boom_a10
+    d2 = (89/50)*boom_a00
     return [-boom_ox + (89/50)*boom_a00, -boom_oy + (89/50)*boom_a10, -boom_oz + (89/50)*boom_a20, boom_a20, boom_a21], [d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, -1.0, boom_a10, -boom_a00, boom_a11, -boom_a01]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
-    boom_rw, boom_rx, boom_ry, boom_rz, boom_dw, boom_dx, boom_dy, boom_dz = q
-    v_boom_wx, v_boom_wy, v_boom_wz, v_boom_vx, v_boom_vy, v_boom_vz = v
-    boom_ox = -2.0*boom_dw*boom_rx - 2.0*boom_dy*boom_rz + 2.0*boom_dx*boom_rw + 2.0*boom_dz*boom_ry
-    boom_oy = -2.0*boom_dw*boom_ry - 2.0*boom_dz*boom_rx + 2.0*boom_dx*boom_rz + 2.0*boom_dy*boom_rw
-    boom_oz = -2.0*boom_dw*boom_rz - 2.0*boom_dx*boom_ry + 2.0*boom_dy*boom_rx + 2.0*boom_dz*boom_rw
+    boom_rw, boom_rx, boom_ry, boom_rz, _, _, _, _ = q
+    v_boom_wx, v_boom_wy, v_boom_wz, _, _, _ = v
     boom_a00 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_rx*boom_rx)
     boom_a01 = -2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry
     boom_a10 = 2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry
@@ -171,12 +159,9 @@ def _joints_gamma_s(q, v):
     boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz
     c0 = -89/50*boom_a00*v_boom_wy + (89/50)*boom_a10*v_boom_wx
     c1 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c2 = v_boom_vy + boom_ox*v_boom_wz - boom_oz*v_boom_wx
-    c3 = v_boom_vz + boom_oy*v_boom_wx - boom_ox*v_boom_wy
-    c4 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c5 = v_boom_vx + boom_oz*v_boom_wy - boom_oy*v_boom_wz
-    c6 = c1*v_boom_wx
-    return [c3*v_boom_wy - c0*v_boom_wy - c2*v_boom_wz + (89/50)*c1*v_boom_wz, c0*v_boom_wx + c5*v_boom_wz - c3*v_boom_wx - 89/50*c4*v_boom_wz, -89/50*c6 + c2*v_boom_wx - c5*v_boom_wy + (89/50)*c4*v_boom_wy, -c6 + c4*v_boom_wy, v_boom_wy*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - v_boom_wx*(boom_a01*v_boom_wz - boom_a21*v_boom_wx)]
+    c2 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
+    c3 = c1*v_boom_wx
+    return [-c0*v_boom_wy + (89/50)*c1*v_boom_wz, c0*v_boom_wx - 89/50*c2*v_boom_wz, -89/50*c3 + (89/50)*c2*v_boom_wy, -c3 + c2*v_boom_wy, v_boom_wy*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - v_boom_wx*(boom_a01*v_boom_wz - boom_a21*v_boom_wx)]
 
 
 def frames(q, v, a):
@@ -196,9 +181,6 @@ def frames(q, v, a):
     boom_a20 = -2*boom_rw*boom_ry + 2*boom_rx*boom_rz
     boom_a21 = 2*boom_rw*boom_rx + 2*boom_ry*boom_rz
     boom_a22 = -1 + 2*boom_rw**2 + 2*boom_rz**2
-    c0 = v_boom_vx + boom_oz*v_boom_wy - boom_oy*v_boom_wz
-    c1 = v_boom_vy + boom_ox*v_boom_wz - boom_oz*v_boom_wx
-    c2 = v_boom_vz + boom_oy*v_boom_wx - boom_ox*v_boom_wy
     out = _zeros(24, q, ())
     out[0] = boom_ox
     out[1] = boom_oy
@@ -212,15 +194,15 @@ def frames(q, v, a):
     out[9] = boom_a20
     out[10] = boom_a21
     out[11] = boom_a22
-    out[12] = c0
-    out[13] = c1
-    out[14] = c2
+    out[12] = v_boom_vx
+    out[13] = v_boom_vy
+    out[14] = v_boom_vz
     out[15] = v_boom_wx
     out[16] = v_boom_wy
     out[17] = v_boom_wz
-    out[18] = dv_boom_vx + c2*v_boom_wy + boom_oz*dv_boom_wy - c1*v_boom_wz - boom_oy*dv_boom_wz
-    out[19] = dv_boom_vy + c0*v_boom_wz + boom_ox*dv_boom_wz - c2*v_boom_wx - boom_oz*dv_boom_wx
-    out[20] = dv_boom_vz + c1*v_boom_wx + boom_oy*dv_boom_wx - c0*v_boom_wy - boom_ox*dv_boom_wy
+    out[18] = dv_boom_vx
+    out[19] = dv_boom_vy
+    out[20] = dv_boom_vz
     out[21] = dv_boom_wx
     out[22] = dv_boom_wy
     out[23] = dv_boom_wz

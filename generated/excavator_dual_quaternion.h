@@ -26,7 +26,7 @@ extern "C" {
 #define EXCAVATOR_DUAL_QUATERNION_N_CASES 5
 #define EXCAVATOR_DUAL_QUATERNION_MAX_INPUTS 4  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES 2848
+#define EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES 2116
 #define EXCAVATOR_DUAL_QUATERNION_WORK_INTS 168
 
 typedef struct excavator_dual_quaternion_workspace {

@@ -26,7 +26,7 @@ extern "C" {
 #define FOUR_BAR_DUAL_QUATERNION_N_CASES 1
 #define FOUR_BAR_DUAL_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define FOUR_BAR_DUAL_QUATERNION_WORK_DOUBLES 385
+#define FOUR_BAR_DUAL_QUATERNION_WORK_DOUBLES 302
 #define FOUR_BAR_DUAL_QUATERNION_WORK_INTS 36
 
 typedef struct four_bar_dual_quaternion_workspace {

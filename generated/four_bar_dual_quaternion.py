@@ -112,28 +112,19 @@ def _joints_phi(q):
 
 
 def _joints_jac(q):
-    """Phi_q values of the joint rows (68 entries)."""
-    crank_rw, crank_rx, crank_ry, crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, coupler_rw, coupler_rx, coupler_ry, coupler_rz, coupler_dw, coupler_dx, coupler_dy, coupler_dz, rocker_rw, rocker_rx, rocker_ry, rocker_rz, rocker_dw, rocker_dx, rocker_dy, rocker_dz = q
-    crank_ox = -2*crank_dw*crank_rx - 2*crank_dy*crank_rz + 2*crank_dx*crank_rw + 2*crank_dz*crank_ry
-    crank_oy = -2*crank_dw*crank_ry - 2*crank_dz*crank_rx + 2*crank_dx*crank_rz + 2*crank_dy*crank_rw
-    crank_oz = -2*crank_dw*crank_rz - 2*crank_dx*crank_ry + 2*crank_dy*crank_rx + 2*crank_dz*crank_rw
+    """Phi_q values of the joint rows (50 entries)."""
+    crank_rw, crank_rx, crank_ry, crank_rz, _, _, _, _, coupler_rw, coupler_rx, coupler_ry, coupler_rz, _, _, _, _, rocker_rw, rocker_rx, rocker_ry, rocker_rz, _, _, _, _ = q
     crank_a00 = -1 + 2*crank_rw**2 + 2*crank_rx**2
     crank_a01 = -2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a10 = 2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a11 = -1 + 2*crank_rw**2 + 2*crank_ry**2
     crank_a20 = -2*crank_rw*crank_ry + 2*crank_rx*crank_rz
-    coupler_ox = -2*coupler_dw*coupler_rx - 2*coupler_dy*coupler_rz + 2*coupler_dx*coupler_rw + 2*coupler_dz*coupler_ry
-    coupler_oy = -2*coupler_dw*coupler_ry - 2*coupler_dz*coupler_rx + 2*coupler_dx*coupler_rz + 2*coupler_dy*coupler_rw
-    coupler_oz = -2*coupler_dw*coupler_rz - 2*coupler_dx*coupler_ry + 2*coupler_dy*coupler_rx + 2*coupler_dz*coupler_rw
     coupler_a00 = -1 + 2*coupler_rw**2 + 2*coupler_rx**2
     coupler_a01 = -2*coupler_rw*coupler_rz + 2*coupler_rx*coupler_ry
     coupler_a10 = 2*coupler_rw*coupler_rz + 2*coupler_rx*coupler_ry
     coupler_a11 = -1 + 2*coupler_rw**2 + 2*coupler_ry**2
     coupler_a20 = -2*coupler_rw*coupler_ry + 2*coupler_rx*coupler_rz
     coupler_a21 = 2*coupler_rw*coupler_rx + 2*coupler_ry*coupler_rz
-    rocker_ox = -2*rocker_dw*rocker_rx - 2*rocker_dy*rocker_rz + 2*rocker_dx*rocker_rw + 2*rocker_dz*rocker_ry
-    rocker_oy = -2*rocker_dw*rocker_ry - 2*rocker_dz*rocker_rx + 2*rocker_dx*rocker_rz + 2*rocker_dy*rocker_rw
-    rocker_oz = -2*rocker_dw*rocker_rz - 2*rocker_dx*rocker_ry + 2*rocker_dy*rocker_rx + 2*rocker_dz*rocker_rw
     rocker_a00 = -1 + 2*rocker_rw**2 + 2*rocker_rx**2
     rocker_a01 = -2*rocker_rw*rocker_rz + 2*rocker_rx*rocker_ry
     rocker_a02 = 2*rocker_rw*rocker_ry + 2*rocker_rx*rocker_rz
@@ -142,115 +133,88 @@ def _joints_jac(q):
     rocker_a12 = -2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a20 = -2*rocker_rw*rocker_ry + 2*rocker_rx*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    d0 = crank_oz + (3/10)*crank_a20
-    d1 = crank_oy + (3/10)*crank_a10
-    d2 = crank_ox + (3/10)*crank_a00
-    d3 = coupler_oz + (9/10)*coupler_a20
-    d4 = coupler_oy + (9/10)*coupler_a10
-    d5 = rocker_oz + (7/10)*rocker_a20
-    d6 = rocker_oy + (7/10)*rocker_a10
-    d7 = coupler_ox + (9/10)*coupler_a00
-    d8 = rocker_ox + (7/10)*rocker_a00
+    d0 = (3/10)*crank_a20
+    d1 = (3/10)*crank_a10
+    d2 = (3/10)*crank_a00
+    d3 = (9/10)*coupler_a20
+    d4 = (9/10)*coupler_a10
+    d5 = (7/10)*rocker_a20
+    d6 = (7/10)*rocker_a10
+    d7 = (9/10)*coupler_a00
+    d8 = (7/10)*rocker_a00
     d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
     d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
     d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    out = _zeros(68, q, ())
-    out[0] = -crank_oz
-    out[1] = crank_oy
+    out = _zeros(50, q, ())
+    out[0] = -1
+    out[1] = -1
     out[2] = -1
-    out[3] = crank_oz
-    out[4] = -crank_ox
-    out[5] = -1
-    out[6] = -crank_oy
-    out[7] = crank_ox
-    out[8] = -1
-    out[9] = crank_a10
-    out[10] = -crank_a00
-    out[11] = crank_a11
-    out[12] = -crank_a01
-    out[13] = d0
-    out[14] = -d1
-    out[15] = 1
-    out[16] = -coupler_oz
-    out[17] = coupler_oy
+    out[3] = crank_a10
+    out[4] = -crank_a00
+    out[5] = crank_a11
+    out[6] = -crank_a01
+    out[7] = d0
+    out[8] = -d1
+    out[9] = 1
+    out[10] = -1
+    out[11] = -d0
+    out[12] = d2
+    out[13] = 1
+    out[14] = -1
+    out[15] = d1
+    out[16] = -d2
+    out[17] = 1
     out[18] = -1
-    out[19] = -d0
-    out[20] = d2
+    out[19] = d3
+    out[20] = -d4
     out[21] = 1
-    out[22] = coupler_oz
-    out[23] = -coupler_ox
+    out[22] = -d5
+    out[23] = d6
     out[24] = -1
-    out[25] = d1
-    out[26] = -d2
+    out[25] = -d3
+    out[26] = d7
     out[27] = 1
-    out[28] = -coupler_oy
-    out[29] = coupler_ox
+    out[28] = d5
+    out[29] = -d8
     out[30] = -1
-    out[31] = d3
-    out[32] = -d4
+    out[31] = d4
+    out[32] = -d7
     out[33] = 1
-    out[34] = -d5
-    out[35] = d6
+    out[34] = -d6
+    out[35] = d8
     out[36] = -1
-    out[37] = -d3
-    out[38] = d7
-    out[39] = 1
-    out[40] = d5
-    out[41] = -d8
-    out[42] = -1
-    out[43] = d4
-    out[44] = -d7
-    out[45] = 1
-    out[46] = -d6
-    out[47] = d8
-    out[48] = -1
-    out[49] = d9
-    out[50] = -d10
-    out[51] = d11
-    out[52] = -d9
-    out[53] = d10
-    out[54] = -d11
-    out[55] = -rocker_oz
-    out[56] = rocker_oy
-    out[57] = -1
-    out[58] = rocker_oz
-    out[59] = -rocker_ox
-    out[60] = -1
-    out[61] = -rocker_oy
-    out[62] = rocker_ox
-    out[63] = -1
-    out[64] = rocker_a10
-    out[65] = -rocker_a00
-    out[66] = rocker_a11
-    out[67] = -rocker_a01
+    out[37] = d9
+    out[38] = -d10
+    out[39] = d11
+    out[40] = -d9
+    out[41] = d10
+    out[42] = -d11
+    out[43] = -1
+    out[44] = -1
+    out[45] = -1
+    out[46] = rocker_a10
+    out[47] = -rocker_a00
+    out[48] = rocker_a11
+    out[49] = -rocker_a01
     return out
 
 
 def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
-    crank_rw, crank_rx, crank_ry, crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, coupler_rw, coupler_rx, coupler_ry, coupler_rz, coupler_dw, coupler_dx, coupler_dy, coupler_dz, rocker_rw, rocker_rx, rocker_ry, rocker_rz, rocker_dw, rocker_dx, rocker_dy, rocker_dz = q
-    v_crank_wx, v_crank_wy, v_crank_wz, v_crank_vx, v_crank_vy, v_crank_vz, v_coupler_wx, v_coupler_wy, v_coupler_wz, v_coupler_vx, v_coupler_vy, v_coupler_vz, v_rocker_wx, v_rocker_wy, v_rocker_wz, v_rocker_vx, v_rocker_vy, v_rocker_vz = v
-    crank_ox = -2*crank_dw*crank_rx - 2*crank_dy*crank_rz + 2*crank_dx*crank_rw + 2*crank_dz*crank_ry
-    crank_oy = -2*crank_dw*crank_ry - 2*crank_dz*crank_rx + 2*crank_dx*crank_rz + 2*crank_dy*crank_rw
-    crank_oz = -2*crank_dw*crank_rz - 2*crank_dx*crank_ry + 2*crank_dy*crank_rx + 2*crank_dz*crank_rw
+    crank_rw, crank_rx, crank_ry, crank_rz, _, _, _, _, coupler_rw, coupler_rx, coupler_ry, coupler_rz, _, _, _, _, rocker_rw, rocker_rx, rocker_ry, rocker_rz, _, _, _, _ = q
+    v_crank_wx, v_crank_wy, v_crank_wz, _, _, _, v_coupler_wx, v_coupler_wy, v_coupler_wz, _, _, _, v_rocker_wx, v_rocker_wy, v_rocker_wz, _, _, _ = v
     crank_a00 = -1 + 2*crank_rw**2 + 2*crank_rx**2
     crank_a01 = -2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a10 = 2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a11 = -1 + 2*crank_rw**2 + 2*crank_ry**2
     crank_a20 = -2*crank_rw*crank_ry + 2*crank_rx*crank_rz
     crank_a21 = 2*crank_rw*crank_rx + 2*crank_ry*crank_rz
-    coupler_ox = -2*coupler_dw*coupler_rx - 2*coupler_dy*coupler_rz + 2*coupler_dx*coupler_rw + 2*coupler_dz*coupler_ry
-    coupler_oy = -2*coupler_dw*coupler_ry - 2*coupler_dz*coupler_rx + 2*coupler_dx*coupler_rz + 2*coupler_dy*coupler_rw
-    coupler_oz = -2*coupler_dw*coupler_rz - 2*coupler_dx*coupler_ry + 2*coupler_dy*coupler_rx + 2*coupler_dz*coupler_rw
     coupler_a00 = -1 + 2*coupler_rw**2 + 2*coupler_rx**2
     coupler_a01 = -2*coupler_rw*coupler_rz + 2*coupler_rx*coupler_ry
     coupler_a10 = 2*coupler_rw*coupler_rz + 2*coupler_rx*coupler_ry
     coupler_a11 = -1 + 2*coupler_rw**2 + 2*coupler_ry**2
     coupler_a20 = -2*coupler_rw*coupler_ry + 2*coupler_rx*coupler_rz
     coupler_a21 = 2*coupler_rw*coupler_rx + 2*coupler_ry*coupler_rz
-    rocker_ox = -2*rocker_dw*rocker_rx - 2*rocker_dy*rocker_rz + 2*rocker_dx*rocker_rw + 2*rocker_dz*rocker_ry
-    rocker_oy = -2*rocker_dw*rocker_ry - 2*rocker_dz*rocker_rx + 2*rocker_dx*rocker_rz + 2*rocker_dy*rocker_rw
-    rocker_oz = -2*rocker_dw*rocker_rz - 2*rocker_dx*rocker_ry + 2*rocker_dy*rocker_rx + 2*rocker_dz*rocker_rw
     rocker_a00 = -1 + 2*rocker_rw**2 + 2*rocker_rx**2
     rocker_a01 = -2*rocker_rw*rocker_rz + 2*rocker_rx*rocker_ry
     rocker_a02 = 2*rocker_rw*rocker_ry + 2*rocker_rx*rocker_rz
@@ -260,56 +224,32 @@ def _joints_gamma(q, v):
     rocker_a20 = -2*rocker_rw*rocker_ry + 2*rocker_rx*rocker_rz
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c3 = -3/10*crank_a00*v_crank_wy + (3/10)*crank_a10*v_crank_wx
-    c4 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c5 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c6 = v_coupler_vy + coupler_ox*v_coupler_wz - coupler_oz*v_coupler_wx
-    c7 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c8 = v_coupler_vz + coupler_oy*v_coupler_wx - coupler_ox*v_coupler_wy
-    c9 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c10 = v_coupler_vx + coupler_oz*v_coupler_wy - coupler_oy*v_coupler_wz
-    c11 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c12 = -9/10*coupler_a00*v_coupler_wy + (9/10)*coupler_a10*v_coupler_wx
-    c13 = v_coupler_vz + coupler_oy*v_coupler_wx - coupler_ox*v_coupler_wy
-    c14 = coupler_a00*v_coupler_wz - coupler_a20*v_coupler_wx
-    c15 = rocker_a10*v_rocker_wx - rocker_a00*v_rocker_wy
-    c16 = rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx
-    c17 = (7/10)*v_rocker_wz
-    c18 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c19 = v_coupler_vy + coupler_ox*v_coupler_wz - coupler_oz*v_coupler_wx
-    c20 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
-    c21 = coupler_a20*v_coupler_wy - coupler_a10*v_coupler_wz
-    c22 = rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz
-    c23 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
-    c24 = v_coupler_vx + coupler_oz*v_coupler_wy - coupler_oy*v_coupler_wz
-    c25 = v_coupler_wy - v_rocker_wy
-    c26 = v_coupler_wx - v_rocker_wx
-    c27 = -c26
-    c28 = v_coupler_wz - v_rocker_wz
-    c29 = -c28
-    c30 = -c25
-    c31 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
-    c32 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c33 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
+    c0 = -3/10*crank_a00*v_crank_wy + (3/10)*crank_a10*v_crank_wx
+    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
+    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
+    c3 = -9/10*coupler_a00*v_coupler_wy + (9/10)*coupler_a10*v_coupler_wx
+    c4 = coupler_a00*v_coupler_wz - coupler_a20*v_coupler_wx
+    c5 = rocker_a10*v_rocker_wx - rocker_a00*v_rocker_wy
+    c6 = rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx
+    c7 = (7/10)*v_rocker_wz
+    c8 = coupler_a20*v_coupler_wy - coupler_a10*v_coupler_wz
+    c9 = rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz
+    c10 = v_coupler_wy - v_rocker_wy
+    c11 = v_coupler_wx - v_rocker_wx
+    c12 = -c11
+    c13 = v_coupler_wz - v_rocker_wz
+    c14 = -c13
+    c15 = -c10
     out = _zeros(17, q, ())
-    out[0] = c0*v_crank_wy - c1*v_crank_wz
-    out[1] = c2*v_crank_wz - c0*v_crank_wx
-    out[2] = c1*v_crank_wx - c2*v_crank_wy
     out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx)
     out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx)
-    out[5] = c7*v_crank_wz + c8*v_coupler_wy - c3*v_crank_wy - c4*v_crank_wy - c6*v_coupler_wz + (3/10)*c5*v_crank_wz
-    out[6] = c3*v_crank_wx + c4*v_crank_wx + c10*v_coupler_wz - c8*v_coupler_wx - c11*v_crank_wz - 3/10*c9*v_crank_wz
-    out[7] = c6*v_coupler_wx + c11*v_crank_wy - c7*v_crank_wx - c10*v_coupler_wy - 3/10*c5*v_crank_wx + (3/10)*c9*v_crank_wy
-    out[8] = c19*v_coupler_wz + c20*v_rocker_wy - c12*v_coupler_wy - c13*v_coupler_wy - c16*c17 - c18*v_rocker_wz + (7/10)*c15*v_rocker_wy + (9/10)*c14*v_coupler_wz
-    out[9] = c12*v_coupler_wx + c13*v_coupler_wx + c22*c17 + c23*v_rocker_wz - c24*v_coupler_wz - c20*v_rocker_wx - 9/10*c21*v_coupler_wz - 7/10*c15*v_rocker_wx
-    out[10] = c24*v_coupler_wy + c18*v_rocker_wx - c23*v_rocker_wy - c19*v_coupler_wx - 9/10*c14*v_coupler_wx - 7/10*c22*v_rocker_wy + (7/10)*c16*v_rocker_wx + (9/10)*c21*v_coupler_wy
-    out[11] = -(c25*coupler_a21 + c29*coupler_a11)*(rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz) - (c25*rocker_a02 + c27*rocker_a12)*(coupler_a11*v_coupler_wx - coupler_a01*v_coupler_wy) - (c26*coupler_a11 + c30*coupler_a01)*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy) - (c26*rocker_a22 + c29*rocker_a02)*(coupler_a01*v_coupler_wz - coupler_a21*v_coupler_wx) - (c27*coupler_a21 + c28*coupler_a01)*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - (c28*rocker_a12 + c30*rocker_a22)*(coupler_a21*v_coupler_wy - coupler_a11*v_coupler_wz)
-    out[12] = c31*v_rocker_wy - c32*v_rocker_wz
-    out[13] = c33*v_rocker_wz - c31*v_rocker_wx
-    out[14] = c32*v_rocker_wx - c33*v_rocker_wy
+    out[5] = -c0*v_crank_wy + (3/10)*c1*v_crank_wz
+    out[6] = c0*v_crank_wx - 3/10*c2*v_crank_wz
+    out[7] = -3/10*c1*v_crank_wx + (3/10)*c2*v_crank_wy
+    out[8] = -c3*v_coupler_wy - c6*c7 + (7/10)*c5*v_rocker_wy + (9/10)*c4*v_coupler_wz
+    out[9] = c3*v_coupler_wx + c7*c9 - 9/10*c8*v_coupler_wz - 7/10*c5*v_rocker_wx
+    out[10] = -9/10*c4*v_coupler_wx - 7/10*c9*v_rocker_wy + (7/10)*c6*v_rocker_wx + (9/10)*c8*v_coupler_wy
+    out[11] = -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_wy - coupler_a11*v_coupler_wz) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_wz - coupler_a21*v_coupler_wx) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_wx - coupler_a01*v_coupler_wy)
     out[15] = v_rocker_wy*(rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz) - v_rocker_wx*(rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx)
     out[16] = v_rocker_wy*(rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz) - v_rocker_wx*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)
     return out
@@ -348,46 +288,37 @@ def _joints_phi_jac_s(q):
     rocker_a20 = -2.0*rocker_rw*rocker_ry + 2.0*rocker_rx*rocker_rz
     rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz)
-    d0 = crank_oz + (3/10)*crank_a20
-    d1 = crank_oy + (3/10)*crank_a10
-    d2 = crank_ox + (3/10)*crank_a00
-    d3 = coupler_oz + (9/10)*coupler_a20
-    d4 = coupler_oy + (9/10)*coupler_a10
-    d5 = rocker_oz + (7/10)*rocker_a20
-    d6 = rocker_oy + (7/10)*rocker_a10
-    d7 = coupler_ox + (9/10)*coupler_a00
-    d8 = rocker_ox + (7/10)*rocker_a00
+    d0 = (3/10)*crank_a20
+    d1 = (3/10)*crank_a10
+    d2 = (3/10)*crank_a00
+    d3 = (9/10)*coupler_a20
+    d4 = (9/10)*coupler_a10
+    d5 = (7/10)*rocker_a20
+    d6 = (7/10)*rocker_a10
+    d7 = (9/10)*coupler_a00
+    d8 = (7/10)*rocker_a00
     d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
     d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
     d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, crank_ox - coupler_ox + (3/10)*crank_a00, crank_oy - coupler_oy + (3/10)*crank_a10, crank_oz - coupler_oz + (3/10)*crank_a20, coupler_ox - rocker_ox - 7/10*rocker_a00 + (9/10)*coupler_a00, coupler_oy - rocker_oy - 7/10*rocker_a10 + (9/10)*coupler_a10, coupler_oz - rocker_oz - 7/10*rocker_a20 + (9/10)*coupler_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_ox, -rocker_oy, -rocker_oz, rocker_a20, rocker_a21], [-crank_oz, crank_oy, -1.0, crank_oz, -crank_ox, -1.0, -crank_oy, crank_ox, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -coupler_oz, coupler_oy, -1.0, -d0, d2, 1.0, coupler_oz, -coupler_ox, -1.0, d1, -d2, 1.0, -coupler_oy, coupler_ox, -1.0, d3, -d4, 1.0, -d5, d6, -1.0, -d3, d7, 1.0, d5, -d8, -1.0, d4, -d7, 1.0, -d6, d8, -1.0, d9, -d10, d11, -d9, d10, -d11, -rocker_oz, rocker_oy, -1.0, rocker_oz, -rocker_ox, -1.0, -rocker_oy, rocker_ox, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
+    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, crank_ox - coupler_ox + (3/10)*crank_a00, crank_oy - coupler_oy + (3/10)*crank_a10, crank_oz - coupler_oz + (3/10)*crank_a20, coupler_ox - rocker_ox - 7/10*rocker_a00 + (9/10)*coupler_a00, coupler_oy - rocker_oy - 7/10*rocker_a10 + (9/10)*coupler_a10, coupler_oz - rocker_oz - 7/10*rocker_a20 + (9/10)*coupler_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_ox, -rocker_oy, -rocker_oz, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, 1.0, -d5, d6, -1.0, -d3, d7, 1.0, d5, -d8, -1.0, d4, -d7, 1.0, -d6, d8, -1.0, d9, -d10, d11, -d9, d10, -d11, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
-    crank_rw, crank_rx, crank_ry, crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, coupler_rw, coupler_rx, coupler_ry, coupler_rz, coupler_dw, coupler_dx, coupler_dy, coupler_dz, rocker_rw, rocker_rx, rocker_ry, rocker_rz, rocker_dw, rocker_dx, rocker_dy, rocker_dz = q
-    v_crank_wx, v_crank_wy, v_crank_wz, v_crank_vx, v_crank_vy, v_crank_vz, v_coupler_wx, v_coupler_wy, v_coupler_wz, v_coupler_vx, v_coupler_vy, v_coupler_vz, v_rocker_wx, v_rocker_wy, v_rocker_wz, v_rocker_vx, v_rocker_vy, v_rocker_vz = v
-    crank_ox = -2.0*crank_dw*crank_rx - 2.0*crank_dy*crank_rz + 2.0*crank_dx*crank_rw + 2.0*crank_dz*crank_ry
-    crank_oy = -2.0*crank_dw*crank_ry - 2.0*crank_dz*crank_rx + 2.0*crank_dx*crank_rz + 2.0*crank_dy*crank_rw
-    crank_oz = -2.0*crank_dw*crank_rz - 2.0*crank_dx*crank_ry + 2.0*crank_dy*crank_rx + 2.0*crank_dz*crank_rw
+    crank_rw, crank_rx, crank_ry, crank_rz, _, _, _, _, coupler_rw, coupler_rx, coupler_ry, coupler_rz, _, _, _, _, rocker_rw, rocker_rx, rocker_ry, rocker_rz, _, _, _, _ = q
+    v_crank_wx, v_crank_wy, v_crank_wz, _, _, _, v_coupler_wx, v_coupler_wy, v_coupler_wz, _, _, _, v_rocker_wx, v_rocker_wy, v_rocker_wz, _, _, _ = v
     crank_a00 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_rx*crank_rx)
     crank_a01 = -2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry
     crank_a10 = 2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry
     crank_a11 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_ry*crank_ry)
     crank_a20 = -2.0*crank_rw*crank_ry + 2.0*crank_rx*crank_rz
     crank_a21 = 2.0*crank_rw*crank_rx + 2.0*crank_ry*crank_rz
-    coupler_ox = -2.0*coupler_dw*coupler_rx - 2.0*coupler_dy*coupler_rz + 2.0*coupler_dx*coupler_rw + 2.0*coupler_dz*coupler_ry
-    coupler_oy = -2.0*coupler_dw*coupler_ry - 2.0*coupler_dz*coupler_rx + 2.0*coupler_dx*coupler_rz + 2.0*coupler_dy*coupler_rw
-    coupler_oz = -2.0*coupler_dw*coupler_rz - 2.0*coupler_dx*coupler_ry + 2.0*coupler_dy*coupler_rx + 2.0*coupler_dz*coupler_rw
     coupler_a00 = -1.0 + 2.0*(coupler_rw*coupler_rw) + 2.0*(coupler_rx*coupler_rx)
     coupler_a01 = -2.0*coupler_rw*coupler_rz + 2.0*coupler_rx*coupler_ry
     coupler_a10 = 2.0*coupler_rw*coupler_rz + 2.0*coupler_rx*coupler_ry
     coupler_a11 = -1.0 + 2.0*(coupler_rw*coupler_rw) + 2.0*(coupler_ry*coupler_ry)
     coupler_a20 = -2.0*coupler_rw*coupler_ry + 2.0*coupler_rx*coupler_rz
     coupler_a21 = 2.0*coupler_rw*coupler_rx + 2.0*coupler_ry*coupler_rz
-    rocker_ox = -2.0*rocker_dw*rocker_rx - 2.0*rocker_dy*rocker_rz + 2.0*rocker_dx*rocker_rw + 2.0*rocker_dz*rocker_ry
-    rocker_oy = -2.0*rocker_dw*rocker_ry - 2.0*rocker_dz*rocker_rx + 2.0*rocker_dx*rocker_rz + 2.0*rocker_dy*rocker_rw
-    rocker_oz = -2.0*rocker_dw*rocker_rz - 2.0*rocker_dx*rocker_ry + 2.0*rocker_dy*rocker_rx + 2.0*rocker_dz*rocker_rw
     rocker_a00 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rx*rocker_rx)
     rocker_a01 = -2.0*rocker_rw*rocker_rz + 2.0*rocker_rx*rocker_ry
     rocker_a02 = 2.0*rocker_rw*rocker_ry + 2.0*rocker_rx*rocker_rz
@@ -397,41 +328,23 @@ def _joints_gamma_s(q, v):
     rocker_a20 = -2.0*rocker_rw*rocker_ry + 2.0*rocker_rx*rocker_rz
     rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz)
-    c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c3 = -3/10*crank_a00*v_crank_wy + (3/10)*crank_a10*v_crank_wx
-    c4 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c5 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c6 = v_coupler_vy + coupler_ox*v_coupler_wz - coupler_oz*v_coupler_wx
-    c7 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c8 = v_coupler_vz + coupler_oy*v_coupler_wx - coupler_ox*v_coupler_wy
-    c9 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c10 = v_coupler_vx + coupler_oz*v_coupler_wy - coupler_oy*v_coupler_wz
-    c11 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c12 = -9/10*coupler_a00*v_coupler_wy + (9/10)*coupler_a10*v_coupler_wx
-    c13 = v_coupler_vz + coupler_oy*v_coupler_wx - coupler_ox*v_coupler_wy
-    c14 = coupler_a00*v_coupler_wz - coupler_a20*v_coupler_wx
-    c15 = rocker_a10*v_rocker_wx - rocker_a00*v_rocker_wy
-    c16 = rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx
-    c17 = (7/10)*v_rocker_wz
-    c18 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c19 = v_coupler_vy + coupler_ox*v_coupler_wz - coupler_oz*v_coupler_wx
-    c20 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
-    c21 = coupler_a20*v_coupler_wy - coupler_a10*v_coupler_wz
-    c22 = rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz
-    c23 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
-    c24 = v_coupler_vx + coupler_oz*v_coupler_wy - coupler_oy*v_coupler_wz
-    c25 = v_coupler_wy - v_rocker_wy
-    c26 = v_coupler_wx - v_rocker_wx
-    c27 = -c26
-    c28 = v_coupler_wz - v_rocker_wz
-    c29 = -c28
-    c30 = -c25
-    c31 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
-    c32 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c33 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
-    return [c0*v_crank_wy - c1*v_crank_wz, c2*v_crank_wz - c0*v_crank_wx, c1*v_crank_wx - c2*v_crank_wy, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), c7*v_crank_wz + c8*v_coupler_wy - c3*v_crank_wy - c4*v_crank_wy - c6*v_coupler_wz + (3/10)*c5*v_crank_wz, c3*v_crank_wx + c4*v_crank_wx + c10*v_coupler_wz - c8*v_coupler_wx - c11*v_crank_wz - 3/10*c9*v_crank_wz, c6*v_coupler_wx + c11*v_crank_wy - c7*v_crank_wx - c10*v_coupler_wy - 3/10*c5*v_crank_wx + (3/10)*c9*v_crank_wy, c19*v_coupler_wz + c20*v_rocker_wy - c12*v_coupler_wy - c13*v_coupler_wy - c16*c17 - c18*v_rocker_wz + (7/10)*c15*v_rocker_wy + (9/10)*c14*v_coupler_wz, c12*v_coupler_wx + c13*v_coupler_wx + c22*c17 + c23*v_rocker_wz - c24*v_coupler_wz - c20*v_rocker_wx - 9/10*c21*v_coupler_wz - 7/10*c15*v_rocker_wx, c24*v_coupler_wy + c18*v_rocker_wx - c23*v_rocker_wy - c19*v_coupler_wx - 9/10*c14*v_coupler_wx - 7/10*c22*v_rocker_wy + (7/10)*c16*v_rocker_wx + (9/10)*c21*v_coupler_wy, -(c25*coupler_a21 + c29*coupler_a11)*(rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz) - (c25*rocker_a02 + c27*rocker_a12)*(coupler_a11*v_coupler_wx - coupler_a01*v_coupler_wy) - (c26*coupler_a11 + c30*coupler_a01)*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy) - (c26*rocker_a22 + c29*rocker_a02)*(coupler_a01*v_coupler_wz - coupler_a21*v_coupler_wx) - (c27*coupler_a21 + c28*coupler_a01)*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - (c28*rocker_a12 + c30*rocker_a22)*(coupler_a21*v_coupler_wy - coupler_a11*v_coupler_wz), c31*v_rocker_wy - c32*v_rocker_wz, c33*v_rocker_wz - c31*v_rocker_wx, c32*v_rocker_wx - c33*v_rocker_wy, v_rocker_wy*(rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz) - v_rocker_wx*(rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx), v_rocker_wy*(rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz) - v_rocker_wx*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)]
+    c0 = -3/10*crank_a00*v_crank_wy + (3/10)*crank_a10*v_crank_wx
+    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
+    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
+    c3 = -9/10*coupler_a00*v_coupler_wy + (9/10)*coupler_a10*v_coupler_wx
+    c4 = coupler_a00*v_coupler_wz - coupler_a20*v_coupler_wx
+    c5 = rocker_a10*v_rocker_wx - rocker_a00*v_rocker_wy
+    c6 = rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx
+    c7 = (7/10)*v_rocker_wz
+    c8 = coupler_a20*v_coupler_wy - coupler_a10*v_coupler_wz
+    c9 = rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz
+    c10 = v_coupler_wy - v_rocker_wy
+    c11 = v_coupler_wx - v_rocker_wx
+    c12 = -c11
+    c13 = v_coupler_wz - v_rocker_wz
+    c14 = -c13
+    c15 = -c10
+    return [0.0, 0.0, 0.0, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), -c0*v_crank_wy + (3/10)*c1*v_crank_wz, c0*v_crank_wx - 3/10*c2*v_crank_wz, -3/10*c1*v_crank_wx + (3/10)*c2*v_crank_wy, -c3*v_coupler_wy - c6*c7 + (7/10)*c5*v_rocker_wy + (9/10)*c4*v_coupler_wz, c3*v_coupler_wx + c7*c9 - 9/10*c8*v_coupler_wz - 7/10*c5*v_rocker_wx, -9/10*c4*v_coupler_wx - 7/10*c9*v_rocker_wy + (7/10)*c6*v_rocker_wx + (9/10)*c8*v_coupler_wy, -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_wy - coupler_a11*v_coupler_wz) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_wz - coupler_a21*v_coupler_wx) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_wx - coupler_a01*v_coupler_wy), 0.0, 0.0, 0.0, v_rocker_wy*(rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz) - v_rocker_wx*(rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx), v_rocker_wy*(rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz) - v_rocker_wx*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)]
 
 
 def frames(q, v, a):
@@ -475,15 +388,6 @@ def frames(q, v, a):
     rocker_a20 = -2*rocker_rw*rocker_ry + 2*rocker_rx*rocker_rz
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    c0 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c3 = v_coupler_vx + coupler_oz*v_coupler_wy - coupler_oy*v_coupler_wz
-    c4 = v_coupler_vy + coupler_ox*v_coupler_wz - coupler_oz*v_coupler_wx
-    c5 = v_coupler_vz + coupler_oy*v_coupler_wx - coupler_ox*v_coupler_wy
-    c6 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
-    c7 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c8 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
     out = _zeros(72, q, ())
     out[0] = crank_ox
     out[1] = crank_oy
@@ -497,15 +401,15 @@ def frames(q, v, a):
     out[9] = crank_a20
     out[10] = crank_a21
     out[11] = crank_a22
-    out[12] = c0
-    out[13] = c1
-    out[14] = c2
+    out[12] = v_crank_vx
+    out[13] = v_crank_vy
+    out[14] = v_crank_vz
     out[15] = v_crank_wx
     out[16] = v_crank_wy
     out[17] = v_crank_wz
-    out[18] = dv_crank_vx + c2*v_crank_wy + crank_oz*dv_crank_wy - c1*v_crank_wz - crank_oy*dv_crank_wz
-    out[19] = dv_crank_vy + c0*v_crank_wz + crank_ox*dv_crank_wz - c2*v_crank_wx - crank_oz*dv_crank_wx
-    out[20] = dv_crank_vz + c1*v_crank_wx + crank_oy*dv_crank_wx - c0*v_crank_wy - crank_ox*dv_crank_wy
+    out[18] = dv_crank_vx
+    out[19] = dv_crank_vy
+    out[20] = dv_crank_vz
     out[21] = dv_crank_wx
     out[22] = dv_crank_wy
     out[23] = dv_crank_wz
@@ -521,15 +425,15 @@ def frames(q, v, a):
     out[33] = coupler_a20
     out[34] = coupler_a21
     out[35] = coupler_a22
-    out[36] = c3
-    out[37] = c4
-    out[38] = c5
+    out[36] = v_coupler_vx
+    out[37] = v_coupler_vy
+    out[38] = v_coupler_vz
     out[39] = v_coupler_wx
     out[40] = v_coupler_wy
     out[41] = v_coupler_wz
-    out[42] = dv_coupler_vx + c5*v_coupler_wy + coupler_oz*dv_coupler_wy - c4*v_coupler_wz - coupler_oy*dv_coupler_wz
-    out[43] = dv_coupler_vy + c3*v_coupler_wz + coupler_ox*dv_coupler_wz - c5*v_coupler_wx - coupler_oz*dv_coupler_wx
-    out[44] = dv_coupler_vz + c4*v_coupler_wx + coupler_oy*dv_coupler_wx - c3*v_coupler_wy - coupler_ox*dv_coupler_wy
+    out[42] = dv_coupler_vx
+    out[43] = dv_coupler_vy
+    out[44] = dv_coupler_vz
     out[45] = dv_coupler_wx
     out[46] = dv_coupler_wy
     out[47] = dv_coupler_wz
@@ -545,15 +449,15 @@ def frames(q, v, a):
     out[57] = rocker_a20
     out[58] = rocker_a21
     out[59] = rocker_a22
-    out[60] = c6
-    out[61] = c7
-    out[62] = c8
+    out[60] = v_rocker_vx
+    out[61] = v_rocker_vy
+    out[62] = v_rocker_vz
     out[63] = v_rocker_wx
     out[64] = v_rocker_wy
     out[65] = v_rocker_wz
-    out[66] = dv_rocker_vx + c8*v_rocker_wy + rocker_oz*dv_rocker_wy - c7*v_rocker_wz - rocker_oy*dv_rocker_wz
-    out[67] = dv_rocker_vy + c6*v_rocker_wz + rocker_ox*dv_rocker_wz - c8*v_rocker_wx - rocker_oz*dv_rocker_wx
-    out[68] = dv_rocker_vz + c7*v_rocker_wx + rocker_oy*dv_rocker_wx - c6*v_rocker_wy - rocker_ox*dv_rocker_wy
+    out[66] = dv_rocker_vx
+    out[67] = dv_rocker_vy
+    out[68] = dv_rocker_vz
     out[69] = dv_rocker_wx
     out[70] = dv_rocker_wy
     out[71] = dv_rocker_wz
@@ -674,7 +578,7 @@ def phi_crank_turn(q, u):
 
 
 def jac_crank_turn(q, u):
-    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (71 entries)."""
+    """Values of the sparse Phi_q of case 'crank_turn' at jac_rows, jac_cols (53 entries)."""
     return _join(_joints_jac(q), _drivers_jac_crank_turn(q, u))
 
 
@@ -710,8 +614,8 @@ CASES = {
     'crank_turn': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'D.x', 'D.y', 'D.z', 'D.axis_f', 'D.axis_g', 'crank_angle'),
         'drivers': ('crank_angle',),
-        'jac_rows': (0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 13, 13, 13, 14, 14, 14, 15, 15, 16, 16, 17, 17, 17),
-        'jac_cols': (1, 2, 3, 0, 2, 4, 0, 1, 5, 0, 1, 0, 1, 1, 2, 3, 7, 8, 9, 0, 2, 4, 6, 8, 10, 0, 1, 5, 6, 7, 11, 7, 8, 9, 13, 14, 15, 6, 8, 10, 12, 14, 16, 6, 7, 11, 12, 13, 17, 6, 7, 8, 12, 13, 14, 13, 14, 15, 12, 14, 16, 12, 13, 17, 12, 13, 12, 13, 0, 1, 2),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 13, 14, 15, 15, 16, 16, 17, 17, 17),
+        'jac_cols': (3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 7, 8, 9, 13, 14, 15, 6, 8, 10, 12, 14, 16, 6, 7, 11, 12, 13, 17, 6, 7, 8, 12, 13, 14, 15, 16, 17, 12, 13, 12, 13, 0, 1, 2),
         't0': 0.0, 't1': 1.0, 'steps': 201,
         'driver_sources': (('cases.crank_turn.drivers.crank_angle.function', '0.5 + 2*pi*t + 0.3*sin(2*pi*t)'),),
         'inputs': inputs_crank_turn, 'phi': phi_crank_turn, 'jac': jac_crank_turn, 'nu': nu_crank_turn, 'gamma': gamma_crank_turn,

@@ -71,7 +71,7 @@ static void compute_drivers_phi_turn(const double *q, const double *u, double *o
     out[0] = -2.0*crank_rz*cos(c0) + 2.0*crank_rw*sin(c0);
 }
 
-/* Phi_q values of the joint rows (38 entries). */
+/* Phi_q values of the joint rows (26 entries). */
 static void compute_joints_jac(const double *q, double *out) {
     const double crank_rw = q[0];
     const double crank_rx = q[1];
@@ -107,58 +107,43 @@ static void compute_joints_jac(const double *q, double *out) {
     const double rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz);
     const double d0 = -0.061144002*rocker_a22 - 3.0/10.0*rocker_oz + (3.0/10.0)*crank_oz + (9.0/200.0)*crank_a20 + (0.06604098)*rocker_a21;
-    const double d1 = -2.0*rocker_oz + 2.0*crank_oz - 0.40762668*rocker_a22 + (3.0/10.0)*crank_a20 + (0.4402732)*rocker_a21;
-    const double d2 = -0.061144002*rocker_a12 - 3.0/10.0*rocker_oy + (3.0/10.0)*crank_oy + (9.0/200.0)*crank_a10 + (0.06604098)*rocker_a11;
-    const double d3 = -2.0*rocker_oy + 2.0*crank_oy - 0.40762668*rocker_a12 + (3.0/10.0)*crank_a10 + (0.4402732)*rocker_a11;
-    const double d4 = -0.061144002*rocker_a02 - 3.0/10.0*rocker_ox + (3.0/10.0)*crank_ox + (9.0/200.0)*crank_a00 + (0.06604098)*rocker_a01;
-    const double d5 = -2.0*rocker_ox + 2.0*crank_ox - 0.40762668*rocker_a02 + (3.0/10.0)*crank_a00 + (0.4402732)*rocker_a01;
+    const double d1 = -0.061144002*rocker_a12 - 3.0/10.0*rocker_oy + (3.0/10.0)*crank_oy + (9.0/200.0)*crank_a10 + (0.06604098)*rocker_a11;
+    const double d2 = -0.061144002*rocker_a02 - 3.0/10.0*rocker_ox + (3.0/10.0)*crank_ox + (9.0/200.0)*crank_a00 + (0.06604098)*rocker_a01;
+    const double d3 = -2.0*rocker_ox + 2.0*crank_ox - 0.40762668*rocker_a02 + (3.0/10.0)*crank_a00 + (0.4402732)*rocker_a01;
+    const double d4 = -2.0*rocker_oy + 2.0*crank_oy - 0.40762668*rocker_a12 + (3.0/10.0)*crank_a10 + (0.4402732)*rocker_a11;
+    const double d5 = -2.0*rocker_oz + 2.0*crank_oz - 0.40762668*rocker_a22 + (3.0/10.0)*crank_a20 + (0.4402732)*rocker_a21;
     const double d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_oz + (0.4402732)*crank_oz + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21;
     const double d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_oz + (0.40762668)*rocker_oz + (0.0830797551239112)*rocker_a22;
-    const double d8 = -d1;
-    const double d9 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11;
-    const double d10 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12;
-    const double d11 = -d3;
-    const double d12 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01;
-    const double d13 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02;
-    const double d14 = -d5;
-    out[0] = -crank_oz;
-    out[1] = crank_oy;
+    const double d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11;
+    const double d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12;
+    const double d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01;
+    const double d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02;
+    out[0] = -1.0;
+    out[1] = -1.0;
     out[2] = -1.0;
-    out[3] = crank_oz;
-    out[4] = -crank_ox;
-    out[5] = -1.0;
-    out[6] = -crank_oy;
-    out[7] = crank_ox;
+    out[3] = crank_a10;
+    out[4] = -crank_a00;
+    out[5] = crank_a11;
+    out[6] = -crank_a01;
+    out[7] = -1.0;
     out[8] = -1.0;
-    out[9] = crank_a10;
-    out[10] = -crank_a00;
-    out[11] = crank_a11;
-    out[12] = -crank_a01;
-    out[13] = -rocker_oz;
-    out[14] = rocker_oy;
-    out[15] = -1.0;
-    out[16] = rocker_oz;
-    out[17] = -rocker_ox;
-    out[18] = -1.0;
-    out[19] = -rocker_oy;
-    out[20] = rocker_ox;
-    out[21] = -1.0;
-    out[22] = rocker_a21;
-    out[23] = -rocker_a11;
-    out[24] = rocker_a22;
-    out[25] = -rocker_a12;
-    out[26] = d0*crank_a10 + d1*crank_oy - d2*crank_a20 - d3*crank_oz;
-    out[27] = d4*crank_a20 + d5*crank_oz - d0*crank_a00 - d1*crank_ox;
-    out[28] = d2*crank_a00 + d3*crank_ox - d4*crank_a10 - d5*crank_oy;
-    out[29] = d5;
-    out[30] = d3;
-    out[31] = d1;
-    out[32] = d6*rocker_a11 + d7*rocker_a12 + d8*rocker_oy - d10*rocker_a22 - d11*rocker_oz - d9*rocker_a21;
-    out[33] = d12*rocker_a21 + d13*rocker_a22 + d14*rocker_oz - d6*rocker_a01 - d7*rocker_a02 - d8*rocker_ox;
-    out[34] = d10*rocker_a02 + d11*rocker_ox + d9*rocker_a01 - d12*rocker_a11 - d13*rocker_a12 - d14*rocker_oy;
-    out[35] = d14;
-    out[36] = d11;
-    out[37] = d8;
+    out[9] = -1.0;
+    out[10] = rocker_a21;
+    out[11] = -rocker_a11;
+    out[12] = rocker_a22;
+    out[13] = -rocker_a12;
+    out[14] = d0*crank_a10 - d1*crank_a20;
+    out[15] = d2*crank_a20 - d0*crank_a00;
+    out[16] = d1*crank_a00 - d2*crank_a10;
+    out[17] = d3;
+    out[18] = d4;
+    out[19] = d5;
+    out[20] = d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22;
+    out[21] = d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02;
+    out[22] = d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12;
+    out[23] = -d3;
+    out[24] = -d4;
+    out[25] = -d5;
 }
 
 /* Phi_q values of the driver rows of case 'turn'. */
@@ -234,65 +219,51 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double rocker_a12 = -2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz);
-    const double c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy;
-    const double c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx;
-    const double c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz;
-    const double c3 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy;
-    const double c4 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx;
-    const double c5 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz;
-    const double c6 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy;
-    const double c7 = -c6;
-    const double c8 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx;
-    const double c9 = -0.4402732*v_rocker_wy + (0.4402732)*v_crank_wy;
-    const double c10 = -c9;
-    const double c11 = -0.4402732*v_rocker_wx + (0.4402732)*v_crank_wx;
-    const double c12 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz;
-    const double c13 = -c8;
-    const double c14 = -0.4402732*v_rocker_wz + (0.4402732)*v_crank_wz;
-    const double c15 = -c11;
-    const double c16 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy;
-    const double c17 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx;
-    const double c18 = -c17;
-    const double c19 = -0.40762668*v_rocker_wy + (0.40762668)*v_crank_wy;
-    const double c20 = -0.40762668*v_rocker_wx + (0.40762668)*v_crank_wx;
-    const double c21 = -c20;
-    const double c22 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz;
-    const double c23 = -c22;
-    const double c24 = -0.40762668*v_rocker_wz + (0.40762668)*v_crank_wz;
+    const double c0 = crank_a10*v_crank_wz;
+    const double c1 = rocker_a11*v_rocker_wz;
+    const double c2 = -2.0*v_crank_vx + 2.0*v_rocker_vx + (3.0/10.0)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_wz - 0.4402732*rocker_a21*v_rocker_wy - 3.0/10.0*crank_a20*v_crank_wy + (0.40762668)*rocker_a22*v_rocker_wy;
+    const double c3 = crank_a00*v_crank_wz;
+    const double c4 = crank_a20*v_crank_wx;
+    const double c5 = rocker_a01*v_rocker_wz;
+    const double c6 = rocker_a02*v_rocker_wz;
+    const double c7 = rocker_a21*v_rocker_wx;
+    const double c8 = rocker_a22*v_rocker_wx;
+    const double c9 = -2.0*v_rocker_vy + 2.0*v_crank_vy - 0.40762668*c6 - 0.4402732*c7 - 3.0/10.0*c4 + (3.0/10.0)*c3 + (0.4402732)*c5 + (0.40762668)*c8;
+    const double c10 = crank_a00*v_crank_wy;
+    const double c11 = rocker_a01*v_rocker_wy;
+    const double c12 = -2.0*v_crank_vz + 2.0*v_rocker_vz + (3.0/10.0)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_wy - 0.4402732*rocker_a11*v_rocker_wx - 3.0/10.0*crank_a10*v_crank_wx + (0.40762668)*rocker_a12*v_rocker_wx;
+    const double c13 = (0.4402732)*v_rocker_wy;
+    const double c14 = (0.4402732)*v_rocker_wx;
+    const double c15 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy;
+    const double c16 = -c15;
+    const double c17 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx;
+    const double c18 = (0.4402732)*v_rocker_wz;
+    const double c19 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz;
+    const double c20 = -c17;
+    const double c21 = (0.40762668)*v_rocker_wy;
+    const double c22 = (0.40762668)*v_rocker_wx;
+    const double c23 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy;
+    const double c24 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx;
     const double c25 = -c24;
-    const double c26 = -c12;
-    const double c27 = -c14;
-    const double c28 = -c16;
+    const double c26 = (0.40762668)*v_rocker_wz;
+    const double c27 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz;
+    const double c28 = -c27;
     const double c29 = -c19;
-    const double c30 = 2.0*v_crank_vz;
-    const double c31 = 2.0*v_rocker_vz;
-    const double c32 = -3.0/10.0*v_rocker_wy + (3.0/10.0)*v_crank_wy;
-    const double c33 = -3.0/10.0*v_rocker_wx + (3.0/10.0)*v_crank_wx;
-    const double c34 = -c33;
-    const double c35 = -2.0*v_rocker_wy + 2.0*v_crank_wy;
-    const double c36 = -2.0*v_rocker_wx + 2.0*v_crank_wx;
-    const double c37 = -c36;
-    const double c38 = 2.0*v_crank_vy;
-    const double c39 = 2.0*v_rocker_vy;
-    const double c40 = -3.0/10.0*v_rocker_wz + (3.0/10.0)*v_crank_wz;
-    const double c41 = -c40;
-    const double c42 = -2.0*v_rocker_wz + 2.0*v_crank_wz;
-    const double c43 = -c42;
-    const double c44 = 2.0*v_crank_vx;
-    const double c45 = 2.0*v_rocker_vx;
-    const double c46 = -c32;
-    const double c47 = -c35;
-    out[0] = c0*v_crank_wy - c1*v_crank_wz;
-    out[1] = c2*v_crank_wz - c0*v_crank_wx;
-    out[2] = c1*v_crank_wx - c2*v_crank_wy;
+    const double c30 = -c23;
+    const double c31 = (3.0/10.0)*v_crank_wy;
+    const double c32 = (3.0/10.0)*v_crank_wx;
+    const double c33 = (3.0/10.0)*v_crank_wz;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx);
     out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx);
-    out[5] = c3*v_rocker_wy - c4*v_rocker_wz;
-    out[6] = c5*v_rocker_wz - c3*v_rocker_wx;
-    out[7] = c4*v_rocker_wx - c5*v_rocker_wy;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 0.0;
     out[8] = v_rocker_wz*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx) - v_rocker_wy*(rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy);
     out[9] = v_rocker_wz*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - v_rocker_wy*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy);
-    out[10] = -(crank_a00*v_crank_wz - crank_a20*v_crank_wx)*(-3.0/10.0*v_rocker_vy + (3.0/10.0)*v_crank_vy + c18*rocker_a22 + c22*rocker_a02 + c8*rocker_a21 + c26*rocker_a01 + c34*rocker_oz + c40*rocker_ox) - (crank_a10*v_crank_wx - crank_a00*v_crank_wy)*(-3.0/10.0*v_rocker_vz + (3.0/10.0)*v_crank_vz + c6*rocker_a01 + c17*rocker_a12 + c28*rocker_a02 + c33*rocker_oy + c46*rocker_ox + c13*rocker_a11) - (crank_a20*v_crank_wy - crank_a10*v_crank_wz)*(-3.0/10.0*v_rocker_vx + (3.0/10.0)*v_crank_vx + c7*rocker_a21 + c16*rocker_a22 + c23*rocker_a12 + c32*rocker_oz + c41*rocker_oy + c12*rocker_a11) - (rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c12*crank_a00 + c13*crank_a20 + c14*crank_ox + c15*crank_oz) - (rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c17*crank_a20 + c20*crank_oz + c23*crank_a00 + c25*crank_ox) - (rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c7*crank_a00 + c8*crank_a10 + c10*crank_ox + c11*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c16*crank_a00 + c18*crank_a10 + c19*crank_ox + c21*crank_oy) - (rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c6*crank_a20 + c26*crank_a10 + c27*crank_oy + c9*crank_oz) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c22*crank_a10 + c24*crank_oy + c28*crank_a20 + c29*crank_oz) - (v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz)*(c44 - c45 + c19*rocker_a22 + c25*rocker_a12 + c35*rocker_oz + c43*rocker_oy + c10*rocker_a21 + c14*rocker_a11) - (v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx)*(c38 - c39 + c21*rocker_a22 + c24*rocker_a02 + c27*rocker_a01 + c37*rocker_oz + c42*rocker_ox + c11*rocker_a21) - (v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy)*(c30 - c31 + c20*rocker_a12 + c29*rocker_a02 + c9*rocker_a01 + c36*rocker_oy + c47*rocker_ox + c15*rocker_a11) - (v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz)*(c45 - c44 + c40*crank_a10 + c42*crank_oy + c46*crank_a20 + c47*crank_oz) - (v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx)*(c39 - c38 + c33*crank_a20 + c36*crank_oz + c41*crank_a00 + c43*crank_ox) - (v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy)*(c31 - c30 + c32*crank_a00 + c34*crank_a10 + c35*crank_ox + c37*crank_oy);
+    out[10] = c12*v_crank_vz + c2*v_crank_vx + c9*v_rocker_vy - c12*v_rocker_vz - c2*v_rocker_vx - c9*v_crank_vy - (c3 - c4)*(-3.0/10.0*v_rocker_vy + (3.0/10.0)*v_crank_vy + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_oz + c33*rocker_ox - c32*rocker_oz - c33*crank_ox) - (c5 - c7)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c14*crank_oz + c18*rocker_ox + c19*crank_a00 + c20*crank_a20 - c14*rocker_oz - c18*crank_ox) - (c6 - c8)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c22*rocker_oz + c24*crank_a20 + c26*crank_ox + c28*crank_a00 - c22*crank_oz - c26*rocker_ox) - (-c0 + crank_a20*v_crank_wy)*(-3.0/10.0*v_rocker_vx + (3.0/10.0)*v_crank_vx + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_oz + c33*crank_oy - c31*crank_oz - c33*rocker_oy) - (-c1 + rocker_a21*v_rocker_wy)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c13*rocker_oz + c15*crank_a20 + c18*crank_oy + c29*crank_a10 - c13*crank_oz - c18*rocker_oy) - (-c10 + crank_a10*v_crank_wx)*(-3.0/10.0*v_rocker_vz + (3.0/10.0)*v_crank_vz + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_ox + c32*rocker_oy - c31*rocker_ox - c32*crank_oy) - (-c11 + rocker_a11*v_rocker_wx)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c13*crank_ox + c14*rocker_oy + c16*crank_a00 + c17*crank_a10 - c13*rocker_ox - c14*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c21*rocker_ox + c22*crank_oy + c23*crank_a00 + c25*crank_a10 - c21*crank_ox - c22*rocker_oy) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c21*crank_oz + c26*rocker_oy + c27*crank_a10 + c30*crank_a20 - c21*rocker_oz - c26*crank_oy);
 }
 
 /* gamma of the driver rows of case 'turn'. */
@@ -396,12 +367,6 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double rocker_a20 = -2.0*rocker_rw*rocker_ry + 2.0*rocker_rx*rocker_rz;
     const double rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz);
-    const double c0 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz;
-    const double c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx;
-    const double c2 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy;
-    const double c3 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz;
-    const double c4 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx;
-    const double c5 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy;
     out[0] = crank_ox;
     out[1] = crank_oy;
     out[2] = crank_oz;
@@ -414,15 +379,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[9] = crank_a20;
     out[10] = crank_a21;
     out[11] = crank_a22;
-    out[12] = c0;
-    out[13] = c1;
-    out[14] = c2;
+    out[12] = v_crank_vx;
+    out[13] = v_crank_vy;
+    out[14] = v_crank_vz;
     out[15] = v_crank_wx;
     out[16] = v_crank_wy;
     out[17] = v_crank_wz;
-    out[18] = dv_crank_vx + c2*v_crank_wy + crank_oz*dv_crank_wy - c1*v_crank_wz - crank_oy*dv_crank_wz;
-    out[19] = dv_crank_vy + c0*v_crank_wz + crank_ox*dv_crank_wz - c2*v_crank_wx - crank_oz*dv_crank_wx;
-    out[20] = dv_crank_vz + c1*v_crank_wx + crank_oy*dv_crank_wx - c0*v_crank_wy - crank_ox*dv_crank_wy;
+    out[18] = dv_crank_vx;
+    out[19] = dv_crank_vy;
+    out[20] = dv_crank_vz;
     out[21] = dv_crank_wx;
     out[22] = dv_crank_wy;
     out[23] = dv_crank_wz;
@@ -438,15 +403,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[33] = rocker_a20;
     out[34] = rocker_a21;
     out[35] = rocker_a22;
-    out[36] = c3;
-    out[37] = c4;
-    out[38] = c5;
+    out[36] = v_rocker_vx;
+    out[37] = v_rocker_vy;
+    out[38] = v_rocker_vz;
     out[39] = v_rocker_wx;
     out[40] = v_rocker_wy;
     out[41] = v_rocker_wz;
-    out[42] = dv_rocker_vx + c5*v_rocker_wy + rocker_oz*dv_rocker_wy - c4*v_rocker_wz - rocker_oy*dv_rocker_wz;
-    out[43] = dv_rocker_vy + c3*v_rocker_wz + rocker_ox*dv_rocker_wz - c5*v_rocker_wx - rocker_oz*dv_rocker_wx;
-    out[44] = dv_rocker_vz + c4*v_rocker_wx + rocker_oy*dv_rocker_wx - c3*v_rocker_wy - rocker_ox*dv_rocker_wy;
+    out[42] = dv_rocker_vx;
+    out[43] = dv_rocker_vy;
+    out[44] = dv_rocker_vz;
     out[45] = dv_rocker_wx;
     out[46] = dv_rocker_wy;
     out[47] = dv_rocker_wz;
@@ -454,8 +419,14 @@ static void compute_frames(const double *q, const double *v, const double *a, do
 
 /* one body's coordinates moved by a step in velocity coordinates (dual-quaternion) */
 static void retract_body(double *q, const double *step) {
+    double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
+    double ox = 2.0 * (rw * sx - sw * rx + ry * sz - rz * sy) + 0.5 * step[3];
+    double oy = 2.0 * (rw * sy - sw * ry + rz * sx - rx * sz) + 0.5 * step[4];
+    double oz = 2.0 * (rw * sz - sw * rz + rx * sy - ry * sx) + 0.5 * step[5];
     double ax = 0.5 * step[0], ay = 0.5 * step[1], az = 0.5 * step[2];
-    double bx = 0.5 * step[3], by = 0.5 * step[4], bz = 0.5 * step[5];
+    double bx = 0.5 * (step[3] + oy * step[2] - oz * step[1]);
+    double by = 0.5 * (step[4] + oz * step[0] - ox * step[2]);
+    double bz = 0.5 * (step[5] + ox * step[1] - oy * step[0]);
     double h2 = ax * ax + ay * ay + az * az, h = sqrt(h2), ab = ax * bx + ay * by + az * bz;
     double sinc, bend;
     if (h < 1e-4) {
@@ -467,7 +438,6 @@ static void retract_body(double *q, const double *step) {
     }
     double pw = cos(h), px = sinc * ax, py = sinc * ay, pz = sinc * az;
     double dw = -sinc * ab, dx = sinc * bx + bend * ab * ax, dy = sinc * by + bend * ab * ay, dz = sinc * bz + bend * ab * az;
-    double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
     q[0] = pw * rw - px * rx - py * ry - pz * rz;
     q[1] = pw * rx + px * rw + py * rz - pz * ry;
     q[2] = pw * ry - px * rz + py * rw + pz * rx;
@@ -487,7 +457,7 @@ static void phi_jac_turn(const double *q, const double *u, double *phi, double *
     compute_joints_phi(q, phi);
     compute_drivers_phi_turn(q, u, phi + 11);
     compute_joints_jac(q, jac);
-    compute_drivers_jac_turn(q, u, jac + 38);
+    compute_drivers_jac_turn(q, u, jac + 26);
 }
 
 /* nu = -Phi_t of case 'turn' (zero in the joint rows). */
@@ -538,29 +508,29 @@ static const double initial_q[] = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 1.0, 
 /* ---- case turn ---- */
 static const char *const constraints_turn[] = {"A.x", "A.y", "A.z", "A.axis_f", "A.axis_g", "D.x", "D.y", "D.z", "D.axis_f", "D.axis_g", "coupler.length", "crank_angle"};
 static const char *const drivers_turn[] = {"crank_angle"};
-static const int jac_rows_turn[] = {0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11};
-static const int jac_cols_turn[] = {1, 2, 3, 0, 2, 4, 0, 1, 5, 0, 1, 0, 1, 7, 8, 9, 6, 8, 10, 6, 7, 11, 7, 8, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 0, 1, 2};
-/* Phi_q in block lower triangular form: 8 blocks, the largest 3 x 3 */
-static const int block_start_turn[] = {0, 2, 4, 5, 6, 7, 8, 9, 12};
-static const int block_store_turn[] = {0, 4, 8, 9, 10, 11, 12, 13};
-static const int row_order_turn[] = {3, 4, 8, 9, 11, 2, 5, 0, 1, 6, 7, 10};
-static const int col_order_turn[] = {1, 0, 8, 7, 2, 5, 9, 3, 4, 6, 11, 10};
-static const int diag_value_turn[] = {2, 5, 8, 9, 10, 11, 12, 15, 16, 18, 19, 21, 22, 23, 24, 25, 32, 36, 37, 40};
-static const int diag_slot_turn[] = {11, 12, 9, 2, 0, 3, 1, 10, 13, 19, 14, 17, 6, 4, 7, 5, 15, 21, 18, 8};
-static const int off_start_turn[] = {0, 0, 0, 0, 0, 2, 4, 6, 8, 10, 11, 12, 21};
-static const int off_col_turn[] = {0, 1, 0, 1, 2, 3, 0, 4, 1, 4, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8};
-static const int off_value_turn[] = {39, 38, 7, 6, 14, 13, 0, 1, 3, 4, 17, 20, 27, 26, 34, 33, 28, 31, 35, 29, 30};
+static const int jac_rows_turn[] = {0, 1, 2, 3, 3, 4, 4, 5, 6, 7, 8, 8, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11};
+static const int jac_cols_turn[] = {3, 4, 5, 0, 1, 0, 1, 9, 10, 11, 7, 8, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 0, 1, 2};
+/* Phi_q in block lower triangular form: 10 blocks, the largest 2 x 2 */
+static const int block_start_turn[] = {0, 1, 2, 3, 5, 6, 7, 8, 10, 11, 12};
+static const int block_store_turn[] = {0, 1, 2, 3, 7, 8, 9, 10, 14, 15};
+static const int row_order_turn[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 11, 10};
+static const int col_order_turn[] = {3, 4, 5, 0, 1, 9, 10, 11, 7, 8, 2, 6};
+static const int diag_value_turn[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 20, 28};
+static const int diag_slot_turn[] = {0, 1, 2, 3, 5, 4, 6, 7, 8, 9, 10, 12, 11, 13, 15, 14};
+static const int off_start_turn[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 0, 2, 13};
+static const int off_col_turn[] = {3, 4, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10};
+static const int off_value_turn[] = {26, 27, 17, 18, 19, 14, 15, 23, 24, 25, 21, 22, 16};
 
 const kinegen_model rssr_dual_quaternion_turn = {
     &rssr_dual_quaternion_layout, "turn",
-    RSSR_DUAL_QUATERNION_N_Q, RSSR_DUAL_QUATERNION_N_V, 1, 41,
+    RSSR_DUAL_QUATERNION_N_Q, RSSR_DUAL_QUATERNION_N_V, 1, 29,
     0.0, 1.0, 201,
     initial_q, constraints_turn, drivers_turn, jac_rows_turn, jac_cols_turn,
     phi_jac_turn, nu_turn, gamma_turn, inputs_turn, retract,
-    8, block_start_turn, block_store_turn, row_order_turn, col_order_turn,
-    22, 20, diag_value_turn, diag_slot_turn,
-    21, off_start_turn, off_col_turn, off_value_turn,
-    212, 24,
+    10, block_start_turn, block_store_turn, row_order_turn, col_order_turn,
+    16, 16, diag_value_turn, diag_slot_turn,
+    13, off_start_turn, off_col_turn, off_value_turn,
+    186, 24,
 };
 
 const kinegen_model *const rssr_dual_quaternion_cases[RSSR_DUAL_QUATERNION_N_CASES] = {&rssr_dual_quaternion_turn};

@@ -95,7 +95,7 @@ def _joints_phi(q):
 
 
 def _joints_jac(q):
-    """Phi_q values of the joint rows (38 entries)."""
+    """Phi_q values of the joint rows (26 entries)."""
     crank_rw, crank_rx, crank_ry, crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, rocker_rw, rocker_rx, rocker_ry, rocker_rz, rocker_dw, rocker_dx, rocker_dy, rocker_dz = q
     crank_ox = -2*crank_dw*crank_rx - 2*crank_dy*crank_rz + 2*crank_dx*crank_rw + 2*crank_dz*crank_ry
     crank_oy = -2*crank_dw*crank_ry - 2*crank_dz*crank_rx + 2*crank_dx*crank_rz + 2*crank_dy*crank_rw
@@ -115,59 +115,44 @@ def _joints_jac(q):
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
     d0 = -0.061144002*rocker_a22 - 3/10*rocker_oz + (3/10)*crank_oz + (9/200)*crank_a20 + (0.06604098)*rocker_a21
-    d1 = -2*rocker_oz + 2*crank_oz - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
-    d2 = -0.061144002*rocker_a12 - 3/10*rocker_oy + (3/10)*crank_oy + (9/200)*crank_a10 + (0.06604098)*rocker_a11
-    d3 = -2*rocker_oy + 2*crank_oy - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
-    d4 = -0.061144002*rocker_a02 - 3/10*rocker_ox + (3/10)*crank_ox + (9/200)*crank_a00 + (0.06604098)*rocker_a01
-    d5 = -2*rocker_ox + 2*crank_ox - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d1 = -0.061144002*rocker_a12 - 3/10*rocker_oy + (3/10)*crank_oy + (9/200)*crank_a10 + (0.06604098)*rocker_a11
+    d2 = -0.061144002*rocker_a02 - 3/10*rocker_ox + (3/10)*crank_ox + (9/200)*crank_a00 + (0.06604098)*rocker_a01
+    d3 = -2*rocker_ox + 2*crank_ox - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d4 = -2*rocker_oy + 2*crank_oy - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
+    d5 = -2*rocker_oz + 2*crank_oz - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
     d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_oz + (0.4402732)*crank_oz + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
     d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_oz + (0.40762668)*rocker_oz + (0.0830797551239112)*rocker_a22
-    d8 = -d1
-    d9 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
-    d10 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12
-    d11 = -d3
-    d12 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
-    d13 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02
-    d14 = -d5
-    out = _zeros(38, q, ())
-    out[0] = -crank_oz
-    out[1] = crank_oy
+    d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
+    d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12
+    d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
+    d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02
+    out = _zeros(26, q, ())
+    out[0] = -1
+    out[1] = -1
     out[2] = -1
-    out[3] = crank_oz
-    out[4] = -crank_ox
-    out[5] = -1
-    out[6] = -crank_oy
-    out[7] = crank_ox
+    out[3] = crank_a10
+    out[4] = -crank_a00
+    out[5] = crank_a11
+    out[6] = -crank_a01
+    out[7] = -1
     out[8] = -1
-    out[9] = crank_a10
-    out[10] = -crank_a00
-    out[11] = crank_a11
-    out[12] = -crank_a01
-    out[13] = -rocker_oz
-    out[14] = rocker_oy
-    out[15] = -1
-    out[16] = rocker_oz
-    out[17] = -rocker_ox
-    out[18] = -1
-    out[19] = -rocker_oy
-    out[20] = rocker_ox
-    out[21] = -1
-    out[22] = rocker_a21
-    out[23] = -rocker_a11
-    out[24] = rocker_a22
-    out[25] = -rocker_a12
-    out[26] = d0*crank_a10 + d1*crank_oy - d2*crank_a20 - d3*crank_oz
-    out[27] = d4*crank_a20 + d5*crank_oz - d0*crank_a00 - d1*crank_ox
-    out[28] = d2*crank_a00 + d3*crank_ox - d4*crank_a10 - d5*crank_oy
-    out[29] = d5
-    out[30] = d3
-    out[31] = d1
-    out[32] = d6*rocker_a11 + d7*rocker_a12 + d8*rocker_oy - d10*rocker_a22 - d11*rocker_oz - d9*rocker_a21
-    out[33] = d12*rocker_a21 + d13*rocker_a22 + d14*rocker_oz - d6*rocker_a01 - d7*rocker_a02 - d8*rocker_ox
-    out[34] = d10*rocker_a02 + d11*rocker_ox + d9*rocker_a01 - d12*rocker_a11 - d13*rocker_a12 - d14*rocker_oy
-    out[35] = d14
-    out[36] = d11
-    out[37] = d8
+    out[9] = -1
+    out[10] = rocker_a21
+    out[11] = -rocker_a11
+    out[12] = rocker_a22
+    out[13] = -rocker_a12
+    out[14] = d0*crank_a10 - d1*crank_a20
+    out[15] = d2*crank_a20 - d0*crank_a00
+    out[16] = d1*crank_a00 - d2*crank_a10
+    out[17] = d3
+    out[18] = d4
+    out[19] = d5
+    out[20] = d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22
+    out[21] = d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02
+    out[22] = d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12
+    out[23] = -d3
+    out[24] = -d4
+    out[25] = -d5
     return out
 
 
@@ -193,66 +178,46 @@ def _joints_gamma(q, v):
     rocker_a12 = -2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c3 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
-    c4 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c5 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
-    c6 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy
-    c7 = -c6
-    c8 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx
-    c9 = -0.4402732*v_rocker_wy + (0.4402732)*v_crank_wy
-    c10 = -c9
-    c11 = -0.4402732*v_rocker_wx + (0.4402732)*v_crank_wx
-    c12 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz
-    c13 = -c8
-    c14 = -0.4402732*v_rocker_wz + (0.4402732)*v_crank_wz
-    c15 = -c11
-    c16 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy
-    c17 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx
-    c18 = -c17
-    c19 = -0.40762668*v_rocker_wy + (0.40762668)*v_crank_wy
-    c20 = -0.40762668*v_rocker_wx + (0.40762668)*v_crank_wx
-    c21 = -c20
-    c22 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz
-    c23 = -c22
-    c24 = -0.40762668*v_rocker_wz + (0.40762668)*v_crank_wz
+    c0 = crank_a10*v_crank_wz
+    c1 = rocker_a11*v_rocker_wz
+    c2 = -2*v_crank_vx + 2*v_rocker_vx + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_wz - 0.4402732*rocker_a21*v_rocker_wy - 3/10*crank_a20*v_crank_wy + (0.40762668)*rocker_a22*v_rocker_wy
+    c3 = crank_a00*v_crank_wz
+    c4 = crank_a20*v_crank_wx
+    c5 = rocker_a01*v_rocker_wz
+    c6 = rocker_a02*v_rocker_wz
+    c7 = rocker_a21*v_rocker_wx
+    c8 = rocker_a22*v_rocker_wx
+    c9 = -2*v_rocker_vy + 2*v_crank_vy - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
+    c10 = crank_a00*v_crank_wy
+    c11 = rocker_a01*v_rocker_wy
+    c12 = -2*v_crank_vz + 2*v_rocker_vz + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_wy - 0.4402732*rocker_a11*v_rocker_wx - 3/10*crank_a10*v_crank_wx + (0.40762668)*rocker_a12*v_rocker_wx
+    c13 = (0.4402732)*v_rocker_wy
+    c14 = (0.4402732)*v_rocker_wx
+    c15 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy
+    c16 = -c15
+    c17 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx
+    c18 = (0.4402732)*v_rocker_wz
+    c19 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz
+    c20 = -c17
+    c21 = (0.40762668)*v_rocker_wy
+    c22 = (0.40762668)*v_rocker_wx
+    c23 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy
+    c24 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx
     c25 = -c24
-    c26 = -c12
-    c27 = -c14
-    c28 = -c16
+    c26 = (0.40762668)*v_rocker_wz
+    c27 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz
+    c28 = -c27
     c29 = -c19
-    c30 = 2*v_crank_vz
-    c31 = 2*v_rocker_vz
-    c32 = -3/10*v_rocker_wy + (3/10)*v_crank_wy
-    c33 = -3/10*v_rocker_wx + (3/10)*v_crank_wx
-    c34 = -c33
-    c35 = -2*v_rocker_wy + 2*v_crank_wy
-    c36 = -2*v_rocker_wx + 2*v_crank_wx
-    c37 = -c36
-    c38 = 2*v_crank_vy
-    c39 = 2*v_rocker_vy
-    c40 = -3/10*v_rocker_wz + (3/10)*v_crank_wz
-    c41 = -c40
-    c42 = -2*v_rocker_wz + 2*v_crank_wz
-    c43 = -c42
-    c44 = 2*v_crank_vx
-    c45 = 2*v_rocker_vx
-    c46 = -c32
-    c47 = -c35
+    c30 = -c23
+    c31 = (3/10)*v_crank_wy
+    c32 = (3/10)*v_crank_wx
+    c33 = (3/10)*v_crank_wz
     out = _zeros(11, q, ())
-    out[0] = c0*v_crank_wy - c1*v_crank_wz
-    out[1] = c2*v_crank_wz - c0*v_crank_wx
-    out[2] = c1*v_crank_wx - c2*v_crank_wy
     out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx)
     out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx)
-    out[5] = c3*v_rocker_wy - c4*v_rocker_wz
-    out[6] = c5*v_rocker_wz - c3*v_rocker_wx
-    out[7] = c4*v_rocker_wx - c5*v_rocker_wy
     out[8] = v_rocker_wz*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx) - v_rocker_wy*(rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy)
     out[9] = v_rocker_wz*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - v_rocker_wy*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)
-    out[10] = -(crank_a00*v_crank_wz - crank_a20*v_crank_wx)*(-3/10*v_rocker_vy + (3/10)*v_crank_vy + c18*rocker_a22 + c22*rocker_a02 + c8*rocker_a21 + c26*rocker_a01 + c34*rocker_oz + c40*rocker_ox) - (crank_a10*v_crank_wx - crank_a00*v_crank_wy)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c6*rocker_a01 + c17*rocker_a12 + c28*rocker_a02 + c33*rocker_oy + c46*rocker_ox + c13*rocker_a11) - (crank_a20*v_crank_wy - crank_a10*v_crank_wz)*(-3/10*v_rocker_vx + (3/10)*v_crank_vx + c7*rocker_a21 + c16*rocker_a22 + c23*rocker_a12 + c32*rocker_oz + c41*rocker_oy + c12*rocker_a11) - (rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c12*crank_a00 + c13*crank_a20 + c14*crank_ox + c15*crank_oz) - (rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c17*crank_a20 + c20*crank_oz + c23*crank_a00 + c25*crank_ox) - (rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c7*crank_a00 + c8*crank_a10 + c10*crank_ox + c11*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c16*crank_a00 + c18*crank_a10 + c19*crank_ox + c21*crank_oy) - (rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c6*crank_a20 + c26*crank_a10 + c27*crank_oy + c9*crank_oz) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c22*crank_a10 + c24*crank_oy + c28*crank_a20 + c29*crank_oz) - (v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz)*(c44 - c45 + c19*rocker_a22 + c25*rocker_a12 + c35*rocker_oz + c43*rocker_oy + c10*rocker_a21 + c14*rocker_a11) - (v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx)*(c38 - c39 + c21*rocker_a22 + c24*rocker_a02 + c27*rocker_a01 + c37*rocker_oz + c42*rocker_ox + c11*rocker_a21) - (v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy)*(c30 - c31 + c20*rocker_a12 + c29*rocker_a02 + c9*rocker_a01 + c36*rocker_oy + c47*rocker_ox + c15*rocker_a11) - (v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz)*(c45 - c44 + c40*crank_a10 + c42*crank_oy + c46*crank_a20 + c47*crank_oz) - (v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx)*(c39 - c38 + c33*crank_a20 + c36*crank_oz + c41*crank_a00 + c43*crank_ox) - (v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy)*(c31 - c30 + c32*crank_a00 + c34*crank_a10 + c35*crank_ox + c37*crank_oy)
+    out[10] = c12*v_crank_vz + c2*v_crank_vx + c9*v_rocker_vy - c12*v_rocker_vz - c2*v_rocker_vx - c9*v_crank_vy - (c3 - c4)*(-3/10*v_rocker_vy + (3/10)*v_crank_vy + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_oz + c33*rocker_ox - c32*rocker_oz - c33*crank_ox) - (c5 - c7)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c14*crank_oz + c18*rocker_ox + c19*crank_a00 + c20*crank_a20 - c14*rocker_oz - c18*crank_ox) - (c6 - c8)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c22*rocker_oz + c24*crank_a20 + c26*crank_ox + c28*crank_a00 - c22*crank_oz - c26*rocker_ox) - (-c0 + crank_a20*v_crank_wy)*(-3/10*v_rocker_vx + (3/10)*v_crank_vx + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_oz + c33*crank_oy - c31*crank_oz - c33*rocker_oy) - (-c1 + rocker_a21*v_rocker_wy)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c13*rocker_oz + c15*crank_a20 + c18*crank_oy + c29*crank_a10 - c13*crank_oz - c18*rocker_oy) - (-c10 + crank_a10*v_crank_wx)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_ox + c32*rocker_oy - c31*rocker_ox - c32*crank_oy) - (-c11 + rocker_a11*v_rocker_wx)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c13*crank_ox + c14*rocker_oy + c16*crank_a00 + c17*crank_a10 - c13*rocker_ox - c14*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c21*rocker_ox + c22*crank_oy + c23*crank_a00 + c25*crank_a10 - c21*crank_ox - c22*rocker_oy) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c21*crank_oz + c26*rocker_oy + c27*crank_a10 + c30*crank_a20 - c21*rocker_oz - c26*crank_oy)
     return out
 
 
@@ -278,21 +243,18 @@ def _joints_phi_jac_s(q):
     rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz)
     d0 = -0.061144002*rocker_a22 - 3/10*rocker_oz + (3/10)*crank_oz + (9/200)*crank_a20 + (0.06604098)*rocker_a21
-    d1 = -2.0*rocker_oz + 2.0*crank_oz - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
-    d2 = -0.061144002*rocker_a12 - 3/10*rocker_oy + (3/10)*crank_oy + (9/200)*crank_a10 + (0.06604098)*rocker_a11
-    d3 = -2.0*rocker_oy + 2.0*crank_oy - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
-    d4 = -0.061144002*rocker_a02 - 3/10*rocker_ox + (3/10)*crank_ox + (9/200)*crank_a00 + (0.06604098)*rocker_a01
-    d5 = -2.0*rocker_ox + 2.0*crank_ox - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d1 = -0.061144002*rocker_a12 - 3/10*rocker_oy + (3/10)*crank_oy + (9/200)*crank_a10 + (0.06604098)*rocker_a11
+    d2 = -0.061144002*rocker_a02 - 3/10*rocker_ox + (3/10)*crank_ox + (9/200)*crank_a00 + (0.06604098)*rocker_a01
+    d3 = -2.0*rocker_ox + 2.0*crank_ox - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
+    d4 = -2.0*rocker_oy + 2.0*crank_oy - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
+    d5 = -2.0*rocker_oz + 2.0*crank_oz - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
     d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_oz + (0.4402732)*crank_oz + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
     d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_oz + (0.40762668)*rocker_oz + (0.0830797551239112)*rocker_a22
-    d8 = -d1
-    d9 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
-    d10 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12
-    d11 = -d3
-    d12 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
-    d13 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02
-    d14 = -d5
-    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, 1/10 - rocker_ox, 7/20 - rocker_oy, 3/10 - rocker_oz, rocker_a01, rocker_a02, -169/625 + (crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2.0 + (crank_oy - rocker_oy - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2.0 + (crank_oz - rocker_oz - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2.0], [-crank_oz, crank_oy, -1.0, crank_oz, -crank_ox, -1.0, -crank_oy, crank_ox, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -rocker_oz, rocker_oy, -1.0, rocker_oz, -rocker_ox, -1.0, -rocker_oy, rocker_ox, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0*crank_a10 + d1*crank_oy - d2*crank_a20 - d3*crank_oz, d4*crank_a20 + d5*crank_oz - d0*crank_a00 - d1*crank_ox, d2*crank_a00 + d3*crank_ox - d4*crank_a10 - d5*crank_oy, d5, d3, d1, d6*rocker_a11 + d7*rocker_a12 + d8*rocker_oy - d10*rocker_a22 - d11*rocker_oz - d9*rocker_a21, d12*rocker_a21 + d13*rocker_a22 + d14*rocker_oz - d6*rocker_a01 - d7*rocker_a02 - d8*rocker_ox, d10*rocker_a02 + d11*rocker_ox + d9*rocker_a01 - d12*rocker_a11 - d13*rocker_a12 - d14*rocker_oy, d14, d11, d8]
+    d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
+    d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12
+    d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
+    d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02
+    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, 1/10 - rocker_ox, 7/20 - rocker_oy, 3/10 - rocker_oz, rocker_a01, rocker_a02, -169/625 + (crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2.0 + (crank_oy - rocker_oy - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2.0 + (crank_oz - rocker_oz - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2.0], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0*crank_a10 - d1*crank_a20, d2*crank_a20 - d0*crank_a00, d1*crank_a00 - d2*crank_a10, d3, d4, d5, d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22, d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02, d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12, -d3, -d4, -d5]
 
 
 def _joints_gamma_s(q, v):
@@ -317,55 +279,41 @@ def _joints_gamma_s(q, v):
     rocker_a12 = -2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz)
-    c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c3 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
-    c4 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c5 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
-    c6 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy
-    c7 = -c6
-    c8 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx
-    c9 = -0.4402732*v_rocker_wy + (0.4402732)*v_crank_wy
-    c10 = -c9
-    c11 = -0.4402732*v_rocker_wx + (0.4402732)*v_crank_wx
-    c12 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz
-    c13 = -c8
-    c14 = -0.4402732*v_rocker_wz + (0.4402732)*v_crank_wz
-    c15 = -c11
-    c16 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy
-    c17 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx
-    c18 = -c17
-    c19 = -0.40762668*v_rocker_wy + (0.40762668)*v_crank_wy
-    c20 = -0.40762668*v_rocker_wx + (0.40762668)*v_crank_wx
-    c21 = -c20
-    c22 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz
-    c23 = -c22
-    c24 = -0.40762668*v_rocker_wz + (0.40762668)*v_crank_wz
+    c0 = crank_a10*v_crank_wz
+    c1 = rocker_a11*v_rocker_wz
+    c2 = -2.0*v_crank_vx + 2.0*v_rocker_vx + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_wz - 0.4402732*rocker_a21*v_rocker_wy - 3/10*crank_a20*v_crank_wy + (0.40762668)*rocker_a22*v_rocker_wy
+    c3 = crank_a00*v_crank_wz
+    c4 = crank_a20*v_crank_wx
+    c5 = rocker_a01*v_rocker_wz
+    c6 = rocker_a02*v_rocker_wz
+    c7 = rocker_a21*v_rocker_wx
+    c8 = rocker_a22*v_rocker_wx
+    c9 = -2.0*v_rocker_vy + 2.0*v_crank_vy - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
+    c10 = crank_a00*v_crank_wy
+    c11 = rocker_a01*v_rocker_wy
+    c12 = -2.0*v_crank_vz + 2.0*v_rocker_vz + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_wy - 0.4402732*rocker_a11*v_rocker_wx - 3/10*crank_a10*v_crank_wx + (0.40762668)*rocker_a12*v_rocker_wx
+    c13 = (0.4402732)*v_rocker_wy
+    c14 = (0.4402732)*v_rocker_wx
+    c15 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy
+    c16 = -c15
+    c17 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx
+    c18 = (0.4402732)*v_rocker_wz
+    c19 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz
+    c20 = -c17
+    c21 = (0.40762668)*v_rocker_wy
+    c22 = (0.40762668)*v_rocker_wx
+    c23 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy
+    c24 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx
     c25 = -c24
-    c26 = -c12
-    c27 = -c14
-    c28 = -c16
+    c26 = (0.40762668)*v_rocker_wz
+    c27 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz
+    c28 = -c27
     c29 = -c19
-    c30 = 2.0*v_crank_vz
-    c31 = 2.0*v_rocker_vz
-    c32 = -3/10*v_rocker_wy + (3/10)*v_crank_wy
-    c33 = -3/10*v_rocker_wx + (3/10)*v_crank_wx
-    c34 = -c33
-    c35 = -2.0*v_rocker_wy + 2.0*v_crank_wy
-    c36 = -2.0*v_rocker_wx + 2.0*v_crank_wx
-    c37 = -c36
-    c38 = 2.0*v_crank_vy
-    c39 = 2.0*v_rocker_vy
-    c40 = -3/10*v_rocker_wz + (3/10)*v_crank_wz
-    c41 = -c40
-    c42 = -2.0*v_rocker_wz + 2.0*v_crank_wz
-    c43 = -c42
-    c44 = 2.0*v_crank_vx
-    c45 = 2.0*v_rocker_vx
-    c46 = -c32
-    c47 = -c35
-    return [c0*v_crank_wy - c1*v_crank_wz, c2*v_crank_wz - c0*v_crank_wx, c1*v_crank_wx - c2*v_crank_wy, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), c3*v_rocker_wy - c4*v_rocker_wz, c5*v_rocker_wz - c3*v_rocker_wx, c4*v_rocker_wx - c5*v_rocker_wy, v_rocker_wz*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx) - v_rocker_wy*(rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy), v_rocker_wz*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - v_rocker_wy*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy), -(crank_a00*v_crank_wz - crank_a20*v_crank_wx)*(-3/10*v_rocker_vy + (3/10)*v_crank_vy + c18*rocker_a22 + c22*rocker_a02 + c8*rocker_a21 + c26*rocker_a01 + c34*rocker_oz + c40*rocker_ox) - (crank_a10*v_crank_wx - crank_a00*v_crank_wy)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c6*rocker_a01 + c17*rocker_a12 + c28*rocker_a02 + c33*rocker_oy + c46*rocker_ox + c13*rocker_a11) - (crank_a20*v_crank_wy - crank_a10*v_crank_wz)*(-3/10*v_rocker_vx + (3/10)*v_crank_vx + c7*rocker_a21 + c16*rocker_a22 + c23*rocker_a12 + c32*rocker_oz + c41*rocker_oy + c12*rocker_a11) - (rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c12*crank_a00 + c13*crank_a20 + c14*crank_ox + c15*crank_oz) - (rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c17*crank_a20 + c20*crank_oz + c23*crank_a00 + c25*crank_ox) - (rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c7*crank_a00 + c8*crank_a10 + c10*crank_ox + c11*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c16*crank_a00 + c18*crank_a10 + c19*crank_ox + c21*crank_oy) - (rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c6*crank_a20 + c26*crank_a10 + c27*crank_oy + c9*crank_oz) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c22*crank_a10 + c24*crank_oy + c28*crank_a20 + c29*crank_oz) - (v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz)*(c44 - c45 + c19*rocker_a22 + c25*rocker_a12 + c35*rocker_oz + c43*rocker_oy + c10*rocker_a21 + c14*rocker_a11) - (v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx)*(c38 - c39 + c21*rocker_a22 + c24*rocker_a02 + c27*rocker_a01 + c37*rocker_oz + c42*rocker_ox + c11*rocker_a21) - (v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy)*(c30 - c31 + c20*rocker_a12 + c29*rocker_a02 + c9*rocker_a01 + c36*rocker_oy + c47*rocker_ox + c15*rocker_a11) - (v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz)*(c45 - c44 + c40*crank_a10 + c42*crank_oy + c46*crank_a20 + c47*crank_oz) - (v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx)*(c39 - c38 + c33*crank_a20 + c36*crank_oz + c41*crank_a00 + c43*crank_ox) - (v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy)*(c31 - c30 + c32*crank_a00 + c34*crank_a10 + c35*crank_ox + c37*crank_oy)]
+    c30 = -c23
+    c31 = (3/10)*v_crank_wy
+    c32 = (3/10)*v_crank_wx
+    c33 = (3/10)*v_crank_wz
+    return [0.0, 0.0, 0.0, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), 0.0, 0.0, 0.0, v_rocker_wz*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx) - v_rocker_wy*(rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy), v_rocker_wz*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - v_rocker_wy*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy), c12*v_crank_vz + c2*v_crank_vx + c9*v_rocker_vy - c12*v_rocker_vz - c2*v_rocker_vx - c9*v_crank_vy - (c3 - c4)*(-3/10*v_rocker_vy + (3/10)*v_crank_vy + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_oz + c33*rocker_ox - c32*rocker_oz - c33*crank_ox) - (c5 - c7)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c14*crank_oz + c18*rocker_ox + c19*crank_a00 + c20*crank_a20 - c14*rocker_oz - c18*crank_ox) - (c6 - c8)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c22*rocker_oz + c24*crank_a20 + c26*crank_ox + c28*crank_a00 - c22*crank_oz - c26*rocker_ox) - (-c0 + crank_a20*v_crank_wy)*(-3/10*v_rocker_vx + (3/10)*v_crank_vx + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_oz + c33*crank_oy - c31*crank_oz - c33*rocker_oy) - (-c1 + rocker_a21*v_rocker_wy)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c13*rocker_oz + c15*crank_a20 + c18*crank_oy + c29*crank_a10 - c13*crank_oz - c18*rocker_oy) - (-c10 + crank_a10*v_crank_wx)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_ox + c32*rocker_oy - c31*rocker_ox - c32*crank_oy) - (-c11 + rocker_a11*v_rocker_wx)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c13*crank_ox + c14*rocker_oy + c16*crank_a00 + c17*crank_a10 - c13*rocker_ox - c14*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c21*rocker_ox + c22*crank_oy + c23*crank_a00 + c25*crank_a10 - c21*crank_ox - c22*rocker_oy) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c21*crank_oz + c26*rocker_oy + c27*crank_a10 + c30*crank_a20 - c21*rocker_oz - c26*crank_oy)]
 
 
 def frames(q, v, a):
@@ -397,12 +345,6 @@ def frames(q, v, a):
     rocker_a20 = -2*rocker_rw*rocker_ry + 2*rocker_rx*rocker_rz
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    c0 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c3 = v_rocker_vx + rocker_oz*v_rocker_wy - rocker_oy*v_rocker_wz
-    c4 = v_rocker_vy + rocker_ox*v_rocker_wz - rocker_oz*v_rocker_wx
-    c5 = v_rocker_vz + rocker_oy*v_rocker_wx - rocker_ox*v_rocker_wy
     out = _zeros(48, q, ())
     out[0] = crank_ox
     out[1] = crank_oy
@@ -416,15 +358,15 @@ def frames(q, v, a):
     out[9] = crank_a20
     out[10] = crank_a21
     out[11] = crank_a22
-    out[12] = c0
-    out[13] = c1
-    out[14] = c2
+    out[12] = v_crank_vx
+    out[13] = v_crank_vy
+    out[14] = v_crank_vz
     out[15] = v_crank_wx
     out[16] = v_crank_wy
     out[17] = v_crank_wz
-    out[18] = dv_crank_vx + c2*v_crank_wy + crank_oz*dv_crank_wy - c1*v_crank_wz - crank_oy*dv_crank_wz
-    out[19] = dv_crank_vy + c0*v_crank_wz + crank_ox*dv_crank_wz - c2*v_crank_wx - crank_oz*dv_crank_wx
-    out[20] = dv_crank_vz + c1*v_crank_wx + crank_oy*dv_crank_wx - c0*v_crank_wy - crank_ox*dv_crank_wy
+    out[18] = dv_crank_vx
+    out[19] = dv_crank_vy
+    out[20] = dv_crank_vz
     out[21] = dv_crank_wx
     out[22] = dv_crank_wy
     out[23] = dv_crank_wz
@@ -440,15 +382,15 @@ def frames(q, v, a):
     out[33] = rocker_a20
     out[34] = rocker_a21
     out[35] = rocker_a22
-    out[36] = c3
-    out[37] = c4
-    out[38] = c5
+    out[36] = v_rocker_vx
+    out[37] = v_rocker_vy
+    out[38] = v_rocker_vz
     out[39] = v_rocker_wx
     out[40] = v_rocker_wy
     out[41] = v_rocker_wz
-    out[42] = dv_rocker_vx + c5*v_rocker_wy + rocker_oz*dv_rocker_wy - c4*v_rocker_wz - rocker_oy*dv_rocker_wz
-    out[43] = dv_rocker_vy + c3*v_rocker_wz + rocker_ox*dv_rocker_wz - c5*v_rocker_wx - rocker_oz*dv_rocker_wx
-    out[44] = dv_rocker_vz + c4*v_rocker_wx + rocker_oy*dv_rocker_wx - c3*v_rocker_wy - rocker_ox*dv_rocker_wy
+    out[42] = dv_rocker_vx
+    out[43] = dv_rocker_vy
+    out[44] = dv_rocker_vz
     out[45] = dv_rocker_wx
     out[46] = dv_rocker_wy
     out[47] = dv_rocker_wz
@@ -570,7 +512,7 @@ def phi_turn(q, u):
 
 
 def jac_turn(q, u):
-    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (41 entries)."""
+    """Values of the sparse Phi_q of case 'turn' at jac_rows, jac_cols (29 entries)."""
     return _join(_joints_jac(q), _drivers_jac_turn(q, u))
 
 
@@ -606,8 +548,8 @@ CASES = {
     'turn': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'D.x', 'D.y', 'D.z', 'D.axis_f', 'D.axis_g', 'coupler.length', 'crank_angle'),
         'drivers': ('crank_angle',),
-        'jac_rows': (0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11),
-        'jac_cols': (1, 2, 3, 0, 2, 4, 0, 1, 5, 0, 1, 0, 1, 7, 8, 9, 6, 8, 10, 6, 7, 11, 7, 8, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 0, 1, 2),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 6, 7, 8, 8, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11),
+        'jac_cols': (3, 4, 5, 0, 1, 0, 1, 9, 10, 11, 7, 8, 7, 8, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 0, 1, 2),
         't0': 0.0, 't1': 1.0, 'steps': 201,
         'driver_sources': (('cases.turn.drivers.crank_angle.function', '2*pi*t*(1 - 0.2*cos(pi*t))'),),
         'inputs': inputs_turn, 'phi': phi_turn, 'jac': jac_turn, 'nu': nu_turn, 'gamma': gamma_turn,

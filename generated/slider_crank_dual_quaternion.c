@@ -60,9 +60,11 @@ static void compute_joints_phi(const double *q, double *out) {
     const double slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry;
     const double slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw;
     const double slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw;
-    const double slider_a01 = -2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry;
+    const double slider_a00 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rx*slider_rx);
     const double slider_a02 = 2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
+    const double slider_a10 = 2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry;
     const double slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz;
+    const double slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
     const double slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz);
     out[0] = -crank_ox;
     out[1] = -crank_oy;
@@ -76,10 +78,10 @@ static void compute_joints_phi(const double *q, double *out) {
     out[9] = rod_oy - slider_oy + (3.0/5.0)*rod_a10;
     out[10] = rod_oz - slider_oz + (3.0/5.0)*rod_a20;
     out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22;
-    out[12] = slider_a01;
-    out[13] = slider_a02;
-    out[14] = slider_oy;
-    out[15] = slider_oz;
+    out[12] = slider_a10;
+    out[13] = slider_a20;
+    out[14] = slider_a00*slider_oz - slider_a20*slider_ox;
+    out[15] = slider_a10*slider_ox - slider_a00*slider_oy;
     out[16] = slider_a12;
 }
 
@@ -92,24 +94,16 @@ static void compute_drivers_phi_run(const double *q, const double *u, double *ou
     out[0] = -2.0*crank_rz*cos(c0) + 2.0*crank_rw*sin(c0);
 }
 
-/* Phi_q values of the joint rows (67 entries). */
+/* Phi_q values of the joint rows (53 entries). */
 static void compute_joints_jac(const double *q, double *out) {
     const double crank_rw = q[0];
     const double crank_rx = q[1];
     const double crank_ry = q[2];
     const double crank_rz = q[3];
-    const double crank_dw = q[4];
-    const double crank_dx = q[5];
-    const double crank_dy = q[6];
-    const double crank_dz = q[7];
     const double rod_rw = q[8];
     const double rod_rx = q[9];
     const double rod_ry = q[10];
     const double rod_rz = q[11];
-    const double rod_dw = q[12];
-    const double rod_dx = q[13];
-    const double rod_dy = q[14];
-    const double rod_dz = q[15];
     const double slider_rw = q[16];
     const double slider_rx = q[17];
     const double slider_ry = q[18];
@@ -118,17 +112,11 @@ static void compute_joints_jac(const double *q, double *out) {
     const double slider_dx = q[21];
     const double slider_dy = q[22];
     const double slider_dz = q[23];
-    const double crank_ox = -2.0*crank_dw*crank_rx - 2.0*crank_dy*crank_rz + 2.0*crank_dx*crank_rw + 2.0*crank_dz*crank_ry;
-    const double crank_oy = -2.0*crank_dw*crank_ry - 2.0*crank_dz*crank_rx + 2.0*crank_dx*crank_rz + 2.0*crank_dy*crank_rw;
-    const double crank_oz = -2.0*crank_dw*crank_rz - 2.0*crank_dx*crank_ry + 2.0*crank_dy*crank_rx + 2.0*crank_dz*crank_rw;
     const double crank_a00 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_rx*crank_rx);
     const double crank_a01 = -2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry;
     const double crank_a10 = 2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry;
     const double crank_a11 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_ry*crank_ry);
     const double crank_a20 = -2.0*crank_rw*crank_ry + 2.0*crank_rx*crank_rz;
-    const double rod_ox = -2.0*rod_dw*rod_rx - 2.0*rod_dy*rod_rz + 2.0*rod_dx*rod_rw + 2.0*rod_dz*rod_ry;
-    const double rod_oy = -2.0*rod_dw*rod_ry - 2.0*rod_dz*rod_rx + 2.0*rod_dx*rod_rz + 2.0*rod_dy*rod_rw;
-    const double rod_oz = -2.0*rod_dw*rod_rz - 2.0*rod_dx*rod_ry + 2.0*rod_dy*rod_rx + 2.0*rod_dz*rod_rw;
     const double rod_a00 = -1.0 + 2.0*(rod_rw*rod_rw) + 2.0*(rod_rx*rod_rx);
     const double rod_a01 = -2.0*rod_rw*rod_rz + 2.0*rod_rx*rod_ry;
     const double rod_a10 = 2.0*rod_rw*rod_rz + 2.0*rod_rx*rod_ry;
@@ -138,87 +126,77 @@ static void compute_joints_jac(const double *q, double *out) {
     const double slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry;
     const double slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw;
     const double slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw;
+    const double slider_a00 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rx*slider_rx);
     const double slider_a02 = 2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
-    const double slider_a11 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_ry*slider_ry);
+    const double slider_a10 = 2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry;
     const double slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz;
-    const double slider_a21 = 2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz;
+    const double slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
     const double slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz);
-    const double d0 = crank_oz + (1.0/5.0)*crank_a20;
-    const double d1 = crank_oy + (1.0/5.0)*crank_a10;
-    const double d2 = crank_ox + (1.0/5.0)*crank_a00;
-    const double d3 = rod_oz + (3.0/5.0)*rod_a20;
-    const double d4 = rod_oy + (3.0/5.0)*rod_a10;
-    const double d5 = rod_ox + (3.0/5.0)*rod_a00;
+    const double d0 = (1.0/5.0)*crank_a20;
+    const double d1 = (1.0/5.0)*crank_a10;
+    const double d2 = (1.0/5.0)*crank_a00;
+    const double d3 = (3.0/5.0)*rod_a20;
+    const double d4 = (3.0/5.0)*rod_a10;
+    const double d5 = (3.0/5.0)*rod_a00;
     const double d6 = rod_a11*slider_a22 - rod_a21*slider_a12;
     const double d7 = rod_a01*slider_a22 - rod_a21*slider_a02;
     const double d8 = rod_a01*slider_a12 - rod_a11*slider_a02;
-    out[0] = -crank_oz;
-    out[1] = crank_oy;
+    const double d9 = -slider_a20;
+    const double d10 = -slider_a00;
+    const double d11 = slider_a00*slider_ox;
+    out[0] = -1.0;
+    out[1] = -1.0;
     out[2] = -1.0;
-    out[3] = crank_oz;
-    out[4] = -crank_ox;
-    out[5] = -1.0;
-    out[6] = -crank_oy;
-    out[7] = crank_ox;
-    out[8] = -1.0;
-    out[9] = crank_a10;
-    out[10] = -crank_a00;
-    out[11] = crank_a11;
-    out[12] = -crank_a01;
-    out[13] = d0;
-    out[14] = -d1;
-    out[15] = 1.0;
-    out[16] = -rod_oz;
-    out[17] = rod_oy;
+    out[3] = crank_a10;
+    out[4] = -crank_a00;
+    out[5] = crank_a11;
+    out[6] = -crank_a01;
+    out[7] = d0;
+    out[8] = -d1;
+    out[9] = 1.0;
+    out[10] = -1.0;
+    out[11] = -d0;
+    out[12] = d2;
+    out[13] = 1.0;
+    out[14] = -1.0;
+    out[15] = d1;
+    out[16] = -d2;
+    out[17] = 1.0;
     out[18] = -1.0;
-    out[19] = -d0;
-    out[20] = d2;
+    out[19] = d3;
+    out[20] = -d4;
     out[21] = 1.0;
-    out[22] = rod_oz;
-    out[23] = -rod_ox;
-    out[24] = -1.0;
-    out[25] = d1;
-    out[26] = -d2;
-    out[27] = 1.0;
-    out[28] = -rod_oy;
-    out[29] = rod_ox;
+    out[22] = -1.0;
+    out[23] = -d3;
+    out[24] = d5;
+    out[25] = 1.0;
+    out[26] = -1.0;
+    out[27] = d4;
+    out[28] = -d5;
+    out[29] = 1.0;
     out[30] = -1.0;
-    out[31] = d3;
-    out[32] = -d4;
-    out[33] = 1.0;
-    out[34] = -slider_oz;
-    out[35] = slider_oy;
-    out[36] = -1.0;
-    out[37] = -d3;
-    out[38] = d5;
-    out[39] = 1.0;
-    out[40] = slider_oz;
-    out[41] = -slider_ox;
-    out[42] = -1.0;
-    out[43] = d4;
-    out[44] = -d5;
-    out[45] = 1.0;
-    out[46] = -slider_oy;
-    out[47] = slider_ox;
-    out[48] = -1.0;
-    out[49] = d6;
-    out[50] = -d7;
-    out[51] = d8;
-    out[52] = -d6;
-    out[53] = d7;
-    out[54] = -d8;
-    out[55] = slider_a21;
-    out[56] = -slider_a11;
-    out[57] = slider_a22;
-    out[58] = -slider_a12;
-    out[59] = -slider_oz;
-    out[60] = slider_ox;
-    out[61] = 1.0;
-    out[62] = slider_oy;
-    out[63] = -slider_ox;
-    out[64] = 1.0;
-    out[65] = -slider_a22;
-    out[66] = slider_a02;
+    out[31] = d6;
+    out[32] = -d7;
+    out[33] = d8;
+    out[34] = -d6;
+    out[35] = d7;
+    out[36] = -d8;
+    out[37] = d9;
+    out[38] = slider_a00;
+    out[39] = slider_a10;
+    out[40] = d10;
+    out[41] = -slider_a10*slider_ox;
+    out[42] = d11 + slider_a20*slider_oz;
+    out[43] = -slider_a10*slider_oz;
+    out[44] = d9;
+    out[45] = slider_a00;
+    out[46] = -slider_a20*slider_ox;
+    out[47] = -slider_a20*slider_oy;
+    out[48] = d11 + slider_a10*slider_oy;
+    out[49] = slider_a10;
+    out[50] = d10;
+    out[51] = -slider_a22;
+    out[52] = slider_a02;
 }
 
 /* Phi_q values of the driver rows of case 'run'. */
@@ -252,18 +230,10 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double crank_rx = q[1];
     const double crank_ry = q[2];
     const double crank_rz = q[3];
-    const double crank_dw = q[4];
-    const double crank_dx = q[5];
-    const double crank_dy = q[6];
-    const double crank_dz = q[7];
     const double rod_rw = q[8];
     const double rod_rx = q[9];
     const double rod_ry = q[10];
     const double rod_rz = q[11];
-    const double rod_dw = q[12];
-    const double rod_dx = q[13];
-    const double rod_dy = q[14];
-    const double rod_dz = q[15];
     const double slider_rw = q[16];
     const double slider_rx = q[17];
     const double slider_ry = q[18];
@@ -275,33 +245,21 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_crank_wx = v[0];
     const double v_crank_wy = v[1];
     const double v_crank_wz = v[2];
-    const double v_crank_vx = v[3];
-    const double v_crank_vy = v[4];
-    const double v_crank_vz = v[5];
     const double v_rod_wx = v[6];
     const double v_rod_wy = v[7];
     const double v_rod_wz = v[8];
-    const double v_rod_vx = v[9];
-    const double v_rod_vy = v[10];
-    const double v_rod_vz = v[11];
     const double v_slider_wx = v[12];
     const double v_slider_wy = v[13];
     const double v_slider_wz = v[14];
     const double v_slider_vx = v[15];
     const double v_slider_vy = v[16];
     const double v_slider_vz = v[17];
-    const double crank_ox = -2.0*crank_dw*crank_rx - 2.0*crank_dy*crank_rz + 2.0*crank_dx*crank_rw + 2.0*crank_dz*crank_ry;
-    const double crank_oy = -2.0*crank_dw*crank_ry - 2.0*crank_dz*crank_rx + 2.0*crank_dx*crank_rz + 2.0*crank_dy*crank_rw;
-    const double crank_oz = -2.0*crank_dw*crank_rz - 2.0*crank_dx*crank_ry + 2.0*crank_dy*crank_rx + 2.0*crank_dz*crank_rw;
     const double crank_a00 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_rx*crank_rx);
     const double crank_a01 = -2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry;
     const double crank_a10 = 2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry;
     const double crank_a11 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_ry*crank_ry);
     const double crank_a20 = -2.0*crank_rw*crank_ry + 2.0*crank_rx*crank_rz;
     const double crank_a21 = 2.0*crank_rw*crank_rx + 2.0*crank_ry*crank_rz;
-    const double rod_ox = -2.0*rod_dw*rod_rx - 2.0*rod_dy*rod_rz + 2.0*rod_dx*rod_rw + 2.0*rod_dz*rod_ry;
-    const double rod_oy = -2.0*rod_dw*rod_ry - 2.0*rod_dz*rod_rx + 2.0*rod_dx*rod_rz + 2.0*rod_dy*rod_rw;
-    const double rod_oz = -2.0*rod_dw*rod_rz - 2.0*rod_dx*rod_ry + 2.0*rod_dy*rod_rx + 2.0*rod_dz*rod_rw;
     const double rod_a00 = -1.0 + 2.0*(rod_rw*rod_rw) + 2.0*(rod_rx*rod_rx);
     const double rod_a01 = -2.0*rod_rw*rod_rz + 2.0*rod_rx*rod_ry;
     const double rod_a10 = 2.0*rod_rw*rod_rz + 2.0*rod_rx*rod_ry;
@@ -311,58 +269,47 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry;
     const double slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw;
     const double slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw;
-    const double slider_a01 = -2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry;
+    const double slider_a00 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rx*slider_rx);
     const double slider_a02 = 2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
-    const double slider_a11 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_ry*slider_ry);
+    const double slider_a10 = 2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry;
     const double slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz;
-    const double slider_a21 = 2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz;
+    const double slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
     const double slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz);
-    const double c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy;
-    const double c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx;
-    const double c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz;
-    const double c3 = -1.0/5.0*crank_a00*v_crank_wy + (1.0/5.0)*crank_a10*v_crank_wx;
-    const double c4 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy;
-    const double c5 = crank_a00*v_crank_wz - crank_a20*v_crank_wx;
-    const double c6 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx;
-    const double c7 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx;
-    const double c8 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy;
-    const double c9 = crank_a20*v_crank_wy - crank_a10*v_crank_wz;
-    const double c10 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz;
-    const double c11 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz;
-    const double c12 = -3.0/5.0*rod_a00*v_rod_wy + (3.0/5.0)*rod_a10*v_rod_wx;
-    const double c13 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy;
-    const double c14 = rod_a00*v_rod_wz - rod_a20*v_rod_wx;
-    const double c15 = v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx;
-    const double c16 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx;
-    const double c17 = v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy;
-    const double c18 = rod_a20*v_rod_wy - rod_a10*v_rod_wz;
-    const double c19 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz;
-    const double c20 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz;
-    const double c21 = v_rod_wy - v_slider_wy;
-    const double c22 = v_rod_wx - v_slider_wx;
-    const double c23 = -c22;
-    const double c24 = v_rod_wz - v_slider_wz;
-    const double c25 = -c24;
-    const double c26 = -c21;
-    const double c27 = slider_a12*v_slider_wx - slider_a02*v_slider_wy;
-    const double c28 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz;
-    out[0] = c0*v_crank_wy - c1*v_crank_wz;
-    out[1] = c2*v_crank_wz - c0*v_crank_wx;
-    out[2] = c1*v_crank_wx - c2*v_crank_wy;
+    const double c0 = -1.0/5.0*crank_a00*v_crank_wy + (1.0/5.0)*crank_a10*v_crank_wx;
+    const double c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx;
+    const double c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz;
+    const double c3 = -3.0/5.0*rod_a00*v_rod_wy + (3.0/5.0)*rod_a10*v_rod_wx;
+    const double c4 = rod_a00*v_rod_wz - rod_a20*v_rod_wx;
+    const double c5 = rod_a20*v_rod_wy - rod_a10*v_rod_wz;
+    const double c6 = v_rod_wy - v_slider_wy;
+    const double c7 = v_rod_wx - v_slider_wx;
+    const double c8 = -c7;
+    const double c9 = v_rod_wz - v_slider_wz;
+    const double c10 = -c9;
+    const double c11 = -c6;
+    const double c12 = slider_a00*v_slider_wy - slider_a10*v_slider_wx;
+    const double c13 = -c12;
+    const double c14 = slider_a10*v_slider_wz - slider_a20*v_slider_wy;
+    const double c15 = -c14;
+    const double c16 = slider_a00*v_slider_wz - slider_a20*v_slider_wx;
+    const double c17 = slider_ox*v_slider_wx;
+    out[0] = 0.0;
+    out[1] = 0.0;
+    out[2] = 0.0;
     out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx);
     out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx);
-    out[5] = c7*v_crank_wz + c8*v_rod_wy - c3*v_crank_wy - c4*v_crank_wy - c6*v_rod_wz + (1.0/5.0)*c5*v_crank_wz;
-    out[6] = c3*v_crank_wx + c4*v_crank_wx + c10*v_rod_wz - c8*v_rod_wx - c11*v_crank_wz - 1.0/5.0*c9*v_crank_wz;
-    out[7] = c6*v_rod_wx + c11*v_crank_wy - c7*v_crank_wx - c10*v_rod_wy - 1.0/5.0*c5*v_crank_wx + (1.0/5.0)*c9*v_crank_wy;
-    out[8] = c16*v_rod_wz + c17*v_slider_wy - c12*v_rod_wy - c13*v_rod_wy - c15*v_slider_wz + (3.0/5.0)*c14*v_rod_wz;
-    out[9] = c12*v_rod_wx + c13*v_rod_wx + c19*v_slider_wz - c17*v_slider_wx - c20*v_rod_wz - 3.0/5.0*c18*v_rod_wz;
-    out[10] = c15*v_slider_wx + c20*v_rod_wy - c16*v_rod_wx - c19*v_slider_wy - 3.0/5.0*c14*v_rod_wx + (3.0/5.0)*c18*v_rod_wy;
-    out[11] = -(c22*rod_a11 + c26*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c22*slider_a22 + c25*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c23*rod_a21 + c24*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c23*slider_a12 + c21*slider_a02)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c24*slider_a12 + c26*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz) - (c25*rod_a11 + c21*rod_a21)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz);
-    out[12] = v_slider_wz*(slider_a01*v_slider_wz - slider_a21*v_slider_wx) - v_slider_wy*(slider_a11*v_slider_wx - slider_a01*v_slider_wy);
-    out[13] = v_slider_wz*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - c27*v_slider_wy;
-    out[14] = v_slider_wx*(v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy) - c28*v_slider_wz;
-    out[15] = c28*v_slider_wy - v_slider_wx*(v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx);
-    out[16] = c27*v_slider_wx - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz);
+    out[5] = -c0*v_crank_wy + (1.0/5.0)*c1*v_crank_wz;
+    out[6] = c0*v_crank_wx - 1.0/5.0*c2*v_crank_wz;
+    out[7] = -1.0/5.0*c1*v_crank_wx + (1.0/5.0)*c2*v_crank_wy;
+    out[8] = -c3*v_rod_wy + (3.0/5.0)*c4*v_rod_wz;
+    out[9] = c3*v_rod_wx - 3.0/5.0*c5*v_rod_wz;
+    out[10] = -3.0/5.0*c4*v_rod_wx + (3.0/5.0)*c5*v_rod_wy;
+    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz);
+    out[12] = c13*v_slider_wx - c15*v_slider_wz;
+    out[13] = c15*v_slider_wy - c16*v_slider_wx;
+    out[14] = -c12*v_slider_vx - c13*(-v_slider_vx + slider_oz*v_slider_wy) - c15*v_slider_vz - c15*(v_slider_vz + slider_ox*v_slider_wy) - c16*(-c17 - slider_oz*v_slider_wz);
+    out[15] = -c13*(-c17 - slider_oy*v_slider_wy) - c14*v_slider_vy - c15*(-v_slider_vy + slider_ox*v_slider_wz) - c16*v_slider_vx - c16*(v_slider_vx + slider_oy*v_slider_wz);
+    out[16] = v_slider_wx*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz);
 }
 
 /* gamma of the driver rows of case 'run'. */
@@ -414,20 +361,9 @@ static void compute_drivers_phi_dead_centre(const double *q, const double *u, do
 
 /* Phi_q values of the driver rows of case 'dead_centre'. */
 static void compute_drivers_jac_dead_centre(const double *q, const double *u, double *out) {
-    const double slider_rw = q[16];
-    const double slider_rx = q[17];
-    const double slider_ry = q[18];
-    const double slider_rz = q[19];
-    const double slider_dw = q[20];
-    const double slider_dx = q[21];
-    const double slider_dy = q[22];
-    const double slider_dz = q[23];
+    (void)q;
     (void)u;
-    const double slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw;
-    const double slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw;
-    out[0] = slider_oz;
-    out[1] = -slider_oy;
-    out[2] = 1.0;
+    out[0] = 1.0;
 }
 
 /* nu of the driver rows of case 'dead_centre'. */
@@ -440,26 +376,12 @@ static void compute_drivers_nu_dead_centre(const double *q, const double *u, con
 
 /* gamma of the driver rows of case 'dead_centre'. */
 static void compute_drivers_gamma_dead_centre(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
-    const double slider_rw = q[16];
-    const double slider_rx = q[17];
-    const double slider_ry = q[18];
-    const double slider_rz = q[19];
-    const double slider_dw = q[20];
-    const double slider_dx = q[21];
-    const double slider_dy = q[22];
-    const double slider_dz = q[23];
-    const double v_slider_wx = v[12];
-    const double v_slider_wy = v[13];
-    const double v_slider_wz = v[14];
-    const double v_slider_vy = v[16];
-    const double v_slider_vz = v[17];
+    (void)q;
+    (void)v;
     (void)u;
     (void)ud;
     const double udd0 = udd[0];
-    const double slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry;
-    const double slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw;
-    const double slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw;
-    out[0] = udd0 + v_slider_wz*(v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx) - v_slider_wy*(v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy);
+    out[0] = udd0;
 }
 
 /* Driver inputs of case 'dead_centre' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -567,15 +489,6 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
     const double slider_a21 = 2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz;
     const double slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz);
-    const double c0 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz;
-    const double c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx;
-    const double c2 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy;
-    const double c3 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz;
-    const double c4 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx;
-    const double c5 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy;
-    const double c6 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz;
-    const double c7 = v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx;
-    const double c8 = v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy;
     out[0] = crank_ox;
     out[1] = crank_oy;
     out[2] = crank_oz;
@@ -588,15 +501,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[9] = crank_a20;
     out[10] = crank_a21;
     out[11] = crank_a22;
-    out[12] = c0;
-    out[13] = c1;
-    out[14] = c2;
+    out[12] = v_crank_vx;
+    out[13] = v_crank_vy;
+    out[14] = v_crank_vz;
     out[15] = v_crank_wx;
     out[16] = v_crank_wy;
     out[17] = v_crank_wz;
-    out[18] = dv_crank_vx + c2*v_crank_wy + crank_oz*dv_crank_wy - c1*v_crank_wz - crank_oy*dv_crank_wz;
-    out[19] = dv_crank_vy + c0*v_crank_wz + crank_ox*dv_crank_wz - c2*v_crank_wx - crank_oz*dv_crank_wx;
-    out[20] = dv_crank_vz + c1*v_crank_wx + crank_oy*dv_crank_wx - c0*v_crank_wy - crank_ox*dv_crank_wy;
+    out[18] = dv_crank_vx;
+    out[19] = dv_crank_vy;
+    out[20] = dv_crank_vz;
     out[21] = dv_crank_wx;
     out[22] = dv_crank_wy;
     out[23] = dv_crank_wz;
@@ -612,15 +525,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[33] = rod_a20;
     out[34] = rod_a21;
     out[35] = rod_a22;
-    out[36] = c3;
-    out[37] = c4;
-    out[38] = c5;
+    out[36] = v_rod_vx;
+    out[37] = v_rod_vy;
+    out[38] = v_rod_vz;
     out[39] = v_rod_wx;
     out[40] = v_rod_wy;
     out[41] = v_rod_wz;
-    out[42] = dv_rod_vx + c5*v_rod_wy + rod_oz*dv_rod_wy - c4*v_rod_wz - rod_oy*dv_rod_wz;
-    out[43] = dv_rod_vy + c3*v_rod_wz + rod_ox*dv_rod_wz - c5*v_rod_wx - rod_oz*dv_rod_wx;
-    out[44] = dv_rod_vz + c4*v_rod_wx + rod_oy*dv_rod_wx - c3*v_rod_wy - rod_ox*dv_rod_wy;
+    out[42] = dv_rod_vx;
+    out[43] = dv_rod_vy;
+    out[44] = dv_rod_vz;
     out[45] = dv_rod_wx;
     out[46] = dv_rod_wy;
     out[47] = dv_rod_wz;
@@ -636,15 +549,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[57] = slider_a20;
     out[58] = slider_a21;
     out[59] = slider_a22;
-    out[60] = c6;
-    out[61] = c7;
-    out[62] = c8;
+    out[60] = v_slider_vx;
+    out[61] = v_slider_vy;
+    out[62] = v_slider_vz;
     out[63] = v_slider_wx;
     out[64] = v_slider_wy;
     out[65] = v_slider_wz;
-    out[66] = dv_slider_vx + c8*v_slider_wy + slider_oz*dv_slider_wy - c7*v_slider_wz - slider_oy*dv_slider_wz;
-    out[67] = dv_slider_vy + c6*v_slider_wz + slider_ox*dv_slider_wz - c8*v_slider_wx - slider_oz*dv_slider_wx;
-    out[68] = dv_slider_vz + c7*v_slider_wx + slider_oy*dv_slider_wx - c6*v_slider_wy - slider_ox*dv_slider_wy;
+    out[66] = dv_slider_vx;
+    out[67] = dv_slider_vy;
+    out[68] = dv_slider_vz;
     out[69] = dv_slider_wx;
     out[70] = dv_slider_wy;
     out[71] = dv_slider_wz;
@@ -652,8 +565,14 @@ static void compute_frames(const double *q, const double *v, const double *a, do
 
 /* one body's coordinates moved by a step in velocity coordinates (dual-quaternion) */
 static void retract_body(double *q, const double *step) {
+    double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
+    double ox = 2.0 * (rw * sx - sw * rx + ry * sz - rz * sy) + 0.5 * step[3];
+    double oy = 2.0 * (rw * sy - sw * ry + rz * sx - rx * sz) + 0.5 * step[4];
+    double oz = 2.0 * (rw * sz - sw * rz + rx * sy - ry * sx) + 0.5 * step[5];
     double ax = 0.5 * step[0], ay = 0.5 * step[1], az = 0.5 * step[2];
-    double bx = 0.5 * step[3], by = 0.5 * step[4], bz = 0.5 * step[5];
+    double bx = 0.5 * (step[3] + oy * step[2] - oz * step[1]);
+    double by = 0.5 * (step[4] + oz * step[0] - ox * step[2]);
+    double bz = 0.5 * (step[5] + ox * step[1] - oy * step[0]);
     double h2 = ax * ax + ay * ay + az * az, h = sqrt(h2), ab = ax * bx + ay * by + az * bz;
     double sinc, bend;
     if (h < 1e-4) {
@@ -665,7 +584,6 @@ static void retract_body(double *q, const double *step) {
     }
     double pw = cos(h), px = sinc * ax, py = sinc * ay, pz = sinc * az;
     double dw = -sinc * ab, dx = sinc * bx + bend * ab * ax, dy = sinc * by + bend * ab * ay, dz = sinc * bz + bend * ab * az;
-    double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
     q[0] = pw * rw - px * rx - py * ry - pz * rz;
     q[1] = pw * rx + px * rw + py * rz - pz * ry;
     q[2] = pw * ry - px * rz + py * rw + pz * rx;
@@ -685,7 +603,7 @@ static void phi_jac_run(const double *q, const double *u, double *phi, double *j
     compute_joints_phi(q, phi);
     compute_drivers_phi_run(q, u, phi + 17);
     compute_joints_jac(q, jac);
-    compute_drivers_jac_run(q, u, jac + 67);
+    compute_drivers_jac_run(q, u, jac + 53);
 }
 
 /* nu = -Phi_t of case 'run' (zero in the joint rows). */
@@ -710,7 +628,7 @@ static void phi_jac_dead_centre(const double *q, const double *u, double *phi, d
     compute_joints_phi(q, phi);
     compute_drivers_phi_dead_centre(q, u, phi + 17);
     compute_joints_jac(q, jac);
-    compute_drivers_jac_dead_centre(q, u, jac + 67);
+    compute_drivers_jac_dead_centre(q, u, jac + 53);
 }
 
 /* nu = -Phi_t of case 'dead_centre' (zero in the joint rows). */
@@ -761,57 +679,57 @@ static const double initial_q[] = {0.9887710779360424, 0.0, 0.0, 0.1494381324735
 /* ---- case run ---- */
 static const char *const constraints_run[] = {"A.x", "A.y", "A.z", "A.axis_f", "A.axis_g", "B.x", "B.y", "B.z", "C.x", "C.y", "C.z", "C.cross", "slide.axis_f", "slide.axis_g", "slide.line_f", "slide.line_g", "slide.roll", "crank_angle"};
 static const char *const drivers_run[] = {"crank_angle"};
-static const int jac_rows_run[] = {0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 15, 15, 15, 16, 16, 17, 17, 17};
-static const int jac_cols_run[] = {1, 2, 3, 0, 2, 4, 0, 1, 5, 0, 1, 0, 1, 1, 2, 3, 7, 8, 9, 0, 2, 4, 6, 8, 10, 0, 1, 5, 6, 7, 11, 7, 8, 9, 13, 14, 15, 6, 8, 10, 12, 14, 16, 6, 7, 11, 12, 13, 17, 6, 7, 8, 12, 13, 14, 13, 14, 13, 14, 12, 14, 16, 12, 13, 17, 12, 14, 0, 1, 2};
-/* Phi_q in block lower triangular form: 12 blocks, the largest 5 x 5 */
-static const int block_start_run[] = {0, 2, 4, 5, 6, 7, 8, 9, 10, 11, 16, 17, 18};
-static const int block_store_run[] = {0, 4, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41};
-static const int row_order_run[] = {3, 4, 12, 13, 17, 2, 16, 0, 1, 14, 15, 6, 7, 9, 10, 11, 5, 8};
-static const int col_order_run[] = {1, 0, 13, 14, 2, 5, 12, 3, 4, 16, 17, 10, 6, 8, 11, 7, 9, 15};
-static const int diag_value_run[] = {2, 5, 8, 9, 10, 11, 12, 18, 22, 23, 24, 28, 29, 30, 36, 37, 38, 39, 43, 44, 45, 49, 50, 51, 55, 56, 57, 58, 61, 64, 65, 69};
-static const int diag_slot_run[] = {11, 12, 9, 2, 0, 3, 1, 40, 20, 25, 15, 21, 36, 31, 41, 22, 27, 17, 23, 38, 33, 24, 39, 29, 4, 6, 5, 7, 13, 14, 10, 8};
-static const int off_start_run[] = {0, 0, 0, 0, 0, 2, 4, 5, 7, 9, 11, 13, 16, 19, 22, 25, 28, 33, 38};
-static const int off_col_run[] = {0, 1, 0, 1, 3, 0, 4, 1, 4, 3, 6, 2, 6, 1, 4, 8, 0, 1, 5, 3, 6, 9, 2, 6, 10, 2, 3, 6, 0, 4, 7, 13, 15, 2, 3, 13, 15, 16};
-static const int off_value_run[] = {68, 67, 7, 6, 66, 0, 1, 3, 4, 60, 59, 63, 62, 19, 20, 21, 26, 25, 27, 41, 40, 42, 47, 46, 48, 53, 54, 52, 13, 14, 15, 17, 16, 34, 35, 32, 31, 33};
+static const int jac_rows_run[] = {0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 16, 16, 17, 17, 17};
+static const int jac_cols_run[] = {3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 7, 8, 9, 15, 6, 8, 10, 16, 6, 7, 11, 17, 6, 7, 8, 12, 13, 14, 12, 14, 12, 13, 12, 13, 14, 15, 17, 12, 13, 14, 15, 16, 12, 14, 0, 1, 2};
+/* Phi_q in block lower triangular form: 11 blocks, the largest 6 x 6 */
+static const int block_start_run[] = {0, 1, 2, 3, 5, 7, 8, 9, 10, 11, 12, 18};
+static const int block_store_run[] = {0, 1, 2, 3, 7, 11, 12, 13, 14, 15, 16};
+static const int row_order_run[] = {0, 1, 2, 3, 4, 12, 16, 17, 7, 13, 5, 6, 8, 9, 10, 11, 14, 15};
+static const int col_order_run[] = {3, 4, 5, 0, 1, 12, 14, 2, 11, 13, 9, 10, 7, 6, 17, 8, 15, 16};
+static const int diag_value_run[] = {0, 1, 2, 3, 4, 5, 6, 10, 14, 18, 19, 20, 22, 23, 24, 26, 27, 28, 30, 31, 32, 33, 37, 38, 40, 44, 45, 49, 50, 51, 52, 55};
+static const int diag_slot_run[] = {0, 1, 2, 3, 5, 4, 6, 14, 15, 12, 16, 34, 40, 23, 35, 47, 24, 18, 30, 25, 19, 37, 7, 9, 13, 44, 32, 45, 51, 8, 10, 11};
+static const int off_start_run[] = {0, 0, 0, 0, 0, 0, 0, 0, 2, 5, 6, 9, 12, 13, 14, 15, 18, 21, 24};
+static const int off_col_run[] = {3, 4, 2, 3, 4, 5, 0, 4, 7, 1, 3, 7, 10, 11, 8, 5, 6, 9, 5, 6, 9, 5, 6, 9};
+static const int off_value_run[] = {53, 54, 17, 15, 16, 39, 9, 7, 8, 13, 11, 12, 21, 25, 29, 34, 36, 35, 41, 43, 42, 46, 48, 47};
 
 const kinegen_model slider_crank_dual_quaternion_run = {
     &slider_crank_dual_quaternion_layout, "run",
-    SLIDER_CRANK_DUAL_QUATERNION_N_Q, SLIDER_CRANK_DUAL_QUATERNION_N_V, 1, 70,
+    SLIDER_CRANK_DUAL_QUATERNION_N_Q, SLIDER_CRANK_DUAL_QUATERNION_N_V, 1, 56,
     0.0, 1.5, 301,
     initial_q, constraints_run, drivers_run, jac_rows_run, jac_cols_run,
     phi_jac_run, nu_run, gamma_run, inputs_run, retract,
-    12, block_start_run, block_store_run, row_order_run, col_order_run,
-    42, 32, diag_value_run, diag_slot_run,
-    38, off_start_run, off_col_run, off_value_run,
-    342, 36,
+    11, block_start_run, block_store_run, row_order_run, col_order_run,
+    52, 32, diag_value_run, diag_slot_run,
+    24, off_start_run, off_col_run, off_value_run,
+    324, 36,
 };
 
 /* ---- case dead_centre ---- */
 static const char *const constraints_dead_centre[] = {"A.x", "A.y", "A.z", "A.axis_f", "A.axis_g", "B.x", "B.y", "B.z", "C.x", "C.y", "C.z", "C.cross", "slide.axis_f", "slide.axis_g", "slide.line_f", "slide.line_g", "slide.roll", "slider_x"};
 static const char *const drivers_dead_centre[] = {"slider_x"};
-static const int jac_rows_dead_centre[] = {0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 15, 15, 15, 16, 16, 17, 17, 17};
-static const int jac_cols_dead_centre[] = {1, 2, 3, 0, 2, 4, 0, 1, 5, 0, 1, 0, 1, 1, 2, 3, 7, 8, 9, 0, 2, 4, 6, 8, 10, 0, 1, 5, 6, 7, 11, 7, 8, 9, 13, 14, 15, 6, 8, 10, 12, 14, 16, 6, 7, 11, 12, 13, 17, 6, 7, 8, 12, 13, 14, 13, 14, 13, 14, 12, 14, 16, 12, 13, 17, 12, 14, 13, 14, 15};
-/* Phi_q in block lower triangular form: 8 blocks, the largest 9 x 9 */
-static const int block_start_dead_centre[] = {0, 2, 4, 5, 6, 7, 8, 9, 18};
-static const int block_store_dead_centre[] = {0, 4, 8, 9, 10, 11, 12, 13};
-static const int row_order_dead_centre[] = {12, 13, 3, 4, 16, 2, 17, 14, 15, 0, 1, 5, 6, 7, 8, 9, 10, 11};
-static const int col_order_dead_centre[] = {13, 14, 1, 0, 12, 5, 15, 16, 17, 3, 4, 2, 10, 6, 9, 8, 11, 7};
-static const int diag_value_dead_centre[] = {1, 2, 4, 5, 8, 9, 10, 11, 12, 14, 15, 16, 17, 18, 20, 21, 22, 23, 24, 28, 29, 30, 31, 32, 33, 37, 38, 39, 43, 44, 45, 49, 50, 51, 55, 56, 57, 58, 61, 64, 65, 69};
-static const int diag_slot_dead_centre[] = {31, 13, 32, 23, 9, 6, 4, 7, 5, 33, 15, 87, 69, 60, 34, 25, 52, 70, 43, 53, 89, 80, 90, 72, 63, 55, 73, 46, 56, 92, 83, 57, 93, 75, 0, 2, 1, 3, 11, 12, 8, 10};
-static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 1, 3, 5, 7, 9, 10, 11, 12, 13, 16, 19, 22, 25, 28};
-static const int off_col_dead_centre[] = {1, 2, 3, 0, 1, 1, 4, 0, 4, 2, 3, 2, 3, 2, 3, 5, 0, 1, 6, 1, 4, 7, 0, 4, 8, 0, 1, 4};
-static const int off_value_dead_centre[] = {66, 7, 6, 67, 68, 60, 59, 63, 62, 0, 3, 13, 19, 26, 25, 27, 34, 35, 36, 41, 40, 42, 47, 46, 48, 53, 54, 52};
+static const int jac_rows_dead_centre[] = {0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 16, 16, 17};
+static const int jac_cols_dead_centre[] = {3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 7, 8, 9, 15, 6, 8, 10, 16, 6, 7, 11, 17, 6, 7, 8, 12, 13, 14, 12, 14, 12, 13, 12, 13, 14, 15, 17, 12, 13, 14, 15, 16, 12, 14, 15};
+/* Phi_q in block lower triangular form: 11 blocks, the largest 6 x 6 */
+static const int block_start_dead_centre[] = {0, 1, 2, 3, 5, 6, 8, 9, 10, 11, 12, 18};
+static const int block_store_dead_centre[] = {0, 1, 2, 3, 7, 8, 12, 13, 14, 15, 16};
+static const int row_order_dead_centre[] = {0, 1, 2, 3, 4, 17, 12, 16, 13, 7, 14, 15, 5, 6, 8, 9, 10, 11};
+static const int col_order_dead_centre[] = {3, 4, 5, 0, 1, 15, 12, 14, 13, 11, 17, 16, 2, 10, 9, 6, 7, 8};
+static const int diag_value_dead_centre[] = {0, 1, 2, 3, 4, 5, 6, 8, 10, 12, 14, 18, 19, 20, 21, 23, 24, 25, 27, 28, 31, 32, 33, 37, 38, 40, 45, 50, 51, 52, 53};
+static const int diag_slot_dead_centre[] = {0, 1, 2, 3, 5, 4, 6, 16, 28, 17, 23, 13, 42, 48, 30, 37, 49, 25, 38, 44, 39, 45, 51, 8, 10, 12, 14, 15, 9, 11, 7};
+static const int off_start_dead_centre[] = {0, 0, 0, 0, 0, 0, 0, 0, 0, 1, 4, 8, 12, 14, 16, 17, 18, 20, 23};
+static const int off_col_dead_centre[] = {6, 2, 3, 4, 5, 6, 7, 8, 5, 6, 7, 8, 0, 4, 1, 3, 5, 11, 9, 10, 6, 7, 8};
+static const int off_value_dead_centre[] = {39, 17, 15, 16, 44, 41, 43, 42, 49, 46, 48, 47, 9, 7, 13, 11, 22, 26, 29, 30, 34, 36, 35};
 
 const kinegen_model slider_crank_dual_quaternion_dead_centre = {
     &slider_crank_dual_quaternion_layout, "dead_centre",
-    SLIDER_CRANK_DUAL_QUATERNION_N_Q, SLIDER_CRANK_DUAL_QUATERNION_N_V, 1, 70,
+    SLIDER_CRANK_DUAL_QUATERNION_N_Q, SLIDER_CRANK_DUAL_QUATERNION_N_V, 1, 54,
     -1.0, 0.0, 101,
     initial_q, constraints_dead_centre, drivers_dead_centre, jac_rows_dead_centre, jac_cols_dead_centre,
     phi_jac_dead_centre, nu_dead_centre, gamma_dead_centre, inputs_dead_centre, retract,
-    8, block_start_dead_centre, block_store_dead_centre, row_order_dead_centre, col_order_dead_centre,
-    94, 42, diag_value_dead_centre, diag_slot_dead_centre,
-    28, off_start_dead_centre, off_col_dead_centre, off_value_dead_centre,
-    384, 36,
+    11, block_start_dead_centre, block_store_dead_centre, row_order_dead_centre, col_order_dead_centre,
+    52, 31, diag_value_dead_centre, diag_slot_dead_centre,
+    23, off_start_dead_centre, off_col_dead_centre, off_value_dead_centre,
+    321, 36,
 };
 
 const kinegen_model *const slider_crank_dual_quaternion_cases[SLIDER_CRANK_DUAL_QUATERNION_N_CASES] = {&slider_crank_dual_quaternion_run, &slider_crank_dual_quaternion_dead_centre};

@@ -26,7 +26,7 @@ extern "C" {
 #define SLIDER_CRANK_DUAL_QUATERNION_N_CASES 2
 #define SLIDER_CRANK_DUAL_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define SLIDER_CRANK_DUAL_QUATERNION_WORK_DOUBLES 384
+#define SLIDER_CRANK_DUAL_QUATERNION_WORK_DOUBLES 324
 #define SLIDER_CRANK_DUAL_QUATERNION_WORK_INTS 36
 
 typedef struct slider_crank_dual_quaternion_workspace {

@@ -83,9 +83,11 @@ def _joints_phi(q):
     slider_ox = -2*slider_dw*slider_rx - 2*slider_dy*slider_rz + 2*slider_dx*slider_rw + 2*slider_dz*slider_ry
     slider_oy = -2*slider_dw*slider_ry - 2*slider_dz*slider_rx + 2*slider_dx*slider_rz + 2*slider_dy*slider_rw
     slider_oz = -2*slider_dw*slider_rz - 2*slider_dx*slider_ry + 2*slider_dy*slider_rx + 2*slider_dz*slider_rw
-    slider_a01 = -2*slider_rw*slider_rz + 2*slider_rx*slider_ry
+    slider_a00 = -1 + 2*slider_rw**2 + 2*slider_rx**2
     slider_a02 = 2*slider_rw*slider_ry + 2*slider_rx*slider_rz
+    slider_a10 = 2*slider_rw*slider_rz + 2*slider_rx*slider_ry
     slider_a12 = -2*slider_rw*slider_rx + 2*slider_ry*slider_rz
+    slider_a20 = -2*slider_rw*slider_ry + 2*slider_rx*slider_rz
     slider_a22 = -1 + 2*slider_rw**2 + 2*slider_rz**2
     out = _zeros(17, q, ())
     out[0] = -crank_ox
@@ -100,28 +102,22 @@ def _joints_phi(q):
     out[9] = rod_oy - slider_oy + (3/5)*rod_a10
     out[10] = rod_oz - slider_oz + (3/5)*rod_a20
     out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
-    out[12] = slider_a01
-    out[13] = slider_a02
-    out[14] = slider_oy
-    out[15] = slider_oz
+    out[12] = slider_a10
+    out[13] = slider_a20
+    out[14] = slider_a00*slider_oz - slider_a20*slider_ox
+    out[15] = slider_a10*slider_ox - slider_a00*slider_oy
     out[16] = slider_a12
     return out
 
 
 def _joints_jac(q):
-    """Phi_q values of the joint rows (67 entries)."""
-    crank_rw, crank_rx, crank_ry, crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, rod_rw, rod_rx, rod_ry, rod_rz, rod_dw, rod_dx, rod_dy, rod_dz, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
-    crank_ox = -2*crank_dw*crank_rx - 2*crank_dy*crank_rz + 2*crank_dx*crank_rw + 2*crank_dz*crank_ry
-    crank_oy = -2*crank_dw*crank_ry - 2*crank_dz*crank_rx + 2*crank_dx*crank_rz + 2*crank_dy*crank_rw
-    crank_oz = -2*crank_dw*crank_rz - 2*crank_dx*crank_ry + 2*crank_dy*crank_rx + 2*crank_dz*crank_rw
+    """Phi_q values of the joint rows (53 entries)."""
+    crank_rw, crank_rx, crank_ry, crank_rz, _, _, _, _, rod_rw, rod_rx, rod_ry, rod_rz, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
     crank_a00 = -1 + 2*crank_rw**2 + 2*crank_rx**2
     crank_a01 = -2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a10 = 2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a11 = -1 + 2*crank_rw**2 + 2*crank_ry**2
     crank_a20 = -2*crank_rw*crank_ry + 2*crank_rx*crank_rz
-    rod_ox = -2*rod_dw*rod_rx - 2*rod_dy*rod_rz + 2*rod_dx*rod_rw + 2*rod_dz*rod_ry
-    rod_oy = -2*rod_dw*rod_ry - 2*rod_dz*rod_rx + 2*rod_dx*rod_rz + 2*rod_dy*rod_rw
-    rod_oz = -2*rod_dw*rod_rz - 2*rod_dx*rod_ry + 2*rod_dy*rod_rx + 2*rod_dz*rod_rw
     rod_a00 = -1 + 2*rod_rw**2 + 2*rod_rx**2
     rod_a01 = -2*rod_rw*rod_rz + 2*rod_rx*rod_ry
     rod_a10 = 2*rod_rw*rod_rz + 2*rod_rx*rod_ry
@@ -131,107 +127,91 @@ def _joints_jac(q):
     slider_ox = -2*slider_dw*slider_rx - 2*slider_dy*slider_rz + 2*slider_dx*slider_rw + 2*slider_dz*slider_ry
     slider_oy = -2*slider_dw*slider_ry - 2*slider_dz*slider_rx + 2*slider_dx*slider_rz + 2*slider_dy*slider_rw
     slider_oz = -2*slider_dw*slider_rz - 2*slider_dx*slider_ry + 2*slider_dy*slider_rx + 2*slider_dz*slider_rw
+    slider_a00 = -1 + 2*slider_rw**2 + 2*slider_rx**2
     slider_a02 = 2*slider_rw*slider_ry + 2*slider_rx*slider_rz
-    slider_a11 = -1 + 2*slider_rw**2 + 2*slider_ry**2
+    slider_a10 = 2*slider_rw*slider_rz + 2*slider_rx*slider_ry
     slider_a12 = -2*slider_rw*slider_rx + 2*slider_ry*slider_rz
-    slider_a21 = 2*slider_rw*slider_rx + 2*slider_ry*slider_rz
+    slider_a20 = -2*slider_rw*slider_ry + 2*slider_rx*slider_rz
     slider_a22 = -1 + 2*slider_rw**2 + 2*slider_rz**2
-    d0 = crank_oz + (1/5)*crank_a20
-    d1 = crank_oy + (1/5)*crank_a10
-    d2 = crank_ox + (1/5)*crank_a00
-    d3 = rod_oz + (3/5)*rod_a20
-    d4 = rod_oy + (3/5)*rod_a10
-    d5 = rod_ox + (3/5)*rod_a00
+    d0 = (1/5)*crank_a20
+    d1 = (1/5)*crank_a10
+    d2 = (1/5)*crank_a00
+    d3 = (3/5)*rod_a20
+    d4 = (3/5)*rod_a10
+    d5 = (3/5)*rod_a00
     d6 = rod_a11*slider_a22 - rod_a21*slider_a12
     d7 = rod_a01*slider_a22 - rod_a21*slider_a02
     d8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    out = _zeros(67, q, ())
-    out[0] = -crank_oz
-    out[1] = crank_oy
+    d9 = -slider_a20
+    d10 = -slider_a00
+    d11 = slider_a00*slider_ox
+    out = _zeros(53, q, ())
+    out[0] = -1
+    out[1] = -1
     out[2] = -1
-    out[3] = crank_oz
-    out[4] = -crank_ox
-    out[5] = -1
-    out[6] = -crank_oy
-    out[7] = crank_ox
-    out[8] = -1
-    out[9] = crank_a10
-    out[10] = -crank_a00
-    out[11] = crank_a11
-    out[12] = -crank_a01
-    out[13] = d0
-    out[14] = -d1
-    out[15] = 1
-    out[16] = -rod_oz
-    out[17] = rod_oy
+    out[3] = crank_a10
+    out[4] = -crank_a00
+    out[5] = crank_a11
+    out[6] = -crank_a01
+    out[7] = d0
+    out[8] = -d1
+    out[9] = 1
+    out[10] = -1
+    out[11] = -d0
+    out[12] = d2
+    out[13] = 1
+    out[14] = -1
+    out[15] = d1
+    out[16] = -d2
+    out[17] = 1
     out[18] = -1
-    out[19] = -d0
-    out[20] = d2
+    out[19] = d3
+    out[20] = -d4
     out[21] = 1
-    out[22] = rod_oz
-    out[23] = -rod_ox
-    out[24] = -1
-    out[25] = d1
-    out[26] = -d2
-    out[27] = 1
-    out[28] = -rod_oy
-    out[29] = rod_ox
+    out[22] = -1
+    out[23] = -d3
+    out[24] = d5
+    out[25] = 1
+    out[26] = -1
+    out[27] = d4
+    out[28] = -d5
+    out[29] = 1
     out[30] = -1
-    out[31] = d3
-    out[32] = -d4
-    out[33] = 1
-    out[34] = -slider_oz
-    out[35] = slider_oy
-    out[36] = -1
-    out[37] = -d3
-    out[38] = d5
-    out[39] = 1
-    out[40] = slider_oz
-    out[41] = -slider_ox
-    out[42] = -1
-    out[43] = d4
-    out[44] = -d5
-    out[45] = 1
-    out[46] = -slider_oy
-    out[47] = slider_ox
-    out[48] = -1
-    out[49] = d6
-    out[50] = -d7
-    out[51] = d8
-    out[52] = -d6
-    out[53] = d7
-    out[54] = -d8
-    out[55] = slider_a21
-    out[56] = -slider_a11
-    out[57] = slider_a22
-    out[58] = -slider_a12
-    out[59] = -slider_oz
-    out[60] = slider_ox
-    out[61] = 1
-    out[62] = slider_oy
-    out[63] = -slider_ox
-    out[64] = 1
-    out[65] = -slider_a22
-    out[66] = slider_a02
+    out[31] = d6
+    out[32] = -d7
+    out[33] = d8
+    out[34] = -d6
+    out[35] = d7
+    out[36] = -d8
+    out[37] = d9
+    out[38] = slider_a00
+    out[39] = slider_a10
+    out[40] = d10
+    out[41] = -slider_a10*slider_ox
+    out[42] = d11 + slider_a20*slider_oz
+    out[43] = -slider_a10*slider_oz
+    out[44] = d9
+    out[45] = slider_a00
+    out[46] = -slider_a20*slider_ox
+    out[47] = -slider_a20*slider_oy
+    out[48] = d11 + slider_a10*slider_oy
+    out[49] = slider_a10
+    out[50] = d10
+    out[51] = -slider_a22
+    out[52] = slider_a02
     return out
 
 
 def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
-    crank_rw, crank_rx, crank_ry, crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, rod_rw, rod_rx, rod_ry, rod_rz, rod_dw, rod_dx, rod_dy, rod_dz, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
-    v_crank_wx, v_crank_wy, v_crank_wz, v_crank_vx, v_crank_vy, v_crank_vz, v_rod_wx, v_rod_wy, v_rod_wz, v_rod_vx, v_rod_vy, v_rod_vz, v_slider_wx, v_slider_wy, v_slider_wz, v_slider_vx, v_slider_vy, v_slider_vz = v
-    crank_ox = -2*crank_dw*crank_rx - 2*crank_dy*crank_rz + 2*crank_dx*crank_rw + 2*crank_dz*crank_ry
-    crank_oy = -2*crank_dw*crank_ry - 2*crank_dz*crank_rx + 2*crank_dx*crank_rz + 2*crank_dy*crank_rw
-    crank_oz = -2*crank_dw*crank_rz - 2*crank_dx*crank_ry + 2*crank_dy*crank_rx + 2*crank_dz*crank_rw
+    crank_rw, crank_rx, crank_ry, crank_rz, _, _, _, _, rod_rw, rod_rx, rod_ry, rod_rz, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
+    v_crank_wx, v_crank_wy, v_crank_wz, _, _, _, v_rod_wx, v_rod_wy, v_rod_wz, _, _, _, v_slider_wx, v_slider_wy, v_slider_wz, v_slider_vx, v_slider_vy, v_slider_vz = v
     crank_a00 = -1 + 2*crank_rw**2 + 2*crank_rx**2
     crank_a01 = -2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a10 = 2*crank_rw*crank_rz + 2*crank_rx*crank_ry
     crank_a11 = -1 + 2*crank_rw**2 + 2*crank_ry**2
     crank_a20 = -2*crank_rw*crank_ry + 2*crank_rx*crank_rz
     crank_a21 = 2*crank_rw*crank_rx + 2*crank_ry*crank_rz
-    rod_ox = -2*rod_dw*rod_rx - 2*rod_dy*rod_rz + 2*rod_dx*rod_rw + 2*rod_dz*rod_ry
-    rod_oy = -2*rod_dw*rod_ry - 2*rod_dz*rod_rx + 2*rod_dx*rod_rz + 2*rod_dy*rod_rw
-    rod_oz = -2*rod_dw*rod_rz - 2*rod_dx*rod_ry + 2*rod_dy*rod_rx + 2*rod_dz*rod_rw
     rod_a00 = -1 + 2*rod_rw**2 + 2*rod_rx**2
     rod_a01 = -2*rod_rw*rod_rz + 2*rod_rx*rod_ry
     rod_a10 = 2*rod_rw*rod_rz + 2*rod_rx*rod_ry
@@ -241,59 +221,45 @@ def _joints_gamma(q, v):
     slider_ox = -2*slider_dw*slider_rx - 2*slider_dy*slider_rz + 2*slider_dx*slider_rw + 2*slider_dz*slider_ry
     slider_oy = -2*slider_dw*slider_ry - 2*slider_dz*slider_rx + 2*slider_dx*slider_rz + 2*slider_dy*slider_rw
     slider_oz = -2*slider_dw*slider_rz - 2*slider_dx*slider_ry + 2*slider_dy*slider_rx + 2*slider_dz*slider_rw
-    slider_a01 = -2*slider_rw*slider_rz + 2*slider_rx*slider_ry
+    slider_a00 = -1 + 2*slider_rw**2 + 2*slider_rx**2
     slider_a02 = 2*slider_rw*slider_ry + 2*slider_rx*slider_rz
-    slider_a11 = -1 + 2*slider_rw**2 + 2*slider_ry**2
+    slider_a10 = 2*slider_rw*slider_rz + 2*slider_rx*slider_ry
     slider_a12 = -2*slider_rw*slider_rx + 2*slider_ry*slider_rz
-    slider_a21 = 2*slider_rw*slider_rx + 2*slider_ry*slider_rz
+    slider_a20 = -2*slider_rw*slider_ry + 2*slider_rx*slider_rz
     slider_a22 = -1 + 2*slider_rw**2 + 2*slider_rz**2
-    c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c3 = -1/5*crank_a00*v_crank_wy + (1/5)*crank_a10*v_crank_wx
-    c4 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c5 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c6 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx
-    c7 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c8 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy
-    c9 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c10 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz
-    c11 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c12 = -3/5*rod_a00*v_rod_wy + (3/5)*rod_a10*v_rod_wx
-    c13 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy
-    c14 = rod_a00*v_rod_wz - rod_a20*v_rod_wx
-    c15 = v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx
-    c16 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx
-    c17 = v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy
-    c18 = rod_a20*v_rod_wy - rod_a10*v_rod_wz
-    c19 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz
-    c20 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz
-    c21 = v_rod_wy - v_slider_wy
-    c22 = v_rod_wx - v_slider_wx
-    c23 = -c22
-    c24 = v_rod_wz - v_slider_wz
-    c25 = -c24
-    c26 = -c21
-    c27 = slider_a12*v_slider_wx - slider_a02*v_slider_wy
-    c28 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz
+    c0 = -1/5*crank_a00*v_crank_wy + (1/5)*crank_a10*v_crank_wx
+    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
+    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
+    c3 = -3/5*rod_a00*v_rod_wy + (3/5)*rod_a10*v_rod_wx
+    c4 = rod_a00*v_rod_wz - rod_a20*v_rod_wx
+    c5 = rod_a20*v_rod_wy - rod_a10*v_rod_wz
+    c6 = v_rod_wy - v_slider_wy
+    c7 = v_rod_wx - v_slider_wx
+    c8 = -c7
+    c9 = v_rod_wz - v_slider_wz
+    c10 = -c9
+    c11 = -c6
+    c12 = slider_a00*v_slider_wy - slider_a10*v_slider_wx
+    c13 = -c12
+    c14 = slider_a10*v_slider_wz - slider_a20*v_slider_wy
+    c15 = -c14
+    c16 = slider_a00*v_slider_wz - slider_a20*v_slider_wx
+    c17 = slider_ox*v_slider_wx
     out = _zeros(17, q, ())
-    out[0] = c0*v_crank_wy - c1*v_crank_wz
-    out[1] = c2*v_crank_wz - c0*v_crank_wx
-    out[2] = c1*v_crank_wx - c2*v_crank_wy
     out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx)
     out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx)
-    out[5] = c7*v_crank_wz + c8*v_rod_wy - c3*v_crank_wy - c4*v_crank_wy - c6*v_rod_wz + (1/5)*c5*v_crank_wz
-    out[6] = c3*v_crank_wx + c4*v_crank_wx + c10*v_rod_wz - c8*v_rod_wx - c11*v_crank_wz - 1/5*c9*v_crank_wz
-    out[7] = c6*v_rod_wx + c11*v_crank_wy - c7*v_crank_wx - c10*v_rod_wy - 1/5*c5*v_crank_wx + (1/5)*c9*v_crank_wy
-    out[8] = c16*v_rod_wz + c17*v_slider_wy - c12*v_rod_wy - c13*v_rod_wy - c15*v_slider_wz + (3/5)*c14*v_rod_wz
-    out[9] = c12*v_rod_wx + c13*v_rod_wx + c19*v_slider_wz - c17*v_slider_wx - c20*v_rod_wz - 3/5*c18*v_rod_wz
-    out[10] = c15*v_slider_wx + c20*v_rod_wy - c16*v_rod_wx - c19*v_slider_wy - 3/5*c14*v_rod_wx + (3/5)*c18*v_rod_wy
-    out[11] = -(c22*rod_a11 + c26*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c22*slider_a22 + c25*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c23*rod_a21 + c24*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c23*slider_a12 + c21*slider_a02)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c24*slider_a12 + c26*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz) - (c25*rod_a11 + c21*rod_a21)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz)
-    out[12] = v_slider_wz*(slider_a01*v_slider_wz - slider_a21*v_slider_wx) - v_slider_wy*(slider_a11*v_slider_wx - slider_a01*v_slider_wy)
-    out[13] = v_slider_wz*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - c27*v_slider_wy
-    out[14] = v_slider_wx*(v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy) - c28*v_slider_wz
-    out[15] = c28*v_slider_wy - v_slider_wx*(v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx)
-    out[16] = c27*v_slider_wx - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz)
+    out[5] = -c0*v_crank_wy + (1/5)*c1*v_crank_wz
+    out[6] = c0*v_crank_wx - 1/5*c2*v_crank_wz
+    out[7] = -1/5*c1*v_crank_wx + (1/5)*c2*v_crank_wy
+    out[8] = -c3*v_rod_wy + (3/5)*c4*v_rod_wz
+    out[9] = c3*v_rod_wx - 3/5*c5*v_rod_wz
+    out[10] = -3/5*c4*v_rod_wx + (3/5)*c5*v_rod_wy
+    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz)
+    out[12] = c13*v_slider_wx - c15*v_slider_wz
+    out[13] = c15*v_slider_wy - c16*v_slider_wx
+    out[14] = -c12*v_slider_vx - c13*(-v_slider_vx + slider_oz*v_slider_wy) - c15*v_slider_vz - c15*(v_slider_vz + slider_ox*v_slider_wy) - c16*(-c17 - slider_oz*v_slider_wz)
+    out[15] = -c13*(-c17 - slider_oy*v_slider_wy) - c14*v_slider_vy - c15*(-v_slider_vy + slider_ox*v_slider_wz) - c16*v_slider_vx - c16*(v_slider_vx + slider_oy*v_slider_wz)
+    out[16] = v_slider_wx*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz)
     return out
 
 
@@ -321,40 +287,37 @@ def _joints_phi_jac_s(q):
     slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry
     slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw
     slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw
-    slider_a01 = -2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry
+    slider_a00 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rx*slider_rx)
     slider_a02 = 2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz
-    slider_a11 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_ry*slider_ry)
+    slider_a10 = 2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry
     slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz
-    slider_a21 = 2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz
+    slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz
     slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz)
-    d0 = crank_oz + (1/5)*crank_a20
-    d1 = crank_oy + (1/5)*crank_a10
-    d2 = crank_ox + (1/5)*crank_a00
-    d3 = rod_oz + (3/5)*rod_a20
-    d4 = rod_oy + (3/5)*rod_a10
-    d5 = rod_ox + (3/5)*rod_a00
+    d0 = (1/5)*crank_a20
+    d1 = (1/5)*crank_a10
+    d2 = (1/5)*crank_a00
+    d3 = (3/5)*rod_a20
+    d4 = (3/5)*rod_a10
+    d5 = (3/5)*rod_a00
     d6 = rod_a11*slider_a22 - rod_a21*slider_a12
     d7 = rod_a01*slider_a22 - rod_a21*slider_a02
     d8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, crank_ox - rod_ox + (1/5)*crank_a00, crank_oy - rod_oy + (1/5)*crank_a10, crank_oz - rod_oz + (1/5)*crank_a20, rod_ox - slider_ox + (3/5)*rod_a00, rod_oy - slider_oy + (3/5)*rod_a10, rod_oz - slider_oz + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_oy, slider_oz, slider_a12], [-crank_oz, crank_oy, -1.0, crank_oz, -crank_ox, -1.0, -crank_oy, crank_ox, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -rod_oz, rod_oy, -1.0, -d0, d2, 1.0, rod_oz, -rod_ox, -1.0, d1, -d2, 1.0, -rod_oy, rod_ox, -1.0, d3, -d4, 1.0, -slider_oz, slider_oy, -1.0, -d3, d5, 1.0, slider_oz, -slider_ox, -1.0, d4, -d5, 1.0, -slider_oy, slider_ox, -1.0, d6, -d7, d8, -d6, d7, -d8, slider_a21, -slider_a11, slider_a22, -slider_a12, -slider_oz, slider_ox, 1.0, slider_oy, -slider_ox, 1.0, -slider_a22, slider_a02]
+    d9 = -slider_a20
+    d10 = -slider_a00
+    d11 = slider_a00*slider_ox
+    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, crank_ox - rod_ox + (1/5)*crank_a00, crank_oy - rod_oy + (1/5)*crank_a10, crank_oz - rod_oz + (1/5)*crank_a20, rod_ox - slider_ox + (3/5)*rod_a00, rod_oy - slider_oy + (3/5)*rod_a10, rod_oz - slider_oz + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a10, slider_a20, slider_a00*slider_oz - slider_a20*slider_ox, slider_a10*slider_ox - slider_a00*slider_oy, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, 1.0, -1.0, -d3, d5, 1.0, -1.0, d4, -d5, 1.0, -1.0, d6, -d7, d8, -d6, d7, -d8, d9, slider_a00, slider_a10, d10, -slider_a10*slider_ox, d11 + slider_a20*slider_oz, -slider_a10*slider_oz, d9, slider_a00, -slider_a20*slider_ox, -slider_a20*slider_oy, d11 + slider_a10*slider_oy, slider_a10, d10, -slider_a22, slider_a02]
 
 
 def _joints_gamma_s(q, v):
     """gamma of the joint rows at one configuration (list of floats)."""
-    crank_rw, crank_rx, crank_ry, crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, rod_rw, rod_rx, rod_ry, rod_rz, rod_dw, rod_dx, rod_dy, rod_dz, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
-    v_crank_wx, v_crank_wy, v_crank_wz, v_crank_vx, v_crank_vy, v_crank_vz, v_rod_wx, v_rod_wy, v_rod_wz, v_rod_vx, v_rod_vy, v_rod_vz, v_slider_wx, v_slider_wy, v_slider_wz, v_slider_vx, v_slider_vy, v_slider_vz = v
-    crank_ox = -2.0*crank_dw*crank_rx - 2.0*crank_dy*crank_rz + 2.0*crank_dx*crank_rw + 2.0*crank_dz*crank_ry
-    crank_oy = -2.0*crank_dw*crank_ry - 2.0*crank_dz*crank_rx + 2.0*crank_dx*crank_rz + 2.0*crank_dy*crank_rw
-    crank_oz = -2.0*crank_dw*crank_rz - 2.0*crank_dx*crank_ry + 2.0*crank_dy*crank_rx + 2.0*crank_dz*crank_rw
+    crank_rw, crank_rx, crank_ry, crank_rz, _, _, _, _, rod_rw, rod_rx, rod_ry, rod_rz, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
+    v_crank_wx, v_crank_wy, v_crank_wz, _, _, _, v_rod_wx, v_rod_wy, v_rod_wz, _, _, _, v_slider_wx, v_slider_wy, v_slider_wz, v_slider_vx, v_slider_vy, v_slider_vz = v
     crank_a00 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_rx*crank_rx)
     crank_a01 = -2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry
     crank_a10 = 2.0*crank_rw*crank_rz + 2.0*crank_rx*crank_ry
     crank_a11 = -1.0 + 2.0*(crank_rw*crank_rw) + 2.0*(crank_ry*crank_ry)
     crank_a20 = -2.0*crank_rw*crank_ry + 2.0*crank_rx*crank_rz
     crank_a21 = 2.0*crank_rw*crank_rx + 2.0*crank_ry*crank_rz
-    rod_ox = -2.0*rod_dw*rod_rx - 2.0*rod_dy*rod_rz + 2.0*rod_dx*rod_rw + 2.0*rod_dz*rod_ry
-    rod_oy = -2.0*rod_dw*rod_ry - 2.0*rod_dz*rod_rx + 2.0*rod_dx*rod_rz + 2.0*rod_dy*rod_rw
-    rod_oz = -2.0*rod_dw*rod_rz - 2.0*rod_dx*rod_ry + 2.0*rod_dy*rod_rx + 2.0*rod_dz*rod_rw
     rod_a00 = -1.0 + 2.0*(rod_rw*rod_rw) + 2.0*(rod_rx*rod_rx)
     rod_a01 = -2.0*rod_rw*rod_rz + 2.0*rod_rx*rod_ry
     rod_a10 = 2.0*rod_rw*rod_rz + 2.0*rod_rx*rod_ry
@@ -364,42 +327,31 @@ def _joints_gamma_s(q, v):
     slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry
     slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw
     slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw
-    slider_a01 = -2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry
+    slider_a00 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rx*slider_rx)
     slider_a02 = 2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz
-    slider_a11 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_ry*slider_ry)
+    slider_a10 = 2.0*slider_rw*slider_rz + 2.0*slider_rx*slider_ry
     slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz
-    slider_a21 = 2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz
+    slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz
     slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz)
-    c0 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c3 = -1/5*crank_a00*v_crank_wy + (1/5)*crank_a10*v_crank_wx
-    c4 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c5 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c6 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx
-    c7 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c8 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy
-    c9 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c10 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz
-    c11 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c12 = -3/5*rod_a00*v_rod_wy + (3/5)*rod_a10*v_rod_wx
-    c13 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy
-    c14 = rod_a00*v_rod_wz - rod_a20*v_rod_wx
-    c15 = v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx
-    c16 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx
-    c17 = v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy
-    c18 = rod_a20*v_rod_wy - rod_a10*v_rod_wz
-    c19 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz
-    c20 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz
-    c21 = v_rod_wy - v_slider_wy
-    c22 = v_rod_wx - v_slider_wx
-    c23 = -c22
-    c24 = v_rod_wz - v_slider_wz
-    c25 = -c24
-    c26 = -c21
-    c27 = slider_a12*v_slider_wx - slider_a02*v_slider_wy
-    c28 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz
-    return [c0*v_crank_wy - c1*v_crank_wz, c2*v_crank_wz - c0*v_crank_wx, c1*v_crank_wx - c2*v_crank_wy, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), c7*v_crank_wz + c8*v_rod_wy - c3*v_crank_wy - c4*v_crank_wy - c6*v_rod_wz + (1/5)*c5*v_crank_wz, c3*v_crank_wx + c4*v_crank_wx + c10*v_rod_wz - c8*v_rod_wx - c11*v_crank_wz - 1/5*c9*v_crank_wz, c6*v_rod_wx + c11*v_crank_wy - c7*v_crank_wx - c10*v_rod_wy - 1/5*c5*v_crank_wx + (1/5)*c9*v_crank_wy, c16*v_rod_wz + c17*v_slider_wy - c12*v_rod_wy - c13*v_rod_wy - c15*v_slider_wz + (3/5)*c14*v_rod_wz, c12*v_rod_wx + c13*v_rod_wx + c19*v_slider_wz - c17*v_slider_wx - c20*v_rod_wz - 3/5*c18*v_rod_wz, c15*v_slider_wx + c20*v_rod_wy - c16*v_rod_wx - c19*v_slider_wy - 3/5*c14*v_rod_wx + (3/5)*c18*v_rod_wy, -(c22*rod_a11 + c26*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c22*slider_a22 + c25*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c23*rod_a21 + c24*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c23*slider_a12 + c21*slider_a02)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c24*slider_a12 + c26*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz) - (c25*rod_a11 + c21*rod_a21)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz), v_slider_wz*(slider_a01*v_slider_wz - slider_a21*v_slider_wx) - v_slider_wy*(slider_a11*v_slider_wx - slider_a01*v_slider_wy), v_slider_wz*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - c27*v_slider_wy, v_slider_wx*(v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy) - c28*v_slider_wz, c28*v_slider_wy - v_slider_wx*(v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx), c27*v_slider_wx - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz)]
+    c0 = -1/5*crank_a00*v_crank_wy + (1/5)*crank_a10*v_crank_wx
+    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
+    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
+    c3 = -3/5*rod_a00*v_rod_wy + (3/5)*rod_a10*v_rod_wx
+    c4 = rod_a00*v_rod_wz - rod_a20*v_rod_wx
+    c5 = rod_a20*v_rod_wy - rod_a10*v_rod_wz
+    c6 = v_rod_wy - v_slider_wy
+    c7 = v_rod_wx - v_slider_wx
+    c8 = -c7
+    c9 = v_rod_wz - v_slider_wz
+    c10 = -c9
+    c11 = -c6
+    c12 = slider_a00*v_slider_wy - slider_a10*v_slider_wx
+    c13 = -c12
+    c14 = slider_a10*v_slider_wz - slider_a20*v_slider_wy
+    c15 = -c14
+    c16 = slider_a00*v_slider_wz - slider_a20*v_slider_wx
+    c17 = slider_ox*v_slider_wx
+    return [0.0, 0.0, 0.0, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), -c0*v_crank_wy + (1/5)*c1*v_crank_wz, c0*v_crank_wx - 1/5*c2*v_crank_wz, -1/5*c1*v_crank_wx + (1/5)*c2*v_crank_wy, -c3*v_rod_wy + (3/5)*c4*v_rod_wz, c3*v_rod_wx - 3/5*c5*v_rod_wz, -3/5*c4*v_rod_wx + (3/5)*c5*v_rod_wy, -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz), c13*v_slider_wx - c15*v_slider_wz, c15*v_slider_wy - c16*v_slider_wx, -c12*v_slider_vx - c13*(-v_slider_vx + slider_oz*v_slider_wy) - c15*v_slider_vz - c15*(v_slider_vz + slider_ox*v_slider_wy) - c16*(-c17 - slider_oz*v_slider_wz), -c13*(-c17 - slider_oy*v_slider_wy) - c14*v_slider_vy - c15*(-v_slider_vy + slider_ox*v_slider_wz) - c16*v_slider_vx - c16*(v_slider_vx + slider_oy*v_slider_wz), v_slider_wx*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz)]
 
 
 def frames(q, v, a):
@@ -443,15 +395,6 @@ def frames(q, v, a):
     slider_a20 = -2*slider_rw*slider_ry + 2*slider_rx*slider_rz
     slider_a21 = 2*slider_rw*slider_rx + 2*slider_ry*slider_rz
     slider_a22 = -1 + 2*slider_rw**2 + 2*slider_rz**2
-    c0 = v_crank_vx + crank_oz*v_crank_wy - crank_oy*v_crank_wz
-    c1 = v_crank_vy + crank_ox*v_crank_wz - crank_oz*v_crank_wx
-    c2 = v_crank_vz + crank_oy*v_crank_wx - crank_ox*v_crank_wy
-    c3 = v_rod_vx + rod_oz*v_rod_wy - rod_oy*v_rod_wz
-    c4 = v_rod_vy + rod_ox*v_rod_wz - rod_oz*v_rod_wx
-    c5 = v_rod_vz + rod_oy*v_rod_wx - rod_ox*v_rod_wy
-    c6 = v_slider_vx + slider_oz*v_slider_wy - slider_oy*v_slider_wz
-    c7 = v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx
-    c8 = v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy
     out = _zeros(72, q, ())
     out[0] = crank_ox
     out[1] = crank_oy
@@ -465,15 +408,15 @@ def frames(q, v, a):
     out[9] = crank_a20
     out[10] = crank_a21
     out[11] = crank_a22
-    out[12] = c0
-    out[13] = c1
-    out[14] = c2
+    out[12] = v_crank_vx
+    out[13] = v_crank_vy
+    out[14] = v_crank_vz
     out[15] = v_crank_wx
     out[16] = v_crank_wy
     out[17] = v_crank_wz
-    out[18] = dv_crank_vx + c2*v_crank_wy + crank_oz*dv_crank_wy - c1*v_crank_wz - crank_oy*dv_crank_wz
-    out[19] = dv_crank_vy + c0*v_crank_wz + crank_ox*dv_crank_wz - c2*v_crank_wx - crank_oz*dv_crank_wx
-    out[20] = dv_crank_vz + c1*v_crank_wx + crank_oy*dv_crank_wx - c0*v_crank_wy - crank_ox*dv_crank_wy
+    out[18] = dv_crank_vx
+    out[19] = dv_crank_vy
+    out[20] = dv_crank_vz
     out[21] = dv_crank_wx
     out[22] = dv_crank_wy
     out[23] = dv_crank_wz
@@ -489,15 +432,15 @@ def frames(q, v, a):
     out[33] = rod_a20
     out[34] = rod_a21
     out[35] = rod_a22
-    out[36] = c3
-    out[37] = c4
-    out[38] = c5
+    out[36] = v_rod_vx
+    out[37] = v_rod_vy
+    out[38] = v_rod_vz
     out[39] = v_rod_wx
     out[40] = v_rod_wy
     out[41] = v_rod_wz
-    out[42] = dv_rod_vx + c5*v_rod_wy + rod_oz*dv_rod_wy - c4*v_rod_wz - rod_oy*dv_rod_wz
-    out[43] = dv_rod_vy + c3*v_rod_wz + rod_ox*dv_rod_wz - c5*v_rod_wx - rod_oz*dv_rod_wx
-    out[44] = dv_rod_vz + c4*v_rod_wx + rod_oy*dv_rod_wx - c3*v_rod_wy - rod_ox*dv_rod_wy
+    out[42] = dv_rod_vx
+    out[43] = dv_rod_vy
+    out[44] = dv_rod_vz
     out[45] = dv_rod_wx
     out[46] = dv_rod_wy
     out[47] = dv_rod_wz
@@ -513,15 +456,15 @@ def frames(q, v, a):
     out[57] = slider_a20
     out[58] = slider_a21
     out[59] = slider_a22
-    out[60] = c6
-    out[61] = c7
-    out[62] = c8
+    out[60] = v_slider_vx
+    out[61] = v_slider_vy
+    out[62] = v_slider_vz
     out[63] = v_slider_wx
     out[64] = v_slider_wy
     out[65] = v_slider_wz
-    out[66] = dv_slider_vx + c8*v_slider_wy + slider_oz*dv_slider_wy - c7*v_slider_wz - slider_oy*dv_slider_wz
-    out[67] = dv_slider_vy + c6*v_slider_wz + slider_ox*dv_slider_wz - c8*v_slider_wx - slider_oz*dv_slider_wx
-    out[68] = dv_slider_vz + c7*v_slider_wx + slider_oy*dv_slider_wx - c6*v_slider_wy - slider_ox*dv_slider_wy
+    out[66] = dv_slider_vx
+    out[67] = dv_slider_vy
+    out[68] = dv_slider_vz
     out[69] = dv_slider_wx
     out[70] = dv_slider_wy
     out[71] = dv_slider_wz
@@ -640,7 +583,7 @@ def phi_run(q, u):
 
 
 def jac_run(q, u):
-    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (70 entries)."""
+    """Values of the sparse Phi_q of case 'run' at jac_rows, jac_cols (56 entries)."""
     return _join(_joints_jac(q), _drivers_jac_run(q, u))
 
 
@@ -693,13 +636,8 @@ def _drivers_phi_dead_centre(q, u):
 
 def _drivers_jac_dead_centre(q, u):
     """Phi_q values of the driver rows of case 'dead_centre'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
-    slider_oy = -2*slider_dw*slider_ry - 2*slider_dz*slider_rx + 2*slider_dx*slider_rz + 2*slider_dy*slider_rw
-    slider_oz = -2*slider_dw*slider_rz - 2*slider_dx*slider_ry + 2*slider_dy*slider_rx + 2*slider_dz*slider_rw
-    out = _zeros(3, q, u)
-    out[0] = slider_oz
-    out[1] = -slider_oy
-    out[2] = 1
+    out = _zeros(1, q, u)
+    out[0] = 1
     return out
 
 
@@ -713,14 +651,9 @@ def _drivers_nu_dead_centre(q, u, ud):
 
 def _drivers_gamma_dead_centre(q, v, u, ud, udd):
     """gamma of the driver rows of case 'dead_centre'."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
-    _, _, _, _, _, _, _, _, _, _, _, _, v_slider_wx, v_slider_wy, v_slider_wz, _, v_slider_vy, v_slider_vz = v
     udd0, = udd
-    slider_ox = -2*slider_dw*slider_rx - 2*slider_dy*slider_rz + 2*slider_dx*slider_rw + 2*slider_dz*slider_ry
-    slider_oy = -2*slider_dw*slider_ry - 2*slider_dz*slider_rx + 2*slider_dx*slider_rz + 2*slider_dy*slider_rw
-    slider_oz = -2*slider_dw*slider_rz - 2*slider_dx*slider_ry + 2*slider_dy*slider_rx + 2*slider_dz*slider_rw
     out = _zeros(1, q, u)
-    out[0] = udd0 + v_slider_wz*(v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx) - v_slider_wy*(v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy)
+    out[0] = udd0
     return out
 
 
@@ -729,9 +662,7 @@ def _drivers_phi_jac_s_dead_centre(q, u):
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
     u0, = u
     slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry
-    slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw
-    slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw
-    return [slider_ox - u0], [slider_oz, -slider_oy, 1.0]
+    return [slider_ox - u0], [1.0]
 
 
 def _drivers_nu_s_dead_centre(q, u, ud):
@@ -742,13 +673,8 @@ def _drivers_nu_s_dead_centre(q, u, ud):
 
 def _drivers_gamma_s_dead_centre(q, v, u, ud, udd):
     """gamma of the driver rows of case 'dead_centre' at one configuration."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
-    _, _, _, _, _, _, _, _, _, _, _, _, v_slider_wx, v_slider_wy, v_slider_wz, _, v_slider_vy, v_slider_vz = v
     udd0, = udd
-    slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry
-    slider_oy = -2.0*slider_dw*slider_ry - 2.0*slider_dz*slider_rx + 2.0*slider_dx*slider_rz + 2.0*slider_dy*slider_rw
-    slider_oz = -2.0*slider_dw*slider_rz - 2.0*slider_dx*slider_ry + 2.0*slider_dy*slider_rx + 2.0*slider_dz*slider_rw
-    return [udd0 + v_slider_wz*(v_slider_vy + slider_ox*v_slider_wz - slider_oz*v_slider_wx) - v_slider_wy*(v_slider_vz + slider_oy*v_slider_wx - slider_ox*v_slider_wy)]
+    return [udd0]
 
 
 def phi_dead_centre(q, u):
@@ -757,7 +683,7 @@ def phi_dead_centre(q, u):
 
 
 def jac_dead_centre(q, u):
-    """Values of the sparse Phi_q of case 'dead_centre' at jac_rows, jac_cols (70 entries)."""
+    """Values of the sparse Phi_q of case 'dead_centre' at jac_rows, jac_cols (54 entries)."""
     return _join(_joints_jac(q), _drivers_jac_dead_centre(q, u))
 
 
@@ -793,8 +719,8 @@ CASES = {
     'run': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'crank_angle'),
         'drivers': ('crank_angle',),
-        'jac_rows': (0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 15, 15, 15, 16, 16, 17, 17, 17),
-        'jac_cols': (1, 2, 3, 0, 2, 4, 0, 1, 5, 0, 1, 0, 1, 1, 2, 3, 7, 8, 9, 0, 2, 4, 6, 8, 10, 0, 1, 5, 6, 7, 11, 7, 8, 9, 13, 14, 15, 6, 8, 10, 12, 14, 16, 6, 7, 11, 12, 13, 17, 6, 7, 8, 12, 13, 14, 13, 14, 13, 14, 12, 14, 16, 12, 13, 17, 12, 14, 0, 1, 2),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 16, 16, 17, 17, 17),
+        'jac_cols': (3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 7, 8, 9, 15, 6, 8, 10, 16, 6, 7, 11, 17, 6, 7, 8, 12, 13, 14, 12, 14, 12, 13, 12, 13, 14, 15, 17, 12, 13, 14, 15, 16, 12, 14, 0, 1, 2),
         't0': 0.0, 't1': 1.5, 'steps': 301,
         'driver_sources': (('cases.run.drivers.crank_angle.function', '0.3 + 2*pi*t + 0.5*t**2'),),
         'inputs': inputs_run, 'phi': phi_run, 'jac': jac_run, 'nu': nu_run, 'gamma': gamma_run,
@@ -803,8 +729,8 @@ CASES = {
     'dead_centre': {
         'constraints': ('A.x', 'A.y', 'A.z', 'A.axis_f', 'A.axis_g', 'B.x', 'B.y', 'B.z', 'C.x', 'C.y', 'C.z', 'C.cross', 'slide.axis_f', 'slide.axis_g', 'slide.line_f', 'slide.line_g', 'slide.roll', 'slider_x'),
         'drivers': ('slider_x',),
-        'jac_rows': (0, 0, 0, 1, 1, 1, 2, 2, 2, 3, 3, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 15, 15, 15, 16, 16, 17, 17, 17),
-        'jac_cols': (1, 2, 3, 0, 2, 4, 0, 1, 5, 0, 1, 0, 1, 1, 2, 3, 7, 8, 9, 0, 2, 4, 6, 8, 10, 0, 1, 5, 6, 7, 11, 7, 8, 9, 13, 14, 15, 6, 8, 10, 12, 14, 16, 6, 7, 11, 12, 13, 17, 6, 7, 8, 12, 13, 14, 13, 14, 13, 14, 12, 14, 16, 12, 13, 17, 12, 14, 13, 14, 15),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 16, 16, 17),
+        'jac_cols': (3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 7, 8, 9, 15, 6, 8, 10, 16, 6, 7, 11, 17, 6, 7, 8, 12, 13, 14, 12, 14, 12, 13, 12, 13, 14, 15, 17, 12, 13, 14, 15, 16, 12, 14, 15),
         't0': -1.0, 't1': 0.0, 'steps': 101,
         'driver_sources': (('cases.dead_centre.drivers.slider_x.function', '0.8 - 0.1*t**2'),),
         'inputs': inputs_dead_centre, 'phi': phi_dead_centre, 'jac': jac_dead_centre, 'nu': nu_dead_centre, 'gamma': gamma_dead_centre,

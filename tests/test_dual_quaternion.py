@@ -95,15 +95,25 @@ def test_log_inverts_exp(twist):
 
 
 def test_the_velocity_map_and_frame_rates_are_the_derivatives_of_the_exponential_motion():
-    """σ(t) = exp(t ξ) ⊗ σ0: σ̇(0) = B(σ0) ξ (the symbolic map), and the frame's origin
-    velocity and ω from the parametrization equal central differences of its pose."""
+    """A step ξ = (δθ, δr) is σ <- exp(ξ₀) ⊗ σ with ξ₀ = (δθ, δr + (r + ½ δr) × δθ) (against the
+    4x4 matrix exponential of SciPy) and moves the origin by δr to second order; σ̇(0) = B(σ0) ξ
+    (the symbolic map), and the frame's origin velocity and ω from the parametrization equal
+    central differences of its pose."""
     param = rotations.get("dual-quaternion")
     sigma0, _ = pose(np.array([0.9, 0.2, -0.3, 0.25]), np.array([1.5, -0.4, 2.0]))
     twist = np.array([0.4, -0.2, 0.7, 0.3, 1.1, -0.5])
+    origin = dq.translation(sigma0)
+    for h in (0.3, 1e-3):
+        step = h * twist
+        at_global_origin = np.concatenate([step[:3], step[3:] + np.cross(origin + 0.5 * step[3:], step[:3])])
+        expected = expm(twist_matrix(at_global_origin)) @ dq.to_homogeneous(sigma0)
+        moved = param.retract(sigma0, step)
+        assert np.abs(dq.to_homogeneous(moved) - expected).max() < 1e-12
+        assert np.abs(dq.translation(moved) - origin - step[3:]).max() < 2 * h**3  # O(|δθ|² |δr|)
     symbols = sp.Matrix(sp.symbols("s0:8", real=True))
     velocity_map = sp.lambdify(list(symbols), param.body_velocity_map(symbols))(*sigma0)
     h = 1e-6
-    ahead, behind = (dq.multiply(dq.exp(sign * h * twist), sigma0) for sign in (1.0, -1.0))
+    ahead, behind = (param.retract(sigma0, sign * h * twist) for sign in (1.0, -1.0))
     assert np.abs((ahead - behind) / (2 * h) - np.asarray(velocity_map) @ twist).max() < 1e-9
     velocity, omega = param.frame_velocity(sigma0, twist)
     (o1, a1), (o0, a0) = param.pose(ahead), param.pose(behind)
@@ -159,3 +169,42 @@ def test_the_boom_jacobian_is_regular_and_its_determinant_is_the_quaternions_up_
     algebraic = inspect(boom, rotations.get("dual-euler-parameters"), "swing", 0)
     assert algebraic.rank == 8 and algebraic.determinant_value != 0
     assert algebraic.q[5] == 89 * sp.sqrt(2) / 200  # q_d exact from the exact pose
+
+
+def _dual_vector(vector: np.ndarray, moment: np.ndarray) -> np.ndarray:
+    return np.concatenate([[0.0], vector, [0.0], moment])
+
+
+def test_joint_rows_move_points_and_lines_by_the_dual_quaternion_sandwich():
+    """What the joint equations of the dual-quaternion parametrizations see: a body point is
+    σ ⊗ (1 + ε p) ⊗ σ̄*, a body line (h, p × h) is σ ⊗ L ⊗ σ*, and the dual part of two lines'
+    dual scalar product is l1·m2 + m1·l2 (all products numeric, from ``multiply``), at 50
+    random pairs of poses."""
+    from kinegen.symbolic.assembly import coordinates
+    from tests.conftest import model
+
+    coords = coordinates(model("four_bar"), rotations.get("dual-quaternion"))
+    b1, b2 = coords.bodies[:2]
+    p_symbols, h_symbols = sp.Matrix(sp.symbols("p0:3", real=True)), sp.Matrix(sp.symbols("h0:3", real=True))
+    lines = [b.frame.line(p_symbols, h_symbols) for b in (b1, b2)]
+    real, dual = lines[0].dual_dot(lines[1])
+    outputs = [b1.frame.point(p_symbols), *(x for line in lines for x in (line.direction, line.moment)), real, dual]
+    arguments = [*b1.stored, *b2.stored, *p_symbols, *h_symbols]
+    evaluate = sp.lambdify(arguments, [sp.Matrix([o]).xreplace(coords.frame_definitions) for o in outputs])
+
+    def sandwich(sigma, x, bar):
+        conjugate = dq.conjugate(sigma) * (np.r_[np.ones(4), -np.ones(4)] if bar else 1.0)
+        return dq.multiply(dq.multiply(sigma, x), conjugate)
+
+    rng = np.random.default_rng(12)
+    for _ in range(50):
+        sigmas = [pose(rng.normal(size=4), rng.normal(scale=5.0, size=3))[0] for _ in range(2)]
+        p, h = rng.normal(scale=2.0, size=3), rng.normal(size=3)
+        h /= np.linalg.norm(h)
+        point, d1, m1, d2, m2, dot_real, dot_dual = (np.asarray(x, dtype=float).ravel() for x in evaluate(*sigmas[0], *sigmas[1], *p, *h))
+        assert np.abs(point - sandwich(sigmas[0], np.r_[1.0, 0, 0, 0, 0, p], bar=True)[5:]).max() < 1e-12
+        moved = [sandwich(s, np.r_[0.0, h, 0.0, np.cross(p, h)], bar=False) for s in sigmas]
+        assert np.abs(np.r_[d1, m1] - np.r_[moved[0][1:4], moved[0][5:]]).max() < 1e-12
+        assert np.abs(np.r_[d2, m2] - np.r_[moved[1][1:4], moved[1][5:]]).max() < 1e-12
+        (l1, n1), (l2, n2) = ((e[1:4], e[5:]) for e in moved)
+        assert abs(dot_real[0] - l1 @ l2) < 1e-12 and abs(dot_dual[0] - (l1 @ n2 + n1 @ l2)) < 1e-11

@@ -32,7 +32,7 @@ def _angle_residual(theta: sp.Expr, f1: sp.Matrix, g1: sp.Matrix, f2: sp.Matrix)
     return sp.sin(theta) * dot(f1, f2) - sp.cos(theta) * dot(g1, f2)
 
 
-def _matrix_quaternion(rotation: sp.Matrix) -> sp.Matrix:
+def exact_quaternion(rotation: sp.Matrix) -> sp.Matrix:
     """Unit quaternion (w, x, y, z), w >= 0, of an exact rotation matrix (Shepperd's method).
 
     The identity gives (1, 0, 0, 0) exactly; otherwise the components are computed to 40
@@ -62,7 +62,7 @@ def _half_angle_residual(theta: sp.Expr, joint: Joint, frame1: Frame, frame2: Fr
         return sp.Matrix.hstack(sp.Matrix(reference), cross(axis, reference), sp.Matrix(axis))
 
     zero_angle = basis(joint.reference1, joint.axis1) * basis(joint.reference2, joint.axis2).T
-    p = quaternion_product(quaternion_product(conjugate(frame1.e), frame2.e), conjugate(_matrix_quaternion(zero_angle)))
+    p = quaternion_product(quaternion_product(conjugate(frame1.e), frame2.e), conjugate(exact_quaternion(zero_angle)))
     along = dot(sp.Matrix(joint.axis1), sp.Matrix(p[1:]))
     return 2 * (sp.sin(theta / 2) * p[0] - sp.cos(theta / 2) * along)
 
@@ -108,4 +108,4 @@ def driver_equation(
     raise ValueError(f"unknown driver type {driver.type!r}")
 
 
-__all__ = ["driver_equation"]
+__all__ = ["driver_equation", "exact_quaternion"]

@@ -39,6 +39,9 @@ class Parametrization(ABC):
     velocity_names: tuple[str, ...]
     #: True when the stored orientation values are a unit quaternion (w, x, y, z)
     stores_quaternion: bool = False
+    #: True when a body's pose is one dual quaternion: the joints are then written with lines
+    #: (dual vectors) and relative poses (``kinegen.constraints.joints``)
+    unified: bool = False
     #: Where the parametrization itself makes Phi_q singular (what `kinegen compare` prints)
     singular_set: str = "not stated"
 

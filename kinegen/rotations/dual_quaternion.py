@@ -8,11 +8,20 @@ the relative rotation ``q_r1* ⊗ q_r2``.
 
 Two ways to move through the 8 values (chosen at build time):
 
-``dual-quaternion`` — velocity coordinates in the tangent space se(3): the spatial twist
-``ξ = (ω, v)``, angular then linear, both in the global frame, ``v = ṙ − ω × r`` the velocity of
-the body point passing through the global origin; ``σ̇ = ½ ξ̂ ⊗ σ``. A Newton step ``ξ`` moves σ
-to ``exp(ξ) ⊗ σ`` (the SE(3) exponential map as a dual quaternion): σ stays unit to rounding
-and is never renormalized. 6 columns per body, no extra equations.
+``dual-quaternion`` — velocity coordinates in the tangent space se(3): the twist
+``ξ = (ω, ṙ)``, angular then linear, taken at the body's frame origin with global axes
+(Pinocchio's LOCAL_WORLD_ALIGNED frame): ω the global angular velocity, ṙ the velocity of the
+frame origin. A step ``ξ = (δθ, δr)`` (Newton's, or the predictor's ``v h + ½ a h²``) moves σ
+to ``exp(ξ₀) ⊗ σ`` (the SE(3) exponential map as a dual quaternion) with
+``ξ₀ = (δθ, δr + (r + ½ δr) × δθ)``: the twist taken at the midpoint of the origin's move,
+moved to the global origin. Its first-order part is the twist at the origin; the ½ δr term
+makes the origin move by δr to second order (it lands at ``r + δr + O(|δθ|² |δr|)``), so the
+predictor ``v h + ½ a h²`` in (ω, ṙ) is as accurate as for the quaternion (without it Newton
+took 1.5 instead of 1.05 iterations a step on the excavator). σ stays unit to rounding and is
+never renormalized. 6 columns per body, no extra equations. At the body origin the twist leaves the origin's columns free of ω,
+so Φ_q has the quaternion parametrization's sparsity; at the global origin (``v = ṙ − ω × r``)
+every point row would couple ω and v and the block-triangular plan coarsen (measured: 10
+blocks instead of 41 on the excavator, solve 1.7× the quaternion's).
 
 ``dual-euler-parameters`` — the 8 values are plain coordinates (velocity = σ̇) with the two
 algebraic constraints ``|q_r|² − 1 = 0`` and ``q_r · q_d = 0`` per body: the analogue of Euler
@@ -43,6 +52,7 @@ class _DualQuaternionPose(Parametrization):
 
     stored_names = _STORED
     stores_quaternion = True
+    unified = True
 
     @property
     def coordinate_names(self) -> tuple[str, ...]:
@@ -100,13 +110,13 @@ class _DualQuaternionPose(Parametrization):
 
 
 class DualQuaternion(_DualQuaternionPose):
-    """Unit dual quaternion, spatial-twist velocity coordinates (ω, v), SE(3) exponential updates."""
+    """Unit dual quaternion, twist velocity coordinates (ω, ṙ) at the body origin, SE(3) exponential updates."""
 
     name = "dual-quaternion"
     velocity_names = ("wx", "wy", "wz", "vx", "vy", "vz")
     singular_set = (
-        "nowhere: the twist columns are the quaternion's (r', omega) columns times a unit-determinant "
-        "matrix (v = r' - omega x r), so det Phi_q is the quaternion's up to sign"
+        "nowhere: the twist columns are the quaternion's (r', omega) columns in the other order, "
+        "so det Phi_q is the quaternion's up to sign"
     )
 
     @property
@@ -114,40 +124,40 @@ class DualQuaternion(_DualQuaternionPose):
         return self.velocity_names
 
     def body_velocity_map(self, s: sp.Matrix) -> sp.Matrix:
-        # σ̇ = ½ ξ̂ ⊗ σ: real ½ (0, ω) ⊗ q_r; dual ½ ((0, ω) ⊗ q_d + (0, v) ⊗ q_r)
+        # σ̇ = ½ ξ̂₀ ⊗ σ with ξ₀ = (ω, ṙ + r × ω): real ½ (0, ω) ⊗ q_r;
+        # dual ½ ((0, ω) ⊗ q_d + (0, ṙ + r × ω) ⊗ q_r), r × ω = [r]x ω
         real, dual = qa.left_pure(s[:4, :]), qa.left_pure(s[4:, :])
-        return sp.Rational(1, 2) * sp.Matrix(sp.BlockMatrix([[real, sp.zeros(4, 3)], [dual, real]]))
+        r = dq.symbolic_translation(s)
+        skew = sp.Matrix([[0, -r[2], r[1]], [r[2], 0, -r[0]], [-r[1], r[0], 0]])
+        return sp.Rational(1, 2) * sp.Matrix(sp.BlockMatrix([[real, sp.zeros(4, 3)], [dual + real * skew, real]]))
 
     def body_rotation_derivatives(self, a: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
         # A -> exp([ω]x) A: dA/dω_k = [e_k]x A; a translation leaves A alone
         return qa.spin_derivatives(a) + [sp.zeros(3, 3)] * 3
 
     def body_origin_derivatives(self, r: sp.Matrix, s: sp.Matrix) -> list[sp.Matrix]:
-        # a twist (ω, v) moves the origin at v + ω x r
-        return [sp.eye(3)[:, k].cross(r) for k in range(3)] + [sp.eye(3)[:, k] for k in range(3)]
+        # a twist at the origin: a rotation leaves the origin where it is, δr moves it
+        return [sp.zeros(3, 1)] * 3 + [sp.eye(3)[:, k] for k in range(3)]
 
     def _rates(self, q, v, a, origin):
-        omega, linear = sp.Matrix(v[:3, :]), sp.Matrix(v[3:, :])
-        omega_dot, linear_dot = sp.Matrix(a[:3, :]), sp.Matrix(a[3:, :])
-        velocity = linear + omega.cross(origin)
-        acceleration = linear_dot + omega_dot.cross(origin) + omega.cross(velocity)
-        return omega, omega_dot, velocity, acceleration
+        return sp.Matrix(v[:3, :]), sp.Matrix(a[:3, :]), sp.Matrix(v[3:, :]), sp.Matrix(a[3:, :])
 
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
-        return dq.increment(step, q)
+        step = np.asarray(step, dtype=float)
+        spin, shift = step[:3], step[3:]
+        middle = dq.translation_first(np.asarray(q, dtype=float)) + 0.5 * shift
+        return dq.increment(np.concatenate([spin, shift + dq.cross_first(middle, spin)]), q)
 
     def c_retract(self) -> str:
         return _C_RETRACT
 
     def frame_velocity(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        omega = np.asarray(v, dtype=float)[..., :3]
-        return v[..., 3:] + np.cross(omega, dq.translation(q)), omega
+        v = np.asarray(v, dtype=float)
+        return v[..., 3:], v[..., :3]
 
     def frame_acceleration(self, q: np.ndarray, v: np.ndarray, a: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        origin = dq.translation(q)
-        omega, omega_dot = np.asarray(v, dtype=float)[..., :3], np.asarray(a, dtype=float)[..., :3]
-        velocity = v[..., 3:] + np.cross(omega, origin)
-        return a[..., 3:] + np.cross(omega_dot, origin) + np.cross(omega, velocity), omega_dot
+        a = np.asarray(a, dtype=float)
+        return a[..., 3:], a[..., :3]
 
 
 class DualEulerParameters(_DualQuaternionPose):
@@ -207,10 +217,16 @@ class DualEulerParameters(_DualQuaternionPose):
         return 2.0 * terms[..., 1:], omega_dot
 
 
-#: retract_body in C: σ <- exp(ξ) ⊗ σ (as dual_quaternion_algebra.exp and multiply)
+#: retract_body in C: σ <- exp(ξ₀) ⊗ σ, ξ₀ = (δθ, δr + (r + ½ δr) × δθ) (as DualQuaternion.retract)
 _C_RETRACT = """\
+double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
+double ox = 2.0 * (rw * sx - sw * rx + ry * sz - rz * sy) + 0.5 * step[3];
+double oy = 2.0 * (rw * sy - sw * ry + rz * sx - rx * sz) + 0.5 * step[4];
+double oz = 2.0 * (rw * sz - sw * rz + rx * sy - ry * sx) + 0.5 * step[5];
 double ax = 0.5 * step[0], ay = 0.5 * step[1], az = 0.5 * step[2];
-double bx = 0.5 * step[3], by = 0.5 * step[4], bz = 0.5 * step[5];
+double bx = 0.5 * (step[3] + oy * step[2] - oz * step[1]);
+double by = 0.5 * (step[4] + oz * step[0] - ox * step[2]);
+double bz = 0.5 * (step[5] + ox * step[1] - oy * step[0]);
 double h2 = ax * ax + ay * ay + az * az, h = sqrt(h2), ab = ax * bx + ay * by + az * bz;
 double sinc, bend;
 if (h < 1e-4) {
@@ -222,7 +238,6 @@ if (h < 1e-4) {
 }
 double pw = cos(h), px = sinc * ax, py = sinc * ay, pz = sinc * az;
 double dw = -sinc * ab, dx = sinc * bx + bend * ab * ax, dy = sinc * by + bend * ab * ay, dz = sinc * bz + bend * ab * az;
-double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
 q[0] = pw * rw - px * rx - py * ry - pz * rz;
 q[1] = pw * rx + px * rw + py * rz - pz * ry;
 q[2] = pw * ry - px * rz + py * rw + pz * rx;

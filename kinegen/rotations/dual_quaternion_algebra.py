@@ -3,9 +3,9 @@
 frame origin (a pure quaternion). A point ``p`` (body coordinates) is moved to
 ``vec(q_r ⊗ p ⊗ q_r*) + 2 vec(q_d ⊗ q_r*)``.
 
-Twists are *spatial* (global frame) and ordered angular then linear: ``ξ = (ω, v)`` with
-``v = ṙ − ω × r`` the velocity of the body point passing through the global origin; then
-``σ̇ = ½ ξ̂ ⊗ σ`` with ``ξ̂ = (0, ω) + ε (0, v)``, and a step ``ξ`` moves ``σ`` to
+Twists here are *spatial* (global frame, at the global origin) and ordered angular then
+linear: ``ξ = (ω, v)`` with ``v = ṙ − ω × r`` the velocity of the body point passing through
+the global origin; then ``σ̇ = ½ ξ̂ ⊗ σ`` with ``ξ̂ = (0, ω) + ε (0, v)``, and a step ``ξ`` moves ``σ`` to
 ``exp(ξ) ⊗ σ`` where ``exp(ξ) = exp(ξ̂ / 2)`` is the SE(3) exponential map written as a
 dual quaternion (a screw motion: rotation ``|ω|`` about, and translation along, one line).
 """
@@ -58,6 +58,16 @@ def translation(s: np.ndarray) -> np.ndarray:
     """Frame origin ``2 vec(q_d ⊗ q_r*)`` (..., 3)."""
     s = np.asarray(s, dtype=float)
     return 2.0 * qa.multiply(s[..., 4:], qa.conjugate(s[..., :4]))[..., 1:]
+
+
+def translation_first(s: np.ndarray) -> np.ndarray:
+    """:func:`translation` with the components on the FIRST axis: (8, ...) -> (3, ...)."""
+    return np.einsum("ijk,j...,k...->i...", _TRANSLATION, s[4:], s[:4])
+
+
+def cross_first(a: np.ndarray, b: np.ndarray) -> np.ndarray:
+    """a × b with the components on the FIRST axis (np.cross(..., axis=0) moves axes: slower)."""
+    return np.einsum("ijk,j...,k...->i...", _LEVI_CIVITA, a, b)
 
 
 def transform_point(s: np.ndarray, point: np.ndarray) -> np.ndarray:
@@ -121,8 +131,8 @@ def symbolic_translation(s: sp.Matrix) -> sp.Matrix:
 def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
     """``exp(ξ) ⊗ σ`` with the components on the FIRST axis: ``twist`` (6, ...), ``s`` (8, ...)
     -> (8, ...). The same as ``multiply(exp(ξ), σ)`` in few NumPy calls (the retraction of every
-    Newton step, where NumPy's per-call cost outweighs the arithmetic): the products through the
-    Hamilton product's structure tensor. The generated C's ``retract_body`` writes it out."""
+    Newton step, where NumPy's per-call cost outweighs the arithmetic): the product through the
+    dual Hamilton product's structure tensor, one einsum. The generated C's ``retract_body`` writes it out."""
     twist, s = np.asarray(twist, dtype=float), np.asarray(s, dtype=float)
     a, b = 0.5 * twist[:3], 0.5 * twist[3:]
     h = np.sqrt(np.einsum("i...,i...->...", a, a))
@@ -131,11 +141,16 @@ def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
     p = np.empty((8, *h.shape))
     p[0], p[1:4] = np.cos(h), sinc * a
     p[4], p[5:8] = -sinc * ab, sinc * b + (bend * ab) * a
-    out = np.empty_like(p)
-    out[:4] = np.einsum("ijk,j...,k...->i...", _HAMILTON, p[:4], s[:4])
-    out[4:] = np.einsum("ijk,j...,k...->i...", _HAMILTON, p[:4], s[4:]) + np.einsum("ijk,j...,k...->i...", _HAMILTON, p[4:], s[:4])
-    return out
+    return np.einsum("ijk,j...,k...->i...", _DUAL_HAMILTON, p, s)
 
 
-#: (p ⊗ q)_i = sum_jk _HAMILTON[i, j, k] p_j q_k
+#: (p ⊗ q)_i = sum_jk _HAMILTON[i, j, k] p_j q_k for quaternions, and for dual quaternions (8 values)
 _HAMILTON = np.stack([np.stack([qa.multiply(np.eye(4)[j], np.eye(4)[k]) for k in range(4)], axis=-1) for j in range(4)], axis=1)
+_DUAL_HAMILTON = np.zeros((8, 8, 8))
+_DUAL_HAMILTON[:4, :4, :4] = _HAMILTON
+_DUAL_HAMILTON[4:, :4, 4:] = _HAMILTON
+_DUAL_HAMILTON[4:, 4:, :4] = _HAMILTON
+#: 2 vec(q_d ⊗ q_r*)_i = sum_jk _TRANSLATION[i, j, k] q_d_j q_r_k
+_TRANSLATION = 2.0 * _HAMILTON[1:] * np.array([1.0, -1.0, -1.0, -1.0])
+#: (a × b)_i = sum_jk _LEVI_CIVITA[i, j, k] a_j b_k
+_LEVI_CIVITA = np.stack([np.cross(np.eye(3)[j], np.eye(3)[k]) for j in range(3) for k in range(3)], axis=-1).reshape(3, 3, 3)

@@ -286,7 +286,7 @@ def _body_coordinates(name: str, parametrization: Parametrization, s_off: int, v
     def rename(m: sp.Matrix | None) -> sp.Matrix | None:
         return None if m is None else m.xreplace(names)
 
-    frame = Frame(rename(generic.frame.r), rename(generic.frame.A), rename(generic.frame.e))
+    frame = Frame(rename(generic.frame.r), rename(generic.frame.A), rename(generic.frame.e), generic.frame.unified)
     return BodyCoordinates(
         name, tuple(names[s] for s in generic.stored), tuple(names[s] for s in generic.velocity), s_off, v_off,
         rename(generic.velocity_map), frame, rename(generic.rotation), tuple(rename(d) for d in generic.rotation_derivatives),
@@ -311,7 +311,7 @@ def generic_body(parametrization: Parametrization) -> BodyCoordinates:
         r = sp.Matrix([sp.Symbol(f"{name}_o{c}", real=True) for c in "xyz"])
         origin_derivatives = p.body_origin_derivatives(r, s)
         stored_origin = origin_derivatives is None
-        frame = Frame(p.body_origin(s) if stored_origin else r, a, p.body_quaternion(s))
+        frame = Frame(p.body_origin(s) if stored_origin else r, a, p.body_quaternion(s), p.unified)
         derivatives = tuple(p.body_rotation_derivatives(a, s))
         _GENERIC_BODIES[parametrization.name] = BodyCoordinates(
             name, stored, velocity, 0, 0, p.body_velocity_map(s), frame, p.body_rotation(s), derivatives,
