@@ -143,10 +143,10 @@ class DualQuaternion(_DualQuaternionPose):
         return sp.Matrix(v[:3, :]), sp.Matrix(a[:3, :]), sp.Matrix(v[3:, :]), sp.Matrix(a[3:, :])
 
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
-        step = np.asarray(step, dtype=float)
         spin, shift = step[:3], step[3:]
-        middle = dq.translation_first(np.asarray(q, dtype=float)) + 0.5 * shift
-        return dq.increment(np.concatenate([spin, shift + dq.cross_first(middle, spin)]), q)
+        middle = dq.translation_first(q)
+        middle += 0.5 * shift
+        return dq.increment_parts(spin, shift + dq.cross_first(middle, spin), q)
 
     def c_retract(self) -> str:
         return _C_RETRACT

@@ -21,15 +21,21 @@ from kinegen.rotations import quaternion_algebra as qa
 _SMALL = 1e-4
 
 
-def _coefficients(h: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """sin(h)/h and (cos h − sin h / h)/h² (the derivative of sin(h)/h divided by h) at the
-    half-angles ``h``; the second by its Taylor series where it would cancel."""
+def _coefficients(h: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """cos h, sin(h)/h and (cos h − sin h / h)/h² (the derivative of sin(h)/h divided by h) at
+    the half-angles ``h``; the last two by their Taylor series below ``_SMALL``, where they
+    would cancel (and are exact: the series' next terms are below rounding there)."""
     h = np.asarray(h, dtype=float)
     h2 = h * h
-    sinc = np.sinc(h / np.pi)  # exact 1 at 0
+    cos = np.cos(h)
+    if h.size and h.min() >= _SMALL:  # the usual Newton step: no series needed
+        sinc = np.sin(h) / h
+        return cos, sinc, (cos - sinc) / h2
     small = h < _SMALL
-    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (np.cos(h) - sinc) / np.where(small, 1.0, h2))
-    return sinc, bend
+    safe = np.where(small, 1.0, h)
+    sinc = np.where(small, 1.0 - h2 / 6.0 + h2 * h2 / 120.0, np.sin(h) / safe)
+    bend = np.where(small, -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0, (cos - sinc) / (safe * safe))
+    return cos, sinc, bend
 
 
 def multiply(p: np.ndarray, q: np.ndarray) -> np.ndarray:
@@ -80,9 +86,9 @@ def exp(twist: np.ndarray) -> np.ndarray:
     twist = np.asarray(twist, dtype=float)
     a, b = 0.5 * twist[..., :3], 0.5 * twist[..., 3:]
     h = np.linalg.norm(a, axis=-1)
-    sinc, bend = _coefficients(h)
+    cos, sinc, bend = _coefficients(h)
     ab = np.sum(a * b, axis=-1)
-    real = np.concatenate([np.cos(h)[..., None], sinc[..., None] * a], axis=-1)
+    real = np.concatenate([cos[..., None], sinc[..., None] * a], axis=-1)
     dual = np.concatenate([(-sinc * ab)[..., None], sinc[..., None] * b + (bend * ab)[..., None] * a], axis=-1)
     return np.concatenate([real, dual], axis=-1)
 
@@ -95,7 +101,7 @@ def log(s: np.ndarray) -> np.ndarray:
     vector = real[..., 1:]
     sin_h = np.linalg.norm(vector, axis=-1)
     h = np.arctan2(sin_h, real[..., 0])
-    sinc, bend = _coefficients(h)
+    _, sinc, bend = _coefficients(h)
     a = vector / sinc[..., None]
     ab = -dual[..., 0] / sinc
     b = (dual[..., 1:] - (bend * ab)[..., None] * a) / sinc[..., None]
@@ -132,16 +138,23 @@ def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:
     """``exp(ξ) ⊗ σ`` with the components on the FIRST axis: ``twist`` (6, ...), ``s`` (8, ...)
     -> (8, ...). The same as ``multiply(exp(ξ), σ)`` in few NumPy calls (the retraction of every
     Newton step, where NumPy's per-call cost outweighs the arithmetic): the product through the
-    dual Hamilton product's structure tensor, one einsum. The generated C's ``retract_body`` writes it out."""
-    twist, s = np.asarray(twist, dtype=float), np.asarray(s, dtype=float)
-    a, b = 0.5 * twist[:3], 0.5 * twist[3:]
+    dual Hamilton product's structure tensor, one matrix product. The generated C's ``retract_body``
+    writes it out."""
+    twist = np.asarray(twist, dtype=float)
+    return increment_parts(twist[:3], twist[3:], s)
+
+
+def increment_parts(angular: np.ndarray, linear: np.ndarray, s: np.ndarray) -> np.ndarray:
+    """:func:`increment` with the twist's angular (3, ...) and linear (3, ...) parts apart."""
+    a, b = 0.5 * angular, 0.5 * linear
     h = np.sqrt(np.einsum("i...,i...->...", a, a))
-    sinc, bend = _coefficients(h)
     ab = np.einsum("i...,i...->...", a, b)
+    cos, sinc, bend = _coefficients(h)
     p = np.empty((8, *h.shape))
-    p[0], p[1:4] = np.cos(h), sinc * a
+    p[0], p[1:4] = cos, sinc * a
     p[4], p[5:8] = -sinc * ab, sinc * b + (bend * ab) * a
-    return np.einsum("ijk,j...,k...->i...", _DUAL_HAMILTON, p, s)
+    outer = p[:, None] * s[None, :]  # (8, 8, ...): every product p_j s_k, then one matrix product
+    return (_DUAL_HAMILTON.reshape(8, 64) @ outer.reshape(64, -1)).reshape(8, *outer.shape[2:])
 
 
 #: (p ⊗ q)_i = sum_jk _HAMILTON[i, j, k] p_j q_k for quaternions, and for dual quaternions (8 values)
