@@ -20,7 +20,19 @@ import yaml
 
 from kinegen.errors import ExpressionError, ModelError, shown
 from kinegen.model import expressions
-from kinegen.model.schema import GROUND, Actuator, Body, Case, Driver, Joint, Model, PointRef, Vector, WorkingRange
+from kinegen.model.schema import (
+    GROUND,
+    Actuator,
+    Body,
+    Case,
+    DesignParameter,
+    Driver,
+    Joint,
+    Model,
+    PointRef,
+    Vector,
+    WorkingRange,
+)
 from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
 from kinegen.rotations.euler_parameters import quaternion_matrix
 
@@ -188,6 +200,8 @@ class _Reader:
         self.sha256 = sha256
         self.root = root  # the document's node graph: where each entry stands (read only for an error)
         self.parameters: dict[str, sp.Expr] = {}
+        self.design: dict[str, DesignParameter] = {}
+        self.nominal: dict[sp.Symbol, sp.Expr] = {}  # design symbol -> nominal value
         self.bodies: dict[str, Body] = {}
         self.ground_points: dict[str, Vector] = {}
         self.ground_vectors: dict[str, Vector] = {}
@@ -230,19 +244,28 @@ class _Reader:
             raise self.fail(entry, f"{shown(value)} is a reserved name")
         return value
 
-    def scalar(self, value: Any, entry: str, allow_time: bool = False) -> sp.Expr:
+    def scalar(self, value: Any, entry: str, allow_time: bool = False, design: bool = False) -> sp.Expr:
+        """A constant (or with ``allow_time`` a function of t); with ``design`` it may depend on
+        the design parameters (geometry), checked at their nominal values."""
         try:
             expr = expressions.parse(value, self.parameters, allow_time=allow_time)
         except ExpressionError as exc:
             raise self.fail(entry, str(exc)) from None
+        used = sorted(str(s)[2:] for s in expr.free_symbols & self.nominal.keys())
+        if used and not design:
+            raise self.fail(
+                entry, f"{shown(value)} uses design parameter(s) {', '.join(used)}: design parameters may be used in the "
+                "geometry (positions, orientations, points, vectors, lengths, parameters) only",
+            )  # fmt: skip
         if not allow_time:
-            if not expr.is_number:
+            at_nominal = expr.xreplace(self.nominal) if used else expr
+            if not at_nominal.is_number:
                 raise self.fail(entry, f"{shown(value)} is not a real constant")
             try:
-                expressions.float_value(expr)  # bounded first: exact evaluation of a huge part never returns
+                expressions.float_value(at_nominal)  # bounded first: exact evaluation of a huge part never returns
             except ExpressionError:
                 raise self.fail(entry, f"{shown(value)} is not a real constant (in double precision)") from None
-            numeric = complex(sp.N(expr))
+            numeric = complex(sp.N(at_nominal))
             if numeric.imag != 0 or not abs(numeric.real) < expressions.MAX_MAGNITUDE:
                 raise self.fail(entry, f"{shown(value)} is not a finite real number")
         else:
@@ -264,12 +287,16 @@ class _Reader:
     def vector(self, value: Any, entry: str) -> Vector:
         if not isinstance(value, (list, tuple)) or len(value) != 3:
             raise self.fail(entry, f"expected a list of 3 numbers, got {_kind(value)}")
-        return sp.ImmutableMatrix([self.scalar(v, f"{entry}[{i}]") for i, v in enumerate(value)])
+        return sp.ImmutableMatrix([self.scalar(v, f"{entry}[{i}]", design=True) for i, v in enumerate(value)])
+
+    def value(self, expr: sp.Expr) -> float:
+        """The double value of a geometry expression, design parameters at their nominal values."""
+        return float(expr.xreplace(self.nominal)) if self.nominal else float(expr)
 
     def unit(self, value: Any, entry: str) -> Vector:
         v = self.vector(value, entry)
         norm2 = sp.expand(sum(x**2 for x in v))
-        if float(norm2) < 1e-18:
+        if self.value(norm2) < 1e-18:
             raise self.fail(entry, "zero-length vector")
         return _compact_matrix(v / sp.sqrt(norm2))
 
@@ -282,6 +309,7 @@ class _Reader:
                 "model",
                 "description",
                 "redundant",
+                "design",
                 "parameters",
                 "ground",
                 "bodies",
@@ -300,8 +328,11 @@ class _Reader:
         description = top.get("description", "")
         if not isinstance(description, str):
             raise self.fail("description", "expected a string")
+        self.read_design(top.get("design"))
         for key, value in self.mapping(top.get("parameters"), "parameters", tuple(_keys(top.get("parameters")))).items():
-            self.parameters[self.name(key, f"parameters.{key}")] = self.scalar(value, f"parameters.{key}")
+            if key in self.design:
+                raise self.fail(f"parameters.{key}", "already a design parameter")
+            self.parameters[self.name(key, f"parameters.{key}")] = self.scalar(value, f"parameters.{key}", design=True)
         ground = self.mapping(top.get("ground"), "ground", ("points", "vectors"))
         identity = Body(GROUND, sp.ImmutableMatrix([0, 0, 0]), sp.ImmutableMatrix(sp.eye(3)))
         self.ground_points = self.named_vectors(ground.get("points"), "ground.points", identity, False, False)
@@ -310,6 +341,8 @@ class _Reader:
         if not bodies:
             raise self.fail("bodies", "a model needs at least one moving body")
         for key, value in bodies.items():
+            if key == "p" and self.design:
+                raise self.fail(f"bodies.{key}", "'p' names the design parameters' symbols (p_<name>): choose another body name")
             self.bodies[key] = self.body(self.name(key, f"bodies.{key}"), value)
         joints = self.mapping(top.get("joints"), "joints", tuple(_keys(top.get("joints"))))
         for key, value in joints.items():
@@ -331,7 +364,32 @@ class _Reader:
             working_range=working_range,
             redundant=self.redundant,
             ground_points=dict(self.ground_points),
+            design=tuple(self.design.values()),
         )
+
+    def read_design(self, value: Any) -> None:
+        """``design: {name: {nominal: x, bounds: [low, high], description: text}}``: parameters
+        the geometry keeps as symbols ``p_<name>``."""
+        for key, spec in self.mapping(value, "design", tuple(_keys(value))).items():
+            entry = f"design.{key}"
+            name = self.name(key, entry)
+            spec = self.mapping(spec, entry, ("nominal", "bounds", "description"), ("nominal", "bounds"))
+            nominal = self.scalar(spec["nominal"], f"{entry}.nominal")
+            bounds = spec["bounds"]
+            if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+                raise self.fail(f"{entry}.bounds", f"expected [low, high], got {_kind(bounds)}")
+            low, high = (self.scalar(b, f"{entry}.bounds[{i}]") for i, b in enumerate(bounds))
+            if not float(low) < float(high):
+                raise self.fail(f"{entry}.bounds", f"low {shown(bounds[0])} is not below high {shown(bounds[1])}")
+            if not float(low) <= float(nominal) <= float(high):
+                raise self.fail(f"{entry}.nominal", f"{shown(spec['nominal'])} is outside the bounds [{bounds[0]}, {bounds[1]}]")
+            description = spec.get("description", "")
+            if not isinstance(description, str):
+                raise self.fail(f"{entry}.description", "expected a string")
+            symbol = sp.Symbol(f"p_{name}", real=True)
+            self.design[name] = DesignParameter(name, symbol, nominal, low, high, description)
+            self.nominal[symbol] = nominal
+            self.parameters[name] = symbol
 
     def body(self, name: str, value: Any) -> Body:
         entry = f"bodies.{name}"
@@ -380,13 +438,13 @@ class _Reader:
             q = spec["quaternion"]
             if not isinstance(q, (list, tuple)) or len(q) != 4:
                 raise self.fail(f"{entry}.quaternion", f"expected [w, x, y, z], got {_kind(q)}")
-            quat = [self.scalar(v, f"{entry}.quaternion[{i}]") for i, v in enumerate(q)]
+            quat = [self.scalar(v, f"{entry}.quaternion[{i}]", design=True) for i, v in enumerate(q)]
             norm2 = sp.expand(sum(x**2 for x in quat))
-            if float(norm2) < 1e-18:
+            if self.value(norm2) < 1e-18:
                 raise self.fail(f"{entry}.quaternion", "zero quaternion")
-            if abs(float(norm2) - 1.0) > 1e-12:
+            if abs(self.value(norm2) - 1.0) > 1e-12:
                 warnings.warn(
-                    f"{self.file}: {entry}.quaternion: norm {float(sp.sqrt(norm2)):.6g} != 1, normalized",
+                    f"{self.file}: {entry}.quaternion: norm {self.value(sp.sqrt(norm2)):.6g} != 1, normalized",
                     ModelWarning,
                     stacklevel=2,
                 )
@@ -407,14 +465,14 @@ class _Reader:
             if not isinstance(rows, (list, tuple)) or len(rows) != 3:
                 raise self.fail(f"{entry}.matrix", "expected 3 rows of 3 numbers")
             matrix = sp.ImmutableMatrix([list(self.vector(r, f"{entry}.matrix[{i}]")) for i, r in enumerate(rows)])
-            numeric = sp.matrix2numpy(matrix.evalf(), dtype=float)
+            numeric = sp.matrix2numpy(matrix.xreplace(self.nominal).evalf(), dtype=float)
             if np.abs(numeric.T @ numeric - np.eye(3)).max() > ORTHONORMAL_TOLERANCE or np.linalg.det(numeric) < 0:
                 raise self.fail(f"{entry}.matrix", f"not a rotation matrix (orthonormal to {ORTHONORMAL_TOLERANCE:g}, det +1)")
             return matrix
         if "axis" not in spec or "angle" not in spec:
             raise self.fail(entry, "axis-angle needs both 'axis' and 'angle'")
         k = self.unit(spec["axis"], f"{entry}.axis")
-        angle = self.scalar(spec["angle"], f"{entry}.angle")
+        angle = self.scalar(spec["angle"], f"{entry}.angle", design=True)
         kx = sp.Matrix([[0, -k[2], k[1]], [k[2], 0, -k[0]], [-k[1], k[0], 0]])
         rodrigues = sp.eye(3) * sp.cos(angle) + sp.sin(angle) * kx + (1 - sp.cos(angle)) * (k * k.T)
         return _compact_matrix(rodrigues)
@@ -467,7 +525,7 @@ class _Reader:
                 fields.update(reference1=ref1, reference2=ref2)
                 g1 = _cross(axis1, ref1)
                 fields["lock2"] = tuple(_carry(pose1, pose2, v) for v in (ref1, g1, axis1))
-            elif abs(float((_rotate(pose1, axis1).T * _rotate(pose2, axis2))[0])) > 1e-9:
+            elif abs(self.value((_rotate(pose1, axis1).T * _rotate(pose2, axis2))[0])) > 1e-9:
                 raise self.fail(f"{entry}.axes", "the two universal-joint axes must be perpendicular at the initial pose")
         if kind == "fixed":
             e = [sp.ImmutableMatrix(sp.eye(3)[:, i]) for i in range(3)]
@@ -475,8 +533,8 @@ class _Reader:
         if kind == "distance":
             d = _global(pose1, point1) - _global(pose2, point2)
             initial = sp.sqrt(sp.expand((d.T * d)[0]))
-            length = self.scalar(spec["length"], f"{entry}.length") if "length" in spec else initial
-            if float(length) <= 1e-9:
+            length = self.scalar(spec["length"], f"{entry}.length", design=True) if "length" in spec else initial
+            if self.value(length) <= 1e-9:
                 raise self.fail(
                     f"{entry}.length" if "length" in spec else f"{entry}.points",
                     "a distance joint needs a positive length (points must not coincide)",
@@ -525,7 +583,7 @@ class _Reader:
             axis2 = self.vector_on(pose2, names[1], f"{entry}.axes[1]")
             if kind != "universal":
                 g1, g2 = _rotate(pose1, axis1), _rotate(pose2, axis2)
-                if float((_cross(g1, g2).T * _cross(g1, g2))[0]) > 1e-12:
+                if self.value((_cross(g1, g2).T * _cross(g1, g2))[0]) > 1e-12:
                     raise self.fail(f"{entry}.axes", "the two axes are not parallel at the initial pose")
             return axis1, axis2
         if kind == "universal":
@@ -542,14 +600,14 @@ class _Reader:
 
     def references(self, spec: dict, entry: str, pose1: Body, pose2: Body, axis1: Vector, axis2: Vector) -> tuple[Vector, Vector]:
         if "references" not in spec:
-            return perpendicular(axis1), perpendicular(axis2)
+            return perpendicular(axis1, self.nominal), perpendicular(axis2, self.nominal)
         names = spec["references"]
         if not isinstance(names, (list, tuple)) or len(names) != 2:
             raise self.fail(f"{entry}.references", "expected two vector names (one on each body)")
         refs = []
         for i, (pose, axis) in enumerate(((pose1, axis1), (pose2, axis2))):
             ref = self.vector_on(pose, names[i], f"{entry}.references[{i}]")
-            if abs(float((ref.T * axis)[0])) > 1e-9:
+            if abs(self.value((ref.T * axis)[0])) > 1e-9:
                 raise self.fail(f"{entry}.references[{i}]", "a reference vector must be perpendicular to the joint axis")
             refs.append(ref)
         return refs[0], refs[1]
@@ -661,7 +719,7 @@ class _Reader:
             if p1.body == p2.body:
                 raise self.fail(f"{entry}.points", "the two points are on the same body")
             gap = _global(self.pose(p1.body), p1.local) - _global(self.pose(p2.body), p2.local)
-            if float((gap.T * gap)[0]) < 1e-12:
+            if self.value((gap.T * gap)[0]) < 1e-12:
                 raise self.fail(
                     f"{entry}.points", "the two points coincide at the initial pose (a distance driver is singular there)"
                 )
@@ -678,8 +736,8 @@ class _Reader:
         if body == GROUND:
             raise self.fail(f"{entry}.body", "a body_angle driver needs a moving body")
         axis = self.unit(spec["axis"], f"{entry}.axis")
-        reference = perpendicular(axis) if "reference" not in spec else self.unit(spec["reference"], f"{entry}.reference")
-        if abs(float((reference.T * axis)[0])) > 1e-9:
+        reference = perpendicular(axis, self.nominal) if "reference" not in spec else self.unit(spec["reference"], f"{entry}.reference")
+        if abs(self.value((reference.T * axis)[0])) > 1e-9:
             raise self.fail(f"{entry}.reference", "must be perpendicular to the axis")
         return Driver(name, kind, function, body=body, axis=axis, reference=reference, body_reference=reference, **source)
 
@@ -738,6 +796,8 @@ def compact(value: sp.Expr) -> sp.Expr:
     the exact decimal rational of its first 34 significant digits, so that it is one
     number (not a tree) in every derivative, while evaluation stays exact rational.
     """
+    if value.free_symbols:  # depends on design parameters: kept as an expression of them
+        return value
     small = all(abs(r.p) < 10**6 and r.q < 10**6 for r in value.atoms(sp.Rational))
     if value.is_Rational or (small and not value.has(sp.Function) and sp.count_ops(value) <= 12):
         return value
@@ -796,13 +856,15 @@ def _carry(pose1: Body, pose2: Body, local1: Vector) -> Vector:
     return _compact_matrix(pose2.rotation.T * pose1.rotation * local1)
 
 
-def perpendicular(axis: Vector) -> Vector:
+def perpendicular(axis: Vector, nominal: Mapping[sp.Symbol, sp.Expr] | None = None) -> Vector:
     """The default unit reference vector perpendicular to ``axis``.
 
     It is the coordinate axis after the one ``axis`` is most aligned with (x -> y, y -> z,
-    z -> x), made perpendicular by Gram-Schmidt: for axis z this is x, as in the paper.
+    z -> x), made perpendicular by Gram-Schmidt: for axis z this is x, as in the paper. An
+    axis that depends on design parameters is compared at their ``nominal`` values.
     """
-    k = (max(range(3), key=lambda i: (abs(float(axis[i])), -i)) + 1) % 3
+    at_nominal = axis.xreplace(nominal) if nominal else axis
+    k = (max(range(3), key=lambda i: (abs(float(at_nominal[i])), -i)) + 1) % 3
     e = sp.Matrix([1 if i == k else 0 for i in range(3)])
     u = e - axis * (axis.T * e)[0]
     return sp.ImmutableMatrix((u / sp.sqrt(sp.expand((u.T * u)[0]))).applyfunc(sp.expand))

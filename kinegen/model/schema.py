@@ -7,7 +7,9 @@ Points and vectors are stored in *body* coordinates, whatever way the file gave 
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from collections.abc import Mapping
+from dataclasses import dataclass, field, fields, is_dataclass, replace
+from typing import Any
 
 import sympy as sp
 
@@ -127,6 +129,23 @@ class WorkingRange:
 
 
 @dataclass(frozen=True)
+class DesignParameter:
+    """A parameter the geometry keeps as a symbol (``design:`` in the model file).
+
+    Every point, vector, position, angle or length that depends on it is an expression of
+    ``symbol`` (named ``p_<name>``); ``nominal`` is its value in the design as drawn and
+    ``lower``/``upper`` its bounds (same unit as the expressions that use it: m or rad).
+    """
+
+    name: str
+    symbol: sp.Symbol
+    nominal: sp.Expr
+    lower: sp.Expr
+    upper: sp.Expr
+    description: str = ""
+
+
+@dataclass(frozen=True)
 class Model:
     """A validated mechanism model."""
 
@@ -142,6 +161,23 @@ class Model:
     working_range: WorkingRange | None = None
     redundant: bool = False  #: the model declares redundant (dependent) constraints
     ground_points: dict[str, Vector] = field(default_factory=dict)  #: named fixed points, global
+    #: parameters kept symbolic in the geometry (empty: every geometry value is a number)
+    design: tuple[DesignParameter, ...] = ()
+
+    def at(self, values: Mapping[str, float] | None = None) -> Model:
+        """This model with its design parameters replaced by numbers: ``values`` (by name; a
+        float is taken exactly, as the model file would write it) and the nominal value for
+        any not given. The result has no design parameters: the model as if its file had
+        been written with those numbers."""
+        from kinegen.model.expressions import number  # the schema stays import-light
+
+        values = dict(values or {})
+        unknown = set(values) - {d.name for d in self.design}
+        if unknown:
+            raise KeyError(f"not design parameters of {self.name}: {', '.join(sorted(unknown))}")
+        mapping = {d.symbol: number(values[d.name]) if d.name in values else d.nominal for d in self.design}
+        substituted = _substitute(self, mapping)
+        return replace(substituted, design=())
 
     def body(self, name: str) -> Body:
         """The body called ``name`` (not ground)."""
@@ -149,3 +185,23 @@ class Model:
             if body.name == name:
                 return body
         raise KeyError(name)
+
+
+def _substitute(item: Any, mapping: dict[sp.Symbol, sp.Expr]) -> Any:
+    """``item`` (a model or any part of it) with ``mapping`` applied to every expression in it;
+    an expression that changes is put back in compact exact form (as the loader writes it)."""
+    from kinegen.model.loader import compact
+
+    if isinstance(item, sp.MatrixBase):
+        return sp.ImmutableMatrix(item.applyfunc(lambda e: _substitute(e, mapping)))
+    if isinstance(item, sp.Basic):
+        if not (item.free_symbols & mapping.keys()):
+            return item
+        return compact(sp.expand(item.xreplace(mapping)))
+    if is_dataclass(item) and not isinstance(item, type):
+        return replace(item, **{f.name: _substitute(getattr(item, f.name), mapping) for f in fields(item) if f.init})
+    if isinstance(item, dict):
+        return {k: _substitute(v, mapping) for k, v in item.items()}
+    if isinstance(item, (tuple, list)):
+        return type(item)(_substitute(v, mapping) for v in item)
+    return item
