@@ -123,9 +123,39 @@ def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | 
             click.echo(f"  build and run it: make -C {path} && {path}/{module_name(load(model_file), param)}_example > out.csv")
 
 
-def _system(model_file: str, param: rotations.Parametrization, case: str | None, generated_dir: str, compiled: bool | None = None):
+def _nominal(model):
+    """A model with design parameters as numbers: their nominal values (said once on stderr)."""
+    if not model.design:
+        return model
+    click.echo(f"design parameters at their nominal values: {', '.join(f'{d.name} = {float(d.nominal):g}' for d in model.design)}", err=True)
+    return model.at()
+
+
+def _design_values(pairs: tuple[str, ...]) -> dict[str, float]:
+    """``--design NAME=VALUE`` options as a mapping."""
+    values = {}
+    for pair in pairs:
+        name, sep, text = pair.partition("=")
+        try:
+            values[name.strip()] = float(text)
+        except ValueError:
+            raise click.BadParameter(f"{pair!r} is not NAME=VALUE with a number", param_hint="--design") from None
+        if not sep:
+            raise click.BadParameter(f"{pair!r} is not NAME=VALUE", param_hint="--design")
+    return values
+
+
+def _system(
+    model_file: str,
+    param: rotations.Parametrization,
+    case: str | None,
+    generated_dir: str,
+    compiled: bool | None = None,
+    design: dict[str, float] | None = None,
+):
     """The numeric system of a case, from the generated module (rebuilt when missing or stale);
-    its compiled C when there is a compiler (``compiled`` None), or not (False)."""
+    its compiled C when there is a compiler (``compiled`` None), or not (False); a model's
+    design parameters at ``design`` (nominal for those not given)."""
     from kinegen.codegen import build as build_module
     from kinegen.codegen import module_name
     from kinegen.model import load
@@ -138,6 +168,12 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
     except GeneratedModuleError:
         click.echo(f"building {path} (missing or stale)", err=True)
         module = load_module(build_module(model_file, param.name, generated_dir, check=check_source), model_file)
+    if design:
+        try:
+            system = from_module(module, case, compiled, design)
+        except (KeyError, ValueError) as exc:
+            raise click.BadParameter(str(exc.args[0]), param_hint="--design") from None
+        return model, dataclasses.replace(system, source=model_file)
     try:
         return model, dataclasses.replace(from_module(module, case, compiled), source=model_file)
     except KeyError as exc:
@@ -165,6 +201,13 @@ def _system(model_file: str, param: rotations.Parametrization, case: str | None,
     help="Solve with the generated Python functions only (by default the module's C is compiled once with "
     "the machine's C compiler, cached in ~/.cache/kinegen, and solves; without a compiler kinegen says so and uses Python).",
 )
+@click.option(
+    "--design",
+    "design",
+    multiple=True,
+    metavar="NAME=VALUE",
+    help="A design parameter's value (repeatable; the others at their nominal values): no rebuild.",
+)
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def solve(
     model_file: str,
@@ -177,6 +220,7 @@ def solve(
     plot: str | None,
     keep_going: bool,
     no_compile: bool,
+    design: tuple[str, ...],
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time."""
@@ -184,12 +228,14 @@ def solve(
     from kinegen.runtime import solve as run
 
     parametrization = _parametrization(param)
-    _, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None)
+    _, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
     elapsed = time.perf_counter() - start
     done = results.converged
+    if system.design:
+        click.echo("design: " + ", ".join(f"{name} = {value:g}" for name, value in system.design.items()))
     click.echo(
         f"{system.model}/{system.case} [{parametrization.name}]: {int(done.sum())} of {len(times)} time points, "
         f"t = {times[0]:g} .. {results.times[-1]:g} s, Newton iterations mean {results.iterations[done].mean():.2f} "
@@ -234,7 +280,7 @@ def inspect(
     from kinegen.analysis import inspect as run
     from kinegen.model import load
 
-    model = load(model_file)
+    model = _nominal(load(model_file))
     parametrization = _parametrization(param)
     if case is not None and case not in model.cases:
         raise click.BadParameter(f"no case {case!r} (cases: {', '.join(model.cases)})", param_hint="--case")
@@ -294,7 +340,7 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
     from kinegen.analysis import compare as comparison
     from kinegen.model import load
 
-    model = load(model_file)
+    model = _nominal(load(model_file))
     if case is not None and case not in model.cases:
         raise click.BadParameter(f"no case {case!r} (cases: {', '.join(model.cases)})", param_hint="--case")
     chosen = case or next(iter(model.cases))

@@ -13,6 +13,7 @@ import numpy as np
 import sympy as sp
 
 from kinegen.codegen.kernels import initial_q
+from kinegen.errors import ModelError
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.rotations import Parametrization
@@ -46,7 +47,10 @@ def _inputs(functions, t_symbol, m: int):
 
 
 def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleNamespace:
-    """A module-like namespace with every case of ``model`` compiled by ``lambdify``."""
+    """A module-like namespace with every case of ``model`` compiled by ``lambdify`` (a model
+    with design parameters: ``model.at(values)`` fixes them; generated modules take them)."""
+    if model.design:
+        raise ModelError(model.file, "design", "lambdify_model takes numbers: use model.at(values), or a generated module")
     systems = build_systems(model, parametrization)
     first = next(iter(systems.values()))
     coords = first.coordinates

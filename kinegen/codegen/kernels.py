@@ -44,6 +44,7 @@ SLOTS = {
     "u": "driver inputs (angles, lengths, coordinates)",
     "ud": "their first time derivatives",
     "udd": "their second time derivatives",
+    "p": "design parameters (only in a model with a design: section; units as in the model)",
 }
 #: Values per body in the ``frames`` kernel: origin, rotation matrix (row by row), origin
 #: velocity, angular velocity, origin acceleration, angular acceleration; all global.
@@ -153,6 +154,8 @@ class ModuleDescription:
     cases: dict[str, CaseDescription]
     kernels: dict[str, Kernel]  #: kernels shared by every case (frames)
     shapes: Shapes = field(default_factory=Shapes)
+    #: design parameters: name, nominal, lower, upper (empty: no ``p`` slot anywhere)
+    design: tuple[tuple[str, float, float, float], ...] = ()
 
     @property
     def joint_rows(self) -> int:
@@ -237,13 +240,30 @@ def plan(rows: tuple[int, ...], cols: tuple[int, ...], shape: tuple[int, int]) -
 
 
 def initial_q(model: Model, parametrization: Parametrization) -> np.ndarray:
-    """Stored coordinates of the model's initial pose in ``parametrization``."""
+    """Stored coordinates of the model's initial pose in ``parametrization`` (design parameters
+    at their nominal values)."""
+    nominal = _nominal(model)
     return np.concatenate(
         [
-            parametrization.from_pose([float(sp.N(x, 30)) for x in body.position], np.array(body.rotation.evalf(30), dtype=float))
+            parametrization.from_pose(
+                [float(sp.N(x.xreplace(nominal), 30)) for x in body.position],
+                np.array(body.rotation.xreplace(nominal).evalf(30), dtype=float),
+            )
             for body in model.bodies
         ]
     )
+
+
+def _nominal(model: Model) -> dict[sp.Symbol, sp.Expr]:
+    return {d.symbol: d.nominal for d in model.design}
+
+
+def point_expressions(model: Model) -> list[sp.Expr]:
+    """Every named point's coordinates, flattened: the bodies' (body coordinates) in the order
+    of ``POINTS``, then the ground's (global) -- what the ``points`` kernel of a model with
+    design parameters computes from ``p``."""
+    values = [x for body in model.bodies for point in body.points.values() for x in point]
+    return values + [x for point in model.ground_points.values() for x in point]
 
 
 def describe(model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None) -> ModuleDescription:
@@ -261,9 +281,10 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         return name
 
     n_joint_entries = sum(len(r.jacobian_columns) for r in joints)
-    section("joints_phi", ("q",), _groups(joints, templates, "phi"), mj, f"Phi of the {mj} joint (and normalization) rows, common to every case.")
-    section("joints_jac", ("q",), _groups(joints, templates, "jac"), n_joint_entries, f"Phi_q values of the joint rows ({n_joint_entries} entries).")
-    section("joints_gamma", ("q", "v"), _groups(joints, templates, "gamma"), mj, "gamma of the joint rows (they do not depend on time).")
+    p = ("p",) if model.design else ()  # the design parameters' slot, last, in every kernel of Phi
+    section("joints_phi", ("q", *p), _groups(joints, templates, "phi"), mj, f"Phi of the {mj} joint (and normalization) rows, common to every case.")
+    section("joints_jac", ("q", *p), _groups(joints, templates, "jac"), n_joint_entries, f"Phi_q values of the joint rows ({n_joint_entries} entries).")
+    section("joints_gamma", ("q", "v", *p), _groups(joints, templates, "gamma"), mj, "gamma of the joint rows (they do not depend on time).")
     frames = section(
         "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
         "Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, "
@@ -279,21 +300,21 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         n_driver_entries = len(pattern) - n_joint_entries
         section(f"inputs_{name}", ("t",), (Group(None, inputs.stacked, {}),), 3 * nd,
                 f"Driver inputs of case {name!r} at time t: rows u ({nd}), then du/dt, then d2u/dt2.")  # fmt: skip
-        section(f"drivers_phi_{name}", ("q", "u"), _groups(drivers, templates, "phi"), m - mj, f"Phi of the driver rows of case {name!r}.")
-        section(f"drivers_jac_{name}", ("q", "u"), _groups(drivers, templates, "jac"), n_driver_entries,
+        section(f"drivers_phi_{name}", ("q", "u", *p), _groups(drivers, templates, "phi"), m - mj, f"Phi of the driver rows of case {name!r}.")
+        section(f"drivers_jac_{name}", ("q", "u", *p), _groups(drivers, templates, "jac"), n_driver_entries,
                 f"Phi_q values of the driver rows of case {name!r}.")  # fmt: skip
-        section(f"drivers_nu_{name}", ("q", "u", "ud"), _groups(drivers, templates, "nu"), m - mj, f"nu of the driver rows of case {name!r}.")
-        section(f"drivers_gamma_{name}", ("q", "v", "u", "ud", "udd"), _groups(drivers, templates, "gamma"), m - mj,
+        section(f"drivers_nu_{name}", ("q", "u", "ud", *p), _groups(drivers, templates, "nu"), m - mj, f"nu of the driver rows of case {name!r}.")
+        section(f"drivers_gamma_{name}", ("q", "v", "u", "ud", "udd", *p), _groups(drivers, templates, "gamma"), m - mj,
                 f"gamma of the driver rows of case {name!r}.")  # fmt: skip
         kernels = {
             "phi_jac": Kernel(
-                "phi_jac", ("q", "u"),
+                "phi_jac", ("q", "u", *p),
                 (Output("phi", ("joints_phi", f"drivers_phi_{name}"), m), Output("jac", ("joints_jac", f"drivers_jac_{name}"), len(pattern))),
                 f"Phi and the Phi_q values (at jac_rows, jac_cols) of case {name!r}.",
             ),
-            "nu": Kernel("nu", ("q", "u", "ud"), (Output("nu", (Zeros(mj), f"drivers_nu_{name}"), m),),
+            "nu": Kernel("nu", ("q", "u", "ud", *p), (Output("nu", (Zeros(mj), f"drivers_nu_{name}"), m),),
                          f"nu = -Phi_t of case {name!r} (zero in the joint rows)."),
-            "gamma": Kernel("gamma", ("q", "v", "u", "ud", "udd"), (Output("gamma", ("joints_gamma", f"drivers_gamma_{name}"), m),),
+            "gamma": Kernel("gamma", ("q", "v", "u", "ud", "udd", *p), (Output("gamma", ("joints_gamma", f"drivers_gamma_{name}"), m),),
                             f"gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case {name!r}."),
             "inputs": Kernel("inputs", ("t",), (Output("inputs", (f"inputs_{name}",), 3 * nd),),
                              f"Driver inputs of case {name!r} at time t: u, then du/dt, then d2u/dt2."),
@@ -305,6 +326,16 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
             tuple(inputs.sources), rows_, cols_, {"u": tuple(inputs.u), "ud": tuple(inputs.ud), "udd": tuple(inputs.udd)},
             kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))),
         )  # fmt: skip
+    shared = {"frames": Kernel("frames", ("q", "v", "a"), (Output(frames, (frames,), sections[frames].size),), sections[frames].doc)}
+    slots = {"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)}
+    if model.design:
+        values = point_expressions(model)
+        section("points", ("p",), (Group(None, lambda: values, {}),), len(values),
+                "Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the "
+                "order of POINTS), then the ground's (global, GROUND_POINTS).")  # fmt: skip
+        shared["points"] = Kernel("points", ("p",), (Output("points", ("points",), len(values)),), sections["points"].doc)
+        slots["p"] = tuple(d.symbol for d in model.design)
+    nominal = _nominal(model)
     definitions = Definitions(
         tuple((b.name, tuple(b.frame_symbols), tuple(b.frame_values)) for b in coords.bodies), tuple(generic_body(parametrization).frame_values)
     )
@@ -317,15 +348,16 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         stored_names=tuple(coords.stored_names),
         velocity_names=tuple(coords.velocity_names),
         bodies=tuple((b.name, b.stored_offset, b.velocity_offset) for b in coords.bodies),
-        points={b.name: {k: tuple(float(sp.N(x, 30)) for x in v) for k, v in b.points.items()} for b in model.bodies},
-        ground_points={k: tuple(float(sp.N(x, 30)) for x in v) for k, v in model.ground_points.items()},
+        points={b.name: {k: tuple(float(sp.N(x.xreplace(nominal), 30)) for x in v) for k, v in b.points.items()} for b in model.bodies},
+        ground_points={k: tuple(float(sp.N(x.xreplace(nominal), 30)) for x in v) for k, v in model.ground_points.items()},
         actuators=tuple(
             (a.name, (a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.range) for a in model.actuators
         ),
         initial_q=tuple(float(x) for x in initial_q(model, parametrization)),
-        slots={"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)},
+        slots=slots,
         definitions=definitions,
         sections=sections,
         cases=cases,
-        kernels={"frames": Kernel("frames", ("q", "v", "a"), (Output(frames, (frames,), sections[frames].size),), sections[frames].doc)},
+        kernels=shared,
+        design=tuple((d.name, float(d.nominal), float(d.lower), float(d.upper)) for d in model.design),
     )

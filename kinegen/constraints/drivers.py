@@ -62,6 +62,11 @@ def _half_angle_residual(theta: sp.Expr, joint: Joint, frame1: Frame, frame2: Fr
         return sp.Matrix.hstack(sp.Matrix(reference), cross(axis, reference), sp.Matrix(axis))
 
     zero_angle = basis(joint.reference1, joint.axis1) * basis(joint.reference2, joint.axis2).T
+    if zero_angle.free_symbols:
+        raise ValueError(
+            f"joint {joint.name}: its axes or references depend on design parameters, which a joint-angle driver "
+            "does not take yet (keep the joint's directions fixed, move its points)"
+        )
     p = quaternion_product(quaternion_product(conjugate(frame1.e), frame2.e), conjugate(exact_quaternion(zero_angle)))
     along = dot(sp.Matrix(joint.axis1), sp.Matrix(p[1:]))
     return 2 * (sp.sin(theta / 2) * p[0] - sp.cos(theta / 2) * along)

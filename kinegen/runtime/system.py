@@ -10,7 +10,7 @@ import hashlib
 import importlib.util
 import sys
 import warnings
-from collections.abc import Callable
+from collections.abc import Callable, Mapping
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -63,6 +63,8 @@ class NumericSystem:
     driver_sources: tuple[tuple[str, str], ...] = ()
     #: named points of the ground (global, fixed)
     ground_points: dict[str, tuple[float, float, float]] = field(default_factory=dict)
+    #: the design parameters' values this system was made for (name -> value; empty without a design: section)
+    design: dict[str, float] = field(default_factory=dict)
 
     @property
     def n_stored(self) -> int:
@@ -192,8 +194,15 @@ class NumericSystem:
         return np.array(self.gamma_s(q.tolist(), v.tolist(), u.tolist(), ud.tolist(), udd.tolist()))
 
 
-def from_module(module: ModuleType | Any, case: str | None = None, compiled: bool | None = None) -> NumericSystem:
+def from_module(
+    module: ModuleType | Any, case: str | None = None, compiled: bool | None = None, design: Mapping[str, float] | None = None
+) -> NumericSystem:
     """The numeric system of ``case`` (the first case by default) of a generated module.
+
+    ``design``: values of the model's design parameters by name (the others at their nominal
+    values, within their bounds); the kernels take them as their argument ``p``, the named
+    points are computed from them -- no rebuild. (The compiled path does not take them yet: a
+    module with design parameters is solved through its Python functions.)
 
     ``compiled``: evaluate the kernels and solve trajectories through the module's C (the
     ``.c``/``.h`` beside it, compiled once with kinegen's C solver and cached,
@@ -208,6 +217,18 @@ def from_module(module: ModuleType | Any, case: str | None = None, compiled: boo
     if case not in cases:
         raise KeyError(f"model {module.MODEL!r} has no case {case!r} (cases: {', '.join(cases)})")
     data = cases[case]
+    p = _design_values(module, design)
+    points = {b: dict(pts) for b, pts in module.POINTS.items()}
+    ground_points = dict(getattr(module, "GROUND_POINTS", {}))
+    kernels = {k: data.get(k) for k in ("phi", "jac", "nu", "gamma", "phi_jac_s", "nu_s", "gamma_s")}
+    if p is not None:
+        kernels = {k: None if f is None else _with_design(f, p) for k, f in kernels.items()}
+        points, ground_points = _design_points(module, p)
+        if compiled:
+            from kinegen.runtime.native import CompileError
+
+            raise CompileError(f"model {module.MODEL!r} has design parameters: its compiled path does not take them yet")
+        compiled = False
     return NumericSystem(
         model=module.MODEL,
         case=case,
@@ -217,28 +238,67 @@ def from_module(module: ModuleType | Any, case: str | None = None, compiled: boo
         constraint_names=tuple(data["constraints"]),
         driver_names=tuple(data["drivers"]),
         bodies=dict(module.BODIES),
-        points={b: dict(p) for b, p in module.POINTS.items()},
+        points=points,
         initial_q=np.array(module.INITIAL_Q, dtype=float),
         jac_rows=np.array(data["jac_rows"], dtype=np.intp),
         jac_cols=np.array(data["jac_cols"], dtype=np.intp),
         inputs=data["inputs"],
-        phi=data["phi"],
-        jac=data["jac"],
-        nu=data["nu"],
-        gamma=data["gamma"],
+        phi=kernels["phi"],
+        jac=kernels["jac"],
+        nu=kernels["nu"],
+        gamma=kernels["gamma"],
         t0=float(data["t0"]),
         t1=float(data["t1"]),
         steps=int(data["steps"]),
         source_sha256=getattr(module, "SOURCE_SHA256", ""),
         actuators=dict(getattr(module, "ACTUATORS", {})),
-        phi_jac_s=data.get("phi_jac_s"),
-        nu_s=data.get("nu_s"),
-        gamma_s=data.get("gamma_s"),
+        phi_jac_s=kernels["phi_jac_s"],
+        nu_s=kernels["nu_s"],
+        gamma_s=kernels["gamma_s"],
         source=getattr(module, "SOURCE", ""),
         driver_sources=tuple(data.get("driver_sources", ())),
-        ground_points=dict(getattr(module, "GROUND_POINTS", {})),
+        ground_points=ground_points,
         native=_native(module, case, compiled),
+        design={} if p is None else dict(zip(module.DESIGN, p.tolist())),
     )
+
+
+def _design_values(module: ModuleType | Any, design: Mapping[str, float] | None) -> np.ndarray | None:
+    """The argument p of a module with design parameters: ``design``'s values, nominal for the rest."""
+    table = getattr(module, "DESIGN", None)
+    values = dict(design or {})
+    if table is None:
+        if values:
+            raise KeyError(f"model {module.MODEL!r} has no design parameters (given: {', '.join(sorted(values))})")
+        return None
+    unknown = sorted(set(values) - set(table))
+    if unknown:
+        raise KeyError(f"not design parameters of {module.MODEL!r}: {', '.join(unknown)} (design parameters: {', '.join(table)})")
+    p = []
+    for name, (nominal, lower, upper) in table.items():
+        value = float(values.get(name, nominal))
+        if not lower <= value <= upper:
+            raise ValueError(f"design parameter {name} = {value!r} is outside its bounds [{lower!r}, {upper!r}]")
+        p.append(value)
+    return np.array(p)
+
+
+def _with_design(function: Callable[..., Any], p: np.ndarray) -> Callable[..., Any]:
+    """``function`` with the design parameters ``p`` as its last argument, bound."""
+    values = p.tolist()
+
+    def bound(*args: Any) -> Any:
+        return function(*args, values)
+
+    return bound
+
+
+def _design_points(module: ModuleType | Any, p: np.ndarray) -> tuple[dict, dict]:
+    """POINTS and GROUND_POINTS of a module with design parameters, at ``p``."""
+    flat = iter(np.asarray(module.points(p.tolist()), dtype=float).tolist())
+    points = {body: {name: tuple(next(flat) for _ in range(3)) for name in named} for body, named in module.POINTS.items()}
+    ground = {name: tuple(next(flat) for _ in range(3)) for name in getattr(module, "GROUND_POINTS", {})}
+    return points, ground
 
 
 def _native(module: ModuleType | Any, case: str, compiled: bool | None) -> Any:

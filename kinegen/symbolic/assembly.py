@@ -29,7 +29,6 @@ from functools import cached_property
 import sympy as sp
 
 from kinegen.constraints import GROUND_FRAME, Equation, Frame, driver_equation, joint_equations
-from kinegen.errors import ModelError
 from kinegen.model.expressions import T, time_derivative
 from kinegen.model.schema import GROUND, Case, Model
 from kinegen.rotations import Parametrization
@@ -500,12 +499,6 @@ def kinematic_rows(model: Model, coords: Coordinates, templates: Templates | Non
 
 def build_systems(model: Model, parametrization: Parametrization, cases: list[str] | None = None) -> dict[str, System]:
     """The symbolic system of each case (all cases by default); joint rows are derived once."""
-    if model.design:
-        names = ", ".join(d.name for d in model.design)
-        raise ModelError(
-            model.file, "design", f"the derivation does not take design parameters ({names}) yet: build model.at({{...}}), "
-            "the model with them fixed at given values (default: nominal)",
-        )  # fmt: skip
     coords = coordinates(model, parametrization)
     templates = Templates(parametrization)
     shared = kinematic_rows(model, coords, templates)

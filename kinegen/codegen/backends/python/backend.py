@@ -132,6 +132,9 @@ class _Module:
                     ["joints_phi", "joints_jac"], None)  # fmt: skip
         self.scalar("_joints_gamma_s", "gamma of the joint rows at one configuration (list of floats).", ["joints_gamma"], None)
         self.array("frames", d.kernels["frames"].doc, "frames", None, "_zeros({m}, q, ())")
+        if "points" in d.kernels:
+            self.array("points", d.kernels["points"].doc, "points", None, "np.zeros(({m},) + np.shape(p[0]))")
+        p = [", p", ["p"]] if d.design else ["", []]  # the design parameters' argument, last
         for name, case in d.cases.items():
             self.array(f"inputs_{name}", d.sections[f"inputs_{name}"].doc, f"inputs_{name}", name, "np.zeros(({m},) + np.shape(t))")
             for kind in ("phi", "jac", "nu", "gamma"):
@@ -144,24 +147,25 @@ class _Module:
                         [f"drivers_gamma_{name}"], name)  # fmt: skip
             kernels = case.kernels
             m, entries = kernels["phi_jac"].outputs[0].size, kernels["phi_jac"].outputs[1].size
-            q_u, q_u_ud, q_v_inputs = ["q", "u"], ["q", "u", "ud"], ["q", "v", "u", "ud", "udd"]
+            q_u, q_u_ud, q_v_inputs = ["q", "u", *p[1]], ["q", "u", "ud", *p[1]], ["q", "v", "u", "ud", "udd", *p[1]]
+            P = p[0]
             self.functions += [
                 _Function("join", f"phi_{name}", q_u, f"Phi(q, u) of case {name!r}: {m} residuals.",
-                          first="_joints_phi(q)", second=f"_drivers_phi_{name}(q, u)"),
+                          first=f"_joints_phi(q{P})", second=f"_drivers_phi_{name}(q, u{P})"),
                 _Function("join", f"jac_{name}", q_u, f"Values of the sparse Phi_q of case {name!r} at jac_rows, jac_cols ({entries} entries).",
-                          first="_joints_jac(q)", second=f"_drivers_jac_{name}(q, u)"),
-                _Function("returns", f"nu_{name}", q_u_ud, kernels["nu"].doc, [f"drivers = _drivers_nu_{name}(q, u, ud)"],
+                          first=f"_joints_jac(q{P})", second=f"_drivers_jac_{name}(q, u{P})"),
+                _Function("returns", f"nu_{name}", q_u_ud, kernels["nu"].doc, [f"drivers = _drivers_nu_{name}(q, u, ud{P})"],
                           result=f"_join(np.zeros(({joints},) + drivers.shape[1:]), drivers)"),
                 _Function("join", f"gamma_{name}", q_v_inputs, kernels["gamma"].doc,
-                          first="_joints_gamma(q, v)", second=f"_drivers_gamma_{name}(q, v, u, ud, udd)"),
+                          first=f"_joints_gamma(q, v{P})", second=f"_drivers_gamma_{name}(q, v, u, ud, udd{P})"),
                 _Function("returns", f"phi_jac_s_{name}", q_u,
                           f"Phi and the Phi_q values of case {name!r} at one configuration (q, u: lists of floats).",
-                          ["phi, jac = _joints_phi_jac_s(q)", f"driver_phi, driver_jac = _drivers_phi_jac_s_{name}(q, u)"],
+                          [f"phi, jac = _joints_phi_jac_s(q{P})", f"driver_phi, driver_jac = _drivers_phi_jac_s_{name}(q, u{P})"],
                           result="phi + driver_phi, jac + driver_jac"),
                 _Function("returns", f"nu_s_{name}", q_u_ud, f"nu of case {name!r} at one configuration (list of floats).",
-                          result=f"[0.0] * {joints} + _drivers_nu_s_{name}(q, u, ud)"),
+                          result=f"[0.0] * {joints} + _drivers_nu_s_{name}(q, u, ud{P})"),
                 _Function("returns", f"gamma_s_{name}", q_v_inputs, f"gamma of case {name!r} at one configuration (list of floats).",
-                          result=f"_joints_gamma_s(q, v) + _drivers_gamma_s_{name}(q, v, u, ud, udd)"),
+                          result=f"_joints_gamma_s(q, v{P}) + _drivers_gamma_s_{name}(q, v, u, ud, udd{P})"),
             ]  # fmt: skip
         macros = templates.get_template("functions.py.jinja").module
         code = [getattr(macros, f.kind)(f) for f in self.functions]
