@@ -102,23 +102,25 @@ def _slider_x(crank: float, rod: float, t: np.ndarray) -> np.ndarray:
     return crank * np.cos(theta) + np.sqrt(rod**2 - crank**2 * np.sin(theta) ** 2)
 
 
-@pytest.mark.parametrize("param", ["quaternion", "euler-parameters", "dual-quaternion"])
-def test_one_generated_module_solves_any_design_without_a_rebuild(tmp_path, param):
-    """The module takes p: at the nominal and at two other designs the slider follows the
-    closed form, and every named point agrees with the model rebuilt at those numbers."""
+@pytest.mark.parametrize(("param", "compiled"), [("quaternion", False), ("quaternion", True), ("euler-parameters", True), ("dual-quaternion", False)])
+def test_one_generated_module_solves_any_design_without_a_rebuild(tmp_path, param, compiled):
+    """The module takes p (its Python functions, or its C compiled with kinegen's C solver): at
+    the nominal and at two other designs the slider follows the closed form, and every named
+    point agrees with the model rebuilt at those numbers."""
     from kinegen.codegen import generate
     from kinegen.runtime import load_module
 
     model = loads(design_model(), "slider_crank_design.yaml")
     made = generate(model, rotations.get(param))
-    assert made["c-model"] == {}  # the C does not take p yet
-    (name, text), = made["python"].items()
-    (tmp_path / name).write_text(text)
-    module = load_module(tmp_path / name)
+    for files in made.values():
+        for file, text in files.items():
+            (tmp_path / file).write_text(text)
+    module = load_module(tmp_path / next(iter(made["python"])))
     assert module.DESIGN == {"r": (0.2, 0.15, 0.25), "l": (0.6, 0.5, 0.7)}
     assert all(slots[-1] == "p" for kernel, (slots, _) in module.KERNELS.items() if kernel not in ("inputs", "frames"))
     for values in ({}, {"r": 0.21, "l": 0.65}, {"r": 0.16}):
-        system = from_module(module, "run", design=values)
+        system = from_module(module, "run", compiled=compiled, design=values)
+        assert (system.native is not None) == compiled
         results = solve(system)
         crank, rod = values.get("r", 0.2), values.get("l", 0.6)
         assert system.design == {"r": crank, "l": rod}
@@ -146,3 +148,42 @@ def test_design_values_are_checked_against_the_module():
 def test_in_memory_lambdify_asks_for_numbers():
     with pytest.raises(ModelError, match=r"lambdify_model takes numbers: use model.at\(values\)"):
         lambdify_model(loads(design_model(), "slider_crank_design.yaml"), rotations.get("quaternion"))
+
+
+def test_the_c_of_a_design_model_compiles_strictly(tmp_path):
+    """The model's C with the kernels taking p and kinegen_design_model, and the solver, with
+    the machine's cc: C99, every warning an error."""
+    import shutil
+    import subprocess
+
+    from kinegen.codegen import generate
+    from kinegen.runtime.native import with_solver
+
+    compiler = shutil.which("cc")
+    if compiler is None:
+        pytest.skip("no C compiler (cc) on this machine")
+    model = loads(design_model(), "slider_crank_design.yaml")
+    files = with_solver(generate(model, rotations.get("quaternion"), ("c-model",))["c-model"])
+    for name, text in files.items():
+        (tmp_path / name).write_text(text)
+    for name in (n for n in files if n.endswith(".c")):
+        flags = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-c", "-o", str(tmp_path / f"{name}.o")]
+        done = subprocess.run([compiler, *flags, str(tmp_path / name)], capture_output=True, text=True)
+        assert done.returncode == 0, done.stderr
+    assert "const kinegen_design_model slider_crank_quaternion_run = { {" in files["slider_crank_quaternion.c"]
+
+
+def test_the_standalone_c_of_a_design_model_matches_python_at_the_nominal(tmp_path):
+    """``kinegen build --target c``: the controller's C solves the nominal design (its solver's
+    kinegen_set_design takes others), every row as the Python runtime's."""
+    from tests.test_c_target import _compare, _compile, _standalone
+
+    model = tmp_path / "slider_crank_design.yaml"
+    model.write_text(design_model())
+    folder = _standalone(tmp_path, model, "quaternion")
+    program = _compile(folder, "slider_crank_quaternion", ["-O2"])
+    from kinegen.codegen import generate
+    from kinegen.runtime.system import module_from_source
+
+    text = generate(loads(design_model(), str(model)), rotations.get("quaternion"), ("python",))["python"]["slider_crank_quaternion.py"]
+    _compare(program, from_module(module_from_source(text), "run", compiled=False), "run")

@@ -9,7 +9,6 @@ from pathlib import Path
 
 from kinegen.codegen import backends
 from kinegen.codegen.kernels import describe
-from kinegen.errors import ModelError
 from kinegen.model import Model, load
 from kinegen.rotations import Parametrization, get
 
@@ -34,15 +33,11 @@ def generate(
     (only the model's C, as generated/ holds it). The kernel description is made once; the C
     targets are printed first, and ``ready(target, files)`` is called as each target is done
     (e.g. to start compiling the C while the Python is printed)."""
-    if model.design and "c" in targets:
-        raise ModelError(model.file, "design", "the standalone C target does not take design parameters yet")
     description = describe(model, parametrization)
     stem = module_name(model, parametrization)
     files: dict[str, dict[str, str]] = {}
     for target in sorted(targets, key=lambda t: not t.startswith("c")):
-        if target == "c-model" and model.design:  # not yet: the module is solved through its Python functions
-            files[target] = {}
-        elif target == "c-model":
+        if target == "c-model":
             files[target] = backends.get("c")(description, stem, standalone=False)
         else:
             files[target] = backends.get(target)(description, stem)

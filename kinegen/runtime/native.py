@@ -89,6 +89,15 @@ class Model(ctypes.Structure):
     ]  # fmt: skip
 
 
+class DesignModel(ctypes.Structure):
+    """``kinegen_design_model`` of kinegen_solver.h: a case of a model with design parameters."""
+
+    _fields_ = [
+        ("model", Model), ("n_design", ctypes.c_int), ("nominal", ctypes.c_void_p),
+        ("phi_jac", ctypes.c_void_p), ("nu", ctypes.c_void_p), ("gamma", ctypes.c_void_p),
+    ]  # fmt: skip
+
+
 class Solver(ctypes.Structure):
     """``kinegen_solver`` of kinegen_solver.h."""
 
@@ -98,7 +107,7 @@ class Solver(ctypes.Structure):
         ("started", ctypes.c_int), ("iterations", ctypes.c_int), ("residual", ctypes.c_double), ("condition", ctypes.c_double),
         ("sign", ctypes.c_int), ("have_factors", ctypes.c_int), ("factor_sign", ctypes.c_int),
         *((name, _DOUBLE_P) for name in ("trial", "phi", "jac", "store", "off", "rhs", "step", "motion", "y", "x")),
-        ("pivots", _INT_P),
+        ("pivots", _INT_P), ("design", ctypes.c_void_p),
     ]  # fmt: skip
 
 
@@ -270,6 +279,7 @@ def _library(path: str) -> ctypes.CDLL:
         ("kinegen_trajectory", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 11]),
         ("kinegen_solve_batch", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 5]),
         ("kinegen_newton", ctypes.c_int, [ctypes.c_void_p] * 6),
+        ("kinegen_set_design", None, [ctypes.c_void_p] * 2),
     ):
         function = getattr(library, name)
         function.restype, function.argtypes = restype, argtypes
@@ -281,9 +291,10 @@ def _kernel_type(slots: tuple[str, ...], outputs: tuple[str, ...]) -> Any:
     return ctypes.CFUNCTYPE(None, *(ctypes.c_double if s == "t" else ctypes.c_void_p for s in slots), *[ctypes.c_void_p] * len(outputs))
 
 
-def native_case(module: ModuleType, case: str, quiet: bool = False) -> NativeCase | None:
+def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.ndarray | None = None) -> NativeCase | None:
     """The compiled kernels and C solver of ``case`` of a generated module, or None (no C beside
-    the module, or no usable compiler: said once per reason as a warning unless ``quiet``)."""
+    the module, or no usable compiler: said once per reason as a warning unless ``quiet``);
+    ``design``: the values of a model's design parameters (default: nominal)."""
     sources = _model_sources(module)
     if sources is None:
         return None
@@ -296,44 +307,53 @@ def native_case(module: ModuleType, case: str, quiet: bool = False) -> NativeCas
             warnings.warn(f"no compiled code ({reason}); kinegen solves with the Python functions", RuntimeWarning, stacklevel=2)
         return None
     stem = Path(module.__file__).stem
-    return NativeCase(_library(str(library)), f"{stem}_{case}", module.KERNELS)
+    return NativeCase(_library(str(library)), f"{stem}_{case}", module.KERNELS, design)
 
 
 class NativeCase:
     """One case's compiled kernels and C solver (see the module docstring)."""
 
-    def __init__(self, library: ctypes.CDLL, symbol: str, kernels: dict) -> None:
+    def __init__(self, library: ctypes.CDLL, symbol: str, kernels: dict, design: np.ndarray | None = None) -> None:
         self.library = library
         self.model = Model.in_dll(library, symbol)
         self.address = ctypes.addressof(self.model)
         m = self.model
         self.n_q, self.n_v, self.n_inputs, self.n_jac = m.n_q, m.n_v, m.n_inputs, m.n_jac
+        #: the design parameters the kernels and solvers take (None without them)
+        self.design = None
+        owner = m
+        if not m.phi_jac:  # a model with design parameters: its kernels take them last
+            owner = DesignModel.in_dll(library, symbol)
+            nominal = np.ctypeslib.as_array(ctypes.cast(owner.nominal, _DOUBLE_P), (owner.n_design,))
+            self.design = np.array(nominal if design is None else design, dtype=float)
         self.kernels = {
-            name: ctypes.cast(getattr(m, name), _kernel_type(*kernels[name]))
+            name: ctypes.cast(getattr(m if name == "inputs" else owner, name), _kernel_type(*kernels[name]))
             for name in ("phi_jac", "nu", "gamma", "inputs")
         }
+        p = () if self.design is None else (self.design.ctypes.data,)
         # buffers for one configuration; addresses computed once
         self._q, self._v, self._u, self._ud, self._udd = (np.zeros(n) for n in (m.n_q, m.n_v, m.n_inputs, m.n_inputs, m.n_inputs))
         self._phi, self._jac, self._inputs = np.zeros(m.n_v), np.zeros(m.n_jac), np.zeros(3 * m.n_inputs)
         self._address = {name: getattr(self, name).ctypes.data for name in ("_q", "_v", "_u", "_ud", "_udd", "_phi", "_jac", "_inputs")}
+        self._p = p
 
     def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Phi and the Phi_q values at one configuration."""
         self._q[:], self._u[:] = q, u
         a = self._address
-        self.kernels["phi_jac"](a["_q"], a["_u"], a["_phi"], a["_jac"])
+        self.kernels["phi_jac"](a["_q"], a["_u"], *self._p, a["_phi"], a["_jac"])
         return self._phi.copy(), self._jac.copy()
 
     def nu(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
         self._q[:], self._u[:], self._ud[:] = q, u, ud
         a = self._address
-        self.kernels["nu"](a["_q"], a["_u"], a["_ud"], a["_phi"])
+        self.kernels["nu"](a["_q"], a["_u"], a["_ud"], *self._p, a["_phi"])
         return self._phi.copy()
 
     def gamma(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
         self._q[:], self._v[:], self._u[:], self._ud[:], self._udd[:] = q, v, u, ud, udd
         a = self._address
-        self.kernels["gamma"](a["_q"], a["_v"], a["_u"], a["_ud"], a["_udd"], a["_phi"])
+        self.kernels["gamma"](a["_q"], a["_v"], a["_u"], a["_ud"], a["_udd"], *self._p, a["_phi"])
         return self._phi.copy()
 
     def solver(self, options: Options) -> NativeSolver:
@@ -386,6 +406,8 @@ class NativeSolver:
         self._ints = np.zeros(case.model.work_ints, dtype=np.intc)
         self._options = options
         self.library.kinegen_init(self.pointer, case.address, ctypes.addressof(options), self._doubles.ctypes.data, self._ints.ctypes.data)
+        if case.design is not None:  # the case's array, alive as long as the case
+            self.library.kinegen_set_design(self.pointer, case.design.ctypes.data)
 
     def start(self, t: float, q0: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> int:
         arrays = [np.ascontiguousarray(x, dtype=float) for x in (q0, u, ud, udd)]

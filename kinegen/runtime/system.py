@@ -201,15 +201,7 @@ def from_module(
 
     ``design``: values of the model's design parameters by name (the others at their nominal
     values, within their bounds); the kernels take them as their argument ``p``, the named
-    points are computed from them -- no rebuild. (The compiled path does not take them yet: a
-    module with design parameters is solved through its Python functions.)
-
-    ``compiled``: evaluate the kernels and solve trajectories through the module's C (the
-    ``.c``/``.h`` beside it, compiled once with kinegen's C solver and cached,
-    :mod:`kinegen.runtime.native`). None (default): when the C is there and a compiler is
-    found, else the Python functions (a missing compiler is said once, as a warning); True:
-    the same, but a missing compiler is an error (:class:`~kinegen.runtime.native.CompileError`);
-    False: the Python functions.
+    points are computed from them -- no rebuild, compiled or not.
     """
     cases = module.CASES
     if case is None:
@@ -224,11 +216,6 @@ def from_module(
     if p is not None:
         kernels = {k: None if f is None else _with_design(f, p) for k, f in kernels.items()}
         points, ground_points = _design_points(module, p)
-        if compiled:
-            from kinegen.runtime.native import CompileError
-
-            raise CompileError(f"model {module.MODEL!r} has design parameters: its compiled path does not take them yet")
-        compiled = False
     return NumericSystem(
         model=module.MODEL,
         case=case,
@@ -258,7 +245,7 @@ def from_module(
         source=getattr(module, "SOURCE", ""),
         driver_sources=tuple(data.get("driver_sources", ())),
         ground_points=ground_points,
-        native=_native(module, case, compiled),
+        native=_native(module, case, compiled, p),
         design={} if p is None else dict(zip(module.DESIGN, p.tolist())),
     )
 
@@ -301,7 +288,7 @@ def _design_points(module: ModuleType | Any, p: np.ndarray) -> tuple[dict, dict]
     return points, ground
 
 
-def _native(module: ModuleType | Any, case: str, compiled: bool | None) -> Any:
+def _native(module: ModuleType | Any, case: str, compiled: bool | None, design: np.ndarray | None = None) -> Any:
     if compiled is False or not hasattr(module, "KERNELS"):
         return None
     from kinegen.runtime import native
@@ -311,7 +298,7 @@ def _native(module: ModuleType | Any, case: str, compiled: bool | None) -> Any:
         if sources is None:
             raise native.CompileError(f"{getattr(module, '__file__', module)}: no fresh generated C beside the module")
         native.build_library(sources)  # raises CompileError without a compiler
-    return native.native_case(module, case)
+    return native.native_case(module, case, design=design)
 
 
 def module_from_source(source: str, name: str = "kinegen_generated", filename: str = "<generated>") -> ModuleType:

@@ -34,11 +34,51 @@ void kinegen_default_options(kinegen_options *o) {
     o->condition = 1;
 }
 
+/* The case's design parameters and kernels taking them, or NULL (a model without them). */
+static const kinegen_design_model *design_model(const kinegen_model *m) {
+    return m->phi_jac == NULL ? (const kinegen_design_model *)m : NULL;
+}
+
+void kinegen_set_design(kinegen_solver *s, const double *p) {
+    const kinegen_design_model *d = design_model(s->model);
+    if (d != NULL) s->design = p != NULL ? p : d->nominal;
+}
+
+/* The case's kernels, with the design parameters when the model has them. */
+static void phi_jac(const kinegen_solver *s, const double *q, const double *u, double *phi, double *jac) {
+    const kinegen_design_model *d = design_model(s->model);
+    if (d != NULL) {
+        d->phi_jac(q, u, s->design, phi, jac);
+    } else {
+        s->model->phi_jac(q, u, phi, jac);
+    }
+}
+
+static void nu(const kinegen_solver *s, const double *q, const double *u, const double *ud, double *out) {
+    const kinegen_design_model *d = design_model(s->model);
+    if (d != NULL) {
+        d->nu(q, u, ud, s->design, out);
+    } else {
+        s->model->nu(q, u, ud, out);
+    }
+}
+
+static void gamma_rhs(const kinegen_solver *s, const double *q, const double *v, const double *u, const double *ud,
+                      const double *udd, double *out) {
+    const kinegen_design_model *d = design_model(s->model);
+    if (d != NULL) {
+        d->gamma(q, v, u, ud, udd, s->design, out);
+    } else {
+        s->model->gamma(q, v, u, ud, udd, out);
+    }
+}
+
 void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_options *options, double *doubles,
                   int *ints) {
     int nq = m->n_q, nv = m->n_v;
     memset(s, 0, sizeof(*s));
     s->model = m;
+    kinegen_set_design(s, NULL);
     if (options != NULL) {
         s->options = *options;
     } else {
@@ -296,7 +336,7 @@ static int newton(kinegen_solver *s, const double *u, int chord, int *count, dou
     const kinegen_model *m = s->model;
     const kinegen_options *o = &s->options;
     int n = m->n_v, have = chord && s->have_factors;
-    m->phi_jac(s->trial, u, s->phi, s->jac);
+    phi_jac(s, s->trial, u, s->phi, s->jac);
     *norm = max_abs(s->phi, n);
     *count = 0;
     *travel = 0.0;
@@ -311,7 +351,7 @@ static int newton(kinegen_solver *s, const double *u, int chord, int *count, dou
         ++*count;
         *travel += max_abs(s->step, n);
         m->retract(s->trial, s->step);
-        m->phi_jac(s->trial, u, s->phi, s->jac);
+        phi_jac(s, s->trial, u, s->phi, s->jac);
         double next = max_abs(s->phi, n);
         if (!chord || !(next <= o->chord_rate * *norm)) have = 0;
         *norm = next;
@@ -339,9 +379,9 @@ static int finish(kinegen_solver *s, double t, const double *u, const double *ud
         m->retract(s->trial, s->step);
     }
     memcpy(s->q, s->trial, sizeof(double) * (size_t)m->n_q);
-    m->nu(s->q, u, ud, s->rhs);
+    nu(s, s->q, u, ud, s->rhs);
     solve(s, s->rhs, s->v);
-    m->gamma(s->q, s->v, u, ud, udd, s->rhs);
+    gamma_rhs(s, s->q, s->v, u, ud, udd, s->rhs);
     solve(s, s->rhs, s->a);
     s->t = t;
     s->sign = s->factor_sign;
@@ -389,7 +429,7 @@ int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v
     memcpy(s->v, v, sizeof(double) * (size_t)m->n_v);
     memcpy(s->a, a, sizeof(double) * (size_t)m->n_v);
     s->t = t;
-    m->phi_jac(s->q, u, s->phi, s->jac);
+    phi_jac(s, s->q, u, s->phi, s->jac);
     if (factor(s, s->jac)) return KINEGEN_SINGULAR;
     s->sign = s->factor_sign;
     s->started = 1;

@@ -112,6 +112,20 @@ typedef struct kinegen_model {
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
 } kinegen_model;
 
+/* A case of a model with design parameters (a design: section in its file): the model, whose
+ * phi_jac, nu and gamma are NULL, then its n_design parameters' nominal values and the kernels
+ * taking the parameters p last (kinegen_set_design; by default the nominal values). A pointer
+ * to it is a pointer to its model, which is what the solver takes. */
+typedef struct kinegen_design_model {
+    kinegen_model model;
+    int n_design;
+    const double *nominal;
+    void (*phi_jac)(const double *q, const double *u, const double *p, double *phi, double *jac);
+    void (*nu)(const double *q, const double *u, const double *ud, const double *p, double *nu);
+    void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p,
+                  double *gamma);
+} kinegen_design_model;
+
 /* One solver instance. After a call returning KINEGEN_OK: q, v, a at time t, and the step's
  * Newton iterations, final max |Phi| and condition estimate. All arrays point into the
  * caller's memory (kinegen_init). */
@@ -128,6 +142,7 @@ typedef struct kinegen_solver {
     /* workspace */
     double *trial, *phi, *jac, *store, *off, *rhs, *step, *motion, *y, *x;
     int *pivots; /* and the condition estimate's sign vector after them */
+    const double *design; /* the design parameters the kernels take, or NULL (a model without them) */
 } kinegen_solver;
 
 void kinegen_default_options(kinegen_options *options);
@@ -137,6 +152,11 @@ void kinegen_default_options(kinegen_options *options);
  * cover every case of the model). options NULL: kinegen_default_options. */
 void kinegen_init(kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles,
                   int *ints);
+
+/* The design parameters (n_design values of the case's kinegen_design_model, kept by the caller)
+ * the solver's kernels take from now on; NULL: the nominal values. Without design parameters
+ * nothing to set. */
+void kinegen_set_design(kinegen_solver *s, const double *p);
 
 /* Assemble the pose at time t from q0 (Newton without predictor), then velocity and acceleration. */
 int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u, const double *ud, const double *udd);
