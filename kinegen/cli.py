@@ -208,6 +208,12 @@ def _system(
     metavar="NAME=VALUE",
     help="A design parameter's value (repeatable; the others at their nominal values): no rebuild.",
 )
+@click.option(
+    "--sensitivities",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="CSV file of the exact derivatives of every named point and actuator length by every design parameter.",
+)
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def solve(
     model_file: str,
@@ -221,6 +227,7 @@ def solve(
     keep_going: bool,
     no_compile: bool,
     design: tuple[str, ...],
+    sensitivities: str | None,
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time."""
@@ -243,6 +250,10 @@ def solve(
     )
     if out:
         click.echo(f"wrote {results.to_csv(out)}")
+    if sensitivities:
+        if not system.design:
+            raise click.BadParameter("the model has no design parameters (a design: section)", param_hint="--sensitivities")
+        click.echo(f"wrote {results.sensitivities_to_csv(sensitivities)}")
     if plot:
         from kinegen.analysis.plots import plot_results
 

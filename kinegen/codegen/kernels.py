@@ -119,6 +119,10 @@ class CaseDescription:
     slots: dict[str, tuple[sp.Symbol, ...]]
     kernels: dict[str, Kernel]
     plan: Plan | None  #: None for a redundant (non-square) or structurally singular Phi_q
+    #: a model with design parameters: the sparsity of Phi_p (rows, parameter) -- the phi_p
+    #: kernel's values, printed by the Python backend (empty without design parameters)
+    p_rows: tuple[int, ...] = ()
+    p_cols: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -258,6 +262,21 @@ def _nominal(model: Model) -> dict[sp.Symbol, sp.Expr]:
     return {d.symbol: d.nominal for d in model.design}
 
 
+def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list[tuple[int, int, sp.Expr]]:
+    """Phi_p of ``rows``: (row, parameter, dPhi/dp) of every entry not identically zero, row-major.
+    The rows' expressions hold the design parameters explicitly (the frame symbols do not
+    depend on them), so this is one derivative per parameter a row uses."""
+    entries = []
+    for i, row in enumerate(rows):
+        free = row.phi.free_symbols
+        for k, p in enumerate(symbols):
+            if p in free:
+                d = row.phi.diff(p)
+                if d != 0:
+                    entries.append((i, k, d))
+    return entries
+
+
 def point_expressions(model: Model) -> list[sp.Expr]:
     """Every named point's coordinates, flattened: the bodies' (body coordinates) in the order
     of ``POINTS``, then the ground's (global) -- what the ``points`` kernel of a model with
@@ -285,6 +304,11 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
     section("joints_phi", ("q", *p), _groups(joints, templates, "phi"), mj, f"Phi of the {mj} joint (and normalization) rows, common to every case.")
     section("joints_jac", ("q", *p), _groups(joints, templates, "jac"), n_joint_entries, f"Phi_q values of the joint rows ({n_joint_entries} entries).")
     section("joints_gamma", ("q", "v", *p), _groups(joints, templates, "gamma"), mj, "gamma of the joint rows (they do not depend on time).")
+    design_symbols = tuple(d.symbol for d in model.design)
+    joint_p = _design_derivatives(joints, design_symbols)
+    if model.design:
+        section("joints_phi_p", ("q", "p"), (Group(None, lambda: [e for *_, e in joint_p], {}),), len(joint_p),
+                f"Phi_p values of the joint rows ({len(joint_p)} entries): derivatives by the design parameters.")  # fmt: skip
     frames = section(
         "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
         "Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, "
@@ -319,12 +343,19 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
             "inputs": Kernel("inputs", ("t",), (Output("inputs", (f"inputs_{name}",), 3 * nd),),
                              f"Driver inputs of case {name!r} at time t: u, then du/dt, then d2u/dt2."),
         }  # fmt: skip
+        p_entries = list(joint_p)
+        if model.design:
+            driver_p = [(mj + i, k, e) for i, k, e in _design_derivatives(drivers, design_symbols)]
+            p_entries += driver_p
+            section(f"drivers_phi_p_{name}", ("q", "u", "p"), (Group(None, lambda entries=driver_p: [e for *_, e in entries], {}),),
+                    len(driver_p), f"Phi_p values of the driver rows of case {name!r}.")  # fmt: skip
         rows_, cols_ = tuple(i for i, _ in pattern), tuple(j for _, j in pattern)
         case = system.case
         cases[name] = CaseDescription(
             name, float(case.t0), float(case.t1), case.steps, tuple(r.name for r in rows), tuple(inputs.names),
             tuple(inputs.sources), rows_, cols_, {"u": tuple(inputs.u), "ud": tuple(inputs.ud), "udd": tuple(inputs.udd)},
             kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))),
+            tuple(i for i, *_ in p_entries), tuple(k for _, k, _ in p_entries),
         )  # fmt: skip
     shared = {"frames": Kernel("frames", ("q", "v", "a"), (Output(frames, (frames,), sections[frames].size),), sections[frames].doc)}
     slots = {"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)}
@@ -334,6 +365,10 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
                 "Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the "
                 "order of POINTS), then the ground's (global, GROUND_POINTS).")  # fmt: skip
         shared["points"] = Kernel("points", ("p",), (Output("points", ("points",), len(values)),), sections["points"].doc)
+        derivatives = [v.diff(p) for v in values for p in design_symbols]
+        section("points_p", ("p",), (Group(None, lambda: derivatives, {}),), len(derivatives),
+                "d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), "
+                "a parameter per column).")  # fmt: skip
         slots["p"] = tuple(d.symbol for d in model.design)
     nominal = _nominal(model)
     definitions = Definitions(

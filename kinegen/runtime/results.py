@@ -120,6 +120,38 @@ class Results:
         w = self.omega(body)
         return self.acceleration(body) + np.cross(self.omega_dot(body), arm) + np.cross(w, np.cross(w, arm))
 
+    def sensitivity(self, body: str, point: str, parameter: str | None = None) -> np.ndarray:
+        """Exact derivative of a named point's global position by a design parameter, (K, 3), or
+        by all of them, (K, 3, n_design) (implicit differentiation: :mod:`kinegen.runtime.sensitivity`)."""
+        from kinegen.runtime.sensitivity import point_sensitivity
+
+        out = point_sensitivity(self, body, point, self._coordinate_sensitivities())
+        return out if parameter is None else out[:, :, self._design_index(parameter)]
+
+    def actuator_length_sensitivity(self, name: str, parameter: str | None = None) -> np.ndarray:
+        """Exact derivative of an actuator's length by a design parameter, (K,), or all, (K, n_design)."""
+        from kinegen.runtime.sensitivity import point_sensitivity
+
+        d, *_ = self._actuator(name)
+        (b1, p1), (b2, p2), _ = self.system.actuators[name]
+        s = self._coordinate_sensitivities()
+        change = point_sensitivity(self, b2, p2, s) - point_sensitivity(self, b1, p1, s)
+        out = np.einsum("ki,kij->kj", d / np.linalg.norm(d, axis=1)[:, None], change)
+        return out if parameter is None else out[:, self._design_index(parameter)]
+
+    def _coordinate_sensitivities(self) -> np.ndarray:
+        if getattr(self, "_sensitivities", None) is None:
+            from kinegen.runtime.sensitivity import coordinate_sensitivities
+
+            self._sensitivities = coordinate_sensitivities(self)
+        return self._sensitivities
+
+    def _design_index(self, parameter: str) -> int:
+        names = list(self.system.design)
+        if parameter not in names:
+            raise KeyError(f"no design parameter {parameter!r} (design parameters: {', '.join(names) or 'none'})")
+        return names.index(parameter)
+
     def _actuator(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         if name not in self.system.actuators:
             raise KeyError(f"no actuator {name!r} (actuators: {', '.join(self.system.actuators) or 'none'})")
@@ -189,10 +221,33 @@ class Results:
             columns.append(np.c_[self.actuator_length(name), self.actuator_rate(name), self.actuator_acceleration(name)])
         return names, np.hstack(columns)
 
+    def sensitivity_table(self) -> tuple[list[str], np.ndarray]:
+        """Column names and values of the sensitivity CSV export: per time point, the derivative
+        of every named point's position (``d(body.point_x)/d(parameter)``) and of every
+        actuator's length by every design parameter."""
+        names, columns = ["t"], [self.times[:, None]]
+        for body, points in self.system.points.items():
+            for point in points:
+                values = self.sensitivity(body, point)  # (K, 3, n_design)
+                for k, parameter in enumerate(self.system.design):
+                    names += [f"d({body}.{point}_{c})/d({parameter})" for c in "xyz"]
+                    columns.append(values[:, :, k])
+        for actuator in self.system.actuators:
+            values = self.actuator_length_sensitivity(actuator)
+            names += [f"d({actuator}.length)/d({parameter})" for parameter in self.system.design]
+            columns.append(values)
+        return names, np.hstack(columns)
+
+    def sensitivities_to_csv(self, path: str | Path) -> Path:
+        """Write :meth:`sensitivity_table` to a CSV file (one row per time point)."""
+        return self._write_csv(path, *self.sensitivity_table())
+
     def to_csv(self, path: str | Path) -> Path:
         """Write every time history to a CSV file (one row per time point)."""
+        return self._write_csv(path, *self.table())
+
+    def _write_csv(self, path: str | Path, names: list[str], values: np.ndarray) -> Path:
         path = Path(path)
-        names, values = self.table()
         path.parent.mkdir(parents=True, exist_ok=True)
         with path.open("w", newline="", encoding="utf-8") as handle:
             writer = csv.writer(handle)

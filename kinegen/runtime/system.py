@@ -65,6 +65,13 @@ class NumericSystem:
     ground_points: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     #: the design parameters' values this system was made for (name -> value; empty without a design: section)
     design: dict[str, float] = field(default_factory=dict)
+    #: with design parameters: (q, u) -> the values of the sparse Phi_p at (p_rows, p_cols), p bound
+    phi_p: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
+    p_rows: np.ndarray | None = None
+    p_cols: np.ndarray | None = None
+    #: with design parameters: body -> point -> d(point, body coordinates)/dp, (3, n_design);
+    #: the ground's points under "ground" (global)
+    point_derivatives: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
 
     @property
     def n_stored(self) -> int:
@@ -213,9 +220,20 @@ def from_module(
     points = {b: dict(pts) for b, pts in module.POINTS.items()}
     ground_points = dict(getattr(module, "GROUND_POINTS", {}))
     kernels = {k: data.get(k) for k in ("phi", "jac", "nu", "gamma", "phi_jac_s", "nu_s", "gamma_s")}
+    design_fields: dict[str, Any] = {}
     if p is not None:
         kernels = {k: None if f is None else _with_design(f, p) for k, f in kernels.items()}
         points, ground_points = _design_points(module, p)
+        design_fields = {
+            "design": dict(zip(module.DESIGN, p.tolist())),
+        }
+        if "phi_p" in data:  # (modules built before kinegen had sensitivities lack it)
+            design_fields.update(
+                phi_p=_with_design(data["phi_p"], p),
+                p_rows=np.array(data["p_rows"], dtype=np.intp),
+                p_cols=np.array(data["p_cols"], dtype=np.intp),
+                point_derivatives=_design_point_derivatives(module, p),
+            )
     return NumericSystem(
         model=module.MODEL,
         case=case,
@@ -246,7 +264,7 @@ def from_module(
         driver_sources=tuple(data.get("driver_sources", ())),
         ground_points=ground_points,
         native=_native(module, case, compiled, p),
-        design={} if p is None else dict(zip(module.DESIGN, p.tolist())),
+        **design_fields,
     )
 
 
@@ -278,6 +296,17 @@ def _with_design(function: Callable[..., Any], p: np.ndarray) -> Callable[..., A
         return function(*args, values)
 
     return bound
+
+
+def _design_point_derivatives(module: ModuleType | Any, p: np.ndarray) -> dict[str, dict[str, np.ndarray]]:
+    """d(point)/dp of every named point at ``p`` (the ground's under "ground")."""
+    flat = np.asarray(module.points_p(p.tolist()), dtype=float).reshape(-1, 3, len(p))
+    named = [(body, name) for body, points in module.POINTS.items() for name in points]
+    named += [("ground", name) for name in getattr(module, "GROUND_POINTS", {})]
+    out: dict[str, dict[str, np.ndarray]] = {}
+    for (body, name), derivative in zip(named, flat):
+        out.setdefault(body, {})[name] = derivative
+    return out
 
 
 def _design_points(module: ModuleType | Any, p: np.ndarray) -> tuple[dict, dict]:
