@@ -226,10 +226,11 @@ FOUR_BAR_DESIGN = (
 
 
 def test_four_bar_sensitivities_match_central_differences_of_rebuilt_models(tmp_path):
-    """Every design parameter (the ground pivot D among them), the coupler point M and the
-    rocker pin C over a crank turn: against central differences (h = 1e-5) of the model
-    rebuilt at p ± h (a different code path: numbers in the model, lambdified), to 1e-7 of
-    the largest derivative."""
+    """Every design parameter (the ground pivot D among them), the positions, velocities and
+    accelerations of the coupler point M and the rocker pin C over a crank turn: against
+    central differences (h = 1e-5) of the model rebuilt at p ± h (a different code path:
+    numbers in the model, lambdified), to 1e-7 of the largest derivative (measured: 1e-10
+    to 8e-10; with h = 1e-4 the differences move away as h², 1e-8 to 5e-8)."""
     plain = (MODELS / "four_bar.yaml").read_text()
     assert FOUR_BAR_PARAMETERS in plain
     text = plain.replace(FOUR_BAR_PARAMETERS, FOUR_BAR_DESIGN)
@@ -243,11 +244,14 @@ def test_four_bar_sensitivities_match_central_differences_of_rebuilt_models(tmp_
         for sign in (1, -1):
             values = dict(at, **{name: at[name] + sign * h})
             rebuilt = solve(from_module(lambdify_model(model.at(values), rotations.get("quaternion")), "crank_turn"))
-            shifted.append({(b, p): rebuilt.point_position(b, p) for b, p in (("coupler", "M"), ("rocker", "C"))})
-        for body, point in (("coupler", "M"), ("rocker", "C")):
-            exact = results.sensitivity(body, point, name)
-            central = (shifted[0][body, point] - shifted[1][body, point]) / (2 * h)
-            assert np.abs(exact - central).max() < 1e-7 * np.abs(exact).max(), (name, body, point)
+            shifted.append({
+                (b, p, kind): getattr(rebuilt, f"point_{kind}")(b, p)
+                for b, p in (("coupler", "M"), ("rocker", "C")) for kind in ("position", "velocity", "acceleration")
+            })  # fmt: skip
+        for body, point, kind in shifted[0]:
+            exact = results.sensitivity(body, point, name, kind)
+            central = (shifted[0][body, point, kind] - shifted[1][body, point, kind]) / (2 * h)
+            assert np.abs(exact - central).max() < 1e-7 * np.abs(exact).max(), (name, body, point, kind)
 
 
 def test_the_cli_solves_a_design_and_writes_its_sensitivities(tmp_path):
@@ -272,3 +276,20 @@ def test_the_cli_solves_a_design_and_writes_its_sensitivities(tmp_path):
     assert abs(float(rows[0]["d(slider.C_x)/d(l)"]) - 0.6 / w) < 1e-10
     result = CliRunner().invoke(main, [*arguments[:2], "--design", "r=0.3", *arguments[4:]])
     assert result.exit_code == 2 and "outside its bounds" in result.output
+
+
+@pytest.mark.parametrize(("param", "compiled"), [("quaternion", True), ("euler-parameters", False), ("dual-quaternion", False)])
+def test_slider_velocity_and_acceleration_sensitivities_are_the_closed_form_derivatives(tmp_path, param, compiled):
+    """d/dr and d/dl of the slider's velocity and acceleration (the closed form x(t; r, l)
+    differentiated by SymPy, in t and then in the parameter), at r = 0.21, l = 0.65."""
+    t, r, rod = sp.symbols("t r l", real=True)
+    theta = sp.Rational(3, 10) + 2 * sp.pi * t + t**2 / 2
+    x = r * sp.cos(theta) + sp.sqrt(rod**2 - r**2 * sp.sin(theta) ** 2)
+    module = _design_module(tmp_path, design_model(), param)
+    results = solve(from_module(module, "run", compiled=compiled, design={"r": 0.21, "l": 0.65}))
+    for kind, order, tolerance in (("position", 0, 1e-10), ("velocity", 1, 1e-9), ("acceleration", 2, 1e-8)):
+        for name, symbol in (("r", r), ("l", rod)):
+            exact = sp.lambdify(t, sp.diff(x, t, order).diff(symbol).subs({r: 0.21, rod: 0.65}))(results.times)
+            computed = results.sensitivity("slider", "C", name, kind)
+            assert np.abs(computed[:, 0] - exact).max() < tolerance * max(1.0, np.abs(exact).max()), (kind, name)
+            assert np.abs(computed[:, 1:]).max() < tolerance, (kind, name)

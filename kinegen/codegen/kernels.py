@@ -32,7 +32,7 @@ from kinegen.codegen.shapes import Group, Shapes
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.rotations import Parametrization
-from kinegen.symbolic.assembly import GENERIC_NAME, Coordinates, Row, System, Templates, build_systems, generic_body
+from kinegen.symbolic.assembly import GENERIC_NAME, Coordinates, Row, System, Templates, along, build_systems, generic_body
 from kinegen.symbolic.blocks import block_triangular
 
 #: What each slot holds (units SI, angles in radians, quaternions w, x, y, z).
@@ -45,6 +45,9 @@ SLOTS = {
     "ud": "their first time derivatives",
     "udd": "their second time derivatives",
     "p": "design parameters (only in a model with a design: section; units as in the model)",
+    "w": "a change of the configuration, in velocity coordinates (sensitivity kernels)",
+    "y": "a change of the velocity coordinates (sensitivity kernels)",
+    "z": "a change of the accelerations (sensitivity kernels)",
 }
 #: Values per body in the ``frames`` kernel: origin, rotation matrix (row by row), origin
 #: velocity, angular velocity, origin acceleration, angular acceleration; all global.
@@ -123,6 +126,12 @@ class CaseDescription:
     #: kernel's values, printed by the Python backend (empty without design parameters)
     p_rows: tuple[int, ...] = ()
     p_cols: tuple[int, ...] = ()
+    #: the sparsity of the parameter parts of the velocity and acceleration sensitivity kernels
+    #: (vsens, asens: first one value per constraint, then these entries)
+    vsens_rows: tuple[int, ...] = ()
+    vsens_cols: tuple[int, ...] = ()
+    asens_rows: tuple[int, ...] = ()
+    asens_cols: tuple[int, ...] = ()
 
 
 @dataclass(frozen=True)
@@ -277,6 +286,76 @@ def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list
     return entries
 
 
+def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.Symbol, ...]:
+    """``v_<body>_<c>`` -> ``<letter>_<body>_<c>``: a change of those velocity coordinates."""
+    return tuple(sp.Symbol(letter + str(s)[1:], real=True) for s in symbols)
+
+
+def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...], offset: int = 0) -> tuple:
+    """What the runtime needs to differentiate the velocity and acceleration solves by the
+    design parameters, row by row. With Phi(q(p), u, p) = 0 solved, a parameter moves the
+    configuration along S = dq/dp, the velocities by V, the accelerations by W; differentiating
+    Phi_q v = nu and Phi_q a = gamma gives Phi_q V = -(zeta_v(S) + eta_v) and
+    Phi_q W = -(zeta_a(S, V) + eta_a) with, per row,
+    zeta_v = D_S(Phi_q v - nu), eta_v = d(Phi_q v - nu)/dp, zeta_a = D_S(Phi_q a - gamma) +
+    d(Phi_q a - gamma)/dv . V, eta_a = d(Phi_q a - gamma)/dp (D_S: the change as the
+    configuration moves along S, in the direction symbols w; V in the symbols y).
+
+    Returns (zeta_v, eta_v, zeta_a, eta_a), the etas as (row, parameter, expression)."""
+    v, a = coords.velocity_symbols, _acceleration_symbols(coords)
+    w, y = _direction_symbols(tuple(v), "w"), _direction_symbols(tuple(v), "y")
+    by_column = {c: k for k, body in enumerate(coords.bodies) for c in range(body.velocity_offset, body.velocity_offset + len(body.velocity))}
+    zeta_v, eta_v, zeta_a, eta_a = [], [], [], []
+    for i, row in enumerate(rows):
+        columns = row.jacobian_columns
+        bodies = [coords.bodies[k] for k in dict.fromkeys(by_column[c] for c in columns)]
+        directions = [w[b.velocity_offset : b.velocity_offset + len(b.velocity)] for b in bodies]
+        jacobian = row.jacobian
+        velocity = sum((jacobian[c] * v[c] for c in columns), sp.Integer(0)) - row.nu
+        acceleration = sum((jacobian[c] * a[c] for c in columns), sp.Integer(0)) - row.gamma
+        zeta_v.append(along(velocity, bodies, directions))
+        by_velocity = sum((acceleration.diff(v[c]) * y[c] for c in range(len(v)) if v[c] in acceleration.free_symbols), sp.Integer(0))
+        zeta_a.append(along(acceleration, bodies, directions) + by_velocity)
+        for expr, out in ((velocity, eta_v), (acceleration, eta_a)):
+            for k, p in enumerate(symbols):
+                if p in expr.free_symbols:
+                    d = expr.diff(p)
+                    if d != 0:
+                        out.append((offset + i, k, d))
+    return zeta_v, eta_v, zeta_a, eta_a
+
+
+def _frame_tangent_groups(coords: Coordinates) -> tuple[Group, ...]:
+    """Per body: the change of its 24 frame values (as the ``frames`` kernel) when q moves along
+    w, v by y and a by z -- to carry the state's sensitivities to frames and points."""
+    param = coords.parametrization
+    generic = generic_body(param)
+    q, v = sp.Matrix(generic.stored), sp.Matrix(generic.velocity)
+    a = sp.Matrix([sp.Symbol("d" + str(s), real=True) for s in generic.velocity])
+    w, y, z = (_direction_symbols(tuple(generic.velocity), letter) for letter in "wyz")
+    generic_symbols = [*q, *v, *a, *w, *y, *z]
+
+    def expressions() -> list[sp.Expr]:
+        values = param.frame_expressions(q, v, a)
+        values = [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values]
+        out = []
+        for e in values:
+            change = along(e, [generic], [w])
+            change += sum((e.diff(s) * d for s, d in zip([*v, *a], [*y, *z]) if s in e.free_symbols), sp.Integer(0))
+            out.append(change)
+        return out
+
+    groups = []
+    for body in coords.bodies:
+        velocity = tuple(body.velocity)
+        real = [*body.stored, *velocity, *(sp.Symbol("d" + str(s), real=True) for s in velocity)]
+        real += [*(s for letter in "wyz" for s in _direction_symbols(velocity, letter))]
+        rename = dict(zip(generic_symbols, real))
+        rename.update(zip(generic.frame_symbols, body.frame_symbols))
+        groups.append(Group(("frames_d", param.name), expressions, rename))
+    return tuple(groups)
+
+
 def point_expressions(model: Model) -> list[sp.Expr]:
     """Every named point's coordinates, flattened: the bodies' (body coordinates) in the order
     of ``POINTS``, then the ground's (global) -- what the ``points`` kernel of a model with
@@ -344,6 +423,21 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
                              f"Driver inputs of case {name!r} at time t: u, then du/dt, then d2u/dt2."),
         }  # fmt: skip
         p_entries = list(joint_p)
+        sensitivity_patterns: tuple = ()
+        if model.design:
+            zeta_v, eta_v, zeta_a, eta_a = _sensitivity_rows(rows, coords, design_symbols)
+            velocity_values = [*zeta_v, *(e for *_, e in eta_v)]
+            acceleration_values = [*zeta_a, *(e for *_, e in eta_a)]
+            section(f"vsens_{name}", ("q", "v", "w", "u", "ud", "p"), (Group(None, lambda x=velocity_values: x, {}),),
+                    len(velocity_values), f"Velocity sensitivity of case {name!r}: zeta_v per constraint for the change w "
+                    "of q, then the entries of eta_v (vsens_rows, vsens_cols).")  # fmt: skip
+            section(f"asens_{name}", ("q", "v", "a", "w", "y", "u", "ud", "udd", "p"),
+                    (Group(None, lambda x=acceleration_values: x, {}),), len(acceleration_values),
+                    f"Acceleration sensitivity of case {name!r}: zeta_a per constraint for the changes w of q and y of "
+                    "v, then the entries of eta_a (asens_rows, asens_cols).")  # fmt: skip
+            sensitivity_patterns = tuple(
+                tuple(x[j] for x in entries) for entries in (eta_v, eta_a) for j in (0, 1)
+            )
         if model.design:
             driver_p = [(mj + i, k, e) for i, k, e in _design_derivatives(drivers, design_symbols)]
             p_entries += driver_p
@@ -355,7 +449,7 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
             name, float(case.t0), float(case.t1), case.steps, tuple(r.name for r in rows), tuple(inputs.names),
             tuple(inputs.sources), rows_, cols_, {"u": tuple(inputs.u), "ud": tuple(inputs.ud), "udd": tuple(inputs.udd)},
             kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))),
-            tuple(i for i, *_ in p_entries), tuple(k for _, k, _ in p_entries),
+            tuple(i for i, *_ in p_entries), tuple(k for _, k, _ in p_entries), *sensitivity_patterns,
         )  # fmt: skip
     shared = {"frames": Kernel("frames", ("q", "v", "a"), (Output(frames, (frames,), sections[frames].size),), sections[frames].doc)}
     slots = {"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)}
@@ -370,6 +464,10 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
                 "d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), "
                 "a parameter per column).")  # fmt: skip
         slots["p"] = tuple(d.symbol for d in model.design)
+        for letter in "wyz":
+            slots[letter] = _direction_symbols(tuple(coords.velocity_symbols), letter)
+        section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_tangent_groups(coords), FRAME_VALUES * len(coords.bodies),
+                "Per body: the change of the frames kernel's 24 values when q moves along w, v by y and a by z.")  # fmt: skip
     nominal = _nominal(model)
     definitions = Definitions(
         tuple((b.name, tuple(b.frame_symbols), tuple(b.frame_values)) for b in coords.bodies), tuple(generic_body(parametrization).frame_values)

@@ -120,12 +120,13 @@ class Results:
         w = self.omega(body)
         return self.acceleration(body) + np.cross(self.omega_dot(body), arm) + np.cross(w, np.cross(w, arm))
 
-    def sensitivity(self, body: str, point: str, parameter: str | None = None) -> np.ndarray:
-        """Exact derivative of a named point's global position by a design parameter, (K, 3), or
-        by all of them, (K, 3, n_design) (implicit differentiation: :mod:`kinegen.runtime.sensitivity`)."""
+    def sensitivity(self, body: str, point: str, parameter: str | None = None, kind: str = "position") -> np.ndarray:
+        """Exact derivative of a named point's global ``kind`` (position, velocity or
+        acceleration) by a design parameter, (K, 3), or by all of them, (K, 3, n_design)
+        (implicit differentiation: :mod:`kinegen.runtime.sensitivity`)."""
         from kinegen.runtime.sensitivity import point_sensitivity
 
-        out = point_sensitivity(self, body, point, self._coordinate_sensitivities())
+        out = point_sensitivity(self, body, point, kind)
         return out if parameter is None else out[:, :, self._design_index(parameter)]
 
     def actuator_length_sensitivity(self, name: str, parameter: str | None = None) -> np.ndarray:
@@ -134,16 +135,19 @@ class Results:
 
         d, *_ = self._actuator(name)
         (b1, p1), (b2, p2), _ = self.system.actuators[name]
-        s = self._coordinate_sensitivities()
-        change = point_sensitivity(self, b2, p2, s) - point_sensitivity(self, b1, p1, s)
+        change = point_sensitivity(self, b2, p2) - point_sensitivity(self, b1, p1)
         out = np.einsum("ki,kij->kj", d / np.linalg.norm(d, axis=1)[:, None], change)
         return out if parameter is None else out[:, self._design_index(parameter)]
 
-    def _coordinate_sensitivities(self) -> np.ndarray:
-        if getattr(self, "_sensitivities", None) is None:
-            from kinegen.runtime.sensitivity import coordinate_sensitivities
+    def state_sensitivities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """(dq/dp, dv/dp, da/dp), each (K, n_v, n_design), in velocity coordinates (computed once)."""
+        return self._state_sensitivities()
 
-            self._sensitivities = coordinate_sensitivities(self)
+    def _state_sensitivities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        if getattr(self, "_sensitivities", None) is None:
+            from kinegen.runtime.sensitivity import state_sensitivities
+
+            self._sensitivities = state_sensitivities(self)
         return self._sensitivities
 
     def _design_index(self, parameter: str) -> int:
@@ -223,15 +227,17 @@ class Results:
 
     def sensitivity_table(self) -> tuple[list[str], np.ndarray]:
         """Column names and values of the sensitivity CSV export: per time point, the derivative
-        of every named point's position (``d(body.point_x)/d(parameter)``) and of every
-        actuator's length by every design parameter."""
+        of every named point's position, velocity and acceleration (``d(body.point_x)/d(p)``,
+        ``d(body.point_vx)/d(p)``, ``d(body.point_ax)/d(p)``) and of every actuator's length by
+        every design parameter."""
         names, columns = ["t"], [self.times[:, None]]
         for body, points in self.system.points.items():
             for point in points:
-                values = self.sensitivity(body, point)  # (K, 3, n_design)
-                for k, parameter in enumerate(self.system.design):
-                    names += [f"d({body}.{point}_{c})/d({parameter})" for c in "xyz"]
-                    columns.append(values[:, :, k])
+                for kind, label in (("position", ""), ("velocity", "v"), ("acceleration", "a")):
+                    values = self.sensitivity(body, point, kind=kind)  # (K, 3, n_design)
+                    for k, parameter in enumerate(self.system.design):
+                        names += [f"d({body}.{point}_{label}{c})/d({parameter})" for c in "xyz"]
+                        columns.append(values[:, :, k])
         for actuator in self.system.actuators:
             values = self.actuator_length_sensitivity(actuator)
             names += [f"d({actuator}.length)/d({parameter})" for parameter in self.system.design]

@@ -1,13 +1,16 @@
 """Exact sensitivities of a solved trajectory with respect to the design parameters.
 
 At every time point the constraints hold, Φ(q(p), u(t), p) = 0, so by implicit
-differentiation ``Φ_q S + Φ_p = 0``: the coordinate sensitivities ``S = dq/dp = −Φ_q⁻¹ Φ_p``
+differentiation ``Φ_q S + Φ_p = 0``: the configuration sensitivities ``S = dq/dp = −Φ_q⁻¹ Φ_p``
 (n_v × n_design, in velocity coordinates: a change of the pose along the parametrization's
-tangent directions, like a velocity). Φ_q and Φ_p are the generated exact kernels; the
-solves are batched over the time points. A named point ``P = r + A s(p)`` then moves by
-``dP/dp = dr + dθ × (A s) + A ds/dp``, with (dr, dθ) the frame's change for S (the
-parametrization's ``frame_velocity`` applied to S) and ds/dp the generated derivative of the
-point's body coordinates.
+tangent directions, like a velocity). Differentiating the velocity and acceleration
+equations ``Φ_q v = ν`` and ``Φ_q a = γ`` the same way gives ``Φ_q V = −(ζ_v(S) + η_v)`` and
+``Φ_q W = −(ζ_a(S, V) + η_a)`` for V = dv/dp and W = da/dp, with ζ and η generated exactly
+per constraint (:func:`kinegen.codegen.kernels._sensitivity_rows`). Φ_q is assembled once per
+time point and the solves are batched over the time points. A frame's and a named point's
+position, velocity and acceleration then change as the generated ``frames_d`` kernel says
+(the frames' 24 values moved along (S, V, W)) plus what the point's own body coordinates do
+(ds/dp).
 """
 
 from __future__ import annotations
@@ -21,44 +24,100 @@ from kinegen.model.schema import GROUND
 if TYPE_CHECKING:
     from kinegen.runtime.results import Results
 
+#: what a point sensitivity can be of
+KINDS = ("position", "velocity", "acceleration")
 
-def coordinate_sensitivities(results: Results) -> np.ndarray:
-    """dq/dp at every time point, (K, n_v, n_design); NaN where the solve did not converge."""
+
+def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(dq/dp, dv/dp, da/dp) at every time point, each (K, n_v, n_design); NaN where the solve
+    did not converge."""
     system = results.system
     if not system.design:
         raise ValueError(f"model {system.model!r} has no design parameters: nothing to differentiate by")
-    if system.phi_p is None:
-        raise ValueError(f"the module of {system.model!r} has no Phi_p (built by an older kinegen): rebuild it")
+    if system.phi_p is None or system.vsens is None:
+        raise ValueError(f"the module of {system.model!r} has no sensitivity kernels (built by an older kinegen): rebuild it")
     m, n, n_design = len(system.constraint_names), system.n_velocity, len(system.design)
     if m != n:
         raise ValueError(f"Phi_q of {system.model!r}/{system.case} is {m} x {n} (redundant constraints): sensitivities need it square")
     done = np.flatnonzero(results.converged)
-    q, u = results.q[done].T, results.inputs[done].T
-    jacobian = np.zeros((len(done), m, n))
+    count = len(done)
+    q, v, a = results.q[done].T, results.v[done].T, results.a[done].T
+    stacked = np.asarray(system.inputs(results.times[done]), dtype=float).reshape(3, system.n_inputs, count)
+    u, ud, udd = stacked
+    jacobian = np.zeros((count, m, n))
     jacobian[:, system.jac_rows, system.jac_cols] = np.asarray(system.jac(q, u)).T
-    design = np.zeros((len(done), m, n_design))
+    lu = _Batched(jacobian)
+    design = np.zeros((count, m, n_design))
     design[:, system.p_rows, system.p_cols] = np.asarray(system.phi_p(q, u)).reshape(len(system.p_rows), -1).T
-    out = np.full((len(results.times), n, n_design), np.nan)
-    out[done] = -np.linalg.solve(jacobian, design)
+    s = -lu.solve(design)
+    rhs = np.zeros((count, m, n_design))
+    for k in range(n_design):
+        rhs[:, :, k] = _values(system.vsens(q, v, s[:, :, k].T, u, ud), m, count, system.sensitivity_patterns["vsens"], k)
+    velocity = -lu.solve(rhs)
+    for k in range(n_design):
+        values = system.asens(q, v, a, s[:, :, k].T, velocity[:, :, k].T, u, ud, udd)
+        rhs[:, :, k] = _values(values, m, count, system.sensitivity_patterns["asens"], k)
+    acceleration = -lu.solve(rhs)
+    out = tuple(np.full((len(results.times), n, n_design), np.nan) for _ in range(3))
+    for full, part in zip(out, (s, velocity, acceleration)):
+        full[done] = part
     return out
 
 
-def point_sensitivity(results: Results, body: str, point: str, sensitivities: np.ndarray | None = None) -> np.ndarray:
-    """d(global position of a named point)/dp, (K, 3, n_design)."""
+def _values(kernel_output: np.ndarray, m: int, count: int, pattern: tuple[np.ndarray, np.ndarray], k: int) -> np.ndarray:
+    """(count, m): the per-constraint values plus the parameter-k entries of the sparse part."""
+    values = np.broadcast_to(np.asarray(kernel_output, dtype=float).reshape(-1, count), (m + len(pattern[0]), count))
+    out = values[:m].T.copy()
+    rows, cols = pattern
+    mine = np.flatnonzero(cols == k)
+    np.add.at(out, (slice(None), rows[mine]), values[m + mine].T)
+    return out
+
+
+class _Batched:
+    """LU factors of a stack of square matrices, reused for several right-hand sides."""
+
+    def __init__(self, matrices: np.ndarray) -> None:
+        import scipy.linalg
+
+        self._factors = [scipy.linalg.lu_factor(x) for x in matrices]
+
+    def solve(self, rhs: np.ndarray) -> np.ndarray:
+        import scipy.linalg
+
+        return np.stack([scipy.linalg.lu_solve(f, b) for f, b in zip(self._factors, rhs)]) if len(rhs) else rhs.copy()
+
+
+def point_sensitivity(results: Results, body: str, point: str, kind: str = "position") -> np.ndarray:
+    """d(global position, velocity or acceleration of a named point)/dp, (K, 3, n_design)."""
+    if kind not in KINDS:
+        raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
     system = results.system
     derivatives = system.point_derivatives.get(body, {})
     if point not in derivatives:
         raise KeyError(f"no point {point!r} on body {body!r}")
+    n_design, count = len(system.design), len(results.times)
     if body == GROUND:
-        return np.broadcast_to(derivatives[point], (len(results.times), 3, len(system.design))).copy()
-    s = coordinate_sensitivities(results) if sensitivities is None else sensitivities
-    stored, _, _ = results._body(body)
-    start = system.bodies[body][1]
-    along = s[:, start : start + system.parametrization.nv, :]  # (K, nv, n_design)
-    arm = results._arm(body, point)  # A s, (K, 3)
-    rotation = results.rotation_matrix(body)
-    out = np.empty((len(results.times), 3, len(system.design)))
-    for k in range(len(system.design)):
-        shift, turn = system.parametrization.frame_velocity(stored, along[:, :, k])
-        out[:, :, k] = shift + np.cross(turn, arm) + rotation @ derivatives[point][:, k]
+        change = derivatives[point] if kind == "position" else np.zeros((3, n_design))
+        return np.broadcast_to(change, (count, 3, n_design)).copy()
+    s, velocity, acceleration = results._state_sensitivities()
+    index = list(system.bodies).index(body)
+    rotation, arm = results.rotation_matrix(body), results._arm(body, point)
+    omega, omega_dot = results.omega(body), results.omega_dot(body)
+    out = np.empty((count, 3, n_design))
+    for k in range(n_design):
+        frames = system.frames_d(results.q.T, results.v.T, results.a.T, s[:, :, k].T, velocity[:, :, k].T, acceleration[:, :, k].T)
+        frame = np.asarray(frames, dtype=float).reshape(-1, count)[24 * index : 24 * index + 24].T  # (K, 24)
+        d_rotation = frame[:, 3:12].reshape(count, 3, 3)
+        d_arm = d_rotation @ np.asarray(system.points[body][point], dtype=float) + rotation @ derivatives[point][:, k]
+        if kind == "position":
+            out[:, :, k] = frame[:, 0:3] + d_arm
+        elif kind == "velocity":
+            out[:, :, k] = frame[:, 12:15] + np.cross(frame[:, 15:18], arm) + np.cross(omega, d_arm)
+        else:
+            d_omega, d_omega_dot = frame[:, 15:18], frame[:, 21:24]
+            out[:, :, k] = (
+                frame[:, 18:21] + np.cross(d_omega_dot, arm) + np.cross(omega_dot, d_arm)
+                + np.cross(d_omega, np.cross(omega, arm)) + np.cross(omega, np.cross(d_omega, arm) + np.cross(omega, d_arm))
+            )  # fmt: skip
     return out

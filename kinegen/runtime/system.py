@@ -72,6 +72,13 @@ class NumericSystem:
     #: with design parameters: body -> point -> d(point, body coordinates)/dp, (3, n_design);
     #: the ground's points under "ground" (global)
     point_derivatives: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
+    #: with design parameters, the sensitivity kernels (:mod:`kinegen.runtime.sensitivity`), p
+    #: bound: (q, v, w, u, ud) and (q, v, a, w, y, u, ud, udd) -> one value per constraint, then
+    #: the entries at (vsens_rows, vsens_cols) / (asens_rows, asens_cols); frames_d (q, v, a, w, y, z)
+    vsens: Callable[..., np.ndarray] | None = None
+    asens: Callable[..., np.ndarray] | None = None
+    sensitivity_patterns: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    frames_d: Callable[..., np.ndarray] | None = None
 
     @property
     def n_stored(self) -> int:
@@ -233,6 +240,16 @@ def from_module(
                 p_rows=np.array(data["p_rows"], dtype=np.intp),
                 p_cols=np.array(data["p_cols"], dtype=np.intp),
                 point_derivatives=_design_point_derivatives(module, p),
+            )
+        if "vsens" in data:
+            design_fields.update(
+                vsens=_with_design(data["vsens"], p),
+                asens=_with_design(data["asens"], p),
+                sensitivity_patterns={
+                    kind: (np.array(data[f"{kind}_rows"], dtype=np.intp), np.array(data[f"{kind}_cols"], dtype=np.intp))
+                    for kind in ("vsens", "asens")
+                },
+                frames_d=module.frames_d,
             )
     return NumericSystem(
         model=module.MODEL,

@@ -74,10 +74,11 @@ class BodyCoordinates:
         origin = list(self.origin_derivatives[k]) if self.origin_symbols else []
         return [*origin, *self.rotation_derivatives[k]]
 
-    def frame_rates(self) -> list[sp.Expr]:
-        """d(frame symbol)/dt = sum_k d/dv_k v_k, in order."""
+    def frame_rates(self, direction: tuple[sp.Symbol, ...] | None = None) -> list[sp.Expr]:
+        """d(frame symbol)/dt = sum_k d/dv_k v_k, in order (along ``direction`` instead of the
+        velocity symbols: the change as the body moves along that tangent direction)."""
         rates = [sp.Integer(0)] * len(self.frame_symbols)
-        for k, w in enumerate(self.velocity):
+        for k, w in enumerate(self.velocity if direction is None else direction):
             for i, d in enumerate(self.frame_derivatives(k)):
                 if d != 0:
                     rates[i] += d * w
@@ -433,18 +434,7 @@ def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None
         return total
 
     def configuration_rate(expr: sp.Expr) -> sp.Expr:
-        derivatives = _gradient(expr, configuration)
-        zero = sp.Integer(0)
-        total = zero
-        for body in touched:
-            for symbol, rate in zip(body.frame_symbols, body.frame_rates()):
-                if rate != 0:
-                    total += derivatives.get(symbol, zero) * rate
-            stored_rate = body.velocity_map * sp.Matrix(body.velocity)
-            for s, rate in zip(body.stored, stored_rate):
-                if rate != 0:
-                    total += derivatives.get(s, zero) * rate
-        return total
+        return along(expr, touched)
 
     psi = sp.Integer(0)  # Phi_q v
     gradient = _gradient(phi, configuration)
@@ -461,6 +451,27 @@ def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None
         gamma = -2 * inputs.time_derivative(psi) - inputs.time_derivative(phi_t)
     gamma -= configuration_rate(psi)
     return Row(equation.name, phi, jacobian, -phi_t, gamma, is_driver)
+
+
+def along(expr: sp.Expr, bodies: list[BodyCoordinates], directions: list[tuple[sp.Symbol, ...]] | None = None) -> sp.Expr:
+    """The change of ``expr`` (written in the bodies' stored and frame symbols) as each body's
+    configuration moves along a tangent direction given in its velocity coordinates: by
+    default its velocity (the configuration part of d/dt), else ``directions`` (one tuple of
+    symbols per body). Velocity and other symbols in ``expr`` are held."""
+    configuration = [s for body in bodies for s in (*body.stored, *body.frame_symbols)]
+    derivatives = _gradient(expr, configuration)
+    zero = sp.Integer(0)
+    total = zero
+    for k, body in enumerate(bodies):
+        direction = None if directions is None else directions[k]
+        for symbol, rate in zip(body.frame_symbols, body.frame_rates(direction)):
+            if rate != 0:
+                total += derivatives.get(symbol, zero) * rate
+        stored_rate = body.velocity_map * sp.Matrix(body.velocity if direction is None else direction)
+        for s, rate in zip(body.stored, stored_rate):
+            if rate != 0:
+                total += derivatives.get(s, zero) * rate
+    return total
 
 
 def _gradient(expr: sp.Expr, symbols: list[sp.Symbol]) -> dict[sp.Symbol, sp.Expr]:
