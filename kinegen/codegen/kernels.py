@@ -291,7 +291,9 @@ def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.
     return tuple(sp.Symbol(letter + str(s)[1:], real=True) for s in symbols)
 
 
-def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...], offset: int = 0) -> tuple:
+def _sensitivity_rows(
+    rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...], cache: dict[int, tuple] | None = None
+) -> tuple:
     """What the runtime needs to differentiate the velocity and acceleration solves by the
     design parameters, row by row. With Phi(q(p), u, p) = 0 solved, a parameter moves the
     configuration along S = dq/dp, the velocities by V, the accelerations by W; differentiating
@@ -301,28 +303,41 @@ def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Sy
     d(Phi_q a - gamma)/dv . V, eta_a = d(Phi_q a - gamma)/dp (D_S: the change as the
     configuration moves along S, in the direction symbols w; V in the symbols y).
 
-    Returns (zeta_v, eta_v, zeta_a, eta_a), the etas as (row, parameter, expression)."""
+    Returns (zeta_v, eta_v, zeta_a, eta_a), the etas as (row, parameter, expression). ``cache``
+    keeps each row's by identity: the joint rows are the same in every case."""
+    cache = {} if cache is None else cache
     v, a = coords.velocity_symbols, _acceleration_symbols(coords)
     w, y = _direction_symbols(tuple(v), "w"), _direction_symbols(tuple(v), "y")
     by_column = {c: k for k, body in enumerate(coords.bodies) for c in range(body.velocity_offset, body.velocity_offset + len(body.velocity))}
     zeta_v, eta_v, zeta_a, eta_a = [], [], [], []
     for i, row in enumerate(rows):
-        columns = row.jacobian_columns
-        bodies = [coords.bodies[k] for k in dict.fromkeys(by_column[c] for c in columns)]
-        directions = [w[b.velocity_offset : b.velocity_offset + len(b.velocity)] for b in bodies]
-        jacobian = row.jacobian
-        velocity = sum((jacobian[c] * v[c] for c in columns), sp.Integer(0)) - row.nu
-        acceleration = sum((jacobian[c] * a[c] for c in columns), sp.Integer(0)) - row.gamma
-        zeta_v.append(along(velocity, bodies, directions))
-        by_velocity = sum((acceleration.diff(v[c]) * y[c] for c in range(len(v)) if v[c] in acceleration.free_symbols), sp.Integer(0))
-        zeta_a.append(along(acceleration, bodies, directions) + by_velocity)
-        for expr, out in ((velocity, eta_v), (acceleration, eta_a)):
-            for k, p in enumerate(symbols):
-                if p in expr.free_symbols:
-                    d = expr.diff(p)
-                    if d != 0:
-                        out.append((offset + i, k, d))
+        if id(row) not in cache:
+            cache[id(row)] = _sensitivity_row(row, coords, symbols, by_column, v, a, w, y)
+        zv, ev, za, ea = cache[id(row)]
+        zeta_v.append(zv)
+        zeta_a.append(za)
+        eta_v += [(i, k, d) for k, d in ev]
+        eta_a += [(i, k, d) for k, d in ea]
     return zeta_v, eta_v, zeta_a, eta_a
+
+
+def _sensitivity_row(row: Row, coords: Coordinates, symbols, by_column, v, a, w, y) -> tuple:
+    """One row's (zeta_v, eta_v, zeta_a, eta_a) of :func:`_sensitivity_rows` (etas as (parameter, expression))."""
+    columns = row.jacobian_columns
+    bodies = [coords.bodies[k] for k in dict.fromkeys(by_column[c] for c in columns)]
+    directions = [w[b.velocity_offset : b.velocity_offset + len(b.velocity)] for b in bodies]
+    jacobian = row.jacobian
+    velocity = sum((jacobian[c] * v[c] for c in columns), sp.Integer(0)) - row.nu
+    acceleration = sum((jacobian[c] * a[c] for c in columns), sp.Integer(0)) - row.gamma
+    # every velocity coordinate of the row's bodies: gamma may hold one whose Phi_q entry is zero
+    # (a point row's y component has no theta_y column, its gamma has omega_y^2)
+    velocities = [c for b in bodies for c in range(b.velocity_offset, b.velocity_offset + len(b.velocity))]
+    by_velocity = sum((acceleration.diff(v[c]) * y[c] for c in velocities if v[c] in acceleration.free_symbols), sp.Integer(0))
+    etas = []
+    for expr in (velocity, acceleration):
+        free = expr.free_symbols
+        etas.append([(k, d) for k, p in enumerate(symbols) if p in free for d in [expr.diff(p)] if d != 0])
+    return along(velocity, bodies, directions), etas[0], along(acceleration, bodies, directions) + by_velocity, etas[1]
 
 
 def _frame_tangent_groups(coords: Coordinates) -> tuple[Group, ...]:
@@ -394,6 +409,7 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         "angular acceleration (24 values, global).",
     )  # fmt: skip
     cases: dict[str, CaseDescription] = {}
+    sensitivity_cache: dict[int, tuple] = {}  # the joint rows', shared by the cases
     for name, system in systems.items():
         rows = system.rows
         drivers = rows[mj:]
@@ -425,7 +441,7 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         p_entries = list(joint_p)
         sensitivity_patterns: tuple = ()
         if model.design:
-            zeta_v, eta_v, zeta_a, eta_a = _sensitivity_rows(rows, coords, design_symbols)
+            zeta_v, eta_v, zeta_a, eta_a = _sensitivity_rows(rows, coords, design_symbols, sensitivity_cache)
             velocity_values = [*zeta_v, *(e for *_, e in eta_v)]
             acceleration_values = [*zeta_a, *(e for *_, e in eta_a)]
             section(f"vsens_{name}", ("q", "v", "w", "u", "ud", "p"), (Group(None, lambda x=velocity_values: x, {}),),

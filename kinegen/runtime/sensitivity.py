@@ -50,27 +50,34 @@ def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.nd
     design = np.zeros((count, m, n_design))
     design[:, system.p_rows, system.p_cols] = np.asarray(system.phi_p(q, u)).reshape(len(system.p_rows), -1).T
     s = -lu.solve(design)
-    rhs = np.zeros((count, m, n_design))
-    for k in range(n_design):
-        rhs[:, :, k] = _values(system.vsens(q, v, s[:, :, k].T, u, ud), m, count, system.sensitivity_patterns["vsens"], k)
+
+    # one kernel call for every (time point, parameter) pair: the state repeated per parameter
+    def each(x: np.ndarray) -> np.ndarray:
+        return np.repeat(x, n_design, axis=1)
+
+    def pairs(x: np.ndarray) -> np.ndarray:  # (K, n, n_design) -> (n, K n_design)
+        return x.transpose(1, 0, 2).reshape(x.shape[1], -1)
+
+    q_, v_, u_, ud_ = each(q), each(v), each(u), each(ud)
+    rhs = _values(system.vsens(q_, v_, pairs(s), u_, ud_), m, count, n_design, system.sensitivity_patterns["vsens"])
     velocity = -lu.solve(rhs)
-    for k in range(n_design):
-        values = system.asens(q, v, a, s[:, :, k].T, velocity[:, :, k].T, u, ud, udd)
-        rhs[:, :, k] = _values(values, m, count, system.sensitivity_patterns["asens"], k)
-    acceleration = -lu.solve(rhs)
+    values = system.asens(q_, v_, each(a), pairs(s), pairs(velocity), u_, ud_, each(udd))
+    acceleration = -lu.solve(_values(values, m, count, n_design, system.sensitivity_patterns["asens"]))
     out = tuple(np.full((len(results.times), n, n_design), np.nan) for _ in range(3))
     for full, part in zip(out, (s, velocity, acceleration)):
         full[done] = part
     return out
 
 
-def _values(kernel_output: np.ndarray, m: int, count: int, pattern: tuple[np.ndarray, np.ndarray], k: int) -> np.ndarray:
-    """(count, m): the per-constraint values plus the parameter-k entries of the sparse part."""
-    values = np.broadcast_to(np.asarray(kernel_output, dtype=float).reshape(-1, count), (m + len(pattern[0]), count))
-    out = values[:m].T.copy()
+def _values(kernel_output: np.ndarray, m: int, count: int, n_design: int, pattern: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    """(count, m, n_design) from a sensitivity kernel's output over (time point, parameter) pairs:
+    the per-constraint values plus each parameter's entries of the sparse part."""
     rows, cols = pattern
-    mine = np.flatnonzero(cols == k)
-    np.add.at(out, (slice(None), rows[mine]), values[m + mine].T)
+    values = np.broadcast_to(np.asarray(kernel_output, dtype=float).reshape(m + len(rows), -1), (m + len(rows), count * n_design))
+    values = values.reshape(m + len(rows), count, n_design)
+    out = values[:m].transpose(1, 0, 2).copy()
+    for j, (row, col) in enumerate(zip(rows, cols)):
+        out[:, row, col] += values[m + j, :, col]
     return out
 
 
@@ -80,12 +87,12 @@ class _Batched:
     def __init__(self, matrices: np.ndarray) -> None:
         import scipy.linalg
 
-        self._factors = [scipy.linalg.lu_factor(x) for x in matrices]
+        self._factors = [scipy.linalg.lu_factor(x, check_finite=False) for x in matrices]
 
     def solve(self, rhs: np.ndarray) -> np.ndarray:
         import scipy.linalg
 
-        return np.stack([scipy.linalg.lu_solve(f, b) for f, b in zip(self._factors, rhs)]) if len(rhs) else rhs.copy()
+        return np.stack([scipy.linalg.lu_solve(f, b, check_finite=False) for f, b in zip(self._factors, rhs)]) if len(rhs) else rhs.copy()
 
 
 def point_sensitivity(results: Results, body: str, point: str, kind: str = "position") -> np.ndarray:
