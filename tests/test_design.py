@@ -324,3 +324,20 @@ def test_excavator_sensitivities_match_central_differences_of_rebuilt_models(tmp
             exact = results.sensitivity("bucket", "T", name, kind)
             central = (shifted[0][kind] - shifted[1][kind]) / (2 * h)
             assert np.abs(exact - central).max() < 1e-7 * np.abs(exact).max(), (name, kind)
+
+
+def test_global_points_stay_expressions_of_the_design_parameters(tmp_path):
+    """The crank pin given in global coordinates at the initial pose (r (cos 0.3, sin 0.3, 0)):
+    its body coordinates are an expression of r, and the slider's sensitivities are still the
+    closed form's."""
+    text = design_model().replace("    points: {A: [0, 0, 0], B: [r, 0, 0]}", "    points: {A: [0, 0, 0]}\n    global_points: {B: [r*cos(0.3), r*sin(0.3), 0]}")
+    model = loads(text, "slider_crank_global.yaml")
+    local = model.body("crank").points["B"]
+    r = model.design[0].symbol
+    assert local.free_symbols == {r}
+    assert abs(float(local[0].subs(r, 0.21)) - 0.21) < 1e-15 and abs(float(local[1].subs(r, 0.21))) < 1e-15
+    module = _design_module(tmp_path, text)
+    results = solve(from_module(module, "run", design={"r": 0.21, "l": 0.65}))
+    theta = 0.3 + 2 * np.pi * results.times + 0.5 * results.times**2
+    w = np.sqrt(0.65**2 - 0.21**2 * np.sin(theta) ** 2)
+    assert np.abs(results.sensitivity("slider", "C", "r")[:, 0] - (np.cos(theta) - 0.21 * np.sin(theta) ** 2 / w)).max() < 1e-10
