@@ -291,9 +291,7 @@ def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.
     return tuple(sp.Symbol(letter + str(s)[1:], real=True) for s in symbols)
 
 
-def _sensitivity_rows(
-    rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...], cache: dict[int, tuple] | None = None
-) -> tuple:
+def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...]) -> tuple:
     """What the runtime needs to differentiate the velocity and acceleration solves by the
     design parameters, row by row. With Phi(q(p), u, p) = 0 solved, a parameter moves the
     configuration along S = dq/dp, the velocities by V, the accelerations by W; differentiating
@@ -303,17 +301,13 @@ def _sensitivity_rows(
     d(Phi_q a - gamma)/dv . V, eta_a = d(Phi_q a - gamma)/dp (D_S: the change as the
     configuration moves along S, in the direction symbols w; V in the symbols y).
 
-    Returns (zeta_v, eta_v, zeta_a, eta_a), the etas as (row, parameter, expression). ``cache``
-    keeps each row's by identity: the joint rows are the same in every case."""
-    cache = {} if cache is None else cache
+    Returns (zeta_v, eta_v, zeta_a, eta_a), the etas as (row, parameter, expression)."""
     v, a = coords.velocity_symbols, _acceleration_symbols(coords)
     w, y = _direction_symbols(tuple(v), "w"), _direction_symbols(tuple(v), "y")
     by_column = {c: k for k, body in enumerate(coords.bodies) for c in range(body.velocity_offset, body.velocity_offset + len(body.velocity))}
     zeta_v, eta_v, zeta_a, eta_a = [], [], [], []
     for i, row in enumerate(rows):
-        if id(row) not in cache:
-            cache[id(row)] = _sensitivity_row(row, coords, symbols, by_column, v, a, w, y)
-        zv, ev, za, ea = cache[id(row)]
+        zv, ev, za, ea = _sensitivity_row(row, coords, symbols, by_column, v, a, w, y)
         zeta_v.append(zv)
         zeta_a.append(za)
         eta_v += [(i, k, d) for k, d in ev]
@@ -409,7 +403,14 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         "angular acceleration (24 values, global).",
     )  # fmt: skip
     cases: dict[str, CaseDescription] = {}
-    sensitivity_cache: dict[int, tuple] = {}  # the joint rows', shared by the cases
+    joint_sensitivity: tuple = ()
+    if model.design:  # the joint rows' parts of the sensitivity kernels, common to every case
+        joint_sensitivity = _sensitivity_rows(joints, coords, design_symbols)
+        zeta_v, eta_v, zeta_a, eta_a = joint_sensitivity
+        for kind, slots_, zeta, eta in (("vsens", ("q", "v", "w", "p"), zeta_v, eta_v), ("asens", ("q", "v", "a", "w", "y", "p"), zeta_a, eta_a)):
+            values = [*zeta, *(e for *_, e in eta)]
+            section(f"joints_{kind}", slots_, (Group(None, lambda x=values: x, {}),), len(values),
+                    f"Sensitivity kernel part of the joint rows ({kind}): zeta per row, then the eta entries.")  # fmt: skip
     for name, system in systems.items():
         rows = system.rows
         drivers = rows[mj:]
@@ -441,18 +442,20 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         p_entries = list(joint_p)
         sensitivity_patterns: tuple = ()
         if model.design:
-            zeta_v, eta_v, zeta_a, eta_a = _sensitivity_rows(rows, coords, design_symbols, sensitivity_cache)
-            velocity_values = [*zeta_v, *(e for *_, e in eta_v)]
-            acceleration_values = [*zeta_a, *(e for *_, e in eta_a)]
-            section(f"vsens_{name}", ("q", "v", "w", "u", "ud", "p"), (Group(None, lambda x=velocity_values: x, {}),),
-                    len(velocity_values), f"Velocity sensitivity of case {name!r}: zeta_v per constraint for the change w "
-                    "of q, then the entries of eta_v (vsens_rows, vsens_cols).")  # fmt: skip
-            section(f"asens_{name}", ("q", "v", "a", "w", "y", "u", "ud", "udd", "p"),
-                    (Group(None, lambda x=acceleration_values: x, {}),), len(acceleration_values),
-                    f"Acceleration sensitivity of case {name!r}: zeta_a per constraint for the changes w of q and y of "
-                    "v, then the entries of eta_a (asens_rows, asens_cols).")  # fmt: skip
+            # [zeta of the joint rows, of the driver rows, eta entries of the joint rows, of the driver rows]
+            driver_zeta_v, driver_eta_v, driver_zeta_a, driver_eta_a = _sensitivity_rows(drivers, coords, design_symbols)
+            for kind, slots_, zeta, eta, doc in (
+                ("vsens", ("q", "v", "w", "u", "ud", "p"), driver_zeta_v, driver_eta_v, "zeta_v per driver row for the change w of q"),
+                ("asens", ("q", "v", "a", "w", "y", "u", "ud", "udd", "p"), driver_zeta_a, driver_eta_a,
+                 "zeta_a per driver row for the changes w of q and y of v"),
+            ):  # fmt: skip
+                values = [*zeta, *(e for *_, e in eta)]
+                section(f"drivers_{kind}_{name}", slots_, (Group(None, lambda x=values: x, {}),), len(values),
+                        f"Sensitivity kernel part of case {name!r}: {doc}, then its eta entries.")  # fmt: skip
+            joint_v, joint_a = joint_sensitivity[1], joint_sensitivity[3]
             sensitivity_patterns = tuple(
-                tuple(x[j] for x in entries) for entries in (eta_v, eta_a) for j in (0, 1)
+                tuple(x[j] for x in (*joint_eta, *((mj + i, k) for i, k, _ in driver_eta)))
+                for joint_eta, driver_eta in ((joint_v, driver_eta_v), (joint_a, driver_eta_a)) for j in (0, 1)
             )
         if model.design:
             driver_p = [(mj + i, k, e) for i, k, e in _design_derivatives(drivers, design_symbols)]

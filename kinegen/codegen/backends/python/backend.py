@@ -137,6 +137,8 @@ class _Module:
             self.array("points_p", d.sections["points_p"].doc, "points_p", None, "np.zeros(({m},) + np.shape(p[0]))")
             self.array("_joints_phi_p", d.sections["joints_phi_p"].doc, "joints_phi_p", None, "_zeros({m}, q, ())")
             self.array("frames_d", d.sections["frames_d"].doc, "frames_d", None, "_zeros({m}, q, ())")
+            for kind in ("vsens", "asens"):
+                self.array(f"_joints_{kind}", d.sections[f"joints_{kind}"].doc, f"joints_{kind}", None, "_zeros({m}, q, ())")
         p = [", p", ["p"]] if d.design else ["", []]  # the design parameters' argument, last
         for name, case in d.cases.items():
             self.array(f"inputs_{name}", d.sections[f"inputs_{name}"].doc, f"inputs_{name}", name, "np.zeros(({m},) + np.shape(t))")
@@ -151,8 +153,17 @@ class _Module:
                     f"Values of the sparse Phi_p (by the design parameters) of case {name!r} at p_rows, p_cols.",
                     first="_joints_phi_p(q, p)", second=f"_drivers_phi_p_{name}(q, u, p)",
                 ))  # fmt: skip
-                for kind in ("vsens", "asens"):
-                    self.array(f"{kind}_{name}", d.sections[f"{kind}_{name}"].doc, f"{kind}_{name}", name, "_zeros({m}, q, u)")
+                for kind, joint_args, args in (("vsens", "q, v, w, p", ["q", "v", "w", "u", "ud", "p"]),
+                                               ("asens", "q, v, a, w, y, p", ["q", "v", "a", "w", "y", "u", "ud", "udd", "p"])):
+                    section = f"drivers_{kind}_{name}"
+                    self.array(f"_{section}", d.sections[section].doc, section, name, "_zeros({m}, q, u)")
+                    md = case.kernels["phi_jac"].outputs[0].size - joints
+                    self.functions.append(_Function(
+                        "returns", f"{kind}_{name}", args,
+                        f"{kind} of case {name!r}: one value per constraint, then the entries at {kind}_rows, {kind}_cols.",
+                        [f"joints = _joints_{kind}({joint_args})", f"drivers = _{section}({', '.join(args)})"],
+                        result=f"_join(_join(joints[:{joints}], drivers[:{md}]), _join(joints[{joints}:], drivers[{md}:]))",
+                    ))  # fmt: skip
             self.scalar(f"_drivers_phi_jac_s_{name}", f"Phi and Phi_q values of the driver rows of case {name!r} at one configuration.",
                         [f"drivers_phi_{name}", f"drivers_jac_{name}"], name)  # fmt: skip
             self.scalar(f"_drivers_nu_s_{name}", f"nu of the driver rows of case {name!r} at one configuration.", [f"drivers_nu_{name}"], name)
