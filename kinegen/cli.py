@@ -212,7 +212,8 @@ def _system(
     "--sensitivities",
     type=click.Path(dir_okay=False),
     default=None,
-    help="CSV file of the exact derivatives of every named point and actuator length by every design parameter.",
+    help="CSV file (JSON if it ends in .json) of the exact derivatives of every named point's position, velocity and "
+    "acceleration and every actuator length by every design parameter.",
 )
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def solve(
@@ -253,7 +254,8 @@ def solve(
     if sensitivities:
         if not system.design:
             raise click.BadParameter("the model has no design parameters (a design: section)", param_hint="--sensitivities")
-        click.echo(f"wrote {results.sensitivities_to_csv(sensitivities)}")
+        write = results.sensitivities_to_json if sensitivities.endswith(".json") else results.sensitivities_to_csv
+        click.echo(f"wrote {write(sensitivities)}")
     if plot:
         from kinegen.analysis.plots import plot_results
 

@@ -274,6 +274,14 @@ def test_the_cli_solves_a_design_and_writes_its_sensitivities(tmp_path):
     w = np.sqrt(0.6**2 - 0.21**2 * np.sin(theta) ** 2)
     assert abs(float(rows[0]["d(slider.C_x)/d(r)"]) - (np.cos(theta) - 0.21 * np.sin(theta) ** 2 / w)) < 1e-10
     assert abs(float(rows[0]["d(slider.C_x)/d(l)"]) - 0.6 / w) < 1e-10
+    as_json = tmp_path / "sensitivities.json"
+    result = CliRunner().invoke(main, [*arguments[:4], "--sensitivities", str(as_json), *arguments[6:]])
+    assert result.exit_code == 0, result.output
+    import json
+
+    document = json.loads(as_json.read_text())
+    assert document["design"] == {"r": 0.21, "l": 0.6} and document["case"] == "run"
+    assert document["columns"]["d(slider.C_x)/d(l)"][0] == float(rows[0]["d(slider.C_x)/d(l)"])
     result = CliRunner().invoke(main, [*arguments[:2], "--design", "r=0.3", *arguments[4:]])
     assert result.exit_code == 2 and "outside its bounds" in result.output
 

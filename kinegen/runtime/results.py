@@ -248,6 +248,21 @@ class Results:
         """Write :meth:`sensitivity_table` to a CSV file (one row per time point)."""
         return self._write_csv(path, *self.sensitivity_table())
 
+    def sensitivities_to_json(self, path: str | Path) -> Path:
+        """Write :meth:`sensitivity_table` as JSON: model, case, the design values, and per column
+        name its values over time."""
+        import json
+
+        names, values = self.sensitivity_table()
+        path = Path(path)
+        path.parent.mkdir(parents=True, exist_ok=True)
+        document = {
+            "model": self.system.model, "case": self.system.case, "design": self.system.design,
+            "columns": {name: values[:, i].tolist() for i, name in enumerate(names)},
+        }  # fmt: skip
+        path.write_text(json.dumps(document), encoding="utf-8")
+        return path
+
     def to_csv(self, path: str | Path) -> Path:
         """Write every time history to a CSV file (one row per time point)."""
         return self._write_csv(path, *self.table())
