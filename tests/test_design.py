@@ -349,3 +349,32 @@ def test_global_points_stay_expressions_of_the_design_parameters(tmp_path):
     theta = 0.3 + 2 * np.pi * results.times + 0.5 * results.times**2
     w = np.sqrt(0.65**2 - 0.21**2 * np.sin(theta) ** 2)
     assert np.abs(results.sensitivity("slider", "C", "r")[:, 0] - (np.cos(theta) - 0.21 * np.sin(theta) ** 2 / w)).max() < 1e-10
+
+
+def test_joint_angle_sensitivities_match_central_differences(tmp_path):
+    """The four-bar's rocker angle (about the ground pivot's z) and the coupler's angle relative
+    to the crank (about the crank's z): exact derivatives by each length against central
+    differences (h = 1e-5) of the angles of rebuilt models, to 1e-7 of the largest."""
+    plain = (MODELS / "four_bar.yaml").read_text()
+    text = plain.replace(FOUR_BAR_PARAMETERS, FOUR_BAR_DESIGN)
+    model = loads(text, "four_bar_design.yaml")
+    module = _design_module(tmp_path, text, "euler-parameters", "four_bar_design.yaml")
+    at = {"a": 0.31, "b": 0.88, "c": 0.72, "d": 1.01}
+    results = solve(from_module(module, "crank_turn", design=at))
+
+    def angles(r):
+        rocker, crank, coupler = (r.rotation_matrix(b) for b in ("rocker", "crank", "coupler"))
+        relative = np.swapaxes(crank, 1, 2) @ coupler
+        return np.unwrap(np.arctan2(rocker[:, 1, 0], rocker[:, 0, 0])), np.unwrap(np.arctan2(relative[:, 1, 0], relative[:, 0, 0]))
+
+    h = 1e-5
+    for name in at:
+        plus, minus = (
+            angles(solve(from_module(lambdify_model(model.at(dict(at, **{name: at[name] + sign * h})), rotations.get("quaternion")), "crank_turn")))
+            for sign in (1, -1)
+        )
+        exact = (results.relative_angle_sensitivity("ground", "rocker", (0, 0, 1), name),
+                 results.relative_angle_sensitivity("crank", "coupler", (0, 0, 1), name))  # fmt: skip
+        for e, p_, m_ in zip(exact, plus, minus):
+            central = (p_ - m_) / (2 * h)
+            assert np.abs(e - central).max() < 1e-7 * np.abs(e).max(), name

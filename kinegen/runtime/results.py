@@ -129,6 +129,30 @@ class Results:
         out = point_sensitivity(self, body, point, kind)
         return out if parameter is None else out[:, :, self._design_index(parameter)]
 
+    def rotation_sensitivity(self, body: str, parameter: str | None = None) -> np.ndarray:
+        """Exact change of a body's orientation by a design parameter as a global rotation vector
+        (dA/dp = [dθ/dp]× A), (K, 3), or by all of them, (K, 3, n_design)."""
+        from kinegen.runtime.sensitivity import rotation_sensitivity
+
+        out = rotation_sensitivity(self, body)
+        return out if parameter is None else out[:, :, self._design_index(parameter)]
+
+    def relative_angle_sensitivity(self, body1: str, body2: str, axis: tuple[float, float, float], parameter: str | None = None) -> np.ndarray:
+        """Exact derivative of the rotation angle of ``body2`` relative to ``body1`` about ``axis``
+        (a unit vector in body-1 coordinates, e.g. a revolute joint's axis; ``body1`` may be
+        ``ground``) by a design parameter, (K,), or by all of them, (K, n_design)."""
+        from kinegen.runtime.sensitivity import rotation_sensitivity
+
+        axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+        turn = rotation_sensitivity(self, body2)
+        if body1 == GROUND:
+            direction = np.broadcast_to(axis, (len(self.times), 3))
+        else:
+            turn = turn - rotation_sensitivity(self, body1)
+            direction = self.rotation_matrix(body1) @ axis
+        out = np.einsum("ki,kij->kj", direction, turn)
+        return out if parameter is None else out[:, self._design_index(parameter)]
+
     def actuator_length_sensitivity(self, name: str, parameter: str | None = None) -> np.ndarray:
         """Exact derivative of an actuator's length by a design parameter, (K,), or all, (K, n_design)."""
         from kinegen.runtime.sensitivity import point_sensitivity

@@ -128,3 +128,21 @@ def point_sensitivity(results: Results, body: str, point: str, kind: str = "posi
                 + np.cross(d_omega, np.cross(omega, arm)) + np.cross(omega, np.cross(d_omega, arm) + np.cross(omega, d_arm))
             )  # fmt: skip
     return out
+
+
+def rotation_sensitivity(results: Results, body: str) -> np.ndarray:
+    """The change of a body's orientation per unit of each design parameter, as a global rotation
+    vector (dA/dp = [dθ/dp]× A), (K, 3, n_design)."""
+    system = results.system
+    if body not in system.bodies:
+        raise KeyError(f"no body {body!r} (bodies: {', '.join(system.bodies)})")
+    s, velocity, acceleration = results._state_sensitivities()
+    index, count = list(system.bodies).index(body), len(results.times)
+    rotation = results.rotation_matrix(body)
+    out = np.empty((count, 3, len(system.design)))
+    for k in range(len(system.design)):
+        frames = system.frames_d(results.q.T, results.v.T, results.a.T, s[:, :, k].T, velocity[:, :, k].T, acceleration[:, :, k].T)
+        d_rotation = np.asarray(frames, dtype=float).reshape(-1, count)[24 * index + 3 : 24 * index + 12].T.reshape(count, 3, 3)
+        spin = d_rotation @ np.swapaxes(rotation, 1, 2)  # [dθ]x
+        out[:, :, k] = np.stack([spin[:, 2, 1] - spin[:, 1, 2], spin[:, 0, 2] - spin[:, 2, 0], spin[:, 1, 0] - spin[:, 0, 1]], axis=1) / 2
+    return out
