@@ -153,6 +153,14 @@ class Results:
         out = np.einsum("ki,kij->kj", direction, turn)
         return out if parameter is None else out[:, self._design_index(parameter)]
 
+    def smallest_singular_value_sensitivity(self, parameter: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+        """σ_min of Φ_q at every time point (the distance to a singular pose) and its exact
+        derivative by a design parameter, (K,), or by all of them, (K, n_design)."""
+        from kinegen.runtime.sensitivity import singular_value_sensitivity
+
+        sigma, derivative = singular_value_sensitivity(self)
+        return sigma, derivative if parameter is None else derivative[:, self._design_index(parameter)]
+
     def actuator_length_sensitivity(self, name: str, parameter: str | None = None) -> np.ndarray:
         """Exact derivative of an actuator's length by a design parameter, (K,), or all, (K, n_design)."""
         from kinegen.runtime.sensitivity import point_sensitivity

@@ -69,6 +69,36 @@ def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.nd
     return out
 
 
+def singular_value_sensitivity(results: Results) -> tuple[np.ndarray, np.ndarray]:
+    """The smallest singular value σ of Φ_q at every time point (K,) -- the distance to a
+    singular pose -- and its exact derivative by the design parameters (K, n_design):
+    dσ/dp = uᵀ (dΦ_q/dp) x with u, x its singular vectors and dΦ_q/dp x = D_S(Φ_q x) + ∂_p(Φ_q x)
+    (the velocity sensitivity kernel with x in place of v and no time rates). NaN where the
+    solve did not converge."""
+    system = results.system
+    s, _, _ = results._state_sensitivities()
+    m, n_design = len(system.constraint_names), len(system.design)
+    done = np.flatnonzero(results.converged)
+    count = len(done)
+    q = results.q[done].T
+    u = np.asarray(system.inputs(results.times[done]), dtype=float).reshape(3, system.n_inputs, count)[0]
+    jacobian = np.zeros((count, m, system.n_velocity))
+    jacobian[:, system.jac_rows, system.jac_cols] = np.asarray(system.jac(q, u)).T
+    left, values, right = np.linalg.svd(jacobian)
+    smallest, x = values[:, -1], right[:, -1, :]  # (K,), (K, n)
+
+    def each(a: np.ndarray) -> np.ndarray:
+        return np.repeat(a, n_design, axis=1)
+
+    changes = s[done].transpose(1, 0, 2).reshape(system.n_velocity, -1)
+    out = system.vsens(each(q), each(x.T), changes, each(u), np.zeros_like(each(u)))
+    d_jacobian_x = _values(out, m, count, n_design, system.sensitivity_patterns["vsens"])  # (K, m, n_design)
+    sigma, derivative = np.full(len(results.times), np.nan), np.full((len(results.times), n_design), np.nan)
+    sigma[done] = smallest
+    derivative[done] = np.einsum("ki,kij->kj", left[:, :, -1], d_jacobian_x)
+    return sigma, derivative
+
+
 def _values(kernel_output: np.ndarray, m: int, count: int, n_design: int, pattern: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
     """(count, m, n_design) from a sensitivity kernel's output over (time point, parameter) pairs:
     the per-constraint values plus each parameter's entries of the sparse part."""
