@@ -225,19 +225,27 @@ FOUR_BAR_DESIGN = (
 )
 
 
+FOUR_BAR_AT = {"a": 0.31, "b": 0.88, "c": 0.72, "d": 1.01}
+
+
+def _four_bar_design(tmp_path, param: str, compiled: bool = False):
+    """The four-bar with its four lengths as design parameters: (model, results of its crank
+    turn solved at FOUR_BAR_AT from the generated module)."""
+    plain = (MODELS / "four_bar.yaml").read_text()
+    assert FOUR_BAR_PARAMETERS in plain
+    text = plain.replace(FOUR_BAR_PARAMETERS, FOUR_BAR_DESIGN)
+    module = _design_module(tmp_path, text, param, "four_bar_design.yaml")
+    return loads(text, "four_bar_design.yaml"), solve(from_module(module, "crank_turn", compiled=compiled, design=FOUR_BAR_AT))
+
+
 def test_four_bar_sensitivities_match_central_differences_of_rebuilt_models(tmp_path):
     """Every design parameter (the ground pivot D among them), the positions, velocities and
     accelerations of the coupler point M and the rocker pin C over a crank turn: against
     central differences (h = 1e-5) of the model rebuilt at p ± h (a different code path:
     numbers in the model, lambdified), to 1e-7 of the largest derivative (measured: 1e-10
     to 8e-10; with h = 1e-4 the differences move away as h², 1e-8 to 5e-8)."""
-    plain = (MODELS / "four_bar.yaml").read_text()
-    assert FOUR_BAR_PARAMETERS in plain
-    text = plain.replace(FOUR_BAR_PARAMETERS, FOUR_BAR_DESIGN)
-    model = loads(text, "four_bar_design.yaml")
-    module = _design_module(tmp_path, text, "quaternion", "four_bar_design.yaml")
-    at = {"a": 0.31, "b": 0.88, "c": 0.72, "d": 1.01}
-    results = solve(from_module(module, "crank_turn", compiled=True, design=at))
+    model, results = _four_bar_design(tmp_path, "quaternion", compiled=True)
+    at = FOUR_BAR_AT
     h = 1e-5
     for name in at:
         shifted = []
@@ -355,12 +363,8 @@ def test_joint_angle_sensitivities_match_central_differences(tmp_path):
     """The four-bar's rocker angle (about the ground pivot's z) and the coupler's angle relative
     to the crank (about the crank's z): exact derivatives by each length against central
     differences (h = 1e-5) of the angles of rebuilt models, to 1e-7 of the largest."""
-    plain = (MODELS / "four_bar.yaml").read_text()
-    text = plain.replace(FOUR_BAR_PARAMETERS, FOUR_BAR_DESIGN)
-    model = loads(text, "four_bar_design.yaml")
-    module = _design_module(tmp_path, text, "euler-parameters", "four_bar_design.yaml")
-    at = {"a": 0.31, "b": 0.88, "c": 0.72, "d": 1.01}
-    results = solve(from_module(module, "crank_turn", design=at))
+    model, results = _four_bar_design(tmp_path, "euler-parameters")
+    at = FOUR_BAR_AT
 
     def angles(r):
         rocker, crank, coupler = (r.rotation_matrix(b) for b in ("rocker", "crank", "coupler"))
@@ -383,12 +387,8 @@ def test_joint_angle_sensitivities_match_central_differences(tmp_path):
 def test_the_distance_to_a_singular_pose_has_exact_sensitivities(tmp_path):
     """σ_min of the four-bar's Φ_q over a crank turn and its derivative by each length: against
     central differences of σ_min of models rebuilt at p ± 1e-5 (to 1e-6 of the largest)."""
-    plain = (MODELS / "four_bar.yaml").read_text()
-    text = plain.replace(FOUR_BAR_PARAMETERS, FOUR_BAR_DESIGN)
-    model = loads(text, "four_bar_design.yaml")
-    module = _design_module(tmp_path, text, "quaternion", "four_bar_design.yaml")
-    at = {"a": 0.31, "b": 0.88, "c": 0.72, "d": 1.01}
-    results = solve(from_module(module, "crank_turn", design=at))
+    model, results = _four_bar_design(tmp_path, "quaternion")
+    at = FOUR_BAR_AT
     sigma, _ = results.smallest_singular_value_sensitivity()
     assert 0 < np.nanmin(sigma) and np.isfinite(sigma).all()
 
