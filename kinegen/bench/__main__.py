@@ -134,6 +134,7 @@ def main(argv: list[str] | None = None) -> int:
                 + (f"  ({row['note']})" if "note" in row else "")
             )
     sweep = None if args.no_sweep else sweep_rate()
+    sensitivity = run_contender("__import__('kinegen.bench.design', fromlist=['x']).sensitivity_cost()") if "excavator-digging" in workloads else None
     memory = {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")}
     print()
     for w, m in list(memory.items())[:1]:
@@ -146,14 +147,25 @@ def main(argv: list[str] | None = None) -> int:
             f"struct {m['struct']} B + stack of a step <= {m['stack']:,} B = {total:,} B; the model's tables "
             f"{m['static']:,} B, shared by every instance"
         )
+    if sensitivity is not None:
+        print()
+        if "failed" in sensitivity:
+            print(f"sensitivities (excavator, ten design parameters): FAILED: {sensitivity['failed']}")
+        else:
+            s = sensitivity
+            print(
+                f"sensitivities, excavator digging with {s['parameters']} design parameters (kinegen/bench/design.py), 1000 points: "
+                f"dq/dp, dv/dp, da/dp {s['compiled_sensitivities']:.3f} s; trajectory solve compiled {s['compiled_solve']:.3f} s, "
+                f"pure Python {s['python_solve']:.3f} s; build {s['build']:.1f} s"
+            )
     print()
     print("Targets, on this run's figures:")
-    for line in targets(rows, sweep):
+    for line in targets(rows, sweep, sensitivity):
         print("  " + line)
     return 1 if failures else 0
 
 
-def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
+def targets(rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: dict | None = None) -> list[str]:
     """One line per target that this run measured: the figure, the target, met or not."""
 
     def get(w: str, name: str, key: str) -> float | None:
@@ -221,6 +233,10 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None) -> list[str]:
         cold = sweep["grid"] / sweep["cold_seconds"]
         total = f"{sweep['seconds']:.2f} s with the SLSQP refinement of the five figures ({sweep['solves']} solves)"
         out.append(f"  (first, cold run: {cold:,.0f}/s; whole working range: {total})")
+    if sensitivity and "failed" not in sensitivity:
+        ratio = sensitivity["compiled_sensitivities"] / sensitivity["compiled_solve"]
+        out.append(line("excavator digging sensitivities (10 parameters) / compiled trajectory solve (issue 13)", ratio, 3.0, True))
+        out.append(f"  (/ pure-Python trajectory solve: {sensitivity['compiled_sensitivities'] / sensitivity['python_solve']:.2f})")
     return [x for x in out if x]
 
 

@@ -52,3 +52,43 @@ def _partial(symbolic: str, names: tuple[str, ...]) -> str:
         if name not in names:
             symbolic = symbolic.replace(name, value)
     return symbolic
+
+
+def sensitivity_cost(case: str = "digging", points: int = 1000, repeats: int = 3) -> dict:
+    """Issue 13's figure: the trajectory solve of ``case`` (``points`` time points) of the ten-
+    parameter excavator, compiled and pure Python, and its sensitivities by all ten parameters
+    (dq/dp, dv/dp, da/dp), best of ``repeats`` each, in seconds; and the build time."""
+    import tempfile
+    import time
+
+    import numpy as np
+
+    from kinegen import rotations
+    from kinegen.codegen import generate
+    from kinegen.model import loads
+    from kinegen.runtime import from_module, load_module, solve
+
+    model = loads(excavator_design_yaml(), "excavator_design.yaml")
+    with tempfile.TemporaryDirectory() as folder:
+        start = time.perf_counter()
+        made = generate(model, rotations.get("quaternion"))
+        build = time.perf_counter() - start
+        for files in made.values():
+            for name, text in files.items():
+                (Path(folder) / name).write_text(text)
+        module = load_module(Path(folder) / next(iter(made["python"])))
+        row: dict = {"build": build, "parameters": len(model.design)}
+        for label, compiled in (("compiled", True), ("python", False)):
+            system = from_module(module, case, compiled=compiled)
+            times = np.linspace(system.t0, system.t1, points)
+            solve(system, times)  # warm: compilation, first calls
+            best_solve = best_sensitivities = float("inf")
+            for _ in range(repeats):
+                start = time.perf_counter()
+                results = solve(system, times)
+                best_solve = min(best_solve, time.perf_counter() - start)
+                start = time.perf_counter()
+                results.state_sensitivities()
+                best_sensitivities = min(best_sensitivities, time.perf_counter() - start)
+            row[f"{label}_solve"], row[f"{label}_sensitivities"] = best_solve, best_sensitivities
+    return row
