@@ -176,11 +176,21 @@ class Results:
         return self._state_sensitivities()
 
     def _state_sensitivities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        if getattr(self, "_sensitivities", None) is None:
-            from kinegen.runtime.sensitivity import state_sensitivities
+        from kinegen.runtime.sensitivity import state_sensitivities
 
-            self._sensitivities = state_sensitivities(self)
-        return self._sensitivities
+        return self._computed("state", state_sensitivities)
+
+    def _frame_sensitivities(self) -> np.ndarray:
+        from kinegen.runtime.sensitivity import frame_sensitivities
+
+        return self._computed("frames", frame_sensitivities)
+
+    def _computed(self, name: str, compute):
+        """``compute(self)``, computed once per results (the sensitivities of one solve)."""
+        cache = self.__dict__.setdefault("_sensitivity_cache", {})
+        if name not in cache:
+            cache[name] = compute(self)
+        return cache[name]
 
     def _design_index(self, parameter: str) -> int:
         names = list(self.system.design)

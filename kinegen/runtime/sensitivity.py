@@ -6,8 +6,9 @@ differentiation ``Φ_q S + Φ_p = 0``: the configuration sensitivities ``S = dq/
 tangent directions, like a velocity). Differentiating the velocity and acceleration
 equations ``Φ_q v = ν`` and ``Φ_q a = γ`` the same way gives ``Φ_q V = −(ζ_v(S) + η_v)`` and
 ``Φ_q W = −(ζ_a(S, V) + η_a)`` for V = dv/dp and W = da/dp, with ζ and η generated exactly
-per constraint (:func:`kinegen.codegen.kernels._sensitivity_rows`). Φ_q is assembled once per
-time point and the solves are batched over the time points. A frame's and a named point's
+per constraint (:func:`kinegen.codegen.kernels._sensitivity_rows`). Φ_q is factored once per
+time point (the solver's LU) for the three solves; the kernels run once over all (time point,
+parameter) pairs. A frame's and a named point's
 position, velocity and acceleration then change as the generated ``frames_d`` kernel says
 (the frames' 24 values moved along (S, V, W)) plus what the point's own body coordinates do
 (ds/dp).
@@ -20,6 +21,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from kinegen.model.schema import GROUND
+from kinegen.runtime import linear
 
 if TYPE_CHECKING:
     from kinegen.runtime.results import Results
@@ -28,9 +30,31 @@ if TYPE_CHECKING:
 KINDS = ("position", "velocity", "acceleration")
 
 
+def _trajectory(results: Results) -> tuple[np.ndarray, ...]:
+    """The converged time points' indices, then q, v, a, u, ud, udd there (components first,
+    (n, K)) and the values of Phi_q at its pattern (n_jac, K)."""
+    system = results.system
+    done = np.flatnonzero(results.converged)
+    q, v, a = results.q[done].T, results.v[done].T, results.a[done].T
+    u, ud, udd = np.asarray(system.inputs(results.times[done]), dtype=float).reshape(3, system.n_inputs, len(done))
+    return done, q, v, a, u, ud, udd, np.asarray(system.jac(q, u), dtype=float).reshape(len(system.jac_rows), -1)
+
+
+def _each(x: np.ndarray, n_design: int) -> np.ndarray:
+    """(n, K) -> (n, K n_design): every time point's column once per parameter (one kernel call
+    for every (time point, parameter) pair)."""
+    return np.repeat(x, n_design, axis=1)
+
+
+def _pairs(x: np.ndarray) -> np.ndarray:
+    """(K, n, n_design) -> (n, K n_design), in the order of :func:`_each`."""
+    return x.transpose(1, 0, 2).reshape(x.shape[1], -1)
+
+
 def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """(dq/dp, dv/dp, da/dp) at every time point, each (K, n_v, n_design); NaN where the solve
-    did not converge."""
+    did not converge. Phi_q is factored once per time point by the solver's own LU
+    (:func:`kinegen.runtime.linear.choose`: dense, or band for long chains)."""
     system = results.system
     if not system.design:
         raise ValueError(f"model {system.model!r} has no design parameters: nothing to differentiate by")
@@ -39,34 +63,38 @@ def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.nd
     m, n, n_design = len(system.constraint_names), system.n_velocity, len(system.design)
     if m != n:
         raise ValueError(f"Phi_q of {system.model!r}/{system.case} is {m} x {n} (redundant constraints): sensitivities need it square")
-    done = np.flatnonzero(results.converged)
+    done, q, v, a, u, ud, udd, jac = _trajectory(results)
     count = len(done)
-    q, v, a = results.q[done].T, results.v[done].T, results.a[done].T
-    stacked = np.asarray(system.inputs(results.times[done]), dtype=float).reshape(3, system.n_inputs, count)
-    u, ud, udd = stacked
-    jacobian = np.zeros((count, m, n))
-    jacobian[:, system.jac_rows, system.jac_cols] = np.asarray(system.jac(q, u)).T
-    lu = _Batched(jacobian)
+    lu = linear.choose(system.jac_rows, system.jac_cols, (m, n))
+    factors = [lu.factor(jac[:, k])[0] for k in range(count)]
+
+    def solve(rhs: np.ndarray) -> np.ndarray:  # (K, m, n_design), each time point by its factors
+        return np.stack([lu.solve(f, b) for f, b in zip(factors, rhs)]) if count else rhs.copy()
+
     design = np.zeros((count, m, n_design))
     design[:, system.p_rows, system.p_cols] = np.asarray(system.phi_p(q, u)).reshape(len(system.p_rows), -1).T
-    s = -lu.solve(design)
-
-    # one kernel call for every (time point, parameter) pair: the state repeated per parameter
-    def each(x: np.ndarray) -> np.ndarray:
-        return np.repeat(x, n_design, axis=1)
-
-    def pairs(x: np.ndarray) -> np.ndarray:  # (K, n, n_design) -> (n, K n_design)
-        return x.transpose(1, 0, 2).reshape(x.shape[1], -1)
-
-    q_, v_, u_, ud_ = each(q), each(v), each(u), each(ud)
-    rhs = _values(system.vsens(q_, v_, pairs(s), u_, ud_), m, count, n_design, system.sensitivity_patterns["vsens"])
-    velocity = -lu.solve(rhs)
-    values = system.asens(q_, v_, each(a), pairs(s), pairs(velocity), u_, ud_, each(udd))
-    acceleration = -lu.solve(_values(values, m, count, n_design, system.sensitivity_patterns["asens"]))
+    s = -solve(design)
+    q_, v_, u_, ud_ = (_each(x, n_design) for x in (q, v, u, ud))
+    rhs = _values(system.vsens(q_, v_, _pairs(s), u_, ud_), m, count, n_design, system.sensitivity_patterns["vsens"])
+    velocity = -solve(rhs)
+    values = system.asens(q_, v_, _each(a, n_design), _pairs(s), _pairs(velocity), u_, ud_, _each(udd, n_design))
+    acceleration = -solve(_values(values, m, count, n_design, system.sensitivity_patterns["asens"]))
     out = tuple(np.full((len(results.times), n, n_design), np.nan) for _ in range(3))
     for full, part in zip(out, (s, velocity, acceleration)):
         full[done] = part
     return out
+
+
+def frame_sensitivities(results: Results) -> np.ndarray:
+    """The change of every body's 24 frame values (origin, rotation matrix row by row, origin
+    velocity, ω, origin acceleration, ω̇) per unit of each design parameter, (K, n_bodies, 24,
+    n_design): the generated ``frames_d`` kernel along (dq/dp, dv/dp, da/dp), one call."""
+    system = results.system
+    s, velocity, acceleration = results._state_sensitivities()
+    n_design, count = len(system.design), len(results.times)
+    state = (_each(x.T, n_design) for x in (results.q, results.v, results.a))
+    changes = system.frames_d(*state, _pairs(s), _pairs(velocity), _pairs(acceleration))
+    return np.asarray(changes, dtype=float).reshape(len(system.bodies), 24, count, n_design).transpose(2, 0, 1, 3)
 
 
 def singular_value_sensitivity(results: Results) -> tuple[np.ndarray, np.ndarray]:
@@ -78,20 +106,14 @@ def singular_value_sensitivity(results: Results) -> tuple[np.ndarray, np.ndarray
     system = results.system
     s, _, _ = results._state_sensitivities()
     m, n_design = len(system.constraint_names), len(system.design)
-    done = np.flatnonzero(results.converged)
+    done, q, _, _, u, _, _, jac = _trajectory(results)
     count = len(done)
-    q = results.q[done].T
-    u = np.asarray(system.inputs(results.times[done]), dtype=float).reshape(3, system.n_inputs, count)[0]
     jacobian = np.zeros((count, m, system.n_velocity))
-    jacobian[:, system.jac_rows, system.jac_cols] = np.asarray(system.jac(q, u)).T
+    jacobian[:, system.jac_rows, system.jac_cols] = jac.T
     left, values, right = np.linalg.svd(jacobian)
     smallest, x = values[:, -1], right[:, -1, :]  # (K,), (K, n)
-
-    def each(a: np.ndarray) -> np.ndarray:
-        return np.repeat(a, n_design, axis=1)
-
-    changes = s[done].transpose(1, 0, 2).reshape(system.n_velocity, -1)
-    out = system.vsens(each(q), each(x.T), changes, each(u), np.zeros_like(each(u)))
+    u_ = _each(u, n_design)
+    out = system.vsens(_each(q, n_design), _each(x.T, n_design), _pairs(s[done]), u_, np.zeros_like(u_))
     d_jacobian_x = _values(out, m, count, n_design, system.sensitivity_patterns["vsens"])  # (K, m, n_design)
     sigma, derivative = np.full(len(results.times), np.nan), np.full((len(results.times), n_design), np.nan)
     sigma[done] = smallest
@@ -111,20 +133,6 @@ def _values(kernel_output: np.ndarray, m: int, count: int, n_design: int, patter
     return out
 
 
-class _Batched:
-    """LU factors of a stack of square matrices, reused for several right-hand sides."""
-
-    def __init__(self, matrices: np.ndarray) -> None:
-        import scipy.linalg
-
-        self._factors = [scipy.linalg.lu_factor(x, check_finite=False) for x in matrices]
-
-    def solve(self, rhs: np.ndarray) -> np.ndarray:
-        import scipy.linalg
-
-        return np.stack([scipy.linalg.lu_solve(f, b, check_finite=False) for f, b in zip(self._factors, rhs)]) if len(rhs) else rhs.copy()
-
-
 def point_sensitivity(results: Results, body: str, point: str, kind: str = "position") -> np.ndarray:
     """d(global position, velocity or acceleration of a named point)/dp, (K, 3, n_design)."""
     if kind not in KINDS:
@@ -137,24 +145,22 @@ def point_sensitivity(results: Results, body: str, point: str, kind: str = "posi
     if body == GROUND:
         change = derivatives[point] if kind == "position" else np.zeros((3, n_design))
         return np.broadcast_to(change, (count, 3, n_design)).copy()
-    s, velocity, acceleration = results._state_sensitivities()
-    index = list(system.bodies).index(body)
+    frame = results._frame_sensitivities()[:, list(system.bodies).index(body)]  # (K, 24, n_design)
     rotation, arm = results.rotation_matrix(body), results._arm(body, point)
     omega, omega_dot = results.omega(body), results.omega_dot(body)
+    local = np.asarray(system.points[body][point], dtype=float)
     out = np.empty((count, 3, n_design))
     for k in range(n_design):
-        frames = system.frames_d(results.q.T, results.v.T, results.a.T, s[:, :, k].T, velocity[:, :, k].T, acceleration[:, :, k].T)
-        frame = np.asarray(frames, dtype=float).reshape(-1, count)[24 * index : 24 * index + 24].T  # (K, 24)
-        d_rotation = frame[:, 3:12].reshape(count, 3, 3)
-        d_arm = d_rotation @ np.asarray(system.points[body][point], dtype=float) + rotation @ derivatives[point][:, k]
+        d_rotation = frame[:, 3:12, k].reshape(count, 3, 3)
+        d_arm = d_rotation @ local + rotation @ derivatives[point][:, k]
         if kind == "position":
-            out[:, :, k] = frame[:, 0:3] + d_arm
+            out[:, :, k] = frame[:, 0:3, k] + d_arm
         elif kind == "velocity":
-            out[:, :, k] = frame[:, 12:15] + np.cross(frame[:, 15:18], arm) + np.cross(omega, d_arm)
+            out[:, :, k] = frame[:, 12:15, k] + np.cross(frame[:, 15:18, k], arm) + np.cross(omega, d_arm)
         else:
-            d_omega, d_omega_dot = frame[:, 15:18], frame[:, 21:24]
+            d_omega, d_omega_dot = frame[:, 15:18, k], frame[:, 21:24, k]
             out[:, :, k] = (
-                frame[:, 18:21] + np.cross(d_omega_dot, arm) + np.cross(omega_dot, d_arm)
+                frame[:, 18:21, k] + np.cross(d_omega_dot, arm) + np.cross(omega_dot, d_arm)
                 + np.cross(d_omega, np.cross(omega, arm)) + np.cross(omega, np.cross(d_omega, arm) + np.cross(omega, d_arm))
             )  # fmt: skip
     return out
@@ -166,13 +172,11 @@ def rotation_sensitivity(results: Results, body: str) -> np.ndarray:
     system = results.system
     if body not in system.bodies:
         raise KeyError(f"no body {body!r} (bodies: {', '.join(system.bodies)})")
-    s, velocity, acceleration = results._state_sensitivities()
-    index, count = list(system.bodies).index(body), len(results.times)
+    d_rotation = results._frame_sensitivities()[:, list(system.bodies).index(body), 3:12]  # (K, 9, n_design)
+    count = len(results.times)
     rotation = results.rotation_matrix(body)
     out = np.empty((count, 3, len(system.design)))
     for k in range(len(system.design)):
-        frames = system.frames_d(results.q.T, results.v.T, results.a.T, s[:, :, k].T, velocity[:, :, k].T, acceleration[:, :, k].T)
-        d_rotation = np.asarray(frames, dtype=float).reshape(-1, count)[24 * index + 3 : 24 * index + 12].T.reshape(count, 3, 3)
-        spin = d_rotation @ np.swapaxes(rotation, 1, 2)  # [dθ]x
+        spin = d_rotation[:, :, k].reshape(count, 3, 3) @ np.swapaxes(rotation, 1, 2)  # [dθ]x
         out[:, :, k] = np.stack([spin[:, 2, 1] - spin[:, 1, 2], spin[:, 0, 2] - spin[:, 2, 0], spin[:, 1, 0] - spin[:, 0, 1]], axis=1) / 2
     return out
