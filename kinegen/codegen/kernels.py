@@ -218,26 +218,39 @@ def _acceleration_symbols(coords: Coordinates) -> tuple[sp.Symbol, ...]:
     return tuple(sp.Symbol("d" + str(s), real=True) for s in coords.velocity_symbols)
 
 
-def _frame_groups(coords: Coordinates) -> tuple[Group, ...]:
-    """One group per body, all of one shape: the generic body's frame, renamed."""
+def _frame_groups(coords: Coordinates, tangent: bool = False) -> tuple[Group, ...]:
+    """One group per body, all of one shape: the generic body's frame, renamed. With
+    ``tangent``: the change of those 24 values when q moves along w, v by y and a by z (the
+    ``frames_d`` kernel, to carry the state's sensitivities to frames and points)."""
     param = coords.parametrization
     generic = generic_body(param)
     q = sp.Matrix(generic.stored)
     v = sp.Matrix(generic.velocity)
     a = sp.Matrix([sp.Symbol("d" + str(s), real=True) for s in generic.velocity])
-    generic_symbols = [*q, *v, *a]
+    directions = [_direction_symbols(tuple(generic.velocity), letter) for letter in "wyz"] if tangent else []
+    generic_symbols = [*q, *v, *a, *(s for d in directions for s in d)]
 
     def expressions() -> list[sp.Expr]:
         values = param.frame_expressions(q, v, a)
         # A(s) -> the symbols a_ij, and an origin that is not stored -> its symbols
-        return [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values]
+        values = [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values]
+        if not tangent:
+            return values
+        w, y, z = directions
+        return [
+            along(e, [generic], [w]) + sum((e.diff(s) * d for s, d in zip([*v, *a], [*y, *z]) if s in e.free_symbols), sp.Integer(0))
+            for e in values
+        ]
 
     groups = []
     for body in coords.bodies:
-        real = [*body.stored, *body.velocity, *(sp.Symbol("d" + str(s), real=True) for s in body.velocity)]
+        velocity = tuple(body.velocity)
+        real = [*body.stored, *velocity, *(sp.Symbol("d" + str(s), real=True) for s in velocity)]
+        if tangent:
+            real += [s for letter in "wyz" for s in _direction_symbols(velocity, letter)]
         rename = dict(zip(generic_symbols, real))
         rename.update(zip(generic.frame_symbols, body.frame_symbols))
-        groups.append(Group(("frames", param.name), expressions, rename))
+        groups.append(Group(("frames_d" if tangent else "frames", param.name), expressions, rename))
     return tuple(groups)
 
 
@@ -271,19 +284,17 @@ def _nominal(model: Model) -> dict[sp.Symbol, sp.Expr]:
     return {d.symbol: d.nominal for d in model.design}
 
 
-def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list[tuple[int, int, sp.Expr]]:
-    """Phi_p of ``rows``: (row, parameter, dPhi/dp) of every entry not identically zero, row-major.
-    The rows' expressions hold the design parameters explicitly (the frame symbols do not
+def _by_design(expr: sp.Expr, symbols: tuple[sp.Symbol, ...]) -> list[tuple[int, sp.Expr]]:
+    """(parameter, d expr/dp) for every design parameter ``expr`` depends on, derivative not
+    identically zero. Rows hold the design parameters explicitly (the frame symbols do not
     depend on them), so this is one derivative per parameter a row uses."""
-    entries = []
-    for i, row in enumerate(rows):
-        free = row.phi.free_symbols
-        for k, p in enumerate(symbols):
-            if p in free:
-                d = row.phi.diff(p)
-                if d != 0:
-                    entries.append((i, k, d))
-    return entries
+    free = expr.free_symbols
+    return [(k, d) for k, p in enumerate(symbols) if p in free for d in [expr.diff(p)] if d != 0]
+
+
+def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list[tuple[int, int, sp.Expr]]:
+    """Phi_p of ``rows``: (row, parameter, dPhi/dp) of every entry not identically zero, row-major."""
+    return [(i, k, d) for i, row in enumerate(rows) for k, d in _by_design(row.phi, symbols)]
 
 
 def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.Symbol, ...]:
@@ -327,42 +338,10 @@ def _sensitivity_row(row: Row, coords: Coordinates, symbols, by_column, v, a, w,
     # (a point row's y component has no theta_y column, its gamma has omega_y^2)
     velocities = [c for b in bodies for c in range(b.velocity_offset, b.velocity_offset + len(b.velocity))]
     by_velocity = sum((acceleration.diff(v[c]) * y[c] for c in velocities if v[c] in acceleration.free_symbols), sp.Integer(0))
-    etas = []
-    for expr in (velocity, acceleration):
-        free = expr.free_symbols
-        etas.append([(k, d) for k, p in enumerate(symbols) if p in free for d in [expr.diff(p)] if d != 0])
-    return along(velocity, bodies, directions), etas[0], along(acceleration, bodies, directions) + by_velocity, etas[1]
-
-
-def _frame_tangent_groups(coords: Coordinates) -> tuple[Group, ...]:
-    """Per body: the change of its 24 frame values (as the ``frames`` kernel) when q moves along
-    w, v by y and a by z -- to carry the state's sensitivities to frames and points."""
-    param = coords.parametrization
-    generic = generic_body(param)
-    q, v = sp.Matrix(generic.stored), sp.Matrix(generic.velocity)
-    a = sp.Matrix([sp.Symbol("d" + str(s), real=True) for s in generic.velocity])
-    w, y, z = (_direction_symbols(tuple(generic.velocity), letter) for letter in "wyz")
-    generic_symbols = [*q, *v, *a, *w, *y, *z]
-
-    def expressions() -> list[sp.Expr]:
-        values = param.frame_expressions(q, v, a)
-        values = [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values]
-        out = []
-        for e in values:
-            change = along(e, [generic], [w])
-            change += sum((e.diff(s) * d for s, d in zip([*v, *a], [*y, *z]) if s in e.free_symbols), sp.Integer(0))
-            out.append(change)
-        return out
-
-    groups = []
-    for body in coords.bodies:
-        velocity = tuple(body.velocity)
-        real = [*body.stored, *velocity, *(sp.Symbol("d" + str(s), real=True) for s in velocity)]
-        real += [*(s for letter in "wyz" for s in _direction_symbols(velocity, letter))]
-        rename = dict(zip(generic_symbols, real))
-        rename.update(zip(generic.frame_symbols, body.frame_symbols))
-        groups.append(Group(("frames_d", param.name), expressions, rename))
-    return tuple(groups)
+    return (
+        along(velocity, bodies, directions), _by_design(velocity, symbols),
+        along(acceleration, bodies, directions) + by_velocity, _by_design(acceleration, symbols),
+    )  # fmt: skip
 
 
 def point_expressions(model: Model) -> list[sp.Expr]:
@@ -485,7 +464,7 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         slots["p"] = tuple(d.symbol for d in model.design)
         for letter in "wyz":
             slots[letter] = _direction_symbols(tuple(coords.velocity_symbols), letter)
-        section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_tangent_groups(coords), FRAME_VALUES * len(coords.bodies),
+        section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_groups(coords, tangent=True), FRAME_VALUES * len(coords.bodies),
                 "Per body: the change of the frames kernel's 24 values when q moves along w, v by y and a by z.")  # fmt: skip
     nominal = _nominal(model)
     definitions = Definitions(
