@@ -127,7 +127,7 @@ class Results:
         from kinegen.runtime.sensitivity import point_sensitivity
 
         out = point_sensitivity(self, body, point, kind)
-        return out if parameter is None else out[:, :, self._design_index(parameter)]
+        return self._by_parameter(out, parameter)
 
     def rotation_sensitivity(self, body: str, parameter: str | None = None) -> np.ndarray:
         """Exact change of a body's orientation by a design parameter as a global rotation vector
@@ -135,7 +135,7 @@ class Results:
         from kinegen.runtime.sensitivity import rotation_sensitivity
 
         out = rotation_sensitivity(self, body)
-        return out if parameter is None else out[:, :, self._design_index(parameter)]
+        return self._by_parameter(out, parameter)
 
     def relative_angle_sensitivity(self, body1: str, body2: str, axis: tuple[float, float, float], parameter: str | None = None) -> np.ndarray:
         """Exact derivative of the rotation angle of ``body2`` relative to ``body1`` about ``axis``
@@ -151,7 +151,7 @@ class Results:
             turn = turn - rotation_sensitivity(self, body1)
             direction = self.rotation_matrix(body1) @ axis
         out = np.einsum("ki,kij->kj", direction, turn)
-        return out if parameter is None else out[:, self._design_index(parameter)]
+        return self._by_parameter(out, parameter)
 
     def smallest_singular_value_sensitivity(self, parameter: str | None = None) -> tuple[np.ndarray, np.ndarray]:
         """σ_min of Φ_q at every time point (the distance to a singular pose) and its exact
@@ -159,7 +159,7 @@ class Results:
         from kinegen.runtime.sensitivity import singular_value_sensitivity
 
         sigma, derivative = singular_value_sensitivity(self)
-        return sigma, derivative if parameter is None else derivative[:, self._design_index(parameter)]
+        return sigma, self._by_parameter(derivative, parameter)
 
     def actuator_length_sensitivity(self, name: str, parameter: str | None = None) -> np.ndarray:
         """Exact derivative of an actuator's length by a design parameter, (K,), or all, (K, n_design)."""
@@ -169,13 +169,10 @@ class Results:
         (b1, p1), (b2, p2), _ = self.system.actuators[name]
         change = point_sensitivity(self, b2, p2) - point_sensitivity(self, b1, p1)
         out = np.einsum("ki,kij->kj", d / np.linalg.norm(d, axis=1)[:, None], change)
-        return out if parameter is None else out[:, self._design_index(parameter)]
+        return self._by_parameter(out, parameter)
 
     def state_sensitivities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(dq/dp, dv/dp, da/dp), each (K, n_v, n_design), in velocity coordinates (computed once)."""
-        return self._state_sensitivities()
-
-    def _state_sensitivities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         from kinegen.runtime.sensitivity import state_sensitivities
 
         return self._computed("state", state_sensitivities)
@@ -192,11 +189,14 @@ class Results:
             cache[name] = compute(self)
         return cache[name]
 
-    def _design_index(self, parameter: str) -> int:
+    def _by_parameter(self, values: np.ndarray, parameter: str | None) -> np.ndarray:
+        """``values`` with the design parameters on the last axis: all of them (None), or one."""
+        if parameter is None:
+            return values
         names = list(self.system.design)
         if parameter not in names:
             raise KeyError(f"no design parameter {parameter!r} (design parameters: {', '.join(names) or 'none'})")
-        return names.index(parameter)
+        return values[..., names.index(parameter)]
 
     def _actuator(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         if name not in self.system.actuators:

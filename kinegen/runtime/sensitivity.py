@@ -90,7 +90,7 @@ def frame_sensitivities(results: Results) -> np.ndarray:
     velocity, ω, origin acceleration, ω̇) per unit of each design parameter, (K, n_bodies, 24,
     n_design): the generated ``frames_d`` kernel along (dq/dp, dv/dp, da/dp), one call."""
     system = results.system
-    s, velocity, acceleration = results._state_sensitivities()
+    s, velocity, acceleration = results.state_sensitivities()
     n_design, count = len(system.design), len(results.times)
     state = (_each(x.T, n_design) for x in (results.q, results.v, results.a))
     changes = system.frames_d(*state, _pairs(s), _pairs(velocity), _pairs(acceleration))
@@ -104,7 +104,7 @@ def singular_value_sensitivity(results: Results) -> tuple[np.ndarray, np.ndarray
     (the velocity sensitivity kernel with x in place of v and no time rates). NaN where the
     solve did not converge."""
     system = results.system
-    s, _, _ = results._state_sensitivities()
+    s, _, _ = results.state_sensitivities()
     m, n_design = len(system.constraint_names), len(system.design)
     done, q, _, _, u, _, _, jac = _trajectory(results)
     count = len(done)

@@ -213,6 +213,13 @@ def from_module(
 ) -> NumericSystem:
     """The numeric system of ``case`` (the first case by default) of a generated module.
 
+    ``compiled``: evaluate the kernels and solve trajectories through the module's C (the
+    ``.c``/``.h`` beside it, compiled once with kinegen's C solver and cached,
+    :mod:`kinegen.runtime.native`). None (default): when the C is there and a compiler is
+    found, else the Python functions (a missing compiler is said once, as a warning); True:
+    the same, but a missing compiler is an error (:class:`~kinegen.runtime.native.CompileError`);
+    False: the Python functions.
+
     ``design``: values of the model's design parameters by name (the others at their nominal
     values, within their bounds); the kernels take them as their argument ``p``, the named
     points are computed from them -- no rebuild, compiled or not.
@@ -231,9 +238,7 @@ def from_module(
     if p is not None:
         kernels = {k: None if f is None else _with_design(f, p) for k, f in kernels.items()}
         points, ground_points = _design_points(module, p)
-        design_fields = {
-            "design": dict(zip(module.DESIGN, p.tolist())),
-        }
+        design_fields = {"design": dict(zip(module.DESIGN, p.tolist()))}
         if "phi_p" in data:  # (modules built before kinegen had sensitivities lack it)
             design_fields.update(
                 phi_p=_with_design(data["phi_p"], p),
