@@ -32,7 +32,17 @@ from kinegen.codegen.shapes import Group, Shapes
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.rotations import Parametrization
-from kinegen.symbolic.assembly import GENERIC_NAME, Coordinates, Row, System, Templates, along, build_systems, generic_body
+from kinegen.symbolic.assembly import (
+    GENERIC_NAME,
+    Coordinates,
+    Row,
+    System,
+    Templates,
+    along,
+    build_systems,
+    generic_body,
+    tangent_jacobian,
+)
 from kinegen.symbolic.blocks import block_triangular
 
 #: What each slot holds (units SI, angles in radians, quaternions w, x, y, z).
@@ -52,6 +62,22 @@ SLOTS = {
 #: Values per body in the ``frames`` kernel: origin, rotation matrix (row by row), origin
 #: velocity, angular velocity, origin acceleration, angular acceleration; all global.
 FRAME_VALUES = 24
+#: The sensitivity kernels of a model with design parameters, per case: what their output holds.
+#: Each is a sparse matrix given by its values at a constant pattern (``<kernel>_rows``,
+#: ``<kernel>_cols``); n_v velocity coordinates, n_p parameters.
+SENSITIVITY_KERNELS = {
+    "phi_p": "Phi_p = dPhi/dp (n_p columns)",
+    "dvel": "[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns)",
+    "dacc": "[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), "
+    "E_a = d(Phi_q a - gamma)/dp (n_p columns)",
+}
+#: (kernel, argument slots without p, section doc) of the sensitivity kernels; the joint
+#: rows' sections leave out the slots of the driver inputs (u, ud, udd)
+SENSITIVITY_SECTIONS = (
+    ("phi_p", ("q", "u"), "Phi_p values"),
+    ("dvel", ("q", "v", "u", "ud"), "[M_v | E_v] values (velocity sensitivity)"),
+    ("dacc", ("q", "v", "a", "u", "ud", "udd"), "[M_a | N_a | E_a] values (acceleration sensitivity)"),
+)
 
 
 @dataclass(frozen=True)
@@ -122,16 +148,9 @@ class CaseDescription:
     slots: dict[str, tuple[sp.Symbol, ...]]
     kernels: dict[str, Kernel]
     plan: Plan | None  #: None for a redundant (non-square) or structurally singular Phi_q
-    #: a model with design parameters: the sparsity of Phi_p (rows, parameter) -- the phi_p
-    #: kernel's values, printed by the Python backend (empty without design parameters)
-    p_rows: tuple[int, ...] = ()
-    p_cols: tuple[int, ...] = ()
-    #: the sparsity of the parameter parts of the velocity and acceleration sensitivity kernels
-    #: (vsens, asens: first one value per constraint, then these entries)
-    vsens_rows: tuple[int, ...] = ()
-    vsens_cols: tuple[int, ...] = ()
-    asens_rows: tuple[int, ...] = ()
-    asens_cols: tuple[int, ...] = ()
+    #: a model with design parameters: the sparsity (rows, columns) of each sensitivity kernel's
+    #: output (phi_p, dvel, dacc; :data:`SENSITIVITY_KERNELS`); empty without design parameters
+    patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = field(default_factory=dict)
 
 
 @dataclass(frozen=True)
@@ -176,18 +195,26 @@ class ModuleDescription:
         return self.sections["joints_phi"].size
 
 
-def _groups(rows: list[Row], templates: Templates | None, kind: str) -> tuple[Group, ...]:
-    """Rows in groups (one joint, driver or normalization each) with their shape keys.
-
-    ``kind`` is "phi", "jac" (the row's non-zero entries by column), "nu" or "gamma"."""
-    out: list[Group] = []
+def _runs(rows: list[Row]) -> list[tuple[int, int]]:
+    """(start, end) of each run of consecutive rows of one joint, driver or normalization."""
+    runs = []
     start = 0
     while start < len(rows):
         end = start + 1
         while end < len(rows) and rows[end].group and rows[end].group == rows[start].group:
             end += 1
-        members = rows[start:end]
+        runs.append((start, end))
         start = end
+    return runs
+
+
+def _groups(rows: list[Row], templates: Templates | None, kind: str) -> tuple[Group, ...]:
+    """Rows in groups (one joint, driver or normalization each) with their shape keys.
+
+    ``kind`` is "phi", "jac" (the row's non-zero entries by column), "nu" or "gamma"."""
+    out: list[Group] = []
+    for start, end in _runs(rows):
+        members = rows[start:end]
         if templates is None or any(r.shape is None for r in members):
             out.append(Group(None, lambda members=members: _real(members, kind), {}))
             continue
@@ -292,9 +319,9 @@ def _by_design(expr: sp.Expr, symbols: tuple[sp.Symbol, ...]) -> list[tuple[int,
     return [(k, d) for k, p in enumerate(symbols) if p in free for d in [expr.diff(p)] if d != 0]
 
 
-def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list[tuple[int, int, sp.Expr]]:
-    """Phi_p of ``rows``: (row, parameter, dPhi/dp) of every entry not identically zero, row-major."""
-    return [(i, k, d) for i, row in enumerate(rows) for k, d in _by_design(row.phi, symbols)]
+def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list[list[tuple[int, sp.Expr]]]:
+    """Phi_p of ``rows``: per row the (parameter, dPhi/dp) of every entry not identically zero."""
+    return [_by_design(row.phi, symbols) for row in rows]
 
 
 def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.Symbol, ...]:
@@ -302,46 +329,76 @@ def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.
     return tuple(sp.Symbol(letter + str(s)[1:], real=True) for s in symbols)
 
 
-def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...]) -> tuple:
+def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...]) -> tuple[list, list]:
     """What the runtime needs to differentiate the velocity and acceleration solves by the
-    design parameters, row by row. With Phi(q(p), u, p) = 0 solved, a parameter moves the
-    configuration along S = dq/dp, the velocities by V, the accelerations by W; differentiating
-    Phi_q v = nu and Phi_q a = gamma gives Phi_q V = -(zeta_v(S) + eta_v) and
-    Phi_q W = -(zeta_a(S, V) + eta_a) with, per row,
-    zeta_v = D_S(Phi_q v - nu), eta_v = d(Phi_q v - nu)/dp, zeta_a = D_S(Phi_q a - gamma) +
-    d(Phi_q a - gamma)/dv . V, eta_a = d(Phi_q a - gamma)/dp (D_S: the change as the
-    configuration moves along S, in the direction symbols w; V in the symbols y).
+    design parameters, row by row, as sparse matrices. With Phi(q(p), u, p) = 0 solved, a
+    parameter moves the configuration along S = dq/dp, the velocities by V and the
+    accelerations by W; differentiating Phi_q v = nu and Phi_q a = gamma gives
+    Phi_q V = -(M_v S + E_v) and Phi_q W = -(M_a S + N_a V + E_a), with
+    M_v = D_q(Phi_q v - nu), E_v = d(Phi_q v - nu)/dp, M_a = D_q(Phi_q a - gamma),
+    N_a = d(Phi_q a - gamma)/dv, E_a = d(Phi_q a - gamma)/dp (D_q: the derivatives along the
+    velocity coordinates' tangent directions, as for Phi_q).
 
-    Returns (zeta_v, eta_v, zeta_a, eta_a), the etas as (row, parameter, expression)."""
+    Returns (dvel, dacc): per row the (column, expression) entries of [M_v | E_v] (columns
+    0..n_v-1 the coordinates, then the parameters) and of [M_a | N_a | E_a] (n_v coordinate,
+    n_v velocity, then the parameter columns)."""
     v, a = coords.velocity_symbols, _acceleration_symbols(coords)
-    w, y = _direction_symbols(tuple(v), "w"), _direction_symbols(tuple(v), "y")
+    n = len(v)
     by_column = {c: k for k, body in enumerate(coords.bodies) for c in range(body.velocity_offset, body.velocity_offset + len(body.velocity))}
-    zeta_v, eta_v, zeta_a, eta_a = [], [], [], []
-    for i, row in enumerate(rows):
-        zv, ev, za, ea = _sensitivity_row(row, coords, symbols, by_column, v, a, w, y)
-        zeta_v.append(zv)
-        zeta_a.append(za)
-        eta_v += [(i, k, d) for k, d in ev]
-        eta_a += [(i, k, d) for k, d in ea]
-    return zeta_v, eta_v, zeta_a, eta_a
+    dvel, dacc = [], []
+    for row in rows:
+        columns = row.jacobian_columns
+        bodies = [coords.bodies[k] for k in dict.fromkeys(by_column[c] for c in columns)]
+        jacobian = row.jacobian
+        velocity = sum((jacobian[c] * v[c] for c in columns), sp.Integer(0)) - row.nu
+        acceleration = sum((jacobian[c] * a[c] for c in columns), sp.Integer(0)) - row.gamma
+        # every velocity coordinate of the row's bodies: gamma may hold one whose Phi_q entry is zero
+        # (a point row's y component has no theta_y column, its gamma has omega_y^2)
+        velocities = [c for b in bodies for c in range(b.velocity_offset, b.velocity_offset + len(b.velocity))]
+        if row.is_driver:
+            m_v = tangent_jacobian(velocity, bodies)
+            n_a = {c: d for c in velocities if v[c] in acceleration.free_symbols for d in [acceleration.diff(v[c])] if d != 0}
+        else:
+            m_v, n_a = _joint_rates(jacobian, columns, velocities, bodies, v)
+        dvel.append([*sorted(m_v.items()), *((n + k, d) for k, d in _by_design(velocity, symbols))])
+        dacc.append([
+            *sorted(tangent_jacobian(acceleration, bodies).items()), *((n + c, d) for c, d in sorted(n_a.items())),
+            *((2 * n + k, d) for k, d in _by_design(acceleration, symbols)),
+        ])  # fmt: skip
+    return dvel, dacc
 
 
-def _sensitivity_row(row: Row, coords: Coordinates, symbols, by_column, v, a, w, y) -> tuple:
-    """One row's (zeta_v, eta_v, zeta_a, eta_a) of :func:`_sensitivity_rows` (etas as (parameter, expression))."""
-    columns = row.jacobian_columns
-    bodies = [coords.bodies[k] for k in dict.fromkeys(by_column[c] for c in columns)]
-    directions = [w[b.velocity_offset : b.velocity_offset + len(b.velocity)] for b in bodies]
-    jacobian = row.jacobian
-    velocity = sum((jacobian[c] * v[c] for c in columns), sp.Integer(0)) - row.nu
-    acceleration = sum((jacobian[c] * a[c] for c in columns), sp.Integer(0)) - row.gamma
-    # every velocity coordinate of the row's bodies: gamma may hold one whose Phi_q entry is zero
-    # (a point row's y component has no theta_y column, its gamma has omega_y^2)
-    velocities = [c for b in bodies for c in range(b.velocity_offset, b.velocity_offset + len(b.velocity))]
-    by_velocity = sum((acceleration.diff(v[c]) * y[c] for c in velocities if v[c] in acceleration.free_symbols), sp.Integer(0))
-    return (
-        along(velocity, bodies, directions), _by_design(velocity, symbols),
-        along(acceleration, bodies, directions) + by_velocity, _by_design(acceleration, symbols),
-    )  # fmt: skip
+def _joint_rates(jacobian: dict[int, sp.Expr], columns: list[int], velocities: list[int], bodies, v) -> tuple[dict, dict]:
+    """M_v = D_q(Phi_q v) and N_a = d(Phi_q a - gamma)/dv of a row without time dependence (a joint
+    or a normalization), whose gamma is exactly -D_q(Phi_q v) v: from the second derivatives
+    H[c][k] = D_k(Phi_q[c]) (one tangent derivative of each Jacobian entry), M_v[k] = sum_c H[c][k] v_c
+    and, as Phi_q a - gamma = Phi_q a + sum_ck H[c][k] v_c v_k, N_a[j] = sum_k H[j][k] v_k + sum_c H[c][j] v_c.
+    Cheaper than differentiating gamma by every velocity coordinate (a third of the derivation)."""
+    zero = sp.Integer(0)
+    second = {c: tangent_jacobian(jacobian[c], bodies) for c in columns}
+    m_v = {k: total for k in velocities for total in [sp.Add(*(second[c][k] * v[c] for c in columns if k in second[c]))] if total != 0}
+    n_a = {}
+    for j in velocities:
+        total = sp.Add(*(e * v[k] for k, e in second.get(j, {}).items()), *(second[c][j] * v[c] for c in columns if j in second[c]))
+        if total != zero:
+            n_a[j] = total
+    return m_v, n_a
+
+
+def _entry_groups(rows: list[Row], entries: list[list[tuple[int, sp.Expr]]], key: tuple) -> tuple[Group, ...]:
+    """The entries of ``rows`` in groups of one joint, driver or normalization each (sharing
+    their subexpressions), keyed ``key + (first row,)``: eliminated once for every backend."""
+    groups: list[Group] = []
+    for start, end in _runs(rows):
+        values = [e for row in entries[start:end] for _, e in row]
+        if values:
+            groups.append(Group((*key, start), lambda values=values: values, {}))
+    return tuple(groups)
+
+
+def _pattern(entries: list[list[tuple[int, sp.Expr]]], first_row: int = 0) -> list[tuple[int, int]]:
+    """(row, column) of every entry, row-major, rows counted from ``first_row``."""
+    return [(first_row + i, c) for i, row in enumerate(entries) for c, _ in row]
 
 
 def point_expressions(model: Model) -> list[sp.Expr]:
@@ -372,24 +429,21 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
     section("joints_jac", ("q", *p), _groups(joints, templates, "jac"), n_joint_entries, f"Phi_q values of the joint rows ({n_joint_entries} entries).")
     section("joints_gamma", ("q", "v", *p), _groups(joints, templates, "gamma"), mj, "gamma of the joint rows (they do not depend on time).")
     design_symbols = tuple(d.symbol for d in model.design)
-    joint_p = _design_derivatives(joints, design_symbols)
-    if model.design:
-        section("joints_phi_p", ("q", "p"), (Group(None, lambda: [e for *_, e in joint_p], {}),), len(joint_p),
-                f"Phi_p values of the joint rows ({len(joint_p)} entries): derivatives by the design parameters.")  # fmt: skip
+    joint_sensitivity: dict[str, list] = {}
+    if model.design:  # the joint rows' parts of the sensitivity kernels, common to every case
+        joint_sensitivity["phi_p"] = _design_derivatives(joints, design_symbols)
+        joint_sensitivity["dvel"], joint_sensitivity["dacc"] = _sensitivity_rows(joints, coords, design_symbols)
+        for kind, slots_, doc in SENSITIVITY_SECTIONS:
+            entries = joint_sensitivity[kind]
+            size = sum(map(len, entries))
+            section(f"joints_{kind}", (*(s for s in slots_ if s not in ("u", "ud", "udd")), "p"), _entry_groups(joints, entries, (f"joints_{kind}",)),
+                    size, f"{doc} of the joint rows ({size} entries).")  # fmt: skip
     frames = section(
         "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
         "Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, "
         "angular acceleration (24 values, global).",
     )  # fmt: skip
     cases: dict[str, CaseDescription] = {}
-    joint_sensitivity: tuple = ()
-    if model.design:  # the joint rows' parts of the sensitivity kernels, common to every case
-        joint_sensitivity = _sensitivity_rows(joints, coords, design_symbols)
-        zeta_v, eta_v, zeta_a, eta_a = joint_sensitivity
-        for kind, slots_, zeta, eta in (("vsens", ("q", "v", "w", "p"), zeta_v, eta_v), ("asens", ("q", "v", "a", "w", "y", "p"), zeta_a, eta_a)):
-            values = [*zeta, *(e for *_, e in eta)]
-            section(f"joints_{kind}", slots_, (Group(None, lambda x=values: x, {}),), len(values),
-                    f"Sensitivity kernel part of the joint rows ({kind}): zeta per row, then the eta entries.")  # fmt: skip
     for name, system in systems.items():
         rows = system.rows
         drivers = rows[mj:]
@@ -418,36 +472,25 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
             "inputs": Kernel("inputs", ("t",), (Output("inputs", (f"inputs_{name}",), 3 * nd),),
                              f"Driver inputs of case {name!r} at time t: u, then du/dt, then d2u/dt2."),
         }  # fmt: skip
-        p_entries = list(joint_p)
-        sensitivity_patterns: tuple = ()
+        patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {}
         if model.design:
-            # [zeta of the joint rows, of the driver rows, eta entries of the joint rows, of the driver rows]
-            driver_zeta_v, driver_eta_v, driver_zeta_a, driver_eta_a = _sensitivity_rows(drivers, coords, design_symbols)
-            for kind, slots_, zeta, eta, doc in (
-                ("vsens", ("q", "v", "w", "u", "ud", "p"), driver_zeta_v, driver_eta_v, "zeta_v per driver row for the change w of q"),
-                ("asens", ("q", "v", "a", "w", "y", "u", "ud", "udd", "p"), driver_zeta_a, driver_eta_a,
-                 "zeta_a per driver row for the changes w of q and y of v"),
-            ):  # fmt: skip
-                values = [*zeta, *(e for *_, e in eta)]
-                section(f"drivers_{kind}_{name}", slots_, (Group(None, lambda x=values: x, {}),), len(values),
-                        f"Sensitivity kernel part of case {name!r}: {doc}, then its eta entries.")  # fmt: skip
-            joint_v, joint_a = joint_sensitivity[1], joint_sensitivity[3]
-            sensitivity_patterns = tuple(
-                tuple(x[j] for x in (*joint_eta, *((mj + i, k) for i, k, _ in driver_eta)))
-                for joint_eta, driver_eta in ((joint_v, driver_eta_v), (joint_a, driver_eta_a)) for j in (0, 1)
-            )
-        if model.design:
-            driver_p = [(mj + i, k, e) for i, k, e in _design_derivatives(drivers, design_symbols)]
-            p_entries += driver_p
-            section(f"drivers_phi_p_{name}", ("q", "u", "p"), (Group(None, lambda entries=driver_p: [e for *_, e in entries], {}),),
-                    len(driver_p), f"Phi_p values of the driver rows of case {name!r}.")  # fmt: skip
+            driver_sensitivity = {"phi_p": _design_derivatives(drivers, design_symbols)}
+            driver_sensitivity["dvel"], driver_sensitivity["dacc"] = _sensitivity_rows(drivers, coords, design_symbols)
+            for kind, slots_, doc in SENSITIVITY_SECTIONS:
+                entries = driver_sensitivity[kind]
+                size = sum(map(len, entries))
+                section(f"drivers_{kind}_{name}", (*slots_, "p"), _entry_groups(drivers, entries, (f"drivers_{kind}", name)),
+                        size, f"{doc} of the driver rows of case {name!r}.")  # fmt: skip
+                entries_pattern = _pattern(joint_sensitivity[kind]) + _pattern(entries, mj)
+                patterns[kind] = (tuple(i for i, _ in entries_pattern), tuple(j for _, j in entries_pattern))
+                kernels[kind] = Kernel(kind, (*slots_, "p"), (Output(kind, (f"joints_{kind}", f"drivers_{kind}_{name}"), len(entries_pattern)),),
+                                       f"{SENSITIVITY_KERNELS[kind]} of case {name!r}: values at {kind}_rows, {kind}_cols.")  # fmt: skip
         rows_, cols_ = tuple(i for i, _ in pattern), tuple(j for _, j in pattern)
         case = system.case
         cases[name] = CaseDescription(
             name, float(case.t0), float(case.t1), case.steps, tuple(r.name for r in rows), tuple(inputs.names),
             tuple(inputs.sources), rows_, cols_, {"u": tuple(inputs.u), "ud": tuple(inputs.ud), "udd": tuple(inputs.udd)},
-            kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))),
-            tuple(i for i, *_ in p_entries), tuple(k for _, k, _ in p_entries), *sensitivity_patterns,
+            kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))), patterns,
         )  # fmt: skip
     shared = {"frames": Kernel("frames", ("q", "v", "a"), (Output(frames, (frames,), sections[frames].size),), sections[frames].doc)}
     slots = {"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)}

@@ -89,12 +89,20 @@ class Model(ctypes.Structure):
     ]  # fmt: skip
 
 
+class SparsePattern(ctypes.Structure):
+    """``kinegen_pattern`` of kinegen_solver.h."""
+
+    _fields_ = [("n", ctypes.c_int), ("rows", ctypes.c_void_p), ("cols", ctypes.c_void_p)]
+
+
 class DesignModel(ctypes.Structure):
     """``kinegen_design_model`` of kinegen_solver.h: a case of a model with design parameters."""
 
     _fields_ = [
         ("model", Model), ("n_design", ctypes.c_int), ("nominal", ctypes.c_void_p),
         ("phi_jac", ctypes.c_void_p), ("nu", ctypes.c_void_p), ("gamma", ctypes.c_void_p),
+        ("phi_p_pattern", SparsePattern), ("dvel_pattern", SparsePattern), ("dacc_pattern", SparsePattern),
+        ("phi_p", ctypes.c_void_p), ("dvel", ctypes.c_void_p), ("dacc", ctypes.c_void_p), ("sensitivity_doubles", ctypes.c_int),
     ]  # fmt: skip
 
 
@@ -280,6 +288,7 @@ def _library(path: str) -> ctypes.CDLL:
         ("kinegen_solve_batch", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 5]),
         ("kinegen_newton", ctypes.c_int, [ctypes.c_void_p] * 6),
         ("kinegen_set_design", None, [ctypes.c_void_p] * 2),
+        ("kinegen_sensitivities", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 10]),
     ):
         function = getattr(library, name)
         function.restype, function.argtypes = restype, argtypes
@@ -321,9 +330,11 @@ class NativeCase:
         self.n_q, self.n_v, self.n_inputs, self.n_jac = m.n_q, m.n_v, m.n_inputs, m.n_jac
         #: the design parameters the kernels and solvers take (None without them)
         self.design = None
+        self.sensitivity_doubles = 0  #: work of kinegen_sensitivities (0: the model has no sensitivity kernels)
         owner = m
         if not m.phi_jac:  # a model with design parameters: its kernels take them last
             owner = DesignModel.in_dll(library, symbol)
+            self.sensitivity_doubles = owner.sensitivity_doubles
             nominal = np.ctypeslib.as_array(ctypes.cast(owner.nominal, _DOUBLE_P), (owner.n_design,))
             self.design = np.array(nominal if design is None else design, dtype=float)
         self.kernels = {
@@ -355,6 +366,18 @@ class NativeCase:
         a = self._address
         self.kernels["gamma"](a["_q"], a["_v"], a["_u"], a["_ud"], a["_udd"], *self._p, a["_phi"])
         return self._phi.copy()
+
+    def sensitivities(self, q, v, a, u, ud, udd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """dq/dp, dv/dp, da/dp (each (K, n_v, n_design)) at the K columns of q (n_q, K), v, a
+        (n_v, K) and the inputs u, ud, udd (n_inputs, K), by ``kinegen_sensitivities`` (one LU of
+        Phi_q per time point); NaN where Phi_q is singular."""
+        rows = [np.ascontiguousarray(np.asarray(x, dtype=float).T) for x in (q, v, a, u, ud, udd)]
+        count = rows[0].shape[0]
+        out = tuple(np.empty((count, self.n_v, len(self.design))) for _ in range(3))
+        work = np.empty(self.sensitivity_doubles)
+        solver = self.solver(Options(1e-10, 1e-14, 1e8, 0.1, 0.5, 1e-3, 25, 0, 0, 0, 0, 0))
+        self.library.kinegen_sensitivities(solver.pointer, count, *(x.ctypes.data for x in (*rows, *out, work)))
+        return out
 
     def solver(self, options: Options) -> NativeSolver:
         """A C solver instance of this case (its own workspace)."""

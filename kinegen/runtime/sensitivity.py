@@ -4,14 +4,15 @@ At every time point the constraints hold, Φ(q(p), u(t), p) = 0, so by implicit
 differentiation ``Φ_q S + Φ_p = 0``: the configuration sensitivities ``S = dq/dp = −Φ_q⁻¹ Φ_p``
 (n_v × n_design, in velocity coordinates: a change of the pose along the parametrization's
 tangent directions, like a velocity). Differentiating the velocity and acceleration
-equations ``Φ_q v = ν`` and ``Φ_q a = γ`` the same way gives ``Φ_q V = −(ζ_v(S) + η_v)`` and
-``Φ_q W = −(ζ_a(S, V) + η_a)`` for V = dv/dp and W = da/dp, with ζ and η generated exactly
-per constraint (:func:`kinegen.codegen.kernels._sensitivity_rows`). Φ_q is factored once per
-time point (the solver's LU) for the three solves; the kernels run once over all (time point,
-parameter) pairs. A frame's and a named point's
-position, velocity and acceleration then change as the generated ``frames_d`` kernel says
-(the frames' 24 values moved along (S, V, W)) plus what the point's own body coordinates do
-(ds/dp).
+equations ``Φ_q v = ν`` and ``Φ_q a = γ`` the same way gives ``Φ_q V = −(M_v S + E_v)`` and
+``Φ_q W = −(M_a S + N_a V + E_a)`` for V = dv/dp and W = da/dp, with the sparse matrices
+``[M_v | E_v]`` (kernel ``dvel``) and ``[M_a | N_a | E_a]`` (kernel ``dacc``) generated exactly
+(:data:`kinegen.codegen.kernels.SENSITIVITY_KERNELS`). Each kernel runs once per time point, for
+all parameters; Φ_q is factored once per time point for the three solves -- in C
+(``kinegen_sensitivities``) on the compiled path, else by the solver's LU in NumPy. A frame's
+and a named point's position, velocity and acceleration then change as the generated
+``frames_d`` kernel says (the frames' 24 values moved along (S, V, W)) plus what the point's
+own body coordinates do (ds/dp).
 """
 
 from __future__ import annotations
@@ -25,19 +26,21 @@ from kinegen.runtime import linear
 
 if TYPE_CHECKING:
     from kinegen.runtime.results import Results
+    from kinegen.runtime.system import NumericSystem
 
 #: what a point sensitivity can be of
 KINDS = ("position", "velocity", "acceleration")
+#: time points per NumPy batch of the Python path (bounds its memory: entries x batch x n_design)
+BATCH = 64
 
 
 def _trajectory(results: Results) -> tuple[np.ndarray, ...]:
-    """The converged time points' indices, then q, v, a, u, ud, udd there (components first,
-    (n, K)) and the values of Phi_q at its pattern (n_jac, K)."""
+    """The converged time points' indices, then q, v, a, u, ud, udd there (components first, (n, K))."""
     system = results.system
     done = np.flatnonzero(results.converged)
     q, v, a = results.q[done].T, results.v[done].T, results.a[done].T
     u, ud, udd = np.asarray(system.inputs(results.times[done]), dtype=float).reshape(3, system.n_inputs, len(done))
-    return done, q, v, a, u, ud, udd, np.asarray(system.jac(q, u), dtype=float).reshape(len(system.jac_rows), -1)
+    return done, q, v, a, u, ud, udd
 
 
 def _each(x: np.ndarray, n_design: int) -> np.ndarray:
@@ -51,37 +54,79 @@ def _pairs(x: np.ndarray) -> np.ndarray:
     return x.transpose(1, 0, 2).reshape(x.shape[1], -1)
 
 
-def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(dq/dp, dv/dp, da/dp) at every time point, each (K, n_v, n_design); NaN where the solve
-    did not converge. Phi_q is factored once per time point by the solver's own LU
-    (:func:`kinegen.runtime.linear.choose`: dense, or band for long chains)."""
-    system = results.system
+def _check(system: NumericSystem) -> None:
     if not system.design:
         raise ValueError(f"model {system.model!r} has no design parameters: nothing to differentiate by")
-    if system.phi_p is None or system.vsens is None:
+    if not system.sensitivity_kernels:
         raise ValueError(f"the module of {system.model!r} has no sensitivity kernels (built by an older kinegen): rebuild it")
-    m, n, n_design = len(system.constraint_names), system.n_velocity, len(system.design)
-    if m != n:
-        raise ValueError(f"Phi_q of {system.model!r}/{system.case} is {m} x {n} (redundant constraints): sensitivities need it square")
-    done, q, v, a, u, ud, udd, jac = _trajectory(results)
-    count = len(done)
-    lu = linear.choose(system.jac_rows, system.jac_cols, (m, n))
-    factors = [lu.factor(jac[:, k])[0] for k in range(count)]
+    if len(system.constraint_names) != system.n_velocity:
+        raise ValueError(
+            f"Phi_q of {system.model!r}/{system.case} is {len(system.constraint_names)} x {system.n_velocity} "
+            "(redundant constraints): sensitivities need it square"
+        )
 
-    def solve(rhs: np.ndarray) -> np.ndarray:  # (K, m, n_design), each time point by its factors
-        return np.stack([lu.solve(f, b) for f, b in zip(factors, rhs)]) if count else rhs.copy()
 
-    design = np.zeros((count, m, n_design))
-    design[:, system.p_rows, system.p_cols] = np.asarray(system.phi_p(q, u)).reshape(len(system.p_rows), -1).T
-    s = -solve(design)
-    q_, v_, u_, ud_ = (_each(x, n_design) for x in (q, v, u, ud))
-    rhs = _values(system.vsens(q_, v_, _pairs(s), u_, ud_), m, count, n_design, system.sensitivity_patterns["vsens"])
-    velocity = -solve(rhs)
-    values = system.asens(q_, v_, _each(a, n_design), _pairs(s), _pairs(velocity), u_, ud_, _each(udd, n_design))
-    acceleration = -solve(_values(values, m, count, n_design, system.sensitivity_patterns["asens"]))
+def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """(dq/dp, dv/dp, da/dp) at every time point, each (K, n_v, n_design); NaN where the solve
+    did not converge (or Φ_q is singular). On the compiled path one C call does every time
+    point; else Φ_q is factored once per time point by the solver's own LU
+    (:func:`kinegen.runtime.linear.choose`: dense, or band for long chains)."""
+    system = results.system
+    _check(system)
+    n, n_design = system.n_velocity, len(system.design)
+    done, *state = _trajectory(results)
+    if system.native is not None and system.native.sensitivity_doubles:
+        parts = system.native.sensitivities(*state)
+    else:
+        parts = _python_sensitivities(system, *state)
     out = tuple(np.full((len(results.times), n, n_design), np.nan) for _ in range(3))
-    for full, part in zip(out, (s, velocity, acceleration)):
+    for full, part in zip(out, parts):
         full[done] = part
+    return out
+
+
+def _python_sensitivities(system: NumericSystem, q, v, a, u, ud, udd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """:func:`state_sensitivities` at the columns of (q, v, a, u, ud, udd) in NumPy, each kernel
+    called once per batch of :data:`BATCH` time points."""
+    m, n_design = system.n_velocity, len(system.design)
+    count = q.shape[1]
+    lu = linear.choose(system.jac_rows, system.jac_cols, (m, m))
+    kernels, patterns = system.sensitivity_kernels, system.sensitivity_patterns
+    out = tuple(np.empty((count, m, n_design)) for _ in range(3))
+    for first in range(0, count, BATCH):
+        k = slice(first, min(first + BATCH, count))
+        jac = np.asarray(system.jac(q[:, k], u[:, k]), dtype=float).reshape(len(system.jac_rows), -1)
+        factors = [lu.factor(jac[:, i])[0] for i in range(jac.shape[1])]
+
+        def solve(rhs: np.ndarray, factors=factors) -> np.ndarray:  # -Phi_q^-1 rhs, (K, m, n_design)
+            return -np.stack([lu.solve(f, b) for f, b in zip(factors, rhs)])
+
+        shape = (len(factors), m, n_design)
+        s = solve(_sparse_times(patterns["phi_p"], kernels["phi_p"](q[:, k], u[:, k]), shape, 0))
+        velocity = solve(_sparse_times(patterns["dvel"], kernels["dvel"](q[:, k], v[:, k], u[:, k], ud[:, k]), shape, m, s))
+        values = kernels["dacc"](q[:, k], v[:, k], a[:, k], u[:, k], ud[:, k], udd[:, k])
+        acceleration = solve(_sparse_times(patterns["dacc"], values, shape, 2 * m, s, velocity))
+        for full, part in zip(out, (s, velocity, acceleration)):
+            full[k] = part
+    return out
+
+
+def _sparse_times(pattern: tuple[np.ndarray, np.ndarray], values, shape: tuple[int, int, int], first_parameter: int,
+                  *blocks: np.ndarray) -> np.ndarray:  # fmt: skip
+    """The sparse matrix given by ``values`` (n_entries, K) at ``pattern`` times [blocks...; I]
+    at every time point: ``shape`` = (K, m, n_design). Columns below ``first_parameter`` multiply
+    the rows of the blocks (each (K, m, n_design), stacked), the others are the parameters'
+    (identity)."""
+    rows, cols = pattern
+    values = np.broadcast_to(np.asarray(values, dtype=float).reshape(len(rows), -1), (len(rows), shape[0]))
+    out = np.zeros(shape)
+    by_state = cols < first_parameter
+    if blocks:
+        stacked = np.concatenate(blocks, axis=1)  # (K, first_parameter, n_design)
+        products = values[by_state].T[:, :, None] * stacked[:, cols[by_state], :]  # (K, entries, n_design)
+        np.add.at(out, (slice(None), rows[by_state]), products)
+    parameter = ~by_state
+    np.add.at(out, (slice(None), rows[parameter], cols[parameter] - first_parameter), values[parameter].T)
     return out
 
 
@@ -97,40 +142,31 @@ def frame_sensitivities(results: Results) -> np.ndarray:
     return np.asarray(changes, dtype=float).reshape(len(system.bodies), 24, count, n_design).transpose(2, 0, 1, 3)
 
 
-def singular_value_sensitivity(results: Results) -> tuple[np.ndarray, np.ndarray]:
+def singular_value_sensitivity(results: Results, block: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The smallest singular value σ of Φ_q at every time point (K,) -- the distance to a
     singular pose -- and its exact derivative by the design parameters (K, n_design):
-    dσ/dp = uᵀ (dΦ_q/dp) x with u, x its singular vectors and dΦ_q/dp x = D_S(Φ_q x) + ∂_p(Φ_q x)
-    (the velocity sensitivity kernel with x in place of v and no time rates). NaN where the
-    solve did not converge."""
+    dσ/dp = uᵀ (dΦ_q/dp) x with u, x its singular vectors and dΦ_q/dp x = M_v(x) S + E_v(x)
+    (the ``dvel`` kernel with x in place of v and no time rates). With ``block`` (rows,
+    columns of Φ_q), of that block instead: a diagonal block of Φ_q's block-triangular form,
+    where a singularity shows undiluted by the rest of the mechanism. NaN where the solve did
+    not converge."""
     system = results.system
     s, _, _ = results.state_sensitivities()
-    m, n_design = len(system.constraint_names), len(system.design)
-    done, q, _, _, u, _, _, jac = _trajectory(results)
-    count = len(done)
-    jacobian = np.zeros((count, m, system.n_velocity))
-    jacobian[:, system.jac_rows, system.jac_cols] = jac.T
-    left, values, right = np.linalg.svd(jacobian)
-    smallest, x = values[:, -1], right[:, -1, :]  # (K,), (K, n)
-    u_ = _each(u, n_design)
-    out = system.vsens(_each(q, n_design), _each(x.T, n_design), _pairs(s[done]), u_, np.zeros_like(u_))
-    d_jacobian_x = _values(out, m, count, n_design, system.sensitivity_patterns["vsens"])  # (K, m, n_design)
+    m, n_design = system.n_velocity, len(system.design)
+    done, q, _, _, u, _, _ = _trajectory(results)
+    rows, cols = (np.arange(m), np.arange(m)) if block is None else (np.asarray(block[0]), np.asarray(block[1]))
+    jacobian = np.zeros((len(done), m, m))
+    jacobian[:, system.jac_rows, system.jac_cols] = np.asarray(system.jac(q, u), dtype=float).reshape(len(system.jac_rows), -1).T
+    left, values, right = np.linalg.svd(jacobian[:, rows][:, :, cols])
+    smallest = values[:, -1]
+    x = np.zeros((len(done), m))
+    x[:, cols] = right[:, -1, :]  # the right singular vector, zero outside the block's columns
+    dvel = system.sensitivity_kernels["dvel"](q, x.T, u, np.zeros_like(u))
+    d_jacobian_x = _sparse_times(system.sensitivity_patterns["dvel"], dvel, (len(done), m, n_design), m, s[done])
     sigma, derivative = np.full(len(results.times), np.nan), np.full((len(results.times), n_design), np.nan)
     sigma[done] = smallest
-    derivative[done] = np.einsum("ki,kij->kj", left[:, :, -1], d_jacobian_x)
+    derivative[done] = np.einsum("ki,kij->kj", left[:, :, -1], d_jacobian_x[:, rows])
     return sigma, derivative
-
-
-def _values(kernel_output: np.ndarray, m: int, count: int, n_design: int, pattern: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
-    """(count, m, n_design) from a sensitivity kernel's output over (time point, parameter) pairs:
-    the per-constraint values plus each parameter's entries of the sparse part."""
-    rows, cols = pattern
-    values = np.broadcast_to(np.asarray(kernel_output, dtype=float).reshape(m + len(rows), -1), (m + len(rows), count * n_design))
-    values = values.reshape(m + len(rows), count, n_design)
-    out = values[:m].transpose(1, 0, 2).copy()
-    for j, (row, col) in enumerate(zip(rows, cols)):
-        out[:, row, col] += values[m + j, :, col]
-    return out
 
 
 def point_sensitivity(results: Results, body: str, point: str, kind: str = "position") -> np.ndarray:

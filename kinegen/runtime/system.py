@@ -23,6 +23,9 @@ from kinegen import rotations
 from kinegen.errors import GeneratedModuleError, ModelError, shown
 from kinegen.runtime.linear import Pattern
 
+#: the sensitivity kernels of a module with design parameters (kinegen.codegen.kernels.SENSITIVITY_KERNELS)
+SENSITIVITY_KERNELS = ("phi_p", "dvel", "dacc")
+
 
 @dataclass(frozen=True)
 class NumericSystem:
@@ -65,18 +68,14 @@ class NumericSystem:
     ground_points: dict[str, tuple[float, float, float]] = field(default_factory=dict)
     #: the design parameters' values this system was made for (name -> value; empty without a design: section)
     design: dict[str, float] = field(default_factory=dict)
-    #: with design parameters: (q, u) -> the values of the sparse Phi_p at (p_rows, p_cols), p bound
-    phi_p: Callable[[np.ndarray, np.ndarray], np.ndarray] | None = None
-    p_rows: np.ndarray | None = None
-    p_cols: np.ndarray | None = None
     #: with design parameters: body -> point -> d(point, body coordinates)/dp, (3, n_design);
     #: the ground's points under "ground" (global)
     point_derivatives: dict[str, dict[str, np.ndarray]] = field(default_factory=dict)
     #: with design parameters, the sensitivity kernels (:mod:`kinegen.runtime.sensitivity`), p
-    #: bound: (q, v, w, u, ud) and (q, v, a, w, y, u, ud, udd) -> one value per constraint, then
-    #: the entries at (vsens_rows, vsens_cols) / (asens_rows, asens_cols); frames_d (q, v, a, w, y, z)
-    vsens: Callable[..., np.ndarray] | None = None
-    asens: Callable[..., np.ndarray] | None = None
+    #: bound: "phi_p" (q, u), "dvel" (q, v, u, ud), "dacc" (q, v, a, u, ud, udd) -> the values of
+    #: a sparse matrix at its pattern (``sensitivity_patterns[kind]``: rows, columns; see
+    #: :data:`kinegen.codegen.kernels.SENSITIVITY_KERNELS`); frames_d (q, v, a, w, y, z)
+    sensitivity_kernels: dict[str, Callable[..., np.ndarray]] = field(default_factory=dict)
     sensitivity_patterns: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     frames_d: Callable[..., np.ndarray] | None = None
 
@@ -239,20 +238,13 @@ def from_module(
         kernels = {k: None if f is None else _with_design(f, p) for k, f in kernels.items()}
         points, ground_points = _design_points(module, p)
         design_fields = {"design": dict(zip(module.DESIGN, p.tolist()))}
-        if "phi_p" in data:  # (modules built before kinegen had sensitivities lack it)
+        if "dvel" in data:  # (modules built before kinegen had these sensitivity kernels lack them)
             design_fields.update(
-                phi_p=_with_design(data["phi_p"], p),
-                p_rows=np.array(data["p_rows"], dtype=np.intp),
-                p_cols=np.array(data["p_cols"], dtype=np.intp),
                 point_derivatives=_design_point_derivatives(module, p),
-            )
-        if "vsens" in data:
-            design_fields.update(
-                vsens=_with_design(data["vsens"], p),
-                asens=_with_design(data["asens"], p),
+                sensitivity_kernels={kind: _with_design(data[kind], p) for kind in SENSITIVITY_KERNELS},
                 sensitivity_patterns={
                     kind: (np.array(data[f"{kind}_rows"], dtype=np.intp), np.array(data[f"{kind}_cols"], dtype=np.intp))
-                    for kind in ("vsens", "asens")
+                    for kind in SENSITIVITY_KERNELS
                 },
                 frames_d=module.frames_d,
             )

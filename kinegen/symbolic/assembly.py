@@ -418,32 +418,17 @@ def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None
     part of the time derivative is D_q(E) = sum_ij dE/da_ij A'_ij + dE/ds B(s) v.
     """
     phi = equation.expr
-    jacobian: dict[int, sp.Expr] = {}
     touched = [coords.body(name) for name in equation.bodies]
-    configuration = [s for body in touched for s in (*body.stored, *body.frame_symbols)]
-
-    def column(derivatives: dict[sp.Symbol, sp.Expr], body: BodyCoordinates, k: int) -> sp.Expr:
-        zero = sp.Integer(0)
-        total = zero
-        for symbol, entry in zip(body.frame_symbols, body.frame_derivatives(k)):
-            if entry != 0:
-                total += derivatives.get(symbol, zero) * entry
-        for s, b in zip(body.stored, body.velocity_map[:, k]):
-            if b != 0:
-                total += derivatives.get(s, zero) * b
-        return total
 
     def configuration_rate(expr: sp.Expr) -> sp.Expr:
         return along(expr, touched)
 
+    jacobian = tangent_jacobian(phi, touched)
     psi = sp.Integer(0)  # Phi_q v
-    gradient = _gradient(phi, configuration)
     for body in touched:
-        for k in range(len(body.velocity)):
-            entry = column(gradient, body, k)
-            if entry != 0:
-                jacobian[body.velocity_offset + k] = entry
-                psi += entry * body.velocity[k]
+        for k, velocity in enumerate(body.velocity):
+            if body.velocity_offset + k in jacobian:
+                psi += jacobian[body.velocity_offset + k] * velocity
     if inputs is None:  # a joint: no time dependence
         phi_t, gamma = sp.Integer(0), sp.Integer(0)
     else:
@@ -451,6 +436,29 @@ def _derive(equation: Equation, coords: Coordinates, inputs: DriverInputs | None
         gamma = -2 * inputs.time_derivative(psi) - inputs.time_derivative(phi_t)
     gamma -= configuration_rate(psi)
     return Row(equation.name, phi, jacobian, -phi_t, gamma, is_driver)
+
+
+def tangent_jacobian(expr: sp.Expr, bodies: list[BodyCoordinates]) -> dict[int, sp.Expr]:
+    """The derivatives of ``expr`` (written in the bodies' stored and frame symbols) along each
+    velocity coordinate's tangent direction, keyed by the coordinate's column (its body's
+    velocity offset + k), entries identically zero left out. With the chain rule, for velocity
+    coordinate k, d/dv_k = sum_ij d/da_ij (dA/dv_k)_ij + d/ds B(s)[:, k]; velocity and other
+    symbols in ``expr`` are held."""
+    gradient = _gradient(expr, [s for body in bodies for s in (*body.stored, *body.frame_symbols)])
+    zero = sp.Integer(0)
+    out: dict[int, sp.Expr] = {}
+    for body in bodies:
+        for k in range(len(body.velocity)):
+            total = zero
+            for symbol, entry in zip(body.frame_symbols, body.frame_derivatives(k)):
+                if entry != 0:
+                    total += gradient.get(symbol, zero) * entry
+            for s, b in zip(body.stored, body.velocity_map[:, k]):
+                if b != 0:
+                    total += gradient.get(s, zero) * b
+            if total != 0:
+                out[body.velocity_offset + k] = total
+    return out
 
 
 def along(expr: sp.Expr, bodies: list[BodyCoordinates], directions: list[tuple[sp.Symbol, ...]] | None = None) -> sp.Expr:

@@ -237,7 +237,8 @@ class _Model:
                 self.kernel(f"{kernel.name}_{name}", kernel, name)
             arrays = plan_arrays(case, case.plan)
             doubles, ints = work_sizes(d, case, arrays)
-            cases.append(SimpleNamespace(case=case, plan=arrays, doubles=doubles, ints=ints))
+            sensitivity = 2 * len(d.velocity_names) * len(d.design) + max((len(rows) for rows, _ in case.patterns.values()), default=0)
+            cases.append(SimpleNamespace(case=case, plan=arrays, doubles=doubles, ints=ints, sensitivity_doubles=sensitivity))
         self.kernel(f"{stem}_frames", d.kernels["frames"], None, static=False)
         points, index = [], {}
         bodies = [b for b, _, _ in d.bodies]
@@ -258,6 +259,7 @@ class _Model:
             "groups": [[macros.function(f) for f in group] for group in groups],
             "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
             "work_doubles": max(c.doubles for c in cases), "work_ints": max(c.ints for c in cases),
+            "sensitivity_doubles": max(c.sensitivity_doubles for c in cases),
             "max_inputs": max(1, *(len(c.case.drivers) for c in cases)),
         }  # fmt: skip
         return {

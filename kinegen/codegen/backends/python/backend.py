@@ -17,7 +17,7 @@ import sympy as sp
 
 from kinegen.codegen.backends.python import config
 from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter, used_numpy_names
-from kinegen.codegen.kernels import ModuleDescription, Section
+from kinegen.codegen.kernels import SENSITIVITY_KERNELS, ModuleDescription, Section
 from kinegen.codegen.shapes import Block, Printing
 from kinegen.codegen.templates import environment
 
@@ -135,9 +135,8 @@ class _Module:
         if "points" in d.kernels:
             self.array("points", d.kernels["points"].doc, "points", None, "np.zeros(({m},) + np.shape(p[0]))")
             self.array("points_p", d.sections["points_p"].doc, "points_p", None, "np.zeros(({m},) + np.shape(p[0]))")
-            self.array("_joints_phi_p", d.sections["joints_phi_p"].doc, "joints_phi_p", None, "_zeros({m}, q, ())")
             self.array("frames_d", d.sections["frames_d"].doc, "frames_d", None, "_zeros({m}, q, ())")
-            for kind in ("vsens", "asens"):
+            for kind in SENSITIVITY_KERNELS:
                 self.array(f"_joints_{kind}", d.sections[f"joints_{kind}"].doc, f"joints_{kind}", None, "_zeros({m}, q, ())")
         p = [", p", ["p"]] if d.design else ["", []]  # the design parameters' argument, last
         for name, case in d.cases.items():
@@ -145,25 +144,12 @@ class _Module:
             for kind in ("phi", "jac", "nu", "gamma"):
                 section = f"drivers_{kind}_{name}"
                 self.array(f"_{section}", d.sections[section].doc, section, name, "_zeros({m}, q, u)")
-            if d.design:
-                section = f"drivers_phi_p_{name}"
-                self.array(f"_{section}", d.sections[section].doc, section, name, "_zeros({m}, q, u)")
-                self.functions.append(_Function(
-                    "join", f"phi_p_{name}", ["q", "u", "p"],
-                    f"Values of the sparse Phi_p (by the design parameters) of case {name!r} at p_rows, p_cols.",
-                    first="_joints_phi_p(q, p)", second=f"_drivers_phi_p_{name}(q, u, p)",
-                ))  # fmt: skip
-                for kind, joint_args, args in (("vsens", "q, v, w, p", ["q", "v", "w", "u", "ud", "p"]),
-                                               ("asens", "q, v, a, w, y, p", ["q", "v", "a", "w", "y", "u", "ud", "udd", "p"])):
-                    section = f"drivers_{kind}_{name}"
-                    self.array(f"_{section}", d.sections[section].doc, section, name, "_zeros({m}, q, u)")
-                    md = case.kernels["phi_jac"].outputs[0].size - joints
-                    self.functions.append(_Function(
-                        "returns", f"{kind}_{name}", args,
-                        f"{kind} of case {name!r}: one value per constraint, then the entries at {kind}_rows, {kind}_cols.",
-                        [f"joints = _joints_{kind}({joint_args})", f"drivers = _{section}({', '.join(args)})"],
-                        result=f"_join(_join(joints[:{joints}], drivers[:{md}]), _join(joints[{joints}:], drivers[{md}:]))",
-                    ))  # fmt: skip
+            for kind in SENSITIVITY_KERNELS if d.design else ():
+                section, kernel = d.sections[f"drivers_{kind}_{name}"], case.kernels[kind]
+                self.array(f"_{section.name}", section.doc, section.name, name, "_zeros({m}, q, u)")
+                joint_args = ", ".join(d.sections[f"joints_{kind}"].slots)
+                self.functions.append(_Function("join", f"{kind}_{name}", list(kernel.slots), kernel.doc,
+                                                first=f"_joints_{kind}({joint_args})", second=f"_{section.name}({', '.join(section.slots)})"))  # fmt: skip
             self.scalar(f"_drivers_phi_jac_s_{name}", f"Phi and Phi_q values of the driver rows of case {name!r} at one configuration.",
                         [f"drivers_phi_{name}", f"drivers_jac_{name}"], name)  # fmt: skip
             self.scalar(f"_drivers_nu_s_{name}", f"nu of the driver rows of case {name!r} at one configuration.", [f"drivers_nu_{name}"], name)

@@ -484,6 +484,107 @@ int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iteration
     return status;
 }
 
+/* rhs (n_v x n_p, row-major) = the sparse matrix (values at pattern) times [X1; X2; I] (each n_v x
+ * n_p): columns below n_v multiply rows of X1, the next n_v rows of X2, and the columns from
+ * first_parameter on are the parameters' (identity). */
+static void sparse_times(const kinegen_pattern *pattern, const double *values, const double *X1, const double *X2, int nv,
+                         int np, int first_parameter, double *rhs) {
+    memset(rhs, 0, sizeof(double) * (size_t)nv * (size_t)np);
+    for (int e = 0; e < pattern->n; ++e) {
+        int c = pattern->cols[e];
+        double value = values[e], *row = rhs + (size_t)pattern->rows[e] * np;
+        if (c >= first_parameter) {
+            row[c - first_parameter] += value;
+        } else {
+            const double *x = c < nv ? X1 + (size_t)c * np : X2 + (size_t)(c - nv) * np;
+            for (int j = 0; j < np; ++j) row[j] += value * x[j];
+        }
+    }
+}
+
+/* out = -Phi_q^-1 rhs for n_p right-hand sides at once (rhs, out: n_v x n_p, row-major; y: n_v x n_p
+ * of work), with the current factors: solve() on rows of n_p values. */
+static void solve_negated(kinegen_solver *s, const double *rhs, int np, double *y, double *out) {
+    const kinegen_model *m = s->model;
+    for (int blk = 0; blk < m->n_blocks; ++blk) {
+        int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
+        const double *A = s->store + m->block_store[blk];
+        const int *piv = s->pivots + first;
+        double *r = y + (size_t)first * np;
+        for (int i = 0; i < n; ++i) {
+            int row = first + i;
+            double *ri = r + (size_t)i * np;
+            memcpy(ri, rhs + (size_t)m->row_order[row] * np, sizeof(double) * (size_t)np);
+            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) {
+                double f = s->off[e];
+                const double *yc = y + (size_t)m->off_col[e] * np;
+                for (int j = 0; j < np; ++j) ri[j] -= f * yc[j];
+            }
+        }
+        for (int k = 0; k < n; ++k) {
+            if (piv[k] != k) {
+                double *a = r + (size_t)k * np, *b = r + (size_t)piv[k] * np;
+                for (int j = 0; j < np; ++j) {
+                    double tmp = a[j];
+                    a[j] = b[j];
+                    b[j] = tmp;
+                }
+            }
+        }
+        for (int k = 0; k < n; ++k)
+            for (int i = k + 1; i < n; ++i) {
+                double f = A[i + k * n];
+                if (f != 0.0)
+                    for (int j = 0; j < np; ++j) r[(size_t)i * np + j] -= f * r[(size_t)k * np + j];
+            }
+        for (int k = n - 1; k >= 0; --k) {
+            double inverse = 1.0 / A[k + k * n];
+            for (int j = 0; j < np; ++j) r[(size_t)k * np + j] *= inverse;
+            for (int i = 0; i < k; ++i) {
+                double f = A[i + k * n];
+                if (f != 0.0)
+                    for (int j = 0; j < np; ++j) r[(size_t)i * np + j] -= f * r[(size_t)k * np + j];
+            }
+        }
+    }
+    for (int c = 0; c < m->n_v; ++c) {
+        const double *from = y + (size_t)c * np;
+        double *to = out + (size_t)m->col_order[c] * np;
+        for (int j = 0; j < np; ++j) to[j] = -from[j];
+    }
+}
+
+int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
+                          const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work) {
+    const kinegen_design_model *d = design_model(s->model);
+    if (d == NULL) return -1;
+    const kinegen_model *m = s->model;
+    int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, np = d->n_design;
+    size_t block = (size_t)nv * (size_t)np;
+    double *rhs = work, *y = work + block, *values = work + 2 * block;
+    for (int k = 0; k < count; ++k) {
+        const double *q = Q + (size_t)k * nq, *v = V + (size_t)k * nv, *a = A + (size_t)k * nv;
+        const double *u = U + (size_t)k * ni, *ud = UD + (size_t)k * ni, *udd = UDD + (size_t)k * ni;
+        double *sk = S + (size_t)k * block, *vk = DV + (size_t)k * block, *ak = DA + (size_t)k * block;
+        phi_jac(s, q, u, s->phi, s->jac);
+        if (factor(s, s->jac)) {
+            for (size_t i = 0; i < block; ++i) sk[i] = vk[i] = ak[i] = NAN;
+            continue;
+        }
+        d->phi_p(q, u, s->design, values);
+        sparse_times(&d->phi_p_pattern, values, NULL, NULL, nv, np, 0, rhs);
+        solve_negated(s, rhs, np, y, sk);
+        d->dvel(q, v, u, ud, s->design, values);
+        sparse_times(&d->dvel_pattern, values, sk, NULL, nv, np, nv, rhs);
+        solve_negated(s, rhs, np, y, vk);
+        d->dacc(q, v, a, u, ud, udd, s->design, values);
+        sparse_times(&d->dacc_pattern, values, sk, vk, nv, np, 2 * nv, rhs);
+        solve_negated(s, rhs, np, y, ak);
+    }
+    s->have_factors = 0;
+    return count;
+}
+
 const char *kinegen_status_text(int status) {
     switch (status) {
     case KINEGEN_OK:

@@ -112,10 +112,25 @@ typedef struct kinegen_model {
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
 } kinegen_model;
 
+/* A sparse matrix given by a kernel's values at a constant pattern (entry k at row rows[k],
+ * column cols[k]). */
+typedef struct kinegen_pattern {
+    int n;
+    const int *rows, *cols;
+} kinegen_pattern;
+
 /* A case of a model with design parameters (a design: section in its file): the model, whose
  * phi_jac, nu and gamma are NULL, then its n_design parameters' nominal values and the kernels
  * taking the parameters p last (kinegen_set_design; by default the nominal values). A pointer
- * to it is a pointer to its model, which is what the solver takes. */
+ * to it is a pointer to its model, which is what the solver takes.
+ *
+ * Then the kernels of the exact sensitivities (kinegen_sensitivities), each a sparse matrix
+ * (n_v rows; n_v velocity coordinates, n_p = n_design parameters):
+ *   phi_p: Phi_p = dPhi/dp (n_p columns);
+ *   dvel:  [M_v | E_v], M_v = D_q(Phi_q v - nu), E_v = d(Phi_q v - nu)/dp (n_v + n_p columns);
+ *   dacc:  [M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv,
+ *          E_a = d(Phi_q a - gamma)/dp (2 n_v + n_p columns);
+ * D_q: derivatives along the velocity coordinates' tangent directions, as for Phi_q. */
 typedef struct kinegen_design_model {
     kinegen_model model;
     int n_design;
@@ -124,6 +139,12 @@ typedef struct kinegen_design_model {
     void (*nu)(const double *q, const double *u, const double *ud, const double *p, double *nu);
     void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p,
                   double *gamma);
+    kinegen_pattern phi_p_pattern, dvel_pattern, dacc_pattern;
+    void (*phi_p)(const double *q, const double *u, const double *p, double *out);
+    void (*dvel)(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
+    void (*dacc)(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd,
+                 const double *p, double *out);
+    int sensitivity_doubles; /* what kinegen_sensitivities needs as work: 2 n_v n_p + the largest kernel output */
 } kinegen_design_model;
 
 /* One solver instance. After a call returning KINEGEN_OK: q, v, a at time t, and the step's
@@ -187,6 +208,17 @@ int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q
 /* Full Newton from q (in place) for inputs u: its iterations, final max |Phi| and the summed
  * max-norm of its steps. The solver's state stays as it was (not its factors). */
 int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iterations, double *residual, double *travel);
+
+/* Exact sensitivities by the design parameters along a solved trajectory (a model with design
+ * parameters; the solver's design values): at each of count time points, rows of Q (count x n_q),
+ * V, A (count x n_v) and of the inputs U, UD, UDD (count x n_inputs), row-major, it factors Phi_q
+ * once and writes S = dq/dp = -Phi_q^-1 Phi_p, DV = dv/dp = -Phi_q^-1 (M_v S + E_v) and
+ * DA = da/dp = -Phi_q^-1 (M_a S + N_a DV + E_a), each count x n_v x n_design (row-major; q's
+ * change in velocity coordinates). work: the design model's sensitivity_doubles. A time point
+ * whose Phi_q is singular gets NaN. Returns the number of time points done (count), or -1 for a
+ * model without design parameters. The solver's state stays as it was (not its factors). */
+int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
+                          const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work);
 
 const char *kinegen_status_text(int status);
 
