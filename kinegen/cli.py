@@ -81,7 +81,13 @@ def _parametrization(name: str) -> rotations.Parametrization:
     type=click.Path(file_okay=False),
     help="Where files are written (default: generated/ for python, <model>_<param>_c/ for c).",
 )
-def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | None) -> None:
+@click.option(
+    "--no-sensitivities",
+    is_flag=True,
+    help="A model with design parameters: leave out the kernels of its exact sensitivities (the larger part of "
+    "such a build); the module still solves any design.",
+)
+def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | None, no_sensitivities: bool) -> None:
     """Build MODEL_FILE into generated/<model>_<param>.py (and .c/.h), or a standalone C directory.
 
     Before anything is written, every case's time functions are checked on its time grid
@@ -102,7 +108,7 @@ def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | 
 
         if target == "c":
             folder = out_dir or f"{module_name(load(model_file), param)}_c"
-            path = build_module(model_file, param.name, folder, check=check, targets=("c",))
+            path = build_module(model_file, param.name, folder, check=check, targets=("c",), sensitivities=not no_sensitivities)
         else:  # the model's C compiles for the runtime (cached) while the Python is printed and checked
             compiling: list = []
 
@@ -112,7 +118,7 @@ def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | 
 
                     compiling.append(compile_in_background(files))
 
-            path = build_module(model_file, param.name, out_dir or "generated", check=check, ready=ready)
+            path = build_module(model_file, param.name, out_dir or "generated", check=check, ready=ready, sensitivities=not no_sensitivities)
             for thread in compiling:
                 thread.join()
         elapsed = time.perf_counter() - start
@@ -157,7 +163,7 @@ def _system(
     its compiled C when there is a compiler (``compiled`` None), or not (False); a model's
     design parameters at ``design`` (nominal for those not given)."""
     from kinegen.codegen import build as build_module
-    from kinegen.codegen import module_name
+    from kinegen.codegen import built_with_sensitivities, module_name
     from kinegen.model import load
     from kinegen.runtime import check_source, from_module, load_module
 
@@ -167,7 +173,8 @@ def _system(
         module = load_module(path, model_file)
     except GeneratedModuleError:
         click.echo(f"building {path} (missing or stale)", err=True)
-        module = load_module(build_module(model_file, param.name, generated_dir, check=check_source), model_file)
+        keep = built_with_sensitivities(path) is not False  # a stale module built without them is rebuilt without them
+        module = load_module(build_module(model_file, param.name, generated_dir, check=check_source, sensitivities=keep), model_file)
     if design:
         try:
             system = from_module(module, case, compiled, design)

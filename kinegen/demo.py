@@ -31,6 +31,10 @@ MAIN_JOB: dict[str, tuple[str, ...]] = {
     "rssr.yaml": ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters"),
     "excavator.yaml": ("quaternion", "euler-parameters", "euler:zxz", "euler:zxy", "dual-quaternion", "dual-euler-parameters"),
 }
+#: The parametrization whose committed module of a model with design parameters holds the
+#: sensitivity kernels (the others are built with ``sensitivities=False``: they solve designs,
+#: and their builds stay short).
+SENSITIVITIES = "quaternion"
 
 
 def module_path(models: Path, generated: Path, name: str, param: str) -> Path:
@@ -54,7 +58,7 @@ def regenerate(models: Path, generated: Path, force: bool = True) -> dict[tuple[
                         continue
                 except GeneratedModuleError:
                     pass
-            paths[name, param] = build(models / name, param, generated)
+            paths[name, param] = build(models / name, param, generated, sensitivities=param == SENSITIVITIES)
     return paths
 
 

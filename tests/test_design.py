@@ -150,9 +150,11 @@ def test_in_memory_lambdify_asks_for_numbers():
         lambdify_model(loads(design_model(), "slider_crank_design.yaml"), rotations.get("quaternion"))
 
 
-def test_the_c_of_a_design_model_compiles_strictly(tmp_path):
-    """The model's C with the kernels taking p and kinegen_design_model, and the solver, with
-    the machine's cc: C99, every warning an error."""
+@pytest.mark.parametrize("sensitivities", [True, False])
+def test_the_c_of_a_design_model_compiles_strictly(tmp_path, sensitivities):
+    """The model's C with the kernels taking p and kinegen_design_model (with the sensitivity
+    kernels, or built without them), and the solver, with the machine's cc: C99, every warning
+    an error."""
     import shutil
     import subprocess
 
@@ -163,7 +165,7 @@ def test_the_c_of_a_design_model_compiles_strictly(tmp_path):
     if compiler is None:
         pytest.skip("no C compiler (cc) on this machine")
     model = loads(design_model(), "slider_crank_design.yaml")
-    files = with_solver(generate(model, rotations.get("quaternion"), ("c-model",))["c-model"])
+    files = with_solver(generate(model, rotations.get("quaternion"), ("c-model",), sensitivities=sensitivities)["c-model"])
     for name, text in files.items():
         (tmp_path / name).write_text(text)
     for name in (n for n in files if n.endswith(".c")):
@@ -171,6 +173,33 @@ def test_the_c_of_a_design_model_compiles_strictly(tmp_path):
         done = subprocess.run([compiler, *flags, str(tmp_path / name)], capture_output=True, text=True)
         assert done.returncode == 0, done.stderr
     assert "const kinegen_design_model slider_crank_quaternion_run = { {" in files["slider_crank_quaternion.c"]
+    assert ("dacc_run(" in files["slider_crank_quaternion.c"]) == sensitivities
+    assert f"sensitivities:   {'yes' if sensitivities else 'no'}" in files["slider_crank_quaternion.h"]
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_a_module_built_without_sensitivity_kernels_solves_designs_and_says_what_it_lacks(tmp_path, compiled):
+    """``kinegen build --no-sensitivities``: the same solutions at any design as the full module,
+    its header says so, and asking it for sensitivities names the way out."""
+    from kinegen.codegen import built_with_sensitivities, generate
+    from kinegen.runtime import load_module
+
+    model = loads(design_model(), "slider_crank_design.yaml")
+    for folder, sensitivities in ((tmp_path / "full", True), (tmp_path / "lean", False)):
+        folder.mkdir()
+        for files in generate(model, rotations.get("quaternion"), sensitivities=sensitivities).values():
+            for file, text in files.items():
+                (folder / file).write_text(text)
+        assert built_with_sensitivities(folder / "slider_crank_quaternion.py") is sensitivities
+        assert built_with_sensitivities(folder / "slider_crank_quaternion.c") is sensitivities
+    full, lean = (load_module(tmp_path / f / "slider_crank_quaternion.py") for f in ("full", "lean"))
+    assert "dvel_run" in dir(full) and "dvel_run" not in dir(lean)
+    design = {"r": 0.22, "l": 0.57}
+    a, b = (solve(from_module(m, "run", compiled=compiled, design=design)) for m in (full, lean))
+    assert np.abs(a.q - b.q).max() == 0.0
+    with pytest.raises(ValueError, match=r"has no sensitivity kernels .*--no-sensitivities.*rebuild it"):
+        b.sensitivity("slider", "C", "r")
+    assert built_with_sensitivities(MODELS / "slider_crank.yaml") is None
 
 
 def test_the_standalone_c_of_a_design_model_matches_python_at_the_nominal(tmp_path):

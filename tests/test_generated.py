@@ -11,7 +11,7 @@ import numpy as np
 import pytest
 
 from kinegen import rotations
-from kinegen.codegen import build, generate, write_atomic
+from kinegen.codegen import build, built_with_sensitivities, generate, write_atomic
 from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import GeneratedModuleError, ModelError
 from kinegen.model import load
@@ -36,7 +36,7 @@ def test_committed_module_is_fresh(path):
     text = path.read_text()
     source = MODELS / header_field(text, "source")
     param = rotations.get(header_field(text, "parametrization"))
-    made = generate(load(source), param)
+    made = generate(load(source), param, sensitivities=built_with_sensitivities(path) is not False)
     files = {**made["python"], **made["c-model"]}
     assert set(files) == {path.name, path.with_suffix(".c").name, path.with_suffix(".h").name}
     for name, fresh in files.items():

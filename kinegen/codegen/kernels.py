@@ -188,6 +188,8 @@ class ModuleDescription:
     shapes: Shapes = field(default_factory=Shapes)
     #: design parameters: name, nominal, lower, upper (empty: no ``p`` slot anywhere)
     design: tuple[tuple[str, float, float, float], ...] = ()
+    #: a model with design parameters: whether the sensitivity kernels are there
+    sensitivities: bool = False
 
     @property
     def joint_rows(self) -> int:
@@ -409,8 +411,13 @@ def point_expressions(model: Model) -> list[sp.Expr]:
     return values + [x for point in model.ground_points.values() for x in point]
 
 
-def describe(model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None) -> ModuleDescription:
-    """The kernel description of ``model`` (every case) in ``parametrization``."""
+def describe(
+    model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None, sensitivities: bool = True
+) -> ModuleDescription:
+    """The kernel description of ``model`` (every case) in ``parametrization``. A model with
+    design parameters gets the sensitivity kernels (:data:`SENSITIVITY_KERNELS`, ``frames_d``,
+    ``points_p``) unless ``sensitivities`` is False: they are the largest part of such a build
+    (second derivatives of gamma), and a module that only solves designs does not need them."""
     systems = systems or build_systems(model, parametrization)
     first = next(iter(systems.values()))
     coords = first.coordinates
@@ -429,8 +436,9 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
     section("joints_jac", ("q", *p), _groups(joints, templates, "jac"), n_joint_entries, f"Phi_q values of the joint rows ({n_joint_entries} entries).")
     section("joints_gamma", ("q", "v", *p), _groups(joints, templates, "gamma"), mj, "gamma of the joint rows (they do not depend on time).")
     design_symbols = tuple(d.symbol for d in model.design)
+    sensitive = bool(model.design) and sensitivities
     joint_sensitivity: dict[str, list] = {}
-    if model.design:  # the joint rows' parts of the sensitivity kernels, common to every case
+    if sensitive:  # the joint rows' parts of the sensitivity kernels, common to every case
         joint_sensitivity["phi_p"] = _design_derivatives(joints, design_symbols)
         joint_sensitivity["dvel"], joint_sensitivity["dacc"] = _sensitivity_rows(joints, coords, design_symbols)
         for kind, slots_, doc in SENSITIVITY_SECTIONS:
@@ -473,7 +481,7 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
                              f"Driver inputs of case {name!r} at time t: u, then du/dt, then d2u/dt2."),
         }  # fmt: skip
         patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {}
-        if model.design:
+        if sensitive:
             driver_sensitivity = {"phi_p": _design_derivatives(drivers, design_symbols)}
             driver_sensitivity["dvel"], driver_sensitivity["dacc"] = _sensitivity_rows(drivers, coords, design_symbols)
             for kind, slots_, doc in SENSITIVITY_SECTIONS:
@@ -500,11 +508,12 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
                 "Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the "
                 "order of POINTS), then the ground's (global, GROUND_POINTS).")  # fmt: skip
         shared["points"] = Kernel("points", ("p",), (Output("points", ("points",), len(values)),), sections["points"].doc)
+        slots["p"] = tuple(d.symbol for d in model.design)
+    if sensitive:
         derivatives = [v.diff(p) for v in values for p in design_symbols]
         section("points_p", ("p",), (Group(None, lambda: derivatives, {}),), len(derivatives),
                 "d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), "
                 "a parameter per column).")  # fmt: skip
-        slots["p"] = tuple(d.symbol for d in model.design)
         for letter in "wyz":
             slots[letter] = _direction_symbols(tuple(coords.velocity_symbols), letter)
         section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_groups(coords, tangent=True), FRAME_VALUES * len(coords.bodies),
@@ -534,4 +543,5 @@ def describe(model: Model, parametrization: Parametrization, systems: dict[str, 
         cases=cases,
         kernels=shared,
         design=tuple((d.name, float(d.nominal), float(d.lower), float(d.upper)) for d in model.design),
+        sensitivities=sensitive,
     )

@@ -27,13 +27,16 @@ def generate(
     parametrization: Parametrization,
     targets: tuple[str, ...] = DEFAULT_TARGETS,
     ready: Callable[[str, dict[str, str]], None] | None = None,
+    sensitivities: bool = True,
 ) -> dict[str, dict[str, str]]:
     """Per target, file name -> text of what it makes for ``model`` (all cases) in
     ``parametrization``: ``python`` (the module), ``c`` (a standalone C directory), ``c-model``
     (only the model's C, as generated/ holds it). The kernel description is made once; the C
     targets are printed first, and ``ready(target, files)`` is called as each target is done
-    (e.g. to start compiling the C while the Python is printed)."""
-    description = describe(model, parametrization)
+    (e.g. to start compiling the C while the Python is printed). ``sensitivities``: a model with
+    design parameters gets the kernels of its exact sensitivities (see
+    :func:`kinegen.codegen.kernels.describe`)."""
+    description = describe(model, parametrization, sensitivities=sensitivities)
     stem = module_name(model, parametrization)
     files: dict[str, dict[str, str]] = {}
     for target in sorted(targets, key=lambda t: not t.startswith("c")):
@@ -49,6 +52,21 @@ def generate(
 def generate_source(model: Model, parametrization: Parametrization) -> str:
     """Source of the generated Python module for ``model`` (all cases) in ``parametrization``."""
     return generate(model, parametrization, ("python",))["python"][f"{module_name(model, parametrization)}.py"]
+
+
+def built_with_sensitivities(path: str | Path) -> bool | None:
+    """Whether the generated module at ``path`` (Python or C) holds sensitivity kernels, as its
+    header says: True or False for a model with design parameters, None for one without (or
+    no such file)."""
+    try:
+        with Path(path).open(encoding="utf-8") as handle:
+            head = [next(handle, "") for _ in range(14)]
+    except OSError:
+        return None
+    for line in head:
+        if "sensitivities:" in line:
+            return line.split("sensitivities:")[1].strip() == "yes"
+    return None
 
 
 def write_atomic(path: Path, text: str) -> None:
@@ -73,6 +91,7 @@ def build(
     check: Callable[[str, str | Path], list[str]] | None = None,
     targets: tuple[str, ...] = DEFAULT_TARGETS,
     ready: Callable[[str, dict[str, str]], None] | None = None,
+    sensitivities: bool = True,
 ) -> Path:
     """Build ``model_path`` in ``parametrization`` into ``out_dir``: by default
     ``<model>_<param>.py`` and the model's C (``.c``, ``.h``); ``targets=("c",)``: a standalone C
@@ -80,12 +99,12 @@ def build(
 
     ``check(source, model_path)`` (e.g. :func:`kinegen.runtime.check_source`) runs on the
     Python module's text (made for it whatever the targets) before anything is written; if it
-    raises, nothing is written. ``ready`` as for :func:`generate`. Everything that can fail happens before the (atomic, file by
+    raises, nothing is written. ``ready`` and ``sensitivities`` as for :func:`generate`. Everything that can fail happens before the (atomic, file by
     file) writes.
     """
     model = load(model_path)
     param = get(parametrization)
-    made = generate(model, param, tuple(dict.fromkeys((*targets, "python"))) if check is not None else targets, ready)
+    made = generate(model, param, tuple(dict.fromkeys((*targets, "python"))) if check is not None else targets, ready, sensitivities)
     python = f"{module_name(model, param)}.py"
     if check is not None:
         check(made["python"][python], model_path)

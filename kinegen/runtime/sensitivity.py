@@ -58,7 +58,10 @@ def _check(system: NumericSystem) -> None:
     if not system.design:
         raise ValueError(f"model {system.model!r} has no design parameters: nothing to differentiate by")
     if not system.sensitivity_kernels:
-        raise ValueError(f"the module of {system.model!r} has no sensitivity kernels (built by an older kinegen): rebuild it")
+        raise ValueError(
+            f"the module of {system.model!r} ({system.parametrization.name}) has no sensitivity kernels (built with "
+            "--no-sensitivities, or by an older kinegen): rebuild it with `kinegen build` without that option"
+        )
     if len(system.constraint_names) != system.n_velocity:
         raise ValueError(
             f"Phi_q of {system.model!r}/{system.case} is {len(system.constraint_names)} x {system.n_velocity} "
@@ -174,6 +177,7 @@ def point_sensitivity(results: Results, body: str, point: str, kind: str = "posi
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
     system = results.system
+    _check(system)
     derivatives = system.point_derivatives.get(body, {})
     if point not in derivatives:
         raise KeyError(f"no point {point!r} on body {body!r}")

@@ -134,6 +134,7 @@ class _Module:
         self.array("frames", d.kernels["frames"].doc, "frames", None, "_zeros({m}, q, ())")
         if "points" in d.kernels:
             self.array("points", d.kernels["points"].doc, "points", None, "np.zeros(({m},) + np.shape(p[0]))")
+        if d.sensitivities:
             self.array("points_p", d.sections["points_p"].doc, "points_p", None, "np.zeros(({m},) + np.shape(p[0]))")
             self.array("frames_d", d.sections["frames_d"].doc, "frames_d", None, "_zeros({m}, q, ())")
             for kind in SENSITIVITY_KERNELS:
@@ -144,7 +145,7 @@ class _Module:
             for kind in ("phi", "jac", "nu", "gamma"):
                 section = f"drivers_{kind}_{name}"
                 self.array(f"_{section}", d.sections[section].doc, section, name, "_zeros({m}, q, u)")
-            for kind in SENSITIVITY_KERNELS if d.design else ():
+            for kind in SENSITIVITY_KERNELS if d.sensitivities else ():
                 section, kernel = d.sections[f"drivers_{kind}_{name}"], case.kernels[kind]
                 self.array(f"_{section.name}", section.doc, section.name, name, "_zeros({m}, q, u)")
                 joint_args = ", ".join(d.sections[f"joints_{kind}"].slots)

@@ -557,7 +557,7 @@ static void solve_negated(kinegen_solver *s, const double *rhs, int np, double *
 int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
                           const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work) {
     const kinegen_design_model *d = design_model(s->model);
-    if (d == NULL) return -1;
+    if (d == NULL || d->dvel == NULL) return -1;
     const kinegen_model *m = s->model;
     int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, np = d->n_design;
     size_t block = (size_t)nv * (size_t)np;

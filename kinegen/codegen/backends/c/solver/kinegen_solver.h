@@ -216,7 +216,7 @@ int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iteration
  * DA = da/dp = -Phi_q^-1 (M_a S + N_a DV + E_a), each count x n_v x n_design (row-major; q's
  * change in velocity coordinates). work: the design model's sensitivity_doubles. A time point
  * whose Phi_q is singular gets NaN. Returns the number of time points done (count), or -1 for a
- * model without design parameters. The solver's state stays as it was (not its factors). */
+ * model without design parameters or built without sensitivity kernels. The solver's state stays as it was (not its factors). */
 int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
                           const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work);
 
