@@ -46,7 +46,7 @@ def test_grid_sweep_matches_the_closed_form_planar_excavator(counts):
     spec = model("excavator").working_range
     names = list(system.driver_names)
     swept = [names.index(n) for n in ("boom_length", "arm_length", "bucket_length")]
-    axes = [np.linspace(*spec.inputs[names[i]], c) for i, c in zip(swept, counts)]
+    axes = [np.linspace(*spec.numbers(system.design)[names[i]], c) for i, c in zip(swept, counts)]
     base = np.zeros(len(names))
     base[swept] = [a[0] for a in axes]
     solver = Solver(system)

@@ -436,3 +436,33 @@ def test_the_distance_to_a_singular_pose_has_exact_sensitivities(tmp_path):
         _, exact = results.smallest_singular_value_sensitivity(name)
         central = (plus - minus) / (2 * h)
         assert np.abs(exact - central).max() < 1e-6 * np.abs(exact).max(), (name, np.abs(exact - central).max() / np.abs(exact).max())
+
+
+def test_actuator_ranges_and_working_range_inputs_may_use_design_parameters(tmp_path):
+    """A cylinder's retracted length is a design figure too: an actuator range and a working-range
+    input range written with a design parameter stay expressions of it; the generated module gives
+    the range at any design (so range reports follow it), the working range's inputs are numbers
+    at the design asked for, and model.at() is the model written with that number."""
+    stroke = (
+        "actuators:\n  stroke: {points: [ground.A, slider.C], range: [s_min, 0.79]}\n"
+        "working_range:\n  case: run\n  point: rod.C\n  inputs: {crank_angle: [0, 2*s_min]}\n"
+    )
+    text = design_model(DESIGN.replace("design:\n", "design:\n  s_min: {nominal: 0.45, bounds: [0.40, 0.50]}\n")) + stroke
+    model = loads(text, "slider_crank_design.yaml")
+    s_min = model.design[0].symbol
+    assert model.actuators[0].range == (s_min, sp.Rational(79, 100))
+    assert model.actuators[0].limits({"s_min": 0.42}) == (0.42, 0.79)
+    assert model.working_range.numbers({"s_min": 0.42, "r": 0.2, "l": 0.6}) == {"crank_angle": (0.0, 0.84)}
+    with pytest.raises(KeyError, match=r"no value given for design parameter.* s_min"):
+        model.working_range.numbers({})
+    assert model.at({"s_min": 0.42}).actuators[0].range == (sp.Rational(21, 50), sp.Rational(79, 100))
+    module = _design_module(tmp_path, text)
+    for value in (0.45, 0.48):
+        results = solve(from_module(module, "run", design={"s_min": value}))
+        assert results.system.actuators["stroke"][2] == pytest.approx((value, 0.79), abs=1e-15)
+        length = results.actuator_length("stroke")  # x = r cos θ + sqrt(l² − r² sin² θ): 0.4 .. 0.8
+        expected = sorted({(float(t), "stroke", float(x)) for t, x in zip(results.times, length) if not value <= x <= 0.79})
+        assert [(t, n, x) for t, n, x, _ in results.range_violations()] == expected and expected
+    with pytest.raises(ModelError) as error:
+        loads(text.replace("range: [s_min, 0.79]", "range: [s_min, 0.3]"), "bad.yaml")
+    assert error.value.entry == "actuators.stroke.range" and "min < max" in error.value.problem

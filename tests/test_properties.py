@@ -57,7 +57,7 @@ def test_random_cylinder_laws_satisfy_phi_and_match_central_differences(data):
     """Random smooth laws inside the cylinder ranges (digging case inputs): Phi <= 1e-10 at every
     step; velocity and acceleration of the bucket tip = Richardson central differences."""
     system = generated_system("excavator_quaternion", "digging")
-    ranges = model("excavator").working_range.inputs
+    ranges = model("excavator").working_range.numbers(system.design)
     rng = np.random.default_rng(data.draw(st.integers(0, 2**32 - 1)))
     names = list(system.driver_names)
     centre, amplitude, omega, phase = (np.zeros(len(names)) for _ in range(4))

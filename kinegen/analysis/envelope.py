@@ -65,13 +65,12 @@ class _Evaluator:
         self.system = system
         self.solver = Solver(system)
         self.spec = spec
-        self.names = [n for n in system.driver_names if isinstance(spec.inputs[n], tuple)]
-        self.base = np.array(
-            [v if not isinstance(v, tuple) else 0.5 * (v[0] + v[1]) for v in (spec.inputs[n] for n in system.driver_names)]
-        )
+        inputs = self.inputs_spec = spec.numbers(system.design)  # at the system's design values
+        self.names = [n for n in system.driver_names if isinstance(inputs[n], tuple)]
+        self.base = np.array([v if not isinstance(v, tuple) else 0.5 * (v[0] + v[1]) for v in (inputs[n] for n in system.driver_names)])
         self.index = [system.driver_names.index(n) for n in self.names]
         #: largest change of each input per Newton stage: continuation never jumps branches
-        self.stage = np.array([STAGE * (spec.inputs[n][1] - spec.inputs[n][0]) for n in self.names])
+        self.stage = np.array([STAGE * (inputs[n][1] - inputs[n][0]) for n in self.names])
         self.tracked = [(spec.point.body, spec.point.name)]
         if spec.dump_pivot is not None:
             self.tracked.append((spec.dump_pivot.body, spec.dump_pivot.name))
@@ -114,7 +113,7 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     evaluator = _Evaluator(system, spec)
     names = evaluator.names
     counts = list(grid or [21, 11, 21][: len(names)] + [11] * max(0, len(names) - 3))
-    ranges = [spec.inputs[n] for n in names]
+    ranges = [evaluator.inputs_spec[n] for n in names]
     axes = [np.linspace(lo, hi, c) for (lo, hi), c in zip(ranges, counts)]
     corner = np.array([a[0] for a in axes])
     evaluator.move_to(corner)  # continuation from the model's pose to the grid's first corner

@@ -96,7 +96,7 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
         GROUND_POINTS={k: tuple(float(sp.N(x, 30)) for x in p) for k, p in model.ground_points.items()},
         INITIAL_Q=tuple(initial_q(model, parametrization)),
         ACTUATORS={
-            a.name: ((a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.range) for a in model.actuators
+            a.name: ((a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.limits()) for a in model.actuators
         },
         CASES=cases,
     )

@@ -508,6 +508,9 @@ def describe(
                 "Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the "
                 "order of POINTS), then the ground's (global, GROUND_POINTS).")  # fmt: skip
         shared["points"] = Kernel("points", ("p",), (Output("points", ("points",), len(values)),), sections["points"].doc)
+        bounds = [x for a in model.actuators if a.range is not None for x in a.range]
+        section("actuator_ranges", ("p",), (Group(None, lambda: bounds, {}),), len(bounds),
+                "The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters.")  # fmt: skip
         slots["p"] = tuple(d.symbol for d in model.design)
     if sensitive:
         derivatives = [v.diff(p) for v in values for p in design_symbols]
@@ -519,6 +522,7 @@ def describe(
         section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_groups(coords, tangent=True), FRAME_VALUES * len(coords.bodies),
                 "Per body: the change of the frames kernel's 24 values when q moves along w, v by y and a by z.")  # fmt: skip
     nominal = _nominal(model)
+    nominal_values = {d.name: float(d.nominal) for d in model.design}
     definitions = Definitions(
         tuple((b.name, tuple(b.frame_symbols), tuple(b.frame_values)) for b in coords.bodies), tuple(generic_body(parametrization).frame_values)
     )
@@ -534,7 +538,8 @@ def describe(
         points={b.name: {k: tuple(float(sp.N(x.xreplace(nominal), 30)) for x in v) for k, v in b.points.items()} for b in model.bodies},
         ground_points={k: tuple(float(sp.N(x.xreplace(nominal), 30)) for x in v) for k, v in model.ground_points.items()},
         actuators=tuple(
-            (a.name, (a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.range) for a in model.actuators
+            (a.name, (a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.limits(nominal_values))
+            for a in model.actuators
         ),
         initial_q=tuple(float(x) for x in initial_q(model, parametrization)),
         slots=slots,

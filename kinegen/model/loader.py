@@ -255,7 +255,8 @@ class _Reader:
         if used and not design:
             raise self.fail(
                 entry, f"{shown(value)} uses design parameter(s) {', '.join(used)}: design parameters may be used in the "
-                "geometry (positions, orientations, points, vectors, lengths, parameters) only",
+                "geometry (positions, orientations, points, vectors, lengths, parameters), actuator ranges and "
+                "working-range inputs only",
             )  # fmt: skip
         if not allow_time:
             at_nominal = expr.xreplace(self.nominal) if used else expr
@@ -627,10 +628,10 @@ class _Reader:
                 bounds = spec["range"]
                 if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
                     raise self.fail(f"{entry}.range", "expected [min, max]")
-                low, high = (float(self.scalar(b, f"{entry}.range[{i}]")) for i, b in enumerate(bounds))
+                limits = tuple(self.scalar(b, f"{entry}.range[{i}]", design=True) for i, b in enumerate(bounds))
+                low, high = (self.value(x) for x in limits)
                 if not 0 <= low < high:
                     raise self.fail(f"{entry}.range", f"expected 0 <= min < max, got [{low}, {high}]")
-                limits = (low, high)
             result.append(Actuator(key, (p1, p2), limits))
         return tuple(result)
 
@@ -643,18 +644,19 @@ class _Reader:
         point = self.point_ref(spec["point"], f"{entry}.point")
         drivers = [d.name for d in case.drivers]
         raw = self.mapping(spec["inputs"], f"{entry}.inputs", tuple(drivers), tuple(drivers))
-        inputs: dict[str, float | tuple[float, float]] = {}
+        inputs: dict[str, sp.Expr | tuple[sp.Expr, sp.Expr]] = {}
         for name in drivers:
             item, where = raw[name], f"{entry}.inputs.{name}"
             if isinstance(item, (list, tuple)):
                 if len(item) != 2:
                     raise self.fail(where, "expected a value or [min, max]")
-                low, high = (float(self.scalar(x, f"{where}[{i}]")) for i, x in enumerate(item))
+                bounds = tuple(self.scalar(x, f"{where}[{i}]", design=True) for i, x in enumerate(item))
+                low, high = (self.value(x) for x in bounds)
                 if not low < high:
                     raise self.fail(where, f"min {low} must be below max {high}")
-                inputs[name] = (low, high)
+                inputs[name] = bounds
             else:
-                inputs[name] = float(self.scalar(item, where))
+                inputs[name] = self.scalar(item, where, design=True)
         pivot = self.point_ref(spec["dump_pivot"], f"{entry}.dump_pivot") if "dump_pivot" in spec else None
         published = {}
         for key, item in self.mapping(spec.get("published"), f"{entry}.published", WORKING_RANGE_FIGURES).items():

@@ -88,16 +88,34 @@ class Driver:
     text: str = ""  #: the function as written there
 
 
+def design_value(expr: Any, design: Mapping[str, float] | None = None) -> float:
+    """The number of an exact model value that may use design parameters (their symbols
+    ``p_<name>``), at ``design`` (name -> value; every parameter it uses must be given)."""
+    expr = sp.sympify(expr)
+    if expr.free_symbols:
+        values = dict(design or {})
+        missing = sorted(str(s)[2:] for s in expr.free_symbols if str(s)[2:] not in values)
+        if missing:
+            raise KeyError(f"no value given for design parameter(s) {', '.join(missing)}")
+        expr = expr.xreplace({s: sp.Float(values[str(s)[2:]], 17) for s in expr.free_symbols})
+    return float(expr)
+
+
 @dataclass(frozen=True)
 class Actuator:
     """A length between two body points that a run reports (e.g. a hydraulic cylinder).
 
-    ``range`` is its allowed (min, max) length; leaving it is reported, not an error.
+    ``range`` is its allowed (min, max) length, exact (it may use design parameters: a
+    cylinder's retracted length); leaving it is reported, not an error.
     """
 
     name: str
     points: tuple[PointRef, PointRef]
-    range: tuple[float, float] | None = None
+    range: tuple[sp.Expr, sp.Expr] | None = None
+
+    def limits(self, design: Mapping[str, float] | None = None) -> tuple[float, float] | None:
+        """``range`` as numbers at the design values ``design`` (see :func:`design_value`)."""
+        return None if self.range is None else (design_value(self.range[0], design), design_value(self.range[1], design))
 
 
 @dataclass(frozen=True)
@@ -123,9 +141,16 @@ class WorkingRange:
 
     case: str
     point: PointRef
-    inputs: dict[str, float | tuple[float, float]]
+    inputs: dict[str, sp.Expr | tuple[sp.Expr, sp.Expr]]  #: exact; may use design parameters
     dump_pivot: PointRef | None = None
     published: dict[str, float] = field(default_factory=dict)
+
+    def numbers(self, design: Mapping[str, float] | None = None) -> dict[str, float | tuple[float, float]]:
+        """``inputs`` as numbers at the design values ``design`` (see :func:`design_value`)."""
+        return {
+            name: (design_value(v[0], design), design_value(v[1], design)) if isinstance(v, tuple) else design_value(v, design)
+            for name, v in self.inputs.items()
+        }
 
 
 @dataclass(frozen=True)

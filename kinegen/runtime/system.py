@@ -237,7 +237,7 @@ def from_module(
     if p is not None:
         kernels = {k: None if f is None else _with_design(f, p) for k, f in kernels.items()}
         points, ground_points = _design_points(module, p)
-        design_fields = {"design": dict(zip(module.DESIGN, p.tolist()))}
+        design_fields = {"design": dict(zip(module.DESIGN, p.tolist())), "actuators": _design_actuators(module, p)}
         if "dvel" in data:  # (modules built before kinegen had these sensitivity kernels lack them)
             design_fields.update(
                 point_derivatives=_design_point_derivatives(module, p),
@@ -270,7 +270,7 @@ def from_module(
         t1=float(data["t1"]),
         steps=int(data["steps"]),
         source_sha256=getattr(module, "SOURCE_SHA256", ""),
-        actuators=dict(getattr(module, "ACTUATORS", {})),
+        actuators=design_fields.pop("actuators", None) or dict(getattr(module, "ACTUATORS", {})),
         phi_jac_s=kernels["phi_jac_s"],
         nu_s=kernels["nu_s"],
         gamma_s=kernels["gamma_s"],
@@ -321,6 +321,15 @@ def _design_point_derivatives(module: ModuleType | Any, p: np.ndarray) -> dict[s
     for (body, name), derivative in zip(named, flat):
         out.setdefault(body, {})[name] = derivative
     return out
+
+
+def _design_actuators(module: ModuleType | Any, p: np.ndarray) -> dict[str, tuple]:
+    """ACTUATORS of a module with design parameters, their ranges at ``p`` (a range may use them)."""
+    actuators = dict(getattr(module, "ACTUATORS", {}))
+    if not hasattr(module, "actuator_ranges"):  # (modules built before ranges could use design parameters)
+        return actuators
+    bounds = iter(np.asarray(module.actuator_ranges(p.tolist()), dtype=float).tolist())
+    return {name: (p1, p2, None if limits is None else (next(bounds), next(bounds))) for name, (p1, p2, limits) in actuators.items()}
 
 
 def _design_points(module: ModuleType | Any, p: np.ndarray) -> tuple[dict, dict]:

@@ -134,6 +134,7 @@ class _Module:
         self.array("frames", d.kernels["frames"].doc, "frames", None, "_zeros({m}, q, ())")
         if "points" in d.kernels:
             self.array("points", d.kernels["points"].doc, "points", None, "np.zeros(({m},) + np.shape(p[0]))")
+            self.array("actuator_ranges", d.sections["actuator_ranges"].doc, "actuator_ranges", None, "np.zeros(({m},) + np.shape(p[0]))")
         if d.sensitivities:
             self.array("points_p", d.sections["points_p"].doc, "points_p", None, "np.zeros(({m},) + np.shape(p[0]))")
             self.array("frames_d", d.sections["frames_d"].doc, "frames_d", None, "_zeros({m}, q, ())")
