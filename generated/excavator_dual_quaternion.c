@@ -2,10 +2,11 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
+ * source sha256:   06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50
  * parametrization: dual-quaternion
  * kinegen version: 0.1.0
  * sympy version:   1.14.0
+ * sensitivities:   no
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -18,38 +19,43 @@
 /* The section functions come in 3 groups, each under its KINEGEN_PART value
  * (1 to 3; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
-void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_joints_jac_part0(const double *q, double *out);
-void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double *out);
-void excavator_dual_quaternion_compute_joints_jac_part2(const double *q, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out);
-void excavator_dual_quaternion_compute_joints_gamma_part0(const double *q, const double *v, double *out);
-void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const double *v, double *out);
-void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const double *v, double *out);
-void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const double *v, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_dual_quaternion_compute_joints_phi(const double *q, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_joints_jac_part0(const double *q, const double *p, double *out);
+void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, const double *p, double *out);
+void excavator_dual_quaternion_compute_joints_jac_part2(const double *q, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_quaternion_compute_joints_gamma_part0(const double *q, const double *v, const double *p, double *out);
+void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const double *v, const double *p, double *out);
+void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const double *v, const double *p, double *out);
+void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const double *v, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_digging(double t, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_level_cut(double t, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_trench_wall(double t, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_bucket_toggle(double t, double *out);
-void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out);
-void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out);
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_dual_quaternion_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_dual_quaternion_compute_inputs_bucket_stroke(double t, double *out);
+void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_bucket_near_toggle(double t, double *out);
 void excavator_dual_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
 void excavator_dual_quaternion_compute_frames_part1(const double *q, const double *v, const double *a, double *out);
@@ -57,7 +63,7 @@ void excavator_dual_quaternion_compute_frames_part1(const double *q, const doubl
 #if !defined(KINEGEN_PART) || KINEGEN_PART == 1
 
 /* Phi of the 80 joint (and normalization) rows, common to every case. */
-void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) {
+void excavator_dual_quaternion_compute_joints_phi(const double *q, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -170,6 +176,14 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) 
     const double bucket_dx = q[109];
     const double bucket_dy = q[110];
     const double bucket_dz = q[111];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
+    const double p_F_x = p[2];
+    const double p_F_z = p[3];
+    const double p_side_link = p[5];
+    const double p_bucket_link = p[6];
+    const double p_K_x = p[7];
+    const double p_K_z = p[8];
     const double upper_ox = -2.0*upper_dw*upper_rx - 2.0*upper_dy*upper_rz + 2.0*upper_dx*upper_rw + 2.0*upper_dz*upper_ry;
     const double upper_oy = -2.0*upper_dw*upper_ry - 2.0*upper_dz*upper_rx + 2.0*upper_dx*upper_rz + 2.0*upper_dy*upper_rw;
     const double upper_oz = -2.0*upper_dw*upper_rz - 2.0*upper_dx*upper_ry + 2.0*upper_dy*upper_rx + 2.0*upper_dz*upper_rw;
@@ -317,9 +331,15 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) 
     const double c6 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
     const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
     const double c8 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
-    const double c9 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
-    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
-    const double c11 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
+    const double c9 = 0.5686266556413632*p_side_link;
+    const double c10 = 0.822595724821202*p_side_link;
+    const double c11 = 0.60493530832545*p_bucket_link;
+    const double c12 = 0.796274621434837*p_bucket_link;
+    const double c13 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
+    const double c14 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
+    const double c15 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
+    const double c16 = 0.5686266556413632*p_side_link;
+    const double c17 = 0.822595724821202*p_side_link;
     out[0] = -upper_ox;
     out[1] = -upper_oy;
     out[2] = -upper_oz;
@@ -339,9 +359,9 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) 
     out[16] = c0*(boom_cyl_l_barrel_a21*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a11*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a01*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a21*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a11*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a01*boom_cyl_l_rod_a10);
     out[17] = c0*(boom_cyl_l_barrel_a22*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a12*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a02*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a22*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a12*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a02*boom_cyl_l_rod_a10);
     out[18] = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22;
-    out[19] = boom_cyl_l_rod_ox - boom_ox - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 - 8.0/25.0*boom_a01;
-    out[20] = boom_cyl_l_rod_oy - boom_oy - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 - 8.0/25.0*boom_a11;
-    out[21] = boom_cyl_l_rod_oz - boom_oz - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 - 8.0/25.0*boom_a21;
+    out[19] = boom_cyl_l_rod_ox - boom_ox - 8.0/25.0*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z;
+    out[20] = boom_cyl_l_rod_oy - boom_oy - 8.0/25.0*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z;
+    out[21] = boom_cyl_l_rod_oz - boom_oz - 8.0/25.0*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z;
     out[22] = upper_ox - boom_cyl_r_barrel_ox - 8.0/25.0*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
     out[23] = upper_oy - boom_cyl_r_barrel_oy - 8.0/25.0*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
     out[24] = upper_oz - boom_cyl_r_barrel_oz - 8.0/25.0*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
@@ -351,9 +371,9 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) 
     out[28] = c3*(boom_cyl_r_barrel_a21*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a11*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a01*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a21*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a11*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a01*boom_cyl_r_rod_a10);
     out[29] = c3*(boom_cyl_r_barrel_a22*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a12*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a02*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a22*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a12*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a02*boom_cyl_r_rod_a10);
     out[30] = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22;
-    out[31] = boom_cyl_r_rod_ox - boom_ox - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 + (8.0/25.0)*boom_a01;
-    out[32] = boom_cyl_r_rod_oy - boom_oy - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 + (8.0/25.0)*boom_a11;
-    out[33] = boom_cyl_r_rod_oz - boom_oz - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 + (8.0/25.0)*boom_a21;
+    out[31] = boom_cyl_r_rod_ox - boom_ox + (8.0/25.0)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z;
+    out[32] = boom_cyl_r_rod_oy - boom_oy + (8.0/25.0)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z;
+    out[33] = boom_cyl_r_rod_oz - boom_oz + (8.0/25.0)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z;
     out[34] = boom_ox - arm_ox + (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02;
     out[35] = boom_oy - arm_oy + (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12;
     out[36] = boom_oz - arm_oz + (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22;
@@ -368,9 +388,9 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) 
     out[45] = c6*(arm_cyl_barrel_a21*arm_cyl_rod_a10 - arm_cyl_barrel_a11*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a01*arm_cyl_rod_a20 - arm_cyl_barrel_a21*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a11*arm_cyl_rod_a00 - arm_cyl_barrel_a01*arm_cyl_rod_a10);
     out[46] = c6*(arm_cyl_barrel_a22*arm_cyl_rod_a10 - arm_cyl_barrel_a12*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a02*arm_cyl_rod_a20 - arm_cyl_barrel_a22*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a12*arm_cyl_rod_a00 - arm_cyl_barrel_a02*arm_cyl_rod_a10);
     out[47] = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22;
-    out[48] = arm_cyl_rod_ox - arm_ox + (0.369691)*arm_a02 + (393281.0/500000.0)*arm_a00;
-    out[49] = arm_cyl_rod_oy - arm_oy + (0.369691)*arm_a12 + (393281.0/500000.0)*arm_a10;
-    out[50] = arm_cyl_rod_oz - arm_oz + (0.369691)*arm_a22 + (393281.0/500000.0)*arm_a20;
+    out[48] = arm_cyl_rod_ox - arm_ox - arm_a00*p_F_x - arm_a02*p_F_z;
+    out[49] = arm_cyl_rod_oy - arm_oy - arm_a10*p_F_x - arm_a12*p_F_z;
+    out[50] = arm_cyl_rod_oz - arm_oz - arm_a20*p_F_x - arm_a22*p_F_z;
     out[51] = arm_ox - bucket_ox + (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02;
     out[52] = arm_oy - bucket_oy + (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12;
     out[53] = arm_oz - bucket_oz + (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22;
@@ -381,12 +401,12 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) 
     out[58] = arm_oz - side_link_oz + (7877.0/5000.0)*arm_a20 + (18799.0/10000.0)*arm_a22;
     out[59] = arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22;
     out[60] = arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20;
-    out[61] = side_link_ox - bucket_link_ox - 166329.0/500000.0*side_link_a00 + (85607.0/250000.0)*bucket_link_a00 + (96247.0/200000.0)*side_link_a02 + (0.450737)*bucket_link_a02;
-    out[62] = side_link_oy - bucket_link_oy - 166329.0/500000.0*side_link_a10 + (85607.0/250000.0)*bucket_link_a10 + (96247.0/200000.0)*side_link_a12 + (0.450737)*bucket_link_a12;
-    out[63] = side_link_oz - bucket_link_oz - 166329.0/500000.0*side_link_a20 + (85607.0/250000.0)*bucket_link_a20 + (96247.0/200000.0)*side_link_a22 + (0.450737)*bucket_link_a22;
-    out[64] = bucket_link_ox - bucket_ox - 16927.0/50000.0*bucket_a02 + (8101.0/25000.0)*bucket_a00;
-    out[65] = bucket_link_oy - bucket_oy - 16927.0/50000.0*bucket_a12 + (8101.0/25000.0)*bucket_a10;
-    out[66] = bucket_link_oz - bucket_oz - 16927.0/50000.0*bucket_a22 + (8101.0/25000.0)*bucket_a20;
+    out[61] = side_link_ox - bucket_link_ox + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00;
+    out[62] = side_link_oy - bucket_link_oy + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10;
+    out[63] = side_link_oz - bucket_link_oz + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20;
+    out[64] = bucket_link_ox - bucket_ox - bucket_a00*p_K_x - bucket_a02*p_K_z;
+    out[65] = bucket_link_oy - bucket_oy - bucket_a10*p_K_x - bucket_a12*p_K_z;
+    out[66] = bucket_link_oz - bucket_oz - bucket_a20*p_K_x - bucket_a22*p_K_z;
     out[67] = bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22);
     out[68] = arm_ox - bucket_cyl_barrel_ox - 24687.0/100000.0*arm_a00 + (36797.0/50000.0)*arm_a02;
     out[69] = arm_oy - bucket_cyl_barrel_oy - 24687.0/100000.0*arm_a10 + (36797.0/50000.0)*arm_a12;
@@ -394,16 +414,16 @@ void excavator_dual_quaternion_compute_joints_phi(const double *q, double *out) 
     out[71] = arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22;
     out[72] = bucket_cyl_barrel_a01*bucket_cyl_rod_a00 + bucket_cyl_barrel_a11*bucket_cyl_rod_a10 + bucket_cyl_barrel_a21*bucket_cyl_rod_a20;
     out[73] = bucket_cyl_barrel_a02*bucket_cyl_rod_a00 + bucket_cyl_barrel_a12*bucket_cyl_rod_a10 + bucket_cyl_barrel_a22*bucket_cyl_rod_a20;
-    out[74] = c9*(bucket_cyl_barrel_a21*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a20) + c10*(bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00) + c11*(bucket_cyl_barrel_a11*bucket_cyl_rod_a00 - bucket_cyl_barrel_a01*bucket_cyl_rod_a10);
-    out[75] = c9*(bucket_cyl_barrel_a22*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a20) + c10*(bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00) + c11*(bucket_cyl_barrel_a12*bucket_cyl_rod_a00 - bucket_cyl_barrel_a02*bucket_cyl_rod_a10);
+    out[74] = c13*(bucket_cyl_barrel_a21*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a20) + c14*(bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00) + c15*(bucket_cyl_barrel_a11*bucket_cyl_rod_a00 - bucket_cyl_barrel_a01*bucket_cyl_rod_a10);
+    out[75] = c13*(bucket_cyl_barrel_a22*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a20) + c14*(bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00) + c15*(bucket_cyl_barrel_a12*bucket_cyl_rod_a00 - bucket_cyl_barrel_a02*bucket_cyl_rod_a10);
     out[76] = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22;
-    out[77] = bucket_cyl_rod_ox - side_link_ox - 96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
-    out[78] = bucket_cyl_rod_oy - side_link_oy - 96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
-    out[79] = bucket_cyl_rod_oz - side_link_oz - 96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
+    out[77] = bucket_cyl_rod_ox - side_link_ox + c16*side_link_a00 - c17*side_link_a02;
+    out[78] = bucket_cyl_rod_oy - side_link_oy + c16*side_link_a10 - c17*side_link_a12;
+    out[79] = bucket_cyl_rod_oz - side_link_oz + c16*side_link_a20 - c17*side_link_a22;
 }
 
 /* Phi of the driver rows of case 'digging'. */
-void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double boom_cyl_l_barrel_rw = q[16];
@@ -458,6 +478,7 @@ void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, cons
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -493,7 +514,7 @@ void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, cons
 }
 
 /* Phi_q values of the joint rows (427 entries). Rows 0 to 162. */
-void excavator_dual_quaternion_compute_joints_jac_part0(const double *q, double *out) {
+void excavator_dual_quaternion_compute_joints_jac_part0(const double *q, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -534,6 +555,8 @@ void excavator_dual_quaternion_compute_joints_jac_part0(const double *q, double 
     const double boom_cyl_r_rod_dx = q[45];
     const double boom_cyl_r_rod_dy = q[46];
     const double boom_cyl_r_rod_dz = q[47];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
     const double upper_a00 = -1.0 + 2.0*(upper_rw*upper_rw) + 2.0*(upper_rx*upper_rx);
     const double upper_a01 = -2.0*upper_rw*upper_rz + 2.0*upper_rx*upper_ry;
     const double upper_a02 = 2.0*upper_rw*upper_ry + 2.0*upper_rx*upper_rz;
@@ -628,9 +651,9 @@ void excavator_dual_quaternion_compute_joints_jac_part0(const double *q, double 
     const double d37 = d36*boom_cyl_l_barrel_a11 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a12;
     const double d38 = d36*boom_cyl_l_barrel_a01 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02;
     const double d39 = -1.0*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a12;
-    const double d40 = (8.0/25.0)*boom_a21 + (139283.0/100000.0)*boom_a20 + (2.001922)*boom_a22;
-    const double d41 = (8.0/25.0)*boom_a11 + (139283.0/100000.0)*boom_a10 + (2.001922)*boom_a12;
-    const double d42 = (8.0/25.0)*boom_a01 + (139283.0/100000.0)*boom_a00 + (2.001922)*boom_a02;
+    const double d40 = (8.0/25.0)*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z;
+    const double d41 = (8.0/25.0)*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z;
+    const double d42 = (8.0/25.0)*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z;
     const double d43 = -8.0/25.0*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
     const double d44 = -8.0/25.0*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
     const double d45 = -8.0/25.0*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
@@ -828,7 +851,7 @@ void excavator_dual_quaternion_compute_joints_jac_part0(const double *q, double 
 }
 
 /* Phi_q values of the joint rows (427 entries). Rows 163 to 336. */
-void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double *out) {
+void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, const double *p, double *out) {
     const double boom_rw = q[8];
     const double boom_rx = q[9];
     const double boom_ry = q[10];
@@ -865,6 +888,12 @@ void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double 
     const double bucket_rx = q[105];
     const double bucket_ry = q[106];
     const double bucket_rz = q[107];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
+    const double p_F_x = p[2];
+    const double p_F_z = p[3];
+    const double p_side_link = p[5];
+    const double p_bucket_link = p[6];
     const double boom_a00 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_rx*boom_rx);
     const double boom_a01 = -2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
     const double boom_a02 = 2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz;
@@ -919,9 +948,9 @@ void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double 
     const double bucket_a12 = -2.0*bucket_rw*bucket_rx + 2.0*bucket_ry*bucket_rz;
     const double bucket_a20 = -2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
-    const double d74 = -8.0/25.0*boom_a21 + (139283.0/100000.0)*boom_a20 + (2.001922)*boom_a22;
-    const double d75 = -8.0/25.0*boom_a11 + (139283.0/100000.0)*boom_a10 + (2.001922)*boom_a12;
-    const double d76 = -8.0/25.0*boom_a01 + (139283.0/100000.0)*boom_a00 + (2.001922)*boom_a02;
+    const double d74 = -8.0/25.0*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z;
+    const double d75 = -8.0/25.0*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z;
+    const double d76 = -8.0/25.0*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z;
     const double d77 = (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22;
     const double d78 = (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12;
     const double d79 = (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02;
@@ -962,9 +991,9 @@ void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double 
     const double d114 = d113*arm_cyl_barrel_a11 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a12;
     const double d115 = d113*arm_cyl_barrel_a01 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a02;
     const double d116 = -1.0*arm_cyl_barrel_a11*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a12;
-    const double d117 = (0.369691)*arm_a22 + (393281.0/500000.0)*arm_a20;
-    const double d118 = (0.369691)*arm_a12 + (393281.0/500000.0)*arm_a10;
-    const double d119 = (0.369691)*arm_a02 + (393281.0/500000.0)*arm_a00;
+    const double d117 = arm_a20*p_F_x + arm_a22*p_F_z;
+    const double d118 = arm_a10*p_F_x + arm_a12*p_F_z;
+    const double d119 = arm_a00*p_F_x + arm_a02*p_F_z;
     const double d120 = (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22;
     const double d121 = (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12;
     const double d122 = (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02;
@@ -983,12 +1012,15 @@ void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double 
     const double d135 = arm_a11*side_link_a20 - arm_a21*side_link_a10;
     const double d136 = arm_a01*side_link_a20 - arm_a21*side_link_a00;
     const double d137 = arm_a01*side_link_a10 - arm_a11*side_link_a00;
-    const double d138 = -96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
-    const double d139 = -96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
-    const double d140 = (85607.0/250000.0)*bucket_link_a20 + (0.450737)*bucket_link_a22;
-    const double d141 = (85607.0/250000.0)*bucket_link_a10 + (0.450737)*bucket_link_a12;
-    const double d142 = -96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
-    const double d143 = (85607.0/250000.0)*bucket_link_a00 + (0.450737)*bucket_link_a02;
+    const double d138 = 0.5686266556413632*p_side_link;
+    const double d139 = d138*side_link_a20 - 0.822595724821202*side_link_a22*p_side_link;
+    const double d140 = d138*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link;
+    const double d141 = 0.60493530832545*p_bucket_link;
+    const double d142 = 0.796274621434837*p_bucket_link;
+    const double d143 = d141*bucket_link_a20 + d142*bucket_link_a22;
+    const double d144 = d141*bucket_link_a10 + d142*bucket_link_a12;
+    const double d145 = d138*side_link_a00 - 0.822595724821202*side_link_a02*p_side_link;
+    const double d146 = d141*bucket_link_a00 + d142*bucket_link_a02;
     out[163] = -d74;
     out[164] = d75;
     out[165] = -1.0;
@@ -1085,16 +1117,16 @@ void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double 
     out[256] = -d114;
     out[257] = d115;
     out[258] = -d116;
-    out[259] = d117;
-    out[260] = -d118;
+    out[259] = -d117;
+    out[260] = d118;
     out[261] = -1.0;
     out[262] = 1.0;
-    out[263] = -d117;
-    out[264] = d119;
+    out[263] = d117;
+    out[264] = -d119;
     out[265] = -1.0;
     out[266] = 1.0;
-    out[267] = d118;
-    out[268] = -d119;
+    out[267] = -d118;
+    out[268] = d119;
     out[269] = -1.0;
     out[270] = 1.0;
     out[271] = d120;
@@ -1145,28 +1177,28 @@ void excavator_dual_quaternion_compute_joints_jac_part1(const double *q, double 
     out[316] = -d135;
     out[317] = d136;
     out[318] = -d137;
-    out[319] = -d138;
-    out[320] = d139;
+    out[319] = -d139;
+    out[320] = d140;
     out[321] = 1.0;
-    out[322] = d140;
-    out[323] = -d141;
+    out[322] = d143;
+    out[323] = -d144;
     out[324] = -1.0;
-    out[325] = d138;
-    out[326] = -d142;
+    out[325] = d139;
+    out[326] = -d145;
     out[327] = 1.0;
-    out[328] = -d140;
-    out[329] = d143;
+    out[328] = -d143;
+    out[329] = d146;
     out[330] = -1.0;
-    out[331] = -d139;
-    out[332] = d142;
+    out[331] = -d140;
+    out[332] = d145;
     out[333] = 1.0;
-    out[334] = d141;
-    out[335] = -d143;
+    out[334] = d144;
+    out[335] = -d146;
     out[336] = -1.0;
 }
 
 /* Phi_q values of the joint rows (427 entries). Rows 337 to 426. */
-void excavator_dual_quaternion_compute_joints_jac_part2(const double *q, double *out) {
+void excavator_dual_quaternion_compute_joints_jac_part2(const double *q, const double *p, double *out) {
     const double arm_rw = q[48];
     const double arm_rx = q[49];
     const double arm_ry = q[50];
@@ -1199,6 +1231,9 @@ void excavator_dual_quaternion_compute_joints_jac_part2(const double *q, double 
     const double bucket_rx = q[105];
     const double bucket_ry = q[106];
     const double bucket_rz = q[107];
+    const double p_side_link = p[5];
+    const double p_K_x = p[7];
+    const double p_K_z = p[8];
     const double arm_a00 = -1.0 + 2.0*(arm_rw*arm_rw) + 2.0*(arm_rx*arm_rx);
     const double arm_a01 = -2.0*arm_rw*arm_rz + 2.0*arm_rx*arm_ry;
     const double arm_a02 = 2.0*arm_rw*arm_ry + 2.0*arm_rx*arm_rz;
@@ -1247,144 +1282,146 @@ void excavator_dual_quaternion_compute_joints_jac_part2(const double *q, double 
     const double bucket_a20 = -2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a21 = 2.0*bucket_rw*bucket_rx + 2.0*bucket_ry*bucket_rz;
     const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
-    const double d144 = -16927.0/50000.0*bucket_a22 + (8101.0/25000.0)*bucket_a20;
-    const double d145 = -16927.0/50000.0*bucket_a12 + (8101.0/25000.0)*bucket_a10;
-    const double d146 = -16927.0/50000.0*bucket_a02 + (8101.0/25000.0)*bucket_a00;
-    const double d147 = (0.7962746214343476)*bucket_link_a10;
-    const double d148 = (0.6049353083260941)*bucket_link_a22;
-    const double d149 = (0.7962746214343476)*bucket_link_a00;
-    const double d150 = (0.7962746214343476)*bucket_link_a20;
-    const double d151 = -d150 + (0.6049353083260941)*bucket_link_a22;
-    const double d152 = -d147 + (0.6049353083260941)*bucket_link_a12;
-    const double d153 = -d149 + (0.6049353083260941)*bucket_link_a02;
-    const double d154 = -36797.0/50000.0*arm_a22 + (24687.0/100000.0)*arm_a20;
-    const double d155 = -36797.0/50000.0*arm_a12 + (24687.0/100000.0)*arm_a10;
-    const double d156 = -36797.0/50000.0*arm_a02 + (24687.0/100000.0)*arm_a00;
-    const double d157 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12;
-    const double d158 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02;
-    const double d159 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02;
-    const double d160 = bucket_cyl_barrel_a11*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a10;
-    const double d161 = bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00;
-    const double d162 = -d161;
-    const double d163 = bucket_cyl_barrel_a01*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a00;
-    const double d164 = -d160;
-    const double d165 = -d163;
-    const double d166 = bucket_cyl_barrel_a12*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a10;
-    const double d167 = bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00;
-    const double d168 = -d167;
-    const double d169 = bucket_cyl_barrel_a02*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a00;
-    const double d170 = -d166;
-    const double d171 = -d169;
-    const double d172 = bucket_cyl_barrel_oy*bucket_cyl_rod_a00 + bucket_cyl_rod_a10*bucket_cyl_rod_ox - bucket_cyl_barrel_ox*bucket_cyl_rod_a10 - bucket_cyl_rod_a00*bucket_cyl_rod_oy;
-    const double d173 = bucket_cyl_barrel_ox*bucket_cyl_rod_a20 + bucket_cyl_rod_a00*bucket_cyl_rod_oz - bucket_cyl_barrel_oz*bucket_cyl_rod_a00 - bucket_cyl_rod_a20*bucket_cyl_rod_ox;
-    const double d174 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10 + bucket_cyl_rod_a20*bucket_cyl_rod_oy - bucket_cyl_barrel_oy*bucket_cyl_rod_a20 - bucket_cyl_rod_a10*bucket_cyl_rod_oz;
-    const double d175 = bucket_cyl_barrel_a01*bucket_cyl_rod_oy + bucket_cyl_barrel_a11*bucket_cyl_barrel_ox - bucket_cyl_barrel_a01*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_rod_ox;
-    const double d176 = bucket_cyl_barrel_a01*bucket_cyl_barrel_oz + bucket_cyl_barrel_a21*bucket_cyl_rod_ox - bucket_cyl_barrel_a01*bucket_cyl_rod_oz - bucket_cyl_barrel_a21*bucket_cyl_barrel_ox;
-    const double d177 = bucket_cyl_barrel_a11*bucket_cyl_rod_oz + bucket_cyl_barrel_a21*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_barrel_oz - bucket_cyl_barrel_a21*bucket_cyl_rod_oy;
-    const double d178 = bucket_cyl_barrel_a02*bucket_cyl_rod_oy + bucket_cyl_barrel_a12*bucket_cyl_barrel_ox - bucket_cyl_barrel_a02*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_rod_ox;
-    const double d179 = bucket_cyl_barrel_a02*bucket_cyl_barrel_oz + bucket_cyl_barrel_a22*bucket_cyl_rod_ox - bucket_cyl_barrel_a02*bucket_cyl_rod_oz - bucket_cyl_barrel_a22*bucket_cyl_barrel_ox;
-    const double d180 = bucket_cyl_barrel_a12*bucket_cyl_rod_oz + bucket_cyl_barrel_a22*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_barrel_oz - bucket_cyl_barrel_a22*bucket_cyl_rod_oy;
-    const double d181 = (1.0)*bucket_cyl_rod_a22;
-    const double d182 = d181*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12;
-    const double d183 = d181*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02;
-    const double d184 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12;
-    const double d185 = -96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
-    const double d186 = -96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
-    const double d187 = -96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
+    const double d147 = bucket_a20*p_K_x + bucket_a22*p_K_z;
+    const double d148 = bucket_a10*p_K_x + bucket_a12*p_K_z;
+    const double d149 = bucket_a00*p_K_x + bucket_a02*p_K_z;
+    const double d150 = (0.7962746214343476)*bucket_link_a10;
+    const double d151 = (0.6049353083260941)*bucket_link_a22;
+    const double d152 = (0.7962746214343476)*bucket_link_a00;
+    const double d153 = (0.7962746214343476)*bucket_link_a20;
+    const double d154 = -d153 + (0.6049353083260941)*bucket_link_a22;
+    const double d155 = -d150 + (0.6049353083260941)*bucket_link_a12;
+    const double d156 = -d152 + (0.6049353083260941)*bucket_link_a02;
+    const double d157 = -36797.0/50000.0*arm_a22 + (24687.0/100000.0)*arm_a20;
+    const double d158 = -36797.0/50000.0*arm_a12 + (24687.0/100000.0)*arm_a10;
+    const double d159 = -36797.0/50000.0*arm_a02 + (24687.0/100000.0)*arm_a00;
+    const double d160 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12;
+    const double d161 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02;
+    const double d162 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02;
+    const double d163 = bucket_cyl_barrel_a11*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a10;
+    const double d164 = bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00;
+    const double d165 = -d164;
+    const double d166 = bucket_cyl_barrel_a01*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a00;
+    const double d167 = -d163;
+    const double d168 = -d166;
+    const double d169 = bucket_cyl_barrel_a12*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a10;
+    const double d170 = bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00;
+    const double d171 = -d170;
+    const double d172 = bucket_cyl_barrel_a02*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a00;
+    const double d173 = -d169;
+    const double d174 = -d172;
+    const double d175 = bucket_cyl_barrel_oy*bucket_cyl_rod_a00 + bucket_cyl_rod_a10*bucket_cyl_rod_ox - bucket_cyl_barrel_ox*bucket_cyl_rod_a10 - bucket_cyl_rod_a00*bucket_cyl_rod_oy;
+    const double d176 = bucket_cyl_barrel_ox*bucket_cyl_rod_a20 + bucket_cyl_rod_a00*bucket_cyl_rod_oz - bucket_cyl_barrel_oz*bucket_cyl_rod_a00 - bucket_cyl_rod_a20*bucket_cyl_rod_ox;
+    const double d177 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10 + bucket_cyl_rod_a20*bucket_cyl_rod_oy - bucket_cyl_barrel_oy*bucket_cyl_rod_a20 - bucket_cyl_rod_a10*bucket_cyl_rod_oz;
+    const double d178 = bucket_cyl_barrel_a01*bucket_cyl_rod_oy + bucket_cyl_barrel_a11*bucket_cyl_barrel_ox - bucket_cyl_barrel_a01*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_rod_ox;
+    const double d179 = bucket_cyl_barrel_a01*bucket_cyl_barrel_oz + bucket_cyl_barrel_a21*bucket_cyl_rod_ox - bucket_cyl_barrel_a01*bucket_cyl_rod_oz - bucket_cyl_barrel_a21*bucket_cyl_barrel_ox;
+    const double d180 = bucket_cyl_barrel_a11*bucket_cyl_rod_oz + bucket_cyl_barrel_a21*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_barrel_oz - bucket_cyl_barrel_a21*bucket_cyl_rod_oy;
+    const double d181 = bucket_cyl_barrel_a02*bucket_cyl_rod_oy + bucket_cyl_barrel_a12*bucket_cyl_barrel_ox - bucket_cyl_barrel_a02*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_rod_ox;
+    const double d182 = bucket_cyl_barrel_a02*bucket_cyl_barrel_oz + bucket_cyl_barrel_a22*bucket_cyl_rod_ox - bucket_cyl_barrel_a02*bucket_cyl_rod_oz - bucket_cyl_barrel_a22*bucket_cyl_barrel_ox;
+    const double d183 = bucket_cyl_barrel_a12*bucket_cyl_rod_oz + bucket_cyl_barrel_a22*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_barrel_oz - bucket_cyl_barrel_a22*bucket_cyl_rod_oy;
+    const double d184 = (1.0)*bucket_cyl_rod_a22;
+    const double d185 = d184*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12;
+    const double d186 = d184*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02;
+    const double d187 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12;
+    const double d188 = 0.5686266556413632*p_side_link;
+    const double d189 = 0.822595724821202*p_side_link;
+    const double d190 = d188*side_link_a20 - d189*side_link_a22;
+    const double d191 = d188*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link;
+    const double d192 = d188*side_link_a00 - d189*side_link_a02;
     out[337] = 1.0;
-    out[338] = d144;
-    out[339] = -d145;
+    out[338] = -d147;
+    out[339] = d148;
     out[340] = -1.0;
     out[341] = 1.0;
-    out[342] = -d144;
-    out[343] = d146;
+    out[342] = d147;
+    out[343] = -d149;
     out[344] = -1.0;
     out[345] = 1.0;
-    out[346] = d145;
-    out[347] = -d146;
+    out[346] = -d148;
+    out[347] = d149;
     out[348] = -1.0;
-    out[349] = -d147*bucket_a21 - d148*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11;
-    out[350] = d148*bucket_a01 + d149*bucket_a21 - d150*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21;
-    out[351] = -d149*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01;
-    out[352] = d151*bucket_a11 - d152*bucket_a21;
-    out[353] = d153*bucket_a21 - d151*bucket_a01;
-    out[354] = d152*bucket_a01 - d153*bucket_a11;
-    out[355] = -d154;
-    out[356] = d155;
+    out[349] = -d150*bucket_a21 - d151*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11;
+    out[350] = d151*bucket_a01 + d152*bucket_a21 - d153*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21;
+    out[351] = -d152*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01;
+    out[352] = d154*bucket_a11 - d155*bucket_a21;
+    out[353] = d156*bucket_a21 - d154*bucket_a01;
+    out[354] = d155*bucket_a01 - d156*bucket_a11;
+    out[355] = -d157;
+    out[356] = d158;
     out[357] = 1.0;
     out[358] = -1.0;
-    out[359] = d154;
-    out[360] = -d156;
+    out[359] = d157;
+    out[360] = -d159;
     out[361] = 1.0;
     out[362] = -1.0;
-    out[363] = -d155;
-    out[364] = d156;
+    out[363] = -d158;
+    out[364] = d159;
     out[365] = 1.0;
     out[366] = -1.0;
-    out[367] = d157;
-    out[368] = -d158;
-    out[369] = d159;
-    out[370] = -d157;
-    out[371] = d158;
-    out[372] = -d159;
-    out[373] = d160;
-    out[374] = d162;
-    out[375] = d163;
-    out[376] = d164;
-    out[377] = d161;
-    out[378] = d165;
-    out[379] = d166;
-    out[380] = d168;
-    out[381] = d169;
-    out[382] = d170;
-    out[383] = d167;
-    out[384] = d171;
-    out[385] = d172*bucket_cyl_barrel_a11 - d173*bucket_cyl_barrel_a21;
-    out[386] = d174*bucket_cyl_barrel_a21 - d172*bucket_cyl_barrel_a01;
-    out[387] = d173*bucket_cyl_barrel_a01 - d174*bucket_cyl_barrel_a11;
-    out[388] = d160;
-    out[389] = d162;
-    out[390] = d163;
-    out[391] = d175*bucket_cyl_rod_a10 - d176*bucket_cyl_rod_a20;
-    out[392] = d177*bucket_cyl_rod_a20 - d175*bucket_cyl_rod_a00;
-    out[393] = d176*bucket_cyl_rod_a00 - d177*bucket_cyl_rod_a10;
-    out[394] = d164;
-    out[395] = d161;
-    out[396] = d165;
-    out[397] = d172*bucket_cyl_barrel_a12 - d173*bucket_cyl_barrel_a22;
-    out[398] = d174*bucket_cyl_barrel_a22 - d172*bucket_cyl_barrel_a02;
-    out[399] = d173*bucket_cyl_barrel_a02 - d174*bucket_cyl_barrel_a12;
-    out[400] = d166;
-    out[401] = d168;
-    out[402] = d169;
-    out[403] = d178*bucket_cyl_rod_a10 - d179*bucket_cyl_rod_a20;
-    out[404] = d180*bucket_cyl_rod_a20 - d178*bucket_cyl_rod_a00;
-    out[405] = d179*bucket_cyl_rod_a00 - d180*bucket_cyl_rod_a10;
-    out[406] = d170;
-    out[407] = d167;
-    out[408] = d171;
-    out[409] = d182;
-    out[410] = -d183;
-    out[411] = d184;
-    out[412] = -d182;
-    out[413] = d183;
-    out[414] = -d184;
+    out[367] = d160;
+    out[368] = -d161;
+    out[369] = d162;
+    out[370] = -d160;
+    out[371] = d161;
+    out[372] = -d162;
+    out[373] = d163;
+    out[374] = d165;
+    out[375] = d166;
+    out[376] = d167;
+    out[377] = d164;
+    out[378] = d168;
+    out[379] = d169;
+    out[380] = d171;
+    out[381] = d172;
+    out[382] = d173;
+    out[383] = d170;
+    out[384] = d174;
+    out[385] = d175*bucket_cyl_barrel_a11 - d176*bucket_cyl_barrel_a21;
+    out[386] = d177*bucket_cyl_barrel_a21 - d175*bucket_cyl_barrel_a01;
+    out[387] = d176*bucket_cyl_barrel_a01 - d177*bucket_cyl_barrel_a11;
+    out[388] = d163;
+    out[389] = d165;
+    out[390] = d166;
+    out[391] = d178*bucket_cyl_rod_a10 - d179*bucket_cyl_rod_a20;
+    out[392] = d180*bucket_cyl_rod_a20 - d178*bucket_cyl_rod_a00;
+    out[393] = d179*bucket_cyl_rod_a00 - d180*bucket_cyl_rod_a10;
+    out[394] = d167;
+    out[395] = d164;
+    out[396] = d168;
+    out[397] = d175*bucket_cyl_barrel_a12 - d176*bucket_cyl_barrel_a22;
+    out[398] = d177*bucket_cyl_barrel_a22 - d175*bucket_cyl_barrel_a02;
+    out[399] = d176*bucket_cyl_barrel_a02 - d177*bucket_cyl_barrel_a12;
+    out[400] = d169;
+    out[401] = d171;
+    out[402] = d172;
+    out[403] = d181*bucket_cyl_rod_a10 - d182*bucket_cyl_rod_a20;
+    out[404] = d183*bucket_cyl_rod_a20 - d181*bucket_cyl_rod_a00;
+    out[405] = d182*bucket_cyl_rod_a00 - d183*bucket_cyl_rod_a10;
+    out[406] = d173;
+    out[407] = d170;
+    out[408] = d174;
+    out[409] = d185;
+    out[410] = -d186;
+    out[411] = d187;
+    out[412] = -d185;
+    out[413] = d186;
+    out[414] = -d187;
     out[415] = 1.0;
-    out[416] = d185;
-    out[417] = -d186;
+    out[416] = d190;
+    out[417] = -d191;
     out[418] = -1.0;
     out[419] = 1.0;
-    out[420] = -d185;
-    out[421] = d187;
+    out[420] = -d190;
+    out[421] = d192;
     out[422] = -1.0;
     out[423] = 1.0;
-    out[424] = d186;
-    out[425] = -d187;
+    out[424] = d191;
+    out[425] = -d192;
     out[426] = -1.0;
 }
 
 /* Phi_q values of the driver rows of case 'digging'. */
-void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -1438,6 +1475,7 @@ void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, cons
     const double bucket_cyl_rod_dy = q[86];
     const double bucket_cyl_rod_dz = q[87];
     const double u0 = u[0];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -1510,7 +1548,7 @@ void excavator_dual_quaternion_compute_drivers_jac_digging(const double *q, cons
 }
 
 /* nu of the driver rows of case 'digging'. */
-void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out) {
+void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double u0 = u[0];
@@ -1518,6 +1556,7 @@ void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0));
     out[1] = ud1;
@@ -1526,7 +1565,7 @@ void excavator_dual_quaternion_compute_drivers_nu_digging(const double *q, const
 }
 
 /* gamma of the joint rows (they do not depend on time). Rows 0 to 25. */
-void excavator_dual_quaternion_compute_joints_gamma_part0(const double *q, const double *v, double *out) {
+void excavator_dual_quaternion_compute_joints_gamma_part0(const double *q, const double *v, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -1576,6 +1615,8 @@ void excavator_dual_quaternion_compute_joints_gamma_part0(const double *q, const
     const double v_boom_cyl_r_barrel_wx = v[24];
     const double v_boom_cyl_r_barrel_wy = v[25];
     const double v_boom_cyl_r_barrel_wz = v[26];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
     const double upper_a00 = -1.0 + 2.0*(upper_rw*upper_rw) + 2.0*(upper_rx*upper_rx);
     const double upper_a01 = -2.0*upper_rw*upper_rz + 2.0*upper_rx*upper_ry;
     const double upper_a02 = 2.0*upper_rw*upper_ry + 2.0*upper_rx*upper_rz;
@@ -1759,14 +1800,14 @@ void excavator_dual_quaternion_compute_joints_gamma_part0(const double *q, const
     const double c141 = -1.0*v_boom_cyl_l_rod_wz + (1.0)*v_boom_cyl_l_barrel_wz;
     const double c142 = -c141;
     const double c143 = -c138;
-    const double c144 = -139283.0/100000.0*boom_a00*v_boom_wy + (139283.0/100000.0)*boom_a10*v_boom_wx;
-    const double c145 = -8.0/25.0*boom_a01*v_boom_wy + (8.0/25.0)*boom_a11*v_boom_wx;
-    const double c146 = -2.001922*boom_a02*v_boom_wy + (2.001922)*boom_a12*v_boom_wx;
-    const double c147 = boom_a00*v_boom_wz - boom_a20*v_boom_wx;
-    const double c148 = boom_a01*v_boom_wz - boom_a21*v_boom_wx;
+    const double c144 = -8.0/25.0*boom_a01*v_boom_wy + (8.0/25.0)*boom_a11*v_boom_wx;
+    const double c145 = boom_a01*v_boom_wz - boom_a21*v_boom_wx;
+    const double c146 = p_C_x*(boom_a10*v_boom_wx - boom_a00*v_boom_wy);
+    const double c147 = p_C_z*(boom_a12*v_boom_wx - boom_a02*v_boom_wy);
+    const double c148 = boom_a00*v_boom_wz - boom_a20*v_boom_wx;
     const double c149 = boom_a02*v_boom_wz - boom_a22*v_boom_wx;
-    const double c150 = boom_a20*v_boom_wy - boom_a10*v_boom_wz;
-    const double c151 = boom_a21*v_boom_wy - boom_a11*v_boom_wz;
+    const double c150 = boom_a21*v_boom_wy - boom_a11*v_boom_wz;
+    const double c151 = boom_a20*v_boom_wy - boom_a10*v_boom_wz;
     const double c152 = boom_a22*v_boom_wy - boom_a12*v_boom_wz;
     const double c153 = -4307.0/6250.0*upper_a00*v_upper_wy + (4307.0/6250.0)*upper_a10*v_upper_wx;
     const double c154 = upper_a11*v_upper_wx - upper_a01*v_upper_wy;
@@ -1803,17 +1844,21 @@ void excavator_dual_quaternion_compute_joints_gamma_part0(const double *q, const
     out[16] = -c35*c106 - c44*c111 - c51*(c59*boom_cyl_l_barrel_ox + c60*boom_cyl_l_barrel_oy + c68*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a11 + c112*boom_cyl_l_barrel_a01 + c113*boom_cyl_l_barrel_a21 + c42*boom_cyl_l_barrel_ox + c116*boom_cyl_l_rod_oz + c117*boom_cyl_l_rod_oz + c118*boom_cyl_l_barrel_a21 - c60*boom_cyl_l_rod_oy - c42*boom_cyl_l_rod_ox - c116*boom_cyl_l_barrel_oz - c117*boom_cyl_l_barrel_oz) - c57*(c34*boom_cyl_l_barrel_ox + c54*boom_cyl_l_rod_ox + c67*boom_cyl_l_barrel_oz + c93*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a21 + c104*boom_cyl_l_barrel_a11 + c108*boom_cyl_l_barrel_a01 + c114*boom_cyl_l_barrel_a11 + c116*boom_cyl_l_rod_oy + c119*boom_cyl_l_rod_oy - c34*boom_cyl_l_rod_ox - c93*boom_cyl_l_rod_oz - c116*boom_cyl_l_barrel_oy - c119*boom_cyl_l_barrel_oy) - c61*c115 - c66*(c53*boom_cyl_l_barrel_oy + c58*boom_cyl_l_rod_oz + c86*boom_cyl_l_barrel_oy + c101*boom_cyl_l_barrel_a21 + c105*boom_cyl_l_barrel_a01 + c109*boom_cyl_l_barrel_a11 + c117*boom_cyl_l_rod_ox + c119*boom_cyl_l_rod_ox + c120*boom_cyl_l_barrel_a01 + c43*boom_cyl_l_barrel_oz - c86*boom_cyl_l_rod_oy - c117*boom_cyl_l_barrel_ox - c119*boom_cyl_l_barrel_ox - c43*boom_cyl_l_rod_oz) - v_boom_cyl_l_barrel_vx*(c82 + c83 - c84 - c85 + c59*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a11) - v_boom_cyl_l_barrel_vy*(c87 + c88 - c90 - c91 + c53*boom_cyl_l_rod_a00 + c63*boom_cyl_l_barrel_a21) - v_boom_cyl_l_barrel_vz*(c92 + c94 - c95 - c97 + c47*boom_cyl_l_barrel_a01 + c67*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c84 + c85 - c82 - c83 + c48*boom_cyl_l_barrel_a21 + c54*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c90 + c91 - c87 - c88 + c37*boom_cyl_l_barrel_a01 + c68*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c95 + c97 - c92 - c94 + c58*boom_cyl_l_rod_a00 + c62*boom_cyl_l_barrel_a11);
     out[17] = -c51*(c135*boom_cyl_l_rod_oz + c136*boom_cyl_l_rod_oz + c71*boom_cyl_l_barrel_ox + c77*boom_cyl_l_barrel_ox + c78*boom_cyl_l_barrel_oy + c81*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a12 + c112*boom_cyl_l_barrel_a02 + c113*boom_cyl_l_barrel_a22 + c118*boom_cyl_l_barrel_a22 - c135*boom_cyl_l_barrel_oz - c136*boom_cyl_l_barrel_oz - c71*boom_cyl_l_rod_ox - c78*boom_cyl_l_rod_oy) - c57*(c135*boom_cyl_l_rod_oy + c137*boom_cyl_l_rod_oy + c69*boom_cyl_l_barrel_ox + c75*boom_cyl_l_rod_ox + c80*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a22 + c104*boom_cyl_l_barrel_a12 + c108*boom_cyl_l_barrel_a02 + c114*boom_cyl_l_barrel_a12 + c131*boom_cyl_l_barrel_oz - c135*boom_cyl_l_barrel_oy - c137*boom_cyl_l_barrel_oy - c69*boom_cyl_l_rod_ox - c131*boom_cyl_l_rod_oz) - c66*(c136*boom_cyl_l_rod_ox + c137*boom_cyl_l_rod_ox + c72*boom_cyl_l_barrel_oz + c74*boom_cyl_l_barrel_oy + c76*boom_cyl_l_rod_oz + c101*boom_cyl_l_barrel_a22 + c105*boom_cyl_l_barrel_a02 + c109*boom_cyl_l_barrel_a12 + c120*boom_cyl_l_barrel_a02 + c125*boom_cyl_l_barrel_oy - c136*boom_cyl_l_barrel_ox - c137*boom_cyl_l_barrel_ox - c72*boom_cyl_l_rod_oz - c125*boom_cyl_l_rod_oy) - c70*c106 - c73*c111 - c79*c115 - v_boom_cyl_l_barrel_vx*(c121 + c122 - c123 - c124 + c77*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a12) - v_boom_cyl_l_barrel_vy*(c126 + c127 - c128 - c129 + c63*boom_cyl_l_barrel_a22 + c74*boom_cyl_l_rod_a00) - v_boom_cyl_l_barrel_vz*(c130 + c132 - c134 - c133 + c47*boom_cyl_l_barrel_a02 + c80*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c123 + c124 - c121 - c122 + c48*boom_cyl_l_barrel_a22 + c75*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c128 + c129 - c126 - c127 + c37*boom_cyl_l_barrel_a02 + c81*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c134 + c133 - c130 - c132 + c62*boom_cyl_l_barrel_a12 + c76*boom_cyl_l_rod_a00);
     out[18] = -c35*(c138*boom_cyl_l_rod_a02 + c140*boom_cyl_l_rod_a12) - c44*(c139*boom_cyl_l_rod_a22 + c142*boom_cyl_l_rod_a02) - c61*(c141*boom_cyl_l_rod_a12 + c143*boom_cyl_l_rod_a22) - (c138*boom_cyl_l_barrel_a21 + c142*boom_cyl_l_barrel_a11)*(boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wy - boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wz) - (c139*boom_cyl_l_barrel_a11 + c143*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wx - boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wy) - (c140*boom_cyl_l_barrel_a21 + c141*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wz - boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wx);
-    out[19] = c144*v_boom_wy + c145*v_boom_wy + c146*v_boom_wy - 2.001922*c149*v_boom_wz - 139283.0/100000.0*c147*v_boom_wz - 8.0/25.0*c148*v_boom_wz;
-    out[20] = -c144*v_boom_wx - c145*v_boom_wx - c146*v_boom_wx + (8.0/25.0)*c151*v_boom_wz + (139283.0/100000.0)*c150*v_boom_wz + (2.001922)*c152*v_boom_wz;
-    out[21] = -2.001922*c152*v_boom_wy - 139283.0/100000.0*c150*v_boom_wy - 8.0/25.0*c151*v_boom_wy + (8.0/25.0)*c148*v_boom_wx + (139283.0/100000.0)*c147*v_boom_wx + (2.001922)*c149*v_boom_wx;
+    out[19] = c144*v_boom_wy + c146*v_boom_wy + c147*v_boom_wy - 8.0/25.0*c145*v_boom_wz - c148*p_C_x*v_boom_wz - c149*p_C_z*v_boom_wz;
+    out[20] = -c144*v_boom_wx - c146*v_boom_wx - c147*v_boom_wx + (8.0/25.0)*c150*v_boom_wz + c151*p_C_x*v_boom_wz + c152*p_C_z*v_boom_wz;
+    out[21] = -8.0/25.0*c150*v_boom_wy + (8.0/25.0)*c145*v_boom_wx + c148*p_C_x*v_boom_wx + c149*p_C_z*v_boom_wx - c151*p_C_x*v_boom_wy - c152*p_C_z*v_boom_wy;
     out[22] = -c153*v_upper_wy - c155*v_upper_wy - c157*c158 + (8.0/25.0)*c154*v_upper_wy + (4307.0/6250.0)*c156*v_upper_wz + (67739.0/50000.0)*c159*v_upper_wz;
     out[23] = c153*v_upper_wx + c155*v_upper_wx + c158*c161 - 67739.0/50000.0*c162*v_upper_wz - 4307.0/6250.0*c160*v_upper_wz - 8.0/25.0*c154*v_upper_wx;
     out[24] = -67739.0/50000.0*c159*v_upper_wx - 4307.0/6250.0*c156*v_upper_wx - 8.0/25.0*c161*v_upper_wy + (8.0/25.0)*c157*v_upper_wx + (4307.0/6250.0)*c160*v_upper_wy + (67739.0/50000.0)*c162*v_upper_wy;
     out[25] = -c154*(c163*boom_cyl_r_barrel_a02 + c165*boom_cyl_r_barrel_a12) - c157*(c164*boom_cyl_r_barrel_a22 + c167*boom_cyl_r_barrel_a02) - c161*(c166*boom_cyl_r_barrel_a12 + c168*boom_cyl_r_barrel_a22) - (c163*upper_a21 + c167*upper_a11)*(boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_wy - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_wz) - (c164*upper_a11 + c168*upper_a01)*(boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_wx - boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_wy) - (c165*upper_a21 + c166*upper_a01)*(boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_wz - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_wx);
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 2
+
 /* gamma of the joint rows (they do not depend on time). Rows 26 to 42. */
-void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const double *v, double *out) {
+void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const double *v, const double *p, double *out) {
     const double boom_rw = q[8];
     const double boom_rx = q[9];
     const double boom_ry = q[10];
@@ -1863,6 +1908,8 @@ void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const
     const double v_arm_cyl_barrel_wx = v[42];
     const double v_arm_cyl_barrel_wy = v[43];
     const double v_arm_cyl_barrel_wz = v[44];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
     const double boom_a00 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_rx*boom_rx);
     const double boom_a01 = -2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
     const double boom_a02 = 2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz;
@@ -2009,15 +2056,15 @@ void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const
     const double c276 = -1.0*v_boom_cyl_r_rod_wz + (1.0)*v_boom_cyl_r_barrel_wz;
     const double c277 = -c276;
     const double c278 = -c273;
-    const double c279 = -139283.0/100000.0*boom_a00*v_boom_wy + (139283.0/100000.0)*boom_a10*v_boom_wx;
-    const double c280 = boom_a11*v_boom_wx - boom_a01*v_boom_wy;
-    const double c281 = -2.001922*boom_a02*v_boom_wy + (2.001922)*boom_a12*v_boom_wx;
-    const double c282 = boom_a00*v_boom_wz - boom_a20*v_boom_wx;
-    const double c283 = boom_a01*v_boom_wz - boom_a21*v_boom_wx;
-    const double c284 = (8.0/25.0)*v_boom_wz;
+    const double c279 = boom_a11*v_boom_wx - boom_a01*v_boom_wy;
+    const double c280 = boom_a01*v_boom_wz - boom_a21*v_boom_wx;
+    const double c281 = (8.0/25.0)*v_boom_wz;
+    const double c282 = p_C_x*(boom_a10*v_boom_wx - boom_a00*v_boom_wy);
+    const double c283 = p_C_z*(boom_a12*v_boom_wx - boom_a02*v_boom_wy);
+    const double c284 = boom_a00*v_boom_wz - boom_a20*v_boom_wx;
     const double c285 = boom_a02*v_boom_wz - boom_a22*v_boom_wx;
-    const double c286 = boom_a20*v_boom_wy - boom_a10*v_boom_wz;
-    const double c287 = boom_a21*v_boom_wy - boom_a11*v_boom_wz;
+    const double c286 = boom_a21*v_boom_wy - boom_a11*v_boom_wz;
+    const double c287 = boom_a20*v_boom_wy - boom_a10*v_boom_wz;
     const double c288 = boom_a22*v_boom_wy - boom_a12*v_boom_wz;
     const double c289 = -23939.0/5000.0*boom_a00*v_boom_wy + (23939.0/5000.0)*boom_a10*v_boom_wx;
     const double c290 = -29959.0/10000.0*boom_a02*v_boom_wy + (29959.0/10000.0)*boom_a12*v_boom_wx;
@@ -2054,9 +2101,9 @@ void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const
     out[28] = -c170*c241 - c179*c246 - c186*(c194*boom_cyl_r_barrel_ox + c195*boom_cyl_r_barrel_oy + c203*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a11 + c247*boom_cyl_r_barrel_a01 + c248*boom_cyl_r_barrel_a21 + c177*boom_cyl_r_barrel_ox + c251*boom_cyl_r_rod_oz + c252*boom_cyl_r_rod_oz + c253*boom_cyl_r_barrel_a21 - c195*boom_cyl_r_rod_oy - c177*boom_cyl_r_rod_ox - c251*boom_cyl_r_barrel_oz - c252*boom_cyl_r_barrel_oz) - c192*(c169*boom_cyl_r_barrel_ox + c189*boom_cyl_r_rod_ox + c202*boom_cyl_r_barrel_oz + c228*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a21 + c239*boom_cyl_r_barrel_a11 + c243*boom_cyl_r_barrel_a01 + c249*boom_cyl_r_barrel_a11 + c251*boom_cyl_r_rod_oy + c254*boom_cyl_r_rod_oy - c169*boom_cyl_r_rod_ox - c228*boom_cyl_r_rod_oz - c251*boom_cyl_r_barrel_oy - c254*boom_cyl_r_barrel_oy) - c196*c250 - c201*(c188*boom_cyl_r_barrel_oy + c193*boom_cyl_r_rod_oz + c221*boom_cyl_r_barrel_oy + c236*boom_cyl_r_barrel_a21 + c240*boom_cyl_r_barrel_a01 + c244*boom_cyl_r_barrel_a11 + c252*boom_cyl_r_rod_ox + c254*boom_cyl_r_rod_ox + c255*boom_cyl_r_barrel_a01 + c178*boom_cyl_r_barrel_oz - c221*boom_cyl_r_rod_oy - c252*boom_cyl_r_barrel_ox - c254*boom_cyl_r_barrel_ox - c178*boom_cyl_r_rod_oz) - v_boom_cyl_r_barrel_vx*(c217 + c218 - c219 - c220 + c194*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a11) - v_boom_cyl_r_barrel_vy*(c222 + c223 - c225 - c226 + c188*boom_cyl_r_rod_a00 + c198*boom_cyl_r_barrel_a21) - v_boom_cyl_r_barrel_vz*(c227 + c229 - c230 - c232 + c182*boom_cyl_r_barrel_a01 + c202*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c219 + c220 - c217 - c218 + c183*boom_cyl_r_barrel_a21 + c189*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c225 + c226 - c222 - c223 + c172*boom_cyl_r_barrel_a01 + c203*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c230 + c232 - c227 - c229 + c193*boom_cyl_r_rod_a00 + c197*boom_cyl_r_barrel_a11);
     out[29] = -c186*(c270*boom_cyl_r_rod_oz + c271*boom_cyl_r_rod_oz + c206*boom_cyl_r_barrel_ox + c212*boom_cyl_r_barrel_ox + c213*boom_cyl_r_barrel_oy + c216*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a12 + c247*boom_cyl_r_barrel_a02 + c248*boom_cyl_r_barrel_a22 + c253*boom_cyl_r_barrel_a22 - c270*boom_cyl_r_barrel_oz - c271*boom_cyl_r_barrel_oz - c206*boom_cyl_r_rod_ox - c213*boom_cyl_r_rod_oy) - c192*(c270*boom_cyl_r_rod_oy + c272*boom_cyl_r_rod_oy + c204*boom_cyl_r_barrel_ox + c210*boom_cyl_r_rod_ox + c215*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a22 + c239*boom_cyl_r_barrel_a12 + c243*boom_cyl_r_barrel_a02 + c249*boom_cyl_r_barrel_a12 + c266*boom_cyl_r_barrel_oz - c270*boom_cyl_r_barrel_oy - c272*boom_cyl_r_barrel_oy - c204*boom_cyl_r_rod_ox - c266*boom_cyl_r_rod_oz) - c201*(c271*boom_cyl_r_rod_ox + c272*boom_cyl_r_rod_ox + c207*boom_cyl_r_barrel_oz + c209*boom_cyl_r_barrel_oy + c211*boom_cyl_r_rod_oz + c236*boom_cyl_r_barrel_a22 + c240*boom_cyl_r_barrel_a02 + c244*boom_cyl_r_barrel_a12 + c255*boom_cyl_r_barrel_a02 + c260*boom_cyl_r_barrel_oy - c271*boom_cyl_r_barrel_ox - c272*boom_cyl_r_barrel_ox - c207*boom_cyl_r_rod_oz - c260*boom_cyl_r_rod_oy) - c205*c241 - c208*c246 - c214*c250 - v_boom_cyl_r_barrel_vx*(c256 + c257 - c258 - c259 + c212*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a12) - v_boom_cyl_r_barrel_vy*(c261 + c262 - c263 - c264 + c198*boom_cyl_r_barrel_a22 + c209*boom_cyl_r_rod_a00) - v_boom_cyl_r_barrel_vz*(c265 + c267 - c269 - c268 + c182*boom_cyl_r_barrel_a02 + c215*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c258 + c259 - c256 - c257 + c183*boom_cyl_r_barrel_a22 + c210*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c263 + c264 - c261 - c262 + c172*boom_cyl_r_barrel_a02 + c216*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c269 + c268 - c265 - c267 + c197*boom_cyl_r_barrel_a12 + c211*boom_cyl_r_rod_a00);
     out[30] = -c170*(c273*boom_cyl_r_rod_a02 + c275*boom_cyl_r_rod_a12) - c179*(c274*boom_cyl_r_rod_a22 + c277*boom_cyl_r_rod_a02) - c196*(c276*boom_cyl_r_rod_a12 + c278*boom_cyl_r_rod_a22) - (c273*boom_cyl_r_barrel_a21 + c277*boom_cyl_r_barrel_a11)*(boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wy - boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wz) - (c274*boom_cyl_r_barrel_a11 + c278*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wx - boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wy) - (c275*boom_cyl_r_barrel_a21 + c276*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wz - boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wx);
-    out[31] = c279*v_boom_wy + c281*v_boom_wy + c283*c284 - 2.001922*c285*v_boom_wz - 139283.0/100000.0*c282*v_boom_wz - 8.0/25.0*c280*v_boom_wy;
-    out[32] = -c279*v_boom_wx - c281*v_boom_wx - c284*c287 + (8.0/25.0)*c280*v_boom_wx + (139283.0/100000.0)*c286*v_boom_wz + (2.001922)*c288*v_boom_wz;
-    out[33] = -2.001922*c288*v_boom_wy - 139283.0/100000.0*c286*v_boom_wy - 8.0/25.0*c283*v_boom_wx + (8.0/25.0)*c287*v_boom_wy + (139283.0/100000.0)*c282*v_boom_wx + (2.001922)*c285*v_boom_wx;
+    out[31] = c280*c281 + c282*v_boom_wy + c283*v_boom_wy - 8.0/25.0*c279*v_boom_wy - c284*p_C_x*v_boom_wz - c285*p_C_z*v_boom_wz;
+    out[32] = -c281*c286 - c282*v_boom_wx - c283*v_boom_wx + (8.0/25.0)*c279*v_boom_wx + c287*p_C_x*v_boom_wz + c288*p_C_z*v_boom_wz;
+    out[33] = -8.0/25.0*c280*v_boom_wx + (8.0/25.0)*c286*v_boom_wy + c284*p_C_x*v_boom_wx + c285*p_C_z*v_boom_wx - c287*p_C_x*v_boom_wy - c288*p_C_z*v_boom_wy;
     out[34] = -c289*v_boom_wy - c290*v_boom_wy + (23939.0/5000.0)*c291*v_boom_wz + (29959.0/10000.0)*c292*v_boom_wz;
     out[35] = c289*v_boom_wx + c290*v_boom_wx - 29959.0/10000.0*c294*v_boom_wz - 23939.0/5000.0*c293*v_boom_wz;
     out[36] = -29959.0/10000.0*c292*v_boom_wx - 23939.0/5000.0*c291*v_boom_wx + (23939.0/5000.0)*c293*v_boom_wy + (29959.0/10000.0)*c294*v_boom_wy;
@@ -2068,12 +2115,8 @@ void excavator_dual_quaternion_compute_joints_gamma_part1(const double *q, const
     out[42] = -(c317*boom_a11 + c313*boom_a21)*(arm_cyl_barrel_a22*v_arm_cyl_barrel_wy - arm_cyl_barrel_a12*v_arm_cyl_barrel_wz) - (c317*arm_cyl_barrel_a02 + c314*arm_cyl_barrel_a22)*(boom_a01*v_boom_wz - boom_a21*v_boom_wx) - (c318*boom_a01 + c314*boom_a11)*(arm_cyl_barrel_a12*v_arm_cyl_barrel_wx - arm_cyl_barrel_a02*v_arm_cyl_barrel_wy) - (c318*arm_cyl_barrel_a22 + c316*arm_cyl_barrel_a12)*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - (c313*arm_cyl_barrel_a02 + c315*arm_cyl_barrel_a12)*(boom_a11*v_boom_wx - boom_a01*v_boom_wy) - (c315*boom_a21 + c316*boom_a01)*(arm_cyl_barrel_a02*v_arm_cyl_barrel_wz - arm_cyl_barrel_a22*v_arm_cyl_barrel_wx);
 }
 
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 2
-
 /* gamma of the joint rows (they do not depend on time). Rows 43 to 71. */
-void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const double *v, double *out) {
+void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const double *v, const double *p, double *out) {
     const double arm_rw = q[48];
     const double arm_rx = q[49];
     const double arm_ry = q[50];
@@ -2137,6 +2180,12 @@ void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const
     const double v_bucket_wx = v[78];
     const double v_bucket_wy = v[79];
     const double v_bucket_wz = v[80];
+    const double p_F_x = p[2];
+    const double p_F_z = p[3];
+    const double p_side_link = p[5];
+    const double p_bucket_link = p[6];
+    const double p_K_x = p[7];
+    const double p_K_z = p[8];
     const double arm_a00 = -1.0 + 2.0*(arm_rw*arm_rw) + 2.0*(arm_rx*arm_rx);
     const double arm_a01 = -2.0*arm_rw*arm_rz + 2.0*arm_rx*arm_ry;
     const double arm_a02 = 2.0*arm_rw*arm_ry + 2.0*arm_rx*arm_rz;
@@ -2298,8 +2347,8 @@ void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const
     const double c426 = -1.0*v_arm_cyl_rod_wz + (1.0)*v_arm_cyl_barrel_wz;
     const double c427 = -c426;
     const double c428 = -c423;
-    const double c429 = -393281.0/500000.0*arm_a00*v_arm_wy + (393281.0/500000.0)*arm_a10*v_arm_wx;
-    const double c430 = -0.369691*arm_a02*v_arm_wy + (0.369691)*arm_a12*v_arm_wx;
+    const double c429 = p_F_x*(arm_a10*v_arm_wx - arm_a00*v_arm_wy);
+    const double c430 = p_F_z*(arm_a12*v_arm_wx - arm_a02*v_arm_wy);
     const double c431 = arm_a00*v_arm_wz - arm_a20*v_arm_wx;
     const double c432 = arm_a02*v_arm_wz - arm_a22*v_arm_wx;
     const double c433 = arm_a20*v_arm_wy - arm_a10*v_arm_wz;
@@ -2340,61 +2389,63 @@ void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const
     const double c468 = c464*arm_a01 + c462*arm_a21;
     const double c469 = arm_a21*v_arm_wy - arm_a11*v_arm_wz;
     const double c470 = c465*arm_a11 + c460*arm_a21;
-    const double c471 = -166329.0/500000.0*side_link_a00*v_side_link_wy + (166329.0/500000.0)*side_link_a10*v_side_link_wx;
-    const double c472 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy;
-    const double c473 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx;
-    const double c474 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx;
-    const double c475 = (96247.0/200000.0)*v_side_link_wz;
-    const double c476 = bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy;
-    const double c477 = bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy;
-    const double c478 = bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx;
-    const double c479 = (85607.0/250000.0)*v_bucket_link_wz;
-    const double c480 = bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx;
-    const double c481 = (0.450737)*v_bucket_link_wz;
-    const double c482 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz;
-    const double c483 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz;
+    const double c471 = p_bucket_link*v_bucket_link_wy;
+    const double c472 = 0.60493530832545*bucket_link_a10*v_bucket_link_wx - 0.60493530832545*bucket_link_a00*v_bucket_link_wy;
+    const double c473 = 0.796274621434837*bucket_link_a12*v_bucket_link_wx - 0.796274621434837*bucket_link_a02*v_bucket_link_wy;
+    const double c474 = bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx;
+    const double c475 = bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx;
+    const double c476 = side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy;
+    const double c477 = 0.822595724821202*p_side_link;
+    const double c478 = c477*(side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy);
+    const double c479 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx;
+    const double c480 = 0.5686266556413632*p_side_link;
+    const double c481 = c480*v_side_link_wz;
+    const double c482 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx;
+    const double c483 = p_bucket_link*v_bucket_link_wx;
     const double c484 = bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz;
-    const double c485 = bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz;
-    const double c486 = -8101.0/25000.0*bucket_a00*v_bucket_wy + (8101.0/25000.0)*bucket_a10*v_bucket_wx;
-    const double c487 = bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy;
-    const double c488 = bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx;
-    const double c489 = bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx;
-    const double c490 = (16927.0/50000.0)*v_bucket_wz;
-    const double c491 = bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz;
-    const double c492 = bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz;
-    const double c493 = -0.7962746214343476*v_bucket_wy + (0.7962746214343476)*v_bucket_link_wy;
-    const double c494 = -c493;
-    const double c495 = -0.7962746214343476*v_bucket_wx + (0.7962746214343476)*v_bucket_link_wx;
-    const double c496 = -0.7962746214343476*v_bucket_wz + (0.7962746214343476)*v_bucket_link_wz;
-    const double c497 = -c495;
-    const double c498 = -0.6049353083260941*v_bucket_wy + (0.6049353083260941)*v_bucket_link_wy;
-    const double c499 = -0.6049353083260941*v_bucket_wx + (0.6049353083260941)*v_bucket_link_wx;
-    const double c500 = -c499;
-    const double c501 = -0.6049353083260941*v_bucket_wz + (0.6049353083260941)*v_bucket_link_wz;
+    const double c485 = p_bucket_link*v_bucket_link_wz;
+    const double c486 = bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz;
+    const double c487 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz;
+    const double c488 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz;
+    const double c489 = p_K_x*(bucket_a10*v_bucket_wx - bucket_a00*v_bucket_wy);
+    const double c490 = p_K_z*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy);
+    const double c491 = bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx;
+    const double c492 = bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx;
+    const double c493 = bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz;
+    const double c494 = bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz;
+    const double c495 = -0.7962746214343476*v_bucket_wy + (0.7962746214343476)*v_bucket_link_wy;
+    const double c496 = -c495;
+    const double c497 = -0.7962746214343476*v_bucket_wx + (0.7962746214343476)*v_bucket_link_wx;
+    const double c498 = -0.7962746214343476*v_bucket_wz + (0.7962746214343476)*v_bucket_link_wz;
+    const double c499 = -c497;
+    const double c500 = -0.6049353083260941*v_bucket_wy + (0.6049353083260941)*v_bucket_link_wy;
+    const double c501 = -0.6049353083260941*v_bucket_wx + (0.6049353083260941)*v_bucket_link_wx;
     const double c502 = -c501;
-    const double c503 = -c496;
-    const double c504 = -c498;
-    const double c505 = -24687.0/100000.0*arm_a00*v_arm_wy + (24687.0/100000.0)*arm_a10*v_arm_wx;
-    const double c506 = arm_a12*v_arm_wx - arm_a02*v_arm_wy;
-    const double c507 = arm_a00*v_arm_wz - arm_a20*v_arm_wx;
-    const double c508 = arm_a02*v_arm_wz - arm_a22*v_arm_wx;
-    const double c509 = (36797.0/50000.0)*v_arm_wz;
-    const double c510 = arm_a20*v_arm_wy - arm_a10*v_arm_wz;
-    const double c511 = arm_a22*v_arm_wy - arm_a12*v_arm_wz;
-    const double c512 = v_arm_wy - v_bucket_cyl_barrel_wy;
-    const double c513 = v_arm_wx - v_bucket_cyl_barrel_wx;
-    const double c514 = -c513;
-    const double c515 = v_arm_wz - v_bucket_cyl_barrel_wz;
+    const double c503 = -0.6049353083260941*v_bucket_wz + (0.6049353083260941)*v_bucket_link_wz;
+    const double c504 = -c503;
+    const double c505 = -c498;
+    const double c506 = -c500;
+    const double c507 = -24687.0/100000.0*arm_a00*v_arm_wy + (24687.0/100000.0)*arm_a10*v_arm_wx;
+    const double c508 = arm_a12*v_arm_wx - arm_a02*v_arm_wy;
+    const double c509 = arm_a00*v_arm_wz - arm_a20*v_arm_wx;
+    const double c510 = arm_a02*v_arm_wz - arm_a22*v_arm_wx;
+    const double c511 = (36797.0/50000.0)*v_arm_wz;
+    const double c512 = arm_a20*v_arm_wy - arm_a10*v_arm_wz;
+    const double c513 = arm_a22*v_arm_wy - arm_a12*v_arm_wz;
+    const double c514 = v_arm_wy - v_bucket_cyl_barrel_wy;
+    const double c515 = v_arm_wx - v_bucket_cyl_barrel_wx;
     const double c516 = -c515;
-    const double c517 = -c512;
+    const double c517 = v_arm_wz - v_bucket_cyl_barrel_wz;
+    const double c518 = -c517;
+    const double c519 = -c514;
     out[43] = -c320*c326 - c329*c334 - c336*(c338 + c339) - c342*(c343 + c344) - c346*c349 - c351*(c352 + c353);
     out[44] = -c334*c358 - c336*(c359 + c360) - c342*(c361 + c362) - c349*c364 - c351*(c365 + c366) - c355*c326;
     out[45] = -c320*c391 - c329*c396 - c336*(c344*arm_cyl_barrel_ox + c345*arm_cyl_barrel_oy + c353*arm_cyl_rod_oy + c387*arm_cyl_barrel_a11 + c397*arm_cyl_barrel_a01 + c398*arm_cyl_barrel_a21 + c327*arm_cyl_barrel_ox + c401*arm_cyl_rod_oz + c402*arm_cyl_rod_oz + c403*arm_cyl_barrel_a21 - c345*arm_cyl_rod_oy - c327*arm_cyl_rod_ox - c401*arm_cyl_barrel_oz - c402*arm_cyl_barrel_oz) - c342*(c319*arm_cyl_barrel_ox + c339*arm_cyl_rod_ox + c352*arm_cyl_barrel_oz + c378*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a21 + c389*arm_cyl_barrel_a11 + c393*arm_cyl_barrel_a01 + c399*arm_cyl_barrel_a11 + c401*arm_cyl_rod_oy + c404*arm_cyl_rod_oy - c319*arm_cyl_rod_ox - c378*arm_cyl_rod_oz - c401*arm_cyl_barrel_oy - c404*arm_cyl_barrel_oy) - c346*c400 - c351*(c338*arm_cyl_barrel_oy + c343*arm_cyl_rod_oz + c371*arm_cyl_barrel_oy + c386*arm_cyl_barrel_a21 + c390*arm_cyl_barrel_a01 + c394*arm_cyl_barrel_a11 + c402*arm_cyl_rod_ox + c404*arm_cyl_rod_ox + c405*arm_cyl_barrel_a01 + c328*arm_cyl_barrel_oz - c371*arm_cyl_rod_oy - c402*arm_cyl_barrel_ox - c404*arm_cyl_barrel_ox - c328*arm_cyl_rod_oz) - v_arm_cyl_barrel_vx*(c367 + c368 - c369 - c370 + c344*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a11) - v_arm_cyl_barrel_vy*(c372 + c373 - c375 - c376 + c338*arm_cyl_rod_a00 + c348*arm_cyl_barrel_a21) - v_arm_cyl_barrel_vz*(c377 + c379 - c380 - c382 + c332*arm_cyl_barrel_a01 + c352*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c369 + c370 - c367 - c368 + c333*arm_cyl_barrel_a21 + c339*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c375 + c376 - c372 - c373 + c322*arm_cyl_barrel_a01 + c353*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c380 + c382 - c377 - c379 + c343*arm_cyl_rod_a00 + c347*arm_cyl_barrel_a11);
     out[46] = -c336*(c420*arm_cyl_rod_oz + c421*arm_cyl_rod_oz + c356*arm_cyl_barrel_ox + c362*arm_cyl_barrel_ox + c363*arm_cyl_barrel_oy + c366*arm_cyl_rod_oy + c387*arm_cyl_barrel_a12 + c397*arm_cyl_barrel_a02 + c398*arm_cyl_barrel_a22 + c403*arm_cyl_barrel_a22 - c420*arm_cyl_barrel_oz - c421*arm_cyl_barrel_oz - c356*arm_cyl_rod_ox - c363*arm_cyl_rod_oy) - c342*(c420*arm_cyl_rod_oy + c422*arm_cyl_rod_oy + c354*arm_cyl_barrel_ox + c360*arm_cyl_rod_ox + c365*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a22 + c389*arm_cyl_barrel_a12 + c393*arm_cyl_barrel_a02 + c399*arm_cyl_barrel_a12 + c416*arm_cyl_barrel_oz - c420*arm_cyl_barrel_oy - c422*arm_cyl_barrel_oy - c354*arm_cyl_rod_ox - c416*arm_cyl_rod_oz) - c351*(c421*arm_cyl_rod_ox + c422*arm_cyl_rod_ox + c357*arm_cyl_barrel_oz + c359*arm_cyl_barrel_oy + c361*arm_cyl_rod_oz + c386*arm_cyl_barrel_a22 + c390*arm_cyl_barrel_a02 + c394*arm_cyl_barrel_a12 + c405*arm_cyl_barrel_a02 + c410*arm_cyl_barrel_oy - c421*arm_cyl_barrel_ox - c422*arm_cyl_barrel_ox - c357*arm_cyl_rod_oz - c410*arm_cyl_rod_oy) - c355*c391 - c358*c396 - c364*c400 - v_arm_cyl_barrel_vx*(c406 + c407 - c408 - c409 + c362*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a12) - v_arm_cyl_barrel_vy*(c411 + c412 - c413 - c414 + c348*arm_cyl_barrel_a22 + c359*arm_cyl_rod_a00) - v_arm_cyl_barrel_vz*(c415 + c417 - c419 - c418 + c332*arm_cyl_barrel_a02 + c365*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c408 + c409 - c406 - c407 + c333*arm_cyl_barrel_a22 + c360*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c413 + c414 - c411 - c412 + c322*arm_cyl_barrel_a02 + c366*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c419 + c418 - c415 - c417 + c347*arm_cyl_barrel_a12 + c361*arm_cyl_rod_a00);
     out[47] = -c320*(c423*arm_cyl_rod_a02 + c425*arm_cyl_rod_a12) - c329*(c424*arm_cyl_rod_a22 + c427*arm_cyl_rod_a02) - c346*(c426*arm_cyl_rod_a12 + c428*arm_cyl_rod_a22) - (c423*arm_cyl_barrel_a21 + c427*arm_cyl_barrel_a11)*(arm_cyl_rod_a22*v_arm_cyl_rod_wy - arm_cyl_rod_a12*v_arm_cyl_rod_wz) - (c424*arm_cyl_barrel_a11 + c428*arm_cyl_barrel_a01)*(arm_cyl_rod_a12*v_arm_cyl_rod_wx - arm_cyl_rod_a02*v_arm_cyl_rod_wy) - (c425*arm_cyl_barrel_a21 + c426*arm_cyl_barrel_a01)*(arm_cyl_rod_a02*v_arm_cyl_rod_wz - arm_cyl_rod_a22*v_arm_cyl_rod_wx);
-    out[48] = -c429*v_arm_wy - c430*v_arm_wy + (0.369691)*c432*v_arm_wz + (393281.0/500000.0)*c431*v_arm_wz;
-    out[49] = c429*v_arm_wx + c430*v_arm_wx - 393281.0/500000.0*c433*v_arm_wz - 0.369691*c434*v_arm_wz;
-    out[50] = -393281.0/500000.0*c431*v_arm_wx - 0.369691*c432*v_arm_wx + (0.369691)*c434*v_arm_wy + (393281.0/500000.0)*c433*v_arm_wy;
+    out[48] = c429*v_arm_wy + c430*v_arm_wy - c431*p_F_x*v_arm_wz - c432*p_F_z*v_arm_wz;
+    out[49] = -c429*v_arm_wx - c430*v_arm_wx + c433*p_F_x*v_arm_wz + c434*p_F_z*v_arm_wz;
+    out[50] = c431*p_F_x*v_arm_wx + c432*p_F_z*v_arm_wx - c433*p_F_x*v_arm_wy - c434*p_F_z*v_arm_wy;
     out[51] = -c435*v_arm_wy - c436*v_arm_wy + (9477.0/5000.0)*c437*v_arm_wz + (21809.0/10000.0)*c438*v_arm_wz;
     out[52] = c435*v_arm_wx + c436*v_arm_wx - 21809.0/10000.0*c440*v_arm_wz - 9477.0/5000.0*c439*v_arm_wz;
     out[53] = -21809.0/10000.0*c438*v_arm_wx - 9477.0/5000.0*c437*v_arm_wx + (9477.0/5000.0)*c439*v_arm_wy + (21809.0/10000.0)*c440*v_arm_wy;
@@ -2405,21 +2456,21 @@ void excavator_dual_quaternion_compute_joints_gamma_part2(const double *q, const
     out[58] = -18799.0/10000.0*c456*v_arm_wx - 7877.0/5000.0*c455*v_arm_wx + (7877.0/5000.0)*c457*v_arm_wy + (18799.0/10000.0)*c458*v_arm_wy;
     out[59] = -c463*(c465*side_link_a02 + c461*side_link_a22) - c467*(side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy) - c468*(side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx) - c469*(c464*side_link_a12 + c466*side_link_a22) - c470*(side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz) - c459*(c460*side_link_a02 + c462*side_link_a12);
     out[60] = -c463*(c465*side_link_a00 + c461*side_link_a20) - c467*(side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy) - c468*(side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx) - c469*(c464*side_link_a10 + c466*side_link_a20) - c470*(side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz) - c459*(c460*side_link_a00 + c462*side_link_a10);
-    out[61] = c471*v_side_link_wy + c481*c480 + c474*c475 + c478*c479 - 0.450737*c477*v_bucket_link_wy - 166329.0/500000.0*c473*v_side_link_wz - 96247.0/200000.0*c472*v_side_link_wy - 85607.0/250000.0*c476*v_bucket_link_wy;
-    out[62] = -c471*v_side_link_wx - c481*c485 - c483*c475 - c484*c479 + (85607.0/250000.0)*c476*v_bucket_link_wx + (96247.0/200000.0)*c472*v_side_link_wx + (166329.0/500000.0)*c482*v_side_link_wz + (0.450737)*c477*v_bucket_link_wx;
-    out[63] = -0.450737*c480*v_bucket_link_wx - 166329.0/500000.0*c482*v_side_link_wy - 96247.0/200000.0*c474*v_side_link_wx - 85607.0/250000.0*c478*v_bucket_link_wx + (85607.0/250000.0)*c484*v_bucket_link_wy + (96247.0/200000.0)*c483*v_side_link_wy + (166329.0/500000.0)*c473*v_side_link_wx + (0.450737)*c485*v_bucket_link_wy;
-    out[64] = -c486*v_bucket_wy - c489*c490 + (8101.0/25000.0)*c488*v_bucket_wz + (16927.0/50000.0)*c487*v_bucket_wy;
-    out[65] = c486*v_bucket_wx + c490*c492 - 16927.0/50000.0*c487*v_bucket_wx - 8101.0/25000.0*c491*v_bucket_wz;
-    out[66] = -16927.0/50000.0*c492*v_bucket_wy - 8101.0/25000.0*c488*v_bucket_wx + (8101.0/25000.0)*c491*v_bucket_wy + (16927.0/50000.0)*c489*v_bucket_wx;
-    out[67] = -(c496*bucket_a01 + c497*bucket_a21)*(bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx) - (c498*bucket_a01 + c500*bucket_a11)*(bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy) - (c499*bucket_a21 + c502*bucket_a01)*(bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx) - (c501*bucket_a11 + c504*bucket_a21)*(bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz) - (c503*bucket_a11 + c493*bucket_a21)*(bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz) - (c494*bucket_a01 + c495*bucket_a11)*(bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy) - (bucket_a01*v_bucket_wz - bucket_a21*v_bucket_wx)*(c500*bucket_link_a22 + c501*bucket_link_a02 + c503*bucket_link_a00 + c495*bucket_link_a20) - (bucket_a11*v_bucket_wx - bucket_a01*v_bucket_wy)*(c497*bucket_link_a10 + c499*bucket_link_a12 + c504*bucket_link_a02 + c493*bucket_link_a00) - (bucket_a21*v_bucket_wy - bucket_a11*v_bucket_wz)*(c496*bucket_link_a10 + c498*bucket_link_a22 + c502*bucket_link_a12 + c494*bucket_link_a20);
-    out[68] = c505*v_arm_wy + c508*c509 - 36797.0/50000.0*c506*v_arm_wy - 24687.0/100000.0*c507*v_arm_wz;
-    out[69] = -c505*v_arm_wx - c509*c511 + (24687.0/100000.0)*c510*v_arm_wz + (36797.0/50000.0)*c506*v_arm_wx;
-    out[70] = -36797.0/50000.0*c508*v_arm_wx - 24687.0/100000.0*c510*v_arm_wy + (24687.0/100000.0)*c507*v_arm_wx + (36797.0/50000.0)*c511*v_arm_wy;
-    out[71] = -(c515*arm_a01 + c514*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx) - (c515*bucket_cyl_barrel_a12 + c517*bucket_cyl_barrel_a22)*(arm_a21*v_arm_wy - arm_a11*v_arm_wz) - (c516*arm_a11 + c512*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz) - (c516*bucket_cyl_barrel_a02 + c513*bucket_cyl_barrel_a22)*(arm_a01*v_arm_wz - arm_a21*v_arm_wx) - (c517*arm_a01 + c513*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy) - (c512*bucket_cyl_barrel_a02 + c514*bucket_cyl_barrel_a12)*(arm_a11*v_arm_wx - arm_a01*v_arm_wy);
+    out[61] = -c471*c472 - c471*c473 - c481*c479 - c478*v_side_link_wy + 0.5686266556413632*c476*p_side_link*v_side_link_wy + 0.60493530832545*c474*p_bucket_link*v_bucket_link_wz + 0.796274621434837*c475*p_bucket_link*v_bucket_link_wz + 0.822595724821202*c482*p_side_link*v_side_link_wz;
+    out[62] = c472*c483 + c481*c487 + c483*c473 + c478*v_side_link_wx - 0.60493530832545*c484*c485 - 0.796274621434837*c485*c486 - c488*c477*v_side_link_wz - c476*c480*v_side_link_wx;
+    out[63] = -0.60493530832545*c483*c474 - 0.796274621434837*c483*c475 - c482*c477*v_side_link_wx - c487*c480*v_side_link_wy + 0.5686266556413632*c479*p_side_link*v_side_link_wx + 0.60493530832545*c484*p_bucket_link*v_bucket_link_wy + 0.796274621434837*c486*p_bucket_link*v_bucket_link_wy + 0.822595724821202*c488*p_side_link*v_side_link_wy;
+    out[64] = c489*v_bucket_wy + c490*v_bucket_wy - c491*p_K_x*v_bucket_wz - c492*p_K_z*v_bucket_wz;
+    out[65] = -c489*v_bucket_wx - c490*v_bucket_wx + c493*p_K_x*v_bucket_wz + c494*p_K_z*v_bucket_wz;
+    out[66] = c491*p_K_x*v_bucket_wx + c492*p_K_z*v_bucket_wx - c493*p_K_x*v_bucket_wy - c494*p_K_z*v_bucket_wy;
+    out[67] = -(c499*bucket_a21 + c498*bucket_a01)*(bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx) - (c500*bucket_a01 + c502*bucket_a11)*(bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy) - (c501*bucket_a21 + c504*bucket_a01)*(bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx) - (c503*bucket_a11 + c506*bucket_a21)*(bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz) - (c505*bucket_a11 + c495*bucket_a21)*(bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz) - (c496*bucket_a01 + c497*bucket_a11)*(bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy) - (bucket_a01*v_bucket_wz - bucket_a21*v_bucket_wx)*(c502*bucket_link_a22 + c503*bucket_link_a02 + c505*bucket_link_a00 + c497*bucket_link_a20) - (bucket_a11*v_bucket_wx - bucket_a01*v_bucket_wy)*(c499*bucket_link_a10 + c501*bucket_link_a12 + c506*bucket_link_a02 + c495*bucket_link_a00) - (bucket_a21*v_bucket_wy - bucket_a11*v_bucket_wz)*(c500*bucket_link_a22 + c504*bucket_link_a12 + c496*bucket_link_a20 + c498*bucket_link_a10);
+    out[68] = c507*v_arm_wy + c510*c511 - 36797.0/50000.0*c508*v_arm_wy - 24687.0/100000.0*c509*v_arm_wz;
+    out[69] = -c507*v_arm_wx - c511*c513 + (24687.0/100000.0)*c512*v_arm_wz + (36797.0/50000.0)*c508*v_arm_wx;
+    out[70] = -36797.0/50000.0*c510*v_arm_wx - 24687.0/100000.0*c512*v_arm_wy + (24687.0/100000.0)*c509*v_arm_wx + (36797.0/50000.0)*c513*v_arm_wy;
+    out[71] = -(c517*arm_a01 + c516*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx) - (c517*bucket_cyl_barrel_a12 + c519*bucket_cyl_barrel_a22)*(arm_a21*v_arm_wy - arm_a11*v_arm_wz) - (c518*arm_a11 + c514*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz) - (c518*bucket_cyl_barrel_a02 + c515*bucket_cyl_barrel_a22)*(arm_a01*v_arm_wz - arm_a21*v_arm_wx) - (c519*arm_a01 + c515*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy) - (c514*bucket_cyl_barrel_a02 + c516*bucket_cyl_barrel_a12)*(arm_a11*v_arm_wx - arm_a01*v_arm_wy);
 }
 
 /* gamma of the joint rows (they do not depend on time). Rows 72 to 79. */
-void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const double *v, double *out) {
+void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const double *v, const double *p, double *out) {
     const double bucket_cyl_barrel_rw = q[72];
     const double bucket_cyl_barrel_rx = q[73];
     const double bucket_cyl_barrel_ry = q[74];
@@ -2455,6 +2506,7 @@ void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const
     const double v_side_link_wx = v[66];
     const double v_side_link_wy = v[67];
     const double v_side_link_wz = v[68];
+    const double p_side_link = p[5];
     const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
     const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
     const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
@@ -2479,135 +2531,137 @@ void excavator_dual_quaternion_compute_joints_gamma_part3(const double *q, const
     const double side_link_a12 = -2.0*side_link_rw*side_link_rx + 2.0*side_link_ry*side_link_rz;
     const double side_link_a20 = -2.0*side_link_rw*side_link_ry + 2.0*side_link_rx*side_link_rz;
     const double side_link_a22 = -1.0 + 2.0*(side_link_rw*side_link_rw) + 2.0*(side_link_rz*side_link_rz);
-    const double c518 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wy;
-    const double c519 = -c518 + bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx;
-    const double c520 = v_bucket_cyl_barrel_wy - v_bucket_cyl_rod_wy;
-    const double c521 = c520*bucket_cyl_rod_a00;
-    const double c522 = v_bucket_cyl_barrel_wx - v_bucket_cyl_rod_wx;
-    const double c523 = -c522;
-    const double c524 = c523*bucket_cyl_rod_a10;
-    const double c525 = c521 + c524;
-    const double c526 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wz;
-    const double c527 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wx;
-    const double c528 = c526 - c527;
-    const double c529 = v_bucket_cyl_barrel_wz - v_bucket_cyl_rod_wz;
-    const double c530 = -c529;
-    const double c531 = c530*bucket_cyl_rod_a00;
-    const double c532 = c522*bucket_cyl_rod_a20;
-    const double c533 = c531 + c532;
-    const double c534 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wy;
-    const double c535 = -c534 + bucket_cyl_rod_a10*v_bucket_cyl_rod_wx;
-    const double c536 = -c520;
-    const double c537 = c536*bucket_cyl_barrel_a01;
-    const double c538 = c522*bucket_cyl_barrel_a11;
-    const double c539 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wz;
-    const double c540 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wx;
-    const double c541 = c539 - c540;
-    const double c542 = c529*bucket_cyl_barrel_a01;
-    const double c543 = c523*bucket_cyl_barrel_a21;
-    const double c544 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wz;
-    const double c545 = -c544 + bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy;
-    const double c546 = c529*bucket_cyl_rod_a10;
-    const double c547 = c536*bucket_cyl_rod_a20;
-    const double c548 = c546 + c547;
-    const double c549 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wz;
-    const double c550 = -c549 + bucket_cyl_rod_a20*v_bucket_cyl_rod_wy;
-    const double c551 = c530*bucket_cyl_barrel_a11;
-    const double c552 = c520*bucket_cyl_barrel_a21;
-    const double c553 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy;
-    const double c554 = -c553 + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx;
-    const double c555 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz;
-    const double c556 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx;
-    const double c557 = c555 - c556;
-    const double c558 = c536*bucket_cyl_barrel_a02;
-    const double c559 = c522*bucket_cyl_barrel_a12;
-    const double c560 = c529*bucket_cyl_barrel_a02;
-    const double c561 = c523*bucket_cyl_barrel_a22;
-    const double c562 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz;
-    const double c563 = -c562 + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy;
-    const double c564 = c530*bucket_cyl_barrel_a12;
-    const double c565 = c520*bucket_cyl_barrel_a22;
-    const double c566 = c518*bucket_cyl_rod_a10;
-    const double c567 = c526*bucket_cyl_rod_a20;
-    const double c568 = c534*bucket_cyl_barrel_a11;
-    const double c569 = c539*bucket_cyl_barrel_a21;
-    const double c570 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx;
-    const double c571 = c570*bucket_cyl_rod_a00;
-    const double c572 = c544*bucket_cyl_rod_a20;
-    const double c573 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wx;
-    const double c574 = c573*bucket_cyl_barrel_a01;
-    const double c575 = c549*bucket_cyl_barrel_a21;
-    const double c576 = c527*bucket_cyl_rod_a00;
-    const double c577 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy;
-    const double c578 = c577*bucket_cyl_rod_a10;
-    const double c579 = c540*bucket_cyl_barrel_a01;
-    const double c580 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wy;
-    const double c581 = c580*bucket_cyl_barrel_a11;
-    const double c582 = bucket_cyl_rod_a00*v_bucket_cyl_barrel_wx;
-    const double c583 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10;
-    const double c584 = bucket_cyl_rod_a10*v_bucket_cyl_barrel_wy;
-    const double c585 = v_bucket_cyl_barrel_vy - v_bucket_cyl_rod_vy;
-    const double c586 = v_bucket_cyl_barrel_vx - v_bucket_cyl_rod_vx;
-    const double c587 = -c586;
-    const double c588 = c523*bucket_cyl_barrel_ox;
-    const double c589 = c520*bucket_cyl_rod_oy;
-    const double c590 = c532*bucket_cyl_rod_ox + c539*bucket_cyl_rod_ox + c547*bucket_cyl_barrel_oy + c549*bucket_cyl_rod_oy + c582*bucket_cyl_barrel_oz + c583*v_bucket_cyl_barrel_wy + c585*bucket_cyl_rod_a00 + c587*bucket_cyl_rod_a10 + c588*bucket_cyl_rod_a20 + c589*bucket_cyl_rod_a20 - c539*bucket_cyl_barrel_ox - c549*bucket_cyl_barrel_oy - c582*bucket_cyl_rod_oz - c584*bucket_cyl_rod_oz;
-    const double c591 = bucket_cyl_rod_a20*v_bucket_cyl_barrel_wz;
-    const double c592 = v_bucket_cyl_barrel_vz - v_bucket_cyl_rod_vz;
-    const double c593 = -c592;
-    const double c594 = bucket_cyl_rod_a10*bucket_cyl_rod_ox;
-    const double c595 = c530*c583 + c534*bucket_cyl_rod_ox + c546*bucket_cyl_rod_oz + c522*c594 + c524*bucket_cyl_barrel_ox + c580*bucket_cyl_rod_oz + c582*bucket_cyl_barrel_oy + c586*bucket_cyl_rod_a20 + c591*bucket_cyl_barrel_oy + c593*bucket_cyl_rod_a00 - c534*bucket_cyl_barrel_ox - c580*bucket_cyl_barrel_oz - c582*bucket_cyl_rod_oy - c591*bucket_cyl_rod_oy;
-    const double c596 = -c585;
-    const double c597 = c536*bucket_cyl_barrel_oy;
-    const double c598 = c529*bucket_cyl_rod_oz;
-    const double c599 = c531*bucket_cyl_barrel_oz + c540*bucket_cyl_rod_oz + c521*bucket_cyl_rod_oy + c573*bucket_cyl_rod_oy + c584*bucket_cyl_barrel_ox + c591*bucket_cyl_barrel_ox + c592*bucket_cyl_rod_a10 + c596*bucket_cyl_rod_a20 + c597*bucket_cyl_rod_a00 + c598*bucket_cyl_rod_a00 - c540*bucket_cyl_barrel_oz - c573*bucket_cyl_barrel_oy - c591*bucket_cyl_rod_ox - c594*v_bucket_cyl_barrel_wy;
-    const double c600 = bucket_cyl_barrel_a01*v_bucket_cyl_rod_wx;
-    const double c601 = bucket_cyl_barrel_a11*v_bucket_cyl_rod_wy;
-    const double c602 = c522*bucket_cyl_rod_ox;
-    const double c603 = bucket_cyl_barrel_a21*v_bucket_cyl_rod_wz;
-    const double c604 = c530*bucket_cyl_barrel_oz;
-    const double c605 = c553*bucket_cyl_rod_a10;
-    const double c606 = c555*bucket_cyl_rod_a20;
-    const double c607 = c534*bucket_cyl_barrel_a12;
-    const double c608 = c539*bucket_cyl_barrel_a22;
-    const double c609 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx;
-    const double c610 = c609*bucket_cyl_rod_a00;
-    const double c611 = c562*bucket_cyl_rod_a20;
-    const double c612 = c573*bucket_cyl_barrel_a02;
-    const double c613 = c549*bucket_cyl_barrel_a22;
-    const double c614 = c556*bucket_cyl_rod_a00;
-    const double c615 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy;
-    const double c616 = c615*bucket_cyl_rod_a10;
-    const double c617 = c540*bucket_cyl_barrel_a02;
-    const double c618 = c580*bucket_cyl_barrel_a12;
-    const double c619 = bucket_cyl_barrel_a02*v_bucket_cyl_rod_wx;
-    const double c620 = bucket_cyl_barrel_a12*v_bucket_cyl_rod_wy;
-    const double c621 = bucket_cyl_barrel_a22*v_bucket_cyl_rod_wz;
-    const double c622 = -1.0*v_bucket_cyl_rod_wy + (1.0)*v_bucket_cyl_barrel_wy;
-    const double c623 = -1.0*v_bucket_cyl_rod_wx + (1.0)*v_bucket_cyl_barrel_wx;
-    const double c624 = -c623;
-    const double c625 = -1.0*v_bucket_cyl_rod_wz + (1.0)*v_bucket_cyl_barrel_wz;
+    const double c520 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wy;
+    const double c521 = -c520 + bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx;
+    const double c522 = v_bucket_cyl_barrel_wy - v_bucket_cyl_rod_wy;
+    const double c523 = c522*bucket_cyl_rod_a00;
+    const double c524 = v_bucket_cyl_barrel_wx - v_bucket_cyl_rod_wx;
+    const double c525 = -c524;
+    const double c526 = c525*bucket_cyl_rod_a10;
+    const double c527 = c523 + c526;
+    const double c528 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wz;
+    const double c529 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wx;
+    const double c530 = c528 - c529;
+    const double c531 = v_bucket_cyl_barrel_wz - v_bucket_cyl_rod_wz;
+    const double c532 = -c531;
+    const double c533 = c532*bucket_cyl_rod_a00;
+    const double c534 = c524*bucket_cyl_rod_a20;
+    const double c535 = c533 + c534;
+    const double c536 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wy;
+    const double c537 = -c536 + bucket_cyl_rod_a10*v_bucket_cyl_rod_wx;
+    const double c538 = -c522;
+    const double c539 = c538*bucket_cyl_barrel_a01;
+    const double c540 = c524*bucket_cyl_barrel_a11;
+    const double c541 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wz;
+    const double c542 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wx;
+    const double c543 = c541 - c542;
+    const double c544 = c531*bucket_cyl_barrel_a01;
+    const double c545 = c525*bucket_cyl_barrel_a21;
+    const double c546 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wz;
+    const double c547 = -c546 + bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy;
+    const double c548 = c531*bucket_cyl_rod_a10;
+    const double c549 = c538*bucket_cyl_rod_a20;
+    const double c550 = c548 + c549;
+    const double c551 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wz;
+    const double c552 = -c551 + bucket_cyl_rod_a20*v_bucket_cyl_rod_wy;
+    const double c553 = c532*bucket_cyl_barrel_a11;
+    const double c554 = c522*bucket_cyl_barrel_a21;
+    const double c555 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy;
+    const double c556 = -c555 + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx;
+    const double c557 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz;
+    const double c558 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx;
+    const double c559 = c557 - c558;
+    const double c560 = c538*bucket_cyl_barrel_a02;
+    const double c561 = c524*bucket_cyl_barrel_a12;
+    const double c562 = c531*bucket_cyl_barrel_a02;
+    const double c563 = c525*bucket_cyl_barrel_a22;
+    const double c564 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz;
+    const double c565 = -c564 + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy;
+    const double c566 = c532*bucket_cyl_barrel_a12;
+    const double c567 = c522*bucket_cyl_barrel_a22;
+    const double c568 = c520*bucket_cyl_rod_a10;
+    const double c569 = c528*bucket_cyl_rod_a20;
+    const double c570 = c536*bucket_cyl_barrel_a11;
+    const double c571 = c541*bucket_cyl_barrel_a21;
+    const double c572 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx;
+    const double c573 = c572*bucket_cyl_rod_a00;
+    const double c574 = c546*bucket_cyl_rod_a20;
+    const double c575 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wx;
+    const double c576 = c575*bucket_cyl_barrel_a01;
+    const double c577 = c551*bucket_cyl_barrel_a21;
+    const double c578 = c529*bucket_cyl_rod_a00;
+    const double c579 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy;
+    const double c580 = c579*bucket_cyl_rod_a10;
+    const double c581 = c542*bucket_cyl_barrel_a01;
+    const double c582 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wy;
+    const double c583 = c582*bucket_cyl_barrel_a11;
+    const double c584 = bucket_cyl_rod_a00*v_bucket_cyl_barrel_wx;
+    const double c585 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10;
+    const double c586 = bucket_cyl_rod_a10*v_bucket_cyl_barrel_wy;
+    const double c587 = v_bucket_cyl_barrel_vy - v_bucket_cyl_rod_vy;
+    const double c588 = v_bucket_cyl_barrel_vx - v_bucket_cyl_rod_vx;
+    const double c589 = -c588;
+    const double c590 = c525*bucket_cyl_barrel_ox;
+    const double c591 = c522*bucket_cyl_rod_oy;
+    const double c592 = c534*bucket_cyl_rod_ox + c541*bucket_cyl_rod_ox + c549*bucket_cyl_barrel_oy + c551*bucket_cyl_rod_oy + c584*bucket_cyl_barrel_oz + c585*v_bucket_cyl_barrel_wy + c587*bucket_cyl_rod_a00 + c589*bucket_cyl_rod_a10 + c590*bucket_cyl_rod_a20 + c591*bucket_cyl_rod_a20 - c541*bucket_cyl_barrel_ox - c551*bucket_cyl_barrel_oy - c584*bucket_cyl_rod_oz - c586*bucket_cyl_rod_oz;
+    const double c593 = bucket_cyl_rod_a20*v_bucket_cyl_barrel_wz;
+    const double c594 = v_bucket_cyl_barrel_vz - v_bucket_cyl_rod_vz;
+    const double c595 = -c594;
+    const double c596 = bucket_cyl_rod_a10*bucket_cyl_rod_ox;
+    const double c597 = c532*c585 + c536*bucket_cyl_rod_ox + c548*bucket_cyl_rod_oz + c524*c596 + c526*bucket_cyl_barrel_ox + c582*bucket_cyl_rod_oz + c584*bucket_cyl_barrel_oy + c588*bucket_cyl_rod_a20 + c593*bucket_cyl_barrel_oy + c595*bucket_cyl_rod_a00 - c536*bucket_cyl_barrel_ox - c582*bucket_cyl_barrel_oz - c584*bucket_cyl_rod_oy - c593*bucket_cyl_rod_oy;
+    const double c598 = -c587;
+    const double c599 = c538*bucket_cyl_barrel_oy;
+    const double c600 = c531*bucket_cyl_rod_oz;
+    const double c601 = c533*bucket_cyl_barrel_oz + c542*bucket_cyl_rod_oz + c523*bucket_cyl_rod_oy + c575*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_ox + c593*bucket_cyl_barrel_ox + c594*bucket_cyl_rod_a10 + c598*bucket_cyl_rod_a20 + c599*bucket_cyl_rod_a00 + c600*bucket_cyl_rod_a00 - c542*bucket_cyl_barrel_oz - c575*bucket_cyl_barrel_oy - c593*bucket_cyl_rod_ox - c596*v_bucket_cyl_barrel_wy;
+    const double c602 = bucket_cyl_barrel_a01*v_bucket_cyl_rod_wx;
+    const double c603 = bucket_cyl_barrel_a11*v_bucket_cyl_rod_wy;
+    const double c604 = c524*bucket_cyl_rod_ox;
+    const double c605 = bucket_cyl_barrel_a21*v_bucket_cyl_rod_wz;
+    const double c606 = c532*bucket_cyl_barrel_oz;
+    const double c607 = c555*bucket_cyl_rod_a10;
+    const double c608 = c557*bucket_cyl_rod_a20;
+    const double c609 = c536*bucket_cyl_barrel_a12;
+    const double c610 = c541*bucket_cyl_barrel_a22;
+    const double c611 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx;
+    const double c612 = c611*bucket_cyl_rod_a00;
+    const double c613 = c564*bucket_cyl_rod_a20;
+    const double c614 = c575*bucket_cyl_barrel_a02;
+    const double c615 = c551*bucket_cyl_barrel_a22;
+    const double c616 = c558*bucket_cyl_rod_a00;
+    const double c617 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy;
+    const double c618 = c617*bucket_cyl_rod_a10;
+    const double c619 = c542*bucket_cyl_barrel_a02;
+    const double c620 = c582*bucket_cyl_barrel_a12;
+    const double c621 = bucket_cyl_barrel_a02*v_bucket_cyl_rod_wx;
+    const double c622 = bucket_cyl_barrel_a12*v_bucket_cyl_rod_wy;
+    const double c623 = bucket_cyl_barrel_a22*v_bucket_cyl_rod_wz;
+    const double c624 = -1.0*v_bucket_cyl_rod_wy + (1.0)*v_bucket_cyl_barrel_wy;
+    const double c625 = -1.0*v_bucket_cyl_rod_wx + (1.0)*v_bucket_cyl_barrel_wx;
     const double c626 = -c625;
-    const double c627 = -c622;
-    const double c628 = -166329.0/500000.0*side_link_a00*v_side_link_wy + (166329.0/500000.0)*side_link_a10*v_side_link_wx;
-    const double c629 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy;
-    const double c630 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx;
-    const double c631 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx;
-    const double c632 = (96247.0/200000.0)*v_side_link_wz;
-    const double c633 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz;
-    const double c634 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz;
-    out[72] = -c519*c525 - c528*c533 - c535*(c537 + c538) - c541*(c542 + c543) - c545*c548 - c550*(c551 + c552);
-    out[73] = -c533*c557 - c535*(c558 + c559) - c541*(c560 + c561) - c548*c563 - c550*(c564 + c565) - c554*c525;
-    out[74] = -c519*c590 - c528*c595 - c535*(c543*bucket_cyl_barrel_ox + c544*bucket_cyl_barrel_oy + c552*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_a11 + c596*bucket_cyl_barrel_a01 + c597*bucket_cyl_barrel_a21 + c526*bucket_cyl_barrel_ox + c600*bucket_cyl_rod_oz + c601*bucket_cyl_rod_oz + c602*bucket_cyl_barrel_a21 - c544*bucket_cyl_rod_oy - c526*bucket_cyl_rod_ox - c600*bucket_cyl_barrel_oz - c601*bucket_cyl_barrel_oz) - c541*(c518*bucket_cyl_barrel_ox + c538*bucket_cyl_rod_ox + c551*bucket_cyl_barrel_oz + c577*bucket_cyl_barrel_oz + c587*bucket_cyl_barrel_a21 + c588*bucket_cyl_barrel_a11 + c592*bucket_cyl_barrel_a01 + c598*bucket_cyl_barrel_a11 + c600*bucket_cyl_rod_oy + c603*bucket_cyl_rod_oy - c518*bucket_cyl_rod_ox - c577*bucket_cyl_rod_oz - c600*bucket_cyl_barrel_oy - c603*bucket_cyl_barrel_oy) - c545*c599 - c550*(c537*bucket_cyl_barrel_oy + c542*bucket_cyl_rod_oz + c570*bucket_cyl_barrel_oy + c585*bucket_cyl_barrel_a21 + c589*bucket_cyl_barrel_a01 + c593*bucket_cyl_barrel_a11 + c601*bucket_cyl_rod_ox + c603*bucket_cyl_rod_ox + c604*bucket_cyl_barrel_a01 + c527*bucket_cyl_barrel_oz - c570*bucket_cyl_rod_oy - c601*bucket_cyl_barrel_ox - c603*bucket_cyl_barrel_ox - c527*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_vx*(c566 + c567 - c568 - c569 + c543*bucket_cyl_rod_a20 + c524*bucket_cyl_barrel_a11) - v_bucket_cyl_barrel_vy*(c571 + c572 - c574 - c575 + c537*bucket_cyl_rod_a00 + c547*bucket_cyl_barrel_a21) - v_bucket_cyl_barrel_vz*(c576 + c578 - c579 - c581 + c531*bucket_cyl_barrel_a01 + c551*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c568 + c569 - c566 - c567 + c532*bucket_cyl_barrel_a21 + c538*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c574 + c575 - c571 - c572 + c521*bucket_cyl_barrel_a01 + c552*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c579 + c581 - c576 - c578 + c542*bucket_cyl_rod_a00 + c546*bucket_cyl_barrel_a11);
-    out[75] = -c535*(c619*bucket_cyl_rod_oz + c620*bucket_cyl_rod_oz + c555*bucket_cyl_barrel_ox + c561*bucket_cyl_barrel_ox + c562*bucket_cyl_barrel_oy + c565*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_a12 + c596*bucket_cyl_barrel_a02 + c597*bucket_cyl_barrel_a22 + c602*bucket_cyl_barrel_a22 - c619*bucket_cyl_barrel_oz - c620*bucket_cyl_barrel_oz - c555*bucket_cyl_rod_ox - c562*bucket_cyl_rod_oy) - c541*(c619*bucket_cyl_rod_oy + c621*bucket_cyl_rod_oy + c553*bucket_cyl_barrel_ox + c559*bucket_cyl_rod_ox + c564*bucket_cyl_barrel_oz + c587*bucket_cyl_barrel_a22 + c588*bucket_cyl_barrel_a12 + c592*bucket_cyl_barrel_a02 + c598*bucket_cyl_barrel_a12 + c615*bucket_cyl_barrel_oz - c619*bucket_cyl_barrel_oy - c621*bucket_cyl_barrel_oy - c553*bucket_cyl_rod_ox - c615*bucket_cyl_rod_oz) - c550*(c620*bucket_cyl_rod_ox + c621*bucket_cyl_rod_ox + c556*bucket_cyl_barrel_oz + c558*bucket_cyl_barrel_oy + c560*bucket_cyl_rod_oz + c585*bucket_cyl_barrel_a22 + c589*bucket_cyl_barrel_a02 + c593*bucket_cyl_barrel_a12 + c604*bucket_cyl_barrel_a02 + c609*bucket_cyl_barrel_oy - c620*bucket_cyl_barrel_ox - c621*bucket_cyl_barrel_ox - c556*bucket_cyl_rod_oz - c609*bucket_cyl_rod_oy) - c554*c590 - c557*c595 - c563*c599 - v_bucket_cyl_barrel_vx*(c605 + c606 - c607 - c608 + c561*bucket_cyl_rod_a20 + c524*bucket_cyl_barrel_a12) - v_bucket_cyl_barrel_vy*(c610 + c611 - c612 - c613 + c547*bucket_cyl_barrel_a22 + c558*bucket_cyl_rod_a00) - v_bucket_cyl_barrel_vz*(c614 + c616 - c618 - c617 + c531*bucket_cyl_barrel_a02 + c564*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c607 + c608 - c605 - c606 + c532*bucket_cyl_barrel_a22 + c559*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c612 + c613 - c610 - c611 + c521*bucket_cyl_barrel_a02 + c565*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c618 + c617 - c614 - c616 + c546*bucket_cyl_barrel_a12 + c560*bucket_cyl_rod_a00);
-    out[76] = -c519*(c622*bucket_cyl_rod_a02 + c624*bucket_cyl_rod_a12) - c528*(c623*bucket_cyl_rod_a22 + c626*bucket_cyl_rod_a02) - c545*(c625*bucket_cyl_rod_a12 + c627*bucket_cyl_rod_a22) - (c622*bucket_cyl_barrel_a21 + c626*bucket_cyl_barrel_a11)*(bucket_cyl_rod_a22*v_bucket_cyl_rod_wy - bucket_cyl_rod_a12*v_bucket_cyl_rod_wz) - (c623*bucket_cyl_barrel_a11 + c627*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a12*v_bucket_cyl_rod_wx - bucket_cyl_rod_a02*v_bucket_cyl_rod_wy) - (c624*bucket_cyl_barrel_a21 + c625*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a02*v_bucket_cyl_rod_wz - bucket_cyl_rod_a22*v_bucket_cyl_rod_wx);
-    out[77] = -c628*v_side_link_wy - c631*c632 + (96247.0/200000.0)*c629*v_side_link_wy + (166329.0/500000.0)*c630*v_side_link_wz;
-    out[78] = c628*v_side_link_wx + c632*c634 - 166329.0/500000.0*c633*v_side_link_wz - 96247.0/200000.0*c629*v_side_link_wx;
-    out[79] = -166329.0/500000.0*c630*v_side_link_wx - 96247.0/200000.0*c634*v_side_link_wy + (96247.0/200000.0)*c631*v_side_link_wx + (166329.0/500000.0)*c633*v_side_link_wy;
+    const double c627 = -1.0*v_bucket_cyl_rod_wz + (1.0)*v_bucket_cyl_barrel_wz;
+    const double c628 = -c627;
+    const double c629 = -c624;
+    const double c630 = 0.5686266556413632*p_side_link;
+    const double c631 = c630*(side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy);
+    const double c632 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy;
+    const double c633 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx;
+    const double c634 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx;
+    const double c635 = 0.822595724821202*p_side_link;
+    const double c636 = c635*v_side_link_wz;
+    const double c637 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz;
+    const double c638 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz;
+    out[72] = -c521*c527 - c530*c535 - c537*(c539 + c540) - c543*(c544 + c545) - c547*c550 - c552*(c553 + c554);
+    out[73] = -c535*c559 - c537*(c560 + c561) - c543*(c562 + c563) - c550*c565 - c552*(c566 + c567) - c556*c527;
+    out[74] = -c521*c592 - c530*c597 - c537*(c545*bucket_cyl_barrel_ox + c546*bucket_cyl_barrel_oy + c554*bucket_cyl_rod_oy + c588*bucket_cyl_barrel_a11 + c598*bucket_cyl_barrel_a01 + c599*bucket_cyl_barrel_a21 + c528*bucket_cyl_barrel_ox + c602*bucket_cyl_rod_oz + c603*bucket_cyl_rod_oz + c604*bucket_cyl_barrel_a21 - c546*bucket_cyl_rod_oy - c528*bucket_cyl_rod_ox - c602*bucket_cyl_barrel_oz - c603*bucket_cyl_barrel_oz) - c543*(c520*bucket_cyl_barrel_ox + c540*bucket_cyl_rod_ox + c553*bucket_cyl_barrel_oz + c579*bucket_cyl_barrel_oz + c589*bucket_cyl_barrel_a21 + c590*bucket_cyl_barrel_a11 + c594*bucket_cyl_barrel_a01 + c600*bucket_cyl_barrel_a11 + c602*bucket_cyl_rod_oy + c605*bucket_cyl_rod_oy - c520*bucket_cyl_rod_ox - c579*bucket_cyl_rod_oz - c602*bucket_cyl_barrel_oy - c605*bucket_cyl_barrel_oy) - c547*c601 - c552*(c539*bucket_cyl_barrel_oy + c544*bucket_cyl_rod_oz + c572*bucket_cyl_barrel_oy + c587*bucket_cyl_barrel_a21 + c591*bucket_cyl_barrel_a01 + c595*bucket_cyl_barrel_a11 + c603*bucket_cyl_rod_ox + c605*bucket_cyl_rod_ox + c606*bucket_cyl_barrel_a01 + c529*bucket_cyl_barrel_oz - c572*bucket_cyl_rod_oy - c603*bucket_cyl_barrel_ox - c605*bucket_cyl_barrel_ox - c529*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_vx*(c568 + c569 - c570 - c571 + c545*bucket_cyl_rod_a20 + c526*bucket_cyl_barrel_a11) - v_bucket_cyl_barrel_vy*(c573 + c574 - c576 - c577 + c539*bucket_cyl_rod_a00 + c549*bucket_cyl_barrel_a21) - v_bucket_cyl_barrel_vz*(c578 + c580 - c581 - c583 + c533*bucket_cyl_barrel_a01 + c553*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c570 + c571 - c568 - c569 + c534*bucket_cyl_barrel_a21 + c540*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c576 + c577 - c573 - c574 + c523*bucket_cyl_barrel_a01 + c554*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c581 + c583 - c578 - c580 + c544*bucket_cyl_rod_a00 + c548*bucket_cyl_barrel_a11);
+    out[75] = -c537*(c621*bucket_cyl_rod_oz + c622*bucket_cyl_rod_oz + c557*bucket_cyl_barrel_ox + c563*bucket_cyl_barrel_ox + c564*bucket_cyl_barrel_oy + c567*bucket_cyl_rod_oy + c588*bucket_cyl_barrel_a12 + c598*bucket_cyl_barrel_a02 + c599*bucket_cyl_barrel_a22 + c604*bucket_cyl_barrel_a22 - c621*bucket_cyl_barrel_oz - c622*bucket_cyl_barrel_oz - c557*bucket_cyl_rod_ox - c564*bucket_cyl_rod_oy) - c543*(c621*bucket_cyl_rod_oy + c623*bucket_cyl_rod_oy + c555*bucket_cyl_barrel_ox + c561*bucket_cyl_rod_ox + c566*bucket_cyl_barrel_oz + c589*bucket_cyl_barrel_a22 + c590*bucket_cyl_barrel_a12 + c594*bucket_cyl_barrel_a02 + c600*bucket_cyl_barrel_a12 + c617*bucket_cyl_barrel_oz - c621*bucket_cyl_barrel_oy - c623*bucket_cyl_barrel_oy - c555*bucket_cyl_rod_ox - c617*bucket_cyl_rod_oz) - c552*(c622*bucket_cyl_rod_ox + c623*bucket_cyl_rod_ox + c558*bucket_cyl_barrel_oz + c560*bucket_cyl_barrel_oy + c562*bucket_cyl_rod_oz + c587*bucket_cyl_barrel_a22 + c591*bucket_cyl_barrel_a02 + c595*bucket_cyl_barrel_a12 + c606*bucket_cyl_barrel_a02 + c611*bucket_cyl_barrel_oy - c622*bucket_cyl_barrel_ox - c623*bucket_cyl_barrel_ox - c558*bucket_cyl_rod_oz - c611*bucket_cyl_rod_oy) - c556*c592 - c559*c597 - c565*c601 - v_bucket_cyl_barrel_vx*(c607 + c608 - c609 - c610 + c563*bucket_cyl_rod_a20 + c526*bucket_cyl_barrel_a12) - v_bucket_cyl_barrel_vy*(c612 + c613 - c614 - c615 + c549*bucket_cyl_barrel_a22 + c560*bucket_cyl_rod_a00) - v_bucket_cyl_barrel_vz*(c616 + c618 - c620 - c619 + c533*bucket_cyl_barrel_a02 + c566*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c609 + c610 - c607 - c608 + c534*bucket_cyl_barrel_a22 + c561*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c614 + c615 - c612 - c613 + c523*bucket_cyl_barrel_a02 + c567*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c620 + c619 - c616 - c618 + c548*bucket_cyl_barrel_a12 + c562*bucket_cyl_rod_a00);
+    out[76] = -c521*(c624*bucket_cyl_rod_a02 + c626*bucket_cyl_rod_a12) - c530*(c625*bucket_cyl_rod_a22 + c628*bucket_cyl_rod_a02) - c547*(c627*bucket_cyl_rod_a12 + c629*bucket_cyl_rod_a22) - (c624*bucket_cyl_barrel_a21 + c628*bucket_cyl_barrel_a11)*(bucket_cyl_rod_a22*v_bucket_cyl_rod_wy - bucket_cyl_rod_a12*v_bucket_cyl_rod_wz) - (c625*bucket_cyl_barrel_a11 + c629*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a12*v_bucket_cyl_rod_wx - bucket_cyl_rod_a02*v_bucket_cyl_rod_wy) - (c626*bucket_cyl_barrel_a21 + c627*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a02*v_bucket_cyl_rod_wz - bucket_cyl_rod_a22*v_bucket_cyl_rod_wx);
+    out[77] = -c631*v_side_link_wy - c634*c636 + 0.5686266556413632*c633*p_side_link*v_side_link_wz + 0.822595724821202*c632*p_side_link*v_side_link_wy;
+    out[78] = c631*v_side_link_wx + c636*c638 - c630*c637*v_side_link_wz - c632*c635*v_side_link_wx;
+    out[79] = -c630*c633*v_side_link_wx - c635*c638*v_side_link_wy + 0.5686266556413632*c637*p_side_link*v_side_link_wy + 0.822595724821202*c634*p_side_link*v_side_link_wx;
 }
 
 /* gamma of the driver rows of case 'digging'. */
-void excavator_dual_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_dual_quaternion_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -2696,6 +2750,7 @@ void excavator_dual_quaternion_compute_drivers_gamma_digging(const double *q, co
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -2792,7 +2847,7 @@ void excavator_dual_quaternion_compute_inputs_digging(double t, double *out) {
 }
 
 /* Phi of the driver rows of case 'level_cut'. */
-void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double bucket_rw = q[104];
@@ -2807,6 +2862,7 @@ void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, co
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double bucket_ox = -2.0*bucket_dw*bucket_rx - 2.0*bucket_dy*bucket_rz + 2.0*bucket_dx*bucket_rw + 2.0*bucket_dz*bucket_ry;
     const double bucket_oz = -2.0*bucket_dw*bucket_rz - 2.0*bucket_dx*bucket_ry + 2.0*bucket_dy*bucket_rx + 2.0*bucket_dz*bucket_rw;
     const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
@@ -2821,7 +2877,7 @@ void excavator_dual_quaternion_compute_drivers_phi_level_cut(const double *q, co
 }
 
 /* Phi_q values of the driver rows of case 'level_cut'. */
-void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -2832,6 +2888,7 @@ void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, co
     const double bucket_rz = q[107];
     const double u0 = u[0];
     const double u3 = u[3];
+    (void)p;
     const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
     const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry;
@@ -2858,7 +2915,7 @@ void excavator_dual_quaternion_compute_drivers_jac_level_cut(const double *q, co
 }
 
 /* nu of the driver rows of case 'level_cut'. */
-void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out) {
+void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double bucket_rw = q[104];
@@ -2871,6 +2928,7 @@ void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, con
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
     const double c0 = (1.0/2.0)*u0;
@@ -2881,7 +2939,7 @@ void excavator_dual_quaternion_compute_drivers_nu_level_cut(const double *q, con
 }
 
 /* gamma of the driver rows of case 'level_cut'. */
-void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -2904,6 +2962,7 @@ void excavator_dual_quaternion_compute_drivers_gamma_level_cut(const double *q, 
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
     const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry;
@@ -2950,7 +3009,7 @@ void excavator_dual_quaternion_compute_inputs_level_cut(double t, double *out) {
 }
 
 /* Phi of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double bucket_rw = q[104];
@@ -2965,6 +3024,7 @@ void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, 
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double bucket_ox = -2.0*bucket_dw*bucket_rx - 2.0*bucket_dy*bucket_rz + 2.0*bucket_dx*bucket_rw + 2.0*bucket_dz*bucket_ry;
     const double bucket_oz = -2.0*bucket_dw*bucket_rz - 2.0*bucket_dx*bucket_ry + 2.0*bucket_dy*bucket_rx + 2.0*bucket_dz*bucket_rw;
     const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
@@ -2979,7 +3039,7 @@ void excavator_dual_quaternion_compute_drivers_phi_trench_wall(const double *q, 
 }
 
 /* Phi_q values of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -2990,6 +3050,7 @@ void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, 
     const double bucket_rz = q[107];
     const double u0 = u[0];
     const double u3 = u[3];
+    (void)p;
     const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
     const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry;
@@ -3016,7 +3077,7 @@ void excavator_dual_quaternion_compute_drivers_jac_trench_wall(const double *q, 
 }
 
 /* nu of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out) {
+void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double bucket_rw = q[104];
@@ -3029,6 +3090,7 @@ void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, c
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a22 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rz*bucket_rz);
     const double c0 = (1.0/2.0)*u0;
@@ -3039,7 +3101,7 @@ void excavator_dual_quaternion_compute_drivers_nu_trench_wall(const double *q, c
 }
 
 /* gamma of the driver rows of case 'trench_wall'. */
-void excavator_dual_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_dual_quaternion_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -3062,6 +3124,7 @@ void excavator_dual_quaternion_compute_drivers_gamma_trench_wall(const double *q
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double bucket_a00 = -1.0 + 2.0*(bucket_rw*bucket_rw) + 2.0*(bucket_rx*bucket_rx);
     const double bucket_a02 = 2.0*bucket_rw*bucket_ry + 2.0*bucket_rx*bucket_rz;
     const double bucket_a10 = 2.0*bucket_rw*bucket_rz + 2.0*bucket_rx*bucket_ry;
@@ -3108,7 +3171,7 @@ void excavator_dual_quaternion_compute_inputs_trench_wall(double t, double *out)
 }
 
 /* Phi of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double boom_cyl_l_barrel_rw = q[16];
@@ -3163,6 +3226,7 @@ void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -3198,7 +3262,7 @@ void excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(const double *q
 }
 
 /* Phi_q values of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -3252,6 +3316,7 @@ void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q
     const double bucket_cyl_rod_dy = q[86];
     const double bucket_cyl_rod_dz = q[87];
     const double u0 = u[0];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -3324,7 +3389,7 @@ void excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(const double *q
 }
 
 /* nu of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out) {
+void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double u0 = u[0];
@@ -3332,6 +3397,7 @@ void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q,
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0));
     out[1] = ud1;
@@ -3340,7 +3406,7 @@ void excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(const double *q,
 }
 
 /* gamma of the driver rows of case 'bucket_toggle'. */
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -3429,6 +3495,7 @@ void excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(const double 
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -3503,8 +3570,8 @@ void excavator_dual_quaternion_compute_inputs_bucket_toggle(double t, double *ou
     out[11] = 0.0;
 }
 
-/* Phi of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out) {
+/* Phi of the driver rows of case 'bucket_stroke'. */
+void excavator_dual_quaternion_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double boom_cyl_l_barrel_rw = q[16];
@@ -3559,6 +3626,7 @@ void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const doub
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -3593,8 +3661,8 @@ void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const doub
     out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz);
 }
 
-/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out) {
+/* Phi_q values of the driver rows of case 'bucket_stroke'. */
+void excavator_dual_quaternion_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -3648,6 +3716,7 @@ void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const doub
     const double bucket_cyl_rod_dy = q[86];
     const double bucket_cyl_rod_dz = q[87];
     const double u0 = u[0];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -3719,8 +3788,8 @@ void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const doub
     out[29] = bucket_cyl_barrel_a20;
 }
 
-/* nu of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out) {
+/* nu of the driver rows of case 'bucket_stroke'. */
+void excavator_dual_quaternion_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rz = q[3];
     const double u0 = u[0];
@@ -3728,6 +3797,7 @@ void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const doubl
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0));
     out[1] = ud1;
@@ -3735,8 +3805,12 @@ void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const doubl
     out[3] = ud3;
 }
 
-/* gamma of the driver rows of case 'bucket_near_toggle'. */
-void excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
+
+/* gamma of the driver rows of case 'bucket_stroke'. */
+void excavator_dual_quaternion_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_rw = q[0];
     const double upper_rx = q[1];
     const double upper_ry = q[2];
@@ -3825,6 +3899,407 @@ void excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(const do
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = cos(c0);
+    const double c2 = sin(c0);
+    const double c3 = (1.0/2.0)*upper_rw;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_rz;
+    const double c5 = (1.0/2.0)*v_upper_wy;
+    const double c6 = (1.0/2.0)*v_upper_wx;
+    const double c7 = (1.0/2.0)*upper_rz;
+    const double c8 = (1.0/2.0)*v_upper_wz;
+    const double c9 = (1.0/2.0)*c1;
+    const double c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
+    const double c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
+    const double c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
+    const double c13 = -c10;
+    const double c14 = -c12;
+    const double c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
+    const double c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
+    const double c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy - arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
+    const double c18 = -c15;
+    const double c19 = -c17;
+    const double c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
+    const double c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
+    const double c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
+    const double c23 = -c20;
+    const double c24 = -c22;
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1.0/2.0)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1.0/2.0*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx);
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx);
+    out[2] = udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx);
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx);
+}
+
+/* Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2. */
+void excavator_dual_quaternion_compute_inputs_bucket_stroke(double t, double *out) {
+    out[0] = 0.0;
+    out[1] = 626973.0/250000.0;
+    out[2] = 485803.0/250000.0;
+    out[3] = 16529.0/10000.0 + (2521.0/2500.0)*t;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 2521.0/2500.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+}
+
+/* Phi of the driver rows of case 'bucket_near_toggle'. */
+void excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double u0 = u[0];
+    const double u1 = u[1];
+    const double u2 = u[2];
+    const double u3 = u[3];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -2.0*upper_rz*cos(c0) + 2.0*upper_rw*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz);
+}
+
+/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
+void excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rx = q[1];
+    const double upper_ry = q[2];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double u0 = u[0];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double d0 = (1.0/2.0)*u0;
+    const double d1 = sin(d0);
+    const double d2 = cos(d0);
+    const double d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
+    const double d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
+    const double d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
+    const double d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
+    const double d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
+    const double d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
+    const double d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
+    const double d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
+    const double d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
+    out[0] = -d1*upper_rx - d2*upper_ry;
+    out[1] = d2*upper_rx - d1*upper_ry;
+    out[2] = -d1*upper_rz - d2*upper_rw;
+    out[3] = d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20;
+    out[4] = d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00;
+    out[5] = d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10;
+    out[6] = -boom_cyl_l_barrel_a00;
+    out[7] = -boom_cyl_l_barrel_a10;
+    out[8] = -boom_cyl_l_barrel_a20;
+    out[9] = boom_cyl_l_barrel_a00;
+    out[10] = boom_cyl_l_barrel_a10;
+    out[11] = boom_cyl_l_barrel_a20;
+    out[12] = d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20;
+    out[13] = d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00;
+    out[14] = d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10;
+    out[15] = -arm_cyl_barrel_a00;
+    out[16] = -arm_cyl_barrel_a10;
+    out[17] = -arm_cyl_barrel_a20;
+    out[18] = arm_cyl_barrel_a00;
+    out[19] = arm_cyl_barrel_a10;
+    out[20] = arm_cyl_barrel_a20;
+    out[21] = d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20;
+    out[22] = d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00;
+    out[23] = d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10;
+    out[24] = -bucket_cyl_barrel_a00;
+    out[25] = -bucket_cyl_barrel_a10;
+    out[26] = -bucket_cyl_barrel_a20;
+    out[27] = bucket_cyl_barrel_a00;
+    out[28] = bucket_cyl_barrel_a10;
+    out[29] = bucket_cyl_barrel_a20;
+}
+
+/* nu of the driver rows of case 'bucket_near_toggle'. */
+void excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rz = q[3];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double ud1 = ud[1];
+    const double ud2 = ud[2];
+    const double ud3 = ud[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0));
+    out[1] = ud1;
+    out[2] = ud2;
+    out[3] = ud3;
+}
+
+/* gamma of the driver rows of case 'bucket_near_toggle'. */
+void excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rx = q[1];
+    const double upper_ry = q[2];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double v_upper_wx = v[0];
+    const double v_upper_wy = v[1];
+    const double v_upper_wz = v[2];
+    const double v_boom_cyl_l_barrel_wx = v[12];
+    const double v_boom_cyl_l_barrel_wy = v[13];
+    const double v_boom_cyl_l_barrel_wz = v[14];
+    const double v_boom_cyl_l_barrel_vx = v[15];
+    const double v_boom_cyl_l_barrel_vy = v[16];
+    const double v_boom_cyl_l_barrel_vz = v[17];
+    const double v_boom_cyl_l_rod_vx = v[21];
+    const double v_boom_cyl_l_rod_vy = v[22];
+    const double v_boom_cyl_l_rod_vz = v[23];
+    const double v_arm_cyl_barrel_wx = v[42];
+    const double v_arm_cyl_barrel_wy = v[43];
+    const double v_arm_cyl_barrel_wz = v[44];
+    const double v_arm_cyl_barrel_vx = v[45];
+    const double v_arm_cyl_barrel_vy = v[46];
+    const double v_arm_cyl_barrel_vz = v[47];
+    const double v_arm_cyl_rod_vx = v[51];
+    const double v_arm_cyl_rod_vy = v[52];
+    const double v_arm_cyl_rod_vz = v[53];
+    const double v_bucket_cyl_barrel_wx = v[54];
+    const double v_bucket_cyl_barrel_wy = v[55];
+    const double v_bucket_cyl_barrel_wz = v[56];
+    const double v_bucket_cyl_barrel_vx = v[57];
+    const double v_bucket_cyl_barrel_vy = v[58];
+    const double v_bucket_cyl_barrel_vz = v[59];
+    const double v_bucket_cyl_rod_vx = v[63];
+    const double v_bucket_cyl_rod_vy = v[64];
+    const double v_bucket_cyl_rod_vz = v[65];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    const double udd1 = udd[1];
+    const double udd2 = udd[2];
+    const double udd3 = udd[3];
+    (void)p;
     const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
     const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
     const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
@@ -3900,10 +4375,6 @@ void excavator_dual_quaternion_compute_inputs_bucket_near_toggle(double t, doubl
     out[10] = 0.0;
     out[11] = -0.5798392585639998*c1;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). Rows 0 to 239. */
 void excavator_dual_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
@@ -4737,28 +5208,28 @@ static void retract(double *q, const double *step) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging'. */
-static void phi_jac_digging(const double *q, const double *u, double *phi, double *jac) {
-    excavator_dual_quaternion_compute_joints_phi(q, phi);
-    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, phi + 80);
-    excavator_dual_quaternion_compute_joints_jac_part0(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part1(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part2(q, jac);
-    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, jac + 427);
+static void phi_jac_digging(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_quaternion_compute_joints_phi(q, p, phi);
+    excavator_dual_quaternion_compute_drivers_phi_digging(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_quaternion_compute_drivers_jac_digging(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'digging' (zero in the joint rows). */
-static void nu_digging(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_digging(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_digging(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'. */
-static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, gamma + 80);
+static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_quaternion_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'digging' at time t: u, then du/dt, then d2u/dt2. */
@@ -4767,28 +5238,28 @@ static void inputs_digging(double t, double *inputs) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'level_cut'. */
-static void phi_jac_level_cut(const double *q, const double *u, double *phi, double *jac) {
-    excavator_dual_quaternion_compute_joints_phi(q, phi);
-    excavator_dual_quaternion_compute_drivers_phi_level_cut(q, u, phi + 80);
-    excavator_dual_quaternion_compute_joints_jac_part0(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part1(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part2(q, jac);
-    excavator_dual_quaternion_compute_drivers_jac_level_cut(q, u, jac + 427);
+static void phi_jac_level_cut(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_quaternion_compute_joints_phi(q, p, phi);
+    excavator_dual_quaternion_compute_drivers_phi_level_cut(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_quaternion_compute_drivers_jac_level_cut(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'level_cut' (zero in the joint rows). */
-static void nu_level_cut(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_level_cut(q, u, ud, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_level_cut(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'. */
-static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_level_cut(q, v, u, ud, udd, gamma + 80);
+static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_quaternion_compute_drivers_gamma_level_cut(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'level_cut' at time t: u, then du/dt, then d2u/dt2. */
@@ -4797,28 +5268,28 @@ static void inputs_level_cut(double t, double *inputs) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
-static void phi_jac_trench_wall(const double *q, const double *u, double *phi, double *jac) {
-    excavator_dual_quaternion_compute_joints_phi(q, phi);
-    excavator_dual_quaternion_compute_drivers_phi_trench_wall(q, u, phi + 80);
-    excavator_dual_quaternion_compute_joints_jac_part0(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part1(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part2(q, jac);
-    excavator_dual_quaternion_compute_drivers_jac_trench_wall(q, u, jac + 427);
+static void phi_jac_trench_wall(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_quaternion_compute_joints_phi(q, p, phi);
+    excavator_dual_quaternion_compute_drivers_phi_trench_wall(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_quaternion_compute_drivers_jac_trench_wall(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
-static void nu_trench_wall(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_trench_wall(q, u, ud, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_trench_wall(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
-static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, gamma + 80);
+static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_quaternion_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
@@ -4827,28 +5298,28 @@ static void inputs_trench_wall(double t, double *inputs) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
-static void phi_jac_bucket_toggle(const double *q, const double *u, double *phi, double *jac) {
-    excavator_dual_quaternion_compute_joints_phi(q, phi);
-    excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(q, u, phi + 80);
-    excavator_dual_quaternion_compute_joints_jac_part0(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part1(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part2(q, jac);
-    excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(q, u, jac + 427);
+static void phi_jac_bucket_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_quaternion_compute_joints_phi(q, p, phi);
+    excavator_dual_quaternion_compute_drivers_phi_bucket_toggle(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_quaternion_compute_drivers_jac_bucket_toggle(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
-static void nu_bucket_toggle(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(q, u, ud, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_bucket_toggle(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
-static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, gamma + 80);
+static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_quaternion_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -4856,29 +5327,59 @@ static void inputs_bucket_toggle(double t, double *inputs) {
     excavator_dual_quaternion_compute_inputs_bucket_toggle(t, inputs);
 }
 
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. */
+static void phi_jac_bucket_stroke(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_quaternion_compute_joints_phi(q, p, phi);
+    excavator_dual_quaternion_compute_drivers_phi_bucket_stroke(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_quaternion_compute_drivers_jac_bucket_stroke(q, u, p, jac + 427);
+}
+
+/* nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). */
+static void nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_dual_quaternion_compute_drivers_nu_bucket_stroke(q, u, ud, p, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. */
+static void gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_quaternion_compute_drivers_gamma_bucket_stroke(q, v, u, ud, udd, p, gamma + 80);
+}
+
+/* Driver inputs of case 'bucket_stroke' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_bucket_stroke(double t, double *inputs) {
+    excavator_dual_quaternion_compute_inputs_bucket_stroke(t, inputs);
+}
+
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
-static void phi_jac_bucket_near_toggle(const double *q, const double *u, double *phi, double *jac) {
-    excavator_dual_quaternion_compute_joints_phi(q, phi);
-    excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(q, u, phi + 80);
-    excavator_dual_quaternion_compute_joints_jac_part0(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part1(q, jac);
-    excavator_dual_quaternion_compute_joints_jac_part2(q, jac);
-    excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(q, u, jac + 427);
+static void phi_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_quaternion_compute_joints_phi(q, p, phi);
+    excavator_dual_quaternion_compute_drivers_phi_bucket_near_toggle(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_quaternion_compute_drivers_jac_bucket_near_toggle(q, u, p, jac + 427);
 }
 
 /* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
-static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
-    excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(q, u, ud, nu + 80);
+    excavator_dual_quaternion_compute_drivers_nu_bucket_near_toggle(q, u, ud, p, nu + 80);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
-static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, gamma);
-    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, gamma);
-    excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, gamma + 80);
+static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_quaternion_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p, gamma + 80);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -4935,12 +5436,14 @@ static const kinegen_actuator actuators[] = {
 };
 
 const kinegen_layout excavator_dual_quaternion_layout = {
-    "excavator", "dual-quaternion", "excavator.yaml", "cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c", "0.1.0",
+    "excavator", "dual-quaternion", "excavator.yaml", "06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50", "0.1.0",
     EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, EXCAVATOR_DUAL_QUATERNION_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_dual_quaternion_frames,
 };
 
 static const double initial_q[] = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.9826937028898046, 0.0, 0.18523791809649656, 0.0, 0.0, -0.06941722468708496, 0.0, 0.9827948372711075, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 0.604231304353096, 0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 1.7341333740493532, 0.1441723416885284, 1.004743925176123, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 0.604231304353096, -0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 1.7341333740493532, -0.1441723416885284, 1.004743925176123, 0.7487823326004931, 0.0, 0.6628159762599, 0.0, 0.0, 1.1673591676421733, 0.0, 3.0396113433154897, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 1.6965717474027266, 0.0, 1.8495911036498867, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 2.6681621172680057, 0.0, 1.855102189922746, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 2.5562304402872105, 0.0, 2.5969797733967255, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 3.4387759320385776, 0.0, 2.30704926454922, 0.912012841994652, 0.0, 0.4101616462284567, 0.0, 0.0, 3.2304534311614317, 0.0, 2.3677903790988526, 0.640244241850993, 0.0, 0.7681714071590059, 0.0, 0.0, 1.9761889826861672, 0.0, 3.7916431136090383, 0.8349444950888361, 0.0, 0.5503341622331369, 0.0, 0.0, 3.029873627157362, 0.0, 2.828134945093185};
+/* design parameters C_x, C_z, F_x, F_z, boom_retracted, side_link, bucket_link, K_x, K_z: nominal values (the kernels' last argument p) */
+static const double design_nominal[] = {1.39283, 2.001922, -0.786562, -0.369691, 1.7352, 0.5850200596466757, 0.5660572218009412, -0.32404, 0.33854};
 
 /* ---- case digging ---- */
 static const char *const constraints_digging[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
@@ -4958,16 +5461,18 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 2
 static const int off_col_digging[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 
-const kinegen_model excavator_dual_quaternion_digging = {
+const kinegen_design_model excavator_dual_quaternion_digging = { {
     &excavator_dual_quaternion_layout, "digging",
     EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
     0.0, 17.0, 341,
     initial_q, constraints_digging, drivers_digging, jac_rows_digging, jac_cols_digging,
-    phi_jac_digging, nu_digging, gamma_digging, inputs_digging, retract,
+    NULL, NULL, NULL, inputs_digging, retract,
     37, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
     584, 278, diag_value_digging, diag_slot_digging,
     179, off_start_digging, off_col_digging, off_value_digging,
     2116, 168,
+    }, 9, design_nominal, phi_jac_digging, nu_digging, gamma_digging,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case level_cut ---- */
@@ -4986,16 +5491,18 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17,
 static const int off_col_level_cut[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_level_cut[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
 
-const kinegen_model excavator_dual_quaternion_level_cut = {
+const kinegen_design_model excavator_dual_quaternion_level_cut = { {
     &excavator_dual_quaternion_layout, "level_cut",
     EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 439,
     0.0, 4.0, 201,
     initial_q, constraints_level_cut, drivers_level_cut, jac_rows_level_cut, jac_cols_level_cut,
-    phi_jac_level_cut, nu_level_cut, gamma_level_cut, inputs_level_cut, retract,
+    NULL, NULL, NULL, inputs_level_cut, retract,
     46, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
     392, 249, diag_value_level_cut, diag_slot_level_cut,
     190, off_start_level_cut, off_col_level_cut, off_value_level_cut,
     1917, 168,
+    }, 9, design_nominal, phi_jac_level_cut, nu_level_cut, gamma_level_cut,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case trench_wall ---- */
@@ -5014,16 +5521,18 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 1
 static const int off_col_trench_wall[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_trench_wall[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
 
-const kinegen_model excavator_dual_quaternion_trench_wall = {
+const kinegen_design_model excavator_dual_quaternion_trench_wall = { {
     &excavator_dual_quaternion_layout, "trench_wall",
     EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 439,
     0.0, 4.0, 201,
     initial_q, constraints_trench_wall, drivers_trench_wall, jac_rows_trench_wall, jac_cols_trench_wall,
-    phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall, inputs_trench_wall, retract,
+    NULL, NULL, NULL, inputs_trench_wall, retract,
     46, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
     392, 249, diag_value_trench_wall, diag_slot_trench_wall,
     190, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
     1917, 168,
+    }, 9, design_nominal, phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case bucket_toggle ---- */
@@ -5042,16 +5551,48 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 
-const kinegen_model excavator_dual_quaternion_bucket_toggle = {
+const kinegen_design_model excavator_dual_quaternion_bucket_toggle = { {
     &excavator_dual_quaternion_layout, "bucket_toggle",
     EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
     0.0, 3.0, 301,
     initial_q, constraints_bucket_toggle, drivers_bucket_toggle, jac_rows_bucket_toggle, jac_cols_bucket_toggle,
-    phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle, inputs_bucket_toggle, retract,
+    NULL, NULL, NULL, inputs_bucket_toggle, retract,
     37, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
     584, 278, diag_value_bucket_toggle, diag_slot_bucket_toggle,
     179, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
     2116, 168,
+    }, 9, design_nominal, phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+};
+
+/* ---- case bucket_stroke ---- */
+static const char *const constraints_bucket_stroke[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const char *const drivers_bucket_stroke[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const int jac_rows_bucket_stroke[] = {0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
+static const int jac_cols_bucket_stroke[] = {3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 0, 1, 2, 6, 7, 8, 0, 1, 2, 6, 7, 8, 1, 2, 3, 15, 0, 2, 4, 16, 0, 1, 5, 17, 0, 1, 2, 12, 13, 14, 12, 13, 14, 18, 19, 20, 12, 13, 14, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 18, 19, 20, 7, 8, 9, 21, 6, 8, 10, 22, 6, 7, 11, 23, 1, 2, 3, 27, 0, 2, 4, 28, 0, 1, 5, 29, 0, 1, 2, 24, 25, 26, 24, 25, 26, 30, 31, 32, 24, 25, 26, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 30, 31, 32, 7, 8, 9, 33, 6, 8, 10, 34, 6, 7, 11, 35, 7, 8, 9, 39, 6, 8, 10, 40, 6, 7, 11, 41, 6, 7, 8, 36, 37, 38, 6, 7, 8, 36, 37, 38, 7, 8, 9, 45, 6, 8, 10, 46, 6, 7, 11, 47, 6, 7, 8, 42, 43, 44, 42, 43, 44, 48, 49, 50, 42, 43, 44, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 48, 49, 50, 37, 38, 39, 51, 36, 38, 40, 52, 36, 37, 41, 53, 37, 38, 39, 81, 36, 38, 40, 82, 36, 37, 41, 83, 36, 37, 38, 78, 79, 80, 36, 37, 38, 78, 79, 80, 37, 38, 39, 69, 36, 38, 40, 70, 36, 37, 41, 71, 36, 37, 38, 66, 67, 68, 36, 37, 38, 66, 67, 68, 67, 68, 69, 73, 74, 75, 66, 68, 70, 72, 74, 76, 66, 67, 71, 72, 73, 77, 75, 79, 80, 81, 76, 78, 80, 82, 77, 78, 79, 83, 72, 73, 74, 78, 79, 80, 37, 38, 39, 57, 36, 38, 40, 58, 36, 37, 41, 59, 36, 37, 38, 54, 55, 56, 54, 55, 56, 60, 61, 62, 54, 55, 56, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 60, 61, 62, 63, 67, 68, 69, 64, 66, 68, 70, 65, 66, 67, 71, 0, 1, 2, 12, 13, 14, 15, 16, 17, 21, 22, 23, 42, 43, 44, 45, 46, 47, 51, 52, 53, 54, 55, 56, 57, 58, 59, 63, 64, 65};
+/* Phi_q in block lower triangular form: 37 blocks, the largest 12 x 12 */
+static const int block_start_bucket_stroke[] = {0, 1, 2, 3, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 42, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 75, 84};
+static const int block_store_bucket_stroke[] = {0, 1, 2, 3, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 161, 162, 163, 164, 165, 166, 167, 168, 169, 170, 206, 350, 351, 352, 353, 354, 355, 356, 357, 358, 359, 503};
+static const int row_order_bucket_stroke[] = {0, 1, 2, 3, 4, 80, 7, 12, 24, 5, 6, 11, 10, 22, 23, 8, 9, 13, 14, 15, 16, 17, 18, 19, 20, 21, 81, 33, 32, 31, 34, 35, 36, 41, 40, 39, 25, 26, 27, 28, 29, 30, 37, 38, 42, 43, 44, 45, 46, 47, 48, 49, 50, 82, 51, 52, 53, 58, 56, 70, 69, 68, 57, 59, 60, 71, 72, 73, 74, 75, 76, 77, 78, 79, 83, 54, 55, 61, 62, 63, 64, 65, 66, 67};
+static const int col_order_bucket_stroke[] = {3, 4, 5, 0, 1, 2, 11, 17, 29, 9, 10, 16, 15, 27, 28, 6, 7, 12, 13, 14, 18, 19, 20, 8, 22, 23, 21, 35, 34, 33, 39, 40, 41, 47, 46, 45, 24, 25, 26, 30, 31, 32, 36, 37, 42, 43, 44, 48, 49, 50, 38, 52, 53, 51, 81, 82, 83, 71, 69, 59, 58, 57, 70, 66, 67, 54, 55, 56, 60, 61, 62, 63, 68, 65, 64, 78, 79, 75, 72, 73, 80, 76, 77, 74};
+static const int diag_value_bucket_stroke[] = {0, 1, 2, 3, 4, 5, 6, 10, 14, 18, 22, 23, 24, 28, 29, 30, 34, 38, 42, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 67, 68, 69, 70, 71, 72, 73, 74, 75, 79, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 94, 95, 96, 98, 99, 100, 102, 106, 110, 114, 118, 119, 120, 121, 122, 123, 124, 125, 126, 127, 128, 129, 130, 131, 132, 133, 134, 135, 139, 140, 141, 145, 146, 147, 151, 152, 153, 157, 158, 159, 160, 161, 162, 166, 170, 174, 178, 182, 186, 190, 191, 192, 196, 197, 198, 202, 206, 210, 214, 215, 216, 217, 218, 219, 220, 221, 222, 223, 224, 225, 226, 227, 228, 229, 230, 231, 235, 236, 237, 238, 239, 240, 241, 242, 243, 247, 248, 249, 250, 251, 252, 253, 254, 255, 256, 257, 258, 259, 260, 262, 263, 264, 266, 267, 268, 270, 274, 278, 282, 286, 287, 288, 292, 293, 294, 298, 302, 306, 310, 311, 312, 316, 317, 318, 322, 323, 324, 328, 329, 330, 334, 335, 336, 337, 338, 339, 341, 342, 343, 345, 346, 347, 349, 350, 351, 352, 353, 354, 358, 362, 366, 370, 371, 372, 373, 374, 375, 376, 377, 378, 379, 380, 381, 382, 383, 384, 385, 386, 387, 391, 392, 393, 394, 395, 396, 397, 398, 399, 403, 404, 405, 406, 407, 408, 409, 410, 411, 412, 413, 414, 415, 416, 417, 419, 420, 421, 423, 424, 425, 429, 430, 431, 432, 436, 437, 438, 439, 440, 441, 445, 446, 447, 448, 449, 450, 454, 455, 456};
+static const int diag_slot_bucket_stroke[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 29, 113, 18, 30, 114, 14, 13, 9, 43, 55, 67, 44, 56, 68, 80, 92, 104, 45, 57, 69, 81, 93, 105, 46, 58, 70, 82, 94, 106, 154, 130, 142, 47, 59, 71, 83, 95, 107, 155, 131, 143, 48, 60, 72, 84, 96, 108, 37, 121, 157, 26, 122, 134, 27, 39, 147, 15, 16, 10, 170, 176, 182, 171, 177, 183, 189, 195, 201, 172, 178, 184, 190, 196, 202, 173, 179, 185, 191, 197, 203, 174, 180, 186, 192, 198, 204, 175, 181, 187, 193, 199, 205, 163, 162, 161, 164, 165, 166, 206, 218, 302, 207, 219, 303, 169, 168, 167, 232, 244, 256, 233, 245, 257, 269, 281, 293, 234, 246, 258, 270, 282, 294, 235, 247, 259, 271, 283, 295, 343, 319, 331, 236, 248, 260, 272, 284, 296, 344, 320, 332, 237, 249, 261, 273, 285, 297, 226, 310, 346, 215, 311, 323, 216, 228, 336, 350, 351, 352, 503, 512, 548, 504, 513, 549, 354, 358, 353, 359, 371, 467, 360, 372, 468, 541, 577, 523, 533, 578, 560, 534, 543, 570, 526, 517, 553, 563, 509, 554, 573, 510, 519, 538, 547, 583, 511, 520, 556, 357, 356, 355, 385, 397, 409, 386, 398, 410, 422, 434, 446, 387, 399, 411, 423, 435, 447, 388, 400, 412, 424, 436, 448, 460, 496, 484, 389, 401, 413, 425, 437, 449, 461, 497, 485, 390, 402, 414, 426, 438, 450, 463, 379, 475, 500, 368, 476, 489, 369, 381, 7, 52, 64, 76, 160, 136, 148, 241, 253, 265, 349, 325, 337, 394, 406, 418, 466, 502, 490};
+static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
+static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
+static const int off_value_bucket_stroke[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+
+const kinegen_design_model excavator_dual_quaternion_bucket_stroke = { {
+    &excavator_dual_quaternion_layout, "bucket_stroke",
+    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
+    0.0, 1.0, 101,
+    initial_q, constraints_bucket_stroke, drivers_bucket_stroke, jac_rows_bucket_stroke, jac_cols_bucket_stroke,
+    NULL, NULL, NULL, inputs_bucket_stroke, retract,
+    37, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
+    584, 278, diag_value_bucket_stroke, diag_slot_bucket_stroke,
+    179, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
+    2116, 168,
+    }, 9, design_nominal, phi_jac_bucket_stroke, nu_bucket_stroke, gamma_bucket_stroke,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -5070,18 +5611,20 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_near_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 
-const kinegen_model excavator_dual_quaternion_bucket_near_toggle = {
+const kinegen_design_model excavator_dual_quaternion_bucket_near_toggle = { {
     &excavator_dual_quaternion_layout, "bucket_near_toggle",
     EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
     0.0, 2.0, 9,
     initial_q, constraints_bucket_near_toggle, drivers_bucket_near_toggle, jac_rows_bucket_near_toggle, jac_cols_bucket_near_toggle,
-    phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle, inputs_bucket_near_toggle, retract,
+    NULL, NULL, NULL, inputs_bucket_near_toggle, retract,
     37, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
     584, 278, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
     179, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
     2116, 168,
+    }, 9, design_nominal, phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
-const kinegen_model *const excavator_dual_quaternion_cases[EXCAVATOR_DUAL_QUATERNION_N_CASES] = {&excavator_dual_quaternion_digging, &excavator_dual_quaternion_level_cut, &excavator_dual_quaternion_trench_wall, &excavator_dual_quaternion_bucket_toggle, &excavator_dual_quaternion_bucket_near_toggle};
+const kinegen_model *const excavator_dual_quaternion_cases[EXCAVATOR_DUAL_QUATERNION_N_CASES] = {&excavator_dual_quaternion_digging.model, &excavator_dual_quaternion_level_cut.model, &excavator_dual_quaternion_trench_wall.model, &excavator_dual_quaternion_bucket_toggle.model, &excavator_dual_quaternion_bucket_stroke.model, &excavator_dual_quaternion_bucket_near_toggle.model};
 
 #endif

@@ -2,10 +2,11 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
+ * source sha256:   06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50
  * parametrization: dual-quaternion
  * kinegen version: 0.1.0
  * sympy version:   1.14.0
+ * sensitivities:   no
  *
  * The cases of the model as kinegen_model structs for kinegen_solver.h, and the model's
  * layout (names, bodies, points, actuators, the frames kernel). Units SI, angles in radians,
@@ -23,7 +24,7 @@ extern "C" {
 #define EXCAVATOR_DUAL_QUATERNION_N_Q 112  /* stored coordinates */
 #define EXCAVATOR_DUAL_QUATERNION_N_V 84  /* velocity coordinates = constraints */
 #define EXCAVATOR_DUAL_QUATERNION_N_BODIES 14
-#define EXCAVATOR_DUAL_QUATERNION_N_CASES 5
+#define EXCAVATOR_DUAL_QUATERNION_N_CASES 6
 #define EXCAVATOR_DUAL_QUATERNION_MAX_INPUTS 4  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
 #define EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES 2116
@@ -35,11 +36,12 @@ typedef struct excavator_dual_quaternion_workspace {
 } excavator_dual_quaternion_workspace;
 
 extern const kinegen_layout excavator_dual_quaternion_layout;
-extern const kinegen_model excavator_dual_quaternion_digging;  /* 4 driver(s), t = 0.0 .. 17.0 s */
-extern const kinegen_model excavator_dual_quaternion_level_cut;  /* 4 driver(s), t = 0.0 .. 4.0 s */
-extern const kinegen_model excavator_dual_quaternion_trench_wall;  /* 4 driver(s), t = 0.0 .. 4.0 s */
-extern const kinegen_model excavator_dual_quaternion_bucket_toggle;  /* 4 driver(s), t = 0.0 .. 3.0 s */
-extern const kinegen_model excavator_dual_quaternion_bucket_near_toggle;  /* 4 driver(s), t = 0.0 .. 2.0 s */
+extern const kinegen_design_model excavator_dual_quaternion_digging;  /* 4 driver(s), t = 0.0 .. 17.0 s */
+extern const kinegen_design_model excavator_dual_quaternion_level_cut;  /* 4 driver(s), t = 0.0 .. 4.0 s */
+extern const kinegen_design_model excavator_dual_quaternion_trench_wall;  /* 4 driver(s), t = 0.0 .. 4.0 s */
+extern const kinegen_design_model excavator_dual_quaternion_bucket_toggle;  /* 4 driver(s), t = 0.0 .. 3.0 s */
+extern const kinegen_design_model excavator_dual_quaternion_bucket_stroke;  /* 4 driver(s), t = 0.0 .. 1.0 s */
+extern const kinegen_design_model excavator_dual_quaternion_bucket_near_toggle;  /* 4 driver(s), t = 0.0 .. 2.0 s */
 extern const kinegen_model *const excavator_dual_quaternion_cases[EXCAVATOR_DUAL_QUATERNION_N_CASES];
 
 /* Per body 24 values: origin, rotation matrix (row by row), origin velocity, angular velocity,

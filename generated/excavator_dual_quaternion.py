@@ -2,10 +2,11 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
+source sha256:   06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50
 parametrization: dual-quaternion
 kinegen version: 0.1.0
 sympy version:   1.14.0
+sensitivities:   no
 
 Coordinates q (stored, 112) and v (velocity, 84) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -18,7 +19,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c'
+SOURCE_SHA256 = '06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50'
 PARAMETRIZATION = 'dual-quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.rw', 'upper.rx', 'upper.ry', 'upper.rz', 'upper.dw', 'upper.dx', 'upper.dy', 'upper.dz', 'boom.rw', 'boom.rx', 'boom.ry', 'boom.rz', 'boom.dw', 'boom.dx', 'boom.dy', 'boom.dz', 'boom_cyl_l_barrel.rw', 'boom_cyl_l_barrel.rx', 'boom_cyl_l_barrel.ry', 'boom_cyl_l_barrel.rz', 'boom_cyl_l_barrel.dw', 'boom_cyl_l_barrel.dx', 'boom_cyl_l_barrel.dy', 'boom_cyl_l_barrel.dz', 'boom_cyl_l_rod.rw', 'boom_cyl_l_rod.rx', 'boom_cyl_l_rod.ry', 'boom_cyl_l_rod.rz', 'boom_cyl_l_rod.dw', 'boom_cyl_l_rod.dx', 'boom_cyl_l_rod.dy', 'boom_cyl_l_rod.dz', 'boom_cyl_r_barrel.rw', 'boom_cyl_r_barrel.rx', 'boom_cyl_r_barrel.ry', 'boom_cyl_r_barrel.rz', 'boom_cyl_r_barrel.dw', 'boom_cyl_r_barrel.dx', 'boom_cyl_r_barrel.dy', 'boom_cyl_r_barrel.dz', 'boom_cyl_r_rod.rw', 'boom_cyl_r_rod.rx', 'boom_cyl_r_rod.ry', 'boom_cyl_r_rod.rz', 'boom_cyl_r_rod.dw', 'boom_cyl_r_rod.dx', 'boom_cyl_r_rod.dy', 'boom_cyl_r_rod.dz', 'arm.rw', 'arm.rx', 'arm.ry', 'arm.rz', 'arm.dw', 'arm.dx', 'arm.dy', 'arm.dz', 'arm_cyl_barrel.rw', 'arm_cyl_barrel.rx', 'arm_cyl_barrel.ry', 'arm_cyl_barrel.rz', 'arm_cyl_barrel.dw', 'arm_cyl_barrel.dx', 'arm_cyl_barrel.dy', 'arm_cyl_barrel.dz', 'arm_cyl_rod.rw', 'arm_cyl_rod.rx', 'arm_cyl_rod.ry', 'arm_cyl_rod.rz', 'arm_cyl_rod.dw', 'arm_cyl_rod.dx', 'arm_cyl_rod.dy', 'arm_cyl_rod.dz', 'bucket_cyl_barrel.rw', 'bucket_cyl_barrel.rx', 'bucket_cyl_barrel.ry', 'bucket_cyl_barrel.rz', 'bucket_cyl_barrel.dw', 'bucket_cyl_barrel.dx', 'bucket_cyl_barrel.dy', 'bucket_cyl_barrel.dz', 'bucket_cyl_rod.rw', 'bucket_cyl_rod.rx', 'bucket_cyl_rod.ry', 'bucket_cyl_rod.rz', 'bucket_cyl_rod.dw', 'bucket_cyl_rod.dx', 'bucket_cyl_rod.dy', 'bucket_cyl_rod.dz', 'side_link.rw', 'side_link.rx', 'side_link.ry', 'side_link.rz', 'side_link.dw', 'side_link.dx', 'side_link.dy', 'side_link.dz', 'bucket_link.rw', 'bucket_link.rx', 'bucket_link.ry', 'bucket_link.rz', 'bucket_link.dw', 'bucket_link.dx', 'bucket_link.dy', 'bucket_link.dz', 'bucket.rw', 'bucket.rx', 'bucket.ry', 'bucket.rz', 'bucket.dw', 'bucket.dx', 'bucket.dy', 'bucket.dz')
@@ -52,13 +53,27 @@ ACTUATORS = {
     'arm_cylinder': (('arm_cyl_barrel', 'base'), ('arm_cyl_rod', 'eye'), (1.8164, 3.2939)),
     'bucket_cylinder': (('bucket_cyl_barrel', 'base'), ('bucket_cyl_rod', 'eye'), (1.6529, 2.6613)),
 }
+# design parameters, in the order of the argument p: name -> (nominal, lower bound, upper bound).
+# POINTS, GROUND_POINTS and INITIAL_Q are at the nominal values; points(p) gives the points at p.
+DESIGN = {
+    'C_x': (1.39283, 1.37283, 1.41283),
+    'C_z': (2.001922, 1.981922, 2.021922),
+    'F_x': (-0.786562, -0.806562, -0.766562),
+    'F_z': (-0.369691, -0.389691, -0.349691),
+    'boom_retracted': (1.7352, 1.6852, 1.7852),
+    'side_link': (0.5850200596466757, 0.555, 0.615),
+    'bucket_link': (0.5660572218009412, 0.536, 0.596),
+    'K_x': (-0.32404, -0.35404, -0.29404),
+    'K_z': (0.33854, 0.30854, 0.36854),
+}
 # kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
 KERNELS = {
-    'phi_jac': (('q', 'u'), ('phi', 'jac')),
-    'nu': (('q', 'u', 'ud'), ('nu',)),
-    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'phi_jac': (('q', 'u', 'p'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud', 'p'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd', 'p'), ('gamma',)),
     'inputs': (('t',), ('inputs',)),
     'frames': (('q', 'v', 'a'), ('frames',)),
+    'points': (('p',), ('points',)),
 }
 
 
@@ -76,9 +91,10 @@ def _join(joints, drivers):
     return np.concatenate((joints, drivers))
 
 
-def _joints_phi(q):
+def _joints_phi(q, p):
     """Phi of the 80 joint (and normalization) rows, common to every case."""
     upper_rw, upper_rx, upper_ry, upper_rz, upper_dw, upper_dx, upper_dy, upper_dz, boom_rw, boom_rx, boom_ry, boom_rz, boom_dw, boom_dx, boom_dy, boom_dz, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, boom_cyl_r_barrel_rw, boom_cyl_r_barrel_rx, boom_cyl_r_barrel_ry, boom_cyl_r_barrel_rz, boom_cyl_r_barrel_dw, boom_cyl_r_barrel_dx, boom_cyl_r_barrel_dy, boom_cyl_r_barrel_dz, boom_cyl_r_rod_rw, boom_cyl_r_rod_rx, boom_cyl_r_rod_ry, boom_cyl_r_rod_rz, boom_cyl_r_rod_dw, boom_cyl_r_rod_dx, boom_cyl_r_rod_dy, boom_cyl_r_rod_dz, arm_rw, arm_rx, arm_ry, arm_rz, arm_dw, arm_dx, arm_dy, arm_dz, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, side_link_rw, side_link_rx, side_link_ry, side_link_rz, side_link_dw, side_link_dx, side_link_dy, side_link_dz, bucket_link_rw, bucket_link_rx, bucket_link_ry, bucket_link_rz, bucket_link_dw, bucket_link_dx, bucket_link_dy, bucket_link_dz, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_ox = -2*upper_dw*upper_rx - 2*upper_dy*upper_rz + 2*upper_dx*upper_rw + 2*upper_dz*upper_ry
     upper_oy = -2*upper_dw*upper_ry - 2*upper_dz*upper_rx + 2*upper_dx*upper_rz + 2*upper_dy*upper_rw
     upper_oz = -2*upper_dw*upper_rz - 2*upper_dx*upper_ry + 2*upper_dy*upper_rx + 2*upper_dz*upper_rw
@@ -226,9 +242,15 @@ def _joints_phi(q):
     c6 = arm_cyl_rod_ox - arm_cyl_barrel_ox
     c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
     c8 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c9 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    c9 = 0.5686266556413632*p_side_link
+    c10 = 0.822595724821202*p_side_link
+    c11 = 0.60493530832545*p_bucket_link
+    c12 = 0.796274621434837*p_bucket_link
+    c13 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    c14 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    c15 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    c16 = 0.5686266556413632*p_side_link
+    c17 = 0.822595724821202*p_side_link
     out = _zeros(80, q, ())
     out[0] = -upper_ox
     out[1] = -upper_oy
@@ -249,9 +271,9 @@ def _joints_phi(q):
     out[16] = c0*(boom_cyl_l_barrel_a21*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a11*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a01*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a21*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a11*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a01*boom_cyl_l_rod_a10)
     out[17] = c0*(boom_cyl_l_barrel_a22*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a12*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a02*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a22*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a12*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a02*boom_cyl_l_rod_a10)
     out[18] = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22
-    out[19] = boom_cyl_l_rod_ox - boom_ox - 2.001922*boom_a02 - 139283/100000*boom_a00 - 8/25*boom_a01
-    out[20] = boom_cyl_l_rod_oy - boom_oy - 2.001922*boom_a12 - 139283/100000*boom_a10 - 8/25*boom_a11
-    out[21] = boom_cyl_l_rod_oz - boom_oz - 2.001922*boom_a22 - 139283/100000*boom_a20 - 8/25*boom_a21
+    out[19] = boom_cyl_l_rod_ox - boom_ox - 8/25*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z
+    out[20] = boom_cyl_l_rod_oy - boom_oy - 8/25*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z
+    out[21] = boom_cyl_l_rod_oz - boom_oz - 8/25*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z
     out[22] = upper_ox - boom_cyl_r_barrel_ox - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
     out[23] = upper_oy - boom_cyl_r_barrel_oy - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
     out[24] = upper_oz - boom_cyl_r_barrel_oz - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
@@ -261,9 +283,9 @@ def _joints_phi(q):
     out[28] = c3*(boom_cyl_r_barrel_a21*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a11*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a01*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a21*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a11*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a01*boom_cyl_r_rod_a10)
     out[29] = c3*(boom_cyl_r_barrel_a22*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a12*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a02*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a22*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a12*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a02*boom_cyl_r_rod_a10)
     out[30] = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22
-    out[31] = boom_cyl_r_rod_ox - boom_ox - 2.001922*boom_a02 - 139283/100000*boom_a00 + (8/25)*boom_a01
-    out[32] = boom_cyl_r_rod_oy - boom_oy - 2.001922*boom_a12 - 139283/100000*boom_a10 + (8/25)*boom_a11
-    out[33] = boom_cyl_r_rod_oz - boom_oz - 2.001922*boom_a22 - 139283/100000*boom_a20 + (8/25)*boom_a21
+    out[31] = boom_cyl_r_rod_ox - boom_ox + (8/25)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z
+    out[32] = boom_cyl_r_rod_oy - boom_oy + (8/25)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z
+    out[33] = boom_cyl_r_rod_oz - boom_oz + (8/25)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z
     out[34] = boom_ox - arm_ox + (23939/5000)*boom_a00 + (29959/10000)*boom_a02
     out[35] = boom_oy - arm_oy + (23939/5000)*boom_a10 + (29959/10000)*boom_a12
     out[36] = boom_oz - arm_oz + (23939/5000)*boom_a20 + (29959/10000)*boom_a22
@@ -278,9 +300,9 @@ def _joints_phi(q):
     out[45] = c6*(arm_cyl_barrel_a21*arm_cyl_rod_a10 - arm_cyl_barrel_a11*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a01*arm_cyl_rod_a20 - arm_cyl_barrel_a21*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a11*arm_cyl_rod_a00 - arm_cyl_barrel_a01*arm_cyl_rod_a10)
     out[46] = c6*(arm_cyl_barrel_a22*arm_cyl_rod_a10 - arm_cyl_barrel_a12*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a02*arm_cyl_rod_a20 - arm_cyl_barrel_a22*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a12*arm_cyl_rod_a00 - arm_cyl_barrel_a02*arm_cyl_rod_a10)
     out[47] = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22
-    out[48] = arm_cyl_rod_ox - arm_ox + (0.369691)*arm_a02 + (393281/500000)*arm_a00
-    out[49] = arm_cyl_rod_oy - arm_oy + (0.369691)*arm_a12 + (393281/500000)*arm_a10
-    out[50] = arm_cyl_rod_oz - arm_oz + (0.369691)*arm_a22 + (393281/500000)*arm_a20
+    out[48] = arm_cyl_rod_ox - arm_ox - arm_a00*p_F_x - arm_a02*p_F_z
+    out[49] = arm_cyl_rod_oy - arm_oy - arm_a10*p_F_x - arm_a12*p_F_z
+    out[50] = arm_cyl_rod_oz - arm_oz - arm_a20*p_F_x - arm_a22*p_F_z
     out[51] = arm_ox - bucket_ox + (9477/5000)*arm_a00 + (21809/10000)*arm_a02
     out[52] = arm_oy - bucket_oy + (9477/5000)*arm_a10 + (21809/10000)*arm_a12
     out[53] = arm_oz - bucket_oz + (9477/5000)*arm_a20 + (21809/10000)*arm_a22
@@ -291,12 +313,12 @@ def _joints_phi(q):
     out[58] = arm_oz - side_link_oz + (7877/5000)*arm_a20 + (18799/10000)*arm_a22
     out[59] = arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22
     out[60] = arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20
-    out[61] = side_link_ox - bucket_link_ox - 166329/500000*side_link_a00 + (85607/250000)*bucket_link_a00 + (96247/200000)*side_link_a02 + (0.450737)*bucket_link_a02
-    out[62] = side_link_oy - bucket_link_oy - 166329/500000*side_link_a10 + (85607/250000)*bucket_link_a10 + (96247/200000)*side_link_a12 + (0.450737)*bucket_link_a12
-    out[63] = side_link_oz - bucket_link_oz - 166329/500000*side_link_a20 + (85607/250000)*bucket_link_a20 + (96247/200000)*side_link_a22 + (0.450737)*bucket_link_a22
-    out[64] = bucket_link_ox - bucket_ox - 16927/50000*bucket_a02 + (8101/25000)*bucket_a00
-    out[65] = bucket_link_oy - bucket_oy - 16927/50000*bucket_a12 + (8101/25000)*bucket_a10
-    out[66] = bucket_link_oz - bucket_oz - 16927/50000*bucket_a22 + (8101/25000)*bucket_a20
+    out[61] = side_link_ox - bucket_link_ox + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00
+    out[62] = side_link_oy - bucket_link_oy + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10
+    out[63] = side_link_oz - bucket_link_oz + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20
+    out[64] = bucket_link_ox - bucket_ox - bucket_a00*p_K_x - bucket_a02*p_K_z
+    out[65] = bucket_link_oy - bucket_oy - bucket_a10*p_K_x - bucket_a12*p_K_z
+    out[66] = bucket_link_oz - bucket_oz - bucket_a20*p_K_x - bucket_a22*p_K_z
     out[67] = bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22)
     out[68] = arm_ox - bucket_cyl_barrel_ox - 24687/100000*arm_a00 + (36797/50000)*arm_a02
     out[69] = arm_oy - bucket_cyl_barrel_oy - 24687/100000*arm_a10 + (36797/50000)*arm_a12
@@ -304,18 +326,19 @@ def _joints_phi(q):
     out[71] = arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22
     out[72] = bucket_cyl_barrel_a01*bucket_cyl_rod_a00 + bucket_cyl_barrel_a11*bucket_cyl_rod_a10 + bucket_cyl_barrel_a21*bucket_cyl_rod_a20
     out[73] = bucket_cyl_barrel_a02*bucket_cyl_rod_a00 + bucket_cyl_barrel_a12*bucket_cyl_rod_a10 + bucket_cyl_barrel_a22*bucket_cyl_rod_a20
-    out[74] = c9*(bucket_cyl_barrel_a21*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a20) + c10*(bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00) + c11*(bucket_cyl_barrel_a11*bucket_cyl_rod_a00 - bucket_cyl_barrel_a01*bucket_cyl_rod_a10)
-    out[75] = c9*(bucket_cyl_barrel_a22*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a20) + c10*(bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00) + c11*(bucket_cyl_barrel_a12*bucket_cyl_rod_a00 - bucket_cyl_barrel_a02*bucket_cyl_rod_a10)
+    out[74] = c13*(bucket_cyl_barrel_a21*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a20) + c14*(bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00) + c15*(bucket_cyl_barrel_a11*bucket_cyl_rod_a00 - bucket_cyl_barrel_a01*bucket_cyl_rod_a10)
+    out[75] = c13*(bucket_cyl_barrel_a22*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a20) + c14*(bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00) + c15*(bucket_cyl_barrel_a12*bucket_cyl_rod_a00 - bucket_cyl_barrel_a02*bucket_cyl_rod_a10)
     out[76] = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22
-    out[77] = bucket_cyl_rod_ox - side_link_ox - 96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    out[78] = bucket_cyl_rod_oy - side_link_oy - 96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    out[79] = bucket_cyl_rod_oz - side_link_oz - 96247/200000*side_link_a22 + (166329/500000)*side_link_a20
+    out[77] = bucket_cyl_rod_ox - side_link_ox + c16*side_link_a00 - c17*side_link_a02
+    out[78] = bucket_cyl_rod_oy - side_link_oy + c16*side_link_a10 - c17*side_link_a12
+    out[79] = bucket_cyl_rod_oz - side_link_oz + c16*side_link_a20 - c17*side_link_a22
     return out
 
 
-def _joints_jac(q):
+def _joints_jac(q, p):
     """Phi_q values of the joint rows (427 entries)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, boom_rw, boom_rx, boom_ry, boom_rz, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, boom_cyl_r_barrel_rw, boom_cyl_r_barrel_rx, boom_cyl_r_barrel_ry, boom_cyl_r_barrel_rz, boom_cyl_r_barrel_dw, boom_cyl_r_barrel_dx, boom_cyl_r_barrel_dy, boom_cyl_r_barrel_dz, boom_cyl_r_rod_rw, boom_cyl_r_rod_rx, boom_cyl_r_rod_ry, boom_cyl_r_rod_rz, boom_cyl_r_rod_dw, boom_cyl_r_rod_dx, boom_cyl_r_rod_dy, boom_cyl_r_rod_dz, arm_rw, arm_rx, arm_ry, arm_rz, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, side_link_rw, side_link_rx, side_link_ry, side_link_rz, _, _, _, _, bucket_link_rw, bucket_link_rx, bucket_link_ry, bucket_link_rz, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1 + 2*upper_rw**2 + 2*upper_rx**2
     upper_a01 = -2*upper_rw*upper_rz + 2*upper_rx*upper_ry
     upper_a02 = 2*upper_rw*upper_ry + 2*upper_rx*upper_rz
@@ -476,9 +499,9 @@ def _joints_jac(q):
     d37 = d36*boom_cyl_l_barrel_a11 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a12
     d38 = d36*boom_cyl_l_barrel_a01 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02
     d39 = -1.0*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a12
-    d40 = (8/25)*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d41 = (8/25)*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d42 = (8/25)*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d40 = (8/25)*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d41 = (8/25)*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d42 = (8/25)*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d43 = -8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
     d44 = -8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
     d45 = -8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
@@ -510,9 +533,9 @@ def _joints_jac(q):
     d71 = d70*boom_cyl_r_barrel_a11 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a12
     d72 = d70*boom_cyl_r_barrel_a01 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a02
     d73 = -1.0*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a12
-    d74 = -8/25*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d75 = -8/25*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d76 = -8/25*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d74 = -8/25*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d75 = -8/25*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d76 = -8/25*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d77 = (23939/5000)*boom_a20 + (29959/10000)*boom_a22
     d78 = (23939/5000)*boom_a10 + (29959/10000)*boom_a12
     d79 = (23939/5000)*boom_a00 + (29959/10000)*boom_a02
@@ -553,9 +576,9 @@ def _joints_jac(q):
     d114 = d113*arm_cyl_barrel_a11 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a12
     d115 = d113*arm_cyl_barrel_a01 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a02
     d116 = -1.0*arm_cyl_barrel_a11*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a12
-    d117 = (0.369691)*arm_a22 + (393281/500000)*arm_a20
-    d118 = (0.369691)*arm_a12 + (393281/500000)*arm_a10
-    d119 = (0.369691)*arm_a02 + (393281/500000)*arm_a00
+    d117 = arm_a20*p_F_x + arm_a22*p_F_z
+    d118 = arm_a10*p_F_x + arm_a12*p_F_z
+    d119 = arm_a00*p_F_x + arm_a02*p_F_z
     d120 = (9477/5000)*arm_a20 + (21809/10000)*arm_a22
     d121 = (9477/5000)*arm_a10 + (21809/10000)*arm_a12
     d122 = (9477/5000)*arm_a00 + (21809/10000)*arm_a02
@@ -574,56 +597,61 @@ def _joints_jac(q):
     d135 = arm_a11*side_link_a20 - arm_a21*side_link_a10
     d136 = arm_a01*side_link_a20 - arm_a21*side_link_a00
     d137 = arm_a01*side_link_a10 - arm_a11*side_link_a00
-    d138 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d139 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d140 = (85607/250000)*bucket_link_a20 + (0.450737)*bucket_link_a22
-    d141 = (85607/250000)*bucket_link_a10 + (0.450737)*bucket_link_a12
-    d142 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    d143 = (85607/250000)*bucket_link_a00 + (0.450737)*bucket_link_a02
-    d144 = -16927/50000*bucket_a22 + (8101/25000)*bucket_a20
-    d145 = -16927/50000*bucket_a12 + (8101/25000)*bucket_a10
-    d146 = -16927/50000*bucket_a02 + (8101/25000)*bucket_a00
-    d147 = (0.7962746214343476)*bucket_link_a10
-    d148 = (0.6049353083260941)*bucket_link_a22
-    d149 = (0.7962746214343476)*bucket_link_a00
-    d150 = (0.7962746214343476)*bucket_link_a20
-    d151 = -d150 + (0.6049353083260941)*bucket_link_a22
-    d152 = -d147 + (0.6049353083260941)*bucket_link_a12
-    d153 = -d149 + (0.6049353083260941)*bucket_link_a02
-    d154 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
-    d155 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
-    d156 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
-    d157 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
-    d158 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
-    d159 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
-    d160 = bucket_cyl_barrel_a11*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a10
-    d161 = bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00
-    d162 = -d161
-    d163 = bucket_cyl_barrel_a01*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a00
-    d164 = -d160
-    d165 = -d163
-    d166 = bucket_cyl_barrel_a12*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a10
-    d167 = bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00
-    d168 = -d167
-    d169 = bucket_cyl_barrel_a02*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a00
-    d170 = -d166
-    d171 = -d169
-    d172 = bucket_cyl_barrel_oy*bucket_cyl_rod_a00 + bucket_cyl_rod_a10*bucket_cyl_rod_ox - bucket_cyl_barrel_ox*bucket_cyl_rod_a10 - bucket_cyl_rod_a00*bucket_cyl_rod_oy
-    d173 = bucket_cyl_barrel_ox*bucket_cyl_rod_a20 + bucket_cyl_rod_a00*bucket_cyl_rod_oz - bucket_cyl_barrel_oz*bucket_cyl_rod_a00 - bucket_cyl_rod_a20*bucket_cyl_rod_ox
-    d174 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10 + bucket_cyl_rod_a20*bucket_cyl_rod_oy - bucket_cyl_barrel_oy*bucket_cyl_rod_a20 - bucket_cyl_rod_a10*bucket_cyl_rod_oz
-    d175 = bucket_cyl_barrel_a01*bucket_cyl_rod_oy + bucket_cyl_barrel_a11*bucket_cyl_barrel_ox - bucket_cyl_barrel_a01*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_rod_ox
-    d176 = bucket_cyl_barrel_a01*bucket_cyl_barrel_oz + bucket_cyl_barrel_a21*bucket_cyl_rod_ox - bucket_cyl_barrel_a01*bucket_cyl_rod_oz - bucket_cyl_barrel_a21*bucket_cyl_barrel_ox
-    d177 = bucket_cyl_barrel_a11*bucket_cyl_rod_oz + bucket_cyl_barrel_a21*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_barrel_oz - bucket_cyl_barrel_a21*bucket_cyl_rod_oy
-    d178 = bucket_cyl_barrel_a02*bucket_cyl_rod_oy + bucket_cyl_barrel_a12*bucket_cyl_barrel_ox - bucket_cyl_barrel_a02*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_rod_ox
-    d179 = bucket_cyl_barrel_a02*bucket_cyl_barrel_oz + bucket_cyl_barrel_a22*bucket_cyl_rod_ox - bucket_cyl_barrel_a02*bucket_cyl_rod_oz - bucket_cyl_barrel_a22*bucket_cyl_barrel_ox
-    d180 = bucket_cyl_barrel_a12*bucket_cyl_rod_oz + bucket_cyl_barrel_a22*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_barrel_oz - bucket_cyl_barrel_a22*bucket_cyl_rod_oy
-    d181 = (1.0)*bucket_cyl_rod_a22
-    d182 = d181*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
-    d183 = d181*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
-    d184 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
-    d185 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d186 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d187 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
+    d138 = 0.5686266556413632*p_side_link
+    d139 = d138*side_link_a20 - 0.822595724821202*side_link_a22*p_side_link
+    d140 = d138*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d141 = 0.60493530832545*p_bucket_link
+    d142 = 0.796274621434837*p_bucket_link
+    d143 = d141*bucket_link_a20 + d142*bucket_link_a22
+    d144 = d141*bucket_link_a10 + d142*bucket_link_a12
+    d145 = d138*side_link_a00 - 0.822595724821202*side_link_a02*p_side_link
+    d146 = d141*bucket_link_a00 + d142*bucket_link_a02
+    d147 = bucket_a20*p_K_x + bucket_a22*p_K_z
+    d148 = bucket_a10*p_K_x + bucket_a12*p_K_z
+    d149 = bucket_a00*p_K_x + bucket_a02*p_K_z
+    d150 = (0.7962746214343476)*bucket_link_a10
+    d151 = (0.6049353083260941)*bucket_link_a22
+    d152 = (0.7962746214343476)*bucket_link_a00
+    d153 = (0.7962746214343476)*bucket_link_a20
+    d154 = -d153 + (0.6049353083260941)*bucket_link_a22
+    d155 = -d150 + (0.6049353083260941)*bucket_link_a12
+    d156 = -d152 + (0.6049353083260941)*bucket_link_a02
+    d157 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
+    d158 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
+    d159 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
+    d160 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
+    d161 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
+    d162 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
+    d163 = bucket_cyl_barrel_a11*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a10
+    d164 = bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00
+    d165 = -d164
+    d166 = bucket_cyl_barrel_a01*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a00
+    d167 = -d163
+    d168 = -d166
+    d169 = bucket_cyl_barrel_a12*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a10
+    d170 = bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00
+    d171 = -d170
+    d172 = bucket_cyl_barrel_a02*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a00
+    d173 = -d169
+    d174 = -d172
+    d175 = bucket_cyl_barrel_oy*bucket_cyl_rod_a00 + bucket_cyl_rod_a10*bucket_cyl_rod_ox - bucket_cyl_barrel_ox*bucket_cyl_rod_a10 - bucket_cyl_rod_a00*bucket_cyl_rod_oy
+    d176 = bucket_cyl_barrel_ox*bucket_cyl_rod_a20 + bucket_cyl_rod_a00*bucket_cyl_rod_oz - bucket_cyl_barrel_oz*bucket_cyl_rod_a00 - bucket_cyl_rod_a20*bucket_cyl_rod_ox
+    d177 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10 + bucket_cyl_rod_a20*bucket_cyl_rod_oy - bucket_cyl_barrel_oy*bucket_cyl_rod_a20 - bucket_cyl_rod_a10*bucket_cyl_rod_oz
+    d178 = bucket_cyl_barrel_a01*bucket_cyl_rod_oy + bucket_cyl_barrel_a11*bucket_cyl_barrel_ox - bucket_cyl_barrel_a01*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_rod_ox
+    d179 = bucket_cyl_barrel_a01*bucket_cyl_barrel_oz + bucket_cyl_barrel_a21*bucket_cyl_rod_ox - bucket_cyl_barrel_a01*bucket_cyl_rod_oz - bucket_cyl_barrel_a21*bucket_cyl_barrel_ox
+    d180 = bucket_cyl_barrel_a11*bucket_cyl_rod_oz + bucket_cyl_barrel_a21*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_barrel_oz - bucket_cyl_barrel_a21*bucket_cyl_rod_oy
+    d181 = bucket_cyl_barrel_a02*bucket_cyl_rod_oy + bucket_cyl_barrel_a12*bucket_cyl_barrel_ox - bucket_cyl_barrel_a02*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_rod_ox
+    d182 = bucket_cyl_barrel_a02*bucket_cyl_barrel_oz + bucket_cyl_barrel_a22*bucket_cyl_rod_ox - bucket_cyl_barrel_a02*bucket_cyl_rod_oz - bucket_cyl_barrel_a22*bucket_cyl_barrel_ox
+    d183 = bucket_cyl_barrel_a12*bucket_cyl_rod_oz + bucket_cyl_barrel_a22*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_barrel_oz - bucket_cyl_barrel_a22*bucket_cyl_rod_oy
+    d184 = (1.0)*bucket_cyl_rod_a22
+    d185 = d184*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
+    d186 = d184*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
+    d187 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
+    d188 = 0.5686266556413632*p_side_link
+    d189 = 0.822595724821202*p_side_link
+    d190 = d188*side_link_a20 - d189*side_link_a22
+    d191 = d188*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d192 = d188*side_link_a00 - d189*side_link_a02
     out = _zeros(427, q, ())
     out[0] = -1
     out[1] = -1
@@ -884,16 +912,16 @@ def _joints_jac(q):
     out[256] = -d114
     out[257] = d115
     out[258] = -d116
-    out[259] = d117
-    out[260] = -d118
+    out[259] = -d117
+    out[260] = d118
     out[261] = -1
     out[262] = 1
-    out[263] = -d117
-    out[264] = d119
+    out[263] = d117
+    out[264] = -d119
     out[265] = -1
     out[266] = 1
-    out[267] = d118
-    out[268] = -d119
+    out[267] = -d118
+    out[268] = d119
     out[269] = -1
     out[270] = 1
     out[271] = d120
@@ -944,121 +972,122 @@ def _joints_jac(q):
     out[316] = -d135
     out[317] = d136
     out[318] = -d137
-    out[319] = -d138
-    out[320] = d139
+    out[319] = -d139
+    out[320] = d140
     out[321] = 1
-    out[322] = d140
-    out[323] = -d141
+    out[322] = d143
+    out[323] = -d144
     out[324] = -1
-    out[325] = d138
-    out[326] = -d142
+    out[325] = d139
+    out[326] = -d145
     out[327] = 1
-    out[328] = -d140
-    out[329] = d143
+    out[328] = -d143
+    out[329] = d146
     out[330] = -1
-    out[331] = -d139
-    out[332] = d142
+    out[331] = -d140
+    out[332] = d145
     out[333] = 1
-    out[334] = d141
-    out[335] = -d143
+    out[334] = d144
+    out[335] = -d146
     out[336] = -1
     out[337] = 1
-    out[338] = d144
-    out[339] = -d145
+    out[338] = -d147
+    out[339] = d148
     out[340] = -1
     out[341] = 1
-    out[342] = -d144
-    out[343] = d146
+    out[342] = d147
+    out[343] = -d149
     out[344] = -1
     out[345] = 1
-    out[346] = d145
-    out[347] = -d146
+    out[346] = -d148
+    out[347] = d149
     out[348] = -1
-    out[349] = -d147*bucket_a21 - d148*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11
-    out[350] = d148*bucket_a01 + d149*bucket_a21 - d150*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21
-    out[351] = -d149*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01
-    out[352] = d151*bucket_a11 - d152*bucket_a21
-    out[353] = d153*bucket_a21 - d151*bucket_a01
-    out[354] = d152*bucket_a01 - d153*bucket_a11
-    out[355] = -d154
-    out[356] = d155
+    out[349] = -d150*bucket_a21 - d151*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11
+    out[350] = d151*bucket_a01 + d152*bucket_a21 - d153*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21
+    out[351] = -d152*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01
+    out[352] = d154*bucket_a11 - d155*bucket_a21
+    out[353] = d156*bucket_a21 - d154*bucket_a01
+    out[354] = d155*bucket_a01 - d156*bucket_a11
+    out[355] = -d157
+    out[356] = d158
     out[357] = 1
     out[358] = -1
-    out[359] = d154
-    out[360] = -d156
+    out[359] = d157
+    out[360] = -d159
     out[361] = 1
     out[362] = -1
-    out[363] = -d155
-    out[364] = d156
+    out[363] = -d158
+    out[364] = d159
     out[365] = 1
     out[366] = -1
-    out[367] = d157
-    out[368] = -d158
-    out[369] = d159
-    out[370] = -d157
-    out[371] = d158
-    out[372] = -d159
-    out[373] = d160
-    out[374] = d162
-    out[375] = d163
-    out[376] = d164
-    out[377] = d161
-    out[378] = d165
-    out[379] = d166
-    out[380] = d168
-    out[381] = d169
-    out[382] = d170
-    out[383] = d167
-    out[384] = d171
-    out[385] = d172*bucket_cyl_barrel_a11 - d173*bucket_cyl_barrel_a21
-    out[386] = d174*bucket_cyl_barrel_a21 - d172*bucket_cyl_barrel_a01
-    out[387] = d173*bucket_cyl_barrel_a01 - d174*bucket_cyl_barrel_a11
-    out[388] = d160
-    out[389] = d162
-    out[390] = d163
-    out[391] = d175*bucket_cyl_rod_a10 - d176*bucket_cyl_rod_a20
-    out[392] = d177*bucket_cyl_rod_a20 - d175*bucket_cyl_rod_a00
-    out[393] = d176*bucket_cyl_rod_a00 - d177*bucket_cyl_rod_a10
-    out[394] = d164
-    out[395] = d161
-    out[396] = d165
-    out[397] = d172*bucket_cyl_barrel_a12 - d173*bucket_cyl_barrel_a22
-    out[398] = d174*bucket_cyl_barrel_a22 - d172*bucket_cyl_barrel_a02
-    out[399] = d173*bucket_cyl_barrel_a02 - d174*bucket_cyl_barrel_a12
-    out[400] = d166
-    out[401] = d168
-    out[402] = d169
-    out[403] = d178*bucket_cyl_rod_a10 - d179*bucket_cyl_rod_a20
-    out[404] = d180*bucket_cyl_rod_a20 - d178*bucket_cyl_rod_a00
-    out[405] = d179*bucket_cyl_rod_a00 - d180*bucket_cyl_rod_a10
-    out[406] = d170
-    out[407] = d167
-    out[408] = d171
-    out[409] = d182
-    out[410] = -d183
-    out[411] = d184
-    out[412] = -d182
-    out[413] = d183
-    out[414] = -d184
+    out[367] = d160
+    out[368] = -d161
+    out[369] = d162
+    out[370] = -d160
+    out[371] = d161
+    out[372] = -d162
+    out[373] = d163
+    out[374] = d165
+    out[375] = d166
+    out[376] = d167
+    out[377] = d164
+    out[378] = d168
+    out[379] = d169
+    out[380] = d171
+    out[381] = d172
+    out[382] = d173
+    out[383] = d170
+    out[384] = d174
+    out[385] = d175*bucket_cyl_barrel_a11 - d176*bucket_cyl_barrel_a21
+    out[386] = d177*bucket_cyl_barrel_a21 - d175*bucket_cyl_barrel_a01
+    out[387] = d176*bucket_cyl_barrel_a01 - d177*bucket_cyl_barrel_a11
+    out[388] = d163
+    out[389] = d165
+    out[390] = d166
+    out[391] = d178*bucket_cyl_rod_a10 - d179*bucket_cyl_rod_a20
+    out[392] = d180*bucket_cyl_rod_a20 - d178*bucket_cyl_rod_a00
+    out[393] = d179*bucket_cyl_rod_a00 - d180*bucket_cyl_rod_a10
+    out[394] = d167
+    out[395] = d164
+    out[396] = d168
+    out[397] = d175*bucket_cyl_barrel_a12 - d176*bucket_cyl_barrel_a22
+    out[398] = d177*bucket_cyl_barrel_a22 - d175*bucket_cyl_barrel_a02
+    out[399] = d176*bucket_cyl_barrel_a02 - d177*bucket_cyl_barrel_a12
+    out[400] = d169
+    out[401] = d171
+    out[402] = d172
+    out[403] = d181*bucket_cyl_rod_a10 - d182*bucket_cyl_rod_a20
+    out[404] = d183*bucket_cyl_rod_a20 - d181*bucket_cyl_rod_a00
+    out[405] = d182*bucket_cyl_rod_a00 - d183*bucket_cyl_rod_a10
+    out[406] = d173
+    out[407] = d170
+    out[408] = d174
+    out[409] = d185
+    out[410] = -d186
+    out[411] = d187
+    out[412] = -d185
+    out[413] = d186
+    out[414] = -d187
     out[415] = 1
-    out[416] = d185
-    out[417] = -d186
+    out[416] = d190
+    out[417] = -d191
     out[418] = -1
     out[419] = 1
-    out[420] = -d185
-    out[421] = d187
+    out[420] = -d190
+    out[421] = d192
     out[422] = -1
     out[423] = 1
-    out[424] = d186
-    out[425] = -d187
+    out[424] = d191
+    out[425] = -d192
     out[426] = -1
     return out
 
 
-def _joints_gamma(q, v):
+def _joints_gamma(q, v, p):
     """gamma of the joint rows (they do not depend on time)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, boom_rw, boom_rx, boom_ry, boom_rz, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, boom_cyl_r_barrel_rw, boom_cyl_r_barrel_rx, boom_cyl_r_barrel_ry, boom_cyl_r_barrel_rz, boom_cyl_r_barrel_dw, boom_cyl_r_barrel_dx, boom_cyl_r_barrel_dy, boom_cyl_r_barrel_dz, boom_cyl_r_rod_rw, boom_cyl_r_rod_rx, boom_cyl_r_rod_ry, boom_cyl_r_rod_rz, boom_cyl_r_rod_dw, boom_cyl_r_rod_dx, boom_cyl_r_rod_dy, boom_cyl_r_rod_dz, arm_rw, arm_rx, arm_ry, arm_rz, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, side_link_rw, side_link_rx, side_link_ry, side_link_rz, _, _, _, _, bucket_link_rw, bucket_link_rx, bucket_link_ry, bucket_link_rz, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, v_boom_wx, v_boom_wy, v_boom_wz, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, v_boom_cyl_l_rod_wx, v_boom_cyl_l_rod_wy, v_boom_cyl_l_rod_wz, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, v_boom_cyl_r_barrel_wx, v_boom_cyl_r_barrel_wy, v_boom_cyl_r_barrel_wz, v_boom_cyl_r_barrel_vx, v_boom_cyl_r_barrel_vy, v_boom_cyl_r_barrel_vz, v_boom_cyl_r_rod_wx, v_boom_cyl_r_rod_wy, v_boom_cyl_r_rod_wz, v_boom_cyl_r_rod_vx, v_boom_cyl_r_rod_vy, v_boom_cyl_r_rod_vz, v_arm_wx, v_arm_wy, v_arm_wz, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, v_arm_cyl_rod_wx, v_arm_cyl_rod_wy, v_arm_cyl_rod_wz, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, v_bucket_cyl_rod_wx, v_bucket_cyl_rod_wy, v_bucket_cyl_rod_wz, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, v_side_link_wx, v_side_link_wy, v_side_link_wz, _, _, _, v_bucket_link_wx, v_bucket_link_wy, v_bucket_link_wz, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1 + 2*upper_rw**2 + 2*upper_rx**2
     upper_a01 = -2*upper_rw*upper_rz + 2*upper_rx*upper_ry
     upper_a02 = 2*upper_rw*upper_ry + 2*upper_rx*upper_rz
@@ -1323,14 +1352,14 @@ def _joints_gamma(q, v):
     c141 = -1.0*v_boom_cyl_l_rod_wz + (1.0)*v_boom_cyl_l_barrel_wz
     c142 = -c141
     c143 = -c138
-    c144 = -139283/100000*boom_a00*v_boom_wy + (139283/100000)*boom_a10*v_boom_wx
-    c145 = -8/25*boom_a01*v_boom_wy + (8/25)*boom_a11*v_boom_wx
-    c146 = -2.001922*boom_a02*v_boom_wy + (2.001922)*boom_a12*v_boom_wx
-    c147 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c148 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
+    c144 = -8/25*boom_a01*v_boom_wy + (8/25)*boom_a11*v_boom_wx
+    c145 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
+    c146 = p_C_x*(boom_a10*v_boom_wx - boom_a00*v_boom_wy)
+    c147 = p_C_z*(boom_a12*v_boom_wx - boom_a02*v_boom_wy)
+    c148 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
     c149 = boom_a02*v_boom_wz - boom_a22*v_boom_wx
-    c150 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c151 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c150 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c151 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
     c152 = boom_a22*v_boom_wy - boom_a12*v_boom_wz
     c153 = -4307/6250*upper_a00*v_upper_wy + (4307/6250)*upper_a10*v_upper_wx
     c154 = upper_a11*v_upper_wx - upper_a01*v_upper_wy
@@ -1458,15 +1487,15 @@ def _joints_gamma(q, v):
     c276 = -1.0*v_boom_cyl_r_rod_wz + (1.0)*v_boom_cyl_r_barrel_wz
     c277 = -c276
     c278 = -c273
-    c279 = -139283/100000*boom_a00*v_boom_wy + (139283/100000)*boom_a10*v_boom_wx
-    c280 = boom_a11*v_boom_wx - boom_a01*v_boom_wy
-    c281 = -2.001922*boom_a02*v_boom_wy + (2.001922)*boom_a12*v_boom_wx
-    c282 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c283 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
-    c284 = (8/25)*v_boom_wz
+    c279 = boom_a11*v_boom_wx - boom_a01*v_boom_wy
+    c280 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
+    c281 = (8/25)*v_boom_wz
+    c282 = p_C_x*(boom_a10*v_boom_wx - boom_a00*v_boom_wy)
+    c283 = p_C_z*(boom_a12*v_boom_wx - boom_a02*v_boom_wy)
+    c284 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
     c285 = boom_a02*v_boom_wz - boom_a22*v_boom_wx
-    c286 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c287 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c286 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c287 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
     c288 = boom_a22*v_boom_wy - boom_a12*v_boom_wz
     c289 = -23939/5000*boom_a00*v_boom_wy + (23939/5000)*boom_a10*v_boom_wx
     c290 = -29959/10000*boom_a02*v_boom_wy + (29959/10000)*boom_a12*v_boom_wx
@@ -1608,8 +1637,8 @@ def _joints_gamma(q, v):
     c426 = -1.0*v_arm_cyl_rod_wz + (1.0)*v_arm_cyl_barrel_wz
     c427 = -c426
     c428 = -c423
-    c429 = -393281/500000*arm_a00*v_arm_wy + (393281/500000)*arm_a10*v_arm_wx
-    c430 = -0.369691*arm_a02*v_arm_wy + (0.369691)*arm_a12*v_arm_wx
+    c429 = p_F_x*(arm_a10*v_arm_wx - arm_a00*v_arm_wy)
+    c430 = p_F_z*(arm_a12*v_arm_wx - arm_a02*v_arm_wy)
     c431 = arm_a00*v_arm_wz - arm_a20*v_arm_wx
     c432 = arm_a02*v_arm_wz - arm_a22*v_arm_wx
     c433 = arm_a20*v_arm_wy - arm_a10*v_arm_wz
@@ -1650,170 +1679,174 @@ def _joints_gamma(q, v):
     c468 = c464*arm_a01 + c462*arm_a21
     c469 = arm_a21*v_arm_wy - arm_a11*v_arm_wz
     c470 = c465*arm_a11 + c460*arm_a21
-    c471 = -166329/500000*side_link_a00*v_side_link_wy + (166329/500000)*side_link_a10*v_side_link_wx
-    c472 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy
-    c473 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
-    c474 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
-    c475 = (96247/200000)*v_side_link_wz
-    c476 = bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy
-    c477 = bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy
-    c478 = bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx
-    c479 = (85607/250000)*v_bucket_link_wz
-    c480 = bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx
-    c481 = (0.450737)*v_bucket_link_wz
-    c482 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
-    c483 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
+    c471 = p_bucket_link*v_bucket_link_wy
+    c472 = 0.60493530832545*bucket_link_a10*v_bucket_link_wx - 0.60493530832545*bucket_link_a00*v_bucket_link_wy
+    c473 = 0.796274621434837*bucket_link_a12*v_bucket_link_wx - 0.796274621434837*bucket_link_a02*v_bucket_link_wy
+    c474 = bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx
+    c475 = bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx
+    c476 = side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy
+    c477 = 0.822595724821202*p_side_link
+    c478 = c477*(side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy)
+    c479 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
+    c480 = 0.5686266556413632*p_side_link
+    c481 = c480*v_side_link_wz
+    c482 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
+    c483 = p_bucket_link*v_bucket_link_wx
     c484 = bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz
-    c485 = bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz
-    c486 = -8101/25000*bucket_a00*v_bucket_wy + (8101/25000)*bucket_a10*v_bucket_wx
-    c487 = bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy
-    c488 = bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx
-    c489 = bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx
-    c490 = (16927/50000)*v_bucket_wz
-    c491 = bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz
-    c492 = bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz
-    c493 = -0.7962746214343476*v_bucket_wy + (0.7962746214343476)*v_bucket_link_wy
-    c494 = -c493
-    c495 = -0.7962746214343476*v_bucket_wx + (0.7962746214343476)*v_bucket_link_wx
-    c496 = -0.7962746214343476*v_bucket_wz + (0.7962746214343476)*v_bucket_link_wz
-    c497 = -c495
-    c498 = -0.6049353083260941*v_bucket_wy + (0.6049353083260941)*v_bucket_link_wy
-    c499 = -0.6049353083260941*v_bucket_wx + (0.6049353083260941)*v_bucket_link_wx
-    c500 = -c499
-    c501 = -0.6049353083260941*v_bucket_wz + (0.6049353083260941)*v_bucket_link_wz
+    c485 = p_bucket_link*v_bucket_link_wz
+    c486 = bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz
+    c487 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
+    c488 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
+    c489 = p_K_x*(bucket_a10*v_bucket_wx - bucket_a00*v_bucket_wy)
+    c490 = p_K_z*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy)
+    c491 = bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx
+    c492 = bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx
+    c493 = bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz
+    c494 = bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz
+    c495 = -0.7962746214343476*v_bucket_wy + (0.7962746214343476)*v_bucket_link_wy
+    c496 = -c495
+    c497 = -0.7962746214343476*v_bucket_wx + (0.7962746214343476)*v_bucket_link_wx
+    c498 = -0.7962746214343476*v_bucket_wz + (0.7962746214343476)*v_bucket_link_wz
+    c499 = -c497
+    c500 = -0.6049353083260941*v_bucket_wy + (0.6049353083260941)*v_bucket_link_wy
+    c501 = -0.6049353083260941*v_bucket_wx + (0.6049353083260941)*v_bucket_link_wx
     c502 = -c501
-    c503 = -c496
-    c504 = -c498
-    c505 = -24687/100000*arm_a00*v_arm_wy + (24687/100000)*arm_a10*v_arm_wx
-    c506 = arm_a12*v_arm_wx - arm_a02*v_arm_wy
-    c507 = arm_a00*v_arm_wz - arm_a20*v_arm_wx
-    c508 = arm_a02*v_arm_wz - arm_a22*v_arm_wx
-    c509 = (36797/50000)*v_arm_wz
-    c510 = arm_a20*v_arm_wy - arm_a10*v_arm_wz
-    c511 = arm_a22*v_arm_wy - arm_a12*v_arm_wz
-    c512 = v_arm_wy - v_bucket_cyl_barrel_wy
-    c513 = v_arm_wx - v_bucket_cyl_barrel_wx
-    c514 = -c513
-    c515 = v_arm_wz - v_bucket_cyl_barrel_wz
+    c503 = -0.6049353083260941*v_bucket_wz + (0.6049353083260941)*v_bucket_link_wz
+    c504 = -c503
+    c505 = -c498
+    c506 = -c500
+    c507 = -24687/100000*arm_a00*v_arm_wy + (24687/100000)*arm_a10*v_arm_wx
+    c508 = arm_a12*v_arm_wx - arm_a02*v_arm_wy
+    c509 = arm_a00*v_arm_wz - arm_a20*v_arm_wx
+    c510 = arm_a02*v_arm_wz - arm_a22*v_arm_wx
+    c511 = (36797/50000)*v_arm_wz
+    c512 = arm_a20*v_arm_wy - arm_a10*v_arm_wz
+    c513 = arm_a22*v_arm_wy - arm_a12*v_arm_wz
+    c514 = v_arm_wy - v_bucket_cyl_barrel_wy
+    c515 = v_arm_wx - v_bucket_cyl_barrel_wx
     c516 = -c515
-    c517 = -c512
-    c518 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wy
-    c519 = -c518 + bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
-    c520 = v_bucket_cyl_barrel_wy - v_bucket_cyl_rod_wy
-    c521 = c520*bucket_cyl_rod_a00
-    c522 = v_bucket_cyl_barrel_wx - v_bucket_cyl_rod_wx
-    c523 = -c522
-    c524 = c523*bucket_cyl_rod_a10
-    c525 = c521 + c524
-    c526 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wz
-    c527 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wx
-    c528 = c526 - c527
-    c529 = v_bucket_cyl_barrel_wz - v_bucket_cyl_rod_wz
-    c530 = -c529
-    c531 = c530*bucket_cyl_rod_a00
-    c532 = c522*bucket_cyl_rod_a20
-    c533 = c531 + c532
-    c534 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wy
-    c535 = -c534 + bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
-    c536 = -c520
-    c537 = c536*bucket_cyl_barrel_a01
-    c538 = c522*bucket_cyl_barrel_a11
-    c539 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wz
-    c540 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wx
-    c541 = c539 - c540
-    c542 = c529*bucket_cyl_barrel_a01
-    c543 = c523*bucket_cyl_barrel_a21
-    c544 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wz
-    c545 = -c544 + bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
-    c546 = c529*bucket_cyl_rod_a10
-    c547 = c536*bucket_cyl_rod_a20
-    c548 = c546 + c547
-    c549 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wz
-    c550 = -c549 + bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
-    c551 = c530*bucket_cyl_barrel_a11
-    c552 = c520*bucket_cyl_barrel_a21
-    c553 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy
-    c554 = -c553 + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
-    c555 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz
-    c556 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx
-    c557 = c555 - c556
-    c558 = c536*bucket_cyl_barrel_a02
-    c559 = c522*bucket_cyl_barrel_a12
-    c560 = c529*bucket_cyl_barrel_a02
-    c561 = c523*bucket_cyl_barrel_a22
-    c562 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz
-    c563 = -c562 + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
-    c564 = c530*bucket_cyl_barrel_a12
-    c565 = c520*bucket_cyl_barrel_a22
-    c566 = c518*bucket_cyl_rod_a10
-    c567 = c526*bucket_cyl_rod_a20
-    c568 = c534*bucket_cyl_barrel_a11
-    c569 = c539*bucket_cyl_barrel_a21
-    c570 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
-    c571 = c570*bucket_cyl_rod_a00
-    c572 = c544*bucket_cyl_rod_a20
-    c573 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
-    c574 = c573*bucket_cyl_barrel_a01
-    c575 = c549*bucket_cyl_barrel_a21
-    c576 = c527*bucket_cyl_rod_a00
-    c577 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
-    c578 = c577*bucket_cyl_rod_a10
-    c579 = c540*bucket_cyl_barrel_a01
-    c580 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
-    c581 = c580*bucket_cyl_barrel_a11
-    c582 = bucket_cyl_rod_a00*v_bucket_cyl_barrel_wx
-    c583 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10
-    c584 = bucket_cyl_rod_a10*v_bucket_cyl_barrel_wy
-    c585 = v_bucket_cyl_barrel_vy - v_bucket_cyl_rod_vy
-    c586 = v_bucket_cyl_barrel_vx - v_bucket_cyl_rod_vx
-    c587 = -c586
-    c588 = c523*bucket_cyl_barrel_ox
-    c589 = c520*bucket_cyl_rod_oy
-    c590 = c532*bucket_cyl_rod_ox + c539*bucket_cyl_rod_ox + c547*bucket_cyl_barrel_oy + c549*bucket_cyl_rod_oy + c582*bucket_cyl_barrel_oz + c583*v_bucket_cyl_barrel_wy + c585*bucket_cyl_rod_a00 + c587*bucket_cyl_rod_a10 + c588*bucket_cyl_rod_a20 + c589*bucket_cyl_rod_a20 - c539*bucket_cyl_barrel_ox - c549*bucket_cyl_barrel_oy - c582*bucket_cyl_rod_oz - c584*bucket_cyl_rod_oz
-    c591 = bucket_cyl_rod_a20*v_bucket_cyl_barrel_wz
-    c592 = v_bucket_cyl_barrel_vz - v_bucket_cyl_rod_vz
-    c593 = -c592
-    c594 = bucket_cyl_rod_a10*bucket_cyl_rod_ox
-    c595 = c530*c583 + c534*bucket_cyl_rod_ox + c546*bucket_cyl_rod_oz + c522*c594 + c524*bucket_cyl_barrel_ox + c580*bucket_cyl_rod_oz + c582*bucket_cyl_barrel_oy + c586*bucket_cyl_rod_a20 + c591*bucket_cyl_barrel_oy + c593*bucket_cyl_rod_a00 - c534*bucket_cyl_barrel_ox - c580*bucket_cyl_barrel_oz - c582*bucket_cyl_rod_oy - c591*bucket_cyl_rod_oy
-    c596 = -c585
-    c597 = c536*bucket_cyl_barrel_oy
-    c598 = c529*bucket_cyl_rod_oz
-    c599 = c531*bucket_cyl_barrel_oz + c540*bucket_cyl_rod_oz + c521*bucket_cyl_rod_oy + c573*bucket_cyl_rod_oy + c584*bucket_cyl_barrel_ox + c591*bucket_cyl_barrel_ox + c592*bucket_cyl_rod_a10 + c596*bucket_cyl_rod_a20 + c597*bucket_cyl_rod_a00 + c598*bucket_cyl_rod_a00 - c540*bucket_cyl_barrel_oz - c573*bucket_cyl_barrel_oy - c591*bucket_cyl_rod_ox - c594*v_bucket_cyl_barrel_wy
-    c600 = bucket_cyl_barrel_a01*v_bucket_cyl_rod_wx
-    c601 = bucket_cyl_barrel_a11*v_bucket_cyl_rod_wy
-    c602 = c522*bucket_cyl_rod_ox
-    c603 = bucket_cyl_barrel_a21*v_bucket_cyl_rod_wz
-    c604 = c530*bucket_cyl_barrel_oz
-    c605 = c553*bucket_cyl_rod_a10
-    c606 = c555*bucket_cyl_rod_a20
-    c607 = c534*bucket_cyl_barrel_a12
-    c608 = c539*bucket_cyl_barrel_a22
-    c609 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
-    c610 = c609*bucket_cyl_rod_a00
-    c611 = c562*bucket_cyl_rod_a20
-    c612 = c573*bucket_cyl_barrel_a02
-    c613 = c549*bucket_cyl_barrel_a22
-    c614 = c556*bucket_cyl_rod_a00
-    c615 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
-    c616 = c615*bucket_cyl_rod_a10
-    c617 = c540*bucket_cyl_barrel_a02
-    c618 = c580*bucket_cyl_barrel_a12
-    c619 = bucket_cyl_barrel_a02*v_bucket_cyl_rod_wx
-    c620 = bucket_cyl_barrel_a12*v_bucket_cyl_rod_wy
-    c621 = bucket_cyl_barrel_a22*v_bucket_cyl_rod_wz
-    c622 = -1.0*v_bucket_cyl_rod_wy + (1.0)*v_bucket_cyl_barrel_wy
-    c623 = -1.0*v_bucket_cyl_rod_wx + (1.0)*v_bucket_cyl_barrel_wx
-    c624 = -c623
-    c625 = -1.0*v_bucket_cyl_rod_wz + (1.0)*v_bucket_cyl_barrel_wz
+    c517 = v_arm_wz - v_bucket_cyl_barrel_wz
+    c518 = -c517
+    c519 = -c514
+    c520 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wy
+    c521 = -c520 + bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
+    c522 = v_bucket_cyl_barrel_wy - v_bucket_cyl_rod_wy
+    c523 = c522*bucket_cyl_rod_a00
+    c524 = v_bucket_cyl_barrel_wx - v_bucket_cyl_rod_wx
+    c525 = -c524
+    c526 = c525*bucket_cyl_rod_a10
+    c527 = c523 + c526
+    c528 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wz
+    c529 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wx
+    c530 = c528 - c529
+    c531 = v_bucket_cyl_barrel_wz - v_bucket_cyl_rod_wz
+    c532 = -c531
+    c533 = c532*bucket_cyl_rod_a00
+    c534 = c524*bucket_cyl_rod_a20
+    c535 = c533 + c534
+    c536 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wy
+    c537 = -c536 + bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
+    c538 = -c522
+    c539 = c538*bucket_cyl_barrel_a01
+    c540 = c524*bucket_cyl_barrel_a11
+    c541 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wz
+    c542 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wx
+    c543 = c541 - c542
+    c544 = c531*bucket_cyl_barrel_a01
+    c545 = c525*bucket_cyl_barrel_a21
+    c546 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wz
+    c547 = -c546 + bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
+    c548 = c531*bucket_cyl_rod_a10
+    c549 = c538*bucket_cyl_rod_a20
+    c550 = c548 + c549
+    c551 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wz
+    c552 = -c551 + bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
+    c553 = c532*bucket_cyl_barrel_a11
+    c554 = c522*bucket_cyl_barrel_a21
+    c555 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy
+    c556 = -c555 + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
+    c557 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz
+    c558 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx
+    c559 = c557 - c558
+    c560 = c538*bucket_cyl_barrel_a02
+    c561 = c524*bucket_cyl_barrel_a12
+    c562 = c531*bucket_cyl_barrel_a02
+    c563 = c525*bucket_cyl_barrel_a22
+    c564 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz
+    c565 = -c564 + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
+    c566 = c532*bucket_cyl_barrel_a12
+    c567 = c522*bucket_cyl_barrel_a22
+    c568 = c520*bucket_cyl_rod_a10
+    c569 = c528*bucket_cyl_rod_a20
+    c570 = c536*bucket_cyl_barrel_a11
+    c571 = c541*bucket_cyl_barrel_a21
+    c572 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
+    c573 = c572*bucket_cyl_rod_a00
+    c574 = c546*bucket_cyl_rod_a20
+    c575 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
+    c576 = c575*bucket_cyl_barrel_a01
+    c577 = c551*bucket_cyl_barrel_a21
+    c578 = c529*bucket_cyl_rod_a00
+    c579 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
+    c580 = c579*bucket_cyl_rod_a10
+    c581 = c542*bucket_cyl_barrel_a01
+    c582 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
+    c583 = c582*bucket_cyl_barrel_a11
+    c584 = bucket_cyl_rod_a00*v_bucket_cyl_barrel_wx
+    c585 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10
+    c586 = bucket_cyl_rod_a10*v_bucket_cyl_barrel_wy
+    c587 = v_bucket_cyl_barrel_vy - v_bucket_cyl_rod_vy
+    c588 = v_bucket_cyl_barrel_vx - v_bucket_cyl_rod_vx
+    c589 = -c588
+    c590 = c525*bucket_cyl_barrel_ox
+    c591 = c522*bucket_cyl_rod_oy
+    c592 = c534*bucket_cyl_rod_ox + c541*bucket_cyl_rod_ox + c549*bucket_cyl_barrel_oy + c551*bucket_cyl_rod_oy + c584*bucket_cyl_barrel_oz + c585*v_bucket_cyl_barrel_wy + c587*bucket_cyl_rod_a00 + c589*bucket_cyl_rod_a10 + c590*bucket_cyl_rod_a20 + c591*bucket_cyl_rod_a20 - c541*bucket_cyl_barrel_ox - c551*bucket_cyl_barrel_oy - c584*bucket_cyl_rod_oz - c586*bucket_cyl_rod_oz
+    c593 = bucket_cyl_rod_a20*v_bucket_cyl_barrel_wz
+    c594 = v_bucket_cyl_barrel_vz - v_bucket_cyl_rod_vz
+    c595 = -c594
+    c596 = bucket_cyl_rod_a10*bucket_cyl_rod_ox
+    c597 = c532*c585 + c536*bucket_cyl_rod_ox + c548*bucket_cyl_rod_oz + c524*c596 + c526*bucket_cyl_barrel_ox + c582*bucket_cyl_rod_oz + c584*bucket_cyl_barrel_oy + c588*bucket_cyl_rod_a20 + c593*bucket_cyl_barrel_oy + c595*bucket_cyl_rod_a00 - c536*bucket_cyl_barrel_ox - c582*bucket_cyl_barrel_oz - c584*bucket_cyl_rod_oy - c593*bucket_cyl_rod_oy
+    c598 = -c587
+    c599 = c538*bucket_cyl_barrel_oy
+    c600 = c531*bucket_cyl_rod_oz
+    c601 = c533*bucket_cyl_barrel_oz + c542*bucket_cyl_rod_oz + c523*bucket_cyl_rod_oy + c575*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_ox + c593*bucket_cyl_barrel_ox + c594*bucket_cyl_rod_a10 + c598*bucket_cyl_rod_a20 + c599*bucket_cyl_rod_a00 + c600*bucket_cyl_rod_a00 - c542*bucket_cyl_barrel_oz - c575*bucket_cyl_barrel_oy - c593*bucket_cyl_rod_ox - c596*v_bucket_cyl_barrel_wy
+    c602 = bucket_cyl_barrel_a01*v_bucket_cyl_rod_wx
+    c603 = bucket_cyl_barrel_a11*v_bucket_cyl_rod_wy
+    c604 = c524*bucket_cyl_rod_ox
+    c605 = bucket_cyl_barrel_a21*v_bucket_cyl_rod_wz
+    c606 = c532*bucket_cyl_barrel_oz
+    c607 = c555*bucket_cyl_rod_a10
+    c608 = c557*bucket_cyl_rod_a20
+    c609 = c536*bucket_cyl_barrel_a12
+    c610 = c541*bucket_cyl_barrel_a22
+    c611 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
+    c612 = c611*bucket_cyl_rod_a00
+    c613 = c564*bucket_cyl_rod_a20
+    c614 = c575*bucket_cyl_barrel_a02
+    c615 = c551*bucket_cyl_barrel_a22
+    c616 = c558*bucket_cyl_rod_a00
+    c617 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
+    c618 = c617*bucket_cyl_rod_a10
+    c619 = c542*bucket_cyl_barrel_a02
+    c620 = c582*bucket_cyl_barrel_a12
+    c621 = bucket_cyl_barrel_a02*v_bucket_cyl_rod_wx
+    c622 = bucket_cyl_barrel_a12*v_bucket_cyl_rod_wy
+    c623 = bucket_cyl_barrel_a22*v_bucket_cyl_rod_wz
+    c624 = -1.0*v_bucket_cyl_rod_wy + (1.0)*v_bucket_cyl_barrel_wy
+    c625 = -1.0*v_bucket_cyl_rod_wx + (1.0)*v_bucket_cyl_barrel_wx
     c626 = -c625
-    c627 = -c622
-    c628 = -166329/500000*side_link_a00*v_side_link_wy + (166329/500000)*side_link_a10*v_side_link_wx
-    c629 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy
-    c630 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
-    c631 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
-    c632 = (96247/200000)*v_side_link_wz
-    c633 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
-    c634 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
+    c627 = -1.0*v_bucket_cyl_rod_wz + (1.0)*v_bucket_cyl_barrel_wz
+    c628 = -c627
+    c629 = -c624
+    c630 = 0.5686266556413632*p_side_link
+    c631 = c630*(side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy)
+    c632 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy
+    c633 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
+    c634 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
+    c635 = 0.822595724821202*p_side_link
+    c636 = c635*v_side_link_wz
+    c637 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
+    c638 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
     out = _zeros(80, q, ())
     out[3] = v_upper_wy*(upper_a20*v_upper_wy - upper_a10*v_upper_wz) - v_upper_wx*(upper_a00*v_upper_wz - upper_a20*v_upper_wx)
     out[4] = v_upper_wy*(upper_a21*v_upper_wy - upper_a11*v_upper_wz) - v_upper_wx*(upper_a01*v_upper_wz - upper_a21*v_upper_wx)
@@ -1831,9 +1864,9 @@ def _joints_gamma(q, v):
     out[16] = -c35*c106 - c44*c111 - c51*(c59*boom_cyl_l_barrel_ox + c60*boom_cyl_l_barrel_oy + c68*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a11 + c112*boom_cyl_l_barrel_a01 + c113*boom_cyl_l_barrel_a21 + c42*boom_cyl_l_barrel_ox + c116*boom_cyl_l_rod_oz + c117*boom_cyl_l_rod_oz + c118*boom_cyl_l_barrel_a21 - c60*boom_cyl_l_rod_oy - c42*boom_cyl_l_rod_ox - c116*boom_cyl_l_barrel_oz - c117*boom_cyl_l_barrel_oz) - c57*(c34*boom_cyl_l_barrel_ox + c54*boom_cyl_l_rod_ox + c67*boom_cyl_l_barrel_oz + c93*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a21 + c104*boom_cyl_l_barrel_a11 + c108*boom_cyl_l_barrel_a01 + c114*boom_cyl_l_barrel_a11 + c116*boom_cyl_l_rod_oy + c119*boom_cyl_l_rod_oy - c34*boom_cyl_l_rod_ox - c93*boom_cyl_l_rod_oz - c116*boom_cyl_l_barrel_oy - c119*boom_cyl_l_barrel_oy) - c61*c115 - c66*(c53*boom_cyl_l_barrel_oy + c58*boom_cyl_l_rod_oz + c86*boom_cyl_l_barrel_oy + c101*boom_cyl_l_barrel_a21 + c105*boom_cyl_l_barrel_a01 + c109*boom_cyl_l_barrel_a11 + c117*boom_cyl_l_rod_ox + c119*boom_cyl_l_rod_ox + c120*boom_cyl_l_barrel_a01 + c43*boom_cyl_l_barrel_oz - c86*boom_cyl_l_rod_oy - c117*boom_cyl_l_barrel_ox - c119*boom_cyl_l_barrel_ox - c43*boom_cyl_l_rod_oz) - v_boom_cyl_l_barrel_vx*(c82 + c83 - c84 - c85 + c59*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a11) - v_boom_cyl_l_barrel_vy*(c87 + c88 - c90 - c91 + c53*boom_cyl_l_rod_a00 + c63*boom_cyl_l_barrel_a21) - v_boom_cyl_l_barrel_vz*(c92 + c94 - c95 - c97 + c47*boom_cyl_l_barrel_a01 + c67*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c84 + c85 - c82 - c83 + c48*boom_cyl_l_barrel_a21 + c54*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c90 + c91 - c87 - c88 + c37*boom_cyl_l_barrel_a01 + c68*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c95 + c97 - c92 - c94 + c58*boom_cyl_l_rod_a00 + c62*boom_cyl_l_barrel_a11)
     out[17] = -c51*(c135*boom_cyl_l_rod_oz + c136*boom_cyl_l_rod_oz + c71*boom_cyl_l_barrel_ox + c77*boom_cyl_l_barrel_ox + c78*boom_cyl_l_barrel_oy + c81*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a12 + c112*boom_cyl_l_barrel_a02 + c113*boom_cyl_l_barrel_a22 + c118*boom_cyl_l_barrel_a22 - c135*boom_cyl_l_barrel_oz - c136*boom_cyl_l_barrel_oz - c71*boom_cyl_l_rod_ox - c78*boom_cyl_l_rod_oy) - c57*(c135*boom_cyl_l_rod_oy + c137*boom_cyl_l_rod_oy + c69*boom_cyl_l_barrel_ox + c75*boom_cyl_l_rod_ox + c80*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a22 + c104*boom_cyl_l_barrel_a12 + c108*boom_cyl_l_barrel_a02 + c114*boom_cyl_l_barrel_a12 + c131*boom_cyl_l_barrel_oz - c135*boom_cyl_l_barrel_oy - c137*boom_cyl_l_barrel_oy - c69*boom_cyl_l_rod_ox - c131*boom_cyl_l_rod_oz) - c66*(c136*boom_cyl_l_rod_ox + c137*boom_cyl_l_rod_ox + c72*boom_cyl_l_barrel_oz + c74*boom_cyl_l_barrel_oy + c76*boom_cyl_l_rod_oz + c101*boom_cyl_l_barrel_a22 + c105*boom_cyl_l_barrel_a02 + c109*boom_cyl_l_barrel_a12 + c120*boom_cyl_l_barrel_a02 + c125*boom_cyl_l_barrel_oy - c136*boom_cyl_l_barrel_ox - c137*boom_cyl_l_barrel_ox - c72*boom_cyl_l_rod_oz - c125*boom_cyl_l_rod_oy) - c70*c106 - c73*c111 - c79*c115 - v_boom_cyl_l_barrel_vx*(c121 + c122 - c123 - c124 + c77*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a12) - v_boom_cyl_l_barrel_vy*(c126 + c127 - c128 - c129 + c63*boom_cyl_l_barrel_a22 + c74*boom_cyl_l_rod_a00) - v_boom_cyl_l_barrel_vz*(c130 + c132 - c134 - c133 + c47*boom_cyl_l_barrel_a02 + c80*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c123 + c124 - c121 - c122 + c48*boom_cyl_l_barrel_a22 + c75*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c128 + c129 - c126 - c127 + c37*boom_cyl_l_barrel_a02 + c81*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c134 + c133 - c130 - c132 + c62*boom_cyl_l_barrel_a12 + c76*boom_cyl_l_rod_a00)
     out[18] = -c35*(c138*boom_cyl_l_rod_a02 + c140*boom_cyl_l_rod_a12) - c44*(c139*boom_cyl_l_rod_a22 + c142*boom_cyl_l_rod_a02) - c61*(c141*boom_cyl_l_rod_a12 + c143*boom_cyl_l_rod_a22) - (c138*boom_cyl_l_barrel_a21 + c142*boom_cyl_l_barrel_a11)*(boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wy - boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wz) - (c139*boom_cyl_l_barrel_a11 + c143*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wx - boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wy) - (c140*boom_cyl_l_barrel_a21 + c141*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wz - boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wx)
-    out[19] = c144*v_boom_wy + c145*v_boom_wy + c146*v_boom_wy - 2.001922*c149*v_boom_wz - 139283/100000*c147*v_boom_wz - 8/25*c148*v_boom_wz
-    out[20] = -c144*v_boom_wx - c145*v_boom_wx - c146*v_boom_wx + (8/25)*c151*v_boom_wz + (139283/100000)*c150*v_boom_wz + (2.001922)*c152*v_boom_wz
-    out[21] = -2.001922*c152*v_boom_wy - 139283/100000*c150*v_boom_wy - 8/25*c151*v_boom_wy + (8/25)*c148*v_boom_wx + (139283/100000)*c147*v_boom_wx + (2.001922)*c149*v_boom_wx
+    out[19] = c144*v_boom_wy + c146*v_boom_wy + c147*v_boom_wy - 8/25*c145*v_boom_wz - c148*p_C_x*v_boom_wz - c149*p_C_z*v_boom_wz
+    out[20] = -c144*v_boom_wx - c146*v_boom_wx - c147*v_boom_wx + (8/25)*c150*v_boom_wz + c151*p_C_x*v_boom_wz + c152*p_C_z*v_boom_wz
+    out[21] = -8/25*c150*v_boom_wy + (8/25)*c145*v_boom_wx + c148*p_C_x*v_boom_wx + c149*p_C_z*v_boom_wx - c151*p_C_x*v_boom_wy - c152*p_C_z*v_boom_wy
     out[22] = -c153*v_upper_wy - c155*v_upper_wy - c157*c158 + (8/25)*c154*v_upper_wy + (4307/6250)*c156*v_upper_wz + (67739/50000)*c159*v_upper_wz
     out[23] = c153*v_upper_wx + c155*v_upper_wx + c158*c161 - 67739/50000*c162*v_upper_wz - 4307/6250*c160*v_upper_wz - 8/25*c154*v_upper_wx
     out[24] = -67739/50000*c159*v_upper_wx - 4307/6250*c156*v_upper_wx - 8/25*c161*v_upper_wy + (8/25)*c157*v_upper_wx + (4307/6250)*c160*v_upper_wy + (67739/50000)*c162*v_upper_wy
@@ -1843,9 +1876,9 @@ def _joints_gamma(q, v):
     out[28] = -c170*c241 - c179*c246 - c186*(c194*boom_cyl_r_barrel_ox + c195*boom_cyl_r_barrel_oy + c203*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a11 + c247*boom_cyl_r_barrel_a01 + c248*boom_cyl_r_barrel_a21 + c177*boom_cyl_r_barrel_ox + c251*boom_cyl_r_rod_oz + c252*boom_cyl_r_rod_oz + c253*boom_cyl_r_barrel_a21 - c195*boom_cyl_r_rod_oy - c177*boom_cyl_r_rod_ox - c251*boom_cyl_r_barrel_oz - c252*boom_cyl_r_barrel_oz) - c192*(c169*boom_cyl_r_barrel_ox + c189*boom_cyl_r_rod_ox + c202*boom_cyl_r_barrel_oz + c228*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a21 + c239*boom_cyl_r_barrel_a11 + c243*boom_cyl_r_barrel_a01 + c249*boom_cyl_r_barrel_a11 + c251*boom_cyl_r_rod_oy + c254*boom_cyl_r_rod_oy - c169*boom_cyl_r_rod_ox - c228*boom_cyl_r_rod_oz - c251*boom_cyl_r_barrel_oy - c254*boom_cyl_r_barrel_oy) - c196*c250 - c201*(c188*boom_cyl_r_barrel_oy + c193*boom_cyl_r_rod_oz + c221*boom_cyl_r_barrel_oy + c236*boom_cyl_r_barrel_a21 + c240*boom_cyl_r_barrel_a01 + c244*boom_cyl_r_barrel_a11 + c252*boom_cyl_r_rod_ox + c254*boom_cyl_r_rod_ox + c255*boom_cyl_r_barrel_a01 + c178*boom_cyl_r_barrel_oz - c221*boom_cyl_r_rod_oy - c252*boom_cyl_r_barrel_ox - c254*boom_cyl_r_barrel_ox - c178*boom_cyl_r_rod_oz) - v_boom_cyl_r_barrel_vx*(c217 + c218 - c219 - c220 + c194*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a11) - v_boom_cyl_r_barrel_vy*(c222 + c223 - c225 - c226 + c188*boom_cyl_r_rod_a00 + c198*boom_cyl_r_barrel_a21) - v_boom_cyl_r_barrel_vz*(c227 + c229 - c230 - c232 + c182*boom_cyl_r_barrel_a01 + c202*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c219 + c220 - c217 - c218 + c183*boom_cyl_r_barrel_a21 + c189*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c225 + c226 - c222 - c223 + c172*boom_cyl_r_barrel_a01 + c203*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c230 + c232 - c227 - c229 + c193*boom_cyl_r_rod_a00 + c197*boom_cyl_r_barrel_a11)
     out[29] = -c186*(c270*boom_cyl_r_rod_oz + c271*boom_cyl_r_rod_oz + c206*boom_cyl_r_barrel_ox + c212*boom_cyl_r_barrel_ox + c213*boom_cyl_r_barrel_oy + c216*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a12 + c247*boom_cyl_r_barrel_a02 + c248*boom_cyl_r_barrel_a22 + c253*boom_cyl_r_barrel_a22 - c270*boom_cyl_r_barrel_oz - c271*boom_cyl_r_barrel_oz - c206*boom_cyl_r_rod_ox - c213*boom_cyl_r_rod_oy) - c192*(c270*boom_cyl_r_rod_oy + c272*boom_cyl_r_rod_oy + c204*boom_cyl_r_barrel_ox + c210*boom_cyl_r_rod_ox + c215*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a22 + c239*boom_cyl_r_barrel_a12 + c243*boom_cyl_r_barrel_a02 + c249*boom_cyl_r_barrel_a12 + c266*boom_cyl_r_barrel_oz - c270*boom_cyl_r_barrel_oy - c272*boom_cyl_r_barrel_oy - c204*boom_cyl_r_rod_ox - c266*boom_cyl_r_rod_oz) - c201*(c271*boom_cyl_r_rod_ox + c272*boom_cyl_r_rod_ox + c207*boom_cyl_r_barrel_oz + c209*boom_cyl_r_barrel_oy + c211*boom_cyl_r_rod_oz + c236*boom_cyl_r_barrel_a22 + c240*boom_cyl_r_barrel_a02 + c244*boom_cyl_r_barrel_a12 + c255*boom_cyl_r_barrel_a02 + c260*boom_cyl_r_barrel_oy - c271*boom_cyl_r_barrel_ox - c272*boom_cyl_r_barrel_ox - c207*boom_cyl_r_rod_oz - c260*boom_cyl_r_rod_oy) - c205*c241 - c208*c246 - c214*c250 - v_boom_cyl_r_barrel_vx*(c256 + c257 - c258 - c259 + c212*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a12) - v_boom_cyl_r_barrel_vy*(c261 + c262 - c263 - c264 + c198*boom_cyl_r_barrel_a22 + c209*boom_cyl_r_rod_a00) - v_boom_cyl_r_barrel_vz*(c265 + c267 - c269 - c268 + c182*boom_cyl_r_barrel_a02 + c215*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c258 + c259 - c256 - c257 + c183*boom_cyl_r_barrel_a22 + c210*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c263 + c264 - c261 - c262 + c172*boom_cyl_r_barrel_a02 + c216*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c269 + c268 - c265 - c267 + c197*boom_cyl_r_barrel_a12 + c211*boom_cyl_r_rod_a00)
     out[30] = -c170*(c273*boom_cyl_r_rod_a02 + c275*boom_cyl_r_rod_a12) - c179*(c274*boom_cyl_r_rod_a22 + c277*boom_cyl_r_rod_a02) - c196*(c276*boom_cyl_r_rod_a12 + c278*boom_cyl_r_rod_a22) - (c273*boom_cyl_r_barrel_a21 + c277*boom_cyl_r_barrel_a11)*(boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wy - boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wz) - (c274*boom_cyl_r_barrel_a11 + c278*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wx - boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wy) - (c275*boom_cyl_r_barrel_a21 + c276*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wz - boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wx)
-    out[31] = c279*v_boom_wy + c281*v_boom_wy + c283*c284 - 2.001922*c285*v_boom_wz - 139283/100000*c282*v_boom_wz - 8/25*c280*v_boom_wy
-    out[32] = -c279*v_boom_wx - c281*v_boom_wx - c284*c287 + (8/25)*c280*v_boom_wx + (139283/100000)*c286*v_boom_wz + (2.001922)*c288*v_boom_wz
-    out[33] = -2.001922*c288*v_boom_wy - 139283/100000*c286*v_boom_wy - 8/25*c283*v_boom_wx + (8/25)*c287*v_boom_wy + (139283/100000)*c282*v_boom_wx + (2.001922)*c285*v_boom_wx
+    out[31] = c280*c281 + c282*v_boom_wy + c283*v_boom_wy - 8/25*c279*v_boom_wy - c284*p_C_x*v_boom_wz - c285*p_C_z*v_boom_wz
+    out[32] = -c281*c286 - c282*v_boom_wx - c283*v_boom_wx + (8/25)*c279*v_boom_wx + c287*p_C_x*v_boom_wz + c288*p_C_z*v_boom_wz
+    out[33] = -8/25*c280*v_boom_wx + (8/25)*c286*v_boom_wy + c284*p_C_x*v_boom_wx + c285*p_C_z*v_boom_wx - c287*p_C_x*v_boom_wy - c288*p_C_z*v_boom_wy
     out[34] = -c289*v_boom_wy - c290*v_boom_wy + (23939/5000)*c291*v_boom_wz + (29959/10000)*c292*v_boom_wz
     out[35] = c289*v_boom_wx + c290*v_boom_wx - 29959/10000*c294*v_boom_wz - 23939/5000*c293*v_boom_wz
     out[36] = -29959/10000*c292*v_boom_wx - 23939/5000*c291*v_boom_wx + (23939/5000)*c293*v_boom_wy + (29959/10000)*c294*v_boom_wy
@@ -1860,9 +1893,9 @@ def _joints_gamma(q, v):
     out[45] = -c320*c391 - c329*c396 - c336*(c344*arm_cyl_barrel_ox + c345*arm_cyl_barrel_oy + c353*arm_cyl_rod_oy + c387*arm_cyl_barrel_a11 + c397*arm_cyl_barrel_a01 + c398*arm_cyl_barrel_a21 + c327*arm_cyl_barrel_ox + c401*arm_cyl_rod_oz + c402*arm_cyl_rod_oz + c403*arm_cyl_barrel_a21 - c345*arm_cyl_rod_oy - c327*arm_cyl_rod_ox - c401*arm_cyl_barrel_oz - c402*arm_cyl_barrel_oz) - c342*(c319*arm_cyl_barrel_ox + c339*arm_cyl_rod_ox + c352*arm_cyl_barrel_oz + c378*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a21 + c389*arm_cyl_barrel_a11 + c393*arm_cyl_barrel_a01 + c399*arm_cyl_barrel_a11 + c401*arm_cyl_rod_oy + c404*arm_cyl_rod_oy - c319*arm_cyl_rod_ox - c378*arm_cyl_rod_oz - c401*arm_cyl_barrel_oy - c404*arm_cyl_barrel_oy) - c346*c400 - c351*(c338*arm_cyl_barrel_oy + c343*arm_cyl_rod_oz + c371*arm_cyl_barrel_oy + c386*arm_cyl_barrel_a21 + c390*arm_cyl_barrel_a01 + c394*arm_cyl_barrel_a11 + c402*arm_cyl_rod_ox + c404*arm_cyl_rod_ox + c405*arm_cyl_barrel_a01 + c328*arm_cyl_barrel_oz - c371*arm_cyl_rod_oy - c402*arm_cyl_barrel_ox - c404*arm_cyl_barrel_ox - c328*arm_cyl_rod_oz) - v_arm_cyl_barrel_vx*(c367 + c368 - c369 - c370 + c344*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a11) - v_arm_cyl_barrel_vy*(c372 + c373 - c375 - c376 + c338*arm_cyl_rod_a00 + c348*arm_cyl_barrel_a21) - v_arm_cyl_barrel_vz*(c377 + c379 - c380 - c382 + c332*arm_cyl_barrel_a01 + c352*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c369 + c370 - c367 - c368 + c333*arm_cyl_barrel_a21 + c339*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c375 + c376 - c372 - c373 + c322*arm_cyl_barrel_a01 + c353*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c380 + c382 - c377 - c379 + c343*arm_cyl_rod_a00 + c347*arm_cyl_barrel_a11)
     out[46] = -c336*(c420*arm_cyl_rod_oz + c421*arm_cyl_rod_oz + c356*arm_cyl_barrel_ox + c362*arm_cyl_barrel_ox + c363*arm_cyl_barrel_oy + c366*arm_cyl_rod_oy + c387*arm_cyl_barrel_a12 + c397*arm_cyl_barrel_a02 + c398*arm_cyl_barrel_a22 + c403*arm_cyl_barrel_a22 - c420*arm_cyl_barrel_oz - c421*arm_cyl_barrel_oz - c356*arm_cyl_rod_ox - c363*arm_cyl_rod_oy) - c342*(c420*arm_cyl_rod_oy + c422*arm_cyl_rod_oy + c354*arm_cyl_barrel_ox + c360*arm_cyl_rod_ox + c365*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a22 + c389*arm_cyl_barrel_a12 + c393*arm_cyl_barrel_a02 + c399*arm_cyl_barrel_a12 + c416*arm_cyl_barrel_oz - c420*arm_cyl_barrel_oy - c422*arm_cyl_barrel_oy - c354*arm_cyl_rod_ox - c416*arm_cyl_rod_oz) - c351*(c421*arm_cyl_rod_ox + c422*arm_cyl_rod_ox + c357*arm_cyl_barrel_oz + c359*arm_cyl_barrel_oy + c361*arm_cyl_rod_oz + c386*arm_cyl_barrel_a22 + c390*arm_cyl_barrel_a02 + c394*arm_cyl_barrel_a12 + c405*arm_cyl_barrel_a02 + c410*arm_cyl_barrel_oy - c421*arm_cyl_barrel_ox - c422*arm_cyl_barrel_ox - c357*arm_cyl_rod_oz - c410*arm_cyl_rod_oy) - c355*c391 - c358*c396 - c364*c400 - v_arm_cyl_barrel_vx*(c406 + c407 - c408 - c409 + c362*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a12) - v_arm_cyl_barrel_vy*(c411 + c412 - c413 - c414 + c348*arm_cyl_barrel_a22 + c359*arm_cyl_rod_a00) - v_arm_cyl_barrel_vz*(c415 + c417 - c419 - c418 + c332*arm_cyl_barrel_a02 + c365*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c408 + c409 - c406 - c407 + c333*arm_cyl_barrel_a22 + c360*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c413 + c414 - c411 - c412 + c322*arm_cyl_barrel_a02 + c366*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c419 + c418 - c415 - c417 + c347*arm_cyl_barrel_a12 + c361*arm_cyl_rod_a00)
     out[47] = -c320*(c423*arm_cyl_rod_a02 + c425*arm_cyl_rod_a12) - c329*(c424*arm_cyl_rod_a22 + c427*arm_cyl_rod_a02) - c346*(c426*arm_cyl_rod_a12 + c428*arm_cyl_rod_a22) - (c423*arm_cyl_barrel_a21 + c427*arm_cyl_barrel_a11)*(arm_cyl_rod_a22*v_arm_cyl_rod_wy - arm_cyl_rod_a12*v_arm_cyl_rod_wz) - (c424*arm_cyl_barrel_a11 + c428*arm_cyl_barrel_a01)*(arm_cyl_rod_a12*v_arm_cyl_rod_wx - arm_cyl_rod_a02*v_arm_cyl_rod_wy) - (c425*arm_cyl_barrel_a21 + c426*arm_cyl_barrel_a01)*(arm_cyl_rod_a02*v_arm_cyl_rod_wz - arm_cyl_rod_a22*v_arm_cyl_rod_wx)
-    out[48] = -c429*v_arm_wy - c430*v_arm_wy + (0.369691)*c432*v_arm_wz + (393281/500000)*c431*v_arm_wz
-    out[49] = c429*v_arm_wx + c430*v_arm_wx - 393281/500000*c433*v_arm_wz - 0.369691*c434*v_arm_wz
-    out[50] = -393281/500000*c431*v_arm_wx - 0.369691*c432*v_arm_wx + (0.369691)*c434*v_arm_wy + (393281/500000)*c433*v_arm_wy
+    out[48] = c429*v_arm_wy + c430*v_arm_wy - c431*p_F_x*v_arm_wz - c432*p_F_z*v_arm_wz
+    out[49] = -c429*v_arm_wx - c430*v_arm_wx + c433*p_F_x*v_arm_wz + c434*p_F_z*v_arm_wz
+    out[50] = c431*p_F_x*v_arm_wx + c432*p_F_z*v_arm_wx - c433*p_F_x*v_arm_wy - c434*p_F_z*v_arm_wy
     out[51] = -c435*v_arm_wy - c436*v_arm_wy + (9477/5000)*c437*v_arm_wz + (21809/10000)*c438*v_arm_wz
     out[52] = c435*v_arm_wx + c436*v_arm_wx - 21809/10000*c440*v_arm_wz - 9477/5000*c439*v_arm_wz
     out[53] = -21809/10000*c438*v_arm_wx - 9477/5000*c437*v_arm_wx + (9477/5000)*c439*v_arm_wy + (21809/10000)*c440*v_arm_wy
@@ -1873,31 +1906,32 @@ def _joints_gamma(q, v):
     out[58] = -18799/10000*c456*v_arm_wx - 7877/5000*c455*v_arm_wx + (7877/5000)*c457*v_arm_wy + (18799/10000)*c458*v_arm_wy
     out[59] = -c463*(c465*side_link_a02 + c461*side_link_a22) - c467*(side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy) - c468*(side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx) - c469*(c464*side_link_a12 + c466*side_link_a22) - c470*(side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz) - c459*(c460*side_link_a02 + c462*side_link_a12)
     out[60] = -c463*(c465*side_link_a00 + c461*side_link_a20) - c467*(side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy) - c468*(side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx) - c469*(c464*side_link_a10 + c466*side_link_a20) - c470*(side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz) - c459*(c460*side_link_a00 + c462*side_link_a10)
-    out[61] = c471*v_side_link_wy + c481*c480 + c474*c475 + c478*c479 - 0.450737*c477*v_bucket_link_wy - 166329/500000*c473*v_side_link_wz - 96247/200000*c472*v_side_link_wy - 85607/250000*c476*v_bucket_link_wy
-    out[62] = -c471*v_side_link_wx - c481*c485 - c483*c475 - c484*c479 + (85607/250000)*c476*v_bucket_link_wx + (96247/200000)*c472*v_side_link_wx + (166329/500000)*c482*v_side_link_wz + (0.450737)*c477*v_bucket_link_wx
-    out[63] = -0.450737*c480*v_bucket_link_wx - 166329/500000*c482*v_side_link_wy - 96247/200000*c474*v_side_link_wx - 85607/250000*c478*v_bucket_link_wx + (85607/250000)*c484*v_bucket_link_wy + (96247/200000)*c483*v_side_link_wy + (166329/500000)*c473*v_side_link_wx + (0.450737)*c485*v_bucket_link_wy
-    out[64] = -c486*v_bucket_wy - c489*c490 + (8101/25000)*c488*v_bucket_wz + (16927/50000)*c487*v_bucket_wy
-    out[65] = c486*v_bucket_wx + c490*c492 - 16927/50000*c487*v_bucket_wx - 8101/25000*c491*v_bucket_wz
-    out[66] = -16927/50000*c492*v_bucket_wy - 8101/25000*c488*v_bucket_wx + (8101/25000)*c491*v_bucket_wy + (16927/50000)*c489*v_bucket_wx
-    out[67] = -(c496*bucket_a01 + c497*bucket_a21)*(bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx) - (c498*bucket_a01 + c500*bucket_a11)*(bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy) - (c499*bucket_a21 + c502*bucket_a01)*(bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx) - (c501*bucket_a11 + c504*bucket_a21)*(bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz) - (c503*bucket_a11 + c493*bucket_a21)*(bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz) - (c494*bucket_a01 + c495*bucket_a11)*(bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy) - (bucket_a01*v_bucket_wz - bucket_a21*v_bucket_wx)*(c500*bucket_link_a22 + c501*bucket_link_a02 + c503*bucket_link_a00 + c495*bucket_link_a20) - (bucket_a11*v_bucket_wx - bucket_a01*v_bucket_wy)*(c497*bucket_link_a10 + c499*bucket_link_a12 + c504*bucket_link_a02 + c493*bucket_link_a00) - (bucket_a21*v_bucket_wy - bucket_a11*v_bucket_wz)*(c496*bucket_link_a10 + c498*bucket_link_a22 + c502*bucket_link_a12 + c494*bucket_link_a20)
-    out[68] = c505*v_arm_wy + c508*c509 - 36797/50000*c506*v_arm_wy - 24687/100000*c507*v_arm_wz
-    out[69] = -c505*v_arm_wx - c509*c511 + (24687/100000)*c510*v_arm_wz + (36797/50000)*c506*v_arm_wx
-    out[70] = -36797/50000*c508*v_arm_wx - 24687/100000*c510*v_arm_wy + (24687/100000)*c507*v_arm_wx + (36797/50000)*c511*v_arm_wy
-    out[71] = -(c515*arm_a01 + c514*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx) - (c515*bucket_cyl_barrel_a12 + c517*bucket_cyl_barrel_a22)*(arm_a21*v_arm_wy - arm_a11*v_arm_wz) - (c516*arm_a11 + c512*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz) - (c516*bucket_cyl_barrel_a02 + c513*bucket_cyl_barrel_a22)*(arm_a01*v_arm_wz - arm_a21*v_arm_wx) - (c517*arm_a01 + c513*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy) - (c512*bucket_cyl_barrel_a02 + c514*bucket_cyl_barrel_a12)*(arm_a11*v_arm_wx - arm_a01*v_arm_wy)
-    out[72] = -c519*c525 - c528*c533 - c535*(c537 + c538) - c541*(c542 + c543) - c545*c548 - c550*(c551 + c552)
-    out[73] = -c533*c557 - c535*(c558 + c559) - c541*(c560 + c561) - c548*c563 - c550*(c564 + c565) - c554*c525
-    out[74] = -c519*c590 - c528*c595 - c535*(c543*bucket_cyl_barrel_ox + c544*bucket_cyl_barrel_oy + c552*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_a11 + c596*bucket_cyl_barrel_a01 + c597*bucket_cyl_barrel_a21 + c526*bucket_cyl_barrel_ox + c600*bucket_cyl_rod_oz + c601*bucket_cyl_rod_oz + c602*bucket_cyl_barrel_a21 - c544*bucket_cyl_rod_oy - c526*bucket_cyl_rod_ox - c600*bucket_cyl_barrel_oz - c601*bucket_cyl_barrel_oz) - c541*(c518*bucket_cyl_barrel_ox + c538*bucket_cyl_rod_ox + c551*bucket_cyl_barrel_oz + c577*bucket_cyl_barrel_oz + c587*bucket_cyl_barrel_a21 + c588*bucket_cyl_barrel_a11 + c592*bucket_cyl_barrel_a01 + c598*bucket_cyl_barrel_a11 + c600*bucket_cyl_rod_oy + c603*bucket_cyl_rod_oy - c518*bucket_cyl_rod_ox - c577*bucket_cyl_rod_oz - c600*bucket_cyl_barrel_oy - c603*bucket_cyl_barrel_oy) - c545*c599 - c550*(c537*bucket_cyl_barrel_oy + c542*bucket_cyl_rod_oz + c570*bucket_cyl_barrel_oy + c585*bucket_cyl_barrel_a21 + c589*bucket_cyl_barrel_a01 + c593*bucket_cyl_barrel_a11 + c601*bucket_cyl_rod_ox + c603*bucket_cyl_rod_ox + c604*bucket_cyl_barrel_a01 + c527*bucket_cyl_barrel_oz - c570*bucket_cyl_rod_oy - c601*bucket_cyl_barrel_ox - c603*bucket_cyl_barrel_ox - c527*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_vx*(c566 + c567 - c568 - c569 + c543*bucket_cyl_rod_a20 + c524*bucket_cyl_barrel_a11) - v_bucket_cyl_barrel_vy*(c571 + c572 - c574 - c575 + c537*bucket_cyl_rod_a00 + c547*bucket_cyl_barrel_a21) - v_bucket_cyl_barrel_vz*(c576 + c578 - c579 - c581 + c531*bucket_cyl_barrel_a01 + c551*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c568 + c569 - c566 - c567 + c532*bucket_cyl_barrel_a21 + c538*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c574 + c575 - c571 - c572 + c521*bucket_cyl_barrel_a01 + c552*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c579 + c581 - c576 - c578 + c542*bucket_cyl_rod_a00 + c546*bucket_cyl_barrel_a11)
-    out[75] = -c535*(c619*bucket_cyl_rod_oz + c620*bucket_cyl_rod_oz + c555*bucket_cyl_barrel_ox + c561*bucket_cyl_barrel_ox + c562*bucket_cyl_barrel_oy + c565*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_a12 + c596*bucket_cyl_barrel_a02 + c597*bucket_cyl_barrel_a22 + c602*bucket_cyl_barrel_a22 - c619*bucket_cyl_barrel_oz - c620*bucket_cyl_barrel_oz - c555*bucket_cyl_rod_ox - c562*bucket_cyl_rod_oy) - c541*(c619*bucket_cyl_rod_oy + c621*bucket_cyl_rod_oy + c553*bucket_cyl_barrel_ox + c559*bucket_cyl_rod_ox + c564*bucket_cyl_barrel_oz + c587*bucket_cyl_barrel_a22 + c588*bucket_cyl_barrel_a12 + c592*bucket_cyl_barrel_a02 + c598*bucket_cyl_barrel_a12 + c615*bucket_cyl_barrel_oz - c619*bucket_cyl_barrel_oy - c621*bucket_cyl_barrel_oy - c553*bucket_cyl_rod_ox - c615*bucket_cyl_rod_oz) - c550*(c620*bucket_cyl_rod_ox + c621*bucket_cyl_rod_ox + c556*bucket_cyl_barrel_oz + c558*bucket_cyl_barrel_oy + c560*bucket_cyl_rod_oz + c585*bucket_cyl_barrel_a22 + c589*bucket_cyl_barrel_a02 + c593*bucket_cyl_barrel_a12 + c604*bucket_cyl_barrel_a02 + c609*bucket_cyl_barrel_oy - c620*bucket_cyl_barrel_ox - c621*bucket_cyl_barrel_ox - c556*bucket_cyl_rod_oz - c609*bucket_cyl_rod_oy) - c554*c590 - c557*c595 - c563*c599 - v_bucket_cyl_barrel_vx*(c605 + c606 - c607 - c608 + c561*bucket_cyl_rod_a20 + c524*bucket_cyl_barrel_a12) - v_bucket_cyl_barrel_vy*(c610 + c611 - c612 - c613 + c547*bucket_cyl_barrel_a22 + c558*bucket_cyl_rod_a00) - v_bucket_cyl_barrel_vz*(c614 + c616 - c618 - c617 + c531*bucket_cyl_barrel_a02 + c564*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c607 + c608 - c605 - c606 + c532*bucket_cyl_barrel_a22 + c559*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c612 + c613 - c610 - c611 + c521*bucket_cyl_barrel_a02 + c565*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c618 + c617 - c614 - c616 + c546*bucket_cyl_barrel_a12 + c560*bucket_cyl_rod_a00)
-    out[76] = -c519*(c622*bucket_cyl_rod_a02 + c624*bucket_cyl_rod_a12) - c528*(c623*bucket_cyl_rod_a22 + c626*bucket_cyl_rod_a02) - c545*(c625*bucket_cyl_rod_a12 + c627*bucket_cyl_rod_a22) - (c622*bucket_cyl_barrel_a21 + c626*bucket_cyl_barrel_a11)*(bucket_cyl_rod_a22*v_bucket_cyl_rod_wy - bucket_cyl_rod_a12*v_bucket_cyl_rod_wz) - (c623*bucket_cyl_barrel_a11 + c627*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a12*v_bucket_cyl_rod_wx - bucket_cyl_rod_a02*v_bucket_cyl_rod_wy) - (c624*bucket_cyl_barrel_a21 + c625*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a02*v_bucket_cyl_rod_wz - bucket_cyl_rod_a22*v_bucket_cyl_rod_wx)
-    out[77] = -c628*v_side_link_wy - c631*c632 + (96247/200000)*c629*v_side_link_wy + (166329/500000)*c630*v_side_link_wz
-    out[78] = c628*v_side_link_wx + c632*c634 - 166329/500000*c633*v_side_link_wz - 96247/200000*c629*v_side_link_wx
-    out[79] = -166329/500000*c630*v_side_link_wx - 96247/200000*c634*v_side_link_wy + (96247/200000)*c631*v_side_link_wx + (166329/500000)*c633*v_side_link_wy
+    out[61] = -c471*c472 - c471*c473 - c481*c479 - c478*v_side_link_wy + 0.5686266556413632*c476*p_side_link*v_side_link_wy + 0.60493530832545*c474*p_bucket_link*v_bucket_link_wz + 0.796274621434837*c475*p_bucket_link*v_bucket_link_wz + 0.822595724821202*c482*p_side_link*v_side_link_wz
+    out[62] = c472*c483 + c481*c487 + c483*c473 + c478*v_side_link_wx - 0.60493530832545*c484*c485 - 0.796274621434837*c485*c486 - c488*c477*v_side_link_wz - c476*c480*v_side_link_wx
+    out[63] = -0.60493530832545*c483*c474 - 0.796274621434837*c483*c475 - c482*c477*v_side_link_wx - c487*c480*v_side_link_wy + 0.5686266556413632*c479*p_side_link*v_side_link_wx + 0.60493530832545*c484*p_bucket_link*v_bucket_link_wy + 0.796274621434837*c486*p_bucket_link*v_bucket_link_wy + 0.822595724821202*c488*p_side_link*v_side_link_wy
+    out[64] = c489*v_bucket_wy + c490*v_bucket_wy - c491*p_K_x*v_bucket_wz - c492*p_K_z*v_bucket_wz
+    out[65] = -c489*v_bucket_wx - c490*v_bucket_wx + c493*p_K_x*v_bucket_wz + c494*p_K_z*v_bucket_wz
+    out[66] = c491*p_K_x*v_bucket_wx + c492*p_K_z*v_bucket_wx - c493*p_K_x*v_bucket_wy - c494*p_K_z*v_bucket_wy
+    out[67] = -(c499*bucket_a21 + c498*bucket_a01)*(bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx) - (c500*bucket_a01 + c502*bucket_a11)*(bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy) - (c501*bucket_a21 + c504*bucket_a01)*(bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx) - (c503*bucket_a11 + c506*bucket_a21)*(bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz) - (c505*bucket_a11 + c495*bucket_a21)*(bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz) - (c496*bucket_a01 + c497*bucket_a11)*(bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy) - (bucket_a01*v_bucket_wz - bucket_a21*v_bucket_wx)*(c502*bucket_link_a22 + c503*bucket_link_a02 + c505*bucket_link_a00 + c497*bucket_link_a20) - (bucket_a11*v_bucket_wx - bucket_a01*v_bucket_wy)*(c499*bucket_link_a10 + c501*bucket_link_a12 + c506*bucket_link_a02 + c495*bucket_link_a00) - (bucket_a21*v_bucket_wy - bucket_a11*v_bucket_wz)*(c500*bucket_link_a22 + c504*bucket_link_a12 + c496*bucket_link_a20 + c498*bucket_link_a10)
+    out[68] = c507*v_arm_wy + c510*c511 - 36797/50000*c508*v_arm_wy - 24687/100000*c509*v_arm_wz
+    out[69] = -c507*v_arm_wx - c511*c513 + (24687/100000)*c512*v_arm_wz + (36797/50000)*c508*v_arm_wx
+    out[70] = -36797/50000*c510*v_arm_wx - 24687/100000*c512*v_arm_wy + (24687/100000)*c509*v_arm_wx + (36797/50000)*c513*v_arm_wy
+    out[71] = -(c517*arm_a01 + c516*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx) - (c517*bucket_cyl_barrel_a12 + c519*bucket_cyl_barrel_a22)*(arm_a21*v_arm_wy - arm_a11*v_arm_wz) - (c518*arm_a11 + c514*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz) - (c518*bucket_cyl_barrel_a02 + c515*bucket_cyl_barrel_a22)*(arm_a01*v_arm_wz - arm_a21*v_arm_wx) - (c519*arm_a01 + c515*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy) - (c514*bucket_cyl_barrel_a02 + c516*bucket_cyl_barrel_a12)*(arm_a11*v_arm_wx - arm_a01*v_arm_wy)
+    out[72] = -c521*c527 - c530*c535 - c537*(c539 + c540) - c543*(c544 + c545) - c547*c550 - c552*(c553 + c554)
+    out[73] = -c535*c559 - c537*(c560 + c561) - c543*(c562 + c563) - c550*c565 - c552*(c566 + c567) - c556*c527
+    out[74] = -c521*c592 - c530*c597 - c537*(c545*bucket_cyl_barrel_ox + c546*bucket_cyl_barrel_oy + c554*bucket_cyl_rod_oy + c588*bucket_cyl_barrel_a11 + c598*bucket_cyl_barrel_a01 + c599*bucket_cyl_barrel_a21 + c528*bucket_cyl_barrel_ox + c602*bucket_cyl_rod_oz + c603*bucket_cyl_rod_oz + c604*bucket_cyl_barrel_a21 - c546*bucket_cyl_rod_oy - c528*bucket_cyl_rod_ox - c602*bucket_cyl_barrel_oz - c603*bucket_cyl_barrel_oz) - c543*(c520*bucket_cyl_barrel_ox + c540*bucket_cyl_rod_ox + c553*bucket_cyl_barrel_oz + c579*bucket_cyl_barrel_oz + c589*bucket_cyl_barrel_a21 + c590*bucket_cyl_barrel_a11 + c594*bucket_cyl_barrel_a01 + c600*bucket_cyl_barrel_a11 + c602*bucket_cyl_rod_oy + c605*bucket_cyl_rod_oy - c520*bucket_cyl_rod_ox - c579*bucket_cyl_rod_oz - c602*bucket_cyl_barrel_oy - c605*bucket_cyl_barrel_oy) - c547*c601 - c552*(c539*bucket_cyl_barrel_oy + c544*bucket_cyl_rod_oz + c572*bucket_cyl_barrel_oy + c587*bucket_cyl_barrel_a21 + c591*bucket_cyl_barrel_a01 + c595*bucket_cyl_barrel_a11 + c603*bucket_cyl_rod_ox + c605*bucket_cyl_rod_ox + c606*bucket_cyl_barrel_a01 + c529*bucket_cyl_barrel_oz - c572*bucket_cyl_rod_oy - c603*bucket_cyl_barrel_ox - c605*bucket_cyl_barrel_ox - c529*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_vx*(c568 + c569 - c570 - c571 + c545*bucket_cyl_rod_a20 + c526*bucket_cyl_barrel_a11) - v_bucket_cyl_barrel_vy*(c573 + c574 - c576 - c577 + c539*bucket_cyl_rod_a00 + c549*bucket_cyl_barrel_a21) - v_bucket_cyl_barrel_vz*(c578 + c580 - c581 - c583 + c533*bucket_cyl_barrel_a01 + c553*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c570 + c571 - c568 - c569 + c534*bucket_cyl_barrel_a21 + c540*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c576 + c577 - c573 - c574 + c523*bucket_cyl_barrel_a01 + c554*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c581 + c583 - c578 - c580 + c544*bucket_cyl_rod_a00 + c548*bucket_cyl_barrel_a11)
+    out[75] = -c537*(c621*bucket_cyl_rod_oz + c622*bucket_cyl_rod_oz + c557*bucket_cyl_barrel_ox + c563*bucket_cyl_barrel_ox + c564*bucket_cyl_barrel_oy + c567*bucket_cyl_rod_oy + c588*bucket_cyl_barrel_a12 + c598*bucket_cyl_barrel_a02 + c599*bucket_cyl_barrel_a22 + c604*bucket_cyl_barrel_a22 - c621*bucket_cyl_barrel_oz - c622*bucket_cyl_barrel_oz - c557*bucket_cyl_rod_ox - c564*bucket_cyl_rod_oy) - c543*(c621*bucket_cyl_rod_oy + c623*bucket_cyl_rod_oy + c555*bucket_cyl_barrel_ox + c561*bucket_cyl_rod_ox + c566*bucket_cyl_barrel_oz + c589*bucket_cyl_barrel_a22 + c590*bucket_cyl_barrel_a12 + c594*bucket_cyl_barrel_a02 + c600*bucket_cyl_barrel_a12 + c617*bucket_cyl_barrel_oz - c621*bucket_cyl_barrel_oy - c623*bucket_cyl_barrel_oy - c555*bucket_cyl_rod_ox - c617*bucket_cyl_rod_oz) - c552*(c622*bucket_cyl_rod_ox + c623*bucket_cyl_rod_ox + c558*bucket_cyl_barrel_oz + c560*bucket_cyl_barrel_oy + c562*bucket_cyl_rod_oz + c587*bucket_cyl_barrel_a22 + c591*bucket_cyl_barrel_a02 + c595*bucket_cyl_barrel_a12 + c606*bucket_cyl_barrel_a02 + c611*bucket_cyl_barrel_oy - c622*bucket_cyl_barrel_ox - c623*bucket_cyl_barrel_ox - c558*bucket_cyl_rod_oz - c611*bucket_cyl_rod_oy) - c556*c592 - c559*c597 - c565*c601 - v_bucket_cyl_barrel_vx*(c607 + c608 - c609 - c610 + c563*bucket_cyl_rod_a20 + c526*bucket_cyl_barrel_a12) - v_bucket_cyl_barrel_vy*(c612 + c613 - c614 - c615 + c549*bucket_cyl_barrel_a22 + c560*bucket_cyl_rod_a00) - v_bucket_cyl_barrel_vz*(c616 + c618 - c620 - c619 + c533*bucket_cyl_barrel_a02 + c566*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c609 + c610 - c607 - c608 + c534*bucket_cyl_barrel_a22 + c561*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c614 + c615 - c612 - c613 + c523*bucket_cyl_barrel_a02 + c567*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c620 + c619 - c616 - c618 + c548*bucket_cyl_barrel_a12 + c562*bucket_cyl_rod_a00)
+    out[76] = -c521*(c624*bucket_cyl_rod_a02 + c626*bucket_cyl_rod_a12) - c530*(c625*bucket_cyl_rod_a22 + c628*bucket_cyl_rod_a02) - c547*(c627*bucket_cyl_rod_a12 + c629*bucket_cyl_rod_a22) - (c624*bucket_cyl_barrel_a21 + c628*bucket_cyl_barrel_a11)*(bucket_cyl_rod_a22*v_bucket_cyl_rod_wy - bucket_cyl_rod_a12*v_bucket_cyl_rod_wz) - (c625*bucket_cyl_barrel_a11 + c629*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a12*v_bucket_cyl_rod_wx - bucket_cyl_rod_a02*v_bucket_cyl_rod_wy) - (c626*bucket_cyl_barrel_a21 + c627*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a02*v_bucket_cyl_rod_wz - bucket_cyl_rod_a22*v_bucket_cyl_rod_wx)
+    out[77] = -c631*v_side_link_wy - c634*c636 + 0.5686266556413632*c633*p_side_link*v_side_link_wz + 0.822595724821202*c632*p_side_link*v_side_link_wy
+    out[78] = c631*v_side_link_wx + c636*c638 - c630*c637*v_side_link_wz - c632*c635*v_side_link_wx
+    out[79] = -c630*c633*v_side_link_wx - c635*c638*v_side_link_wy + 0.5686266556413632*c637*p_side_link*v_side_link_wy + 0.822595724821202*c634*p_side_link*v_side_link_wx
     return out
 
 
-def _joints_phi_jac_s(q):
+def _joints_phi_jac_s(q, p):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     upper_rw, upper_rx, upper_ry, upper_rz, upper_dw, upper_dx, upper_dy, upper_dz, boom_rw, boom_rx, boom_ry, boom_rz, boom_dw, boom_dx, boom_dy, boom_dz, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, boom_cyl_r_barrel_rw, boom_cyl_r_barrel_rx, boom_cyl_r_barrel_ry, boom_cyl_r_barrel_rz, boom_cyl_r_barrel_dw, boom_cyl_r_barrel_dx, boom_cyl_r_barrel_dy, boom_cyl_r_barrel_dz, boom_cyl_r_rod_rw, boom_cyl_r_rod_rx, boom_cyl_r_rod_ry, boom_cyl_r_rod_rz, boom_cyl_r_rod_dw, boom_cyl_r_rod_dx, boom_cyl_r_rod_dy, boom_cyl_r_rod_dz, arm_rw, arm_rx, arm_ry, arm_rz, arm_dw, arm_dx, arm_dy, arm_dz, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, side_link_rw, side_link_rx, side_link_ry, side_link_rz, side_link_dw, side_link_dx, side_link_dy, side_link_dz, bucket_link_rw, bucket_link_rx, bucket_link_ry, bucket_link_rz, bucket_link_dw, bucket_link_dx, bucket_link_dy, bucket_link_dz, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_ox = -2.0*upper_dw*upper_rx - 2.0*upper_dy*upper_rz + 2.0*upper_dx*upper_rw + 2.0*upper_dz*upper_ry
     upper_oy = -2.0*upper_dw*upper_ry - 2.0*upper_dz*upper_rx + 2.0*upper_dx*upper_rz + 2.0*upper_dy*upper_rw
     upper_oz = -2.0*upper_dw*upper_rz - 2.0*upper_dx*upper_ry + 2.0*upper_dy*upper_rx + 2.0*upper_dz*upper_rw
@@ -2045,9 +2079,15 @@ def _joints_phi_jac_s(q):
     c6 = arm_cyl_rod_ox - arm_cyl_barrel_ox
     c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
     c8 = arm_cyl_rod_oz - arm_cyl_barrel_oz
-    c9 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
-    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
-    c11 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    c9 = 0.5686266556413632*p_side_link
+    c10 = 0.822595724821202*p_side_link
+    c11 = 0.60493530832545*p_bucket_link
+    c12 = 0.796274621434837*p_bucket_link
+    c13 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    c14 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    c15 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    c16 = 0.5686266556413632*p_side_link
+    c17 = 0.822595724821202*p_side_link
     d0 = (22767/100000)*upper_a20 + (195729/100000)*upper_a22
     d1 = (22767/100000)*upper_a10 + (195729/100000)*upper_a12
     d2 = (22767/100000)*upper_a00 + (195729/100000)*upper_a02
@@ -2088,9 +2128,9 @@ def _joints_phi_jac_s(q):
     d37 = d36*boom_cyl_l_barrel_a11 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a12
     d38 = d36*boom_cyl_l_barrel_a01 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02
     d39 = -1.0*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a12
-    d40 = (8/25)*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d41 = (8/25)*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d42 = (8/25)*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d40 = (8/25)*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d41 = (8/25)*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d42 = (8/25)*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d43 = -8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
     d44 = -8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
     d45 = -8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
@@ -2122,9 +2162,9 @@ def _joints_phi_jac_s(q):
     d71 = d70*boom_cyl_r_barrel_a11 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a12
     d72 = d70*boom_cyl_r_barrel_a01 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a02
     d73 = -1.0*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a12
-    d74 = -8/25*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d75 = -8/25*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d76 = -8/25*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d74 = -8/25*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d75 = -8/25*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d76 = -8/25*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d77 = (23939/5000)*boom_a20 + (29959/10000)*boom_a22
     d78 = (23939/5000)*boom_a10 + (29959/10000)*boom_a12
     d79 = (23939/5000)*boom_a00 + (29959/10000)*boom_a02
@@ -2165,9 +2205,9 @@ def _joints_phi_jac_s(q):
     d114 = d113*arm_cyl_barrel_a11 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a12
     d115 = d113*arm_cyl_barrel_a01 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a02
     d116 = -1.0*arm_cyl_barrel_a11*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a12
-    d117 = (0.369691)*arm_a22 + (393281/500000)*arm_a20
-    d118 = (0.369691)*arm_a12 + (393281/500000)*arm_a10
-    d119 = (0.369691)*arm_a02 + (393281/500000)*arm_a00
+    d117 = arm_a20*p_F_x + arm_a22*p_F_z
+    d118 = arm_a10*p_F_x + arm_a12*p_F_z
+    d119 = arm_a00*p_F_x + arm_a02*p_F_z
     d120 = (9477/5000)*arm_a20 + (21809/10000)*arm_a22
     d121 = (9477/5000)*arm_a10 + (21809/10000)*arm_a12
     d122 = (9477/5000)*arm_a00 + (21809/10000)*arm_a02
@@ -2186,63 +2226,69 @@ def _joints_phi_jac_s(q):
     d135 = arm_a11*side_link_a20 - arm_a21*side_link_a10
     d136 = arm_a01*side_link_a20 - arm_a21*side_link_a00
     d137 = arm_a01*side_link_a10 - arm_a11*side_link_a00
-    d138 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d139 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d140 = (85607/250000)*bucket_link_a20 + (0.450737)*bucket_link_a22
-    d141 = (85607/250000)*bucket_link_a10 + (0.450737)*bucket_link_a12
-    d142 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    d143 = (85607/250000)*bucket_link_a00 + (0.450737)*bucket_link_a02
-    d144 = -16927/50000*bucket_a22 + (8101/25000)*bucket_a20
-    d145 = -16927/50000*bucket_a12 + (8101/25000)*bucket_a10
-    d146 = -16927/50000*bucket_a02 + (8101/25000)*bucket_a00
-    d147 = (0.7962746214343476)*bucket_link_a10
-    d148 = (0.6049353083260941)*bucket_link_a22
-    d149 = (0.7962746214343476)*bucket_link_a00
-    d150 = (0.7962746214343476)*bucket_link_a20
-    d151 = -d150 + (0.6049353083260941)*bucket_link_a22
-    d152 = -d147 + (0.6049353083260941)*bucket_link_a12
-    d153 = -d149 + (0.6049353083260941)*bucket_link_a02
-    d154 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
-    d155 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
-    d156 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
-    d157 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
-    d158 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
-    d159 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
-    d160 = bucket_cyl_barrel_a11*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a10
-    d161 = bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00
-    d162 = -d161
-    d163 = bucket_cyl_barrel_a01*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a00
-    d164 = -d160
-    d165 = -d163
-    d166 = bucket_cyl_barrel_a12*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a10
-    d167 = bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00
-    d168 = -d167
-    d169 = bucket_cyl_barrel_a02*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a00
-    d170 = -d166
-    d171 = -d169
-    d172 = bucket_cyl_barrel_oy*bucket_cyl_rod_a00 + bucket_cyl_rod_a10*bucket_cyl_rod_ox - bucket_cyl_barrel_ox*bucket_cyl_rod_a10 - bucket_cyl_rod_a00*bucket_cyl_rod_oy
-    d173 = bucket_cyl_barrel_ox*bucket_cyl_rod_a20 + bucket_cyl_rod_a00*bucket_cyl_rod_oz - bucket_cyl_barrel_oz*bucket_cyl_rod_a00 - bucket_cyl_rod_a20*bucket_cyl_rod_ox
-    d174 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10 + bucket_cyl_rod_a20*bucket_cyl_rod_oy - bucket_cyl_barrel_oy*bucket_cyl_rod_a20 - bucket_cyl_rod_a10*bucket_cyl_rod_oz
-    d175 = bucket_cyl_barrel_a01*bucket_cyl_rod_oy + bucket_cyl_barrel_a11*bucket_cyl_barrel_ox - bucket_cyl_barrel_a01*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_rod_ox
-    d176 = bucket_cyl_barrel_a01*bucket_cyl_barrel_oz + bucket_cyl_barrel_a21*bucket_cyl_rod_ox - bucket_cyl_barrel_a01*bucket_cyl_rod_oz - bucket_cyl_barrel_a21*bucket_cyl_barrel_ox
-    d177 = bucket_cyl_barrel_a11*bucket_cyl_rod_oz + bucket_cyl_barrel_a21*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_barrel_oz - bucket_cyl_barrel_a21*bucket_cyl_rod_oy
-    d178 = bucket_cyl_barrel_a02*bucket_cyl_rod_oy + bucket_cyl_barrel_a12*bucket_cyl_barrel_ox - bucket_cyl_barrel_a02*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_rod_ox
-    d179 = bucket_cyl_barrel_a02*bucket_cyl_barrel_oz + bucket_cyl_barrel_a22*bucket_cyl_rod_ox - bucket_cyl_barrel_a02*bucket_cyl_rod_oz - bucket_cyl_barrel_a22*bucket_cyl_barrel_ox
-    d180 = bucket_cyl_barrel_a12*bucket_cyl_rod_oz + bucket_cyl_barrel_a22*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_barrel_oz - bucket_cyl_barrel_a22*bucket_cyl_rod_oy
-    d181 = (1.0)*bucket_cyl_rod_a22
-    d182 = d181*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
-    d183 = d181*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
-    d184 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
-    d185 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d186 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d187 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    return [-upper_ox, -upper_oy, -upper_oz, upper_a20, upper_a21, upper_ox - boom_ox + (22767/100000)*upper_a00 + (195729/100000)*upper_a02, upper_oy - boom_oy + (22767/100000)*upper_a10 + (195729/100000)*upper_a12, upper_oz - boom_oz + (22767/100000)*upper_a20 + (195729/100000)*upper_a22, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, upper_ox - boom_cyl_l_barrel_ox + (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_oy - boom_cyl_l_barrel_oy + (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_oz - boom_cyl_l_barrel_oz + (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a01*boom_cyl_l_rod_a00 + boom_cyl_l_barrel_a11*boom_cyl_l_rod_a10 + boom_cyl_l_barrel_a21*boom_cyl_l_rod_a20, boom_cyl_l_barrel_a02*boom_cyl_l_rod_a00 + boom_cyl_l_barrel_a12*boom_cyl_l_rod_a10 + boom_cyl_l_barrel_a22*boom_cyl_l_rod_a20, c0*(boom_cyl_l_barrel_a21*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a11*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a01*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a21*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a11*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a01*boom_cyl_l_rod_a10), c0*(boom_cyl_l_barrel_a22*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a12*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a02*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a22*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a12*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a02*boom_cyl_l_rod_a10), (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_ox - boom_ox - 2.001922*boom_a02 - 139283/100000*boom_a00 - 8/25*boom_a01, boom_cyl_l_rod_oy - boom_oy - 2.001922*boom_a12 - 139283/100000*boom_a10 - 8/25*boom_a11, boom_cyl_l_rod_oz - boom_oz - 2.001922*boom_a22 - 139283/100000*boom_a20 - 8/25*boom_a21, upper_ox - boom_cyl_r_barrel_ox - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_oy - boom_cyl_r_barrel_oy - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_oz - boom_cyl_r_barrel_oz - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a01*boom_cyl_r_rod_a00 + boom_cyl_r_barrel_a11*boom_cyl_r_rod_a10 + boom_cyl_r_barrel_a21*boom_cyl_r_rod_a20, boom_cyl_r_barrel_a02*boom_cyl_r_rod_a00 + boom_cyl_r_barrel_a12*boom_cyl_r_rod_a10 + boom_cyl_r_barrel_a22*boom_cyl_r_rod_a20, c3*(boom_cyl_r_barrel_a21*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a11*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a01*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a21*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a11*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a01*boom_cyl_r_rod_a10), c3*(boom_cyl_r_barrel_a22*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a12*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a02*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a22*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a12*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a02*boom_cyl_r_rod_a10), (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_ox - boom_ox - 2.001922*boom_a02 - 139283/100000*boom_a00 + (8/25)*boom_a01, boom_cyl_r_rod_oy - boom_oy - 2.001922*boom_a12 - 139283/100000*boom_a10 + (8/25)*boom_a11, boom_cyl_r_rod_oz - boom_oz - 2.001922*boom_a22 - 139283/100000*boom_a20 + (8/25)*boom_a21, boom_ox - arm_ox + (23939/5000)*boom_a00 + (29959/10000)*boom_a02, boom_oy - arm_oy + (23939/5000)*boom_a10 + (29959/10000)*boom_a12, boom_oz - arm_oz + (23939/5000)*boom_a20 + (29959/10000)*boom_a22, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, boom_ox - arm_cyl_barrel_ox + (183/80)*boom_a00 + (557/200)*boom_a02, boom_oy - arm_cyl_barrel_oy + (183/80)*boom_a10 + (557/200)*boom_a12, boom_oz - arm_cyl_barrel_oz + (183/80)*boom_a20 + (557/200)*boom_a22, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a01*arm_cyl_rod_a00 + arm_cyl_barrel_a11*arm_cyl_rod_a10 + arm_cyl_barrel_a21*arm_cyl_rod_a20, arm_cyl_barrel_a02*arm_cyl_rod_a00 + arm_cyl_barrel_a12*arm_cyl_rod_a10 + arm_cyl_barrel_a22*arm_cyl_rod_a20, c6*(arm_cyl_barrel_a21*arm_cyl_rod_a10 - arm_cyl_barrel_a11*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a01*arm_cyl_rod_a20 - arm_cyl_barrel_a21*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a11*arm_cyl_rod_a00 - arm_cyl_barrel_a01*arm_cyl_rod_a10), c6*(arm_cyl_barrel_a22*arm_cyl_rod_a10 - arm_cyl_barrel_a12*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a02*arm_cyl_rod_a20 - arm_cyl_barrel_a22*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a12*arm_cyl_rod_a00 - arm_cyl_barrel_a02*arm_cyl_rod_a10), (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_ox - arm_ox + (0.369691)*arm_a02 + (393281/500000)*arm_a00, arm_cyl_rod_oy - arm_oy + (0.369691)*arm_a12 + (393281/500000)*arm_a10, arm_cyl_rod_oz - arm_oz + (0.369691)*arm_a22 + (393281/500000)*arm_a20, arm_ox - bucket_ox + (9477/5000)*arm_a00 + (21809/10000)*arm_a02, arm_oy - bucket_oy + (9477/5000)*arm_a10 + (21809/10000)*arm_a12, arm_oz - bucket_oz + (9477/5000)*arm_a20 + (21809/10000)*arm_a22, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, arm_ox - side_link_ox + (7877/5000)*arm_a00 + (18799/10000)*arm_a02, arm_oy - side_link_oy + (7877/5000)*arm_a10 + (18799/10000)*arm_a12, arm_oz - side_link_oz + (7877/5000)*arm_a20 + (18799/10000)*arm_a22, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, side_link_ox - bucket_link_ox - 166329/500000*side_link_a00 + (85607/250000)*bucket_link_a00 + (96247/200000)*side_link_a02 + (0.450737)*bucket_link_a02, side_link_oy - bucket_link_oy - 166329/500000*side_link_a10 + (85607/250000)*bucket_link_a10 + (96247/200000)*side_link_a12 + (0.450737)*bucket_link_a12, side_link_oz - bucket_link_oz - 166329/500000*side_link_a20 + (85607/250000)*bucket_link_a20 + (96247/200000)*side_link_a22 + (0.450737)*bucket_link_a22, bucket_link_ox - bucket_ox - 16927/50000*bucket_a02 + (8101/25000)*bucket_a00, bucket_link_oy - bucket_oy - 16927/50000*bucket_a12 + (8101/25000)*bucket_a10, bucket_link_oz - bucket_oz - 16927/50000*bucket_a22 + (8101/25000)*bucket_a20, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), arm_ox - bucket_cyl_barrel_ox - 24687/100000*arm_a00 + (36797/50000)*arm_a02, arm_oy - bucket_cyl_barrel_oy - 24687/100000*arm_a10 + (36797/50000)*arm_a12, arm_oz - bucket_cyl_barrel_oz - 24687/100000*arm_a20 + (36797/50000)*arm_a22, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a01*bucket_cyl_rod_a00 + bucket_cyl_barrel_a11*bucket_cyl_rod_a10 + bucket_cyl_barrel_a21*bucket_cyl_rod_a20, bucket_cyl_barrel_a02*bucket_cyl_rod_a00 + bucket_cyl_barrel_a12*bucket_cyl_rod_a10 + bucket_cyl_barrel_a22*bucket_cyl_rod_a20, c9*(bucket_cyl_barrel_a21*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a20) + c10*(bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00) + c11*(bucket_cyl_barrel_a11*bucket_cyl_rod_a00 - bucket_cyl_barrel_a01*bucket_cyl_rod_a10), c9*(bucket_cyl_barrel_a22*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a20) + c10*(bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00) + c11*(bucket_cyl_barrel_a12*bucket_cyl_rod_a00 - bucket_cyl_barrel_a02*bucket_cyl_rod_a10), (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_ox - side_link_ox - 96247/200000*side_link_a02 + (166329/500000)*side_link_a00, bucket_cyl_rod_oy - side_link_oy - 96247/200000*side_link_a12 + (166329/500000)*side_link_a10, bucket_cyl_rod_oz - side_link_oz - 96247/200000*side_link_a22 + (166329/500000)*side_link_a20], [-1.0, -1.0, -1.0, upper_a10, -upper_a00, upper_a11, -upper_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, d5, -d3, d4, -d5, d6, -d7, d8, -d6, d7, -d8, d9, -d10, 1.0, -1.0, -d9, d11, 1.0, -1.0, d10, -d11, 1.0, -1.0, d12, -d13, d14, -d12, d13, -d14, d15, d17, d18, d19, d16, d20, d21, d23, d24, d25, d22, d26, d27*boom_cyl_l_barrel_a11 - d28*boom_cyl_l_barrel_a21, d29*boom_cyl_l_barrel_a21 - d27*boom_cyl_l_barrel_a01, d28*boom_cyl_l_barrel_a01 - d29*boom_cyl_l_barrel_a11, d15, d17, d18, d30*boom_cyl_l_rod_a10 - d31*boom_cyl_l_rod_a20, d32*boom_cyl_l_rod_a20 - d30*boom_cyl_l_rod_a00, d31*boom_cyl_l_rod_a00 - d32*boom_cyl_l_rod_a10, d19, d16, d20, d27*boom_cyl_l_barrel_a12 - d28*boom_cyl_l_barrel_a22, d29*boom_cyl_l_barrel_a22 - d27*boom_cyl_l_barrel_a02, d28*boom_cyl_l_barrel_a02 - d29*boom_cyl_l_barrel_a12, d21, d23, d24, d33*boom_cyl_l_rod_a10 - d34*boom_cyl_l_rod_a20, d35*boom_cyl_l_rod_a20 - d33*boom_cyl_l_rod_a00, d34*boom_cyl_l_rod_a00 - d35*boom_cyl_l_rod_a10, d25, d22, d26, d37, -d38, d39, -d37, d38, -d39, -d40, d41, -1.0, 1.0, d40, -d42, -1.0, 1.0, -d41, d42, -1.0, 1.0, d43, -d44, 1.0, -1.0, -d43, d45, 1.0, -1.0, d44, -d45, 1.0, -1.0, d46, -d47, d48, -d46, d47, -d48, d49, d51, d52, d53, d50, d54, d55, d57, d58, d59, d56, d60, d61*boom_cyl_r_barrel_a11 - d62*boom_cyl_r_barrel_a21, d63*boom_cyl_r_barrel_a21 - d61*boom_cyl_r_barrel_a01, d62*boom_cyl_r_barrel_a01 - d63*boom_cyl_r_barrel_a11, d49, d51, d52, d64*boom_cyl_r_rod_a10 - d65*boom_cyl_r_rod_a20, d66*boom_cyl_r_rod_a20 - d64*boom_cyl_r_rod_a00, d65*boom_cyl_r_rod_a00 - d66*boom_cyl_r_rod_a10, d53, d50, d54, d61*boom_cyl_r_barrel_a12 - d62*boom_cyl_r_barrel_a22, d63*boom_cyl_r_barrel_a22 - d61*boom_cyl_r_barrel_a02, d62*boom_cyl_r_barrel_a02 - d63*boom_cyl_r_barrel_a12, d55, d57, d58, d67*boom_cyl_r_rod_a10 - d68*boom_cyl_r_rod_a20, d69*boom_cyl_r_rod_a20 - d67*boom_cyl_r_rod_a00, d68*boom_cyl_r_rod_a00 - d69*boom_cyl_r_rod_a10, d59, d56, d60, d71, -d72, d73, -d71, d72, -d73, -d74, d75, -1.0, 1.0, d74, -d76, -1.0, 1.0, -d75, d76, -1.0, 1.0, d77, -d78, 1.0, -1.0, -d77, d79, 1.0, -1.0, d78, -d79, 1.0, -1.0, d80, -d81, d82, -d80, d81, -d82, d83, -d84, d85, -d83, d84, -d85, d86, -d87, 1.0, -1.0, -d86, d88, 1.0, -1.0, d87, -d88, 1.0, -1.0, d89, -d90, d91, -d89, d90, -d91, d92, d94, d95, d96, d93, d97, d98, d100, d101, d102, d99, d103, d104*arm_cyl_barrel_a11 - d105*arm_cyl_barrel_a21, d106*arm_cyl_barrel_a21 - d104*arm_cyl_barrel_a01, d105*arm_cyl_barrel_a01 - d106*arm_cyl_barrel_a11, d92, d94, d95, d107*arm_cyl_rod_a10 - d108*arm_cyl_rod_a20, d109*arm_cyl_rod_a20 - d107*arm_cyl_rod_a00, d108*arm_cyl_rod_a00 - d109*arm_cyl_rod_a10, d96, d93, d97, d104*arm_cyl_barrel_a12 - d105*arm_cyl_barrel_a22, d106*arm_cyl_barrel_a22 - d104*arm_cyl_barrel_a02, d105*arm_cyl_barrel_a02 - d106*arm_cyl_barrel_a12, d98, d100, d101, d110*arm_cyl_rod_a10 - d111*arm_cyl_rod_a20, d112*arm_cyl_rod_a20 - d110*arm_cyl_rod_a00, d111*arm_cyl_rod_a00 - d112*arm_cyl_rod_a10, d102, d99, d103, d114, -d115, d116, -d114, d115, -d116, d117, -d118, -1.0, 1.0, -d117, d119, -1.0, 1.0, d118, -d119, -1.0, 1.0, d120, -d121, 1.0, -1.0, -d120, d122, 1.0, -1.0, d121, -d122, 1.0, -1.0, d123, -d124, d125, -d123, d124, -d125, d126, -d127, d128, -d126, d127, -d128, d129, -d130, 1.0, -1.0, -d129, d131, 1.0, -1.0, d130, -d131, 1.0, -1.0, d132, -d133, d134, -d132, d133, -d134, d135, -d136, d137, -d135, d136, -d137, -d138, d139, 1.0, d140, -d141, -1.0, d138, -d142, 1.0, -d140, d143, -1.0, -d139, d142, 1.0, d141, -d143, -1.0, 1.0, d144, -d145, -1.0, 1.0, -d144, d146, -1.0, 1.0, d145, -d146, -1.0, -d147*bucket_a21 - d148*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11, d148*bucket_a01 + d149*bucket_a21 - d150*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21, -d149*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01, d151*bucket_a11 - d152*bucket_a21, d153*bucket_a21 - d151*bucket_a01, d152*bucket_a01 - d153*bucket_a11, -d154, d155, 1.0, -1.0, d154, -d156, 1.0, -1.0, -d155, d156, 1.0, -1.0, d157, -d158, d159, -d157, d158, -d159, d160, d162, d163, d164, d161, d165, d166, d168, d169, d170, d167, d171, d172*bucket_cyl_barrel_a11 - d173*bucket_cyl_barrel_a21, d174*bucket_cyl_barrel_a21 - d172*bucket_cyl_barrel_a01, d173*bucket_cyl_barrel_a01 - d174*bucket_cyl_barrel_a11, d160, d162, d163, d175*bucket_cyl_rod_a10 - d176*bucket_cyl_rod_a20, d177*bucket_cyl_rod_a20 - d175*bucket_cyl_rod_a00, d176*bucket_cyl_rod_a00 - d177*bucket_cyl_rod_a10, d164, d161, d165, d172*bucket_cyl_barrel_a12 - d173*bucket_cyl_barrel_a22, d174*bucket_cyl_barrel_a22 - d172*bucket_cyl_barrel_a02, d173*bucket_cyl_barrel_a02 - d174*bucket_cyl_barrel_a12, d166, d168, d169, d178*bucket_cyl_rod_a10 - d179*bucket_cyl_rod_a20, d180*bucket_cyl_rod_a20 - d178*bucket_cyl_rod_a00, d179*bucket_cyl_rod_a00 - d180*bucket_cyl_rod_a10, d170, d167, d171, d182, -d183, d184, -d182, d183, -d184, 1.0, d185, -d186, -1.0, 1.0, -d185, d187, -1.0, 1.0, d186, -d187, -1.0]
+    d138 = 0.5686266556413632*p_side_link
+    d139 = d138*side_link_a20 - 0.822595724821202*side_link_a22*p_side_link
+    d140 = d138*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d141 = 0.60493530832545*p_bucket_link
+    d142 = 0.796274621434837*p_bucket_link
+    d143 = d141*bucket_link_a20 + d142*bucket_link_a22
+    d144 = d141*bucket_link_a10 + d142*bucket_link_a12
+    d145 = d138*side_link_a00 - 0.822595724821202*side_link_a02*p_side_link
+    d146 = d141*bucket_link_a00 + d142*bucket_link_a02
+    d147 = bucket_a20*p_K_x + bucket_a22*p_K_z
+    d148 = bucket_a10*p_K_x + bucket_a12*p_K_z
+    d149 = bucket_a00*p_K_x + bucket_a02*p_K_z
+    d150 = (0.7962746214343476)*bucket_link_a10
+    d151 = (0.6049353083260941)*bucket_link_a22
+    d152 = (0.7962746214343476)*bucket_link_a00
+    d153 = (0.7962746214343476)*bucket_link_a20
+    d154 = -d153 + (0.6049353083260941)*bucket_link_a22
+    d155 = -d150 + (0.6049353083260941)*bucket_link_a12
+    d156 = -d152 + (0.6049353083260941)*bucket_link_a02
+    d157 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
+    d158 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
+    d159 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
+    d160 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
+    d161 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
+    d162 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
+    d163 = bucket_cyl_barrel_a11*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a10
+    d164 = bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00
+    d165 = -d164
+    d166 = bucket_cyl_barrel_a01*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a00
+    d167 = -d163
+    d168 = -d166
+    d169 = bucket_cyl_barrel_a12*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a10
+    d170 = bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00
+    d171 = -d170
+    d172 = bucket_cyl_barrel_a02*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a00
+    d173 = -d169
+    d174 = -d172
+    d175 = bucket_cyl_barrel_oy*bucket_cyl_rod_a00 + bucket_cyl_rod_a10*bucket_cyl_rod_ox - bucket_cyl_barrel_ox*bucket_cyl_rod_a10 - bucket_cyl_rod_a00*bucket_cyl_rod_oy
+    d176 = bucket_cyl_barrel_ox*bucket_cyl_rod_a20 + bucket_cyl_rod_a00*bucket_cyl_rod_oz - bucket_cyl_barrel_oz*bucket_cyl_rod_a00 - bucket_cyl_rod_a20*bucket_cyl_rod_ox
+    d177 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10 + bucket_cyl_rod_a20*bucket_cyl_rod_oy - bucket_cyl_barrel_oy*bucket_cyl_rod_a20 - bucket_cyl_rod_a10*bucket_cyl_rod_oz
+    d178 = bucket_cyl_barrel_a01*bucket_cyl_rod_oy + bucket_cyl_barrel_a11*bucket_cyl_barrel_ox - bucket_cyl_barrel_a01*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_rod_ox
+    d179 = bucket_cyl_barrel_a01*bucket_cyl_barrel_oz + bucket_cyl_barrel_a21*bucket_cyl_rod_ox - bucket_cyl_barrel_a01*bucket_cyl_rod_oz - bucket_cyl_barrel_a21*bucket_cyl_barrel_ox
+    d180 = bucket_cyl_barrel_a11*bucket_cyl_rod_oz + bucket_cyl_barrel_a21*bucket_cyl_barrel_oy - bucket_cyl_barrel_a11*bucket_cyl_barrel_oz - bucket_cyl_barrel_a21*bucket_cyl_rod_oy
+    d181 = bucket_cyl_barrel_a02*bucket_cyl_rod_oy + bucket_cyl_barrel_a12*bucket_cyl_barrel_ox - bucket_cyl_barrel_a02*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_rod_ox
+    d182 = bucket_cyl_barrel_a02*bucket_cyl_barrel_oz + bucket_cyl_barrel_a22*bucket_cyl_rod_ox - bucket_cyl_barrel_a02*bucket_cyl_rod_oz - bucket_cyl_barrel_a22*bucket_cyl_barrel_ox
+    d183 = bucket_cyl_barrel_a12*bucket_cyl_rod_oz + bucket_cyl_barrel_a22*bucket_cyl_barrel_oy - bucket_cyl_barrel_a12*bucket_cyl_barrel_oz - bucket_cyl_barrel_a22*bucket_cyl_rod_oy
+    d184 = (1.0)*bucket_cyl_rod_a22
+    d185 = d184*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
+    d186 = d184*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
+    d187 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
+    d188 = 0.5686266556413632*p_side_link
+    d189 = 0.822595724821202*p_side_link
+    d190 = d188*side_link_a20 - d189*side_link_a22
+    d191 = d188*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d192 = d188*side_link_a00 - d189*side_link_a02
+    return [-upper_ox, -upper_oy, -upper_oz, upper_a20, upper_a21, upper_ox - boom_ox + (22767/100000)*upper_a00 + (195729/100000)*upper_a02, upper_oy - boom_oy + (22767/100000)*upper_a10 + (195729/100000)*upper_a12, upper_oz - boom_oz + (22767/100000)*upper_a20 + (195729/100000)*upper_a22, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, upper_ox - boom_cyl_l_barrel_ox + (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_oy - boom_cyl_l_barrel_oy + (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_oz - boom_cyl_l_barrel_oz + (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a01*boom_cyl_l_rod_a00 + boom_cyl_l_barrel_a11*boom_cyl_l_rod_a10 + boom_cyl_l_barrel_a21*boom_cyl_l_rod_a20, boom_cyl_l_barrel_a02*boom_cyl_l_rod_a00 + boom_cyl_l_barrel_a12*boom_cyl_l_rod_a10 + boom_cyl_l_barrel_a22*boom_cyl_l_rod_a20, c0*(boom_cyl_l_barrel_a21*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a11*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a01*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a21*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a11*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a01*boom_cyl_l_rod_a10), c0*(boom_cyl_l_barrel_a22*boom_cyl_l_rod_a10 - boom_cyl_l_barrel_a12*boom_cyl_l_rod_a20) + c1*(boom_cyl_l_barrel_a02*boom_cyl_l_rod_a20 - boom_cyl_l_barrel_a22*boom_cyl_l_rod_a00) + c2*(boom_cyl_l_barrel_a12*boom_cyl_l_rod_a00 - boom_cyl_l_barrel_a02*boom_cyl_l_rod_a10), (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_ox - boom_ox - 8/25*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z, boom_cyl_l_rod_oy - boom_oy - 8/25*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z, boom_cyl_l_rod_oz - boom_oz - 8/25*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z, upper_ox - boom_cyl_r_barrel_ox - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_oy - boom_cyl_r_barrel_oy - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_oz - boom_cyl_r_barrel_oz - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a01*boom_cyl_r_rod_a00 + boom_cyl_r_barrel_a11*boom_cyl_r_rod_a10 + boom_cyl_r_barrel_a21*boom_cyl_r_rod_a20, boom_cyl_r_barrel_a02*boom_cyl_r_rod_a00 + boom_cyl_r_barrel_a12*boom_cyl_r_rod_a10 + boom_cyl_r_barrel_a22*boom_cyl_r_rod_a20, c3*(boom_cyl_r_barrel_a21*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a11*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a01*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a21*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a11*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a01*boom_cyl_r_rod_a10), c3*(boom_cyl_r_barrel_a22*boom_cyl_r_rod_a10 - boom_cyl_r_barrel_a12*boom_cyl_r_rod_a20) + c4*(boom_cyl_r_barrel_a02*boom_cyl_r_rod_a20 - boom_cyl_r_barrel_a22*boom_cyl_r_rod_a00) + c5*(boom_cyl_r_barrel_a12*boom_cyl_r_rod_a00 - boom_cyl_r_barrel_a02*boom_cyl_r_rod_a10), (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_ox - boom_ox + (8/25)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z, boom_cyl_r_rod_oy - boom_oy + (8/25)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z, boom_cyl_r_rod_oz - boom_oz + (8/25)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z, boom_ox - arm_ox + (23939/5000)*boom_a00 + (29959/10000)*boom_a02, boom_oy - arm_oy + (23939/5000)*boom_a10 + (29959/10000)*boom_a12, boom_oz - arm_oz + (23939/5000)*boom_a20 + (29959/10000)*boom_a22, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, boom_ox - arm_cyl_barrel_ox + (183/80)*boom_a00 + (557/200)*boom_a02, boom_oy - arm_cyl_barrel_oy + (183/80)*boom_a10 + (557/200)*boom_a12, boom_oz - arm_cyl_barrel_oz + (183/80)*boom_a20 + (557/200)*boom_a22, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a01*arm_cyl_rod_a00 + arm_cyl_barrel_a11*arm_cyl_rod_a10 + arm_cyl_barrel_a21*arm_cyl_rod_a20, arm_cyl_barrel_a02*arm_cyl_rod_a00 + arm_cyl_barrel_a12*arm_cyl_rod_a10 + arm_cyl_barrel_a22*arm_cyl_rod_a20, c6*(arm_cyl_barrel_a21*arm_cyl_rod_a10 - arm_cyl_barrel_a11*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a01*arm_cyl_rod_a20 - arm_cyl_barrel_a21*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a11*arm_cyl_rod_a00 - arm_cyl_barrel_a01*arm_cyl_rod_a10), c6*(arm_cyl_barrel_a22*arm_cyl_rod_a10 - arm_cyl_barrel_a12*arm_cyl_rod_a20) + c7*(arm_cyl_barrel_a02*arm_cyl_rod_a20 - arm_cyl_barrel_a22*arm_cyl_rod_a00) + c8*(arm_cyl_barrel_a12*arm_cyl_rod_a00 - arm_cyl_barrel_a02*arm_cyl_rod_a10), (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_ox - arm_ox - arm_a00*p_F_x - arm_a02*p_F_z, arm_cyl_rod_oy - arm_oy - arm_a10*p_F_x - arm_a12*p_F_z, arm_cyl_rod_oz - arm_oz - arm_a20*p_F_x - arm_a22*p_F_z, arm_ox - bucket_ox + (9477/5000)*arm_a00 + (21809/10000)*arm_a02, arm_oy - bucket_oy + (9477/5000)*arm_a10 + (21809/10000)*arm_a12, arm_oz - bucket_oz + (9477/5000)*arm_a20 + (21809/10000)*arm_a22, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, arm_ox - side_link_ox + (7877/5000)*arm_a00 + (18799/10000)*arm_a02, arm_oy - side_link_oy + (7877/5000)*arm_a10 + (18799/10000)*arm_a12, arm_oz - side_link_oz + (7877/5000)*arm_a20 + (18799/10000)*arm_a22, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, side_link_ox - bucket_link_ox + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00, side_link_oy - bucket_link_oy + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10, side_link_oz - bucket_link_oz + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20, bucket_link_ox - bucket_ox - bucket_a00*p_K_x - bucket_a02*p_K_z, bucket_link_oy - bucket_oy - bucket_a10*p_K_x - bucket_a12*p_K_z, bucket_link_oz - bucket_oz - bucket_a20*p_K_x - bucket_a22*p_K_z, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), arm_ox - bucket_cyl_barrel_ox - 24687/100000*arm_a00 + (36797/50000)*arm_a02, arm_oy - bucket_cyl_barrel_oy - 24687/100000*arm_a10 + (36797/50000)*arm_a12, arm_oz - bucket_cyl_barrel_oz - 24687/100000*arm_a20 + (36797/50000)*arm_a22, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a01*bucket_cyl_rod_a00 + bucket_cyl_barrel_a11*bucket_cyl_rod_a10 + bucket_cyl_barrel_a21*bucket_cyl_rod_a20, bucket_cyl_barrel_a02*bucket_cyl_rod_a00 + bucket_cyl_barrel_a12*bucket_cyl_rod_a10 + bucket_cyl_barrel_a22*bucket_cyl_rod_a20, c13*(bucket_cyl_barrel_a21*bucket_cyl_rod_a10 - bucket_cyl_barrel_a11*bucket_cyl_rod_a20) + c14*(bucket_cyl_barrel_a01*bucket_cyl_rod_a20 - bucket_cyl_barrel_a21*bucket_cyl_rod_a00) + c15*(bucket_cyl_barrel_a11*bucket_cyl_rod_a00 - bucket_cyl_barrel_a01*bucket_cyl_rod_a10), c13*(bucket_cyl_barrel_a22*bucket_cyl_rod_a10 - bucket_cyl_barrel_a12*bucket_cyl_rod_a20) + c14*(bucket_cyl_barrel_a02*bucket_cyl_rod_a20 - bucket_cyl_barrel_a22*bucket_cyl_rod_a00) + c15*(bucket_cyl_barrel_a12*bucket_cyl_rod_a00 - bucket_cyl_barrel_a02*bucket_cyl_rod_a10), (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_ox - side_link_ox + c16*side_link_a00 - c17*side_link_a02, bucket_cyl_rod_oy - side_link_oy + c16*side_link_a10 - c17*side_link_a12, bucket_cyl_rod_oz - side_link_oz + c16*side_link_a20 - c17*side_link_a22], [-1.0, -1.0, -1.0, upper_a10, -upper_a00, upper_a11, -upper_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, d5, -d3, d4, -d5, d6, -d7, d8, -d6, d7, -d8, d9, -d10, 1.0, -1.0, -d9, d11, 1.0, -1.0, d10, -d11, 1.0, -1.0, d12, -d13, d14, -d12, d13, -d14, d15, d17, d18, d19, d16, d20, d21, d23, d24, d25, d22, d26, d27*boom_cyl_l_barrel_a11 - d28*boom_cyl_l_barrel_a21, d29*boom_cyl_l_barrel_a21 - d27*boom_cyl_l_barrel_a01, d28*boom_cyl_l_barrel_a01 - d29*boom_cyl_l_barrel_a11, d15, d17, d18, d30*boom_cyl_l_rod_a10 - d31*boom_cyl_l_rod_a20, d32*boom_cyl_l_rod_a20 - d30*boom_cyl_l_rod_a00, d31*boom_cyl_l_rod_a00 - d32*boom_cyl_l_rod_a10, d19, d16, d20, d27*boom_cyl_l_barrel_a12 - d28*boom_cyl_l_barrel_a22, d29*boom_cyl_l_barrel_a22 - d27*boom_cyl_l_barrel_a02, d28*boom_cyl_l_barrel_a02 - d29*boom_cyl_l_barrel_a12, d21, d23, d24, d33*boom_cyl_l_rod_a10 - d34*boom_cyl_l_rod_a20, d35*boom_cyl_l_rod_a20 - d33*boom_cyl_l_rod_a00, d34*boom_cyl_l_rod_a00 - d35*boom_cyl_l_rod_a10, d25, d22, d26, d37, -d38, d39, -d37, d38, -d39, -d40, d41, -1.0, 1.0, d40, -d42, -1.0, 1.0, -d41, d42, -1.0, 1.0, d43, -d44, 1.0, -1.0, -d43, d45, 1.0, -1.0, d44, -d45, 1.0, -1.0, d46, -d47, d48, -d46, d47, -d48, d49, d51, d52, d53, d50, d54, d55, d57, d58, d59, d56, d60, d61*boom_cyl_r_barrel_a11 - d62*boom_cyl_r_barrel_a21, d63*boom_cyl_r_barrel_a21 - d61*boom_cyl_r_barrel_a01, d62*boom_cyl_r_barrel_a01 - d63*boom_cyl_r_barrel_a11, d49, d51, d52, d64*boom_cyl_r_rod_a10 - d65*boom_cyl_r_rod_a20, d66*boom_cyl_r_rod_a20 - d64*boom_cyl_r_rod_a00, d65*boom_cyl_r_rod_a00 - d66*boom_cyl_r_rod_a10, d53, d50, d54, d61*boom_cyl_r_barrel_a12 - d62*boom_cyl_r_barrel_a22, d63*boom_cyl_r_barrel_a22 - d61*boom_cyl_r_barrel_a02, d62*boom_cyl_r_barrel_a02 - d63*boom_cyl_r_barrel_a12, d55, d57, d58, d67*boom_cyl_r_rod_a10 - d68*boom_cyl_r_rod_a20, d69*boom_cyl_r_rod_a20 - d67*boom_cyl_r_rod_a00, d68*boom_cyl_r_rod_a00 - d69*boom_cyl_r_rod_a10, d59, d56, d60, d71, -d72, d73, -d71, d72, -d73, -d74, d75, -1.0, 1.0, d74, -d76, -1.0, 1.0, -d75, d76, -1.0, 1.0, d77, -d78, 1.0, -1.0, -d77, d79, 1.0, -1.0, d78, -d79, 1.0, -1.0, d80, -d81, d82, -d80, d81, -d82, d83, -d84, d85, -d83, d84, -d85, d86, -d87, 1.0, -1.0, -d86, d88, 1.0, -1.0, d87, -d88, 1.0, -1.0, d89, -d90, d91, -d89, d90, -d91, d92, d94, d95, d96, d93, d97, d98, d100, d101, d102, d99, d103, d104*arm_cyl_barrel_a11 - d105*arm_cyl_barrel_a21, d106*arm_cyl_barrel_a21 - d104*arm_cyl_barrel_a01, d105*arm_cyl_barrel_a01 - d106*arm_cyl_barrel_a11, d92, d94, d95, d107*arm_cyl_rod_a10 - d108*arm_cyl_rod_a20, d109*arm_cyl_rod_a20 - d107*arm_cyl_rod_a00, d108*arm_cyl_rod_a00 - d109*arm_cyl_rod_a10, d96, d93, d97, d104*arm_cyl_barrel_a12 - d105*arm_cyl_barrel_a22, d106*arm_cyl_barrel_a22 - d104*arm_cyl_barrel_a02, d105*arm_cyl_barrel_a02 - d106*arm_cyl_barrel_a12, d98, d100, d101, d110*arm_cyl_rod_a10 - d111*arm_cyl_rod_a20, d112*arm_cyl_rod_a20 - d110*arm_cyl_rod_a00, d111*arm_cyl_rod_a00 - d112*arm_cyl_rod_a10, d102, d99, d103, d114, -d115, d116, -d114, d115, -d116, -d117, d118, -1.0, 1.0, d117, -d119, -1.0, 1.0, -d118, d119, -1.0, 1.0, d120, -d121, 1.0, -1.0, -d120, d122, 1.0, -1.0, d121, -d122, 1.0, -1.0, d123, -d124, d125, -d123, d124, -d125, d126, -d127, d128, -d126, d127, -d128, d129, -d130, 1.0, -1.0, -d129, d131, 1.0, -1.0, d130, -d131, 1.0, -1.0, d132, -d133, d134, -d132, d133, -d134, d135, -d136, d137, -d135, d136, -d137, -d139, d140, 1.0, d143, -d144, -1.0, d139, -d145, 1.0, -d143, d146, -1.0, -d140, d145, 1.0, d144, -d146, -1.0, 1.0, -d147, d148, -1.0, 1.0, d147, -d149, -1.0, 1.0, -d148, d149, -1.0, -d150*bucket_a21 - d151*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11, d151*bucket_a01 + d152*bucket_a21 - d153*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21, -d152*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01, d154*bucket_a11 - d155*bucket_a21, d156*bucket_a21 - d154*bucket_a01, d155*bucket_a01 - d156*bucket_a11, -d157, d158, 1.0, -1.0, d157, -d159, 1.0, -1.0, -d158, d159, 1.0, -1.0, d160, -d161, d162, -d160, d161, -d162, d163, d165, d166, d167, d164, d168, d169, d171, d172, d173, d170, d174, d175*bucket_cyl_barrel_a11 - d176*bucket_cyl_barrel_a21, d177*bucket_cyl_barrel_a21 - d175*bucket_cyl_barrel_a01, d176*bucket_cyl_barrel_a01 - d177*bucket_cyl_barrel_a11, d163, d165, d166, d178*bucket_cyl_rod_a10 - d179*bucket_cyl_rod_a20, d180*bucket_cyl_rod_a20 - d178*bucket_cyl_rod_a00, d179*bucket_cyl_rod_a00 - d180*bucket_cyl_rod_a10, d167, d164, d168, d175*bucket_cyl_barrel_a12 - d176*bucket_cyl_barrel_a22, d177*bucket_cyl_barrel_a22 - d175*bucket_cyl_barrel_a02, d176*bucket_cyl_barrel_a02 - d177*bucket_cyl_barrel_a12, d169, d171, d172, d181*bucket_cyl_rod_a10 - d182*bucket_cyl_rod_a20, d183*bucket_cyl_rod_a20 - d181*bucket_cyl_rod_a00, d182*bucket_cyl_rod_a00 - d183*bucket_cyl_rod_a10, d173, d170, d174, d185, -d186, d187, -d185, d186, -d187, 1.0, d190, -d191, -1.0, 1.0, -d190, d192, -1.0, 1.0, d191, -d192, -1.0]
 
 
-def _joints_gamma_s(q, v):
+def _joints_gamma_s(q, v, p):
     """gamma of the joint rows at one configuration (list of floats)."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, boom_rw, boom_rx, boom_ry, boom_rz, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, boom_cyl_r_barrel_rw, boom_cyl_r_barrel_rx, boom_cyl_r_barrel_ry, boom_cyl_r_barrel_rz, boom_cyl_r_barrel_dw, boom_cyl_r_barrel_dx, boom_cyl_r_barrel_dy, boom_cyl_r_barrel_dz, boom_cyl_r_rod_rw, boom_cyl_r_rod_rx, boom_cyl_r_rod_ry, boom_cyl_r_rod_rz, boom_cyl_r_rod_dw, boom_cyl_r_rod_dx, boom_cyl_r_rod_dy, boom_cyl_r_rod_dz, arm_rw, arm_rx, arm_ry, arm_rz, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, side_link_rw, side_link_rx, side_link_ry, side_link_rz, _, _, _, _, bucket_link_rw, bucket_link_rx, bucket_link_ry, bucket_link_rz, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, v_boom_wx, v_boom_wy, v_boom_wz, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, v_boom_cyl_l_rod_wx, v_boom_cyl_l_rod_wy, v_boom_cyl_l_rod_wz, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, v_boom_cyl_r_barrel_wx, v_boom_cyl_r_barrel_wy, v_boom_cyl_r_barrel_wz, v_boom_cyl_r_barrel_vx, v_boom_cyl_r_barrel_vy, v_boom_cyl_r_barrel_vz, v_boom_cyl_r_rod_wx, v_boom_cyl_r_rod_wy, v_boom_cyl_r_rod_wz, v_boom_cyl_r_rod_vx, v_boom_cyl_r_rod_vy, v_boom_cyl_r_rod_vz, v_arm_wx, v_arm_wy, v_arm_wz, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, v_arm_cyl_rod_wx, v_arm_cyl_rod_wy, v_arm_cyl_rod_wz, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, v_bucket_cyl_rod_wx, v_bucket_cyl_rod_wy, v_bucket_cyl_rod_wz, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, v_side_link_wx, v_side_link_wy, v_side_link_wz, _, _, _, v_bucket_link_wx, v_bucket_link_wy, v_bucket_link_wz, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1.0 + 2.0*(upper_rw*upper_rw) + 2.0*(upper_rx*upper_rx)
     upper_a01 = -2.0*upper_rw*upper_rz + 2.0*upper_rx*upper_ry
     upper_a02 = 2.0*upper_rw*upper_ry + 2.0*upper_rx*upper_rz
@@ -2507,14 +2553,14 @@ def _joints_gamma_s(q, v):
     c141 = -1.0*v_boom_cyl_l_rod_wz + (1.0)*v_boom_cyl_l_barrel_wz
     c142 = -c141
     c143 = -c138
-    c144 = -139283/100000*boom_a00*v_boom_wy + (139283/100000)*boom_a10*v_boom_wx
-    c145 = -8/25*boom_a01*v_boom_wy + (8/25)*boom_a11*v_boom_wx
-    c146 = -2.001922*boom_a02*v_boom_wy + (2.001922)*boom_a12*v_boom_wx
-    c147 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c148 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
+    c144 = -8/25*boom_a01*v_boom_wy + (8/25)*boom_a11*v_boom_wx
+    c145 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
+    c146 = p_C_x*(boom_a10*v_boom_wx - boom_a00*v_boom_wy)
+    c147 = p_C_z*(boom_a12*v_boom_wx - boom_a02*v_boom_wy)
+    c148 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
     c149 = boom_a02*v_boom_wz - boom_a22*v_boom_wx
-    c150 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c151 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c150 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c151 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
     c152 = boom_a22*v_boom_wy - boom_a12*v_boom_wz
     c153 = -4307/6250*upper_a00*v_upper_wy + (4307/6250)*upper_a10*v_upper_wx
     c154 = upper_a11*v_upper_wx - upper_a01*v_upper_wy
@@ -2642,15 +2688,15 @@ def _joints_gamma_s(q, v):
     c276 = -1.0*v_boom_cyl_r_rod_wz + (1.0)*v_boom_cyl_r_barrel_wz
     c277 = -c276
     c278 = -c273
-    c279 = -139283/100000*boom_a00*v_boom_wy + (139283/100000)*boom_a10*v_boom_wx
-    c280 = boom_a11*v_boom_wx - boom_a01*v_boom_wy
-    c281 = -2.001922*boom_a02*v_boom_wy + (2.001922)*boom_a12*v_boom_wx
-    c282 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c283 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
-    c284 = (8/25)*v_boom_wz
+    c279 = boom_a11*v_boom_wx - boom_a01*v_boom_wy
+    c280 = boom_a01*v_boom_wz - boom_a21*v_boom_wx
+    c281 = (8/25)*v_boom_wz
+    c282 = p_C_x*(boom_a10*v_boom_wx - boom_a00*v_boom_wy)
+    c283 = p_C_z*(boom_a12*v_boom_wx - boom_a02*v_boom_wy)
+    c284 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
     c285 = boom_a02*v_boom_wz - boom_a22*v_boom_wx
-    c286 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c287 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c286 = boom_a21*v_boom_wy - boom_a11*v_boom_wz
+    c287 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
     c288 = boom_a22*v_boom_wy - boom_a12*v_boom_wz
     c289 = -23939/5000*boom_a00*v_boom_wy + (23939/5000)*boom_a10*v_boom_wx
     c290 = -29959/10000*boom_a02*v_boom_wy + (29959/10000)*boom_a12*v_boom_wx
@@ -2792,8 +2838,8 @@ def _joints_gamma_s(q, v):
     c426 = -1.0*v_arm_cyl_rod_wz + (1.0)*v_arm_cyl_barrel_wz
     c427 = -c426
     c428 = -c423
-    c429 = -393281/500000*arm_a00*v_arm_wy + (393281/500000)*arm_a10*v_arm_wx
-    c430 = -0.369691*arm_a02*v_arm_wy + (0.369691)*arm_a12*v_arm_wx
+    c429 = p_F_x*(arm_a10*v_arm_wx - arm_a00*v_arm_wy)
+    c430 = p_F_z*(arm_a12*v_arm_wx - arm_a02*v_arm_wy)
     c431 = arm_a00*v_arm_wz - arm_a20*v_arm_wx
     c432 = arm_a02*v_arm_wz - arm_a22*v_arm_wx
     c433 = arm_a20*v_arm_wy - arm_a10*v_arm_wz
@@ -2834,171 +2880,175 @@ def _joints_gamma_s(q, v):
     c468 = c464*arm_a01 + c462*arm_a21
     c469 = arm_a21*v_arm_wy - arm_a11*v_arm_wz
     c470 = c465*arm_a11 + c460*arm_a21
-    c471 = -166329/500000*side_link_a00*v_side_link_wy + (166329/500000)*side_link_a10*v_side_link_wx
-    c472 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy
-    c473 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
-    c474 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
-    c475 = (96247/200000)*v_side_link_wz
-    c476 = bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy
-    c477 = bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy
-    c478 = bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx
-    c479 = (85607/250000)*v_bucket_link_wz
-    c480 = bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx
-    c481 = (0.450737)*v_bucket_link_wz
-    c482 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
-    c483 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
+    c471 = p_bucket_link*v_bucket_link_wy
+    c472 = 0.60493530832545*bucket_link_a10*v_bucket_link_wx - 0.60493530832545*bucket_link_a00*v_bucket_link_wy
+    c473 = 0.796274621434837*bucket_link_a12*v_bucket_link_wx - 0.796274621434837*bucket_link_a02*v_bucket_link_wy
+    c474 = bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx
+    c475 = bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx
+    c476 = side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy
+    c477 = 0.822595724821202*p_side_link
+    c478 = c477*(side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy)
+    c479 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
+    c480 = 0.5686266556413632*p_side_link
+    c481 = c480*v_side_link_wz
+    c482 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
+    c483 = p_bucket_link*v_bucket_link_wx
     c484 = bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz
-    c485 = bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz
-    c486 = -8101/25000*bucket_a00*v_bucket_wy + (8101/25000)*bucket_a10*v_bucket_wx
-    c487 = bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy
-    c488 = bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx
-    c489 = bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx
-    c490 = (16927/50000)*v_bucket_wz
-    c491 = bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz
-    c492 = bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz
-    c493 = -0.7962746214343476*v_bucket_wy + (0.7962746214343476)*v_bucket_link_wy
-    c494 = -c493
-    c495 = -0.7962746214343476*v_bucket_wx + (0.7962746214343476)*v_bucket_link_wx
-    c496 = -0.7962746214343476*v_bucket_wz + (0.7962746214343476)*v_bucket_link_wz
-    c497 = -c495
-    c498 = -0.6049353083260941*v_bucket_wy + (0.6049353083260941)*v_bucket_link_wy
-    c499 = -0.6049353083260941*v_bucket_wx + (0.6049353083260941)*v_bucket_link_wx
-    c500 = -c499
-    c501 = -0.6049353083260941*v_bucket_wz + (0.6049353083260941)*v_bucket_link_wz
+    c485 = p_bucket_link*v_bucket_link_wz
+    c486 = bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz
+    c487 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
+    c488 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
+    c489 = p_K_x*(bucket_a10*v_bucket_wx - bucket_a00*v_bucket_wy)
+    c490 = p_K_z*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy)
+    c491 = bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx
+    c492 = bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx
+    c493 = bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz
+    c494 = bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz
+    c495 = -0.7962746214343476*v_bucket_wy + (0.7962746214343476)*v_bucket_link_wy
+    c496 = -c495
+    c497 = -0.7962746214343476*v_bucket_wx + (0.7962746214343476)*v_bucket_link_wx
+    c498 = -0.7962746214343476*v_bucket_wz + (0.7962746214343476)*v_bucket_link_wz
+    c499 = -c497
+    c500 = -0.6049353083260941*v_bucket_wy + (0.6049353083260941)*v_bucket_link_wy
+    c501 = -0.6049353083260941*v_bucket_wx + (0.6049353083260941)*v_bucket_link_wx
     c502 = -c501
-    c503 = -c496
-    c504 = -c498
-    c505 = -24687/100000*arm_a00*v_arm_wy + (24687/100000)*arm_a10*v_arm_wx
-    c506 = arm_a12*v_arm_wx - arm_a02*v_arm_wy
-    c507 = arm_a00*v_arm_wz - arm_a20*v_arm_wx
-    c508 = arm_a02*v_arm_wz - arm_a22*v_arm_wx
-    c509 = (36797/50000)*v_arm_wz
-    c510 = arm_a20*v_arm_wy - arm_a10*v_arm_wz
-    c511 = arm_a22*v_arm_wy - arm_a12*v_arm_wz
-    c512 = v_arm_wy - v_bucket_cyl_barrel_wy
-    c513 = v_arm_wx - v_bucket_cyl_barrel_wx
-    c514 = -c513
-    c515 = v_arm_wz - v_bucket_cyl_barrel_wz
+    c503 = -0.6049353083260941*v_bucket_wz + (0.6049353083260941)*v_bucket_link_wz
+    c504 = -c503
+    c505 = -c498
+    c506 = -c500
+    c507 = -24687/100000*arm_a00*v_arm_wy + (24687/100000)*arm_a10*v_arm_wx
+    c508 = arm_a12*v_arm_wx - arm_a02*v_arm_wy
+    c509 = arm_a00*v_arm_wz - arm_a20*v_arm_wx
+    c510 = arm_a02*v_arm_wz - arm_a22*v_arm_wx
+    c511 = (36797/50000)*v_arm_wz
+    c512 = arm_a20*v_arm_wy - arm_a10*v_arm_wz
+    c513 = arm_a22*v_arm_wy - arm_a12*v_arm_wz
+    c514 = v_arm_wy - v_bucket_cyl_barrel_wy
+    c515 = v_arm_wx - v_bucket_cyl_barrel_wx
     c516 = -c515
-    c517 = -c512
-    c518 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wy
-    c519 = -c518 + bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
-    c520 = v_bucket_cyl_barrel_wy - v_bucket_cyl_rod_wy
-    c521 = c520*bucket_cyl_rod_a00
-    c522 = v_bucket_cyl_barrel_wx - v_bucket_cyl_rod_wx
-    c523 = -c522
-    c524 = c523*bucket_cyl_rod_a10
-    c525 = c521 + c524
-    c526 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wz
-    c527 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wx
-    c528 = c526 - c527
-    c529 = v_bucket_cyl_barrel_wz - v_bucket_cyl_rod_wz
-    c530 = -c529
-    c531 = c530*bucket_cyl_rod_a00
-    c532 = c522*bucket_cyl_rod_a20
-    c533 = c531 + c532
-    c534 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wy
-    c535 = -c534 + bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
-    c536 = -c520
-    c537 = c536*bucket_cyl_barrel_a01
-    c538 = c522*bucket_cyl_barrel_a11
-    c539 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wz
-    c540 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wx
-    c541 = c539 - c540
-    c542 = c529*bucket_cyl_barrel_a01
-    c543 = c523*bucket_cyl_barrel_a21
-    c544 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wz
-    c545 = -c544 + bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
-    c546 = c529*bucket_cyl_rod_a10
-    c547 = c536*bucket_cyl_rod_a20
-    c548 = c546 + c547
-    c549 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wz
-    c550 = -c549 + bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
-    c551 = c530*bucket_cyl_barrel_a11
-    c552 = c520*bucket_cyl_barrel_a21
-    c553 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy
-    c554 = -c553 + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
-    c555 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz
-    c556 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx
-    c557 = c555 - c556
-    c558 = c536*bucket_cyl_barrel_a02
-    c559 = c522*bucket_cyl_barrel_a12
-    c560 = c529*bucket_cyl_barrel_a02
-    c561 = c523*bucket_cyl_barrel_a22
-    c562 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz
-    c563 = -c562 + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
-    c564 = c530*bucket_cyl_barrel_a12
-    c565 = c520*bucket_cyl_barrel_a22
-    c566 = c518*bucket_cyl_rod_a10
-    c567 = c526*bucket_cyl_rod_a20
-    c568 = c534*bucket_cyl_barrel_a11
-    c569 = c539*bucket_cyl_barrel_a21
-    c570 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
-    c571 = c570*bucket_cyl_rod_a00
-    c572 = c544*bucket_cyl_rod_a20
-    c573 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
-    c574 = c573*bucket_cyl_barrel_a01
-    c575 = c549*bucket_cyl_barrel_a21
-    c576 = c527*bucket_cyl_rod_a00
-    c577 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
-    c578 = c577*bucket_cyl_rod_a10
-    c579 = c540*bucket_cyl_barrel_a01
-    c580 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
-    c581 = c580*bucket_cyl_barrel_a11
-    c582 = bucket_cyl_rod_a00*v_bucket_cyl_barrel_wx
-    c583 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10
-    c584 = bucket_cyl_rod_a10*v_bucket_cyl_barrel_wy
-    c585 = v_bucket_cyl_barrel_vy - v_bucket_cyl_rod_vy
-    c586 = v_bucket_cyl_barrel_vx - v_bucket_cyl_rod_vx
-    c587 = -c586
-    c588 = c523*bucket_cyl_barrel_ox
-    c589 = c520*bucket_cyl_rod_oy
-    c590 = c532*bucket_cyl_rod_ox + c539*bucket_cyl_rod_ox + c547*bucket_cyl_barrel_oy + c549*bucket_cyl_rod_oy + c582*bucket_cyl_barrel_oz + c583*v_bucket_cyl_barrel_wy + c585*bucket_cyl_rod_a00 + c587*bucket_cyl_rod_a10 + c588*bucket_cyl_rod_a20 + c589*bucket_cyl_rod_a20 - c539*bucket_cyl_barrel_ox - c549*bucket_cyl_barrel_oy - c582*bucket_cyl_rod_oz - c584*bucket_cyl_rod_oz
-    c591 = bucket_cyl_rod_a20*v_bucket_cyl_barrel_wz
-    c592 = v_bucket_cyl_barrel_vz - v_bucket_cyl_rod_vz
-    c593 = -c592
-    c594 = bucket_cyl_rod_a10*bucket_cyl_rod_ox
-    c595 = c530*c583 + c534*bucket_cyl_rod_ox + c546*bucket_cyl_rod_oz + c522*c594 + c524*bucket_cyl_barrel_ox + c580*bucket_cyl_rod_oz + c582*bucket_cyl_barrel_oy + c586*bucket_cyl_rod_a20 + c591*bucket_cyl_barrel_oy + c593*bucket_cyl_rod_a00 - c534*bucket_cyl_barrel_ox - c580*bucket_cyl_barrel_oz - c582*bucket_cyl_rod_oy - c591*bucket_cyl_rod_oy
-    c596 = -c585
-    c597 = c536*bucket_cyl_barrel_oy
-    c598 = c529*bucket_cyl_rod_oz
-    c599 = c531*bucket_cyl_barrel_oz + c540*bucket_cyl_rod_oz + c521*bucket_cyl_rod_oy + c573*bucket_cyl_rod_oy + c584*bucket_cyl_barrel_ox + c591*bucket_cyl_barrel_ox + c592*bucket_cyl_rod_a10 + c596*bucket_cyl_rod_a20 + c597*bucket_cyl_rod_a00 + c598*bucket_cyl_rod_a00 - c540*bucket_cyl_barrel_oz - c573*bucket_cyl_barrel_oy - c591*bucket_cyl_rod_ox - c594*v_bucket_cyl_barrel_wy
-    c600 = bucket_cyl_barrel_a01*v_bucket_cyl_rod_wx
-    c601 = bucket_cyl_barrel_a11*v_bucket_cyl_rod_wy
-    c602 = c522*bucket_cyl_rod_ox
-    c603 = bucket_cyl_barrel_a21*v_bucket_cyl_rod_wz
-    c604 = c530*bucket_cyl_barrel_oz
-    c605 = c553*bucket_cyl_rod_a10
-    c606 = c555*bucket_cyl_rod_a20
-    c607 = c534*bucket_cyl_barrel_a12
-    c608 = c539*bucket_cyl_barrel_a22
-    c609 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
-    c610 = c609*bucket_cyl_rod_a00
-    c611 = c562*bucket_cyl_rod_a20
-    c612 = c573*bucket_cyl_barrel_a02
-    c613 = c549*bucket_cyl_barrel_a22
-    c614 = c556*bucket_cyl_rod_a00
-    c615 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
-    c616 = c615*bucket_cyl_rod_a10
-    c617 = c540*bucket_cyl_barrel_a02
-    c618 = c580*bucket_cyl_barrel_a12
-    c619 = bucket_cyl_barrel_a02*v_bucket_cyl_rod_wx
-    c620 = bucket_cyl_barrel_a12*v_bucket_cyl_rod_wy
-    c621 = bucket_cyl_barrel_a22*v_bucket_cyl_rod_wz
-    c622 = -1.0*v_bucket_cyl_rod_wy + (1.0)*v_bucket_cyl_barrel_wy
-    c623 = -1.0*v_bucket_cyl_rod_wx + (1.0)*v_bucket_cyl_barrel_wx
-    c624 = -c623
-    c625 = -1.0*v_bucket_cyl_rod_wz + (1.0)*v_bucket_cyl_barrel_wz
+    c517 = v_arm_wz - v_bucket_cyl_barrel_wz
+    c518 = -c517
+    c519 = -c514
+    c520 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wy
+    c521 = -c520 + bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
+    c522 = v_bucket_cyl_barrel_wy - v_bucket_cyl_rod_wy
+    c523 = c522*bucket_cyl_rod_a00
+    c524 = v_bucket_cyl_barrel_wx - v_bucket_cyl_rod_wx
+    c525 = -c524
+    c526 = c525*bucket_cyl_rod_a10
+    c527 = c523 + c526
+    c528 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_wz
+    c529 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wx
+    c530 = c528 - c529
+    c531 = v_bucket_cyl_barrel_wz - v_bucket_cyl_rod_wz
+    c532 = -c531
+    c533 = c532*bucket_cyl_rod_a00
+    c534 = c524*bucket_cyl_rod_a20
+    c535 = c533 + c534
+    c536 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wy
+    c537 = -c536 + bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
+    c538 = -c522
+    c539 = c538*bucket_cyl_barrel_a01
+    c540 = c524*bucket_cyl_barrel_a11
+    c541 = bucket_cyl_rod_a00*v_bucket_cyl_rod_wz
+    c542 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wx
+    c543 = c541 - c542
+    c544 = c531*bucket_cyl_barrel_a01
+    c545 = c525*bucket_cyl_barrel_a21
+    c546 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wz
+    c547 = -c546 + bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
+    c548 = c531*bucket_cyl_rod_a10
+    c549 = c538*bucket_cyl_rod_a20
+    c550 = c548 + c549
+    c551 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wz
+    c552 = -c551 + bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
+    c553 = c532*bucket_cyl_barrel_a11
+    c554 = c522*bucket_cyl_barrel_a21
+    c555 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy
+    c556 = -c555 + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
+    c557 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz
+    c558 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx
+    c559 = c557 - c558
+    c560 = c538*bucket_cyl_barrel_a02
+    c561 = c524*bucket_cyl_barrel_a12
+    c562 = c531*bucket_cyl_barrel_a02
+    c563 = c525*bucket_cyl_barrel_a22
+    c564 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz
+    c565 = -c564 + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
+    c566 = c532*bucket_cyl_barrel_a12
+    c567 = c522*bucket_cyl_barrel_a22
+    c568 = c520*bucket_cyl_rod_a10
+    c569 = c528*bucket_cyl_rod_a20
+    c570 = c536*bucket_cyl_barrel_a11
+    c571 = c541*bucket_cyl_barrel_a21
+    c572 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_wx
+    c573 = c572*bucket_cyl_rod_a00
+    c574 = c546*bucket_cyl_rod_a20
+    c575 = bucket_cyl_rod_a10*v_bucket_cyl_rod_wx
+    c576 = c575*bucket_cyl_barrel_a01
+    c577 = c551*bucket_cyl_barrel_a21
+    c578 = c529*bucket_cyl_rod_a00
+    c579 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_wy
+    c580 = c579*bucket_cyl_rod_a10
+    c581 = c542*bucket_cyl_barrel_a01
+    c582 = bucket_cyl_rod_a20*v_bucket_cyl_rod_wy
+    c583 = c582*bucket_cyl_barrel_a11
+    c584 = bucket_cyl_rod_a00*v_bucket_cyl_barrel_wx
+    c585 = bucket_cyl_barrel_oz*bucket_cyl_rod_a10
+    c586 = bucket_cyl_rod_a10*v_bucket_cyl_barrel_wy
+    c587 = v_bucket_cyl_barrel_vy - v_bucket_cyl_rod_vy
+    c588 = v_bucket_cyl_barrel_vx - v_bucket_cyl_rod_vx
+    c589 = -c588
+    c590 = c525*bucket_cyl_barrel_ox
+    c591 = c522*bucket_cyl_rod_oy
+    c592 = c534*bucket_cyl_rod_ox + c541*bucket_cyl_rod_ox + c549*bucket_cyl_barrel_oy + c551*bucket_cyl_rod_oy + c584*bucket_cyl_barrel_oz + c585*v_bucket_cyl_barrel_wy + c587*bucket_cyl_rod_a00 + c589*bucket_cyl_rod_a10 + c590*bucket_cyl_rod_a20 + c591*bucket_cyl_rod_a20 - c541*bucket_cyl_barrel_ox - c551*bucket_cyl_barrel_oy - c584*bucket_cyl_rod_oz - c586*bucket_cyl_rod_oz
+    c593 = bucket_cyl_rod_a20*v_bucket_cyl_barrel_wz
+    c594 = v_bucket_cyl_barrel_vz - v_bucket_cyl_rod_vz
+    c595 = -c594
+    c596 = bucket_cyl_rod_a10*bucket_cyl_rod_ox
+    c597 = c532*c585 + c536*bucket_cyl_rod_ox + c548*bucket_cyl_rod_oz + c524*c596 + c526*bucket_cyl_barrel_ox + c582*bucket_cyl_rod_oz + c584*bucket_cyl_barrel_oy + c588*bucket_cyl_rod_a20 + c593*bucket_cyl_barrel_oy + c595*bucket_cyl_rod_a00 - c536*bucket_cyl_barrel_ox - c582*bucket_cyl_barrel_oz - c584*bucket_cyl_rod_oy - c593*bucket_cyl_rod_oy
+    c598 = -c587
+    c599 = c538*bucket_cyl_barrel_oy
+    c600 = c531*bucket_cyl_rod_oz
+    c601 = c533*bucket_cyl_barrel_oz + c542*bucket_cyl_rod_oz + c523*bucket_cyl_rod_oy + c575*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_ox + c593*bucket_cyl_barrel_ox + c594*bucket_cyl_rod_a10 + c598*bucket_cyl_rod_a20 + c599*bucket_cyl_rod_a00 + c600*bucket_cyl_rod_a00 - c542*bucket_cyl_barrel_oz - c575*bucket_cyl_barrel_oy - c593*bucket_cyl_rod_ox - c596*v_bucket_cyl_barrel_wy
+    c602 = bucket_cyl_barrel_a01*v_bucket_cyl_rod_wx
+    c603 = bucket_cyl_barrel_a11*v_bucket_cyl_rod_wy
+    c604 = c524*bucket_cyl_rod_ox
+    c605 = bucket_cyl_barrel_a21*v_bucket_cyl_rod_wz
+    c606 = c532*bucket_cyl_barrel_oz
+    c607 = c555*bucket_cyl_rod_a10
+    c608 = c557*bucket_cyl_rod_a20
+    c609 = c536*bucket_cyl_barrel_a12
+    c610 = c541*bucket_cyl_barrel_a22
+    c611 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx
+    c612 = c611*bucket_cyl_rod_a00
+    c613 = c564*bucket_cyl_rod_a20
+    c614 = c575*bucket_cyl_barrel_a02
+    c615 = c551*bucket_cyl_barrel_a22
+    c616 = c558*bucket_cyl_rod_a00
+    c617 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy
+    c618 = c617*bucket_cyl_rod_a10
+    c619 = c542*bucket_cyl_barrel_a02
+    c620 = c582*bucket_cyl_barrel_a12
+    c621 = bucket_cyl_barrel_a02*v_bucket_cyl_rod_wx
+    c622 = bucket_cyl_barrel_a12*v_bucket_cyl_rod_wy
+    c623 = bucket_cyl_barrel_a22*v_bucket_cyl_rod_wz
+    c624 = -1.0*v_bucket_cyl_rod_wy + (1.0)*v_bucket_cyl_barrel_wy
+    c625 = -1.0*v_bucket_cyl_rod_wx + (1.0)*v_bucket_cyl_barrel_wx
     c626 = -c625
-    c627 = -c622
-    c628 = -166329/500000*side_link_a00*v_side_link_wy + (166329/500000)*side_link_a10*v_side_link_wx
-    c629 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy
-    c630 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
-    c631 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
-    c632 = (96247/200000)*v_side_link_wz
-    c633 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
-    c634 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
-    return [0.0, 0.0, 0.0, v_upper_wy*(upper_a20*v_upper_wy - upper_a10*v_upper_wz) - v_upper_wx*(upper_a00*v_upper_wz - upper_a20*v_upper_wx), v_upper_wy*(upper_a21*v_upper_wy - upper_a11*v_upper_wz) - v_upper_wx*(upper_a01*v_upper_wz - upper_a21*v_upper_wx), -c0*v_upper_wy - c1*v_upper_wy + (22767/100000)*c2*v_upper_wz + (195729/100000)*c3*v_upper_wz, c0*v_upper_wx + c1*v_upper_wx - 195729/100000*c5*v_upper_wz - 22767/100000*c4*v_upper_wz, -195729/100000*c3*v_upper_wx - 22767/100000*c2*v_upper_wx + (22767/100000)*c4*v_upper_wy + (195729/100000)*c5*v_upper_wy, -c10*(c12*boom_a02 + c8*boom_a22) - c14*(boom_a12*v_boom_wx - boom_a02*v_boom_wy) - c15*(boom_a02*v_boom_wz - boom_a22*v_boom_wx) - c16*(c11*boom_a12 + c13*boom_a22) - c17*(boom_a22*v_boom_wy - boom_a12*v_boom_wz) - c6*(c7*boom_a02 + c9*boom_a12), -c10*(c12*boom_a00 + c8*boom_a20) - c14*(boom_a10*v_boom_wx - boom_a00*v_boom_wy) - c15*(boom_a00*v_boom_wz - boom_a20*v_boom_wx) - c16*(c11*boom_a10 + c13*boom_a20) - c17*(boom_a20*v_boom_wy - boom_a10*v_boom_wz) - c6*(c7*boom_a00 + c9*boom_a10), -c18*v_upper_wy - c20*v_upper_wy - c21*v_upper_wy + (8/25)*c23*v_upper_wz + (4307/6250)*c22*v_upper_wz + (67739/50000)*c24*v_upper_wz, c18*v_upper_wx + c20*v_upper_wx + c21*v_upper_wx - 67739/50000*c27*v_upper_wz - 4307/6250*c25*v_upper_wz - 8/25*c26*v_upper_wz, -67739/50000*c24*v_upper_wx - 4307/6250*c22*v_upper_wx - 8/25*c23*v_upper_wx + (8/25)*c26*v_upper_wy + (4307/6250)*c25*v_upper_wy + (67739/50000)*c27*v_upper_wy, -c19*(c28*boom_cyl_l_barrel_a02 + c30*boom_cyl_l_barrel_a12) - c23*(c29*boom_cyl_l_barrel_a22 + c32*boom_cyl_l_barrel_a02) - c26*(c31*boom_cyl_l_barrel_a12 + c33*boom_cyl_l_barrel_a22) - (c28*upper_a21 + c32*upper_a11)*(boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_wz) - (c29*upper_a11 + c33*upper_a01)*(boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_wy) - (c30*upper_a21 + c31*upper_a01)*(boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_wx), -c35*c41 - c44*c49 - c51*(c53 + c54) - c57*(c58 + c59) - c61*c64 - c66*(c67 + c68), -c49*c73 - c51*(c74 + c75) - c57*(c76 + c77) - c64*c79 - c66*(c80 + c81) - c70*c41, -c35*c106 - c44*c111 - c51*(c59*boom_cyl_l_barrel_ox + c60*boom_cyl_l_barrel_oy + c68*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a11 + c112*boom_cyl_l_barrel_a01 + c113*boom_cyl_l_barrel_a21 + c42*boom_cyl_l_barrel_ox + c116*boom_cyl_l_rod_oz + c117*boom_cyl_l_rod_oz + c118*boom_cyl_l_barrel_a21 - c60*boom_cyl_l_rod_oy - c42*boom_cyl_l_rod_ox - c116*boom_cyl_l_barrel_oz - c117*boom_cyl_l_barrel_oz) - c57*(c34*boom_cyl_l_barrel_ox + c54*boom_cyl_l_rod_ox + c67*boom_cyl_l_barrel_oz + c93*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a21 + c104*boom_cyl_l_barrel_a11 + c108*boom_cyl_l_barrel_a01 + c114*boom_cyl_l_barrel_a11 + c116*boom_cyl_l_rod_oy + c119*boom_cyl_l_rod_oy - c34*boom_cyl_l_rod_ox - c93*boom_cyl_l_rod_oz - c116*boom_cyl_l_barrel_oy - c119*boom_cyl_l_barrel_oy) - c61*c115 - c66*(c53*boom_cyl_l_barrel_oy + c58*boom_cyl_l_rod_oz + c86*boom_cyl_l_barrel_oy + c101*boom_cyl_l_barrel_a21 + c105*boom_cyl_l_barrel_a01 + c109*boom_cyl_l_barrel_a11 + c117*boom_cyl_l_rod_ox + c119*boom_cyl_l_rod_ox + c120*boom_cyl_l_barrel_a01 + c43*boom_cyl_l_barrel_oz - c86*boom_cyl_l_rod_oy - c117*boom_cyl_l_barrel_ox - c119*boom_cyl_l_barrel_ox - c43*boom_cyl_l_rod_oz) - v_boom_cyl_l_barrel_vx*(c82 + c83 - c84 - c85 + c59*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a11) - v_boom_cyl_l_barrel_vy*(c87 + c88 - c90 - c91 + c53*boom_cyl_l_rod_a00 + c63*boom_cyl_l_barrel_a21) - v_boom_cyl_l_barrel_vz*(c92 + c94 - c95 - c97 + c47*boom_cyl_l_barrel_a01 + c67*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c84 + c85 - c82 - c83 + c48*boom_cyl_l_barrel_a21 + c54*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c90 + c91 - c87 - c88 + c37*boom_cyl_l_barrel_a01 + c68*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c95 + c97 - c92 - c94 + c58*boom_cyl_l_rod_a00 + c62*boom_cyl_l_barrel_a11), -c51*(c135*boom_cyl_l_rod_oz + c136*boom_cyl_l_rod_oz + c71*boom_cyl_l_barrel_ox + c77*boom_cyl_l_barrel_ox + c78*boom_cyl_l_barrel_oy + c81*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a12 + c112*boom_cyl_l_barrel_a02 + c113*boom_cyl_l_barrel_a22 + c118*boom_cyl_l_barrel_a22 - c135*boom_cyl_l_barrel_oz - c136*boom_cyl_l_barrel_oz - c71*boom_cyl_l_rod_ox - c78*boom_cyl_l_rod_oy) - c57*(c135*boom_cyl_l_rod_oy + c137*boom_cyl_l_rod_oy + c69*boom_cyl_l_barrel_ox + c75*boom_cyl_l_rod_ox + c80*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a22 + c104*boom_cyl_l_barrel_a12 + c108*boom_cyl_l_barrel_a02 + c114*boom_cyl_l_barrel_a12 + c131*boom_cyl_l_barrel_oz - c135*boom_cyl_l_barrel_oy - c137*boom_cyl_l_barrel_oy - c69*boom_cyl_l_rod_ox - c131*boom_cyl_l_rod_oz) - c66*(c136*boom_cyl_l_rod_ox + c137*boom_cyl_l_rod_ox + c72*boom_cyl_l_barrel_oz + c74*boom_cyl_l_barrel_oy + c76*boom_cyl_l_rod_oz + c101*boom_cyl_l_barrel_a22 + c105*boom_cyl_l_barrel_a02 + c109*boom_cyl_l_barrel_a12 + c120*boom_cyl_l_barrel_a02 + c125*boom_cyl_l_barrel_oy - c136*boom_cyl_l_barrel_ox - c137*boom_cyl_l_barrel_ox - c72*boom_cyl_l_rod_oz - c125*boom_cyl_l_rod_oy) - c70*c106 - c73*c111 - c79*c115 - v_boom_cyl_l_barrel_vx*(c121 + c122 - c123 - c124 + c77*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a12) - v_boom_cyl_l_barrel_vy*(c126 + c127 - c128 - c129 + c63*boom_cyl_l_barrel_a22 + c74*boom_cyl_l_rod_a00) - v_boom_cyl_l_barrel_vz*(c130 + c132 - c134 - c133 + c47*boom_cyl_l_barrel_a02 + c80*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c123 + c124 - c121 - c122 + c48*boom_cyl_l_barrel_a22 + c75*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c128 + c129 - c126 - c127 + c37*boom_cyl_l_barrel_a02 + c81*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c134 + c133 - c130 - c132 + c62*boom_cyl_l_barrel_a12 + c76*boom_cyl_l_rod_a00), -c35*(c138*boom_cyl_l_rod_a02 + c140*boom_cyl_l_rod_a12) - c44*(c139*boom_cyl_l_rod_a22 + c142*boom_cyl_l_rod_a02) - c61*(c141*boom_cyl_l_rod_a12 + c143*boom_cyl_l_rod_a22) - (c138*boom_cyl_l_barrel_a21 + c142*boom_cyl_l_barrel_a11)*(boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wy - boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wz) - (c139*boom_cyl_l_barrel_a11 + c143*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wx - boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wy) - (c140*boom_cyl_l_barrel_a21 + c141*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wz - boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wx), c144*v_boom_wy + c145*v_boom_wy + c146*v_boom_wy - 2.001922*c149*v_boom_wz - 139283/100000*c147*v_boom_wz - 8/25*c148*v_boom_wz, -c144*v_boom_wx - c145*v_boom_wx - c146*v_boom_wx + (8/25)*c151*v_boom_wz + (139283/100000)*c150*v_boom_wz + (2.001922)*c152*v_boom_wz, -2.001922*c152*v_boom_wy - 139283/100000*c150*v_boom_wy - 8/25*c151*v_boom_wy + (8/25)*c148*v_boom_wx + (139283/100000)*c147*v_boom_wx + (2.001922)*c149*v_boom_wx, -c153*v_upper_wy - c155*v_upper_wy - c157*c158 + (8/25)*c154*v_upper_wy + (4307/6250)*c156*v_upper_wz + (67739/50000)*c159*v_upper_wz, c153*v_upper_wx + c155*v_upper_wx + c158*c161 - 67739/50000*c162*v_upper_wz - 4307/6250*c160*v_upper_wz - 8/25*c154*v_upper_wx, -67739/50000*c159*v_upper_wx - 4307/6250*c156*v_upper_wx - 8/25*c161*v_upper_wy + (8/25)*c157*v_upper_wx + (4307/6250)*c160*v_upper_wy + (67739/50000)*c162*v_upper_wy, -c154*(c163*boom_cyl_r_barrel_a02 + c165*boom_cyl_r_barrel_a12) - c157*(c164*boom_cyl_r_barrel_a22 + c167*boom_cyl_r_barrel_a02) - c161*(c166*boom_cyl_r_barrel_a12 + c168*boom_cyl_r_barrel_a22) - (c163*upper_a21 + c167*upper_a11)*(boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_wy - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_wz) - (c164*upper_a11 + c168*upper_a01)*(boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_wx - boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_wy) - (c165*upper_a21 + c166*upper_a01)*(boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_wz - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_wx), -c170*c176 - c179*c184 - c186*(c188 + c189) - c192*(c193 + c194) - c196*c199 - c201*(c202 + c203), -c184*c208 - c186*(c209 + c210) - c192*(c211 + c212) - c199*c214 - c201*(c215 + c216) - c205*c176, -c170*c241 - c179*c246 - c186*(c194*boom_cyl_r_barrel_ox + c195*boom_cyl_r_barrel_oy + c203*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a11 + c247*boom_cyl_r_barrel_a01 + c248*boom_cyl_r_barrel_a21 + c177*boom_cyl_r_barrel_ox + c251*boom_cyl_r_rod_oz + c252*boom_cyl_r_rod_oz + c253*boom_cyl_r_barrel_a21 - c195*boom_cyl_r_rod_oy - c177*boom_cyl_r_rod_ox - c251*boom_cyl_r_barrel_oz - c252*boom_cyl_r_barrel_oz) - c192*(c169*boom_cyl_r_barrel_ox + c189*boom_cyl_r_rod_ox + c202*boom_cyl_r_barrel_oz + c228*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a21 + c239*boom_cyl_r_barrel_a11 + c243*boom_cyl_r_barrel_a01 + c249*boom_cyl_r_barrel_a11 + c251*boom_cyl_r_rod_oy + c254*boom_cyl_r_rod_oy - c169*boom_cyl_r_rod_ox - c228*boom_cyl_r_rod_oz - c251*boom_cyl_r_barrel_oy - c254*boom_cyl_r_barrel_oy) - c196*c250 - c201*(c188*boom_cyl_r_barrel_oy + c193*boom_cyl_r_rod_oz + c221*boom_cyl_r_barrel_oy + c236*boom_cyl_r_barrel_a21 + c240*boom_cyl_r_barrel_a01 + c244*boom_cyl_r_barrel_a11 + c252*boom_cyl_r_rod_ox + c254*boom_cyl_r_rod_ox + c255*boom_cyl_r_barrel_a01 + c178*boom_cyl_r_barrel_oz - c221*boom_cyl_r_rod_oy - c252*boom_cyl_r_barrel_ox - c254*boom_cyl_r_barrel_ox - c178*boom_cyl_r_rod_oz) - v_boom_cyl_r_barrel_vx*(c217 + c218 - c219 - c220 + c194*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a11) - v_boom_cyl_r_barrel_vy*(c222 + c223 - c225 - c226 + c188*boom_cyl_r_rod_a00 + c198*boom_cyl_r_barrel_a21) - v_boom_cyl_r_barrel_vz*(c227 + c229 - c230 - c232 + c182*boom_cyl_r_barrel_a01 + c202*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c219 + c220 - c217 - c218 + c183*boom_cyl_r_barrel_a21 + c189*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c225 + c226 - c222 - c223 + c172*boom_cyl_r_barrel_a01 + c203*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c230 + c232 - c227 - c229 + c193*boom_cyl_r_rod_a00 + c197*boom_cyl_r_barrel_a11), -c186*(c270*boom_cyl_r_rod_oz + c271*boom_cyl_r_rod_oz + c206*boom_cyl_r_barrel_ox + c212*boom_cyl_r_barrel_ox + c213*boom_cyl_r_barrel_oy + c216*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a12 + c247*boom_cyl_r_barrel_a02 + c248*boom_cyl_r_barrel_a22 + c253*boom_cyl_r_barrel_a22 - c270*boom_cyl_r_barrel_oz - c271*boom_cyl_r_barrel_oz - c206*boom_cyl_r_rod_ox - c213*boom_cyl_r_rod_oy) - c192*(c270*boom_cyl_r_rod_oy + c272*boom_cyl_r_rod_oy + c204*boom_cyl_r_barrel_ox + c210*boom_cyl_r_rod_ox + c215*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a22 + c239*boom_cyl_r_barrel_a12 + c243*boom_cyl_r_barrel_a02 + c249*boom_cyl_r_barrel_a12 + c266*boom_cyl_r_barrel_oz - c270*boom_cyl_r_barrel_oy - c272*boom_cyl_r_barrel_oy - c204*boom_cyl_r_rod_ox - c266*boom_cyl_r_rod_oz) - c201*(c271*boom_cyl_r_rod_ox + c272*boom_cyl_r_rod_ox + c207*boom_cyl_r_barrel_oz + c209*boom_cyl_r_barrel_oy + c211*boom_cyl_r_rod_oz + c236*boom_cyl_r_barrel_a22 + c240*boom_cyl_r_barrel_a02 + c244*boom_cyl_r_barrel_a12 + c255*boom_cyl_r_barrel_a02 + c260*boom_cyl_r_barrel_oy - c271*boom_cyl_r_barrel_ox - c272*boom_cyl_r_barrel_ox - c207*boom_cyl_r_rod_oz - c260*boom_cyl_r_rod_oy) - c205*c241 - c208*c246 - c214*c250 - v_boom_cyl_r_barrel_vx*(c256 + c257 - c258 - c259 + c212*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a12) - v_boom_cyl_r_barrel_vy*(c261 + c262 - c263 - c264 + c198*boom_cyl_r_barrel_a22 + c209*boom_cyl_r_rod_a00) - v_boom_cyl_r_barrel_vz*(c265 + c267 - c269 - c268 + c182*boom_cyl_r_barrel_a02 + c215*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c258 + c259 - c256 - c257 + c183*boom_cyl_r_barrel_a22 + c210*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c263 + c264 - c261 - c262 + c172*boom_cyl_r_barrel_a02 + c216*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c269 + c268 - c265 - c267 + c197*boom_cyl_r_barrel_a12 + c211*boom_cyl_r_rod_a00), -c170*(c273*boom_cyl_r_rod_a02 + c275*boom_cyl_r_rod_a12) - c179*(c274*boom_cyl_r_rod_a22 + c277*boom_cyl_r_rod_a02) - c196*(c276*boom_cyl_r_rod_a12 + c278*boom_cyl_r_rod_a22) - (c273*boom_cyl_r_barrel_a21 + c277*boom_cyl_r_barrel_a11)*(boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wy - boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wz) - (c274*boom_cyl_r_barrel_a11 + c278*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wx - boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wy) - (c275*boom_cyl_r_barrel_a21 + c276*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wz - boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wx), c279*v_boom_wy + c281*v_boom_wy + c283*c284 - 2.001922*c285*v_boom_wz - 139283/100000*c282*v_boom_wz - 8/25*c280*v_boom_wy, -c279*v_boom_wx - c281*v_boom_wx - c284*c287 + (8/25)*c280*v_boom_wx + (139283/100000)*c286*v_boom_wz + (2.001922)*c288*v_boom_wz, -2.001922*c288*v_boom_wy - 139283/100000*c286*v_boom_wy - 8/25*c283*v_boom_wx + (8/25)*c287*v_boom_wy + (139283/100000)*c282*v_boom_wx + (2.001922)*c285*v_boom_wx, -c289*v_boom_wy - c290*v_boom_wy + (23939/5000)*c291*v_boom_wz + (29959/10000)*c292*v_boom_wz, c289*v_boom_wx + c290*v_boom_wx - 29959/10000*c294*v_boom_wz - 23939/5000*c293*v_boom_wz, -29959/10000*c292*v_boom_wx - 23939/5000*c291*v_boom_wx + (23939/5000)*c293*v_boom_wy + (29959/10000)*c294*v_boom_wy, -c299*(c301*arm_a02 + c297*arm_a22) - c303*(arm_a12*v_arm_wx - arm_a02*v_arm_wy) - c304*(arm_a02*v_arm_wz - arm_a22*v_arm_wx) - c305*(c300*arm_a12 + c302*arm_a22) - c306*(arm_a22*v_arm_wy - arm_a12*v_arm_wz) - c295*(c296*arm_a02 + c298*arm_a12), -c299*(c301*arm_a00 + c297*arm_a20) - c303*(arm_a10*v_arm_wx - arm_a00*v_arm_wy) - c304*(arm_a00*v_arm_wz - arm_a20*v_arm_wx) - c305*(c300*arm_a10 + c302*arm_a20) - c306*(arm_a20*v_arm_wy - arm_a10*v_arm_wz) - c295*(c296*arm_a00 + c298*arm_a10), -c307*v_boom_wy - c308*v_boom_wy + (183/80)*c309*v_boom_wz + (557/200)*c310*v_boom_wz, c307*v_boom_wx + c308*v_boom_wx - 557/200*c312*v_boom_wz - 183/80*c311*v_boom_wz, -557/200*c310*v_boom_wx - 183/80*c309*v_boom_wx + (183/80)*c311*v_boom_wy + (557/200)*c312*v_boom_wy, -(c317*boom_a11 + c313*boom_a21)*(arm_cyl_barrel_a22*v_arm_cyl_barrel_wy - arm_cyl_barrel_a12*v_arm_cyl_barrel_wz) - (c317*arm_cyl_barrel_a02 + c314*arm_cyl_barrel_a22)*(boom_a01*v_boom_wz - boom_a21*v_boom_wx) - (c318*boom_a01 + c314*boom_a11)*(arm_cyl_barrel_a12*v_arm_cyl_barrel_wx - arm_cyl_barrel_a02*v_arm_cyl_barrel_wy) - (c318*arm_cyl_barrel_a22 + c316*arm_cyl_barrel_a12)*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - (c313*arm_cyl_barrel_a02 + c315*arm_cyl_barrel_a12)*(boom_a11*v_boom_wx - boom_a01*v_boom_wy) - (c315*boom_a21 + c316*boom_a01)*(arm_cyl_barrel_a02*v_arm_cyl_barrel_wz - arm_cyl_barrel_a22*v_arm_cyl_barrel_wx), -c320*c326 - c329*c334 - c336*(c338 + c339) - c342*(c343 + c344) - c346*c349 - c351*(c352 + c353), -c334*c358 - c336*(c359 + c360) - c342*(c361 + c362) - c349*c364 - c351*(c365 + c366) - c355*c326, -c320*c391 - c329*c396 - c336*(c344*arm_cyl_barrel_ox + c345*arm_cyl_barrel_oy + c353*arm_cyl_rod_oy + c387*arm_cyl_barrel_a11 + c397*arm_cyl_barrel_a01 + c398*arm_cyl_barrel_a21 + c327*arm_cyl_barrel_ox + c401*arm_cyl_rod_oz + c402*arm_cyl_rod_oz + c403*arm_cyl_barrel_a21 - c345*arm_cyl_rod_oy - c327*arm_cyl_rod_ox - c401*arm_cyl_barrel_oz - c402*arm_cyl_barrel_oz) - c342*(c319*arm_cyl_barrel_ox + c339*arm_cyl_rod_ox + c352*arm_cyl_barrel_oz + c378*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a21 + c389*arm_cyl_barrel_a11 + c393*arm_cyl_barrel_a01 + c399*arm_cyl_barrel_a11 + c401*arm_cyl_rod_oy + c404*arm_cyl_rod_oy - c319*arm_cyl_rod_ox - c378*arm_cyl_rod_oz - c401*arm_cyl_barrel_oy - c404*arm_cyl_barrel_oy) - c346*c400 - c351*(c338*arm_cyl_barrel_oy + c343*arm_cyl_rod_oz + c371*arm_cyl_barrel_oy + c386*arm_cyl_barrel_a21 + c390*arm_cyl_barrel_a01 + c394*arm_cyl_barrel_a11 + c402*arm_cyl_rod_ox + c404*arm_cyl_rod_ox + c405*arm_cyl_barrel_a01 + c328*arm_cyl_barrel_oz - c371*arm_cyl_rod_oy - c402*arm_cyl_barrel_ox - c404*arm_cyl_barrel_ox - c328*arm_cyl_rod_oz) - v_arm_cyl_barrel_vx*(c367 + c368 - c369 - c370 + c344*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a11) - v_arm_cyl_barrel_vy*(c372 + c373 - c375 - c376 + c338*arm_cyl_rod_a00 + c348*arm_cyl_barrel_a21) - v_arm_cyl_barrel_vz*(c377 + c379 - c380 - c382 + c332*arm_cyl_barrel_a01 + c352*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c369 + c370 - c367 - c368 + c333*arm_cyl_barrel_a21 + c339*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c375 + c376 - c372 - c373 + c322*arm_cyl_barrel_a01 + c353*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c380 + c382 - c377 - c379 + c343*arm_cyl_rod_a00 + c347*arm_cyl_barrel_a11), -c336*(c420*arm_cyl_rod_oz + c421*arm_cyl_rod_oz + c356*arm_cyl_barrel_ox + c362*arm_cyl_barrel_ox + c363*arm_cyl_barrel_oy + c366*arm_cyl_rod_oy + c387*arm_cyl_barrel_a12 + c397*arm_cyl_barrel_a02 + c398*arm_cyl_barrel_a22 + c403*arm_cyl_barrel_a22 - c420*arm_cyl_barrel_oz - c421*arm_cyl_barrel_oz - c356*arm_cyl_rod_ox - c363*arm_cyl_rod_oy) - c342*(c420*arm_cyl_rod_oy + c422*arm_cyl_rod_oy + c354*arm_cyl_barrel_ox + c360*arm_cyl_rod_ox + c365*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a22 + c389*arm_cyl_barrel_a12 + c393*arm_cyl_barrel_a02 + c399*arm_cyl_barrel_a12 + c416*arm_cyl_barrel_oz - c420*arm_cyl_barrel_oy - c422*arm_cyl_barrel_oy - c354*arm_cyl_rod_ox - c416*arm_cyl_rod_oz) - c351*(c421*arm_cyl_rod_ox + c422*arm_cyl_rod_ox + c357*arm_cyl_barrel_oz + c359*arm_cyl_barrel_oy + c361*arm_cyl_rod_oz + c386*arm_cyl_barrel_a22 + c390*arm_cyl_barrel_a02 + c394*arm_cyl_barrel_a12 + c405*arm_cyl_barrel_a02 + c410*arm_cyl_barrel_oy - c421*arm_cyl_barrel_ox - c422*arm_cyl_barrel_ox - c357*arm_cyl_rod_oz - c410*arm_cyl_rod_oy) - c355*c391 - c358*c396 - c364*c400 - v_arm_cyl_barrel_vx*(c406 + c407 - c408 - c409 + c362*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a12) - v_arm_cyl_barrel_vy*(c411 + c412 - c413 - c414 + c348*arm_cyl_barrel_a22 + c359*arm_cyl_rod_a00) - v_arm_cyl_barrel_vz*(c415 + c417 - c419 - c418 + c332*arm_cyl_barrel_a02 + c365*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c408 + c409 - c406 - c407 + c333*arm_cyl_barrel_a22 + c360*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c413 + c414 - c411 - c412 + c322*arm_cyl_barrel_a02 + c366*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c419 + c418 - c415 - c417 + c347*arm_cyl_barrel_a12 + c361*arm_cyl_rod_a00), -c320*(c423*arm_cyl_rod_a02 + c425*arm_cyl_rod_a12) - c329*(c424*arm_cyl_rod_a22 + c427*arm_cyl_rod_a02) - c346*(c426*arm_cyl_rod_a12 + c428*arm_cyl_rod_a22) - (c423*arm_cyl_barrel_a21 + c427*arm_cyl_barrel_a11)*(arm_cyl_rod_a22*v_arm_cyl_rod_wy - arm_cyl_rod_a12*v_arm_cyl_rod_wz) - (c424*arm_cyl_barrel_a11 + c428*arm_cyl_barrel_a01)*(arm_cyl_rod_a12*v_arm_cyl_rod_wx - arm_cyl_rod_a02*v_arm_cyl_rod_wy) - (c425*arm_cyl_barrel_a21 + c426*arm_cyl_barrel_a01)*(arm_cyl_rod_a02*v_arm_cyl_rod_wz - arm_cyl_rod_a22*v_arm_cyl_rod_wx), -c429*v_arm_wy - c430*v_arm_wy + (0.369691)*c432*v_arm_wz + (393281/500000)*c431*v_arm_wz, c429*v_arm_wx + c430*v_arm_wx - 393281/500000*c433*v_arm_wz - 0.369691*c434*v_arm_wz, -393281/500000*c431*v_arm_wx - 0.369691*c432*v_arm_wx + (0.369691)*c434*v_arm_wy + (393281/500000)*c433*v_arm_wy, -c435*v_arm_wy - c436*v_arm_wy + (9477/5000)*c437*v_arm_wz + (21809/10000)*c438*v_arm_wz, c435*v_arm_wx + c436*v_arm_wx - 21809/10000*c440*v_arm_wz - 9477/5000*c439*v_arm_wz, -21809/10000*c438*v_arm_wx - 9477/5000*c437*v_arm_wx + (9477/5000)*c439*v_arm_wy + (21809/10000)*c440*v_arm_wy, -c445*(c447*bucket_a02 + c443*bucket_a22) - c449*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy) - c450*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx) - c451*(c446*bucket_a12 + c448*bucket_a22) - c452*(bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz) - c441*(c442*bucket_a02 + c444*bucket_a12), -c445*(c447*bucket_a00 + c443*bucket_a20) - c449*(bucket_a10*v_bucket_wx - bucket_a00*v_bucket_wy) - c450*(bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx) - c451*(c446*bucket_a10 + c448*bucket_a20) - c452*(bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz) - c441*(c442*bucket_a00 + c444*bucket_a10), -c453*v_arm_wy - c454*v_arm_wy + (7877/5000)*c455*v_arm_wz + (18799/10000)*c456*v_arm_wz, c453*v_arm_wx + c454*v_arm_wx - 18799/10000*c458*v_arm_wz - 7877/5000*c457*v_arm_wz, -18799/10000*c456*v_arm_wx - 7877/5000*c455*v_arm_wx + (7877/5000)*c457*v_arm_wy + (18799/10000)*c458*v_arm_wy, -c463*(c465*side_link_a02 + c461*side_link_a22) - c467*(side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy) - c468*(side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx) - c469*(c464*side_link_a12 + c466*side_link_a22) - c470*(side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz) - c459*(c460*side_link_a02 + c462*side_link_a12), -c463*(c465*side_link_a00 + c461*side_link_a20) - c467*(side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy) - c468*(side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx) - c469*(c464*side_link_a10 + c466*side_link_a20) - c470*(side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz) - c459*(c460*side_link_a00 + c462*side_link_a10), c471*v_side_link_wy + c481*c480 + c474*c475 + c478*c479 - 0.450737*c477*v_bucket_link_wy - 166329/500000*c473*v_side_link_wz - 96247/200000*c472*v_side_link_wy - 85607/250000*c476*v_bucket_link_wy, -c471*v_side_link_wx - c481*c485 - c483*c475 - c484*c479 + (85607/250000)*c476*v_bucket_link_wx + (96247/200000)*c472*v_side_link_wx + (166329/500000)*c482*v_side_link_wz + (0.450737)*c477*v_bucket_link_wx, -0.450737*c480*v_bucket_link_wx - 166329/500000*c482*v_side_link_wy - 96247/200000*c474*v_side_link_wx - 85607/250000*c478*v_bucket_link_wx + (85607/250000)*c484*v_bucket_link_wy + (96247/200000)*c483*v_side_link_wy + (166329/500000)*c473*v_side_link_wx + (0.450737)*c485*v_bucket_link_wy, -c486*v_bucket_wy - c489*c490 + (8101/25000)*c488*v_bucket_wz + (16927/50000)*c487*v_bucket_wy, c486*v_bucket_wx + c490*c492 - 16927/50000*c487*v_bucket_wx - 8101/25000*c491*v_bucket_wz, -16927/50000*c492*v_bucket_wy - 8101/25000*c488*v_bucket_wx + (8101/25000)*c491*v_bucket_wy + (16927/50000)*c489*v_bucket_wx, -(c496*bucket_a01 + c497*bucket_a21)*(bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx) - (c498*bucket_a01 + c500*bucket_a11)*(bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy) - (c499*bucket_a21 + c502*bucket_a01)*(bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx) - (c501*bucket_a11 + c504*bucket_a21)*(bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz) - (c503*bucket_a11 + c493*bucket_a21)*(bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz) - (c494*bucket_a01 + c495*bucket_a11)*(bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy) - (bucket_a01*v_bucket_wz - bucket_a21*v_bucket_wx)*(c500*bucket_link_a22 + c501*bucket_link_a02 + c503*bucket_link_a00 + c495*bucket_link_a20) - (bucket_a11*v_bucket_wx - bucket_a01*v_bucket_wy)*(c497*bucket_link_a10 + c499*bucket_link_a12 + c504*bucket_link_a02 + c493*bucket_link_a00) - (bucket_a21*v_bucket_wy - bucket_a11*v_bucket_wz)*(c496*bucket_link_a10 + c498*bucket_link_a22 + c502*bucket_link_a12 + c494*bucket_link_a20), c505*v_arm_wy + c508*c509 - 36797/50000*c506*v_arm_wy - 24687/100000*c507*v_arm_wz, -c505*v_arm_wx - c509*c511 + (24687/100000)*c510*v_arm_wz + (36797/50000)*c506*v_arm_wx, -36797/50000*c508*v_arm_wx - 24687/100000*c510*v_arm_wy + (24687/100000)*c507*v_arm_wx + (36797/50000)*c511*v_arm_wy, -(c515*arm_a01 + c514*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx) - (c515*bucket_cyl_barrel_a12 + c517*bucket_cyl_barrel_a22)*(arm_a21*v_arm_wy - arm_a11*v_arm_wz) - (c516*arm_a11 + c512*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz) - (c516*bucket_cyl_barrel_a02 + c513*bucket_cyl_barrel_a22)*(arm_a01*v_arm_wz - arm_a21*v_arm_wx) - (c517*arm_a01 + c513*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy) - (c512*bucket_cyl_barrel_a02 + c514*bucket_cyl_barrel_a12)*(arm_a11*v_arm_wx - arm_a01*v_arm_wy), -c519*c525 - c528*c533 - c535*(c537 + c538) - c541*(c542 + c543) - c545*c548 - c550*(c551 + c552), -c533*c557 - c535*(c558 + c559) - c541*(c560 + c561) - c548*c563 - c550*(c564 + c565) - c554*c525, -c519*c590 - c528*c595 - c535*(c543*bucket_cyl_barrel_ox + c544*bucket_cyl_barrel_oy + c552*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_a11 + c596*bucket_cyl_barrel_a01 + c597*bucket_cyl_barrel_a21 + c526*bucket_cyl_barrel_ox + c600*bucket_cyl_rod_oz + c601*bucket_cyl_rod_oz + c602*bucket_cyl_barrel_a21 - c544*bucket_cyl_rod_oy - c526*bucket_cyl_rod_ox - c600*bucket_cyl_barrel_oz - c601*bucket_cyl_barrel_oz) - c541*(c518*bucket_cyl_barrel_ox + c538*bucket_cyl_rod_ox + c551*bucket_cyl_barrel_oz + c577*bucket_cyl_barrel_oz + c587*bucket_cyl_barrel_a21 + c588*bucket_cyl_barrel_a11 + c592*bucket_cyl_barrel_a01 + c598*bucket_cyl_barrel_a11 + c600*bucket_cyl_rod_oy + c603*bucket_cyl_rod_oy - c518*bucket_cyl_rod_ox - c577*bucket_cyl_rod_oz - c600*bucket_cyl_barrel_oy - c603*bucket_cyl_barrel_oy) - c545*c599 - c550*(c537*bucket_cyl_barrel_oy + c542*bucket_cyl_rod_oz + c570*bucket_cyl_barrel_oy + c585*bucket_cyl_barrel_a21 + c589*bucket_cyl_barrel_a01 + c593*bucket_cyl_barrel_a11 + c601*bucket_cyl_rod_ox + c603*bucket_cyl_rod_ox + c604*bucket_cyl_barrel_a01 + c527*bucket_cyl_barrel_oz - c570*bucket_cyl_rod_oy - c601*bucket_cyl_barrel_ox - c603*bucket_cyl_barrel_ox - c527*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_vx*(c566 + c567 - c568 - c569 + c543*bucket_cyl_rod_a20 + c524*bucket_cyl_barrel_a11) - v_bucket_cyl_barrel_vy*(c571 + c572 - c574 - c575 + c537*bucket_cyl_rod_a00 + c547*bucket_cyl_barrel_a21) - v_bucket_cyl_barrel_vz*(c576 + c578 - c579 - c581 + c531*bucket_cyl_barrel_a01 + c551*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c568 + c569 - c566 - c567 + c532*bucket_cyl_barrel_a21 + c538*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c574 + c575 - c571 - c572 + c521*bucket_cyl_barrel_a01 + c552*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c579 + c581 - c576 - c578 + c542*bucket_cyl_rod_a00 + c546*bucket_cyl_barrel_a11), -c535*(c619*bucket_cyl_rod_oz + c620*bucket_cyl_rod_oz + c555*bucket_cyl_barrel_ox + c561*bucket_cyl_barrel_ox + c562*bucket_cyl_barrel_oy + c565*bucket_cyl_rod_oy + c586*bucket_cyl_barrel_a12 + c596*bucket_cyl_barrel_a02 + c597*bucket_cyl_barrel_a22 + c602*bucket_cyl_barrel_a22 - c619*bucket_cyl_barrel_oz - c620*bucket_cyl_barrel_oz - c555*bucket_cyl_rod_ox - c562*bucket_cyl_rod_oy) - c541*(c619*bucket_cyl_rod_oy + c621*bucket_cyl_rod_oy + c553*bucket_cyl_barrel_ox + c559*bucket_cyl_rod_ox + c564*bucket_cyl_barrel_oz + c587*bucket_cyl_barrel_a22 + c588*bucket_cyl_barrel_a12 + c592*bucket_cyl_barrel_a02 + c598*bucket_cyl_barrel_a12 + c615*bucket_cyl_barrel_oz - c619*bucket_cyl_barrel_oy - c621*bucket_cyl_barrel_oy - c553*bucket_cyl_rod_ox - c615*bucket_cyl_rod_oz) - c550*(c620*bucket_cyl_rod_ox + c621*bucket_cyl_rod_ox + c556*bucket_cyl_barrel_oz + c558*bucket_cyl_barrel_oy + c560*bucket_cyl_rod_oz + c585*bucket_cyl_barrel_a22 + c589*bucket_cyl_barrel_a02 + c593*bucket_cyl_barrel_a12 + c604*bucket_cyl_barrel_a02 + c609*bucket_cyl_barrel_oy - c620*bucket_cyl_barrel_ox - c621*bucket_cyl_barrel_ox - c556*bucket_cyl_rod_oz - c609*bucket_cyl_rod_oy) - c554*c590 - c557*c595 - c563*c599 - v_bucket_cyl_barrel_vx*(c605 + c606 - c607 - c608 + c561*bucket_cyl_rod_a20 + c524*bucket_cyl_barrel_a12) - v_bucket_cyl_barrel_vy*(c610 + c611 - c612 - c613 + c547*bucket_cyl_barrel_a22 + c558*bucket_cyl_rod_a00) - v_bucket_cyl_barrel_vz*(c614 + c616 - c618 - c617 + c531*bucket_cyl_barrel_a02 + c564*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c607 + c608 - c605 - c606 + c532*bucket_cyl_barrel_a22 + c559*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c612 + c613 - c610 - c611 + c521*bucket_cyl_barrel_a02 + c565*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c618 + c617 - c614 - c616 + c546*bucket_cyl_barrel_a12 + c560*bucket_cyl_rod_a00), -c519*(c622*bucket_cyl_rod_a02 + c624*bucket_cyl_rod_a12) - c528*(c623*bucket_cyl_rod_a22 + c626*bucket_cyl_rod_a02) - c545*(c625*bucket_cyl_rod_a12 + c627*bucket_cyl_rod_a22) - (c622*bucket_cyl_barrel_a21 + c626*bucket_cyl_barrel_a11)*(bucket_cyl_rod_a22*v_bucket_cyl_rod_wy - bucket_cyl_rod_a12*v_bucket_cyl_rod_wz) - (c623*bucket_cyl_barrel_a11 + c627*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a12*v_bucket_cyl_rod_wx - bucket_cyl_rod_a02*v_bucket_cyl_rod_wy) - (c624*bucket_cyl_barrel_a21 + c625*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a02*v_bucket_cyl_rod_wz - bucket_cyl_rod_a22*v_bucket_cyl_rod_wx), -c628*v_side_link_wy - c631*c632 + (96247/200000)*c629*v_side_link_wy + (166329/500000)*c630*v_side_link_wz, c628*v_side_link_wx + c632*c634 - 166329/500000*c633*v_side_link_wz - 96247/200000*c629*v_side_link_wx, -166329/500000*c630*v_side_link_wx - 96247/200000*c634*v_side_link_wy + (96247/200000)*c631*v_side_link_wx + (166329/500000)*c633*v_side_link_wy]
+    c627 = -1.0*v_bucket_cyl_rod_wz + (1.0)*v_bucket_cyl_barrel_wz
+    c628 = -c627
+    c629 = -c624
+    c630 = 0.5686266556413632*p_side_link
+    c631 = c630*(side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy)
+    c632 = side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy
+    c633 = side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx
+    c634 = side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx
+    c635 = 0.822595724821202*p_side_link
+    c636 = c635*v_side_link_wz
+    c637 = side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz
+    c638 = side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz
+    return [0.0, 0.0, 0.0, v_upper_wy*(upper_a20*v_upper_wy - upper_a10*v_upper_wz) - v_upper_wx*(upper_a00*v_upper_wz - upper_a20*v_upper_wx), v_upper_wy*(upper_a21*v_upper_wy - upper_a11*v_upper_wz) - v_upper_wx*(upper_a01*v_upper_wz - upper_a21*v_upper_wx), -c0*v_upper_wy - c1*v_upper_wy + (22767/100000)*c2*v_upper_wz + (195729/100000)*c3*v_upper_wz, c0*v_upper_wx + c1*v_upper_wx - 195729/100000*c5*v_upper_wz - 22767/100000*c4*v_upper_wz, -195729/100000*c3*v_upper_wx - 22767/100000*c2*v_upper_wx + (22767/100000)*c4*v_upper_wy + (195729/100000)*c5*v_upper_wy, -c10*(c12*boom_a02 + c8*boom_a22) - c14*(boom_a12*v_boom_wx - boom_a02*v_boom_wy) - c15*(boom_a02*v_boom_wz - boom_a22*v_boom_wx) - c16*(c11*boom_a12 + c13*boom_a22) - c17*(boom_a22*v_boom_wy - boom_a12*v_boom_wz) - c6*(c7*boom_a02 + c9*boom_a12), -c10*(c12*boom_a00 + c8*boom_a20) - c14*(boom_a10*v_boom_wx - boom_a00*v_boom_wy) - c15*(boom_a00*v_boom_wz - boom_a20*v_boom_wx) - c16*(c11*boom_a10 + c13*boom_a20) - c17*(boom_a20*v_boom_wy - boom_a10*v_boom_wz) - c6*(c7*boom_a00 + c9*boom_a10), -c18*v_upper_wy - c20*v_upper_wy - c21*v_upper_wy + (8/25)*c23*v_upper_wz + (4307/6250)*c22*v_upper_wz + (67739/50000)*c24*v_upper_wz, c18*v_upper_wx + c20*v_upper_wx + c21*v_upper_wx - 67739/50000*c27*v_upper_wz - 4307/6250*c25*v_upper_wz - 8/25*c26*v_upper_wz, -67739/50000*c24*v_upper_wx - 4307/6250*c22*v_upper_wx - 8/25*c23*v_upper_wx + (8/25)*c26*v_upper_wy + (4307/6250)*c25*v_upper_wy + (67739/50000)*c27*v_upper_wy, -c19*(c28*boom_cyl_l_barrel_a02 + c30*boom_cyl_l_barrel_a12) - c23*(c29*boom_cyl_l_barrel_a22 + c32*boom_cyl_l_barrel_a02) - c26*(c31*boom_cyl_l_barrel_a12 + c33*boom_cyl_l_barrel_a22) - (c28*upper_a21 + c32*upper_a11)*(boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_wz) - (c29*upper_a11 + c33*upper_a01)*(boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_wy) - (c30*upper_a21 + c31*upper_a01)*(boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_wx), -c35*c41 - c44*c49 - c51*(c53 + c54) - c57*(c58 + c59) - c61*c64 - c66*(c67 + c68), -c49*c73 - c51*(c74 + c75) - c57*(c76 + c77) - c64*c79 - c66*(c80 + c81) - c70*c41, -c35*c106 - c44*c111 - c51*(c59*boom_cyl_l_barrel_ox + c60*boom_cyl_l_barrel_oy + c68*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a11 + c112*boom_cyl_l_barrel_a01 + c113*boom_cyl_l_barrel_a21 + c42*boom_cyl_l_barrel_ox + c116*boom_cyl_l_rod_oz + c117*boom_cyl_l_rod_oz + c118*boom_cyl_l_barrel_a21 - c60*boom_cyl_l_rod_oy - c42*boom_cyl_l_rod_ox - c116*boom_cyl_l_barrel_oz - c117*boom_cyl_l_barrel_oz) - c57*(c34*boom_cyl_l_barrel_ox + c54*boom_cyl_l_rod_ox + c67*boom_cyl_l_barrel_oz + c93*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a21 + c104*boom_cyl_l_barrel_a11 + c108*boom_cyl_l_barrel_a01 + c114*boom_cyl_l_barrel_a11 + c116*boom_cyl_l_rod_oy + c119*boom_cyl_l_rod_oy - c34*boom_cyl_l_rod_ox - c93*boom_cyl_l_rod_oz - c116*boom_cyl_l_barrel_oy - c119*boom_cyl_l_barrel_oy) - c61*c115 - c66*(c53*boom_cyl_l_barrel_oy + c58*boom_cyl_l_rod_oz + c86*boom_cyl_l_barrel_oy + c101*boom_cyl_l_barrel_a21 + c105*boom_cyl_l_barrel_a01 + c109*boom_cyl_l_barrel_a11 + c117*boom_cyl_l_rod_ox + c119*boom_cyl_l_rod_ox + c120*boom_cyl_l_barrel_a01 + c43*boom_cyl_l_barrel_oz - c86*boom_cyl_l_rod_oy - c117*boom_cyl_l_barrel_ox - c119*boom_cyl_l_barrel_ox - c43*boom_cyl_l_rod_oz) - v_boom_cyl_l_barrel_vx*(c82 + c83 - c84 - c85 + c59*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a11) - v_boom_cyl_l_barrel_vy*(c87 + c88 - c90 - c91 + c53*boom_cyl_l_rod_a00 + c63*boom_cyl_l_barrel_a21) - v_boom_cyl_l_barrel_vz*(c92 + c94 - c95 - c97 + c47*boom_cyl_l_barrel_a01 + c67*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c84 + c85 - c82 - c83 + c48*boom_cyl_l_barrel_a21 + c54*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c90 + c91 - c87 - c88 + c37*boom_cyl_l_barrel_a01 + c68*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c95 + c97 - c92 - c94 + c58*boom_cyl_l_rod_a00 + c62*boom_cyl_l_barrel_a11), -c51*(c135*boom_cyl_l_rod_oz + c136*boom_cyl_l_rod_oz + c71*boom_cyl_l_barrel_ox + c77*boom_cyl_l_barrel_ox + c78*boom_cyl_l_barrel_oy + c81*boom_cyl_l_rod_oy + c102*boom_cyl_l_barrel_a12 + c112*boom_cyl_l_barrel_a02 + c113*boom_cyl_l_barrel_a22 + c118*boom_cyl_l_barrel_a22 - c135*boom_cyl_l_barrel_oz - c136*boom_cyl_l_barrel_oz - c71*boom_cyl_l_rod_ox - c78*boom_cyl_l_rod_oy) - c57*(c135*boom_cyl_l_rod_oy + c137*boom_cyl_l_rod_oy + c69*boom_cyl_l_barrel_ox + c75*boom_cyl_l_rod_ox + c80*boom_cyl_l_barrel_oz + c103*boom_cyl_l_barrel_a22 + c104*boom_cyl_l_barrel_a12 + c108*boom_cyl_l_barrel_a02 + c114*boom_cyl_l_barrel_a12 + c131*boom_cyl_l_barrel_oz - c135*boom_cyl_l_barrel_oy - c137*boom_cyl_l_barrel_oy - c69*boom_cyl_l_rod_ox - c131*boom_cyl_l_rod_oz) - c66*(c136*boom_cyl_l_rod_ox + c137*boom_cyl_l_rod_ox + c72*boom_cyl_l_barrel_oz + c74*boom_cyl_l_barrel_oy + c76*boom_cyl_l_rod_oz + c101*boom_cyl_l_barrel_a22 + c105*boom_cyl_l_barrel_a02 + c109*boom_cyl_l_barrel_a12 + c120*boom_cyl_l_barrel_a02 + c125*boom_cyl_l_barrel_oy - c136*boom_cyl_l_barrel_ox - c137*boom_cyl_l_barrel_ox - c72*boom_cyl_l_rod_oz - c125*boom_cyl_l_rod_oy) - c70*c106 - c73*c111 - c79*c115 - v_boom_cyl_l_barrel_vx*(c121 + c122 - c123 - c124 + c77*boom_cyl_l_rod_a20 + c40*boom_cyl_l_barrel_a12) - v_boom_cyl_l_barrel_vy*(c126 + c127 - c128 - c129 + c63*boom_cyl_l_barrel_a22 + c74*boom_cyl_l_rod_a00) - v_boom_cyl_l_barrel_vz*(c130 + c132 - c134 - c133 + c47*boom_cyl_l_barrel_a02 + c80*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vx*(c123 + c124 - c121 - c122 + c48*boom_cyl_l_barrel_a22 + c75*boom_cyl_l_rod_a10) - v_boom_cyl_l_rod_vy*(c128 + c129 - c126 - c127 + c37*boom_cyl_l_barrel_a02 + c81*boom_cyl_l_rod_a20) - v_boom_cyl_l_rod_vz*(c134 + c133 - c130 - c132 + c62*boom_cyl_l_barrel_a12 + c76*boom_cyl_l_rod_a00), -c35*(c138*boom_cyl_l_rod_a02 + c140*boom_cyl_l_rod_a12) - c44*(c139*boom_cyl_l_rod_a22 + c142*boom_cyl_l_rod_a02) - c61*(c141*boom_cyl_l_rod_a12 + c143*boom_cyl_l_rod_a22) - (c138*boom_cyl_l_barrel_a21 + c142*boom_cyl_l_barrel_a11)*(boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wy - boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wz) - (c139*boom_cyl_l_barrel_a11 + c143*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a12*v_boom_cyl_l_rod_wx - boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wy) - (c140*boom_cyl_l_barrel_a21 + c141*boom_cyl_l_barrel_a01)*(boom_cyl_l_rod_a02*v_boom_cyl_l_rod_wz - boom_cyl_l_rod_a22*v_boom_cyl_l_rod_wx), c144*v_boom_wy + c146*v_boom_wy + c147*v_boom_wy - 8/25*c145*v_boom_wz - c148*p_C_x*v_boom_wz - c149*p_C_z*v_boom_wz, -c144*v_boom_wx - c146*v_boom_wx - c147*v_boom_wx + (8/25)*c150*v_boom_wz + c151*p_C_x*v_boom_wz + c152*p_C_z*v_boom_wz, -8/25*c150*v_boom_wy + (8/25)*c145*v_boom_wx + c148*p_C_x*v_boom_wx + c149*p_C_z*v_boom_wx - c151*p_C_x*v_boom_wy - c152*p_C_z*v_boom_wy, -c153*v_upper_wy - c155*v_upper_wy - c157*c158 + (8/25)*c154*v_upper_wy + (4307/6250)*c156*v_upper_wz + (67739/50000)*c159*v_upper_wz, c153*v_upper_wx + c155*v_upper_wx + c158*c161 - 67739/50000*c162*v_upper_wz - 4307/6250*c160*v_upper_wz - 8/25*c154*v_upper_wx, -67739/50000*c159*v_upper_wx - 4307/6250*c156*v_upper_wx - 8/25*c161*v_upper_wy + (8/25)*c157*v_upper_wx + (4307/6250)*c160*v_upper_wy + (67739/50000)*c162*v_upper_wy, -c154*(c163*boom_cyl_r_barrel_a02 + c165*boom_cyl_r_barrel_a12) - c157*(c164*boom_cyl_r_barrel_a22 + c167*boom_cyl_r_barrel_a02) - c161*(c166*boom_cyl_r_barrel_a12 + c168*boom_cyl_r_barrel_a22) - (c163*upper_a21 + c167*upper_a11)*(boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_wy - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_wz) - (c164*upper_a11 + c168*upper_a01)*(boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_wx - boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_wy) - (c165*upper_a21 + c166*upper_a01)*(boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_wz - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_wx), -c170*c176 - c179*c184 - c186*(c188 + c189) - c192*(c193 + c194) - c196*c199 - c201*(c202 + c203), -c184*c208 - c186*(c209 + c210) - c192*(c211 + c212) - c199*c214 - c201*(c215 + c216) - c205*c176, -c170*c241 - c179*c246 - c186*(c194*boom_cyl_r_barrel_ox + c195*boom_cyl_r_barrel_oy + c203*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a11 + c247*boom_cyl_r_barrel_a01 + c248*boom_cyl_r_barrel_a21 + c177*boom_cyl_r_barrel_ox + c251*boom_cyl_r_rod_oz + c252*boom_cyl_r_rod_oz + c253*boom_cyl_r_barrel_a21 - c195*boom_cyl_r_rod_oy - c177*boom_cyl_r_rod_ox - c251*boom_cyl_r_barrel_oz - c252*boom_cyl_r_barrel_oz) - c192*(c169*boom_cyl_r_barrel_ox + c189*boom_cyl_r_rod_ox + c202*boom_cyl_r_barrel_oz + c228*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a21 + c239*boom_cyl_r_barrel_a11 + c243*boom_cyl_r_barrel_a01 + c249*boom_cyl_r_barrel_a11 + c251*boom_cyl_r_rod_oy + c254*boom_cyl_r_rod_oy - c169*boom_cyl_r_rod_ox - c228*boom_cyl_r_rod_oz - c251*boom_cyl_r_barrel_oy - c254*boom_cyl_r_barrel_oy) - c196*c250 - c201*(c188*boom_cyl_r_barrel_oy + c193*boom_cyl_r_rod_oz + c221*boom_cyl_r_barrel_oy + c236*boom_cyl_r_barrel_a21 + c240*boom_cyl_r_barrel_a01 + c244*boom_cyl_r_barrel_a11 + c252*boom_cyl_r_rod_ox + c254*boom_cyl_r_rod_ox + c255*boom_cyl_r_barrel_a01 + c178*boom_cyl_r_barrel_oz - c221*boom_cyl_r_rod_oy - c252*boom_cyl_r_barrel_ox - c254*boom_cyl_r_barrel_ox - c178*boom_cyl_r_rod_oz) - v_boom_cyl_r_barrel_vx*(c217 + c218 - c219 - c220 + c194*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a11) - v_boom_cyl_r_barrel_vy*(c222 + c223 - c225 - c226 + c188*boom_cyl_r_rod_a00 + c198*boom_cyl_r_barrel_a21) - v_boom_cyl_r_barrel_vz*(c227 + c229 - c230 - c232 + c182*boom_cyl_r_barrel_a01 + c202*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c219 + c220 - c217 - c218 + c183*boom_cyl_r_barrel_a21 + c189*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c225 + c226 - c222 - c223 + c172*boom_cyl_r_barrel_a01 + c203*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c230 + c232 - c227 - c229 + c193*boom_cyl_r_rod_a00 + c197*boom_cyl_r_barrel_a11), -c186*(c270*boom_cyl_r_rod_oz + c271*boom_cyl_r_rod_oz + c206*boom_cyl_r_barrel_ox + c212*boom_cyl_r_barrel_ox + c213*boom_cyl_r_barrel_oy + c216*boom_cyl_r_rod_oy + c237*boom_cyl_r_barrel_a12 + c247*boom_cyl_r_barrel_a02 + c248*boom_cyl_r_barrel_a22 + c253*boom_cyl_r_barrel_a22 - c270*boom_cyl_r_barrel_oz - c271*boom_cyl_r_barrel_oz - c206*boom_cyl_r_rod_ox - c213*boom_cyl_r_rod_oy) - c192*(c270*boom_cyl_r_rod_oy + c272*boom_cyl_r_rod_oy + c204*boom_cyl_r_barrel_ox + c210*boom_cyl_r_rod_ox + c215*boom_cyl_r_barrel_oz + c238*boom_cyl_r_barrel_a22 + c239*boom_cyl_r_barrel_a12 + c243*boom_cyl_r_barrel_a02 + c249*boom_cyl_r_barrel_a12 + c266*boom_cyl_r_barrel_oz - c270*boom_cyl_r_barrel_oy - c272*boom_cyl_r_barrel_oy - c204*boom_cyl_r_rod_ox - c266*boom_cyl_r_rod_oz) - c201*(c271*boom_cyl_r_rod_ox + c272*boom_cyl_r_rod_ox + c207*boom_cyl_r_barrel_oz + c209*boom_cyl_r_barrel_oy + c211*boom_cyl_r_rod_oz + c236*boom_cyl_r_barrel_a22 + c240*boom_cyl_r_barrel_a02 + c244*boom_cyl_r_barrel_a12 + c255*boom_cyl_r_barrel_a02 + c260*boom_cyl_r_barrel_oy - c271*boom_cyl_r_barrel_ox - c272*boom_cyl_r_barrel_ox - c207*boom_cyl_r_rod_oz - c260*boom_cyl_r_rod_oy) - c205*c241 - c208*c246 - c214*c250 - v_boom_cyl_r_barrel_vx*(c256 + c257 - c258 - c259 + c212*boom_cyl_r_rod_a20 + c175*boom_cyl_r_barrel_a12) - v_boom_cyl_r_barrel_vy*(c261 + c262 - c263 - c264 + c198*boom_cyl_r_barrel_a22 + c209*boom_cyl_r_rod_a00) - v_boom_cyl_r_barrel_vz*(c265 + c267 - c269 - c268 + c182*boom_cyl_r_barrel_a02 + c215*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vx*(c258 + c259 - c256 - c257 + c183*boom_cyl_r_barrel_a22 + c210*boom_cyl_r_rod_a10) - v_boom_cyl_r_rod_vy*(c263 + c264 - c261 - c262 + c172*boom_cyl_r_barrel_a02 + c216*boom_cyl_r_rod_a20) - v_boom_cyl_r_rod_vz*(c269 + c268 - c265 - c267 + c197*boom_cyl_r_barrel_a12 + c211*boom_cyl_r_rod_a00), -c170*(c273*boom_cyl_r_rod_a02 + c275*boom_cyl_r_rod_a12) - c179*(c274*boom_cyl_r_rod_a22 + c277*boom_cyl_r_rod_a02) - c196*(c276*boom_cyl_r_rod_a12 + c278*boom_cyl_r_rod_a22) - (c273*boom_cyl_r_barrel_a21 + c277*boom_cyl_r_barrel_a11)*(boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wy - boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wz) - (c274*boom_cyl_r_barrel_a11 + c278*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a12*v_boom_cyl_r_rod_wx - boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wy) - (c275*boom_cyl_r_barrel_a21 + c276*boom_cyl_r_barrel_a01)*(boom_cyl_r_rod_a02*v_boom_cyl_r_rod_wz - boom_cyl_r_rod_a22*v_boom_cyl_r_rod_wx), c280*c281 + c282*v_boom_wy + c283*v_boom_wy - 8/25*c279*v_boom_wy - c284*p_C_x*v_boom_wz - c285*p_C_z*v_boom_wz, -c281*c286 - c282*v_boom_wx - c283*v_boom_wx + (8/25)*c279*v_boom_wx + c287*p_C_x*v_boom_wz + c288*p_C_z*v_boom_wz, -8/25*c280*v_boom_wx + (8/25)*c286*v_boom_wy + c284*p_C_x*v_boom_wx + c285*p_C_z*v_boom_wx - c287*p_C_x*v_boom_wy - c288*p_C_z*v_boom_wy, -c289*v_boom_wy - c290*v_boom_wy + (23939/5000)*c291*v_boom_wz + (29959/10000)*c292*v_boom_wz, c289*v_boom_wx + c290*v_boom_wx - 29959/10000*c294*v_boom_wz - 23939/5000*c293*v_boom_wz, -29959/10000*c292*v_boom_wx - 23939/5000*c291*v_boom_wx + (23939/5000)*c293*v_boom_wy + (29959/10000)*c294*v_boom_wy, -c299*(c301*arm_a02 + c297*arm_a22) - c303*(arm_a12*v_arm_wx - arm_a02*v_arm_wy) - c304*(arm_a02*v_arm_wz - arm_a22*v_arm_wx) - c305*(c300*arm_a12 + c302*arm_a22) - c306*(arm_a22*v_arm_wy - arm_a12*v_arm_wz) - c295*(c296*arm_a02 + c298*arm_a12), -c299*(c301*arm_a00 + c297*arm_a20) - c303*(arm_a10*v_arm_wx - arm_a00*v_arm_wy) - c304*(arm_a00*v_arm_wz - arm_a20*v_arm_wx) - c305*(c300*arm_a10 + c302*arm_a20) - c306*(arm_a20*v_arm_wy - arm_a10*v_arm_wz) - c295*(c296*arm_a00 + c298*arm_a10), -c307*v_boom_wy - c308*v_boom_wy + (183/80)*c309*v_boom_wz + (557/200)*c310*v_boom_wz, c307*v_boom_wx + c308*v_boom_wx - 557/200*c312*v_boom_wz - 183/80*c311*v_boom_wz, -557/200*c310*v_boom_wx - 183/80*c309*v_boom_wx + (183/80)*c311*v_boom_wy + (557/200)*c312*v_boom_wy, -(c317*boom_a11 + c313*boom_a21)*(arm_cyl_barrel_a22*v_arm_cyl_barrel_wy - arm_cyl_barrel_a12*v_arm_cyl_barrel_wz) - (c317*arm_cyl_barrel_a02 + c314*arm_cyl_barrel_a22)*(boom_a01*v_boom_wz - boom_a21*v_boom_wx) - (c318*boom_a01 + c314*boom_a11)*(arm_cyl_barrel_a12*v_arm_cyl_barrel_wx - arm_cyl_barrel_a02*v_arm_cyl_barrel_wy) - (c318*arm_cyl_barrel_a22 + c316*arm_cyl_barrel_a12)*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - (c313*arm_cyl_barrel_a02 + c315*arm_cyl_barrel_a12)*(boom_a11*v_boom_wx - boom_a01*v_boom_wy) - (c315*boom_a21 + c316*boom_a01)*(arm_cyl_barrel_a02*v_arm_cyl_barrel_wz - arm_cyl_barrel_a22*v_arm_cyl_barrel_wx), -c320*c326 - c329*c334 - c336*(c338 + c339) - c342*(c343 + c344) - c346*c349 - c351*(c352 + c353), -c334*c358 - c336*(c359 + c360) - c342*(c361 + c362) - c349*c364 - c351*(c365 + c366) - c355*c326, -c320*c391 - c329*c396 - c336*(c344*arm_cyl_barrel_ox + c345*arm_cyl_barrel_oy + c353*arm_cyl_rod_oy + c387*arm_cyl_barrel_a11 + c397*arm_cyl_barrel_a01 + c398*arm_cyl_barrel_a21 + c327*arm_cyl_barrel_ox + c401*arm_cyl_rod_oz + c402*arm_cyl_rod_oz + c403*arm_cyl_barrel_a21 - c345*arm_cyl_rod_oy - c327*arm_cyl_rod_ox - c401*arm_cyl_barrel_oz - c402*arm_cyl_barrel_oz) - c342*(c319*arm_cyl_barrel_ox + c339*arm_cyl_rod_ox + c352*arm_cyl_barrel_oz + c378*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a21 + c389*arm_cyl_barrel_a11 + c393*arm_cyl_barrel_a01 + c399*arm_cyl_barrel_a11 + c401*arm_cyl_rod_oy + c404*arm_cyl_rod_oy - c319*arm_cyl_rod_ox - c378*arm_cyl_rod_oz - c401*arm_cyl_barrel_oy - c404*arm_cyl_barrel_oy) - c346*c400 - c351*(c338*arm_cyl_barrel_oy + c343*arm_cyl_rod_oz + c371*arm_cyl_barrel_oy + c386*arm_cyl_barrel_a21 + c390*arm_cyl_barrel_a01 + c394*arm_cyl_barrel_a11 + c402*arm_cyl_rod_ox + c404*arm_cyl_rod_ox + c405*arm_cyl_barrel_a01 + c328*arm_cyl_barrel_oz - c371*arm_cyl_rod_oy - c402*arm_cyl_barrel_ox - c404*arm_cyl_barrel_ox - c328*arm_cyl_rod_oz) - v_arm_cyl_barrel_vx*(c367 + c368 - c369 - c370 + c344*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a11) - v_arm_cyl_barrel_vy*(c372 + c373 - c375 - c376 + c338*arm_cyl_rod_a00 + c348*arm_cyl_barrel_a21) - v_arm_cyl_barrel_vz*(c377 + c379 - c380 - c382 + c332*arm_cyl_barrel_a01 + c352*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c369 + c370 - c367 - c368 + c333*arm_cyl_barrel_a21 + c339*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c375 + c376 - c372 - c373 + c322*arm_cyl_barrel_a01 + c353*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c380 + c382 - c377 - c379 + c343*arm_cyl_rod_a00 + c347*arm_cyl_barrel_a11), -c336*(c420*arm_cyl_rod_oz + c421*arm_cyl_rod_oz + c356*arm_cyl_barrel_ox + c362*arm_cyl_barrel_ox + c363*arm_cyl_barrel_oy + c366*arm_cyl_rod_oy + c387*arm_cyl_barrel_a12 + c397*arm_cyl_barrel_a02 + c398*arm_cyl_barrel_a22 + c403*arm_cyl_barrel_a22 - c420*arm_cyl_barrel_oz - c421*arm_cyl_barrel_oz - c356*arm_cyl_rod_ox - c363*arm_cyl_rod_oy) - c342*(c420*arm_cyl_rod_oy + c422*arm_cyl_rod_oy + c354*arm_cyl_barrel_ox + c360*arm_cyl_rod_ox + c365*arm_cyl_barrel_oz + c388*arm_cyl_barrel_a22 + c389*arm_cyl_barrel_a12 + c393*arm_cyl_barrel_a02 + c399*arm_cyl_barrel_a12 + c416*arm_cyl_barrel_oz - c420*arm_cyl_barrel_oy - c422*arm_cyl_barrel_oy - c354*arm_cyl_rod_ox - c416*arm_cyl_rod_oz) - c351*(c421*arm_cyl_rod_ox + c422*arm_cyl_rod_ox + c357*arm_cyl_barrel_oz + c359*arm_cyl_barrel_oy + c361*arm_cyl_rod_oz + c386*arm_cyl_barrel_a22 + c390*arm_cyl_barrel_a02 + c394*arm_cyl_barrel_a12 + c405*arm_cyl_barrel_a02 + c410*arm_cyl_barrel_oy - c421*arm_cyl_barrel_ox - c422*arm_cyl_barrel_ox - c357*arm_cyl_rod_oz - c410*arm_cyl_rod_oy) - c355*c391 - c358*c396 - c364*c400 - v_arm_cyl_barrel_vx*(c406 + c407 - c408 - c409 + c362*arm_cyl_rod_a20 + c325*arm_cyl_barrel_a12) - v_arm_cyl_barrel_vy*(c411 + c412 - c413 - c414 + c348*arm_cyl_barrel_a22 + c359*arm_cyl_rod_a00) - v_arm_cyl_barrel_vz*(c415 + c417 - c419 - c418 + c332*arm_cyl_barrel_a02 + c365*arm_cyl_rod_a10) - v_arm_cyl_rod_vx*(c408 + c409 - c406 - c407 + c333*arm_cyl_barrel_a22 + c360*arm_cyl_rod_a10) - v_arm_cyl_rod_vy*(c413 + c414 - c411 - c412 + c322*arm_cyl_barrel_a02 + c366*arm_cyl_rod_a20) - v_arm_cyl_rod_vz*(c419 + c418 - c415 - c417 + c347*arm_cyl_barrel_a12 + c361*arm_cyl_rod_a00), -c320*(c423*arm_cyl_rod_a02 + c425*arm_cyl_rod_a12) - c329*(c424*arm_cyl_rod_a22 + c427*arm_cyl_rod_a02) - c346*(c426*arm_cyl_rod_a12 + c428*arm_cyl_rod_a22) - (c423*arm_cyl_barrel_a21 + c427*arm_cyl_barrel_a11)*(arm_cyl_rod_a22*v_arm_cyl_rod_wy - arm_cyl_rod_a12*v_arm_cyl_rod_wz) - (c424*arm_cyl_barrel_a11 + c428*arm_cyl_barrel_a01)*(arm_cyl_rod_a12*v_arm_cyl_rod_wx - arm_cyl_rod_a02*v_arm_cyl_rod_wy) - (c425*arm_cyl_barrel_a21 + c426*arm_cyl_barrel_a01)*(arm_cyl_rod_a02*v_arm_cyl_rod_wz - arm_cyl_rod_a22*v_arm_cyl_rod_wx), c429*v_arm_wy + c430*v_arm_wy - c431*p_F_x*v_arm_wz - c432*p_F_z*v_arm_wz, -c429*v_arm_wx - c430*v_arm_wx + c433*p_F_x*v_arm_wz + c434*p_F_z*v_arm_wz, c431*p_F_x*v_arm_wx + c432*p_F_z*v_arm_wx - c433*p_F_x*v_arm_wy - c434*p_F_z*v_arm_wy, -c435*v_arm_wy - c436*v_arm_wy + (9477/5000)*c437*v_arm_wz + (21809/10000)*c438*v_arm_wz, c435*v_arm_wx + c436*v_arm_wx - 21809/10000*c440*v_arm_wz - 9477/5000*c439*v_arm_wz, -21809/10000*c438*v_arm_wx - 9477/5000*c437*v_arm_wx + (9477/5000)*c439*v_arm_wy + (21809/10000)*c440*v_arm_wy, -c445*(c447*bucket_a02 + c443*bucket_a22) - c449*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy) - c450*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx) - c451*(c446*bucket_a12 + c448*bucket_a22) - c452*(bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz) - c441*(c442*bucket_a02 + c444*bucket_a12), -c445*(c447*bucket_a00 + c443*bucket_a20) - c449*(bucket_a10*v_bucket_wx - bucket_a00*v_bucket_wy) - c450*(bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx) - c451*(c446*bucket_a10 + c448*bucket_a20) - c452*(bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz) - c441*(c442*bucket_a00 + c444*bucket_a10), -c453*v_arm_wy - c454*v_arm_wy + (7877/5000)*c455*v_arm_wz + (18799/10000)*c456*v_arm_wz, c453*v_arm_wx + c454*v_arm_wx - 18799/10000*c458*v_arm_wz - 7877/5000*c457*v_arm_wz, -18799/10000*c456*v_arm_wx - 7877/5000*c455*v_arm_wx + (7877/5000)*c457*v_arm_wy + (18799/10000)*c458*v_arm_wy, -c463*(c465*side_link_a02 + c461*side_link_a22) - c467*(side_link_a12*v_side_link_wx - side_link_a02*v_side_link_wy) - c468*(side_link_a02*v_side_link_wz - side_link_a22*v_side_link_wx) - c469*(c464*side_link_a12 + c466*side_link_a22) - c470*(side_link_a22*v_side_link_wy - side_link_a12*v_side_link_wz) - c459*(c460*side_link_a02 + c462*side_link_a12), -c463*(c465*side_link_a00 + c461*side_link_a20) - c467*(side_link_a10*v_side_link_wx - side_link_a00*v_side_link_wy) - c468*(side_link_a00*v_side_link_wz - side_link_a20*v_side_link_wx) - c469*(c464*side_link_a10 + c466*side_link_a20) - c470*(side_link_a20*v_side_link_wy - side_link_a10*v_side_link_wz) - c459*(c460*side_link_a00 + c462*side_link_a10), -c471*c472 - c471*c473 - c481*c479 - c478*v_side_link_wy + 0.5686266556413632*c476*p_side_link*v_side_link_wy + 0.60493530832545*c474*p_bucket_link*v_bucket_link_wz + 0.796274621434837*c475*p_bucket_link*v_bucket_link_wz + 0.822595724821202*c482*p_side_link*v_side_link_wz, c472*c483 + c481*c487 + c483*c473 + c478*v_side_link_wx - 0.60493530832545*c484*c485 - 0.796274621434837*c485*c486 - c488*c477*v_side_link_wz - c476*c480*v_side_link_wx, -0.60493530832545*c483*c474 - 0.796274621434837*c483*c475 - c482*c477*v_side_link_wx - c487*c480*v_side_link_wy + 0.5686266556413632*c479*p_side_link*v_side_link_wx + 0.60493530832545*c484*p_bucket_link*v_bucket_link_wy + 0.796274621434837*c486*p_bucket_link*v_bucket_link_wy + 0.822595724821202*c488*p_side_link*v_side_link_wy, c489*v_bucket_wy + c490*v_bucket_wy - c491*p_K_x*v_bucket_wz - c492*p_K_z*v_bucket_wz, -c489*v_bucket_wx - c490*v_bucket_wx + c493*p_K_x*v_bucket_wz + c494*p_K_z*v_bucket_wz, c491*p_K_x*v_bucket_wx + c492*p_K_z*v_bucket_wx - c493*p_K_x*v_bucket_wy - c494*p_K_z*v_bucket_wy, -(c499*bucket_a21 + c498*bucket_a01)*(bucket_link_a00*v_bucket_link_wz - bucket_link_a20*v_bucket_link_wx) - (c500*bucket_a01 + c502*bucket_a11)*(bucket_link_a12*v_bucket_link_wx - bucket_link_a02*v_bucket_link_wy) - (c501*bucket_a21 + c504*bucket_a01)*(bucket_link_a02*v_bucket_link_wz - bucket_link_a22*v_bucket_link_wx) - (c503*bucket_a11 + c506*bucket_a21)*(bucket_link_a22*v_bucket_link_wy - bucket_link_a12*v_bucket_link_wz) - (c505*bucket_a11 + c495*bucket_a21)*(bucket_link_a20*v_bucket_link_wy - bucket_link_a10*v_bucket_link_wz) - (c496*bucket_a01 + c497*bucket_a11)*(bucket_link_a10*v_bucket_link_wx - bucket_link_a00*v_bucket_link_wy) - (bucket_a01*v_bucket_wz - bucket_a21*v_bucket_wx)*(c502*bucket_link_a22 + c503*bucket_link_a02 + c505*bucket_link_a00 + c497*bucket_link_a20) - (bucket_a11*v_bucket_wx - bucket_a01*v_bucket_wy)*(c499*bucket_link_a10 + c501*bucket_link_a12 + c506*bucket_link_a02 + c495*bucket_link_a00) - (bucket_a21*v_bucket_wy - bucket_a11*v_bucket_wz)*(c500*bucket_link_a22 + c504*bucket_link_a12 + c496*bucket_link_a20 + c498*bucket_link_a10), c507*v_arm_wy + c510*c511 - 36797/50000*c508*v_arm_wy - 24687/100000*c509*v_arm_wz, -c507*v_arm_wx - c511*c513 + (24687/100000)*c512*v_arm_wz + (36797/50000)*c508*v_arm_wx, -36797/50000*c510*v_arm_wx - 24687/100000*c512*v_arm_wy + (24687/100000)*c509*v_arm_wx + (36797/50000)*c513*v_arm_wy, -(c517*arm_a01 + c516*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wx) - (c517*bucket_cyl_barrel_a12 + c519*bucket_cyl_barrel_a22)*(arm_a21*v_arm_wy - arm_a11*v_arm_wz) - (c518*arm_a11 + c514*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wz) - (c518*bucket_cyl_barrel_a02 + c515*bucket_cyl_barrel_a22)*(arm_a01*v_arm_wz - arm_a21*v_arm_wx) - (c519*arm_a01 + c515*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_wy) - (c514*bucket_cyl_barrel_a02 + c516*bucket_cyl_barrel_a12)*(arm_a11*v_arm_wx - arm_a01*v_arm_wy), -c521*c527 - c530*c535 - c537*(c539 + c540) - c543*(c544 + c545) - c547*c550 - c552*(c553 + c554), -c535*c559 - c537*(c560 + c561) - c543*(c562 + c563) - c550*c565 - c552*(c566 + c567) - c556*c527, -c521*c592 - c530*c597 - c537*(c545*bucket_cyl_barrel_ox + c546*bucket_cyl_barrel_oy + c554*bucket_cyl_rod_oy + c588*bucket_cyl_barrel_a11 + c598*bucket_cyl_barrel_a01 + c599*bucket_cyl_barrel_a21 + c528*bucket_cyl_barrel_ox + c602*bucket_cyl_rod_oz + c603*bucket_cyl_rod_oz + c604*bucket_cyl_barrel_a21 - c546*bucket_cyl_rod_oy - c528*bucket_cyl_rod_ox - c602*bucket_cyl_barrel_oz - c603*bucket_cyl_barrel_oz) - c543*(c520*bucket_cyl_barrel_ox + c540*bucket_cyl_rod_ox + c553*bucket_cyl_barrel_oz + c579*bucket_cyl_barrel_oz + c589*bucket_cyl_barrel_a21 + c590*bucket_cyl_barrel_a11 + c594*bucket_cyl_barrel_a01 + c600*bucket_cyl_barrel_a11 + c602*bucket_cyl_rod_oy + c605*bucket_cyl_rod_oy - c520*bucket_cyl_rod_ox - c579*bucket_cyl_rod_oz - c602*bucket_cyl_barrel_oy - c605*bucket_cyl_barrel_oy) - c547*c601 - c552*(c539*bucket_cyl_barrel_oy + c544*bucket_cyl_rod_oz + c572*bucket_cyl_barrel_oy + c587*bucket_cyl_barrel_a21 + c591*bucket_cyl_barrel_a01 + c595*bucket_cyl_barrel_a11 + c603*bucket_cyl_rod_ox + c605*bucket_cyl_rod_ox + c606*bucket_cyl_barrel_a01 + c529*bucket_cyl_barrel_oz - c572*bucket_cyl_rod_oy - c603*bucket_cyl_barrel_ox - c605*bucket_cyl_barrel_ox - c529*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_vx*(c568 + c569 - c570 - c571 + c545*bucket_cyl_rod_a20 + c526*bucket_cyl_barrel_a11) - v_bucket_cyl_barrel_vy*(c573 + c574 - c576 - c577 + c539*bucket_cyl_rod_a00 + c549*bucket_cyl_barrel_a21) - v_bucket_cyl_barrel_vz*(c578 + c580 - c581 - c583 + c533*bucket_cyl_barrel_a01 + c553*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c570 + c571 - c568 - c569 + c534*bucket_cyl_barrel_a21 + c540*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c576 + c577 - c573 - c574 + c523*bucket_cyl_barrel_a01 + c554*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c581 + c583 - c578 - c580 + c544*bucket_cyl_rod_a00 + c548*bucket_cyl_barrel_a11), -c537*(c621*bucket_cyl_rod_oz + c622*bucket_cyl_rod_oz + c557*bucket_cyl_barrel_ox + c563*bucket_cyl_barrel_ox + c564*bucket_cyl_barrel_oy + c567*bucket_cyl_rod_oy + c588*bucket_cyl_barrel_a12 + c598*bucket_cyl_barrel_a02 + c599*bucket_cyl_barrel_a22 + c604*bucket_cyl_barrel_a22 - c621*bucket_cyl_barrel_oz - c622*bucket_cyl_barrel_oz - c557*bucket_cyl_rod_ox - c564*bucket_cyl_rod_oy) - c543*(c621*bucket_cyl_rod_oy + c623*bucket_cyl_rod_oy + c555*bucket_cyl_barrel_ox + c561*bucket_cyl_rod_ox + c566*bucket_cyl_barrel_oz + c589*bucket_cyl_barrel_a22 + c590*bucket_cyl_barrel_a12 + c594*bucket_cyl_barrel_a02 + c600*bucket_cyl_barrel_a12 + c617*bucket_cyl_barrel_oz - c621*bucket_cyl_barrel_oy - c623*bucket_cyl_barrel_oy - c555*bucket_cyl_rod_ox - c617*bucket_cyl_rod_oz) - c552*(c622*bucket_cyl_rod_ox + c623*bucket_cyl_rod_ox + c558*bucket_cyl_barrel_oz + c560*bucket_cyl_barrel_oy + c562*bucket_cyl_rod_oz + c587*bucket_cyl_barrel_a22 + c591*bucket_cyl_barrel_a02 + c595*bucket_cyl_barrel_a12 + c606*bucket_cyl_barrel_a02 + c611*bucket_cyl_barrel_oy - c622*bucket_cyl_barrel_ox - c623*bucket_cyl_barrel_ox - c558*bucket_cyl_rod_oz - c611*bucket_cyl_rod_oy) - c556*c592 - c559*c597 - c565*c601 - v_bucket_cyl_barrel_vx*(c607 + c608 - c609 - c610 + c563*bucket_cyl_rod_a20 + c526*bucket_cyl_barrel_a12) - v_bucket_cyl_barrel_vy*(c612 + c613 - c614 - c615 + c549*bucket_cyl_barrel_a22 + c560*bucket_cyl_rod_a00) - v_bucket_cyl_barrel_vz*(c616 + c618 - c620 - c619 + c533*bucket_cyl_barrel_a02 + c566*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vx*(c609 + c610 - c607 - c608 + c534*bucket_cyl_barrel_a22 + c561*bucket_cyl_rod_a10) - v_bucket_cyl_rod_vy*(c614 + c615 - c612 - c613 + c523*bucket_cyl_barrel_a02 + c567*bucket_cyl_rod_a20) - v_bucket_cyl_rod_vz*(c620 + c619 - c616 - c618 + c548*bucket_cyl_barrel_a12 + c562*bucket_cyl_rod_a00), -c521*(c624*bucket_cyl_rod_a02 + c626*bucket_cyl_rod_a12) - c530*(c625*bucket_cyl_rod_a22 + c628*bucket_cyl_rod_a02) - c547*(c627*bucket_cyl_rod_a12 + c629*bucket_cyl_rod_a22) - (c624*bucket_cyl_barrel_a21 + c628*bucket_cyl_barrel_a11)*(bucket_cyl_rod_a22*v_bucket_cyl_rod_wy - bucket_cyl_rod_a12*v_bucket_cyl_rod_wz) - (c625*bucket_cyl_barrel_a11 + c629*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a12*v_bucket_cyl_rod_wx - bucket_cyl_rod_a02*v_bucket_cyl_rod_wy) - (c626*bucket_cyl_barrel_a21 + c627*bucket_cyl_barrel_a01)*(bucket_cyl_rod_a02*v_bucket_cyl_rod_wz - bucket_cyl_rod_a22*v_bucket_cyl_rod_wx), -c631*v_side_link_wy - c634*c636 + 0.5686266556413632*c633*p_side_link*v_side_link_wz + 0.822595724821202*c632*p_side_link*v_side_link_wy, c631*v_side_link_wx + c636*c638 - c630*c637*v_side_link_wz - c632*c635*v_side_link_wx, -c630*c633*v_side_link_wx - c635*c638*v_side_link_wy + 0.5686266556413632*c637*p_side_link*v_side_link_wy + 0.822595724821202*c634*p_side_link*v_side_link_wx]
 
 
 def frames(q, v, a):
@@ -3514,6 +3564,62 @@ def frames(q, v, a):
     return out
 
 
+def points(p):
+    """Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS)."""
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
+    out = np.zeros((90,) + np.shape(p[0]))
+    out[3] = 22767/100000
+    out[5] = 195729/100000
+    out[6] = 4307/6250
+    out[7] = 8/25
+    out[8] = 67739/50000
+    out[9] = 4307/6250
+    out[10] = -8/25
+    out[11] = 67739/50000
+    out[15] = p_C_x
+    out[16] = 8/25
+    out[17] = p_C_z
+    out[18] = p_C_x
+    out[19] = -8/25
+    out[20] = p_C_z
+    out[21] = 183/80
+    out[23] = 557/200
+    out[24] = 23939/5000
+    out[26] = 29959/10000
+    out[42] = p_F_x
+    out[44] = p_F_z
+    out[45] = -24687/100000
+    out[47] = 36797/50000
+    out[48] = 7877/5000
+    out[50] = 18799/10000
+    out[51] = 9477/5000
+    out[53] = 21809/10000
+    out[69] = -0.5686266556413632*p_side_link
+    out[71] = 0.822595724821202*p_side_link
+    out[75] = -0.60493530832545*p_bucket_link
+    out[77] = -0.796274621434837*p_bucket_link
+    out[81] = p_K_x
+    out[83] = p_K_z
+    out[84] = 32/25
+    out[86] = 403/500
+    return out
+
+
+def actuator_ranges(p):
+    """The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters."""
+    _, _, _, _, p_boom_retracted, _, _, _, _ = p
+    out = np.zeros((8,) + np.shape(p[0]))
+    out[0] = p_boom_retracted
+    out[1] = 30649/10000
+    out[2] = p_boom_retracted
+    out[3] = 30649/10000
+    out[4] = 4541/2500
+    out[5] = 32939/10000
+    out[6] = 16529/10000
+    out[7] = 26613/10000
+    return out
+
+
 def inputs_digging(t):
     """Driver inputs of case 'digging' at time t: rows u (4), then du/dt, then d2u/dt2."""
     c0 = 2*t
@@ -3553,7 +3659,7 @@ def inputs_digging(t):
     return out
 
 
-def _drivers_phi_digging(q, u):
+def _drivers_phi_digging(q, u, p):
     """Phi of the driver rows of case 'digging'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -3593,7 +3699,7 @@ def _drivers_phi_digging(q, u):
     return out
 
 
-def _drivers_jac_digging(q, u):
+def _drivers_jac_digging(q, u, p):
     """Phi_q values of the driver rows of case 'digging'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3670,7 +3776,7 @@ def _drivers_jac_digging(q, u):
     return out
 
 
-def _drivers_nu_digging(q, u, ud):
+def _drivers_nu_digging(q, u, ud, p):
     """nu of the driver rows of case 'digging'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3684,7 +3790,7 @@ def _drivers_nu_digging(q, u, ud):
     return out
 
 
-def _drivers_gamma_digging(q, v, u, ud, udd):
+def _drivers_gamma_digging(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'digging'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -3751,7 +3857,7 @@ def _drivers_gamma_digging(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_digging(q, u):
+def _drivers_phi_jac_s_digging(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'digging' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -3798,7 +3904,7 @@ def _drivers_phi_jac_s_digging(q, u):
     return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)], [-d1*upper_rx - d2*upper_ry, d2*upper_rx - d1*upper_ry, -d1*upper_rz - d2*upper_rw, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_digging(q, u, ud):
+def _drivers_nu_s_digging(q, u, ud, p):
     """nu of the driver rows of case 'digging' at one configuration."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3807,7 +3913,7 @@ def _drivers_nu_s_digging(q, u, ud):
     return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_digging(q, v, u, ud, udd):
+def _drivers_gamma_s_digging(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'digging' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -3869,42 +3975,42 @@ def _drivers_gamma_s_digging(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx), udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx), udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx), udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx)]
 
 
-def phi_digging(q, u):
+def phi_digging(q, u, p):
     """Phi(q, u) of case 'digging': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_digging(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
-def jac_digging(q, u):
+def jac_digging(q, u, p):
     """Values of the sparse Phi_q of case 'digging' at jac_rows, jac_cols (457 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_digging(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
-def nu_digging(q, u, ud):
+def nu_digging(q, u, ud, p):
     """nu = -Phi_t of case 'digging' (zero in the joint rows)."""
-    drivers = _drivers_nu_digging(q, u, ud)
+    drivers = _drivers_nu_digging(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_digging(q, v, u, ud, udd):
+def gamma_digging(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_digging(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_digging(q, u):
+def phi_jac_s_digging(q, u, p):
     """Phi and the Phi_q values of case 'digging' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_digging(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_digging(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_digging(q, u, ud):
+def nu_s_digging(q, u, ud, p):
     """nu of case 'digging' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_digging(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_digging(q, u, ud, p)
 
 
-def gamma_s_digging(q, v, u, ud, udd):
+def gamma_s_digging(q, v, u, ud, udd, p):
     """gamma of case 'digging' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_digging(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_digging(q, v, u, ud, udd, p)
 
 
 def inputs_level_cut(t):
@@ -3921,7 +4027,7 @@ def inputs_level_cut(t):
     return out
 
 
-def _drivers_phi_level_cut(q, u):
+def _drivers_phi_level_cut(q, u, p):
     """Phi of the driver rows of case 'level_cut'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
     u0, u1, u2, u3 = u
@@ -3940,7 +4046,7 @@ def _drivers_phi_level_cut(q, u):
     return out
 
 
-def _drivers_jac_level_cut(q, u):
+def _drivers_jac_level_cut(q, u, p):
     """Phi_q values of the driver rows of case 'level_cut'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
@@ -3971,7 +4077,7 @@ def _drivers_jac_level_cut(q, u):
     return out
 
 
-def _drivers_nu_level_cut(q, u, ud):
+def _drivers_nu_level_cut(q, u, ud, p):
     """nu of the driver rows of case 'level_cut'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
@@ -3987,7 +4093,7 @@ def _drivers_nu_level_cut(q, u, ud):
     return out
 
 
-def _drivers_gamma_level_cut(q, v, u, ud, udd):
+def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'level_cut'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
@@ -4022,7 +4128,7 @@ def _drivers_gamma_level_cut(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_level_cut(q, u):
+def _drivers_phi_jac_s_level_cut(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'level_cut' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
     u0, u1, u2, u3 = u
@@ -4043,7 +4149,7 @@ def _drivers_phi_jac_s_level_cut(q, u):
     return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), bucket_ox - u1 + (32/25)*bucket_a00 + (403/500)*bucket_a02, bucket_oz - u2 + (32/25)*bucket_a20 + (403/500)*bucket_a22, bucket_a22*math.sin(u3) - bucket_a02*math.cos(u3)], [-d1*upper_rx - d2*upper_ry, d2*upper_rx - d1*upper_ry, -d1*upper_rz - d2*upper_rw, (32/25)*bucket_a20 + (403/500)*bucket_a22, -403/500*bucket_a12 - 32/25*bucket_a10, 1.0, (32/25)*bucket_a10 + (403/500)*bucket_a12, -403/500*bucket_a02 - 32/25*bucket_a00, 1.0, d3*bucket_a12, -d3*bucket_a02 - d4*bucket_a22, d4*bucket_a12]
 
 
-def _drivers_nu_s_level_cut(q, u, ud):
+def _drivers_nu_s_level_cut(q, u, ud, p):
     """nu of the driver rows of case 'level_cut' at one configuration."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
@@ -4054,7 +4160,7 @@ def _drivers_nu_s_level_cut(q, u, ud):
     return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
 
-def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
+def _drivers_gamma_s_level_cut(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'level_cut' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
@@ -4084,42 +4190,42 @@ def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx), udd1 - 403/500*v_bucket_wy*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy) - 32/25*v_bucket_wy*(bucket_a10*v_bucket_wx - bucket_a00*v_bucket_wy) + (32/25)*v_bucket_wz*(bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx) + (403/500)*v_bucket_wz*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx), udd2 - 403/500*v_bucket_wx*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx) - 32/25*v_bucket_wx*(bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx) + (32/25)*v_bucket_wy*(bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz) + (403/500)*v_bucket_wy*(bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz), -c13*(ud3*ud3) - udd3*(c10*bucket_a02 + c11*bucket_a22) - (c10*v_bucket_wx + c11*v_bucket_wz)*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx) - 2.0*ud3*(-c10*c12 - c13*v_bucket_wy + c11*bucket_a12*v_bucket_wx) + c10*v_bucket_wy*(-c12 + bucket_a22*v_bucket_wy) + c11*v_bucket_wy*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy)]
 
 
-def phi_level_cut(q, u):
+def phi_level_cut(q, u, p):
     """Phi(q, u) of case 'level_cut': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_level_cut(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
-def jac_level_cut(q, u):
+def jac_level_cut(q, u, p):
     """Values of the sparse Phi_q of case 'level_cut' at jac_rows, jac_cols (439 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_level_cut(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
-def nu_level_cut(q, u, ud):
+def nu_level_cut(q, u, ud, p):
     """nu = -Phi_t of case 'level_cut' (zero in the joint rows)."""
-    drivers = _drivers_nu_level_cut(q, u, ud)
+    drivers = _drivers_nu_level_cut(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_level_cut(q, v, u, ud, udd):
+def gamma_level_cut(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_level_cut(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_level_cut(q, u):
+def phi_jac_s_level_cut(q, u, p):
     """Phi and the Phi_q values of case 'level_cut' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_level_cut(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_level_cut(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_level_cut(q, u, ud):
+def nu_s_level_cut(q, u, ud, p):
     """nu of case 'level_cut' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_level_cut(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_level_cut(q, u, ud, p)
 
 
-def gamma_s_level_cut(q, v, u, ud, udd):
+def gamma_s_level_cut(q, v, u, ud, udd, p):
     """gamma of case 'level_cut' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_level_cut(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_level_cut(q, v, u, ud, udd, p)
 
 
 def inputs_trench_wall(t):
@@ -4136,7 +4242,7 @@ def inputs_trench_wall(t):
     return out
 
 
-def _drivers_phi_trench_wall(q, u):
+def _drivers_phi_trench_wall(q, u, p):
     """Phi of the driver rows of case 'trench_wall'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
     u0, u1, u2, u3 = u
@@ -4155,7 +4261,7 @@ def _drivers_phi_trench_wall(q, u):
     return out
 
 
-def _drivers_jac_trench_wall(q, u):
+def _drivers_jac_trench_wall(q, u, p):
     """Phi_q values of the driver rows of case 'trench_wall'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
@@ -4186,7 +4292,7 @@ def _drivers_jac_trench_wall(q, u):
     return out
 
 
-def _drivers_nu_trench_wall(q, u, ud):
+def _drivers_nu_trench_wall(q, u, ud, p):
     """nu of the driver rows of case 'trench_wall'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
@@ -4202,7 +4308,7 @@ def _drivers_nu_trench_wall(q, u, ud):
     return out
 
 
-def _drivers_gamma_trench_wall(q, v, u, ud, udd):
+def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'trench_wall'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
@@ -4237,7 +4343,7 @@ def _drivers_gamma_trench_wall(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_trench_wall(q, u):
+def _drivers_phi_jac_s_trench_wall(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'trench_wall' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, bucket_dw, bucket_dx, bucket_dy, bucket_dz = q
     u0, u1, u2, u3 = u
@@ -4258,7 +4364,7 @@ def _drivers_phi_jac_s_trench_wall(q, u):
     return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), bucket_ox - u1 + (32/25)*bucket_a00 + (403/500)*bucket_a02, bucket_oz - u2 + (32/25)*bucket_a20 + (403/500)*bucket_a22, bucket_a22*math.sin(u3) - bucket_a02*math.cos(u3)], [-d1*upper_rx - d2*upper_ry, d2*upper_rx - d1*upper_ry, -d1*upper_rz - d2*upper_rw, (32/25)*bucket_a20 + (403/500)*bucket_a22, -403/500*bucket_a12 - 32/25*bucket_a10, 1.0, (32/25)*bucket_a10 + (403/500)*bucket_a12, -403/500*bucket_a02 - 32/25*bucket_a00, 1.0, d3*bucket_a12, -d3*bucket_a02 - d4*bucket_a22, d4*bucket_a12]
 
 
-def _drivers_nu_s_trench_wall(q, u, ud):
+def _drivers_nu_s_trench_wall(q, u, ud, p):
     """nu of the driver rows of case 'trench_wall' at one configuration."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     u0, _, _, u3 = u
@@ -4269,7 +4375,7 @@ def _drivers_nu_s_trench_wall(q, u, ud):
     return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
 
-def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
+def _drivers_gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'trench_wall' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_rw, bucket_rx, bucket_ry, bucket_rz, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_wx, v_bucket_wy, v_bucket_wz, _, _, _ = v
@@ -4299,42 +4405,42 @@ def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx), udd1 - 403/500*v_bucket_wy*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy) - 32/25*v_bucket_wy*(bucket_a10*v_bucket_wx - bucket_a00*v_bucket_wy) + (32/25)*v_bucket_wz*(bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx) + (403/500)*v_bucket_wz*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx), udd2 - 403/500*v_bucket_wx*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx) - 32/25*v_bucket_wx*(bucket_a00*v_bucket_wz - bucket_a20*v_bucket_wx) + (32/25)*v_bucket_wy*(bucket_a20*v_bucket_wy - bucket_a10*v_bucket_wz) + (403/500)*v_bucket_wy*(bucket_a22*v_bucket_wy - bucket_a12*v_bucket_wz), -c13*(ud3*ud3) - udd3*(c10*bucket_a02 + c11*bucket_a22) - (c10*v_bucket_wx + c11*v_bucket_wz)*(bucket_a02*v_bucket_wz - bucket_a22*v_bucket_wx) - 2.0*ud3*(-c10*c12 - c13*v_bucket_wy + c11*bucket_a12*v_bucket_wx) + c10*v_bucket_wy*(-c12 + bucket_a22*v_bucket_wy) + c11*v_bucket_wy*(bucket_a12*v_bucket_wx - bucket_a02*v_bucket_wy)]
 
 
-def phi_trench_wall(q, u):
+def phi_trench_wall(q, u, p):
     """Phi(q, u) of case 'trench_wall': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_trench_wall(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
 
 
-def jac_trench_wall(q, u):
+def jac_trench_wall(q, u, p):
     """Values of the sparse Phi_q of case 'trench_wall' at jac_rows, jac_cols (439 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_trench_wall(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
 
 
-def nu_trench_wall(q, u, ud):
+def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    drivers = _drivers_nu_trench_wall(q, u, ud)
+    drivers = _drivers_nu_trench_wall(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_trench_wall(q, v, u, ud, udd):
+def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_trench_wall(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_trench_wall(q, u):
+def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values of case 'trench_wall' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_trench_wall(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_trench_wall(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_trench_wall(q, u, ud):
+def nu_s_trench_wall(q, u, ud, p):
     """nu of case 'trench_wall' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_trench_wall(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_trench_wall(q, u, ud, p)
 
 
-def gamma_s_trench_wall(q, v, u, ud, udd):
+def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma of case 'trench_wall' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_trench_wall(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_trench_wall(q, v, u, ud, udd, p)
 
 
 def inputs_bucket_toggle(t):
@@ -4347,7 +4453,7 @@ def inputs_bucket_toggle(t):
     return out
 
 
-def _drivers_phi_bucket_toggle(q, u):
+def _drivers_phi_bucket_toggle(q, u, p):
     """Phi of the driver rows of case 'bucket_toggle'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4387,7 +4493,7 @@ def _drivers_phi_bucket_toggle(q, u):
     return out
 
 
-def _drivers_jac_bucket_toggle(q, u):
+def _drivers_jac_bucket_toggle(q, u, p):
     """Phi_q values of the driver rows of case 'bucket_toggle'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4464,7 +4570,7 @@ def _drivers_jac_bucket_toggle(q, u):
     return out
 
 
-def _drivers_nu_bucket_toggle(q, u, ud):
+def _drivers_nu_bucket_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_toggle'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4478,7 +4584,7 @@ def _drivers_nu_bucket_toggle(q, u, ud):
     return out
 
 
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd):
+def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_toggle'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4545,7 +4651,7 @@ def _drivers_gamma_bucket_toggle(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_bucket_toggle(q, u):
+def _drivers_phi_jac_s_bucket_toggle(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'bucket_toggle' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4592,7 +4698,7 @@ def _drivers_phi_jac_s_bucket_toggle(q, u):
     return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)], [-d1*upper_rx - d2*upper_ry, d2*upper_rx - d1*upper_ry, -d1*upper_rz - d2*upper_rw, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_bucket_toggle(q, u, ud):
+def _drivers_nu_s_bucket_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_toggle' at one configuration."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4601,7 +4707,7 @@ def _drivers_nu_s_bucket_toggle(q, u, ud):
     return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
+def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_toggle' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4663,42 +4769,406 @@ def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx), udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx), udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx), udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx)]
 
 
-def phi_bucket_toggle(q, u):
+def phi_bucket_toggle(q, u, p):
     """Phi(q, u) of case 'bucket_toggle': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_bucket_toggle(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
 
 
-def jac_bucket_toggle(q, u):
+def jac_bucket_toggle(q, u, p):
     """Values of the sparse Phi_q of case 'bucket_toggle' at jac_rows, jac_cols (457 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_bucket_toggle(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
 
 
-def nu_bucket_toggle(q, u, ud):
+def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    drivers = _drivers_nu_bucket_toggle(q, u, ud)
+    drivers = _drivers_nu_bucket_toggle(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_bucket_toggle(q, v, u, ud, udd):
+def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_toggle(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_bucket_toggle(q, u):
+def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values of case 'bucket_toggle' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_toggle(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_toggle(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_bucket_toggle(q, u, ud):
+def nu_s_bucket_toggle(q, u, ud, p):
     """nu of case 'bucket_toggle' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_bucket_toggle(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_bucket_toggle(q, u, ud, p)
 
 
-def gamma_s_bucket_toggle(q, v, u, ud, udd):
+def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of case 'bucket_toggle' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd, p)
+
+
+def inputs_bucket_stroke(t):
+    """Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2."""
+    out = np.zeros((12,) + np.shape(t))
+    out[1] = 626973/250000
+    out[2] = 485803/250000
+    out[3] = 16529/10000 + (2521/2500)*t
+    out[7] = 2521/2500
+    return out
+
+
+def _drivers_phi_bucket_stroke(q, u, p):
+    """Phi of the driver rows of case 'bucket_stroke'."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -2*upper_rz*cos(c0) + 2*upper_rw*sin(c0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)
+    return out
+
+
+def _drivers_jac_bucket_stroke(q, u, p):
+    """Phi_q values of the driver rows of case 'bucket_stroke'."""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    d0 = (1/2)*u0
+    d1 = sin(d0)
+    d2 = cos(d0)
+    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
+    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
+    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
+    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
+    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
+    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
+    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    out = _zeros(30, q, u)
+    out[0] = -d1*upper_rx - d2*upper_ry
+    out[1] = d2*upper_rx - d1*upper_ry
+    out[2] = -d1*upper_rz - d2*upper_rw
+    out[3] = d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20
+    out[4] = d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00
+    out[5] = d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10
+    out[6] = -boom_cyl_l_barrel_a00
+    out[7] = -boom_cyl_l_barrel_a10
+    out[8] = -boom_cyl_l_barrel_a20
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20
+    out[13] = d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00
+    out[14] = d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10
+    out[15] = -arm_cyl_barrel_a00
+    out[16] = -arm_cyl_barrel_a10
+    out[17] = -arm_cyl_barrel_a20
+    out[18] = arm_cyl_barrel_a00
+    out[19] = arm_cyl_barrel_a10
+    out[20] = arm_cyl_barrel_a20
+    out[21] = d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20
+    out[22] = d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00
+    out[23] = d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10
+    out[24] = -bucket_cyl_barrel_a00
+    out[25] = -bucket_cyl_barrel_a10
+    out[26] = -bucket_cyl_barrel_a20
+    out[27] = bucket_cyl_barrel_a00
+    out[28] = bucket_cyl_barrel_a10
+    out[29] = bucket_cyl_barrel_a20
+    return out
+
+
+def _drivers_nu_bucket_stroke(q, u, ud, p):
+    """nu of the driver rows of case 'bucket_stroke'."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'bucket_stroke'."""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*upper_rw
+    c4 = c2*c3 - 1/2*c1*upper_rz
+    c5 = (1/2)*v_upper_wy
+    c6 = (1/2)*v_upper_wx
+    c7 = (1/2)*upper_rz
+    c8 = (1/2)*v_upper_wz
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy - arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
+    c23 = -c20
+    c24 = -c22
+    out = _zeros(4, q, u)
+    out[0] = c4*ud0**2 - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx)
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx)
+    out[2] = udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx)
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx)
+    return out
+
+
+def _drivers_phi_jac_s_bucket_stroke(q, u, p):
+    """Phi and Phi_q values of the driver rows of case 'bucket_stroke' at one configuration."""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
+    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
+    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
+    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
+    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
+    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
+    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)], [-d1*upper_rx - d2*upper_ry, d2*upper_rx - d1*upper_ry, -d1*upper_rz - d2*upper_rw, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def _drivers_nu_s_bucket_stroke(q, u, ud, p):
+    """nu of the driver rows of case 'bucket_stroke' at one configuration."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, ud3]
+
+
+def _drivers_gamma_s_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'bucket_stroke' at one configuration."""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*upper_rw
+    c4 = c2*c3 - 1/2*c1*upper_rz
+    c5 = (1/2)*v_upper_wy
+    c6 = (1/2)*v_upper_wx
+    c7 = (1/2)*upper_rz
+    c8 = (1/2)*v_upper_wz
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy - arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
+    c23 = -c20
+    c24 = -c22
+    return [c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx), udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx), udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx), udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx)]
+
+
+def phi_bucket_stroke(q, u, p):
+    """Phi(q, u) of case 'bucket_stroke': 84 residuals."""
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
+
+
+def jac_bucket_stroke(q, u, p):
+    """Values of the sparse Phi_q of case 'bucket_stroke' at jac_rows, jac_cols (457 entries)."""
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
+
+
+def nu_bucket_stroke(q, u, ud, p):
+    """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
+    drivers = _drivers_nu_bucket_stroke(q, u, ud, p)
+    return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
+
+
+def gamma_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
+
+
+def phi_jac_s_bucket_stroke(q, u, p):
+    """Phi and the Phi_q values of case 'bucket_stroke' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_stroke(q, u, p)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_bucket_stroke(q, u, ud, p):
+    """nu of case 'bucket_stroke' at one configuration (list of floats)."""
+    return [0.0] * 80 + _drivers_nu_s_bucket_stroke(q, u, ud, p)
+
+
+def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of case 'bucket_stroke' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_stroke(q, v, u, ud, udd, p)
 
 
 def inputs_bucket_near_toggle(t):
@@ -4714,7 +5184,7 @@ def inputs_bucket_near_toggle(t):
     return out
 
 
-def _drivers_phi_bucket_near_toggle(q, u):
+def _drivers_phi_bucket_near_toggle(q, u, p):
     """Phi of the driver rows of case 'bucket_near_toggle'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4754,7 +5224,7 @@ def _drivers_phi_bucket_near_toggle(q, u):
     return out
 
 
-def _drivers_jac_bucket_near_toggle(q, u):
+def _drivers_jac_bucket_near_toggle(q, u, p):
     """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4831,7 +5301,7 @@ def _drivers_jac_bucket_near_toggle(q, u):
     return out
 
 
-def _drivers_nu_bucket_near_toggle(q, u, ud):
+def _drivers_nu_bucket_near_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_near_toggle'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4845,7 +5315,7 @@ def _drivers_nu_bucket_near_toggle(q, u, ud):
     return out
 
 
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
+def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_near_toggle'."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4912,7 +5382,7 @@ def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_bucket_near_toggle(q, u):
+def _drivers_phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'bucket_near_toggle' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4959,7 +5429,7 @@ def _drivers_phi_jac_s_bucket_near_toggle(q, u):
     return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)], [-d1*upper_rx - d2*upper_ry, d2*upper_rx - d1*upper_ry, -d1*upper_rz - d2*upper_rw, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_bucket_near_toggle(q, u, ud):
+def _drivers_nu_s_bucket_near_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_near_toggle' at one configuration."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4968,7 +5438,7 @@ def _drivers_nu_s_bucket_near_toggle(q, u, ud):
     return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_near_toggle' at one configuration."""
     upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -5030,42 +5500,42 @@ def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx), udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx), udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx), udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx)]
 
 
-def phi_bucket_near_toggle(q, u):
+def phi_bucket_near_toggle(q, u, p):
     """Phi(q, u) of case 'bucket_near_toggle': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_bucket_near_toggle(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
 
 
-def jac_bucket_near_toggle(q, u):
+def jac_bucket_near_toggle(q, u, p):
     """Values of the sparse Phi_q of case 'bucket_near_toggle' at jac_rows, jac_cols (457 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_bucket_near_toggle(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
 
 
-def nu_bucket_near_toggle(q, u, ud):
+def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    drivers = _drivers_nu_bucket_near_toggle(q, u, ud)
+    drivers = _drivers_nu_bucket_near_toggle(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_bucket_near_toggle(q, v, u, ud, udd):
+def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_bucket_near_toggle(q, u):
+def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values of case 'bucket_near_toggle' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_bucket_near_toggle(q, u, ud):
+def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu of case 'bucket_near_toggle' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_bucket_near_toggle(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_bucket_near_toggle(q, u, ud, p)
 
 
-def gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of case 'bucket_near_toggle' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd, p)
 
 
 CASES = {
@@ -5108,6 +5578,16 @@ CASES = {
         'driver_sources': (('cases.bucket_toggle.drivers.swing_angle.function', '0'), ('cases.bucket_toggle.drivers.boom_length.function', '2.507892'), ('cases.bucket_toggle.drivers.arm_length.function', '1.943212'), ('cases.bucket_toggle.drivers.bucket_length.function', '2.5 + 0.1*t')),
         'inputs': inputs_bucket_toggle, 'phi': phi_bucket_toggle, 'jac': jac_bucket_toggle, 'nu': nu_bucket_toggle, 'gamma': gamma_bucket_toggle,
         'phi_jac_s': phi_jac_s_bucket_toggle, 'nu_s': nu_s_bucket_toggle, 'gamma_s': gamma_s_bucket_toggle,
+    },
+    'bucket_stroke': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83),
+        'jac_cols': (3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 0, 1, 2, 6, 7, 8, 0, 1, 2, 6, 7, 8, 1, 2, 3, 15, 0, 2, 4, 16, 0, 1, 5, 17, 0, 1, 2, 12, 13, 14, 12, 13, 14, 18, 19, 20, 12, 13, 14, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 18, 19, 20, 7, 8, 9, 21, 6, 8, 10, 22, 6, 7, 11, 23, 1, 2, 3, 27, 0, 2, 4, 28, 0, 1, 5, 29, 0, 1, 2, 24, 25, 26, 24, 25, 26, 30, 31, 32, 24, 25, 26, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 30, 31, 32, 7, 8, 9, 33, 6, 8, 10, 34, 6, 7, 11, 35, 7, 8, 9, 39, 6, 8, 10, 40, 6, 7, 11, 41, 6, 7, 8, 36, 37, 38, 6, 7, 8, 36, 37, 38, 7, 8, 9, 45, 6, 8, 10, 46, 6, 7, 11, 47, 6, 7, 8, 42, 43, 44, 42, 43, 44, 48, 49, 50, 42, 43, 44, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 48, 49, 50, 37, 38, 39, 51, 36, 38, 40, 52, 36, 37, 41, 53, 37, 38, 39, 81, 36, 38, 40, 82, 36, 37, 41, 83, 36, 37, 38, 78, 79, 80, 36, 37, 38, 78, 79, 80, 37, 38, 39, 69, 36, 38, 40, 70, 36, 37, 41, 71, 36, 37, 38, 66, 67, 68, 36, 37, 38, 66, 67, 68, 67, 68, 69, 73, 74, 75, 66, 68, 70, 72, 74, 76, 66, 67, 71, 72, 73, 77, 75, 79, 80, 81, 76, 78, 80, 82, 77, 78, 79, 83, 72, 73, 74, 78, 79, 80, 37, 38, 39, 57, 36, 38, 40, 58, 36, 37, 41, 59, 36, 37, 38, 54, 55, 56, 54, 55, 56, 60, 61, 62, 54, 55, 56, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 60, 61, 62, 63, 67, 68, 69, 64, 66, 68, 70, 65, 66, 67, 71, 0, 1, 2, 12, 13, 14, 15, 16, 17, 21, 22, 23, 42, 43, 44, 45, 46, 47, 51, 52, 53, 54, 55, 56, 57, 58, 59, 63, 64, 65),
+        't0': 0.0, 't1': 1.0, 'steps': 101,
+        'driver_sources': (('cases.bucket_stroke.drivers.swing_angle.function', '0'), ('cases.bucket_stroke.drivers.boom_length.function', '2.507892'), ('cases.bucket_stroke.drivers.arm_length.function', '1.943212'), ('cases.bucket_stroke.drivers.bucket_length.function', '1.6529 + (2.6613 - 1.6529)*t')),
+        'inputs': inputs_bucket_stroke, 'phi': phi_bucket_stroke, 'jac': jac_bucket_stroke, 'nu': nu_bucket_stroke, 'gamma': gamma_bucket_stroke,
+        'phi_jac_s': phi_jac_s_bucket_stroke, 'nu_s': nu_s_bucket_stroke, 'gamma_s': gamma_s_bucket_stroke,
     },
     'bucket_near_toggle': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),

@@ -2,10 +2,11 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
+ * source sha256:   06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50
  * parametrization: euler-parameters
  * kinegen version: 0.1.0
  * sympy version:   1.14.0
+ * sensitivities:   no
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -18,39 +19,45 @@
 /* The section functions come in 3 groups, each under its KINEGEN_PART value
  * (1 to 3; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
-void excavator_euler_parameters_compute_joints_phi(const double *q, double *out);
-void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_joints_jac_part0(const double *q, double *out);
-void excavator_euler_parameters_compute_joints_jac_part1(const double *q, double *out);
-void excavator_euler_parameters_compute_joints_jac_part2(const double *q, double *out);
-void excavator_euler_parameters_compute_joints_jac_part3(const double *q, double *out);
-void excavator_euler_parameters_compute_joints_jac_part4(const double *q, double *out);
-void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out);
-void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, const double *v, double *out);
-void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, const double *v, double *out);
-void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, const double *v, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_joints_phi(const double *q, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_jac_part0(const double *q, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_jac_part1(const double *q, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_jac_part2(const double *q, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_jac_part3(const double *q, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_jac_part4(const double *q, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, const double *v, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, const double *v, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, const double *v, const double *p, double *out);
+void excavator_euler_parameters_compute_joints_gamma_part3(const double *q, const double *v, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_digging(double t, double *out);
-void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_level_cut(double t, double *out);
-void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_trench_wall(double t, double *out);
-void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_bucket_toggle(double t, double *out);
-void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out);
-void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out);
-void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out);
+void excavator_euler_parameters_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_euler_parameters_compute_inputs_bucket_stroke(double t, double *out);
+void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_bucket_near_toggle(double t, double *out);
 void excavator_euler_parameters_compute_frames_part0(const double *q, const double *v, const double *a, double *out);
 void excavator_euler_parameters_compute_frames_part1(const double *q, const double *v, const double *a, double *out);
@@ -58,7 +65,7 @@ void excavator_euler_parameters_compute_frames_part1(const double *q, const doub
 #if !defined(KINEGEN_PART) || KINEGEN_PART == 1
 
 /* Phi of the 94 joint (and normalization) rows, common to every case. */
-void excavator_euler_parameters_compute_joints_phi(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_phi(const double *q, const double *p, double *out) {
     const double upper_x = q[0];
     const double upper_y = q[1];
     const double upper_z = q[2];
@@ -157,6 +164,14 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
+    const double p_F_x = p[2];
+    const double p_F_z = p[3];
+    const double p_side_link = p[5];
+    const double p_bucket_link = p[6];
+    const double p_K_x = p[7];
+    const double p_K_z = p[8];
     const double upper_a00 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e1*upper_e1);
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
     const double upper_a02 = 2.0*upper_e0*upper_e2 + 2.0*upper_e1*upper_e3;
@@ -274,9 +289,15 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
     const double c6 = arm_cyl_rod_x - arm_cyl_barrel_x;
     const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
     const double c8 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double c9 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double c11 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double c9 = 0.5686266556413632*p_side_link;
+    const double c10 = 0.822595724821202*p_side_link;
+    const double c11 = 0.60493530832545*p_bucket_link;
+    const double c12 = 0.796274621434837*p_bucket_link;
+    const double c13 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    const double c14 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double c15 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double c16 = 0.5686266556413632*p_side_link;
+    const double c17 = 0.822595724821202*p_side_link;
     out[0] = -upper_x;
     out[1] = -upper_y;
     out[2] = -upper_z;
@@ -296,9 +317,9 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
     out[16] = c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21;
     out[17] = c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22;
     out[18] = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22;
-    out[19] = boom_cyl_l_rod_x - boom_x - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 - 8.0/25.0*boom_a01;
-    out[20] = boom_cyl_l_rod_y - boom_y - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 - 8.0/25.0*boom_a11;
-    out[21] = boom_cyl_l_rod_z - boom_z - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 - 8.0/25.0*boom_a21;
+    out[19] = boom_cyl_l_rod_x - boom_x - 8.0/25.0*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z;
+    out[20] = boom_cyl_l_rod_y - boom_y - 8.0/25.0*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z;
+    out[21] = boom_cyl_l_rod_z - boom_z - 8.0/25.0*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z;
     out[22] = upper_x - boom_cyl_r_barrel_x - 8.0/25.0*upper_a01 + (4307.0/6250.0)*upper_a00 + (67739.0/50000.0)*upper_a02;
     out[23] = upper_y - boom_cyl_r_barrel_y - 8.0/25.0*upper_a11 + (4307.0/6250.0)*upper_a10 + (67739.0/50000.0)*upper_a12;
     out[24] = upper_z - boom_cyl_r_barrel_z - 8.0/25.0*upper_a21 + (4307.0/6250.0)*upper_a20 + (67739.0/50000.0)*upper_a22;
@@ -308,9 +329,9 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
     out[28] = c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21;
     out[29] = c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22;
     out[30] = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22;
-    out[31] = boom_cyl_r_rod_x - boom_x - 2.001922*boom_a02 - 139283.0/100000.0*boom_a00 + (8.0/25.0)*boom_a01;
-    out[32] = boom_cyl_r_rod_y - boom_y - 2.001922*boom_a12 - 139283.0/100000.0*boom_a10 + (8.0/25.0)*boom_a11;
-    out[33] = boom_cyl_r_rod_z - boom_z - 2.001922*boom_a22 - 139283.0/100000.0*boom_a20 + (8.0/25.0)*boom_a21;
+    out[31] = boom_cyl_r_rod_x - boom_x + (8.0/25.0)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z;
+    out[32] = boom_cyl_r_rod_y - boom_y + (8.0/25.0)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z;
+    out[33] = boom_cyl_r_rod_z - boom_z + (8.0/25.0)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z;
     out[34] = boom_x - arm_x + (23939.0/5000.0)*boom_a00 + (29959.0/10000.0)*boom_a02;
     out[35] = boom_y - arm_y + (23939.0/5000.0)*boom_a10 + (29959.0/10000.0)*boom_a12;
     out[36] = boom_z - arm_z + (23939.0/5000.0)*boom_a20 + (29959.0/10000.0)*boom_a22;
@@ -325,9 +346,9 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
     out[45] = c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21;
     out[46] = c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22;
     out[47] = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22;
-    out[48] = arm_cyl_rod_x - arm_x + (0.369691)*arm_a02 + (393281.0/500000.0)*arm_a00;
-    out[49] = arm_cyl_rod_y - arm_y + (0.369691)*arm_a12 + (393281.0/500000.0)*arm_a10;
-    out[50] = arm_cyl_rod_z - arm_z + (0.369691)*arm_a22 + (393281.0/500000.0)*arm_a20;
+    out[48] = arm_cyl_rod_x - arm_x - arm_a00*p_F_x - arm_a02*p_F_z;
+    out[49] = arm_cyl_rod_y - arm_y - arm_a10*p_F_x - arm_a12*p_F_z;
+    out[50] = arm_cyl_rod_z - arm_z - arm_a20*p_F_x - arm_a22*p_F_z;
     out[51] = arm_x - bucket_x + (9477.0/5000.0)*arm_a00 + (21809.0/10000.0)*arm_a02;
     out[52] = arm_y - bucket_y + (9477.0/5000.0)*arm_a10 + (21809.0/10000.0)*arm_a12;
     out[53] = arm_z - bucket_z + (9477.0/5000.0)*arm_a20 + (21809.0/10000.0)*arm_a22;
@@ -338,12 +359,12 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
     out[58] = arm_z - side_link_z + (7877.0/5000.0)*arm_a20 + (18799.0/10000.0)*arm_a22;
     out[59] = arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22;
     out[60] = arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20;
-    out[61] = side_link_x - bucket_link_x - 166329.0/500000.0*side_link_a00 + (85607.0/250000.0)*bucket_link_a00 + (96247.0/200000.0)*side_link_a02 + (0.450737)*bucket_link_a02;
-    out[62] = side_link_y - bucket_link_y - 166329.0/500000.0*side_link_a10 + (85607.0/250000.0)*bucket_link_a10 + (96247.0/200000.0)*side_link_a12 + (0.450737)*bucket_link_a12;
-    out[63] = side_link_z - bucket_link_z - 166329.0/500000.0*side_link_a20 + (85607.0/250000.0)*bucket_link_a20 + (96247.0/200000.0)*side_link_a22 + (0.450737)*bucket_link_a22;
-    out[64] = bucket_link_x - bucket_x - 16927.0/50000.0*bucket_a02 + (8101.0/25000.0)*bucket_a00;
-    out[65] = bucket_link_y - bucket_y - 16927.0/50000.0*bucket_a12 + (8101.0/25000.0)*bucket_a10;
-    out[66] = bucket_link_z - bucket_z - 16927.0/50000.0*bucket_a22 + (8101.0/25000.0)*bucket_a20;
+    out[61] = side_link_x - bucket_link_x + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00;
+    out[62] = side_link_y - bucket_link_y + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10;
+    out[63] = side_link_z - bucket_link_z + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20;
+    out[64] = bucket_link_x - bucket_x - bucket_a00*p_K_x - bucket_a02*p_K_z;
+    out[65] = bucket_link_y - bucket_y - bucket_a10*p_K_x - bucket_a12*p_K_z;
+    out[66] = bucket_link_z - bucket_z - bucket_a20*p_K_x - bucket_a22*p_K_z;
     out[67] = bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22);
     out[68] = arm_x - bucket_cyl_barrel_x - 24687.0/100000.0*arm_a00 + (36797.0/50000.0)*arm_a02;
     out[69] = arm_y - bucket_cyl_barrel_y - 24687.0/100000.0*arm_a10 + (36797.0/50000.0)*arm_a12;
@@ -351,12 +372,12 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
     out[71] = arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22;
     out[72] = bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21;
     out[73] = bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22;
-    out[74] = c9*bucket_cyl_barrel_a01 + c10*bucket_cyl_barrel_a11 + c11*bucket_cyl_barrel_a21;
-    out[75] = c9*bucket_cyl_barrel_a02 + c10*bucket_cyl_barrel_a12 + c11*bucket_cyl_barrel_a22;
+    out[74] = c13*bucket_cyl_barrel_a01 + c14*bucket_cyl_barrel_a11 + c15*bucket_cyl_barrel_a21;
+    out[75] = c13*bucket_cyl_barrel_a02 + c14*bucket_cyl_barrel_a12 + c15*bucket_cyl_barrel_a22;
     out[76] = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22;
-    out[77] = bucket_cyl_rod_x - side_link_x - 96247.0/200000.0*side_link_a02 + (166329.0/500000.0)*side_link_a00;
-    out[78] = bucket_cyl_rod_y - side_link_y - 96247.0/200000.0*side_link_a12 + (166329.0/500000.0)*side_link_a10;
-    out[79] = bucket_cyl_rod_z - side_link_z - 96247.0/200000.0*side_link_a22 + (166329.0/500000.0)*side_link_a20;
+    out[77] = bucket_cyl_rod_x - side_link_x + c16*side_link_a00 - c17*side_link_a02;
+    out[78] = bucket_cyl_rod_y - side_link_y + c16*side_link_a10 - c17*side_link_a12;
+    out[79] = bucket_cyl_rod_z - side_link_z + c16*side_link_a20 - c17*side_link_a22;
     out[80] = -1.0 + (upper_e0*upper_e0) + (upper_e1*upper_e1) + (upper_e2*upper_e2) + (upper_e3*upper_e3);
     out[81] = -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3);
     out[82] = -1.0 + (boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + (boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) + (boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) + (boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3);
@@ -374,7 +395,7 @@ void excavator_euler_parameters_compute_joints_phi(const double *q, double *out)
 }
 
 /* Phi of the driver rows of case 'digging'. */
-void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -411,6 +432,7 @@ void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, con
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
@@ -428,7 +450,7 @@ void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, con
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 0 to 132. */
-void excavator_euler_parameters_compute_joints_jac_part0(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part0(const double *q, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
@@ -451,6 +473,8 @@ void excavator_euler_parameters_compute_joints_jac_part0(const double *q, double
     const double boom_cyl_l_rod_e1 = q[25];
     const double boom_cyl_l_rod_e2 = q[26];
     const double boom_cyl_l_rod_e3 = q[27];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
     const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
@@ -549,18 +573,22 @@ void excavator_euler_parameters_compute_joints_jac_part0(const double *q, double
     const double d71 = (2.0)*boom_cyl_l_barrel_a01;
     const double d72 = (2.0)*boom_cyl_l_barrel_a11;
     const double d73 = (4.0)*boom_cyl_l_barrel_a21;
-    const double d74 = (4.003844)*boom_e2;
-    const double d75 = -16.0/25.0*boom_e3;
-    const double d76 = (16.0/25.0)*boom_e2;
-    const double d77 = (4.003844)*boom_e3;
-    const double d78 = (4.003844)*boom_e0;
-    const double d79 = (16.0/25.0)*boom_e1;
-    const double d80 = (16.0/25.0)*boom_e0;
-    const double d81 = -4.003844*boom_e1;
-    const double d82 = (139283.0/50000.0)*boom_e3;
-    const double d83 = -139283.0/50000.0*boom_e2;
-    const double d84 = (139283.0/50000.0)*boom_e1;
-    const double d85 = (139283.0/50000.0)*boom_e0;
+    const double d74 = -16.0/25.0*boom_e3;
+    const double d75 = 4.0*p_C_x;
+    const double d76 = 2.0*p_C_z;
+    const double d77 = d76*boom_e2;
+    const double d78 = (16.0/25.0)*boom_e2;
+    const double d79 = d76*boom_e3;
+    const double d80 = (16.0/25.0)*boom_e1;
+    const double d81 = d76*boom_e0;
+    const double d82 = (16.0/25.0)*boom_e0;
+    const double d83 = -d76*boom_e1;
+    const double d84 = 2.0*p_C_x;
+    const double d85 = d84*boom_e3;
+    const double d86 = -d84*boom_e2;
+    const double d87 = d84*boom_e1;
+    const double d88 = d84*boom_e0;
+    const double d89 = 4.0*p_C_z;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -677,27 +705,27 @@ void excavator_euler_parameters_compute_joints_jac_part0(const double *q, double
     out[113] = d71*boom_cyl_l_rod_e0 + d72*boom_cyl_l_rod_e3;
     out[114] = d71*boom_cyl_l_rod_e1 + d72*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e3;
     out[115] = -1.0;
-    out[116] = -d74 - d75 - 139283.0/25000.0*boom_e0;
-    out[117] = -d76 - d77 - 139283.0/25000.0*boom_e1;
-    out[118] = -d78 - d79;
-    out[119] = d80 + d81;
+    out[116] = -d74 - d77 - d75*boom_e0;
+    out[117] = -d78 - d79 - d75*boom_e1;
+    out[118] = -d80 - d81;
+    out[119] = d82 + d83;
     out[120] = 1.0;
     out[121] = -1.0;
-    out[122] = -d81 - d82 - 32.0/25.0*boom_e0;
-    out[123] = d78 + d83;
-    out[124] = -d84 - d77 - 32.0/25.0*boom_e2;
-    out[125] = -d74 - d85;
+    out[122] = -d85 - d83 - 32.0/25.0*boom_e0;
+    out[123] = d86 + d81;
+    out[124] = -d87 - d79 - 32.0/25.0*boom_e2;
+    out[125] = -d88 - d77;
     out[126] = 1.0;
     out[127] = -1.0;
-    out[128] = -d79 - d83 - 8.007688*boom_e0;
-    out[129] = -d80 - d82;
-    out[130] = d75 + d85;
-    out[131] = -d84 - d76 - 8.007688*boom_e3;
+    out[128] = -d86 - d80 - d89*boom_e0;
+    out[129] = -d85 - d82;
+    out[130] = d74 + d88;
+    out[131] = -d87 - d78 - d89*boom_e3;
     out[132] = 1.0;
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 133 to 280. */
-void excavator_euler_parameters_compute_joints_jac_part1(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part1(const double *q, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
@@ -728,6 +756,8 @@ void excavator_euler_parameters_compute_joints_jac_part1(const double *q, double
     const double arm_cyl_barrel_e1 = q[53];
     const double arm_cyl_barrel_e2 = q[54];
     const double arm_cyl_barrel_e3 = q[55];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
     const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
@@ -758,252 +788,256 @@ void excavator_euler_parameters_compute_joints_jac_part1(const double *q, double
     const double arm_cyl_barrel_a02 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a12 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e1 + 2.0*arm_cyl_barrel_e2*arm_cyl_barrel_e3;
     const double arm_cyl_barrel_a22 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e3*arm_cyl_barrel_e3);
-    const double d86 = (67739.0/25000.0)*upper_e2;
-    const double d87 = (16.0/25.0)*upper_e3;
-    const double d88 = -16.0/25.0*upper_e2;
-    const double d89 = (67739.0/25000.0)*upper_e3;
-    const double d90 = (67739.0/25000.0)*upper_e0;
-    const double d91 = (16.0/25.0)*upper_e1;
-    const double d92 = (16.0/25.0)*upper_e0;
-    const double d93 = (67739.0/25000.0)*upper_e1;
-    const double d94 = -4307.0/3125.0*upper_e3;
-    const double d95 = (4307.0/3125.0)*upper_e2;
-    const double d96 = (4307.0/3125.0)*upper_e1;
-    const double d97 = (4307.0/3125.0)*upper_e0;
-    const double d98 = 4.0*boom_cyl_r_barrel_a12;
-    const double d99 = 2.0*boom_cyl_r_barrel_a22;
-    const double d100 = 2.0*boom_cyl_r_barrel_a02;
-    const double d101 = 2.0*upper_a01;
-    const double d102 = 2.0*upper_a11;
-    const double d103 = 4.0*upper_a21;
-    const double d104 = 4.0*boom_cyl_r_rod_a01;
-    const double d105 = 2.0*boom_cyl_r_barrel_e2;
-    const double d106 = 2.0*boom_cyl_r_barrel_e3;
-    const double d107 = 2.0*boom_cyl_r_barrel_e0;
-    const double d108 = 2.0*boom_cyl_r_barrel_e1;
-    const double d109 = 2.0*boom_cyl_r_barrel_a00;
-    const double d110 = d109*boom_cyl_r_rod_e3;
-    const double d111 = 4.0*boom_cyl_r_barrel_a10;
-    const double d112 = 2.0*boom_cyl_r_barrel_a20;
-    const double d113 = d109*boom_cyl_r_rod_e2;
-    const double d114 = d109*boom_cyl_r_rod_e1;
-    const double d115 = d109*boom_cyl_r_rod_e0;
-    const double d116 = 4.0*boom_cyl_r_rod_a02;
-    const double d117 = 2.0*boom_cyl_r_barrel_a10;
-    const double d118 = 4.0*boom_cyl_r_barrel_a20;
-    const double d119 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y;
-    const double d120 = 4.0*d119;
-    const double d121 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z;
-    const double d122 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x;
-    const double d123 = -d122*d106;
-    const double d124 = d105*d122;
-    const double d125 = d122*d108;
-    const double d126 = d122*d107;
-    const double d127 = 4.0*d121;
-    const double d128 = (4.0)*boom_cyl_r_rod_a12;
-    const double d129 = (2.0)*boom_cyl_r_rod_a22;
-    const double d130 = (2.0)*boom_cyl_r_rod_a02;
-    const double d131 = (2.0)*boom_cyl_r_barrel_a01;
-    const double d132 = (2.0)*boom_cyl_r_barrel_a11;
-    const double d133 = (4.0)*boom_cyl_r_barrel_a21;
-    const double d134 = (4.003844)*boom_e2;
-    const double d135 = (16.0/25.0)*boom_e3;
-    const double d136 = -16.0/25.0*boom_e2;
-    const double d137 = (4.003844)*boom_e3;
-    const double d138 = (4.003844)*boom_e0;
-    const double d139 = (16.0/25.0)*boom_e0;
-    const double d140 = (4.003844)*boom_e1;
-    const double d141 = -139283.0/50000.0*boom_e3;
-    const double d142 = (139283.0/50000.0)*boom_e2;
-    const double d143 = (139283.0/50000.0)*boom_e1;
-    const double d144 = (139283.0/50000.0)*boom_e0;
-    const double d145 = (29959.0/5000.0)*boom_e2;
-    const double d146 = (29959.0/5000.0)*boom_e3;
-    const double d147 = (29959.0/5000.0)*boom_e0;
-    const double d148 = (29959.0/5000.0)*boom_e1;
-    const double d149 = -23939.0/2500.0*boom_e2;
-    const double d150 = (23939.0/2500.0)*boom_e1;
-    const double d151 = (23939.0/2500.0)*boom_e0;
-    const double d152 = 4.0*arm_a12;
-    const double d153 = 2.0*arm_a22;
-    const double d154 = 2.0*arm_a02;
-    const double d155 = 2.0*boom_a01;
-    const double d156 = 2.0*boom_a11;
-    const double d157 = d156*arm_e1;
-    const double d158 = 4.0*boom_a21;
-    const double d159 = d156*arm_e0;
-    const double d160 = d156*arm_e3;
-    const double d161 = d156*arm_e2;
-    const double d162 = 4.0*arm_a10;
-    const double d163 = 2.0*arm_a20;
-    const double d164 = 2.0*arm_a00;
-    const double d165 = 4.0*boom_a01;
-    const double d166 = 2.0*boom_a21;
-    const double d167 = (557.0/100.0)*boom_e2;
-    const double d168 = (557.0/100.0)*boom_e3;
-    const double d169 = (557.0/100.0)*boom_e0;
-    const double d170 = (557.0/100.0)*boom_e1;
-    const double d171 = -183.0/40.0*boom_e2;
-    const double d172 = (183.0/40.0)*boom_e1;
-    const double d173 = (183.0/40.0)*boom_e0;
-    const double d174 = 4.0*arm_cyl_barrel_a12;
-    const double d175 = 2.0*arm_cyl_barrel_a22;
-    const double d176 = 2.0*arm_cyl_barrel_a02;
-    const double d177 = 2.0*boom_a01;
-    const double d178 = 2.0*boom_a11;
-    const double d179 = 4.0*boom_a21;
+    const double d90 = (67739.0/25000.0)*upper_e2;
+    const double d91 = (16.0/25.0)*upper_e3;
+    const double d92 = -16.0/25.0*upper_e2;
+    const double d93 = (67739.0/25000.0)*upper_e3;
+    const double d94 = (67739.0/25000.0)*upper_e0;
+    const double d95 = (16.0/25.0)*upper_e1;
+    const double d96 = (16.0/25.0)*upper_e0;
+    const double d97 = (67739.0/25000.0)*upper_e1;
+    const double d98 = -4307.0/3125.0*upper_e3;
+    const double d99 = (4307.0/3125.0)*upper_e2;
+    const double d100 = (4307.0/3125.0)*upper_e1;
+    const double d101 = (4307.0/3125.0)*upper_e0;
+    const double d102 = 4.0*boom_cyl_r_barrel_a12;
+    const double d103 = 2.0*boom_cyl_r_barrel_a22;
+    const double d104 = 2.0*boom_cyl_r_barrel_a02;
+    const double d105 = 2.0*upper_a01;
+    const double d106 = 2.0*upper_a11;
+    const double d107 = 4.0*upper_a21;
+    const double d108 = 4.0*boom_cyl_r_rod_a01;
+    const double d109 = 2.0*boom_cyl_r_barrel_e2;
+    const double d110 = 2.0*boom_cyl_r_barrel_e3;
+    const double d111 = 2.0*boom_cyl_r_barrel_e0;
+    const double d112 = 2.0*boom_cyl_r_barrel_e1;
+    const double d113 = 2.0*boom_cyl_r_barrel_a00;
+    const double d114 = d113*boom_cyl_r_rod_e3;
+    const double d115 = 4.0*boom_cyl_r_barrel_a10;
+    const double d116 = 2.0*boom_cyl_r_barrel_a20;
+    const double d117 = d113*boom_cyl_r_rod_e2;
+    const double d118 = d113*boom_cyl_r_rod_e1;
+    const double d119 = d113*boom_cyl_r_rod_e0;
+    const double d120 = 4.0*boom_cyl_r_rod_a02;
+    const double d121 = 2.0*boom_cyl_r_barrel_a10;
+    const double d122 = 4.0*boom_cyl_r_barrel_a20;
+    const double d123 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y;
+    const double d124 = 4.0*d123;
+    const double d125 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z;
+    const double d126 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x;
+    const double d127 = -d126*d110;
+    const double d128 = d109*d126;
+    const double d129 = d126*d112;
+    const double d130 = d126*d111;
+    const double d131 = 4.0*d125;
+    const double d132 = (4.0)*boom_cyl_r_rod_a12;
+    const double d133 = (2.0)*boom_cyl_r_rod_a22;
+    const double d134 = (2.0)*boom_cyl_r_rod_a02;
+    const double d135 = (2.0)*boom_cyl_r_barrel_a01;
+    const double d136 = (2.0)*boom_cyl_r_barrel_a11;
+    const double d137 = (4.0)*boom_cyl_r_barrel_a21;
+    const double d138 = (16.0/25.0)*boom_e3;
+    const double d139 = 4.0*p_C_x;
+    const double d140 = 2.0*p_C_z;
+    const double d141 = d140*boom_e2;
+    const double d142 = -16.0/25.0*boom_e2;
+    const double d143 = d140*boom_e3;
+    const double d144 = d140*boom_e0;
+    const double d145 = (16.0/25.0)*boom_e0;
+    const double d146 = d140*boom_e1;
+    const double d147 = 2.0*p_C_x;
+    const double d148 = -d147*boom_e3;
+    const double d149 = d147*boom_e2;
+    const double d150 = d147*boom_e1;
+    const double d151 = d147*boom_e0;
+    const double d152 = 4.0*p_C_z;
+    const double d153 = (29959.0/5000.0)*boom_e2;
+    const double d154 = (29959.0/5000.0)*boom_e3;
+    const double d155 = (29959.0/5000.0)*boom_e0;
+    const double d156 = (29959.0/5000.0)*boom_e1;
+    const double d157 = -23939.0/2500.0*boom_e2;
+    const double d158 = (23939.0/2500.0)*boom_e1;
+    const double d159 = (23939.0/2500.0)*boom_e0;
+    const double d160 = 4.0*arm_a12;
+    const double d161 = 2.0*arm_a22;
+    const double d162 = 2.0*arm_a02;
+    const double d163 = 2.0*boom_a01;
+    const double d164 = 2.0*boom_a11;
+    const double d165 = d164*arm_e1;
+    const double d166 = 4.0*boom_a21;
+    const double d167 = d164*arm_e0;
+    const double d168 = d164*arm_e3;
+    const double d169 = d164*arm_e2;
+    const double d170 = 4.0*arm_a10;
+    const double d171 = 2.0*arm_a20;
+    const double d172 = 2.0*arm_a00;
+    const double d173 = 4.0*boom_a01;
+    const double d174 = 2.0*boom_a21;
+    const double d175 = (557.0/100.0)*boom_e2;
+    const double d176 = (557.0/100.0)*boom_e3;
+    const double d177 = (557.0/100.0)*boom_e0;
+    const double d178 = (557.0/100.0)*boom_e1;
+    const double d179 = -183.0/40.0*boom_e2;
+    const double d180 = (183.0/40.0)*boom_e1;
+    const double d181 = (183.0/40.0)*boom_e0;
+    const double d182 = 4.0*arm_cyl_barrel_a12;
+    const double d183 = 2.0*arm_cyl_barrel_a22;
+    const double d184 = 2.0*arm_cyl_barrel_a02;
+    const double d185 = 2.0*boom_a01;
+    const double d186 = 2.0*boom_a11;
+    const double d187 = 4.0*boom_a21;
     out[133] = 1.0;
-    out[134] = d86 + d87 + (8614.0/3125.0)*upper_e0;
-    out[135] = d88 + d89 + (8614.0/3125.0)*upper_e1;
-    out[136] = d90 - d91;
-    out[137] = d92 + d93;
+    out[134] = d90 + d91 + (8614.0/3125.0)*upper_e0;
+    out[135] = d92 + d93 + (8614.0/3125.0)*upper_e1;
+    out[136] = d94 - d95;
+    out[137] = d96 + d97;
     out[138] = -1.0;
     out[139] = 1.0;
-    out[140] = -d93 - d94 - 32.0/25.0*upper_e0;
-    out[141] = d95 - d90;
-    out[142] = d96 + d89 - 32.0/25.0*upper_e2;
-    out[143] = d86 + d97;
+    out[140] = -d97 - d98 - 32.0/25.0*upper_e0;
+    out[141] = d99 - d94;
+    out[142] = d100 + d93 - 32.0/25.0*upper_e2;
+    out[143] = d90 + d101;
     out[144] = -1.0;
     out[145] = 1.0;
-    out[146] = -d91 - d95 + (67739.0/12500.0)*upper_e0;
-    out[147] = -d92 - d94;
-    out[148] = -d87 - d97;
-    out[149] = d96 + d88 + (67739.0/12500.0)*upper_e3;
+    out[146] = -d95 - d99 + (67739.0/12500.0)*upper_e0;
+    out[147] = -d96 - d98;
+    out[148] = -d91 - d101;
+    out[149] = d100 + d92 + (67739.0/12500.0)*upper_e3;
     out[150] = -1.0;
-    out[151] = d98*upper_e0 + d99*upper_e1 - d100*upper_e3;
-    out[152] = d99*upper_e0 + d100*upper_e2;
-    out[153] = d98*upper_e2 + d99*upper_e3 + d100*upper_e1;
-    out[154] = -d100*upper_e0 + 2.0*upper_e2*boom_cyl_r_barrel_a22;
-    out[155] = d101*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e0 - d102*boom_cyl_r_barrel_e1;
-    out[156] = d101*boom_cyl_r_barrel_e3 - d102*boom_cyl_r_barrel_e0;
-    out[157] = d101*boom_cyl_r_barrel_e0 + d102*boom_cyl_r_barrel_e3;
-    out[158] = d101*boom_cyl_r_barrel_e1 + d102*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e3;
-    out[159] = d104*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a11 - d105*boom_cyl_r_rod_a21;
-    out[160] = d104*boom_cyl_r_barrel_e1 + d105*boom_cyl_r_rod_a11 + d106*boom_cyl_r_rod_a21;
-    out[161] = -d107*boom_cyl_r_rod_a21 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11;
-    out[162] = d107*boom_cyl_r_rod_a11 + d108*boom_cyl_r_rod_a21;
-    out[163] = -d110 + d111*boom_cyl_r_rod_e0 + d112*boom_cyl_r_rod_e1;
-    out[164] = d113 + d112*boom_cyl_r_rod_e0;
-    out[165] = d114 + d111*boom_cyl_r_rod_e2 + d112*boom_cyl_r_rod_e3;
-    out[166] = -d115 + 2.0*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2;
-    out[167] = d116*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a12 - d105*boom_cyl_r_rod_a22;
-    out[168] = d105*boom_cyl_r_rod_a12 + d116*boom_cyl_r_barrel_e1 + d106*boom_cyl_r_rod_a22;
-    out[169] = -d107*boom_cyl_r_rod_a22 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12;
-    out[170] = d107*boom_cyl_r_rod_a12 + d108*boom_cyl_r_rod_a22;
-    out[171] = d113 + d118*boom_cyl_r_rod_e0 - d117*boom_cyl_r_rod_e1;
-    out[172] = d110 - d117*boom_cyl_r_rod_e0;
-    out[173] = d115 + d117*boom_cyl_r_rod_e3;
-    out[174] = d114 + d117*boom_cyl_r_rod_e2 + d118*boom_cyl_r_rod_e3;
+    out[151] = d102*upper_e0 + d103*upper_e1 - d104*upper_e3;
+    out[152] = d103*upper_e0 + d104*upper_e2;
+    out[153] = d102*upper_e2 + d103*upper_e3 + d104*upper_e1;
+    out[154] = -d104*upper_e0 + 2.0*upper_e2*boom_cyl_r_barrel_a22;
+    out[155] = d105*boom_cyl_r_barrel_e2 + d107*boom_cyl_r_barrel_e0 - d106*boom_cyl_r_barrel_e1;
+    out[156] = d105*boom_cyl_r_barrel_e3 - d106*boom_cyl_r_barrel_e0;
+    out[157] = d105*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_barrel_e3;
+    out[158] = d105*boom_cyl_r_barrel_e1 + d106*boom_cyl_r_barrel_e2 + d107*boom_cyl_r_barrel_e3;
+    out[159] = d108*boom_cyl_r_barrel_e0 + d110*boom_cyl_r_rod_a11 - d109*boom_cyl_r_rod_a21;
+    out[160] = d108*boom_cyl_r_barrel_e1 + d109*boom_cyl_r_rod_a11 + d110*boom_cyl_r_rod_a21;
+    out[161] = -d111*boom_cyl_r_rod_a21 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11;
+    out[162] = d111*boom_cyl_r_rod_a11 + d112*boom_cyl_r_rod_a21;
+    out[163] = -d114 + d115*boom_cyl_r_rod_e0 + d116*boom_cyl_r_rod_e1;
+    out[164] = d117 + d116*boom_cyl_r_rod_e0;
+    out[165] = d118 + d115*boom_cyl_r_rod_e2 + d116*boom_cyl_r_rod_e3;
+    out[166] = -d119 + 2.0*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2;
+    out[167] = d120*boom_cyl_r_barrel_e0 + d110*boom_cyl_r_rod_a12 - d109*boom_cyl_r_rod_a22;
+    out[168] = d109*boom_cyl_r_rod_a12 + d120*boom_cyl_r_barrel_e1 + d110*boom_cyl_r_rod_a22;
+    out[169] = -d111*boom_cyl_r_rod_a22 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12;
+    out[170] = d111*boom_cyl_r_rod_a12 + d112*boom_cyl_r_rod_a22;
+    out[171] = d117 + d122*boom_cyl_r_rod_e0 - d121*boom_cyl_r_rod_e1;
+    out[172] = d114 - d121*boom_cyl_r_rod_e0;
+    out[173] = d119 + d121*boom_cyl_r_rod_e3;
+    out[174] = d118 + d121*boom_cyl_r_rod_e2 + d122*boom_cyl_r_rod_e3;
     out[175] = -boom_cyl_r_barrel_a01;
     out[176] = -boom_cyl_r_barrel_a11;
     out[177] = -boom_cyl_r_barrel_a21;
-    out[178] = d123 + d120*boom_cyl_r_barrel_e0 + d121*d108;
-    out[179] = d124 + d121*d107;
-    out[180] = d125 + d120*boom_cyl_r_barrel_e2 + d121*d106;
-    out[181] = -d126 + 2.0*d121*boom_cyl_r_barrel_e2;
+    out[178] = d127 + d124*boom_cyl_r_barrel_e0 + d125*d112;
+    out[179] = d128 + d125*d111;
+    out[180] = d129 + d124*boom_cyl_r_barrel_e2 + d125*d110;
+    out[181] = -d130 + 2.0*d125*boom_cyl_r_barrel_e2;
     out[182] = boom_cyl_r_barrel_a01;
     out[183] = boom_cyl_r_barrel_a11;
     out[184] = boom_cyl_r_barrel_a21;
     out[185] = -boom_cyl_r_barrel_a02;
     out[186] = -boom_cyl_r_barrel_a12;
     out[187] = -boom_cyl_r_barrel_a22;
-    out[188] = d124 + d127*boom_cyl_r_barrel_e0 - d119*d108;
-    out[189] = -d123 - d119*d107;
-    out[190] = d126 + d119*d106;
-    out[191] = d125 + d105*d119 + d127*boom_cyl_r_barrel_e3;
+    out[188] = d128 + d131*boom_cyl_r_barrel_e0 - d123*d112;
+    out[189] = -d127 - d123*d111;
+    out[190] = d130 + d123*d110;
+    out[191] = d129 + d109*d123 + d131*boom_cyl_r_barrel_e3;
     out[192] = boom_cyl_r_barrel_a02;
     out[193] = boom_cyl_r_barrel_a12;
     out[194] = boom_cyl_r_barrel_a22;
-    out[195] = d128*boom_cyl_r_barrel_e0 + d129*boom_cyl_r_barrel_e1 - d130*boom_cyl_r_barrel_e3;
-    out[196] = d129*boom_cyl_r_barrel_e0 + d130*boom_cyl_r_barrel_e2;
-    out[197] = d128*boom_cyl_r_barrel_e2 + d129*boom_cyl_r_barrel_e3 + d130*boom_cyl_r_barrel_e1;
-    out[198] = -d130*boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22;
-    out[199] = d131*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e0 - d132*boom_cyl_r_rod_e1;
-    out[200] = d131*boom_cyl_r_rod_e3 - d132*boom_cyl_r_rod_e0;
-    out[201] = d131*boom_cyl_r_rod_e0 + d132*boom_cyl_r_rod_e3;
-    out[202] = d131*boom_cyl_r_rod_e1 + d132*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e3;
+    out[195] = d132*boom_cyl_r_barrel_e0 + d133*boom_cyl_r_barrel_e1 - d134*boom_cyl_r_barrel_e3;
+    out[196] = d133*boom_cyl_r_barrel_e0 + d134*boom_cyl_r_barrel_e2;
+    out[197] = d132*boom_cyl_r_barrel_e2 + d133*boom_cyl_r_barrel_e3 + d134*boom_cyl_r_barrel_e1;
+    out[198] = -d134*boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22;
+    out[199] = d135*boom_cyl_r_rod_e2 + d137*boom_cyl_r_rod_e0 - d136*boom_cyl_r_rod_e1;
+    out[200] = d135*boom_cyl_r_rod_e3 - d136*boom_cyl_r_rod_e0;
+    out[201] = d135*boom_cyl_r_rod_e0 + d136*boom_cyl_r_rod_e3;
+    out[202] = d135*boom_cyl_r_rod_e1 + d136*boom_cyl_r_rod_e2 + d137*boom_cyl_r_rod_e3;
     out[203] = -1.0;
-    out[204] = -d134 - d135 - 139283.0/25000.0*boom_e0;
-    out[205] = -d136 - d137 - 139283.0/25000.0*boom_e1;
-    out[206] = -d138 + (16.0/25.0)*boom_e1;
-    out[207] = -d139 - d140;
+    out[204] = -d138 - d141 - d139*boom_e0;
+    out[205] = -d142 - d143 - d139*boom_e1;
+    out[206] = -d144 + (16.0/25.0)*boom_e1;
+    out[207] = -d145 - d146;
     out[208] = 1.0;
     out[209] = -1.0;
-    out[210] = d140 + d141 + (32.0/25.0)*boom_e0;
-    out[211] = d138 - d142;
-    out[212] = -d137 - d143 + (32.0/25.0)*boom_e2;
-    out[213] = -d134 - d144;
+    out[210] = d148 + d146 + (32.0/25.0)*boom_e0;
+    out[211] = d144 - d149;
+    out[212] = -d150 - d143 + (32.0/25.0)*boom_e2;
+    out[213] = -d151 - d141;
     out[214] = 1.0;
     out[215] = -1.0;
-    out[216] = d142 - 8.007688*boom_e0 + (16.0/25.0)*boom_e1;
-    out[217] = d139 + d141;
-    out[218] = d135 + d144;
-    out[219] = -d136 - d143 - 8.007688*boom_e3;
+    out[216] = d149 + (16.0/25.0)*boom_e1 - d152*boom_e0;
+    out[217] = d148 + d145;
+    out[218] = d138 + d151;
+    out[219] = -d150 - d142 - d152*boom_e3;
     out[220] = 1.0;
     out[221] = 1.0;
-    out[222] = d145 + (23939.0/1250.0)*boom_e0;
-    out[223] = d146 + (23939.0/1250.0)*boom_e1;
-    out[224] = d147;
-    out[225] = d148;
+    out[222] = d153 + (23939.0/1250.0)*boom_e0;
+    out[223] = d154 + (23939.0/1250.0)*boom_e1;
+    out[224] = d155;
+    out[225] = d156;
     out[226] = -1.0;
     out[227] = 1.0;
-    out[228] = -d148 + (23939.0/2500.0)*boom_e3;
-    out[229] = -d147 - d149;
-    out[230] = d146 + d150;
-    out[231] = d145 + d151;
+    out[228] = -d156 + (23939.0/2500.0)*boom_e3;
+    out[229] = -d155 - d157;
+    out[230] = d154 + d158;
+    out[231] = d153 + d159;
     out[232] = -1.0;
     out[233] = 1.0;
-    out[234] = d149 + (29959.0/2500.0)*boom_e0;
+    out[234] = d157 + (29959.0/2500.0)*boom_e0;
     out[235] = (23939.0/2500.0)*boom_e3;
-    out[236] = -d151;
-    out[237] = d150 + (29959.0/2500.0)*boom_e3;
+    out[236] = -d159;
+    out[237] = d158 + (29959.0/2500.0)*boom_e3;
     out[238] = -1.0;
-    out[239] = d152*boom_e0 + d153*boom_e1 - d154*boom_e3;
-    out[240] = d153*boom_e0 + d154*boom_e2;
-    out[241] = d152*boom_e2 + d153*boom_e3 + d154*boom_e1;
-    out[242] = -d154*boom_e0 + 2.0*boom_e2*arm_a22;
-    out[243] = -d157 + d155*arm_e2 + d158*arm_e0;
-    out[244] = -d159 + d155*arm_e3;
-    out[245] = d160 + d155*arm_e0;
-    out[246] = d161 + d155*arm_e1 + d158*arm_e3;
-    out[247] = d162*boom_e0 + d163*boom_e1 - d164*boom_e3;
-    out[248] = d163*boom_e0 + d164*boom_e2;
-    out[249] = d162*boom_e2 + d163*boom_e3 + d164*boom_e1;
-    out[250] = -d164*boom_e0 + 2.0*boom_e2*arm_a20;
-    out[251] = d160 + d165*arm_e0 - d166*arm_e2;
-    out[252] = d161 + d165*arm_e1 + d166*arm_e3;
-    out[253] = d157 - d166*arm_e0;
-    out[254] = d159 + d166*arm_e1;
+    out[239] = d160*boom_e0 + d161*boom_e1 - d162*boom_e3;
+    out[240] = d161*boom_e0 + d162*boom_e2;
+    out[241] = d160*boom_e2 + d161*boom_e3 + d162*boom_e1;
+    out[242] = -d162*boom_e0 + 2.0*boom_e2*arm_a22;
+    out[243] = -d165 + d163*arm_e2 + d166*arm_e0;
+    out[244] = -d167 + d163*arm_e3;
+    out[245] = d168 + d163*arm_e0;
+    out[246] = d169 + d163*arm_e1 + d166*arm_e3;
+    out[247] = d170*boom_e0 + d171*boom_e1 - d172*boom_e3;
+    out[248] = d171*boom_e0 + d172*boom_e2;
+    out[249] = d170*boom_e2 + d171*boom_e3 + d172*boom_e1;
+    out[250] = -d172*boom_e0 + 2.0*boom_e2*arm_a20;
+    out[251] = d168 + d173*arm_e0 - d174*arm_e2;
+    out[252] = d169 + d173*arm_e1 + d174*arm_e3;
+    out[253] = d165 - d174*arm_e0;
+    out[254] = d167 + d174*arm_e1;
     out[255] = 1.0;
-    out[256] = d167 + (183.0/20.0)*boom_e0;
-    out[257] = d168 + (183.0/20.0)*boom_e1;
-    out[258] = d169;
-    out[259] = d170;
+    out[256] = d175 + (183.0/20.0)*boom_e0;
+    out[257] = d176 + (183.0/20.0)*boom_e1;
+    out[258] = d177;
+    out[259] = d178;
     out[260] = -1.0;
     out[261] = 1.0;
-    out[262] = -d170 + (183.0/40.0)*boom_e3;
-    out[263] = -d169 - d171;
-    out[264] = d168 + d172;
-    out[265] = d167 + d173;
+    out[262] = -d178 + (183.0/40.0)*boom_e3;
+    out[263] = -d177 - d179;
+    out[264] = d176 + d180;
+    out[265] = d175 + d181;
     out[266] = -1.0;
     out[267] = 1.0;
-    out[268] = d171 + (557.0/50.0)*boom_e0;
+    out[268] = d179 + (557.0/50.0)*boom_e0;
     out[269] = (183.0/40.0)*boom_e3;
-    out[270] = -d173;
-    out[271] = d172 + (557.0/50.0)*boom_e3;
+    out[270] = -d181;
+    out[271] = d180 + (557.0/50.0)*boom_e3;
     out[272] = -1.0;
-    out[273] = d174*boom_e0 + d175*boom_e1 - d176*boom_e3;
-    out[274] = d175*boom_e0 + d176*boom_e2;
-    out[275] = d174*boom_e2 + d175*boom_e3 + d176*boom_e1;
-    out[276] = -d176*boom_e0 + 2.0*boom_e2*arm_cyl_barrel_a22;
-    out[277] = d177*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e0 - d178*arm_cyl_barrel_e1;
-    out[278] = d177*arm_cyl_barrel_e3 - d178*arm_cyl_barrel_e0;
-    out[279] = d177*arm_cyl_barrel_e0 + d178*arm_cyl_barrel_e3;
-    out[280] = d177*arm_cyl_barrel_e1 + d178*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e3;
+    out[273] = d182*boom_e0 + d183*boom_e1 - d184*boom_e3;
+    out[274] = d183*boom_e0 + d184*boom_e2;
+    out[275] = d182*boom_e2 + d183*boom_e3 + d184*boom_e1;
+    out[276] = -d184*boom_e0 + 2.0*boom_e2*arm_cyl_barrel_a22;
+    out[277] = d185*arm_cyl_barrel_e2 + d187*arm_cyl_barrel_e0 - d186*arm_cyl_barrel_e1;
+    out[278] = d185*arm_cyl_barrel_e3 - d186*arm_cyl_barrel_e0;
+    out[279] = d185*arm_cyl_barrel_e0 + d186*arm_cyl_barrel_e3;
+    out[280] = d185*arm_cyl_barrel_e1 + d186*arm_cyl_barrel_e2 + d187*arm_cyl_barrel_e3;
 }
 
 /* Phi_q values of the joint rows (611 entries). Rows 281 to 410. */
-void excavator_euler_parameters_compute_joints_jac_part2(const double *q, double *out) {
+void excavator_euler_parameters_compute_joints_jac_part2(const double *q, const double *p, double *out) {
     const double arm_e0 = q[45];
     const double arm_e1 = q[46];
     const double arm_e2 = q[47];
@@ -1030,6 +1064,8 @@ void excavator_euler_parameters_compute_joints_jac_part2(const double *q, double
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
+    const double p_F_x = p[2];
+    const double p_F_z = p[3];
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
     const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
@@ -1060,241 +1096,230 @@ void excavator_euler_parameters_compute_joints_jac_part2(const double *q, double
     const double bucket_a12 = -2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
-    const double d180 = 4.0*arm_cyl_rod_a01;
-    const double d181 = 2.0*arm_cyl_barrel_e2;
-    const double d182 = 2.0*arm_cyl_barrel_e3;
-    const double d183 = 2.0*arm_cyl_barrel_e0;
-    const double d184 = 2.0*arm_cyl_barrel_e1;
-    const double d185 = 2.0*arm_cyl_barrel_a00;
-    const double d186 = d185*arm_cyl_rod_e3;
-    const double d187 = 4.0*arm_cyl_barrel_a10;
-    const double d188 = 2.0*arm_cyl_barrel_a20;
-    const double d189 = d185*arm_cyl_rod_e2;
-    const double d190 = d185*arm_cyl_rod_e1;
-    const double d191 = d185*arm_cyl_rod_e0;
-    const double d192 = 4.0*arm_cyl_rod_a02;
-    const double d193 = 2.0*arm_cyl_barrel_a10;
-    const double d194 = 4.0*arm_cyl_barrel_a20;
-    const double d195 = arm_cyl_rod_y - arm_cyl_barrel_y;
-    const double d196 = 4.0*d195;
-    const double d197 = arm_cyl_rod_z - arm_cyl_barrel_z;
-    const double d198 = arm_cyl_rod_x - arm_cyl_barrel_x;
-    const double d199 = -d198*d182;
-    const double d200 = d181*d198;
-    const double d201 = d198*d184;
-    const double d202 = d198*d183;
-    const double d203 = 4.0*d197;
-    const double d204 = (4.0)*arm_cyl_rod_a12;
-    const double d205 = (2.0)*arm_cyl_rod_a22;
-    const double d206 = (2.0)*arm_cyl_rod_a02;
-    const double d207 = (2.0)*arm_cyl_barrel_a01;
-    const double d208 = (2.0)*arm_cyl_barrel_a11;
-    const double d209 = (4.0)*arm_cyl_barrel_a21;
-    const double d210 = (369691.0/500000.0)*arm_e2;
-    const double d211 = (369691.0/500000.0)*arm_e3;
-    const double d212 = (369691.0/500000.0)*arm_e0;
-    const double d213 = (369691.0/500000.0)*arm_e1;
-    const double d214 = -393281.0/250000.0*arm_e2;
-    const double d215 = (393281.0/250000.0)*arm_e1;
-    const double d216 = (393281.0/250000.0)*arm_e0;
-    const double d217 = (21809.0/5000.0)*arm_e2;
-    const double d218 = (21809.0/5000.0)*arm_e3;
-    const double d219 = (21809.0/5000.0)*arm_e0;
-    const double d220 = (21809.0/5000.0)*arm_e1;
-    const double d221 = -9477.0/2500.0*arm_e2;
-    const double d222 = (9477.0/2500.0)*arm_e1;
-    const double d223 = (9477.0/2500.0)*arm_e0;
-    const double d224 = 4.0*bucket_a12;
-    const double d225 = 2.0*bucket_a22;
-    const double d226 = 2.0*bucket_a02;
-    const double d227 = 2.0*arm_a01;
-    const double d228 = 2.0*arm_a11;
-    const double d229 = d228*bucket_e1;
-    const double d230 = 4.0*arm_a21;
-    const double d231 = d228*bucket_e0;
-    const double d232 = d228*bucket_e3;
-    const double d233 = d228*bucket_e2;
-    const double d234 = 4.0*bucket_a10;
-    const double d235 = 2.0*bucket_a20;
-    const double d236 = 2.0*bucket_a00;
-    const double d237 = 4.0*arm_a01;
-    const double d238 = 2.0*arm_a21;
-    const double d239 = (18799.0/5000.0)*arm_e2;
-    const double d240 = (18799.0/5000.0)*arm_e3;
-    const double d241 = (18799.0/5000.0)*arm_e0;
-    const double d242 = (18799.0/5000.0)*arm_e1;
-    const double d243 = -7877.0/2500.0*arm_e2;
-    const double d244 = (7877.0/2500.0)*arm_e1;
-    const double d245 = (7877.0/2500.0)*arm_e0;
-    const double d246 = 4.0*side_link_a12;
-    const double d247 = 2.0*side_link_a22;
-    const double d248 = 2.0*side_link_a02;
-    const double d249 = 2.0*arm_a01;
-    const double d250 = 2.0*arm_a11;
-    const double d251 = d250*side_link_e1;
-    const double d252 = 4.0*arm_a21;
-    const double d253 = d250*side_link_e0;
-    const double d254 = d250*side_link_e3;
-    const double d255 = d250*side_link_e2;
-    const double d256 = 4.0*side_link_a10;
-    const double d257 = 2.0*side_link_a20;
-    const double d258 = 2.0*side_link_a00;
-    const double d259 = 4.0*arm_a01;
-    const double d260 = 2.0*arm_a21;
-    out[281] = d180*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a11 - d181*arm_cyl_rod_a21;
-    out[282] = d180*arm_cyl_barrel_e1 + d181*arm_cyl_rod_a11 + d182*arm_cyl_rod_a21;
-    out[283] = -d183*arm_cyl_rod_a21 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a11;
-    out[284] = d183*arm_cyl_rod_a11 + d184*arm_cyl_rod_a21;
-    out[285] = -d186 + d187*arm_cyl_rod_e0 + d188*arm_cyl_rod_e1;
-    out[286] = d189 + d188*arm_cyl_rod_e0;
-    out[287] = d190 + d187*arm_cyl_rod_e2 + d188*arm_cyl_rod_e3;
-    out[288] = -d191 + 2.0*arm_cyl_barrel_a20*arm_cyl_rod_e2;
-    out[289] = d192*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a12 - d181*arm_cyl_rod_a22;
-    out[290] = d181*arm_cyl_rod_a12 + d192*arm_cyl_barrel_e1 + d182*arm_cyl_rod_a22;
-    out[291] = -d183*arm_cyl_rod_a22 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a12;
-    out[292] = d183*arm_cyl_rod_a12 + d184*arm_cyl_rod_a22;
-    out[293] = d189 + d194*arm_cyl_rod_e0 - d193*arm_cyl_rod_e1;
-    out[294] = d186 - d193*arm_cyl_rod_e0;
-    out[295] = d191 + d193*arm_cyl_rod_e3;
-    out[296] = d190 + d193*arm_cyl_rod_e2 + d194*arm_cyl_rod_e3;
+    const double d188 = 4.0*arm_cyl_rod_a01;
+    const double d189 = 2.0*arm_cyl_barrel_e2;
+    const double d190 = 2.0*arm_cyl_barrel_e3;
+    const double d191 = 2.0*arm_cyl_barrel_e0;
+    const double d192 = 2.0*arm_cyl_barrel_e1;
+    const double d193 = 2.0*arm_cyl_barrel_a00;
+    const double d194 = d193*arm_cyl_rod_e3;
+    const double d195 = 4.0*arm_cyl_barrel_a10;
+    const double d196 = 2.0*arm_cyl_barrel_a20;
+    const double d197 = d193*arm_cyl_rod_e2;
+    const double d198 = d193*arm_cyl_rod_e1;
+    const double d199 = d193*arm_cyl_rod_e0;
+    const double d200 = 4.0*arm_cyl_rod_a02;
+    const double d201 = 2.0*arm_cyl_barrel_a10;
+    const double d202 = 4.0*arm_cyl_barrel_a20;
+    const double d203 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double d204 = 4.0*d203;
+    const double d205 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double d206 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double d207 = -d206*d190;
+    const double d208 = d189*d206;
+    const double d209 = d206*d192;
+    const double d210 = d206*d191;
+    const double d211 = 4.0*d205;
+    const double d212 = (4.0)*arm_cyl_rod_a12;
+    const double d213 = (2.0)*arm_cyl_rod_a22;
+    const double d214 = (2.0)*arm_cyl_rod_a02;
+    const double d215 = (2.0)*arm_cyl_barrel_a01;
+    const double d216 = (2.0)*arm_cyl_barrel_a11;
+    const double d217 = (4.0)*arm_cyl_barrel_a21;
+    const double d218 = 4.0*p_F_x;
+    const double d219 = 2.0*p_F_z;
+    const double d220 = d219*arm_e2;
+    const double d221 = d219*arm_e3;
+    const double d222 = d219*arm_e0;
+    const double d223 = d219*arm_e1;
+    const double d224 = 2.0*p_F_x;
+    const double d225 = -d224*arm_e3;
+    const double d226 = -d224*arm_e2;
+    const double d227 = d224*arm_e1;
+    const double d228 = d224*arm_e0;
+    const double d229 = 4.0*p_F_z;
+    const double d230 = (21809.0/5000.0)*arm_e2;
+    const double d231 = (21809.0/5000.0)*arm_e3;
+    const double d232 = (21809.0/5000.0)*arm_e0;
+    const double d233 = (21809.0/5000.0)*arm_e1;
+    const double d234 = -9477.0/2500.0*arm_e2;
+    const double d235 = (9477.0/2500.0)*arm_e1;
+    const double d236 = (9477.0/2500.0)*arm_e0;
+    const double d237 = 4.0*bucket_a12;
+    const double d238 = 2.0*bucket_a22;
+    const double d239 = 2.0*bucket_a02;
+    const double d240 = 2.0*arm_a01;
+    const double d241 = 2.0*arm_a11;
+    const double d242 = d241*bucket_e1;
+    const double d243 = 4.0*arm_a21;
+    const double d244 = d241*bucket_e0;
+    const double d245 = d241*bucket_e3;
+    const double d246 = d241*bucket_e2;
+    const double d247 = 4.0*bucket_a10;
+    const double d248 = 2.0*bucket_a20;
+    const double d249 = 2.0*bucket_a00;
+    const double d250 = 4.0*arm_a01;
+    const double d251 = 2.0*arm_a21;
+    const double d252 = (18799.0/5000.0)*arm_e2;
+    const double d253 = (18799.0/5000.0)*arm_e3;
+    const double d254 = (18799.0/5000.0)*arm_e0;
+    const double d255 = (18799.0/5000.0)*arm_e1;
+    const double d256 = -7877.0/2500.0*arm_e2;
+    const double d257 = (7877.0/2500.0)*arm_e1;
+    const double d258 = (7877.0/2500.0)*arm_e0;
+    const double d259 = 4.0*side_link_a12;
+    const double d260 = 2.0*side_link_a22;
+    const double d261 = 2.0*side_link_a02;
+    const double d262 = 2.0*arm_a01;
+    const double d263 = 2.0*arm_a11;
+    const double d264 = d263*side_link_e1;
+    const double d265 = 4.0*arm_a21;
+    const double d266 = d263*side_link_e0;
+    const double d267 = d263*side_link_e3;
+    const double d268 = d263*side_link_e2;
+    const double d269 = 4.0*side_link_a10;
+    const double d270 = 2.0*side_link_a20;
+    const double d271 = 2.0*side_link_a00;
+    const double d272 = 4.0*arm_a01;
+    const double d273 = 2.0*arm_a21;
+    out[281] = d188*arm_cyl_barrel_e0 + d190*arm_cyl_rod_a11 - d189*arm_cyl_rod_a21;
+    out[282] = d188*arm_cyl_barrel_e1 + d189*arm_cyl_rod_a11 + d190*arm_cyl_rod_a21;
+    out[283] = -d191*arm_cyl_rod_a21 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a11;
+    out[284] = d191*arm_cyl_rod_a11 + d192*arm_cyl_rod_a21;
+    out[285] = -d194 + d195*arm_cyl_rod_e0 + d196*arm_cyl_rod_e1;
+    out[286] = d197 + d196*arm_cyl_rod_e0;
+    out[287] = d198 + d195*arm_cyl_rod_e2 + d196*arm_cyl_rod_e3;
+    out[288] = -d199 + 2.0*arm_cyl_barrel_a20*arm_cyl_rod_e2;
+    out[289] = d200*arm_cyl_barrel_e0 + d190*arm_cyl_rod_a12 - d189*arm_cyl_rod_a22;
+    out[290] = d189*arm_cyl_rod_a12 + d200*arm_cyl_barrel_e1 + d190*arm_cyl_rod_a22;
+    out[291] = -d191*arm_cyl_rod_a22 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a12;
+    out[292] = d191*arm_cyl_rod_a12 + d192*arm_cyl_rod_a22;
+    out[293] = d197 + d202*arm_cyl_rod_e0 - d201*arm_cyl_rod_e1;
+    out[294] = d194 - d201*arm_cyl_rod_e0;
+    out[295] = d199 + d201*arm_cyl_rod_e3;
+    out[296] = d198 + d201*arm_cyl_rod_e2 + d202*arm_cyl_rod_e3;
     out[297] = -arm_cyl_barrel_a01;
     out[298] = -arm_cyl_barrel_a11;
     out[299] = -arm_cyl_barrel_a21;
-    out[300] = d199 + d196*arm_cyl_barrel_e0 + d197*d184;
-    out[301] = d200 + d197*d183;
-    out[302] = d201 + d196*arm_cyl_barrel_e2 + d197*d182;
-    out[303] = -d202 + 2.0*d197*arm_cyl_barrel_e2;
+    out[300] = d207 + d204*arm_cyl_barrel_e0 + d205*d192;
+    out[301] = d208 + d205*d191;
+    out[302] = d209 + d204*arm_cyl_barrel_e2 + d205*d190;
+    out[303] = -d210 + 2.0*d205*arm_cyl_barrel_e2;
     out[304] = arm_cyl_barrel_a01;
     out[305] = arm_cyl_barrel_a11;
     out[306] = arm_cyl_barrel_a21;
     out[307] = -arm_cyl_barrel_a02;
     out[308] = -arm_cyl_barrel_a12;
     out[309] = -arm_cyl_barrel_a22;
-    out[310] = d200 + d203*arm_cyl_barrel_e0 - d195*d184;
-    out[311] = -d199 - d195*d183;
-    out[312] = d202 + d195*d182;
-    out[313] = d201 + d181*d195 + d203*arm_cyl_barrel_e3;
+    out[310] = d208 + d211*arm_cyl_barrel_e0 - d203*d192;
+    out[311] = -d207 - d203*d191;
+    out[312] = d210 + d203*d190;
+    out[313] = d209 + d189*d203 + d211*arm_cyl_barrel_e3;
     out[314] = arm_cyl_barrel_a02;
     out[315] = arm_cyl_barrel_a12;
     out[316] = arm_cyl_barrel_a22;
-    out[317] = d204*arm_cyl_barrel_e0 + d205*arm_cyl_barrel_e1 - d206*arm_cyl_barrel_e3;
-    out[318] = d205*arm_cyl_barrel_e0 + d206*arm_cyl_barrel_e2;
-    out[319] = d204*arm_cyl_barrel_e2 + d205*arm_cyl_barrel_e3 + d206*arm_cyl_barrel_e1;
-    out[320] = -d206*arm_cyl_barrel_e0 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22;
-    out[321] = d207*arm_cyl_rod_e2 + d209*arm_cyl_rod_e0 - d208*arm_cyl_rod_e1;
-    out[322] = d207*arm_cyl_rod_e3 - d208*arm_cyl_rod_e0;
-    out[323] = d207*arm_cyl_rod_e0 + d208*arm_cyl_rod_e3;
-    out[324] = d207*arm_cyl_rod_e1 + d208*arm_cyl_rod_e2 + d209*arm_cyl_rod_e3;
+    out[317] = d212*arm_cyl_barrel_e0 + d213*arm_cyl_barrel_e1 - d214*arm_cyl_barrel_e3;
+    out[318] = d213*arm_cyl_barrel_e0 + d214*arm_cyl_barrel_e2;
+    out[319] = d212*arm_cyl_barrel_e2 + d213*arm_cyl_barrel_e3 + d214*arm_cyl_barrel_e1;
+    out[320] = -d214*arm_cyl_barrel_e0 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22;
+    out[321] = d215*arm_cyl_rod_e2 + d217*arm_cyl_rod_e0 - d216*arm_cyl_rod_e1;
+    out[322] = d215*arm_cyl_rod_e3 - d216*arm_cyl_rod_e0;
+    out[323] = d215*arm_cyl_rod_e0 + d216*arm_cyl_rod_e3;
+    out[324] = d215*arm_cyl_rod_e1 + d216*arm_cyl_rod_e2 + d217*arm_cyl_rod_e3;
     out[325] = -1.0;
-    out[326] = d210 + (393281.0/125000.0)*arm_e0;
-    out[327] = d211 + (393281.0/125000.0)*arm_e1;
-    out[328] = d212;
-    out[329] = d213;
+    out[326] = -d220 - d218*arm_e0;
+    out[327] = -d221 - d218*arm_e1;
+    out[328] = -d222;
+    out[329] = -d223;
     out[330] = 1.0;
     out[331] = -1.0;
-    out[332] = -d213 + (393281.0/250000.0)*arm_e3;
-    out[333] = -d212 - d214;
-    out[334] = d211 + d215;
-    out[335] = d210 + d216;
+    out[332] = d223 + d225;
+    out[333] = d222 + d226;
+    out[334] = -d221 - d227;
+    out[335] = -d228 - d220;
     out[336] = 1.0;
     out[337] = -1.0;
-    out[338] = d214 + (369691.0/250000.0)*arm_e0;
-    out[339] = (393281.0/250000.0)*arm_e3;
-    out[340] = -d216;
-    out[341] = d215 + (369691.0/250000.0)*arm_e3;
+    out[338] = -d226 - d229*arm_e0;
+    out[339] = d225;
+    out[340] = d228;
+    out[341] = -d227 - d229*arm_e3;
     out[342] = 1.0;
     out[343] = 1.0;
-    out[344] = d217 + (9477.0/1250.0)*arm_e0;
-    out[345] = d218 + (9477.0/1250.0)*arm_e1;
-    out[346] = d219;
-    out[347] = d220;
+    out[344] = d230 + (9477.0/1250.0)*arm_e0;
+    out[345] = d231 + (9477.0/1250.0)*arm_e1;
+    out[346] = d232;
+    out[347] = d233;
     out[348] = -1.0;
     out[349] = 1.0;
-    out[350] = -d220 + (9477.0/2500.0)*arm_e3;
-    out[351] = -d219 - d221;
-    out[352] = d218 + d222;
-    out[353] = d217 + d223;
+    out[350] = -d233 + (9477.0/2500.0)*arm_e3;
+    out[351] = -d232 - d234;
+    out[352] = d231 + d235;
+    out[353] = d230 + d236;
     out[354] = -1.0;
     out[355] = 1.0;
-    out[356] = d221 + (21809.0/2500.0)*arm_e0;
+    out[356] = d234 + (21809.0/2500.0)*arm_e0;
     out[357] = (9477.0/2500.0)*arm_e3;
-    out[358] = -d223;
-    out[359] = d222 + (21809.0/2500.0)*arm_e3;
+    out[358] = -d236;
+    out[359] = d235 + (21809.0/2500.0)*arm_e3;
     out[360] = -1.0;
-    out[361] = d224*arm_e0 + d225*arm_e1 - d226*arm_e3;
-    out[362] = d225*arm_e0 + d226*arm_e2;
-    out[363] = d224*arm_e2 + d225*arm_e3 + d226*arm_e1;
-    out[364] = -d226*arm_e0 + 2.0*arm_e2*bucket_a22;
-    out[365] = -d229 + d227*bucket_e2 + d230*bucket_e0;
-    out[366] = -d231 + d227*bucket_e3;
-    out[367] = d232 + d227*bucket_e0;
-    out[368] = d233 + d227*bucket_e1 + d230*bucket_e3;
-    out[369] = d234*arm_e0 + d235*arm_e1 - d236*arm_e3;
-    out[370] = d235*arm_e0 + d236*arm_e2;
-    out[371] = d234*arm_e2 + d235*arm_e3 + d236*arm_e1;
-    out[372] = -d236*arm_e0 + 2.0*arm_e2*bucket_a20;
-    out[373] = d232 + d237*bucket_e0 - d238*bucket_e2;
-    out[374] = d233 + d237*bucket_e1 + d238*bucket_e3;
-    out[375] = d229 - d238*bucket_e0;
-    out[376] = d231 + d238*bucket_e1;
+    out[361] = d237*arm_e0 + d238*arm_e1 - d239*arm_e3;
+    out[362] = d238*arm_e0 + d239*arm_e2;
+    out[363] = d237*arm_e2 + d238*arm_e3 + d239*arm_e1;
+    out[364] = -d239*arm_e0 + 2.0*arm_e2*bucket_a22;
+    out[365] = -d242 + d240*bucket_e2 + d243*bucket_e0;
+    out[366] = -d244 + d240*bucket_e3;
+    out[367] = d245 + d240*bucket_e0;
+    out[368] = d246 + d240*bucket_e1 + d243*bucket_e3;
+    out[369] = d247*arm_e0 + d248*arm_e1 - d249*arm_e3;
+    out[370] = d248*arm_e0 + d249*arm_e2;
+    out[371] = d247*arm_e2 + d248*arm_e3 + d249*arm_e1;
+    out[372] = -d249*arm_e0 + 2.0*arm_e2*bucket_a20;
+    out[373] = d245 + d250*bucket_e0 - d251*bucket_e2;
+    out[374] = d246 + d250*bucket_e1 + d251*bucket_e3;
+    out[375] = d242 - d251*bucket_e0;
+    out[376] = d244 + d251*bucket_e1;
     out[377] = 1.0;
-    out[378] = d239 + (7877.0/1250.0)*arm_e0;
-    out[379] = d240 + (7877.0/1250.0)*arm_e1;
-    out[380] = d241;
-    out[381] = d242;
+    out[378] = d252 + (7877.0/1250.0)*arm_e0;
+    out[379] = d253 + (7877.0/1250.0)*arm_e1;
+    out[380] = d254;
+    out[381] = d255;
     out[382] = -1.0;
     out[383] = 1.0;
-    out[384] = -d242 + (7877.0/2500.0)*arm_e3;
-    out[385] = -d241 - d243;
-    out[386] = d240 + d244;
-    out[387] = d239 + d245;
+    out[384] = -d255 + (7877.0/2500.0)*arm_e3;
+    out[385] = -d254 - d256;
+    out[386] = d253 + d257;
+    out[387] = d252 + d258;
     out[388] = -1.0;
     out[389] = 1.0;
-    out[390] = d243 + (18799.0/2500.0)*arm_e0;
+    out[390] = d256 + (18799.0/2500.0)*arm_e0;
     out[391] = (7877.0/2500.0)*arm_e3;
-    out[392] = -d245;
-    out[393] = d244 + (18799.0/2500.0)*arm_e3;
+    out[392] = -d258;
+    out[393] = d257 + (18799.0/2500.0)*arm_e3;
     out[394] = -1.0;
-    out[395] = d246*arm_e0 + d247*arm_e1 - d248*arm_e3;
-    out[396] = d247*arm_e0 + d248*arm_e2;
-    out[397] = d246*arm_e2 + d247*arm_e3 + d248*arm_e1;
-    out[398] = -d248*arm_e0 + 2.0*arm_e2*side_link_a22;
-    out[399] = -d251 + d249*side_link_e2 + d252*side_link_e0;
-    out[400] = -d253 + d249*side_link_e3;
-    out[401] = d254 + d249*side_link_e0;
-    out[402] = d255 + d249*side_link_e1 + d252*side_link_e3;
-    out[403] = d256*arm_e0 + d257*arm_e1 - d258*arm_e3;
-    out[404] = d257*arm_e0 + d258*arm_e2;
-    out[405] = d256*arm_e2 + d257*arm_e3 + d258*arm_e1;
-    out[406] = -d258*arm_e0 + 2.0*arm_e2*side_link_a20;
-    out[407] = d254 + d259*side_link_e0 - d260*side_link_e2;
-    out[408] = d255 + d259*side_link_e1 + d260*side_link_e3;
-    out[409] = d251 - d260*side_link_e0;
-    out[410] = d253 + d260*side_link_e1;
+    out[395] = d259*arm_e0 + d260*arm_e1 - d261*arm_e3;
+    out[396] = d260*arm_e0 + d261*arm_e2;
+    out[397] = d259*arm_e2 + d260*arm_e3 + d261*arm_e1;
+    out[398] = -d261*arm_e0 + 2.0*arm_e2*side_link_a22;
+    out[399] = -d264 + d262*side_link_e2 + d265*side_link_e0;
+    out[400] = -d266 + d262*side_link_e3;
+    out[401] = d267 + d262*side_link_e0;
+    out[402] = d268 + d262*side_link_e1 + d265*side_link_e3;
+    out[403] = d269*arm_e0 + d270*arm_e1 - d271*arm_e3;
+    out[404] = d270*arm_e0 + d271*arm_e2;
+    out[405] = d269*arm_e2 + d270*arm_e3 + d271*arm_e1;
+    out[406] = -d271*arm_e0 + 2.0*arm_e2*side_link_a20;
+    out[407] = d267 + d272*side_link_e0 - d273*side_link_e2;
+    out[408] = d268 + d272*side_link_e1 + d273*side_link_e3;
+    out[409] = d264 - d273*side_link_e0;
+    out[410] = d266 + d273*side_link_e1;
 }
 
-/* Phi_q values of the joint rows (611 entries). Rows 411 to 574. */
-void excavator_euler_parameters_compute_joints_jac_part3(const double *q, double *out) {
+/* Phi_q values of the joint rows (611 entries). Rows 411 to 558. */
+void excavator_euler_parameters_compute_joints_jac_part3(const double *q, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
     const double upper_e3 = q[6];
-    const double boom_e0 = q[10];
-    const double boom_e1 = q[11];
-    const double boom_e2 = q[12];
-    const double boom_e3 = q[13];
-    const double boom_cyl_l_barrel_e0 = q[17];
-    const double boom_cyl_l_barrel_e1 = q[18];
-    const double boom_cyl_l_barrel_e2 = q[19];
-    const double boom_cyl_l_barrel_e3 = q[20];
-    const double boom_cyl_l_rod_e0 = q[24];
-    const double boom_cyl_l_rod_e1 = q[25];
-    const double boom_cyl_l_rod_e2 = q[26];
-    const double boom_cyl_l_rod_e3 = q[27];
-    const double boom_cyl_r_barrel_e0 = q[31];
-    const double boom_cyl_r_barrel_e1 = q[32];
-    const double boom_cyl_r_barrel_e2 = q[33];
-    const double boom_cyl_r_barrel_e3 = q[34];
     const double arm_e0 = q[45];
     const double arm_e1 = q[46];
     const double arm_e2 = q[47];
@@ -1325,6 +1350,10 @@ void excavator_euler_parameters_compute_joints_jac_part3(const double *q, double
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
+    const double p_side_link = p[5];
+    const double p_bucket_link = p[6];
+    const double p_K_x = p[7];
+    const double p_K_z = p[8];
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
     const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
@@ -1352,258 +1381,273 @@ void excavator_euler_parameters_compute_joints_jac_part3(const double *q, double
     const double bucket_a01 = -2.0*bucket_e0*bucket_e3 + 2.0*bucket_e1*bucket_e2;
     const double bucket_a11 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e2*bucket_e2);
     const double bucket_a21 = 2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
-    const double d261 = -96247.0/100000.0*side_link_e2;
-    const double d262 = -96247.0/100000.0*side_link_e3;
-    const double d263 = (96247.0/100000.0)*side_link_e0;
-    const double d264 = (96247.0/100000.0)*side_link_e1;
-    const double d265 = (450737.0/500000.0)*bucket_link_e2;
-    const double d266 = (450737.0/500000.0)*bucket_link_e3;
-    const double d267 = (450737.0/500000.0)*bucket_link_e0;
-    const double d268 = (450737.0/500000.0)*bucket_link_e1;
-    const double d269 = (166329.0/250000.0)*side_link_e3;
-    const double d270 = (166329.0/250000.0)*side_link_e2;
-    const double d271 = (166329.0/250000.0)*side_link_e1;
-    const double d272 = (166329.0/250000.0)*side_link_e0;
-    const double d273 = -85607.0/125000.0*bucket_link_e2;
-    const double d274 = (85607.0/125000.0)*bucket_link_e1;
-    const double d275 = (85607.0/125000.0)*bucket_link_e0;
-    const double d276 = -16927.0/25000.0*bucket_e2;
-    const double d277 = -16927.0/25000.0*bucket_e3;
-    const double d278 = (16927.0/25000.0)*bucket_e0;
-    const double d279 = (16927.0/25000.0)*bucket_e1;
-    const double d280 = (8101.0/12500.0)*bucket_e3;
-    const double d281 = (8101.0/12500.0)*bucket_e2;
-    const double d282 = (8101.0/12500.0)*bucket_e1;
-    const double d283 = (8101.0/12500.0)*bucket_e0;
-    const double d284 = (3.1850984857373903)*bucket_a01;
-    const double d285 = (1.2098706166521882)*bucket_a11;
-    const double d286 = (1.5925492428686951)*bucket_a11;
-    const double d287 = (1.5925492428686951)*bucket_a21;
-    const double d288 = (1.2098706166521882)*bucket_a01;
-    const double d289 = -3.1850984857373903*bucket_link_a10 + (2.4197412333043764)*bucket_link_a12;
-    const double d290 = -0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22;
-    const double d291 = 2.0*d290;
-    const double d292 = -1.5925492428686951*bucket_link_a00 + (1.2098706166521882)*bucket_link_a02;
-    const double d293 = -36797.0/25000.0*arm_e2;
-    const double d294 = -36797.0/25000.0*arm_e3;
-    const double d295 = (36797.0/25000.0)*arm_e0;
-    const double d296 = (36797.0/25000.0)*arm_e1;
-    const double d297 = (24687.0/50000.0)*arm_e3;
-    const double d298 = (24687.0/50000.0)*arm_e2;
-    const double d299 = (24687.0/50000.0)*arm_e1;
-    const double d300 = (24687.0/50000.0)*arm_e0;
-    const double d301 = 4.0*bucket_cyl_barrel_a12;
-    const double d302 = 2.0*bucket_cyl_barrel_a22;
-    const double d303 = 2.0*bucket_cyl_barrel_a02;
-    const double d304 = 2.0*arm_a01;
-    const double d305 = 2.0*arm_a11;
-    const double d306 = 4.0*arm_a21;
-    const double d307 = 4.0*bucket_cyl_rod_a01;
-    const double d308 = 2.0*bucket_cyl_barrel_e2;
-    const double d309 = 2.0*bucket_cyl_barrel_e3;
-    const double d310 = 2.0*bucket_cyl_barrel_e0;
-    const double d311 = 2.0*bucket_cyl_barrel_e1;
-    const double d312 = 2.0*bucket_cyl_barrel_a00;
-    const double d313 = d312*bucket_cyl_rod_e3;
-    const double d314 = 4.0*bucket_cyl_barrel_a10;
-    const double d315 = 2.0*bucket_cyl_barrel_a20;
-    const double d316 = d312*bucket_cyl_rod_e2;
-    const double d317 = d312*bucket_cyl_rod_e1;
-    const double d318 = d312*bucket_cyl_rod_e0;
-    const double d319 = 4.0*bucket_cyl_rod_a02;
-    const double d320 = 2.0*bucket_cyl_barrel_a10;
-    const double d321 = 4.0*bucket_cyl_barrel_a20;
-    const double d322 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
-    const double d323 = 4.0*d322;
-    const double d324 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
-    const double d325 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
-    const double d326 = -d325*d309;
-    const double d327 = d308*d325;
-    const double d328 = d325*d311;
-    const double d329 = d325*d310;
-    const double d330 = 4.0*d324;
-    const double d331 = (4.0)*bucket_cyl_rod_a12;
-    const double d332 = (2.0)*bucket_cyl_rod_a22;
-    const double d333 = (2.0)*bucket_cyl_rod_a02;
-    const double d334 = (2.0)*bucket_cyl_barrel_a01;
-    const double d335 = (2.0)*bucket_cyl_barrel_a11;
-    const double d336 = (4.0)*bucket_cyl_barrel_a21;
-    const double d337 = -96247.0/100000.0*side_link_e2;
-    const double d338 = -96247.0/100000.0*side_link_e3;
-    const double d339 = (96247.0/100000.0)*side_link_e0;
-    const double d340 = (96247.0/100000.0)*side_link_e1;
-    const double d341 = (166329.0/250000.0)*side_link_e3;
-    const double d342 = (166329.0/250000.0)*side_link_e2;
-    const double d343 = (166329.0/250000.0)*side_link_e1;
-    const double d344 = (166329.0/250000.0)*side_link_e0;
+    const double d274 = 2.2745066225654527*p_side_link;
+    const double d275 = -1.645191449642404*side_link_e2*p_side_link;
+    const double d276 = -1.645191449642404*side_link_e3*p_side_link;
+    const double d277 = 1.645191449642404*p_side_link;
+    const double d278 = d277*side_link_e0;
+    const double d279 = d277*side_link_e1;
+    const double d280 = 2.4197412333018*p_bucket_link;
+    const double d281 = 1.592549242869674*p_bucket_link;
+    const double d282 = d281*bucket_link_e2;
+    const double d283 = d281*bucket_link_e3;
+    const double d284 = d281*bucket_link_e0;
+    const double d285 = d281*bucket_link_e1;
+    const double d286 = 1.1372533112827263*p_side_link;
+    const double d287 = d286*side_link_e3;
+    const double d288 = d286*side_link_e2;
+    const double d289 = d286*side_link_e1;
+    const double d290 = d286*side_link_e0;
+    const double d291 = 1.2098706166509*p_bucket_link;
+    const double d292 = -d291*bucket_link_e2;
+    const double d293 = d291*bucket_link_e1;
+    const double d294 = d291*bucket_link_e0;
+    const double d295 = 3.185098485739348*p_bucket_link;
+    const double d296 = 4.0*p_K_x;
+    const double d297 = 2.0*p_K_z;
+    const double d298 = d297*bucket_e2;
+    const double d299 = d297*bucket_e3;
+    const double d300 = d297*bucket_e0;
+    const double d301 = d297*bucket_e1;
+    const double d302 = 2.0*p_K_x;
+    const double d303 = -d302*bucket_e3;
+    const double d304 = -d302*bucket_e2;
+    const double d305 = d302*bucket_e1;
+    const double d306 = d302*bucket_e0;
+    const double d307 = 4.0*p_K_z;
+    const double d308 = (3.1850984857373903)*bucket_a01;
+    const double d309 = (1.2098706166521882)*bucket_a11;
+    const double d310 = (1.5925492428686951)*bucket_a11;
+    const double d311 = (1.5925492428686951)*bucket_a21;
+    const double d312 = (1.2098706166521882)*bucket_a01;
+    const double d313 = -3.1850984857373903*bucket_link_a10 + (2.4197412333043764)*bucket_link_a12;
+    const double d314 = -0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22;
+    const double d315 = 2.0*d314;
+    const double d316 = -1.5925492428686951*bucket_link_a00 + (1.2098706166521882)*bucket_link_a02;
+    const double d317 = -36797.0/25000.0*arm_e2;
+    const double d318 = -36797.0/25000.0*arm_e3;
+    const double d319 = (36797.0/25000.0)*arm_e0;
+    const double d320 = (36797.0/25000.0)*arm_e1;
+    const double d321 = (24687.0/50000.0)*arm_e3;
+    const double d322 = (24687.0/50000.0)*arm_e2;
+    const double d323 = (24687.0/50000.0)*arm_e1;
+    const double d324 = (24687.0/50000.0)*arm_e0;
+    const double d325 = 4.0*bucket_cyl_barrel_a12;
+    const double d326 = 2.0*bucket_cyl_barrel_a22;
+    const double d327 = 2.0*bucket_cyl_barrel_a02;
+    const double d328 = 2.0*arm_a01;
+    const double d329 = 2.0*arm_a11;
+    const double d330 = 4.0*arm_a21;
+    const double d331 = 4.0*bucket_cyl_rod_a01;
+    const double d332 = 2.0*bucket_cyl_barrel_e2;
+    const double d333 = 2.0*bucket_cyl_barrel_e3;
+    const double d334 = 2.0*bucket_cyl_barrel_e0;
+    const double d335 = 2.0*bucket_cyl_barrel_e1;
+    const double d336 = 2.0*bucket_cyl_barrel_a00;
+    const double d337 = d336*bucket_cyl_rod_e3;
+    const double d338 = 4.0*bucket_cyl_barrel_a10;
+    const double d339 = 2.0*bucket_cyl_barrel_a20;
+    const double d340 = d336*bucket_cyl_rod_e2;
+    const double d341 = d336*bucket_cyl_rod_e1;
+    const double d342 = d336*bucket_cyl_rod_e0;
+    const double d343 = 4.0*bucket_cyl_rod_a02;
+    const double d344 = 2.0*bucket_cyl_barrel_a10;
+    const double d345 = 4.0*bucket_cyl_barrel_a20;
+    const double d346 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double d347 = 4.0*d346;
+    const double d348 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double d349 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    const double d350 = -d349*d333;
+    const double d351 = d332*d349;
+    const double d352 = d349*d335;
+    const double d353 = d349*d334;
+    const double d354 = 4.0*d348;
+    const double d355 = (4.0)*bucket_cyl_rod_a12;
+    const double d356 = (2.0)*bucket_cyl_rod_a22;
+    const double d357 = (2.0)*bucket_cyl_rod_a02;
+    const double d358 = (2.0)*bucket_cyl_barrel_a01;
+    const double d359 = (2.0)*bucket_cyl_barrel_a11;
+    const double d360 = (4.0)*bucket_cyl_barrel_a21;
+    const double d361 = 2.2745066225654527*p_side_link;
+    const double d362 = 1.645191449642404*p_side_link;
+    const double d363 = -d362*side_link_e2;
+    const double d364 = -d362*side_link_e3;
+    const double d365 = d362*side_link_e0;
+    const double d366 = d362*side_link_e1;
+    const double d367 = 1.1372533112827263*p_side_link;
+    const double d368 = d367*side_link_e3;
+    const double d369 = d367*side_link_e2;
+    const double d370 = d367*side_link_e1;
+    const double d371 = d367*side_link_e0;
+    const double d372 = 3.290382899284808*p_side_link;
     out[411] = 1.0;
-    out[412] = -d261 - 166329.0/125000.0*side_link_e0;
-    out[413] = -d262 - 166329.0/125000.0*side_link_e1;
-    out[414] = d263;
-    out[415] = d264;
+    out[412] = -d275 - d274*side_link_e0;
+    out[413] = -d276 - d274*side_link_e1;
+    out[414] = d278;
+    out[415] = d279;
     out[416] = -1.0;
-    out[417] = d265 + (85607.0/62500.0)*bucket_link_e0;
-    out[418] = d266 + (85607.0/62500.0)*bucket_link_e1;
-    out[419] = d267;
-    out[420] = d268;
+    out[417] = d282 + d280*bucket_link_e0;
+    out[418] = d283 + d280*bucket_link_e1;
+    out[419] = d284;
+    out[420] = d285;
     out[421] = 1.0;
-    out[422] = -d264 - d269;
-    out[423] = -d263 - d270;
-    out[424] = -d262 - d271;
-    out[425] = -d261 - d272;
+    out[422] = -d287 - d279;
+    out[423] = -d288 - d278;
+    out[424] = -d289 - d276;
+    out[425] = -d275 - d290;
     out[426] = -1.0;
-    out[427] = -d268 + (85607.0/125000.0)*bucket_link_e3;
-    out[428] = -d273 - d267;
-    out[429] = d274 + d266;
-    out[430] = d275 + d265;
+    out[427] = -d285 + 1.2098706166509*bucket_link_e3*p_bucket_link;
+    out[428] = -d284 - d292;
+    out[429] = d293 + d283;
+    out[430] = d294 + d282;
     out[431] = 1.0;
-    out[432] = d270 + (96247.0/50000.0)*side_link_e0;
-    out[433] = -d269;
-    out[434] = d272;
-    out[435] = -d271 + (96247.0/50000.0)*side_link_e3;
+    out[432] = d288 + 3.290382899284808*side_link_e0*p_side_link;
+    out[433] = -d287;
+    out[434] = d290;
+    out[435] = -d289 + 3.290382899284808*side_link_e3*p_side_link;
     out[436] = -1.0;
-    out[437] = d273 + (450737.0/250000.0)*bucket_link_e0;
-    out[438] = (85607.0/125000.0)*bucket_link_e3;
-    out[439] = -d275;
-    out[440] = d274 + (450737.0/250000.0)*bucket_link_e3;
+    out[437] = d292 + d295*bucket_link_e0;
+    out[438] = d291*bucket_link_e3;
+    out[439] = -d294;
+    out[440] = d293 + d295*bucket_link_e3;
     out[441] = 1.0;
     out[442] = -1.0;
-    out[443] = d276 + (8101.0/6250.0)*bucket_e0;
-    out[444] = d277 + (8101.0/6250.0)*bucket_e1;
-    out[445] = -d278;
-    out[446] = -d279;
+    out[443] = -d298 - d296*bucket_e0;
+    out[444] = -d299 - d296*bucket_e1;
+    out[445] = -d300;
+    out[446] = -d301;
     out[447] = 1.0;
     out[448] = -1.0;
-    out[449] = d279 + d280;
-    out[450] = d278 + d281;
-    out[451] = d277 + d282;
-    out[452] = d276 + d283;
+    out[449] = d301 + d303;
+    out[450] = d300 + d304;
+    out[451] = -d299 - d305;
+    out[452] = -d306 - d298;
     out[453] = 1.0;
     out[454] = -1.0;
-    out[455] = -d281 - 16927.0/12500.0*bucket_e0;
-    out[456] = d280;
-    out[457] = -d283;
-    out[458] = d282 - 16927.0/12500.0*bucket_e3;
-    out[459] = -d286*bucket_link_e3 - d284*bucket_link_e0 - d285*bucket_link_e1 + (2.4197412333043764)*bucket_link_e0*bucket_a21 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21;
-    out[460] = -d286*bucket_link_e2 - d287*bucket_link_e3 - d284*bucket_link_e1 - d285*bucket_link_e0 + (1.2098706166521882)*bucket_link_e3*bucket_a01;
-    out[461] = d288*bucket_link_e0 + d285*bucket_link_e3 - d286*bucket_link_e1 + (1.5925492428686951)*bucket_link_e0*bucket_a21;
-    out[462] = d288*bucket_link_e1 + d285*bucket_link_e2 - d286*bucket_link_e0 - d287*bucket_link_e1 + (2.4197412333043764)*bucket_link_e3*bucket_a21;
-    out[463] = d289*bucket_e0 + d291*bucket_e1 - d292*bucket_e3;
-    out[464] = d291*bucket_e0 + d292*bucket_e2;
-    out[465] = d289*bucket_e2 + d291*bucket_e3 + d292*bucket_e1;
-    out[466] = -d292*bucket_e0 + 2.0*d290*bucket_e2;
+    out[455] = -d304 - d307*bucket_e0;
+    out[456] = d303;
+    out[457] = d306;
+    out[458] = -d305 - d307*bucket_e3;
+    out[459] = -d308*bucket_link_e0 - d309*bucket_link_e1 - d310*bucket_link_e3 + (2.4197412333043764)*bucket_link_e0*bucket_a21 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21;
+    out[460] = -d308*bucket_link_e1 - d309*bucket_link_e0 - d310*bucket_link_e2 - d311*bucket_link_e3 + (1.2098706166521882)*bucket_link_e3*bucket_a01;
+    out[461] = d309*bucket_link_e3 + d312*bucket_link_e0 - d310*bucket_link_e1 + (1.5925492428686951)*bucket_link_e0*bucket_a21;
+    out[462] = d309*bucket_link_e2 + d312*bucket_link_e1 - d310*bucket_link_e0 - d311*bucket_link_e1 + (2.4197412333043764)*bucket_link_e3*bucket_a21;
+    out[463] = d313*bucket_e0 + d315*bucket_e1 - d316*bucket_e3;
+    out[464] = d315*bucket_e0 + d316*bucket_e2;
+    out[465] = d313*bucket_e2 + d315*bucket_e3 + d316*bucket_e1;
+    out[466] = -d316*bucket_e0 + 2.0*d314*bucket_e2;
     out[467] = 1.0;
-    out[468] = -d293 - 24687.0/25000.0*arm_e0;
-    out[469] = -d294 - 24687.0/25000.0*arm_e1;
-    out[470] = d295;
-    out[471] = d296;
+    out[468] = -d317 - 24687.0/25000.0*arm_e0;
+    out[469] = -d318 - 24687.0/25000.0*arm_e1;
+    out[470] = d319;
+    out[471] = d320;
     out[472] = -1.0;
     out[473] = 1.0;
-    out[474] = -d296 - d297;
-    out[475] = -d295 - d298;
-    out[476] = -d294 - d299;
-    out[477] = -d293 - d300;
+    out[474] = -d320 - d321;
+    out[475] = -d319 - d322;
+    out[476] = -d318 - d323;
+    out[477] = -d317 - d324;
     out[478] = -1.0;
     out[479] = 1.0;
-    out[480] = d298 + (36797.0/12500.0)*arm_e0;
-    out[481] = -d297;
-    out[482] = d300;
-    out[483] = -d299 + (36797.0/12500.0)*arm_e3;
+    out[480] = d322 + (36797.0/12500.0)*arm_e0;
+    out[481] = -d321;
+    out[482] = d324;
+    out[483] = -d323 + (36797.0/12500.0)*arm_e3;
     out[484] = -1.0;
-    out[485] = d301*arm_e0 + d302*arm_e1 - d303*arm_e3;
-    out[486] = d303*arm_e2 + d302*arm_e0;
-    out[487] = d303*arm_e1 + d301*arm_e2 + d302*arm_e3;
-    out[488] = -d303*arm_e0 + 2.0*arm_e2*bucket_cyl_barrel_a22;
-    out[489] = d304*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e0 - d305*bucket_cyl_barrel_e1;
-    out[490] = d304*bucket_cyl_barrel_e3 - d305*bucket_cyl_barrel_e0;
-    out[491] = d304*bucket_cyl_barrel_e0 + d305*bucket_cyl_barrel_e3;
-    out[492] = d304*bucket_cyl_barrel_e1 + d305*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e3;
-    out[493] = d307*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a11 - d308*bucket_cyl_rod_a21;
-    out[494] = d307*bucket_cyl_barrel_e1 + d308*bucket_cyl_rod_a11 + d309*bucket_cyl_rod_a21;
-    out[495] = -d310*bucket_cyl_rod_a21 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a11;
-    out[496] = d310*bucket_cyl_rod_a11 + d311*bucket_cyl_rod_a21;
-    out[497] = -d313 + d314*bucket_cyl_rod_e0 + d315*bucket_cyl_rod_e1;
-    out[498] = d316 + d315*bucket_cyl_rod_e0;
-    out[499] = d317 + d314*bucket_cyl_rod_e2 + d315*bucket_cyl_rod_e3;
-    out[500] = -d318 + 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_e2;
-    out[501] = d319*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a12 - d308*bucket_cyl_rod_a22;
-    out[502] = d308*bucket_cyl_rod_a12 + d319*bucket_cyl_barrel_e1 + d309*bucket_cyl_rod_a22;
-    out[503] = -d310*bucket_cyl_rod_a22 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a12;
-    out[504] = d310*bucket_cyl_rod_a12 + d311*bucket_cyl_rod_a22;
-    out[505] = d316 + d321*bucket_cyl_rod_e0 - d320*bucket_cyl_rod_e1;
-    out[506] = d313 - d320*bucket_cyl_rod_e0;
-    out[507] = d318 + d320*bucket_cyl_rod_e3;
-    out[508] = d317 + d320*bucket_cyl_rod_e2 + d321*bucket_cyl_rod_e3;
+    out[485] = d325*arm_e0 + d326*arm_e1 - d327*arm_e3;
+    out[486] = d327*arm_e2 + d326*arm_e0;
+    out[487] = d327*arm_e1 + d325*arm_e2 + d326*arm_e3;
+    out[488] = -d327*arm_e0 + 2.0*arm_e2*bucket_cyl_barrel_a22;
+    out[489] = d328*bucket_cyl_barrel_e2 + d330*bucket_cyl_barrel_e0 - d329*bucket_cyl_barrel_e1;
+    out[490] = d328*bucket_cyl_barrel_e3 - d329*bucket_cyl_barrel_e0;
+    out[491] = d328*bucket_cyl_barrel_e0 + d329*bucket_cyl_barrel_e3;
+    out[492] = d328*bucket_cyl_barrel_e1 + d329*bucket_cyl_barrel_e2 + d330*bucket_cyl_barrel_e3;
+    out[493] = d331*bucket_cyl_barrel_e0 + d333*bucket_cyl_rod_a11 - d332*bucket_cyl_rod_a21;
+    out[494] = d331*bucket_cyl_barrel_e1 + d332*bucket_cyl_rod_a11 + d333*bucket_cyl_rod_a21;
+    out[495] = -d334*bucket_cyl_rod_a21 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a11;
+    out[496] = d334*bucket_cyl_rod_a11 + d335*bucket_cyl_rod_a21;
+    out[497] = -d337 + d338*bucket_cyl_rod_e0 + d339*bucket_cyl_rod_e1;
+    out[498] = d340 + d339*bucket_cyl_rod_e0;
+    out[499] = d341 + d338*bucket_cyl_rod_e2 + d339*bucket_cyl_rod_e3;
+    out[500] = -d342 + 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_e2;
+    out[501] = d343*bucket_cyl_barrel_e0 + d333*bucket_cyl_rod_a12 - d332*bucket_cyl_rod_a22;
+    out[502] = d332*bucket_cyl_rod_a12 + d343*bucket_cyl_barrel_e1 + d333*bucket_cyl_rod_a22;
+    out[503] = -d334*bucket_cyl_rod_a22 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a12;
+    out[504] = d334*bucket_cyl_rod_a12 + d335*bucket_cyl_rod_a22;
+    out[505] = d340 + d345*bucket_cyl_rod_e0 - d344*bucket_cyl_rod_e1;
+    out[506] = d337 - d344*bucket_cyl_rod_e0;
+    out[507] = d342 + d344*bucket_cyl_rod_e3;
+    out[508] = d341 + d344*bucket_cyl_rod_e2 + d345*bucket_cyl_rod_e3;
     out[509] = -bucket_cyl_barrel_a01;
     out[510] = -bucket_cyl_barrel_a11;
     out[511] = -bucket_cyl_barrel_a21;
-    out[512] = d326 + d323*bucket_cyl_barrel_e0 + d324*d311;
-    out[513] = d327 + d324*d310;
-    out[514] = d328 + d323*bucket_cyl_barrel_e2 + d324*d309;
-    out[515] = -d329 + 2.0*d324*bucket_cyl_barrel_e2;
+    out[512] = d350 + d347*bucket_cyl_barrel_e0 + d348*d335;
+    out[513] = d351 + d348*d334;
+    out[514] = d352 + d347*bucket_cyl_barrel_e2 + d348*d333;
+    out[515] = -d353 + 2.0*d348*bucket_cyl_barrel_e2;
     out[516] = bucket_cyl_barrel_a01;
     out[517] = bucket_cyl_barrel_a11;
     out[518] = bucket_cyl_barrel_a21;
     out[519] = -bucket_cyl_barrel_a02;
     out[520] = -bucket_cyl_barrel_a12;
     out[521] = -bucket_cyl_barrel_a22;
-    out[522] = d327 + d330*bucket_cyl_barrel_e0 - d322*d311;
-    out[523] = -d326 - d322*d310;
-    out[524] = d329 + d322*d309;
-    out[525] = d328 + d308*d322 + d330*bucket_cyl_barrel_e3;
+    out[522] = d351 + d354*bucket_cyl_barrel_e0 - d346*d335;
+    out[523] = -d350 - d346*d334;
+    out[524] = d353 + d346*d333;
+    out[525] = d352 + d332*d346 + d354*bucket_cyl_barrel_e3;
     out[526] = bucket_cyl_barrel_a02;
     out[527] = bucket_cyl_barrel_a12;
     out[528] = bucket_cyl_barrel_a22;
-    out[529] = d331*bucket_cyl_barrel_e0 + d332*bucket_cyl_barrel_e1 - d333*bucket_cyl_barrel_e3;
-    out[530] = d332*bucket_cyl_barrel_e0 + d333*bucket_cyl_barrel_e2;
-    out[531] = d331*bucket_cyl_barrel_e2 + d332*bucket_cyl_barrel_e3 + d333*bucket_cyl_barrel_e1;
-    out[532] = -d333*bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22;
-    out[533] = d334*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e0 - d335*bucket_cyl_rod_e1;
-    out[534] = d334*bucket_cyl_rod_e3 - d335*bucket_cyl_rod_e0;
-    out[535] = d334*bucket_cyl_rod_e0 + d335*bucket_cyl_rod_e3;
-    out[536] = d334*bucket_cyl_rod_e1 + d335*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e3;
+    out[529] = d355*bucket_cyl_barrel_e0 + d356*bucket_cyl_barrel_e1 - d357*bucket_cyl_barrel_e3;
+    out[530] = d356*bucket_cyl_barrel_e0 + d357*bucket_cyl_barrel_e2;
+    out[531] = d355*bucket_cyl_barrel_e2 + d356*bucket_cyl_barrel_e3 + d357*bucket_cyl_barrel_e1;
+    out[532] = -d357*bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22;
+    out[533] = d358*bucket_cyl_rod_e2 + d360*bucket_cyl_rod_e0 - d359*bucket_cyl_rod_e1;
+    out[534] = d358*bucket_cyl_rod_e3 - d359*bucket_cyl_rod_e0;
+    out[535] = d358*bucket_cyl_rod_e0 + d359*bucket_cyl_rod_e3;
+    out[536] = d358*bucket_cyl_rod_e1 + d359*bucket_cyl_rod_e2 + d360*bucket_cyl_rod_e3;
     out[537] = 1.0;
     out[538] = -1.0;
-    out[539] = d337 + (166329.0/125000.0)*side_link_e0;
-    out[540] = d338 + (166329.0/125000.0)*side_link_e1;
-    out[541] = -d339;
-    out[542] = -d340;
+    out[539] = d363 + d361*side_link_e0;
+    out[540] = d364 + d361*side_link_e1;
+    out[541] = -d365;
+    out[542] = -d366;
     out[543] = 1.0;
     out[544] = -1.0;
-    out[545] = d340 + d341;
-    out[546] = d339 + d342;
-    out[547] = d338 + d343;
-    out[548] = d337 + d344;
+    out[545] = d366 + d368;
+    out[546] = d365 + d369;
+    out[547] = d364 + d370;
+    out[548] = d371 + d363;
     out[549] = 1.0;
     out[550] = -1.0;
-    out[551] = -d342 - 96247.0/50000.0*side_link_e0;
-    out[552] = d341;
-    out[553] = -d344;
-    out[554] = d343 - 96247.0/50000.0*side_link_e3;
+    out[551] = -d369 - d372*side_link_e0;
+    out[552] = d368;
+    out[553] = -d371;
+    out[554] = d370 - d372*side_link_e3;
     out[555] = 2.0*upper_e0;
     out[556] = 2.0*upper_e1;
     out[557] = 2.0*upper_e2;
     out[558] = 2.0*upper_e3;
-    out[559] = 2.0*boom_e0;
-    out[560] = 2.0*boom_e1;
-    out[561] = 2.0*boom_e2;
-    out[562] = 2.0*boom_e3;
-    out[563] = 2.0*boom_cyl_l_barrel_e0;
-    out[564] = 2.0*boom_cyl_l_barrel_e1;
-    out[565] = 2.0*boom_cyl_l_barrel_e2;
-    out[566] = 2.0*boom_cyl_l_barrel_e3;
-    out[567] = 2.0*boom_cyl_l_rod_e0;
-    out[568] = 2.0*boom_cyl_l_rod_e1;
-    out[569] = 2.0*boom_cyl_l_rod_e2;
-    out[570] = 2.0*boom_cyl_l_rod_e3;
-    out[571] = 2.0*boom_cyl_r_barrel_e0;
-    out[572] = 2.0*boom_cyl_r_barrel_e1;
-    out[573] = 2.0*boom_cyl_r_barrel_e2;
-    out[574] = 2.0*boom_cyl_r_barrel_e3;
 }
 
-/* Phi_q values of the joint rows (611 entries). Rows 575 to 610. */
-void excavator_euler_parameters_compute_joints_jac_part4(const double *q, double *out) {
+/* Phi_q values of the joint rows (611 entries). Rows 559 to 610. */
+void excavator_euler_parameters_compute_joints_jac_part4(const double *q, const double *p, double *out) {
+    const double boom_e0 = q[10];
+    const double boom_e1 = q[11];
+    const double boom_e2 = q[12];
+    const double boom_e3 = q[13];
+    const double boom_cyl_l_barrel_e0 = q[17];
+    const double boom_cyl_l_barrel_e1 = q[18];
+    const double boom_cyl_l_barrel_e2 = q[19];
+    const double boom_cyl_l_barrel_e3 = q[20];
+    const double boom_cyl_l_rod_e0 = q[24];
+    const double boom_cyl_l_rod_e1 = q[25];
+    const double boom_cyl_l_rod_e2 = q[26];
+    const double boom_cyl_l_rod_e3 = q[27];
+    const double boom_cyl_r_barrel_e0 = q[31];
+    const double boom_cyl_r_barrel_e1 = q[32];
+    const double boom_cyl_r_barrel_e2 = q[33];
+    const double boom_cyl_r_barrel_e3 = q[34];
     const double boom_cyl_r_rod_e0 = q[38];
     const double boom_cyl_r_rod_e1 = q[39];
     const double boom_cyl_r_rod_e2 = q[40];
@@ -1640,6 +1684,23 @@ void excavator_euler_parameters_compute_joints_jac_part4(const double *q, double
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
+    (void)p;
+    out[559] = 2.0*boom_e0;
+    out[560] = 2.0*boom_e1;
+    out[561] = 2.0*boom_e2;
+    out[562] = 2.0*boom_e3;
+    out[563] = 2.0*boom_cyl_l_barrel_e0;
+    out[564] = 2.0*boom_cyl_l_barrel_e1;
+    out[565] = 2.0*boom_cyl_l_barrel_e2;
+    out[566] = 2.0*boom_cyl_l_barrel_e3;
+    out[567] = 2.0*boom_cyl_l_rod_e0;
+    out[568] = 2.0*boom_cyl_l_rod_e1;
+    out[569] = 2.0*boom_cyl_l_rod_e2;
+    out[570] = 2.0*boom_cyl_l_rod_e3;
+    out[571] = 2.0*boom_cyl_r_barrel_e0;
+    out[572] = 2.0*boom_cyl_r_barrel_e1;
+    out[573] = 2.0*boom_cyl_r_barrel_e2;
+    out[574] = 2.0*boom_cyl_r_barrel_e3;
     out[575] = 2.0*boom_cyl_r_rod_e0;
     out[576] = 2.0*boom_cyl_r_rod_e1;
     out[577] = 2.0*boom_cyl_r_rod_e2;
@@ -1679,7 +1740,7 @@ void excavator_euler_parameters_compute_joints_jac_part4(const double *q, double
 }
 
 /* Phi_q values of the driver rows of case 'digging'. */
-void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, const double *u, const double *p, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
     const double boom_cyl_l_barrel_z = q[16];
@@ -1711,6 +1772,7 @@ void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, con
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
+    (void)p;
     const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
@@ -1774,7 +1836,7 @@ void excavator_euler_parameters_compute_drivers_jac_digging(const double *q, con
 }
 
 /* nu of the driver rows of case 'digging'. */
-void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double u0 = u[0];
@@ -1782,6 +1844,7 @@ void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, cons
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0));
     out[1] = ud1;
@@ -1789,8 +1852,12 @@ void excavator_euler_parameters_compute_drivers_nu_digging(const double *q, cons
     out[3] = ud3;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 2
+
 /* gamma of the joint rows (they do not depend on time). Rows 0 to 25. */
-void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, const double *v, double *out) {
+void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, const double *v, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e1 = q[4];
     const double upper_e2 = q[5];
@@ -1843,6 +1910,8 @@ void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, cons
     const double v_boom_cyl_r_barrel_e1 = v[32];
     const double v_boom_cyl_r_barrel_e2 = v[33];
     const double v_boom_cyl_r_barrel_e3 = v[34];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
     const double upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2;
     const double upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2);
     const double upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3;
@@ -1994,40 +2063,44 @@ void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, cons
     const double c121 = (2.0)*v_boom_cyl_l_rod_e0;
     const double c122 = (2.0)*boom_cyl_l_barrel_e0;
     const double c123 = (2.0)*v_boom_cyl_l_barrel_e0;
-    const double c124 = (4.003844)*v_boom_e0;
-    const double c125 = (16.0/25.0)*v_boom_e1;
-    const double c126 = (16.0/25.0)*v_boom_e0;
-    const double c127 = -4.003844*v_boom_e1;
-    const double c128 = (4.003844)*v_boom_e2;
+    const double c124 = (16.0/25.0)*v_boom_e1;
+    const double c125 = 2.0*p_C_z;
+    const double c126 = c125*v_boom_e0;
+    const double c127 = (16.0/25.0)*v_boom_e0;
+    const double c128 = c125*v_boom_e1;
     const double c129 = -16.0/25.0*v_boom_e3;
-    const double c130 = (16.0/25.0)*v_boom_e2;
-    const double c131 = (4.003844)*v_boom_e3;
-    const double c132 = -139283.0/50000.0*v_boom_e2;
-    const double c133 = (139283.0/50000.0)*v_boom_e0;
-    const double c134 = (139283.0/50000.0)*v_boom_e3;
-    const double c135 = (139283.0/50000.0)*v_boom_e1;
-    const double c136 = (67739.0/25000.0)*v_upper_e0;
-    const double c137 = (16.0/25.0)*v_upper_e1;
-    const double c138 = (16.0/25.0)*v_upper_e0;
-    const double c139 = (67739.0/25000.0)*v_upper_e1;
-    const double c140 = (67739.0/25000.0)*v_upper_e2;
-    const double c141 = (16.0/25.0)*v_upper_e3;
-    const double c142 = -16.0/25.0*v_upper_e2;
-    const double c143 = (67739.0/25000.0)*v_upper_e3;
-    const double c144 = (4307.0/3125.0)*v_upper_e2;
-    const double c145 = (4307.0/3125.0)*v_upper_e0;
-    const double c146 = -4307.0/3125.0*v_upper_e3;
-    const double c147 = (4307.0/3125.0)*v_upper_e1;
-    const double c148 = 2.0*boom_cyl_r_barrel_a02;
-    const double c149 = 2.0*boom_cyl_r_barrel_a22;
-    const double c150 = 2.0*upper_a01;
-    const double c151 = 2.0*upper_a11;
-    const double c152 = 4.0*boom_cyl_r_barrel_a12;
-    const double c153 = 4.0*upper_a21;
-    const double c154 = 2.0*boom_cyl_r_barrel_e0;
-    const double c155 = 2.0*boom_cyl_r_barrel_e1;
-    const double c156 = 2.0*upper_e0;
-    const double c157 = 2.0*v_upper_e0;
+    const double c130 = 4.0*p_C_x;
+    const double c131 = c125*v_boom_e2;
+    const double c132 = (16.0/25.0)*v_boom_e2;
+    const double c133 = c125*v_boom_e3;
+    const double c134 = 2.0*p_C_x;
+    const double c135 = c134*v_boom_e2;
+    const double c136 = c134*v_boom_e0;
+    const double c137 = c134*v_boom_e3;
+    const double c138 = c134*v_boom_e1;
+    const double c139 = 4.0*p_C_z;
+    const double c140 = (67739.0/25000.0)*v_upper_e0;
+    const double c141 = (16.0/25.0)*v_upper_e1;
+    const double c142 = (16.0/25.0)*v_upper_e0;
+    const double c143 = (67739.0/25000.0)*v_upper_e1;
+    const double c144 = (67739.0/25000.0)*v_upper_e2;
+    const double c145 = (16.0/25.0)*v_upper_e3;
+    const double c146 = -16.0/25.0*v_upper_e2;
+    const double c147 = (67739.0/25000.0)*v_upper_e3;
+    const double c148 = (4307.0/3125.0)*v_upper_e2;
+    const double c149 = (4307.0/3125.0)*v_upper_e0;
+    const double c150 = -4307.0/3125.0*v_upper_e3;
+    const double c151 = (4307.0/3125.0)*v_upper_e1;
+    const double c152 = 2.0*boom_cyl_r_barrel_a02;
+    const double c153 = 2.0*boom_cyl_r_barrel_a22;
+    const double c154 = 2.0*upper_a01;
+    const double c155 = 2.0*upper_a11;
+    const double c156 = 4.0*boom_cyl_r_barrel_a12;
+    const double c157 = 4.0*upper_a21;
+    const double c158 = 2.0*boom_cyl_r_barrel_e0;
+    const double c159 = 2.0*boom_cyl_r_barrel_e1;
+    const double c160 = 2.0*upper_e0;
+    const double c161 = 2.0*v_upper_e0;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
@@ -2047,21 +2120,17 @@ void excavator_euler_parameters_compute_joints_gamma_part0(const double *q, cons
     out[16] = c95*v_boom_cyl_l_barrel_y + c103*v_boom_cyl_l_barrel_z - c95*c96 - c95*v_boom_cyl_l_rod_y - c99*v_boom_cyl_l_barrel_x - c103*c106 - c103*v_boom_cyl_l_rod_z - c104*c105 - c104*v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_e0*(c107 + c57*boom_cyl_l_rod_z + c71*boom_cyl_l_rod_y - c57*boom_cyl_l_barrel_z - c71*boom_cyl_l_barrel_y) - v_boom_cyl_l_barrel_e1*(-c97 - c58*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c108 - c94*boom_cyl_l_barrel_y - c64*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(c98 + c65*boom_cyl_l_rod_z - c65*boom_cyl_l_barrel_z);
     out[17] = c110*v_boom_cyl_l_barrel_z + c111*v_boom_cyl_l_barrel_x - c96*c113 - c105*c111 - c106*c110 - c110*v_boom_cyl_l_rod_z - c111*v_boom_cyl_l_rod_x - c112*v_boom_cyl_l_barrel_y - c113*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_e0*(-c97 - c57*boom_cyl_l_rod_y - c71*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e1 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c107 - c58*boom_cyl_l_rod_y + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c98 - c64*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(-c108 - c109*boom_cyl_l_barrel_z - c65*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3);
     out[18] = -c91*(-c122*v_boom_cyl_l_barrel_e3 - c123*boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e2 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e1) - c92*(c122*v_boom_cyl_l_barrel_e1 + c123*boom_cyl_l_barrel_e1 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - c93*((4.0)*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + (4.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - c95*(-c120*v_boom_cyl_l_rod_e1 - c121*boom_cyl_l_rod_e1 + (2.0)*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + (2.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2) - c103*((4.0)*boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0 + (4.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3) - c104*((2.0)*c89 + (2.0)*c90 + c120*v_boom_cyl_l_rod_e2 + c121*boom_cyl_l_rod_e2) - v_boom_cyl_l_barrel_e0*(c115*v_boom_cyl_l_barrel_e1 + c118*v_boom_cyl_l_barrel_e0 - c114*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e1*(c114*v_boom_cyl_l_barrel_e2 + c115*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c114*v_boom_cyl_l_barrel_e1 + c115*v_boom_cyl_l_barrel_e3 + c118*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(-c114*v_boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_rod_a22*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_rod_e0*(c116*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e0 - c117*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c116*v_boom_cyl_l_rod_e3 - c117*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c116*v_boom_cyl_l_rod_e0 + c117*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c116*v_boom_cyl_l_rod_e1 + c117*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e3);
-    out[19] = -v_boom_e0*(-c128 - c129 - 139283.0/25000.0*v_boom_e0) - v_boom_e1*(-c130 - c131 - 139283.0/25000.0*v_boom_e1) - v_boom_e2*(-c124 - c125) - v_boom_e3*(c126 + c127);
-    out[20] = -v_boom_e0*(-c134 - c127 - 32.0/25.0*v_boom_e0) - v_boom_e1*(c124 + c132) - v_boom_e2*(-c135 - c131 - 32.0/25.0*v_boom_e2) - v_boom_e3*(-c128 - c133);
-    out[21] = -v_boom_e0*(-c125 - c132 - 8.007688*v_boom_e0) - v_boom_e1*(-c134 - c126) - v_boom_e2*(c129 + c133) - v_boom_e3*(-c135 - c130 - 8.007688*v_boom_e3);
-    out[22] = -v_upper_e0*(c140 + c141 + (8614.0/3125.0)*v_upper_e0) - v_upper_e1*(c142 + c143 + (8614.0/3125.0)*v_upper_e1) - v_upper_e2*(c136 - c137) - v_upper_e3*(c138 + c139);
-    out[23] = -v_upper_e0*(-c146 - c139 - 32.0/25.0*v_upper_e0) - v_upper_e1*(c144 - c136) - v_upper_e2*(c147 + c143 - 32.0/25.0*v_upper_e2) - v_upper_e3*(c140 + c145);
-    out[24] = -v_upper_e0*(-c137 - c144 + (67739.0/12500.0)*v_upper_e0) - v_upper_e1*(-c146 - c138) - v_upper_e2*(-c141 - c145) - v_upper_e3*(c147 + c142 + (67739.0/12500.0)*v_upper_e3);
-    out[25] = -v_upper_e0*(c149*v_upper_e1 + c152*v_upper_e0 - c148*v_upper_e3) - v_upper_e1*(c148*v_upper_e2 + c149*v_upper_e0) - v_upper_e2*(c148*v_upper_e1 + c149*v_upper_e3 + c152*v_upper_e2) - v_upper_e3*(-c148*v_upper_e0 + 2.0*boom_cyl_r_barrel_a22*v_upper_e2) - v_boom_cyl_r_barrel_e0*(c150*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e0 - c151*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e1*(c150*v_boom_cyl_r_barrel_e3 - c151*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c150*v_boom_cyl_r_barrel_e0 + c151*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c150*v_boom_cyl_r_barrel_e1 + c151*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c154*v_boom_cyl_r_barrel_e1 - c155*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - 2.0*(4.0*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(c156*v_upper_e1 + c157*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c154*v_boom_cyl_r_barrel_e2 + c155*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1)*(-c156*v_upper_e3 - c157*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1);
+    out[19] = -v_boom_e0*(-c129 - c131 - c130*v_boom_e0) - v_boom_e1*(-c132 - c133 - c130*v_boom_e1) - v_boom_e2*(-c124 - c126) - v_boom_e3*(c127 - c128);
+    out[20] = -v_boom_e0*(c128 - c137 - 32.0/25.0*v_boom_e0) - v_boom_e1*(c126 - c135) - v_boom_e2*(-c138 - c133 - 32.0/25.0*v_boom_e2) - v_boom_e3*(-c136 - c131);
+    out[21] = -v_boom_e0*(c135 - c124 - c139*v_boom_e0) - v_boom_e1*(-c137 - c127) - v_boom_e2*(c136 + c129) - v_boom_e3*(-c138 - c132 - c139*v_boom_e3);
+    out[22] = -v_upper_e0*(c144 + c145 + (8614.0/3125.0)*v_upper_e0) - v_upper_e1*(c146 + c147 + (8614.0/3125.0)*v_upper_e1) - v_upper_e2*(c140 - c141) - v_upper_e3*(c142 + c143);
+    out[23] = -v_upper_e0*(-c150 - c143 - 32.0/25.0*v_upper_e0) - v_upper_e1*(c148 - c140) - v_upper_e2*(c151 + c147 - 32.0/25.0*v_upper_e2) - v_upper_e3*(c144 + c149);
+    out[24] = -v_upper_e0*(-c141 - c148 + (67739.0/12500.0)*v_upper_e0) - v_upper_e1*(-c150 - c142) - v_upper_e2*(-c145 - c149) - v_upper_e3*(c151 + c146 + (67739.0/12500.0)*v_upper_e3);
+    out[25] = -v_upper_e0*(c153*v_upper_e1 + c156*v_upper_e0 - c152*v_upper_e3) - v_upper_e1*(c152*v_upper_e2 + c153*v_upper_e0) - v_upper_e2*(c152*v_upper_e1 + c153*v_upper_e3 + c156*v_upper_e2) - v_upper_e3*(-c152*v_upper_e0 + 2.0*boom_cyl_r_barrel_a22*v_upper_e2) - v_boom_cyl_r_barrel_e0*(c154*v_boom_cyl_r_barrel_e2 + c157*v_boom_cyl_r_barrel_e0 - c155*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e1*(c154*v_boom_cyl_r_barrel_e3 - c155*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c154*v_boom_cyl_r_barrel_e0 + c155*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c154*v_boom_cyl_r_barrel_e1 + c155*v_boom_cyl_r_barrel_e2 + c157*v_boom_cyl_r_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c158*v_boom_cyl_r_barrel_e1 - c159*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - 2.0*(4.0*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(c160*v_upper_e1 + c161*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c158*v_boom_cyl_r_barrel_e2 + c159*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1)*(-c160*v_upper_e3 - c161*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1);
 }
 
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 2
-
 /* gamma of the joint rows (they do not depend on time). Rows 26 to 50. */
-void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, const double *v, double *out) {
+void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, const double *v, const double *p, double *out) {
     const double boom_e0 = q[10];
     const double boom_e1 = q[11];
     const double boom_e2 = q[12];
@@ -2134,6 +2203,10 @@ void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, cons
     const double v_arm_cyl_rod_e1 = v[60];
     const double v_arm_cyl_rod_e2 = v[61];
     const double v_arm_cyl_rod_e3 = v[62];
+    const double p_C_x = p[0];
+    const double p_C_z = p[1];
+    const double p_F_x = p[2];
+    const double p_F_z = p[3];
     const double boom_a01 = -2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a11 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e2*boom_e2);
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
@@ -2170,231 +2243,239 @@ void excavator_euler_parameters_compute_joints_gamma_part1(const double *q, cons
     const double arm_cyl_rod_a12 = -2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
     const double arm_cyl_rod_a21 = 2.0*arm_cyl_rod_e0*arm_cyl_rod_e1 + 2.0*arm_cyl_rod_e2*arm_cyl_rod_e3;
     const double arm_cyl_rod_a22 = -1.0 + 2.0*(arm_cyl_rod_e0*arm_cyl_rod_e0) + 2.0*(arm_cyl_rod_e3*arm_cyl_rod_e3);
-    const double c158 = 2.0*v_boom_cyl_r_barrel_e1;
-    const double c159 = 2.0*v_boom_cyl_r_barrel_e0;
-    const double c160 = 2.0*boom_cyl_r_barrel_a00;
-    const double c161 = c160*v_boom_cyl_r_rod_e2;
-    const double c162 = 2.0*boom_cyl_r_barrel_a20;
-    const double c163 = c160*v_boom_cyl_r_rod_e0;
-    const double c164 = 4.0*boom_cyl_r_rod_a01;
-    const double c165 = 2.0*v_boom_cyl_r_barrel_e3;
-    const double c166 = 2.0*v_boom_cyl_r_barrel_e2;
-    const double c167 = c160*v_boom_cyl_r_rod_e3;
-    const double c168 = 4.0*boom_cyl_r_barrel_a10;
-    const double c169 = c160*v_boom_cyl_r_rod_e1;
-    const double c170 = 2.0*boom_cyl_r_rod_e0;
-    const double c171 = 2.0*v_boom_cyl_r_rod_e0;
-    const double c172 = 4.0*v_boom_cyl_r_barrel_e0;
-    const double c173 = c172*boom_cyl_r_barrel_e0;
-    const double c174 = 4.0*v_boom_cyl_r_barrel_e1;
-    const double c175 = 2.0*c173 + 2.0*c174*boom_cyl_r_barrel_e1;
-    const double c176 = 4.0*v_boom_cyl_r_rod_e0;
-    const double c177 = c176*boom_cyl_r_rod_e0;
-    const double c178 = c166*boom_cyl_r_barrel_e1;
-    const double c179 = c158*boom_cyl_r_barrel_e2;
-    const double c180 = c159*boom_cyl_r_barrel_e3 + c165*boom_cyl_r_barrel_e0;
-    const double c181 = 2.0*c178 + 2.0*c179 + 2.0*c180;
-    const double c182 = 2.0*v_boom_cyl_r_rod_e2;
-    const double c183 = c170*v_boom_cyl_r_rod_e1 + c171*boom_cyl_r_rod_e1;
-    const double c184 = c165*boom_cyl_r_barrel_e1;
-    const double c185 = c158*boom_cyl_r_barrel_e3;
-    const double c186 = c159*boom_cyl_r_barrel_e2 + c166*boom_cyl_r_barrel_e0;
-    const double c187 = -2.0*c186 + 2.0*c184 + 2.0*c185;
-    const double c188 = 2.0*boom_cyl_r_barrel_a10;
-    const double c189 = 4.0*v_boom_cyl_r_rod_e3;
-    const double c190 = boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e3;
-    const double c191 = boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e1;
-    const double c192 = 2.0*c190 + 2.0*c191 + c170*v_boom_cyl_r_rod_e2 + c171*boom_cyl_r_rod_e2;
-    const double c193 = c177 + c189*boom_cyl_r_rod_e3;
-    const double c194 = -c183 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2;
-    const double c195 = 4.0*v_boom_cyl_r_barrel_e2;
-    const double c196 = c173 + c195*boom_cyl_r_barrel_e2;
-    const double c197 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y;
-    const double c198 = c166*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2;
-    const double c199 = c159*boom_cyl_r_barrel_x - c159*boom_cyl_r_rod_x;
-    const double c200 = c180 - c178 - c179;
-    const double c201 = c165*boom_cyl_r_barrel_e2;
-    const double c202 = c166*boom_cyl_r_barrel_e3;
-    const double c203 = c158*boom_cyl_r_barrel_e0 + c159*boom_cyl_r_barrel_e1;
-    const double c204 = c201 + c202 + c203;
-    const double c205 = -c200;
-    const double c206 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x;
-    const double c207 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z;
-    const double c208 = c165*boom_cyl_r_barrel_x - c165*boom_cyl_r_rod_x;
-    const double c209 = c158*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1;
-    const double c210 = 4.0*v_boom_cyl_r_barrel_e3;
-    const double c211 = c173 + c210*boom_cyl_r_barrel_e3;
-    const double c212 = c184 + c185 + c186;
-    const double c213 = c203 - c201 - c202;
-    const double c214 = -c213;
-    const double c215 = (2.0)*boom_cyl_r_rod_a02;
-    const double c216 = (2.0)*boom_cyl_r_rod_a22;
-    const double c217 = (2.0)*boom_cyl_r_barrel_a01;
-    const double c218 = (2.0)*boom_cyl_r_barrel_a11;
-    const double c219 = (4.0)*boom_cyl_r_rod_a12;
-    const double c220 = (4.0)*boom_cyl_r_barrel_a21;
-    const double c221 = (2.0)*boom_cyl_r_rod_e0;
-    const double c222 = (2.0)*v_boom_cyl_r_rod_e0;
-    const double c223 = (2.0)*boom_cyl_r_barrel_e0;
-    const double c224 = (2.0)*v_boom_cyl_r_barrel_e0;
-    const double c225 = (4.003844)*v_boom_e0;
-    const double c226 = (16.0/25.0)*v_boom_e0;
-    const double c227 = (4.003844)*v_boom_e1;
-    const double c228 = (4.003844)*v_boom_e2;
-    const double c229 = (16.0/25.0)*v_boom_e3;
-    const double c230 = -16.0/25.0*v_boom_e2;
-    const double c231 = (4.003844)*v_boom_e3;
-    const double c232 = (139283.0/50000.0)*v_boom_e2;
-    const double c233 = (139283.0/50000.0)*v_boom_e0;
-    const double c234 = -139283.0/50000.0*v_boom_e3;
-    const double c235 = (139283.0/50000.0)*v_boom_e1;
-    const double c236 = (29959.0/5000.0)*v_boom_e2;
-    const double c237 = (29959.0/5000.0)*v_boom_e3;
-    const double c238 = -23939.0/2500.0*v_boom_e2;
-    const double c239 = (23939.0/2500.0)*v_boom_e1;
-    const double c240 = 2.0*arm_a02;
-    const double c241 = 2.0*arm_a22;
-    const double c242 = 2.0*boom_a01;
-    const double c243 = 2.0*boom_a11;
-    const double c244 = c243*v_arm_e0;
-    const double c245 = c243*v_arm_e3;
-    const double c246 = 4.0*arm_a12;
-    const double c247 = c243*v_arm_e1;
-    const double c248 = 4.0*boom_a21;
-    const double c249 = c243*v_arm_e2;
-    const double c250 = 2.0*arm_e0;
-    const double c251 = 2.0*arm_e1;
-    const double c252 = 4.0*v_boom_e0;
-    const double c253 = 4.0*v_boom_e2;
-    const double c254 = 2.0*c252*boom_e0 + 2.0*c253*boom_e2;
-    const double c255 = 4.0*v_arm_e0;
-    const double c256 = c255*arm_e0;
-    const double c257 = 2.0*boom_e0;
-    const double c258 = 2.0*v_boom_e0;
-    const double c259 = 2.0*v_boom_e2;
-    const double c260 = 2.0*c257*v_boom_e1 + 2.0*c258*boom_e1 + 2.0*c259*boom_e3 + 4.0*boom_e2*v_boom_e3;
-    const double c261 = 2.0*arm_e3;
-    const double c262 = 2.0*arm_e2;
-    const double c263 = c250*v_arm_e2 + c262*v_arm_e0;
-    const double c264 = -2.0*c257*v_boom_e3 - 2.0*c258*boom_e3 + 4.0*boom_e1*v_boom_e2 + 4.0*boom_e2*v_boom_e1;
-    const double c265 = 2.0*boom_a21;
-    const double c266 = 2.0*arm_a00;
-    const double c267 = 2.0*arm_a20;
-    const double c268 = 4.0*v_arm_e1;
-    const double c269 = (557.0/100.0)*v_boom_e2;
-    const double c270 = (557.0/100.0)*v_boom_e3;
-    const double c271 = -183.0/40.0*v_boom_e2;
-    const double c272 = (183.0/40.0)*v_boom_e1;
-    const double c273 = 2.0*arm_cyl_barrel_a02;
-    const double c274 = 2.0*arm_cyl_barrel_a22;
-    const double c275 = 2.0*boom_a01;
-    const double c276 = 2.0*boom_a11;
-    const double c277 = 4.0*arm_cyl_barrel_a12;
-    const double c278 = 4.0*boom_a21;
-    const double c279 = 2.0*arm_cyl_barrel_e0;
-    const double c280 = 2.0*arm_cyl_barrel_e1;
-    const double c281 = 2.0*boom_e0;
-    const double c282 = 2.0*v_boom_e0;
-    const double c283 = 2.0*v_arm_cyl_barrel_e1;
-    const double c284 = 2.0*v_arm_cyl_barrel_e0;
-    const double c285 = 2.0*arm_cyl_barrel_a00;
-    const double c286 = c285*v_arm_cyl_rod_e2;
-    const double c287 = 2.0*arm_cyl_barrel_a20;
-    const double c288 = c285*v_arm_cyl_rod_e0;
-    const double c289 = 4.0*arm_cyl_rod_a01;
-    const double c290 = 2.0*v_arm_cyl_barrel_e3;
-    const double c291 = 2.0*v_arm_cyl_barrel_e2;
-    const double c292 = c285*v_arm_cyl_rod_e3;
-    const double c293 = 4.0*arm_cyl_barrel_a10;
-    const double c294 = c285*v_arm_cyl_rod_e1;
-    const double c295 = 2.0*arm_cyl_rod_e0;
-    const double c296 = 2.0*v_arm_cyl_rod_e0;
-    const double c297 = 4.0*v_arm_cyl_barrel_e0;
-    const double c298 = c297*arm_cyl_barrel_e0;
-    const double c299 = 4.0*v_arm_cyl_barrel_e1;
-    const double c300 = 2.0*c298 + 2.0*c299*arm_cyl_barrel_e1;
-    const double c301 = 4.0*v_arm_cyl_rod_e0;
-    const double c302 = c301*arm_cyl_rod_e0;
-    const double c303 = c291*arm_cyl_barrel_e1;
-    const double c304 = c283*arm_cyl_barrel_e2;
-    const double c305 = c284*arm_cyl_barrel_e3 + c290*arm_cyl_barrel_e0;
-    const double c306 = 2.0*c303 + 2.0*c304 + 2.0*c305;
-    const double c307 = 2.0*v_arm_cyl_rod_e2;
-    const double c308 = c295*v_arm_cyl_rod_e1 + c296*arm_cyl_rod_e1;
-    const double c309 = c290*arm_cyl_barrel_e1;
-    const double c310 = c283*arm_cyl_barrel_e3;
-    const double c311 = c284*arm_cyl_barrel_e2 + c291*arm_cyl_barrel_e0;
-    const double c312 = -2.0*c311 + 2.0*c309 + 2.0*c310;
-    const double c313 = 2.0*arm_cyl_barrel_a10;
-    const double c314 = 4.0*v_arm_cyl_rod_e3;
-    const double c315 = arm_cyl_rod_e1*v_arm_cyl_rod_e3;
-    const double c316 = arm_cyl_rod_e3*v_arm_cyl_rod_e1;
-    const double c317 = 2.0*c315 + 2.0*c316 + c295*v_arm_cyl_rod_e2 + c296*arm_cyl_rod_e2;
-    const double c318 = c302 + c314*arm_cyl_rod_e3;
-    const double c319 = -c308 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e3*v_arm_cyl_rod_e2;
-    const double c320 = 4.0*v_arm_cyl_barrel_e2;
-    const double c321 = c298 + c320*arm_cyl_barrel_e2;
-    const double c322 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y;
-    const double c323 = c291*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e2;
-    const double c324 = c284*arm_cyl_barrel_x - c284*arm_cyl_rod_x;
-    const double c325 = c305 - c303 - c304;
-    const double c326 = c290*arm_cyl_barrel_e2;
-    const double c327 = c291*arm_cyl_barrel_e3;
-    const double c328 = c283*arm_cyl_barrel_e0 + c284*arm_cyl_barrel_e1;
-    const double c329 = c326 + c327 + c328;
-    const double c330 = -c325;
-    const double c331 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x;
-    const double c332 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z;
-    const double c333 = c290*arm_cyl_barrel_x - c290*arm_cyl_rod_x;
-    const double c334 = c283*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1;
-    const double c335 = 4.0*v_arm_cyl_barrel_e3;
-    const double c336 = c298 + c335*arm_cyl_barrel_e3;
-    const double c337 = c309 + c310 + c311;
-    const double c338 = c328 - c326 - c327;
-    const double c339 = -c338;
-    const double c340 = (2.0)*arm_cyl_rod_a02;
-    const double c341 = (2.0)*arm_cyl_rod_a22;
-    const double c342 = (2.0)*arm_cyl_barrel_a01;
-    const double c343 = (2.0)*arm_cyl_barrel_a11;
-    const double c344 = (4.0)*arm_cyl_rod_a12;
-    const double c345 = (4.0)*arm_cyl_barrel_a21;
-    const double c346 = (2.0)*arm_cyl_rod_e0;
-    const double c347 = (2.0)*v_arm_cyl_rod_e0;
-    const double c348 = (2.0)*arm_cyl_barrel_e0;
-    const double c349 = (2.0)*v_arm_cyl_barrel_e0;
-    const double c350 = (369691.0/500000.0)*v_arm_e2;
-    const double c351 = (369691.0/500000.0)*v_arm_e3;
-    const double c352 = -393281.0/250000.0*v_arm_e2;
-    const double c353 = (393281.0/250000.0)*v_arm_e1;
-    out[26] = -c175*(-c170*v_boom_cyl_r_rod_e3 - c171*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1) - c181*(c177 + 4.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - c187*(c183 + c182*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_barrel_e0*(c164*v_boom_cyl_r_barrel_e0 + c165*boom_cyl_r_rod_a11 - c166*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e1*(c164*v_boom_cyl_r_barrel_e1 + c165*boom_cyl_r_rod_a21 + c166*boom_cyl_r_rod_a11) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a11 - c159*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a21 + c159*boom_cyl_r_rod_a11) - v_boom_cyl_r_rod_e0*(-c167 + c168*v_boom_cyl_r_rod_e0 + c162*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c161 + c162*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c169 + c168*v_boom_cyl_r_rod_e2 + c162*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(-c163 + 2.0*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2);
-    out[27] = -c175*c192 - c181*c194 - c187*c193 - v_boom_cyl_r_barrel_e0*(c172*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a12 - c166*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e1*(c174*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a22 + c166*boom_cyl_r_rod_a12) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a12 - c159*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a22 + c159*boom_cyl_r_rod_a12) - v_boom_cyl_r_rod_e0*(c161 + c176*boom_cyl_r_barrel_a20 - c188*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c167 - c171*boom_cyl_r_barrel_a10) - v_boom_cyl_r_rod_e2*(c163 + c188*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c169 + c182*boom_cyl_r_barrel_a10 + c189*boom_cyl_r_barrel_a20);
-    out[28] = c196*v_boom_cyl_r_barrel_y + c204*v_boom_cyl_r_barrel_z - c196*c197 - c196*v_boom_cyl_r_rod_y - c200*v_boom_cyl_r_barrel_x - c204*c207 - c204*v_boom_cyl_r_rod_z - c205*c206 - c205*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(c208 + c158*boom_cyl_r_rod_z + c172*boom_cyl_r_rod_y - c158*boom_cyl_r_barrel_z - c172*boom_cyl_r_barrel_y) - v_boom_cyl_r_barrel_e1*(-c198 - c159*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c209 - c195*boom_cyl_r_barrel_y - c165*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 + 4.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(c199 + c166*boom_cyl_r_rod_z - c166*boom_cyl_r_barrel_z);
-    out[29] = c211*v_boom_cyl_r_barrel_z + c212*v_boom_cyl_r_barrel_x - c197*c214 - c206*c212 - c207*c211 - c211*v_boom_cyl_r_rod_z - c212*v_boom_cyl_r_rod_x - c213*v_boom_cyl_r_barrel_y - c214*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(-c198 - c158*boom_cyl_r_rod_y - c172*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(-c208 - c159*boom_cyl_r_rod_y + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c199 - c165*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(-c209 - c210*boom_cyl_r_barrel_z - c166*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3);
-    out[30] = -c192*(-c223*v_boom_cyl_r_barrel_e3 - c224*boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1) - c193*(c223*v_boom_cyl_r_barrel_e1 + c224*boom_cyl_r_barrel_e1 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - c194*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c196*(-c221*v_boom_cyl_r_rod_e1 - c222*boom_cyl_r_rod_e1 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2) - c204*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c205*((2.0)*c190 + (2.0)*c191 + c221*v_boom_cyl_r_rod_e2 + c222*boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(c216*v_boom_cyl_r_barrel_e1 + c219*v_boom_cyl_r_barrel_e0 - c215*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e1*(c215*v_boom_cyl_r_barrel_e2 + c216*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c215*v_boom_cyl_r_barrel_e1 + c216*v_boom_cyl_r_barrel_e3 + c219*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(-c215*v_boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_rod_e0*(c217*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e0 - c218*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c217*v_boom_cyl_r_rod_e3 - c218*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c217*v_boom_cyl_r_rod_e0 + c218*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c217*v_boom_cyl_r_rod_e1 + c218*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e3);
-    out[31] = -v_boom_e0*(-c228 - c229 - 139283.0/25000.0*v_boom_e0) - v_boom_e1*(-c230 - c231 - 139283.0/25000.0*v_boom_e1) - v_boom_e2*(-c225 + (16.0/25.0)*v_boom_e1) - v_boom_e3*(-c226 - c227);
-    out[32] = -v_boom_e0*(c227 + c234 + (32.0/25.0)*v_boom_e0) - v_boom_e1*(c225 - c232) - v_boom_e2*(-c235 - c231 + (32.0/25.0)*v_boom_e2) - v_boom_e3*(-c228 - c233);
-    out[33] = -v_boom_e0*(c232 - 8.007688*v_boom_e0 + (16.0/25.0)*v_boom_e1) - v_boom_e1*(c226 + c234) - v_boom_e2*(c229 + c233) - v_boom_e3*(-c235 - c230 - 8.007688*v_boom_e3);
-    out[34] = -c236*v_boom_e0 - c237*v_boom_e1 - v_boom_e0*(c236 + (23939.0/1250.0)*v_boom_e0) - v_boom_e1*(c237 + (23939.0/1250.0)*v_boom_e1);
-    out[35] = -v_boom_e0*(-29959.0/5000.0*v_boom_e1 + (23939.0/2500.0)*v_boom_e3) - v_boom_e1*(-c238 - 29959.0/5000.0*v_boom_e0) - v_boom_e2*(c237 + c239) - v_boom_e3*(c236 + (23939.0/2500.0)*v_boom_e0);
-    out[36] = -v_boom_e0*(c238 + (29959.0/2500.0)*v_boom_e0) - v_boom_e3*(c239 + (29959.0/2500.0)*v_boom_e3) - 23939.0/2500.0*v_boom_e1*v_boom_e3 + (23939.0/2500.0)*v_boom_e0*v_boom_e2;
-    out[37] = -c254*(-c250*v_arm_e1 - c251*v_arm_e0 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - c260*(c256 + 4.0*arm_e3*v_arm_e3) - c264*(c263 + c251*v_arm_e3 + c261*v_arm_e1) - v_boom_e0*(c246*v_boom_e0 + c241*v_boom_e1 - c240*v_boom_e3) - v_boom_e1*(c240*v_boom_e2 + c241*v_boom_e0) - v_boom_e2*(c246*v_boom_e2 + c240*v_boom_e1 + c241*v_boom_e3) - v_boom_e3*(-c240*v_boom_e0 + 2.0*arm_a22*v_boom_e2) - v_arm_e0*(-c247 + c248*v_arm_e0 + c242*v_arm_e2) - v_arm_e1*(-c244 + c242*v_arm_e3) - v_arm_e2*(c245 + c242*v_arm_e0) - v_arm_e3*(c249 + c248*v_arm_e3 + c242*v_arm_e1);
-    out[38] = -c254*(c250*v_arm_e3 + c251*v_arm_e2 + c261*v_arm_e0 + c262*v_arm_e1) - c260*(-c263 + 2.0*arm_e1*v_arm_e3 + 2.0*arm_e3*v_arm_e1) - c264*(c256 + c268*arm_e1) - v_boom_e0*(c252*arm_a10 + c267*v_boom_e1 - c266*v_boom_e3) - v_boom_e1*(c258*arm_a20 + c259*arm_a00) - v_boom_e2*(c253*arm_a10 + c266*v_boom_e1 + c267*v_boom_e3) - v_boom_e3*(-c258*arm_a00 + 2.0*arm_a20*v_boom_e2) - v_arm_e0*(c245 + c255*boom_a01 - c265*v_arm_e2) - v_arm_e1*(c249 + c265*v_arm_e3 + c268*boom_a01) - v_arm_e2*(c247 - c265*v_arm_e0) - v_arm_e3*(c244 + c265*v_arm_e1);
-    out[39] = -c269*v_boom_e0 - c270*v_boom_e1 - v_boom_e0*(c269 + (183.0/20.0)*v_boom_e0) - v_boom_e1*(c270 + (183.0/20.0)*v_boom_e1);
-    out[40] = -v_boom_e0*(-557.0/100.0*v_boom_e1 + (183.0/40.0)*v_boom_e3) - v_boom_e1*(-c271 - 557.0/100.0*v_boom_e0) - v_boom_e2*(c270 + c272) - v_boom_e3*(c269 + (183.0/40.0)*v_boom_e0);
-    out[41] = -v_boom_e0*(c271 + (557.0/50.0)*v_boom_e0) - v_boom_e3*(c272 + (557.0/50.0)*v_boom_e3) - 183.0/40.0*v_boom_e1*v_boom_e3 + (183.0/40.0)*v_boom_e0*v_boom_e2;
-    out[42] = -v_boom_e0*(c274*v_boom_e1 + c277*v_boom_e0 - c273*v_boom_e3) - v_boom_e1*(c273*v_boom_e2 + c274*v_boom_e0) - v_boom_e2*(c273*v_boom_e1 + c274*v_boom_e3 + c277*v_boom_e2) - v_boom_e3*(-c273*v_boom_e0 + 2.0*arm_cyl_barrel_a22*v_boom_e2) - v_arm_cyl_barrel_e0*(c275*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e0 - c276*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e1*(c275*v_arm_cyl_barrel_e3 - c276*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c275*v_arm_cyl_barrel_e0 + c276*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c275*v_arm_cyl_barrel_e1 + c276*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e3) - 2.0*(4.0*boom_e0*v_boom_e0 + 4.0*boom_e2*v_boom_e2)*(-c279*v_arm_cyl_barrel_e1 - c280*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - 2.0*(4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(c281*v_boom_e1 + c282*boom_e1 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - 2.0*(c279*v_arm_cyl_barrel_e2 + c280*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1)*(-c281*v_boom_e3 - c282*boom_e3 + 2.0*boom_e1*v_boom_e2 + 2.0*boom_e2*v_boom_e1);
-    out[43] = -c300*(-c295*v_arm_cyl_rod_e3 - c296*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e1) - c306*(c302 + 4.0*arm_cyl_rod_e2*v_arm_cyl_rod_e2) - c312*(c308 + c307*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3) - v_arm_cyl_barrel_e0*(c289*v_arm_cyl_barrel_e0 + c290*arm_cyl_rod_a11 - c291*arm_cyl_rod_a21) - v_arm_cyl_barrel_e1*(c289*v_arm_cyl_barrel_e1 + c290*arm_cyl_rod_a21 + c291*arm_cyl_rod_a11) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a11 - c284*arm_cyl_rod_a21) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a21 + c284*arm_cyl_rod_a11) - v_arm_cyl_rod_e0*(-c292 + c293*v_arm_cyl_rod_e0 + c287*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c286 + c287*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c294 + c293*v_arm_cyl_rod_e2 + c287*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(-c288 + 2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_e2);
-    out[44] = -c300*c317 - c306*c319 - c312*c318 - v_arm_cyl_barrel_e0*(c297*arm_cyl_rod_a02 + c290*arm_cyl_rod_a12 - c291*arm_cyl_rod_a22) - v_arm_cyl_barrel_e1*(c299*arm_cyl_rod_a02 + c290*arm_cyl_rod_a22 + c291*arm_cyl_rod_a12) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a12 - c284*arm_cyl_rod_a22) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a22 + c284*arm_cyl_rod_a12) - v_arm_cyl_rod_e0*(c286 + c301*arm_cyl_barrel_a20 - c313*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c292 - c296*arm_cyl_barrel_a10) - v_arm_cyl_rod_e2*(c288 + c313*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c294 + c307*arm_cyl_barrel_a10 + c314*arm_cyl_barrel_a20);
-    out[45] = c321*v_arm_cyl_barrel_y + c329*v_arm_cyl_barrel_z - c321*c322 - c321*v_arm_cyl_rod_y - c325*v_arm_cyl_barrel_x - c329*c332 - c329*v_arm_cyl_rod_z - c330*c331 - c330*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(c333 + c283*arm_cyl_rod_z + c297*arm_cyl_rod_y - c283*arm_cyl_barrel_z - c297*arm_cyl_barrel_y) - v_arm_cyl_barrel_e1*(-c323 - c284*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c334 - c320*arm_cyl_barrel_y - c290*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(c324 + c291*arm_cyl_rod_z - c291*arm_cyl_barrel_z);
-    out[46] = c336*v_arm_cyl_barrel_z + c337*v_arm_cyl_barrel_x - c322*c339 - c331*c337 - c332*c336 - c336*v_arm_cyl_rod_z - c337*v_arm_cyl_rod_x - c338*v_arm_cyl_barrel_y - c339*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(-c323 - c283*arm_cyl_rod_y - c297*arm_cyl_barrel_z + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c333 - c284*arm_cyl_rod_y + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c324 - c290*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(-c334 - c335*arm_cyl_barrel_z - c291*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3);
-    out[47] = -c317*(-c348*v_arm_cyl_barrel_e3 - c349*arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1) - c318*(c348*v_arm_cyl_barrel_e1 + c349*arm_cyl_barrel_e1 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - c319*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c321*(-c346*v_arm_cyl_rod_e1 - c347*arm_cyl_rod_e1 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2) - c329*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c330*((2.0)*c315 + (2.0)*c316 + c346*v_arm_cyl_rod_e2 + c347*arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(c341*v_arm_cyl_barrel_e1 + c344*v_arm_cyl_barrel_e0 - c340*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e1*(c340*v_arm_cyl_barrel_e2 + c341*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c340*v_arm_cyl_barrel_e1 + c341*v_arm_cyl_barrel_e3 + c344*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(-c340*v_arm_cyl_barrel_e0 + (2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2) - v_arm_cyl_rod_e0*(c342*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e0 - c343*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c342*v_arm_cyl_rod_e3 - c343*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c342*v_arm_cyl_rod_e0 + c343*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c342*v_arm_cyl_rod_e1 + c343*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e3);
-    out[48] = -c350*v_arm_e0 - c351*v_arm_e1 - v_arm_e0*(c350 + (393281.0/125000.0)*v_arm_e0) - v_arm_e1*(c351 + (393281.0/125000.0)*v_arm_e1);
-    out[49] = -v_arm_e0*(-369691.0/500000.0*v_arm_e1 + (393281.0/250000.0)*v_arm_e3) - v_arm_e1*(-c352 - 369691.0/500000.0*v_arm_e0) - v_arm_e2*(c351 + c353) - v_arm_e3*(c350 + (393281.0/250000.0)*v_arm_e0);
-    out[50] = -v_arm_e0*(c352 + (369691.0/250000.0)*v_arm_e0) - v_arm_e3*(c353 + (369691.0/250000.0)*v_arm_e3) - 393281.0/250000.0*v_arm_e1*v_arm_e3 + (393281.0/250000.0)*v_arm_e0*v_arm_e2;
+    const double c162 = 2.0*v_boom_cyl_r_barrel_e1;
+    const double c163 = 2.0*v_boom_cyl_r_barrel_e0;
+    const double c164 = 2.0*boom_cyl_r_barrel_a00;
+    const double c165 = c164*v_boom_cyl_r_rod_e2;
+    const double c166 = 2.0*boom_cyl_r_barrel_a20;
+    const double c167 = c164*v_boom_cyl_r_rod_e0;
+    const double c168 = 4.0*boom_cyl_r_rod_a01;
+    const double c169 = 2.0*v_boom_cyl_r_barrel_e3;
+    const double c170 = 2.0*v_boom_cyl_r_barrel_e2;
+    const double c171 = c164*v_boom_cyl_r_rod_e3;
+    const double c172 = 4.0*boom_cyl_r_barrel_a10;
+    const double c173 = c164*v_boom_cyl_r_rod_e1;
+    const double c174 = 2.0*boom_cyl_r_rod_e0;
+    const double c175 = 2.0*v_boom_cyl_r_rod_e0;
+    const double c176 = 4.0*v_boom_cyl_r_barrel_e0;
+    const double c177 = c176*boom_cyl_r_barrel_e0;
+    const double c178 = 4.0*v_boom_cyl_r_barrel_e1;
+    const double c179 = 2.0*c177 + 2.0*c178*boom_cyl_r_barrel_e1;
+    const double c180 = 4.0*v_boom_cyl_r_rod_e0;
+    const double c181 = c180*boom_cyl_r_rod_e0;
+    const double c182 = c170*boom_cyl_r_barrel_e1;
+    const double c183 = c162*boom_cyl_r_barrel_e2;
+    const double c184 = c163*boom_cyl_r_barrel_e3 + c169*boom_cyl_r_barrel_e0;
+    const double c185 = 2.0*c182 + 2.0*c183 + 2.0*c184;
+    const double c186 = 2.0*v_boom_cyl_r_rod_e2;
+    const double c187 = c174*v_boom_cyl_r_rod_e1 + c175*boom_cyl_r_rod_e1;
+    const double c188 = c169*boom_cyl_r_barrel_e1;
+    const double c189 = c162*boom_cyl_r_barrel_e3;
+    const double c190 = c163*boom_cyl_r_barrel_e2 + c170*boom_cyl_r_barrel_e0;
+    const double c191 = -2.0*c190 + 2.0*c188 + 2.0*c189;
+    const double c192 = 2.0*boom_cyl_r_barrel_a10;
+    const double c193 = 4.0*v_boom_cyl_r_rod_e3;
+    const double c194 = boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e3;
+    const double c195 = boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e1;
+    const double c196 = 2.0*c194 + 2.0*c195 + c174*v_boom_cyl_r_rod_e2 + c175*boom_cyl_r_rod_e2;
+    const double c197 = c181 + c193*boom_cyl_r_rod_e3;
+    const double c198 = -c187 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2;
+    const double c199 = 4.0*v_boom_cyl_r_barrel_e2;
+    const double c200 = c177 + c199*boom_cyl_r_barrel_e2;
+    const double c201 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y;
+    const double c202 = c170*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2;
+    const double c203 = c163*boom_cyl_r_barrel_x - c163*boom_cyl_r_rod_x;
+    const double c204 = c184 - c182 - c183;
+    const double c205 = c169*boom_cyl_r_barrel_e2;
+    const double c206 = c170*boom_cyl_r_barrel_e3;
+    const double c207 = c162*boom_cyl_r_barrel_e0 + c163*boom_cyl_r_barrel_e1;
+    const double c208 = c205 + c206 + c207;
+    const double c209 = -c204;
+    const double c210 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x;
+    const double c211 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z;
+    const double c212 = c169*boom_cyl_r_barrel_x - c169*boom_cyl_r_rod_x;
+    const double c213 = c162*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1;
+    const double c214 = 4.0*v_boom_cyl_r_barrel_e3;
+    const double c215 = c177 + c214*boom_cyl_r_barrel_e3;
+    const double c216 = c188 + c189 + c190;
+    const double c217 = c207 - c205 - c206;
+    const double c218 = -c217;
+    const double c219 = (2.0)*boom_cyl_r_rod_a02;
+    const double c220 = (2.0)*boom_cyl_r_rod_a22;
+    const double c221 = (2.0)*boom_cyl_r_barrel_a01;
+    const double c222 = (2.0)*boom_cyl_r_barrel_a11;
+    const double c223 = (4.0)*boom_cyl_r_rod_a12;
+    const double c224 = (4.0)*boom_cyl_r_barrel_a21;
+    const double c225 = (2.0)*boom_cyl_r_rod_e0;
+    const double c226 = (2.0)*v_boom_cyl_r_rod_e0;
+    const double c227 = (2.0)*boom_cyl_r_barrel_e0;
+    const double c228 = (2.0)*v_boom_cyl_r_barrel_e0;
+    const double c229 = 2.0*p_C_z;
+    const double c230 = c229*v_boom_e0;
+    const double c231 = (16.0/25.0)*v_boom_e0;
+    const double c232 = c229*v_boom_e1;
+    const double c233 = (16.0/25.0)*v_boom_e3;
+    const double c234 = 4.0*p_C_x;
+    const double c235 = c229*v_boom_e2;
+    const double c236 = -16.0/25.0*v_boom_e2;
+    const double c237 = c229*v_boom_e3;
+    const double c238 = 2.0*p_C_x;
+    const double c239 = c238*v_boom_e2;
+    const double c240 = c238*v_boom_e0;
+    const double c241 = c238*v_boom_e3;
+    const double c242 = c238*v_boom_e1;
+    const double c243 = 4.0*p_C_z;
+    const double c244 = (29959.0/5000.0)*v_boom_e2;
+    const double c245 = (29959.0/5000.0)*v_boom_e3;
+    const double c246 = -23939.0/2500.0*v_boom_e2;
+    const double c247 = (23939.0/2500.0)*v_boom_e1;
+    const double c248 = 2.0*arm_a02;
+    const double c249 = 2.0*arm_a22;
+    const double c250 = 2.0*boom_a01;
+    const double c251 = 2.0*boom_a11;
+    const double c252 = c251*v_arm_e0;
+    const double c253 = c251*v_arm_e3;
+    const double c254 = 4.0*arm_a12;
+    const double c255 = c251*v_arm_e1;
+    const double c256 = 4.0*boom_a21;
+    const double c257 = c251*v_arm_e2;
+    const double c258 = 2.0*arm_e0;
+    const double c259 = 2.0*arm_e1;
+    const double c260 = 4.0*v_boom_e0;
+    const double c261 = 4.0*v_boom_e2;
+    const double c262 = 2.0*c260*boom_e0 + 2.0*c261*boom_e2;
+    const double c263 = 4.0*v_arm_e0;
+    const double c264 = c263*arm_e0;
+    const double c265 = 2.0*boom_e0;
+    const double c266 = 2.0*v_boom_e0;
+    const double c267 = 2.0*v_boom_e2;
+    const double c268 = 2.0*c265*v_boom_e1 + 2.0*c266*boom_e1 + 2.0*c267*boom_e3 + 4.0*boom_e2*v_boom_e3;
+    const double c269 = 2.0*arm_e3;
+    const double c270 = 2.0*arm_e2;
+    const double c271 = c258*v_arm_e2 + c270*v_arm_e0;
+    const double c272 = -2.0*c265*v_boom_e3 - 2.0*c266*boom_e3 + 4.0*boom_e1*v_boom_e2 + 4.0*boom_e2*v_boom_e1;
+    const double c273 = 2.0*boom_a21;
+    const double c274 = 2.0*arm_a00;
+    const double c275 = 2.0*arm_a20;
+    const double c276 = 4.0*v_arm_e1;
+    const double c277 = (557.0/100.0)*v_boom_e2;
+    const double c278 = (557.0/100.0)*v_boom_e3;
+    const double c279 = -183.0/40.0*v_boom_e2;
+    const double c280 = (183.0/40.0)*v_boom_e1;
+    const double c281 = 2.0*arm_cyl_barrel_a02;
+    const double c282 = 2.0*arm_cyl_barrel_a22;
+    const double c283 = 2.0*boom_a01;
+    const double c284 = 2.0*boom_a11;
+    const double c285 = 4.0*arm_cyl_barrel_a12;
+    const double c286 = 4.0*boom_a21;
+    const double c287 = 2.0*arm_cyl_barrel_e0;
+    const double c288 = 2.0*arm_cyl_barrel_e1;
+    const double c289 = 2.0*boom_e0;
+    const double c290 = 2.0*v_boom_e0;
+    const double c291 = 2.0*v_arm_cyl_barrel_e1;
+    const double c292 = 2.0*v_arm_cyl_barrel_e0;
+    const double c293 = 2.0*arm_cyl_barrel_a00;
+    const double c294 = c293*v_arm_cyl_rod_e2;
+    const double c295 = 2.0*arm_cyl_barrel_a20;
+    const double c296 = c293*v_arm_cyl_rod_e0;
+    const double c297 = 4.0*arm_cyl_rod_a01;
+    const double c298 = 2.0*v_arm_cyl_barrel_e3;
+    const double c299 = 2.0*v_arm_cyl_barrel_e2;
+    const double c300 = c293*v_arm_cyl_rod_e3;
+    const double c301 = 4.0*arm_cyl_barrel_a10;
+    const double c302 = c293*v_arm_cyl_rod_e1;
+    const double c303 = 2.0*arm_cyl_rod_e0;
+    const double c304 = 2.0*v_arm_cyl_rod_e0;
+    const double c305 = 4.0*v_arm_cyl_barrel_e0;
+    const double c306 = c305*arm_cyl_barrel_e0;
+    const double c307 = 4.0*v_arm_cyl_barrel_e1;
+    const double c308 = 2.0*c306 + 2.0*c307*arm_cyl_barrel_e1;
+    const double c309 = 4.0*v_arm_cyl_rod_e0;
+    const double c310 = c309*arm_cyl_rod_e0;
+    const double c311 = c299*arm_cyl_barrel_e1;
+    const double c312 = c291*arm_cyl_barrel_e2;
+    const double c313 = c292*arm_cyl_barrel_e3 + c298*arm_cyl_barrel_e0;
+    const double c314 = 2.0*c311 + 2.0*c312 + 2.0*c313;
+    const double c315 = 2.0*v_arm_cyl_rod_e2;
+    const double c316 = c303*v_arm_cyl_rod_e1 + c304*arm_cyl_rod_e1;
+    const double c317 = c298*arm_cyl_barrel_e1;
+    const double c318 = c291*arm_cyl_barrel_e3;
+    const double c319 = c292*arm_cyl_barrel_e2 + c299*arm_cyl_barrel_e0;
+    const double c320 = -2.0*c319 + 2.0*c317 + 2.0*c318;
+    const double c321 = 2.0*arm_cyl_barrel_a10;
+    const double c322 = 4.0*v_arm_cyl_rod_e3;
+    const double c323 = arm_cyl_rod_e1*v_arm_cyl_rod_e3;
+    const double c324 = arm_cyl_rod_e3*v_arm_cyl_rod_e1;
+    const double c325 = 2.0*c323 + 2.0*c324 + c303*v_arm_cyl_rod_e2 + c304*arm_cyl_rod_e2;
+    const double c326 = c310 + c322*arm_cyl_rod_e3;
+    const double c327 = -c316 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e3*v_arm_cyl_rod_e2;
+    const double c328 = 4.0*v_arm_cyl_barrel_e2;
+    const double c329 = c306 + c328*arm_cyl_barrel_e2;
+    const double c330 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y;
+    const double c331 = c299*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e2;
+    const double c332 = c292*arm_cyl_barrel_x - c292*arm_cyl_rod_x;
+    const double c333 = c313 - c311 - c312;
+    const double c334 = c298*arm_cyl_barrel_e2;
+    const double c335 = c299*arm_cyl_barrel_e3;
+    const double c336 = c291*arm_cyl_barrel_e0 + c292*arm_cyl_barrel_e1;
+    const double c337 = c334 + c335 + c336;
+    const double c338 = -c333;
+    const double c339 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x;
+    const double c340 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z;
+    const double c341 = c298*arm_cyl_barrel_x - c298*arm_cyl_rod_x;
+    const double c342 = c291*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1;
+    const double c343 = 4.0*v_arm_cyl_barrel_e3;
+    const double c344 = c306 + c343*arm_cyl_barrel_e3;
+    const double c345 = c317 + c318 + c319;
+    const double c346 = c336 - c334 - c335;
+    const double c347 = -c346;
+    const double c348 = (2.0)*arm_cyl_rod_a02;
+    const double c349 = (2.0)*arm_cyl_rod_a22;
+    const double c350 = (2.0)*arm_cyl_barrel_a01;
+    const double c351 = (2.0)*arm_cyl_barrel_a11;
+    const double c352 = (4.0)*arm_cyl_rod_a12;
+    const double c353 = (4.0)*arm_cyl_barrel_a21;
+    const double c354 = (2.0)*arm_cyl_rod_e0;
+    const double c355 = (2.0)*v_arm_cyl_rod_e0;
+    const double c356 = (2.0)*arm_cyl_barrel_e0;
+    const double c357 = (2.0)*v_arm_cyl_barrel_e0;
+    const double c358 = 2.0*p_F_z;
+    const double c359 = c358*v_arm_e2;
+    const double c360 = c358*v_arm_e3;
+    const double c361 = 4.0*p_F_x;
+    const double c362 = 2.0*p_F_x;
+    const double c363 = c362*v_arm_e2;
+    const double c364 = c362*v_arm_e1;
+    const double c365 = 4.0*p_F_z;
+    out[26] = -c179*(-c174*v_boom_cyl_r_rod_e3 - c175*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1) - c185*(c181 + 4.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - c191*(c187 + c186*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_barrel_e0*(c168*v_boom_cyl_r_barrel_e0 + c169*boom_cyl_r_rod_a11 - c170*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e1*(c168*v_boom_cyl_r_barrel_e1 + c169*boom_cyl_r_rod_a21 + c170*boom_cyl_r_rod_a11) - v_boom_cyl_r_barrel_e2*(c162*boom_cyl_r_rod_a11 - c163*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e3*(c162*boom_cyl_r_rod_a21 + c163*boom_cyl_r_rod_a11) - v_boom_cyl_r_rod_e0*(-c171 + c172*v_boom_cyl_r_rod_e0 + c166*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c165 + c166*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c173 + c172*v_boom_cyl_r_rod_e2 + c166*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(-c167 + 2.0*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2);
+    out[27] = -c179*c196 - c185*c198 - c191*c197 - v_boom_cyl_r_barrel_e0*(c176*boom_cyl_r_rod_a02 + c169*boom_cyl_r_rod_a12 - c170*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e1*(c178*boom_cyl_r_rod_a02 + c169*boom_cyl_r_rod_a22 + c170*boom_cyl_r_rod_a12) - v_boom_cyl_r_barrel_e2*(c162*boom_cyl_r_rod_a12 - c163*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e3*(c162*boom_cyl_r_rod_a22 + c163*boom_cyl_r_rod_a12) - v_boom_cyl_r_rod_e0*(c165 + c180*boom_cyl_r_barrel_a20 - c192*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c171 - c175*boom_cyl_r_barrel_a10) - v_boom_cyl_r_rod_e2*(c167 + c192*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c173 + c186*boom_cyl_r_barrel_a10 + c193*boom_cyl_r_barrel_a20);
+    out[28] = c200*v_boom_cyl_r_barrel_y + c208*v_boom_cyl_r_barrel_z - c200*c201 - c200*v_boom_cyl_r_rod_y - c204*v_boom_cyl_r_barrel_x - c208*c211 - c208*v_boom_cyl_r_rod_z - c209*c210 - c209*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(c212 + c162*boom_cyl_r_rod_z + c176*boom_cyl_r_rod_y - c162*boom_cyl_r_barrel_z - c176*boom_cyl_r_barrel_y) - v_boom_cyl_r_barrel_e1*(-c202 - c163*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c213 - c199*boom_cyl_r_barrel_y - c169*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 + 4.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(c203 + c170*boom_cyl_r_rod_z - c170*boom_cyl_r_barrel_z);
+    out[29] = c215*v_boom_cyl_r_barrel_z + c216*v_boom_cyl_r_barrel_x - c201*c218 - c210*c216 - c211*c215 - c215*v_boom_cyl_r_rod_z - c216*v_boom_cyl_r_rod_x - c217*v_boom_cyl_r_barrel_y - c218*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(-c202 - c162*boom_cyl_r_rod_y - c176*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(-c212 - c163*boom_cyl_r_rod_y + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c203 - c169*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(-c213 - c214*boom_cyl_r_barrel_z - c170*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3);
+    out[30] = -c196*(-c227*v_boom_cyl_r_barrel_e3 - c228*boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1) - c197*(c227*v_boom_cyl_r_barrel_e1 + c228*boom_cyl_r_barrel_e1 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - c198*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c200*(-c225*v_boom_cyl_r_rod_e1 - c226*boom_cyl_r_rod_e1 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2) - c208*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c209*((2.0)*c194 + (2.0)*c195 + c225*v_boom_cyl_r_rod_e2 + c226*boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(c220*v_boom_cyl_r_barrel_e1 + c223*v_boom_cyl_r_barrel_e0 - c219*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e1*(c219*v_boom_cyl_r_barrel_e2 + c220*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c219*v_boom_cyl_r_barrel_e1 + c220*v_boom_cyl_r_barrel_e3 + c223*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(-c219*v_boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_rod_e0*(c221*v_boom_cyl_r_rod_e2 + c224*v_boom_cyl_r_rod_e0 - c222*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c221*v_boom_cyl_r_rod_e3 - c222*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c221*v_boom_cyl_r_rod_e0 + c222*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c221*v_boom_cyl_r_rod_e1 + c222*v_boom_cyl_r_rod_e2 + c224*v_boom_cyl_r_rod_e3);
+    out[31] = -v_boom_e0*(-c233 - c235 - c234*v_boom_e0) - v_boom_e1*(-c236 - c237 - c234*v_boom_e1) - v_boom_e2*(-c230 + (16.0/25.0)*v_boom_e1) - v_boom_e3*(-c231 - c232);
+    out[32] = -v_boom_e0*(c232 - c241 + (32.0/25.0)*v_boom_e0) - v_boom_e1*(c230 - c239) - v_boom_e2*(-c242 - c237 + (32.0/25.0)*v_boom_e2) - v_boom_e3*(-c240 - c235);
+    out[33] = -v_boom_e0*(c239 + (16.0/25.0)*v_boom_e1 - c243*v_boom_e0) - v_boom_e1*(c231 - c241) - v_boom_e2*(c240 + c233) - v_boom_e3*(-c242 - c236 - c243*v_boom_e3);
+    out[34] = -c244*v_boom_e0 - c245*v_boom_e1 - v_boom_e0*(c244 + (23939.0/1250.0)*v_boom_e0) - v_boom_e1*(c245 + (23939.0/1250.0)*v_boom_e1);
+    out[35] = -v_boom_e0*(-29959.0/5000.0*v_boom_e1 + (23939.0/2500.0)*v_boom_e3) - v_boom_e1*(-c246 - 29959.0/5000.0*v_boom_e0) - v_boom_e2*(c245 + c247) - v_boom_e3*(c244 + (23939.0/2500.0)*v_boom_e0);
+    out[36] = -v_boom_e0*(c246 + (29959.0/2500.0)*v_boom_e0) - v_boom_e3*(c247 + (29959.0/2500.0)*v_boom_e3) - 23939.0/2500.0*v_boom_e1*v_boom_e3 + (23939.0/2500.0)*v_boom_e0*v_boom_e2;
+    out[37] = -c262*(-c258*v_arm_e1 - c259*v_arm_e0 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - c268*(c264 + 4.0*arm_e3*v_arm_e3) - c272*(c271 + c259*v_arm_e3 + c269*v_arm_e1) - v_boom_e0*(c254*v_boom_e0 + c249*v_boom_e1 - c248*v_boom_e3) - v_boom_e1*(c248*v_boom_e2 + c249*v_boom_e0) - v_boom_e2*(c254*v_boom_e2 + c248*v_boom_e1 + c249*v_boom_e3) - v_boom_e3*(-c248*v_boom_e0 + 2.0*arm_a22*v_boom_e2) - v_arm_e0*(-c255 + c256*v_arm_e0 + c250*v_arm_e2) - v_arm_e1*(-c252 + c250*v_arm_e3) - v_arm_e2*(c253 + c250*v_arm_e0) - v_arm_e3*(c257 + c256*v_arm_e3 + c250*v_arm_e1);
+    out[38] = -c262*(c258*v_arm_e3 + c259*v_arm_e2 + c269*v_arm_e0 + c270*v_arm_e1) - c268*(-c271 + 2.0*arm_e1*v_arm_e3 + 2.0*arm_e3*v_arm_e1) - c272*(c264 + c276*arm_e1) - v_boom_e0*(c260*arm_a10 + c275*v_boom_e1 - c274*v_boom_e3) - v_boom_e1*(c266*arm_a20 + c267*arm_a00) - v_boom_e2*(c261*arm_a10 + c274*v_boom_e1 + c275*v_boom_e3) - v_boom_e3*(-c266*arm_a00 + 2.0*arm_a20*v_boom_e2) - v_arm_e0*(c253 + c263*boom_a01 - c273*v_arm_e2) - v_arm_e1*(c257 + c273*v_arm_e3 + c276*boom_a01) - v_arm_e2*(c255 - c273*v_arm_e0) - v_arm_e3*(c252 + c273*v_arm_e1);
+    out[39] = -c277*v_boom_e0 - c278*v_boom_e1 - v_boom_e0*(c277 + (183.0/20.0)*v_boom_e0) - v_boom_e1*(c278 + (183.0/20.0)*v_boom_e1);
+    out[40] = -v_boom_e0*(-557.0/100.0*v_boom_e1 + (183.0/40.0)*v_boom_e3) - v_boom_e1*(-c279 - 557.0/100.0*v_boom_e0) - v_boom_e2*(c278 + c280) - v_boom_e3*(c277 + (183.0/40.0)*v_boom_e0);
+    out[41] = -v_boom_e0*(c279 + (557.0/50.0)*v_boom_e0) - v_boom_e3*(c280 + (557.0/50.0)*v_boom_e3) - 183.0/40.0*v_boom_e1*v_boom_e3 + (183.0/40.0)*v_boom_e0*v_boom_e2;
+    out[42] = -v_boom_e0*(c282*v_boom_e1 + c285*v_boom_e0 - c281*v_boom_e3) - v_boom_e1*(c281*v_boom_e2 + c282*v_boom_e0) - v_boom_e2*(c281*v_boom_e1 + c282*v_boom_e3 + c285*v_boom_e2) - v_boom_e3*(-c281*v_boom_e0 + 2.0*arm_cyl_barrel_a22*v_boom_e2) - v_arm_cyl_barrel_e0*(c283*v_arm_cyl_barrel_e2 + c286*v_arm_cyl_barrel_e0 - c284*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e1*(c283*v_arm_cyl_barrel_e3 - c284*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c283*v_arm_cyl_barrel_e0 + c284*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c283*v_arm_cyl_barrel_e1 + c284*v_arm_cyl_barrel_e2 + c286*v_arm_cyl_barrel_e3) - 2.0*(4.0*boom_e0*v_boom_e0 + 4.0*boom_e2*v_boom_e2)*(-c287*v_arm_cyl_barrel_e1 - c288*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - 2.0*(4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(c289*v_boom_e1 + c290*boom_e1 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - 2.0*(c287*v_arm_cyl_barrel_e2 + c288*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1)*(-c289*v_boom_e3 - c290*boom_e3 + 2.0*boom_e1*v_boom_e2 + 2.0*boom_e2*v_boom_e1);
+    out[43] = -c308*(-c303*v_arm_cyl_rod_e3 - c304*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e1) - c314*(c310 + 4.0*arm_cyl_rod_e2*v_arm_cyl_rod_e2) - c320*(c316 + c315*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3) - v_arm_cyl_barrel_e0*(c297*v_arm_cyl_barrel_e0 + c298*arm_cyl_rod_a11 - c299*arm_cyl_rod_a21) - v_arm_cyl_barrel_e1*(c297*v_arm_cyl_barrel_e1 + c298*arm_cyl_rod_a21 + c299*arm_cyl_rod_a11) - v_arm_cyl_barrel_e2*(c291*arm_cyl_rod_a11 - c292*arm_cyl_rod_a21) - v_arm_cyl_barrel_e3*(c291*arm_cyl_rod_a21 + c292*arm_cyl_rod_a11) - v_arm_cyl_rod_e0*(-c300 + c301*v_arm_cyl_rod_e0 + c295*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c294 + c295*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c302 + c301*v_arm_cyl_rod_e2 + c295*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(-c296 + 2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_e2);
+    out[44] = -c308*c325 - c314*c327 - c320*c326 - v_arm_cyl_barrel_e0*(c305*arm_cyl_rod_a02 + c298*arm_cyl_rod_a12 - c299*arm_cyl_rod_a22) - v_arm_cyl_barrel_e1*(c307*arm_cyl_rod_a02 + c298*arm_cyl_rod_a22 + c299*arm_cyl_rod_a12) - v_arm_cyl_barrel_e2*(c291*arm_cyl_rod_a12 - c292*arm_cyl_rod_a22) - v_arm_cyl_barrel_e3*(c291*arm_cyl_rod_a22 + c292*arm_cyl_rod_a12) - v_arm_cyl_rod_e0*(c294 + c309*arm_cyl_barrel_a20 - c321*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c300 - c304*arm_cyl_barrel_a10) - v_arm_cyl_rod_e2*(c296 + c321*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c302 + c315*arm_cyl_barrel_a10 + c322*arm_cyl_barrel_a20);
+    out[45] = c329*v_arm_cyl_barrel_y + c337*v_arm_cyl_barrel_z - c329*c330 - c329*v_arm_cyl_rod_y - c333*v_arm_cyl_barrel_x - c337*c340 - c337*v_arm_cyl_rod_z - c338*c339 - c338*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(c341 + c291*arm_cyl_rod_z + c305*arm_cyl_rod_y - c291*arm_cyl_barrel_z - c305*arm_cyl_barrel_y) - v_arm_cyl_barrel_e1*(-c331 - c292*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c342 - c328*arm_cyl_barrel_y - c298*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(c332 + c299*arm_cyl_rod_z - c299*arm_cyl_barrel_z);
+    out[46] = c344*v_arm_cyl_barrel_z + c345*v_arm_cyl_barrel_x - c330*c347 - c339*c345 - c340*c344 - c344*v_arm_cyl_rod_z - c345*v_arm_cyl_rod_x - c346*v_arm_cyl_barrel_y - c347*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(-c331 - c291*arm_cyl_rod_y - c305*arm_cyl_barrel_z + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c341 - c292*arm_cyl_rod_y + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c332 - c298*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(-c342 - c343*arm_cyl_barrel_z - c299*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3);
+    out[47] = -c325*(-c356*v_arm_cyl_barrel_e3 - c357*arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1) - c326*(c356*v_arm_cyl_barrel_e1 + c357*arm_cyl_barrel_e1 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - c327*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c329*(-c354*v_arm_cyl_rod_e1 - c355*arm_cyl_rod_e1 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2) - c337*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c338*((2.0)*c323 + (2.0)*c324 + c354*v_arm_cyl_rod_e2 + c355*arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(c349*v_arm_cyl_barrel_e1 + c352*v_arm_cyl_barrel_e0 - c348*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e1*(c348*v_arm_cyl_barrel_e2 + c349*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c348*v_arm_cyl_barrel_e1 + c349*v_arm_cyl_barrel_e3 + c352*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(-c348*v_arm_cyl_barrel_e0 + (2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2) - v_arm_cyl_rod_e0*(c350*v_arm_cyl_rod_e2 + c353*v_arm_cyl_rod_e0 - c351*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c350*v_arm_cyl_rod_e3 - c351*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c350*v_arm_cyl_rod_e0 + c351*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c350*v_arm_cyl_rod_e1 + c351*v_arm_cyl_rod_e2 + c353*v_arm_cyl_rod_e3);
+    out[48] = c359*v_arm_e0 + c360*v_arm_e1 - v_arm_e0*(-c359 - c361*v_arm_e0) - v_arm_e1*(-c360 - c361*v_arm_e1);
+    out[49] = -v_arm_e0*(-c362*v_arm_e3 + 2.0*p_F_z*v_arm_e1) - v_arm_e1*(-c363 + 2.0*p_F_z*v_arm_e0) - v_arm_e2*(-c360 - c364) - v_arm_e3*(-c359 - c362*v_arm_e0);
+    out[50] = -c363*v_arm_e0 - v_arm_e0*(c363 - c365*v_arm_e0) - v_arm_e3*(-c364 - c365*v_arm_e3) + 2.0*p_F_x*v_arm_e1*v_arm_e3;
 }
 
-/* gamma of the joint rows (they do not depend on time). Rows 51 to 93. */
-void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, const double *v, double *out) {
+/* gamma of the joint rows (they do not depend on time). Rows 51 to 84. */
+void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, const double *v, const double *p, double *out) {
     const double arm_e0 = q[45];
     const double arm_e1 = q[46];
     const double arm_e2 = q[47];
@@ -2445,22 +2526,10 @@ void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, cons
     const double v_boom_cyl_r_barrel_e1 = v[32];
     const double v_boom_cyl_r_barrel_e2 = v[33];
     const double v_boom_cyl_r_barrel_e3 = v[34];
-    const double v_boom_cyl_r_rod_e0 = v[38];
-    const double v_boom_cyl_r_rod_e1 = v[39];
-    const double v_boom_cyl_r_rod_e2 = v[40];
-    const double v_boom_cyl_r_rod_e3 = v[41];
     const double v_arm_e0 = v[45];
     const double v_arm_e1 = v[46];
     const double v_arm_e2 = v[47];
     const double v_arm_e3 = v[48];
-    const double v_arm_cyl_barrel_e0 = v[52];
-    const double v_arm_cyl_barrel_e1 = v[53];
-    const double v_arm_cyl_barrel_e2 = v[54];
-    const double v_arm_cyl_barrel_e3 = v[55];
-    const double v_arm_cyl_rod_e0 = v[59];
-    const double v_arm_cyl_rod_e1 = v[60];
-    const double v_arm_cyl_rod_e2 = v[61];
-    const double v_arm_cyl_rod_e3 = v[62];
     const double v_bucket_cyl_barrel_x = v[63];
     const double v_bucket_cyl_barrel_y = v[64];
     const double v_bucket_cyl_barrel_z = v[65];
@@ -2487,6 +2556,10 @@ void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, cons
     const double v_bucket_e1 = v[95];
     const double v_bucket_e2 = v[96];
     const double v_bucket_e3 = v[97];
+    const double p_side_link = p[5];
+    const double p_bucket_link = p[6];
+    const double p_K_x = p[7];
+    const double p_K_z = p[8];
     const double arm_a01 = -2.0*arm_e0*arm_e3 + 2.0*arm_e1*arm_e2;
     const double arm_a11 = -1.0 + 2.0*(arm_e0*arm_e0) + 2.0*(arm_e2*arm_e2);
     const double arm_a21 = 2.0*arm_e0*arm_e1 + 2.0*arm_e2*arm_e3;
@@ -2526,244 +2599,298 @@ void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, cons
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a21 = 2.0*bucket_e0*bucket_e1 + 2.0*bucket_e2*bucket_e3;
     const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
-    const double c354 = (21809.0/5000.0)*v_arm_e2;
-    const double c355 = (21809.0/5000.0)*v_arm_e3;
-    const double c356 = -9477.0/2500.0*v_arm_e2;
-    const double c357 = (9477.0/2500.0)*v_arm_e1;
-    const double c358 = 2.0*bucket_a02;
-    const double c359 = 2.0*bucket_a22;
-    const double c360 = 2.0*arm_a01;
-    const double c361 = 2.0*arm_a11;
-    const double c362 = c361*v_bucket_e0;
-    const double c363 = c361*v_bucket_e3;
-    const double c364 = 4.0*bucket_a12;
-    const double c365 = c361*v_bucket_e1;
-    const double c366 = 4.0*arm_a21;
-    const double c367 = c361*v_bucket_e2;
-    const double c368 = 2.0*bucket_e0;
-    const double c369 = 2.0*bucket_e1;
-    const double c370 = 4.0*v_arm_e0;
-    const double c371 = 4.0*v_arm_e2;
-    const double c372 = 2.0*c370*arm_e0 + 2.0*c371*arm_e2;
-    const double c373 = 4.0*v_bucket_e0;
-    const double c374 = c373*bucket_e0;
-    const double c375 = 2.0*arm_e0;
-    const double c376 = 2.0*v_arm_e0;
-    const double c377 = 2.0*v_arm_e2;
-    const double c378 = 2.0*c375*v_arm_e1 + 2.0*c376*arm_e1 + 2.0*c377*arm_e3 + 4.0*arm_e2*v_arm_e3;
-    const double c379 = 2.0*bucket_e3;
-    const double c380 = 2.0*bucket_e2;
-    const double c381 = c368*v_bucket_e2 + c380*v_bucket_e0;
-    const double c382 = -2.0*c375*v_arm_e3 - 2.0*c376*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1;
-    const double c383 = 2.0*arm_a21;
-    const double c384 = 2.0*bucket_a00;
-    const double c385 = 2.0*bucket_a20;
-    const double c386 = 4.0*v_bucket_e1;
-    const double c387 = (18799.0/5000.0)*v_arm_e2;
-    const double c388 = (18799.0/5000.0)*v_arm_e3;
-    const double c389 = -7877.0/2500.0*v_arm_e2;
-    const double c390 = (7877.0/2500.0)*v_arm_e1;
-    const double c391 = 2.0*side_link_a02;
-    const double c392 = 2.0*side_link_a22;
-    const double c393 = 2.0*arm_a01;
-    const double c394 = 2.0*arm_a11;
-    const double c395 = c394*v_side_link_e0;
-    const double c396 = c394*v_side_link_e3;
-    const double c397 = 4.0*side_link_a12;
-    const double c398 = c394*v_side_link_e1;
-    const double c399 = 4.0*arm_a21;
-    const double c400 = c394*v_side_link_e2;
-    const double c401 = 2.0*side_link_e0;
-    const double c402 = 2.0*side_link_e1;
-    const double c403 = 4.0*v_arm_e0;
-    const double c404 = 4.0*v_arm_e2;
-    const double c405 = 2.0*c403*arm_e0 + 2.0*c404*arm_e2;
-    const double c406 = 4.0*v_side_link_e0;
-    const double c407 = c406*side_link_e0;
-    const double c408 = 2.0*arm_e0;
-    const double c409 = 2.0*v_arm_e0;
-    const double c410 = 2.0*v_arm_e2;
-    const double c411 = 2.0*c408*v_arm_e1 + 2.0*c409*arm_e1 + 2.0*c410*arm_e3 + 4.0*arm_e2*v_arm_e3;
-    const double c412 = 2.0*side_link_e3;
-    const double c413 = 2.0*side_link_e2;
-    const double c414 = c401*v_side_link_e2 + c413*v_side_link_e0;
-    const double c415 = -2.0*c408*v_arm_e3 - 2.0*c409*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1;
-    const double c416 = 2.0*arm_a21;
-    const double c417 = 2.0*side_link_a00;
-    const double c418 = 2.0*side_link_a20;
-    const double c419 = 4.0*v_side_link_e1;
-    const double c420 = (450737.0/500000.0)*v_bucket_link_e2;
-    const double c421 = (450737.0/500000.0)*v_bucket_link_e3;
-    const double c422 = -96247.0/100000.0*v_side_link_e2;
-    const double c423 = -96247.0/100000.0*v_side_link_e3;
-    const double c424 = (166329.0/250000.0)*v_side_link_e2;
-    const double c425 = (166329.0/250000.0)*v_side_link_e1;
-    const double c426 = -85607.0/125000.0*v_bucket_link_e2;
-    const double c427 = (85607.0/125000.0)*v_bucket_link_e1;
-    const double c428 = (16927.0/25000.0)*v_bucket_e2;
-    const double c429 = (16927.0/25000.0)*v_bucket_e3;
-    const double c430 = -c428;
-    const double c431 = -c429;
-    const double c432 = (8101.0/12500.0)*v_bucket_e3;
-    const double c433 = (8101.0/12500.0)*v_bucket_e2;
-    const double c434 = (8101.0/12500.0)*v_bucket_e1;
-    const double c435 = (1.5925492428686951)*bucket_link_a00;
-    const double c436 = (1.5925492428686951)*bucket_link_a20;
-    const double c437 = (1.2098706166521882)*bucket_link_a02;
-    const double c438 = (1.2098706166521882)*bucket_link_a22;
-    const double c439 = (1.2098706166521882)*v_bucket_link_e0;
-    const double c440 = (1.5925492428686951)*v_bucket_link_e0;
-    const double c441 = (1.5925492428686951)*v_bucket_link_e1;
-    const double c442 = -1.2098706166521882*v_bucket_link_e3;
-    const double c443 = -c441 - c442;
-    const double c444 = (1.5925492428686951)*v_bucket_link_e3;
-    const double c445 = -c442 - 3.1850984857373903*v_bucket_link_e1;
-    const double c446 = (1.5925492428686951)*v_bucket_link_e2;
-    const double c447 = -c439 - c446;
-    const double c448 = (1.2098706166521882)*v_bucket_link_e1;
-    const double c449 = -1.2098706166521882*v_bucket_link_e2;
-    const double c450 = -c440 - c449;
-    const double c451 = -c441 + (2.4197412333043764)*v_bucket_link_e3;
-    const double c452 = (3.1850984857373903)*bucket_link_a10;
-    const double c453 = 4.0*bucket_link_e0*v_bucket_link_e0;
-    const double c454 = bucket_e0*v_bucket_e3;
-    const double c455 = bucket_e3*v_bucket_e0;
-    const double c456 = bucket_e0*v_bucket_e1;
-    const double c457 = bucket_e1*v_bucket_e0;
-    const double c458 = bucket_e2*v_bucket_e3;
-    const double c459 = bucket_e3*v_bucket_e2;
-    const double c460 = bucket_e0*v_bucket_e0;
-    const double c461 = bucket_e2*v_bucket_e2;
-    const double c462 = 2.0*bucket_link_e0;
-    const double c463 = 2.0*bucket_link_e1;
-    const double c464 = 2.0*bucket_link_e2;
-    const double c465 = 2.0*bucket_link_e3;
-    const double c466 = -c449 - 3.1850984857373903*v_bucket_link_e0;
-    const double c467 = -c444 - c448;
-    const double c468 = c446 + (2.4197412333043764)*v_bucket_link_e0;
-    const double c469 = c462*v_bucket_link_e2 + c464*v_bucket_link_e0;
-    const double c470 = -36797.0/25000.0*v_arm_e2;
-    const double c471 = -36797.0/25000.0*v_arm_e3;
-    const double c472 = (24687.0/50000.0)*v_arm_e2;
-    const double c473 = (24687.0/50000.0)*v_arm_e1;
-    const double c474 = 2.0*bucket_cyl_barrel_a02;
-    const double c475 = 2.0*bucket_cyl_barrel_a22;
-    const double c476 = 2.0*arm_a01;
-    const double c477 = 2.0*arm_a11;
-    const double c478 = 4.0*bucket_cyl_barrel_a12;
-    const double c479 = 4.0*arm_a21;
-    const double c480 = 2.0*bucket_cyl_barrel_e0;
-    const double c481 = 2.0*bucket_cyl_barrel_e1;
-    const double c482 = 2.0*arm_e0;
-    const double c483 = 2.0*v_arm_e0;
-    const double c484 = 2.0*v_bucket_cyl_barrel_e1;
-    const double c485 = 2.0*v_bucket_cyl_barrel_e0;
-    const double c486 = 2.0*bucket_cyl_barrel_a00;
-    const double c487 = c486*v_bucket_cyl_rod_e2;
-    const double c488 = 2.0*bucket_cyl_barrel_a20;
-    const double c489 = c486*v_bucket_cyl_rod_e0;
-    const double c490 = 4.0*bucket_cyl_rod_a01;
-    const double c491 = 2.0*v_bucket_cyl_barrel_e3;
-    const double c492 = 2.0*v_bucket_cyl_barrel_e2;
-    const double c493 = c486*v_bucket_cyl_rod_e3;
-    const double c494 = 4.0*bucket_cyl_barrel_a10;
-    const double c495 = c486*v_bucket_cyl_rod_e1;
-    const double c496 = 2.0*bucket_cyl_rod_e0;
-    const double c497 = 2.0*v_bucket_cyl_rod_e0;
-    const double c498 = 4.0*v_bucket_cyl_barrel_e0;
-    const double c499 = c498*bucket_cyl_barrel_e0;
-    const double c500 = 4.0*v_bucket_cyl_barrel_e1;
-    const double c501 = 2.0*c499 + 2.0*c500*bucket_cyl_barrel_e1;
-    const double c502 = 4.0*v_bucket_cyl_rod_e0;
-    const double c503 = c502*bucket_cyl_rod_e0;
-    const double c504 = c492*bucket_cyl_barrel_e1;
-    const double c505 = c484*bucket_cyl_barrel_e2;
-    const double c506 = c485*bucket_cyl_barrel_e3 + c491*bucket_cyl_barrel_e0;
-    const double c507 = 2.0*c504 + 2.0*c505 + 2.0*c506;
-    const double c508 = 2.0*v_bucket_cyl_rod_e2;
-    const double c509 = c496*v_bucket_cyl_rod_e1 + c497*bucket_cyl_rod_e1;
-    const double c510 = c491*bucket_cyl_barrel_e1;
-    const double c511 = c484*bucket_cyl_barrel_e3;
-    const double c512 = c485*bucket_cyl_barrel_e2 + c492*bucket_cyl_barrel_e0;
-    const double c513 = -2.0*c512 + 2.0*c510 + 2.0*c511;
-    const double c514 = 2.0*bucket_cyl_barrel_a10;
-    const double c515 = 4.0*v_bucket_cyl_rod_e3;
-    const double c516 = bucket_cyl_rod_e1*v_bucket_cyl_rod_e3;
-    const double c517 = bucket_cyl_rod_e3*v_bucket_cyl_rod_e1;
-    const double c518 = 2.0*c516 + 2.0*c517 + c496*v_bucket_cyl_rod_e2 + c497*bucket_cyl_rod_e2;
-    const double c519 = c503 + c515*bucket_cyl_rod_e3;
-    const double c520 = -c509 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2;
-    const double c521 = 4.0*v_bucket_cyl_barrel_e2;
-    const double c522 = c499 + c521*bucket_cyl_barrel_e2;
-    const double c523 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y;
-    const double c524 = c492*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2;
-    const double c525 = c485*bucket_cyl_barrel_x - c485*bucket_cyl_rod_x;
-    const double c526 = c506 - c504 - c505;
-    const double c527 = c491*bucket_cyl_barrel_e2;
-    const double c528 = c492*bucket_cyl_barrel_e3;
-    const double c529 = c484*bucket_cyl_barrel_e0 + c485*bucket_cyl_barrel_e1;
-    const double c530 = c527 + c528 + c529;
-    const double c531 = -c526;
-    const double c532 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x;
-    const double c533 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z;
-    const double c534 = c491*bucket_cyl_barrel_x - c491*bucket_cyl_rod_x;
-    const double c535 = c484*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1;
-    const double c536 = 4.0*v_bucket_cyl_barrel_e3;
-    const double c537 = c499 + c536*bucket_cyl_barrel_e3;
-    const double c538 = c510 + c511 + c512;
-    const double c539 = c529 - c527 - c528;
-    const double c540 = -c539;
-    const double c541 = (2.0)*bucket_cyl_rod_a02;
-    const double c542 = (2.0)*bucket_cyl_rod_a22;
-    const double c543 = (2.0)*bucket_cyl_barrel_a01;
-    const double c544 = (2.0)*bucket_cyl_barrel_a11;
-    const double c545 = (4.0)*bucket_cyl_rod_a12;
-    const double c546 = (4.0)*bucket_cyl_barrel_a21;
-    const double c547 = (2.0)*bucket_cyl_rod_e0;
-    const double c548 = (2.0)*v_bucket_cyl_rod_e0;
-    const double c549 = (2.0)*bucket_cyl_barrel_e0;
-    const double c550 = (2.0)*v_bucket_cyl_barrel_e0;
-    const double c551 = (96247.0/100000.0)*v_side_link_e2;
-    const double c552 = (96247.0/100000.0)*v_side_link_e3;
-    const double c553 = -c551;
-    const double c554 = -c552;
-    const double c555 = (166329.0/250000.0)*v_side_link_e3;
-    const double c556 = (166329.0/250000.0)*v_side_link_e2;
-    const double c557 = (166329.0/250000.0)*v_side_link_e1;
-    out[51] = -c354*v_arm_e0 - c355*v_arm_e1 - v_arm_e0*(c354 + (9477.0/1250.0)*v_arm_e0) - v_arm_e1*(c355 + (9477.0/1250.0)*v_arm_e1);
-    out[52] = -v_arm_e0*(-21809.0/5000.0*v_arm_e1 + (9477.0/2500.0)*v_arm_e3) - v_arm_e1*(-c356 - 21809.0/5000.0*v_arm_e0) - v_arm_e2*(c355 + c357) - v_arm_e3*(c354 + (9477.0/2500.0)*v_arm_e0);
-    out[53] = -v_arm_e0*(c356 + (21809.0/2500.0)*v_arm_e0) - v_arm_e3*(c357 + (21809.0/2500.0)*v_arm_e3) - 9477.0/2500.0*v_arm_e1*v_arm_e3 + (9477.0/2500.0)*v_arm_e0*v_arm_e2;
-    out[54] = -c372*(-c368*v_bucket_e1 - c369*v_bucket_e0 + 2.0*bucket_e2*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e2) - c378*(c374 + 4.0*bucket_e3*v_bucket_e3) - c382*(c381 + c369*v_bucket_e3 + c379*v_bucket_e1) - v_arm_e0*(c364*v_arm_e0 + c359*v_arm_e1 - c358*v_arm_e3) - v_arm_e1*(c358*v_arm_e2 + c359*v_arm_e0) - v_arm_e2*(c364*v_arm_e2 + c358*v_arm_e1 + c359*v_arm_e3) - v_arm_e3*(-c358*v_arm_e0 + 2.0*bucket_a22*v_arm_e2) - v_bucket_e0*(-c365 + c366*v_bucket_e0 + c360*v_bucket_e2) - v_bucket_e1*(-c362 + c360*v_bucket_e3) - v_bucket_e2*(c363 + c360*v_bucket_e0) - v_bucket_e3*(c367 + c366*v_bucket_e3 + c360*v_bucket_e1);
-    out[55] = -c372*(c368*v_bucket_e3 + c369*v_bucket_e2 + c379*v_bucket_e0 + c380*v_bucket_e1) - c378*(-c381 + 2.0*bucket_e1*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e1) - c382*(c374 + c386*bucket_e1) - v_arm_e0*(c370*bucket_a10 + c385*v_arm_e1 - c384*v_arm_e3) - v_arm_e1*(c376*bucket_a20 + c377*bucket_a00) - v_arm_e2*(c371*bucket_a10 + c384*v_arm_e1 + c385*v_arm_e3) - v_arm_e3*(-c376*bucket_a00 + 2.0*bucket_a20*v_arm_e2) - v_bucket_e0*(c363 + c373*arm_a01 - c383*v_bucket_e2) - v_bucket_e1*(c367 + c383*v_bucket_e3 + c386*arm_a01) - v_bucket_e2*(c365 - c383*v_bucket_e0) - v_bucket_e3*(c362 + c383*v_bucket_e1);
-    out[56] = -c387*v_arm_e0 - c388*v_arm_e1 - v_arm_e0*(c387 + (7877.0/1250.0)*v_arm_e0) - v_arm_e1*(c388 + (7877.0/1250.0)*v_arm_e1);
-    out[57] = -v_arm_e0*(-18799.0/5000.0*v_arm_e1 + (7877.0/2500.0)*v_arm_e3) - v_arm_e1*(-c389 - 18799.0/5000.0*v_arm_e0) - v_arm_e2*(c388 + c390) - v_arm_e3*(c387 + (7877.0/2500.0)*v_arm_e0);
-    out[58] = -v_arm_e0*(c389 + (18799.0/2500.0)*v_arm_e0) - v_arm_e3*(c390 + (18799.0/2500.0)*v_arm_e3) - 7877.0/2500.0*v_arm_e1*v_arm_e3 + (7877.0/2500.0)*v_arm_e0*v_arm_e2;
-    out[59] = -c405*(-c401*v_side_link_e1 - c402*v_side_link_e0 + 2.0*side_link_e2*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e2) - c411*(c407 + 4.0*side_link_e3*v_side_link_e3) - c415*(c414 + c402*v_side_link_e3 + c412*v_side_link_e1) - v_arm_e0*(c397*v_arm_e0 + c392*v_arm_e1 - c391*v_arm_e3) - v_arm_e1*(c391*v_arm_e2 + c392*v_arm_e0) - v_arm_e2*(c397*v_arm_e2 + c391*v_arm_e1 + c392*v_arm_e3) - v_arm_e3*(-c391*v_arm_e0 + 2.0*side_link_a22*v_arm_e2) - v_side_link_e0*(-c398 + c399*v_side_link_e0 + c393*v_side_link_e2) - v_side_link_e1*(-c395 + c393*v_side_link_e3) - v_side_link_e2*(c396 + c393*v_side_link_e0) - v_side_link_e3*(c400 + c399*v_side_link_e3 + c393*v_side_link_e1);
-    out[60] = -c405*(c401*v_side_link_e3 + c402*v_side_link_e2 + c412*v_side_link_e0 + c413*v_side_link_e1) - c411*(-c414 + 2.0*side_link_e1*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e1) - c415*(c407 + c419*side_link_e1) - v_arm_e0*(c403*side_link_a10 + c418*v_arm_e1 - c417*v_arm_e3) - v_arm_e1*(c409*side_link_a20 + c410*side_link_a00) - v_arm_e2*(c404*side_link_a10 + c417*v_arm_e1 + c418*v_arm_e3) - v_arm_e3*(-c409*side_link_a00 + 2.0*side_link_a20*v_arm_e2) - v_side_link_e0*(c396 + c406*arm_a01 - c416*v_side_link_e2) - v_side_link_e1*(c400 + c416*v_side_link_e3 + c419*arm_a01) - v_side_link_e2*(c398 - c416*v_side_link_e0) - v_side_link_e3*(c395 + c416*v_side_link_e1);
-    out[61] = -c420*v_bucket_link_e0 - c421*v_bucket_link_e1 - v_side_link_e0*(-c422 - 166329.0/125000.0*v_side_link_e0) - v_side_link_e1*(-c423 - 166329.0/125000.0*v_side_link_e1) - v_bucket_link_e0*(c420 + (85607.0/62500.0)*v_bucket_link_e0) - v_bucket_link_e1*(c421 + (85607.0/62500.0)*v_bucket_link_e1) - 96247.0/100000.0*v_side_link_e0*v_side_link_e2 - 96247.0/100000.0*v_side_link_e1*v_side_link_e3;
-    out[62] = -v_side_link_e0*(-166329.0/250000.0*v_side_link_e3 - 96247.0/100000.0*v_side_link_e1) - v_side_link_e1*(-c424 - 96247.0/100000.0*v_side_link_e0) - v_side_link_e2*(-c423 - c425) - v_side_link_e3*(-c422 - 166329.0/250000.0*v_side_link_e0) - v_bucket_link_e0*(-450737.0/500000.0*v_bucket_link_e1 + (85607.0/125000.0)*v_bucket_link_e3) - v_bucket_link_e1*(-c426 - 450737.0/500000.0*v_bucket_link_e0) - v_bucket_link_e2*(c421 + c427) - v_bucket_link_e3*(c420 + (85607.0/125000.0)*v_bucket_link_e0);
-    out[63] = -c424*v_side_link_e0 - v_side_link_e0*(c424 + (96247.0/50000.0)*v_side_link_e0) - v_side_link_e3*(-c425 + (96247.0/50000.0)*v_side_link_e3) - v_bucket_link_e0*(c426 + (450737.0/250000.0)*v_bucket_link_e0) - v_bucket_link_e3*(c427 + (450737.0/250000.0)*v_bucket_link_e3) - 85607.0/125000.0*v_bucket_link_e1*v_bucket_link_e3 + (85607.0/125000.0)*v_bucket_link_e0*v_bucket_link_e2 + (166329.0/250000.0)*v_side_link_e1*v_side_link_e3;
-    out[64] = c428*v_bucket_e0 + c429*v_bucket_e1 - v_bucket_e0*(c430 + (8101.0/6250.0)*v_bucket_e0) - v_bucket_e1*(c431 + (8101.0/6250.0)*v_bucket_e1);
-    out[65] = -v_bucket_e0*(c432 + (16927.0/25000.0)*v_bucket_e1) - v_bucket_e1*(c433 + (16927.0/25000.0)*v_bucket_e0) - v_bucket_e2*(c431 + c434) - v_bucket_e3*(c430 + (8101.0/12500.0)*v_bucket_e0);
-    out[66] = -c432*v_bucket_e1 - v_bucket_e0*(-c433 - 16927.0/12500.0*v_bucket_e0) - v_bucket_e3*(c434 - 16927.0/12500.0*v_bucket_e3) + (8101.0/12500.0)*v_bucket_e0*v_bucket_e2;
-    out[67] = -v_bucket_link_e0*(c466*bucket_a01 + c467*bucket_a11 + c468*bucket_a21) - v_bucket_link_e1*(c445*bucket_a01 + c447*bucket_a11 - c444*bucket_a21) - v_bucket_link_e2*(c439*bucket_a01 + c440*bucket_a21 + c443*bucket_a11) - v_bucket_link_e3*(c448*bucket_a01 + c450*bucket_a11 + c451*bucket_a21) - v_bucket_e0*(c438*v_bucket_e1 + c435*v_bucket_e3 - c452*v_bucket_e0 - c436*v_bucket_e1 - c437*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e0) - v_bucket_e1*(-c435*v_bucket_e2 - c436*v_bucket_e0 + (1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0) - v_bucket_e2*(-c452*v_bucket_e2 - c435*v_bucket_e1 - c436*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3) - v_bucket_e3*(c438*v_bucket_e2 + c435*v_bucket_e0 - c436*v_bucket_e2 - c437*v_bucket_e0) - (c453 + 4.0*bucket_link_e1*v_bucket_link_e1)*((1.5925492428686951)*c454 + (1.5925492428686951)*c455 - 1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1) - (c453 + 4.0*bucket_link_e3*v_bucket_link_e3)*((1.2098706166521882)*c456 + (1.2098706166521882)*c457 + (1.2098706166521882)*c458 + (1.2098706166521882)*c459) - (4.0*c460 + 4.0*c461)*(c443*bucket_link_e2 + c447*bucket_link_e1 + c450*bucket_link_e3 + c467*bucket_link_e0) - (-3.1850984857373903*c460 - 3.1850984857373903*c461)*(c462*v_bucket_link_e3 + c463*v_bucket_link_e2 + c464*v_bucket_link_e1 + c465*v_bucket_link_e0) - ((2.4197412333043764)*c460 + (2.4197412333043764)*c461)*(-c462*v_bucket_link_e1 - c463*v_bucket_link_e0 + 2.0*bucket_link_e2*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e2) - (c469 + c463*v_bucket_link_e3 + c465*v_bucket_link_e1)*(-1.2098706166521882*c454 - 1.2098706166521882*c455 + (1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1) - (-c469 + 2.0*bucket_link_e1*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e1)*(-1.5925492428686951*c456 - 1.5925492428686951*c457 - 1.5925492428686951*c458 - 1.5925492428686951*c459) - (-2.0*c454 - 2.0*c455 + 2.0*bucket_e1*v_bucket_e2 + 2.0*bucket_e2*v_bucket_e1)*(c439*bucket_link_e2 + c445*bucket_link_e1 + c448*bucket_link_e3 + c466*bucket_link_e0) - (2.0*c456 + 2.0*c457 + 2.0*c458 + 2.0*c459)*(c440*bucket_link_e2 + c451*bucket_link_e3 + c468*bucket_link_e0 - c444*bucket_link_e1);
-    out[68] = -v_arm_e0*(-c470 - 24687.0/25000.0*v_arm_e0) - v_arm_e1*(-c471 - 24687.0/25000.0*v_arm_e1) - 36797.0/25000.0*v_arm_e0*v_arm_e2 - 36797.0/25000.0*v_arm_e1*v_arm_e3;
-    out[69] = -v_arm_e0*(-36797.0/25000.0*v_arm_e1 - 24687.0/50000.0*v_arm_e3) - v_arm_e1*(-c472 - 36797.0/25000.0*v_arm_e0) - v_arm_e2*(-c471 - c473) - v_arm_e3*(-c470 - 24687.0/50000.0*v_arm_e0);
-    out[70] = -c472*v_arm_e0 - v_arm_e0*(c472 + (36797.0/12500.0)*v_arm_e0) - v_arm_e3*(-c473 + (36797.0/12500.0)*v_arm_e3) + (24687.0/50000.0)*v_arm_e1*v_arm_e3;
-    out[71] = -v_arm_e0*(c475*v_arm_e1 + c478*v_arm_e0 - c474*v_arm_e3) - v_arm_e1*(c474*v_arm_e2 + c475*v_arm_e0) - v_arm_e2*(c474*v_arm_e1 + c475*v_arm_e3 + c478*v_arm_e2) - v_arm_e3*(-c474*v_arm_e0 + 2.0*bucket_cyl_barrel_a22*v_arm_e2) - v_bucket_cyl_barrel_e0*(c476*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e0 - c477*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e1*(c476*v_bucket_cyl_barrel_e3 - c477*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c476*v_bucket_cyl_barrel_e0 + c477*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c476*v_bucket_cyl_barrel_e1 + c477*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e3) - 2.0*(4.0*arm_e0*v_arm_e0 + 4.0*arm_e2*v_arm_e2)*(-c480*v_bucket_cyl_barrel_e1 - c481*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - 2.0*(4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(c482*v_arm_e1 + c483*arm_e1 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - 2.0*(c480*v_bucket_cyl_barrel_e2 + c481*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1)*(-c482*v_arm_e3 - c483*arm_e3 + 2.0*arm_e1*v_arm_e2 + 2.0*arm_e2*v_arm_e1);
-    out[72] = -c501*(-c496*v_bucket_cyl_rod_e3 - c497*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1) - c507*(c503 + 4.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - c513*(c509 + c508*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3) - v_bucket_cyl_barrel_e0*(c490*v_bucket_cyl_barrel_e0 + c491*bucket_cyl_rod_a11 - c492*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e1*(c490*v_bucket_cyl_barrel_e1 + c491*bucket_cyl_rod_a21 + c492*bucket_cyl_rod_a11) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a11 - c485*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a21 + c485*bucket_cyl_rod_a11) - v_bucket_cyl_rod_e0*(-c493 + c494*v_bucket_cyl_rod_e0 + c488*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c487 + c488*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c495 + c494*v_bucket_cyl_rod_e2 + c488*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(-c489 + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2);
-    out[73] = -c501*c518 - c507*c520 - c513*c519 - v_bucket_cyl_barrel_e0*(c498*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a12 - c492*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e1*(c500*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a22 + c492*bucket_cyl_rod_a12) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a12 - c485*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a22 + c485*bucket_cyl_rod_a12) - v_bucket_cyl_rod_e0*(c487 + c502*bucket_cyl_barrel_a20 - c514*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c493 - c497*bucket_cyl_barrel_a10) - v_bucket_cyl_rod_e2*(c489 + c514*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c495 + c508*bucket_cyl_barrel_a10 + c515*bucket_cyl_barrel_a20);
-    out[74] = c522*v_bucket_cyl_barrel_y + c530*v_bucket_cyl_barrel_z - c522*c523 - c522*v_bucket_cyl_rod_y - c526*v_bucket_cyl_barrel_x - c530*c533 - c530*v_bucket_cyl_rod_z - c531*c532 - c531*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(c534 + c484*bucket_cyl_rod_z + c498*bucket_cyl_rod_y - c484*bucket_cyl_barrel_z - c498*bucket_cyl_barrel_y) - v_bucket_cyl_barrel_e1*(-c524 - c485*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c535 - c521*bucket_cyl_barrel_y - c491*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(c525 + c492*bucket_cyl_rod_z - c492*bucket_cyl_barrel_z);
-    out[75] = c537*v_bucket_cyl_barrel_z + c538*v_bucket_cyl_barrel_x - c523*c540 - c532*c538 - c533*c537 - c537*v_bucket_cyl_rod_z - c538*v_bucket_cyl_rod_x - c539*v_bucket_cyl_barrel_y - c540*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(-c524 - c484*bucket_cyl_rod_y - c498*bucket_cyl_barrel_z + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c534 - c485*bucket_cyl_rod_y + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c525 - c491*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(-c535 - c536*bucket_cyl_barrel_z - c492*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3);
-    out[76] = -c518*(-c549*v_bucket_cyl_barrel_e3 - c550*bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1) - c519*(c549*v_bucket_cyl_barrel_e1 + c550*bucket_cyl_barrel_e1 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - c520*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c522*(-c547*v_bucket_cyl_rod_e1 - c548*bucket_cyl_rod_e1 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2) - c530*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c531*((2.0)*c516 + (2.0)*c517 + c547*v_bucket_cyl_rod_e2 + c548*bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(c542*v_bucket_cyl_barrel_e1 + c545*v_bucket_cyl_barrel_e0 - c541*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e1*(c541*v_bucket_cyl_barrel_e2 + c542*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c541*v_bucket_cyl_barrel_e1 + c542*v_bucket_cyl_barrel_e3 + c545*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(-c541*v_bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2) - v_bucket_cyl_rod_e0*(c543*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e0 - c544*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c543*v_bucket_cyl_rod_e3 - c544*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c543*v_bucket_cyl_rod_e0 + c544*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c543*v_bucket_cyl_rod_e1 + c544*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e3);
-    out[77] = c551*v_side_link_e0 + c552*v_side_link_e1 - v_side_link_e0*(c553 + (166329.0/125000.0)*v_side_link_e0) - v_side_link_e1*(c554 + (166329.0/125000.0)*v_side_link_e1);
-    out[78] = -v_side_link_e0*(c555 + (96247.0/100000.0)*v_side_link_e1) - v_side_link_e1*(c556 + (96247.0/100000.0)*v_side_link_e0) - v_side_link_e2*(c554 + c557) - v_side_link_e3*(c553 + (166329.0/250000.0)*v_side_link_e0);
-    out[79] = -c555*v_side_link_e1 - v_side_link_e0*(-c556 - 96247.0/50000.0*v_side_link_e0) - v_side_link_e3*(c557 - 96247.0/50000.0*v_side_link_e3) + (166329.0/250000.0)*v_side_link_e0*v_side_link_e2;
+    const double c366 = (21809.0/5000.0)*v_arm_e2;
+    const double c367 = (21809.0/5000.0)*v_arm_e3;
+    const double c368 = -9477.0/2500.0*v_arm_e2;
+    const double c369 = (9477.0/2500.0)*v_arm_e1;
+    const double c370 = 2.0*bucket_a02;
+    const double c371 = 2.0*bucket_a22;
+    const double c372 = 2.0*arm_a01;
+    const double c373 = 2.0*arm_a11;
+    const double c374 = c373*v_bucket_e0;
+    const double c375 = c373*v_bucket_e3;
+    const double c376 = 4.0*bucket_a12;
+    const double c377 = c373*v_bucket_e1;
+    const double c378 = 4.0*arm_a21;
+    const double c379 = c373*v_bucket_e2;
+    const double c380 = 2.0*bucket_e0;
+    const double c381 = 2.0*bucket_e1;
+    const double c382 = 4.0*v_arm_e0;
+    const double c383 = 4.0*v_arm_e2;
+    const double c384 = 2.0*c382*arm_e0 + 2.0*c383*arm_e2;
+    const double c385 = 4.0*v_bucket_e0;
+    const double c386 = c385*bucket_e0;
+    const double c387 = 2.0*arm_e0;
+    const double c388 = 2.0*v_arm_e0;
+    const double c389 = 2.0*v_arm_e2;
+    const double c390 = 2.0*c387*v_arm_e1 + 2.0*c388*arm_e1 + 2.0*c389*arm_e3 + 4.0*arm_e2*v_arm_e3;
+    const double c391 = 2.0*bucket_e3;
+    const double c392 = 2.0*bucket_e2;
+    const double c393 = c380*v_bucket_e2 + c392*v_bucket_e0;
+    const double c394 = -2.0*c387*v_arm_e3 - 2.0*c388*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1;
+    const double c395 = 2.0*arm_a21;
+    const double c396 = 2.0*bucket_a00;
+    const double c397 = 2.0*bucket_a20;
+    const double c398 = 4.0*v_bucket_e1;
+    const double c399 = (18799.0/5000.0)*v_arm_e2;
+    const double c400 = (18799.0/5000.0)*v_arm_e3;
+    const double c401 = -7877.0/2500.0*v_arm_e2;
+    const double c402 = (7877.0/2500.0)*v_arm_e1;
+    const double c403 = 2.0*side_link_a02;
+    const double c404 = 2.0*side_link_a22;
+    const double c405 = 2.0*arm_a01;
+    const double c406 = 2.0*arm_a11;
+    const double c407 = c406*v_side_link_e0;
+    const double c408 = c406*v_side_link_e3;
+    const double c409 = 4.0*side_link_a12;
+    const double c410 = c406*v_side_link_e1;
+    const double c411 = 4.0*arm_a21;
+    const double c412 = c406*v_side_link_e2;
+    const double c413 = 2.0*side_link_e0;
+    const double c414 = 2.0*side_link_e1;
+    const double c415 = 4.0*v_arm_e0;
+    const double c416 = 4.0*v_arm_e2;
+    const double c417 = 2.0*c415*arm_e0 + 2.0*c416*arm_e2;
+    const double c418 = 4.0*v_side_link_e0;
+    const double c419 = c418*side_link_e0;
+    const double c420 = 2.0*arm_e0;
+    const double c421 = 2.0*v_arm_e0;
+    const double c422 = 2.0*v_arm_e2;
+    const double c423 = 2.0*c420*v_arm_e1 + 2.0*c421*arm_e1 + 2.0*c422*arm_e3 + 4.0*arm_e2*v_arm_e3;
+    const double c424 = 2.0*side_link_e3;
+    const double c425 = 2.0*side_link_e2;
+    const double c426 = c413*v_side_link_e2 + c425*v_side_link_e0;
+    const double c427 = -2.0*c420*v_arm_e3 - 2.0*c421*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1;
+    const double c428 = 2.0*arm_a21;
+    const double c429 = 2.0*side_link_a00;
+    const double c430 = 2.0*side_link_a20;
+    const double c431 = 4.0*v_side_link_e1;
+    const double c432 = 1.592549242869674*p_bucket_link;
+    const double c433 = c432*v_bucket_link_e2;
+    const double c434 = c432*v_bucket_link_e3;
+    const double c435 = 1.645191449642404*p_side_link;
+    const double c436 = 2.2745066225654527*p_side_link;
+    const double c437 = -1.645191449642404*p_side_link*v_side_link_e2;
+    const double c438 = -1.645191449642404*p_side_link*v_side_link_e3;
+    const double c439 = 2.4197412333018*p_bucket_link;
+    const double c440 = 1.1372533112827263*p_side_link;
+    const double c441 = c440*v_side_link_e2;
+    const double c442 = c440*v_side_link_e1;
+    const double c443 = 1.2098706166509*p_bucket_link;
+    const double c444 = -c443*v_bucket_link_e2;
+    const double c445 = c443*v_bucket_link_e1;
+    const double c446 = 3.185098485739348*p_bucket_link;
+    const double c447 = 2.0*p_K_z;
+    const double c448 = c447*v_bucket_e2;
+    const double c449 = c447*v_bucket_e3;
+    const double c450 = 4.0*p_K_x;
+    const double c451 = 2.0*p_K_x;
+    const double c452 = c451*v_bucket_e2;
+    const double c453 = c451*v_bucket_e1;
+    const double c454 = 4.0*p_K_z;
+    const double c455 = (1.5925492428686951)*bucket_link_a00;
+    const double c456 = (1.5925492428686951)*bucket_link_a20;
+    const double c457 = (1.2098706166521882)*bucket_link_a02;
+    const double c458 = (1.2098706166521882)*bucket_link_a22;
+    const double c459 = (1.2098706166521882)*v_bucket_link_e0;
+    const double c460 = (1.5925492428686951)*v_bucket_link_e0;
+    const double c461 = (1.5925492428686951)*v_bucket_link_e1;
+    const double c462 = -1.2098706166521882*v_bucket_link_e3;
+    const double c463 = -c461 - c462;
+    const double c464 = (1.5925492428686951)*v_bucket_link_e3;
+    const double c465 = -c462 - 3.1850984857373903*v_bucket_link_e1;
+    const double c466 = (1.5925492428686951)*v_bucket_link_e2;
+    const double c467 = -c459 - c466;
+    const double c468 = (1.2098706166521882)*v_bucket_link_e1;
+    const double c469 = -1.2098706166521882*v_bucket_link_e2;
+    const double c470 = -c460 - c469;
+    const double c471 = -c461 + (2.4197412333043764)*v_bucket_link_e3;
+    const double c472 = (3.1850984857373903)*bucket_link_a10;
+    const double c473 = 4.0*bucket_link_e0*v_bucket_link_e0;
+    const double c474 = bucket_e0*v_bucket_e3;
+    const double c475 = bucket_e3*v_bucket_e0;
+    const double c476 = bucket_e0*v_bucket_e1;
+    const double c477 = bucket_e1*v_bucket_e0;
+    const double c478 = bucket_e2*v_bucket_e3;
+    const double c479 = bucket_e3*v_bucket_e2;
+    const double c480 = bucket_e0*v_bucket_e0;
+    const double c481 = bucket_e2*v_bucket_e2;
+    const double c482 = 2.0*bucket_link_e0;
+    const double c483 = 2.0*bucket_link_e1;
+    const double c484 = 2.0*bucket_link_e2;
+    const double c485 = 2.0*bucket_link_e3;
+    const double c486 = -c469 - 3.1850984857373903*v_bucket_link_e0;
+    const double c487 = -c464 - c468;
+    const double c488 = c466 + (2.4197412333043764)*v_bucket_link_e0;
+    const double c489 = c482*v_bucket_link_e2 + c484*v_bucket_link_e0;
+    const double c490 = -36797.0/25000.0*v_arm_e2;
+    const double c491 = -36797.0/25000.0*v_arm_e3;
+    const double c492 = (24687.0/50000.0)*v_arm_e2;
+    const double c493 = (24687.0/50000.0)*v_arm_e1;
+    const double c494 = 2.0*bucket_cyl_barrel_a02;
+    const double c495 = 2.0*bucket_cyl_barrel_a22;
+    const double c496 = 2.0*arm_a01;
+    const double c497 = 2.0*arm_a11;
+    const double c498 = 4.0*bucket_cyl_barrel_a12;
+    const double c499 = 4.0*arm_a21;
+    const double c500 = 2.0*bucket_cyl_barrel_e0;
+    const double c501 = 2.0*bucket_cyl_barrel_e1;
+    const double c502 = 2.0*arm_e0;
+    const double c503 = 2.0*v_arm_e0;
+    const double c504 = 2.0*v_bucket_cyl_barrel_e1;
+    const double c505 = 2.0*v_bucket_cyl_barrel_e0;
+    const double c506 = 2.0*bucket_cyl_barrel_a00;
+    const double c507 = c506*v_bucket_cyl_rod_e2;
+    const double c508 = 2.0*bucket_cyl_barrel_a20;
+    const double c509 = c506*v_bucket_cyl_rod_e0;
+    const double c510 = 4.0*bucket_cyl_rod_a01;
+    const double c511 = 2.0*v_bucket_cyl_barrel_e3;
+    const double c512 = 2.0*v_bucket_cyl_barrel_e2;
+    const double c513 = c506*v_bucket_cyl_rod_e3;
+    const double c514 = 4.0*bucket_cyl_barrel_a10;
+    const double c515 = c506*v_bucket_cyl_rod_e1;
+    const double c516 = 2.0*bucket_cyl_rod_e0;
+    const double c517 = 2.0*v_bucket_cyl_rod_e0;
+    const double c518 = 4.0*v_bucket_cyl_barrel_e0;
+    const double c519 = c518*bucket_cyl_barrel_e0;
+    const double c520 = 4.0*v_bucket_cyl_barrel_e1;
+    const double c521 = 2.0*c519 + 2.0*c520*bucket_cyl_barrel_e1;
+    const double c522 = 4.0*v_bucket_cyl_rod_e0;
+    const double c523 = c522*bucket_cyl_rod_e0;
+    const double c524 = c512*bucket_cyl_barrel_e1;
+    const double c525 = c504*bucket_cyl_barrel_e2;
+    const double c526 = c505*bucket_cyl_barrel_e3 + c511*bucket_cyl_barrel_e0;
+    const double c527 = 2.0*c524 + 2.0*c525 + 2.0*c526;
+    const double c528 = 2.0*v_bucket_cyl_rod_e2;
+    const double c529 = c516*v_bucket_cyl_rod_e1 + c517*bucket_cyl_rod_e1;
+    const double c530 = c511*bucket_cyl_barrel_e1;
+    const double c531 = c504*bucket_cyl_barrel_e3;
+    const double c532 = c505*bucket_cyl_barrel_e2 + c512*bucket_cyl_barrel_e0;
+    const double c533 = -2.0*c532 + 2.0*c530 + 2.0*c531;
+    const double c534 = 2.0*bucket_cyl_barrel_a10;
+    const double c535 = 4.0*v_bucket_cyl_rod_e3;
+    const double c536 = bucket_cyl_rod_e1*v_bucket_cyl_rod_e3;
+    const double c537 = bucket_cyl_rod_e3*v_bucket_cyl_rod_e1;
+    const double c538 = 2.0*c536 + 2.0*c537 + c516*v_bucket_cyl_rod_e2 + c517*bucket_cyl_rod_e2;
+    const double c539 = c523 + c535*bucket_cyl_rod_e3;
+    const double c540 = -c529 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2;
+    const double c541 = 4.0*v_bucket_cyl_barrel_e2;
+    const double c542 = c519 + c541*bucket_cyl_barrel_e2;
+    const double c543 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y;
+    const double c544 = c512*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2;
+    const double c545 = c505*bucket_cyl_barrel_x - c505*bucket_cyl_rod_x;
+    const double c546 = c526 - c524 - c525;
+    const double c547 = c511*bucket_cyl_barrel_e2;
+    const double c548 = c512*bucket_cyl_barrel_e3;
+    const double c549 = c504*bucket_cyl_barrel_e0 + c505*bucket_cyl_barrel_e1;
+    const double c550 = c547 + c548 + c549;
+    const double c551 = -c546;
+    const double c552 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x;
+    const double c553 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z;
+    const double c554 = c511*bucket_cyl_barrel_x - c511*bucket_cyl_rod_x;
+    const double c555 = c504*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1;
+    const double c556 = 4.0*v_bucket_cyl_barrel_e3;
+    const double c557 = c519 + c556*bucket_cyl_barrel_e3;
+    const double c558 = c530 + c531 + c532;
+    const double c559 = c549 - c547 - c548;
+    const double c560 = -c559;
+    const double c561 = (2.0)*bucket_cyl_rod_a02;
+    const double c562 = (2.0)*bucket_cyl_rod_a22;
+    const double c563 = (2.0)*bucket_cyl_barrel_a01;
+    const double c564 = (2.0)*bucket_cyl_barrel_a11;
+    const double c565 = (4.0)*bucket_cyl_rod_a12;
+    const double c566 = (4.0)*bucket_cyl_barrel_a21;
+    const double c567 = (2.0)*bucket_cyl_rod_e0;
+    const double c568 = (2.0)*v_bucket_cyl_rod_e0;
+    const double c569 = (2.0)*bucket_cyl_barrel_e0;
+    const double c570 = (2.0)*v_bucket_cyl_barrel_e0;
+    const double c571 = 1.645191449642404*p_side_link;
+    const double c572 = c571*v_side_link_e2;
+    const double c573 = c571*v_side_link_e3;
+    const double c574 = 2.2745066225654527*p_side_link;
+    const double c575 = -c572;
+    const double c576 = -c573;
+    const double c577 = 1.1372533112827263*p_side_link;
+    const double c578 = c577*v_side_link_e3;
+    const double c579 = c577*v_side_link_e2;
+    const double c580 = c577*v_side_link_e1;
+    const double c581 = 3.290382899284808*p_side_link;
+    out[51] = -c366*v_arm_e0 - c367*v_arm_e1 - v_arm_e0*(c366 + (9477.0/1250.0)*v_arm_e0) - v_arm_e1*(c367 + (9477.0/1250.0)*v_arm_e1);
+    out[52] = -v_arm_e0*(-21809.0/5000.0*v_arm_e1 + (9477.0/2500.0)*v_arm_e3) - v_arm_e1*(-c368 - 21809.0/5000.0*v_arm_e0) - v_arm_e2*(c367 + c369) - v_arm_e3*(c366 + (9477.0/2500.0)*v_arm_e0);
+    out[53] = -v_arm_e0*(c368 + (21809.0/2500.0)*v_arm_e0) - v_arm_e3*(c369 + (21809.0/2500.0)*v_arm_e3) - 9477.0/2500.0*v_arm_e1*v_arm_e3 + (9477.0/2500.0)*v_arm_e0*v_arm_e2;
+    out[54] = -c384*(-c380*v_bucket_e1 - c381*v_bucket_e0 + 2.0*bucket_e2*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e2) - c390*(c386 + 4.0*bucket_e3*v_bucket_e3) - c394*(c393 + c381*v_bucket_e3 + c391*v_bucket_e1) - v_arm_e0*(c376*v_arm_e0 + c371*v_arm_e1 - c370*v_arm_e3) - v_arm_e1*(c370*v_arm_e2 + c371*v_arm_e0) - v_arm_e2*(c376*v_arm_e2 + c370*v_arm_e1 + c371*v_arm_e3) - v_arm_e3*(-c370*v_arm_e0 + 2.0*bucket_a22*v_arm_e2) - v_bucket_e0*(-c377 + c378*v_bucket_e0 + c372*v_bucket_e2) - v_bucket_e1*(-c374 + c372*v_bucket_e3) - v_bucket_e2*(c375 + c372*v_bucket_e0) - v_bucket_e3*(c379 + c378*v_bucket_e3 + c372*v_bucket_e1);
+    out[55] = -c384*(c380*v_bucket_e3 + c381*v_bucket_e2 + c391*v_bucket_e0 + c392*v_bucket_e1) - c390*(-c393 + 2.0*bucket_e1*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e1) - c394*(c386 + c398*bucket_e1) - v_arm_e0*(c382*bucket_a10 + c397*v_arm_e1 - c396*v_arm_e3) - v_arm_e1*(c388*bucket_a20 + c389*bucket_a00) - v_arm_e2*(c383*bucket_a10 + c396*v_arm_e1 + c397*v_arm_e3) - v_arm_e3*(-c388*bucket_a00 + 2.0*bucket_a20*v_arm_e2) - v_bucket_e0*(c375 + c385*arm_a01 - c395*v_bucket_e2) - v_bucket_e1*(c379 + c395*v_bucket_e3 + c398*arm_a01) - v_bucket_e2*(c377 - c395*v_bucket_e0) - v_bucket_e3*(c374 + c395*v_bucket_e1);
+    out[56] = -c399*v_arm_e0 - c400*v_arm_e1 - v_arm_e0*(c399 + (7877.0/1250.0)*v_arm_e0) - v_arm_e1*(c400 + (7877.0/1250.0)*v_arm_e1);
+    out[57] = -v_arm_e0*(-18799.0/5000.0*v_arm_e1 + (7877.0/2500.0)*v_arm_e3) - v_arm_e1*(-c401 - 18799.0/5000.0*v_arm_e0) - v_arm_e2*(c400 + c402) - v_arm_e3*(c399 + (7877.0/2500.0)*v_arm_e0);
+    out[58] = -v_arm_e0*(c401 + (18799.0/2500.0)*v_arm_e0) - v_arm_e3*(c402 + (18799.0/2500.0)*v_arm_e3) - 7877.0/2500.0*v_arm_e1*v_arm_e3 + (7877.0/2500.0)*v_arm_e0*v_arm_e2;
+    out[59] = -c417*(-c413*v_side_link_e1 - c414*v_side_link_e0 + 2.0*side_link_e2*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e2) - c423*(c419 + 4.0*side_link_e3*v_side_link_e3) - c427*(c426 + c414*v_side_link_e3 + c424*v_side_link_e1) - v_arm_e0*(c409*v_arm_e0 + c404*v_arm_e1 - c403*v_arm_e3) - v_arm_e1*(c403*v_arm_e2 + c404*v_arm_e0) - v_arm_e2*(c409*v_arm_e2 + c403*v_arm_e1 + c404*v_arm_e3) - v_arm_e3*(-c403*v_arm_e0 + 2.0*side_link_a22*v_arm_e2) - v_side_link_e0*(-c410 + c411*v_side_link_e0 + c405*v_side_link_e2) - v_side_link_e1*(-c407 + c405*v_side_link_e3) - v_side_link_e2*(c408 + c405*v_side_link_e0) - v_side_link_e3*(c412 + c411*v_side_link_e3 + c405*v_side_link_e1);
+    out[60] = -c417*(c413*v_side_link_e3 + c414*v_side_link_e2 + c424*v_side_link_e0 + c425*v_side_link_e1) - c423*(-c426 + 2.0*side_link_e1*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e1) - c427*(c419 + c431*side_link_e1) - v_arm_e0*(c415*side_link_a10 + c430*v_arm_e1 - c429*v_arm_e3) - v_arm_e1*(c421*side_link_a20 + c422*side_link_a00) - v_arm_e2*(c416*side_link_a10 + c429*v_arm_e1 + c430*v_arm_e3) - v_arm_e3*(-c421*side_link_a00 + 2.0*side_link_a20*v_arm_e2) - v_side_link_e0*(c408 + c418*arm_a01 - c428*v_side_link_e2) - v_side_link_e1*(c412 + c428*v_side_link_e3 + c431*arm_a01) - v_side_link_e2*(c410 - c428*v_side_link_e0) - v_side_link_e3*(c407 + c428*v_side_link_e1);
+    out[61] = -c433*v_bucket_link_e0 - c434*v_bucket_link_e1 - v_side_link_e0*(-c437 - c436*v_side_link_e0) - v_side_link_e1*(-c438 - c436*v_side_link_e1) - v_bucket_link_e0*(c433 + c439*v_bucket_link_e0) - v_bucket_link_e1*(c434 + c439*v_bucket_link_e1) - c435*v_side_link_e0*v_side_link_e2 - c435*v_side_link_e1*v_side_link_e3;
+    out[62] = -v_side_link_e0*(-c435*v_side_link_e1 - c440*v_side_link_e3) - v_side_link_e1*(-c441 - c435*v_side_link_e0) - v_side_link_e2*(-c442 - c438) - v_side_link_e3*(-c437 - c440*v_side_link_e0) - v_bucket_link_e0*(-c432*v_bucket_link_e1 + 1.2098706166509*p_bucket_link*v_bucket_link_e3) - v_bucket_link_e1*(-c444 - c432*v_bucket_link_e0) - v_bucket_link_e2*(c445 + c434) - v_bucket_link_e3*(c433 + c443*v_bucket_link_e0);
+    out[63] = -c441*v_side_link_e0 - v_side_link_e0*(c441 + 3.290382899284808*p_side_link*v_side_link_e0) - v_side_link_e3*(-c442 + 3.290382899284808*p_side_link*v_side_link_e3) - v_bucket_link_e0*(c444 + c446*v_bucket_link_e0) - v_bucket_link_e3*(c445 + c446*v_bucket_link_e3) - c443*v_bucket_link_e1*v_bucket_link_e3 + 1.1372533112827263*p_side_link*v_side_link_e1*v_side_link_e3 + 1.2098706166509*p_bucket_link*v_bucket_link_e0*v_bucket_link_e2;
+    out[64] = c448*v_bucket_e0 + c449*v_bucket_e1 - v_bucket_e0*(-c448 - c450*v_bucket_e0) - v_bucket_e1*(-c449 - c450*v_bucket_e1);
+    out[65] = -v_bucket_e0*(-c451*v_bucket_e3 + 2.0*p_K_z*v_bucket_e1) - v_bucket_e1*(-c452 + 2.0*p_K_z*v_bucket_e0) - v_bucket_e2*(-c449 - c453) - v_bucket_e3*(-c448 - c451*v_bucket_e0);
+    out[66] = -c452*v_bucket_e0 - v_bucket_e0*(c452 - c454*v_bucket_e0) - v_bucket_e3*(-c453 - c454*v_bucket_e3) + 2.0*p_K_x*v_bucket_e1*v_bucket_e3;
+    out[67] = -v_bucket_link_e0*(c486*bucket_a01 + c487*bucket_a11 + c488*bucket_a21) - v_bucket_link_e1*(c465*bucket_a01 + c467*bucket_a11 - c464*bucket_a21) - v_bucket_link_e2*(c459*bucket_a01 + c460*bucket_a21 + c463*bucket_a11) - v_bucket_link_e3*(c468*bucket_a01 + c470*bucket_a11 + c471*bucket_a21) - v_bucket_e0*(c458*v_bucket_e1 + c455*v_bucket_e3 - c457*v_bucket_e3 - c472*v_bucket_e0 - c456*v_bucket_e1 + (2.4197412333043764)*bucket_link_a12*v_bucket_e0) - v_bucket_e1*(-c455*v_bucket_e2 - c456*v_bucket_e0 + (1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0) - v_bucket_e2*(-c472*v_bucket_e2 - c455*v_bucket_e1 - c456*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3) - v_bucket_e3*(c458*v_bucket_e2 + c455*v_bucket_e0 - c457*v_bucket_e0 - c456*v_bucket_e2) - (c473 + 4.0*bucket_link_e1*v_bucket_link_e1)*((1.5925492428686951)*c474 + (1.5925492428686951)*c475 - 1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1) - (c473 + 4.0*bucket_link_e3*v_bucket_link_e3)*((1.2098706166521882)*c476 + (1.2098706166521882)*c477 + (1.2098706166521882)*c478 + (1.2098706166521882)*c479) - (4.0*c480 + 4.0*c481)*(c463*bucket_link_e2 + c467*bucket_link_e1 + c470*bucket_link_e3 + c487*bucket_link_e0) - (-3.1850984857373903*c480 - 3.1850984857373903*c481)*(c482*v_bucket_link_e3 + c483*v_bucket_link_e2 + c484*v_bucket_link_e1 + c485*v_bucket_link_e0) - ((2.4197412333043764)*c480 + (2.4197412333043764)*c481)*(-c482*v_bucket_link_e1 - c483*v_bucket_link_e0 + 2.0*bucket_link_e2*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e2) - (c489 + c483*v_bucket_link_e3 + c485*v_bucket_link_e1)*(-1.2098706166521882*c474 - 1.2098706166521882*c475 + (1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1) - (-c489 + 2.0*bucket_link_e1*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e1)*(-1.5925492428686951*c476 - 1.5925492428686951*c477 - 1.5925492428686951*c478 - 1.5925492428686951*c479) - (-2.0*c474 - 2.0*c475 + 2.0*bucket_e1*v_bucket_e2 + 2.0*bucket_e2*v_bucket_e1)*(c459*bucket_link_e2 + c465*bucket_link_e1 + c468*bucket_link_e3 + c486*bucket_link_e0) - (2.0*c476 + 2.0*c477 + 2.0*c478 + 2.0*c479)*(c460*bucket_link_e2 + c471*bucket_link_e3 + c488*bucket_link_e0 - c464*bucket_link_e1);
+    out[68] = -v_arm_e0*(-c490 - 24687.0/25000.0*v_arm_e0) - v_arm_e1*(-c491 - 24687.0/25000.0*v_arm_e1) - 36797.0/25000.0*v_arm_e0*v_arm_e2 - 36797.0/25000.0*v_arm_e1*v_arm_e3;
+    out[69] = -v_arm_e0*(-36797.0/25000.0*v_arm_e1 - 24687.0/50000.0*v_arm_e3) - v_arm_e1*(-c492 - 36797.0/25000.0*v_arm_e0) - v_arm_e2*(-c491 - c493) - v_arm_e3*(-c490 - 24687.0/50000.0*v_arm_e0);
+    out[70] = -c492*v_arm_e0 - v_arm_e0*(c492 + (36797.0/12500.0)*v_arm_e0) - v_arm_e3*(-c493 + (36797.0/12500.0)*v_arm_e3) + (24687.0/50000.0)*v_arm_e1*v_arm_e3;
+    out[71] = -v_arm_e0*(c495*v_arm_e1 + c498*v_arm_e0 - c494*v_arm_e3) - v_arm_e1*(c494*v_arm_e2 + c495*v_arm_e0) - v_arm_e2*(c494*v_arm_e1 + c495*v_arm_e3 + c498*v_arm_e2) - v_arm_e3*(-c494*v_arm_e0 + 2.0*bucket_cyl_barrel_a22*v_arm_e2) - v_bucket_cyl_barrel_e0*(c496*v_bucket_cyl_barrel_e2 + c499*v_bucket_cyl_barrel_e0 - c497*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e1*(c496*v_bucket_cyl_barrel_e3 - c497*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c496*v_bucket_cyl_barrel_e0 + c497*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c496*v_bucket_cyl_barrel_e1 + c497*v_bucket_cyl_barrel_e2 + c499*v_bucket_cyl_barrel_e3) - 2.0*(4.0*arm_e0*v_arm_e0 + 4.0*arm_e2*v_arm_e2)*(-c500*v_bucket_cyl_barrel_e1 - c501*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - 2.0*(4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(c502*v_arm_e1 + c503*arm_e1 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - 2.0*(c500*v_bucket_cyl_barrel_e2 + c501*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1)*(-c502*v_arm_e3 - c503*arm_e3 + 2.0*arm_e1*v_arm_e2 + 2.0*arm_e2*v_arm_e1);
+    out[72] = -c521*(-c516*v_bucket_cyl_rod_e3 - c517*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1) - c527*(c523 + 4.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - c533*(c529 + c528*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3) - v_bucket_cyl_barrel_e0*(c510*v_bucket_cyl_barrel_e0 + c511*bucket_cyl_rod_a11 - c512*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e1*(c510*v_bucket_cyl_barrel_e1 + c511*bucket_cyl_rod_a21 + c512*bucket_cyl_rod_a11) - v_bucket_cyl_barrel_e2*(c504*bucket_cyl_rod_a11 - c505*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e3*(c504*bucket_cyl_rod_a21 + c505*bucket_cyl_rod_a11) - v_bucket_cyl_rod_e0*(-c513 + c514*v_bucket_cyl_rod_e0 + c508*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c507 + c508*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c515 + c514*v_bucket_cyl_rod_e2 + c508*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(-c509 + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2);
+    out[73] = -c521*c538 - c527*c540 - c533*c539 - v_bucket_cyl_barrel_e0*(c518*bucket_cyl_rod_a02 + c511*bucket_cyl_rod_a12 - c512*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e1*(c520*bucket_cyl_rod_a02 + c511*bucket_cyl_rod_a22 + c512*bucket_cyl_rod_a12) - v_bucket_cyl_barrel_e2*(c504*bucket_cyl_rod_a12 - c505*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e3*(c504*bucket_cyl_rod_a22 + c505*bucket_cyl_rod_a12) - v_bucket_cyl_rod_e0*(c507 + c522*bucket_cyl_barrel_a20 - c534*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c513 - c517*bucket_cyl_barrel_a10) - v_bucket_cyl_rod_e2*(c509 + c534*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c515 + c528*bucket_cyl_barrel_a10 + c535*bucket_cyl_barrel_a20);
+    out[74] = c542*v_bucket_cyl_barrel_y + c550*v_bucket_cyl_barrel_z - c542*c543 - c542*v_bucket_cyl_rod_y - c546*v_bucket_cyl_barrel_x - c550*c553 - c550*v_bucket_cyl_rod_z - c551*c552 - c551*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(c554 + c504*bucket_cyl_rod_z + c518*bucket_cyl_rod_y - c504*bucket_cyl_barrel_z - c518*bucket_cyl_barrel_y) - v_bucket_cyl_barrel_e1*(-c544 - c505*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c555 - c541*bucket_cyl_barrel_y - c511*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(c545 + c512*bucket_cyl_rod_z - c512*bucket_cyl_barrel_z);
+    out[75] = c557*v_bucket_cyl_barrel_z + c558*v_bucket_cyl_barrel_x - c543*c560 - c552*c558 - c553*c557 - c557*v_bucket_cyl_rod_z - c558*v_bucket_cyl_rod_x - c559*v_bucket_cyl_barrel_y - c560*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(-c544 - c504*bucket_cyl_rod_y - c518*bucket_cyl_barrel_z + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c554 - c505*bucket_cyl_rod_y + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c545 - c511*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(-c555 - c556*bucket_cyl_barrel_z - c512*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3);
+    out[76] = -c538*(-c569*v_bucket_cyl_barrel_e3 - c570*bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1) - c539*(c569*v_bucket_cyl_barrel_e1 + c570*bucket_cyl_barrel_e1 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - c540*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c542*(-c567*v_bucket_cyl_rod_e1 - c568*bucket_cyl_rod_e1 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2) - c550*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c551*((2.0)*c536 + (2.0)*c537 + c567*v_bucket_cyl_rod_e2 + c568*bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(c562*v_bucket_cyl_barrel_e1 + c565*v_bucket_cyl_barrel_e0 - c561*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e1*(c561*v_bucket_cyl_barrel_e2 + c562*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c561*v_bucket_cyl_barrel_e1 + c562*v_bucket_cyl_barrel_e3 + c565*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(-c561*v_bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2) - v_bucket_cyl_rod_e0*(c563*v_bucket_cyl_rod_e2 + c566*v_bucket_cyl_rod_e0 - c564*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c563*v_bucket_cyl_rod_e3 - c564*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c563*v_bucket_cyl_rod_e0 + c564*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c563*v_bucket_cyl_rod_e1 + c564*v_bucket_cyl_rod_e2 + c566*v_bucket_cyl_rod_e3);
+    out[77] = c572*v_side_link_e0 + c573*v_side_link_e1 - v_side_link_e0*(c575 + c574*v_side_link_e0) - v_side_link_e1*(c576 + c574*v_side_link_e1);
+    out[78] = -v_side_link_e0*(c578 + c571*v_side_link_e1) - v_side_link_e1*(c579 + c571*v_side_link_e0) - v_side_link_e2*(c576 + c580) - v_side_link_e3*(c575 + c577*v_side_link_e0);
+    out[79] = -c578*v_side_link_e1 - v_side_link_e0*(-c579 - c581*v_side_link_e0) - v_side_link_e3*(c580 - c581*v_side_link_e3) + 1.1372533112827263*p_side_link*v_side_link_e0*v_side_link_e2;
     out[80] = -2.0*(v_upper_e0*v_upper_e0) - 2.0*(v_upper_e1*v_upper_e1) - 2.0*(v_upper_e2*v_upper_e2) - 2.0*(v_upper_e3*v_upper_e3);
     out[81] = -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3);
     out[82] = -2.0*(v_boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0) - 2.0*(v_boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1) - 2.0*(v_boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - 2.0*(v_boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3);
     out[83] = -2.0*(v_boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0) - 2.0*(v_boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e1) - 2.0*(v_boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e2) - 2.0*(v_boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3);
     out[84] = -2.0*(v_boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0) - 2.0*(v_boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e1) - 2.0*(v_boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - 2.0*(v_boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3);
+}
+
+/* gamma of the joint rows (they do not depend on time). Rows 85 to 93. */
+void excavator_euler_parameters_compute_joints_gamma_part3(const double *q, const double *v, const double *p, double *out) {
+    (void)q;
+    const double v_boom_cyl_r_rod_e0 = v[38];
+    const double v_boom_cyl_r_rod_e1 = v[39];
+    const double v_boom_cyl_r_rod_e2 = v[40];
+    const double v_boom_cyl_r_rod_e3 = v[41];
+    const double v_arm_e0 = v[45];
+    const double v_arm_e1 = v[46];
+    const double v_arm_e2 = v[47];
+    const double v_arm_e3 = v[48];
+    const double v_arm_cyl_barrel_e0 = v[52];
+    const double v_arm_cyl_barrel_e1 = v[53];
+    const double v_arm_cyl_barrel_e2 = v[54];
+    const double v_arm_cyl_barrel_e3 = v[55];
+    const double v_arm_cyl_rod_e0 = v[59];
+    const double v_arm_cyl_rod_e1 = v[60];
+    const double v_arm_cyl_rod_e2 = v[61];
+    const double v_arm_cyl_rod_e3 = v[62];
+    const double v_bucket_cyl_barrel_e0 = v[66];
+    const double v_bucket_cyl_barrel_e1 = v[67];
+    const double v_bucket_cyl_barrel_e2 = v[68];
+    const double v_bucket_cyl_barrel_e3 = v[69];
+    const double v_bucket_cyl_rod_e0 = v[73];
+    const double v_bucket_cyl_rod_e1 = v[74];
+    const double v_bucket_cyl_rod_e2 = v[75];
+    const double v_bucket_cyl_rod_e3 = v[76];
+    const double v_side_link_e0 = v[80];
+    const double v_side_link_e1 = v[81];
+    const double v_side_link_e2 = v[82];
+    const double v_side_link_e3 = v[83];
+    const double v_bucket_link_e0 = v[87];
+    const double v_bucket_link_e1 = v[88];
+    const double v_bucket_link_e2 = v[89];
+    const double v_bucket_link_e3 = v[90];
+    const double v_bucket_e0 = v[94];
+    const double v_bucket_e1 = v[95];
+    const double v_bucket_e2 = v[96];
+    const double v_bucket_e3 = v[97];
+    (void)p;
     out[85] = -2.0*(v_boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0) - 2.0*(v_boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e1) - 2.0*(v_boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - 2.0*(v_boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3);
     out[86] = -2.0*(v_arm_e0*v_arm_e0) - 2.0*(v_arm_e1*v_arm_e1) - 2.0*(v_arm_e2*v_arm_e2) - 2.0*(v_arm_e3*v_arm_e3);
     out[87] = -2.0*(v_arm_cyl_barrel_e0*v_arm_cyl_barrel_e0) - 2.0*(v_arm_cyl_barrel_e1*v_arm_cyl_barrel_e1) - 2.0*(v_arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - 2.0*(v_arm_cyl_barrel_e3*v_arm_cyl_barrel_e3);
@@ -2776,7 +2903,7 @@ void excavator_euler_parameters_compute_joints_gamma_part2(const double *q, cons
 }
 
 /* gamma of the driver rows of case 'digging'. */
-void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -2847,6 +2974,7 @@ void excavator_euler_parameters_compute_drivers_gamma_digging(const double *q, c
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
@@ -2924,7 +3052,7 @@ void excavator_euler_parameters_compute_inputs_digging(double t, double *out) {
 }
 
 /* Phi of the driver rows of case 'level_cut'. */
-void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_x = q[91];
@@ -2937,6 +3065,7 @@ void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, c
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
@@ -2949,13 +3078,14 @@ void excavator_euler_parameters_compute_drivers_phi_level_cut(const double *q, c
 }
 
 /* Phi_q values of the driver rows of case 'level_cut'. */
-void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, const double *u, const double *p, double *out) {
     const double bucket_e0 = q[94];
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
     const double u0 = u[0];
     const double u3 = u[3];
+    (void)p;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(u3);
     const double d2 = 2.0*cos(u3);
@@ -2978,7 +3108,7 @@ void excavator_euler_parameters_compute_drivers_jac_level_cut(const double *q, c
 }
 
 /* nu of the driver rows of case 'level_cut'. */
-void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -2991,6 +3121,7 @@ void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, co
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
@@ -3001,7 +3132,7 @@ void excavator_euler_parameters_compute_drivers_nu_level_cut(const double *q, co
 }
 
 /* gamma of the driver rows of case 'level_cut'. */
-void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -3022,6 +3153,7 @@ void excavator_euler_parameters_compute_drivers_gamma_level_cut(const double *q,
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
@@ -3061,7 +3193,7 @@ void excavator_euler_parameters_compute_inputs_level_cut(double t, double *out) 
 }
 
 /* Phi of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_x = q[91];
@@ -3074,6 +3206,7 @@ void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q,
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double bucket_a00 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e1*bucket_e1);
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a20 = -2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
@@ -3086,13 +3219,14 @@ void excavator_euler_parameters_compute_drivers_phi_trench_wall(const double *q,
 }
 
 /* Phi_q values of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q, const double *u, const double *p, double *out) {
     const double bucket_e0 = q[94];
     const double bucket_e1 = q[95];
     const double bucket_e2 = q[96];
     const double bucket_e3 = q[97];
     const double u0 = u[0];
     const double u3 = u[3];
+    (void)p;
     const double d0 = (1.0/2.0)*u0;
     const double d1 = sin(u3);
     const double d2 = 2.0*cos(u3);
@@ -3115,7 +3249,7 @@ void excavator_euler_parameters_compute_drivers_jac_trench_wall(const double *q,
 }
 
 /* nu of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -3128,6 +3262,7 @@ void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, 
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
@@ -3138,7 +3273,7 @@ void excavator_euler_parameters_compute_drivers_nu_trench_wall(const double *q, 
 }
 
 /* gamma of the driver rows of case 'trench_wall'. */
-void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double bucket_e0 = q[94];
@@ -3159,6 +3294,7 @@ void excavator_euler_parameters_compute_drivers_gamma_trench_wall(const double *
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double bucket_a02 = 2.0*bucket_e0*bucket_e2 + 2.0*bucket_e1*bucket_e3;
     const double bucket_a22 = -1.0 + 2.0*(bucket_e0*bucket_e0) + 2.0*(bucket_e3*bucket_e3);
     const double c0 = (1.0/2.0)*u0;
@@ -3198,7 +3334,7 @@ void excavator_euler_parameters_compute_inputs_trench_wall(double t, double *out
 }
 
 /* Phi of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3235,6 +3371,7 @@ void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
@@ -3252,7 +3389,7 @@ void excavator_euler_parameters_compute_drivers_phi_bucket_toggle(const double *
 }
 
 /* Phi_q values of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, double *out) {
+void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *q, const double *u, const double *p, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
     const double boom_cyl_l_barrel_z = q[16];
@@ -3284,6 +3421,7 @@ void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
+    (void)p;
     const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
@@ -3347,7 +3485,7 @@ void excavator_euler_parameters_compute_drivers_jac_bucket_toggle(const double *
 }
 
 /* nu of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double u0 = u[0];
@@ -3355,6 +3493,7 @@ void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0));
     out[1] = ud1;
@@ -3363,7 +3502,7 @@ void excavator_euler_parameters_compute_drivers_nu_bucket_toggle(const double *q
 }
 
 /* gamma of the driver rows of case 'bucket_toggle'. */
-void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3434,6 +3573,7 @@ void excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(const double
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
@@ -3489,8 +3629,8 @@ void excavator_euler_parameters_compute_inputs_bucket_toggle(double t, double *o
     out[11] = 0.0;
 }
 
-/* Phi of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, double *out) {
+/* Phi of the driver rows of case 'bucket_stroke'. */
+void excavator_euler_parameters_compute_drivers_phi_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3527,6 +3667,7 @@ void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const dou
     const double u1 = u[1];
     const double u2 = u[2];
     const double u3 = u[3];
+    (void)p;
     const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
@@ -3543,8 +3684,8 @@ void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const dou
     out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
 }
 
-/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, double *out) {
+/* Phi_q values of the driver rows of case 'bucket_stroke'. */
+void excavator_euler_parameters_compute_drivers_jac_bucket_stroke(const double *q, const double *u, const double *p, double *out) {
     const double boom_cyl_l_barrel_x = q[14];
     const double boom_cyl_l_barrel_y = q[15];
     const double boom_cyl_l_barrel_z = q[16];
@@ -3576,6 +3717,307 @@ void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const dou
     const double bucket_cyl_rod_y = q[71];
     const double bucket_cyl_rod_z = q[72];
     const double u0 = u[0];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
+    const double d0 = (1.0/2.0)*u0;
+    const double d1 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
+    const double d2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double d3 = 2.0*boom_cyl_l_barrel_e2;
+    const double d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double d5 = 2.0*boom_cyl_l_barrel_e3;
+    const double d6 = 2.0*boom_cyl_l_barrel_e0;
+    const double d7 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
+    const double d8 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double d9 = 2.0*arm_cyl_barrel_e2;
+    const double d10 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double d11 = 2.0*arm_cyl_barrel_e3;
+    const double d12 = 2.0*arm_cyl_barrel_e0;
+    const double d13 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
+    const double d14 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double d15 = 2.0*bucket_cyl_barrel_e2;
+    const double d16 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double d17 = 2.0*bucket_cyl_barrel_e3;
+    const double d18 = 2.0*bucket_cyl_barrel_e0;
+    out[0] = 2.0*sin(d0);
+    out[1] = -2.0*cos(d0);
+    out[2] = -boom_cyl_l_barrel_a00;
+    out[3] = -boom_cyl_l_barrel_a10;
+    out[4] = -boom_cyl_l_barrel_a20;
+    out[5] = d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3;
+    out[6] = d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4;
+    out[7] = -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1;
+    out[8] = d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1;
+    out[9] = boom_cyl_l_barrel_a00;
+    out[10] = boom_cyl_l_barrel_a10;
+    out[11] = boom_cyl_l_barrel_a20;
+    out[12] = -arm_cyl_barrel_a00;
+    out[13] = -arm_cyl_barrel_a10;
+    out[14] = -arm_cyl_barrel_a20;
+    out[15] = d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9;
+    out[16] = d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10;
+    out[17] = -d8*d12 + 2.0*d10*arm_cyl_barrel_e1;
+    out[18] = d10*d12 + 2.0*d8*arm_cyl_barrel_e1;
+    out[19] = arm_cyl_barrel_a00;
+    out[20] = arm_cyl_barrel_a10;
+    out[21] = arm_cyl_barrel_a20;
+    out[22] = -bucket_cyl_barrel_a00;
+    out[23] = -bucket_cyl_barrel_a10;
+    out[24] = -bucket_cyl_barrel_a20;
+    out[25] = d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15;
+    out[26] = d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16;
+    out[27] = -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1;
+    out[28] = d16*d18 + 2.0*d14*bucket_cyl_barrel_e1;
+    out[29] = bucket_cyl_barrel_a00;
+    out[30] = bucket_cyl_barrel_a10;
+    out[31] = bucket_cyl_barrel_a20;
+}
+
+/* nu of the driver rows of case 'bucket_stroke'. */
+void excavator_euler_parameters_compute_drivers_nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_e0 = q[3];
+    const double upper_e3 = q[6];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double ud1 = ud[1];
+    const double ud2 = ud[2];
+    const double ud3 = ud[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0));
+    out[1] = ud1;
+    out[2] = ud2;
+    out[3] = ud3;
+}
+
+/* gamma of the driver rows of case 'bucket_stroke'. */
+void excavator_euler_parameters_compute_drivers_gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_e0 = q[3];
+    const double upper_e3 = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_e0 = q[17];
+    const double boom_cyl_l_barrel_e1 = q[18];
+    const double boom_cyl_l_barrel_e2 = q[19];
+    const double boom_cyl_l_barrel_e3 = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_e0 = q[52];
+    const double arm_cyl_barrel_e1 = q[53];
+    const double arm_cyl_barrel_e2 = q[54];
+    const double arm_cyl_barrel_e3 = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_e0 = q[66];
+    const double bucket_cyl_barrel_e1 = q[67];
+    const double bucket_cyl_barrel_e2 = q[68];
+    const double bucket_cyl_barrel_e3 = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double v_upper_e0 = v[3];
+    const double v_upper_e3 = v[6];
+    const double v_boom_cyl_l_barrel_x = v[14];
+    const double v_boom_cyl_l_barrel_y = v[15];
+    const double v_boom_cyl_l_barrel_z = v[16];
+    const double v_boom_cyl_l_barrel_e0 = v[17];
+    const double v_boom_cyl_l_barrel_e1 = v[18];
+    const double v_boom_cyl_l_barrel_e2 = v[19];
+    const double v_boom_cyl_l_barrel_e3 = v[20];
+    const double v_boom_cyl_l_rod_x = v[21];
+    const double v_boom_cyl_l_rod_y = v[22];
+    const double v_boom_cyl_l_rod_z = v[23];
+    const double v_arm_cyl_barrel_x = v[49];
+    const double v_arm_cyl_barrel_y = v[50];
+    const double v_arm_cyl_barrel_z = v[51];
+    const double v_arm_cyl_barrel_e0 = v[52];
+    const double v_arm_cyl_barrel_e1 = v[53];
+    const double v_arm_cyl_barrel_e2 = v[54];
+    const double v_arm_cyl_barrel_e3 = v[55];
+    const double v_arm_cyl_rod_x = v[56];
+    const double v_arm_cyl_rod_y = v[57];
+    const double v_arm_cyl_rod_z = v[58];
+    const double v_bucket_cyl_barrel_x = v[63];
+    const double v_bucket_cyl_barrel_y = v[64];
+    const double v_bucket_cyl_barrel_z = v[65];
+    const double v_bucket_cyl_barrel_e0 = v[66];
+    const double v_bucket_cyl_barrel_e1 = v[67];
+    const double v_bucket_cyl_barrel_e2 = v[68];
+    const double v_bucket_cyl_barrel_e3 = v[69];
+    const double v_bucket_cyl_rod_x = v[70];
+    const double v_bucket_cyl_rod_y = v[71];
+    const double v_bucket_cyl_rod_z = v[72];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    const double udd1 = udd[1];
+    const double udd2 = udd[2];
+    const double udd3 = udd[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = cos(c0);
+    const double c2 = sin(c0);
+    const double c3 = 4.0*v_boom_cyl_l_barrel_e0;
+    const double c4 = 4.0*v_boom_cyl_l_barrel_e1;
+    const double c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1;
+    const double c6 = 2.0*v_boom_cyl_l_barrel_e1;
+    const double c7 = 2.0*v_boom_cyl_l_barrel_e0;
+    const double c8 = 2.0*v_boom_cyl_l_barrel_e3;
+    const double c9 = 2.0*v_boom_cyl_l_barrel_e2;
+    const double c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1;
+    const double c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1;
+    const double c12 = -c11;
+    const double c13 = 4.0*v_arm_cyl_barrel_e0;
+    const double c14 = 4.0*v_arm_cyl_barrel_e1;
+    const double c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1;
+    const double c16 = 2.0*v_arm_cyl_barrel_e1;
+    const double c17 = 2.0*v_arm_cyl_barrel_e0;
+    const double c18 = 2.0*v_arm_cyl_barrel_e3;
+    const double c19 = 2.0*v_arm_cyl_barrel_e2;
+    const double c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1;
+    const double c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1;
+    const double c22 = -c21;
+    const double c23 = 4.0*v_bucket_cyl_barrel_e0;
+    const double c24 = 4.0*v_bucket_cyl_barrel_e1;
+    const double c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1;
+    const double c26 = 2.0*v_bucket_cyl_barrel_e1;
+    const double c27 = 2.0*v_bucket_cyl_barrel_e0;
+    const double c28 = 2.0*v_bucket_cyl_barrel_e3;
+    const double c29 = 2.0*v_bucket_cyl_barrel_e2;
+    const double c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1;
+    const double c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1;
+    const double c32 = -c31;
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1.0/2.0)*c1*upper_e3 - 1.0/2.0*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3);
+    out[1] = udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
+    out[2] = udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
+    out[3] = udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
+}
+
+/* Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2. */
+void excavator_euler_parameters_compute_inputs_bucket_stroke(double t, double *out) {
+    out[0] = 0.0;
+    out[1] = 626973.0/250000.0;
+    out[2] = 485803.0/250000.0;
+    out[3] = 16529.0/10000.0 + (2521.0/2500.0)*t;
+    out[4] = 0.0;
+    out[5] = 0.0;
+    out[6] = 0.0;
+    out[7] = 2521.0/2500.0;
+    out[8] = 0.0;
+    out[9] = 0.0;
+    out[10] = 0.0;
+    out[11] = 0.0;
+}
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
+
+/* Phi of the driver rows of case 'bucket_near_toggle'. */
+void excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
+    const double upper_e0 = q[3];
+    const double upper_e3 = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_e0 = q[17];
+    const double boom_cyl_l_barrel_e1 = q[18];
+    const double boom_cyl_l_barrel_e2 = q[19];
+    const double boom_cyl_l_barrel_e3 = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_e0 = q[52];
+    const double arm_cyl_barrel_e1 = q[53];
+    const double arm_cyl_barrel_e2 = q[54];
+    const double arm_cyl_barrel_e3 = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_e0 = q[66];
+    const double bucket_cyl_barrel_e1 = q[67];
+    const double bucket_cyl_barrel_e2 = q[68];
+    const double bucket_cyl_barrel_e3 = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double u0 = u[0];
+    const double u1 = u[1];
+    const double u2 = u[2];
+    const double u3 = u[3];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -2.0*upper_e3*cos(c0) + 2.0*upper_e0*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
+}
+
+/* Phi_q values of the driver rows of case 'bucket_near_toggle'. */
+void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *out) {
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_e0 = q[17];
+    const double boom_cyl_l_barrel_e1 = q[18];
+    const double boom_cyl_l_barrel_e2 = q[19];
+    const double boom_cyl_l_barrel_e3 = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_e0 = q[52];
+    const double arm_cyl_barrel_e1 = q[53];
+    const double arm_cyl_barrel_e2 = q[54];
+    const double arm_cyl_barrel_e3 = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_e0 = q[66];
+    const double bucket_cyl_barrel_e1 = q[67];
+    const double bucket_cyl_barrel_e2 = q[68];
+    const double bucket_cyl_barrel_e3 = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double u0 = u[0];
+    (void)p;
     const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
     const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
     const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
@@ -3639,7 +4081,7 @@ void excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(const dou
 }
 
 /* nu of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *out) {
+void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double u0 = u[0];
@@ -3647,6 +4089,7 @@ void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const doub
     const double ud1 = ud[1];
     const double ud2 = ud[2];
     const double ud3 = ud[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0));
     out[1] = ud1;
@@ -3655,7 +4098,7 @@ void excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(const doub
 }
 
 /* gamma of the driver rows of case 'bucket_near_toggle'. */
-void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *out) {
+void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
     const double upper_e0 = q[3];
     const double upper_e3 = q[6];
     const double boom_cyl_l_barrel_x = q[14];
@@ -3726,6 +4169,7 @@ void excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(const d
     const double udd1 = udd[1];
     const double udd2 = udd[2];
     const double udd3 = udd[3];
+    (void)p;
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
@@ -3782,10 +4226,6 @@ void excavator_euler_parameters_compute_inputs_bucket_near_toggle(double t, doub
     out[10] = 0.0;
     out[11] = -0.5798392585639998*c1;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 3
 
 /* Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, angular acceleration (24 values, global). Rows 0 to 191. */
 void excavator_euler_parameters_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
@@ -4655,29 +5095,30 @@ static void retract(double *q, const double *step) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging'. */
-static void phi_jac_digging(const double *q, const double *u, double *phi, double *jac) {
-    excavator_euler_parameters_compute_joints_phi(q, phi);
-    excavator_euler_parameters_compute_drivers_phi_digging(q, u, phi + 94);
-    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
-    excavator_euler_parameters_compute_drivers_jac_digging(q, u, jac + 611);
+static void phi_jac_digging(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_euler_parameters_compute_drivers_phi_digging(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_parameters_compute_drivers_jac_digging(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'digging' (zero in the joint rows). */
-static void nu_digging(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_digging(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_digging(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'. */
-static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, gamma + 94);
+static void gamma_digging(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_digging(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'digging' at time t: u, then du/dt, then d2u/dt2. */
@@ -4686,29 +5127,30 @@ static void inputs_digging(double t, double *inputs) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'level_cut'. */
-static void phi_jac_level_cut(const double *q, const double *u, double *phi, double *jac) {
-    excavator_euler_parameters_compute_joints_phi(q, phi);
-    excavator_euler_parameters_compute_drivers_phi_level_cut(q, u, phi + 94);
-    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
-    excavator_euler_parameters_compute_drivers_jac_level_cut(q, u, jac + 611);
+static void phi_jac_level_cut(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_euler_parameters_compute_drivers_phi_level_cut(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_parameters_compute_drivers_jac_level_cut(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'level_cut' (zero in the joint rows). */
-static void nu_level_cut(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_level_cut(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_level_cut(q, u, ud, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_level_cut(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'. */
-static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_level_cut(q, v, u, ud, udd, gamma + 94);
+static void gamma_level_cut(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_level_cut(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'level_cut' at time t: u, then du/dt, then d2u/dt2. */
@@ -4717,29 +5159,30 @@ static void inputs_level_cut(double t, double *inputs) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'trench_wall'. */
-static void phi_jac_trench_wall(const double *q, const double *u, double *phi, double *jac) {
-    excavator_euler_parameters_compute_joints_phi(q, phi);
-    excavator_euler_parameters_compute_drivers_phi_trench_wall(q, u, phi + 94);
-    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
-    excavator_euler_parameters_compute_drivers_jac_trench_wall(q, u, jac + 611);
+static void phi_jac_trench_wall(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_euler_parameters_compute_drivers_phi_trench_wall(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_parameters_compute_drivers_jac_trench_wall(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'trench_wall' (zero in the joint rows). */
-static void nu_trench_wall(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_trench_wall(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_trench_wall(q, u, ud, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_trench_wall(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'. */
-static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, gamma + 94);
+static void gamma_trench_wall(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_trench_wall(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'trench_wall' at time t: u, then du/dt, then d2u/dt2. */
@@ -4748,29 +5191,30 @@ static void inputs_trench_wall(double t, double *inputs) {
 }
 
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_toggle'. */
-static void phi_jac_bucket_toggle(const double *q, const double *u, double *phi, double *jac) {
-    excavator_euler_parameters_compute_joints_phi(q, phi);
-    excavator_euler_parameters_compute_drivers_phi_bucket_toggle(q, u, phi + 94);
-    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
-    excavator_euler_parameters_compute_drivers_jac_bucket_toggle(q, u, jac + 611);
+static void phi_jac_bucket_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_euler_parameters_compute_drivers_phi_bucket_toggle(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_parameters_compute_drivers_jac_bucket_toggle(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows). */
-static void nu_bucket_toggle(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_bucket_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_bucket_toggle(q, u, ud, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_bucket_toggle(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'. */
-static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, gamma + 94);
+static void gamma_bucket_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_bucket_toggle(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'bucket_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -4778,30 +5222,63 @@ static void inputs_bucket_toggle(double t, double *inputs) {
     excavator_euler_parameters_compute_inputs_bucket_toggle(t, inputs);
 }
 
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_stroke'. */
+static void phi_jac_bucket_stroke(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_euler_parameters_compute_drivers_phi_bucket_stroke(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_parameters_compute_drivers_jac_bucket_stroke(q, u, p, jac + 611);
+}
+
+/* nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows). */
+static void nu_bucket_stroke(const double *q, const double *u, const double *ud, const double *p, double *nu) {
+    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
+    excavator_euler_parameters_compute_drivers_nu_bucket_stroke(q, u, ud, p, nu + 94);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'. */
+static void gamma_bucket_stroke(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_bucket_stroke(q, v, u, ud, udd, p, gamma + 94);
+}
+
+/* Driver inputs of case 'bucket_stroke' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_bucket_stroke(double t, double *inputs) {
+    excavator_euler_parameters_compute_inputs_bucket_stroke(t, inputs);
+}
+
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'bucket_near_toggle'. */
-static void phi_jac_bucket_near_toggle(const double *q, const double *u, double *phi, double *jac) {
-    excavator_euler_parameters_compute_joints_phi(q, phi);
-    excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(q, u, phi + 94);
-    excavator_euler_parameters_compute_joints_jac_part0(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part1(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part2(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part3(q, jac);
-    excavator_euler_parameters_compute_joints_jac_part4(q, jac);
-    excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(q, u, jac + 611);
+static void phi_jac_bucket_near_toggle(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_euler_parameters_compute_drivers_phi_bucket_near_toggle(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_parameters_compute_drivers_jac_bucket_near_toggle(q, u, p, jac + 611);
 }
 
 /* nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows). */
-static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, double *nu) {
+static void nu_bucket_near_toggle(const double *q, const double *u, const double *ud, const double *p, double *nu) {
     for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
-    excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(q, u, ud, nu + 94);
+    excavator_euler_parameters_compute_drivers_nu_bucket_near_toggle(q, u, ud, p, nu + 94);
 }
 
 /* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'. */
-static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma) {
-    excavator_euler_parameters_compute_joints_gamma_part0(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part1(q, v, gamma);
-    excavator_euler_parameters_compute_joints_gamma_part2(q, v, gamma);
-    excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, gamma + 94);
+static void gamma_bucket_near_toggle(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p, gamma + 94);
 }
 
 /* Driver inputs of case 'bucket_near_toggle' at time t: u, then du/dt, then d2u/dt2. */
@@ -4858,12 +5335,14 @@ static const kinegen_actuator actuators[] = {
 };
 
 const kinegen_layout excavator_euler_parameters_layout = {
-    "excavator", "euler-parameters", "excavator.yaml", "cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c", "0.1.0",
+    "excavator", "euler-parameters", "excavator.yaml", "06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50", "0.1.0",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, EXCAVATOR_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_euler_parameters_frames,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.22767, 0.0, 1.95729, 0.9826937028898046, 0.0, 0.18523791809649656, 0.0, 0.68912, 0.32, 1.35478, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 2.253743682, 0.32, 3.314748116, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.68912, -0.32, 1.35478, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 2.253743682, -0.32, 3.314748116, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 5.777601761, 0.0, 3.004525931, 0.7487823326004931, 0.0, 0.6628159762599, 0.0, 3.372106626, 0.0, 3.718369089, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 5.315193587, 0.0, 3.74041308, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 6.478145341, 0.0, 3.338877801, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 7.974087195, 0.0, 2.237087009, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 7.834783629, 0.0, 1.668894271, 0.912012841994652, 0.0, 0.4101616462284567, 0.0, 8.355750886, 0.0, 1.819051598, 0.640244241850993, 0.0, 0.7681714071590059, 0.0, 8.172391163, 0.0, 1.387785479, 0.8349444950888361, 0.0, 0.5503341622331369, 0.0};
+/* design parameters C_x, C_z, F_x, F_z, boom_retracted, side_link, bucket_link, K_x, K_z: nominal values (the kernels' last argument p) */
+static const double design_nominal[] = {1.39283, 2.001922, -0.786562, -0.369691, 1.7352, 0.5850200596466757, 0.5660572218009412, -0.32404, 0.33854};
 
 /* ---- case digging ---- */
 static const char *const constraints_digging[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "upper.norm", "boom.norm", "boom_cyl_l_barrel.norm", "boom_cyl_l_rod.norm", "boom_cyl_r_barrel.norm", "boom_cyl_r_rod.norm", "arm.norm", "arm_cyl_barrel.norm", "arm_cyl_rod.norm", "bucket_cyl_barrel.norm", "bucket_cyl_rod.norm", "side_link.norm", "bucket_link.norm", "bucket.norm", "swing_angle", "boom_length", "arm_length", "bucket_length"};
@@ -4881,16 +5360,18 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 2
 static const int off_col_digging[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_digging[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 
-const kinegen_model excavator_euler_parameters_digging = {
+const kinegen_design_model excavator_euler_parameters_digging = { {
     &excavator_euler_parameters_layout, "digging",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
     0.0, 17.0, 341,
     initial_q, constraints_digging, drivers_digging, jac_rows_digging, jac_cols_digging,
-    phi_jac_digging, nu_digging, gamma_digging, inputs_digging, retract,
+    NULL, NULL, NULL, inputs_digging, retract,
     40, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
     610, 346, diag_value_digging, diag_slot_digging,
     297, off_start_digging, off_col_digging, off_value_digging,
     2530, 196,
+    }, 9, design_nominal, phi_jac_digging, nu_digging, gamma_digging,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case level_cut ---- */
@@ -4909,16 +5390,18 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20,
 static const int off_col_level_cut[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 7, 9, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 9, 16, 17, 21, 26, 19, 20, 24, 25, 27, 18, 20, 24, 25, 27, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 22, 28, 29, 30, 31, 23, 28, 29, 30, 31, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 3, 4, 5, 6, 10, 11, 12, 32, 33, 34, 10, 11, 12, 32, 33, 34, 3, 4, 5, 6, 13, 14, 15, 35, 36, 37, 13, 14, 15, 35, 36, 37, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 50, 51, 52, 53, 50, 51, 52, 53, 50, 51, 52, 53, 54, 55, 56, 57, 54, 55, 56, 57, 54, 55, 56, 57, 16, 17, 21, 26, 39, 40, 41, 42, 43, 58, 39, 40, 41, 42, 43, 58, 28, 29, 30, 31, 59, 70, 71, 72, 73, 70, 71, 72, 73, 70, 71, 72, 73, 20, 24, 25, 27, 20, 24, 25, 27, 44, 46, 60, 74, 45, 47, 28, 29, 30, 31, 45, 79, 80, 83, 85, 60, 79, 80, 83, 85, 44, 79, 80, 83, 85, 20, 24, 25, 27, 48, 49, 61, 87, 88, 89, 48, 49, 61, 87, 88, 89, 90, 91, 92, 93, 90, 91, 92, 93, 90, 91, 92, 93};
 static const int off_value_level_cut[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 45, 46, 47, 48, 49, 51, 52, 53, 54, 55, 57, 58, 59, 60, 61, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 221, 233, 127, 128, 129, 131, 130, 121, 122, 123, 125, 124, 115, 116, 117, 119, 118, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 227, 228, 229, 231, 230, 255, 256, 257, 259, 258, 261, 262, 263, 265, 264, 267, 268, 269, 271, 270, 337, 338, 339, 340, 341, 325, 326, 327, 328, 329, 377, 378, 379, 380, 381, 389, 390, 391, 392, 393, 442, 446, 444, 445, 443, 454, 458, 456, 457, 455, 467, 468, 469, 470, 471, 479, 480, 481, 482, 483, 63, 64, 65, 66, 87, 88, 89, 96, 95, 94, 97, 98, 99, 106, 105, 104, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 332, 333, 334, 335, 331, 350, 351, 352, 353, 349, 384, 385, 386, 387, 383, 474, 475, 476, 477, 473, 71, 73, 72, 74, 79, 81, 80, 82, 107, 109, 108, 110, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 273, 274, 276, 275, 297, 298, 299, 306, 304, 305, 307, 308, 309, 316, 314, 315, 452, 450, 451, 449, 448, 281, 284, 282, 283, 289, 292, 290, 291, 317, 320, 318, 319, 395, 396, 397, 398, 403, 404, 405, 406, 411, 416, 421, 426, 431, 436, 466, 464, 465, 463, 550, 551, 552, 554, 553, 544, 545, 546, 548, 547, 538, 539, 540, 542, 541, 485, 486, 487, 488, 509, 511, 510, 518, 517, 516, 519, 521, 520, 528, 527, 526, 493, 496, 494, 495, 501, 504, 502, 503, 529, 532, 530, 531};
 
-const kinegen_model excavator_euler_parameters_level_cut = {
+const kinegen_design_model excavator_euler_parameters_level_cut = { {
     &excavator_euler_parameters_layout, "level_cut",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 627,
     0.0, 4.0, 201,
     initial_q, constraints_level_cut, drivers_level_cut, jac_rows_level_cut, jac_cols_level_cut,
-    phi_jac_level_cut, nu_level_cut, gamma_level_cut, inputs_level_cut, retract,
+    NULL, NULL, NULL, inputs_level_cut, retract,
     49, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
     502, 312, diag_value_level_cut, diag_slot_level_cut,
     315, off_start_level_cut, off_col_level_cut, off_value_level_cut,
     2424, 196,
+    }, 9, design_nominal, phi_jac_level_cut, nu_level_cut, gamma_level_cut,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case trench_wall ---- */
@@ -4937,16 +5420,18 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 2
 static const int off_col_trench_wall[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 7, 9, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 9, 16, 17, 21, 26, 19, 20, 24, 25, 27, 18, 20, 24, 25, 27, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 22, 28, 29, 30, 31, 23, 28, 29, 30, 31, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 3, 4, 5, 6, 10, 11, 12, 32, 33, 34, 10, 11, 12, 32, 33, 34, 3, 4, 5, 6, 13, 14, 15, 35, 36, 37, 13, 14, 15, 35, 36, 37, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 50, 51, 52, 53, 50, 51, 52, 53, 50, 51, 52, 53, 54, 55, 56, 57, 54, 55, 56, 57, 54, 55, 56, 57, 16, 17, 21, 26, 39, 40, 41, 42, 43, 58, 39, 40, 41, 42, 43, 58, 28, 29, 30, 31, 59, 70, 71, 72, 73, 70, 71, 72, 73, 70, 71, 72, 73, 20, 24, 25, 27, 20, 24, 25, 27, 44, 46, 60, 74, 45, 47, 28, 29, 30, 31, 45, 79, 80, 83, 85, 60, 79, 80, 83, 85, 44, 79, 80, 83, 85, 20, 24, 25, 27, 48, 49, 61, 87, 88, 89, 48, 49, 61, 87, 88, 89, 90, 91, 92, 93, 90, 91, 92, 93, 90, 91, 92, 93};
 static const int off_value_trench_wall[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 45, 46, 47, 48, 49, 51, 52, 53, 54, 55, 57, 58, 59, 60, 61, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 221, 233, 127, 128, 129, 131, 130, 121, 122, 123, 125, 124, 115, 116, 117, 119, 118, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 227, 228, 229, 231, 230, 255, 256, 257, 259, 258, 261, 262, 263, 265, 264, 267, 268, 269, 271, 270, 337, 338, 339, 340, 341, 325, 326, 327, 328, 329, 377, 378, 379, 380, 381, 389, 390, 391, 392, 393, 442, 446, 444, 445, 443, 454, 458, 456, 457, 455, 467, 468, 469, 470, 471, 479, 480, 481, 482, 483, 63, 64, 65, 66, 87, 88, 89, 96, 95, 94, 97, 98, 99, 106, 105, 104, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 332, 333, 334, 335, 331, 350, 351, 352, 353, 349, 384, 385, 386, 387, 383, 474, 475, 476, 477, 473, 71, 73, 72, 74, 79, 81, 80, 82, 107, 109, 108, 110, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 273, 274, 276, 275, 297, 298, 299, 306, 304, 305, 307, 308, 309, 316, 314, 315, 452, 450, 451, 449, 448, 281, 284, 282, 283, 289, 292, 290, 291, 317, 320, 318, 319, 395, 396, 397, 398, 403, 404, 405, 406, 411, 416, 421, 426, 431, 436, 466, 464, 465, 463, 550, 551, 552, 554, 553, 544, 545, 546, 548, 547, 538, 539, 540, 542, 541, 485, 486, 487, 488, 509, 511, 510, 518, 517, 516, 519, 521, 520, 528, 527, 526, 493, 496, 494, 495, 501, 504, 502, 503, 529, 532, 530, 531};
 
-const kinegen_model excavator_euler_parameters_trench_wall = {
+const kinegen_design_model excavator_euler_parameters_trench_wall = { {
     &excavator_euler_parameters_layout, "trench_wall",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 627,
     0.0, 4.0, 201,
     initial_q, constraints_trench_wall, drivers_trench_wall, jac_rows_trench_wall, jac_cols_trench_wall,
-    phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall, inputs_trench_wall, retract,
+    NULL, NULL, NULL, inputs_trench_wall, retract,
     49, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
     502, 312, diag_value_trench_wall, diag_slot_trench_wall,
     315, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
     2424, 196,
+    }, 9, design_nominal, phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case bucket_toggle ---- */
@@ -4965,16 +5450,48 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15,
 static const int off_col_bucket_toggle[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_toggle[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 
-const kinegen_model excavator_euler_parameters_bucket_toggle = {
+const kinegen_design_model excavator_euler_parameters_bucket_toggle = { {
     &excavator_euler_parameters_layout, "bucket_toggle",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
     0.0, 3.0, 301,
     initial_q, constraints_bucket_toggle, drivers_bucket_toggle, jac_rows_bucket_toggle, jac_cols_bucket_toggle,
-    phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle, inputs_bucket_toggle, retract,
+    NULL, NULL, NULL, inputs_bucket_toggle, retract,
     40, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
     610, 346, diag_value_bucket_toggle, diag_slot_bucket_toggle,
     297, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
     2530, 196,
+    }, 9, design_nominal, phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+};
+
+/* ---- case bucket_stroke ---- */
+static const char *const constraints_bucket_stroke[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "upper.norm", "boom.norm", "boom_cyl_l_barrel.norm", "boom_cyl_l_rod.norm", "boom_cyl_r_barrel.norm", "boom_cyl_r_rod.norm", "arm.norm", "arm_cyl_barrel.norm", "arm_cyl_rod.norm", "bucket_cyl_barrel.norm", "bucket_cyl_rod.norm", "side_link.norm", "bucket_link.norm", "bucket.norm", "swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const char *const drivers_bucket_stroke[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const int jac_rows_bucket_stroke[] = {0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 96, 96, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 97, 97};
+static const int jac_cols_bucket_stroke[] = {0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 5, 6, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 3, 4, 5, 6, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 0, 3, 4, 5, 6, 14, 1, 3, 4, 5, 6, 15, 2, 3, 4, 5, 6, 16, 3, 4, 5, 6, 17, 18, 19, 20, 17, 18, 19, 20, 24, 25, 26, 27, 17, 18, 19, 20, 24, 25, 26, 27, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 17, 18, 19, 20, 24, 25, 26, 27, 7, 10, 11, 12, 13, 21, 8, 10, 11, 12, 13, 22, 9, 10, 11, 12, 13, 23, 0, 3, 4, 5, 6, 28, 1, 3, 4, 5, 6, 29, 2, 3, 4, 5, 6, 30, 3, 4, 5, 6, 31, 32, 33, 34, 31, 32, 33, 34, 38, 39, 40, 41, 31, 32, 33, 34, 38, 39, 40, 41, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 31, 32, 33, 34, 38, 39, 40, 41, 7, 10, 11, 12, 13, 35, 8, 10, 11, 12, 13, 36, 9, 10, 11, 12, 13, 37, 7, 10, 11, 12, 13, 42, 8, 10, 11, 12, 13, 43, 9, 10, 11, 12, 13, 44, 10, 11, 12, 13, 45, 46, 47, 48, 10, 11, 12, 13, 45, 46, 47, 48, 7, 10, 11, 12, 13, 49, 8, 10, 11, 12, 13, 50, 9, 10, 11, 12, 13, 51, 10, 11, 12, 13, 52, 53, 54, 55, 52, 53, 54, 55, 59, 60, 61, 62, 52, 53, 54, 55, 59, 60, 61, 62, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 52, 53, 54, 55, 59, 60, 61, 62, 42, 45, 46, 47, 48, 56, 43, 45, 46, 47, 48, 57, 44, 45, 46, 47, 48, 58, 42, 45, 46, 47, 48, 91, 43, 45, 46, 47, 48, 92, 44, 45, 46, 47, 48, 93, 45, 46, 47, 48, 94, 95, 96, 97, 45, 46, 47, 48, 94, 95, 96, 97, 42, 45, 46, 47, 48, 77, 43, 45, 46, 47, 48, 78, 44, 45, 46, 47, 48, 79, 45, 46, 47, 48, 80, 81, 82, 83, 45, 46, 47, 48, 80, 81, 82, 83, 77, 80, 81, 82, 83, 84, 87, 88, 89, 90, 78, 80, 81, 82, 83, 85, 87, 88, 89, 90, 79, 80, 81, 82, 83, 86, 87, 88, 89, 90, 84, 91, 94, 95, 96, 97, 85, 92, 94, 95, 96, 97, 86, 93, 94, 95, 96, 97, 87, 88, 89, 90, 94, 95, 96, 97, 42, 45, 46, 47, 48, 63, 43, 45, 46, 47, 48, 64, 44, 45, 46, 47, 48, 65, 45, 46, 47, 48, 66, 67, 68, 69, 66, 67, 68, 69, 73, 74, 75, 76, 66, 67, 68, 69, 73, 74, 75, 76, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 66, 67, 68, 69, 73, 74, 75, 76, 70, 77, 80, 81, 82, 83, 71, 78, 80, 81, 82, 83, 72, 79, 80, 81, 82, 83, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 24, 25, 26, 27, 31, 32, 33, 34, 38, 39, 40, 41, 45, 46, 47, 48, 52, 53, 54, 55, 59, 60, 61, 62, 66, 67, 68, 69, 73, 74, 75, 76, 80, 81, 82, 83, 87, 88, 89, 90, 94, 95, 96, 97, 3, 6, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72};
+/* Phi_q in block lower triangular form: 40 blocks, the largest 11 x 11 */
+static const int block_start_bucket_stroke[] = {0, 1, 2, 3, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 27, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 44, 55, 59, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 83, 94, 98};
+static const int block_store_bucket_stroke[] = {0, 1, 2, 3, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 149, 165, 166, 167, 168, 169, 170, 171, 172, 173, 174, 190, 311, 327, 343, 344, 345, 346, 347, 348, 349, 350, 351, 352, 473, 594};
+static const int row_order_bucket_stroke[] = {0, 1, 2, 3, 4, 80, 94, 5, 6, 7, 12, 11, 10, 22, 23, 24, 8, 9, 13, 16, 17, 19, 20, 21, 81, 82, 95, 14, 15, 18, 83, 33, 32, 31, 34, 35, 36, 41, 40, 39, 25, 28, 29, 84, 37, 38, 42, 45, 46, 48, 49, 50, 86, 87, 96, 26, 27, 30, 85, 43, 44, 47, 88, 51, 52, 53, 58, 57, 70, 69, 68, 56, 59, 60, 71, 74, 75, 77, 78, 79, 89, 91, 97, 54, 55, 61, 62, 63, 64, 65, 66, 67, 92, 93, 72, 73, 76, 90};
+static const int col_order_bucket_stroke[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 16, 15, 14, 28, 29, 30, 10, 11, 17, 20, 21, 13, 22, 23, 12, 19, 18, 27, 26, 24, 25, 37, 36, 35, 42, 43, 44, 51, 50, 49, 31, 34, 32, 33, 45, 46, 52, 55, 56, 47, 57, 58, 48, 54, 53, 41, 40, 38, 39, 62, 61, 59, 60, 91, 92, 93, 79, 78, 65, 64, 63, 77, 80, 81, 66, 69, 70, 83, 71, 72, 68, 82, 67, 94, 95, 90, 89, 86, 84, 85, 96, 87, 88, 97, 76, 75, 73, 74};
+static const int diag_value_bucket_stroke[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 16, 22, 28, 33, 34, 35, 36, 41, 42, 43, 44, 50, 56, 62, 67, 68, 69, 70, 75, 76, 77, 78, 83, 84, 85, 86, 90, 91, 92, 93, 94, 95, 96, 100, 101, 102, 103, 104, 105, 106, 111, 112, 113, 114, 116, 117, 118, 119, 120, 122, 123, 124, 125, 126, 128, 129, 130, 131, 132, 138, 144, 150, 155, 156, 157, 158, 163, 164, 165, 166, 171, 172, 173, 174, 178, 179, 180, 181, 188, 189, 190, 191, 199, 200, 201, 202, 208, 214, 220, 226, 232, 238, 243, 244, 245, 246, 251, 252, 253, 254, 260, 266, 272, 277, 278, 279, 280, 285, 286, 287, 288, 293, 294, 295, 296, 300, 301, 302, 303, 304, 305, 306, 310, 311, 312, 313, 314, 315, 316, 321, 322, 323, 324, 326, 327, 328, 329, 330, 332, 333, 334, 335, 336, 338, 339, 340, 341, 342, 348, 354, 360, 365, 366, 367, 368, 373, 374, 375, 376, 382, 388, 394, 399, 400, 401, 402, 407, 408, 409, 410, 416, 417, 418, 419, 420, 426, 427, 428, 429, 430, 436, 437, 438, 439, 440, 441, 443, 444, 445, 446, 447, 449, 450, 451, 452, 453, 455, 456, 457, 458, 459, 460, 461, 462, 463, 464, 465, 466, 472, 478, 484, 489, 490, 491, 492, 497, 498, 499, 500, 505, 506, 507, 508, 512, 513, 514, 515, 516, 517, 518, 522, 523, 524, 525, 526, 527, 528, 533, 534, 535, 536, 537, 539, 540, 541, 542, 543, 545, 546, 547, 548, 549, 551, 552, 553, 554, 555, 556, 557, 558, 559, 560, 561, 562, 563, 564, 565, 566, 567, 568, 569, 570, 571, 572, 573, 574, 575, 576, 577, 578, 579, 580, 581, 582, 583, 584, 585, 586, 587, 588, 589, 590, 591, 592, 593, 594, 595, 596, 597, 598, 599, 600, 601, 602, 603, 604, 605, 606, 607, 608, 609, 610, 611, 612, 616, 617, 618, 619, 620, 621, 622, 626, 627, 628, 629, 630, 631, 632, 636, 637, 638, 639, 640, 641, 642};
+static const int diag_slot_bucket_stroke[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 19, 20, 21, 28, 39, 116, 83, 29, 40, 117, 84, 24, 23, 22, 52, 140, 129, 63, 157, 161, 153, 149, 158, 162, 154, 150, 53, 141, 130, 64, 75, 97, 108, 54, 142, 131, 65, 76, 98, 109, 159, 163, 155, 151, 33, 44, 121, 88, 77, 34, 45, 122, 89, 100, 35, 46, 123, 90, 112, 25, 26, 27, 174, 182, 186, 178, 319, 323, 315, 311, 320, 324, 316, 312, 175, 183, 187, 179, 176, 184, 188, 180, 321, 325, 317, 313, 167, 166, 165, 168, 169, 170, 190, 201, 245, 278, 191, 202, 246, 279, 173, 172, 171, 214, 302, 291, 225, 335, 339, 331, 327, 336, 340, 332, 328, 215, 303, 292, 226, 237, 259, 270, 216, 304, 293, 227, 238, 260, 271, 337, 341, 333, 329, 195, 206, 250, 283, 239, 196, 207, 251, 284, 262, 197, 208, 252, 285, 274, 343, 344, 345, 473, 484, 550, 583, 474, 485, 551, 584, 351, 347, 346, 352, 363, 451, 407, 353, 364, 452, 408, 530, 563, 574, 508, 497, 542, 564, 575, 509, 498, 521, 565, 576, 510, 499, 533, 478, 489, 555, 588, 545, 479, 490, 556, 589, 524, 480, 491, 557, 590, 569, 580, 514, 503, 481, 492, 558, 591, 350, 349, 348, 376, 464, 442, 387, 602, 606, 598, 594, 603, 607, 599, 595, 377, 465, 443, 388, 399, 421, 432, 378, 466, 444, 389, 400, 422, 433, 604, 608, 600, 596, 401, 357, 368, 456, 412, 424, 358, 369, 457, 413, 436, 359, 370, 458, 414, 5, 9, 13, 17, 36, 47, 124, 91, 59, 147, 136, 70, 160, 164, 156, 152, 177, 185, 189, 181, 322, 326, 318, 314, 198, 209, 253, 286, 221, 309, 298, 232, 338, 342, 334, 330, 382, 470, 448, 393, 605, 609, 601, 597, 361, 372, 460, 416, 570, 581, 515, 504, 483, 494, 560, 593, 6, 18, 60, 148, 137, 71, 82, 104, 115, 222, 310, 299, 233, 244, 266, 277, 384, 472, 450, 395, 406, 428, 439};
+static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
+static const int off_col_bucket_stroke[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
+static const int off_value_bucket_stroke[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+
+const kinegen_design_model excavator_euler_parameters_bucket_stroke = { {
+    &excavator_euler_parameters_layout, "bucket_stroke",
+    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
+    0.0, 1.0, 101,
+    initial_q, constraints_bucket_stroke, drivers_bucket_stroke, jac_rows_bucket_stroke, jac_cols_bucket_stroke,
+    NULL, NULL, NULL, inputs_bucket_stroke, retract,
+    40, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
+    610, 346, diag_value_bucket_stroke, diag_slot_bucket_stroke,
+    297, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
+    2530, 196,
+    }, 9, design_nominal, phi_jac_bucket_stroke, nu_bucket_stroke, gamma_bucket_stroke,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -4993,18 +5510,20 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10
 static const int off_col_bucket_near_toggle[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_near_toggle[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 
-const kinegen_model excavator_euler_parameters_bucket_near_toggle = {
+const kinegen_design_model excavator_euler_parameters_bucket_near_toggle = { {
     &excavator_euler_parameters_layout, "bucket_near_toggle",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
     0.0, 2.0, 9,
     initial_q, constraints_bucket_near_toggle, drivers_bucket_near_toggle, jac_rows_bucket_near_toggle, jac_cols_bucket_near_toggle,
-    phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle, inputs_bucket_near_toggle, retract,
+    NULL, NULL, NULL, inputs_bucket_near_toggle, retract,
     40, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
     610, 346, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
     297, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
     2530, 196,
+    }, 9, design_nominal, phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
 };
 
-const kinegen_model *const excavator_euler_parameters_cases[EXCAVATOR_EULER_PARAMETERS_N_CASES] = {&excavator_euler_parameters_digging, &excavator_euler_parameters_level_cut, &excavator_euler_parameters_trench_wall, &excavator_euler_parameters_bucket_toggle, &excavator_euler_parameters_bucket_near_toggle};
+const kinegen_model *const excavator_euler_parameters_cases[EXCAVATOR_EULER_PARAMETERS_N_CASES] = {&excavator_euler_parameters_digging.model, &excavator_euler_parameters_level_cut.model, &excavator_euler_parameters_trench_wall.model, &excavator_euler_parameters_bucket_toggle.model, &excavator_euler_parameters_bucket_stroke.model, &excavator_euler_parameters_bucket_near_toggle.model};
 
 #endif

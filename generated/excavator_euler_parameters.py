@@ -2,10 +2,11 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
+source sha256:   06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50
 parametrization: euler-parameters
 kinegen version: 0.1.0
 sympy version:   1.14.0
+sensitivities:   no
 
 Coordinates q (stored, 98) and v (velocity, 98) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -18,7 +19,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c'
+SOURCE_SHA256 = '06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50'
 PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.e0', 'upper.e1', 'upper.e2', 'upper.e3', 'boom.x', 'boom.y', 'boom.z', 'boom.e0', 'boom.e1', 'boom.e2', 'boom.e3', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.e0', 'boom_cyl_l_barrel.e1', 'boom_cyl_l_barrel.e2', 'boom_cyl_l_barrel.e3', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.e0', 'boom_cyl_l_rod.e1', 'boom_cyl_l_rod.e2', 'boom_cyl_l_rod.e3', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.e0', 'boom_cyl_r_barrel.e1', 'boom_cyl_r_barrel.e2', 'boom_cyl_r_barrel.e3', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.e0', 'boom_cyl_r_rod.e1', 'boom_cyl_r_rod.e2', 'boom_cyl_r_rod.e3', 'arm.x', 'arm.y', 'arm.z', 'arm.e0', 'arm.e1', 'arm.e2', 'arm.e3', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.e0', 'arm_cyl_barrel.e1', 'arm_cyl_barrel.e2', 'arm_cyl_barrel.e3', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.e0', 'arm_cyl_rod.e1', 'arm_cyl_rod.e2', 'arm_cyl_rod.e3', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.e0', 'bucket_cyl_barrel.e1', 'bucket_cyl_barrel.e2', 'bucket_cyl_barrel.e3', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.e0', 'bucket_cyl_rod.e1', 'bucket_cyl_rod.e2', 'bucket_cyl_rod.e3', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.e0', 'side_link.e1', 'side_link.e2', 'side_link.e3', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.e0', 'bucket_link.e1', 'bucket_link.e2', 'bucket_link.e3', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.e0', 'bucket.e1', 'bucket.e2', 'bucket.e3')
@@ -52,13 +53,27 @@ ACTUATORS = {
     'arm_cylinder': (('arm_cyl_barrel', 'base'), ('arm_cyl_rod', 'eye'), (1.8164, 3.2939)),
     'bucket_cylinder': (('bucket_cyl_barrel', 'base'), ('bucket_cyl_rod', 'eye'), (1.6529, 2.6613)),
 }
+# design parameters, in the order of the argument p: name -> (nominal, lower bound, upper bound).
+# POINTS, GROUND_POINTS and INITIAL_Q are at the nominal values; points(p) gives the points at p.
+DESIGN = {
+    'C_x': (1.39283, 1.37283, 1.41283),
+    'C_z': (2.001922, 1.981922, 2.021922),
+    'F_x': (-0.786562, -0.806562, -0.766562),
+    'F_z': (-0.369691, -0.389691, -0.349691),
+    'boom_retracted': (1.7352, 1.6852, 1.7852),
+    'side_link': (0.5850200596466757, 0.555, 0.615),
+    'bucket_link': (0.5660572218009412, 0.536, 0.596),
+    'K_x': (-0.32404, -0.35404, -0.29404),
+    'K_z': (0.33854, 0.30854, 0.36854),
+}
 # kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
 KERNELS = {
-    'phi_jac': (('q', 'u'), ('phi', 'jac')),
-    'nu': (('q', 'u', 'ud'), ('nu',)),
-    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'phi_jac': (('q', 'u', 'p'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud', 'p'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd', 'p'), ('gamma',)),
     'inputs': (('t',), ('inputs',)),
     'frames': (('q', 'v', 'a'), ('frames',)),
+    'points': (('p',), ('points',)),
 }
 
 
@@ -76,9 +91,10 @@ def _join(joints, drivers):
     return np.concatenate((joints, drivers))
 
 
-def _joints_phi(q):
+def _joints_phi(q, p):
     """Phi of the 94 joint (and normalization) rows, common to every case."""
     upper_x, upper_y, upper_z, upper_e0, upper_e1, upper_e2, upper_e3, boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_e0, boom_cyl_l_rod_e1, boom_cyl_l_rod_e2, boom_cyl_l_rod_e3, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_e0, boom_cyl_r_barrel_e1, boom_cyl_r_barrel_e2, boom_cyl_r_barrel_e3, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_e0, boom_cyl_r_rod_e1, boom_cyl_r_rod_e2, boom_cyl_r_rod_e3, arm_x, arm_y, arm_z, arm_e0, arm_e1, arm_e2, arm_e3, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_e0, arm_cyl_rod_e1, arm_cyl_rod_e2, arm_cyl_rod_e3, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_e0, bucket_cyl_rod_e1, bucket_cyl_rod_e2, bucket_cyl_rod_e3, side_link_x, side_link_y, side_link_z, side_link_e0, side_link_e1, side_link_e2, side_link_e3, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_e0, bucket_link_e1, bucket_link_e2, bucket_link_e3, bucket_x, bucket_y, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1 + 2*upper_e0**2 + 2*upper_e1**2
     upper_a01 = -2*upper_e0*upper_e3 + 2*upper_e1*upper_e2
     upper_a02 = 2*upper_e0*upper_e2 + 2*upper_e1*upper_e3
@@ -196,9 +212,15 @@ def _joints_phi(q):
     c6 = arm_cyl_rod_x - arm_cyl_barrel_x
     c7 = arm_cyl_rod_y - arm_cyl_barrel_y
     c8 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c9 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c9 = 0.5686266556413632*p_side_link
+    c10 = 0.822595724821202*p_side_link
+    c11 = 0.60493530832545*p_bucket_link
+    c12 = 0.796274621434837*p_bucket_link
+    c13 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    c14 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c15 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c16 = 0.5686266556413632*p_side_link
+    c17 = 0.822595724821202*p_side_link
     out = _zeros(94, q, ())
     out[0] = -upper_x
     out[1] = -upper_y
@@ -219,9 +241,9 @@ def _joints_phi(q):
     out[16] = c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21
     out[17] = c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22
     out[18] = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22
-    out[19] = boom_cyl_l_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 - 8/25*boom_a01
-    out[20] = boom_cyl_l_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 - 8/25*boom_a11
-    out[21] = boom_cyl_l_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 - 8/25*boom_a21
+    out[19] = boom_cyl_l_rod_x - boom_x - 8/25*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z
+    out[20] = boom_cyl_l_rod_y - boom_y - 8/25*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z
+    out[21] = boom_cyl_l_rod_z - boom_z - 8/25*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z
     out[22] = upper_x - boom_cyl_r_barrel_x - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
     out[23] = upper_y - boom_cyl_r_barrel_y - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
     out[24] = upper_z - boom_cyl_r_barrel_z - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
@@ -231,9 +253,9 @@ def _joints_phi(q):
     out[28] = c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21
     out[29] = c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22
     out[30] = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22
-    out[31] = boom_cyl_r_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 + (8/25)*boom_a01
-    out[32] = boom_cyl_r_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 + (8/25)*boom_a11
-    out[33] = boom_cyl_r_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 + (8/25)*boom_a21
+    out[31] = boom_cyl_r_rod_x - boom_x + (8/25)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z
+    out[32] = boom_cyl_r_rod_y - boom_y + (8/25)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z
+    out[33] = boom_cyl_r_rod_z - boom_z + (8/25)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z
     out[34] = boom_x - arm_x + (23939/5000)*boom_a00 + (29959/10000)*boom_a02
     out[35] = boom_y - arm_y + (23939/5000)*boom_a10 + (29959/10000)*boom_a12
     out[36] = boom_z - arm_z + (23939/5000)*boom_a20 + (29959/10000)*boom_a22
@@ -248,9 +270,9 @@ def _joints_phi(q):
     out[45] = c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21
     out[46] = c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22
     out[47] = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22
-    out[48] = arm_cyl_rod_x - arm_x + (0.369691)*arm_a02 + (393281/500000)*arm_a00
-    out[49] = arm_cyl_rod_y - arm_y + (0.369691)*arm_a12 + (393281/500000)*arm_a10
-    out[50] = arm_cyl_rod_z - arm_z + (0.369691)*arm_a22 + (393281/500000)*arm_a20
+    out[48] = arm_cyl_rod_x - arm_x - arm_a00*p_F_x - arm_a02*p_F_z
+    out[49] = arm_cyl_rod_y - arm_y - arm_a10*p_F_x - arm_a12*p_F_z
+    out[50] = arm_cyl_rod_z - arm_z - arm_a20*p_F_x - arm_a22*p_F_z
     out[51] = arm_x - bucket_x + (9477/5000)*arm_a00 + (21809/10000)*arm_a02
     out[52] = arm_y - bucket_y + (9477/5000)*arm_a10 + (21809/10000)*arm_a12
     out[53] = arm_z - bucket_z + (9477/5000)*arm_a20 + (21809/10000)*arm_a22
@@ -261,12 +283,12 @@ def _joints_phi(q):
     out[58] = arm_z - side_link_z + (7877/5000)*arm_a20 + (18799/10000)*arm_a22
     out[59] = arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22
     out[60] = arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20
-    out[61] = side_link_x - bucket_link_x - 166329/500000*side_link_a00 + (85607/250000)*bucket_link_a00 + (96247/200000)*side_link_a02 + (0.450737)*bucket_link_a02
-    out[62] = side_link_y - bucket_link_y - 166329/500000*side_link_a10 + (85607/250000)*bucket_link_a10 + (96247/200000)*side_link_a12 + (0.450737)*bucket_link_a12
-    out[63] = side_link_z - bucket_link_z - 166329/500000*side_link_a20 + (85607/250000)*bucket_link_a20 + (96247/200000)*side_link_a22 + (0.450737)*bucket_link_a22
-    out[64] = bucket_link_x - bucket_x - 16927/50000*bucket_a02 + (8101/25000)*bucket_a00
-    out[65] = bucket_link_y - bucket_y - 16927/50000*bucket_a12 + (8101/25000)*bucket_a10
-    out[66] = bucket_link_z - bucket_z - 16927/50000*bucket_a22 + (8101/25000)*bucket_a20
+    out[61] = side_link_x - bucket_link_x + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00
+    out[62] = side_link_y - bucket_link_y + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10
+    out[63] = side_link_z - bucket_link_z + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20
+    out[64] = bucket_link_x - bucket_x - bucket_a00*p_K_x - bucket_a02*p_K_z
+    out[65] = bucket_link_y - bucket_y - bucket_a10*p_K_x - bucket_a12*p_K_z
+    out[66] = bucket_link_z - bucket_z - bucket_a20*p_K_x - bucket_a22*p_K_z
     out[67] = bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22)
     out[68] = arm_x - bucket_cyl_barrel_x - 24687/100000*arm_a00 + (36797/50000)*arm_a02
     out[69] = arm_y - bucket_cyl_barrel_y - 24687/100000*arm_a10 + (36797/50000)*arm_a12
@@ -274,12 +296,12 @@ def _joints_phi(q):
     out[71] = arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22
     out[72] = bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21
     out[73] = bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22
-    out[74] = c9*bucket_cyl_barrel_a01 + c10*bucket_cyl_barrel_a11 + c11*bucket_cyl_barrel_a21
-    out[75] = c9*bucket_cyl_barrel_a02 + c10*bucket_cyl_barrel_a12 + c11*bucket_cyl_barrel_a22
+    out[74] = c13*bucket_cyl_barrel_a01 + c14*bucket_cyl_barrel_a11 + c15*bucket_cyl_barrel_a21
+    out[75] = c13*bucket_cyl_barrel_a02 + c14*bucket_cyl_barrel_a12 + c15*bucket_cyl_barrel_a22
     out[76] = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22
-    out[77] = bucket_cyl_rod_x - side_link_x - 96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    out[78] = bucket_cyl_rod_y - side_link_y - 96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    out[79] = bucket_cyl_rod_z - side_link_z - 96247/200000*side_link_a22 + (166329/500000)*side_link_a20
+    out[77] = bucket_cyl_rod_x - side_link_x + c16*side_link_a00 - c17*side_link_a02
+    out[78] = bucket_cyl_rod_y - side_link_y + c16*side_link_a10 - c17*side_link_a12
+    out[79] = bucket_cyl_rod_z - side_link_z + c16*side_link_a20 - c17*side_link_a22
     out[80] = -1 + upper_e0**2 + upper_e1**2 + upper_e2**2 + upper_e3**2
     out[81] = -1 + boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2
     out[82] = -1 + boom_cyl_l_barrel_e0**2 + boom_cyl_l_barrel_e1**2 + boom_cyl_l_barrel_e2**2 + boom_cyl_l_barrel_e3**2
@@ -297,9 +319,10 @@ def _joints_phi(q):
     return out
 
 
-def _joints_jac(q):
+def _joints_jac(q, p):
     """Phi_q values of the joint rows (611 entries)."""
     _, _, _, upper_e0, upper_e1, upper_e2, upper_e3, _, _, _, boom_e0, boom_e1, boom_e2, boom_e3, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_e0, boom_cyl_l_rod_e1, boom_cyl_l_rod_e2, boom_cyl_l_rod_e3, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_e0, boom_cyl_r_barrel_e1, boom_cyl_r_barrel_e2, boom_cyl_r_barrel_e3, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_e0, boom_cyl_r_rod_e1, boom_cyl_r_rod_e2, boom_cyl_r_rod_e3, _, _, _, arm_e0, arm_e1, arm_e2, arm_e3, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_e0, arm_cyl_rod_e1, arm_cyl_rod_e2, arm_cyl_rod_e3, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_e0, bucket_cyl_rod_e1, bucket_cyl_rod_e2, bucket_cyl_rod_e3, _, _, _, side_link_e0, side_link_e1, side_link_e2, side_link_e3, _, _, _, bucket_link_e0, bucket_link_e1, bucket_link_e2, bucket_link_e3, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a01 = -2*upper_e0*upper_e3 + 2*upper_e1*upper_e2
     upper_a11 = -1 + 2*upper_e0**2 + 2*upper_e2**2
     upper_a21 = 2*upper_e0*upper_e1 + 2*upper_e2*upper_e3
@@ -476,277 +499,305 @@ def _joints_jac(q):
     d71 = (2.0)*boom_cyl_l_barrel_a01
     d72 = (2.0)*boom_cyl_l_barrel_a11
     d73 = (4.0)*boom_cyl_l_barrel_a21
-    d74 = (4.003844)*boom_e2
-    d75 = -16/25*boom_e3
-    d76 = (16/25)*boom_e2
-    d77 = (4.003844)*boom_e3
-    d78 = (4.003844)*boom_e0
-    d79 = (16/25)*boom_e1
-    d80 = (16/25)*boom_e0
-    d81 = -4.003844*boom_e1
-    d82 = (139283/50000)*boom_e3
-    d83 = -139283/50000*boom_e2
-    d84 = (139283/50000)*boom_e1
-    d85 = (139283/50000)*boom_e0
-    d86 = (67739/25000)*upper_e2
-    d87 = (16/25)*upper_e3
-    d88 = -16/25*upper_e2
-    d89 = (67739/25000)*upper_e3
-    d90 = (67739/25000)*upper_e0
-    d91 = (16/25)*upper_e1
-    d92 = (16/25)*upper_e0
-    d93 = (67739/25000)*upper_e1
-    d94 = -4307/3125*upper_e3
-    d95 = (4307/3125)*upper_e2
-    d96 = (4307/3125)*upper_e1
-    d97 = (4307/3125)*upper_e0
-    d98 = 4*boom_cyl_r_barrel_a12
-    d99 = 2*boom_cyl_r_barrel_a22
-    d100 = 2*boom_cyl_r_barrel_a02
-    d101 = 2*upper_a01
-    d102 = 2*upper_a11
-    d103 = 4*upper_a21
-    d104 = 4*boom_cyl_r_rod_a01
-    d105 = 2*boom_cyl_r_barrel_e2
-    d106 = 2*boom_cyl_r_barrel_e3
-    d107 = 2*boom_cyl_r_barrel_e0
-    d108 = 2*boom_cyl_r_barrel_e1
-    d109 = 2*boom_cyl_r_barrel_a00
-    d110 = d109*boom_cyl_r_rod_e3
-    d111 = 4*boom_cyl_r_barrel_a10
-    d112 = 2*boom_cyl_r_barrel_a20
-    d113 = d109*boom_cyl_r_rod_e2
-    d114 = d109*boom_cyl_r_rod_e1
-    d115 = d109*boom_cyl_r_rod_e0
-    d116 = 4*boom_cyl_r_rod_a02
-    d117 = 2*boom_cyl_r_barrel_a10
-    d118 = 4*boom_cyl_r_barrel_a20
-    d119 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y
-    d120 = 4*d119
-    d121 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z
-    d122 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x
-    d123 = -d122*d106
-    d124 = d105*d122
-    d125 = d122*d108
-    d126 = d122*d107
-    d127 = 4*d121
-    d128 = (4.0)*boom_cyl_r_rod_a12
-    d129 = (2.0)*boom_cyl_r_rod_a22
-    d130 = (2.0)*boom_cyl_r_rod_a02
-    d131 = (2.0)*boom_cyl_r_barrel_a01
-    d132 = (2.0)*boom_cyl_r_barrel_a11
-    d133 = (4.0)*boom_cyl_r_barrel_a21
-    d134 = (4.003844)*boom_e2
-    d135 = (16/25)*boom_e3
-    d136 = -16/25*boom_e2
-    d137 = (4.003844)*boom_e3
-    d138 = (4.003844)*boom_e0
-    d139 = (16/25)*boom_e0
-    d140 = (4.003844)*boom_e1
-    d141 = -139283/50000*boom_e3
-    d142 = (139283/50000)*boom_e2
-    d143 = (139283/50000)*boom_e1
-    d144 = (139283/50000)*boom_e0
-    d145 = (29959/5000)*boom_e2
-    d146 = (29959/5000)*boom_e3
-    d147 = (29959/5000)*boom_e0
-    d148 = (29959/5000)*boom_e1
-    d149 = -23939/2500*boom_e2
-    d150 = (23939/2500)*boom_e1
-    d151 = (23939/2500)*boom_e0
-    d152 = 4*arm_a12
-    d153 = 2*arm_a22
-    d154 = 2*arm_a02
-    d155 = 2*boom_a01
-    d156 = 2*boom_a11
-    d157 = d156*arm_e1
-    d158 = 4*boom_a21
-    d159 = d156*arm_e0
-    d160 = d156*arm_e3
-    d161 = d156*arm_e2
-    d162 = 4*arm_a10
-    d163 = 2*arm_a20
-    d164 = 2*arm_a00
-    d165 = 4*boom_a01
-    d166 = 2*boom_a21
-    d167 = (557/100)*boom_e2
-    d168 = (557/100)*boom_e3
-    d169 = (557/100)*boom_e0
-    d170 = (557/100)*boom_e1
-    d171 = -183/40*boom_e2
-    d172 = (183/40)*boom_e1
-    d173 = (183/40)*boom_e0
-    d174 = 4*arm_cyl_barrel_a12
-    d175 = 2*arm_cyl_barrel_a22
-    d176 = 2*arm_cyl_barrel_a02
-    d177 = 2*boom_a01
-    d178 = 2*boom_a11
-    d179 = 4*boom_a21
-    d180 = 4*arm_cyl_rod_a01
-    d181 = 2*arm_cyl_barrel_e2
-    d182 = 2*arm_cyl_barrel_e3
-    d183 = 2*arm_cyl_barrel_e0
-    d184 = 2*arm_cyl_barrel_e1
-    d185 = 2*arm_cyl_barrel_a00
-    d186 = d185*arm_cyl_rod_e3
-    d187 = 4*arm_cyl_barrel_a10
-    d188 = 2*arm_cyl_barrel_a20
-    d189 = d185*arm_cyl_rod_e2
-    d190 = d185*arm_cyl_rod_e1
-    d191 = d185*arm_cyl_rod_e0
-    d192 = 4*arm_cyl_rod_a02
-    d193 = 2*arm_cyl_barrel_a10
-    d194 = 4*arm_cyl_barrel_a20
-    d195 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d196 = 4*d195
-    d197 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d198 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d199 = -d198*d182
-    d200 = d181*d198
-    d201 = d198*d184
-    d202 = d198*d183
-    d203 = 4*d197
-    d204 = (4.0)*arm_cyl_rod_a12
-    d205 = (2.0)*arm_cyl_rod_a22
-    d206 = (2.0)*arm_cyl_rod_a02
-    d207 = (2.0)*arm_cyl_barrel_a01
-    d208 = (2.0)*arm_cyl_barrel_a11
-    d209 = (4.0)*arm_cyl_barrel_a21
-    d210 = (369691/500000)*arm_e2
-    d211 = (369691/500000)*arm_e3
-    d212 = (369691/500000)*arm_e0
-    d213 = (369691/500000)*arm_e1
-    d214 = -393281/250000*arm_e2
-    d215 = (393281/250000)*arm_e1
-    d216 = (393281/250000)*arm_e0
-    d217 = (21809/5000)*arm_e2
-    d218 = (21809/5000)*arm_e3
-    d219 = (21809/5000)*arm_e0
-    d220 = (21809/5000)*arm_e1
-    d221 = -9477/2500*arm_e2
-    d222 = (9477/2500)*arm_e1
-    d223 = (9477/2500)*arm_e0
-    d224 = 4*bucket_a12
-    d225 = 2*bucket_a22
-    d226 = 2*bucket_a02
-    d227 = 2*arm_a01
-    d228 = 2*arm_a11
-    d229 = d228*bucket_e1
-    d230 = 4*arm_a21
-    d231 = d228*bucket_e0
-    d232 = d228*bucket_e3
-    d233 = d228*bucket_e2
-    d234 = 4*bucket_a10
-    d235 = 2*bucket_a20
-    d236 = 2*bucket_a00
-    d237 = 4*arm_a01
-    d238 = 2*arm_a21
-    d239 = (18799/5000)*arm_e2
-    d240 = (18799/5000)*arm_e3
-    d241 = (18799/5000)*arm_e0
-    d242 = (18799/5000)*arm_e1
-    d243 = -7877/2500*arm_e2
-    d244 = (7877/2500)*arm_e1
-    d245 = (7877/2500)*arm_e0
-    d246 = 4*side_link_a12
-    d247 = 2*side_link_a22
-    d248 = 2*side_link_a02
-    d249 = 2*arm_a01
-    d250 = 2*arm_a11
-    d251 = d250*side_link_e1
-    d252 = 4*arm_a21
-    d253 = d250*side_link_e0
-    d254 = d250*side_link_e3
-    d255 = d250*side_link_e2
-    d256 = 4*side_link_a10
-    d257 = 2*side_link_a20
-    d258 = 2*side_link_a00
-    d259 = 4*arm_a01
-    d260 = 2*arm_a21
-    d261 = -96247/100000*side_link_e2
-    d262 = -96247/100000*side_link_e3
-    d263 = (96247/100000)*side_link_e0
-    d264 = (96247/100000)*side_link_e1
-    d265 = (450737/500000)*bucket_link_e2
-    d266 = (450737/500000)*bucket_link_e3
-    d267 = (450737/500000)*bucket_link_e0
-    d268 = (450737/500000)*bucket_link_e1
-    d269 = (166329/250000)*side_link_e3
-    d270 = (166329/250000)*side_link_e2
-    d271 = (166329/250000)*side_link_e1
-    d272 = (166329/250000)*side_link_e0
-    d273 = -85607/125000*bucket_link_e2
-    d274 = (85607/125000)*bucket_link_e1
-    d275 = (85607/125000)*bucket_link_e0
-    d276 = -16927/25000*bucket_e2
-    d277 = -16927/25000*bucket_e3
-    d278 = (16927/25000)*bucket_e0
-    d279 = (16927/25000)*bucket_e1
-    d280 = (8101/12500)*bucket_e3
-    d281 = (8101/12500)*bucket_e2
-    d282 = (8101/12500)*bucket_e1
-    d283 = (8101/12500)*bucket_e0
-    d284 = (3.1850984857373903)*bucket_a01
-    d285 = (1.2098706166521882)*bucket_a11
-    d286 = (1.5925492428686951)*bucket_a11
-    d287 = (1.5925492428686951)*bucket_a21
-    d288 = (1.2098706166521882)*bucket_a01
-    d289 = -3.1850984857373903*bucket_link_a10 + (2.4197412333043764)*bucket_link_a12
-    d290 = -0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22
-    d291 = 2*d290
-    d292 = -1.5925492428686951*bucket_link_a00 + (1.2098706166521882)*bucket_link_a02
-    d293 = -36797/25000*arm_e2
-    d294 = -36797/25000*arm_e3
-    d295 = (36797/25000)*arm_e0
-    d296 = (36797/25000)*arm_e1
-    d297 = (24687/50000)*arm_e3
-    d298 = (24687/50000)*arm_e2
-    d299 = (24687/50000)*arm_e1
-    d300 = (24687/50000)*arm_e0
-    d301 = 4*bucket_cyl_barrel_a12
-    d302 = 2*bucket_cyl_barrel_a22
-    d303 = 2*bucket_cyl_barrel_a02
-    d304 = 2*arm_a01
-    d305 = 2*arm_a11
-    d306 = 4*arm_a21
-    d307 = 4*bucket_cyl_rod_a01
-    d308 = 2*bucket_cyl_barrel_e2
-    d309 = 2*bucket_cyl_barrel_e3
-    d310 = 2*bucket_cyl_barrel_e0
-    d311 = 2*bucket_cyl_barrel_e1
-    d312 = 2*bucket_cyl_barrel_a00
-    d313 = d312*bucket_cyl_rod_e3
-    d314 = 4*bucket_cyl_barrel_a10
-    d315 = 2*bucket_cyl_barrel_a20
-    d316 = d312*bucket_cyl_rod_e2
-    d317 = d312*bucket_cyl_rod_e1
-    d318 = d312*bucket_cyl_rod_e0
-    d319 = 4*bucket_cyl_rod_a02
-    d320 = 2*bucket_cyl_barrel_a10
-    d321 = 4*bucket_cyl_barrel_a20
-    d322 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d323 = 4*d322
-    d324 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d325 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d326 = -d325*d309
-    d327 = d308*d325
-    d328 = d325*d311
-    d329 = d325*d310
-    d330 = 4*d324
-    d331 = (4.0)*bucket_cyl_rod_a12
-    d332 = (2.0)*bucket_cyl_rod_a22
-    d333 = (2.0)*bucket_cyl_rod_a02
-    d334 = (2.0)*bucket_cyl_barrel_a01
-    d335 = (2.0)*bucket_cyl_barrel_a11
-    d336 = (4.0)*bucket_cyl_barrel_a21
-    d337 = -96247/100000*side_link_e2
-    d338 = -96247/100000*side_link_e3
-    d339 = (96247/100000)*side_link_e0
-    d340 = (96247/100000)*side_link_e1
-    d341 = (166329/250000)*side_link_e3
-    d342 = (166329/250000)*side_link_e2
-    d343 = (166329/250000)*side_link_e1
-    d344 = (166329/250000)*side_link_e0
+    d74 = -16/25*boom_e3
+    d75 = 4*p_C_x
+    d76 = 2*p_C_z
+    d77 = d76*boom_e2
+    d78 = (16/25)*boom_e2
+    d79 = d76*boom_e3
+    d80 = (16/25)*boom_e1
+    d81 = d76*boom_e0
+    d82 = (16/25)*boom_e0
+    d83 = -d76*boom_e1
+    d84 = 2*p_C_x
+    d85 = d84*boom_e3
+    d86 = -d84*boom_e2
+    d87 = d84*boom_e1
+    d88 = d84*boom_e0
+    d89 = 4*p_C_z
+    d90 = (67739/25000)*upper_e2
+    d91 = (16/25)*upper_e3
+    d92 = -16/25*upper_e2
+    d93 = (67739/25000)*upper_e3
+    d94 = (67739/25000)*upper_e0
+    d95 = (16/25)*upper_e1
+    d96 = (16/25)*upper_e0
+    d97 = (67739/25000)*upper_e1
+    d98 = -4307/3125*upper_e3
+    d99 = (4307/3125)*upper_e2
+    d100 = (4307/3125)*upper_e1
+    d101 = (4307/3125)*upper_e0
+    d102 = 4*boom_cyl_r_barrel_a12
+    d103 = 2*boom_cyl_r_barrel_a22
+    d104 = 2*boom_cyl_r_barrel_a02
+    d105 = 2*upper_a01
+    d106 = 2*upper_a11
+    d107 = 4*upper_a21
+    d108 = 4*boom_cyl_r_rod_a01
+    d109 = 2*boom_cyl_r_barrel_e2
+    d110 = 2*boom_cyl_r_barrel_e3
+    d111 = 2*boom_cyl_r_barrel_e0
+    d112 = 2*boom_cyl_r_barrel_e1
+    d113 = 2*boom_cyl_r_barrel_a00
+    d114 = d113*boom_cyl_r_rod_e3
+    d115 = 4*boom_cyl_r_barrel_a10
+    d116 = 2*boom_cyl_r_barrel_a20
+    d117 = d113*boom_cyl_r_rod_e2
+    d118 = d113*boom_cyl_r_rod_e1
+    d119 = d113*boom_cyl_r_rod_e0
+    d120 = 4*boom_cyl_r_rod_a02
+    d121 = 2*boom_cyl_r_barrel_a10
+    d122 = 4*boom_cyl_r_barrel_a20
+    d123 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y
+    d124 = 4*d123
+    d125 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z
+    d126 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x
+    d127 = -d126*d110
+    d128 = d109*d126
+    d129 = d126*d112
+    d130 = d126*d111
+    d131 = 4*d125
+    d132 = (4.0)*boom_cyl_r_rod_a12
+    d133 = (2.0)*boom_cyl_r_rod_a22
+    d134 = (2.0)*boom_cyl_r_rod_a02
+    d135 = (2.0)*boom_cyl_r_barrel_a01
+    d136 = (2.0)*boom_cyl_r_barrel_a11
+    d137 = (4.0)*boom_cyl_r_barrel_a21
+    d138 = (16/25)*boom_e3
+    d139 = 4*p_C_x
+    d140 = 2*p_C_z
+    d141 = d140*boom_e2
+    d142 = -16/25*boom_e2
+    d143 = d140*boom_e3
+    d144 = d140*boom_e0
+    d145 = (16/25)*boom_e0
+    d146 = d140*boom_e1
+    d147 = 2*p_C_x
+    d148 = -d147*boom_e3
+    d149 = d147*boom_e2
+    d150 = d147*boom_e1
+    d151 = d147*boom_e0
+    d152 = 4*p_C_z
+    d153 = (29959/5000)*boom_e2
+    d154 = (29959/5000)*boom_e3
+    d155 = (29959/5000)*boom_e0
+    d156 = (29959/5000)*boom_e1
+    d157 = -23939/2500*boom_e2
+    d158 = (23939/2500)*boom_e1
+    d159 = (23939/2500)*boom_e0
+    d160 = 4*arm_a12
+    d161 = 2*arm_a22
+    d162 = 2*arm_a02
+    d163 = 2*boom_a01
+    d164 = 2*boom_a11
+    d165 = d164*arm_e1
+    d166 = 4*boom_a21
+    d167 = d164*arm_e0
+    d168 = d164*arm_e3
+    d169 = d164*arm_e2
+    d170 = 4*arm_a10
+    d171 = 2*arm_a20
+    d172 = 2*arm_a00
+    d173 = 4*boom_a01
+    d174 = 2*boom_a21
+    d175 = (557/100)*boom_e2
+    d176 = (557/100)*boom_e3
+    d177 = (557/100)*boom_e0
+    d178 = (557/100)*boom_e1
+    d179 = -183/40*boom_e2
+    d180 = (183/40)*boom_e1
+    d181 = (183/40)*boom_e0
+    d182 = 4*arm_cyl_barrel_a12
+    d183 = 2*arm_cyl_barrel_a22
+    d184 = 2*arm_cyl_barrel_a02
+    d185 = 2*boom_a01
+    d186 = 2*boom_a11
+    d187 = 4*boom_a21
+    d188 = 4*arm_cyl_rod_a01
+    d189 = 2*arm_cyl_barrel_e2
+    d190 = 2*arm_cyl_barrel_e3
+    d191 = 2*arm_cyl_barrel_e0
+    d192 = 2*arm_cyl_barrel_e1
+    d193 = 2*arm_cyl_barrel_a00
+    d194 = d193*arm_cyl_rod_e3
+    d195 = 4*arm_cyl_barrel_a10
+    d196 = 2*arm_cyl_barrel_a20
+    d197 = d193*arm_cyl_rod_e2
+    d198 = d193*arm_cyl_rod_e1
+    d199 = d193*arm_cyl_rod_e0
+    d200 = 4*arm_cyl_rod_a02
+    d201 = 2*arm_cyl_barrel_a10
+    d202 = 4*arm_cyl_barrel_a20
+    d203 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d204 = 4*d203
+    d205 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d206 = arm_cyl_rod_x - arm_cyl_barrel_x
+    d207 = -d206*d190
+    d208 = d189*d206
+    d209 = d206*d192
+    d210 = d206*d191
+    d211 = 4*d205
+    d212 = (4.0)*arm_cyl_rod_a12
+    d213 = (2.0)*arm_cyl_rod_a22
+    d214 = (2.0)*arm_cyl_rod_a02
+    d215 = (2.0)*arm_cyl_barrel_a01
+    d216 = (2.0)*arm_cyl_barrel_a11
+    d217 = (4.0)*arm_cyl_barrel_a21
+    d218 = 4*p_F_x
+    d219 = 2*p_F_z
+    d220 = d219*arm_e2
+    d221 = d219*arm_e3
+    d222 = d219*arm_e0
+    d223 = d219*arm_e1
+    d224 = 2*p_F_x
+    d225 = -d224*arm_e3
+    d226 = -d224*arm_e2
+    d227 = d224*arm_e1
+    d228 = d224*arm_e0
+    d229 = 4*p_F_z
+    d230 = (21809/5000)*arm_e2
+    d231 = (21809/5000)*arm_e3
+    d232 = (21809/5000)*arm_e0
+    d233 = (21809/5000)*arm_e1
+    d234 = -9477/2500*arm_e2
+    d235 = (9477/2500)*arm_e1
+    d236 = (9477/2500)*arm_e0
+    d237 = 4*bucket_a12
+    d238 = 2*bucket_a22
+    d239 = 2*bucket_a02
+    d240 = 2*arm_a01
+    d241 = 2*arm_a11
+    d242 = d241*bucket_e1
+    d243 = 4*arm_a21
+    d244 = d241*bucket_e0
+    d245 = d241*bucket_e3
+    d246 = d241*bucket_e2
+    d247 = 4*bucket_a10
+    d248 = 2*bucket_a20
+    d249 = 2*bucket_a00
+    d250 = 4*arm_a01
+    d251 = 2*arm_a21
+    d252 = (18799/5000)*arm_e2
+    d253 = (18799/5000)*arm_e3
+    d254 = (18799/5000)*arm_e0
+    d255 = (18799/5000)*arm_e1
+    d256 = -7877/2500*arm_e2
+    d257 = (7877/2500)*arm_e1
+    d258 = (7877/2500)*arm_e0
+    d259 = 4*side_link_a12
+    d260 = 2*side_link_a22
+    d261 = 2*side_link_a02
+    d262 = 2*arm_a01
+    d263 = 2*arm_a11
+    d264 = d263*side_link_e1
+    d265 = 4*arm_a21
+    d266 = d263*side_link_e0
+    d267 = d263*side_link_e3
+    d268 = d263*side_link_e2
+    d269 = 4*side_link_a10
+    d270 = 2*side_link_a20
+    d271 = 2*side_link_a00
+    d272 = 4*arm_a01
+    d273 = 2*arm_a21
+    d274 = 2.2745066225654527*p_side_link
+    d275 = -1.645191449642404*side_link_e2*p_side_link
+    d276 = -1.645191449642404*side_link_e3*p_side_link
+    d277 = 1.645191449642404*p_side_link
+    d278 = d277*side_link_e0
+    d279 = d277*side_link_e1
+    d280 = 2.4197412333018*p_bucket_link
+    d281 = 1.592549242869674*p_bucket_link
+    d282 = d281*bucket_link_e2
+    d283 = d281*bucket_link_e3
+    d284 = d281*bucket_link_e0
+    d285 = d281*bucket_link_e1
+    d286 = 1.1372533112827263*p_side_link
+    d287 = d286*side_link_e3
+    d288 = d286*side_link_e2
+    d289 = d286*side_link_e1
+    d290 = d286*side_link_e0
+    d291 = 1.2098706166509*p_bucket_link
+    d292 = -d291*bucket_link_e2
+    d293 = d291*bucket_link_e1
+    d294 = d291*bucket_link_e0
+    d295 = 3.185098485739348*p_bucket_link
+    d296 = 4*p_K_x
+    d297 = 2*p_K_z
+    d298 = d297*bucket_e2
+    d299 = d297*bucket_e3
+    d300 = d297*bucket_e0
+    d301 = d297*bucket_e1
+    d302 = 2*p_K_x
+    d303 = -d302*bucket_e3
+    d304 = -d302*bucket_e2
+    d305 = d302*bucket_e1
+    d306 = d302*bucket_e0
+    d307 = 4*p_K_z
+    d308 = (3.1850984857373903)*bucket_a01
+    d309 = (1.2098706166521882)*bucket_a11
+    d310 = (1.5925492428686951)*bucket_a11
+    d311 = (1.5925492428686951)*bucket_a21
+    d312 = (1.2098706166521882)*bucket_a01
+    d313 = -3.1850984857373903*bucket_link_a10 + (2.4197412333043764)*bucket_link_a12
+    d314 = -0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22
+    d315 = 2*d314
+    d316 = -1.5925492428686951*bucket_link_a00 + (1.2098706166521882)*bucket_link_a02
+    d317 = -36797/25000*arm_e2
+    d318 = -36797/25000*arm_e3
+    d319 = (36797/25000)*arm_e0
+    d320 = (36797/25000)*arm_e1
+    d321 = (24687/50000)*arm_e3
+    d322 = (24687/50000)*arm_e2
+    d323 = (24687/50000)*arm_e1
+    d324 = (24687/50000)*arm_e0
+    d325 = 4*bucket_cyl_barrel_a12
+    d326 = 2*bucket_cyl_barrel_a22
+    d327 = 2*bucket_cyl_barrel_a02
+    d328 = 2*arm_a01
+    d329 = 2*arm_a11
+    d330 = 4*arm_a21
+    d331 = 4*bucket_cyl_rod_a01
+    d332 = 2*bucket_cyl_barrel_e2
+    d333 = 2*bucket_cyl_barrel_e3
+    d334 = 2*bucket_cyl_barrel_e0
+    d335 = 2*bucket_cyl_barrel_e1
+    d336 = 2*bucket_cyl_barrel_a00
+    d337 = d336*bucket_cyl_rod_e3
+    d338 = 4*bucket_cyl_barrel_a10
+    d339 = 2*bucket_cyl_barrel_a20
+    d340 = d336*bucket_cyl_rod_e2
+    d341 = d336*bucket_cyl_rod_e1
+    d342 = d336*bucket_cyl_rod_e0
+    d343 = 4*bucket_cyl_rod_a02
+    d344 = 2*bucket_cyl_barrel_a10
+    d345 = 4*bucket_cyl_barrel_a20
+    d346 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d347 = 4*d346
+    d348 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d349 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    d350 = -d349*d333
+    d351 = d332*d349
+    d352 = d349*d335
+    d353 = d349*d334
+    d354 = 4*d348
+    d355 = (4.0)*bucket_cyl_rod_a12
+    d356 = (2.0)*bucket_cyl_rod_a22
+    d357 = (2.0)*bucket_cyl_rod_a02
+    d358 = (2.0)*bucket_cyl_barrel_a01
+    d359 = (2.0)*bucket_cyl_barrel_a11
+    d360 = (4.0)*bucket_cyl_barrel_a21
+    d361 = 2.2745066225654527*p_side_link
+    d362 = 1.645191449642404*p_side_link
+    d363 = -d362*side_link_e2
+    d364 = -d362*side_link_e3
+    d365 = d362*side_link_e0
+    d366 = d362*side_link_e1
+    d367 = 1.1372533112827263*p_side_link
+    d368 = d367*side_link_e3
+    d369 = d367*side_link_e2
+    d370 = d367*side_link_e1
+    d371 = d367*side_link_e0
+    d372 = 3.290382899284808*p_side_link
     out = _zeros(611, q, ())
     out[0] = -1
     out[1] = -1
@@ -864,445 +915,445 @@ def _joints_jac(q):
     out[113] = d71*boom_cyl_l_rod_e0 + d72*boom_cyl_l_rod_e3
     out[114] = d71*boom_cyl_l_rod_e1 + d72*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e3
     out[115] = -1
-    out[116] = -d74 - d75 - 139283/25000*boom_e0
-    out[117] = -d76 - d77 - 139283/25000*boom_e1
-    out[118] = -d78 - d79
-    out[119] = d80 + d81
+    out[116] = -d74 - d77 - d75*boom_e0
+    out[117] = -d78 - d79 - d75*boom_e1
+    out[118] = -d80 - d81
+    out[119] = d82 + d83
     out[120] = 1
     out[121] = -1
-    out[122] = -d81 - d82 - 32/25*boom_e0
-    out[123] = d78 + d83
-    out[124] = -d84 - d77 - 32/25*boom_e2
-    out[125] = -d74 - d85
+    out[122] = -d85 - d83 - 32/25*boom_e0
+    out[123] = d86 + d81
+    out[124] = -d87 - d79 - 32/25*boom_e2
+    out[125] = -d88 - d77
     out[126] = 1
     out[127] = -1
-    out[128] = -d79 - d83 - 8.007688*boom_e0
-    out[129] = -d80 - d82
-    out[130] = d75 + d85
-    out[131] = -d84 - d76 - 8.007688*boom_e3
+    out[128] = -d86 - d80 - d89*boom_e0
+    out[129] = -d85 - d82
+    out[130] = d74 + d88
+    out[131] = -d87 - d78 - d89*boom_e3
     out[132] = 1
     out[133] = 1
-    out[134] = d86 + d87 + (8614/3125)*upper_e0
-    out[135] = d88 + d89 + (8614/3125)*upper_e1
-    out[136] = d90 - d91
-    out[137] = d92 + d93
+    out[134] = d90 + d91 + (8614/3125)*upper_e0
+    out[135] = d92 + d93 + (8614/3125)*upper_e1
+    out[136] = d94 - d95
+    out[137] = d96 + d97
     out[138] = -1
     out[139] = 1
-    out[140] = -d93 - d94 - 32/25*upper_e0
-    out[141] = d95 - d90
-    out[142] = d96 + d89 - 32/25*upper_e2
-    out[143] = d86 + d97
+    out[140] = -d97 - d98 - 32/25*upper_e0
+    out[141] = d99 - d94
+    out[142] = d100 + d93 - 32/25*upper_e2
+    out[143] = d90 + d101
     out[144] = -1
     out[145] = 1
-    out[146] = -d91 - d95 + (67739/12500)*upper_e0
-    out[147] = -d92 - d94
-    out[148] = -d87 - d97
-    out[149] = d96 + d88 + (67739/12500)*upper_e3
+    out[146] = -d95 - d99 + (67739/12500)*upper_e0
+    out[147] = -d96 - d98
+    out[148] = -d91 - d101
+    out[149] = d100 + d92 + (67739/12500)*upper_e3
     out[150] = -1
-    out[151] = d98*upper_e0 + d99*upper_e1 - d100*upper_e3
-    out[152] = d99*upper_e0 + d100*upper_e2
-    out[153] = d98*upper_e2 + d99*upper_e3 + d100*upper_e1
-    out[154] = -d100*upper_e0 + 2*upper_e2*boom_cyl_r_barrel_a22
-    out[155] = d101*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e0 - d102*boom_cyl_r_barrel_e1
-    out[156] = d101*boom_cyl_r_barrel_e3 - d102*boom_cyl_r_barrel_e0
-    out[157] = d101*boom_cyl_r_barrel_e0 + d102*boom_cyl_r_barrel_e3
-    out[158] = d101*boom_cyl_r_barrel_e1 + d102*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e3
-    out[159] = d104*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a11 - d105*boom_cyl_r_rod_a21
-    out[160] = d104*boom_cyl_r_barrel_e1 + d105*boom_cyl_r_rod_a11 + d106*boom_cyl_r_rod_a21
-    out[161] = -d107*boom_cyl_r_rod_a21 + 2*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11
-    out[162] = d107*boom_cyl_r_rod_a11 + d108*boom_cyl_r_rod_a21
-    out[163] = -d110 + d111*boom_cyl_r_rod_e0 + d112*boom_cyl_r_rod_e1
-    out[164] = d113 + d112*boom_cyl_r_rod_e0
-    out[165] = d114 + d111*boom_cyl_r_rod_e2 + d112*boom_cyl_r_rod_e3
-    out[166] = -d115 + 2*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2
-    out[167] = d116*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a12 - d105*boom_cyl_r_rod_a22
-    out[168] = d105*boom_cyl_r_rod_a12 + d116*boom_cyl_r_barrel_e1 + d106*boom_cyl_r_rod_a22
-    out[169] = -d107*boom_cyl_r_rod_a22 + 2*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12
-    out[170] = d107*boom_cyl_r_rod_a12 + d108*boom_cyl_r_rod_a22
-    out[171] = d113 + d118*boom_cyl_r_rod_e0 - d117*boom_cyl_r_rod_e1
-    out[172] = d110 - d117*boom_cyl_r_rod_e0
-    out[173] = d115 + d117*boom_cyl_r_rod_e3
-    out[174] = d114 + d117*boom_cyl_r_rod_e2 + d118*boom_cyl_r_rod_e3
+    out[151] = d102*upper_e0 + d103*upper_e1 - d104*upper_e3
+    out[152] = d103*upper_e0 + d104*upper_e2
+    out[153] = d102*upper_e2 + d103*upper_e3 + d104*upper_e1
+    out[154] = -d104*upper_e0 + 2*upper_e2*boom_cyl_r_barrel_a22
+    out[155] = d105*boom_cyl_r_barrel_e2 + d107*boom_cyl_r_barrel_e0 - d106*boom_cyl_r_barrel_e1
+    out[156] = d105*boom_cyl_r_barrel_e3 - d106*boom_cyl_r_barrel_e0
+    out[157] = d105*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_barrel_e3
+    out[158] = d105*boom_cyl_r_barrel_e1 + d106*boom_cyl_r_barrel_e2 + d107*boom_cyl_r_barrel_e3
+    out[159] = d108*boom_cyl_r_barrel_e0 + d110*boom_cyl_r_rod_a11 - d109*boom_cyl_r_rod_a21
+    out[160] = d108*boom_cyl_r_barrel_e1 + d109*boom_cyl_r_rod_a11 + d110*boom_cyl_r_rod_a21
+    out[161] = -d111*boom_cyl_r_rod_a21 + 2*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11
+    out[162] = d111*boom_cyl_r_rod_a11 + d112*boom_cyl_r_rod_a21
+    out[163] = -d114 + d115*boom_cyl_r_rod_e0 + d116*boom_cyl_r_rod_e1
+    out[164] = d117 + d116*boom_cyl_r_rod_e0
+    out[165] = d118 + d115*boom_cyl_r_rod_e2 + d116*boom_cyl_r_rod_e3
+    out[166] = -d119 + 2*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2
+    out[167] = d120*boom_cyl_r_barrel_e0 + d110*boom_cyl_r_rod_a12 - d109*boom_cyl_r_rod_a22
+    out[168] = d109*boom_cyl_r_rod_a12 + d120*boom_cyl_r_barrel_e1 + d110*boom_cyl_r_rod_a22
+    out[169] = -d111*boom_cyl_r_rod_a22 + 2*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12
+    out[170] = d111*boom_cyl_r_rod_a12 + d112*boom_cyl_r_rod_a22
+    out[171] = d117 + d122*boom_cyl_r_rod_e0 - d121*boom_cyl_r_rod_e1
+    out[172] = d114 - d121*boom_cyl_r_rod_e0
+    out[173] = d119 + d121*boom_cyl_r_rod_e3
+    out[174] = d118 + d121*boom_cyl_r_rod_e2 + d122*boom_cyl_r_rod_e3
     out[175] = -boom_cyl_r_barrel_a01
     out[176] = -boom_cyl_r_barrel_a11
     out[177] = -boom_cyl_r_barrel_a21
-    out[178] = d123 + d120*boom_cyl_r_barrel_e0 + d121*d108
-    out[179] = d124 + d121*d107
-    out[180] = d125 + d120*boom_cyl_r_barrel_e2 + d121*d106
-    out[181] = -d126 + 2*d121*boom_cyl_r_barrel_e2
+    out[178] = d127 + d124*boom_cyl_r_barrel_e0 + d125*d112
+    out[179] = d128 + d125*d111
+    out[180] = d129 + d124*boom_cyl_r_barrel_e2 + d125*d110
+    out[181] = -d130 + 2*d125*boom_cyl_r_barrel_e2
     out[182] = boom_cyl_r_barrel_a01
     out[183] = boom_cyl_r_barrel_a11
     out[184] = boom_cyl_r_barrel_a21
     out[185] = -boom_cyl_r_barrel_a02
     out[186] = -boom_cyl_r_barrel_a12
     out[187] = -boom_cyl_r_barrel_a22
-    out[188] = d124 + d127*boom_cyl_r_barrel_e0 - d119*d108
-    out[189] = -d123 - d119*d107
-    out[190] = d126 + d119*d106
-    out[191] = d125 + d105*d119 + d127*boom_cyl_r_barrel_e3
+    out[188] = d128 + d131*boom_cyl_r_barrel_e0 - d123*d112
+    out[189] = -d127 - d123*d111
+    out[190] = d130 + d123*d110
+    out[191] = d129 + d109*d123 + d131*boom_cyl_r_barrel_e3
     out[192] = boom_cyl_r_barrel_a02
     out[193] = boom_cyl_r_barrel_a12
     out[194] = boom_cyl_r_barrel_a22
-    out[195] = d128*boom_cyl_r_barrel_e0 + d129*boom_cyl_r_barrel_e1 - d130*boom_cyl_r_barrel_e3
-    out[196] = d129*boom_cyl_r_barrel_e0 + d130*boom_cyl_r_barrel_e2
-    out[197] = d128*boom_cyl_r_barrel_e2 + d129*boom_cyl_r_barrel_e3 + d130*boom_cyl_r_barrel_e1
-    out[198] = -d130*boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22
-    out[199] = d131*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e0 - d132*boom_cyl_r_rod_e1
-    out[200] = d131*boom_cyl_r_rod_e3 - d132*boom_cyl_r_rod_e0
-    out[201] = d131*boom_cyl_r_rod_e0 + d132*boom_cyl_r_rod_e3
-    out[202] = d131*boom_cyl_r_rod_e1 + d132*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e3
+    out[195] = d132*boom_cyl_r_barrel_e0 + d133*boom_cyl_r_barrel_e1 - d134*boom_cyl_r_barrel_e3
+    out[196] = d133*boom_cyl_r_barrel_e0 + d134*boom_cyl_r_barrel_e2
+    out[197] = d132*boom_cyl_r_barrel_e2 + d133*boom_cyl_r_barrel_e3 + d134*boom_cyl_r_barrel_e1
+    out[198] = -d134*boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22
+    out[199] = d135*boom_cyl_r_rod_e2 + d137*boom_cyl_r_rod_e0 - d136*boom_cyl_r_rod_e1
+    out[200] = d135*boom_cyl_r_rod_e3 - d136*boom_cyl_r_rod_e0
+    out[201] = d135*boom_cyl_r_rod_e0 + d136*boom_cyl_r_rod_e3
+    out[202] = d135*boom_cyl_r_rod_e1 + d136*boom_cyl_r_rod_e2 + d137*boom_cyl_r_rod_e3
     out[203] = -1
-    out[204] = -d134 - d135 - 139283/25000*boom_e0
-    out[205] = -d136 - d137 - 139283/25000*boom_e1
-    out[206] = -d138 + (16/25)*boom_e1
-    out[207] = -d139 - d140
+    out[204] = -d138 - d141 - d139*boom_e0
+    out[205] = -d142 - d143 - d139*boom_e1
+    out[206] = -d144 + (16/25)*boom_e1
+    out[207] = -d145 - d146
     out[208] = 1
     out[209] = -1
-    out[210] = d140 + d141 + (32/25)*boom_e0
-    out[211] = d138 - d142
-    out[212] = -d137 - d143 + (32/25)*boom_e2
-    out[213] = -d134 - d144
+    out[210] = d148 + d146 + (32/25)*boom_e0
+    out[211] = d144 - d149
+    out[212] = -d150 - d143 + (32/25)*boom_e2
+    out[213] = -d151 - d141
     out[214] = 1
     out[215] = -1
-    out[216] = d142 - 8.007688*boom_e0 + (16/25)*boom_e1
-    out[217] = d139 + d141
-    out[218] = d135 + d144
-    out[219] = -d136 - d143 - 8.007688*boom_e3
+    out[216] = d149 + (16/25)*boom_e1 - d152*boom_e0
+    out[217] = d148 + d145
+    out[218] = d138 + d151
+    out[219] = -d150 - d142 - d152*boom_e3
     out[220] = 1
     out[221] = 1
-    out[222] = d145 + (23939/1250)*boom_e0
-    out[223] = d146 + (23939/1250)*boom_e1
-    out[224] = d147
-    out[225] = d148
+    out[222] = d153 + (23939/1250)*boom_e0
+    out[223] = d154 + (23939/1250)*boom_e1
+    out[224] = d155
+    out[225] = d156
     out[226] = -1
     out[227] = 1
-    out[228] = -d148 + (23939/2500)*boom_e3
-    out[229] = -d147 - d149
-    out[230] = d146 + d150
-    out[231] = d145 + d151
+    out[228] = -d156 + (23939/2500)*boom_e3
+    out[229] = -d155 - d157
+    out[230] = d154 + d158
+    out[231] = d153 + d159
     out[232] = -1
     out[233] = 1
-    out[234] = d149 + (29959/2500)*boom_e0
+    out[234] = d157 + (29959/2500)*boom_e0
     out[235] = (23939/2500)*boom_e3
-    out[236] = -d151
-    out[237] = d150 + (29959/2500)*boom_e3
+    out[236] = -d159
+    out[237] = d158 + (29959/2500)*boom_e3
     out[238] = -1
-    out[239] = d152*boom_e0 + d153*boom_e1 - d154*boom_e3
-    out[240] = d153*boom_e0 + d154*boom_e2
-    out[241] = d152*boom_e2 + d153*boom_e3 + d154*boom_e1
-    out[242] = -d154*boom_e0 + 2*boom_e2*arm_a22
-    out[243] = -d157 + d155*arm_e2 + d158*arm_e0
-    out[244] = -d159 + d155*arm_e3
-    out[245] = d160 + d155*arm_e0
-    out[246] = d161 + d155*arm_e1 + d158*arm_e3
-    out[247] = d162*boom_e0 + d163*boom_e1 - d164*boom_e3
-    out[248] = d163*boom_e0 + d164*boom_e2
-    out[249] = d162*boom_e2 + d163*boom_e3 + d164*boom_e1
-    out[250] = -d164*boom_e0 + 2*boom_e2*arm_a20
-    out[251] = d160 + d165*arm_e0 - d166*arm_e2
-    out[252] = d161 + d165*arm_e1 + d166*arm_e3
-    out[253] = d157 - d166*arm_e0
-    out[254] = d159 + d166*arm_e1
+    out[239] = d160*boom_e0 + d161*boom_e1 - d162*boom_e3
+    out[240] = d161*boom_e0 + d162*boom_e2
+    out[241] = d160*boom_e2 + d161*boom_e3 + d162*boom_e1
+    out[242] = -d162*boom_e0 + 2*boom_e2*arm_a22
+    out[243] = -d165 + d163*arm_e2 + d166*arm_e0
+    out[244] = -d167 + d163*arm_e3
+    out[245] = d168 + d163*arm_e0
+    out[246] = d169 + d163*arm_e1 + d166*arm_e3
+    out[247] = d170*boom_e0 + d171*boom_e1 - d172*boom_e3
+    out[248] = d171*boom_e0 + d172*boom_e2
+    out[249] = d170*boom_e2 + d171*boom_e3 + d172*boom_e1
+    out[250] = -d172*boom_e0 + 2*boom_e2*arm_a20
+    out[251] = d168 + d173*arm_e0 - d174*arm_e2
+    out[252] = d169 + d173*arm_e1 + d174*arm_e3
+    out[253] = d165 - d174*arm_e0
+    out[254] = d167 + d174*arm_e1
     out[255] = 1
-    out[256] = d167 + (183/20)*boom_e0
-    out[257] = d168 + (183/20)*boom_e1
-    out[258] = d169
-    out[259] = d170
+    out[256] = d175 + (183/20)*boom_e0
+    out[257] = d176 + (183/20)*boom_e1
+    out[258] = d177
+    out[259] = d178
     out[260] = -1
     out[261] = 1
-    out[262] = -d170 + (183/40)*boom_e3
-    out[263] = -d169 - d171
-    out[264] = d168 + d172
-    out[265] = d167 + d173
+    out[262] = -d178 + (183/40)*boom_e3
+    out[263] = -d177 - d179
+    out[264] = d176 + d180
+    out[265] = d175 + d181
     out[266] = -1
     out[267] = 1
-    out[268] = d171 + (557/50)*boom_e0
+    out[268] = d179 + (557/50)*boom_e0
     out[269] = (183/40)*boom_e3
-    out[270] = -d173
-    out[271] = d172 + (557/50)*boom_e3
+    out[270] = -d181
+    out[271] = d180 + (557/50)*boom_e3
     out[272] = -1
-    out[273] = d174*boom_e0 + d175*boom_e1 - d176*boom_e3
-    out[274] = d175*boom_e0 + d176*boom_e2
-    out[275] = d174*boom_e2 + d175*boom_e3 + d176*boom_e1
-    out[276] = -d176*boom_e0 + 2*boom_e2*arm_cyl_barrel_a22
-    out[277] = d177*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e0 - d178*arm_cyl_barrel_e1
-    out[278] = d177*arm_cyl_barrel_e3 - d178*arm_cyl_barrel_e0
-    out[279] = d177*arm_cyl_barrel_e0 + d178*arm_cyl_barrel_e3
-    out[280] = d177*arm_cyl_barrel_e1 + d178*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e3
-    out[281] = d180*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a11 - d181*arm_cyl_rod_a21
-    out[282] = d180*arm_cyl_barrel_e1 + d181*arm_cyl_rod_a11 + d182*arm_cyl_rod_a21
-    out[283] = -d183*arm_cyl_rod_a21 + 2*arm_cyl_barrel_e1*arm_cyl_rod_a11
-    out[284] = d183*arm_cyl_rod_a11 + d184*arm_cyl_rod_a21
-    out[285] = -d186 + d187*arm_cyl_rod_e0 + d188*arm_cyl_rod_e1
-    out[286] = d189 + d188*arm_cyl_rod_e0
-    out[287] = d190 + d187*arm_cyl_rod_e2 + d188*arm_cyl_rod_e3
-    out[288] = -d191 + 2*arm_cyl_barrel_a20*arm_cyl_rod_e2
-    out[289] = d192*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a12 - d181*arm_cyl_rod_a22
-    out[290] = d181*arm_cyl_rod_a12 + d192*arm_cyl_barrel_e1 + d182*arm_cyl_rod_a22
-    out[291] = -d183*arm_cyl_rod_a22 + 2*arm_cyl_barrel_e1*arm_cyl_rod_a12
-    out[292] = d183*arm_cyl_rod_a12 + d184*arm_cyl_rod_a22
-    out[293] = d189 + d194*arm_cyl_rod_e0 - d193*arm_cyl_rod_e1
-    out[294] = d186 - d193*arm_cyl_rod_e0
-    out[295] = d191 + d193*arm_cyl_rod_e3
-    out[296] = d190 + d193*arm_cyl_rod_e2 + d194*arm_cyl_rod_e3
+    out[273] = d182*boom_e0 + d183*boom_e1 - d184*boom_e3
+    out[274] = d183*boom_e0 + d184*boom_e2
+    out[275] = d182*boom_e2 + d183*boom_e3 + d184*boom_e1
+    out[276] = -d184*boom_e0 + 2*boom_e2*arm_cyl_barrel_a22
+    out[277] = d185*arm_cyl_barrel_e2 + d187*arm_cyl_barrel_e0 - d186*arm_cyl_barrel_e1
+    out[278] = d185*arm_cyl_barrel_e3 - d186*arm_cyl_barrel_e0
+    out[279] = d185*arm_cyl_barrel_e0 + d186*arm_cyl_barrel_e3
+    out[280] = d185*arm_cyl_barrel_e1 + d186*arm_cyl_barrel_e2 + d187*arm_cyl_barrel_e3
+    out[281] = d188*arm_cyl_barrel_e0 + d190*arm_cyl_rod_a11 - d189*arm_cyl_rod_a21
+    out[282] = d188*arm_cyl_barrel_e1 + d189*arm_cyl_rod_a11 + d190*arm_cyl_rod_a21
+    out[283] = -d191*arm_cyl_rod_a21 + 2*arm_cyl_barrel_e1*arm_cyl_rod_a11
+    out[284] = d191*arm_cyl_rod_a11 + d192*arm_cyl_rod_a21
+    out[285] = -d194 + d195*arm_cyl_rod_e0 + d196*arm_cyl_rod_e1
+    out[286] = d197 + d196*arm_cyl_rod_e0
+    out[287] = d198 + d195*arm_cyl_rod_e2 + d196*arm_cyl_rod_e3
+    out[288] = -d199 + 2*arm_cyl_barrel_a20*arm_cyl_rod_e2
+    out[289] = d200*arm_cyl_barrel_e0 + d190*arm_cyl_rod_a12 - d189*arm_cyl_rod_a22
+    out[290] = d189*arm_cyl_rod_a12 + d200*arm_cyl_barrel_e1 + d190*arm_cyl_rod_a22
+    out[291] = -d191*arm_cyl_rod_a22 + 2*arm_cyl_barrel_e1*arm_cyl_rod_a12
+    out[292] = d191*arm_cyl_rod_a12 + d192*arm_cyl_rod_a22
+    out[293] = d197 + d202*arm_cyl_rod_e0 - d201*arm_cyl_rod_e1
+    out[294] = d194 - d201*arm_cyl_rod_e0
+    out[295] = d199 + d201*arm_cyl_rod_e3
+    out[296] = d198 + d201*arm_cyl_rod_e2 + d202*arm_cyl_rod_e3
     out[297] = -arm_cyl_barrel_a01
     out[298] = -arm_cyl_barrel_a11
     out[299] = -arm_cyl_barrel_a21
-    out[300] = d199 + d196*arm_cyl_barrel_e0 + d197*d184
-    out[301] = d200 + d197*d183
-    out[302] = d201 + d196*arm_cyl_barrel_e2 + d197*d182
-    out[303] = -d202 + 2*d197*arm_cyl_barrel_e2
+    out[300] = d207 + d204*arm_cyl_barrel_e0 + d205*d192
+    out[301] = d208 + d205*d191
+    out[302] = d209 + d204*arm_cyl_barrel_e2 + d205*d190
+    out[303] = -d210 + 2*d205*arm_cyl_barrel_e2
     out[304] = arm_cyl_barrel_a01
     out[305] = arm_cyl_barrel_a11
     out[306] = arm_cyl_barrel_a21
     out[307] = -arm_cyl_barrel_a02
     out[308] = -arm_cyl_barrel_a12
     out[309] = -arm_cyl_barrel_a22
-    out[310] = d200 + d203*arm_cyl_barrel_e0 - d195*d184
-    out[311] = -d199 - d195*d183
-    out[312] = d202 + d195*d182
-    out[313] = d201 + d181*d195 + d203*arm_cyl_barrel_e3
+    out[310] = d208 + d211*arm_cyl_barrel_e0 - d203*d192
+    out[311] = -d207 - d203*d191
+    out[312] = d210 + d203*d190
+    out[313] = d209 + d189*d203 + d211*arm_cyl_barrel_e3
     out[314] = arm_cyl_barrel_a02
     out[315] = arm_cyl_barrel_a12
     out[316] = arm_cyl_barrel_a22
-    out[317] = d204*arm_cyl_barrel_e0 + d205*arm_cyl_barrel_e1 - d206*arm_cyl_barrel_e3
-    out[318] = d205*arm_cyl_barrel_e0 + d206*arm_cyl_barrel_e2
-    out[319] = d204*arm_cyl_barrel_e2 + d205*arm_cyl_barrel_e3 + d206*arm_cyl_barrel_e1
-    out[320] = -d206*arm_cyl_barrel_e0 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22
-    out[321] = d207*arm_cyl_rod_e2 + d209*arm_cyl_rod_e0 - d208*arm_cyl_rod_e1
-    out[322] = d207*arm_cyl_rod_e3 - d208*arm_cyl_rod_e0
-    out[323] = d207*arm_cyl_rod_e0 + d208*arm_cyl_rod_e3
-    out[324] = d207*arm_cyl_rod_e1 + d208*arm_cyl_rod_e2 + d209*arm_cyl_rod_e3
+    out[317] = d212*arm_cyl_barrel_e0 + d213*arm_cyl_barrel_e1 - d214*arm_cyl_barrel_e3
+    out[318] = d213*arm_cyl_barrel_e0 + d214*arm_cyl_barrel_e2
+    out[319] = d212*arm_cyl_barrel_e2 + d213*arm_cyl_barrel_e3 + d214*arm_cyl_barrel_e1
+    out[320] = -d214*arm_cyl_barrel_e0 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22
+    out[321] = d215*arm_cyl_rod_e2 + d217*arm_cyl_rod_e0 - d216*arm_cyl_rod_e1
+    out[322] = d215*arm_cyl_rod_e3 - d216*arm_cyl_rod_e0
+    out[323] = d215*arm_cyl_rod_e0 + d216*arm_cyl_rod_e3
+    out[324] = d215*arm_cyl_rod_e1 + d216*arm_cyl_rod_e2 + d217*arm_cyl_rod_e3
     out[325] = -1
-    out[326] = d210 + (393281/125000)*arm_e0
-    out[327] = d211 + (393281/125000)*arm_e1
-    out[328] = d212
-    out[329] = d213
+    out[326] = -d220 - d218*arm_e0
+    out[327] = -d221 - d218*arm_e1
+    out[328] = -d222
+    out[329] = -d223
     out[330] = 1
     out[331] = -1
-    out[332] = -d213 + (393281/250000)*arm_e3
-    out[333] = -d212 - d214
-    out[334] = d211 + d215
-    out[335] = d210 + d216
+    out[332] = d223 + d225
+    out[333] = d222 + d226
+    out[334] = -d221 - d227
+    out[335] = -d228 - d220
     out[336] = 1
     out[337] = -1
-    out[338] = d214 + (369691/250000)*arm_e0
-    out[339] = (393281/250000)*arm_e3
-    out[340] = -d216
-    out[341] = d215 + (369691/250000)*arm_e3
+    out[338] = -d226 - d229*arm_e0
+    out[339] = d225
+    out[340] = d228
+    out[341] = -d227 - d229*arm_e3
     out[342] = 1
     out[343] = 1
-    out[344] = d217 + (9477/1250)*arm_e0
-    out[345] = d218 + (9477/1250)*arm_e1
-    out[346] = d219
-    out[347] = d220
+    out[344] = d230 + (9477/1250)*arm_e0
+    out[345] = d231 + (9477/1250)*arm_e1
+    out[346] = d232
+    out[347] = d233
     out[348] = -1
     out[349] = 1
-    out[350] = -d220 + (9477/2500)*arm_e3
-    out[351] = -d219 - d221
-    out[352] = d218 + d222
-    out[353] = d217 + d223
+    out[350] = -d233 + (9477/2500)*arm_e3
+    out[351] = -d232 - d234
+    out[352] = d231 + d235
+    out[353] = d230 + d236
     out[354] = -1
     out[355] = 1
-    out[356] = d221 + (21809/2500)*arm_e0
+    out[356] = d234 + (21809/2500)*arm_e0
     out[357] = (9477/2500)*arm_e3
-    out[358] = -d223
-    out[359] = d222 + (21809/2500)*arm_e3
+    out[358] = -d236
+    out[359] = d235 + (21809/2500)*arm_e3
     out[360] = -1
-    out[361] = d224*arm_e0 + d225*arm_e1 - d226*arm_e3
-    out[362] = d225*arm_e0 + d226*arm_e2
-    out[363] = d224*arm_e2 + d225*arm_e3 + d226*arm_e1
-    out[364] = -d226*arm_e0 + 2*arm_e2*bucket_a22
-    out[365] = -d229 + d227*bucket_e2 + d230*bucket_e0
-    out[366] = -d231 + d227*bucket_e3
-    out[367] = d232 + d227*bucket_e0
-    out[368] = d233 + d227*bucket_e1 + d230*bucket_e3
-    out[369] = d234*arm_e0 + d235*arm_e1 - d236*arm_e3
-    out[370] = d235*arm_e0 + d236*arm_e2
-    out[371] = d234*arm_e2 + d235*arm_e3 + d236*arm_e1
-    out[372] = -d236*arm_e0 + 2*arm_e2*bucket_a20
-    out[373] = d232 + d237*bucket_e0 - d238*bucket_e2
-    out[374] = d233 + d237*bucket_e1 + d238*bucket_e3
-    out[375] = d229 - d238*bucket_e0
-    out[376] = d231 + d238*bucket_e1
+    out[361] = d237*arm_e0 + d238*arm_e1 - d239*arm_e3
+    out[362] = d238*arm_e0 + d239*arm_e2
+    out[363] = d237*arm_e2 + d238*arm_e3 + d239*arm_e1
+    out[364] = -d239*arm_e0 + 2*arm_e2*bucket_a22
+    out[365] = -d242 + d240*bucket_e2 + d243*bucket_e0
+    out[366] = -d244 + d240*bucket_e3
+    out[367] = d245 + d240*bucket_e0
+    out[368] = d246 + d240*bucket_e1 + d243*bucket_e3
+    out[369] = d247*arm_e0 + d248*arm_e1 - d249*arm_e3
+    out[370] = d248*arm_e0 + d249*arm_e2
+    out[371] = d247*arm_e2 + d248*arm_e3 + d249*arm_e1
+    out[372] = -d249*arm_e0 + 2*arm_e2*bucket_a20
+    out[373] = d245 + d250*bucket_e0 - d251*bucket_e2
+    out[374] = d246 + d250*bucket_e1 + d251*bucket_e3
+    out[375] = d242 - d251*bucket_e0
+    out[376] = d244 + d251*bucket_e1
     out[377] = 1
-    out[378] = d239 + (7877/1250)*arm_e0
-    out[379] = d240 + (7877/1250)*arm_e1
-    out[380] = d241
-    out[381] = d242
+    out[378] = d252 + (7877/1250)*arm_e0
+    out[379] = d253 + (7877/1250)*arm_e1
+    out[380] = d254
+    out[381] = d255
     out[382] = -1
     out[383] = 1
-    out[384] = -d242 + (7877/2500)*arm_e3
-    out[385] = -d241 - d243
-    out[386] = d240 + d244
-    out[387] = d239 + d245
+    out[384] = -d255 + (7877/2500)*arm_e3
+    out[385] = -d254 - d256
+    out[386] = d253 + d257
+    out[387] = d252 + d258
     out[388] = -1
     out[389] = 1
-    out[390] = d243 + (18799/2500)*arm_e0
+    out[390] = d256 + (18799/2500)*arm_e0
     out[391] = (7877/2500)*arm_e3
-    out[392] = -d245
-    out[393] = d244 + (18799/2500)*arm_e3
+    out[392] = -d258
+    out[393] = d257 + (18799/2500)*arm_e3
     out[394] = -1
-    out[395] = d246*arm_e0 + d247*arm_e1 - d248*arm_e3
-    out[396] = d247*arm_e0 + d248*arm_e2
-    out[397] = d246*arm_e2 + d247*arm_e3 + d248*arm_e1
-    out[398] = -d248*arm_e0 + 2*arm_e2*side_link_a22
-    out[399] = -d251 + d249*side_link_e2 + d252*side_link_e0
-    out[400] = -d253 + d249*side_link_e3
-    out[401] = d254 + d249*side_link_e0
-    out[402] = d255 + d249*side_link_e1 + d252*side_link_e3
-    out[403] = d256*arm_e0 + d257*arm_e1 - d258*arm_e3
-    out[404] = d257*arm_e0 + d258*arm_e2
-    out[405] = d256*arm_e2 + d257*arm_e3 + d258*arm_e1
-    out[406] = -d258*arm_e0 + 2*arm_e2*side_link_a20
-    out[407] = d254 + d259*side_link_e0 - d260*side_link_e2
-    out[408] = d255 + d259*side_link_e1 + d260*side_link_e3
-    out[409] = d251 - d260*side_link_e0
-    out[410] = d253 + d260*side_link_e1
+    out[395] = d259*arm_e0 + d260*arm_e1 - d261*arm_e3
+    out[396] = d260*arm_e0 + d261*arm_e2
+    out[397] = d259*arm_e2 + d260*arm_e3 + d261*arm_e1
+    out[398] = -d261*arm_e0 + 2*arm_e2*side_link_a22
+    out[399] = -d264 + d262*side_link_e2 + d265*side_link_e0
+    out[400] = -d266 + d262*side_link_e3
+    out[401] = d267 + d262*side_link_e0
+    out[402] = d268 + d262*side_link_e1 + d265*side_link_e3
+    out[403] = d269*arm_e0 + d270*arm_e1 - d271*arm_e3
+    out[404] = d270*arm_e0 + d271*arm_e2
+    out[405] = d269*arm_e2 + d270*arm_e3 + d271*arm_e1
+    out[406] = -d271*arm_e0 + 2*arm_e2*side_link_a20
+    out[407] = d267 + d272*side_link_e0 - d273*side_link_e2
+    out[408] = d268 + d272*side_link_e1 + d273*side_link_e3
+    out[409] = d264 - d273*side_link_e0
+    out[410] = d266 + d273*side_link_e1
     out[411] = 1
-    out[412] = -d261 - 166329/125000*side_link_e0
-    out[413] = -d262 - 166329/125000*side_link_e1
-    out[414] = d263
-    out[415] = d264
+    out[412] = -d275 - d274*side_link_e0
+    out[413] = -d276 - d274*side_link_e1
+    out[414] = d278
+    out[415] = d279
     out[416] = -1
-    out[417] = d265 + (85607/62500)*bucket_link_e0
-    out[418] = d266 + (85607/62500)*bucket_link_e1
-    out[419] = d267
-    out[420] = d268
+    out[417] = d282 + d280*bucket_link_e0
+    out[418] = d283 + d280*bucket_link_e1
+    out[419] = d284
+    out[420] = d285
     out[421] = 1
-    out[422] = -d264 - d269
-    out[423] = -d263 - d270
-    out[424] = -d262 - d271
-    out[425] = -d261 - d272
+    out[422] = -d287 - d279
+    out[423] = -d288 - d278
+    out[424] = -d289 - d276
+    out[425] = -d275 - d290
     out[426] = -1
-    out[427] = -d268 + (85607/125000)*bucket_link_e3
-    out[428] = -d273 - d267
-    out[429] = d274 + d266
-    out[430] = d275 + d265
+    out[427] = -d285 + 1.2098706166509*bucket_link_e3*p_bucket_link
+    out[428] = -d284 - d292
+    out[429] = d293 + d283
+    out[430] = d294 + d282
     out[431] = 1
-    out[432] = d270 + (96247/50000)*side_link_e0
-    out[433] = -d269
-    out[434] = d272
-    out[435] = -d271 + (96247/50000)*side_link_e3
+    out[432] = d288 + 3.290382899284808*side_link_e0*p_side_link
+    out[433] = -d287
+    out[434] = d290
+    out[435] = -d289 + 3.290382899284808*side_link_e3*p_side_link
     out[436] = -1
-    out[437] = d273 + (450737/250000)*bucket_link_e0
-    out[438] = (85607/125000)*bucket_link_e3
-    out[439] = -d275
-    out[440] = d274 + (450737/250000)*bucket_link_e3
+    out[437] = d292 + d295*bucket_link_e0
+    out[438] = d291*bucket_link_e3
+    out[439] = -d294
+    out[440] = d293 + d295*bucket_link_e3
     out[441] = 1
     out[442] = -1
-    out[443] = d276 + (8101/6250)*bucket_e0
-    out[444] = d277 + (8101/6250)*bucket_e1
-    out[445] = -d278
-    out[446] = -d279
+    out[443] = -d298 - d296*bucket_e0
+    out[444] = -d299 - d296*bucket_e1
+    out[445] = -d300
+    out[446] = -d301
     out[447] = 1
     out[448] = -1
-    out[449] = d279 + d280
-    out[450] = d278 + d281
-    out[451] = d277 + d282
-    out[452] = d276 + d283
+    out[449] = d301 + d303
+    out[450] = d300 + d304
+    out[451] = -d299 - d305
+    out[452] = -d306 - d298
     out[453] = 1
     out[454] = -1
-    out[455] = -d281 - 16927/12500*bucket_e0
-    out[456] = d280
-    out[457] = -d283
-    out[458] = d282 - 16927/12500*bucket_e3
-    out[459] = -d286*bucket_link_e3 - d284*bucket_link_e0 - d285*bucket_link_e1 + (2.4197412333043764)*bucket_link_e0*bucket_a21 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21
-    out[460] = -d286*bucket_link_e2 - d287*bucket_link_e3 - d284*bucket_link_e1 - d285*bucket_link_e0 + (1.2098706166521882)*bucket_link_e3*bucket_a01
-    out[461] = d288*bucket_link_e0 + d285*bucket_link_e3 - d286*bucket_link_e1 + (1.5925492428686951)*bucket_link_e0*bucket_a21
-    out[462] = d288*bucket_link_e1 + d285*bucket_link_e2 - d286*bucket_link_e0 - d287*bucket_link_e1 + (2.4197412333043764)*bucket_link_e3*bucket_a21
-    out[463] = d289*bucket_e0 + d291*bucket_e1 - d292*bucket_e3
-    out[464] = d291*bucket_e0 + d292*bucket_e2
-    out[465] = d289*bucket_e2 + d291*bucket_e3 + d292*bucket_e1
-    out[466] = -d292*bucket_e0 + 2*d290*bucket_e2
+    out[455] = -d304 - d307*bucket_e0
+    out[456] = d303
+    out[457] = d306
+    out[458] = -d305 - d307*bucket_e3
+    out[459] = -d308*bucket_link_e0 - d309*bucket_link_e1 - d310*bucket_link_e3 + (2.4197412333043764)*bucket_link_e0*bucket_a21 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21
+    out[460] = -d308*bucket_link_e1 - d309*bucket_link_e0 - d310*bucket_link_e2 - d311*bucket_link_e3 + (1.2098706166521882)*bucket_link_e3*bucket_a01
+    out[461] = d309*bucket_link_e3 + d312*bucket_link_e0 - d310*bucket_link_e1 + (1.5925492428686951)*bucket_link_e0*bucket_a21
+    out[462] = d309*bucket_link_e2 + d312*bucket_link_e1 - d310*bucket_link_e0 - d311*bucket_link_e1 + (2.4197412333043764)*bucket_link_e3*bucket_a21
+    out[463] = d313*bucket_e0 + d315*bucket_e1 - d316*bucket_e3
+    out[464] = d315*bucket_e0 + d316*bucket_e2
+    out[465] = d313*bucket_e2 + d315*bucket_e3 + d316*bucket_e1
+    out[466] = -d316*bucket_e0 + 2*d314*bucket_e2
     out[467] = 1
-    out[468] = -d293 - 24687/25000*arm_e0
-    out[469] = -d294 - 24687/25000*arm_e1
-    out[470] = d295
-    out[471] = d296
+    out[468] = -d317 - 24687/25000*arm_e0
+    out[469] = -d318 - 24687/25000*arm_e1
+    out[470] = d319
+    out[471] = d320
     out[472] = -1
     out[473] = 1
-    out[474] = -d296 - d297
-    out[475] = -d295 - d298
-    out[476] = -d294 - d299
-    out[477] = -d293 - d300
+    out[474] = -d320 - d321
+    out[475] = -d319 - d322
+    out[476] = -d318 - d323
+    out[477] = -d317 - d324
     out[478] = -1
     out[479] = 1
-    out[480] = d298 + (36797/12500)*arm_e0
-    out[481] = -d297
-    out[482] = d300
-    out[483] = -d299 + (36797/12500)*arm_e3
+    out[480] = d322 + (36797/12500)*arm_e0
+    out[481] = -d321
+    out[482] = d324
+    out[483] = -d323 + (36797/12500)*arm_e3
     out[484] = -1
-    out[485] = d301*arm_e0 + d302*arm_e1 - d303*arm_e3
-    out[486] = d303*arm_e2 + d302*arm_e0
-    out[487] = d303*arm_e1 + d301*arm_e2 + d302*arm_e3
-    out[488] = -d303*arm_e0 + 2*arm_e2*bucket_cyl_barrel_a22
-    out[489] = d304*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e0 - d305*bucket_cyl_barrel_e1
-    out[490] = d304*bucket_cyl_barrel_e3 - d305*bucket_cyl_barrel_e0
-    out[491] = d304*bucket_cyl_barrel_e0 + d305*bucket_cyl_barrel_e3
-    out[492] = d304*bucket_cyl_barrel_e1 + d305*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e3
-    out[493] = d307*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a11 - d308*bucket_cyl_rod_a21
-    out[494] = d307*bucket_cyl_barrel_e1 + d308*bucket_cyl_rod_a11 + d309*bucket_cyl_rod_a21
-    out[495] = -d310*bucket_cyl_rod_a21 + 2*bucket_cyl_barrel_e1*bucket_cyl_rod_a11
-    out[496] = d310*bucket_cyl_rod_a11 + d311*bucket_cyl_rod_a21
-    out[497] = -d313 + d314*bucket_cyl_rod_e0 + d315*bucket_cyl_rod_e1
-    out[498] = d316 + d315*bucket_cyl_rod_e0
-    out[499] = d317 + d314*bucket_cyl_rod_e2 + d315*bucket_cyl_rod_e3
-    out[500] = -d318 + 2*bucket_cyl_barrel_a20*bucket_cyl_rod_e2
-    out[501] = d319*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a12 - d308*bucket_cyl_rod_a22
-    out[502] = d308*bucket_cyl_rod_a12 + d319*bucket_cyl_barrel_e1 + d309*bucket_cyl_rod_a22
-    out[503] = -d310*bucket_cyl_rod_a22 + 2*bucket_cyl_barrel_e1*bucket_cyl_rod_a12
-    out[504] = d310*bucket_cyl_rod_a12 + d311*bucket_cyl_rod_a22
-    out[505] = d316 + d321*bucket_cyl_rod_e0 - d320*bucket_cyl_rod_e1
-    out[506] = d313 - d320*bucket_cyl_rod_e0
-    out[507] = d318 + d320*bucket_cyl_rod_e3
-    out[508] = d317 + d320*bucket_cyl_rod_e2 + d321*bucket_cyl_rod_e3
+    out[485] = d325*arm_e0 + d326*arm_e1 - d327*arm_e3
+    out[486] = d327*arm_e2 + d326*arm_e0
+    out[487] = d327*arm_e1 + d325*arm_e2 + d326*arm_e3
+    out[488] = -d327*arm_e0 + 2*arm_e2*bucket_cyl_barrel_a22
+    out[489] = d328*bucket_cyl_barrel_e2 + d330*bucket_cyl_barrel_e0 - d329*bucket_cyl_barrel_e1
+    out[490] = d328*bucket_cyl_barrel_e3 - d329*bucket_cyl_barrel_e0
+    out[491] = d328*bucket_cyl_barrel_e0 + d329*bucket_cyl_barrel_e3
+    out[492] = d328*bucket_cyl_barrel_e1 + d329*bucket_cyl_barrel_e2 + d330*bucket_cyl_barrel_e3
+    out[493] = d331*bucket_cyl_barrel_e0 + d333*bucket_cyl_rod_a11 - d332*bucket_cyl_rod_a21
+    out[494] = d331*bucket_cyl_barrel_e1 + d332*bucket_cyl_rod_a11 + d333*bucket_cyl_rod_a21
+    out[495] = -d334*bucket_cyl_rod_a21 + 2*bucket_cyl_barrel_e1*bucket_cyl_rod_a11
+    out[496] = d334*bucket_cyl_rod_a11 + d335*bucket_cyl_rod_a21
+    out[497] = -d337 + d338*bucket_cyl_rod_e0 + d339*bucket_cyl_rod_e1
+    out[498] = d340 + d339*bucket_cyl_rod_e0
+    out[499] = d341 + d338*bucket_cyl_rod_e2 + d339*bucket_cyl_rod_e3
+    out[500] = -d342 + 2*bucket_cyl_barrel_a20*bucket_cyl_rod_e2
+    out[501] = d343*bucket_cyl_barrel_e0 + d333*bucket_cyl_rod_a12 - d332*bucket_cyl_rod_a22
+    out[502] = d332*bucket_cyl_rod_a12 + d343*bucket_cyl_barrel_e1 + d333*bucket_cyl_rod_a22
+    out[503] = -d334*bucket_cyl_rod_a22 + 2*bucket_cyl_barrel_e1*bucket_cyl_rod_a12
+    out[504] = d334*bucket_cyl_rod_a12 + d335*bucket_cyl_rod_a22
+    out[505] = d340 + d345*bucket_cyl_rod_e0 - d344*bucket_cyl_rod_e1
+    out[506] = d337 - d344*bucket_cyl_rod_e0
+    out[507] = d342 + d344*bucket_cyl_rod_e3
+    out[508] = d341 + d344*bucket_cyl_rod_e2 + d345*bucket_cyl_rod_e3
     out[509] = -bucket_cyl_barrel_a01
     out[510] = -bucket_cyl_barrel_a11
     out[511] = -bucket_cyl_barrel_a21
-    out[512] = d326 + d323*bucket_cyl_barrel_e0 + d324*d311
-    out[513] = d327 + d324*d310
-    out[514] = d328 + d323*bucket_cyl_barrel_e2 + d324*d309
-    out[515] = -d329 + 2*d324*bucket_cyl_barrel_e2
+    out[512] = d350 + d347*bucket_cyl_barrel_e0 + d348*d335
+    out[513] = d351 + d348*d334
+    out[514] = d352 + d347*bucket_cyl_barrel_e2 + d348*d333
+    out[515] = -d353 + 2*d348*bucket_cyl_barrel_e2
     out[516] = bucket_cyl_barrel_a01
     out[517] = bucket_cyl_barrel_a11
     out[518] = bucket_cyl_barrel_a21
     out[519] = -bucket_cyl_barrel_a02
     out[520] = -bucket_cyl_barrel_a12
     out[521] = -bucket_cyl_barrel_a22
-    out[522] = d327 + d330*bucket_cyl_barrel_e0 - d322*d311
-    out[523] = -d326 - d322*d310
-    out[524] = d329 + d322*d309
-    out[525] = d328 + d308*d322 + d330*bucket_cyl_barrel_e3
+    out[522] = d351 + d354*bucket_cyl_barrel_e0 - d346*d335
+    out[523] = -d350 - d346*d334
+    out[524] = d353 + d346*d333
+    out[525] = d352 + d332*d346 + d354*bucket_cyl_barrel_e3
     out[526] = bucket_cyl_barrel_a02
     out[527] = bucket_cyl_barrel_a12
     out[528] = bucket_cyl_barrel_a22
-    out[529] = d331*bucket_cyl_barrel_e0 + d332*bucket_cyl_barrel_e1 - d333*bucket_cyl_barrel_e3
-    out[530] = d332*bucket_cyl_barrel_e0 + d333*bucket_cyl_barrel_e2
-    out[531] = d331*bucket_cyl_barrel_e2 + d332*bucket_cyl_barrel_e3 + d333*bucket_cyl_barrel_e1
-    out[532] = -d333*bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22
-    out[533] = d334*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e0 - d335*bucket_cyl_rod_e1
-    out[534] = d334*bucket_cyl_rod_e3 - d335*bucket_cyl_rod_e0
-    out[535] = d334*bucket_cyl_rod_e0 + d335*bucket_cyl_rod_e3
-    out[536] = d334*bucket_cyl_rod_e1 + d335*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e3
+    out[529] = d355*bucket_cyl_barrel_e0 + d356*bucket_cyl_barrel_e1 - d357*bucket_cyl_barrel_e3
+    out[530] = d356*bucket_cyl_barrel_e0 + d357*bucket_cyl_barrel_e2
+    out[531] = d355*bucket_cyl_barrel_e2 + d356*bucket_cyl_barrel_e3 + d357*bucket_cyl_barrel_e1
+    out[532] = -d357*bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22
+    out[533] = d358*bucket_cyl_rod_e2 + d360*bucket_cyl_rod_e0 - d359*bucket_cyl_rod_e1
+    out[534] = d358*bucket_cyl_rod_e3 - d359*bucket_cyl_rod_e0
+    out[535] = d358*bucket_cyl_rod_e0 + d359*bucket_cyl_rod_e3
+    out[536] = d358*bucket_cyl_rod_e1 + d359*bucket_cyl_rod_e2 + d360*bucket_cyl_rod_e3
     out[537] = 1
     out[538] = -1
-    out[539] = d337 + (166329/125000)*side_link_e0
-    out[540] = d338 + (166329/125000)*side_link_e1
-    out[541] = -d339
-    out[542] = -d340
+    out[539] = d363 + d361*side_link_e0
+    out[540] = d364 + d361*side_link_e1
+    out[541] = -d365
+    out[542] = -d366
     out[543] = 1
     out[544] = -1
-    out[545] = d340 + d341
-    out[546] = d339 + d342
-    out[547] = d338 + d343
-    out[548] = d337 + d344
+    out[545] = d366 + d368
+    out[546] = d365 + d369
+    out[547] = d364 + d370
+    out[548] = d371 + d363
     out[549] = 1
     out[550] = -1
-    out[551] = -d342 - 96247/50000*side_link_e0
-    out[552] = d341
-    out[553] = -d344
-    out[554] = d343 - 96247/50000*side_link_e3
+    out[551] = -d369 - d372*side_link_e0
+    out[552] = d368
+    out[553] = -d371
+    out[554] = d370 - d372*side_link_e3
     out[555] = 2*upper_e0
     out[556] = 2*upper_e1
     out[557] = 2*upper_e2
@@ -1362,10 +1413,11 @@ def _joints_jac(q):
     return out
 
 
-def _joints_gamma(q, v):
+def _joints_gamma(q, v, p):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, upper_e0, upper_e1, upper_e2, upper_e3, _, _, _, boom_e0, boom_e1, boom_e2, boom_e3, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_e0, boom_cyl_l_rod_e1, boom_cyl_l_rod_e2, boom_cyl_l_rod_e3, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_e0, boom_cyl_r_barrel_e1, boom_cyl_r_barrel_e2, boom_cyl_r_barrel_e3, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_e0, boom_cyl_r_rod_e1, boom_cyl_r_rod_e2, boom_cyl_r_rod_e3, _, _, _, arm_e0, arm_e1, arm_e2, arm_e3, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_e0, arm_cyl_rod_e1, arm_cyl_rod_e2, arm_cyl_rod_e3, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_e0, bucket_cyl_rod_e1, bucket_cyl_rod_e2, bucket_cyl_rod_e3, _, _, _, side_link_e0, side_link_e1, side_link_e2, side_link_e3, _, _, _, bucket_link_e0, bucket_link_e1, bucket_link_e2, bucket_link_e3, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, v_upper_e1, v_upper_e2, v_upper_e3, _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_e0, v_boom_cyl_l_rod_e1, v_boom_cyl_l_rod_e2, v_boom_cyl_l_rod_e3, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_e0, v_boom_cyl_r_barrel_e1, v_boom_cyl_r_barrel_e2, v_boom_cyl_r_barrel_e3, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_e0, v_boom_cyl_r_rod_e1, v_boom_cyl_r_rod_e2, v_boom_cyl_r_rod_e3, _, _, _, v_arm_e0, v_arm_e1, v_arm_e2, v_arm_e3, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_e0, v_arm_cyl_rod_e1, v_arm_cyl_rod_e2, v_arm_cyl_rod_e3, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_e0, v_bucket_cyl_rod_e1, v_bucket_cyl_rod_e2, v_bucket_cyl_rod_e3, _, _, _, v_side_link_e0, v_side_link_e1, v_side_link_e2, v_side_link_e3, _, _, _, v_bucket_link_e0, v_bucket_link_e1, v_bucket_link_e2, v_bucket_link_e3, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a01 = -2*upper_e0*upper_e3 + 2*upper_e1*upper_e2
     upper_a11 = -1 + 2*upper_e0**2 + 2*upper_e2**2
     upper_a21 = 2*upper_e0*upper_e1 + 2*upper_e2*upper_e3
@@ -1592,440 +1644,464 @@ def _joints_gamma(q, v):
     c121 = (2.0)*v_boom_cyl_l_rod_e0
     c122 = (2.0)*boom_cyl_l_barrel_e0
     c123 = (2.0)*v_boom_cyl_l_barrel_e0
-    c124 = (4.003844)*v_boom_e0
-    c125 = (16/25)*v_boom_e1
-    c126 = (16/25)*v_boom_e0
-    c127 = -4.003844*v_boom_e1
-    c128 = (4.003844)*v_boom_e2
+    c124 = (16/25)*v_boom_e1
+    c125 = 2*p_C_z
+    c126 = c125*v_boom_e0
+    c127 = (16/25)*v_boom_e0
+    c128 = c125*v_boom_e1
     c129 = -16/25*v_boom_e3
-    c130 = (16/25)*v_boom_e2
-    c131 = (4.003844)*v_boom_e3
-    c132 = -139283/50000*v_boom_e2
-    c133 = (139283/50000)*v_boom_e0
-    c134 = (139283/50000)*v_boom_e3
-    c135 = (139283/50000)*v_boom_e1
-    c136 = (67739/25000)*v_upper_e0
-    c137 = (16/25)*v_upper_e1
-    c138 = (16/25)*v_upper_e0
-    c139 = (67739/25000)*v_upper_e1
-    c140 = (67739/25000)*v_upper_e2
-    c141 = (16/25)*v_upper_e3
-    c142 = -16/25*v_upper_e2
-    c143 = (67739/25000)*v_upper_e3
-    c144 = (4307/3125)*v_upper_e2
-    c145 = (4307/3125)*v_upper_e0
-    c146 = -4307/3125*v_upper_e3
-    c147 = (4307/3125)*v_upper_e1
-    c148 = 2*boom_cyl_r_barrel_a02
-    c149 = 2*boom_cyl_r_barrel_a22
-    c150 = 2*upper_a01
-    c151 = 2*upper_a11
-    c152 = 4*boom_cyl_r_barrel_a12
-    c153 = 4*upper_a21
-    c154 = 2*boom_cyl_r_barrel_e0
-    c155 = 2*boom_cyl_r_barrel_e1
-    c156 = 2*upper_e0
-    c157 = 2*v_upper_e0
-    c158 = 2*v_boom_cyl_r_barrel_e1
-    c159 = 2*v_boom_cyl_r_barrel_e0
-    c160 = 2*boom_cyl_r_barrel_a00
-    c161 = c160*v_boom_cyl_r_rod_e2
-    c162 = 2*boom_cyl_r_barrel_a20
-    c163 = c160*v_boom_cyl_r_rod_e0
-    c164 = 4*boom_cyl_r_rod_a01
-    c165 = 2*v_boom_cyl_r_barrel_e3
-    c166 = 2*v_boom_cyl_r_barrel_e2
-    c167 = c160*v_boom_cyl_r_rod_e3
-    c168 = 4*boom_cyl_r_barrel_a10
-    c169 = c160*v_boom_cyl_r_rod_e1
-    c170 = 2*boom_cyl_r_rod_e0
-    c171 = 2*v_boom_cyl_r_rod_e0
-    c172 = 4*v_boom_cyl_r_barrel_e0
-    c173 = c172*boom_cyl_r_barrel_e0
-    c174 = 4*v_boom_cyl_r_barrel_e1
-    c175 = 2*c173 + 2*c174*boom_cyl_r_barrel_e1
-    c176 = 4*v_boom_cyl_r_rod_e0
-    c177 = c176*boom_cyl_r_rod_e0
-    c178 = c166*boom_cyl_r_barrel_e1
-    c179 = c158*boom_cyl_r_barrel_e2
-    c180 = c159*boom_cyl_r_barrel_e3 + c165*boom_cyl_r_barrel_e0
-    c181 = 2*c178 + 2*c179 + 2*c180
-    c182 = 2*v_boom_cyl_r_rod_e2
-    c183 = c170*v_boom_cyl_r_rod_e1 + c171*boom_cyl_r_rod_e1
-    c184 = c165*boom_cyl_r_barrel_e1
-    c185 = c158*boom_cyl_r_barrel_e3
-    c186 = c159*boom_cyl_r_barrel_e2 + c166*boom_cyl_r_barrel_e0
-    c187 = -2*c186 + 2*c184 + 2*c185
-    c188 = 2*boom_cyl_r_barrel_a10
-    c189 = 4*v_boom_cyl_r_rod_e3
-    c190 = boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e3
-    c191 = boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e1
-    c192 = 2*c190 + 2*c191 + c170*v_boom_cyl_r_rod_e2 + c171*boom_cyl_r_rod_e2
-    c193 = c177 + c189*boom_cyl_r_rod_e3
-    c194 = -c183 + 2*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2
-    c195 = 4*v_boom_cyl_r_barrel_e2
-    c196 = c173 + c195*boom_cyl_r_barrel_e2
-    c197 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y
-    c198 = c166*boom_cyl_r_barrel_x - 2*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2
-    c199 = c159*boom_cyl_r_barrel_x - c159*boom_cyl_r_rod_x
-    c200 = c180 - c178 - c179
-    c201 = c165*boom_cyl_r_barrel_e2
-    c202 = c166*boom_cyl_r_barrel_e3
-    c203 = c158*boom_cyl_r_barrel_e0 + c159*boom_cyl_r_barrel_e1
-    c204 = c201 + c202 + c203
-    c205 = -c200
-    c206 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x
-    c207 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z
-    c208 = c165*boom_cyl_r_barrel_x - c165*boom_cyl_r_rod_x
-    c209 = c158*boom_cyl_r_barrel_x - 2*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1
-    c210 = 4*v_boom_cyl_r_barrel_e3
-    c211 = c173 + c210*boom_cyl_r_barrel_e3
-    c212 = c184 + c185 + c186
-    c213 = c203 - c201 - c202
-    c214 = -c213
-    c215 = (2.0)*boom_cyl_r_rod_a02
-    c216 = (2.0)*boom_cyl_r_rod_a22
-    c217 = (2.0)*boom_cyl_r_barrel_a01
-    c218 = (2.0)*boom_cyl_r_barrel_a11
-    c219 = (4.0)*boom_cyl_r_rod_a12
-    c220 = (4.0)*boom_cyl_r_barrel_a21
-    c221 = (2.0)*boom_cyl_r_rod_e0
-    c222 = (2.0)*v_boom_cyl_r_rod_e0
-    c223 = (2.0)*boom_cyl_r_barrel_e0
-    c224 = (2.0)*v_boom_cyl_r_barrel_e0
-    c225 = (4.003844)*v_boom_e0
-    c226 = (16/25)*v_boom_e0
-    c227 = (4.003844)*v_boom_e1
-    c228 = (4.003844)*v_boom_e2
-    c229 = (16/25)*v_boom_e3
-    c230 = -16/25*v_boom_e2
-    c231 = (4.003844)*v_boom_e3
-    c232 = (139283/50000)*v_boom_e2
-    c233 = (139283/50000)*v_boom_e0
-    c234 = -139283/50000*v_boom_e3
-    c235 = (139283/50000)*v_boom_e1
-    c236 = (29959/5000)*v_boom_e2
-    c237 = (29959/5000)*v_boom_e3
-    c238 = -23939/2500*v_boom_e2
-    c239 = (23939/2500)*v_boom_e1
-    c240 = 2*arm_a02
-    c241 = 2*arm_a22
-    c242 = 2*boom_a01
-    c243 = 2*boom_a11
-    c244 = c243*v_arm_e0
-    c245 = c243*v_arm_e3
-    c246 = 4*arm_a12
-    c247 = c243*v_arm_e1
-    c248 = 4*boom_a21
-    c249 = c243*v_arm_e2
-    c250 = 2*arm_e0
-    c251 = 2*arm_e1
-    c252 = 4*v_boom_e0
-    c253 = 4*v_boom_e2
-    c254 = 2*c252*boom_e0 + 2*c253*boom_e2
-    c255 = 4*v_arm_e0
-    c256 = c255*arm_e0
-    c257 = 2*boom_e0
-    c258 = 2*v_boom_e0
-    c259 = 2*v_boom_e2
-    c260 = 2*c257*v_boom_e1 + 2*c258*boom_e1 + 2*c259*boom_e3 + 4*boom_e2*v_boom_e3
-    c261 = 2*arm_e3
-    c262 = 2*arm_e2
-    c263 = c250*v_arm_e2 + c262*v_arm_e0
-    c264 = -2*c257*v_boom_e3 - 2*c258*boom_e3 + 4*boom_e1*v_boom_e2 + 4*boom_e2*v_boom_e1
-    c265 = 2*boom_a21
-    c266 = 2*arm_a00
-    c267 = 2*arm_a20
-    c268 = 4*v_arm_e1
-    c269 = (557/100)*v_boom_e2
-    c270 = (557/100)*v_boom_e3
-    c271 = -183/40*v_boom_e2
-    c272 = (183/40)*v_boom_e1
-    c273 = 2*arm_cyl_barrel_a02
-    c274 = 2*arm_cyl_barrel_a22
-    c275 = 2*boom_a01
-    c276 = 2*boom_a11
-    c277 = 4*arm_cyl_barrel_a12
-    c278 = 4*boom_a21
-    c279 = 2*arm_cyl_barrel_e0
-    c280 = 2*arm_cyl_barrel_e1
-    c281 = 2*boom_e0
-    c282 = 2*v_boom_e0
-    c283 = 2*v_arm_cyl_barrel_e1
-    c284 = 2*v_arm_cyl_barrel_e0
-    c285 = 2*arm_cyl_barrel_a00
-    c286 = c285*v_arm_cyl_rod_e2
-    c287 = 2*arm_cyl_barrel_a20
-    c288 = c285*v_arm_cyl_rod_e0
-    c289 = 4*arm_cyl_rod_a01
-    c290 = 2*v_arm_cyl_barrel_e3
-    c291 = 2*v_arm_cyl_barrel_e2
-    c292 = c285*v_arm_cyl_rod_e3
-    c293 = 4*arm_cyl_barrel_a10
-    c294 = c285*v_arm_cyl_rod_e1
-    c295 = 2*arm_cyl_rod_e0
-    c296 = 2*v_arm_cyl_rod_e0
-    c297 = 4*v_arm_cyl_barrel_e0
-    c298 = c297*arm_cyl_barrel_e0
-    c299 = 4*v_arm_cyl_barrel_e1
-    c300 = 2*c298 + 2*c299*arm_cyl_barrel_e1
-    c301 = 4*v_arm_cyl_rod_e0
-    c302 = c301*arm_cyl_rod_e0
-    c303 = c291*arm_cyl_barrel_e1
-    c304 = c283*arm_cyl_barrel_e2
-    c305 = c284*arm_cyl_barrel_e3 + c290*arm_cyl_barrel_e0
-    c306 = 2*c303 + 2*c304 + 2*c305
-    c307 = 2*v_arm_cyl_rod_e2
-    c308 = c295*v_arm_cyl_rod_e1 + c296*arm_cyl_rod_e1
-    c309 = c290*arm_cyl_barrel_e1
-    c310 = c283*arm_cyl_barrel_e3
-    c311 = c284*arm_cyl_barrel_e2 + c291*arm_cyl_barrel_e0
-    c312 = -2*c311 + 2*c309 + 2*c310
-    c313 = 2*arm_cyl_barrel_a10
-    c314 = 4*v_arm_cyl_rod_e3
-    c315 = arm_cyl_rod_e1*v_arm_cyl_rod_e3
-    c316 = arm_cyl_rod_e3*v_arm_cyl_rod_e1
-    c317 = 2*c315 + 2*c316 + c295*v_arm_cyl_rod_e2 + c296*arm_cyl_rod_e2
-    c318 = c302 + c314*arm_cyl_rod_e3
-    c319 = -c308 + 2*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2*arm_cyl_rod_e3*v_arm_cyl_rod_e2
-    c320 = 4*v_arm_cyl_barrel_e2
-    c321 = c298 + c320*arm_cyl_barrel_e2
-    c322 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y
-    c323 = c291*arm_cyl_barrel_x - 2*arm_cyl_rod_x*v_arm_cyl_barrel_e2
-    c324 = c284*arm_cyl_barrel_x - c284*arm_cyl_rod_x
-    c325 = c305 - c303 - c304
-    c326 = c290*arm_cyl_barrel_e2
-    c327 = c291*arm_cyl_barrel_e3
-    c328 = c283*arm_cyl_barrel_e0 + c284*arm_cyl_barrel_e1
-    c329 = c326 + c327 + c328
-    c330 = -c325
-    c331 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x
-    c332 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z
-    c333 = c290*arm_cyl_barrel_x - c290*arm_cyl_rod_x
-    c334 = c283*arm_cyl_barrel_x - 2*arm_cyl_rod_x*v_arm_cyl_barrel_e1
-    c335 = 4*v_arm_cyl_barrel_e3
-    c336 = c298 + c335*arm_cyl_barrel_e3
-    c337 = c309 + c310 + c311
-    c338 = c328 - c326 - c327
-    c339 = -c338
-    c340 = (2.0)*arm_cyl_rod_a02
-    c341 = (2.0)*arm_cyl_rod_a22
-    c342 = (2.0)*arm_cyl_barrel_a01
-    c343 = (2.0)*arm_cyl_barrel_a11
-    c344 = (4.0)*arm_cyl_rod_a12
-    c345 = (4.0)*arm_cyl_barrel_a21
-    c346 = (2.0)*arm_cyl_rod_e0
-    c347 = (2.0)*v_arm_cyl_rod_e0
-    c348 = (2.0)*arm_cyl_barrel_e0
-    c349 = (2.0)*v_arm_cyl_barrel_e0
-    c350 = (369691/500000)*v_arm_e2
-    c351 = (369691/500000)*v_arm_e3
-    c352 = -393281/250000*v_arm_e2
-    c353 = (393281/250000)*v_arm_e1
-    c354 = (21809/5000)*v_arm_e2
-    c355 = (21809/5000)*v_arm_e3
-    c356 = -9477/2500*v_arm_e2
-    c357 = (9477/2500)*v_arm_e1
-    c358 = 2*bucket_a02
-    c359 = 2*bucket_a22
-    c360 = 2*arm_a01
-    c361 = 2*arm_a11
-    c362 = c361*v_bucket_e0
-    c363 = c361*v_bucket_e3
-    c364 = 4*bucket_a12
-    c365 = c361*v_bucket_e1
-    c366 = 4*arm_a21
-    c367 = c361*v_bucket_e2
-    c368 = 2*bucket_e0
-    c369 = 2*bucket_e1
-    c370 = 4*v_arm_e0
-    c371 = 4*v_arm_e2
-    c372 = 2*c370*arm_e0 + 2*c371*arm_e2
-    c373 = 4*v_bucket_e0
-    c374 = c373*bucket_e0
-    c375 = 2*arm_e0
-    c376 = 2*v_arm_e0
-    c377 = 2*v_arm_e2
-    c378 = 2*c375*v_arm_e1 + 2*c376*arm_e1 + 2*c377*arm_e3 + 4*arm_e2*v_arm_e3
-    c379 = 2*bucket_e3
-    c380 = 2*bucket_e2
-    c381 = c368*v_bucket_e2 + c380*v_bucket_e0
-    c382 = -2*c375*v_arm_e3 - 2*c376*arm_e3 + 4*arm_e1*v_arm_e2 + 4*arm_e2*v_arm_e1
-    c383 = 2*arm_a21
-    c384 = 2*bucket_a00
-    c385 = 2*bucket_a20
-    c386 = 4*v_bucket_e1
-    c387 = (18799/5000)*v_arm_e2
-    c388 = (18799/5000)*v_arm_e3
-    c389 = -7877/2500*v_arm_e2
-    c390 = (7877/2500)*v_arm_e1
-    c391 = 2*side_link_a02
-    c392 = 2*side_link_a22
-    c393 = 2*arm_a01
-    c394 = 2*arm_a11
-    c395 = c394*v_side_link_e0
-    c396 = c394*v_side_link_e3
-    c397 = 4*side_link_a12
-    c398 = c394*v_side_link_e1
-    c399 = 4*arm_a21
-    c400 = c394*v_side_link_e2
-    c401 = 2*side_link_e0
-    c402 = 2*side_link_e1
-    c403 = 4*v_arm_e0
-    c404 = 4*v_arm_e2
-    c405 = 2*c403*arm_e0 + 2*c404*arm_e2
-    c406 = 4*v_side_link_e0
-    c407 = c406*side_link_e0
-    c408 = 2*arm_e0
-    c409 = 2*v_arm_e0
-    c410 = 2*v_arm_e2
-    c411 = 2*c408*v_arm_e1 + 2*c409*arm_e1 + 2*c410*arm_e3 + 4*arm_e2*v_arm_e3
-    c412 = 2*side_link_e3
-    c413 = 2*side_link_e2
-    c414 = c401*v_side_link_e2 + c413*v_side_link_e0
-    c415 = -2*c408*v_arm_e3 - 2*c409*arm_e3 + 4*arm_e1*v_arm_e2 + 4*arm_e2*v_arm_e1
-    c416 = 2*arm_a21
-    c417 = 2*side_link_a00
-    c418 = 2*side_link_a20
-    c419 = 4*v_side_link_e1
-    c420 = (450737/500000)*v_bucket_link_e2
-    c421 = (450737/500000)*v_bucket_link_e3
-    c422 = -96247/100000*v_side_link_e2
-    c423 = -96247/100000*v_side_link_e3
-    c424 = (166329/250000)*v_side_link_e2
-    c425 = (166329/250000)*v_side_link_e1
-    c426 = -85607/125000*v_bucket_link_e2
-    c427 = (85607/125000)*v_bucket_link_e1
-    c428 = (16927/25000)*v_bucket_e2
-    c429 = (16927/25000)*v_bucket_e3
-    c430 = -c428
-    c431 = -c429
-    c432 = (8101/12500)*v_bucket_e3
-    c433 = (8101/12500)*v_bucket_e2
-    c434 = (8101/12500)*v_bucket_e1
-    c435 = (1.5925492428686951)*bucket_link_a00
-    c436 = (1.5925492428686951)*bucket_link_a20
-    c437 = (1.2098706166521882)*bucket_link_a02
-    c438 = (1.2098706166521882)*bucket_link_a22
-    c439 = (1.2098706166521882)*v_bucket_link_e0
-    c440 = (1.5925492428686951)*v_bucket_link_e0
-    c441 = (1.5925492428686951)*v_bucket_link_e1
-    c442 = -1.2098706166521882*v_bucket_link_e3
-    c443 = -c441 - c442
-    c444 = (1.5925492428686951)*v_bucket_link_e3
-    c445 = -c442 - 3.1850984857373903*v_bucket_link_e1
-    c446 = (1.5925492428686951)*v_bucket_link_e2
-    c447 = -c439 - c446
-    c448 = (1.2098706166521882)*v_bucket_link_e1
-    c449 = -1.2098706166521882*v_bucket_link_e2
-    c450 = -c440 - c449
-    c451 = -c441 + (2.4197412333043764)*v_bucket_link_e3
-    c452 = (3.1850984857373903)*bucket_link_a10
-    c453 = 4*bucket_link_e0*v_bucket_link_e0
-    c454 = bucket_e0*v_bucket_e3
-    c455 = bucket_e3*v_bucket_e0
-    c456 = bucket_e0*v_bucket_e1
-    c457 = bucket_e1*v_bucket_e0
-    c458 = bucket_e2*v_bucket_e3
-    c459 = bucket_e3*v_bucket_e2
-    c460 = bucket_e0*v_bucket_e0
-    c461 = bucket_e2*v_bucket_e2
-    c462 = 2*bucket_link_e0
-    c463 = 2*bucket_link_e1
-    c464 = 2*bucket_link_e2
-    c465 = 2*bucket_link_e3
-    c466 = -c449 - 3.1850984857373903*v_bucket_link_e0
-    c467 = -c444 - c448
-    c468 = c446 + (2.4197412333043764)*v_bucket_link_e0
-    c469 = c462*v_bucket_link_e2 + c464*v_bucket_link_e0
-    c470 = -36797/25000*v_arm_e2
-    c471 = -36797/25000*v_arm_e3
-    c472 = (24687/50000)*v_arm_e2
-    c473 = (24687/50000)*v_arm_e1
-    c474 = 2*bucket_cyl_barrel_a02
-    c475 = 2*bucket_cyl_barrel_a22
-    c476 = 2*arm_a01
-    c477 = 2*arm_a11
-    c478 = 4*bucket_cyl_barrel_a12
-    c479 = 4*arm_a21
-    c480 = 2*bucket_cyl_barrel_e0
-    c481 = 2*bucket_cyl_barrel_e1
-    c482 = 2*arm_e0
-    c483 = 2*v_arm_e0
-    c484 = 2*v_bucket_cyl_barrel_e1
-    c485 = 2*v_bucket_cyl_barrel_e0
-    c486 = 2*bucket_cyl_barrel_a00
-    c487 = c486*v_bucket_cyl_rod_e2
-    c488 = 2*bucket_cyl_barrel_a20
-    c489 = c486*v_bucket_cyl_rod_e0
-    c490 = 4*bucket_cyl_rod_a01
-    c491 = 2*v_bucket_cyl_barrel_e3
-    c492 = 2*v_bucket_cyl_barrel_e2
-    c493 = c486*v_bucket_cyl_rod_e3
-    c494 = 4*bucket_cyl_barrel_a10
-    c495 = c486*v_bucket_cyl_rod_e1
-    c496 = 2*bucket_cyl_rod_e0
-    c497 = 2*v_bucket_cyl_rod_e0
-    c498 = 4*v_bucket_cyl_barrel_e0
-    c499 = c498*bucket_cyl_barrel_e0
-    c500 = 4*v_bucket_cyl_barrel_e1
-    c501 = 2*c499 + 2*c500*bucket_cyl_barrel_e1
-    c502 = 4*v_bucket_cyl_rod_e0
-    c503 = c502*bucket_cyl_rod_e0
-    c504 = c492*bucket_cyl_barrel_e1
-    c505 = c484*bucket_cyl_barrel_e2
-    c506 = c485*bucket_cyl_barrel_e3 + c491*bucket_cyl_barrel_e0
-    c507 = 2*c504 + 2*c505 + 2*c506
-    c508 = 2*v_bucket_cyl_rod_e2
-    c509 = c496*v_bucket_cyl_rod_e1 + c497*bucket_cyl_rod_e1
-    c510 = c491*bucket_cyl_barrel_e1
-    c511 = c484*bucket_cyl_barrel_e3
-    c512 = c485*bucket_cyl_barrel_e2 + c492*bucket_cyl_barrel_e0
-    c513 = -2*c512 + 2*c510 + 2*c511
-    c514 = 2*bucket_cyl_barrel_a10
-    c515 = 4*v_bucket_cyl_rod_e3
-    c516 = bucket_cyl_rod_e1*v_bucket_cyl_rod_e3
-    c517 = bucket_cyl_rod_e3*v_bucket_cyl_rod_e1
-    c518 = 2*c516 + 2*c517 + c496*v_bucket_cyl_rod_e2 + c497*bucket_cyl_rod_e2
-    c519 = c503 + c515*bucket_cyl_rod_e3
-    c520 = -c509 + 2*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2
-    c521 = 4*v_bucket_cyl_barrel_e2
-    c522 = c499 + c521*bucket_cyl_barrel_e2
-    c523 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y
-    c524 = c492*bucket_cyl_barrel_x - 2*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2
-    c525 = c485*bucket_cyl_barrel_x - c485*bucket_cyl_rod_x
-    c526 = c506 - c504 - c505
-    c527 = c491*bucket_cyl_barrel_e2
-    c528 = c492*bucket_cyl_barrel_e3
-    c529 = c484*bucket_cyl_barrel_e0 + c485*bucket_cyl_barrel_e1
-    c530 = c527 + c528 + c529
-    c531 = -c526
-    c532 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x
-    c533 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z
-    c534 = c491*bucket_cyl_barrel_x - c491*bucket_cyl_rod_x
-    c535 = c484*bucket_cyl_barrel_x - 2*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1
-    c536 = 4*v_bucket_cyl_barrel_e3
-    c537 = c499 + c536*bucket_cyl_barrel_e3
-    c538 = c510 + c511 + c512
-    c539 = c529 - c527 - c528
-    c540 = -c539
-    c541 = (2.0)*bucket_cyl_rod_a02
-    c542 = (2.0)*bucket_cyl_rod_a22
-    c543 = (2.0)*bucket_cyl_barrel_a01
-    c544 = (2.0)*bucket_cyl_barrel_a11
-    c545 = (4.0)*bucket_cyl_rod_a12
-    c546 = (4.0)*bucket_cyl_barrel_a21
-    c547 = (2.0)*bucket_cyl_rod_e0
-    c548 = (2.0)*v_bucket_cyl_rod_e0
-    c549 = (2.0)*bucket_cyl_barrel_e0
-    c550 = (2.0)*v_bucket_cyl_barrel_e0
-    c551 = (96247/100000)*v_side_link_e2
-    c552 = (96247/100000)*v_side_link_e3
-    c553 = -c551
-    c554 = -c552
-    c555 = (166329/250000)*v_side_link_e3
-    c556 = (166329/250000)*v_side_link_e2
-    c557 = (166329/250000)*v_side_link_e1
+    c130 = 4*p_C_x
+    c131 = c125*v_boom_e2
+    c132 = (16/25)*v_boom_e2
+    c133 = c125*v_boom_e3
+    c134 = 2*p_C_x
+    c135 = c134*v_boom_e2
+    c136 = c134*v_boom_e0
+    c137 = c134*v_boom_e3
+    c138 = c134*v_boom_e1
+    c139 = 4*p_C_z
+    c140 = (67739/25000)*v_upper_e0
+    c141 = (16/25)*v_upper_e1
+    c142 = (16/25)*v_upper_e0
+    c143 = (67739/25000)*v_upper_e1
+    c144 = (67739/25000)*v_upper_e2
+    c145 = (16/25)*v_upper_e3
+    c146 = -16/25*v_upper_e2
+    c147 = (67739/25000)*v_upper_e3
+    c148 = (4307/3125)*v_upper_e2
+    c149 = (4307/3125)*v_upper_e0
+    c150 = -4307/3125*v_upper_e3
+    c151 = (4307/3125)*v_upper_e1
+    c152 = 2*boom_cyl_r_barrel_a02
+    c153 = 2*boom_cyl_r_barrel_a22
+    c154 = 2*upper_a01
+    c155 = 2*upper_a11
+    c156 = 4*boom_cyl_r_barrel_a12
+    c157 = 4*upper_a21
+    c158 = 2*boom_cyl_r_barrel_e0
+    c159 = 2*boom_cyl_r_barrel_e1
+    c160 = 2*upper_e0
+    c161 = 2*v_upper_e0
+    c162 = 2*v_boom_cyl_r_barrel_e1
+    c163 = 2*v_boom_cyl_r_barrel_e0
+    c164 = 2*boom_cyl_r_barrel_a00
+    c165 = c164*v_boom_cyl_r_rod_e2
+    c166 = 2*boom_cyl_r_barrel_a20
+    c167 = c164*v_boom_cyl_r_rod_e0
+    c168 = 4*boom_cyl_r_rod_a01
+    c169 = 2*v_boom_cyl_r_barrel_e3
+    c170 = 2*v_boom_cyl_r_barrel_e2
+    c171 = c164*v_boom_cyl_r_rod_e3
+    c172 = 4*boom_cyl_r_barrel_a10
+    c173 = c164*v_boom_cyl_r_rod_e1
+    c174 = 2*boom_cyl_r_rod_e0
+    c175 = 2*v_boom_cyl_r_rod_e0
+    c176 = 4*v_boom_cyl_r_barrel_e0
+    c177 = c176*boom_cyl_r_barrel_e0
+    c178 = 4*v_boom_cyl_r_barrel_e1
+    c179 = 2*c177 + 2*c178*boom_cyl_r_barrel_e1
+    c180 = 4*v_boom_cyl_r_rod_e0
+    c181 = c180*boom_cyl_r_rod_e0
+    c182 = c170*boom_cyl_r_barrel_e1
+    c183 = c162*boom_cyl_r_barrel_e2
+    c184 = c163*boom_cyl_r_barrel_e3 + c169*boom_cyl_r_barrel_e0
+    c185 = 2*c182 + 2*c183 + 2*c184
+    c186 = 2*v_boom_cyl_r_rod_e2
+    c187 = c174*v_boom_cyl_r_rod_e1 + c175*boom_cyl_r_rod_e1
+    c188 = c169*boom_cyl_r_barrel_e1
+    c189 = c162*boom_cyl_r_barrel_e3
+    c190 = c163*boom_cyl_r_barrel_e2 + c170*boom_cyl_r_barrel_e0
+    c191 = -2*c190 + 2*c188 + 2*c189
+    c192 = 2*boom_cyl_r_barrel_a10
+    c193 = 4*v_boom_cyl_r_rod_e3
+    c194 = boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e3
+    c195 = boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e1
+    c196 = 2*c194 + 2*c195 + c174*v_boom_cyl_r_rod_e2 + c175*boom_cyl_r_rod_e2
+    c197 = c181 + c193*boom_cyl_r_rod_e3
+    c198 = -c187 + 2*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2
+    c199 = 4*v_boom_cyl_r_barrel_e2
+    c200 = c177 + c199*boom_cyl_r_barrel_e2
+    c201 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y
+    c202 = c170*boom_cyl_r_barrel_x - 2*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2
+    c203 = c163*boom_cyl_r_barrel_x - c163*boom_cyl_r_rod_x
+    c204 = c184 - c182 - c183
+    c205 = c169*boom_cyl_r_barrel_e2
+    c206 = c170*boom_cyl_r_barrel_e3
+    c207 = c162*boom_cyl_r_barrel_e0 + c163*boom_cyl_r_barrel_e1
+    c208 = c205 + c206 + c207
+    c209 = -c204
+    c210 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x
+    c211 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z
+    c212 = c169*boom_cyl_r_barrel_x - c169*boom_cyl_r_rod_x
+    c213 = c162*boom_cyl_r_barrel_x - 2*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1
+    c214 = 4*v_boom_cyl_r_barrel_e3
+    c215 = c177 + c214*boom_cyl_r_barrel_e3
+    c216 = c188 + c189 + c190
+    c217 = c207 - c205 - c206
+    c218 = -c217
+    c219 = (2.0)*boom_cyl_r_rod_a02
+    c220 = (2.0)*boom_cyl_r_rod_a22
+    c221 = (2.0)*boom_cyl_r_barrel_a01
+    c222 = (2.0)*boom_cyl_r_barrel_a11
+    c223 = (4.0)*boom_cyl_r_rod_a12
+    c224 = (4.0)*boom_cyl_r_barrel_a21
+    c225 = (2.0)*boom_cyl_r_rod_e0
+    c226 = (2.0)*v_boom_cyl_r_rod_e0
+    c227 = (2.0)*boom_cyl_r_barrel_e0
+    c228 = (2.0)*v_boom_cyl_r_barrel_e0
+    c229 = 2*p_C_z
+    c230 = c229*v_boom_e0
+    c231 = (16/25)*v_boom_e0
+    c232 = c229*v_boom_e1
+    c233 = (16/25)*v_boom_e3
+    c234 = 4*p_C_x
+    c235 = c229*v_boom_e2
+    c236 = -16/25*v_boom_e2
+    c237 = c229*v_boom_e3
+    c238 = 2*p_C_x
+    c239 = c238*v_boom_e2
+    c240 = c238*v_boom_e0
+    c241 = c238*v_boom_e3
+    c242 = c238*v_boom_e1
+    c243 = 4*p_C_z
+    c244 = (29959/5000)*v_boom_e2
+    c245 = (29959/5000)*v_boom_e3
+    c246 = -23939/2500*v_boom_e2
+    c247 = (23939/2500)*v_boom_e1
+    c248 = 2*arm_a02
+    c249 = 2*arm_a22
+    c250 = 2*boom_a01
+    c251 = 2*boom_a11
+    c252 = c251*v_arm_e0
+    c253 = c251*v_arm_e3
+    c254 = 4*arm_a12
+    c255 = c251*v_arm_e1
+    c256 = 4*boom_a21
+    c257 = c251*v_arm_e2
+    c258 = 2*arm_e0
+    c259 = 2*arm_e1
+    c260 = 4*v_boom_e0
+    c261 = 4*v_boom_e2
+    c262 = 2*c260*boom_e0 + 2*c261*boom_e2
+    c263 = 4*v_arm_e0
+    c264 = c263*arm_e0
+    c265 = 2*boom_e0
+    c266 = 2*v_boom_e0
+    c267 = 2*v_boom_e2
+    c268 = 2*c265*v_boom_e1 + 2*c266*boom_e1 + 2*c267*boom_e3 + 4*boom_e2*v_boom_e3
+    c269 = 2*arm_e3
+    c270 = 2*arm_e2
+    c271 = c258*v_arm_e2 + c270*v_arm_e0
+    c272 = -2*c265*v_boom_e3 - 2*c266*boom_e3 + 4*boom_e1*v_boom_e2 + 4*boom_e2*v_boom_e1
+    c273 = 2*boom_a21
+    c274 = 2*arm_a00
+    c275 = 2*arm_a20
+    c276 = 4*v_arm_e1
+    c277 = (557/100)*v_boom_e2
+    c278 = (557/100)*v_boom_e3
+    c279 = -183/40*v_boom_e2
+    c280 = (183/40)*v_boom_e1
+    c281 = 2*arm_cyl_barrel_a02
+    c282 = 2*arm_cyl_barrel_a22
+    c283 = 2*boom_a01
+    c284 = 2*boom_a11
+    c285 = 4*arm_cyl_barrel_a12
+    c286 = 4*boom_a21
+    c287 = 2*arm_cyl_barrel_e0
+    c288 = 2*arm_cyl_barrel_e1
+    c289 = 2*boom_e0
+    c290 = 2*v_boom_e0
+    c291 = 2*v_arm_cyl_barrel_e1
+    c292 = 2*v_arm_cyl_barrel_e0
+    c293 = 2*arm_cyl_barrel_a00
+    c294 = c293*v_arm_cyl_rod_e2
+    c295 = 2*arm_cyl_barrel_a20
+    c296 = c293*v_arm_cyl_rod_e0
+    c297 = 4*arm_cyl_rod_a01
+    c298 = 2*v_arm_cyl_barrel_e3
+    c299 = 2*v_arm_cyl_barrel_e2
+    c300 = c293*v_arm_cyl_rod_e3
+    c301 = 4*arm_cyl_barrel_a10
+    c302 = c293*v_arm_cyl_rod_e1
+    c303 = 2*arm_cyl_rod_e0
+    c304 = 2*v_arm_cyl_rod_e0
+    c305 = 4*v_arm_cyl_barrel_e0
+    c306 = c305*arm_cyl_barrel_e0
+    c307 = 4*v_arm_cyl_barrel_e1
+    c308 = 2*c306 + 2*c307*arm_cyl_barrel_e1
+    c309 = 4*v_arm_cyl_rod_e0
+    c310 = c309*arm_cyl_rod_e0
+    c311 = c299*arm_cyl_barrel_e1
+    c312 = c291*arm_cyl_barrel_e2
+    c313 = c292*arm_cyl_barrel_e3 + c298*arm_cyl_barrel_e0
+    c314 = 2*c311 + 2*c312 + 2*c313
+    c315 = 2*v_arm_cyl_rod_e2
+    c316 = c303*v_arm_cyl_rod_e1 + c304*arm_cyl_rod_e1
+    c317 = c298*arm_cyl_barrel_e1
+    c318 = c291*arm_cyl_barrel_e3
+    c319 = c292*arm_cyl_barrel_e2 + c299*arm_cyl_barrel_e0
+    c320 = -2*c319 + 2*c317 + 2*c318
+    c321 = 2*arm_cyl_barrel_a10
+    c322 = 4*v_arm_cyl_rod_e3
+    c323 = arm_cyl_rod_e1*v_arm_cyl_rod_e3
+    c324 = arm_cyl_rod_e3*v_arm_cyl_rod_e1
+    c325 = 2*c323 + 2*c324 + c303*v_arm_cyl_rod_e2 + c304*arm_cyl_rod_e2
+    c326 = c310 + c322*arm_cyl_rod_e3
+    c327 = -c316 + 2*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2*arm_cyl_rod_e3*v_arm_cyl_rod_e2
+    c328 = 4*v_arm_cyl_barrel_e2
+    c329 = c306 + c328*arm_cyl_barrel_e2
+    c330 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y
+    c331 = c299*arm_cyl_barrel_x - 2*arm_cyl_rod_x*v_arm_cyl_barrel_e2
+    c332 = c292*arm_cyl_barrel_x - c292*arm_cyl_rod_x
+    c333 = c313 - c311 - c312
+    c334 = c298*arm_cyl_barrel_e2
+    c335 = c299*arm_cyl_barrel_e3
+    c336 = c291*arm_cyl_barrel_e0 + c292*arm_cyl_barrel_e1
+    c337 = c334 + c335 + c336
+    c338 = -c333
+    c339 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x
+    c340 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z
+    c341 = c298*arm_cyl_barrel_x - c298*arm_cyl_rod_x
+    c342 = c291*arm_cyl_barrel_x - 2*arm_cyl_rod_x*v_arm_cyl_barrel_e1
+    c343 = 4*v_arm_cyl_barrel_e3
+    c344 = c306 + c343*arm_cyl_barrel_e3
+    c345 = c317 + c318 + c319
+    c346 = c336 - c334 - c335
+    c347 = -c346
+    c348 = (2.0)*arm_cyl_rod_a02
+    c349 = (2.0)*arm_cyl_rod_a22
+    c350 = (2.0)*arm_cyl_barrel_a01
+    c351 = (2.0)*arm_cyl_barrel_a11
+    c352 = (4.0)*arm_cyl_rod_a12
+    c353 = (4.0)*arm_cyl_barrel_a21
+    c354 = (2.0)*arm_cyl_rod_e0
+    c355 = (2.0)*v_arm_cyl_rod_e0
+    c356 = (2.0)*arm_cyl_barrel_e0
+    c357 = (2.0)*v_arm_cyl_barrel_e0
+    c358 = 2*p_F_z
+    c359 = c358*v_arm_e2
+    c360 = c358*v_arm_e3
+    c361 = 4*p_F_x
+    c362 = 2*p_F_x
+    c363 = c362*v_arm_e2
+    c364 = c362*v_arm_e1
+    c365 = 4*p_F_z
+    c366 = (21809/5000)*v_arm_e2
+    c367 = (21809/5000)*v_arm_e3
+    c368 = -9477/2500*v_arm_e2
+    c369 = (9477/2500)*v_arm_e1
+    c370 = 2*bucket_a02
+    c371 = 2*bucket_a22
+    c372 = 2*arm_a01
+    c373 = 2*arm_a11
+    c374 = c373*v_bucket_e0
+    c375 = c373*v_bucket_e3
+    c376 = 4*bucket_a12
+    c377 = c373*v_bucket_e1
+    c378 = 4*arm_a21
+    c379 = c373*v_bucket_e2
+    c380 = 2*bucket_e0
+    c381 = 2*bucket_e1
+    c382 = 4*v_arm_e0
+    c383 = 4*v_arm_e2
+    c384 = 2*c382*arm_e0 + 2*c383*arm_e2
+    c385 = 4*v_bucket_e0
+    c386 = c385*bucket_e0
+    c387 = 2*arm_e0
+    c388 = 2*v_arm_e0
+    c389 = 2*v_arm_e2
+    c390 = 2*c387*v_arm_e1 + 2*c388*arm_e1 + 2*c389*arm_e3 + 4*arm_e2*v_arm_e3
+    c391 = 2*bucket_e3
+    c392 = 2*bucket_e2
+    c393 = c380*v_bucket_e2 + c392*v_bucket_e0
+    c394 = -2*c387*v_arm_e3 - 2*c388*arm_e3 + 4*arm_e1*v_arm_e2 + 4*arm_e2*v_arm_e1
+    c395 = 2*arm_a21
+    c396 = 2*bucket_a00
+    c397 = 2*bucket_a20
+    c398 = 4*v_bucket_e1
+    c399 = (18799/5000)*v_arm_e2
+    c400 = (18799/5000)*v_arm_e3
+    c401 = -7877/2500*v_arm_e2
+    c402 = (7877/2500)*v_arm_e1
+    c403 = 2*side_link_a02
+    c404 = 2*side_link_a22
+    c405 = 2*arm_a01
+    c406 = 2*arm_a11
+    c407 = c406*v_side_link_e0
+    c408 = c406*v_side_link_e3
+    c409 = 4*side_link_a12
+    c410 = c406*v_side_link_e1
+    c411 = 4*arm_a21
+    c412 = c406*v_side_link_e2
+    c413 = 2*side_link_e0
+    c414 = 2*side_link_e1
+    c415 = 4*v_arm_e0
+    c416 = 4*v_arm_e2
+    c417 = 2*c415*arm_e0 + 2*c416*arm_e2
+    c418 = 4*v_side_link_e0
+    c419 = c418*side_link_e0
+    c420 = 2*arm_e0
+    c421 = 2*v_arm_e0
+    c422 = 2*v_arm_e2
+    c423 = 2*c420*v_arm_e1 + 2*c421*arm_e1 + 2*c422*arm_e3 + 4*arm_e2*v_arm_e3
+    c424 = 2*side_link_e3
+    c425 = 2*side_link_e2
+    c426 = c413*v_side_link_e2 + c425*v_side_link_e0
+    c427 = -2*c420*v_arm_e3 - 2*c421*arm_e3 + 4*arm_e1*v_arm_e2 + 4*arm_e2*v_arm_e1
+    c428 = 2*arm_a21
+    c429 = 2*side_link_a00
+    c430 = 2*side_link_a20
+    c431 = 4*v_side_link_e1
+    c432 = 1.592549242869674*p_bucket_link
+    c433 = c432*v_bucket_link_e2
+    c434 = c432*v_bucket_link_e3
+    c435 = 1.645191449642404*p_side_link
+    c436 = 2.2745066225654527*p_side_link
+    c437 = -1.645191449642404*p_side_link*v_side_link_e2
+    c438 = -1.645191449642404*p_side_link*v_side_link_e3
+    c439 = 2.4197412333018*p_bucket_link
+    c440 = 1.1372533112827263*p_side_link
+    c441 = c440*v_side_link_e2
+    c442 = c440*v_side_link_e1
+    c443 = 1.2098706166509*p_bucket_link
+    c444 = -c443*v_bucket_link_e2
+    c445 = c443*v_bucket_link_e1
+    c446 = 3.185098485739348*p_bucket_link
+    c447 = 2*p_K_z
+    c448 = c447*v_bucket_e2
+    c449 = c447*v_bucket_e3
+    c450 = 4*p_K_x
+    c451 = 2*p_K_x
+    c452 = c451*v_bucket_e2
+    c453 = c451*v_bucket_e1
+    c454 = 4*p_K_z
+    c455 = (1.5925492428686951)*bucket_link_a00
+    c456 = (1.5925492428686951)*bucket_link_a20
+    c457 = (1.2098706166521882)*bucket_link_a02
+    c458 = (1.2098706166521882)*bucket_link_a22
+    c459 = (1.2098706166521882)*v_bucket_link_e0
+    c460 = (1.5925492428686951)*v_bucket_link_e0
+    c461 = (1.5925492428686951)*v_bucket_link_e1
+    c462 = -1.2098706166521882*v_bucket_link_e3
+    c463 = -c461 - c462
+    c464 = (1.5925492428686951)*v_bucket_link_e3
+    c465 = -c462 - 3.1850984857373903*v_bucket_link_e1
+    c466 = (1.5925492428686951)*v_bucket_link_e2
+    c467 = -c459 - c466
+    c468 = (1.2098706166521882)*v_bucket_link_e1
+    c469 = -1.2098706166521882*v_bucket_link_e2
+    c470 = -c460 - c469
+    c471 = -c461 + (2.4197412333043764)*v_bucket_link_e3
+    c472 = (3.1850984857373903)*bucket_link_a10
+    c473 = 4*bucket_link_e0*v_bucket_link_e0
+    c474 = bucket_e0*v_bucket_e3
+    c475 = bucket_e3*v_bucket_e0
+    c476 = bucket_e0*v_bucket_e1
+    c477 = bucket_e1*v_bucket_e0
+    c478 = bucket_e2*v_bucket_e3
+    c479 = bucket_e3*v_bucket_e2
+    c480 = bucket_e0*v_bucket_e0
+    c481 = bucket_e2*v_bucket_e2
+    c482 = 2*bucket_link_e0
+    c483 = 2*bucket_link_e1
+    c484 = 2*bucket_link_e2
+    c485 = 2*bucket_link_e3
+    c486 = -c469 - 3.1850984857373903*v_bucket_link_e0
+    c487 = -c464 - c468
+    c488 = c466 + (2.4197412333043764)*v_bucket_link_e0
+    c489 = c482*v_bucket_link_e2 + c484*v_bucket_link_e0
+    c490 = -36797/25000*v_arm_e2
+    c491 = -36797/25000*v_arm_e3
+    c492 = (24687/50000)*v_arm_e2
+    c493 = (24687/50000)*v_arm_e1
+    c494 = 2*bucket_cyl_barrel_a02
+    c495 = 2*bucket_cyl_barrel_a22
+    c496 = 2*arm_a01
+    c497 = 2*arm_a11
+    c498 = 4*bucket_cyl_barrel_a12
+    c499 = 4*arm_a21
+    c500 = 2*bucket_cyl_barrel_e0
+    c501 = 2*bucket_cyl_barrel_e1
+    c502 = 2*arm_e0
+    c503 = 2*v_arm_e0
+    c504 = 2*v_bucket_cyl_barrel_e1
+    c505 = 2*v_bucket_cyl_barrel_e0
+    c506 = 2*bucket_cyl_barrel_a00
+    c507 = c506*v_bucket_cyl_rod_e2
+    c508 = 2*bucket_cyl_barrel_a20
+    c509 = c506*v_bucket_cyl_rod_e0
+    c510 = 4*bucket_cyl_rod_a01
+    c511 = 2*v_bucket_cyl_barrel_e3
+    c512 = 2*v_bucket_cyl_barrel_e2
+    c513 = c506*v_bucket_cyl_rod_e3
+    c514 = 4*bucket_cyl_barrel_a10
+    c515 = c506*v_bucket_cyl_rod_e1
+    c516 = 2*bucket_cyl_rod_e0
+    c517 = 2*v_bucket_cyl_rod_e0
+    c518 = 4*v_bucket_cyl_barrel_e0
+    c519 = c518*bucket_cyl_barrel_e0
+    c520 = 4*v_bucket_cyl_barrel_e1
+    c521 = 2*c519 + 2*c520*bucket_cyl_barrel_e1
+    c522 = 4*v_bucket_cyl_rod_e0
+    c523 = c522*bucket_cyl_rod_e0
+    c524 = c512*bucket_cyl_barrel_e1
+    c525 = c504*bucket_cyl_barrel_e2
+    c526 = c505*bucket_cyl_barrel_e3 + c511*bucket_cyl_barrel_e0
+    c527 = 2*c524 + 2*c525 + 2*c526
+    c528 = 2*v_bucket_cyl_rod_e2
+    c529 = c516*v_bucket_cyl_rod_e1 + c517*bucket_cyl_rod_e1
+    c530 = c511*bucket_cyl_barrel_e1
+    c531 = c504*bucket_cyl_barrel_e3
+    c532 = c505*bucket_cyl_barrel_e2 + c512*bucket_cyl_barrel_e0
+    c533 = -2*c532 + 2*c530 + 2*c531
+    c534 = 2*bucket_cyl_barrel_a10
+    c535 = 4*v_bucket_cyl_rod_e3
+    c536 = bucket_cyl_rod_e1*v_bucket_cyl_rod_e3
+    c537 = bucket_cyl_rod_e3*v_bucket_cyl_rod_e1
+    c538 = 2*c536 + 2*c537 + c516*v_bucket_cyl_rod_e2 + c517*bucket_cyl_rod_e2
+    c539 = c523 + c535*bucket_cyl_rod_e3
+    c540 = -c529 + 2*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2
+    c541 = 4*v_bucket_cyl_barrel_e2
+    c542 = c519 + c541*bucket_cyl_barrel_e2
+    c543 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y
+    c544 = c512*bucket_cyl_barrel_x - 2*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2
+    c545 = c505*bucket_cyl_barrel_x - c505*bucket_cyl_rod_x
+    c546 = c526 - c524 - c525
+    c547 = c511*bucket_cyl_barrel_e2
+    c548 = c512*bucket_cyl_barrel_e3
+    c549 = c504*bucket_cyl_barrel_e0 + c505*bucket_cyl_barrel_e1
+    c550 = c547 + c548 + c549
+    c551 = -c546
+    c552 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x
+    c553 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z
+    c554 = c511*bucket_cyl_barrel_x - c511*bucket_cyl_rod_x
+    c555 = c504*bucket_cyl_barrel_x - 2*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1
+    c556 = 4*v_bucket_cyl_barrel_e3
+    c557 = c519 + c556*bucket_cyl_barrel_e3
+    c558 = c530 + c531 + c532
+    c559 = c549 - c547 - c548
+    c560 = -c559
+    c561 = (2.0)*bucket_cyl_rod_a02
+    c562 = (2.0)*bucket_cyl_rod_a22
+    c563 = (2.0)*bucket_cyl_barrel_a01
+    c564 = (2.0)*bucket_cyl_barrel_a11
+    c565 = (4.0)*bucket_cyl_rod_a12
+    c566 = (4.0)*bucket_cyl_barrel_a21
+    c567 = (2.0)*bucket_cyl_rod_e0
+    c568 = (2.0)*v_bucket_cyl_rod_e0
+    c569 = (2.0)*bucket_cyl_barrel_e0
+    c570 = (2.0)*v_bucket_cyl_barrel_e0
+    c571 = 1.645191449642404*p_side_link
+    c572 = c571*v_side_link_e2
+    c573 = c571*v_side_link_e3
+    c574 = 2.2745066225654527*p_side_link
+    c575 = -c572
+    c576 = -c573
+    c577 = 1.1372533112827263*p_side_link
+    c578 = c577*v_side_link_e3
+    c579 = c577*v_side_link_e2
+    c580 = c577*v_side_link_e1
+    c581 = 3.290382899284808*p_side_link
     out = _zeros(94, q, ())
     out[3] = c0*v_upper_e0 - c1*v_upper_e3
     out[4] = -c0*v_upper_e3 - c1*v_upper_e0
@@ -2043,67 +2119,67 @@ def _joints_gamma(q, v):
     out[16] = c95*v_boom_cyl_l_barrel_y + c103*v_boom_cyl_l_barrel_z - c95*c96 - c95*v_boom_cyl_l_rod_y - c99*v_boom_cyl_l_barrel_x - c103*c106 - c103*v_boom_cyl_l_rod_z - c104*c105 - c104*v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_e0*(c107 + c57*boom_cyl_l_rod_z + c71*boom_cyl_l_rod_y - c57*boom_cyl_l_barrel_z - c71*boom_cyl_l_barrel_y) - v_boom_cyl_l_barrel_e1*(-c97 - c58*boom_cyl_l_barrel_z + 2*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c108 - c94*boom_cyl_l_barrel_y - c64*boom_cyl_l_barrel_z + 2*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(c98 + c65*boom_cyl_l_rod_z - c65*boom_cyl_l_barrel_z)
     out[17] = c110*v_boom_cyl_l_barrel_z + c111*v_boom_cyl_l_barrel_x - c96*c113 - c105*c111 - c106*c110 - c110*v_boom_cyl_l_rod_z - c111*v_boom_cyl_l_rod_x - c112*v_boom_cyl_l_barrel_y - c113*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_e0*(-c97 - c57*boom_cyl_l_rod_y - c71*boom_cyl_l_barrel_z + 2*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e1 + 4*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c107 - c58*boom_cyl_l_rod_y + 2*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c98 - c64*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(-c108 - c109*boom_cyl_l_barrel_z - c65*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 4*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3)
     out[18] = -c91*(-c122*v_boom_cyl_l_barrel_e3 - c123*boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e2 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e1) - c92*(c122*v_boom_cyl_l_barrel_e1 + c123*boom_cyl_l_barrel_e1 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - c93*((4.0)*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + (4.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - c95*(-c120*v_boom_cyl_l_rod_e1 - c121*boom_cyl_l_rod_e1 + (2.0)*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + (2.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2) - c103*((4.0)*boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0 + (4.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3) - c104*((2.0)*c89 + (2.0)*c90 + c120*v_boom_cyl_l_rod_e2 + c121*boom_cyl_l_rod_e2) - v_boom_cyl_l_barrel_e0*(c115*v_boom_cyl_l_barrel_e1 + c118*v_boom_cyl_l_barrel_e0 - c114*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e1*(c114*v_boom_cyl_l_barrel_e2 + c115*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c114*v_boom_cyl_l_barrel_e1 + c115*v_boom_cyl_l_barrel_e3 + c118*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(-c114*v_boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_rod_a22*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_rod_e0*(c116*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e0 - c117*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c116*v_boom_cyl_l_rod_e3 - c117*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c116*v_boom_cyl_l_rod_e0 + c117*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c116*v_boom_cyl_l_rod_e1 + c117*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e3)
-    out[19] = -v_boom_e0*(-c128 - c129 - 139283/25000*v_boom_e0) - v_boom_e1*(-c130 - c131 - 139283/25000*v_boom_e1) - v_boom_e2*(-c124 - c125) - v_boom_e3*(c126 + c127)
-    out[20] = -v_boom_e0*(-c134 - c127 - 32/25*v_boom_e0) - v_boom_e1*(c124 + c132) - v_boom_e2*(-c135 - c131 - 32/25*v_boom_e2) - v_boom_e3*(-c128 - c133)
-    out[21] = -v_boom_e0*(-c125 - c132 - 8.007688*v_boom_e0) - v_boom_e1*(-c134 - c126) - v_boom_e2*(c129 + c133) - v_boom_e3*(-c135 - c130 - 8.007688*v_boom_e3)
-    out[22] = -v_upper_e0*(c140 + c141 + (8614/3125)*v_upper_e0) - v_upper_e1*(c142 + c143 + (8614/3125)*v_upper_e1) - v_upper_e2*(c136 - c137) - v_upper_e3*(c138 + c139)
-    out[23] = -v_upper_e0*(-c146 - c139 - 32/25*v_upper_e0) - v_upper_e1*(c144 - c136) - v_upper_e2*(c147 + c143 - 32/25*v_upper_e2) - v_upper_e3*(c140 + c145)
-    out[24] = -v_upper_e0*(-c137 - c144 + (67739/12500)*v_upper_e0) - v_upper_e1*(-c146 - c138) - v_upper_e2*(-c141 - c145) - v_upper_e3*(c147 + c142 + (67739/12500)*v_upper_e3)
-    out[25] = -v_upper_e0*(c149*v_upper_e1 + c152*v_upper_e0 - c148*v_upper_e3) - v_upper_e1*(c148*v_upper_e2 + c149*v_upper_e0) - v_upper_e2*(c148*v_upper_e1 + c149*v_upper_e3 + c152*v_upper_e2) - v_upper_e3*(-c148*v_upper_e0 + 2*boom_cyl_r_barrel_a22*v_upper_e2) - v_boom_cyl_r_barrel_e0*(c150*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e0 - c151*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e1*(c150*v_boom_cyl_r_barrel_e3 - c151*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c150*v_boom_cyl_r_barrel_e0 + c151*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c150*v_boom_cyl_r_barrel_e1 + c151*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e3) - 2*(4*upper_e0*v_upper_e0 + 4*upper_e2*v_upper_e2)*(-c154*v_boom_cyl_r_barrel_e1 - c155*v_boom_cyl_r_barrel_e0 + 2*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - 2*(4*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(c156*v_upper_e1 + c157*upper_e1 + 2*upper_e2*v_upper_e3 + 2*upper_e3*v_upper_e2) - 2*(c154*v_boom_cyl_r_barrel_e2 + c155*v_boom_cyl_r_barrel_e3 + 2*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1)*(-c156*v_upper_e3 - c157*upper_e3 + 2*upper_e1*v_upper_e2 + 2*upper_e2*v_upper_e1)
-    out[26] = -c175*(-c170*v_boom_cyl_r_rod_e3 - c171*boom_cyl_r_rod_e3 + 2*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1) - c181*(c177 + 4*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - c187*(c183 + c182*boom_cyl_r_rod_e3 + 2*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_barrel_e0*(c164*v_boom_cyl_r_barrel_e0 + c165*boom_cyl_r_rod_a11 - c166*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e1*(c164*v_boom_cyl_r_barrel_e1 + c165*boom_cyl_r_rod_a21 + c166*boom_cyl_r_rod_a11) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a11 - c159*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a21 + c159*boom_cyl_r_rod_a11) - v_boom_cyl_r_rod_e0*(-c167 + c168*v_boom_cyl_r_rod_e0 + c162*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c161 + c162*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c169 + c168*v_boom_cyl_r_rod_e2 + c162*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(-c163 + 2*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2)
-    out[27] = -c175*c192 - c181*c194 - c187*c193 - v_boom_cyl_r_barrel_e0*(c172*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a12 - c166*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e1*(c174*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a22 + c166*boom_cyl_r_rod_a12) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a12 - c159*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a22 + c159*boom_cyl_r_rod_a12) - v_boom_cyl_r_rod_e0*(c161 + c176*boom_cyl_r_barrel_a20 - c188*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c167 - c171*boom_cyl_r_barrel_a10) - v_boom_cyl_r_rod_e2*(c163 + c188*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c169 + c182*boom_cyl_r_barrel_a10 + c189*boom_cyl_r_barrel_a20)
-    out[28] = c196*v_boom_cyl_r_barrel_y + c204*v_boom_cyl_r_barrel_z - c196*c197 - c196*v_boom_cyl_r_rod_y - c200*v_boom_cyl_r_barrel_x - c204*c207 - c204*v_boom_cyl_r_rod_z - c205*c206 - c205*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(c208 + c158*boom_cyl_r_rod_z + c172*boom_cyl_r_rod_y - c158*boom_cyl_r_barrel_z - c172*boom_cyl_r_barrel_y) - v_boom_cyl_r_barrel_e1*(-c198 - c159*boom_cyl_r_barrel_z + 2*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c209 - c195*boom_cyl_r_barrel_y - c165*boom_cyl_r_barrel_z + 2*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 + 4*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(c199 + c166*boom_cyl_r_rod_z - c166*boom_cyl_r_barrel_z)
-    out[29] = c211*v_boom_cyl_r_barrel_z + c212*v_boom_cyl_r_barrel_x - c197*c214 - c206*c212 - c207*c211 - c211*v_boom_cyl_r_rod_z - c212*v_boom_cyl_r_rod_x - c213*v_boom_cyl_r_barrel_y - c214*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(-c198 - c158*boom_cyl_r_rod_y - c172*boom_cyl_r_barrel_z + 2*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 + 4*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(-c208 - c159*boom_cyl_r_rod_y + 2*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c199 - c165*boom_cyl_r_barrel_y + 2*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(-c209 - c210*boom_cyl_r_barrel_z - c166*boom_cyl_r_barrel_y + 2*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3)
-    out[30] = -c192*(-c223*v_boom_cyl_r_barrel_e3 - c224*boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1) - c193*(c223*v_boom_cyl_r_barrel_e1 + c224*boom_cyl_r_barrel_e1 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - c194*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c196*(-c221*v_boom_cyl_r_rod_e1 - c222*boom_cyl_r_rod_e1 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2) - c204*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c205*((2.0)*c190 + (2.0)*c191 + c221*v_boom_cyl_r_rod_e2 + c222*boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(c216*v_boom_cyl_r_barrel_e1 + c219*v_boom_cyl_r_barrel_e0 - c215*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e1*(c215*v_boom_cyl_r_barrel_e2 + c216*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c215*v_boom_cyl_r_barrel_e1 + c216*v_boom_cyl_r_barrel_e3 + c219*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(-c215*v_boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_rod_e0*(c217*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e0 - c218*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c217*v_boom_cyl_r_rod_e3 - c218*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c217*v_boom_cyl_r_rod_e0 + c218*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c217*v_boom_cyl_r_rod_e1 + c218*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e3)
-    out[31] = -v_boom_e0*(-c228 - c229 - 139283/25000*v_boom_e0) - v_boom_e1*(-c230 - c231 - 139283/25000*v_boom_e1) - v_boom_e2*(-c225 + (16/25)*v_boom_e1) - v_boom_e3*(-c226 - c227)
-    out[32] = -v_boom_e0*(c227 + c234 + (32/25)*v_boom_e0) - v_boom_e1*(c225 - c232) - v_boom_e2*(-c235 - c231 + (32/25)*v_boom_e2) - v_boom_e3*(-c228 - c233)
-    out[33] = -v_boom_e0*(c232 - 8.007688*v_boom_e0 + (16/25)*v_boom_e1) - v_boom_e1*(c226 + c234) - v_boom_e2*(c229 + c233) - v_boom_e3*(-c235 - c230 - 8.007688*v_boom_e3)
-    out[34] = -c236*v_boom_e0 - c237*v_boom_e1 - v_boom_e0*(c236 + (23939/1250)*v_boom_e0) - v_boom_e1*(c237 + (23939/1250)*v_boom_e1)
-    out[35] = -v_boom_e0*(-29959/5000*v_boom_e1 + (23939/2500)*v_boom_e3) - v_boom_e1*(-c238 - 29959/5000*v_boom_e0) - v_boom_e2*(c237 + c239) - v_boom_e3*(c236 + (23939/2500)*v_boom_e0)
-    out[36] = -v_boom_e0*(c238 + (29959/2500)*v_boom_e0) - v_boom_e3*(c239 + (29959/2500)*v_boom_e3) - 23939/2500*v_boom_e1*v_boom_e3 + (23939/2500)*v_boom_e0*v_boom_e2
-    out[37] = -c254*(-c250*v_arm_e1 - c251*v_arm_e0 + 2*arm_e2*v_arm_e3 + 2*arm_e3*v_arm_e2) - c260*(c256 + 4*arm_e3*v_arm_e3) - c264*(c263 + c251*v_arm_e3 + c261*v_arm_e1) - v_boom_e0*(c246*v_boom_e0 + c241*v_boom_e1 - c240*v_boom_e3) - v_boom_e1*(c240*v_boom_e2 + c241*v_boom_e0) - v_boom_e2*(c246*v_boom_e2 + c240*v_boom_e1 + c241*v_boom_e3) - v_boom_e3*(-c240*v_boom_e0 + 2*arm_a22*v_boom_e2) - v_arm_e0*(-c247 + c248*v_arm_e0 + c242*v_arm_e2) - v_arm_e1*(-c244 + c242*v_arm_e3) - v_arm_e2*(c245 + c242*v_arm_e0) - v_arm_e3*(c249 + c248*v_arm_e3 + c242*v_arm_e1)
-    out[38] = -c254*(c250*v_arm_e3 + c251*v_arm_e2 + c261*v_arm_e0 + c262*v_arm_e1) - c260*(-c263 + 2*arm_e1*v_arm_e3 + 2*arm_e3*v_arm_e1) - c264*(c256 + c268*arm_e1) - v_boom_e0*(c252*arm_a10 + c267*v_boom_e1 - c266*v_boom_e3) - v_boom_e1*(c258*arm_a20 + c259*arm_a00) - v_boom_e2*(c253*arm_a10 + c266*v_boom_e1 + c267*v_boom_e3) - v_boom_e3*(-c258*arm_a00 + 2*arm_a20*v_boom_e2) - v_arm_e0*(c245 + c255*boom_a01 - c265*v_arm_e2) - v_arm_e1*(c249 + c265*v_arm_e3 + c268*boom_a01) - v_arm_e2*(c247 - c265*v_arm_e0) - v_arm_e3*(c244 + c265*v_arm_e1)
-    out[39] = -c269*v_boom_e0 - c270*v_boom_e1 - v_boom_e0*(c269 + (183/20)*v_boom_e0) - v_boom_e1*(c270 + (183/20)*v_boom_e1)
-    out[40] = -v_boom_e0*(-557/100*v_boom_e1 + (183/40)*v_boom_e3) - v_boom_e1*(-c271 - 557/100*v_boom_e0) - v_boom_e2*(c270 + c272) - v_boom_e3*(c269 + (183/40)*v_boom_e0)
-    out[41] = -v_boom_e0*(c271 + (557/50)*v_boom_e0) - v_boom_e3*(c272 + (557/50)*v_boom_e3) - 183/40*v_boom_e1*v_boom_e3 + (183/40)*v_boom_e0*v_boom_e2
-    out[42] = -v_boom_e0*(c274*v_boom_e1 + c277*v_boom_e0 - c273*v_boom_e3) - v_boom_e1*(c273*v_boom_e2 + c274*v_boom_e0) - v_boom_e2*(c273*v_boom_e1 + c274*v_boom_e3 + c277*v_boom_e2) - v_boom_e3*(-c273*v_boom_e0 + 2*arm_cyl_barrel_a22*v_boom_e2) - v_arm_cyl_barrel_e0*(c275*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e0 - c276*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e1*(c275*v_arm_cyl_barrel_e3 - c276*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c275*v_arm_cyl_barrel_e0 + c276*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c275*v_arm_cyl_barrel_e1 + c276*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e3) - 2*(4*boom_e0*v_boom_e0 + 4*boom_e2*v_boom_e2)*(-c279*v_arm_cyl_barrel_e1 - c280*v_arm_cyl_barrel_e0 + 2*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - 2*(4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(c281*v_boom_e1 + c282*boom_e1 + 2*boom_e2*v_boom_e3 + 2*boom_e3*v_boom_e2) - 2*(c279*v_arm_cyl_barrel_e2 + c280*v_arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1)*(-c281*v_boom_e3 - c282*boom_e3 + 2*boom_e1*v_boom_e2 + 2*boom_e2*v_boom_e1)
-    out[43] = -c300*(-c295*v_arm_cyl_rod_e3 - c296*arm_cyl_rod_e3 + 2*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2*arm_cyl_rod_e2*v_arm_cyl_rod_e1) - c306*(c302 + 4*arm_cyl_rod_e2*v_arm_cyl_rod_e2) - c312*(c308 + c307*arm_cyl_rod_e3 + 2*arm_cyl_rod_e2*v_arm_cyl_rod_e3) - v_arm_cyl_barrel_e0*(c289*v_arm_cyl_barrel_e0 + c290*arm_cyl_rod_a11 - c291*arm_cyl_rod_a21) - v_arm_cyl_barrel_e1*(c289*v_arm_cyl_barrel_e1 + c290*arm_cyl_rod_a21 + c291*arm_cyl_rod_a11) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a11 - c284*arm_cyl_rod_a21) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a21 + c284*arm_cyl_rod_a11) - v_arm_cyl_rod_e0*(-c292 + c293*v_arm_cyl_rod_e0 + c287*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c286 + c287*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c294 + c293*v_arm_cyl_rod_e2 + c287*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(-c288 + 2*arm_cyl_barrel_a20*v_arm_cyl_rod_e2)
-    out[44] = -c300*c317 - c306*c319 - c312*c318 - v_arm_cyl_barrel_e0*(c297*arm_cyl_rod_a02 + c290*arm_cyl_rod_a12 - c291*arm_cyl_rod_a22) - v_arm_cyl_barrel_e1*(c299*arm_cyl_rod_a02 + c290*arm_cyl_rod_a22 + c291*arm_cyl_rod_a12) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a12 - c284*arm_cyl_rod_a22) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a22 + c284*arm_cyl_rod_a12) - v_arm_cyl_rod_e0*(c286 + c301*arm_cyl_barrel_a20 - c313*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c292 - c296*arm_cyl_barrel_a10) - v_arm_cyl_rod_e2*(c288 + c313*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c294 + c307*arm_cyl_barrel_a10 + c314*arm_cyl_barrel_a20)
-    out[45] = c321*v_arm_cyl_barrel_y + c329*v_arm_cyl_barrel_z - c321*c322 - c321*v_arm_cyl_rod_y - c325*v_arm_cyl_barrel_x - c329*c332 - c329*v_arm_cyl_rod_z - c330*c331 - c330*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(c333 + c283*arm_cyl_rod_z + c297*arm_cyl_rod_y - c283*arm_cyl_barrel_z - c297*arm_cyl_barrel_y) - v_arm_cyl_barrel_e1*(-c323 - c284*arm_cyl_barrel_z + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c334 - c320*arm_cyl_barrel_y - c290*arm_cyl_barrel_z + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4*arm_cyl_rod_y*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(c324 + c291*arm_cyl_rod_z - c291*arm_cyl_barrel_z)
-    out[46] = c336*v_arm_cyl_barrel_z + c337*v_arm_cyl_barrel_x - c322*c339 - c331*c337 - c332*c336 - c336*v_arm_cyl_rod_z - c337*v_arm_cyl_rod_x - c338*v_arm_cyl_barrel_y - c339*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(-c323 - c283*arm_cyl_rod_y - c297*arm_cyl_barrel_z + 2*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 + 4*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c333 - c284*arm_cyl_rod_y + 2*arm_cyl_barrel_y*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c324 - c290*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(-c334 - c335*arm_cyl_barrel_z - c291*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4*arm_cyl_rod_z*v_arm_cyl_barrel_e3)
-    out[47] = -c317*(-c348*v_arm_cyl_barrel_e3 - c349*arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1) - c318*(c348*v_arm_cyl_barrel_e1 + c349*arm_cyl_barrel_e1 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - c319*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c321*(-c346*v_arm_cyl_rod_e1 - c347*arm_cyl_rod_e1 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2) - c329*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c330*((2.0)*c315 + (2.0)*c316 + c346*v_arm_cyl_rod_e2 + c347*arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(c341*v_arm_cyl_barrel_e1 + c344*v_arm_cyl_barrel_e0 - c340*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e1*(c340*v_arm_cyl_barrel_e2 + c341*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c340*v_arm_cyl_barrel_e1 + c341*v_arm_cyl_barrel_e3 + c344*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(-c340*v_arm_cyl_barrel_e0 + (2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2) - v_arm_cyl_rod_e0*(c342*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e0 - c343*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c342*v_arm_cyl_rod_e3 - c343*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c342*v_arm_cyl_rod_e0 + c343*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c342*v_arm_cyl_rod_e1 + c343*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e3)
-    out[48] = -c350*v_arm_e0 - c351*v_arm_e1 - v_arm_e0*(c350 + (393281/125000)*v_arm_e0) - v_arm_e1*(c351 + (393281/125000)*v_arm_e1)
-    out[49] = -v_arm_e0*(-369691/500000*v_arm_e1 + (393281/250000)*v_arm_e3) - v_arm_e1*(-c352 - 369691/500000*v_arm_e0) - v_arm_e2*(c351 + c353) - v_arm_e3*(c350 + (393281/250000)*v_arm_e0)
-    out[50] = -v_arm_e0*(c352 + (369691/250000)*v_arm_e0) - v_arm_e3*(c353 + (369691/250000)*v_arm_e3) - 393281/250000*v_arm_e1*v_arm_e3 + (393281/250000)*v_arm_e0*v_arm_e2
-    out[51] = -c354*v_arm_e0 - c355*v_arm_e1 - v_arm_e0*(c354 + (9477/1250)*v_arm_e0) - v_arm_e1*(c355 + (9477/1250)*v_arm_e1)
-    out[52] = -v_arm_e0*(-21809/5000*v_arm_e1 + (9477/2500)*v_arm_e3) - v_arm_e1*(-c356 - 21809/5000*v_arm_e0) - v_arm_e2*(c355 + c357) - v_arm_e3*(c354 + (9477/2500)*v_arm_e0)
-    out[53] = -v_arm_e0*(c356 + (21809/2500)*v_arm_e0) - v_arm_e3*(c357 + (21809/2500)*v_arm_e3) - 9477/2500*v_arm_e1*v_arm_e3 + (9477/2500)*v_arm_e0*v_arm_e2
-    out[54] = -c372*(-c368*v_bucket_e1 - c369*v_bucket_e0 + 2*bucket_e2*v_bucket_e3 + 2*bucket_e3*v_bucket_e2) - c378*(c374 + 4*bucket_e3*v_bucket_e3) - c382*(c381 + c369*v_bucket_e3 + c379*v_bucket_e1) - v_arm_e0*(c364*v_arm_e0 + c359*v_arm_e1 - c358*v_arm_e3) - v_arm_e1*(c358*v_arm_e2 + c359*v_arm_e0) - v_arm_e2*(c364*v_arm_e2 + c358*v_arm_e1 + c359*v_arm_e3) - v_arm_e3*(-c358*v_arm_e0 + 2*bucket_a22*v_arm_e2) - v_bucket_e0*(-c365 + c366*v_bucket_e0 + c360*v_bucket_e2) - v_bucket_e1*(-c362 + c360*v_bucket_e3) - v_bucket_e2*(c363 + c360*v_bucket_e0) - v_bucket_e3*(c367 + c366*v_bucket_e3 + c360*v_bucket_e1)
-    out[55] = -c372*(c368*v_bucket_e3 + c369*v_bucket_e2 + c379*v_bucket_e0 + c380*v_bucket_e1) - c378*(-c381 + 2*bucket_e1*v_bucket_e3 + 2*bucket_e3*v_bucket_e1) - c382*(c374 + c386*bucket_e1) - v_arm_e0*(c370*bucket_a10 + c385*v_arm_e1 - c384*v_arm_e3) - v_arm_e1*(c376*bucket_a20 + c377*bucket_a00) - v_arm_e2*(c371*bucket_a10 + c384*v_arm_e1 + c385*v_arm_e3) - v_arm_e3*(-c376*bucket_a00 + 2*bucket_a20*v_arm_e2) - v_bucket_e0*(c363 + c373*arm_a01 - c383*v_bucket_e2) - v_bucket_e1*(c367 + c383*v_bucket_e3 + c386*arm_a01) - v_bucket_e2*(c365 - c383*v_bucket_e0) - v_bucket_e3*(c362 + c383*v_bucket_e1)
-    out[56] = -c387*v_arm_e0 - c388*v_arm_e1 - v_arm_e0*(c387 + (7877/1250)*v_arm_e0) - v_arm_e1*(c388 + (7877/1250)*v_arm_e1)
-    out[57] = -v_arm_e0*(-18799/5000*v_arm_e1 + (7877/2500)*v_arm_e3) - v_arm_e1*(-c389 - 18799/5000*v_arm_e0) - v_arm_e2*(c388 + c390) - v_arm_e3*(c387 + (7877/2500)*v_arm_e0)
-    out[58] = -v_arm_e0*(c389 + (18799/2500)*v_arm_e0) - v_arm_e3*(c390 + (18799/2500)*v_arm_e3) - 7877/2500*v_arm_e1*v_arm_e3 + (7877/2500)*v_arm_e0*v_arm_e2
-    out[59] = -c405*(-c401*v_side_link_e1 - c402*v_side_link_e0 + 2*side_link_e2*v_side_link_e3 + 2*side_link_e3*v_side_link_e2) - c411*(c407 + 4*side_link_e3*v_side_link_e3) - c415*(c414 + c402*v_side_link_e3 + c412*v_side_link_e1) - v_arm_e0*(c397*v_arm_e0 + c392*v_arm_e1 - c391*v_arm_e3) - v_arm_e1*(c391*v_arm_e2 + c392*v_arm_e0) - v_arm_e2*(c397*v_arm_e2 + c391*v_arm_e1 + c392*v_arm_e3) - v_arm_e3*(-c391*v_arm_e0 + 2*side_link_a22*v_arm_e2) - v_side_link_e0*(-c398 + c399*v_side_link_e0 + c393*v_side_link_e2) - v_side_link_e1*(-c395 + c393*v_side_link_e3) - v_side_link_e2*(c396 + c393*v_side_link_e0) - v_side_link_e3*(c400 + c399*v_side_link_e3 + c393*v_side_link_e1)
-    out[60] = -c405*(c401*v_side_link_e3 + c402*v_side_link_e2 + c412*v_side_link_e0 + c413*v_side_link_e1) - c411*(-c414 + 2*side_link_e1*v_side_link_e3 + 2*side_link_e3*v_side_link_e1) - c415*(c407 + c419*side_link_e1) - v_arm_e0*(c403*side_link_a10 + c418*v_arm_e1 - c417*v_arm_e3) - v_arm_e1*(c409*side_link_a20 + c410*side_link_a00) - v_arm_e2*(c404*side_link_a10 + c417*v_arm_e1 + c418*v_arm_e3) - v_arm_e3*(-c409*side_link_a00 + 2*side_link_a20*v_arm_e2) - v_side_link_e0*(c396 + c406*arm_a01 - c416*v_side_link_e2) - v_side_link_e1*(c400 + c416*v_side_link_e3 + c419*arm_a01) - v_side_link_e2*(c398 - c416*v_side_link_e0) - v_side_link_e3*(c395 + c416*v_side_link_e1)
-    out[61] = -c420*v_bucket_link_e0 - c421*v_bucket_link_e1 - v_side_link_e0*(-c422 - 166329/125000*v_side_link_e0) - v_side_link_e1*(-c423 - 166329/125000*v_side_link_e1) - v_bucket_link_e0*(c420 + (85607/62500)*v_bucket_link_e0) - v_bucket_link_e1*(c421 + (85607/62500)*v_bucket_link_e1) - 96247/100000*v_side_link_e0*v_side_link_e2 - 96247/100000*v_side_link_e1*v_side_link_e3
-    out[62] = -v_side_link_e0*(-166329/250000*v_side_link_e3 - 96247/100000*v_side_link_e1) - v_side_link_e1*(-c424 - 96247/100000*v_side_link_e0) - v_side_link_e2*(-c423 - c425) - v_side_link_e3*(-c422 - 166329/250000*v_side_link_e0) - v_bucket_link_e0*(-450737/500000*v_bucket_link_e1 + (85607/125000)*v_bucket_link_e3) - v_bucket_link_e1*(-c426 - 450737/500000*v_bucket_link_e0) - v_bucket_link_e2*(c421 + c427) - v_bucket_link_e3*(c420 + (85607/125000)*v_bucket_link_e0)
-    out[63] = -c424*v_side_link_e0 - v_side_link_e0*(c424 + (96247/50000)*v_side_link_e0) - v_side_link_e3*(-c425 + (96247/50000)*v_side_link_e3) - v_bucket_link_e0*(c426 + (450737/250000)*v_bucket_link_e0) - v_bucket_link_e3*(c427 + (450737/250000)*v_bucket_link_e3) - 85607/125000*v_bucket_link_e1*v_bucket_link_e3 + (85607/125000)*v_bucket_link_e0*v_bucket_link_e2 + (166329/250000)*v_side_link_e1*v_side_link_e3
-    out[64] = c428*v_bucket_e0 + c429*v_bucket_e1 - v_bucket_e0*(c430 + (8101/6250)*v_bucket_e0) - v_bucket_e1*(c431 + (8101/6250)*v_bucket_e1)
-    out[65] = -v_bucket_e0*(c432 + (16927/25000)*v_bucket_e1) - v_bucket_e1*(c433 + (16927/25000)*v_bucket_e0) - v_bucket_e2*(c431 + c434) - v_bucket_e3*(c430 + (8101/12500)*v_bucket_e0)
-    out[66] = -c432*v_bucket_e1 - v_bucket_e0*(-c433 - 16927/12500*v_bucket_e0) - v_bucket_e3*(c434 - 16927/12500*v_bucket_e3) + (8101/12500)*v_bucket_e0*v_bucket_e2
-    out[67] = -v_bucket_link_e0*(c466*bucket_a01 + c467*bucket_a11 + c468*bucket_a21) - v_bucket_link_e1*(c445*bucket_a01 + c447*bucket_a11 - c444*bucket_a21) - v_bucket_link_e2*(c439*bucket_a01 + c440*bucket_a21 + c443*bucket_a11) - v_bucket_link_e3*(c448*bucket_a01 + c450*bucket_a11 + c451*bucket_a21) - v_bucket_e0*(c438*v_bucket_e1 + c435*v_bucket_e3 - c452*v_bucket_e0 - c436*v_bucket_e1 - c437*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e0) - v_bucket_e1*(-c435*v_bucket_e2 - c436*v_bucket_e0 + (1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0) - v_bucket_e2*(-c452*v_bucket_e2 - c435*v_bucket_e1 - c436*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3) - v_bucket_e3*(c438*v_bucket_e2 + c435*v_bucket_e0 - c436*v_bucket_e2 - c437*v_bucket_e0) - (c453 + 4*bucket_link_e1*v_bucket_link_e1)*((1.5925492428686951)*c454 + (1.5925492428686951)*c455 - 1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1) - (c453 + 4*bucket_link_e3*v_bucket_link_e3)*((1.2098706166521882)*c456 + (1.2098706166521882)*c457 + (1.2098706166521882)*c458 + (1.2098706166521882)*c459) - (4*c460 + 4*c461)*(c443*bucket_link_e2 + c447*bucket_link_e1 + c450*bucket_link_e3 + c467*bucket_link_e0) - (-3.1850984857373903*c460 - 3.1850984857373903*c461)*(c462*v_bucket_link_e3 + c463*v_bucket_link_e2 + c464*v_bucket_link_e1 + c465*v_bucket_link_e0) - ((2.4197412333043764)*c460 + (2.4197412333043764)*c461)*(-c462*v_bucket_link_e1 - c463*v_bucket_link_e0 + 2*bucket_link_e2*v_bucket_link_e3 + 2*bucket_link_e3*v_bucket_link_e2) - (c469 + c463*v_bucket_link_e3 + c465*v_bucket_link_e1)*(-1.2098706166521882*c454 - 1.2098706166521882*c455 + (1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1) - (-c469 + 2*bucket_link_e1*v_bucket_link_e3 + 2*bucket_link_e3*v_bucket_link_e1)*(-1.5925492428686951*c456 - 1.5925492428686951*c457 - 1.5925492428686951*c458 - 1.5925492428686951*c459) - (-2*c454 - 2*c455 + 2*bucket_e1*v_bucket_e2 + 2*bucket_e2*v_bucket_e1)*(c439*bucket_link_e2 + c445*bucket_link_e1 + c448*bucket_link_e3 + c466*bucket_link_e0) - (2*c456 + 2*c457 + 2*c458 + 2*c459)*(c440*bucket_link_e2 + c451*bucket_link_e3 + c468*bucket_link_e0 - c444*bucket_link_e1)
-    out[68] = -v_arm_e0*(-c470 - 24687/25000*v_arm_e0) - v_arm_e1*(-c471 - 24687/25000*v_arm_e1) - 36797/25000*v_arm_e0*v_arm_e2 - 36797/25000*v_arm_e1*v_arm_e3
-    out[69] = -v_arm_e0*(-36797/25000*v_arm_e1 - 24687/50000*v_arm_e3) - v_arm_e1*(-c472 - 36797/25000*v_arm_e0) - v_arm_e2*(-c471 - c473) - v_arm_e3*(-c470 - 24687/50000*v_arm_e0)
-    out[70] = -c472*v_arm_e0 - v_arm_e0*(c472 + (36797/12500)*v_arm_e0) - v_arm_e3*(-c473 + (36797/12500)*v_arm_e3) + (24687/50000)*v_arm_e1*v_arm_e3
-    out[71] = -v_arm_e0*(c475*v_arm_e1 + c478*v_arm_e0 - c474*v_arm_e3) - v_arm_e1*(c474*v_arm_e2 + c475*v_arm_e0) - v_arm_e2*(c474*v_arm_e1 + c475*v_arm_e3 + c478*v_arm_e2) - v_arm_e3*(-c474*v_arm_e0 + 2*bucket_cyl_barrel_a22*v_arm_e2) - v_bucket_cyl_barrel_e0*(c476*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e0 - c477*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e1*(c476*v_bucket_cyl_barrel_e3 - c477*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c476*v_bucket_cyl_barrel_e0 + c477*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c476*v_bucket_cyl_barrel_e1 + c477*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e3) - 2*(4*arm_e0*v_arm_e0 + 4*arm_e2*v_arm_e2)*(-c480*v_bucket_cyl_barrel_e1 - c481*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - 2*(4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(c482*v_arm_e1 + c483*arm_e1 + 2*arm_e2*v_arm_e3 + 2*arm_e3*v_arm_e2) - 2*(c480*v_bucket_cyl_barrel_e2 + c481*v_bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1)*(-c482*v_arm_e3 - c483*arm_e3 + 2*arm_e1*v_arm_e2 + 2*arm_e2*v_arm_e1)
-    out[72] = -c501*(-c496*v_bucket_cyl_rod_e3 - c497*bucket_cyl_rod_e3 + 2*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1) - c507*(c503 + 4*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - c513*(c509 + c508*bucket_cyl_rod_e3 + 2*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3) - v_bucket_cyl_barrel_e0*(c490*v_bucket_cyl_barrel_e0 + c491*bucket_cyl_rod_a11 - c492*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e1*(c490*v_bucket_cyl_barrel_e1 + c491*bucket_cyl_rod_a21 + c492*bucket_cyl_rod_a11) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a11 - c485*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a21 + c485*bucket_cyl_rod_a11) - v_bucket_cyl_rod_e0*(-c493 + c494*v_bucket_cyl_rod_e0 + c488*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c487 + c488*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c495 + c494*v_bucket_cyl_rod_e2 + c488*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(-c489 + 2*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2)
-    out[73] = -c501*c518 - c507*c520 - c513*c519 - v_bucket_cyl_barrel_e0*(c498*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a12 - c492*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e1*(c500*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a22 + c492*bucket_cyl_rod_a12) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a12 - c485*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a22 + c485*bucket_cyl_rod_a12) - v_bucket_cyl_rod_e0*(c487 + c502*bucket_cyl_barrel_a20 - c514*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c493 - c497*bucket_cyl_barrel_a10) - v_bucket_cyl_rod_e2*(c489 + c514*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c495 + c508*bucket_cyl_barrel_a10 + c515*bucket_cyl_barrel_a20)
-    out[74] = c522*v_bucket_cyl_barrel_y + c530*v_bucket_cyl_barrel_z - c522*c523 - c522*v_bucket_cyl_rod_y - c526*v_bucket_cyl_barrel_x - c530*c533 - c530*v_bucket_cyl_rod_z - c531*c532 - c531*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(c534 + c484*bucket_cyl_rod_z + c498*bucket_cyl_rod_y - c484*bucket_cyl_barrel_z - c498*bucket_cyl_barrel_y) - v_bucket_cyl_barrel_e1*(-c524 - c485*bucket_cyl_barrel_z + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c535 - c521*bucket_cyl_barrel_y - c491*bucket_cyl_barrel_z + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(c525 + c492*bucket_cyl_rod_z - c492*bucket_cyl_barrel_z)
-    out[75] = c537*v_bucket_cyl_barrel_z + c538*v_bucket_cyl_barrel_x - c523*c540 - c532*c538 - c533*c537 - c537*v_bucket_cyl_rod_z - c538*v_bucket_cyl_rod_x - c539*v_bucket_cyl_barrel_y - c540*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(-c524 - c484*bucket_cyl_rod_y - c498*bucket_cyl_barrel_z + 2*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 + 4*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c534 - c485*bucket_cyl_rod_y + 2*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c525 - c491*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(-c535 - c536*bucket_cyl_barrel_z - c492*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3)
-    out[76] = -c518*(-c549*v_bucket_cyl_barrel_e3 - c550*bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1) - c519*(c549*v_bucket_cyl_barrel_e1 + c550*bucket_cyl_barrel_e1 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - c520*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c522*(-c547*v_bucket_cyl_rod_e1 - c548*bucket_cyl_rod_e1 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2) - c530*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c531*((2.0)*c516 + (2.0)*c517 + c547*v_bucket_cyl_rod_e2 + c548*bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(c542*v_bucket_cyl_barrel_e1 + c545*v_bucket_cyl_barrel_e0 - c541*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e1*(c541*v_bucket_cyl_barrel_e2 + c542*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c541*v_bucket_cyl_barrel_e1 + c542*v_bucket_cyl_barrel_e3 + c545*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(-c541*v_bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2) - v_bucket_cyl_rod_e0*(c543*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e0 - c544*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c543*v_bucket_cyl_rod_e3 - c544*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c543*v_bucket_cyl_rod_e0 + c544*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c543*v_bucket_cyl_rod_e1 + c544*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e3)
-    out[77] = c551*v_side_link_e0 + c552*v_side_link_e1 - v_side_link_e0*(c553 + (166329/125000)*v_side_link_e0) - v_side_link_e1*(c554 + (166329/125000)*v_side_link_e1)
-    out[78] = -v_side_link_e0*(c555 + (96247/100000)*v_side_link_e1) - v_side_link_e1*(c556 + (96247/100000)*v_side_link_e0) - v_side_link_e2*(c554 + c557) - v_side_link_e3*(c553 + (166329/250000)*v_side_link_e0)
-    out[79] = -c555*v_side_link_e1 - v_side_link_e0*(-c556 - 96247/50000*v_side_link_e0) - v_side_link_e3*(c557 - 96247/50000*v_side_link_e3) + (166329/250000)*v_side_link_e0*v_side_link_e2
+    out[19] = -v_boom_e0*(-c129 - c131 - c130*v_boom_e0) - v_boom_e1*(-c132 - c133 - c130*v_boom_e1) - v_boom_e2*(-c124 - c126) - v_boom_e3*(c127 - c128)
+    out[20] = -v_boom_e0*(c128 - c137 - 32/25*v_boom_e0) - v_boom_e1*(c126 - c135) - v_boom_e2*(-c138 - c133 - 32/25*v_boom_e2) - v_boom_e3*(-c136 - c131)
+    out[21] = -v_boom_e0*(c135 - c124 - c139*v_boom_e0) - v_boom_e1*(-c137 - c127) - v_boom_e2*(c136 + c129) - v_boom_e3*(-c138 - c132 - c139*v_boom_e3)
+    out[22] = -v_upper_e0*(c144 + c145 + (8614/3125)*v_upper_e0) - v_upper_e1*(c146 + c147 + (8614/3125)*v_upper_e1) - v_upper_e2*(c140 - c141) - v_upper_e3*(c142 + c143)
+    out[23] = -v_upper_e0*(-c150 - c143 - 32/25*v_upper_e0) - v_upper_e1*(c148 - c140) - v_upper_e2*(c151 + c147 - 32/25*v_upper_e2) - v_upper_e3*(c144 + c149)
+    out[24] = -v_upper_e0*(-c141 - c148 + (67739/12500)*v_upper_e0) - v_upper_e1*(-c150 - c142) - v_upper_e2*(-c145 - c149) - v_upper_e3*(c151 + c146 + (67739/12500)*v_upper_e3)
+    out[25] = -v_upper_e0*(c153*v_upper_e1 + c156*v_upper_e0 - c152*v_upper_e3) - v_upper_e1*(c152*v_upper_e2 + c153*v_upper_e0) - v_upper_e2*(c152*v_upper_e1 + c153*v_upper_e3 + c156*v_upper_e2) - v_upper_e3*(-c152*v_upper_e0 + 2*boom_cyl_r_barrel_a22*v_upper_e2) - v_boom_cyl_r_barrel_e0*(c154*v_boom_cyl_r_barrel_e2 + c157*v_boom_cyl_r_barrel_e0 - c155*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e1*(c154*v_boom_cyl_r_barrel_e3 - c155*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c154*v_boom_cyl_r_barrel_e0 + c155*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c154*v_boom_cyl_r_barrel_e1 + c155*v_boom_cyl_r_barrel_e2 + c157*v_boom_cyl_r_barrel_e3) - 2*(4*upper_e0*v_upper_e0 + 4*upper_e2*v_upper_e2)*(-c158*v_boom_cyl_r_barrel_e1 - c159*v_boom_cyl_r_barrel_e0 + 2*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - 2*(4*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(c160*v_upper_e1 + c161*upper_e1 + 2*upper_e2*v_upper_e3 + 2*upper_e3*v_upper_e2) - 2*(c158*v_boom_cyl_r_barrel_e2 + c159*v_boom_cyl_r_barrel_e3 + 2*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1)*(-c160*v_upper_e3 - c161*upper_e3 + 2*upper_e1*v_upper_e2 + 2*upper_e2*v_upper_e1)
+    out[26] = -c179*(-c174*v_boom_cyl_r_rod_e3 - c175*boom_cyl_r_rod_e3 + 2*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1) - c185*(c181 + 4*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - c191*(c187 + c186*boom_cyl_r_rod_e3 + 2*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_barrel_e0*(c168*v_boom_cyl_r_barrel_e0 + c169*boom_cyl_r_rod_a11 - c170*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e1*(c168*v_boom_cyl_r_barrel_e1 + c169*boom_cyl_r_rod_a21 + c170*boom_cyl_r_rod_a11) - v_boom_cyl_r_barrel_e2*(c162*boom_cyl_r_rod_a11 - c163*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e3*(c162*boom_cyl_r_rod_a21 + c163*boom_cyl_r_rod_a11) - v_boom_cyl_r_rod_e0*(-c171 + c172*v_boom_cyl_r_rod_e0 + c166*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c165 + c166*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c173 + c172*v_boom_cyl_r_rod_e2 + c166*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(-c167 + 2*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2)
+    out[27] = -c179*c196 - c185*c198 - c191*c197 - v_boom_cyl_r_barrel_e0*(c176*boom_cyl_r_rod_a02 + c169*boom_cyl_r_rod_a12 - c170*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e1*(c178*boom_cyl_r_rod_a02 + c169*boom_cyl_r_rod_a22 + c170*boom_cyl_r_rod_a12) - v_boom_cyl_r_barrel_e2*(c162*boom_cyl_r_rod_a12 - c163*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e3*(c162*boom_cyl_r_rod_a22 + c163*boom_cyl_r_rod_a12) - v_boom_cyl_r_rod_e0*(c165 + c180*boom_cyl_r_barrel_a20 - c192*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c171 - c175*boom_cyl_r_barrel_a10) - v_boom_cyl_r_rod_e2*(c167 + c192*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c173 + c186*boom_cyl_r_barrel_a10 + c193*boom_cyl_r_barrel_a20)
+    out[28] = c200*v_boom_cyl_r_barrel_y + c208*v_boom_cyl_r_barrel_z - c200*c201 - c200*v_boom_cyl_r_rod_y - c204*v_boom_cyl_r_barrel_x - c208*c211 - c208*v_boom_cyl_r_rod_z - c209*c210 - c209*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(c212 + c162*boom_cyl_r_rod_z + c176*boom_cyl_r_rod_y - c162*boom_cyl_r_barrel_z - c176*boom_cyl_r_barrel_y) - v_boom_cyl_r_barrel_e1*(-c202 - c163*boom_cyl_r_barrel_z + 2*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c213 - c199*boom_cyl_r_barrel_y - c169*boom_cyl_r_barrel_z + 2*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 + 4*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(c203 + c170*boom_cyl_r_rod_z - c170*boom_cyl_r_barrel_z)
+    out[29] = c215*v_boom_cyl_r_barrel_z + c216*v_boom_cyl_r_barrel_x - c201*c218 - c210*c216 - c211*c215 - c215*v_boom_cyl_r_rod_z - c216*v_boom_cyl_r_rod_x - c217*v_boom_cyl_r_barrel_y - c218*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(-c202 - c162*boom_cyl_r_rod_y - c176*boom_cyl_r_barrel_z + 2*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 + 4*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(-c212 - c163*boom_cyl_r_rod_y + 2*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c203 - c169*boom_cyl_r_barrel_y + 2*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(-c213 - c214*boom_cyl_r_barrel_z - c170*boom_cyl_r_barrel_y + 2*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3)
+    out[30] = -c196*(-c227*v_boom_cyl_r_barrel_e3 - c228*boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1) - c197*(c227*v_boom_cyl_r_barrel_e1 + c228*boom_cyl_r_barrel_e1 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - c198*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c200*(-c225*v_boom_cyl_r_rod_e1 - c226*boom_cyl_r_rod_e1 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2) - c208*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c209*((2.0)*c194 + (2.0)*c195 + c225*v_boom_cyl_r_rod_e2 + c226*boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(c220*v_boom_cyl_r_barrel_e1 + c223*v_boom_cyl_r_barrel_e0 - c219*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e1*(c219*v_boom_cyl_r_barrel_e2 + c220*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c219*v_boom_cyl_r_barrel_e1 + c220*v_boom_cyl_r_barrel_e3 + c223*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(-c219*v_boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_rod_e0*(c221*v_boom_cyl_r_rod_e2 + c224*v_boom_cyl_r_rod_e0 - c222*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c221*v_boom_cyl_r_rod_e3 - c222*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c221*v_boom_cyl_r_rod_e0 + c222*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c221*v_boom_cyl_r_rod_e1 + c222*v_boom_cyl_r_rod_e2 + c224*v_boom_cyl_r_rod_e3)
+    out[31] = -v_boom_e0*(-c233 - c235 - c234*v_boom_e0) - v_boom_e1*(-c236 - c237 - c234*v_boom_e1) - v_boom_e2*(-c230 + (16/25)*v_boom_e1) - v_boom_e3*(-c231 - c232)
+    out[32] = -v_boom_e0*(c232 - c241 + (32/25)*v_boom_e0) - v_boom_e1*(c230 - c239) - v_boom_e2*(-c242 - c237 + (32/25)*v_boom_e2) - v_boom_e3*(-c240 - c235)
+    out[33] = -v_boom_e0*(c239 + (16/25)*v_boom_e1 - c243*v_boom_e0) - v_boom_e1*(c231 - c241) - v_boom_e2*(c240 + c233) - v_boom_e3*(-c242 - c236 - c243*v_boom_e3)
+    out[34] = -c244*v_boom_e0 - c245*v_boom_e1 - v_boom_e0*(c244 + (23939/1250)*v_boom_e0) - v_boom_e1*(c245 + (23939/1250)*v_boom_e1)
+    out[35] = -v_boom_e0*(-29959/5000*v_boom_e1 + (23939/2500)*v_boom_e3) - v_boom_e1*(-c246 - 29959/5000*v_boom_e0) - v_boom_e2*(c245 + c247) - v_boom_e3*(c244 + (23939/2500)*v_boom_e0)
+    out[36] = -v_boom_e0*(c246 + (29959/2500)*v_boom_e0) - v_boom_e3*(c247 + (29959/2500)*v_boom_e3) - 23939/2500*v_boom_e1*v_boom_e3 + (23939/2500)*v_boom_e0*v_boom_e2
+    out[37] = -c262*(-c258*v_arm_e1 - c259*v_arm_e0 + 2*arm_e2*v_arm_e3 + 2*arm_e3*v_arm_e2) - c268*(c264 + 4*arm_e3*v_arm_e3) - c272*(c271 + c259*v_arm_e3 + c269*v_arm_e1) - v_boom_e0*(c254*v_boom_e0 + c249*v_boom_e1 - c248*v_boom_e3) - v_boom_e1*(c248*v_boom_e2 + c249*v_boom_e0) - v_boom_e2*(c254*v_boom_e2 + c248*v_boom_e1 + c249*v_boom_e3) - v_boom_e3*(-c248*v_boom_e0 + 2*arm_a22*v_boom_e2) - v_arm_e0*(-c255 + c256*v_arm_e0 + c250*v_arm_e2) - v_arm_e1*(-c252 + c250*v_arm_e3) - v_arm_e2*(c253 + c250*v_arm_e0) - v_arm_e3*(c257 + c256*v_arm_e3 + c250*v_arm_e1)
+    out[38] = -c262*(c258*v_arm_e3 + c259*v_arm_e2 + c269*v_arm_e0 + c270*v_arm_e1) - c268*(-c271 + 2*arm_e1*v_arm_e3 + 2*arm_e3*v_arm_e1) - c272*(c264 + c276*arm_e1) - v_boom_e0*(c260*arm_a10 + c275*v_boom_e1 - c274*v_boom_e3) - v_boom_e1*(c266*arm_a20 + c267*arm_a00) - v_boom_e2*(c261*arm_a10 + c274*v_boom_e1 + c275*v_boom_e3) - v_boom_e3*(-c266*arm_a00 + 2*arm_a20*v_boom_e2) - v_arm_e0*(c253 + c263*boom_a01 - c273*v_arm_e2) - v_arm_e1*(c257 + c273*v_arm_e3 + c276*boom_a01) - v_arm_e2*(c255 - c273*v_arm_e0) - v_arm_e3*(c252 + c273*v_arm_e1)
+    out[39] = -c277*v_boom_e0 - c278*v_boom_e1 - v_boom_e0*(c277 + (183/20)*v_boom_e0) - v_boom_e1*(c278 + (183/20)*v_boom_e1)
+    out[40] = -v_boom_e0*(-557/100*v_boom_e1 + (183/40)*v_boom_e3) - v_boom_e1*(-c279 - 557/100*v_boom_e0) - v_boom_e2*(c278 + c280) - v_boom_e3*(c277 + (183/40)*v_boom_e0)
+    out[41] = -v_boom_e0*(c279 + (557/50)*v_boom_e0) - v_boom_e3*(c280 + (557/50)*v_boom_e3) - 183/40*v_boom_e1*v_boom_e3 + (183/40)*v_boom_e0*v_boom_e2
+    out[42] = -v_boom_e0*(c282*v_boom_e1 + c285*v_boom_e0 - c281*v_boom_e3) - v_boom_e1*(c281*v_boom_e2 + c282*v_boom_e0) - v_boom_e2*(c281*v_boom_e1 + c282*v_boom_e3 + c285*v_boom_e2) - v_boom_e3*(-c281*v_boom_e0 + 2*arm_cyl_barrel_a22*v_boom_e2) - v_arm_cyl_barrel_e0*(c283*v_arm_cyl_barrel_e2 + c286*v_arm_cyl_barrel_e0 - c284*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e1*(c283*v_arm_cyl_barrel_e3 - c284*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c283*v_arm_cyl_barrel_e0 + c284*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c283*v_arm_cyl_barrel_e1 + c284*v_arm_cyl_barrel_e2 + c286*v_arm_cyl_barrel_e3) - 2*(4*boom_e0*v_boom_e0 + 4*boom_e2*v_boom_e2)*(-c287*v_arm_cyl_barrel_e1 - c288*v_arm_cyl_barrel_e0 + 2*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - 2*(4*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(c289*v_boom_e1 + c290*boom_e1 + 2*boom_e2*v_boom_e3 + 2*boom_e3*v_boom_e2) - 2*(c287*v_arm_cyl_barrel_e2 + c288*v_arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1)*(-c289*v_boom_e3 - c290*boom_e3 + 2*boom_e1*v_boom_e2 + 2*boom_e2*v_boom_e1)
+    out[43] = -c308*(-c303*v_arm_cyl_rod_e3 - c304*arm_cyl_rod_e3 + 2*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2*arm_cyl_rod_e2*v_arm_cyl_rod_e1) - c314*(c310 + 4*arm_cyl_rod_e2*v_arm_cyl_rod_e2) - c320*(c316 + c315*arm_cyl_rod_e3 + 2*arm_cyl_rod_e2*v_arm_cyl_rod_e3) - v_arm_cyl_barrel_e0*(c297*v_arm_cyl_barrel_e0 + c298*arm_cyl_rod_a11 - c299*arm_cyl_rod_a21) - v_arm_cyl_barrel_e1*(c297*v_arm_cyl_barrel_e1 + c298*arm_cyl_rod_a21 + c299*arm_cyl_rod_a11) - v_arm_cyl_barrel_e2*(c291*arm_cyl_rod_a11 - c292*arm_cyl_rod_a21) - v_arm_cyl_barrel_e3*(c291*arm_cyl_rod_a21 + c292*arm_cyl_rod_a11) - v_arm_cyl_rod_e0*(-c300 + c301*v_arm_cyl_rod_e0 + c295*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c294 + c295*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c302 + c301*v_arm_cyl_rod_e2 + c295*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(-c296 + 2*arm_cyl_barrel_a20*v_arm_cyl_rod_e2)
+    out[44] = -c308*c325 - c314*c327 - c320*c326 - v_arm_cyl_barrel_e0*(c305*arm_cyl_rod_a02 + c298*arm_cyl_rod_a12 - c299*arm_cyl_rod_a22) - v_arm_cyl_barrel_e1*(c307*arm_cyl_rod_a02 + c298*arm_cyl_rod_a22 + c299*arm_cyl_rod_a12) - v_arm_cyl_barrel_e2*(c291*arm_cyl_rod_a12 - c292*arm_cyl_rod_a22) - v_arm_cyl_barrel_e3*(c291*arm_cyl_rod_a22 + c292*arm_cyl_rod_a12) - v_arm_cyl_rod_e0*(c294 + c309*arm_cyl_barrel_a20 - c321*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c300 - c304*arm_cyl_barrel_a10) - v_arm_cyl_rod_e2*(c296 + c321*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c302 + c315*arm_cyl_barrel_a10 + c322*arm_cyl_barrel_a20)
+    out[45] = c329*v_arm_cyl_barrel_y + c337*v_arm_cyl_barrel_z - c329*c330 - c329*v_arm_cyl_rod_y - c333*v_arm_cyl_barrel_x - c337*c340 - c337*v_arm_cyl_rod_z - c338*c339 - c338*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(c341 + c291*arm_cyl_rod_z + c305*arm_cyl_rod_y - c291*arm_cyl_barrel_z - c305*arm_cyl_barrel_y) - v_arm_cyl_barrel_e1*(-c331 - c292*arm_cyl_barrel_z + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c342 - c328*arm_cyl_barrel_y - c298*arm_cyl_barrel_z + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4*arm_cyl_rod_y*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(c332 + c299*arm_cyl_rod_z - c299*arm_cyl_barrel_z)
+    out[46] = c344*v_arm_cyl_barrel_z + c345*v_arm_cyl_barrel_x - c330*c347 - c339*c345 - c340*c344 - c344*v_arm_cyl_rod_z - c345*v_arm_cyl_rod_x - c346*v_arm_cyl_barrel_y - c347*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(-c331 - c291*arm_cyl_rod_y - c305*arm_cyl_barrel_z + 2*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 + 4*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c341 - c292*arm_cyl_rod_y + 2*arm_cyl_barrel_y*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c332 - c298*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(-c342 - c343*arm_cyl_barrel_z - c299*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4*arm_cyl_rod_z*v_arm_cyl_barrel_e3)
+    out[47] = -c325*(-c356*v_arm_cyl_barrel_e3 - c357*arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1) - c326*(c356*v_arm_cyl_barrel_e1 + c357*arm_cyl_barrel_e1 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - c327*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c329*(-c354*v_arm_cyl_rod_e1 - c355*arm_cyl_rod_e1 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2) - c337*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c338*((2.0)*c323 + (2.0)*c324 + c354*v_arm_cyl_rod_e2 + c355*arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(c349*v_arm_cyl_barrel_e1 + c352*v_arm_cyl_barrel_e0 - c348*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e1*(c348*v_arm_cyl_barrel_e2 + c349*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c348*v_arm_cyl_barrel_e1 + c349*v_arm_cyl_barrel_e3 + c352*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(-c348*v_arm_cyl_barrel_e0 + (2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2) - v_arm_cyl_rod_e0*(c350*v_arm_cyl_rod_e2 + c353*v_arm_cyl_rod_e0 - c351*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c350*v_arm_cyl_rod_e3 - c351*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c350*v_arm_cyl_rod_e0 + c351*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c350*v_arm_cyl_rod_e1 + c351*v_arm_cyl_rod_e2 + c353*v_arm_cyl_rod_e3)
+    out[48] = c359*v_arm_e0 + c360*v_arm_e1 - v_arm_e0*(-c359 - c361*v_arm_e0) - v_arm_e1*(-c360 - c361*v_arm_e1)
+    out[49] = -v_arm_e0*(-c362*v_arm_e3 + 2*p_F_z*v_arm_e1) - v_arm_e1*(-c363 + 2*p_F_z*v_arm_e0) - v_arm_e2*(-c360 - c364) - v_arm_e3*(-c359 - c362*v_arm_e0)
+    out[50] = -c363*v_arm_e0 - v_arm_e0*(c363 - c365*v_arm_e0) - v_arm_e3*(-c364 - c365*v_arm_e3) + 2*p_F_x*v_arm_e1*v_arm_e3
+    out[51] = -c366*v_arm_e0 - c367*v_arm_e1 - v_arm_e0*(c366 + (9477/1250)*v_arm_e0) - v_arm_e1*(c367 + (9477/1250)*v_arm_e1)
+    out[52] = -v_arm_e0*(-21809/5000*v_arm_e1 + (9477/2500)*v_arm_e3) - v_arm_e1*(-c368 - 21809/5000*v_arm_e0) - v_arm_e2*(c367 + c369) - v_arm_e3*(c366 + (9477/2500)*v_arm_e0)
+    out[53] = -v_arm_e0*(c368 + (21809/2500)*v_arm_e0) - v_arm_e3*(c369 + (21809/2500)*v_arm_e3) - 9477/2500*v_arm_e1*v_arm_e3 + (9477/2500)*v_arm_e0*v_arm_e2
+    out[54] = -c384*(-c380*v_bucket_e1 - c381*v_bucket_e0 + 2*bucket_e2*v_bucket_e3 + 2*bucket_e3*v_bucket_e2) - c390*(c386 + 4*bucket_e3*v_bucket_e3) - c394*(c393 + c381*v_bucket_e3 + c391*v_bucket_e1) - v_arm_e0*(c376*v_arm_e0 + c371*v_arm_e1 - c370*v_arm_e3) - v_arm_e1*(c370*v_arm_e2 + c371*v_arm_e0) - v_arm_e2*(c376*v_arm_e2 + c370*v_arm_e1 + c371*v_arm_e3) - v_arm_e3*(-c370*v_arm_e0 + 2*bucket_a22*v_arm_e2) - v_bucket_e0*(-c377 + c378*v_bucket_e0 + c372*v_bucket_e2) - v_bucket_e1*(-c374 + c372*v_bucket_e3) - v_bucket_e2*(c375 + c372*v_bucket_e0) - v_bucket_e3*(c379 + c378*v_bucket_e3 + c372*v_bucket_e1)
+    out[55] = -c384*(c380*v_bucket_e3 + c381*v_bucket_e2 + c391*v_bucket_e0 + c392*v_bucket_e1) - c390*(-c393 + 2*bucket_e1*v_bucket_e3 + 2*bucket_e3*v_bucket_e1) - c394*(c386 + c398*bucket_e1) - v_arm_e0*(c382*bucket_a10 + c397*v_arm_e1 - c396*v_arm_e3) - v_arm_e1*(c388*bucket_a20 + c389*bucket_a00) - v_arm_e2*(c383*bucket_a10 + c396*v_arm_e1 + c397*v_arm_e3) - v_arm_e3*(-c388*bucket_a00 + 2*bucket_a20*v_arm_e2) - v_bucket_e0*(c375 + c385*arm_a01 - c395*v_bucket_e2) - v_bucket_e1*(c379 + c395*v_bucket_e3 + c398*arm_a01) - v_bucket_e2*(c377 - c395*v_bucket_e0) - v_bucket_e3*(c374 + c395*v_bucket_e1)
+    out[56] = -c399*v_arm_e0 - c400*v_arm_e1 - v_arm_e0*(c399 + (7877/1250)*v_arm_e0) - v_arm_e1*(c400 + (7877/1250)*v_arm_e1)
+    out[57] = -v_arm_e0*(-18799/5000*v_arm_e1 + (7877/2500)*v_arm_e3) - v_arm_e1*(-c401 - 18799/5000*v_arm_e0) - v_arm_e2*(c400 + c402) - v_arm_e3*(c399 + (7877/2500)*v_arm_e0)
+    out[58] = -v_arm_e0*(c401 + (18799/2500)*v_arm_e0) - v_arm_e3*(c402 + (18799/2500)*v_arm_e3) - 7877/2500*v_arm_e1*v_arm_e3 + (7877/2500)*v_arm_e0*v_arm_e2
+    out[59] = -c417*(-c413*v_side_link_e1 - c414*v_side_link_e0 + 2*side_link_e2*v_side_link_e3 + 2*side_link_e3*v_side_link_e2) - c423*(c419 + 4*side_link_e3*v_side_link_e3) - c427*(c426 + c414*v_side_link_e3 + c424*v_side_link_e1) - v_arm_e0*(c409*v_arm_e0 + c404*v_arm_e1 - c403*v_arm_e3) - v_arm_e1*(c403*v_arm_e2 + c404*v_arm_e0) - v_arm_e2*(c409*v_arm_e2 + c403*v_arm_e1 + c404*v_arm_e3) - v_arm_e3*(-c403*v_arm_e0 + 2*side_link_a22*v_arm_e2) - v_side_link_e0*(-c410 + c411*v_side_link_e0 + c405*v_side_link_e2) - v_side_link_e1*(-c407 + c405*v_side_link_e3) - v_side_link_e2*(c408 + c405*v_side_link_e0) - v_side_link_e3*(c412 + c411*v_side_link_e3 + c405*v_side_link_e1)
+    out[60] = -c417*(c413*v_side_link_e3 + c414*v_side_link_e2 + c424*v_side_link_e0 + c425*v_side_link_e1) - c423*(-c426 + 2*side_link_e1*v_side_link_e3 + 2*side_link_e3*v_side_link_e1) - c427*(c419 + c431*side_link_e1) - v_arm_e0*(c415*side_link_a10 + c430*v_arm_e1 - c429*v_arm_e3) - v_arm_e1*(c421*side_link_a20 + c422*side_link_a00) - v_arm_e2*(c416*side_link_a10 + c429*v_arm_e1 + c430*v_arm_e3) - v_arm_e3*(-c421*side_link_a00 + 2*side_link_a20*v_arm_e2) - v_side_link_e0*(c408 + c418*arm_a01 - c428*v_side_link_e2) - v_side_link_e1*(c412 + c428*v_side_link_e3 + c431*arm_a01) - v_side_link_e2*(c410 - c428*v_side_link_e0) - v_side_link_e3*(c407 + c428*v_side_link_e1)
+    out[61] = -c433*v_bucket_link_e0 - c434*v_bucket_link_e1 - v_side_link_e0*(-c437 - c436*v_side_link_e0) - v_side_link_e1*(-c438 - c436*v_side_link_e1) - v_bucket_link_e0*(c433 + c439*v_bucket_link_e0) - v_bucket_link_e1*(c434 + c439*v_bucket_link_e1) - c435*v_side_link_e0*v_side_link_e2 - c435*v_side_link_e1*v_side_link_e3
+    out[62] = -v_side_link_e0*(-c435*v_side_link_e1 - c440*v_side_link_e3) - v_side_link_e1*(-c441 - c435*v_side_link_e0) - v_side_link_e2*(-c442 - c438) - v_side_link_e3*(-c437 - c440*v_side_link_e0) - v_bucket_link_e0*(-c432*v_bucket_link_e1 + 1.2098706166509*p_bucket_link*v_bucket_link_e3) - v_bucket_link_e1*(-c444 - c432*v_bucket_link_e0) - v_bucket_link_e2*(c445 + c434) - v_bucket_link_e3*(c433 + c443*v_bucket_link_e0)
+    out[63] = -c441*v_side_link_e0 - v_side_link_e0*(c441 + 3.290382899284808*p_side_link*v_side_link_e0) - v_side_link_e3*(-c442 + 3.290382899284808*p_side_link*v_side_link_e3) - v_bucket_link_e0*(c444 + c446*v_bucket_link_e0) - v_bucket_link_e3*(c445 + c446*v_bucket_link_e3) - c443*v_bucket_link_e1*v_bucket_link_e3 + 1.1372533112827263*p_side_link*v_side_link_e1*v_side_link_e3 + 1.2098706166509*p_bucket_link*v_bucket_link_e0*v_bucket_link_e2
+    out[64] = c448*v_bucket_e0 + c449*v_bucket_e1 - v_bucket_e0*(-c448 - c450*v_bucket_e0) - v_bucket_e1*(-c449 - c450*v_bucket_e1)
+    out[65] = -v_bucket_e0*(-c451*v_bucket_e3 + 2*p_K_z*v_bucket_e1) - v_bucket_e1*(-c452 + 2*p_K_z*v_bucket_e0) - v_bucket_e2*(-c449 - c453) - v_bucket_e3*(-c448 - c451*v_bucket_e0)
+    out[66] = -c452*v_bucket_e0 - v_bucket_e0*(c452 - c454*v_bucket_e0) - v_bucket_e3*(-c453 - c454*v_bucket_e3) + 2*p_K_x*v_bucket_e1*v_bucket_e3
+    out[67] = -v_bucket_link_e0*(c486*bucket_a01 + c487*bucket_a11 + c488*bucket_a21) - v_bucket_link_e1*(c465*bucket_a01 + c467*bucket_a11 - c464*bucket_a21) - v_bucket_link_e2*(c459*bucket_a01 + c460*bucket_a21 + c463*bucket_a11) - v_bucket_link_e3*(c468*bucket_a01 + c470*bucket_a11 + c471*bucket_a21) - v_bucket_e0*(c458*v_bucket_e1 + c455*v_bucket_e3 - c457*v_bucket_e3 - c472*v_bucket_e0 - c456*v_bucket_e1 + (2.4197412333043764)*bucket_link_a12*v_bucket_e0) - v_bucket_e1*(-c455*v_bucket_e2 - c456*v_bucket_e0 + (1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0) - v_bucket_e2*(-c472*v_bucket_e2 - c455*v_bucket_e1 - c456*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3) - v_bucket_e3*(c458*v_bucket_e2 + c455*v_bucket_e0 - c457*v_bucket_e0 - c456*v_bucket_e2) - (c473 + 4*bucket_link_e1*v_bucket_link_e1)*((1.5925492428686951)*c474 + (1.5925492428686951)*c475 - 1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1) - (c473 + 4*bucket_link_e3*v_bucket_link_e3)*((1.2098706166521882)*c476 + (1.2098706166521882)*c477 + (1.2098706166521882)*c478 + (1.2098706166521882)*c479) - (4*c480 + 4*c481)*(c463*bucket_link_e2 + c467*bucket_link_e1 + c470*bucket_link_e3 + c487*bucket_link_e0) - (-3.1850984857373903*c480 - 3.1850984857373903*c481)*(c482*v_bucket_link_e3 + c483*v_bucket_link_e2 + c484*v_bucket_link_e1 + c485*v_bucket_link_e0) - ((2.4197412333043764)*c480 + (2.4197412333043764)*c481)*(-c482*v_bucket_link_e1 - c483*v_bucket_link_e0 + 2*bucket_link_e2*v_bucket_link_e3 + 2*bucket_link_e3*v_bucket_link_e2) - (c489 + c483*v_bucket_link_e3 + c485*v_bucket_link_e1)*(-1.2098706166521882*c474 - 1.2098706166521882*c475 + (1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1) - (-c489 + 2*bucket_link_e1*v_bucket_link_e3 + 2*bucket_link_e3*v_bucket_link_e1)*(-1.5925492428686951*c476 - 1.5925492428686951*c477 - 1.5925492428686951*c478 - 1.5925492428686951*c479) - (-2*c474 - 2*c475 + 2*bucket_e1*v_bucket_e2 + 2*bucket_e2*v_bucket_e1)*(c459*bucket_link_e2 + c465*bucket_link_e1 + c468*bucket_link_e3 + c486*bucket_link_e0) - (2*c476 + 2*c477 + 2*c478 + 2*c479)*(c460*bucket_link_e2 + c471*bucket_link_e3 + c488*bucket_link_e0 - c464*bucket_link_e1)
+    out[68] = -v_arm_e0*(-c490 - 24687/25000*v_arm_e0) - v_arm_e1*(-c491 - 24687/25000*v_arm_e1) - 36797/25000*v_arm_e0*v_arm_e2 - 36797/25000*v_arm_e1*v_arm_e3
+    out[69] = -v_arm_e0*(-36797/25000*v_arm_e1 - 24687/50000*v_arm_e3) - v_arm_e1*(-c492 - 36797/25000*v_arm_e0) - v_arm_e2*(-c491 - c493) - v_arm_e3*(-c490 - 24687/50000*v_arm_e0)
+    out[70] = -c492*v_arm_e0 - v_arm_e0*(c492 + (36797/12500)*v_arm_e0) - v_arm_e3*(-c493 + (36797/12500)*v_arm_e3) + (24687/50000)*v_arm_e1*v_arm_e3
+    out[71] = -v_arm_e0*(c495*v_arm_e1 + c498*v_arm_e0 - c494*v_arm_e3) - v_arm_e1*(c494*v_arm_e2 + c495*v_arm_e0) - v_arm_e2*(c494*v_arm_e1 + c495*v_arm_e3 + c498*v_arm_e2) - v_arm_e3*(-c494*v_arm_e0 + 2*bucket_cyl_barrel_a22*v_arm_e2) - v_bucket_cyl_barrel_e0*(c496*v_bucket_cyl_barrel_e2 + c499*v_bucket_cyl_barrel_e0 - c497*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e1*(c496*v_bucket_cyl_barrel_e3 - c497*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c496*v_bucket_cyl_barrel_e0 + c497*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c496*v_bucket_cyl_barrel_e1 + c497*v_bucket_cyl_barrel_e2 + c499*v_bucket_cyl_barrel_e3) - 2*(4*arm_e0*v_arm_e0 + 4*arm_e2*v_arm_e2)*(-c500*v_bucket_cyl_barrel_e1 - c501*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - 2*(4*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(c502*v_arm_e1 + c503*arm_e1 + 2*arm_e2*v_arm_e3 + 2*arm_e3*v_arm_e2) - 2*(c500*v_bucket_cyl_barrel_e2 + c501*v_bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1)*(-c502*v_arm_e3 - c503*arm_e3 + 2*arm_e1*v_arm_e2 + 2*arm_e2*v_arm_e1)
+    out[72] = -c521*(-c516*v_bucket_cyl_rod_e3 - c517*bucket_cyl_rod_e3 + 2*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1) - c527*(c523 + 4*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - c533*(c529 + c528*bucket_cyl_rod_e3 + 2*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3) - v_bucket_cyl_barrel_e0*(c510*v_bucket_cyl_barrel_e0 + c511*bucket_cyl_rod_a11 - c512*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e1*(c510*v_bucket_cyl_barrel_e1 + c511*bucket_cyl_rod_a21 + c512*bucket_cyl_rod_a11) - v_bucket_cyl_barrel_e2*(c504*bucket_cyl_rod_a11 - c505*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e3*(c504*bucket_cyl_rod_a21 + c505*bucket_cyl_rod_a11) - v_bucket_cyl_rod_e0*(-c513 + c514*v_bucket_cyl_rod_e0 + c508*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c507 + c508*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c515 + c514*v_bucket_cyl_rod_e2 + c508*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(-c509 + 2*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2)
+    out[73] = -c521*c538 - c527*c540 - c533*c539 - v_bucket_cyl_barrel_e0*(c518*bucket_cyl_rod_a02 + c511*bucket_cyl_rod_a12 - c512*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e1*(c520*bucket_cyl_rod_a02 + c511*bucket_cyl_rod_a22 + c512*bucket_cyl_rod_a12) - v_bucket_cyl_barrel_e2*(c504*bucket_cyl_rod_a12 - c505*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e3*(c504*bucket_cyl_rod_a22 + c505*bucket_cyl_rod_a12) - v_bucket_cyl_rod_e0*(c507 + c522*bucket_cyl_barrel_a20 - c534*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c513 - c517*bucket_cyl_barrel_a10) - v_bucket_cyl_rod_e2*(c509 + c534*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c515 + c528*bucket_cyl_barrel_a10 + c535*bucket_cyl_barrel_a20)
+    out[74] = c542*v_bucket_cyl_barrel_y + c550*v_bucket_cyl_barrel_z - c542*c543 - c542*v_bucket_cyl_rod_y - c546*v_bucket_cyl_barrel_x - c550*c553 - c550*v_bucket_cyl_rod_z - c551*c552 - c551*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(c554 + c504*bucket_cyl_rod_z + c518*bucket_cyl_rod_y - c504*bucket_cyl_barrel_z - c518*bucket_cyl_barrel_y) - v_bucket_cyl_barrel_e1*(-c544 - c505*bucket_cyl_barrel_z + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c555 - c541*bucket_cyl_barrel_y - c511*bucket_cyl_barrel_z + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(c545 + c512*bucket_cyl_rod_z - c512*bucket_cyl_barrel_z)
+    out[75] = c557*v_bucket_cyl_barrel_z + c558*v_bucket_cyl_barrel_x - c543*c560 - c552*c558 - c553*c557 - c557*v_bucket_cyl_rod_z - c558*v_bucket_cyl_rod_x - c559*v_bucket_cyl_barrel_y - c560*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(-c544 - c504*bucket_cyl_rod_y - c518*bucket_cyl_barrel_z + 2*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 + 4*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c554 - c505*bucket_cyl_rod_y + 2*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c545 - c511*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(-c555 - c556*bucket_cyl_barrel_z - c512*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3)
+    out[76] = -c538*(-c569*v_bucket_cyl_barrel_e3 - c570*bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1) - c539*(c569*v_bucket_cyl_barrel_e1 + c570*bucket_cyl_barrel_e1 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - c540*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c542*(-c567*v_bucket_cyl_rod_e1 - c568*bucket_cyl_rod_e1 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2) - c550*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c551*((2.0)*c536 + (2.0)*c537 + c567*v_bucket_cyl_rod_e2 + c568*bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(c562*v_bucket_cyl_barrel_e1 + c565*v_bucket_cyl_barrel_e0 - c561*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e1*(c561*v_bucket_cyl_barrel_e2 + c562*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c561*v_bucket_cyl_barrel_e1 + c562*v_bucket_cyl_barrel_e3 + c565*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(-c561*v_bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2) - v_bucket_cyl_rod_e0*(c563*v_bucket_cyl_rod_e2 + c566*v_bucket_cyl_rod_e0 - c564*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c563*v_bucket_cyl_rod_e3 - c564*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c563*v_bucket_cyl_rod_e0 + c564*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c563*v_bucket_cyl_rod_e1 + c564*v_bucket_cyl_rod_e2 + c566*v_bucket_cyl_rod_e3)
+    out[77] = c572*v_side_link_e0 + c573*v_side_link_e1 - v_side_link_e0*(c575 + c574*v_side_link_e0) - v_side_link_e1*(c576 + c574*v_side_link_e1)
+    out[78] = -v_side_link_e0*(c578 + c571*v_side_link_e1) - v_side_link_e1*(c579 + c571*v_side_link_e0) - v_side_link_e2*(c576 + c580) - v_side_link_e3*(c575 + c577*v_side_link_e0)
+    out[79] = -c578*v_side_link_e1 - v_side_link_e0*(-c579 - c581*v_side_link_e0) - v_side_link_e3*(c580 - c581*v_side_link_e3) + 1.1372533112827263*p_side_link*v_side_link_e0*v_side_link_e2
     out[80] = -2*v_upper_e0**2 - 2*v_upper_e1**2 - 2*v_upper_e2**2 - 2*v_upper_e3**2
     out[81] = -2*v_boom_e0**2 - 2*v_boom_e1**2 - 2*v_boom_e2**2 - 2*v_boom_e3**2
     out[82] = -2*v_boom_cyl_l_barrel_e0**2 - 2*v_boom_cyl_l_barrel_e1**2 - 2*v_boom_cyl_l_barrel_e2**2 - 2*v_boom_cyl_l_barrel_e3**2
@@ -2121,9 +2197,10 @@ def _joints_gamma(q, v):
     return out
 
 
-def _joints_phi_jac_s(q):
+def _joints_phi_jac_s(q, p):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     upper_x, upper_y, upper_z, upper_e0, upper_e1, upper_e2, upper_e3, boom_x, boom_y, boom_z, boom_e0, boom_e1, boom_e2, boom_e3, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_e0, boom_cyl_l_rod_e1, boom_cyl_l_rod_e2, boom_cyl_l_rod_e3, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_e0, boom_cyl_r_barrel_e1, boom_cyl_r_barrel_e2, boom_cyl_r_barrel_e3, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_e0, boom_cyl_r_rod_e1, boom_cyl_r_rod_e2, boom_cyl_r_rod_e3, arm_x, arm_y, arm_z, arm_e0, arm_e1, arm_e2, arm_e3, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_e0, arm_cyl_rod_e1, arm_cyl_rod_e2, arm_cyl_rod_e3, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_e0, bucket_cyl_rod_e1, bucket_cyl_rod_e2, bucket_cyl_rod_e3, side_link_x, side_link_y, side_link_z, side_link_e0, side_link_e1, side_link_e2, side_link_e3, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_e0, bucket_link_e1, bucket_link_e2, bucket_link_e3, bucket_x, bucket_y, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e1*upper_e1)
     upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2
     upper_a02 = 2.0*upper_e0*upper_e2 + 2.0*upper_e1*upper_e3
@@ -2241,9 +2318,15 @@ def _joints_phi_jac_s(q):
     c6 = arm_cyl_rod_x - arm_cyl_barrel_x
     c7 = arm_cyl_rod_y - arm_cyl_barrel_y
     c8 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c9 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c9 = 0.5686266556413632*p_side_link
+    c10 = 0.822595724821202*p_side_link
+    c11 = 0.60493530832545*p_bucket_link
+    c12 = 0.796274621434837*p_bucket_link
+    c13 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    c14 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c15 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c16 = 0.5686266556413632*p_side_link
+    c17 = 0.822595724821202*p_side_link
     d0 = 2.0*upper_e2
     d1 = 2.0*upper_e3
     d2 = 2.0*upper_e0
@@ -2318,284 +2401,313 @@ def _joints_phi_jac_s(q):
     d71 = (2.0)*boom_cyl_l_barrel_a01
     d72 = (2.0)*boom_cyl_l_barrel_a11
     d73 = (4.0)*boom_cyl_l_barrel_a21
-    d74 = (4.003844)*boom_e2
-    d75 = -16/25*boom_e3
-    d76 = (16/25)*boom_e2
-    d77 = (4.003844)*boom_e3
-    d78 = (4.003844)*boom_e0
-    d79 = (16/25)*boom_e1
-    d80 = (16/25)*boom_e0
-    d81 = -4.003844*boom_e1
-    d82 = (139283/50000)*boom_e3
-    d83 = -139283/50000*boom_e2
-    d84 = (139283/50000)*boom_e1
-    d85 = (139283/50000)*boom_e0
-    d86 = (67739/25000)*upper_e2
-    d87 = (16/25)*upper_e3
-    d88 = -16/25*upper_e2
-    d89 = (67739/25000)*upper_e3
-    d90 = (67739/25000)*upper_e0
-    d91 = (16/25)*upper_e1
-    d92 = (16/25)*upper_e0
-    d93 = (67739/25000)*upper_e1
-    d94 = -4307/3125*upper_e3
-    d95 = (4307/3125)*upper_e2
-    d96 = (4307/3125)*upper_e1
-    d97 = (4307/3125)*upper_e0
-    d98 = 4.0*boom_cyl_r_barrel_a12
-    d99 = 2.0*boom_cyl_r_barrel_a22
-    d100 = 2.0*boom_cyl_r_barrel_a02
-    d101 = 2.0*upper_a01
-    d102 = 2.0*upper_a11
-    d103 = 4.0*upper_a21
-    d104 = 4.0*boom_cyl_r_rod_a01
-    d105 = 2.0*boom_cyl_r_barrel_e2
-    d106 = 2.0*boom_cyl_r_barrel_e3
-    d107 = 2.0*boom_cyl_r_barrel_e0
-    d108 = 2.0*boom_cyl_r_barrel_e1
-    d109 = 2.0*boom_cyl_r_barrel_a00
-    d110 = d109*boom_cyl_r_rod_e3
-    d111 = 4.0*boom_cyl_r_barrel_a10
-    d112 = 2.0*boom_cyl_r_barrel_a20
-    d113 = d109*boom_cyl_r_rod_e2
-    d114 = d109*boom_cyl_r_rod_e1
-    d115 = d109*boom_cyl_r_rod_e0
-    d116 = 4.0*boom_cyl_r_rod_a02
-    d117 = 2.0*boom_cyl_r_barrel_a10
-    d118 = 4.0*boom_cyl_r_barrel_a20
-    d119 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y
-    d120 = 4.0*d119
-    d121 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z
-    d122 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x
-    d123 = -d122*d106
-    d124 = d105*d122
-    d125 = d122*d108
-    d126 = d122*d107
-    d127 = 4.0*d121
-    d128 = (4.0)*boom_cyl_r_rod_a12
-    d129 = (2.0)*boom_cyl_r_rod_a22
-    d130 = (2.0)*boom_cyl_r_rod_a02
-    d131 = (2.0)*boom_cyl_r_barrel_a01
-    d132 = (2.0)*boom_cyl_r_barrel_a11
-    d133 = (4.0)*boom_cyl_r_barrel_a21
-    d134 = (4.003844)*boom_e2
-    d135 = (16/25)*boom_e3
-    d136 = -16/25*boom_e2
-    d137 = (4.003844)*boom_e3
-    d138 = (4.003844)*boom_e0
-    d139 = (16/25)*boom_e0
-    d140 = (4.003844)*boom_e1
-    d141 = -139283/50000*boom_e3
-    d142 = (139283/50000)*boom_e2
-    d143 = (139283/50000)*boom_e1
-    d144 = (139283/50000)*boom_e0
-    d145 = (29959/5000)*boom_e2
-    d146 = (29959/5000)*boom_e3
-    d147 = (29959/5000)*boom_e0
-    d148 = (29959/5000)*boom_e1
-    d149 = -23939/2500*boom_e2
-    d150 = (23939/2500)*boom_e1
-    d151 = (23939/2500)*boom_e0
-    d152 = 4.0*arm_a12
-    d153 = 2.0*arm_a22
-    d154 = 2.0*arm_a02
-    d155 = 2.0*boom_a01
-    d156 = 2.0*boom_a11
-    d157 = d156*arm_e1
-    d158 = 4.0*boom_a21
-    d159 = d156*arm_e0
-    d160 = d156*arm_e3
-    d161 = d156*arm_e2
-    d162 = 4.0*arm_a10
-    d163 = 2.0*arm_a20
-    d164 = 2.0*arm_a00
-    d165 = 4.0*boom_a01
-    d166 = 2.0*boom_a21
-    d167 = (557/100)*boom_e2
-    d168 = (557/100)*boom_e3
-    d169 = (557/100)*boom_e0
-    d170 = (557/100)*boom_e1
-    d171 = -183/40*boom_e2
-    d172 = (183/40)*boom_e1
-    d173 = (183/40)*boom_e0
-    d174 = 4.0*arm_cyl_barrel_a12
-    d175 = 2.0*arm_cyl_barrel_a22
-    d176 = 2.0*arm_cyl_barrel_a02
-    d177 = 2.0*boom_a01
-    d178 = 2.0*boom_a11
-    d179 = 4.0*boom_a21
-    d180 = 4.0*arm_cyl_rod_a01
-    d181 = 2.0*arm_cyl_barrel_e2
-    d182 = 2.0*arm_cyl_barrel_e3
-    d183 = 2.0*arm_cyl_barrel_e0
-    d184 = 2.0*arm_cyl_barrel_e1
-    d185 = 2.0*arm_cyl_barrel_a00
-    d186 = d185*arm_cyl_rod_e3
-    d187 = 4.0*arm_cyl_barrel_a10
-    d188 = 2.0*arm_cyl_barrel_a20
-    d189 = d185*arm_cyl_rod_e2
-    d190 = d185*arm_cyl_rod_e1
-    d191 = d185*arm_cyl_rod_e0
-    d192 = 4.0*arm_cyl_rod_a02
-    d193 = 2.0*arm_cyl_barrel_a10
-    d194 = 4.0*arm_cyl_barrel_a20
-    d195 = arm_cyl_rod_y - arm_cyl_barrel_y
-    d196 = 4.0*d195
-    d197 = arm_cyl_rod_z - arm_cyl_barrel_z
-    d198 = arm_cyl_rod_x - arm_cyl_barrel_x
-    d199 = -d198*d182
-    d200 = d181*d198
-    d201 = d198*d184
-    d202 = d198*d183
-    d203 = 4.0*d197
-    d204 = (4.0)*arm_cyl_rod_a12
-    d205 = (2.0)*arm_cyl_rod_a22
-    d206 = (2.0)*arm_cyl_rod_a02
-    d207 = (2.0)*arm_cyl_barrel_a01
-    d208 = (2.0)*arm_cyl_barrel_a11
-    d209 = (4.0)*arm_cyl_barrel_a21
-    d210 = (369691/500000)*arm_e2
-    d211 = (369691/500000)*arm_e3
-    d212 = (369691/500000)*arm_e0
-    d213 = (369691/500000)*arm_e1
-    d214 = -393281/250000*arm_e2
-    d215 = (393281/250000)*arm_e1
-    d216 = (393281/250000)*arm_e0
-    d217 = (21809/5000)*arm_e2
-    d218 = (21809/5000)*arm_e3
-    d219 = (21809/5000)*arm_e0
-    d220 = (21809/5000)*arm_e1
-    d221 = -9477/2500*arm_e2
-    d222 = (9477/2500)*arm_e1
-    d223 = (9477/2500)*arm_e0
-    d224 = 4.0*bucket_a12
-    d225 = 2.0*bucket_a22
-    d226 = 2.0*bucket_a02
-    d227 = 2.0*arm_a01
-    d228 = 2.0*arm_a11
-    d229 = d228*bucket_e1
-    d230 = 4.0*arm_a21
-    d231 = d228*bucket_e0
-    d232 = d228*bucket_e3
-    d233 = d228*bucket_e2
-    d234 = 4.0*bucket_a10
-    d235 = 2.0*bucket_a20
-    d236 = 2.0*bucket_a00
-    d237 = 4.0*arm_a01
-    d238 = 2.0*arm_a21
-    d239 = (18799/5000)*arm_e2
-    d240 = (18799/5000)*arm_e3
-    d241 = (18799/5000)*arm_e0
-    d242 = (18799/5000)*arm_e1
-    d243 = -7877/2500*arm_e2
-    d244 = (7877/2500)*arm_e1
-    d245 = (7877/2500)*arm_e0
-    d246 = 4.0*side_link_a12
-    d247 = 2.0*side_link_a22
-    d248 = 2.0*side_link_a02
-    d249 = 2.0*arm_a01
-    d250 = 2.0*arm_a11
-    d251 = d250*side_link_e1
-    d252 = 4.0*arm_a21
-    d253 = d250*side_link_e0
-    d254 = d250*side_link_e3
-    d255 = d250*side_link_e2
-    d256 = 4.0*side_link_a10
-    d257 = 2.0*side_link_a20
-    d258 = 2.0*side_link_a00
-    d259 = 4.0*arm_a01
-    d260 = 2.0*arm_a21
-    d261 = -96247/100000*side_link_e2
-    d262 = -96247/100000*side_link_e3
-    d263 = (96247/100000)*side_link_e0
-    d264 = (96247/100000)*side_link_e1
-    d265 = (450737/500000)*bucket_link_e2
-    d266 = (450737/500000)*bucket_link_e3
-    d267 = (450737/500000)*bucket_link_e0
-    d268 = (450737/500000)*bucket_link_e1
-    d269 = (166329/250000)*side_link_e3
-    d270 = (166329/250000)*side_link_e2
-    d271 = (166329/250000)*side_link_e1
-    d272 = (166329/250000)*side_link_e0
-    d273 = -85607/125000*bucket_link_e2
-    d274 = (85607/125000)*bucket_link_e1
-    d275 = (85607/125000)*bucket_link_e0
-    d276 = -16927/25000*bucket_e2
-    d277 = -16927/25000*bucket_e3
-    d278 = (16927/25000)*bucket_e0
-    d279 = (16927/25000)*bucket_e1
-    d280 = (8101/12500)*bucket_e3
-    d281 = (8101/12500)*bucket_e2
-    d282 = (8101/12500)*bucket_e1
-    d283 = (8101/12500)*bucket_e0
-    d284 = (3.1850984857373903)*bucket_a01
-    d285 = (1.2098706166521882)*bucket_a11
-    d286 = (1.5925492428686951)*bucket_a11
-    d287 = (1.5925492428686951)*bucket_a21
-    d288 = (1.2098706166521882)*bucket_a01
-    d289 = -3.1850984857373903*bucket_link_a10 + (2.4197412333043764)*bucket_link_a12
-    d290 = -0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22
-    d291 = 2.0*d290
-    d292 = -1.5925492428686951*bucket_link_a00 + (1.2098706166521882)*bucket_link_a02
-    d293 = -36797/25000*arm_e2
-    d294 = -36797/25000*arm_e3
-    d295 = (36797/25000)*arm_e0
-    d296 = (36797/25000)*arm_e1
-    d297 = (24687/50000)*arm_e3
-    d298 = (24687/50000)*arm_e2
-    d299 = (24687/50000)*arm_e1
-    d300 = (24687/50000)*arm_e0
-    d301 = 4.0*bucket_cyl_barrel_a12
-    d302 = 2.0*bucket_cyl_barrel_a22
-    d303 = 2.0*bucket_cyl_barrel_a02
-    d304 = 2.0*arm_a01
-    d305 = 2.0*arm_a11
-    d306 = 4.0*arm_a21
-    d307 = 4.0*bucket_cyl_rod_a01
-    d308 = 2.0*bucket_cyl_barrel_e2
-    d309 = 2.0*bucket_cyl_barrel_e3
-    d310 = 2.0*bucket_cyl_barrel_e0
-    d311 = 2.0*bucket_cyl_barrel_e1
-    d312 = 2.0*bucket_cyl_barrel_a00
-    d313 = d312*bucket_cyl_rod_e3
-    d314 = 4.0*bucket_cyl_barrel_a10
-    d315 = 2.0*bucket_cyl_barrel_a20
-    d316 = d312*bucket_cyl_rod_e2
-    d317 = d312*bucket_cyl_rod_e1
-    d318 = d312*bucket_cyl_rod_e0
-    d319 = 4.0*bucket_cyl_rod_a02
-    d320 = 2.0*bucket_cyl_barrel_a10
-    d321 = 4.0*bucket_cyl_barrel_a20
-    d322 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d323 = 4.0*d322
-    d324 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d325 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d326 = -d325*d309
-    d327 = d308*d325
-    d328 = d325*d311
-    d329 = d325*d310
-    d330 = 4.0*d324
-    d331 = (4.0)*bucket_cyl_rod_a12
-    d332 = (2.0)*bucket_cyl_rod_a22
-    d333 = (2.0)*bucket_cyl_rod_a02
-    d334 = (2.0)*bucket_cyl_barrel_a01
-    d335 = (2.0)*bucket_cyl_barrel_a11
-    d336 = (4.0)*bucket_cyl_barrel_a21
-    d337 = -96247/100000*side_link_e2
-    d338 = -96247/100000*side_link_e3
-    d339 = (96247/100000)*side_link_e0
-    d340 = (96247/100000)*side_link_e1
-    d341 = (166329/250000)*side_link_e3
-    d342 = (166329/250000)*side_link_e2
-    d343 = (166329/250000)*side_link_e1
-    d344 = (166329/250000)*side_link_e0
-    return [-upper_x, -upper_y, -upper_z, upper_a20, upper_a21, upper_x - boom_x + (22767/100000)*upper_a00 + (195729/100000)*upper_a02, upper_y - boom_y + (22767/100000)*upper_a10 + (195729/100000)*upper_a12, upper_z - boom_z + (22767/100000)*upper_a20 + (195729/100000)*upper_a22, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, upper_x - boom_cyl_l_barrel_x + (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_l_barrel_y + (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_l_barrel_z + (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22, c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21, c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22, (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 - 8/25*boom_a01, boom_cyl_l_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 - 8/25*boom_a11, boom_cyl_l_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 - 8/25*boom_a21, upper_x - boom_cyl_r_barrel_x - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_r_barrel_y - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_r_barrel_z - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22, c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21, c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22, (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 + (8/25)*boom_a01, boom_cyl_r_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 + (8/25)*boom_a11, boom_cyl_r_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 + (8/25)*boom_a21, boom_x - arm_x + (23939/5000)*boom_a00 + (29959/10000)*boom_a02, boom_y - arm_y + (23939/5000)*boom_a10 + (29959/10000)*boom_a12, boom_z - arm_z + (23939/5000)*boom_a20 + (29959/10000)*boom_a22, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, boom_x - arm_cyl_barrel_x + (183/80)*boom_a00 + (557/200)*boom_a02, boom_y - arm_cyl_barrel_y + (183/80)*boom_a10 + (557/200)*boom_a12, boom_z - arm_cyl_barrel_z + (183/80)*boom_a20 + (557/200)*boom_a22, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21, arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22, c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21, c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22, (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_x - arm_x + (0.369691)*arm_a02 + (393281/500000)*arm_a00, arm_cyl_rod_y - arm_y + (0.369691)*arm_a12 + (393281/500000)*arm_a10, arm_cyl_rod_z - arm_z + (0.369691)*arm_a22 + (393281/500000)*arm_a20, arm_x - bucket_x + (9477/5000)*arm_a00 + (21809/10000)*arm_a02, arm_y - bucket_y + (9477/5000)*arm_a10 + (21809/10000)*arm_a12, arm_z - bucket_z + (9477/5000)*arm_a20 + (21809/10000)*arm_a22, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, arm_x - side_link_x + (7877/5000)*arm_a00 + (18799/10000)*arm_a02, arm_y - side_link_y + (7877/5000)*arm_a10 + (18799/10000)*arm_a12, arm_z - side_link_z + (7877/5000)*arm_a20 + (18799/10000)*arm_a22, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, side_link_x - bucket_link_x - 166329/500000*side_link_a00 + (85607/250000)*bucket_link_a00 + (96247/200000)*side_link_a02 + (0.450737)*bucket_link_a02, side_link_y - bucket_link_y - 166329/500000*side_link_a10 + (85607/250000)*bucket_link_a10 + (96247/200000)*side_link_a12 + (0.450737)*bucket_link_a12, side_link_z - bucket_link_z - 166329/500000*side_link_a20 + (85607/250000)*bucket_link_a20 + (96247/200000)*side_link_a22 + (0.450737)*bucket_link_a22, bucket_link_x - bucket_x - 16927/50000*bucket_a02 + (8101/25000)*bucket_a00, bucket_link_y - bucket_y - 16927/50000*bucket_a12 + (8101/25000)*bucket_a10, bucket_link_z - bucket_z - 16927/50000*bucket_a22 + (8101/25000)*bucket_a20, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), arm_x - bucket_cyl_barrel_x - 24687/100000*arm_a00 + (36797/50000)*arm_a02, arm_y - bucket_cyl_barrel_y - 24687/100000*arm_a10 + (36797/50000)*arm_a12, arm_z - bucket_cyl_barrel_z - 24687/100000*arm_a20 + (36797/50000)*arm_a22, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21, bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22, c9*bucket_cyl_barrel_a01 + c10*bucket_cyl_barrel_a11 + c11*bucket_cyl_barrel_a21, c9*bucket_cyl_barrel_a02 + c10*bucket_cyl_barrel_a12 + c11*bucket_cyl_barrel_a22, (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_x - side_link_x - 96247/200000*side_link_a02 + (166329/500000)*side_link_a00, bucket_cyl_rod_y - side_link_y - 96247/200000*side_link_a12 + (166329/500000)*side_link_a10, bucket_cyl_rod_z - side_link_z - 96247/200000*side_link_a22 + (166329/500000)*side_link_a20, -1.0 + (upper_e0*upper_e0) + (upper_e1*upper_e1) + (upper_e2*upper_e2) + (upper_e3*upper_e3), -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3), -1.0 + (boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + (boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) + (boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) + (boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3), -1.0 + (boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + (boom_cyl_l_rod_e1*boom_cyl_l_rod_e1) + (boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) + (boom_cyl_l_rod_e3*boom_cyl_l_rod_e3), -1.0 + (boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + (boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) + (boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) + (boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3), -1.0 + (boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + (boom_cyl_r_rod_e1*boom_cyl_r_rod_e1) + (boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) + (boom_cyl_r_rod_e3*boom_cyl_r_rod_e3), -1.0 + (arm_e0*arm_e0) + (arm_e1*arm_e1) + (arm_e2*arm_e2) + (arm_e3*arm_e3), -1.0 + (arm_cyl_barrel_e0*arm_cyl_barrel_e0) + (arm_cyl_barrel_e1*arm_cyl_barrel_e1) + (arm_cyl_barrel_e2*arm_cyl_barrel_e2) + (arm_cyl_barrel_e3*arm_cyl_barrel_e3), -1.0 + (arm_cyl_rod_e0*arm_cyl_rod_e0) + (arm_cyl_rod_e1*arm_cyl_rod_e1) + (arm_cyl_rod_e2*arm_cyl_rod_e2) + (arm_cyl_rod_e3*arm_cyl_rod_e3), -1.0 + (bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + (bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) + (bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) + (bucket_cyl_barrel_e3*bucket_cyl_barrel_e3), -1.0 + (bucket_cyl_rod_e0*bucket_cyl_rod_e0) + (bucket_cyl_rod_e1*bucket_cyl_rod_e1) + (bucket_cyl_rod_e2*bucket_cyl_rod_e2) + (bucket_cyl_rod_e3*bucket_cyl_rod_e3), -1.0 + (side_link_e0*side_link_e0) + (side_link_e1*side_link_e1) + (side_link_e2*side_link_e2) + (side_link_e3*side_link_e3), -1.0 + (bucket_link_e0*bucket_link_e0) + (bucket_link_e1*bucket_link_e1) + (bucket_link_e2*bucket_link_e2) + (bucket_link_e3*bucket_link_e3), -1.0 + (bucket_e0*bucket_e0) + (bucket_e1*bucket_e1) + (bucket_e2*bucket_e2) + (bucket_e3*bucket_e3)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, d4 + (22767/25000)*upper_e0, d5 + (22767/25000)*upper_e1, d6, d7, -1.0, 1.0, -d7 + (22767/50000)*upper_e3, -d6 - d8, d5 + d9, d4 + d10, -1.0, 1.0, d8 + (195729/25000)*upper_e0, (22767/50000)*upper_e3, -d10, d9 + (195729/25000)*upper_e3, -1.0, d11*upper_e0 + d12*upper_e1 - d13*upper_e3, d12*upper_e0 + d13*upper_e2, d11*upper_e2 + d12*upper_e3 + d13*upper_e1, -d13*upper_e0 + 2.0*upper_e2*boom_a22, -d16 + d14*boom_e2 + d17*boom_e0, -d18 + d14*boom_e3, d19 + d14*boom_e0, d20 + d14*boom_e1 + d17*boom_e3, d21*upper_e0 + d22*upper_e1 - d23*upper_e3, d22*upper_e0 + d23*upper_e2, d21*upper_e2 + d22*upper_e3 + d23*upper_e1, -d23*upper_e0 + 2.0*upper_e2*boom_a20, d19 + d24*boom_e0 - d25*boom_e2, d20 + d24*boom_e1 + d25*boom_e3, d16 - d25*boom_e0, d18 + d25*boom_e1, 1.0, d26 + d27 + (8614/3125)*upper_e0, d28 + d29 + (8614/3125)*upper_e1, d30 + d31, -d32 - d33, -1.0, 1.0, d33 + d34 + (32/25)*upper_e0, -d30 - d35, d36 + d29 + (32/25)*upper_e2, d26 + d37, -1.0, 1.0, d31 + d35 + (67739/12500)*upper_e0, d32 + d34, -d27 - d37, d36 + d28 + (67739/12500)*upper_e3, -1.0, d38*upper_e0 + d39*upper_e1 - d40*upper_e3, d39*upper_e0 + d40*upper_e2, d38*upper_e2 + d39*upper_e3 + d40*upper_e1, -d40*upper_e0 + 2.0*upper_e2*boom_cyl_l_barrel_a22, d41*boom_cyl_l_barrel_e2 + d43*boom_cyl_l_barrel_e0 - d42*boom_cyl_l_barrel_e1, d41*boom_cyl_l_barrel_e3 - d42*boom_cyl_l_barrel_e0, d41*boom_cyl_l_barrel_e0 + d42*boom_cyl_l_barrel_e3, d41*boom_cyl_l_barrel_e1 + d42*boom_cyl_l_barrel_e2 + d43*boom_cyl_l_barrel_e3, d44*boom_cyl_l_barrel_e0 + d46*boom_cyl_l_rod_a11 - d45*boom_cyl_l_rod_a21, d44*boom_cyl_l_barrel_e1 + d45*boom_cyl_l_rod_a11 + d46*boom_cyl_l_rod_a21, -d47*boom_cyl_l_rod_a21 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a11, d47*boom_cyl_l_rod_a11 + d48*boom_cyl_l_rod_a21, -d50 + d51*boom_cyl_l_rod_e0 + d52*boom_cyl_l_rod_e1, d53 + d52*boom_cyl_l_rod_e0, d54 + d51*boom_cyl_l_rod_e2 + d52*boom_cyl_l_rod_e3, -d55 + 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_rod_e2, d56*boom_cyl_l_barrel_e0 + d46*boom_cyl_l_rod_a12 - d45*boom_cyl_l_rod_a22, d45*boom_cyl_l_rod_a12 + d56*boom_cyl_l_barrel_e1 + d46*boom_cyl_l_rod_a22, -d47*boom_cyl_l_rod_a22 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a12, d47*boom_cyl_l_rod_a12 + d48*boom_cyl_l_rod_a22, d53 + d58*boom_cyl_l_rod_e0 - d57*boom_cyl_l_rod_e1, d50 - d57*boom_cyl_l_rod_e0, d55 + d57*boom_cyl_l_rod_e3, d54 + d57*boom_cyl_l_rod_e2 + d58*boom_cyl_l_rod_e3, -boom_cyl_l_barrel_a01, -boom_cyl_l_barrel_a11, -boom_cyl_l_barrel_a21, d63 + d60*boom_cyl_l_barrel_e0 + d61*d48, d64 + d61*d47, d65 + d60*boom_cyl_l_barrel_e2 + d61*d46, -d66 + 2.0*d61*boom_cyl_l_barrel_e2, boom_cyl_l_barrel_a01, boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a21, -boom_cyl_l_barrel_a02, -boom_cyl_l_barrel_a12, -boom_cyl_l_barrel_a22, d64 + d67*boom_cyl_l_barrel_e0 - d59*d48, -d63 - d59*d47, d66 + d59*d46, d65 + d45*d59 + d67*boom_cyl_l_barrel_e3, boom_cyl_l_barrel_a02, boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a22, d68*boom_cyl_l_barrel_e0 + d69*boom_cyl_l_barrel_e1 - d70*boom_cyl_l_barrel_e3, d69*boom_cyl_l_barrel_e0 + d70*boom_cyl_l_barrel_e2, d68*boom_cyl_l_barrel_e2 + d69*boom_cyl_l_barrel_e3 + d70*boom_cyl_l_barrel_e1, -d70*boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_barrel_e2*boom_cyl_l_rod_a22, d71*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e0 - d72*boom_cyl_l_rod_e1, d71*boom_cyl_l_rod_e3 - d72*boom_cyl_l_rod_e0, d71*boom_cyl_l_rod_e0 + d72*boom_cyl_l_rod_e3, d71*boom_cyl_l_rod_e1 + d72*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e3, -1.0, -d74 - d75 - 139283/25000*boom_e0, -d76 - d77 - 139283/25000*boom_e1, -d78 - d79, d80 + d81, 1.0, -1.0, -d81 - d82 - 32/25*boom_e0, d78 + d83, -d84 - d77 - 32/25*boom_e2, -d74 - d85, 1.0, -1.0, -d79 - d83 - 8.007688*boom_e0, -d80 - d82, d75 + d85, -d84 - d76 - 8.007688*boom_e3, 1.0, 1.0, d86 + d87 + (8614/3125)*upper_e0, d88 + d89 + (8614/3125)*upper_e1, d90 - d91, d92 + d93, -1.0, 1.0, -d93 - d94 - 32/25*upper_e0, d95 - d90, d96 + d89 - 32/25*upper_e2, d86 + d97, -1.0, 1.0, -d91 - d95 + (67739/12500)*upper_e0, -d92 - d94, -d87 - d97, d96 + d88 + (67739/12500)*upper_e3, -1.0, d98*upper_e0 + d99*upper_e1 - d100*upper_e3, d99*upper_e0 + d100*upper_e2, d98*upper_e2 + d99*upper_e3 + d100*upper_e1, -d100*upper_e0 + 2.0*upper_e2*boom_cyl_r_barrel_a22, d101*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e0 - d102*boom_cyl_r_barrel_e1, d101*boom_cyl_r_barrel_e3 - d102*boom_cyl_r_barrel_e0, d101*boom_cyl_r_barrel_e0 + d102*boom_cyl_r_barrel_e3, d101*boom_cyl_r_barrel_e1 + d102*boom_cyl_r_barrel_e2 + d103*boom_cyl_r_barrel_e3, d104*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a11 - d105*boom_cyl_r_rod_a21, d104*boom_cyl_r_barrel_e1 + d105*boom_cyl_r_rod_a11 + d106*boom_cyl_r_rod_a21, -d107*boom_cyl_r_rod_a21 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11, d107*boom_cyl_r_rod_a11 + d108*boom_cyl_r_rod_a21, -d110 + d111*boom_cyl_r_rod_e0 + d112*boom_cyl_r_rod_e1, d113 + d112*boom_cyl_r_rod_e0, d114 + d111*boom_cyl_r_rod_e2 + d112*boom_cyl_r_rod_e3, -d115 + 2.0*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2, d116*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_rod_a12 - d105*boom_cyl_r_rod_a22, d105*boom_cyl_r_rod_a12 + d116*boom_cyl_r_barrel_e1 + d106*boom_cyl_r_rod_a22, -d107*boom_cyl_r_rod_a22 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12, d107*boom_cyl_r_rod_a12 + d108*boom_cyl_r_rod_a22, d113 + d118*boom_cyl_r_rod_e0 - d117*boom_cyl_r_rod_e1, d110 - d117*boom_cyl_r_rod_e0, d115 + d117*boom_cyl_r_rod_e3, d114 + d117*boom_cyl_r_rod_e2 + d118*boom_cyl_r_rod_e3, -boom_cyl_r_barrel_a01, -boom_cyl_r_barrel_a11, -boom_cyl_r_barrel_a21, d123 + d120*boom_cyl_r_barrel_e0 + d121*d108, d124 + d121*d107, d125 + d120*boom_cyl_r_barrel_e2 + d121*d106, -d126 + 2.0*d121*boom_cyl_r_barrel_e2, boom_cyl_r_barrel_a01, boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a21, -boom_cyl_r_barrel_a02, -boom_cyl_r_barrel_a12, -boom_cyl_r_barrel_a22, d124 + d127*boom_cyl_r_barrel_e0 - d119*d108, -d123 - d119*d107, d126 + d119*d106, d125 + d105*d119 + d127*boom_cyl_r_barrel_e3, boom_cyl_r_barrel_a02, boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a22, d128*boom_cyl_r_barrel_e0 + d129*boom_cyl_r_barrel_e1 - d130*boom_cyl_r_barrel_e3, d129*boom_cyl_r_barrel_e0 + d130*boom_cyl_r_barrel_e2, d128*boom_cyl_r_barrel_e2 + d129*boom_cyl_r_barrel_e3 + d130*boom_cyl_r_barrel_e1, -d130*boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22, d131*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e0 - d132*boom_cyl_r_rod_e1, d131*boom_cyl_r_rod_e3 - d132*boom_cyl_r_rod_e0, d131*boom_cyl_r_rod_e0 + d132*boom_cyl_r_rod_e3, d131*boom_cyl_r_rod_e1 + d132*boom_cyl_r_rod_e2 + d133*boom_cyl_r_rod_e3, -1.0, -d134 - d135 - 139283/25000*boom_e0, -d136 - d137 - 139283/25000*boom_e1, -d138 + (16/25)*boom_e1, -d139 - d140, 1.0, -1.0, d140 + d141 + (32/25)*boom_e0, d138 - d142, -d137 - d143 + (32/25)*boom_e2, -d134 - d144, 1.0, -1.0, d142 - 8.007688*boom_e0 + (16/25)*boom_e1, d139 + d141, d135 + d144, -d136 - d143 - 8.007688*boom_e3, 1.0, 1.0, d145 + (23939/1250)*boom_e0, d146 + (23939/1250)*boom_e1, d147, d148, -1.0, 1.0, -d148 + (23939/2500)*boom_e3, -d147 - d149, d146 + d150, d145 + d151, -1.0, 1.0, d149 + (29959/2500)*boom_e0, (23939/2500)*boom_e3, -d151, d150 + (29959/2500)*boom_e3, -1.0, d152*boom_e0 + d153*boom_e1 - d154*boom_e3, d153*boom_e0 + d154*boom_e2, d152*boom_e2 + d153*boom_e3 + d154*boom_e1, -d154*boom_e0 + 2.0*boom_e2*arm_a22, -d157 + d155*arm_e2 + d158*arm_e0, -d159 + d155*arm_e3, d160 + d155*arm_e0, d161 + d155*arm_e1 + d158*arm_e3, d162*boom_e0 + d163*boom_e1 - d164*boom_e3, d163*boom_e0 + d164*boom_e2, d162*boom_e2 + d163*boom_e3 + d164*boom_e1, -d164*boom_e0 + 2.0*boom_e2*arm_a20, d160 + d165*arm_e0 - d166*arm_e2, d161 + d165*arm_e1 + d166*arm_e3, d157 - d166*arm_e0, d159 + d166*arm_e1, 1.0, d167 + (183/20)*boom_e0, d168 + (183/20)*boom_e1, d169, d170, -1.0, 1.0, -d170 + (183/40)*boom_e3, -d169 - d171, d168 + d172, d167 + d173, -1.0, 1.0, d171 + (557/50)*boom_e0, (183/40)*boom_e3, -d173, d172 + (557/50)*boom_e3, -1.0, d174*boom_e0 + d175*boom_e1 - d176*boom_e3, d175*boom_e0 + d176*boom_e2, d174*boom_e2 + d175*boom_e3 + d176*boom_e1, -d176*boom_e0 + 2.0*boom_e2*arm_cyl_barrel_a22, d177*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e0 - d178*arm_cyl_barrel_e1, d177*arm_cyl_barrel_e3 - d178*arm_cyl_barrel_e0, d177*arm_cyl_barrel_e0 + d178*arm_cyl_barrel_e3, d177*arm_cyl_barrel_e1 + d178*arm_cyl_barrel_e2 + d179*arm_cyl_barrel_e3, d180*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a11 - d181*arm_cyl_rod_a21, d180*arm_cyl_barrel_e1 + d181*arm_cyl_rod_a11 + d182*arm_cyl_rod_a21, -d183*arm_cyl_rod_a21 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a11, d183*arm_cyl_rod_a11 + d184*arm_cyl_rod_a21, -d186 + d187*arm_cyl_rod_e0 + d188*arm_cyl_rod_e1, d189 + d188*arm_cyl_rod_e0, d190 + d187*arm_cyl_rod_e2 + d188*arm_cyl_rod_e3, -d191 + 2.0*arm_cyl_barrel_a20*arm_cyl_rod_e2, d192*arm_cyl_barrel_e0 + d182*arm_cyl_rod_a12 - d181*arm_cyl_rod_a22, d181*arm_cyl_rod_a12 + d192*arm_cyl_barrel_e1 + d182*arm_cyl_rod_a22, -d183*arm_cyl_rod_a22 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a12, d183*arm_cyl_rod_a12 + d184*arm_cyl_rod_a22, d189 + d194*arm_cyl_rod_e0 - d193*arm_cyl_rod_e1, d186 - d193*arm_cyl_rod_e0, d191 + d193*arm_cyl_rod_e3, d190 + d193*arm_cyl_rod_e2 + d194*arm_cyl_rod_e3, -arm_cyl_barrel_a01, -arm_cyl_barrel_a11, -arm_cyl_barrel_a21, d199 + d196*arm_cyl_barrel_e0 + d197*d184, d200 + d197*d183, d201 + d196*arm_cyl_barrel_e2 + d197*d182, -d202 + 2.0*d197*arm_cyl_barrel_e2, arm_cyl_barrel_a01, arm_cyl_barrel_a11, arm_cyl_barrel_a21, -arm_cyl_barrel_a02, -arm_cyl_barrel_a12, -arm_cyl_barrel_a22, d200 + d203*arm_cyl_barrel_e0 - d195*d184, -d199 - d195*d183, d202 + d195*d182, d201 + d181*d195 + d203*arm_cyl_barrel_e3, arm_cyl_barrel_a02, arm_cyl_barrel_a12, arm_cyl_barrel_a22, d204*arm_cyl_barrel_e0 + d205*arm_cyl_barrel_e1 - d206*arm_cyl_barrel_e3, d205*arm_cyl_barrel_e0 + d206*arm_cyl_barrel_e2, d204*arm_cyl_barrel_e2 + d205*arm_cyl_barrel_e3 + d206*arm_cyl_barrel_e1, -d206*arm_cyl_barrel_e0 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22, d207*arm_cyl_rod_e2 + d209*arm_cyl_rod_e0 - d208*arm_cyl_rod_e1, d207*arm_cyl_rod_e3 - d208*arm_cyl_rod_e0, d207*arm_cyl_rod_e0 + d208*arm_cyl_rod_e3, d207*arm_cyl_rod_e1 + d208*arm_cyl_rod_e2 + d209*arm_cyl_rod_e3, -1.0, d210 + (393281/125000)*arm_e0, d211 + (393281/125000)*arm_e1, d212, d213, 1.0, -1.0, -d213 + (393281/250000)*arm_e3, -d212 - d214, d211 + d215, d210 + d216, 1.0, -1.0, d214 + (369691/250000)*arm_e0, (393281/250000)*arm_e3, -d216, d215 + (369691/250000)*arm_e3, 1.0, 1.0, d217 + (9477/1250)*arm_e0, d218 + (9477/1250)*arm_e1, d219, d220, -1.0, 1.0, -d220 + (9477/2500)*arm_e3, -d219 - d221, d218 + d222, d217 + d223, -1.0, 1.0, d221 + (21809/2500)*arm_e0, (9477/2500)*arm_e3, -d223, d222 + (21809/2500)*arm_e3, -1.0, d224*arm_e0 + d225*arm_e1 - d226*arm_e3, d225*arm_e0 + d226*arm_e2, d224*arm_e2 + d225*arm_e3 + d226*arm_e1, -d226*arm_e0 + 2.0*arm_e2*bucket_a22, -d229 + d227*bucket_e2 + d230*bucket_e0, -d231 + d227*bucket_e3, d232 + d227*bucket_e0, d233 + d227*bucket_e1 + d230*bucket_e3, d234*arm_e0 + d235*arm_e1 - d236*arm_e3, d235*arm_e0 + d236*arm_e2, d234*arm_e2 + d235*arm_e3 + d236*arm_e1, -d236*arm_e0 + 2.0*arm_e2*bucket_a20, d232 + d237*bucket_e0 - d238*bucket_e2, d233 + d237*bucket_e1 + d238*bucket_e3, d229 - d238*bucket_e0, d231 + d238*bucket_e1, 1.0, d239 + (7877/1250)*arm_e0, d240 + (7877/1250)*arm_e1, d241, d242, -1.0, 1.0, -d242 + (7877/2500)*arm_e3, -d241 - d243, d240 + d244, d239 + d245, -1.0, 1.0, d243 + (18799/2500)*arm_e0, (7877/2500)*arm_e3, -d245, d244 + (18799/2500)*arm_e3, -1.0, d246*arm_e0 + d247*arm_e1 - d248*arm_e3, d247*arm_e0 + d248*arm_e2, d246*arm_e2 + d247*arm_e3 + d248*arm_e1, -d248*arm_e0 + 2.0*arm_e2*side_link_a22, -d251 + d249*side_link_e2 + d252*side_link_e0, -d253 + d249*side_link_e3, d254 + d249*side_link_e0, d255 + d249*side_link_e1 + d252*side_link_e3, d256*arm_e0 + d257*arm_e1 - d258*arm_e3, d257*arm_e0 + d258*arm_e2, d256*arm_e2 + d257*arm_e3 + d258*arm_e1, -d258*arm_e0 + 2.0*arm_e2*side_link_a20, d254 + d259*side_link_e0 - d260*side_link_e2, d255 + d259*side_link_e1 + d260*side_link_e3, d251 - d260*side_link_e0, d253 + d260*side_link_e1, 1.0, -d261 - 166329/125000*side_link_e0, -d262 - 166329/125000*side_link_e1, d263, d264, -1.0, d265 + (85607/62500)*bucket_link_e0, d266 + (85607/62500)*bucket_link_e1, d267, d268, 1.0, -d264 - d269, -d263 - d270, -d262 - d271, -d261 - d272, -1.0, -d268 + (85607/125000)*bucket_link_e3, -d273 - d267, d274 + d266, d275 + d265, 1.0, d270 + (96247/50000)*side_link_e0, -d269, d272, -d271 + (96247/50000)*side_link_e3, -1.0, d273 + (450737/250000)*bucket_link_e0, (85607/125000)*bucket_link_e3, -d275, d274 + (450737/250000)*bucket_link_e3, 1.0, -1.0, d276 + (8101/6250)*bucket_e0, d277 + (8101/6250)*bucket_e1, -d278, -d279, 1.0, -1.0, d279 + d280, d278 + d281, d277 + d282, d276 + d283, 1.0, -1.0, -d281 - 16927/12500*bucket_e0, d280, -d283, d282 - 16927/12500*bucket_e3, -d286*bucket_link_e3 - d284*bucket_link_e0 - d285*bucket_link_e1 + (2.4197412333043764)*bucket_link_e0*bucket_a21 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21, -d286*bucket_link_e2 - d287*bucket_link_e3 - d284*bucket_link_e1 - d285*bucket_link_e0 + (1.2098706166521882)*bucket_link_e3*bucket_a01, d288*bucket_link_e0 + d285*bucket_link_e3 - d286*bucket_link_e1 + (1.5925492428686951)*bucket_link_e0*bucket_a21, d288*bucket_link_e1 + d285*bucket_link_e2 - d286*bucket_link_e0 - d287*bucket_link_e1 + (2.4197412333043764)*bucket_link_e3*bucket_a21, d289*bucket_e0 + d291*bucket_e1 - d292*bucket_e3, d291*bucket_e0 + d292*bucket_e2, d289*bucket_e2 + d291*bucket_e3 + d292*bucket_e1, -d292*bucket_e0 + 2.0*d290*bucket_e2, 1.0, -d293 - 24687/25000*arm_e0, -d294 - 24687/25000*arm_e1, d295, d296, -1.0, 1.0, -d296 - d297, -d295 - d298, -d294 - d299, -d293 - d300, -1.0, 1.0, d298 + (36797/12500)*arm_e0, -d297, d300, -d299 + (36797/12500)*arm_e3, -1.0, d301*arm_e0 + d302*arm_e1 - d303*arm_e3, d303*arm_e2 + d302*arm_e0, d303*arm_e1 + d301*arm_e2 + d302*arm_e3, -d303*arm_e0 + 2.0*arm_e2*bucket_cyl_barrel_a22, d304*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e0 - d305*bucket_cyl_barrel_e1, d304*bucket_cyl_barrel_e3 - d305*bucket_cyl_barrel_e0, d304*bucket_cyl_barrel_e0 + d305*bucket_cyl_barrel_e3, d304*bucket_cyl_barrel_e1 + d305*bucket_cyl_barrel_e2 + d306*bucket_cyl_barrel_e3, d307*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a11 - d308*bucket_cyl_rod_a21, d307*bucket_cyl_barrel_e1 + d308*bucket_cyl_rod_a11 + d309*bucket_cyl_rod_a21, -d310*bucket_cyl_rod_a21 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a11, d310*bucket_cyl_rod_a11 + d311*bucket_cyl_rod_a21, -d313 + d314*bucket_cyl_rod_e0 + d315*bucket_cyl_rod_e1, d316 + d315*bucket_cyl_rod_e0, d317 + d314*bucket_cyl_rod_e2 + d315*bucket_cyl_rod_e3, -d318 + 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_e2, d319*bucket_cyl_barrel_e0 + d309*bucket_cyl_rod_a12 - d308*bucket_cyl_rod_a22, d308*bucket_cyl_rod_a12 + d319*bucket_cyl_barrel_e1 + d309*bucket_cyl_rod_a22, -d310*bucket_cyl_rod_a22 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a12, d310*bucket_cyl_rod_a12 + d311*bucket_cyl_rod_a22, d316 + d321*bucket_cyl_rod_e0 - d320*bucket_cyl_rod_e1, d313 - d320*bucket_cyl_rod_e0, d318 + d320*bucket_cyl_rod_e3, d317 + d320*bucket_cyl_rod_e2 + d321*bucket_cyl_rod_e3, -bucket_cyl_barrel_a01, -bucket_cyl_barrel_a11, -bucket_cyl_barrel_a21, d326 + d323*bucket_cyl_barrel_e0 + d324*d311, d327 + d324*d310, d328 + d323*bucket_cyl_barrel_e2 + d324*d309, -d329 + 2.0*d324*bucket_cyl_barrel_e2, bucket_cyl_barrel_a01, bucket_cyl_barrel_a11, bucket_cyl_barrel_a21, -bucket_cyl_barrel_a02, -bucket_cyl_barrel_a12, -bucket_cyl_barrel_a22, d327 + d330*bucket_cyl_barrel_e0 - d322*d311, -d326 - d322*d310, d329 + d322*d309, d328 + d308*d322 + d330*bucket_cyl_barrel_e3, bucket_cyl_barrel_a02, bucket_cyl_barrel_a12, bucket_cyl_barrel_a22, d331*bucket_cyl_barrel_e0 + d332*bucket_cyl_barrel_e1 - d333*bucket_cyl_barrel_e3, d332*bucket_cyl_barrel_e0 + d333*bucket_cyl_barrel_e2, d331*bucket_cyl_barrel_e2 + d332*bucket_cyl_barrel_e3 + d333*bucket_cyl_barrel_e1, -d333*bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22, d334*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e0 - d335*bucket_cyl_rod_e1, d334*bucket_cyl_rod_e3 - d335*bucket_cyl_rod_e0, d334*bucket_cyl_rod_e0 + d335*bucket_cyl_rod_e3, d334*bucket_cyl_rod_e1 + d335*bucket_cyl_rod_e2 + d336*bucket_cyl_rod_e3, 1.0, -1.0, d337 + (166329/125000)*side_link_e0, d338 + (166329/125000)*side_link_e1, -d339, -d340, 1.0, -1.0, d340 + d341, d339 + d342, d338 + d343, d337 + d344, 1.0, -1.0, -d342 - 96247/50000*side_link_e0, d341, -d344, d343 - 96247/50000*side_link_e3, 2.0*upper_e0, 2.0*upper_e1, 2.0*upper_e2, 2.0*upper_e3, 2.0*boom_e0, 2.0*boom_e1, 2.0*boom_e2, 2.0*boom_e3, 2.0*boom_cyl_l_barrel_e0, 2.0*boom_cyl_l_barrel_e1, 2.0*boom_cyl_l_barrel_e2, 2.0*boom_cyl_l_barrel_e3, 2.0*boom_cyl_l_rod_e0, 2.0*boom_cyl_l_rod_e1, 2.0*boom_cyl_l_rod_e2, 2.0*boom_cyl_l_rod_e3, 2.0*boom_cyl_r_barrel_e0, 2.0*boom_cyl_r_barrel_e1, 2.0*boom_cyl_r_barrel_e2, 2.0*boom_cyl_r_barrel_e3, 2.0*boom_cyl_r_rod_e0, 2.0*boom_cyl_r_rod_e1, 2.0*boom_cyl_r_rod_e2, 2.0*boom_cyl_r_rod_e3, 2.0*arm_e0, 2.0*arm_e1, 2.0*arm_e2, 2.0*arm_e3, 2.0*arm_cyl_barrel_e0, 2.0*arm_cyl_barrel_e1, 2.0*arm_cyl_barrel_e2, 2.0*arm_cyl_barrel_e3, 2.0*arm_cyl_rod_e0, 2.0*arm_cyl_rod_e1, 2.0*arm_cyl_rod_e2, 2.0*arm_cyl_rod_e3, 2.0*bucket_cyl_barrel_e0, 2.0*bucket_cyl_barrel_e1, 2.0*bucket_cyl_barrel_e2, 2.0*bucket_cyl_barrel_e3, 2.0*bucket_cyl_rod_e0, 2.0*bucket_cyl_rod_e1, 2.0*bucket_cyl_rod_e2, 2.0*bucket_cyl_rod_e3, 2.0*side_link_e0, 2.0*side_link_e1, 2.0*side_link_e2, 2.0*side_link_e3, 2.0*bucket_link_e0, 2.0*bucket_link_e1, 2.0*bucket_link_e2, 2.0*bucket_link_e3, 2.0*bucket_e0, 2.0*bucket_e1, 2.0*bucket_e2, 2.0*bucket_e3]
+    d74 = -16/25*boom_e3
+    d75 = 4.0*p_C_x
+    d76 = 2.0*p_C_z
+    d77 = d76*boom_e2
+    d78 = (16/25)*boom_e2
+    d79 = d76*boom_e3
+    d80 = (16/25)*boom_e1
+    d81 = d76*boom_e0
+    d82 = (16/25)*boom_e0
+    d83 = -d76*boom_e1
+    d84 = 2.0*p_C_x
+    d85 = d84*boom_e3
+    d86 = -d84*boom_e2
+    d87 = d84*boom_e1
+    d88 = d84*boom_e0
+    d89 = 4.0*p_C_z
+    d90 = (67739/25000)*upper_e2
+    d91 = (16/25)*upper_e3
+    d92 = -16/25*upper_e2
+    d93 = (67739/25000)*upper_e3
+    d94 = (67739/25000)*upper_e0
+    d95 = (16/25)*upper_e1
+    d96 = (16/25)*upper_e0
+    d97 = (67739/25000)*upper_e1
+    d98 = -4307/3125*upper_e3
+    d99 = (4307/3125)*upper_e2
+    d100 = (4307/3125)*upper_e1
+    d101 = (4307/3125)*upper_e0
+    d102 = 4.0*boom_cyl_r_barrel_a12
+    d103 = 2.0*boom_cyl_r_barrel_a22
+    d104 = 2.0*boom_cyl_r_barrel_a02
+    d105 = 2.0*upper_a01
+    d106 = 2.0*upper_a11
+    d107 = 4.0*upper_a21
+    d108 = 4.0*boom_cyl_r_rod_a01
+    d109 = 2.0*boom_cyl_r_barrel_e2
+    d110 = 2.0*boom_cyl_r_barrel_e3
+    d111 = 2.0*boom_cyl_r_barrel_e0
+    d112 = 2.0*boom_cyl_r_barrel_e1
+    d113 = 2.0*boom_cyl_r_barrel_a00
+    d114 = d113*boom_cyl_r_rod_e3
+    d115 = 4.0*boom_cyl_r_barrel_a10
+    d116 = 2.0*boom_cyl_r_barrel_a20
+    d117 = d113*boom_cyl_r_rod_e2
+    d118 = d113*boom_cyl_r_rod_e1
+    d119 = d113*boom_cyl_r_rod_e0
+    d120 = 4.0*boom_cyl_r_rod_a02
+    d121 = 2.0*boom_cyl_r_barrel_a10
+    d122 = 4.0*boom_cyl_r_barrel_a20
+    d123 = boom_cyl_r_rod_y - boom_cyl_r_barrel_y
+    d124 = 4.0*d123
+    d125 = boom_cyl_r_rod_z - boom_cyl_r_barrel_z
+    d126 = boom_cyl_r_rod_x - boom_cyl_r_barrel_x
+    d127 = -d126*d110
+    d128 = d109*d126
+    d129 = d126*d112
+    d130 = d126*d111
+    d131 = 4.0*d125
+    d132 = (4.0)*boom_cyl_r_rod_a12
+    d133 = (2.0)*boom_cyl_r_rod_a22
+    d134 = (2.0)*boom_cyl_r_rod_a02
+    d135 = (2.0)*boom_cyl_r_barrel_a01
+    d136 = (2.0)*boom_cyl_r_barrel_a11
+    d137 = (4.0)*boom_cyl_r_barrel_a21
+    d138 = (16/25)*boom_e3
+    d139 = 4.0*p_C_x
+    d140 = 2.0*p_C_z
+    d141 = d140*boom_e2
+    d142 = -16/25*boom_e2
+    d143 = d140*boom_e3
+    d144 = d140*boom_e0
+    d145 = (16/25)*boom_e0
+    d146 = d140*boom_e1
+    d147 = 2.0*p_C_x
+    d148 = -d147*boom_e3
+    d149 = d147*boom_e2
+    d150 = d147*boom_e1
+    d151 = d147*boom_e0
+    d152 = 4.0*p_C_z
+    d153 = (29959/5000)*boom_e2
+    d154 = (29959/5000)*boom_e3
+    d155 = (29959/5000)*boom_e0
+    d156 = (29959/5000)*boom_e1
+    d157 = -23939/2500*boom_e2
+    d158 = (23939/2500)*boom_e1
+    d159 = (23939/2500)*boom_e0
+    d160 = 4.0*arm_a12
+    d161 = 2.0*arm_a22
+    d162 = 2.0*arm_a02
+    d163 = 2.0*boom_a01
+    d164 = 2.0*boom_a11
+    d165 = d164*arm_e1
+    d166 = 4.0*boom_a21
+    d167 = d164*arm_e0
+    d168 = d164*arm_e3
+    d169 = d164*arm_e2
+    d170 = 4.0*arm_a10
+    d171 = 2.0*arm_a20
+    d172 = 2.0*arm_a00
+    d173 = 4.0*boom_a01
+    d174 = 2.0*boom_a21
+    d175 = (557/100)*boom_e2
+    d176 = (557/100)*boom_e3
+    d177 = (557/100)*boom_e0
+    d178 = (557/100)*boom_e1
+    d179 = -183/40*boom_e2
+    d180 = (183/40)*boom_e1
+    d181 = (183/40)*boom_e0
+    d182 = 4.0*arm_cyl_barrel_a12
+    d183 = 2.0*arm_cyl_barrel_a22
+    d184 = 2.0*arm_cyl_barrel_a02
+    d185 = 2.0*boom_a01
+    d186 = 2.0*boom_a11
+    d187 = 4.0*boom_a21
+    d188 = 4.0*arm_cyl_rod_a01
+    d189 = 2.0*arm_cyl_barrel_e2
+    d190 = 2.0*arm_cyl_barrel_e3
+    d191 = 2.0*arm_cyl_barrel_e0
+    d192 = 2.0*arm_cyl_barrel_e1
+    d193 = 2.0*arm_cyl_barrel_a00
+    d194 = d193*arm_cyl_rod_e3
+    d195 = 4.0*arm_cyl_barrel_a10
+    d196 = 2.0*arm_cyl_barrel_a20
+    d197 = d193*arm_cyl_rod_e2
+    d198 = d193*arm_cyl_rod_e1
+    d199 = d193*arm_cyl_rod_e0
+    d200 = 4.0*arm_cyl_rod_a02
+    d201 = 2.0*arm_cyl_barrel_a10
+    d202 = 4.0*arm_cyl_barrel_a20
+    d203 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d204 = 4.0*d203
+    d205 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d206 = arm_cyl_rod_x - arm_cyl_barrel_x
+    d207 = -d206*d190
+    d208 = d189*d206
+    d209 = d206*d192
+    d210 = d206*d191
+    d211 = 4.0*d205
+    d212 = (4.0)*arm_cyl_rod_a12
+    d213 = (2.0)*arm_cyl_rod_a22
+    d214 = (2.0)*arm_cyl_rod_a02
+    d215 = (2.0)*arm_cyl_barrel_a01
+    d216 = (2.0)*arm_cyl_barrel_a11
+    d217 = (4.0)*arm_cyl_barrel_a21
+    d218 = 4.0*p_F_x
+    d219 = 2.0*p_F_z
+    d220 = d219*arm_e2
+    d221 = d219*arm_e3
+    d222 = d219*arm_e0
+    d223 = d219*arm_e1
+    d224 = 2.0*p_F_x
+    d225 = -d224*arm_e3
+    d226 = -d224*arm_e2
+    d227 = d224*arm_e1
+    d228 = d224*arm_e0
+    d229 = 4.0*p_F_z
+    d230 = (21809/5000)*arm_e2
+    d231 = (21809/5000)*arm_e3
+    d232 = (21809/5000)*arm_e0
+    d233 = (21809/5000)*arm_e1
+    d234 = -9477/2500*arm_e2
+    d235 = (9477/2500)*arm_e1
+    d236 = (9477/2500)*arm_e0
+    d237 = 4.0*bucket_a12
+    d238 = 2.0*bucket_a22
+    d239 = 2.0*bucket_a02
+    d240 = 2.0*arm_a01
+    d241 = 2.0*arm_a11
+    d242 = d241*bucket_e1
+    d243 = 4.0*arm_a21
+    d244 = d241*bucket_e0
+    d245 = d241*bucket_e3
+    d246 = d241*bucket_e2
+    d247 = 4.0*bucket_a10
+    d248 = 2.0*bucket_a20
+    d249 = 2.0*bucket_a00
+    d250 = 4.0*arm_a01
+    d251 = 2.0*arm_a21
+    d252 = (18799/5000)*arm_e2
+    d253 = (18799/5000)*arm_e3
+    d254 = (18799/5000)*arm_e0
+    d255 = (18799/5000)*arm_e1
+    d256 = -7877/2500*arm_e2
+    d257 = (7877/2500)*arm_e1
+    d258 = (7877/2500)*arm_e0
+    d259 = 4.0*side_link_a12
+    d260 = 2.0*side_link_a22
+    d261 = 2.0*side_link_a02
+    d262 = 2.0*arm_a01
+    d263 = 2.0*arm_a11
+    d264 = d263*side_link_e1
+    d265 = 4.0*arm_a21
+    d266 = d263*side_link_e0
+    d267 = d263*side_link_e3
+    d268 = d263*side_link_e2
+    d269 = 4.0*side_link_a10
+    d270 = 2.0*side_link_a20
+    d271 = 2.0*side_link_a00
+    d272 = 4.0*arm_a01
+    d273 = 2.0*arm_a21
+    d274 = 2.2745066225654527*p_side_link
+    d275 = -1.645191449642404*side_link_e2*p_side_link
+    d276 = -1.645191449642404*side_link_e3*p_side_link
+    d277 = 1.645191449642404*p_side_link
+    d278 = d277*side_link_e0
+    d279 = d277*side_link_e1
+    d280 = 2.4197412333018*p_bucket_link
+    d281 = 1.592549242869674*p_bucket_link
+    d282 = d281*bucket_link_e2
+    d283 = d281*bucket_link_e3
+    d284 = d281*bucket_link_e0
+    d285 = d281*bucket_link_e1
+    d286 = 1.1372533112827263*p_side_link
+    d287 = d286*side_link_e3
+    d288 = d286*side_link_e2
+    d289 = d286*side_link_e1
+    d290 = d286*side_link_e0
+    d291 = 1.2098706166509*p_bucket_link
+    d292 = -d291*bucket_link_e2
+    d293 = d291*bucket_link_e1
+    d294 = d291*bucket_link_e0
+    d295 = 3.185098485739348*p_bucket_link
+    d296 = 4.0*p_K_x
+    d297 = 2.0*p_K_z
+    d298 = d297*bucket_e2
+    d299 = d297*bucket_e3
+    d300 = d297*bucket_e0
+    d301 = d297*bucket_e1
+    d302 = 2.0*p_K_x
+    d303 = -d302*bucket_e3
+    d304 = -d302*bucket_e2
+    d305 = d302*bucket_e1
+    d306 = d302*bucket_e0
+    d307 = 4.0*p_K_z
+    d308 = (3.1850984857373903)*bucket_a01
+    d309 = (1.2098706166521882)*bucket_a11
+    d310 = (1.5925492428686951)*bucket_a11
+    d311 = (1.5925492428686951)*bucket_a21
+    d312 = (1.2098706166521882)*bucket_a01
+    d313 = -3.1850984857373903*bucket_link_a10 + (2.4197412333043764)*bucket_link_a12
+    d314 = -0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22
+    d315 = 2.0*d314
+    d316 = -1.5925492428686951*bucket_link_a00 + (1.2098706166521882)*bucket_link_a02
+    d317 = -36797/25000*arm_e2
+    d318 = -36797/25000*arm_e3
+    d319 = (36797/25000)*arm_e0
+    d320 = (36797/25000)*arm_e1
+    d321 = (24687/50000)*arm_e3
+    d322 = (24687/50000)*arm_e2
+    d323 = (24687/50000)*arm_e1
+    d324 = (24687/50000)*arm_e0
+    d325 = 4.0*bucket_cyl_barrel_a12
+    d326 = 2.0*bucket_cyl_barrel_a22
+    d327 = 2.0*bucket_cyl_barrel_a02
+    d328 = 2.0*arm_a01
+    d329 = 2.0*arm_a11
+    d330 = 4.0*arm_a21
+    d331 = 4.0*bucket_cyl_rod_a01
+    d332 = 2.0*bucket_cyl_barrel_e2
+    d333 = 2.0*bucket_cyl_barrel_e3
+    d334 = 2.0*bucket_cyl_barrel_e0
+    d335 = 2.0*bucket_cyl_barrel_e1
+    d336 = 2.0*bucket_cyl_barrel_a00
+    d337 = d336*bucket_cyl_rod_e3
+    d338 = 4.0*bucket_cyl_barrel_a10
+    d339 = 2.0*bucket_cyl_barrel_a20
+    d340 = d336*bucket_cyl_rod_e2
+    d341 = d336*bucket_cyl_rod_e1
+    d342 = d336*bucket_cyl_rod_e0
+    d343 = 4.0*bucket_cyl_rod_a02
+    d344 = 2.0*bucket_cyl_barrel_a10
+    d345 = 4.0*bucket_cyl_barrel_a20
+    d346 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d347 = 4.0*d346
+    d348 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d349 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    d350 = -d349*d333
+    d351 = d332*d349
+    d352 = d349*d335
+    d353 = d349*d334
+    d354 = 4.0*d348
+    d355 = (4.0)*bucket_cyl_rod_a12
+    d356 = (2.0)*bucket_cyl_rod_a22
+    d357 = (2.0)*bucket_cyl_rod_a02
+    d358 = (2.0)*bucket_cyl_barrel_a01
+    d359 = (2.0)*bucket_cyl_barrel_a11
+    d360 = (4.0)*bucket_cyl_barrel_a21
+    d361 = 2.2745066225654527*p_side_link
+    d362 = 1.645191449642404*p_side_link
+    d363 = -d362*side_link_e2
+    d364 = -d362*side_link_e3
+    d365 = d362*side_link_e0
+    d366 = d362*side_link_e1
+    d367 = 1.1372533112827263*p_side_link
+    d368 = d367*side_link_e3
+    d369 = d367*side_link_e2
+    d370 = d367*side_link_e1
+    d371 = d367*side_link_e0
+    d372 = 3.290382899284808*p_side_link
+    return [-upper_x, -upper_y, -upper_z, upper_a20, upper_a21, upper_x - boom_x + (22767/100000)*upper_a00 + (195729/100000)*upper_a02, upper_y - boom_y + (22767/100000)*upper_a10 + (195729/100000)*upper_a12, upper_z - boom_z + (22767/100000)*upper_a20 + (195729/100000)*upper_a22, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, upper_x - boom_cyl_l_barrel_x + (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_l_barrel_y + (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_l_barrel_z + (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22, c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21, c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22, (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_x - boom_x - 8/25*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z, boom_cyl_l_rod_y - boom_y - 8/25*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z, boom_cyl_l_rod_z - boom_z - 8/25*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z, upper_x - boom_cyl_r_barrel_x - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_r_barrel_y - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_r_barrel_z - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22, c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21, c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22, (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_x - boom_x + (8/25)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z, boom_cyl_r_rod_y - boom_y + (8/25)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z, boom_cyl_r_rod_z - boom_z + (8/25)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z, boom_x - arm_x + (23939/5000)*boom_a00 + (29959/10000)*boom_a02, boom_y - arm_y + (23939/5000)*boom_a10 + (29959/10000)*boom_a12, boom_z - arm_z + (23939/5000)*boom_a20 + (29959/10000)*boom_a22, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, boom_x - arm_cyl_barrel_x + (183/80)*boom_a00 + (557/200)*boom_a02, boom_y - arm_cyl_barrel_y + (183/80)*boom_a10 + (557/200)*boom_a12, boom_z - arm_cyl_barrel_z + (183/80)*boom_a20 + (557/200)*boom_a22, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21, arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22, c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21, c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22, (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_x - arm_x - arm_a00*p_F_x - arm_a02*p_F_z, arm_cyl_rod_y - arm_y - arm_a10*p_F_x - arm_a12*p_F_z, arm_cyl_rod_z - arm_z - arm_a20*p_F_x - arm_a22*p_F_z, arm_x - bucket_x + (9477/5000)*arm_a00 + (21809/10000)*arm_a02, arm_y - bucket_y + (9477/5000)*arm_a10 + (21809/10000)*arm_a12, arm_z - bucket_z + (9477/5000)*arm_a20 + (21809/10000)*arm_a22, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, arm_x - side_link_x + (7877/5000)*arm_a00 + (18799/10000)*arm_a02, arm_y - side_link_y + (7877/5000)*arm_a10 + (18799/10000)*arm_a12, arm_z - side_link_z + (7877/5000)*arm_a20 + (18799/10000)*arm_a22, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, side_link_x - bucket_link_x + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00, side_link_y - bucket_link_y + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10, side_link_z - bucket_link_z + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20, bucket_link_x - bucket_x - bucket_a00*p_K_x - bucket_a02*p_K_z, bucket_link_y - bucket_y - bucket_a10*p_K_x - bucket_a12*p_K_z, bucket_link_z - bucket_z - bucket_a20*p_K_x - bucket_a22*p_K_z, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), arm_x - bucket_cyl_barrel_x - 24687/100000*arm_a00 + (36797/50000)*arm_a02, arm_y - bucket_cyl_barrel_y - 24687/100000*arm_a10 + (36797/50000)*arm_a12, arm_z - bucket_cyl_barrel_z - 24687/100000*arm_a20 + (36797/50000)*arm_a22, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21, bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22, c13*bucket_cyl_barrel_a01 + c14*bucket_cyl_barrel_a11 + c15*bucket_cyl_barrel_a21, c13*bucket_cyl_barrel_a02 + c14*bucket_cyl_barrel_a12 + c15*bucket_cyl_barrel_a22, (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_x - side_link_x + c16*side_link_a00 - c17*side_link_a02, bucket_cyl_rod_y - side_link_y + c16*side_link_a10 - c17*side_link_a12, bucket_cyl_rod_z - side_link_z + c16*side_link_a20 - c17*side_link_a22, -1.0 + (upper_e0*upper_e0) + (upper_e1*upper_e1) + (upper_e2*upper_e2) + (upper_e3*upper_e3), -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3), -1.0 + (boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + (boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1) + (boom_cyl_l_barrel_e2*boom_cyl_l_barrel_e2) + (boom_cyl_l_barrel_e3*boom_cyl_l_barrel_e3), -1.0 + (boom_cyl_l_rod_e0*boom_cyl_l_rod_e0) + (boom_cyl_l_rod_e1*boom_cyl_l_rod_e1) + (boom_cyl_l_rod_e2*boom_cyl_l_rod_e2) + (boom_cyl_l_rod_e3*boom_cyl_l_rod_e3), -1.0 + (boom_cyl_r_barrel_e0*boom_cyl_r_barrel_e0) + (boom_cyl_r_barrel_e1*boom_cyl_r_barrel_e1) + (boom_cyl_r_barrel_e2*boom_cyl_r_barrel_e2) + (boom_cyl_r_barrel_e3*boom_cyl_r_barrel_e3), -1.0 + (boom_cyl_r_rod_e0*boom_cyl_r_rod_e0) + (boom_cyl_r_rod_e1*boom_cyl_r_rod_e1) + (boom_cyl_r_rod_e2*boom_cyl_r_rod_e2) + (boom_cyl_r_rod_e3*boom_cyl_r_rod_e3), -1.0 + (arm_e0*arm_e0) + (arm_e1*arm_e1) + (arm_e2*arm_e2) + (arm_e3*arm_e3), -1.0 + (arm_cyl_barrel_e0*arm_cyl_barrel_e0) + (arm_cyl_barrel_e1*arm_cyl_barrel_e1) + (arm_cyl_barrel_e2*arm_cyl_barrel_e2) + (arm_cyl_barrel_e3*arm_cyl_barrel_e3), -1.0 + (arm_cyl_rod_e0*arm_cyl_rod_e0) + (arm_cyl_rod_e1*arm_cyl_rod_e1) + (arm_cyl_rod_e2*arm_cyl_rod_e2) + (arm_cyl_rod_e3*arm_cyl_rod_e3), -1.0 + (bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + (bucket_cyl_barrel_e1*bucket_cyl_barrel_e1) + (bucket_cyl_barrel_e2*bucket_cyl_barrel_e2) + (bucket_cyl_barrel_e3*bucket_cyl_barrel_e3), -1.0 + (bucket_cyl_rod_e0*bucket_cyl_rod_e0) + (bucket_cyl_rod_e1*bucket_cyl_rod_e1) + (bucket_cyl_rod_e2*bucket_cyl_rod_e2) + (bucket_cyl_rod_e3*bucket_cyl_rod_e3), -1.0 + (side_link_e0*side_link_e0) + (side_link_e1*side_link_e1) + (side_link_e2*side_link_e2) + (side_link_e3*side_link_e3), -1.0 + (bucket_link_e0*bucket_link_e0) + (bucket_link_e1*bucket_link_e1) + (bucket_link_e2*bucket_link_e2) + (bucket_link_e3*bucket_link_e3), -1.0 + (bucket_e0*bucket_e0) + (bucket_e1*bucket_e1) + (bucket_e2*bucket_e2) + (bucket_e3*bucket_e3)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, d4 + (22767/25000)*upper_e0, d5 + (22767/25000)*upper_e1, d6, d7, -1.0, 1.0, -d7 + (22767/50000)*upper_e3, -d6 - d8, d5 + d9, d4 + d10, -1.0, 1.0, d8 + (195729/25000)*upper_e0, (22767/50000)*upper_e3, -d10, d9 + (195729/25000)*upper_e3, -1.0, d11*upper_e0 + d12*upper_e1 - d13*upper_e3, d12*upper_e0 + d13*upper_e2, d11*upper_e2 + d12*upper_e3 + d13*upper_e1, -d13*upper_e0 + 2.0*upper_e2*boom_a22, -d16 + d14*boom_e2 + d17*boom_e0, -d18 + d14*boom_e3, d19 + d14*boom_e0, d20 + d14*boom_e1 + d17*boom_e3, d21*upper_e0 + d22*upper_e1 - d23*upper_e3, d22*upper_e0 + d23*upper_e2, d21*upper_e2 + d22*upper_e3 + d23*upper_e1, -d23*upper_e0 + 2.0*upper_e2*boom_a20, d19 + d24*boom_e0 - d25*boom_e2, d20 + d24*boom_e1 + d25*boom_e3, d16 - d25*boom_e0, d18 + d25*boom_e1, 1.0, d26 + d27 + (8614/3125)*upper_e0, d28 + d29 + (8614/3125)*upper_e1, d30 + d31, -d32 - d33, -1.0, 1.0, d33 + d34 + (32/25)*upper_e0, -d30 - d35, d36 + d29 + (32/25)*upper_e2, d26 + d37, -1.0, 1.0, d31 + d35 + (67739/12500)*upper_e0, d32 + d34, -d27 - d37, d36 + d28 + (67739/12500)*upper_e3, -1.0, d38*upper_e0 + d39*upper_e1 - d40*upper_e3, d39*upper_e0 + d40*upper_e2, d38*upper_e2 + d39*upper_e3 + d40*upper_e1, -d40*upper_e0 + 2.0*upper_e2*boom_cyl_l_barrel_a22, d41*boom_cyl_l_barrel_e2 + d43*boom_cyl_l_barrel_e0 - d42*boom_cyl_l_barrel_e1, d41*boom_cyl_l_barrel_e3 - d42*boom_cyl_l_barrel_e0, d41*boom_cyl_l_barrel_e0 + d42*boom_cyl_l_barrel_e3, d41*boom_cyl_l_barrel_e1 + d42*boom_cyl_l_barrel_e2 + d43*boom_cyl_l_barrel_e3, d44*boom_cyl_l_barrel_e0 + d46*boom_cyl_l_rod_a11 - d45*boom_cyl_l_rod_a21, d44*boom_cyl_l_barrel_e1 + d45*boom_cyl_l_rod_a11 + d46*boom_cyl_l_rod_a21, -d47*boom_cyl_l_rod_a21 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a11, d47*boom_cyl_l_rod_a11 + d48*boom_cyl_l_rod_a21, -d50 + d51*boom_cyl_l_rod_e0 + d52*boom_cyl_l_rod_e1, d53 + d52*boom_cyl_l_rod_e0, d54 + d51*boom_cyl_l_rod_e2 + d52*boom_cyl_l_rod_e3, -d55 + 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_rod_e2, d56*boom_cyl_l_barrel_e0 + d46*boom_cyl_l_rod_a12 - d45*boom_cyl_l_rod_a22, d45*boom_cyl_l_rod_a12 + d56*boom_cyl_l_barrel_e1 + d46*boom_cyl_l_rod_a22, -d47*boom_cyl_l_rod_a22 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_rod_a12, d47*boom_cyl_l_rod_a12 + d48*boom_cyl_l_rod_a22, d53 + d58*boom_cyl_l_rod_e0 - d57*boom_cyl_l_rod_e1, d50 - d57*boom_cyl_l_rod_e0, d55 + d57*boom_cyl_l_rod_e3, d54 + d57*boom_cyl_l_rod_e2 + d58*boom_cyl_l_rod_e3, -boom_cyl_l_barrel_a01, -boom_cyl_l_barrel_a11, -boom_cyl_l_barrel_a21, d63 + d60*boom_cyl_l_barrel_e0 + d61*d48, d64 + d61*d47, d65 + d60*boom_cyl_l_barrel_e2 + d61*d46, -d66 + 2.0*d61*boom_cyl_l_barrel_e2, boom_cyl_l_barrel_a01, boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a21, -boom_cyl_l_barrel_a02, -boom_cyl_l_barrel_a12, -boom_cyl_l_barrel_a22, d64 + d67*boom_cyl_l_barrel_e0 - d59*d48, -d63 - d59*d47, d66 + d59*d46, d65 + d45*d59 + d67*boom_cyl_l_barrel_e3, boom_cyl_l_barrel_a02, boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a22, d68*boom_cyl_l_barrel_e0 + d69*boom_cyl_l_barrel_e1 - d70*boom_cyl_l_barrel_e3, d69*boom_cyl_l_barrel_e0 + d70*boom_cyl_l_barrel_e2, d68*boom_cyl_l_barrel_e2 + d69*boom_cyl_l_barrel_e3 + d70*boom_cyl_l_barrel_e1, -d70*boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_barrel_e2*boom_cyl_l_rod_a22, d71*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e0 - d72*boom_cyl_l_rod_e1, d71*boom_cyl_l_rod_e3 - d72*boom_cyl_l_rod_e0, d71*boom_cyl_l_rod_e0 + d72*boom_cyl_l_rod_e3, d71*boom_cyl_l_rod_e1 + d72*boom_cyl_l_rod_e2 + d73*boom_cyl_l_rod_e3, -1.0, -d74 - d77 - d75*boom_e0, -d78 - d79 - d75*boom_e1, -d80 - d81, d82 + d83, 1.0, -1.0, -d85 - d83 - 32/25*boom_e0, d86 + d81, -d87 - d79 - 32/25*boom_e2, -d88 - d77, 1.0, -1.0, -d86 - d80 - d89*boom_e0, -d85 - d82, d74 + d88, -d87 - d78 - d89*boom_e3, 1.0, 1.0, d90 + d91 + (8614/3125)*upper_e0, d92 + d93 + (8614/3125)*upper_e1, d94 - d95, d96 + d97, -1.0, 1.0, -d97 - d98 - 32/25*upper_e0, d99 - d94, d100 + d93 - 32/25*upper_e2, d90 + d101, -1.0, 1.0, -d95 - d99 + (67739/12500)*upper_e0, -d96 - d98, -d91 - d101, d100 + d92 + (67739/12500)*upper_e3, -1.0, d102*upper_e0 + d103*upper_e1 - d104*upper_e3, d103*upper_e0 + d104*upper_e2, d102*upper_e2 + d103*upper_e3 + d104*upper_e1, -d104*upper_e0 + 2.0*upper_e2*boom_cyl_r_barrel_a22, d105*boom_cyl_r_barrel_e2 + d107*boom_cyl_r_barrel_e0 - d106*boom_cyl_r_barrel_e1, d105*boom_cyl_r_barrel_e3 - d106*boom_cyl_r_barrel_e0, d105*boom_cyl_r_barrel_e0 + d106*boom_cyl_r_barrel_e3, d105*boom_cyl_r_barrel_e1 + d106*boom_cyl_r_barrel_e2 + d107*boom_cyl_r_barrel_e3, d108*boom_cyl_r_barrel_e0 + d110*boom_cyl_r_rod_a11 - d109*boom_cyl_r_rod_a21, d108*boom_cyl_r_barrel_e1 + d109*boom_cyl_r_rod_a11 + d110*boom_cyl_r_rod_a21, -d111*boom_cyl_r_rod_a21 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a11, d111*boom_cyl_r_rod_a11 + d112*boom_cyl_r_rod_a21, -d114 + d115*boom_cyl_r_rod_e0 + d116*boom_cyl_r_rod_e1, d117 + d116*boom_cyl_r_rod_e0, d118 + d115*boom_cyl_r_rod_e2 + d116*boom_cyl_r_rod_e3, -d119 + 2.0*boom_cyl_r_barrel_a20*boom_cyl_r_rod_e2, d120*boom_cyl_r_barrel_e0 + d110*boom_cyl_r_rod_a12 - d109*boom_cyl_r_rod_a22, d109*boom_cyl_r_rod_a12 + d120*boom_cyl_r_barrel_e1 + d110*boom_cyl_r_rod_a22, -d111*boom_cyl_r_rod_a22 + 2.0*boom_cyl_r_barrel_e1*boom_cyl_r_rod_a12, d111*boom_cyl_r_rod_a12 + d112*boom_cyl_r_rod_a22, d117 + d122*boom_cyl_r_rod_e0 - d121*boom_cyl_r_rod_e1, d114 - d121*boom_cyl_r_rod_e0, d119 + d121*boom_cyl_r_rod_e3, d118 + d121*boom_cyl_r_rod_e2 + d122*boom_cyl_r_rod_e3, -boom_cyl_r_barrel_a01, -boom_cyl_r_barrel_a11, -boom_cyl_r_barrel_a21, d127 + d124*boom_cyl_r_barrel_e0 + d125*d112, d128 + d125*d111, d129 + d124*boom_cyl_r_barrel_e2 + d125*d110, -d130 + 2.0*d125*boom_cyl_r_barrel_e2, boom_cyl_r_barrel_a01, boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a21, -boom_cyl_r_barrel_a02, -boom_cyl_r_barrel_a12, -boom_cyl_r_barrel_a22, d128 + d131*boom_cyl_r_barrel_e0 - d123*d112, -d127 - d123*d111, d130 + d123*d110, d129 + d109*d123 + d131*boom_cyl_r_barrel_e3, boom_cyl_r_barrel_a02, boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a22, d132*boom_cyl_r_barrel_e0 + d133*boom_cyl_r_barrel_e1 - d134*boom_cyl_r_barrel_e3, d133*boom_cyl_r_barrel_e0 + d134*boom_cyl_r_barrel_e2, d132*boom_cyl_r_barrel_e2 + d133*boom_cyl_r_barrel_e3 + d134*boom_cyl_r_barrel_e1, -d134*boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_barrel_e2*boom_cyl_r_rod_a22, d135*boom_cyl_r_rod_e2 + d137*boom_cyl_r_rod_e0 - d136*boom_cyl_r_rod_e1, d135*boom_cyl_r_rod_e3 - d136*boom_cyl_r_rod_e0, d135*boom_cyl_r_rod_e0 + d136*boom_cyl_r_rod_e3, d135*boom_cyl_r_rod_e1 + d136*boom_cyl_r_rod_e2 + d137*boom_cyl_r_rod_e3, -1.0, -d138 - d141 - d139*boom_e0, -d142 - d143 - d139*boom_e1, -d144 + (16/25)*boom_e1, -d145 - d146, 1.0, -1.0, d148 + d146 + (32/25)*boom_e0, d144 - d149, -d150 - d143 + (32/25)*boom_e2, -d151 - d141, 1.0, -1.0, d149 + (16/25)*boom_e1 - d152*boom_e0, d148 + d145, d138 + d151, -d150 - d142 - d152*boom_e3, 1.0, 1.0, d153 + (23939/1250)*boom_e0, d154 + (23939/1250)*boom_e1, d155, d156, -1.0, 1.0, -d156 + (23939/2500)*boom_e3, -d155 - d157, d154 + d158, d153 + d159, -1.0, 1.0, d157 + (29959/2500)*boom_e0, (23939/2500)*boom_e3, -d159, d158 + (29959/2500)*boom_e3, -1.0, d160*boom_e0 + d161*boom_e1 - d162*boom_e3, d161*boom_e0 + d162*boom_e2, d160*boom_e2 + d161*boom_e3 + d162*boom_e1, -d162*boom_e0 + 2.0*boom_e2*arm_a22, -d165 + d163*arm_e2 + d166*arm_e0, -d167 + d163*arm_e3, d168 + d163*arm_e0, d169 + d163*arm_e1 + d166*arm_e3, d170*boom_e0 + d171*boom_e1 - d172*boom_e3, d171*boom_e0 + d172*boom_e2, d170*boom_e2 + d171*boom_e3 + d172*boom_e1, -d172*boom_e0 + 2.0*boom_e2*arm_a20, d168 + d173*arm_e0 - d174*arm_e2, d169 + d173*arm_e1 + d174*arm_e3, d165 - d174*arm_e0, d167 + d174*arm_e1, 1.0, d175 + (183/20)*boom_e0, d176 + (183/20)*boom_e1, d177, d178, -1.0, 1.0, -d178 + (183/40)*boom_e3, -d177 - d179, d176 + d180, d175 + d181, -1.0, 1.0, d179 + (557/50)*boom_e0, (183/40)*boom_e3, -d181, d180 + (557/50)*boom_e3, -1.0, d182*boom_e0 + d183*boom_e1 - d184*boom_e3, d183*boom_e0 + d184*boom_e2, d182*boom_e2 + d183*boom_e3 + d184*boom_e1, -d184*boom_e0 + 2.0*boom_e2*arm_cyl_barrel_a22, d185*arm_cyl_barrel_e2 + d187*arm_cyl_barrel_e0 - d186*arm_cyl_barrel_e1, d185*arm_cyl_barrel_e3 - d186*arm_cyl_barrel_e0, d185*arm_cyl_barrel_e0 + d186*arm_cyl_barrel_e3, d185*arm_cyl_barrel_e1 + d186*arm_cyl_barrel_e2 + d187*arm_cyl_barrel_e3, d188*arm_cyl_barrel_e0 + d190*arm_cyl_rod_a11 - d189*arm_cyl_rod_a21, d188*arm_cyl_barrel_e1 + d189*arm_cyl_rod_a11 + d190*arm_cyl_rod_a21, -d191*arm_cyl_rod_a21 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a11, d191*arm_cyl_rod_a11 + d192*arm_cyl_rod_a21, -d194 + d195*arm_cyl_rod_e0 + d196*arm_cyl_rod_e1, d197 + d196*arm_cyl_rod_e0, d198 + d195*arm_cyl_rod_e2 + d196*arm_cyl_rod_e3, -d199 + 2.0*arm_cyl_barrel_a20*arm_cyl_rod_e2, d200*arm_cyl_barrel_e0 + d190*arm_cyl_rod_a12 - d189*arm_cyl_rod_a22, d189*arm_cyl_rod_a12 + d200*arm_cyl_barrel_e1 + d190*arm_cyl_rod_a22, -d191*arm_cyl_rod_a22 + 2.0*arm_cyl_barrel_e1*arm_cyl_rod_a12, d191*arm_cyl_rod_a12 + d192*arm_cyl_rod_a22, d197 + d202*arm_cyl_rod_e0 - d201*arm_cyl_rod_e1, d194 - d201*arm_cyl_rod_e0, d199 + d201*arm_cyl_rod_e3, d198 + d201*arm_cyl_rod_e2 + d202*arm_cyl_rod_e3, -arm_cyl_barrel_a01, -arm_cyl_barrel_a11, -arm_cyl_barrel_a21, d207 + d204*arm_cyl_barrel_e0 + d205*d192, d208 + d205*d191, d209 + d204*arm_cyl_barrel_e2 + d205*d190, -d210 + 2.0*d205*arm_cyl_barrel_e2, arm_cyl_barrel_a01, arm_cyl_barrel_a11, arm_cyl_barrel_a21, -arm_cyl_barrel_a02, -arm_cyl_barrel_a12, -arm_cyl_barrel_a22, d208 + d211*arm_cyl_barrel_e0 - d203*d192, -d207 - d203*d191, d210 + d203*d190, d209 + d189*d203 + d211*arm_cyl_barrel_e3, arm_cyl_barrel_a02, arm_cyl_barrel_a12, arm_cyl_barrel_a22, d212*arm_cyl_barrel_e0 + d213*arm_cyl_barrel_e1 - d214*arm_cyl_barrel_e3, d213*arm_cyl_barrel_e0 + d214*arm_cyl_barrel_e2, d212*arm_cyl_barrel_e2 + d213*arm_cyl_barrel_e3 + d214*arm_cyl_barrel_e1, -d214*arm_cyl_barrel_e0 + (2.0)*arm_cyl_barrel_e2*arm_cyl_rod_a22, d215*arm_cyl_rod_e2 + d217*arm_cyl_rod_e0 - d216*arm_cyl_rod_e1, d215*arm_cyl_rod_e3 - d216*arm_cyl_rod_e0, d215*arm_cyl_rod_e0 + d216*arm_cyl_rod_e3, d215*arm_cyl_rod_e1 + d216*arm_cyl_rod_e2 + d217*arm_cyl_rod_e3, -1.0, -d220 - d218*arm_e0, -d221 - d218*arm_e1, -d222, -d223, 1.0, -1.0, d223 + d225, d222 + d226, -d221 - d227, -d228 - d220, 1.0, -1.0, -d226 - d229*arm_e0, d225, d228, -d227 - d229*arm_e3, 1.0, 1.0, d230 + (9477/1250)*arm_e0, d231 + (9477/1250)*arm_e1, d232, d233, -1.0, 1.0, -d233 + (9477/2500)*arm_e3, -d232 - d234, d231 + d235, d230 + d236, -1.0, 1.0, d234 + (21809/2500)*arm_e0, (9477/2500)*arm_e3, -d236, d235 + (21809/2500)*arm_e3, -1.0, d237*arm_e0 + d238*arm_e1 - d239*arm_e3, d238*arm_e0 + d239*arm_e2, d237*arm_e2 + d238*arm_e3 + d239*arm_e1, -d239*arm_e0 + 2.0*arm_e2*bucket_a22, -d242 + d240*bucket_e2 + d243*bucket_e0, -d244 + d240*bucket_e3, d245 + d240*bucket_e0, d246 + d240*bucket_e1 + d243*bucket_e3, d247*arm_e0 + d248*arm_e1 - d249*arm_e3, d248*arm_e0 + d249*arm_e2, d247*arm_e2 + d248*arm_e3 + d249*arm_e1, -d249*arm_e0 + 2.0*arm_e2*bucket_a20, d245 + d250*bucket_e0 - d251*bucket_e2, d246 + d250*bucket_e1 + d251*bucket_e3, d242 - d251*bucket_e0, d244 + d251*bucket_e1, 1.0, d252 + (7877/1250)*arm_e0, d253 + (7877/1250)*arm_e1, d254, d255, -1.0, 1.0, -d255 + (7877/2500)*arm_e3, -d254 - d256, d253 + d257, d252 + d258, -1.0, 1.0, d256 + (18799/2500)*arm_e0, (7877/2500)*arm_e3, -d258, d257 + (18799/2500)*arm_e3, -1.0, d259*arm_e0 + d260*arm_e1 - d261*arm_e3, d260*arm_e0 + d261*arm_e2, d259*arm_e2 + d260*arm_e3 + d261*arm_e1, -d261*arm_e0 + 2.0*arm_e2*side_link_a22, -d264 + d262*side_link_e2 + d265*side_link_e0, -d266 + d262*side_link_e3, d267 + d262*side_link_e0, d268 + d262*side_link_e1 + d265*side_link_e3, d269*arm_e0 + d270*arm_e1 - d271*arm_e3, d270*arm_e0 + d271*arm_e2, d269*arm_e2 + d270*arm_e3 + d271*arm_e1, -d271*arm_e0 + 2.0*arm_e2*side_link_a20, d267 + d272*side_link_e0 - d273*side_link_e2, d268 + d272*side_link_e1 + d273*side_link_e3, d264 - d273*side_link_e0, d266 + d273*side_link_e1, 1.0, -d275 - d274*side_link_e0, -d276 - d274*side_link_e1, d278, d279, -1.0, d282 + d280*bucket_link_e0, d283 + d280*bucket_link_e1, d284, d285, 1.0, -d287 - d279, -d288 - d278, -d289 - d276, -d275 - d290, -1.0, -d285 + 1.2098706166509*bucket_link_e3*p_bucket_link, -d284 - d292, d293 + d283, d294 + d282, 1.0, d288 + 3.290382899284808*side_link_e0*p_side_link, -d287, d290, -d289 + 3.290382899284808*side_link_e3*p_side_link, -1.0, d292 + d295*bucket_link_e0, d291*bucket_link_e3, -d294, d293 + d295*bucket_link_e3, 1.0, -1.0, -d298 - d296*bucket_e0, -d299 - d296*bucket_e1, -d300, -d301, 1.0, -1.0, d301 + d303, d300 + d304, -d299 - d305, -d306 - d298, 1.0, -1.0, -d304 - d307*bucket_e0, d303, d306, -d305 - d307*bucket_e3, -d308*bucket_link_e0 - d309*bucket_link_e1 - d310*bucket_link_e3 + (2.4197412333043764)*bucket_link_e0*bucket_a21 + (1.2098706166521882)*bucket_link_e2*bucket_a01 + (1.5925492428686951)*bucket_link_e2*bucket_a21, -d308*bucket_link_e1 - d309*bucket_link_e0 - d310*bucket_link_e2 - d311*bucket_link_e3 + (1.2098706166521882)*bucket_link_e3*bucket_a01, d309*bucket_link_e3 + d312*bucket_link_e0 - d310*bucket_link_e1 + (1.5925492428686951)*bucket_link_e0*bucket_a21, d309*bucket_link_e2 + d312*bucket_link_e1 - d310*bucket_link_e0 - d311*bucket_link_e1 + (2.4197412333043764)*bucket_link_e3*bucket_a21, d313*bucket_e0 + d315*bucket_e1 - d316*bucket_e3, d315*bucket_e0 + d316*bucket_e2, d313*bucket_e2 + d315*bucket_e3 + d316*bucket_e1, -d316*bucket_e0 + 2.0*d314*bucket_e2, 1.0, -d317 - 24687/25000*arm_e0, -d318 - 24687/25000*arm_e1, d319, d320, -1.0, 1.0, -d320 - d321, -d319 - d322, -d318 - d323, -d317 - d324, -1.0, 1.0, d322 + (36797/12500)*arm_e0, -d321, d324, -d323 + (36797/12500)*arm_e3, -1.0, d325*arm_e0 + d326*arm_e1 - d327*arm_e3, d327*arm_e2 + d326*arm_e0, d327*arm_e1 + d325*arm_e2 + d326*arm_e3, -d327*arm_e0 + 2.0*arm_e2*bucket_cyl_barrel_a22, d328*bucket_cyl_barrel_e2 + d330*bucket_cyl_barrel_e0 - d329*bucket_cyl_barrel_e1, d328*bucket_cyl_barrel_e3 - d329*bucket_cyl_barrel_e0, d328*bucket_cyl_barrel_e0 + d329*bucket_cyl_barrel_e3, d328*bucket_cyl_barrel_e1 + d329*bucket_cyl_barrel_e2 + d330*bucket_cyl_barrel_e3, d331*bucket_cyl_barrel_e0 + d333*bucket_cyl_rod_a11 - d332*bucket_cyl_rod_a21, d331*bucket_cyl_barrel_e1 + d332*bucket_cyl_rod_a11 + d333*bucket_cyl_rod_a21, -d334*bucket_cyl_rod_a21 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a11, d334*bucket_cyl_rod_a11 + d335*bucket_cyl_rod_a21, -d337 + d338*bucket_cyl_rod_e0 + d339*bucket_cyl_rod_e1, d340 + d339*bucket_cyl_rod_e0, d341 + d338*bucket_cyl_rod_e2 + d339*bucket_cyl_rod_e3, -d342 + 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_e2, d343*bucket_cyl_barrel_e0 + d333*bucket_cyl_rod_a12 - d332*bucket_cyl_rod_a22, d332*bucket_cyl_rod_a12 + d343*bucket_cyl_barrel_e1 + d333*bucket_cyl_rod_a22, -d334*bucket_cyl_rod_a22 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_rod_a12, d334*bucket_cyl_rod_a12 + d335*bucket_cyl_rod_a22, d340 + d345*bucket_cyl_rod_e0 - d344*bucket_cyl_rod_e1, d337 - d344*bucket_cyl_rod_e0, d342 + d344*bucket_cyl_rod_e3, d341 + d344*bucket_cyl_rod_e2 + d345*bucket_cyl_rod_e3, -bucket_cyl_barrel_a01, -bucket_cyl_barrel_a11, -bucket_cyl_barrel_a21, d350 + d347*bucket_cyl_barrel_e0 + d348*d335, d351 + d348*d334, d352 + d347*bucket_cyl_barrel_e2 + d348*d333, -d353 + 2.0*d348*bucket_cyl_barrel_e2, bucket_cyl_barrel_a01, bucket_cyl_barrel_a11, bucket_cyl_barrel_a21, -bucket_cyl_barrel_a02, -bucket_cyl_barrel_a12, -bucket_cyl_barrel_a22, d351 + d354*bucket_cyl_barrel_e0 - d346*d335, -d350 - d346*d334, d353 + d346*d333, d352 + d332*d346 + d354*bucket_cyl_barrel_e3, bucket_cyl_barrel_a02, bucket_cyl_barrel_a12, bucket_cyl_barrel_a22, d355*bucket_cyl_barrel_e0 + d356*bucket_cyl_barrel_e1 - d357*bucket_cyl_barrel_e3, d356*bucket_cyl_barrel_e0 + d357*bucket_cyl_barrel_e2, d355*bucket_cyl_barrel_e2 + d356*bucket_cyl_barrel_e3 + d357*bucket_cyl_barrel_e1, -d357*bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_barrel_e2*bucket_cyl_rod_a22, d358*bucket_cyl_rod_e2 + d360*bucket_cyl_rod_e0 - d359*bucket_cyl_rod_e1, d358*bucket_cyl_rod_e3 - d359*bucket_cyl_rod_e0, d358*bucket_cyl_rod_e0 + d359*bucket_cyl_rod_e3, d358*bucket_cyl_rod_e1 + d359*bucket_cyl_rod_e2 + d360*bucket_cyl_rod_e3, 1.0, -1.0, d363 + d361*side_link_e0, d364 + d361*side_link_e1, -d365, -d366, 1.0, -1.0, d366 + d368, d365 + d369, d364 + d370, d371 + d363, 1.0, -1.0, -d369 - d372*side_link_e0, d368, -d371, d370 - d372*side_link_e3, 2.0*upper_e0, 2.0*upper_e1, 2.0*upper_e2, 2.0*upper_e3, 2.0*boom_e0, 2.0*boom_e1, 2.0*boom_e2, 2.0*boom_e3, 2.0*boom_cyl_l_barrel_e0, 2.0*boom_cyl_l_barrel_e1, 2.0*boom_cyl_l_barrel_e2, 2.0*boom_cyl_l_barrel_e3, 2.0*boom_cyl_l_rod_e0, 2.0*boom_cyl_l_rod_e1, 2.0*boom_cyl_l_rod_e2, 2.0*boom_cyl_l_rod_e3, 2.0*boom_cyl_r_barrel_e0, 2.0*boom_cyl_r_barrel_e1, 2.0*boom_cyl_r_barrel_e2, 2.0*boom_cyl_r_barrel_e3, 2.0*boom_cyl_r_rod_e0, 2.0*boom_cyl_r_rod_e1, 2.0*boom_cyl_r_rod_e2, 2.0*boom_cyl_r_rod_e3, 2.0*arm_e0, 2.0*arm_e1, 2.0*arm_e2, 2.0*arm_e3, 2.0*arm_cyl_barrel_e0, 2.0*arm_cyl_barrel_e1, 2.0*arm_cyl_barrel_e2, 2.0*arm_cyl_barrel_e3, 2.0*arm_cyl_rod_e0, 2.0*arm_cyl_rod_e1, 2.0*arm_cyl_rod_e2, 2.0*arm_cyl_rod_e3, 2.0*bucket_cyl_barrel_e0, 2.0*bucket_cyl_barrel_e1, 2.0*bucket_cyl_barrel_e2, 2.0*bucket_cyl_barrel_e3, 2.0*bucket_cyl_rod_e0, 2.0*bucket_cyl_rod_e1, 2.0*bucket_cyl_rod_e2, 2.0*bucket_cyl_rod_e3, 2.0*side_link_e0, 2.0*side_link_e1, 2.0*side_link_e2, 2.0*side_link_e3, 2.0*bucket_link_e0, 2.0*bucket_link_e1, 2.0*bucket_link_e2, 2.0*bucket_link_e3, 2.0*bucket_e0, 2.0*bucket_e1, 2.0*bucket_e2, 2.0*bucket_e3]
 
 
-def _joints_gamma_s(q, v):
+def _joints_gamma_s(q, v, p):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, upper_e0, upper_e1, upper_e2, upper_e3, _, _, _, boom_e0, boom_e1, boom_e2, boom_e3, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_e0, boom_cyl_l_rod_e1, boom_cyl_l_rod_e2, boom_cyl_l_rod_e3, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_e0, boom_cyl_r_barrel_e1, boom_cyl_r_barrel_e2, boom_cyl_r_barrel_e3, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_e0, boom_cyl_r_rod_e1, boom_cyl_r_rod_e2, boom_cyl_r_rod_e3, _, _, _, arm_e0, arm_e1, arm_e2, arm_e3, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_e0, arm_cyl_rod_e1, arm_cyl_rod_e2, arm_cyl_rod_e3, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_e0, bucket_cyl_rod_e1, bucket_cyl_rod_e2, bucket_cyl_rod_e3, _, _, _, side_link_e0, side_link_e1, side_link_e2, side_link_e3, _, _, _, bucket_link_e0, bucket_link_e1, bucket_link_e2, bucket_link_e3, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, v_upper_e1, v_upper_e2, v_upper_e3, _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_e0, v_boom_cyl_l_rod_e1, v_boom_cyl_l_rod_e2, v_boom_cyl_l_rod_e3, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_e0, v_boom_cyl_r_barrel_e1, v_boom_cyl_r_barrel_e2, v_boom_cyl_r_barrel_e3, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_e0, v_boom_cyl_r_rod_e1, v_boom_cyl_r_rod_e2, v_boom_cyl_r_rod_e3, _, _, _, v_arm_e0, v_arm_e1, v_arm_e2, v_arm_e3, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_e0, v_arm_cyl_rod_e1, v_arm_cyl_rod_e2, v_arm_cyl_rod_e3, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_e0, v_bucket_cyl_rod_e1, v_bucket_cyl_rod_e2, v_bucket_cyl_rod_e3, _, _, _, v_side_link_e0, v_side_link_e1, v_side_link_e2, v_side_link_e3, _, _, _, v_bucket_link_e0, v_bucket_link_e1, v_bucket_link_e2, v_bucket_link_e3, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a01 = -2.0*upper_e0*upper_e3 + 2.0*upper_e1*upper_e2
     upper_a11 = -1.0 + 2.0*(upper_e0*upper_e0) + 2.0*(upper_e2*upper_e2)
     upper_a21 = 2.0*upper_e0*upper_e1 + 2.0*upper_e2*upper_e3
@@ -2822,441 +2934,465 @@ def _joints_gamma_s(q, v):
     c121 = (2.0)*v_boom_cyl_l_rod_e0
     c122 = (2.0)*boom_cyl_l_barrel_e0
     c123 = (2.0)*v_boom_cyl_l_barrel_e0
-    c124 = (4.003844)*v_boom_e0
-    c125 = (16/25)*v_boom_e1
-    c126 = (16/25)*v_boom_e0
-    c127 = -4.003844*v_boom_e1
-    c128 = (4.003844)*v_boom_e2
+    c124 = (16/25)*v_boom_e1
+    c125 = 2.0*p_C_z
+    c126 = c125*v_boom_e0
+    c127 = (16/25)*v_boom_e0
+    c128 = c125*v_boom_e1
     c129 = -16/25*v_boom_e3
-    c130 = (16/25)*v_boom_e2
-    c131 = (4.003844)*v_boom_e3
-    c132 = -139283/50000*v_boom_e2
-    c133 = (139283/50000)*v_boom_e0
-    c134 = (139283/50000)*v_boom_e3
-    c135 = (139283/50000)*v_boom_e1
-    c136 = (67739/25000)*v_upper_e0
-    c137 = (16/25)*v_upper_e1
-    c138 = (16/25)*v_upper_e0
-    c139 = (67739/25000)*v_upper_e1
-    c140 = (67739/25000)*v_upper_e2
-    c141 = (16/25)*v_upper_e3
-    c142 = -16/25*v_upper_e2
-    c143 = (67739/25000)*v_upper_e3
-    c144 = (4307/3125)*v_upper_e2
-    c145 = (4307/3125)*v_upper_e0
-    c146 = -4307/3125*v_upper_e3
-    c147 = (4307/3125)*v_upper_e1
-    c148 = 2.0*boom_cyl_r_barrel_a02
-    c149 = 2.0*boom_cyl_r_barrel_a22
-    c150 = 2.0*upper_a01
-    c151 = 2.0*upper_a11
-    c152 = 4.0*boom_cyl_r_barrel_a12
-    c153 = 4.0*upper_a21
-    c154 = 2.0*boom_cyl_r_barrel_e0
-    c155 = 2.0*boom_cyl_r_barrel_e1
-    c156 = 2.0*upper_e0
-    c157 = 2.0*v_upper_e0
-    c158 = 2.0*v_boom_cyl_r_barrel_e1
-    c159 = 2.0*v_boom_cyl_r_barrel_e0
-    c160 = 2.0*boom_cyl_r_barrel_a00
-    c161 = c160*v_boom_cyl_r_rod_e2
-    c162 = 2.0*boom_cyl_r_barrel_a20
-    c163 = c160*v_boom_cyl_r_rod_e0
-    c164 = 4.0*boom_cyl_r_rod_a01
-    c165 = 2.0*v_boom_cyl_r_barrel_e3
-    c166 = 2.0*v_boom_cyl_r_barrel_e2
-    c167 = c160*v_boom_cyl_r_rod_e3
-    c168 = 4.0*boom_cyl_r_barrel_a10
-    c169 = c160*v_boom_cyl_r_rod_e1
-    c170 = 2.0*boom_cyl_r_rod_e0
-    c171 = 2.0*v_boom_cyl_r_rod_e0
-    c172 = 4.0*v_boom_cyl_r_barrel_e0
-    c173 = c172*boom_cyl_r_barrel_e0
-    c174 = 4.0*v_boom_cyl_r_barrel_e1
-    c175 = 2.0*c173 + 2.0*c174*boom_cyl_r_barrel_e1
-    c176 = 4.0*v_boom_cyl_r_rod_e0
-    c177 = c176*boom_cyl_r_rod_e0
-    c178 = c166*boom_cyl_r_barrel_e1
-    c179 = c158*boom_cyl_r_barrel_e2
-    c180 = c159*boom_cyl_r_barrel_e3 + c165*boom_cyl_r_barrel_e0
-    c181 = 2.0*c178 + 2.0*c179 + 2.0*c180
-    c182 = 2.0*v_boom_cyl_r_rod_e2
-    c183 = c170*v_boom_cyl_r_rod_e1 + c171*boom_cyl_r_rod_e1
-    c184 = c165*boom_cyl_r_barrel_e1
-    c185 = c158*boom_cyl_r_barrel_e3
-    c186 = c159*boom_cyl_r_barrel_e2 + c166*boom_cyl_r_barrel_e0
-    c187 = -2.0*c186 + 2.0*c184 + 2.0*c185
-    c188 = 2.0*boom_cyl_r_barrel_a10
-    c189 = 4.0*v_boom_cyl_r_rod_e3
-    c190 = boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e3
-    c191 = boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e1
-    c192 = 2.0*c190 + 2.0*c191 + c170*v_boom_cyl_r_rod_e2 + c171*boom_cyl_r_rod_e2
-    c193 = c177 + c189*boom_cyl_r_rod_e3
-    c194 = -c183 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2
-    c195 = 4.0*v_boom_cyl_r_barrel_e2
-    c196 = c173 + c195*boom_cyl_r_barrel_e2
-    c197 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y
-    c198 = c166*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2
-    c199 = c159*boom_cyl_r_barrel_x - c159*boom_cyl_r_rod_x
-    c200 = c180 - c178 - c179
-    c201 = c165*boom_cyl_r_barrel_e2
-    c202 = c166*boom_cyl_r_barrel_e3
-    c203 = c158*boom_cyl_r_barrel_e0 + c159*boom_cyl_r_barrel_e1
-    c204 = c201 + c202 + c203
-    c205 = -c200
-    c206 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x
-    c207 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z
-    c208 = c165*boom_cyl_r_barrel_x - c165*boom_cyl_r_rod_x
-    c209 = c158*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1
-    c210 = 4.0*v_boom_cyl_r_barrel_e3
-    c211 = c173 + c210*boom_cyl_r_barrel_e3
-    c212 = c184 + c185 + c186
-    c213 = c203 - c201 - c202
-    c214 = -c213
-    c215 = (2.0)*boom_cyl_r_rod_a02
-    c216 = (2.0)*boom_cyl_r_rod_a22
-    c217 = (2.0)*boom_cyl_r_barrel_a01
-    c218 = (2.0)*boom_cyl_r_barrel_a11
-    c219 = (4.0)*boom_cyl_r_rod_a12
-    c220 = (4.0)*boom_cyl_r_barrel_a21
-    c221 = (2.0)*boom_cyl_r_rod_e0
-    c222 = (2.0)*v_boom_cyl_r_rod_e0
-    c223 = (2.0)*boom_cyl_r_barrel_e0
-    c224 = (2.0)*v_boom_cyl_r_barrel_e0
-    c225 = (4.003844)*v_boom_e0
-    c226 = (16/25)*v_boom_e0
-    c227 = (4.003844)*v_boom_e1
-    c228 = (4.003844)*v_boom_e2
-    c229 = (16/25)*v_boom_e3
-    c230 = -16/25*v_boom_e2
-    c231 = (4.003844)*v_boom_e3
-    c232 = (139283/50000)*v_boom_e2
-    c233 = (139283/50000)*v_boom_e0
-    c234 = -139283/50000*v_boom_e3
-    c235 = (139283/50000)*v_boom_e1
-    c236 = (29959/5000)*v_boom_e2
-    c237 = (29959/5000)*v_boom_e3
-    c238 = -23939/2500*v_boom_e2
-    c239 = (23939/2500)*v_boom_e1
-    c240 = 2.0*arm_a02
-    c241 = 2.0*arm_a22
-    c242 = 2.0*boom_a01
-    c243 = 2.0*boom_a11
-    c244 = c243*v_arm_e0
-    c245 = c243*v_arm_e3
-    c246 = 4.0*arm_a12
-    c247 = c243*v_arm_e1
-    c248 = 4.0*boom_a21
-    c249 = c243*v_arm_e2
-    c250 = 2.0*arm_e0
-    c251 = 2.0*arm_e1
-    c252 = 4.0*v_boom_e0
-    c253 = 4.0*v_boom_e2
-    c254 = 2.0*c252*boom_e0 + 2.0*c253*boom_e2
-    c255 = 4.0*v_arm_e0
-    c256 = c255*arm_e0
-    c257 = 2.0*boom_e0
-    c258 = 2.0*v_boom_e0
-    c259 = 2.0*v_boom_e2
-    c260 = 2.0*c257*v_boom_e1 + 2.0*c258*boom_e1 + 2.0*c259*boom_e3 + 4.0*boom_e2*v_boom_e3
-    c261 = 2.0*arm_e3
-    c262 = 2.0*arm_e2
-    c263 = c250*v_arm_e2 + c262*v_arm_e0
-    c264 = -2.0*c257*v_boom_e3 - 2.0*c258*boom_e3 + 4.0*boom_e1*v_boom_e2 + 4.0*boom_e2*v_boom_e1
-    c265 = 2.0*boom_a21
-    c266 = 2.0*arm_a00
-    c267 = 2.0*arm_a20
-    c268 = 4.0*v_arm_e1
-    c269 = (557/100)*v_boom_e2
-    c270 = (557/100)*v_boom_e3
-    c271 = -183/40*v_boom_e2
-    c272 = (183/40)*v_boom_e1
-    c273 = 2.0*arm_cyl_barrel_a02
-    c274 = 2.0*arm_cyl_barrel_a22
-    c275 = 2.0*boom_a01
-    c276 = 2.0*boom_a11
-    c277 = 4.0*arm_cyl_barrel_a12
-    c278 = 4.0*boom_a21
-    c279 = 2.0*arm_cyl_barrel_e0
-    c280 = 2.0*arm_cyl_barrel_e1
-    c281 = 2.0*boom_e0
-    c282 = 2.0*v_boom_e0
-    c283 = 2.0*v_arm_cyl_barrel_e1
-    c284 = 2.0*v_arm_cyl_barrel_e0
-    c285 = 2.0*arm_cyl_barrel_a00
-    c286 = c285*v_arm_cyl_rod_e2
-    c287 = 2.0*arm_cyl_barrel_a20
-    c288 = c285*v_arm_cyl_rod_e0
-    c289 = 4.0*arm_cyl_rod_a01
-    c290 = 2.0*v_arm_cyl_barrel_e3
-    c291 = 2.0*v_arm_cyl_barrel_e2
-    c292 = c285*v_arm_cyl_rod_e3
-    c293 = 4.0*arm_cyl_barrel_a10
-    c294 = c285*v_arm_cyl_rod_e1
-    c295 = 2.0*arm_cyl_rod_e0
-    c296 = 2.0*v_arm_cyl_rod_e0
-    c297 = 4.0*v_arm_cyl_barrel_e0
-    c298 = c297*arm_cyl_barrel_e0
-    c299 = 4.0*v_arm_cyl_barrel_e1
-    c300 = 2.0*c298 + 2.0*c299*arm_cyl_barrel_e1
-    c301 = 4.0*v_arm_cyl_rod_e0
-    c302 = c301*arm_cyl_rod_e0
-    c303 = c291*arm_cyl_barrel_e1
-    c304 = c283*arm_cyl_barrel_e2
-    c305 = c284*arm_cyl_barrel_e3 + c290*arm_cyl_barrel_e0
-    c306 = 2.0*c303 + 2.0*c304 + 2.0*c305
-    c307 = 2.0*v_arm_cyl_rod_e2
-    c308 = c295*v_arm_cyl_rod_e1 + c296*arm_cyl_rod_e1
-    c309 = c290*arm_cyl_barrel_e1
-    c310 = c283*arm_cyl_barrel_e3
-    c311 = c284*arm_cyl_barrel_e2 + c291*arm_cyl_barrel_e0
-    c312 = -2.0*c311 + 2.0*c309 + 2.0*c310
-    c313 = 2.0*arm_cyl_barrel_a10
-    c314 = 4.0*v_arm_cyl_rod_e3
-    c315 = arm_cyl_rod_e1*v_arm_cyl_rod_e3
-    c316 = arm_cyl_rod_e3*v_arm_cyl_rod_e1
-    c317 = 2.0*c315 + 2.0*c316 + c295*v_arm_cyl_rod_e2 + c296*arm_cyl_rod_e2
-    c318 = c302 + c314*arm_cyl_rod_e3
-    c319 = -c308 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e3*v_arm_cyl_rod_e2
-    c320 = 4.0*v_arm_cyl_barrel_e2
-    c321 = c298 + c320*arm_cyl_barrel_e2
-    c322 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y
-    c323 = c291*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e2
-    c324 = c284*arm_cyl_barrel_x - c284*arm_cyl_rod_x
-    c325 = c305 - c303 - c304
-    c326 = c290*arm_cyl_barrel_e2
-    c327 = c291*arm_cyl_barrel_e3
-    c328 = c283*arm_cyl_barrel_e0 + c284*arm_cyl_barrel_e1
-    c329 = c326 + c327 + c328
-    c330 = -c325
-    c331 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x
-    c332 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z
-    c333 = c290*arm_cyl_barrel_x - c290*arm_cyl_rod_x
-    c334 = c283*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1
-    c335 = 4.0*v_arm_cyl_barrel_e3
-    c336 = c298 + c335*arm_cyl_barrel_e3
-    c337 = c309 + c310 + c311
-    c338 = c328 - c326 - c327
-    c339 = -c338
-    c340 = (2.0)*arm_cyl_rod_a02
-    c341 = (2.0)*arm_cyl_rod_a22
-    c342 = (2.0)*arm_cyl_barrel_a01
-    c343 = (2.0)*arm_cyl_barrel_a11
-    c344 = (4.0)*arm_cyl_rod_a12
-    c345 = (4.0)*arm_cyl_barrel_a21
-    c346 = (2.0)*arm_cyl_rod_e0
-    c347 = (2.0)*v_arm_cyl_rod_e0
-    c348 = (2.0)*arm_cyl_barrel_e0
-    c349 = (2.0)*v_arm_cyl_barrel_e0
-    c350 = (369691/500000)*v_arm_e2
-    c351 = (369691/500000)*v_arm_e3
-    c352 = -393281/250000*v_arm_e2
-    c353 = (393281/250000)*v_arm_e1
-    c354 = (21809/5000)*v_arm_e2
-    c355 = (21809/5000)*v_arm_e3
-    c356 = -9477/2500*v_arm_e2
-    c357 = (9477/2500)*v_arm_e1
-    c358 = 2.0*bucket_a02
-    c359 = 2.0*bucket_a22
-    c360 = 2.0*arm_a01
-    c361 = 2.0*arm_a11
-    c362 = c361*v_bucket_e0
-    c363 = c361*v_bucket_e3
-    c364 = 4.0*bucket_a12
-    c365 = c361*v_bucket_e1
-    c366 = 4.0*arm_a21
-    c367 = c361*v_bucket_e2
-    c368 = 2.0*bucket_e0
-    c369 = 2.0*bucket_e1
-    c370 = 4.0*v_arm_e0
-    c371 = 4.0*v_arm_e2
-    c372 = 2.0*c370*arm_e0 + 2.0*c371*arm_e2
-    c373 = 4.0*v_bucket_e0
-    c374 = c373*bucket_e0
-    c375 = 2.0*arm_e0
-    c376 = 2.0*v_arm_e0
-    c377 = 2.0*v_arm_e2
-    c378 = 2.0*c375*v_arm_e1 + 2.0*c376*arm_e1 + 2.0*c377*arm_e3 + 4.0*arm_e2*v_arm_e3
-    c379 = 2.0*bucket_e3
-    c380 = 2.0*bucket_e2
-    c381 = c368*v_bucket_e2 + c380*v_bucket_e0
-    c382 = -2.0*c375*v_arm_e3 - 2.0*c376*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1
-    c383 = 2.0*arm_a21
-    c384 = 2.0*bucket_a00
-    c385 = 2.0*bucket_a20
-    c386 = 4.0*v_bucket_e1
-    c387 = (18799/5000)*v_arm_e2
-    c388 = (18799/5000)*v_arm_e3
-    c389 = -7877/2500*v_arm_e2
-    c390 = (7877/2500)*v_arm_e1
-    c391 = 2.0*side_link_a02
-    c392 = 2.0*side_link_a22
-    c393 = 2.0*arm_a01
-    c394 = 2.0*arm_a11
-    c395 = c394*v_side_link_e0
-    c396 = c394*v_side_link_e3
-    c397 = 4.0*side_link_a12
-    c398 = c394*v_side_link_e1
-    c399 = 4.0*arm_a21
-    c400 = c394*v_side_link_e2
-    c401 = 2.0*side_link_e0
-    c402 = 2.0*side_link_e1
-    c403 = 4.0*v_arm_e0
-    c404 = 4.0*v_arm_e2
-    c405 = 2.0*c403*arm_e0 + 2.0*c404*arm_e2
-    c406 = 4.0*v_side_link_e0
-    c407 = c406*side_link_e0
-    c408 = 2.0*arm_e0
-    c409 = 2.0*v_arm_e0
-    c410 = 2.0*v_arm_e2
-    c411 = 2.0*c408*v_arm_e1 + 2.0*c409*arm_e1 + 2.0*c410*arm_e3 + 4.0*arm_e2*v_arm_e3
-    c412 = 2.0*side_link_e3
-    c413 = 2.0*side_link_e2
-    c414 = c401*v_side_link_e2 + c413*v_side_link_e0
-    c415 = -2.0*c408*v_arm_e3 - 2.0*c409*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1
-    c416 = 2.0*arm_a21
-    c417 = 2.0*side_link_a00
-    c418 = 2.0*side_link_a20
-    c419 = 4.0*v_side_link_e1
-    c420 = (450737/500000)*v_bucket_link_e2
-    c421 = (450737/500000)*v_bucket_link_e3
-    c422 = -96247/100000*v_side_link_e2
-    c423 = -96247/100000*v_side_link_e3
-    c424 = (166329/250000)*v_side_link_e2
-    c425 = (166329/250000)*v_side_link_e1
-    c426 = -85607/125000*v_bucket_link_e2
-    c427 = (85607/125000)*v_bucket_link_e1
-    c428 = (16927/25000)*v_bucket_e2
-    c429 = (16927/25000)*v_bucket_e3
-    c430 = -c428
-    c431 = -c429
-    c432 = (8101/12500)*v_bucket_e3
-    c433 = (8101/12500)*v_bucket_e2
-    c434 = (8101/12500)*v_bucket_e1
-    c435 = (1.5925492428686951)*bucket_link_a00
-    c436 = (1.5925492428686951)*bucket_link_a20
-    c437 = (1.2098706166521882)*bucket_link_a02
-    c438 = (1.2098706166521882)*bucket_link_a22
-    c439 = (1.2098706166521882)*v_bucket_link_e0
-    c440 = (1.5925492428686951)*v_bucket_link_e0
-    c441 = (1.5925492428686951)*v_bucket_link_e1
-    c442 = -1.2098706166521882*v_bucket_link_e3
-    c443 = -c441 - c442
-    c444 = (1.5925492428686951)*v_bucket_link_e3
-    c445 = -c442 - 3.1850984857373903*v_bucket_link_e1
-    c446 = (1.5925492428686951)*v_bucket_link_e2
-    c447 = -c439 - c446
-    c448 = (1.2098706166521882)*v_bucket_link_e1
-    c449 = -1.2098706166521882*v_bucket_link_e2
-    c450 = -c440 - c449
-    c451 = -c441 + (2.4197412333043764)*v_bucket_link_e3
-    c452 = (3.1850984857373903)*bucket_link_a10
-    c453 = 4.0*bucket_link_e0*v_bucket_link_e0
-    c454 = bucket_e0*v_bucket_e3
-    c455 = bucket_e3*v_bucket_e0
-    c456 = bucket_e0*v_bucket_e1
-    c457 = bucket_e1*v_bucket_e0
-    c458 = bucket_e2*v_bucket_e3
-    c459 = bucket_e3*v_bucket_e2
-    c460 = bucket_e0*v_bucket_e0
-    c461 = bucket_e2*v_bucket_e2
-    c462 = 2.0*bucket_link_e0
-    c463 = 2.0*bucket_link_e1
-    c464 = 2.0*bucket_link_e2
-    c465 = 2.0*bucket_link_e3
-    c466 = -c449 - 3.1850984857373903*v_bucket_link_e0
-    c467 = -c444 - c448
-    c468 = c446 + (2.4197412333043764)*v_bucket_link_e0
-    c469 = c462*v_bucket_link_e2 + c464*v_bucket_link_e0
-    c470 = -36797/25000*v_arm_e2
-    c471 = -36797/25000*v_arm_e3
-    c472 = (24687/50000)*v_arm_e2
-    c473 = (24687/50000)*v_arm_e1
-    c474 = 2.0*bucket_cyl_barrel_a02
-    c475 = 2.0*bucket_cyl_barrel_a22
-    c476 = 2.0*arm_a01
-    c477 = 2.0*arm_a11
-    c478 = 4.0*bucket_cyl_barrel_a12
-    c479 = 4.0*arm_a21
-    c480 = 2.0*bucket_cyl_barrel_e0
-    c481 = 2.0*bucket_cyl_barrel_e1
-    c482 = 2.0*arm_e0
-    c483 = 2.0*v_arm_e0
-    c484 = 2.0*v_bucket_cyl_barrel_e1
-    c485 = 2.0*v_bucket_cyl_barrel_e0
-    c486 = 2.0*bucket_cyl_barrel_a00
-    c487 = c486*v_bucket_cyl_rod_e2
-    c488 = 2.0*bucket_cyl_barrel_a20
-    c489 = c486*v_bucket_cyl_rod_e0
-    c490 = 4.0*bucket_cyl_rod_a01
-    c491 = 2.0*v_bucket_cyl_barrel_e3
-    c492 = 2.0*v_bucket_cyl_barrel_e2
-    c493 = c486*v_bucket_cyl_rod_e3
-    c494 = 4.0*bucket_cyl_barrel_a10
-    c495 = c486*v_bucket_cyl_rod_e1
-    c496 = 2.0*bucket_cyl_rod_e0
-    c497 = 2.0*v_bucket_cyl_rod_e0
-    c498 = 4.0*v_bucket_cyl_barrel_e0
-    c499 = c498*bucket_cyl_barrel_e0
-    c500 = 4.0*v_bucket_cyl_barrel_e1
-    c501 = 2.0*c499 + 2.0*c500*bucket_cyl_barrel_e1
-    c502 = 4.0*v_bucket_cyl_rod_e0
-    c503 = c502*bucket_cyl_rod_e0
-    c504 = c492*bucket_cyl_barrel_e1
-    c505 = c484*bucket_cyl_barrel_e2
-    c506 = c485*bucket_cyl_barrel_e3 + c491*bucket_cyl_barrel_e0
-    c507 = 2.0*c504 + 2.0*c505 + 2.0*c506
-    c508 = 2.0*v_bucket_cyl_rod_e2
-    c509 = c496*v_bucket_cyl_rod_e1 + c497*bucket_cyl_rod_e1
-    c510 = c491*bucket_cyl_barrel_e1
-    c511 = c484*bucket_cyl_barrel_e3
-    c512 = c485*bucket_cyl_barrel_e2 + c492*bucket_cyl_barrel_e0
-    c513 = -2.0*c512 + 2.0*c510 + 2.0*c511
-    c514 = 2.0*bucket_cyl_barrel_a10
-    c515 = 4.0*v_bucket_cyl_rod_e3
-    c516 = bucket_cyl_rod_e1*v_bucket_cyl_rod_e3
-    c517 = bucket_cyl_rod_e3*v_bucket_cyl_rod_e1
-    c518 = 2.0*c516 + 2.0*c517 + c496*v_bucket_cyl_rod_e2 + c497*bucket_cyl_rod_e2
-    c519 = c503 + c515*bucket_cyl_rod_e3
-    c520 = -c509 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2
-    c521 = 4.0*v_bucket_cyl_barrel_e2
-    c522 = c499 + c521*bucket_cyl_barrel_e2
-    c523 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y
-    c524 = c492*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2
-    c525 = c485*bucket_cyl_barrel_x - c485*bucket_cyl_rod_x
-    c526 = c506 - c504 - c505
-    c527 = c491*bucket_cyl_barrel_e2
-    c528 = c492*bucket_cyl_barrel_e3
-    c529 = c484*bucket_cyl_barrel_e0 + c485*bucket_cyl_barrel_e1
-    c530 = c527 + c528 + c529
-    c531 = -c526
-    c532 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x
-    c533 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z
-    c534 = c491*bucket_cyl_barrel_x - c491*bucket_cyl_rod_x
-    c535 = c484*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1
-    c536 = 4.0*v_bucket_cyl_barrel_e3
-    c537 = c499 + c536*bucket_cyl_barrel_e3
-    c538 = c510 + c511 + c512
-    c539 = c529 - c527 - c528
-    c540 = -c539
-    c541 = (2.0)*bucket_cyl_rod_a02
-    c542 = (2.0)*bucket_cyl_rod_a22
-    c543 = (2.0)*bucket_cyl_barrel_a01
-    c544 = (2.0)*bucket_cyl_barrel_a11
-    c545 = (4.0)*bucket_cyl_rod_a12
-    c546 = (4.0)*bucket_cyl_barrel_a21
-    c547 = (2.0)*bucket_cyl_rod_e0
-    c548 = (2.0)*v_bucket_cyl_rod_e0
-    c549 = (2.0)*bucket_cyl_barrel_e0
-    c550 = (2.0)*v_bucket_cyl_barrel_e0
-    c551 = (96247/100000)*v_side_link_e2
-    c552 = (96247/100000)*v_side_link_e3
-    c553 = -c551
-    c554 = -c552
-    c555 = (166329/250000)*v_side_link_e3
-    c556 = (166329/250000)*v_side_link_e2
-    c557 = (166329/250000)*v_side_link_e1
-    return [0.0, 0.0, 0.0, c0*v_upper_e0 - c1*v_upper_e3, -c0*v_upper_e3 - c1*v_upper_e0, -c2*v_upper_e0 - c3*v_upper_e1 - v_upper_e0*(c2 + (22767/25000)*v_upper_e0) - v_upper_e1*(c3 + (22767/25000)*v_upper_e1), -v_upper_e0*(-195729/50000*v_upper_e1 + (22767/50000)*v_upper_e3) - v_upper_e1*(-c4 - 195729/50000*v_upper_e0) - v_upper_e2*(c3 + c5) - v_upper_e3*(c2 + (22767/50000)*v_upper_e0), -v_upper_e0*(c4 + (195729/25000)*v_upper_e0) - v_upper_e3*(c5 + (195729/25000)*v_upper_e3) - 22767/50000*v_upper_e1*v_upper_e3 + (22767/50000)*v_upper_e0*v_upper_e2, -c20*(-c16*v_boom_e1 - c17*v_boom_e0 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - c26*(c22 + 4.0*boom_e3*v_boom_e3) - c30*(c29 + c17*v_boom_e3 + c27*v_boom_e1) - v_upper_e0*(c12*v_upper_e0 + c7*v_upper_e1 - c6*v_upper_e3) - v_upper_e1*(c6*v_upper_e2 + c7*v_upper_e0) - v_upper_e2*(c12*v_upper_e2 + c6*v_upper_e1 + c7*v_upper_e3) - v_upper_e3*(-c6*v_upper_e0 + 2.0*boom_a22*v_upper_e2) - v_boom_e0*(-c13 + c14*v_boom_e0 + c8*v_boom_e2) - v_boom_e1*(-c10 + c8*v_boom_e3) - v_boom_e2*(c11 + c8*v_boom_e0) - v_boom_e3*(c15 + c14*v_boom_e3 + c8*v_boom_e1), -c20*(c16*v_boom_e3 + c17*v_boom_e2 + c27*v_boom_e0 + c28*v_boom_e1) - c26*(-c29 + 2.0*boom_e1*v_boom_e3 + 2.0*boom_e3*v_boom_e1) - c30*(c22 + c34*boom_e1) - v_upper_e0*(c18*boom_a10 + c33*v_upper_e1 - c32*v_upper_e3) - v_upper_e1*(c24*boom_a20 + c25*boom_a00) - v_upper_e2*(c19*boom_a10 + c32*v_upper_e1 + c33*v_upper_e3) - v_upper_e3*(-c24*boom_a00 + 2.0*boom_a20*v_upper_e2) - v_boom_e0*(c11 + c21*upper_a01 - c31*v_boom_e2) - v_boom_e1*(c15 + c31*v_boom_e3 + c34*upper_a01) - v_boom_e2*(c13 - c31*v_boom_e0) - v_boom_e3*(c10 + c31*v_boom_e1), -v_upper_e0*(c39 + c40 + (8614/3125)*v_upper_e0) - v_upper_e1*(c41 + c42 + (8614/3125)*v_upper_e1) - v_upper_e2*(c35 + c36) - v_upper_e3*(-c37 - c38), -v_upper_e0*(c45 + c38 + (32/25)*v_upper_e0) - v_upper_e1*(-c35 - c43) - v_upper_e2*(c46 + c42 + (32/25)*v_upper_e2) - v_upper_e3*(c39 + c44), -v_upper_e0*(c36 + c43 + (67739/12500)*v_upper_e0) - v_upper_e1*(c45 + c37) - v_upper_e2*(-c40 - c44) - v_upper_e3*(c46 + c41 + (67739/12500)*v_upper_e3), -v_upper_e0*(c48*v_upper_e1 + c51*v_upper_e0 - c47*v_upper_e3) - v_upper_e1*(c47*v_upper_e2 + c48*v_upper_e0) - v_upper_e2*(c47*v_upper_e1 + c48*v_upper_e3 + c51*v_upper_e2) - v_upper_e3*(-c47*v_upper_e0 + 2.0*boom_cyl_l_barrel_a22*v_upper_e2) - v_boom_cyl_l_barrel_e0*(c49*v_boom_cyl_l_barrel_e2 + c52*v_boom_cyl_l_barrel_e0 - c50*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e1*(c49*v_boom_cyl_l_barrel_e3 - c50*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c49*v_boom_cyl_l_barrel_e0 + c50*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(c49*v_boom_cyl_l_barrel_e1 + c50*v_boom_cyl_l_barrel_e2 + c52*v_boom_cyl_l_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c53*v_boom_cyl_l_barrel_e1 - c54*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - 2.0*(4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + 4.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3)*(c55*v_upper_e1 + c56*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c53*v_boom_cyl_l_barrel_e2 + c54*v_boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e1)*(-c55*v_upper_e3 - c56*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1), -c74*(-c69*v_boom_cyl_l_rod_e3 - c70*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e1) - c80*(c76 + 4.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e2) - c86*(c82 + c81*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_barrel_e0*(c63*v_boom_cyl_l_barrel_e0 + c64*boom_cyl_l_rod_a11 - c65*boom_cyl_l_rod_a21) - v_boom_cyl_l_barrel_e1*(c63*v_boom_cyl_l_barrel_e1 + c64*boom_cyl_l_rod_a21 + c65*boom_cyl_l_rod_a11) - v_boom_cyl_l_barrel_e2*(c57*boom_cyl_l_rod_a11 - c58*boom_cyl_l_rod_a21) - v_boom_cyl_l_barrel_e3*(c57*boom_cyl_l_rod_a21 + c58*boom_cyl_l_rod_a11) - v_boom_cyl_l_rod_e0*(-c66 + c67*v_boom_cyl_l_rod_e0 + c61*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c60 + c61*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c68 + c67*v_boom_cyl_l_rod_e2 + c61*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(-c62 + 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_e2), -c74*c91 - c80*c93 - c86*c92 - v_boom_cyl_l_barrel_e0*(c71*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a12 - c65*boom_cyl_l_rod_a22) - v_boom_cyl_l_barrel_e1*(c73*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a22 + c65*boom_cyl_l_rod_a12) - v_boom_cyl_l_barrel_e2*(c57*boom_cyl_l_rod_a12 - c58*boom_cyl_l_rod_a22) - v_boom_cyl_l_barrel_e3*(c57*boom_cyl_l_rod_a22 + c58*boom_cyl_l_rod_a12) - v_boom_cyl_l_rod_e0*(c60 + c75*boom_cyl_l_barrel_a20 - c87*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c66 - c70*boom_cyl_l_barrel_a10) - v_boom_cyl_l_rod_e2*(c62 + c87*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c68 + c81*boom_cyl_l_barrel_a10 + c88*boom_cyl_l_barrel_a20), c95*v_boom_cyl_l_barrel_y + c103*v_boom_cyl_l_barrel_z - c95*c96 - c95*v_boom_cyl_l_rod_y - c99*v_boom_cyl_l_barrel_x - c103*c106 - c103*v_boom_cyl_l_rod_z - c104*c105 - c104*v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_e0*(c107 + c57*boom_cyl_l_rod_z + c71*boom_cyl_l_rod_y - c57*boom_cyl_l_barrel_z - c71*boom_cyl_l_barrel_y) - v_boom_cyl_l_barrel_e1*(-c97 - c58*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c108 - c94*boom_cyl_l_barrel_y - c64*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(c98 + c65*boom_cyl_l_rod_z - c65*boom_cyl_l_barrel_z), c110*v_boom_cyl_l_barrel_z + c111*v_boom_cyl_l_barrel_x - c96*c113 - c105*c111 - c106*c110 - c110*v_boom_cyl_l_rod_z - c111*v_boom_cyl_l_rod_x - c112*v_boom_cyl_l_barrel_y - c113*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_e0*(-c97 - c57*boom_cyl_l_rod_y - c71*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e1 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c107 - c58*boom_cyl_l_rod_y + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c98 - c64*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(-c108 - c109*boom_cyl_l_barrel_z - c65*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3), -c91*(-c122*v_boom_cyl_l_barrel_e3 - c123*boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e2 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e1) - c92*(c122*v_boom_cyl_l_barrel_e1 + c123*boom_cyl_l_barrel_e1 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - c93*((4.0)*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + (4.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - c95*(-c120*v_boom_cyl_l_rod_e1 - c121*boom_cyl_l_rod_e1 + (2.0)*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + (2.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2) - c103*((4.0)*boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0 + (4.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3) - c104*((2.0)*c89 + (2.0)*c90 + c120*v_boom_cyl_l_rod_e2 + c121*boom_cyl_l_rod_e2) - v_boom_cyl_l_barrel_e0*(c115*v_boom_cyl_l_barrel_e1 + c118*v_boom_cyl_l_barrel_e0 - c114*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e1*(c114*v_boom_cyl_l_barrel_e2 + c115*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c114*v_boom_cyl_l_barrel_e1 + c115*v_boom_cyl_l_barrel_e3 + c118*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(-c114*v_boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_rod_a22*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_rod_e0*(c116*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e0 - c117*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c116*v_boom_cyl_l_rod_e3 - c117*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c116*v_boom_cyl_l_rod_e0 + c117*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c116*v_boom_cyl_l_rod_e1 + c117*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e3), -v_boom_e0*(-c128 - c129 - 139283/25000*v_boom_e0) - v_boom_e1*(-c130 - c131 - 139283/25000*v_boom_e1) - v_boom_e2*(-c124 - c125) - v_boom_e3*(c126 + c127), -v_boom_e0*(-c134 - c127 - 32/25*v_boom_e0) - v_boom_e1*(c124 + c132) - v_boom_e2*(-c135 - c131 - 32/25*v_boom_e2) - v_boom_e3*(-c128 - c133), -v_boom_e0*(-c125 - c132 - 8.007688*v_boom_e0) - v_boom_e1*(-c134 - c126) - v_boom_e2*(c129 + c133) - v_boom_e3*(-c135 - c130 - 8.007688*v_boom_e3), -v_upper_e0*(c140 + c141 + (8614/3125)*v_upper_e0) - v_upper_e1*(c142 + c143 + (8614/3125)*v_upper_e1) - v_upper_e2*(c136 - c137) - v_upper_e3*(c138 + c139), -v_upper_e0*(-c146 - c139 - 32/25*v_upper_e0) - v_upper_e1*(c144 - c136) - v_upper_e2*(c147 + c143 - 32/25*v_upper_e2) - v_upper_e3*(c140 + c145), -v_upper_e0*(-c137 - c144 + (67739/12500)*v_upper_e0) - v_upper_e1*(-c146 - c138) - v_upper_e2*(-c141 - c145) - v_upper_e3*(c147 + c142 + (67739/12500)*v_upper_e3), -v_upper_e0*(c149*v_upper_e1 + c152*v_upper_e0 - c148*v_upper_e3) - v_upper_e1*(c148*v_upper_e2 + c149*v_upper_e0) - v_upper_e2*(c148*v_upper_e1 + c149*v_upper_e3 + c152*v_upper_e2) - v_upper_e3*(-c148*v_upper_e0 + 2.0*boom_cyl_r_barrel_a22*v_upper_e2) - v_boom_cyl_r_barrel_e0*(c150*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e0 - c151*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e1*(c150*v_boom_cyl_r_barrel_e3 - c151*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c150*v_boom_cyl_r_barrel_e0 + c151*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c150*v_boom_cyl_r_barrel_e1 + c151*v_boom_cyl_r_barrel_e2 + c153*v_boom_cyl_r_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c154*v_boom_cyl_r_barrel_e1 - c155*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - 2.0*(4.0*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(c156*v_upper_e1 + c157*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c154*v_boom_cyl_r_barrel_e2 + c155*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1)*(-c156*v_upper_e3 - c157*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1), -c175*(-c170*v_boom_cyl_r_rod_e3 - c171*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1) - c181*(c177 + 4.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - c187*(c183 + c182*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_barrel_e0*(c164*v_boom_cyl_r_barrel_e0 + c165*boom_cyl_r_rod_a11 - c166*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e1*(c164*v_boom_cyl_r_barrel_e1 + c165*boom_cyl_r_rod_a21 + c166*boom_cyl_r_rod_a11) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a11 - c159*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a21 + c159*boom_cyl_r_rod_a11) - v_boom_cyl_r_rod_e0*(-c167 + c168*v_boom_cyl_r_rod_e0 + c162*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c161 + c162*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c169 + c168*v_boom_cyl_r_rod_e2 + c162*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(-c163 + 2.0*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2), -c175*c192 - c181*c194 - c187*c193 - v_boom_cyl_r_barrel_e0*(c172*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a12 - c166*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e1*(c174*boom_cyl_r_rod_a02 + c165*boom_cyl_r_rod_a22 + c166*boom_cyl_r_rod_a12) - v_boom_cyl_r_barrel_e2*(c158*boom_cyl_r_rod_a12 - c159*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e3*(c158*boom_cyl_r_rod_a22 + c159*boom_cyl_r_rod_a12) - v_boom_cyl_r_rod_e0*(c161 + c176*boom_cyl_r_barrel_a20 - c188*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c167 - c171*boom_cyl_r_barrel_a10) - v_boom_cyl_r_rod_e2*(c163 + c188*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c169 + c182*boom_cyl_r_barrel_a10 + c189*boom_cyl_r_barrel_a20), c196*v_boom_cyl_r_barrel_y + c204*v_boom_cyl_r_barrel_z - c196*c197 - c196*v_boom_cyl_r_rod_y - c200*v_boom_cyl_r_barrel_x - c204*c207 - c204*v_boom_cyl_r_rod_z - c205*c206 - c205*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(c208 + c158*boom_cyl_r_rod_z + c172*boom_cyl_r_rod_y - c158*boom_cyl_r_barrel_z - c172*boom_cyl_r_barrel_y) - v_boom_cyl_r_barrel_e1*(-c198 - c159*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c209 - c195*boom_cyl_r_barrel_y - c165*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 + 4.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(c199 + c166*boom_cyl_r_rod_z - c166*boom_cyl_r_barrel_z), c211*v_boom_cyl_r_barrel_z + c212*v_boom_cyl_r_barrel_x - c197*c214 - c206*c212 - c207*c211 - c211*v_boom_cyl_r_rod_z - c212*v_boom_cyl_r_rod_x - c213*v_boom_cyl_r_barrel_y - c214*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(-c198 - c158*boom_cyl_r_rod_y - c172*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(-c208 - c159*boom_cyl_r_rod_y + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c199 - c165*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(-c209 - c210*boom_cyl_r_barrel_z - c166*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3), -c192*(-c223*v_boom_cyl_r_barrel_e3 - c224*boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1) - c193*(c223*v_boom_cyl_r_barrel_e1 + c224*boom_cyl_r_barrel_e1 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - c194*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c196*(-c221*v_boom_cyl_r_rod_e1 - c222*boom_cyl_r_rod_e1 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2) - c204*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c205*((2.0)*c190 + (2.0)*c191 + c221*v_boom_cyl_r_rod_e2 + c222*boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(c216*v_boom_cyl_r_barrel_e1 + c219*v_boom_cyl_r_barrel_e0 - c215*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e1*(c215*v_boom_cyl_r_barrel_e2 + c216*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c215*v_boom_cyl_r_barrel_e1 + c216*v_boom_cyl_r_barrel_e3 + c219*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(-c215*v_boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_rod_e0*(c217*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e0 - c218*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c217*v_boom_cyl_r_rod_e3 - c218*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c217*v_boom_cyl_r_rod_e0 + c218*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c217*v_boom_cyl_r_rod_e1 + c218*v_boom_cyl_r_rod_e2 + c220*v_boom_cyl_r_rod_e3), -v_boom_e0*(-c228 - c229 - 139283/25000*v_boom_e0) - v_boom_e1*(-c230 - c231 - 139283/25000*v_boom_e1) - v_boom_e2*(-c225 + (16/25)*v_boom_e1) - v_boom_e3*(-c226 - c227), -v_boom_e0*(c227 + c234 + (32/25)*v_boom_e0) - v_boom_e1*(c225 - c232) - v_boom_e2*(-c235 - c231 + (32/25)*v_boom_e2) - v_boom_e3*(-c228 - c233), -v_boom_e0*(c232 - 8.007688*v_boom_e0 + (16/25)*v_boom_e1) - v_boom_e1*(c226 + c234) - v_boom_e2*(c229 + c233) - v_boom_e3*(-c235 - c230 - 8.007688*v_boom_e3), -c236*v_boom_e0 - c237*v_boom_e1 - v_boom_e0*(c236 + (23939/1250)*v_boom_e0) - v_boom_e1*(c237 + (23939/1250)*v_boom_e1), -v_boom_e0*(-29959/5000*v_boom_e1 + (23939/2500)*v_boom_e3) - v_boom_e1*(-c238 - 29959/5000*v_boom_e0) - v_boom_e2*(c237 + c239) - v_boom_e3*(c236 + (23939/2500)*v_boom_e0), -v_boom_e0*(c238 + (29959/2500)*v_boom_e0) - v_boom_e3*(c239 + (29959/2500)*v_boom_e3) - 23939/2500*v_boom_e1*v_boom_e3 + (23939/2500)*v_boom_e0*v_boom_e2, -c254*(-c250*v_arm_e1 - c251*v_arm_e0 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - c260*(c256 + 4.0*arm_e3*v_arm_e3) - c264*(c263 + c251*v_arm_e3 + c261*v_arm_e1) - v_boom_e0*(c246*v_boom_e0 + c241*v_boom_e1 - c240*v_boom_e3) - v_boom_e1*(c240*v_boom_e2 + c241*v_boom_e0) - v_boom_e2*(c246*v_boom_e2 + c240*v_boom_e1 + c241*v_boom_e3) - v_boom_e3*(-c240*v_boom_e0 + 2.0*arm_a22*v_boom_e2) - v_arm_e0*(-c247 + c248*v_arm_e0 + c242*v_arm_e2) - v_arm_e1*(-c244 + c242*v_arm_e3) - v_arm_e2*(c245 + c242*v_arm_e0) - v_arm_e3*(c249 + c248*v_arm_e3 + c242*v_arm_e1), -c254*(c250*v_arm_e3 + c251*v_arm_e2 + c261*v_arm_e0 + c262*v_arm_e1) - c260*(-c263 + 2.0*arm_e1*v_arm_e3 + 2.0*arm_e3*v_arm_e1) - c264*(c256 + c268*arm_e1) - v_boom_e0*(c252*arm_a10 + c267*v_boom_e1 - c266*v_boom_e3) - v_boom_e1*(c258*arm_a20 + c259*arm_a00) - v_boom_e2*(c253*arm_a10 + c266*v_boom_e1 + c267*v_boom_e3) - v_boom_e3*(-c258*arm_a00 + 2.0*arm_a20*v_boom_e2) - v_arm_e0*(c245 + c255*boom_a01 - c265*v_arm_e2) - v_arm_e1*(c249 + c265*v_arm_e3 + c268*boom_a01) - v_arm_e2*(c247 - c265*v_arm_e0) - v_arm_e3*(c244 + c265*v_arm_e1), -c269*v_boom_e0 - c270*v_boom_e1 - v_boom_e0*(c269 + (183/20)*v_boom_e0) - v_boom_e1*(c270 + (183/20)*v_boom_e1), -v_boom_e0*(-557/100*v_boom_e1 + (183/40)*v_boom_e3) - v_boom_e1*(-c271 - 557/100*v_boom_e0) - v_boom_e2*(c270 + c272) - v_boom_e3*(c269 + (183/40)*v_boom_e0), -v_boom_e0*(c271 + (557/50)*v_boom_e0) - v_boom_e3*(c272 + (557/50)*v_boom_e3) - 183/40*v_boom_e1*v_boom_e3 + (183/40)*v_boom_e0*v_boom_e2, -v_boom_e0*(c274*v_boom_e1 + c277*v_boom_e0 - c273*v_boom_e3) - v_boom_e1*(c273*v_boom_e2 + c274*v_boom_e0) - v_boom_e2*(c273*v_boom_e1 + c274*v_boom_e3 + c277*v_boom_e2) - v_boom_e3*(-c273*v_boom_e0 + 2.0*arm_cyl_barrel_a22*v_boom_e2) - v_arm_cyl_barrel_e0*(c275*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e0 - c276*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e1*(c275*v_arm_cyl_barrel_e3 - c276*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c275*v_arm_cyl_barrel_e0 + c276*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c275*v_arm_cyl_barrel_e1 + c276*v_arm_cyl_barrel_e2 + c278*v_arm_cyl_barrel_e3) - 2.0*(4.0*boom_e0*v_boom_e0 + 4.0*boom_e2*v_boom_e2)*(-c279*v_arm_cyl_barrel_e1 - c280*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - 2.0*(4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(c281*v_boom_e1 + c282*boom_e1 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - 2.0*(c279*v_arm_cyl_barrel_e2 + c280*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1)*(-c281*v_boom_e3 - c282*boom_e3 + 2.0*boom_e1*v_boom_e2 + 2.0*boom_e2*v_boom_e1), -c300*(-c295*v_arm_cyl_rod_e3 - c296*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e1) - c306*(c302 + 4.0*arm_cyl_rod_e2*v_arm_cyl_rod_e2) - c312*(c308 + c307*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3) - v_arm_cyl_barrel_e0*(c289*v_arm_cyl_barrel_e0 + c290*arm_cyl_rod_a11 - c291*arm_cyl_rod_a21) - v_arm_cyl_barrel_e1*(c289*v_arm_cyl_barrel_e1 + c290*arm_cyl_rod_a21 + c291*arm_cyl_rod_a11) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a11 - c284*arm_cyl_rod_a21) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a21 + c284*arm_cyl_rod_a11) - v_arm_cyl_rod_e0*(-c292 + c293*v_arm_cyl_rod_e0 + c287*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c286 + c287*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c294 + c293*v_arm_cyl_rod_e2 + c287*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(-c288 + 2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_e2), -c300*c317 - c306*c319 - c312*c318 - v_arm_cyl_barrel_e0*(c297*arm_cyl_rod_a02 + c290*arm_cyl_rod_a12 - c291*arm_cyl_rod_a22) - v_arm_cyl_barrel_e1*(c299*arm_cyl_rod_a02 + c290*arm_cyl_rod_a22 + c291*arm_cyl_rod_a12) - v_arm_cyl_barrel_e2*(c283*arm_cyl_rod_a12 - c284*arm_cyl_rod_a22) - v_arm_cyl_barrel_e3*(c283*arm_cyl_rod_a22 + c284*arm_cyl_rod_a12) - v_arm_cyl_rod_e0*(c286 + c301*arm_cyl_barrel_a20 - c313*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c292 - c296*arm_cyl_barrel_a10) - v_arm_cyl_rod_e2*(c288 + c313*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c294 + c307*arm_cyl_barrel_a10 + c314*arm_cyl_barrel_a20), c321*v_arm_cyl_barrel_y + c329*v_arm_cyl_barrel_z - c321*c322 - c321*v_arm_cyl_rod_y - c325*v_arm_cyl_barrel_x - c329*c332 - c329*v_arm_cyl_rod_z - c330*c331 - c330*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(c333 + c283*arm_cyl_rod_z + c297*arm_cyl_rod_y - c283*arm_cyl_barrel_z - c297*arm_cyl_barrel_y) - v_arm_cyl_barrel_e1*(-c323 - c284*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c334 - c320*arm_cyl_barrel_y - c290*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(c324 + c291*arm_cyl_rod_z - c291*arm_cyl_barrel_z), c336*v_arm_cyl_barrel_z + c337*v_arm_cyl_barrel_x - c322*c339 - c331*c337 - c332*c336 - c336*v_arm_cyl_rod_z - c337*v_arm_cyl_rod_x - c338*v_arm_cyl_barrel_y - c339*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(-c323 - c283*arm_cyl_rod_y - c297*arm_cyl_barrel_z + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c333 - c284*arm_cyl_rod_y + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c324 - c290*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(-c334 - c335*arm_cyl_barrel_z - c291*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3), -c317*(-c348*v_arm_cyl_barrel_e3 - c349*arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1) - c318*(c348*v_arm_cyl_barrel_e1 + c349*arm_cyl_barrel_e1 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - c319*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c321*(-c346*v_arm_cyl_rod_e1 - c347*arm_cyl_rod_e1 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2) - c329*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c330*((2.0)*c315 + (2.0)*c316 + c346*v_arm_cyl_rod_e2 + c347*arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(c341*v_arm_cyl_barrel_e1 + c344*v_arm_cyl_barrel_e0 - c340*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e1*(c340*v_arm_cyl_barrel_e2 + c341*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c340*v_arm_cyl_barrel_e1 + c341*v_arm_cyl_barrel_e3 + c344*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(-c340*v_arm_cyl_barrel_e0 + (2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2) - v_arm_cyl_rod_e0*(c342*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e0 - c343*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c342*v_arm_cyl_rod_e3 - c343*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c342*v_arm_cyl_rod_e0 + c343*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c342*v_arm_cyl_rod_e1 + c343*v_arm_cyl_rod_e2 + c345*v_arm_cyl_rod_e3), -c350*v_arm_e0 - c351*v_arm_e1 - v_arm_e0*(c350 + (393281/125000)*v_arm_e0) - v_arm_e1*(c351 + (393281/125000)*v_arm_e1), -v_arm_e0*(-369691/500000*v_arm_e1 + (393281/250000)*v_arm_e3) - v_arm_e1*(-c352 - 369691/500000*v_arm_e0) - v_arm_e2*(c351 + c353) - v_arm_e3*(c350 + (393281/250000)*v_arm_e0), -v_arm_e0*(c352 + (369691/250000)*v_arm_e0) - v_arm_e3*(c353 + (369691/250000)*v_arm_e3) - 393281/250000*v_arm_e1*v_arm_e3 + (393281/250000)*v_arm_e0*v_arm_e2, -c354*v_arm_e0 - c355*v_arm_e1 - v_arm_e0*(c354 + (9477/1250)*v_arm_e0) - v_arm_e1*(c355 + (9477/1250)*v_arm_e1), -v_arm_e0*(-21809/5000*v_arm_e1 + (9477/2500)*v_arm_e3) - v_arm_e1*(-c356 - 21809/5000*v_arm_e0) - v_arm_e2*(c355 + c357) - v_arm_e3*(c354 + (9477/2500)*v_arm_e0), -v_arm_e0*(c356 + (21809/2500)*v_arm_e0) - v_arm_e3*(c357 + (21809/2500)*v_arm_e3) - 9477/2500*v_arm_e1*v_arm_e3 + (9477/2500)*v_arm_e0*v_arm_e2, -c372*(-c368*v_bucket_e1 - c369*v_bucket_e0 + 2.0*bucket_e2*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e2) - c378*(c374 + 4.0*bucket_e3*v_bucket_e3) - c382*(c381 + c369*v_bucket_e3 + c379*v_bucket_e1) - v_arm_e0*(c364*v_arm_e0 + c359*v_arm_e1 - c358*v_arm_e3) - v_arm_e1*(c358*v_arm_e2 + c359*v_arm_e0) - v_arm_e2*(c364*v_arm_e2 + c358*v_arm_e1 + c359*v_arm_e3) - v_arm_e3*(-c358*v_arm_e0 + 2.0*bucket_a22*v_arm_e2) - v_bucket_e0*(-c365 + c366*v_bucket_e0 + c360*v_bucket_e2) - v_bucket_e1*(-c362 + c360*v_bucket_e3) - v_bucket_e2*(c363 + c360*v_bucket_e0) - v_bucket_e3*(c367 + c366*v_bucket_e3 + c360*v_bucket_e1), -c372*(c368*v_bucket_e3 + c369*v_bucket_e2 + c379*v_bucket_e0 + c380*v_bucket_e1) - c378*(-c381 + 2.0*bucket_e1*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e1) - c382*(c374 + c386*bucket_e1) - v_arm_e0*(c370*bucket_a10 + c385*v_arm_e1 - c384*v_arm_e3) - v_arm_e1*(c376*bucket_a20 + c377*bucket_a00) - v_arm_e2*(c371*bucket_a10 + c384*v_arm_e1 + c385*v_arm_e3) - v_arm_e3*(-c376*bucket_a00 + 2.0*bucket_a20*v_arm_e2) - v_bucket_e0*(c363 + c373*arm_a01 - c383*v_bucket_e2) - v_bucket_e1*(c367 + c383*v_bucket_e3 + c386*arm_a01) - v_bucket_e2*(c365 - c383*v_bucket_e0) - v_bucket_e3*(c362 + c383*v_bucket_e1), -c387*v_arm_e0 - c388*v_arm_e1 - v_arm_e0*(c387 + (7877/1250)*v_arm_e0) - v_arm_e1*(c388 + (7877/1250)*v_arm_e1), -v_arm_e0*(-18799/5000*v_arm_e1 + (7877/2500)*v_arm_e3) - v_arm_e1*(-c389 - 18799/5000*v_arm_e0) - v_arm_e2*(c388 + c390) - v_arm_e3*(c387 + (7877/2500)*v_arm_e0), -v_arm_e0*(c389 + (18799/2500)*v_arm_e0) - v_arm_e3*(c390 + (18799/2500)*v_arm_e3) - 7877/2500*v_arm_e1*v_arm_e3 + (7877/2500)*v_arm_e0*v_arm_e2, -c405*(-c401*v_side_link_e1 - c402*v_side_link_e0 + 2.0*side_link_e2*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e2) - c411*(c407 + 4.0*side_link_e3*v_side_link_e3) - c415*(c414 + c402*v_side_link_e3 + c412*v_side_link_e1) - v_arm_e0*(c397*v_arm_e0 + c392*v_arm_e1 - c391*v_arm_e3) - v_arm_e1*(c391*v_arm_e2 + c392*v_arm_e0) - v_arm_e2*(c397*v_arm_e2 + c391*v_arm_e1 + c392*v_arm_e3) - v_arm_e3*(-c391*v_arm_e0 + 2.0*side_link_a22*v_arm_e2) - v_side_link_e0*(-c398 + c399*v_side_link_e0 + c393*v_side_link_e2) - v_side_link_e1*(-c395 + c393*v_side_link_e3) - v_side_link_e2*(c396 + c393*v_side_link_e0) - v_side_link_e3*(c400 + c399*v_side_link_e3 + c393*v_side_link_e1), -c405*(c401*v_side_link_e3 + c402*v_side_link_e2 + c412*v_side_link_e0 + c413*v_side_link_e1) - c411*(-c414 + 2.0*side_link_e1*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e1) - c415*(c407 + c419*side_link_e1) - v_arm_e0*(c403*side_link_a10 + c418*v_arm_e1 - c417*v_arm_e3) - v_arm_e1*(c409*side_link_a20 + c410*side_link_a00) - v_arm_e2*(c404*side_link_a10 + c417*v_arm_e1 + c418*v_arm_e3) - v_arm_e3*(-c409*side_link_a00 + 2.0*side_link_a20*v_arm_e2) - v_side_link_e0*(c396 + c406*arm_a01 - c416*v_side_link_e2) - v_side_link_e1*(c400 + c416*v_side_link_e3 + c419*arm_a01) - v_side_link_e2*(c398 - c416*v_side_link_e0) - v_side_link_e3*(c395 + c416*v_side_link_e1), -c420*v_bucket_link_e0 - c421*v_bucket_link_e1 - v_side_link_e0*(-c422 - 166329/125000*v_side_link_e0) - v_side_link_e1*(-c423 - 166329/125000*v_side_link_e1) - v_bucket_link_e0*(c420 + (85607/62500)*v_bucket_link_e0) - v_bucket_link_e1*(c421 + (85607/62500)*v_bucket_link_e1) - 96247/100000*v_side_link_e0*v_side_link_e2 - 96247/100000*v_side_link_e1*v_side_link_e3, -v_side_link_e0*(-166329/250000*v_side_link_e3 - 96247/100000*v_side_link_e1) - v_side_link_e1*(-c424 - 96247/100000*v_side_link_e0) - v_side_link_e2*(-c423 - c425) - v_side_link_e3*(-c422 - 166329/250000*v_side_link_e0) - v_bucket_link_e0*(-450737/500000*v_bucket_link_e1 + (85607/125000)*v_bucket_link_e3) - v_bucket_link_e1*(-c426 - 450737/500000*v_bucket_link_e0) - v_bucket_link_e2*(c421 + c427) - v_bucket_link_e3*(c420 + (85607/125000)*v_bucket_link_e0), -c424*v_side_link_e0 - v_side_link_e0*(c424 + (96247/50000)*v_side_link_e0) - v_side_link_e3*(-c425 + (96247/50000)*v_side_link_e3) - v_bucket_link_e0*(c426 + (450737/250000)*v_bucket_link_e0) - v_bucket_link_e3*(c427 + (450737/250000)*v_bucket_link_e3) - 85607/125000*v_bucket_link_e1*v_bucket_link_e3 + (85607/125000)*v_bucket_link_e0*v_bucket_link_e2 + (166329/250000)*v_side_link_e1*v_side_link_e3, c428*v_bucket_e0 + c429*v_bucket_e1 - v_bucket_e0*(c430 + (8101/6250)*v_bucket_e0) - v_bucket_e1*(c431 + (8101/6250)*v_bucket_e1), -v_bucket_e0*(c432 + (16927/25000)*v_bucket_e1) - v_bucket_e1*(c433 + (16927/25000)*v_bucket_e0) - v_bucket_e2*(c431 + c434) - v_bucket_e3*(c430 + (8101/12500)*v_bucket_e0), -c432*v_bucket_e1 - v_bucket_e0*(-c433 - 16927/12500*v_bucket_e0) - v_bucket_e3*(c434 - 16927/12500*v_bucket_e3) + (8101/12500)*v_bucket_e0*v_bucket_e2, -v_bucket_link_e0*(c466*bucket_a01 + c467*bucket_a11 + c468*bucket_a21) - v_bucket_link_e1*(c445*bucket_a01 + c447*bucket_a11 - c444*bucket_a21) - v_bucket_link_e2*(c439*bucket_a01 + c440*bucket_a21 + c443*bucket_a11) - v_bucket_link_e3*(c448*bucket_a01 + c450*bucket_a11 + c451*bucket_a21) - v_bucket_e0*(c438*v_bucket_e1 + c435*v_bucket_e3 - c452*v_bucket_e0 - c436*v_bucket_e1 - c437*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e0) - v_bucket_e1*(-c435*v_bucket_e2 - c436*v_bucket_e0 + (1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0) - v_bucket_e2*(-c452*v_bucket_e2 - c435*v_bucket_e1 - c436*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3) - v_bucket_e3*(c438*v_bucket_e2 + c435*v_bucket_e0 - c436*v_bucket_e2 - c437*v_bucket_e0) - (c453 + 4.0*bucket_link_e1*v_bucket_link_e1)*((1.5925492428686951)*c454 + (1.5925492428686951)*c455 - 1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1) - (c453 + 4.0*bucket_link_e3*v_bucket_link_e3)*((1.2098706166521882)*c456 + (1.2098706166521882)*c457 + (1.2098706166521882)*c458 + (1.2098706166521882)*c459) - (4.0*c460 + 4.0*c461)*(c443*bucket_link_e2 + c447*bucket_link_e1 + c450*bucket_link_e3 + c467*bucket_link_e0) - (-3.1850984857373903*c460 - 3.1850984857373903*c461)*(c462*v_bucket_link_e3 + c463*v_bucket_link_e2 + c464*v_bucket_link_e1 + c465*v_bucket_link_e0) - ((2.4197412333043764)*c460 + (2.4197412333043764)*c461)*(-c462*v_bucket_link_e1 - c463*v_bucket_link_e0 + 2.0*bucket_link_e2*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e2) - (c469 + c463*v_bucket_link_e3 + c465*v_bucket_link_e1)*(-1.2098706166521882*c454 - 1.2098706166521882*c455 + (1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1) - (-c469 + 2.0*bucket_link_e1*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e1)*(-1.5925492428686951*c456 - 1.5925492428686951*c457 - 1.5925492428686951*c458 - 1.5925492428686951*c459) - (-2.0*c454 - 2.0*c455 + 2.0*bucket_e1*v_bucket_e2 + 2.0*bucket_e2*v_bucket_e1)*(c439*bucket_link_e2 + c445*bucket_link_e1 + c448*bucket_link_e3 + c466*bucket_link_e0) - (2.0*c456 + 2.0*c457 + 2.0*c458 + 2.0*c459)*(c440*bucket_link_e2 + c451*bucket_link_e3 + c468*bucket_link_e0 - c444*bucket_link_e1), -v_arm_e0*(-c470 - 24687/25000*v_arm_e0) - v_arm_e1*(-c471 - 24687/25000*v_arm_e1) - 36797/25000*v_arm_e0*v_arm_e2 - 36797/25000*v_arm_e1*v_arm_e3, -v_arm_e0*(-36797/25000*v_arm_e1 - 24687/50000*v_arm_e3) - v_arm_e1*(-c472 - 36797/25000*v_arm_e0) - v_arm_e2*(-c471 - c473) - v_arm_e3*(-c470 - 24687/50000*v_arm_e0), -c472*v_arm_e0 - v_arm_e0*(c472 + (36797/12500)*v_arm_e0) - v_arm_e3*(-c473 + (36797/12500)*v_arm_e3) + (24687/50000)*v_arm_e1*v_arm_e3, -v_arm_e0*(c475*v_arm_e1 + c478*v_arm_e0 - c474*v_arm_e3) - v_arm_e1*(c474*v_arm_e2 + c475*v_arm_e0) - v_arm_e2*(c474*v_arm_e1 + c475*v_arm_e3 + c478*v_arm_e2) - v_arm_e3*(-c474*v_arm_e0 + 2.0*bucket_cyl_barrel_a22*v_arm_e2) - v_bucket_cyl_barrel_e0*(c476*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e0 - c477*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e1*(c476*v_bucket_cyl_barrel_e3 - c477*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c476*v_bucket_cyl_barrel_e0 + c477*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c476*v_bucket_cyl_barrel_e1 + c477*v_bucket_cyl_barrel_e2 + c479*v_bucket_cyl_barrel_e3) - 2.0*(4.0*arm_e0*v_arm_e0 + 4.0*arm_e2*v_arm_e2)*(-c480*v_bucket_cyl_barrel_e1 - c481*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - 2.0*(4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(c482*v_arm_e1 + c483*arm_e1 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - 2.0*(c480*v_bucket_cyl_barrel_e2 + c481*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1)*(-c482*v_arm_e3 - c483*arm_e3 + 2.0*arm_e1*v_arm_e2 + 2.0*arm_e2*v_arm_e1), -c501*(-c496*v_bucket_cyl_rod_e3 - c497*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1) - c507*(c503 + 4.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - c513*(c509 + c508*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3) - v_bucket_cyl_barrel_e0*(c490*v_bucket_cyl_barrel_e0 + c491*bucket_cyl_rod_a11 - c492*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e1*(c490*v_bucket_cyl_barrel_e1 + c491*bucket_cyl_rod_a21 + c492*bucket_cyl_rod_a11) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a11 - c485*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a21 + c485*bucket_cyl_rod_a11) - v_bucket_cyl_rod_e0*(-c493 + c494*v_bucket_cyl_rod_e0 + c488*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c487 + c488*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c495 + c494*v_bucket_cyl_rod_e2 + c488*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(-c489 + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2), -c501*c518 - c507*c520 - c513*c519 - v_bucket_cyl_barrel_e0*(c498*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a12 - c492*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e1*(c500*bucket_cyl_rod_a02 + c491*bucket_cyl_rod_a22 + c492*bucket_cyl_rod_a12) - v_bucket_cyl_barrel_e2*(c484*bucket_cyl_rod_a12 - c485*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e3*(c484*bucket_cyl_rod_a22 + c485*bucket_cyl_rod_a12) - v_bucket_cyl_rod_e0*(c487 + c502*bucket_cyl_barrel_a20 - c514*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c493 - c497*bucket_cyl_barrel_a10) - v_bucket_cyl_rod_e2*(c489 + c514*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c495 + c508*bucket_cyl_barrel_a10 + c515*bucket_cyl_barrel_a20), c522*v_bucket_cyl_barrel_y + c530*v_bucket_cyl_barrel_z - c522*c523 - c522*v_bucket_cyl_rod_y - c526*v_bucket_cyl_barrel_x - c530*c533 - c530*v_bucket_cyl_rod_z - c531*c532 - c531*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(c534 + c484*bucket_cyl_rod_z + c498*bucket_cyl_rod_y - c484*bucket_cyl_barrel_z - c498*bucket_cyl_barrel_y) - v_bucket_cyl_barrel_e1*(-c524 - c485*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c535 - c521*bucket_cyl_barrel_y - c491*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(c525 + c492*bucket_cyl_rod_z - c492*bucket_cyl_barrel_z), c537*v_bucket_cyl_barrel_z + c538*v_bucket_cyl_barrel_x - c523*c540 - c532*c538 - c533*c537 - c537*v_bucket_cyl_rod_z - c538*v_bucket_cyl_rod_x - c539*v_bucket_cyl_barrel_y - c540*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(-c524 - c484*bucket_cyl_rod_y - c498*bucket_cyl_barrel_z + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c534 - c485*bucket_cyl_rod_y + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c525 - c491*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(-c535 - c536*bucket_cyl_barrel_z - c492*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3), -c518*(-c549*v_bucket_cyl_barrel_e3 - c550*bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1) - c519*(c549*v_bucket_cyl_barrel_e1 + c550*bucket_cyl_barrel_e1 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - c520*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c522*(-c547*v_bucket_cyl_rod_e1 - c548*bucket_cyl_rod_e1 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2) - c530*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c531*((2.0)*c516 + (2.0)*c517 + c547*v_bucket_cyl_rod_e2 + c548*bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(c542*v_bucket_cyl_barrel_e1 + c545*v_bucket_cyl_barrel_e0 - c541*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e1*(c541*v_bucket_cyl_barrel_e2 + c542*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c541*v_bucket_cyl_barrel_e1 + c542*v_bucket_cyl_barrel_e3 + c545*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(-c541*v_bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2) - v_bucket_cyl_rod_e0*(c543*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e0 - c544*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c543*v_bucket_cyl_rod_e3 - c544*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c543*v_bucket_cyl_rod_e0 + c544*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c543*v_bucket_cyl_rod_e1 + c544*v_bucket_cyl_rod_e2 + c546*v_bucket_cyl_rod_e3), c551*v_side_link_e0 + c552*v_side_link_e1 - v_side_link_e0*(c553 + (166329/125000)*v_side_link_e0) - v_side_link_e1*(c554 + (166329/125000)*v_side_link_e1), -v_side_link_e0*(c555 + (96247/100000)*v_side_link_e1) - v_side_link_e1*(c556 + (96247/100000)*v_side_link_e0) - v_side_link_e2*(c554 + c557) - v_side_link_e3*(c553 + (166329/250000)*v_side_link_e0), -c555*v_side_link_e1 - v_side_link_e0*(-c556 - 96247/50000*v_side_link_e0) - v_side_link_e3*(c557 - 96247/50000*v_side_link_e3) + (166329/250000)*v_side_link_e0*v_side_link_e2, -2.0*(v_upper_e0*v_upper_e0) - 2.0*(v_upper_e1*v_upper_e1) - 2.0*(v_upper_e2*v_upper_e2) - 2.0*(v_upper_e3*v_upper_e3), -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3), -2.0*(v_boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0) - 2.0*(v_boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1) - 2.0*(v_boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - 2.0*(v_boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3), -2.0*(v_boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0) - 2.0*(v_boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e1) - 2.0*(v_boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e2) - 2.0*(v_boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3), -2.0*(v_boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0) - 2.0*(v_boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e1) - 2.0*(v_boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - 2.0*(v_boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3), -2.0*(v_boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0) - 2.0*(v_boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e1) - 2.0*(v_boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - 2.0*(v_boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3), -2.0*(v_arm_e0*v_arm_e0) - 2.0*(v_arm_e1*v_arm_e1) - 2.0*(v_arm_e2*v_arm_e2) - 2.0*(v_arm_e3*v_arm_e3), -2.0*(v_arm_cyl_barrel_e0*v_arm_cyl_barrel_e0) - 2.0*(v_arm_cyl_barrel_e1*v_arm_cyl_barrel_e1) - 2.0*(v_arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - 2.0*(v_arm_cyl_barrel_e3*v_arm_cyl_barrel_e3), -2.0*(v_arm_cyl_rod_e0*v_arm_cyl_rod_e0) - 2.0*(v_arm_cyl_rod_e1*v_arm_cyl_rod_e1) - 2.0*(v_arm_cyl_rod_e2*v_arm_cyl_rod_e2) - 2.0*(v_arm_cyl_rod_e3*v_arm_cyl_rod_e3), -2.0*(v_bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0) - 2.0*(v_bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1) - 2.0*(v_bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - 2.0*(v_bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3), -2.0*(v_bucket_cyl_rod_e0*v_bucket_cyl_rod_e0) - 2.0*(v_bucket_cyl_rod_e1*v_bucket_cyl_rod_e1) - 2.0*(v_bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - 2.0*(v_bucket_cyl_rod_e3*v_bucket_cyl_rod_e3), -2.0*(v_side_link_e0*v_side_link_e0) - 2.0*(v_side_link_e1*v_side_link_e1) - 2.0*(v_side_link_e2*v_side_link_e2) - 2.0*(v_side_link_e3*v_side_link_e3), -2.0*(v_bucket_link_e0*v_bucket_link_e0) - 2.0*(v_bucket_link_e1*v_bucket_link_e1) - 2.0*(v_bucket_link_e2*v_bucket_link_e2) - 2.0*(v_bucket_link_e3*v_bucket_link_e3), -2.0*(v_bucket_e0*v_bucket_e0) - 2.0*(v_bucket_e1*v_bucket_e1) - 2.0*(v_bucket_e2*v_bucket_e2) - 2.0*(v_bucket_e3*v_bucket_e3)]
+    c130 = 4.0*p_C_x
+    c131 = c125*v_boom_e2
+    c132 = (16/25)*v_boom_e2
+    c133 = c125*v_boom_e3
+    c134 = 2.0*p_C_x
+    c135 = c134*v_boom_e2
+    c136 = c134*v_boom_e0
+    c137 = c134*v_boom_e3
+    c138 = c134*v_boom_e1
+    c139 = 4.0*p_C_z
+    c140 = (67739/25000)*v_upper_e0
+    c141 = (16/25)*v_upper_e1
+    c142 = (16/25)*v_upper_e0
+    c143 = (67739/25000)*v_upper_e1
+    c144 = (67739/25000)*v_upper_e2
+    c145 = (16/25)*v_upper_e3
+    c146 = -16/25*v_upper_e2
+    c147 = (67739/25000)*v_upper_e3
+    c148 = (4307/3125)*v_upper_e2
+    c149 = (4307/3125)*v_upper_e0
+    c150 = -4307/3125*v_upper_e3
+    c151 = (4307/3125)*v_upper_e1
+    c152 = 2.0*boom_cyl_r_barrel_a02
+    c153 = 2.0*boom_cyl_r_barrel_a22
+    c154 = 2.0*upper_a01
+    c155 = 2.0*upper_a11
+    c156 = 4.0*boom_cyl_r_barrel_a12
+    c157 = 4.0*upper_a21
+    c158 = 2.0*boom_cyl_r_barrel_e0
+    c159 = 2.0*boom_cyl_r_barrel_e1
+    c160 = 2.0*upper_e0
+    c161 = 2.0*v_upper_e0
+    c162 = 2.0*v_boom_cyl_r_barrel_e1
+    c163 = 2.0*v_boom_cyl_r_barrel_e0
+    c164 = 2.0*boom_cyl_r_barrel_a00
+    c165 = c164*v_boom_cyl_r_rod_e2
+    c166 = 2.0*boom_cyl_r_barrel_a20
+    c167 = c164*v_boom_cyl_r_rod_e0
+    c168 = 4.0*boom_cyl_r_rod_a01
+    c169 = 2.0*v_boom_cyl_r_barrel_e3
+    c170 = 2.0*v_boom_cyl_r_barrel_e2
+    c171 = c164*v_boom_cyl_r_rod_e3
+    c172 = 4.0*boom_cyl_r_barrel_a10
+    c173 = c164*v_boom_cyl_r_rod_e1
+    c174 = 2.0*boom_cyl_r_rod_e0
+    c175 = 2.0*v_boom_cyl_r_rod_e0
+    c176 = 4.0*v_boom_cyl_r_barrel_e0
+    c177 = c176*boom_cyl_r_barrel_e0
+    c178 = 4.0*v_boom_cyl_r_barrel_e1
+    c179 = 2.0*c177 + 2.0*c178*boom_cyl_r_barrel_e1
+    c180 = 4.0*v_boom_cyl_r_rod_e0
+    c181 = c180*boom_cyl_r_rod_e0
+    c182 = c170*boom_cyl_r_barrel_e1
+    c183 = c162*boom_cyl_r_barrel_e2
+    c184 = c163*boom_cyl_r_barrel_e3 + c169*boom_cyl_r_barrel_e0
+    c185 = 2.0*c182 + 2.0*c183 + 2.0*c184
+    c186 = 2.0*v_boom_cyl_r_rod_e2
+    c187 = c174*v_boom_cyl_r_rod_e1 + c175*boom_cyl_r_rod_e1
+    c188 = c169*boom_cyl_r_barrel_e1
+    c189 = c162*boom_cyl_r_barrel_e3
+    c190 = c163*boom_cyl_r_barrel_e2 + c170*boom_cyl_r_barrel_e0
+    c191 = -2.0*c190 + 2.0*c188 + 2.0*c189
+    c192 = 2.0*boom_cyl_r_barrel_a10
+    c193 = 4.0*v_boom_cyl_r_rod_e3
+    c194 = boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e3
+    c195 = boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e1
+    c196 = 2.0*c194 + 2.0*c195 + c174*v_boom_cyl_r_rod_e2 + c175*boom_cyl_r_rod_e2
+    c197 = c181 + c193*boom_cyl_r_rod_e3
+    c198 = -c187 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2
+    c199 = 4.0*v_boom_cyl_r_barrel_e2
+    c200 = c177 + c199*boom_cyl_r_barrel_e2
+    c201 = v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_y
+    c202 = c170*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e2
+    c203 = c163*boom_cyl_r_barrel_x - c163*boom_cyl_r_rod_x
+    c204 = c184 - c182 - c183
+    c205 = c169*boom_cyl_r_barrel_e2
+    c206 = c170*boom_cyl_r_barrel_e3
+    c207 = c162*boom_cyl_r_barrel_e0 + c163*boom_cyl_r_barrel_e1
+    c208 = c205 + c206 + c207
+    c209 = -c204
+    c210 = v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_x
+    c211 = v_boom_cyl_r_rod_z - v_boom_cyl_r_barrel_z
+    c212 = c169*boom_cyl_r_barrel_x - c169*boom_cyl_r_rod_x
+    c213 = c162*boom_cyl_r_barrel_x - 2.0*boom_cyl_r_rod_x*v_boom_cyl_r_barrel_e1
+    c214 = 4.0*v_boom_cyl_r_barrel_e3
+    c215 = c177 + c214*boom_cyl_r_barrel_e3
+    c216 = c188 + c189 + c190
+    c217 = c207 - c205 - c206
+    c218 = -c217
+    c219 = (2.0)*boom_cyl_r_rod_a02
+    c220 = (2.0)*boom_cyl_r_rod_a22
+    c221 = (2.0)*boom_cyl_r_barrel_a01
+    c222 = (2.0)*boom_cyl_r_barrel_a11
+    c223 = (4.0)*boom_cyl_r_rod_a12
+    c224 = (4.0)*boom_cyl_r_barrel_a21
+    c225 = (2.0)*boom_cyl_r_rod_e0
+    c226 = (2.0)*v_boom_cyl_r_rod_e0
+    c227 = (2.0)*boom_cyl_r_barrel_e0
+    c228 = (2.0)*v_boom_cyl_r_barrel_e0
+    c229 = 2.0*p_C_z
+    c230 = c229*v_boom_e0
+    c231 = (16/25)*v_boom_e0
+    c232 = c229*v_boom_e1
+    c233 = (16/25)*v_boom_e3
+    c234 = 4.0*p_C_x
+    c235 = c229*v_boom_e2
+    c236 = -16/25*v_boom_e2
+    c237 = c229*v_boom_e3
+    c238 = 2.0*p_C_x
+    c239 = c238*v_boom_e2
+    c240 = c238*v_boom_e0
+    c241 = c238*v_boom_e3
+    c242 = c238*v_boom_e1
+    c243 = 4.0*p_C_z
+    c244 = (29959/5000)*v_boom_e2
+    c245 = (29959/5000)*v_boom_e3
+    c246 = -23939/2500*v_boom_e2
+    c247 = (23939/2500)*v_boom_e1
+    c248 = 2.0*arm_a02
+    c249 = 2.0*arm_a22
+    c250 = 2.0*boom_a01
+    c251 = 2.0*boom_a11
+    c252 = c251*v_arm_e0
+    c253 = c251*v_arm_e3
+    c254 = 4.0*arm_a12
+    c255 = c251*v_arm_e1
+    c256 = 4.0*boom_a21
+    c257 = c251*v_arm_e2
+    c258 = 2.0*arm_e0
+    c259 = 2.0*arm_e1
+    c260 = 4.0*v_boom_e0
+    c261 = 4.0*v_boom_e2
+    c262 = 2.0*c260*boom_e0 + 2.0*c261*boom_e2
+    c263 = 4.0*v_arm_e0
+    c264 = c263*arm_e0
+    c265 = 2.0*boom_e0
+    c266 = 2.0*v_boom_e0
+    c267 = 2.0*v_boom_e2
+    c268 = 2.0*c265*v_boom_e1 + 2.0*c266*boom_e1 + 2.0*c267*boom_e3 + 4.0*boom_e2*v_boom_e3
+    c269 = 2.0*arm_e3
+    c270 = 2.0*arm_e2
+    c271 = c258*v_arm_e2 + c270*v_arm_e0
+    c272 = -2.0*c265*v_boom_e3 - 2.0*c266*boom_e3 + 4.0*boom_e1*v_boom_e2 + 4.0*boom_e2*v_boom_e1
+    c273 = 2.0*boom_a21
+    c274 = 2.0*arm_a00
+    c275 = 2.0*arm_a20
+    c276 = 4.0*v_arm_e1
+    c277 = (557/100)*v_boom_e2
+    c278 = (557/100)*v_boom_e3
+    c279 = -183/40*v_boom_e2
+    c280 = (183/40)*v_boom_e1
+    c281 = 2.0*arm_cyl_barrel_a02
+    c282 = 2.0*arm_cyl_barrel_a22
+    c283 = 2.0*boom_a01
+    c284 = 2.0*boom_a11
+    c285 = 4.0*arm_cyl_barrel_a12
+    c286 = 4.0*boom_a21
+    c287 = 2.0*arm_cyl_barrel_e0
+    c288 = 2.0*arm_cyl_barrel_e1
+    c289 = 2.0*boom_e0
+    c290 = 2.0*v_boom_e0
+    c291 = 2.0*v_arm_cyl_barrel_e1
+    c292 = 2.0*v_arm_cyl_barrel_e0
+    c293 = 2.0*arm_cyl_barrel_a00
+    c294 = c293*v_arm_cyl_rod_e2
+    c295 = 2.0*arm_cyl_barrel_a20
+    c296 = c293*v_arm_cyl_rod_e0
+    c297 = 4.0*arm_cyl_rod_a01
+    c298 = 2.0*v_arm_cyl_barrel_e3
+    c299 = 2.0*v_arm_cyl_barrel_e2
+    c300 = c293*v_arm_cyl_rod_e3
+    c301 = 4.0*arm_cyl_barrel_a10
+    c302 = c293*v_arm_cyl_rod_e1
+    c303 = 2.0*arm_cyl_rod_e0
+    c304 = 2.0*v_arm_cyl_rod_e0
+    c305 = 4.0*v_arm_cyl_barrel_e0
+    c306 = c305*arm_cyl_barrel_e0
+    c307 = 4.0*v_arm_cyl_barrel_e1
+    c308 = 2.0*c306 + 2.0*c307*arm_cyl_barrel_e1
+    c309 = 4.0*v_arm_cyl_rod_e0
+    c310 = c309*arm_cyl_rod_e0
+    c311 = c299*arm_cyl_barrel_e1
+    c312 = c291*arm_cyl_barrel_e2
+    c313 = c292*arm_cyl_barrel_e3 + c298*arm_cyl_barrel_e0
+    c314 = 2.0*c311 + 2.0*c312 + 2.0*c313
+    c315 = 2.0*v_arm_cyl_rod_e2
+    c316 = c303*v_arm_cyl_rod_e1 + c304*arm_cyl_rod_e1
+    c317 = c298*arm_cyl_barrel_e1
+    c318 = c291*arm_cyl_barrel_e3
+    c319 = c292*arm_cyl_barrel_e2 + c299*arm_cyl_barrel_e0
+    c320 = -2.0*c319 + 2.0*c317 + 2.0*c318
+    c321 = 2.0*arm_cyl_barrel_a10
+    c322 = 4.0*v_arm_cyl_rod_e3
+    c323 = arm_cyl_rod_e1*v_arm_cyl_rod_e3
+    c324 = arm_cyl_rod_e3*v_arm_cyl_rod_e1
+    c325 = 2.0*c323 + 2.0*c324 + c303*v_arm_cyl_rod_e2 + c304*arm_cyl_rod_e2
+    c326 = c310 + c322*arm_cyl_rod_e3
+    c327 = -c316 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e3*v_arm_cyl_rod_e2
+    c328 = 4.0*v_arm_cyl_barrel_e2
+    c329 = c306 + c328*arm_cyl_barrel_e2
+    c330 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y
+    c331 = c299*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e2
+    c332 = c292*arm_cyl_barrel_x - c292*arm_cyl_rod_x
+    c333 = c313 - c311 - c312
+    c334 = c298*arm_cyl_barrel_e2
+    c335 = c299*arm_cyl_barrel_e3
+    c336 = c291*arm_cyl_barrel_e0 + c292*arm_cyl_barrel_e1
+    c337 = c334 + c335 + c336
+    c338 = -c333
+    c339 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x
+    c340 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z
+    c341 = c298*arm_cyl_barrel_x - c298*arm_cyl_rod_x
+    c342 = c291*arm_cyl_barrel_x - 2.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1
+    c343 = 4.0*v_arm_cyl_barrel_e3
+    c344 = c306 + c343*arm_cyl_barrel_e3
+    c345 = c317 + c318 + c319
+    c346 = c336 - c334 - c335
+    c347 = -c346
+    c348 = (2.0)*arm_cyl_rod_a02
+    c349 = (2.0)*arm_cyl_rod_a22
+    c350 = (2.0)*arm_cyl_barrel_a01
+    c351 = (2.0)*arm_cyl_barrel_a11
+    c352 = (4.0)*arm_cyl_rod_a12
+    c353 = (4.0)*arm_cyl_barrel_a21
+    c354 = (2.0)*arm_cyl_rod_e0
+    c355 = (2.0)*v_arm_cyl_rod_e0
+    c356 = (2.0)*arm_cyl_barrel_e0
+    c357 = (2.0)*v_arm_cyl_barrel_e0
+    c358 = 2.0*p_F_z
+    c359 = c358*v_arm_e2
+    c360 = c358*v_arm_e3
+    c361 = 4.0*p_F_x
+    c362 = 2.0*p_F_x
+    c363 = c362*v_arm_e2
+    c364 = c362*v_arm_e1
+    c365 = 4.0*p_F_z
+    c366 = (21809/5000)*v_arm_e2
+    c367 = (21809/5000)*v_arm_e3
+    c368 = -9477/2500*v_arm_e2
+    c369 = (9477/2500)*v_arm_e1
+    c370 = 2.0*bucket_a02
+    c371 = 2.0*bucket_a22
+    c372 = 2.0*arm_a01
+    c373 = 2.0*arm_a11
+    c374 = c373*v_bucket_e0
+    c375 = c373*v_bucket_e3
+    c376 = 4.0*bucket_a12
+    c377 = c373*v_bucket_e1
+    c378 = 4.0*arm_a21
+    c379 = c373*v_bucket_e2
+    c380 = 2.0*bucket_e0
+    c381 = 2.0*bucket_e1
+    c382 = 4.0*v_arm_e0
+    c383 = 4.0*v_arm_e2
+    c384 = 2.0*c382*arm_e0 + 2.0*c383*arm_e2
+    c385 = 4.0*v_bucket_e0
+    c386 = c385*bucket_e0
+    c387 = 2.0*arm_e0
+    c388 = 2.0*v_arm_e0
+    c389 = 2.0*v_arm_e2
+    c390 = 2.0*c387*v_arm_e1 + 2.0*c388*arm_e1 + 2.0*c389*arm_e3 + 4.0*arm_e2*v_arm_e3
+    c391 = 2.0*bucket_e3
+    c392 = 2.0*bucket_e2
+    c393 = c380*v_bucket_e2 + c392*v_bucket_e0
+    c394 = -2.0*c387*v_arm_e3 - 2.0*c388*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1
+    c395 = 2.0*arm_a21
+    c396 = 2.0*bucket_a00
+    c397 = 2.0*bucket_a20
+    c398 = 4.0*v_bucket_e1
+    c399 = (18799/5000)*v_arm_e2
+    c400 = (18799/5000)*v_arm_e3
+    c401 = -7877/2500*v_arm_e2
+    c402 = (7877/2500)*v_arm_e1
+    c403 = 2.0*side_link_a02
+    c404 = 2.0*side_link_a22
+    c405 = 2.0*arm_a01
+    c406 = 2.0*arm_a11
+    c407 = c406*v_side_link_e0
+    c408 = c406*v_side_link_e3
+    c409 = 4.0*side_link_a12
+    c410 = c406*v_side_link_e1
+    c411 = 4.0*arm_a21
+    c412 = c406*v_side_link_e2
+    c413 = 2.0*side_link_e0
+    c414 = 2.0*side_link_e1
+    c415 = 4.0*v_arm_e0
+    c416 = 4.0*v_arm_e2
+    c417 = 2.0*c415*arm_e0 + 2.0*c416*arm_e2
+    c418 = 4.0*v_side_link_e0
+    c419 = c418*side_link_e0
+    c420 = 2.0*arm_e0
+    c421 = 2.0*v_arm_e0
+    c422 = 2.0*v_arm_e2
+    c423 = 2.0*c420*v_arm_e1 + 2.0*c421*arm_e1 + 2.0*c422*arm_e3 + 4.0*arm_e2*v_arm_e3
+    c424 = 2.0*side_link_e3
+    c425 = 2.0*side_link_e2
+    c426 = c413*v_side_link_e2 + c425*v_side_link_e0
+    c427 = -2.0*c420*v_arm_e3 - 2.0*c421*arm_e3 + 4.0*arm_e1*v_arm_e2 + 4.0*arm_e2*v_arm_e1
+    c428 = 2.0*arm_a21
+    c429 = 2.0*side_link_a00
+    c430 = 2.0*side_link_a20
+    c431 = 4.0*v_side_link_e1
+    c432 = 1.592549242869674*p_bucket_link
+    c433 = c432*v_bucket_link_e2
+    c434 = c432*v_bucket_link_e3
+    c435 = 1.645191449642404*p_side_link
+    c436 = 2.2745066225654527*p_side_link
+    c437 = -1.645191449642404*p_side_link*v_side_link_e2
+    c438 = -1.645191449642404*p_side_link*v_side_link_e3
+    c439 = 2.4197412333018*p_bucket_link
+    c440 = 1.1372533112827263*p_side_link
+    c441 = c440*v_side_link_e2
+    c442 = c440*v_side_link_e1
+    c443 = 1.2098706166509*p_bucket_link
+    c444 = -c443*v_bucket_link_e2
+    c445 = c443*v_bucket_link_e1
+    c446 = 3.185098485739348*p_bucket_link
+    c447 = 2.0*p_K_z
+    c448 = c447*v_bucket_e2
+    c449 = c447*v_bucket_e3
+    c450 = 4.0*p_K_x
+    c451 = 2.0*p_K_x
+    c452 = c451*v_bucket_e2
+    c453 = c451*v_bucket_e1
+    c454 = 4.0*p_K_z
+    c455 = (1.5925492428686951)*bucket_link_a00
+    c456 = (1.5925492428686951)*bucket_link_a20
+    c457 = (1.2098706166521882)*bucket_link_a02
+    c458 = (1.2098706166521882)*bucket_link_a22
+    c459 = (1.2098706166521882)*v_bucket_link_e0
+    c460 = (1.5925492428686951)*v_bucket_link_e0
+    c461 = (1.5925492428686951)*v_bucket_link_e1
+    c462 = -1.2098706166521882*v_bucket_link_e3
+    c463 = -c461 - c462
+    c464 = (1.5925492428686951)*v_bucket_link_e3
+    c465 = -c462 - 3.1850984857373903*v_bucket_link_e1
+    c466 = (1.5925492428686951)*v_bucket_link_e2
+    c467 = -c459 - c466
+    c468 = (1.2098706166521882)*v_bucket_link_e1
+    c469 = -1.2098706166521882*v_bucket_link_e2
+    c470 = -c460 - c469
+    c471 = -c461 + (2.4197412333043764)*v_bucket_link_e3
+    c472 = (3.1850984857373903)*bucket_link_a10
+    c473 = 4.0*bucket_link_e0*v_bucket_link_e0
+    c474 = bucket_e0*v_bucket_e3
+    c475 = bucket_e3*v_bucket_e0
+    c476 = bucket_e0*v_bucket_e1
+    c477 = bucket_e1*v_bucket_e0
+    c478 = bucket_e2*v_bucket_e3
+    c479 = bucket_e3*v_bucket_e2
+    c480 = bucket_e0*v_bucket_e0
+    c481 = bucket_e2*v_bucket_e2
+    c482 = 2.0*bucket_link_e0
+    c483 = 2.0*bucket_link_e1
+    c484 = 2.0*bucket_link_e2
+    c485 = 2.0*bucket_link_e3
+    c486 = -c469 - 3.1850984857373903*v_bucket_link_e0
+    c487 = -c464 - c468
+    c488 = c466 + (2.4197412333043764)*v_bucket_link_e0
+    c489 = c482*v_bucket_link_e2 + c484*v_bucket_link_e0
+    c490 = -36797/25000*v_arm_e2
+    c491 = -36797/25000*v_arm_e3
+    c492 = (24687/50000)*v_arm_e2
+    c493 = (24687/50000)*v_arm_e1
+    c494 = 2.0*bucket_cyl_barrel_a02
+    c495 = 2.0*bucket_cyl_barrel_a22
+    c496 = 2.0*arm_a01
+    c497 = 2.0*arm_a11
+    c498 = 4.0*bucket_cyl_barrel_a12
+    c499 = 4.0*arm_a21
+    c500 = 2.0*bucket_cyl_barrel_e0
+    c501 = 2.0*bucket_cyl_barrel_e1
+    c502 = 2.0*arm_e0
+    c503 = 2.0*v_arm_e0
+    c504 = 2.0*v_bucket_cyl_barrel_e1
+    c505 = 2.0*v_bucket_cyl_barrel_e0
+    c506 = 2.0*bucket_cyl_barrel_a00
+    c507 = c506*v_bucket_cyl_rod_e2
+    c508 = 2.0*bucket_cyl_barrel_a20
+    c509 = c506*v_bucket_cyl_rod_e0
+    c510 = 4.0*bucket_cyl_rod_a01
+    c511 = 2.0*v_bucket_cyl_barrel_e3
+    c512 = 2.0*v_bucket_cyl_barrel_e2
+    c513 = c506*v_bucket_cyl_rod_e3
+    c514 = 4.0*bucket_cyl_barrel_a10
+    c515 = c506*v_bucket_cyl_rod_e1
+    c516 = 2.0*bucket_cyl_rod_e0
+    c517 = 2.0*v_bucket_cyl_rod_e0
+    c518 = 4.0*v_bucket_cyl_barrel_e0
+    c519 = c518*bucket_cyl_barrel_e0
+    c520 = 4.0*v_bucket_cyl_barrel_e1
+    c521 = 2.0*c519 + 2.0*c520*bucket_cyl_barrel_e1
+    c522 = 4.0*v_bucket_cyl_rod_e0
+    c523 = c522*bucket_cyl_rod_e0
+    c524 = c512*bucket_cyl_barrel_e1
+    c525 = c504*bucket_cyl_barrel_e2
+    c526 = c505*bucket_cyl_barrel_e3 + c511*bucket_cyl_barrel_e0
+    c527 = 2.0*c524 + 2.0*c525 + 2.0*c526
+    c528 = 2.0*v_bucket_cyl_rod_e2
+    c529 = c516*v_bucket_cyl_rod_e1 + c517*bucket_cyl_rod_e1
+    c530 = c511*bucket_cyl_barrel_e1
+    c531 = c504*bucket_cyl_barrel_e3
+    c532 = c505*bucket_cyl_barrel_e2 + c512*bucket_cyl_barrel_e0
+    c533 = -2.0*c532 + 2.0*c530 + 2.0*c531
+    c534 = 2.0*bucket_cyl_barrel_a10
+    c535 = 4.0*v_bucket_cyl_rod_e3
+    c536 = bucket_cyl_rod_e1*v_bucket_cyl_rod_e3
+    c537 = bucket_cyl_rod_e3*v_bucket_cyl_rod_e1
+    c538 = 2.0*c536 + 2.0*c537 + c516*v_bucket_cyl_rod_e2 + c517*bucket_cyl_rod_e2
+    c539 = c523 + c535*bucket_cyl_rod_e3
+    c540 = -c529 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2
+    c541 = 4.0*v_bucket_cyl_barrel_e2
+    c542 = c519 + c541*bucket_cyl_barrel_e2
+    c543 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y
+    c544 = c512*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e2
+    c545 = c505*bucket_cyl_barrel_x - c505*bucket_cyl_rod_x
+    c546 = c526 - c524 - c525
+    c547 = c511*bucket_cyl_barrel_e2
+    c548 = c512*bucket_cyl_barrel_e3
+    c549 = c504*bucket_cyl_barrel_e0 + c505*bucket_cyl_barrel_e1
+    c550 = c547 + c548 + c549
+    c551 = -c546
+    c552 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x
+    c553 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z
+    c554 = c511*bucket_cyl_barrel_x - c511*bucket_cyl_rod_x
+    c555 = c504*bucket_cyl_barrel_x - 2.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1
+    c556 = 4.0*v_bucket_cyl_barrel_e3
+    c557 = c519 + c556*bucket_cyl_barrel_e3
+    c558 = c530 + c531 + c532
+    c559 = c549 - c547 - c548
+    c560 = -c559
+    c561 = (2.0)*bucket_cyl_rod_a02
+    c562 = (2.0)*bucket_cyl_rod_a22
+    c563 = (2.0)*bucket_cyl_barrel_a01
+    c564 = (2.0)*bucket_cyl_barrel_a11
+    c565 = (4.0)*bucket_cyl_rod_a12
+    c566 = (4.0)*bucket_cyl_barrel_a21
+    c567 = (2.0)*bucket_cyl_rod_e0
+    c568 = (2.0)*v_bucket_cyl_rod_e0
+    c569 = (2.0)*bucket_cyl_barrel_e0
+    c570 = (2.0)*v_bucket_cyl_barrel_e0
+    c571 = 1.645191449642404*p_side_link
+    c572 = c571*v_side_link_e2
+    c573 = c571*v_side_link_e3
+    c574 = 2.2745066225654527*p_side_link
+    c575 = -c572
+    c576 = -c573
+    c577 = 1.1372533112827263*p_side_link
+    c578 = c577*v_side_link_e3
+    c579 = c577*v_side_link_e2
+    c580 = c577*v_side_link_e1
+    c581 = 3.290382899284808*p_side_link
+    return [0.0, 0.0, 0.0, c0*v_upper_e0 - c1*v_upper_e3, -c0*v_upper_e3 - c1*v_upper_e0, -c2*v_upper_e0 - c3*v_upper_e1 - v_upper_e0*(c2 + (22767/25000)*v_upper_e0) - v_upper_e1*(c3 + (22767/25000)*v_upper_e1), -v_upper_e0*(-195729/50000*v_upper_e1 + (22767/50000)*v_upper_e3) - v_upper_e1*(-c4 - 195729/50000*v_upper_e0) - v_upper_e2*(c3 + c5) - v_upper_e3*(c2 + (22767/50000)*v_upper_e0), -v_upper_e0*(c4 + (195729/25000)*v_upper_e0) - v_upper_e3*(c5 + (195729/25000)*v_upper_e3) - 22767/50000*v_upper_e1*v_upper_e3 + (22767/50000)*v_upper_e0*v_upper_e2, -c20*(-c16*v_boom_e1 - c17*v_boom_e0 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - c26*(c22 + 4.0*boom_e3*v_boom_e3) - c30*(c29 + c17*v_boom_e3 + c27*v_boom_e1) - v_upper_e0*(c12*v_upper_e0 + c7*v_upper_e1 - c6*v_upper_e3) - v_upper_e1*(c6*v_upper_e2 + c7*v_upper_e0) - v_upper_e2*(c12*v_upper_e2 + c6*v_upper_e1 + c7*v_upper_e3) - v_upper_e3*(-c6*v_upper_e0 + 2.0*boom_a22*v_upper_e2) - v_boom_e0*(-c13 + c14*v_boom_e0 + c8*v_boom_e2) - v_boom_e1*(-c10 + c8*v_boom_e3) - v_boom_e2*(c11 + c8*v_boom_e0) - v_boom_e3*(c15 + c14*v_boom_e3 + c8*v_boom_e1), -c20*(c16*v_boom_e3 + c17*v_boom_e2 + c27*v_boom_e0 + c28*v_boom_e1) - c26*(-c29 + 2.0*boom_e1*v_boom_e3 + 2.0*boom_e3*v_boom_e1) - c30*(c22 + c34*boom_e1) - v_upper_e0*(c18*boom_a10 + c33*v_upper_e1 - c32*v_upper_e3) - v_upper_e1*(c24*boom_a20 + c25*boom_a00) - v_upper_e2*(c19*boom_a10 + c32*v_upper_e1 + c33*v_upper_e3) - v_upper_e3*(-c24*boom_a00 + 2.0*boom_a20*v_upper_e2) - v_boom_e0*(c11 + c21*upper_a01 - c31*v_boom_e2) - v_boom_e1*(c15 + c31*v_boom_e3 + c34*upper_a01) - v_boom_e2*(c13 - c31*v_boom_e0) - v_boom_e3*(c10 + c31*v_boom_e1), -v_upper_e0*(c39 + c40 + (8614/3125)*v_upper_e0) - v_upper_e1*(c41 + c42 + (8614/3125)*v_upper_e1) - v_upper_e2*(c35 + c36) - v_upper_e3*(-c37 - c38), -v_upper_e0*(c45 + c38 + (32/25)*v_upper_e0) - v_upper_e1*(-c35 - c43) - v_upper_e2*(c46 + c42 + (32/25)*v_upper_e2) - v_upper_e3*(c39 + c44), -v_upper_e0*(c36 + c43 + (67739/12500)*v_upper_e0) - v_upper_e1*(c45 + c37) - v_upper_e2*(-c40 - c44) - v_upper_e3*(c46 + c41 + (67739/12500)*v_upper_e3), -v_upper_e0*(c48*v_upper_e1 + c51*v_upper_e0 - c47*v_upper_e3) - v_upper_e1*(c47*v_upper_e2 + c48*v_upper_e0) - v_upper_e2*(c47*v_upper_e1 + c48*v_upper_e3 + c51*v_upper_e2) - v_upper_e3*(-c47*v_upper_e0 + 2.0*boom_cyl_l_barrel_a22*v_upper_e2) - v_boom_cyl_l_barrel_e0*(c49*v_boom_cyl_l_barrel_e2 + c52*v_boom_cyl_l_barrel_e0 - c50*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e1*(c49*v_boom_cyl_l_barrel_e3 - c50*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c49*v_boom_cyl_l_barrel_e0 + c50*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(c49*v_boom_cyl_l_barrel_e1 + c50*v_boom_cyl_l_barrel_e2 + c52*v_boom_cyl_l_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c53*v_boom_cyl_l_barrel_e1 - c54*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - 2.0*(4.0*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + 4.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3)*(c55*v_upper_e1 + c56*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c53*v_boom_cyl_l_barrel_e2 + c54*v_boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e1)*(-c55*v_upper_e3 - c56*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1), -c74*(-c69*v_boom_cyl_l_rod_e3 - c70*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e2 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e1) - c80*(c76 + 4.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e2) - c86*(c82 + c81*boom_cyl_l_rod_e3 + 2.0*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_barrel_e0*(c63*v_boom_cyl_l_barrel_e0 + c64*boom_cyl_l_rod_a11 - c65*boom_cyl_l_rod_a21) - v_boom_cyl_l_barrel_e1*(c63*v_boom_cyl_l_barrel_e1 + c64*boom_cyl_l_rod_a21 + c65*boom_cyl_l_rod_a11) - v_boom_cyl_l_barrel_e2*(c57*boom_cyl_l_rod_a11 - c58*boom_cyl_l_rod_a21) - v_boom_cyl_l_barrel_e3*(c57*boom_cyl_l_rod_a21 + c58*boom_cyl_l_rod_a11) - v_boom_cyl_l_rod_e0*(-c66 + c67*v_boom_cyl_l_rod_e0 + c61*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c60 + c61*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c68 + c67*v_boom_cyl_l_rod_e2 + c61*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(-c62 + 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_e2), -c74*c91 - c80*c93 - c86*c92 - v_boom_cyl_l_barrel_e0*(c71*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a12 - c65*boom_cyl_l_rod_a22) - v_boom_cyl_l_barrel_e1*(c73*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a22 + c65*boom_cyl_l_rod_a12) - v_boom_cyl_l_barrel_e2*(c57*boom_cyl_l_rod_a12 - c58*boom_cyl_l_rod_a22) - v_boom_cyl_l_barrel_e3*(c57*boom_cyl_l_rod_a22 + c58*boom_cyl_l_rod_a12) - v_boom_cyl_l_rod_e0*(c60 + c75*boom_cyl_l_barrel_a20 - c87*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c66 - c70*boom_cyl_l_barrel_a10) - v_boom_cyl_l_rod_e2*(c62 + c87*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c68 + c81*boom_cyl_l_barrel_a10 + c88*boom_cyl_l_barrel_a20), c95*v_boom_cyl_l_barrel_y + c103*v_boom_cyl_l_barrel_z - c95*c96 - c95*v_boom_cyl_l_rod_y - c99*v_boom_cyl_l_barrel_x - c103*c106 - c103*v_boom_cyl_l_rod_z - c104*c105 - c104*v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_e0*(c107 + c57*boom_cyl_l_rod_z + c71*boom_cyl_l_rod_y - c57*boom_cyl_l_barrel_z - c71*boom_cyl_l_barrel_y) - v_boom_cyl_l_barrel_e1*(-c97 - c58*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c108 - c94*boom_cyl_l_barrel_y - c64*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(c98 + c65*boom_cyl_l_rod_z - c65*boom_cyl_l_barrel_z), c110*v_boom_cyl_l_barrel_z + c111*v_boom_cyl_l_barrel_x - c96*c113 - c105*c111 - c106*c110 - c110*v_boom_cyl_l_rod_z - c111*v_boom_cyl_l_rod_x - c112*v_boom_cyl_l_barrel_y - c113*v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_e0*(-c97 - c57*boom_cyl_l_rod_y - c71*boom_cyl_l_barrel_z + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e1 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c107 - c58*boom_cyl_l_rod_y + 2.0*boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(-c98 - c64*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e3*(-c108 - c109*boom_cyl_l_barrel_z - c65*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 4.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3), -c91*(-c122*v_boom_cyl_l_barrel_e3 - c123*boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e2 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e1) - c92*(c122*v_boom_cyl_l_barrel_e1 + c123*boom_cyl_l_barrel_e1 + (2.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e3 + (2.0)*boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e2) - c93*((4.0)*boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0 + (4.0)*boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - c95*(-c120*v_boom_cyl_l_rod_e1 - c121*boom_cyl_l_rod_e1 + (2.0)*boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e3 + (2.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e2) - c103*((4.0)*boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0 + (4.0)*boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3) - c104*((2.0)*c89 + (2.0)*c90 + c120*v_boom_cyl_l_rod_e2 + c121*boom_cyl_l_rod_e2) - v_boom_cyl_l_barrel_e0*(c115*v_boom_cyl_l_barrel_e1 + c118*v_boom_cyl_l_barrel_e0 - c114*v_boom_cyl_l_barrel_e3) - v_boom_cyl_l_barrel_e1*(c114*v_boom_cyl_l_barrel_e2 + c115*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e2*(c114*v_boom_cyl_l_barrel_e1 + c115*v_boom_cyl_l_barrel_e3 + c118*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_barrel_e3*(-c114*v_boom_cyl_l_barrel_e0 + (2.0)*boom_cyl_l_rod_a22*v_boom_cyl_l_barrel_e2) - v_boom_cyl_l_rod_e0*(c116*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e0 - c117*v_boom_cyl_l_rod_e1) - v_boom_cyl_l_rod_e1*(c116*v_boom_cyl_l_rod_e3 - c117*v_boom_cyl_l_rod_e0) - v_boom_cyl_l_rod_e2*(c116*v_boom_cyl_l_rod_e0 + c117*v_boom_cyl_l_rod_e3) - v_boom_cyl_l_rod_e3*(c116*v_boom_cyl_l_rod_e1 + c117*v_boom_cyl_l_rod_e2 + c119*v_boom_cyl_l_rod_e3), -v_boom_e0*(-c129 - c131 - c130*v_boom_e0) - v_boom_e1*(-c132 - c133 - c130*v_boom_e1) - v_boom_e2*(-c124 - c126) - v_boom_e3*(c127 - c128), -v_boom_e0*(c128 - c137 - 32/25*v_boom_e0) - v_boom_e1*(c126 - c135) - v_boom_e2*(-c138 - c133 - 32/25*v_boom_e2) - v_boom_e3*(-c136 - c131), -v_boom_e0*(c135 - c124 - c139*v_boom_e0) - v_boom_e1*(-c137 - c127) - v_boom_e2*(c136 + c129) - v_boom_e3*(-c138 - c132 - c139*v_boom_e3), -v_upper_e0*(c144 + c145 + (8614/3125)*v_upper_e0) - v_upper_e1*(c146 + c147 + (8614/3125)*v_upper_e1) - v_upper_e2*(c140 - c141) - v_upper_e3*(c142 + c143), -v_upper_e0*(-c150 - c143 - 32/25*v_upper_e0) - v_upper_e1*(c148 - c140) - v_upper_e2*(c151 + c147 - 32/25*v_upper_e2) - v_upper_e3*(c144 + c149), -v_upper_e0*(-c141 - c148 + (67739/12500)*v_upper_e0) - v_upper_e1*(-c150 - c142) - v_upper_e2*(-c145 - c149) - v_upper_e3*(c151 + c146 + (67739/12500)*v_upper_e3), -v_upper_e0*(c153*v_upper_e1 + c156*v_upper_e0 - c152*v_upper_e3) - v_upper_e1*(c152*v_upper_e2 + c153*v_upper_e0) - v_upper_e2*(c152*v_upper_e1 + c153*v_upper_e3 + c156*v_upper_e2) - v_upper_e3*(-c152*v_upper_e0 + 2.0*boom_cyl_r_barrel_a22*v_upper_e2) - v_boom_cyl_r_barrel_e0*(c154*v_boom_cyl_r_barrel_e2 + c157*v_boom_cyl_r_barrel_e0 - c155*v_boom_cyl_r_barrel_e1) - v_boom_cyl_r_barrel_e1*(c154*v_boom_cyl_r_barrel_e3 - c155*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c154*v_boom_cyl_r_barrel_e0 + c155*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(c154*v_boom_cyl_r_barrel_e1 + c155*v_boom_cyl_r_barrel_e2 + c157*v_boom_cyl_r_barrel_e3) - 2.0*(4.0*upper_e0*v_upper_e0 + 4.0*upper_e2*v_upper_e2)*(-c158*v_boom_cyl_r_barrel_e1 - c159*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - 2.0*(4.0*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + 4.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3)*(c160*v_upper_e1 + c161*upper_e1 + 2.0*upper_e2*v_upper_e3 + 2.0*upper_e3*v_upper_e2) - 2.0*(c158*v_boom_cyl_r_barrel_e2 + c159*v_boom_cyl_r_barrel_e3 + 2.0*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e0 + 2.0*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e1)*(-c160*v_upper_e3 - c161*upper_e3 + 2.0*upper_e1*v_upper_e2 + 2.0*upper_e2*v_upper_e1), -c179*(-c174*v_boom_cyl_r_rod_e3 - c175*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e2 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e1) - c185*(c181 + 4.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - c191*(c187 + c186*boom_cyl_r_rod_e3 + 2.0*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_barrel_e0*(c168*v_boom_cyl_r_barrel_e0 + c169*boom_cyl_r_rod_a11 - c170*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e1*(c168*v_boom_cyl_r_barrel_e1 + c169*boom_cyl_r_rod_a21 + c170*boom_cyl_r_rod_a11) - v_boom_cyl_r_barrel_e2*(c162*boom_cyl_r_rod_a11 - c163*boom_cyl_r_rod_a21) - v_boom_cyl_r_barrel_e3*(c162*boom_cyl_r_rod_a21 + c163*boom_cyl_r_rod_a11) - v_boom_cyl_r_rod_e0*(-c171 + c172*v_boom_cyl_r_rod_e0 + c166*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c165 + c166*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c173 + c172*v_boom_cyl_r_rod_e2 + c166*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(-c167 + 2.0*boom_cyl_r_barrel_a20*v_boom_cyl_r_rod_e2), -c179*c196 - c185*c198 - c191*c197 - v_boom_cyl_r_barrel_e0*(c176*boom_cyl_r_rod_a02 + c169*boom_cyl_r_rod_a12 - c170*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e1*(c178*boom_cyl_r_rod_a02 + c169*boom_cyl_r_rod_a22 + c170*boom_cyl_r_rod_a12) - v_boom_cyl_r_barrel_e2*(c162*boom_cyl_r_rod_a12 - c163*boom_cyl_r_rod_a22) - v_boom_cyl_r_barrel_e3*(c162*boom_cyl_r_rod_a22 + c163*boom_cyl_r_rod_a12) - v_boom_cyl_r_rod_e0*(c165 + c180*boom_cyl_r_barrel_a20 - c192*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c171 - c175*boom_cyl_r_barrel_a10) - v_boom_cyl_r_rod_e2*(c167 + c192*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c173 + c186*boom_cyl_r_barrel_a10 + c193*boom_cyl_r_barrel_a20), c200*v_boom_cyl_r_barrel_y + c208*v_boom_cyl_r_barrel_z - c200*c201 - c200*v_boom_cyl_r_rod_y - c204*v_boom_cyl_r_barrel_x - c208*c211 - c208*v_boom_cyl_r_rod_z - c209*c210 - c209*v_boom_cyl_r_rod_x - v_boom_cyl_r_barrel_e0*(c212 + c162*boom_cyl_r_rod_z + c176*boom_cyl_r_rod_y - c162*boom_cyl_r_barrel_z - c176*boom_cyl_r_barrel_y) - v_boom_cyl_r_barrel_e1*(-c202 - c163*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c213 - c199*boom_cyl_r_barrel_y - c169*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3 + 4.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(c203 + c170*boom_cyl_r_rod_z - c170*boom_cyl_r_barrel_z), c215*v_boom_cyl_r_barrel_z + c216*v_boom_cyl_r_barrel_x - c201*c218 - c210*c216 - c211*c215 - c215*v_boom_cyl_r_rod_z - c216*v_boom_cyl_r_rod_x - c217*v_boom_cyl_r_barrel_y - c218*v_boom_cyl_r_rod_y - v_boom_cyl_r_barrel_e0*(-c202 - c162*boom_cyl_r_rod_y - c176*boom_cyl_r_barrel_z + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e1 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e1*(-c212 - c163*boom_cyl_r_rod_y + 2.0*boom_cyl_r_barrel_y*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(-c203 - c169*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e3*(-c213 - c214*boom_cyl_r_barrel_z - c170*boom_cyl_r_barrel_y + 2.0*boom_cyl_r_rod_y*v_boom_cyl_r_barrel_e2 + 4.0*boom_cyl_r_rod_z*v_boom_cyl_r_barrel_e3), -c196*(-c227*v_boom_cyl_r_barrel_e3 - c228*boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e2 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e1) - c197*(c227*v_boom_cyl_r_barrel_e1 + c228*boom_cyl_r_barrel_e1 + (2.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e3 + (2.0)*boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e2) - c198*((4.0)*boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0 + (4.0)*boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - c200*(-c225*v_boom_cyl_r_rod_e1 - c226*boom_cyl_r_rod_e1 + (2.0)*boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e3 + (2.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e2) - c208*((4.0)*boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0 + (4.0)*boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3) - c209*((2.0)*c194 + (2.0)*c195 + c225*v_boom_cyl_r_rod_e2 + c226*boom_cyl_r_rod_e2) - v_boom_cyl_r_barrel_e0*(c220*v_boom_cyl_r_barrel_e1 + c223*v_boom_cyl_r_barrel_e0 - c219*v_boom_cyl_r_barrel_e3) - v_boom_cyl_r_barrel_e1*(c219*v_boom_cyl_r_barrel_e2 + c220*v_boom_cyl_r_barrel_e0) - v_boom_cyl_r_barrel_e2*(c219*v_boom_cyl_r_barrel_e1 + c220*v_boom_cyl_r_barrel_e3 + c223*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_barrel_e3*(-c219*v_boom_cyl_r_barrel_e0 + (2.0)*boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_e2) - v_boom_cyl_r_rod_e0*(c221*v_boom_cyl_r_rod_e2 + c224*v_boom_cyl_r_rod_e0 - c222*v_boom_cyl_r_rod_e1) - v_boom_cyl_r_rod_e1*(c221*v_boom_cyl_r_rod_e3 - c222*v_boom_cyl_r_rod_e0) - v_boom_cyl_r_rod_e2*(c221*v_boom_cyl_r_rod_e0 + c222*v_boom_cyl_r_rod_e3) - v_boom_cyl_r_rod_e3*(c221*v_boom_cyl_r_rod_e1 + c222*v_boom_cyl_r_rod_e2 + c224*v_boom_cyl_r_rod_e3), -v_boom_e0*(-c233 - c235 - c234*v_boom_e0) - v_boom_e1*(-c236 - c237 - c234*v_boom_e1) - v_boom_e2*(-c230 + (16/25)*v_boom_e1) - v_boom_e3*(-c231 - c232), -v_boom_e0*(c232 - c241 + (32/25)*v_boom_e0) - v_boom_e1*(c230 - c239) - v_boom_e2*(-c242 - c237 + (32/25)*v_boom_e2) - v_boom_e3*(-c240 - c235), -v_boom_e0*(c239 + (16/25)*v_boom_e1 - c243*v_boom_e0) - v_boom_e1*(c231 - c241) - v_boom_e2*(c240 + c233) - v_boom_e3*(-c242 - c236 - c243*v_boom_e3), -c244*v_boom_e0 - c245*v_boom_e1 - v_boom_e0*(c244 + (23939/1250)*v_boom_e0) - v_boom_e1*(c245 + (23939/1250)*v_boom_e1), -v_boom_e0*(-29959/5000*v_boom_e1 + (23939/2500)*v_boom_e3) - v_boom_e1*(-c246 - 29959/5000*v_boom_e0) - v_boom_e2*(c245 + c247) - v_boom_e3*(c244 + (23939/2500)*v_boom_e0), -v_boom_e0*(c246 + (29959/2500)*v_boom_e0) - v_boom_e3*(c247 + (29959/2500)*v_boom_e3) - 23939/2500*v_boom_e1*v_boom_e3 + (23939/2500)*v_boom_e0*v_boom_e2, -c262*(-c258*v_arm_e1 - c259*v_arm_e0 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - c268*(c264 + 4.0*arm_e3*v_arm_e3) - c272*(c271 + c259*v_arm_e3 + c269*v_arm_e1) - v_boom_e0*(c254*v_boom_e0 + c249*v_boom_e1 - c248*v_boom_e3) - v_boom_e1*(c248*v_boom_e2 + c249*v_boom_e0) - v_boom_e2*(c254*v_boom_e2 + c248*v_boom_e1 + c249*v_boom_e3) - v_boom_e3*(-c248*v_boom_e0 + 2.0*arm_a22*v_boom_e2) - v_arm_e0*(-c255 + c256*v_arm_e0 + c250*v_arm_e2) - v_arm_e1*(-c252 + c250*v_arm_e3) - v_arm_e2*(c253 + c250*v_arm_e0) - v_arm_e3*(c257 + c256*v_arm_e3 + c250*v_arm_e1), -c262*(c258*v_arm_e3 + c259*v_arm_e2 + c269*v_arm_e0 + c270*v_arm_e1) - c268*(-c271 + 2.0*arm_e1*v_arm_e3 + 2.0*arm_e3*v_arm_e1) - c272*(c264 + c276*arm_e1) - v_boom_e0*(c260*arm_a10 + c275*v_boom_e1 - c274*v_boom_e3) - v_boom_e1*(c266*arm_a20 + c267*arm_a00) - v_boom_e2*(c261*arm_a10 + c274*v_boom_e1 + c275*v_boom_e3) - v_boom_e3*(-c266*arm_a00 + 2.0*arm_a20*v_boom_e2) - v_arm_e0*(c253 + c263*boom_a01 - c273*v_arm_e2) - v_arm_e1*(c257 + c273*v_arm_e3 + c276*boom_a01) - v_arm_e2*(c255 - c273*v_arm_e0) - v_arm_e3*(c252 + c273*v_arm_e1), -c277*v_boom_e0 - c278*v_boom_e1 - v_boom_e0*(c277 + (183/20)*v_boom_e0) - v_boom_e1*(c278 + (183/20)*v_boom_e1), -v_boom_e0*(-557/100*v_boom_e1 + (183/40)*v_boom_e3) - v_boom_e1*(-c279 - 557/100*v_boom_e0) - v_boom_e2*(c278 + c280) - v_boom_e3*(c277 + (183/40)*v_boom_e0), -v_boom_e0*(c279 + (557/50)*v_boom_e0) - v_boom_e3*(c280 + (557/50)*v_boom_e3) - 183/40*v_boom_e1*v_boom_e3 + (183/40)*v_boom_e0*v_boom_e2, -v_boom_e0*(c282*v_boom_e1 + c285*v_boom_e0 - c281*v_boom_e3) - v_boom_e1*(c281*v_boom_e2 + c282*v_boom_e0) - v_boom_e2*(c281*v_boom_e1 + c282*v_boom_e3 + c285*v_boom_e2) - v_boom_e3*(-c281*v_boom_e0 + 2.0*arm_cyl_barrel_a22*v_boom_e2) - v_arm_cyl_barrel_e0*(c283*v_arm_cyl_barrel_e2 + c286*v_arm_cyl_barrel_e0 - c284*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e1*(c283*v_arm_cyl_barrel_e3 - c284*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c283*v_arm_cyl_barrel_e0 + c284*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(c283*v_arm_cyl_barrel_e1 + c284*v_arm_cyl_barrel_e2 + c286*v_arm_cyl_barrel_e3) - 2.0*(4.0*boom_e0*v_boom_e0 + 4.0*boom_e2*v_boom_e2)*(-c287*v_arm_cyl_barrel_e1 - c288*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - 2.0*(4.0*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + 4.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e3)*(c289*v_boom_e1 + c290*boom_e1 + 2.0*boom_e2*v_boom_e3 + 2.0*boom_e3*v_boom_e2) - 2.0*(c287*v_arm_cyl_barrel_e2 + c288*v_arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e2*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_barrel_e3*v_arm_cyl_barrel_e1)*(-c289*v_boom_e3 - c290*boom_e3 + 2.0*boom_e1*v_boom_e2 + 2.0*boom_e2*v_boom_e1), -c308*(-c303*v_arm_cyl_rod_e3 - c304*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e1*v_arm_cyl_rod_e2 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e1) - c314*(c310 + 4.0*arm_cyl_rod_e2*v_arm_cyl_rod_e2) - c320*(c316 + c315*arm_cyl_rod_e3 + 2.0*arm_cyl_rod_e2*v_arm_cyl_rod_e3) - v_arm_cyl_barrel_e0*(c297*v_arm_cyl_barrel_e0 + c298*arm_cyl_rod_a11 - c299*arm_cyl_rod_a21) - v_arm_cyl_barrel_e1*(c297*v_arm_cyl_barrel_e1 + c298*arm_cyl_rod_a21 + c299*arm_cyl_rod_a11) - v_arm_cyl_barrel_e2*(c291*arm_cyl_rod_a11 - c292*arm_cyl_rod_a21) - v_arm_cyl_barrel_e3*(c291*arm_cyl_rod_a21 + c292*arm_cyl_rod_a11) - v_arm_cyl_rod_e0*(-c300 + c301*v_arm_cyl_rod_e0 + c295*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c294 + c295*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c302 + c301*v_arm_cyl_rod_e2 + c295*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(-c296 + 2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_e2), -c308*c325 - c314*c327 - c320*c326 - v_arm_cyl_barrel_e0*(c305*arm_cyl_rod_a02 + c298*arm_cyl_rod_a12 - c299*arm_cyl_rod_a22) - v_arm_cyl_barrel_e1*(c307*arm_cyl_rod_a02 + c298*arm_cyl_rod_a22 + c299*arm_cyl_rod_a12) - v_arm_cyl_barrel_e2*(c291*arm_cyl_rod_a12 - c292*arm_cyl_rod_a22) - v_arm_cyl_barrel_e3*(c291*arm_cyl_rod_a22 + c292*arm_cyl_rod_a12) - v_arm_cyl_rod_e0*(c294 + c309*arm_cyl_barrel_a20 - c321*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c300 - c304*arm_cyl_barrel_a10) - v_arm_cyl_rod_e2*(c296 + c321*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c302 + c315*arm_cyl_barrel_a10 + c322*arm_cyl_barrel_a20), c329*v_arm_cyl_barrel_y + c337*v_arm_cyl_barrel_z - c329*c330 - c329*v_arm_cyl_rod_y - c333*v_arm_cyl_barrel_x - c337*c340 - c337*v_arm_cyl_rod_z - c338*c339 - c338*v_arm_cyl_rod_x - v_arm_cyl_barrel_e0*(c341 + c291*arm_cyl_rod_z + c305*arm_cyl_rod_y - c291*arm_cyl_barrel_z - c305*arm_cyl_barrel_y) - v_arm_cyl_barrel_e1*(-c331 - c292*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c342 - c328*arm_cyl_barrel_y - c298*arm_cyl_barrel_z + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(c332 + c299*arm_cyl_rod_z - c299*arm_cyl_barrel_z), c344*v_arm_cyl_barrel_z + c345*v_arm_cyl_barrel_x - c330*c347 - c339*c345 - c340*c344 - c344*v_arm_cyl_rod_z - c345*v_arm_cyl_rod_x - c346*v_arm_cyl_barrel_y - c347*v_arm_cyl_rod_y - v_arm_cyl_barrel_e0*(-c331 - c291*arm_cyl_rod_y - c305*arm_cyl_barrel_z + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e1 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c341 - c292*arm_cyl_rod_y + 2.0*arm_cyl_barrel_y*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(-c332 - c298*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e3*(-c342 - c343*arm_cyl_barrel_z - c299*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 4.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3), -c325*(-c356*v_arm_cyl_barrel_e3 - c357*arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e1*v_arm_cyl_barrel_e2 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e1) - c326*(c356*v_arm_cyl_barrel_e1 + c357*arm_cyl_barrel_e1 + (2.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e3 + (2.0)*arm_cyl_barrel_e3*v_arm_cyl_barrel_e2) - c327*((4.0)*arm_cyl_barrel_e0*v_arm_cyl_barrel_e0 + (4.0)*arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - c329*(-c354*v_arm_cyl_rod_e1 - c355*arm_cyl_rod_e1 + (2.0)*arm_cyl_rod_e2*v_arm_cyl_rod_e3 + (2.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e2) - c337*((4.0)*arm_cyl_rod_e0*v_arm_cyl_rod_e0 + (4.0)*arm_cyl_rod_e3*v_arm_cyl_rod_e3) - c338*((2.0)*c323 + (2.0)*c324 + c354*v_arm_cyl_rod_e2 + c355*arm_cyl_rod_e2) - v_arm_cyl_barrel_e0*(c349*v_arm_cyl_barrel_e1 + c352*v_arm_cyl_barrel_e0 - c348*v_arm_cyl_barrel_e3) - v_arm_cyl_barrel_e1*(c348*v_arm_cyl_barrel_e2 + c349*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e2*(c348*v_arm_cyl_barrel_e1 + c349*v_arm_cyl_barrel_e3 + c352*v_arm_cyl_barrel_e2) - v_arm_cyl_barrel_e3*(-c348*v_arm_cyl_barrel_e0 + (2.0)*arm_cyl_rod_a22*v_arm_cyl_barrel_e2) - v_arm_cyl_rod_e0*(c350*v_arm_cyl_rod_e2 + c353*v_arm_cyl_rod_e0 - c351*v_arm_cyl_rod_e1) - v_arm_cyl_rod_e1*(c350*v_arm_cyl_rod_e3 - c351*v_arm_cyl_rod_e0) - v_arm_cyl_rod_e2*(c350*v_arm_cyl_rod_e0 + c351*v_arm_cyl_rod_e3) - v_arm_cyl_rod_e3*(c350*v_arm_cyl_rod_e1 + c351*v_arm_cyl_rod_e2 + c353*v_arm_cyl_rod_e3), c359*v_arm_e0 + c360*v_arm_e1 - v_arm_e0*(-c359 - c361*v_arm_e0) - v_arm_e1*(-c360 - c361*v_arm_e1), -v_arm_e0*(-c362*v_arm_e3 + 2.0*p_F_z*v_arm_e1) - v_arm_e1*(-c363 + 2.0*p_F_z*v_arm_e0) - v_arm_e2*(-c360 - c364) - v_arm_e3*(-c359 - c362*v_arm_e0), -c363*v_arm_e0 - v_arm_e0*(c363 - c365*v_arm_e0) - v_arm_e3*(-c364 - c365*v_arm_e3) + 2.0*p_F_x*v_arm_e1*v_arm_e3, -c366*v_arm_e0 - c367*v_arm_e1 - v_arm_e0*(c366 + (9477/1250)*v_arm_e0) - v_arm_e1*(c367 + (9477/1250)*v_arm_e1), -v_arm_e0*(-21809/5000*v_arm_e1 + (9477/2500)*v_arm_e3) - v_arm_e1*(-c368 - 21809/5000*v_arm_e0) - v_arm_e2*(c367 + c369) - v_arm_e3*(c366 + (9477/2500)*v_arm_e0), -v_arm_e0*(c368 + (21809/2500)*v_arm_e0) - v_arm_e3*(c369 + (21809/2500)*v_arm_e3) - 9477/2500*v_arm_e1*v_arm_e3 + (9477/2500)*v_arm_e0*v_arm_e2, -c384*(-c380*v_bucket_e1 - c381*v_bucket_e0 + 2.0*bucket_e2*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e2) - c390*(c386 + 4.0*bucket_e3*v_bucket_e3) - c394*(c393 + c381*v_bucket_e3 + c391*v_bucket_e1) - v_arm_e0*(c376*v_arm_e0 + c371*v_arm_e1 - c370*v_arm_e3) - v_arm_e1*(c370*v_arm_e2 + c371*v_arm_e0) - v_arm_e2*(c376*v_arm_e2 + c370*v_arm_e1 + c371*v_arm_e3) - v_arm_e3*(-c370*v_arm_e0 + 2.0*bucket_a22*v_arm_e2) - v_bucket_e0*(-c377 + c378*v_bucket_e0 + c372*v_bucket_e2) - v_bucket_e1*(-c374 + c372*v_bucket_e3) - v_bucket_e2*(c375 + c372*v_bucket_e0) - v_bucket_e3*(c379 + c378*v_bucket_e3 + c372*v_bucket_e1), -c384*(c380*v_bucket_e3 + c381*v_bucket_e2 + c391*v_bucket_e0 + c392*v_bucket_e1) - c390*(-c393 + 2.0*bucket_e1*v_bucket_e3 + 2.0*bucket_e3*v_bucket_e1) - c394*(c386 + c398*bucket_e1) - v_arm_e0*(c382*bucket_a10 + c397*v_arm_e1 - c396*v_arm_e3) - v_arm_e1*(c388*bucket_a20 + c389*bucket_a00) - v_arm_e2*(c383*bucket_a10 + c396*v_arm_e1 + c397*v_arm_e3) - v_arm_e3*(-c388*bucket_a00 + 2.0*bucket_a20*v_arm_e2) - v_bucket_e0*(c375 + c385*arm_a01 - c395*v_bucket_e2) - v_bucket_e1*(c379 + c395*v_bucket_e3 + c398*arm_a01) - v_bucket_e2*(c377 - c395*v_bucket_e0) - v_bucket_e3*(c374 + c395*v_bucket_e1), -c399*v_arm_e0 - c400*v_arm_e1 - v_arm_e0*(c399 + (7877/1250)*v_arm_e0) - v_arm_e1*(c400 + (7877/1250)*v_arm_e1), -v_arm_e0*(-18799/5000*v_arm_e1 + (7877/2500)*v_arm_e3) - v_arm_e1*(-c401 - 18799/5000*v_arm_e0) - v_arm_e2*(c400 + c402) - v_arm_e3*(c399 + (7877/2500)*v_arm_e0), -v_arm_e0*(c401 + (18799/2500)*v_arm_e0) - v_arm_e3*(c402 + (18799/2500)*v_arm_e3) - 7877/2500*v_arm_e1*v_arm_e3 + (7877/2500)*v_arm_e0*v_arm_e2, -c417*(-c413*v_side_link_e1 - c414*v_side_link_e0 + 2.0*side_link_e2*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e2) - c423*(c419 + 4.0*side_link_e3*v_side_link_e3) - c427*(c426 + c414*v_side_link_e3 + c424*v_side_link_e1) - v_arm_e0*(c409*v_arm_e0 + c404*v_arm_e1 - c403*v_arm_e3) - v_arm_e1*(c403*v_arm_e2 + c404*v_arm_e0) - v_arm_e2*(c409*v_arm_e2 + c403*v_arm_e1 + c404*v_arm_e3) - v_arm_e3*(-c403*v_arm_e0 + 2.0*side_link_a22*v_arm_e2) - v_side_link_e0*(-c410 + c411*v_side_link_e0 + c405*v_side_link_e2) - v_side_link_e1*(-c407 + c405*v_side_link_e3) - v_side_link_e2*(c408 + c405*v_side_link_e0) - v_side_link_e3*(c412 + c411*v_side_link_e3 + c405*v_side_link_e1), -c417*(c413*v_side_link_e3 + c414*v_side_link_e2 + c424*v_side_link_e0 + c425*v_side_link_e1) - c423*(-c426 + 2.0*side_link_e1*v_side_link_e3 + 2.0*side_link_e3*v_side_link_e1) - c427*(c419 + c431*side_link_e1) - v_arm_e0*(c415*side_link_a10 + c430*v_arm_e1 - c429*v_arm_e3) - v_arm_e1*(c421*side_link_a20 + c422*side_link_a00) - v_arm_e2*(c416*side_link_a10 + c429*v_arm_e1 + c430*v_arm_e3) - v_arm_e3*(-c421*side_link_a00 + 2.0*side_link_a20*v_arm_e2) - v_side_link_e0*(c408 + c418*arm_a01 - c428*v_side_link_e2) - v_side_link_e1*(c412 + c428*v_side_link_e3 + c431*arm_a01) - v_side_link_e2*(c410 - c428*v_side_link_e0) - v_side_link_e3*(c407 + c428*v_side_link_e1), -c433*v_bucket_link_e0 - c434*v_bucket_link_e1 - v_side_link_e0*(-c437 - c436*v_side_link_e0) - v_side_link_e1*(-c438 - c436*v_side_link_e1) - v_bucket_link_e0*(c433 + c439*v_bucket_link_e0) - v_bucket_link_e1*(c434 + c439*v_bucket_link_e1) - c435*v_side_link_e0*v_side_link_e2 - c435*v_side_link_e1*v_side_link_e3, -v_side_link_e0*(-c435*v_side_link_e1 - c440*v_side_link_e3) - v_side_link_e1*(-c441 - c435*v_side_link_e0) - v_side_link_e2*(-c442 - c438) - v_side_link_e3*(-c437 - c440*v_side_link_e0) - v_bucket_link_e0*(-c432*v_bucket_link_e1 + 1.2098706166509*p_bucket_link*v_bucket_link_e3) - v_bucket_link_e1*(-c444 - c432*v_bucket_link_e0) - v_bucket_link_e2*(c445 + c434) - v_bucket_link_e3*(c433 + c443*v_bucket_link_e0), -c441*v_side_link_e0 - v_side_link_e0*(c441 + 3.290382899284808*p_side_link*v_side_link_e0) - v_side_link_e3*(-c442 + 3.290382899284808*p_side_link*v_side_link_e3) - v_bucket_link_e0*(c444 + c446*v_bucket_link_e0) - v_bucket_link_e3*(c445 + c446*v_bucket_link_e3) - c443*v_bucket_link_e1*v_bucket_link_e3 + 1.1372533112827263*p_side_link*v_side_link_e1*v_side_link_e3 + 1.2098706166509*p_bucket_link*v_bucket_link_e0*v_bucket_link_e2, c448*v_bucket_e0 + c449*v_bucket_e1 - v_bucket_e0*(-c448 - c450*v_bucket_e0) - v_bucket_e1*(-c449 - c450*v_bucket_e1), -v_bucket_e0*(-c451*v_bucket_e3 + 2.0*p_K_z*v_bucket_e1) - v_bucket_e1*(-c452 + 2.0*p_K_z*v_bucket_e0) - v_bucket_e2*(-c449 - c453) - v_bucket_e3*(-c448 - c451*v_bucket_e0), -c452*v_bucket_e0 - v_bucket_e0*(c452 - c454*v_bucket_e0) - v_bucket_e3*(-c453 - c454*v_bucket_e3) + 2.0*p_K_x*v_bucket_e1*v_bucket_e3, -v_bucket_link_e0*(c486*bucket_a01 + c487*bucket_a11 + c488*bucket_a21) - v_bucket_link_e1*(c465*bucket_a01 + c467*bucket_a11 - c464*bucket_a21) - v_bucket_link_e2*(c459*bucket_a01 + c460*bucket_a21 + c463*bucket_a11) - v_bucket_link_e3*(c468*bucket_a01 + c470*bucket_a11 + c471*bucket_a21) - v_bucket_e0*(c458*v_bucket_e1 + c455*v_bucket_e3 - c457*v_bucket_e3 - c472*v_bucket_e0 - c456*v_bucket_e1 + (2.4197412333043764)*bucket_link_a12*v_bucket_e0) - v_bucket_e1*(-c455*v_bucket_e2 - c456*v_bucket_e0 + (1.2098706166521882)*bucket_link_a02*v_bucket_e2 + (1.2098706166521882)*bucket_link_a22*v_bucket_e0) - v_bucket_e2*(-c472*v_bucket_e2 - c455*v_bucket_e1 - c456*v_bucket_e3 + (2.4197412333043764)*bucket_link_a12*v_bucket_e2 + (1.2098706166521882)*bucket_link_a02*v_bucket_e1 + (1.2098706166521882)*bucket_link_a22*v_bucket_e3) - v_bucket_e3*(c458*v_bucket_e2 + c455*v_bucket_e0 - c457*v_bucket_e0 - c456*v_bucket_e2) - (c473 + 4.0*bucket_link_e1*v_bucket_link_e1)*((1.5925492428686951)*c474 + (1.5925492428686951)*c475 - 1.5925492428686951*bucket_e1*v_bucket_e2 - 1.5925492428686951*bucket_e2*v_bucket_e1) - (c473 + 4.0*bucket_link_e3*v_bucket_link_e3)*((1.2098706166521882)*c476 + (1.2098706166521882)*c477 + (1.2098706166521882)*c478 + (1.2098706166521882)*c479) - (4.0*c480 + 4.0*c481)*(c463*bucket_link_e2 + c467*bucket_link_e1 + c470*bucket_link_e3 + c487*bucket_link_e0) - (-3.1850984857373903*c480 - 3.1850984857373903*c481)*(c482*v_bucket_link_e3 + c483*v_bucket_link_e2 + c484*v_bucket_link_e1 + c485*v_bucket_link_e0) - ((2.4197412333043764)*c480 + (2.4197412333043764)*c481)*(-c482*v_bucket_link_e1 - c483*v_bucket_link_e0 + 2.0*bucket_link_e2*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e2) - (c489 + c483*v_bucket_link_e3 + c485*v_bucket_link_e1)*(-1.2098706166521882*c474 - 1.2098706166521882*c475 + (1.2098706166521882)*bucket_e1*v_bucket_e2 + (1.2098706166521882)*bucket_e2*v_bucket_e1) - (-c489 + 2.0*bucket_link_e1*v_bucket_link_e3 + 2.0*bucket_link_e3*v_bucket_link_e1)*(-1.5925492428686951*c476 - 1.5925492428686951*c477 - 1.5925492428686951*c478 - 1.5925492428686951*c479) - (-2.0*c474 - 2.0*c475 + 2.0*bucket_e1*v_bucket_e2 + 2.0*bucket_e2*v_bucket_e1)*(c459*bucket_link_e2 + c465*bucket_link_e1 + c468*bucket_link_e3 + c486*bucket_link_e0) - (2.0*c476 + 2.0*c477 + 2.0*c478 + 2.0*c479)*(c460*bucket_link_e2 + c471*bucket_link_e3 + c488*bucket_link_e0 - c464*bucket_link_e1), -v_arm_e0*(-c490 - 24687/25000*v_arm_e0) - v_arm_e1*(-c491 - 24687/25000*v_arm_e1) - 36797/25000*v_arm_e0*v_arm_e2 - 36797/25000*v_arm_e1*v_arm_e3, -v_arm_e0*(-36797/25000*v_arm_e1 - 24687/50000*v_arm_e3) - v_arm_e1*(-c492 - 36797/25000*v_arm_e0) - v_arm_e2*(-c491 - c493) - v_arm_e3*(-c490 - 24687/50000*v_arm_e0), -c492*v_arm_e0 - v_arm_e0*(c492 + (36797/12500)*v_arm_e0) - v_arm_e3*(-c493 + (36797/12500)*v_arm_e3) + (24687/50000)*v_arm_e1*v_arm_e3, -v_arm_e0*(c495*v_arm_e1 + c498*v_arm_e0 - c494*v_arm_e3) - v_arm_e1*(c494*v_arm_e2 + c495*v_arm_e0) - v_arm_e2*(c494*v_arm_e1 + c495*v_arm_e3 + c498*v_arm_e2) - v_arm_e3*(-c494*v_arm_e0 + 2.0*bucket_cyl_barrel_a22*v_arm_e2) - v_bucket_cyl_barrel_e0*(c496*v_bucket_cyl_barrel_e2 + c499*v_bucket_cyl_barrel_e0 - c497*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e1*(c496*v_bucket_cyl_barrel_e3 - c497*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c496*v_bucket_cyl_barrel_e0 + c497*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(c496*v_bucket_cyl_barrel_e1 + c497*v_bucket_cyl_barrel_e2 + c499*v_bucket_cyl_barrel_e3) - 2.0*(4.0*arm_e0*v_arm_e0 + 4.0*arm_e2*v_arm_e2)*(-c500*v_bucket_cyl_barrel_e1 - c501*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - 2.0*(4.0*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + 4.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3)*(c502*v_arm_e1 + c503*arm_e1 + 2.0*arm_e2*v_arm_e3 + 2.0*arm_e3*v_arm_e2) - 2.0*(c500*v_bucket_cyl_barrel_e2 + c501*v_bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e1)*(-c502*v_arm_e3 - c503*arm_e3 + 2.0*arm_e1*v_arm_e2 + 2.0*arm_e2*v_arm_e1), -c521*(-c516*v_bucket_cyl_rod_e3 - c517*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e1*v_bucket_cyl_rod_e2 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e1) - c527*(c523 + 4.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - c533*(c529 + c528*bucket_cyl_rod_e3 + 2.0*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3) - v_bucket_cyl_barrel_e0*(c510*v_bucket_cyl_barrel_e0 + c511*bucket_cyl_rod_a11 - c512*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e1*(c510*v_bucket_cyl_barrel_e1 + c511*bucket_cyl_rod_a21 + c512*bucket_cyl_rod_a11) - v_bucket_cyl_barrel_e2*(c504*bucket_cyl_rod_a11 - c505*bucket_cyl_rod_a21) - v_bucket_cyl_barrel_e3*(c504*bucket_cyl_rod_a21 + c505*bucket_cyl_rod_a11) - v_bucket_cyl_rod_e0*(-c513 + c514*v_bucket_cyl_rod_e0 + c508*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c507 + c508*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c515 + c514*v_bucket_cyl_rod_e2 + c508*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(-c509 + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_e2), -c521*c538 - c527*c540 - c533*c539 - v_bucket_cyl_barrel_e0*(c518*bucket_cyl_rod_a02 + c511*bucket_cyl_rod_a12 - c512*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e1*(c520*bucket_cyl_rod_a02 + c511*bucket_cyl_rod_a22 + c512*bucket_cyl_rod_a12) - v_bucket_cyl_barrel_e2*(c504*bucket_cyl_rod_a12 - c505*bucket_cyl_rod_a22) - v_bucket_cyl_barrel_e3*(c504*bucket_cyl_rod_a22 + c505*bucket_cyl_rod_a12) - v_bucket_cyl_rod_e0*(c507 + c522*bucket_cyl_barrel_a20 - c534*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c513 - c517*bucket_cyl_barrel_a10) - v_bucket_cyl_rod_e2*(c509 + c534*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c515 + c528*bucket_cyl_barrel_a10 + c535*bucket_cyl_barrel_a20), c542*v_bucket_cyl_barrel_y + c550*v_bucket_cyl_barrel_z - c542*c543 - c542*v_bucket_cyl_rod_y - c546*v_bucket_cyl_barrel_x - c550*c553 - c550*v_bucket_cyl_rod_z - c551*c552 - c551*v_bucket_cyl_rod_x - v_bucket_cyl_barrel_e0*(c554 + c504*bucket_cyl_rod_z + c518*bucket_cyl_rod_y - c504*bucket_cyl_barrel_z - c518*bucket_cyl_barrel_y) - v_bucket_cyl_barrel_e1*(-c544 - c505*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c555 - c541*bucket_cyl_barrel_y - c511*bucket_cyl_barrel_z + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(c545 + c512*bucket_cyl_rod_z - c512*bucket_cyl_barrel_z), c557*v_bucket_cyl_barrel_z + c558*v_bucket_cyl_barrel_x - c543*c560 - c552*c558 - c553*c557 - c557*v_bucket_cyl_rod_z - c558*v_bucket_cyl_rod_x - c559*v_bucket_cyl_barrel_y - c560*v_bucket_cyl_rod_y - v_bucket_cyl_barrel_e0*(-c544 - c504*bucket_cyl_rod_y - c518*bucket_cyl_barrel_z + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e1 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c554 - c505*bucket_cyl_rod_y + 2.0*bucket_cyl_barrel_y*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(-c545 - c511*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e3*(-c555 - c556*bucket_cyl_barrel_z - c512*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 4.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3), -c538*(-c569*v_bucket_cyl_barrel_e3 - c570*bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e2 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e1) - c539*(c569*v_bucket_cyl_barrel_e1 + c570*bucket_cyl_barrel_e1 + (2.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e3 + (2.0)*bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e2) - c540*((4.0)*bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0 + (4.0)*bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - c542*(-c567*v_bucket_cyl_rod_e1 - c568*bucket_cyl_rod_e1 + (2.0)*bucket_cyl_rod_e2*v_bucket_cyl_rod_e3 + (2.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e2) - c550*((4.0)*bucket_cyl_rod_e0*v_bucket_cyl_rod_e0 + (4.0)*bucket_cyl_rod_e3*v_bucket_cyl_rod_e3) - c551*((2.0)*c536 + (2.0)*c537 + c567*v_bucket_cyl_rod_e2 + c568*bucket_cyl_rod_e2) - v_bucket_cyl_barrel_e0*(c562*v_bucket_cyl_barrel_e1 + c565*v_bucket_cyl_barrel_e0 - c561*v_bucket_cyl_barrel_e3) - v_bucket_cyl_barrel_e1*(c561*v_bucket_cyl_barrel_e2 + c562*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e2*(c561*v_bucket_cyl_barrel_e1 + c562*v_bucket_cyl_barrel_e3 + c565*v_bucket_cyl_barrel_e2) - v_bucket_cyl_barrel_e3*(-c561*v_bucket_cyl_barrel_e0 + (2.0)*bucket_cyl_rod_a22*v_bucket_cyl_barrel_e2) - v_bucket_cyl_rod_e0*(c563*v_bucket_cyl_rod_e2 + c566*v_bucket_cyl_rod_e0 - c564*v_bucket_cyl_rod_e1) - v_bucket_cyl_rod_e1*(c563*v_bucket_cyl_rod_e3 - c564*v_bucket_cyl_rod_e0) - v_bucket_cyl_rod_e2*(c563*v_bucket_cyl_rod_e0 + c564*v_bucket_cyl_rod_e3) - v_bucket_cyl_rod_e3*(c563*v_bucket_cyl_rod_e1 + c564*v_bucket_cyl_rod_e2 + c566*v_bucket_cyl_rod_e3), c572*v_side_link_e0 + c573*v_side_link_e1 - v_side_link_e0*(c575 + c574*v_side_link_e0) - v_side_link_e1*(c576 + c574*v_side_link_e1), -v_side_link_e0*(c578 + c571*v_side_link_e1) - v_side_link_e1*(c579 + c571*v_side_link_e0) - v_side_link_e2*(c576 + c580) - v_side_link_e3*(c575 + c577*v_side_link_e0), -c578*v_side_link_e1 - v_side_link_e0*(-c579 - c581*v_side_link_e0) - v_side_link_e3*(c580 - c581*v_side_link_e3) + 1.1372533112827263*p_side_link*v_side_link_e0*v_side_link_e2, -2.0*(v_upper_e0*v_upper_e0) - 2.0*(v_upper_e1*v_upper_e1) - 2.0*(v_upper_e2*v_upper_e2) - 2.0*(v_upper_e3*v_upper_e3), -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3), -2.0*(v_boom_cyl_l_barrel_e0*v_boom_cyl_l_barrel_e0) - 2.0*(v_boom_cyl_l_barrel_e1*v_boom_cyl_l_barrel_e1) - 2.0*(v_boom_cyl_l_barrel_e2*v_boom_cyl_l_barrel_e2) - 2.0*(v_boom_cyl_l_barrel_e3*v_boom_cyl_l_barrel_e3), -2.0*(v_boom_cyl_l_rod_e0*v_boom_cyl_l_rod_e0) - 2.0*(v_boom_cyl_l_rod_e1*v_boom_cyl_l_rod_e1) - 2.0*(v_boom_cyl_l_rod_e2*v_boom_cyl_l_rod_e2) - 2.0*(v_boom_cyl_l_rod_e3*v_boom_cyl_l_rod_e3), -2.0*(v_boom_cyl_r_barrel_e0*v_boom_cyl_r_barrel_e0) - 2.0*(v_boom_cyl_r_barrel_e1*v_boom_cyl_r_barrel_e1) - 2.0*(v_boom_cyl_r_barrel_e2*v_boom_cyl_r_barrel_e2) - 2.0*(v_boom_cyl_r_barrel_e3*v_boom_cyl_r_barrel_e3), -2.0*(v_boom_cyl_r_rod_e0*v_boom_cyl_r_rod_e0) - 2.0*(v_boom_cyl_r_rod_e1*v_boom_cyl_r_rod_e1) - 2.0*(v_boom_cyl_r_rod_e2*v_boom_cyl_r_rod_e2) - 2.0*(v_boom_cyl_r_rod_e3*v_boom_cyl_r_rod_e3), -2.0*(v_arm_e0*v_arm_e0) - 2.0*(v_arm_e1*v_arm_e1) - 2.0*(v_arm_e2*v_arm_e2) - 2.0*(v_arm_e3*v_arm_e3), -2.0*(v_arm_cyl_barrel_e0*v_arm_cyl_barrel_e0) - 2.0*(v_arm_cyl_barrel_e1*v_arm_cyl_barrel_e1) - 2.0*(v_arm_cyl_barrel_e2*v_arm_cyl_barrel_e2) - 2.0*(v_arm_cyl_barrel_e3*v_arm_cyl_barrel_e3), -2.0*(v_arm_cyl_rod_e0*v_arm_cyl_rod_e0) - 2.0*(v_arm_cyl_rod_e1*v_arm_cyl_rod_e1) - 2.0*(v_arm_cyl_rod_e2*v_arm_cyl_rod_e2) - 2.0*(v_arm_cyl_rod_e3*v_arm_cyl_rod_e3), -2.0*(v_bucket_cyl_barrel_e0*v_bucket_cyl_barrel_e0) - 2.0*(v_bucket_cyl_barrel_e1*v_bucket_cyl_barrel_e1) - 2.0*(v_bucket_cyl_barrel_e2*v_bucket_cyl_barrel_e2) - 2.0*(v_bucket_cyl_barrel_e3*v_bucket_cyl_barrel_e3), -2.0*(v_bucket_cyl_rod_e0*v_bucket_cyl_rod_e0) - 2.0*(v_bucket_cyl_rod_e1*v_bucket_cyl_rod_e1) - 2.0*(v_bucket_cyl_rod_e2*v_bucket_cyl_rod_e2) - 2.0*(v_bucket_cyl_rod_e3*v_bucket_cyl_rod_e3), -2.0*(v_side_link_e0*v_side_link_e0) - 2.0*(v_side_link_e1*v_side_link_e1) - 2.0*(v_side_link_e2*v_side_link_e2) - 2.0*(v_side_link_e3*v_side_link_e3), -2.0*(v_bucket_link_e0*v_bucket_link_e0) - 2.0*(v_bucket_link_e1*v_bucket_link_e1) - 2.0*(v_bucket_link_e2*v_bucket_link_e2) - 2.0*(v_bucket_link_e3*v_bucket_link_e3), -2.0*(v_bucket_e0*v_bucket_e0) - 2.0*(v_bucket_e1*v_bucket_e1) - 2.0*(v_bucket_e2*v_bucket_e2) - 2.0*(v_bucket_e3*v_bucket_e3)]
 
 
 def frames(q, v, a):
@@ -3814,6 +3950,62 @@ def frames(q, v, a):
     return out
 
 
+def points(p):
+    """Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS)."""
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
+    out = np.zeros((90,) + np.shape(p[0]))
+    out[3] = 22767/100000
+    out[5] = 195729/100000
+    out[6] = 4307/6250
+    out[7] = 8/25
+    out[8] = 67739/50000
+    out[9] = 4307/6250
+    out[10] = -8/25
+    out[11] = 67739/50000
+    out[15] = p_C_x
+    out[16] = 8/25
+    out[17] = p_C_z
+    out[18] = p_C_x
+    out[19] = -8/25
+    out[20] = p_C_z
+    out[21] = 183/80
+    out[23] = 557/200
+    out[24] = 23939/5000
+    out[26] = 29959/10000
+    out[42] = p_F_x
+    out[44] = p_F_z
+    out[45] = -24687/100000
+    out[47] = 36797/50000
+    out[48] = 7877/5000
+    out[50] = 18799/10000
+    out[51] = 9477/5000
+    out[53] = 21809/10000
+    out[69] = -0.5686266556413632*p_side_link
+    out[71] = 0.822595724821202*p_side_link
+    out[75] = -0.60493530832545*p_bucket_link
+    out[77] = -0.796274621434837*p_bucket_link
+    out[81] = p_K_x
+    out[83] = p_K_z
+    out[84] = 32/25
+    out[86] = 403/500
+    return out
+
+
+def actuator_ranges(p):
+    """The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters."""
+    _, _, _, _, p_boom_retracted, _, _, _, _ = p
+    out = np.zeros((8,) + np.shape(p[0]))
+    out[0] = p_boom_retracted
+    out[1] = 30649/10000
+    out[2] = p_boom_retracted
+    out[3] = 30649/10000
+    out[4] = 4541/2500
+    out[5] = 32939/10000
+    out[6] = 16529/10000
+    out[7] = 26613/10000
+    return out
+
+
 def inputs_digging(t):
     """Driver inputs of case 'digging' at time t: rows u (4), then du/dt, then d2u/dt2."""
     c0 = 2*t
@@ -3853,7 +4045,7 @@ def inputs_digging(t):
     return out
 
 
-def _drivers_phi_digging(q, u):
+def _drivers_phi_digging(q, u, p):
     """Phi of the driver rows of case 'digging'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -3875,7 +4067,7 @@ def _drivers_phi_digging(q, u):
     return out
 
 
-def _drivers_jac_digging(q, u):
+def _drivers_jac_digging(q, u, p):
     """Phi_q values of the driver rows of case 'digging'."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3943,7 +4135,7 @@ def _drivers_jac_digging(q, u):
     return out
 
 
-def _drivers_nu_digging(q, u, ud):
+def _drivers_nu_digging(q, u, ud, p):
     """nu of the driver rows of case 'digging'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3957,7 +4149,7 @@ def _drivers_nu_digging(q, u, ud):
     return out
 
 
-def _drivers_gamma_digging(q, v, u, ud, udd):
+def _drivers_gamma_digging(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'digging'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4005,7 +4197,7 @@ def _drivers_gamma_digging(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_digging(q, u):
+def _drivers_phi_jac_s_digging(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'digging' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4041,7 +4233,7 @@ def _drivers_phi_jac_s_digging(q, u):
     return [-2.0*upper_e3*math.cos(c0) + 2.0*upper_e0*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3, d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4, -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1, d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9, d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10, -d8*d12 + 2.0*d10*arm_cyl_barrel_e1, d10*d12 + 2.0*d8*arm_cyl_barrel_e1, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15, d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16, -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1, d16*d18 + 2.0*d14*bucket_cyl_barrel_e1, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_digging(q, u, ud):
+def _drivers_nu_s_digging(q, u, ud, p):
     """nu of the driver rows of case 'digging' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4050,7 +4242,7 @@ def _drivers_nu_s_digging(q, u, ud):
     return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_digging(q, v, u, ud, udd):
+def _drivers_gamma_s_digging(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'digging' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4093,42 +4285,42 @@ def _drivers_gamma_s_digging(q, v, u, ud, udd):
     return [-udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3), udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1), udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1), udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1)]
 
 
-def phi_digging(q, u):
+def phi_digging(q, u, p):
     """Phi(q, u) of case 'digging': 98 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_digging(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
-def jac_digging(q, u):
+def jac_digging(q, u, p):
     """Values of the sparse Phi_q of case 'digging' at jac_rows, jac_cols (643 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_digging(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
-def nu_digging(q, u, ud):
+def nu_digging(q, u, ud, p):
     """nu = -Phi_t of case 'digging' (zero in the joint rows)."""
-    drivers = _drivers_nu_digging(q, u, ud)
+    drivers = _drivers_nu_digging(q, u, ud, p)
     return _join(np.zeros((94,) + drivers.shape[1:]), drivers)
 
 
-def gamma_digging(q, v, u, ud, udd):
+def gamma_digging(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_digging(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_digging(q, u):
+def phi_jac_s_digging(q, u, p):
     """Phi and the Phi_q values of case 'digging' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_digging(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_digging(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_digging(q, u, ud):
+def nu_s_digging(q, u, ud, p):
     """nu of case 'digging' at one configuration (list of floats)."""
-    return [0.0] * 94 + _drivers_nu_s_digging(q, u, ud)
+    return [0.0] * 94 + _drivers_nu_s_digging(q, u, ud, p)
 
 
-def gamma_s_digging(q, v, u, ud, udd):
+def gamma_s_digging(q, v, u, ud, udd, p):
     """gamma of case 'digging' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_digging(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_digging(q, v, u, ud, udd, p)
 
 
 def inputs_level_cut(t):
@@ -4145,7 +4337,7 @@ def inputs_level_cut(t):
     return out
 
 
-def _drivers_phi_level_cut(q, u):
+def _drivers_phi_level_cut(q, u, p):
     """Phi of the driver rows of case 'level_cut'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, u1, u2, u3 = u
@@ -4162,7 +4354,7 @@ def _drivers_phi_level_cut(q, u):
     return out
 
 
-def _drivers_jac_level_cut(q, u):
+def _drivers_jac_level_cut(q, u, p):
     """Phi_q values of the driver rows of case 'level_cut'."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
@@ -4189,7 +4381,7 @@ def _drivers_jac_level_cut(q, u):
     return out
 
 
-def _drivers_nu_level_cut(q, u, ud):
+def _drivers_nu_level_cut(q, u, ud, p):
     """nu of the driver rows of case 'level_cut'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
@@ -4205,7 +4397,7 @@ def _drivers_nu_level_cut(q, u, ud):
     return out
 
 
-def _drivers_gamma_level_cut(q, v, u, ud, udd):
+def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'level_cut'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
@@ -4233,7 +4425,7 @@ def _drivers_gamma_level_cut(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_level_cut(q, u):
+def _drivers_phi_jac_s_level_cut(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'level_cut' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, u1, u2, u3 = u
@@ -4248,7 +4440,7 @@ def _drivers_phi_jac_s_level_cut(q, u):
     return [-2.0*upper_e3*math.cos(c0) + 2.0*upper_e0*math.sin(c0), bucket_x - u1 + (32/25)*bucket_a00 + (403/500)*bucket_a02, bucket_z - u2 + (32/25)*bucket_a20 + (403/500)*bucket_a22, bucket_a22*math.sin(u3) - bucket_a02*math.cos(u3)], [2.0*math.sin(d0), -2.0*math.cos(d0), 1.0, (128/25)*bucket_e0 + (403/250)*bucket_e2, (128/25)*bucket_e1 + (403/250)*bucket_e3, (403/250)*bucket_e0, (403/250)*bucket_e1, 1.0, -64/25*bucket_e2 + (403/125)*bucket_e0, (64/25)*bucket_e3, -64/25*bucket_e0, (64/25)*bucket_e1 + (403/125)*bucket_e3, -d2*bucket_e2 + 4.0*d1*bucket_e0, -d2*bucket_e3, -d2*bucket_e0, -d2*bucket_e1 + 4.0*d1*bucket_e3]
 
 
-def _drivers_nu_s_level_cut(q, u, ud):
+def _drivers_nu_s_level_cut(q, u, ud, p):
     """nu of the driver rows of case 'level_cut' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
@@ -4259,7 +4451,7 @@ def _drivers_nu_s_level_cut(q, u, ud):
     return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
 
-def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
+def _drivers_gamma_s_level_cut(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'level_cut' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
@@ -4282,42 +4474,42 @@ def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
     return [-udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3), udd1 - c3*v_bucket_e0 - c4*v_bucket_e1 - v_bucket_e0*(c3 + (128/25)*v_bucket_e0) - v_bucket_e1*(c4 + (128/25)*v_bucket_e1), udd2 - c5*v_bucket_e3 - v_bucket_e0*(-64/25*v_bucket_e2 + (403/125)*v_bucket_e0) - v_bucket_e3*(c5 + (403/125)*v_bucket_e3) + (64/25)*v_bucket_e0*v_bucket_e2, -udd3*(c6*bucket_a22 + c7*bucket_a02) - v_bucket_e0*(-c8*v_bucket_e2 + 4.0*c7*v_bucket_e0) - v_bucket_e3*(-c8*v_bucket_e1 + 4.0*c7*v_bucket_e3) - (ud3*ud3)*(c6*bucket_a02 - c7*bucket_a22) - 2.0*ud3*(v_bucket_e0*(c9*bucket_e2 + c10*bucket_e0) + v_bucket_e3*(c9*bucket_e1 + c10*bucket_e3) + c9*bucket_e0*v_bucket_e2 + c9*bucket_e3*v_bucket_e1) + 2.0*c6*v_bucket_e0*v_bucket_e2 + 2.0*c6*v_bucket_e1*v_bucket_e3]
 
 
-def phi_level_cut(q, u):
+def phi_level_cut(q, u, p):
     """Phi(q, u) of case 'level_cut': 98 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_level_cut(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
-def jac_level_cut(q, u):
+def jac_level_cut(q, u, p):
     """Values of the sparse Phi_q of case 'level_cut' at jac_rows, jac_cols (627 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_level_cut(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
-def nu_level_cut(q, u, ud):
+def nu_level_cut(q, u, ud, p):
     """nu = -Phi_t of case 'level_cut' (zero in the joint rows)."""
-    drivers = _drivers_nu_level_cut(q, u, ud)
+    drivers = _drivers_nu_level_cut(q, u, ud, p)
     return _join(np.zeros((94,) + drivers.shape[1:]), drivers)
 
 
-def gamma_level_cut(q, v, u, ud, udd):
+def gamma_level_cut(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_level_cut(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_level_cut(q, u):
+def phi_jac_s_level_cut(q, u, p):
     """Phi and the Phi_q values of case 'level_cut' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_level_cut(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_level_cut(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_level_cut(q, u, ud):
+def nu_s_level_cut(q, u, ud, p):
     """nu of case 'level_cut' at one configuration (list of floats)."""
-    return [0.0] * 94 + _drivers_nu_s_level_cut(q, u, ud)
+    return [0.0] * 94 + _drivers_nu_s_level_cut(q, u, ud, p)
 
 
-def gamma_s_level_cut(q, v, u, ud, udd):
+def gamma_s_level_cut(q, v, u, ud, udd, p):
     """gamma of case 'level_cut' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_level_cut(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_level_cut(q, v, u, ud, udd, p)
 
 
 def inputs_trench_wall(t):
@@ -4334,7 +4526,7 @@ def inputs_trench_wall(t):
     return out
 
 
-def _drivers_phi_trench_wall(q, u):
+def _drivers_phi_trench_wall(q, u, p):
     """Phi of the driver rows of case 'trench_wall'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, u1, u2, u3 = u
@@ -4351,7 +4543,7 @@ def _drivers_phi_trench_wall(q, u):
     return out
 
 
-def _drivers_jac_trench_wall(q, u):
+def _drivers_jac_trench_wall(q, u, p):
     """Phi_q values of the driver rows of case 'trench_wall'."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
@@ -4378,7 +4570,7 @@ def _drivers_jac_trench_wall(q, u):
     return out
 
 
-def _drivers_nu_trench_wall(q, u, ud):
+def _drivers_nu_trench_wall(q, u, ud, p):
     """nu of the driver rows of case 'trench_wall'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
@@ -4394,7 +4586,7 @@ def _drivers_nu_trench_wall(q, u, ud):
     return out
 
 
-def _drivers_gamma_trench_wall(q, v, u, ud, udd):
+def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'trench_wall'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
@@ -4422,7 +4614,7 @@ def _drivers_gamma_trench_wall(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_trench_wall(q, u):
+def _drivers_phi_jac_s_trench_wall(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'trench_wall' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, u1, u2, u3 = u
@@ -4437,7 +4629,7 @@ def _drivers_phi_jac_s_trench_wall(q, u):
     return [-2.0*upper_e3*math.cos(c0) + 2.0*upper_e0*math.sin(c0), bucket_x - u1 + (32/25)*bucket_a00 + (403/500)*bucket_a02, bucket_z - u2 + (32/25)*bucket_a20 + (403/500)*bucket_a22, bucket_a22*math.sin(u3) - bucket_a02*math.cos(u3)], [2.0*math.sin(d0), -2.0*math.cos(d0), 1.0, (128/25)*bucket_e0 + (403/250)*bucket_e2, (128/25)*bucket_e1 + (403/250)*bucket_e3, (403/250)*bucket_e0, (403/250)*bucket_e1, 1.0, -64/25*bucket_e2 + (403/125)*bucket_e0, (64/25)*bucket_e3, -64/25*bucket_e0, (64/25)*bucket_e1 + (403/125)*bucket_e3, -d2*bucket_e2 + 4.0*d1*bucket_e0, -d2*bucket_e3, -d2*bucket_e0, -d2*bucket_e1 + 4.0*d1*bucket_e3]
 
 
-def _drivers_nu_s_trench_wall(q, u, ud):
+def _drivers_nu_s_trench_wall(q, u, ud, p):
     """nu of the driver rows of case 'trench_wall' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     u0, _, _, u3 = u
@@ -4448,7 +4640,7 @@ def _drivers_nu_s_trench_wall(q, u, ud):
     return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
 
-def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
+def _drivers_gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'trench_wall' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_e0, bucket_e1, bucket_e2, bucket_e3 = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_e0, v_bucket_e1, v_bucket_e2, v_bucket_e3 = v
@@ -4471,42 +4663,42 @@ def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
     return [-udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3), udd1 - c3*v_bucket_e0 - c4*v_bucket_e1 - v_bucket_e0*(c3 + (128/25)*v_bucket_e0) - v_bucket_e1*(c4 + (128/25)*v_bucket_e1), udd2 - c5*v_bucket_e3 - v_bucket_e0*(-64/25*v_bucket_e2 + (403/125)*v_bucket_e0) - v_bucket_e3*(c5 + (403/125)*v_bucket_e3) + (64/25)*v_bucket_e0*v_bucket_e2, -udd3*(c6*bucket_a22 + c7*bucket_a02) - v_bucket_e0*(-c8*v_bucket_e2 + 4.0*c7*v_bucket_e0) - v_bucket_e3*(-c8*v_bucket_e1 + 4.0*c7*v_bucket_e3) - (ud3*ud3)*(c6*bucket_a02 - c7*bucket_a22) - 2.0*ud3*(v_bucket_e0*(c9*bucket_e2 + c10*bucket_e0) + v_bucket_e3*(c9*bucket_e1 + c10*bucket_e3) + c9*bucket_e0*v_bucket_e2 + c9*bucket_e3*v_bucket_e1) + 2.0*c6*v_bucket_e0*v_bucket_e2 + 2.0*c6*v_bucket_e1*v_bucket_e3]
 
 
-def phi_trench_wall(q, u):
+def phi_trench_wall(q, u, p):
     """Phi(q, u) of case 'trench_wall': 98 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_trench_wall(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
 
 
-def jac_trench_wall(q, u):
+def jac_trench_wall(q, u, p):
     """Values of the sparse Phi_q of case 'trench_wall' at jac_rows, jac_cols (627 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_trench_wall(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
 
 
-def nu_trench_wall(q, u, ud):
+def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    drivers = _drivers_nu_trench_wall(q, u, ud)
+    drivers = _drivers_nu_trench_wall(q, u, ud, p)
     return _join(np.zeros((94,) + drivers.shape[1:]), drivers)
 
 
-def gamma_trench_wall(q, v, u, ud, udd):
+def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_trench_wall(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_trench_wall(q, u):
+def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values of case 'trench_wall' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_trench_wall(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_trench_wall(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_trench_wall(q, u, ud):
+def nu_s_trench_wall(q, u, ud, p):
     """nu of case 'trench_wall' at one configuration (list of floats)."""
-    return [0.0] * 94 + _drivers_nu_s_trench_wall(q, u, ud)
+    return [0.0] * 94 + _drivers_nu_s_trench_wall(q, u, ud, p)
 
 
-def gamma_s_trench_wall(q, v, u, ud, udd):
+def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma of case 'trench_wall' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_trench_wall(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_trench_wall(q, v, u, ud, udd, p)
 
 
 def inputs_bucket_toggle(t):
@@ -4519,7 +4711,7 @@ def inputs_bucket_toggle(t):
     return out
 
 
-def _drivers_phi_bucket_toggle(q, u):
+def _drivers_phi_bucket_toggle(q, u, p):
     """Phi of the driver rows of case 'bucket_toggle'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4541,7 +4733,7 @@ def _drivers_phi_bucket_toggle(q, u):
     return out
 
 
-def _drivers_jac_bucket_toggle(q, u):
+def _drivers_jac_bucket_toggle(q, u, p):
     """Phi_q values of the driver rows of case 'bucket_toggle'."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4609,7 +4801,7 @@ def _drivers_jac_bucket_toggle(q, u):
     return out
 
 
-def _drivers_nu_bucket_toggle(q, u, ud):
+def _drivers_nu_bucket_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_toggle'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4623,7 +4815,7 @@ def _drivers_nu_bucket_toggle(q, u, ud):
     return out
 
 
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd):
+def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_toggle'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4671,7 +4863,7 @@ def _drivers_gamma_bucket_toggle(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_bucket_toggle(q, u):
+def _drivers_phi_jac_s_bucket_toggle(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'bucket_toggle' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4707,7 +4899,7 @@ def _drivers_phi_jac_s_bucket_toggle(q, u):
     return [-2.0*upper_e3*math.cos(c0) + 2.0*upper_e0*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3, d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4, -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1, d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9, d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10, -d8*d12 + 2.0*d10*arm_cyl_barrel_e1, d10*d12 + 2.0*d8*arm_cyl_barrel_e1, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15, d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16, -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1, d16*d18 + 2.0*d14*bucket_cyl_barrel_e1, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_bucket_toggle(q, u, ud):
+def _drivers_nu_s_bucket_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_toggle' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4716,7 +4908,7 @@ def _drivers_nu_s_bucket_toggle(q, u, ud):
     return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
+def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_toggle' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4759,42 +4951,330 @@ def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
     return [-udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3), udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1), udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1), udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1)]
 
 
-def phi_bucket_toggle(q, u):
+def phi_bucket_toggle(q, u, p):
     """Phi(q, u) of case 'bucket_toggle': 98 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_bucket_toggle(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
 
 
-def jac_bucket_toggle(q, u):
+def jac_bucket_toggle(q, u, p):
     """Values of the sparse Phi_q of case 'bucket_toggle' at jac_rows, jac_cols (643 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_bucket_toggle(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
 
 
-def nu_bucket_toggle(q, u, ud):
+def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    drivers = _drivers_nu_bucket_toggle(q, u, ud)
+    drivers = _drivers_nu_bucket_toggle(q, u, ud, p)
     return _join(np.zeros((94,) + drivers.shape[1:]), drivers)
 
 
-def gamma_bucket_toggle(q, v, u, ud, udd):
+def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_toggle(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_bucket_toggle(q, u):
+def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values of case 'bucket_toggle' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_toggle(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_toggle(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_bucket_toggle(q, u, ud):
+def nu_s_bucket_toggle(q, u, ud, p):
     """nu of case 'bucket_toggle' at one configuration (list of floats)."""
-    return [0.0] * 94 + _drivers_nu_s_bucket_toggle(q, u, ud)
+    return [0.0] * 94 + _drivers_nu_s_bucket_toggle(q, u, ud, p)
 
 
-def gamma_s_bucket_toggle(q, v, u, ud, udd):
+def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of case 'bucket_toggle' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd, p)
+
+
+def inputs_bucket_stroke(t):
+    """Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2."""
+    out = np.zeros((12,) + np.shape(t))
+    out[1] = 626973/250000
+    out[2] = 485803/250000
+    out[3] = 16529/10000 + (2521/2500)*t
+    out[7] = 2521/2500
+    return out
+
+
+def _drivers_phi_bucket_stroke(q, u, p):
+    """Phi of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -2*upper_e3*cos(c0) + 2*upper_e0*sin(c0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
+    return out
+
+
+def _drivers_jac_bucket_stroke(q, u, p):
+    """Phi_q values of the driver rows of case 'bucket_stroke'."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    d0 = (1/2)*u0
+    d1 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
+    d2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    d3 = 2*boom_cyl_l_barrel_e2
+    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    d5 = 2*boom_cyl_l_barrel_e3
+    d6 = 2*boom_cyl_l_barrel_e0
+    d7 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
+    d8 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d9 = 2*arm_cyl_barrel_e2
+    d10 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d11 = 2*arm_cyl_barrel_e3
+    d12 = 2*arm_cyl_barrel_e0
+    d13 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
+    d14 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d15 = 2*bucket_cyl_barrel_e2
+    d16 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d17 = 2*bucket_cyl_barrel_e3
+    d18 = 2*bucket_cyl_barrel_e0
+    out = _zeros(32, q, u)
+    out[0] = 2*sin(d0)
+    out[1] = -2*cos(d0)
+    out[2] = -boom_cyl_l_barrel_a00
+    out[3] = -boom_cyl_l_barrel_a10
+    out[4] = -boom_cyl_l_barrel_a20
+    out[5] = d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3
+    out[6] = d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4
+    out[7] = -d2*d6 + 2*d4*boom_cyl_l_barrel_e1
+    out[8] = d4*d6 + 2*d2*boom_cyl_l_barrel_e1
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9
+    out[16] = d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10
+    out[17] = -d8*d12 + 2*d10*arm_cyl_barrel_e1
+    out[18] = d10*d12 + 2*d8*arm_cyl_barrel_e1
+    out[19] = arm_cyl_barrel_a00
+    out[20] = arm_cyl_barrel_a10
+    out[21] = arm_cyl_barrel_a20
+    out[22] = -bucket_cyl_barrel_a00
+    out[23] = -bucket_cyl_barrel_a10
+    out[24] = -bucket_cyl_barrel_a20
+    out[25] = d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15
+    out[26] = d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16
+    out[27] = -d14*d18 + 2*d16*bucket_cyl_barrel_e1
+    out[28] = d16*d18 + 2*d14*bucket_cyl_barrel_e1
+    out[29] = bucket_cyl_barrel_a00
+    out[30] = bucket_cyl_barrel_a10
+    out[31] = bucket_cyl_barrel_a20
+    return out
+
+
+def _drivers_nu_bucket_stroke(q, u, ud, p):
+    """nu of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = 4*v_boom_cyl_l_barrel_e0
+    c4 = 4*v_boom_cyl_l_barrel_e1
+    c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1
+    c6 = 2*v_boom_cyl_l_barrel_e1
+    c7 = 2*v_boom_cyl_l_barrel_e0
+    c8 = 2*v_boom_cyl_l_barrel_e3
+    c9 = 2*v_boom_cyl_l_barrel_e2
+    c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1
+    c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1
+    c12 = -c11
+    c13 = 4*v_arm_cyl_barrel_e0
+    c14 = 4*v_arm_cyl_barrel_e1
+    c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1
+    c16 = 2*v_arm_cyl_barrel_e1
+    c17 = 2*v_arm_cyl_barrel_e0
+    c18 = 2*v_arm_cyl_barrel_e3
+    c19 = 2*v_arm_cyl_barrel_e2
+    c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1
+    c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1
+    c22 = -c21
+    c23 = 4*v_bucket_cyl_barrel_e0
+    c24 = 4*v_bucket_cyl_barrel_e1
+    c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1
+    c26 = 2*v_bucket_cyl_barrel_e1
+    c27 = 2*v_bucket_cyl_barrel_e0
+    c28 = 2*v_bucket_cyl_barrel_e3
+    c29 = 2*v_bucket_cyl_barrel_e2
+    c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1
+    c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1
+    c32 = -c31
+    out = _zeros(4, q, u)
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - ud0**2*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2*ud0*(c1*v_upper_e0 + c2*v_upper_e3)
+    out[1] = udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1)
+    out[2] = udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e1)
+    out[3] = udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1)
+    return out
+
+
+def _drivers_phi_jac_s_bucket_stroke(q, u, p):
+    """Phi and Phi_q values of the driver rows of case 'bucket_stroke' at one configuration."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
+    d2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    d3 = 2.0*boom_cyl_l_barrel_e2
+    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    d5 = 2.0*boom_cyl_l_barrel_e3
+    d6 = 2.0*boom_cyl_l_barrel_e0
+    d7 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
+    d8 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d9 = 2.0*arm_cyl_barrel_e2
+    d10 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d11 = 2.0*arm_cyl_barrel_e3
+    d12 = 2.0*arm_cyl_barrel_e0
+    d13 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
+    d14 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d15 = 2.0*bucket_cyl_barrel_e2
+    d16 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d17 = 2.0*bucket_cyl_barrel_e3
+    d18 = 2.0*bucket_cyl_barrel_e0
+    return [-2.0*upper_e3*math.cos(c0) + 2.0*upper_e0*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3, d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4, -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1, d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9, d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10, -d8*d12 + 2.0*d10*arm_cyl_barrel_e1, d10*d12 + 2.0*d8*arm_cyl_barrel_e1, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15, d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16, -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1, d16*d18 + 2.0*d14*bucket_cyl_barrel_e1, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def _drivers_nu_s_bucket_stroke(q, u, ud, p):
+    """nu of the driver rows of case 'bucket_stroke' at one configuration."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, ud3]
+
+
+def _drivers_gamma_s_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'bucket_stroke' at one configuration."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = 4.0*v_boom_cyl_l_barrel_e0
+    c4 = 4.0*v_boom_cyl_l_barrel_e1
+    c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1
+    c6 = 2.0*v_boom_cyl_l_barrel_e1
+    c7 = 2.0*v_boom_cyl_l_barrel_e0
+    c8 = 2.0*v_boom_cyl_l_barrel_e3
+    c9 = 2.0*v_boom_cyl_l_barrel_e2
+    c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1
+    c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1
+    c12 = -c11
+    c13 = 4.0*v_arm_cyl_barrel_e0
+    c14 = 4.0*v_arm_cyl_barrel_e1
+    c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1
+    c16 = 2.0*v_arm_cyl_barrel_e1
+    c17 = 2.0*v_arm_cyl_barrel_e0
+    c18 = 2.0*v_arm_cyl_barrel_e3
+    c19 = 2.0*v_arm_cyl_barrel_e2
+    c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1
+    c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1
+    c22 = -c21
+    c23 = 4.0*v_bucket_cyl_barrel_e0
+    c24 = 4.0*v_bucket_cyl_barrel_e1
+    c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1
+    c26 = 2.0*v_bucket_cyl_barrel_e1
+    c27 = 2.0*v_bucket_cyl_barrel_e0
+    c28 = 2.0*v_bucket_cyl_barrel_e3
+    c29 = 2.0*v_bucket_cyl_barrel_e2
+    c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1
+    c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1
+    c32 = -c31
+    return [-udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3), udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1), udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1), udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1)]
+
+
+def phi_bucket_stroke(q, u, p):
+    """Phi(q, u) of case 'bucket_stroke': 98 residuals."""
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
+
+
+def jac_bucket_stroke(q, u, p):
+    """Values of the sparse Phi_q of case 'bucket_stroke' at jac_rows, jac_cols (643 entries)."""
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
+
+
+def nu_bucket_stroke(q, u, ud, p):
+    """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
+    drivers = _drivers_nu_bucket_stroke(q, u, ud, p)
+    return _join(np.zeros((94,) + drivers.shape[1:]), drivers)
+
+
+def gamma_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
+
+
+def phi_jac_s_bucket_stroke(q, u, p):
+    """Phi and the Phi_q values of case 'bucket_stroke' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_stroke(q, u, p)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_bucket_stroke(q, u, ud, p):
+    """nu of case 'bucket_stroke' at one configuration (list of floats)."""
+    return [0.0] * 94 + _drivers_nu_s_bucket_stroke(q, u, ud, p)
+
+
+def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of case 'bucket_stroke' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_stroke(q, v, u, ud, udd, p)
 
 
 def inputs_bucket_near_toggle(t):
@@ -4810,7 +5290,7 @@ def inputs_bucket_near_toggle(t):
     return out
 
 
-def _drivers_phi_bucket_near_toggle(q, u):
+def _drivers_phi_bucket_near_toggle(q, u, p):
     """Phi of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4832,7 +5312,7 @@ def _drivers_phi_bucket_near_toggle(q, u):
     return out
 
 
-def _drivers_jac_bucket_near_toggle(q, u):
+def _drivers_jac_bucket_near_toggle(q, u, p):
     """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4900,7 +5380,7 @@ def _drivers_jac_bucket_near_toggle(q, u):
     return out
 
 
-def _drivers_nu_bucket_near_toggle(q, u, ud):
+def _drivers_nu_bucket_near_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -4914,7 +5394,7 @@ def _drivers_nu_bucket_near_toggle(q, u, ud):
     return out
 
 
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
+def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -4962,7 +5442,7 @@ def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_bucket_near_toggle(q, u):
+def _drivers_phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'bucket_near_toggle' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -4998,7 +5478,7 @@ def _drivers_phi_jac_s_bucket_near_toggle(q, u):
     return [-2.0*upper_e3*math.cos(c0) + 2.0*upper_e0*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3, d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4, -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1, d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9, d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10, -d8*d12 + 2.0*d10*arm_cyl_barrel_e1, d10*d12 + 2.0*d8*arm_cyl_barrel_e1, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15, d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16, -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1, d16*d18 + 2.0*d14*bucket_cyl_barrel_e1, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_bucket_near_toggle(q, u, ud):
+def _drivers_nu_s_bucket_near_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_near_toggle' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -5007,7 +5487,7 @@ def _drivers_nu_s_bucket_near_toggle(q, u, ud):
     return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_near_toggle' at one configuration."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -5050,42 +5530,42 @@ def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
     return [-udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3), udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1), udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1), udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1)]
 
 
-def phi_bucket_near_toggle(q, u):
+def phi_bucket_near_toggle(q, u, p):
     """Phi(q, u) of case 'bucket_near_toggle': 98 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_bucket_near_toggle(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
 
 
-def jac_bucket_near_toggle(q, u):
+def jac_bucket_near_toggle(q, u, p):
     """Values of the sparse Phi_q of case 'bucket_near_toggle' at jac_rows, jac_cols (643 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_bucket_near_toggle(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
 
 
-def nu_bucket_near_toggle(q, u, ud):
+def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    drivers = _drivers_nu_bucket_near_toggle(q, u, ud)
+    drivers = _drivers_nu_bucket_near_toggle(q, u, ud, p)
     return _join(np.zeros((94,) + drivers.shape[1:]), drivers)
 
 
-def gamma_bucket_near_toggle(q, v, u, ud, udd):
+def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_bucket_near_toggle(q, u):
+def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values of case 'bucket_near_toggle' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_bucket_near_toggle(q, u, ud):
+def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu of case 'bucket_near_toggle' at one configuration (list of floats)."""
-    return [0.0] * 94 + _drivers_nu_s_bucket_near_toggle(q, u, ud)
+    return [0.0] * 94 + _drivers_nu_s_bucket_near_toggle(q, u, ud, p)
 
 
-def gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of case 'bucket_near_toggle' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd, p)
 
 
 CASES = {
@@ -5128,6 +5608,16 @@ CASES = {
         'driver_sources': (('cases.bucket_toggle.drivers.swing_angle.function', '0'), ('cases.bucket_toggle.drivers.boom_length.function', '2.507892'), ('cases.bucket_toggle.drivers.arm_length.function', '1.943212'), ('cases.bucket_toggle.drivers.bucket_length.function', '2.5 + 0.1*t')),
         'inputs': inputs_bucket_toggle, 'phi': phi_bucket_toggle, 'jac': jac_bucket_toggle, 'nu': nu_bucket_toggle, 'gamma': gamma_bucket_toggle,
         'phi_jac_s': phi_jac_s_bucket_toggle, 'nu_s': nu_s_bucket_toggle, 'gamma_s': gamma_s_bucket_toggle,
+    },
+    'bucket_stroke': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'upper.norm', 'boom.norm', 'boom_cyl_l_barrel.norm', 'boom_cyl_l_rod.norm', 'boom_cyl_r_barrel.norm', 'boom_cyl_r_rod.norm', 'arm.norm', 'arm_cyl_barrel.norm', 'arm_cyl_rod.norm', 'bucket_cyl_barrel.norm', 'bucket_cyl_rod.norm', 'side_link.norm', 'bucket_link.norm', 'bucket.norm', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 96, 96, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 97, 97),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 5, 6, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 3, 4, 5, 6, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 0, 3, 4, 5, 6, 14, 1, 3, 4, 5, 6, 15, 2, 3, 4, 5, 6, 16, 3, 4, 5, 6, 17, 18, 19, 20, 17, 18, 19, 20, 24, 25, 26, 27, 17, 18, 19, 20, 24, 25, 26, 27, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 17, 18, 19, 20, 24, 25, 26, 27, 7, 10, 11, 12, 13, 21, 8, 10, 11, 12, 13, 22, 9, 10, 11, 12, 13, 23, 0, 3, 4, 5, 6, 28, 1, 3, 4, 5, 6, 29, 2, 3, 4, 5, 6, 30, 3, 4, 5, 6, 31, 32, 33, 34, 31, 32, 33, 34, 38, 39, 40, 41, 31, 32, 33, 34, 38, 39, 40, 41, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 31, 32, 33, 34, 38, 39, 40, 41, 7, 10, 11, 12, 13, 35, 8, 10, 11, 12, 13, 36, 9, 10, 11, 12, 13, 37, 7, 10, 11, 12, 13, 42, 8, 10, 11, 12, 13, 43, 9, 10, 11, 12, 13, 44, 10, 11, 12, 13, 45, 46, 47, 48, 10, 11, 12, 13, 45, 46, 47, 48, 7, 10, 11, 12, 13, 49, 8, 10, 11, 12, 13, 50, 9, 10, 11, 12, 13, 51, 10, 11, 12, 13, 52, 53, 54, 55, 52, 53, 54, 55, 59, 60, 61, 62, 52, 53, 54, 55, 59, 60, 61, 62, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 52, 53, 54, 55, 59, 60, 61, 62, 42, 45, 46, 47, 48, 56, 43, 45, 46, 47, 48, 57, 44, 45, 46, 47, 48, 58, 42, 45, 46, 47, 48, 91, 43, 45, 46, 47, 48, 92, 44, 45, 46, 47, 48, 93, 45, 46, 47, 48, 94, 95, 96, 97, 45, 46, 47, 48, 94, 95, 96, 97, 42, 45, 46, 47, 48, 77, 43, 45, 46, 47, 48, 78, 44, 45, 46, 47, 48, 79, 45, 46, 47, 48, 80, 81, 82, 83, 45, 46, 47, 48, 80, 81, 82, 83, 77, 80, 81, 82, 83, 84, 87, 88, 89, 90, 78, 80, 81, 82, 83, 85, 87, 88, 89, 90, 79, 80, 81, 82, 83, 86, 87, 88, 89, 90, 84, 91, 94, 95, 96, 97, 85, 92, 94, 95, 96, 97, 86, 93, 94, 95, 96, 97, 87, 88, 89, 90, 94, 95, 96, 97, 42, 45, 46, 47, 48, 63, 43, 45, 46, 47, 48, 64, 44, 45, 46, 47, 48, 65, 45, 46, 47, 48, 66, 67, 68, 69, 66, 67, 68, 69, 73, 74, 75, 76, 66, 67, 68, 69, 73, 74, 75, 76, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 66, 67, 68, 69, 73, 74, 75, 76, 70, 77, 80, 81, 82, 83, 71, 78, 80, 81, 82, 83, 72, 79, 80, 81, 82, 83, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 24, 25, 26, 27, 31, 32, 33, 34, 38, 39, 40, 41, 45, 46, 47, 48, 52, 53, 54, 55, 59, 60, 61, 62, 66, 67, 68, 69, 73, 74, 75, 76, 80, 81, 82, 83, 87, 88, 89, 90, 94, 95, 96, 97, 3, 6, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72),
+        't0': 0.0, 't1': 1.0, 'steps': 101,
+        'driver_sources': (('cases.bucket_stroke.drivers.swing_angle.function', '0'), ('cases.bucket_stroke.drivers.boom_length.function', '2.507892'), ('cases.bucket_stroke.drivers.arm_length.function', '1.943212'), ('cases.bucket_stroke.drivers.bucket_length.function', '1.6529 + (2.6613 - 1.6529)*t')),
+        'inputs': inputs_bucket_stroke, 'phi': phi_bucket_stroke, 'jac': jac_bucket_stroke, 'nu': nu_bucket_stroke, 'gamma': gamma_bucket_stroke,
+        'phi_jac_s': phi_jac_s_bucket_stroke, 'nu_s': nu_s_bucket_stroke, 'gamma_s': gamma_s_bucket_stroke,
     },
     'bucket_near_toggle': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'upper.norm', 'boom.norm', 'boom_cyl_l_barrel.norm', 'boom_cyl_l_rod.norm', 'boom_cyl_r_barrel.norm', 'boom_cyl_r_rod.norm', 'arm.norm', 'arm_cyl_barrel.norm', 'arm_cyl_rod.norm', 'bucket_cyl_barrel.norm', 'bucket_cyl_rod.norm', 'side_link.norm', 'bucket_link.norm', 'bucket.norm', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),

@@ -2,10 +2,11 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
+ * source sha256:   06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50
  * parametrization: euler:zxy
  * kinegen version: 0.1.0
  * sympy version:   1.14.0
+ * sensitivities:   no
  *
  * The cases of the model as kinegen_model structs for kinegen_solver.h, and the model's
  * layout (names, bodies, points, actuators, the frames kernel). Units SI, angles in radians,
@@ -23,7 +24,7 @@ extern "C" {
 #define EXCAVATOR_EULER_ZXY_N_Q 84  /* stored coordinates */
 #define EXCAVATOR_EULER_ZXY_N_V 84  /* velocity coordinates = constraints */
 #define EXCAVATOR_EULER_ZXY_N_BODIES 14
-#define EXCAVATOR_EULER_ZXY_N_CASES 5
+#define EXCAVATOR_EULER_ZXY_N_CASES 6
 #define EXCAVATOR_EULER_ZXY_MAX_INPUTS 4  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
 #define EXCAVATOR_EULER_ZXY_WORK_DOUBLES 1899
@@ -35,11 +36,12 @@ typedef struct excavator_euler_zxy_workspace {
 } excavator_euler_zxy_workspace;
 
 extern const kinegen_layout excavator_euler_zxy_layout;
-extern const kinegen_model excavator_euler_zxy_digging;  /* 4 driver(s), t = 0.0 .. 17.0 s */
-extern const kinegen_model excavator_euler_zxy_level_cut;  /* 4 driver(s), t = 0.0 .. 4.0 s */
-extern const kinegen_model excavator_euler_zxy_trench_wall;  /* 4 driver(s), t = 0.0 .. 4.0 s */
-extern const kinegen_model excavator_euler_zxy_bucket_toggle;  /* 4 driver(s), t = 0.0 .. 3.0 s */
-extern const kinegen_model excavator_euler_zxy_bucket_near_toggle;  /* 4 driver(s), t = 0.0 .. 2.0 s */
+extern const kinegen_design_model excavator_euler_zxy_digging;  /* 4 driver(s), t = 0.0 .. 17.0 s */
+extern const kinegen_design_model excavator_euler_zxy_level_cut;  /* 4 driver(s), t = 0.0 .. 4.0 s */
+extern const kinegen_design_model excavator_euler_zxy_trench_wall;  /* 4 driver(s), t = 0.0 .. 4.0 s */
+extern const kinegen_design_model excavator_euler_zxy_bucket_toggle;  /* 4 driver(s), t = 0.0 .. 3.0 s */
+extern const kinegen_design_model excavator_euler_zxy_bucket_stroke;  /* 4 driver(s), t = 0.0 .. 1.0 s */
+extern const kinegen_design_model excavator_euler_zxy_bucket_near_toggle;  /* 4 driver(s), t = 0.0 .. 2.0 s */
 extern const kinegen_model *const excavator_euler_zxy_cases[EXCAVATOR_EULER_ZXY_N_CASES];
 
 /* Per body 24 values: origin, rotation matrix (row by row), origin velocity, angular velocity,

@@ -2,10 +2,11 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c
+source sha256:   06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50
 parametrization: quaternion
 kinegen version: 0.1.0
 sympy version:   1.14.0
+sensitivities:   yes
 
 Coordinates q (stored, 98) and v (velocity, 84) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -18,7 +19,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'cfc4e8e005cc3e258bab4be262f6a48c1b72052c740a51ca6b301228fc6bc71c'
+SOURCE_SHA256 = '06874708c47322ee665ee76844722708fb4d8ec12159defe562c2fddbe81db50'
 PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.qw', 'upper.qx', 'upper.qy', 'upper.qz', 'boom.x', 'boom.y', 'boom.z', 'boom.qw', 'boom.qx', 'boom.qy', 'boom.qz', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.qw', 'boom_cyl_l_barrel.qx', 'boom_cyl_l_barrel.qy', 'boom_cyl_l_barrel.qz', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.qw', 'boom_cyl_l_rod.qx', 'boom_cyl_l_rod.qy', 'boom_cyl_l_rod.qz', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.qw', 'boom_cyl_r_barrel.qx', 'boom_cyl_r_barrel.qy', 'boom_cyl_r_barrel.qz', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.qw', 'boom_cyl_r_rod.qx', 'boom_cyl_r_rod.qy', 'boom_cyl_r_rod.qz', 'arm.x', 'arm.y', 'arm.z', 'arm.qw', 'arm.qx', 'arm.qy', 'arm.qz', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.qw', 'arm_cyl_barrel.qx', 'arm_cyl_barrel.qy', 'arm_cyl_barrel.qz', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.qw', 'arm_cyl_rod.qx', 'arm_cyl_rod.qy', 'arm_cyl_rod.qz', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.qw', 'bucket_cyl_barrel.qx', 'bucket_cyl_barrel.qy', 'bucket_cyl_barrel.qz', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.qw', 'bucket_cyl_rod.qx', 'bucket_cyl_rod.qy', 'bucket_cyl_rod.qz', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.qw', 'side_link.qx', 'side_link.qy', 'side_link.qz', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.qw', 'bucket_link.qx', 'bucket_link.qy', 'bucket_link.qz', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.qw', 'bucket.qx', 'bucket.qy', 'bucket.qz')
@@ -52,13 +53,30 @@ ACTUATORS = {
     'arm_cylinder': (('arm_cyl_barrel', 'base'), ('arm_cyl_rod', 'eye'), (1.8164, 3.2939)),
     'bucket_cylinder': (('bucket_cyl_barrel', 'base'), ('bucket_cyl_rod', 'eye'), (1.6529, 2.6613)),
 }
+# design parameters, in the order of the argument p: name -> (nominal, lower bound, upper bound).
+# POINTS, GROUND_POINTS and INITIAL_Q are at the nominal values; points(p) gives the points at p.
+DESIGN = {
+    'C_x': (1.39283, 1.37283, 1.41283),
+    'C_z': (2.001922, 1.981922, 2.021922),
+    'F_x': (-0.786562, -0.806562, -0.766562),
+    'F_z': (-0.369691, -0.389691, -0.349691),
+    'boom_retracted': (1.7352, 1.6852, 1.7852),
+    'side_link': (0.5850200596466757, 0.555, 0.615),
+    'bucket_link': (0.5660572218009412, 0.536, 0.596),
+    'K_x': (-0.32404, -0.35404, -0.29404),
+    'K_z': (0.33854, 0.30854, 0.36854),
+}
 # kernels: name -> (argument slots, (output, size) ...); per case, a case's sizes in CASES
 KERNELS = {
-    'phi_jac': (('q', 'u'), ('phi', 'jac')),
-    'nu': (('q', 'u', 'ud'), ('nu',)),
-    'gamma': (('q', 'v', 'u', 'ud', 'udd'), ('gamma',)),
+    'phi_jac': (('q', 'u', 'p'), ('phi', 'jac')),
+    'nu': (('q', 'u', 'ud', 'p'), ('nu',)),
+    'gamma': (('q', 'v', 'u', 'ud', 'udd', 'p'), ('gamma',)),
     'inputs': (('t',), ('inputs',)),
+    'phi_p': (('q', 'u', 'p'), ('phi_p',)),
+    'dvel': (('q', 'v', 'u', 'ud', 'p'), ('dvel',)),
+    'dacc': (('q', 'v', 'a', 'u', 'ud', 'udd', 'p'), ('dacc',)),
     'frames': (('q', 'v', 'a'), ('frames',)),
+    'points': (('p',), ('points',)),
 }
 
 
@@ -76,9 +94,10 @@ def _join(joints, drivers):
     return np.concatenate((joints, drivers))
 
 
-def _joints_phi(q):
+def _joints_phi(q, p):
     """Phi of the 80 joint (and normalization) rows, common to every case."""
     upper_x, upper_y, upper_z, upper_qw, upper_qx, upper_qy, upper_qz, boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, arm_x, arm_y, arm_z, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, side_link_x, side_link_y, side_link_z, side_link_qw, side_link_qx, side_link_qy, side_link_qz, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, bucket_x, bucket_y, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -196,9 +215,15 @@ def _joints_phi(q):
     c6 = arm_cyl_rod_x - arm_cyl_barrel_x
     c7 = arm_cyl_rod_y - arm_cyl_barrel_y
     c8 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c9 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c9 = 0.5686266556413632*p_side_link
+    c10 = 0.822595724821202*p_side_link
+    c11 = 0.60493530832545*p_bucket_link
+    c12 = 0.796274621434837*p_bucket_link
+    c13 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    c14 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c15 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c16 = 0.5686266556413632*p_side_link
+    c17 = 0.822595724821202*p_side_link
     out = _zeros(80, q, ())
     out[0] = -upper_x
     out[1] = -upper_y
@@ -219,9 +244,9 @@ def _joints_phi(q):
     out[16] = c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21
     out[17] = c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22
     out[18] = (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22
-    out[19] = boom_cyl_l_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 - 8/25*boom_a01
-    out[20] = boom_cyl_l_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 - 8/25*boom_a11
-    out[21] = boom_cyl_l_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 - 8/25*boom_a21
+    out[19] = boom_cyl_l_rod_x - boom_x - 8/25*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z
+    out[20] = boom_cyl_l_rod_y - boom_y - 8/25*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z
+    out[21] = boom_cyl_l_rod_z - boom_z - 8/25*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z
     out[22] = upper_x - boom_cyl_r_barrel_x - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
     out[23] = upper_y - boom_cyl_r_barrel_y - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
     out[24] = upper_z - boom_cyl_r_barrel_z - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
@@ -231,9 +256,9 @@ def _joints_phi(q):
     out[28] = c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21
     out[29] = c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22
     out[30] = (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22
-    out[31] = boom_cyl_r_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 + (8/25)*boom_a01
-    out[32] = boom_cyl_r_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 + (8/25)*boom_a11
-    out[33] = boom_cyl_r_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 + (8/25)*boom_a21
+    out[31] = boom_cyl_r_rod_x - boom_x + (8/25)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z
+    out[32] = boom_cyl_r_rod_y - boom_y + (8/25)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z
+    out[33] = boom_cyl_r_rod_z - boom_z + (8/25)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z
     out[34] = boom_x - arm_x + (23939/5000)*boom_a00 + (29959/10000)*boom_a02
     out[35] = boom_y - arm_y + (23939/5000)*boom_a10 + (29959/10000)*boom_a12
     out[36] = boom_z - arm_z + (23939/5000)*boom_a20 + (29959/10000)*boom_a22
@@ -248,9 +273,9 @@ def _joints_phi(q):
     out[45] = c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21
     out[46] = c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22
     out[47] = (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22
-    out[48] = arm_cyl_rod_x - arm_x + (0.369691)*arm_a02 + (393281/500000)*arm_a00
-    out[49] = arm_cyl_rod_y - arm_y + (0.369691)*arm_a12 + (393281/500000)*arm_a10
-    out[50] = arm_cyl_rod_z - arm_z + (0.369691)*arm_a22 + (393281/500000)*arm_a20
+    out[48] = arm_cyl_rod_x - arm_x - arm_a00*p_F_x - arm_a02*p_F_z
+    out[49] = arm_cyl_rod_y - arm_y - arm_a10*p_F_x - arm_a12*p_F_z
+    out[50] = arm_cyl_rod_z - arm_z - arm_a20*p_F_x - arm_a22*p_F_z
     out[51] = arm_x - bucket_x + (9477/5000)*arm_a00 + (21809/10000)*arm_a02
     out[52] = arm_y - bucket_y + (9477/5000)*arm_a10 + (21809/10000)*arm_a12
     out[53] = arm_z - bucket_z + (9477/5000)*arm_a20 + (21809/10000)*arm_a22
@@ -261,12 +286,12 @@ def _joints_phi(q):
     out[58] = arm_z - side_link_z + (7877/5000)*arm_a20 + (18799/10000)*arm_a22
     out[59] = arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22
     out[60] = arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20
-    out[61] = side_link_x - bucket_link_x - 166329/500000*side_link_a00 + (85607/250000)*bucket_link_a00 + (96247/200000)*side_link_a02 + (0.450737)*bucket_link_a02
-    out[62] = side_link_y - bucket_link_y - 166329/500000*side_link_a10 + (85607/250000)*bucket_link_a10 + (96247/200000)*side_link_a12 + (0.450737)*bucket_link_a12
-    out[63] = side_link_z - bucket_link_z - 166329/500000*side_link_a20 + (85607/250000)*bucket_link_a20 + (96247/200000)*side_link_a22 + (0.450737)*bucket_link_a22
-    out[64] = bucket_link_x - bucket_x - 16927/50000*bucket_a02 + (8101/25000)*bucket_a00
-    out[65] = bucket_link_y - bucket_y - 16927/50000*bucket_a12 + (8101/25000)*bucket_a10
-    out[66] = bucket_link_z - bucket_z - 16927/50000*bucket_a22 + (8101/25000)*bucket_a20
+    out[61] = side_link_x - bucket_link_x + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00
+    out[62] = side_link_y - bucket_link_y + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10
+    out[63] = side_link_z - bucket_link_z + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20
+    out[64] = bucket_link_x - bucket_x - bucket_a00*p_K_x - bucket_a02*p_K_z
+    out[65] = bucket_link_y - bucket_y - bucket_a10*p_K_x - bucket_a12*p_K_z
+    out[66] = bucket_link_z - bucket_z - bucket_a20*p_K_x - bucket_a22*p_K_z
     out[67] = bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22)
     out[68] = arm_x - bucket_cyl_barrel_x - 24687/100000*arm_a00 + (36797/50000)*arm_a02
     out[69] = arm_y - bucket_cyl_barrel_y - 24687/100000*arm_a10 + (36797/50000)*arm_a12
@@ -274,18 +299,19 @@ def _joints_phi(q):
     out[71] = arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22
     out[72] = bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21
     out[73] = bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22
-    out[74] = c9*bucket_cyl_barrel_a01 + c10*bucket_cyl_barrel_a11 + c11*bucket_cyl_barrel_a21
-    out[75] = c9*bucket_cyl_barrel_a02 + c10*bucket_cyl_barrel_a12 + c11*bucket_cyl_barrel_a22
+    out[74] = c13*bucket_cyl_barrel_a01 + c14*bucket_cyl_barrel_a11 + c15*bucket_cyl_barrel_a21
+    out[75] = c13*bucket_cyl_barrel_a02 + c14*bucket_cyl_barrel_a12 + c15*bucket_cyl_barrel_a22
     out[76] = (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22
-    out[77] = bucket_cyl_rod_x - side_link_x - 96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    out[78] = bucket_cyl_rod_y - side_link_y - 96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    out[79] = bucket_cyl_rod_z - side_link_z - 96247/200000*side_link_a22 + (166329/500000)*side_link_a20
+    out[77] = bucket_cyl_rod_x - side_link_x + c16*side_link_a00 - c17*side_link_a02
+    out[78] = bucket_cyl_rod_y - side_link_y + c16*side_link_a10 - c17*side_link_a12
+    out[79] = bucket_cyl_rod_z - side_link_z + c16*side_link_a20 - c17*side_link_a22
     return out
 
 
-def _joints_jac(q):
+def _joints_jac(q, p):
     """Phi_q values of the joint rows (403 entries)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -422,9 +448,9 @@ def _joints_jac(q):
     d25 = d24*boom_cyl_l_barrel_a11 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a12
     d26 = d24*boom_cyl_l_barrel_a01 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02
     d27 = -1.0*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a12
-    d28 = (8/25)*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d29 = (8/25)*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d30 = (8/25)*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d28 = (8/25)*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d29 = (8/25)*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d30 = (8/25)*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d31 = -8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
     d32 = -8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
     d33 = -8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
@@ -444,9 +470,9 @@ def _joints_jac(q):
     d47 = d46*boom_cyl_r_barrel_a11 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a12
     d48 = d46*boom_cyl_r_barrel_a01 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a02
     d49 = -1.0*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a12
-    d50 = -8/25*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d51 = -8/25*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d52 = -8/25*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d50 = -8/25*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d51 = -8/25*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d52 = -8/25*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d53 = (23939/5000)*boom_a20 + (29959/10000)*boom_a22
     d54 = (23939/5000)*boom_a10 + (29959/10000)*boom_a12
     d55 = (23939/5000)*boom_a00 + (29959/10000)*boom_a02
@@ -475,9 +501,9 @@ def _joints_jac(q):
     d78 = d77*arm_cyl_barrel_a11 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a12
     d79 = d77*arm_cyl_barrel_a01 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a02
     d80 = -1.0*arm_cyl_barrel_a11*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a12
-    d81 = (0.369691)*arm_a22 + (393281/500000)*arm_a20
-    d82 = (0.369691)*arm_a12 + (393281/500000)*arm_a10
-    d83 = (0.369691)*arm_a02 + (393281/500000)*arm_a00
+    d81 = arm_a20*p_F_x + arm_a22*p_F_z
+    d82 = arm_a10*p_F_x + arm_a12*p_F_z
+    d83 = arm_a00*p_F_x + arm_a02*p_F_z
     d84 = (9477/5000)*arm_a20 + (21809/10000)*arm_a22
     d85 = (9477/5000)*arm_a10 + (21809/10000)*arm_a12
     d86 = (9477/5000)*arm_a00 + (21809/10000)*arm_a02
@@ -496,44 +522,49 @@ def _joints_jac(q):
     d99 = arm_a11*side_link_a20 - arm_a21*side_link_a10
     d100 = arm_a01*side_link_a20 - arm_a21*side_link_a00
     d101 = arm_a01*side_link_a10 - arm_a11*side_link_a00
-    d102 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d103 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d104 = (85607/250000)*bucket_link_a20 + (0.450737)*bucket_link_a22
-    d105 = (85607/250000)*bucket_link_a10 + (0.450737)*bucket_link_a12
-    d106 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    d107 = (85607/250000)*bucket_link_a00 + (0.450737)*bucket_link_a02
-    d108 = -16927/50000*bucket_a22 + (8101/25000)*bucket_a20
-    d109 = -16927/50000*bucket_a12 + (8101/25000)*bucket_a10
-    d110 = -16927/50000*bucket_a02 + (8101/25000)*bucket_a00
-    d111 = (0.7962746214343476)*bucket_link_a10
-    d112 = (0.6049353083260941)*bucket_link_a22
-    d113 = (0.7962746214343476)*bucket_link_a00
-    d114 = (0.7962746214343476)*bucket_link_a20
-    d115 = -d114 + (0.6049353083260941)*bucket_link_a22
-    d116 = -d111 + (0.6049353083260941)*bucket_link_a12
-    d117 = -d113 + (0.6049353083260941)*bucket_link_a02
-    d118 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
-    d119 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
-    d120 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
-    d121 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
-    d122 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
-    d123 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
-    d124 = bucket_cyl_barrel_a10*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a11
-    d125 = bucket_cyl_barrel_a00*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a01
-    d126 = bucket_cyl_barrel_a00*bucket_cyl_rod_a11 - bucket_cyl_barrel_a10*bucket_cyl_rod_a01
-    d127 = bucket_cyl_barrel_a10*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a12
-    d128 = bucket_cyl_barrel_a00*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a02
-    d129 = bucket_cyl_barrel_a00*bucket_cyl_rod_a12 - bucket_cyl_barrel_a10*bucket_cyl_rod_a02
-    d130 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d131 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d132 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d133 = (1.0)*bucket_cyl_rod_a22
-    d134 = d133*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
-    d135 = d133*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
-    d136 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
-    d137 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d138 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d139 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
+    d102 = 0.5686266556413632*p_side_link
+    d103 = d102*side_link_a20 - 0.822595724821202*side_link_a22*p_side_link
+    d104 = d102*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d105 = 0.60493530832545*p_bucket_link
+    d106 = 0.796274621434837*p_bucket_link
+    d107 = d105*bucket_link_a20 + d106*bucket_link_a22
+    d108 = d105*bucket_link_a10 + d106*bucket_link_a12
+    d109 = d102*side_link_a00 - 0.822595724821202*side_link_a02*p_side_link
+    d110 = d105*bucket_link_a00 + d106*bucket_link_a02
+    d111 = bucket_a20*p_K_x + bucket_a22*p_K_z
+    d112 = bucket_a10*p_K_x + bucket_a12*p_K_z
+    d113 = bucket_a00*p_K_x + bucket_a02*p_K_z
+    d114 = (0.7962746214343476)*bucket_link_a10
+    d115 = (0.6049353083260941)*bucket_link_a22
+    d116 = (0.7962746214343476)*bucket_link_a00
+    d117 = (0.7962746214343476)*bucket_link_a20
+    d118 = -d117 + (0.6049353083260941)*bucket_link_a22
+    d119 = -d114 + (0.6049353083260941)*bucket_link_a12
+    d120 = -d116 + (0.6049353083260941)*bucket_link_a02
+    d121 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
+    d122 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
+    d123 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
+    d124 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
+    d125 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
+    d126 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
+    d127 = bucket_cyl_barrel_a10*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a11
+    d128 = bucket_cyl_barrel_a00*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a01
+    d129 = bucket_cyl_barrel_a00*bucket_cyl_rod_a11 - bucket_cyl_barrel_a10*bucket_cyl_rod_a01
+    d130 = bucket_cyl_barrel_a10*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a12
+    d131 = bucket_cyl_barrel_a00*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a02
+    d132 = bucket_cyl_barrel_a00*bucket_cyl_rod_a12 - bucket_cyl_barrel_a10*bucket_cyl_rod_a02
+    d133 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d134 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d135 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    d136 = (1.0)*bucket_cyl_rod_a22
+    d137 = d136*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
+    d138 = d136*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
+    d139 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
+    d140 = 0.5686266556413632*p_side_link
+    d141 = 0.822595724821202*p_side_link
+    d142 = d140*side_link_a20 - d141*side_link_a22
+    d143 = d140*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d144 = d140*side_link_a00 - d141*side_link_a02
     out = _zeros(403, q, ())
     out[0] = -1
     out[1] = -1
@@ -777,16 +808,16 @@ def _joints_jac(q):
     out[239] = d79
     out[240] = -d80
     out[241] = -1
-    out[242] = d81
-    out[243] = -d82
+    out[242] = -d81
+    out[243] = d82
     out[244] = 1
     out[245] = -1
-    out[246] = -d81
-    out[247] = d83
+    out[246] = d81
+    out[247] = -d83
     out[248] = 1
     out[249] = -1
-    out[250] = d82
-    out[251] = -d83
+    out[250] = -d82
+    out[251] = d83
     out[252] = 1
     out[253] = 1
     out[254] = d84
@@ -837,114 +868,115 @@ def _joints_jac(q):
     out[299] = d100
     out[300] = -d101
     out[301] = 1
-    out[302] = -d102
-    out[303] = d103
+    out[302] = -d103
+    out[303] = d104
     out[304] = -1
-    out[305] = d104
-    out[306] = -d105
+    out[305] = d107
+    out[306] = -d108
     out[307] = 1
-    out[308] = d102
-    out[309] = -d106
+    out[308] = d103
+    out[309] = -d109
     out[310] = -1
-    out[311] = -d104
-    out[312] = d107
+    out[311] = -d107
+    out[312] = d110
     out[313] = 1
-    out[314] = -d103
-    out[315] = d106
+    out[314] = -d104
+    out[315] = d109
     out[316] = -1
-    out[317] = d105
-    out[318] = -d107
+    out[317] = d108
+    out[318] = -d110
     out[319] = 1
     out[320] = -1
-    out[321] = d108
-    out[322] = -d109
+    out[321] = -d111
+    out[322] = d112
     out[323] = 1
     out[324] = -1
-    out[325] = -d108
-    out[326] = d110
+    out[325] = d111
+    out[326] = -d113
     out[327] = 1
     out[328] = -1
-    out[329] = d109
-    out[330] = -d110
-    out[331] = -d111*bucket_a21 - d112*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11
-    out[332] = d112*bucket_a01 + d113*bucket_a21 - d114*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21
-    out[333] = -d113*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01
-    out[334] = d115*bucket_a11 - d116*bucket_a21
-    out[335] = d117*bucket_a21 - d115*bucket_a01
-    out[336] = d116*bucket_a01 - d117*bucket_a11
+    out[329] = -d112
+    out[330] = d113
+    out[331] = -d114*bucket_a21 - d115*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11
+    out[332] = d115*bucket_a01 + d116*bucket_a21 - d117*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21
+    out[333] = -d116*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01
+    out[334] = d118*bucket_a11 - d119*bucket_a21
+    out[335] = d120*bucket_a21 - d118*bucket_a01
+    out[336] = d119*bucket_a01 - d120*bucket_a11
     out[337] = 1
-    out[338] = -d118
-    out[339] = d119
+    out[338] = -d121
+    out[339] = d122
     out[340] = -1
     out[341] = 1
-    out[342] = d118
-    out[343] = -d120
+    out[342] = d121
+    out[343] = -d123
     out[344] = -1
     out[345] = 1
-    out[346] = -d119
-    out[347] = d120
+    out[346] = -d122
+    out[347] = d123
     out[348] = -1
-    out[349] = d121
-    out[350] = -d122
-    out[351] = d123
-    out[352] = -d121
-    out[353] = d122
-    out[354] = -d123
-    out[355] = d124
-    out[356] = -d125
-    out[357] = d126
-    out[358] = -d124
-    out[359] = d125
-    out[360] = -d126
-    out[361] = d127
-    out[362] = -d128
-    out[363] = d129
-    out[364] = -d127
-    out[365] = d128
-    out[366] = -d129
+    out[349] = d124
+    out[350] = -d125
+    out[351] = d126
+    out[352] = -d124
+    out[353] = d125
+    out[354] = -d126
+    out[355] = d127
+    out[356] = -d128
+    out[357] = d129
+    out[358] = -d127
+    out[359] = d128
+    out[360] = -d129
+    out[361] = d130
+    out[362] = -d131
+    out[363] = d132
+    out[364] = -d130
+    out[365] = d131
+    out[366] = -d132
     out[367] = -bucket_cyl_barrel_a01
     out[368] = -bucket_cyl_barrel_a11
     out[369] = -bucket_cyl_barrel_a21
-    out[370] = d130*bucket_cyl_barrel_a11 - d131*bucket_cyl_barrel_a21
-    out[371] = d132*bucket_cyl_barrel_a21 - d130*bucket_cyl_barrel_a01
-    out[372] = d131*bucket_cyl_barrel_a01 - d132*bucket_cyl_barrel_a11
+    out[370] = d133*bucket_cyl_barrel_a11 - d134*bucket_cyl_barrel_a21
+    out[371] = d135*bucket_cyl_barrel_a21 - d133*bucket_cyl_barrel_a01
+    out[372] = d134*bucket_cyl_barrel_a01 - d135*bucket_cyl_barrel_a11
     out[373] = bucket_cyl_barrel_a01
     out[374] = bucket_cyl_barrel_a11
     out[375] = bucket_cyl_barrel_a21
     out[376] = -bucket_cyl_barrel_a02
     out[377] = -bucket_cyl_barrel_a12
     out[378] = -bucket_cyl_barrel_a22
-    out[379] = d130*bucket_cyl_barrel_a12 - d131*bucket_cyl_barrel_a22
-    out[380] = d132*bucket_cyl_barrel_a22 - d130*bucket_cyl_barrel_a02
-    out[381] = d131*bucket_cyl_barrel_a02 - d132*bucket_cyl_barrel_a12
+    out[379] = d133*bucket_cyl_barrel_a12 - d134*bucket_cyl_barrel_a22
+    out[380] = d135*bucket_cyl_barrel_a22 - d133*bucket_cyl_barrel_a02
+    out[381] = d134*bucket_cyl_barrel_a02 - d135*bucket_cyl_barrel_a12
     out[382] = bucket_cyl_barrel_a02
     out[383] = bucket_cyl_barrel_a12
     out[384] = bucket_cyl_barrel_a22
-    out[385] = d134
-    out[386] = -d135
-    out[387] = d136
-    out[388] = -d134
-    out[389] = d135
-    out[390] = -d136
+    out[385] = d137
+    out[386] = -d138
+    out[387] = d139
+    out[388] = -d137
+    out[389] = d138
+    out[390] = -d139
     out[391] = 1
     out[392] = -1
-    out[393] = d137
-    out[394] = -d138
+    out[393] = d142
+    out[394] = -d143
     out[395] = 1
     out[396] = -1
-    out[397] = -d137
-    out[398] = d139
+    out[397] = -d142
+    out[398] = d144
     out[399] = 1
     out[400] = -1
-    out[401] = d138
-    out[402] = -d139
+    out[401] = d143
+    out[402] = -d144
     return out
 
 
-def _joints_gamma(q, v):
+def _joints_gamma(q, v, p):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -1121,14 +1153,14 @@ def _joints_gamma(q, v):
     c65 = -1.0*v_boom_cyl_l_rod_theta_z + (1.0)*v_boom_cyl_l_barrel_theta_z
     c66 = -c65
     c67 = -c62
-    c68 = -139283/100000*boom_a00*v_boom_theta_y + (139283/100000)*boom_a10*v_boom_theta_x
-    c69 = -8/25*boom_a01*v_boom_theta_y + (8/25)*boom_a11*v_boom_theta_x
-    c70 = -2.001922*boom_a02*v_boom_theta_y + (2.001922)*boom_a12*v_boom_theta_x
-    c71 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c72 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
+    c68 = -8/25*boom_a01*v_boom_theta_y + (8/25)*boom_a11*v_boom_theta_x
+    c69 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
+    c70 = p_C_x*(boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y)
+    c71 = p_C_z*(boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y)
+    c72 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
     c73 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x
-    c74 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
-    c75 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c74 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c75 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
     c76 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z
     c77 = -4307/6250*upper_a00*v_upper_theta_y + (4307/6250)*upper_a10*v_upper_theta_x
     c78 = upper_a11*v_upper_theta_x - upper_a01*v_upper_theta_y
@@ -1180,15 +1212,15 @@ def _joints_gamma(q, v):
     c124 = -1.0*v_boom_cyl_r_rod_theta_z + (1.0)*v_boom_cyl_r_barrel_theta_z
     c125 = -c124
     c126 = -c121
-    c127 = -139283/100000*boom_a00*v_boom_theta_y + (139283/100000)*boom_a10*v_boom_theta_x
-    c128 = boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y
-    c129 = -2.001922*boom_a02*v_boom_theta_y + (2.001922)*boom_a12*v_boom_theta_x
-    c130 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c131 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
-    c132 = (8/25)*v_boom_theta_z
+    c127 = boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y
+    c128 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
+    c129 = (8/25)*v_boom_theta_z
+    c130 = p_C_x*(boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y)
+    c131 = p_C_z*(boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y)
+    c132 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
     c133 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x
-    c134 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
-    c135 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c134 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c135 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
     c136 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z
     c137 = -23939/5000*boom_a00*v_boom_theta_y + (23939/5000)*boom_a10*v_boom_theta_x
     c138 = -29959/10000*boom_a02*v_boom_theta_y + (29959/10000)*boom_a12*v_boom_theta_x
@@ -1254,8 +1286,8 @@ def _joints_gamma(q, v):
     c198 = -1.0*v_arm_cyl_rod_theta_z + (1.0)*v_arm_cyl_barrel_theta_z
     c199 = -c198
     c200 = -c195
-    c201 = -393281/500000*arm_a00*v_arm_theta_y + (393281/500000)*arm_a10*v_arm_theta_x
-    c202 = -0.369691*arm_a02*v_arm_theta_y + (0.369691)*arm_a12*v_arm_theta_x
+    c201 = p_F_x*(arm_a10*v_arm_theta_x - arm_a00*v_arm_theta_y)
+    c202 = p_F_z*(arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y)
     c203 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x
     c204 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x
     c205 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z
@@ -1296,94 +1328,98 @@ def _joints_gamma(q, v):
     c240 = c236*arm_a01 + c234*arm_a21
     c241 = arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z
     c242 = c237*arm_a11 + c232*arm_a21
-    c243 = -166329/500000*side_link_a00*v_side_link_theta_y + (166329/500000)*side_link_a10*v_side_link_theta_x
-    c244 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y
-    c245 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
-    c246 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
-    c247 = (96247/200000)*v_side_link_theta_z
-    c248 = bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y
-    c249 = bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y
-    c250 = bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x
-    c251 = (85607/250000)*v_bucket_link_theta_z
-    c252 = bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x
-    c253 = (0.450737)*v_bucket_link_theta_z
-    c254 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
-    c255 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    c243 = p_bucket_link*v_bucket_link_theta_y
+    c244 = 0.60493530832545*bucket_link_a10*v_bucket_link_theta_x - 0.60493530832545*bucket_link_a00*v_bucket_link_theta_y
+    c245 = 0.796274621434837*bucket_link_a12*v_bucket_link_theta_x - 0.796274621434837*bucket_link_a02*v_bucket_link_theta_y
+    c246 = bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x
+    c247 = bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x
+    c248 = side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y
+    c249 = 0.822595724821202*p_side_link
+    c250 = c249*(side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y)
+    c251 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
+    c252 = 0.5686266556413632*p_side_link
+    c253 = c252*v_side_link_theta_z
+    c254 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
+    c255 = p_bucket_link*v_bucket_link_theta_x
     c256 = bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z
-    c257 = bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z
-    c258 = -8101/25000*bucket_a00*v_bucket_theta_y + (8101/25000)*bucket_a10*v_bucket_theta_x
-    c259 = bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y
-    c260 = bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x
-    c261 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x
-    c262 = (16927/50000)*v_bucket_theta_z
-    c263 = bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z
-    c264 = bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z
-    c265 = -0.7962746214343476*v_bucket_theta_y + (0.7962746214343476)*v_bucket_link_theta_y
-    c266 = -c265
-    c267 = -0.7962746214343476*v_bucket_theta_x + (0.7962746214343476)*v_bucket_link_theta_x
-    c268 = -0.7962746214343476*v_bucket_theta_z + (0.7962746214343476)*v_bucket_link_theta_z
-    c269 = -c267
-    c270 = -0.6049353083260941*v_bucket_theta_y + (0.6049353083260941)*v_bucket_link_theta_y
-    c271 = -0.6049353083260941*v_bucket_theta_x + (0.6049353083260941)*v_bucket_link_theta_x
-    c272 = -c271
-    c273 = -0.6049353083260941*v_bucket_theta_z + (0.6049353083260941)*v_bucket_link_theta_z
+    c257 = p_bucket_link*v_bucket_link_theta_z
+    c258 = bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z
+    c259 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
+    c260 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    c261 = p_K_x*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y)
+    c262 = p_K_z*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y)
+    c263 = bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x
+    c264 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x
+    c265 = bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z
+    c266 = bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z
+    c267 = -0.7962746214343476*v_bucket_theta_y + (0.7962746214343476)*v_bucket_link_theta_y
+    c268 = -c267
+    c269 = -0.7962746214343476*v_bucket_theta_x + (0.7962746214343476)*v_bucket_link_theta_x
+    c270 = -0.7962746214343476*v_bucket_theta_z + (0.7962746214343476)*v_bucket_link_theta_z
+    c271 = -c269
+    c272 = -0.6049353083260941*v_bucket_theta_y + (0.6049353083260941)*v_bucket_link_theta_y
+    c273 = -0.6049353083260941*v_bucket_theta_x + (0.6049353083260941)*v_bucket_link_theta_x
     c274 = -c273
-    c275 = -c268
-    c276 = -c270
-    c277 = -24687/100000*arm_a00*v_arm_theta_y + (24687/100000)*arm_a10*v_arm_theta_x
-    c278 = arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y
-    c279 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x
-    c280 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x
-    c281 = (36797/50000)*v_arm_theta_z
-    c282 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z
-    c283 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z
-    c284 = v_arm_theta_y - v_bucket_cyl_barrel_theta_y
-    c285 = v_arm_theta_x - v_bucket_cyl_barrel_theta_x
-    c286 = -c285
-    c287 = v_arm_theta_z - v_bucket_cyl_barrel_theta_z
+    c275 = -0.6049353083260941*v_bucket_theta_z + (0.6049353083260941)*v_bucket_link_theta_z
+    c276 = -c275
+    c277 = -c270
+    c278 = -c272
+    c279 = -24687/100000*arm_a00*v_arm_theta_y + (24687/100000)*arm_a10*v_arm_theta_x
+    c280 = arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y
+    c281 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x
+    c282 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x
+    c283 = (36797/50000)*v_arm_theta_z
+    c284 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z
+    c285 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z
+    c286 = v_arm_theta_y - v_bucket_cyl_barrel_theta_y
+    c287 = v_arm_theta_x - v_bucket_cyl_barrel_theta_x
     c288 = -c287
-    c289 = -c284
-    c290 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c291 = v_bucket_cyl_barrel_theta_y - v_bucket_cyl_rod_theta_y
-    c292 = v_bucket_cyl_barrel_theta_x - v_bucket_cyl_rod_theta_x
-    c293 = -c292
-    c294 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c295 = v_bucket_cyl_barrel_theta_z - v_bucket_cyl_rod_theta_z
-    c296 = -c295
-    c297 = -c291
-    c298 = c292*bucket_cyl_barrel_a10 + c297*bucket_cyl_barrel_a00
-    c299 = c293*bucket_cyl_barrel_a20 + c295*bucket_cyl_barrel_a00
-    c300 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c301 = c291*bucket_cyl_barrel_a20 + c296*bucket_cyl_barrel_a10
-    c302 = bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_y
-    c303 = bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_x
-    c304 = bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_z
-    c305 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_y
-    c306 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x
-    c307 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_x
-    c308 = -c305
-    c309 = -c307
-    c310 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
-    c311 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
-    c312 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
-    c313 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y
-    c314 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x
-    c315 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x
-    c316 = -c313
-    c317 = -c315
-    c318 = -1.0*v_bucket_cyl_rod_theta_y + (1.0)*v_bucket_cyl_barrel_theta_y
-    c319 = -1.0*v_bucket_cyl_rod_theta_x + (1.0)*v_bucket_cyl_barrel_theta_x
-    c320 = -c319
-    c321 = -1.0*v_bucket_cyl_rod_theta_z + (1.0)*v_bucket_cyl_barrel_theta_z
+    c289 = v_arm_theta_z - v_bucket_cyl_barrel_theta_z
+    c290 = -c289
+    c291 = -c286
+    c292 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
+    c293 = v_bucket_cyl_barrel_theta_y - v_bucket_cyl_rod_theta_y
+    c294 = v_bucket_cyl_barrel_theta_x - v_bucket_cyl_rod_theta_x
+    c295 = -c294
+    c296 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c297 = v_bucket_cyl_barrel_theta_z - v_bucket_cyl_rod_theta_z
+    c298 = -c297
+    c299 = -c293
+    c300 = c294*bucket_cyl_barrel_a10 + c299*bucket_cyl_barrel_a00
+    c301 = c295*bucket_cyl_barrel_a20 + c297*bucket_cyl_barrel_a00
+    c302 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
+    c303 = c293*bucket_cyl_barrel_a20 + c298*bucket_cyl_barrel_a10
+    c304 = bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_y
+    c305 = bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_x
+    c306 = bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_z
+    c307 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_y
+    c308 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x
+    c309 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_x
+    c310 = -c307
+    c311 = -c309
+    c312 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c313 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c314 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    c315 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y
+    c316 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x
+    c317 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x
+    c318 = -c315
+    c319 = -c317
+    c320 = -1.0*v_bucket_cyl_rod_theta_y + (1.0)*v_bucket_cyl_barrel_theta_y
+    c321 = -1.0*v_bucket_cyl_rod_theta_x + (1.0)*v_bucket_cyl_barrel_theta_x
     c322 = -c321
-    c323 = -c318
-    c324 = -166329/500000*side_link_a00*v_side_link_theta_y + (166329/500000)*side_link_a10*v_side_link_theta_x
-    c325 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y
-    c326 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
-    c327 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
-    c328 = (96247/200000)*v_side_link_theta_z
-    c329 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
-    c330 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    c323 = -1.0*v_bucket_cyl_rod_theta_z + (1.0)*v_bucket_cyl_barrel_theta_z
+    c324 = -c323
+    c325 = -c320
+    c326 = 0.5686266556413632*p_side_link
+    c327 = c326*(side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y)
+    c328 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y
+    c329 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
+    c330 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
+    c331 = 0.822595724821202*p_side_link
+    c332 = c331*v_side_link_theta_z
+    c333 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
+    c334 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
     out = _zeros(80, q, ())
     out[3] = v_upper_theta_y*(upper_a20*v_upper_theta_y - upper_a10*v_upper_theta_z) - v_upper_theta_x*(upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x)
     out[4] = v_upper_theta_y*(upper_a21*v_upper_theta_y - upper_a11*v_upper_theta_z) - v_upper_theta_x*(upper_a01*v_upper_theta_z - upper_a21*v_upper_theta_x)
@@ -1401,9 +1437,9 @@ def _joints_gamma(q, v):
     out[16] = c50*v_boom_cyl_l_barrel_y - c49*v_boom_cyl_l_barrel_x - c50*c55 - c50*v_boom_cyl_l_rod_y - c51*v_boom_cyl_l_barrel_z - c52*c56 - c52*v_boom_cyl_l_rod_x - c53*c54 - c53*v_boom_cyl_l_rod_z
     out[17] = c58*v_boom_cyl_l_barrel_y - c54*c61 - c55*c58 - c56*c60 - c57*v_boom_cyl_l_barrel_x - c58*v_boom_cyl_l_rod_y - c59*v_boom_cyl_l_barrel_z - c60*v_boom_cyl_l_rod_x - c61*v_boom_cyl_l_rod_z
     out[18] = -c46*(c63*boom_cyl_l_barrel_a11 + c67*boom_cyl_l_barrel_a01) - c47*(c64*boom_cyl_l_barrel_a21 + c65*boom_cyl_l_barrel_a01) - c48*(c62*boom_cyl_l_barrel_a21 + c66*boom_cyl_l_barrel_a11) - c50*(c63*boom_cyl_l_rod_a22 + c66*boom_cyl_l_rod_a02) - c52*(c65*boom_cyl_l_rod_a12 + c67*boom_cyl_l_rod_a22) - c53*(c62*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a12)
-    out[19] = c68*v_boom_theta_y + c69*v_boom_theta_y + c70*v_boom_theta_y - 2.001922*c73*v_boom_theta_z - 139283/100000*c71*v_boom_theta_z - 8/25*c72*v_boom_theta_z
-    out[20] = -c68*v_boom_theta_x - c69*v_boom_theta_x - c70*v_boom_theta_x + (8/25)*c75*v_boom_theta_z + (139283/100000)*c74*v_boom_theta_z + (2.001922)*c76*v_boom_theta_z
-    out[21] = -2.001922*c76*v_boom_theta_y - 139283/100000*c74*v_boom_theta_y - 8/25*c75*v_boom_theta_y + (8/25)*c72*v_boom_theta_x + (139283/100000)*c71*v_boom_theta_x + (2.001922)*c73*v_boom_theta_x
+    out[19] = c68*v_boom_theta_y + c70*v_boom_theta_y + c71*v_boom_theta_y - 8/25*c69*v_boom_theta_z - c72*p_C_x*v_boom_theta_z - c73*p_C_z*v_boom_theta_z
+    out[20] = -c68*v_boom_theta_x - c70*v_boom_theta_x - c71*v_boom_theta_x + (8/25)*c74*v_boom_theta_z + c75*p_C_x*v_boom_theta_z + c76*p_C_z*v_boom_theta_z
+    out[21] = -8/25*c74*v_boom_theta_y + (8/25)*c69*v_boom_theta_x + c72*p_C_x*v_boom_theta_x + c73*p_C_z*v_boom_theta_x - c75*p_C_x*v_boom_theta_y - c76*p_C_z*v_boom_theta_y
     out[22] = -c77*v_upper_theta_y - c79*v_upper_theta_y - c81*c82 + (8/25)*c78*v_upper_theta_y + (4307/6250)*c80*v_upper_theta_z + (67739/50000)*c83*v_upper_theta_z
     out[23] = c77*v_upper_theta_x + c79*v_upper_theta_x + c82*c85 - 67739/50000*c86*v_upper_theta_z - 4307/6250*c84*v_upper_theta_z - 8/25*c78*v_upper_theta_x
     out[24] = -67739/50000*c83*v_upper_theta_x - 4307/6250*c80*v_upper_theta_x - 8/25*c85*v_upper_theta_y + (8/25)*c81*v_upper_theta_x + (4307/6250)*c84*v_upper_theta_y + (67739/50000)*c86*v_upper_theta_y
@@ -1413,9 +1449,9 @@ def _joints_gamma(q, v):
     out[28] = c109*v_boom_cyl_r_barrel_y - c108*v_boom_cyl_r_barrel_x - c109*c114 - c109*v_boom_cyl_r_rod_y - c110*v_boom_cyl_r_barrel_z - c111*c115 - c111*v_boom_cyl_r_rod_x - c112*c113 - c112*v_boom_cyl_r_rod_z
     out[29] = c117*v_boom_cyl_r_barrel_y - c113*c120 - c114*c117 - c115*c119 - c116*v_boom_cyl_r_barrel_x - c117*v_boom_cyl_r_rod_y - c118*v_boom_cyl_r_barrel_z - c119*v_boom_cyl_r_rod_x - c120*v_boom_cyl_r_rod_z
     out[30] = -c105*(c122*boom_cyl_r_barrel_a11 + c126*boom_cyl_r_barrel_a01) - c106*(c123*boom_cyl_r_barrel_a21 + c124*boom_cyl_r_barrel_a01) - c107*(c121*boom_cyl_r_barrel_a21 + c125*boom_cyl_r_barrel_a11) - c109*(c122*boom_cyl_r_rod_a22 + c125*boom_cyl_r_rod_a02) - c111*(c124*boom_cyl_r_rod_a12 + c126*boom_cyl_r_rod_a22) - c112*(c121*boom_cyl_r_rod_a02 + c123*boom_cyl_r_rod_a12)
-    out[31] = c127*v_boom_theta_y + c129*v_boom_theta_y + c131*c132 - 2.001922*c133*v_boom_theta_z - 139283/100000*c130*v_boom_theta_z - 8/25*c128*v_boom_theta_y
-    out[32] = -c127*v_boom_theta_x - c129*v_boom_theta_x - c132*c135 + (8/25)*c128*v_boom_theta_x + (139283/100000)*c134*v_boom_theta_z + (2.001922)*c136*v_boom_theta_z
-    out[33] = -2.001922*c136*v_boom_theta_y - 139283/100000*c134*v_boom_theta_y - 8/25*c131*v_boom_theta_x + (8/25)*c135*v_boom_theta_y + (139283/100000)*c130*v_boom_theta_x + (2.001922)*c133*v_boom_theta_x
+    out[31] = c128*c129 + c130*v_boom_theta_y + c131*v_boom_theta_y - 8/25*c127*v_boom_theta_y - c132*p_C_x*v_boom_theta_z - c133*p_C_z*v_boom_theta_z
+    out[32] = -c129*c134 - c130*v_boom_theta_x - c131*v_boom_theta_x + (8/25)*c127*v_boom_theta_x + c135*p_C_x*v_boom_theta_z + c136*p_C_z*v_boom_theta_z
+    out[33] = -8/25*c128*v_boom_theta_x + (8/25)*c134*v_boom_theta_y + c132*p_C_x*v_boom_theta_x + c133*p_C_z*v_boom_theta_x - c135*p_C_x*v_boom_theta_y - c136*p_C_z*v_boom_theta_y
     out[34] = -c137*v_boom_theta_y - c138*v_boom_theta_y + (23939/5000)*c139*v_boom_theta_z + (29959/10000)*c140*v_boom_theta_z
     out[35] = c137*v_boom_theta_x + c138*v_boom_theta_x - 29959/10000*c142*v_boom_theta_z - 23939/5000*c141*v_boom_theta_z
     out[36] = -29959/10000*c140*v_boom_theta_x - 23939/5000*c139*v_boom_theta_x + (23939/5000)*c141*v_boom_theta_y + (29959/10000)*c142*v_boom_theta_y
@@ -1430,9 +1466,9 @@ def _joints_gamma(q, v):
     out[45] = c183*v_arm_cyl_barrel_y - c182*v_arm_cyl_barrel_x - c183*c188 - c183*v_arm_cyl_rod_y - c184*v_arm_cyl_barrel_z - c185*c189 - c185*v_arm_cyl_rod_x - c186*c187 - c186*v_arm_cyl_rod_z
     out[46] = c191*v_arm_cyl_barrel_y - c187*c194 - c188*c191 - c189*c193 - c190*v_arm_cyl_barrel_x - c191*v_arm_cyl_rod_y - c192*v_arm_cyl_barrel_z - c193*v_arm_cyl_rod_x - c194*v_arm_cyl_rod_z
     out[47] = -c179*(c196*arm_cyl_barrel_a11 + c200*arm_cyl_barrel_a01) - c180*(c197*arm_cyl_barrel_a21 + c198*arm_cyl_barrel_a01) - c181*(c195*arm_cyl_barrel_a21 + c199*arm_cyl_barrel_a11) - c183*(c196*arm_cyl_rod_a22 + c199*arm_cyl_rod_a02) - c185*(c198*arm_cyl_rod_a12 + c200*arm_cyl_rod_a22) - c186*(c195*arm_cyl_rod_a02 + c197*arm_cyl_rod_a12)
-    out[48] = -c201*v_arm_theta_y - c202*v_arm_theta_y + (0.369691)*c204*v_arm_theta_z + (393281/500000)*c203*v_arm_theta_z
-    out[49] = c201*v_arm_theta_x + c202*v_arm_theta_x - 393281/500000*c205*v_arm_theta_z - 0.369691*c206*v_arm_theta_z
-    out[50] = -393281/500000*c203*v_arm_theta_x - 0.369691*c204*v_arm_theta_x + (0.369691)*c206*v_arm_theta_y + (393281/500000)*c205*v_arm_theta_y
+    out[48] = c201*v_arm_theta_y + c202*v_arm_theta_y - c203*p_F_x*v_arm_theta_z - c204*p_F_z*v_arm_theta_z
+    out[49] = -c201*v_arm_theta_x - c202*v_arm_theta_x + c205*p_F_x*v_arm_theta_z + c206*p_F_z*v_arm_theta_z
+    out[50] = c203*p_F_x*v_arm_theta_x + c204*p_F_z*v_arm_theta_x - c205*p_F_x*v_arm_theta_y - c206*p_F_z*v_arm_theta_y
     out[51] = -c207*v_arm_theta_y - c208*v_arm_theta_y + (9477/5000)*c209*v_arm_theta_z + (21809/10000)*c210*v_arm_theta_z
     out[52] = c207*v_arm_theta_x + c208*v_arm_theta_x - 21809/10000*c212*v_arm_theta_z - 9477/5000*c211*v_arm_theta_z
     out[53] = -21809/10000*c210*v_arm_theta_x - 9477/5000*c209*v_arm_theta_x + (9477/5000)*c211*v_arm_theta_y + (21809/10000)*c212*v_arm_theta_y
@@ -1443,31 +1479,32 @@ def _joints_gamma(q, v):
     out[58] = -18799/10000*c228*v_arm_theta_x - 7877/5000*c227*v_arm_theta_x + (7877/5000)*c229*v_arm_theta_y + (18799/10000)*c230*v_arm_theta_y
     out[59] = -c235*(c237*side_link_a02 + c233*side_link_a22) - c239*(side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y) - c240*(side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x) - c241*(c236*side_link_a12 + c238*side_link_a22) - c242*(side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z) - c231*(c232*side_link_a02 + c234*side_link_a12)
     out[60] = -c235*(c237*side_link_a00 + c233*side_link_a20) - c239*(side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y) - c240*(side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x) - c241*(c236*side_link_a10 + c238*side_link_a20) - c242*(side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z) - c231*(c232*side_link_a00 + c234*side_link_a10)
-    out[61] = c243*v_side_link_theta_y + c253*c252 + c246*c247 + c250*c251 - 0.450737*c249*v_bucket_link_theta_y - 166329/500000*c245*v_side_link_theta_z - 96247/200000*c244*v_side_link_theta_y - 85607/250000*c248*v_bucket_link_theta_y
-    out[62] = -c243*v_side_link_theta_x - c253*c257 - c255*c247 - c256*c251 + (85607/250000)*c248*v_bucket_link_theta_x + (96247/200000)*c244*v_side_link_theta_x + (166329/500000)*c254*v_side_link_theta_z + (0.450737)*c249*v_bucket_link_theta_x
-    out[63] = -0.450737*c252*v_bucket_link_theta_x - 166329/500000*c254*v_side_link_theta_y - 96247/200000*c246*v_side_link_theta_x - 85607/250000*c250*v_bucket_link_theta_x + (85607/250000)*c256*v_bucket_link_theta_y + (96247/200000)*c255*v_side_link_theta_y + (166329/500000)*c245*v_side_link_theta_x + (0.450737)*c257*v_bucket_link_theta_y
-    out[64] = -c258*v_bucket_theta_y - c261*c262 + (8101/25000)*c260*v_bucket_theta_z + (16927/50000)*c259*v_bucket_theta_y
-    out[65] = c258*v_bucket_theta_x + c262*c264 - 16927/50000*c259*v_bucket_theta_x - 8101/25000*c263*v_bucket_theta_z
-    out[66] = -16927/50000*c264*v_bucket_theta_y - 8101/25000*c260*v_bucket_theta_x + (8101/25000)*c263*v_bucket_theta_y + (16927/50000)*c261*v_bucket_theta_x
-    out[67] = -(c268*bucket_a01 + c269*bucket_a21)*(bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x) - (c270*bucket_a01 + c272*bucket_a11)*(bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y) - (c271*bucket_a21 + c274*bucket_a01)*(bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x) - (c273*bucket_a11 + c276*bucket_a21)*(bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z) - (c275*bucket_a11 + c265*bucket_a21)*(bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z) - (c266*bucket_a01 + c267*bucket_a11)*(bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y) - (bucket_a01*v_bucket_theta_z - bucket_a21*v_bucket_theta_x)*(c272*bucket_link_a22 + c273*bucket_link_a02 + c275*bucket_link_a00 + c267*bucket_link_a20) - (bucket_a11*v_bucket_theta_x - bucket_a01*v_bucket_theta_y)*(c269*bucket_link_a10 + c271*bucket_link_a12 + c276*bucket_link_a02 + c265*bucket_link_a00) - (bucket_a21*v_bucket_theta_y - bucket_a11*v_bucket_theta_z)*(c268*bucket_link_a10 + c270*bucket_link_a22 + c274*bucket_link_a12 + c266*bucket_link_a20)
-    out[68] = c277*v_arm_theta_y + c280*c281 - 36797/50000*c278*v_arm_theta_y - 24687/100000*c279*v_arm_theta_z
-    out[69] = -c277*v_arm_theta_x - c281*c283 + (24687/100000)*c282*v_arm_theta_z + (36797/50000)*c278*v_arm_theta_x
-    out[70] = -36797/50000*c280*v_arm_theta_x - 24687/100000*c282*v_arm_theta_y + (24687/100000)*c279*v_arm_theta_x + (36797/50000)*c283*v_arm_theta_y
-    out[71] = -(c287*arm_a01 + c286*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x) - (c287*bucket_cyl_barrel_a12 + c289*bucket_cyl_barrel_a22)*(arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z) - (c288*arm_a11 + c284*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z) - (c288*bucket_cyl_barrel_a02 + c285*bucket_cyl_barrel_a22)*(arm_a01*v_arm_theta_z - arm_a21*v_arm_theta_x) - (c289*arm_a01 + c285*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y) - (c284*bucket_cyl_barrel_a02 + c286*bucket_cyl_barrel_a12)*(arm_a11*v_arm_theta_x - arm_a01*v_arm_theta_y)
-    out[72] = -c290*(c291*bucket_cyl_rod_a01 + c293*bucket_cyl_rod_a11) - c300*(c295*bucket_cyl_rod_a11 + c297*bucket_cyl_rod_a21) - c301*(bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_z) - c294*(c292*bucket_cyl_rod_a21 + c296*bucket_cyl_rod_a01) - c298*(bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_y) - c299*(bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_x)
-    out[73] = -c290*(c291*bucket_cyl_rod_a02 + c293*bucket_cyl_rod_a12) - c300*(c295*bucket_cyl_rod_a12 + c297*bucket_cyl_rod_a22) - c301*c304 - c302*c298 - c303*c299 - c294*(c292*bucket_cyl_rod_a22 + c296*bucket_cyl_rod_a02)
-    out[74] = c306*v_bucket_cyl_barrel_y - c305*v_bucket_cyl_barrel_x - c306*c311 - c306*v_bucket_cyl_rod_y - c307*v_bucket_cyl_barrel_z - c308*c312 - c308*v_bucket_cyl_rod_x - c309*c310 - c309*v_bucket_cyl_rod_z
-    out[75] = c314*v_bucket_cyl_barrel_y - c310*c317 - c311*c314 - c312*c316 - c313*v_bucket_cyl_barrel_x - c314*v_bucket_cyl_rod_y - c315*v_bucket_cyl_barrel_z - c316*v_bucket_cyl_rod_x - c317*v_bucket_cyl_rod_z
-    out[76] = -c302*(c319*bucket_cyl_barrel_a11 + c323*bucket_cyl_barrel_a01) - c303*(c320*bucket_cyl_barrel_a21 + c321*bucket_cyl_barrel_a01) - c304*(c318*bucket_cyl_barrel_a21 + c322*bucket_cyl_barrel_a11) - c306*(c319*bucket_cyl_rod_a22 + c322*bucket_cyl_rod_a02) - c308*(c321*bucket_cyl_rod_a12 + c323*bucket_cyl_rod_a22) - c309*(c318*bucket_cyl_rod_a02 + c320*bucket_cyl_rod_a12)
-    out[77] = -c324*v_side_link_theta_y - c327*c328 + (96247/200000)*c325*v_side_link_theta_y + (166329/500000)*c326*v_side_link_theta_z
-    out[78] = c324*v_side_link_theta_x + c328*c330 - 166329/500000*c329*v_side_link_theta_z - 96247/200000*c325*v_side_link_theta_x
-    out[79] = -166329/500000*c326*v_side_link_theta_x - 96247/200000*c330*v_side_link_theta_y + (96247/200000)*c327*v_side_link_theta_x + (166329/500000)*c329*v_side_link_theta_y
+    out[61] = -c243*c244 - c243*c245 - c253*c251 - c250*v_side_link_theta_y + 0.5686266556413632*c248*p_side_link*v_side_link_theta_y + 0.60493530832545*c246*p_bucket_link*v_bucket_link_theta_z + 0.796274621434837*c247*p_bucket_link*v_bucket_link_theta_z + 0.822595724821202*c254*p_side_link*v_side_link_theta_z
+    out[62] = c244*c255 + c253*c259 + c255*c245 + c250*v_side_link_theta_x - 0.60493530832545*c256*c257 - 0.796274621434837*c257*c258 - c260*c249*v_side_link_theta_z - c248*c252*v_side_link_theta_x
+    out[63] = -0.60493530832545*c255*c246 - 0.796274621434837*c255*c247 - c254*c249*v_side_link_theta_x - c259*c252*v_side_link_theta_y + 0.5686266556413632*c251*p_side_link*v_side_link_theta_x + 0.60493530832545*c256*p_bucket_link*v_bucket_link_theta_y + 0.796274621434837*c258*p_bucket_link*v_bucket_link_theta_y + 0.822595724821202*c260*p_side_link*v_side_link_theta_y
+    out[64] = c261*v_bucket_theta_y + c262*v_bucket_theta_y - c263*p_K_x*v_bucket_theta_z - c264*p_K_z*v_bucket_theta_z
+    out[65] = -c261*v_bucket_theta_x - c262*v_bucket_theta_x + c265*p_K_x*v_bucket_theta_z + c266*p_K_z*v_bucket_theta_z
+    out[66] = c263*p_K_x*v_bucket_theta_x + c264*p_K_z*v_bucket_theta_x - c265*p_K_x*v_bucket_theta_y - c266*p_K_z*v_bucket_theta_y
+    out[67] = -(c271*bucket_a21 + c270*bucket_a01)*(bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x) - (c272*bucket_a01 + c274*bucket_a11)*(bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y) - (c273*bucket_a21 + c276*bucket_a01)*(bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x) - (c275*bucket_a11 + c278*bucket_a21)*(bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z) - (c277*bucket_a11 + c267*bucket_a21)*(bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z) - (c268*bucket_a01 + c269*bucket_a11)*(bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y) - (bucket_a01*v_bucket_theta_z - bucket_a21*v_bucket_theta_x)*(c274*bucket_link_a22 + c275*bucket_link_a02 + c277*bucket_link_a00 + c269*bucket_link_a20) - (bucket_a11*v_bucket_theta_x - bucket_a01*v_bucket_theta_y)*(c271*bucket_link_a10 + c273*bucket_link_a12 + c278*bucket_link_a02 + c267*bucket_link_a00) - (bucket_a21*v_bucket_theta_y - bucket_a11*v_bucket_theta_z)*(c272*bucket_link_a22 + c276*bucket_link_a12 + c268*bucket_link_a20 + c270*bucket_link_a10)
+    out[68] = c279*v_arm_theta_y + c282*c283 - 36797/50000*c280*v_arm_theta_y - 24687/100000*c281*v_arm_theta_z
+    out[69] = -c279*v_arm_theta_x - c283*c285 + (24687/100000)*c284*v_arm_theta_z + (36797/50000)*c280*v_arm_theta_x
+    out[70] = -36797/50000*c282*v_arm_theta_x - 24687/100000*c284*v_arm_theta_y + (24687/100000)*c281*v_arm_theta_x + (36797/50000)*c285*v_arm_theta_y
+    out[71] = -(c289*arm_a01 + c288*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x) - (c289*bucket_cyl_barrel_a12 + c291*bucket_cyl_barrel_a22)*(arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z) - (c290*arm_a11 + c286*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z) - (c290*bucket_cyl_barrel_a02 + c287*bucket_cyl_barrel_a22)*(arm_a01*v_arm_theta_z - arm_a21*v_arm_theta_x) - (c291*arm_a01 + c287*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y) - (c286*bucket_cyl_barrel_a02 + c288*bucket_cyl_barrel_a12)*(arm_a11*v_arm_theta_x - arm_a01*v_arm_theta_y)
+    out[72] = -c292*(c293*bucket_cyl_rod_a01 + c295*bucket_cyl_rod_a11) - c302*(c297*bucket_cyl_rod_a11 + c299*bucket_cyl_rod_a21) - c303*(bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_z) - c296*(c294*bucket_cyl_rod_a21 + c298*bucket_cyl_rod_a01) - c300*(bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_y) - c301*(bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_x)
+    out[73] = -c292*(c293*bucket_cyl_rod_a02 + c295*bucket_cyl_rod_a12) - c302*(c297*bucket_cyl_rod_a12 + c299*bucket_cyl_rod_a22) - c303*c306 - c304*c300 - c305*c301 - c296*(c294*bucket_cyl_rod_a22 + c298*bucket_cyl_rod_a02)
+    out[74] = c308*v_bucket_cyl_barrel_y - c307*v_bucket_cyl_barrel_x - c308*c313 - c308*v_bucket_cyl_rod_y - c309*v_bucket_cyl_barrel_z - c310*c314 - c310*v_bucket_cyl_rod_x - c311*c312 - c311*v_bucket_cyl_rod_z
+    out[75] = c316*v_bucket_cyl_barrel_y - c312*c319 - c313*c316 - c314*c318 - c315*v_bucket_cyl_barrel_x - c316*v_bucket_cyl_rod_y - c317*v_bucket_cyl_barrel_z - c318*v_bucket_cyl_rod_x - c319*v_bucket_cyl_rod_z
+    out[76] = -c304*(c321*bucket_cyl_barrel_a11 + c325*bucket_cyl_barrel_a01) - c305*(c322*bucket_cyl_barrel_a21 + c323*bucket_cyl_barrel_a01) - c306*(c320*bucket_cyl_barrel_a21 + c324*bucket_cyl_barrel_a11) - c308*(c321*bucket_cyl_rod_a22 + c324*bucket_cyl_rod_a02) - c310*(c323*bucket_cyl_rod_a12 + c325*bucket_cyl_rod_a22) - c311*(c320*bucket_cyl_rod_a02 + c322*bucket_cyl_rod_a12)
+    out[77] = -c327*v_side_link_theta_y - c330*c332 + 0.5686266556413632*c329*p_side_link*v_side_link_theta_z + 0.822595724821202*c328*p_side_link*v_side_link_theta_y
+    out[78] = c327*v_side_link_theta_x + c332*c334 - c326*c333*v_side_link_theta_z - c328*c331*v_side_link_theta_x
+    out[79] = -c326*c329*v_side_link_theta_x - c331*c334*v_side_link_theta_y + 0.5686266556413632*c333*p_side_link*v_side_link_theta_y + 0.822595724821202*c330*p_side_link*v_side_link_theta_x
     return out
 
 
-def _joints_phi_jac_s(q):
+def _joints_phi_jac_s(q, p):
     """Phi and Phi_q values of the joint rows at one configuration (lists of floats)."""
     upper_x, upper_y, upper_z, upper_qw, upper_qx, upper_qy, upper_qz, boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, arm_x, arm_y, arm_z, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, side_link_x, side_link_y, side_link_z, side_link_qw, side_link_qx, side_link_qy, side_link_qz, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, bucket_x, bucket_y, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx)
     upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
     upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
@@ -1585,9 +1622,15 @@ def _joints_phi_jac_s(q):
     c6 = arm_cyl_rod_x - arm_cyl_barrel_x
     c7 = arm_cyl_rod_y - arm_cyl_barrel_y
     c8 = arm_cyl_rod_z - arm_cyl_barrel_z
-    c9 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    c11 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c9 = 0.5686266556413632*p_side_link
+    c10 = 0.822595724821202*p_side_link
+    c11 = 0.60493530832545*p_bucket_link
+    c12 = 0.796274621434837*p_bucket_link
+    c13 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    c14 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c15 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c16 = 0.5686266556413632*p_side_link
+    c17 = 0.822595724821202*p_side_link
     d0 = (22767/100000)*upper_a20 + (195729/100000)*upper_a22
     d1 = (22767/100000)*upper_a10 + (195729/100000)*upper_a12
     d2 = (22767/100000)*upper_a00 + (195729/100000)*upper_a02
@@ -1616,9 +1659,9 @@ def _joints_phi_jac_s(q):
     d25 = d24*boom_cyl_l_barrel_a11 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a12
     d26 = d24*boom_cyl_l_barrel_a01 - 1.0*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02
     d27 = -1.0*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a12
-    d28 = (8/25)*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d29 = (8/25)*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d30 = (8/25)*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d28 = (8/25)*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d29 = (8/25)*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d30 = (8/25)*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d31 = -8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
     d32 = -8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
     d33 = -8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
@@ -1638,9 +1681,9 @@ def _joints_phi_jac_s(q):
     d47 = d46*boom_cyl_r_barrel_a11 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a12
     d48 = d46*boom_cyl_r_barrel_a01 - 1.0*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a02
     d49 = -1.0*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a12
-    d50 = -8/25*boom_a21 + (139283/100000)*boom_a20 + (2.001922)*boom_a22
-    d51 = -8/25*boom_a11 + (139283/100000)*boom_a10 + (2.001922)*boom_a12
-    d52 = -8/25*boom_a01 + (139283/100000)*boom_a00 + (2.001922)*boom_a02
+    d50 = -8/25*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    d51 = -8/25*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    d52 = -8/25*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
     d53 = (23939/5000)*boom_a20 + (29959/10000)*boom_a22
     d54 = (23939/5000)*boom_a10 + (29959/10000)*boom_a12
     d55 = (23939/5000)*boom_a00 + (29959/10000)*boom_a02
@@ -1669,9 +1712,9 @@ def _joints_phi_jac_s(q):
     d78 = d77*arm_cyl_barrel_a11 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a12
     d79 = d77*arm_cyl_barrel_a01 - 1.0*arm_cyl_barrel_a21*arm_cyl_rod_a02
     d80 = -1.0*arm_cyl_barrel_a11*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a12
-    d81 = (0.369691)*arm_a22 + (393281/500000)*arm_a20
-    d82 = (0.369691)*arm_a12 + (393281/500000)*arm_a10
-    d83 = (0.369691)*arm_a02 + (393281/500000)*arm_a00
+    d81 = arm_a20*p_F_x + arm_a22*p_F_z
+    d82 = arm_a10*p_F_x + arm_a12*p_F_z
+    d83 = arm_a00*p_F_x + arm_a02*p_F_z
     d84 = (9477/5000)*arm_a20 + (21809/10000)*arm_a22
     d85 = (9477/5000)*arm_a10 + (21809/10000)*arm_a12
     d86 = (9477/5000)*arm_a00 + (21809/10000)*arm_a02
@@ -1690,51 +1733,57 @@ def _joints_phi_jac_s(q):
     d99 = arm_a11*side_link_a20 - arm_a21*side_link_a10
     d100 = arm_a01*side_link_a20 - arm_a21*side_link_a00
     d101 = arm_a01*side_link_a10 - arm_a11*side_link_a00
-    d102 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d103 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d104 = (85607/250000)*bucket_link_a20 + (0.450737)*bucket_link_a22
-    d105 = (85607/250000)*bucket_link_a10 + (0.450737)*bucket_link_a12
-    d106 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    d107 = (85607/250000)*bucket_link_a00 + (0.450737)*bucket_link_a02
-    d108 = -16927/50000*bucket_a22 + (8101/25000)*bucket_a20
-    d109 = -16927/50000*bucket_a12 + (8101/25000)*bucket_a10
-    d110 = -16927/50000*bucket_a02 + (8101/25000)*bucket_a00
-    d111 = (0.7962746214343476)*bucket_link_a10
-    d112 = (0.6049353083260941)*bucket_link_a22
-    d113 = (0.7962746214343476)*bucket_link_a00
-    d114 = (0.7962746214343476)*bucket_link_a20
-    d115 = -d114 + (0.6049353083260941)*bucket_link_a22
-    d116 = -d111 + (0.6049353083260941)*bucket_link_a12
-    d117 = -d113 + (0.6049353083260941)*bucket_link_a02
-    d118 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
-    d119 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
-    d120 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
-    d121 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
-    d122 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
-    d123 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
-    d124 = bucket_cyl_barrel_a10*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a11
-    d125 = bucket_cyl_barrel_a00*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a01
-    d126 = bucket_cyl_barrel_a00*bucket_cyl_rod_a11 - bucket_cyl_barrel_a10*bucket_cyl_rod_a01
-    d127 = bucket_cyl_barrel_a10*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a12
-    d128 = bucket_cyl_barrel_a00*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a02
-    d129 = bucket_cyl_barrel_a00*bucket_cyl_rod_a12 - bucket_cyl_barrel_a10*bucket_cyl_rod_a02
-    d130 = bucket_cyl_rod_z - bucket_cyl_barrel_z
-    d131 = bucket_cyl_rod_y - bucket_cyl_barrel_y
-    d132 = bucket_cyl_rod_x - bucket_cyl_barrel_x
-    d133 = (1.0)*bucket_cyl_rod_a22
-    d134 = d133*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
-    d135 = d133*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
-    d136 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
-    d137 = -96247/200000*side_link_a22 + (166329/500000)*side_link_a20
-    d138 = -96247/200000*side_link_a12 + (166329/500000)*side_link_a10
-    d139 = -96247/200000*side_link_a02 + (166329/500000)*side_link_a00
-    return [-upper_x, -upper_y, -upper_z, upper_a20, upper_a21, upper_x - boom_x + (22767/100000)*upper_a00 + (195729/100000)*upper_a02, upper_y - boom_y + (22767/100000)*upper_a10 + (195729/100000)*upper_a12, upper_z - boom_z + (22767/100000)*upper_a20 + (195729/100000)*upper_a22, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, upper_x - boom_cyl_l_barrel_x + (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_l_barrel_y + (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_l_barrel_z + (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22, c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21, c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22, (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 - 8/25*boom_a01, boom_cyl_l_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 - 8/25*boom_a11, boom_cyl_l_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 - 8/25*boom_a21, upper_x - boom_cyl_r_barrel_x - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_r_barrel_y - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_r_barrel_z - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22, c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21, c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22, (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_x - boom_x - 2.001922*boom_a02 - 139283/100000*boom_a00 + (8/25)*boom_a01, boom_cyl_r_rod_y - boom_y - 2.001922*boom_a12 - 139283/100000*boom_a10 + (8/25)*boom_a11, boom_cyl_r_rod_z - boom_z - 2.001922*boom_a22 - 139283/100000*boom_a20 + (8/25)*boom_a21, boom_x - arm_x + (23939/5000)*boom_a00 + (29959/10000)*boom_a02, boom_y - arm_y + (23939/5000)*boom_a10 + (29959/10000)*boom_a12, boom_z - arm_z + (23939/5000)*boom_a20 + (29959/10000)*boom_a22, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, boom_x - arm_cyl_barrel_x + (183/80)*boom_a00 + (557/200)*boom_a02, boom_y - arm_cyl_barrel_y + (183/80)*boom_a10 + (557/200)*boom_a12, boom_z - arm_cyl_barrel_z + (183/80)*boom_a20 + (557/200)*boom_a22, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21, arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22, c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21, c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22, (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_x - arm_x + (0.369691)*arm_a02 + (393281/500000)*arm_a00, arm_cyl_rod_y - arm_y + (0.369691)*arm_a12 + (393281/500000)*arm_a10, arm_cyl_rod_z - arm_z + (0.369691)*arm_a22 + (393281/500000)*arm_a20, arm_x - bucket_x + (9477/5000)*arm_a00 + (21809/10000)*arm_a02, arm_y - bucket_y + (9477/5000)*arm_a10 + (21809/10000)*arm_a12, arm_z - bucket_z + (9477/5000)*arm_a20 + (21809/10000)*arm_a22, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, arm_x - side_link_x + (7877/5000)*arm_a00 + (18799/10000)*arm_a02, arm_y - side_link_y + (7877/5000)*arm_a10 + (18799/10000)*arm_a12, arm_z - side_link_z + (7877/5000)*arm_a20 + (18799/10000)*arm_a22, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, side_link_x - bucket_link_x - 166329/500000*side_link_a00 + (85607/250000)*bucket_link_a00 + (96247/200000)*side_link_a02 + (0.450737)*bucket_link_a02, side_link_y - bucket_link_y - 166329/500000*side_link_a10 + (85607/250000)*bucket_link_a10 + (96247/200000)*side_link_a12 + (0.450737)*bucket_link_a12, side_link_z - bucket_link_z - 166329/500000*side_link_a20 + (85607/250000)*bucket_link_a20 + (96247/200000)*side_link_a22 + (0.450737)*bucket_link_a22, bucket_link_x - bucket_x - 16927/50000*bucket_a02 + (8101/25000)*bucket_a00, bucket_link_y - bucket_y - 16927/50000*bucket_a12 + (8101/25000)*bucket_a10, bucket_link_z - bucket_z - 16927/50000*bucket_a22 + (8101/25000)*bucket_a20, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), arm_x - bucket_cyl_barrel_x - 24687/100000*arm_a00 + (36797/50000)*arm_a02, arm_y - bucket_cyl_barrel_y - 24687/100000*arm_a10 + (36797/50000)*arm_a12, arm_z - bucket_cyl_barrel_z - 24687/100000*arm_a20 + (36797/50000)*arm_a22, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21, bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22, c9*bucket_cyl_barrel_a01 + c10*bucket_cyl_barrel_a11 + c11*bucket_cyl_barrel_a21, c9*bucket_cyl_barrel_a02 + c10*bucket_cyl_barrel_a12 + c11*bucket_cyl_barrel_a22, (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_x - side_link_x - 96247/200000*side_link_a02 + (166329/500000)*side_link_a00, bucket_cyl_rod_y - side_link_y - 96247/200000*side_link_a12 + (166329/500000)*side_link_a10, bucket_cyl_rod_z - side_link_z - 96247/200000*side_link_a22 + (166329/500000)*side_link_a20], [-1.0, -1.0, -1.0, upper_a10, -upper_a00, upper_a11, -upper_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, d3, -d4, d5, -d3, d4, -d5, d6, -d7, d8, -d6, d7, -d8, 1.0, d9, -d10, -1.0, 1.0, -d9, d11, -1.0, 1.0, d10, -d11, -1.0, d12, -d13, d14, -d12, d13, -d14, d15, -d16, d17, -d15, d16, -d17, d18, -d19, d20, -d18, d19, -d20, -boom_cyl_l_barrel_a01, -boom_cyl_l_barrel_a11, -boom_cyl_l_barrel_a21, d21*boom_cyl_l_barrel_a11 - d22*boom_cyl_l_barrel_a21, d23*boom_cyl_l_barrel_a21 - d21*boom_cyl_l_barrel_a01, d22*boom_cyl_l_barrel_a01 - d23*boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a01, boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a21, -boom_cyl_l_barrel_a02, -boom_cyl_l_barrel_a12, -boom_cyl_l_barrel_a22, d21*boom_cyl_l_barrel_a12 - d22*boom_cyl_l_barrel_a22, d23*boom_cyl_l_barrel_a22 - d21*boom_cyl_l_barrel_a02, d22*boom_cyl_l_barrel_a02 - d23*boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a02, boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a22, d25, -d26, d27, -d25, d26, -d27, -1.0, -d28, d29, 1.0, -1.0, d28, -d30, 1.0, -1.0, -d29, d30, 1.0, 1.0, d31, -d32, -1.0, 1.0, -d31, d33, -1.0, 1.0, d32, -d33, -1.0, d34, -d35, d36, -d34, d35, -d36, d37, -d38, d39, -d37, d38, -d39, d40, -d41, d42, -d40, d41, -d42, -boom_cyl_r_barrel_a01, -boom_cyl_r_barrel_a11, -boom_cyl_r_barrel_a21, d43*boom_cyl_r_barrel_a11 - d44*boom_cyl_r_barrel_a21, d45*boom_cyl_r_barrel_a21 - d43*boom_cyl_r_barrel_a01, d44*boom_cyl_r_barrel_a01 - d45*boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a01, boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a21, -boom_cyl_r_barrel_a02, -boom_cyl_r_barrel_a12, -boom_cyl_r_barrel_a22, d43*boom_cyl_r_barrel_a12 - d44*boom_cyl_r_barrel_a22, d45*boom_cyl_r_barrel_a22 - d43*boom_cyl_r_barrel_a02, d44*boom_cyl_r_barrel_a02 - d45*boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a02, boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a22, d47, -d48, d49, -d47, d48, -d49, -1.0, -d50, d51, 1.0, -1.0, d50, -d52, 1.0, -1.0, -d51, d52, 1.0, 1.0, d53, -d54, -1.0, 1.0, -d53, d55, -1.0, 1.0, d54, -d55, -1.0, d56, -d57, d58, -d56, d57, -d58, d59, -d60, d61, -d59, d60, -d61, 1.0, d62, -d63, -1.0, 1.0, -d62, d64, -1.0, 1.0, d63, -d64, -1.0, d65, -d66, d67, -d65, d66, -d67, d68, -d69, d70, -d68, d69, -d70, d71, -d72, d73, -d71, d72, -d73, -arm_cyl_barrel_a01, -arm_cyl_barrel_a11, -arm_cyl_barrel_a21, d74*arm_cyl_barrel_a11 - d75*arm_cyl_barrel_a21, d76*arm_cyl_barrel_a21 - d74*arm_cyl_barrel_a01, d75*arm_cyl_barrel_a01 - d76*arm_cyl_barrel_a11, arm_cyl_barrel_a01, arm_cyl_barrel_a11, arm_cyl_barrel_a21, -arm_cyl_barrel_a02, -arm_cyl_barrel_a12, -arm_cyl_barrel_a22, d74*arm_cyl_barrel_a12 - d75*arm_cyl_barrel_a22, d76*arm_cyl_barrel_a22 - d74*arm_cyl_barrel_a02, d75*arm_cyl_barrel_a02 - d76*arm_cyl_barrel_a12, arm_cyl_barrel_a02, arm_cyl_barrel_a12, arm_cyl_barrel_a22, d78, -d79, d80, -d78, d79, -d80, -1.0, d81, -d82, 1.0, -1.0, -d81, d83, 1.0, -1.0, d82, -d83, 1.0, 1.0, d84, -d85, -1.0, 1.0, -d84, d86, -1.0, 1.0, d85, -d86, -1.0, d87, -d88, d89, -d87, d88, -d89, d90, -d91, d92, -d90, d91, -d92, 1.0, d93, -d94, -1.0, 1.0, -d93, d95, -1.0, 1.0, d94, -d95, -1.0, d96, -d97, d98, -d96, d97, -d98, d99, -d100, d101, -d99, d100, -d101, 1.0, -d102, d103, -1.0, d104, -d105, 1.0, d102, -d106, -1.0, -d104, d107, 1.0, -d103, d106, -1.0, d105, -d107, 1.0, -1.0, d108, -d109, 1.0, -1.0, -d108, d110, 1.0, -1.0, d109, -d110, -d111*bucket_a21 - d112*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11, d112*bucket_a01 + d113*bucket_a21 - d114*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21, -d113*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01, d115*bucket_a11 - d116*bucket_a21, d117*bucket_a21 - d115*bucket_a01, d116*bucket_a01 - d117*bucket_a11, 1.0, -d118, d119, -1.0, 1.0, d118, -d120, -1.0, 1.0, -d119, d120, -1.0, d121, -d122, d123, -d121, d122, -d123, d124, -d125, d126, -d124, d125, -d126, d127, -d128, d129, -d127, d128, -d129, -bucket_cyl_barrel_a01, -bucket_cyl_barrel_a11, -bucket_cyl_barrel_a21, d130*bucket_cyl_barrel_a11 - d131*bucket_cyl_barrel_a21, d132*bucket_cyl_barrel_a21 - d130*bucket_cyl_barrel_a01, d131*bucket_cyl_barrel_a01 - d132*bucket_cyl_barrel_a11, bucket_cyl_barrel_a01, bucket_cyl_barrel_a11, bucket_cyl_barrel_a21, -bucket_cyl_barrel_a02, -bucket_cyl_barrel_a12, -bucket_cyl_barrel_a22, d130*bucket_cyl_barrel_a12 - d131*bucket_cyl_barrel_a22, d132*bucket_cyl_barrel_a22 - d130*bucket_cyl_barrel_a02, d131*bucket_cyl_barrel_a02 - d132*bucket_cyl_barrel_a12, bucket_cyl_barrel_a02, bucket_cyl_barrel_a12, bucket_cyl_barrel_a22, d134, -d135, d136, -d134, d135, -d136, 1.0, -1.0, d137, -d138, 1.0, -1.0, -d137, d139, 1.0, -1.0, d138, -d139]
+    d102 = 0.5686266556413632*p_side_link
+    d103 = d102*side_link_a20 - 0.822595724821202*side_link_a22*p_side_link
+    d104 = d102*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d105 = 0.60493530832545*p_bucket_link
+    d106 = 0.796274621434837*p_bucket_link
+    d107 = d105*bucket_link_a20 + d106*bucket_link_a22
+    d108 = d105*bucket_link_a10 + d106*bucket_link_a12
+    d109 = d102*side_link_a00 - 0.822595724821202*side_link_a02*p_side_link
+    d110 = d105*bucket_link_a00 + d106*bucket_link_a02
+    d111 = bucket_a20*p_K_x + bucket_a22*p_K_z
+    d112 = bucket_a10*p_K_x + bucket_a12*p_K_z
+    d113 = bucket_a00*p_K_x + bucket_a02*p_K_z
+    d114 = (0.7962746214343476)*bucket_link_a10
+    d115 = (0.6049353083260941)*bucket_link_a22
+    d116 = (0.7962746214343476)*bucket_link_a00
+    d117 = (0.7962746214343476)*bucket_link_a20
+    d118 = -d117 + (0.6049353083260941)*bucket_link_a22
+    d119 = -d114 + (0.6049353083260941)*bucket_link_a12
+    d120 = -d116 + (0.6049353083260941)*bucket_link_a02
+    d121 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
+    d122 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
+    d123 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
+    d124 = arm_a11*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a12
+    d125 = arm_a01*bucket_cyl_barrel_a22 - arm_a21*bucket_cyl_barrel_a02
+    d126 = arm_a01*bucket_cyl_barrel_a12 - arm_a11*bucket_cyl_barrel_a02
+    d127 = bucket_cyl_barrel_a10*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a11
+    d128 = bucket_cyl_barrel_a00*bucket_cyl_rod_a21 - bucket_cyl_barrel_a20*bucket_cyl_rod_a01
+    d129 = bucket_cyl_barrel_a00*bucket_cyl_rod_a11 - bucket_cyl_barrel_a10*bucket_cyl_rod_a01
+    d130 = bucket_cyl_barrel_a10*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a12
+    d131 = bucket_cyl_barrel_a00*bucket_cyl_rod_a22 - bucket_cyl_barrel_a20*bucket_cyl_rod_a02
+    d132 = bucket_cyl_barrel_a00*bucket_cyl_rod_a12 - bucket_cyl_barrel_a10*bucket_cyl_rod_a02
+    d133 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d134 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d135 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    d136 = (1.0)*bucket_cyl_rod_a22
+    d137 = d136*bucket_cyl_barrel_a11 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a12
+    d138 = d136*bucket_cyl_barrel_a01 - 1.0*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
+    d139 = -1.0*bucket_cyl_barrel_a11*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a12
+    d140 = 0.5686266556413632*p_side_link
+    d141 = 0.822595724821202*p_side_link
+    d142 = d140*side_link_a20 - d141*side_link_a22
+    d143 = d140*side_link_a10 - 0.822595724821202*side_link_a12*p_side_link
+    d144 = d140*side_link_a00 - d141*side_link_a02
+    return [-upper_x, -upper_y, -upper_z, upper_a20, upper_a21, upper_x - boom_x + (22767/100000)*upper_a00 + (195729/100000)*upper_a02, upper_y - boom_y + (22767/100000)*upper_a10 + (195729/100000)*upper_a12, upper_z - boom_z + (22767/100000)*upper_a20 + (195729/100000)*upper_a22, upper_a01*boom_a02 + upper_a11*boom_a12 + upper_a21*boom_a22, upper_a01*boom_a00 + upper_a11*boom_a10 + upper_a21*boom_a20, upper_x - boom_cyl_l_barrel_x + (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_l_barrel_y + (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_l_barrel_z + (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_l_barrel_a02 + upper_a11*boom_cyl_l_barrel_a12 + upper_a21*boom_cyl_l_barrel_a22, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21, boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02 + boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12 + boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22, c0*boom_cyl_l_barrel_a01 + c1*boom_cyl_l_barrel_a11 + c2*boom_cyl_l_barrel_a21, c0*boom_cyl_l_barrel_a02 + c1*boom_cyl_l_barrel_a12 + c2*boom_cyl_l_barrel_a22, (1.0)*boom_cyl_l_barrel_a01*boom_cyl_l_rod_a02 + (1.0)*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a12 + (1.0)*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a22, boom_cyl_l_rod_x - boom_x - 8/25*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z, boom_cyl_l_rod_y - boom_y - 8/25*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z, boom_cyl_l_rod_z - boom_z - 8/25*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z, upper_x - boom_cyl_r_barrel_x - 8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02, upper_y - boom_cyl_r_barrel_y - 8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12, upper_z - boom_cyl_r_barrel_z - 8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22, upper_a01*boom_cyl_r_barrel_a02 + upper_a11*boom_cyl_r_barrel_a12 + upper_a21*boom_cyl_r_barrel_a22, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21, boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02 + boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12 + boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22, c3*boom_cyl_r_barrel_a01 + c4*boom_cyl_r_barrel_a11 + c5*boom_cyl_r_barrel_a21, c3*boom_cyl_r_barrel_a02 + c4*boom_cyl_r_barrel_a12 + c5*boom_cyl_r_barrel_a22, (1.0)*boom_cyl_r_barrel_a01*boom_cyl_r_rod_a02 + (1.0)*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a12 + (1.0)*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a22, boom_cyl_r_rod_x - boom_x + (8/25)*boom_a01 - boom_a00*p_C_x - boom_a02*p_C_z, boom_cyl_r_rod_y - boom_y + (8/25)*boom_a11 - boom_a10*p_C_x - boom_a12*p_C_z, boom_cyl_r_rod_z - boom_z + (8/25)*boom_a21 - boom_a20*p_C_x - boom_a22*p_C_z, boom_x - arm_x + (23939/5000)*boom_a00 + (29959/10000)*boom_a02, boom_y - arm_y + (23939/5000)*boom_a10 + (29959/10000)*boom_a12, boom_z - arm_z + (23939/5000)*boom_a20 + (29959/10000)*boom_a22, boom_a01*arm_a02 + boom_a11*arm_a12 + boom_a21*arm_a22, boom_a01*arm_a00 + boom_a11*arm_a10 + boom_a21*arm_a20, boom_x - arm_cyl_barrel_x + (183/80)*boom_a00 + (557/200)*boom_a02, boom_y - arm_cyl_barrel_y + (183/80)*boom_a10 + (557/200)*boom_a12, boom_z - arm_cyl_barrel_z + (183/80)*boom_a20 + (557/200)*boom_a22, boom_a01*arm_cyl_barrel_a02 + boom_a11*arm_cyl_barrel_a12 + boom_a21*arm_cyl_barrel_a22, arm_cyl_barrel_a00*arm_cyl_rod_a01 + arm_cyl_barrel_a10*arm_cyl_rod_a11 + arm_cyl_barrel_a20*arm_cyl_rod_a21, arm_cyl_barrel_a00*arm_cyl_rod_a02 + arm_cyl_barrel_a10*arm_cyl_rod_a12 + arm_cyl_barrel_a20*arm_cyl_rod_a22, c6*arm_cyl_barrel_a01 + c7*arm_cyl_barrel_a11 + c8*arm_cyl_barrel_a21, c6*arm_cyl_barrel_a02 + c7*arm_cyl_barrel_a12 + c8*arm_cyl_barrel_a22, (1.0)*arm_cyl_barrel_a01*arm_cyl_rod_a02 + (1.0)*arm_cyl_barrel_a11*arm_cyl_rod_a12 + (1.0)*arm_cyl_barrel_a21*arm_cyl_rod_a22, arm_cyl_rod_x - arm_x - arm_a00*p_F_x - arm_a02*p_F_z, arm_cyl_rod_y - arm_y - arm_a10*p_F_x - arm_a12*p_F_z, arm_cyl_rod_z - arm_z - arm_a20*p_F_x - arm_a22*p_F_z, arm_x - bucket_x + (9477/5000)*arm_a00 + (21809/10000)*arm_a02, arm_y - bucket_y + (9477/5000)*arm_a10 + (21809/10000)*arm_a12, arm_z - bucket_z + (9477/5000)*arm_a20 + (21809/10000)*arm_a22, arm_a01*bucket_a02 + arm_a11*bucket_a12 + arm_a21*bucket_a22, arm_a01*bucket_a00 + arm_a11*bucket_a10 + arm_a21*bucket_a20, arm_x - side_link_x + (7877/5000)*arm_a00 + (18799/10000)*arm_a02, arm_y - side_link_y + (7877/5000)*arm_a10 + (18799/10000)*arm_a12, arm_z - side_link_z + (7877/5000)*arm_a20 + (18799/10000)*arm_a22, arm_a01*side_link_a02 + arm_a11*side_link_a12 + arm_a21*side_link_a22, arm_a01*side_link_a00 + arm_a11*side_link_a10 + arm_a21*side_link_a20, side_link_x - bucket_link_x + c10*side_link_a02 + c11*bucket_link_a00 + c12*bucket_link_a02 - c9*side_link_a00, side_link_y - bucket_link_y + c10*side_link_a12 + c11*bucket_link_a10 + c12*bucket_link_a12 - c9*side_link_a10, side_link_z - bucket_link_z + c10*side_link_a22 + c11*bucket_link_a20 + c12*bucket_link_a22 - c9*side_link_a20, bucket_link_x - bucket_x - bucket_a00*p_K_x - bucket_a02*p_K_z, bucket_link_y - bucket_y - bucket_a10*p_K_x - bucket_a12*p_K_z, bucket_link_z - bucket_z - bucket_a20*p_K_x - bucket_a22*p_K_z, bucket_a01*(-0.7962746214343476*bucket_link_a00 + (0.6049353083260941)*bucket_link_a02) + bucket_a11*(-0.7962746214343476*bucket_link_a10 + (0.6049353083260941)*bucket_link_a12) + bucket_a21*(-0.7962746214343476*bucket_link_a20 + (0.6049353083260941)*bucket_link_a22), arm_x - bucket_cyl_barrel_x - 24687/100000*arm_a00 + (36797/50000)*arm_a02, arm_y - bucket_cyl_barrel_y - 24687/100000*arm_a10 + (36797/50000)*arm_a12, arm_z - bucket_cyl_barrel_z - 24687/100000*arm_a20 + (36797/50000)*arm_a22, arm_a01*bucket_cyl_barrel_a02 + arm_a11*bucket_cyl_barrel_a12 + arm_a21*bucket_cyl_barrel_a22, bucket_cyl_barrel_a00*bucket_cyl_rod_a01 + bucket_cyl_barrel_a10*bucket_cyl_rod_a11 + bucket_cyl_barrel_a20*bucket_cyl_rod_a21, bucket_cyl_barrel_a00*bucket_cyl_rod_a02 + bucket_cyl_barrel_a10*bucket_cyl_rod_a12 + bucket_cyl_barrel_a20*bucket_cyl_rod_a22, c13*bucket_cyl_barrel_a01 + c14*bucket_cyl_barrel_a11 + c15*bucket_cyl_barrel_a21, c13*bucket_cyl_barrel_a02 + c14*bucket_cyl_barrel_a12 + c15*bucket_cyl_barrel_a22, (1.0)*bucket_cyl_barrel_a01*bucket_cyl_rod_a02 + (1.0)*bucket_cyl_barrel_a11*bucket_cyl_rod_a12 + (1.0)*bucket_cyl_barrel_a21*bucket_cyl_rod_a22, bucket_cyl_rod_x - side_link_x + c16*side_link_a00 - c17*side_link_a02, bucket_cyl_rod_y - side_link_y + c16*side_link_a10 - c17*side_link_a12, bucket_cyl_rod_z - side_link_z + c16*side_link_a20 - c17*side_link_a22], [-1.0, -1.0, -1.0, upper_a10, -upper_a00, upper_a11, -upper_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, d3, -d4, d5, -d3, d4, -d5, d6, -d7, d8, -d6, d7, -d8, 1.0, d9, -d10, -1.0, 1.0, -d9, d11, -1.0, 1.0, d10, -d11, -1.0, d12, -d13, d14, -d12, d13, -d14, d15, -d16, d17, -d15, d16, -d17, d18, -d19, d20, -d18, d19, -d20, -boom_cyl_l_barrel_a01, -boom_cyl_l_barrel_a11, -boom_cyl_l_barrel_a21, d21*boom_cyl_l_barrel_a11 - d22*boom_cyl_l_barrel_a21, d23*boom_cyl_l_barrel_a21 - d21*boom_cyl_l_barrel_a01, d22*boom_cyl_l_barrel_a01 - d23*boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a01, boom_cyl_l_barrel_a11, boom_cyl_l_barrel_a21, -boom_cyl_l_barrel_a02, -boom_cyl_l_barrel_a12, -boom_cyl_l_barrel_a22, d21*boom_cyl_l_barrel_a12 - d22*boom_cyl_l_barrel_a22, d23*boom_cyl_l_barrel_a22 - d21*boom_cyl_l_barrel_a02, d22*boom_cyl_l_barrel_a02 - d23*boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a02, boom_cyl_l_barrel_a12, boom_cyl_l_barrel_a22, d25, -d26, d27, -d25, d26, -d27, -1.0, -d28, d29, 1.0, -1.0, d28, -d30, 1.0, -1.0, -d29, d30, 1.0, 1.0, d31, -d32, -1.0, 1.0, -d31, d33, -1.0, 1.0, d32, -d33, -1.0, d34, -d35, d36, -d34, d35, -d36, d37, -d38, d39, -d37, d38, -d39, d40, -d41, d42, -d40, d41, -d42, -boom_cyl_r_barrel_a01, -boom_cyl_r_barrel_a11, -boom_cyl_r_barrel_a21, d43*boom_cyl_r_barrel_a11 - d44*boom_cyl_r_barrel_a21, d45*boom_cyl_r_barrel_a21 - d43*boom_cyl_r_barrel_a01, d44*boom_cyl_r_barrel_a01 - d45*boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a01, boom_cyl_r_barrel_a11, boom_cyl_r_barrel_a21, -boom_cyl_r_barrel_a02, -boom_cyl_r_barrel_a12, -boom_cyl_r_barrel_a22, d43*boom_cyl_r_barrel_a12 - d44*boom_cyl_r_barrel_a22, d45*boom_cyl_r_barrel_a22 - d43*boom_cyl_r_barrel_a02, d44*boom_cyl_r_barrel_a02 - d45*boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a02, boom_cyl_r_barrel_a12, boom_cyl_r_barrel_a22, d47, -d48, d49, -d47, d48, -d49, -1.0, -d50, d51, 1.0, -1.0, d50, -d52, 1.0, -1.0, -d51, d52, 1.0, 1.0, d53, -d54, -1.0, 1.0, -d53, d55, -1.0, 1.0, d54, -d55, -1.0, d56, -d57, d58, -d56, d57, -d58, d59, -d60, d61, -d59, d60, -d61, 1.0, d62, -d63, -1.0, 1.0, -d62, d64, -1.0, 1.0, d63, -d64, -1.0, d65, -d66, d67, -d65, d66, -d67, d68, -d69, d70, -d68, d69, -d70, d71, -d72, d73, -d71, d72, -d73, -arm_cyl_barrel_a01, -arm_cyl_barrel_a11, -arm_cyl_barrel_a21, d74*arm_cyl_barrel_a11 - d75*arm_cyl_barrel_a21, d76*arm_cyl_barrel_a21 - d74*arm_cyl_barrel_a01, d75*arm_cyl_barrel_a01 - d76*arm_cyl_barrel_a11, arm_cyl_barrel_a01, arm_cyl_barrel_a11, arm_cyl_barrel_a21, -arm_cyl_barrel_a02, -arm_cyl_barrel_a12, -arm_cyl_barrel_a22, d74*arm_cyl_barrel_a12 - d75*arm_cyl_barrel_a22, d76*arm_cyl_barrel_a22 - d74*arm_cyl_barrel_a02, d75*arm_cyl_barrel_a02 - d76*arm_cyl_barrel_a12, arm_cyl_barrel_a02, arm_cyl_barrel_a12, arm_cyl_barrel_a22, d78, -d79, d80, -d78, d79, -d80, -1.0, -d81, d82, 1.0, -1.0, d81, -d83, 1.0, -1.0, -d82, d83, 1.0, 1.0, d84, -d85, -1.0, 1.0, -d84, d86, -1.0, 1.0, d85, -d86, -1.0, d87, -d88, d89, -d87, d88, -d89, d90, -d91, d92, -d90, d91, -d92, 1.0, d93, -d94, -1.0, 1.0, -d93, d95, -1.0, 1.0, d94, -d95, -1.0, d96, -d97, d98, -d96, d97, -d98, d99, -d100, d101, -d99, d100, -d101, 1.0, -d103, d104, -1.0, d107, -d108, 1.0, d103, -d109, -1.0, -d107, d110, 1.0, -d104, d109, -1.0, d108, -d110, 1.0, -1.0, -d111, d112, 1.0, -1.0, d111, -d113, 1.0, -1.0, -d112, d113, -d114*bucket_a21 - d115*bucket_a11 + (0.6049353083260941)*bucket_link_a12*bucket_a21 + (0.7962746214343476)*bucket_link_a20*bucket_a11, d115*bucket_a01 + d116*bucket_a21 - d117*bucket_a01 - 0.6049353083260941*bucket_link_a02*bucket_a21, -d116*bucket_a11 - 0.6049353083260941*bucket_link_a12*bucket_a01 + (0.6049353083260941)*bucket_link_a02*bucket_a11 + (0.7962746214343476)*bucket_link_a10*bucket_a01, d118*bucket_a11 - d119*bucket_a21, d120*bucket_a21 - d118*bucket_a01, d119*bucket_a01 - d120*bucket_a11, 1.0, -d121, d122, -1.0, 1.0, d121, -d123, -1.0, 1.0, -d122, d123, -1.0, d124, -d125, d126, -d124, d125, -d126, d127, -d128, d129, -d127, d128, -d129, d130, -d131, d132, -d130, d131, -d132, -bucket_cyl_barrel_a01, -bucket_cyl_barrel_a11, -bucket_cyl_barrel_a21, d133*bucket_cyl_barrel_a11 - d134*bucket_cyl_barrel_a21, d135*bucket_cyl_barrel_a21 - d133*bucket_cyl_barrel_a01, d134*bucket_cyl_barrel_a01 - d135*bucket_cyl_barrel_a11, bucket_cyl_barrel_a01, bucket_cyl_barrel_a11, bucket_cyl_barrel_a21, -bucket_cyl_barrel_a02, -bucket_cyl_barrel_a12, -bucket_cyl_barrel_a22, d133*bucket_cyl_barrel_a12 - d134*bucket_cyl_barrel_a22, d135*bucket_cyl_barrel_a22 - d133*bucket_cyl_barrel_a02, d134*bucket_cyl_barrel_a02 - d135*bucket_cyl_barrel_a12, bucket_cyl_barrel_a02, bucket_cyl_barrel_a12, bucket_cyl_barrel_a22, d137, -d138, d139, -d137, d138, -d139, 1.0, -1.0, d142, -d143, 1.0, -1.0, -d142, d144, 1.0, -1.0, d143, -d144]
 
 
-def _joints_gamma_s(q, v):
+def _joints_gamma_s(q, v, p):
     """gamma of the joint rows at one configuration (list of floats)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
     upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx)
     upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
     upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
@@ -1911,14 +1960,14 @@ def _joints_gamma_s(q, v):
     c65 = -1.0*v_boom_cyl_l_rod_theta_z + (1.0)*v_boom_cyl_l_barrel_theta_z
     c66 = -c65
     c67 = -c62
-    c68 = -139283/100000*boom_a00*v_boom_theta_y + (139283/100000)*boom_a10*v_boom_theta_x
-    c69 = -8/25*boom_a01*v_boom_theta_y + (8/25)*boom_a11*v_boom_theta_x
-    c70 = -2.001922*boom_a02*v_boom_theta_y + (2.001922)*boom_a12*v_boom_theta_x
-    c71 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c72 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
+    c68 = -8/25*boom_a01*v_boom_theta_y + (8/25)*boom_a11*v_boom_theta_x
+    c69 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
+    c70 = p_C_x*(boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y)
+    c71 = p_C_z*(boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y)
+    c72 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
     c73 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x
-    c74 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
-    c75 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c74 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c75 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
     c76 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z
     c77 = -4307/6250*upper_a00*v_upper_theta_y + (4307/6250)*upper_a10*v_upper_theta_x
     c78 = upper_a11*v_upper_theta_x - upper_a01*v_upper_theta_y
@@ -1970,15 +2019,15 @@ def _joints_gamma_s(q, v):
     c124 = -1.0*v_boom_cyl_r_rod_theta_z + (1.0)*v_boom_cyl_r_barrel_theta_z
     c125 = -c124
     c126 = -c121
-    c127 = -139283/100000*boom_a00*v_boom_theta_y + (139283/100000)*boom_a10*v_boom_theta_x
-    c128 = boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y
-    c129 = -2.001922*boom_a02*v_boom_theta_y + (2.001922)*boom_a12*v_boom_theta_x
-    c130 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c131 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
-    c132 = (8/25)*v_boom_theta_z
+    c127 = boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y
+    c128 = boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x
+    c129 = (8/25)*v_boom_theta_z
+    c130 = p_C_x*(boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y)
+    c131 = p_C_z*(boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y)
+    c132 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
     c133 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x
-    c134 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
-    c135 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c134 = boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z
+    c135 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
     c136 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z
     c137 = -23939/5000*boom_a00*v_boom_theta_y + (23939/5000)*boom_a10*v_boom_theta_x
     c138 = -29959/10000*boom_a02*v_boom_theta_y + (29959/10000)*boom_a12*v_boom_theta_x
@@ -2044,8 +2093,8 @@ def _joints_gamma_s(q, v):
     c198 = -1.0*v_arm_cyl_rod_theta_z + (1.0)*v_arm_cyl_barrel_theta_z
     c199 = -c198
     c200 = -c195
-    c201 = -393281/500000*arm_a00*v_arm_theta_y + (393281/500000)*arm_a10*v_arm_theta_x
-    c202 = -0.369691*arm_a02*v_arm_theta_y + (0.369691)*arm_a12*v_arm_theta_x
+    c201 = p_F_x*(arm_a10*v_arm_theta_x - arm_a00*v_arm_theta_y)
+    c202 = p_F_z*(arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y)
     c203 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x
     c204 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x
     c205 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z
@@ -2086,95 +2135,99 @@ def _joints_gamma_s(q, v):
     c240 = c236*arm_a01 + c234*arm_a21
     c241 = arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z
     c242 = c237*arm_a11 + c232*arm_a21
-    c243 = -166329/500000*side_link_a00*v_side_link_theta_y + (166329/500000)*side_link_a10*v_side_link_theta_x
-    c244 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y
-    c245 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
-    c246 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
-    c247 = (96247/200000)*v_side_link_theta_z
-    c248 = bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y
-    c249 = bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y
-    c250 = bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x
-    c251 = (85607/250000)*v_bucket_link_theta_z
-    c252 = bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x
-    c253 = (0.450737)*v_bucket_link_theta_z
-    c254 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
-    c255 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    c243 = p_bucket_link*v_bucket_link_theta_y
+    c244 = 0.60493530832545*bucket_link_a10*v_bucket_link_theta_x - 0.60493530832545*bucket_link_a00*v_bucket_link_theta_y
+    c245 = 0.796274621434837*bucket_link_a12*v_bucket_link_theta_x - 0.796274621434837*bucket_link_a02*v_bucket_link_theta_y
+    c246 = bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x
+    c247 = bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x
+    c248 = side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y
+    c249 = 0.822595724821202*p_side_link
+    c250 = c249*(side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y)
+    c251 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
+    c252 = 0.5686266556413632*p_side_link
+    c253 = c252*v_side_link_theta_z
+    c254 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
+    c255 = p_bucket_link*v_bucket_link_theta_x
     c256 = bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z
-    c257 = bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z
-    c258 = -8101/25000*bucket_a00*v_bucket_theta_y + (8101/25000)*bucket_a10*v_bucket_theta_x
-    c259 = bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y
-    c260 = bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x
-    c261 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x
-    c262 = (16927/50000)*v_bucket_theta_z
-    c263 = bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z
-    c264 = bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z
-    c265 = -0.7962746214343476*v_bucket_theta_y + (0.7962746214343476)*v_bucket_link_theta_y
-    c266 = -c265
-    c267 = -0.7962746214343476*v_bucket_theta_x + (0.7962746214343476)*v_bucket_link_theta_x
-    c268 = -0.7962746214343476*v_bucket_theta_z + (0.7962746214343476)*v_bucket_link_theta_z
-    c269 = -c267
-    c270 = -0.6049353083260941*v_bucket_theta_y + (0.6049353083260941)*v_bucket_link_theta_y
-    c271 = -0.6049353083260941*v_bucket_theta_x + (0.6049353083260941)*v_bucket_link_theta_x
-    c272 = -c271
-    c273 = -0.6049353083260941*v_bucket_theta_z + (0.6049353083260941)*v_bucket_link_theta_z
+    c257 = p_bucket_link*v_bucket_link_theta_z
+    c258 = bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z
+    c259 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
+    c260 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    c261 = p_K_x*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y)
+    c262 = p_K_z*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y)
+    c263 = bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x
+    c264 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x
+    c265 = bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z
+    c266 = bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z
+    c267 = -0.7962746214343476*v_bucket_theta_y + (0.7962746214343476)*v_bucket_link_theta_y
+    c268 = -c267
+    c269 = -0.7962746214343476*v_bucket_theta_x + (0.7962746214343476)*v_bucket_link_theta_x
+    c270 = -0.7962746214343476*v_bucket_theta_z + (0.7962746214343476)*v_bucket_link_theta_z
+    c271 = -c269
+    c272 = -0.6049353083260941*v_bucket_theta_y + (0.6049353083260941)*v_bucket_link_theta_y
+    c273 = -0.6049353083260941*v_bucket_theta_x + (0.6049353083260941)*v_bucket_link_theta_x
     c274 = -c273
-    c275 = -c268
-    c276 = -c270
-    c277 = -24687/100000*arm_a00*v_arm_theta_y + (24687/100000)*arm_a10*v_arm_theta_x
-    c278 = arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y
-    c279 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x
-    c280 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x
-    c281 = (36797/50000)*v_arm_theta_z
-    c282 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z
-    c283 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z
-    c284 = v_arm_theta_y - v_bucket_cyl_barrel_theta_y
-    c285 = v_arm_theta_x - v_bucket_cyl_barrel_theta_x
-    c286 = -c285
-    c287 = v_arm_theta_z - v_bucket_cyl_barrel_theta_z
+    c275 = -0.6049353083260941*v_bucket_theta_z + (0.6049353083260941)*v_bucket_link_theta_z
+    c276 = -c275
+    c277 = -c270
+    c278 = -c272
+    c279 = -24687/100000*arm_a00*v_arm_theta_y + (24687/100000)*arm_a10*v_arm_theta_x
+    c280 = arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y
+    c281 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x
+    c282 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x
+    c283 = (36797/50000)*v_arm_theta_z
+    c284 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z
+    c285 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z
+    c286 = v_arm_theta_y - v_bucket_cyl_barrel_theta_y
+    c287 = v_arm_theta_x - v_bucket_cyl_barrel_theta_x
     c288 = -c287
-    c289 = -c284
-    c290 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
-    c291 = v_bucket_cyl_barrel_theta_y - v_bucket_cyl_rod_theta_y
-    c292 = v_bucket_cyl_barrel_theta_x - v_bucket_cyl_rod_theta_x
-    c293 = -c292
-    c294 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
-    c295 = v_bucket_cyl_barrel_theta_z - v_bucket_cyl_rod_theta_z
-    c296 = -c295
-    c297 = -c291
-    c298 = c292*bucket_cyl_barrel_a10 + c297*bucket_cyl_barrel_a00
-    c299 = c293*bucket_cyl_barrel_a20 + c295*bucket_cyl_barrel_a00
-    c300 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
-    c301 = c291*bucket_cyl_barrel_a20 + c296*bucket_cyl_barrel_a10
-    c302 = bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_y
-    c303 = bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_x
-    c304 = bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_z
-    c305 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_y
-    c306 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x
-    c307 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_x
-    c308 = -c305
-    c309 = -c307
-    c310 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
-    c311 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
-    c312 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
-    c313 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y
-    c314 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x
-    c315 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x
-    c316 = -c313
-    c317 = -c315
-    c318 = -1.0*v_bucket_cyl_rod_theta_y + (1.0)*v_bucket_cyl_barrel_theta_y
-    c319 = -1.0*v_bucket_cyl_rod_theta_x + (1.0)*v_bucket_cyl_barrel_theta_x
-    c320 = -c319
-    c321 = -1.0*v_bucket_cyl_rod_theta_z + (1.0)*v_bucket_cyl_barrel_theta_z
+    c289 = v_arm_theta_z - v_bucket_cyl_barrel_theta_z
+    c290 = -c289
+    c291 = -c286
+    c292 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
+    c293 = v_bucket_cyl_barrel_theta_y - v_bucket_cyl_rod_theta_y
+    c294 = v_bucket_cyl_barrel_theta_x - v_bucket_cyl_rod_theta_x
+    c295 = -c294
+    c296 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c297 = v_bucket_cyl_barrel_theta_z - v_bucket_cyl_rod_theta_z
+    c298 = -c297
+    c299 = -c293
+    c300 = c294*bucket_cyl_barrel_a10 + c299*bucket_cyl_barrel_a00
+    c301 = c295*bucket_cyl_barrel_a20 + c297*bucket_cyl_barrel_a00
+    c302 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
+    c303 = c293*bucket_cyl_barrel_a20 + c298*bucket_cyl_barrel_a10
+    c304 = bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_y
+    c305 = bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_x
+    c306 = bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_z
+    c307 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_y
+    c308 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x
+    c309 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_x
+    c310 = -c307
+    c311 = -c309
+    c312 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c313 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c314 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    c315 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y
+    c316 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x
+    c317 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x
+    c318 = -c315
+    c319 = -c317
+    c320 = -1.0*v_bucket_cyl_rod_theta_y + (1.0)*v_bucket_cyl_barrel_theta_y
+    c321 = -1.0*v_bucket_cyl_rod_theta_x + (1.0)*v_bucket_cyl_barrel_theta_x
     c322 = -c321
-    c323 = -c318
-    c324 = -166329/500000*side_link_a00*v_side_link_theta_y + (166329/500000)*side_link_a10*v_side_link_theta_x
-    c325 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y
-    c326 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
-    c327 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
-    c328 = (96247/200000)*v_side_link_theta_z
-    c329 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
-    c330 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
-    return [0.0, 0.0, 0.0, v_upper_theta_y*(upper_a20*v_upper_theta_y - upper_a10*v_upper_theta_z) - v_upper_theta_x*(upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x), v_upper_theta_y*(upper_a21*v_upper_theta_y - upper_a11*v_upper_theta_z) - v_upper_theta_x*(upper_a01*v_upper_theta_z - upper_a21*v_upper_theta_x), -c0*v_upper_theta_y - c1*v_upper_theta_y + (22767/100000)*c2*v_upper_theta_z + (195729/100000)*c3*v_upper_theta_z, c0*v_upper_theta_x + c1*v_upper_theta_x - 195729/100000*c5*v_upper_theta_z - 22767/100000*c4*v_upper_theta_z, -195729/100000*c3*v_upper_theta_x - 22767/100000*c2*v_upper_theta_x + (22767/100000)*c4*v_upper_theta_y + (195729/100000)*c5*v_upper_theta_y, -c10*(c12*boom_a02 + c8*boom_a22) - c14*(boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y) - c15*(boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x) - c16*(c11*boom_a12 + c13*boom_a22) - c17*(boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z) - c6*(c7*boom_a02 + c9*boom_a12), -c10*(c12*boom_a00 + c8*boom_a20) - c14*(boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y) - c15*(boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x) - c16*(c11*boom_a10 + c13*boom_a20) - c17*(boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z) - c6*(c7*boom_a00 + c9*boom_a10), -c18*v_upper_theta_y - c20*v_upper_theta_y - c21*v_upper_theta_y + (8/25)*c23*v_upper_theta_z + (4307/6250)*c22*v_upper_theta_z + (67739/50000)*c24*v_upper_theta_z, c18*v_upper_theta_x + c20*v_upper_theta_x + c21*v_upper_theta_x - 67739/50000*c27*v_upper_theta_z - 4307/6250*c25*v_upper_theta_z - 8/25*c26*v_upper_theta_z, -67739/50000*c24*v_upper_theta_x - 4307/6250*c22*v_upper_theta_x - 8/25*c23*v_upper_theta_x + (8/25)*c26*v_upper_theta_y + (4307/6250)*c25*v_upper_theta_y + (67739/50000)*c27*v_upper_theta_y, -c19*(c28*boom_cyl_l_barrel_a02 + c30*boom_cyl_l_barrel_a12) - c23*(c29*boom_cyl_l_barrel_a22 + c32*boom_cyl_l_barrel_a02) - c26*(c31*boom_cyl_l_barrel_a12 + c33*boom_cyl_l_barrel_a22) - (c28*upper_a21 + c32*upper_a11)*(boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_z) - (c29*upper_a11 + c33*upper_a01)*(boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_y) - (c30*upper_a21 + c31*upper_a01)*(boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_x), -c34*(c35*boom_cyl_l_rod_a01 + c37*boom_cyl_l_rod_a11) - c44*(c39*boom_cyl_l_rod_a11 + c41*boom_cyl_l_rod_a21) - c45*(boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_y - boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_z) - c38*(c36*boom_cyl_l_rod_a21 + c40*boom_cyl_l_rod_a01) - c42*(boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_x - boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_y) - c43*(boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_x), -c34*(c35*boom_cyl_l_rod_a02 + c37*boom_cyl_l_rod_a12) - c44*(c39*boom_cyl_l_rod_a12 + c41*boom_cyl_l_rod_a22) - c45*c48 - c46*c42 - c47*c43 - c38*(c36*boom_cyl_l_rod_a22 + c40*boom_cyl_l_rod_a02), c50*v_boom_cyl_l_barrel_y - c49*v_boom_cyl_l_barrel_x - c50*c55 - c50*v_boom_cyl_l_rod_y - c51*v_boom_cyl_l_barrel_z - c52*c56 - c52*v_boom_cyl_l_rod_x - c53*c54 - c53*v_boom_cyl_l_rod_z, c58*v_boom_cyl_l_barrel_y - c54*c61 - c55*c58 - c56*c60 - c57*v_boom_cyl_l_barrel_x - c58*v_boom_cyl_l_rod_y - c59*v_boom_cyl_l_barrel_z - c60*v_boom_cyl_l_rod_x - c61*v_boom_cyl_l_rod_z, -c46*(c63*boom_cyl_l_barrel_a11 + c67*boom_cyl_l_barrel_a01) - c47*(c64*boom_cyl_l_barrel_a21 + c65*boom_cyl_l_barrel_a01) - c48*(c62*boom_cyl_l_barrel_a21 + c66*boom_cyl_l_barrel_a11) - c50*(c63*boom_cyl_l_rod_a22 + c66*boom_cyl_l_rod_a02) - c52*(c65*boom_cyl_l_rod_a12 + c67*boom_cyl_l_rod_a22) - c53*(c62*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a12), c68*v_boom_theta_y + c69*v_boom_theta_y + c70*v_boom_theta_y - 2.001922*c73*v_boom_theta_z - 139283/100000*c71*v_boom_theta_z - 8/25*c72*v_boom_theta_z, -c68*v_boom_theta_x - c69*v_boom_theta_x - c70*v_boom_theta_x + (8/25)*c75*v_boom_theta_z + (139283/100000)*c74*v_boom_theta_z + (2.001922)*c76*v_boom_theta_z, -2.001922*c76*v_boom_theta_y - 139283/100000*c74*v_boom_theta_y - 8/25*c75*v_boom_theta_y + (8/25)*c72*v_boom_theta_x + (139283/100000)*c71*v_boom_theta_x + (2.001922)*c73*v_boom_theta_x, -c77*v_upper_theta_y - c79*v_upper_theta_y - c81*c82 + (8/25)*c78*v_upper_theta_y + (4307/6250)*c80*v_upper_theta_z + (67739/50000)*c83*v_upper_theta_z, c77*v_upper_theta_x + c79*v_upper_theta_x + c82*c85 - 67739/50000*c86*v_upper_theta_z - 4307/6250*c84*v_upper_theta_z - 8/25*c78*v_upper_theta_x, -67739/50000*c83*v_upper_theta_x - 4307/6250*c80*v_upper_theta_x - 8/25*c85*v_upper_theta_y + (8/25)*c81*v_upper_theta_x + (4307/6250)*c84*v_upper_theta_y + (67739/50000)*c86*v_upper_theta_y, -c78*(c87*boom_cyl_r_barrel_a02 + c89*boom_cyl_r_barrel_a12) - c81*(c88*boom_cyl_r_barrel_a22 + c91*boom_cyl_r_barrel_a02) - c85*(c90*boom_cyl_r_barrel_a12 + c92*boom_cyl_r_barrel_a22) - (c87*upper_a21 + c91*upper_a11)*(boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_z) - (c88*upper_a11 + c92*upper_a01)*(boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_y) - (c89*upper_a21 + c90*upper_a01)*(boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_x), -c93*(c94*boom_cyl_r_rod_a01 + c96*boom_cyl_r_rod_a11) - c103*(c98*boom_cyl_r_rod_a11 + c100*boom_cyl_r_rod_a21) - c104*(boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_y - boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_z) - c97*(c95*boom_cyl_r_rod_a21 + c99*boom_cyl_r_rod_a01) - c101*(boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_x - boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_y) - c102*(boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_x), -c93*(c94*boom_cyl_r_rod_a02 + c96*boom_cyl_r_rod_a12) - c103*(c98*boom_cyl_r_rod_a12 + c100*boom_cyl_r_rod_a22) - c104*c107 - c105*c101 - c106*c102 - c97*(c95*boom_cyl_r_rod_a22 + c99*boom_cyl_r_rod_a02), c109*v_boom_cyl_r_barrel_y - c108*v_boom_cyl_r_barrel_x - c109*c114 - c109*v_boom_cyl_r_rod_y - c110*v_boom_cyl_r_barrel_z - c111*c115 - c111*v_boom_cyl_r_rod_x - c112*c113 - c112*v_boom_cyl_r_rod_z, c117*v_boom_cyl_r_barrel_y - c113*c120 - c114*c117 - c115*c119 - c116*v_boom_cyl_r_barrel_x - c117*v_boom_cyl_r_rod_y - c118*v_boom_cyl_r_barrel_z - c119*v_boom_cyl_r_rod_x - c120*v_boom_cyl_r_rod_z, -c105*(c122*boom_cyl_r_barrel_a11 + c126*boom_cyl_r_barrel_a01) - c106*(c123*boom_cyl_r_barrel_a21 + c124*boom_cyl_r_barrel_a01) - c107*(c121*boom_cyl_r_barrel_a21 + c125*boom_cyl_r_barrel_a11) - c109*(c122*boom_cyl_r_rod_a22 + c125*boom_cyl_r_rod_a02) - c111*(c124*boom_cyl_r_rod_a12 + c126*boom_cyl_r_rod_a22) - c112*(c121*boom_cyl_r_rod_a02 + c123*boom_cyl_r_rod_a12), c127*v_boom_theta_y + c129*v_boom_theta_y + c131*c132 - 2.001922*c133*v_boom_theta_z - 139283/100000*c130*v_boom_theta_z - 8/25*c128*v_boom_theta_y, -c127*v_boom_theta_x - c129*v_boom_theta_x - c132*c135 + (8/25)*c128*v_boom_theta_x + (139283/100000)*c134*v_boom_theta_z + (2.001922)*c136*v_boom_theta_z, -2.001922*c136*v_boom_theta_y - 139283/100000*c134*v_boom_theta_y - 8/25*c131*v_boom_theta_x + (8/25)*c135*v_boom_theta_y + (139283/100000)*c130*v_boom_theta_x + (2.001922)*c133*v_boom_theta_x, -c137*v_boom_theta_y - c138*v_boom_theta_y + (23939/5000)*c139*v_boom_theta_z + (29959/10000)*c140*v_boom_theta_z, c137*v_boom_theta_x + c138*v_boom_theta_x - 29959/10000*c142*v_boom_theta_z - 23939/5000*c141*v_boom_theta_z, -29959/10000*c140*v_boom_theta_x - 23939/5000*c139*v_boom_theta_x + (23939/5000)*c141*v_boom_theta_y + (29959/10000)*c142*v_boom_theta_y, -c147*(c149*arm_a02 + c145*arm_a22) - c151*(arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y) - c152*(arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x) - c153*(c148*arm_a12 + c150*arm_a22) - c154*(arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z) - c143*(c144*arm_a02 + c146*arm_a12), -c147*(c149*arm_a00 + c145*arm_a20) - c151*(arm_a10*v_arm_theta_x - arm_a00*v_arm_theta_y) - c152*(arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x) - c153*(c148*arm_a10 + c150*arm_a20) - c154*(arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z) - c143*(c144*arm_a00 + c146*arm_a10), -c155*v_boom_theta_y - c156*v_boom_theta_y + (183/80)*c157*v_boom_theta_z + (557/200)*c158*v_boom_theta_z, c155*v_boom_theta_x + c156*v_boom_theta_x - 557/200*c160*v_boom_theta_z - 183/80*c159*v_boom_theta_z, -557/200*c158*v_boom_theta_x - 183/80*c157*v_boom_theta_x + (183/80)*c159*v_boom_theta_y + (557/200)*c160*v_boom_theta_y, -(c165*boom_a11 + c161*boom_a21)*(arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_z) - (c165*arm_cyl_barrel_a02 + c162*arm_cyl_barrel_a22)*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) - (c166*boom_a01 + c162*boom_a11)*(arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_y) - (c166*arm_cyl_barrel_a22 + c164*arm_cyl_barrel_a12)*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - (c161*arm_cyl_barrel_a02 + c163*arm_cyl_barrel_a12)*(boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y) - (c163*boom_a21 + c164*boom_a01)*(arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_x), -c167*(c168*arm_cyl_rod_a01 + c170*arm_cyl_rod_a11) - c177*(c172*arm_cyl_rod_a11 + c174*arm_cyl_rod_a21) - c178*(arm_cyl_rod_a21*v_arm_cyl_rod_theta_y - arm_cyl_rod_a11*v_arm_cyl_rod_theta_z) - c171*(c169*arm_cyl_rod_a21 + c173*arm_cyl_rod_a01) - c175*(arm_cyl_rod_a11*v_arm_cyl_rod_theta_x - arm_cyl_rod_a01*v_arm_cyl_rod_theta_y) - c176*(arm_cyl_rod_a01*v_arm_cyl_rod_theta_z - arm_cyl_rod_a21*v_arm_cyl_rod_theta_x), -c167*(c168*arm_cyl_rod_a02 + c170*arm_cyl_rod_a12) - c177*(c172*arm_cyl_rod_a12 + c174*arm_cyl_rod_a22) - c178*c181 - c179*c175 - c180*c176 - c171*(c169*arm_cyl_rod_a22 + c173*arm_cyl_rod_a02), c183*v_arm_cyl_barrel_y - c182*v_arm_cyl_barrel_x - c183*c188 - c183*v_arm_cyl_rod_y - c184*v_arm_cyl_barrel_z - c185*c189 - c185*v_arm_cyl_rod_x - c186*c187 - c186*v_arm_cyl_rod_z, c191*v_arm_cyl_barrel_y - c187*c194 - c188*c191 - c189*c193 - c190*v_arm_cyl_barrel_x - c191*v_arm_cyl_rod_y - c192*v_arm_cyl_barrel_z - c193*v_arm_cyl_rod_x - c194*v_arm_cyl_rod_z, -c179*(c196*arm_cyl_barrel_a11 + c200*arm_cyl_barrel_a01) - c180*(c197*arm_cyl_barrel_a21 + c198*arm_cyl_barrel_a01) - c181*(c195*arm_cyl_barrel_a21 + c199*arm_cyl_barrel_a11) - c183*(c196*arm_cyl_rod_a22 + c199*arm_cyl_rod_a02) - c185*(c198*arm_cyl_rod_a12 + c200*arm_cyl_rod_a22) - c186*(c195*arm_cyl_rod_a02 + c197*arm_cyl_rod_a12), -c201*v_arm_theta_y - c202*v_arm_theta_y + (0.369691)*c204*v_arm_theta_z + (393281/500000)*c203*v_arm_theta_z, c201*v_arm_theta_x + c202*v_arm_theta_x - 393281/500000*c205*v_arm_theta_z - 0.369691*c206*v_arm_theta_z, -393281/500000*c203*v_arm_theta_x - 0.369691*c204*v_arm_theta_x + (0.369691)*c206*v_arm_theta_y + (393281/500000)*c205*v_arm_theta_y, -c207*v_arm_theta_y - c208*v_arm_theta_y + (9477/5000)*c209*v_arm_theta_z + (21809/10000)*c210*v_arm_theta_z, c207*v_arm_theta_x + c208*v_arm_theta_x - 21809/10000*c212*v_arm_theta_z - 9477/5000*c211*v_arm_theta_z, -21809/10000*c210*v_arm_theta_x - 9477/5000*c209*v_arm_theta_x + (9477/5000)*c211*v_arm_theta_y + (21809/10000)*c212*v_arm_theta_y, -c217*(c219*bucket_a02 + c215*bucket_a22) - c221*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) - c222*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - c223*(c218*bucket_a12 + c220*bucket_a22) - c224*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z) - c213*(c214*bucket_a02 + c216*bucket_a12), -c217*(c219*bucket_a00 + c215*bucket_a20) - c221*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y) - c222*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - c223*(c218*bucket_a10 + c220*bucket_a20) - c224*(bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z) - c213*(c214*bucket_a00 + c216*bucket_a10), -c225*v_arm_theta_y - c226*v_arm_theta_y + (7877/5000)*c227*v_arm_theta_z + (18799/10000)*c228*v_arm_theta_z, c225*v_arm_theta_x + c226*v_arm_theta_x - 18799/10000*c230*v_arm_theta_z - 7877/5000*c229*v_arm_theta_z, -18799/10000*c228*v_arm_theta_x - 7877/5000*c227*v_arm_theta_x + (7877/5000)*c229*v_arm_theta_y + (18799/10000)*c230*v_arm_theta_y, -c235*(c237*side_link_a02 + c233*side_link_a22) - c239*(side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y) - c240*(side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x) - c241*(c236*side_link_a12 + c238*side_link_a22) - c242*(side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z) - c231*(c232*side_link_a02 + c234*side_link_a12), -c235*(c237*side_link_a00 + c233*side_link_a20) - c239*(side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y) - c240*(side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x) - c241*(c236*side_link_a10 + c238*side_link_a20) - c242*(side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z) - c231*(c232*side_link_a00 + c234*side_link_a10), c243*v_side_link_theta_y + c253*c252 + c246*c247 + c250*c251 - 0.450737*c249*v_bucket_link_theta_y - 166329/500000*c245*v_side_link_theta_z - 96247/200000*c244*v_side_link_theta_y - 85607/250000*c248*v_bucket_link_theta_y, -c243*v_side_link_theta_x - c253*c257 - c255*c247 - c256*c251 + (85607/250000)*c248*v_bucket_link_theta_x + (96247/200000)*c244*v_side_link_theta_x + (166329/500000)*c254*v_side_link_theta_z + (0.450737)*c249*v_bucket_link_theta_x, -0.450737*c252*v_bucket_link_theta_x - 166329/500000*c254*v_side_link_theta_y - 96247/200000*c246*v_side_link_theta_x - 85607/250000*c250*v_bucket_link_theta_x + (85607/250000)*c256*v_bucket_link_theta_y + (96247/200000)*c255*v_side_link_theta_y + (166329/500000)*c245*v_side_link_theta_x + (0.450737)*c257*v_bucket_link_theta_y, -c258*v_bucket_theta_y - c261*c262 + (8101/25000)*c260*v_bucket_theta_z + (16927/50000)*c259*v_bucket_theta_y, c258*v_bucket_theta_x + c262*c264 - 16927/50000*c259*v_bucket_theta_x - 8101/25000*c263*v_bucket_theta_z, -16927/50000*c264*v_bucket_theta_y - 8101/25000*c260*v_bucket_theta_x + (8101/25000)*c263*v_bucket_theta_y + (16927/50000)*c261*v_bucket_theta_x, -(c268*bucket_a01 + c269*bucket_a21)*(bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x) - (c270*bucket_a01 + c272*bucket_a11)*(bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y) - (c271*bucket_a21 + c274*bucket_a01)*(bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x) - (c273*bucket_a11 + c276*bucket_a21)*(bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z) - (c275*bucket_a11 + c265*bucket_a21)*(bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z) - (c266*bucket_a01 + c267*bucket_a11)*(bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y) - (bucket_a01*v_bucket_theta_z - bucket_a21*v_bucket_theta_x)*(c272*bucket_link_a22 + c273*bucket_link_a02 + c275*bucket_link_a00 + c267*bucket_link_a20) - (bucket_a11*v_bucket_theta_x - bucket_a01*v_bucket_theta_y)*(c269*bucket_link_a10 + c271*bucket_link_a12 + c276*bucket_link_a02 + c265*bucket_link_a00) - (bucket_a21*v_bucket_theta_y - bucket_a11*v_bucket_theta_z)*(c268*bucket_link_a10 + c270*bucket_link_a22 + c274*bucket_link_a12 + c266*bucket_link_a20), c277*v_arm_theta_y + c280*c281 - 36797/50000*c278*v_arm_theta_y - 24687/100000*c279*v_arm_theta_z, -c277*v_arm_theta_x - c281*c283 + (24687/100000)*c282*v_arm_theta_z + (36797/50000)*c278*v_arm_theta_x, -36797/50000*c280*v_arm_theta_x - 24687/100000*c282*v_arm_theta_y + (24687/100000)*c279*v_arm_theta_x + (36797/50000)*c283*v_arm_theta_y, -(c287*arm_a01 + c286*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x) - (c287*bucket_cyl_barrel_a12 + c289*bucket_cyl_barrel_a22)*(arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z) - (c288*arm_a11 + c284*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z) - (c288*bucket_cyl_barrel_a02 + c285*bucket_cyl_barrel_a22)*(arm_a01*v_arm_theta_z - arm_a21*v_arm_theta_x) - (c289*arm_a01 + c285*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y) - (c284*bucket_cyl_barrel_a02 + c286*bucket_cyl_barrel_a12)*(arm_a11*v_arm_theta_x - arm_a01*v_arm_theta_y), -c290*(c291*bucket_cyl_rod_a01 + c293*bucket_cyl_rod_a11) - c300*(c295*bucket_cyl_rod_a11 + c297*bucket_cyl_rod_a21) - c301*(bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_z) - c294*(c292*bucket_cyl_rod_a21 + c296*bucket_cyl_rod_a01) - c298*(bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_y) - c299*(bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_x), -c290*(c291*bucket_cyl_rod_a02 + c293*bucket_cyl_rod_a12) - c300*(c295*bucket_cyl_rod_a12 + c297*bucket_cyl_rod_a22) - c301*c304 - c302*c298 - c303*c299 - c294*(c292*bucket_cyl_rod_a22 + c296*bucket_cyl_rod_a02), c306*v_bucket_cyl_barrel_y - c305*v_bucket_cyl_barrel_x - c306*c311 - c306*v_bucket_cyl_rod_y - c307*v_bucket_cyl_barrel_z - c308*c312 - c308*v_bucket_cyl_rod_x - c309*c310 - c309*v_bucket_cyl_rod_z, c314*v_bucket_cyl_barrel_y - c310*c317 - c311*c314 - c312*c316 - c313*v_bucket_cyl_barrel_x - c314*v_bucket_cyl_rod_y - c315*v_bucket_cyl_barrel_z - c316*v_bucket_cyl_rod_x - c317*v_bucket_cyl_rod_z, -c302*(c319*bucket_cyl_barrel_a11 + c323*bucket_cyl_barrel_a01) - c303*(c320*bucket_cyl_barrel_a21 + c321*bucket_cyl_barrel_a01) - c304*(c318*bucket_cyl_barrel_a21 + c322*bucket_cyl_barrel_a11) - c306*(c319*bucket_cyl_rod_a22 + c322*bucket_cyl_rod_a02) - c308*(c321*bucket_cyl_rod_a12 + c323*bucket_cyl_rod_a22) - c309*(c318*bucket_cyl_rod_a02 + c320*bucket_cyl_rod_a12), -c324*v_side_link_theta_y - c327*c328 + (96247/200000)*c325*v_side_link_theta_y + (166329/500000)*c326*v_side_link_theta_z, c324*v_side_link_theta_x + c328*c330 - 166329/500000*c329*v_side_link_theta_z - 96247/200000*c325*v_side_link_theta_x, -166329/500000*c326*v_side_link_theta_x - 96247/200000*c330*v_side_link_theta_y + (96247/200000)*c327*v_side_link_theta_x + (166329/500000)*c329*v_side_link_theta_y]
+    c323 = -1.0*v_bucket_cyl_rod_theta_z + (1.0)*v_bucket_cyl_barrel_theta_z
+    c324 = -c323
+    c325 = -c320
+    c326 = 0.5686266556413632*p_side_link
+    c327 = c326*(side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y)
+    c328 = side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y
+    c329 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
+    c330 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
+    c331 = 0.822595724821202*p_side_link
+    c332 = c331*v_side_link_theta_z
+    c333 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
+    c334 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    return [0.0, 0.0, 0.0, v_upper_theta_y*(upper_a20*v_upper_theta_y - upper_a10*v_upper_theta_z) - v_upper_theta_x*(upper_a00*v_upper_theta_z - upper_a20*v_upper_theta_x), v_upper_theta_y*(upper_a21*v_upper_theta_y - upper_a11*v_upper_theta_z) - v_upper_theta_x*(upper_a01*v_upper_theta_z - upper_a21*v_upper_theta_x), -c0*v_upper_theta_y - c1*v_upper_theta_y + (22767/100000)*c2*v_upper_theta_z + (195729/100000)*c3*v_upper_theta_z, c0*v_upper_theta_x + c1*v_upper_theta_x - 195729/100000*c5*v_upper_theta_z - 22767/100000*c4*v_upper_theta_z, -195729/100000*c3*v_upper_theta_x - 22767/100000*c2*v_upper_theta_x + (22767/100000)*c4*v_upper_theta_y + (195729/100000)*c5*v_upper_theta_y, -c10*(c12*boom_a02 + c8*boom_a22) - c14*(boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y) - c15*(boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x) - c16*(c11*boom_a12 + c13*boom_a22) - c17*(boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z) - c6*(c7*boom_a02 + c9*boom_a12), -c10*(c12*boom_a00 + c8*boom_a20) - c14*(boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y) - c15*(boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x) - c16*(c11*boom_a10 + c13*boom_a20) - c17*(boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z) - c6*(c7*boom_a00 + c9*boom_a10), -c18*v_upper_theta_y - c20*v_upper_theta_y - c21*v_upper_theta_y + (8/25)*c23*v_upper_theta_z + (4307/6250)*c22*v_upper_theta_z + (67739/50000)*c24*v_upper_theta_z, c18*v_upper_theta_x + c20*v_upper_theta_x + c21*v_upper_theta_x - 67739/50000*c27*v_upper_theta_z - 4307/6250*c25*v_upper_theta_z - 8/25*c26*v_upper_theta_z, -67739/50000*c24*v_upper_theta_x - 4307/6250*c22*v_upper_theta_x - 8/25*c23*v_upper_theta_x + (8/25)*c26*v_upper_theta_y + (4307/6250)*c25*v_upper_theta_y + (67739/50000)*c27*v_upper_theta_y, -c19*(c28*boom_cyl_l_barrel_a02 + c30*boom_cyl_l_barrel_a12) - c23*(c29*boom_cyl_l_barrel_a22 + c32*boom_cyl_l_barrel_a02) - c26*(c31*boom_cyl_l_barrel_a12 + c33*boom_cyl_l_barrel_a22) - (c28*upper_a21 + c32*upper_a11)*(boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_z) - (c29*upper_a11 + c33*upper_a01)*(boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_y) - (c30*upper_a21 + c31*upper_a01)*(boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_x), -c34*(c35*boom_cyl_l_rod_a01 + c37*boom_cyl_l_rod_a11) - c44*(c39*boom_cyl_l_rod_a11 + c41*boom_cyl_l_rod_a21) - c45*(boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_y - boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_z) - c38*(c36*boom_cyl_l_rod_a21 + c40*boom_cyl_l_rod_a01) - c42*(boom_cyl_l_rod_a11*v_boom_cyl_l_rod_theta_x - boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_y) - c43*(boom_cyl_l_rod_a01*v_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a21*v_boom_cyl_l_rod_theta_x), -c34*(c35*boom_cyl_l_rod_a02 + c37*boom_cyl_l_rod_a12) - c44*(c39*boom_cyl_l_rod_a12 + c41*boom_cyl_l_rod_a22) - c45*c48 - c46*c42 - c47*c43 - c38*(c36*boom_cyl_l_rod_a22 + c40*boom_cyl_l_rod_a02), c50*v_boom_cyl_l_barrel_y - c49*v_boom_cyl_l_barrel_x - c50*c55 - c50*v_boom_cyl_l_rod_y - c51*v_boom_cyl_l_barrel_z - c52*c56 - c52*v_boom_cyl_l_rod_x - c53*c54 - c53*v_boom_cyl_l_rod_z, c58*v_boom_cyl_l_barrel_y - c54*c61 - c55*c58 - c56*c60 - c57*v_boom_cyl_l_barrel_x - c58*v_boom_cyl_l_rod_y - c59*v_boom_cyl_l_barrel_z - c60*v_boom_cyl_l_rod_x - c61*v_boom_cyl_l_rod_z, -c46*(c63*boom_cyl_l_barrel_a11 + c67*boom_cyl_l_barrel_a01) - c47*(c64*boom_cyl_l_barrel_a21 + c65*boom_cyl_l_barrel_a01) - c48*(c62*boom_cyl_l_barrel_a21 + c66*boom_cyl_l_barrel_a11) - c50*(c63*boom_cyl_l_rod_a22 + c66*boom_cyl_l_rod_a02) - c52*(c65*boom_cyl_l_rod_a12 + c67*boom_cyl_l_rod_a22) - c53*(c62*boom_cyl_l_rod_a02 + c64*boom_cyl_l_rod_a12), c68*v_boom_theta_y + c70*v_boom_theta_y + c71*v_boom_theta_y - 8/25*c69*v_boom_theta_z - c72*p_C_x*v_boom_theta_z - c73*p_C_z*v_boom_theta_z, -c68*v_boom_theta_x - c70*v_boom_theta_x - c71*v_boom_theta_x + (8/25)*c74*v_boom_theta_z + c75*p_C_x*v_boom_theta_z + c76*p_C_z*v_boom_theta_z, -8/25*c74*v_boom_theta_y + (8/25)*c69*v_boom_theta_x + c72*p_C_x*v_boom_theta_x + c73*p_C_z*v_boom_theta_x - c75*p_C_x*v_boom_theta_y - c76*p_C_z*v_boom_theta_y, -c77*v_upper_theta_y - c79*v_upper_theta_y - c81*c82 + (8/25)*c78*v_upper_theta_y + (4307/6250)*c80*v_upper_theta_z + (67739/50000)*c83*v_upper_theta_z, c77*v_upper_theta_x + c79*v_upper_theta_x + c82*c85 - 67739/50000*c86*v_upper_theta_z - 4307/6250*c84*v_upper_theta_z - 8/25*c78*v_upper_theta_x, -67739/50000*c83*v_upper_theta_x - 4307/6250*c80*v_upper_theta_x - 8/25*c85*v_upper_theta_y + (8/25)*c81*v_upper_theta_x + (4307/6250)*c84*v_upper_theta_y + (67739/50000)*c86*v_upper_theta_y, -c78*(c87*boom_cyl_r_barrel_a02 + c89*boom_cyl_r_barrel_a12) - c81*(c88*boom_cyl_r_barrel_a22 + c91*boom_cyl_r_barrel_a02) - c85*(c90*boom_cyl_r_barrel_a12 + c92*boom_cyl_r_barrel_a22) - (c87*upper_a21 + c91*upper_a11)*(boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_z) - (c88*upper_a11 + c92*upper_a01)*(boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_y) - (c89*upper_a21 + c90*upper_a01)*(boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_x), -c93*(c94*boom_cyl_r_rod_a01 + c96*boom_cyl_r_rod_a11) - c103*(c98*boom_cyl_r_rod_a11 + c100*boom_cyl_r_rod_a21) - c104*(boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_y - boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_z) - c97*(c95*boom_cyl_r_rod_a21 + c99*boom_cyl_r_rod_a01) - c101*(boom_cyl_r_rod_a11*v_boom_cyl_r_rod_theta_x - boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_y) - c102*(boom_cyl_r_rod_a01*v_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a21*v_boom_cyl_r_rod_theta_x), -c93*(c94*boom_cyl_r_rod_a02 + c96*boom_cyl_r_rod_a12) - c103*(c98*boom_cyl_r_rod_a12 + c100*boom_cyl_r_rod_a22) - c104*c107 - c105*c101 - c106*c102 - c97*(c95*boom_cyl_r_rod_a22 + c99*boom_cyl_r_rod_a02), c109*v_boom_cyl_r_barrel_y - c108*v_boom_cyl_r_barrel_x - c109*c114 - c109*v_boom_cyl_r_rod_y - c110*v_boom_cyl_r_barrel_z - c111*c115 - c111*v_boom_cyl_r_rod_x - c112*c113 - c112*v_boom_cyl_r_rod_z, c117*v_boom_cyl_r_barrel_y - c113*c120 - c114*c117 - c115*c119 - c116*v_boom_cyl_r_barrel_x - c117*v_boom_cyl_r_rod_y - c118*v_boom_cyl_r_barrel_z - c119*v_boom_cyl_r_rod_x - c120*v_boom_cyl_r_rod_z, -c105*(c122*boom_cyl_r_barrel_a11 + c126*boom_cyl_r_barrel_a01) - c106*(c123*boom_cyl_r_barrel_a21 + c124*boom_cyl_r_barrel_a01) - c107*(c121*boom_cyl_r_barrel_a21 + c125*boom_cyl_r_barrel_a11) - c109*(c122*boom_cyl_r_rod_a22 + c125*boom_cyl_r_rod_a02) - c111*(c124*boom_cyl_r_rod_a12 + c126*boom_cyl_r_rod_a22) - c112*(c121*boom_cyl_r_rod_a02 + c123*boom_cyl_r_rod_a12), c128*c129 + c130*v_boom_theta_y + c131*v_boom_theta_y - 8/25*c127*v_boom_theta_y - c132*p_C_x*v_boom_theta_z - c133*p_C_z*v_boom_theta_z, -c129*c134 - c130*v_boom_theta_x - c131*v_boom_theta_x + (8/25)*c127*v_boom_theta_x + c135*p_C_x*v_boom_theta_z + c136*p_C_z*v_boom_theta_z, -8/25*c128*v_boom_theta_x + (8/25)*c134*v_boom_theta_y + c132*p_C_x*v_boom_theta_x + c133*p_C_z*v_boom_theta_x - c135*p_C_x*v_boom_theta_y - c136*p_C_z*v_boom_theta_y, -c137*v_boom_theta_y - c138*v_boom_theta_y + (23939/5000)*c139*v_boom_theta_z + (29959/10000)*c140*v_boom_theta_z, c137*v_boom_theta_x + c138*v_boom_theta_x - 29959/10000*c142*v_boom_theta_z - 23939/5000*c141*v_boom_theta_z, -29959/10000*c140*v_boom_theta_x - 23939/5000*c139*v_boom_theta_x + (23939/5000)*c141*v_boom_theta_y + (29959/10000)*c142*v_boom_theta_y, -c147*(c149*arm_a02 + c145*arm_a22) - c151*(arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y) - c152*(arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x) - c153*(c148*arm_a12 + c150*arm_a22) - c154*(arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z) - c143*(c144*arm_a02 + c146*arm_a12), -c147*(c149*arm_a00 + c145*arm_a20) - c151*(arm_a10*v_arm_theta_x - arm_a00*v_arm_theta_y) - c152*(arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x) - c153*(c148*arm_a10 + c150*arm_a20) - c154*(arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z) - c143*(c144*arm_a00 + c146*arm_a10), -c155*v_boom_theta_y - c156*v_boom_theta_y + (183/80)*c157*v_boom_theta_z + (557/200)*c158*v_boom_theta_z, c155*v_boom_theta_x + c156*v_boom_theta_x - 557/200*c160*v_boom_theta_z - 183/80*c159*v_boom_theta_z, -557/200*c158*v_boom_theta_x - 183/80*c157*v_boom_theta_x + (183/80)*c159*v_boom_theta_y + (557/200)*c160*v_boom_theta_y, -(c165*boom_a11 + c161*boom_a21)*(arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_z) - (c165*arm_cyl_barrel_a02 + c162*arm_cyl_barrel_a22)*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x) - (c166*boom_a01 + c162*boom_a11)*(arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_y) - (c166*arm_cyl_barrel_a22 + c164*arm_cyl_barrel_a12)*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - (c161*arm_cyl_barrel_a02 + c163*arm_cyl_barrel_a12)*(boom_a11*v_boom_theta_x - boom_a01*v_boom_theta_y) - (c163*boom_a21 + c164*boom_a01)*(arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_x), -c167*(c168*arm_cyl_rod_a01 + c170*arm_cyl_rod_a11) - c177*(c172*arm_cyl_rod_a11 + c174*arm_cyl_rod_a21) - c178*(arm_cyl_rod_a21*v_arm_cyl_rod_theta_y - arm_cyl_rod_a11*v_arm_cyl_rod_theta_z) - c171*(c169*arm_cyl_rod_a21 + c173*arm_cyl_rod_a01) - c175*(arm_cyl_rod_a11*v_arm_cyl_rod_theta_x - arm_cyl_rod_a01*v_arm_cyl_rod_theta_y) - c176*(arm_cyl_rod_a01*v_arm_cyl_rod_theta_z - arm_cyl_rod_a21*v_arm_cyl_rod_theta_x), -c167*(c168*arm_cyl_rod_a02 + c170*arm_cyl_rod_a12) - c177*(c172*arm_cyl_rod_a12 + c174*arm_cyl_rod_a22) - c178*c181 - c179*c175 - c180*c176 - c171*(c169*arm_cyl_rod_a22 + c173*arm_cyl_rod_a02), c183*v_arm_cyl_barrel_y - c182*v_arm_cyl_barrel_x - c183*c188 - c183*v_arm_cyl_rod_y - c184*v_arm_cyl_barrel_z - c185*c189 - c185*v_arm_cyl_rod_x - c186*c187 - c186*v_arm_cyl_rod_z, c191*v_arm_cyl_barrel_y - c187*c194 - c188*c191 - c189*c193 - c190*v_arm_cyl_barrel_x - c191*v_arm_cyl_rod_y - c192*v_arm_cyl_barrel_z - c193*v_arm_cyl_rod_x - c194*v_arm_cyl_rod_z, -c179*(c196*arm_cyl_barrel_a11 + c200*arm_cyl_barrel_a01) - c180*(c197*arm_cyl_barrel_a21 + c198*arm_cyl_barrel_a01) - c181*(c195*arm_cyl_barrel_a21 + c199*arm_cyl_barrel_a11) - c183*(c196*arm_cyl_rod_a22 + c199*arm_cyl_rod_a02) - c185*(c198*arm_cyl_rod_a12 + c200*arm_cyl_rod_a22) - c186*(c195*arm_cyl_rod_a02 + c197*arm_cyl_rod_a12), c201*v_arm_theta_y + c202*v_arm_theta_y - c203*p_F_x*v_arm_theta_z - c204*p_F_z*v_arm_theta_z, -c201*v_arm_theta_x - c202*v_arm_theta_x + c205*p_F_x*v_arm_theta_z + c206*p_F_z*v_arm_theta_z, c203*p_F_x*v_arm_theta_x + c204*p_F_z*v_arm_theta_x - c205*p_F_x*v_arm_theta_y - c206*p_F_z*v_arm_theta_y, -c207*v_arm_theta_y - c208*v_arm_theta_y + (9477/5000)*c209*v_arm_theta_z + (21809/10000)*c210*v_arm_theta_z, c207*v_arm_theta_x + c208*v_arm_theta_x - 21809/10000*c212*v_arm_theta_z - 9477/5000*c211*v_arm_theta_z, -21809/10000*c210*v_arm_theta_x - 9477/5000*c209*v_arm_theta_x + (9477/5000)*c211*v_arm_theta_y + (21809/10000)*c212*v_arm_theta_y, -c217*(c219*bucket_a02 + c215*bucket_a22) - c221*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) - c222*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - c223*(c218*bucket_a12 + c220*bucket_a22) - c224*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z) - c213*(c214*bucket_a02 + c216*bucket_a12), -c217*(c219*bucket_a00 + c215*bucket_a20) - c221*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y) - c222*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) - c223*(c218*bucket_a10 + c220*bucket_a20) - c224*(bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z) - c213*(c214*bucket_a00 + c216*bucket_a10), -c225*v_arm_theta_y - c226*v_arm_theta_y + (7877/5000)*c227*v_arm_theta_z + (18799/10000)*c228*v_arm_theta_z, c225*v_arm_theta_x + c226*v_arm_theta_x - 18799/10000*c230*v_arm_theta_z - 7877/5000*c229*v_arm_theta_z, -18799/10000*c228*v_arm_theta_x - 7877/5000*c227*v_arm_theta_x + (7877/5000)*c229*v_arm_theta_y + (18799/10000)*c230*v_arm_theta_y, -c235*(c237*side_link_a02 + c233*side_link_a22) - c239*(side_link_a12*v_side_link_theta_x - side_link_a02*v_side_link_theta_y) - c240*(side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x) - c241*(c236*side_link_a12 + c238*side_link_a22) - c242*(side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z) - c231*(c232*side_link_a02 + c234*side_link_a12), -c235*(c237*side_link_a00 + c233*side_link_a20) - c239*(side_link_a10*v_side_link_theta_x - side_link_a00*v_side_link_theta_y) - c240*(side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x) - c241*(c236*side_link_a10 + c238*side_link_a20) - c242*(side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z) - c231*(c232*side_link_a00 + c234*side_link_a10), -c243*c244 - c243*c245 - c253*c251 - c250*v_side_link_theta_y + 0.5686266556413632*c248*p_side_link*v_side_link_theta_y + 0.60493530832545*c246*p_bucket_link*v_bucket_link_theta_z + 0.796274621434837*c247*p_bucket_link*v_bucket_link_theta_z + 0.822595724821202*c254*p_side_link*v_side_link_theta_z, c244*c255 + c253*c259 + c255*c245 + c250*v_side_link_theta_x - 0.60493530832545*c256*c257 - 0.796274621434837*c257*c258 - c260*c249*v_side_link_theta_z - c248*c252*v_side_link_theta_x, -0.60493530832545*c255*c246 - 0.796274621434837*c255*c247 - c254*c249*v_side_link_theta_x - c259*c252*v_side_link_theta_y + 0.5686266556413632*c251*p_side_link*v_side_link_theta_x + 0.60493530832545*c256*p_bucket_link*v_bucket_link_theta_y + 0.796274621434837*c258*p_bucket_link*v_bucket_link_theta_y + 0.822595724821202*c260*p_side_link*v_side_link_theta_y, c261*v_bucket_theta_y + c262*v_bucket_theta_y - c263*p_K_x*v_bucket_theta_z - c264*p_K_z*v_bucket_theta_z, -c261*v_bucket_theta_x - c262*v_bucket_theta_x + c265*p_K_x*v_bucket_theta_z + c266*p_K_z*v_bucket_theta_z, c263*p_K_x*v_bucket_theta_x + c264*p_K_z*v_bucket_theta_x - c265*p_K_x*v_bucket_theta_y - c266*p_K_z*v_bucket_theta_y, -(c271*bucket_a21 + c270*bucket_a01)*(bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x) - (c272*bucket_a01 + c274*bucket_a11)*(bucket_link_a12*v_bucket_link_theta_x - bucket_link_a02*v_bucket_link_theta_y) - (c273*bucket_a21 + c276*bucket_a01)*(bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x) - (c275*bucket_a11 + c278*bucket_a21)*(bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z) - (c277*bucket_a11 + c267*bucket_a21)*(bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z) - (c268*bucket_a01 + c269*bucket_a11)*(bucket_link_a10*v_bucket_link_theta_x - bucket_link_a00*v_bucket_link_theta_y) - (bucket_a01*v_bucket_theta_z - bucket_a21*v_bucket_theta_x)*(c274*bucket_link_a22 + c275*bucket_link_a02 + c277*bucket_link_a00 + c269*bucket_link_a20) - (bucket_a11*v_bucket_theta_x - bucket_a01*v_bucket_theta_y)*(c271*bucket_link_a10 + c273*bucket_link_a12 + c278*bucket_link_a02 + c267*bucket_link_a00) - (bucket_a21*v_bucket_theta_y - bucket_a11*v_bucket_theta_z)*(c272*bucket_link_a22 + c276*bucket_link_a12 + c268*bucket_link_a20 + c270*bucket_link_a10), c279*v_arm_theta_y + c282*c283 - 36797/50000*c280*v_arm_theta_y - 24687/100000*c281*v_arm_theta_z, -c279*v_arm_theta_x - c283*c285 + (24687/100000)*c284*v_arm_theta_z + (36797/50000)*c280*v_arm_theta_x, -36797/50000*c282*v_arm_theta_x - 24687/100000*c284*v_arm_theta_y + (24687/100000)*c281*v_arm_theta_x + (36797/50000)*c285*v_arm_theta_y, -(c289*arm_a01 + c288*arm_a21)*(bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x) - (c289*bucket_cyl_barrel_a12 + c291*bucket_cyl_barrel_a22)*(arm_a21*v_arm_theta_y - arm_a11*v_arm_theta_z) - (c290*arm_a11 + c286*arm_a21)*(bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z) - (c290*bucket_cyl_barrel_a02 + c287*bucket_cyl_barrel_a22)*(arm_a01*v_arm_theta_z - arm_a21*v_arm_theta_x) - (c291*arm_a01 + c287*arm_a11)*(bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y) - (c286*bucket_cyl_barrel_a02 + c288*bucket_cyl_barrel_a12)*(arm_a11*v_arm_theta_x - arm_a01*v_arm_theta_y), -c292*(c293*bucket_cyl_rod_a01 + c295*bucket_cyl_rod_a11) - c302*(c297*bucket_cyl_rod_a11 + c299*bucket_cyl_rod_a21) - c303*(bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_y - bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_z) - c296*(c294*bucket_cyl_rod_a21 + c298*bucket_cyl_rod_a01) - c300*(bucket_cyl_rod_a11*v_bucket_cyl_rod_theta_x - bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_y) - c301*(bucket_cyl_rod_a01*v_bucket_cyl_rod_theta_z - bucket_cyl_rod_a21*v_bucket_cyl_rod_theta_x), -c292*(c293*bucket_cyl_rod_a02 + c295*bucket_cyl_rod_a12) - c302*(c297*bucket_cyl_rod_a12 + c299*bucket_cyl_rod_a22) - c303*c306 - c304*c300 - c305*c301 - c296*(c294*bucket_cyl_rod_a22 + c298*bucket_cyl_rod_a02), c308*v_bucket_cyl_barrel_y - c307*v_bucket_cyl_barrel_x - c308*c313 - c308*v_bucket_cyl_rod_y - c309*v_bucket_cyl_barrel_z - c310*c314 - c310*v_bucket_cyl_rod_x - c311*c312 - c311*v_bucket_cyl_rod_z, c316*v_bucket_cyl_barrel_y - c312*c319 - c313*c316 - c314*c318 - c315*v_bucket_cyl_barrel_x - c316*v_bucket_cyl_rod_y - c317*v_bucket_cyl_barrel_z - c318*v_bucket_cyl_rod_x - c319*v_bucket_cyl_rod_z, -c304*(c321*bucket_cyl_barrel_a11 + c325*bucket_cyl_barrel_a01) - c305*(c322*bucket_cyl_barrel_a21 + c323*bucket_cyl_barrel_a01) - c306*(c320*bucket_cyl_barrel_a21 + c324*bucket_cyl_barrel_a11) - c308*(c321*bucket_cyl_rod_a22 + c324*bucket_cyl_rod_a02) - c310*(c323*bucket_cyl_rod_a12 + c325*bucket_cyl_rod_a22) - c311*(c320*bucket_cyl_rod_a02 + c322*bucket_cyl_rod_a12), -c327*v_side_link_theta_y - c330*c332 + 0.5686266556413632*c329*p_side_link*v_side_link_theta_z + 0.822595724821202*c328*p_side_link*v_side_link_theta_y, c327*v_side_link_theta_x + c332*c334 - c326*c333*v_side_link_theta_z - c328*c331*v_side_link_theta_x, -c326*c329*v_side_link_theta_x - c331*c334*v_side_link_theta_y + 0.5686266556413632*c333*p_side_link*v_side_link_theta_y + 0.822595724821202*c330*p_side_link*v_side_link_theta_x]
 
 
 def frames(q, v, a):
@@ -2648,6 +2701,4818 @@ def frames(q, v, a):
     return out
 
 
+def points(p):
+    """Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS)."""
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
+    out = np.zeros((90,) + np.shape(p[0]))
+    out[3] = 22767/100000
+    out[5] = 195729/100000
+    out[6] = 4307/6250
+    out[7] = 8/25
+    out[8] = 67739/50000
+    out[9] = 4307/6250
+    out[10] = -8/25
+    out[11] = 67739/50000
+    out[15] = p_C_x
+    out[16] = 8/25
+    out[17] = p_C_z
+    out[18] = p_C_x
+    out[19] = -8/25
+    out[20] = p_C_z
+    out[21] = 183/80
+    out[23] = 557/200
+    out[24] = 23939/5000
+    out[26] = 29959/10000
+    out[42] = p_F_x
+    out[44] = p_F_z
+    out[45] = -24687/100000
+    out[47] = 36797/50000
+    out[48] = 7877/5000
+    out[50] = 18799/10000
+    out[51] = 9477/5000
+    out[53] = 21809/10000
+    out[69] = -0.5686266556413632*p_side_link
+    out[71] = 0.822595724821202*p_side_link
+    out[75] = -0.60493530832545*p_bucket_link
+    out[77] = -0.796274621434837*p_bucket_link
+    out[81] = p_K_x
+    out[83] = p_K_z
+    out[84] = 32/25
+    out[86] = 403/500
+    return out
+
+
+def actuator_ranges(p):
+    """The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters."""
+    _, _, _, _, p_boom_retracted, _, _, _, _ = p
+    out = np.zeros((8,) + np.shape(p[0]))
+    out[0] = p_boom_retracted
+    out[1] = 30649/10000
+    out[2] = p_boom_retracted
+    out[3] = 30649/10000
+    out[4] = 4541/2500
+    out[5] = 32939/10000
+    out[6] = 16529/10000
+    out[7] = 26613/10000
+    return out
+
+
+def points_p(p):
+    """d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), a parameter per column)."""
+    out = np.zeros((810,) + np.shape(p[0]))
+    out[135] = 1
+    out[154] = 1
+    out[162] = 1
+    out[181] = 1
+    out[380] = 1
+    out[399] = 1
+    out[626] = -0.5686266556413632
+    out[644] = 0.822595724821202
+    out[681] = -0.60493530832545
+    out[699] = -0.796274621434837
+    out[736] = 1
+    out[755] = 1
+    return out
+
+
+def frames_d(q, v, a, w, y, z):
+    """Per body: the change of the frames kernel's 24 values when q moves along w, v by y and a by z."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, _, _, _, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, _, _, _, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, _, _, _, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, _, _, _, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, _, _, _, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, _, _, _, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, _, _, _, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, _, _, _, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    w_upper_x, w_upper_y, w_upper_z, w_upper_theta_x, w_upper_theta_y, w_upper_theta_z, w_boom_x, w_boom_y, w_boom_z, w_boom_theta_x, w_boom_theta_y, w_boom_theta_z, w_boom_cyl_l_barrel_x, w_boom_cyl_l_barrel_y, w_boom_cyl_l_barrel_z, w_boom_cyl_l_barrel_theta_x, w_boom_cyl_l_barrel_theta_y, w_boom_cyl_l_barrel_theta_z, w_boom_cyl_l_rod_x, w_boom_cyl_l_rod_y, w_boom_cyl_l_rod_z, w_boom_cyl_l_rod_theta_x, w_boom_cyl_l_rod_theta_y, w_boom_cyl_l_rod_theta_z, w_boom_cyl_r_barrel_x, w_boom_cyl_r_barrel_y, w_boom_cyl_r_barrel_z, w_boom_cyl_r_barrel_theta_x, w_boom_cyl_r_barrel_theta_y, w_boom_cyl_r_barrel_theta_z, w_boom_cyl_r_rod_x, w_boom_cyl_r_rod_y, w_boom_cyl_r_rod_z, w_boom_cyl_r_rod_theta_x, w_boom_cyl_r_rod_theta_y, w_boom_cyl_r_rod_theta_z, w_arm_x, w_arm_y, w_arm_z, w_arm_theta_x, w_arm_theta_y, w_arm_theta_z, w_arm_cyl_barrel_x, w_arm_cyl_barrel_y, w_arm_cyl_barrel_z, w_arm_cyl_barrel_theta_x, w_arm_cyl_barrel_theta_y, w_arm_cyl_barrel_theta_z, w_arm_cyl_rod_x, w_arm_cyl_rod_y, w_arm_cyl_rod_z, w_arm_cyl_rod_theta_x, w_arm_cyl_rod_theta_y, w_arm_cyl_rod_theta_z, w_bucket_cyl_barrel_x, w_bucket_cyl_barrel_y, w_bucket_cyl_barrel_z, w_bucket_cyl_barrel_theta_x, w_bucket_cyl_barrel_theta_y, w_bucket_cyl_barrel_theta_z, w_bucket_cyl_rod_x, w_bucket_cyl_rod_y, w_bucket_cyl_rod_z, w_bucket_cyl_rod_theta_x, w_bucket_cyl_rod_theta_y, w_bucket_cyl_rod_theta_z, w_side_link_x, w_side_link_y, w_side_link_z, w_side_link_theta_x, w_side_link_theta_y, w_side_link_theta_z, w_bucket_link_x, w_bucket_link_y, w_bucket_link_z, w_bucket_link_theta_x, w_bucket_link_theta_y, w_bucket_link_theta_z, w_bucket_x, w_bucket_y, w_bucket_z, w_bucket_theta_x, w_bucket_theta_y, w_bucket_theta_z = w
+    y_upper_x, y_upper_y, y_upper_z, y_upper_theta_x, y_upper_theta_y, y_upper_theta_z, y_boom_x, y_boom_y, y_boom_z, y_boom_theta_x, y_boom_theta_y, y_boom_theta_z, y_boom_cyl_l_barrel_x, y_boom_cyl_l_barrel_y, y_boom_cyl_l_barrel_z, y_boom_cyl_l_barrel_theta_x, y_boom_cyl_l_barrel_theta_y, y_boom_cyl_l_barrel_theta_z, y_boom_cyl_l_rod_x, y_boom_cyl_l_rod_y, y_boom_cyl_l_rod_z, y_boom_cyl_l_rod_theta_x, y_boom_cyl_l_rod_theta_y, y_boom_cyl_l_rod_theta_z, y_boom_cyl_r_barrel_x, y_boom_cyl_r_barrel_y, y_boom_cyl_r_barrel_z, y_boom_cyl_r_barrel_theta_x, y_boom_cyl_r_barrel_theta_y, y_boom_cyl_r_barrel_theta_z, y_boom_cyl_r_rod_x, y_boom_cyl_r_rod_y, y_boom_cyl_r_rod_z, y_boom_cyl_r_rod_theta_x, y_boom_cyl_r_rod_theta_y, y_boom_cyl_r_rod_theta_z, y_arm_x, y_arm_y, y_arm_z, y_arm_theta_x, y_arm_theta_y, y_arm_theta_z, y_arm_cyl_barrel_x, y_arm_cyl_barrel_y, y_arm_cyl_barrel_z, y_arm_cyl_barrel_theta_x, y_arm_cyl_barrel_theta_y, y_arm_cyl_barrel_theta_z, y_arm_cyl_rod_x, y_arm_cyl_rod_y, y_arm_cyl_rod_z, y_arm_cyl_rod_theta_x, y_arm_cyl_rod_theta_y, y_arm_cyl_rod_theta_z, y_bucket_cyl_barrel_x, y_bucket_cyl_barrel_y, y_bucket_cyl_barrel_z, y_bucket_cyl_barrel_theta_x, y_bucket_cyl_barrel_theta_y, y_bucket_cyl_barrel_theta_z, y_bucket_cyl_rod_x, y_bucket_cyl_rod_y, y_bucket_cyl_rod_z, y_bucket_cyl_rod_theta_x, y_bucket_cyl_rod_theta_y, y_bucket_cyl_rod_theta_z, y_side_link_x, y_side_link_y, y_side_link_z, y_side_link_theta_x, y_side_link_theta_y, y_side_link_theta_z, y_bucket_link_x, y_bucket_link_y, y_bucket_link_z, y_bucket_link_theta_x, y_bucket_link_theta_y, y_bucket_link_theta_z, y_bucket_x, y_bucket_y, y_bucket_z, y_bucket_theta_x, y_bucket_theta_y, y_bucket_theta_z = y
+    z_upper_x, z_upper_y, z_upper_z, z_upper_theta_x, z_upper_theta_y, z_upper_theta_z, z_boom_x, z_boom_y, z_boom_z, z_boom_theta_x, z_boom_theta_y, z_boom_theta_z, z_boom_cyl_l_barrel_x, z_boom_cyl_l_barrel_y, z_boom_cyl_l_barrel_z, z_boom_cyl_l_barrel_theta_x, z_boom_cyl_l_barrel_theta_y, z_boom_cyl_l_barrel_theta_z, z_boom_cyl_l_rod_x, z_boom_cyl_l_rod_y, z_boom_cyl_l_rod_z, z_boom_cyl_l_rod_theta_x, z_boom_cyl_l_rod_theta_y, z_boom_cyl_l_rod_theta_z, z_boom_cyl_r_barrel_x, z_boom_cyl_r_barrel_y, z_boom_cyl_r_barrel_z, z_boom_cyl_r_barrel_theta_x, z_boom_cyl_r_barrel_theta_y, z_boom_cyl_r_barrel_theta_z, z_boom_cyl_r_rod_x, z_boom_cyl_r_rod_y, z_boom_cyl_r_rod_z, z_boom_cyl_r_rod_theta_x, z_boom_cyl_r_rod_theta_y, z_boom_cyl_r_rod_theta_z, z_arm_x, z_arm_y, z_arm_z, z_arm_theta_x, z_arm_theta_y, z_arm_theta_z, z_arm_cyl_barrel_x, z_arm_cyl_barrel_y, z_arm_cyl_barrel_z, z_arm_cyl_barrel_theta_x, z_arm_cyl_barrel_theta_y, z_arm_cyl_barrel_theta_z, z_arm_cyl_rod_x, z_arm_cyl_rod_y, z_arm_cyl_rod_z, z_arm_cyl_rod_theta_x, z_arm_cyl_rod_theta_y, z_arm_cyl_rod_theta_z, z_bucket_cyl_barrel_x, z_bucket_cyl_barrel_y, z_bucket_cyl_barrel_z, z_bucket_cyl_barrel_theta_x, z_bucket_cyl_barrel_theta_y, z_bucket_cyl_barrel_theta_z, z_bucket_cyl_rod_x, z_bucket_cyl_rod_y, z_bucket_cyl_rod_z, z_bucket_cyl_rod_theta_x, z_bucket_cyl_rod_theta_y, z_bucket_cyl_rod_theta_z, z_side_link_x, z_side_link_y, z_side_link_z, z_side_link_theta_x, z_side_link_theta_y, z_side_link_theta_z, z_bucket_link_x, z_bucket_link_y, z_bucket_link_z, z_bucket_link_theta_x, z_bucket_link_theta_y, z_bucket_link_theta_z, z_bucket_x, z_bucket_y, z_bucket_z, z_bucket_theta_x, z_bucket_theta_y, z_bucket_theta_z = z
+    upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
+    upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
+    upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
+    upper_a10 = 2*upper_qw*upper_qz + 2*upper_qx*upper_qy
+    upper_a11 = -1 + 2*upper_qw**2 + 2*upper_qy**2
+    upper_a12 = -2*upper_qw*upper_qx + 2*upper_qy*upper_qz
+    upper_a20 = -2*upper_qw*upper_qy + 2*upper_qx*upper_qz
+    upper_a21 = 2*upper_qw*upper_qx + 2*upper_qy*upper_qz
+    upper_a22 = -1 + 2*upper_qw**2 + 2*upper_qz**2
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = -1 + 2*boom_qw**2 + 2*boom_qy**2
+    boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a22 = -1 + 2*boom_qw**2 + 2*boom_qz**2
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a01 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a02 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a11 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qy**2
+    boom_cyl_l_barrel_a12 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a21 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a22 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qz**2
+    boom_cyl_l_rod_a00 = -1 + 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qx**2
+    boom_cyl_l_rod_a01 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
+    boom_cyl_l_rod_a02 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a10 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
+    boom_cyl_l_rod_a11 = -1 + 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qy**2
+    boom_cyl_l_rod_a12 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a20 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a21 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a22 = -1 + 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qz**2
+    boom_cyl_r_barrel_a00 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qx**2
+    boom_cyl_r_barrel_a01 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a02 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a10 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a11 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qy**2
+    boom_cyl_r_barrel_a12 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a20 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a21 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a22 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qz**2
+    boom_cyl_r_rod_a00 = -1 + 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qx**2
+    boom_cyl_r_rod_a01 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
+    boom_cyl_r_rod_a02 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a10 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
+    boom_cyl_r_rod_a11 = -1 + 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qy**2
+    boom_cyl_r_rod_a12 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a20 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a21 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a22 = -1 + 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qz**2
+    arm_a00 = -1 + 2*arm_qw**2 + 2*arm_qx**2
+    arm_a01 = -2*arm_qw*arm_qz + 2*arm_qx*arm_qy
+    arm_a02 = 2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a10 = 2*arm_qw*arm_qz + 2*arm_qx*arm_qy
+    arm_a11 = -1 + 2*arm_qw**2 + 2*arm_qy**2
+    arm_a12 = -2*arm_qw*arm_qx + 2*arm_qy*arm_qz
+    arm_a20 = -2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a21 = 2*arm_qw*arm_qx + 2*arm_qy*arm_qz
+    arm_a22 = -1 + 2*arm_qw**2 + 2*arm_qz**2
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a01 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a02 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a11 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qy**2
+    arm_cyl_barrel_a12 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a21 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a22 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qz**2
+    arm_cyl_rod_a00 = -1 + 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qx**2
+    arm_cyl_rod_a01 = -2*arm_cyl_rod_qw*arm_cyl_rod_qz + 2*arm_cyl_rod_qx*arm_cyl_rod_qy
+    arm_cyl_rod_a02 = 2*arm_cyl_rod_qw*arm_cyl_rod_qy + 2*arm_cyl_rod_qx*arm_cyl_rod_qz
+    arm_cyl_rod_a10 = 2*arm_cyl_rod_qw*arm_cyl_rod_qz + 2*arm_cyl_rod_qx*arm_cyl_rod_qy
+    arm_cyl_rod_a11 = -1 + 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qy**2
+    arm_cyl_rod_a12 = -2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a20 = -2*arm_cyl_rod_qw*arm_cyl_rod_qy + 2*arm_cyl_rod_qx*arm_cyl_rod_qz
+    arm_cyl_rod_a21 = 2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a22 = -1 + 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qz**2
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a01 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a02 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a11 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qy**2
+    bucket_cyl_barrel_a12 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a21 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a22 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qz**2
+    bucket_cyl_rod_a00 = -1 + 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qx**2
+    bucket_cyl_rod_a01 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qy
+    bucket_cyl_rod_a02 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qz
+    bucket_cyl_rod_a10 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qy
+    bucket_cyl_rod_a11 = -1 + 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qy**2
+    bucket_cyl_rod_a12 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a20 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qz
+    bucket_cyl_rod_a21 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a22 = -1 + 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qz**2
+    side_link_a00 = -1 + 2*side_link_qw**2 + 2*side_link_qx**2
+    side_link_a01 = -2*side_link_qw*side_link_qz + 2*side_link_qx*side_link_qy
+    side_link_a02 = 2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a10 = 2*side_link_qw*side_link_qz + 2*side_link_qx*side_link_qy
+    side_link_a11 = -1 + 2*side_link_qw**2 + 2*side_link_qy**2
+    side_link_a12 = -2*side_link_qw*side_link_qx + 2*side_link_qy*side_link_qz
+    side_link_a20 = -2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a21 = 2*side_link_qw*side_link_qx + 2*side_link_qy*side_link_qz
+    side_link_a22 = -1 + 2*side_link_qw**2 + 2*side_link_qz**2
+    bucket_link_a00 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qx**2
+    bucket_link_a01 = -2*bucket_link_qw*bucket_link_qz + 2*bucket_link_qx*bucket_link_qy
+    bucket_link_a02 = 2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a10 = 2*bucket_link_qw*bucket_link_qz + 2*bucket_link_qx*bucket_link_qy
+    bucket_link_a11 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qy**2
+    bucket_link_a12 = -2*bucket_link_qw*bucket_link_qx + 2*bucket_link_qy*bucket_link_qz
+    bucket_link_a20 = -2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a21 = 2*bucket_link_qw*bucket_link_qx + 2*bucket_link_qy*bucket_link_qz
+    bucket_link_a22 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qz**2
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a01 = -2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a11 = -1 + 2*bucket_qw**2 + 2*bucket_qy**2
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a21 = 2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    out = _zeros(336, q, ())
+    out[0] = w_upper_x
+    out[1] = w_upper_y
+    out[2] = w_upper_z
+    out[3] = upper_a20*w_upper_theta_y - upper_a10*w_upper_theta_z
+    out[4] = upper_a21*w_upper_theta_y - upper_a11*w_upper_theta_z
+    out[5] = upper_a22*w_upper_theta_y - upper_a12*w_upper_theta_z
+    out[6] = upper_a00*w_upper_theta_z - upper_a20*w_upper_theta_x
+    out[7] = upper_a01*w_upper_theta_z - upper_a21*w_upper_theta_x
+    out[8] = upper_a02*w_upper_theta_z - upper_a22*w_upper_theta_x
+    out[9] = upper_a10*w_upper_theta_x - upper_a00*w_upper_theta_y
+    out[10] = upper_a11*w_upper_theta_x - upper_a01*w_upper_theta_y
+    out[11] = upper_a12*w_upper_theta_x - upper_a02*w_upper_theta_y
+    out[12] = y_upper_x
+    out[13] = y_upper_y
+    out[14] = y_upper_z
+    out[15] = y_upper_theta_x
+    out[16] = y_upper_theta_y
+    out[17] = y_upper_theta_z
+    out[18] = z_upper_x
+    out[19] = z_upper_y
+    out[20] = z_upper_z
+    out[21] = z_upper_theta_x
+    out[22] = z_upper_theta_y
+    out[23] = z_upper_theta_z
+    out[24] = w_boom_x
+    out[25] = w_boom_y
+    out[26] = w_boom_z
+    out[27] = boom_a20*w_boom_theta_y - boom_a10*w_boom_theta_z
+    out[28] = boom_a21*w_boom_theta_y - boom_a11*w_boom_theta_z
+    out[29] = boom_a22*w_boom_theta_y - boom_a12*w_boom_theta_z
+    out[30] = boom_a00*w_boom_theta_z - boom_a20*w_boom_theta_x
+    out[31] = boom_a01*w_boom_theta_z - boom_a21*w_boom_theta_x
+    out[32] = boom_a02*w_boom_theta_z - boom_a22*w_boom_theta_x
+    out[33] = boom_a10*w_boom_theta_x - boom_a00*w_boom_theta_y
+    out[34] = boom_a11*w_boom_theta_x - boom_a01*w_boom_theta_y
+    out[35] = boom_a12*w_boom_theta_x - boom_a02*w_boom_theta_y
+    out[36] = y_boom_x
+    out[37] = y_boom_y
+    out[38] = y_boom_z
+    out[39] = y_boom_theta_x
+    out[40] = y_boom_theta_y
+    out[41] = y_boom_theta_z
+    out[42] = z_boom_x
+    out[43] = z_boom_y
+    out[44] = z_boom_z
+    out[45] = z_boom_theta_x
+    out[46] = z_boom_theta_y
+    out[47] = z_boom_theta_z
+    out[48] = w_boom_cyl_l_barrel_x
+    out[49] = w_boom_cyl_l_barrel_y
+    out[50] = w_boom_cyl_l_barrel_z
+    out[51] = boom_cyl_l_barrel_a20*w_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*w_boom_cyl_l_barrel_theta_z
+    out[52] = boom_cyl_l_barrel_a21*w_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a11*w_boom_cyl_l_barrel_theta_z
+    out[53] = boom_cyl_l_barrel_a22*w_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a12*w_boom_cyl_l_barrel_theta_z
+    out[54] = boom_cyl_l_barrel_a00*w_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*w_boom_cyl_l_barrel_theta_x
+    out[55] = boom_cyl_l_barrel_a01*w_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a21*w_boom_cyl_l_barrel_theta_x
+    out[56] = boom_cyl_l_barrel_a02*w_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*w_boom_cyl_l_barrel_theta_x
+    out[57] = boom_cyl_l_barrel_a10*w_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_a00*w_boom_cyl_l_barrel_theta_y
+    out[58] = boom_cyl_l_barrel_a11*w_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_a01*w_boom_cyl_l_barrel_theta_y
+    out[59] = boom_cyl_l_barrel_a12*w_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_a02*w_boom_cyl_l_barrel_theta_y
+    out[60] = y_boom_cyl_l_barrel_x
+    out[61] = y_boom_cyl_l_barrel_y
+    out[62] = y_boom_cyl_l_barrel_z
+    out[63] = y_boom_cyl_l_barrel_theta_x
+    out[64] = y_boom_cyl_l_barrel_theta_y
+    out[65] = y_boom_cyl_l_barrel_theta_z
+    out[66] = z_boom_cyl_l_barrel_x
+    out[67] = z_boom_cyl_l_barrel_y
+    out[68] = z_boom_cyl_l_barrel_z
+    out[69] = z_boom_cyl_l_barrel_theta_x
+    out[70] = z_boom_cyl_l_barrel_theta_y
+    out[71] = z_boom_cyl_l_barrel_theta_z
+    out[72] = w_boom_cyl_l_rod_x
+    out[73] = w_boom_cyl_l_rod_y
+    out[74] = w_boom_cyl_l_rod_z
+    out[75] = boom_cyl_l_rod_a20*w_boom_cyl_l_rod_theta_y - boom_cyl_l_rod_a10*w_boom_cyl_l_rod_theta_z
+    out[76] = boom_cyl_l_rod_a21*w_boom_cyl_l_rod_theta_y - boom_cyl_l_rod_a11*w_boom_cyl_l_rod_theta_z
+    out[77] = boom_cyl_l_rod_a22*w_boom_cyl_l_rod_theta_y - boom_cyl_l_rod_a12*w_boom_cyl_l_rod_theta_z
+    out[78] = boom_cyl_l_rod_a00*w_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a20*w_boom_cyl_l_rod_theta_x
+    out[79] = boom_cyl_l_rod_a01*w_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a21*w_boom_cyl_l_rod_theta_x
+    out[80] = boom_cyl_l_rod_a02*w_boom_cyl_l_rod_theta_z - boom_cyl_l_rod_a22*w_boom_cyl_l_rod_theta_x
+    out[81] = boom_cyl_l_rod_a10*w_boom_cyl_l_rod_theta_x - boom_cyl_l_rod_a00*w_boom_cyl_l_rod_theta_y
+    out[82] = boom_cyl_l_rod_a11*w_boom_cyl_l_rod_theta_x - boom_cyl_l_rod_a01*w_boom_cyl_l_rod_theta_y
+    out[83] = boom_cyl_l_rod_a12*w_boom_cyl_l_rod_theta_x - boom_cyl_l_rod_a02*w_boom_cyl_l_rod_theta_y
+    out[84] = y_boom_cyl_l_rod_x
+    out[85] = y_boom_cyl_l_rod_y
+    out[86] = y_boom_cyl_l_rod_z
+    out[87] = y_boom_cyl_l_rod_theta_x
+    out[88] = y_boom_cyl_l_rod_theta_y
+    out[89] = y_boom_cyl_l_rod_theta_z
+    out[90] = z_boom_cyl_l_rod_x
+    out[91] = z_boom_cyl_l_rod_y
+    out[92] = z_boom_cyl_l_rod_z
+    out[93] = z_boom_cyl_l_rod_theta_x
+    out[94] = z_boom_cyl_l_rod_theta_y
+    out[95] = z_boom_cyl_l_rod_theta_z
+    out[96] = w_boom_cyl_r_barrel_x
+    out[97] = w_boom_cyl_r_barrel_y
+    out[98] = w_boom_cyl_r_barrel_z
+    out[99] = boom_cyl_r_barrel_a20*w_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a10*w_boom_cyl_r_barrel_theta_z
+    out[100] = boom_cyl_r_barrel_a21*w_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a11*w_boom_cyl_r_barrel_theta_z
+    out[101] = boom_cyl_r_barrel_a22*w_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a12*w_boom_cyl_r_barrel_theta_z
+    out[102] = boom_cyl_r_barrel_a00*w_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a20*w_boom_cyl_r_barrel_theta_x
+    out[103] = boom_cyl_r_barrel_a01*w_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a21*w_boom_cyl_r_barrel_theta_x
+    out[104] = boom_cyl_r_barrel_a02*w_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*w_boom_cyl_r_barrel_theta_x
+    out[105] = boom_cyl_r_barrel_a10*w_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_a00*w_boom_cyl_r_barrel_theta_y
+    out[106] = boom_cyl_r_barrel_a11*w_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_a01*w_boom_cyl_r_barrel_theta_y
+    out[107] = boom_cyl_r_barrel_a12*w_boom_cyl_r_barrel_theta_x - boom_cyl_r_barrel_a02*w_boom_cyl_r_barrel_theta_y
+    out[108] = y_boom_cyl_r_barrel_x
+    out[109] = y_boom_cyl_r_barrel_y
+    out[110] = y_boom_cyl_r_barrel_z
+    out[111] = y_boom_cyl_r_barrel_theta_x
+    out[112] = y_boom_cyl_r_barrel_theta_y
+    out[113] = y_boom_cyl_r_barrel_theta_z
+    out[114] = z_boom_cyl_r_barrel_x
+    out[115] = z_boom_cyl_r_barrel_y
+    out[116] = z_boom_cyl_r_barrel_z
+    out[117] = z_boom_cyl_r_barrel_theta_x
+    out[118] = z_boom_cyl_r_barrel_theta_y
+    out[119] = z_boom_cyl_r_barrel_theta_z
+    out[120] = w_boom_cyl_r_rod_x
+    out[121] = w_boom_cyl_r_rod_y
+    out[122] = w_boom_cyl_r_rod_z
+    out[123] = boom_cyl_r_rod_a20*w_boom_cyl_r_rod_theta_y - boom_cyl_r_rod_a10*w_boom_cyl_r_rod_theta_z
+    out[124] = boom_cyl_r_rod_a21*w_boom_cyl_r_rod_theta_y - boom_cyl_r_rod_a11*w_boom_cyl_r_rod_theta_z
+    out[125] = boom_cyl_r_rod_a22*w_boom_cyl_r_rod_theta_y - boom_cyl_r_rod_a12*w_boom_cyl_r_rod_theta_z
+    out[126] = boom_cyl_r_rod_a00*w_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a20*w_boom_cyl_r_rod_theta_x
+    out[127] = boom_cyl_r_rod_a01*w_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a21*w_boom_cyl_r_rod_theta_x
+    out[128] = boom_cyl_r_rod_a02*w_boom_cyl_r_rod_theta_z - boom_cyl_r_rod_a22*w_boom_cyl_r_rod_theta_x
+    out[129] = boom_cyl_r_rod_a10*w_boom_cyl_r_rod_theta_x - boom_cyl_r_rod_a00*w_boom_cyl_r_rod_theta_y
+    out[130] = boom_cyl_r_rod_a11*w_boom_cyl_r_rod_theta_x - boom_cyl_r_rod_a01*w_boom_cyl_r_rod_theta_y
+    out[131] = boom_cyl_r_rod_a12*w_boom_cyl_r_rod_theta_x - boom_cyl_r_rod_a02*w_boom_cyl_r_rod_theta_y
+    out[132] = y_boom_cyl_r_rod_x
+    out[133] = y_boom_cyl_r_rod_y
+    out[134] = y_boom_cyl_r_rod_z
+    out[135] = y_boom_cyl_r_rod_theta_x
+    out[136] = y_boom_cyl_r_rod_theta_y
+    out[137] = y_boom_cyl_r_rod_theta_z
+    out[138] = z_boom_cyl_r_rod_x
+    out[139] = z_boom_cyl_r_rod_y
+    out[140] = z_boom_cyl_r_rod_z
+    out[141] = z_boom_cyl_r_rod_theta_x
+    out[142] = z_boom_cyl_r_rod_theta_y
+    out[143] = z_boom_cyl_r_rod_theta_z
+    out[144] = w_arm_x
+    out[145] = w_arm_y
+    out[146] = w_arm_z
+    out[147] = arm_a20*w_arm_theta_y - arm_a10*w_arm_theta_z
+    out[148] = arm_a21*w_arm_theta_y - arm_a11*w_arm_theta_z
+    out[149] = arm_a22*w_arm_theta_y - arm_a12*w_arm_theta_z
+    out[150] = arm_a00*w_arm_theta_z - arm_a20*w_arm_theta_x
+    out[151] = arm_a01*w_arm_theta_z - arm_a21*w_arm_theta_x
+    out[152] = arm_a02*w_arm_theta_z - arm_a22*w_arm_theta_x
+    out[153] = arm_a10*w_arm_theta_x - arm_a00*w_arm_theta_y
+    out[154] = arm_a11*w_arm_theta_x - arm_a01*w_arm_theta_y
+    out[155] = arm_a12*w_arm_theta_x - arm_a02*w_arm_theta_y
+    out[156] = y_arm_x
+    out[157] = y_arm_y
+    out[158] = y_arm_z
+    out[159] = y_arm_theta_x
+    out[160] = y_arm_theta_y
+    out[161] = y_arm_theta_z
+    out[162] = z_arm_x
+    out[163] = z_arm_y
+    out[164] = z_arm_z
+    out[165] = z_arm_theta_x
+    out[166] = z_arm_theta_y
+    out[167] = z_arm_theta_z
+    out[168] = w_arm_cyl_barrel_x
+    out[169] = w_arm_cyl_barrel_y
+    out[170] = w_arm_cyl_barrel_z
+    out[171] = arm_cyl_barrel_a20*w_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*w_arm_cyl_barrel_theta_z
+    out[172] = arm_cyl_barrel_a21*w_arm_cyl_barrel_theta_y - arm_cyl_barrel_a11*w_arm_cyl_barrel_theta_z
+    out[173] = arm_cyl_barrel_a22*w_arm_cyl_barrel_theta_y - arm_cyl_barrel_a12*w_arm_cyl_barrel_theta_z
+    out[174] = arm_cyl_barrel_a00*w_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*w_arm_cyl_barrel_theta_x
+    out[175] = arm_cyl_barrel_a01*w_arm_cyl_barrel_theta_z - arm_cyl_barrel_a21*w_arm_cyl_barrel_theta_x
+    out[176] = arm_cyl_barrel_a02*w_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*w_arm_cyl_barrel_theta_x
+    out[177] = arm_cyl_barrel_a10*w_arm_cyl_barrel_theta_x - arm_cyl_barrel_a00*w_arm_cyl_barrel_theta_y
+    out[178] = arm_cyl_barrel_a11*w_arm_cyl_barrel_theta_x - arm_cyl_barrel_a01*w_arm_cyl_barrel_theta_y
+    out[179] = arm_cyl_barrel_a12*w_arm_cyl_barrel_theta_x - arm_cyl_barrel_a02*w_arm_cyl_barrel_theta_y
+    out[180] = y_arm_cyl_barrel_x
+    out[181] = y_arm_cyl_barrel_y
+    out[182] = y_arm_cyl_barrel_z
+    out[183] = y_arm_cyl_barrel_theta_x
+    out[184] = y_arm_cyl_barrel_theta_y
+    out[185] = y_arm_cyl_barrel_theta_z
+    out[186] = z_arm_cyl_barrel_x
+    out[187] = z_arm_cyl_barrel_y
+    out[188] = z_arm_cyl_barrel_z
+    out[189] = z_arm_cyl_barrel_theta_x
+    out[190] = z_arm_cyl_barrel_theta_y
+    out[191] = z_arm_cyl_barrel_theta_z
+    out[192] = w_arm_cyl_rod_x
+    out[193] = w_arm_cyl_rod_y
+    out[194] = w_arm_cyl_rod_z
+    out[195] = arm_cyl_rod_a20*w_arm_cyl_rod_theta_y - arm_cyl_rod_a10*w_arm_cyl_rod_theta_z
+    out[196] = arm_cyl_rod_a21*w_arm_cyl_rod_theta_y - arm_cyl_rod_a11*w_arm_cyl_rod_theta_z
+    out[197] = arm_cyl_rod_a22*w_arm_cyl_rod_theta_y - arm_cyl_rod_a12*w_arm_cyl_rod_theta_z
+    out[198] = arm_cyl_rod_a00*w_arm_cyl_rod_theta_z - arm_cyl_rod_a20*w_arm_cyl_rod_theta_x
+    out[199] = arm_cyl_rod_a01*w_arm_cyl_rod_theta_z - arm_cyl_rod_a21*w_arm_cyl_rod_theta_x
+    out[200] = arm_cyl_rod_a02*w_arm_cyl_rod_theta_z - arm_cyl_rod_a22*w_arm_cyl_rod_theta_x
+    out[201] = arm_cyl_rod_a10*w_arm_cyl_rod_theta_x - arm_cyl_rod_a00*w_arm_cyl_rod_theta_y
+    out[202] = arm_cyl_rod_a11*w_arm_cyl_rod_theta_x - arm_cyl_rod_a01*w_arm_cyl_rod_theta_y
+    out[203] = arm_cyl_rod_a12*w_arm_cyl_rod_theta_x - arm_cyl_rod_a02*w_arm_cyl_rod_theta_y
+    out[204] = y_arm_cyl_rod_x
+    out[205] = y_arm_cyl_rod_y
+    out[206] = y_arm_cyl_rod_z
+    out[207] = y_arm_cyl_rod_theta_x
+    out[208] = y_arm_cyl_rod_theta_y
+    out[209] = y_arm_cyl_rod_theta_z
+    out[210] = z_arm_cyl_rod_x
+    out[211] = z_arm_cyl_rod_y
+    out[212] = z_arm_cyl_rod_z
+    out[213] = z_arm_cyl_rod_theta_x
+    out[214] = z_arm_cyl_rod_theta_y
+    out[215] = z_arm_cyl_rod_theta_z
+    out[216] = w_bucket_cyl_barrel_x
+    out[217] = w_bucket_cyl_barrel_y
+    out[218] = w_bucket_cyl_barrel_z
+    out[219] = bucket_cyl_barrel_a20*w_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*w_bucket_cyl_barrel_theta_z
+    out[220] = bucket_cyl_barrel_a21*w_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a11*w_bucket_cyl_barrel_theta_z
+    out[221] = bucket_cyl_barrel_a22*w_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*w_bucket_cyl_barrel_theta_z
+    out[222] = bucket_cyl_barrel_a00*w_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*w_bucket_cyl_barrel_theta_x
+    out[223] = bucket_cyl_barrel_a01*w_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a21*w_bucket_cyl_barrel_theta_x
+    out[224] = bucket_cyl_barrel_a02*w_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*w_bucket_cyl_barrel_theta_x
+    out[225] = bucket_cyl_barrel_a10*w_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a00*w_bucket_cyl_barrel_theta_y
+    out[226] = bucket_cyl_barrel_a11*w_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a01*w_bucket_cyl_barrel_theta_y
+    out[227] = bucket_cyl_barrel_a12*w_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_a02*w_bucket_cyl_barrel_theta_y
+    out[228] = y_bucket_cyl_barrel_x
+    out[229] = y_bucket_cyl_barrel_y
+    out[230] = y_bucket_cyl_barrel_z
+    out[231] = y_bucket_cyl_barrel_theta_x
+    out[232] = y_bucket_cyl_barrel_theta_y
+    out[233] = y_bucket_cyl_barrel_theta_z
+    out[234] = z_bucket_cyl_barrel_x
+    out[235] = z_bucket_cyl_barrel_y
+    out[236] = z_bucket_cyl_barrel_z
+    out[237] = z_bucket_cyl_barrel_theta_x
+    out[238] = z_bucket_cyl_barrel_theta_y
+    out[239] = z_bucket_cyl_barrel_theta_z
+    out[240] = w_bucket_cyl_rod_x
+    out[241] = w_bucket_cyl_rod_y
+    out[242] = w_bucket_cyl_rod_z
+    out[243] = bucket_cyl_rod_a20*w_bucket_cyl_rod_theta_y - bucket_cyl_rod_a10*w_bucket_cyl_rod_theta_z
+    out[244] = bucket_cyl_rod_a21*w_bucket_cyl_rod_theta_y - bucket_cyl_rod_a11*w_bucket_cyl_rod_theta_z
+    out[245] = bucket_cyl_rod_a22*w_bucket_cyl_rod_theta_y - bucket_cyl_rod_a12*w_bucket_cyl_rod_theta_z
+    out[246] = bucket_cyl_rod_a00*w_bucket_cyl_rod_theta_z - bucket_cyl_rod_a20*w_bucket_cyl_rod_theta_x
+    out[247] = bucket_cyl_rod_a01*w_bucket_cyl_rod_theta_z - bucket_cyl_rod_a21*w_bucket_cyl_rod_theta_x
+    out[248] = bucket_cyl_rod_a02*w_bucket_cyl_rod_theta_z - bucket_cyl_rod_a22*w_bucket_cyl_rod_theta_x
+    out[249] = bucket_cyl_rod_a10*w_bucket_cyl_rod_theta_x - bucket_cyl_rod_a00*w_bucket_cyl_rod_theta_y
+    out[250] = bucket_cyl_rod_a11*w_bucket_cyl_rod_theta_x - bucket_cyl_rod_a01*w_bucket_cyl_rod_theta_y
+    out[251] = bucket_cyl_rod_a12*w_bucket_cyl_rod_theta_x - bucket_cyl_rod_a02*w_bucket_cyl_rod_theta_y
+    out[252] = y_bucket_cyl_rod_x
+    out[253] = y_bucket_cyl_rod_y
+    out[254] = y_bucket_cyl_rod_z
+    out[255] = y_bucket_cyl_rod_theta_x
+    out[256] = y_bucket_cyl_rod_theta_y
+    out[257] = y_bucket_cyl_rod_theta_z
+    out[258] = z_bucket_cyl_rod_x
+    out[259] = z_bucket_cyl_rod_y
+    out[260] = z_bucket_cyl_rod_z
+    out[261] = z_bucket_cyl_rod_theta_x
+    out[262] = z_bucket_cyl_rod_theta_y
+    out[263] = z_bucket_cyl_rod_theta_z
+    out[264] = w_side_link_x
+    out[265] = w_side_link_y
+    out[266] = w_side_link_z
+    out[267] = side_link_a20*w_side_link_theta_y - side_link_a10*w_side_link_theta_z
+    out[268] = side_link_a21*w_side_link_theta_y - side_link_a11*w_side_link_theta_z
+    out[269] = side_link_a22*w_side_link_theta_y - side_link_a12*w_side_link_theta_z
+    out[270] = side_link_a00*w_side_link_theta_z - side_link_a20*w_side_link_theta_x
+    out[271] = side_link_a01*w_side_link_theta_z - side_link_a21*w_side_link_theta_x
+    out[272] = side_link_a02*w_side_link_theta_z - side_link_a22*w_side_link_theta_x
+    out[273] = side_link_a10*w_side_link_theta_x - side_link_a00*w_side_link_theta_y
+    out[274] = side_link_a11*w_side_link_theta_x - side_link_a01*w_side_link_theta_y
+    out[275] = side_link_a12*w_side_link_theta_x - side_link_a02*w_side_link_theta_y
+    out[276] = y_side_link_x
+    out[277] = y_side_link_y
+    out[278] = y_side_link_z
+    out[279] = y_side_link_theta_x
+    out[280] = y_side_link_theta_y
+    out[281] = y_side_link_theta_z
+    out[282] = z_side_link_x
+    out[283] = z_side_link_y
+    out[284] = z_side_link_z
+    out[285] = z_side_link_theta_x
+    out[286] = z_side_link_theta_y
+    out[287] = z_side_link_theta_z
+    out[288] = w_bucket_link_x
+    out[289] = w_bucket_link_y
+    out[290] = w_bucket_link_z
+    out[291] = bucket_link_a20*w_bucket_link_theta_y - bucket_link_a10*w_bucket_link_theta_z
+    out[292] = bucket_link_a21*w_bucket_link_theta_y - bucket_link_a11*w_bucket_link_theta_z
+    out[293] = bucket_link_a22*w_bucket_link_theta_y - bucket_link_a12*w_bucket_link_theta_z
+    out[294] = bucket_link_a00*w_bucket_link_theta_z - bucket_link_a20*w_bucket_link_theta_x
+    out[295] = bucket_link_a01*w_bucket_link_theta_z - bucket_link_a21*w_bucket_link_theta_x
+    out[296] = bucket_link_a02*w_bucket_link_theta_z - bucket_link_a22*w_bucket_link_theta_x
+    out[297] = bucket_link_a10*w_bucket_link_theta_x - bucket_link_a00*w_bucket_link_theta_y
+    out[298] = bucket_link_a11*w_bucket_link_theta_x - bucket_link_a01*w_bucket_link_theta_y
+    out[299] = bucket_link_a12*w_bucket_link_theta_x - bucket_link_a02*w_bucket_link_theta_y
+    out[300] = y_bucket_link_x
+    out[301] = y_bucket_link_y
+    out[302] = y_bucket_link_z
+    out[303] = y_bucket_link_theta_x
+    out[304] = y_bucket_link_theta_y
+    out[305] = y_bucket_link_theta_z
+    out[306] = z_bucket_link_x
+    out[307] = z_bucket_link_y
+    out[308] = z_bucket_link_z
+    out[309] = z_bucket_link_theta_x
+    out[310] = z_bucket_link_theta_y
+    out[311] = z_bucket_link_theta_z
+    out[312] = w_bucket_x
+    out[313] = w_bucket_y
+    out[314] = w_bucket_z
+    out[315] = bucket_a20*w_bucket_theta_y - bucket_a10*w_bucket_theta_z
+    out[316] = bucket_a21*w_bucket_theta_y - bucket_a11*w_bucket_theta_z
+    out[317] = bucket_a22*w_bucket_theta_y - bucket_a12*w_bucket_theta_z
+    out[318] = bucket_a00*w_bucket_theta_z - bucket_a20*w_bucket_theta_x
+    out[319] = bucket_a01*w_bucket_theta_z - bucket_a21*w_bucket_theta_x
+    out[320] = bucket_a02*w_bucket_theta_z - bucket_a22*w_bucket_theta_x
+    out[321] = bucket_a10*w_bucket_theta_x - bucket_a00*w_bucket_theta_y
+    out[322] = bucket_a11*w_bucket_theta_x - bucket_a01*w_bucket_theta_y
+    out[323] = bucket_a12*w_bucket_theta_x - bucket_a02*w_bucket_theta_y
+    out[324] = y_bucket_x
+    out[325] = y_bucket_y
+    out[326] = y_bucket_z
+    out[327] = y_bucket_theta_x
+    out[328] = y_bucket_theta_y
+    out[329] = y_bucket_theta_z
+    out[330] = z_bucket_x
+    out[331] = z_bucket_y
+    out[332] = z_bucket_z
+    out[333] = z_bucket_theta_x
+    out[334] = z_bucket_theta_y
+    out[335] = z_bucket_theta_z
+    return out
+
+
+def _joints_phi_p(q, p):
+    """Phi_p values of the joint rows (33 entries)."""
+    _, _, _, _, _, _, _, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
+    boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a22 = -1 + 2*boom_qw**2 + 2*boom_qz**2
+    arm_a00 = -1 + 2*arm_qw**2 + 2*arm_qx**2
+    arm_a02 = 2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a10 = 2*arm_qw*arm_qz + 2*arm_qx*arm_qy
+    arm_a12 = -2*arm_qw*arm_qx + 2*arm_qy*arm_qz
+    arm_a20 = -2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a22 = -1 + 2*arm_qw**2 + 2*arm_qz**2
+    side_link_a00 = -1 + 2*side_link_qw**2 + 2*side_link_qx**2
+    side_link_a02 = 2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a10 = 2*side_link_qw*side_link_qz + 2*side_link_qx*side_link_qy
+    side_link_a12 = -2*side_link_qw*side_link_qx + 2*side_link_qy*side_link_qz
+    side_link_a20 = -2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a22 = -1 + 2*side_link_qw**2 + 2*side_link_qz**2
+    bucket_link_a00 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qx**2
+    bucket_link_a02 = 2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a10 = 2*bucket_link_qw*bucket_link_qz + 2*bucket_link_qx*bucket_link_qy
+    bucket_link_a12 = -2*bucket_link_qw*bucket_link_qx + 2*bucket_link_qy*bucket_link_qz
+    bucket_link_a20 = -2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a22 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qz**2
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    out = _zeros(33, q, ())
+    out[0] = -boom_a00
+    out[1] = -boom_a02
+    out[2] = -boom_a10
+    out[3] = -boom_a12
+    out[4] = -boom_a20
+    out[5] = -boom_a22
+    out[6] = -boom_a00
+    out[7] = -boom_a02
+    out[8] = -boom_a10
+    out[9] = -boom_a12
+    out[10] = -boom_a20
+    out[11] = -boom_a22
+    out[12] = -arm_a00
+    out[13] = -arm_a02
+    out[14] = -arm_a10
+    out[15] = -arm_a12
+    out[16] = -arm_a20
+    out[17] = -arm_a22
+    out[18] = 0.822595724821202*side_link_a02 - 0.5686266556413632*side_link_a00
+    out[19] = 0.60493530832545*bucket_link_a00 + 0.796274621434837*bucket_link_a02
+    out[20] = 0.822595724821202*side_link_a12 - 0.5686266556413632*side_link_a10
+    out[21] = 0.60493530832545*bucket_link_a10 + 0.796274621434837*bucket_link_a12
+    out[22] = 0.822595724821202*side_link_a22 - 0.5686266556413632*side_link_a20
+    out[23] = 0.60493530832545*bucket_link_a20 + 0.796274621434837*bucket_link_a22
+    out[24] = -bucket_a00
+    out[25] = -bucket_a02
+    out[26] = -bucket_a10
+    out[27] = -bucket_a12
+    out[28] = -bucket_a20
+    out[29] = -bucket_a22
+    out[30] = 0.5686266556413632*side_link_a00 - 0.822595724821202*side_link_a02
+    out[31] = 0.5686266556413632*side_link_a10 - 0.822595724821202*side_link_a12
+    out[32] = 0.5686266556413632*side_link_a20 - 0.822595724821202*side_link_a22
+    return out
+
+
+def _joints_dvel(q, v, p):
+    """[M_v | E_v] values (velocity sensitivity) of the joint rows (396 entries)."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
+    upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
+    upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
+    upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
+    upper_a10 = 2*upper_qw*upper_qz + 2*upper_qx*upper_qy
+    upper_a11 = -1 + 2*upper_qw**2 + 2*upper_qy**2
+    upper_a12 = -2*upper_qw*upper_qx + 2*upper_qy*upper_qz
+    upper_a20 = -2*upper_qw*upper_qy + 2*upper_qx*upper_qz
+    upper_a21 = 2*upper_qw*upper_qx + 2*upper_qy*upper_qz
+    upper_a22 = -1 + 2*upper_qw**2 + 2*upper_qz**2
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = -1 + 2*boom_qw**2 + 2*boom_qy**2
+    boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a22 = -1 + 2*boom_qw**2 + 2*boom_qz**2
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a01 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a02 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a11 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qy**2
+    boom_cyl_l_barrel_a12 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a21 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a22 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qz**2
+    boom_cyl_l_rod_a01 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
+    boom_cyl_l_rod_a02 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a11 = -1 + 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qy**2
+    boom_cyl_l_rod_a12 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a21 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a22 = -1 + 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qz**2
+    boom_cyl_r_barrel_a00 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qx**2
+    boom_cyl_r_barrel_a01 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a02 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a10 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a11 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qy**2
+    boom_cyl_r_barrel_a12 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a20 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a21 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a22 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qz**2
+    boom_cyl_r_rod_a01 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
+    boom_cyl_r_rod_a02 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a11 = -1 + 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qy**2
+    boom_cyl_r_rod_a12 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a21 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a22 = -1 + 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qz**2
+    arm_a00 = -1 + 2*arm_qw**2 + 2*arm_qx**2
+    arm_a01 = -2*arm_qw*arm_qz + 2*arm_qx*arm_qy
+    arm_a02 = 2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a10 = 2*arm_qw*arm_qz + 2*arm_qx*arm_qy
+    arm_a11 = -1 + 2*arm_qw**2 + 2*arm_qy**2
+    arm_a12 = -2*arm_qw*arm_qx + 2*arm_qy*arm_qz
+    arm_a20 = -2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a21 = 2*arm_qw*arm_qx + 2*arm_qy*arm_qz
+    arm_a22 = -1 + 2*arm_qw**2 + 2*arm_qz**2
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a01 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a02 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a11 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qy**2
+    arm_cyl_barrel_a12 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a21 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a22 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qz**2
+    arm_cyl_rod_a01 = -2*arm_cyl_rod_qw*arm_cyl_rod_qz + 2*arm_cyl_rod_qx*arm_cyl_rod_qy
+    arm_cyl_rod_a02 = 2*arm_cyl_rod_qw*arm_cyl_rod_qy + 2*arm_cyl_rod_qx*arm_cyl_rod_qz
+    arm_cyl_rod_a11 = -1 + 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qy**2
+    arm_cyl_rod_a12 = -2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a21 = 2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a22 = -1 + 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qz**2
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a01 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a02 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a11 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qy**2
+    bucket_cyl_barrel_a12 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a21 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a22 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qz**2
+    bucket_cyl_rod_a01 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qy
+    bucket_cyl_rod_a02 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qz
+    bucket_cyl_rod_a11 = -1 + 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qy**2
+    bucket_cyl_rod_a12 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a21 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a22 = -1 + 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qz**2
+    side_link_a00 = -1 + 2*side_link_qw**2 + 2*side_link_qx**2
+    side_link_a02 = 2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a10 = 2*side_link_qw*side_link_qz + 2*side_link_qx*side_link_qy
+    side_link_a12 = -2*side_link_qw*side_link_qx + 2*side_link_qy*side_link_qz
+    side_link_a20 = -2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a22 = -1 + 2*side_link_qw**2 + 2*side_link_qz**2
+    bucket_link_a00 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qx**2
+    bucket_link_a02 = 2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a10 = 2*bucket_link_qw*bucket_link_qz + 2*bucket_link_qx*bucket_link_qy
+    bucket_link_a12 = -2*bucket_link_qw*bucket_link_qx + 2*bucket_link_qy*bucket_link_qz
+    bucket_link_a20 = -2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a22 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qz**2
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a01 = -2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a11 = -1 + 2*bucket_qw**2 + 2*bucket_qy**2
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a21 = 2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    c0 = (22767/100000)*upper_a10 + (195729/100000)*upper_a12
+    c1 = c0*v_upper_theta_y
+    c2 = (22767/100000)*upper_a20 + (195729/100000)*upper_a22
+    c3 = c2*v_upper_theta_z
+    c4 = (22767/100000)*upper_a00 + (195729/100000)*upper_a02
+    c5 = -c4
+    c6 = -c0
+    c7 = c4*v_upper_theta_x
+    c8 = -c2
+    c9 = boom_a02*upper_a11
+    c10 = boom_a02*upper_a21
+    c11 = boom_a12*upper_a11
+    c12 = boom_a22*upper_a21
+    c13 = c11 + c12
+    c14 = -c13
+    c15 = boom_a12*upper_a01
+    c16 = boom_a12*upper_a21
+    c17 = boom_a02*upper_a01
+    c18 = c12 + c17
+    c19 = -c18
+    c20 = boom_a22*upper_a01
+    c21 = boom_a22*upper_a11
+    c22 = c11 + c17
+    c23 = -c22
+    c24 = boom_a00*upper_a11
+    c25 = boom_a00*upper_a21
+    c26 = boom_a10*upper_a11
+    c27 = boom_a20*upper_a21
+    c28 = c26 + c27
+    c29 = -c28
+    c30 = boom_a10*upper_a01
+    c31 = boom_a10*upper_a21
+    c32 = boom_a00*upper_a01
+    c33 = c27 + c32
+    c34 = -c33
+    c35 = boom_a20*upper_a01
+    c36 = boom_a20*upper_a11
+    c37 = c26 + c32
+    c38 = -c37
+    c39 = (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
+    c40 = c39*v_upper_theta_y
+    c41 = (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
+    c42 = c41*v_upper_theta_z
+    c43 = (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
+    c44 = -c43
+    c45 = -c39
+    c46 = c43*v_upper_theta_x
+    c47 = -c41
+    c48 = boom_cyl_l_barrel_a02*upper_a11
+    c49 = boom_cyl_l_barrel_a02*upper_a21
+    c50 = boom_cyl_l_barrel_a12*upper_a11
+    c51 = boom_cyl_l_barrel_a22*upper_a21
+    c52 = c50 + c51
+    c53 = -c52
+    c54 = boom_cyl_l_barrel_a12*upper_a01
+    c55 = boom_cyl_l_barrel_a12*upper_a21
+    c56 = boom_cyl_l_barrel_a02*upper_a01
+    c57 = c51 + c56
+    c58 = -c57
+    c59 = boom_cyl_l_barrel_a22*upper_a01
+    c60 = boom_cyl_l_barrel_a22*upper_a11
+    c61 = c50 + c56
+    c62 = -c61
+    c63 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a01
+    c64 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a01
+    c65 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11
+    c66 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21
+    c67 = c65 + c66
+    c68 = -c67
+    c69 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a11
+    c70 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a11
+    c71 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01
+    c72 = c66 + c71
+    c73 = -c72
+    c74 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a21
+    c75 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a21
+    c76 = c65 + c71
+    c77 = -c76
+    c78 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a02
+    c79 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a02
+    c80 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12
+    c81 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22
+    c82 = c80 + c81
+    c83 = -c82
+    c84 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a12
+    c85 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a12
+    c86 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02
+    c87 = c81 + c86
+    c88 = -c87
+    c89 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a22
+    c90 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a22
+    c91 = c80 + c86
+    c92 = -c91
+    c93 = boom_cyl_l_barrel_a11*v_boom_cyl_l_barrel_theta_z
+    c94 = boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_y
+    c95 = c93 - c94
+    c96 = boom_cyl_l_barrel_a01*v_boom_cyl_l_barrel_theta_z
+    c97 = c96 - boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_x
+    c98 = boom_cyl_l_barrel_a01*v_boom_cyl_l_barrel_theta_y
+    c99 = boom_cyl_l_barrel_a11*v_boom_cyl_l_barrel_theta_x
+    c100 = c98 - c99
+    c101 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c102 = -c101
+    c103 = boom_cyl_l_barrel_a11*v_boom_cyl_l_barrel_theta_y
+    c104 = boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_z
+    c105 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c106 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c107 = -c106
+    c108 = -c105
+    c109 = boom_cyl_l_barrel_a01*v_boom_cyl_l_barrel_theta_x
+    c110 = boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_y
+    c111 = boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_x
+    c112 = boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_x
+    c113 = boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_theta_y
+    c114 = boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_z
+    c115 = boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_theta_x
+    c116 = (1.0)*boom_cyl_l_rod_a02
+    c117 = (1.0)*boom_cyl_l_barrel_a11
+    c118 = c117*v_boom_cyl_l_rod_theta_y
+    c119 = (1.0)*boom_cyl_l_barrel_a21
+    c120 = c119*v_boom_cyl_l_rod_theta_z
+    c121 = c117*boom_cyl_l_rod_a12
+    c122 = c119*boom_cyl_l_rod_a22
+    c123 = c121 + c122
+    c124 = -c123
+    c125 = (1.0)*boom_cyl_l_rod_a12
+    c126 = boom_cyl_l_barrel_a01*v_boom_cyl_l_rod_theta_x
+    c127 = c116*boom_cyl_l_barrel_a01
+    c128 = c122 + c127
+    c129 = -c128
+    c130 = (1.0)*boom_cyl_l_rod_a22
+    c131 = c121 + c127
+    c132 = -c131
+    c133 = boom_cyl_l_rod_a02*v_boom_cyl_l_rod_theta_x
+    c134 = (8/25)*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    c135 = -c134*v_boom_theta_y
+    c136 = (8/25)*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    c137 = -c136*v_boom_theta_z
+    c138 = (8/25)*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
+    c139 = -c138*v_boom_theta_x
+    c140 = -8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
+    c141 = c140*v_upper_theta_y
+    c142 = -8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
+    c143 = c142*v_upper_theta_z
+    c144 = -8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
+    c145 = -c144
+    c146 = -c140
+    c147 = c144*v_upper_theta_x
+    c148 = -c142
+    c149 = boom_cyl_r_barrel_a02*upper_a11
+    c150 = boom_cyl_r_barrel_a02*upper_a21
+    c151 = boom_cyl_r_barrel_a12*upper_a11
+    c152 = boom_cyl_r_barrel_a22*upper_a21
+    c153 = c151 + c152
+    c154 = -c153
+    c155 = boom_cyl_r_barrel_a12*upper_a01
+    c156 = boom_cyl_r_barrel_a12*upper_a21
+    c157 = boom_cyl_r_barrel_a02*upper_a01
+    c158 = c152 + c157
+    c159 = -c158
+    c160 = boom_cyl_r_barrel_a22*upper_a01
+    c161 = boom_cyl_r_barrel_a22*upper_a11
+    c162 = c151 + c157
+    c163 = -c162
+    c164 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a01
+    c165 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a01
+    c166 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11
+    c167 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21
+    c168 = c166 + c167
+    c169 = -c168
+    c170 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a11
+    c171 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a11
+    c172 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01
+    c173 = c167 + c172
+    c174 = -c173
+    c175 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a21
+    c176 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a21
+    c177 = c166 + c172
+    c178 = -c177
+    c179 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a02
+    c180 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a02
+    c181 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12
+    c182 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22
+    c183 = c181 + c182
+    c184 = -c183
+    c185 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a12
+    c186 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a12
+    c187 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02
+    c188 = c182 + c187
+    c189 = -c188
+    c190 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a22
+    c191 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a22
+    c192 = c181 + c187
+    c193 = -c192
+    c194 = boom_cyl_r_barrel_a11*v_boom_cyl_r_barrel_theta_z
+    c195 = boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_y
+    c196 = c194 - c195
+    c197 = boom_cyl_r_barrel_a01*v_boom_cyl_r_barrel_theta_z
+    c198 = c197 - boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_x
+    c199 = boom_cyl_r_barrel_a01*v_boom_cyl_r_barrel_theta_y
+    c200 = boom_cyl_r_barrel_a11*v_boom_cyl_r_barrel_theta_x
+    c201 = c199 - c200
+    c202 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x
+    c203 = -c202
+    c204 = boom_cyl_r_barrel_a11*v_boom_cyl_r_barrel_theta_y
+    c205 = boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_z
+    c206 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y
+    c207 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z
+    c208 = -c207
+    c209 = -c206
+    c210 = boom_cyl_r_barrel_a01*v_boom_cyl_r_barrel_theta_x
+    c211 = boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_y
+    c212 = boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_x
+    c213 = boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_y - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_x
+    c214 = boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_theta_y
+    c215 = boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_z
+    c216 = boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_theta_x
+    c217 = (1.0)*boom_cyl_r_rod_a02
+    c218 = (1.0)*boom_cyl_r_barrel_a11
+    c219 = c218*v_boom_cyl_r_rod_theta_y
+    c220 = (1.0)*boom_cyl_r_barrel_a21
+    c221 = c220*v_boom_cyl_r_rod_theta_z
+    c222 = c218*boom_cyl_r_rod_a12
+    c223 = c220*boom_cyl_r_rod_a22
+    c224 = c222 + c223
+    c225 = -c224
+    c226 = (1.0)*boom_cyl_r_rod_a12
+    c227 = boom_cyl_r_barrel_a01*v_boom_cyl_r_rod_theta_x
+    c228 = c217*boom_cyl_r_barrel_a01
+    c229 = c223 + c228
+    c230 = -c229
+    c231 = (1.0)*boom_cyl_r_rod_a22
+    c232 = c222 + c228
+    c233 = -c232
+    c234 = boom_cyl_r_rod_a02*v_boom_cyl_r_rod_theta_x
+    c235 = -8/25*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    c236 = -c235*v_boom_theta_y
+    c237 = -8/25*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    c238 = -c237*v_boom_theta_z
+    c239 = -8/25*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
+    c240 = -c239*v_boom_theta_x
+    c241 = (23939/5000)*boom_a10 + (29959/10000)*boom_a12
+    c242 = c241*v_boom_theta_y
+    c243 = (23939/5000)*boom_a20 + (29959/10000)*boom_a22
+    c244 = c243*v_boom_theta_z
+    c245 = (23939/5000)*boom_a00 + (29959/10000)*boom_a02
+    c246 = -c245
+    c247 = -c241
+    c248 = c245*v_boom_theta_x
+    c249 = -c243
+    c250 = arm_a02*boom_a11
+    c251 = arm_a02*boom_a21
+    c252 = arm_a12*boom_a11
+    c253 = arm_a22*boom_a21
+    c254 = c252 + c253
+    c255 = -c254
+    c256 = arm_a12*boom_a01
+    c257 = arm_a12*boom_a21
+    c258 = arm_a02*boom_a01
+    c259 = c253 + c258
+    c260 = -c259
+    c261 = arm_a22*boom_a01
+    c262 = arm_a22*boom_a11
+    c263 = c252 + c258
+    c264 = -c263
+    c265 = arm_a00*boom_a11
+    c266 = arm_a00*boom_a21
+    c267 = arm_a10*boom_a11
+    c268 = arm_a20*boom_a21
+    c269 = c267 + c268
+    c270 = -c269
+    c271 = arm_a10*boom_a01
+    c272 = arm_a10*boom_a21
+    c273 = arm_a00*boom_a01
+    c274 = c268 + c273
+    c275 = -c274
+    c276 = arm_a20*boom_a01
+    c277 = arm_a20*boom_a11
+    c278 = c267 + c273
+    c279 = -c278
+    c280 = (183/80)*boom_a10 + (557/200)*boom_a12
+    c281 = c280*v_boom_theta_y
+    c282 = (183/80)*boom_a20 + (557/200)*boom_a22
+    c283 = c282*v_boom_theta_z
+    c284 = (183/80)*boom_a00 + (557/200)*boom_a02
+    c285 = -c284
+    c286 = -c280
+    c287 = c284*v_boom_theta_x
+    c288 = -c282
+    c289 = arm_cyl_barrel_a02*boom_a11
+    c290 = arm_cyl_barrel_a02*boom_a21
+    c291 = arm_cyl_barrel_a12*boom_a11
+    c292 = arm_cyl_barrel_a22*boom_a21
+    c293 = c291 + c292
+    c294 = -c293
+    c295 = arm_cyl_barrel_a12*boom_a01
+    c296 = arm_cyl_barrel_a12*boom_a21
+    c297 = arm_cyl_barrel_a02*boom_a01
+    c298 = c292 + c297
+    c299 = -c298
+    c300 = arm_cyl_barrel_a22*boom_a01
+    c301 = arm_cyl_barrel_a22*boom_a11
+    c302 = c291 + c297
+    c303 = -c302
+    c304 = arm_cyl_barrel_a10*arm_cyl_rod_a01
+    c305 = arm_cyl_barrel_a20*arm_cyl_rod_a01
+    c306 = arm_cyl_barrel_a10*arm_cyl_rod_a11
+    c307 = arm_cyl_barrel_a20*arm_cyl_rod_a21
+    c308 = c306 + c307
+    c309 = -c308
+    c310 = arm_cyl_barrel_a00*arm_cyl_rod_a11
+    c311 = arm_cyl_barrel_a20*arm_cyl_rod_a11
+    c312 = arm_cyl_barrel_a00*arm_cyl_rod_a01
+    c313 = c307 + c312
+    c314 = -c313
+    c315 = arm_cyl_barrel_a00*arm_cyl_rod_a21
+    c316 = arm_cyl_barrel_a10*arm_cyl_rod_a21
+    c317 = c306 + c312
+    c318 = -c317
+    c319 = arm_cyl_barrel_a10*arm_cyl_rod_a02
+    c320 = arm_cyl_barrel_a20*arm_cyl_rod_a02
+    c321 = arm_cyl_barrel_a10*arm_cyl_rod_a12
+    c322 = arm_cyl_barrel_a20*arm_cyl_rod_a22
+    c323 = c321 + c322
+    c324 = -c323
+    c325 = arm_cyl_barrel_a00*arm_cyl_rod_a12
+    c326 = arm_cyl_barrel_a20*arm_cyl_rod_a12
+    c327 = arm_cyl_barrel_a00*arm_cyl_rod_a02
+    c328 = c322 + c327
+    c329 = -c328
+    c330 = arm_cyl_barrel_a00*arm_cyl_rod_a22
+    c331 = arm_cyl_barrel_a10*arm_cyl_rod_a22
+    c332 = c321 + c327
+    c333 = -c332
+    c334 = arm_cyl_barrel_a11*v_arm_cyl_barrel_theta_z
+    c335 = arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_y
+    c336 = c334 - c335
+    c337 = arm_cyl_barrel_a01*v_arm_cyl_barrel_theta_z
+    c338 = c337 - arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_x
+    c339 = arm_cyl_barrel_a01*v_arm_cyl_barrel_theta_y
+    c340 = arm_cyl_barrel_a11*v_arm_cyl_barrel_theta_x
+    c341 = c339 - c340
+    c342 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c343 = -c342
+    c344 = arm_cyl_barrel_a11*v_arm_cyl_barrel_theta_y
+    c345 = arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_z
+    c346 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c347 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c348 = -c347
+    c349 = -c346
+    c350 = arm_cyl_barrel_a01*v_arm_cyl_barrel_theta_x
+    c351 = arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_y
+    c352 = arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_x
+    c353 = arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_x
+    c354 = arm_cyl_barrel_a12*v_arm_cyl_barrel_theta_y
+    c355 = arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_z
+    c356 = arm_cyl_barrel_a02*v_arm_cyl_barrel_theta_x
+    c357 = (1.0)*arm_cyl_rod_a02
+    c358 = (1.0)*arm_cyl_barrel_a11
+    c359 = c358*v_arm_cyl_rod_theta_y
+    c360 = (1.0)*arm_cyl_barrel_a21
+    c361 = c360*v_arm_cyl_rod_theta_z
+    c362 = c358*arm_cyl_rod_a12
+    c363 = c360*arm_cyl_rod_a22
+    c364 = c362 + c363
+    c365 = -c364
+    c366 = (1.0)*arm_cyl_rod_a12
+    c367 = arm_cyl_barrel_a01*v_arm_cyl_rod_theta_x
+    c368 = c357*arm_cyl_barrel_a01
+    c369 = c363 + c368
+    c370 = -c369
+    c371 = (1.0)*arm_cyl_rod_a22
+    c372 = c362 + c368
+    c373 = -c372
+    c374 = arm_cyl_rod_a02*v_arm_cyl_rod_theta_x
+    c375 = arm_a10*p_F_x + arm_a12*p_F_z
+    c376 = -c375*v_arm_theta_y
+    c377 = arm_a20*p_F_x + arm_a22*p_F_z
+    c378 = -c377*v_arm_theta_z
+    c379 = arm_a00*p_F_x + arm_a02*p_F_z
+    c380 = -c379*v_arm_theta_x
+    c381 = (9477/5000)*arm_a10 + (21809/10000)*arm_a12
+    c382 = c381*v_arm_theta_y
+    c383 = (9477/5000)*arm_a20 + (21809/10000)*arm_a22
+    c384 = c383*v_arm_theta_z
+    c385 = (9477/5000)*arm_a00 + (21809/10000)*arm_a02
+    c386 = -c385
+    c387 = -c381
+    c388 = c385*v_arm_theta_x
+    c389 = -c383
+    c390 = arm_a11*bucket_a02
+    c391 = arm_a21*bucket_a02
+    c392 = arm_a11*bucket_a12
+    c393 = arm_a21*bucket_a22
+    c394 = c392 + c393
+    c395 = -c394
+    c396 = arm_a01*bucket_a12
+    c397 = arm_a21*bucket_a12
+    c398 = arm_a01*bucket_a02
+    c399 = c393 + c398
+    c400 = -c399
+    c401 = arm_a01*bucket_a22
+    c402 = arm_a11*bucket_a22
+    c403 = c392 + c398
+    c404 = -c403
+    c405 = arm_a11*bucket_a00
+    c406 = arm_a21*bucket_a00
+    c407 = arm_a11*bucket_a10
+    c408 = arm_a21*bucket_a20
+    c409 = c407 + c408
+    c410 = -c409
+    c411 = arm_a01*bucket_a10
+    c412 = arm_a21*bucket_a10
+    c413 = arm_a01*bucket_a00
+    c414 = c408 + c413
+    c415 = -c414
+    c416 = arm_a01*bucket_a20
+    c417 = arm_a11*bucket_a20
+    c418 = c407 + c413
+    c419 = -c418
+    c420 = (7877/5000)*arm_a10 + (18799/10000)*arm_a12
+    c421 = c420*v_arm_theta_y
+    c422 = (7877/5000)*arm_a20 + (18799/10000)*arm_a22
+    c423 = c422*v_arm_theta_z
+    c424 = (7877/5000)*arm_a00 + (18799/10000)*arm_a02
+    c425 = -c424
+    c426 = -c420
+    c427 = c424*v_arm_theta_x
+    c428 = -c422
+    c429 = arm_a11*side_link_a02
+    c430 = arm_a21*side_link_a02
+    c431 = arm_a11*side_link_a12
+    c432 = arm_a21*side_link_a22
+    c433 = c431 + c432
+    c434 = -c433
+    c435 = arm_a01*side_link_a12
+    c436 = arm_a21*side_link_a12
+    c437 = arm_a01*side_link_a02
+    c438 = c432 + c437
+    c439 = -c438
+    c440 = arm_a01*side_link_a22
+    c441 = arm_a11*side_link_a22
+    c442 = c431 + c437
+    c443 = -c442
+    c444 = arm_a11*side_link_a00
+    c445 = arm_a21*side_link_a00
+    c446 = arm_a11*side_link_a10
+    c447 = arm_a21*side_link_a20
+    c448 = c446 + c447
+    c449 = -c448
+    c450 = arm_a01*side_link_a10
+    c451 = arm_a21*side_link_a10
+    c452 = arm_a01*side_link_a00
+    c453 = c447 + c452
+    c454 = -c453
+    c455 = arm_a01*side_link_a20
+    c456 = arm_a11*side_link_a20
+    c457 = c446 + c452
+    c458 = -c457
+    c459 = 0.5686266556413632*side_link_a10
+    c460 = c459*p_side_link - 0.822595724821202*p_side_link*side_link_a12
+    c461 = -c460*v_side_link_theta_y
+    c462 = 0.5686266556413632*side_link_a20
+    c463 = c462*p_side_link - 0.822595724821202*p_side_link*side_link_a22
+    c464 = -c463*v_side_link_theta_z
+    c465 = 0.5686266556413632*side_link_a00
+    c466 = c465*p_side_link - 0.822595724821202*p_side_link*side_link_a02
+    c467 = 0.60493530832545*bucket_link_a10
+    c468 = 0.796274621434837*bucket_link_a12
+    c469 = c467*p_bucket_link + c468*p_bucket_link
+    c470 = c469*v_bucket_link_theta_y
+    c471 = 0.60493530832545*bucket_link_a20
+    c472 = 0.796274621434837*bucket_link_a22
+    c473 = c471*p_bucket_link + c472*p_bucket_link
+    c474 = c473*v_bucket_link_theta_z
+    c475 = 0.60493530832545*bucket_link_a00
+    c476 = 0.796274621434837*bucket_link_a02
+    c477 = c475*p_bucket_link + c476*p_bucket_link
+    c478 = -c477
+    c479 = c462 - 0.822595724821202*side_link_a22
+    c480 = c459 - 0.822595724821202*side_link_a12
+    c481 = c471 + c472
+    c482 = c467 + c468
+    c483 = -c466*v_side_link_theta_x
+    c484 = -c469
+    c485 = c477*v_bucket_link_theta_x
+    c486 = c465 - 0.822595724821202*side_link_a02
+    c487 = c475 + c476
+    c488 = -c473
+    c489 = bucket_a10*p_K_x + bucket_a12*p_K_z
+    c490 = -c489*v_bucket_theta_y
+    c491 = bucket_a20*p_K_x + bucket_a22*p_K_z
+    c492 = -c491*v_bucket_theta_z
+    c493 = bucket_a00*p_K_x + bucket_a02*p_K_z
+    c494 = -c493*v_bucket_theta_x
+    c495 = (0.7962746214343476)*bucket_link_a10
+    c496 = c495*bucket_a01 - 0.6049353083260941*bucket_a01*bucket_link_a12
+    c497 = (0.7962746214343476)*bucket_link_a20
+    c498 = c497*bucket_a01 - 0.6049353083260941*bucket_a01*bucket_link_a22
+    c499 = (0.6049353083260941)*bucket_link_a22
+    c500 = c497*bucket_a21 - c499*bucket_a21
+    c501 = c495*bucket_a11 - 0.6049353083260941*bucket_a11*bucket_link_a12
+    c502 = c500 + c501
+    c503 = (0.7962746214343476)*bucket_link_a00
+    c504 = c503*bucket_a11 - 0.6049353083260941*bucket_a11*bucket_link_a02
+    c505 = c497*bucket_a11 - 0.6049353083260941*bucket_a11*bucket_link_a22
+    c506 = (0.6049353083260941)*bucket_link_a02
+    c507 = c503*bucket_a01 - c506*bucket_a01
+    c508 = c500 + c507
+    c509 = c503*bucket_a21 - 0.6049353083260941*bucket_a21*bucket_link_a02
+    c510 = c495*bucket_a21 - 0.6049353083260941*bucket_a21*bucket_link_a12
+    c511 = c501 + c507
+    c512 = c503 - c506
+    c513 = bucket_a11*v_bucket_link_theta_y
+    c514 = -c512
+    c515 = bucket_a11*v_bucket_theta_y
+    c516 = bucket_a21*v_bucket_link_theta_z
+    c517 = bucket_a21*v_bucket_theta_z
+    c518 = c495 - 0.6049353083260941*bucket_link_a12
+    c519 = -c518
+    c520 = c519*bucket_a11
+    c521 = c497 - c499
+    c522 = -c521*bucket_a21
+    c523 = c518*bucket_a11
+    c524 = -c521
+    c525 = -c524*bucket_a21
+    c526 = bucket_a01*v_bucket_link_theta_x
+    c527 = bucket_a01*v_bucket_theta_x
+    c528 = c512*bucket_a01
+    c529 = c514*bucket_a01
+    c530 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
+    c531 = -c530*v_arm_theta_y
+    c532 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
+    c533 = -c532*v_arm_theta_z
+    c534 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
+    c535 = -c534*v_arm_theta_x
+    c536 = arm_a11*bucket_cyl_barrel_a02
+    c537 = arm_a21*bucket_cyl_barrel_a02
+    c538 = arm_a11*bucket_cyl_barrel_a12
+    c539 = arm_a21*bucket_cyl_barrel_a22
+    c540 = c538 + c539
+    c541 = -c540
+    c542 = arm_a01*bucket_cyl_barrel_a12
+    c543 = arm_a21*bucket_cyl_barrel_a12
+    c544 = arm_a01*bucket_cyl_barrel_a02
+    c545 = c544 + c539
+    c546 = -c545
+    c547 = arm_a01*bucket_cyl_barrel_a22
+    c548 = arm_a11*bucket_cyl_barrel_a22
+    c549 = c544 + c538
+    c550 = -c549
+    c551 = bucket_cyl_barrel_a10*bucket_cyl_rod_a01
+    c552 = bucket_cyl_barrel_a20*bucket_cyl_rod_a01
+    c553 = bucket_cyl_barrel_a10*bucket_cyl_rod_a11
+    c554 = bucket_cyl_barrel_a20*bucket_cyl_rod_a21
+    c555 = c553 + c554
+    c556 = -c555
+    c557 = bucket_cyl_barrel_a00*bucket_cyl_rod_a11
+    c558 = bucket_cyl_barrel_a20*bucket_cyl_rod_a11
+    c559 = bucket_cyl_barrel_a00*bucket_cyl_rod_a01
+    c560 = c554 + c559
+    c561 = -c560
+    c562 = bucket_cyl_barrel_a00*bucket_cyl_rod_a21
+    c563 = bucket_cyl_barrel_a10*bucket_cyl_rod_a21
+    c564 = c553 + c559
+    c565 = -c564
+    c566 = bucket_cyl_barrel_a10*bucket_cyl_rod_a02
+    c567 = bucket_cyl_barrel_a20*bucket_cyl_rod_a02
+    c568 = bucket_cyl_barrel_a10*bucket_cyl_rod_a12
+    c569 = bucket_cyl_barrel_a20*bucket_cyl_rod_a22
+    c570 = c568 + c569
+    c571 = -c570
+    c572 = bucket_cyl_barrel_a00*bucket_cyl_rod_a12
+    c573 = bucket_cyl_barrel_a20*bucket_cyl_rod_a12
+    c574 = bucket_cyl_barrel_a00*bucket_cyl_rod_a02
+    c575 = c569 + c574
+    c576 = -c575
+    c577 = bucket_cyl_barrel_a00*bucket_cyl_rod_a22
+    c578 = bucket_cyl_barrel_a10*bucket_cyl_rod_a22
+    c579 = c568 + c574
+    c580 = -c579
+    c581 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_z
+    c582 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_y
+    c583 = c581 - c582
+    c584 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_z
+    c585 = c584 - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x
+    c586 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_y
+    c587 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_x
+    c588 = c586 - c587
+    c589 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c590 = -c589
+    c591 = bucket_cyl_barrel_a11*v_bucket_cyl_barrel_theta_y
+    c592 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_z
+    c593 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c594 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c595 = -c594
+    c596 = -c593
+    c597 = bucket_cyl_barrel_a01*v_bucket_cyl_barrel_theta_x
+    c598 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_y
+    c599 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x
+    c600 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_x
+    c601 = bucket_cyl_barrel_a12*v_bucket_cyl_barrel_theta_y
+    c602 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_z
+    c603 = bucket_cyl_barrel_a02*v_bucket_cyl_barrel_theta_x
+    c604 = (1.0)*bucket_cyl_rod_a02
+    c605 = (1.0)*bucket_cyl_barrel_a11
+    c606 = c605*v_bucket_cyl_rod_theta_y
+    c607 = (1.0)*bucket_cyl_barrel_a21
+    c608 = c607*v_bucket_cyl_rod_theta_z
+    c609 = c605*bucket_cyl_rod_a12
+    c610 = c607*bucket_cyl_rod_a22
+    c611 = c609 + c610
+    c612 = -c611
+    c613 = (1.0)*bucket_cyl_rod_a12
+    c614 = bucket_cyl_barrel_a01*v_bucket_cyl_rod_theta_x
+    c615 = c604*bucket_cyl_barrel_a01
+    c616 = c610 + c615
+    c617 = -c616
+    c618 = (1.0)*bucket_cyl_rod_a22
+    c619 = c609 + c615
+    c620 = -c619
+    c621 = bucket_cyl_rod_a02*v_bucket_cyl_rod_theta_x
+    c622 = 0.5686266556413632*side_link_a10
+    c623 = c622*p_side_link - 0.822595724821202*p_side_link*side_link_a12
+    c624 = c623*v_side_link_theta_y
+    c625 = 0.5686266556413632*side_link_a20
+    c626 = 0.822595724821202*side_link_a22
+    c627 = c625*p_side_link - c626*p_side_link
+    c628 = c627*v_side_link_theta_z
+    c629 = 0.5686266556413632*side_link_a00
+    c630 = c629*p_side_link - 0.822595724821202*p_side_link*side_link_a02
+    c631 = -c630
+    c632 = c625 - c626
+    c633 = c622 - 0.822595724821202*side_link_a12
+    c634 = -c623
+    c635 = c630*v_side_link_theta_x
+    c636 = c629 - 0.822595724821202*side_link_a02
+    c637 = -c627
+    out = _zeros(396, q, ())
+    out[0] = -upper_a20*v_upper_theta_x
+    out[1] = -upper_a20*v_upper_theta_y
+    out[2] = upper_a00*v_upper_theta_x + upper_a10*v_upper_theta_y
+    out[3] = -upper_a21*v_upper_theta_x
+    out[4] = -upper_a21*v_upper_theta_y
+    out[5] = upper_a01*v_upper_theta_x + upper_a11*v_upper_theta_y
+    out[6] = c1 + c3
+    out[7] = c5*v_upper_theta_y
+    out[8] = c5*v_upper_theta_z
+    out[9] = c6*v_upper_theta_x
+    out[10] = c3 + c7
+    out[11] = c6*v_upper_theta_z
+    out[12] = c8*v_upper_theta_x
+    out[13] = c8*v_upper_theta_y
+    out[14] = c1 + c7
+    out[15] = c10*v_upper_theta_z + c13*v_boom_theta_x + c14*v_upper_theta_x + c9*v_upper_theta_y - c10*v_boom_theta_z - c9*v_boom_theta_y
+    out[16] = c15*v_upper_theta_x + c16*v_upper_theta_z + c18*v_boom_theta_y + c19*v_upper_theta_y - c15*v_boom_theta_x - c16*v_boom_theta_z
+    out[17] = c20*v_upper_theta_x + c21*v_upper_theta_y + c22*v_boom_theta_z + c23*v_upper_theta_z - c20*v_boom_theta_x - c21*v_boom_theta_y
+    out[18] = c13*v_upper_theta_x + c14*v_boom_theta_x + c15*v_boom_theta_y + c20*v_boom_theta_z - c15*v_upper_theta_y - c20*v_upper_theta_z
+    out[19] = c18*v_upper_theta_y + c19*v_boom_theta_y + c21*v_boom_theta_z + c9*v_boom_theta_x - c21*v_upper_theta_z - c9*v_upper_theta_x
+    out[20] = c10*v_boom_theta_x + c16*v_boom_theta_y + c22*v_upper_theta_z + c23*v_boom_theta_z - c10*v_upper_theta_x - c16*v_upper_theta_y
+    out[21] = c24*v_upper_theta_y + c25*v_upper_theta_z + c28*v_boom_theta_x + c29*v_upper_theta_x - c24*v_boom_theta_y - c25*v_boom_theta_z
+    out[22] = c30*v_upper_theta_x + c31*v_upper_theta_z + c33*v_boom_theta_y + c34*v_upper_theta_y - c30*v_boom_theta_x - c31*v_boom_theta_z
+    out[23] = c35*v_upper_theta_x + c36*v_upper_theta_y + c37*v_boom_theta_z + c38*v_upper_theta_z - c35*v_boom_theta_x - c36*v_boom_theta_y
+    out[24] = c28*v_upper_theta_x + c29*v_boom_theta_x + c30*v_boom_theta_y + c35*v_boom_theta_z - c30*v_upper_theta_y - c35*v_upper_theta_z
+    out[25] = c24*v_boom_theta_x + c33*v_upper_theta_y + c34*v_boom_theta_y + c36*v_boom_theta_z - c24*v_upper_theta_x - c36*v_upper_theta_z
+    out[26] = c25*v_boom_theta_x + c31*v_boom_theta_y + c37*v_upper_theta_z + c38*v_boom_theta_z - c25*v_upper_theta_x - c31*v_upper_theta_y
+    out[27] = c40 + c42
+    out[28] = c44*v_upper_theta_y
+    out[29] = c44*v_upper_theta_z
+    out[30] = c45*v_upper_theta_x
+    out[31] = c42 + c46
+    out[32] = c45*v_upper_theta_z
+    out[33] = c47*v_upper_theta_x
+    out[34] = c47*v_upper_theta_y
+    out[35] = c40 + c46
+    out[36] = c49*v_upper_theta_z + c52*v_boom_cyl_l_barrel_theta_x + c53*v_upper_theta_x + c48*v_upper_theta_y - c49*v_boom_cyl_l_barrel_theta_z - c48*v_boom_cyl_l_barrel_theta_y
+    out[37] = c54*v_upper_theta_x + c55*v_upper_theta_z + c57*v_boom_cyl_l_barrel_theta_y + c58*v_upper_theta_y - c54*v_boom_cyl_l_barrel_theta_x - c55*v_boom_cyl_l_barrel_theta_z
+    out[38] = c59*v_upper_theta_x + c60*v_upper_theta_y + c61*v_boom_cyl_l_barrel_theta_z + c62*v_upper_theta_z - c59*v_boom_cyl_l_barrel_theta_x - c60*v_boom_cyl_l_barrel_theta_y
+    out[39] = c52*v_upper_theta_x + c53*v_boom_cyl_l_barrel_theta_x + c54*v_boom_cyl_l_barrel_theta_y + c59*v_boom_cyl_l_barrel_theta_z - c54*v_upper_theta_y - c59*v_upper_theta_z
+    out[40] = c57*v_upper_theta_y + c58*v_boom_cyl_l_barrel_theta_y + c60*v_boom_cyl_l_barrel_theta_z + c48*v_boom_cyl_l_barrel_theta_x - c60*v_upper_theta_z - c48*v_upper_theta_x
+    out[41] = c49*v_boom_cyl_l_barrel_theta_x + c55*v_boom_cyl_l_barrel_theta_y + c61*v_upper_theta_z + c62*v_boom_cyl_l_barrel_theta_z - c49*v_upper_theta_x - c55*v_upper_theta_y
+    out[42] = c63*v_boom_cyl_l_barrel_theta_y + c64*v_boom_cyl_l_barrel_theta_z + c67*v_boom_cyl_l_rod_theta_x + c68*v_boom_cyl_l_barrel_theta_x - c63*v_boom_cyl_l_rod_theta_y - c64*v_boom_cyl_l_rod_theta_z
+    out[43] = c73*v_boom_cyl_l_barrel_theta_y + c69*v_boom_cyl_l_barrel_theta_x + c70*v_boom_cyl_l_barrel_theta_z + c72*v_boom_cyl_l_rod_theta_y - c69*v_boom_cyl_l_rod_theta_x - c70*v_boom_cyl_l_rod_theta_z
+    out[44] = c74*v_boom_cyl_l_barrel_theta_x + c75*v_boom_cyl_l_barrel_theta_y + c76*v_boom_cyl_l_rod_theta_z + c77*v_boom_cyl_l_barrel_theta_z - c74*v_boom_cyl_l_rod_theta_x - c75*v_boom_cyl_l_rod_theta_y
+    out[45] = c74*v_boom_cyl_l_rod_theta_z + c67*v_boom_cyl_l_barrel_theta_x + c68*v_boom_cyl_l_rod_theta_x + c69*v_boom_cyl_l_rod_theta_y - c74*v_boom_cyl_l_barrel_theta_z - c69*v_boom_cyl_l_barrel_theta_y
+    out[46] = c63*v_boom_cyl_l_rod_theta_x + c73*v_boom_cyl_l_rod_theta_y + c75*v_boom_cyl_l_rod_theta_z + c72*v_boom_cyl_l_barrel_theta_y - c63*v_boom_cyl_l_barrel_theta_x - c75*v_boom_cyl_l_barrel_theta_z
+    out[47] = c64*v_boom_cyl_l_rod_theta_x + c76*v_boom_cyl_l_barrel_theta_z + c77*v_boom_cyl_l_rod_theta_z + c70*v_boom_cyl_l_rod_theta_y - c64*v_boom_cyl_l_barrel_theta_x - c70*v_boom_cyl_l_barrel_theta_y
+    out[48] = c78*v_boom_cyl_l_barrel_theta_y + c79*v_boom_cyl_l_barrel_theta_z + c82*v_boom_cyl_l_rod_theta_x + c83*v_boom_cyl_l_barrel_theta_x - c78*v_boom_cyl_l_rod_theta_y - c79*v_boom_cyl_l_rod_theta_z
+    out[49] = c84*v_boom_cyl_l_barrel_theta_x + c85*v_boom_cyl_l_barrel_theta_z + c87*v_boom_cyl_l_rod_theta_y + c88*v_boom_cyl_l_barrel_theta_y - c84*v_boom_cyl_l_rod_theta_x - c85*v_boom_cyl_l_rod_theta_z
+    out[50] = c89*v_boom_cyl_l_barrel_theta_x + c90*v_boom_cyl_l_barrel_theta_y + c91*v_boom_cyl_l_rod_theta_z + c92*v_boom_cyl_l_barrel_theta_z - c89*v_boom_cyl_l_rod_theta_x - c90*v_boom_cyl_l_rod_theta_y
+    out[51] = c82*v_boom_cyl_l_barrel_theta_x + c83*v_boom_cyl_l_rod_theta_x + c84*v_boom_cyl_l_rod_theta_y + c89*v_boom_cyl_l_rod_theta_z - c84*v_boom_cyl_l_barrel_theta_y - c89*v_boom_cyl_l_barrel_theta_z
+    out[52] = c78*v_boom_cyl_l_rod_theta_x + c87*v_boom_cyl_l_barrel_theta_y + c88*v_boom_cyl_l_rod_theta_y + c90*v_boom_cyl_l_rod_theta_z - c78*v_boom_cyl_l_barrel_theta_x - c90*v_boom_cyl_l_barrel_theta_z
+    out[53] = c79*v_boom_cyl_l_rod_theta_x + c85*v_boom_cyl_l_rod_theta_y + c91*v_boom_cyl_l_barrel_theta_z + c92*v_boom_cyl_l_rod_theta_z - c79*v_boom_cyl_l_barrel_theta_x - c85*v_boom_cyl_l_barrel_theta_y
+    out[54] = c95
+    out[55] = -c97
+    out[56] = c100
+    out[57] = c102*c103 + boom_cyl_l_barrel_a11*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*(c105*boom_cyl_l_barrel_a11 - c107*boom_cyl_l_barrel_a21) - c101*c104 - boom_cyl_l_barrel_a11*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a21*v_boom_cyl_l_rod_y
+    out[58] = c104*c108 + boom_cyl_l_barrel_a01*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a21*v_boom_cyl_l_rod_x + v_boom_cyl_l_barrel_theta_y*(c106*boom_cyl_l_barrel_a21 - c102*boom_cyl_l_barrel_a01) - c105*c109 - boom_cyl_l_barrel_a01*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_x
+    out[59] = c107*c109 + boom_cyl_l_barrel_a01*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a11*v_boom_cyl_l_barrel_x + v_boom_cyl_l_barrel_theta_z*(c101*boom_cyl_l_barrel_a01 - c108*boom_cyl_l_barrel_a11) - c103*c106 - boom_cyl_l_barrel_a01*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a11*v_boom_cyl_l_rod_x
+    out[60] = -c95
+    out[61] = c97
+    out[62] = -c100
+    out[63] = c110
+    out[64] = -c111
+    out[65] = c112
+    out[66] = c102*c113 + boom_cyl_l_barrel_a12*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_y + v_boom_cyl_l_barrel_theta_x*(c105*boom_cyl_l_barrel_a12 - c107*boom_cyl_l_barrel_a22) - c101*c114 - boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_rod_y
+    out[67] = c108*c114 + boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a22*v_boom_cyl_l_rod_x + v_boom_cyl_l_barrel_theta_y*(c106*boom_cyl_l_barrel_a22 - c102*boom_cyl_l_barrel_a02) - c105*c115 - boom_cyl_l_barrel_a02*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_x
+    out[68] = c107*c115 + boom_cyl_l_barrel_a02*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a12*v_boom_cyl_l_barrel_x + v_boom_cyl_l_barrel_theta_z*(c101*boom_cyl_l_barrel_a02 - c108*boom_cyl_l_barrel_a12) - c106*c113 - boom_cyl_l_barrel_a02*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a12*v_boom_cyl_l_rod_x
+    out[69] = -c110
+    out[70] = c111
+    out[71] = -c112
+    out[72] = c103*c116 + c104*c116 + c123*v_boom_cyl_l_rod_theta_x + c124*v_boom_cyl_l_barrel_theta_x - c118*boom_cyl_l_rod_a02 - c120*boom_cyl_l_rod_a02
+    out[73] = c104*c125 + c109*c125 + c128*v_boom_cyl_l_rod_theta_y + c129*v_boom_cyl_l_barrel_theta_y - c120*boom_cyl_l_rod_a12 - c125*c126
+    out[74] = c103*c130 + c109*c130 + c131*v_boom_cyl_l_rod_theta_z + c132*v_boom_cyl_l_barrel_theta_z - c118*boom_cyl_l_rod_a22 - c126*c130
+    out[75] = c123*v_boom_cyl_l_barrel_theta_x + c124*v_boom_cyl_l_rod_theta_x - c96*c130 - c98*c125 + c125*boom_cyl_l_barrel_a01*v_boom_cyl_l_rod_theta_y + c130*boom_cyl_l_barrel_a01*v_boom_cyl_l_rod_theta_z
+    out[76] = c117*c133 + c128*v_boom_cyl_l_barrel_theta_y + c129*v_boom_cyl_l_rod_theta_y - c93*c130 - c99*c116 + c117*boom_cyl_l_rod_a22*v_boom_cyl_l_rod_theta_z
+    out[77] = c119*c133 + c131*v_boom_cyl_l_barrel_theta_z + c132*v_boom_cyl_l_rod_theta_z - c94*c125 + c119*boom_cyl_l_rod_a12*v_boom_cyl_l_rod_theta_y - c116*boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_x
+    out[78] = c135 + c137
+    out[79] = c138*v_boom_theta_y
+    out[80] = c138*v_boom_theta_z
+    out[81] = boom_a10*v_boom_theta_z - boom_a20*v_boom_theta_y
+    out[82] = boom_a12*v_boom_theta_z - boom_a22*v_boom_theta_y
+    out[83] = c134*v_boom_theta_x
+    out[84] = c137 + c139
+    out[85] = c134*v_boom_theta_z
+    out[86] = boom_a20*v_boom_theta_x - boom_a00*v_boom_theta_z
+    out[87] = boom_a22*v_boom_theta_x - boom_a02*v_boom_theta_z
+    out[88] = c136*v_boom_theta_x
+    out[89] = c136*v_boom_theta_y
+    out[90] = c135 + c139
+    out[91] = boom_a00*v_boom_theta_y - boom_a10*v_boom_theta_x
+    out[92] = boom_a02*v_boom_theta_y - boom_a12*v_boom_theta_x
+    out[93] = c141 + c143
+    out[94] = c145*v_upper_theta_y
+    out[95] = c145*v_upper_theta_z
+    out[96] = c146*v_upper_theta_x
+    out[97] = c143 + c147
+    out[98] = c146*v_upper_theta_z
+    out[99] = c148*v_upper_theta_x
+    out[100] = c148*v_upper_theta_y
+    out[101] = c141 + c147
+    out[102] = c150*v_upper_theta_z + c153*v_boom_cyl_r_barrel_theta_x + c154*v_upper_theta_x + c149*v_upper_theta_y - c150*v_boom_cyl_r_barrel_theta_z - c149*v_boom_cyl_r_barrel_theta_y
+    out[103] = c155*v_upper_theta_x + c156*v_upper_theta_z + c158*v_boom_cyl_r_barrel_theta_y + c159*v_upper_theta_y - c155*v_boom_cyl_r_barrel_theta_x - c156*v_boom_cyl_r_barrel_theta_z
+    out[104] = c160*v_upper_theta_x + c161*v_upper_theta_y + c162*v_boom_cyl_r_barrel_theta_z + c163*v_upper_theta_z - c160*v_boom_cyl_r_barrel_theta_x - c161*v_boom_cyl_r_barrel_theta_y
+    out[105] = c153*v_upper_theta_x + c154*v_boom_cyl_r_barrel_theta_x + c155*v_boom_cyl_r_barrel_theta_y + c160*v_boom_cyl_r_barrel_theta_z - c155*v_upper_theta_y - c160*v_upper_theta_z
+    out[106] = c158*v_upper_theta_y + c159*v_boom_cyl_r_barrel_theta_y + c161*v_boom_cyl_r_barrel_theta_z + c149*v_boom_cyl_r_barrel_theta_x - c161*v_upper_theta_z - c149*v_upper_theta_x
+    out[107] = c150*v_boom_cyl_r_barrel_theta_x + c156*v_boom_cyl_r_barrel_theta_y + c162*v_upper_theta_z + c163*v_boom_cyl_r_barrel_theta_z - c150*v_upper_theta_x - c156*v_upper_theta_y
+    out[108] = c164*v_boom_cyl_r_barrel_theta_y + c165*v_boom_cyl_r_barrel_theta_z + c168*v_boom_cyl_r_rod_theta_x + c169*v_boom_cyl_r_barrel_theta_x - c164*v_boom_cyl_r_rod_theta_y - c165*v_boom_cyl_r_rod_theta_z
+    out[109] = c174*v_boom_cyl_r_barrel_theta_y + c170*v_boom_cyl_r_barrel_theta_x + c171*v_boom_cyl_r_barrel_theta_z + c173*v_boom_cyl_r_rod_theta_y - c170*v_boom_cyl_r_rod_theta_x - c171*v_boom_cyl_r_rod_theta_z
+    out[110] = c175*v_boom_cyl_r_barrel_theta_x + c176*v_boom_cyl_r_barrel_theta_y + c177*v_boom_cyl_r_rod_theta_z + c178*v_boom_cyl_r_barrel_theta_z - c175*v_boom_cyl_r_rod_theta_x - c176*v_boom_cyl_r_rod_theta_y
+    out[111] = c175*v_boom_cyl_r_rod_theta_z + c168*v_boom_cyl_r_barrel_theta_x + c169*v_boom_cyl_r_rod_theta_x + c170*v_boom_cyl_r_rod_theta_y - c175*v_boom_cyl_r_barrel_theta_z - c170*v_boom_cyl_r_barrel_theta_y
+    out[112] = c164*v_boom_cyl_r_rod_theta_x + c174*v_boom_cyl_r_rod_theta_y + c176*v_boom_cyl_r_rod_theta_z + c173*v_boom_cyl_r_barrel_theta_y - c164*v_boom_cyl_r_barrel_theta_x - c176*v_boom_cyl_r_barrel_theta_z
+    out[113] = c165*v_boom_cyl_r_rod_theta_x + c177*v_boom_cyl_r_barrel_theta_z + c178*v_boom_cyl_r_rod_theta_z + c171*v_boom_cyl_r_rod_theta_y - c165*v_boom_cyl_r_barrel_theta_x - c171*v_boom_cyl_r_barrel_theta_y
+    out[114] = c179*v_boom_cyl_r_barrel_theta_y + c180*v_boom_cyl_r_barrel_theta_z + c183*v_boom_cyl_r_rod_theta_x + c184*v_boom_cyl_r_barrel_theta_x - c179*v_boom_cyl_r_rod_theta_y - c180*v_boom_cyl_r_rod_theta_z
+    out[115] = c185*v_boom_cyl_r_barrel_theta_x + c186*v_boom_cyl_r_barrel_theta_z + c188*v_boom_cyl_r_rod_theta_y + c189*v_boom_cyl_r_barrel_theta_y - c185*v_boom_cyl_r_rod_theta_x - c186*v_boom_cyl_r_rod_theta_z
+    out[116] = c190*v_boom_cyl_r_barrel_theta_x + c191*v_boom_cyl_r_barrel_theta_y + c192*v_boom_cyl_r_rod_theta_z + c193*v_boom_cyl_r_barrel_theta_z - c190*v_boom_cyl_r_rod_theta_x - c191*v_boom_cyl_r_rod_theta_y
+    out[117] = c183*v_boom_cyl_r_barrel_theta_x + c184*v_boom_cyl_r_rod_theta_x + c185*v_boom_cyl_r_rod_theta_y + c190*v_boom_cyl_r_rod_theta_z - c185*v_boom_cyl_r_barrel_theta_y - c190*v_boom_cyl_r_barrel_theta_z
+    out[118] = c179*v_boom_cyl_r_rod_theta_x + c188*v_boom_cyl_r_barrel_theta_y + c189*v_boom_cyl_r_rod_theta_y + c191*v_boom_cyl_r_rod_theta_z - c179*v_boom_cyl_r_barrel_theta_x - c191*v_boom_cyl_r_barrel_theta_z
+    out[119] = c180*v_boom_cyl_r_rod_theta_x + c186*v_boom_cyl_r_rod_theta_y + c192*v_boom_cyl_r_barrel_theta_z + c193*v_boom_cyl_r_rod_theta_z - c180*v_boom_cyl_r_barrel_theta_x - c186*v_boom_cyl_r_barrel_theta_y
+    out[120] = c196
+    out[121] = -c198
+    out[122] = c201
+    out[123] = c203*c204 + boom_cyl_r_barrel_a11*v_boom_cyl_r_rod_z + boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_y + v_boom_cyl_r_barrel_theta_x*(c206*boom_cyl_r_barrel_a11 - c208*boom_cyl_r_barrel_a21) - c202*c205 - boom_cyl_r_barrel_a11*v_boom_cyl_r_barrel_z - boom_cyl_r_barrel_a21*v_boom_cyl_r_rod_y
+    out[124] = c205*c209 + boom_cyl_r_barrel_a01*v_boom_cyl_r_barrel_z + boom_cyl_r_barrel_a21*v_boom_cyl_r_rod_x + v_boom_cyl_r_barrel_theta_y*(c207*boom_cyl_r_barrel_a21 - c203*boom_cyl_r_barrel_a01) - c206*c210 - boom_cyl_r_barrel_a01*v_boom_cyl_r_rod_z - boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_x
+    out[125] = c208*c210 + boom_cyl_r_barrel_a01*v_boom_cyl_r_rod_y + boom_cyl_r_barrel_a11*v_boom_cyl_r_barrel_x + v_boom_cyl_r_barrel_theta_z*(c202*boom_cyl_r_barrel_a01 - c209*boom_cyl_r_barrel_a11) - c204*c207 - boom_cyl_r_barrel_a01*v_boom_cyl_r_barrel_y - boom_cyl_r_barrel_a11*v_boom_cyl_r_rod_x
+    out[126] = -c196
+    out[127] = c198
+    out[128] = -c201
+    out[129] = c211
+    out[130] = -c212
+    out[131] = c213
+    out[132] = c203*c214 + boom_cyl_r_barrel_a12*v_boom_cyl_r_rod_z + boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_y + v_boom_cyl_r_barrel_theta_x*(c206*boom_cyl_r_barrel_a12 - c208*boom_cyl_r_barrel_a22) - c202*c215 - boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_rod_y
+    out[133] = c209*c215 + boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_z + boom_cyl_r_barrel_a22*v_boom_cyl_r_rod_x + v_boom_cyl_r_barrel_theta_y*(c207*boom_cyl_r_barrel_a22 - c203*boom_cyl_r_barrel_a02) - c206*c216 - boom_cyl_r_barrel_a02*v_boom_cyl_r_rod_z - boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_x
+    out[134] = c208*c216 + boom_cyl_r_barrel_a02*v_boom_cyl_r_rod_y + boom_cyl_r_barrel_a12*v_boom_cyl_r_barrel_x + v_boom_cyl_r_barrel_theta_z*(c202*boom_cyl_r_barrel_a02 - c209*boom_cyl_r_barrel_a12) - c207*c214 - boom_cyl_r_barrel_a02*v_boom_cyl_r_barrel_y - boom_cyl_r_barrel_a12*v_boom_cyl_r_rod_x
+    out[135] = -c211
+    out[136] = c212
+    out[137] = -c213
+    out[138] = c204*c217 + c205*c217 + c224*v_boom_cyl_r_rod_theta_x + c225*v_boom_cyl_r_barrel_theta_x - c219*boom_cyl_r_rod_a02 - c221*boom_cyl_r_rod_a02
+    out[139] = c205*c226 + c210*c226 + c229*v_boom_cyl_r_rod_theta_y + c230*v_boom_cyl_r_barrel_theta_y - c221*boom_cyl_r_rod_a12 - c226*c227
+    out[140] = c204*c231 + c210*c231 + c232*v_boom_cyl_r_rod_theta_z + c233*v_boom_cyl_r_barrel_theta_z - c219*boom_cyl_r_rod_a22 - c227*c231
+    out[141] = c224*v_boom_cyl_r_barrel_theta_x + c225*v_boom_cyl_r_rod_theta_x - c197*c231 - c199*c226 + c226*boom_cyl_r_barrel_a01*v_boom_cyl_r_rod_theta_y + c231*boom_cyl_r_barrel_a01*v_boom_cyl_r_rod_theta_z
+    out[142] = c218*c234 + c229*v_boom_cyl_r_barrel_theta_y + c230*v_boom_cyl_r_rod_theta_y - c194*c231 - c200*c217 + c218*boom_cyl_r_rod_a22*v_boom_cyl_r_rod_theta_z
+    out[143] = c220*c234 + c232*v_boom_cyl_r_barrel_theta_z + c233*v_boom_cyl_r_rod_theta_z - c195*c226 + c220*boom_cyl_r_rod_a12*v_boom_cyl_r_rod_theta_y - c217*boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_x
+    out[144] = c236 + c238
+    out[145] = c239*v_boom_theta_y
+    out[146] = c239*v_boom_theta_z
+    out[147] = boom_a10*v_boom_theta_z - boom_a20*v_boom_theta_y
+    out[148] = boom_a12*v_boom_theta_z - boom_a22*v_boom_theta_y
+    out[149] = c235*v_boom_theta_x
+    out[150] = c238 + c240
+    out[151] = c235*v_boom_theta_z
+    out[152] = boom_a20*v_boom_theta_x - boom_a00*v_boom_theta_z
+    out[153] = boom_a22*v_boom_theta_x - boom_a02*v_boom_theta_z
+    out[154] = c237*v_boom_theta_x
+    out[155] = c237*v_boom_theta_y
+    out[156] = c236 + c240
+    out[157] = boom_a00*v_boom_theta_y - boom_a10*v_boom_theta_x
+    out[158] = boom_a02*v_boom_theta_y - boom_a12*v_boom_theta_x
+    out[159] = c242 + c244
+    out[160] = c246*v_boom_theta_y
+    out[161] = c246*v_boom_theta_z
+    out[162] = c247*v_boom_theta_x
+    out[163] = c244 + c248
+    out[164] = c247*v_boom_theta_z
+    out[165] = c249*v_boom_theta_x
+    out[166] = c249*v_boom_theta_y
+    out[167] = c242 + c248
+    out[168] = c251*v_boom_theta_z + c254*v_arm_theta_x + c255*v_boom_theta_x + c250*v_boom_theta_y - c251*v_arm_theta_z - c250*v_arm_theta_y
+    out[169] = c256*v_boom_theta_x + c257*v_boom_theta_z + c259*v_arm_theta_y + c260*v_boom_theta_y - c256*v_arm_theta_x - c257*v_arm_theta_z
+    out[170] = c261*v_boom_theta_x + c262*v_boom_theta_y + c263*v_arm_theta_z + c264*v_boom_theta_z - c261*v_arm_theta_x - c262*v_arm_theta_y
+    out[171] = c254*v_boom_theta_x + c255*v_arm_theta_x + c256*v_arm_theta_y + c261*v_arm_theta_z - c256*v_boom_theta_y - c261*v_boom_theta_z
+    out[172] = c259*v_boom_theta_y + c260*v_arm_theta_y + c262*v_arm_theta_z + c250*v_arm_theta_x - c262*v_boom_theta_z - c250*v_boom_theta_x
+    out[173] = c251*v_arm_theta_x + c257*v_arm_theta_y + c263*v_boom_theta_z + c264*v_arm_theta_z - c251*v_boom_theta_x - c257*v_boom_theta_y
+    out[174] = c265*v_boom_theta_y + c266*v_boom_theta_z + c269*v_arm_theta_x + c270*v_boom_theta_x - c265*v_arm_theta_y - c266*v_arm_theta_z
+    out[175] = c271*v_boom_theta_x + c272*v_boom_theta_z + c274*v_arm_theta_y + c275*v_boom_theta_y - c271*v_arm_theta_x - c272*v_arm_theta_z
+    out[176] = c276*v_boom_theta_x + c277*v_boom_theta_y + c278*v_arm_theta_z + c279*v_boom_theta_z - c276*v_arm_theta_x - c277*v_arm_theta_y
+    out[177] = c269*v_boom_theta_x + c270*v_arm_theta_x + c271*v_arm_theta_y + c276*v_arm_theta_z - c271*v_boom_theta_y - c276*v_boom_theta_z
+    out[178] = c265*v_arm_theta_x + c274*v_boom_theta_y + c275*v_arm_theta_y + c277*v_arm_theta_z - c265*v_boom_theta_x - c277*v_boom_theta_z
+    out[179] = c266*v_arm_theta_x + c272*v_arm_theta_y + c278*v_boom_theta_z + c279*v_arm_theta_z - c266*v_boom_theta_x - c272*v_boom_theta_y
+    out[180] = c281 + c283
+    out[181] = c285*v_boom_theta_y
+    out[182] = c285*v_boom_theta_z
+    out[183] = c286*v_boom_theta_x
+    out[184] = c283 + c287
+    out[185] = c286*v_boom_theta_z
+    out[186] = c288*v_boom_theta_x
+    out[187] = c288*v_boom_theta_y
+    out[188] = c281 + c287
+    out[189] = c290*v_boom_theta_z + c293*v_arm_cyl_barrel_theta_x + c294*v_boom_theta_x + c289*v_boom_theta_y - c290*v_arm_cyl_barrel_theta_z - c289*v_arm_cyl_barrel_theta_y
+    out[190] = c295*v_boom_theta_x + c296*v_boom_theta_z + c298*v_arm_cyl_barrel_theta_y + c299*v_boom_theta_y - c295*v_arm_cyl_barrel_theta_x - c296*v_arm_cyl_barrel_theta_z
+    out[191] = c300*v_boom_theta_x + c301*v_boom_theta_y + c302*v_arm_cyl_barrel_theta_z + c303*v_boom_theta_z - c300*v_arm_cyl_barrel_theta_x - c301*v_arm_cyl_barrel_theta_y
+    out[192] = c293*v_boom_theta_x + c294*v_arm_cyl_barrel_theta_x + c295*v_arm_cyl_barrel_theta_y + c300*v_arm_cyl_barrel_theta_z - c295*v_boom_theta_y - c300*v_boom_theta_z
+    out[193] = c298*v_boom_theta_y + c299*v_arm_cyl_barrel_theta_y + c301*v_arm_cyl_barrel_theta_z + c289*v_arm_cyl_barrel_theta_x - c301*v_boom_theta_z - c289*v_boom_theta_x
+    out[194] = c290*v_arm_cyl_barrel_theta_x + c296*v_arm_cyl_barrel_theta_y + c302*v_boom_theta_z + c303*v_arm_cyl_barrel_theta_z - c290*v_boom_theta_x - c296*v_boom_theta_y
+    out[195] = c304*v_arm_cyl_barrel_theta_y + c305*v_arm_cyl_barrel_theta_z + c308*v_arm_cyl_rod_theta_x + c309*v_arm_cyl_barrel_theta_x - c304*v_arm_cyl_rod_theta_y - c305*v_arm_cyl_rod_theta_z
+    out[196] = c314*v_arm_cyl_barrel_theta_y + c310*v_arm_cyl_barrel_theta_x + c311*v_arm_cyl_barrel_theta_z + c313*v_arm_cyl_rod_theta_y - c310*v_arm_cyl_rod_theta_x - c311*v_arm_cyl_rod_theta_z
+    out[197] = c315*v_arm_cyl_barrel_theta_x + c316*v_arm_cyl_barrel_theta_y + c317*v_arm_cyl_rod_theta_z + c318*v_arm_cyl_barrel_theta_z - c315*v_arm_cyl_rod_theta_x - c316*v_arm_cyl_rod_theta_y
+    out[198] = c315*v_arm_cyl_rod_theta_z + c308*v_arm_cyl_barrel_theta_x + c309*v_arm_cyl_rod_theta_x + c310*v_arm_cyl_rod_theta_y - c315*v_arm_cyl_barrel_theta_z - c310*v_arm_cyl_barrel_theta_y
+    out[199] = c304*v_arm_cyl_rod_theta_x + c314*v_arm_cyl_rod_theta_y + c316*v_arm_cyl_rod_theta_z + c313*v_arm_cyl_barrel_theta_y - c304*v_arm_cyl_barrel_theta_x - c316*v_arm_cyl_barrel_theta_z
+    out[200] = c305*v_arm_cyl_rod_theta_x + c317*v_arm_cyl_barrel_theta_z + c318*v_arm_cyl_rod_theta_z + c311*v_arm_cyl_rod_theta_y - c305*v_arm_cyl_barrel_theta_x - c311*v_arm_cyl_barrel_theta_y
+    out[201] = c319*v_arm_cyl_barrel_theta_y + c320*v_arm_cyl_barrel_theta_z + c323*v_arm_cyl_rod_theta_x + c324*v_arm_cyl_barrel_theta_x - c319*v_arm_cyl_rod_theta_y - c320*v_arm_cyl_rod_theta_z
+    out[202] = c325*v_arm_cyl_barrel_theta_x + c326*v_arm_cyl_barrel_theta_z + c328*v_arm_cyl_rod_theta_y + c329*v_arm_cyl_barrel_theta_y - c325*v_arm_cyl_rod_theta_x - c326*v_arm_cyl_rod_theta_z
+    out[203] = c330*v_arm_cyl_barrel_theta_x + c331*v_arm_cyl_barrel_theta_y + c332*v_arm_cyl_rod_theta_z + c333*v_arm_cyl_barrel_theta_z - c330*v_arm_cyl_rod_theta_x - c331*v_arm_cyl_rod_theta_y
+    out[204] = c323*v_arm_cyl_barrel_theta_x + c324*v_arm_cyl_rod_theta_x + c325*v_arm_cyl_rod_theta_y + c330*v_arm_cyl_rod_theta_z - c325*v_arm_cyl_barrel_theta_y - c330*v_arm_cyl_barrel_theta_z
+    out[205] = c319*v_arm_cyl_rod_theta_x + c328*v_arm_cyl_barrel_theta_y + c329*v_arm_cyl_rod_theta_y + c331*v_arm_cyl_rod_theta_z - c319*v_arm_cyl_barrel_theta_x - c331*v_arm_cyl_barrel_theta_z
+    out[206] = c320*v_arm_cyl_rod_theta_x + c326*v_arm_cyl_rod_theta_y + c332*v_arm_cyl_barrel_theta_z + c333*v_arm_cyl_rod_theta_z - c320*v_arm_cyl_barrel_theta_x - c326*v_arm_cyl_barrel_theta_y
+    out[207] = c336
+    out[208] = -c338
+    out[209] = c341
+    out[210] = c343*c344 + arm_cyl_barrel_a11*v_arm_cyl_rod_z + arm_cyl_barrel_a21*v_arm_cyl_barrel_y + v_arm_cyl_barrel_theta_x*(c346*arm_cyl_barrel_a11 - c348*arm_cyl_barrel_a21) - c342*c345 - arm_cyl_barrel_a11*v_arm_cyl_barrel_z - arm_cyl_barrel_a21*v_arm_cyl_rod_y
+    out[211] = c345*c349 + arm_cyl_barrel_a01*v_arm_cyl_barrel_z + arm_cyl_barrel_a21*v_arm_cyl_rod_x + v_arm_cyl_barrel_theta_y*(c347*arm_cyl_barrel_a21 - c343*arm_cyl_barrel_a01) - c346*c350 - arm_cyl_barrel_a01*v_arm_cyl_rod_z - arm_cyl_barrel_a21*v_arm_cyl_barrel_x
+    out[212] = c348*c350 + arm_cyl_barrel_a01*v_arm_cyl_rod_y + arm_cyl_barrel_a11*v_arm_cyl_barrel_x + v_arm_cyl_barrel_theta_z*(c342*arm_cyl_barrel_a01 - c349*arm_cyl_barrel_a11) - c344*c347 - arm_cyl_barrel_a01*v_arm_cyl_barrel_y - arm_cyl_barrel_a11*v_arm_cyl_rod_x
+    out[213] = -c336
+    out[214] = c338
+    out[215] = -c341
+    out[216] = c351
+    out[217] = -c352
+    out[218] = c353
+    out[219] = c343*c354 + arm_cyl_barrel_a12*v_arm_cyl_rod_z + arm_cyl_barrel_a22*v_arm_cyl_barrel_y + v_arm_cyl_barrel_theta_x*(c346*arm_cyl_barrel_a12 - c348*arm_cyl_barrel_a22) - c342*c355 - arm_cyl_barrel_a12*v_arm_cyl_barrel_z - arm_cyl_barrel_a22*v_arm_cyl_rod_y
+    out[220] = c349*c355 + arm_cyl_barrel_a02*v_arm_cyl_barrel_z + arm_cyl_barrel_a22*v_arm_cyl_rod_x + v_arm_cyl_barrel_theta_y*(c347*arm_cyl_barrel_a22 - c343*arm_cyl_barrel_a02) - c346*c356 - arm_cyl_barrel_a02*v_arm_cyl_rod_z - arm_cyl_barrel_a22*v_arm_cyl_barrel_x
+    out[221] = c348*c356 + arm_cyl_barrel_a02*v_arm_cyl_rod_y + arm_cyl_barrel_a12*v_arm_cyl_barrel_x + v_arm_cyl_barrel_theta_z*(c342*arm_cyl_barrel_a02 - c349*arm_cyl_barrel_a12) - c347*c354 - arm_cyl_barrel_a02*v_arm_cyl_barrel_y - arm_cyl_barrel_a12*v_arm_cyl_rod_x
+    out[222] = -c351
+    out[223] = c352
+    out[224] = -c353
+    out[225] = c344*c357 + c345*c357 + c364*v_arm_cyl_rod_theta_x + c365*v_arm_cyl_barrel_theta_x - c359*arm_cyl_rod_a02 - c361*arm_cyl_rod_a02
+    out[226] = c345*c366 + c350*c366 + c369*v_arm_cyl_rod_theta_y + c370*v_arm_cyl_barrel_theta_y - c361*arm_cyl_rod_a12 - c366*c367
+    out[227] = c344*c371 + c350*c371 + c372*v_arm_cyl_rod_theta_z + c373*v_arm_cyl_barrel_theta_z - c359*arm_cyl_rod_a22 - c367*c371
+    out[228] = c364*v_arm_cyl_barrel_theta_x + c365*v_arm_cyl_rod_theta_x - c337*c371 - c339*c366 + c366*arm_cyl_barrel_a01*v_arm_cyl_rod_theta_y + c371*arm_cyl_barrel_a01*v_arm_cyl_rod_theta_z
+    out[229] = c358*c374 + c369*v_arm_cyl_barrel_theta_y + c370*v_arm_cyl_rod_theta_y - c334*c371 - c340*c357 + c358*arm_cyl_rod_a22*v_arm_cyl_rod_theta_z
+    out[230] = c360*c374 + c372*v_arm_cyl_barrel_theta_z + c373*v_arm_cyl_rod_theta_z - c335*c366 + c360*arm_cyl_rod_a12*v_arm_cyl_rod_theta_y - c357*arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_x
+    out[231] = c376 + c378
+    out[232] = c379*v_arm_theta_y
+    out[233] = c379*v_arm_theta_z
+    out[234] = arm_a10*v_arm_theta_z - arm_a20*v_arm_theta_y
+    out[235] = arm_a12*v_arm_theta_z - arm_a22*v_arm_theta_y
+    out[236] = c375*v_arm_theta_x
+    out[237] = c378 + c380
+    out[238] = c375*v_arm_theta_z
+    out[239] = arm_a20*v_arm_theta_x - arm_a00*v_arm_theta_z
+    out[240] = arm_a22*v_arm_theta_x - arm_a02*v_arm_theta_z
+    out[241] = c377*v_arm_theta_x
+    out[242] = c377*v_arm_theta_y
+    out[243] = c376 + c380
+    out[244] = arm_a00*v_arm_theta_y - arm_a10*v_arm_theta_x
+    out[245] = arm_a02*v_arm_theta_y - arm_a12*v_arm_theta_x
+    out[246] = c382 + c384
+    out[247] = c386*v_arm_theta_y
+    out[248] = c386*v_arm_theta_z
+    out[249] = c387*v_arm_theta_x
+    out[250] = c384 + c388
+    out[251] = c387*v_arm_theta_z
+    out[252] = c389*v_arm_theta_x
+    out[253] = c389*v_arm_theta_y
+    out[254] = c382 + c388
+    out[255] = c391*v_arm_theta_z + c394*v_bucket_theta_x + c395*v_arm_theta_x + c390*v_arm_theta_y - c391*v_bucket_theta_z - c390*v_bucket_theta_y
+    out[256] = c396*v_arm_theta_x + c397*v_arm_theta_z + c399*v_bucket_theta_y + c400*v_arm_theta_y - c396*v_bucket_theta_x - c397*v_bucket_theta_z
+    out[257] = c401*v_arm_theta_x + c402*v_arm_theta_y + c403*v_bucket_theta_z + c404*v_arm_theta_z - c401*v_bucket_theta_x - c402*v_bucket_theta_y
+    out[258] = c394*v_arm_theta_x + c395*v_bucket_theta_x + c396*v_bucket_theta_y + c401*v_bucket_theta_z - c396*v_arm_theta_y - c401*v_arm_theta_z
+    out[259] = c399*v_arm_theta_y + c400*v_bucket_theta_y + c402*v_bucket_theta_z + c390*v_bucket_theta_x - c402*v_arm_theta_z - c390*v_arm_theta_x
+    out[260] = c391*v_bucket_theta_x + c397*v_bucket_theta_y + c403*v_arm_theta_z + c404*v_bucket_theta_z - c391*v_arm_theta_x - c397*v_arm_theta_y
+    out[261] = c405*v_arm_theta_y + c406*v_arm_theta_z + c409*v_bucket_theta_x + c410*v_arm_theta_x - c405*v_bucket_theta_y - c406*v_bucket_theta_z
+    out[262] = c411*v_arm_theta_x + c412*v_arm_theta_z + c414*v_bucket_theta_y + c415*v_arm_theta_y - c411*v_bucket_theta_x - c412*v_bucket_theta_z
+    out[263] = c416*v_arm_theta_x + c417*v_arm_theta_y + c418*v_bucket_theta_z + c419*v_arm_theta_z - c416*v_bucket_theta_x - c417*v_bucket_theta_y
+    out[264] = c409*v_arm_theta_x + c410*v_bucket_theta_x + c411*v_bucket_theta_y + c416*v_bucket_theta_z - c411*v_arm_theta_y - c416*v_arm_theta_z
+    out[265] = c405*v_bucket_theta_x + c414*v_arm_theta_y + c415*v_bucket_theta_y + c417*v_bucket_theta_z - c405*v_arm_theta_x - c417*v_arm_theta_z
+    out[266] = c406*v_bucket_theta_x + c412*v_bucket_theta_y + c418*v_arm_theta_z + c419*v_bucket_theta_z - c406*v_arm_theta_x - c412*v_arm_theta_y
+    out[267] = c421 + c423
+    out[268] = c425*v_arm_theta_y
+    out[269] = c425*v_arm_theta_z
+    out[270] = c426*v_arm_theta_x
+    out[271] = c423 + c427
+    out[272] = c426*v_arm_theta_z
+    out[273] = c428*v_arm_theta_x
+    out[274] = c428*v_arm_theta_y
+    out[275] = c421 + c427
+    out[276] = c430*v_arm_theta_z + c433*v_side_link_theta_x + c434*v_arm_theta_x + c429*v_arm_theta_y - c430*v_side_link_theta_z - c429*v_side_link_theta_y
+    out[277] = c435*v_arm_theta_x + c436*v_arm_theta_z + c438*v_side_link_theta_y + c439*v_arm_theta_y - c435*v_side_link_theta_x - c436*v_side_link_theta_z
+    out[278] = c440*v_arm_theta_x + c441*v_arm_theta_y + c442*v_side_link_theta_z + c443*v_arm_theta_z - c440*v_side_link_theta_x - c441*v_side_link_theta_y
+    out[279] = c433*v_arm_theta_x + c434*v_side_link_theta_x + c435*v_side_link_theta_y + c440*v_side_link_theta_z - c435*v_arm_theta_y - c440*v_arm_theta_z
+    out[280] = c438*v_arm_theta_y + c439*v_side_link_theta_y + c441*v_side_link_theta_z + c429*v_side_link_theta_x - c441*v_arm_theta_z - c429*v_arm_theta_x
+    out[281] = c430*v_side_link_theta_x + c436*v_side_link_theta_y + c442*v_arm_theta_z + c443*v_side_link_theta_z - c430*v_arm_theta_x - c436*v_arm_theta_y
+    out[282] = c444*v_arm_theta_y + c445*v_arm_theta_z + c448*v_side_link_theta_x + c449*v_arm_theta_x - c444*v_side_link_theta_y - c445*v_side_link_theta_z
+    out[283] = c450*v_arm_theta_x + c451*v_arm_theta_z + c453*v_side_link_theta_y + c454*v_arm_theta_y - c450*v_side_link_theta_x - c451*v_side_link_theta_z
+    out[284] = c455*v_arm_theta_x + c456*v_arm_theta_y + c457*v_side_link_theta_z + c458*v_arm_theta_z - c455*v_side_link_theta_x - c456*v_side_link_theta_y
+    out[285] = c448*v_arm_theta_x + c449*v_side_link_theta_x + c450*v_side_link_theta_y + c455*v_side_link_theta_z - c450*v_arm_theta_y - c455*v_arm_theta_z
+    out[286] = c444*v_side_link_theta_x + c453*v_arm_theta_y + c454*v_side_link_theta_y + c456*v_side_link_theta_z - c444*v_arm_theta_x - c456*v_arm_theta_z
+    out[287] = c445*v_side_link_theta_x + c451*v_side_link_theta_y + c457*v_arm_theta_z + c458*v_side_link_theta_z - c445*v_arm_theta_x - c451*v_arm_theta_y
+    out[288] = c461 + c464
+    out[289] = c466*v_side_link_theta_y
+    out[290] = c466*v_side_link_theta_z
+    out[291] = c470 + c474
+    out[292] = c478*v_bucket_link_theta_y
+    out[293] = c478*v_bucket_link_theta_z
+    out[294] = c480*v_side_link_theta_z - c479*v_side_link_theta_y
+    out[295] = c481*v_bucket_link_theta_y - c482*v_bucket_link_theta_z
+    out[296] = c460*v_side_link_theta_x
+    out[297] = c483 + c464
+    out[298] = c460*v_side_link_theta_z
+    out[299] = c484*v_bucket_link_theta_x
+    out[300] = c474 + c485
+    out[301] = c484*v_bucket_link_theta_z
+    out[302] = c479*v_side_link_theta_x - c486*v_side_link_theta_z
+    out[303] = c487*v_bucket_link_theta_z - c481*v_bucket_link_theta_x
+    out[304] = c463*v_side_link_theta_x
+    out[305] = c463*v_side_link_theta_y
+    out[306] = c461 + c483
+    out[307] = c488*v_bucket_link_theta_x
+    out[308] = c488*v_bucket_link_theta_y
+    out[309] = c470 + c485
+    out[310] = c486*v_side_link_theta_y - c480*v_side_link_theta_x
+    out[311] = c482*v_bucket_link_theta_x - c487*v_bucket_link_theta_y
+    out[312] = c490 + c492
+    out[313] = c493*v_bucket_theta_y
+    out[314] = c493*v_bucket_theta_z
+    out[315] = bucket_a10*v_bucket_theta_z - bucket_a20*v_bucket_theta_y
+    out[316] = bucket_a12*v_bucket_theta_z - bucket_a22*v_bucket_theta_y
+    out[317] = c489*v_bucket_theta_x
+    out[318] = c492 + c494
+    out[319] = c489*v_bucket_theta_z
+    out[320] = bucket_a20*v_bucket_theta_x - bucket_a00*v_bucket_theta_z
+    out[321] = bucket_a22*v_bucket_theta_x - bucket_a02*v_bucket_theta_z
+    out[322] = c491*v_bucket_theta_x
+    out[323] = c491*v_bucket_theta_y
+    out[324] = c490 + c494
+    out[325] = bucket_a00*v_bucket_theta_y - bucket_a10*v_bucket_theta_x
+    out[326] = bucket_a02*v_bucket_theta_y - bucket_a12*v_bucket_theta_x
+    out[327] = c502*v_bucket_link_theta_x + c496*v_bucket_theta_y + c498*v_bucket_theta_z - c502*v_bucket_theta_x - c496*v_bucket_link_theta_y - c498*v_bucket_link_theta_z
+    out[328] = c504*v_bucket_theta_x + c505*v_bucket_theta_z + c508*v_bucket_link_theta_y - c504*v_bucket_link_theta_x - c505*v_bucket_link_theta_z - c508*v_bucket_theta_y
+    out[329] = c509*v_bucket_theta_x + c510*v_bucket_theta_y + c511*v_bucket_link_theta_z - c509*v_bucket_link_theta_x - c510*v_bucket_link_theta_y - c511*v_bucket_theta_z
+    out[330] = c512*c513 + c514*c515 + v_bucket_link_theta_x*(c520 + c522) + v_bucket_theta_x*(c523 + c525) - c512*c517 - c514*c516
+    out[331] = c516*c518 + c517*c519 + v_bucket_link_theta_y*(-c525 - c528) + v_bucket_theta_y*(-c522 - c529) - c518*c527 - c519*c526
+    out[332] = c521*c526 + c524*c527 + v_bucket_link_theta_z*(c529 - c523) + v_bucket_theta_z*(c528 - c520) - c513*c524 - c515*c521
+    out[333] = c531 + c533
+    out[334] = c534*v_arm_theta_y
+    out[335] = c534*v_arm_theta_z
+    out[336] = c530*v_arm_theta_x
+    out[337] = c533 + c535
+    out[338] = c530*v_arm_theta_z
+    out[339] = c532*v_arm_theta_x
+    out[340] = c532*v_arm_theta_y
+    out[341] = c531 + c535
+    out[342] = c540*v_bucket_cyl_barrel_theta_x + c541*v_arm_theta_x + c536*v_arm_theta_y + c537*v_arm_theta_z - c536*v_bucket_cyl_barrel_theta_y - c537*v_bucket_cyl_barrel_theta_z
+    out[343] = c542*v_arm_theta_x + c543*v_arm_theta_z + c545*v_bucket_cyl_barrel_theta_y + c546*v_arm_theta_y - c542*v_bucket_cyl_barrel_theta_x - c543*v_bucket_cyl_barrel_theta_z
+    out[344] = c547*v_arm_theta_x + c548*v_arm_theta_y + c549*v_bucket_cyl_barrel_theta_z + c550*v_arm_theta_z - c547*v_bucket_cyl_barrel_theta_x - c548*v_bucket_cyl_barrel_theta_y
+    out[345] = c540*v_arm_theta_x + c541*v_bucket_cyl_barrel_theta_x + c542*v_bucket_cyl_barrel_theta_y + c547*v_bucket_cyl_barrel_theta_z - c542*v_arm_theta_y - c547*v_arm_theta_z
+    out[346] = c545*v_arm_theta_y + c546*v_bucket_cyl_barrel_theta_y + c548*v_bucket_cyl_barrel_theta_z + c536*v_bucket_cyl_barrel_theta_x - c548*v_arm_theta_z - c536*v_arm_theta_x
+    out[347] = c543*v_bucket_cyl_barrel_theta_y + c549*v_arm_theta_z + c550*v_bucket_cyl_barrel_theta_z + c537*v_bucket_cyl_barrel_theta_x - c543*v_arm_theta_y - c537*v_arm_theta_x
+    out[348] = c551*v_bucket_cyl_barrel_theta_y + c552*v_bucket_cyl_barrel_theta_z + c555*v_bucket_cyl_rod_theta_x + c556*v_bucket_cyl_barrel_theta_x - c551*v_bucket_cyl_rod_theta_y - c552*v_bucket_cyl_rod_theta_z
+    out[349] = c561*v_bucket_cyl_barrel_theta_y + c557*v_bucket_cyl_barrel_theta_x + c558*v_bucket_cyl_barrel_theta_z + c560*v_bucket_cyl_rod_theta_y - c557*v_bucket_cyl_rod_theta_x - c558*v_bucket_cyl_rod_theta_z
+    out[350] = c562*v_bucket_cyl_barrel_theta_x + c563*v_bucket_cyl_barrel_theta_y + c564*v_bucket_cyl_rod_theta_z + c565*v_bucket_cyl_barrel_theta_z - c562*v_bucket_cyl_rod_theta_x - c563*v_bucket_cyl_rod_theta_y
+    out[351] = c562*v_bucket_cyl_rod_theta_z + c555*v_bucket_cyl_barrel_theta_x + c556*v_bucket_cyl_rod_theta_x + c557*v_bucket_cyl_rod_theta_y - c562*v_bucket_cyl_barrel_theta_z - c557*v_bucket_cyl_barrel_theta_y
+    out[352] = c551*v_bucket_cyl_rod_theta_x + c561*v_bucket_cyl_rod_theta_y + c563*v_bucket_cyl_rod_theta_z + c560*v_bucket_cyl_barrel_theta_y - c551*v_bucket_cyl_barrel_theta_x - c563*v_bucket_cyl_barrel_theta_z
+    out[353] = c552*v_bucket_cyl_rod_theta_x + c564*v_bucket_cyl_barrel_theta_z + c565*v_bucket_cyl_rod_theta_z + c558*v_bucket_cyl_rod_theta_y - c552*v_bucket_cyl_barrel_theta_x - c558*v_bucket_cyl_barrel_theta_y
+    out[354] = c566*v_bucket_cyl_barrel_theta_y + c567*v_bucket_cyl_barrel_theta_z + c570*v_bucket_cyl_rod_theta_x + c571*v_bucket_cyl_barrel_theta_x - c566*v_bucket_cyl_rod_theta_y - c567*v_bucket_cyl_rod_theta_z
+    out[355] = c572*v_bucket_cyl_barrel_theta_x + c573*v_bucket_cyl_barrel_theta_z + c575*v_bucket_cyl_rod_theta_y + c576*v_bucket_cyl_barrel_theta_y - c572*v_bucket_cyl_rod_theta_x - c573*v_bucket_cyl_rod_theta_z
+    out[356] = c577*v_bucket_cyl_barrel_theta_x + c578*v_bucket_cyl_barrel_theta_y + c579*v_bucket_cyl_rod_theta_z + c580*v_bucket_cyl_barrel_theta_z - c577*v_bucket_cyl_rod_theta_x - c578*v_bucket_cyl_rod_theta_y
+    out[357] = c570*v_bucket_cyl_barrel_theta_x + c571*v_bucket_cyl_rod_theta_x + c572*v_bucket_cyl_rod_theta_y + c577*v_bucket_cyl_rod_theta_z - c572*v_bucket_cyl_barrel_theta_y - c577*v_bucket_cyl_barrel_theta_z
+    out[358] = c566*v_bucket_cyl_rod_theta_x + c575*v_bucket_cyl_barrel_theta_y + c576*v_bucket_cyl_rod_theta_y + c578*v_bucket_cyl_rod_theta_z - c566*v_bucket_cyl_barrel_theta_x - c578*v_bucket_cyl_barrel_theta_z
+    out[359] = c567*v_bucket_cyl_rod_theta_x + c573*v_bucket_cyl_rod_theta_y + c579*v_bucket_cyl_barrel_theta_z + c580*v_bucket_cyl_rod_theta_z - c567*v_bucket_cyl_barrel_theta_x - c573*v_bucket_cyl_barrel_theta_y
+    out[360] = c583
+    out[361] = -c585
+    out[362] = c588
+    out[363] = c590*c591 + bucket_cyl_barrel_a11*v_bucket_cyl_rod_z + bucket_cyl_barrel_a21*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_x*(c593*bucket_cyl_barrel_a11 - c595*bucket_cyl_barrel_a21) - c589*c592 - bucket_cyl_barrel_a11*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a21*v_bucket_cyl_rod_y
+    out[364] = c592*c596 + bucket_cyl_barrel_a01*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a21*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_y*(c594*bucket_cyl_barrel_a21 - c590*bucket_cyl_barrel_a01) - c593*c597 - bucket_cyl_barrel_a01*v_bucket_cyl_rod_z - bucket_cyl_barrel_a21*v_bucket_cyl_barrel_x
+    out[365] = c595*c597 + bucket_cyl_barrel_a01*v_bucket_cyl_rod_y + bucket_cyl_barrel_a11*v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(c589*bucket_cyl_barrel_a01 - c596*bucket_cyl_barrel_a11) - c591*c594 - bucket_cyl_barrel_a01*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a11*v_bucket_cyl_rod_x
+    out[366] = -c583
+    out[367] = c585
+    out[368] = -c588
+    out[369] = c598
+    out[370] = -c599
+    out[371] = c600
+    out[372] = c590*c601 + bucket_cyl_barrel_a12*v_bucket_cyl_rod_z + bucket_cyl_barrel_a22*v_bucket_cyl_barrel_y + v_bucket_cyl_barrel_theta_x*(c593*bucket_cyl_barrel_a12 - c595*bucket_cyl_barrel_a22) - c589*c602 - bucket_cyl_barrel_a12*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a22*v_bucket_cyl_rod_y
+    out[373] = c596*c602 + bucket_cyl_barrel_a02*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a22*v_bucket_cyl_rod_x + v_bucket_cyl_barrel_theta_y*(c594*bucket_cyl_barrel_a22 - c590*bucket_cyl_barrel_a02) - c593*c603 - bucket_cyl_barrel_a02*v_bucket_cyl_rod_z - bucket_cyl_barrel_a22*v_bucket_cyl_barrel_x
+    out[374] = c595*c603 + bucket_cyl_barrel_a02*v_bucket_cyl_rod_y + bucket_cyl_barrel_a12*v_bucket_cyl_barrel_x + v_bucket_cyl_barrel_theta_z*(c589*bucket_cyl_barrel_a02 - c596*bucket_cyl_barrel_a12) - c594*c601 - bucket_cyl_barrel_a02*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a12*v_bucket_cyl_rod_x
+    out[375] = -c598
+    out[376] = c599
+    out[377] = -c600
+    out[378] = c591*c604 + c592*c604 + c611*v_bucket_cyl_rod_theta_x + c612*v_bucket_cyl_barrel_theta_x - c606*bucket_cyl_rod_a02 - c608*bucket_cyl_rod_a02
+    out[379] = c592*c613 + c597*c613 + c616*v_bucket_cyl_rod_theta_y + c617*v_bucket_cyl_barrel_theta_y - c608*bucket_cyl_rod_a12 - c613*c614
+    out[380] = c591*c618 + c597*c618 + c619*v_bucket_cyl_rod_theta_z + c620*v_bucket_cyl_barrel_theta_z - c606*bucket_cyl_rod_a22 - c614*c618
+    out[381] = c611*v_bucket_cyl_barrel_theta_x + c612*v_bucket_cyl_rod_theta_x - c584*c618 - c586*c613 + c613*bucket_cyl_barrel_a01*v_bucket_cyl_rod_theta_y + c618*bucket_cyl_barrel_a01*v_bucket_cyl_rod_theta_z
+    out[382] = c605*c621 + c616*v_bucket_cyl_barrel_theta_y + c617*v_bucket_cyl_rod_theta_y - c581*c618 - c587*c604 + c605*bucket_cyl_rod_a22*v_bucket_cyl_rod_theta_z
+    out[383] = c607*c621 + c619*v_bucket_cyl_barrel_theta_z + c620*v_bucket_cyl_rod_theta_z - c582*c613 + c607*bucket_cyl_rod_a12*v_bucket_cyl_rod_theta_y - c604*bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x
+    out[384] = c624 + c628
+    out[385] = c631*v_side_link_theta_y
+    out[386] = c631*v_side_link_theta_z
+    out[387] = c632*v_side_link_theta_y - c633*v_side_link_theta_z
+    out[388] = c634*v_side_link_theta_x
+    out[389] = c635 + c628
+    out[390] = c634*v_side_link_theta_z
+    out[391] = c636*v_side_link_theta_z - c632*v_side_link_theta_x
+    out[392] = c637*v_side_link_theta_x
+    out[393] = c637*v_side_link_theta_y
+    out[394] = c635 + c624
+    out[395] = c633*v_side_link_theta_x - c636*v_side_link_theta_y
+    return out
+
+
+def _joints_dacc(q, v, a, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the joint rows (759 entries)."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, dv_boom_theta_x, dv_boom_theta_y, dv_boom_theta_z, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, dv_boom_cyl_l_rod_theta_x, dv_boom_cyl_l_rod_theta_y, dv_boom_cyl_l_rod_theta_z, dv_boom_cyl_r_barrel_x, dv_boom_cyl_r_barrel_y, dv_boom_cyl_r_barrel_z, dv_boom_cyl_r_barrel_theta_x, dv_boom_cyl_r_barrel_theta_y, dv_boom_cyl_r_barrel_theta_z, dv_boom_cyl_r_rod_x, dv_boom_cyl_r_rod_y, dv_boom_cyl_r_rod_z, dv_boom_cyl_r_rod_theta_x, dv_boom_cyl_r_rod_theta_y, dv_boom_cyl_r_rod_theta_z, _, _, _, dv_arm_theta_x, dv_arm_theta_y, dv_arm_theta_z, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, dv_arm_cyl_rod_theta_x, dv_arm_cyl_rod_theta_y, dv_arm_cyl_rod_theta_z, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, dv_bucket_cyl_rod_theta_x, dv_bucket_cyl_rod_theta_y, dv_bucket_cyl_rod_theta_z, _, _, _, dv_side_link_theta_x, dv_side_link_theta_y, dv_side_link_theta_z, _, _, _, dv_bucket_link_theta_x, dv_bucket_link_theta_y, dv_bucket_link_theta_z, _, _, _, dv_bucket_theta_x, dv_bucket_theta_y, dv_bucket_theta_z = a
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z = p
+    upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
+    upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
+    upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
+    upper_a10 = 2*upper_qw*upper_qz + 2*upper_qx*upper_qy
+    upper_a11 = -1 + 2*upper_qw**2 + 2*upper_qy**2
+    upper_a12 = -2*upper_qw*upper_qx + 2*upper_qy*upper_qz
+    upper_a20 = -2*upper_qw*upper_qy + 2*upper_qx*upper_qz
+    upper_a21 = 2*upper_qw*upper_qx + 2*upper_qy*upper_qz
+    upper_a22 = -1 + 2*upper_qw**2 + 2*upper_qz**2
+    boom_a00 = -1 + 2*boom_qw**2 + 2*boom_qx**2
+    boom_a01 = -2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a02 = 2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a10 = 2*boom_qw*boom_qz + 2*boom_qx*boom_qy
+    boom_a11 = -1 + 2*boom_qw**2 + 2*boom_qy**2
+    boom_a12 = -2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
+    boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
+    boom_a22 = -1 + 2*boom_qw**2 + 2*boom_qz**2
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a01 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a02 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a11 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qy**2
+    boom_cyl_l_barrel_a12 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a21 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qx + 2*boom_cyl_l_barrel_qy*boom_cyl_l_barrel_qz
+    boom_cyl_l_barrel_a22 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qz**2
+    boom_cyl_l_rod_a01 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qz + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qy
+    boom_cyl_l_rod_a02 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qy + 2*boom_cyl_l_rod_qx*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a11 = -1 + 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qy**2
+    boom_cyl_l_rod_a12 = -2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a21 = 2*boom_cyl_l_rod_qw*boom_cyl_l_rod_qx + 2*boom_cyl_l_rod_qy*boom_cyl_l_rod_qz
+    boom_cyl_l_rod_a22 = -1 + 2*boom_cyl_l_rod_qw**2 + 2*boom_cyl_l_rod_qz**2
+    boom_cyl_r_barrel_a00 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qx**2
+    boom_cyl_r_barrel_a01 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a02 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a10 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qz + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qy
+    boom_cyl_r_barrel_a11 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qy**2
+    boom_cyl_r_barrel_a12 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a20 = -2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qy + 2*boom_cyl_r_barrel_qx*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a21 = 2*boom_cyl_r_barrel_qw*boom_cyl_r_barrel_qx + 2*boom_cyl_r_barrel_qy*boom_cyl_r_barrel_qz
+    boom_cyl_r_barrel_a22 = -1 + 2*boom_cyl_r_barrel_qw**2 + 2*boom_cyl_r_barrel_qz**2
+    boom_cyl_r_rod_a01 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qz + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qy
+    boom_cyl_r_rod_a02 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qy + 2*boom_cyl_r_rod_qx*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a11 = -1 + 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qy**2
+    boom_cyl_r_rod_a12 = -2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a21 = 2*boom_cyl_r_rod_qw*boom_cyl_r_rod_qx + 2*boom_cyl_r_rod_qy*boom_cyl_r_rod_qz
+    boom_cyl_r_rod_a22 = -1 + 2*boom_cyl_r_rod_qw**2 + 2*boom_cyl_r_rod_qz**2
+    arm_a00 = -1 + 2*arm_qw**2 + 2*arm_qx**2
+    arm_a01 = -2*arm_qw*arm_qz + 2*arm_qx*arm_qy
+    arm_a02 = 2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a10 = 2*arm_qw*arm_qz + 2*arm_qx*arm_qy
+    arm_a11 = -1 + 2*arm_qw**2 + 2*arm_qy**2
+    arm_a12 = -2*arm_qw*arm_qx + 2*arm_qy*arm_qz
+    arm_a20 = -2*arm_qw*arm_qy + 2*arm_qx*arm_qz
+    arm_a21 = 2*arm_qw*arm_qx + 2*arm_qy*arm_qz
+    arm_a22 = -1 + 2*arm_qw**2 + 2*arm_qz**2
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a01 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a02 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a11 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qy**2
+    arm_cyl_barrel_a12 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    arm_cyl_barrel_a21 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qx + 2*arm_cyl_barrel_qy*arm_cyl_barrel_qz
+    arm_cyl_barrel_a22 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qz**2
+    arm_cyl_rod_a01 = -2*arm_cyl_rod_qw*arm_cyl_rod_qz + 2*arm_cyl_rod_qx*arm_cyl_rod_qy
+    arm_cyl_rod_a02 = 2*arm_cyl_rod_qw*arm_cyl_rod_qy + 2*arm_cyl_rod_qx*arm_cyl_rod_qz
+    arm_cyl_rod_a11 = -1 + 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qy**2
+    arm_cyl_rod_a12 = -2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a21 = 2*arm_cyl_rod_qw*arm_cyl_rod_qx + 2*arm_cyl_rod_qy*arm_cyl_rod_qz
+    arm_cyl_rod_a22 = -1 + 2*arm_cyl_rod_qw**2 + 2*arm_cyl_rod_qz**2
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a01 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a02 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a11 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qy**2
+    bucket_cyl_barrel_a12 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a21 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qx + 2*bucket_cyl_barrel_qy*bucket_cyl_barrel_qz
+    bucket_cyl_barrel_a22 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qz**2
+    bucket_cyl_rod_a01 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qz + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qy
+    bucket_cyl_rod_a02 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qy + 2*bucket_cyl_rod_qx*bucket_cyl_rod_qz
+    bucket_cyl_rod_a11 = -1 + 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qy**2
+    bucket_cyl_rod_a12 = -2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a21 = 2*bucket_cyl_rod_qw*bucket_cyl_rod_qx + 2*bucket_cyl_rod_qy*bucket_cyl_rod_qz
+    bucket_cyl_rod_a22 = -1 + 2*bucket_cyl_rod_qw**2 + 2*bucket_cyl_rod_qz**2
+    side_link_a00 = -1 + 2*side_link_qw**2 + 2*side_link_qx**2
+    side_link_a02 = 2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a10 = 2*side_link_qw*side_link_qz + 2*side_link_qx*side_link_qy
+    side_link_a12 = -2*side_link_qw*side_link_qx + 2*side_link_qy*side_link_qz
+    side_link_a20 = -2*side_link_qw*side_link_qy + 2*side_link_qx*side_link_qz
+    side_link_a22 = -1 + 2*side_link_qw**2 + 2*side_link_qz**2
+    bucket_link_a00 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qx**2
+    bucket_link_a02 = 2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a10 = 2*bucket_link_qw*bucket_link_qz + 2*bucket_link_qx*bucket_link_qy
+    bucket_link_a12 = -2*bucket_link_qw*bucket_link_qx + 2*bucket_link_qy*bucket_link_qz
+    bucket_link_a20 = -2*bucket_link_qw*bucket_link_qy + 2*bucket_link_qx*bucket_link_qz
+    bucket_link_a22 = -1 + 2*bucket_link_qw**2 + 2*bucket_link_qz**2
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a01 = -2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a11 = -1 + 2*bucket_qw**2 + 2*bucket_qy**2
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a21 = 2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    c0 = dv_upper_theta_x + v_upper_theta_y*v_upper_theta_z
+    c1 = -v_upper_theta_x**2 - v_upper_theta_y**2
+    c2 = -dv_upper_theta_y + v_upper_theta_x*v_upper_theta_z
+    c3 = 2*upper_a20
+    c4 = 2*upper_a21
+    c5 = (22767/100000)*dv_upper_theta_y
+    c6 = v_upper_theta_x*v_upper_theta_z
+    c7 = c5 + (22767/100000)*c6
+    c8 = (195729/100000)*dv_upper_theta_y
+    c9 = c8 + (195729/100000)*c6
+    c10 = (22767/100000)*dv_upper_theta_z
+    c11 = -c10 + (22767/100000)*v_upper_theta_x*v_upper_theta_y
+    c12 = (195729/100000)*dv_upper_theta_z
+    c13 = -c12 + (195729/100000)*v_upper_theta_x*v_upper_theta_y
+    c14 = v_upper_theta_y**2
+    c15 = (22767/100000)*c14
+    c16 = v_upper_theta_z**2
+    c17 = (22767/100000)*c16
+    c18 = -c15 - c17
+    c19 = (195729/100000)*c14
+    c20 = (195729/100000)*c16
+    c21 = -c19 - c20
+    c22 = (22767/100000)*upper_a10 + (195729/100000)*upper_a12
+    c23 = c22*v_upper_theta_y
+    c24 = (22767/100000)*upper_a20 + (195729/100000)*upper_a22
+    c25 = c24*v_upper_theta_z
+    c26 = (22767/100000)*upper_a00 + (195729/100000)*upper_a02
+    c27 = -2*c26
+    c28 = (22767/100000)*dv_upper_theta_x
+    c29 = -c28 + (22767/100000)*v_upper_theta_y*v_upper_theta_z
+    c30 = (195729/100000)*dv_upper_theta_x
+    c31 = -c30 + (195729/100000)*v_upper_theta_y*v_upper_theta_z
+    c32 = v_upper_theta_x**2
+    c33 = (22767/100000)*c32
+    c34 = -c17 - c33
+    c35 = (195729/100000)*c32
+    c36 = -c20 - c35
+    c37 = v_upper_theta_x*v_upper_theta_y
+    c38 = c10 + (22767/100000)*c37
+    c39 = c12 + (195729/100000)*c37
+    c40 = -2*c22
+    c41 = c26*v_upper_theta_x
+    c42 = v_upper_theta_y*v_upper_theta_z
+    c43 = c28 + (22767/100000)*c42
+    c44 = c30 + (195729/100000)*c42
+    c45 = -c15 - c33
+    c46 = -c19 - c35
+    c47 = -c5 + (22767/100000)*v_upper_theta_x*v_upper_theta_z
+    c48 = -c8 + (195729/100000)*v_upper_theta_x*v_upper_theta_z
+    c49 = -2*c24
+    c50 = 2*v_boom_theta_z
+    c51 = c6 + v_boom_theta_x*v_boom_theta_z
+    c52 = c51 + dv_upper_theta_y - dv_boom_theta_y - c50*v_upper_theta_x
+    c53 = c42 + v_boom_theta_y*v_boom_theta_z
+    c54 = c53 + dv_boom_theta_x - dv_upper_theta_x - c50*v_upper_theta_y
+    c55 = c32 + v_boom_theta_x**2 - 2*v_boom_theta_x*v_upper_theta_x
+    c56 = c14 + v_boom_theta_y**2 - 2*v_boom_theta_y*v_upper_theta_y
+    c57 = -c55 - c56
+    c58 = c52*boom_a02 + c54*boom_a12 + c57*boom_a22
+    c59 = 2*v_upper_theta_x
+    c60 = c37 + v_boom_theta_x*v_boom_theta_y
+    c61 = c60 + dv_boom_theta_z - dv_upper_theta_z - c59*v_boom_theta_y
+    c62 = 2*v_boom_theta_y
+    c63 = c53 + dv_upper_theta_x - dv_boom_theta_x - c62*v_upper_theta_z
+    c64 = c16 + v_boom_theta_z**2 - 2*v_boom_theta_z*v_upper_theta_z
+    c65 = -c55 - c64
+    c66 = c61*boom_a02 + c63*boom_a22 + c65*boom_a12
+    c67 = 2*v_boom_theta_x
+    c68 = c60 + dv_upper_theta_z - dv_boom_theta_z - c67*v_upper_theta_y
+    c69 = c51 + dv_boom_theta_y - dv_upper_theta_y - c67*v_upper_theta_z
+    c70 = -c56 - c64
+    c71 = c68*boom_a12 + c69*boom_a22 + c70*boom_a02
+    c72 = c57*upper_a21 + c63*upper_a11 + c69*upper_a01
+    c73 = c54*upper_a21 + c65*upper_a11 + c68*upper_a01
+    c74 = c52*upper_a21 + c61*upper_a11 + c70*upper_a01
+    c75 = boom_a02*upper_a11
+    c76 = upper_a21*v_upper_theta_z
+    c77 = boom_a12*upper_a01
+    c78 = c77*v_upper_theta_y
+    c79 = boom_a22*v_upper_theta_z
+    c80 = c79*upper_a01
+    c81 = boom_a02*upper_a21
+    c82 = boom_a12*upper_a11
+    c83 = boom_a22*upper_a21
+    c84 = c82 + c83
+    c85 = -c84
+    c86 = c79*upper_a11
+    c87 = boom_a12*upper_a21
+    c88 = boom_a02*upper_a01
+    c89 = c83 + c88
+    c90 = -c89
+    c91 = 2*v_upper_theta_y
+    c92 = boom_a22*upper_a01
+    c93 = boom_a22*upper_a11
+    c94 = c82 + c88
+    c95 = -c94
+    c96 = 2*v_upper_theta_z
+    c97 = c52*boom_a00 + c54*boom_a10 + c57*boom_a20
+    c98 = c61*boom_a00 + c63*boom_a20 + c65*boom_a10
+    c99 = c68*boom_a10 + c69*boom_a20 + c70*boom_a00
+    c100 = boom_a00*upper_a11
+    c101 = boom_a10*upper_a01
+    c102 = boom_a20*v_upper_theta_z
+    c103 = boom_a00*upper_a21
+    c104 = boom_a10*upper_a11
+    c105 = boom_a20*upper_a21
+    c106 = c105 + c104
+    c107 = -c106
+    c108 = boom_a10*upper_a21
+    c109 = boom_a00*upper_a01
+    c110 = c105 + c109
+    c111 = -c110
+    c112 = boom_a20*upper_a01
+    c113 = boom_a20*upper_a11
+    c114 = c109 + c104
+    c115 = -c114
+    c116 = (4307/6250)*dv_upper_theta_y
+    c117 = v_upper_theta_x*v_upper_theta_z
+    c118 = c116 + (4307/6250)*c117
+    c119 = (8/25)*dv_upper_theta_y
+    c120 = c119 + (8/25)*c117
+    c121 = (67739/50000)*dv_upper_theta_y
+    c122 = c121 + (67739/50000)*c117
+    c123 = (4307/6250)*dv_upper_theta_z
+    c124 = -c123 + (4307/6250)*v_upper_theta_x*v_upper_theta_y
+    c125 = (8/25)*dv_upper_theta_z
+    c126 = -c125 + (8/25)*v_upper_theta_x*v_upper_theta_y
+    c127 = (67739/50000)*dv_upper_theta_z
+    c128 = -c127 + (67739/50000)*v_upper_theta_x*v_upper_theta_y
+    c129 = v_upper_theta_y**2
+    c130 = (4307/6250)*c129
+    c131 = v_upper_theta_z**2
+    c132 = (4307/6250)*c131
+    c133 = -c130 - c132
+    c134 = (8/25)*c129
+    c135 = (8/25)*c131
+    c136 = -c134 - c135
+    c137 = (67739/50000)*c129
+    c138 = (67739/50000)*c131
+    c139 = -c137 - c138
+    c140 = (8/25)*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
+    c141 = c140*v_upper_theta_y
+    c142 = (8/25)*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
+    c143 = c142*v_upper_theta_z
+    c144 = (8/25)*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
+    c145 = -2*c144
+    c146 = (4307/6250)*dv_upper_theta_x
+    c147 = -c146 + (4307/6250)*v_upper_theta_y*v_upper_theta_z
+    c148 = (8/25)*dv_upper_theta_x
+    c149 = -c148 + (8/25)*v_upper_theta_y*v_upper_theta_z
+    c150 = (67739/50000)*dv_upper_theta_x
+    c151 = -c150 + (67739/50000)*v_upper_theta_y*v_upper_theta_z
+    c152 = v_upper_theta_x**2
+    c153 = (4307/6250)*c152
+    c154 = -c132 - c153
+    c155 = (8/25)*c152
+    c156 = -c135 - c155
+    c157 = (67739/50000)*c152
+    c158 = -c138 - c157
+    c159 = v_upper_theta_x*v_upper_theta_y
+    c160 = c123 + (4307/6250)*c159
+    c161 = c125 + (8/25)*c159
+    c162 = c127 + (67739/50000)*c159
+    c163 = -2*c140
+    c164 = c144*v_upper_theta_x
+    c165 = v_upper_theta_y*v_upper_theta_z
+    c166 = c146 + (4307/6250)*c165
+    c167 = c148 + (8/25)*c165
+    c168 = c150 + (67739/50000)*c165
+    c169 = -c130 - c153
+    c170 = -c134 - c155
+    c171 = -c137 - c157
+    c172 = -c116 + (4307/6250)*v_upper_theta_x*v_upper_theta_z
+    c173 = -c119 + (8/25)*v_upper_theta_x*v_upper_theta_z
+    c174 = -c121 + (67739/50000)*v_upper_theta_x*v_upper_theta_z
+    c175 = -2*c142
+    c176 = 2*v_boom_cyl_l_barrel_theta_z
+    c177 = c117 + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z
+    c178 = c177 + dv_upper_theta_y - dv_boom_cyl_l_barrel_theta_y - c176*v_upper_theta_x
+    c179 = c165 + v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z
+    c180 = c179 + dv_boom_cyl_l_barrel_theta_x - dv_upper_theta_x - c176*v_upper_theta_y
+    c181 = c152 + v_boom_cyl_l_barrel_theta_x**2 - 2*v_boom_cyl_l_barrel_theta_x*v_upper_theta_x
+    c182 = c129 + v_boom_cyl_l_barrel_theta_y**2 - 2*v_boom_cyl_l_barrel_theta_y*v_upper_theta_y
+    c183 = -c181 - c182
+    c184 = c178*boom_cyl_l_barrel_a02 + c180*boom_cyl_l_barrel_a12 + c183*boom_cyl_l_barrel_a22
+    c185 = 2*v_upper_theta_x
+    c186 = c159 + v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y
+    c187 = c186 + dv_boom_cyl_l_barrel_theta_z - dv_upper_theta_z - c185*v_boom_cyl_l_barrel_theta_y
+    c188 = 2*v_boom_cyl_l_barrel_theta_y
+    c189 = c179 + dv_upper_theta_x - dv_boom_cyl_l_barrel_theta_x - c188*v_upper_theta_z
+    c190 = c131 + v_boom_cyl_l_barrel_theta_z**2 - 2*v_boom_cyl_l_barrel_theta_z*v_upper_theta_z
+    c191 = -c181 - c190
+    c192 = c187*boom_cyl_l_barrel_a02 + c189*boom_cyl_l_barrel_a22 + c191*boom_cyl_l_barrel_a12
+    c193 = 2*v_boom_cyl_l_barrel_theta_x
+    c194 = c186 + dv_upper_theta_z - dv_boom_cyl_l_barrel_theta_z - c193*v_upper_theta_y
+    c195 = c177 + dv_boom_cyl_l_barrel_theta_y - dv_upper_theta_y - c193*v_upper_theta_z
+    c196 = -c182 - c190
+    c197 = c194*boom_cyl_l_barrel_a12 + c195*boom_cyl_l_barrel_a22 + c196*boom_cyl_l_barrel_a02
+    c198 = c183*upper_a21 + c189*upper_a11 + c195*upper_a01
+    c199 = c180*upper_a21 + c191*upper_a11 + c194*upper_a01
+    c200 = c178*upper_a21 + c187*upper_a11 + c196*upper_a01
+    c201 = boom_cyl_l_barrel_a02*upper_a11
+    c202 = upper_a21*v_upper_theta_z
+    c203 = boom_cyl_l_barrel_a12*upper_a01
+    c204 = c203*v_upper_theta_y
+    c205 = boom_cyl_l_barrel_a22*v_upper_theta_z
+    c206 = c205*upper_a01
+    c207 = boom_cyl_l_barrel_a02*upper_a21
+    c208 = boom_cyl_l_barrel_a12*upper_a11
+    c209 = boom_cyl_l_barrel_a22*upper_a21
+    c210 = c208 + c209
+    c211 = -c210
+    c212 = c205*upper_a11
+    c213 = boom_cyl_l_barrel_a12*upper_a21
+    c214 = boom_cyl_l_barrel_a02*upper_a01
+    c215 = c209 + c214
+    c216 = -c215
+    c217 = 2*v_upper_theta_y
+    c218 = boom_cyl_l_barrel_a22*upper_a01
+    c219 = boom_cyl_l_barrel_a22*upper_a11
+    c220 = c208 + c214
+    c221 = -c220
+    c222 = 2*v_upper_theta_z
+    c223 = v_boom_cyl_l_rod_theta_x*v_boom_cyl_l_rod_theta_z
+    c224 = 2*v_boom_cyl_l_rod_theta_z
+    c225 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z
+    c226 = c225 + dv_boom_cyl_l_barrel_theta_y
+    c227 = c223 + c226 - dv_boom_cyl_l_rod_theta_y - c224*v_boom_cyl_l_barrel_theta_x
+    c228 = v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z
+    c229 = v_boom_cyl_l_rod_theta_y*v_boom_cyl_l_rod_theta_z
+    c230 = c228 + c229 + dv_boom_cyl_l_rod_theta_x - dv_boom_cyl_l_barrel_theta_x - c224*v_boom_cyl_l_barrel_theta_y
+    c231 = v_boom_cyl_l_barrel_theta_x**2
+    c232 = v_boom_cyl_l_barrel_theta_y**2
+    c233 = c231 + c232
+    c234 = v_boom_cyl_l_rod_theta_x**2
+    c235 = c234 - 2*v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_theta_x
+    c236 = v_boom_cyl_l_rod_theta_y**2
+    c237 = c236 - 2*v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_theta_y
+    c238 = -c233 - c235 - c237
+    c239 = c238*boom_cyl_l_rod_a21 + c227*boom_cyl_l_rod_a01 + c230*boom_cyl_l_rod_a11
+    c240 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y
+    c241 = v_boom_cyl_l_rod_theta_x*v_boom_cyl_l_rod_theta_y
+    c242 = 2*v_boom_cyl_l_barrel_theta_x
+    c243 = c240 + c241 + dv_boom_cyl_l_rod_theta_z - dv_boom_cyl_l_barrel_theta_z - c242*v_boom_cyl_l_rod_theta_y
+    c244 = 2*v_boom_cyl_l_rod_theta_y
+    c245 = c228 + dv_boom_cyl_l_barrel_theta_x
+    c246 = c245 + c229 - dv_boom_cyl_l_rod_theta_x - c244*v_boom_cyl_l_barrel_theta_z
+    c247 = v_boom_cyl_l_barrel_theta_z**2
+    c248 = c247 + c231
+    c249 = v_boom_cyl_l_rod_theta_z**2
+    c250 = c249 - 2*v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_theta_z
+    c251 = -c235 - c248 - c250
+    c252 = c243*boom_cyl_l_rod_a01 + c246*boom_cyl_l_rod_a21 + c251*boom_cyl_l_rod_a11
+    c253 = 2*v_boom_cyl_l_rod_theta_x
+    c254 = c240 + dv_boom_cyl_l_barrel_theta_z
+    c255 = c241 + c254 - dv_boom_cyl_l_rod_theta_z - c253*v_boom_cyl_l_barrel_theta_y
+    c256 = c223 + c225 + dv_boom_cyl_l_rod_theta_y - dv_boom_cyl_l_barrel_theta_y - c253*v_boom_cyl_l_barrel_theta_z
+    c257 = c247 + c232
+    c258 = -c237 - c250 - c257
+    c259 = c255*boom_cyl_l_rod_a11 + c256*boom_cyl_l_rod_a21 + c258*boom_cyl_l_rod_a01
+    c260 = c238*boom_cyl_l_barrel_a20 + c246*boom_cyl_l_barrel_a10 + c256*boom_cyl_l_barrel_a00
+    c261 = c251*boom_cyl_l_barrel_a10 + c255*boom_cyl_l_barrel_a00 + c230*boom_cyl_l_barrel_a20
+    c262 = c243*boom_cyl_l_barrel_a10 + c258*boom_cyl_l_barrel_a00 + c227*boom_cyl_l_barrel_a20
+    c263 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a11
+    c264 = c263*v_boom_cyl_l_barrel_theta_y
+    c265 = boom_cyl_l_rod_a21*v_boom_cyl_l_barrel_theta_z
+    c266 = c265*boom_cyl_l_barrel_a00
+    c267 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a01
+    c268 = boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_z
+    c269 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a01
+    c270 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a11
+    c271 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a21
+    c272 = c270 + c271
+    c273 = -c272
+    c274 = c265*boom_cyl_l_barrel_a10
+    c275 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a11
+    c276 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a01
+    c277 = c271 + c276
+    c278 = -c277
+    c279 = 2*v_boom_cyl_l_barrel_theta_y
+    c280 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a21
+    c281 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a21
+    c282 = c270 + c276
+    c283 = -c282
+    c284 = 2*v_boom_cyl_l_barrel_theta_z
+    c285 = c238*boom_cyl_l_rod_a22 + c227*boom_cyl_l_rod_a02 + c230*boom_cyl_l_rod_a12
+    c286 = c243*boom_cyl_l_rod_a02 + c246*boom_cyl_l_rod_a22 + c251*boom_cyl_l_rod_a12
+    c287 = c255*boom_cyl_l_rod_a12 + c256*boom_cyl_l_rod_a22 + c258*boom_cyl_l_rod_a02
+    c288 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a12
+    c289 = boom_cyl_l_rod_a22*v_boom_cyl_l_barrel_theta_z
+    c290 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a02
+    c291 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a02
+    c292 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a12
+    c293 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a22
+    c294 = c292 + c293
+    c295 = -c294
+    c296 = boom_cyl_l_barrel_a20*boom_cyl_l_rod_a12
+    c297 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a02
+    c298 = c293 + c297
+    c299 = -c298
+    c300 = boom_cyl_l_barrel_a00*boom_cyl_l_rod_a22
+    c301 = boom_cyl_l_barrel_a10*boom_cyl_l_rod_a22
+    c302 = c292 + c297
+    c303 = -c302
+    c304 = dv_boom_cyl_l_barrel_theta_z - c240
+    c305 = -c226
+    c306 = dv_boom_cyl_l_barrel_theta_x - c228
+    c307 = -c254
+    c308 = dv_boom_cyl_l_barrel_theta_y - c225
+    c309 = -c245
+    c310 = -c306
+    c311 = -c233
+    c312 = dv_boom_cyl_l_rod_z - dv_boom_cyl_l_barrel_z + c233*boom_cyl_l_barrel_z + c242*v_boom_cyl_l_barrel_y + c226*boom_cyl_l_rod_x + c279*v_boom_cyl_l_rod_x + c305*boom_cyl_l_barrel_x + c306*boom_cyl_l_barrel_y + c310*boom_cyl_l_rod_y + c311*boom_cyl_l_rod_z - c242*v_boom_cyl_l_rod_y - c279*v_boom_cyl_l_barrel_x
+    c313 = -c304
+    c314 = -c248
+    c315 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + c242*v_boom_cyl_l_rod_z + c245*boom_cyl_l_rod_z + c248*boom_cyl_l_barrel_y + c284*v_boom_cyl_l_barrel_x + c304*boom_cyl_l_barrel_x + c309*boom_cyl_l_barrel_z + c313*boom_cyl_l_rod_x + c314*boom_cyl_l_rod_y - c242*v_boom_cyl_l_barrel_z - c284*v_boom_cyl_l_rod_x
+    c316 = -c308
+    c317 = -c257
+    c318 = dv_boom_cyl_l_rod_x - dv_boom_cyl_l_barrel_x + c254*boom_cyl_l_rod_y + c257*boom_cyl_l_barrel_x + c279*v_boom_cyl_l_barrel_z + c284*v_boom_cyl_l_rod_y + c307*boom_cyl_l_barrel_y + c308*boom_cyl_l_barrel_z + c316*boom_cyl_l_rod_z + c317*boom_cyl_l_rod_x - c279*v_boom_cyl_l_rod_z - c284*v_boom_cyl_l_barrel_y
+    c319 = c284*boom_cyl_l_barrel_a11 - c279*boom_cyl_l_barrel_a21
+    c320 = c284*boom_cyl_l_barrel_a01 - 2*boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_x
+    c321 = c279*boom_cyl_l_barrel_a01 - c242*boom_cyl_l_barrel_a11
+    c322 = 2*boom_cyl_l_barrel_a11
+    c323 = 2*boom_cyl_l_barrel_a21
+    c324 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c325 = -c324
+    c326 = c325*boom_cyl_l_barrel_a01
+    c327 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c328 = -c327
+    c329 = c328*boom_cyl_l_barrel_a11
+    c330 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c331 = c330*boom_cyl_l_barrel_a01
+    c332 = boom_cyl_l_barrel_a21*v_boom_cyl_l_barrel_theta_z
+    c333 = 2*boom_cyl_l_barrel_a01
+    c334 = -c330
+    c335 = c324*boom_cyl_l_barrel_a11
+    c336 = c334*v_boom_cyl_l_barrel_theta_y
+    c337 = c327*v_boom_cyl_l_barrel_theta_x
+    c338 = c284*boom_cyl_l_barrel_a12 - c279*boom_cyl_l_barrel_a22
+    c339 = c284*boom_cyl_l_barrel_a02 - 2*boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_x
+    c340 = c279*boom_cyl_l_barrel_a02 - c242*boom_cyl_l_barrel_a12
+    c341 = 2*boom_cyl_l_barrel_a12
+    c342 = 2*boom_cyl_l_barrel_a22
+    c343 = c325*boom_cyl_l_barrel_a02
+    c344 = c328*boom_cyl_l_barrel_a12
+    c345 = c330*boom_cyl_l_barrel_a02
+    c346 = boom_cyl_l_barrel_a22*v_boom_cyl_l_barrel_theta_z
+    c347 = 2*boom_cyl_l_barrel_a02
+    c348 = c324*boom_cyl_l_barrel_a12
+    c349 = (1.0)*dv_boom_cyl_l_rod_theta_y
+    c350 = (1.0)*dv_boom_cyl_l_barrel_theta_y
+    c351 = (2.0)*v_boom_cyl_l_rod_theta_z
+    c352 = (1.0)*c223 + (1.0)*c225
+    c353 = c350 + c352 - c349 - c351*v_boom_cyl_l_barrel_theta_x
+    c354 = (1.0)*dv_boom_cyl_l_barrel_theta_x
+    c355 = (1.0)*dv_boom_cyl_l_rod_theta_x
+    c356 = (1.0)*c228 + (1.0)*c229
+    c357 = c355 + c356 - c354 - c351*v_boom_cyl_l_barrel_theta_y
+    c358 = (1.0)*c234 + (1.0)*c231 - 2.0*v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_rod_theta_x
+    c359 = (1.0)*c236 + (1.0)*c232 - 2.0*v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_rod_theta_y
+    c360 = -c358 - c359
+    c361 = c353*boom_cyl_l_rod_a02 + c357*boom_cyl_l_rod_a12 + c360*boom_cyl_l_rod_a22
+    c362 = (1.0)*dv_boom_cyl_l_barrel_theta_z
+    c363 = (1.0)*dv_boom_cyl_l_rod_theta_z
+    c364 = (2.0)*v_boom_cyl_l_barrel_theta_x
+    c365 = (1.0)*c240 + (1.0)*c241
+    c366 = c363 + c365 - c362 - c364*v_boom_cyl_l_rod_theta_y
+    c367 = (2.0)*v_boom_cyl_l_rod_theta_y
+    c368 = c354 + c356 - c355 - c367*v_boom_cyl_l_barrel_theta_z
+    c369 = (1.0)*c247 + (1.0)*c249 - 2.0*v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_rod_theta_z
+    c370 = -c358 - c369
+    c371 = c366*boom_cyl_l_rod_a02 + c368*boom_cyl_l_rod_a22 + c370*boom_cyl_l_rod_a12
+    c372 = (2.0)*v_boom_cyl_l_rod_theta_x
+    c373 = c362 + c365 - c363 - c372*v_boom_cyl_l_barrel_theta_y
+    c374 = c349 + c352 - c350 - c372*v_boom_cyl_l_barrel_theta_z
+    c375 = -c359 - c369
+    c376 = c373*boom_cyl_l_rod_a12 + c374*boom_cyl_l_rod_a22 + c375*boom_cyl_l_rod_a02
+    c377 = c360*boom_cyl_l_barrel_a21 + c368*boom_cyl_l_barrel_a11 + c374*boom_cyl_l_barrel_a01
+    c378 = c357*boom_cyl_l_barrel_a21 + c370*boom_cyl_l_barrel_a11 + c373*boom_cyl_l_barrel_a01
+    c379 = c353*boom_cyl_l_barrel_a21 + c366*boom_cyl_l_barrel_a11 + c375*boom_cyl_l_barrel_a01
+    c380 = (1.0)*boom_cyl_l_rod_a12
+    c381 = c380*boom_cyl_l_barrel_a01
+    c382 = (1.0)*boom_cyl_l_barrel_a01
+    c383 = boom_cyl_l_barrel_a11*boom_cyl_l_rod_a02
+    c384 = (1.0)*c383
+    c385 = (1.0)*boom_cyl_l_rod_a02
+    c386 = c351*boom_cyl_l_barrel_a21
+    c387 = c380*boom_cyl_l_barrel_a11
+    c388 = (1.0)*boom_cyl_l_rod_a22
+    c389 = c388*boom_cyl_l_barrel_a21
+    c390 = c387 + c389
+    c391 = -c390
+    c392 = c372*boom_cyl_l_barrel_a01
+    c393 = c289*boom_cyl_l_barrel_a11
+    c394 = c382*boom_cyl_l_rod_a02
+    c395 = c389 + c394
+    c396 = -c395
+    c397 = c388*boom_cyl_l_barrel_a01
+    c398 = c388*boom_cyl_l_barrel_a11
+    c399 = c385*boom_cyl_l_barrel_a21
+    c400 = c380*boom_cyl_l_barrel_a21
+    c401 = c387 + c394
+    c402 = -c401
+    c403 = (2.0)*boom_cyl_l_barrel_a01
+    c404 = boom_cyl_l_rod_a12*v_boom_cyl_l_barrel_theta_y
+    c405 = (8/25)*dv_boom_theta_y
+    c406 = v_boom_theta_x*v_boom_theta_z
+    c407 = (8/25)*c406
+    c408 = -c405 - c407
+    c409 = (8/25)*dv_boom_theta_z
+    c410 = v_boom_theta_x*v_boom_theta_y
+    c411 = (8/25)*c410
+    c412 = c409 - c411
+    c413 = dv_boom_theta_y*p_C_x
+    c414 = c406*p_C_x
+    c415 = -c413 - c414
+    c416 = dv_boom_theta_y*p_C_z
+    c417 = c406*p_C_z
+    c418 = -c416 - c417
+    c419 = dv_boom_theta_z*p_C_x
+    c420 = c410*p_C_x
+    c421 = c419 - c420
+    c422 = dv_boom_theta_z*p_C_z
+    c423 = c410*p_C_z
+    c424 = c422 - c423
+    c425 = v_boom_theta_y**2
+    c426 = c425*p_C_x
+    c427 = v_boom_theta_z**2
+    c428 = c427*p_C_x
+    c429 = c426 + c428
+    c430 = (8/25)*c425
+    c431 = (8/25)*c427
+    c432 = c430 + c431
+    c433 = c425*p_C_z
+    c434 = c427*p_C_z
+    c435 = c433 + c434
+    c436 = (8/25)*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    c437 = -c436
+    c438 = c437*v_boom_theta_y
+    c439 = (8/25)*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    c440 = -c439
+    c441 = c440*v_boom_theta_z
+    c442 = (8/25)*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
+    c443 = 2*c442
+    c444 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
+    c445 = boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y
+    c446 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x
+    c447 = boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y
+    c448 = (8/25)*dv_boom_theta_x
+    c449 = v_boom_theta_y*v_boom_theta_z
+    c450 = (8/25)*c449
+    c451 = c448 - c450
+    c452 = dv_boom_theta_x*p_C_x
+    c453 = c449*p_C_x
+    c454 = c452 - c453
+    c455 = dv_boom_theta_x*p_C_z
+    c456 = c449*p_C_z
+    c457 = c455 - c456
+    c458 = v_boom_theta_x**2
+    c459 = c458*p_C_x
+    c460 = c428 + c459
+    c461 = (8/25)*c458
+    c462 = c431 + c461
+    c463 = c458*p_C_z
+    c464 = c434 + c463
+    c465 = -c409 - c411
+    c466 = -c419 - c420
+    c467 = -c422 - c423
+    c468 = 2*c436
+    c469 = -c442
+    c470 = c469*v_boom_theta_x
+    c471 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
+    c472 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z
+    c473 = -c448 - c450
+    c474 = c426 + c459
+    c475 = c430 + c461
+    c476 = c433 + c463
+    c477 = -c452 - c453
+    c478 = -c455 - c456
+    c479 = c405 - c407
+    c480 = c413 - c414
+    c481 = c416 - c417
+    c482 = 2*c439
+    c483 = (4307/6250)*dv_upper_theta_y
+    c484 = v_upper_theta_x*v_upper_theta_z
+    c485 = c483 + (4307/6250)*c484
+    c486 = (8/25)*dv_upper_theta_y
+    c487 = (8/25)*c484
+    c488 = -c486 - c487
+    c489 = (67739/50000)*dv_upper_theta_y
+    c490 = c489 + (67739/50000)*c484
+    c491 = (4307/6250)*dv_upper_theta_z
+    c492 = -c491 + (4307/6250)*v_upper_theta_x*v_upper_theta_y
+    c493 = (8/25)*dv_upper_theta_z
+    c494 = v_upper_theta_x*v_upper_theta_y
+    c495 = (8/25)*c494
+    c496 = c493 - c495
+    c497 = (67739/50000)*dv_upper_theta_z
+    c498 = -c497 + (67739/50000)*v_upper_theta_x*v_upper_theta_y
+    c499 = v_upper_theta_y**2
+    c500 = (4307/6250)*c499
+    c501 = v_upper_theta_z**2
+    c502 = (4307/6250)*c501
+    c503 = -c500 - c502
+    c504 = (8/25)*c499
+    c505 = (8/25)*c501
+    c506 = c504 + c505
+    c507 = (67739/50000)*c499
+    c508 = (67739/50000)*c501
+    c509 = -c507 - c508
+    c510 = -8/25*upper_a11 + (4307/6250)*upper_a10 + (67739/50000)*upper_a12
+    c511 = c510*v_upper_theta_y
+    c512 = -8/25*upper_a21 + (4307/6250)*upper_a20 + (67739/50000)*upper_a22
+    c513 = c512*v_upper_theta_z
+    c514 = -8/25*upper_a01 + (4307/6250)*upper_a00 + (67739/50000)*upper_a02
+    c515 = -2*c514
+    c516 = (4307/6250)*dv_upper_theta_x
+    c517 = -c516 + (4307/6250)*v_upper_theta_y*v_upper_theta_z
+    c518 = (8/25)*dv_upper_theta_x
+    c519 = v_upper_theta_y*v_upper_theta_z
+    c520 = (8/25)*c519
+    c521 = c518 - c520
+    c522 = (67739/50000)*dv_upper_theta_x
+    c523 = -c522 + (67739/50000)*v_upper_theta_y*v_upper_theta_z
+    c524 = v_upper_theta_x**2
+    c525 = (4307/6250)*c524
+    c526 = -c502 - c525
+    c527 = (8/25)*c524
+    c528 = c505 + c527
+    c529 = (67739/50000)*c524
+    c530 = -c508 - c529
+    c531 = c491 + (4307/6250)*c494
+    c532 = -c493 - c495
+    c533 = c497 + (67739/50000)*c494
+    c534 = -2*c510
+    c535 = c514*v_upper_theta_x
+    c536 = c516 + (4307/6250)*c519
+    c537 = -c518 - c520
+    c538 = c522 + (67739/50000)*c519
+    c539 = -c500 - c525
+    c540 = c504 + c527
+    c541 = -c507 - c529
+    c542 = -c483 + (4307/6250)*v_upper_theta_x*v_upper_theta_z
+    c543 = c486 - c487
+    c544 = -c489 + (67739/50000)*v_upper_theta_x*v_upper_theta_z
+    c545 = -2*c512
+    c546 = 2*v_boom_cyl_r_barrel_theta_z
+    c547 = c484 + v_boom_cyl_r_barrel_theta_x*v_boom_cyl_r_barrel_theta_z
+    c548 = c547 + dv_upper_theta_y - dv_boom_cyl_r_barrel_theta_y - c546*v_upper_theta_x
+    c549 = c519 + v_boom_cyl_r_barrel_theta_y*v_boom_cyl_r_barrel_theta_z
+    c550 = c549 + dv_boom_cyl_r_barrel_theta_x - dv_upper_theta_x - c546*v_upper_theta_y
+    c551 = c524 + v_boom_cyl_r_barrel_theta_x**2 - 2*v_boom_cyl_r_barrel_theta_x*v_upper_theta_x
+    c552 = c499 + v_boom_cyl_r_barrel_theta_y**2 - 2*v_boom_cyl_r_barrel_theta_y*v_upper_theta_y
+    c553 = -c551 - c552
+    c554 = c548*boom_cyl_r_barrel_a02 + c550*boom_cyl_r_barrel_a12 + c553*boom_cyl_r_barrel_a22
+    c555 = 2*v_upper_theta_x
+    c556 = c494 + v_boom_cyl_r_barrel_theta_x*v_boom_cyl_r_barrel_theta_y
+    c557 = c556 + dv_boom_cyl_r_barrel_theta_z - dv_upper_theta_z - c555*v_boom_cyl_r_barrel_theta_y
+    c558 = 2*v_boom_cyl_r_barrel_theta_y
+    c559 = c549 + dv_upper_theta_x - dv_boom_cyl_r_barrel_theta_x - c558*v_upper_theta_z
+    c560 = c501 + v_boom_cyl_r_barrel_theta_z**2 - 2*v_boom_cyl_r_barrel_theta_z*v_upper_theta_z
+    c561 = -c551 - c560
+    c562 = c557*boom_cyl_r_barrel_a02 + c559*boom_cyl_r_barrel_a22 + c561*boom_cyl_r_barrel_a12
+    c563 = 2*v_boom_cyl_r_barrel_theta_x
+    c564 = c556 + dv_upper_theta_z - dv_boom_cyl_r_barrel_theta_z - c563*v_upper_theta_y
+    c565 = c547 + dv_boom_cyl_r_barrel_theta_y - dv_upper_theta_y - c563*v_upper_theta_z
+    c566 = -c552 - c560
+    c567 = c564*boom_cyl_r_barrel_a12 + c565*boom_cyl_r_barrel_a22 + c566*boom_cyl_r_barrel_a02
+    c568 = c553*upper_a21 + c559*upper_a11 + c565*upper_a01
+    c569 = c550*upper_a21 + c561*upper_a11 + c564*upper_a01
+    c570 = c548*upper_a21 + c557*upper_a11 + c566*upper_a01
+    c571 = boom_cyl_r_barrel_a02*upper_a11
+    c572 = upper_a21*v_upper_theta_z
+    c573 = boom_cyl_r_barrel_a12*upper_a01
+    c574 = c573*v_upper_theta_y
+    c575 = boom_cyl_r_barrel_a22*v_upper_theta_z
+    c576 = c575*upper_a01
+    c577 = boom_cyl_r_barrel_a02*upper_a21
+    c578 = boom_cyl_r_barrel_a12*upper_a11
+    c579 = boom_cyl_r_barrel_a22*upper_a21
+    c580 = c578 + c579
+    c581 = -c580
+    c582 = c575*upper_a11
+    c583 = boom_cyl_r_barrel_a12*upper_a21
+    c584 = boom_cyl_r_barrel_a02*upper_a01
+    c585 = c584 + c579
+    c586 = -c585
+    c587 = 2*v_upper_theta_y
+    c588 = boom_cyl_r_barrel_a22*upper_a01
+    c589 = boom_cyl_r_barrel_a22*upper_a11
+    c590 = c584 + c578
+    c591 = -c590
+    c592 = 2*v_upper_theta_z
+    c593 = v_boom_cyl_r_rod_theta_x*v_boom_cyl_r_rod_theta_z
+    c594 = 2*v_boom_cyl_r_rod_theta_z
+    c595 = v_boom_cyl_r_barrel_theta_x*v_boom_cyl_r_barrel_theta_z
+    c596 = c595 + dv_boom_cyl_r_barrel_theta_y
+    c597 = c593 + c596 - dv_boom_cyl_r_rod_theta_y - c594*v_boom_cyl_r_barrel_theta_x
+    c598 = v_boom_cyl_r_barrel_theta_y*v_boom_cyl_r_barrel_theta_z
+    c599 = v_boom_cyl_r_rod_theta_y*v_boom_cyl_r_rod_theta_z
+    c600 = c598 + c599 + dv_boom_cyl_r_rod_theta_x - dv_boom_cyl_r_barrel_theta_x - c594*v_boom_cyl_r_barrel_theta_y
+    c601 = v_boom_cyl_r_barrel_theta_x**2
+    c602 = v_boom_cyl_r_barrel_theta_y**2
+    c603 = c601 + c602
+    c604 = v_boom_cyl_r_rod_theta_x**2
+    c605 = c604 - 2*v_boom_cyl_r_barrel_theta_x*v_boom_cyl_r_rod_theta_x
+    c606 = v_boom_cyl_r_rod_theta_y**2
+    c607 = c606 - 2*v_boom_cyl_r_barrel_theta_y*v_boom_cyl_r_rod_theta_y
+    c608 = -c603 - c605 - c607
+    c609 = c608*boom_cyl_r_rod_a21 + c597*boom_cyl_r_rod_a01 + c600*boom_cyl_r_rod_a11
+    c610 = v_boom_cyl_r_barrel_theta_x*v_boom_cyl_r_barrel_theta_y
+    c611 = v_boom_cyl_r_rod_theta_x*v_boom_cyl_r_rod_theta_y
+    c612 = 2*v_boom_cyl_r_barrel_theta_x
+    c613 = c610 + c611 + dv_boom_cyl_r_rod_theta_z - dv_boom_cyl_r_barrel_theta_z - c612*v_boom_cyl_r_rod_theta_y
+    c614 = 2*v_boom_cyl_r_rod_theta_y
+    c615 = c598 + dv_boom_cyl_r_barrel_theta_x
+    c616 = c615 + c599 - dv_boom_cyl_r_rod_theta_x - c614*v_boom_cyl_r_barrel_theta_z
+    c617 = v_boom_cyl_r_barrel_theta_z**2
+    c618 = c617 + c601
+    c619 = v_boom_cyl_r_rod_theta_z**2
+    c620 = c619 - 2*v_boom_cyl_r_barrel_theta_z*v_boom_cyl_r_rod_theta_z
+    c621 = -c605 - c618 - c620
+    c622 = c613*boom_cyl_r_rod_a01 + c616*boom_cyl_r_rod_a21 + c621*boom_cyl_r_rod_a11
+    c623 = 2*v_boom_cyl_r_rod_theta_x
+    c624 = c610 + dv_boom_cyl_r_barrel_theta_z
+    c625 = c611 + c624 - dv_boom_cyl_r_rod_theta_z - c623*v_boom_cyl_r_barrel_theta_y
+    c626 = c593 + c595 + dv_boom_cyl_r_rod_theta_y - dv_boom_cyl_r_barrel_theta_y - c623*v_boom_cyl_r_barrel_theta_z
+    c627 = c617 + c602
+    c628 = -c607 - c620 - c627
+    c629 = c625*boom_cyl_r_rod_a11 + c626*boom_cyl_r_rod_a21 + c628*boom_cyl_r_rod_a01
+    c630 = c608*boom_cyl_r_barrel_a20 + c616*boom_cyl_r_barrel_a10 + c626*boom_cyl_r_barrel_a00
+    c631 = c621*boom_cyl_r_barrel_a10 + c625*boom_cyl_r_barrel_a00 + c600*boom_cyl_r_barrel_a20
+    c632 = c613*boom_cyl_r_barrel_a10 + c628*boom_cyl_r_barrel_a00 + c597*boom_cyl_r_barrel_a20
+    c633 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a11
+    c634 = c633*v_boom_cyl_r_barrel_theta_y
+    c635 = boom_cyl_r_rod_a21*v_boom_cyl_r_barrel_theta_z
+    c636 = c635*boom_cyl_r_barrel_a00
+    c637 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a01
+    c638 = boom_cyl_r_barrel_a20*v_boom_cyl_r_barrel_theta_z
+    c639 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a01
+    c640 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a11
+    c641 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a21
+    c642 = c640 + c641
+    c643 = -c642
+    c644 = c635*boom_cyl_r_barrel_a10
+    c645 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a11
+    c646 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a01
+    c647 = c641 + c646
+    c648 = -c647
+    c649 = 2*v_boom_cyl_r_barrel_theta_y
+    c650 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a21
+    c651 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a21
+    c652 = c640 + c646
+    c653 = -c652
+    c654 = 2*v_boom_cyl_r_barrel_theta_z
+    c655 = c608*boom_cyl_r_rod_a22 + c597*boom_cyl_r_rod_a02 + c600*boom_cyl_r_rod_a12
+    c656 = c613*boom_cyl_r_rod_a02 + c616*boom_cyl_r_rod_a22 + c621*boom_cyl_r_rod_a12
+    c657 = c625*boom_cyl_r_rod_a12 + c626*boom_cyl_r_rod_a22 + c628*boom_cyl_r_rod_a02
+    c658 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a12
+    c659 = boom_cyl_r_rod_a22*v_boom_cyl_r_barrel_theta_z
+    c660 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a02
+    c661 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a02
+    c662 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a12
+    c663 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a22
+    c664 = c662 + c663
+    c665 = -c664
+    c666 = boom_cyl_r_barrel_a20*boom_cyl_r_rod_a12
+    c667 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a02
+    c668 = c663 + c667
+    c669 = -c668
+    c670 = boom_cyl_r_barrel_a00*boom_cyl_r_rod_a22
+    c671 = boom_cyl_r_barrel_a10*boom_cyl_r_rod_a22
+    c672 = c662 + c667
+    c673 = -c672
+    c674 = dv_boom_cyl_r_barrel_theta_z - c610
+    c675 = -c596
+    c676 = dv_boom_cyl_r_barrel_theta_x - c598
+    c677 = -c624
+    c678 = dv_boom_cyl_r_barrel_theta_y - c595
+    c679 = -c615
+    c680 = -c676
+    c681 = -c603
+    c682 = dv_boom_cyl_r_rod_z - dv_boom_cyl_r_barrel_z + c603*boom_cyl_r_barrel_z + c612*v_boom_cyl_r_barrel_y + c596*boom_cyl_r_rod_x + c649*v_boom_cyl_r_rod_x + c675*boom_cyl_r_barrel_x + c676*boom_cyl_r_barrel_y + c680*boom_cyl_r_rod_y + c681*boom_cyl_r_rod_z - c612*v_boom_cyl_r_rod_y - c649*v_boom_cyl_r_barrel_x
+    c683 = -c674
+    c684 = -c618
+    c685 = dv_boom_cyl_r_rod_y - dv_boom_cyl_r_barrel_y + c612*v_boom_cyl_r_rod_z + c615*boom_cyl_r_rod_z + c618*boom_cyl_r_barrel_y + c654*v_boom_cyl_r_barrel_x + c674*boom_cyl_r_barrel_x + c679*boom_cyl_r_barrel_z + c683*boom_cyl_r_rod_x + c684*boom_cyl_r_rod_y - c612*v_boom_cyl_r_barrel_z - c654*v_boom_cyl_r_rod_x
+    c686 = -c678
+    c687 = -c627
+    c688 = dv_boom_cyl_r_rod_x - dv_boom_cyl_r_barrel_x + c624*boom_cyl_r_rod_y + c627*boom_cyl_r_barrel_x + c649*v_boom_cyl_r_barrel_z + c654*v_boom_cyl_r_rod_y + c677*boom_cyl_r_barrel_y + c678*boom_cyl_r_barrel_z + c686*boom_cyl_r_rod_z + c687*boom_cyl_r_rod_x - c649*v_boom_cyl_r_rod_z - c654*v_boom_cyl_r_barrel_y
+    c689 = c654*boom_cyl_r_barrel_a11 - c649*boom_cyl_r_barrel_a21
+    c690 = c654*boom_cyl_r_barrel_a01 - 2*boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_x
+    c691 = c649*boom_cyl_r_barrel_a01 - c612*boom_cyl_r_barrel_a11
+    c692 = 2*boom_cyl_r_barrel_a11
+    c693 = 2*boom_cyl_r_barrel_a21
+    c694 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z
+    c695 = -c694
+    c696 = c695*boom_cyl_r_barrel_a01
+    c697 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x
+    c698 = -c697
+    c699 = c698*boom_cyl_r_barrel_a11
+    c700 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y
+    c701 = c700*boom_cyl_r_barrel_a01
+    c702 = boom_cyl_r_barrel_a21*v_boom_cyl_r_barrel_theta_z
+    c703 = 2*boom_cyl_r_barrel_a01
+    c704 = -c700
+    c705 = c694*boom_cyl_r_barrel_a11
+    c706 = c704*v_boom_cyl_r_barrel_theta_y
+    c707 = c697*v_boom_cyl_r_barrel_theta_x
+    c708 = c654*boom_cyl_r_barrel_a12 - c649*boom_cyl_r_barrel_a22
+    c709 = c654*boom_cyl_r_barrel_a02 - 2*boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_x
+    c710 = c649*boom_cyl_r_barrel_a02 - c612*boom_cyl_r_barrel_a12
+    c711 = 2*boom_cyl_r_barrel_a12
+    c712 = 2*boom_cyl_r_barrel_a22
+    c713 = c695*boom_cyl_r_barrel_a02
+    c714 = c698*boom_cyl_r_barrel_a12
+    c715 = c700*boom_cyl_r_barrel_a02
+    c716 = boom_cyl_r_barrel_a22*v_boom_cyl_r_barrel_theta_z
+    c717 = 2*boom_cyl_r_barrel_a02
+    c718 = c694*boom_cyl_r_barrel_a12
+    c719 = (1.0)*dv_boom_cyl_r_rod_theta_y
+    c720 = (1.0)*dv_boom_cyl_r_barrel_theta_y
+    c721 = (2.0)*v_boom_cyl_r_rod_theta_z
+    c722 = (1.0)*c593 + (1.0)*c595
+    c723 = c720 + c722 - c719 - c721*v_boom_cyl_r_barrel_theta_x
+    c724 = (1.0)*dv_boom_cyl_r_barrel_theta_x
+    c725 = (1.0)*dv_boom_cyl_r_rod_theta_x
+    c726 = (1.0)*c598 + (1.0)*c599
+    c727 = c725 + c726 - c724 - c721*v_boom_cyl_r_barrel_theta_y
+    c728 = (1.0)*c604 + (1.0)*c601 - 2.0*v_boom_cyl_r_barrel_theta_x*v_boom_cyl_r_rod_theta_x
+    c729 = (1.0)*c606 + (1.0)*c602 - 2.0*v_boom_cyl_r_barrel_theta_y*v_boom_cyl_r_rod_theta_y
+    c730 = -c728 - c729
+    c731 = c723*boom_cyl_r_rod_a02 + c727*boom_cyl_r_rod_a12 + c730*boom_cyl_r_rod_a22
+    c732 = (1.0)*dv_boom_cyl_r_barrel_theta_z
+    c733 = (1.0)*dv_boom_cyl_r_rod_theta_z
+    c734 = (2.0)*v_boom_cyl_r_barrel_theta_x
+    c735 = (1.0)*c610 + (1.0)*c611
+    c736 = c733 + c735 - c732 - c734*v_boom_cyl_r_rod_theta_y
+    c737 = (2.0)*v_boom_cyl_r_rod_theta_y
+    c738 = c724 + c726 - c725 - c737*v_boom_cyl_r_barrel_theta_z
+    c739 = (1.0)*c617 + (1.0)*c619 - 2.0*v_boom_cyl_r_barrel_theta_z*v_boom_cyl_r_rod_theta_z
+    c740 = -c728 - c739
+    c741 = c736*boom_cyl_r_rod_a02 + c738*boom_cyl_r_rod_a22 + c740*boom_cyl_r_rod_a12
+    c742 = (2.0)*v_boom_cyl_r_rod_theta_x
+    c743 = c732 + c735 - c733 - c742*v_boom_cyl_r_barrel_theta_y
+    c744 = c719 + c722 - c720 - c742*v_boom_cyl_r_barrel_theta_z
+    c745 = -c729 - c739
+    c746 = c743*boom_cyl_r_rod_a12 + c744*boom_cyl_r_rod_a22 + c745*boom_cyl_r_rod_a02
+    c747 = c730*boom_cyl_r_barrel_a21 + c738*boom_cyl_r_barrel_a11 + c744*boom_cyl_r_barrel_a01
+    c748 = c727*boom_cyl_r_barrel_a21 + c740*boom_cyl_r_barrel_a11 + c743*boom_cyl_r_barrel_a01
+    c749 = c723*boom_cyl_r_barrel_a21 + c736*boom_cyl_r_barrel_a11 + c745*boom_cyl_r_barrel_a01
+    c750 = (1.0)*boom_cyl_r_rod_a12
+    c751 = c750*boom_cyl_r_barrel_a01
+    c752 = (1.0)*boom_cyl_r_barrel_a01
+    c753 = boom_cyl_r_barrel_a11*boom_cyl_r_rod_a02
+    c754 = (1.0)*c753
+    c755 = (1.0)*boom_cyl_r_rod_a02
+    c756 = c721*boom_cyl_r_barrel_a21
+    c757 = c750*boom_cyl_r_barrel_a11
+    c758 = (1.0)*boom_cyl_r_rod_a22
+    c759 = c758*boom_cyl_r_barrel_a21
+    c760 = c757 + c759
+    c761 = -c760
+    c762 = c742*boom_cyl_r_barrel_a01
+    c763 = c659*boom_cyl_r_barrel_a11
+    c764 = c752*boom_cyl_r_rod_a02
+    c765 = c759 + c764
+    c766 = -c765
+    c767 = c758*boom_cyl_r_barrel_a01
+    c768 = c758*boom_cyl_r_barrel_a11
+    c769 = c755*boom_cyl_r_barrel_a21
+    c770 = c750*boom_cyl_r_barrel_a21
+    c771 = c757 + c764
+    c772 = -c771
+    c773 = (2.0)*boom_cyl_r_barrel_a01
+    c774 = boom_cyl_r_rod_a12*v_boom_cyl_r_barrel_theta_y
+    c775 = (8/25)*dv_boom_theta_y
+    c776 = v_boom_theta_x*v_boom_theta_z
+    c777 = c775 + (8/25)*c776
+    c778 = (8/25)*dv_boom_theta_z
+    c779 = -c778 + (8/25)*v_boom_theta_x*v_boom_theta_y
+    c780 = dv_boom_theta_y*p_C_x
+    c781 = c776*p_C_x
+    c782 = -c780 - c781
+    c783 = dv_boom_theta_y*p_C_z
+    c784 = c776*p_C_z
+    c785 = -c783 - c784
+    c786 = dv_boom_theta_z*p_C_x
+    c787 = v_boom_theta_x*v_boom_theta_y
+    c788 = c787*p_C_x
+    c789 = c786 - c788
+    c790 = dv_boom_theta_z*p_C_z
+    c791 = c787*p_C_z
+    c792 = c790 - c791
+    c793 = v_boom_theta_y**2
+    c794 = c793*p_C_x
+    c795 = v_boom_theta_z**2
+    c796 = c795*p_C_x
+    c797 = c794 + c796
+    c798 = (8/25)*c793
+    c799 = (8/25)*c795
+    c800 = -c798 - c799
+    c801 = c793*p_C_z
+    c802 = c795*p_C_z
+    c803 = c801 + c802
+    c804 = -8/25*boom_a11 + boom_a10*p_C_x + boom_a12*p_C_z
+    c805 = -c804
+    c806 = c805*v_boom_theta_y
+    c807 = -8/25*boom_a21 + boom_a20*p_C_x + boom_a22*p_C_z
+    c808 = -c807
+    c809 = c808*v_boom_theta_z
+    c810 = -8/25*boom_a01 + boom_a00*p_C_x + boom_a02*p_C_z
+    c811 = 2*c810
+    c812 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
+    c813 = boom_a10*v_boom_theta_x - boom_a00*v_boom_theta_y
+    c814 = boom_a02*v_boom_theta_z - boom_a22*v_boom_theta_x
+    c815 = boom_a12*v_boom_theta_x - boom_a02*v_boom_theta_y
+    c816 = (8/25)*dv_boom_theta_x
+    c817 = -c816 + (8/25)*v_boom_theta_y*v_boom_theta_z
+    c818 = dv_boom_theta_x*p_C_x
+    c819 = v_boom_theta_y*v_boom_theta_z
+    c820 = c819*p_C_x
+    c821 = c818 - c820
+    c822 = dv_boom_theta_x*p_C_z
+    c823 = c819*p_C_z
+    c824 = c822 - c823
+    c825 = v_boom_theta_x**2
+    c826 = c825*p_C_x
+    c827 = c796 + c826
+    c828 = (8/25)*c825
+    c829 = -c799 - c828
+    c830 = c825*p_C_z
+    c831 = c802 + c830
+    c832 = c778 + (8/25)*c787
+    c833 = -c786 - c788
+    c834 = -c790 - c791
+    c835 = 2*c804
+    c836 = -c810
+    c837 = c836*v_boom_theta_x
+    c838 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
+    c839 = boom_a22*v_boom_theta_y - boom_a12*v_boom_theta_z
+    c840 = c816 + (8/25)*c819
+    c841 = c794 + c826
+    c842 = -c798 - c828
+    c843 = c801 + c830
+    c844 = -c818 - c820
+    c845 = -c822 - c823
+    c846 = -c775 + (8/25)*v_boom_theta_x*v_boom_theta_z
+    c847 = c780 - c781
+    c848 = c783 - c784
+    c849 = 2*c807
+    c850 = (23939/5000)*dv_boom_theta_y
+    c851 = v_boom_theta_x*v_boom_theta_z
+    c852 = c850 + (23939/5000)*c851
+    c853 = (29959/10000)*dv_boom_theta_y
+    c854 = c853 + (29959/10000)*c851
+    c855 = (23939/5000)*dv_boom_theta_z
+    c856 = -c855 + (23939/5000)*v_boom_theta_x*v_boom_theta_y
+    c857 = (29959/10000)*dv_boom_theta_z
+    c858 = -c857 + (29959/10000)*v_boom_theta_x*v_boom_theta_y
+    c859 = v_boom_theta_y**2
+    c860 = (23939/5000)*c859
+    c861 = v_boom_theta_z**2
+    c862 = (23939/5000)*c861
+    c863 = -c860 - c862
+    c864 = (29959/10000)*c859
+    c865 = (29959/10000)*c861
+    c866 = -c864 - c865
+    c867 = (23939/5000)*boom_a10 + (29959/10000)*boom_a12
+    c868 = c867*v_boom_theta_y
+    c869 = (23939/5000)*boom_a20 + (29959/10000)*boom_a22
+    c870 = c869*v_boom_theta_z
+    c871 = (23939/5000)*boom_a00 + (29959/10000)*boom_a02
+    c872 = -2*c871
+    c873 = (23939/5000)*dv_boom_theta_x
+    c874 = -c873 + (23939/5000)*v_boom_theta_y*v_boom_theta_z
+    c875 = (29959/10000)*dv_boom_theta_x
+    c876 = -c875 + (29959/10000)*v_boom_theta_y*v_boom_theta_z
+    c877 = v_boom_theta_x**2
+    c878 = (23939/5000)*c877
+    c879 = -c862 - c878
+    c880 = (29959/10000)*c877
+    c881 = -c865 - c880
+    c882 = v_boom_theta_x*v_boom_theta_y
+    c883 = c855 + (23939/5000)*c882
+    c884 = c857 + (29959/10000)*c882
+    c885 = -2*c867
+    c886 = c871*v_boom_theta_x
+    c887 = v_boom_theta_y*v_boom_theta_z
+    c888 = c873 + (23939/5000)*c887
+    c889 = c875 + (29959/10000)*c887
+    c890 = -c860 - c878
+    c891 = -c864 - c880
+    c892 = -c850 + (23939/5000)*v_boom_theta_x*v_boom_theta_z
+    c893 = -c853 + (29959/10000)*v_boom_theta_x*v_boom_theta_z
+    c894 = -2*c869
+    c895 = 2*v_arm_theta_z
+    c896 = c851 + v_arm_theta_x*v_arm_theta_z
+    c897 = c896 + dv_boom_theta_y - dv_arm_theta_y - c895*v_boom_theta_x
+    c898 = c887 + v_arm_theta_y*v_arm_theta_z
+    c899 = c898 + dv_arm_theta_x - dv_boom_theta_x - c895*v_boom_theta_y
+    c900 = c877 + v_arm_theta_x**2 - 2*v_arm_theta_x*v_boom_theta_x
+    c901 = c859 + v_arm_theta_y**2 - 2*v_arm_theta_y*v_boom_theta_y
+    c902 = -c900 - c901
+    c903 = c897*arm_a02 + c899*arm_a12 + c902*arm_a22
+    c904 = 2*v_boom_theta_x
+    c905 = c882 + v_arm_theta_x*v_arm_theta_y
+    c906 = c905 + dv_arm_theta_z - dv_boom_theta_z - c904*v_arm_theta_y
+    c907 = 2*v_arm_theta_y
+    c908 = c898 + dv_boom_theta_x - dv_arm_theta_x - c907*v_boom_theta_z
+    c909 = c861 + v_arm_theta_z**2 - 2*v_arm_theta_z*v_boom_theta_z
+    c910 = -c900 - c909
+    c911 = c906*arm_a02 + c908*arm_a22 + c910*arm_a12
+    c912 = 2*v_arm_theta_x
+    c913 = c905 + dv_boom_theta_z - dv_arm_theta_z - c912*v_boom_theta_y
+    c914 = c896 + dv_arm_theta_y - dv_boom_theta_y - c912*v_boom_theta_z
+    c915 = -c901 - c909
+    c916 = c913*arm_a12 + c914*arm_a22 + c915*arm_a02
+    c917 = c902*boom_a21 + c908*boom_a11 + c914*boom_a01
+    c918 = c899*boom_a21 + c910*boom_a11 + c913*boom_a01
+    c919 = c897*boom_a21 + c906*boom_a11 + c915*boom_a01
+    c920 = arm_a02*boom_a11
+    c921 = boom_a21*v_boom_theta_z
+    c922 = arm_a12*boom_a01
+    c923 = c922*v_boom_theta_y
+    c924 = arm_a22*v_boom_theta_z
+    c925 = c924*boom_a01
+    c926 = arm_a02*boom_a21
+    c927 = arm_a12*boom_a11
+    c928 = arm_a22*boom_a21
+    c929 = c927 + c928
+    c930 = -c929
+    c931 = c924*boom_a11
+    c932 = arm_a12*boom_a21
+    c933 = arm_a02*boom_a01
+    c934 = c928 + c933
+    c935 = -c934
+    c936 = 2*v_boom_theta_y
+    c937 = arm_a22*boom_a01
+    c938 = arm_a22*boom_a11
+    c939 = c927 + c933
+    c940 = -c939
+    c941 = 2*v_boom_theta_z
+    c942 = c897*arm_a00 + c899*arm_a10 + c902*arm_a20
+    c943 = c906*arm_a00 + c908*arm_a20 + c910*arm_a10
+    c944 = c913*arm_a10 + c914*arm_a20 + c915*arm_a00
+    c945 = arm_a00*boom_a11
+    c946 = arm_a10*boom_a01
+    c947 = arm_a20*v_boom_theta_z
+    c948 = arm_a00*boom_a21
+    c949 = arm_a10*boom_a11
+    c950 = arm_a20*boom_a21
+    c951 = c950 + c949
+    c952 = -c951
+    c953 = arm_a10*boom_a21
+    c954 = arm_a00*boom_a01
+    c955 = c950 + c954
+    c956 = -c955
+    c957 = arm_a20*boom_a01
+    c958 = arm_a20*boom_a11
+    c959 = c954 + c949
+    c960 = -c959
+    c961 = (183/80)*dv_boom_theta_y
+    c962 = v_boom_theta_x*v_boom_theta_z
+    c963 = c961 + (183/80)*c962
+    c964 = (557/200)*dv_boom_theta_y
+    c965 = c964 + (557/200)*c962
+    c966 = (183/80)*dv_boom_theta_z
+    c967 = -c966 + (183/80)*v_boom_theta_x*v_boom_theta_y
+    c968 = (557/200)*dv_boom_theta_z
+    c969 = -c968 + (557/200)*v_boom_theta_x*v_boom_theta_y
+    c970 = v_boom_theta_y**2
+    c971 = (183/80)*c970
+    c972 = v_boom_theta_z**2
+    c973 = (183/80)*c972
+    c974 = -c971 - c973
+    c975 = (557/200)*c970
+    c976 = (557/200)*c972
+    c977 = -c975 - c976
+    c978 = (183/80)*boom_a10 + (557/200)*boom_a12
+    c979 = c978*v_boom_theta_y
+    c980 = (183/80)*boom_a20 + (557/200)*boom_a22
+    c981 = c980*v_boom_theta_z
+    c982 = (183/80)*boom_a00 + (557/200)*boom_a02
+    c983 = -2*c982
+    c984 = (183/80)*dv_boom_theta_x
+    c985 = -c984 + (183/80)*v_boom_theta_y*v_boom_theta_z
+    c986 = (557/200)*dv_boom_theta_x
+    c987 = -c986 + (557/200)*v_boom_theta_y*v_boom_theta_z
+    c988 = v_boom_theta_x**2
+    c989 = (183/80)*c988
+    c990 = -c973 - c989
+    c991 = (557/200)*c988
+    c992 = -c976 - c991
+    c993 = v_boom_theta_x*v_boom_theta_y
+    c994 = c966 + (183/80)*c993
+    c995 = c968 + (557/200)*c993
+    c996 = -2*c978
+    c997 = c982*v_boom_theta_x
+    c998 = v_boom_theta_y*v_boom_theta_z
+    c999 = c984 + (183/80)*c998
+    c1000 = c986 + (557/200)*c998
+    c1001 = -c971 - c989
+    c1002 = -c975 - c991
+    c1003 = -c961 + (183/80)*v_boom_theta_x*v_boom_theta_z
+    c1004 = -c964 + (557/200)*v_boom_theta_x*v_boom_theta_z
+    c1005 = -2*c980
+    c1006 = 2*v_arm_cyl_barrel_theta_z
+    c1007 = c962 + v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z
+    c1008 = c1007 + dv_boom_theta_y - dv_arm_cyl_barrel_theta_y - c1006*v_boom_theta_x
+    c1009 = c998 + v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z
+    c1010 = c1009 + dv_arm_cyl_barrel_theta_x - dv_boom_theta_x - c1006*v_boom_theta_y
+    c1011 = c988 + v_arm_cyl_barrel_theta_x**2 - 2*v_arm_cyl_barrel_theta_x*v_boom_theta_x
+    c1012 = c970 + v_arm_cyl_barrel_theta_y**2 - 2*v_arm_cyl_barrel_theta_y*v_boom_theta_y
+    c1013 = -c1011 - c1012
+    c1014 = c1008*arm_cyl_barrel_a02 + c1010*arm_cyl_barrel_a12 + c1013*arm_cyl_barrel_a22
+    c1015 = 2*v_boom_theta_x
+    c1016 = c993 + v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y
+    c1017 = c1016 + dv_arm_cyl_barrel_theta_z - dv_boom_theta_z - c1015*v_arm_cyl_barrel_theta_y
+    c1018 = 2*v_arm_cyl_barrel_theta_y
+    c1019 = c1009 + dv_boom_theta_x - dv_arm_cyl_barrel_theta_x - c1018*v_boom_theta_z
+    c1020 = c972 + v_arm_cyl_barrel_theta_z**2 - 2*v_arm_cyl_barrel_theta_z*v_boom_theta_z
+    c1021 = -c1011 - c1020
+    c1022 = c1017*arm_cyl_barrel_a02 + c1019*arm_cyl_barrel_a22 + c1021*arm_cyl_barrel_a12
+    c1023 = 2*v_arm_cyl_barrel_theta_x
+    c1024 = c1016 + dv_boom_theta_z - dv_arm_cyl_barrel_theta_z - c1023*v_boom_theta_y
+    c1025 = c1007 + dv_arm_cyl_barrel_theta_y - dv_boom_theta_y - c1023*v_boom_theta_z
+    c1026 = -c1012 - c1020
+    c1027 = c1024*arm_cyl_barrel_a12 + c1025*arm_cyl_barrel_a22 + c1026*arm_cyl_barrel_a02
+    c1028 = c1013*boom_a21 + c1019*boom_a11 + c1025*boom_a01
+    c1029 = c1010*boom_a21 + c1021*boom_a11 + c1024*boom_a01
+    c1030 = c1008*boom_a21 + c1017*boom_a11 + c1026*boom_a01
+    c1031 = arm_cyl_barrel_a02*boom_a11
+    c1032 = boom_a21*v_boom_theta_z
+    c1033 = arm_cyl_barrel_a12*boom_a01
+    c1034 = c1033*v_boom_theta_y
+    c1035 = arm_cyl_barrel_a22*v_boom_theta_z
+    c1036 = c1035*boom_a01
+    c1037 = arm_cyl_barrel_a02*boom_a21
+    c1038 = arm_cyl_barrel_a12*boom_a11
+    c1039 = arm_cyl_barrel_a22*boom_a21
+    c1040 = c1038 + c1039
+    c1041 = -c1040
+    c1042 = c1035*boom_a11
+    c1043 = arm_cyl_barrel_a12*boom_a21
+    c1044 = arm_cyl_barrel_a02*boom_a01
+    c1045 = c1039 + c1044
+    c1046 = -c1045
+    c1047 = 2*v_boom_theta_y
+    c1048 = arm_cyl_barrel_a22*boom_a01
+    c1049 = arm_cyl_barrel_a22*boom_a11
+    c1050 = c1038 + c1044
+    c1051 = -c1050
+    c1052 = 2*v_boom_theta_z
+    c1053 = v_arm_cyl_rod_theta_x*v_arm_cyl_rod_theta_z
+    c1054 = 2*v_arm_cyl_rod_theta_z
+    c1055 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z
+    c1056 = c1055 + dv_arm_cyl_barrel_theta_y
+    c1057 = c1053 + c1056 - dv_arm_cyl_rod_theta_y - c1054*v_arm_cyl_barrel_theta_x
+    c1058 = v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z
+    c1059 = v_arm_cyl_rod_theta_y*v_arm_cyl_rod_theta_z
+    c1060 = c1058 + c1059 + dv_arm_cyl_rod_theta_x - dv_arm_cyl_barrel_theta_x - c1054*v_arm_cyl_barrel_theta_y
+    c1061 = v_arm_cyl_barrel_theta_x**2
+    c1062 = v_arm_cyl_barrel_theta_y**2
+    c1063 = c1061 + c1062
+    c1064 = v_arm_cyl_rod_theta_x**2
+    c1065 = c1064 - 2*v_arm_cyl_barrel_theta_x*v_arm_cyl_rod_theta_x
+    c1066 = v_arm_cyl_rod_theta_y**2
+    c1067 = c1066 - 2*v_arm_cyl_barrel_theta_y*v_arm_cyl_rod_theta_y
+    c1068 = -c1063 - c1065 - c1067
+    c1069 = c1068*arm_cyl_rod_a21 + c1057*arm_cyl_rod_a01 + c1060*arm_cyl_rod_a11
+    c1070 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y
+    c1071 = v_arm_cyl_rod_theta_x*v_arm_cyl_rod_theta_y
+    c1072 = 2*v_arm_cyl_barrel_theta_x
+    c1073 = c1070 + c1071 + dv_arm_cyl_rod_theta_z - dv_arm_cyl_barrel_theta_z - c1072*v_arm_cyl_rod_theta_y
+    c1074 = 2*v_arm_cyl_rod_theta_y
+    c1075 = c1058 + dv_arm_cyl_barrel_theta_x
+    c1076 = c1075 + c1059 - dv_arm_cyl_rod_theta_x - c1074*v_arm_cyl_barrel_theta_z
+    c1077 = v_arm_cyl_barrel_theta_z**2
+    c1078 = c1077 + c1061
+    c1079 = v_arm_cyl_rod_theta_z**2
+    c1080 = c1079 - 2*v_arm_cyl_barrel_theta_z*v_arm_cyl_rod_theta_z
+    c1081 = -c1065 - c1078 - c1080
+    c1082 = c1073*arm_cyl_rod_a01 + c1076*arm_cyl_rod_a21 + c1081*arm_cyl_rod_a11
+    c1083 = 2*v_arm_cyl_rod_theta_x
+    c1084 = c1070 + dv_arm_cyl_barrel_theta_z
+    c1085 = c1071 + c1084 - dv_arm_cyl_rod_theta_z - c1083*v_arm_cyl_barrel_theta_y
+    c1086 = c1053 + c1055 + dv_arm_cyl_rod_theta_y - dv_arm_cyl_barrel_theta_y - c1083*v_arm_cyl_barrel_theta_z
+    c1087 = c1077 + c1062
+    c1088 = -c1067 - c1080 - c1087
+    c1089 = c1085*arm_cyl_rod_a11 + c1086*arm_cyl_rod_a21 + c1088*arm_cyl_rod_a01
+    c1090 = c1068*arm_cyl_barrel_a20 + c1076*arm_cyl_barrel_a10 + c1086*arm_cyl_barrel_a00
+    c1091 = c1081*arm_cyl_barrel_a10 + c1085*arm_cyl_barrel_a00 + c1060*arm_cyl_barrel_a20
+    c1092 = c1073*arm_cyl_barrel_a10 + c1088*arm_cyl_barrel_a00 + c1057*arm_cyl_barrel_a20
+    c1093 = arm_cyl_barrel_a00*arm_cyl_rod_a11
+    c1094 = c1093*v_arm_cyl_barrel_theta_y
+    c1095 = arm_cyl_rod_a21*v_arm_cyl_barrel_theta_z
+    c1096 = c1095*arm_cyl_barrel_a00
+    c1097 = arm_cyl_barrel_a10*arm_cyl_rod_a01
+    c1098 = arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_z
+    c1099 = arm_cyl_barrel_a20*arm_cyl_rod_a01
+    c1100 = arm_cyl_barrel_a10*arm_cyl_rod_a11
+    c1101 = arm_cyl_barrel_a20*arm_cyl_rod_a21
+    c1102 = c1100 + c1101
+    c1103 = -c1102
+    c1104 = c1095*arm_cyl_barrel_a10
+    c1105 = arm_cyl_barrel_a20*arm_cyl_rod_a11
+    c1106 = arm_cyl_barrel_a00*arm_cyl_rod_a01
+    c1107 = c1101 + c1106
+    c1108 = -c1107
+    c1109 = 2*v_arm_cyl_barrel_theta_y
+    c1110 = arm_cyl_barrel_a00*arm_cyl_rod_a21
+    c1111 = arm_cyl_barrel_a10*arm_cyl_rod_a21
+    c1112 = c1100 + c1106
+    c1113 = -c1112
+    c1114 = 2*v_arm_cyl_barrel_theta_z
+    c1115 = c1068*arm_cyl_rod_a22 + c1057*arm_cyl_rod_a02 + c1060*arm_cyl_rod_a12
+    c1116 = c1073*arm_cyl_rod_a02 + c1076*arm_cyl_rod_a22 + c1081*arm_cyl_rod_a12
+    c1117 = c1085*arm_cyl_rod_a12 + c1086*arm_cyl_rod_a22 + c1088*arm_cyl_rod_a02
+    c1118 = arm_cyl_barrel_a00*arm_cyl_rod_a12
+    c1119 = arm_cyl_rod_a22*v_arm_cyl_barrel_theta_z
+    c1120 = arm_cyl_barrel_a10*arm_cyl_rod_a02
+    c1121 = arm_cyl_barrel_a20*arm_cyl_rod_a02
+    c1122 = arm_cyl_barrel_a10*arm_cyl_rod_a12
+    c1123 = arm_cyl_barrel_a20*arm_cyl_rod_a22
+    c1124 = c1122 + c1123
+    c1125 = -c1124
+    c1126 = arm_cyl_barrel_a20*arm_cyl_rod_a12
+    c1127 = arm_cyl_barrel_a00*arm_cyl_rod_a02
+    c1128 = c1123 + c1127
+    c1129 = -c1128
+    c1130 = arm_cyl_barrel_a00*arm_cyl_rod_a22
+    c1131 = arm_cyl_barrel_a10*arm_cyl_rod_a22
+    c1132 = c1122 + c1127
+    c1133 = -c1132
+    c1134 = dv_arm_cyl_barrel_theta_z - c1070
+    c1135 = -c1056
+    c1136 = dv_arm_cyl_barrel_theta_x - c1058
+    c1137 = -c1084
+    c1138 = dv_arm_cyl_barrel_theta_y - c1055
+    c1139 = -c1075
+    c1140 = -c1136
+    c1141 = -c1063
+    c1142 = dv_arm_cyl_rod_z - dv_arm_cyl_barrel_z + c1063*arm_cyl_barrel_z + c1072*v_arm_cyl_barrel_y + c1056*arm_cyl_rod_x + c1109*v_arm_cyl_rod_x + c1135*arm_cyl_barrel_x + c1136*arm_cyl_barrel_y + c1140*arm_cyl_rod_y + c1141*arm_cyl_rod_z - c1072*v_arm_cyl_rod_y - c1109*v_arm_cyl_barrel_x
+    c1143 = -c1134
+    c1144 = -c1078
+    c1145 = dv_arm_cyl_rod_y - dv_arm_cyl_barrel_y + c1072*v_arm_cyl_rod_z + c1075*arm_cyl_rod_z + c1078*arm_cyl_barrel_y + c1114*v_arm_cyl_barrel_x + c1134*arm_cyl_barrel_x + c1139*arm_cyl_barrel_z + c1143*arm_cyl_rod_x + c1144*arm_cyl_rod_y - c1072*v_arm_cyl_barrel_z - c1114*v_arm_cyl_rod_x
+    c1146 = -c1138
+    c1147 = -c1087
+    c1148 = dv_arm_cyl_rod_x - dv_arm_cyl_barrel_x + c1084*arm_cyl_rod_y + c1087*arm_cyl_barrel_x + c1109*v_arm_cyl_barrel_z + c1114*v_arm_cyl_rod_y + c1137*arm_cyl_barrel_y + c1138*arm_cyl_barrel_z + c1146*arm_cyl_rod_z + c1147*arm_cyl_rod_x - c1109*v_arm_cyl_rod_z - c1114*v_arm_cyl_barrel_y
+    c1149 = c1114*arm_cyl_barrel_a11 - c1109*arm_cyl_barrel_a21
+    c1150 = c1114*arm_cyl_barrel_a01 - 2*arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_x
+    c1151 = c1109*arm_cyl_barrel_a01 - c1072*arm_cyl_barrel_a11
+    c1152 = 2*arm_cyl_barrel_a11
+    c1153 = 2*arm_cyl_barrel_a21
+    c1154 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c1155 = -c1154
+    c1156 = c1155*arm_cyl_barrel_a01
+    c1157 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c1158 = -c1157
+    c1159 = c1158*arm_cyl_barrel_a11
+    c1160 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c1161 = c1160*arm_cyl_barrel_a01
+    c1162 = arm_cyl_barrel_a21*v_arm_cyl_barrel_theta_z
+    c1163 = 2*arm_cyl_barrel_a01
+    c1164 = -c1160
+    c1165 = c1154*arm_cyl_barrel_a11
+    c1166 = c1164*v_arm_cyl_barrel_theta_y
+    c1167 = c1157*v_arm_cyl_barrel_theta_x
+    c1168 = c1114*arm_cyl_barrel_a12 - c1109*arm_cyl_barrel_a22
+    c1169 = c1114*arm_cyl_barrel_a02 - 2*arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_x
+    c1170 = c1109*arm_cyl_barrel_a02 - c1072*arm_cyl_barrel_a12
+    c1171 = 2*arm_cyl_barrel_a12
+    c1172 = 2*arm_cyl_barrel_a22
+    c1173 = c1155*arm_cyl_barrel_a02
+    c1174 = c1158*arm_cyl_barrel_a12
+    c1175 = c1160*arm_cyl_barrel_a02
+    c1176 = arm_cyl_barrel_a22*v_arm_cyl_barrel_theta_z
+    c1177 = 2*arm_cyl_barrel_a02
+    c1178 = c1154*arm_cyl_barrel_a12
+    c1179 = (1.0)*dv_arm_cyl_rod_theta_y
+    c1180 = (1.0)*dv_arm_cyl_barrel_theta_y
+    c1181 = (2.0)*v_arm_cyl_rod_theta_z
+    c1182 = (1.0)*c1053 + (1.0)*c1055
+    c1183 = c1180 + c1182 - c1179 - c1181*v_arm_cyl_barrel_theta_x
+    c1184 = (1.0)*dv_arm_cyl_barrel_theta_x
+    c1185 = (1.0)*dv_arm_cyl_rod_theta_x
+    c1186 = (1.0)*c1058 + (1.0)*c1059
+    c1187 = c1185 + c1186 - c1184 - c1181*v_arm_cyl_barrel_theta_y
+    c1188 = (1.0)*c1064 + (1.0)*c1061 - 2.0*v_arm_cyl_barrel_theta_x*v_arm_cyl_rod_theta_x
+    c1189 = (1.0)*c1066 + (1.0)*c1062 - 2.0*v_arm_cyl_barrel_theta_y*v_arm_cyl_rod_theta_y
+    c1190 = -c1188 - c1189
+    c1191 = c1183*arm_cyl_rod_a02 + c1187*arm_cyl_rod_a12 + c1190*arm_cyl_rod_a22
+    c1192 = (1.0)*dv_arm_cyl_barrel_theta_z
+    c1193 = (1.0)*dv_arm_cyl_rod_theta_z
+    c1194 = (2.0)*v_arm_cyl_barrel_theta_x
+    c1195 = (1.0)*c1070 + (1.0)*c1071
+    c1196 = c1193 + c1195 - c1192 - c1194*v_arm_cyl_rod_theta_y
+    c1197 = (2.0)*v_arm_cyl_rod_theta_y
+    c1198 = c1184 + c1186 - c1185 - c1197*v_arm_cyl_barrel_theta_z
+    c1199 = (1.0)*c1077 + (1.0)*c1079 - 2.0*v_arm_cyl_barrel_theta_z*v_arm_cyl_rod_theta_z
+    c1200 = -c1188 - c1199
+    c1201 = c1196*arm_cyl_rod_a02 + c1198*arm_cyl_rod_a22 + c1200*arm_cyl_rod_a12
+    c1202 = (2.0)*v_arm_cyl_rod_theta_x
+    c1203 = c1192 + c1195 - c1193 - c1202*v_arm_cyl_barrel_theta_y
+    c1204 = c1179 + c1182 - c1180 - c1202*v_arm_cyl_barrel_theta_z
+    c1205 = -c1189 - c1199
+    c1206 = c1203*arm_cyl_rod_a12 + c1204*arm_cyl_rod_a22 + c1205*arm_cyl_rod_a02
+    c1207 = c1190*arm_cyl_barrel_a21 + c1198*arm_cyl_barrel_a11 + c1204*arm_cyl_barrel_a01
+    c1208 = c1187*arm_cyl_barrel_a21 + c1200*arm_cyl_barrel_a11 + c1203*arm_cyl_barrel_a01
+    c1209 = c1183*arm_cyl_barrel_a21 + c1196*arm_cyl_barrel_a11 + c1205*arm_cyl_barrel_a01
+    c1210 = (1.0)*arm_cyl_rod_a12
+    c1211 = c1210*arm_cyl_barrel_a01
+    c1212 = (1.0)*arm_cyl_barrel_a01
+    c1213 = arm_cyl_barrel_a11*arm_cyl_rod_a02
+    c1214 = (1.0)*c1213
+    c1215 = (1.0)*arm_cyl_rod_a02
+    c1216 = c1181*arm_cyl_barrel_a21
+    c1217 = c1210*arm_cyl_barrel_a11
+    c1218 = (1.0)*arm_cyl_rod_a22
+    c1219 = c1218*arm_cyl_barrel_a21
+    c1220 = c1217 + c1219
+    c1221 = -c1220
+    c1222 = c1202*arm_cyl_barrel_a01
+    c1223 = c1119*arm_cyl_barrel_a11
+    c1224 = c1212*arm_cyl_rod_a02
+    c1225 = c1219 + c1224
+    c1226 = -c1225
+    c1227 = c1218*arm_cyl_barrel_a01
+    c1228 = c1218*arm_cyl_barrel_a11
+    c1229 = c1215*arm_cyl_barrel_a21
+    c1230 = c1210*arm_cyl_barrel_a21
+    c1231 = c1217 + c1224
+    c1232 = -c1231
+    c1233 = (2.0)*arm_cyl_barrel_a01
+    c1234 = arm_cyl_rod_a12*v_arm_cyl_barrel_theta_y
+    c1235 = dv_arm_theta_y*p_F_x
+    c1236 = v_arm_theta_x*v_arm_theta_z
+    c1237 = c1236*p_F_x
+    c1238 = -c1235 - c1237
+    c1239 = dv_arm_theta_y*p_F_z
+    c1240 = c1236*p_F_z
+    c1241 = -c1239 - c1240
+    c1242 = dv_arm_theta_z*p_F_x
+    c1243 = v_arm_theta_x*v_arm_theta_y
+    c1244 = c1243*p_F_x
+    c1245 = c1242 - c1244
+    c1246 = dv_arm_theta_z*p_F_z
+    c1247 = c1243*p_F_z
+    c1248 = c1246 - c1247
+    c1249 = v_arm_theta_y**2
+    c1250 = c1249*p_F_x
+    c1251 = v_arm_theta_z**2
+    c1252 = c1251*p_F_x
+    c1253 = c1250 + c1252
+    c1254 = c1249*p_F_z
+    c1255 = c1251*p_F_z
+    c1256 = c1254 + c1255
+    c1257 = arm_a10*p_F_x + arm_a12*p_F_z
+    c1258 = -c1257
+    c1259 = c1258*v_arm_theta_y
+    c1260 = arm_a20*p_F_x + arm_a22*p_F_z
+    c1261 = -c1260
+    c1262 = c1261*v_arm_theta_z
+    c1263 = arm_a00*p_F_x + arm_a02*p_F_z
+    c1264 = 2*c1263
+    c1265 = arm_a00*v_arm_theta_z - arm_a20*v_arm_theta_x
+    c1266 = arm_a10*v_arm_theta_x - arm_a00*v_arm_theta_y
+    c1267 = arm_a02*v_arm_theta_z - arm_a22*v_arm_theta_x
+    c1268 = arm_a12*v_arm_theta_x - arm_a02*v_arm_theta_y
+    c1269 = dv_arm_theta_x*p_F_x
+    c1270 = v_arm_theta_y*v_arm_theta_z
+    c1271 = c1270*p_F_x
+    c1272 = c1269 - c1271
+    c1273 = dv_arm_theta_x*p_F_z
+    c1274 = c1270*p_F_z
+    c1275 = c1273 - c1274
+    c1276 = v_arm_theta_x**2
+    c1277 = c1276*p_F_x
+    c1278 = c1252 + c1277
+    c1279 = c1276*p_F_z
+    c1280 = c1255 + c1279
+    c1281 = -c1242 - c1244
+    c1282 = -c1246 - c1247
+    c1283 = 2*c1257
+    c1284 = -c1263
+    c1285 = c1284*v_arm_theta_x
+    c1286 = arm_a20*v_arm_theta_y - arm_a10*v_arm_theta_z
+    c1287 = arm_a22*v_arm_theta_y - arm_a12*v_arm_theta_z
+    c1288 = c1250 + c1277
+    c1289 = c1254 + c1279
+    c1290 = -c1269 - c1271
+    c1291 = -c1273 - c1274
+    c1292 = c1235 - c1237
+    c1293 = c1239 - c1240
+    c1294 = 2*c1260
+    c1295 = (9477/5000)*dv_arm_theta_y
+    c1296 = v_arm_theta_x*v_arm_theta_z
+    c1297 = c1295 + (9477/5000)*c1296
+    c1298 = (21809/10000)*dv_arm_theta_y
+    c1299 = c1298 + (21809/10000)*c1296
+    c1300 = (9477/5000)*dv_arm_theta_z
+    c1301 = -c1300 + (9477/5000)*v_arm_theta_x*v_arm_theta_y
+    c1302 = (21809/10000)*dv_arm_theta_z
+    c1303 = -c1302 + (21809/10000)*v_arm_theta_x*v_arm_theta_y
+    c1304 = v_arm_theta_y**2
+    c1305 = (9477/5000)*c1304
+    c1306 = v_arm_theta_z**2
+    c1307 = (9477/5000)*c1306
+    c1308 = -c1305 - c1307
+    c1309 = (21809/10000)*c1304
+    c1310 = (21809/10000)*c1306
+    c1311 = -c1309 - c1310
+    c1312 = (9477/5000)*arm_a10 + (21809/10000)*arm_a12
+    c1313 = c1312*v_arm_theta_y
+    c1314 = (9477/5000)*arm_a20 + (21809/10000)*arm_a22
+    c1315 = c1314*v_arm_theta_z
+    c1316 = (9477/5000)*arm_a00 + (21809/10000)*arm_a02
+    c1317 = -2*c1316
+    c1318 = (9477/5000)*dv_arm_theta_x
+    c1319 = -c1318 + (9477/5000)*v_arm_theta_y*v_arm_theta_z
+    c1320 = (21809/10000)*dv_arm_theta_x
+    c1321 = -c1320 + (21809/10000)*v_arm_theta_y*v_arm_theta_z
+    c1322 = v_arm_theta_x**2
+    c1323 = (9477/5000)*c1322
+    c1324 = -c1307 - c1323
+    c1325 = (21809/10000)*c1322
+    c1326 = -c1310 - c1325
+    c1327 = v_arm_theta_x*v_arm_theta_y
+    c1328 = c1300 + (9477/5000)*c1327
+    c1329 = c1302 + (21809/10000)*c1327
+    c1330 = -2*c1312
+    c1331 = c1316*v_arm_theta_x
+    c1332 = v_arm_theta_y*v_arm_theta_z
+    c1333 = c1318 + (9477/5000)*c1332
+    c1334 = c1320 + (21809/10000)*c1332
+    c1335 = -c1305 - c1323
+    c1336 = -c1309 - c1325
+    c1337 = -c1295 + (9477/5000)*v_arm_theta_x*v_arm_theta_z
+    c1338 = -c1298 + (21809/10000)*v_arm_theta_x*v_arm_theta_z
+    c1339 = -2*c1314
+    c1340 = 2*v_bucket_theta_z
+    c1341 = c1296 + v_bucket_theta_x*v_bucket_theta_z
+    c1342 = c1341 + dv_arm_theta_y - dv_bucket_theta_y - c1340*v_arm_theta_x
+    c1343 = c1332 + v_bucket_theta_y*v_bucket_theta_z
+    c1344 = c1343 + dv_bucket_theta_x - dv_arm_theta_x - c1340*v_arm_theta_y
+    c1345 = c1322 + v_bucket_theta_x**2 - 2*v_arm_theta_x*v_bucket_theta_x
+    c1346 = c1304 + v_bucket_theta_y**2 - 2*v_arm_theta_y*v_bucket_theta_y
+    c1347 = -c1345 - c1346
+    c1348 = c1342*bucket_a02 + c1344*bucket_a12 + c1347*bucket_a22
+    c1349 = 2*v_arm_theta_x
+    c1350 = c1327 + v_bucket_theta_x*v_bucket_theta_y
+    c1351 = c1350 + dv_bucket_theta_z - dv_arm_theta_z - c1349*v_bucket_theta_y
+    c1352 = 2*v_bucket_theta_y
+    c1353 = c1343 + dv_arm_theta_x - dv_bucket_theta_x - c1352*v_arm_theta_z
+    c1354 = c1306 + v_bucket_theta_z**2 - 2*v_arm_theta_z*v_bucket_theta_z
+    c1355 = -c1345 - c1354
+    c1356 = c1351*bucket_a02 + c1353*bucket_a22 + c1355*bucket_a12
+    c1357 = 2*v_bucket_theta_x
+    c1358 = c1350 + dv_arm_theta_z - dv_bucket_theta_z - c1357*v_arm_theta_y
+    c1359 = c1341 + dv_bucket_theta_y - dv_arm_theta_y - c1357*v_arm_theta_z
+    c1360 = -c1346 - c1354
+    c1361 = c1358*bucket_a12 + c1359*bucket_a22 + c1360*bucket_a02
+    c1362 = c1347*arm_a21 + c1353*arm_a11 + c1359*arm_a01
+    c1363 = c1344*arm_a21 + c1355*arm_a11 + c1358*arm_a01
+    c1364 = c1342*arm_a21 + c1351*arm_a11 + c1360*arm_a01
+    c1365 = arm_a01*bucket_a12
+    c1366 = c1365*v_arm_theta_y
+    c1367 = bucket_a22*v_arm_theta_z
+    c1368 = c1367*arm_a01
+    c1369 = arm_a11*bucket_a02
+    c1370 = arm_a21*v_arm_theta_z
+    c1371 = arm_a21*bucket_a02
+    c1372 = arm_a11*bucket_a12
+    c1373 = arm_a21*bucket_a22
+    c1374 = c1372 + c1373
+    c1375 = -c1374
+    c1376 = c1367*arm_a11
+    c1377 = arm_a21*bucket_a12
+    c1378 = arm_a01*bucket_a02
+    c1379 = c1373 + c1378
+    c1380 = -c1379
+    c1381 = 2*v_arm_theta_y
+    c1382 = arm_a01*bucket_a22
+    c1383 = arm_a11*bucket_a22
+    c1384 = c1372 + c1378
+    c1385 = -c1384
+    c1386 = 2*v_arm_theta_z
+    c1387 = c1342*bucket_a00 + c1344*bucket_a10 + c1347*bucket_a20
+    c1388 = c1351*bucket_a00 + c1353*bucket_a20 + c1355*bucket_a10
+    c1389 = c1358*bucket_a10 + c1359*bucket_a20 + c1360*bucket_a00
+    c1390 = arm_a01*bucket_a10
+    c1391 = bucket_a20*v_arm_theta_z
+    c1392 = arm_a11*bucket_a00
+    c1393 = arm_a21*bucket_a00
+    c1394 = arm_a11*bucket_a10
+    c1395 = arm_a21*bucket_a20
+    c1396 = c1395 + c1394
+    c1397 = -c1396
+    c1398 = arm_a21*bucket_a10
+    c1399 = arm_a01*bucket_a00
+    c1400 = c1395 + c1399
+    c1401 = -c1400
+    c1402 = arm_a01*bucket_a20
+    c1403 = arm_a11*bucket_a20
+    c1404 = c1399 + c1394
+    c1405 = -c1404
+    c1406 = (7877/5000)*dv_arm_theta_y
+    c1407 = v_arm_theta_x*v_arm_theta_z
+    c1408 = c1406 + (7877/5000)*c1407
+    c1409 = (18799/10000)*dv_arm_theta_y
+    c1410 = c1409 + (18799/10000)*c1407
+    c1411 = (7877/5000)*dv_arm_theta_z
+    c1412 = -c1411 + (7877/5000)*v_arm_theta_x*v_arm_theta_y
+    c1413 = (18799/10000)*dv_arm_theta_z
+    c1414 = -c1413 + (18799/10000)*v_arm_theta_x*v_arm_theta_y
+    c1415 = v_arm_theta_y**2
+    c1416 = (7877/5000)*c1415
+    c1417 = v_arm_theta_z**2
+    c1418 = (7877/5000)*c1417
+    c1419 = -c1416 - c1418
+    c1420 = (18799/10000)*c1415
+    c1421 = (18799/10000)*c1417
+    c1422 = -c1420 - c1421
+    c1423 = (7877/5000)*arm_a10 + (18799/10000)*arm_a12
+    c1424 = c1423*v_arm_theta_y
+    c1425 = (7877/5000)*arm_a20 + (18799/10000)*arm_a22
+    c1426 = c1425*v_arm_theta_z
+    c1427 = (7877/5000)*arm_a00 + (18799/10000)*arm_a02
+    c1428 = -2*c1427
+    c1429 = (7877/5000)*dv_arm_theta_x
+    c1430 = -c1429 + (7877/5000)*v_arm_theta_y*v_arm_theta_z
+    c1431 = (18799/10000)*dv_arm_theta_x
+    c1432 = -c1431 + (18799/10000)*v_arm_theta_y*v_arm_theta_z
+    c1433 = v_arm_theta_x**2
+    c1434 = (7877/5000)*c1433
+    c1435 = -c1418 - c1434
+    c1436 = (18799/10000)*c1433
+    c1437 = -c1421 - c1436
+    c1438 = v_arm_theta_x*v_arm_theta_y
+    c1439 = c1411 + (7877/5000)*c1438
+    c1440 = c1413 + (18799/10000)*c1438
+    c1441 = -2*c1423
+    c1442 = c1427*v_arm_theta_x
+    c1443 = v_arm_theta_y*v_arm_theta_z
+    c1444 = c1429 + (7877/5000)*c1443
+    c1445 = c1431 + (18799/10000)*c1443
+    c1446 = -c1416 - c1434
+    c1447 = -c1420 - c1436
+    c1448 = -c1406 + (7877/5000)*v_arm_theta_x*v_arm_theta_z
+    c1449 = -c1409 + (18799/10000)*v_arm_theta_x*v_arm_theta_z
+    c1450 = -2*c1425
+    c1451 = 2*v_side_link_theta_z
+    c1452 = c1407 + v_side_link_theta_x*v_side_link_theta_z
+    c1453 = c1452 + dv_arm_theta_y - dv_side_link_theta_y - c1451*v_arm_theta_x
+    c1454 = c1443 + v_side_link_theta_y*v_side_link_theta_z
+    c1455 = c1454 + dv_side_link_theta_x - dv_arm_theta_x - c1451*v_arm_theta_y
+    c1456 = c1433 + v_side_link_theta_x**2 - 2*v_arm_theta_x*v_side_link_theta_x
+    c1457 = c1415 + v_side_link_theta_y**2 - 2*v_arm_theta_y*v_side_link_theta_y
+    c1458 = -c1456 - c1457
+    c1459 = c1453*side_link_a02 + c1455*side_link_a12 + c1458*side_link_a22
+    c1460 = 2*v_arm_theta_x
+    c1461 = c1438 + v_side_link_theta_x*v_side_link_theta_y
+    c1462 = c1461 + dv_side_link_theta_z - dv_arm_theta_z - c1460*v_side_link_theta_y
+    c1463 = 2*v_side_link_theta_y
+    c1464 = c1454 + dv_arm_theta_x - dv_side_link_theta_x - c1463*v_arm_theta_z
+    c1465 = c1417 + v_side_link_theta_z**2 - 2*v_arm_theta_z*v_side_link_theta_z
+    c1466 = -c1456 - c1465
+    c1467 = c1462*side_link_a02 + c1464*side_link_a22 + c1466*side_link_a12
+    c1468 = 2*v_side_link_theta_x
+    c1469 = c1461 + dv_arm_theta_z - dv_side_link_theta_z - c1468*v_arm_theta_y
+    c1470 = c1452 + dv_side_link_theta_y - dv_arm_theta_y - c1468*v_arm_theta_z
+    c1471 = -c1457 - c1465
+    c1472 = c1469*side_link_a12 + c1470*side_link_a22 + c1471*side_link_a02
+    c1473 = c1458*arm_a21 + c1464*arm_a11 + c1470*arm_a01
+    c1474 = c1455*arm_a21 + c1466*arm_a11 + c1469*arm_a01
+    c1475 = c1453*arm_a21 + c1462*arm_a11 + c1471*arm_a01
+    c1476 = arm_a01*side_link_a12
+    c1477 = c1476*v_arm_theta_y
+    c1478 = side_link_a22*v_arm_theta_z
+    c1479 = c1478*arm_a01
+    c1480 = arm_a11*side_link_a02
+    c1481 = arm_a21*v_arm_theta_z
+    c1482 = arm_a21*side_link_a02
+    c1483 = arm_a11*side_link_a12
+    c1484 = arm_a21*side_link_a22
+    c1485 = c1483 + c1484
+    c1486 = -c1485
+    c1487 = c1478*arm_a11
+    c1488 = arm_a21*side_link_a12
+    c1489 = arm_a01*side_link_a02
+    c1490 = c1484 + c1489
+    c1491 = -c1490
+    c1492 = 2*v_arm_theta_y
+    c1493 = arm_a01*side_link_a22
+    c1494 = arm_a11*side_link_a22
+    c1495 = c1483 + c1489
+    c1496 = -c1495
+    c1497 = 2*v_arm_theta_z
+    c1498 = c1453*side_link_a00 + c1455*side_link_a10 + c1458*side_link_a20
+    c1499 = c1462*side_link_a00 + c1464*side_link_a20 + c1466*side_link_a10
+    c1500 = c1469*side_link_a10 + c1470*side_link_a20 + c1471*side_link_a00
+    c1501 = arm_a01*side_link_a10
+    c1502 = side_link_a20*v_arm_theta_z
+    c1503 = arm_a11*side_link_a00
+    c1504 = arm_a21*side_link_a00
+    c1505 = arm_a11*side_link_a10
+    c1506 = arm_a21*side_link_a20
+    c1507 = c1506 + c1505
+    c1508 = -c1507
+    c1509 = arm_a21*side_link_a10
+    c1510 = arm_a01*side_link_a00
+    c1511 = c1506 + c1510
+    c1512 = -c1511
+    c1513 = arm_a01*side_link_a20
+    c1514 = arm_a11*side_link_a20
+    c1515 = c1510 + c1505
+    c1516 = -c1515
+    c1517 = dv_side_link_theta_y*p_side_link
+    c1518 = 0.5686266556413632*c1517
+    c1519 = 0.5686266556413632*p_side_link
+    c1520 = v_side_link_theta_x*v_side_link_theta_z
+    c1521 = c1519*c1520
+    c1522 = -c1518 - c1521
+    c1523 = 0.822595724821202*c1517
+    c1524 = 0.822595724821202*p_side_link
+    c1525 = c1523 + c1520*c1524
+    c1526 = dv_side_link_theta_z*p_side_link
+    c1527 = 0.5686266556413632*c1526
+    c1528 = v_side_link_theta_x*v_side_link_theta_y
+    c1529 = c1528*c1519
+    c1530 = c1527 - c1529
+    c1531 = 0.822595724821202*c1526
+    c1532 = -c1531 + 0.822595724821202*p_side_link*v_side_link_theta_x*v_side_link_theta_y
+    c1533 = v_side_link_theta_y**2
+    c1534 = c1533*c1519
+    c1535 = v_side_link_theta_z**2
+    c1536 = c1535*c1519
+    c1537 = c1534 + c1536
+    c1538 = c1533*c1524
+    c1539 = c1535*c1524
+    c1540 = -c1538 - c1539
+    c1541 = dv_bucket_link_theta_y*p_bucket_link
+    c1542 = 0.60493530832545*c1541
+    c1543 = 0.60493530832545*p_bucket_link
+    c1544 = v_bucket_link_theta_x*v_bucket_link_theta_z
+    c1545 = c1542 + c1543*c1544
+    c1546 = 0.796274621434837*c1541
+    c1547 = 0.796274621434837*p_bucket_link
+    c1548 = c1546 + c1544*c1547
+    c1549 = dv_bucket_link_theta_z*p_bucket_link
+    c1550 = 0.60493530832545*c1549
+    c1551 = -c1550 + 0.60493530832545*p_bucket_link*v_bucket_link_theta_x*v_bucket_link_theta_y
+    c1552 = 0.796274621434837*c1549
+    c1553 = -c1552 + 0.796274621434837*p_bucket_link*v_bucket_link_theta_x*v_bucket_link_theta_y
+    c1554 = v_bucket_link_theta_y**2
+    c1555 = c1543*c1554
+    c1556 = v_bucket_link_theta_z**2
+    c1557 = c1543*c1556
+    c1558 = -c1555 - c1557
+    c1559 = c1547*c1554
+    c1560 = c1547*c1556
+    c1561 = -c1559 - c1560
+    c1562 = 0.5686266556413632*side_link_a10
+    c1563 = c1562*p_side_link - 0.822595724821202*p_side_link*side_link_a12
+    c1564 = -c1563
+    c1565 = c1564*v_side_link_theta_y
+    c1566 = 0.5686266556413632*side_link_a20
+    c1567 = c1566*p_side_link - 0.822595724821202*p_side_link*side_link_a22
+    c1568 = -c1567
+    c1569 = c1568*v_side_link_theta_z
+    c1570 = 0.5686266556413632*side_link_a00
+    c1571 = c1570*p_side_link - 0.822595724821202*p_side_link*side_link_a02
+    c1572 = 2*c1571
+    c1573 = 0.60493530832545*bucket_link_a10
+    c1574 = 0.796274621434837*bucket_link_a12
+    c1575 = c1573*p_bucket_link + c1574*p_bucket_link
+    c1576 = c1575*v_bucket_link_theta_y
+    c1577 = 0.60493530832545*bucket_link_a20
+    c1578 = 0.796274621434837*bucket_link_a22
+    c1579 = c1577*p_bucket_link + c1578*p_bucket_link
+    c1580 = c1579*v_bucket_link_theta_z
+    c1581 = 0.60493530832545*bucket_link_a00
+    c1582 = 0.796274621434837*bucket_link_a02
+    c1583 = c1581*p_bucket_link + c1582*p_bucket_link
+    c1584 = -2*c1583
+    c1585 = c1566 - 0.822595724821202*side_link_a22
+    c1586 = c1562 - 0.822595724821202*side_link_a12
+    c1587 = 0.5686266556413632*side_link_a10*v_side_link_theta_x - 0.5686266556413632*side_link_a00*v_side_link_theta_y
+    c1588 = 0.822595724821202*side_link_a12*v_side_link_theta_x - 0.822595724821202*side_link_a02*v_side_link_theta_y
+    c1589 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
+    c1590 = 0.5686266556413632*v_side_link_theta_z
+    c1591 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
+    c1592 = 0.822595724821202*v_side_link_theta_z
+    c1593 = c1577 + c1578
+    c1594 = c1573 + c1574
+    c1595 = 0.60493530832545*bucket_link_a10*v_bucket_link_theta_x - 0.60493530832545*bucket_link_a00*v_bucket_link_theta_y
+    c1596 = 0.796274621434837*bucket_link_a12*v_bucket_link_theta_x - 0.796274621434837*bucket_link_a02*v_bucket_link_theta_y
+    c1597 = bucket_link_a00*v_bucket_link_theta_z - bucket_link_a20*v_bucket_link_theta_x
+    c1598 = 0.60493530832545*v_bucket_link_theta_z
+    c1599 = bucket_link_a02*v_bucket_link_theta_z - bucket_link_a22*v_bucket_link_theta_x
+    c1600 = 0.796274621434837*v_bucket_link_theta_z
+    c1601 = c1519*dv_side_link_theta_x
+    c1602 = v_side_link_theta_y*v_side_link_theta_z
+    c1603 = c1519*c1602
+    c1604 = c1601 - c1603
+    c1605 = c1524*dv_side_link_theta_x
+    c1606 = -c1605 + 0.822595724821202*p_side_link*v_side_link_theta_y*v_side_link_theta_z
+    c1607 = v_side_link_theta_x**2
+    c1608 = c1519*c1607
+    c1609 = c1536 + c1608
+    c1610 = c1524*c1607
+    c1611 = -c1539 - c1610
+    c1612 = -c1527 - c1529
+    c1613 = c1531 + c1528*c1524
+    c1614 = c1543*dv_bucket_link_theta_x
+    c1615 = -c1614 + 0.60493530832545*p_bucket_link*v_bucket_link_theta_y*v_bucket_link_theta_z
+    c1616 = c1547*dv_bucket_link_theta_x
+    c1617 = -c1616 + 0.796274621434837*p_bucket_link*v_bucket_link_theta_y*v_bucket_link_theta_z
+    c1618 = v_bucket_link_theta_x**2
+    c1619 = c1618*c1543
+    c1620 = -c1619 - c1557
+    c1621 = c1618*c1547
+    c1622 = -c1621 - c1560
+    c1623 = v_bucket_link_theta_x*v_bucket_link_theta_y
+    c1624 = c1550 + c1623*c1543
+    c1625 = c1552 + c1623*c1547
+    c1626 = -c1571
+    c1627 = 2*c1563
+    c1628 = c1626*v_side_link_theta_x
+    c1629 = -2*c1575
+    c1630 = c1583*v_bucket_link_theta_x
+    c1631 = c1570 - 0.822595724821202*side_link_a02
+    c1632 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
+    c1633 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    c1634 = c1581 + c1582
+    c1635 = bucket_link_a20*v_bucket_link_theta_y - bucket_link_a10*v_bucket_link_theta_z
+    c1636 = bucket_link_a22*v_bucket_link_theta_y - bucket_link_a12*v_bucket_link_theta_z
+    c1637 = -c1601 - c1603
+    c1638 = c1605 + c1524*c1602
+    c1639 = c1534 + c1608
+    c1640 = -c1538 - c1610
+    c1641 = c1518 - c1521
+    c1642 = -c1523 + 0.822595724821202*p_side_link*v_side_link_theta_x*v_side_link_theta_z
+    c1643 = v_bucket_link_theta_y*v_bucket_link_theta_z
+    c1644 = c1614 + c1643*c1543
+    c1645 = c1616 + c1643*c1547
+    c1646 = -c1619 - c1555
+    c1647 = -c1621 - c1559
+    c1648 = -c1542 + 0.60493530832545*p_bucket_link*v_bucket_link_theta_x*v_bucket_link_theta_z
+    c1649 = -c1546 + 0.796274621434837*p_bucket_link*v_bucket_link_theta_x*v_bucket_link_theta_z
+    c1650 = 2*c1567
+    c1651 = -2*c1579
+    c1652 = dv_bucket_theta_y*p_K_x
+    c1653 = v_bucket_theta_x*v_bucket_theta_z
+    c1654 = c1653*p_K_x
+    c1655 = -c1652 - c1654
+    c1656 = dv_bucket_theta_y*p_K_z
+    c1657 = c1653*p_K_z
+    c1658 = -c1656 - c1657
+    c1659 = dv_bucket_theta_z*p_K_x
+    c1660 = v_bucket_theta_x*v_bucket_theta_y
+    c1661 = c1660*p_K_x
+    c1662 = c1659 - c1661
+    c1663 = dv_bucket_theta_z*p_K_z
+    c1664 = c1660*p_K_z
+    c1665 = c1663 - c1664
+    c1666 = v_bucket_theta_y**2
+    c1667 = c1666*p_K_x
+    c1668 = v_bucket_theta_z**2
+    c1669 = c1668*p_K_x
+    c1670 = c1667 + c1669
+    c1671 = c1666*p_K_z
+    c1672 = c1668*p_K_z
+    c1673 = c1671 + c1672
+    c1674 = bucket_a10*p_K_x + bucket_a12*p_K_z
+    c1675 = -c1674
+    c1676 = c1675*v_bucket_theta_y
+    c1677 = bucket_a20*p_K_x + bucket_a22*p_K_z
+    c1678 = -c1677
+    c1679 = c1678*v_bucket_theta_z
+    c1680 = bucket_a00*p_K_x + bucket_a02*p_K_z
+    c1681 = 2*c1680
+    c1682 = bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x
+    c1683 = bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y
+    c1684 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x
+    c1685 = bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y
+    c1686 = dv_bucket_theta_x*p_K_x
+    c1687 = v_bucket_theta_y*v_bucket_theta_z
+    c1688 = c1687*p_K_x
+    c1689 = c1686 - c1688
+    c1690 = dv_bucket_theta_x*p_K_z
+    c1691 = c1687*p_K_z
+    c1692 = c1690 - c1691
+    c1693 = v_bucket_theta_x**2
+    c1694 = c1693*p_K_x
+    c1695 = c1669 + c1694
+    c1696 = c1693*p_K_z
+    c1697 = c1672 + c1696
+    c1698 = -c1659 - c1661
+    c1699 = -c1663 - c1664
+    c1700 = 2*c1674
+    c1701 = -c1680
+    c1702 = c1701*v_bucket_theta_x
+    c1703 = bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z
+    c1704 = bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z
+    c1705 = c1667 + c1694
+    c1706 = c1671 + c1696
+    c1707 = -c1686 - c1688
+    c1708 = -c1690 - c1691
+    c1709 = c1652 - c1654
+    c1710 = c1656 - c1657
+    c1711 = 2*c1677
+    c1712 = (0.7962746214343476)*dv_bucket_theta_y
+    c1713 = (0.7962746214343476)*dv_bucket_link_theta_y
+    c1714 = (0.7962746214343476)*v_bucket_link_theta_z
+    c1715 = (0.7962746214343476)*c1653 + c1714*v_bucket_link_theta_x
+    c1716 = c1712 - c1713 - c1715 + (1.5925492428686951)*v_bucket_link_theta_x*v_bucket_theta_z
+    c1717 = (0.7962746214343476)*dv_bucket_link_theta_x
+    c1718 = (0.7962746214343476)*dv_bucket_theta_x
+    c1719 = (0.7962746214343476)*c1687 + c1714*v_bucket_link_theta_y
+    c1720 = c1717 - c1718 - c1719 + (1.5925492428686951)*v_bucket_link_theta_y*v_bucket_theta_z
+    c1721 = v_bucket_link_theta_x**2
+    c1722 = (0.7962746214343476)*c1693 + (0.7962746214343476)*c1721 - 1.5925492428686951*v_bucket_link_theta_x*v_bucket_theta_x
+    c1723 = v_bucket_link_theta_y**2
+    c1724 = (0.7962746214343476)*c1666 + (0.7962746214343476)*c1723 - 1.5925492428686951*v_bucket_link_theta_y*v_bucket_theta_y
+    c1725 = c1722 + c1724
+    c1726 = c1716*bucket_a01 + c1720*bucket_a11 + c1725*bucket_a21
+    c1727 = (0.6049353083260941)*dv_bucket_theta_y
+    c1728 = (0.6049353083260941)*dv_bucket_link_theta_y
+    c1729 = (1.2098706166521882)*v_bucket_theta_z
+    c1730 = (0.6049353083260941)*v_bucket_link_theta_z
+    c1731 = (0.6049353083260941)*c1653 + c1730*v_bucket_link_theta_x
+    c1732 = c1728 + c1731 - c1727 - c1729*v_bucket_link_theta_x
+    c1733 = (0.6049353083260941)*dv_bucket_link_theta_x
+    c1734 = (0.6049353083260941)*dv_bucket_theta_x
+    c1735 = (0.6049353083260941)*c1687 + c1730*v_bucket_link_theta_y
+    c1736 = c1734 + c1735 - c1733 - c1729*v_bucket_link_theta_y
+    c1737 = (0.6049353083260941)*c1693 + (0.6049353083260941)*c1721 - 1.2098706166521882*v_bucket_link_theta_x*v_bucket_theta_x
+    c1738 = (0.6049353083260941)*c1666 + (0.6049353083260941)*c1723 - 1.2098706166521882*v_bucket_link_theta_y*v_bucket_theta_y
+    c1739 = -c1737 - c1738
+    c1740 = c1732*bucket_a01 + c1736*bucket_a11 + c1739*bucket_a21
+    c1741 = (0.7962746214343476)*dv_bucket_link_theta_z
+    c1742 = (0.7962746214343476)*dv_bucket_theta_z
+    c1743 = v_bucket_link_theta_x*v_bucket_link_theta_y
+    c1744 = (0.7962746214343476)*c1660 + (0.7962746214343476)*c1743
+    c1745 = c1741 - c1742 - c1744 + (1.5925492428686951)*v_bucket_link_theta_x*v_bucket_theta_y
+    c1746 = c1718 - c1717 - c1719 + (1.5925492428686951)*v_bucket_link_theta_z*v_bucket_theta_y
+    c1747 = v_bucket_link_theta_z**2
+    c1748 = (0.7962746214343476)*c1668 + (0.7962746214343476)*c1747 - 1.5925492428686951*v_bucket_link_theta_z*v_bucket_theta_z
+    c1749 = c1722 + c1748
+    c1750 = c1745*bucket_a01 + c1746*bucket_a21 + c1749*bucket_a11
+    c1751 = (0.6049353083260941)*dv_bucket_link_theta_z
+    c1752 = (0.6049353083260941)*dv_bucket_theta_z
+    c1753 = (1.2098706166521882)*v_bucket_theta_y
+    c1754 = (0.6049353083260941)*c1660 + (0.6049353083260941)*c1743
+    c1755 = c1752 + c1754 - c1751 - c1753*v_bucket_link_theta_x
+    c1756 = c1733 + c1735 - c1734 - c1753*v_bucket_link_theta_z
+    c1757 = (0.6049353083260941)*c1668 + (0.6049353083260941)*c1747 - 1.2098706166521882*v_bucket_link_theta_z*v_bucket_theta_z
+    c1758 = -c1757 - c1737
+    c1759 = c1755*bucket_a01 + c1756*bucket_a21 + c1758*bucket_a11
+    c1760 = c1742 - c1741 - c1744 + (1.5925492428686951)*v_bucket_link_theta_y*v_bucket_theta_x
+    c1761 = c1713 - c1712 - c1715 + (1.5925492428686951)*v_bucket_link_theta_z*v_bucket_theta_x
+    c1762 = c1724 + c1748
+    c1763 = c1760*bucket_a11 + c1761*bucket_a21 + c1762*bucket_a01
+    c1764 = (1.2098706166521882)*v_bucket_theta_x
+    c1765 = c1754 + c1751 - c1752 - c1764*v_bucket_link_theta_y
+    c1766 = c1727 + c1731 - c1728 - c1764*v_bucket_link_theta_z
+    c1767 = -c1757 - c1738
+    c1768 = c1765*bucket_a11 + c1766*bucket_a21 + c1767*bucket_a01
+    c1769 = c1756*bucket_link_a12 + c1761*bucket_link_a00 + c1766*bucket_link_a02 + c1725*bucket_link_a20 + c1739*bucket_link_a22 + c1746*bucket_link_a10
+    c1770 = c1758*bucket_link_a12 + c1760*bucket_link_a00 + c1765*bucket_link_a02 + c1720*bucket_link_a20 + c1736*bucket_link_a22 + c1749*bucket_link_a10
+    c1771 = c1755*bucket_link_a12 + c1762*bucket_link_a00 + c1767*bucket_link_a02 + c1716*bucket_link_a20 + c1732*bucket_link_a22 + c1745*bucket_link_a10
+    c1772 = (0.7962746214343476)*bucket_link_a20
+    c1773 = c1772 - 0.6049353083260941*bucket_link_a22
+    c1774 = bucket_a01*v_bucket_theta_z
+    c1775 = (0.7962746214343476)*bucket_link_a10
+    c1776 = c1775*bucket_a01 - 0.6049353083260941*bucket_a01*bucket_link_a12
+    c1777 = -c1776
+    c1778 = (0.7962746214343476)*bucket_link_a00
+    c1779 = c1778*bucket_a11 - 0.6049353083260941*bucket_a11*bucket_link_a02
+    c1780 = -c1779
+    c1781 = c1772*bucket_a01 - 0.6049353083260941*bucket_a01*bucket_link_a22
+    c1782 = -c1781
+    c1783 = c1778*bucket_a21 - 0.6049353083260941*bucket_a21*bucket_link_a02
+    c1784 = -c1783
+    c1785 = c1775 - 0.6049353083260941*bucket_link_a12
+    c1786 = -c1785
+    c1787 = bucket_a01*v_bucket_theta_y
+    c1788 = c1772*bucket_a21 - 0.6049353083260941*bucket_a21*bucket_link_a22
+    c1789 = c1775*bucket_a11 - 0.6049353083260941*bucket_a11*bucket_link_a12
+    c1790 = c1788 + c1789
+    c1791 = -c1790
+    c1792 = c1786*bucket_a11
+    c1793 = -c1773*bucket_a21
+    c1794 = c1792 + c1793
+    c1795 = c1778 - 0.6049353083260941*bucket_link_a02
+    c1796 = c1795*bucket_a11
+    c1797 = c1772*bucket_a11 - 0.6049353083260941*bucket_a11*bucket_link_a22
+    c1798 = -c1797
+    c1799 = c1775*bucket_a21 - 0.6049353083260941*bucket_a21*bucket_link_a12
+    c1800 = -c1799
+    c1801 = -c1773
+    c1802 = bucket_a11*v_bucket_theta_z
+    c1803 = c1778*bucket_a01 - 0.6049353083260941*bucket_a01*bucket_link_a02
+    c1804 = c1788 + c1803
+    c1805 = -c1804
+    c1806 = c1795*bucket_a01
+    c1807 = -c1801*bucket_a21
+    c1808 = -c1806 - c1807
+    c1809 = c1785*bucket_a21
+    c1810 = -c1795
+    c1811 = c1810*bucket_a21
+    c1812 = c1789 + c1803
+    c1813 = -c1812
+    c1814 = c1810*bucket_a01
+    c1815 = c1785*bucket_a11
+    c1816 = c1814 - c1815
+    c1817 = c1810*bucket_a11
+    c1818 = bucket_a21*v_bucket_theta_z
+    c1819 = bucket_a01*v_bucket_link_theta_x
+    c1820 = bucket_a01*v_bucket_theta_x
+    c1821 = (24687/100000)*dv_arm_theta_y
+    c1822 = v_arm_theta_x*v_arm_theta_z
+    c1823 = (24687/100000)*c1822
+    c1824 = -c1821 - c1823
+    c1825 = (36797/50000)*dv_arm_theta_y
+    c1826 = c1825 + (36797/50000)*c1822
+    c1827 = (24687/100000)*dv_arm_theta_z
+    c1828 = v_arm_theta_x*v_arm_theta_y
+    c1829 = (24687/100000)*c1828
+    c1830 = c1827 - c1829
+    c1831 = (36797/50000)*dv_arm_theta_z
+    c1832 = -c1831 + (36797/50000)*v_arm_theta_x*v_arm_theta_y
+    c1833 = v_arm_theta_y**2
+    c1834 = (24687/100000)*c1833
+    c1835 = v_arm_theta_z**2
+    c1836 = (24687/100000)*c1835
+    c1837 = c1834 + c1836
+    c1838 = (36797/50000)*c1833
+    c1839 = (36797/50000)*c1835
+    c1840 = -c1838 - c1839
+    c1841 = -36797/50000*arm_a12 + (24687/100000)*arm_a10
+    c1842 = -c1841
+    c1843 = c1842*v_arm_theta_y
+    c1844 = -36797/50000*arm_a22 + (24687/100000)*arm_a20
+    c1845 = -c1844
+    c1846 = c1845*v_arm_theta_z
+    c1847 = -36797/50000*arm_a02 + (24687/100000)*arm_a00
+    c1848 = 2*c1847
+    c1849 = (24687/100000)*dv_arm_theta_x
+    c1850 = v_arm_theta_y*v_arm_theta_z
+    c1851 = (24687/100000)*c1850
+    c1852 = c1849 - c1851
+    c1853 = (36797/50000)*dv_arm_theta_x
+    c1854 = -c1853 + (36797/50000)*v_arm_theta_y*v_arm_theta_z
+    c1855 = v_arm_theta_x**2
+    c1856 = (24687/100000)*c1855
+    c1857 = c1836 + c1856
+    c1858 = (36797/50000)*c1855
+    c1859 = -c1839 - c1858
+    c1860 = -c1827 - c1829
+    c1861 = c1831 + (36797/50000)*c1828
+    c1862 = -c1847
+    c1863 = 2*c1841
+    c1864 = c1862*v_arm_theta_x
+    c1865 = -c1849 - c1851
+    c1866 = c1853 + (36797/50000)*c1850
+    c1867 = c1834 + c1856
+    c1868 = -c1838 - c1858
+    c1869 = c1821 - c1823
+    c1870 = -c1825 + (36797/50000)*v_arm_theta_x*v_arm_theta_z
+    c1871 = 2*c1844
+    c1872 = 2*v_bucket_cyl_barrel_theta_z
+    c1873 = c1822 + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z
+    c1874 = c1873 + dv_arm_theta_y - dv_bucket_cyl_barrel_theta_y - c1872*v_arm_theta_x
+    c1875 = c1850 + v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z
+    c1876 = c1875 + dv_bucket_cyl_barrel_theta_x - dv_arm_theta_x - c1872*v_arm_theta_y
+    c1877 = c1855 + v_bucket_cyl_barrel_theta_x**2 - 2*v_arm_theta_x*v_bucket_cyl_barrel_theta_x
+    c1878 = c1833 + v_bucket_cyl_barrel_theta_y**2 - 2*v_arm_theta_y*v_bucket_cyl_barrel_theta_y
+    c1879 = -c1877 - c1878
+    c1880 = c1874*bucket_cyl_barrel_a02 + c1876*bucket_cyl_barrel_a12 + c1879*bucket_cyl_barrel_a22
+    c1881 = 2*v_arm_theta_x
+    c1882 = c1828 + v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y
+    c1883 = c1882 + dv_bucket_cyl_barrel_theta_z - dv_arm_theta_z - c1881*v_bucket_cyl_barrel_theta_y
+    c1884 = 2*v_bucket_cyl_barrel_theta_y
+    c1885 = c1875 + dv_arm_theta_x - dv_bucket_cyl_barrel_theta_x - c1884*v_arm_theta_z
+    c1886 = c1835 + v_bucket_cyl_barrel_theta_z**2 - 2*v_arm_theta_z*v_bucket_cyl_barrel_theta_z
+    c1887 = -c1877 - c1886
+    c1888 = c1883*bucket_cyl_barrel_a02 + c1885*bucket_cyl_barrel_a22 + c1887*bucket_cyl_barrel_a12
+    c1889 = 2*v_bucket_cyl_barrel_theta_x
+    c1890 = c1882 + dv_arm_theta_z - dv_bucket_cyl_barrel_theta_z - c1889*v_arm_theta_y
+    c1891 = c1873 + dv_bucket_cyl_barrel_theta_y - dv_arm_theta_y - c1889*v_arm_theta_z
+    c1892 = -c1878 - c1886
+    c1893 = c1890*bucket_cyl_barrel_a12 + c1891*bucket_cyl_barrel_a22 + c1892*bucket_cyl_barrel_a02
+    c1894 = c1879*arm_a21 + c1885*arm_a11 + c1891*arm_a01
+    c1895 = c1876*arm_a21 + c1887*arm_a11 + c1890*arm_a01
+    c1896 = c1874*arm_a21 + c1883*arm_a11 + c1892*arm_a01
+    c1897 = arm_a01*bucket_cyl_barrel_a12
+    c1898 = c1897*v_arm_theta_y
+    c1899 = bucket_cyl_barrel_a22*v_arm_theta_z
+    c1900 = c1899*arm_a01
+    c1901 = arm_a11*bucket_cyl_barrel_a02
+    c1902 = arm_a21*v_arm_theta_z
+    c1903 = arm_a21*bucket_cyl_barrel_a02
+    c1904 = arm_a11*bucket_cyl_barrel_a12
+    c1905 = arm_a21*bucket_cyl_barrel_a22
+    c1906 = c1904 + c1905
+    c1907 = -c1906
+    c1908 = c1899*arm_a11
+    c1909 = arm_a21*bucket_cyl_barrel_a12
+    c1910 = arm_a01*bucket_cyl_barrel_a02
+    c1911 = c1905 + c1910
+    c1912 = -c1911
+    c1913 = 2*v_arm_theta_y
+    c1914 = arm_a01*bucket_cyl_barrel_a22
+    c1915 = arm_a11*bucket_cyl_barrel_a22
+    c1916 = c1904 + c1910
+    c1917 = -c1916
+    c1918 = 2*v_arm_theta_z
+    c1919 = v_bucket_cyl_rod_theta_x*v_bucket_cyl_rod_theta_z
+    c1920 = 2*v_bucket_cyl_rod_theta_z
+    c1921 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z
+    c1922 = c1921 + dv_bucket_cyl_barrel_theta_y
+    c1923 = c1919 + c1922 - dv_bucket_cyl_rod_theta_y - c1920*v_bucket_cyl_barrel_theta_x
+    c1924 = v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z
+    c1925 = v_bucket_cyl_rod_theta_y*v_bucket_cyl_rod_theta_z
+    c1926 = c1924 + c1925 + dv_bucket_cyl_rod_theta_x - dv_bucket_cyl_barrel_theta_x - c1920*v_bucket_cyl_barrel_theta_y
+    c1927 = v_bucket_cyl_barrel_theta_x**2
+    c1928 = v_bucket_cyl_barrel_theta_y**2
+    c1929 = c1927 + c1928
+    c1930 = v_bucket_cyl_rod_theta_x**2
+    c1931 = c1930 - 2*v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_theta_x
+    c1932 = v_bucket_cyl_rod_theta_y**2
+    c1933 = c1932 - 2*v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_theta_y
+    c1934 = -c1929 - c1931 - c1933
+    c1935 = c1934*bucket_cyl_rod_a21 + c1923*bucket_cyl_rod_a01 + c1926*bucket_cyl_rod_a11
+    c1936 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y
+    c1937 = v_bucket_cyl_rod_theta_x*v_bucket_cyl_rod_theta_y
+    c1938 = 2*v_bucket_cyl_barrel_theta_x
+    c1939 = c1936 + c1937 + dv_bucket_cyl_rod_theta_z - dv_bucket_cyl_barrel_theta_z - c1938*v_bucket_cyl_rod_theta_y
+    c1940 = 2*v_bucket_cyl_rod_theta_y
+    c1941 = c1924 + dv_bucket_cyl_barrel_theta_x
+    c1942 = c1941 + c1925 - dv_bucket_cyl_rod_theta_x - c1940*v_bucket_cyl_barrel_theta_z
+    c1943 = v_bucket_cyl_barrel_theta_z**2
+    c1944 = c1943 + c1927
+    c1945 = v_bucket_cyl_rod_theta_z**2
+    c1946 = c1945 - 2*v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_theta_z
+    c1947 = -c1931 - c1944 - c1946
+    c1948 = c1939*bucket_cyl_rod_a01 + c1942*bucket_cyl_rod_a21 + c1947*bucket_cyl_rod_a11
+    c1949 = 2*v_bucket_cyl_rod_theta_x
+    c1950 = c1936 + dv_bucket_cyl_barrel_theta_z
+    c1951 = c1937 + c1950 - dv_bucket_cyl_rod_theta_z - c1949*v_bucket_cyl_barrel_theta_y
+    c1952 = c1919 + c1921 + dv_bucket_cyl_rod_theta_y - dv_bucket_cyl_barrel_theta_y - c1949*v_bucket_cyl_barrel_theta_z
+    c1953 = c1943 + c1928
+    c1954 = -c1933 - c1946 - c1953
+    c1955 = c1951*bucket_cyl_rod_a11 + c1952*bucket_cyl_rod_a21 + c1954*bucket_cyl_rod_a01
+    c1956 = c1934*bucket_cyl_barrel_a20 + c1942*bucket_cyl_barrel_a10 + c1952*bucket_cyl_barrel_a00
+    c1957 = c1947*bucket_cyl_barrel_a10 + c1951*bucket_cyl_barrel_a00 + c1926*bucket_cyl_barrel_a20
+    c1958 = c1939*bucket_cyl_barrel_a10 + c1954*bucket_cyl_barrel_a00 + c1923*bucket_cyl_barrel_a20
+    c1959 = bucket_cyl_barrel_a00*bucket_cyl_rod_a11
+    c1960 = c1959*v_bucket_cyl_barrel_theta_y
+    c1961 = bucket_cyl_rod_a21*v_bucket_cyl_barrel_theta_z
+    c1962 = c1961*bucket_cyl_barrel_a00
+    c1963 = bucket_cyl_barrel_a10*bucket_cyl_rod_a01
+    c1964 = bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_z
+    c1965 = bucket_cyl_barrel_a20*bucket_cyl_rod_a01
+    c1966 = bucket_cyl_barrel_a10*bucket_cyl_rod_a11
+    c1967 = bucket_cyl_barrel_a20*bucket_cyl_rod_a21
+    c1968 = c1966 + c1967
+    c1969 = -c1968
+    c1970 = c1961*bucket_cyl_barrel_a10
+    c1971 = bucket_cyl_barrel_a20*bucket_cyl_rod_a11
+    c1972 = bucket_cyl_barrel_a00*bucket_cyl_rod_a01
+    c1973 = c1967 + c1972
+    c1974 = -c1973
+    c1975 = 2*v_bucket_cyl_barrel_theta_y
+    c1976 = bucket_cyl_barrel_a00*bucket_cyl_rod_a21
+    c1977 = bucket_cyl_barrel_a10*bucket_cyl_rod_a21
+    c1978 = c1966 + c1972
+    c1979 = -c1978
+    c1980 = 2*v_bucket_cyl_barrel_theta_z
+    c1981 = c1934*bucket_cyl_rod_a22 + c1923*bucket_cyl_rod_a02 + c1926*bucket_cyl_rod_a12
+    c1982 = c1939*bucket_cyl_rod_a02 + c1942*bucket_cyl_rod_a22 + c1947*bucket_cyl_rod_a12
+    c1983 = c1951*bucket_cyl_rod_a12 + c1952*bucket_cyl_rod_a22 + c1954*bucket_cyl_rod_a02
+    c1984 = bucket_cyl_barrel_a00*bucket_cyl_rod_a12
+    c1985 = bucket_cyl_rod_a22*v_bucket_cyl_barrel_theta_z
+    c1986 = bucket_cyl_barrel_a10*bucket_cyl_rod_a02
+    c1987 = bucket_cyl_barrel_a20*bucket_cyl_rod_a02
+    c1988 = bucket_cyl_barrel_a10*bucket_cyl_rod_a12
+    c1989 = bucket_cyl_barrel_a20*bucket_cyl_rod_a22
+    c1990 = c1988 + c1989
+    c1991 = -c1990
+    c1992 = bucket_cyl_barrel_a20*bucket_cyl_rod_a12
+    c1993 = bucket_cyl_barrel_a00*bucket_cyl_rod_a02
+    c1994 = c1989 + c1993
+    c1995 = -c1994
+    c1996 = bucket_cyl_barrel_a00*bucket_cyl_rod_a22
+    c1997 = bucket_cyl_barrel_a10*bucket_cyl_rod_a22
+    c1998 = c1988 + c1993
+    c1999 = -c1998
+    c2000 = dv_bucket_cyl_barrel_theta_z - c1936
+    c2001 = -c1922
+    c2002 = dv_bucket_cyl_barrel_theta_x - c1924
+    c2003 = -c1950
+    c2004 = dv_bucket_cyl_barrel_theta_y - c1921
+    c2005 = -c1941
+    c2006 = -c2002
+    c2007 = -c1929
+    c2008 = dv_bucket_cyl_rod_z - dv_bucket_cyl_barrel_z + c1929*bucket_cyl_barrel_z + c1938*v_bucket_cyl_barrel_y + c1922*bucket_cyl_rod_x + c1975*v_bucket_cyl_rod_x + c2001*bucket_cyl_barrel_x + c2002*bucket_cyl_barrel_y + c2006*bucket_cyl_rod_y + c2007*bucket_cyl_rod_z - c1938*v_bucket_cyl_rod_y - c1975*v_bucket_cyl_barrel_x
+    c2009 = -c2000
+    c2010 = -c1944
+    c2011 = dv_bucket_cyl_rod_y - dv_bucket_cyl_barrel_y + c1938*v_bucket_cyl_rod_z + c1941*bucket_cyl_rod_z + c1944*bucket_cyl_barrel_y + c1980*v_bucket_cyl_barrel_x + c2000*bucket_cyl_barrel_x + c2005*bucket_cyl_barrel_z + c2009*bucket_cyl_rod_x + c2010*bucket_cyl_rod_y - c1938*v_bucket_cyl_barrel_z - c1980*v_bucket_cyl_rod_x
+    c2012 = -c2004
+    c2013 = -c1953
+    c2014 = dv_bucket_cyl_rod_x - dv_bucket_cyl_barrel_x + c1950*bucket_cyl_rod_y + c1953*bucket_cyl_barrel_x + c1975*v_bucket_cyl_barrel_z + c1980*v_bucket_cyl_rod_y + c2003*bucket_cyl_barrel_y + c2004*bucket_cyl_barrel_z + c2012*bucket_cyl_rod_z + c2013*bucket_cyl_rod_x - c1975*v_bucket_cyl_rod_z - c1980*v_bucket_cyl_barrel_y
+    c2015 = c1980*bucket_cyl_barrel_a11 - c1975*bucket_cyl_barrel_a21
+    c2016 = c1980*bucket_cyl_barrel_a01 - 2*bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_x
+    c2017 = c1975*bucket_cyl_barrel_a01 - c1938*bucket_cyl_barrel_a11
+    c2018 = 2*bucket_cyl_barrel_a11
+    c2019 = 2*bucket_cyl_barrel_a21
+    c2020 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c2021 = -c2020
+    c2022 = c2021*bucket_cyl_barrel_a01
+    c2023 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c2024 = -c2023
+    c2025 = c2024*bucket_cyl_barrel_a11
+    c2026 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c2027 = c2026*bucket_cyl_barrel_a01
+    c2028 = bucket_cyl_barrel_a21*v_bucket_cyl_barrel_theta_z
+    c2029 = 2*bucket_cyl_barrel_a01
+    c2030 = -c2026
+    c2031 = c2020*bucket_cyl_barrel_a11
+    c2032 = c2030*v_bucket_cyl_barrel_theta_y
+    c2033 = c2023*v_bucket_cyl_barrel_theta_x
+    c2034 = c1980*bucket_cyl_barrel_a12 - c1975*bucket_cyl_barrel_a22
+    c2035 = c1980*bucket_cyl_barrel_a02 - 2*bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_x
+    c2036 = c1975*bucket_cyl_barrel_a02 - c1938*bucket_cyl_barrel_a12
+    c2037 = 2*bucket_cyl_barrel_a12
+    c2038 = 2*bucket_cyl_barrel_a22
+    c2039 = c2021*bucket_cyl_barrel_a02
+    c2040 = c2024*bucket_cyl_barrel_a12
+    c2041 = c2026*bucket_cyl_barrel_a02
+    c2042 = bucket_cyl_barrel_a22*v_bucket_cyl_barrel_theta_z
+    c2043 = 2*bucket_cyl_barrel_a02
+    c2044 = c2020*bucket_cyl_barrel_a12
+    c2045 = (1.0)*dv_bucket_cyl_rod_theta_y
+    c2046 = (1.0)*dv_bucket_cyl_barrel_theta_y
+    c2047 = (2.0)*v_bucket_cyl_rod_theta_z
+    c2048 = (1.0)*c1919 + (1.0)*c1921
+    c2049 = c2046 + c2048 - c2045 - c2047*v_bucket_cyl_barrel_theta_x
+    c2050 = (1.0)*dv_bucket_cyl_barrel_theta_x
+    c2051 = (1.0)*dv_bucket_cyl_rod_theta_x
+    c2052 = (1.0)*c1924 + (1.0)*c1925
+    c2053 = c2051 + c2052 - c2050 - c2047*v_bucket_cyl_barrel_theta_y
+    c2054 = (1.0)*c1930 + (1.0)*c1927 - 2.0*v_bucket_cyl_barrel_theta_x*v_bucket_cyl_rod_theta_x
+    c2055 = (1.0)*c1932 + (1.0)*c1928 - 2.0*v_bucket_cyl_barrel_theta_y*v_bucket_cyl_rod_theta_y
+    c2056 = -c2054 - c2055
+    c2057 = c2049*bucket_cyl_rod_a02 + c2053*bucket_cyl_rod_a12 + c2056*bucket_cyl_rod_a22
+    c2058 = (1.0)*dv_bucket_cyl_barrel_theta_z
+    c2059 = (1.0)*dv_bucket_cyl_rod_theta_z
+    c2060 = (2.0)*v_bucket_cyl_barrel_theta_x
+    c2061 = (1.0)*c1936 + (1.0)*c1937
+    c2062 = c2059 + c2061 - c2058 - c2060*v_bucket_cyl_rod_theta_y
+    c2063 = (2.0)*v_bucket_cyl_rod_theta_y
+    c2064 = c2050 + c2052 - c2051 - c2063*v_bucket_cyl_barrel_theta_z
+    c2065 = (1.0)*c1943 + (1.0)*c1945 - 2.0*v_bucket_cyl_barrel_theta_z*v_bucket_cyl_rod_theta_z
+    c2066 = -c2054 - c2065
+    c2067 = c2062*bucket_cyl_rod_a02 + c2064*bucket_cyl_rod_a22 + c2066*bucket_cyl_rod_a12
+    c2068 = (2.0)*v_bucket_cyl_rod_theta_x
+    c2069 = c2058 + c2061 - c2059 - c2068*v_bucket_cyl_barrel_theta_y
+    c2070 = c2045 + c2048 - c2046 - c2068*v_bucket_cyl_barrel_theta_z
+    c2071 = -c2055 - c2065
+    c2072 = c2069*bucket_cyl_rod_a12 + c2070*bucket_cyl_rod_a22 + c2071*bucket_cyl_rod_a02
+    c2073 = c2056*bucket_cyl_barrel_a21 + c2064*bucket_cyl_barrel_a11 + c2070*bucket_cyl_barrel_a01
+    c2074 = c2053*bucket_cyl_barrel_a21 + c2066*bucket_cyl_barrel_a11 + c2069*bucket_cyl_barrel_a01
+    c2075 = c2049*bucket_cyl_barrel_a21 + c2062*bucket_cyl_barrel_a11 + c2071*bucket_cyl_barrel_a01
+    c2076 = (1.0)*bucket_cyl_rod_a12
+    c2077 = c2076*bucket_cyl_barrel_a01
+    c2078 = (1.0)*bucket_cyl_barrel_a01
+    c2079 = bucket_cyl_barrel_a11*bucket_cyl_rod_a02
+    c2080 = (1.0)*c2079
+    c2081 = (1.0)*bucket_cyl_rod_a02
+    c2082 = c2047*bucket_cyl_barrel_a21
+    c2083 = c2076*bucket_cyl_barrel_a11
+    c2084 = (1.0)*bucket_cyl_rod_a22
+    c2085 = c2084*bucket_cyl_barrel_a21
+    c2086 = c2083 + c2085
+    c2087 = -c2086
+    c2088 = c2068*bucket_cyl_barrel_a01
+    c2089 = c1985*bucket_cyl_barrel_a11
+    c2090 = c2078*bucket_cyl_rod_a02
+    c2091 = c2085 + c2090
+    c2092 = -c2091
+    c2093 = c2084*bucket_cyl_barrel_a01
+    c2094 = c2084*bucket_cyl_barrel_a11
+    c2095 = c2081*bucket_cyl_barrel_a21
+    c2096 = c2076*bucket_cyl_barrel_a21
+    c2097 = c2083 + c2090
+    c2098 = -c2097
+    c2099 = (2.0)*bucket_cyl_barrel_a01
+    c2100 = bucket_cyl_rod_a12*v_bucket_cyl_barrel_theta_y
+    c2101 = dv_side_link_theta_y*p_side_link
+    c2102 = 0.5686266556413632*c2101
+    c2103 = 0.5686266556413632*p_side_link
+    c2104 = v_side_link_theta_x*v_side_link_theta_z
+    c2105 = c2102 + c2103*c2104
+    c2106 = 0.822595724821202*c2101
+    c2107 = 0.822595724821202*p_side_link
+    c2108 = c2104*c2107
+    c2109 = -c2106 - c2108
+    c2110 = dv_side_link_theta_z*p_side_link
+    c2111 = 0.5686266556413632*c2110
+    c2112 = -c2111 + 0.5686266556413632*p_side_link*v_side_link_theta_x*v_side_link_theta_y
+    c2113 = 0.822595724821202*c2110
+    c2114 = v_side_link_theta_x*v_side_link_theta_y
+    c2115 = c2114*c2107
+    c2116 = c2113 - c2115
+    c2117 = v_side_link_theta_y**2
+    c2118 = c2117*c2103
+    c2119 = v_side_link_theta_z**2
+    c2120 = c2119*c2103
+    c2121 = -c2118 - c2120
+    c2122 = c2117*c2107
+    c2123 = c2119*c2107
+    c2124 = c2122 + c2123
+    c2125 = 0.5686266556413632*side_link_a10
+    c2126 = c2125*p_side_link - 0.822595724821202*p_side_link*side_link_a12
+    c2127 = c2126*v_side_link_theta_y
+    c2128 = 0.5686266556413632*side_link_a20
+    c2129 = 0.822595724821202*side_link_a22
+    c2130 = c2128*p_side_link - c2129*p_side_link
+    c2131 = c2130*v_side_link_theta_z
+    c2132 = 0.5686266556413632*side_link_a00
+    c2133 = c2132*p_side_link - 0.822595724821202*p_side_link*side_link_a02
+    c2134 = -2*c2133
+    c2135 = c2128 - c2129
+    c2136 = c2125 - 0.822595724821202*side_link_a12
+    c2137 = 0.5686266556413632*side_link_a10*v_side_link_theta_x - 0.5686266556413632*side_link_a00*v_side_link_theta_y
+    c2138 = 0.822595724821202*side_link_a12*v_side_link_theta_x - 0.822595724821202*side_link_a02*v_side_link_theta_y
+    c2139 = side_link_a00*v_side_link_theta_z - side_link_a20*v_side_link_theta_x
+    c2140 = 0.5686266556413632*v_side_link_theta_z
+    c2141 = side_link_a02*v_side_link_theta_z - side_link_a22*v_side_link_theta_x
+    c2142 = 0.822595724821202*v_side_link_theta_z
+    c2143 = c2103*dv_side_link_theta_x
+    c2144 = -c2143 + 0.5686266556413632*p_side_link*v_side_link_theta_y*v_side_link_theta_z
+    c2145 = c2107*dv_side_link_theta_x
+    c2146 = v_side_link_theta_y*v_side_link_theta_z
+    c2147 = c2146*c2107
+    c2148 = c2145 - c2147
+    c2149 = v_side_link_theta_x**2
+    c2150 = c2103*c2149
+    c2151 = -c2120 - c2150
+    c2152 = c2149*c2107
+    c2153 = c2123 + c2152
+    c2154 = c2111 + c2114*c2103
+    c2155 = -c2113 - c2115
+    c2156 = -2*c2126
+    c2157 = c2133*v_side_link_theta_x
+    c2158 = c2132 - 0.822595724821202*side_link_a02
+    c2159 = side_link_a20*v_side_link_theta_y - side_link_a10*v_side_link_theta_z
+    c2160 = side_link_a22*v_side_link_theta_y - side_link_a12*v_side_link_theta_z
+    c2161 = c2143 + c2103*c2146
+    c2162 = -c2145 - c2147
+    c2163 = -c2118 - c2150
+    c2164 = c2122 + c2152
+    c2165 = -c2102 + 0.5686266556413632*p_side_link*v_side_link_theta_x*v_side_link_theta_z
+    c2166 = c2106 - c2108
+    c2167 = -2*c2130
+    out = _zeros(759, q, ())
+    out[0] = c1*upper_a10 - c0*upper_a20
+    out[1] = c2*upper_a20 - c1*upper_a00
+    out[2] = c0*upper_a00 - c2*upper_a10
+    out[3] = upper_a00*v_upper_theta_z - c3*v_upper_theta_x
+    out[4] = upper_a10*v_upper_theta_z - c3*v_upper_theta_y
+    out[5] = upper_a00*v_upper_theta_x + upper_a10*v_upper_theta_y
+    out[6] = c1*upper_a11 - c0*upper_a21
+    out[7] = c2*upper_a21 - c1*upper_a01
+    out[8] = c0*upper_a01 - c2*upper_a11
+    out[9] = upper_a01*v_upper_theta_z - c4*v_upper_theta_x
+    out[10] = upper_a11*v_upper_theta_z - c4*v_upper_theta_y
+    out[11] = upper_a01*v_upper_theta_x + upper_a11*v_upper_theta_y
+    out[12] = c7*upper_a10 + c9*upper_a12 - c11*upper_a20 - c13*upper_a22
+    out[13] = c18*upper_a20 + c21*upper_a22 - c7*upper_a00 - c9*upper_a02
+    out[14] = c11*upper_a00 + c13*upper_a02 - c18*upper_a10 - c21*upper_a12
+    out[15] = c23 + c25
+    out[16] = c22*v_upper_theta_x + c27*v_upper_theta_y
+    out[17] = c24*v_upper_theta_x + c27*v_upper_theta_z
+    out[18] = c29*upper_a10 + c31*upper_a12 - c34*upper_a20 - c36*upper_a22
+    out[19] = c38*upper_a20 + c39*upper_a22 - c29*upper_a00 - c31*upper_a02
+    out[20] = c34*upper_a00 + c36*upper_a02 - c38*upper_a10 - c39*upper_a12
+    out[21] = c26*v_upper_theta_y + c40*v_upper_theta_x
+    out[22] = c25 + c41
+    out[23] = c24*v_upper_theta_y + c40*v_upper_theta_z
+    out[24] = c45*upper_a10 + c46*upper_a12 - c43*upper_a20 - c44*upper_a22
+    out[25] = c47*upper_a20 + c48*upper_a22 - c45*upper_a00 - c46*upper_a02
+    out[26] = c43*upper_a00 + c44*upper_a02 - c47*upper_a10 - c48*upper_a12
+    out[27] = c26*v_upper_theta_z + c49*v_upper_theta_x
+    out[28] = c22*v_upper_theta_z + c49*v_upper_theta_y
+    out[29] = c23 + c41
+    out[30] = c58*upper_a11 - c66*upper_a21
+    out[31] = c71*upper_a21 - c58*upper_a01
+    out[32] = c66*upper_a01 - c71*upper_a11
+    out[33] = c72*boom_a12 - c73*boom_a22
+    out[34] = c74*boom_a22 - c72*boom_a02
+    out[35] = c73*boom_a02 - c74*boom_a12
+    out[36] = c78 + c80 + c59*c85 + c67*c84 + c75*v_upper_theta_y + c76*boom_a02 - c50*c81 - c62*c75
+    out[37] = c86 + c62*c89 + c75*v_upper_theta_x + c76*boom_a12 + c77*v_upper_theta_x + c90*c91 - c50*c87 - c67*c77
+    out[38] = c50*c94 + c81*v_upper_theta_x + c87*v_upper_theta_y + c92*v_upper_theta_x + c93*v_upper_theta_y + c95*c96 - c62*c93 - c67*c92
+    out[39] = -2*c78 - 2*c80 + c59*c84 + c67*c85 + c75*v_boom_theta_y + c77*v_boom_theta_y + c81*v_boom_theta_z + c92*v_boom_theta_z
+    out[40] = -2*c86 + c62*c90 + c75*v_boom_theta_x + c77*v_boom_theta_x + c87*v_boom_theta_z + c89*c91 + c93*v_boom_theta_z - c59*c75
+    out[41] = c50*c95 + c81*v_boom_theta_x + c87*v_boom_theta_y + c92*v_boom_theta_x + c93*v_boom_theta_y + c94*c96 - c59*c81 - c87*c91
+    out[42] = c97*upper_a11 - c98*upper_a21
+    out[43] = c99*upper_a21 - c97*upper_a01
+    out[44] = c98*upper_a01 - c99*upper_a11
+    out[45] = c72*boom_a10 - c73*boom_a20
+    out[46] = c74*boom_a20 - c72*boom_a00
+    out[47] = c73*boom_a00 - c74*boom_a10
+    out[48] = c106*c67 + c107*c59 + c76*boom_a00 + c100*v_upper_theta_y + c101*v_upper_theta_y + c102*upper_a01 - c50*c103 - c62*c100
+    out[49] = c110*c62 + c111*c91 + c76*boom_a10 + c100*v_upper_theta_x + c101*v_upper_theta_x + c102*upper_a11 - c108*c50 - c67*c101
+    out[50] = c108*v_upper_theta_y + c112*v_upper_theta_x + c113*v_upper_theta_y + c114*c50 + c115*c96 + c103*v_upper_theta_x - c112*c67 - c113*c62
+    out[51] = c106*c59 + c107*c67 + c112*v_boom_theta_z + c100*v_boom_theta_y + c101*v_boom_theta_y + c103*v_boom_theta_z - c112*c96 - c91*c101
+    out[52] = c108*v_boom_theta_z + c110*c91 + c111*c62 + c113*v_boom_theta_z + c100*v_boom_theta_x + c101*v_boom_theta_x - c113*c96 - c59*c100
+    out[53] = c108*v_boom_theta_y + c112*v_boom_theta_x + c113*v_boom_theta_y + c114*c96 + c115*c50 + c103*v_boom_theta_x - c108*c91 - c59*c103
+    out[54] = c118*upper_a10 + c120*upper_a11 + c122*upper_a12 - c126*upper_a21 - c128*upper_a22 - c124*upper_a20
+    out[55] = c133*upper_a20 + c136*upper_a21 + c139*upper_a22 - c118*upper_a00 - c120*upper_a01 - c122*upper_a02
+    out[56] = c126*upper_a01 + c128*upper_a02 + c124*upper_a00 - c133*upper_a10 - c136*upper_a11 - c139*upper_a12
+    out[57] = c141 + c143
+    out[58] = c140*v_upper_theta_x + c145*v_upper_theta_y
+    out[59] = c142*v_upper_theta_x + c145*v_upper_theta_z
+    out[60] = c147*upper_a10 + c149*upper_a11 + c151*upper_a12 - c154*upper_a20 - c156*upper_a21 - c158*upper_a22
+    out[61] = c160*upper_a20 + c161*upper_a21 + c162*upper_a22 - c147*upper_a00 - c149*upper_a01 - c151*upper_a02
+    out[62] = c154*upper_a00 + c156*upper_a01 + c158*upper_a02 - c160*upper_a10 - c161*upper_a11 - c162*upper_a12
+    out[63] = c144*v_upper_theta_y + c163*v_upper_theta_x
+    out[64] = c143 + c164
+    out[65] = c142*v_upper_theta_y + c163*v_upper_theta_z
+    out[66] = c169*upper_a10 + c170*upper_a11 + c171*upper_a12 - c166*upper_a20 - c167*upper_a21 - c168*upper_a22
+    out[67] = c172*upper_a20 + c173*upper_a21 + c174*upper_a22 - c169*upper_a00 - c170*upper_a01 - c171*upper_a02
+    out[68] = c166*upper_a00 + c167*upper_a01 + c168*upper_a02 - c172*upper_a10 - c173*upper_a11 - c174*upper_a12
+    out[69] = c144*v_upper_theta_z + c175*v_upper_theta_x
+    out[70] = c140*v_upper_theta_z + c175*v_upper_theta_y
+    out[71] = c141 + c164
+    out[72] = c184*upper_a11 - c192*upper_a21
+    out[73] = c197*upper_a21 - c184*upper_a01
+    out[74] = c192*upper_a01 - c197*upper_a11
+    out[75] = c198*boom_cyl_l_barrel_a12 - c199*boom_cyl_l_barrel_a22
+    out[76] = c200*boom_cyl_l_barrel_a22 - c198*boom_cyl_l_barrel_a02
+    out[77] = c199*boom_cyl_l_barrel_a02 - c200*boom_cyl_l_barrel_a12
+    out[78] = c204 + c206 + c185*c211 + c193*c210 + c201*v_upper_theta_y + c202*boom_cyl_l_barrel_a02 - c176*c207 - c188*c201
+    out[79] = c212 + c216*c217 + c188*c215 + c201*v_upper_theta_x + c202*boom_cyl_l_barrel_a12 + c203*v_upper_theta_x - c176*c213 - c193*c203
+    out[80] = c218*v_upper_theta_x + c219*v_upper_theta_y + c220*c176 + c221*c222 + c207*v_upper_theta_x + c213*v_upper_theta_y - c218*c193 - c219*c188
+    out[81] = -2*c204 - 2*c206 + c218*v_boom_cyl_l_barrel_theta_z + c185*c210 + c193*c211 + c201*v_boom_cyl_l_barrel_theta_y + c203*v_boom_cyl_l_barrel_theta_y + c207*v_boom_cyl_l_barrel_theta_z
+    out[82] = -2*c212 + c216*c188 + c217*c215 + c219*v_boom_cyl_l_barrel_theta_z + c201*v_boom_cyl_l_barrel_theta_x + c203*v_boom_cyl_l_barrel_theta_x + c213*v_boom_cyl_l_barrel_theta_z - c185*c201
+    out[83] = c218*v_boom_cyl_l_barrel_theta_x + c219*v_boom_cyl_l_barrel_theta_y + c220*c222 + c221*c176 + c207*v_boom_cyl_l_barrel_theta_x + c213*v_boom_cyl_l_barrel_theta_y - c217*c213 - c185*c207
+    out[84] = c239*boom_cyl_l_barrel_a10 - c252*boom_cyl_l_barrel_a20
+    out[85] = c259*boom_cyl_l_barrel_a20 - c239*boom_cyl_l_barrel_a00
+    out[86] = c252*boom_cyl_l_barrel_a00 - c259*boom_cyl_l_barrel_a10
+    out[87] = c260*boom_cyl_l_rod_a11 - c261*boom_cyl_l_rod_a21
+    out[88] = c262*boom_cyl_l_rod_a21 - c260*boom_cyl_l_rod_a01
+    out[89] = c261*boom_cyl_l_rod_a01 - c262*boom_cyl_l_rod_a11
+    out[90] = c264 + c266 + c242*c273 + c253*c272 + c267*v_boom_cyl_l_barrel_theta_y + c268*boom_cyl_l_rod_a01 - c224*c269 - c244*c267
+    out[91] = c274 + c244*c277 + c263*v_boom_cyl_l_barrel_theta_x + c267*v_boom_cyl_l_barrel_theta_x + c268*boom_cyl_l_rod_a11 + c278*c279 - c224*c275 - c253*c263
+    out[92] = c224*c282 + c269*v_boom_cyl_l_barrel_theta_x + c275*v_boom_cyl_l_barrel_theta_y + c280*v_boom_cyl_l_barrel_theta_x + c281*v_boom_cyl_l_barrel_theta_y + c283*c284 - c244*c281 - c253*c280
+    out[93] = -2*c264 - 2*c266 + c242*c272 + c253*c273 + c263*v_boom_cyl_l_rod_theta_y + c267*v_boom_cyl_l_rod_theta_y + c269*v_boom_cyl_l_rod_theta_z + c280*v_boom_cyl_l_rod_theta_z
+    out[94] = -2*c274 + c244*c278 + c263*v_boom_cyl_l_rod_theta_x + c267*v_boom_cyl_l_rod_theta_x + c275*v_boom_cyl_l_rod_theta_z + c277*c279 + c281*v_boom_cyl_l_rod_theta_z - c242*c267
+    out[95] = c224*c283 + c269*v_boom_cyl_l_rod_theta_x + c275*v_boom_cyl_l_rod_theta_y + c280*v_boom_cyl_l_rod_theta_x + c281*v_boom_cyl_l_rod_theta_y + c282*c284 - c242*c269 - c275*c279
+    out[96] = c285*boom_cyl_l_barrel_a10 - c286*boom_cyl_l_barrel_a20
+    out[97] = c287*boom_cyl_l_barrel_a20 - c285*boom_cyl_l_barrel_a00
+    out[98] = c286*boom_cyl_l_barrel_a00 - c287*boom_cyl_l_barrel_a10
+    out[99] = c260*boom_cyl_l_rod_a12 - c261*boom_cyl_l_rod_a22
+    out[100] = c262*boom_cyl_l_rod_a22 - c260*boom_cyl_l_rod_a02
+    out[101] = c261*boom_cyl_l_rod_a02 - c262*boom_cyl_l_rod_a12
+    out[102] = c242*c295 + c253*c294 + c268*boom_cyl_l_rod_a02 + c288*v_boom_cyl_l_barrel_theta_y + c289*boom_cyl_l_barrel_a00 + c290*v_boom_cyl_l_barrel_theta_y - c224*c291 - c244*c290
+    out[103] = c244*c298 + c268*boom_cyl_l_rod_a12 + c279*c299 + c288*v_boom_cyl_l_barrel_theta_x + c289*boom_cyl_l_barrel_a10 + c290*v_boom_cyl_l_barrel_theta_x - c224*c296 - c253*c288
+    out[104] = c224*c302 + c284*c303 + c291*v_boom_cyl_l_barrel_theta_x + c296*v_boom_cyl_l_barrel_theta_y + c300*v_boom_cyl_l_barrel_theta_x + c301*v_boom_cyl_l_barrel_theta_y - c244*c301 - c253*c300
+    out[105] = c242*c294 + c253*c295 + c288*v_boom_cyl_l_rod_theta_y + c290*v_boom_cyl_l_rod_theta_y + c291*v_boom_cyl_l_rod_theta_z + c300*v_boom_cyl_l_rod_theta_z - c279*c288 - c284*c300
+    out[106] = c244*c299 + c279*c298 + c288*v_boom_cyl_l_rod_theta_x + c290*v_boom_cyl_l_rod_theta_x + c296*v_boom_cyl_l_rod_theta_z + c301*v_boom_cyl_l_rod_theta_z - c242*c290 - c284*c301
+    out[107] = c224*c303 + c284*c302 + c291*v_boom_cyl_l_rod_theta_x + c296*v_boom_cyl_l_rod_theta_y + c300*v_boom_cyl_l_rod_theta_x + c301*v_boom_cyl_l_rod_theta_y - c242*c291 - c279*c296
+    out[108] = c257*boom_cyl_l_barrel_a01 + c304*boom_cyl_l_barrel_a11 + c305*boom_cyl_l_barrel_a21
+    out[109] = c248*boom_cyl_l_barrel_a11 + c306*boom_cyl_l_barrel_a21 + c307*boom_cyl_l_barrel_a01
+    out[110] = c233*boom_cyl_l_barrel_a21 + c308*boom_cyl_l_barrel_a01 + c309*boom_cyl_l_barrel_a11
+    out[111] = c312*boom_cyl_l_barrel_a11 - c315*boom_cyl_l_barrel_a21
+    out[112] = c318*boom_cyl_l_barrel_a21 - c312*boom_cyl_l_barrel_a01
+    out[113] = c315*boom_cyl_l_barrel_a01 - c318*boom_cyl_l_barrel_a11
+    out[114] = c226*boom_cyl_l_barrel_a21 + c313*boom_cyl_l_barrel_a11 + c317*boom_cyl_l_barrel_a01
+    out[115] = c254*boom_cyl_l_barrel_a01 + c310*boom_cyl_l_barrel_a21 + c314*boom_cyl_l_barrel_a11
+    out[116] = c245*boom_cyl_l_barrel_a11 + c311*boom_cyl_l_barrel_a21 + c316*boom_cyl_l_barrel_a01
+    out[117] = c319
+    out[118] = -c320
+    out[119] = c321
+    out[120] = c323*v_boom_cyl_l_barrel_y + c326*v_boom_cyl_l_barrel_theta_z + c329*v_boom_cyl_l_barrel_theta_y + c242*(c330*boom_cyl_l_barrel_a11 - c325*boom_cyl_l_barrel_a21) + c322*v_boom_cyl_l_rod_z - c323*v_boom_cyl_l_rod_y - c327*c332 - c331*v_boom_cyl_l_barrel_theta_y - c322*v_boom_cyl_l_barrel_z
+    out[121] = c323*v_boom_cyl_l_rod_x + c329*v_boom_cyl_l_barrel_theta_x + c332*c334 + c333*v_boom_cyl_l_barrel_z + c279*(c324*boom_cyl_l_barrel_a21 - c328*boom_cyl_l_barrel_a01) - c323*v_boom_cyl_l_barrel_x - c331*v_boom_cyl_l_barrel_theta_x - c333*v_boom_cyl_l_rod_z - c335*v_boom_cyl_l_barrel_theta_z
+    out[122] = c326*v_boom_cyl_l_barrel_theta_x + c333*v_boom_cyl_l_rod_y + c336*boom_cyl_l_barrel_a21 + c284*(c327*boom_cyl_l_barrel_a01 - c334*boom_cyl_l_barrel_a11) + c322*v_boom_cyl_l_barrel_x - c333*v_boom_cyl_l_barrel_y - c335*v_boom_cyl_l_barrel_theta_y - c337*boom_cyl_l_barrel_a21 - c322*v_boom_cyl_l_rod_x
+    out[123] = -c319
+    out[124] = c320
+    out[125] = -c321
+    out[126] = c257*boom_cyl_l_barrel_a02 + c304*boom_cyl_l_barrel_a12 + c305*boom_cyl_l_barrel_a22
+    out[127] = c248*boom_cyl_l_barrel_a12 + c306*boom_cyl_l_barrel_a22 + c307*boom_cyl_l_barrel_a02
+    out[128] = c233*boom_cyl_l_barrel_a22 + c308*boom_cyl_l_barrel_a02 + c309*boom_cyl_l_barrel_a12
+    out[129] = c312*boom_cyl_l_barrel_a12 - c315*boom_cyl_l_barrel_a22
+    out[130] = c318*boom_cyl_l_barrel_a22 - c312*boom_cyl_l_barrel_a02
+    out[131] = c315*boom_cyl_l_barrel_a02 - c318*boom_cyl_l_barrel_a12
+    out[132] = c226*boom_cyl_l_barrel_a22 + c313*boom_cyl_l_barrel_a12 + c317*boom_cyl_l_barrel_a02
+    out[133] = c254*boom_cyl_l_barrel_a02 + c310*boom_cyl_l_barrel_a22 + c314*boom_cyl_l_barrel_a12
+    out[134] = c245*boom_cyl_l_barrel_a12 + c311*boom_cyl_l_barrel_a22 + c316*boom_cyl_l_barrel_a02
+    out[135] = c338
+    out[136] = -c339
+    out[137] = c340
+    out[138] = c341*v_boom_cyl_l_rod_z + c342*v_boom_cyl_l_barrel_y + c343*v_boom_cyl_l_barrel_theta_z + c344*v_boom_cyl_l_barrel_theta_y + c242*(c330*boom_cyl_l_barrel_a12 - c325*boom_cyl_l_barrel_a22) - c327*c346 - c341*v_boom_cyl_l_barrel_z - c342*v_boom_cyl_l_rod_y - c345*v_boom_cyl_l_barrel_theta_y
+    out[139] = c334*c346 + c342*v_boom_cyl_l_rod_x + c344*v_boom_cyl_l_barrel_theta_x + c347*v_boom_cyl_l_barrel_z + c279*(c324*boom_cyl_l_barrel_a22 - c328*boom_cyl_l_barrel_a02) - c342*v_boom_cyl_l_barrel_x - c345*v_boom_cyl_l_barrel_theta_x - c347*v_boom_cyl_l_rod_z - c348*v_boom_cyl_l_barrel_theta_z
+    out[140] = c336*boom_cyl_l_barrel_a22 + c341*v_boom_cyl_l_barrel_x + c343*v_boom_cyl_l_barrel_theta_x + c347*v_boom_cyl_l_rod_y + c284*(c327*boom_cyl_l_barrel_a02 - c334*boom_cyl_l_barrel_a12) - c337*boom_cyl_l_barrel_a22 - c341*v_boom_cyl_l_rod_x - c347*v_boom_cyl_l_barrel_y - c348*v_boom_cyl_l_barrel_theta_y
+    out[141] = -c338
+    out[142] = c339
+    out[143] = -c340
+    out[144] = c361*boom_cyl_l_barrel_a11 - c371*boom_cyl_l_barrel_a21
+    out[145] = c376*boom_cyl_l_barrel_a21 - c361*boom_cyl_l_barrel_a01
+    out[146] = c371*boom_cyl_l_barrel_a01 - c376*boom_cyl_l_barrel_a11
+    out[147] = c377*boom_cyl_l_rod_a12 - c378*boom_cyl_l_rod_a22
+    out[148] = c379*boom_cyl_l_rod_a22 - c377*boom_cyl_l_rod_a02
+    out[149] = c378*boom_cyl_l_rod_a02 - c379*boom_cyl_l_rod_a12
+    out[150] = c332*c385 + c381*v_boom_cyl_l_barrel_theta_y + c382*c289 + c384*v_boom_cyl_l_barrel_theta_y + c390*c253 + c391*c242 - c367*c383 - c386*boom_cyl_l_rod_a02
+    out[151] = (1.0)*c393 + c332*c380 + c381*v_boom_cyl_l_barrel_theta_x + c384*v_boom_cyl_l_barrel_theta_x + c395*c244 + c396*c279 - c386*boom_cyl_l_rod_a12 - c392*boom_cyl_l_rod_a12
+    out[152] = c224*c401 + c397*v_boom_cyl_l_barrel_theta_x + c398*v_boom_cyl_l_barrel_theta_y + c399*v_boom_cyl_l_barrel_theta_x + c400*v_boom_cyl_l_barrel_theta_y + c402*c284 - c392*boom_cyl_l_rod_a22 - c367*boom_cyl_l_barrel_a11*boom_cyl_l_rod_a22
+    out[153] = c381*v_boom_cyl_l_rod_theta_y + c384*v_boom_cyl_l_rod_theta_y + c390*c242 + c391*c253 + c397*v_boom_cyl_l_rod_theta_z + c399*v_boom_cyl_l_rod_theta_z - c403*c404 - c403*c289
+    out[154] = -2.0*c393 + c381*v_boom_cyl_l_rod_theta_x + c384*v_boom_cyl_l_rod_theta_x + c395*c279 + c396*c244 + c398*v_boom_cyl_l_rod_theta_z + c400*v_boom_cyl_l_rod_theta_z - c364*c383
+    out[155] = c224*c402 + c397*v_boom_cyl_l_rod_theta_x + c398*v_boom_cyl_l_rod_theta_y + c399*v_boom_cyl_l_rod_theta_x + c400*v_boom_cyl_l_rod_theta_y + c401*c284 - 2.0*c404*boom_cyl_l_barrel_a21 - c364*boom_cyl_l_barrel_a21*boom_cyl_l_rod_a02
+    out[156] = c415*boom_a10 + c418*boom_a12 + c408*boom_a11 - c421*boom_a20 - c424*boom_a22 - c412*boom_a21
+    out[157] = c429*boom_a20 + c432*boom_a21 + c435*boom_a22 - c415*boom_a00 - c418*boom_a02 - c408*boom_a01
+    out[158] = c421*boom_a00 + c424*boom_a02 + c412*boom_a01 - c429*boom_a10 - c432*boom_a11 - c435*boom_a12
+    out[159] = c438 + c441
+    out[160] = c437*v_boom_theta_x + c443*v_boom_theta_y
+    out[161] = c440*v_boom_theta_x + c443*v_boom_theta_z
+    out[162] = c444*v_boom_theta_z + boom_a10*dv_boom_theta_z - c445*v_boom_theta_y - boom_a20*dv_boom_theta_y
+    out[163] = c446*v_boom_theta_z + boom_a12*dv_boom_theta_z - c447*v_boom_theta_y - boom_a22*dv_boom_theta_y
+    out[164] = c451*boom_a11 + c454*boom_a10 + c457*boom_a12 - c460*boom_a20 - c462*boom_a21 - c464*boom_a22
+    out[165] = c465*boom_a21 + c466*boom_a20 + c467*boom_a22 - c451*boom_a01 - c454*boom_a00 - c457*boom_a02
+    out[166] = c460*boom_a00 + c462*boom_a01 + c464*boom_a02 - c465*boom_a11 - c466*boom_a10 - c467*boom_a12
+    out[167] = c468*v_boom_theta_x + c469*v_boom_theta_y
+    out[168] = c441 + c470
+    out[169] = c440*v_boom_theta_y + c468*v_boom_theta_z
+    out[170] = c445*v_boom_theta_x + boom_a20*dv_boom_theta_x - c471*v_boom_theta_z - boom_a00*dv_boom_theta_z
+    out[171] = c447*v_boom_theta_x + boom_a22*dv_boom_theta_x - c472*v_boom_theta_z - boom_a02*dv_boom_theta_z
+    out[172] = c474*boom_a10 + c475*boom_a11 + c476*boom_a12 - c473*boom_a21 - c477*boom_a20 - c478*boom_a22
+    out[173] = c479*boom_a21 + c480*boom_a20 + c481*boom_a22 - c474*boom_a00 - c475*boom_a01 - c476*boom_a02
+    out[174] = c473*boom_a01 + c477*boom_a00 + c478*boom_a02 - c479*boom_a11 - c480*boom_a10 - c481*boom_a12
+    out[175] = c469*v_boom_theta_z + c482*v_boom_theta_x
+    out[176] = c437*v_boom_theta_z + c482*v_boom_theta_y
+    out[177] = c438 + c470
+    out[178] = c471*v_boom_theta_y + boom_a00*dv_boom_theta_y - c444*v_boom_theta_x - boom_a10*dv_boom_theta_x
+    out[179] = c472*v_boom_theta_y + boom_a02*dv_boom_theta_y - c446*v_boom_theta_x - boom_a12*dv_boom_theta_x
+    out[180] = c485*upper_a10 + c488*upper_a11 + c490*upper_a12 - c496*upper_a21 - c498*upper_a22 - c492*upper_a20
+    out[181] = c503*upper_a20 + c506*upper_a21 + c509*upper_a22 - c485*upper_a00 - c488*upper_a01 - c490*upper_a02
+    out[182] = c496*upper_a01 + c498*upper_a02 + c492*upper_a00 - c503*upper_a10 - c506*upper_a11 - c509*upper_a12
+    out[183] = c511 + c513
+    out[184] = c510*v_upper_theta_x + c515*v_upper_theta_y
+    out[185] = c512*v_upper_theta_x + c515*v_upper_theta_z
+    out[186] = c517*upper_a10 + c521*upper_a11 + c523*upper_a12 - c526*upper_a20 - c528*upper_a21 - c530*upper_a22
+    out[187] = c531*upper_a20 + c532*upper_a21 + c533*upper_a22 - c517*upper_a00 - c521*upper_a01 - c523*upper_a02
+    out[188] = c526*upper_a00 + c528*upper_a01 + c530*upper_a02 - c531*upper_a10 - c532*upper_a11 - c533*upper_a12
+    out[189] = c514*v_upper_theta_y + c534*v_upper_theta_x
+    out[190] = c513 + c535
+    out[191] = c512*v_upper_theta_y + c534*v_upper_theta_z
+    out[192] = c539*upper_a10 + c540*upper_a11 + c541*upper_a12 - c536*upper_a20 - c537*upper_a21 - c538*upper_a22
+    out[193] = c542*upper_a20 + c543*upper_a21 + c544*upper_a22 - c539*upper_a00 - c540*upper_a01 - c541*upper_a02
+    out[194] = c536*upper_a00 + c537*upper_a01 + c538*upper_a02 - c542*upper_a10 - c543*upper_a11 - c544*upper_a12
+    out[195] = c514*v_upper_theta_z + c545*v_upper_theta_x
+    out[196] = c510*v_upper_theta_z + c545*v_upper_theta_y
+    out[197] = c511 + c535
+    out[198] = c554*upper_a11 - c562*upper_a21
+    out[199] = c567*upper_a21 - c554*upper_a01
+    out[200] = c562*upper_a01 - c567*upper_a11
+    out[201] = c568*boom_cyl_r_barrel_a12 - c569*boom_cyl_r_barrel_a22
+    out[202] = c570*boom_cyl_r_barrel_a22 - c568*boom_cyl_r_barrel_a02
+    out[203] = c569*boom_cyl_r_barrel_a02 - c570*boom_cyl_r_barrel_a12
+    out[204] = c574 + c576 + c555*c581 + c563*c580 + c571*v_upper_theta_y + c572*boom_cyl_r_barrel_a02 - c546*c577 - c558*c571
+    out[205] = c582 + c585*c558 + c586*c587 + c571*v_upper_theta_x + c572*boom_cyl_r_barrel_a12 + c573*v_upper_theta_x - c583*c546 - c563*c573
+    out[206] = c583*v_upper_theta_y + c588*v_upper_theta_x + c589*v_upper_theta_y + c590*c546 + c591*c592 + c577*v_upper_theta_x - c588*c563 - c589*c558
+    out[207] = -2*c574 - 2*c576 + c588*v_boom_cyl_r_barrel_theta_z + c555*c580 + c563*c581 + c571*v_boom_cyl_r_barrel_theta_y + c573*v_boom_cyl_r_barrel_theta_y + c577*v_boom_cyl_r_barrel_theta_z
+    out[208] = -2*c582 + c583*v_boom_cyl_r_barrel_theta_z + c585*c587 + c586*c558 + c589*v_boom_cyl_r_barrel_theta_z + c571*v_boom_cyl_r_barrel_theta_x + c573*v_boom_cyl_r_barrel_theta_x - c555*c571
+    out[209] = c583*v_boom_cyl_r_barrel_theta_y + c588*v_boom_cyl_r_barrel_theta_x + c589*v_boom_cyl_r_barrel_theta_y + c590*c592 + c591*c546 + c577*v_boom_cyl_r_barrel_theta_x - c583*c587 - c555*c577
+    out[210] = c609*boom_cyl_r_barrel_a10 - c622*boom_cyl_r_barrel_a20
+    out[211] = c629*boom_cyl_r_barrel_a20 - c609*boom_cyl_r_barrel_a00
+    out[212] = c622*boom_cyl_r_barrel_a00 - c629*boom_cyl_r_barrel_a10
+    out[213] = c630*boom_cyl_r_rod_a11 - c631*boom_cyl_r_rod_a21
+    out[214] = c632*boom_cyl_r_rod_a21 - c630*boom_cyl_r_rod_a01
+    out[215] = c631*boom_cyl_r_rod_a01 - c632*boom_cyl_r_rod_a11
+    out[216] = c634 + c636 + c612*c643 + c623*c642 + c637*v_boom_cyl_r_barrel_theta_y + c638*boom_cyl_r_rod_a01 - c594*c639 - c614*c637
+    out[217] = c644 + c614*c647 + c633*v_boom_cyl_r_barrel_theta_x + c637*v_boom_cyl_r_barrel_theta_x + c638*boom_cyl_r_rod_a11 + c648*c649 - c594*c645 - c623*c633
+    out[218] = c594*c652 + c639*v_boom_cyl_r_barrel_theta_x + c645*v_boom_cyl_r_barrel_theta_y + c650*v_boom_cyl_r_barrel_theta_x + c651*v_boom_cyl_r_barrel_theta_y + c653*c654 - c614*c651 - c623*c650
+    out[219] = -2*c634 - 2*c636 + c612*c642 + c623*c643 + c633*v_boom_cyl_r_rod_theta_y + c637*v_boom_cyl_r_rod_theta_y + c639*v_boom_cyl_r_rod_theta_z + c650*v_boom_cyl_r_rod_theta_z
+    out[220] = -2*c644 + c614*c648 + c633*v_boom_cyl_r_rod_theta_x + c637*v_boom_cyl_r_rod_theta_x + c645*v_boom_cyl_r_rod_theta_z + c647*c649 + c651*v_boom_cyl_r_rod_theta_z - c612*c637
+    out[221] = c594*c653 + c639*v_boom_cyl_r_rod_theta_x + c645*v_boom_cyl_r_rod_theta_y + c650*v_boom_cyl_r_rod_theta_x + c651*v_boom_cyl_r_rod_theta_y + c652*c654 - c612*c639 - c645*c649
+    out[222] = c655*boom_cyl_r_barrel_a10 - c656*boom_cyl_r_barrel_a20
+    out[223] = c657*boom_cyl_r_barrel_a20 - c655*boom_cyl_r_barrel_a00
+    out[224] = c656*boom_cyl_r_barrel_a00 - c657*boom_cyl_r_barrel_a10
+    out[225] = c630*boom_cyl_r_rod_a12 - c631*boom_cyl_r_rod_a22
+    out[226] = c632*boom_cyl_r_rod_a22 - c630*boom_cyl_r_rod_a02
+    out[227] = c631*boom_cyl_r_rod_a02 - c632*boom_cyl_r_rod_a12
+    out[228] = c612*c665 + c623*c664 + c638*boom_cyl_r_rod_a02 + c658*v_boom_cyl_r_barrel_theta_y + c659*boom_cyl_r_barrel_a00 + c660*v_boom_cyl_r_barrel_theta_y - c594*c661 - c614*c660
+    out[229] = c614*c668 + c638*boom_cyl_r_rod_a12 + c649*c669 + c658*v_boom_cyl_r_barrel_theta_x + c659*boom_cyl_r_barrel_a10 + c660*v_boom_cyl_r_barrel_theta_x - c594*c666 - c623*c658
+    out[230] = c594*c672 + c654*c673 + c661*v_boom_cyl_r_barrel_theta_x + c666*v_boom_cyl_r_barrel_theta_y + c670*v_boom_cyl_r_barrel_theta_x + c671*v_boom_cyl_r_barrel_theta_y - c614*c671 - c623*c670
+    out[231] = c612*c664 + c623*c665 + c658*v_boom_cyl_r_rod_theta_y + c660*v_boom_cyl_r_rod_theta_y + c661*v_boom_cyl_r_rod_theta_z + c670*v_boom_cyl_r_rod_theta_z - c649*c658 - c654*c670
+    out[232] = c614*c669 + c649*c668 + c658*v_boom_cyl_r_rod_theta_x + c660*v_boom_cyl_r_rod_theta_x + c666*v_boom_cyl_r_rod_theta_z + c671*v_boom_cyl_r_rod_theta_z - c612*c660 - c654*c671
+    out[233] = c594*c673 + c654*c672 + c661*v_boom_cyl_r_rod_theta_x + c666*v_boom_cyl_r_rod_theta_y + c670*v_boom_cyl_r_rod_theta_x + c671*v_boom_cyl_r_rod_theta_y - c612*c661 - c649*c666
+    out[234] = c627*boom_cyl_r_barrel_a01 + c674*boom_cyl_r_barrel_a11 + c675*boom_cyl_r_barrel_a21
+    out[235] = c618*boom_cyl_r_barrel_a11 + c676*boom_cyl_r_barrel_a21 + c677*boom_cyl_r_barrel_a01
+    out[236] = c603*boom_cyl_r_barrel_a21 + c678*boom_cyl_r_barrel_a01 + c679*boom_cyl_r_barrel_a11
+    out[237] = c682*boom_cyl_r_barrel_a11 - c685*boom_cyl_r_barrel_a21
+    out[238] = c688*boom_cyl_r_barrel_a21 - c682*boom_cyl_r_barrel_a01
+    out[239] = c685*boom_cyl_r_barrel_a01 - c688*boom_cyl_r_barrel_a11
+    out[240] = c596*boom_cyl_r_barrel_a21 + c683*boom_cyl_r_barrel_a11 + c687*boom_cyl_r_barrel_a01
+    out[241] = c624*boom_cyl_r_barrel_a01 + c680*boom_cyl_r_barrel_a21 + c684*boom_cyl_r_barrel_a11
+    out[242] = c615*boom_cyl_r_barrel_a11 + c681*boom_cyl_r_barrel_a21 + c686*boom_cyl_r_barrel_a01
+    out[243] = c689
+    out[244] = -c690
+    out[245] = c691
+    out[246] = c693*v_boom_cyl_r_barrel_y + c696*v_boom_cyl_r_barrel_theta_z + c699*v_boom_cyl_r_barrel_theta_y + c612*(c700*boom_cyl_r_barrel_a11 - c695*boom_cyl_r_barrel_a21) + c692*v_boom_cyl_r_rod_z - c693*v_boom_cyl_r_rod_y - c697*c702 - c701*v_boom_cyl_r_barrel_theta_y - c692*v_boom_cyl_r_barrel_z
+    out[247] = c693*v_boom_cyl_r_rod_x + c699*v_boom_cyl_r_barrel_theta_x + c702*c704 + c703*v_boom_cyl_r_barrel_z + c649*(c694*boom_cyl_r_barrel_a21 - c698*boom_cyl_r_barrel_a01) - c693*v_boom_cyl_r_barrel_x - c701*v_boom_cyl_r_barrel_theta_x - c703*v_boom_cyl_r_rod_z - c705*v_boom_cyl_r_barrel_theta_z
+    out[248] = c696*v_boom_cyl_r_barrel_theta_x + c703*v_boom_cyl_r_rod_y + c706*boom_cyl_r_barrel_a21 + c654*(c697*boom_cyl_r_barrel_a01 - c704*boom_cyl_r_barrel_a11) + c692*v_boom_cyl_r_barrel_x - c703*v_boom_cyl_r_barrel_y - c705*v_boom_cyl_r_barrel_theta_y - c707*boom_cyl_r_barrel_a21 - c692*v_boom_cyl_r_rod_x
+    out[249] = -c689
+    out[250] = c690
+    out[251] = -c691
+    out[252] = c627*boom_cyl_r_barrel_a02 + c674*boom_cyl_r_barrel_a12 + c675*boom_cyl_r_barrel_a22
+    out[253] = c618*boom_cyl_r_barrel_a12 + c676*boom_cyl_r_barrel_a22 + c677*boom_cyl_r_barrel_a02
+    out[254] = c603*boom_cyl_r_barrel_a22 + c678*boom_cyl_r_barrel_a02 + c679*boom_cyl_r_barrel_a12
+    out[255] = c682*boom_cyl_r_barrel_a12 - c685*boom_cyl_r_barrel_a22
+    out[256] = c688*boom_cyl_r_barrel_a22 - c682*boom_cyl_r_barrel_a02
+    out[257] = c685*boom_cyl_r_barrel_a02 - c688*boom_cyl_r_barrel_a12
+    out[258] = c596*boom_cyl_r_barrel_a22 + c683*boom_cyl_r_barrel_a12 + c687*boom_cyl_r_barrel_a02
+    out[259] = c624*boom_cyl_r_barrel_a02 + c680*boom_cyl_r_barrel_a22 + c684*boom_cyl_r_barrel_a12
+    out[260] = c615*boom_cyl_r_barrel_a12 + c681*boom_cyl_r_barrel_a22 + c686*boom_cyl_r_barrel_a02
+    out[261] = c708
+    out[262] = -c709
+    out[263] = c710
+    out[264] = c711*v_boom_cyl_r_rod_z + c712*v_boom_cyl_r_barrel_y + c713*v_boom_cyl_r_barrel_theta_z + c714*v_boom_cyl_r_barrel_theta_y + c612*(c700*boom_cyl_r_barrel_a12 - c695*boom_cyl_r_barrel_a22) - c697*c716 - c711*v_boom_cyl_r_barrel_z - c712*v_boom_cyl_r_rod_y - c715*v_boom_cyl_r_barrel_theta_y
+    out[265] = c704*c716 + c712*v_boom_cyl_r_rod_x + c714*v_boom_cyl_r_barrel_theta_x + c717*v_boom_cyl_r_barrel_z + c649*(c694*boom_cyl_r_barrel_a22 - c698*boom_cyl_r_barrel_a02) - c712*v_boom_cyl_r_barrel_x - c715*v_boom_cyl_r_barrel_theta_x - c717*v_boom_cyl_r_rod_z - c718*v_boom_cyl_r_barrel_theta_z
+    out[266] = c706*boom_cyl_r_barrel_a22 + c711*v_boom_cyl_r_barrel_x + c713*v_boom_cyl_r_barrel_theta_x + c717*v_boom_cyl_r_rod_y + c654*(c697*boom_cyl_r_barrel_a02 - c704*boom_cyl_r_barrel_a12) - c707*boom_cyl_r_barrel_a22 - c711*v_boom_cyl_r_rod_x - c717*v_boom_cyl_r_barrel_y - c718*v_boom_cyl_r_barrel_theta_y
+    out[267] = -c708
+    out[268] = c709
+    out[269] = -c710
+    out[270] = c731*boom_cyl_r_barrel_a11 - c741*boom_cyl_r_barrel_a21
+    out[271] = c746*boom_cyl_r_barrel_a21 - c731*boom_cyl_r_barrel_a01
+    out[272] = c741*boom_cyl_r_barrel_a01 - c746*boom_cyl_r_barrel_a11
+    out[273] = c747*boom_cyl_r_rod_a12 - c748*boom_cyl_r_rod_a22
+    out[274] = c749*boom_cyl_r_rod_a22 - c747*boom_cyl_r_rod_a02
+    out[275] = c748*boom_cyl_r_rod_a02 - c749*boom_cyl_r_rod_a12
+    out[276] = c702*c755 + c751*v_boom_cyl_r_barrel_theta_y + c752*c659 + c754*v_boom_cyl_r_barrel_theta_y + c760*c623 + c761*c612 - c737*c753 - c756*boom_cyl_r_rod_a02
+    out[277] = (1.0)*c763 + c702*c750 + c751*v_boom_cyl_r_barrel_theta_x + c754*v_boom_cyl_r_barrel_theta_x + c765*c614 + c766*c649 - c756*boom_cyl_r_rod_a12 - c762*boom_cyl_r_rod_a12
+    out[278] = c594*c771 + c767*v_boom_cyl_r_barrel_theta_x + c768*v_boom_cyl_r_barrel_theta_y + c769*v_boom_cyl_r_barrel_theta_x + c770*v_boom_cyl_r_barrel_theta_y + c772*c654 - c762*boom_cyl_r_rod_a22 - c737*boom_cyl_r_barrel_a11*boom_cyl_r_rod_a22
+    out[279] = c751*v_boom_cyl_r_rod_theta_y + c754*v_boom_cyl_r_rod_theta_y + c760*c612 + c761*c623 + c767*v_boom_cyl_r_rod_theta_z + c769*v_boom_cyl_r_rod_theta_z - c773*c774 - c773*c659
+    out[280] = -2.0*c763 + c751*v_boom_cyl_r_rod_theta_x + c754*v_boom_cyl_r_rod_theta_x + c765*c649 + c766*c614 + c768*v_boom_cyl_r_rod_theta_z + c770*v_boom_cyl_r_rod_theta_z - c734*c753
+    out[281] = c594*c772 + c767*v_boom_cyl_r_rod_theta_x + c768*v_boom_cyl_r_rod_theta_y + c769*v_boom_cyl_r_rod_theta_x + c770*v_boom_cyl_r_rod_theta_y + c771*c654 - 2.0*c774*boom_cyl_r_barrel_a21 - c734*boom_cyl_r_barrel_a21*boom_cyl_r_rod_a02
+    out[282] = c785*boom_a12 + c777*boom_a11 + c782*boom_a10 - c789*boom_a20 - c792*boom_a22 - c779*boom_a21
+    out[283] = c797*boom_a20 + c800*boom_a21 + c803*boom_a22 - c785*boom_a02 - c777*boom_a01 - c782*boom_a00
+    out[284] = c789*boom_a00 + c792*boom_a02 + c779*boom_a01 - c797*boom_a10 - c800*boom_a11 - c803*boom_a12
+    out[285] = c806 + c809
+    out[286] = c805*v_boom_theta_x + c811*v_boom_theta_y
+    out[287] = c808*v_boom_theta_x + c811*v_boom_theta_z
+    out[288] = c812*v_boom_theta_z + boom_a10*dv_boom_theta_z - c813*v_boom_theta_y - boom_a20*dv_boom_theta_y
+    out[289] = c814*v_boom_theta_z + boom_a12*dv_boom_theta_z - c815*v_boom_theta_y - boom_a22*dv_boom_theta_y
+    out[290] = c817*boom_a11 + c821*boom_a10 + c824*boom_a12 - c827*boom_a20 - c829*boom_a21 - c831*boom_a22
+    out[291] = c832*boom_a21 + c833*boom_a20 + c834*boom_a22 - c817*boom_a01 - c821*boom_a00 - c824*boom_a02
+    out[292] = c827*boom_a00 + c829*boom_a01 + c831*boom_a02 - c832*boom_a11 - c833*boom_a10 - c834*boom_a12
+    out[293] = c835*v_boom_theta_x + c836*v_boom_theta_y
+    out[294] = c809 + c837
+    out[295] = c808*v_boom_theta_y + c835*v_boom_theta_z
+    out[296] = c813*v_boom_theta_x + boom_a20*dv_boom_theta_x - c838*v_boom_theta_z - boom_a00*dv_boom_theta_z
+    out[297] = c815*v_boom_theta_x + boom_a22*dv_boom_theta_x - c839*v_boom_theta_z - boom_a02*dv_boom_theta_z
+    out[298] = c841*boom_a10 + c842*boom_a11 + c843*boom_a12 - c840*boom_a21 - c844*boom_a20 - c845*boom_a22
+    out[299] = c846*boom_a21 + c847*boom_a20 + c848*boom_a22 - c841*boom_a00 - c842*boom_a01 - c843*boom_a02
+    out[300] = c840*boom_a01 + c844*boom_a00 + c845*boom_a02 - c846*boom_a11 - c847*boom_a10 - c848*boom_a12
+    out[301] = c836*v_boom_theta_z + c849*v_boom_theta_x
+    out[302] = c805*v_boom_theta_z + c849*v_boom_theta_y
+    out[303] = c806 + c837
+    out[304] = c838*v_boom_theta_y + boom_a00*dv_boom_theta_y - c812*v_boom_theta_x - boom_a10*dv_boom_theta_x
+    out[305] = c839*v_boom_theta_y + boom_a02*dv_boom_theta_y - c814*v_boom_theta_x - boom_a12*dv_boom_theta_x
+    out[306] = c852*boom_a10 + c854*boom_a12 - c856*boom_a20 - c858*boom_a22
+    out[307] = c863*boom_a20 + c866*boom_a22 - c852*boom_a00 - c854*boom_a02
+    out[308] = c856*boom_a00 + c858*boom_a02 - c863*boom_a10 - c866*boom_a12
+    out[309] = c868 + c870
+    out[310] = c867*v_boom_theta_x + c872*v_boom_theta_y
+    out[311] = c869*v_boom_theta_x + c872*v_boom_theta_z
+    out[312] = c874*boom_a10 + c876*boom_a12 - c879*boom_a20 - c881*boom_a22
+    out[313] = c883*boom_a20 + c884*boom_a22 - c874*boom_a00 - c876*boom_a02
+    out[314] = c879*boom_a00 + c881*boom_a02 - c883*boom_a10 - c884*boom_a12
+    out[315] = c871*v_boom_theta_y + c885*v_boom_theta_x
+    out[316] = c870 + c886
+    out[317] = c869*v_boom_theta_y + c885*v_boom_theta_z
+    out[318] = c890*boom_a10 + c891*boom_a12 - c888*boom_a20 - c889*boom_a22
+    out[319] = c892*boom_a20 + c893*boom_a22 - c890*boom_a00 - c891*boom_a02
+    out[320] = c888*boom_a00 + c889*boom_a02 - c892*boom_a10 - c893*boom_a12
+    out[321] = c871*v_boom_theta_z + c894*v_boom_theta_x
+    out[322] = c867*v_boom_theta_z + c894*v_boom_theta_y
+    out[323] = c868 + c886
+    out[324] = c903*boom_a11 - c911*boom_a21
+    out[325] = c916*boom_a21 - c903*boom_a01
+    out[326] = c911*boom_a01 - c916*boom_a11
+    out[327] = c917*arm_a12 - c918*arm_a22
+    out[328] = c919*arm_a22 - c917*arm_a02
+    out[329] = c918*arm_a02 - c919*arm_a12
+    out[330] = c923 + c925 + c904*c930 + c912*c929 + c920*v_boom_theta_y + c921*arm_a02 - c895*c926 - c907*c920
+    out[331] = c931 + c907*c934 + c920*v_boom_theta_x + c921*arm_a12 + c922*v_boom_theta_x + c935*c936 - c895*c932 - c912*c922
+    out[332] = c895*c939 + c926*v_boom_theta_x + c932*v_boom_theta_y + c937*v_boom_theta_x + c938*v_boom_theta_y + c940*c941 - c907*c938 - c912*c937
+    out[333] = -2*c923 - 2*c925 + c904*c929 + c912*c930 + c920*v_arm_theta_y + c922*v_arm_theta_y + c926*v_arm_theta_z + c937*v_arm_theta_z
+    out[334] = -2*c931 + c907*c935 + c920*v_arm_theta_x + c922*v_arm_theta_x + c932*v_arm_theta_z + c934*c936 + c938*v_arm_theta_z - c904*c920
+    out[335] = c895*c940 + c926*v_arm_theta_x + c932*v_arm_theta_y + c937*v_arm_theta_x + c938*v_arm_theta_y + c939*c941 - c904*c926 - c932*c936
+    out[336] = c942*boom_a11 - c943*boom_a21
+    out[337] = c944*boom_a21 - c942*boom_a01
+    out[338] = c943*boom_a01 - c944*boom_a11
+    out[339] = c917*arm_a10 - c918*arm_a20
+    out[340] = c919*arm_a20 - c917*arm_a00
+    out[341] = c918*arm_a00 - c919*arm_a10
+    out[342] = c951*c912 + c952*c904 + c921*arm_a00 + c945*v_boom_theta_y + c946*v_boom_theta_y + c947*boom_a01 - c895*c948 - c907*c945
+    out[343] = c955*c907 + c956*c936 + c921*arm_a10 + c945*v_boom_theta_x + c946*v_boom_theta_x + c947*boom_a11 - c953*c895 - c912*c946
+    out[344] = c953*v_boom_theta_y + c957*v_boom_theta_x + c958*v_boom_theta_y + c959*c895 + c960*c941 + c948*v_boom_theta_x - c957*c912 - c958*c907
+    out[345] = c951*c904 + c952*c912 + c957*v_arm_theta_z + c945*v_arm_theta_y + c946*v_arm_theta_y + c948*v_arm_theta_z - c957*c941 - c936*c946
+    out[346] = c953*v_arm_theta_z + c955*c936 + c956*c907 + c958*v_arm_theta_z + c945*v_arm_theta_x + c946*v_arm_theta_x - c958*c941 - c904*c945
+    out[347] = c953*v_arm_theta_y + c957*v_arm_theta_x + c958*v_arm_theta_y + c959*c941 + c960*c895 + c948*v_arm_theta_x - c953*c936 - c904*c948
+    out[348] = c963*boom_a10 + c965*boom_a12 - c967*boom_a20 - c969*boom_a22
+    out[349] = c974*boom_a20 + c977*boom_a22 - c963*boom_a00 - c965*boom_a02
+    out[350] = c967*boom_a00 + c969*boom_a02 - c974*boom_a10 - c977*boom_a12
+    out[351] = c979 + c981
+    out[352] = c978*v_boom_theta_x + c983*v_boom_theta_y
+    out[353] = c980*v_boom_theta_x + c983*v_boom_theta_z
+    out[354] = c985*boom_a10 + c987*boom_a12 - c990*boom_a20 - c992*boom_a22
+    out[355] = c994*boom_a20 + c995*boom_a22 - c985*boom_a00 - c987*boom_a02
+    out[356] = c990*boom_a00 + c992*boom_a02 - c994*boom_a10 - c995*boom_a12
+    out[357] = c982*v_boom_theta_y + c996*v_boom_theta_x
+    out[358] = c981 + c997
+    out[359] = c980*v_boom_theta_y + c996*v_boom_theta_z
+    out[360] = c1001*boom_a10 + c1002*boom_a12 - c999*boom_a20 - c1000*boom_a22
+    out[361] = c1003*boom_a20 + c1004*boom_a22 - c1001*boom_a00 - c1002*boom_a02
+    out[362] = c999*boom_a00 + c1000*boom_a02 - c1003*boom_a10 - c1004*boom_a12
+    out[363] = c982*v_boom_theta_z + c1005*v_boom_theta_x
+    out[364] = c978*v_boom_theta_z + c1005*v_boom_theta_y
+    out[365] = c979 + c997
+    out[366] = c1014*boom_a11 - c1022*boom_a21
+    out[367] = c1027*boom_a21 - c1014*boom_a01
+    out[368] = c1022*boom_a01 - c1027*boom_a11
+    out[369] = c1028*arm_cyl_barrel_a12 - c1029*arm_cyl_barrel_a22
+    out[370] = c1030*arm_cyl_barrel_a22 - c1028*arm_cyl_barrel_a02
+    out[371] = c1029*arm_cyl_barrel_a02 - c1030*arm_cyl_barrel_a12
+    out[372] = c1034 + c1036 + c1015*c1041 + c1023*c1040 + c1031*v_boom_theta_y + c1032*arm_cyl_barrel_a02 - c1006*c1037 - c1018*c1031
+    out[373] = c1042 + c1018*c1045 + c1031*v_boom_theta_x + c1032*arm_cyl_barrel_a12 + c1033*v_boom_theta_x + c1046*c1047 - c1006*c1043 - c1023*c1033
+    out[374] = c1006*c1050 + c1037*v_boom_theta_x + c1043*v_boom_theta_y + c1048*v_boom_theta_x + c1049*v_boom_theta_y + c1051*c1052 - c1018*c1049 - c1023*c1048
+    out[375] = -2*c1034 - 2*c1036 + c1015*c1040 + c1023*c1041 + c1031*v_arm_cyl_barrel_theta_y + c1033*v_arm_cyl_barrel_theta_y + c1037*v_arm_cyl_barrel_theta_z + c1048*v_arm_cyl_barrel_theta_z
+    out[376] = -2*c1042 + c1018*c1046 + c1031*v_arm_cyl_barrel_theta_x + c1033*v_arm_cyl_barrel_theta_x + c1043*v_arm_cyl_barrel_theta_z + c1045*c1047 + c1049*v_arm_cyl_barrel_theta_z - c1015*c1031
+    out[377] = c1006*c1051 + c1037*v_arm_cyl_barrel_theta_x + c1043*v_arm_cyl_barrel_theta_y + c1048*v_arm_cyl_barrel_theta_x + c1049*v_arm_cyl_barrel_theta_y + c1050*c1052 - c1015*c1037 - c1043*c1047
+    out[378] = c1069*arm_cyl_barrel_a10 - c1082*arm_cyl_barrel_a20
+    out[379] = c1089*arm_cyl_barrel_a20 - c1069*arm_cyl_barrel_a00
+    out[380] = c1082*arm_cyl_barrel_a00 - c1089*arm_cyl_barrel_a10
+    out[381] = c1090*arm_cyl_rod_a11 - c1091*arm_cyl_rod_a21
+    out[382] = c1092*arm_cyl_rod_a21 - c1090*arm_cyl_rod_a01
+    out[383] = c1091*arm_cyl_rod_a01 - c1092*arm_cyl_rod_a11
+    out[384] = c1094 + c1096 + c1072*c1103 + c1083*c1102 + c1097*v_arm_cyl_barrel_theta_y + c1098*arm_cyl_rod_a01 - c1054*c1099 - c1074*c1097
+    out[385] = c1104 + c1074*c1107 + c1093*v_arm_cyl_barrel_theta_x + c1097*v_arm_cyl_barrel_theta_x + c1098*arm_cyl_rod_a11 + c1108*c1109 - c1054*c1105 - c1083*c1093
+    out[386] = c1054*c1112 + c1099*v_arm_cyl_barrel_theta_x + c1105*v_arm_cyl_barrel_theta_y + c1110*v_arm_cyl_barrel_theta_x + c1111*v_arm_cyl_barrel_theta_y + c1113*c1114 - c1074*c1111 - c1083*c1110
+    out[387] = -2*c1094 - 2*c1096 + c1072*c1102 + c1083*c1103 + c1093*v_arm_cyl_rod_theta_y + c1097*v_arm_cyl_rod_theta_y + c1099*v_arm_cyl_rod_theta_z + c1110*v_arm_cyl_rod_theta_z
+    out[388] = -2*c1104 + c1074*c1108 + c1093*v_arm_cyl_rod_theta_x + c1097*v_arm_cyl_rod_theta_x + c1105*v_arm_cyl_rod_theta_z + c1107*c1109 + c1111*v_arm_cyl_rod_theta_z - c1072*c1097
+    out[389] = c1054*c1113 + c1099*v_arm_cyl_rod_theta_x + c1105*v_arm_cyl_rod_theta_y + c1110*v_arm_cyl_rod_theta_x + c1111*v_arm_cyl_rod_theta_y + c1112*c1114 - c1072*c1099 - c1105*c1109
+    out[390] = c1115*arm_cyl_barrel_a10 - c1116*arm_cyl_barrel_a20
+    out[391] = c1117*arm_cyl_barrel_a20 - c1115*arm_cyl_barrel_a00
+    out[392] = c1116*arm_cyl_barrel_a00 - c1117*arm_cyl_barrel_a10
+    out[393] = c1090*arm_cyl_rod_a12 - c1091*arm_cyl_rod_a22
+    out[394] = c1092*arm_cyl_rod_a22 - c1090*arm_cyl_rod_a02
+    out[395] = c1091*arm_cyl_rod_a02 - c1092*arm_cyl_rod_a12
+    out[396] = c1072*c1125 + c1083*c1124 + c1098*arm_cyl_rod_a02 + c1118*v_arm_cyl_barrel_theta_y + c1119*arm_cyl_barrel_a00 + c1120*v_arm_cyl_barrel_theta_y - c1054*c1121 - c1074*c1120
+    out[397] = c1074*c1128 + c1098*arm_cyl_rod_a12 + c1109*c1129 + c1118*v_arm_cyl_barrel_theta_x + c1119*arm_cyl_barrel_a10 + c1120*v_arm_cyl_barrel_theta_x - c1054*c1126 - c1083*c1118
+    out[398] = c1054*c1132 + c1114*c1133 + c1121*v_arm_cyl_barrel_theta_x + c1126*v_arm_cyl_barrel_theta_y + c1130*v_arm_cyl_barrel_theta_x + c1131*v_arm_cyl_barrel_theta_y - c1074*c1131 - c1083*c1130
+    out[399] = c1072*c1124 + c1083*c1125 + c1118*v_arm_cyl_rod_theta_y + c1120*v_arm_cyl_rod_theta_y + c1121*v_arm_cyl_rod_theta_z + c1130*v_arm_cyl_rod_theta_z - c1109*c1118 - c1114*c1130
+    out[400] = c1074*c1129 + c1109*c1128 + c1118*v_arm_cyl_rod_theta_x + c1120*v_arm_cyl_rod_theta_x + c1126*v_arm_cyl_rod_theta_z + c1131*v_arm_cyl_rod_theta_z - c1072*c1120 - c1114*c1131
+    out[401] = c1054*c1133 + c1114*c1132 + c1121*v_arm_cyl_rod_theta_x + c1126*v_arm_cyl_rod_theta_y + c1130*v_arm_cyl_rod_theta_x + c1131*v_arm_cyl_rod_theta_y - c1072*c1121 - c1109*c1126
+    out[402] = c1087*arm_cyl_barrel_a01 + c1134*arm_cyl_barrel_a11 + c1135*arm_cyl_barrel_a21
+    out[403] = c1078*arm_cyl_barrel_a11 + c1136*arm_cyl_barrel_a21 + c1137*arm_cyl_barrel_a01
+    out[404] = c1063*arm_cyl_barrel_a21 + c1138*arm_cyl_barrel_a01 + c1139*arm_cyl_barrel_a11
+    out[405] = c1142*arm_cyl_barrel_a11 - c1145*arm_cyl_barrel_a21
+    out[406] = c1148*arm_cyl_barrel_a21 - c1142*arm_cyl_barrel_a01
+    out[407] = c1145*arm_cyl_barrel_a01 - c1148*arm_cyl_barrel_a11
+    out[408] = c1056*arm_cyl_barrel_a21 + c1143*arm_cyl_barrel_a11 + c1147*arm_cyl_barrel_a01
+    out[409] = c1084*arm_cyl_barrel_a01 + c1140*arm_cyl_barrel_a21 + c1144*arm_cyl_barrel_a11
+    out[410] = c1075*arm_cyl_barrel_a11 + c1141*arm_cyl_barrel_a21 + c1146*arm_cyl_barrel_a01
+    out[411] = c1149
+    out[412] = -c1150
+    out[413] = c1151
+    out[414] = c1153*v_arm_cyl_barrel_y + c1156*v_arm_cyl_barrel_theta_z + c1159*v_arm_cyl_barrel_theta_y + c1072*(c1160*arm_cyl_barrel_a11 - c1155*arm_cyl_barrel_a21) + c1152*v_arm_cyl_rod_z - c1153*v_arm_cyl_rod_y - c1157*c1162 - c1161*v_arm_cyl_barrel_theta_y - c1152*v_arm_cyl_barrel_z
+    out[415] = c1153*v_arm_cyl_rod_x + c1159*v_arm_cyl_barrel_theta_x + c1162*c1164 + c1163*v_arm_cyl_barrel_z + c1109*(c1154*arm_cyl_barrel_a21 - c1158*arm_cyl_barrel_a01) - c1153*v_arm_cyl_barrel_x - c1161*v_arm_cyl_barrel_theta_x - c1163*v_arm_cyl_rod_z - c1165*v_arm_cyl_barrel_theta_z
+    out[416] = c1156*v_arm_cyl_barrel_theta_x + c1163*v_arm_cyl_rod_y + c1166*arm_cyl_barrel_a21 + c1114*(c1157*arm_cyl_barrel_a01 - c1164*arm_cyl_barrel_a11) + c1152*v_arm_cyl_barrel_x - c1163*v_arm_cyl_barrel_y - c1165*v_arm_cyl_barrel_theta_y - c1167*arm_cyl_barrel_a21 - c1152*v_arm_cyl_rod_x
+    out[417] = -c1149
+    out[418] = c1150
+    out[419] = -c1151
+    out[420] = c1087*arm_cyl_barrel_a02 + c1134*arm_cyl_barrel_a12 + c1135*arm_cyl_barrel_a22
+    out[421] = c1078*arm_cyl_barrel_a12 + c1136*arm_cyl_barrel_a22 + c1137*arm_cyl_barrel_a02
+    out[422] = c1063*arm_cyl_barrel_a22 + c1138*arm_cyl_barrel_a02 + c1139*arm_cyl_barrel_a12
+    out[423] = c1142*arm_cyl_barrel_a12 - c1145*arm_cyl_barrel_a22
+    out[424] = c1148*arm_cyl_barrel_a22 - c1142*arm_cyl_barrel_a02
+    out[425] = c1145*arm_cyl_barrel_a02 - c1148*arm_cyl_barrel_a12
+    out[426] = c1056*arm_cyl_barrel_a22 + c1143*arm_cyl_barrel_a12 + c1147*arm_cyl_barrel_a02
+    out[427] = c1084*arm_cyl_barrel_a02 + c1140*arm_cyl_barrel_a22 + c1144*arm_cyl_barrel_a12
+    out[428] = c1075*arm_cyl_barrel_a12 + c1141*arm_cyl_barrel_a22 + c1146*arm_cyl_barrel_a02
+    out[429] = c1168
+    out[430] = -c1169
+    out[431] = c1170
+    out[432] = c1171*v_arm_cyl_rod_z + c1172*v_arm_cyl_barrel_y + c1173*v_arm_cyl_barrel_theta_z + c1174*v_arm_cyl_barrel_theta_y + c1072*(c1160*arm_cyl_barrel_a12 - c1155*arm_cyl_barrel_a22) - c1157*c1176 - c1171*v_arm_cyl_barrel_z - c1172*v_arm_cyl_rod_y - c1175*v_arm_cyl_barrel_theta_y
+    out[433] = c1164*c1176 + c1172*v_arm_cyl_rod_x + c1174*v_arm_cyl_barrel_theta_x + c1177*v_arm_cyl_barrel_z + c1109*(c1154*arm_cyl_barrel_a22 - c1158*arm_cyl_barrel_a02) - c1172*v_arm_cyl_barrel_x - c1175*v_arm_cyl_barrel_theta_x - c1177*v_arm_cyl_rod_z - c1178*v_arm_cyl_barrel_theta_z
+    out[434] = c1166*arm_cyl_barrel_a22 + c1171*v_arm_cyl_barrel_x + c1173*v_arm_cyl_barrel_theta_x + c1177*v_arm_cyl_rod_y + c1114*(c1157*arm_cyl_barrel_a02 - c1164*arm_cyl_barrel_a12) - c1167*arm_cyl_barrel_a22 - c1171*v_arm_cyl_rod_x - c1177*v_arm_cyl_barrel_y - c1178*v_arm_cyl_barrel_theta_y
+    out[435] = -c1168
+    out[436] = c1169
+    out[437] = -c1170
+    out[438] = c1191*arm_cyl_barrel_a11 - c1201*arm_cyl_barrel_a21
+    out[439] = c1206*arm_cyl_barrel_a21 - c1191*arm_cyl_barrel_a01
+    out[440] = c1201*arm_cyl_barrel_a01 - c1206*arm_cyl_barrel_a11
+    out[441] = c1207*arm_cyl_rod_a12 - c1208*arm_cyl_rod_a22
+    out[442] = c1209*arm_cyl_rod_a22 - c1207*arm_cyl_rod_a02
+    out[443] = c1208*arm_cyl_rod_a02 - c1209*arm_cyl_rod_a12
+    out[444] = c1162*c1215 + c1211*v_arm_cyl_barrel_theta_y + c1212*c1119 + c1214*v_arm_cyl_barrel_theta_y + c1220*c1083 + c1221*c1072 - c1197*c1213 - c1216*arm_cyl_rod_a02
+    out[445] = (1.0)*c1223 + c1162*c1210 + c1211*v_arm_cyl_barrel_theta_x + c1214*v_arm_cyl_barrel_theta_x + c1225*c1074 + c1226*c1109 - c1216*arm_cyl_rod_a12 - c1222*arm_cyl_rod_a12
+    out[446] = c1054*c1231 + c1227*v_arm_cyl_barrel_theta_x + c1228*v_arm_cyl_barrel_theta_y + c1229*v_arm_cyl_barrel_theta_x + c1230*v_arm_cyl_barrel_theta_y + c1232*c1114 - c1222*arm_cyl_rod_a22 - c1197*arm_cyl_barrel_a11*arm_cyl_rod_a22
+    out[447] = c1211*v_arm_cyl_rod_theta_y + c1214*v_arm_cyl_rod_theta_y + c1220*c1072 + c1221*c1083 + c1227*v_arm_cyl_rod_theta_z + c1229*v_arm_cyl_rod_theta_z - c1233*c1234 - c1233*c1119
+    out[448] = -2.0*c1223 + c1211*v_arm_cyl_rod_theta_x + c1214*v_arm_cyl_rod_theta_x + c1225*c1109 + c1226*c1074 + c1228*v_arm_cyl_rod_theta_z + c1230*v_arm_cyl_rod_theta_z - c1194*c1213
+    out[449] = c1054*c1232 + c1227*v_arm_cyl_rod_theta_x + c1228*v_arm_cyl_rod_theta_y + c1229*v_arm_cyl_rod_theta_x + c1230*v_arm_cyl_rod_theta_y + c1231*c1114 - 2.0*c1234*arm_cyl_barrel_a21 - c1194*arm_cyl_barrel_a21*arm_cyl_rod_a02
+    out[450] = c1238*arm_a10 + c1241*arm_a12 - c1245*arm_a20 - c1248*arm_a22
+    out[451] = c1253*arm_a20 + c1256*arm_a22 - c1238*arm_a00 - c1241*arm_a02
+    out[452] = c1245*arm_a00 + c1248*arm_a02 - c1253*arm_a10 - c1256*arm_a12
+    out[453] = c1259 + c1262
+    out[454] = c1258*v_arm_theta_x + c1264*v_arm_theta_y
+    out[455] = c1261*v_arm_theta_x + c1264*v_arm_theta_z
+    out[456] = c1265*v_arm_theta_z + arm_a10*dv_arm_theta_z - c1266*v_arm_theta_y - arm_a20*dv_arm_theta_y
+    out[457] = c1267*v_arm_theta_z + arm_a12*dv_arm_theta_z - c1268*v_arm_theta_y - arm_a22*dv_arm_theta_y
+    out[458] = c1272*arm_a10 + c1275*arm_a12 - c1278*arm_a20 - c1280*arm_a22
+    out[459] = c1281*arm_a20 + c1282*arm_a22 - c1272*arm_a00 - c1275*arm_a02
+    out[460] = c1278*arm_a00 + c1280*arm_a02 - c1281*arm_a10 - c1282*arm_a12
+    out[461] = c1283*v_arm_theta_x + c1284*v_arm_theta_y
+    out[462] = c1262 + c1285
+    out[463] = c1261*v_arm_theta_y + c1283*v_arm_theta_z
+    out[464] = c1266*v_arm_theta_x + arm_a20*dv_arm_theta_x - c1286*v_arm_theta_z - arm_a00*dv_arm_theta_z
+    out[465] = c1268*v_arm_theta_x + arm_a22*dv_arm_theta_x - c1287*v_arm_theta_z - arm_a02*dv_arm_theta_z
+    out[466] = c1288*arm_a10 + c1289*arm_a12 - c1290*arm_a20 - c1291*arm_a22
+    out[467] = c1292*arm_a20 + c1293*arm_a22 - c1288*arm_a00 - c1289*arm_a02
+    out[468] = c1290*arm_a00 + c1291*arm_a02 - c1292*arm_a10 - c1293*arm_a12
+    out[469] = c1284*v_arm_theta_z + c1294*v_arm_theta_x
+    out[470] = c1258*v_arm_theta_z + c1294*v_arm_theta_y
+    out[471] = c1259 + c1285
+    out[472] = c1286*v_arm_theta_y + arm_a00*dv_arm_theta_y - c1265*v_arm_theta_x - arm_a10*dv_arm_theta_x
+    out[473] = c1287*v_arm_theta_y + arm_a02*dv_arm_theta_y - c1267*v_arm_theta_x - arm_a12*dv_arm_theta_x
+    out[474] = c1297*arm_a10 + c1299*arm_a12 - c1301*arm_a20 - c1303*arm_a22
+    out[475] = c1308*arm_a20 + c1311*arm_a22 - c1297*arm_a00 - c1299*arm_a02
+    out[476] = c1301*arm_a00 + c1303*arm_a02 - c1308*arm_a10 - c1311*arm_a12
+    out[477] = c1313 + c1315
+    out[478] = c1312*v_arm_theta_x + c1317*v_arm_theta_y
+    out[479] = c1314*v_arm_theta_x + c1317*v_arm_theta_z
+    out[480] = c1319*arm_a10 + c1321*arm_a12 - c1324*arm_a20 - c1326*arm_a22
+    out[481] = c1328*arm_a20 + c1329*arm_a22 - c1319*arm_a00 - c1321*arm_a02
+    out[482] = c1324*arm_a00 + c1326*arm_a02 - c1328*arm_a10 - c1329*arm_a12
+    out[483] = c1316*v_arm_theta_y + c1330*v_arm_theta_x
+    out[484] = c1315 + c1331
+    out[485] = c1314*v_arm_theta_y + c1330*v_arm_theta_z
+    out[486] = c1335*arm_a10 + c1336*arm_a12 - c1333*arm_a20 - c1334*arm_a22
+    out[487] = c1337*arm_a20 + c1338*arm_a22 - c1335*arm_a00 - c1336*arm_a02
+    out[488] = c1333*arm_a00 + c1334*arm_a02 - c1337*arm_a10 - c1338*arm_a12
+    out[489] = c1316*v_arm_theta_z + c1339*v_arm_theta_x
+    out[490] = c1312*v_arm_theta_z + c1339*v_arm_theta_y
+    out[491] = c1313 + c1331
+    out[492] = c1348*arm_a11 - c1356*arm_a21
+    out[493] = c1361*arm_a21 - c1348*arm_a01
+    out[494] = c1356*arm_a01 - c1361*arm_a11
+    out[495] = c1362*bucket_a12 - c1363*bucket_a22
+    out[496] = c1364*bucket_a22 - c1362*bucket_a02
+    out[497] = c1363*bucket_a02 - c1364*bucket_a12
+    out[498] = c1366 + c1368 + c1349*c1375 + c1357*c1374 + c1369*v_arm_theta_y + c1370*bucket_a02 - c1340*c1371 - c1352*c1369
+    out[499] = c1376 + c1352*c1379 + c1365*v_arm_theta_x + c1369*v_arm_theta_x + c1370*bucket_a12 + c1380*c1381 - c1340*c1377 - c1357*c1365
+    out[500] = c1340*c1384 + c1371*v_arm_theta_x + c1377*v_arm_theta_y + c1382*v_arm_theta_x + c1383*v_arm_theta_y + c1385*c1386 - c1352*c1383 - c1357*c1382
+    out[501] = -2*c1366 - 2*c1368 + c1349*c1374 + c1357*c1375 + c1365*v_bucket_theta_y + c1369*v_bucket_theta_y + c1371*v_bucket_theta_z + c1382*v_bucket_theta_z
+    out[502] = -2*c1376 + c1352*c1380 + c1365*v_bucket_theta_x + c1369*v_bucket_theta_x + c1377*v_bucket_theta_z + c1379*c1381 + c1383*v_bucket_theta_z - c1349*c1369
+    out[503] = c1340*c1385 + c1371*v_bucket_theta_x + c1377*v_bucket_theta_y + c1382*v_bucket_theta_x + c1383*v_bucket_theta_y + c1384*c1386 - c1349*c1371 - c1377*c1381
+    out[504] = c1387*arm_a11 - c1388*arm_a21
+    out[505] = c1389*arm_a21 - c1387*arm_a01
+    out[506] = c1388*arm_a01 - c1389*arm_a11
+    out[507] = c1362*bucket_a10 - c1363*bucket_a20
+    out[508] = c1364*bucket_a20 - c1362*bucket_a00
+    out[509] = c1363*bucket_a00 - c1364*bucket_a10
+    out[510] = c1396*c1357 + c1397*c1349 + c1370*bucket_a00 + c1390*v_arm_theta_y + c1391*arm_a01 + c1392*v_arm_theta_y - c1340*c1393 - c1352*c1392
+    out[511] = c1400*c1352 + c1401*c1381 + c1370*bucket_a10 + c1390*v_arm_theta_x + c1391*arm_a11 + c1392*v_arm_theta_x - c1398*c1340 - c1357*c1390
+    out[512] = c1398*v_arm_theta_y + c1402*v_arm_theta_x + c1403*v_arm_theta_y + c1404*c1340 + c1405*c1386 + c1393*v_arm_theta_x - c1402*c1357 - c1403*c1352
+    out[513] = c1396*c1349 + c1397*c1357 + c1402*v_bucket_theta_z + c1390*v_bucket_theta_y + c1392*v_bucket_theta_y + c1393*v_bucket_theta_z - c1402*c1386 - c1381*c1390
+    out[514] = c1398*v_bucket_theta_z + c1400*c1381 + c1401*c1352 + c1403*v_bucket_theta_z + c1390*v_bucket_theta_x + c1392*v_bucket_theta_x - c1403*c1386 - c1349*c1392
+    out[515] = c1398*v_bucket_theta_y + c1402*v_bucket_theta_x + c1403*v_bucket_theta_y + c1404*c1386 + c1405*c1340 + c1393*v_bucket_theta_x - c1398*c1381 - c1349*c1393
+    out[516] = c1408*arm_a10 + c1410*arm_a12 - c1412*arm_a20 - c1414*arm_a22
+    out[517] = c1419*arm_a20 + c1422*arm_a22 - c1408*arm_a00 - c1410*arm_a02
+    out[518] = c1412*arm_a00 + c1414*arm_a02 - c1419*arm_a10 - c1422*arm_a12
+    out[519] = c1424 + c1426
+    out[520] = c1423*v_arm_theta_x + c1428*v_arm_theta_y
+    out[521] = c1425*v_arm_theta_x + c1428*v_arm_theta_z
+    out[522] = c1430*arm_a10 + c1432*arm_a12 - c1435*arm_a20 - c1437*arm_a22
+    out[523] = c1439*arm_a20 + c1440*arm_a22 - c1430*arm_a00 - c1432*arm_a02
+    out[524] = c1435*arm_a00 + c1437*arm_a02 - c1439*arm_a10 - c1440*arm_a12
+    out[525] = c1427*v_arm_theta_y + c1441*v_arm_theta_x
+    out[526] = c1426 + c1442
+    out[527] = c1425*v_arm_theta_y + c1441*v_arm_theta_z
+    out[528] = c1446*arm_a10 + c1447*arm_a12 - c1444*arm_a20 - c1445*arm_a22
+    out[529] = c1448*arm_a20 + c1449*arm_a22 - c1446*arm_a00 - c1447*arm_a02
+    out[530] = c1444*arm_a00 + c1445*arm_a02 - c1448*arm_a10 - c1449*arm_a12
+    out[531] = c1427*v_arm_theta_z + c1450*v_arm_theta_x
+    out[532] = c1423*v_arm_theta_z + c1450*v_arm_theta_y
+    out[533] = c1424 + c1442
+    out[534] = c1459*arm_a11 - c1467*arm_a21
+    out[535] = c1472*arm_a21 - c1459*arm_a01
+    out[536] = c1467*arm_a01 - c1472*arm_a11
+    out[537] = c1473*side_link_a12 - c1474*side_link_a22
+    out[538] = c1475*side_link_a22 - c1473*side_link_a02
+    out[539] = c1474*side_link_a02 - c1475*side_link_a12
+    out[540] = c1477 + c1479 + c1460*c1486 + c1468*c1485 + c1480*v_arm_theta_y + c1481*side_link_a02 - c1451*c1482 - c1463*c1480
+    out[541] = c1487 + c1463*c1490 + c1476*v_arm_theta_x + c1480*v_arm_theta_x + c1481*side_link_a12 + c1491*c1492 - c1451*c1488 - c1468*c1476
+    out[542] = c1451*c1495 + c1482*v_arm_theta_x + c1488*v_arm_theta_y + c1493*v_arm_theta_x + c1494*v_arm_theta_y + c1496*c1497 - c1463*c1494 - c1468*c1493
+    out[543] = -2*c1477 - 2*c1479 + c1460*c1485 + c1468*c1486 + c1476*v_side_link_theta_y + c1480*v_side_link_theta_y + c1482*v_side_link_theta_z + c1493*v_side_link_theta_z
+    out[544] = -2*c1487 + c1463*c1491 + c1476*v_side_link_theta_x + c1480*v_side_link_theta_x + c1488*v_side_link_theta_z + c1490*c1492 + c1494*v_side_link_theta_z - c1460*c1480
+    out[545] = c1451*c1496 + c1482*v_side_link_theta_x + c1488*v_side_link_theta_y + c1493*v_side_link_theta_x + c1494*v_side_link_theta_y + c1495*c1497 - c1460*c1482 - c1488*c1492
+    out[546] = c1498*arm_a11 - c1499*arm_a21
+    out[547] = c1500*arm_a21 - c1498*arm_a01
+    out[548] = c1499*arm_a01 - c1500*arm_a11
+    out[549] = c1473*side_link_a10 - c1474*side_link_a20
+    out[550] = c1475*side_link_a20 - c1473*side_link_a00
+    out[551] = c1474*side_link_a00 - c1475*side_link_a10
+    out[552] = c1507*c1468 + c1508*c1460 + c1481*side_link_a00 + c1501*v_arm_theta_y + c1502*arm_a01 + c1503*v_arm_theta_y - c1451*c1504 - c1463*c1503
+    out[553] = c1511*c1463 + c1512*c1492 + c1481*side_link_a10 + c1501*v_arm_theta_x + c1502*arm_a11 + c1503*v_arm_theta_x - c1509*c1451 - c1468*c1501
+    out[554] = c1509*v_arm_theta_y + c1513*v_arm_theta_x + c1514*v_arm_theta_y + c1515*c1451 + c1516*c1497 + c1504*v_arm_theta_x - c1513*c1468 - c1514*c1463
+    out[555] = c1507*c1460 + c1508*c1468 + c1513*v_side_link_theta_z + c1501*v_side_link_theta_y + c1503*v_side_link_theta_y + c1504*v_side_link_theta_z - c1513*c1497 - c1492*c1501
+    out[556] = c1509*v_side_link_theta_z + c1511*c1492 + c1512*c1463 + c1514*v_side_link_theta_z + c1501*v_side_link_theta_x + c1503*v_side_link_theta_x - c1514*c1497 - c1460*c1503
+    out[557] = c1509*v_side_link_theta_y + c1513*v_side_link_theta_x + c1514*v_side_link_theta_y + c1515*c1497 + c1516*c1451 + c1504*v_side_link_theta_x - c1509*c1492 - c1460*c1504
+    out[558] = c1522*side_link_a10 + c1525*side_link_a12 - c1530*side_link_a20 - c1532*side_link_a22
+    out[559] = c1537*side_link_a20 + c1540*side_link_a22 - c1522*side_link_a00 - c1525*side_link_a02
+    out[560] = c1530*side_link_a00 + c1532*side_link_a02 - c1537*side_link_a10 - c1540*side_link_a12
+    out[561] = c1545*bucket_link_a10 + c1548*bucket_link_a12 - c1551*bucket_link_a20 - c1553*bucket_link_a22
+    out[562] = c1558*bucket_link_a20 + c1561*bucket_link_a22 - c1545*bucket_link_a00 - c1548*bucket_link_a02
+    out[563] = c1551*bucket_link_a00 + c1553*bucket_link_a02 - c1558*bucket_link_a10 - c1561*bucket_link_a12
+    out[564] = c1565 + c1569
+    out[565] = c1564*v_side_link_theta_x + c1572*v_side_link_theta_y
+    out[566] = c1568*v_side_link_theta_x + c1572*v_side_link_theta_z
+    out[567] = c1576 + c1580
+    out[568] = c1575*v_bucket_link_theta_x + c1584*v_bucket_link_theta_y
+    out[569] = c1579*v_bucket_link_theta_x + c1584*v_bucket_link_theta_z
+    out[570] = c1586*dv_side_link_theta_z + c1588*v_side_link_theta_y + c1589*c1590 - c1585*dv_side_link_theta_y - c1587*v_side_link_theta_y - c1591*c1592
+    out[571] = c1593*dv_bucket_link_theta_y + c1595*v_bucket_link_theta_y + c1596*v_bucket_link_theta_y - c1594*dv_bucket_link_theta_z - c1597*c1598 - c1599*c1600
+    out[572] = c1604*side_link_a10 + c1606*side_link_a12 - c1609*side_link_a20 - c1611*side_link_a22
+    out[573] = c1612*side_link_a20 + c1613*side_link_a22 - c1604*side_link_a00 - c1606*side_link_a02
+    out[574] = c1609*side_link_a00 + c1611*side_link_a02 - c1612*side_link_a10 - c1613*side_link_a12
+    out[575] = c1617*bucket_link_a12 + c1615*bucket_link_a10 - c1620*bucket_link_a20 - c1622*bucket_link_a22
+    out[576] = c1624*bucket_link_a20 + c1625*bucket_link_a22 - c1617*bucket_link_a02 - c1615*bucket_link_a00
+    out[577] = c1620*bucket_link_a00 + c1622*bucket_link_a02 - c1624*bucket_link_a10 - c1625*bucket_link_a12
+    out[578] = c1626*v_side_link_theta_y + c1627*v_side_link_theta_x
+    out[579] = c1628 + c1569
+    out[580] = c1627*v_side_link_theta_z + c1568*v_side_link_theta_y
+    out[581] = c1629*v_bucket_link_theta_x + c1583*v_bucket_link_theta_y
+    out[582] = c1630 + c1580
+    out[583] = c1629*v_bucket_link_theta_z + c1579*v_bucket_link_theta_y
+    out[584] = c1633*c1592 + c1585*dv_side_link_theta_x + c1587*v_side_link_theta_x - c1631*dv_side_link_theta_z - c1632*c1590 - c1588*v_side_link_theta_x
+    out[585] = c1634*dv_bucket_link_theta_z + c1635*c1598 + c1636*c1600 - c1593*dv_bucket_link_theta_x - c1595*v_bucket_link_theta_x - c1596*v_bucket_link_theta_x
+    out[586] = c1639*side_link_a10 + c1640*side_link_a12 - c1637*side_link_a20 - c1638*side_link_a22
+    out[587] = c1641*side_link_a20 + c1642*side_link_a22 - c1639*side_link_a00 - c1640*side_link_a02
+    out[588] = c1637*side_link_a00 + c1638*side_link_a02 - c1641*side_link_a10 - c1642*side_link_a12
+    out[589] = c1646*bucket_link_a10 + c1647*bucket_link_a12 - c1644*bucket_link_a20 - c1645*bucket_link_a22
+    out[590] = c1648*bucket_link_a20 + c1649*bucket_link_a22 - c1646*bucket_link_a00 - c1647*bucket_link_a02
+    out[591] = c1644*bucket_link_a00 + c1645*bucket_link_a02 - c1648*bucket_link_a10 - c1649*bucket_link_a12
+    out[592] = c1626*v_side_link_theta_z + c1650*v_side_link_theta_x
+    out[593] = c1650*v_side_link_theta_y + c1564*v_side_link_theta_z
+    out[594] = c1628 + c1565
+    out[595] = c1651*v_bucket_link_theta_x + c1583*v_bucket_link_theta_z
+    out[596] = c1651*v_bucket_link_theta_y + c1575*v_bucket_link_theta_z
+    out[597] = c1630 + c1576
+    out[598] = c1631*dv_side_link_theta_y - c1586*dv_side_link_theta_x + 0.5686266556413632*c1632*v_side_link_theta_y + 0.822595724821202*c1591*v_side_link_theta_x - 0.5686266556413632*c1589*v_side_link_theta_x - 0.822595724821202*c1633*v_side_link_theta_y
+    out[599] = c1594*dv_bucket_link_theta_x - c1634*dv_bucket_link_theta_y + 0.60493530832545*c1597*v_bucket_link_theta_x + 0.796274621434837*c1599*v_bucket_link_theta_x - 0.60493530832545*c1635*v_bucket_link_theta_y - 0.796274621434837*c1636*v_bucket_link_theta_y
+    out[600] = c1655*bucket_a10 + c1658*bucket_a12 - c1662*bucket_a20 - c1665*bucket_a22
+    out[601] = c1670*bucket_a20 + c1673*bucket_a22 - c1655*bucket_a00 - c1658*bucket_a02
+    out[602] = c1662*bucket_a00 + c1665*bucket_a02 - c1670*bucket_a10 - c1673*bucket_a12
+    out[603] = c1676 + c1679
+    out[604] = c1675*v_bucket_theta_x + c1681*v_bucket_theta_y
+    out[605] = c1678*v_bucket_theta_x + c1681*v_bucket_theta_z
+    out[606] = c1682*v_bucket_theta_z + bucket_a10*dv_bucket_theta_z - c1683*v_bucket_theta_y - bucket_a20*dv_bucket_theta_y
+    out[607] = c1684*v_bucket_theta_z + bucket_a12*dv_bucket_theta_z - c1685*v_bucket_theta_y - bucket_a22*dv_bucket_theta_y
+    out[608] = c1689*bucket_a10 + c1692*bucket_a12 - c1695*bucket_a20 - c1697*bucket_a22
+    out[609] = c1698*bucket_a20 + c1699*bucket_a22 - c1689*bucket_a00 - c1692*bucket_a02
+    out[610] = c1695*bucket_a00 + c1697*bucket_a02 - c1698*bucket_a10 - c1699*bucket_a12
+    out[611] = c1700*v_bucket_theta_x + c1701*v_bucket_theta_y
+    out[612] = c1679 + c1702
+    out[613] = c1678*v_bucket_theta_y + c1700*v_bucket_theta_z
+    out[614] = c1683*v_bucket_theta_x + bucket_a20*dv_bucket_theta_x - c1703*v_bucket_theta_z - bucket_a00*dv_bucket_theta_z
+    out[615] = c1685*v_bucket_theta_x + bucket_a22*dv_bucket_theta_x - c1704*v_bucket_theta_z - bucket_a02*dv_bucket_theta_z
+    out[616] = c1705*bucket_a10 + c1706*bucket_a12 - c1707*bucket_a20 - c1708*bucket_a22
+    out[617] = c1709*bucket_a20 + c1710*bucket_a22 - c1705*bucket_a00 - c1706*bucket_a02
+    out[618] = c1707*bucket_a00 + c1708*bucket_a02 - c1709*bucket_a10 - c1710*bucket_a12
+    out[619] = c1701*v_bucket_theta_z + c1711*v_bucket_theta_x
+    out[620] = c1675*v_bucket_theta_z + c1711*v_bucket_theta_y
+    out[621] = c1676 + c1702
+    out[622] = c1703*v_bucket_theta_y + bucket_a00*dv_bucket_theta_y - c1682*v_bucket_theta_x - bucket_a10*dv_bucket_theta_x
+    out[623] = c1704*v_bucket_theta_y + bucket_a02*dv_bucket_theta_y - c1684*v_bucket_theta_x - bucket_a12*dv_bucket_theta_x
+    out[624] = c1726*bucket_link_a10 + c1740*bucket_link_a12 - c1759*bucket_link_a22 - c1750*bucket_link_a20
+    out[625] = c1763*bucket_link_a20 + c1768*bucket_link_a22 - c1726*bucket_link_a00 - c1740*bucket_link_a02
+    out[626] = c1759*bucket_link_a02 + c1750*bucket_link_a00 - c1763*bucket_link_a10 - c1768*bucket_link_a12
+    out[627] = c1769*bucket_a11 - c1770*bucket_a21
+    out[628] = c1771*bucket_a21 - c1769*bucket_a01
+    out[629] = c1770*bucket_a01 - c1771*bucket_a11
+    out[630] = c1773*c1774 + c1776*v_bucket_theta_y + c1777*v_bucket_link_theta_y + c1780*v_bucket_link_theta_y + c1781*v_bucket_theta_z + c1782*v_bucket_link_theta_z + c1784*v_bucket_link_theta_z + c1791*v_bucket_theta_x + c1794*v_bucket_theta_x - c1786*c1787 + 2*c1790*v_bucket_link_theta_x
+    out[631] = c1777*v_bucket_link_theta_x + c1779*v_bucket_theta_x + c1780*v_bucket_link_theta_x + c1796*v_bucket_theta_x + c1797*v_bucket_theta_z + c1798*v_bucket_link_theta_z + c1800*v_bucket_link_theta_z + c1805*v_bucket_theta_y + c1808*v_bucket_theta_y - c1801*c1802 + 2*c1804*v_bucket_link_theta_y
+    out[632] = c1782*v_bucket_link_theta_x + c1783*v_bucket_theta_x + c1784*v_bucket_link_theta_x + c1798*v_bucket_link_theta_y + c1799*v_bucket_theta_y + c1800*v_bucket_link_theta_y + c1809*v_bucket_theta_y + c1813*v_bucket_theta_z + c1816*v_bucket_theta_z - c1811*v_bucket_theta_x + 2*c1812*v_bucket_link_theta_z
+    out[633] = c1774*c1801 + c1779*v_bucket_link_theta_y + c1783*v_bucket_link_theta_z + c1791*v_bucket_link_theta_x + c1794*v_bucket_link_theta_x + c1796*v_bucket_link_theta_y + c1817*v_bucket_theta_y - c1785*c1787 - c1795*c1818 - c1811*v_bucket_link_theta_z + 2*v_bucket_theta_x*(c1807 + c1815)
+    out[634] = c1776*v_bucket_link_theta_x + c1786*c1818 + c1799*v_bucket_link_theta_z + c1805*v_bucket_link_theta_y + c1808*v_bucket_link_theta_y + c1809*v_bucket_link_theta_z + c1817*v_bucket_theta_x - c1773*c1802 - c1785*c1820 - c1786*c1819 + 2*v_bucket_theta_y*(-c1793 - c1814)
+    out[635] = c1773*c1819 + c1781*v_bucket_link_theta_x + c1797*v_bucket_link_theta_y + c1801*c1820 + c1813*v_bucket_link_theta_z + c1816*v_bucket_link_theta_z + 2*v_bucket_theta_z*(c1806 - c1792) + c1786*bucket_a21*v_bucket_theta_y - c1773*bucket_a11*v_bucket_theta_y - c1795*bucket_a21*v_bucket_theta_x - c1801*bucket_a11*v_bucket_link_theta_y
+    out[636] = c1824*arm_a10 + c1826*arm_a12 - c1832*arm_a22 - c1830*arm_a20
+    out[637] = c1837*arm_a20 + c1840*arm_a22 - c1824*arm_a00 - c1826*arm_a02
+    out[638] = c1832*arm_a02 + c1830*arm_a00 - c1837*arm_a10 - c1840*arm_a12
+    out[639] = c1843 + c1846
+    out[640] = c1842*v_arm_theta_x + c1848*v_arm_theta_y
+    out[641] = c1845*v_arm_theta_x + c1848*v_arm_theta_z
+    out[642] = c1852*arm_a10 + c1854*arm_a12 - c1857*arm_a20 - c1859*arm_a22
+    out[643] = c1860*arm_a20 + c1861*arm_a22 - c1852*arm_a00 - c1854*arm_a02
+    out[644] = c1857*arm_a00 + c1859*arm_a02 - c1860*arm_a10 - c1861*arm_a12
+    out[645] = c1862*v_arm_theta_y + c1863*v_arm_theta_x
+    out[646] = c1846 + c1864
+    out[647] = c1845*v_arm_theta_y + c1863*v_arm_theta_z
+    out[648] = c1867*arm_a10 + c1868*arm_a12 - c1865*arm_a20 - c1866*arm_a22
+    out[649] = c1869*arm_a20 + c1870*arm_a22 - c1867*arm_a00 - c1868*arm_a02
+    out[650] = c1865*arm_a00 + c1866*arm_a02 - c1869*arm_a10 - c1870*arm_a12
+    out[651] = c1862*v_arm_theta_z + c1871*v_arm_theta_x
+    out[652] = c1842*v_arm_theta_z + c1871*v_arm_theta_y
+    out[653] = c1843 + c1864
+    out[654] = c1880*arm_a11 - c1888*arm_a21
+    out[655] = c1893*arm_a21 - c1880*arm_a01
+    out[656] = c1888*arm_a01 - c1893*arm_a11
+    out[657] = c1894*bucket_cyl_barrel_a12 - c1895*bucket_cyl_barrel_a22
+    out[658] = c1896*bucket_cyl_barrel_a22 - c1894*bucket_cyl_barrel_a02
+    out[659] = c1895*bucket_cyl_barrel_a02 - c1896*bucket_cyl_barrel_a12
+    out[660] = c1898 + c1900 + c1881*c1907 + c1889*c1906 + c1901*v_arm_theta_y + c1902*bucket_cyl_barrel_a02 - c1872*c1903 - c1884*c1901
+    out[661] = c1908 + c1884*c1911 + c1897*v_arm_theta_x + c1901*v_arm_theta_x + c1902*bucket_cyl_barrel_a12 + c1912*c1913 - c1872*c1909 - c1889*c1897
+    out[662] = c1872*c1916 + c1903*v_arm_theta_x + c1909*v_arm_theta_y + c1914*v_arm_theta_x + c1915*v_arm_theta_y + c1917*c1918 - c1884*c1915 - c1889*c1914
+    out[663] = -2*c1898 - 2*c1900 + c1881*c1906 + c1889*c1907 + c1897*v_bucket_cyl_barrel_theta_y + c1901*v_bucket_cyl_barrel_theta_y + c1903*v_bucket_cyl_barrel_theta_z + c1914*v_bucket_cyl_barrel_theta_z
+    out[664] = -2*c1908 + c1884*c1912 + c1897*v_bucket_cyl_barrel_theta_x + c1901*v_bucket_cyl_barrel_theta_x + c1909*v_bucket_cyl_barrel_theta_z + c1911*c1913 + c1915*v_bucket_cyl_barrel_theta_z - c1881*c1901
+    out[665] = c1872*c1917 + c1903*v_bucket_cyl_barrel_theta_x + c1909*v_bucket_cyl_barrel_theta_y + c1914*v_bucket_cyl_barrel_theta_x + c1915*v_bucket_cyl_barrel_theta_y + c1916*c1918 - c1881*c1903 - c1909*c1913
+    out[666] = c1935*bucket_cyl_barrel_a10 - c1948*bucket_cyl_barrel_a20
+    out[667] = c1955*bucket_cyl_barrel_a20 - c1935*bucket_cyl_barrel_a00
+    out[668] = c1948*bucket_cyl_barrel_a00 - c1955*bucket_cyl_barrel_a10
+    out[669] = c1956*bucket_cyl_rod_a11 - c1957*bucket_cyl_rod_a21
+    out[670] = c1958*bucket_cyl_rod_a21 - c1956*bucket_cyl_rod_a01
+    out[671] = c1957*bucket_cyl_rod_a01 - c1958*bucket_cyl_rod_a11
+    out[672] = c1960 + c1962 + c1938*c1969 + c1949*c1968 + c1963*v_bucket_cyl_barrel_theta_y + c1964*bucket_cyl_rod_a01 - c1920*c1965 - c1940*c1963
+    out[673] = c1970 + c1940*c1973 + c1959*v_bucket_cyl_barrel_theta_x + c1963*v_bucket_cyl_barrel_theta_x + c1964*bucket_cyl_rod_a11 + c1974*c1975 - c1920*c1971 - c1949*c1959
+    out[674] = c1920*c1978 + c1965*v_bucket_cyl_barrel_theta_x + c1971*v_bucket_cyl_barrel_theta_y + c1976*v_bucket_cyl_barrel_theta_x + c1977*v_bucket_cyl_barrel_theta_y + c1979*c1980 - c1940*c1977 - c1949*c1976
+    out[675] = -2*c1960 - 2*c1962 + c1938*c1968 + c1949*c1969 + c1959*v_bucket_cyl_rod_theta_y + c1963*v_bucket_cyl_rod_theta_y + c1965*v_bucket_cyl_rod_theta_z + c1976*v_bucket_cyl_rod_theta_z
+    out[676] = -2*c1970 + c1940*c1974 + c1959*v_bucket_cyl_rod_theta_x + c1963*v_bucket_cyl_rod_theta_x + c1971*v_bucket_cyl_rod_theta_z + c1973*c1975 + c1977*v_bucket_cyl_rod_theta_z - c1938*c1963
+    out[677] = c1920*c1979 + c1965*v_bucket_cyl_rod_theta_x + c1971*v_bucket_cyl_rod_theta_y + c1976*v_bucket_cyl_rod_theta_x + c1977*v_bucket_cyl_rod_theta_y + c1978*c1980 - c1938*c1965 - c1971*c1975
+    out[678] = c1981*bucket_cyl_barrel_a10 - c1982*bucket_cyl_barrel_a20
+    out[679] = c1983*bucket_cyl_barrel_a20 - c1981*bucket_cyl_barrel_a00
+    out[680] = c1982*bucket_cyl_barrel_a00 - c1983*bucket_cyl_barrel_a10
+    out[681] = c1956*bucket_cyl_rod_a12 - c1957*bucket_cyl_rod_a22
+    out[682] = c1958*bucket_cyl_rod_a22 - c1956*bucket_cyl_rod_a02
+    out[683] = c1957*bucket_cyl_rod_a02 - c1958*bucket_cyl_rod_a12
+    out[684] = c1938*c1991 + c1949*c1990 + c1964*bucket_cyl_rod_a02 + c1984*v_bucket_cyl_barrel_theta_y + c1985*bucket_cyl_barrel_a00 + c1986*v_bucket_cyl_barrel_theta_y - c1920*c1987 - c1940*c1986
+    out[685] = c1940*c1994 + c1964*bucket_cyl_rod_a12 + c1975*c1995 + c1984*v_bucket_cyl_barrel_theta_x + c1985*bucket_cyl_barrel_a10 + c1986*v_bucket_cyl_barrel_theta_x - c1920*c1992 - c1949*c1984
+    out[686] = c1920*c1998 + c1980*c1999 + c1987*v_bucket_cyl_barrel_theta_x + c1992*v_bucket_cyl_barrel_theta_y + c1996*v_bucket_cyl_barrel_theta_x + c1997*v_bucket_cyl_barrel_theta_y - c1940*c1997 - c1949*c1996
+    out[687] = c1938*c1990 + c1949*c1991 + c1984*v_bucket_cyl_rod_theta_y + c1986*v_bucket_cyl_rod_theta_y + c1987*v_bucket_cyl_rod_theta_z + c1996*v_bucket_cyl_rod_theta_z - c1975*c1984 - c1980*c1996
+    out[688] = c1940*c1995 + c1975*c1994 + c1984*v_bucket_cyl_rod_theta_x + c1986*v_bucket_cyl_rod_theta_x + c1992*v_bucket_cyl_rod_theta_z + c1997*v_bucket_cyl_rod_theta_z - c1938*c1986 - c1980*c1997
+    out[689] = c1920*c1999 + c1980*c1998 + c1987*v_bucket_cyl_rod_theta_x + c1992*v_bucket_cyl_rod_theta_y + c1996*v_bucket_cyl_rod_theta_x + c1997*v_bucket_cyl_rod_theta_y - c1938*c1987 - c1975*c1992
+    out[690] = c1953*bucket_cyl_barrel_a01 + c2000*bucket_cyl_barrel_a11 + c2001*bucket_cyl_barrel_a21
+    out[691] = c1944*bucket_cyl_barrel_a11 + c2002*bucket_cyl_barrel_a21 + c2003*bucket_cyl_barrel_a01
+    out[692] = c1929*bucket_cyl_barrel_a21 + c2004*bucket_cyl_barrel_a01 + c2005*bucket_cyl_barrel_a11
+    out[693] = c2008*bucket_cyl_barrel_a11 - c2011*bucket_cyl_barrel_a21
+    out[694] = c2014*bucket_cyl_barrel_a21 - c2008*bucket_cyl_barrel_a01
+    out[695] = c2011*bucket_cyl_barrel_a01 - c2014*bucket_cyl_barrel_a11
+    out[696] = c1922*bucket_cyl_barrel_a21 + c2009*bucket_cyl_barrel_a11 + c2013*bucket_cyl_barrel_a01
+    out[697] = c1950*bucket_cyl_barrel_a01 + c2006*bucket_cyl_barrel_a21 + c2010*bucket_cyl_barrel_a11
+    out[698] = c1941*bucket_cyl_barrel_a11 + c2007*bucket_cyl_barrel_a21 + c2012*bucket_cyl_barrel_a01
+    out[699] = c2015
+    out[700] = -c2016
+    out[701] = c2017
+    out[702] = c2019*v_bucket_cyl_barrel_y + c2022*v_bucket_cyl_barrel_theta_z + c2025*v_bucket_cyl_barrel_theta_y + c1938*(c2026*bucket_cyl_barrel_a11 - c2021*bucket_cyl_barrel_a21) + c2018*v_bucket_cyl_rod_z - c2019*v_bucket_cyl_rod_y - c2023*c2028 - c2027*v_bucket_cyl_barrel_theta_y - c2018*v_bucket_cyl_barrel_z
+    out[703] = c2019*v_bucket_cyl_rod_x + c2025*v_bucket_cyl_barrel_theta_x + c2028*c2030 + c2029*v_bucket_cyl_barrel_z + c1975*(c2020*bucket_cyl_barrel_a21 - c2024*bucket_cyl_barrel_a01) - c2019*v_bucket_cyl_barrel_x - c2027*v_bucket_cyl_barrel_theta_x - c2029*v_bucket_cyl_rod_z - c2031*v_bucket_cyl_barrel_theta_z
+    out[704] = c2022*v_bucket_cyl_barrel_theta_x + c2029*v_bucket_cyl_rod_y + c2032*bucket_cyl_barrel_a21 + c1980*(c2023*bucket_cyl_barrel_a01 - c2030*bucket_cyl_barrel_a11) + c2018*v_bucket_cyl_barrel_x - c2029*v_bucket_cyl_barrel_y - c2031*v_bucket_cyl_barrel_theta_y - c2033*bucket_cyl_barrel_a21 - c2018*v_bucket_cyl_rod_x
+    out[705] = -c2015
+    out[706] = c2016
+    out[707] = -c2017
+    out[708] = c1953*bucket_cyl_barrel_a02 + c2000*bucket_cyl_barrel_a12 + c2001*bucket_cyl_barrel_a22
+    out[709] = c1944*bucket_cyl_barrel_a12 + c2002*bucket_cyl_barrel_a22 + c2003*bucket_cyl_barrel_a02
+    out[710] = c1929*bucket_cyl_barrel_a22 + c2004*bucket_cyl_barrel_a02 + c2005*bucket_cyl_barrel_a12
+    out[711] = c2008*bucket_cyl_barrel_a12 - c2011*bucket_cyl_barrel_a22
+    out[712] = c2014*bucket_cyl_barrel_a22 - c2008*bucket_cyl_barrel_a02
+    out[713] = c2011*bucket_cyl_barrel_a02 - c2014*bucket_cyl_barrel_a12
+    out[714] = c1922*bucket_cyl_barrel_a22 + c2009*bucket_cyl_barrel_a12 + c2013*bucket_cyl_barrel_a02
+    out[715] = c1950*bucket_cyl_barrel_a02 + c2006*bucket_cyl_barrel_a22 + c2010*bucket_cyl_barrel_a12
+    out[716] = c1941*bucket_cyl_barrel_a12 + c2007*bucket_cyl_barrel_a22 + c2012*bucket_cyl_barrel_a02
+    out[717] = c2034
+    out[718] = -c2035
+    out[719] = c2036
+    out[720] = c2037*v_bucket_cyl_rod_z + c2038*v_bucket_cyl_barrel_y + c2039*v_bucket_cyl_barrel_theta_z + c2040*v_bucket_cyl_barrel_theta_y + c1938*(c2026*bucket_cyl_barrel_a12 - c2021*bucket_cyl_barrel_a22) - c2023*c2042 - c2037*v_bucket_cyl_barrel_z - c2038*v_bucket_cyl_rod_y - c2041*v_bucket_cyl_barrel_theta_y
+    out[721] = c2030*c2042 + c2038*v_bucket_cyl_rod_x + c2040*v_bucket_cyl_barrel_theta_x + c2043*v_bucket_cyl_barrel_z + c1975*(c2020*bucket_cyl_barrel_a22 - c2024*bucket_cyl_barrel_a02) - c2038*v_bucket_cyl_barrel_x - c2041*v_bucket_cyl_barrel_theta_x - c2043*v_bucket_cyl_rod_z - c2044*v_bucket_cyl_barrel_theta_z
+    out[722] = c2032*bucket_cyl_barrel_a22 + c2037*v_bucket_cyl_barrel_x + c2039*v_bucket_cyl_barrel_theta_x + c2043*v_bucket_cyl_rod_y + c1980*(c2023*bucket_cyl_barrel_a02 - c2030*bucket_cyl_barrel_a12) - c2033*bucket_cyl_barrel_a22 - c2037*v_bucket_cyl_rod_x - c2043*v_bucket_cyl_barrel_y - c2044*v_bucket_cyl_barrel_theta_y
+    out[723] = -c2034
+    out[724] = c2035
+    out[725] = -c2036
+    out[726] = c2057*bucket_cyl_barrel_a11 - c2067*bucket_cyl_barrel_a21
+    out[727] = c2072*bucket_cyl_barrel_a21 - c2057*bucket_cyl_barrel_a01
+    out[728] = c2067*bucket_cyl_barrel_a01 - c2072*bucket_cyl_barrel_a11
+    out[729] = c2073*bucket_cyl_rod_a12 - c2074*bucket_cyl_rod_a22
+    out[730] = c2075*bucket_cyl_rod_a22 - c2073*bucket_cyl_rod_a02
+    out[731] = c2074*bucket_cyl_rod_a02 - c2075*bucket_cyl_rod_a12
+    out[732] = c2028*c2081 + c2077*v_bucket_cyl_barrel_theta_y + c2078*c1985 + c2080*v_bucket_cyl_barrel_theta_y + c2086*c1949 + c2087*c1938 - c2063*c2079 - c2082*bucket_cyl_rod_a02
+    out[733] = (1.0)*c2089 + c2028*c2076 + c2077*v_bucket_cyl_barrel_theta_x + c2080*v_bucket_cyl_barrel_theta_x + c2091*c1940 + c2092*c1975 - c2082*bucket_cyl_rod_a12 - c2088*bucket_cyl_rod_a12
+    out[734] = c1920*c2097 + c2093*v_bucket_cyl_barrel_theta_x + c2094*v_bucket_cyl_barrel_theta_y + c2095*v_bucket_cyl_barrel_theta_x + c2096*v_bucket_cyl_barrel_theta_y + c2098*c1980 - c2088*bucket_cyl_rod_a22 - c2063*bucket_cyl_barrel_a11*bucket_cyl_rod_a22
+    out[735] = c2077*v_bucket_cyl_rod_theta_y + c2080*v_bucket_cyl_rod_theta_y + c2086*c1938 + c2087*c1949 + c2093*v_bucket_cyl_rod_theta_z + c2095*v_bucket_cyl_rod_theta_z - c2099*c2100 - c2099*c1985
+    out[736] = -2.0*c2089 + c2077*v_bucket_cyl_rod_theta_x + c2080*v_bucket_cyl_rod_theta_x + c2091*c1975 + c2092*c1940 + c2094*v_bucket_cyl_rod_theta_z + c2096*v_bucket_cyl_rod_theta_z - c2060*c2079
+    out[737] = c1920*c2098 + c2093*v_bucket_cyl_rod_theta_x + c2094*v_bucket_cyl_rod_theta_y + c2095*v_bucket_cyl_rod_theta_x + c2096*v_bucket_cyl_rod_theta_y + c2097*c1980 - 2.0*c2100*bucket_cyl_barrel_a21 - c2060*bucket_cyl_barrel_a21*bucket_cyl_rod_a02
+    out[738] = c2105*side_link_a10 + c2109*side_link_a12 - c2112*side_link_a20 - c2116*side_link_a22
+    out[739] = c2121*side_link_a20 + c2124*side_link_a22 - c2105*side_link_a00 - c2109*side_link_a02
+    out[740] = c2112*side_link_a00 + c2116*side_link_a02 - c2121*side_link_a10 - c2124*side_link_a12
+    out[741] = c2127 + c2131
+    out[742] = c2126*v_side_link_theta_x + c2134*v_side_link_theta_y
+    out[743] = c2130*v_side_link_theta_x + c2134*v_side_link_theta_z
+    out[744] = c2135*dv_side_link_theta_y + c2137*v_side_link_theta_y + c2141*c2142 - c2136*dv_side_link_theta_z - c2138*v_side_link_theta_y - c2139*c2140
+    out[745] = c2144*side_link_a10 + c2148*side_link_a12 - c2151*side_link_a20 - c2153*side_link_a22
+    out[746] = c2154*side_link_a20 + c2155*side_link_a22 - c2144*side_link_a00 - c2148*side_link_a02
+    out[747] = c2151*side_link_a00 + c2153*side_link_a02 - c2154*side_link_a10 - c2155*side_link_a12
+    out[748] = c2133*v_side_link_theta_y + c2156*v_side_link_theta_x
+    out[749] = c2131 + c2157
+    out[750] = c2130*v_side_link_theta_y + c2156*v_side_link_theta_z
+    out[751] = c2138*v_side_link_theta_x + c2140*c2159 + c2158*dv_side_link_theta_z - c2135*dv_side_link_theta_x - c2137*v_side_link_theta_x - c2142*c2160
+    out[752] = c2163*side_link_a10 + c2164*side_link_a12 - c2161*side_link_a20 - c2162*side_link_a22
+    out[753] = c2165*side_link_a20 + c2166*side_link_a22 - c2163*side_link_a00 - c2164*side_link_a02
+    out[754] = c2161*side_link_a00 + c2162*side_link_a02 - c2165*side_link_a10 - c2166*side_link_a12
+    out[755] = c2133*v_side_link_theta_z + c2167*v_side_link_theta_x
+    out[756] = c2126*v_side_link_theta_z + c2167*v_side_link_theta_y
+    out[757] = c2127 + c2157
+    out[758] = c2136*dv_side_link_theta_x - c2158*dv_side_link_theta_y + 0.5686266556413632*c2139*v_side_link_theta_x + 0.822595724821202*c2160*v_side_link_theta_y - 0.5686266556413632*c2159*v_side_link_theta_y - 0.822595724821202*c2141*v_side_link_theta_x
+    return out
+
+
 def inputs_digging(t):
     """Driver inputs of case 'digging' at time t: rows u (4), then du/dt, then d2u/dt2."""
     c0 = 2*t
@@ -2687,7 +7552,7 @@ def inputs_digging(t):
     return out
 
 
-def _drivers_phi_digging(q, u):
+def _drivers_phi_digging(q, u, p):
     """Phi of the driver rows of case 'digging'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -2709,7 +7574,7 @@ def _drivers_phi_digging(q, u):
     return out
 
 
-def _drivers_jac_digging(q, u):
+def _drivers_jac_digging(q, u, p):
     """Phi_q values of the driver rows of case 'digging'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -2768,7 +7633,7 @@ def _drivers_jac_digging(q, u):
     return out
 
 
-def _drivers_nu_digging(q, u, ud):
+def _drivers_nu_digging(q, u, ud, p):
     """nu of the driver rows of case 'digging'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -2782,7 +7647,7 @@ def _drivers_nu_digging(q, u, ud):
     return out
 
 
-def _drivers_gamma_digging(q, v, u, ud, udd):
+def _drivers_gamma_digging(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'digging'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -2831,7 +7696,348 @@ def _drivers_gamma_digging(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_digging(q, u):
+def _drivers_phi_p_digging(q, u, p):
+    """Phi_p values of the driver rows of case 'digging'."""
+    out = _zeros(0, q, u)
+    return out
+
+
+def phi_p_digging(q, u, p):
+    """Phi_p = dPhi/dp (n_p columns) of case 'digging': values at phi_p_rows, phi_p_cols."""
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging(q, u, p))
+
+
+def _drivers_dvel_digging(q, v, u, ud, p):
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c4 = (1/2)*upper_qw
+    c5 = (1/2)*c2*ud0 - 1/2*c2*v_upper_theta_z
+    c6 = c1*ud0 - c1*v_upper_theta_z
+    c7 = (1/2)*c6
+    c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x
+    c9 = (1/2)*upper_qz
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c14 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c15 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c19 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c20 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c21 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c22 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c23 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c24 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c25 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c26 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c27 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(30, q, u)
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx
+    out[2] = c4*c6 + (1/2)*c8*upper_qx - c5*upper_qz - 1/2*c3*upper_qy
+    out[3] = c10
+    out[4] = -c11
+    out[5] = c12
+    out[6] = c13*boom_cyl_l_barrel_a10 - c14*boom_cyl_l_barrel_a20
+    out[7] = c15*boom_cyl_l_barrel_a20 - c13*boom_cyl_l_barrel_a00
+    out[8] = c14*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
+    out[9] = -c10
+    out[10] = c11
+    out[11] = -c12
+    out[12] = c16
+    out[13] = -c17
+    out[14] = c18
+    out[15] = c19*arm_cyl_barrel_a10 - c20*arm_cyl_barrel_a20
+    out[16] = c21*arm_cyl_barrel_a20 - c19*arm_cyl_barrel_a00
+    out[17] = c20*arm_cyl_barrel_a00 - c21*arm_cyl_barrel_a10
+    out[18] = -c16
+    out[19] = c17
+    out[20] = -c18
+    out[21] = c22
+    out[22] = -c23
+    out[23] = c24
+    out[24] = c25*bucket_cyl_barrel_a10 - c26*bucket_cyl_barrel_a20
+    out[25] = c27*bucket_cyl_barrel_a20 - c25*bucket_cyl_barrel_a00
+    out[26] = c26*bucket_cyl_barrel_a00 - c27*bucket_cyl_barrel_a10
+    out[27] = -c22
+    out[28] = c23
+    out[29] = -c24
+    return out
+
+
+def dvel_digging(q, v, u, ud, p):
+    """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'digging': values at dvel_rows, dvel_cols."""
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging(q, v, u, ud, p))
+
+
+def _drivers_dacc_digging(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, _, _, _ = udd
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_x
+    c4 = c1*v_upper_theta_y
+    c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0
+    c6 = (1/2)*upper_qw
+    c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y
+    c8 = (1/2)*upper_qz
+    c9 = ud0**2
+    c10 = (1/2)*c1
+    c11 = v_upper_theta_x**2
+    c12 = v_upper_theta_y**2
+    c13 = v_upper_theta_z**2
+    c14 = (1/2)*c2*udd0 - 1/2*c10*c11 - 1/2*c10*c12 - 1/2*c10*c13 - 1/2*c10*c9 - 1/2*c2*dv_upper_theta_z + (1/2)*c1*ud0*v_upper_theta_z
+    c15 = (1/2)*c2
+    c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z
+    c17 = (1/2)*c16
+    c18 = (1/2)*upper_qx
+    c19 = (1/2)*upper_qy
+    c20 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c21 = -c3 - c4
+    c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z
+    c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x
+    c24 = c10*upper_qx
+    c25 = c15*upper_qy
+    c26 = c6*v_upper_theta_z
+    c27 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y
+    c28 = dv_boom_cyl_l_barrel_theta_z - c27
+    c29 = v_boom_cyl_l_barrel_theta_y**2
+    c30 = v_boom_cyl_l_barrel_theta_z**2
+    c31 = c29 + c30
+    c32 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z
+    c33 = c32 + dv_boom_cyl_l_barrel_theta_y
+    c34 = -c33
+    c35 = v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z
+    c36 = dv_boom_cyl_l_barrel_theta_x - c35
+    c37 = v_boom_cyl_l_barrel_theta_x**2
+    c38 = c37 + c30
+    c39 = c27 + dv_boom_cyl_l_barrel_theta_z
+    c40 = -c39
+    c41 = dv_boom_cyl_l_barrel_theta_y - c32
+    c42 = c37 + c29
+    c43 = c35 + dv_boom_cyl_l_barrel_theta_x
+    c44 = -c43
+    c45 = 2*v_boom_cyl_l_barrel_theta_x
+    c46 = 2*v_boom_cyl_l_barrel_theta_y
+    c47 = -c36
+    c48 = -c42
+    c49 = dv_boom_cyl_l_rod_z - dv_boom_cyl_l_barrel_z + c42*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_barrel_y + c46*v_boom_cyl_l_rod_x + c47*boom_cyl_l_rod_y + c48*boom_cyl_l_rod_z + c33*boom_cyl_l_rod_x + c34*boom_cyl_l_barrel_x + c36*boom_cyl_l_barrel_y - c45*v_boom_cyl_l_rod_y - c46*v_boom_cyl_l_barrel_x
+    c50 = 2*v_boom_cyl_l_barrel_theta_z
+    c51 = -c28
+    c52 = -c38
+    c53 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + c28*boom_cyl_l_barrel_x + c38*boom_cyl_l_barrel_y + c43*boom_cyl_l_rod_z + c44*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_rod_z + c50*v_boom_cyl_l_barrel_x + c51*boom_cyl_l_rod_x + c52*boom_cyl_l_rod_y - c45*v_boom_cyl_l_barrel_z - c50*v_boom_cyl_l_rod_x
+    c54 = -c41
+    c55 = -c31
+    c56 = dv_boom_cyl_l_rod_x - dv_boom_cyl_l_barrel_x + c39*boom_cyl_l_rod_y + c40*boom_cyl_l_barrel_y + c41*boom_cyl_l_barrel_z + c46*v_boom_cyl_l_barrel_z + c50*v_boom_cyl_l_rod_y + c54*boom_cyl_l_rod_z + c55*boom_cyl_l_rod_x + c31*boom_cyl_l_barrel_x - c46*v_boom_cyl_l_rod_z - c50*v_boom_cyl_l_barrel_y
+    c57 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
+    c58 = 2*c57 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c59 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
+    c60 = 2*c59 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c61 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
+    c62 = 2*c61 - 2*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c63 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c64 = -c61 + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c65 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c66 = c59 - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c67 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c68 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c69 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c70 = -c57 + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c71 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c72 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y
+    c73 = dv_arm_cyl_barrel_theta_z - c72
+    c74 = v_arm_cyl_barrel_theta_y**2
+    c75 = v_arm_cyl_barrel_theta_z**2
+    c76 = c74 + c75
+    c77 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z
+    c78 = c77 + dv_arm_cyl_barrel_theta_y
+    c79 = -c78
+    c80 = v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z
+    c81 = dv_arm_cyl_barrel_theta_x - c80
+    c82 = v_arm_cyl_barrel_theta_x**2
+    c83 = c82 + c75
+    c84 = c72 + dv_arm_cyl_barrel_theta_z
+    c85 = -c84
+    c86 = dv_arm_cyl_barrel_theta_y - c77
+    c87 = c82 + c74
+    c88 = c80 + dv_arm_cyl_barrel_theta_x
+    c89 = -c88
+    c90 = 2*v_arm_cyl_barrel_theta_x
+    c91 = 2*v_arm_cyl_barrel_theta_y
+    c92 = -c81
+    c93 = -c87
+    c94 = dv_arm_cyl_rod_z - dv_arm_cyl_barrel_z + c87*arm_cyl_barrel_z + c90*v_arm_cyl_barrel_y + c91*v_arm_cyl_rod_x + c92*arm_cyl_rod_y + c93*arm_cyl_rod_z + c78*arm_cyl_rod_x + c79*arm_cyl_barrel_x + c81*arm_cyl_barrel_y - c90*v_arm_cyl_rod_y - c91*v_arm_cyl_barrel_x
+    c95 = 2*v_arm_cyl_barrel_theta_z
+    c96 = -c73
+    c97 = -c83
+    c98 = dv_arm_cyl_rod_y - dv_arm_cyl_barrel_y + c73*arm_cyl_barrel_x + c83*arm_cyl_barrel_y + c88*arm_cyl_rod_z + c89*arm_cyl_barrel_z + c90*v_arm_cyl_rod_z + c95*v_arm_cyl_barrel_x + c96*arm_cyl_rod_x + c97*arm_cyl_rod_y - c90*v_arm_cyl_barrel_z - c95*v_arm_cyl_rod_x
+    c99 = -c86
+    c100 = -c76
+    c101 = dv_arm_cyl_rod_x - dv_arm_cyl_barrel_x + c84*arm_cyl_rod_y + c85*arm_cyl_barrel_y + c86*arm_cyl_barrel_z + c91*v_arm_cyl_barrel_z + c95*v_arm_cyl_rod_y + c99*arm_cyl_rod_z + c100*arm_cyl_rod_x + c76*arm_cyl_barrel_x - c91*v_arm_cyl_rod_z - c95*v_arm_cyl_barrel_y
+    c102 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
+    c103 = 2*c102 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c104 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
+    c105 = 2*c104 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c106 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
+    c107 = 2*c106 - 2*arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c108 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c109 = -c106 + arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c110 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c111 = c104 - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c112 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c113 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c114 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c115 = -c102 + arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c116 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c117 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y
+    c118 = dv_bucket_cyl_barrel_theta_z - c117
+    c119 = v_bucket_cyl_barrel_theta_y**2
+    c120 = v_bucket_cyl_barrel_theta_z**2
+    c121 = c119 + c120
+    c122 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z
+    c123 = c122 + dv_bucket_cyl_barrel_theta_y
+    c124 = -c123
+    c125 = v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z
+    c126 = dv_bucket_cyl_barrel_theta_x - c125
+    c127 = v_bucket_cyl_barrel_theta_x**2
+    c128 = c127 + c120
+    c129 = c117 + dv_bucket_cyl_barrel_theta_z
+    c130 = -c129
+    c131 = dv_bucket_cyl_barrel_theta_y - c122
+    c132 = c127 + c119
+    c133 = c125 + dv_bucket_cyl_barrel_theta_x
+    c134 = -c133
+    c135 = 2*v_bucket_cyl_barrel_theta_x
+    c136 = 2*v_bucket_cyl_barrel_theta_y
+    c137 = -c126
+    c138 = -c132
+    c139 = dv_bucket_cyl_rod_z - dv_bucket_cyl_barrel_z + c132*bucket_cyl_barrel_z + c135*v_bucket_cyl_barrel_y + c136*v_bucket_cyl_rod_x + c137*bucket_cyl_rod_y + c138*bucket_cyl_rod_z + c123*bucket_cyl_rod_x + c124*bucket_cyl_barrel_x + c126*bucket_cyl_barrel_y - c135*v_bucket_cyl_rod_y - c136*v_bucket_cyl_barrel_x
+    c140 = 2*v_bucket_cyl_barrel_theta_z
+    c141 = -c118
+    c142 = -c128
+    c143 = dv_bucket_cyl_rod_y - dv_bucket_cyl_barrel_y + c118*bucket_cyl_barrel_x + c128*bucket_cyl_barrel_y + c133*bucket_cyl_rod_z + c134*bucket_cyl_barrel_z + c135*v_bucket_cyl_rod_z + c140*v_bucket_cyl_barrel_x + c141*bucket_cyl_rod_x + c142*bucket_cyl_rod_y - c135*v_bucket_cyl_barrel_z - c140*v_bucket_cyl_rod_x
+    c144 = -c131
+    c145 = -c121
+    c146 = dv_bucket_cyl_rod_x - dv_bucket_cyl_barrel_x + c129*bucket_cyl_rod_y + c130*bucket_cyl_barrel_y + c131*bucket_cyl_barrel_z + c136*v_bucket_cyl_barrel_z + c140*v_bucket_cyl_rod_y + c144*bucket_cyl_rod_z + c145*bucket_cyl_rod_x + c121*bucket_cyl_barrel_x - c136*v_bucket_cyl_rod_z - c140*v_bucket_cyl_barrel_y
+    c147 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
+    c148 = 2*c147 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c149 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
+    c150 = 2*c149 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c151 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
+    c152 = 2*c151 - 2*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c153 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c154 = -c151 + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c155 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c156 = c149 - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c157 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c158 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c159 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c160 = -c147 + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c161 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(60, q, u)
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5
+    out[3] = (1/2)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2*ud0*((1/2)*c1*upper_qy - c15*upper_qx) + (1/2)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2*ud0*(-c24 - c25)
+    out[5] = (1/2)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2*ud0*(c1*c6 - c15*upper_qz) + (1/2)*c2*upper_qz*v_upper_theta_z
+    out[6] = c28*boom_cyl_l_barrel_a10 + c31*boom_cyl_l_barrel_a00 + c34*boom_cyl_l_barrel_a20
+    out[7] = c38*boom_cyl_l_barrel_a10 + c40*boom_cyl_l_barrel_a00 + c36*boom_cyl_l_barrel_a20
+    out[8] = c41*boom_cyl_l_barrel_a00 + c42*boom_cyl_l_barrel_a20 + c44*boom_cyl_l_barrel_a10
+    out[9] = c49*boom_cyl_l_barrel_a10 - c53*boom_cyl_l_barrel_a20
+    out[10] = c56*boom_cyl_l_barrel_a20 - c49*boom_cyl_l_barrel_a00
+    out[11] = c53*boom_cyl_l_barrel_a00 - c56*boom_cyl_l_barrel_a10
+    out[12] = c51*boom_cyl_l_barrel_a10 + c55*boom_cyl_l_barrel_a00 + c33*boom_cyl_l_barrel_a20
+    out[13] = c39*boom_cyl_l_barrel_a00 + c47*boom_cyl_l_barrel_a20 + c52*boom_cyl_l_barrel_a10
+    out[14] = c43*boom_cyl_l_barrel_a10 + c48*boom_cyl_l_barrel_a20 + c54*boom_cyl_l_barrel_a00
+    out[15] = c58
+    out[16] = -c60
+    out[17] = c62
+    out[18] = c63*c64 + c67*boom_cyl_l_barrel_a10 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_y - c65*c66 - c68*boom_cyl_l_barrel_a20 - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y
+    out[19] = c65*c70 + c71*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x - c64*c69 - c67*boom_cyl_l_barrel_a00 - boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_x
+    out[20] = c66*c69 + c68*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_x - c63*c70 - c71*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x
+    out[21] = -c58
+    out[22] = c60
+    out[23] = -c62
+    out[24] = c73*arm_cyl_barrel_a10 + c76*arm_cyl_barrel_a00 + c79*arm_cyl_barrel_a20
+    out[25] = c83*arm_cyl_barrel_a10 + c85*arm_cyl_barrel_a00 + c81*arm_cyl_barrel_a20
+    out[26] = c86*arm_cyl_barrel_a00 + c87*arm_cyl_barrel_a20 + c89*arm_cyl_barrel_a10
+    out[27] = c94*arm_cyl_barrel_a10 - c98*arm_cyl_barrel_a20
+    out[28] = c101*arm_cyl_barrel_a20 - c94*arm_cyl_barrel_a00
+    out[29] = c98*arm_cyl_barrel_a00 - c101*arm_cyl_barrel_a10
+    out[30] = c96*arm_cyl_barrel_a10 + c100*arm_cyl_barrel_a00 + c78*arm_cyl_barrel_a20
+    out[31] = c84*arm_cyl_barrel_a00 + c92*arm_cyl_barrel_a20 + c97*arm_cyl_barrel_a10
+    out[32] = c88*arm_cyl_barrel_a10 + c93*arm_cyl_barrel_a20 + c99*arm_cyl_barrel_a00
+    out[33] = c103
+    out[34] = -c105
+    out[35] = c107
+    out[36] = c108*c109 + c112*arm_cyl_barrel_a10 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c110*c111 - c113*arm_cyl_barrel_a20 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_rod_y
+    out[37] = c110*c115 + c116*arm_cyl_barrel_a20 + arm_cyl_barrel_a00*v_arm_cyl_barrel_z + arm_cyl_barrel_a20*v_arm_cyl_rod_x - c109*c114 - c112*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
+    out[38] = c111*c114 + c113*arm_cyl_barrel_a00 + arm_cyl_barrel_a00*v_arm_cyl_rod_y + arm_cyl_barrel_a10*v_arm_cyl_barrel_x - c108*c115 - c116*arm_cyl_barrel_a10 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y - arm_cyl_barrel_a10*v_arm_cyl_rod_x
+    out[39] = -c103
+    out[40] = c105
+    out[41] = -c107
+    out[42] = c118*bucket_cyl_barrel_a10 + c121*bucket_cyl_barrel_a00 + c124*bucket_cyl_barrel_a20
+    out[43] = c128*bucket_cyl_barrel_a10 + c130*bucket_cyl_barrel_a00 + c126*bucket_cyl_barrel_a20
+    out[44] = c131*bucket_cyl_barrel_a00 + c132*bucket_cyl_barrel_a20 + c134*bucket_cyl_barrel_a10
+    out[45] = c139*bucket_cyl_barrel_a10 - c143*bucket_cyl_barrel_a20
+    out[46] = c146*bucket_cyl_barrel_a20 - c139*bucket_cyl_barrel_a00
+    out[47] = c143*bucket_cyl_barrel_a00 - c146*bucket_cyl_barrel_a10
+    out[48] = c141*bucket_cyl_barrel_a10 + c145*bucket_cyl_barrel_a00 + c123*bucket_cyl_barrel_a20
+    out[49] = c129*bucket_cyl_barrel_a00 + c137*bucket_cyl_barrel_a20 + c142*bucket_cyl_barrel_a10
+    out[50] = c133*bucket_cyl_barrel_a10 + c138*bucket_cyl_barrel_a20 + c144*bucket_cyl_barrel_a00
+    out[51] = c148
+    out[52] = -c150
+    out[53] = c152
+    out[54] = c153*c154 + c157*bucket_cyl_barrel_a10 + bucket_cyl_barrel_a10*v_bucket_cyl_rod_z + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_y - c155*c156 - c158*bucket_cyl_barrel_a20 - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a20*v_bucket_cyl_rod_y
+    out[55] = c155*c160 + c161*bucket_cyl_barrel_a20 + bucket_cyl_barrel_a00*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a20*v_bucket_cyl_rod_x - c154*c159 - c157*bucket_cyl_barrel_a00 - bucket_cyl_barrel_a00*v_bucket_cyl_rod_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_x
+    out[56] = c156*c159 + c158*bucket_cyl_barrel_a00 + bucket_cyl_barrel_a00*v_bucket_cyl_rod_y + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_x - c153*c160 - c161*bucket_cyl_barrel_a10 - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a10*v_bucket_cyl_rod_x
+    out[57] = -c148
+    out[58] = c150
+    out[59] = -c152
+    return out
+
+
+def dacc_digging(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'digging': values at dacc_rows, dacc_cols."""
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging(q, v, a, u, ud, udd, p))
+
+
+def _drivers_phi_jac_s_digging(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'digging' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -2860,7 +8066,7 @@ def _drivers_phi_jac_s_digging(q, u):
     return [-2.0*upper_qz*math.cos(c0) + 2.0*upper_qw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [-d1*upper_qx - d2*upper_qy, d2*upper_qx - d1*upper_qy, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_digging(q, u, ud):
+def _drivers_nu_s_digging(q, u, ud, p):
     """nu of the driver rows of case 'digging' at one configuration."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -2869,7 +8075,7 @@ def _drivers_nu_s_digging(q, u, ud):
     return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_digging(q, v, u, ud, udd):
+def _drivers_gamma_s_digging(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'digging' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -2913,42 +8119,42 @@ def _drivers_gamma_s_digging(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx), udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x), udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x), udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x)]
 
 
-def phi_digging(q, u):
+def phi_digging(q, u, p):
     """Phi(q, u) of case 'digging': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_digging(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_digging(q, u, p))
 
 
-def jac_digging(q, u):
+def jac_digging(q, u, p):
     """Values of the sparse Phi_q of case 'digging' at jac_rows, jac_cols (433 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_digging(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_digging(q, u, p))
 
 
-def nu_digging(q, u, ud):
+def nu_digging(q, u, ud, p):
     """nu = -Phi_t of case 'digging' (zero in the joint rows)."""
-    drivers = _drivers_nu_digging(q, u, ud)
+    drivers = _drivers_nu_digging(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_digging(q, v, u, ud, udd):
+def gamma_digging(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_digging(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_digging(q, u):
+def phi_jac_s_digging(q, u, p):
     """Phi and the Phi_q values of case 'digging' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_digging(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_digging(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_digging(q, u, ud):
+def nu_s_digging(q, u, ud, p):
     """nu of case 'digging' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_digging(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_digging(q, u, ud, p)
 
 
-def gamma_s_digging(q, v, u, ud, udd):
+def gamma_s_digging(q, v, u, ud, udd, p):
     """gamma of case 'digging' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_digging(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_digging(q, v, u, ud, udd, p)
 
 
 def inputs_level_cut(t):
@@ -2965,7 +8171,7 @@ def inputs_level_cut(t):
     return out
 
 
-def _drivers_phi_level_cut(q, u):
+def _drivers_phi_level_cut(q, u, p):
     """Phi of the driver rows of case 'level_cut'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
@@ -2982,7 +8188,7 @@ def _drivers_phi_level_cut(q, u):
     return out
 
 
-def _drivers_jac_level_cut(q, u):
+def _drivers_jac_level_cut(q, u, p):
     """Phi_q values of the driver rows of case 'level_cut'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
@@ -3013,7 +8219,7 @@ def _drivers_jac_level_cut(q, u):
     return out
 
 
-def _drivers_nu_level_cut(q, u, ud):
+def _drivers_nu_level_cut(q, u, ud, p):
     """nu of the driver rows of case 'level_cut'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
@@ -3029,7 +8235,7 @@ def _drivers_nu_level_cut(q, u, ud):
     return out
 
 
-def _drivers_gamma_level_cut(q, v, u, ud, udd):
+def _drivers_gamma_level_cut(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'level_cut'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
@@ -3064,7 +8270,186 @@ def _drivers_gamma_level_cut(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_level_cut(q, u):
+def _drivers_phi_p_level_cut(q, u, p):
+    """Phi_p values of the driver rows of case 'level_cut'."""
+    out = _zeros(0, q, u)
+    return out
+
+
+def phi_p_level_cut(q, u, p):
+    """Phi_p = dPhi/dp (n_p columns) of case 'level_cut': values at phi_p_rows, phi_p_cols."""
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_level_cut(q, u, p))
+
+
+def _drivers_dvel_level_cut(q, v, u, ud, p):
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'level_cut'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    u0, _, _, u3 = u
+    ud0, _, _, ud3 = ud
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c4 = (1/2)*upper_qw
+    c5 = (1/2)*c2*ud0 - 1/2*c2*v_upper_theta_z
+    c6 = c1*ud0 - c1*v_upper_theta_z
+    c7 = (1/2)*c6
+    c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x
+    c9 = (1/2)*upper_qz
+    c10 = (32/25)*v_bucket_theta_y
+    c11 = (403/500)*v_bucket_theta_y
+    c12 = (32/25)*v_bucket_theta_z
+    c13 = (403/500)*v_bucket_theta_z
+    c14 = (32/25)*bucket_a20
+    c15 = (403/500)*bucket_a22
+    c16 = cos(u3)
+    c17 = c16*ud3 - c16*v_bucket_theta_y
+    c18 = sin(u3)
+    c19 = c16*v_bucket_theta_z + c18*v_bucket_theta_x
+    c20 = c18*ud3 - c18*v_bucket_theta_y
+    out = _zeros(12, q, u)
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx
+    out[2] = c4*c6 + (1/2)*c8*upper_qx - c5*upper_qz - 1/2*c3*upper_qy
+    out[3] = c10*bucket_a10 + c11*bucket_a12 + c12*bucket_a20 + c13*bucket_a22
+    out[4] = -c10*bucket_a00 - c11*bucket_a02
+    out[5] = -c12*bucket_a00 - c13*bucket_a02
+    out[6] = -c14*v_bucket_theta_x - c15*v_bucket_theta_x
+    out[7] = -c14*v_bucket_theta_y - c15*v_bucket_theta_y
+    out[8] = (32/25)*bucket_a00*v_bucket_theta_x + (32/25)*bucket_a10*v_bucket_theta_y + (403/500)*bucket_a02*v_bucket_theta_x + (403/500)*bucket_a12*v_bucket_theta_y
+    out[9] = c17*bucket_a12 - c19*bucket_a22
+    out[10] = c20*bucket_a22 - c17*bucket_a02
+    out[11] = c19*bucket_a02 - c20*bucket_a12
+    return out
+
+
+def dvel_level_cut(q, v, u, ud, p):
+    """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'level_cut': values at dvel_rows, dvel_cols."""
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_level_cut(q, v, u, ud, p))
+
+
+def _drivers_dacc_level_cut(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'level_cut'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_bucket_theta_x, dv_bucket_theta_y, dv_bucket_theta_z = a
+    u0, _, _, u3 = u
+    ud0, _, _, ud3 = ud
+    udd0, _, _, udd3 = udd
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_x
+    c4 = c1*v_upper_theta_y
+    c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0
+    c6 = (1/2)*upper_qw
+    c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y
+    c8 = (1/2)*upper_qz
+    c9 = ud0**2
+    c10 = (1/2)*c1
+    c11 = v_upper_theta_x**2
+    c12 = v_upper_theta_y**2
+    c13 = v_upper_theta_z**2
+    c14 = (1/2)*c2*udd0 - 1/2*c10*c11 - 1/2*c10*c12 - 1/2*c10*c13 - 1/2*c10*c9 - 1/2*c2*dv_upper_theta_z + (1/2)*c1*ud0*v_upper_theta_z
+    c15 = (1/2)*c2
+    c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z
+    c17 = (1/2)*c16
+    c18 = (1/2)*upper_qx
+    c19 = (1/2)*upper_qy
+    c20 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c21 = -c3 - c4
+    c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z
+    c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x
+    c24 = c10*upper_qx
+    c25 = c15*upper_qy
+    c26 = c6*v_upper_theta_z
+    c27 = v_bucket_theta_x*v_bucket_theta_z
+    c28 = (32/25)*c27 + (32/25)*dv_bucket_theta_y
+    c29 = (403/500)*c27 + (403/500)*dv_bucket_theta_y
+    c30 = -32/25*dv_bucket_theta_z + (32/25)*v_bucket_theta_x*v_bucket_theta_y
+    c31 = -403/500*dv_bucket_theta_z + (403/500)*v_bucket_theta_x*v_bucket_theta_y
+    c32 = v_bucket_theta_y**2
+    c33 = v_bucket_theta_z**2
+    c34 = -32/25*c32 - 32/25*c33
+    c35 = -403/500*c32 - 403/500*c33
+    c36 = (64/25)*bucket_a00
+    c37 = (403/250)*bucket_a02
+    c38 = v_bucket_theta_y*v_bucket_theta_z
+    c39 = (32/25)*c38 + (32/25)*dv_bucket_theta_x
+    c40 = (403/500)*c38 + (403/500)*dv_bucket_theta_x
+    c41 = v_bucket_theta_x**2
+    c42 = v_bucket_theta_y**2
+    c43 = -32/25*c41 - 32/25*c42
+    c44 = -403/500*c41 - 403/500*c42
+    c45 = -32/25*dv_bucket_theta_y + (32/25)*v_bucket_theta_x*v_bucket_theta_z
+    c46 = -403/500*dv_bucket_theta_y + (403/500)*v_bucket_theta_x*v_bucket_theta_z
+    c47 = (32/25)*v_bucket_theta_z
+    c48 = (403/500)*v_bucket_theta_z
+    c49 = (64/25)*bucket_a20
+    c50 = (403/250)*bucket_a22
+    c51 = sin(u3)
+    c52 = cos(u3)
+    c53 = c51*v_bucket_theta_y
+    c54 = 2*ud3
+    c55 = c52*c54
+    c56 = c51*c54
+    c57 = c52*v_bucket_theta_y
+    c58 = c51*dv_bucket_theta_x + c52*dv_bucket_theta_z + c53*v_bucket_theta_z + c55*v_bucket_theta_x - c56*v_bucket_theta_z - c57*v_bucket_theta_x
+    c59 = c52*v_bucket_theta_z
+    c60 = ud3**2
+    c61 = v_bucket_theta_y**2
+    c62 = c52*udd3 - c51*c61 - c51*c60 - c51*v_bucket_theta_x**2 - c52*dv_bucket_theta_y - c59*v_bucket_theta_x + 2*c51*ud3*v_bucket_theta_y
+    c63 = c51*v_bucket_theta_x
+    c64 = c51*udd3 + c52*c61 + c52*c60 + c52*v_bucket_theta_z**2 + c63*v_bucket_theta_z - c51*dv_bucket_theta_y - c54*c57
+    c65 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x
+    c66 = c63 + c59
+    out = _zeros(24, q, u)
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5
+    out[3] = (1/2)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2*ud0*((1/2)*c1*upper_qy - c15*upper_qx) + (1/2)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2*ud0*(-c24 - c25)
+    out[5] = (1/2)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2*ud0*(c1*c6 - c15*upper_qz) + (1/2)*c2*upper_qz*v_upper_theta_z
+    out[6] = c28*bucket_a10 + c29*bucket_a12 - c30*bucket_a20 - c31*bucket_a22
+    out[7] = c34*bucket_a20 + c35*bucket_a22 - c28*bucket_a00 - c29*bucket_a02
+    out[8] = c30*bucket_a00 + c31*bucket_a02 - c34*bucket_a10 - c35*bucket_a12
+    out[9] = (32/25)*bucket_a10*v_bucket_theta_y + (32/25)*bucket_a20*v_bucket_theta_z + (403/500)*bucket_a12*v_bucket_theta_y + (403/500)*bucket_a22*v_bucket_theta_z
+    out[10] = -c37*v_bucket_theta_y - c36*v_bucket_theta_y + (32/25)*bucket_a10*v_bucket_theta_x + (403/500)*bucket_a12*v_bucket_theta_x
+    out[11] = -c37*v_bucket_theta_z - c36*v_bucket_theta_z + (32/25)*bucket_a20*v_bucket_theta_x + (403/500)*bucket_a22*v_bucket_theta_x
+    out[12] = c43*bucket_a10 + c44*bucket_a12 - c39*bucket_a20 - c40*bucket_a22
+    out[13] = c45*bucket_a20 + c46*bucket_a22 - c43*bucket_a00 - c44*bucket_a02
+    out[14] = c39*bucket_a00 + c40*bucket_a02 - c45*bucket_a10 - c46*bucket_a12
+    out[15] = c48*bucket_a02 + c47*bucket_a00 - c49*v_bucket_theta_x - c50*v_bucket_theta_x
+    out[16] = c48*bucket_a12 + c47*bucket_a10 - c49*v_bucket_theta_y - c50*v_bucket_theta_y
+    out[17] = (32/25)*bucket_a00*v_bucket_theta_x + (32/25)*bucket_a10*v_bucket_theta_y + (403/500)*bucket_a02*v_bucket_theta_x + (403/500)*bucket_a12*v_bucket_theta_y
+    out[18] = c62*bucket_a12 - c58*bucket_a22
+    out[19] = c64*bucket_a22 - c62*bucket_a02
+    out[20] = c58*bucket_a02 - c64*bucket_a12
+    out[21] = c51*c65 + c55*bucket_a12 - c66*bucket_a22 - c57*bucket_a12
+    out[22] = -c51*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z) - c52*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) + 2*ud3*(c51*bucket_a22 - c52*bucket_a02) + c52*bucket_a02*v_bucket_theta_y - c51*bucket_a22*v_bucket_theta_y
+    out[23] = c52*c65 + c66*bucket_a02 + c53*bucket_a12 - c56*bucket_a12
+    return out
+
+
+def dacc_level_cut(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'level_cut': values at dacc_rows, dacc_cols."""
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_level_cut(q, v, a, u, ud, udd, p))
+
+
+def _drivers_phi_jac_s_level_cut(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'level_cut' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
@@ -3083,7 +8468,7 @@ def _drivers_phi_jac_s_level_cut(q, u):
     return [-2.0*upper_qz*math.cos(c0) + 2.0*upper_qw*math.sin(c0), bucket_x - u1 + (32/25)*bucket_a00 + (403/500)*bucket_a02, bucket_z - u2 + (32/25)*bucket_a20 + (403/500)*bucket_a22, bucket_a22*math.sin(u3) - bucket_a02*math.cos(u3)], [-d1*upper_qx - d2*upper_qy, d2*upper_qx - d1*upper_qy, -d1*upper_qz - d2*upper_qw, 1.0, (32/25)*bucket_a20 + (403/500)*bucket_a22, -403/500*bucket_a12 - 32/25*bucket_a10, 1.0, (32/25)*bucket_a10 + (403/500)*bucket_a12, -403/500*bucket_a02 - 32/25*bucket_a00, d3*bucket_a12, -d3*bucket_a02 - d4*bucket_a22, d4*bucket_a12]
 
 
-def _drivers_nu_s_level_cut(q, u, ud):
+def _drivers_nu_s_level_cut(q, u, ud, p):
     """nu of the driver rows of case 'level_cut' at one configuration."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
@@ -3094,7 +8479,7 @@ def _drivers_nu_s_level_cut(q, u, ud):
     return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
 
-def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
+def _drivers_gamma_s_level_cut(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'level_cut' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
@@ -3124,42 +8509,42 @@ def _drivers_gamma_s_level_cut(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx), udd1 - 403/500*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) - 32/25*v_bucket_theta_y*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y) + (32/25)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403/500)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x), udd2 - 403/500*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 32/25*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (32/25)*v_bucket_theta_y*(bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z) + (403/500)*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z), -c13*(ud3*ud3) - udd3*(c10*bucket_a02 + c11*bucket_a22) - (c10*v_bucket_theta_x + c11*v_bucket_theta_z)*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 2.0*ud3*(-c10*c12 - c13*v_bucket_theta_y + c11*bucket_a12*v_bucket_theta_x) + c10*v_bucket_theta_y*(-c12 + bucket_a22*v_bucket_theta_y) + c11*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y)]
 
 
-def phi_level_cut(q, u):
+def phi_level_cut(q, u, p):
     """Phi(q, u) of case 'level_cut': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_level_cut(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_level_cut(q, u, p))
 
 
-def jac_level_cut(q, u):
+def jac_level_cut(q, u, p):
     """Values of the sparse Phi_q of case 'level_cut' at jac_rows, jac_cols (415 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_level_cut(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_level_cut(q, u, p))
 
 
-def nu_level_cut(q, u, ud):
+def nu_level_cut(q, u, ud, p):
     """nu = -Phi_t of case 'level_cut' (zero in the joint rows)."""
-    drivers = _drivers_nu_level_cut(q, u, ud)
+    drivers = _drivers_nu_level_cut(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_level_cut(q, v, u, ud, udd):
+def gamma_level_cut(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'level_cut'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_level_cut(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_level_cut(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_level_cut(q, u):
+def phi_jac_s_level_cut(q, u, p):
     """Phi and the Phi_q values of case 'level_cut' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_level_cut(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_level_cut(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_level_cut(q, u, ud):
+def nu_s_level_cut(q, u, ud, p):
     """nu of case 'level_cut' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_level_cut(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_level_cut(q, u, ud, p)
 
 
-def gamma_s_level_cut(q, v, u, ud, udd):
+def gamma_s_level_cut(q, v, u, ud, udd, p):
     """gamma of case 'level_cut' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_level_cut(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_level_cut(q, v, u, ud, udd, p)
 
 
 def inputs_trench_wall(t):
@@ -3176,7 +8561,7 @@ def inputs_trench_wall(t):
     return out
 
 
-def _drivers_phi_trench_wall(q, u):
+def _drivers_phi_trench_wall(q, u, p):
     """Phi of the driver rows of case 'trench_wall'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
@@ -3193,7 +8578,7 @@ def _drivers_phi_trench_wall(q, u):
     return out
 
 
-def _drivers_jac_trench_wall(q, u):
+def _drivers_jac_trench_wall(q, u, p):
     """Phi_q values of the driver rows of case 'trench_wall'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
@@ -3224,7 +8609,7 @@ def _drivers_jac_trench_wall(q, u):
     return out
 
 
-def _drivers_nu_trench_wall(q, u, ud):
+def _drivers_nu_trench_wall(q, u, ud, p):
     """nu of the driver rows of case 'trench_wall'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
@@ -3240,7 +8625,7 @@ def _drivers_nu_trench_wall(q, u, ud):
     return out
 
 
-def _drivers_gamma_trench_wall(q, v, u, ud, udd):
+def _drivers_gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'trench_wall'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
@@ -3275,7 +8660,186 @@ def _drivers_gamma_trench_wall(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_trench_wall(q, u):
+def _drivers_phi_p_trench_wall(q, u, p):
+    """Phi_p values of the driver rows of case 'trench_wall'."""
+    out = _zeros(0, q, u)
+    return out
+
+
+def phi_p_trench_wall(q, u, p):
+    """Phi_p = dPhi/dp (n_p columns) of case 'trench_wall': values at phi_p_rows, phi_p_cols."""
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_trench_wall(q, u, p))
+
+
+def _drivers_dvel_trench_wall(q, v, u, ud, p):
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'trench_wall'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    u0, _, _, u3 = u
+    ud0, _, _, ud3 = ud
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c4 = (1/2)*upper_qw
+    c5 = (1/2)*c2*ud0 - 1/2*c2*v_upper_theta_z
+    c6 = c1*ud0 - c1*v_upper_theta_z
+    c7 = (1/2)*c6
+    c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x
+    c9 = (1/2)*upper_qz
+    c10 = (32/25)*v_bucket_theta_y
+    c11 = (403/500)*v_bucket_theta_y
+    c12 = (32/25)*v_bucket_theta_z
+    c13 = (403/500)*v_bucket_theta_z
+    c14 = (32/25)*bucket_a20
+    c15 = (403/500)*bucket_a22
+    c16 = cos(u3)
+    c17 = c16*ud3 - c16*v_bucket_theta_y
+    c18 = sin(u3)
+    c19 = c16*v_bucket_theta_z + c18*v_bucket_theta_x
+    c20 = c18*ud3 - c18*v_bucket_theta_y
+    out = _zeros(12, q, u)
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx
+    out[2] = c4*c6 + (1/2)*c8*upper_qx - c5*upper_qz - 1/2*c3*upper_qy
+    out[3] = c10*bucket_a10 + c11*bucket_a12 + c12*bucket_a20 + c13*bucket_a22
+    out[4] = -c10*bucket_a00 - c11*bucket_a02
+    out[5] = -c12*bucket_a00 - c13*bucket_a02
+    out[6] = -c14*v_bucket_theta_x - c15*v_bucket_theta_x
+    out[7] = -c14*v_bucket_theta_y - c15*v_bucket_theta_y
+    out[8] = (32/25)*bucket_a00*v_bucket_theta_x + (32/25)*bucket_a10*v_bucket_theta_y + (403/500)*bucket_a02*v_bucket_theta_x + (403/500)*bucket_a12*v_bucket_theta_y
+    out[9] = c17*bucket_a12 - c19*bucket_a22
+    out[10] = c20*bucket_a22 - c17*bucket_a02
+    out[11] = c19*bucket_a02 - c20*bucket_a12
+    return out
+
+
+def dvel_trench_wall(q, v, u, ud, p):
+    """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'trench_wall': values at dvel_rows, dvel_cols."""
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_trench_wall(q, v, u, ud, p))
+
+
+def _drivers_dacc_trench_wall(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'trench_wall'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_bucket_theta_x, dv_bucket_theta_y, dv_bucket_theta_z = a
+    u0, _, _, u3 = u
+    ud0, _, _, ud3 = ud
+    udd0, _, _, udd3 = udd
+    bucket_a00 = -1 + 2*bucket_qw**2 + 2*bucket_qx**2
+    bucket_a02 = 2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a10 = 2*bucket_qw*bucket_qz + 2*bucket_qx*bucket_qy
+    bucket_a12 = -2*bucket_qw*bucket_qx + 2*bucket_qy*bucket_qz
+    bucket_a20 = -2*bucket_qw*bucket_qy + 2*bucket_qx*bucket_qz
+    bucket_a22 = -1 + 2*bucket_qw**2 + 2*bucket_qz**2
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_x
+    c4 = c1*v_upper_theta_y
+    c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0
+    c6 = (1/2)*upper_qw
+    c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y
+    c8 = (1/2)*upper_qz
+    c9 = ud0**2
+    c10 = (1/2)*c1
+    c11 = v_upper_theta_x**2
+    c12 = v_upper_theta_y**2
+    c13 = v_upper_theta_z**2
+    c14 = (1/2)*c2*udd0 - 1/2*c10*c11 - 1/2*c10*c12 - 1/2*c10*c13 - 1/2*c10*c9 - 1/2*c2*dv_upper_theta_z + (1/2)*c1*ud0*v_upper_theta_z
+    c15 = (1/2)*c2
+    c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z
+    c17 = (1/2)*c16
+    c18 = (1/2)*upper_qx
+    c19 = (1/2)*upper_qy
+    c20 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c21 = -c3 - c4
+    c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z
+    c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x
+    c24 = c10*upper_qx
+    c25 = c15*upper_qy
+    c26 = c6*v_upper_theta_z
+    c27 = v_bucket_theta_x*v_bucket_theta_z
+    c28 = (32/25)*c27 + (32/25)*dv_bucket_theta_y
+    c29 = (403/500)*c27 + (403/500)*dv_bucket_theta_y
+    c30 = -32/25*dv_bucket_theta_z + (32/25)*v_bucket_theta_x*v_bucket_theta_y
+    c31 = -403/500*dv_bucket_theta_z + (403/500)*v_bucket_theta_x*v_bucket_theta_y
+    c32 = v_bucket_theta_y**2
+    c33 = v_bucket_theta_z**2
+    c34 = -32/25*c32 - 32/25*c33
+    c35 = -403/500*c32 - 403/500*c33
+    c36 = (64/25)*bucket_a00
+    c37 = (403/250)*bucket_a02
+    c38 = v_bucket_theta_y*v_bucket_theta_z
+    c39 = (32/25)*c38 + (32/25)*dv_bucket_theta_x
+    c40 = (403/500)*c38 + (403/500)*dv_bucket_theta_x
+    c41 = v_bucket_theta_x**2
+    c42 = v_bucket_theta_y**2
+    c43 = -32/25*c41 - 32/25*c42
+    c44 = -403/500*c41 - 403/500*c42
+    c45 = -32/25*dv_bucket_theta_y + (32/25)*v_bucket_theta_x*v_bucket_theta_z
+    c46 = -403/500*dv_bucket_theta_y + (403/500)*v_bucket_theta_x*v_bucket_theta_z
+    c47 = (32/25)*v_bucket_theta_z
+    c48 = (403/500)*v_bucket_theta_z
+    c49 = (64/25)*bucket_a20
+    c50 = (403/250)*bucket_a22
+    c51 = sin(u3)
+    c52 = cos(u3)
+    c53 = c51*v_bucket_theta_y
+    c54 = 2*ud3
+    c55 = c52*c54
+    c56 = c51*c54
+    c57 = c52*v_bucket_theta_y
+    c58 = c51*dv_bucket_theta_x + c52*dv_bucket_theta_z + c53*v_bucket_theta_z + c55*v_bucket_theta_x - c56*v_bucket_theta_z - c57*v_bucket_theta_x
+    c59 = c52*v_bucket_theta_z
+    c60 = ud3**2
+    c61 = v_bucket_theta_y**2
+    c62 = c52*udd3 - c51*c61 - c51*c60 - c51*v_bucket_theta_x**2 - c52*dv_bucket_theta_y - c59*v_bucket_theta_x + 2*c51*ud3*v_bucket_theta_y
+    c63 = c51*v_bucket_theta_x
+    c64 = c51*udd3 + c52*c61 + c52*c60 + c52*v_bucket_theta_z**2 + c63*v_bucket_theta_z - c51*dv_bucket_theta_y - c54*c57
+    c65 = bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x
+    c66 = c63 + c59
+    out = _zeros(24, q, u)
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5
+    out[3] = (1/2)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2*ud0*((1/2)*c1*upper_qy - c15*upper_qx) + (1/2)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2*ud0*(-c24 - c25)
+    out[5] = (1/2)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2*ud0*(c1*c6 - c15*upper_qz) + (1/2)*c2*upper_qz*v_upper_theta_z
+    out[6] = c28*bucket_a10 + c29*bucket_a12 - c30*bucket_a20 - c31*bucket_a22
+    out[7] = c34*bucket_a20 + c35*bucket_a22 - c28*bucket_a00 - c29*bucket_a02
+    out[8] = c30*bucket_a00 + c31*bucket_a02 - c34*bucket_a10 - c35*bucket_a12
+    out[9] = (32/25)*bucket_a10*v_bucket_theta_y + (32/25)*bucket_a20*v_bucket_theta_z + (403/500)*bucket_a12*v_bucket_theta_y + (403/500)*bucket_a22*v_bucket_theta_z
+    out[10] = -c37*v_bucket_theta_y - c36*v_bucket_theta_y + (32/25)*bucket_a10*v_bucket_theta_x + (403/500)*bucket_a12*v_bucket_theta_x
+    out[11] = -c37*v_bucket_theta_z - c36*v_bucket_theta_z + (32/25)*bucket_a20*v_bucket_theta_x + (403/500)*bucket_a22*v_bucket_theta_x
+    out[12] = c43*bucket_a10 + c44*bucket_a12 - c39*bucket_a20 - c40*bucket_a22
+    out[13] = c45*bucket_a20 + c46*bucket_a22 - c43*bucket_a00 - c44*bucket_a02
+    out[14] = c39*bucket_a00 + c40*bucket_a02 - c45*bucket_a10 - c46*bucket_a12
+    out[15] = c48*bucket_a02 + c47*bucket_a00 - c49*v_bucket_theta_x - c50*v_bucket_theta_x
+    out[16] = c48*bucket_a12 + c47*bucket_a10 - c49*v_bucket_theta_y - c50*v_bucket_theta_y
+    out[17] = (32/25)*bucket_a00*v_bucket_theta_x + (32/25)*bucket_a10*v_bucket_theta_y + (403/500)*bucket_a02*v_bucket_theta_x + (403/500)*bucket_a12*v_bucket_theta_y
+    out[18] = c62*bucket_a12 - c58*bucket_a22
+    out[19] = c64*bucket_a22 - c62*bucket_a02
+    out[20] = c58*bucket_a02 - c64*bucket_a12
+    out[21] = c51*c65 + c55*bucket_a12 - c66*bucket_a22 - c57*bucket_a12
+    out[22] = -c51*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z) - c52*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) + 2*ud3*(c51*bucket_a22 - c52*bucket_a02) + c52*bucket_a02*v_bucket_theta_y - c51*bucket_a22*v_bucket_theta_y
+    out[23] = c52*c65 + c66*bucket_a02 + c53*bucket_a12 - c56*bucket_a12
+    return out
+
+
+def dacc_trench_wall(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'trench_wall': values at dacc_rows, dacc_cols."""
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_trench_wall(q, v, a, u, ud, udd, p))
+
+
+def _drivers_phi_jac_s_trench_wall(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'trench_wall' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_x, _, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, u1, u2, u3 = u
@@ -3294,7 +8858,7 @@ def _drivers_phi_jac_s_trench_wall(q, u):
     return [-2.0*upper_qz*math.cos(c0) + 2.0*upper_qw*math.sin(c0), bucket_x - u1 + (32/25)*bucket_a00 + (403/500)*bucket_a02, bucket_z - u2 + (32/25)*bucket_a20 + (403/500)*bucket_a22, bucket_a22*math.sin(u3) - bucket_a02*math.cos(u3)], [-d1*upper_qx - d2*upper_qy, d2*upper_qx - d1*upper_qy, -d1*upper_qz - d2*upper_qw, 1.0, (32/25)*bucket_a20 + (403/500)*bucket_a22, -403/500*bucket_a12 - 32/25*bucket_a10, 1.0, (32/25)*bucket_a10 + (403/500)*bucket_a12, -403/500*bucket_a02 - 32/25*bucket_a00, d3*bucket_a12, -d3*bucket_a02 - d4*bucket_a22, d4*bucket_a12]
 
 
-def _drivers_nu_s_trench_wall(q, u, ud):
+def _drivers_nu_s_trench_wall(q, u, ud, p):
     """nu of the driver rows of case 'trench_wall' at one configuration."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     u0, _, _, u3 = u
@@ -3305,7 +8869,7 @@ def _drivers_nu_s_trench_wall(q, u, ud):
     return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, -ud3*(bucket_a02*math.sin(u3) + bucket_a22*math.cos(u3))]
 
 
-def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
+def _drivers_gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'trench_wall' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
@@ -3335,42 +8899,42 @@ def _drivers_gamma_s_trench_wall(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx), udd1 - 403/500*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y) - 32/25*v_bucket_theta_y*(bucket_a10*v_bucket_theta_x - bucket_a00*v_bucket_theta_y) + (32/25)*v_bucket_theta_z*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (403/500)*v_bucket_theta_z*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x), udd2 - 403/500*v_bucket_theta_x*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 32/25*v_bucket_theta_x*(bucket_a00*v_bucket_theta_z - bucket_a20*v_bucket_theta_x) + (32/25)*v_bucket_theta_y*(bucket_a20*v_bucket_theta_y - bucket_a10*v_bucket_theta_z) + (403/500)*v_bucket_theta_y*(bucket_a22*v_bucket_theta_y - bucket_a12*v_bucket_theta_z), -c13*(ud3*ud3) - udd3*(c10*bucket_a02 + c11*bucket_a22) - (c10*v_bucket_theta_x + c11*v_bucket_theta_z)*(bucket_a02*v_bucket_theta_z - bucket_a22*v_bucket_theta_x) - 2.0*ud3*(-c10*c12 - c13*v_bucket_theta_y + c11*bucket_a12*v_bucket_theta_x) + c10*v_bucket_theta_y*(-c12 + bucket_a22*v_bucket_theta_y) + c11*v_bucket_theta_y*(bucket_a12*v_bucket_theta_x - bucket_a02*v_bucket_theta_y)]
 
 
-def phi_trench_wall(q, u):
+def phi_trench_wall(q, u, p):
     """Phi(q, u) of case 'trench_wall': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_trench_wall(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_trench_wall(q, u, p))
 
 
-def jac_trench_wall(q, u):
+def jac_trench_wall(q, u, p):
     """Values of the sparse Phi_q of case 'trench_wall' at jac_rows, jac_cols (415 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_trench_wall(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_trench_wall(q, u, p))
 
 
-def nu_trench_wall(q, u, ud):
+def nu_trench_wall(q, u, ud, p):
     """nu = -Phi_t of case 'trench_wall' (zero in the joint rows)."""
-    drivers = _drivers_nu_trench_wall(q, u, ud)
+    drivers = _drivers_nu_trench_wall(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_trench_wall(q, v, u, ud, udd):
+def gamma_trench_wall(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'trench_wall'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_trench_wall(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_trench_wall(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_trench_wall(q, u):
+def phi_jac_s_trench_wall(q, u, p):
     """Phi and the Phi_q values of case 'trench_wall' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_trench_wall(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_trench_wall(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_trench_wall(q, u, ud):
+def nu_s_trench_wall(q, u, ud, p):
     """nu of case 'trench_wall' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_trench_wall(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_trench_wall(q, u, ud, p)
 
 
-def gamma_s_trench_wall(q, v, u, ud, udd):
+def gamma_s_trench_wall(q, v, u, ud, udd, p):
     """gamma of case 'trench_wall' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_trench_wall(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_trench_wall(q, v, u, ud, udd, p)
 
 
 def inputs_bucket_toggle(t):
@@ -3383,7 +8947,7 @@ def inputs_bucket_toggle(t):
     return out
 
 
-def _drivers_phi_bucket_toggle(q, u):
+def _drivers_phi_bucket_toggle(q, u, p):
     """Phi of the driver rows of case 'bucket_toggle'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -3405,7 +8969,7 @@ def _drivers_phi_bucket_toggle(q, u):
     return out
 
 
-def _drivers_jac_bucket_toggle(q, u):
+def _drivers_jac_bucket_toggle(q, u, p):
     """Phi_q values of the driver rows of case 'bucket_toggle'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3464,7 +9028,7 @@ def _drivers_jac_bucket_toggle(q, u):
     return out
 
 
-def _drivers_nu_bucket_toggle(q, u, ud):
+def _drivers_nu_bucket_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_toggle'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3478,7 +9042,7 @@ def _drivers_nu_bucket_toggle(q, u, ud):
     return out
 
 
-def _drivers_gamma_bucket_toggle(q, v, u, ud, udd):
+def _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_toggle'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -3527,7 +9091,348 @@ def _drivers_gamma_bucket_toggle(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_bucket_toggle(q, u):
+def _drivers_phi_p_bucket_toggle(q, u, p):
+    """Phi_p values of the driver rows of case 'bucket_toggle'."""
+    out = _zeros(0, q, u)
+    return out
+
+
+def phi_p_bucket_toggle(q, u, p):
+    """Phi_p = dPhi/dp (n_p columns) of case 'bucket_toggle': values at phi_p_rows, phi_p_cols."""
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_bucket_toggle(q, u, p))
+
+
+def _drivers_dvel_bucket_toggle(q, v, u, ud, p):
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_toggle'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c4 = (1/2)*upper_qw
+    c5 = (1/2)*c2*ud0 - 1/2*c2*v_upper_theta_z
+    c6 = c1*ud0 - c1*v_upper_theta_z
+    c7 = (1/2)*c6
+    c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x
+    c9 = (1/2)*upper_qz
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c14 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c15 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c19 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c20 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c21 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c22 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c23 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c24 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c25 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c26 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c27 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(30, q, u)
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx
+    out[2] = c4*c6 + (1/2)*c8*upper_qx - c5*upper_qz - 1/2*c3*upper_qy
+    out[3] = c10
+    out[4] = -c11
+    out[5] = c12
+    out[6] = c13*boom_cyl_l_barrel_a10 - c14*boom_cyl_l_barrel_a20
+    out[7] = c15*boom_cyl_l_barrel_a20 - c13*boom_cyl_l_barrel_a00
+    out[8] = c14*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
+    out[9] = -c10
+    out[10] = c11
+    out[11] = -c12
+    out[12] = c16
+    out[13] = -c17
+    out[14] = c18
+    out[15] = c19*arm_cyl_barrel_a10 - c20*arm_cyl_barrel_a20
+    out[16] = c21*arm_cyl_barrel_a20 - c19*arm_cyl_barrel_a00
+    out[17] = c20*arm_cyl_barrel_a00 - c21*arm_cyl_barrel_a10
+    out[18] = -c16
+    out[19] = c17
+    out[20] = -c18
+    out[21] = c22
+    out[22] = -c23
+    out[23] = c24
+    out[24] = c25*bucket_cyl_barrel_a10 - c26*bucket_cyl_barrel_a20
+    out[25] = c27*bucket_cyl_barrel_a20 - c25*bucket_cyl_barrel_a00
+    out[26] = c26*bucket_cyl_barrel_a00 - c27*bucket_cyl_barrel_a10
+    out[27] = -c22
+    out[28] = c23
+    out[29] = -c24
+    return out
+
+
+def dvel_bucket_toggle(q, v, u, ud, p):
+    """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'bucket_toggle': values at dvel_rows, dvel_cols."""
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_bucket_toggle(q, v, u, ud, p))
+
+
+def _drivers_dacc_bucket_toggle(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_toggle'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, _, _, _ = udd
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_x
+    c4 = c1*v_upper_theta_y
+    c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0
+    c6 = (1/2)*upper_qw
+    c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y
+    c8 = (1/2)*upper_qz
+    c9 = ud0**2
+    c10 = (1/2)*c1
+    c11 = v_upper_theta_x**2
+    c12 = v_upper_theta_y**2
+    c13 = v_upper_theta_z**2
+    c14 = (1/2)*c2*udd0 - 1/2*c10*c11 - 1/2*c10*c12 - 1/2*c10*c13 - 1/2*c10*c9 - 1/2*c2*dv_upper_theta_z + (1/2)*c1*ud0*v_upper_theta_z
+    c15 = (1/2)*c2
+    c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z
+    c17 = (1/2)*c16
+    c18 = (1/2)*upper_qx
+    c19 = (1/2)*upper_qy
+    c20 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c21 = -c3 - c4
+    c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z
+    c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x
+    c24 = c10*upper_qx
+    c25 = c15*upper_qy
+    c26 = c6*v_upper_theta_z
+    c27 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y
+    c28 = dv_boom_cyl_l_barrel_theta_z - c27
+    c29 = v_boom_cyl_l_barrel_theta_y**2
+    c30 = v_boom_cyl_l_barrel_theta_z**2
+    c31 = c29 + c30
+    c32 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z
+    c33 = c32 + dv_boom_cyl_l_barrel_theta_y
+    c34 = -c33
+    c35 = v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z
+    c36 = dv_boom_cyl_l_barrel_theta_x - c35
+    c37 = v_boom_cyl_l_barrel_theta_x**2
+    c38 = c37 + c30
+    c39 = c27 + dv_boom_cyl_l_barrel_theta_z
+    c40 = -c39
+    c41 = dv_boom_cyl_l_barrel_theta_y - c32
+    c42 = c37 + c29
+    c43 = c35 + dv_boom_cyl_l_barrel_theta_x
+    c44 = -c43
+    c45 = 2*v_boom_cyl_l_barrel_theta_x
+    c46 = 2*v_boom_cyl_l_barrel_theta_y
+    c47 = -c36
+    c48 = -c42
+    c49 = dv_boom_cyl_l_rod_z - dv_boom_cyl_l_barrel_z + c42*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_barrel_y + c46*v_boom_cyl_l_rod_x + c47*boom_cyl_l_rod_y + c48*boom_cyl_l_rod_z + c33*boom_cyl_l_rod_x + c34*boom_cyl_l_barrel_x + c36*boom_cyl_l_barrel_y - c45*v_boom_cyl_l_rod_y - c46*v_boom_cyl_l_barrel_x
+    c50 = 2*v_boom_cyl_l_barrel_theta_z
+    c51 = -c28
+    c52 = -c38
+    c53 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + c28*boom_cyl_l_barrel_x + c38*boom_cyl_l_barrel_y + c43*boom_cyl_l_rod_z + c44*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_rod_z + c50*v_boom_cyl_l_barrel_x + c51*boom_cyl_l_rod_x + c52*boom_cyl_l_rod_y - c45*v_boom_cyl_l_barrel_z - c50*v_boom_cyl_l_rod_x
+    c54 = -c41
+    c55 = -c31
+    c56 = dv_boom_cyl_l_rod_x - dv_boom_cyl_l_barrel_x + c39*boom_cyl_l_rod_y + c40*boom_cyl_l_barrel_y + c41*boom_cyl_l_barrel_z + c46*v_boom_cyl_l_barrel_z + c50*v_boom_cyl_l_rod_y + c54*boom_cyl_l_rod_z + c55*boom_cyl_l_rod_x + c31*boom_cyl_l_barrel_x - c46*v_boom_cyl_l_rod_z - c50*v_boom_cyl_l_barrel_y
+    c57 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
+    c58 = 2*c57 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c59 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
+    c60 = 2*c59 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c61 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
+    c62 = 2*c61 - 2*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c63 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c64 = -c61 + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c65 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c66 = c59 - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c67 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c68 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c69 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c70 = -c57 + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c71 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c72 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y
+    c73 = dv_arm_cyl_barrel_theta_z - c72
+    c74 = v_arm_cyl_barrel_theta_y**2
+    c75 = v_arm_cyl_barrel_theta_z**2
+    c76 = c74 + c75
+    c77 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z
+    c78 = c77 + dv_arm_cyl_barrel_theta_y
+    c79 = -c78
+    c80 = v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z
+    c81 = dv_arm_cyl_barrel_theta_x - c80
+    c82 = v_arm_cyl_barrel_theta_x**2
+    c83 = c82 + c75
+    c84 = c72 + dv_arm_cyl_barrel_theta_z
+    c85 = -c84
+    c86 = dv_arm_cyl_barrel_theta_y - c77
+    c87 = c82 + c74
+    c88 = c80 + dv_arm_cyl_barrel_theta_x
+    c89 = -c88
+    c90 = 2*v_arm_cyl_barrel_theta_x
+    c91 = 2*v_arm_cyl_barrel_theta_y
+    c92 = -c81
+    c93 = -c87
+    c94 = dv_arm_cyl_rod_z - dv_arm_cyl_barrel_z + c87*arm_cyl_barrel_z + c90*v_arm_cyl_barrel_y + c91*v_arm_cyl_rod_x + c92*arm_cyl_rod_y + c93*arm_cyl_rod_z + c78*arm_cyl_rod_x + c79*arm_cyl_barrel_x + c81*arm_cyl_barrel_y - c90*v_arm_cyl_rod_y - c91*v_arm_cyl_barrel_x
+    c95 = 2*v_arm_cyl_barrel_theta_z
+    c96 = -c73
+    c97 = -c83
+    c98 = dv_arm_cyl_rod_y - dv_arm_cyl_barrel_y + c73*arm_cyl_barrel_x + c83*arm_cyl_barrel_y + c88*arm_cyl_rod_z + c89*arm_cyl_barrel_z + c90*v_arm_cyl_rod_z + c95*v_arm_cyl_barrel_x + c96*arm_cyl_rod_x + c97*arm_cyl_rod_y - c90*v_arm_cyl_barrel_z - c95*v_arm_cyl_rod_x
+    c99 = -c86
+    c100 = -c76
+    c101 = dv_arm_cyl_rod_x - dv_arm_cyl_barrel_x + c84*arm_cyl_rod_y + c85*arm_cyl_barrel_y + c86*arm_cyl_barrel_z + c91*v_arm_cyl_barrel_z + c95*v_arm_cyl_rod_y + c99*arm_cyl_rod_z + c100*arm_cyl_rod_x + c76*arm_cyl_barrel_x - c91*v_arm_cyl_rod_z - c95*v_arm_cyl_barrel_y
+    c102 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
+    c103 = 2*c102 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c104 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
+    c105 = 2*c104 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c106 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
+    c107 = 2*c106 - 2*arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c108 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c109 = -c106 + arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c110 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c111 = c104 - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c112 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c113 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c114 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c115 = -c102 + arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c116 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c117 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y
+    c118 = dv_bucket_cyl_barrel_theta_z - c117
+    c119 = v_bucket_cyl_barrel_theta_y**2
+    c120 = v_bucket_cyl_barrel_theta_z**2
+    c121 = c119 + c120
+    c122 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z
+    c123 = c122 + dv_bucket_cyl_barrel_theta_y
+    c124 = -c123
+    c125 = v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z
+    c126 = dv_bucket_cyl_barrel_theta_x - c125
+    c127 = v_bucket_cyl_barrel_theta_x**2
+    c128 = c127 + c120
+    c129 = c117 + dv_bucket_cyl_barrel_theta_z
+    c130 = -c129
+    c131 = dv_bucket_cyl_barrel_theta_y - c122
+    c132 = c127 + c119
+    c133 = c125 + dv_bucket_cyl_barrel_theta_x
+    c134 = -c133
+    c135 = 2*v_bucket_cyl_barrel_theta_x
+    c136 = 2*v_bucket_cyl_barrel_theta_y
+    c137 = -c126
+    c138 = -c132
+    c139 = dv_bucket_cyl_rod_z - dv_bucket_cyl_barrel_z + c132*bucket_cyl_barrel_z + c135*v_bucket_cyl_barrel_y + c136*v_bucket_cyl_rod_x + c137*bucket_cyl_rod_y + c138*bucket_cyl_rod_z + c123*bucket_cyl_rod_x + c124*bucket_cyl_barrel_x + c126*bucket_cyl_barrel_y - c135*v_bucket_cyl_rod_y - c136*v_bucket_cyl_barrel_x
+    c140 = 2*v_bucket_cyl_barrel_theta_z
+    c141 = -c118
+    c142 = -c128
+    c143 = dv_bucket_cyl_rod_y - dv_bucket_cyl_barrel_y + c118*bucket_cyl_barrel_x + c128*bucket_cyl_barrel_y + c133*bucket_cyl_rod_z + c134*bucket_cyl_barrel_z + c135*v_bucket_cyl_rod_z + c140*v_bucket_cyl_barrel_x + c141*bucket_cyl_rod_x + c142*bucket_cyl_rod_y - c135*v_bucket_cyl_barrel_z - c140*v_bucket_cyl_rod_x
+    c144 = -c131
+    c145 = -c121
+    c146 = dv_bucket_cyl_rod_x - dv_bucket_cyl_barrel_x + c129*bucket_cyl_rod_y + c130*bucket_cyl_barrel_y + c131*bucket_cyl_barrel_z + c136*v_bucket_cyl_barrel_z + c140*v_bucket_cyl_rod_y + c144*bucket_cyl_rod_z + c145*bucket_cyl_rod_x + c121*bucket_cyl_barrel_x - c136*v_bucket_cyl_rod_z - c140*v_bucket_cyl_barrel_y
+    c147 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
+    c148 = 2*c147 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c149 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
+    c150 = 2*c149 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c151 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
+    c152 = 2*c151 - 2*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c153 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c154 = -c151 + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c155 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c156 = c149 - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c157 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c158 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c159 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c160 = -c147 + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c161 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(60, q, u)
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5
+    out[3] = (1/2)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2*ud0*((1/2)*c1*upper_qy - c15*upper_qx) + (1/2)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2*ud0*(-c24 - c25)
+    out[5] = (1/2)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2*ud0*(c1*c6 - c15*upper_qz) + (1/2)*c2*upper_qz*v_upper_theta_z
+    out[6] = c28*boom_cyl_l_barrel_a10 + c31*boom_cyl_l_barrel_a00 + c34*boom_cyl_l_barrel_a20
+    out[7] = c38*boom_cyl_l_barrel_a10 + c40*boom_cyl_l_barrel_a00 + c36*boom_cyl_l_barrel_a20
+    out[8] = c41*boom_cyl_l_barrel_a00 + c42*boom_cyl_l_barrel_a20 + c44*boom_cyl_l_barrel_a10
+    out[9] = c49*boom_cyl_l_barrel_a10 - c53*boom_cyl_l_barrel_a20
+    out[10] = c56*boom_cyl_l_barrel_a20 - c49*boom_cyl_l_barrel_a00
+    out[11] = c53*boom_cyl_l_barrel_a00 - c56*boom_cyl_l_barrel_a10
+    out[12] = c51*boom_cyl_l_barrel_a10 + c55*boom_cyl_l_barrel_a00 + c33*boom_cyl_l_barrel_a20
+    out[13] = c39*boom_cyl_l_barrel_a00 + c47*boom_cyl_l_barrel_a20 + c52*boom_cyl_l_barrel_a10
+    out[14] = c43*boom_cyl_l_barrel_a10 + c48*boom_cyl_l_barrel_a20 + c54*boom_cyl_l_barrel_a00
+    out[15] = c58
+    out[16] = -c60
+    out[17] = c62
+    out[18] = c63*c64 + c67*boom_cyl_l_barrel_a10 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_y - c65*c66 - c68*boom_cyl_l_barrel_a20 - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y
+    out[19] = c65*c70 + c71*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x - c64*c69 - c67*boom_cyl_l_barrel_a00 - boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_x
+    out[20] = c66*c69 + c68*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_x - c63*c70 - c71*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x
+    out[21] = -c58
+    out[22] = c60
+    out[23] = -c62
+    out[24] = c73*arm_cyl_barrel_a10 + c76*arm_cyl_barrel_a00 + c79*arm_cyl_barrel_a20
+    out[25] = c83*arm_cyl_barrel_a10 + c85*arm_cyl_barrel_a00 + c81*arm_cyl_barrel_a20
+    out[26] = c86*arm_cyl_barrel_a00 + c87*arm_cyl_barrel_a20 + c89*arm_cyl_barrel_a10
+    out[27] = c94*arm_cyl_barrel_a10 - c98*arm_cyl_barrel_a20
+    out[28] = c101*arm_cyl_barrel_a20 - c94*arm_cyl_barrel_a00
+    out[29] = c98*arm_cyl_barrel_a00 - c101*arm_cyl_barrel_a10
+    out[30] = c96*arm_cyl_barrel_a10 + c100*arm_cyl_barrel_a00 + c78*arm_cyl_barrel_a20
+    out[31] = c84*arm_cyl_barrel_a00 + c92*arm_cyl_barrel_a20 + c97*arm_cyl_barrel_a10
+    out[32] = c88*arm_cyl_barrel_a10 + c93*arm_cyl_barrel_a20 + c99*arm_cyl_barrel_a00
+    out[33] = c103
+    out[34] = -c105
+    out[35] = c107
+    out[36] = c108*c109 + c112*arm_cyl_barrel_a10 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c110*c111 - c113*arm_cyl_barrel_a20 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_rod_y
+    out[37] = c110*c115 + c116*arm_cyl_barrel_a20 + arm_cyl_barrel_a00*v_arm_cyl_barrel_z + arm_cyl_barrel_a20*v_arm_cyl_rod_x - c109*c114 - c112*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
+    out[38] = c111*c114 + c113*arm_cyl_barrel_a00 + arm_cyl_barrel_a00*v_arm_cyl_rod_y + arm_cyl_barrel_a10*v_arm_cyl_barrel_x - c108*c115 - c116*arm_cyl_barrel_a10 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y - arm_cyl_barrel_a10*v_arm_cyl_rod_x
+    out[39] = -c103
+    out[40] = c105
+    out[41] = -c107
+    out[42] = c118*bucket_cyl_barrel_a10 + c121*bucket_cyl_barrel_a00 + c124*bucket_cyl_barrel_a20
+    out[43] = c128*bucket_cyl_barrel_a10 + c130*bucket_cyl_barrel_a00 + c126*bucket_cyl_barrel_a20
+    out[44] = c131*bucket_cyl_barrel_a00 + c132*bucket_cyl_barrel_a20 + c134*bucket_cyl_barrel_a10
+    out[45] = c139*bucket_cyl_barrel_a10 - c143*bucket_cyl_barrel_a20
+    out[46] = c146*bucket_cyl_barrel_a20 - c139*bucket_cyl_barrel_a00
+    out[47] = c143*bucket_cyl_barrel_a00 - c146*bucket_cyl_barrel_a10
+    out[48] = c141*bucket_cyl_barrel_a10 + c145*bucket_cyl_barrel_a00 + c123*bucket_cyl_barrel_a20
+    out[49] = c129*bucket_cyl_barrel_a00 + c137*bucket_cyl_barrel_a20 + c142*bucket_cyl_barrel_a10
+    out[50] = c133*bucket_cyl_barrel_a10 + c138*bucket_cyl_barrel_a20 + c144*bucket_cyl_barrel_a00
+    out[51] = c148
+    out[52] = -c150
+    out[53] = c152
+    out[54] = c153*c154 + c157*bucket_cyl_barrel_a10 + bucket_cyl_barrel_a10*v_bucket_cyl_rod_z + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_y - c155*c156 - c158*bucket_cyl_barrel_a20 - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a20*v_bucket_cyl_rod_y
+    out[55] = c155*c160 + c161*bucket_cyl_barrel_a20 + bucket_cyl_barrel_a00*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a20*v_bucket_cyl_rod_x - c154*c159 - c157*bucket_cyl_barrel_a00 - bucket_cyl_barrel_a00*v_bucket_cyl_rod_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_x
+    out[56] = c156*c159 + c158*bucket_cyl_barrel_a00 + bucket_cyl_barrel_a00*v_bucket_cyl_rod_y + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_x - c153*c160 - c161*bucket_cyl_barrel_a10 - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a10*v_bucket_cyl_rod_x
+    out[57] = -c148
+    out[58] = c150
+    out[59] = -c152
+    return out
+
+
+def dacc_bucket_toggle(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'bucket_toggle': values at dacc_rows, dacc_cols."""
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_bucket_toggle(q, v, a, u, ud, udd, p))
+
+
+def _drivers_phi_jac_s_bucket_toggle(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'bucket_toggle' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -3556,7 +9461,7 @@ def _drivers_phi_jac_s_bucket_toggle(q, u):
     return [-2.0*upper_qz*math.cos(c0) + 2.0*upper_qw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [-d1*upper_qx - d2*upper_qy, d2*upper_qx - d1*upper_qy, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_bucket_toggle(q, u, ud):
+def _drivers_nu_s_bucket_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_toggle' at one configuration."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3565,7 +9470,7 @@ def _drivers_nu_s_bucket_toggle(q, u, ud):
     return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
+def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_toggle' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -3609,42 +9514,657 @@ def _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx), udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x), udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x), udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x)]
 
 
-def phi_bucket_toggle(q, u):
+def phi_bucket_toggle(q, u, p):
     """Phi(q, u) of case 'bucket_toggle': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_bucket_toggle(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_toggle(q, u, p))
 
 
-def jac_bucket_toggle(q, u):
+def jac_bucket_toggle(q, u, p):
     """Values of the sparse Phi_q of case 'bucket_toggle' at jac_rows, jac_cols (433 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_bucket_toggle(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_toggle(q, u, p))
 
 
-def nu_bucket_toggle(q, u, ud):
+def nu_bucket_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_toggle' (zero in the joint rows)."""
-    drivers = _drivers_nu_bucket_toggle(q, u, ud)
+    drivers = _drivers_nu_bucket_toggle(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_bucket_toggle(q, v, u, ud, udd):
+def gamma_bucket_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_toggle'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_toggle(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_toggle(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_bucket_toggle(q, u):
+def phi_jac_s_bucket_toggle(q, u, p):
     """Phi and the Phi_q values of case 'bucket_toggle' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_toggle(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_toggle(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_bucket_toggle(q, u, ud):
+def nu_s_bucket_toggle(q, u, ud, p):
     """nu of case 'bucket_toggle' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_bucket_toggle(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_bucket_toggle(q, u, ud, p)
 
 
-def gamma_s_bucket_toggle(q, v, u, ud, udd):
+def gamma_s_bucket_toggle(q, v, u, ud, udd, p):
     """gamma of case 'bucket_toggle' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_toggle(q, v, u, ud, udd, p)
+
+
+def inputs_bucket_stroke(t):
+    """Driver inputs of case 'bucket_stroke' at time t: rows u (4), then du/dt, then d2u/dt2."""
+    out = np.zeros((12,) + np.shape(t))
+    out[1] = 626973/250000
+    out[2] = 485803/250000
+    out[3] = 16529/10000 + (2521/2500)*t
+    out[7] = 2521/2500
+    return out
+
+
+def _drivers_phi_bucket_stroke(q, u, p):
+    """Phi of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -2*upper_qz*cos(c0) + 2*upper_qw*sin(c0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
+    return out
+
+
+def _drivers_jac_bucket_stroke(q, u, p):
+    """Phi_q values of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    d0 = (1/2)*u0
+    d1 = sin(d0)
+    d2 = cos(d0)
+    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
+    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    out = _zeros(30, q, u)
+    out[0] = -d1*upper_qx - d2*upper_qy
+    out[1] = d2*upper_qx - d1*upper_qy
+    out[2] = -d1*upper_qz - d2*upper_qw
+    out[3] = -boom_cyl_l_barrel_a00
+    out[4] = -boom_cyl_l_barrel_a10
+    out[5] = -boom_cyl_l_barrel_a20
+    out[6] = d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20
+    out[7] = d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00
+    out[8] = d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20
+    out[16] = d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00
+    out[17] = d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10
+    out[18] = arm_cyl_barrel_a00
+    out[19] = arm_cyl_barrel_a10
+    out[20] = arm_cyl_barrel_a20
+    out[21] = -bucket_cyl_barrel_a00
+    out[22] = -bucket_cyl_barrel_a10
+    out[23] = -bucket_cyl_barrel_a20
+    out[24] = d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20
+    out[25] = d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00
+    out[26] = d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10
+    out[27] = bucket_cyl_barrel_a00
+    out[28] = bucket_cyl_barrel_a10
+    out[29] = bucket_cyl_barrel_a20
+    return out
+
+
+def _drivers_nu_bucket_stroke(q, u, ud, p):
+    """nu of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_qw*cos(c0) + upper_qz*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*upper_qw
+    c4 = c2*c3 - 1/2*c1*upper_qz
+    c5 = (1/2)*v_upper_theta_y
+    c6 = (1/2)*v_upper_theta_x
+    c7 = (1/2)*upper_qz
+    c8 = (1/2)*v_upper_theta_z
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c23 = -c20
+    c24 = -c22
+    out = _zeros(4, q, u)
+    out[0] = c4*ud0**2 - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx)
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x)
+    out[2] = udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x)
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x)
+    return out
+
+
+def _drivers_phi_p_bucket_stroke(q, u, p):
+    """Phi_p values of the driver rows of case 'bucket_stroke'."""
+    out = _zeros(0, q, u)
+    return out
+
+
+def phi_p_bucket_stroke(q, u, p):
+    """Phi_p = dPhi/dp (n_p columns) of case 'bucket_stroke': values at phi_p_rows, phi_p_cols."""
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_bucket_stroke(q, u, p))
+
+
+def _drivers_dvel_bucket_stroke(q, v, u, ud, p):
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c4 = (1/2)*upper_qw
+    c5 = (1/2)*c2*ud0 - 1/2*c2*v_upper_theta_z
+    c6 = c1*ud0 - c1*v_upper_theta_z
+    c7 = (1/2)*c6
+    c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x
+    c9 = (1/2)*upper_qz
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c14 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c15 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c19 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c20 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c21 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c22 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c23 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c24 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c25 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c26 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c27 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(30, q, u)
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx
+    out[2] = c4*c6 + (1/2)*c8*upper_qx - c5*upper_qz - 1/2*c3*upper_qy
+    out[3] = c10
+    out[4] = -c11
+    out[5] = c12
+    out[6] = c13*boom_cyl_l_barrel_a10 - c14*boom_cyl_l_barrel_a20
+    out[7] = c15*boom_cyl_l_barrel_a20 - c13*boom_cyl_l_barrel_a00
+    out[8] = c14*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
+    out[9] = -c10
+    out[10] = c11
+    out[11] = -c12
+    out[12] = c16
+    out[13] = -c17
+    out[14] = c18
+    out[15] = c19*arm_cyl_barrel_a10 - c20*arm_cyl_barrel_a20
+    out[16] = c21*arm_cyl_barrel_a20 - c19*arm_cyl_barrel_a00
+    out[17] = c20*arm_cyl_barrel_a00 - c21*arm_cyl_barrel_a10
+    out[18] = -c16
+    out[19] = c17
+    out[20] = -c18
+    out[21] = c22
+    out[22] = -c23
+    out[23] = c24
+    out[24] = c25*bucket_cyl_barrel_a10 - c26*bucket_cyl_barrel_a20
+    out[25] = c27*bucket_cyl_barrel_a20 - c25*bucket_cyl_barrel_a00
+    out[26] = c26*bucket_cyl_barrel_a00 - c27*bucket_cyl_barrel_a10
+    out[27] = -c22
+    out[28] = c23
+    out[29] = -c24
+    return out
+
+
+def dvel_bucket_stroke(q, v, u, ud, p):
+    """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'bucket_stroke': values at dvel_rows, dvel_cols."""
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_bucket_stroke(q, v, u, ud, p))
+
+
+def _drivers_dacc_bucket_stroke(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_stroke'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, _, _, _ = udd
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_x
+    c4 = c1*v_upper_theta_y
+    c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0
+    c6 = (1/2)*upper_qw
+    c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y
+    c8 = (1/2)*upper_qz
+    c9 = ud0**2
+    c10 = (1/2)*c1
+    c11 = v_upper_theta_x**2
+    c12 = v_upper_theta_y**2
+    c13 = v_upper_theta_z**2
+    c14 = (1/2)*c2*udd0 - 1/2*c10*c11 - 1/2*c10*c12 - 1/2*c10*c13 - 1/2*c10*c9 - 1/2*c2*dv_upper_theta_z + (1/2)*c1*ud0*v_upper_theta_z
+    c15 = (1/2)*c2
+    c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z
+    c17 = (1/2)*c16
+    c18 = (1/2)*upper_qx
+    c19 = (1/2)*upper_qy
+    c20 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c21 = -c3 - c4
+    c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z
+    c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x
+    c24 = c10*upper_qx
+    c25 = c15*upper_qy
+    c26 = c6*v_upper_theta_z
+    c27 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y
+    c28 = dv_boom_cyl_l_barrel_theta_z - c27
+    c29 = v_boom_cyl_l_barrel_theta_y**2
+    c30 = v_boom_cyl_l_barrel_theta_z**2
+    c31 = c29 + c30
+    c32 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z
+    c33 = c32 + dv_boom_cyl_l_barrel_theta_y
+    c34 = -c33
+    c35 = v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z
+    c36 = dv_boom_cyl_l_barrel_theta_x - c35
+    c37 = v_boom_cyl_l_barrel_theta_x**2
+    c38 = c37 + c30
+    c39 = c27 + dv_boom_cyl_l_barrel_theta_z
+    c40 = -c39
+    c41 = dv_boom_cyl_l_barrel_theta_y - c32
+    c42 = c37 + c29
+    c43 = c35 + dv_boom_cyl_l_barrel_theta_x
+    c44 = -c43
+    c45 = 2*v_boom_cyl_l_barrel_theta_x
+    c46 = 2*v_boom_cyl_l_barrel_theta_y
+    c47 = -c36
+    c48 = -c42
+    c49 = dv_boom_cyl_l_rod_z - dv_boom_cyl_l_barrel_z + c42*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_barrel_y + c46*v_boom_cyl_l_rod_x + c47*boom_cyl_l_rod_y + c48*boom_cyl_l_rod_z + c33*boom_cyl_l_rod_x + c34*boom_cyl_l_barrel_x + c36*boom_cyl_l_barrel_y - c45*v_boom_cyl_l_rod_y - c46*v_boom_cyl_l_barrel_x
+    c50 = 2*v_boom_cyl_l_barrel_theta_z
+    c51 = -c28
+    c52 = -c38
+    c53 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + c28*boom_cyl_l_barrel_x + c38*boom_cyl_l_barrel_y + c43*boom_cyl_l_rod_z + c44*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_rod_z + c50*v_boom_cyl_l_barrel_x + c51*boom_cyl_l_rod_x + c52*boom_cyl_l_rod_y - c45*v_boom_cyl_l_barrel_z - c50*v_boom_cyl_l_rod_x
+    c54 = -c41
+    c55 = -c31
+    c56 = dv_boom_cyl_l_rod_x - dv_boom_cyl_l_barrel_x + c39*boom_cyl_l_rod_y + c40*boom_cyl_l_barrel_y + c41*boom_cyl_l_barrel_z + c46*v_boom_cyl_l_barrel_z + c50*v_boom_cyl_l_rod_y + c54*boom_cyl_l_rod_z + c55*boom_cyl_l_rod_x + c31*boom_cyl_l_barrel_x - c46*v_boom_cyl_l_rod_z - c50*v_boom_cyl_l_barrel_y
+    c57 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
+    c58 = 2*c57 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c59 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
+    c60 = 2*c59 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c61 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
+    c62 = 2*c61 - 2*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c63 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c64 = -c61 + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c65 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c66 = c59 - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c67 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c68 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c69 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c70 = -c57 + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c71 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c72 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y
+    c73 = dv_arm_cyl_barrel_theta_z - c72
+    c74 = v_arm_cyl_barrel_theta_y**2
+    c75 = v_arm_cyl_barrel_theta_z**2
+    c76 = c74 + c75
+    c77 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z
+    c78 = c77 + dv_arm_cyl_barrel_theta_y
+    c79 = -c78
+    c80 = v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z
+    c81 = dv_arm_cyl_barrel_theta_x - c80
+    c82 = v_arm_cyl_barrel_theta_x**2
+    c83 = c82 + c75
+    c84 = c72 + dv_arm_cyl_barrel_theta_z
+    c85 = -c84
+    c86 = dv_arm_cyl_barrel_theta_y - c77
+    c87 = c82 + c74
+    c88 = c80 + dv_arm_cyl_barrel_theta_x
+    c89 = -c88
+    c90 = 2*v_arm_cyl_barrel_theta_x
+    c91 = 2*v_arm_cyl_barrel_theta_y
+    c92 = -c81
+    c93 = -c87
+    c94 = dv_arm_cyl_rod_z - dv_arm_cyl_barrel_z + c87*arm_cyl_barrel_z + c90*v_arm_cyl_barrel_y + c91*v_arm_cyl_rod_x + c92*arm_cyl_rod_y + c93*arm_cyl_rod_z + c78*arm_cyl_rod_x + c79*arm_cyl_barrel_x + c81*arm_cyl_barrel_y - c90*v_arm_cyl_rod_y - c91*v_arm_cyl_barrel_x
+    c95 = 2*v_arm_cyl_barrel_theta_z
+    c96 = -c73
+    c97 = -c83
+    c98 = dv_arm_cyl_rod_y - dv_arm_cyl_barrel_y + c73*arm_cyl_barrel_x + c83*arm_cyl_barrel_y + c88*arm_cyl_rod_z + c89*arm_cyl_barrel_z + c90*v_arm_cyl_rod_z + c95*v_arm_cyl_barrel_x + c96*arm_cyl_rod_x + c97*arm_cyl_rod_y - c90*v_arm_cyl_barrel_z - c95*v_arm_cyl_rod_x
+    c99 = -c86
+    c100 = -c76
+    c101 = dv_arm_cyl_rod_x - dv_arm_cyl_barrel_x + c84*arm_cyl_rod_y + c85*arm_cyl_barrel_y + c86*arm_cyl_barrel_z + c91*v_arm_cyl_barrel_z + c95*v_arm_cyl_rod_y + c99*arm_cyl_rod_z + c100*arm_cyl_rod_x + c76*arm_cyl_barrel_x - c91*v_arm_cyl_rod_z - c95*v_arm_cyl_barrel_y
+    c102 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
+    c103 = 2*c102 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c104 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
+    c105 = 2*c104 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c106 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
+    c107 = 2*c106 - 2*arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c108 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c109 = -c106 + arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c110 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c111 = c104 - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c112 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c113 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c114 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c115 = -c102 + arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c116 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c117 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y
+    c118 = dv_bucket_cyl_barrel_theta_z - c117
+    c119 = v_bucket_cyl_barrel_theta_y**2
+    c120 = v_bucket_cyl_barrel_theta_z**2
+    c121 = c119 + c120
+    c122 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z
+    c123 = c122 + dv_bucket_cyl_barrel_theta_y
+    c124 = -c123
+    c125 = v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z
+    c126 = dv_bucket_cyl_barrel_theta_x - c125
+    c127 = v_bucket_cyl_barrel_theta_x**2
+    c128 = c127 + c120
+    c129 = c117 + dv_bucket_cyl_barrel_theta_z
+    c130 = -c129
+    c131 = dv_bucket_cyl_barrel_theta_y - c122
+    c132 = c127 + c119
+    c133 = c125 + dv_bucket_cyl_barrel_theta_x
+    c134 = -c133
+    c135 = 2*v_bucket_cyl_barrel_theta_x
+    c136 = 2*v_bucket_cyl_barrel_theta_y
+    c137 = -c126
+    c138 = -c132
+    c139 = dv_bucket_cyl_rod_z - dv_bucket_cyl_barrel_z + c132*bucket_cyl_barrel_z + c135*v_bucket_cyl_barrel_y + c136*v_bucket_cyl_rod_x + c137*bucket_cyl_rod_y + c138*bucket_cyl_rod_z + c123*bucket_cyl_rod_x + c124*bucket_cyl_barrel_x + c126*bucket_cyl_barrel_y - c135*v_bucket_cyl_rod_y - c136*v_bucket_cyl_barrel_x
+    c140 = 2*v_bucket_cyl_barrel_theta_z
+    c141 = -c118
+    c142 = -c128
+    c143 = dv_bucket_cyl_rod_y - dv_bucket_cyl_barrel_y + c118*bucket_cyl_barrel_x + c128*bucket_cyl_barrel_y + c133*bucket_cyl_rod_z + c134*bucket_cyl_barrel_z + c135*v_bucket_cyl_rod_z + c140*v_bucket_cyl_barrel_x + c141*bucket_cyl_rod_x + c142*bucket_cyl_rod_y - c135*v_bucket_cyl_barrel_z - c140*v_bucket_cyl_rod_x
+    c144 = -c131
+    c145 = -c121
+    c146 = dv_bucket_cyl_rod_x - dv_bucket_cyl_barrel_x + c129*bucket_cyl_rod_y + c130*bucket_cyl_barrel_y + c131*bucket_cyl_barrel_z + c136*v_bucket_cyl_barrel_z + c140*v_bucket_cyl_rod_y + c144*bucket_cyl_rod_z + c145*bucket_cyl_rod_x + c121*bucket_cyl_barrel_x - c136*v_bucket_cyl_rod_z - c140*v_bucket_cyl_barrel_y
+    c147 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
+    c148 = 2*c147 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c149 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
+    c150 = 2*c149 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c151 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
+    c152 = 2*c151 - 2*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c153 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c154 = -c151 + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c155 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c156 = c149 - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c157 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c158 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c159 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c160 = -c147 + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c161 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(60, q, u)
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5
+    out[3] = (1/2)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2*ud0*((1/2)*c1*upper_qy - c15*upper_qx) + (1/2)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2*ud0*(-c24 - c25)
+    out[5] = (1/2)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2*ud0*(c1*c6 - c15*upper_qz) + (1/2)*c2*upper_qz*v_upper_theta_z
+    out[6] = c28*boom_cyl_l_barrel_a10 + c31*boom_cyl_l_barrel_a00 + c34*boom_cyl_l_barrel_a20
+    out[7] = c38*boom_cyl_l_barrel_a10 + c40*boom_cyl_l_barrel_a00 + c36*boom_cyl_l_barrel_a20
+    out[8] = c41*boom_cyl_l_barrel_a00 + c42*boom_cyl_l_barrel_a20 + c44*boom_cyl_l_barrel_a10
+    out[9] = c49*boom_cyl_l_barrel_a10 - c53*boom_cyl_l_barrel_a20
+    out[10] = c56*boom_cyl_l_barrel_a20 - c49*boom_cyl_l_barrel_a00
+    out[11] = c53*boom_cyl_l_barrel_a00 - c56*boom_cyl_l_barrel_a10
+    out[12] = c51*boom_cyl_l_barrel_a10 + c55*boom_cyl_l_barrel_a00 + c33*boom_cyl_l_barrel_a20
+    out[13] = c39*boom_cyl_l_barrel_a00 + c47*boom_cyl_l_barrel_a20 + c52*boom_cyl_l_barrel_a10
+    out[14] = c43*boom_cyl_l_barrel_a10 + c48*boom_cyl_l_barrel_a20 + c54*boom_cyl_l_barrel_a00
+    out[15] = c58
+    out[16] = -c60
+    out[17] = c62
+    out[18] = c63*c64 + c67*boom_cyl_l_barrel_a10 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_y - c65*c66 - c68*boom_cyl_l_barrel_a20 - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y
+    out[19] = c65*c70 + c71*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x - c64*c69 - c67*boom_cyl_l_barrel_a00 - boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_x
+    out[20] = c66*c69 + c68*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_x - c63*c70 - c71*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x
+    out[21] = -c58
+    out[22] = c60
+    out[23] = -c62
+    out[24] = c73*arm_cyl_barrel_a10 + c76*arm_cyl_barrel_a00 + c79*arm_cyl_barrel_a20
+    out[25] = c83*arm_cyl_barrel_a10 + c85*arm_cyl_barrel_a00 + c81*arm_cyl_barrel_a20
+    out[26] = c86*arm_cyl_barrel_a00 + c87*arm_cyl_barrel_a20 + c89*arm_cyl_barrel_a10
+    out[27] = c94*arm_cyl_barrel_a10 - c98*arm_cyl_barrel_a20
+    out[28] = c101*arm_cyl_barrel_a20 - c94*arm_cyl_barrel_a00
+    out[29] = c98*arm_cyl_barrel_a00 - c101*arm_cyl_barrel_a10
+    out[30] = c96*arm_cyl_barrel_a10 + c100*arm_cyl_barrel_a00 + c78*arm_cyl_barrel_a20
+    out[31] = c84*arm_cyl_barrel_a00 + c92*arm_cyl_barrel_a20 + c97*arm_cyl_barrel_a10
+    out[32] = c88*arm_cyl_barrel_a10 + c93*arm_cyl_barrel_a20 + c99*arm_cyl_barrel_a00
+    out[33] = c103
+    out[34] = -c105
+    out[35] = c107
+    out[36] = c108*c109 + c112*arm_cyl_barrel_a10 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c110*c111 - c113*arm_cyl_barrel_a20 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_rod_y
+    out[37] = c110*c115 + c116*arm_cyl_barrel_a20 + arm_cyl_barrel_a00*v_arm_cyl_barrel_z + arm_cyl_barrel_a20*v_arm_cyl_rod_x - c109*c114 - c112*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
+    out[38] = c111*c114 + c113*arm_cyl_barrel_a00 + arm_cyl_barrel_a00*v_arm_cyl_rod_y + arm_cyl_barrel_a10*v_arm_cyl_barrel_x - c108*c115 - c116*arm_cyl_barrel_a10 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y - arm_cyl_barrel_a10*v_arm_cyl_rod_x
+    out[39] = -c103
+    out[40] = c105
+    out[41] = -c107
+    out[42] = c118*bucket_cyl_barrel_a10 + c121*bucket_cyl_barrel_a00 + c124*bucket_cyl_barrel_a20
+    out[43] = c128*bucket_cyl_barrel_a10 + c130*bucket_cyl_barrel_a00 + c126*bucket_cyl_barrel_a20
+    out[44] = c131*bucket_cyl_barrel_a00 + c132*bucket_cyl_barrel_a20 + c134*bucket_cyl_barrel_a10
+    out[45] = c139*bucket_cyl_barrel_a10 - c143*bucket_cyl_barrel_a20
+    out[46] = c146*bucket_cyl_barrel_a20 - c139*bucket_cyl_barrel_a00
+    out[47] = c143*bucket_cyl_barrel_a00 - c146*bucket_cyl_barrel_a10
+    out[48] = c141*bucket_cyl_barrel_a10 + c145*bucket_cyl_barrel_a00 + c123*bucket_cyl_barrel_a20
+    out[49] = c129*bucket_cyl_barrel_a00 + c137*bucket_cyl_barrel_a20 + c142*bucket_cyl_barrel_a10
+    out[50] = c133*bucket_cyl_barrel_a10 + c138*bucket_cyl_barrel_a20 + c144*bucket_cyl_barrel_a00
+    out[51] = c148
+    out[52] = -c150
+    out[53] = c152
+    out[54] = c153*c154 + c157*bucket_cyl_barrel_a10 + bucket_cyl_barrel_a10*v_bucket_cyl_rod_z + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_y - c155*c156 - c158*bucket_cyl_barrel_a20 - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a20*v_bucket_cyl_rod_y
+    out[55] = c155*c160 + c161*bucket_cyl_barrel_a20 + bucket_cyl_barrel_a00*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a20*v_bucket_cyl_rod_x - c154*c159 - c157*bucket_cyl_barrel_a00 - bucket_cyl_barrel_a00*v_bucket_cyl_rod_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_x
+    out[56] = c156*c159 + c158*bucket_cyl_barrel_a00 + bucket_cyl_barrel_a00*v_bucket_cyl_rod_y + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_x - c153*c160 - c161*bucket_cyl_barrel_a10 - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a10*v_bucket_cyl_rod_x
+    out[57] = -c148
+    out[58] = c150
+    out[59] = -c152
+    return out
+
+
+def dacc_bucket_stroke(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'bucket_stroke': values at dacc_rows, dacc_cols."""
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_bucket_stroke(q, v, a, u, ud, udd, p))
+
+
+def _drivers_phi_jac_s_bucket_stroke(q, u, p):
+    """Phi and Phi_q values of the driver rows of case 'bucket_stroke' at one configuration."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
+    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    return [-2.0*upper_qz*math.cos(c0) + 2.0*upper_qw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [-d1*upper_qx - d2*upper_qy, d2*upper_qx - d1*upper_qy, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def _drivers_nu_s_bucket_stroke(q, u, ud, p):
+    """nu of the driver rows of case 'bucket_stroke' at one configuration."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, ud3]
+
+
+def _drivers_gamma_s_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'bucket_stroke' at one configuration."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*upper_qw
+    c4 = c2*c3 - 1/2*c1*upper_qz
+    c5 = (1/2)*v_upper_theta_y
+    c6 = (1/2)*v_upper_theta_x
+    c7 = (1/2)*upper_qz
+    c8 = (1/2)*v_upper_theta_z
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c23 = -c20
+    c24 = -c22
+    return [c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx), udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x), udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x), udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x)]
+
+
+def phi_bucket_stroke(q, u, p):
+    """Phi(q, u) of case 'bucket_stroke': 84 residuals."""
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_stroke(q, u, p))
+
+
+def jac_bucket_stroke(q, u, p):
+    """Values of the sparse Phi_q of case 'bucket_stroke' at jac_rows, jac_cols (433 entries)."""
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_stroke(q, u, p))
+
+
+def nu_bucket_stroke(q, u, ud, p):
+    """nu = -Phi_t of case 'bucket_stroke' (zero in the joint rows)."""
+    drivers = _drivers_nu_bucket_stroke(q, u, ud, p)
+    return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
+
+
+def gamma_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_stroke'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_stroke(q, v, u, ud, udd, p))
+
+
+def phi_jac_s_bucket_stroke(q, u, p):
+    """Phi and the Phi_q values of case 'bucket_stroke' at one configuration (q, u: lists of floats)."""
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_stroke(q, u, p)
+    return phi + driver_phi, jac + driver_jac
+
+
+def nu_s_bucket_stroke(q, u, ud, p):
+    """nu of case 'bucket_stroke' at one configuration (list of floats)."""
+    return [0.0] * 80 + _drivers_nu_s_bucket_stroke(q, u, ud, p)
+
+
+def gamma_s_bucket_stroke(q, v, u, ud, udd, p):
+    """gamma of case 'bucket_stroke' at one configuration (list of floats)."""
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_stroke(q, v, u, ud, udd, p)
 
 
 def inputs_bucket_near_toggle(t):
@@ -3660,7 +10180,7 @@ def inputs_bucket_near_toggle(t):
     return out
 
 
-def _drivers_phi_bucket_near_toggle(q, u):
+def _drivers_phi_bucket_near_toggle(q, u, p):
     """Phi of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -3682,7 +10202,7 @@ def _drivers_phi_bucket_near_toggle(q, u):
     return out
 
 
-def _drivers_jac_bucket_near_toggle(q, u):
+def _drivers_jac_bucket_near_toggle(q, u, p):
     """Phi_q values of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3741,7 +10261,7 @@ def _drivers_jac_bucket_near_toggle(q, u):
     return out
 
 
-def _drivers_nu_bucket_near_toggle(q, u, ud):
+def _drivers_nu_bucket_near_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3755,7 +10275,7 @@ def _drivers_nu_bucket_near_toggle(q, u, ud):
     return out
 
 
-def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
+def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_near_toggle'."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -3804,7 +10324,348 @@ def _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd):
     return out
 
 
-def _drivers_phi_jac_s_bucket_near_toggle(q, u):
+def _drivers_phi_p_bucket_near_toggle(q, u, p):
+    """Phi_p values of the driver rows of case 'bucket_near_toggle'."""
+    out = _zeros(0, q, u)
+    return out
+
+
+def phi_p_bucket_near_toggle(q, u, p):
+    """Phi_p = dPhi/dp (n_p columns) of case 'bucket_near_toggle': values at phi_p_rows, phi_p_cols."""
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_bucket_near_toggle(q, u, p))
+
+
+def _drivers_dvel_bucket_near_toggle(q, v, u, ud, p):
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c4 = (1/2)*upper_qw
+    c5 = (1/2)*c2*ud0 - 1/2*c2*v_upper_theta_z
+    c6 = c1*ud0 - c1*v_upper_theta_z
+    c7 = (1/2)*c6
+    c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x
+    c9 = (1/2)*upper_qz
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c14 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c15 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c19 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c20 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c21 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c22 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c23 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c24 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c25 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c26 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c27 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(30, q, u)
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx
+    out[2] = c4*c6 + (1/2)*c8*upper_qx - c5*upper_qz - 1/2*c3*upper_qy
+    out[3] = c10
+    out[4] = -c11
+    out[5] = c12
+    out[6] = c13*boom_cyl_l_barrel_a10 - c14*boom_cyl_l_barrel_a20
+    out[7] = c15*boom_cyl_l_barrel_a20 - c13*boom_cyl_l_barrel_a00
+    out[8] = c14*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
+    out[9] = -c10
+    out[10] = c11
+    out[11] = -c12
+    out[12] = c16
+    out[13] = -c17
+    out[14] = c18
+    out[15] = c19*arm_cyl_barrel_a10 - c20*arm_cyl_barrel_a20
+    out[16] = c21*arm_cyl_barrel_a20 - c19*arm_cyl_barrel_a00
+    out[17] = c20*arm_cyl_barrel_a00 - c21*arm_cyl_barrel_a10
+    out[18] = -c16
+    out[19] = c17
+    out[20] = -c18
+    out[21] = c22
+    out[22] = -c23
+    out[23] = c24
+    out[24] = c25*bucket_cyl_barrel_a10 - c26*bucket_cyl_barrel_a20
+    out[25] = c27*bucket_cyl_barrel_a20 - c25*bucket_cyl_barrel_a00
+    out[26] = c26*bucket_cyl_barrel_a00 - c27*bucket_cyl_barrel_a10
+    out[27] = -c22
+    out[28] = c23
+    out[29] = -c24
+    return out
+
+
+def dvel_bucket_near_toggle(q, v, u, ud, p):
+    """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'bucket_near_toggle': values at dvel_rows, dvel_cols."""
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_bucket_near_toggle(q, v, u, ud, p))
+
+
+def _drivers_dacc_bucket_near_toggle(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'bucket_near_toggle'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, _, _, _ = udd
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_x
+    c4 = c1*v_upper_theta_y
+    c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0
+    c6 = (1/2)*upper_qw
+    c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y
+    c8 = (1/2)*upper_qz
+    c9 = ud0**2
+    c10 = (1/2)*c1
+    c11 = v_upper_theta_x**2
+    c12 = v_upper_theta_y**2
+    c13 = v_upper_theta_z**2
+    c14 = (1/2)*c2*udd0 - 1/2*c10*c11 - 1/2*c10*c12 - 1/2*c10*c13 - 1/2*c10*c9 - 1/2*c2*dv_upper_theta_z + (1/2)*c1*ud0*v_upper_theta_z
+    c15 = (1/2)*c2
+    c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z
+    c17 = (1/2)*c16
+    c18 = (1/2)*upper_qx
+    c19 = (1/2)*upper_qy
+    c20 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c21 = -c3 - c4
+    c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z
+    c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x
+    c24 = c10*upper_qx
+    c25 = c15*upper_qy
+    c26 = c6*v_upper_theta_z
+    c27 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y
+    c28 = dv_boom_cyl_l_barrel_theta_z - c27
+    c29 = v_boom_cyl_l_barrel_theta_y**2
+    c30 = v_boom_cyl_l_barrel_theta_z**2
+    c31 = c29 + c30
+    c32 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z
+    c33 = c32 + dv_boom_cyl_l_barrel_theta_y
+    c34 = -c33
+    c35 = v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z
+    c36 = dv_boom_cyl_l_barrel_theta_x - c35
+    c37 = v_boom_cyl_l_barrel_theta_x**2
+    c38 = c37 + c30
+    c39 = c27 + dv_boom_cyl_l_barrel_theta_z
+    c40 = -c39
+    c41 = dv_boom_cyl_l_barrel_theta_y - c32
+    c42 = c37 + c29
+    c43 = c35 + dv_boom_cyl_l_barrel_theta_x
+    c44 = -c43
+    c45 = 2*v_boom_cyl_l_barrel_theta_x
+    c46 = 2*v_boom_cyl_l_barrel_theta_y
+    c47 = -c36
+    c48 = -c42
+    c49 = dv_boom_cyl_l_rod_z - dv_boom_cyl_l_barrel_z + c42*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_barrel_y + c46*v_boom_cyl_l_rod_x + c47*boom_cyl_l_rod_y + c48*boom_cyl_l_rod_z + c33*boom_cyl_l_rod_x + c34*boom_cyl_l_barrel_x + c36*boom_cyl_l_barrel_y - c45*v_boom_cyl_l_rod_y - c46*v_boom_cyl_l_barrel_x
+    c50 = 2*v_boom_cyl_l_barrel_theta_z
+    c51 = -c28
+    c52 = -c38
+    c53 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + c28*boom_cyl_l_barrel_x + c38*boom_cyl_l_barrel_y + c43*boom_cyl_l_rod_z + c44*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_rod_z + c50*v_boom_cyl_l_barrel_x + c51*boom_cyl_l_rod_x + c52*boom_cyl_l_rod_y - c45*v_boom_cyl_l_barrel_z - c50*v_boom_cyl_l_rod_x
+    c54 = -c41
+    c55 = -c31
+    c56 = dv_boom_cyl_l_rod_x - dv_boom_cyl_l_barrel_x + c39*boom_cyl_l_rod_y + c40*boom_cyl_l_barrel_y + c41*boom_cyl_l_barrel_z + c46*v_boom_cyl_l_barrel_z + c50*v_boom_cyl_l_rod_y + c54*boom_cyl_l_rod_z + c55*boom_cyl_l_rod_x + c31*boom_cyl_l_barrel_x - c46*v_boom_cyl_l_rod_z - c50*v_boom_cyl_l_barrel_y
+    c57 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
+    c58 = 2*c57 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c59 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
+    c60 = 2*c59 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c61 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
+    c62 = 2*c61 - 2*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c63 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c64 = -c61 + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c65 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c66 = c59 - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c67 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c68 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c69 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c70 = -c57 + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c71 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c72 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y
+    c73 = dv_arm_cyl_barrel_theta_z - c72
+    c74 = v_arm_cyl_barrel_theta_y**2
+    c75 = v_arm_cyl_barrel_theta_z**2
+    c76 = c74 + c75
+    c77 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z
+    c78 = c77 + dv_arm_cyl_barrel_theta_y
+    c79 = -c78
+    c80 = v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z
+    c81 = dv_arm_cyl_barrel_theta_x - c80
+    c82 = v_arm_cyl_barrel_theta_x**2
+    c83 = c82 + c75
+    c84 = c72 + dv_arm_cyl_barrel_theta_z
+    c85 = -c84
+    c86 = dv_arm_cyl_barrel_theta_y - c77
+    c87 = c82 + c74
+    c88 = c80 + dv_arm_cyl_barrel_theta_x
+    c89 = -c88
+    c90 = 2*v_arm_cyl_barrel_theta_x
+    c91 = 2*v_arm_cyl_barrel_theta_y
+    c92 = -c81
+    c93 = -c87
+    c94 = dv_arm_cyl_rod_z - dv_arm_cyl_barrel_z + c87*arm_cyl_barrel_z + c90*v_arm_cyl_barrel_y + c91*v_arm_cyl_rod_x + c92*arm_cyl_rod_y + c93*arm_cyl_rod_z + c78*arm_cyl_rod_x + c79*arm_cyl_barrel_x + c81*arm_cyl_barrel_y - c90*v_arm_cyl_rod_y - c91*v_arm_cyl_barrel_x
+    c95 = 2*v_arm_cyl_barrel_theta_z
+    c96 = -c73
+    c97 = -c83
+    c98 = dv_arm_cyl_rod_y - dv_arm_cyl_barrel_y + c73*arm_cyl_barrel_x + c83*arm_cyl_barrel_y + c88*arm_cyl_rod_z + c89*arm_cyl_barrel_z + c90*v_arm_cyl_rod_z + c95*v_arm_cyl_barrel_x + c96*arm_cyl_rod_x + c97*arm_cyl_rod_y - c90*v_arm_cyl_barrel_z - c95*v_arm_cyl_rod_x
+    c99 = -c86
+    c100 = -c76
+    c101 = dv_arm_cyl_rod_x - dv_arm_cyl_barrel_x + c84*arm_cyl_rod_y + c85*arm_cyl_barrel_y + c86*arm_cyl_barrel_z + c91*v_arm_cyl_barrel_z + c95*v_arm_cyl_rod_y + c99*arm_cyl_rod_z + c100*arm_cyl_rod_x + c76*arm_cyl_barrel_x - c91*v_arm_cyl_rod_z - c95*v_arm_cyl_barrel_y
+    c102 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
+    c103 = 2*c102 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c104 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
+    c105 = 2*c104 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c106 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
+    c107 = 2*c106 - 2*arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c108 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c109 = -c106 + arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c110 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c111 = c104 - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c112 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c113 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c114 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c115 = -c102 + arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c116 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c117 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y
+    c118 = dv_bucket_cyl_barrel_theta_z - c117
+    c119 = v_bucket_cyl_barrel_theta_y**2
+    c120 = v_bucket_cyl_barrel_theta_z**2
+    c121 = c119 + c120
+    c122 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z
+    c123 = c122 + dv_bucket_cyl_barrel_theta_y
+    c124 = -c123
+    c125 = v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z
+    c126 = dv_bucket_cyl_barrel_theta_x - c125
+    c127 = v_bucket_cyl_barrel_theta_x**2
+    c128 = c127 + c120
+    c129 = c117 + dv_bucket_cyl_barrel_theta_z
+    c130 = -c129
+    c131 = dv_bucket_cyl_barrel_theta_y - c122
+    c132 = c127 + c119
+    c133 = c125 + dv_bucket_cyl_barrel_theta_x
+    c134 = -c133
+    c135 = 2*v_bucket_cyl_barrel_theta_x
+    c136 = 2*v_bucket_cyl_barrel_theta_y
+    c137 = -c126
+    c138 = -c132
+    c139 = dv_bucket_cyl_rod_z - dv_bucket_cyl_barrel_z + c132*bucket_cyl_barrel_z + c135*v_bucket_cyl_barrel_y + c136*v_bucket_cyl_rod_x + c137*bucket_cyl_rod_y + c138*bucket_cyl_rod_z + c123*bucket_cyl_rod_x + c124*bucket_cyl_barrel_x + c126*bucket_cyl_barrel_y - c135*v_bucket_cyl_rod_y - c136*v_bucket_cyl_barrel_x
+    c140 = 2*v_bucket_cyl_barrel_theta_z
+    c141 = -c118
+    c142 = -c128
+    c143 = dv_bucket_cyl_rod_y - dv_bucket_cyl_barrel_y + c118*bucket_cyl_barrel_x + c128*bucket_cyl_barrel_y + c133*bucket_cyl_rod_z + c134*bucket_cyl_barrel_z + c135*v_bucket_cyl_rod_z + c140*v_bucket_cyl_barrel_x + c141*bucket_cyl_rod_x + c142*bucket_cyl_rod_y - c135*v_bucket_cyl_barrel_z - c140*v_bucket_cyl_rod_x
+    c144 = -c131
+    c145 = -c121
+    c146 = dv_bucket_cyl_rod_x - dv_bucket_cyl_barrel_x + c129*bucket_cyl_rod_y + c130*bucket_cyl_barrel_y + c131*bucket_cyl_barrel_z + c136*v_bucket_cyl_barrel_z + c140*v_bucket_cyl_rod_y + c144*bucket_cyl_rod_z + c145*bucket_cyl_rod_x + c121*bucket_cyl_barrel_x - c136*v_bucket_cyl_rod_z - c140*v_bucket_cyl_barrel_y
+    c147 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
+    c148 = 2*c147 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c149 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
+    c150 = 2*c149 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c151 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
+    c152 = 2*c151 - 2*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c153 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c154 = -c151 + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c155 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c156 = c149 - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c157 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c158 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c159 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c160 = -c147 + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c161 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(60, q, u)
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5
+    out[3] = (1/2)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2*ud0*((1/2)*c1*upper_qy - c15*upper_qx) + (1/2)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2*ud0*(-c24 - c25)
+    out[5] = (1/2)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2*ud0*(c1*c6 - c15*upper_qz) + (1/2)*c2*upper_qz*v_upper_theta_z
+    out[6] = c28*boom_cyl_l_barrel_a10 + c31*boom_cyl_l_barrel_a00 + c34*boom_cyl_l_barrel_a20
+    out[7] = c38*boom_cyl_l_barrel_a10 + c40*boom_cyl_l_barrel_a00 + c36*boom_cyl_l_barrel_a20
+    out[8] = c41*boom_cyl_l_barrel_a00 + c42*boom_cyl_l_barrel_a20 + c44*boom_cyl_l_barrel_a10
+    out[9] = c49*boom_cyl_l_barrel_a10 - c53*boom_cyl_l_barrel_a20
+    out[10] = c56*boom_cyl_l_barrel_a20 - c49*boom_cyl_l_barrel_a00
+    out[11] = c53*boom_cyl_l_barrel_a00 - c56*boom_cyl_l_barrel_a10
+    out[12] = c51*boom_cyl_l_barrel_a10 + c55*boom_cyl_l_barrel_a00 + c33*boom_cyl_l_barrel_a20
+    out[13] = c39*boom_cyl_l_barrel_a00 + c47*boom_cyl_l_barrel_a20 + c52*boom_cyl_l_barrel_a10
+    out[14] = c43*boom_cyl_l_barrel_a10 + c48*boom_cyl_l_barrel_a20 + c54*boom_cyl_l_barrel_a00
+    out[15] = c58
+    out[16] = -c60
+    out[17] = c62
+    out[18] = c63*c64 + c67*boom_cyl_l_barrel_a10 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_y - c65*c66 - c68*boom_cyl_l_barrel_a20 - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y
+    out[19] = c65*c70 + c71*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x - c64*c69 - c67*boom_cyl_l_barrel_a00 - boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_x
+    out[20] = c66*c69 + c68*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_x - c63*c70 - c71*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x
+    out[21] = -c58
+    out[22] = c60
+    out[23] = -c62
+    out[24] = c73*arm_cyl_barrel_a10 + c76*arm_cyl_barrel_a00 + c79*arm_cyl_barrel_a20
+    out[25] = c83*arm_cyl_barrel_a10 + c85*arm_cyl_barrel_a00 + c81*arm_cyl_barrel_a20
+    out[26] = c86*arm_cyl_barrel_a00 + c87*arm_cyl_barrel_a20 + c89*arm_cyl_barrel_a10
+    out[27] = c94*arm_cyl_barrel_a10 - c98*arm_cyl_barrel_a20
+    out[28] = c101*arm_cyl_barrel_a20 - c94*arm_cyl_barrel_a00
+    out[29] = c98*arm_cyl_barrel_a00 - c101*arm_cyl_barrel_a10
+    out[30] = c96*arm_cyl_barrel_a10 + c100*arm_cyl_barrel_a00 + c78*arm_cyl_barrel_a20
+    out[31] = c84*arm_cyl_barrel_a00 + c92*arm_cyl_barrel_a20 + c97*arm_cyl_barrel_a10
+    out[32] = c88*arm_cyl_barrel_a10 + c93*arm_cyl_barrel_a20 + c99*arm_cyl_barrel_a00
+    out[33] = c103
+    out[34] = -c105
+    out[35] = c107
+    out[36] = c108*c109 + c112*arm_cyl_barrel_a10 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c110*c111 - c113*arm_cyl_barrel_a20 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_rod_y
+    out[37] = c110*c115 + c116*arm_cyl_barrel_a20 + arm_cyl_barrel_a00*v_arm_cyl_barrel_z + arm_cyl_barrel_a20*v_arm_cyl_rod_x - c109*c114 - c112*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
+    out[38] = c111*c114 + c113*arm_cyl_barrel_a00 + arm_cyl_barrel_a00*v_arm_cyl_rod_y + arm_cyl_barrel_a10*v_arm_cyl_barrel_x - c108*c115 - c116*arm_cyl_barrel_a10 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y - arm_cyl_barrel_a10*v_arm_cyl_rod_x
+    out[39] = -c103
+    out[40] = c105
+    out[41] = -c107
+    out[42] = c118*bucket_cyl_barrel_a10 + c121*bucket_cyl_barrel_a00 + c124*bucket_cyl_barrel_a20
+    out[43] = c128*bucket_cyl_barrel_a10 + c130*bucket_cyl_barrel_a00 + c126*bucket_cyl_barrel_a20
+    out[44] = c131*bucket_cyl_barrel_a00 + c132*bucket_cyl_barrel_a20 + c134*bucket_cyl_barrel_a10
+    out[45] = c139*bucket_cyl_barrel_a10 - c143*bucket_cyl_barrel_a20
+    out[46] = c146*bucket_cyl_barrel_a20 - c139*bucket_cyl_barrel_a00
+    out[47] = c143*bucket_cyl_barrel_a00 - c146*bucket_cyl_barrel_a10
+    out[48] = c141*bucket_cyl_barrel_a10 + c145*bucket_cyl_barrel_a00 + c123*bucket_cyl_barrel_a20
+    out[49] = c129*bucket_cyl_barrel_a00 + c137*bucket_cyl_barrel_a20 + c142*bucket_cyl_barrel_a10
+    out[50] = c133*bucket_cyl_barrel_a10 + c138*bucket_cyl_barrel_a20 + c144*bucket_cyl_barrel_a00
+    out[51] = c148
+    out[52] = -c150
+    out[53] = c152
+    out[54] = c153*c154 + c157*bucket_cyl_barrel_a10 + bucket_cyl_barrel_a10*v_bucket_cyl_rod_z + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_y - c155*c156 - c158*bucket_cyl_barrel_a20 - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a20*v_bucket_cyl_rod_y
+    out[55] = c155*c160 + c161*bucket_cyl_barrel_a20 + bucket_cyl_barrel_a00*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a20*v_bucket_cyl_rod_x - c154*c159 - c157*bucket_cyl_barrel_a00 - bucket_cyl_barrel_a00*v_bucket_cyl_rod_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_x
+    out[56] = c156*c159 + c158*bucket_cyl_barrel_a00 + bucket_cyl_barrel_a00*v_bucket_cyl_rod_y + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_x - c153*c160 - c161*bucket_cyl_barrel_a10 - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a10*v_bucket_cyl_rod_x
+    out[57] = -c148
+    out[58] = c150
+    out[59] = -c152
+    return out
+
+
+def dacc_bucket_near_toggle(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'bucket_near_toggle': values at dacc_rows, dacc_cols."""
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_bucket_near_toggle(q, v, a, u, ud, udd, p))
+
+
+def _drivers_phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and Phi_q values of the driver rows of case 'bucket_near_toggle' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, u1, u2, u3 = u
@@ -3833,7 +10694,7 @@ def _drivers_phi_jac_s_bucket_near_toggle(q, u):
     return [-2.0*upper_qz*math.cos(c0) + 2.0*upper_qw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [-d1*upper_qx - d2*upper_qy, d2*upper_qx - d1*upper_qy, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
 
 
-def _drivers_nu_s_bucket_near_toggle(q, u, ud):
+def _drivers_nu_s_bucket_near_toggle(q, u, ud, p):
     """nu of the driver rows of case 'bucket_near_toggle' at one configuration."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     u0, _, _, _ = u
@@ -3842,7 +10703,7 @@ def _drivers_nu_s_bucket_near_toggle(q, u, ud):
     return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, ud3]
 
 
-def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of the driver rows of case 'bucket_near_toggle' at one configuration."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
@@ -3886,42 +10747,42 @@ def _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd):
     return [c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx), udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x), udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x), udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x)]
 
 
-def phi_bucket_near_toggle(q, u):
+def phi_bucket_near_toggle(q, u, p):
     """Phi(q, u) of case 'bucket_near_toggle': 84 residuals."""
-    return _join(_joints_phi(q), _drivers_phi_bucket_near_toggle(q, u))
+    return _join(_joints_phi(q, p), _drivers_phi_bucket_near_toggle(q, u, p))
 
 
-def jac_bucket_near_toggle(q, u):
+def jac_bucket_near_toggle(q, u, p):
     """Values of the sparse Phi_q of case 'bucket_near_toggle' at jac_rows, jac_cols (433 entries)."""
-    return _join(_joints_jac(q), _drivers_jac_bucket_near_toggle(q, u))
+    return _join(_joints_jac(q, p), _drivers_jac_bucket_near_toggle(q, u, p))
 
 
-def nu_bucket_near_toggle(q, u, ud):
+def nu_bucket_near_toggle(q, u, ud, p):
     """nu = -Phi_t of case 'bucket_near_toggle' (zero in the joint rows)."""
-    drivers = _drivers_nu_bucket_near_toggle(q, u, ud)
+    drivers = _drivers_nu_bucket_near_toggle(q, u, ud, p)
     return _join(np.zeros((80,) + drivers.shape[1:]), drivers)
 
 
-def gamma_bucket_near_toggle(q, v, u, ud, udd):
+def gamma_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'bucket_near_toggle'."""
-    return _join(_joints_gamma(q, v), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd))
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_bucket_near_toggle(q, v, u, ud, udd, p))
 
 
-def phi_jac_s_bucket_near_toggle(q, u):
+def phi_jac_s_bucket_near_toggle(q, u, p):
     """Phi and the Phi_q values of case 'bucket_near_toggle' at one configuration (q, u: lists of floats)."""
-    phi, jac = _joints_phi_jac_s(q)
-    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u)
+    phi, jac = _joints_phi_jac_s(q, p)
+    driver_phi, driver_jac = _drivers_phi_jac_s_bucket_near_toggle(q, u, p)
     return phi + driver_phi, jac + driver_jac
 
 
-def nu_s_bucket_near_toggle(q, u, ud):
+def nu_s_bucket_near_toggle(q, u, ud, p):
     """nu of case 'bucket_near_toggle' at one configuration (list of floats)."""
-    return [0.0] * 80 + _drivers_nu_s_bucket_near_toggle(q, u, ud)
+    return [0.0] * 80 + _drivers_nu_s_bucket_near_toggle(q, u, ud, p)
 
 
-def gamma_s_bucket_near_toggle(q, v, u, ud, udd):
+def gamma_s_bucket_near_toggle(q, v, u, ud, udd, p):
     """gamma of case 'bucket_near_toggle' at one configuration (list of floats)."""
-    return _joints_gamma_s(q, v) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd)
+    return _joints_gamma_s(q, v, p) + _drivers_gamma_s_bucket_near_toggle(q, v, u, ud, udd, p)
 
 
 CASES = {
@@ -3934,6 +10795,9 @@ CASES = {
         'driver_sources': (('cases.digging.drivers.swing_angle.function', 'pi/4*(tanh((t - 8.5)/0.5) - tanh((t - 13.5)/0.5))'), ('cases.digging.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((t - 1.5)/0.5)) + 0.425*(1 + tanh((t - 7)/0.5)) - 0.2*(1 + tanh((t - 14.5)/0.5))'), ('cases.digging.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((t - 1.5)/0.5)) + 0.375*(1 + tanh((t - 4.5)/0.5)) - 0.425*(1 + tanh((t - 11.5)/0.5)) - 0.175*(1 + tanh((t - 14.5)/0.5))'), ('cases.digging.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((t - 4.5)/0.5)) - 0.375*(1 + tanh((t - 11.5)/0.5)) + 0.05*(1 + tanh((t - 14.5)/0.5))')),
         'inputs': inputs_digging, 'phi': phi_digging, 'jac': jac_digging, 'nu': nu_digging, 'gamma': gamma_digging,
         'phi_jac_s': phi_jac_s_digging, 'nu_s': nu_s_digging, 'gamma_s': gamma_s_digging,
+        'phi_p': phi_p_digging, 'phi_p_rows': (19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), 'phi_p_cols': (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5),
+        'dvel': dvel_digging, 'dvel_rows': (3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dvel_cols': (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        'dacc': dacc_digging, 'dacc_rows': (3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dacc_cols': (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146),
     },
     'level_cut': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'tip_x', 'tip_z', 'bucket_attitude'),
@@ -3944,6 +10808,9 @@ CASES = {
         'driver_sources': (('cases.level_cut.drivers.swing_angle.function', '0'), ('cases.level_cut.drivers.tip_x.function', '7.9 - 3.4*(10*(t/4)**3 - 15*(t/4)**4 + 6*(t/4)**5)'), ('cases.level_cut.drivers.tip_z.function', '-1.0'), ('cases.level_cut.drivers.bucket_attitude.function', '13*pi/18')),
         'inputs': inputs_level_cut, 'phi': phi_level_cut, 'jac': jac_level_cut, 'nu': nu_level_cut, 'gamma': gamma_level_cut,
         'phi_jac_s': phi_jac_s_level_cut, 'nu_s': nu_s_level_cut, 'gamma_s': gamma_s_level_cut,
+        'phi_p': phi_p_level_cut, 'phi_p_rows': (19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), 'phi_p_cols': (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5),
+        'dvel': dvel_level_cut, 'dvel_rows': (3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 82, 82, 82, 83, 83, 83), 'dvel_cols': (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 81, 82, 83, 81, 82, 83, 81, 82, 83),
+        'dacc': dacc_level_cut, 'dacc_rows': (3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83), 'dacc_cols': (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167),
     },
     'trench_wall': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'tip_x', 'tip_z', 'bucket_attitude'),
@@ -3954,6 +10821,9 @@ CASES = {
         'driver_sources': (('cases.trench_wall.drivers.swing_angle.function', '0'), ('cases.trench_wall.drivers.tip_x.function', '6.0'), ('cases.trench_wall.drivers.tip_z.function', '0.5 - 3*(10*(t/4)**3 - 15*(t/4)**4 + 6*(t/4)**5)'), ('cases.trench_wall.drivers.bucket_attitude.function', '13*pi/18')),
         'inputs': inputs_trench_wall, 'phi': phi_trench_wall, 'jac': jac_trench_wall, 'nu': nu_trench_wall, 'gamma': gamma_trench_wall,
         'phi_jac_s': phi_jac_s_trench_wall, 'nu_s': nu_s_trench_wall, 'gamma_s': gamma_s_trench_wall,
+        'phi_p': phi_p_trench_wall, 'phi_p_rows': (19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), 'phi_p_cols': (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5),
+        'dvel': dvel_trench_wall, 'dvel_rows': (3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 82, 82, 82, 83, 83, 83), 'dvel_cols': (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 81, 82, 83, 81, 82, 83, 81, 82, 83),
+        'dacc': dacc_trench_wall, 'dacc_rows': (3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83), 'dacc_cols': (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167),
     },
     'bucket_toggle': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
@@ -3964,6 +10834,22 @@ CASES = {
         'driver_sources': (('cases.bucket_toggle.drivers.swing_angle.function', '0'), ('cases.bucket_toggle.drivers.boom_length.function', '2.507892'), ('cases.bucket_toggle.drivers.arm_length.function', '1.943212'), ('cases.bucket_toggle.drivers.bucket_length.function', '2.5 + 0.1*t')),
         'inputs': inputs_bucket_toggle, 'phi': phi_bucket_toggle, 'jac': jac_bucket_toggle, 'nu': nu_bucket_toggle, 'gamma': gamma_bucket_toggle,
         'phi_jac_s': phi_jac_s_bucket_toggle, 'nu_s': nu_s_bucket_toggle, 'gamma_s': gamma_s_bucket_toggle,
+        'phi_p': phi_p_bucket_toggle, 'phi_p_rows': (19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), 'phi_p_cols': (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5),
+        'dvel': dvel_bucket_toggle, 'dvel_rows': (3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dvel_cols': (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        'dacc': dacc_bucket_toggle, 'dacc_rows': (3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dacc_cols': (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146),
+    },
+    'bucket_stroke': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83),
+        'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 0, 4, 5, 12, 1, 3, 5, 13, 2, 3, 4, 14, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 6, 10, 11, 18, 7, 9, 11, 19, 8, 9, 10, 20, 0, 4, 5, 24, 1, 3, 5, 25, 2, 3, 4, 26, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 6, 10, 11, 30, 7, 9, 11, 31, 8, 9, 10, 32, 6, 10, 11, 36, 7, 9, 11, 37, 8, 9, 10, 38, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 6, 10, 11, 42, 7, 9, 11, 43, 8, 9, 10, 44, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 36, 40, 41, 48, 37, 39, 41, 49, 38, 39, 40, 50, 36, 40, 41, 78, 37, 39, 41, 79, 38, 39, 40, 80, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 36, 40, 41, 66, 37, 39, 41, 67, 38, 39, 40, 68, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 66, 70, 71, 72, 76, 77, 67, 69, 71, 73, 75, 77, 68, 69, 70, 74, 75, 76, 72, 78, 82, 83, 73, 79, 81, 83, 74, 80, 81, 82, 75, 76, 77, 81, 82, 83, 36, 40, 41, 54, 37, 39, 41, 55, 38, 39, 40, 56, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 60, 66, 70, 71, 61, 67, 69, 71, 62, 68, 69, 70, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        't0': 0.0, 't1': 1.0, 'steps': 101,
+        'driver_sources': (('cases.bucket_stroke.drivers.swing_angle.function', '0'), ('cases.bucket_stroke.drivers.boom_length.function', '2.507892'), ('cases.bucket_stroke.drivers.arm_length.function', '1.943212'), ('cases.bucket_stroke.drivers.bucket_length.function', '1.6529 + (2.6613 - 1.6529)*t')),
+        'inputs': inputs_bucket_stroke, 'phi': phi_bucket_stroke, 'jac': jac_bucket_stroke, 'nu': nu_bucket_stroke, 'gamma': gamma_bucket_stroke,
+        'phi_jac_s': phi_jac_s_bucket_stroke, 'nu_s': nu_s_bucket_stroke, 'gamma_s': gamma_s_bucket_stroke,
+        'phi_p': phi_p_bucket_stroke, 'phi_p_rows': (19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), 'phi_p_cols': (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5),
+        'dvel': dvel_bucket_stroke, 'dvel_rows': (3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dvel_cols': (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        'dacc': dacc_bucket_stroke, 'dacc_rows': (3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dacc_cols': (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146),
     },
     'bucket_near_toggle': {
         'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
@@ -3974,5 +10860,8 @@ CASES = {
         'driver_sources': (('cases.bucket_near_toggle.drivers.swing_angle.function', '0'), ('cases.bucket_near_toggle.drivers.boom_length.function', '2.507892'), ('cases.bucket_near_toggle.drivers.arm_length.function', '1.943212'), ('cases.bucket_near_toggle.drivers.bucket_length.function', '2.5 + 0.235*sin(pi*t/2)')),
         'inputs': inputs_bucket_near_toggle, 'phi': phi_bucket_near_toggle, 'jac': jac_bucket_near_toggle, 'nu': nu_bucket_near_toggle, 'gamma': gamma_bucket_near_toggle,
         'phi_jac_s': phi_jac_s_bucket_near_toggle, 'nu_s': nu_s_bucket_near_toggle, 'gamma_s': gamma_s_bucket_near_toggle,
+        'phi_p': phi_p_bucket_near_toggle, 'phi_p_rows': (19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), 'phi_p_cols': (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5),
+        'dvel': dvel_bucket_near_toggle, 'dvel_rows': (3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dvel_cols': (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        'dacc': dacc_bucket_near_toggle, 'dacc_rows': (3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83), 'dacc_cols': (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146),
     },
 }

@@ -249,7 +249,7 @@ def solve(
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
     elapsed = time.perf_counter() - start
     done = results.converged
-    if system.design:
+    if design:
         click.echo("design: " + ", ".join(f"{name} = {value:g}" for name, value in system.design.items()))
     click.echo(
         f"{system.model}/{system.case} [{parametrization.name}]: {int(done.sum())} of {len(times)} time points, "

@@ -18,7 +18,7 @@ from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import ModelError
 from kinegen.model import load, loads
 from kinegen.runtime import from_module, solve
-from tests.conftest import MODELS
+from tests.conftest import GENERATED, MODELS
 
 PLAIN = (MODELS / "slider_crank.yaml").read_text()
 PARAMETERS = "parameters:\n  r: 0.2    # crank A-B\n  l: 0.6    # connecting rod B-C\n"
@@ -340,25 +340,23 @@ def test_slider_velocity_and_acceleration_sensitivities_are_the_closed_form_deri
             assert np.abs(computed[:, 1:]).max() < tolerance, (kind, name)
 
 
-def test_excavator_sensitivities_match_central_differences_of_rebuilt_models(tmp_path):
-    """The excavator with two pins as design parameters (the boom-cylinder rod pin's x on the
-    boom, the side link's pin J's z), the digging cycle (with its swing: rotations about more
-    than one axis) on 69 time points: the bucket tip's position, velocity and acceleration
-    sensitivities against central differences (h = 1e-5) of the model rebuilt at p ± h, to 1e-7
-    of the largest (measured ~1e-9). Compiled."""
-    from kinegen.bench.design import excavator_design_yaml
+def test_excavator_sensitivities_match_central_differences_of_rebuilt_models():
+    """The shipped excavator's module, two of its design parameters (the boom-cylinder rod pin's x
+    on the boom, the side link's length), away from the nominal design, over the digging cycle
+    (with its swing: rotations about more than one axis) on 69 time points: the bucket tip's
+    position, velocity and acceleration sensitivities against central differences (h = 1e-5) of
+    the model rebuilt at p ± h, to 1e-7 of the largest (measured ~1e-9). Compiled."""
     from kinegen.codegen import generate
+    from kinegen.runtime import load_module
     from kinegen.runtime.system import module_from_source
 
-    names = ("C_x", "J_z")
-    text = excavator_design_yaml(names)
-    module = _design_module(tmp_path, text, "quaternion", "excavator_design.yaml")
-    model = loads(text, "excavator_design.yaml")
+    model = load(MODELS / "excavator.yaml")
+    module = load_module(GENERATED / "excavator_quaternion.py", MODELS / "excavator.yaml")
     times = np.linspace(0.0, 17.0, 69)
-    at = {"C_x": 1.40, "J_z": 0.49}
+    at = {"C_x": 1.40, "side_link": 0.59}
     results = solve(from_module(module, "digging", compiled=True, design=at), times)
     h = 1e-5
-    for name in names:
+    for name in at:
         shifted = []
         for sign in (1, -1):
             rebuilt_model = model.at(dict(at, **{name: at[name] + sign * h}))
@@ -466,3 +464,30 @@ def test_actuator_ranges_and_working_range_inputs_may_use_design_parameters(tmp_
     with pytest.raises(ModelError) as error:
         loads(text.replace("range: [s_min, 0.79]", "range: [s_min, 0.3]"), "bad.yaml")
     assert error.value.entry == "actuators.stroke.range" and "min < max" in error.value.problem
+
+
+@pytest.mark.parametrize("compiled", [False, True])
+def test_configuration_sensitivities_by_inputs_and_design_are_the_closed_form(tmp_path, compiled):
+    """At solved configurations (not a trajectory): the slider x = r cos θ + sqrt(l² − r² sin² θ)
+    differentiated by the crank angle θ (a driver input) and by r and l, to 1e-10."""
+    from kinegen.runtime.sensitivity import point_position_sensitivities
+
+    module = _design_module(tmp_path, design_model())
+    system = from_module(module, "run", compiled=compiled, design={"r": 0.21, "l": 0.65})
+    results = solve(system)
+    pick = slice(None, None, 30)
+    q, u = results.q[pick].T, results.inputs[pick].T
+    theta = u[0]
+    w = np.sqrt(0.65**2 - 0.21**2 * np.sin(theta) ** 2)
+    positions, by_design, by_input = point_position_sensitivities(system, q, u, [("slider", "C"), ("crank", "B")])
+    assert np.abs(positions[:, 0, 0] - (0.21 * np.cos(theta) + w)).max() < 1e-10
+    dx_dtheta = -0.21 * np.sin(theta) - 0.21**2 * np.sin(theta) * np.cos(theta) / w
+    assert np.abs(by_input[:, 0, 0, 0] - dx_dtheta).max() < 1e-10
+    assert np.abs(by_design[:, 0, 0, 0] - (np.cos(theta) - 0.21 * np.sin(theta) ** 2 / w)).max() < 1e-10
+    assert np.abs(by_design[:, 0, 0, 1] - 0.65 / w).max() < 1e-10
+    # the crank pin B = r (cos θ, sin θ, 0)
+    assert np.abs(by_input[:, 1, :2, 0] - 0.21 * np.c_[-np.sin(theta), np.cos(theta)]).max() < 1e-12
+    assert np.abs(by_design[:, 1, :2, 0] - np.c_[np.cos(theta), np.sin(theta)]).max() < 1e-12
+    # one configuration, inputs only (any module: the envelope's refinement uses it)
+    one = point_position_sensitivities(system, q[:, :1], u[:, :1], [("slider", "C")], design=False)
+    assert one[1] is None and abs(one[2][0, 0, 0, 0] - dx_dtheta[0]) < 1e-10

@@ -83,11 +83,13 @@ def classify(
     """Classify Phi_q of ``case`` at time ``t``.
 
     ``report`` is an inspection already made in ``parametrization``; ``physical`` the
-    configuration in quaternion coordinates (default: solved at ``t``).
+    configuration in quaternion coordinates (default: solved at ``t``). A model with design
+    parameters is classified at their nominal values.
     """
     from kinegen.codegen.inmemory import lambdify_model
     from kinegen.runtime import from_module
 
+    model = model.at() if model.design else model
     quaternion = get("quaternion")
     numeric = numeric or from_module(lambdify_model(model, quaternion), case)
     if physical is None:

@@ -55,7 +55,9 @@ class Comparison:
 
 
 def compare(model: Model, case: str | None = None, parametrizations: tuple[str, ...] = DEFAULT, compiled: bool = True) -> list[Comparison]:
-    """Build and solve ``model``'s ``case`` (default: the first) in every parametrization."""
+    """Build and solve ``model``'s ``case`` (default: the first) in every parametrization (a model
+    with design parameters at their nominal values: ``model.at()``, the machine as drawn)."""
+    model = model.at() if model.design else model
     case = case or next(iter(model.cases))
     return [_one(model, case, rotations.get(name), compiled) for name in parametrizations]
 

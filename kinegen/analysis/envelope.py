@@ -17,18 +17,65 @@ and the ground plane z = 0):
 from __future__ import annotations
 
 import time
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
 
-from kinegen.model.schema import WorkingRange
+from kinegen.model.schema import WorkingRange, design_value
 from kinegen.runtime import NumericSystem, Solver
 from kinegen.runtime.batch import sweep_grid
 
 STAGE = 0.065  # of an input's range, per continuation stage
+POLISH_STEPS = 8  # Newton steps on the optimality conditions after SLSQP, at most
 FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height")
+
+
+@dataclass(frozen=True)
+class Figure:
+    """A working-range figure as an optimization over the swept inputs: minimize ``objective``
+    of the tracked points (the point, then the dump pivot: (P, 3) global positions), subject to
+    ``constraint`` = 0 when there is one; the figure is ``-objective`` at the optimum. The
+    gradients are in the tracked points' coordinates ((P, 3)), for the envelope theorem."""
+
+    name: str
+    objective: Callable[[np.ndarray], float]
+    gradient: Callable[[np.ndarray], np.ndarray]
+    constraint: Callable[[np.ndarray], float] | None = None
+    constraint_gradient: Callable[[np.ndarray], np.ndarray] | None = None
+
+
+def _horizontal(p: np.ndarray, k: int = 0) -> float:
+    return float(np.hypot(p[k, 0], p[k, 1]))
+
+
+def _horizontal_gradient(p: np.ndarray, k: int = 0) -> np.ndarray:
+    out = np.zeros_like(p)
+    out[k, :2] = p[k, :2] / _horizontal(p, k)
+    return out
+
+
+def _height_gradient(p: np.ndarray) -> np.ndarray:
+    out = np.zeros_like(p)
+    out[0, 2] = 1.0
+    return out
+
+
+FIGURE_TABLE = {
+    figure.name: figure
+    for figure in (
+        Figure("max_reach", lambda p: -_horizontal(p), lambda p: -_horizontal_gradient(p)),
+        Figure("max_reach_at_ground", lambda p: -_horizontal(p), lambda p: -_horizontal_gradient(p), lambda p: float(p[0, 2]), _height_gradient),
+        Figure("max_depth", lambda p: float(p[0, 2]), _height_gradient),
+        Figure("max_cutting_height", lambda p: -float(p[0, 2]), lambda p: -_height_gradient(p)),
+        Figure(
+            "max_dumping_height", lambda p: -float(p[0, 2]), lambda p: -_height_gradient(p),
+            lambda p: _horizontal(p, 0) - _horizontal(p, 1), lambda p: _horizontal_gradient(p, 0) - _horizontal_gradient(p, 1),
+        ),
+    )
+}  # fmt: skip
 
 
 @dataclass
@@ -46,6 +93,9 @@ class Envelope:
     solves: int = 0
     grid_seconds: float = 0.0  #: time of the batched grid sweep (continuation to its corner included)
     grid_solved: int = 0  #: grid configurations solved
+    #: figure -> (every driver input, the stored coordinates) at its refined optimum
+    optima: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    design: dict[str, float] = field(default_factory=dict)  #: the design values it was computed at
 
     def table(self) -> str:
         """The figures beside the published (unverified) values."""
@@ -69,8 +119,9 @@ class _Evaluator:
         self.names = [n for n in system.driver_names if isinstance(inputs[n], tuple)]
         self.base = np.array([v if not isinstance(v, tuple) else 0.5 * (v[0] + v[1]) for v in (inputs[n] for n in system.driver_names)])
         self.index = [system.driver_names.index(n) for n in self.names]
+        self.ranges = [inputs[n] for n in self.names]
         #: largest change of each input per Newton stage: continuation never jumps branches
-        self.stage = np.array([STAGE * (inputs[n][1] - inputs[n][0]) for n in self.names])
+        self.stage = np.array([STAGE * (high - low) for low, high in self.ranges])
         self.tracked = [(spec.point.body, spec.point.name)]
         if spec.dump_pivot is not None:
             self.tracked.append((spec.dump_pivot.body, spec.dump_pivot.name))
@@ -94,6 +145,14 @@ class _Evaluator:
         points = np.stack(out, axis=1)
         return points[0] if q.ndim == 1 else points
 
+    def derivatives(self) -> tuple[np.ndarray, np.ndarray]:
+        """The tracked points at the last solve (P, 3) and their exact derivatives by the swept
+        inputs (P, 3, n_swept)."""
+        from kinegen.runtime.sensitivity import point_position_sensitivities
+
+        positions, _, by_input = point_position_sensitivities(self.system, self.q[:, None], self.u[:, None], self.tracked, design=False)
+        return positions[0], by_input[0][:, :, self.index]
+
     def move_to(self, values: np.ndarray) -> np.ndarray:
         """Solve at the swept ``values`` by continuation from the last solve; the tracked points."""
         target = self.inputs(values)
@@ -108,13 +167,13 @@ class _Evaluator:
 
 
 def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ...] | None = None) -> Envelope:
-    """Sample and refine the working range of ``spec.point`` (see the module docstring)."""
+    """Sample and refine the working range of ``spec.point`` (see the module docstring), at the
+    system's design values."""
     start = time.perf_counter()
     evaluator = _Evaluator(system, spec)
     names = evaluator.names
     counts = list(grid or [21, 11, 21][: len(names)] + [11] * max(0, len(names) - 3))
-    ranges = [evaluator.inputs_spec[n] for n in names]
-    axes = [np.linspace(lo, hi, c) for (lo, hi), c in zip(ranges, counts)]
+    axes = [np.linspace(lo, hi, c) for (lo, hi), c in zip(evaluator.ranges, counts)]
     corner = np.array([a[0] for a in axes])
     evaluator.move_to(corner)  # continuation from the model's pose to the grid's first corner
     swept = [system.driver_names.index(n) for n in names]
@@ -127,66 +186,205 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     tracked = np.full((len(samples), 2, 3), np.nan)
     found = evaluator.points(q[:, ok])
     tracked[ok, : found.shape[1]] = found
-    envelope = Envelope(spec, names, samples, tracked[:, 0], tracked[:, 1])
+    envelope = Envelope(spec, names, samples, tracked[:, 0], tracked[:, 1], design=dict(system.design))
     envelope.grid_seconds = grid_seconds
     envelope.grid_solved = int(ok.sum())
-    _refine(envelope, evaluator, ranges, q)
+    starts = {name: (samples[k], q[:, k]) for name, k in _grid_seeds(envelope).items()}
+    _refine(envelope, evaluator, starts)
     envelope.seconds = time.perf_counter() - start
     envelope.solves = evaluator.solves + int(ok.sum())
     return envelope
 
 
-def _refine(envelope: Envelope, evaluator: _Evaluator, ranges: list[tuple[float, float]], grid_q: np.ndarray) -> None:
-    samples, points, pivots = envelope.samples, envelope.points, envelope.pivots
+def refine_from(system: NumericSystem, previous: Envelope) -> Envelope:
+    """The working-range figures at the system's design values, each refined from its optimum in
+    ``previous`` (computed at another, nearby design) instead of from a new grid: what a design
+    study re-evaluates at every design. The result has no samples."""
+    start = time.perf_counter()
+    evaluator = _Evaluator(system, previous.spec)
+    envelope = Envelope(previous.spec, evaluator.names, np.empty((0, len(evaluator.names))), np.empty((0, 3)), np.empty((0, 3)),
+                        design=dict(system.design))  # fmt: skip
+    index = evaluator.index
+    _refine(envelope, evaluator, {name: (u[index], q) for name, (u, q) in previous.optima.items()})
+    envelope.seconds = time.perf_counter() - start
+    envelope.solves = evaluator.solves
+    return envelope
+
+
+def _grid_seeds(envelope: Envelope) -> dict[str, int]:
+    """Per figure, the grid sample it is refined from."""
+    points, pivots = envelope.points, envelope.pivots
     reach = np.hypot(points[:, 0], points[:, 1])
     z = points[:, 2]
-    lows = np.array([r[0] for r in ranges])
-    spans = np.array([r[1] - r[0] for r in ranges])
-
-    def run(name: str, objective, seed: int, constraint=None) -> None:
-        """Minimize objective(points) over the normalized inputs from sample ``seed``."""
-        x0 = (samples[seed] - lows) / spans
-
-        def full(x: np.ndarray) -> np.ndarray:
-            return lows + spans * np.clip(x, 0, 1)
-
-        evaluator.q, evaluator.u = grid_q[:, seed].copy(), evaluator.inputs(samples[seed])  # the grid's solution
-
-        def value(x: np.ndarray) -> np.ndarray:
-            return evaluator.move_to(full(x))
-
-        constraints = [{"type": "eq", "fun": lambda x: constraint(value(x))}] if constraint else []
-        result = minimize(
-            lambda x: objective(value(x)),
-            x0,
-            method="SLSQP",
-            bounds=[(0, 1)] * len(x0),
-            constraints=constraints,
-            options={"ftol": 1e-12, "maxiter": 100},
-        )
-        best = value(result.x)
-        envelope.figures[name] = abs(objective(best))
-        envelope.arguments[name] = dict(zip(envelope.names, full(result.x)))
 
     def argbest(values: np.ndarray) -> int:
         return int(np.nanargmax(values))
 
-    def horizontal(p: np.ndarray) -> float:
-        return -float(np.hypot(p[0, 0], p[0, 1]))
-
-    run("max_reach", horizontal, argbest(reach))
-    run("max_reach_at_ground", horizontal, argbest(np.where(np.abs(z) < 0.3, reach, np.nan)), constraint=lambda p: float(p[0, 2]))
-    run("max_depth", lambda p: float(p[0, 2]), argbest(-z))
-    run("max_cutting_height", lambda p: -float(p[0, 2]), argbest(z))
+    seeds = {
+        "max_reach": argbest(reach),
+        "max_reach_at_ground": argbest(np.where(np.abs(z) < 0.3, reach, np.nan)),
+        "max_depth": argbest(-z),
+        "max_cutting_height": argbest(z),
+    }
     if envelope.spec.dump_pivot is not None:
         offset = reach - np.hypot(pivots[:, 0], pivots[:, 1])
         hanging = (np.abs(offset) < 0.15) & (z < pivots[:, 2])
-        run(
-            "max_dumping_height",
-            lambda p: -float(p[0, 2]),
-            argbest(np.where(hanging, z, np.nan)),
-            constraint=lambda p: float(np.hypot(p[0, 0], p[0, 1]) - np.hypot(p[1, 0], p[1, 1])),
+        seeds["max_dumping_height"] = argbest(np.where(hanging, z, np.nan))
+    return seeds
+
+
+def _refine(envelope: Envelope, evaluator: _Evaluator, starts: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+    """Each figure of ``starts`` (name -> (swept inputs, q solved there)) refined by SLSQP over the
+    normalized inputs, every evaluation a solve by continuation."""
+    lows = np.array([r[0] for r in evaluator.ranges])
+    spans = np.array([r[1] - r[0] for r in evaluator.ranges])
+
+    def full(x: np.ndarray) -> np.ndarray:
+        return lows + spans * np.clip(x, 0, 1)
+
+    solved: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def value(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The tracked points at the normalized inputs x and their derivatives by x (solved once per x)."""
+        key = np.asarray(x, dtype=float).tobytes()
+        if key not in solved:
+            solved.clear()
+            evaluator.move_to(full(x))
+            positions, by_input = evaluator.derivatives()
+            solved[key] = positions, by_input * np.where((x >= 0) & (x <= 1), spans, 0.0)  # d/dx (zero outside: clipped)
+        return solved[key]
+
+    def chained(function, gradient):
+        return lambda x: np.einsum("pi,pik->k", gradient(value(x)[0]), value(x)[1])
+
+    for name in FIGURES:
+        if name not in starts:
+            continue
+        figure = FIGURE_TABLE[name]
+        inputs, q = starts[name]
+        x0 = np.clip((inputs - lows) / spans, 0, 1)
+        evaluator.q, evaluator.u = q.copy(), evaluator.inputs(inputs)  # where the start was solved
+        solved.clear()
+        constraints = []
+        if figure.constraint:
+            constraints = [{"type": "eq", "fun": lambda x, figure=figure: figure.constraint(value(x)[0]),
+                            "jac": chained(figure.constraint, figure.constraint_gradient)}]  # fmt: skip
+        result = minimize(
+            lambda x, figure=figure: figure.objective(value(x)[0]),
+            x0,
+            jac=chained(figure.objective, figure.gradient),
+            method="SLSQP",
+            bounds=[(0, 1)] * len(x0),
+            constraints=constraints,
+            options={"ftol": 1e-14, "maxiter": 100},
         )
+        x0 = _polish(figure, value, np.clip(result.x, 0, 1))
+        best = value(x0)[0]
+        envelope.figures[name] = -figure.objective(best)
+        envelope.arguments[name] = dict(zip(envelope.names, full(x0)))
+        envelope.optima[name] = (evaluator.u.copy(), evaluator.q.copy())
+
+
+def _polish(figure: Figure, value: Callable, x: np.ndarray) -> np.ndarray:
+    """SLSQP's optimum ``x`` (normalized inputs) made exact: Newton on the optimality conditions in
+    the inputs not at a bound (F), ∇_F g + λ ∇_F h = 0 and h = 0 (without a constraint ∇_F g = 0),
+    the gradients exact (``value(x)``: tracked points and their derivatives by x), their
+    derivatives by differences of them. SLSQP may stop short of an equality constraint (by 1e-5 m
+    where the constraint alone fixes the one free input); this takes it to rounding. A step that
+    leaves the bounds or does not reduce the residual ends the polish, keeping the best x."""
+    free = np.flatnonzero((x > 1e-9) & (x < 1 - 1e-9))
+    if free.size == 0:
+        return x
+
+    def conditions(x: np.ndarray, multiplier: float) -> tuple[np.ndarray, np.ndarray, float]:
+        positions, by_x = value(x)
+        g = np.einsum("pi,pik->k", figure.gradient(positions), by_x)[free]
+        if figure.constraint is None:
+            return g, g, multiplier
+        h = np.einsum("pi,pik->k", figure.constraint_gradient(positions), by_x)[free]
+        if np.isnan(multiplier):
+            multiplier = -float(h @ g) / float(h @ h) if h @ h > 0 else 0.0
+        return np.append(g + multiplier * h, figure.constraint(positions)), h, multiplier
+
+    residual, along, multiplier = conditions(x, np.nan)
+    for _ in range(POLISH_STEPS):
+        if np.max(np.abs(residual)) < 1e-14:
+            break
+        step_size = 1e-7
+        hessian = np.empty((free.size, free.size))
+        for j, k in enumerate(free):
+            moved = x.copy()
+            moved[k] += step_size if x[k] + step_size <= 1 else -step_size
+            hessian[:, j] = (conditions(moved, multiplier)[0][: free.size] - residual[: free.size]) / (moved[k] - x[k])
+        if figure.constraint is None:
+            system, unknowns = hessian, free.size
+        else:
+            system = np.block([[hessian, along[:, None]], [along[None, :], np.zeros((1, 1))]])
+            unknowns = free.size + 1
+        try:
+            delta = np.linalg.solve(system, -residual[:unknowns])
+        except np.linalg.LinAlgError:
+            break
+        trial = x.copy()
+        trial[free] += delta[: free.size]
+        if np.any(trial < 0) or np.any(trial > 1):
+            break
+        trial_multiplier = multiplier + (delta[-1] if figure.constraint is not None else 0.0)
+        trial_residual, trial_along, trial_multiplier = conditions(trial, trial_multiplier)
+        if not np.max(np.abs(trial_residual)) < np.max(np.abs(residual)):
+            break
+        x, residual, along, multiplier = trial, trial_residual, trial_along, trial_multiplier
+    return x
+
+
+def figure_sensitivities(envelope: Envelope, system: NumericSystem) -> dict[str, np.ndarray]:
+    """The exact derivative of every refined figure by the design parameters (n_design each), at
+    the design the envelope was computed at (``system``: the same case at that design, from a
+    module with sensitivity kernels), by the envelope theorem: with the figure's optimum u* over
+    the swept inputs, the bounds active there A (which may move with p: a cylinder's retracted
+    length) and an equality constraint h with multiplier λ (from the stationarity in the free
+    inputs), df/dp = ∂g/∂p + Σ_A ∂g/∂u_j db_j/dp + λ (∂h/∂p + Σ_A ∂h/∂u_j db_j/dp), the partial
+    derivatives those of the tracked points at fixed inputs and fixed p
+    (:func:`kinegen.runtime.sensitivity.point_position_sensitivities`)."""
+    from kinegen.runtime.sensitivity import point_position_sensitivities
+
+    evaluator = _Evaluator(system, envelope.spec)
+    lows, highs = (np.array([r[k] for r in evaluator.ranges]) for k in (0, 1))
+    moving = _bound_derivatives(envelope.spec, evaluator.names, system.design)  # (n_swept, 2, n_design)
+    out = {}
+    for name, (u, q) in envelope.optima.items():
+        figure = FIGURE_TABLE[name]
+        positions, by_design, by_input = (x[0] for x in point_position_sensitivities(system, q[:, None], u[:, None], evaluator.tracked))
+        swept = u[evaluator.index]
+        tolerance = 1e-9 * (highs - lows)
+        at_low, at_high = swept <= lows + tolerance, swept >= highs - tolerance
+        bound_change = np.where(at_low[:, None], moving[:, 0], 0.0) + np.where(at_high[:, None], moving[:, 1], 0.0)
+        free = ~(at_low | at_high)
+
+        def total(gradient: np.ndarray, by_design=by_design, by_input=by_input, bound_change=bound_change) -> tuple[np.ndarray, np.ndarray]:
+            """(d/dp with the active bounds moving, d/du of the swept inputs) of a function of the tracked points."""
+            d_input = np.einsum("pi,pik->k", gradient, by_input)[evaluator.index]
+            return np.einsum("pi,pik->k", gradient, by_design) + d_input @ bound_change, d_input
+
+        d_objective, objective_inputs = total(figure.gradient(positions))
+        if figure.constraint_gradient is not None:
+            d_constraint, constraint_inputs = total(figure.constraint_gradient(positions))
+            along = constraint_inputs[free]
+            multiplier = -float(along @ objective_inputs[free]) / float(along @ along) if along @ along > 0 else 0.0
+            d_objective = d_objective + multiplier * d_constraint
+        out[name] = -d_objective
+    return out
+
+
+def _bound_derivatives(spec: WorkingRange, names: list[str], design: dict[str, float]) -> np.ndarray:
+    """d(low, high)/dp of each swept input's range (exact expressions, at ``design``): (n_swept, 2, n_design)."""
+    order = list(design)
+    out = np.zeros((len(names), 2, len(order)))
+    for i, name in enumerate(names):
+        for side, expr in enumerate(spec.inputs[name]):
+            for symbol in expr.free_symbols:
+                out[i, side, order.index(str(symbol)[2:])] = design_value(expr.diff(symbol), design)
+    return out
 
 
 def plot_envelope(envelope: Envelope, path: str | Path) -> Path:

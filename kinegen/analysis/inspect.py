@@ -299,10 +299,12 @@ def inspect(
     """Inspect Phi_q of ``model`` at time ``t`` (exact expression) or at the given coordinates ``q``.
 
     ``numeric`` is an optional quaternion :class:`NumericSystem` of the case (e.g. from a
-    generated module) used to solve for the configuration; by default one is compiled.
+    generated module) used to solve for the configuration; by default one is compiled. A model
+    with design parameters is inspected at their nominal values (``model.at(values)`` for others).
     """
     from kinegen.model.expressions import parse
 
+    model = model.at() if model.design else model
     case = case or next(iter(model.cases))
     system = build_systems(model, parametrization, [case])[case]
     t_exact = parse(t, allow_time=False) if isinstance(t, str) else exact_number(float(t))

@@ -150,7 +150,7 @@ def main(argv: list[str] | None = None) -> int:
     if sensitivity is not None:
         print()
         if "failed" in sensitivity:
-            print(f"sensitivities (excavator, ten design parameters): FAILED: {sensitivity['failed']}")
+            print(f"sensitivities (excavator, {sensitivity.get('parameters', 11)} design parameters): FAILED: {sensitivity['failed']}")
         else:
             s = sensitivity
             print(
@@ -235,7 +235,7 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: 
         out.append(f"  (first, cold run: {cold:,.0f}/s; whole working range: {total})")
     if sensitivity and "failed" not in sensitivity:
         ratio = sensitivity["compiled_sensitivities"] / sensitivity["compiled_solve"]
-        out.append(line("excavator digging sensitivities (10 parameters) / compiled trajectory solve (issue 13)", ratio, 3.0, True))
+        out.append(line(f"excavator digging sensitivities ({sensitivity['parameters']} parameters) / compiled trajectory solve (issue 13)", ratio, 3.0, True))
         out.append(f"  (/ pure-Python trajectory solve: {sensitivity['compiled_sensitivities'] / sensitivity['python_solve']:.2f})")
     return [x for x in out if x]
 

@@ -20,6 +20,7 @@ from __future__ import annotations
 from typing import TYPE_CHECKING
 
 import numpy as np
+import scipy.linalg
 
 from kinegen.model.schema import GROUND
 from kinegen.runtime import linear
@@ -137,12 +138,81 @@ def frame_sensitivities(results: Results) -> np.ndarray:
     """The change of every body's 24 frame values (origin, rotation matrix row by row, origin
     velocity, ω, origin acceleration, ω̇) per unit of each design parameter, (K, n_bodies, 24,
     n_design): the generated ``frames_d`` kernel along (dq/dp, dv/dp, da/dp), one call."""
-    system = results.system
-    s, velocity, acceleration = results.state_sensitivities()
-    n_design, count = len(system.design), len(results.times)
-    state = (_each(x.T, n_design) for x in (results.q, results.v, results.a))
+    return frame_changes(results.system, results.q.T, results.v.T, results.a.T, *results.state_sensitivities())
+
+
+def frame_changes(system: NumericSystem, q, v, a, s: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
+    """The change of every body's 24 frame values at the states (q, v, a) (columns, (n, K)) along
+    m changes of the state: ``s`` of q (in velocity coordinates), ``velocity`` of v and
+    ``acceleration`` of a, each (K, n_v, m); (K, n_bodies, 24, m), one ``frames_d`` call."""
+    count, m = s.shape[0], s.shape[2]
+    state = (_each(np.asarray(x, dtype=float).reshape(-1, count), m) for x in (q, v, a))
     changes = system.frames_d(*state, _pairs(s), _pairs(velocity), _pairs(acceleration))
-    return np.asarray(changes, dtype=float).reshape(len(system.bodies), 24, count, n_design).transpose(2, 0, 1, 3)
+    return np.asarray(changes, dtype=float).reshape(len(system.bodies), 24, count, m).transpose(2, 0, 1, 3)
+
+
+def configuration_sensitivities(
+    system: NumericSystem, q: np.ndarray, u: np.ndarray, design: bool = True
+) -> tuple[np.ndarray | None, np.ndarray]:
+    """At solved configurations q (n_q, K) with inputs u (n_inputs, K) -- a sweep's or an
+    envelope's, not a trajectory's --: (dq/dp (K, n_v, n_design), dq/du (K, n_v, n_inputs)), in
+    velocity coordinates, by implicit differentiation of Φ(q, u, p) = 0: dq/dp = −Φ_q⁻¹ Φ_p and
+    dq/du = −Φ_q⁻¹ Φ_u with Φ_u e_j = −ν(q, u, u̇ = e_j) (time enters Φ only through u). Without
+    ``design`` (or design parameters) only dq/du, which any module gives: (None, dq/du)."""
+    q, u = np.asarray(q, dtype=float), np.asarray(u, dtype=float)
+    m, n_inputs, count = system.n_velocity, system.n_inputs, q.shape[1]
+    if count == 1 and not (design and system.design):  # one configuration: the system's fast kernels (compiled when there)
+        unit = np.eye(n_inputs)
+        rates = np.stack([system.velocity_rhs(q[:, 0], u[:, 0], unit[j]) for j in range(n_inputs)], axis=1)  # -Phi_u
+        return None, scipy.linalg.solve(system.jacobian(q[:, 0], u[:, 0]), rates)[None]
+    lu = linear.choose(system.jac_rows, system.jac_cols, (m, m))
+    jac = np.broadcast_to(np.asarray(system.jac(q, u), dtype=float).reshape(len(system.jac_rows), -1), (len(system.jac_rows), count))
+    factors = [lu.factor(jac[:, k])[0] for k in range(count)]
+    unit = np.eye(n_inputs)
+    by_input = np.stack([np.broadcast_to(np.asarray(system.nu(q, u, np.broadcast_to(unit[:, [j]], u.shape)), dtype=float).reshape(m, -1), (m, count))
+                         for j in range(n_inputs)], axis=2).transpose(1, 0, 2)  # fmt: skip  # -Phi_u, (K, m, n_inputs)
+    by_design = None
+    if design and system.design:
+        _check(system)
+        values = system.sensitivity_kernels["phi_p"](q, u)
+        by_design = -np.stack([lu.solve(f, b) for f, b in zip(factors, _sparse_times(system.sensitivity_patterns["phi_p"], values,
+                                                                                      (count, m, len(system.design)), 0))])  # fmt: skip
+    return by_design, np.stack([lu.solve(f, b) for f, b in zip(factors, by_input)])
+
+
+def point_position_sensitivities(
+    system: NumericSystem, q: np.ndarray, u: np.ndarray, points: list[tuple[str, str]], design: bool = True
+) -> tuple[np.ndarray, np.ndarray | None, np.ndarray]:
+    """Global positions of the named ``points`` (body, point) at solved configurations q (n_q, K)
+    with inputs u (n_inputs, K), and their exact derivatives by the design parameters and by the
+    driver inputs: (K, P, 3), (K, P, 3, n_design) (None without ``design``), (K, P, 3, n_inputs).
+    A change of the configuration along a tangent direction moves a body point as a velocity
+    does (the parametrization's ``frame_velocity``); a design parameter also moves the point in
+    its body (ds'/dp)."""
+    q = np.asarray(q, dtype=float)
+    count = q.shape[1]
+    by_design, by_input = configuration_sensitivities(system, q, u, design)
+    change = by_input if by_design is None else np.concatenate([by_design, by_input], axis=2)  # (K, n_v, m)
+    n_design = 0 if by_design is None else by_design.shape[2]
+    parametrization = system.parametrization
+    positions, derivatives = np.empty((count, len(points), 3)), np.empty((count, len(points), 3, change.shape[2]))
+    for i, (body, point) in enumerate(points):
+        local_change = np.zeros((3, change.shape[2]))
+        if n_design:
+            local_change[:, :n_design] = system.point_derivatives.get(body, {}).get(point, np.zeros((3, n_design)))
+        if body == GROUND:
+            positions[:, i] = system.ground_points[point]
+            derivatives[:, i] = local_change
+            continue
+        stored = system.body_coordinates(q.T, body)  # (K, nq)
+        origin, rotation = parametrization.pose(stored)
+        arm = rotation @ np.asarray(system.points[body][point], dtype=float)
+        positions[:, i] = origin + arm
+        tangent = system.body_coordinates(change.transpose(0, 2, 1), body, velocity=True)  # (K, m, nv)
+        moved, turned = parametrization.frame_velocity(np.repeat(stored[:, None], change.shape[2], axis=1), tangent)
+        derivatives[:, i] = (moved + np.cross(turned, arm[:, None, :])).transpose(0, 2, 1)
+        derivatives[:, i] += np.einsum("kij,jm->kim", rotation, local_change)
+    return positions, None if by_design is None else derivatives[..., :n_design], derivatives[..., n_design:]
 
 
 def singular_value_sensitivity(results: Results, block: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:

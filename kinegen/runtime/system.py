@@ -145,7 +145,7 @@ class NumericSystem:
 
     def jacobian(self, q: np.ndarray, u: np.ndarray) -> np.ndarray:
         """Dense Phi_q (constraints x velocity coordinates) at one configuration."""
-        return self._pattern.dense(self.jac(q, u))
+        return self._pattern.dense(self.evaluate(q, u)[1])
 
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
         """q (n,) or (n, K) moved by ``step`` (velocity coordinates) body by body, as the
