@@ -151,6 +151,24 @@ def _design_values(pairs: tuple[str, ...]) -> dict[str, float]:
     return values
 
 
+def _module(model_file: str, param: rotations.Parametrization, generated_dir: str, sensitivities: bool | None = None):
+    """The model and its generated module (rebuilt when missing or stale: with sensitivity kernels
+    as the stale module had them, or as ``sensitivities`` says)."""
+    from kinegen.codegen import build as build_module
+    from kinegen.codegen import built_with_sensitivities, module_name
+    from kinegen.model import load
+    from kinegen.runtime import check_source, load_module
+
+    model = load(model_file)
+    path = Path(generated_dir) / f"{module_name(model, param)}.py"
+    try:
+        return model, load_module(path, model_file)
+    except GeneratedModuleError:
+        click.echo(f"building {path} (missing or stale)", err=True)
+        keep = built_with_sensitivities(path) is not False if sensitivities is None else sensitivities
+        return model, load_module(build_module(model_file, param.name, generated_dir, check=check_source, sensitivities=keep), model_file)
+
+
 def _system(
     model_file: str,
     param: rotations.Parametrization,
@@ -162,19 +180,9 @@ def _system(
     """The numeric system of a case, from the generated module (rebuilt when missing or stale);
     its compiled C when there is a compiler (``compiled`` None), or not (False); a model's
     design parameters at ``design`` (nominal for those not given)."""
-    from kinegen.codegen import build as build_module
-    from kinegen.codegen import built_with_sensitivities, module_name
-    from kinegen.model import load
-    from kinegen.runtime import check_source, from_module, load_module
+    from kinegen.runtime import from_module
 
-    model = load(model_file)
-    path = Path(generated_dir) / f"{module_name(model, param)}.py"
-    try:
-        module = load_module(path, model_file)
-    except GeneratedModuleError:
-        click.echo(f"building {path} (missing or stale)", err=True)
-        keep = built_with_sensitivities(path) is not False  # a stale module built without them is rebuilt without them
-        module = load_module(build_module(model_file, param.name, generated_dir, check=check_source, sensitivities=keep), model_file)
+    model, module = _module(model_file, param, generated_dir)
     if design:
         try:
             system = from_module(module, case, compiled, design)
@@ -466,6 +474,85 @@ def scan(
     click.echo(f"{physical.model}/{physical.case}: " + result.text())
     if plot:
         click.echo(f"wrote {plot_scan(result, plot, f'{physical.model} / {physical.case}')}")
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--study", "study_name", required=True, help="The design study to run (the model's studies: section).")
+@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@click.option("--method", type=click.Choice(["SLSQP", "trust-constr"]), default="SLSQP", show_default=True, help="SciPy's optimizer.")
+@click.option(
+    "--gradients",
+    type=click.Choice(["exact", "fd"]),
+    default="exact",
+    show_default=True,
+    help="exact: the generated sensitivities (and the envelope theorem for working-range figures); fd: SciPy's finite differences.",
+)
+@click.option("--compare-fd", is_flag=True, help="Run the study again with finite-difference gradients and compare the two runs.")
+@click.option("--max-iterations", type=click.IntRange(min=1), default=100, show_default=True)
+@click.option(
+    "--out",
+    type=click.Path(dir_okay=False),
+    default=None,
+    help="Where the optimized model is written (default: out/<model>_<study>.yaml); never over the input.",
+)
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (progress goes to stderr).")
+@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+def optimize(
+    model_file: str,
+    study_name: str,
+    param: str,
+    method: str,
+    gradients: str,
+    compare_fd: bool,
+    max_iterations: int,
+    out: str | None,
+    as_json: bool,
+    generated_dir: str,
+) -> None:
+    """Run a design study declared in MODEL_FILE (studies:) with SciPy on exact gradients: prints
+    the iterations, the optimum beside the nominal design, the active constraints; writes the
+    optimized model as a new YAML file."""
+    from kinegen.analysis.studies import StudyProblem, write_optimized
+    from kinegen.analysis.studies import optimize as run
+
+    model, module = _module(model_file, _parametrization(param), generated_dir, sensitivities=True if gradients == "exact" else None)
+    if not model.studies:
+        raise click.BadParameter(f"{model_file} declares no studies (a studies: section)", param_hint="--study")
+    if study_name not in model.studies:
+        raise click.BadParameter(f"no study {study_name!r} (studies: {', '.join(model.studies)})", param_hint="--study")
+    target = Path(out) if out else Path("out") / f"{model.name}_{study_name}.yaml"
+    if target.resolve() == Path(model_file).resolve():
+        raise click.BadParameter(f"{out} is the model file itself: the optimized model is written to a new file", param_hint="--out")
+    if gradients == "exact" and not any(k == "dvel" for k in next(iter(module.CASES.values()))):
+        raise click.BadParameter(
+            f"the generated module of {model.name} ({param}) has no sensitivity kernels: rebuild it without --no-sensitivities "
+            "(or use --gradients fd)", param_hint="--gradients",
+        )  # fmt: skip
+    study = model.studies[study_name]
+    say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
+    published = model.working_range.published if model.working_range else {}
+    runs = []
+    for kind in (gradients, "fd") if compare_fd and gradients == "exact" else (gradients,):
+        say(f"{model.name}: study {study_name} ({method}, {'exact' if kind == 'exact' else 'finite-difference'} gradients)")
+        result = run(StudyProblem(model, module, study), method, kind, max_iterations, progress=say)
+        runs.append(result)
+        if not as_json:
+            click.echo(result.table(published))
+    best = runs[0]
+    if len(runs) == 2:
+        exact, fd = runs
+        difference = max(abs(exact.optimum[n] - fd.optimum[n]) for n in exact.optimum)
+        say(
+            f"exact vs finite-difference gradients: {exact.iterations} vs {fd.iterations} iterations, {exact.evaluations} vs "
+            f"{fd.evaluations} designs measured, {exact.seconds:.1f} vs {fd.seconds:.1f} s; optima differ by {difference:.1e} at most"
+        )
+    written = write_optimized(model_file, model, best, target)
+    say(f"wrote {written} (the optimum as the design parameters' nominal values; model {model.name}_{study_name})")
+    if as_json:
+        click.echo(json.dumps({"model": model.name, "runs": [r.to_json() for r in runs], "written": str(written)}, indent=2))
+    if not best.success:
+        raise KinegenError(f"study {study_name}: {best.message}")
 
 
 if __name__ == "__main__":  # pragma: no cover

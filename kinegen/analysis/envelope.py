@@ -24,12 +24,15 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
-from kinegen.model.schema import WorkingRange, design_value
-from kinegen.runtime import NumericSystem, Solver
+from kinegen.model.schema import WorkingRange, design_gradient
+from kinegen.runtime import NumericSystem, Solver, SolverOptions
 from kinegen.runtime.batch import sweep_grid
 
 STAGE = 0.065  # of an input's range, per continuation stage
 POLISH_STEPS = 8  # Newton steps on the optimality conditions after SLSQP, at most
+#: max |Phi| of the refinement's solves: the figures' own noise (the default 1e-10 leaves ~1e-10 m,
+#: which differences of figures and their optimality conditions would see)
+TOLERANCE = 1e-13
 FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height")
 
 
@@ -113,7 +116,7 @@ class _Evaluator:
 
     def __init__(self, system: NumericSystem, spec: WorkingRange) -> None:
         self.system = system
-        self.solver = Solver(system)
+        self.solver = Solver(system, SolverOptions(tolerance=TOLERANCE))
         self.spec = spec
         inputs = self.inputs_spec = spec.numbers(system.design)  # at the system's design values
         self.names = [n for n in system.driver_names if isinstance(inputs[n], tuple)]
@@ -378,13 +381,9 @@ def figure_sensitivities(envelope: Envelope, system: NumericSystem) -> dict[str,
 
 def _bound_derivatives(spec: WorkingRange, names: list[str], design: dict[str, float]) -> np.ndarray:
     """d(low, high)/dp of each swept input's range (exact expressions, at ``design``): (n_swept, 2, n_design)."""
-    order = list(design)
-    out = np.zeros((len(names), 2, len(order)))
-    for i, name in enumerate(names):
-        for side, expr in enumerate(spec.inputs[name]):
-            for symbol in expr.free_symbols:
-                out[i, side, order.index(str(symbol)[2:])] = design_value(expr.diff(symbol), design)
-    return out
+    return np.array([[design_gradient(bound, list(design), design) for bound in spec.inputs[name]] for name in names]).reshape(
+        len(names), 2, len(design)
+    )
 
 
 def plot_envelope(envelope: Envelope, path: str | Path) -> Path:

@@ -35,7 +35,10 @@ ZERO = 1e-13
 
 
 def exact_number(value: float) -> sp.Expr:
-    """The simple exact number (rational, surd, multiple of pi) equal to ``value`` to 1e-13.
+    """The simple exact number (rational, surd, multiple of pi) equal to ``value`` to 1e-13, else
+    the nearest rational with a denominator of at most 1e13 (within 1e-13 too: the configuration
+    inspected is as close to the solved one, and its exact entries stay small -- the full binary
+    expansion of a solved coordinate made determinants of large blocks several times slower).
 
     Values smaller than :data:`ZERO` in magnitude are taken as exactly 0.
     """
@@ -44,9 +47,14 @@ def exact_number(value: float) -> sp.Expr:
     for constants in ([], [sp.pi]):
         guess = sp.nsimplify(value, constants, tolerance=1e-13, rational=False)
         # a simple form only: a guess like 27*2**(7/25)*...*pi**(62/5) is a coincidence, not the value
-        if abs(float(guess) - value) <= 1e-12 * max(1.0, abs(value)) and sp.count_ops(guess) <= 8:
+        if abs(float(guess) - value) <= 1e-12 * max(1.0, abs(value)) and sp.count_ops(guess) <= 8 and _small(guess):
             return guess
-    return sp.Rational(repr(float(value)))
+    return sp.Rational(float(value)).limit_denominator(10**13)
+
+
+def _small(expr: sp.Expr) -> bool:
+    """No rational in it with more than 13 digits in its numerator or denominator."""
+    return all(len(str(abs(r.p))) <= 13 and len(str(r.q)) <= 13 for r in expr.atoms(sp.Rational))
 
 
 def convert(q: np.ndarray, source: Parametrization, target: Parametrization, bodies: int) -> np.ndarray:

@@ -100,6 +100,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--excavator", nargs="*", default=["digging", "level_cut"], help="excavator cases")
     parser.add_argument("--quick", action="store_true", help="leave out SciPy finite differences and naive SymPy")
     parser.add_argument("--no-sweep", action="store_true", help="leave out the working-range sweep")
+    parser.add_argument("--no-studies", action="store_true", help="leave out the design studies (exact vs finite-difference gradients)")
     args = parser.parse_args(argv)
     workloads = [f"chain-{n}" for n in args.sizes] + [f"excavator-{c}" for c in args.excavator]
     failures = 0
@@ -135,6 +136,7 @@ def main(argv: list[str] | None = None) -> int:
             )
     sweep = None if args.no_sweep else sweep_rate()
     sensitivity = run_contender("__import__('kinegen.bench.design', fromlist=['x']).sensitivity_cost()") if "excavator-digging" in workloads else None
+    studies = None if args.no_studies else run_contender("__import__('kinegen.bench.design', fromlist=['x']).study_cost()")
     memory = {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")}
     print()
     for w, m in list(memory.items())[:1]:
@@ -160,6 +162,23 @@ def main(argv: list[str] | None = None) -> int:
             )
     print()
     print("Targets, on this run's figures:")
+    if studies is not None:
+        print()
+        if "failed" in studies:
+            failures += 1
+            print(f"design studies: FAILED: {studies['failed']}")
+        else:
+            print("design studies (kinegen optimize, SLSQP; models/excavator.yaml): exact gradients vs SciPy's finite differences")
+            for name, s in studies.items():
+                if not isinstance(s, dict):  # the row's peak memory
+                    continue
+                e, f = s["exact"], s["fd"]
+                print(
+                    f"  {name} ({s['parameters']} parameters): exact {e['iterations']} iterations, {e['gradient_evaluations']} gradients, "
+                    f"{e['designs']} designs, {e['seconds']:.1f} s; finite differences {f['iterations']} iterations, {f['designs']} designs, "
+                    f"{f['seconds']:.1f} s ({s['seconds_ratio']:.1f}x the time); optima {s['optimum_difference']:.1e} apart"
+                )
+                failures += not (e["success"] and f["success"])
     for line in targets(rows, sweep, sensitivity):
         print("  " + line)
     return 1 if failures else 0

@@ -67,3 +67,30 @@ def sensitivity_cost(case: str = "digging", points: int = 1000, repeats: int = 3
                 best_sensitivities = min(best_sensitivities, time.perf_counter() - start)
             row[f"{label}_solve"], row[f"{label}_sensitivities"] = best_solve, best_sensitivities
     return row
+
+
+def study_cost(method: str = "SLSQP") -> dict:
+    """Issue 13's comparison: both design studies of the shipped excavator (models/excavator.yaml,
+    its committed quaternion module) on the exact gradients and on SciPy's finite differences:
+    per study and gradient kind, iterations, gradient evaluations, designs measured, seconds;
+    and how far the two optima are apart."""
+    import numpy as np
+
+    from kinegen.analysis.studies import StudyProblem, optimize
+    from kinegen.model import load
+    from kinegen.runtime import load_module
+
+    model = load(EXCAVATOR)
+    module = load_module(EXCAVATOR.parents[1] / "generated" / "excavator_quaternion.py", EXCAVATOR)
+    out: dict = {}
+    for name, study in model.studies.items():
+        runs = {kind: optimize(StudyProblem(model, module, study), method, kind) for kind in ("exact", "fd")}
+        out[name] = {
+            kind: {"iterations": r.iterations, "gradient_evaluations": r.gradient_evaluations, "designs": r.evaluations,
+                   "seconds": r.seconds, "success": r.success, "objective": r.objective_after}
+            for kind, r in runs.items()
+        }  # fmt: skip
+        out[name]["optimum_difference"] = float(max(abs(runs["exact"].optimum[n] - runs["fd"].optimum[n]) for n in runs["exact"].optimum))
+        out[name]["parameters"] = len(study.parameters)
+        out[name]["seconds_ratio"] = float(np.float64(runs["fd"].seconds) / runs["exact"].seconds)
+    return out

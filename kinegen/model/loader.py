@@ -33,6 +33,7 @@ from kinegen.model.schema import (
     Vector,
     WorkingRange,
 )
+from kinegen.model.studies import read_studies
 from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
 from kinegen.rotations.euler_parameters import quaternion_matrix
 
@@ -319,6 +320,7 @@ class _Reader:
                 "drivers",
                 "cases",
                 "working_range",
+                "studies",
             ),
             ("model", "bodies"),
         )
@@ -352,6 +354,7 @@ class _Reader:
         common = self.drivers(top.get("drivers"), "drivers")
         cases = self.cases(top.get("cases"), common)
         working_range = self.working_range(top.get("working_range"), cases) if "working_range" in top else None
+        studies = read_studies(self, top.get("studies"), cases, actuators, working_range) if "studies" in top else {}
         return Model(
             name=name,
             file=self.file,
@@ -366,6 +369,7 @@ class _Reader:
             redundant=self.redundant,
             ground_points=dict(self.ground_points),
             design=tuple(self.design.values()),
+            studies=studies,
         )
 
     def read_design(self, value: Any) -> None:

@@ -7,10 +7,11 @@ Points and vectors are stored in *body* coordinates, whatever way the file gave 
 
 from __future__ import annotations
 
-from collections.abc import Mapping
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass, field, fields, is_dataclass, replace
 from typing import Any
 
+import numpy as np
 import sympy as sp
 
 GROUND = "ground"
@@ -101,6 +102,16 @@ def design_value(expr: Any, design: Mapping[str, float] | None = None) -> float:
     return float(expr)
 
 
+def design_gradient(expr: Any, names: Sequence[str], design: Mapping[str, float]) -> np.ndarray:
+    """d(expr)/d(design parameter) for each of ``names``, at ``design`` (see :func:`design_value`)."""
+    expr = sp.sympify(expr)
+    out = np.zeros(len(names))
+    for symbol in expr.free_symbols:
+        if str(symbol)[2:] in names:
+            out[list(names).index(str(symbol)[2:])] = design_value(expr.diff(symbol), design)
+    return out
+
+
 @dataclass(frozen=True)
 class Actuator:
     """A length between two body points that a run reports (e.g. a hydraulic cylinder).
@@ -170,6 +181,81 @@ class DesignParameter:
     description: str = ""
 
 
+#: what a design study can measure (:class:`Quantity`)
+QUANTITY_KINDS = ("working_range", "rotation_range", "stroke", "toggle_margin", "actuator_margin")
+
+
+@dataclass(frozen=True)
+class Quantity:
+    """A figure of a design, measured by ``kinegen optimize`` (:mod:`kinegen.analysis.studies`).
+
+    * ``working_range``: a working-range figure (``figure``, m);
+    * ``rotation_range``: over ``case``, the largest minus the smallest rotation angle of ``body``
+      relative to ``relative_to`` about ``axis`` (in ``relative_to``'s frame; rad);
+    * ``stroke``: over ``case``, the longest minus the shortest length of ``actuator`` (m);
+    * ``toggle_margin``: over ``case``, the smallest σ_min of the diagonal blocks of Φ_q's
+      block-triangular form that hold coordinates of ``bodies`` -- the distance to the linkage's
+      toggle, where it vanishes;
+    * ``actuator_margin``: over ``case``, the smallest distance of ``actuator``'s length to the
+      ends of its range (m; negative outside it).
+    """
+
+    kind: str
+    case: str | None = None
+    figure: str | None = None
+    body: str | None = None
+    relative_to: str = GROUND
+    axis: tuple[float, float, float] | None = None
+    actuator: str | None = None
+    bodies: tuple[str, ...] = ()
+
+    @property
+    def unit(self) -> str:
+        """m, rad, or "" (a singular value of Φ_q, mixed units)."""
+        return {"rotation_range": "rad", "toggle_margin": ""}.get(self.kind, "m")
+
+    @property
+    def label(self) -> str:
+        """A short name: ``max_depth``, ``rotation_range(bucket/arm, bucket_stroke)``, ..."""
+        if self.kind == "working_range":
+            return str(self.figure)
+        what = {"rotation_range": f"{self.body}/{self.relative_to}", "toggle_margin": "+".join(self.bodies)}.get(self.kind, self.actuator)
+        return f"{self.kind}({what}, {self.case})"
+
+
+@dataclass(frozen=True)
+class Term:
+    """One term of a study's objective: ``weight`` x the quantity, or with a ``target``
+    ``weight`` x (quantity - target)^2."""
+
+    quantity: Quantity
+    weight: float = 1.0
+    target: float | None = None
+
+
+@dataclass(frozen=True)
+class StudyConstraint:
+    """A study's constraint: the quantity at least ``at_least`` and/or at most ``at_most``."""
+
+    quantity: Quantity
+    at_least: float | None = None
+    at_most: float | None = None
+
+
+@dataclass(frozen=True)
+class Study:
+    """A design study (``studies:`` in the model file, ``kinegen optimize``): vary ``parameters``
+    (design parameters, within their bounds; the others at their nominal values) to minimize or
+    maximize (``sense``) the sum of ``terms`` subject to ``constraints``."""
+
+    name: str
+    parameters: tuple[str, ...]
+    sense: str
+    terms: tuple[Term, ...]
+    constraints: tuple[StudyConstraint, ...] = ()
+    description: str = ""
+
+
 @dataclass(frozen=True)
 class Model:
     """A validated mechanism model."""
@@ -188,6 +274,7 @@ class Model:
     ground_points: dict[str, Vector] = field(default_factory=dict)  #: named fixed points, global
     #: parameters kept symbolic in the geometry (empty: every geometry value is a number)
     design: tuple[DesignParameter, ...] = ()
+    studies: dict[str, Study] = field(default_factory=dict)  #: design studies by name
 
     def at(self, values: Mapping[str, float] | None = None) -> Model:
         """This model with its design parameters replaced by numbers: ``values`` (by name; a

@@ -1,0 +1,486 @@
+"""Design studies (``kinegen optimize``): a model's ``studies:`` entry solved with SciPy on the
+exact gradients.
+
+At a design p (the study's parameters; the model's other design parameters at their nominal
+values) every quantity the study names is measured from the one generated module, no rebuild:
+
+* a case's quantities from one trajectory solve of that case at p and the exact sensitivities
+  of it (:mod:`kinegen.runtime.sensitivity`): rotation ranges and strokes from the extreme time
+  points' sensitivities, the toggle margin from the σ_min of the linkage's diagonal blocks of
+  Φ_q and its derivative dσ/dp = uᵀ(dΦ_q/dp)x at the critical time point and block, the actuator
+  margin from the length's sensitivity and the range's own derivative (a range may use p);
+* working-range figures from the envelope, refined at each design from the last design's optima
+  (:func:`kinegen.analysis.envelope.refine_from`) and differentiated by the envelope theorem.
+
+A minimum or maximum over a case is measured at the case's time points, its derivative that of
+the time point where it is reached (exact for that point; the quantity has a kink where the
+critical point changes). The optimizer works in the parameters scaled to [0, 1] by their bounds.
+With ``gradients="fd"`` SciPy's finite differences replace the exact gradients (the comparison
+of issue 13).
+"""
+
+from __future__ import annotations
+
+import time
+from collections.abc import Callable
+from dataclasses import dataclass, field
+from pathlib import Path
+
+import numpy as np
+from scipy.optimize import minimize
+
+from kinegen.errors import KinegenError
+from kinegen.model.schema import GROUND, Model, Quantity, Study, design_gradient
+from kinegen.runtime import Solver, from_module
+from kinegen.runtime.results import Results
+
+#: SLSQP's step of finite differences in the scaled parameters (issue 13's comparison): 1e-6 of a
+#: parameter's range -- 4e-8 m for +-2 cm -- well above the quantities' own noise (~1e-12)
+FD_STEP = 1e-6
+#: a constraint is reported active when its slack is below this (in its own unit)
+ACTIVE = 1e-6
+
+
+@dataclass
+class Measured:
+    """Quantities at one design: value per label, and (when asked) d/d(study parameters); for a
+    minimum over a case (a margin) also every time point's (and block's) value and gradient, so
+    that a constraint on it is one smooth constraint per point instead of one with kinks."""
+
+    values: dict[str, float]
+    gradients: dict[str, np.ndarray] | None = None
+    series: dict[str, tuple[np.ndarray, np.ndarray | None]] = field(default_factory=dict)
+
+
+class DesignFailure(KinegenError):
+    """A design the study cannot measure (its mechanism cannot be assembled along a case)."""
+
+
+@dataclass
+class StudyResult:
+    """What ``kinegen optimize`` reports."""
+
+    study: Study
+    method: str
+    gradients: str  #: "exact" or "finite differences"
+    bounds: dict[str, tuple[float, float]]
+    nominal: dict[str, float]
+    optimum: dict[str, float]
+    before: dict[str, float]  #: quantities at the nominal design
+    after: dict[str, float]  #: and at the optimum
+    objective_before: float
+    objective_after: float
+    active: list[str]
+    iterations: int
+    evaluations: int  #: designs measured (values)
+    gradient_evaluations: int  #: designs whose gradients were computed (exact), or SciPy's jacobian calls (fd)
+    seconds: float
+    success: bool
+    message: str
+    progress: list[tuple[int, float, float, float]] = field(default_factory=list)  #: iteration, objective, worst violation, s
+
+    def table(self, published: dict[str, float] | None = None) -> str:
+        """Parameters and quantities, nominal beside optimum."""
+        lines = [f"study {self.study.name}: {self.study.sense} ({self.method}, {self.gradients} gradients)"]
+        lines.append(f"  {'parameter':<16} {'nominal':>11} {'optimum':>11} {'change':>10}  bounds")
+        for name, value in self.optimum.items():
+            low, high = self.bounds[name]
+            at = "  (at its bound)" if min(value - low, high - value) <= 1e-9 * (high - low) else ""
+            lines.append(f"  {name:<16} {self.nominal[name]:>11.6f} {value:>11.6f} {value - self.nominal[name]:>+10.6f}  [{low:g}, {high:g}]{at}")
+        units = {q.label: q.unit for q in [t.quantity for t in self.study.terms] + [c.quantity for c in self.study.constraints]}
+        width = max([44, *(len(label) for label in self.after)])
+        lines.append(f"  {'quantity':<{width}} {'nominal':>10} {'optimum':>10}")
+        for label, value in self.after.items():
+            unit = units.get(label, "m")
+            extra = f"   published {published[label]:.2f} (unverified)" if published and label in published else ""
+            if unit == "rad":
+                extra = f"   ({np.degrees(self.before[label]):.1f} -> {np.degrees(value):.1f} deg)"
+            lines.append(f"  {label:<{width}} {self.before[label]:>10.4f} {value:>10.4f} {unit:<3}{extra}")
+        lines.append(f"  objective {self.objective_before:.6g} -> {self.objective_after:.6g}")
+        lines.append(f"  active: {', '.join(self.active) or 'none'}")
+        lines.append(
+            f"  {self.iterations} iterations, {self.evaluations} designs measured, {self.gradient_evaluations} gradient evaluations, "
+            f"{self.seconds:.1f} s ({self.message})"
+        )
+        return "\n".join(lines)
+
+    def to_json(self) -> dict:
+        keys = ("method", "gradients", "bounds", "nominal", "optimum", "before", "after", "objective_before", "objective_after",
+                "active", "iterations", "evaluations", "gradient_evaluations", "seconds", "success", "message")  # fmt: skip
+        return {"study": self.study.name, **{k: getattr(self, k) for k in keys}}
+
+
+class StudyProblem:
+    """One study of a model on one generated module (``module``: with design parameters and,
+    for exact gradients, sensitivity kernels)."""
+
+    def __init__(self, model: Model, module, study: Study, compiled: bool | None = None) -> None:
+        self.model, self.module, self.study, self.compiled = model, module, study, compiled
+        design = {d.name: d for d in model.design}
+        self.order = list(design)  #: every design parameter, in the module's order
+        self.names = list(study.parameters)
+        self.index = [self.order.index(n) for n in self.names]
+        self.nominal_design = {name: float(d.nominal) for name, d in design.items()}
+        self.bounds = np.array([(float(design[n].lower), float(design[n].upper)) for n in self.names])
+        self.quantities = list({q.label: q for q in [t.quantity for t in study.terms] + [c.quantity for c in study.constraints]}.values())
+        self.actuators = {a.name: a for a in model.actuators}
+        self.envelope = None  #: the last working range measured (the next one starts from its optima)
+        self.starts: dict[str, np.ndarray] = {}  #: per case, the last design's pose at its start (the next solve's first guess)
+        self.evaluations = self.gradient_evaluations = 0
+
+    # ---- designs ---------------------------------------------------------------------------
+    def design(self, p: np.ndarray) -> dict[str, float]:
+        """Every design parameter's value: the study's at p, the others nominal."""
+        values = dict(self.nominal_design)
+        values.update(zip(self.names, (float(x) for x in p)))
+        return values
+
+    def scaled(self, p: np.ndarray) -> np.ndarray:
+        return (np.asarray(p) - self.bounds[:, 0]) / (self.bounds[:, 1] - self.bounds[:, 0])
+
+    def unscaled(self, x: np.ndarray) -> np.ndarray:
+        return self.bounds[:, 0] + np.clip(x, 0, 1) * (self.bounds[:, 1] - self.bounds[:, 0])
+
+    # ---- measuring -------------------------------------------------------------------------
+    def measure(self, p: np.ndarray, gradients: bool = True) -> Measured:
+        """Every quantity of the study at the study parameters ``p`` (and their gradients)."""
+        design = self.design(p)
+        self.evaluations += 1
+        self.gradient_evaluations += gradients
+        values: dict[str, float] = {}
+        derivatives: dict[str, np.ndarray] = {}
+        by_case: dict[str, list[Quantity]] = {}
+        for quantity in self.quantities:
+            if quantity.kind == "working_range":
+                by_case.setdefault("", []).append(quantity)
+            else:
+                by_case.setdefault(str(quantity.case), []).append(quantity)
+        series: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
+        for case, quantities in by_case.items():
+            try:
+                if case == "":
+                    measured = self._working_range(design, gradients)
+                else:
+                    results = Solver(from_module(self.module, case, self.compiled, design)).solve(q0=self.starts.get(case))
+                    self.starts[case] = results.q[0]
+                    measured = {q.label: MEASURES[q.kind](self, results, q, gradients) for q in quantities}
+            except KinegenError as exc:
+                shown = ", ".join(f"{n} = {design[n]:.6g}" for n in self.names)
+                raise DesignFailure(f"the design {shown} cannot be measured{f' over case {case}' if case else ''}: {exc}") from exc
+            for label, (value, gradient, *points) in measured.items():
+                values[label] = value
+                if gradients:
+                    derivatives[label] = np.asarray(gradient)[self.index]
+                if points and points[0] is not None:
+                    point_values, point_gradients = points[0]
+                    series[label] = (point_values, None if point_gradients is None else point_gradients[:, self.index])
+        return Measured(values, derivatives if gradients else None, series)
+
+    def _working_range(self, design: dict[str, float], gradients: bool) -> dict[str, tuple[float, np.ndarray | None]]:
+        from kinegen.analysis.envelope import figure_sensitivities, refine_from, working_range
+
+        spec = self.model.working_range
+        system = from_module(self.module, spec.case, self.compiled, design)
+        envelope = None
+        if self.envelope is not None:
+            try:
+                envelope = refine_from(system, self.envelope)
+            except KinegenError:  # a continuation that lost its way: sample the working range afresh
+                envelope = None
+        if envelope is None:
+            envelope = working_range(system, spec)
+        self.envelope = envelope
+        exact = figure_sensitivities(envelope, system) if gradients else {}
+        return {name: (value, exact.get(name)) for name, value in envelope.figures.items()}
+
+    # ---- the objective and constraints ---------------------------------------------------------
+    def objective(self, measured: Measured) -> tuple[float, np.ndarray | None]:
+        """The study's objective as minimized (a maximized sum negated) and its gradient in p."""
+        sign = -1.0 if self.study.sense == "maximize" else 1.0
+        total, gradient = 0.0, np.zeros(len(self.names))
+        for term in self.study.terms:
+            value = measured.values[term.quantity.label]
+            d = measured.gradients[term.quantity.label] if measured.gradients is not None else None
+            if term.target is None:
+                total += term.weight * value
+                if d is not None:
+                    gradient += term.weight * d
+            else:
+                total += term.weight * (value - term.target) ** 2
+                if d is not None:
+                    gradient += 2 * term.weight * (value - term.target) * d
+        return sign * total, None if measured.gradients is None else sign * gradient
+
+    def constraints(self, measured: Measured) -> tuple[np.ndarray, np.ndarray | None]:
+        """Every constraint as slack >= 0 (at_least: value - bound; at_most: bound - value) and its gradient in p."""
+        slacks, rows = [], []
+        n = len(self.names)
+        for constraint in self.study.constraints:
+            label = constraint.quantity.label
+            value = np.atleast_1d(measured.values[label])
+            d = measured.gradients[label][None] if measured.gradients is not None else np.zeros((1, n))
+            if constraint.at_least is not None:
+                if label in measured.series:  # a minimum over a case: every time point (and block) at least the bound
+                    value, points = measured.series[label]
+                    d = points if points is not None else np.zeros((len(value), n))
+                slacks.append(value - constraint.at_least)
+                rows.append(d)
+            if constraint.at_most is not None:
+                slacks.append(constraint.at_most - np.atleast_1d(measured.values[label]))
+                rows.append(-(measured.gradients[label][None] if measured.gradients is not None else np.zeros((1, n))))
+        gradient = np.vstack(rows) if measured.gradients is not None and rows else None
+        return (np.concatenate(slacks) if slacks else np.zeros(0)), gradient
+
+    def active(self, measured: Measured, p: np.ndarray) -> list[str]:
+        """The constraints and parameter bounds active at p."""
+        out = []
+        for constraint in self.study.constraints:
+            value = measured.values[constraint.quantity.label]
+            for bound, side in ((constraint.at_least, "at least"), (constraint.at_most, "at most")):
+                if bound is not None and abs(value - bound) <= ACTIVE:
+                    out.append(f"{constraint.quantity.label} {side} {bound:g}")
+        for name, value, (low, high) in zip(self.names, p, self.bounds):
+            if value - low <= 1e-9 * (high - low):
+                out.append(f"{name} at its lower bound")
+            elif high - value <= 1e-9 * (high - low):
+                out.append(f"{name} at its upper bound")
+        return out
+
+
+# ---- quantities measured over a case ---------------------------------------------------------------
+def _extremes(values: np.ndarray, derivatives: Callable[[], np.ndarray] | None) -> tuple[float, np.ndarray | None]:
+    """max - min of a time series and its derivative (those of the two time points)."""
+    high, low = int(np.nanargmax(values)), int(np.nanargmin(values))
+    gradient = None if derivatives is None else (lambda d: d[high] - d[low])(derivatives())
+    return float(values[high] - values[low]), gradient
+
+
+def relative_angle(results: Results, body: str, relative_to: str, axis: np.ndarray) -> np.ndarray:
+    """The rotation angle of ``body`` relative to ``relative_to`` about ``axis`` (unit, in
+    ``relative_to``'s frame) at every time point, continuous over time (rad)."""
+    rotation = results.rotation_matrix(body)
+    if relative_to != GROUND:
+        rotation = np.einsum("kji,kjl->kil", results.rotation_matrix(relative_to), rotation)
+    first = np.cross(axis, np.eye(3)[int(np.argmin(np.abs(axis)))])
+    first /= np.linalg.norm(first)
+    second = np.cross(axis, first)
+    turned = rotation @ first
+    return np.unwrap(np.arctan2(turned @ second, turned @ first))
+
+
+def _rotation_range(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    axis = np.asarray(q.axis, dtype=float)
+    angle = relative_angle(results, str(q.body), q.relative_to, axis)
+    return _extremes(angle, (lambda: results.relative_angle_sensitivity(q.relative_to, str(q.body), tuple(axis))) if gradients else None)
+
+
+def _stroke(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    name = str(q.actuator)
+    return _extremes(results.actuator_length(name), (lambda: results.actuator_length_sensitivity(name)) if gradients else None)
+
+
+def _actuator_margin(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """The smallest distance to the range's ends over the case; per time point both distances."""
+    actuator = problem.actuators[str(q.actuator)]
+    design = results.system.design
+    low, high = actuator.limits(design)
+    length = results.actuator_length(actuator.name)
+    points = np.concatenate([length - low, high - length])
+    k = int(np.nanargmin(points))
+    if not gradients:
+        return float(points[k]), None, (points, None)
+    d_length = results.actuator_length_sensitivity(actuator.name)
+    order = list(design)
+    d_points = np.concatenate([d_length - design_gradient(actuator.range[0], order, design),
+                               design_gradient(actuator.range[1], order, design) - d_length])  # fmt: skip
+    return float(points[k]), d_points[k], (points, d_points)
+
+
+def linkage_blocks(results: Results, bodies: tuple[str, ...]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(rows, columns) of the diagonal blocks of Φ_q's block-triangular form that hold a velocity
+    coordinate of one of ``bodies``."""
+    from kinegen.symbolic.blocks import block_triangular
+
+    system = results.system
+    blocks = block_triangular((len(system.constraint_names), system.n_velocity), system.jac_rows, system.jac_cols) or []
+    nv = system.parametrization.nv
+    columns = {system.bodies[b][1] + k for b in bodies for k in range(nv)}
+    return [(np.array(b.rows), np.array(b.cols)) for b in blocks if columns & set(b.cols)]
+
+
+def _toggle_margin(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    from kinegen.runtime.sensitivity import singular_value_sensitivity
+
+    blocks = linkage_blocks(results, q.bodies)
+    if not blocks:
+        raise ValueError(f"{q.label}: no diagonal block of Phi_q holds coordinates of {', '.join(q.bodies)}")
+    measured = [singular_value_sensitivity(results, block) if gradients else (_block_sigma(results, block), None) for block in blocks]
+    points = np.concatenate([sigma for sigma, _ in measured])
+    d_points = np.concatenate([d for _, d in measured]) if gradients else None
+    k = int(np.nanargmin(points))
+    return float(points[k]), None if d_points is None else d_points[k], (points, d_points)
+
+
+def _block_sigma(results: Results, block: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+    system = results.system
+    rows, cols = block
+    return np.array(
+        [np.linalg.svd(system.jacobian(q, u)[np.ix_(rows, cols)], compute_uv=False)[-1] for q, u in zip(results.q, results.inputs)]
+    )
+
+
+MEASURES: dict[str, Callable] = {
+    "rotation_range": _rotation_range,
+    "stroke": _stroke,
+    "actuator_margin": _actuator_margin,
+    "toggle_margin": _toggle_margin,
+}
+
+
+# ---- running a study ----------------------------------------------------------------------------
+def optimize(
+    problem: StudyProblem,
+    method: str = "SLSQP",
+    gradients: str = "exact",
+    max_iterations: int = 100,
+    progress: Callable[[str], None] | None = None,
+) -> StudyResult:
+    """Run the study from the nominal design with SciPy's ``method`` (SLSQP or trust-constr) on
+    the exact gradients (``gradients="exact"``) or SciPy's finite differences (``"fd"``);
+    ``progress`` gets one line per iteration."""
+    if method not in ("SLSQP", "trust-constr"):
+        raise ValueError(f"method must be SLSQP or trust-constr, got {method!r}")
+    if gradients not in ("exact", "fd"):
+        raise ValueError(f"gradients must be exact or fd, got {gradients!r}")
+    exact = gradients == "exact"
+    start = time.perf_counter()
+    problem.envelope = None
+    problem.evaluations = problem.gradient_evaluations = 0
+    p0 = np.array([problem.nominal_design[n] for n in problem.names])
+    before = problem.measure(p0, gradients=False)
+    spans = problem.bounds[:, 1] - problem.bounds[:, 0]
+    cache: dict[tuple[bytes, bool], Measured] = {}
+    jacobian_calls = 0
+
+    best: list = [None, np.inf]  # the best feasible design measured: scaled x, objective
+
+    def measured(x: np.ndarray, with_gradients: bool) -> Measured:
+        key = np.asarray(x, dtype=float).tobytes()
+        for wanted in ((key, True), (key, with_gradients)):
+            if wanted in cache:
+                return cache[wanted]
+        if len(cache) > 8:
+            cache.clear()
+        m = cache[key, with_gradients] = problem.measure(problem.unscaled(x), with_gradients)
+        value = problem.objective(m)[0]
+        if value < best[1] and (not problem.study.constraints or problem.constraints(m)[0].min() >= -1e-9):
+            best[:] = [np.clip(np.array(x, dtype=float), 0, 1), value]
+        return m
+
+    def fun(x: np.ndarray) -> float:
+        return problem.objective(measured(x, exact))[0]
+
+    def jac(x: np.ndarray) -> np.ndarray:
+        return problem.objective(measured(x, True))[1] * spans
+
+    def slack(x: np.ndarray) -> np.ndarray:
+        return problem.constraints(measured(x, exact))[0]
+
+    def slack_jac(x: np.ndarray) -> np.ndarray:
+        return problem.constraints(measured(x, True))[1] * spans
+
+    history: list[tuple[int, float, float, float]] = []
+
+    def report(x: np.ndarray, *_args) -> None:
+        m = measured(x, exact)
+        worst = float(max(0.0, -problem.constraints(m)[0].min())) if problem.study.constraints else 0.0
+        history.append((len(history) + 1, problem.objective(m)[0], worst, time.perf_counter() - start))
+        if progress is not None:
+            progress(f"  iteration {len(history):>3}: objective {history[-1][1]: .9g}, worst violation {worst:.2e}, {history[-1][3]:.1f} s")
+
+    def counted(function: Callable) -> Callable:
+        def call(x: np.ndarray):
+            nonlocal jacobian_calls
+            jacobian_calls += 1
+            return function(x)
+
+        return call
+
+    x0 = problem.scaled(p0)
+    best[:] = [x0, problem.objective(before)[0]]
+    constraints: list = []
+    if problem.study.constraints:
+        constraints = [{"type": "ineq", "fun": slack, **({"jac": slack_jac} if exact else {})}]
+    try:
+        if method == "SLSQP":
+            options = {"ftol": 1e-10, "maxiter": max_iterations}
+            if not exact:
+                options["eps"] = FD_STEP
+            result = minimize(fun, x0, jac=jac if exact else None, method="SLSQP", bounds=[(0, 1)] * len(x0),
+                              constraints=constraints, options=options, callback=report)  # fmt: skip
+        else:
+            from scipy.optimize import Bounds, NonlinearConstraint
+
+            nonlinear = []
+            if problem.study.constraints:
+                nonlinear = [NonlinearConstraint(slack, 0, np.inf, jac=slack_jac if exact else "2-point", finite_diff_rel_step=FD_STEP)]
+            result = minimize(fun, x0, jac=counted(jac) if exact else "2-point", method="trust-constr", bounds=Bounds(0, 1),
+                              constraints=nonlinear, callback=report,
+                              options={"maxiter": max_iterations, "gtol": 1e-9, "xtol": 1e-12, "finite_diff_rel_step": FD_STEP})  # fmt: skip
+        x, success, message = result.x, bool(result.success), str(result.message)
+        iterations, jacobians = int(getattr(result, "nit", len(history))), int(getattr(result, "njev", 0) or jacobian_calls)
+    except DesignFailure as exc:  # the optimizer stepped to a design that cannot be assembled: keep the best one measured
+        x, success, iterations, jacobians = best[0], False, len(history), jacobian_calls
+        message = f"stopped: {exc}; reported: the best feasible design measured"
+    p = problem.unscaled(x)
+    after = problem.measure(p, gradients=False)
+    return StudyResult(
+        study=problem.study,
+        method=method,
+        gradients="exact" if exact else "finite differences",
+        bounds={n: (float(lo), float(hi)) for n, (lo, hi) in zip(problem.names, problem.bounds)},
+        nominal=dict(zip(problem.names, p0.tolist())),
+        optimum=dict(zip(problem.names, p.tolist())),
+        before=before.values,
+        after=after.values,
+        objective_before=problem.objective(before)[0] * (-1 if problem.study.sense == "maximize" else 1),
+        objective_after=problem.objective(after)[0] * (-1 if problem.study.sense == "maximize" else 1),
+        active=problem.active(after, p),
+        iterations=iterations,
+        evaluations=problem.evaluations,
+        gradient_evaluations=problem.gradient_evaluations if exact else jacobians,
+        seconds=time.perf_counter() - start,
+        success=success,
+        message=message,
+        progress=history,
+    )
+
+
+def write_optimized(model_file: str | Path, model: Model, result: StudyResult, out: str | Path) -> Path:
+    """The model file with its design parameters' nominal values set to the study's optimum and
+    its name to ``<model>_<study>`` (so that its generated modules do not replace the original's),
+    written to ``out`` -- never over the input. Comments and layout are kept: only those scalars
+    change, located by the YAML parser."""
+    import yaml
+
+    from kinegen.codegen.writer import write_atomic
+
+    source, target = Path(model_file), Path(out)
+    if target.resolve() == source.resolve():
+        raise ValueError(f"{out}: the optimized model is not written over its input {model_file}")
+    text = source.read_text(encoding="utf-8")
+    root = yaml.compose(text, Loader=yaml.SafeLoader)
+    top = {key.value: value for key, value in root.value}
+    design = {key.value: value for key, value in top["design"].value}
+    edits = [(top["model"].start_mark.index, top["model"].end_mark.index, f"{model.name}_{result.study.name}")]
+    for name, value in result.optimum.items():
+        nominal = next(v for k, v in design[name].value if k.value == "nominal")
+        edits.append((nominal.start_mark.index, nominal.end_mark.index, repr(round(value, 12))))
+    for begin, end, replacement in sorted(edits, reverse=True):
+        text = text[:begin] + replacement + text[end:]
+    header = (
+        f"# Optimized by `kinegen optimize {model_file} --study {result.study.name}` ({result.method}, {result.gradients} "
+        f"gradients): the nominal values of {', '.join(result.optimum)} are the study's optimum.\n"
+    )
+    write_atomic(target, header + text)
+    return target

@@ -1,0 +1,151 @@
+"""Reading a model file's ``studies:`` section (design studies for ``kinegen optimize``).
+
+```yaml
+studies:
+  bucket_linkage:
+    description: free text
+    parameters: [side_link, bucket_link]       # design parameters varied (the others nominal)
+    maximize:                                  # or minimize: a list of weighted terms
+      - {rotation_range: bucket, relative_to: arm, axis: [0, 1, 0], case: bucket_stroke}
+    constraints:
+      - {toggle_margin: [bucket_link, bucket], case: bucket_stroke, at_least: 0.08}
+```
+
+A term or constraint names one quantity (:data:`kinegen.model.schema.QUANTITY_KINDS`) by its
+key; every quantity but ``working_range`` is measured over a ``case``. A term has an optional
+``weight`` (default 1) and ``target`` (then it is weight x (quantity - target)^2; ``published``
+takes a working-range figure's published value); a constraint ``at_least`` and/or ``at_most``.
+"""
+
+from __future__ import annotations
+
+from typing import TYPE_CHECKING, Any
+
+from kinegen.errors import shown
+from kinegen.model.schema import GROUND, QUANTITY_KINDS, Actuator, Case, Quantity, Study, StudyConstraint, Term, WorkingRange
+
+if TYPE_CHECKING:
+    from kinegen.model.loader import _Reader as Loader
+
+#: keys a term or constraint may have besides its quantity's
+_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis"), "toggle_margin": (), "stroke": (), "actuator_margin": (), "working_range": ()}
+
+
+def read_studies(
+    loader: Loader, value: Any, cases: dict[str, Case], actuators: tuple[Actuator, ...], working_range: WorkingRange | None
+) -> dict[str, Study]:
+    """The ``studies:`` section, every entry checked against the model (names, cases, figures)."""
+    studies = {}
+    for key, spec in loader.mapping(value, "studies", tuple(k for k in (value or {}) if isinstance(k, str))).items():
+        entry = f"studies.{key}"
+        name = loader.name(key, entry)
+        spec = loader.mapping(spec, entry, ("description", "parameters", "minimize", "maximize", "constraints"), ("parameters",))
+        senses = [s for s in ("minimize", "maximize") if s in spec]
+        if len(senses) != 1:
+            raise loader.fail(entry, "expected exactly one of minimize or maximize (a list of terms)")
+        parameters = spec["parameters"]
+        if not isinstance(parameters, list) or not parameters:
+            raise loader.fail(f"{entry}.parameters", "expected a list of design parameters")
+        for i, parameter in enumerate(parameters):
+            if parameter not in loader.design:
+                raise loader.fail(
+                    f"{entry}.parameters[{i}]", f"{shown(parameter)} is not a design parameter (design: {', '.join(loader.design) or 'none'})"
+                )
+        if len(set(parameters)) != len(parameters):
+            raise loader.fail(f"{entry}.parameters", "a parameter is named twice")
+        description = spec.get("description", "")
+        if not isinstance(description, str):
+            raise loader.fail(f"{entry}.description", "expected a string")
+        reader = _StudyReader(loader, cases, {a.name: a for a in actuators}, working_range)
+        terms = tuple(reader.term(item, f"{entry}.{senses[0]}[{i}]") for i, item in enumerate(_items(loader, spec[senses[0]], f"{entry}.{senses[0]}")))
+        constraints = tuple(
+            reader.constraint(item, f"{entry}.constraints[{i}]") for i, item in enumerate(_items(loader, spec.get("constraints", []), f"{entry}.constraints"))
+        )
+        studies[name] = Study(name, tuple(parameters), senses[0], terms, constraints, description)
+    return studies
+
+
+def _items(loader: Loader, value: Any, entry: str) -> list:
+    if not isinstance(value, list):
+        raise loader.fail(entry, f"expected a list, got {type(value).__name__}")
+    return value
+
+
+class _StudyReader:
+    def __init__(self, loader: Loader, cases: dict[str, Case], actuators: dict[str, Actuator], working_range: WorkingRange | None) -> None:
+        self.loader, self.cases, self.actuators, self.working_range = loader, cases, actuators, working_range
+
+    def term(self, value: Any, entry: str) -> Term:
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "weight", "target"))
+        quantity = self.quantity(spec, entry)
+        weight = self.number(spec.get("weight", 1), f"{entry}.weight")
+        target = spec.get("target")
+        if target == "published":
+            published = self.working_range.published if self.working_range else {}
+            if quantity.kind != "working_range" or quantity.figure not in published:
+                raise self.loader.fail(f"{entry}.target", f"'published' needs a working-range figure with a published value (published: {', '.join(published) or 'none'})")
+            target = published[quantity.figure]
+        elif target is not None:
+            target = self.number(target, f"{entry}.target")
+        return Term(quantity, weight, target)
+
+    def constraint(self, value: Any, entry: str) -> StudyConstraint:
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "at_least", "at_most"))
+        quantity = self.quantity(spec, entry)
+        low, high = (self.number(spec[k], f"{entry}.{k}") if k in spec else None for k in ("at_least", "at_most"))
+        if low is None and high is None:
+            raise self.loader.fail(entry, "a constraint needs at_least and/or at_most")
+        if low is not None and high is not None and not low < high:
+            raise self.loader.fail(entry, f"at_least {low} is not below at_most {high}")
+        return StudyConstraint(quantity, low, high)
+
+    def number(self, value: Any, entry: str) -> float:
+        return float(self.loader.scalar(value, entry))
+
+    def quantity(self, spec: dict, entry: str) -> Quantity:
+        kinds = [k for k in QUANTITY_KINDS if k in spec]
+        if len(kinds) != 1:
+            raise self.loader.fail(entry, f"expected exactly one quantity ({', '.join(QUANTITY_KINDS)})")
+        kind = kinds[0]
+        where = f"{entry}.{kind}"
+        for key in ("relative_to", "axis"):
+            if key in spec and key not in _QUANTITY_KEYS[kind]:
+                raise self.loader.fail(f"{entry}.{key}", f"not used by {kind}")
+        what = spec[kind]
+        if kind == "working_range":
+            if "case" in spec:
+                raise self.loader.fail(f"{entry}.case", "a working-range figure is measured over the working_range section's inputs, not a case")
+            if self.working_range is None:
+                raise self.loader.fail(where, "the model has no working_range section")
+            from kinegen.model.loader import WORKING_RANGE_FIGURES
+
+            if what not in WORKING_RANGE_FIGURES:
+                raise self.loader.fail(where, f"unknown figure {shown(what)} (one of {', '.join(WORKING_RANGE_FIGURES)})")
+            return Quantity(kind, figure=what)
+        case = spec.get("case")
+        if case not in self.cases:
+            raise self.loader.fail(f"{entry}.case", f"{kind} is measured over a case: expected one of {', '.join(self.cases)}, got {shown(case)}")
+        if kind in ("stroke", "actuator_margin"):
+            if what not in self.actuators:
+                raise self.loader.fail(where, f"unknown actuator {shown(what)} (actuators: {', '.join(self.actuators) or 'none'})")
+            if kind == "actuator_margin" and self.actuators[what].range is None:
+                raise self.loader.fail(where, f"actuator {what} has no range")
+            return Quantity(kind, case, actuator=what)
+        if kind == "toggle_margin":
+            bodies = what if isinstance(what, list) else [what]
+            for i, body in enumerate(bodies):
+                if body == GROUND or body not in self.loader.bodies:
+                    raise self.loader.fail(f"{where}[{i}]" if isinstance(what, list) else where, f"unknown moving body {shown(body)} (bodies: {', '.join(self.loader.bodies)})")
+            return Quantity(kind, case, bodies=tuple(bodies))
+        body = self.loader.body_name(what, where)
+        if body == GROUND:
+            raise self.loader.fail(where, "the ground does not rotate: name a moving body")
+        relative_to = self.loader.body_name(spec.get("relative_to", GROUND), f"{entry}.relative_to")
+        if "axis" not in spec:
+            raise self.loader.fail(entry, "a rotation range needs its axis (in the frame of relative_to)")
+        axis = self.loader.vector(spec["axis"], f"{entry}.axis")
+        values = [float(x) for x in axis]
+        norm = sum(x * x for x in values) ** 0.5
+        if norm < 1e-12 or axis.free_symbols:
+            raise self.loader.fail(f"{entry}.axis", "expected a non-zero vector of numbers")
+        return Quantity(kind, case, body=body, relative_to=relative_to, axis=tuple(x / norm for x in values))
