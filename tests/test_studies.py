@@ -11,10 +11,11 @@ import numpy as np
 import pytest
 
 from kinegen import rotations
-from kinegen.analysis.studies import StudyProblem, linkage_blocks, optimize, relative_angle, write_optimized
+from kinegen.analysis.studies import StudyProblem, optimize, relative_angle, write_optimized
 from kinegen.errors import ModelError
 from kinegen.model import load, loads
 from kinegen.runtime import from_module, load_module, solve
+from kinegen.runtime.sensitivity import body_blocks
 from tests.conftest import GENERATED, MODELS, ROOT
 
 EXCAVATOR = MODELS / "excavator.yaml"
@@ -47,6 +48,10 @@ def _with_study(study: str) -> str:
          "studies.s.constraints[0]", "at_least and/or at_most"),
         ("    parameters: [C_x]\n    minimize: [{working_range: max_reach}]\n    constraints: [{toggle_margin: [buket], case: digging, at_least: 0.1}]\n",
          "studies.s.constraints[0].toggle_margin[0]", "unknown moving body"),
+        ("    parameters: [C_x]\n    minimize: [{working_range: max_reach}]\n    constraints: [{transmission_angle: [arm.H, side_link.J], case: digging, at_least: 0.3}]\n",
+         "studies.s.constraints[0].transmission_angle", "expected three points"),
+        ("    parameters: [C_x]\n    minimize: [{working_range: max_reach}]\n    constraints: [{transmission_angle: [arm.H, side_link.X, bucket.K], case: digging, at_least: 0.3}]\n",
+         "studies.s.constraints[0].transmission_angle[1]", "unknown point"),
     ],
 )  # fmt: skip
 def test_a_malformed_study_names_the_entry(study, entry, problem):
@@ -100,7 +105,7 @@ def test_the_bucket_linkage_study_finds_the_same_optimum_with_exact_and_finite_d
     assert abs(angle.max() - angle.min() - exact.after[label_rotation]) < 1e-9
     margin = min(
         np.linalg.svd(results.system.jacobian(q, u)[np.ix_(rows, cols)], compute_uv=False)[-1]
-        for rows, cols in linkage_blocks(results, ("side_link", "bucket_link", "bucket"))
+        for rows, cols in body_blocks(results.system, ("side_link", "bucket_link", "bucket"))
         for q, u in zip(results.q, results.inputs)
     )
     assert abs(margin - exact.after[label_margin]) < 1e-9

@@ -296,22 +296,10 @@ def _actuator_margin(problem: StudyProblem, results: Results, q: Quantity, gradi
     return float(points[k]), d_points[k], (points, d_points)
 
 
-def linkage_blocks(results: Results, bodies: tuple[str, ...]) -> list[tuple[np.ndarray, np.ndarray]]:
-    """(rows, columns) of the diagonal blocks of Φ_q's block-triangular form that hold a velocity
-    coordinate of one of ``bodies``."""
-    from kinegen.symbolic.blocks import block_triangular
-
-    system = results.system
-    blocks = block_triangular((len(system.constraint_names), system.n_velocity), system.jac_rows, system.jac_cols) or []
-    nv = system.parametrization.nv
-    columns = {system.bodies[b][1] + k for b in bodies for k in range(nv)}
-    return [(np.array(b.rows), np.array(b.cols)) for b in blocks if columns & set(b.cols)]
-
-
 def _toggle_margin(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
-    from kinegen.runtime.sensitivity import singular_value_sensitivity
+    from kinegen.runtime.sensitivity import body_blocks, singular_value_sensitivity
 
-    blocks = linkage_blocks(results, q.bodies)
+    blocks = body_blocks(results.system, q.bodies)
     if not blocks:
         raise ValueError(f"{q.label}: no diagonal block of Phi_q holds coordinates of {', '.join(q.bodies)}")
     measured = [singular_value_sensitivity(results, block) if gradients else (_block_sigma(results, block), None) for block in blocks]
@@ -329,7 +317,30 @@ def _block_sigma(results: Results, block: tuple[np.ndarray, np.ndarray]) -> np.n
     )
 
 
+def _transmission_angle(problem: StudyProblem | None, results: Results, q: Quantity, gradients: bool):
+    """The angle θ at the middle point, per time point θ and π − θ (both kept from 0), and their derivatives."""
+    (a, b, c) = q.points
+    middle = results.point_position(*b)
+    u, w = results.point_position(*a) - middle, results.point_position(*c) - middle
+    length_u, length_w = np.linalg.norm(u, axis=1), np.linalg.norm(w, axis=1)
+    cosine = np.einsum("ki,ki->k", u, w) / (length_u * length_w)
+    theta = np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ki,ki->k", u, w))
+    points = np.concatenate([theta, np.pi - theta])
+    k = int(np.nanargmin(points))
+    if not gradients:
+        return float(points[k]), None, (points, None)
+    d_middle = results.sensitivity(*b)
+    du, dw = results.sensitivity(*a) - d_middle, results.sensitivity(*c) - d_middle  # (K, 3, n_design)
+    d_cosine = (np.einsum("kin,ki->kn", du, w) + np.einsum("ki,kin->kn", u, dw)) / (length_u * length_w)[:, None] - cosine[:, None] * (
+        np.einsum("ki,kin->kn", u, du) / length_u[:, None] ** 2 + np.einsum("ki,kin->kn", w, dw) / length_w[:, None] ** 2
+    )
+    d_theta = -d_cosine / np.sin(theta)[:, None]
+    d_points = np.concatenate([d_theta, -d_theta])
+    return float(points[k]), d_points[k], (points, d_points)
+
+
 MEASURES: dict[str, Callable] = {
+    "transmission_angle": _transmission_angle,
     "rotation_range": _rotation_range,
     "stroke": _stroke,
     "actuator_margin": _actuator_margin,

@@ -182,7 +182,7 @@ class DesignParameter:
 
 
 #: what a design study can measure (:class:`Quantity`)
-QUANTITY_KINDS = ("working_range", "rotation_range", "stroke", "toggle_margin", "actuator_margin")
+QUANTITY_KINDS = ("working_range", "rotation_range", "stroke", "toggle_margin", "actuator_margin", "transmission_angle")
 
 
 @dataclass(frozen=True)
@@ -197,7 +197,10 @@ class Quantity:
       block-triangular form that hold coordinates of ``bodies`` -- the distance to the linkage's
       toggle, where it vanishes;
     * ``actuator_margin``: over ``case``, the smallest distance of ``actuator``'s length to the
-      ends of its range (m; negative outside it).
+      ends of its range (m; negative outside it);
+    * ``transmission_angle``: over ``case``, the smallest distance of the angle at the second of
+      ``points`` (between the lines to the first and the third) from 0 and from π (rad): a
+      linkage transmits force badly near both (at 0 or π it is at a dead point).
     """
 
     kind: str
@@ -208,18 +211,22 @@ class Quantity:
     axis: tuple[float, float, float] | None = None
     actuator: str | None = None
     bodies: tuple[str, ...] = ()
+    points: tuple[tuple[str, str], ...] = ()  #: (body, point) each
 
     @property
     def unit(self) -> str:
         """m, rad, or "" (a singular value of Φ_q, mixed units)."""
-        return {"rotation_range": "rad", "toggle_margin": ""}.get(self.kind, "m")
+        return {"rotation_range": "rad", "transmission_angle": "rad", "toggle_margin": ""}.get(self.kind, "m")
 
     @property
     def label(self) -> str:
         """A short name: ``max_depth``, ``rotation_range(bucket/arm, bucket_stroke)``, ..."""
         if self.kind == "working_range":
             return str(self.figure)
-        what = {"rotation_range": f"{self.body}/{self.relative_to}", "toggle_margin": "+".join(self.bodies)}.get(self.kind, self.actuator)
+        what = {
+            "rotation_range": f"{self.body}/{self.relative_to}", "toggle_margin": "+".join(self.bodies),
+            "transmission_angle": "-".join(f"{b}.{p}" for b, p in self.points),
+        }.get(self.kind, self.actuator)  # fmt: skip
         return f"{self.kind}({what}, {self.case})"
 
 

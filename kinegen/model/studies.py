@@ -28,7 +28,7 @@ if TYPE_CHECKING:
     from kinegen.model.loader import _Reader as Loader
 
 #: keys a term or constraint may have besides its quantity's
-_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis"), "toggle_margin": (), "stroke": (), "actuator_margin": (), "working_range": ()}
+_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis")}
 
 
 def read_studies(
@@ -109,7 +109,7 @@ class _StudyReader:
         kind = kinds[0]
         where = f"{entry}.{kind}"
         for key in ("relative_to", "axis"):
-            if key in spec and key not in _QUANTITY_KEYS[kind]:
+            if key in spec and key not in _QUANTITY_KEYS.get(kind, ()):
                 raise self.loader.fail(f"{entry}.{key}", f"not used by {kind}")
         what = spec[kind]
         if kind == "working_range":
@@ -137,6 +137,11 @@ class _StudyReader:
                 if body == GROUND or body not in self.loader.bodies:
                     raise self.loader.fail(f"{where}[{i}]" if isinstance(what, list) else where, f"unknown moving body {shown(body)} (bodies: {', '.join(self.loader.bodies)})")
             return Quantity(kind, case, bodies=tuple(bodies))
+        if kind == "transmission_angle":
+            if not isinstance(what, list) or len(what) != 3:
+                raise self.loader.fail(where, "expected three points 'body.point': the angle is at the second")
+            refs = [self.loader.point_ref(x, f"{where}[{i}]") for i, x in enumerate(what)]
+            return Quantity(kind, case, points=tuple((r.body, r.name) for r in refs))
         body = self.loader.body_name(what, where)
         if body == GROUND:
             raise self.loader.fail(where, "the ground does not rotate: name a moving body")

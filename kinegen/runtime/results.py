@@ -153,12 +153,20 @@ class Results:
         out = np.einsum("ki,kij->kj", direction, turn)
         return self._by_parameter(out, parameter)
 
-    def smallest_singular_value_sensitivity(self, parameter: str | None = None) -> tuple[np.ndarray, np.ndarray]:
+    def smallest_singular_value_sensitivity(
+        self, parameter: str | None = None, bodies: tuple[str, ...] | None = None
+    ) -> tuple[np.ndarray, np.ndarray]:
         """σ_min of Φ_q at every time point (the distance to a singular pose) and its exact
-        derivative by a design parameter, (K,), or by all of them, (K, n_design)."""
-        from kinegen.runtime.sensitivity import singular_value_sensitivity
+        derivative by a design parameter, (K,), or by all of them, (K, n_design). With ``bodies``
+        (a linkage), of the critical block instead: at each time point the diagonal block of Φ_q's
+        block-triangular form holding their coordinates with the smallest σ_min, where a toggle
+        shows undiluted by the rest of the mechanism."""
+        from kinegen.runtime.sensitivity import critical_block_sensitivity, singular_value_sensitivity
 
-        sigma, derivative = singular_value_sensitivity(self)
+        if bodies is None:
+            sigma, derivative = singular_value_sensitivity(self)
+        else:
+            sigma, derivative, _ = critical_block_sensitivity(self, tuple(bodies))
         return sigma, self._by_parameter(derivative, parameter)
 
     def actuator_length_sensitivity(self, name: str, parameter: str | None = None) -> np.ndarray:

@@ -215,6 +215,32 @@ def point_position_sensitivities(
     return positions, None if by_design is None else derivatives[..., :n_design], derivatives[..., n_design:]
 
 
+def body_blocks(system: NumericSystem, bodies: tuple[str, ...]) -> list[tuple[np.ndarray, np.ndarray]]:
+    """(rows, columns) of the diagonal blocks of Φ_q's block-triangular form that hold a velocity
+    coordinate of one of ``bodies`` (a linkage's loops: where its toggles show)."""
+    from kinegen.symbolic.blocks import block_triangular
+
+    blocks = block_triangular((len(system.constraint_names), system.n_velocity), system.jac_rows, system.jac_cols) or []
+    nv = system.parametrization.nv
+    columns = {system.bodies[b][1] + k for b in bodies for k in range(nv)}
+    return [(np.array(b.rows), np.array(b.cols)) for b in blocks if columns & set(b.cols)]
+
+
+def critical_block_sensitivity(results: Results, bodies: tuple[str, ...]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """At every time point the smallest σ_min of the diagonal blocks that hold coordinates of
+    ``bodies`` (K,) -- the critical block's distance to a singular pose --, its exact derivative
+    by the design parameters (K, n_design) and which block it is (K,: index into
+    :func:`body_blocks`)."""
+    blocks = body_blocks(results.system, bodies)
+    if not blocks:
+        raise ValueError(f"no diagonal block of Phi_q holds coordinates of {', '.join(bodies)}")
+    measured = [singular_value_sensitivity(results, block) for block in blocks]
+    sigma = np.stack([s for s, _ in measured])  # (blocks, K)
+    critical = np.nanargmin(np.where(np.isnan(sigma), np.inf, sigma), axis=0)
+    count = np.arange(sigma.shape[1])
+    return sigma[critical, count], np.stack([d for _, d in measured])[critical, count], critical
+
+
 def singular_value_sensitivity(results: Results, block: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:
     """The smallest singular value σ of Φ_q at every time point (K,) -- the distance to a
     singular pose -- and its exact derivative by the design parameters (K, n_design):
