@@ -388,7 +388,8 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
 @click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON.")
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as_json: bool, generated_dir: str) -> None:
-    """Working range of the model's `working_range` point over its input ranges."""
+    """Working range of the model's `working_range` point over its input ranges (and, for a model with
+    design parameters, the figures' exact sensitivities by them)."""
     from kinegen.analysis.envelope import plot_envelope, working_range
     from kinegen.errors import ModelError
 
@@ -406,25 +407,35 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as
         if any(c < 2 for c in counts):
             raise click.BadParameter("at least 2 samples per input", param_hint="--grid")
     result = working_range(system, model.working_range, counts)
+    sensitivities = {}
+    if system.design and system.sensitivity_kernels:  # d(figure)/d(design parameter), by the envelope theorem
+        from kinegen.analysis.envelope import figure_sensitivities
+
+        exact = figure_sensitivities(result, system)
+        sensitivities = {figure: dict(zip(system.design, (float(x) for x in values))) for figure, values in exact.items()}
     if as_json:
-        click.echo(
-            json.dumps(
-                {
-                    "figures": result.figures,
-                    "inputs": result.arguments,
-                    "published_unverified": model.working_range.published,
-                    "samples": len(result.samples),
-                    "seconds": result.seconds,
-                },
-                indent=2,
-            )
-        )
+        document = {
+            "figures": result.figures,
+            "inputs": result.arguments,
+            "published_unverified": model.working_range.published,
+            "samples": len(result.samples),
+            "seconds": result.seconds,
+        }
+        if sensitivities:
+            document["sensitivities"] = sensitivities
+        click.echo(json.dumps(document, indent=2))
     else:
         click.echo(result.table())
         click.echo(
             f"{len(result.samples)} configurations sampled in batches ({result.grid_seconds:.2f} s), "
             f"{result.solves} Newton solves, {result.seconds:.1f} s in all"
         )
+        if sensitivities:
+            names = list(system.design)
+            click.echo("\nexact sensitivities of the figures (envelope theorem), m per unit of each design parameter:")
+            click.echo(f"{'figure':<22}" + "".join(f" {n:>14}" for n in names))
+            for figure, values in sensitivities.items():
+                click.echo(f"{figure:<22}" + "".join(f" {values[n]:>14.6g}" for n in names))
     if plot:
         click.echo(f"wrote {plot_envelope(result, plot)}", err=as_json)
 

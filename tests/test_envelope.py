@@ -87,3 +87,23 @@ def test_working_range_figures_have_exact_sensitivities_by_the_envelope_theorem(
     # the retracted length moves only the depth (the boom fully down), by d(depth)/d(length) < 0
     by_length = {figure: exact[figure][names.index("boom_retracted")] for figure in exact}
     assert by_length["max_depth"] < -1 and all(abs(v) < 1e-9 for f, v in by_length.items() if f != "max_depth")
+
+
+def test_kinegen_envelope_prints_the_figures_and_their_sensitivities_by_the_design_parameters():
+    """`kinegen envelope --json` on the design excavator: the figures at the nominal design (the
+    closed-form test's values) and, per figure, d/dp of every design parameter -- the retracted
+    length moving the depth only."""
+    import json
+
+    from click.testing import CliRunner
+
+    from kinegen.cli import main
+    from tests.conftest import GENERATED, MODELS
+
+    result = CliRunner().invoke(main, ["envelope", str(MODELS / "excavator.yaml"), "--json", "--generated-dir", str(GENERATED)])
+    assert result.exit_code == 0, result.output
+    document = json.loads(result.output[result.output.index("{") :])
+    assert set(document["figures"]) == set(document["sensitivities"])
+    depth = document["sensitivities"]["max_depth"]
+    assert len(depth) == 9 and depth["boom_retracted"] < -8
+    assert all(abs(values["boom_retracted"]) < 1e-9 for f, values in document["sensitivities"].items() if f != "max_depth")
