@@ -17,6 +17,7 @@ own body coordinates do (ds/dp).
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -89,23 +90,32 @@ def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.nd
     return out
 
 
+def _inverse(system: NumericSystem, q: np.ndarray, u: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
+    """x = Φ_q⁻¹ b at each configuration (columns of q and u), Φ_q factored once each by the
+    solver's own LU (:func:`kinegen.runtime.linear.choose`): b, x of shape (K, m, ...)."""
+    m = system.n_velocity
+    lu = linear.choose(system.jac_rows, system.jac_cols, (m, m))
+    count = np.shape(q)[1]
+    jac = np.broadcast_to(np.asarray(system.jac(q, u), dtype=float).reshape(len(system.jac_rows), -1), (len(system.jac_rows), count))
+    factors = [lu.factor(jac[:, k])[0] for k in range(count)]
+    return lambda b: np.stack([lu.solve(f, x) for f, x in zip(factors, b)])
+
+
 def _python_sensitivities(system: NumericSystem, q, v, a, u, ud, udd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """:func:`state_sensitivities` at the columns of (q, v, a, u, ud, udd) in NumPy, each kernel
     called once per batch of :data:`BATCH` time points."""
     m, n_design = system.n_velocity, len(system.design)
     count = q.shape[1]
-    lu = linear.choose(system.jac_rows, system.jac_cols, (m, m))
     kernels, patterns = system.sensitivity_kernels, system.sensitivity_patterns
     out = tuple(np.empty((count, m, n_design)) for _ in range(3))
     for first in range(0, count, BATCH):
         k = slice(first, min(first + BATCH, count))
-        jac = np.asarray(system.jac(q[:, k], u[:, k]), dtype=float).reshape(len(system.jac_rows), -1)
-        factors = [lu.factor(jac[:, i])[0] for i in range(jac.shape[1])]
+        inverse = _inverse(system, q[:, k], u[:, k])
 
-        def solve(rhs: np.ndarray, factors=factors) -> np.ndarray:  # -Phi_q^-1 rhs, (K, m, n_design)
-            return -np.stack([lu.solve(f, b) for f, b in zip(factors, rhs)])
+        def solve(rhs: np.ndarray, inverse=inverse) -> np.ndarray:  # -Phi_q^-1 rhs, (K, m, n_design)
+            return -inverse(rhs)
 
-        shape = (len(factors), m, n_design)
+        shape = (k.stop - k.start, m, n_design)
         s = solve(_sparse_times(patterns["phi_p"], kernels["phi_p"](q[:, k], u[:, k]), shape, 0))
         velocity = solve(_sparse_times(patterns["dvel"], kernels["dvel"](q[:, k], v[:, k], u[:, k], ud[:, k]), shape, m, s))
         values = kernels["dacc"](q[:, k], v[:, k], a[:, k], u[:, k], ud[:, k], udd[:, k])
@@ -165,9 +175,7 @@ def configuration_sensitivities(
         unit = np.eye(n_inputs)
         rates = np.stack([system.velocity_rhs(q[:, 0], u[:, 0], unit[j]) for j in range(n_inputs)], axis=1)  # -Phi_u
         return None, scipy.linalg.solve(system.jacobian(q[:, 0], u[:, 0]), rates)[None]
-    lu = linear.choose(system.jac_rows, system.jac_cols, (m, m))
-    jac = np.broadcast_to(np.asarray(system.jac(q, u), dtype=float).reshape(len(system.jac_rows), -1), (len(system.jac_rows), count))
-    factors = [lu.factor(jac[:, k])[0] for k in range(count)]
+    inverse = _inverse(system, q, u)
     unit = np.eye(n_inputs)
     by_input = np.stack([np.broadcast_to(np.asarray(system.nu(q, u, np.broadcast_to(unit[:, [j]], u.shape)), dtype=float).reshape(m, -1), (m, count))
                          for j in range(n_inputs)], axis=2).transpose(1, 0, 2)  # fmt: skip  # -Phi_u, (K, m, n_inputs)
@@ -175,9 +183,8 @@ def configuration_sensitivities(
     if design and system.design:
         _check(system)
         values = system.sensitivity_kernels["phi_p"](q, u)
-        by_design = -np.stack([lu.solve(f, b) for f, b in zip(factors, _sparse_times(system.sensitivity_patterns["phi_p"], values,
-                                                                                      (count, m, len(system.design)), 0))])  # fmt: skip
-    return by_design, np.stack([lu.solve(f, b) for f, b in zip(factors, by_input)])
+        by_design = -inverse(_sparse_times(system.sensitivity_patterns["phi_p"], values, (count, m, len(system.design)), 0))
+    return by_design, inverse(by_input)
 
 
 def point_position_sensitivities(
