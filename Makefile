@@ -10,7 +10,7 @@ export OPENBLAS_NUM_THREADS ?= 1
 $(BIN)/kinegen: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
-	$(BIN)/pip install --quiet -e '.[test,bench]'
+	$(BIN)/pip install --quiet -e '.[test,bench,explore]'
 	touch $@
 
 ## run: build every model in models/ and solve every case; summary on screen, CSV + PNG in $(OUT)/

@@ -566,5 +566,95 @@ def optimize(
         raise KinegenError(f"study {study_name}: {best.message}")
 
 
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--study", "study_name", required=True, help="The study (studies:) whose parameters are sampled and whose quantities are measured.")
+@click.option("--samples", type=click.IntRange(min=1), default=None, help="Variants to measure (default 1024; when resuming, the run's own).")
+@click.option("--sampler", type=click.Choice(["sobol", "lhs"]), default=None, help="Scrambled Sobol' or Latin hypercube (scipy.stats.qmc); default sobol.")
+@click.option("--seed", type=int, default=None, help="The sampler's seed: the same command gives the same variants (default 0).")
+@click.option("--partition-size", type=click.IntRange(min=1), default=None, help="Variants per Dask task and Parquet file (default 200).")
+@click.option("--out", type=click.Path(), default=None, help="The Parquet dataset (a folder; default out/<model>_<study>.parquet).")
+@click.option("--resume", is_flag=True, help="Continue the run held in --out: only the partitions not written yet are computed.")
+@click.option("--scheduler", default=None, help="A Dask scheduler's address (tcp://host:8786); default: a LocalCluster here.")
+@click.option("--workers", type=click.IntRange(min=1), default=None, help="LocalCluster worker processes (default: one per core).")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of the Pareto front and the parameters' sensitivity ranking.")
+@click.option("--pareto", multiple=True, help="The front's two quantities (a column or a unique start of one; repeat twice). Default: the study's first two.")
+@click.option("--minimize", multiple=True, help="A --pareto quantity to minimize (the front maximizes by default). Repeatable.")
+@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@click.option("--no-compile", is_flag=True, help="Measure with the generated Python functions instead of the module's C.")
+@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+def explore(
+    model_file: str,
+    study_name: str,
+    samples: int | None,
+    sampler: str | None,
+    seed: int | None,
+    partition_size: int | None,
+    out: str | None,
+    resume: bool,
+    scheduler: str | None,
+    workers: int | None,
+    plot: str | None,
+    pareto: tuple[str, ...],
+    minimize: tuple[str, ...],
+    param: str,
+    no_compile: bool,
+    generated_dir: str,
+) -> None:
+    """Sample a study's design parameters in their bounds and measure every variant's quantities
+    on Dask, written to Parquet partition by partition (resumable); optionally plot the Pareto front
+    of two quantities and the parameters' sensitivity ranking."""
+    from kinegen.explore.plots import plot_exploration, ranking_of
+    from kinegen.explore.run import PARTITION_SIZE, Exploration
+    from kinegen.explore.run import explore as run
+    from kinegen.explore.store import Store
+
+    model, module = _module(model_file, _parametrization(param), generated_dir)
+    if study_name not in model.studies:
+        known = ", ".join(model.studies) or "none declared"
+        raise click.BadParameter(f"no study {study_name!r} (studies: {known})", param_hint="--study")
+    target = Path(out) if out else Path("out") / f"{model.name}_{study_name}.parquet"
+    settings = {"samples": samples, "sampler": sampler, "seed": seed, "partition_size": partition_size}
+    defaults = {"samples": 1024, "sampler": "sobol", "seed": 0, "partition_size": PARTITION_SIZE}
+    if resume and Store(target).exists():
+        held = Store(target).provenance()
+        defaults = {key: held.get(key, value) for key, value in defaults.items()}
+    chosen = {key: defaults[key] if value is None else value for key, value in settings.items()}
+    exploration = Exploration(Path(model_file).resolve(), Path(module.__file__).resolve(), study_name, compiled=not no_compile, **chosen)
+    report = run(exploration, target, resume=resume, scheduler=scheduler, workers=workers, say=lambda line: click.echo(line, err=True))
+    click.echo(report.summary())
+    store = Store(target)
+    table, provenance = store.read(), store.provenance()
+    result = ranking_of(table, provenance)
+    if result is not None:
+        click.echo("sensitivity ranking over the ok variants:")
+        click.echo(result.table())
+    if plot:
+        pair = _pareto_pair(pareto, provenance["quantities"])
+        maximize = tuple(label not in {_column(m, provenance["quantities"], "--minimize") for m in minimize} for label in pair)
+        click.echo(f"wrote {plot_exploration(table, provenance, pair, maximize, plot)}")
+
+
+def _column(name: str, columns: list[str], option: str) -> str:
+    """The column ``name`` names: itself, or the one column it begins."""
+    if name in columns:
+        return name
+    matches = [c for c in columns if c.startswith(name)]
+    if len(matches) != 1:
+        raise click.BadParameter(f"{name!r} names {'no' if not matches else 'more than one'} quantity (quantities: {', '.join(columns)})", param_hint=option)
+    return matches[0]
+
+
+def _pareto_pair(names: tuple[str, ...], columns: list[str]) -> tuple[str, str]:
+    if not names:
+        if len(columns) < 2:
+            raise click.BadParameter("the study measures one quantity: a front needs two", param_hint="--pareto")
+        return columns[0], columns[1]
+    if len(names) != 2:
+        raise click.BadParameter("give --pareto twice (the two quantities of the front)", param_hint="--pareto")
+    return _column(names[0], columns, "--pareto"), _column(names[1], columns, "--pareto")
+
+
 if __name__ == "__main__":  # pragma: no cover
     sys.exit(main())

@@ -205,7 +205,8 @@ def main(argv: list[str] | None = None) -> int:
     failures += sum(r.failure is not None for r in rows if not r.parametrization.startswith("euler:zx"))
     print(table(rows, excavator.name, "digging"))
     failures += _studies(args.models / "excavator.yaml", paths["excavator.yaml", "quaternion"], args.out)
-    print(f"\noutputs (CSV + PNG per case, optimized models) in {args.out.resolve()}")
+    failures += _exploration(args.models / "excavator.yaml", paths["excavator.yaml", "quaternion"], args.out)
+    print(f"\noutputs (CSV + PNG per case, optimized models, the exploration's Parquet) in {args.out.resolve()}")
     return 1 if failures else 0
 
 
@@ -224,6 +225,35 @@ def _studies(model_file: Path, module_path: Path, out: Path) -> int:
         print(f"  wrote {write_optimized(model_file, model, result, out / f'{model.name}_{name}.yaml')}")
         failures += not result.success
     return failures
+
+
+def _exploration(model_file: Path, module_path: Path, out: Path, samples: int = 256) -> int:
+    """kinegen explore of the calibration study on a LocalCluster: Parquet, ranking, Pareto front."""
+    import shutil
+
+    try:
+        from kinegen.explore.plots import plot_exploration, ranking_of
+        from kinegen.explore.run import Exploration, explore
+        from kinegen.explore.store import Store
+    except ImportError as exc:
+        print(f"\nkinegen explore left out ({exc}): pip install 'kinegen[explore]'")
+        return 0
+    target = out / "excavator_calibration.parquet"
+    shutil.rmtree(target, ignore_errors=True)  # this job's own output of an earlier run
+    print(f"\nkinegen explore {model_file.name} --study calibration --samples {samples} (Sobol', Dask LocalCluster):\n")
+    exploration = Exploration(model_file.resolve(), module_path.resolve(), "calibration", samples, partition_size=32)
+    report = explore(exploration, target, progress=False, say=lambda line: print(f"  {line}"))
+    print(report.summary())
+    store = Store(target)
+    table, provenance = store.read(), store.provenance()
+    result = ranking_of(table, provenance)
+    if result is None:
+        print("  too few variants could be measured to rank the parameters")
+        return 1
+    print(result.table())
+    picture = plot_exploration(table, provenance, ("max_reach", "max_depth"), (True, True), out / "excavator_calibration_explore.png")
+    print(f"  wrote {picture}")
+    return 0
 
 
 if __name__ == "__main__":

@@ -52,6 +52,9 @@ def test_parameters_are_substituted():
         ("t +", "cannot parse"),
         ("import os", "cannot parse"),
         ("sin", "must be called"),
+        ("atan2((0*t + 0), atan2((0*t + 0), (0*t + 0)))", "not a finite number"),
+        ("atan2(0, 0)", "not a finite number"),
+        ("log(0)", "not a finite number"),  # atan2(0, 0) is NaN (found by the fuzzer)
     ],
 )
 def test_rejects_hostile_or_malformed_text(text, message, tmp_path):

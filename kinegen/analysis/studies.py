@@ -114,8 +114,11 @@ class StudyProblem:
     """One study of a model on one generated module (``module``: with design parameters and,
     for exact gradients, sensitivity kernels)."""
 
-    def __init__(self, model: Model, module, study: Study, compiled: bool | None = None) -> None:
+    def __init__(self, model: Model, module, study: Study, compiled: bool | None = None, resample: bool = True) -> None:
         self.model, self.module, self.study, self.compiled = model, module, study, compiled
+        #: when a working range cannot be refined from the last design's optima, sample it afresh
+        #: (False: the failure ends the measurement -- an exploration's variant is then marked)
+        self.resample = resample
         design = {d.name: d for d in model.design}
         self.order = list(design)  #: every design parameter, in the module's order
         self.names = list(study.parameters)
@@ -186,6 +189,8 @@ class StudyProblem:
             try:
                 envelope = refine_from(system, self.envelope)
             except KinegenError:  # a continuation that lost its way: sample the working range afresh
+                if not self.resample:
+                    raise
                 envelope = None
         if envelope is None:
             envelope = working_range(system, spec)
@@ -474,7 +479,7 @@ def write_optimized(model_file: str | Path, model: Model, result: StudyResult, o
     change, located by the YAML parser."""
     import yaml
 
-    from kinegen.codegen.writer import write_atomic
+    from kinegen.files import write_atomic
 
     source, target = Path(model_file), Path(out)
     if target.resolve() == source.resolve():

@@ -101,6 +101,7 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--quick", action="store_true", help="leave out SciPy finite differences and naive SymPy")
     parser.add_argument("--no-sweep", action="store_true", help="leave out the working-range sweep")
     parser.add_argument("--no-studies", action="store_true", help="leave out the design studies (exact vs finite-difference gradients)")
+    parser.add_argument("--no-explore", action="store_true", help="leave out kinegen explore on Dask (1 and 2 workers vs one process)")
     args = parser.parse_args(argv)
     workloads = [f"chain-{n}" for n in args.sizes] + [f"excavator-{c}" for c in args.excavator]
     failures = 0
@@ -137,6 +138,7 @@ def main(argv: list[str] | None = None) -> int:
     sweep = None if args.no_sweep else sweep_rate()
     sensitivity = run_contender("__import__('kinegen.bench.design', fromlist=['x']).sensitivity_cost()") if "excavator-digging" in workloads else None
     studies = None if args.no_studies else run_contender("__import__('kinegen.bench.design', fromlist=['x']).study_cost()")
+    exploration = None if args.no_explore else run_contender("__import__('kinegen.bench.explore', fromlist=['x']).exploration_scaling()")
     memory = {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")}
     print()
     for w, m in list(memory.items())[:1]:
@@ -160,31 +162,54 @@ def main(argv: list[str] | None = None) -> int:
                 f"dq/dp, dv/dp, da/dp {s['compiled_sensitivities']:.3f} s; trajectory solve compiled {s['compiled_solve']:.3f} s, "
                 f"pure Python {s['python_solve']:.3f} s; build {s['build']:.1f} s"
             )
+    failures += _section(exploration, "kinegen explore", _exploration_line)
     print()
     print("Targets, on this run's figures:")
-    if studies is not None:
-        print()
-        if "failed" in studies:
-            failures += 1
-            print(f"design studies: FAILED: {studies['failed']}")
-        else:
-            print("design studies (kinegen optimize, SLSQP; models/excavator.yaml): exact gradients vs SciPy's finite differences")
-            for name, s in studies.items():
-                if not isinstance(s, dict):  # the row's peak memory
-                    continue
-                e, f = s["exact"], s["fd"]
-                print(
-                    f"  {name} ({s['parameters']} parameters): exact {e['iterations']} iterations, {e['gradient_evaluations']} gradients, "
-                    f"{e['designs']} designs, {e['seconds']:.1f} s; finite differences {f['iterations']} iterations, {f['designs']} designs, "
-                    f"{f['seconds']:.1f} s ({s['seconds_ratio']:.1f}x the time); optima {s['optimum_difference']:.1e} apart"
-                )
-                failures += not (e["success"] and f["success"])
-    for line in targets(rows, sweep, sensitivity):
+    failures += _section(studies, "design studies", _study_lines)
+    for line in targets(rows, sweep, sensitivity, exploration):
         print("  " + line)
     return 1 if failures else 0
 
 
-def targets(rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: dict | None = None) -> list[str]:
+def _section(row: dict | None, name: str, lines) -> int:
+    """A measured row's lines after a blank line (nothing when not measured); 1 for a failure."""
+    if row is None:
+        return 0
+    print()
+    if "failed" in row:
+        print(f"{name}: FAILED: {row['failed']}")
+        return 1
+    text, failed = lines(row)
+    print(text)
+    return failed
+
+
+def _exploration_line(e: dict) -> tuple[str, int]:
+    return (
+        f"kinegen explore (excavator calibration study, {e['samples']} variants in partitions of {e['partition_size']}, median of "
+        f"{e['rounds']} rounds): one process {e['in_process']:.1f} s ({e['samples'] / e['in_process']:.1f} variants/s), Dask 1 worker "
+        f"{e['workers_1']:.1f} s ({e['samples'] / e['workers_1']:.1f}/s), 2 workers {e['workers_2']:.1f} s ({e['samples'] / e['workers_2']:.1f}/s); "
+        f"a worker's one-time set-up {e['setup_1']:.1f} s",
+        0,
+    )
+
+
+def _study_lines(studies: dict) -> tuple[str, int]:
+    lines, failed = ["design studies (kinegen optimize, SLSQP; models/excavator.yaml): exact gradients vs SciPy's finite differences"], 0
+    for name, s in studies.items():
+        if not isinstance(s, dict):  # the row's peak memory
+            continue
+        e, f = s["exact"], s["fd"]
+        lines.append(
+            f"  {name} ({s['parameters']} parameters): exact {e['iterations']} iterations, {e['gradient_evaluations']} gradients, "
+            f"{e['designs']} designs, {e['seconds']:.1f} s; finite differences {f['iterations']} iterations, {f['designs']} designs, "
+            f"{f['seconds']:.1f} s ({s['seconds_ratio']:.1f}x the time); optima {s['optimum_difference']:.1e} apart"
+        )
+        failed += not (e["success"] and f["success"])
+    return "\n".join(lines), failed
+
+
+def targets(rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: dict | None = None, exploration: dict | None = None) -> list[str]:
     """One line per target that this run measured: the figure, the target, met or not."""
 
     def get(w: str, name: str, key: str) -> float | None:
@@ -256,6 +281,10 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: 
         ratio = sensitivity["compiled_sensitivities"] / sensitivity["compiled_solve"]
         out.append(line(f"excavator digging sensitivities ({sensitivity['parameters']} parameters) / compiled trajectory solve (issue 13)", ratio, 3.0, True))
         out.append(f"  (/ pure-Python trajectory solve: {sensitivity['compiled_sensitivities'] / sensitivity['python_solve']:.2f})")
+    if exploration and "failed" not in exploration:
+        out.append(line("kinegen explore, 2 Dask workers / 1 worker, variants per second (issue 14)", exploration["workers_1"] / exploration["workers_2"], 1.8, False, "x"))
+        overhead = 100 * (exploration["workers_1"] / exploration["in_process"] - 1)
+        out.append(line("kinegen explore, Dask overhead per variant, 1 worker vs one process without Dask (issue 14)", overhead, 10, True, " %"))
     return [x for x in out if x]
 
 

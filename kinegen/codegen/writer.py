@@ -2,13 +2,12 @@
 
 from __future__ import annotations
 
-import os
-import tempfile
 from collections.abc import Callable
 from pathlib import Path
 
 from kinegen.codegen import backends
 from kinegen.codegen.kernels import describe
+from kinegen.files import write_atomic
 from kinegen.model import Model, load
 from kinegen.rotations import Parametrization, get
 
@@ -67,21 +66,6 @@ def built_with_sensitivities(path: str | Path) -> bool | None:
         if "sensitivities:" in line:
             return line.split("sensitivities:")[1].strip() == "yes"
     return None
-
-
-def write_atomic(path: Path, text: str) -> None:
-    """Write ``text`` to ``path`` via a temporary file and ``os.replace``: all or nothing."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "w", encoding="utf-8", newline="\n") as handle:
-            handle.write(text)
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
 
 
 def build(

@@ -207,7 +207,15 @@ class _Translator:
         if len(node.args) != arity or any(isinstance(a, ast.Starred) for a in node.args):
             return self._reject(f"{name}() takes {arity} argument(s)")
         args = [self.visit(a, depth + 1) for a in node.args]
-        return FUNCTIONS[name](*args)
+        if any(a.has(sp.nan, sp.zoo, sp.oo, -sp.oo) for a in args):
+            return self._reject(f"an argument of {name}() is not a finite number")
+        try:
+            value = FUNCTIONS[name](*args)
+        except (TypeError, ValueError, ArithmeticError) as exc:  # SymPy refusing its own arguments
+            return self._reject(f"{name}() cannot be evaluated here: {exc}")
+        if value.has(sp.nan, sp.zoo, sp.oo, -sp.oo):
+            return self._reject(f"{name}() of these arguments is not a finite number")
+        return value
 
     @staticmethod
     def _check_power(base: sp.Expr, exponent: sp.Expr) -> None:
