@@ -7,9 +7,15 @@ export OPENBLAS_NUM_THREADS ?= 1
 
 .PHONY: run test bench fuzz generate clean
 
+# the main job's environment: kinegen and Dask (kinegen explore)
 $(BIN)/kinegen: pyproject.toml
 	$(PYTHON) -m venv $(VENV)
 	$(BIN)/pip install --quiet --upgrade pip
+	$(BIN)/pip install --quiet -e '.[explore]'
+	touch $@
+
+# tests and benchmarks add pytest, ruff and the benchmark's baselines (CasADi, SymEngine: large)
+$(VENV)/.dev: $(BIN)/kinegen
 	$(BIN)/pip install --quiet -e '.[test,bench,explore]'
 	touch $@
 
@@ -18,16 +24,16 @@ run: $(BIN)/kinegen
 	$(BIN)/python -m kinegen.demo --out $(OUT)
 
 ## test: lint, then the whole test suite
-test: $(BIN)/kinegen
+test: $(VENV)/.dev
 	$(BIN)/ruff check kinegen tests generated
 	$(BIN)/python -m pytest -q
 
 ## bench: kinegen vs CasADi, SymEngine, naive SymPy, SciPy on chain-N and the excavator (BENCH_ARGS="--sizes 14 50 100")
-bench: $(BIN)/kinegen
+bench: $(VENV)/.dev
 	$(BIN)/python -m kinegen.bench $(BENCH_ARGS)
 
 ## fuzz: 10,000 fuzzed model files (Hypothesis); each must end in a ModelError naming file and entry
-fuzz: $(BIN)/kinegen
+fuzz: $(VENV)/.dev
 	mkdir -p $(OUT)
 	KINEGEN_FUZZ_EXAMPLES=$${KINEGEN_FUZZ_EXAMPLES:-10000} KINEGEN_FUZZ_REPORT=$(OUT)/fuzz.txt \
 		$(BIN)/python -m pytest -q -s -p no:randomly tests/test_fuzz.py

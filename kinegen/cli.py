@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import dataclasses
 import json
+import os
 import sys
 import time
 import traceback
@@ -76,10 +77,13 @@ def _parametrization(name: str) -> rotations.Parametrization:
     "c: a standalone C directory (model, kinegen's C solver, Makefile, CMakeLists.txt, example_main.c).",
 )
 @click.option(
+    "--generated-dir",
     "--out-dir",
+    "out_dir",
     default=None,
     type=click.Path(file_okay=False),
-    help="Where files are written (default: generated/ for python, <model>_<param>_c/ for c).",
+    help="Where files are written (default: generated/ for python, as every command's --generated-dir; "
+    "<model>_<param>_c/ for c). --out-dir is the same option.",
 )
 @click.option(
     "--no-sensitivities",
@@ -199,8 +203,8 @@ def _system(
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--case", default=None, help="Case to solve (default: the first).")
 @click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
-@click.option("--t0", type=float, default=None, help="Start time [s] (default: the case's).")
-@click.option("--t1", type=float, default=None, help="End time [s] (default: the case's).")
+@click.option("--t0", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="Start time [s] (default: the case's).")
+@click.option("--t1", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="End time [s] (default: the case's).")
 @click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
 @click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV file for all time histories.")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG file with point paths and time histories.")
@@ -230,6 +234,8 @@ def _system(
     help="CSV file (JSON if it ends in .json) of the exact derivatives of every named point's position, velocity and "
     "acceleration and every actuator length by every design parameter.",
 )
+@click.option("--view", is_flag=True, help="Also write the motion in 3-D as a self-contained HTML page, beside --out (or in out/).")
+@click.option("--force", is_flag=True, help="Solve even when the results would take more than half the memory available.")
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def solve(
     model_file: str,
@@ -244,14 +250,18 @@ def solve(
     no_compile: bool,
     design: tuple[str, ...],
     sensitivities: str | None,
+    view: bool,
+    force: bool,
     generated_dir: str,
 ) -> None:
-    """Solve position, velocity and acceleration of a case over time."""
+    """Solve position, velocity and acceleration of a case over time; every time point where an
+    actuator leaves its range is reported."""
     from kinegen.runtime import SolverOptions
     from kinegen.runtime import solve as run
 
     parametrization = _parametrization(param)
     _, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
+    _check_memory(system, steps or system.steps, force)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
@@ -275,8 +285,56 @@ def solve(
         from kinegen.analysis.plots import plot_results
 
         click.echo(f"wrote {plot_results(results, plot)}")
+    _report_ranges(results)
+    if view:
+        from kinegen.analysis.view import motion_view
+        from kinegen.model import load
+
+        page = Path(out).with_suffix(".html") if out else Path("out") / f"{system.model}_{system.case}.html"
+        click.echo(f"wrote {motion_view(results, load(model_file), page, title=f'{system.model} / {system.case}')}")
     if results.failure is not None:
         raise results.failure
+
+
+def _finite(param: click.Parameter, value: float | None) -> float | None:
+    """A time option's value: a finite number (click reads 'nan' and 'inf' as floats)."""
+    if value is not None and not np.isfinite(value):
+        raise click.BadParameter(f"expected a finite number of seconds, got {value}", param_hint=f"--{param.name}")
+    return value
+
+
+#: bytes a solved time point keeps per stored coordinate, velocity and input (q, v, a, the inputs
+#: and their rates, frames of every body) -- measured on the excavator, rounded up
+_BYTES_PER_VALUE = 8 * 6
+
+
+def _check_memory(system, steps: int, force: bool) -> None:
+    """Refuse (unless ``force``) a solve whose results would not fit in half the available memory."""
+    need = steps * _BYTES_PER_VALUE * (system.n_stored + 2 * system.n_velocity + 3 * len(system.driver_names) + 24 * len(system.bodies))
+    try:
+        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):  # not on this system: no estimate
+        return
+    if need > available / 2 and not force:
+        raise click.BadParameter(
+            f"{steps:,} time points would keep about {need / 2**30:.1f} GiB of results; {available / 2**30:.1f} GiB of memory is "
+            "available: fewer --steps, or --force",
+            param_hint="--steps",
+        )
+
+
+def _report_ranges(results) -> None:
+    """Each actuator that leaves its range: how often, when, and how far."""
+    by_actuator: dict[str, list] = {}
+    for t, name, value, limits in results.range_violations():
+        by_actuator.setdefault(name, []).append((t, value, limits))
+    for name, hits in by_actuator.items():
+        limits = hits[0][2]
+        worst = max(hits, key=lambda h: max(limits[0] - h[1], h[1] - limits[1]))
+        click.echo(
+            f"RANGE: {name} outside [{limits[0]:g}, {limits[1]:g}] m at {len(hits)} of {len(results.times)} time points, "
+            f"t = {hits[0][0]:g} .. {hits[-1][0]:g} s; farthest {worst[1]:.4f} m at t = {worst[0]:g} s"
+        )
 
 
 @main.command()
@@ -378,6 +436,72 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
         click.echo(json.dumps({"model": model.name, "case": chosen, "rows": comparison.to_json(rows)}, indent=2))
         return
     click.echo(comparison.table(rows, model.name, chosen))
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--case", default=None, help="Case to show (default: the first).")
+@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@click.option("--out", type=click.Path(dir_okay=False), default=None, help="The HTML page (default: out/<model>_<case>.html).")
+@click.option("--track", default=None, metavar="BODY.POINT", help="The point whose path is drawn (default: the working range's point).")
+@click.option("--condition-warning", type=float, default=1e6, show_default=True, help="Bodies turn orange where cond(Phi_q) exceeds this.")
+@click.option("--animate", type=click.Path(dir_okay=False), default=None, help="Also a .gif (or .mp4, with ffmpeg) of the motion in one plane.")
+@click.option("--frame", "frame_body", default=None, help="--animate: draw in the x-z plane of this body's frame (default: the plane of largest spread).")
+@click.option("--design", "design", multiple=True, metavar="NAME=VALUE", help="A design parameter's value (repeatable).")
+@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+def view(
+    model_file: str,
+    case: str | None,
+    param: str,
+    out: str | None,
+    track: str | None,
+    condition_warning: float,
+    animate: str | None,
+    frame_body: str | None,
+    design: tuple[str, ...],
+    generated_dir: str,
+) -> None:
+    """Solve a case and write its motion in 3-D as one self-contained HTML page (orbit and zoom
+    with the mouse, a time slider, play/pause; no network needed to open it)."""
+    from kinegen.analysis.view import motion_view
+    from kinegen.runtime import Solver, SolverOptions
+
+    model, system = _system(model_file, _parametrization(param), case, generated_dir, None, _design_values(design))
+    point = None
+    if track:
+        body, _, name = track.partition(".")
+        if body not in system.points or name not in system.points[body]:
+            raise click.BadParameter(f"{track!r} is not a named point BODY.POINT of the model", param_hint="--track")
+        point = (body, name)
+    if frame_body is not None and frame_body not in system.bodies:
+        raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
+    results = Solver(system, SolverOptions(condition="exact", on_failure="stop")).solve()
+    page = Path(out) if out else Path("out") / f"{system.model}_{system.case}.html"
+    click.echo(f"wrote {motion_view(results, model, page, f'{system.model} / {system.case}', point, condition_warning)}")
+    if animate:
+        from kinegen.analysis.animation import animate as write_animation
+
+        track_point = point or ((model.working_range.point.body, model.working_range.point.name) if model.working_range else None)
+        try:
+            click.echo(f"wrote {write_animation(results, animate, frame_body, track_point)}")
+        except ValueError as exc:
+            raise click.BadParameter(str(exc), param_hint="--animate") from None
+    _report_ranges(results)
+    if results.failure is not None:
+        raise results.failure
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--param", "params", multiple=True, help=PARAM_HELP + " Repeatable (default: the five main ones).")
+def info(model_file: str, params: tuple[str, ...]) -> None:
+    """What MODEL_FILE holds: bodies, joints, cases and their time grids, actuators and ranges,
+    design parameters and studies, coordinates and equations per parametrization."""
+    from kinegen.analysis.info import DEFAULT_PARAMETRIZATIONS, describe
+    from kinegen.model import load
+
+    names = tuple(_parametrization(p).name for p in params) or DEFAULT_PARAMETRIZATIONS
+    click.echo(describe(load(model_file), names))
 
 
 @main.command()

@@ -62,7 +62,7 @@ def regenerate(models: Path, generated: Path, force: bool = True) -> dict[tuple[
     return paths
 
 
-def _excavator(paths: dict, out: Path) -> int:
+def _excavator(paths: dict, out: Path, models: Path) -> int:
     module = load_module(paths["excavator.yaml", "quaternion"])
     print("solve times include an exact 2-norm condition number (SVD) at every step\n")
     header = (
@@ -73,6 +73,10 @@ def _excavator(paths: dict, out: Path) -> int:
     print("-" * len(header))
     failures = 0
     runs = {}
+    from kinegen.analysis.view import motion_view
+    from kinegen.model import load
+
+    excavator_model = load(models / "excavator.yaml")
     for case in OPERATING_CASES:
         system = from_module(module, case)
         start = time.perf_counter()
@@ -102,6 +106,8 @@ def _excavator(paths: dict, out: Path) -> int:
         from kinegen.analysis.plots import plot_case
 
         plot_case(results, out / f"{stem}.png", frame_body="upper", trace=("bucket", "T"))
+        motion_view(results, excavator_model, out / f"{stem}.html", title=f"excavator / {case}")
+    print(f"3-D views (kinegen view): {', '.join(f'excavator_{c}.html' for c in runs)} in {out}")
     print()
     for param in ("euler-parameters", "dual-quaternion", "dual-euler-parameters", "euler:zxy", "euler:zxz"):
         other = load_module(paths["excavator.yaml", param])
@@ -157,6 +163,11 @@ def main(argv: list[str] | None = None) -> int:
     parser.add_argument("--out", default="out", type=Path)
     parser.add_argument("--regenerate-only", action="store_true")
     args = parser.parse_args(argv)
+    if not (args.models / "excavator.yaml").is_file():
+        parser.error(
+            f"no {args.models / 'excavator.yaml'}: the main job runs on the repository's models/ folder -- run it in a clone "
+            "of kinegen (`make run`), or point it at one: python -m kinegen.demo --models PATH/TO/kinegen/models"
+        )
     start = time.perf_counter()
     paths = regenerate(args.models, args.generated, force=args.regenerate_only)
     print(f"{len(paths)} generated modules ready in {args.generated}/ ({time.perf_counter() - start:.1f} s)")
@@ -165,7 +176,7 @@ def main(argv: list[str] | None = None) -> int:
     args.out.mkdir(parents=True, exist_ok=True)
     print("\nHitachi ZX200 excavator (models/excavator.yaml, quaternion)\n")
     try:
-        failures = _excavator(paths, args.out)
+        failures = _excavator(paths, args.out, args.models)
     except KinegenError as exc:
         print(f"FAILED: {exc}")
         return 1
@@ -189,6 +200,11 @@ def main(argv: list[str] | None = None) -> int:
     print(f"  {scanned.ahead}\n  {scanned.stopped}")
     failures += _branch_keeping(paths)
     print()
+    from kinegen.analysis.view import motion_view
+
+    boom_model = load(args.models / "boom.yaml")
+    boom_run = solve(from_module(load_module(paths["boom.yaml", "quaternion"])))
+    print(f"3-D view of the paper's boom: {motion_view(boom_run, boom_model, args.out / 'boom_swing.html', title='boom (paper) / swing')}")
     boom = load_module(paths["boom.yaml", "euler:zxz"])
     try:
         solve(from_module(boom))

@@ -37,6 +37,26 @@ def test_euler_zxz_jacobian_is_provably_singular_at_t0():
     assert report.determinant_value == 0
     assert any(sp.simplify(f - sp.sin(beta)) == 0 for f in report.vanishing_factors)
     assert sp.simplify(report.determinant.subs(beta, 0)) == 0
+    assert not any(f.is_Add and sp.trigsimp(f).is_number for f in sp.Mul.make_args(report.determinant))  # no sin^2 + cos^2
+
+
+def test_trigonometric_simplification_of_a_determinant_keeps_its_value():
+    """The boom's factored Euler z-x-z determinant as ``factor`` leaves it, simplified: the
+    identity factor gone, the value the same at random angles."""
+    from kinegen.analysis.inspect import _trig_simplified
+
+    a, b, g, p = sp.symbols("boom_alpha boom_beta boom_gamma phi1", real=True)
+    factored = -(sp.sin(g) ** 2 + sp.cos(g) ** 2) * (
+        -sp.sin(a) * sp.sin(g) * sp.cos(b) * sp.cos(p) + sp.sin(a) * sp.sin(p) * sp.cos(g)
+        + sp.sin(g) * sp.sin(p) * sp.cos(a) * sp.cos(b) + sp.cos(a) * sp.cos(g) * sp.cos(p)
+    ) * sp.sin(b) * sp.cos(b)  # fmt: skip
+    simplified = _trig_simplified(factored)
+    assert sp.sin(g) ** 2 + sp.cos(g) ** 2 not in sp.Mul.make_args(simplified) and sp.sin(b) in sp.Mul.make_args(simplified)
+    assert sp.count_ops(simplified) < sp.count_ops(factored)
+    rng = np.random.default_rng(5)
+    for values in rng.uniform(-3, 3, (5, 4)):
+        point = dict(zip((a, b, g, p), values))
+        assert float(simplified.xreplace(point)) == pytest.approx(float(factored.xreplace(point)), abs=1e-13)
 
 
 def test_quaternion_jacobian_is_the_papers_eq_19_up_to_row_signs():

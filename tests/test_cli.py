@@ -19,7 +19,7 @@ def run(*args: str):
 
 
 def test_build_writes_the_module_and_checks_the_initial_pose(tmp_path):
-    result = run("build", BOOM, "--param", "quaternion", "--param", "euler:zxz", "--out-dir", str(tmp_path))
+    result = run("build", BOOM, "--param", "quaternion", "--param", "euler:zxz", "--generated-dir", str(tmp_path))
     assert result.exit_code == 0, result.output
     assert (tmp_path / "boom_quaternion.py").is_file() and (tmp_path / "boom_euler_zxz.py").is_file()
     assert "initial pose satisfies Phi" in result.output
@@ -56,6 +56,8 @@ def test_inspect_proves_the_euler_singularity():
     assert "vanishing factor: sin(boom_beta)" in result.output
     assert "boom.alpha - boom.gamma" in result.output
     assert r"\det \Phi_q" in result.output
+    assert "boom.y = 89/50 (1.78)" in result.output and "boom.alpha = pi/2 (1.5708)" in result.output
+    assert "**2 + cos(" not in result.output  # sin(x)**2 + cos(x)**2 simplified out of the determinant
 
 
 def test_inspect_json_for_tools():
@@ -95,3 +97,54 @@ def test_keep_going_writes_the_results_so_far_and_exits_with_the_error_code(tmp_
     assert [float(r["converged"]) for r in rows[-2:]] == [1.0, 0.0]
     assert 2.2 < float(rows[-1]["t"]) < 2.4
     assert run("solve", model_file, "--case", "bucket_toggle").exit_code in (3, 4)
+
+
+def test_info_counts_what_the_built_modules_have():
+    """kinegen info counts coordinates and equations without building: against the committed
+    excavator modules of every parametrization."""
+    from kinegen.runtime import load_module
+    from tests.conftest import GENERATED
+
+    result = run("info", str(MODELS / "excavator.yaml"), "--param", "quaternion", "--param", "euler-parameters",
+                 "--param", "dual-quaternion", "--param", "dual-euler-parameters", "--param", "euler:zxz")  # fmt: skip
+    assert result.exit_code == 0, result.output
+    for case in ("digging", "level_cut", "trench_wall", "bucket_toggle", "bucket_stroke", "bucket_near_toggle"):
+        assert f"  {case} " in result.output
+    assert "bucket_cylinder" in result.output and "[1.6529, 2.6613] m" in result.output
+    for name, tag in (("quaternion", "quaternion"), ("euler-parameters", "euler_parameters"), ("dual-quaternion", "dual_quaternion"),
+                      ("dual-euler-parameters", "dual_euler_parameters"), ("euler:zxz", "euler_zxz")):  # fmt: skip
+        module = load_module(GENERATED / f"excavator_{tag}.py")
+        equations = len(module.CASES["digging"]["constraints"])
+        line = next(x for x in result.output.splitlines() if x.split() and x.split()[0] == name)
+        numbers = line.split()
+        assert (int(numbers[1]), int(numbers[3])) == (len(module.STORED_NAMES), len(module.VELOCITY_NAMES)), line
+        assert int(numbers[numbers.index("=") + 1]) == equations, line
+
+
+def test_solve_reports_an_actuator_leaving_its_range():
+    result = run("solve", str(MODELS / "excavator.yaml"), "--case", "bucket_near_toggle")
+    assert result.exit_code == 0, result.output
+    # the case drives the bucket cylinder to 1.6 mm short of its toggle at 2.7366 m, past its 2.6613 m end
+    assert "RANGE: bucket_cylinder outside [1.6529, 2.6613] m at 5 of 9 time points" in result.output
+    assert "farthest 2.7350 m at t = 1 s" in result.output
+
+
+def test_solve_refuses_non_finite_times_and_results_larger_than_memory():
+    for option in ("--t0", "--t1"):
+        for value in ("nan", "inf", "-inf"):
+            result = run("solve", str(MODELS / "boom.yaml"), option, value)
+            assert result.exit_code == 2 and "finite number" in result.output, result.output
+    result = run("solve", str(MODELS / "boom.yaml"), "--steps", "10000000000")
+    assert result.exit_code == 2 and "--force" in result.output and "GiB" in result.output
+
+
+def test_the_main_job_outside_a_clone_says_where_the_models_must_be(tmp_path, capsys):
+    import pytest
+
+    from kinegen.demo import main as demo
+
+    with pytest.raises(SystemExit) as exit_:
+        demo(["--models", str(tmp_path / "models"), "--generated", str(tmp_path / "generated")])
+    assert exit_.value.code == 2
+    assert "--models PATH/TO/kinegen/models" in capsys.readouterr().err
+    assert not (tmp_path / "generated").exists()

@@ -157,3 +157,21 @@ def test_interrupted_write_leaves_the_old_file_and_no_temporary(tmp_path, monkey
         write_atomic(target, "new")
     assert target.read_text() == "old"
     assert [p.name for p in tmp_path.iterdir()] == ["module.py"]
+
+
+def test_atomic_writes_keep_the_mode_a_new_file_gets(tmp_path):
+    """Not the temporary file's 0600: another user (or a CI step) must read generated modules."""
+    import os
+
+    from kinegen.files import write_atomic
+
+    for umask in (0o022, 0o077, 0o002):
+        old = os.umask(umask)
+        try:
+            target = tmp_path / f"module_{umask:o}.py"
+            write_atomic(target, "x = 1\n")
+            plain = tmp_path / f"plain_{umask:o}.py"
+            plain.write_text("x = 1\n")
+        finally:
+            os.umask(old)
+        assert target.stat().st_mode & 0o777 == plain.stat().st_mode & 0o777 == 0o666 & ~umask

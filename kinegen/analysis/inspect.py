@@ -100,6 +100,15 @@ def _is_zero(value: sp.Expr) -> bool:
     return abs(sp.N(value, DIGITS)) < sp.Float(10) ** (-(DIGITS - 10))
 
 
+def _with_decimal(value: sp.Expr) -> str:
+    """An exact number as text, with its decimal value beside it when it is not an integer
+    (89/50 (1.78), pi/2 (1.5708)), as the paper writes them."""
+    text = sp.sstr(value)
+    if value.is_number and not value.is_Integer:
+        return f"{text} ({float(sp.N(value, 17)):.6g})"
+    return text
+
+
 #: Determinants with more operations than this are reported unfactored.
 MAX_FACTOR_OPS = 1500
 #: ... and with more than this not expanded or reported at all (dual Euler parameters' 8 x 8
@@ -122,7 +131,20 @@ def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr |
         det = sp.expand(det)  # products of long sums often cancel when multiplied out
         if sp.count_ops(det) > MAX_FACTOR_OPS:
             return det
-    return sp.factor(det)
+    return _trig_simplified(sp.factor(det))
+
+
+#: factors of a determinant with at most this many operations are simplified with ``trigsimp``
+MAX_TRIGSIMP_OPS = 60
+
+
+def _trig_simplified(det: sp.Expr) -> sp.Expr:
+    """The factored determinant with each small trigonometric factor simplified: identities such
+    as sin(x)**2 + cos(x)**2 = 1 do not survive ``factor``, and sums of products of sines and
+    cosines fold into sines and cosines of sums."""
+    if not det.has(sp.sin, sp.cos):
+        return det
+    return sp.Mul(*(sp.trigsimp(f) if f.has(sp.sin, sp.cos) and sp.count_ops(f) <= MAX_TRIGSIMP_OPS else f for f in sp.Mul.make_args(det)))
 
 
 @dataclass
@@ -188,7 +210,7 @@ class Inspection:
         ]
         if n <= 16:
             lines.append(
-                "configuration (exact): " + ", ".join(f"{k} = {sp.sstr(v)}" for k, v in zip(coords.stored_names, self.q))
+                "configuration (exact): " + ", ".join(f"{k} = {_with_decimal(v)}" for k, v in zip(coords.stored_names, self.q))
             )
         verdict = "singular" if self.singular else "full rank"
         if self.rank_method == "exact":
