@@ -207,7 +207,12 @@ def _system(
 @click.option("--t1", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="End time [s] (default: the case's).")
 @click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
 @click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV file for all time histories.")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG file with point paths and time histories.")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+              help="PNG: the mechanism at six instants in the plane that shows it, with a tip's path; actuator lengths and rates "
+              "(or angular speeds), condition number.")
+@click.option("--frame", "frame_body", default=None,
+              help="--plot: draw in the x-z plane of this body's frame (default: the first body's when the motion is flatter there, "
+              "else the global plane of largest spread).")
 @click.option(
     "--keep-going",
     is_flag=True,
@@ -246,6 +251,7 @@ def solve(
     steps: int | None,
     out: str | None,
     plot: str | None,
+    frame_body: str | None,
     keep_going: bool,
     no_compile: bool,
     design: tuple[str, ...],
@@ -282,9 +288,15 @@ def solve(
         write = results.sensitivities_to_json if sensitivities.endswith(".json") else results.sensitivities_to_csv
         click.echo(f"wrote {write(sensitivities)}")
     if plot:
-        from kinegen.analysis.plots import plot_results
+        from kinegen.analysis.plots import best_frame, plot_case, tracked_point
+        from kinegen.model import load
 
-        click.echo(f"wrote {plot_results(results, plot)}")
+        if frame_body is not None and frame_body not in system.bodies:
+            raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
+        spec = load(model_file).working_range
+        trace = (spec.point.body, spec.point.name) if spec else tracked_point(results)
+        frame = frame_body if frame_body is not None else best_frame(results, trace)
+        click.echo(f"wrote {plot_case(results, plot, frame, trace)}")
     _report_ranges(results)
     if view:
         from kinegen.analysis.view import motion_view
@@ -446,7 +458,7 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
 @click.option("--track", default=None, metavar="BODY.POINT", help="The point whose path is drawn (default: the working range's point).")
 @click.option("--condition-warning", type=float, default=1e6, show_default=True, help="Bodies turn orange where cond(Phi_q) exceeds this.")
 @click.option("--animate", type=click.Path(dir_okay=False), default=None, help="Also a .gif (or .mp4, with ffmpeg) of the motion in one plane.")
-@click.option("--frame", "frame_body", default=None, help="--animate: draw in the x-z plane of this body's frame (default: the plane of largest spread).")
+@click.option("--frame", "frame_body", default=None, help="--animate: draw in the x-z plane of this body's frame (default: as solve --plot chooses).")
 @click.option("--design", "design", multiple=True, metavar="NAME=VALUE", help="A design parameter's value (repeatable).")
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def view(
@@ -482,8 +494,11 @@ def view(
         from kinegen.analysis.animation import animate as write_animation
 
         track_point = point or ((model.working_range.point.body, model.working_range.point.name) if model.working_range else None)
+        from kinegen.analysis.plots import best_frame
+
+        frame = frame_body if frame_body is not None else best_frame(results, track_point)
         try:
-            click.echo(f"wrote {write_animation(results, animate, frame_body, track_point)}")
+            click.echo(f"wrote {write_animation(results, animate, frame, track_point)}")
         except ValueError as exc:
             raise click.BadParameter(str(exc), param_hint="--animate") from None
     _report_ranges(results)

@@ -148,3 +148,61 @@ def test_the_main_job_outside_a_clone_says_where_the_models_must_be(tmp_path, ca
     assert exit_.value.code == 2
     assert "--models PATH/TO/kinegen/models" in capsys.readouterr().err
     assert not (tmp_path / "generated").exists()
+
+
+def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path):
+    """The boom turns about global z: drawn in the x-y plane (its old side view had zero height);
+    the excavator swings: drawn in its upper structure's x-z plane, where the front stays."""
+    from kinegen.analysis.plots import best_frame, drawing_plane, tracked_point
+    from kinegen.runtime import solve
+    from tests.conftest import generated_system
+
+    boom = solve(generated_system("boom_quaternion"))
+    assert tracked_point(boom) == ("boom", "tip") and best_frame(boom, ("boom", "tip")) is None
+    basis, labels, _ = drawing_plane(boom, None)
+    assert labels == ("x [m]", "y [m]") and np.array_equal(basis, np.eye(3)[:2])
+    tip = boom.point_position("boom", "tip")
+    assert np.abs(tip[:, 2]).max() < 1e-12  # the motion is in that plane: nothing is lost drawing it there
+    excavator = solve(generated_system("excavator_quaternion", "digging"))
+    assert best_frame(excavator, ("bucket", "T")) == "upper"
+    for model, extra in (("boom", ()), ("excavator", ()), ("four_bar", ("--frame", "crank"))):
+        png = tmp_path / f"{model}.png"
+        result = run("solve", str(MODELS / f"{model}.yaml"), "--plot", str(png), *extra)
+        assert result.exit_code == 0, result.output
+        assert png.stat().st_size > 20_000
+    result = run("solve", str(MODELS / "boom.yaml"), "--plot", str(tmp_path / "x.png"), "--frame", "nothing")
+    assert result.exit_code == 2 and "no body 'nothing'" in result.output
+
+
+def test_progress_shows_on_a_terminal_and_nowhere_else(tmp_path):
+    """A build draws its stages on a terminal (a real pseudo-terminal here) and prints no bar
+    into a pipe."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import subprocess
+    import sys
+    import termios
+
+    command = [sys.executable, "-m", "kinegen.cli", "build", str(MODELS / "four_bar.yaml"), "--generated-dir", str(tmp_path)]
+    piped = subprocess.run(command, capture_output=True, text=True, timeout=120)
+    assert piped.returncode == 0 and "stages" not in piped.stdout + piped.stderr
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
+    process = subprocess.Popen(command, stdin=slave, stdout=slave, stderr=slave, close_fds=True)
+    os.close(slave)
+    seen = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # the terminal closed: the command ended
+            break
+        if not chunk:
+            break
+        seen += chunk
+    os.close(master)
+    assert process.wait(timeout=120) == 0
+    text = seen.decode(errors="replace")
+    assert "build four_bar (quaternion): deriving and printing: [0/3 stages" in text
+    assert "build four_bar (quaternion): checking: [1/3 stages" in text and "wrote " in text

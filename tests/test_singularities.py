@@ -18,7 +18,7 @@ import sympy as sp
 from kinegen import rotations
 from kinegen.analysis import inspect
 from kinegen.analysis.classify import MECHANISM, REDUNDANT, REPRESENTATION, classify
-from kinegen.analysis.scan import scan
+from kinegen.analysis.scan import scan, warning_lines
 from kinegen.codegen.inmemory import lambdify_model
 from kinegen.model import loads
 from kinegen.runtime import from_module, solve
@@ -144,6 +144,7 @@ def test_scan_warns_before_the_bucket_linkage_reaches_its_toggle():
     assert result.ahead_time is not None and result.ahead_time < result.times[-1] < toggle_time + 0.01
     assert "bucket_cyl_barrel, bucket_cyl_rod, side_link" in result.ahead
     assert all(trace.warning is None for trace in result.traces)  # no parametrization is singular on the way
+    assert warning_lines(result) == [(result.ahead_time, "mechanism singularity ahead")]  # the plot's dashed line
 
 
 def test_scan_flags_only_the_euler_singularity_in_the_digging_cycle():

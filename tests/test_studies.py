@@ -4,6 +4,7 @@ checked on rebuilt models, the optimized model file, the command."""
 
 from __future__ import annotations
 
+import re
 import subprocess
 import sys
 
@@ -153,3 +154,21 @@ def test_kinegen_optimize_prints_progress_and_the_optimum_and_writes_a_new_model
     assert refused.returncode == 2 and "written to a new file" in refused.stderr
     unknown = subprocess.run([sys.executable, "-m", "kinegen.cli", "optimize", str(EXCAVATOR), "--study", "x"], cwd=ROOT, capture_output=True, text=True)
     assert unknown.returncode == 2 and "studies: calibration, bucket_linkage" in unknown.stderr
+
+
+@pytest.mark.parametrize(
+    ("original", "hostile", "entry"),
+    [
+        ("parameters: [C_x, C_z, F_x, F_z, boom_retracted]", "parameters: [&f0 [1, 1], &f1 [*f0, *f0]]", "studies.calibration.parameters[0]"),
+        ("case: digging, at_least: 0.02", "case: {a: 1}, at_least: 0.02", "studies.calibration.constraints[0].case"),
+        ("actuator_margin: boom_cylinder_left", "actuator_margin: [1]", "studies.calibration.constraints[0].actuator_margin"),
+        ("toggle_margin: [side_link, bucket_link, bucket]", "toggle_margin: [[1], bucket_link, bucket]", "studies.bucket_linkage.constraints[0].toggle_margin[0]"),
+        ("working_range: max_reach, target", "working_range: [1], target", "studies.calibration.minimize[0].working_range"),
+    ],
+)
+def test_a_study_naming_things_with_lists_or_mappings_is_a_model_error(original, hostile, entry):
+    """Found by the fuzzer: a list where a name belongs ended in 'unhashable type' instead of a ModelError."""
+    text = EXCAVATOR.read_text()
+    assert original in text
+    with pytest.raises(ModelError, match=re.escape(entry)):
+        loads(text.replace(original, hostile, 1), "excavator.yaml")

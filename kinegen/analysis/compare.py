@@ -59,7 +59,9 @@ def compare(model: Model, case: str | None = None, parametrizations: tuple[str, 
     with design parameters at their nominal values: ``model.at()``, the machine as drawn)."""
     model = model.at() if model.design else model
     case = case or next(iter(model.cases))
-    return [_one(model, case, rotations.get(name), compiled) for name in parametrizations]
+    from kinegen.progress import progress
+
+    return [_one(model, case, rotations.get(name), compiled) for name in progress(parametrizations, "compare: build and solve", unit="parametrization")]
 
 
 def _one(model: Model, case: str, param: rotations.Parametrization, compiled: bool) -> Comparison:

@@ -193,7 +193,7 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     envelope.grid_seconds = grid_seconds
     envelope.grid_solved = int(ok.sum())
     starts = {name: (samples[k], q[:, k]) for name, k in _grid_seeds(envelope).items()}
-    _refine(envelope, evaluator, starts)
+    _refine(envelope, evaluator, starts, bar=True)
     envelope.seconds = time.perf_counter() - start
     envelope.solves = evaluator.solves + int(ok.sum())
     return envelope
@@ -236,7 +236,7 @@ def _grid_seeds(envelope: Envelope) -> dict[str, int]:
     return seeds
 
 
-def _refine(envelope: Envelope, evaluator: _Evaluator, starts: dict[str, tuple[np.ndarray, np.ndarray]]) -> None:
+def _refine(envelope: Envelope, evaluator: _Evaluator, starts: dict[str, tuple[np.ndarray, np.ndarray]], bar: bool = False) -> None:
     """Each figure of ``starts`` (name -> (swept inputs, q solved there)) refined by SLSQP over the
     normalized inputs, every evaluation a solve by continuation."""
     lows = np.array([r[0] for r in evaluator.ranges])
@@ -260,9 +260,10 @@ def _refine(envelope: Envelope, evaluator: _Evaluator, starts: dict[str, tuple[n
     def chained(function, gradient):
         return lambda x: np.einsum("pi,pik->k", gradient(value(x)[0]), value(x)[1])
 
-    for name in FIGURES:
-        if name not in starts:
-            continue
+    from kinegen.progress import progress
+
+    names = [f for f in FIGURES if f in starts]
+    for name in progress(names, "working range: refining figures", unit="figure") if bar else names:
         figure = FIGURE_TABLE[name]
         inputs, q = starts[name]
         x0 = np.clip((inputs - lows) / spans, 0, 1)

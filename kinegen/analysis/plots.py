@@ -29,28 +29,6 @@ def save(fig, path: str | Path, dpi: int = 100) -> Path:
     return path
 
 
-def plot_results(results: Results, path: str | Path) -> Path:
-    """Paths of every named point (top view x-y and side view x-z) and |omega| of every body."""
-    plt = pyplot()
-    fig, (top, side, rates) = plt.subplots(1, 3, figsize=(15, 4.8))
-    for body, points in results.system.points.items():
-        for point in points:
-            p = results.point_position(body, point)
-            top.plot(p[:, 0], p[:, 1], label=f"{body}.{point}")
-            side.plot(p[:, 0], p[:, 2], label=f"{body}.{point}")
-        rates.plot(results.times, np.linalg.norm(results.omega(body), axis=1), label=body)
-    top.set(title="point paths, top view", xlabel="x [m]", ylabel="y [m]", aspect="equal")
-    side.set(title="point paths, side view", xlabel="x [m]", ylabel="z [m]", aspect="equal")
-    rates.set(title="angular speed |omega|", xlabel="t [s]", ylabel="rad/s")
-    for ax in (top, side, rates):
-        ax.grid(True, alpha=0.3)
-    top.legend(fontsize=7)
-    rates.legend(fontsize=7)
-    system = results.system
-    fig.suptitle(f"{system.model} / {system.case} [{system.parametrization.name}]")
-    return save(fig, path, dpi=110)
-
-
 def _in_frame(results: Results, frame_body: str | None, points: np.ndarray) -> np.ndarray:
     """Global points (K, 3) expressed in ``frame_body``'s frame (K, 3); global if None."""
     if frame_body is None:
@@ -59,59 +37,126 @@ def _in_frame(results: Results, frame_body: str | None, points: np.ndarray) -> n
     return np.einsum("kji,kj->ki", rotation, points - results.position(frame_body))
 
 
+def tracked_point(results: Results) -> tuple[str, str] | None:
+    """The named body point farthest from the origin at the start (a tip, usually)."""
+    named = [(b, p) for b, points in results.system.points.items() for p in points]
+    return max(named, key=lambda ref: float(np.linalg.norm(results.point_position(*ref)[0]))) if named else None
+
+
+def best_frame(results: Results, trace: tuple[str, str] | None) -> str | None:
+    """The frame a motion is best drawn in: the global one, or the first body's when the named
+    points are flatter there (an excavator's upper structure: the front stays in its x-z plane
+    while it swings) and the traced point still moves in it (not a single body turning in place)."""
+    system = results.system
+    names = [(b, p) for b, points in system.points.items() for p in points]
+    if not names or not system.bodies:
+        return None
+
+    def flatness(frame: str | None) -> float:
+        points = np.vstack([_in_frame(results, frame, results.point_position(*ref)) for ref in names])
+        points = points[np.isfinite(points).all(axis=1)]
+        spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
+        return float(spread[2] / spread[0]) if spread[0] > 0 else np.inf
+
+    def moving(frame: str | None) -> float:
+        path = _in_frame(results, frame, results.point_position(*trace)) if trace else np.zeros((1, 3))
+        path = path[np.isfinite(path).all(axis=1)]
+        return float(np.ptp(path, axis=0).max()) if len(path) else 0.0
+
+    first = next(iter(system.bodies))
+    if moving(first) >= 0.05 * moving(None) and flatness(first) < flatness(None):
+        return first
+    return None
+
+
+def drawing_plane(results: Results, frame_body: str | None) -> tuple[np.ndarray, tuple[str, str], str]:
+    """The plane a mechanism is drawn in: (2, 3) unit axes, their labels and a description.
+    The x-z plane of ``frame_body``'s frame when one is named; else the plane of the two
+    directions in which the named points spread most over the motion (global frame) -- two of
+    x, y, z when that plane is a coordinate plane (to 1e-6)."""
+    if frame_body is not None:
+        return np.array([[1.0, 0, 0], [0, 0, 1.0]]), ("x [m]", "z [m]"), f"the x-z plane of the {frame_body} frame"
+    points = np.vstack([results.point_position(b, p) for b, names in results.system.points.items() for p in names])
+    points = points[np.isfinite(points).all(axis=1)]
+    _, _, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
+    k = int(np.argmax(np.abs(axes[2])))
+    if abs(abs(axes[2][k]) - 1) < 1e-6:  # a coordinate plane: its two axes, in order
+        kept = [i for i in range(3) if i != k]
+        basis, labels = [np.eye(3)[i] for i in kept], [f"{'xyz'[i]} [m]" for i in kept]
+    else:
+        basis = list(axes[:2])
+        labels = ["(" + ", ".join(f"{c:.2f}" for c in axis) + ") [m]" for axis in basis]
+    return np.array(basis), (labels[0], labels[1]), "the plane of largest spread (global frame)"
+
+
 def plot_case(
     results: Results, path: str | Path, frame_body: str | None = None, trace: tuple[str, str] | None = None, snapshots: int = 6
 ) -> Path:
-    """One PNG per case: the mechanism in a body's x-z plane at several instants with the
-    traced point's path, actuator lengths against their ranges, their rates, and the
-    Jacobian's condition number against time."""
+    """One PNG per case: the mechanism at several instants in the plane that shows it
+    (:func:`drawing_plane`) with the traced point's path; beside it the actuator lengths against
+    their ranges and their rates (or, without actuators, every body's angular speed), and the
+    Jacobian's condition number against time. Panels without data are left out."""
     plt = pyplot()
     system = results.system
+    basis, labels, plane = drawing_plane(results, frame_body)
+    panels = ["lengths", "rates"] if system.actuators else ["omega"]
+    if np.isfinite(results.conditions).any():
+        panels.append("condition")
     fig = plt.figure(figsize=(15, 9))
-    grid = fig.add_gridspec(3, 2, width_ratios=[1.35, 1])
+    grid = fig.add_gridspec(len(panels), 2, width_ratios=[1.35, 1])
     drawing = fig.add_subplot(grid[:, 0])
-    lengths, rates, condition = (fig.add_subplot(grid[i, 1]) for i in range(3))
-    instants = np.linspace(0, len(results.times) - 1, snapshots).round().astype(int)
-    colours = plt.cm.viridis(np.linspace(0, 0.9, snapshots))
+    axes = {name: fig.add_subplot(grid[i, 1]) for i, name in enumerate(panels)}
+    solved = np.flatnonzero(results.converged)
+    instants = solved[np.linspace(0, len(solved) - 1, min(snapshots, len(solved))).round().astype(int)]
+    colours = plt.cm.viridis(np.linspace(0, 0.9, len(instants)))
+
+    def projected(body: str, point: str) -> np.ndarray:
+        return _in_frame(results, frame_body, results.point_position(body, point)) @ basis.T
+
     for colour, k in zip(colours, instants):
         for body, points in system.points.items():
-            if len(points) < 2:
-                continue
-            xyz = np.array([_in_frame(results, frame_body, results.point_position(body, p))[k] for p in points])
-            closed = np.vstack([xyz, xyz[:1]]) if len(points) > 2 else xyz
-            drawing.plot(closed[:, 0], closed[:, 2], "-o", color=colour, lw=1.6, ms=2.5)
+            xy = np.array([projected(body, p)[k] for p in points])
+            closed = np.vstack([xy, xy[:1]]) if len(points) > 2 else xy
+            drawing.plot(closed[:, 0], closed[:, 1], "-o", color=colour, lw=1.6, ms=2.5)
         for (b1, p1), (b2, p2), _ in system.actuators.values():
-            ends = np.array([_in_frame(results, frame_body, results.point_position(b, p))[k] for b, p in ((b1, p1), (b2, p2))])
-            drawing.plot(ends[:, 0], ends[:, 2], "-", color=colour, lw=4, alpha=0.45, solid_capstyle="round")
-        drawing.annotate(
-            f"t={results.times[k]:.1f}s",
-            xy=(0.02, 0.97 - 0.035 * list(instants).index(k)),
-            xycoords="axes fraction",
-            color=colour,
-            fontsize=8,
-            va="top",
-        )
+            ends = np.array([projected(b, p)[k] for b, p in ((b1, p1), (b2, p2))])
+            drawing.plot(ends[:, 0], ends[:, 1], "-", color=colour, lw=4, alpha=0.45, solid_capstyle="round")
+        drawing.annotate(f"t={results.times[k]:.2f}s", xy=(0.02, 0.97 - 0.035 * list(instants).index(k)), xycoords="axes fraction",
+                         color=colour, fontsize=8, va="top")  # fmt: skip
     if trace:
-        tip = _in_frame(results, frame_body, results.point_position(*trace))
-        drawing.plot(tip[:, 0], tip[:, 2], "r-", lw=1.2, label=f"path of {trace[0]}.{trace[1]}")
+        tip = projected(*trace)
+        drawing.plot(tip[solved, 0], tip[solved, 1], "r-", lw=1.2, label=f"path of {trace[0]}.{trace[1]}")
         drawing.legend(loc="lower left", fontsize=8)
-    drawing.axhline(0, color="saddlebrown", lw=0.8)
-    plane = f"{frame_body} frame" if frame_body else "global frame"
-    drawing.set(title=f"mechanism in the x-z plane of the {plane}", xlabel="x [m]", ylabel="z [m]", aspect="equal")
+    if labels[1] == "z [m]":
+        drawing.axhline(0, color="saddlebrown", lw=0.8)
+    drawing.set(title=f"mechanism in {plane}", xlabel=labels[0], ylabel=labels[1], aspect="equal")
+    drawing.margins(0.08)
+    few = len(system.actuators) <= 12
     for name, (_, _, limits) in system.actuators.items():
-        line = lengths.plot(results.times, results.actuator_length(name), label=name)[0]
+        line = axes["lengths"].plot(results.times, results.actuator_length(name), label=name)[0]
         if limits:
             for value in limits:
-                lengths.axhline(value, color=line.get_color(), ls=":", lw=0.8)
-        rates.plot(results.times, results.actuator_rate(name), label=name)
-    lengths.set(title="actuator lengths (dotted: range)", ylabel="m")
-    rates.set(title="extension rates", ylabel="m/s")
-    condition.semilogy(results.times, results.conditions, "k-")
-    kind = {"exact": "2-norm", "estimate": "1-norm estimate"}.get(results.condition_kind, "not recorded")
-    condition.set(title=f"condition number of Phi_q ({kind})", xlabel="t [s]")
-    for ax in (drawing, lengths, rates, condition):
+                axes["lengths"].axhline(value, color=line.get_color(), ls=":", lw=0.8)
+        axes["rates"].plot(results.times, results.actuator_rate(name), label=name)
+    if "lengths" in axes:
+        axes["lengths"].set(title="actuator lengths (dotted: range)", ylabel="m")
+        axes["rates"].set(title="extension rates", ylabel="m/s")
+        if few:
+            axes["lengths"].legend(fontsize=7, ncol=2)
+    if "omega" in axes:
+        for body in system.bodies:
+            axes["omega"].plot(results.times, np.linalg.norm(results.omega(body), axis=1), label=body)
+        axes["omega"].set(title="angular speed |omega| of each body", ylabel="rad/s")
+        if len(system.bodies) <= 12:
+            axes["omega"].legend(fontsize=7, ncol=2)
+    if "condition" in axes:
+        axes["condition"].semilogy(results.times, results.conditions, "k-")
+        kind = {"exact": "2-norm", "estimate": "1-norm estimate"}.get(results.condition_kind, "not recorded")
+        axes["condition"].set(title=f"condition number of Phi_q ({kind})")
+    list(axes.values())[-1].set(xlabel="t [s]")
+    for ax in (drawing, *axes.values()):
         ax.grid(True, alpha=0.3)
-    if system.actuators:
-        lengths.legend(fontsize=7)
     fig.suptitle(f"{system.model} / {system.case} [{system.parametrization.name}]")
     return save(fig, path)
+
+

@@ -27,6 +27,7 @@ import numpy as np
 
 from kinegen.analysis.inspect import convert
 from kinegen.errors import ConvergenceError, SingularJacobianError
+from kinegen.progress import progress
 from kinegen.runtime import NumericSystem, Solver
 from kinegen.symbolic.blocks import block_triangular
 
@@ -149,7 +150,7 @@ def scan(
         blocks = [b for b in block_triangular(shape, system.jac_rows, system.jac_cols) or [] if b.size > 1]
         ratio, condition, block_ratio = (np.full(len(times), np.nan) for _ in range(3))
         block_bodies: list[str] = []
-        for k, (t, q) in enumerate(zip(times, configurations)):
+        for k, (t, q) in enumerate(progress(zip(times, configurations), f"scan: {name}", total=len(times), unit="point")):
             q_p = convert(q, physical.parametrization, system.parametrization, bodies)
             jacobian = system.jacobian(q_p, system.driver_inputs(t)[0])
             ratio[k] = _ratio(jacobian)
@@ -187,6 +188,15 @@ def _ratio(matrix: np.ndarray) -> float:
     return float(sigma[min(matrix.shape) - 1] / sigma[0]) if sigma[0] > 0 else 0.0
 
 
+def warning_lines(result: ScanResult) -> list[tuple[float, str]]:
+    """The times the scan plot marks with a dashed line: each parametrization's first warning
+    (labelled with its name) and the predicted mechanism singularity ("mechanism singularity ahead")."""
+    lines = [(t.warning_time, t.parametrization) for t in result.traces if t.warning_time is not None]
+    if result.ahead_time is not None:
+        lines.append((result.ahead_time, "mechanism singularity ahead"))
+    return lines
+
+
 def plot_scan(result: ScanResult, path: str | Path, title: str = "") -> Path:
     """sigma_min/sigma_max and condition number against time, one line per parametrization."""
     from kinegen.analysis.plots import pyplot, save
@@ -203,12 +213,14 @@ def plot_scan(result: ScanResult, path: str | Path, title: str = "") -> Path:
             label=f"{trace.parametrization}: worst block",
         )
         bottom.semilogy(result.times, np.minimum(trace.condition, 1e18), color=line.get_color())
-        if trace.warning_time is not None:
-            for ax in (top, bottom):
-                ax.axvline(trace.warning_time, color=line.get_color(), ls="--", lw=0.8)
+    warned = warning_lines(result)
+    for when, label in warned:
+        colour = next((t_line.get_color() for t_line, tr in zip(top.get_lines()[::2], result.traces) if label == tr.parametrization), "black")
+        for ax in (top, bottom):
+            ax.axvline(when, color=colour, ls="--", lw=1.0, label=f"first warning: {label}" if ax is top else None)
     top.set(
         ylabel="sigma_min / sigma_max",
-        title=(title + ": " if title else "") + "conditioning along the motion (dashed: first warning)",
+        title=(title + ": " if title else "") + "conditioning along the motion" + (" (dashed: first warning)" if warned else ""),
     )
     bottom.set(ylabel="condition number", xlabel="t [s]")
     for ax in (top, bottom):

@@ -151,9 +151,10 @@ def motion_view(
 
     if track is None and model.working_range is not None:
         track = (model.working_range.point.body, model.working_range.point.name)
-    if track is None:  # the named point farthest from the origin at the start: a tip, usually
-        named = [(b, p) for b, points in results.system.points.items() if b != GROUND for p in points]
-        track = max(named, key=lambda ref: float(np.linalg.norm(results.point_position(*ref)[0]))) if named else None
+    if track is None:
+        from kinegen.analysis.plots import tracked_point
+
+        track = tracked_point(results)
     scene = _Scene(results, model, track, condition_warning)
     solved = np.flatnonzero(results.converged)
     keep = solved[:: max(1, -(-len(solved) // MAX_FRAMES))]

@@ -86,14 +86,20 @@ def build(
     raises, nothing is written. ``ready`` and ``sensitivities`` as for :func:`generate`. Everything that can fail happens before the (atomic, file by
     file) writes.
     """
+    from kinegen.progress import Stages
+
     model = load(model_path)
     param = get(parametrization)
-    made = generate(model, param, tuple(dict.fromkeys((*targets, "python"))) if check is not None else targets, ready, sensitivities)
-    python = f"{module_name(model, param)}.py"
-    if check is not None:
-        check(made["python"][python], model_path)
-    out = Path(out_dir)
-    for target in targets:
-        for name, text in made[target].items():
-            write_atomic(out / name, text)
+    with Stages(f"build {model.name} ({param.name})", 3) as stages:
+        stages.stage("deriving and printing")
+        made = generate(model, param, tuple(dict.fromkeys((*targets, "python"))) if check is not None else targets, ready, sensitivities)
+        python = f"{module_name(model, param)}.py"
+        stages.stage("checking")
+        if check is not None:
+            check(made["python"][python], model_path)
+        stages.stage("writing")
+        out = Path(out_dir)
+        for target in targets:
+            for name, text in made[target].items():
+                write_atomic(out / name, text)
     return out / python if "python" in targets else out

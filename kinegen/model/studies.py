@@ -47,11 +47,11 @@ def read_studies(
         if not isinstance(parameters, list) or not parameters:
             raise loader.fail(f"{entry}.parameters", "expected a list of design parameters")
         for i, parameter in enumerate(parameters):
-            if parameter not in loader.design:
+            if not isinstance(parameter, str) or parameter not in loader.design:
                 raise loader.fail(
                     f"{entry}.parameters[{i}]", f"{shown(parameter)} is not a design parameter (design: {', '.join(loader.design) or 'none'})"
                 )
-        if len(set(parameters)) != len(parameters):
+        if len(set(parameters)) != len(parameters):  # (all strings here)
             raise loader.fail(f"{entry}.parameters", "a parameter is named twice")
         description = spec.get("description", "")
         if not isinstance(description, str):
@@ -119,14 +119,14 @@ class _StudyReader:
                 raise self.loader.fail(where, "the model has no working_range section")
             from kinegen.model.loader import WORKING_RANGE_FIGURES
 
-            if what not in WORKING_RANGE_FIGURES:
+            if not isinstance(what, str) or what not in WORKING_RANGE_FIGURES:
                 raise self.loader.fail(where, f"unknown figure {shown(what)} (one of {', '.join(WORKING_RANGE_FIGURES)})")
             return Quantity(kind, figure=what)
         case = spec.get("case")
-        if case not in self.cases:
+        if not isinstance(case, str) or case not in self.cases:
             raise self.loader.fail(f"{entry}.case", f"{kind} is measured over a case: expected one of {', '.join(self.cases)}, got {shown(case)}")
         if kind in ("stroke", "actuator_margin"):
-            if what not in self.actuators:
+            if not isinstance(what, str) or what not in self.actuators:
                 raise self.loader.fail(where, f"unknown actuator {shown(what)} (actuators: {', '.join(self.actuators) or 'none'})")
             if kind == "actuator_margin" and self.actuators[what].range is None:
                 raise self.loader.fail(where, f"actuator {what} has no range")
@@ -134,7 +134,7 @@ class _StudyReader:
         if kind == "toggle_margin":
             bodies = what if isinstance(what, list) else [what]
             for i, body in enumerate(bodies):
-                if body == GROUND or body not in self.loader.bodies:
+                if not isinstance(body, str) or body == GROUND or body not in self.loader.bodies:
                     raise self.loader.fail(f"{where}[{i}]" if isinstance(what, list) else where, f"unknown moving body {shown(body)} (bodies: {', '.join(self.loader.bodies)})")
             return Quantity(kind, case, bodies=tuple(bodies))
         if kind == "transmission_angle":

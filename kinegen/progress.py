@@ -1,0 +1,41 @@
+"""Progress bars for long work (tqdm): on stderr, and only when stderr is a terminal -- a
+pipe, a log file or a test sees nothing."""
+
+from __future__ import annotations
+
+from collections.abc import Iterable, Iterator
+from typing import TypeVar
+
+T = TypeVar("T")
+
+
+def progress(items: Iterable[T], description: str, total: int | None = None, unit: str = "it") -> Iterator[T]:
+    """``items``, with a bar while they are consumed (removed when done)."""
+    from tqdm import tqdm
+
+    yield from tqdm(items, desc=description, total=total, unit=unit, disable=None, leave=False, dynamic_ncols=True)
+
+
+class Stages:
+    """A bar over named stages of one long job (a build): ``stage(name)`` finishes the last stage
+    and names the next one. Use as a context manager."""
+
+    def __init__(self, description: str, count: int) -> None:
+        from tqdm import tqdm
+
+        self.description = description
+        self.bar = tqdm(total=count, desc=description, disable=None, leave=False, dynamic_ncols=True,
+                        bar_format="{desc}[{n}/{total} stages, {elapsed}]")  # fmt: skip
+        self.started = False
+
+    def stage(self, name: str) -> None:
+        if self.started:
+            self.bar.update(1)
+        self.started = True
+        self.bar.set_description(f"{self.description}: {name}")
+
+    def __enter__(self) -> Stages:
+        return self
+
+    def __exit__(self, *_exc) -> None:
+        self.bar.close()
