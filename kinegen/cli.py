@@ -293,8 +293,7 @@ def solve(
 
         if frame_body is not None and frame_body not in system.bodies:
             raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
-        spec = load(model_file).working_range
-        trace = (spec.point.body, spec.point.name) if spec else tracked_point(results)
+        trace = tracked_point(results, load(model_file))
         frame = frame_body if frame_body is not None else best_frame(results, trace)
         click.echo(f"wrote {plot_case(results, plot, frame, trace)}")
     _report_ranges(results)
@@ -492,9 +491,9 @@ def view(
     click.echo(f"wrote {motion_view(results, model, page, f'{system.model} / {system.case}', point, condition_warning)}")
     if animate:
         from kinegen.analysis.animation import animate as write_animation
+        from kinegen.analysis.plots import best_frame, tracked_point
 
-        track_point = point or ((model.working_range.point.body, model.working_range.point.name) if model.working_range else None)
-        from kinegen.analysis.plots import best_frame
+        track_point = point or tracked_point(results, model)
 
         frame = frame_body if frame_body is not None else best_frame(results, track_point)
         try:

@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegen.analysis.plots import _in_frame, pyplot
-from kinegen.analysis.view import TRACKED, _outline
+from kinegen.analysis.view import TRACKED, _outline, frames
 from kinegen.model.schema import GROUND
 from kinegen.runtime.results import Results
 
@@ -31,8 +31,7 @@ def animate(
     if target.suffix.lower() not in (".gif", ".mp4"):
         raise ValueError(f"{path}: an animation is written as .gif or .mp4")
     system = results.system
-    solved = np.flatnonzero(results.converged)
-    keep = solved[:: max(1, -(-len(solved) // MAX_GIF_FRAMES))]
+    solved, keep = frames(results, MAX_GIF_FRAMES)
     bodies = {b: list(p) for b, p in system.points.items() if b != GROUND and p}
     outlines = {b: _outline(np.array([system.points[b][p] for p in names], dtype=float)) for b, names in bodies.items()}
     world = {(b, p): _in_frame(results, frame_body, results.point_position(b, p)) for b, names in bodies.items() for p in names}

@@ -37,8 +37,11 @@ def _in_frame(results: Results, frame_body: str | None, points: np.ndarray) -> n
     return np.einsum("kji,kj->ki", rotation, points - results.position(frame_body))
 
 
-def tracked_point(results: Results) -> tuple[str, str] | None:
-    """The named body point farthest from the origin at the start (a tip, usually)."""
+def tracked_point(results: Results, model=None) -> tuple[str, str] | None:
+    """The point whose path a picture draws: the model's working-range point when it has one,
+    else the named body point farthest from the origin at the start (a tip, usually)."""
+    if model is not None and model.working_range is not None:
+        return model.working_range.point.body, model.working_range.point.name
     named = [(b, p) for b, points in results.system.points.items() for p in points]
     return max(named, key=lambda ref: float(np.linalg.norm(results.point_position(*ref)[0]))) if named else None
 

@@ -53,6 +53,12 @@ def _outline(points: np.ndarray) -> list[int]:
     return [*order, order[0]]
 
 
+def frames(results: Results, most: int) -> tuple[np.ndarray, np.ndarray]:
+    """The solved time points, and at most ``most`` of them evenly taken (the first included)."""
+    solved = np.flatnonzero(results.converged)
+    return solved, solved[:: max(1, -(-len(solved) // most))]
+
+
 def _segments(polylines: list[np.ndarray]) -> np.ndarray:
     """Polylines joined into one trace's coordinates, separated by NaN (Plotly breaks lines there)."""
     parts = []
@@ -146,18 +152,15 @@ def motion_view(
     condition_warning: float = CONDITION_WARNING,
 ) -> Path:
     """Write the solved motion as a self-contained HTML page (see the module docstring).
-    ``track``: (body, point) whose path is drawn (default: the model's working-range point, if any)."""
+    ``track``: (body, point) whose path is drawn (default: :func:`kinegen.analysis.plots.tracked_point`)."""
     import plotly.graph_objects as go
 
-    if track is None and model.working_range is not None:
-        track = (model.working_range.point.body, model.working_range.point.name)
     if track is None:
         from kinegen.analysis.plots import tracked_point
 
-        track = tracked_point(results)
+        track = tracked_point(results, model)
     scene = _Scene(results, model, track, condition_warning)
-    solved = np.flatnonzero(results.converged)
-    keep = solved[:: max(1, -(-len(solved) // MAX_FRAMES))]
+    solved, keep = frames(results, MAX_FRAMES)
     static = []
     if len(scene.ground):
         static.append(go.Scatter3d(x=scene.ground[:, 0], y=scene.ground[:, 1], z=scene.ground[:, 2], mode="markers", name="ground points",
@@ -168,7 +171,7 @@ def motion_view(
                                    line={"color": "#2ca02c", "width": 2, "dash": "dot"}))  # fmt: skip
     first = scene.traces(int(keep[0]))
     moving = list(range(len(static), len(static) + len(first)))
-    frames = [go.Frame(data=scene.traces(int(k)), traces=moving, name=str(i), layout={"title": {"text": f"{title}   {scene.title(int(k))}"}})
+    animation = [go.Frame(data=scene.traces(int(k)), traces=moving, name=str(i), layout={"title": {"text": f"{title}   {scene.title(int(k))}"}})
               for i, k in enumerate(keep)]  # fmt: skip
     everything = np.vstack([*(scene.positions.values()), scene.ground] + ([scene.path] if scene.path is not None else []))
     everything = everything[np.isfinite(everything).all(axis=1)]
@@ -203,7 +206,7 @@ def motion_view(
     }  # fmt: skip
     figure = go.Figure(
         data=static + first,
-        frames=frames,
+        frames=animation,
         layout=go.Layout(
             title={"text": f"{title}   {scene.title(int(keep[0]))}"},
             scene={

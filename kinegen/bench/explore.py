@@ -22,7 +22,7 @@ from pathlib import Path
 from kinegen.bench.contenders import ROOT
 
 
-def exploration_scaling(samples: int = 144, partition_size: int = 12, rounds: int = 3) -> dict:
+def exploration_scaling(samples: int = 144, partition_size: int = 24, rounds: int = 3) -> dict:
     """Seconds for ``samples`` variants in one process and on 1 and 2 Dask workers, each the
     median of ``rounds`` rounds (the three measured one after the other in every round: the
     machine's noise falls on all three alike)."""

@@ -31,7 +31,7 @@ import numpy as np
 from kinegen import __version__
 from kinegen.errors import KinegenError
 from kinegen.explore.store import ExplorationError, Store
-from kinegen.explore.variants import STATUSES, PartitionResult, PartitionTask, VariantEvaluator, evaluate_partition
+from kinegen.explore.variants import STATUSES, PartitionResult, PartitionTask, VariantEvaluator, evaluate_partition, evaluator
 
 SAMPLERS = ("sobol", "lhs")
 #: variants per task unless told: ~20 s of work for the excavator's calibration study (0.1 s a
@@ -108,9 +108,9 @@ class Report:
         return "\n".join(lines)
 
 
-def provenance(exploration: Exploration, evaluator: VariantEvaluator) -> dict:
+def provenance(exploration: Exploration, nominal: VariantEvaluator) -> dict:
     """What fixes the variants and their numbers (checked on ``--resume``), and when the run began."""
-    problem = evaluator.problem
+    problem = nominal.problem
     module = problem.module
     return {
         "model": module.MODEL,
@@ -119,22 +119,21 @@ def provenance(exploration: Exploration, evaluator: VariantEvaluator) -> dict:
         "parametrization": module.PARAMETRIZATION,
         "study": exploration.study,
         "parameters": {n: [float(lo), float(hi)] for n, (lo, hi) in zip(problem.names, problem.bounds)},
-        "quantities": evaluator.columns,
+        "quantities": nominal.columns,
         "sampler": exploration.sampler,
         "seed": exploration.seed,
         "samples": exploration.samples,
         "partition_size": exploration.partition_size,
         "solver": "C" if exploration.compiled else "Python",
         "kinegen_version": __version__,
-        "nominal": {"parameters": dict(zip(problem.names, (problem.nominal_design[n] for n in problem.names))), "quantities": evaluator.nominal},
+        "nominal": {"parameters": dict(zip(problem.names, (problem.nominal_design[n] for n in problem.names))), "quantities": nominal.nominal},
         "created": datetime.now(timezone.utc).isoformat(timespec="seconds"),
     }
 
 
 def tasks(exploration: Exploration, skip: set[int]) -> list[PartitionTask]:
     """One task per partition not in ``skip``, each with its variants' parameter values."""
-    evaluator = nominal_evaluator(exploration)
-    problem = evaluator.problem
+    problem = nominal_evaluator(exploration).problem
     points = sample(problem.bounds[:, 0], problem.bounds[:, 1], exploration.samples, exploration.sampler, exploration.seed)
     size = exploration.partition_size
     source, study, compiled = problem.module.SOURCE_SHA256, exploration.study, exploration.compiled
@@ -149,13 +148,8 @@ def tasks(exploration: Exploration, skip: set[int]) -> list[PartitionTask]:
 def nominal_evaluator(exploration: Exploration) -> VariantEvaluator:
     """The client's evaluator (the nominal design measured; the C compiled into the cache the
     local workers then load)."""
-    from kinegen.explore.variants import _EVALUATORS
-
     source = hashlib.sha256(Path(exploration.model_file).read_bytes()).hexdigest()  # what the module records (checked)
-    key = (str(exploration.model_file), str(exploration.module_file), source, exploration.study, exploration.compiled)
-    if key not in _EVALUATORS:
-        _EVALUATORS[key] = VariantEvaluator(*key)
-    return _EVALUATORS[key]
+    return evaluator(str(exploration.model_file), str(exploration.module_file), source, exploration.study, exploration.compiled)[0]
 
 
 #: Dask settings of the LocalCluster's workers. Dask's default environment sets glibc's
@@ -204,8 +198,7 @@ def explore(
     ``on_partition``: called with each partition's result after it is written."""
     say = say or (lambda _line: None)
     store = Store(out)
-    evaluator = nominal_evaluator(exploration)
-    meta = provenance(exploration, evaluator)
+    meta = provenance(exploration, nominal_evaluator(exploration))
     done = store.start(meta, resume)
     if resume and done:
         say(f"resuming {store.path}: {len(done)} of {exploration.partitions()} partitions already written")

@@ -134,14 +134,20 @@ def status_of(error: BaseException | None) -> str:
 _EVALUATORS: dict[tuple, VariantEvaluator] = {}
 
 
+def evaluator(model_file: str, module_file: str, source_sha256: str, study: str, compiled: bool) -> tuple[VariantEvaluator, float]:
+    """This process's evaluator for a model's study (made once), and the seconds spent making it now."""
+    key = (model_file, module_file, source_sha256, study, compiled)
+    if key in _EVALUATORS:
+        return _EVALUATORS[key], 0.0
+    if len(_EVALUATORS) >= 4:
+        _EVALUATORS.clear()
+    made = _EVALUATORS[key] = VariantEvaluator(*key)
+    return made, made.setup_seconds
+
+
 def evaluator_for(task: PartitionTask) -> tuple[VariantEvaluator, float]:
-    """This process's evaluator for the task's model and study, and the seconds spent making it now."""
-    if task.key not in _EVALUATORS:
-        if len(_EVALUATORS) >= 4:
-            _EVALUATORS.clear()
-        _EVALUATORS[task.key] = VariantEvaluator(task.model_file, task.module_file, task.source_sha256, task.study, task.compiled)
-        return _EVALUATORS[task.key], _EVALUATORS[task.key].setup_seconds
-    return _EVALUATORS[task.key], 0.0
+    """The evaluator for a task's model and study (see :func:`evaluator`)."""
+    return evaluator(*task.key)
 
 
 def evaluate_partition(task: PartitionTask) -> PartitionResult:
