@@ -266,7 +266,7 @@ def solve(
     from kinegen.runtime import solve as run
 
     parametrization = _parametrization(param)
-    _, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
+    model, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
     _check_memory(system, steps or system.steps, force)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
@@ -289,20 +289,18 @@ def solve(
         click.echo(f"wrote {write(sensitivities)}")
     if plot:
         from kinegen.analysis.plots import best_frame, plot_case, tracked_point
-        from kinegen.model import load
 
         if frame_body is not None and frame_body not in system.bodies:
             raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
-        trace = tracked_point(results, load(model_file))
+        trace = tracked_point(results, model)
         frame = frame_body if frame_body is not None else best_frame(results, trace)
         click.echo(f"wrote {plot_case(results, plot, frame, trace)}")
     _report_ranges(results)
     if view:
         from kinegen.analysis.view import motion_view
-        from kinegen.model import load
 
         page = Path(out).with_suffix(".html") if out else Path("out") / f"{system.model}_{system.case}.html"
-        click.echo(f"wrote {motion_view(results, load(model_file), page, title=f'{system.model} / {system.case}')}")
+        click.echo(f"wrote {motion_view(results, model, page, title=f'{system.model} / {system.case}')}")
     if results.failure is not None:
         raise results.failure
 
