@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8
+source sha256:   59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764
 parametrization: dual-euler-parameters
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8'
+SOURCE_SHA256 = '59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764'
 PARAMETRIZATION = 'dual-euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.rw', 'upper.rx', 'upper.ry', 'upper.rz', 'upper.dw', 'upper.dx', 'upper.dy', 'upper.dz', 'boom.rw', 'boom.rx', 'boom.ry', 'boom.rz', 'boom.dw', 'boom.dx', 'boom.dy', 'boom.dz', 'boom_cyl_l_barrel.rw', 'boom_cyl_l_barrel.rx', 'boom_cyl_l_barrel.ry', 'boom_cyl_l_barrel.rz', 'boom_cyl_l_barrel.dw', 'boom_cyl_l_barrel.dx', 'boom_cyl_l_barrel.dy', 'boom_cyl_l_barrel.dz', 'boom_cyl_l_rod.rw', 'boom_cyl_l_rod.rx', 'boom_cyl_l_rod.ry', 'boom_cyl_l_rod.rz', 'boom_cyl_l_rod.dw', 'boom_cyl_l_rod.dx', 'boom_cyl_l_rod.dy', 'boom_cyl_l_rod.dz', 'boom_cyl_r_barrel.rw', 'boom_cyl_r_barrel.rx', 'boom_cyl_r_barrel.ry', 'boom_cyl_r_barrel.rz', 'boom_cyl_r_barrel.dw', 'boom_cyl_r_barrel.dx', 'boom_cyl_r_barrel.dy', 'boom_cyl_r_barrel.dz', 'boom_cyl_r_rod.rw', 'boom_cyl_r_rod.rx', 'boom_cyl_r_rod.ry', 'boom_cyl_r_rod.rz', 'boom_cyl_r_rod.dw', 'boom_cyl_r_rod.dx', 'boom_cyl_r_rod.dy', 'boom_cyl_r_rod.dz', 'arm.rw', 'arm.rx', 'arm.ry', 'arm.rz', 'arm.dw', 'arm.dx', 'arm.dy', 'arm.dz', 'arm_cyl_barrel.rw', 'arm_cyl_barrel.rx', 'arm_cyl_barrel.ry', 'arm_cyl_barrel.rz', 'arm_cyl_barrel.dw', 'arm_cyl_barrel.dx', 'arm_cyl_barrel.dy', 'arm_cyl_barrel.dz', 'arm_cyl_rod.rw', 'arm_cyl_rod.rx', 'arm_cyl_rod.ry', 'arm_cyl_rod.rz', 'arm_cyl_rod.dw', 'arm_cyl_rod.dx', 'arm_cyl_rod.dy', 'arm_cyl_rod.dz', 'bucket_cyl_barrel.rw', 'bucket_cyl_barrel.rx', 'bucket_cyl_barrel.ry', 'bucket_cyl_barrel.rz', 'bucket_cyl_barrel.dw', 'bucket_cyl_barrel.dx', 'bucket_cyl_barrel.dy', 'bucket_cyl_barrel.dz', 'bucket_cyl_rod.rw', 'bucket_cyl_rod.rx', 'bucket_cyl_rod.ry', 'bucket_cyl_rod.rz', 'bucket_cyl_rod.dw', 'bucket_cyl_rod.dx', 'bucket_cyl_rod.dy', 'bucket_cyl_rod.dz', 'side_link.rw', 'side_link.rx', 'side_link.ry', 'side_link.rz', 'side_link.dw', 'side_link.dx', 'side_link.dy', 'side_link.dz', 'bucket_link.rw', 'bucket_link.rx', 'bucket_link.ry', 'bucket_link.rz', 'bucket_link.dw', 'bucket_link.dx', 'bucket_link.dy', 'bucket_link.dz', 'bucket.rw', 'bucket.rx', 'bucket.ry', 'bucket.rz', 'bucket.dw', 'bucket.dx', 'bucket.dy', 'bucket.dz')

@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8
+ * source sha256:   59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764
  * parametrization: euler-parameters
  * kinegen version: 0.1.0
  * sympy version:   1.14.0
@@ -5335,7 +5335,7 @@ static const kinegen_actuator actuators[] = {
 };
 
 const kinegen_layout excavator_euler_parameters_layout = {
-    "excavator", "euler-parameters", "excavator.yaml", "745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8", "0.1.0",
+    "excavator", "euler-parameters", "excavator.yaml", "59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764", "0.1.0",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, EXCAVATOR_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_euler_parameters_frames,
 };

@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8
+source sha256:   59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764
 parametrization: euler-parameters
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8'
+SOURCE_SHA256 = '59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764'
 PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.e0', 'upper.e1', 'upper.e2', 'upper.e3', 'boom.x', 'boom.y', 'boom.z', 'boom.e0', 'boom.e1', 'boom.e2', 'boom.e3', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.e0', 'boom_cyl_l_barrel.e1', 'boom_cyl_l_barrel.e2', 'boom_cyl_l_barrel.e3', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.e0', 'boom_cyl_l_rod.e1', 'boom_cyl_l_rod.e2', 'boom_cyl_l_rod.e3', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.e0', 'boom_cyl_r_barrel.e1', 'boom_cyl_r_barrel.e2', 'boom_cyl_r_barrel.e3', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.e0', 'boom_cyl_r_rod.e1', 'boom_cyl_r_rod.e2', 'boom_cyl_r_rod.e3', 'arm.x', 'arm.y', 'arm.z', 'arm.e0', 'arm.e1', 'arm.e2', 'arm.e3', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.e0', 'arm_cyl_barrel.e1', 'arm_cyl_barrel.e2', 'arm_cyl_barrel.e3', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.e0', 'arm_cyl_rod.e1', 'arm_cyl_rod.e2', 'arm_cyl_rod.e3', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.e0', 'bucket_cyl_barrel.e1', 'bucket_cyl_barrel.e2', 'bucket_cyl_barrel.e3', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.e0', 'bucket_cyl_rod.e1', 'bucket_cyl_rod.e2', 'bucket_cyl_rod.e3', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.e0', 'side_link.e1', 'side_link.e2', 'side_link.e3', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.e0', 'bucket_link.e1', 'bucket_link.e2', 'bucket_link.e3', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.e0', 'bucket.e1', 'bucket.e2', 'bucket.e3')

@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8
+source sha256:   59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764
 parametrization: euler:zxy
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8'
+SOURCE_SHA256 = '59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764'
 PARAMETRIZATION = 'euler:zxy'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.alpha', 'upper.beta', 'upper.gamma', 'boom.x', 'boom.y', 'boom.z', 'boom.alpha', 'boom.beta', 'boom.gamma', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.alpha', 'boom_cyl_l_barrel.beta', 'boom_cyl_l_barrel.gamma', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.alpha', 'boom_cyl_l_rod.beta', 'boom_cyl_l_rod.gamma', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.alpha', 'boom_cyl_r_barrel.beta', 'boom_cyl_r_barrel.gamma', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.alpha', 'boom_cyl_r_rod.beta', 'boom_cyl_r_rod.gamma', 'arm.x', 'arm.y', 'arm.z', 'arm.alpha', 'arm.beta', 'arm.gamma', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.alpha', 'arm_cyl_barrel.beta', 'arm_cyl_barrel.gamma', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.alpha', 'arm_cyl_rod.beta', 'arm_cyl_rod.gamma', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.alpha', 'bucket_cyl_barrel.beta', 'bucket_cyl_barrel.gamma', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.alpha', 'bucket_cyl_rod.beta', 'bucket_cyl_rod.gamma', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.alpha', 'side_link.beta', 'side_link.gamma', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.alpha', 'bucket_link.beta', 'bucket_link.gamma', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.alpha', 'bucket.beta', 'bucket.gamma')

@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8
+source sha256:   59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764
 parametrization: quaternion
 kinegen version: 0.1.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '745bfd299b1df4034cf9a7d41439bd9b2cc72a4b47d64efb16b9af89eafb3ba8'
+SOURCE_SHA256 = '59977e3d21f5f746fbbc64de9b351d97880f6b0fa43183f323648b86cc233764'
 PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.1.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.qw', 'upper.qx', 'upper.qy', 'upper.qz', 'boom.x', 'boom.y', 'boom.z', 'boom.qw', 'boom.qx', 'boom.qy', 'boom.qz', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.qw', 'boom_cyl_l_barrel.qx', 'boom_cyl_l_barrel.qy', 'boom_cyl_l_barrel.qz', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.qw', 'boom_cyl_l_rod.qx', 'boom_cyl_l_rod.qy', 'boom_cyl_l_rod.qz', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.qw', 'boom_cyl_r_barrel.qx', 'boom_cyl_r_barrel.qy', 'boom_cyl_r_barrel.qz', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.qw', 'boom_cyl_r_rod.qx', 'boom_cyl_r_rod.qy', 'boom_cyl_r_rod.qz', 'arm.x', 'arm.y', 'arm.z', 'arm.qw', 'arm.qx', 'arm.qy', 'arm.qz', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.qw', 'arm_cyl_barrel.qx', 'arm_cyl_barrel.qy', 'arm_cyl_barrel.qz', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.qw', 'arm_cyl_rod.qx', 'arm_cyl_rod.qy', 'arm_cyl_rod.qz', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.qw', 'bucket_cyl_barrel.qx', 'bucket_cyl_barrel.qy', 'bucket_cyl_barrel.qz', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.qw', 'bucket_cyl_rod.qx', 'bucket_cyl_rod.qy', 'bucket_cyl_rod.qz', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.qw', 'side_link.qx', 'side_link.qy', 'side_link.qz', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.qw', 'bucket_link.qx', 'bucket_link.qy', 'bucket_link.qz', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.qw', 'bucket.qx', 'bucket.qy', 'bucket.qz')

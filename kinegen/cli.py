@@ -520,14 +520,18 @@ def info(model_file: str, params: tuple[str, ...]) -> None:
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
 @click.option("--grid", default=None, help="Samples per swept input, e.g. 25,13,25 (default: 21,11,21).")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of the working range.")
-@click.option("--json", "as_json", is_flag=True, help="Print the figures as JSON.")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of the working-range chart (exact boundary, dimensions).")
+@click.option("--boundary", "boundary_file", type=click.Path(dir_okay=False), default=None,
+              help="Write the exact boundary's points: CSV (.csv) or JSON (.json).")
+@click.option("--json", "as_json", is_flag=True, help="Print the figures (and the boundary) as JSON.")
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
-def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as_json: bool, generated_dir: str) -> None:
-    """Working range of the model's `working_range` point over its input ranges (and, for a model with
-    design parameters, the figures' exact sensitivities by them)."""
+def envelope(model_file: str, param: str, grid: str | None, plot: str | None, boundary_file: str | None, as_json: bool, generated_dir: str) -> None:
+    """Working range of the model's `working_range` point over its input ranges: its figures (and, for a
+    model with design parameters, their exact sensitivities), its exact boundary (--boundary, --json,
+    --plot)."""
     from kinegen.analysis.envelope import plot_envelope, working_range
     from kinegen.errors import ModelError
+    from kinegen.files import write_atomic
 
     parametrization = _parametrization(param)
     model, _ = _system(model_file, parametrization, None, generated_dir)
@@ -542,7 +546,14 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as
             raise click.BadParameter("expected whole numbers separated by commas", param_hint="--grid") from None
         if any(c < 2 for c in counts):
             raise click.BadParameter("at least 2 samples per input", param_hint="--grid")
+    if boundary_file and Path(boundary_file).suffix.lower() not in (".csv", ".json"):
+        raise click.BadParameter("expected a .csv or .json file name", param_hint="--boundary")
     result = working_range(system, model.working_range, counts)
+    boundary = None
+    if plot or boundary_file or as_json:
+        from kinegen.analysis.boundary import working_range_boundary
+
+        boundary = working_range_boundary(system, model.working_range)
     sensitivities = {}
     if system.design and system.sensitivity_kernels:  # d(figure)/d(design parameter), by the envelope theorem
         from kinegen.analysis.envelope import figure_sensitivities
@@ -557,8 +568,11 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as
             "samples": len(result.samples),
             "seconds": result.seconds,
         }
+        if result.front is not None:
+            document["min_front_swing_radius"] = {"radius": result.front.radius, "inputs": result.front.arguments, "farthest": result.front.farthest}
         if sensitivities:
             document["sensitivities"] = sensitivities
+        document["boundary"] = _boundary_document(boundary)
         click.echo(json.dumps(document, indent=2))
     else:
         click.echo(result.table())
@@ -572,8 +586,30 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, as
             click.echo(f"{'figure':<22}" + "".join(f" {n:>14}" for n in names))
             for figure, values in sensitivities.items():
                 click.echo(f"{figure:<22}" + "".join(f" {values[n]:>14.6g}" for n in names))
+        if result.front is not None:
+            click.echo(f"min_front_swing_radius at {', '.join(result.front.farthest)}")
+        if boundary is not None:
+            click.echo(
+                f"exact boundary: {len(boundary.points) - 1} points on {len(set(boundary.curve.tolist()))} curves, "
+                f"{len(boundary.switching)} switching points, chord error {1e3 * boundary.chord_error:.3f} mm, {boundary.seconds:.1f} s"
+            )
+    if boundary_file:
+        text = boundary.to_csv() if Path(boundary_file).suffix.lower() == ".csv" else json.dumps(_boundary_document(boundary), indent=1)
+        write_atomic(Path(boundary_file), text)
+        click.echo(f"wrote {boundary_file}", err=as_json)
     if plot:
-        click.echo(f"wrote {plot_envelope(result, plot)}", err=as_json)
+        click.echo(f"wrote {plot_envelope(result, system, plot, boundary)}", err=as_json)
+
+
+def _boundary_document(boundary) -> dict:
+    """The exact boundary as JSON-ready data (chart plane: reach along ``direction``, height; m)."""
+    return {
+        "plane": {"reach_direction": boundary.direction.tolist(), "units": "m"},
+        "points": boundary.rows(),
+        "switching": boundary.switching.tolist(),
+        "chord_error_m": boundary.chord_error,
+        "notes": boundary.notes,
+    }
 
 
 @main.command()

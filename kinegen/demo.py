@@ -190,7 +190,17 @@ def main(argv: list[str] | None = None) -> int:
         f"\nworking range (kinegen envelope models/excavator.yaml): {len(result.samples)} configurations, {result.seconds:.1f} s"
     )
     print(result.table())
-    plot_envelope(result, args.out / "excavator_envelope.png")
+    from kinegen.analysis.boundary import working_range_boundary
+    from kinegen.files import write_atomic
+
+    boundary = working_range_boundary(excavator, spec)
+    print(
+        f"exact boundary: {len(boundary.points) - 1} points on {len(set(boundary.curve.tolist()))} curves (inputs at limits, folds), "
+        f"{len(boundary.switching)} switching points, chord error {1e3 * boundary.chord_error:.3f} mm, {boundary.seconds:.1f} s "
+        f"-> excavator_envelope.png, excavator_envelope_boundary.csv"
+    )
+    write_atomic(args.out / "excavator_envelope_boundary.csv", boundary.to_csv())
+    plot_envelope(result, excavator, args.out / "excavator_envelope.png", boundary)
     from kinegen.analysis.scan import plot_scan, scan
 
     toggle = from_module(load_module(paths["excavator.yaml", "quaternion"]), "bucket_toggle")

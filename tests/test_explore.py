@@ -108,8 +108,10 @@ def test_variants_match_working_ranges_sampled_afresh_and_their_slopes_the_exact
         if abs(design["boom_retracted"] - 1.7352) > 0.02:  # near the boom cylinder's toggle a fresh grid is unreliable
             continue
         fresh = working_range(from_module(module, spec.case, True, design), spec)
-        for figure, value in fresh.figures.items():
-            assert figures[figure][k] == pytest.approx(value, abs=1e-9), (k, figure)
+        compared = [figure for figure in fresh.figures if figure in figures]  # the study's five
+        assert len(compared) == 5
+        for figure in compared:
+            assert figures[figure][k] == pytest.approx(fresh.figures[figure], abs=1e-9), (k, figure)
         checked += 1
         if checked == 3:
             break

@@ -11,7 +11,16 @@ and the ground plane z = 0):
 * max_reach_at_ground: the same, on z = 0 (a constrained maximum);
 * max_depth: largest depth below z = 0; max_cutting_height: largest height;
 * max_dumping_height: largest height of the point directly below ``dump_pivot`` (the
-  bucket hanging teeth down, as when dumping; a constrained maximum).
+  bucket hanging teeth down, as when dumping; a constrained maximum);
+* max_vertical_wall_depth: largest depth below z = 0 with the arm vertical, ``arm_pivot``
+  directly above ``dump_pivot`` (kinegen's reading of the brochures' "vertical wall digging
+  depth"; a constrained maximum, with ``arm_pivot`` only);
+* min_front_swing_radius: the smallest radius, over the inputs, of the circle the front
+  swings through -- the largest horizontal distance from the swing axis of any named point of
+  the bodies the swept inputs move (a min-max: :func:`front_swing_radius`).
+
+The first four lie on the working range's boundary (:mod:`kinegen.analysis.boundary`); the
+dumping height and the vertical-wall depth are inside it by their definitions.
 """
 
 from __future__ import annotations
@@ -33,13 +42,13 @@ POLISH_STEPS = 8  # Newton steps on the optimality conditions after SLSQP, at mo
 #: max |Phi| of the refinement's solves: the figures' own noise (the default 1e-10 leaves ~1e-10 m,
 #: which differences of figures and their optimality conditions would see)
 TOLERANCE = 1e-13
-FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height")
+FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height", "max_vertical_wall_depth")
 
 
 @dataclass(frozen=True)
 class Figure:
     """A working-range figure as an optimization over the swept inputs: minimize ``objective``
-    of the tracked points (the point, then the dump pivot: (P, 3) global positions), subject to
+    of the tracked points (the point, the dump pivot, the arm pivot: (P, 3) global positions), subject to
     ``constraint`` = 0 when there is one; the figure is ``-objective`` at the optimum. The
     gradients are in the tracked points' coordinates ((P, 3)), for the envelope theorem."""
 
@@ -77,6 +86,10 @@ FIGURE_TABLE = {
             "max_dumping_height", lambda p: -float(p[0, 2]), lambda p: -_height_gradient(p),
             lambda p: _horizontal(p, 0) - _horizontal(p, 1), lambda p: _horizontal_gradient(p, 0) - _horizontal_gradient(p, 1),
         ),
+        Figure(
+            "max_vertical_wall_depth", lambda p: float(p[0, 2]), _height_gradient,
+            lambda p: _horizontal(p, 2) - _horizontal(p, 1), lambda p: _horizontal_gradient(p, 2) - _horizontal_gradient(p, 1),
+        ),
     )
 }  # fmt: skip
 
@@ -90,6 +103,7 @@ class Envelope:
     samples: np.ndarray  # (N, len(names)) input values
     points: np.ndarray  # (N, 3) global positions of the point (NaN where no solve)
     pivots: np.ndarray  # (N, 3) global positions of the dump pivot (NaN if none)
+    arm_pivots: np.ndarray | None = None  # (N, 3) global positions of the arm pivot (NaN if none)
     figures: dict[str, float] = field(default_factory=dict)
     arguments: dict[str, dict[str, float]] = field(default_factory=dict)  # figure -> inputs
     seconds: float = 0.0
@@ -99,16 +113,31 @@ class Envelope:
     #: figure -> (every driver input, the stored coordinates) at its refined optimum
     optima: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     design: dict[str, float] = field(default_factory=dict)  #: the design values it was computed at
+    front: FrontSwing | None = None  #: the minimum front swing radius (with a grid only)
 
     def table(self) -> str:
         """The figures beside the published (unverified) values."""
-        lines = [f"{'figure':<22} {'kinegen [m]':>11} {'published [m]':>14}  at inputs"]
-        for name in FIGURES:
+        lines = [f"{'figure':<24} {'kinegen [m]':>11} {'published [m]':>14}  at inputs"]
+        rows = [(name, self.figures[name], self.arguments.get(name, {})) for name in FIGURES if name in self.figures]
+        if self.front is not None:
+            rows.append(("min_front_swing_radius", self.front.radius, self.front.arguments))
+        for name, value, arguments in rows:
             published = self.spec.published.get(name)
             ref = f"{published:>7.2f} (unverified)" if published is not None else f"{'-':>14}"
-            where = ", ".join(f"{k} {v:.4f}" for k, v in self.arguments.get(name, {}).items())
-            lines.append(f"{name:<22} {self.figures.get(name, float('nan')):>11.3f} {ref}  {where}")
+            where = ", ".join(f"{k} {v:.4f}" for k, v in arguments.items())
+            lines.append(f"{name:<24} {value:>11.3f} {ref}  {where}")
         return "\n".join(lines)
+
+
+@dataclass
+class FrontSwing:
+    """The minimum front swing radius: min over the swept inputs of the largest horizontal distance
+    from the swing axis of the front's named points (every point of a body the swept inputs move)."""
+
+    radius: float  #: m
+    arguments: dict[str, float]  #: swept inputs at the minimum
+    q: np.ndarray  #: stored coordinates there
+    farthest: list[str]  #: "body.point" at the radius there (several at a min-max)
 
 
 class _Evaluator:
@@ -128,6 +157,8 @@ class _Evaluator:
         self.tracked = [(spec.point.body, spec.point.name)]
         if spec.dump_pivot is not None:
             self.tracked.append((spec.dump_pivot.body, spec.dump_pivot.name))
+        if spec.arm_pivot is not None:
+            self.tracked.append((spec.arm_pivot.body, spec.arm_pivot.name))
         self.q = system.initial_q.copy()
         self.u = system.driver_inputs(system.t0)[0].copy()
         self.solves = 0
@@ -186,17 +217,80 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     samples = np.array([axes[d][index[d]] for d in range(len(counts))]).T
     q = sweep.q.reshape(system.n_stored, -1)
     ok = sweep.converged.ravel()
-    tracked = np.full((len(samples), 2, 3), np.nan)
+    tracked = np.full((len(samples), 3, 3), np.nan)
     found = evaluator.points(q[:, ok])
     tracked[ok, : found.shape[1]] = found
-    envelope = Envelope(spec, names, samples, tracked[:, 0], tracked[:, 1], design=dict(system.design))
+    envelope = Envelope(spec, names, samples, tracked[:, 0], tracked[:, 1], tracked[:, 2], design=dict(system.design))
     envelope.grid_seconds = grid_seconds
     envelope.grid_solved = int(ok.sum())
     starts = {name: (samples[k], q[:, k]) for name, k in _grid_seeds(envelope).items()}
     _refine(envelope, evaluator, starts, bar=True)
+    envelope.front = front_swing_radius(system, evaluator, samples[ok], q[:, ok])
     envelope.seconds = time.perf_counter() - start
     envelope.solves = evaluator.solves + int(ok.sum())
     return envelope
+
+
+def _front_points(system: NumericSystem, evaluator: _Evaluator, q: np.ndarray) -> list[tuple[str, str]]:
+    """Every named point of the bodies the swept inputs move (checked at the configuration q)."""
+    from kinegen.runtime.sensitivity import point_position_sensitivities
+
+    names = [(body, point) for body in system.bodies for point in system.points.get(body, {})]
+    _, _, by_input = point_position_sensitivities(system, q[:, None], evaluator.u[:, None], names, design=False)
+    moved = np.abs(by_input[0][:, :, evaluator.index]).max(axis=(1, 2))
+    return [name for name, change in zip(names, moved) if change > 1e-9]
+
+
+def front_swing_radius(system: NumericSystem, evaluator: _Evaluator, samples: np.ndarray, q: np.ndarray) -> FrontSwing | None:
+    """The minimum front swing radius (:class:`FrontSwing`): the best of the solved grid samples
+    (swept inputs (N, d), q (n, N)), then SLSQP on min t subject to t >= r_i(u) for every front
+    point i (r_i its horizontal distance from the z axis, exact gradients by the inputs)."""
+    from kinegen.runtime.sensitivity import point_position_sensitivities
+
+    if not len(samples):
+        return None
+    evaluator.move_to(samples[0])
+    front = _front_points(system, evaluator, evaluator.q)
+    if not front:
+        return None
+    u = np.repeat(evaluator.base[:, None], len(samples), axis=1)
+    u[evaluator.index] = samples.T
+    radii = np.empty((len(samples), len(front)))
+    for j, (body, point) in enumerate(front):  # positions of every sample, one body at a time
+        origin, rotation = system.parametrization.pose(system.body_coordinates(q.T, body))
+        position = origin + rotation @ np.asarray(system.points[body][point], dtype=float)
+        radii[:, j] = np.hypot(position[:, 0], position[:, 1])
+    best = int(radii.max(axis=1).argmin())
+    lows = np.array([r[0] for r in evaluator.ranges])
+    spans = np.array([r[1] - r[0] for r in evaluator.ranges])
+    evaluator.q, evaluator.u = q[:, best].copy(), u[:, best].copy()
+    cache: dict[bytes, tuple[np.ndarray, np.ndarray]] = {}
+
+    def at(x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Radii (P,) and their derivatives by the normalized inputs (P, d) at x = (inputs, t)."""
+        key = x[:-1].tobytes()
+        if key not in cache:
+            cache.clear()
+            evaluator.move_to(lows + spans * np.clip(x[:-1], 0, 1))
+            positions, _, by_input = point_position_sensitivities(system, evaluator.q[:, None], evaluator.u[:, None], front, design=False)
+            p, dp = positions[0], by_input[0][:, :, evaluator.index] * spans  # (P, 3), (P, 3, d)
+            r = np.hypot(p[:, 0], p[:, 1])
+            cache[key] = r, (p[:, 0, None] * dp[:, 0] + p[:, 1, None] * dp[:, 1]) / r[:, None]
+        return cache[key]
+
+    x0 = np.append((samples[best] - lows) / spans, radii[best].max())
+    result = minimize(
+        lambda x: x[-1], x0, jac=lambda x: np.eye(len(x))[-1], method="SLSQP",
+        bounds=[(0, 1)] * (len(x0) - 1) + [(0, None)],
+        constraints=[{"type": "ineq", "fun": lambda x: x[-1] - at(x)[0],
+                      "jac": lambda x: np.hstack([-at(x)[1], np.ones((len(front), 1))])}],
+        options={"ftol": 1e-14, "maxiter": 200},
+    )  # fmt: skip
+    x = np.clip(result.x[:-1], 0, 1)
+    radii_at, _ = at(np.append(x, 0.0))
+    radius = float(radii_at.max())
+    farthest = [f"{b}.{p}" for (b, p), r in zip(front, radii_at) if r >= radius - 1e-6]
+    return FrontSwing(radius, dict(zip(evaluator.names, lows + spans * x)), evaluator.q.copy(), farthest)
 
 
 def refine_from(system: NumericSystem, previous: Envelope) -> Envelope:
@@ -233,6 +327,11 @@ def _grid_seeds(envelope: Envelope) -> dict[str, int]:
         offset = reach - np.hypot(pivots[:, 0], pivots[:, 1])
         hanging = (np.abs(offset) < 0.15) & (z < pivots[:, 2])
         seeds["max_dumping_height"] = argbest(np.where(hanging, z, np.nan))
+    if envelope.spec.arm_pivot is not None:
+        arm = envelope.arm_pivots
+        vertical = (np.abs(np.hypot(arm[:, 0], arm[:, 1]) - np.hypot(pivots[:, 0], pivots[:, 1])) < 0.15) & (arm[:, 2] > pivots[:, 2])
+        if vertical.any():
+            seeds["max_vertical_wall_depth"] = argbest(np.where(vertical, -z, np.nan))
     return seeds
 
 
@@ -387,52 +486,11 @@ def _bound_derivatives(spec: WorkingRange, names: list[str], design: dict[str, f
     )
 
 
-def plot_envelope(envelope: Envelope, path: str | Path) -> Path:
-    """The sampled working range in the vertical plane (horizontal reach, height) with the figures."""
-    from scipy import ndimage
+def plot_envelope(envelope: Envelope, system: NumericSystem, path: str | Path, boundary=None) -> Path:
+    """The working-range chart (:func:`kinegen.analysis.chart.plot_working_range`) with the exact
+    boundary (computed here unless given: :func:`kinegen.analysis.boundary.working_range_boundary`)."""
+    from kinegen.analysis.boundary import working_range_boundary
+    from kinegen.analysis.chart import plot_working_range
 
-    from kinegen.analysis.plots import pyplot, save
-
-    plt = pyplot()
-    ok = np.isfinite(envelope.points[:, 0])
-    reach = np.hypot(envelope.points[ok, 0], envelope.points[ok, 1])
-    z = envelope.points[ok, 2]
-    cell = 0.1
-    xbins = np.arange(reach.min() - 0.5, reach.max() + 0.5, cell)
-    zbins = np.arange(z.min() - 0.5, z.max() + 0.5, cell)
-    hist, _, _ = np.histogram2d(reach, z, bins=[xbins, zbins])
-    occupied = np.pad(hist > 0, 8)
-    region = ndimage.binary_fill_holes(ndimage.binary_closing(occupied, iterations=6))
-    region = ndimage.gaussian_filter(region.astype(float), 1.2)[8:-8, 8:-8]
-    fig, ax = plt.subplots(figsize=(9, 8))
-    ax.scatter(reach, z, s=0.5, color="0.75", label=f"{len(reach)} solved configurations")
-    ax.contour(0.5 * (xbins[1:] + xbins[:-1]), 0.5 * (zbins[1:] + zbins[:-1]), region.T, levels=[0.5], colors="tab:blue")
-    ax.axhline(0, color="saddlebrown", lw=1)
-    figures = envelope.figures
-    marks = {
-        "max_reach": None,
-        "max_reach_at_ground": (figures.get("max_reach_at_ground"), 0.0),
-        "max_depth": None,
-        "max_cutting_height": None,
-        "max_dumping_height": None,
-    }
-    for name in marks:
-        if name in figures:
-            ax.annotate(
-                f"{name.replace('_', ' ')} {figures[name]:.2f} m",
-                xy=(0.02, 0.97 - 0.04 * list(marks).index(name)),
-                xycoords="axes fraction",
-                fontsize=9,
-                va="top",
-            )
-    if "max_reach_at_ground" in figures:
-        ax.plot([figures["max_reach_at_ground"]], [0], "r^")
-    ax.set(
-        title=f"working range of {envelope.spec.point.body}.{envelope.spec.point.name}",
-        xlabel="horizontal distance from the swing axis [m]",
-        ylabel="height above ground [m]",
-        aspect="equal",
-    )
-    ax.grid(True, alpha=0.3)
-    ax.legend(loc="lower left", fontsize=8)
-    return save(fig, path)
+    boundary = boundary if boundary is not None else working_range_boundary(system, envelope.spec)
+    return plot_working_range(envelope, boundary, system, path, boundary.direction)

@@ -44,7 +44,9 @@ JOINT_EQUATIONS = {"spherical": 3, "revolute": 5, "cylindrical": 4, "prismatic":
 JOINT_TYPES = tuple(JOINT_EQUATIONS)
 DRIVER_TYPES = ("joint_angle", "joint_translation", "distance", "coordinate", "body_angle")
 ORTHONORMAL_TOLERANCE = 1e-9
-WORKING_RANGE_FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height")
+WORKING_RANGE_FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height", "max_vertical_wall_depth")
+#: figures a working_range section may quote (``published``): the optimized ones and the minimum front swing radius
+PUBLISHED_FIGURES = (*WORKING_RANGE_FIGURES, "min_front_swing_radius")
 MAX_FILE_BYTES = 5_000_000
 #: Nodes that anchors and aliases may add to a document when expanded (each use of an
 #: alias counts its whole subtree): enough to share pieces, far too few for a "billion laughs".
@@ -641,7 +643,7 @@ class _Reader:
 
     def working_range(self, value: Any, cases: dict) -> WorkingRange:
         entry = "working_range"
-        spec = self.mapping(value, entry, ("case", "point", "inputs", "dump_pivot", "published"), ("case", "point", "inputs"))
+        spec = self.mapping(value, entry, ("case", "point", "inputs", "dump_pivot", "arm_pivot", "transport", "published"), ("case", "point", "inputs"))
         case = cases.get(spec["case"]) if isinstance(spec["case"], str) else None
         if case is None:
             raise self.fail(f"{entry}.case", f"unknown case {shown(spec['case'])} (cases: {', '.join(cases)})")
@@ -662,10 +664,20 @@ class _Reader:
             else:
                 inputs[name] = self.scalar(item, where, design=True)
         pivot = self.point_ref(spec["dump_pivot"], f"{entry}.dump_pivot") if "dump_pivot" in spec else None
+        arm_pivot = self.point_ref(spec["arm_pivot"], f"{entry}.arm_pivot") if "arm_pivot" in spec else None
+        if arm_pivot is not None and pivot is None:
+            raise self.fail(f"{entry}.arm_pivot", "needs dump_pivot (the arm is vertical when arm_pivot is directly above dump_pivot)")
         published = {}
-        for key, item in self.mapping(spec.get("published"), f"{entry}.published", WORKING_RANGE_FIGURES).items():
+        for key, item in self.mapping(spec.get("published"), f"{entry}.published", PUBLISHED_FIGURES).items():
             published[key] = float(self.scalar(item, f"{entry}.published.{key}"))
-        return WorkingRange(case.name, point, inputs, pivot, published)
+        swept = tuple(name for name in drivers if isinstance(inputs[name], tuple))
+        transport = {}
+        for key, item in self.mapping(spec.get("transport"), f"{entry}.transport", swept, swept if "transport" in spec else ()).items():
+            transport[key] = float(self.value(self.scalar(item, f"{entry}.transport.{key}")))
+            low, high = (float(self.value(x)) for x in inputs[key])
+            if not low <= transport[key] <= high:
+                raise self.fail(f"{entry}.transport.{key}", f"{transport[key]:g} is outside the input's range [{low:g}, {high:g}]")
+        return WorkingRange(case.name, point, inputs, pivot, published, arm_pivot, transport)
 
     # ---- drivers and cases -------------------------------------------------------------
     def drivers(self, value: Any, entry: str) -> list[Driver]:

@@ -147,7 +147,7 @@ class WorkingRange:
     ``inputs`` maps every driver of ``case`` to a fixed value or a (min, max) range;
     ``dump_pivot`` is the point the tool hangs from when dumping (the dumping height is
     the highest position of ``point`` directly below it); ``published`` holds reference
-    figures (reported as unverified).
+    figures (reported as unverified); ``arm_pivot`` and ``transport``: see the fields.
     """
 
     case: str
@@ -155,6 +155,11 @@ class WorkingRange:
     inputs: dict[str, sp.Expr | tuple[sp.Expr, sp.Expr]]  #: exact; may use design parameters
     dump_pivot: PointRef | None = None
     published: dict[str, float] = field(default_factory=dict)
+    #: the arm's upper pin: the vertical-wall digging depth is the deepest ``point`` with this pin
+    #: directly above ``dump_pivot`` (the arm vertical)
+    arm_pivot: PointRef | None = None
+    #: the swept inputs of the transport pose (the silhouette of the working-range chart)
+    transport: dict[str, float] = field(default_factory=dict)
 
     def numbers(self, design: Mapping[str, float] | None = None) -> dict[str, float | tuple[float, float]]:
         """``inputs`` as numbers at the design values ``design`` (see :func:`design_value`)."""

@@ -71,23 +71,26 @@ class BlockSolve:
             )
 
     def solve(self, values: np.ndarray, rhs: np.ndarray) -> np.ndarray:
-        """x (n, K) with Phi_q(values[:, k]) x[:, k] = rhs[:, k]."""
-        k = rhs.shape[1]
-        x = np.zeros((self.n, k))
+        """x (n, K) with Phi_q(values[:, k]) x[:, k] = rhs[:, k]; or, for rhs (n, K, r), r right-hand
+        sides per configuration at once: x (n, K, r)."""
+        k, single = rhs.shape[1], rhs.ndim == 2
+        r = 1 if single else rhs.shape[2]
+        x = np.zeros((self.n, k, r))
+        rhs = rhs.reshape(len(rhs), k, r)
         for group in self.plan:
-            right = rhs[group.rows]  # (G * size, K)
+            right = rhs[group.rows].copy()  # (G * size, K, r)
             if len(group.off):
-                right -= group.coupling @ (values[group.off] * x[group.off_cols])
+                right -= (group.coupling @ (values[group.off, :, None] * x[group.off_cols]).reshape(len(group.off), -1)).reshape(right.shape)
             if group.size == 1:
                 matrix = np.zeros((group.count, k))
                 matrix[group.diag_g] = values[group.diag]
-                x[group.cols] = right / matrix
+                x[group.cols] = right / matrix[:, :, None]
                 continue
             matrix = np.zeros((k, group.count, group.size, group.size))
             matrix[:, group.diag_g, group.diag_r, group.diag_c] = values[group.diag].T
-            solved = _solve(matrix, right.T.reshape(k, group.count, group.size, 1))
-            x[group.cols] = solved.reshape(k, -1).T
-        return x
+            solved = _solve(matrix, right.transpose(1, 0, 2).reshape(k, group.count, group.size, r))
+            x[group.cols] = solved.reshape(k, -1, r).transpose(1, 0, 2)
+        return x[:, :, 0] if single else x
 
 
 @dataclass(frozen=True)

@@ -90,13 +90,36 @@ def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.nd
     return out
 
 
+#: from this many configurations on, :func:`_inverse` solves block by block in batches (as the batched Newton)
+BLOCK_BATCH = 32
+_BLOCK_SOLVES: dict[bytes, object] = {}
+
+
+def _block_solve(system: NumericSystem):
+    """The batched block-triangular solve (:class:`kinegen.runtime.batch.BlockSolve`) of the
+    system's Phi_q pattern, made once per pattern; None when it has no square block form."""
+    key = np.asarray(system.jac_rows).tobytes() + b"|" + np.asarray(system.jac_cols).tobytes() + bytes(str(system.n_velocity), "ascii")
+    if key not in _BLOCK_SOLVES:
+        from kinegen.runtime.batch import BlockSolve
+
+        try:
+            _BLOCK_SOLVES[key] = BlockSolve(system)
+        except ValueError:
+            _BLOCK_SOLVES[key] = None
+    return _BLOCK_SOLVES[key]
+
+
 def _inverse(system: NumericSystem, q: np.ndarray, u: np.ndarray) -> Callable[[np.ndarray], np.ndarray]:
     """x = Φ_q⁻¹ b at each configuration (columns of q and u), Φ_q factored once each by the
     solver's own LU (:func:`kinegen.runtime.linear.choose`): b, x of shape (K, m, ...)."""
     m = system.n_velocity
-    lu = linear.choose(system.jac_rows, system.jac_cols, (m, m))
     count = np.shape(q)[1]
     jac = np.broadcast_to(np.asarray(system.jac(q, u), dtype=float).reshape(len(system.jac_rows), -1), (len(system.jac_rows), count))
+    if count >= BLOCK_BATCH:  # many: Phi_q's diagonal blocks solved for all configurations at once
+        blocks = _block_solve(system)
+        if blocks is not None:
+            return lambda b: blocks.solve(jac, b.reshape(count, m, -1).transpose(1, 0, 2)).transpose(1, 0, 2).reshape(b.shape)
+    lu = linear.choose(system.jac_rows, system.jac_cols, (m, m))
     factors = [lu.factor(jac[:, k])[0] for k in range(count)]
     return lambda b: np.stack([lu.solve(f, x) for f, x in zip(factors, b)])
 
