@@ -504,6 +504,33 @@ def view(
 
 
 @main.command()
+@click.option("--copy", "destination", type=click.Path(file_okay=False), help="Copy the example models into this folder.")
+@click.option("--force", is_flag=True, help="With --copy: replace files that are already there and differ.")
+def models(destination: str | None, force: bool) -> None:
+    """The example models shipped with kinegen (the paper's boom, the ZX200 excavator, closed-form
+    mechanisms): where they are installed, what each holds; --copy DIR to get editable copies."""
+    from kinegen.examples import copy_models, example_models, models_folder
+    from kinegen.model import load
+
+    if destination is not None:
+        copied = copy_models(Path(destination), overwrite=force)
+        for c in copied:
+            click.echo(f"{c.outcome:<8} {c.path}")
+        kept = [c for c in copied if c.outcome == "kept"]
+        if kept:
+            click.echo(f"{len(kept)} file(s) already there and different, left alone (--force replaces them)", err=True)
+        return
+    click.echo(f"example models of kinegen {__version__} in {models_folder()}:")
+    for path in example_models():
+        model = load(path)
+        cases = ", ".join(model.cases)
+        bodies = f"{len(model.bodies)} bod{'y' if len(model.bodies) == 1 else 'ies'}"
+        click.echo(f"  {path.name:<18} {bodies:>9}; cases: {cases}")
+        click.echo(f"  {'':<18} {model.description}")
+    click.echo("kinegen models --copy DIR copies them; kinegen info FILE tells more of one")
+
+
+@main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--param", "params", multiple=True, help=PARAM_HELP + " Repeatable (default: the five main ones).")
 def info(model_file: str, params: tuple[str, ...]) -> None:

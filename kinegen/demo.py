@@ -156,18 +156,35 @@ def _branch_keeping(paths: dict) -> int:
     return 0 if kept < 1e-9 else 1
 
 
+def folders(models: Path | None, generated: Path | None, out: Path) -> tuple[Path, Path]:
+    """The models folder and the generated-modules folder of a run. Defaults: in a clone (a
+    ``models/`` folder with the excavator in the working directory) ``models/`` and the committed
+    ``generated/``; elsewhere (kinegen installed from a wheel) the models shipped with kinegen and
+    ``out/generated``, so that a run outside a clone writes into its output folder only."""
+    from kinegen.examples import MARKER, models_folder
+
+    local = Path("models")
+    if models is None:
+        models = local if (local / MARKER).is_file() else models_folder()
+    if not (models / MARKER).is_file():
+        raise KinegenError(f"no {models / MARKER}: --models must name a folder holding kinegen's models (kinegen models --copy DIR writes one)")
+    if generated is None:
+        generated = Path("generated") if models == local else out / "generated"
+    return models, generated
+
+
 def main(argv: list[str] | None = None) -> int:
     parser = argparse.ArgumentParser(prog="python -m kinegen.demo", description=__doc__)
-    parser.add_argument("--models", default="models", type=Path)
-    parser.add_argument("--generated", default="generated", type=Path)
+    parser.add_argument("--models", type=Path, help="the models folder (default: ./models in a clone, else the models shipped with kinegen)")
+    parser.add_argument("--generated", type=Path, help="where the modules are built (default: ./generated in a clone, else OUT/generated)")
     parser.add_argument("--out", default="out", type=Path)
     parser.add_argument("--regenerate-only", action="store_true")
     args = parser.parse_args(argv)
-    if not (args.models / "excavator.yaml").is_file():
-        parser.error(
-            f"no {args.models / 'excavator.yaml'}: the main job runs on the repository's models/ folder -- run it in a clone "
-            "of kinegen (`make run`), or point it at one: python -m kinegen.demo --models PATH/TO/kinegen/models"
-        )
+    try:
+        args.models, args.generated = folders(args.models, args.generated, args.out)
+    except KinegenError as exc:
+        parser.error(str(exc))
+    print(f"models from {args.models}")
     start = time.perf_counter()
     paths = regenerate(args.models, args.generated, force=args.regenerate_only)
     print(f"{len(paths)} generated modules ready in {args.generated}/ ({time.perf_counter() - start:.1f} s)")

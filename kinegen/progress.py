@@ -3,8 +3,9 @@ pipe, a log file or a test sees nothing."""
 
 from __future__ import annotations
 
+import sys
 from collections.abc import Iterable, Iterator
-from typing import TypeVar
+from typing import Any, TypeVar
 
 T = TypeVar("T")
 
@@ -16,17 +17,28 @@ def progress(items: Iterable[T], description: str, total: int | None = None, uni
     yield from tqdm(items, desc=description, total=total, unit=unit, disable=None, leave=False, dynamic_ncols=True)
 
 
-class Stages:
-    """A bar over named stages of one long job (a build): ``stage(name)`` finishes the last stage
-    and names the next one. Use as a context manager."""
+def counter(description: str, total: int, unit: str = "it") -> Any:
+    """A bar counted by hand (``update(n)``, then ``close()``): for loops that advance in pieces."""
+    from tqdm import tqdm
 
-    def __init__(self, description: str, count: int) -> None:
+    return tqdm(total=total, desc=description, unit=unit, unit_scale=True, disable=None, leave=False, dynamic_ncols=True)
+
+
+class Stages:
+    """A bar over named stages of one long job (a build, a benchmark): ``stage(name)`` finishes
+    the last stage and names the next one; ``write(line)`` prints a line of results to stdout
+    above the bar. Use as a context manager."""
+
+    def __init__(self, description: str, count: int, unit: str = "stages") -> None:
         from tqdm import tqdm
 
         self.description = description
         self.bar = tqdm(total=count, desc=description, disable=None, leave=False, dynamic_ncols=True,
-                        bar_format="{desc}[{n}/{total} stages, {elapsed}]")  # fmt: skip
+                        bar_format=f"{{desc}}[{{n}}/{{total}} {unit}, {{elapsed}}]")  # fmt: skip
         self.started = False
+
+    def write(self, line: str) -> None:
+        self.bar.write(line, file=sys.stdout)
 
     def stage(self, name: str) -> None:
         if self.started:

@@ -63,3 +63,30 @@ def chain_system(n: int, parametrization: str):
 @pytest.fixture
 def boom_text() -> str:
     return (MODELS / "boom.yaml").read_text()
+
+
+def on_a_terminal(command: list[str], env: dict | None = None, timeout: float = 300) -> tuple[int, str]:
+    """Run ``command`` on a real pseudo-terminal (120 columns: stdin, stdout and stderr all on it)
+    and return its exit code and everything it drew there."""
+    import fcntl
+    import os
+    import pty
+    import struct
+    import subprocess
+    import termios
+
+    master, slave = pty.openpty()
+    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
+    process = subprocess.Popen(command, stdin=slave, stdout=slave, stderr=slave, close_fds=True, cwd=ROOT, env=env)
+    os.close(slave)
+    seen = b""
+    while True:
+        try:
+            chunk = os.read(master, 4096)
+        except OSError:  # the terminal closed: the command ended
+            break
+        if not chunk:
+            break
+        seen += chunk
+    os.close(master)
+    return process.wait(timeout=timeout), seen.decode(errors="replace")

@@ -138,18 +138,6 @@ def test_solve_refuses_non_finite_times_and_results_larger_than_memory():
     assert result.exit_code == 2 and "--force" in result.output and "GiB" in result.output
 
 
-def test_the_main_job_outside_a_clone_says_where_the_models_must_be(tmp_path, capsys):
-    import pytest
-
-    from kinegen.demo import main as demo
-
-    with pytest.raises(SystemExit) as exit_:
-        demo(["--models", str(tmp_path / "models"), "--generated", str(tmp_path / "generated")])
-    assert exit_.value.code == 2
-    assert "--models PATH/TO/kinegen/models" in capsys.readouterr().err
-    assert not (tmp_path / "generated").exists()
-
-
 def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path):
     """The boom turns about global z: drawn in the x-y plane (its old side view had zero height);
     the excavator swings: drawn in its upper structure's x-z plane, where the front stays."""
@@ -172,37 +160,3 @@ def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path
         assert png.stat().st_size > 20_000
     result = run("solve", str(MODELS / "boom.yaml"), "--plot", str(tmp_path / "x.png"), "--frame", "nothing")
     assert result.exit_code == 2 and "no body 'nothing'" in result.output
-
-
-def test_progress_shows_on_a_terminal_and_nowhere_else(tmp_path):
-    """A build draws its stages on a terminal (a real pseudo-terminal here) and prints no bar
-    into a pipe."""
-    import fcntl
-    import os
-    import pty
-    import struct
-    import subprocess
-    import sys
-    import termios
-
-    command = [sys.executable, "-m", "kinegen.cli", "build", str(MODELS / "four_bar.yaml"), "--generated-dir", str(tmp_path)]
-    piped = subprocess.run(command, capture_output=True, text=True, timeout=120)
-    assert piped.returncode == 0 and "stages" not in piped.stdout + piped.stderr
-    master, slave = pty.openpty()
-    fcntl.ioctl(slave, termios.TIOCSWINSZ, struct.pack("HHHH", 40, 120, 0, 0))
-    process = subprocess.Popen(command, stdin=slave, stdout=slave, stderr=slave, close_fds=True)
-    os.close(slave)
-    seen = b""
-    while True:
-        try:
-            chunk = os.read(master, 4096)
-        except OSError:  # the terminal closed: the command ended
-            break
-        if not chunk:
-            break
-        seen += chunk
-    os.close(master)
-    assert process.wait(timeout=120) == 0
-    text = seen.decode(errors="replace")
-    assert "build four_bar (quaternion): deriving and printing: [0/3 stages" in text
-    assert "build four_bar (quaternion): checking: [1/3 stages" in text and "wrote " in text

@@ -39,6 +39,8 @@ from fuzzing import Worker
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+from kinegen.progress import Stages
+
 MODELS = Path(__file__).resolve().parents[1] / "models"
 BASES = {path.stem: path.read_text() for path in sorted(MODELS.glob("*.yaml"))}
 TREES = {name: yaml.safe_load(text) for name, text in BASES.items()}
@@ -52,6 +54,7 @@ PEAK_LIMIT_MB = 300  # resident memory one model may add while it is loaded (and
 STATS: dict = {"models": 0, "accepted": 0, "kinds": Counter(), "longest": 0.0, "longest_kind": "", "peak": 0.0, "peak_kind": "",
                "layers": Counter()}  # fmt: skip
 WORKER: list[Worker] = []
+PROGRESS: list[Stages] = []  # `make fuzz` on a terminal: a bar over the models (none when captured or piped)
 
 
 def _worker() -> Worker:
@@ -375,9 +378,17 @@ def _kind(problem: str) -> str:
     return " ".join(problem.split()[:6])
 
 
+def _progress(layer: str) -> None:
+    if not PROGRESS:
+        PROGRESS.append(Stages("fuzz", EXAMPLES, unit="models"))
+        atexit.register(PROGRESS[0].__exit__)
+    PROGRESS[0].stage(f"{layer} layer")
+
+
 def check_model(layer: str, kind: str, data: bytes) -> None:
     """One fuzzed model in the worker: a clean ModelError (file, entry) or a valid model, in
     bounded time and memory; the offending model is kept in the work folder otherwise."""
+    _progress(layer)
     report = _worker().run(kind, data)
     outcome = report["outcome"]
     label = outcome
@@ -423,6 +434,8 @@ def test_fuzzed_models_end_in_a_model_error_naming_file_and_entry(model):
 
 def test_fuzz_statistics():
     """Runs after the fuzz test (file order): models of every layer ran and several error kinds were hit."""
+    if PROGRESS:
+        PROGRESS[0].__exit__()
     kinds = STATS["kinds"]
     layers = ", ".join(f"{n} {layer}" for layer, n in sorted(STATS["layers"].items()))
     summary = (

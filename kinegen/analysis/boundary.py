@@ -401,11 +401,17 @@ def _chord_error(chart: _Chart, curves: list[Curve]) -> float:
     worst = 0.0
     for curve in curves:
         gaps, _, _, points = _midpoints(chart, curve, np.arange(len(curve.points) - 1))
-        a, b = curve.points[gaps], curve.points[gaps + 1]
-        ab = b - a
-        fraction = np.clip(np.einsum("ij,ij->i", points - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
-        worst = max(worst, float(np.linalg.norm(a + fraction[:, None] * ab - points, axis=1).max(initial=0.0)))
+        _, distance = _project(curve.points[gaps], curve.points[gaps + 1], points)
+        worst = max(worst, float(distance.max(initial=0.0)))
     return worst
+
+
+def _project(a: np.ndarray, b: np.ndarray, points: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Each ``points[i]`` projected onto the segment ``a[i]``-``b[i]`` (rows broadcast: one point
+    onto many segments works too): the fraction along the segment in [0, 1], the distance (m)."""
+    ab = b - a
+    fraction = np.clip(np.einsum("ij,ij->i", points - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
+    return fraction, np.linalg.norm(a + fraction[:, None] * ab - points, axis=1)
 
 
 def _insert_into_edge(edges, curve: Curve, end: int, lows, highs, active) -> None:
@@ -508,10 +514,7 @@ def _outer(chart: _Chart, curves: list[Curve], names: list[str], notes: list[str
 
 def _interpolate(curve: Curve, point: np.ndarray) -> tuple[np.ndarray, np.ndarray, int, float]:
     """The curve's segment nearest ``point``: (inputs, q) interpolated there, the segment index, the fraction."""
-    a, b = curve.points[:-1], curve.points[1:]
-    ab = b - a
-    fraction = np.clip(np.einsum("ij,ij->i", point - a, ab) / np.maximum(np.einsum("ij,ij->i", ab, ab), 1e-300), 0, 1)
-    distance = np.linalg.norm(a + fraction[:, None] * ab - point, axis=1)
+    fraction, distance = _project(curve.points[:-1], curve.points[1:], point)
     j = int(distance.argmin())
     s = float(fraction[j])
     return (1 - s) * curve.inputs[j] + s * curve.inputs[j + 1], (1 - s) * curve.q[j] + s * curve.q[j + 1], j, s

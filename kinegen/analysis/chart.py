@@ -60,8 +60,7 @@ def figure_marks(envelope: Envelope, system: NumericSystem, direction: np.ndarra
             if envelope.front is None:
                 continue
             body, point = envelope.front.farthest[0].split(".")
-            origin, rotation = system.parametrization.pose(system.body_coordinates(envelope.front.q[None], body))
-            p = origin[0] + rotation[0] @ np.asarray(system.points[body][point], dtype=float)
+            p = system.point_positions(envelope.front.q[None], [(body, point)])[0, 0]
             out.append(Mark(letter, name, envelope.front.radius, envelope.front.radius, float(p[2]), kind))
             continue
         if name not in envelope.optima:
@@ -78,8 +77,7 @@ def _pose_points(system: NumericSystem, q: np.ndarray, direction: np.ndarray) ->
         names = list(system.points.get(body, {}))
         if not names:
             continue
-        origin, rotation = system.parametrization.pose(system.body_coordinates(q[None], body))
-        p = origin[0] + np.asarray([system.points[body][n] for n in names], dtype=float) @ rotation[0].T
+        p = system.point_positions(q[None], [(body, n) for n in names])[0]
         out[body] = np.column_stack([p[:, :2] @ direction, p[:, 2]])
     return out
 

@@ -171,12 +171,7 @@ class _Evaluator:
     def points(self, q: np.ndarray) -> np.ndarray:
         """Global positions of the tracked point (and of the dump pivot): (1 or 2, 3) for
         q of shape (n,), (K, 1 or 2, 3) for a batch (n, K)."""
-        batch = q.reshape(q.shape[0], -1)
-        out = []
-        for body, name in self.tracked:
-            origin, rotation = self.system.parametrization.pose(self.system.body_coordinates(batch.T, body))  # (K, 3), (K, 3, 3)
-            out.append(origin + rotation @ np.array(self.system.points[body][name]))
-        points = np.stack(out, axis=1)
+        points = self.system.point_positions(q.reshape(q.shape[0], -1).T, self.tracked)
         return points[0] if q.ndim == 1 else points
 
     def derivatives(self) -> tuple[np.ndarray, np.ndarray]:
@@ -255,11 +250,8 @@ def front_swing_radius(system: NumericSystem, evaluator: _Evaluator, samples: np
         return None
     u = np.repeat(evaluator.base[:, None], len(samples), axis=1)
     u[evaluator.index] = samples.T
-    radii = np.empty((len(samples), len(front)))
-    for j, (body, point) in enumerate(front):  # positions of every sample, one body at a time
-        origin, rotation = system.parametrization.pose(system.body_coordinates(q.T, body))
-        position = origin + rotation @ np.asarray(system.points[body][point], dtype=float)
-        radii[:, j] = np.hypot(position[:, 0], position[:, 1])
+    positions = system.point_positions(q.T, front)  # every sample's front points (N, P, 3)
+    radii = np.hypot(positions[..., 0], positions[..., 1])
     best = int(radii.max(axis=1).argmin())
     lows = np.array([r[0] for r in evaluator.ranges])
     spans = np.array([r[1] - r[0] for r in evaluator.ranges])

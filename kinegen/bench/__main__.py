@@ -21,6 +21,8 @@ import os
 import subprocess
 import sys
 
+from kinegen.progress import Stages
+
 KINEGEN_OWN = "kinegen (own predictor)"
 KINEGEN = "kinegen (previous q, as specified)"
 CASADI = "CasADi SX, Python Newton loop"
@@ -114,32 +116,46 @@ def main(argv: list[str] | None = None) -> int:
     print("x kinegen = trajectory time / kinegen's on the same previous-q workload (one process per row)")
     print(header)
     print("-" * len(header))
-    for w in workloads:
-        size = int(w.split("-")[1]) if w.startswith("chain") else None
-        for name, (call, largest, excavator, slow) in CONTENDERS.items():
-            if (size is not None and size > largest) or (size is None and not excavator) or (args.quick and slow):
-                continue
+    plan = [
+        (w, name, call)
+        for w in workloads
+        for name, (call, largest, excavator, slow) in CONTENDERS.items()
+        if not ((w.startswith("chain") and int(w.split("-")[1]) > largest) or (w.startswith("excavator") and not excavator) or (args.quick and slow))
+    ]
+    design = "__import__('kinegen.bench.design', fromlist=['x'])"
+    sections = {  # name -> what it measures, when this run asks for it
+        "working-range sweep": None if args.no_sweep else sweep_rate,
+        "sensitivities": (lambda: run_contender(f"{design}.sensitivity_cost()")) if "excavator-digging" in workloads else None,
+        "design studies": None if args.no_studies else lambda: run_contender(f"{design}.study_cost()"),
+        "kinegen explore": None if args.no_explore else lambda: run_contender("__import__('kinegen.bench.explore', fromlist=['x']).exploration_scaling()"),
+        "C target memory": lambda: {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")},
+    }
+    measured: dict[str, dict | None] = {}
+    with Stages("bench", len(plan) + sum(f is not None for f in sections.values()), unit="runs") as bar:
+        for w, name, call in plan:
+            bar.stage(f"{w}, {name}")
             row = run_contender(call.format(w=w))
             rows[(w, name)] = row
             if "failed" in row:
                 failures += 1
-                print(f"{w:<19} {name:<36} FAILED: {row['failed']}")
+                bar.write(f"{w:<19} {name:<36} FAILED: {row['failed']}")
                 continue
             base = rows.get((w, KINEGEN), row)
             ok = row["error"] < TOLERANCE
             failures += not ok
-            print(
+            bar.write(
                 f"{w:<19} {name:<36} {row['build']:>8.3f} {row['trajectory']:>8.3f} "
                 f"{row['trajectory'] / base.get('trajectory', row['trajectory']):>9.2f} {row['iterations']:>7.2f} "
                 f"{row['error']:>8.1e} {row['peak_mb']:>7.0f}"
                 + ("" if ok else "  ERROR > 1e-9")
                 + (f"  ({row['note']})" if "note" in row else "")
             )
-    sweep = None if args.no_sweep else sweep_rate()
-    sensitivity = run_contender("__import__('kinegen.bench.design', fromlist=['x']).sensitivity_cost()") if "excavator-digging" in workloads else None
-    studies = None if args.no_studies else run_contender("__import__('kinegen.bench.design', fromlist=['x']).study_cost()")
-    exploration = None if args.no_explore else run_contender("__import__('kinegen.bench.explore', fromlist=['x']).exploration_scaling()")
-    memory = {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")}
+        for name, measure in sections.items():
+            if measure is not None:
+                bar.stage(name)
+            measured[name] = None if measure is None else measure()
+    sweep, sensitivity, studies = measured["working-range sweep"], measured["sensitivities"], measured["design studies"]
+    exploration, memory = measured["kinegen explore"], measured["C target memory"]
     print()
     for w, m in list(memory.items())[:1]:
         if "failed" in m:

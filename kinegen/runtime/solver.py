@@ -28,9 +28,15 @@ from kinegen.errors import (
     SingularJacobianError,
     UnreachableError,
 )
+from kinegen.progress import counter
 from kinegen.runtime import linear
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem, from_module, module_from_source
+
+#: Trajectories of at least this many time points show a progress bar on a terminal ...
+PROGRESS_STEPS = 20_000
+#: ... and the C loop runs them in pieces of this many steps (its state carries over).
+NATIVE_CHUNK = 10_000
 
 
 class Solution(NamedTuple):
@@ -446,47 +452,60 @@ class Solver:
             c_inputs = tuple(np.ascontiguousarray(x.T) for x in (u_all, ud_all, udd_all))
             c_iterations = np.zeros(k, dtype=np.intc)
         i = 0
-        while i < k:
-            if native is not None:
-                # the C loop takes the usual steps; it returns at the first step that needs Python
-                done = native.run(i, times, q, c_inputs, (qs, vs, accs, c_iterations, residuals, conditions))
-                converged[i:done], iterations[i:done] = True, c_iterations[i:done]
-                if done >= k:
+        bar = counter(f"solve {system.model}/{system.case}", k, "step") if k >= PROGRESS_STEPS else None
+        chunk = NATIVE_CHUNK if bar is not None else k
+        try:
+            while i < k:
+                if native is not None:
+                    # the C loop takes the usual steps; it returns at the first step that needs Python
+                    end = min(k, i + chunk)
+                    done = native.run(i, end, times, q, c_inputs, (qs, vs, accs, c_iterations, residuals, conditions))
+                    converged[i:done], iterations[i:done] = True, c_iterations[i:done]
+                    if bar is not None:
+                        bar.update(done - i)
+                    if done >= k:
+                        break
+                    if done > i:  # Python takes step done from the state the C loop reached
+                        q, v, a = qs[done - 1].copy(), vs[done - 1].copy(), accs[done - 1].copy()
+                        factors = None
+                        i = done
+                    if done == end:  # a piece done: the C loop goes on from its own state
+                        continue
+                    qs[i], vs[i], accs[i] = np.nan, np.nan, np.nan  # the C loop's unfinished try
+                t = times[i]
+                u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
+                try:
+                    if factors is None and i > 0:  # Phi_q at the C loop's last pose
+                        factors = self._factor(system.evaluate(q, u_all[:, i - 1])[1], times[i - 1])
+                    if i == 0:
+                        solution = self._position(q, u, t)
+                        factors = self._factor(solution.values, t)
+                    else:
+                        solution, factors = self._step(
+                            q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i)
+                        )
+                    q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
+                    if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
+                        q = self.retract(q, -self._solve(factors, solution.phi))
+                except KinegenError as error:
+                    if self.options.on_failure != "stop":
+                        raise
+                    failure = error
+                    residuals[i] = getattr(error, "residual", np.nan)
+                    k = i + 1
                     break
-                if done > i:  # Python takes step done from the state the C loop reached
-                    q, v, a = qs[done - 1].copy(), vs[done - 1].copy(), accs[done - 1].copy()
-                    factors = None
-                    i = done
-                qs[i], vs[i], accs[i] = np.nan, np.nan, np.nan  # the C loop's unfinished try
-            t = times[i]
-            u, ud, udd = u_all[:, i], ud_all[:, i], udd_all[:, i]
-            try:
-                if factors is None and i > 0:  # Phi_q at the C loop's last pose
-                    factors = self._factor(system.evaluate(q, u_all[:, i - 1])[1], times[i - 1])
-                if i == 0:
-                    solution = self._position(q, u, t)
-                    factors = self._factor(solution.values, t)
-                else:
-                    solution, factors = self._step(
-                        q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i)
-                    )
-                q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
-                if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
-                    q = self.retract(q, -self._solve(factors, solution.phi))
-            except KinegenError as error:
-                if self.options.on_failure != "stop":
-                    raise
-                failure = error
-                residuals[i] = getattr(error, "residual", np.nan)
-                k = i + 1
-                break
-            v, a = self.rates(q, u, ud, udd, factors)
-            conditions[i] = self._condition(factors)
-            qs[i], vs[i], accs[i] = q, v, a
-            converged[i] = True
-            if native is not None:
-                native.resume(t, q, v, a, u)
-            i += 1
+                v, a = self.rates(q, u, ud, udd, factors)
+                conditions[i] = self._condition(factors)
+                qs[i], vs[i], accs[i] = q, v, a
+                converged[i] = True
+                if native is not None:
+                    native.resume(t, q, v, a, u)
+                i += 1
+                if bar is not None:
+                    bar.update(1)
+        finally:
+            if bar is not None:
+                bar.close()
         return Results(
             system, times[:k], qs[:k], vs[:k], accs[:k], iterations[:k], residuals[:k], conditions[:k],
             u_all.T[:k].copy(), self.options.condition, converged[:k], failure,
@@ -562,20 +581,20 @@ class _NativeSteps:
         self.options = _native_options(options, chord)
         self.solver = native.solver(self.options)
 
-    def run(self, first: int, times: np.ndarray, q0: np.ndarray, inputs: tuple, out: tuple) -> int:
-        """Steps ``first``, ``first + 1``, ... into ``out`` (rows per step); step 0 from ``q0``.
-        Returns the first step not solved."""
+    def run(self, first: int, end: int, times: np.ndarray, q0: np.ndarray, inputs: tuple, out: tuple) -> int:
+        """Steps ``first`` .. ``end - 1`` into ``out`` (rows per step), each from the C solver's
+        last state; step 0 from ``q0``. Returns the first step not solved (``end``: all were)."""
         if first == 0:
             u, ud, udd = (x[0] for x in inputs)
             if self.solver.start(times[0], q0, u, ud, udd) != 0:
                 return 0
             self._store(0, out)
             first = 1
-        if first >= len(times):
+        if first >= end:
             return first
-        rows = tuple(np.ascontiguousarray(x[first:]) for x in inputs)
-        views = tuple(o[first:] for o in out)
-        done, _ = self.solver.trajectory(np.ascontiguousarray(times[first:]), rows, views)
+        rows = tuple(np.ascontiguousarray(x[first:end]) for x in inputs)
+        views = tuple(o[first:end] for o in out)
+        done, _ = self.solver.trajectory(np.ascontiguousarray(times[first:end]), rows, views)
         return first + done
 
     def _store(self, i: int, out: tuple) -> None:

@@ -10,7 +10,7 @@ import hashlib
 import importlib.util
 import sys
 import warnings
-from collections.abc import Callable, Mapping
+from collections.abc import Callable, Mapping, Sequence
 from dataclasses import dataclass, field
 from functools import cached_property
 from pathlib import Path
@@ -171,6 +171,19 @@ class NumericSystem:
         p = self.parametrization
         offset = self.bodies[body][1 if velocity else 0]
         return values[..., offset : offset + (p.nv if velocity else p.nq)]
+
+    def point_positions(self, q: np.ndarray, names: Sequence[tuple[str, str]]) -> np.ndarray:
+        """Global positions [m] (K, P, 3) of the named body points ``names`` ((body, point) pairs)
+        at the configurations ``q`` (K, n) of stored coordinates."""
+        q = np.atleast_2d(q)
+        out = np.empty((len(q), len(names), 3))
+        poses: dict[str, tuple[np.ndarray, np.ndarray]] = {}
+        for j, (body, point) in enumerate(names):
+            if body not in poses:
+                poses[body] = self.parametrization.pose(self.body_coordinates(q, body))  # (K, 3), (K, 3, 3)
+            origin, rotation = poses[body]
+            out[:, j] = origin + rotation @ np.asarray(self.points[body][point], dtype=float)
+        return out
 
     @cached_property
     def _additive(self) -> bool:
