@@ -17,11 +17,12 @@ def progress(items: Iterable[T], description: str, total: int | None = None, uni
     yield from tqdm(items, desc=description, total=total, unit=unit, disable=None, leave=False, dynamic_ncols=True)
 
 
-def counter(description: str, total: int, unit: str = "it") -> Any:
-    """A bar counted by hand (``update(n)``, then ``close()``): for loops that advance in pieces."""
+def counter(description: str, total: int, unit: str = "it", delay: float = 0.0) -> Any:
+    """A bar counted by hand (``update(n)``, then ``close()``): for loops that advance in pieces.
+    With ``delay`` (s) it appears only when the work lasts longer than that."""
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=description, unit=unit, unit_scale=True, disable=None, leave=False, dynamic_ncols=True)
+    return tqdm(total=total, desc=description, unit=unit, unit_scale=True, disable=None, leave=False, dynamic_ncols=True, delay=delay)
 
 
 class Stages:

@@ -33,8 +33,10 @@ from kinegen.runtime import linear
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem, from_module, module_from_source
 
-#: Trajectories of at least this many time points show a progress bar on a terminal ...
-PROGRESS_STEPS = 20_000
+#: Trajectories of at least this many time points get a progress bar on a terminal, shown once
+#: the solve has lasted PROGRESS_DELAY seconds (a compiled solve is mostly done by then) ...
+PROGRESS_STEPS = 2_000
+PROGRESS_DELAY = 0.5
 #: ... and the C loop runs them in pieces of this many steps (its state carries over).
 NATIVE_CHUNK = 10_000
 
@@ -452,7 +454,7 @@ class Solver:
             c_inputs = tuple(np.ascontiguousarray(x.T) for x in (u_all, ud_all, udd_all))
             c_iterations = np.zeros(k, dtype=np.intc)
         i = 0
-        bar = counter(f"solve {system.model}/{system.case}", k, "step") if k >= PROGRESS_STEPS else None
+        bar = counter(f"solve {system.model}/{system.case}", k, "step", PROGRESS_DELAY) if k >= PROGRESS_STEPS else None
         chunk = NATIVE_CHUNK if bar is not None else k
         try:
             while i < k:
