@@ -17,12 +17,14 @@ def progress(items: Iterable[T], description: str, total: int | None = None, uni
     yield from tqdm(items, desc=description, total=total, unit=unit, disable=None, leave=False, dynamic_ncols=True)
 
 
-def counter(description: str, total: int, unit: str = "it", delay: float = 0.0) -> Any:
-    """A bar counted by hand (``update(n)``, then ``close()``): for loops that advance in pieces.
-    With ``delay`` (s) it appears only when the work lasts longer than that."""
+def counter(description: str, total: int, unit: str = "it", delay: float = 0.0, show: bool | None = None, leave: bool = False) -> Any:
+    """A bar counted by hand (``update(n)``, then ``close()``, or as a context manager): for loops
+    that advance in pieces. With ``delay`` (s) it appears only when the work lasts longer than that;
+    ``show`` True/False forces it on/off (None: on a terminal); ``leave`` keeps its last line."""
     from tqdm import tqdm
 
-    return tqdm(total=total, desc=description, unit=unit, unit_scale=True, disable=None, leave=False, dynamic_ncols=True, delay=delay)
+    return tqdm(total=total, desc=description, unit=unit, disable=None if show is None else not show, leave=leave,
+                dynamic_ncols=True, delay=delay)  # fmt: skip
 
 
 class Stages:

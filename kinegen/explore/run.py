@@ -212,7 +212,8 @@ def explore(
 
 def _run(todo, store, meta, report, client, scheduler, workers, progress, say, on_partition) -> None:
     from dask.distributed import Client, as_completed
-    from tqdm import tqdm
+
+    from kinegen.progress import counter
 
     own = []
     if client is None:
@@ -232,7 +233,7 @@ def _run(todo, store, meta, report, client, scheduler, workers, progress, say, o
         futures = [client.submit(evaluate_partition, task, key=f"kinegen-explore-{meta['study']}-{token}-{task.partition:06d}", retries=2)
                    for task in todo]  # fmt: skip
         total = sum(len(t.samples) for t in todo)
-        with tqdm(total=total, unit="variant", disable=None if progress is None else not progress, dynamic_ncols=True) as bar:
+        with counter("explore", total, "variant", show=progress, leave=True) as bar:
             for future, result in as_completed(futures, with_results=True):
                 store.write(result, meta)
                 future.release()
