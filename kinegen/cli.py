@@ -268,6 +268,8 @@ def solve(
     parametrization = _parametrization(param)
     model, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
     _check_memory(system, steps or system.steps, force)
+    if plot:
+        _check_frame(system, frame_body)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     start = time.perf_counter()
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
@@ -288,12 +290,9 @@ def solve(
         write = results.sensitivities_to_json if sensitivities.endswith(".json") else results.sensitivities_to_csv
         click.echo(f"wrote {write(sensitivities)}")
     if plot:
-        from kinegen.analysis.plots import best_frame, plot_case, tracked_point
+        from kinegen.analysis.plots import plot_case
 
-        if frame_body is not None and frame_body not in system.bodies:
-            raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
-        trace = tracked_point(results, model)
-        frame = frame_body if frame_body is not None else best_frame(results, trace)
+        trace, frame = _picture_plane(results, model, frame_body)
         click.echo(f"wrote {plot_case(results, plot, frame, trace)}")
     _report_ranges(results)
     if view:
@@ -330,6 +329,21 @@ def _check_memory(system, steps: int, force: bool) -> None:
             "available: fewer --steps, or --force",
             param_hint="--steps",
         )
+
+
+def _check_frame(system, frame_body: str | None) -> None:
+    """--frame names a body of the model (checked before solving)."""
+    if frame_body is not None and frame_body not in system.bodies:
+        raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
+
+
+def _picture_plane(results, model, frame_body: str | None, point: tuple[str, str] | None = None) -> tuple[tuple[str, str] | None, str | None]:
+    """The point a picture traces (``point``, else the model's tracked point) and the body whose
+    x-z plane it is drawn in (``frame_body``, else the one that shows the motion best)."""
+    from kinegen.analysis.plots import best_frame, tracked_point
+
+    track = point or tracked_point(results, model)
+    return track, frame_body if frame_body is not None else best_frame(results, track)
 
 
 def _report_ranges(results) -> None:
@@ -482,18 +496,14 @@ def view(
         if body not in system.points or name not in system.points[body]:
             raise click.BadParameter(f"{track!r} is not a named point BODY.POINT of the model", param_hint="--track")
         point = (body, name)
-    if frame_body is not None and frame_body not in system.bodies:
-        raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
+    _check_frame(system, frame_body)
     results = Solver(system, SolverOptions(condition="exact", on_failure="stop")).solve()
     page = Path(out) if out else Path("out") / f"{system.model}_{system.case}.html"
     click.echo(f"wrote {motion_view(results, model, page, f'{system.model} / {system.case}', point, condition_warning)}")
     if animate:
         from kinegen.analysis.animation import animate as write_animation
-        from kinegen.analysis.plots import best_frame, tracked_point
 
-        track_point = point or tracked_point(results, model)
-
-        frame = frame_body if frame_body is not None else best_frame(results, track_point)
+        track_point, frame = _picture_plane(results, model, frame_body, point)
         try:
             click.echo(f"wrote {write_animation(results, animate, frame, track_point)}")
         except ValueError as exc:
