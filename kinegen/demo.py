@@ -62,8 +62,9 @@ def regenerate(models: Path, generated: Path, force: bool = True) -> dict[tuple[
     return paths
 
 
-def _excavator(paths: dict, out: Path, models: Path) -> int:
-    module = load_module(paths["excavator.yaml", "quaternion"])
+def _excavator(paths: dict, module, excavator_model, out: Path) -> int:
+    """The excavator's operating cases from its quaternion ``module`` (of the loaded ``excavator_model``),
+    then the other parametrizations' modules of ``paths`` against it."""
     print("solve times include an exact 2-norm condition number (SVD) at every step\n")
     header = (
         f"{'case':<12} {'steps':>5} {'Newton':>6} {'max|Phi|':>8} {'solve s':>7}  "
@@ -74,9 +75,7 @@ def _excavator(paths: dict, out: Path, models: Path) -> int:
     failures = 0
     runs = {}
     from kinegen.analysis.view import motion_view
-    from kinegen.model import load
 
-    excavator_model = load(models / "excavator.yaml")
     for case in OPERATING_CASES:
         system = from_module(module, case)
         start = time.perf_counter()
@@ -192,16 +191,19 @@ def main(argv: list[str] | None = None) -> int:
         return 0
     args.out.mkdir(parents=True, exist_ok=True)
     print("\nHitachi ZX200 excavator (models/excavator.yaml, quaternion)\n")
+    from kinegen.model import load
+
+    excavator_model = load(args.models / "excavator.yaml")
+    excavator_module = load_module(paths["excavator.yaml", "quaternion"])
     try:
-        failures = _excavator(paths, args.out, args.models)
+        failures = _excavator(paths, excavator_module, excavator_model, args.out)
     except KinegenError as exc:
         print(f"FAILED: {exc}")
         return 1
     from kinegen.analysis.envelope import plot_envelope, working_range
-    from kinegen.model import load
 
-    spec = load(args.models / "excavator.yaml").working_range
-    excavator = from_module(load_module(paths["excavator.yaml", "quaternion"]), spec.case)
+    spec = excavator_model.working_range
+    excavator = from_module(excavator_module, spec.case)
     result = working_range(excavator, spec)
     print(
         f"\nworking range (kinegen envelope models/excavator.yaml): {len(result.samples)} configurations, {result.seconds:.1f} s"
@@ -220,7 +222,7 @@ def main(argv: list[str] | None = None) -> int:
     plot_envelope(result, excavator, args.out / "excavator_envelope.png", boundary)
     from kinegen.analysis.scan import plot_scan, scan
 
-    toggle = from_module(load_module(paths["excavator.yaml", "quaternion"]), "bucket_toggle")
+    toggle = from_module(excavator_module, "bucket_toggle")
     scanned = scan(toggle, {})
     plot_scan(scanned, args.out / "excavator_bucket_toggle_scan.png", "excavator / bucket_toggle")
     print("\nkinegen scan models/excavator.yaml --case bucket_toggle (bucket cylinder towards its toggle at 2.7366 m):")
@@ -241,12 +243,10 @@ def main(argv: list[str] | None = None) -> int:
         print(f"boom (paper)      euler:zxz singular at t = {exc.t:g} as the paper shows: null space {'; '.join(exc.null_space)}")
     print("\nkinegen compare models/excavator.yaml (every parametrization built and solved; the paper's question):\n")
     from kinegen.analysis.compare import compare, table
-    from kinegen.model import load
 
-    excavator = load(args.models / "excavator.yaml")
-    rows = compare(excavator, "digging")
+    rows = compare(excavator_model, "digging")
     failures += sum(r.failure is not None for r in rows if not r.parametrization.startswith("euler:zx"))
-    print(table(rows, excavator.name, "digging"))
+    print(table(rows, excavator_model.name, "digging"))
     failures += _studies(args.models / "excavator.yaml", paths["excavator.yaml", "quaternion"], args.out)
     failures += _exploration(args.models / "excavator.yaml", paths["excavator.yaml", "quaternion"], args.out)
     print(f"\noutputs (CSV + PNG per case, optimized models, the exploration's Parquet) in {args.out.resolve()}")
