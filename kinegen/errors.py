@@ -136,16 +136,19 @@ class UnreachableError(ConvergenceError):
 
 
 class BranchError(KinegenError):
-    """The solution would leave its assembly branch: det(Phi_q) changes sign however small the step."""
+    """A step could not be certified to continue the solution, however small: a diagonal block
+    of Phi_q changes its assembly mode (a toggle or dead point lies within the step) or the
+    continuation bound fails (the inputs move faster than the solver can follow). ``observed``
+    says which, with the figures."""
 
     exit_code = 3
 
-    def __init__(self, t0: float, t1: float, step: float) -> None:
-        self.t0, self.t1, self.step = t0, t1, step
+    def __init__(self, t0: float, t1: float, step: float, observed: str = "") -> None:
+        self.t0, self.t1, self.step, self.observed = t0, t1, step, observed
+        self.t = t0  #: where the run stops (as the other solve errors' t)
         super().__init__(
-            f"the solution would leave its assembly branch between t = {t0:.6g} and t = {t1:.6g}: det(Phi_q) changes "
-            f"sign even over a step of {step:.2e} s, so a singular configuration (a toggle or dead point) lies in "
-            f"between; the run stops at t = {t0:.6g}"
+            f"the solve cannot follow the motion from t = {t0:.6g} to t = {t1:.6g}: {observed}, even over a step of "
+            f"{step:.2e} s; no row on another branch is returned: the run stops at t = {t0:.6g}"
         )
 
 

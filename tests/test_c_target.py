@@ -16,7 +16,7 @@ from click.testing import CliRunner
 from kinegen.cli import main
 from kinegen.codegen.backends.c import config
 from kinegen.errors import KinegenError
-from kinegen.runtime import Solver, from_module, load_module
+from kinegen.runtime import Solver, SolverOptions, from_module, load_module
 from kinegen.runtime.native import build_library, with_solver
 from tests.conftest import GENERATED, MODELS, chain_yaml
 
@@ -75,16 +75,16 @@ def test_the_compiled_path_is_the_default_and_matches_python():
     assert np.median(ratio) < 1e-12 and ratio.max() < np.log(3.0)
 
 
-def test_near_the_toggle_the_c_loop_hands_over_and_the_branch_is_kept():
-    """bucket_near_toggle (0.25 s steps): C returns at the step that needs halving (a sign change
-    or an implausible jump), Python refines it and hands back; every pose equals Python's."""
+def test_near_the_toggle_the_c_loop_halves_its_own_steps_and_the_branch_is_kept():
+    """bucket_near_toggle (0.25 s steps): the C loop halves the steps it cannot certify itself
+    (issue 25: no hand-over to Python for that), and every pose equals Python's."""
     python, native = systems("excavator_quaternion", "bucket_near_toggle")
     solver = Solver(native)
     calls = []
     steps = solver._native_steps
-    original = steps()
 
-    def recorded():
+    def recorded(case_inputs):
+        original = steps(case_inputs)
         run = original.run
 
         def counted(first, *args):
@@ -97,8 +97,11 @@ def test_near_the_toggle_the_c_loop_hands_over_and_the_branch_is_kept():
 
     solver._native_steps = recorded
     reference, compiled = Solver(python).solve(), solver.solve()
-    assert compiled.converged.all() and len(calls) >= 2 and any(done < len(reference.times) for _, done in calls)
+    assert compiled.converged.all() and calls == [(0, len(reference.times))]
+    assert (compiled.iterations > 4).any()  # some steps were halved (their pieces' iterations add up)
     assert np.abs(reference.q - compiled.q).max() < 1e-9
+    unrefined = Solver(native, SolverOptions(max_refinements=0, on_failure="stop")).solve()
+    assert not unrefined.converged.all()
 
 
 def test_a_long_trajectory_runs_in_pieces_with_the_same_result(monkeypatch):

@@ -6,7 +6,7 @@ from __future__ import annotations
 import numpy as np
 import pytest
 
-from kinegen.errors import ConvergenceError, KinegenError, SingularJacobianError, UnreachableError
+from kinegen.errors import BranchError, ConvergenceError, KinegenError, SingularJacobianError, UnreachableError
 from kinegen.runtime import Solver, SolverOptions
 from tests.conftest import generated_system
 
@@ -57,21 +57,27 @@ def test_a_failed_step_is_marked_and_stops_the_run_when_asked():
 
 def test_a_tip_target_beyond_reach_ends_in_an_error_that_says_so():
     """level_cut with the tip asked out to 14 m (reach 9.9 m; with the bucket held at -130 deg
-    at z = -1 m, about 8.4 m): UnreachableError naming the driver targets that cannot be met."""
+    at z = -1 m, about 8.4 m): the certified steps stop where the path meets the edge of the
+    workspace (the front stretched out: a singular pose within the step), before any row beyond
+    it -- a BranchError naming the nearly singular block; from a pose given directly, the target
+    is an UnreachableError naming the driver targets that cannot be met."""
     system = generated_system("excavator_quaternion", "level_cut")
     times = np.linspace(0.0, 1.0, 11)
     u, ud, udd = system.driver_inputs(times)
     k = system.driver_names.index("tip_x")
     u[k] = np.linspace(7.9, 14.0, len(times))
     ud[k], udd[k] = (14.0 - 7.9) / 1.0, 0.0
-    with pytest.raises(UnreachableError) as info:
+    with pytest.raises(BranchError) as info:
         Solver(system).solve(times, inputs=(u, ud, udd))
+    assert 0 < info.value.t < 0.2  # 7.9 m is reachable, 9.1 m is not
+    assert "singular pose is near" in str(info.value) and "boom" in str(info.value)
+    with pytest.raises(UnreachableError) as info:
+        Solver(system).position(system.initial_q, u[:, 2], times[2])
     error = info.value
     assert "outside the workspace" in str(error) and "closest reachable" in str(error)
     assert error.residual > 1e-6
     assert {name for name, _ in error.worst} <= {"tip_x", "tip_z", "bucket_attitude", "swing_angle"}
     assert {name for name, _ in error.worst} & {"tip_x", "tip_z"}
-    assert 0 < error.t < 0.2  # 7.9 m is reachable, 9.1 m is not
 
 
 def test_assembly_from_a_rough_pose_recovers_with_the_damped_fallback():

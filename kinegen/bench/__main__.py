@@ -128,6 +128,8 @@ def main(argv: list[str] | None = None) -> int:
         "sensitivities": (lambda: run_contender(f"{design}.sensitivity_cost()")) if "excavator-digging" in workloads else None,
         "design studies": None if args.no_studies else lambda: run_contender(f"{design}.study_cost()"),
         "kinegen explore": None if args.no_explore else lambda: run_contender("__import__('kinegen.bench.explore', fromlist=['x']).exploration_scaling()"),
+        "certified steps": (lambda: run_contender("__import__('kinegen.bench.certified', fromlist=['x']).certificate_cost()"))
+        if "excavator-digging" in workloads else None,
         "C target memory": lambda: {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")},
     }
     measured: dict[str, dict | None] = {}
@@ -156,6 +158,18 @@ def main(argv: list[str] | None = None) -> int:
             measured[name] = None if measure is None else measure()
     sweep, sensitivity, studies = measured["working-range sweep"], measured["sensitivities"], measured["design studies"]
     exploration, memory = measured["kinegen explore"], measured["C target memory"]
+    certified = measured["certified steps"]
+    if certified is not None:
+        print()
+        if "failed" in certified:
+            failures += 1
+            print(f"certified steps: FAILED: {certified['failed']}")
+        else:
+            for case, row in certified.items():
+                if case == "peak_mb":
+                    continue
+                print(f"certified steps (excavator {case}, compiled, 1000 points): {row['certified']:.4f} s vs {row['plain']:.4f} s "
+                      f"uncertified = {row['ratio']:.2f}x; steps subdivided: {'some' if row['subdivided'] else 'none'}")
     print()
     for w, m in list(memory.items())[:1]:
         if "failed" in m:
@@ -182,7 +196,7 @@ def main(argv: list[str] | None = None) -> int:
     print()
     print("Targets, on this run's figures:")
     failures += _section(studies, "design studies", _study_lines)
-    for line in targets(rows, sweep, sensitivity, exploration):
+    for line in targets(rows, sweep, sensitivity, exploration, certified if certified and "failed" not in certified else None):
         print("  " + line)
     return 1 if failures else 0
 
@@ -225,7 +239,10 @@ def _study_lines(studies: dict) -> tuple[str, int]:
     return "\n".join(lines), failed
 
 
-def targets(rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: dict | None = None, exploration: dict | None = None) -> list[str]:
+def targets(
+    rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: dict | None = None, exploration: dict | None = None,
+    certified: dict | None = None,
+) -> list[str]:
     """One line per target that this run measured: the figure, the target, met or not."""
 
     def get(w: str, name: str, key: str) -> float | None:
@@ -239,6 +256,9 @@ def targets(rows: dict[tuple[str, str], dict], sweep: dict | None, sensitivity: 
         return f"{text}: {value:.3g}{unit} ({'<=' if below else '>='} {limit:g}{unit}) {'met' if met else 'NOT met'}"
 
     out = []
+    for case, row in (certified or {}).items():
+        if isinstance(row, dict):
+            out.append(line(f"excavator {case} certified / uncertified compiled step (issue 25)", row["ratio"], 1.3, True))
     workloads = sorted({w for w, _ in rows})
     for w in workloads:
         casadi = get(w, CASADI, "trajectory")

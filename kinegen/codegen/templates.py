@@ -8,6 +8,8 @@ from pathlib import Path
 
 import jinja2
 
+from kinegen.integrity import comment_text
+
 
 def python_literal(value: object) -> str:
     """``repr`` of a value, with floats (also inside tuples) as round-trip decimals."""
@@ -36,4 +38,5 @@ def environment(folder: Path) -> jinja2.Environment:
     )
     env.filters["py"] = python_literal
     env.filters["tuple"] = as_tuple
+    env.filters["comment"] = comment_text  # a user's text in a docstring or C comment
     return env

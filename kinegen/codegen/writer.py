@@ -8,6 +8,7 @@ from pathlib import Path
 from kinegen.codegen import backends
 from kinegen.codegen.kernels import describe
 from kinegen.files import write_atomic
+from kinegen.integrity import seal, sealed
 from kinegen.model import Model, load
 from kinegen.rotations import Parametrization, get
 
@@ -40,9 +41,11 @@ def generate(
     files: dict[str, dict[str, str]] = {}
     for target in sorted(targets, key=lambda t: not t.startswith("c")):
         if target == "c-model":
-            files[target] = backends.get("c")(description, stem, standalone=False)
+            made = backends.get("c")(description, stem, standalone=False)
         else:
-            files[target] = backends.get(target)(description, stem)
+            made = backends.get(target)(description, stem)
+        # the model's own files carry a seal over their text (kinegen.integrity), checked before they run
+        files[target] = {name: seal(name, text) if Path(name).stem == stem and sealed(name) else text for name, text in made.items()}
         if ready is not None:
             ready(target, files[target])
     return {target: files[target] for target in targets}

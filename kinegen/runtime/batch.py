@@ -150,7 +150,7 @@ def solve_batch(
     if system.native is not None:
         from kinegen.runtime.native import Options
 
-        options = Options(tolerance, 1e-300, 1e8, 0.1, 0.5, 1e-3, max_iterations, 0, 0, 0, 0, 0)  # full Newton per configuration
+        options = Options.newton_only(tolerance, 1e-300, max_iterations)  # full Newton per configuration
         q, converged, iterations, residuals = system.native.solve_batch(u, q0, options)
         return BatchResult(q, converged, residuals, iterations)
     solver = block_solve or BlockSolve(system)

@@ -26,7 +26,10 @@ import shutil
 import subprocess
 import tempfile
 import threading
+import time
 import warnings
+from collections.abc import Iterator
+from contextlib import contextmanager, suppress
 from functools import cache
 from pathlib import Path
 from types import ModuleType
@@ -64,10 +67,16 @@ class Options(ctypes.Structure):
 
     _fields_ = [
         ("tolerance", ctypes.c_double), ("singular_tolerance", ctypes.c_double), ("divergence_limit", ctypes.c_double),
-        ("chord_rate", ctypes.c_double), ("jump_ratio", ctypes.c_double), ("jump_floor", ctypes.c_double),
+        ("chord_rate", ctypes.c_double), ("safety", ctypes.c_double),
         ("max_iterations", ctypes.c_int), ("predictor", ctypes.c_int), ("chord", ctypes.c_int), ("polish", ctypes.c_int),
-        ("keep_branch", ctypes.c_int), ("condition", ctypes.c_int),
+        ("keep_branch", ctypes.c_int), ("condition", ctypes.c_int), ("max_refinements", ctypes.c_int), ("case_inputs", ctypes.c_int),
     ]  # fmt: skip
+
+    @classmethod
+    def newton_only(cls, tolerance: float, singular_tolerance: float, max_iterations: int = 25) -> Options:
+        """Options for plain Newton on configurations (no predictor, certificate, polish or condition)."""
+        return cls(tolerance=tolerance, singular_tolerance=singular_tolerance, divergence_limit=1e8, chord_rate=0.1, safety=2.0,
+                   max_iterations=max_iterations, max_refinements=0)  # fmt: skip
 
 
 class Model(ctypes.Structure):
@@ -116,6 +125,9 @@ class Solver(ctypes.Structure):
         ("sign", ctypes.c_int), ("have_factors", ctypes.c_int), ("factor_sign", ctypes.c_int),
         *((name, _DOUBLE_P) for name in ("trial", "phi", "jac", "store", "off", "rhs", "step", "motion", "y", "x")),
         ("pivots", _INT_P), ("design", ctypes.c_void_p),
+        *((name, _DOUBLE_P) for name in ("u", "ud", "jac_q", "moved", "w1", "w2")),
+        ("block_sign", _INT_P), ("factor_block_sign", _INT_P),
+        ("refinements", ctypes.c_int), ("branch_block", ctypes.c_int), ("bound", ctypes.c_double), ("branch_time", ctypes.c_double),
     ]  # fmt: skip
 
 
@@ -157,10 +169,12 @@ def cache_folder() -> Path:
 
 def build_library(sources: dict[str, str]) -> Path:
     """The shared library of the C ``sources`` (file name -> text), compiled once: cached by a
-    key over the sources, the compiler and the flags. Each object file is cached too
-    (:func:`_objects`): the solver's object is built once per machine and shared by every
-    model. Builds are atomic (a temporary folder, then ``os.replace``): a concurrent or
-    interrupted build leaves a whole library or none."""
+    key over the sources, the compiler and the flags, beside a record of its own SHA-256
+    (``<library>.sha256``) that :func:`_load` checks before it loads it. Each object file is
+    cached too (:func:`_objects`): the solver's object is built once per machine and shared by
+    every model. Builds are atomic (a private folder, then ``os.replace``): a concurrent or
+    interrupted build leaves a whole library or none, and a library whose bytes no longer match
+    their record (tampered, truncated) is built again, never loaded."""
     compiler = c_compiler()
     key = hashlib.sha256()
     for part in (_compiler_identity(compiler), " ".join((*COMMON_FLAGS, *SOLVER_FLAGS, *MODEL_FLAGS)),
@@ -168,14 +182,57 @@ def build_library(sources: dict[str, str]) -> Path:
         key.update(part.encode())
     folder = cache_folder()
     library = folder / f"kinegen_{key.hexdigest()[:24]}.so"
-    if library.exists():
+    if _intact(library):
         return library
     objects = _objects(compiler, sources, sorted(n for n in sources if n.endswith(".c")))
-    with tempfile.TemporaryDirectory(dir=folder) as work:
-        built = Path(work) / library.name
+    with _work_folder(folder) as work:
+        built = work / library.name
         _run_all(compiler, [[compiler, "-shared", "-o", str(built), *map(str, objects), "-lm"]])
-        os.replace(built, library)
+        _record(built)
+        _publish(built, library)
     return library
+
+
+def _record_of(path: Path) -> Path:
+    return path.with_name(path.name + ".sha256")
+
+
+def _record(path: Path) -> None:
+    """Write the SHA-256 of ``path``'s bytes beside it (``<name>.sha256``)."""
+    _record_of(path).write_text(hashlib.sha256(path.read_bytes()).hexdigest())
+
+
+def _publish(built: Path, cached: Path) -> None:
+    """Move a built file and its record into the cache (record first: a reader that finds the
+    file finds a record; one that finds another build's record with this build's file sees a
+    mismatch and builds again)."""
+    os.replace(_record_of(built), _record_of(cached))
+    os.replace(built, cached)
+
+
+def _intact(path: Path) -> bool:
+    """Whether a cached file exists and its bytes match its recorded SHA-256."""
+    try:
+        return hashlib.sha256(path.read_bytes()).hexdigest() == _record_of(path).read_text().strip()
+    except OSError:
+        return False
+
+
+@contextmanager
+def _work_folder(parent: Path) -> Iterator[Path]:
+    """A private folder in ``parent`` for one build, removed afterwards whatever happens (no
+    finalizer at interpreter exit: a build still compiling in a background thread then must not
+    have its folder removed under it). Folders that an interrupted process left are swept after a day."""
+    parent.mkdir(parents=True, exist_ok=True)
+    for stale in parent.glob("tmp*"):
+        with suppress(OSError):
+            if time.time() - stale.stat().st_mtime > 86_400:
+                shutil.rmtree(stale, ignore_errors=True)
+    work = Path(tempfile.mkdtemp(dir=parent))
+    try:
+        yield work
+    finally:
+        shutil.rmtree(work, ignore_errors=True)
 
 
 def build_solver_object() -> Path:
@@ -197,18 +254,19 @@ def _objects(compiler: str, sources: dict[str, str], names: list[str]) -> list[P
         for part in source_parts(sources[name]) or [None]:
             command = [*COMMON_FLAGS, *flags, *([] if part is None else [f"-DKINEGEN_PART={part}"])]
             objects.append(store / f"{_object_key(identity, command, name, sources)}.o")
-            if not objects[-1].exists():
+            if not _intact(objects[-1]):
                 missing.append((name, part, command, objects[-1]))
     if not missing:
         return objects
-    with tempfile.TemporaryDirectory(dir=store) as work:
+    with _work_folder(store) as work:
         for name, text in sources.items():
-            (Path(work) / name).write_text(text)
-        made = [Path(work) / f"{Path(name).stem}{'' if part is None else f'_part{part}'}.o" for name, part, _, _ in missing]
-        _run_all(compiler, [[compiler, *command, "-c", "-o", str(o), str(Path(work) / name)]
+            (work / name).write_text(text)
+        made = [work / f"{Path(name).stem}{'' if part is None else f'_part{part}'}.o" for name, part, _, _ in missing]
+        _run_all(compiler, [[compiler, *command, "-c", "-o", str(o), str(work / name)]
                             for o, (name, _, command, _) in zip(made, missing)])  # fmt: skip
         for o, (_, _, _, cached) in zip(made, missing):
-            os.replace(o, cached)
+            _record(o)
+            _publish(o, cached)
     return objects
 
 
@@ -241,7 +299,7 @@ def compile_in_background(model_files: dict[str, str]) -> threading.Thread:
     def build() -> None:
         try:
             build_library(with_solver(model_files))
-        except CompileError:
+        except (KinegenError, OSError):  # left for the first use to report
             pass
 
     thread = threading.Thread(target=build, name="kinegen-compile", daemon=True)
@@ -266,24 +324,34 @@ def _run_all(compiler: str, commands: list[list[str]]) -> None:
 
 
 def _model_sources(module: ModuleType) -> dict[str, str] | None:
-    """The module's C and the solver's, if the module's ``.c``/``.h`` lie beside it and are fresh."""
+    """The module's C and the solver's, if the module's ``.c``/``.h`` lie beside it and are fresh
+    (built from the same model file in the same parametrization); None otherwise. A C file whose
+    seal does not match its text (edited, truncated) is a :class:`GeneratedModuleError`."""
+    from kinegen.errors import GeneratedModuleError
+    from kinegen.integrity import SealError, verified_text
+
     path = Path(getattr(module, "__file__", "") or "")
     c_file, h_file = path.with_suffix(".c"), path.with_suffix(".h")
     if not (path.suffix == ".py" and c_file.is_file() and h_file.is_file()):
         return None
-    text = c_file.read_text()
-    if f"source sha256:   {module.SOURCE_SHA256}" not in text or f"parametrization: {module.PARAMETRIZATION}" not in text:
+    try:
+        text, header = (verified_text(f.read_bytes(), str(f)) for f in (c_file, h_file))
+    except SealError as exc:
+        raise GeneratedModuleError(f"{exc}; rebuild it with `kinegen build <model>.yaml --param {module.PARAMETRIZATION}`") from None
+    fresh = f"source sha256:   {module.SOURCE_SHA256}"
+    if any(fresh not in t or f"parametrization: {module.PARAMETRIZATION}" not in t for t in (text, header)):
         return None  # built from another model version: not the kernels of this module
-    return with_solver({c_file.name: text, h_file.name: h_file.read_text()})
+    return with_solver({c_file.name: text, h_file.name: header})
 
 
 @cache
 def _library(path: str) -> ctypes.CDLL:
-    library = ctypes.CDLL(path)
+    """The cached library at ``path``, loaded after its bytes were checked against their record."""
+    library = _load(Path(path))
     for name, restype, argtypes in (
         ("kinegen_init", None, [ctypes.c_void_p] * 5),
         ("kinegen_start", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 4]),
-        ("kinegen_resume", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 4]),
+        ("kinegen_resume", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 5]),
         ("kinegen_trajectory", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 11]),
         ("kinegen_solve_batch", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 5]),
         ("kinegen_newton", ctypes.c_int, [ctypes.c_void_p] * 6),
@@ -293,6 +361,16 @@ def _library(path: str) -> ctypes.CDLL:
         function = getattr(library, name)
         function.restype, function.argtypes = restype, argtypes
     return library
+
+
+def _load(path: Path) -> ctypes.CDLL:
+    """dlopen of a cached library whose bytes match their record (else CompileError). (The cache
+    is the user's own folder: the check guards against damage and stale or planted files, not
+    against a process that swaps the file between the check and the load.)"""
+    data = path.read_bytes()
+    if hashlib.sha256(data).hexdigest() != _record_of(path).read_text().strip():
+        raise CompileError(f"{path}: the cached library does not match its record (tampered or truncated)")
+    return ctypes.CDLL(str(path))
 
 
 def _kernel_type(slots: tuple[str, ...], outputs: tuple[str, ...]) -> Any:
@@ -375,7 +453,7 @@ class NativeCase:
         count = rows[0].shape[0]
         out = tuple(np.empty((count, self.n_v, len(self.design))) for _ in range(3))
         work = np.empty(self.sensitivity_doubles)
-        solver = self.solver(Options(1e-10, 1e-14, 1e8, 0.1, 0.5, 1e-3, 25, 0, 0, 0, 0, 0))
+        solver = self.solver(Options.newton_only(1e-10, 1e-14))
         self.library.kinegen_sensitivities(solver.pointer, count, *(x.ctypes.data for x in (*rows, *out, work)))
         return out
 
@@ -436,8 +514,8 @@ class NativeSolver:
         arrays = [np.ascontiguousarray(x, dtype=float) for x in (q0, u, ud, udd)]
         return self.library.kinegen_start(self.pointer, t, *(x.ctypes.data for x in arrays))
 
-    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray) -> int:
-        arrays = [np.ascontiguousarray(x, dtype=float) for x in (q, v, a, u)]
+    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray, ud: np.ndarray) -> int:
+        arrays = [np.ascontiguousarray(x, dtype=float) for x in (q, v, a, u, ud)]
         return self.library.kinegen_resume(self.pointer, t, *(x.ctypes.data for x in arrays))
 
     def state_arrays(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:

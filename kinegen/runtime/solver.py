@@ -32,6 +32,7 @@ from kinegen.progress import counter
 from kinegen.runtime import linear
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem, from_module, module_from_source
+from kinegen.symbolic.blocks import Block, block_triangular
 
 #: Trajectories of at least this many time points get a progress bar on a terminal, shown once
 #: the solve has lasted PROGRESS_DELAY seconds (a compiled solve is mostly done by then) ...
@@ -51,6 +52,8 @@ class Solution(NamedTuple):
     values: Any
     phi: np.ndarray
     travel: float = float("inf")
+    #: the motion from the start point in velocity coordinates (the sum of Newton's steps), None when unknown
+    moved: np.ndarray | None = None
 
 
 @dataclass
@@ -61,6 +64,7 @@ class Factors:
     lu: Any = None
     pinv: np.ndarray | None = None
     sign: int | None = None  #: sign of det(Phi_q), once asked for (see Solver._sign)
+    block_signs: np.ndarray | None = None  #: sign of det of every diagonal block (Solver._block_signs)
 
 
 @dataclass(frozen=True)
@@ -77,13 +81,12 @@ class SolverOptions:
     condition: str = "estimate"
     #: predict each step from the previous q, v, a (else: start from the previous q)
     predictor: bool = True
-    #: stay on the assembly branch: when det(Phi_q) changes sign over a step (a jump to
-    #: another branch, or a singular pose passed) or Newton's correction of the predicted
-    #: pose exceeds ``jump_ratio`` times the predicted motion (and ``jump_floor``), halve
-    #: the step, up to ``max_refinements`` times, then raise BranchError
+    #: certify every step (see :meth:`Solver._certify`): the diagonal blocks of Phi_q keep the
+    #: signs of their determinants (their assembly modes) and the Newton-Kantorovich bound
+    #: alpha * omega <= 1/2 holds with omega measured over the step times ``safety``; otherwise
+    #: halve the step, up to ``max_refinements`` times, then raise BranchError
     keep_branch: bool = True
-    jump_ratio: float = 0.5
-    jump_floor: float = 1e-3
+    safety: float = 2.0
     max_refinements: int = 12
     #: chord iterations within a time step: start from the factorization of Phi_q made at the
     #: previous step's solution (for its velocity solve) and keep a factorization while each
@@ -145,6 +148,9 @@ class Solver:
         chord = self.options.chord
         #: chord iterations within a step (see SolverOptions.chord)
         self.chord = chord if chord is not None else (system.native is None and not self.options.predictor)
+        #: the diagonal blocks of Phi_q's block-triangular form (None for a redundant or structurally singular system)
+        self.blocks = None if self.redundant else block_triangular((m, n), system.jac_rows, system.jac_cols)
+        self._block_groups = _block_groups(self.blocks, system.jac_rows, system.jac_cols) if self.blocks else []
 
     # ---- building blocks ---------------------------------------------------------------
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
@@ -241,13 +247,13 @@ class Solver:
         return solution.q, solution.iterations, solution.norm
 
     def _position(
-        self, q0: np.ndarray, u: np.ndarray, t: float, thorough: bool = True, factors: Factors | None = None
+        self, q0: np.ndarray, u: np.ndarray, t: float, thorough: bool = True, factors: Factors | None = None, native: bool = True
     ) -> Solution:
         """:meth:`position`, also returning Phi_q at the solution (``thorough=False``: no homotopy,
         for the short sub-steps of a refined step, where it rarely helps and costs most;
         ``factors``: a factorized Phi_q near ``q0`` for the first, chord iterations)."""
         try:
-            return self._newton(q0, u, t, damped=False, factors=factors if self.chord else None)
+            return self._newton(q0, u, t, damped=False, factors=factors if self.chord else None, native=native)
         except (ConvergenceError, SingularJacobianError) as error:
             if not self.options.line_search:
                 raise
@@ -316,13 +322,14 @@ class Solver:
         damped: bool,
         offset: np.ndarray | None = None,
         factors: Factors | None = None,
+        native: bool = True,
     ) -> Solution:
         """Newton iterations; each evaluates Phi and Phi_q in one call (Phi_q at the solution is
         returned). With ``factors`` (full steps only): chord iterations with them, and with each
         later factorization, while max |Phi| falls by ``chord_rate`` per iteration."""
         opts = self.options
         evaluate = self.system.evaluate
-        if not damped and offset is None and factors is None and self.system.native is not None:
+        if native and not damped and offset is None and factors is None and self.system.native is not None:
             status, x, iterations, norm, travel = self._native_newton(q, u)
             if status == 0:  # converged in C: Phi and Phi_q at the solution for the caller
                 phi, values = evaluate(x, u)
@@ -337,7 +344,7 @@ class Solver:
             return phi, _max_norm(phi), values
 
         phi, norm, jacobian = residual(q)
-        iterations, travel = 0, 0.0
+        iterations, travel, moved = 0, 0.0, np.zeros(self.system.n_velocity)
         while norm > opts.tolerance:
             if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
                 raise self._failure(q, u, t, iterations)
@@ -348,16 +355,17 @@ class Solver:
             travel += float(abs(step).max())
             trial = self.retract(q, step)
             trial_phi, trial_norm, trial_jacobian = residual(trial)
+            alpha = 1.0
             if damped:
-                alpha = 1.0
                 while not trial_norm < norm and alpha > 1e-4:
                     alpha *= 0.5
                     trial = self.retract(q, alpha * step)
                     trial_phi, trial_norm, trial_jacobian = residual(trial)
+            moved += alpha * step
             if damped or not self.chord or not trial_norm <= self.options.chord_rate * norm:
                 factors = None  # Newton: factorize at the new point
             q, phi, norm, jacobian = trial, trial_phi, trial_norm, trial_jacobian
-        return Solution(q, iterations, norm, jacobian, phi, travel if not damped else float("inf"))
+        return Solution(q, iterations, norm, jacobian, phi, travel if not damped else float("inf"), moved)
 
     def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> Solution:
         """Solve Phi(q, u) = (1 - s) Phi(q0, u) for s = 0 -> 1 with adaptive stages."""
@@ -449,7 +457,7 @@ class Solver:
         v = a = None
         factors: Factors | None = None
         failure: KinegenError | None = None
-        native = self._native_steps()
+        native = self._native_steps(not tabulated)
         if native is not None:
             c_inputs = tuple(np.ascontiguousarray(x.T) for x in (u_all, ud_all, udd_all))
             c_iterations = np.zeros(k, dtype=np.intc)
@@ -483,8 +491,9 @@ class Solver:
                         solution = self._position(q, u, t)
                         factors = self._factor(solution.values, t)
                     else:
+                        start_inputs = (u_all[:, i - 1], ud_all[:, i - 1], udd_all[:, i - 1])
                         solution, factors = self._step(
-                            q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i)
+                            q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i), start_inputs
                         )
                     q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
                     if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
@@ -501,7 +510,7 @@ class Solver:
                 qs[i], vs[i], accs[i] = q, v, a
                 converged[i] = True
                 if native is not None:
-                    native.resume(t, q, v, a, u)
+                    native.resume(t, q, v, a, u, ud)
                 i += 1
                 if bar is not None:
                     bar.update(1)
@@ -520,67 +529,180 @@ class Solver:
 
         return Newton(self.system.native, _native_options(self.options, False))
 
-    def _native_steps(self) -> _NativeSteps | None:
+    def _native_steps(self, case_inputs: bool) -> _NativeSteps | None:
         """The C step loop of the system's compiled code, when it can stand in for the Python
         one: compiled code, a square Phi_q, a condition number it can record (the estimate or none)."""
         native = self.system.native
         if native is None or self.redundant or self.options.condition not in ("estimate", "none"):
             return None
-        return _NativeSteps(native, self.options, self.chord)
+        return _NativeSteps(native, self.options, self.chord, case_inputs)
 
-    def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, depth: int = 0) -> tuple:
-        """Position at t1 from the solved state (q, v, a) at t0, whose Phi_q is factorized in
-        ``previous``, on the same assembly branch.
+    def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, start_inputs, depth: int = 0) -> tuple:
+        """Position at t1 from the solved state (q, v, a) at t0 (inputs ``start_inputs``), whose
+        Phi_q is factorized in ``previous``, certified to continue it (:meth:`_certify`).
 
-        Returns the solution and the factors of its Phi_q. When det(Phi_q) changes sign (or
-        Newton fails), the interval is halved and both halves are solved in turn.
+        Returns the solution and the factors of its Phi_q. When the certificate fails (or Newton
+        does), the interval is halved and both halves are solved in turn, up to
+        ``max_refinements`` times; then BranchError says what was observed.
         """
         opts = self.options
         h = t1 - t0
-        motion = v * h + 0.5 * a * h * h
+        motion = v * h + 0.5 * a * h * h if opts.predictor else np.zeros_like(v)
         guess = self.retract(q, motion) if opts.predictor else q
         u = inputs[0]
         try:
             # chord iterations only on whole steps: a refined sub-step is where Phi_q changes fast
             # (a singular pose, a branch point), and full Newton reports a singular Phi_q there
-            solution = self._position(guess, u, t1, thorough=depth == 0, factors=previous if depth == 0 else None)
+            solution = self._position(guess, u, t1, thorough=depth == 0, factors=previous if depth == 0 else None, native=False)
             factors = self._factor(solution.values, t1)
-            sign = self._sign(previous)
-            same_sign = sign is None or self._sign(factors) in (None, sign)
-            plausible = not opts.predictor or solution.travel <= max(opts.jump_ratio * abs(motion).max(), opts.jump_floor)
-            same = not opts.keep_branch or (same_sign and plausible)
+            observed = None
+            if opts.keep_branch and factors.lu is not None:
+                moved = None if solution.moved is None else motion + solution.moved
+                observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs)
         except (ConvergenceError, SingularJacobianError):
             if depth >= self.options.max_refinements or not self.options.keep_branch:
                 raise
-            same = None
-        if same:
+            observed = "Newton did not converge"
+        if observed is None:
             return solution, factors
         if depth >= self.options.max_refinements:
-            raise BranchError(t0, t1, h)
+            raise BranchError(t0, t1, h, observed)
         middle = 0.5 * (t0 + t1)
         mid_inputs = inputs_at(middle)
-        first, factors_m = self._step(q, v, a, previous, t0, middle, mid_inputs, inputs_at, depth + 1)
+        first, factors_m = self._step(q, v, a, previous, t0, middle, mid_inputs, inputs_at, start_inputs, depth + 1)
         vm, am = self.rates(first.q, *mid_inputs, factors_m)
-        second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, depth + 1)
+        second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, mid_inputs, depth + 1)
         return second._replace(iterations=first.iterations + second.iterations), factors
 
+    def _certify(self, previous: Factors, solution: Solution, factors: Factors, moved, h: float, start_inputs, inputs) -> str | None:
+        """None when the step from x0 (Phi_q values and factors ``previous``) to Newton's solution x1
+        (``solution``, factors of its Phi_q in ``factors``; ``moved`` = x1 - x0 in velocity
+        coordinates) over a time step h is certified to continue x0; else what was observed.
 
-def _native_options(options: SolverOptions, chord: bool) -> Any:
-    """The C solver's options (kinegen_options) for these."""
+        Every diagonal block of Phi_q must keep the sign of its determinant (its assembly mode:
+        which intersection of the circles, which sign of which factor). Then, in the max-norm,
+
+        * omega = safety |J1^-1 (J0 - J1) d| / |d|^2, the affine-covariant Lipschitz constant of
+          Phi_q measured over the step (d = x1 - x0);
+        * alpha = |J1^-1 Phi(x1, u1)| + max over the step of |J1^-1 Phi_u (u(s) - u1)|, bounded for
+          the cubic Hermite path of the inputs' values and rates at both ends (u(s) - u1 =
+          -(1-r) D + r (1-r)^2 A - r^2 (1-r) B with D = u1 - u0, A = h ud0 - D, B = h ud1 - D, so
+          at most |W D| + 4/27 (|W A| + |W B|), W = J1^-1 Phi_u, Phi_u w = -nu(x1, u1, w)).
+
+        If alpha omega <= 1/2 and omega |d| < 1, the Newton-Kantorovich theorem gives every
+        Phi(., u(s)) exactly one zero in the ball of radius 1/omega about x1; these zeros form one
+        continuous path, x1 is its end and x0 (a zero at t0 inside the ball) its start.
+        """
+        signs = self._block_signs(factors)
+        before = self._block_signs(previous)
+        if signs is not None and before is not None and not np.array_equal(signs, before):
+            b = int(np.flatnonzero(signs != before)[0])
+            return (
+                f"the assembly mode of Phi_q's diagonal block {b} ({self._describe_block(self.blocks[b])}) flips: the sign of "
+                f"its determinant changes from {before[b]:+d} to {signs[b]:+d}, so a singular pose (a toggle or dead point) lies within the step"
+            )
+        if moved is None:
+            return "Newton needed a fallback (line search, homotopy or least squares), whose path is not certified"
+        system = self.system
+        distance = float(abs(moved).max()) if moved.size else 0.0
+        omega = 0.0
+        if distance > 0.0:
+            change = (np.asarray(previous.values, dtype=float) - np.asarray(factors.values, dtype=float)) * moved[system.jac_cols]
+            w = np.bincount(system.jac_rows, weights=change, minlength=len(system.constraint_names))
+            omega = self.options.safety * float(abs(self._solve(factors, w)).max()) / distance**2
+        (u0, ud0, _), (u1, ud1, _) = start_inputs, inputs
+        x1 = solution.q
+
+        def effect(w: np.ndarray) -> float:
+            return float(abs(self._solve(factors, system.velocity_rhs(x1, u1, w))).max()) if w.size else 0.0
+
+        change = u1 - u0
+        alpha = float(abs(self._solve(factors, solution.phi)).max()) + effect(change)
+        alpha += 4.0 / 27.0 * (effect(h * ud0 - change) + effect(h * ud1 - change))
+        bound = alpha * omega
+        if bound <= 0.5 and omega * distance < 1.0:
+            return None
+        return (
+            f"the continuation bound fails: alpha * omega = {bound:.3g} (at most 0.5 certifies) and omega * |d| = "
+            f"{omega * distance:.3g} (below 1 certifies), with alpha = {alpha:.3g} (the inputs' effect), omega = {omega:.3g} "
+            f"(Phi_q's change) and |d| = {distance:.3g} (the motion) -- the inputs change faster than the step can follow, "
+            f"or a singular pose is near; {self._worst_block(factors)}"
+        )
+
+    def _block_signs(self, factors: Factors) -> np.ndarray | None:
+        """Sign of det of every diagonal block of Phi_q (its rows and columns in the blocks' fixed order)."""
+        if not self._block_groups:
+            return None
+        if factors.block_signs is None:
+            values = np.asarray(factors.values, dtype=float)
+            signs = np.empty(len(self.blocks))
+            for members, value_index, flat, size in self._block_groups:
+                stack = np.zeros((len(members), size, size))
+                stack.flat[flat] = values[value_index]
+                signs[members] = np.sign(stack[:, 0, 0]) if size == 1 else np.linalg.slogdet(stack)[0]
+            factors.block_signs = signs.astype(int)
+        return factors.block_signs
+
+    def _describe_block(self, block: Block) -> str:
+        """A diagonal block named by its bodies and constraints."""
+        system = self.system
+        bodies = sorted({system.velocity_names[c].split(".")[0] for c in block.cols})
+        constraints = [system.constraint_names[r] for r in block.rows]
+        shown_ = ", ".join(constraints[:4]) + (f" and {len(constraints) - 4} more" if len(constraints) > 4 else "")
+        return f"bodies {', '.join(bodies)}; constraints {shown_}"
+
+    def _worst_block(self, factors: Factors) -> str:
+        """The diagonal block with the smallest relative pivot: the one nearest a singular pose."""
+        if not self.blocks:
+            return "no block structure"
+        dense = self.linear.dense(factors.values)
+        smallest = [np.linalg.svd(dense[np.ix_(b.rows, b.cols)], compute_uv=False) for b in self.blocks]
+        ratios = [sv[-1] / sv[0] if sv[0] > 0 else 0.0 for sv in smallest]
+        b = int(np.argmin(ratios))
+        return f"the block nearest a singular pose: block {b} ({self._describe_block(self.blocks[b])}), sigma_min/sigma_max = {ratios[b]:.2e}"
+
+
+def _block_groups(blocks: list[Block], rows: np.ndarray, cols: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:
+    """Per block size: (block indices, indices into Phi_q's values, flat positions in a stack of
+    the blocks' dense matrices, size), for the blocks' determinants in one call per size."""
+    row_at = {r: (b, i) for b, block in enumerate(blocks) for i, r in enumerate(block.rows)}
+    col_at = {c: (b, j) for b, block in enumerate(blocks) for j, c in enumerate(block.cols)}
+    position = {b: k for block_size in {block.size for block in blocks} for k, b in enumerate(
+        [b for b, block in enumerate(blocks) if block.size == block_size])}  # fmt: skip
+    entries: dict[int, tuple[list[int], list[int]]] = {}
+    for e, (r, c) in enumerate(zip(rows.tolist(), cols.tolist())):
+        (b, i), (b2, j) = row_at[r], col_at[c]
+        if b == b2:
+            size = blocks[b].size
+            value_index, flat = entries.setdefault(size, ([], []))
+            value_index.append(e)
+            flat.append(position[b] * size * size + i * size + j)
+    groups = []
+    for size in sorted(entries):
+        members = [b for b, block in enumerate(blocks) if block.size == size]
+        value_index, flat = entries[size]
+        groups.append((np.array(members), np.array(value_index, dtype=np.intp), np.array(flat, dtype=np.intp), size))
+    return groups
+
+
+def _native_options(options: SolverOptions, chord: bool, case_inputs: bool = False) -> Any:
+    """The C solver's options (kinegen_options) for these; ``case_inputs``: refinement points take
+    the case's own time functions (else the cubic Hermite interpolant of the given inputs)."""
     from kinegen.runtime.native import Options
 
     return Options(
-        options.tolerance, options.singular_tolerance, options.divergence_limit, options.chord_rate, options.jump_ratio,
-        options.jump_floor, options.max_iterations, options.predictor, chord, options.polish, options.keep_branch,
-        options.condition == "estimate",
+        tolerance=options.tolerance, singular_tolerance=options.singular_tolerance, divergence_limit=options.divergence_limit,
+        chord_rate=options.chord_rate, safety=options.safety, max_iterations=options.max_iterations,
+        predictor=options.predictor, chord=chord, polish=options.polish, keep_branch=options.keep_branch,
+        condition=options.condition == "estimate", max_refinements=options.max_refinements, case_inputs=case_inputs,
     )  # fmt: skip
 
 
 class _NativeSteps:
     """The C solver (kinegen_solver.c) for one trajectory, with this solver's options."""
 
-    def __init__(self, native: Any, options: SolverOptions, chord: bool) -> None:
-        self.options = _native_options(options, chord)
+    def __init__(self, native: Any, options: SolverOptions, chord: bool, case_inputs: bool) -> None:
+        self.options = _native_options(options, chord, case_inputs)
         self.solver = native.solver(self.options)
 
     def run(self, first: int, end: int, times: np.ndarray, q0: np.ndarray, inputs: tuple, out: tuple) -> int:
@@ -605,8 +727,8 @@ class _NativeSteps:
         out[0][i], out[1][i], out[2][i] = q, v, a
         out[3][i], out[4][i], out[5][i] = state.iterations, state.residual, state.condition
 
-    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray) -> None:
-        self.solver.resume(t, q, v, a, u)
+    def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray, ud: np.ndarray) -> None:
+        self.solver.resume(t, q, v, a, u, ud)
 
 
 def solve(system: NumericSystem, times: np.ndarray | None = None, options: SolverOptions | None = None) -> Results:

@@ -7,7 +7,6 @@ functions. Solvers and results (the *data*) take it as an argument.
 from __future__ import annotations
 
 import hashlib
-import importlib.util
 import sys
 import warnings
 from collections.abc import Callable, Mapping, Sequence
@@ -385,28 +384,40 @@ def module_from_source(source: str, name: str = "kinegen_generated", filename: s
 
 
 def load_module(path: str | Path, model_file: str | Path | None = None) -> ModuleType:
-    """Import a generated module from ``path``.
+    """Load a generated module from ``path``, verified before anything in it runs.
 
-    With ``model_file``, the module's recorded source hash must match that file's bytes;
-    a stale module is refused with a message saying how to rebuild it.
+    The file's bytes are read once; its seal (the SHA-256 of its text, recorded on its first
+    line by kinegen, :mod:`kinegen.integrity`) and the kinegen version in its header must match,
+    and then exactly those bytes are compiled and executed -- no bytecode cache is consulted, so
+    an edited, truncated or planted file, or one built by another kinegen, is refused with a
+    :class:`GeneratedModuleError` saying how to rebuild it. With ``model_file``, the module's
+    recorded source hash must also match that file's bytes (else it is stale).
     """
+    import kinegen
+    from kinegen.integrity import SealError, verified_text
+
     path = Path(path)
     if not path.is_file():
         raise GeneratedModuleError(f"{path}: no such generated module (run `kinegen build`)")
-    name = f"kinegen_generated_{path.stem}_{hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:8]}"
-    spec = importlib.util.spec_from_file_location(name, path)
-    if spec is None or spec.loader is None:
-        raise GeneratedModuleError(f"{path}: cannot be imported")
-    module = importlib.util.module_from_spec(spec)
-    sys.modules[name] = module
+    rebuild = f"rebuild it with `kinegen build {model_file if model_file is not None else '<model>.yaml'}`"
     try:
-        spec.loader.exec_module(module)
-    except Exception as exc:  # a broken file: say which and why
-        sys.modules.pop(name, None)
-        raise GeneratedModuleError(f"{path}: not a valid generated module ({type(exc).__name__}: {exc})") from exc
+        text = verified_text(path.read_bytes(), str(path))
+    except SealError as exc:
+        raise GeneratedModuleError(f"{exc}; {rebuild}") from None
+    except OSError as exc:
+        raise GeneratedModuleError(f"{path}: cannot be read ({exc.strerror or exc})") from None
+    version = _header_field(text, "kinegen version")
+    if version != kinegen.__version__:
+        raise GeneratedModuleError(f"{path} was built by kinegen {version or '(unknown)'}, this is kinegen {kinegen.__version__}; {rebuild}")
+    name = f"kinegen_generated_{path.stem}_{hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:8]}"
+    try:
+        module = module_from_source(text, name=name, filename=str(path))
+    except Exception as exc:  # a sealed file that does not run: say which and why
+        raise GeneratedModuleError(f"{path}: not a valid generated module ({type(exc).__name__}: {exc}); {rebuild}") from exc
     for attribute in ("MODEL", "PARAMETRIZATION", "CASES", "SOURCE_SHA256"):
         if not hasattr(module, attribute):
             raise GeneratedModuleError(f"{path}: not a kinegen generated module (no {attribute})")
+    sys.modules[name] = module
     if model_file is not None:
         digest = hashlib.sha256(Path(model_file).read_bytes()).hexdigest()
         if digest != module.SOURCE_SHA256:
@@ -415,3 +426,12 @@ def load_module(path: str | Path, model_file: str | Path | None = None) -> Modul
                 f"rebuild with `kinegen build {model_file} --param {module.PARAMETRIZATION}`"
             )
     return module
+
+
+def _header_field(text: str, field_name: str) -> str | None:
+    """A field of a generated file's header (``kinegen version:   0.1.0``), read as text, or None."""
+    for line in text.splitlines()[:20]:
+        key, sep, value = line.lstrip(" *").partition(":")
+        if sep and key.strip() == field_name:
+            return value.strip()
+    return None

@@ -24,6 +24,7 @@ from kinegen.codegen.backends.c.printer import CPrinter
 from kinegen.codegen.kernels import CaseDescription, ModuleDescription, Plan, Zeros
 from kinegen.codegen.shapes import Block, Printing
 from kinegen.codegen.templates import environment
+from kinegen.integrity import c_string
 from kinegen.model.expressions import T
 
 TEXT = 1  # position of the printed text in a Block's temporaries (after the name)
@@ -52,11 +53,7 @@ def _int_array(values) -> str:
 
 def _string_array(values) -> str:
     values = list(values)
-    return "{" + ", ".join(_c_string(v) for v in values) + "}" if values else "{0}"
-
-
-def _c_string(text: str) -> str:
-    return '"' + str(text).replace("\\", "\\\\").replace('"', '\\"') + '"'
+    return "{" + ", ".join(c_string(v) for v in values) + "}" if values else "{0}"
 
 
 def _double(value: float) -> str:
@@ -123,8 +120,11 @@ def plan_arrays(case: CaseDescription, plan: Plan) -> _PlanArrays:
 def work_sizes(description: ModuleDescription, case: CaseDescription, arrays: _PlanArrays) -> tuple[int, int]:
     """(doubles, ints) one solver of ``case`` needs (see kinegen_init)."""
     nq, nv = len(description.stored_names), len(description.velocity_names)
-    # q, trial; v, a, phi, rhs, step, motion, y, x; the Phi_q values; the blocks' factors and the entries below them
-    return 2 * nq + 8 * nv + len(case.jac_rows) + arrays.n_store + len(arrays.off_col), 2 * nv  # pivots, signs
+    # q, trial; v, a, phi, rhs, step, motion, y, x, moved, w1, w2; the Phi_q values at the trial and at q; the
+    # blocks' factors and the entries below them; the inputs and their rates at q
+    doubles = 2 * nq + 11 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 2 * len(case.drivers)
+    # pivots, the condition estimate's signs; the sign of det of every diagonal block at q and in the factors
+    return doubles, 2 * nv + 2 * (len(arrays.block_start) - 1)
 
 
 class _Model:
@@ -290,4 +290,4 @@ def render(description: ModuleDescription, stem: str, standalone: bool = True) -
     return files
 
 
-FILTERS = {"c_string": _c_string, "int_array": _int_array, "string_array": _string_array, "double": _double}
+FILTERS = {"c_string": c_string, "int_array": _int_array, "string_array": _string_array, "double": _double}

@@ -24,14 +24,15 @@ void kinegen_default_options(kinegen_options *o) {
     o->singular_tolerance = 1e-10;
     o->divergence_limit = 1e8;
     o->chord_rate = 0.1;
-    o->jump_ratio = 0.5;
-    o->jump_floor = 1e-3;
+    o->safety = 2.0;
     o->max_iterations = 25;
     o->predictor = 1;
     o->chord = 0;
     o->polish = 1;
     o->keep_branch = 1;
     o->condition = 1;
+    o->max_refinements = 12;
+    o->case_inputs = 0;
 }
 
 /* The case's design parameters and kernels taking them, or NULL (a model without them). */
@@ -97,7 +98,19 @@ void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_optio
     s->motion = s->step + nv;
     s->y = s->motion + nv;
     s->x = s->y + nv;
+    s->moved = s->x + nv;
+    s->w1 = s->moved + nv;
+    s->w2 = s->w1 + nv;
+    s->jac_q = s->w2 + nv;
+    s->u = s->jac_q + m->n_jac;
+    s->ud = s->u + m->n_inputs;
     s->pivots = ints;
+    s->block_sign = ints + 2 * nv;
+    s->factor_block_sign = s->block_sign + m->n_blocks;
+    for (int b = 0; b < m->n_blocks; ++b) s->block_sign[b] = s->factor_block_sign[b] = 1;
+    s->branch_block = -1;
+    s->branch_time = NAN;
+    s->bound = NAN;
     s->t = m->t0;
     s->residual = NAN;
     s->condition = NAN;
@@ -162,34 +175,36 @@ static int factor(kinegen_solver *s, const double *jac) {
     for (int k = 0; k < m->n_diag; ++k) s->store[m->diag_slot[k]] = jac[m->diag_value[k]];
     for (int e = 0; e < m->n_off; ++e) s->off[e] = jac[m->off_value[e]]; /* kept with the factors (chord steps) */
     for (int b = 0; b < m->n_blocks && !failed; ++b) {
-        int first = m->block_start[b], n = m->block_start[b + 1] - first;
+        int first = m->block_start[b], n = m->block_start[b + 1] - first, block_odd = 0;
         double *A = s->store + m->block_store[b];
         int *piv = s->pivots + first;
         switch (n) {
         case 1:
-            failed = lu_block(A, piv, 1, &low, &high, &odd);
+            failed = lu_block(A, piv, 1, &low, &high, &block_odd);
             break;
         case 2:
-            failed = lu_block(A, piv, 2, &low, &high, &odd);
+            failed = lu_block(A, piv, 2, &low, &high, &block_odd);
             break;
         case 3:
-            failed = lu_block(A, piv, 3, &low, &high, &odd);
+            failed = lu_block(A, piv, 3, &low, &high, &block_odd);
             break;
         case 4:
-            failed = lu_block(A, piv, 4, &low, &high, &odd);
+            failed = lu_block(A, piv, 4, &low, &high, &block_odd);
             break;
         case 6:
-            failed = lu_block(A, piv, 6, &low, &high, &odd);
+            failed = lu_block(A, piv, 6, &low, &high, &block_odd);
             break;
         case 7:
-            failed = lu_block(A, piv, 7, &low, &high, &odd);
+            failed = lu_block(A, piv, 7, &low, &high, &block_odd);
             break;
         case 9:
-            failed = lu_block(A, piv, 9, &low, &high, &odd);
+            failed = lu_block(A, piv, 9, &low, &high, &block_odd);
             break;
         default:
-            failed = lu_block(A, piv, n, &low, &high, &odd);
+            failed = lu_block(A, piv, n, &low, &high, &block_odd);
         }
+        s->factor_block_sign[b] = block_odd ? -1 : 1; /* the block's assembly mode */
+        odd ^= block_odd;
     }
     if (failed) {
         s->have_factors = 0;
@@ -331,7 +346,8 @@ static double condition_estimate(kinegen_solver *s) {
 }
 
 /* Newton from s->trial for inputs u; with have_factors and chord, chord iterations first.
- * On KINEGEN_OK: phi and jac at the solution, *count iterations, *travel summed max-norm steps. */
+ * On KINEGEN_OK: phi and jac at the solution, *count iterations, *travel summed max-norm steps;
+ * every step is also added to s->moved. */
 static int newton(kinegen_solver *s, const double *u, int chord, int *count, double *travel, double *norm) {
     const kinegen_model *m = s->model;
     const kinegen_options *o = &s->options;
@@ -347,7 +363,10 @@ static int newton(kinegen_solver *s, const double *u, int chord, int *count, dou
             have = 1;
         }
         solve(s, s->phi, s->step);
-        for (int j = 0; j < n; ++j) s->step[j] = -s->step[j];
+        for (int j = 0; j < n; ++j) {
+            s->step[j] = -s->step[j];
+            s->moved[j] += s->step[j];
+        }
         ++*count;
         *travel += max_abs(s->step, n);
         m->retract(s->trial, s->step);
@@ -359,26 +378,75 @@ static int newton(kinegen_solver *s, const double *u, int chord, int *count, dou
     return KINEGEN_OK;
 }
 
-/* From a converged s->trial (phi, jac at it): factors, branch checks, polish, v, a; commit. */
-static int finish(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int count,
-                  double travel, double largest_motion, double norm, int check_branch) {
+/* max |Phi_q^-1 nu(x, u, w)| with the current factors: how far a change w of the inputs moves the
+ * solution, to first order (nu = -Phi_u du/dt is linear in the rates). */
+static double input_effect(kinegen_solver *s, const double *u, const double *w) {
+    nu(s, s->trial, u, w, s->w2);
+    solve(s, s->w2, s->w2);
+    return max_abs(s->w2, s->model->n_v);
+}
+
+/* The step's certificate (see kinegen_options in kinegen_solver.h) for the converged s->trial at
+ * the new inputs u, ud over a step of h from the state (q, u, ud at s->t): the factors in store are
+ * Phi_q's at s->trial and s->step is -Phi_q^-1 Phi there. KINEGEN_OK or KINEGEN_BRANCH. */
+static int certify(kinegen_solver *s, double h, const double *u, const double *ud) {
+    const kinegen_model *m = s->model;
+    int nv = m->n_v, ni = m->n_inputs;
+    s->branch_block = -1;
+    for (int b = 0; b < m->n_blocks; ++b)
+        if (s->factor_block_sign[b] != s->block_sign[b]) {
+            s->branch_block = b;
+            s->bound = NAN;
+            return KINEGEN_BRANCH;
+        }
+    double distance = max_abs(s->moved, nv), omega = 0.0;
+    if (distance > 0.0) { /* omega = safety |J1^-1 (J0 - J1) d| / |d|^2 */
+        memset(s->w1, 0, sizeof(double) * (size_t)nv);
+        for (int k = 0; k < m->n_jac; ++k) s->w1[m->jac_rows[k]] += (s->jac_q[k] - s->jac[k]) * s->moved[m->jac_cols[k]];
+        solve(s, s->w1, s->w1);
+        omega = s->options.safety * max_abs(s->w1, nv) / (distance * distance);
+    }
+    /* alpha: Newton's last correction, plus the inputs' change along the cubic Hermite path u(s):
+     * u(s) - u1 = -(1 - r) D + r (1 - r)^2 A - r^2 (1 - r) B, D = u1 - u0, A = h ud0 - D, B = h ud1 - D,
+     * whose effect is at most |W D| + 4/27 (|W A| + |W B|) */
+    double *w = s->x; /* n_inputs <= n_v values */
+    double alpha = max_abs(s->step, nv);
+    for (int i = 0; i < ni; ++i) w[i] = u[i] - s->u[i];
+    alpha += input_effect(s, u, w);
+    for (int i = 0; i < ni; ++i) w[i] = h * s->ud[i] - (u[i] - s->u[i]);
+    double side = input_effect(s, u, w);
+    for (int i = 0; i < ni; ++i) w[i] = h * ud[i] - (u[i] - s->u[i]);
+    side += input_effect(s, u, w);
+    alpha += 4.0 / 27.0 * side;
+    s->bound = alpha * omega;
+    if (!(s->bound <= 0.5 && omega * distance < 1.0)) return KINEGEN_BRANCH;
+    return KINEGEN_OK;
+}
+
+/* From a converged s->trial (phi, jac at it): factors, the certificate (certify_h > 0: the step's
+ * length), polish, v, a; commit the state. */
+static int finish(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int count, double norm,
+                  double certify_h) {
     const kinegen_model *m = s->model;
     const kinegen_options *o = &s->options;
     int n = m->n_v;
     if (factor(s, s->jac)) return KINEGEN_SINGULAR;
-    if (check_branch && o->keep_branch) {
-        if (s->factor_sign != s->sign || (o->predictor && travel > fmax(o->jump_ratio * largest_motion, o->jump_floor))) {
+    solve(s, s->phi, s->step); /* the polishing correction */
+    for (int j = 0; j < n; ++j) s->step[j] = -s->step[j];
+    if (certify_h > 0.0 && o->keep_branch) {
+        int status = certify(s, certify_h, u, ud);
+        if (status != KINEGEN_OK) {
             s->have_factors = 0;
-            return KINEGEN_BRANCH;
+            return status;
         }
     }
     double condition = o->condition ? condition_estimate(s) : NAN;
-    if ((o->polish || o->chord) && count > 0) {
-        solve(s, s->phi, s->step);
-        for (int j = 0; j < n; ++j) s->step[j] = -s->step[j];
-        m->retract(s->trial, s->step);
-    }
+    if ((o->polish || o->chord) && count > 0) m->retract(s->trial, s->step);
     memcpy(s->q, s->trial, sizeof(double) * (size_t)m->n_q);
+    memcpy(s->jac_q, s->jac, sizeof(double) * (size_t)m->n_jac);
+    memcpy(s->block_sign, s->factor_block_sign, sizeof(int) * (size_t)m->n_blocks);
+    memcpy(s->u, u, sizeof(double) * (size_t)m->n_inputs);
+    memcpy(s->ud, ud, sizeof(double) * (size_t)m->n_inputs);
     nu(s, s->q, u, ud, s->rhs);
     solve(s, s->rhs, s->v);
     gamma_rhs(s, s->q, s->v, u, ud, udd, s->rhs);
@@ -401,18 +469,19 @@ int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u
         s->have_factors = 0;
         return status;
     }
-    return finish(s, t, u, ud, udd, count, travel, 0.0, norm, 0);
+    s->refinements = 0;
+    return finish(s, t, u, ud, udd, count, norm, 0.0);
 }
 
-int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd) {
+/* One try at the whole step to t: predictor, Newton, certificate. */
+static int attempt(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int *iterations) {
     const kinegen_model *m = s->model;
     int n = m->n_v, count, status;
-    double travel, norm, largest_motion = 0.0, h = t - s->t;
-    if (!s->started) return KINEGEN_NOT_STARTED;
+    double travel, norm, h = t - s->t;
     memcpy(s->trial, s->q, sizeof(double) * (size_t)m->n_q);
+    memset(s->moved, 0, sizeof(double) * (size_t)n);
     if (s->options.predictor) {
-        for (int j = 0; j < n; ++j) s->motion[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
-        largest_motion = max_abs(s->motion, n);
+        for (int j = 0; j < n; ++j) s->moved[j] = s->motion[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
         m->retract(s->trial, s->motion);
     }
     status = newton(s, u, s->options.chord, &count, &travel, &norm);
@@ -420,17 +489,70 @@ int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud,
         s->have_factors = 0;
         return status;
     }
-    return finish(s, t, u, ud, udd, count, travel, largest_motion, norm, 1);
+    status = finish(s, t, u, ud, udd, count, norm, h);
+    if (status == KINEGEN_OK) s->iterations = *iterations += count; /* the accepted pieces' iterations, as Python counts */
+    return status;
 }
 
-int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u) {
+/* The inputs at tm between the state's time (inputs s->u, s->ud) and t (u1, ud1): the case's own
+ * time functions, or the cubic Hermite interpolant of the values and rates at both ends. out: u,
+ * du/dt, d2u/dt2 (3 n_inputs). */
+static void inputs_at(const kinegen_solver *s, double tm, double t, const double *u1, const double *ud1, double *out) {
+    const kinegen_model *m = s->model;
+    int ni = m->n_inputs;
+    if (s->options.case_inputs && m->inputs != NULL) {
+        m->inputs(tm, out);
+        return;
+    }
+    double d = t - s->t, r = (tm - s->t) / d;
+    for (int i = 0; i < ni; ++i) {
+        double u0 = s->u[i], m0 = d * s->ud[i], m1 = d * ud1[i], u1i = u1[i];
+        out[i] = (2 * r * r * r - 3 * r * r + 1) * u0 + (r * r * r - 2 * r * r + r) * m0 + (3 * r * r - 2 * r * r * r) * u1i +
+                 (r * r * r - r * r) * m1;
+        out[ni + i] = ((6 * r * r - 6 * r) * (u0 - u1i) + (3 * r * r - 4 * r + 1) * m0 + (3 * r * r - 2 * r) * m1) / d;
+        out[2 * ni + i] = ((12 * r - 6) * (u0 - u1i) + (6 * r - 4) * m0 + (6 * r - 2) * m1) / (d * d);
+    }
+}
+
+/* The step to t, halved while it cannot be certified (depth: halvings so far). */
+static int advance(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int depth,
+                   int *iterations) {
+    int status = attempt(s, t, u, ud, udd, iterations);
+    if (status == KINEGEN_OK || !s->options.keep_branch || depth >= s->options.max_refinements) {
+        if (status != KINEGEN_OK) s->branch_time = s->t;
+        return status;
+    }
+    int ni = s->model->n_inputs;
+    double middle[3 * ni + 1]; /* C99 variable-length array: the solver allocates no heap */
+    double tm = 0.5 * (s->t + t);
+    inputs_at(s, tm, t, u, ud, middle);
+    ++s->refinements;
+    status = advance(s, tm, middle, middle + ni, middle + 2 * ni, depth + 1, iterations);
+    if (status != KINEGEN_OK) return status;
+    return advance(s, t, u, ud, udd, depth + 1, iterations);
+}
+
+int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd) {
+    int iterations = 0;
+    if (!s->started) return KINEGEN_NOT_STARTED;
+    s->refinements = 0;
+    s->branch_block = -1;
+    return advance(s, t, u, ud, udd, 0, &iterations);
+}
+
+int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u,
+                   const double *ud) {
     const kinegen_model *m = s->model;
     memcpy(s->q, q, sizeof(double) * (size_t)m->n_q);
     memcpy(s->v, v, sizeof(double) * (size_t)m->n_v);
     memcpy(s->a, a, sizeof(double) * (size_t)m->n_v);
+    memcpy(s->u, u, sizeof(double) * (size_t)m->n_inputs);
+    memcpy(s->ud, ud, sizeof(double) * (size_t)m->n_inputs);
     s->t = t;
     phi_jac(s, s->q, u, s->phi, s->jac);
     if (factor(s, s->jac)) return KINEGEN_SINGULAR;
+    memcpy(s->jac_q, s->jac, sizeof(double) * (size_t)m->n_jac);
+    memcpy(s->block_sign, s->factor_block_sign, sizeof(int) * (size_t)m->n_blocks);
     s->sign = s->factor_sign;
     s->started = 1;
     return KINEGEN_OK;
@@ -594,7 +716,8 @@ const char *kinegen_status_text(int status) {
     case KINEGEN_SINGULAR:
         return "singular Jacobian";
     case KINEGEN_BRANCH:
-        return "the solution would leave its assembly branch (a singular pose lies within the step)";
+        return "the step could not be certified to continue the last solution, even halved (a block's assembly mode "
+               "flips: a singular pose lies within the step; or the inputs change too fast for the step)";
     case KINEGEN_NOT_STARTED:
         return "no initial pose solved yet (kinegen_start)";
     default:

@@ -31,24 +31,40 @@ enum kinegen_status {
     KINEGEN_OK = 0,
     KINEGEN_NOT_CONVERGED = 1, /* Newton did not reach the tolerance (iteration limit, divergence, NaN) */
     KINEGEN_SINGULAR = 2,      /* Phi_q is (nearly) singular: min |U_ii| <= singular_tolerance * max |U_ii| */
-    KINEGEN_BRANCH = 3,        /* det(Phi_q) changed sign over the step (a toggle or dead point lies in
-                                  between) or Newton's correction exceeded the plausible: a shorter step is needed */
+    KINEGEN_BRANCH = 3,        /* the step could not be certified to continue the last solution, even
+                                  halved options.max_refinements times: a diagonal block of Phi_q changed
+                                  the sign of its determinant (its assembly mode: a toggle or dead point lies
+                                  in between), or the continuation bound failed (inputs too fast for the
+                                  grid, or a singular pose near); see branch_block and bound */
     KINEGEN_NOT_STARTED = 4    /* kinegen_step before a successful kinegen_start */
 };
 
+/* How a step is certified (kinegen_step). With x0 the last solution and x1 Newton's solution at the
+ * new time, J1 = Phi_q(x1) factorized, d = x1 - x0 in velocity coordinates (the predictor's motion
+ * plus Newton's steps) and norms the max-norm:
+ *   omega = safety * |J1^-1 (Phi_q(x0) - J1) d| / |d|^2   (affine-covariant Lipschitz constant, measured)
+ *   alpha = |J1^-1 Phi(x1)| + max over the step of |J1^-1 Phi_u (u(s) - u(t1))|, bounded for the cubic
+ *           Hermite path of the inputs' values and rates at both ends (first order in u)
+ * The step is accepted when every diagonal block keeps the sign of its determinant, alpha omega <= 1/2
+ * and omega |d| < 1: by the Newton-Kantorovich theorem every Phi(., u(s)) then has exactly one zero
+ * in the ball of radius 1/omega about x1, these zeros form one continuous path, and x0 and x1 both
+ * lie on it. Otherwise the step is halved (inputs at the midpoint: options.case_inputs). */
 typedef struct kinegen_options {
     double tolerance;          /* max |Phi_i| at convergence (1e-10) */
     double singular_tolerance; /* see KINEGEN_SINGULAR (1e-10) */
     double divergence_limit;   /* max |Phi| beyond which Newton stops at once (1e8) */
     double chord_rate;         /* chord iterations continue while max |Phi| falls by this factor (0.1) */
-    double jump_ratio;         /* KINEGEN_BRANCH when Newton travels more than jump_ratio x the predicted */
-    double jump_floor;         /*   motion and more than jump_floor (0.5, 1e-3) */
+    double safety;             /* factor on the measured omega of the certificate (2) */
     int max_iterations;        /* Newton iterations per step (25) */
     int predictor;             /* 1: start each step from q moved by v h + a h^2 / 2 (1) */
     int chord;                 /* 1: reuse the last factorization while Newton converges fast (0) */
     int polish;                /* 1: one more correction with the factors at the solution (1) */
-    int keep_branch;           /* 1: refuse steps that change the assembly branch (1) */
+    int keep_branch;           /* 1: certify every step (above), halving it when needed (1) */
     int condition;             /* 1: estimate the 1-norm condition number of Phi_q at every step (1) */
+    int max_refinements;       /* halvings of a step before KINEGEN_BRANCH (12) */
+    int case_inputs;           /* inputs at a midpoint: 1, the case's own time functions (model->inputs);
+                                  0, the cubic Hermite interpolant of the values and rates given at the
+                                  step's ends (0) */
 } kinegen_options;
 
 /* A named point: on a body (body >= 0, local = body coordinates) or the ground (body = -1, global). */
@@ -164,6 +180,16 @@ typedef struct kinegen_solver {
     double *trial, *phi, *jac, *store, *off, *rhs, *step, *motion, *y, *x;
     int *pivots; /* and the condition estimate's sign vector after them */
     const double *design; /* the design parameters the kernels take, or NULL (a model without them) */
+    /* the certificate (see kinegen_options) */
+    double *u, *ud;         /* the inputs and their rates at t */
+    double *jac_q;          /* Phi_q values at q */
+    double *moved, *w1, *w2; /* the step's motion d; work */
+    int *block_sign;        /* sign of det of every diagonal block of Phi_q at q (the assembly modes) */
+    int *factor_block_sign; /* ... of the factors in store */
+    int refinements;        /* halvings the last kinegen_step took (0: the whole step was certified) */
+    int branch_block;       /* after KINEGEN_BRANCH: the block whose determinant changed sign, or -1 (the bound failed) */
+    double bound;           /* alpha omega of the last certified (or refused) step */
+    double branch_time;     /* after KINEGEN_BRANCH: the start of the shortest step tried */
 } kinegen_solver;
 
 void kinegen_default_options(kinegen_options *options);
@@ -183,11 +209,14 @@ void kinegen_set_design(kinegen_solver *s, const double *p);
 int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u, const double *ud, const double *udd);
 
 /* Advance to time t with driver inputs u (and their rates ud, udd): predictor, Newton or chord
- * iterations, branch check, polishing, velocity, acceleration. */
+ * iterations, the step's certificate (see kinegen_options), polishing, velocity, acceleration. A step
+ * that cannot be certified is halved, up to options.max_refinements times (refinements says how
+ * often); the state then moves only to t. */
 int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd);
 
-/* Take (t, q, v, a) solved elsewhere as the current state (u: the inputs at t). */
-int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u);
+/* Take (t, q, v, a) solved elsewhere as the current state (u, ud: the inputs and their rates at t). */
+int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u,
+                   const double *ud);
 
 /* Steps at times[0..count-1] (after a start or a resume) with inputs rows U, UD, UDD
  * (count x n_inputs, row-major); rows of Q (count x n_q), V, A (count x n_v) and the per-step

@@ -1,0 +1,343 @@
+"""Issue 25: never silently wrong, never runs what kinegen did not write.
+
+* Certified steps: a motion the solver cannot follow never comes back as a result. Each class of
+  fast input (one or all cylinders oscillating, a step in the inputs) is compared with a solve of
+  the same inputs on a 1000x finer grid: every row equals the fine solve's (body points to 1e-9 m)
+  or the solve refuses with a BranchError -- in the C loop and in the Python runtime.
+* Hostile file names reach generated Python and C only as escaped text: the modules parse to the
+  same AST as a harmless name's (string constants aside) and nothing in the name runs.
+* A module is verified before it runs: an edited, planted or foreign-version module, an edited C
+  file and a tampered cached library are refused (or rebuilt), never executed or loaded.
+"""
+
+from __future__ import annotations
+
+import ast
+import hashlib
+import shutil
+import subprocess
+
+import numpy as np
+import pytest
+from hypothesis import HealthCheck, given, settings
+from hypothesis import strategies as st
+
+from kinegen.codegen import build
+from kinegen.errors import BranchError, GeneratedModuleError, KinegenError
+from kinegen.integrity import c_string, comment_text, seal
+from kinegen.runtime import Solver, SolverOptions, from_module, load_module
+from kinegen.runtime import native as native_module
+from tests.conftest import GENERATED, MODELS
+
+CC = shutil.which("cc") or shutil.which("gcc")
+needs_cc = pytest.mark.skipif(CC is None, reason="no C compiler")
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
+
+
+# ---- certified steps ---------------------------------------------------------------------------
+#: both solves to max |Phi| <= 1e-12, so that their rows agree to well within 1e-9 m where both are right
+TIGHT = SolverOptions(tolerance=1e-12)
+
+
+@pytest.fixture(scope="module")
+def excavator():
+    return load_module(GENERATED / "excavator_quaternion.py", MODELS / "excavator.yaml")
+
+
+def _signal(system, amplitudes, frequencies, phases):
+    """Inputs (u, ud, udd) at times: the case's start values plus sines on the cylinders."""
+    start = system.driver_inputs(np.array([system.t0]))[0][:, 0]
+
+    def inputs(times):
+        u = np.repeat(start[:, None], len(times), axis=1)
+        ud, udd = np.zeros_like(u), np.zeros_like(u)
+        for k, (amplitude, w, phase) in enumerate(zip(amplitudes, frequencies, phases), start=1):
+            u[k] = u[k] + amplitude * np.sin(w * times + phase)
+            ud[k] = amplitude * w * np.cos(w * times + phase)
+            udd[k] = -amplitude * w * w * np.sin(w * times + phase)
+        return u, ud, udd
+
+    return inputs
+
+
+def _points(system, q):
+    return system.point_positions(q, [(b, p) for b, pts in system.points.items() for p in pts])
+
+
+def _rows_equal_the_fine_solve_or_refuse(system, inputs, count, options):
+    """Solved on ``count`` points: every row's body points within 1e-9 m of a 1000x finer solve's,
+    or a BranchError. Returns True when the coarse solve was accepted."""
+    fine_times = np.linspace(0.0, 1.0, (count - 1) * 1000 + 1)
+    try:
+        fine = Solver(system, TIGHT).solve(fine_times, inputs=inputs(fine_times))
+    except KinegenError:
+        return None  # the reference itself cannot follow: nothing to compare with
+    times = np.linspace(0.0, 1.0, count)
+    try:
+        coarse = Solver(system, options).solve(times, inputs=inputs(times))
+    except BranchError as error:
+        assert "even over a step of" in str(error) and "observed" not in str(error)
+        return False
+    deviation = np.abs(_points(system, coarse.q) - _points(system, fine.q[::1000])).max()
+    assert deviation <= 1e-9, f"a row {deviation:.3g} m from the fine solve came back as a result"
+    return True
+
+
+@needs_cc
+@pytest.mark.parametrize(
+    ("amplitudes", "frequency", "count"),
+    [((0.0, 0.0, 0.05), 1000.0, 101), ((0.05, 0.05, 0.05), 1000.0, 101), ((0.0, 0.0, 0.15), 300.0, 41)],
+    ids=["bucket-fast", "all-fast", "bucket-coarse"],
+)
+def test_fast_inputs_come_back_right_or_not_at_all(excavator, amplitudes, frequency, count):
+    system = from_module(excavator, "digging")
+    inputs = _signal(system, amplitudes, (frequency,) * 3, (1.0, 2.0, 3.0))
+    # without the certificate the same solve returns rows on the other assembly mode (metres away)
+    times = np.linspace(0.0, 1.0, count)
+    fine_times = np.linspace(0.0, 1.0, (count - 1) * 1000 + 1)
+    fine = Solver(system).solve(fine_times, inputs=inputs(fine_times))
+    try:
+        blind = Solver(system, SolverOptions(keep_branch=False)).solve(times, inputs=inputs(times))
+        blind_error = np.abs(_points(system, blind.q) - _points(system, fine.q[::1000])).max()
+    except KinegenError:
+        blind_error = np.inf
+    assert blind_error > 1e-3
+    assert _rows_equal_the_fine_solve_or_refuse(system, inputs, count, TIGHT) is True
+
+
+def test_fast_inputs_in_pure_python_match_the_fine_solve(excavator):
+    system = from_module(excavator, "digging", compiled=False)
+    inputs = _signal(system, (0.0, 0.0, 0.05), (1000.0,) * 3, (1.0, 2.0, 3.0))
+    times = np.linspace(0.0, 1.0, 21)
+    coarse = Solver(system, SolverOptions(compiled=False)).solve(times, inputs=inputs(times))
+    fine_times = np.linspace(0.0, 1.0, 20_001)
+    fine = Solver(from_module(excavator, "digging")).solve(fine_times, inputs=inputs(fine_times))
+    assert np.abs(_points(system, coarse.q) - _points(system, fine.q[::1000])).max() <= 1e-9
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_a_jump_in_a_time_function_stops_with_an_error_naming_what_was_observed(tmp_path, compiled):
+    """A crank angle that jumps by 1 rad within a microsecond: however often the step is halved,
+    the inputs move too far within it -- the solve stops there (exit 3), the rows before it kept."""
+    model = tmp_path / "jump.yaml"
+    model.write_text((MODELS / "slider_crank.yaml").read_text().replace("0.3 + 2*pi*t + 0.5*t**2", "0.3 + 0.5*tanh(1e7*(t - 0.5))"))
+    module = load_module(build(model, "quaternion", tmp_path), model)
+    system = from_module(module, compiled=compiled)
+    if compiled and system.native is None:
+        pytest.skip("no C compiler")
+    with pytest.raises(BranchError) as caught:
+        Solver(system).solve()
+    assert caught.value.exit_code == 3 and caught.value.t0 <= 0.5 <= caught.value.t1
+    assert "continuation bound fails" in str(caught.value) and "alpha * omega" in str(caught.value)
+    stopped = Solver(system, SolverOptions(on_failure="stop")).solve()
+    assert stopped.converged[:-1].all() and not stopped.converged[-1] and stopped.times[-1] >= 0.5
+    assert np.isnan(stopped.q[-1]).all()
+
+
+@needs_cc
+def test_a_motion_through_the_toggle_is_refused_naming_the_block_and_its_bodies(excavator):
+    system = from_module(excavator, "bucket_toggle")
+    with pytest.raises(KinegenError) as caught:
+        Solver(system).solve()
+    assert caught.value.exit_code == 3
+    text = str(caught.value)
+    if isinstance(caught.value, BranchError):
+        assert "bodies" in text and "bucket" in text
+
+
+@needs_cc
+@settings(max_examples=6, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
+@given(
+    amplitudes=st.tuples(*[st.floats(0.0, 0.08)] * 3),
+    cycles=st.tuples(*[st.floats(0.5, 20.0)] * 3),  # up to the 41-point grid's Nyquist rate (20 cycles)
+    phases=st.tuples(*[st.floats(0.0, 6.28)] * 3),
+)
+def test_random_input_signals_come_back_right_or_not_at_all(excavator, amplitudes, cycles, phases):
+    system = from_module(excavator, "digging")
+    inputs = _signal(system, amplitudes, tuple(2 * np.pi * c for c in cycles), phases)
+    _rows_equal_the_fine_solve_or_refuse(system, inputs, 41, TIGHT)
+
+
+@needs_cc
+def test_the_shipped_cases_are_never_subdivided(excavator):
+    """The certificate holds for every whole step of the smooth shipped cases: no step is halved."""
+    for case in ("digging", "level_cut", "trench_wall"):
+        system = from_module(excavator, case)
+        results = Solver(system).solve()
+        plain = Solver(system, SolverOptions(max_refinements=0)).solve()
+        assert np.array_equal(results.q, plain.q) and results.converged.all()
+
+
+@needs_cc
+def test_from_rest_along_a_smooth_path_the_c_solver_does_not_cry_wolf(excavator, tmp_path):
+    """Driven from rest (zero rates at the start) along smooth paths on a 41-point grid: no step is
+    refused in C or in Python, with or without refinements, and det(Phi_q) keeps its sign."""
+    system = from_module(excavator, "digging")
+    start = system.driver_inputs(np.array([system.t0]))[0][:, 0]
+    times = np.linspace(0.0, 1.0, 41)
+    rng = np.random.default_rng(7)
+    for _ in range(11):
+        stroke = rng.uniform(-0.25, 0.25, 3)
+        u = np.repeat(start[:, None], len(times), axis=1)
+        shape, rate = (1 - np.cos(np.pi * times)) / 2, np.pi * np.sin(np.pi * times) / 2
+        u[1:] += stroke[:, None] * shape
+        ud, udd = np.zeros_like(u), np.zeros_like(u)
+        ud[1:], udd[1:] = stroke[:, None] * rate, stroke[:, None] * np.pi**2 * np.cos(np.pi * times) / 2
+        for compiled in (True, False):
+            results = Solver(system, SolverOptions(max_refinements=0, compiled=compiled)).solve(times, inputs=(u, ud, udd))
+            assert results.converged.all()
+
+
+# ---- user text never runs ----------------------------------------------------------------------
+HOSTILE = [
+    'x""";open("MARKER","w");"""',
+    "a'''b\\\\c\\nd",
+    "line\nbreak \"\"\"\nimport os",
+    "end*/ int evil; /*",
+    "#define phi_jac evil",
+    "trigraph??/ \"quote",
+    "m\u00e9canisme \u2603 \U0001f40d",
+]
+
+
+def _normalized(text: str) -> str:
+    """The AST of a module with every string constant emptied: its structure and numbers."""
+    tree = ast.parse(text)
+    for node in ast.walk(tree):
+        if isinstance(node, ast.Constant) and isinstance(node.value, str):
+            node.value = ""
+    return ast.dump(tree)
+
+
+def test_hostile_file_names_build_into_the_same_code_and_nothing_runs(tmp_path, monkeypatch):
+    monkeypatch.chdir(tmp_path)
+    source = (MODELS / "slider_crank.yaml").read_text()
+    harmless = tmp_path / "plain" / "slider.yaml"
+    harmless.parent.mkdir()
+    harmless.write_text(source)
+    reference = build(harmless, "quaternion", harmless.parent)
+    expected = _normalized(reference.read_text())
+    c_reference = reference.with_suffix(".c").read_text()
+    for index, name in enumerate(n.replace("/", "|") for n in HOSTILE):  # (no file name holds a slash)
+        folder = tmp_path / f"hostile{index}"
+        folder.mkdir()
+        model = folder / f"{name}.yaml"
+        model.write_text(source)
+        module_path = build(model, "quaternion", folder)
+        text = module_path.read_text()
+        assert _normalized(text) == expected, name
+        module = load_module(module_path, model)
+        assert module.SOURCE == model.name
+        c_text = module_path.with_suffix(".c").read_text()
+        # the header comment ends where the harmless one does: user text cannot close it
+        assert c_text.split("*/", 2)[1].count("\n") == c_reference.split("*/", 2)[1].count("\n")
+        assert "??" not in c_text and not any(line.startswith("#define phi_jac") for line in c_text.splitlines())
+        if CC is not None:
+            system = from_module(module, compiled=True)
+            assert system.native is not None
+            assert Solver(system).solve().converged.all()
+        assert not (tmp_path / "MARKER").exists() and not (folder / "MARKER").exists()
+
+
+def test_escapes_leave_no_way_out_of_a_comment_or_a_string():
+    for name in HOSTILE:
+        shown = comment_text(name)
+        assert shown.isascii() and not any(c in shown for c in "\"'*/?\n\r") and "\\" not in shown.replace("\\x", "").replace("\\u", "").replace("\\U", "")
+        literal = c_string(name)
+        assert literal.isascii() and "?" not in literal and "\n" not in literal
+        body = literal[1:-1]
+        assert '"' not in body.replace('\\"', "") and all(part[:3].isdigit() for part in body.split("\\")[1:])
+
+
+# ---- modules and libraries are verified before they run --------------------------------------
+@pytest.fixture
+def built(tmp_path):
+    model = tmp_path / "four_bar.yaml"
+    shutil.copy(MODELS / "four_bar.yaml", model)
+    return model, build(model, "quaternion", tmp_path / "generated")
+
+
+def test_an_edited_module_is_refused_before_it_runs(built, tmp_path):
+    model, path = built
+    text = path.read_text()
+    edited = text.replace("INITIAL_Q = (", "INITIAL_Q = (1.0 + ", 1) + f"\nopen({str(tmp_path / 'RAN')!r}, 'w')\n"
+    path.write_text(edited)
+    with pytest.raises(GeneratedModuleError, match="does not match its seal") as caught:
+        load_module(path, model)
+    assert caught.value.exit_code == 5 and "kinegen build" in str(caught.value)
+    assert not (tmp_path / "RAN").exists()
+    path.write_text(text[: len(text) // 2])  # truncated
+    with pytest.raises(GeneratedModuleError, match="does not match its seal"):
+        load_module(path, model)
+
+
+def test_a_planted_or_foreign_version_module_is_refused(built, tmp_path):
+    model, path = built
+    planted = path.with_name("planted.py")
+    planted.write_text(f"open({str(tmp_path / 'RAN')!r}, 'w')\nMODEL = 'x'\n")
+    with pytest.raises(GeneratedModuleError, match="no kinegen seal"):
+        load_module(planted)
+    assert not (tmp_path / "RAN").exists()
+    body = path.read_text().split("\n", 1)[1].replace("kinegen version: 0.1.0", "kinegen version: 0.0.9", 1)
+    path.write_text(seal(path.name, body))
+    with pytest.raises(GeneratedModuleError, match=r"built by kinegen 0\.0\.9"):
+        load_module(path, model)
+
+
+def test_a_module_rebuilt_at_once_is_the_new_one(tmp_path):
+    """No bytecode cache: a module replaced within the same second by one of the same size runs as written."""
+    folder = tmp_path / "generated"
+    first, second = tmp_path / "one" / "m.yaml", tmp_path / "two" / "m.yaml"
+    for path, length in ((first, "0.3"), (second, "0.4")):
+        path.parent.mkdir()
+        path.write_text((MODELS / "slider_crank.yaml").read_text().replace("0.3", length, 1))
+    module_path = build(first, "quaternion", folder)
+    before = load_module(module_path, first)
+    build(second, "quaternion", folder)
+    after = load_module(module_path, second)
+    assert before.SOURCE_SHA256 != after.SOURCE_SHA256 == hashlib.sha256(second.read_bytes()).hexdigest()
+    assert not list(folder.glob("__pycache__"))
+
+
+@needs_cc
+def test_an_edited_c_file_is_refused(built):
+    model, path = built
+    c_file = path.with_suffix(".c")
+    c_file.write_text(c_file.read_text().replace("static", "static ", 1))
+    with pytest.raises(GeneratedModuleError, match="does not match its seal"):
+        from_module(load_module(path, model), compiled=True)
+
+
+@needs_cc
+def test_a_tampered_or_truncated_cached_library_is_rebuilt_never_loaded(built):
+    model, path = built
+    module = load_module(path, model)
+    sources = native_module._model_sources(module)
+    library = native_module.build_library(sources)
+    original = library.read_bytes()
+    for damaged in (original[: len(original) // 3], original[:-64] + b"\0" * 64):
+        library.write_bytes(damaged)
+        assert native_module.build_library(sources) == library
+        assert library.read_bytes() == original
+    library.write_bytes(original[:100])
+    with pytest.raises(native_module.CompileError, match="does not match its record"):
+        native_module._load(library)
+
+
+def test_concurrent_builds_sharing_the_cache_all_succeed(tmp_path):
+    if CC is None:
+        pytest.skip("no C compiler")
+    script = (
+        "import sys; from kinegen.runtime import native, load_module;"
+        f"m = load_module({str(GENERATED / 'slider_crank_quaternion.py')!r});"
+        "native.build_library(native._model_sources(m)); print('ok')"
+    )
+    env = {**__import__("os").environ, "KINEGEN_CACHE": str(tmp_path / "shared-cache")}
+    runs = [subprocess.Popen([__import__("sys").executable, "-c", script], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(4)]
+    outputs = [run.communicate(timeout=300) for run in runs]
+    assert all(run.returncode == 0 for run in runs), [o[1] for o in outputs]
+    assert not [p for p in (tmp_path / "shared-cache").rglob("tmp*")]
