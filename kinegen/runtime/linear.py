@@ -28,13 +28,6 @@ def _one_norm(matrix: np.ndarray) -> float:
     return float(np.abs(matrix).sum(axis=0).max())
 
 
-def _lu_sign(diagonal: np.ndarray, pivots: np.ndarray) -> int:
-    """Sign of det(P L U) from U's diagonal and LAPACK's 0-based row interchanges."""
-    swaps = int(np.count_nonzero(pivots != np.arange(len(pivots))))
-    negative = int(np.count_nonzero(diagonal < 0))
-    return -1 if (swaps + negative) % 2 else 1
-
-
 class Pattern:
     """Phi_q given as its values at the constant pattern (``rows``, ``cols``)."""
 
@@ -62,10 +55,6 @@ class DenseLU(Pattern):
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
         x, _ = _getrs(factors[0], factors[1], rhs)
         return x
-
-    def sign(self, factors: tuple) -> int:
-        """Sign of det(Phi_q)."""
-        return _lu_sign(factors[0].diagonal(), factors[1])
 
     def rcond(self, factors: tuple, values: Any) -> float:
         """Reciprocal 1-norm condition estimate from the factors."""
@@ -105,10 +94,6 @@ class BandLU(Pattern):
         out = np.empty_like(x)
         out[self.col_order] = x
         return out
-
-    def sign(self, factors: tuple) -> int:
-        """Sign of det(Phi_q) up to the constant sign of the fixed row and column orders."""
-        return _lu_sign(factors[0][self.kl + self.ku], factors[1])
 
     def rcond(self, factors: tuple, values: Any) -> float:
         """Reciprocal 1-norm condition estimate from the factors (permutations keep the 1-norm)."""

@@ -123,7 +123,7 @@ class Solver(ctypes.Structure):
         ("q", _DOUBLE_P), ("v", _DOUBLE_P), ("a", _DOUBLE_P),
         ("started", ctypes.c_int), ("iterations", ctypes.c_int), ("residual", ctypes.c_double), ("condition", ctypes.c_double),
         ("sign", ctypes.c_int), ("have_factors", ctypes.c_int), ("factor_sign", ctypes.c_int),
-        *((name, _DOUBLE_P) for name in ("trial", "phi", "jac", "store", "off", "rhs", "step", "motion", "y", "x")),
+        *((name, _DOUBLE_P) for name in ("trial", "phi", "jac", "store", "off", "rhs", "step", "y", "x")),
         ("pivots", _INT_P), ("design", ctypes.c_void_p),
         *((name, _DOUBLE_P) for name in ("u", "ud", "jac_q", "moved", "w1", "w2")),
         ("block_sign", _INT_P), ("factor_block_sign", _INT_P),
@@ -487,12 +487,12 @@ class Newton:
         self._out = (ctypes.c_int(0), ctypes.c_double(0.0), ctypes.c_double(0.0))
         self._args = (self.solver.pointer, self._q.ctypes.data, self._u.ctypes.data, *(ctypes.addressof(x) for x in self._out))
 
-    def __call__(self, q0: np.ndarray, u: np.ndarray) -> tuple[int, np.ndarray, int, float, float]:
-        """(status, q, iterations, max |Phi|, travel)."""
+    def __call__(self, q0: np.ndarray, u: np.ndarray) -> tuple[int, np.ndarray, int, float]:
+        """(status, q, iterations, max |Phi|)."""
         self._q[:], self._u[:] = q0, u
         status = self.solver.library.kinegen_newton(*self._args)
-        iterations, residual, travel = (x.value for x in self._out)
-        return status, self._q.copy(), iterations, residual, travel
+        iterations, residual, _ = (x.value for x in self._out)
+        return status, self._q.copy(), iterations, residual
 
 
 class NativeSolver:

@@ -43,15 +43,13 @@ NATIVE_CHUNK = 10_000
 
 
 class Solution(NamedTuple):
-    """A converged position: q, Newton iterations, max |Phi|, Phi_q values and Phi at q,
-    and ``travel``: the summed max-norm of the Newton steps from the start (inf after a fallback)."""
+    """A converged position: q, Newton iterations, max |Phi|, Phi_q values and Phi at q."""
 
     q: np.ndarray
     iterations: int
     norm: float
     values: Any
     phi: np.ndarray
-    travel: float = float("inf")
     #: the motion from the start point in velocity coordinates (the sum of Newton's steps), None when unknown
     moved: np.ndarray | None = None
 
@@ -63,7 +61,6 @@ class Factors:
     values: np.ndarray
     lu: Any = None
     pinv: np.ndarray | None = None
-    sign: int | None = None  #: sign of det(Phi_q), once asked for (see Solver._sign)
     block_signs: np.ndarray | None = None  #: sign of det of every diagonal block (Solver._block_signs)
 
 
@@ -224,12 +221,6 @@ class Solver:
         """The ``count`` constraints with the largest |Phi_i|, with their values."""
         return [(self.system.constraint_names[i], float(phi[i])) for i in np.argsort(-np.abs(phi))[:count]]
 
-    def _sign(self, factors: Factors) -> int | None:
-        """Sign of det(Phi_q) from its LU factors (None for a redundant system)."""
-        if factors.sign is None and factors.lu is not None:
-            factors.sign = self.linear.sign(factors.lu)
-        return factors.sign
-
     def _failure(self, q: np.ndarray, u: np.ndarray, t: float, iterations: int) -> ConvergenceError:
         phi, norm = self.residual(q, u)
         return ConvergenceError(t, iterations, norm, self.worst(phi))
@@ -330,10 +321,10 @@ class Solver:
         opts = self.options
         evaluate = self.system.evaluate
         if native and not damped and offset is None and factors is None and self.system.native is not None:
-            status, x, iterations, norm, travel = self._native_newton(q, u)
-            if status == 0:  # converged in C: Phi and Phi_q at the solution for the caller
+            status, x, iterations, norm = self._native_newton(q, u)
+            if status == 0:  # converged in C: Phi and Phi_q at the solution for the caller (its motion not tracked)
                 phi, values = evaluate(x, u)
-                return Solution(x, iterations, _max_norm(phi), values, phi, travel)
+                return Solution(x, iterations, _max_norm(phi), values, phi)
             if status != 2:  # not converged (a singular Phi_q on the way: the Python loop below names it)
                 raise self._failure(x, u, t, iterations)
 
@@ -344,7 +335,7 @@ class Solver:
             return phi, _max_norm(phi), values
 
         phi, norm, jacobian = residual(q)
-        iterations, travel, moved = 0, 0.0, np.zeros(self.system.n_velocity)
+        iterations, moved = 0, np.zeros(self.system.n_velocity)
         while norm > opts.tolerance:
             if iterations >= opts.max_iterations or not np.isfinite(norm) or norm > opts.divergence_limit:
                 raise self._failure(q, u, t, iterations)
@@ -352,7 +343,6 @@ class Solver:
                 factors = self._factor(jacobian, t)
             step = -self._solve(factors, phi)
             iterations += 1
-            travel += float(abs(step).max())
             trial = self.retract(q, step)
             trial_phi, trial_norm, trial_jacobian = residual(trial)
             alpha = 1.0
@@ -365,7 +355,7 @@ class Solver:
             if damped or not self.chord or not trial_norm <= self.options.chord_rate * norm:
                 factors = None  # Newton: factorize at the new point
             q, phi, norm, jacobian = trial, trial_phi, trial_norm, trial_jacobian
-        return Solution(q, iterations, norm, jacobian, phi, travel if not damped else float("inf"), moved)
+        return Solution(q, iterations, norm, jacobian, phi, moved)
 
     def _homotopy(self, q: np.ndarray, u: np.ndarray, t: float, stages: int = 64) -> Solution:
         """Solve Phi(q, u) = (1 - s) Phi(q0, u) for s = 0 -> 1 with adaptive stages."""
@@ -667,22 +657,19 @@ def _block_groups(blocks: list[Block], rows: np.ndarray, cols: np.ndarray) -> li
     the blocks' dense matrices, size), for the blocks' determinants in one call per size."""
     row_at = {r: (b, i) for b, block in enumerate(blocks) for i, r in enumerate(block.rows)}
     col_at = {c: (b, j) for b, block in enumerate(blocks) for j, c in enumerate(block.cols)}
-    position = {b: k for block_size in {block.size for block in blocks} for k, b in enumerate(
-        [b for b, block in enumerate(blocks) if block.size == block_size])}  # fmt: skip
-    entries: dict[int, tuple[list[int], list[int]]] = {}
+    members: dict[int, list[int]] = {}  # size -> the blocks of that size, in order
+    for b, block in enumerate(blocks):
+        members.setdefault(block.size, []).append(b)
+    position = {b: k for group in members.values() for k, b in enumerate(group)}  # a block's place in its size's stack
+    entries: dict[int, tuple[list[int], list[int]]] = {size: ([], []) for size in members}
     for e, (r, c) in enumerate(zip(rows.tolist(), cols.tolist())):
         (b, i), (b2, j) = row_at[r], col_at[c]
         if b == b2:
             size = blocks[b].size
-            value_index, flat = entries.setdefault(size, ([], []))
-            value_index.append(e)
-            flat.append(position[b] * size * size + i * size + j)
-    groups = []
-    for size in sorted(entries):
-        members = [b for b, block in enumerate(blocks) if block.size == size]
-        value_index, flat = entries[size]
-        groups.append((np.array(members), np.array(value_index, dtype=np.intp), np.array(flat, dtype=np.intp), size))
-    return groups
+            entries[size][0].append(e)
+            entries[size][1].append(position[b] * size * size + i * size + j)
+    return [(np.array(members[size]), np.array(entries[size][0], dtype=np.intp), np.array(entries[size][1], dtype=np.intp), size)
+            for size in sorted(members)]  # fmt: skip
 
 
 def _native_options(options: SolverOptions, chord: bool, case_inputs: bool = False) -> Any:

@@ -120,9 +120,9 @@ def plan_arrays(case: CaseDescription, plan: Plan) -> _PlanArrays:
 def work_sizes(description: ModuleDescription, case: CaseDescription, arrays: _PlanArrays) -> tuple[int, int]:
     """(doubles, ints) one solver of ``case`` needs (see kinegen_init)."""
     nq, nv = len(description.stored_names), len(description.velocity_names)
-    # q, trial; v, a, phi, rhs, step, motion, y, x, moved, w1, w2; the Phi_q values at the trial and at q; the
-    # blocks' factors and the entries below them; the inputs and their rates at q
-    doubles = 2 * nq + 11 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 2 * len(case.drivers)
+    # q, trial; v, a, phi, rhs, step, y, x, moved, w1, w2; the Phi_q values at the trial and at q; the blocks'
+    # factors and the entries below them; the inputs and their rates at q
+    doubles = 2 * nq + 10 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 2 * len(case.drivers)
     # pivots, the condition estimate's signs; the sign of det of every diagonal block at q and in the factors
     return doubles, 2 * nv + 2 * (len(arrays.block_start) - 1)
 

@@ -95,8 +95,7 @@ void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_optio
     s->off = s->store + m->n_store;
     s->rhs = s->off + m->n_off;
     s->step = s->rhs + nv;
-    s->motion = s->step + nv;
-    s->y = s->motion + nv;
+    s->y = s->step + nv;
     s->x = s->y + nv;
     s->moved = s->x + nv;
     s->w1 = s->moved + nv;
@@ -481,8 +480,8 @@ static int attempt(kinegen_solver *s, double t, const double *u, const double *u
     memcpy(s->trial, s->q, sizeof(double) * (size_t)m->n_q);
     memset(s->moved, 0, sizeof(double) * (size_t)n);
     if (s->options.predictor) {
-        for (int j = 0; j < n; ++j) s->moved[j] = s->motion[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
-        m->retract(s->trial, s->motion);
+        for (int j = 0; j < n; ++j) s->moved[j] = s->v[j] * h + 0.5 * s->a[j] * h * h;
+        m->retract(s->trial, s->moved);
     }
     status = newton(s, u, s->options.chord, &count, &travel, &norm);
     if (status != KINEGEN_OK) {

@@ -177,13 +177,13 @@ typedef struct kinegen_solver {
     int have_factors; /* store holds factors (of the last solution, or of a Newton iterate) */
     int factor_sign;  /* sign of det(Phi_q) of the factors in store */
     /* workspace */
-    double *trial, *phi, *jac, *store, *off, *rhs, *step, *motion, *y, *x;
+    double *trial, *phi, *jac, *store, *off, *rhs, *step, *y, *x;
     int *pivots; /* and the condition estimate's sign vector after them */
     const double *design; /* the design parameters the kernels take, or NULL (a model without them) */
     /* the certificate (see kinegen_options) */
     double *u, *ud;         /* the inputs and their rates at t */
     double *jac_q;          /* Phi_q values at q */
-    double *moved, *w1, *w2; /* the step's motion d; work */
+    double *moved, *w1, *w2; /* the step's motion d (the predictor's, then Newton's steps added); work */
     int *block_sign;        /* sign of det of every diagonal block of Phi_q at q (the assembly modes) */
     int *factor_block_sign; /* ... of the factors in store */
     int refinements;        /* halvings the last kinegen_step took (0: the whole step was certified) */
