@@ -1,7 +1,8 @@
 """The ``kinegen`` command: thin over the package.
 
 Exit codes: 0 success, 1 other kinegen error, 2 model error, 3 singular Jacobian,
-4 no convergence, 5 generated-module error, 6 input/output error, 64 usage.
+4 no convergence, 5 generated-module error, 6 input/output error, 64 usage; 141 (quietly) when
+standard output's reader stops early (``| head``), as for Unix tools.
 """
 
 from __future__ import annotations
@@ -20,8 +21,12 @@ import numpy as np
 
 from kinegen import __version__, rotations
 from kinegen.errors import GeneratedModuleError, KinegenError
+from kinegen.files import read_bounded
 
 IO_ERROR = 6
+BROKEN_PIPE = 141  # 128 + SIGPIPE: what a shell reports for a Unix tool whose reader left
+#: Most samples `kinegen envelope --grid` takes (the default grid has 4,851)
+MAX_GRID = 1_000_000
 
 
 class _Group(click.Group):
@@ -32,6 +37,10 @@ class _Group(click.Group):
             return super().invoke(ctx)
         except KinegenError as exc:
             self._fail(ctx, f"error: {exc}", exc.exit_code)
+        except BrokenPipeError:  # the reader stopped early (| head): quiet, as Unix tools are
+            devnull = os.open(os.devnull, os.O_WRONLY)
+            os.dup2(devnull, sys.stdout.fileno())  # Python's flush at exit must not fail again
+            ctx.exit(BROKEN_PIPE)
         except OSError as exc:
             self._fail(ctx, f"error: {exc}", IO_ERROR)
 
@@ -56,6 +65,19 @@ def main(ctx: click.Context, debug: bool) -> None:
 
 
 PARAM_HELP = "Orientation parametrization: quaternion, euler-parameters or euler:<seq> (e.g. euler:zxz)."
+
+
+def _image_file(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """A --plot file name checked before any work: matplotlib can write its type (its suffix)."""
+    if value is None:
+        return None
+    from kinegen.analysis.plots import image_format
+
+    try:
+        image_format(value)
+    except ValueError as exc:
+        raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
+    return value
 
 
 def _parametrization(name: str) -> rotations.Parametrization:
@@ -206,8 +228,8 @@ def _system(
 @click.option("--t0", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="Start time [s] (default: the case's).")
 @click.option("--t1", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="End time [s] (default: the case's).")
 @click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
-@click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV file for all time histories.")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None,
+@click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV file for all time histories (- for standard output; the summary then goes to standard error).")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file,
               help="PNG: the mechanism at six instants in the plane that shows it, with a tip's path; actuator lengths and rates "
               "(or angular speeds), condition number.")
 @click.option("--frame", "frame_body", default=None,
@@ -275,31 +297,35 @@ def solve(
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
     elapsed = time.perf_counter() - start
     done = results.converged
+    piped = out == "-"  # the CSV on standard output: everything else on standard error
     if design:
-        click.echo("design: " + ", ".join(f"{name} = {value:g}" for name, value in system.design.items()))
+        click.echo("design: " + ", ".join(f"{name} = {value:g}" for name, value in system.design.items()), err=piped)
     click.echo(
         f"{system.model}/{system.case} [{parametrization.name}]: {int(done.sum())} of {len(times)} time points, "
         f"t = {times[0]:g} .. {results.times[-1]:g} s, Newton iterations mean {results.iterations[done].mean():.2f} "
-        f"max {results.iterations[done].max()}, max |Phi| {results.residuals[done].max():.1e}, {elapsed:.3f} s"
+        f"max {results.iterations[done].max()}, max |Phi| {results.residuals[done].max():.1e}, {elapsed:.3f} s",
+        err=piped,
     )
     if out:
-        click.echo(f"wrote {results.to_csv(out)}")
+        written = results.to_csv(out)
+        if not piped:
+            click.echo(f"wrote {written}")
     if sensitivities:
         if not system.design:
             raise click.BadParameter("the model has no design parameters (a design: section)", param_hint="--sensitivities")
         write = results.sensitivities_to_json if sensitivities.endswith(".json") else results.sensitivities_to_csv
-        click.echo(f"wrote {write(sensitivities)}")
+        click.echo(f"wrote {write(sensitivities)}", err=piped)
     if plot:
         from kinegen.analysis.plots import plot_case
 
         trace, frame = _picture_plane(results, model, frame_body)
-        click.echo(f"wrote {plot_case(results, plot, frame, trace)}")
+        click.echo(f"wrote {plot_case(results, plot, frame, trace)}", err=piped)
     _report_ranges(results)
     if view:
         from kinegen.analysis.view import motion_view
 
-        page = Path(out).with_suffix(".html") if out else Path("out") / f"{system.model}_{system.case}.html"
-        click.echo(f"wrote {motion_view(results, model, page, title=f'{system.model} / {system.case}')}")
+        page = Path(out).with_suffix(".html") if out and not piped else Path("out") / f"{system.model}_{system.case}.html"
+        click.echo(f"wrote {motion_view(results, model, page, title=f'{system.model} / {system.case}')}", err=piped)
     if results.failure is not None:
         raise results.failure
 
@@ -364,16 +390,20 @@ def _report_ranges(results) -> None:
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
 @click.option("--case", default=None, help="Case whose drivers are used (default: the first).")
-@click.option("--at", "at", default=None, help="Time, exact expression allowed (e.g. 0, 1/2, pi/4). Default: the case start.")
+@click.option("--at", "at", default=None, help="Time within the case's range, exact expression allowed (e.g. 0, 1/2, pi/4). Default: the case start.")
 @click.option(
     "--q",
     "q_file",
     type=click.Path(dir_okay=False),
     default=None,
-    help="JSON file {coordinate name: value} of stored coordinates.",
+    help="Stored coordinates: a JSON file {coordinate name: value}, or the JSON itself ({...}, or [...] in stored order).",
 )
 @click.option("--latex", is_flag=True, help="Also print the determinant in LaTeX.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON report instead of text.")
+@click.option("--budget", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
+              help="Seconds of exact symbolic work allowed (the determinant is left out, or the inspection stops naming Phi_q's blocks, when they run out).")  # fmt: skip
+@click.option("--full", is_flag=True, help="Print long determinants in full (by default one longer than 600 characters is summarised).")
+@click.option("--det-file", type=click.Path(dir_okay=False), default=None, help="Write every symbolic determinant in full into this file.")
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def inspect(
     model_file: str,
@@ -383,6 +413,9 @@ def inspect(
     q_file: str | None,
     latex: bool,
     as_json: bool,
+    budget: float,
+    full: bool,
+    det_file: str | None,
     generated_dir: str,
 ) -> None:
     """Exact rank, null spaces and symbolic determinant of Phi_q at one configuration."""
@@ -394,21 +427,20 @@ def inspect(
     if case is not None and case not in model.cases:
         raise click.BadParameter(f"no case {case!r} (cases: {', '.join(model.cases)})", param_hint="--case")
     chosen = case or next(iter(model.cases))
+    when = _inspection_time(at, model.cases[chosen])
     q = None
     if q_file:
         from kinegen.symbolic import coordinates
 
-        names = coordinates(model, parametrization).stored_names
-        data = json.loads(Path(q_file).read_text())
-        missing = [n for n in names if n not in data]
-        if missing:
-            raise click.BadParameter(f"{q_file} lacks {', '.join(missing)}", param_hint="--q")
-        q = np.array([float(data[n]) for n in names])
+        q = _configuration(q_file, coordinates(model, parametrization).stored_names)
     numeric = None
     if q is None:  # the configuration is solved with the quaternion module of the case
         _, numeric = _system(model_file, _parametrization("quaternion"), chosen, generated_dir)
-    when = at if at is not None else str(model.cases[chosen].t0)
-    report = run(model, parametrization, chosen, when, q, numeric)
+    report = run(model, parametrization, chosen, when, q, numeric, budget=budget)
+    if det_file:
+        from kinegen.files import write_atomic
+
+        write_atomic(Path(det_file), report.determinants())
     verdict = None
     if report.singular:
         from kinegen.analysis.classify import classify
@@ -425,11 +457,65 @@ def inspect(
             data["classification"] = {"kind": verdict.kind, "evidence": verdict.evidence}
         click.echo(json.dumps(data, indent=2))
         return
-    click.echo(report.text())
+    click.echo(report.text(full=full))
     if verdict:
         click.echo(verdict.text())
     if latex:
         click.echo(report.latex())
+    if det_file:
+        click.echo(f"wrote {det_file}")
+
+
+def _inspection_time(at: str | None, case) -> str:
+    """``--at`` checked: an exact real constant within the case's time range (the configuration
+    there is solved from the case's start), as text for the inspection."""
+    from kinegen.errors import ExpressionError
+    from kinegen.model.expressions import float_value, parse
+
+    if at is None:
+        return str(case.t0)
+    try:
+        value = float_value(parse(at, allow_time=False))
+    except ExpressionError as exc:
+        raise click.BadParameter(f"{at!r} is not a time: {exc}", param_hint="--at") from None
+    span = case.t1 - case.t0
+    if not case.t0 - 1e-9 * span <= value <= case.t1 + 1e-9 * span:
+        raise click.BadParameter(
+            f"t = {value:g} is outside the time range [{case.t0:g}, {case.t1:g}] s of case {case.name!r}, over which its motion is solved",
+            param_hint="--at",
+        )
+    return at
+
+
+def _configuration(q: str, names: list[str]) -> np.ndarray:
+    """``--q``: inline JSON (an object {name: value} or a list in stored order) or a JSON file of
+    the object; every stored coordinate a finite number."""
+    text = q.strip()
+    inline = text.startswith(("{", "["))
+    if not inline:
+        try:
+            text = read_bounded(q, 10_000_000).decode("utf-8", errors="replace")
+        except OSError as exc:
+            raise click.BadParameter(f"cannot read {q!r}: {exc.strerror or exc} (give a JSON file, or the JSON itself)", param_hint="--q") from None
+    where = "the inline JSON" if inline else q
+    try:
+        data = json.loads(text)
+    except (ValueError, RecursionError) as exc:
+        raise click.BadParameter(f"{where} is not valid JSON: {exc}", param_hint="--q") from None
+    if isinstance(data, list):
+        if len(data) != len(names):
+            raise click.BadParameter(f"{where}: a list needs {len(names)} values ({', '.join(names)}), got {len(data)}", param_hint="--q")
+        data = dict(zip(names, data))
+    if not isinstance(data, dict):
+        raise click.BadParameter(f"{where}: expected an object {{coordinate name: value}}", param_hint="--q")
+    missing = [n for n in names if n not in data]
+    if missing:
+        raise click.BadParameter(f"{where} lacks {', '.join(missing)}", param_hint="--q")
+    values = [data[n] for n in names]
+    bad = [n for n, v in zip(names, values) if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v)]
+    if bad:
+        raise click.BadParameter(f"{where}: {', '.join(bad)} not a finite number", param_hint="--q")
+    return np.array(values, dtype=float)
 
 
 @main.command()
@@ -557,7 +643,7 @@ def info(model_file: str, params: tuple[str, ...]) -> None:
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
 @click.option("--grid", default=None, help="Samples per swept input, e.g. 25,13,25 (default: 21,11,21).")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of the working-range chart (exact boundary, dimensions).")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="PNG of the working-range chart (exact boundary, dimensions).")
 @click.option("--boundary", "boundary_file", type=click.Path(dir_okay=False), default=None,
               help="Write the exact boundary's points: CSV (.csv) or JSON (.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print the figures (and the boundary) as JSON.")
@@ -583,6 +669,14 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
             raise click.BadParameter("expected whole numbers separated by commas", param_hint="--grid") from None
         if any(c < 2 for c in counts):
             raise click.BadParameter("at least 2 samples per input", param_hint="--grid")
+        swept = [name for name, value in model.working_range.inputs.items() if isinstance(value, tuple)]
+        if len(counts) != len(swept):
+            raise click.BadParameter(
+                f"{len(counts)} count(s) for the {len(swept)} swept input(s) ({', '.join(swept)}): give one per input, in this order",
+                param_hint="--grid",
+            )
+        if int(np.prod(counts, dtype=float)) > MAX_GRID:
+            raise click.BadParameter(f"{grid} is {int(np.prod(counts, dtype=float)):,} samples; at most {MAX_GRID:,}", param_hint="--grid")
     if boundary_file and Path(boundary_file).suffix.lower() not in (".csv", ".json"):
         raise click.BadParameter("expected a .csv or .json file name", param_hint="--boundary")
     result = working_range(system, model.working_range, counts)
@@ -669,7 +763,7 @@ def _boundary_document(boundary) -> dict:
     help="Warn when the trend reaches a singularity within this many steps.",
 )
 @click.option(
-    "--plot", type=click.Path(dir_okay=False), default=None, help="PNG of sigma_min/sigma_max and condition number against time."
+    "--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="PNG of sigma_min/sigma_max and condition number against time."
 )
 @click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 def scan(
@@ -787,7 +881,7 @@ def optimize(
 @click.option("--resume", is_flag=True, help="Continue the run held in --out: only the partitions not written yet are computed.")
 @click.option("--scheduler", default=None, help="A Dask scheduler's address (tcp://host:8786); default: a LocalCluster here.")
 @click.option("--workers", type=click.IntRange(min=1), default=None, help="LocalCluster worker processes (default: one per core).")
-@click.option("--plot", type=click.Path(dir_okay=False), default=None, help="PNG of the Pareto front and the parameters' sensitivity ranking.")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="PNG of the Pareto front and the parameters' sensitivity ranking.")
 @click.option("--pareto", multiple=True, help="The front's two quantities (a column or a unique start of one; repeat twice). Default: the study's first two.")
 @click.option("--minimize", multiple=True, help="A --pareto quantity to minimize (the front maximizes by default). Repeatable.")
 @click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)

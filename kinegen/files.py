@@ -1,22 +1,84 @@
-"""Files written whole or not at all."""
+"""Files read within bounds and written whole or not at all.
+
+Reading: :func:`read_bounded` takes a regular file (or ``-``, standard input, read once per
+process), refuses devices and FIFOs before it would block or read forever, and stops at a size
+limit while reading. Writing: :func:`atomic_writer` / :func:`write_atomic` write through a
+temporary file beside the target, named after the writing process, and ``os.replace`` it: a
+reader sees the previous file or the new one; disk full keeps the previous one; a temporary file
+left by a killed process is removed by the next write to the same folder. A target that exists
+and is not a regular file (``/dev/stdout``, a FIFO, ``/dev/full``) is written in place, its
+errors reported like any other.
+"""
 
 from __future__ import annotations
 
+import contextlib
 import os
+import stat
+import sys
 import tempfile
+from collections.abc import Iterator
 from pathlib import Path
+from typing import BinaryIO
+
+#: What ``-`` names on the command line: standard input (read) or standard output (written).
+STDIN = "-"
+_stdin_bytes: bytes | None = None  # standard input, read once: a model given as `-` is read again by path
 
 
-def write_atomic(path: Path, content: str | bytes) -> None:
-    """Write ``content`` (text as UTF-8, or bytes) to ``path`` via a temporary file and
-    ``os.replace``: all or nothing. The file gets the mode a new file gets under the umask
-    (not the temporary file's 0600)."""
+class FileTooLarge(OSError):
+    """A file longer than the limit its reader sets."""
+
+
+def read_bounded(path: str | Path, limit: int) -> bytes:
+    """The bytes of ``path`` (``-``: standard input), at most ``limit`` of them. OSError with a
+    ``strerror`` that says what is wrong: not a regular file (a directory, device or FIFO, refused
+    without blocking on it), or :class:`FileTooLarge` when it holds more than ``limit`` bytes
+    (checked while reading, so ``/dev/zero``-like sources end)."""
+    global _stdin_bytes
+    if str(path) == STDIN:
+        if _stdin_bytes is None:
+            _stdin_bytes = _read_limited(sys.stdin.buffer, limit)
+        return _stdin_bytes
+    fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
+    try:
+        mode = os.fstat(fd).st_mode
+        if not stat.S_ISREG(mode):
+            kind = "a directory" if stat.S_ISDIR(mode) else "a FIFO" if stat.S_ISFIFO(mode) else "a device or socket"
+            raise OSError(0, f"not a regular file ({kind}); give a model file, or - for standard input")
+        os.set_blocking(fd, True)
+        with os.fdopen(fd, "rb", closefd=False) as handle:
+            return _read_limited(handle, limit)
+    finally:
+        os.close(fd)
+
+
+def _read_limited(handle: BinaryIO, limit: int) -> bytes:
+    data = handle.read(limit + 1)
+    if data is None:
+        data = b""
+    if len(data) > limit:
+        raise FileTooLarge(0, f"larger than {limit:,} bytes")
+    return data
+
+
+@contextlib.contextmanager
+def atomic_writer(path: Path) -> Iterator[BinaryIO]:
+    """A binary handle whose content becomes ``path`` when the block ends without an exception
+    (fsynced, then ``os.replace``); on an exception (disk full, interrupted) the previous file is
+    untouched and the temporary file removed. The new file gets the mode a new file gets under the
+    umask (not the temporary file's 0600)."""
+    path = Path(path)
+    if _is_special(path):  # /dev/stdout, a FIFO, /dev/full: written in place, never replaced
+        with path.open("wb") as handle:
+            yield handle
+        return
     path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    data = content.encode("utf-8") if isinstance(content, str) else content
+    _sweep(path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "wb") as handle:
-            handle.write(data)
+            yield handle
             handle.flush()
             os.fsync(handle.fileno())
         os.chmod(tmp, 0o666 & ~_umask())
@@ -24,6 +86,60 @@ def write_atomic(path: Path, content: str | bytes) -> None:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextlib.contextmanager
+def atomic_path(path: Path) -> Iterator[Path]:
+    """A temporary path beside ``path`` (same suffix) for a writer that wants a file name; it
+    becomes ``path`` when the block ends without an exception, else it is removed."""
+    path = Path(path)
+    if _is_special(path):
+        yield path
+        return
+    path.parent.mkdir(parents=True, exist_ok=True)
+    _sweep(path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    os.close(fd)
+    try:
+        yield Path(tmp)
+        os.chmod(tmp, 0o666 & ~_umask())
+        os.replace(tmp, path)
+    except BaseException:
+        Path(tmp).unlink(missing_ok=True)
+        raise
+
+
+def write_atomic(path: Path, content: str | bytes) -> None:
+    """Write ``content`` (text as UTF-8, or bytes) to ``path`` all or nothing (:func:`atomic_writer`)."""
+    with atomic_writer(path) as handle:
+        handle.write(content.encode("utf-8") if isinstance(content, str) else content)
+
+
+def _is_special(path: Path) -> bool:
+    try:
+        return not stat.S_ISREG(os.stat(path).st_mode)
+    except OSError:
+        return False
+
+
+def _sweep(folder: Path) -> None:
+    """Remove the temporary files of writers in ``folder`` that no longer run (killed mid-write)."""
+    for tmp in folder.glob(".*.tmp*"):
+        parts = tmp.name.rpartition(".tmp")[0].rsplit(".", 2)  # .<name>.<pid>.<random>.tmp[<suffix>]
+        if len(parts) == 3 and parts[1].isdigit() and not _running(int(parts[1])):
+            tmp.unlink(missing_ok=True)
+
+
+def _running(pid: int) -> bool:
+    if pid == os.getpid():
+        return True
+    try:
+        os.kill(pid, 0)
+    except ProcessLookupError:
+        return False
+    except OSError:  # another user's process
+        return True
+    return True
 
 
 def _umask() -> int:

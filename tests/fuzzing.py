@@ -12,6 +12,7 @@ from __future__ import annotations
 import multiprocessing
 import os
 import re
+import shutil
 import tempfile
 import time
 import traceback
@@ -37,7 +38,7 @@ def _reset_peak() -> None:
         pass
 
 
-def _serve(connection, limit: int) -> None:
+def _serve(connection, limit: int, work: Path) -> None:
     """Worker loop: receive (kind, bytes), answer with a report dict, until None arrives."""
     import resource
 
@@ -50,7 +51,6 @@ def _serve(connection, limit: int) -> None:
 
     ceiling = _status("VmSize") * 1024 + limit
     resource.setrlimit(resource.RLIMIT_AS, (ceiling, ceiling))
-    work = Path(tempfile.mkdtemp(prefix="kinegen-fuzz-worker-"))
     path = work / "fuzzed.yaml"
     while True:
         job = connection.recv()
@@ -86,12 +86,14 @@ class Worker:
 
     def __init__(self, limit: int = MEMORY_LIMIT) -> None:
         self.limit = limit
+        #: the workers' folder, made and removed here: a worker killed mid-model leaves nothing behind
+        self.work = Path(tempfile.mkdtemp(prefix="kinegen-fuzz-worker-"))
         self._context = multiprocessing.get_context("spawn")
         self._start()
 
     def _start(self) -> None:
         self.connection, child = self._context.Pipe()
-        self.process = self._context.Process(target=_serve, args=(child, self.limit), daemon=True)
+        self.process = self._context.Process(target=_serve, args=(child, self.limit, self.work), daemon=True)
         self.process.start()
         child.close()
 
@@ -119,6 +121,8 @@ class Worker:
             pass
         if self.process.is_alive():
             self.process.kill()
+            self.process.join()
+        shutil.rmtree(self.work, ignore_errors=True)
 
 
 def environment_allows_workers() -> bool:

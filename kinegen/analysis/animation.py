@@ -14,6 +14,7 @@ import numpy as np
 
 from kinegen.analysis.plots import _in_frame, pyplot
 from kinegen.analysis.view import TRACKED, _outline, frames
+from kinegen.files import atomic_path
 from kinegen.model.schema import GROUND
 from kinegen.runtime.results import Results
 
@@ -68,8 +69,8 @@ def animate(
         return [*lines.values(), title]
 
     movie = FuncAnimation(fig, draw, frames=[int(k) for k in keep], blit=False)
-    target.parent.mkdir(parents=True, exist_ok=True)
     writer = PillowWriter(fps=fps) if target.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
-    movie.save(str(target), writer=writer, dpi=80)
+    with atomic_path(target) as partial:  # a failed or interrupted write keeps the previous file
+        movie.save(str(partial), writer=writer, dpi=80)
     plt.close(fig)
     return target

@@ -202,6 +202,8 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     evaluator = _Evaluator(system, spec)
     names = evaluator.names
     counts = list(grid or [21, 11, 21][: len(names)] + [11] * max(0, len(names) - 3))
+    if len(counts) != len(names) or any(c < 2 for c in counts):
+        raise ValueError(f"grid {tuple(counts)}: give one count >= 2 per swept input ({', '.join(names)})")
     axes = [np.linspace(lo, hi, c) for (lo, hi), c in zip(evaluator.ranges, counts)]
     corner = np.array([a[0] for a in axes])
     evaluator.move_to(corner)  # continuation from the model's pose to the grid's first corner

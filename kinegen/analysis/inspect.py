@@ -9,6 +9,11 @@ proof, not a floating-point guess.
 from __future__ import annotations
 
 import json
+import signal
+import threading
+import time
+from collections.abc import Iterator
+from contextlib import contextmanager
 from dataclasses import dataclass, field
 from typing import Any
 
@@ -16,6 +21,7 @@ import numpy as np
 import sympy as sp
 
 from kinegen.codegen.inmemory import lambdify_model
+from kinegen.errors import KinegenError
 from kinegen.model import Model
 from kinegen.rotations import Parametrization
 from kinegen.runtime import Solver, from_module
@@ -32,6 +38,71 @@ DIGITS = 60
 
 #: Magnitudes below this are rounding noise of an exact zero (the solver stops at 1e-10).
 ZERO = 1e-13
+#: Longest symbolic determinant printed in full by :meth:`Inspection.text` (longer ones are summarised)
+MAX_SHOWN = 600
+
+
+class InspectionBudgetError(KinegenError):
+    """The exact analysis did not finish within its time budget."""
+
+
+class _Expired(Exception):
+    """Raised by the budget's alarm inside SymPy's work."""
+
+
+class Budget:
+    """Seconds of symbolic work allowed to one inspection, enforced by ``SIGALRM`` (in the main
+    thread of a Unix process; elsewhere, or with ``seconds=None``, unbounded). SymPy's work is
+    Python code, interrupted between bytecodes when the alarm fires."""
+
+    def __init__(self, seconds: float | None) -> None:
+        self.seconds = seconds
+        self.start = time.monotonic()
+
+    def remaining(self) -> float | None:
+        return None if self.seconds is None else self.seconds - (time.monotonic() - self.start)
+
+    @contextmanager
+    def limit(self) -> Iterator[None]:
+        """Raise :class:`_Expired` in the block when the budget runs out."""
+        left = self.remaining()
+        armed = left is not None and hasattr(signal, "setitimer") and threading.current_thread() is threading.main_thread()
+        if left is not None and left <= 0:
+            raise _Expired
+        if not armed:
+            yield
+            return
+
+        def expire(_signum, _frame):
+            raise _Expired
+
+        previous = signal.signal(signal.SIGALRM, expire)
+        signal.setitimer(signal.ITIMER_REAL, max(left, 1e-3))
+        try:
+            yield
+        finally:
+            signal.setitimer(signal.ITIMER_REAL, 0)
+            signal.signal(signal.SIGALRM, previous)
+
+
+def summary(expr: sp.Expr) -> str:
+    """A determinant too long to print, described: its factors, terms, degree (where it is a
+    polynomial in the coordinates) and length."""
+    factors = sp.Mul.make_args(expr)
+    terms, degree, polynomial = 0, 0, True
+    for factor in factors:
+        base, exponent = factor.as_base_exp()
+        terms += len(sp.Add.make_args(base))
+        symbols = sorted(base.free_symbols, key=str)
+        if polynomial and symbols and base.is_polynomial(*symbols) and exponent.is_Integer:
+            degree += sp.Poly(base, *symbols).total_degree() * int(exponent)
+        elif symbols:
+            polynomial = False
+    kind = f"total degree {degree}" if polynomial else "trigonometric"
+    return (
+        f"{len(factors)} factor(s), {terms:,} terms, {kind} in {len(expr.free_symbols)} symbols, "
+        f"{len(sp.sstr(expr)):,} characters"
+    )
 
 
 def exact_number(value: float) -> sp.Expr:
@@ -187,6 +258,7 @@ class Inspection:
     vanishing_factors: list[sp.Expr] = field(default_factory=list)
     blocks: list[BlockReport] = field(default_factory=list)
     rank_method: str = "exact"
+    unfinished: str | None = None  #: why a symbolic determinant is missing (its budget ran out)
 
     @property
     def velocity_names(self) -> list[str]:
@@ -200,8 +272,14 @@ class Inspection:
     def singular_blocks(self) -> list[BlockReport]:
         return [b for b in self.blocks if b.singular]
 
-    def text(self) -> str:
-        """Readable report; the matrix is printed in full when it is small."""
+    def text(self, full: bool = False) -> str:
+        """Readable report; the matrix is printed in full when it is small, a determinant longer
+        than :data:`MAX_SHOWN` characters summarised (:func:`summary`) unless ``full``."""
+
+        def shown(expr: sp.Expr) -> str:
+            text = sp.sstr(expr)
+            return text if full or len(text) <= MAX_SHOWN else f"[{summary(expr)}; --full prints it, --det-file FILE writes it]"
+
         coords, names = self.system.coordinates, self.system.constraint_names
         m, n = self.jacobian.shape
         lines = [
@@ -224,14 +302,16 @@ class Inspection:
             lines.append(" " * (label + 2) + "  ".join(h.rjust(w) for h, w in zip(self.velocity_names, width)))
             for i in range(m):
                 lines.append(f"{names[i].ljust(label)}  " + "  ".join(c.rjust(w) for c, w in zip(cells[i], width)))
+        if self.unfinished:
+            lines.append(f"det Phi_q (symbolic): {self.unfinished}")
         if self.determinant is None and self.determinant_value is not None:
             lines.append("det Phi_q (symbolic): too large to expand and factor here")
-            lines.append(f"det Phi_q at this configuration (exact) = {sp.sstr(self.determinant_value)}")
+            lines.append(f"det Phi_q at this configuration (exact) = {shown(self.determinant_value)}")
         if self.determinant is not None:
-            lines.append(f"det Phi_q (symbolic, factored) = {sp.sstr(self.determinant)}")
-            lines.append(f"det Phi_q at this configuration = {sp.sstr(self.determinant_value)}")
+            lines.append(f"det Phi_q (symbolic, factored) = {shown(self.determinant)}")
+            lines.append(f"det Phi_q at this configuration = {shown(self.determinant_value)}")
             for factor in self.vanishing_factors:
-                lines.append(f"vanishing factor: {sp.sstr(factor)}")
+                lines.append(f"vanishing factor: {shown(factor)}")
         if self.blocks:
             sizes = sorted((b.size for b in self.blocks), reverse=True)
             lines.append(
@@ -245,9 +325,9 @@ class Inspection:
                 lines.append(f"  coordinates: {', '.join(block.coordinates)}")
                 lines.append(f"  constraints: {', '.join(block.constraints)}")
                 if block.determinant is not None:
-                    lines.append(f"  det (symbolic, factored) = {sp.sstr(block.determinant)}")
+                    lines.append(f"  det (symbolic, factored) = {shown(block.determinant)}")
                 for factor in block.vanishing_factors:
-                    lines.append(f"  vanishing factor: {sp.sstr(factor)}")
+                    lines.append(f"  vanishing factor: {shown(factor)}")
                 if block.null_space:
                     lines.append(f"  null space of the block: {'; '.join(block.null_space)}")
         if self.singular and self.null_space:
@@ -255,6 +335,16 @@ class Inspection:
         if self.singular and self.dependent_constraints:
             lines.append("dependent constraints (left null space): " + ", ".join(self.dependent_constraints))
         return "\n".join(lines)
+
+    def determinants(self) -> str:
+        """Every symbolic determinant in full (for ``--det-file``): the whole one, or the blocks'."""
+        lines = []
+        if self.determinant is not None:
+            lines.append(f"det Phi_q = {sp.sstr(self.determinant)}")
+        for k, block in enumerate(self.blocks):
+            if block.determinant is not None:
+                lines.append(f"block {k} ({', '.join(block.bodies)}; {block.size}x{block.size}): det = {sp.sstr(block.determinant)}")
+        return "\n".join(lines) + "\n"
 
     def latex(self) -> str:
         """LaTeX of the determinant (or of the vanishing block determinants)."""
@@ -325,12 +415,17 @@ def inspect(
     t: str | float = 0,
     q: np.ndarray | None = None,
     numeric=None,
+    budget: float | None = None,
 ) -> Inspection:
     """Inspect Phi_q of ``model`` at time ``t`` (exact expression) or at the given coordinates ``q``.
 
     ``numeric`` is an optional quaternion :class:`NumericSystem` of the case (e.g. from a
     generated module) used to solve for the configuration; by default one is compiled. A model
     with design parameters is inspected at their nominal values (``model.at(values)`` for others).
+
+    ``budget``: seconds of exact work (None: unbounded). When it runs out in the symbolic
+    determinant, the report says so and keeps the rest; before the exact rank is known, an
+    :class:`InspectionBudgetError` names the block structure of Phi_q.
     """
     from kinegen.model.expressions import parse
 
@@ -347,11 +442,33 @@ def inspect(
     q_exact = [values[s] for s in system.coordinates.stored_symbols]
     on_poses, origins = _pose_substitution(system)
     values.update({r: sp.nsimplify(sp.simplify(e.xreplace(values))) for r, e in origins.items()})
-    if symbolic.shape[1] <= MAX_DIRECT:
-        exact = symbolic.xreplace(values).applyfunc(lambda e: sp.nsimplify(sp.simplify(e)))
-        return _direct(system, t_exact, q_exact, exact, on_poses(symbolic), values)
-    exact = symbolic.xreplace(values).applyfunc(_entry)
-    return _by_blocks(system, t_exact, q_exact, exact, on_poses(symbolic), values)
+    allowed = Budget(budget)
+    try:
+        with allowed.limit():
+            if symbolic.shape[1] <= MAX_DIRECT:
+                exact = symbolic.xreplace(values).applyfunc(lambda e: sp.nsimplify(sp.simplify(e)))
+                return _direct(system, t_exact, q_exact, exact, on_poses(symbolic), values, allowed)
+            exact = symbolic.xreplace(values).applyfunc(_entry)
+            return _by_blocks(system, t_exact, q_exact, exact, on_poses(symbolic), values, allowed)
+    except _Expired:
+        raise InspectionBudgetError(
+            f"the exact analysis of Phi_q ({symbolic.shape[0]} x {symbolic.shape[1]}) did not finish within its budget of "
+            f"{budget:g} s; {_structure(system)}. Give it more time (--budget SECONDS), or inspect a parametrization "
+            "without trigonometric entries (quaternion, euler-parameters)"
+        ) from None
+
+
+def _structure(system: System) -> str:
+    """Phi_q's block-triangular structure in words (from its sparsity pattern: no symbolic work)."""
+    from kinegen.symbolic.blocks import block_triangular
+
+    rows, cols = zip(*[(i, j) for i, j, _ in system.jacobian_entries])
+    blocks = block_triangular((len(system.constraint_names), len(system.coordinates.velocity_names)), np.array(rows), np.array(cols))
+    if not blocks:
+        return "Phi_q has no block-triangular form (not square, or structurally singular)"
+    names = system.coordinates.velocity_names
+    parts = [f"{b.size}x{b.size} ({', '.join(sorted({names[j].split('.')[0] for j in b.cols}))})" for b in blocks]
+    return f"its block-triangular form has {len(blocks)} diagonal block(s): {'; '.join(parts)}"
 
 
 def _pose_substitution(system: System):
@@ -381,7 +498,7 @@ def _entry(value: sp.Expr) -> sp.Expr:
     return sp.Rational(str(sp.N(value, DIGITS)))
 
 
-def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values) -> Inspection:
+def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values, budget: Budget) -> Inspection:
     """Exact rank, null spaces and the factored determinant of the whole (small) matrix."""
     rank = exact.rank(simplify=True)
     null = [_combination(v, system.coordinates.velocity_names) for v in exact.nullspace(simplify=True)]
@@ -391,7 +508,11 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
     report = Inspection(system, t_exact, q_exact, exact, rank, null, dependent)
     m, n = exact.shape
     if m == n:
-        det = _factored_determinant(symbolic)
+        try:
+            det = _factored_determinant(symbolic)
+        except _Expired:  # the rank is proven; the symbolic form is what ran out of time
+            report.unfinished = f"not finished within the budget of {budget.seconds:g} s (--budget SECONDS)"
+            return report
         report.determinant = det
         if det is None:
             report.determinant_value = sp.nsimplify(sp.simplify(exact.det(method="berkowitz")))
@@ -402,7 +523,7 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
     return report
 
 
-def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values) -> Inspection:
+def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values, budget: Budget) -> Inspection:
     """Large systems: block-triangular form, determinants block by block."""
     from kinegen.symbolic.blocks import block_triangular
 
@@ -410,6 +531,7 @@ def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.
     blocks = block_triangular(exact.shape, np.array(rows), np.array(cols))
     coordinate_names, constraint_names = system.coordinates.velocity_names, system.constraint_names
     reports: list[BlockReport] = []
+    unfinished: str | None = None
     for block in blocks or []:
         sub_exact = exact.extract(list(block.rows), list(block.cols))
         report = BlockReport(
@@ -417,8 +539,11 @@ def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.
             [coordinate_names[j] for j in block.cols],
             sub_exact.det(method="berkowitz"),
         )
-        if report.singular or block.size <= MAX_SYMBOLIC_BLOCK:
-            det = _factored_determinant(symbolic.extract(list(block.rows), list(block.cols)), simplify=report.singular)
+        if (report.singular or block.size <= MAX_SYMBOLIC_BLOCK) and not unfinished:
+            try:
+                det = _factored_determinant(symbolic.extract(list(block.rows), list(block.cols)), simplify=report.singular)
+            except _Expired:  # the block's exact value is known; its symbolic form ran out of time
+                det, unfinished = None, f"not finished within the budget of {budget.seconds:g} s (--budget SECONDS)"
             report.determinant = det
             if det is not None:
                 _, factors = sp.factor_list(det)
@@ -439,6 +564,7 @@ def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.
             [],
             blocks=reports,
             rank_method="every block determinant non-zero",
+            unfinished=unfinished,
         )
     # singular (or no block form): rank and null spaces named from an SVD of the exact entries
     matrix = np.array(exact.evalf(20).tolist(), dtype=float)
@@ -449,7 +575,7 @@ def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.
     for k in range(rank, matrix.shape[0]):
         dependent += [constraint_names[i] for i in np.flatnonzero(np.abs(u[:, k]) > 1e-6) if constraint_names[i] not in dependent]
     method = "double-precision SVD of the exact entries (the exact proof is the vanishing block determinant)"
-    return Inspection(system, t_exact, q_exact, exact, rank, null, dependent, blocks=reports, rank_method=method)
+    return Inspection(system, t_exact, q_exact, exact, rank, null, dependent, blocks=reports, rank_method=method, unfinished=unfinished)
 
 
 def _float_combination(vector: list[float], names: list[str]) -> str:

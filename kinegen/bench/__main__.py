@@ -128,7 +128,7 @@ def main(argv: list[str] | None = None) -> int:
         "sensitivities": (lambda: run_contender(f"{design}.sensitivity_cost()")) if "excavator-digging" in workloads else None,
         "design studies": None if args.no_studies else lambda: run_contender(f"{design}.study_cost()"),
         "kinegen explore": None if args.no_explore else lambda: run_contender("__import__('kinegen.bench.explore', fromlist=['x']).exploration_scaling()"),
-        "certified steps": (lambda: run_contender("__import__('kinegen.bench.certified', fromlist=['x']).certificate_cost()"))
+        "certified steps": (lambda: run_contender(f"__import__('kinegen.bench.certified', fromlist=['x']).certificate_cost(repeats={3 if args.quick else 9})"))
         if "excavator-digging" in workloads else None,
         "C target memory": lambda: {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")},
     }

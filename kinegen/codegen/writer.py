@@ -7,6 +7,7 @@ from pathlib import Path
 
 from kinegen.codegen import backends
 from kinegen.codegen.kernels import describe
+from kinegen.errors import ModelError
 from kinegen.files import write_atomic
 from kinegen.integrity import seal, sealed
 from kinegen.model import Model, load
@@ -39,7 +40,18 @@ def generate(
     description = describe(model, parametrization, sensitivities=sensitivities)
     stem = module_name(model, parametrization)
     files: dict[str, dict[str, str]] = {}
+    irregular = [name for name, case in description.cases.items() if case.plan is None]
     for target in sorted(targets, key=lambda t: not t.startswith("c")):
+        if target.startswith("c") and irregular:  # the C solver factorizes a square, structurally regular Phi_q
+            if target == "c":
+                raise ModelError(
+                    model.file, "redundant" if model.redundant else "joints",
+                    f"the standalone C target needs a square, structurally regular Phi_q; case(s) {', '.join(irregular)} "
+                    "have " + ("redundant constraints (solved by least squares in Python: build with --target python)"
+                               if model.redundant else "a structurally singular one"),
+                )  # fmt: skip
+            files[target] = {}  # generated/ holds no C for it: the runtime solves it in Python
+            continue
         if target == "c-model":
             made = backends.get("c")(description, stem, standalone=False)
         else:

@@ -100,11 +100,9 @@ def plot_exploration(
 ) -> Path:
     """The Pareto front of the two ``pareto`` quantities (every ok variant, the feasible ones, the
     front, the nominal design) beside the parameters' SRC ranking for every quantity; a PNG."""
-    import matplotlib
+    from kinegen.analysis.plots import pyplot, save
 
-    matplotlib.use("Agg")
-    import matplotlib.pyplot as plt
-
+    plt = pyplot()
     data = {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
     ok = data["status"] == "ok"
     feasible = data["feasible"] & ok
@@ -134,12 +132,7 @@ def plot_exploration(
         right.set_axis_off()
     else:
         _ranking_map(right, result)
-    figure.tight_layout()
-    target = Path(path)
-    target.parent.mkdir(parents=True, exist_ok=True)
-    figure.savefig(target, dpi=110)
-    plt.close(figure)
-    return target
+    return save(figure, path, dpi=110)
 
 
 def _ranking_map(axes, result: Ranking) -> None:

@@ -17,7 +17,6 @@ system, or the same checkout in every image).
 
 from __future__ import annotations
 
-import hashlib
 import os
 import time
 import warnings
@@ -148,7 +147,9 @@ def tasks(exploration: Exploration, skip: set[int]) -> list[PartitionTask]:
 def nominal_evaluator(exploration: Exploration) -> VariantEvaluator:
     """The client's evaluator (the nominal design measured; the C compiled into the cache the
     local workers then load)."""
-    source = hashlib.sha256(Path(exploration.model_file).read_bytes()).hexdigest()  # what the module records (checked)
+    from kinegen.model.loader import source_digest
+
+    source = source_digest(exploration.model_file)  # what the module records (checked)
     return evaluator(str(exploration.model_file), str(exploration.module_file), source, exploration.study, exploration.compiled)[0]
 
 

@@ -45,6 +45,10 @@ T = sp.Symbol("t", real=True)
 MAX_LENGTH = 2000
 MAX_DEPTH = 40
 MAX_MAGNITUDE = 1e12
+#: Digits of the largest exact integer (numerator or denominator) an expression may hold: nested
+#: powers of allowed numbers grow without bound otherwise (``((10**12)**64)**64`` has 49,153).
+MAX_DIGITS = 1000
+_MAX_BITS = int(MAX_DIGITS * 3.3219280948873626) + 1
 _BINARY = {
     ast.Add: lambda a, b: a + b,
     ast.Sub: lambda a, b: a - b,
@@ -72,6 +76,18 @@ _FLOAT_FUNCTIONS = {
     sp.sinh: math.sinh, sp.cosh: math.cosh, sp.tanh: math.tanh, sp.exp: math.exp, sp.log: math.log, sp.Abs: abs,
     sp.atan2: math.atan2, sp.sign: lambda x: math.copysign(1.0, x) if x else 0.0,
 }  # fmt: skip
+
+
+def _bits(expr: sp.Expr) -> int:
+    """Bits of the largest numerator or denominator among the exact numbers in ``expr``."""
+    return max((max(r.p.bit_length(), r.q.bit_length()) for r in expr.atoms(sp.Rational)), default=0)
+
+
+def _bounded(expr: sp.Expr) -> sp.Expr:
+    """``expr``, refused when an exact number in it has more than :data:`MAX_DIGITS` digits."""
+    if _bits(expr) > _MAX_BITS:
+        raise ExpressionError(f"an exact number in this expression has more than {MAX_DIGITS} digits")
+    return expr
 
 
 def float_value(expr: sp.Expr) -> float:
@@ -173,7 +189,7 @@ class _Translator:
                 raise ExpressionError("division by zero")
             if isinstance(node.op, ast.Pow):
                 self._check_power(left, right)
-            return _BINARY[type(node.op)](left, right)
+            return _bounded(_BINARY[type(node.op)](left, right))
         if isinstance(node, ast.Call):
             return self._call(node, depth)
         if isinstance(node, ast.Attribute):
@@ -227,6 +243,8 @@ class _Translator:
             raise ExpressionError(f"exponent {exponent} is not a real number") from None
         if value.imag != 0 or not abs(value.real) <= 64:
             raise ExpressionError(f"exponent {exponent} is not a real number of magnitude at most 64")
+        if _bits(base) * abs(value.real) > _MAX_BITS:
+            raise ExpressionError(f"the exact value of this power would have more than {MAX_DIGITS} digits")
 
     @staticmethod
     def _reject(message: str) -> sp.Expr:

@@ -19,6 +19,7 @@ import sympy as sp
 import yaml
 
 from kinegen.errors import ExpressionError, ModelError, shown
+from kinegen.files import STDIN, read_bounded
 from kinegen.model import expressions
 from kinegen.model.schema import (
     GROUND,
@@ -165,15 +166,18 @@ class ModelWarning(UserWarning):
 
 
 def load(path: str | Path) -> Model:
-    """Read, parse and validate the model file at ``path``."""
-    path = Path(path)
+    """Read, parse and validate the model file at ``path`` (``-``: standard input)."""
+    name = "<stdin>" if str(path) == STDIN else str(path)
     try:
-        raw = path.read_bytes()
+        raw = read_bounded(path, MAX_FILE_BYTES)
     except OSError as exc:
-        raise ModelError(str(path), "(file)", f"cannot read: {exc.strerror or exc}") from None
-    if len(raw) > MAX_FILE_BYTES:
-        raise ModelError(str(path), "(file)", f"larger than {MAX_FILE_BYTES} bytes")
-    return loads(raw, str(path))
+        raise ModelError(name, "(file)", f"cannot read: {exc.strerror or exc}") from None
+    return loads(raw, name)
+
+
+def source_digest(path: str | Path) -> str:
+    """SHA-256 of the model file's bytes (``-``: standard input), as generated modules record it."""
+    return hashlib.sha256(read_bounded(path, MAX_FILE_BYTES)).hexdigest()
 
 
 def loads(raw: bytes | str, file: str = "<string>") -> Model:
@@ -228,10 +232,11 @@ class _Reader:
             return {}
         if not isinstance(value, Mapping):
             raise self.fail(entry, f"expected a mapping, got {_kind(value)}")
+        known = frozenset(allowed)  # a tuple's `in` made a mapping of n free keys cost n^2
         for key in value:
             if not isinstance(key, str):
                 raise self.fail(entry, f"key {shown(key)} is not a string")
-            if key not in allowed:
+            if key not in known:
                 shown_key = key if key.strip() else shown(key)  # an empty key still names an entry
                 where = shown_key if entry == "(top level)" else f"{entry}.{shown_key}"
                 raise self.fail(where, f"unknown key (allowed: {', '.join(allowed)})")
@@ -253,7 +258,7 @@ class _Reader:
         try:
             expr = expressions.parse(value, self.parameters, allow_time=allow_time)
         except ExpressionError as exc:
-            raise self.fail(entry, str(exc)) from None
+            raise self.fail(entry, f"{shown(value)}: {exc}" if isinstance(value, str) else str(exc)) from None
         used = sorted(str(s)[2:] for s in expr.free_symbols & self.nominal.keys())
         if used and not design:
             raise self.fail(
@@ -784,10 +789,11 @@ class _Reader:
             self.name(key, entry)
             spec = self.mapping(spec, entry, ("description", "drivers", "t0", "t1", "steps"))
             drivers = common + self.drivers(spec.get("drivers"), f"{entry}.drivers")
-            names = [d.name for d in drivers]
-            for n in names:
-                if names.count(n) > 1:
+            seen: set[str] = set()
+            for n in (d.name for d in drivers):
+                if n in seen:
                     raise self.fail(f"{entry}.drivers.{n}", "duplicate driver name (also in the common drivers)")
+                seen.add(n)
             t0 = float(self.scalar(spec.get("t0", 0), f"{entry}.t0"))
             t1 = float(self.scalar(spec.get("t1", 1), f"{entry}.t1"))
             if not t1 > t0:

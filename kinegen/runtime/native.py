@@ -132,7 +132,7 @@ class Solver(ctypes.Structure):
 
 
 #: kinegen_status codes
-OK, NOT_CONVERGED, SINGULAR, BRANCH, NOT_STARTED = range(5)
+OK, NOT_CONVERGED, SINGULAR, BRANCH, NOT_STARTED, INPUTS = range(6)
 
 
 def c_compiler() -> str:

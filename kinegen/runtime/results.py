@@ -8,11 +8,15 @@ global positions, velocities and accelerations of named body points.
 from __future__ import annotations
 
 import csv
+import io
+import sys
 from dataclasses import dataclass
 from pathlib import Path
+from typing import TextIO
 
 import numpy as np
 
+from kinegen.files import atomic_writer, write_atomic
 from kinegen.model.schema import GROUND
 from kinegen.runtime.system import NumericSystem
 
@@ -305,12 +309,11 @@ class Results:
 
         names, values = self.sensitivity_table()
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
         document = {
             "model": self.system.model, "case": self.system.case, "design": self.system.design,
             "columns": {name: values[:, i].tolist() for i, name in enumerate(names)},
         }  # fmt: skip
-        path.write_text(json.dumps(document), encoding="utf-8")
+        write_atomic(path, json.dumps(document))
         return path
 
     def to_csv(self, path: str | Path) -> Path:
@@ -318,10 +321,22 @@ class Results:
         return self._write_csv(path, *self.table())
 
     def _write_csv(self, path: str | Path, names: list[str], values: np.ndarray) -> Path:
+        """The table as CSV into ``path`` (``-``: standard output), all or nothing: a full disk
+        or an interrupted write keeps the previous file."""
+        if str(path) == "-":
+            _csv_rows(sys.stdout, names, values)
+            sys.stdout.flush()
+            return Path(path)
         path = Path(path)
-        path.parent.mkdir(parents=True, exist_ok=True)
-        with path.open("w", newline="", encoding="utf-8") as handle:
-            writer = csv.writer(handle)
-            writer.writerow(names)
-            writer.writerows([[repr(float(x)) for x in row] for row in values])
+        with atomic_writer(path) as binary:
+            handle = io.TextIOWrapper(binary, encoding="utf-8", newline="")
+            _csv_rows(handle, names, values)
+            handle.flush()
+            handle.detach()
         return path
+
+
+def _csv_rows(handle: TextIO, names: list[str], values: np.ndarray) -> None:
+    writer = csv.writer(handle)
+    writer.writerow(names)
+    writer.writerows([[repr(float(x)) for x in row] for row in values])

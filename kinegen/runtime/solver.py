@@ -430,8 +430,8 @@ class Solver:
         def inputs_at(t: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             """Inputs at a refinement time between samples i-1 and i: the case's functions, or for
             tabulated inputs the cubic Hermite interpolant of (u, du/dt) and its derivatives."""
-            if not tabulated:
-                return tuple(x[:, 0] for x in system.driver_inputs(np.array([t])))
+            if not tabulated:  # a ModelError naming the driver where a function leaves its domain between samples
+                return tuple(x[:, 0] for x in system.checked_inputs(np.array([t]), (times[i - 1], times[i])))
             d = times[i] - times[i - 1]
             s = (t - times[i - 1]) / d
             u0, u1, m0, m1 = u_all[:, i - 1], u_all[:, i], d * ud_all[:, i - 1], d * ud_all[:, i]
@@ -546,7 +546,7 @@ class Solver:
             solution = self._position(guess, u, t1, thorough=depth == 0, factors=previous if depth == 0 else None, native=False)
             factors = self._factor(solution.values, t1)
             observed = None
-            if opts.keep_branch and factors.lu is not None:
+            if opts.keep_branch and (factors.lu is not None or factors.pinv is not None):  # pinv: redundant, least squares
                 moved = None if solution.moved is None else motion + solution.moved
                 observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs)
         except (ConvergenceError, SingularJacobianError):

@@ -96,11 +96,12 @@ class NumericSystem:
         k = self.n_inputs
         return rows[:k], rows[k : 2 * k], rows[2 * k :]
 
-    def checked_inputs(self, times: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def checked_inputs(self, times: np.ndarray, step: tuple[float, float] | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """:meth:`driver_inputs` on a time grid, refused with a :class:`ModelError` where a
         time function or one of its first two derivatives is not a finite real number
         (``sqrt(t - 1)`` before t = 1, ``1/t`` at 0, ``exp(1000*t)``): the message names the
-        driver's entry in the model file, its expression and the first failing time."""
+        driver's entry in the model file, its expression and the first failing time. ``step``: the
+        two time points the solver subdivides between, where ``times`` lie inside a step."""
         times = np.asarray(times, dtype=float)
         with np.errstate(all="ignore"), warnings.catch_warnings():
             warnings.simplefilter("ignore")
@@ -125,8 +126,13 @@ class NumericSystem:
             raise ModelError(
                 self.source or self.model, entry,
                 f"{shown(text)}: {what} is not a finite real number at t = {times[column]:.6g} ({failure})"
-                + (f"; {count} of the {len(times)} time points fail" if count else "")
-                + " -- the function leaves its domain on this time grid",
+                + (
+                    f", inside the step from t = {step[0]:.6g} to {step[1]:.6g} that the solver subdivides"
+                    " -- the function leaves its domain between these time points"
+                    if step
+                    else (f"; {count} of the {len(times)} time points fail" if count else "")
+                    + " -- the function leaves its domain on this time grid"
+                ),
             )  # fmt: skip
         k = self.n_inputs
         return rows[:k], rows[k : 2 * k], rows[2 * k :]
@@ -419,7 +425,9 @@ def load_module(path: str | Path, model_file: str | Path | None = None) -> Modul
             raise GeneratedModuleError(f"{path}: not a kinegen generated module (no {attribute})")
     sys.modules[name] = module
     if model_file is not None:
-        digest = hashlib.sha256(Path(model_file).read_bytes()).hexdigest()
+        from kinegen.model.loader import source_digest  # the model's reader (sympy) only where a model file is named
+
+        digest = source_digest(model_file)
         if digest != module.SOURCE_SHA256:
             raise GeneratedModuleError(
                 f"{path} is stale: it was built from a different version of {model_file}; "

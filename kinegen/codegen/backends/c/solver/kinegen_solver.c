@@ -525,6 +525,12 @@ static int advance(kinegen_solver *s, double t, const double *u, const double *u
     double middle[3 * ni + 1]; /* C99 variable-length array: the solver allocates no heap */
     double tm = 0.5 * (s->t + t);
     inputs_at(s, tm, t, u, ud, middle);
+    for (int i = 0; i < 3 * ni; ++i) {
+        if (!isfinite(middle[i])) {
+            s->branch_time = tm;
+            return KINEGEN_INPUTS;
+        }
+    }
     ++s->refinements;
     status = advance(s, tm, middle, middle + ni, middle + 2 * ni, depth + 1, iterations);
     if (status != KINEGEN_OK) return status;
@@ -719,6 +725,8 @@ const char *kinegen_status_text(int status) {
                "flips: a singular pose lies within the step; or the inputs change too fast for the step)";
     case KINEGEN_NOT_STARTED:
         return "no initial pose solved yet (kinegen_start)";
+    case KINEGEN_INPUTS:
+        return "the driver inputs are not finite inside the step (a time function leaves its domain between two time points)";
     default:
         return "unknown status";
     }

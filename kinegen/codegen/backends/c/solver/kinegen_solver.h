@@ -36,7 +36,9 @@ enum kinegen_status {
                                   the sign of its determinant (its assembly mode: a toggle or dead point lies
                                   in between), or the continuation bound failed (inputs too fast for the
                                   grid, or a singular pose near); see branch_block and bound */
-    KINEGEN_NOT_STARTED = 4    /* kinegen_step before a successful kinegen_start */
+    KINEGEN_NOT_STARTED = 4,   /* kinegen_step before a successful kinegen_start */
+    KINEGEN_INPUTS = 5         /* the case's time functions are not finite at a time inside the step
+                                  (branch_time): a function leaves its domain between two time points */
 };
 
 /* How a step is certified (kinegen_step). With x0 the last solution and x1 Newton's solution at the

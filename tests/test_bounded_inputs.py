@@ -1,0 +1,277 @@
+"""Issue 25, section 4: input that once ended in a traceback, a hang or a silent loss.
+
+Every case runs as a user runs it -- the ``kinegen`` command in a subprocess where a real pipe,
+device, FIFO or file-size limit is involved -- and must end in one error line with its exit code
+(2 model or usage, 6 input/output), or, for a reader that leaves early, quietly (141).
+"""
+
+from __future__ import annotations
+
+import csv
+import importlib
+import os
+import resource
+import signal
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import numpy as np
+import pytest
+from click.testing import CliRunner
+
+from kinegen.cli import main
+from kinegen.model import loads
+from kinegen.runtime import Solver, from_module
+from tests.conftest import MODELS
+from tests.test_singularities import ALL_REVOLUTE_FOUR_BAR
+
+FOUR_BAR = str(MODELS / "four_bar.yaml")
+SLIDER_CRANK = (MODELS / "slider_crank.yaml").read_text()
+CRANK_FUNCTION = "0.3 + 2*pi*t + 0.5*t**2"
+
+
+def run(*args: str, stdin: str | None = None):
+    return CliRunner().invoke(main, list(args), input=stdin)
+
+
+def kinegen(*args: str, **kwargs) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", "kinegen.cli", *args], capture_output=True, text=True, timeout=300, **kwargs)
+
+
+def one_error_line(output: str) -> str:
+    errors = [line for line in output.splitlines() if line.startswith(("error:", "Error:"))]
+    assert len(errors) == 1 and "Traceback" not in output, output
+    return errors[0]
+
+
+@pytest.fixture(autouse=True)
+def _cache(tmp_path_factory, monkeypatch):
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path_factory.getbasetemp() / "kinegen-cache"))
+
+
+# ---- expressions -------------------------------------------------------------------------------
+@pytest.mark.parametrize(
+    "power", ["((1000000000000**64)**64)**64", "(999999999999**60)**60 * 7", "(2**64)**64 * (3**64)**64 * (5**64)**64 * (7**64)**64"]
+)
+def test_a_power_too_large_to_write_is_a_model_error_naming_the_entry_and_expression(tmp_path, power):
+    model = tmp_path / "huge.yaml"
+    model.write_text(SLIDER_CRANK.replace("  l: 0.6", f"  l: 0.6\n  huge: {power}"))
+    result = run("build", str(model), "--generated-dir", str(tmp_path))
+    assert result.exit_code == 2
+    line = one_error_line(result.output)
+    assert "parameters.huge" in line and power[:20] in line and "more than 1000 digits" in line
+
+
+@pytest.mark.parametrize("compile_flag", ["--no-compile", None])
+def test_a_time_function_undefined_between_two_time_points_names_entry_expression_and_time(tmp_path, compile_flag):
+    """1/(t - 0.7025) is finite on the 301-point grid (step 5 ms) but not at 0.7025, the middle of
+    a step the solver subdivides where the crank's motion gets fast: exit 2, not a traceback."""
+    function = "0.3 + 0.001/(t - 0.7025)"
+    model = tmp_path / "pole.yaml"
+    model.write_text(SLIDER_CRANK.replace(CRANK_FUNCTION, function))
+    result = run("solve", str(model), "--case", "run", "--generated-dir", str(tmp_path), *([compile_flag] if compile_flag else []))
+    assert result.exit_code == 2, result.output
+    line = one_error_line(result.output)
+    assert "cases.run.drivers.crank_angle.function" in line and function in line
+    assert "t = 0.7025" in line and "inside the step from t = 0.7 to 0.705" in line
+
+
+# ---- files -------------------------------------------------------------------------------------
+@pytest.mark.parametrize("source", ["/dev/zero", "fifo", "directory-like"])
+def test_a_model_that_is_not_a_regular_file_is_refused_at_once(tmp_path, source):
+    if source == "fifo":
+        path = tmp_path / "model.yaml"
+        os.mkfifo(path)  # no writer: opening it for reading would block for ever
+    elif source == "directory-like":
+        path = tmp_path / "model.yaml"
+        path.mkdir()
+    else:
+        path = Path(source)
+    start = time.monotonic()
+    result = kinegen("build", str(path), "--generated-dir", str(tmp_path))
+    assert result.returncode == 2, result.stderr
+    assert time.monotonic() - start < 60
+    line = one_error_line(result.stderr)
+    assert ("not a regular file" in line or "is a directory" in line) and "Traceback" not in result.stderr
+
+
+def test_a_model_larger_than_the_limit_is_refused_while_reading(tmp_path):
+    from kinegen.model.loader import MAX_FILE_BYTES
+
+    path = tmp_path / "large.yaml"
+    path.write_text("# " + "x" * MAX_FILE_BYTES)
+    result = run("build", str(path), "--generated-dir", str(tmp_path))
+    assert result.exit_code == 2 and f"larger than {MAX_FILE_BYTES:,} bytes" in one_error_line(result.output)
+
+
+def test_a_model_from_standard_input_solves_as_the_same_file(tmp_path):
+    by_file = run("solve", FOUR_BAR, "--out", str(tmp_path / "file.csv"), "--generated-dir", str(tmp_path), "--no-compile")
+    by_stdin = run("solve", "-", "--out", str(tmp_path / "stdin.csv"), "--generated-dir", str(tmp_path), "--no-compile",
+                   stdin=Path(FOUR_BAR).read_text())  # fmt: skip
+    assert by_file.exit_code == 0 and by_stdin.exit_code == 0, by_stdin.output
+    assert (tmp_path / "file.csv").read_bytes() == (tmp_path / "stdin.csv").read_bytes()
+
+
+# ---- command-line arguments --------------------------------------------------------------------
+@pytest.mark.parametrize(
+    ("args", "option"),
+    [
+        (["inspect", FOUR_BAR, "--at", "foo("], "--at"),
+        (["inspect", FOUR_BAR, "--at", "1e6"], "--at"),
+        (["inspect", FOUR_BAR, "--at", "sqrt(-1)"], "--at"),
+        (["inspect", FOUR_BAR, "--q", "[1,2"], "--q"),
+        (["inspect", FOUR_BAR, "--q", "[1, 2]"], "--q"),
+        (["inspect", FOUR_BAR, "--q", '{"crank.x": "a"}'], "--q"),
+        (["envelope", str(MODELS / "excavator.yaml"), "--grid", "2,2"], "--grid"),
+        (["envelope", str(MODELS / "excavator.yaml"), "--grid", "1000,1000,1000"], "--grid"),
+        (["solve", FOUR_BAR, "--plot", "x.xyz"], "--plot"),
+        (["scan", FOUR_BAR, "--plot", "x.xyz"], "--plot"),
+    ],
+)
+def test_a_bad_argument_is_one_usage_error_naming_the_option(args, option):
+    start = time.monotonic()
+    result = run(*args)
+    assert result.exit_code == 2, result.output
+    assert option in one_error_line(result.output)
+    assert time.monotonic() - start < 30  # refused before any long work
+
+
+def test_a_plot_onto_a_full_device_is_an_input_output_error(tmp_path):
+    result = kinegen("solve", FOUR_BAR, "--plot", "/dev/full", "--generated-dir", str(tmp_path), "--no-compile")
+    assert result.returncode == 6 and "No space left on device" in one_error_line(result.stderr)
+    assert "wrote /dev/full" not in result.stdout
+
+
+def test_output_closed_early_ends_quietly(tmp_path):
+    """`kinegen solve ... --out - | head -1`: the CSV goes to standard output; the reader leaves
+    after one line; kinegen ends quietly with 141 (128 + SIGPIPE), as a Unix tool does."""
+    process = subprocess.Popen(
+        [sys.executable, "-m", "kinegen.cli", "solve", FOUR_BAR, "--out", "-", "--generated-dir", str(tmp_path), "--no-compile"],
+        stdout=subprocess.PIPE, stderr=subprocess.PIPE,
+    )  # fmt: skip
+    header = process.stdout.readline()
+    process.stdout.close()
+    _, errors = process.communicate(timeout=300)
+    assert header.startswith(b"t,converged,")
+    assert process.returncode == 141, errors
+    assert b"Broken pipe" not in errors and b"Traceback" not in errors and b"error" not in errors
+
+
+# ---- redundant models --------------------------------------------------------------------------
+def test_a_redundant_model_solves_through_the_command_and_matches_a_fine_solve(tmp_path):
+    """The spatial all-revolute four-bar (3 redundant equations) through `kinegen solve`: least
+    squares in Python, every row equal to a solve of the same case on a 10x finer grid."""
+    path = tmp_path / "four_bar_rrrr.yaml"
+    path.write_text(ALL_REVOLUTE_FOUR_BAR)
+    out = tmp_path / "rrrr.csv"
+    result = run("solve", str(path), "--out", str(out), "--generated-dir", str(tmp_path))
+    assert result.exit_code == 0, result.output
+    with out.open() as handle:
+        rows = list(csv.DictReader(handle))
+    assert len(rows) == 101 and all(float(r["converged"]) == 1 for r in rows)
+    from kinegen.codegen.inmemory import lambdify_model
+    from kinegen.rotations import get
+
+    system = from_module(lambdify_model(loads(ALL_REVOLUTE_FOUR_BAR, str(path)), get("quaternion")))
+    fine = Solver(system).solve(np.linspace(0.0, 1.0, 1001))
+    names = ["rocker.C.x", "rocker.C.y", "rocker.C.z", "coupler.C.x", "coupler.C.y"]
+    got = np.array([[float(r[n]) for n in names] for r in rows])
+    points = fine.point_position  # body, point -> (K, 3)
+    reference = np.column_stack([points("rocker", "C")[::10], points("coupler", "C")[::10, :2]])
+    assert np.abs(got - reference).max() < 1e-9
+    standalone = run("build", str(path), "--target", "c", "--out-dir", str(tmp_path / "c"))
+    assert standalone.exit_code == 2 and "redundant" in one_error_line(standalone.output)
+
+
+# ---- writes ------------------------------------------------------------------------------------
+def _limit_file_size(limit: int):
+    def apply() -> None:
+        signal.signal(signal.SIGXFSZ, signal.SIG_IGN)  # a write beyond the limit fails with EFBIG
+        resource.setrlimit(resource.RLIMIT_FSIZE, (limit, limit))
+
+    return apply
+
+
+def test_a_csv_that_cannot_be_written_whole_keeps_the_previous_file(tmp_path):
+    """The disk fills up (a file-size limit of 64 kB on the process: EFBIG) while the CSV is
+    written: exit 6, the previous CSV byte for byte, no temporary file left."""
+    out = tmp_path / "results.csv"
+    first = kinegen("solve", FOUR_BAR, "--steps", "11", "--out", str(out), "--generated-dir", str(tmp_path), "--no-compile")
+    assert first.returncode == 0, first.stderr
+    before = out.read_bytes()
+    second = kinegen("solve", FOUR_BAR, "--out", str(out), "--generated-dir", str(tmp_path), "--no-compile",
+                     preexec_fn=_limit_file_size(64_000))  # fmt: skip
+    assert second.returncode == 6, second.stderr
+    assert "File too large" in one_error_line(second.stderr)
+    assert out.read_bytes() == before
+    assert sorted(p.name for p in tmp_path.iterdir() if ".tmp" in p.name) == []
+
+
+def test_a_write_killed_midway_leaves_no_temporary_file_after_the_next_run(tmp_path):
+    """SIGKILL while a large CSV is written leaves its temporary file; the next write into the
+    same folder removes it (its writer no longer runs) and the CSV is whole."""
+    out = tmp_path / "long.csv"
+    command = [sys.executable, "-m", "kinegen.cli", "solve", FOUR_BAR, "--steps", "60000", "--out", str(out),
+               "--generated-dir", str(tmp_path)]  # fmt: skip
+    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+    deadline = time.monotonic() + 240
+    while not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")] and time.monotonic() < deadline:
+        time.sleep(0.01)
+    process.kill()
+    process.wait()
+    assert [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")], "the write finished before it could be killed"
+    assert not out.exists()
+    again = kinegen("solve", FOUR_BAR, "--steps", "11", "--out", str(out), "--generated-dir", str(tmp_path))
+    assert again.returncode == 0, again.stderr
+    assert [p.name for p in tmp_path.iterdir() if ".tmp" in p.name] == []
+    with out.open() as handle:
+        assert len(list(csv.reader(handle))) == 12
+
+
+# ---- inspect's budget --------------------------------------------------------------------------
+def test_inspect_keeps_to_its_budget():
+    """The RSSR linkage in euler:zxz: its 12 x 12 determinant took minutes to expand; with a
+    5-second budget the exact rank and the classification still come, and the determinant is said
+    to be unfinished."""
+    start = time.monotonic()
+    result = run("inspect", str(MODELS / "rssr.yaml"), "--param", "euler:zxz", "--budget", "5")
+    assert result.exit_code == 0, result.output
+    assert time.monotonic() - start < 60
+    assert "exact rank 11" in result.output and "not finished within the budget of 5 s" in result.output
+    assert "representation singularity" in result.output
+
+
+def test_a_long_determinant_is_summarised_and_written_whole_on_request(tmp_path, monkeypatch):
+    """The boom's euler:zxz determinant, with the printing limit lowered below its length: one
+    summary line whose counts match the expression's own; --full prints it; --det-file writes a
+    form SymPy reads back to the same expression."""
+    import sympy as sp
+
+    inspection = importlib.import_module("kinegen.analysis.inspect")  # the package's `inspect` is the function
+
+    boom = str(MODELS / "boom.yaml")
+    whole = run("inspect", boom, "--param", "euler:zxz", "--at", "0", "--det-file", str(tmp_path / "det.txt"))
+    assert whole.exit_code == 0, whole.output
+    text = (tmp_path / "det.txt").read_text()
+    expression = text.split("det Phi_q = ", 1)[1].strip()
+    monkeypatch.setattr(inspection, "MAX_SHOWN", 10)
+    short = run("inspect", boom, "--param", "euler:zxz", "--at", "0")
+    assert short.exit_code == 0, short.output
+    from kinegen.rotations import get
+    from tests.conftest import model
+
+    det = inspection.inspect(model("boom"), get("euler:zxz"), None, "0").determinant
+    read = sp.sympify(expression)
+    values = {name: 0.1 + 0.37 * k for k, name in enumerate(sorted(str(x) for x in det.free_symbols))}
+    assert {str(x) for x in read.free_symbols} == set(values)
+    at = lambda e: complex(e.xreplace({x: values[str(x)] for x in e.free_symbols}).evalf())  # noqa: E731
+    assert abs(at(read) - at(det)) <= 1e-12 * max(1.0, abs(at(det)))  # the file holds the determinant
+    line = next(x for x in short.output.splitlines() if x.startswith("det Phi_q (symbolic, factored)"))
+    factors = sp.Mul.make_args(det)
+    terms = sum(len(sp.Add.make_args(f.as_base_exp()[0])) for f in factors)
+    assert f"{len(factors)} factor(s), {terms:,} terms" in line and "--det-file FILE writes it" in line
+    assert expression not in short.output
+    full = run("inspect", boom, "--param", "euler:zxz", "--at", "0", "--full")
+    assert expression in full.output
