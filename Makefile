@@ -32,11 +32,12 @@ test: $(VENV)/.dev
 bench: $(VENV)/.dev
 	$(BIN)/python -m kinegen.bench $(BENCH_ARGS)
 
-## fuzz: 10,000 fuzzed model files (Hypothesis); each must end in a ModelError naming file and entry
+## fuzz: 10,000 fuzzed model files (Hypothesis), each ending in a ModelError naming file and entry; then
+## hostile names, damaged modules and libraries, random input signals and command lines (issue 25)
 fuzz: $(VENV)/.dev
 	mkdir -p $(OUT)
 	KINEGEN_FUZZ_EXAMPLES=$${KINEGEN_FUZZ_EXAMPLES:-10000} KINEGEN_FUZZ_REPORT=$(OUT)/fuzz.txt \
-		$(BIN)/python -m pytest -q -s -p no:randomly tests/test_fuzz.py
+		$(BIN)/python -m pytest -q -s -p no:randomly tests/test_fuzz.py tests/test_fuzz_layers.py
 	@cat $(OUT)/fuzz.txt
 
 ## generate: rebuild every committed module in generated/ from models/

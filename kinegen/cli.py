@@ -20,7 +20,7 @@ import click
 import numpy as np
 
 from kinegen import __version__, rotations
-from kinegen.errors import GeneratedModuleError, KinegenError
+from kinegen.errors import GeneratedModuleError, KinegenError, printable
 from kinegen.files import read_bounded
 
 IO_ERROR = 6
@@ -48,7 +48,8 @@ class _Group(click.Group):
     def _fail(ctx: click.Context, message: str, code: int) -> None:
         if ctx.obj and ctx.obj.get("debug"):
             traceback.print_exc()
-        click.echo(message, err=True)
+        # file names and model text reach the terminal as text: no control character acts on it
+        click.echo("\n".join(printable(line) for line in message.split("\n")), err=True)
         ctx.exit(code)
 
 
@@ -400,7 +401,7 @@ def _report_ranges(results) -> None:
 )
 @click.option("--latex", is_flag=True, help="Also print the determinant in LaTeX.")
 @click.option("--json", "as_json", is_flag=True, help="Print a JSON report instead of text.")
-@click.option("--budget", type=click.FloatRange(min=0, min_open=True), default=60.0, show_default=True,
+@click.option("--budget", type=click.FloatRange(min=0, min_open=True, max=86_400), default=60.0, show_default=True,
               help="Seconds of exact symbolic work allowed (the determinant is left out, or the inspection stops naming Phi_q's blocks, when they run out).")  # fmt: skip
 @click.option("--full", is_flag=True, help="Print long determinants in full (by default one longer than 600 characters is summarised).")
 @click.option("--det-file", type=click.Path(dir_okay=False), default=None, help="Write every symbolic determinant in full into this file.")

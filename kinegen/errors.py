@@ -29,9 +29,10 @@ class ModelError(KinegenError):
     def __init__(self, file: str, entry: str, problem: str, line: int | None = None) -> None:
         self.file = file
         self.line = line
-        self.entry = _shortened(entry, 200)
-        self.problem = _shortened(problem, 400)
-        where = file if line is None else f"{file}:{line}"
+        self.entry = _shortened(" ".join(entry.split()), 200)
+        self.problem = _shortened(" ".join(problem.split()), 400)  # one line, whatever a parser's message held
+        shown_file = printable(file)  # a file name may hold newlines and control characters
+        where = shown_file if line is None else f"{shown_file}:{line}"
         super().__init__(f"{where}: {self.entry}: {self.problem}")
 
 
@@ -57,6 +58,12 @@ def shown(value: Any) -> str:
     are cut after 2 levels and 4 items, strings after 80 characters, huge integers shown by
     their number of digits."""
     return _REPR.repr(value)
+
+
+def printable(text: str) -> str:
+    """``text`` with every character that is not printable (control characters, newlines, escape
+    sequences a terminal would act on) shown as its Python escape, e.g. ``\\x1b``."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
 
 
 def _shortened(text: str, limit: int) -> str:

@@ -124,6 +124,7 @@ def test_a_model_from_standard_input_solves_as_the_same_file(tmp_path):
         (["inspect", FOUR_BAR, "--q", "[1,2"], "--q"),
         (["inspect", FOUR_BAR, "--q", "[1, 2]"], "--q"),
         (["inspect", FOUR_BAR, "--q", '{"crank.x": "a"}'], "--q"),
+        (["inspect", FOUR_BAR, "--budget", "9223372063"], "--budget"),
         (["envelope", str(MODELS / "excavator.yaml"), "--grid", "2,2"], "--grid"),
         (["envelope", str(MODELS / "excavator.yaml"), "--grid", "1000,1000,1000"], "--grid"),
         (["solve", FOUR_BAR, "--plot", "x.xyz"], "--plot"),

@@ -77,7 +77,7 @@ class Budget:
             raise _Expired
 
         previous = signal.signal(signal.SIGALRM, expire)
-        signal.setitimer(signal.ITIMER_REAL, max(left, 1e-3))
+        signal.setitimer(signal.ITIMER_REAL, min(max(left, 1e-3), 1e7))  # (the timer's range is finite)
         try:
             yield
         finally:
