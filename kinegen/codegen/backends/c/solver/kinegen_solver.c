@@ -250,6 +250,73 @@ static void solve(kinegen_solver *s, const double *b, double *x) {
     for (int j = 0; j < m->n_v; ++j) x[m->col_order[j]] = y[j];
 }
 
+/* b[k] = Phi_q^-1 b[k] for k < 3, in place, with the same factors in one pass over them (the three
+ * input effects of a step's certificate); y: 3 n_v scratch values. The arithmetic of each column is
+ * that of solve(). */
+static void solve3(kinegen_solver *s, double *b[3], double *y) {
+    const kinegen_model *m = s->model;
+    int nv = m->n_v;
+    double *y0 = y, *y1 = y + nv, *y2 = y + 2 * nv;
+    for (int blk = 0; blk < m->n_blocks; ++blk) {
+        int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
+        const double *A = s->store + m->block_store[blk];
+        const int *piv = s->pivots + first;
+        double *r0 = y0 + first, *r1 = y1 + first, *r2 = y2 + first;
+        for (int i = 0; i < n; ++i) {
+            int row = first + i, source = m->row_order[row];
+            double a0 = b[0][source], a1 = b[1][source], a2 = b[2][source];
+            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) {
+                double f = s->off[e];
+                int c = m->off_col[e];
+                a0 -= f * y0[c];
+                a1 -= f * y1[c];
+                a2 -= f * y2[c];
+            }
+            r0[i] = a0;
+            r1[i] = a1;
+            r2[i] = a2;
+        }
+        if (n == 1) {
+            r0[0] /= A[0];
+            r1[0] /= A[0];
+            r2[0] /= A[0];
+            continue;
+        }
+        for (int k = 0; k < n; ++k) {
+            if (piv[k] != k) {
+                double t0 = r0[k], t1 = r1[k], t2 = r2[k];
+                r0[k] = r0[piv[k]], r1[k] = r1[piv[k]], r2[k] = r2[piv[k]];
+                r0[piv[k]] = t0, r1[piv[k]] = t1, r2[piv[k]] = t2;
+            }
+        }
+        for (int k = 0; k < n; ++k)
+            for (int i = k + 1; i < n; ++i) {
+                double f = A[i + k * n];
+                r0[i] -= f * r0[k];
+                r1[i] -= f * r1[k];
+                r2[i] -= f * r2[k];
+            }
+        for (int k = n - 1; k >= 0; --k) {
+            double d = A[k + k * n];
+            r0[k] /= d;
+            r1[k] /= d;
+            r2[k] /= d;
+            for (int i = 0; i < k; ++i) {
+                double f = A[i + k * n];
+                r0[i] -= f * r0[k];
+                r1[i] -= f * r1[k];
+                r2[i] -= f * r2[k];
+            }
+        }
+    }
+    for (int j = 0; j < nv; ++j) {
+        int c = m->col_order[j];
+        b[0][c] = y0[j];
+        b[1][c] = y1[j];
+        b[2][c] = y2[j];
+    }
+}
+
 /* x = Phi_q^-T c (for the condition estimate; x and c may alias). */
 static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
     const kinegen_model *m = s->model;
@@ -377,12 +444,16 @@ static int newton(kinegen_solver *s, const double *u, int chord, int *count, dou
     return KINEGEN_OK;
 }
 
-/* max |Phi_q^-1 nu(x, u, w)| with the current factors: how far a change w of the inputs moves the
- * solution, to first order (nu = -Phi_u du/dt is linear in the rates). */
-static double input_effect(kinegen_solver *s, const double *u, const double *w) {
-    nu(s, s->trial, u, w, s->w2);
-    solve(s, s->w2, s->w2);
-    return max_abs(s->w2, s->model->n_v);
+/* Largest n_v whose certificate solves its three input effects together on the stack (6 n_v doubles). */
+#define SOLVE3_LIMIT 4096
+
+/* The k-th change of the inputs the certificate bounds (w, n_inputs values), for the step of h from
+ * the state's inputs (s->u, s->ud) to (u, ud): D = u1 - u0, A = h ud0 - D, B = h ud1 - D. */
+static void input_change(const kinegen_solver *s, int k, double h, const double *u, const double *ud, double *w) {
+    for (int i = 0; i < s->model->n_inputs; ++i) {
+        double change = u[i] - s->u[i];
+        w[i] = k == 0 ? change : (k == 1 ? h * s->ud[i] : h * ud[i]) - change;
+    }
 }
 
 /* The step's certificate (see kinegen_options in kinegen_solver.h) for the converged s->trial at
@@ -390,7 +461,7 @@ static double input_effect(kinegen_solver *s, const double *u, const double *w) 
  * Phi_q's at s->trial and s->step is -Phi_q^-1 Phi there. KINEGEN_OK or KINEGEN_BRANCH. */
 static int certify(kinegen_solver *s, double h, const double *u, const double *ud) {
     const kinegen_model *m = s->model;
-    int nv = m->n_v, ni = m->n_inputs;
+    int nv = m->n_v;
     s->branch_block = -1;
     for (int b = 0; b < m->n_blocks; ++b)
         if (s->factor_block_sign[b] != s->block_sign[b]) {
@@ -409,14 +480,26 @@ static int certify(kinegen_solver *s, double h, const double *u, const double *u
      * u(s) - u1 = -(1 - r) D + r (1 - r)^2 A - r^2 (1 - r) B, D = u1 - u0, A = h ud0 - D, B = h ud1 - D,
      * whose effect is at most |W D| + 4/27 (|W A| + |W B|) */
     double *w = s->x; /* n_inputs <= n_v values */
-    double alpha = max_abs(s->step, nv);
-    for (int i = 0; i < ni; ++i) w[i] = u[i] - s->u[i];
-    alpha += input_effect(s, u, w);
-    for (int i = 0; i < ni; ++i) w[i] = h * s->ud[i] - (u[i] - s->u[i]);
-    double side = input_effect(s, u, w);
-    for (int i = 0; i < ni; ++i) w[i] = h * ud[i] - (u[i] - s->u[i]);
-    side += input_effect(s, u, w);
-    alpha += 4.0 / 27.0 * side;
+    double change[3]; /* |W D|, |W A|, |W B| */
+    for (int k = 0; k < 3; ++k) change[k] = 0.0;
+    if (nv <= SOLVE3_LIMIT) { /* the three solves in one pass, on the stack (C99 variable-length arrays: no heap) */
+        double effects[3 * nv], scratch[3 * nv];
+        double *columns[3] = {effects, effects + nv, effects + 2 * nv};
+        for (int k = 0; k < 3; ++k) {
+            input_change(s, k, h, u, ud, w);
+            nu(s, s->trial, u, w, columns[k]);
+        }
+        solve3(s, columns, scratch);
+        for (int k = 0; k < 3; ++k) change[k] = max_abs(columns[k], nv);
+    } else { /* a large system: one solve after the other in the solver's workspace */
+        for (int k = 0; k < 3; ++k) {
+            input_change(s, k, h, u, ud, w);
+            nu(s, s->trial, u, w, s->w2);
+            solve(s, s->w2, s->w2);
+            change[k] = max_abs(s->w2, nv);
+        }
+    }
+    double alpha = max_abs(s->step, nv) + change[0] + 4.0 / 27.0 * (change[1] + change[2]);
     s->bound = alpha * omega;
     if (!(s->bound <= 0.5 && omega * distance < 1.0)) return KINEGEN_BRANCH;
     return KINEGEN_OK;
