@@ -1,8 +1,7 @@
 """The ``kinegen`` command: thin over the package.
 
-Exit codes: 0 success, 1 other kinegen error, 2 model error, 3 singular Jacobian,
-4 no convergence, 5 generated-module error, 6 input/output error, 64 usage; 141 (quietly) when
-standard output's reader stops early (``| head``), as for Unix tools.
+Exit codes: :class:`kinegen.errors.ExitCode` (a usage error is 64, not click's 2, which is a
+model error's).
 """
 
 from __future__ import annotations
@@ -20,11 +19,9 @@ import click
 import numpy as np
 
 from kinegen import __version__, rotations
-from kinegen.errors import GeneratedModuleError, KinegenError, printable
+from kinegen.errors import ExitCode, GeneratedModuleError, KinegenError, printable
 from kinegen.files import read_bounded
 
-IO_ERROR = 6
-BROKEN_PIPE = 141  # 128 + SIGPIPE: what a shell reports for a Unix tool whose reader left
 #: Most samples `kinegen envelope --grid` takes (the default grid has 4,851)
 MAX_GRID = 1_000_000
 
@@ -32,17 +29,27 @@ MAX_GRID = 1_000_000
 class _Group(click.Group):
     """Turns kinegen errors into one or two readable lines and a distinct exit code."""
 
+    def make_context(self, info_name, args, parent=None, **extra):
+        try:
+            return super().make_context(info_name, args, parent, **extra)
+        except click.UsageError as exc:
+            exc.exit_code = ExitCode.USAGE
+            raise
+
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
+        except click.UsageError as exc:  # a subcommand's argument (click's own code, 2, is a model error's here)
+            exc.exit_code = ExitCode.USAGE
+            raise
         except KinegenError as exc:
             self._fail(ctx, f"error: {exc}", exc.exit_code)
         except BrokenPipeError:  # the reader stopped early (| head): quiet, as Unix tools are
             devnull = os.open(os.devnull, os.O_WRONLY)
             os.dup2(devnull, sys.stdout.fileno())  # Python's flush at exit must not fail again
-            ctx.exit(BROKEN_PIPE)
+            ctx.exit(ExitCode.BROKEN_PIPE)
         except OSError as exc:
-            self._fail(ctx, f"error: {exc}", IO_ERROR)
+            self._fail(ctx, f"error: {exc}", ExitCode.IO)
 
     @staticmethod
     def _fail(ctx: click.Context, message: str, code: int) -> None:

@@ -1,9 +1,29 @@
-"""Typed errors raised by kinegen. Each carries a message meant for a person."""
+"""Typed errors raised by kinegen. Each carries a message meant for a person, and the exit code
+the ``kinegen`` command ends with (:class:`ExitCode`, the one table of them)."""
 
 from __future__ import annotations
 
 import reprlib
+from enum import IntEnum
 from typing import Any
+
+
+class ExitCode(IntEnum):
+    """How the ``kinegen`` command ends: one code per kind of failure (README, "Errors and exit
+    codes"). A subclass of an error shares its parent's code (an UnreachableError is a
+    ConvergenceError); a BranchError shares 3 with a singular Phi_q: the motion cannot go on."""
+
+    OK = 0
+    ERROR = 1  #: any other kinegen error
+    MODEL = 2  #: a malformed model, or a time function leaving its domain
+    SINGULAR = 3  #: Phi_q singular, or a step that cannot be certified to continue the motion
+    NO_CONVERGENCE = 4  #: Newton did not converge, the pose cannot be assembled or reached
+    GENERATED_MODULE = 5  #: a generated module missing, stale, edited or foreign
+    IO = 6  #: reading or writing a file failed
+    COMPILE = 7  #: no usable C compiler, or the generated C did not compile
+    EXPLORATION = 8  #: an exploration's output folder cannot be used as asked
+    USAGE = 64  #: a command-line argument is wrong (sysexits' EX_USAGE)
+    BROKEN_PIPE = 141  #: standard output's reader left early (128 + SIGPIPE), quietly
 
 
 def bodies_in(combinations: list[str]) -> list[str]:
@@ -16,7 +36,7 @@ def bodies_in(combinations: list[str]) -> list[str]:
 class KinegenError(Exception):
     """Base class of every error kinegen raises on purpose."""
 
-    exit_code = 1
+    exit_code = ExitCode.ERROR
 
 
 class ModelError(KinegenError):
@@ -24,7 +44,7 @@ class ModelError(KinegenError):
     entry (a dotted path such as ``joints.pivot.axis``) and the problem:
     ``models/boom.yaml:21: joints.pivot.axes: ...`` (the line as compilers print it)."""
 
-    exit_code = 2
+    exit_code = ExitCode.MODEL
 
     def __init__(self, file: str, entry: str, problem: str, line: int | None = None) -> None:
         self.file = file
@@ -80,7 +100,7 @@ class ExpressionError(ValueError):
 class SingularJacobianError(KinegenError):
     """Phi_q is singular (rank-deficient) at time ``t``."""
 
-    exit_code = 3
+    exit_code = ExitCode.SINGULAR
 
     def __init__(
         self,
@@ -113,7 +133,7 @@ def _listed(worst: list[tuple[str, float]]) -> str:
 class ConvergenceError(KinegenError):
     """Newton-Raphson did not reach the tolerance within the iteration limit."""
 
-    exit_code = 4
+    exit_code = ExitCode.NO_CONVERGENCE
 
     def __init__(
         self, t: float, iterations: int, residual: float, worst: list[tuple[str, float]], message: str | None = None
@@ -148,7 +168,7 @@ class BranchError(KinegenError):
     continuation bound fails (the inputs move faster than the solver can follow). ``observed``
     says which, with the figures."""
 
-    exit_code = 3
+    exit_code = ExitCode.SINGULAR
 
     def __init__(self, t0: float, t1: float, step: float, observed: str = "") -> None:
         self.t0, self.t1, self.step, self.observed = t0, t1, step, observed
@@ -162,7 +182,7 @@ class BranchError(KinegenError):
 class GeneratedModuleError(KinegenError):
     """A generated module is missing, stale or was not written by kinegen."""
 
-    exit_code = 5
+    exit_code = ExitCode.GENERATED_MODULE
 
 
 class AssemblyError(ConvergenceError):

@@ -16,6 +16,7 @@ from kinegen.analysis.boundary import working_range_boundary
 from kinegen.analysis.envelope import FrontSwing, working_range
 from kinegen.cli import main
 from kinegen.codegen.inmemory import lambdify_model
+from kinegen.errors import ExitCode
 from kinegen.model import loads
 from kinegen.rotations import get
 from kinegen.runtime import from_module
@@ -205,7 +206,7 @@ def test_envelope_cli_writes_the_boundary_as_csv_and_json_and_the_chart(tmp_path
         assert np.allclose([float(row[0]), float(row[1])], _chart(pins, "T"), atol=1e-9)
     assert png.stat().st_size > 20000
     bad = runner.invoke(main, ["envelope", "models/excavator.yaml", "--boundary", str(tmp_path / "b.txt")])
-    assert bad.exit_code == 2 and "--boundary" in bad.output
+    assert bad.exit_code == ExitCode.USAGE and "--boundary" in bad.output
 
 
 @pytest.mark.parametrize(

@@ -2,7 +2,7 @@
 
 Every case runs as a user runs it -- the ``kinegen`` command in a subprocess where a real pipe,
 device, FIFO or file-size limit is involved -- and must end in one error line with its exit code
-(2 model or usage, 6 input/output), or, for a reader that leaves early, quietly (141).
+(2 model, 6 input/output, 64 usage), or, for a reader that leaves early, quietly (141).
 """
 
 from __future__ import annotations
@@ -22,6 +22,7 @@ import pytest
 from click.testing import CliRunner
 
 from kinegen.cli import main
+from kinegen.errors import ExitCode
 from kinegen.model import loads
 from kinegen.runtime import Solver, from_module
 from tests.conftest import MODELS
@@ -91,7 +92,8 @@ def test_a_model_that_is_not_a_regular_file_is_refused_at_once(tmp_path, source)
         path = Path(source)
     start = time.monotonic()
     result = kinegen("build", str(path), "--generated-dir", str(tmp_path))
-    assert result.returncode == 2, result.stderr
+    # a directory is refused by the argument's type (a usage error), the others when read (a model error)
+    assert result.returncode == (ExitCode.USAGE if source == "directory-like" else ExitCode.MODEL), result.stderr
     assert time.monotonic() - start < 60
     line = one_error_line(result.stderr)
     assert ("not a regular file" in line or "is a directory" in line) and "Traceback" not in result.stderr
@@ -134,7 +136,7 @@ def test_a_model_from_standard_input_solves_as_the_same_file(tmp_path):
 def test_a_bad_argument_is_one_usage_error_naming_the_option(args, option):
     start = time.monotonic()
     result = run(*args)
-    assert result.exit_code == 2, result.output
+    assert result.exit_code == ExitCode.USAGE, result.output
     assert option in one_error_line(result.output)
     assert time.monotonic() - start < 30  # refused before any long work
 

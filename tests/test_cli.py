@@ -9,6 +9,7 @@ import numpy as np
 from click.testing import CliRunner
 
 from kinegen.cli import main
+from kinegen.errors import ExitCode
 from tests.conftest import MODELS
 
 BOOM = str(MODELS / "boom.yaml")
@@ -81,7 +82,7 @@ def test_model_error_is_one_readable_line_with_its_own_exit_code(tmp_path):
 def test_missing_file_and_unknown_parametrization():
     assert run("build", "no/such/model.yaml").exit_code == 2
     result = run("build", BOOM, "--param", "euler:abc")
-    assert result.exit_code == 2 and "unknown Euler sequence" in result.output
+    assert result.exit_code == ExitCode.USAGE and "unknown Euler sequence" in result.output
 
 
 def test_keep_going_writes_the_results_so_far_and_exits_with_the_error_code(tmp_path):
@@ -133,9 +134,9 @@ def test_solve_refuses_non_finite_times_and_results_larger_than_memory():
     for option in ("--t0", "--t1"):
         for value in ("nan", "inf", "-inf"):
             result = run("solve", str(MODELS / "boom.yaml"), option, value)
-            assert result.exit_code == 2 and "finite number" in result.output, result.output
+            assert result.exit_code == ExitCode.USAGE and "finite number" in result.output, result.output
     result = run("solve", str(MODELS / "boom.yaml"), "--steps", "10000000000")
-    assert result.exit_code == 2 and "--force" in result.output and "GiB" in result.output
+    assert result.exit_code == ExitCode.USAGE and "--force" in result.output and "GiB" in result.output
 
 
 def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path):
@@ -159,4 +160,4 @@ def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path
         assert result.exit_code == 0, result.output
         assert png.stat().st_size > 20_000
     result = run("solve", str(MODELS / "boom.yaml"), "--plot", str(tmp_path / "x.png"), "--frame", "nothing")
-    assert result.exit_code == 2 and "no body 'nothing'" in result.output
+    assert result.exit_code == ExitCode.USAGE and "no body 'nothing'" in result.output

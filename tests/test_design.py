@@ -15,7 +15,7 @@ import sympy as sp
 
 from kinegen import rotations
 from kinegen.codegen.inmemory import lambdify_model
-from kinegen.errors import ModelError
+from kinegen.errors import ExitCode, ModelError
 from kinegen.model import load, loads
 from kinegen.runtime import from_module, solve
 from tests.conftest import GENERATED, MODELS
@@ -320,7 +320,7 @@ def test_the_cli_solves_a_design_and_writes_its_sensitivities(tmp_path):
     assert document["design"] == {"r": 0.21, "l": 0.6} and document["case"] == "run"
     assert document["columns"]["d(slider.C_x)/d(l)"][0] == float(rows[0]["d(slider.C_x)/d(l)"])
     result = CliRunner().invoke(main, [*arguments[:2], "--design", "r=0.3", *arguments[4:]])
-    assert result.exit_code == 2 and "outside its bounds" in result.output
+    assert result.exit_code == ExitCode.USAGE and "outside its bounds" in result.output
 
 
 @pytest.mark.parametrize(("param", "compiled"), [("quaternion", True), ("euler-parameters", False), ("dual-quaternion", False)])

@@ -19,6 +19,7 @@ pytest.importorskip("pyarrow", reason="kinegen explore needs pyarrow: pip instal
 import pyarrow.parquet as pq
 from dask.distributed import Client
 
+from kinegen.errors import ExitCode
 from kinegen.explore.plots import pareto_front, ranking
 from kinegen.explore.run import Exploration, explore, local_cluster, run_in_process, sample
 from kinegen.explore.store import ExplorationError, Store
@@ -222,7 +223,7 @@ def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(on
     assert 3 <= len(written) < 10
     # a new run into the same folder without --resume loses nothing: it is refused
     refused = subprocess.run(command, cwd=ROOT, env=environment, capture_output=True, text=True)
-    assert refused.returncode == 2 and "--resume" in refused.stderr
+    assert refused.returncode == ExitCode.EXPLORATION and "--resume" in refused.stderr
     # resumed with the settings it recorded, and the plot
     plot = tmp_path / "front.png"
     resumed = subprocess.run(

@@ -13,7 +13,7 @@ import pytest
 
 from kinegen import rotations
 from kinegen.analysis.studies import StudyProblem, optimize, relative_angle, write_optimized
-from kinegen.errors import ModelError
+from kinegen.errors import ExitCode, ModelError
 from kinegen.model import load, loads
 from kinegen.runtime import from_module, load_module, solve
 from kinegen.runtime.sensitivity import body_blocks
@@ -151,9 +151,9 @@ def test_kinegen_optimize_prints_progress_and_the_optimum_and_writes_a_new_model
         [sys.executable, "-m", "kinegen.cli", "optimize", str(EXCAVATOR), "--study", "bucket_linkage", "--out", str(EXCAVATOR)],
         cwd=ROOT, capture_output=True, text=True,
     )  # fmt: skip
-    assert refused.returncode == 2 and "written to a new file" in refused.stderr
+    assert refused.returncode == ExitCode.USAGE and "written to a new file" in refused.stderr
     unknown = subprocess.run([sys.executable, "-m", "kinegen.cli", "optimize", str(EXCAVATOR), "--study", "x"], cwd=ROOT, capture_output=True, text=True)
-    assert unknown.returncode == 2 and "studies: calibration, bucket_linkage" in unknown.stderr
+    assert unknown.returncode == ExitCode.USAGE and "studies: calibration, bucket_linkage" in unknown.stderr
 
 
 @pytest.mark.parametrize(

@@ -23,7 +23,7 @@ import numpy as np
 import pyarrow as pa
 import pyarrow.parquet as pq
 
-from kinegen.errors import KinegenError
+from kinegen.errors import ExitCode, KinegenError
 from kinegen.explore.variants import PartitionResult
 from kinegen.files import write_atomic
 
@@ -37,7 +37,7 @@ _INCIDENTAL = ("created", "kinegen_version", "model_file", "nominal")
 class ExplorationError(KinegenError):
     """An exploration's output folder cannot be used as asked (it holds another run, or is not one)."""
 
-    exit_code = 2
+    exit_code = ExitCode.EXPLORATION
 
 
 def part_name(partition: int) -> str:

@@ -38,7 +38,7 @@ from typing import Any
 import numpy as np
 
 from kinegen.codegen.backends.c.config import source_parts
-from kinegen.errors import KinegenError
+from kinegen.errors import ExitCode, KinegenError
 
 SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
 #: flags of the runtime's library (the standalone target's Makefile has its own). The library
@@ -59,7 +59,7 @@ _WARNED: set[str] = set()
 class CompileError(KinegenError):
     """No usable C compiler, or the generated C did not compile."""
 
-    exit_code = 5
+    exit_code = ExitCode.COMPILE
 
 
 class Options(ctypes.Structure):
