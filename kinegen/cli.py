@@ -72,7 +72,14 @@ def main(ctx: click.Context, debug: bool) -> None:
     warnings.showwarning = lambda message, category, *_args, **_kw: click.echo(f"warning: {message}", err=True)
 
 
-PARAM_HELP = "Orientation parametrization: quaternion, euler-parameters or euler:<seq> (e.g. euler:zxz)."
+PARAM_HELP = (
+    f"Orientation parametrization: {', '.join(n for n in rotations.NAMES if not n.startswith('euler:'))} "
+    "or euler:<seq> (e.g. euler:zxz)."
+)
+#: the options most commands share, declared once
+PARAM = click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+PARAMS = click.option("--param", "params", multiple=True, default=("quaternion",), show_default=True, help=PARAM_HELP + " Repeatable.")
+GENERATED_DIR = click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 
 
 def _image_file(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
@@ -97,7 +104,7 @@ def _parametrization(name: str) -> rotations.Parametrization:
 
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
-@click.option("--param", "params", multiple=True, default=("quaternion",), show_default=True, help=PARAM_HELP + " Repeatable.")
+@PARAMS
 @click.option(
     "--target",
     type=click.Choice(["python", "c"]),
@@ -232,7 +239,7 @@ def _system(
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--case", default=None, help="Case to solve (default: the first).")
-@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@PARAM
 @click.option("--t0", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="Start time [s] (default: the case's).")
 @click.option("--t1", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="End time [s] (default: the case's).")
 @click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
@@ -271,7 +278,7 @@ def _system(
 )
 @click.option("--view", is_flag=True, help="Also write the motion in 3-D as a self-contained HTML page, beside --out (or in out/).")
 @click.option("--force", is_flag=True, help="Solve even when the results would take more than half the memory available.")
-@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+@GENERATED_DIR
 def solve(
     model_file: str,
     case: str | None,
@@ -396,7 +403,7 @@ def _report_ranges(results) -> None:
 
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
-@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@PARAM
 @click.option("--case", default=None, help="Case whose drivers are used (default: the first).")
 @click.option("--at", "at", default=None, help="Time within the case's range, exact expression allowed (e.g. 0, 1/2, pi/4). Default: the case start.")
 @click.option(
@@ -412,7 +419,7 @@ def _report_ranges(results) -> None:
               help="Seconds of exact symbolic work allowed (the determinant is left out, or the inspection stops naming Phi_q's blocks, when they run out).")  # fmt: skip
 @click.option("--full", is_flag=True, help="Print long determinants in full (by default one longer than 600 characters is summarised).")
 @click.option("--det-file", type=click.Path(dir_okay=False), default=None, help="Write every symbolic determinant in full into this file.")
-@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+@GENERATED_DIR
 def inspect(
     model_file: str,
     param: str,
@@ -558,14 +565,14 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--case", default=None, help="Case to show (default: the first).")
-@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@PARAM
 @click.option("--out", type=click.Path(dir_okay=False), default=None, help="The HTML page (default: out/<model>_<case>.html).")
 @click.option("--track", default=None, metavar="BODY.POINT", help="The point whose path is drawn (default: the working range's point).")
 @click.option("--condition-warning", type=float, default=1e6, show_default=True, help="Bodies turn orange where cond(Phi_q) exceeds this.")
 @click.option("--animate", type=click.Path(dir_okay=False), default=None, help="Also a .gif (or .mp4, with ffmpeg) of the motion in one plane.")
 @click.option("--frame", "frame_body", default=None, help="--animate: draw in the x-z plane of this body's frame (default: as solve --plot chooses).")
 @click.option("--design", "design", multiple=True, metavar="NAME=VALUE", help="A design parameter's value (repeatable).")
-@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+@GENERATED_DIR
 def view(
     model_file: str,
     case: str | None,
@@ -649,13 +656,13 @@ def info(model_file: str, params: tuple[str, ...]) -> None:
 
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
-@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@PARAM
 @click.option("--grid", default=None, help="Samples per swept input, e.g. 25,13,25 (default: 21,11,21).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="PNG of the working-range chart (exact boundary, dimensions).")
 @click.option("--boundary", "boundary_file", type=click.Path(dir_okay=False), default=None,
               help="Write the exact boundary's points: CSV (.csv) or JSON (.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print the figures (and the boundary) as JSON.")
-@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+@GENERATED_DIR
 def envelope(model_file: str, param: str, grid: str | None, plot: str | None, boundary_file: str | None, as_json: bool, generated_dir: str) -> None:
     """Working range of the model's `working_range` point over its input ranges: its figures (and, for a
     model with design parameters, their exact sensitivities), its exact boundary (--boundary, --json,
@@ -754,7 +761,7 @@ def _boundary_document(boundary) -> dict:
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--case", default=None, help="Case to scan (default: the first).")
-@click.option("--param", "params", multiple=True, default=("quaternion",), show_default=True, help=PARAM_HELP + " Repeatable.")
+@PARAMS
 @click.option(
     "--warn",
     "warn_ratio",
@@ -773,7 +780,7 @@ def _boundary_document(boundary) -> dict:
 @click.option(
     "--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="PNG of sigma_min/sigma_max and condition number against time."
 )
-@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+@GENERATED_DIR
 def scan(
     model_file: str,
     case: str | None,
@@ -801,7 +808,7 @@ def scan(
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--study", "study_name", required=True, help="The design study to run (the model's studies: section).")
-@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@PARAM
 @click.option("--method", type=click.Choice(["SLSQP", "trust-constr"]), default="SLSQP", show_default=True, help="SciPy's optimizer.")
 @click.option(
     "--gradients",
@@ -819,7 +826,7 @@ def scan(
     help="Where the optimized model is written (default: out/<model>_<study>.yaml); never over the input.",
 )
 @click.option("--json", "as_json", is_flag=True, help="Print the result as JSON (progress goes to stderr).")
-@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+@GENERATED_DIR
 def optimize(
     model_file: str,
     study_name: str,
@@ -892,9 +899,9 @@ def optimize(
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="PNG of the Pareto front and the parameters' sensitivity ranking.")
 @click.option("--pareto", multiple=True, help="The front's two quantities (a column or a unique start of one; repeat twice). Default: the study's first two.")
 @click.option("--minimize", multiple=True, help="A --pareto quantity to minimize (the front maximizes by default). Repeatable.")
-@click.option("--param", default="quaternion", show_default=True, help=PARAM_HELP)
+@PARAM
 @click.option("--no-compile", is_flag=True, help="Measure with the generated Python functions instead of the module's C.")
-@click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
+@GENERATED_DIR
 def explore(
     model_file: str,
     study_name: str,

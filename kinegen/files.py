@@ -2,7 +2,8 @@
 
 Reading: :func:`read_bounded` takes a regular file (or ``-``, standard input, read once per
 process), refuses devices and FIFOs before it would block or read forever, and stops at a size
-limit while reading. Writing: :func:`atomic_writer` / :func:`write_atomic` write through a
+limit while reading (standard input once per stream: its bytes are kept, as a model named ``-``
+is read more than once). Writing: :func:`atomic_writer` / :func:`write_atomic` write through a
 temporary file beside the target, named after the writing process, and ``os.replace`` it: a
 reader sees the previous file or the new one; disk full keeps the previous one; a temporary file
 left by a killed process is removed by the next write to the same folder. A target that exists
@@ -23,7 +24,7 @@ from typing import BinaryIO
 
 #: What ``-`` names on the command line: standard input (read) or standard output (written).
 STDIN = "-"
-_stdin_bytes: bytes | None = None  # standard input, read once: a model given as `-` is read again by path
+_stdin_read: tuple[object, bytes] | None = None  # (the stream, its bytes): a model given as `-` is read again by path
 
 
 class FileTooLarge(OSError):
@@ -35,11 +36,11 @@ def read_bounded(path: str | Path, limit: int) -> bytes:
     ``strerror`` that says what is wrong: not a regular file (a directory, device or FIFO, refused
     without blocking on it), or :class:`FileTooLarge` when it holds more than ``limit`` bytes
     (checked while reading, so ``/dev/zero``-like sources end)."""
-    global _stdin_bytes
+    global _stdin_read
     if str(path) == STDIN:
-        if _stdin_bytes is None:
-            _stdin_bytes = _read_limited(sys.stdin.buffer, limit)
-        return _stdin_bytes
+        if _stdin_read is None or _stdin_read[0] is not sys.stdin:  # once per stream (a test's runner swaps it)
+            _stdin_read = (sys.stdin, _read_limited(sys.stdin.buffer, limit))
+        return _stdin_read[1]
     fd = os.open(path, os.O_RDONLY | os.O_NONBLOCK | getattr(os, "O_CLOEXEC", 0))
     try:
         mode = os.fstat(fd).st_mode

@@ -31,6 +31,7 @@ def test_the_benchmark_counts_its_runs_on_a_terminal_and_prints_only_its_table_i
     command = [sys.executable, "-m", "kinegen.bench", "--sizes", "3", "--excavator", "--quick", "--no-sweep", "--no-studies", "--no-explore"]  # fmt: skip
     piped = _piped(command, dict(os.environ, OPENBLAS_NUM_THREADS="1"))
     assert piped.returncode == 0, piped.stdout + piped.stderr
+    assert "FAILED" not in piped.stdout, piped.stdout  # every contender's row ran
     assert "runs" not in piped.stderr and "\r" not in piped.stdout + piped.stderr
     rows = [line.split()[1:3] for line in piped.stdout.splitlines() if line.startswith("chain-3 ")]
     assert ["kinegen", "(own"] in rows and len(rows) >= 6

@@ -78,8 +78,9 @@ def _error(w: Workload, qs: np.ndarray) -> float:
     from kinegen import rotations
 
     parametrization = rotations.get("euler-parameters")
-    k = [b.name for b in w.model.bodies].index(w.body)
-    local = np.array([float(x) for x in w.model.bodies[k].points[w.point]])
+    nominal = w.model.at() if w.model.design else w.model
+    k = [b.name for b in nominal.bodies].index(w.body)
+    local = np.array([float(x) for x in nominal.bodies[k].points[w.point]])
     origin, rotation = parametrization.pose(np.asarray(qs)[:, k * parametrization.nq : (k + 1) * parametrization.nq])
     path = origin + np.einsum("kij,j->ki", rotation, local)
     return float(np.abs(path - w.reference()).max())
@@ -208,7 +209,8 @@ def symbolic_phi(w: Workload):
     from kinegen import rotations
     from kinegen.symbolic import build_systems
 
-    system = build_systems(w.model, rotations.get(PARAMETRIZATION), [w.case])[w.case]
+    nominal = w.model.at() if w.model.design else w.model  # the baselines solve the nominal design (numbers only)
+    system = build_systems(nominal, rotations.get(PARAMETRIZATION), [w.case])[w.case]
     coords = system.coordinates
     time_functions = dict(zip(system.inputs.u, system.inputs.functions))
     phi = [r.phi.xreplace(coords.frame_definitions).xreplace(time_functions) for r in system.rows]
