@@ -33,7 +33,7 @@ from pathlib import Path
 import numpy as np
 from scipy.optimize import minimize
 
-from kinegen.model.schema import WorkingRange, design_gradient
+from kinegen.model.schema import WORKING_RANGE_FIGURES, WorkingRange, design_gradient
 from kinegen.runtime import NumericSystem, Solver, SolverOptions
 from kinegen.runtime.batch import sweep_grid
 
@@ -42,7 +42,7 @@ POLISH_STEPS = 8  # Newton steps on the optimality conditions after SLSQP, at mo
 #: max |Phi| of the refinement's solves: the figures' own noise (the default 1e-10 leaves ~1e-10 m,
 #: which differences of figures and their optimality conditions would see)
 TOLERANCE = 1e-13
-FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height", "max_vertical_wall_depth")
+FIGURES = WORKING_RANGE_FIGURES  # (the schema's list: the loader checks published figures against the same)
 
 
 @dataclass(frozen=True)

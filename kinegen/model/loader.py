@@ -23,6 +23,7 @@ from kinegen.files import STDIN, read_bounded
 from kinegen.model import expressions
 from kinegen.model.schema import (
     GROUND,
+    PUBLISHED_FIGURES,
     Actuator,
     Body,
     Case,
@@ -45,9 +46,6 @@ JOINT_EQUATIONS = {"spherical": 3, "revolute": 5, "cylindrical": 4, "prismatic":
 JOINT_TYPES = tuple(JOINT_EQUATIONS)
 DRIVER_TYPES = ("joint_angle", "joint_translation", "distance", "coordinate", "body_angle")
 ORTHONORMAL_TOLERANCE = 1e-9
-WORKING_RANGE_FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height", "max_vertical_wall_depth")
-#: figures a working_range section may quote (``published``): the optimized ones and the minimum front swing radius
-PUBLISHED_FIGURES = (*WORKING_RANGE_FIGURES, "min_front_swing_radius")
 MAX_FILE_BYTES = 5_000_000
 #: Nodes that anchors and aliases may add to a document when expanded (each use of an
 #: alias counts its whole subtree): enough to share pieces, far too few for a "billion laughs".

@@ -140,6 +140,13 @@ class Case:
     steps: int = 101
 
 
+#: The working-range figures kinegen computes (``kinegen envelope``; ISO 7135-style), in the order
+#: reports list them; the one list the loader, the design studies and the envelope read.
+WORKING_RANGE_FIGURES = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height", "max_dumping_height", "max_vertical_wall_depth")
+#: ... and what a model may publish to be compared with them.
+PUBLISHED_FIGURES = (*WORKING_RANGE_FIGURES, "min_front_swing_radius")
+
+
 @dataclass(frozen=True)
 class WorkingRange:
     """How ``kinegen envelope`` sweeps a forward case.

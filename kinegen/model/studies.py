@@ -22,7 +22,18 @@ from __future__ import annotations
 from typing import TYPE_CHECKING, Any
 
 from kinegen.errors import shown
-from kinegen.model.schema import GROUND, QUANTITY_KINDS, Actuator, Case, Quantity, Study, StudyConstraint, Term, WorkingRange
+from kinegen.model.schema import (
+    GROUND,
+    QUANTITY_KINDS,
+    WORKING_RANGE_FIGURES,
+    Actuator,
+    Case,
+    Quantity,
+    Study,
+    StudyConstraint,
+    Term,
+    WorkingRange,
+)
 
 if TYPE_CHECKING:
     from kinegen.model.loader import _Reader as Loader
@@ -117,8 +128,6 @@ class _StudyReader:
                 raise self.loader.fail(f"{entry}.case", "a working-range figure is measured over the working_range section's inputs, not a case")
             if self.working_range is None:
                 raise self.loader.fail(where, "the model has no working_range section")
-            from kinegen.model.loader import WORKING_RANGE_FIGURES
-
             if not isinstance(what, str) or what not in WORKING_RANGE_FIGURES:
                 raise self.loader.fail(where, f"unknown figure {shown(what)} (one of {', '.join(WORKING_RANGE_FIGURES)})")
             return Quantity(kind, figure=what)
