@@ -450,7 +450,7 @@ def inspect(
         q = _configuration(q_file, coordinates(model, parametrization).stored_names)
     numeric = None
     if q is None:  # the configuration is solved with the quaternion module of the case
-        _, numeric = _system(model_file, _parametrization("quaternion"), chosen, generated_dir)
+        _, numeric = _system(model_file, _parametrization(rotations.REFERENCE), chosen, generated_dir)
     report = run(model, parametrization, chosen, when, q, numeric, budget=budget)
     if det_file:
         from kinegen.files import write_atomic
@@ -461,7 +461,7 @@ def inspect(
         from kinegen.analysis.classify import classify
         from kinegen.analysis.inspect import convert
 
-        quaternion = _parametrization("quaternion")
+        quaternion = _parametrization(rotations.REFERENCE)
         if numeric is None:
             _, numeric = _system(model_file, quaternion, chosen, generated_dir)
         physical = None if q is None else convert(q, parametrization, quaternion, len(model.bodies))
@@ -794,7 +794,7 @@ def scan(
     from kinegen.analysis.scan import plot_scan
     from kinegen.analysis.scan import scan as run
 
-    _, physical = _system(model_file, _parametrization("quaternion"), case, generated_dir)
+    _, physical = _system(model_file, _parametrization(rotations.REFERENCE), case, generated_dir)
     systems = {}
     for name in params:
         parametrization = _parametrization(name)

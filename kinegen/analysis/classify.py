@@ -22,7 +22,7 @@ import numpy as np
 from kinegen.analysis.inspect import Inspection, configuration_at, convert, inspect
 from kinegen.errors import ConvergenceError, SingularJacobianError, bodies_in
 from kinegen.model import Model
-from kinegen.rotations import Parametrization, get
+from kinegen.rotations import REFERENCE, Parametrization, get
 from kinegen.runtime import NumericSystem, Solver
 
 REPRESENTATION = "representation singularity"
@@ -77,7 +77,7 @@ def classify(
     t: float,
     report: Inspection | None = None,
     numeric: NumericSystem | None = None,
-    others: tuple[str, ...] = ("quaternion", "euler-parameters"),
+    others: tuple[str, ...] = (REFERENCE, "euler-parameters"),
     physical: np.ndarray | None = None,
 ) -> Classification:
     """Classify Phi_q of ``case`` at time ``t``.
@@ -90,7 +90,7 @@ def classify(
     from kinegen.runtime import from_module
 
     model = model.at() if model.design else model
-    quaternion = get("quaternion")
+    quaternion = get(REFERENCE)
     numeric = numeric or from_module(lambdify_model(model, quaternion), case)
     if physical is None:
         physical = configuration_at(model, quaternion, case, t, numeric)

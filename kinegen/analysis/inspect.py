@@ -141,9 +141,9 @@ def configuration_at(model: Model, parametrization: Parametrization, case: str, 
     is solved with the quaternion parametrization (regular for every orientation) and
     converted, so that a singular parametrization can still be inspected.
     """
-    from kinegen.rotations import get
+    from kinegen.rotations import REFERENCE, get
 
-    quaternion = get("quaternion")
+    quaternion = get(REFERENCE)
     system = numeric if numeric is not None else from_module(lambdify_model(model, quaternion), case)
     q = system.initial_q
     if np.max(np.abs(system.phi(q, system.driver_inputs(t)[0]))) > 1e-10:

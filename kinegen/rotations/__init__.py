@@ -9,6 +9,9 @@ from kinegen.rotations.euler_parameters import EulerParameters
 from kinegen.rotations.quaternion import Quaternion
 
 NAMES = ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters", *(f"euler:{s}" for s in SEQUENCES))
+#: The reference parametrization, regular for every orientation: a configuration is solved in it and
+#: converted where another one (possibly singular there) is inspected, classified or compared.
+REFERENCE = "quaternion"
 
 
 def get(name: str) -> Parametrization:
