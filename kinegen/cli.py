@@ -20,7 +20,7 @@ import numpy as np
 
 from kinegen import __version__, rotations
 from kinegen.errors import ExitCode, GeneratedModuleError, KinegenError, printable
-from kinegen.files import read_bounded
+from kinegen.files import STDOUT, read_bounded
 
 #: Most samples `kinegen envelope --grid` takes (the default grid has 4,851)
 MAX_GRID = 1_000_000
@@ -312,7 +312,7 @@ def solve(
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
     elapsed = time.perf_counter() - start
     done = results.converged
-    piped = out == "-"  # the CSV on standard output: everything else on standard error
+    piped = out == STDOUT  # the CSV on standard output: everything else on standard error
     if design:
         click.echo("design: " + ", ".join(f"{name} = {value:g}" for name, value in system.design.items()), err=piped)
     click.echo(

@@ -1,10 +1,10 @@
 """Files read within bounds and written whole or not at all.
 
 Reading: :func:`read_bounded` takes a regular file (or ``-``, standard input, read once per
-process), refuses devices and FIFOs before it would block or read forever, and stops at a size
-limit while reading (standard input once per stream: its bytes are kept, as a model named ``-``
-is read more than once). Writing: :func:`atomic_writer` / :func:`write_atomic` write through a
-temporary file beside the target, named after the writing process, and ``os.replace`` it: a
+stream: its bytes are kept, as a model named ``-`` is read more than once), refuses devices and
+FIFOs before it would block or read forever, and stops at a size limit while reading.
+Writing: :func:`atomic_writer` / :func:`write_atomic` write through a temporary file beside the
+target, named after the writing process, and ``os.replace`` it: a
 reader sees the previous file or the new one; disk full keeps the previous one; a temporary file
 left by a killed process is removed by the next write to the same folder. A target that exists
 and is not a regular file (``/dev/stdout``, a FIFO, ``/dev/full``) is written in place, its
@@ -23,7 +23,7 @@ from pathlib import Path
 from typing import BinaryIO
 
 #: What ``-`` names on the command line: standard input (read) or standard output (written).
-STDIN = "-"
+STDIN = STDOUT = "-"
 _stdin_read: tuple[object, bytes] | None = None  # (the stream, its bytes): a model given as `-` is read again by path
 
 
@@ -64,42 +64,19 @@ def _read_limited(handle: BinaryIO, limit: int) -> bytes:
 
 
 @contextlib.contextmanager
-def atomic_writer(path: Path) -> Iterator[BinaryIO]:
-    """A binary handle whose content becomes ``path`` when the block ends without an exception
-    (fsynced, then ``os.replace``); on an exception (disk full, interrupted) the previous file is
-    untouched and the temporary file removed. The new file gets the mode a new file gets under the
-    umask (not the temporary file's 0600)."""
+def atomic_path(path: Path, suffix: bool = True) -> Iterator[Path]:
+    """A temporary path beside ``path`` (named after this process; ending in ``path``'s suffix
+    unless ``suffix`` is false, for a writer that picks its format by it) for a writer that
+    wants a file name; it becomes ``path`` when the block ends without an exception (with the mode
+    a new file gets under the umask, not the temporary file's 0600), else it is removed. A target
+    that exists and is not a regular file is yielded itself: written in place, never replaced."""
     path = Path(path)
-    if _is_special(path):  # /dev/stdout, a FIFO, /dev/full: written in place, never replaced
-        with path.open("wb") as handle:
-            yield handle
-        return
-    path.parent.mkdir(parents=True, exist_ok=True)
-    _sweep(path.parent)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as handle:
-            yield handle
-            handle.flush()
-            os.fsync(handle.fileno())
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.replace(tmp, path)
-    except BaseException:
-        Path(tmp).unlink(missing_ok=True)
-        raise
-
-
-@contextlib.contextmanager
-def atomic_path(path: Path) -> Iterator[Path]:
-    """A temporary path beside ``path`` (same suffix) for a writer that wants a file name; it
-    becomes ``path`` when the block ends without an exception, else it is removed."""
-    path = Path(path)
-    if _is_special(path):
+    if _is_special(path):  # /dev/stdout, a FIFO, /dev/full
         yield path
         return
     path.parent.mkdir(parents=True, exist_ok=True)
     _sweep(path.parent)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=f".tmp{path.suffix}", dir=path.parent)
+    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.{os.getpid()}.", suffix=f".tmp{path.suffix if suffix else ''}", dir=path.parent)
     os.close(fd)
     try:
         yield Path(tmp)
@@ -108,6 +85,18 @@ def atomic_path(path: Path) -> Iterator[Path]:
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
+
+
+@contextlib.contextmanager
+def atomic_writer(path: Path) -> Iterator[BinaryIO]:
+    """A binary handle whose content becomes ``path`` (:func:`atomic_path`) when the block ends
+    without an exception, flushed and fsynced first; on an exception (disk full, interrupted) the
+    previous file is untouched and the temporary file removed."""
+    with atomic_path(path, suffix=False) as target, open(target, "wb") as handle:
+        yield handle
+        handle.flush()
+        if stat.S_ISREG(os.fstat(handle.fileno()).st_mode):  # (a pipe or device has nothing to sync)
+            os.fsync(handle.fileno())
 
 
 def write_atomic(path: Path, content: str | bytes) -> None:

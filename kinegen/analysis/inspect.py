@@ -62,6 +62,11 @@ class Budget:
     def remaining(self) -> float | None:
         return None if self.seconds is None else self.seconds - (time.monotonic() - self.start)
 
+    @property
+    def exhausted(self) -> str:
+        """What a report says of work this budget cut short."""
+        return f"not finished within the budget of {self.seconds:g} s (--budget SECONDS)"
+
     @contextmanager
     def limit(self) -> Iterator[None]:
         """Raise :class:`_Expired` in the block when the budget runs out."""
@@ -458,12 +463,19 @@ def inspect(
         ) from None
 
 
-def _structure(system: System) -> str:
-    """Phi_q's block-triangular structure in words (from its sparsity pattern: no symbolic work)."""
+def _block_form(system: System):
+    """The diagonal blocks of Phi_q's block-triangular form, from its sparsity pattern (None: not
+    square, or structurally singular)."""
     from kinegen.symbolic.blocks import block_triangular
 
     rows, cols = zip(*[(i, j) for i, j, _ in system.jacobian_entries])
-    blocks = block_triangular((len(system.constraint_names), len(system.coordinates.velocity_names)), np.array(rows), np.array(cols))
+    shape = (len(system.constraint_names), len(system.coordinates.velocity_names))
+    return block_triangular(shape, np.array(rows), np.array(cols))
+
+
+def _structure(system: System) -> str:
+    """Phi_q's block-triangular structure in words (from its sparsity pattern: no symbolic work)."""
+    blocks = _block_form(system)
     if not blocks:
         return "Phi_q has no block-triangular form (not square, or structurally singular)"
     names = system.coordinates.velocity_names
@@ -511,7 +523,7 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
         try:
             det = _factored_determinant(symbolic)
         except _Expired:  # the rank is proven; the symbolic form is what ran out of time
-            report.unfinished = f"not finished within the budget of {budget.seconds:g} s (--budget SECONDS)"
+            report.unfinished = budget.exhausted
             return report
         report.determinant = det
         if det is None:
@@ -525,10 +537,7 @@ def _direct(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Mat
 
 def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.Matrix, values, budget: Budget) -> Inspection:
     """Large systems: block-triangular form, determinants block by block."""
-    from kinegen.symbolic.blocks import block_triangular
-
-    rows, cols = zip(*[(i, j) for i, j, _ in system.jacobian_entries])
-    blocks = block_triangular(exact.shape, np.array(rows), np.array(cols))
+    blocks = _block_form(system)
     coordinate_names, constraint_names = system.coordinates.velocity_names, system.constraint_names
     reports: list[BlockReport] = []
     unfinished: str | None = None
@@ -543,7 +552,7 @@ def _by_blocks(system: System, t_exact, q_exact, exact: sp.Matrix, symbolic: sp.
             try:
                 det = _factored_determinant(symbolic.extract(list(block.rows), list(block.cols)), simplify=report.singular)
             except _Expired:  # the block's exact value is known; its symbolic form ran out of time
-                det, unfinished = None, f"not finished within the budget of {budget.seconds:g} s (--budget SECONDS)"
+                det, unfinished = None, budget.exhausted
             report.determinant = det
             if det is not None:
                 _, factors = sp.factor_list(det)

@@ -16,7 +16,7 @@ from typing import TextIO
 
 import numpy as np
 
-from kinegen.files import atomic_writer, write_atomic
+from kinegen.files import STDOUT, atomic_writer, write_atomic
 from kinegen.model.schema import GROUND
 from kinegen.runtime.system import NumericSystem
 
@@ -323,7 +323,7 @@ class Results:
     def _write_csv(self, path: str | Path, names: list[str], values: np.ndarray) -> Path:
         """The table as CSV into ``path`` (``-``: standard output), all or nothing: a full disk
         or an interrupted write keeps the previous file."""
-        if str(path) == "-":
+        if str(path) == STDOUT:
             _csv_rows(sys.stdout, names, values)
             sys.stdout.flush()
             return Path(path)
