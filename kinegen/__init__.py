@@ -12,4 +12,4 @@ Conventions used everywhere in kinegen:
 * Angular velocity ``omega`` and acceleration ``omega_dot`` are global vectors.
 """
 
-__version__ = "0.1.0"
+__version__ = "0.2.0"

@@ -6,7 +6,6 @@ model error's).
 
 from __future__ import annotations
 
-import dataclasses
 import json
 import os
 import sys
@@ -19,8 +18,9 @@ import click
 import numpy as np
 
 from kinegen import __version__, rotations
-from kinegen.errors import ExitCode, GeneratedModuleError, KinegenError, printable
+from kinegen.errors import ExitCode, KinegenError, printable
 from kinegen.files import STDOUT, read_bounded
+from kinegen.interface import FRAME_VALUES
 
 #: Most samples `kinegen envelope --grid` takes (the default grid has 4,851)
 MAX_GRID = 1_000_000
@@ -192,22 +192,21 @@ def _design_values(pairs: tuple[str, ...]) -> dict[str, float]:
     return values
 
 
-def _module(model_file: str, param: rotations.Parametrization, generated_dir: str, sensitivities: bool | None = None):
-    """The model and its generated module (rebuilt when missing or stale: with sensitivity kernels
-    as the stale module had them, or as ``sensitivities`` says)."""
-    from kinegen.codegen import build as build_module
-    from kinegen.codegen import built_with_sensitivities, module_name
-    from kinegen.model import load
-    from kinegen.runtime import check_source, load_module
+def _session(generated_dir: str):
+    """The service layer (:class:`kinegen.api.Session`) of this command over ``generated_dir``:
+    one per folder and command, rebuilds said on standard error."""
+    from kinegen.api import Session
 
-    model = load(model_file)
-    path = Path(generated_dir) / f"{module_name(model, param)}.py"
-    try:
-        return model, load_module(path, model_file)
-    except GeneratedModuleError:
-        click.echo(f"building {path} (missing or stale)", err=True)
-        keep = built_with_sensitivities(path) is not False if sensitivities is None else sensitivities
-        return model, load_module(build_module(model_file, param.name, generated_dir, check=check_source, sensitivities=keep), model_file)
+    sessions = click.get_current_context().meta.setdefault("kinegen.sessions", {})
+    if generated_dir not in sessions:
+        sessions[generated_dir] = Session(generated_dir, announce=lambda line: click.echo(line, err=True))
+    return sessions[generated_dir]
+
+
+def _module(model_file: str, param: rotations.Parametrization, generated_dir: str, sensitivities: bool | None = None):
+    """The model and its generated module (rebuilt when missing or stale, by the session's one rule)."""
+    session = _session(generated_dir)
+    return session.model(model_file), session.module(model_file, param.name, sensitivities)
 
 
 def _system(
@@ -218,22 +217,15 @@ def _system(
     compiled: bool | None = None,
     design: dict[str, float] | None = None,
 ):
-    """The numeric system of a case, from the generated module (rebuilt when missing or stale);
-    its compiled C when there is a compiler (``compiled`` None), or not (False); a model's
-    design parameters at ``design`` (nominal for those not given)."""
-    from kinegen.runtime import from_module
-
-    model, module = _module(model_file, param, generated_dir)
-    if design:
-        try:
-            system = from_module(module, case, compiled, design)
-        except (KeyError, ValueError) as exc:
-            raise click.BadParameter(str(exc.args[0]), param_hint="--design") from None
-        return model, dataclasses.replace(system, source=model_file)
+    """The model and the numeric system of a case (:meth:`kinegen.api.Session.system`): its
+    compiled C when there is a compiler (``compiled`` None), or not (False); a model's design
+    parameters at ``design`` (nominal for those not given)."""
+    session = _session(generated_dir)
+    session.module(model_file, param.name)  # a rebuild's errors before the system's
     try:
-        return model, dataclasses.replace(from_module(module, case, compiled), source=model_file)
-    except KeyError as exc:
-        raise click.BadParameter(str(exc.args[0]), param_hint="--case") from None
+        return session.model(model_file), session.system(model_file, case, param.name, compiled, design)
+    except (KeyError, ValueError) as exc:
+        raise click.BadParameter(str(exc.args[0]), param_hint="--design" if design else "--case") from None
 
 
 @main.command()
@@ -359,7 +351,8 @@ _BYTES_PER_VALUE = 8 * 6
 
 def _check_memory(system, steps: int, force: bool) -> None:
     """Refuse (unless ``force``) a solve whose results would not fit in half the available memory."""
-    need = steps * _BYTES_PER_VALUE * (system.n_stored + 2 * system.n_velocity + 3 * len(system.driver_names) + 24 * len(system.bodies))
+    need = steps * _BYTES_PER_VALUE * (system.n_stored + 2 * system.n_velocity + 3 * len(system.driver_names)
+                                        + FRAME_VALUES * len(system.bodies))
     try:
         available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
     except (ValueError, OSError, AttributeError):  # not on this system: no estimate
@@ -853,7 +846,7 @@ def optimize(
     target = Path(out) if out else Path("out") / f"{model.name}_{study_name}.yaml"
     if target.resolve() == Path(model_file).resolve():
         raise click.BadParameter(f"{out} is the model file itself: the optimized model is written to a new file", param_hint="--out")
-    if gradients == "exact" and not any(k == "dvel" for k in next(iter(module.CASES.values()))):
+    if gradients == "exact" and "dvel" not in next(iter(module.CASES.values()))["outputs"]:
         raise click.BadParameter(
             f"the generated module of {model.name} ({param}) has no sensitivity kernels: rebuild it without --no-sensitivities "
             "(or use --gradients fd)", param_hint="--gradients",

@@ -15,10 +15,9 @@ from pathlib import Path
 
 import numpy as np
 
-import kinegen
-from kinegen.codegen import build
-from kinegen.errors import GeneratedModuleError, KinegenError, SingularJacobianError
-from kinegen.runtime import Solver, SolverOptions, from_module, load_module, solve
+from kinegen.api import Session
+from kinegen.errors import KinegenError, SingularJacobianError
+from kinegen.runtime import Solver, SolverOptions, from_module, solve
 
 #: The excavator's operating cases (``bucket_toggle`` is for `kinegen scan`).
 OPERATING_CASES = ("digging", "level_cut", "trench_wall")
@@ -37,34 +36,22 @@ MAIN_JOB: dict[str, tuple[str, ...]] = {
 SENSITIVITIES = "quaternion"
 
 
-def module_path(models: Path, generated: Path, name: str, param: str) -> Path:
-    from kinegen import rotations
-    from kinegen.codegen import module_name
-    from kinegen.model import load
-
-    return generated / f"{module_name(load(models / name), rotations.get(param))}.py"
-
-
-def regenerate(models: Path, generated: Path, force: bool = True) -> dict[tuple[str, str], Path]:
-    """Build every module of :data:`MAIN_JOB`; without ``force``, keep fresh ones."""
-    paths = {}
+def regenerate(models: Path, generated: Path, force: bool = True) -> Session:
+    """Every module of :data:`MAIN_JOB` through one session (:class:`kinegen.api.Session`): built
+    anew (``force``), or only where missing or stale -- the rule every command follows."""
+    session = Session(generated, check=False)  # euler:zxz modules are singular at their initial pose on purpose
     for name, params in MAIN_JOB.items():
         for param in params:
-            path = module_path(models, generated, name, param)
-            if not force:
-                try:
-                    if load_module(path, models / name).KINEGEN_VERSION == kinegen.__version__:
-                        paths[name, param] = path
-                        continue
-                except GeneratedModuleError:
-                    pass
-            paths[name, param] = build(models / name, param, generated, sensitivities=param == SENSITIVITIES)
-    return paths
+            if force:
+                session.build(models / name, param, sensitivities=param == SENSITIVITIES)
+            else:
+                session.module(models / name, param, sensitivities=param == SENSITIVITIES)
+    return session
 
 
-def _excavator(paths: dict, module, excavator_model, out: Path) -> int:
+def _excavator(session: Session, models: Path, module, excavator_model, out: Path) -> int:
     """The excavator's operating cases from its quaternion ``module`` (of the loaded ``excavator_model``),
-    then the other parametrizations' modules of ``paths`` against it."""
+    then the other parametrizations' modules of ``session`` against it."""
     print("solve times include an exact 2-norm condition number (SVD) at every step\n")
     header = (
         f"{'case':<12} {'steps':>5} {'Newton':>6} {'max|Phi|':>8} {'solve s':>7}  "
@@ -109,7 +96,7 @@ def _excavator(paths: dict, module, excavator_model, out: Path) -> int:
     print(f"3-D views (kinegen view): {', '.join(f'excavator_{c}.html' for c in runs)} in {out}")
     print()
     for param in ("euler-parameters", "dual-quaternion", "dual-euler-parameters", "euler:zxy", "euler:zxz"):
-        other = load_module(paths["excavator.yaml", param])
+        other = session.module(models / "excavator.yaml", param)
         worst = 0.0
         try:
             for case, reference in runs.items():
@@ -132,11 +119,11 @@ def _excavator(paths: dict, module, excavator_model, out: Path) -> int:
     return failures
 
 
-def _branch_keeping(paths: dict) -> int:
+def _branch_keeping(module) -> int:
     """bucket_near_toggle on its coarse grid, with and without branch keeping, against a 1 ms grid."""
     from kinegen.runtime import Solver, SolverOptions
 
-    system = from_module(load_module(paths["excavator.yaml", "quaternion"]), "bucket_near_toggle")
+    system = from_module(module, "bucket_near_toggle")
     fine = np.linspace(system.t0, system.t1, 2001)
     reference = Solver(system).solve(fine)
 
@@ -185,18 +172,18 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     print(f"models from {args.models}")
     start = time.perf_counter()
-    paths = regenerate(args.models, args.generated, force=args.regenerate_only)
-    print(f"{len(paths)} generated modules ready in {args.generated}/ ({time.perf_counter() - start:.1f} s)")
+    session = regenerate(args.models, args.generated, force=args.regenerate_only)
+    print(f"{sum(map(len, MAIN_JOB.values()))} generated modules ready in {args.generated}/ ({time.perf_counter() - start:.1f} s)")
     if args.regenerate_only:
         return 0
     args.out.mkdir(parents=True, exist_ok=True)
     print("\nHitachi ZX200 excavator (models/excavator.yaml, quaternion)\n")
-    from kinegen.model import load
 
-    excavator_model = load(args.models / "excavator.yaml")
-    excavator_module = load_module(paths["excavator.yaml", "quaternion"])
+    excavator_file = args.models / "excavator.yaml"
+    excavator_model = session.model(excavator_file)
+    excavator_module = session.module(excavator_file, "quaternion")
     try:
-        failures = _excavator(paths, excavator_module, excavator_model, args.out)
+        failures = _excavator(session, args.models, excavator_module, excavator_model, args.out)
     except KinegenError as exc:
         print(f"FAILED: {exc}")
         return 1
@@ -227,14 +214,14 @@ def main(argv: list[str] | None = None) -> int:
     plot_scan(scanned, args.out / "excavator_bucket_toggle_scan.png", "excavator / bucket_toggle")
     print("\nkinegen scan models/excavator.yaml --case bucket_toggle (bucket cylinder towards its toggle at 2.7366 m):")
     print(f"  {scanned.ahead}\n  {scanned.stopped}")
-    failures += _branch_keeping(paths)
+    failures += _branch_keeping(excavator_module)
     print()
     from kinegen.analysis.view import motion_view
 
-    boom_model = load(args.models / "boom.yaml")
-    boom_run = solve(from_module(load_module(paths["boom.yaml", "quaternion"])))
+    boom_model = session.model(args.models / "boom.yaml")
+    boom_run = solve(from_module(session.module(args.models / "boom.yaml", "quaternion")))
     print(f"3-D view of the paper's boom: {motion_view(boom_run, boom_model, args.out / 'boom_swing.html', title='boom (paper) / swing')}")
-    boom = load_module(paths["boom.yaml", "euler:zxz"])
+    boom = session.module(args.models / "boom.yaml", "euler:zxz")
     try:
         solve(from_module(boom))
         print("boom (paper)      euler:zxz unexpectedly solved")
@@ -247,19 +234,16 @@ def main(argv: list[str] | None = None) -> int:
     rows = compare(excavator_model, "digging")
     failures += sum(r.failure is not None for r in rows if not r.parametrization.startswith("euler:zx"))
     print(table(rows, excavator_model.name, "digging"))
-    failures += _studies(args.models / "excavator.yaml", paths["excavator.yaml", "quaternion"], args.out)
-    failures += _exploration(args.models / "excavator.yaml", paths["excavator.yaml", "quaternion"], args.out)
+    failures += _studies(excavator_file, excavator_model, excavator_module, args.out)
+    failures += _exploration(excavator_file, session.module_path(excavator_file, "quaternion"), args.out)
     print(f"\noutputs (CSV + PNG per case, optimized models, the exploration's Parquet) in {args.out.resolve()}")
     return 1 if failures else 0
 
 
-def _studies(model_file: Path, module_path: Path, out: Path) -> int:
+def _studies(model_file: Path, model, module, out: Path) -> int:
     """The excavator's design studies (kinegen optimize), exact gradients; the optimized models into ``out``."""
     from kinegen.analysis.studies import StudyProblem, optimize, write_optimized
-    from kinegen.model import load
 
-    model = load(model_file)
-    module = load_module(module_path, model_file)
     failures = 0
     for name in model.studies:
         print(f"\nkinegen optimize {model_file.name} --study {name} (SLSQP on the exact gradients):\n")

@@ -22,6 +22,7 @@ import pytest
 from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
+import kinegen
 from kinegen.codegen import build
 from kinegen.errors import BranchError, GeneratedModuleError, KinegenError
 from kinegen.integrity import c_string, comment_text, seal
@@ -289,7 +290,7 @@ def test_a_planted_or_foreign_version_module_is_refused(built, tmp_path):
     with pytest.raises(GeneratedModuleError, match="no kinegen seal"):
         load_module(planted)
     assert not (tmp_path / "RAN").exists()
-    body = path.read_text().split("\n", 1)[1].replace("kinegen version: 0.1.0", "kinegen version: 0.0.9", 1)
+    body = path.read_text().split("\n", 1)[1].replace(f"kinegen version: {kinegen.__version__}", "kinegen version: 0.0.9", 1)
     path.write_text(seal(path.name, body))
     with pytest.raises(GeneratedModuleError, match=r"built by kinegen 0\.0\.9"):
         load_module(path, model)

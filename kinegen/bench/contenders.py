@@ -63,10 +63,11 @@ def workload(name: str) -> Workload:
         body, point = spec.point.body, spec.point.name
 
         def reference() -> np.ndarray:
-            from kinegen.runtime import Solver, SolverOptions, from_module, load_module
+            from kinegen.api import Session
+            from kinegen.runtime import Solver, SolverOptions
 
-            module = load_module(ROOT / "generated" / "excavator_quaternion.py", ROOT / "models" / "excavator.yaml")
-            solved = Solver(from_module(module, arg), SolverOptions(condition="none", tolerance=1e-12)).solve(times)
+            system = Session(ROOT / "generated").system(ROOT / "models" / "excavator.yaml", arg)
+            solved = Solver(system, SolverOptions(condition="none", tolerance=1e-12)).solve(times)
             return solved.point_position(body, point)
 
         return Workload(name, model, arg, times, body, point, reference)

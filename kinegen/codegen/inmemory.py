@@ -78,11 +78,15 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
             "t1": system.case.t1,
             "steps": system.case.steps,
             "driver_sources": inputs.sources,
-            "inputs": _inputs(functions, T, len(functions)),
-            "phi": compile_([q, u], [r.phi for r in rows], m),
-            "jac": compile_([q, u], [e for _, _, e in entries], len(entries)),
-            "nu": compile_([q, u, ud], [r.nu for r in rows], m),
-            "gamma": compile_([q, v, u, ud, udd], [r.gamma for r in rows], m),
+            "outputs": {  # the outputs of the kernels a generated module's case declares (no plain-float ones)
+                "inputs": _inputs(functions, T, len(functions)),
+                "phi": compile_([q, u], [r.phi for r in rows], m),
+                "jac": compile_([q, u], [e for _, _, e in entries], len(entries)),
+                "nu": compile_([q, u, ud], [r.nu for r in rows], m),
+                "gamma": compile_([q, v, u, ud, udd], [r.gamma for r in rows], m),
+            },
+            "scalar": {},
+            "patterns": {},
         }
     return SimpleNamespace(
         MODEL=model.name,

@@ -29,8 +29,11 @@ import sympy as sp
 
 import kinegen
 from kinegen.codegen.shapes import Group, Shapes
+from kinegen.constraints import GROUND_FRAME
+from kinegen.interface import FRAME_FIELDS, FRAME_VALUES, SENSITIVITY_KERNELS
 from kinegen.model import Model
 from kinegen.model.expressions import T
+from kinegen.model.schema import GROUND
 from kinegen.rotations import Parametrization
 from kinegen.symbolic.assembly import (
     GENERIC_NAME,
@@ -45,32 +48,6 @@ from kinegen.symbolic.assembly import (
 )
 from kinegen.symbolic.blocks import block_triangular
 
-#: What each slot holds (units SI, angles in radians, quaternions w, x, y, z).
-SLOTS = {
-    "t": "time [s]",
-    "q": "stored coordinates",
-    "v": "velocity coordinates",
-    "a": "accelerations (time derivatives of the velocity coordinates)",
-    "u": "driver inputs (angles, lengths, coordinates)",
-    "ud": "their first time derivatives",
-    "udd": "their second time derivatives",
-    "p": "design parameters (only in a model with a design: section; units as in the model)",
-    "w": "a change of the configuration, in velocity coordinates (sensitivity kernels)",
-    "y": "a change of the velocity coordinates (sensitivity kernels)",
-    "z": "a change of the accelerations (sensitivity kernels)",
-}
-#: Values per body in the ``frames`` kernel: origin, rotation matrix (row by row), origin
-#: velocity, angular velocity, origin acceleration, angular acceleration; all global.
-FRAME_VALUES = 24
-#: The sensitivity kernels of a model with design parameters, per case: what their output holds.
-#: Each is a sparse matrix given by its values at a constant pattern (``<kernel>_rows``,
-#: ``<kernel>_cols``); n_v velocity coordinates, n_p parameters.
-SENSITIVITY_KERNELS = {
-    "phi_p": "Phi_p = dPhi/dp (n_p columns)",
-    "dvel": "[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns)",
-    "dacc": "[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), "
-    "E_a = d(Phi_q a - gamma)/dp (n_p columns)",
-}
 #: (kernel, argument slots without p, section doc) of the sensitivity kernels; the joint
 #: rows' sections leave out the slots of the driver inputs (u, ud, udd)
 SENSITIVITY_SECTIONS = (
@@ -190,6 +167,9 @@ class ModuleDescription:
     design: tuple[tuple[str, float, float, float], ...] = ()
     #: a model with design parameters: whether the sensitivity kernels are there
     sensitivities: bool = False
+    #: the model's C files written beside the Python module (name -> SHA-256 of their bytes), made
+    #: before it: the module names the C that belongs to it (empty: none does)
+    c_files: dict[str, str] = field(default_factory=dict)
 
     @property
     def joint_rows(self) -> int:
@@ -249,7 +229,7 @@ def _acceleration_symbols(coords: Coordinates) -> tuple[sp.Symbol, ...]:
 
 def _frame_groups(coords: Coordinates, tangent: bool = False) -> tuple[Group, ...]:
     """One group per body, all of one shape: the generic body's frame, renamed. With
-    ``tangent``: the change of those 24 values when q moves along w, v by y and a by z (the
+    ``tangent``: the change of those FRAME_VALUES values when q moves along w, v by y and a by z (the
     ``frames_d`` kernel, to carry the state's sensitivities to frames and points)."""
     param = coords.parametrization
     generic = generic_body(param)
@@ -331,6 +311,19 @@ def _direction_symbols(symbols: tuple[sp.Symbol, ...], letter: str) -> tuple[sp.
     return tuple(sp.Symbol(letter + str(s)[1:], real=True) for s in symbols)
 
 
+def _cached_sensitivity_rows(
+    rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...], cache: dict
+) -> tuple[list, list]:
+    """:func:`_sensitivity_rows`, each row derived once per content (its name and equation): a driver
+    at the same place in several cases is the same row, with the same input symbols."""
+    missing = [r for r in rows if (r.name, r.phi, r.is_driver) not in cache]
+    if missing:
+        for row, dvel, dacc in zip(missing, *_sensitivity_rows(missing, coords, symbols)):
+            cache[row.name, row.phi, row.is_driver] = (dvel, dacc)
+    done = [cache[r.name, r.phi, r.is_driver] for r in rows]
+    return [d for d, _ in done], [a for _, a in done]
+
+
 def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Symbol, ...]) -> tuple[list, list]:
     """What the runtime needs to differentiate the velocity and acceleration solves by the
     design parameters, row by row, as sparse matrices. With Phi(q(p), u, p) = 0 solved, a
@@ -389,12 +382,14 @@ def _joint_rates(jacobian: dict[int, sp.Expr], columns: list[int], velocities: l
 
 def _entry_groups(rows: list[Row], entries: list[list[tuple[int, sp.Expr]]], key: tuple) -> tuple[Group, ...]:
     """The entries of ``rows`` in groups of one joint, driver or normalization each (sharing
-    their subexpressions), keyed ``key + (first row,)``: eliminated once for every backend."""
+    their subexpressions), keyed ``key + (the rows' names and equations,)``: eliminated once for
+    every backend and every case."""
     groups: list[Group] = []
     for start, end in _runs(rows):
         values = [e for row in entries[start:end] for _, e in row]
-        if values:
-            groups.append(Group((*key, start), lambda values=values: values, {}))
+        if values:  # keyed by content: the same driver in several cases is eliminated and printed once
+            content = tuple((row.name, row.phi) for row in rows[start:end])
+            groups.append(Group((*key, content), lambda values=values: values, {}))
     return tuple(groups)
 
 
@@ -409,6 +404,22 @@ def point_expressions(model: Model) -> list[sp.Expr]:
     design parameters computes from ``p``."""
     values = [x for body in model.bodies for point in body.points.values() for x in point]
     return values + [x for point in model.ground_points.values() for x in point]
+
+
+def actuator_lengths(model: Model, coords: Coordinates) -> list[sp.Expr]:
+    """Every actuator's length as an expression of its bodies' stored and frame symbols."""
+    frames = {b.name: b.frame for b in coords.bodies}
+    out = []
+    for actuator in model.actuators:
+        ends = [GROUND_FRAME.point(ref.local) if ref.body == GROUND else frames[ref.body].point(ref.local) for ref in actuator.points]
+        gap = ends[0] - ends[1]
+        out.append(sp.sqrt(sum((x * x for x in gap), sp.Integer(0))))
+    return out
+
+
+def _whole(name: str, section: Section) -> Kernel:
+    """A kernel computing one section, its one output named as the kernel."""
+    return Kernel(name, section.slots, (Output(name, (section.name,), section.size),), section.doc)
 
 
 def describe(
@@ -438,9 +449,10 @@ def describe(
     design_symbols = tuple(d.symbol for d in model.design)
     sensitive = bool(model.design) and sensitivities
     joint_sensitivity: dict[str, list] = {}
+    derived: dict = {}  # the sensitivity rows by content (_cached_sensitivity_rows)
     if sensitive:  # the joint rows' parts of the sensitivity kernels, common to every case
         joint_sensitivity["phi_p"] = _design_derivatives(joints, design_symbols)
-        joint_sensitivity["dvel"], joint_sensitivity["dacc"] = _sensitivity_rows(joints, coords, design_symbols)
+        joint_sensitivity["dvel"], joint_sensitivity["dacc"] = _cached_sensitivity_rows(joints, coords, design_symbols, derived)
         for kind, slots_, doc in SENSITIVITY_SECTIONS:
             entries = joint_sensitivity[kind]
             size = sum(map(len, entries))
@@ -448,9 +460,12 @@ def describe(
                     size, f"{doc} of the joint rows ({size} entries).")  # fmt: skip
     frames = section(
         "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
-        "Per body: origin, rotation matrix (row by row), origin velocity, angular velocity, origin acceleration, "
-        "angular acceleration (24 values, global).",
+        f"Per body {FRAME_VALUES} values, global: " + ", ".join(f"{name} ({count})" for name, count in FRAME_FIELDS)
+        + "; the rotation matrix row by row.",
     )  # fmt: skip
+    if model.actuators:
+        section("lengths", ("q", *p), (Group(None, lambda: actuator_lengths(model, coords), {}),), len(model.actuators),
+                "The length of every actuator (in the order of ACTUATORS) [m]: the distance between its two points.")  # fmt: skip
     cases: dict[str, CaseDescription] = {}
     for name, system in systems.items():
         rows = system.rows
@@ -483,11 +498,11 @@ def describe(
         patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {}
         if sensitive:
             driver_sensitivity = {"phi_p": _design_derivatives(drivers, design_symbols)}
-            driver_sensitivity["dvel"], driver_sensitivity["dacc"] = _sensitivity_rows(drivers, coords, design_symbols)
+            driver_sensitivity["dvel"], driver_sensitivity["dacc"] = _cached_sensitivity_rows(drivers, coords, design_symbols, derived)
             for kind, slots_, doc in SENSITIVITY_SECTIONS:
                 entries = driver_sensitivity[kind]
                 size = sum(map(len, entries))
-                section(f"drivers_{kind}_{name}", (*slots_, "p"), _entry_groups(drivers, entries, (f"drivers_{kind}", name)),
+                section(f"drivers_{kind}_{name}", (*slots_, "p"), _entry_groups(drivers, entries, (f"drivers_{kind}",)),
                         size, f"{doc} of the driver rows of case {name!r}.")  # fmt: skip
                 entries_pattern = _pattern(joint_sensitivity[kind]) + _pattern(entries, mj)
                 patterns[kind] = (tuple(i for i, _ in entries_pattern), tuple(j for _, j in entries_pattern))
@@ -500,27 +515,32 @@ def describe(
             tuple(inputs.sources), rows_, cols_, {"u": tuple(inputs.u), "ud": tuple(inputs.ud), "udd": tuple(inputs.udd)},
             kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))), patterns,
         )  # fmt: skip
-    shared = {"frames": Kernel("frames", ("q", "v", "a"), (Output(frames, (frames,), sections[frames].size),), sections[frames].doc)}
+    shared = {"frames": _whole("frames", sections[frames])}
+    if "lengths" in sections:
+        shared["lengths"] = _whole("lengths", sections["lengths"])
     slots = {"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)}
     if model.design:
         values = point_expressions(model)
         section("points", ("p",), (Group(None, lambda: values, {}),), len(values),
                 "Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the "
                 "order of POINTS), then the ground's (global, GROUND_POINTS).")  # fmt: skip
-        shared["points"] = Kernel("points", ("p",), (Output("points", ("points",), len(values)),), sections["points"].doc)
+        shared["points"] = _whole("points", sections["points"])
         bounds = [x for a in model.actuators if a.range is not None for x in a.range]
         section("actuator_ranges", ("p",), (Group(None, lambda: bounds, {}),), len(bounds),
                 "The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters.")  # fmt: skip
+        shared["actuator_ranges"] = _whole("actuator_ranges", sections["actuator_ranges"])
         slots["p"] = tuple(d.symbol for d in model.design)
     if sensitive:
         derivatives = [v.diff(p) for v in values for p in design_symbols]
         section("points_p", ("p",), (Group(None, lambda: derivatives, {}),), len(derivatives),
                 "d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), "
                 "a parameter per column).")  # fmt: skip
+        shared["points_p"] = _whole("points_p", sections["points_p"])
         for letter in "wyz":
             slots[letter] = _direction_symbols(tuple(coords.velocity_symbols), letter)
         section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_groups(coords, tangent=True), FRAME_VALUES * len(coords.bodies),
-                "Per body: the change of the frames kernel's 24 values when q moves along w, v by y and a by z.")  # fmt: skip
+                f"Per body: the change of the frames kernel's {FRAME_VALUES} values when q moves along w, v by y and a by z.")  # fmt: skip
+        shared["frames_d"] = _whole("frames_d", sections["frames_d"])
     nominal = _nominal(model)
     nominal_values = {d.name: float(d.nominal) for d in model.design}
     definitions = Definitions(

@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import hashlib
 from collections.abc import Callable
 from pathlib import Path
 
@@ -58,6 +59,8 @@ def generate(
             made = backends.get(target)(description, stem)
         # the model's own files carry a seal over their text (kinegen.integrity), checked before they run
         files[target] = {name: seal(name, text) if Path(name).stem == stem and sealed(name) else text for name, text in made.items()}
+        if target == "c-model":  # the Python module names the C beside it by its bytes' hash (runtime.native)
+            description.c_files = {name: hashlib.sha256(text.encode("utf-8")).hexdigest() for name, text in files[target].items()}
         if ready is not None:
             ready(target, files[target])
     return {target: files[target] for target in targets}

@@ -33,12 +33,12 @@ from contextlib import contextmanager, suppress
 from functools import cache
 from pathlib import Path
 from types import ModuleType
-from typing import Any
 
 import numpy as np
 
 from kinegen.codegen.backends.c.config import source_parts
 from kinegen.errors import ExitCode, KinegenError
+from kinegen.runtime.abi import Abi, AbiError
 
 SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
 #: flags of the runtime's library (the standalone target's Makefile has its own). The library
@@ -51,8 +51,6 @@ COMMON_FLAGS = ("-std=c99", "-fPIC")
 SOLVER_FLAGS = ("-O2", "-march=native")
 MODEL_FLAGS = ("-O1", "-fno-schedule-insns2")
 PORTABLE = "-march=native"  # dropped where the compiler refuses it
-_DOUBLE_P = ctypes.POINTER(ctypes.c_double)
-_INT_P = ctypes.POINTER(ctypes.c_int)
 _WARNED: set[str] = set()
 
 
@@ -62,77 +60,15 @@ class CompileError(KinegenError):
     exit_code = ExitCode.COMPILE
 
 
-class Options(ctypes.Structure):
-    """``kinegen_options`` of kinegen_solver.h, field by field."""
-
-    _fields_ = [
-        ("tolerance", ctypes.c_double), ("singular_tolerance", ctypes.c_double), ("divergence_limit", ctypes.c_double),
-        ("chord_rate", ctypes.c_double), ("safety", ctypes.c_double),
-        ("max_iterations", ctypes.c_int), ("predictor", ctypes.c_int), ("chord", ctypes.c_int), ("polish", ctypes.c_int),
-        ("keep_branch", ctypes.c_int), ("condition", ctypes.c_int), ("max_refinements", ctypes.c_int), ("case_inputs", ctypes.c_int),
-    ]  # fmt: skip
+class Options(dict):
+    """Settings of ``kinegen_options`` (kinegen_solver.h) by field name; the rest keep
+    ``kinegen_default_options``'. Laid into the library's own struct when a solver is made."""
 
     @classmethod
     def newton_only(cls, tolerance: float, singular_tolerance: float, max_iterations: int = 25) -> Options:
         """Options for plain Newton on configurations (no predictor, certificate, polish or condition)."""
-        return cls(tolerance=tolerance, singular_tolerance=singular_tolerance, divergence_limit=1e8, chord_rate=0.1, safety=2.0,
-                   max_iterations=max_iterations, max_refinements=0)  # fmt: skip
-
-
-class Model(ctypes.Structure):
-    """``kinegen_model`` of kinegen_solver.h (the fields Python reads; the rest as opaque pointers)."""
-
-    _fields_ = [
-        ("layout", ctypes.c_void_p), ("case_name", ctypes.c_char_p),
-        ("n_q", ctypes.c_int), ("n_v", ctypes.c_int), ("n_inputs", ctypes.c_int), ("n_jac", ctypes.c_int),
-        ("t0", ctypes.c_double), ("t1", ctypes.c_double), ("steps", ctypes.c_int),
-        ("initial_q", ctypes.c_void_p), ("constraint_names", ctypes.c_void_p), ("driver_names", ctypes.c_void_p),
-        ("jac_rows", ctypes.c_void_p), ("jac_cols", ctypes.c_void_p),
-        ("phi_jac", ctypes.c_void_p), ("nu", ctypes.c_void_p), ("gamma", ctypes.c_void_p), ("inputs", ctypes.c_void_p),
-        ("retract", ctypes.c_void_p),
-        ("n_blocks", ctypes.c_int), ("block_start", ctypes.c_void_p), ("block_store", ctypes.c_void_p),
-        ("row_order", ctypes.c_void_p), ("col_order", ctypes.c_void_p), ("n_store", ctypes.c_int),
-        ("n_diag", ctypes.c_int), ("diag_value", ctypes.c_void_p), ("diag_slot", ctypes.c_void_p),
-        ("n_off", ctypes.c_int), ("off_start", ctypes.c_void_p), ("off_col", ctypes.c_void_p), ("off_value", ctypes.c_void_p),
-        ("work_doubles", ctypes.c_int), ("work_ints", ctypes.c_int),
-    ]  # fmt: skip
-
-
-class SparsePattern(ctypes.Structure):
-    """``kinegen_pattern`` of kinegen_solver.h."""
-
-    _fields_ = [("n", ctypes.c_int), ("rows", ctypes.c_void_p), ("cols", ctypes.c_void_p)]
-
-
-class DesignModel(ctypes.Structure):
-    """``kinegen_design_model`` of kinegen_solver.h: a case of a model with design parameters."""
-
-    _fields_ = [
-        ("model", Model), ("n_design", ctypes.c_int), ("nominal", ctypes.c_void_p),
-        ("phi_jac", ctypes.c_void_p), ("nu", ctypes.c_void_p), ("gamma", ctypes.c_void_p),
-        ("phi_p_pattern", SparsePattern), ("dvel_pattern", SparsePattern), ("dacc_pattern", SparsePattern),
-        ("phi_p", ctypes.c_void_p), ("dvel", ctypes.c_void_p), ("dacc", ctypes.c_void_p), ("sensitivity_doubles", ctypes.c_int),
-    ]  # fmt: skip
-
-
-class Solver(ctypes.Structure):
-    """``kinegen_solver`` of kinegen_solver.h."""
-
-    _fields_ = [
-        ("model", ctypes.c_void_p), ("options", Options), ("t", ctypes.c_double),
-        ("q", _DOUBLE_P), ("v", _DOUBLE_P), ("a", _DOUBLE_P),
-        ("started", ctypes.c_int), ("iterations", ctypes.c_int), ("residual", ctypes.c_double), ("condition", ctypes.c_double),
-        ("sign", ctypes.c_int), ("have_factors", ctypes.c_int), ("factor_sign", ctypes.c_int),
-        *((name, _DOUBLE_P) for name in ("trial", "phi", "jac", "store", "off", "rhs", "step", "y", "x")),
-        ("pivots", _INT_P), ("design", ctypes.c_void_p),
-        *((name, _DOUBLE_P) for name in ("u", "ud", "jac_q", "moved", "w1", "w2")),
-        ("block_sign", _INT_P), ("factor_block_sign", _INT_P),
-        ("refinements", ctypes.c_int), ("branch_block", ctypes.c_int), ("bound", ctypes.c_double), ("branch_time", ctypes.c_double),
-    ]  # fmt: skip
-
-
-#: kinegen_status codes
-OK, NOT_CONVERGED, SINGULAR, BRANCH, NOT_STARTED, INPUTS = range(6)
+        return cls(tolerance=tolerance, singular_tolerance=singular_tolerance, max_iterations=max_iterations,
+                   predictor=0, chord=0, polish=0, keep_branch=0, condition=0, max_refinements=0)  # fmt: skip
 
 
 def c_compiler() -> str:
@@ -324,24 +260,28 @@ def _run_all(compiler: str, commands: list[list[str]]) -> None:
 
 
 def _model_sources(module: ModuleType) -> dict[str, str] | None:
-    """The module's C and the solver's, if the module's ``.c``/``.h`` lie beside it and are fresh
-    (built from the same model file in the same parametrization); None otherwise. A C file whose
-    seal does not match its text (edited, truncated) is a :class:`GeneratedModuleError`."""
+    """The module's C and the solver's, if the C files the module names (``C_FILES``: file ->
+    SHA-256 of its bytes, recorded when both were generated) lie beside it with exactly those
+    bytes; None otherwise (none named, missing, or from another build). A C file whose seal
+    does not match its text (edited, truncated) is a :class:`GeneratedModuleError`."""
     from kinegen.errors import GeneratedModuleError
     from kinegen.integrity import SealError, verified_text
 
     path = Path(getattr(module, "__file__", "") or "")
-    c_file, h_file = path.with_suffix(".c"), path.with_suffix(".h")
-    if not (path.suffix == ".py" and c_file.is_file() and h_file.is_file()):
+    named = getattr(module, "C_FILES", None) or {}
+    files = {name: path.with_name(name) for name in named}
+    if path.suffix != ".py" or not files or not all(f.is_file() for f in files.values()):
         return None
-    try:
-        text, header = (verified_text(f.read_bytes(), str(f)) for f in (c_file, h_file))
-    except SealError as exc:
-        raise GeneratedModuleError(f"{exc}; rebuild it with `kinegen build <model>.yaml --param {module.PARAMETRIZATION}`") from None
-    fresh = f"source sha256:   {module.SOURCE_SHA256}"
-    if any(fresh not in t or f"parametrization: {module.PARAMETRIZATION}" not in t for t in (text, header)):
-        return None  # built from another model version: not the kernels of this module
-    return with_solver({c_file.name: text, h_file.name: header})
+    texts = {}
+    for name, file in files.items():
+        data = file.read_bytes()
+        try:
+            texts[name] = verified_text(data, str(file))
+        except SealError as exc:
+            raise GeneratedModuleError(f"{exc}; rebuild it with `kinegen build <model>.yaml --param {module.PARAMETRIZATION}`") from None
+        if hashlib.sha256(data).hexdigest() != named[name]:
+            return None  # another build's C (another model version or parametrization): not this module's kernels
+    return with_solver(texts)
 
 
 @cache
@@ -349,6 +289,7 @@ def _library(path: str) -> ctypes.CDLL:
     """The cached library at ``path``, loaded after its bytes were checked against their record."""
     library = _load(Path(path))
     for name, restype, argtypes in (
+        ("kinegen_default_options", None, [ctypes.c_void_p]),
         ("kinegen_init", None, [ctypes.c_void_p] * 5),
         ("kinegen_start", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 4]),
         ("kinegen_resume", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 5]),
@@ -363,6 +304,12 @@ def _library(path: str) -> ctypes.CDLL:
     return library
 
 
+@cache
+def _abi(path: str) -> Abi:
+    """The structs and status codes of the cached library at ``path``, from its own tables."""
+    return Abi(_library(path))
+
+
 def _load(path: Path) -> ctypes.CDLL:
     """dlopen of a cached library whose bytes match their record (else CompileError). (The cache
     is the user's own folder: the check guards against damage and stale or planted files, not
@@ -371,11 +318,6 @@ def _load(path: Path) -> ctypes.CDLL:
     if hashlib.sha256(data).hexdigest() != _record_of(path).read_text().strip():
         raise CompileError(f"{path}: the cached library does not match its record (tampered or truncated)")
     return ctypes.CDLL(str(path))
-
-
-def _kernel_type(slots: tuple[str, ...], outputs: tuple[str, ...]) -> Any:
-    """The C signature of a kernel from its slots (``t`` a double, the others arrays) and outputs."""
-    return ctypes.CFUNCTYPE(None, *(ctypes.c_double if s == "t" else ctypes.c_void_p for s in slots), *[ctypes.c_void_p] * len(outputs))
 
 
 def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.ndarray | None = None) -> NativeCase | None:
@@ -394,56 +336,62 @@ def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.n
             warnings.warn(f"no compiled code ({reason}); kinegen solves with the Python functions", RuntimeWarning, stacklevel=2)
         return None
     stem = Path(module.__file__).stem
-    return NativeCase(_library(str(library)), f"{stem}_{case}", module.KERNELS, design)
+    abi = _abi(str(library))
+    abi.check_frames(tuple(tuple(f) for f in module.FRAME_FIELDS))
+    return NativeCase(abi, f"{stem}_{case}", design)
 
 
 class NativeCase:
     """One case's compiled kernels and C solver (see the module docstring)."""
 
-    def __init__(self, library: ctypes.CDLL, symbol: str, kernels: dict, design: np.ndarray | None = None) -> None:
-        self.library = library
-        self.model = Model.in_dll(library, symbol)
-        self.address = ctypes.addressof(self.model)
-        m = self.model
+    def __init__(self, abi: Abi, symbol: str, design: np.ndarray | None = None) -> None:
+        self.abi = abi
+        self.library = library = abi.library
+        self.model = m = abi.struct("kinegen_model").in_dll(library, symbol)
+        self.address = ctypes.addressof(m)
         self.n_q, self.n_v, self.n_inputs, self.n_jac = m.n_q, m.n_v, m.n_inputs, m.n_jac
         #: the design parameters the kernels and solvers take (None without them)
         self.design = None
         self.sensitivity_doubles = 0  #: work of kinegen_sensitivities (0: the model has no sensitivity kernels)
-        owner = m
         if not m.phi_jac:  # a model with design parameters: its kernels take them last
-            owner = DesignModel.in_dll(library, symbol)
+            owner = abi.struct("kinegen_design_model").in_dll(library, symbol)
             self.sensitivity_doubles = owner.sensitivity_doubles
-            nominal = np.ctypeslib.as_array(ctypes.cast(owner.nominal, _DOUBLE_P), (owner.n_design,))
+            nominal = np.ctypeslib.as_array(owner.nominal, (owner.n_design,))
             self.design = np.array(nominal if design is None else design, dtype=float)
-        self.kernels = {
-            name: ctypes.cast(getattr(m if name == "inputs" else owner, name), _kernel_type(*kernels[name]))
-            for name in ("phi_jac", "nu", "gamma", "inputs")
-        }
-        p = () if self.design is None else (self.design.ctypes.data,)
-        # buffers for one configuration; addresses computed once
-        self._q, self._v, self._u, self._ud, self._udd = (np.zeros(n) for n in (m.n_q, m.n_v, m.n_inputs, m.n_inputs, m.n_inputs))
-        self._phi, self._jac, self._inputs = np.zeros(m.n_v), np.zeros(m.n_jac), np.zeros(3 * m.n_inputs)
-        self._address = {name: getattr(self, name).ctypes.data for name in ("_q", "_v", "_u", "_ud", "_udd", "_phi", "_jac", "_inputs")}
-        self._p = p
+        #: every kernel of the case and of the model's layout (frames, ...), as their tables in the library declare them
+        layout = abi.struct("kinegen_layout").from_address(m.layout)
+        self.kernels = {**abi.kernels(layout.n_kernels, layout.kernels), **abi.kernels(m.n_kernels, m.kernels)}
+        # buffers for one configuration, and the kernels bound to them once
+        n_out = max(o for k in self.kernels.values() for o in k.sizes)
+        self._arrays = {"q": np.zeros(m.n_q), "v": np.zeros(m.n_v), "a": np.zeros(m.n_v), "t": np.zeros(1),
+                        **{s: np.zeros(max(1, m.n_inputs)) for s in ("u", "ud", "udd")}, **{s: np.zeros(m.n_v) for s in "wyz"}}  # fmt: skip
+        if self.design is not None:
+            self._arrays["p"] = self.design
+        self._out = {o: np.zeros(n_out) for k in self.kernels.values() for o in k.outputs}
+        self._calls = {
+            name: kernel.bind(self._arrays, self._out)
+            for name, kernel in self.kernels.items() if set(kernel.slots) <= set(self._arrays)
+        }  # fmt: skip
+
+    def run(self, kernel: str, **arguments: np.ndarray) -> tuple[np.ndarray, ...]:
+        """The outputs (copies) of any kernel the library declares, at these arguments by slot
+        name (one configuration; slots not given keep their last values, ``p`` the case's design)."""
+        for slot, value in arguments.items():
+            self._arrays[slot][: np.size(value)] = value
+        self._calls[kernel]()
+        k = self.kernels[kernel]
+        return tuple(self._out[o][:size].copy() for o, size in zip(k.outputs, k.sizes))
 
     def evaluate(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """Phi and the Phi_q values at one configuration."""
-        self._q[:], self._u[:] = q, u
-        a = self._address
-        self.kernels["phi_jac"](a["_q"], a["_u"], *self._p, a["_phi"], a["_jac"])
-        return self._phi.copy(), self._jac.copy()
+        phi, jac = self.run("phi_jac", q=q, u=u)
+        return phi, jac
 
     def nu(self, q: np.ndarray, u: np.ndarray, ud: np.ndarray) -> np.ndarray:
-        self._q[:], self._u[:], self._ud[:] = q, u, ud
-        a = self._address
-        self.kernels["nu"](a["_q"], a["_u"], a["_ud"], *self._p, a["_phi"])
-        return self._phi.copy()
+        return self.run("nu", q=q, u=u, ud=ud)[0]
 
     def gamma(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
-        self._q[:], self._v[:], self._u[:], self._ud[:], self._udd[:] = q, v, u, ud, udd
-        a = self._address
-        self.kernels["gamma"](a["_q"], a["_v"], a["_u"], a["_ud"], a["_udd"], *self._p, a["_phi"])
-        return self._phi.copy()
+        return self.run("gamma", q=q, v=v, u=u, ud=ud, udd=udd)[0]
 
     def sensitivities(self, q, v, a, u, ud, udd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """dq/dp, dv/dp, da/dp (each (K, n_v, n_design)) at the K columns of q (n_q, K), v, a
@@ -501,12 +449,18 @@ class NativeSolver:
     def __init__(self, case: NativeCase, options: Options) -> None:
         self.case = case
         self.library = case.library
-        self.state = Solver()
+        abi = case.abi
+        self.state = abi.struct("kinegen_solver")()
         self.pointer = ctypes.addressof(self.state)
         self._doubles = np.zeros(case.model.work_doubles)
         self._ints = np.zeros(case.model.work_ints, dtype=np.intc)
-        self._options = options
-        self.library.kinegen_init(self.pointer, case.address, ctypes.addressof(options), self._doubles.ctypes.data, self._ints.ctypes.data)
+        self._options = abi.make("kinegen_options")
+        self.library.kinegen_default_options(ctypes.addressof(self._options))
+        for name, value in options.items():
+            if name.startswith("_") or not hasattr(self._options, name):
+                raise AbiError(f"the library's kinegen_options has no field {name}")
+            setattr(self._options, name, value)
+        self.library.kinegen_init(self.pointer, case.address, ctypes.addressof(self._options), self._doubles.ctypes.data, self._ints.ctypes.data)
         if case.design is not None:  # the case's array, alive as long as the case
             self.library.kinegen_set_design(self.pointer, case.design.ctypes.data)
 

@@ -168,20 +168,20 @@ def _sparse_times(pattern: tuple[np.ndarray, np.ndarray], values, shape: tuple[i
 
 
 def frame_sensitivities(results: Results) -> np.ndarray:
-    """The change of every body's 24 frame values (origin, rotation matrix row by row, origin
-    velocity, ω, origin acceleration, ω̇) per unit of each design parameter, (K, n_bodies, 24,
-    n_design): the generated ``frames_d`` kernel along (dq/dp, dv/dp, da/dp), one call."""
+    """The change of every body's frame values (FRAME_VALUES of them, as the module's
+    FRAME_FIELDS lists: origin, rotation matrix row by row, origin velocity, ω, origin
+    acceleration, ω̇) per unit of each design parameter, (K, n_bodies, FRAME_VALUES, n_design): the generated ``frames_d`` kernel along (dq/dp, dv/dp, da/dp), one call."""
     return frame_changes(results.system, results.q.T, results.v.T, results.a.T, *results.state_sensitivities())
 
 
 def frame_changes(system: NumericSystem, q, v, a, s: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
-    """The change of every body's 24 frame values at the states (q, v, a) (columns, (n, K)) along
+    """The change of every body's frame values at the states (q, v, a) (columns, (n, K)) along
     m changes of the state: ``s`` of q (in velocity coordinates), ``velocity`` of v and
-    ``acceleration`` of a, each (K, n_v, m); (K, n_bodies, 24, m), one ``frames_d`` call."""
+    ``acceleration`` of a, each (K, n_v, m); (K, n_bodies, FRAME_VALUES, m), one ``frames_d`` call."""
     count, m = s.shape[0], s.shape[2]
     state = (_each(np.asarray(x, dtype=float).reshape(-1, count), m) for x in (q, v, a))
     changes = system.frames_d(*state, _pairs(s), _pairs(velocity), _pairs(acceleration))
-    return np.asarray(changes, dtype=float).reshape(len(system.bodies), 24, count, m).transpose(2, 0, 1, 3)
+    return np.asarray(changes, dtype=float).reshape(len(system.bodies), -1, count, m).transpose(2, 0, 1, 3)
 
 
 def configuration_sensitivities(
@@ -311,22 +311,23 @@ def point_sensitivity(results: Results, body: str, point: str, kind: str = "posi
     if body == GROUND:
         change = derivatives[point] if kind == "position" else np.zeros((3, n_design))
         return np.broadcast_to(change, (count, 3, n_design)).copy()
-    frame = results._frame_sensitivities()[:, list(system.bodies).index(body)]  # (K, 24, n_design)
+    frame = results._frame_sensitivities()[:, list(system.bodies).index(body)]  # (K, FRAME_VALUES, n_design)
+    at = system.frame_slices
     rotation, arm = results.rotation_matrix(body), results._arm(body, point)
     omega, omega_dot = results.omega(body), results.omega_dot(body)
     local = np.asarray(system.points[body][point], dtype=float)
     out = np.empty((count, 3, n_design))
     for k in range(n_design):
-        d_rotation = frame[:, 3:12, k].reshape(count, 3, 3)
+        d_rotation = frame[:, at["rotation"], k].reshape(count, 3, 3)
         d_arm = d_rotation @ local + rotation @ derivatives[point][:, k]
         if kind == "position":
-            out[:, :, k] = frame[:, 0:3, k] + d_arm
+            out[:, :, k] = frame[:, at["origin"], k] + d_arm
         elif kind == "velocity":
-            out[:, :, k] = frame[:, 12:15, k] + np.cross(frame[:, 15:18, k], arm) + np.cross(omega, d_arm)
+            out[:, :, k] = frame[:, at["velocity"], k] + np.cross(frame[:, at["angular_velocity"], k], arm) + np.cross(omega, d_arm)
         else:
-            d_omega, d_omega_dot = frame[:, 15:18, k], frame[:, 21:24, k]
+            d_omega, d_omega_dot = frame[:, at["angular_velocity"], k], frame[:, at["angular_acceleration"], k]
             out[:, :, k] = (
-                frame[:, 18:21, k] + np.cross(d_omega_dot, arm) + np.cross(omega_dot, d_arm)
+                frame[:, at["acceleration"], k] + np.cross(d_omega_dot, arm) + np.cross(omega_dot, d_arm)
                 + np.cross(d_omega, np.cross(omega, arm)) + np.cross(omega, np.cross(d_omega, arm) + np.cross(omega, d_arm))
             )  # fmt: skip
     return out
@@ -338,7 +339,7 @@ def rotation_sensitivity(results: Results, body: str) -> np.ndarray:
     system = results.system
     if body not in system.bodies:
         raise KeyError(f"no body {body!r} (bodies: {', '.join(system.bodies)})")
-    d_rotation = results._frame_sensitivities()[:, list(system.bodies).index(body), 3:12]  # (K, 9, n_design)
+    d_rotation = results._frame_sensitivities()[:, list(system.bodies).index(body), system.frame_slices["rotation"]]  # (K, 9, n_design)
     count = len(results.times)
     rotation = results.rotation_matrix(body)
     out = np.empty((count, 3, len(system.design)))

@@ -20,10 +20,8 @@ import numpy as np
 
 from kinegen import rotations
 from kinegen.errors import GeneratedModuleError, ModelError, shown
+from kinegen.interface import FRAME_FIELDS, SENSITIVITY_KERNELS, frame_slices
 from kinegen.runtime.linear import Pattern
-
-#: the sensitivity kernels of a module with design parameters (kinegen.codegen.kernels.SENSITIVITY_KERNELS)
-SENSITIVITY_KERNELS = ("phi_p", "dvel", "dacc")
 
 
 @dataclass(frozen=True)
@@ -73,10 +71,12 @@ class NumericSystem:
     #: with design parameters, the sensitivity kernels (:mod:`kinegen.runtime.sensitivity`), p
     #: bound: "phi_p" (q, u), "dvel" (q, v, u, ud), "dacc" (q, v, a, u, ud, udd) -> the values of
     #: a sparse matrix at its pattern (``sensitivity_patterns[kind]``: rows, columns; see
-    #: :data:`kinegen.codegen.kernels.SENSITIVITY_KERNELS`); frames_d (q, v, a, w, y, z)
+    #: :data:`kinegen.interface.SENSITIVITY_KERNELS`); frames_d (q, v, a, w, y, z)
     sensitivity_kernels: dict[str, Callable[..., np.ndarray]] = field(default_factory=dict)
     sensitivity_patterns: dict[str, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
     frames_d: Callable[..., np.ndarray] | None = None
+    #: per body, the frames kernels' values in order: (name, count) (the module's FRAME_FIELDS)
+    frame_fields: tuple[tuple[str, int], ...] = FRAME_FIELDS
 
     @property
     def n_stored(self) -> int:
@@ -191,6 +191,11 @@ class NumericSystem:
         return out
 
     @cached_property
+    def frame_slices(self) -> dict[str, slice]:
+        """Where each frame value lies among a body's values in the frames kernels (name -> slice)."""
+        return frame_slices(self.frame_fields)
+
+    @cached_property
     def _additive(self) -> bool:
         return self.parametrization.additive
 
@@ -250,21 +255,22 @@ def from_module(
     p = _design_values(module, design)
     points = {b: dict(pts) for b, pts in module.POINTS.items()}
     ground_points = dict(getattr(module, "GROUND_POINTS", {}))
-    kernels = {k: data.get(k) for k in ("phi", "jac", "nu", "gamma", "phi_jac_s", "nu_s", "gamma_s")}
+    outputs, scalar = data["outputs"], data["scalar"]
+    kernels = {**{k: outputs[k] for k in ("phi", "jac", "nu", "gamma")}, **{f"{k}_s": scalar.get(k) for k in ("phi_jac", "nu", "gamma")}}
     design_fields: dict[str, Any] = {}
     if p is not None:
         kernels = {k: None if f is None else _with_design(f, p) for k, f in kernels.items()}
         points, ground_points = _design_points(module, p)
         design_fields = {"design": dict(zip(module.DESIGN, p.tolist())), "actuators": _design_actuators(module, p)}
-        if "dvel" in data:  # (modules built before kinegen had these sensitivity kernels lack them)
+        if all(kind in outputs for kind in SENSITIVITY_KERNELS):  # (a module built without them lacks them)
             design_fields.update(
                 point_derivatives=_design_point_derivatives(module, p),
-                sensitivity_kernels={kind: _with_design(data[kind], p) for kind in SENSITIVITY_KERNELS},
+                sensitivity_kernels={kind: _with_design(outputs[kind], p) for kind in SENSITIVITY_KERNELS},
                 sensitivity_patterns={
-                    kind: (np.array(data[f"{kind}_rows"], dtype=np.intp), np.array(data[f"{kind}_cols"], dtype=np.intp))
-                    for kind in SENSITIVITY_KERNELS
+                    kind: tuple(np.array(x, dtype=np.intp) for x in data["patterns"][kind]) for kind in SENSITIVITY_KERNELS
                 },
                 frames_d=module.frames_d,
+                frame_fields=tuple(module.FRAME_FIELDS),
             )
     return NumericSystem(
         model=module.MODEL,
@@ -279,7 +285,7 @@ def from_module(
         initial_q=np.array(module.INITIAL_Q, dtype=float),
         jac_rows=np.array(data["jac_rows"], dtype=np.intp),
         jac_cols=np.array(data["jac_cols"], dtype=np.intp),
-        inputs=data["inputs"],
+        inputs=outputs["inputs"],
         phi=kernels["phi"],
         jac=kernels["jac"],
         nu=kernels["nu"],

@@ -21,7 +21,7 @@ import sympy as sp
 
 from kinegen.codegen.backends.c import config
 from kinegen.codegen.backends.c.printer import CPrinter
-from kinegen.codegen.kernels import CaseDescription, ModuleDescription, Plan, Zeros
+from kinegen.codegen.kernels import CaseDescription, Kernel, ModuleDescription, Plan, Zeros
 from kinegen.codegen.shapes import Block, Printing
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
@@ -137,6 +137,7 @@ class _Model:
         self.functions: list[_Function] = []  # kernels and frames
         self.section_functions: list[_Function] = []
         self.sections: dict[str, list[str]] = {}
+        self.tables: list[str] = []  # the kernel tables (kernel_table)
 
     def slot_symbols(self, slot: str, case: str | None) -> tuple[sp.Symbol, ...]:
         if case is not None and slot in self.d.cases[case].slots:
@@ -167,7 +168,7 @@ class _Model:
         if name in self.sections:
             return self.sections[name]
         section = self.d.sections[name]
-        block = self.printing.block(section.groups, "d" if "jac" in name else "c")
+        block = self.printing.block(section.groups, "c")
         params = [*(_parameter(s) for s in section.slots), "double *out"]
         parts = block.parts(config.PART_STATEMENTS)
         names = [f"compute_{name}"] if len(parts) == 1 else [f"compute_{name}_part{k}" for k in range(len(parts))]
@@ -179,6 +180,24 @@ class _Model:
             self.section_functions.append(_Function(function_name, params, self.prologue(section.slots, part, case), statements, doc))
         self.sections[name] = names
         return names
+
+    def kernel_table(self, table: str, kernels: list[tuple[str, Kernel]]) -> None:
+        """The kernels as data (``kinegen_kernel``, kinegen_solver.h): per kernel an entry point
+        of the one fixed signature calling its function, its output names and sizes, then the
+        table ``table`` listing them -- what the runtime binds by, never a copy."""
+        entries = []
+        for function, kernel in kernels:
+            arguments = ", ".join([*(f"x[{k}][0]" if s == "t" else f"x[{k}]" for k, s in enumerate(kernel.slots)),
+                                   *(f"y[{k}]" for k in range(len(kernel.outputs)))])  # fmt: skip
+            self.functions.append(_Function(f"call_{function}", ["const double *const *x", "double *const *y"],
+                                            statements=[f"{function}({arguments});"], doc=f"{kernel.name} as a kinegen_kernel entry point."))  # fmt: skip
+            self.tables += [
+                f"static const char *const outputs_{function}[] = {_string_array(o.name for o in kernel.outputs)};",
+                f"static const int sizes_{function}[] = {_int_array(o.size for o in kernel.outputs)};",
+            ]
+            entries.append(f"    {{{c_string(kernel.name)}, {c_string(','.join(kernel.slots))}, {len(kernel.outputs)}, "
+                           f"outputs_{function}, sizes_{function}, call_{function}}},")  # fmt: skip
+        self.tables += [f"static const kinegen_kernel {table}[] = {{", *entries, "};"]
 
     def kernel(self, name: str, kernel, case: str | None, static: bool = True) -> None:
         """A kernel: its outputs filled section by section (zeros where the description says so)."""
@@ -235,11 +254,17 @@ class _Model:
                 )
             for kernel in case.kernels.values():
                 self.kernel(f"{kernel.name}_{name}", kernel, name)
+            self.kernel_table(f"kernels_{name}", [(f"{kernel.name}_{name}", kernel) for kernel in case.kernels.values()])
             arrays = plan_arrays(case, case.plan)
             doubles, ints = work_sizes(d, case, arrays)
             sensitivity = 2 * len(d.velocity_names) * len(d.design) + max((len(rows) for rows, _ in case.patterns.values()), default=0)
             cases.append(SimpleNamespace(case=case, plan=arrays, doubles=doubles, ints=ints, sensitivity_doubles=sensitivity))
-        self.kernel(f"{stem}_frames", d.kernels["frames"], None, static=False)
+        shared = []
+        for kernel in d.kernels.values():
+            function = f"{stem}_frames" if kernel.name == "frames" else f"shared_{kernel.name}"
+            self.kernel(function, kernel, None, static=kernel.name != "frames")
+            shared.append((function, kernel))
+        self.kernel_table("kernels", shared)
         points, index = [], {}
         bodies = [b for b, _, _ in d.bodies]
         for body, named in d.points.items():
@@ -255,7 +280,7 @@ class _Model:
         context = {
             "d": d, "stem": stem, "prefix": stem.upper(), "cases": cases, "points": points, "actuators": actuators,
             "param": d.parametrization, "retract": d.parametrization.c_retract().splitlines(),
-            "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__,
+            "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__, "tables": self.tables,
             "groups": [[macros.function(f) for f in group] for group in groups],
             "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
             "work_doubles": max(c.doubles for c in cases), "work_ints": max(c.ints for c in cases),

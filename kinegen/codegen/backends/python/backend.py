@@ -17,9 +17,10 @@ import sympy as sp
 
 from kinegen.codegen.backends.python import config
 from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter, used_numpy_names
-from kinegen.codegen.kernels import SENSITIVITY_KERNELS, ModuleDescription, Section
+from kinegen.codegen.kernels import Kernel, ModuleDescription, Output, Section, Zeros
 from kinegen.codegen.shapes import Block, Printing
 from kinegen.codegen.templates import environment
+from kinegen.interface import FRAME_FIELDS
 
 ARRAY, SCALAR = 1, 2  # text positions in a Block's temporaries / outputs (after the name)
 
@@ -49,13 +50,15 @@ class _Module:
         self.d = description
         self.printing: Printing = description.shapes.printing((ModulePrinter(), ScalarPrinter()))
         self.functions: list[_Function] = []
-        self.blocks: dict[str, Block] = {}
+        self.blocks: dict[tuple[str, str], Block] = {}
+        self.made: set[str] = set()  # functions made once for every case (section and scalar functions)
 
-    def block(self, name: str) -> Block:
-        if name not in self.blocks:
-            section = self.d.sections[name]
-            self.blocks[name] = self.printing.block(section.groups, "d" if name.endswith("jac") or "_jac_" in name else "c")
-        return self.blocks[name]
+    def block(self, name: str, prefix: str = "c") -> Block:
+        """The section's printed block, temporaries ``<prefix>0, ...`` (functions computing several
+        sections give each its own prefix)."""
+        if (name, prefix) not in self.blocks:
+            self.blocks[name, prefix] = self.printing.block(self.d.sections[name].groups, prefix)
+        return self.blocks[name, prefix]
 
     def slots(self, section: Section | tuple[str, ...], case: str | None) -> list[tuple[str, tuple[sp.Symbol, ...]]]:
         names = section.slots if isinstance(section, Section) else section
@@ -99,7 +102,7 @@ class _Module:
     def scalar(self, name: str, doc: str, sections: list[str], case: str | None) -> None:
         """Plain-float function (``math``) of one configuration returning one list per section
         (a long section as the concatenated lists of part functions ``{name}_part<k>``)."""
-        blocks = [self.block(s) for s in sections]
+        blocks = [self.block(s, "cdefgh"[k]) for k, s in enumerate(sections)]
         args = self.slots(self.d.sections[sections[0]], case)
         arg_names = [a for a, _ in args]
         split = [block.parts(config.PART_STATEMENTS) for block in blocks]
@@ -122,63 +125,75 @@ class _Module:
         self.functions.append(_Function("scalar", name, arg_names, doc, results=results))
         self.functions += parts_functions
 
+    def allocation(self, slots: tuple[str, ...]) -> str:
+        """The output array of a function of ``slots``: rows first, then the arguments' batch shape."""
+        if "q" in slots:
+            return "_zeros({m}, q, u)" if "u" in slots else "_zeros({m}, q, ())"
+        return "np.zeros(({m},) + np.shape(t))" if slots == ("t",) else f"np.zeros(({{m}},) + np.shape({slots[0]}[0]))"
+
+    def section_array(self, section: str, case: str | None) -> str:
+        """The NumPy function of one section (``_<section>``, made once); returns its name."""
+        name = f"_{section}"
+        if name not in self.made:
+            self.made.add(name)
+            s = self.d.sections[section]
+            self.array(name, s.doc, section, case, self.allocation(s.slots))
+        return name
+
+    def output(self, function: str, kernel: Kernel, output: Output, case: str | None) -> None:
+        """The NumPy function ``function`` of the kernel's slots giving ``output``: its one
+        section's function, or its parts joined (zeros as their row count)."""
+        parts = output.parts
+        if len(parts) == 1 and not isinstance(parts[0], Zeros) and self.d.sections[parts[0]].slots == kernel.slots:
+            self.array(function, _output_doc(kernel, output), parts[0], case, self.allocation(kernel.slots))
+            return
+        calls = [str(part.size) if isinstance(part, Zeros) else f"{self.section_array(part, case)}({', '.join(self.d.sections[part].slots)})"
+                 for part in parts]  # fmt: skip
+        self.functions.append(_Function("returns", function, list(kernel.slots), _output_doc(kernel, output), result=f"_join({', '.join(calls)})"))
+
+    def scalar_kernel(self, function: str, kernel: Kernel, case: str) -> None:
+        """Plain-float ``function`` of one configuration: each output as a list (a tuple of them
+        for several), the sections at the same place of every output computed together."""
+        outputs = kernel.outputs
+        lines, pieces = [], [[] for _ in outputs]
+        for position in range(max(len(o.parts) for o in outputs)):
+            sections = [(i, o.parts[position]) for i, o in enumerate(outputs) if position < len(o.parts)]
+            for i, part in sections:
+                if isinstance(part, Zeros):
+                    pieces[i].append(f"[0.0] * {part.size}")
+            named = [(i, part) for i, part in sections if not isinstance(part, Zeros)]
+            if not named:
+                continue
+            name = "_" + "_".join(part for _, part in named) + "_s"
+            if name not in self.made:
+                self.made.add(name)
+                doc = "; ".join(self.d.sections[part].doc for _, part in named) + " (one configuration, lists of floats)"
+                self.scalar(name, doc, [part for _, part in named], case)
+            values = [f"s{position}_{i}" for i, _ in named]
+            slots = ", ".join(self.d.sections[named[0][1]].slots)
+            lines.append(f"{', '.join(values)} = {name}({slots})")
+            for (i, _), value in zip(named, values):
+                pieces[i].append(value)
+        result = ", ".join(" + ".join(p) for p in pieces)
+        doc = f"{kernel.doc} At one configuration (lists of floats)."
+        self.functions.append(_Function("returns", function, list(kernel.slots), doc, lines, result=result))
+
     def render(self, templates) -> str:
         d = self.d
-        joints = d.joint_rows
-        self.array("_joints_phi", d.sections["joints_phi"].doc, "joints_phi", None, "_zeros({m}, q, ())")
-        self.array("_joints_jac", d.sections["joints_jac"].doc, "joints_jac", None, "_zeros({m}, q, ())")
-        self.array("_joints_gamma", d.sections["joints_gamma"].doc, "joints_gamma", None, "_zeros({m}, q, ())")
-        self.scalar("_joints_phi_jac_s", "Phi and Phi_q values of the joint rows at one configuration (lists of floats).",
-                    ["joints_phi", "joints_jac"], None)  # fmt: skip
-        self.scalar("_joints_gamma_s", "gamma of the joint rows at one configuration (list of floats).", ["joints_gamma"], None)
-        self.array("frames", d.kernels["frames"].doc, "frames", None, "_zeros({m}, q, ())")
-        if "points" in d.kernels:
-            self.array("points", d.kernels["points"].doc, "points", None, "np.zeros(({m},) + np.shape(p[0]))")
-            self.array("actuator_ranges", d.sections["actuator_ranges"].doc, "actuator_ranges", None, "np.zeros(({m},) + np.shape(p[0]))")
-        if d.sensitivities:
-            self.array("points_p", d.sections["points_p"].doc, "points_p", None, "np.zeros(({m},) + np.shape(p[0]))")
-            self.array("frames_d", d.sections["frames_d"].doc, "frames_d", None, "_zeros({m}, q, ())")
-            for kind in SENSITIVITY_KERNELS:
-                self.array(f"_joints_{kind}", d.sections[f"joints_{kind}"].doc, f"joints_{kind}", None, "_zeros({m}, q, ())")
-        p = [", p", ["p"]] if d.design else ["", []]  # the design parameters' argument, last
+        for kernel in d.kernels.values():  # shared by the cases: a function per output, named as it
+            for output in kernel.outputs:
+                self.output(output.name, kernel, output, None)
+        cases = []
         for name, case in d.cases.items():
-            self.array(f"inputs_{name}", d.sections[f"inputs_{name}"].doc, f"inputs_{name}", name, "np.zeros(({m},) + np.shape(t))")
-            for kind in ("phi", "jac", "nu", "gamma"):
-                section = f"drivers_{kind}_{name}"
-                self.array(f"_{section}", d.sections[section].doc, section, name, "_zeros({m}, q, u)")
-            for kind in SENSITIVITY_KERNELS if d.sensitivities else ():
-                section, kernel = d.sections[f"drivers_{kind}_{name}"], case.kernels[kind]
-                self.array(f"_{section.name}", section.doc, section.name, name, "_zeros({m}, q, u)")
-                joint_args = ", ".join(d.sections[f"joints_{kind}"].slots)
-                self.functions.append(_Function("join", f"{kind}_{name}", list(kernel.slots), kernel.doc,
-                                                first=f"_joints_{kind}({joint_args})", second=f"_{section.name}({', '.join(section.slots)})"))  # fmt: skip
-            self.scalar(f"_drivers_phi_jac_s_{name}", f"Phi and Phi_q values of the driver rows of case {name!r} at one configuration.",
-                        [f"drivers_phi_{name}", f"drivers_jac_{name}"], name)  # fmt: skip
-            self.scalar(f"_drivers_nu_s_{name}", f"nu of the driver rows of case {name!r} at one configuration.", [f"drivers_nu_{name}"], name)
-            self.scalar(f"_drivers_gamma_s_{name}", f"gamma of the driver rows of case {name!r} at one configuration.",
-                        [f"drivers_gamma_{name}"], name)  # fmt: skip
-            kernels = case.kernels
-            m, entries = kernels["phi_jac"].outputs[0].size, kernels["phi_jac"].outputs[1].size
-            q_u, q_u_ud, q_v_inputs = ["q", "u", *p[1]], ["q", "u", "ud", *p[1]], ["q", "v", "u", "ud", "udd", *p[1]]
-            P = p[0]
-            self.functions += [
-                _Function("join", f"phi_{name}", q_u, f"Phi(q, u) of case {name!r}: {m} residuals.",
-                          first=f"_joints_phi(q{P})", second=f"_drivers_phi_{name}(q, u{P})"),
-                _Function("join", f"jac_{name}", q_u, f"Values of the sparse Phi_q of case {name!r} at jac_rows, jac_cols ({entries} entries).",
-                          first=f"_joints_jac(q{P})", second=f"_drivers_jac_{name}(q, u{P})"),
-                _Function("returns", f"nu_{name}", q_u_ud, kernels["nu"].doc, [f"drivers = _drivers_nu_{name}(q, u, ud{P})"],
-                          result=f"_join(np.zeros(({joints},) + drivers.shape[1:]), drivers)"),
-                _Function("join", f"gamma_{name}", q_v_inputs, kernels["gamma"].doc,
-                          first=f"_joints_gamma(q, v{P})", second=f"_drivers_gamma_{name}(q, v, u, ud, udd{P})"),
-                _Function("returns", f"phi_jac_s_{name}", q_u,
-                          f"Phi and the Phi_q values of case {name!r} at one configuration (q, u: lists of floats).",
-                          [f"phi, jac = _joints_phi_jac_s(q{P})", f"driver_phi, driver_jac = _drivers_phi_jac_s_{name}(q, u{P})"],
-                          result="phi + driver_phi, jac + driver_jac"),
-                _Function("returns", f"nu_s_{name}", q_u_ud, f"nu of case {name!r} at one configuration (list of floats).",
-                          result=f"[0.0] * {joints} + _drivers_nu_s_{name}(q, u, ud{P})"),
-                _Function("returns", f"gamma_s_{name}", q_v_inputs, f"gamma of case {name!r} at one configuration (list of floats).",
-                          result=f"_joints_gamma_s(q, v{P}) + _drivers_gamma_s_{name}(q, v, u, ud, udd{P})"),
-            ]  # fmt: skip
+            outputs, scalar = {}, {}
+            for kernel in case.kernels.values():
+                for output in kernel.outputs:
+                    outputs[output.name] = f"{output.name}_{name}"
+                    self.output(outputs[output.name], kernel, output, name)
+                if kernel.name in config.SCALAR_KERNELS:
+                    scalar[kernel.name] = f"{kernel.name}_s_{name}"
+                    self.scalar_kernel(scalar[kernel.name], kernel, name)
+            cases.append(SimpleNamespace(case=case, outputs=outputs, scalar=scalar))
         macros = templates.get_template("functions.py.jinja").module
         code = [getattr(macros, f.kind)(f) for f in self.functions]
         kernels = [
@@ -191,8 +206,15 @@ class _Module:
             numpy_names=used_numpy_names("\n".join(code)),
             kernels=kernels,
             functions=code,
-            cases=list(d.cases.values()),
+            cases=cases,
+            frame_fields=FRAME_FIELDS,
         )
+
+
+def _output_doc(kernel: Kernel, output: Output) -> str:
+    if len(kernel.outputs) == 1:
+        return kernel.doc
+    return f"Output {output.name!r} ({output.size} values) of the kernel {kernel.name}: {kernel.doc}"
 
 
 def _scalar_list(block: Block) -> str:

@@ -17,6 +17,7 @@
 #include "kinegen_solver.h"
 
 #include <math.h>
+#include <stddef.h>
 #include <string.h>
 
 void kinegen_default_options(kinegen_options *o) {
@@ -832,15 +833,113 @@ void kinegen_quaternion_from_matrix(const double *r, double *q) {
 }
 
 void kinegen_point_kinematics(const double *f, const double *s, double *p, double *v, double *a) {
-    /* f: origin r (0-2), A row by row (3-11), r' (12-14), omega (15-17), r'' (18-20), omega' (21-23) */
-    double arm[3], w[3] = {f[15], f[16], f[17]}, wd[3] = {f[21], f[22], f[23]};
-    for (int i = 0; i < 3; ++i) arm[i] = f[3 + 3 * i] * s[0] + f[4 + 3 * i] * s[1] + f[5 + 3 * i] * s[2];
+    /* f: one body's frame values (enum kinegen_frame) */
+    const double *A = f + KINEGEN_FRAME_ROTATION, *w = f + KINEGEN_FRAME_ANGULAR_VELOCITY, *wd = f + KINEGEN_FRAME_ANGULAR_ACCELERATION;
+    double arm[3];
+    for (int i = 0; i < 3; ++i) arm[i] = A[3 * i] * s[0] + A[1 + 3 * i] * s[1] + A[2 + 3 * i] * s[2];
     double wa[3] = {w[1] * arm[2] - w[2] * arm[1], w[2] * arm[0] - w[0] * arm[2], w[0] * arm[1] - w[1] * arm[0]};
     double wwa[3] = {w[1] * wa[2] - w[2] * wa[1], w[2] * wa[0] - w[0] * wa[2], w[0] * wa[1] - w[1] * wa[0]};
     double wda[3] = {wd[1] * arm[2] - wd[2] * arm[1], wd[2] * arm[0] - wd[0] * arm[2], wd[0] * arm[1] - wd[1] * arm[0]};
     for (int i = 0; i < 3; ++i) {
-        p[i] = f[i] + arm[i];
-        v[i] = f[12 + i] + wa[i];
-        a[i] = f[18 + i] + wda[i] + wwa[i];
+        p[i] = f[KINEGEN_FRAME_ORIGIN + i] + arm[i];
+        v[i] = f[KINEGEN_FRAME_VELOCITY + i] + wa[i];
+        a[i] = f[KINEGEN_FRAME_ACCELERATION + i] + wda[i] + wwa[i];
     }
 }
+
+
+/* ---- self-description (kinegen_solver.h: kinegen_fields) ---- */
+
+#define FIELD(structure, field, type) {#structure, #field, type, (int)offsetof(structure, field), (int)sizeof(((structure *)0)->field)}
+
+const kinegen_field kinegen_fields[] = {
+    FIELD(kinegen_options, tolerance, "double"), FIELD(kinegen_options, singular_tolerance, "double"),
+    FIELD(kinegen_options, divergence_limit, "double"), FIELD(kinegen_options, chord_rate, "double"),
+    FIELD(kinegen_options, safety, "double"), FIELD(kinegen_options, max_iterations, "int"),
+    FIELD(kinegen_options, predictor, "int"), FIELD(kinegen_options, chord, "int"), FIELD(kinegen_options, polish, "int"),
+    FIELD(kinegen_options, keep_branch, "int"), FIELD(kinegen_options, condition, "int"),
+    FIELD(kinegen_options, max_refinements, "int"), FIELD(kinegen_options, case_inputs, "int"),
+
+    FIELD(kinegen_kernel, name, "char*"), FIELD(kinegen_kernel, slots, "char*"), FIELD(kinegen_kernel, n_outputs, "int"),
+    FIELD(kinegen_kernel, output_names, "pointer"), FIELD(kinegen_kernel, output_sizes, "int*"),
+    FIELD(kinegen_kernel, call, "function"),
+
+    FIELD(kinegen_point, body, "int"), FIELD(kinegen_point, name, "char*"), FIELD(kinegen_point, local, "double"),
+
+    FIELD(kinegen_actuator, name, "char*"), FIELD(kinegen_actuator, point1, "int"), FIELD(kinegen_actuator, point2, "int"),
+    FIELD(kinegen_actuator, has_range, "int"), FIELD(kinegen_actuator, min, "double"), FIELD(kinegen_actuator, max, "double"),
+
+    FIELD(kinegen_layout, model, "char*"), FIELD(kinegen_layout, parametrization, "char*"), FIELD(kinegen_layout, source, "char*"),
+    FIELD(kinegen_layout, source_sha256, "char*"), FIELD(kinegen_layout, kinegen_version, "char*"),
+    FIELD(kinegen_layout, n_q, "int"), FIELD(kinegen_layout, n_v, "int"), FIELD(kinegen_layout, n_bodies, "int"),
+    FIELD(kinegen_layout, body_names, "pointer"), FIELD(kinegen_layout, stored_names, "pointer"),
+    FIELD(kinegen_layout, velocity_names, "pointer"), FIELD(kinegen_layout, n_points, "int"),
+    FIELD(kinegen_layout, points, "pointer"), FIELD(kinegen_layout, n_actuators, "int"), FIELD(kinegen_layout, actuators, "pointer"),
+    FIELD(kinegen_layout, frames, "function"), FIELD(kinegen_layout, n_kernels, "int"), FIELD(kinegen_layout, kernels, "pointer"),
+
+    FIELD(kinegen_model, layout, "pointer"), FIELD(kinegen_model, case_name, "char*"), FIELD(kinegen_model, n_q, "int"),
+    FIELD(kinegen_model, n_v, "int"), FIELD(kinegen_model, n_inputs, "int"), FIELD(kinegen_model, n_jac, "int"),
+    FIELD(kinegen_model, t0, "double"), FIELD(kinegen_model, t1, "double"), FIELD(kinegen_model, steps, "int"),
+    FIELD(kinegen_model, initial_q, "double*"), FIELD(kinegen_model, constraint_names, "pointer"),
+    FIELD(kinegen_model, driver_names, "pointer"), FIELD(kinegen_model, jac_rows, "int*"), FIELD(kinegen_model, jac_cols, "int*"),
+    FIELD(kinegen_model, phi_jac, "function"), FIELD(kinegen_model, nu, "function"), FIELD(kinegen_model, gamma, "function"),
+    FIELD(kinegen_model, inputs, "function"), FIELD(kinegen_model, retract, "function"), FIELD(kinegen_model, n_blocks, "int"),
+    FIELD(kinegen_model, block_start, "int*"), FIELD(kinegen_model, block_store, "int*"), FIELD(kinegen_model, row_order, "int*"),
+    FIELD(kinegen_model, col_order, "int*"), FIELD(kinegen_model, n_store, "int"), FIELD(kinegen_model, n_diag, "int"),
+    FIELD(kinegen_model, diag_value, "int*"), FIELD(kinegen_model, diag_slot, "int*"), FIELD(kinegen_model, n_off, "int"),
+    FIELD(kinegen_model, off_start, "int*"), FIELD(kinegen_model, off_col, "int*"), FIELD(kinegen_model, off_value, "int*"),
+    FIELD(kinegen_model, work_doubles, "int"), FIELD(kinegen_model, work_ints, "int"), FIELD(kinegen_model, n_kernels, "int"),
+    FIELD(kinegen_model, kernels, "pointer"),
+
+    FIELD(kinegen_pattern, n, "int"), FIELD(kinegen_pattern, rows, "int*"), FIELD(kinegen_pattern, cols, "int*"),
+
+    FIELD(kinegen_design_model, model, "kinegen_model"), FIELD(kinegen_design_model, n_design, "int"),
+    FIELD(kinegen_design_model, nominal, "double*"), FIELD(kinegen_design_model, phi_jac, "function"),
+    FIELD(kinegen_design_model, nu, "function"), FIELD(kinegen_design_model, gamma, "function"),
+    FIELD(kinegen_design_model, phi_p_pattern, "kinegen_pattern"), FIELD(kinegen_design_model, dvel_pattern, "kinegen_pattern"),
+    FIELD(kinegen_design_model, dacc_pattern, "kinegen_pattern"), FIELD(kinegen_design_model, phi_p, "function"),
+    FIELD(kinegen_design_model, dvel, "function"), FIELD(kinegen_design_model, dacc, "function"),
+    FIELD(kinegen_design_model, sensitivity_doubles, "int"),
+
+    FIELD(kinegen_solver, model, "pointer"), FIELD(kinegen_solver, options, "kinegen_options"), FIELD(kinegen_solver, t, "double"),
+    FIELD(kinegen_solver, q, "double*"), FIELD(kinegen_solver, v, "double*"), FIELD(kinegen_solver, a, "double*"),
+    FIELD(kinegen_solver, started, "int"), FIELD(kinegen_solver, iterations, "int"), FIELD(kinegen_solver, residual, "double"),
+    FIELD(kinegen_solver, condition, "double"), FIELD(kinegen_solver, sign, "int"), FIELD(kinegen_solver, have_factors, "int"),
+    FIELD(kinegen_solver, factor_sign, "int"), FIELD(kinegen_solver, trial, "double*"), FIELD(kinegen_solver, phi, "double*"),
+    FIELD(kinegen_solver, jac, "double*"), FIELD(kinegen_solver, store, "double*"), FIELD(kinegen_solver, off, "double*"),
+    FIELD(kinegen_solver, rhs, "double*"), FIELD(kinegen_solver, step, "double*"), FIELD(kinegen_solver, y, "double*"),
+    FIELD(kinegen_solver, x, "double*"), FIELD(kinegen_solver, pivots, "int*"), FIELD(kinegen_solver, design, "double*"),
+    FIELD(kinegen_solver, u, "double*"), FIELD(kinegen_solver, ud, "double*"), FIELD(kinegen_solver, jac_q, "double*"),
+    FIELD(kinegen_solver, moved, "double*"), FIELD(kinegen_solver, w1, "double*"), FIELD(kinegen_solver, w2, "double*"),
+    FIELD(kinegen_solver, block_sign, "int*"), FIELD(kinegen_solver, factor_block_sign, "int*"),
+    FIELD(kinegen_solver, refinements, "int"), FIELD(kinegen_solver, branch_block, "int"), FIELD(kinegen_solver, bound, "double"),
+    FIELD(kinegen_solver, branch_time, "double"),
+    {NULL, NULL, NULL, 0, 0},
+};
+
+#undef FIELD
+#define STRUCT(structure) {#structure, (int)sizeof(structure)}
+
+const kinegen_struct kinegen_structs[] = {
+    STRUCT(kinegen_options), STRUCT(kinegen_kernel), STRUCT(kinegen_point), STRUCT(kinegen_actuator), STRUCT(kinegen_layout),
+    STRUCT(kinegen_model), STRUCT(kinegen_pattern), STRUCT(kinegen_design_model), STRUCT(kinegen_solver), {NULL, 0},
+};
+
+#undef STRUCT
+
+/* by code: each name beside its enum kinegen_status constant */
+const char *const kinegen_status_names[] = {
+    [KINEGEN_OK] = "ok", [KINEGEN_NOT_CONVERGED] = "not_converged", [KINEGEN_SINGULAR] = "singular",
+    [KINEGEN_BRANCH] = "branch", [KINEGEN_NOT_STARTED] = "not_started", [KINEGEN_INPUTS] = "inputs", [KINEGEN_INPUTS + 1] = NULL,
+};
+
+/* the frames kernel's layout (enum kinegen_frame), by name */
+const kinegen_frame_field kinegen_frame_fields[] = {
+    {"origin", KINEGEN_FRAME_ORIGIN, 3},
+    {"rotation", KINEGEN_FRAME_ROTATION, 9},
+    {"velocity", KINEGEN_FRAME_VELOCITY, 3},
+    {"angular_velocity", KINEGEN_FRAME_ANGULAR_VELOCITY, 3},
+    {"acceleration", KINEGEN_FRAME_ACCELERATION, 3},
+    {"angular_acceleration", KINEGEN_FRAME_ANGULAR_ACCELERATION, 3},
+    {NULL, KINEGEN_FRAME_VALUES, 0},
+};

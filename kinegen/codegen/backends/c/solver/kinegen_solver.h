@@ -69,6 +69,33 @@ typedef struct kinegen_options {
                                   step's ends (0) */
 } kinegen_options;
 
+/* A kernel as data: what a binding in another language (kinegen's Python runtime) calls it by.
+ * Every kernel a generated model declares is listed in its layout (shared by the cases: the
+ * frames, and with design parameters the points and their derivatives) or in its case
+ * (kinegen_model.kernels: phi_jac, nu, gamma, inputs, ...), with its argument slots and outputs, and
+ * one entry point of a fixed signature. */
+typedef struct kinegen_kernel {
+    const char *name;
+    const char *slots;                   /* argument slots, comma-separated (q, v, a, u, ud, udd, t, p, w, y, z) */
+    int n_outputs;
+    const char *const *output_names;
+    const int *output_sizes;             /* doubles per output */
+    void (*call)(const double *const *arguments, double *const *outputs); /* t: arguments[k][0] */
+} kinegen_kernel;
+
+/* Where a body's values lie in the frames kernel's output (KINEGEN_FRAME_VALUES per body, all global;
+ * the rotation matrix row by row). The generated modules declare the same layout (FRAME_FIELDS);
+ * kinegen's runtime compares the two (kinegen_frame_fields) before it uses a library. */
+enum kinegen_frame {
+    KINEGEN_FRAME_ORIGIN = 0,
+    KINEGEN_FRAME_ROTATION = 3,
+    KINEGEN_FRAME_VELOCITY = 12,
+    KINEGEN_FRAME_ANGULAR_VELOCITY = 15,
+    KINEGEN_FRAME_ACCELERATION = 18,
+    KINEGEN_FRAME_ANGULAR_ACCELERATION = 21,
+    KINEGEN_FRAME_VALUES = 24
+};
+
 /* A named point: on a body (body >= 0, local = body coordinates) or the ground (body = -1, global). */
 typedef struct kinegen_point {
     int body;
@@ -98,6 +125,8 @@ typedef struct kinegen_layout {
     int n_actuators;
     const kinegen_actuator *actuators;
     void (*frames)(const double *q, const double *v, const double *a, double *out);
+    int n_kernels;                 /* every kernel shared by the cases (frames first) */
+    const kinegen_kernel *kernels;
 } kinegen_layout;
 
 /* One case of a model: its kernels and the factorization plan of its Phi_q. */
@@ -128,6 +157,8 @@ typedef struct kinegen_model {
     int n_off;                     /* values below the block diagonal, by permuted row (CSR): */
     const int *off_start, *off_col, *off_value;
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
+    int n_kernels;                 /* every kernel of the case, as data (with design parameters: */
+    const kinegen_kernel *kernels; /*   the ones taking p, slot p last) */
 } kinegen_model;
 
 /* A sparse matrix given by a kernel's values at a constant pattern (entry k at row rows[k],
@@ -252,6 +283,28 @@ int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const d
                           const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work);
 
 const char *kinegen_status_text(int status);
+
+/* The runtime's self-description, for bindings in other languages (kinegen's Python runtime lays
+ * out its structs from it, never from a copy): every field of the structs above with its offset,
+ * size and type ("double", "int", "double*", "int*", "char*", "pointer", "function", or a struct's
+ * name), each struct's size, and the names of the status codes, by code. Each list ends with an
+ * entry whose first member is NULL. */
+typedef struct kinegen_field {
+    const char *structure, *name, *type;
+    int offset, size;
+} kinegen_field;
+typedef struct kinegen_struct {
+    const char *name;
+    int size;
+} kinegen_struct;
+extern const kinegen_field kinegen_fields[];
+extern const kinegen_struct kinegen_structs[];
+extern const char *const kinegen_status_names[];
+typedef struct kinegen_frame_field {
+    const char *name; /* origin, rotation, velocity, angular_velocity, acceleration, angular_acceleration */
+    int offset, count;
+} kinegen_frame_field;
+extern const kinegen_frame_field kinegen_frame_fields[];
 
 /* Reporting helpers: unit quaternion (w >= 0) of a rotation matrix (row by row; Shepperd's
  * method), and position, velocity, acceleration of a body point from a body's 24 frame values. */

@@ -1,0 +1,115 @@
+"""kinegen as a library: open a model, get its generated module by one rule, solve.
+
+The command line (:mod:`kinegen.cli`), the main job (:mod:`kinegen.demo`) and the benchmarks go
+through :class:`Session`, so that a model file is read once per session and every caller
+rebuilds a missing or stale module the same way:
+
+* a module is **fresh** when its seal holds, it was built by this kinegen and from the model
+  file's current bytes (:func:`kinegen.runtime.load_module`);
+* otherwise it is **rebuilt** into the same folder -- with the sensitivity kernels if the model
+  has design parameters and the stale module had them (or none was there), unless the caller
+  says otherwise -- checked (time functions finite, initial pose assembles; ``Session.check``)
+  before anything is written, and loaded.
+
+Example::
+
+    from kinegen.api import Session
+
+    session = Session("generated")
+    results = session.solve("models/excavator.yaml", case="digging")
+    print(results.point_position("bucket", "tip")[-1])
+"""
+
+from __future__ import annotations
+
+import dataclasses
+from collections.abc import Callable, Mapping
+from pathlib import Path
+from types import ModuleType
+
+import numpy as np
+
+from kinegen import rotations
+from kinegen.errors import GeneratedModuleError
+
+
+@dataclasses.dataclass
+class Session:
+    """Models and generated modules of one folder (``generated_dir``), each read or built once.
+
+    ``announce``: called with one line when a module is (re)built (the CLI prints it on stderr).
+    ``check``: a build is checked before it is written (time functions finite on their grids,
+    initial poses assemble); the main job turns it off, as it builds Euler-angle modules that are
+    singular at their initial pose on purpose."""
+
+    generated_dir: str | Path = "generated"
+    announce: Callable[[str], None] | None = None
+    check: bool = True
+    _models: dict = dataclasses.field(default_factory=dict, repr=False)
+    _modules: dict = dataclasses.field(default_factory=dict, repr=False)
+
+    def model(self, model_file: str | Path):
+        """The model of ``model_file`` (:class:`kinegen.model.Model`), read once per session."""
+        from kinegen.model import load
+
+        key = str(model_file)
+        if key not in self._models:
+            self._models[key] = load(model_file)
+        return self._models[key]
+
+    def module_path(self, model_file: str | Path, parametrization: str = rotations.REFERENCE) -> Path:
+        """Where the generated module of ``model_file`` in ``parametrization`` lives."""
+        from kinegen.codegen import module_name
+
+        return Path(self.generated_dir) / f"{module_name(self.model(model_file), rotations.get(parametrization))}.py"
+
+    def module(self, model_file: str | Path, parametrization: str = rotations.REFERENCE, sensitivities: bool | None = None) -> ModuleType:
+        """The generated module of ``model_file`` in ``parametrization``: loaded if fresh, else
+        rebuilt (see the module docstring); ``sensitivities`` None keeps what the stale module had."""
+        key = (str(model_file), rotations.get(parametrization).name)
+        if key in self._modules:
+            return self._modules[key]
+        from kinegen.runtime import load_module
+
+        path = self.module_path(model_file, parametrization)
+        try:
+            module = load_module(path, model_file)
+        except GeneratedModuleError:
+            module = load_module(self.build(model_file, parametrization, sensitivities, reason="missing or stale"), model_file)
+        self._modules[key] = module
+        return module
+
+    def build(self, model_file: str | Path, parametrization: str = rotations.REFERENCE, sensitivities: bool | None = None,
+              reason: str = "") -> Path:  # fmt: skip
+        """Build the module (Python and the model's C) into ``generated_dir``, checked before it is
+        written; returns its path. ``sensitivities`` None: as the module there had them (default yes)."""
+        from kinegen.codegen import build, built_with_sensitivities
+        from kinegen.runtime import check_source
+
+        path = self.module_path(model_file, parametrization)
+        if self.announce is not None:
+            self.announce(f"building {path}{f' ({reason})' if reason else ''}")
+        keep = built_with_sensitivities(path) is not False if sensitivities is None else sensitivities
+        self._modules.pop((str(model_file), rotations.get(parametrization).name), None)
+        return build(model_file, rotations.get(parametrization).name, self.generated_dir, check=check_source if self.check else None,
+                     sensitivities=keep)
+
+    def system(self, model_file: str | Path, case: str | None = None, parametrization: str = rotations.REFERENCE,
+               compiled: bool | None = None, design: Mapping[str, float] | None = None):  # fmt: skip
+        """The numeric system (:class:`kinegen.runtime.NumericSystem`) of ``case`` (default: the
+        first), compiled when a C compiler is there (``compiled`` None), design parameters at
+        ``design`` (the others nominal). KeyError for an unknown case or parameter, ValueError for
+        a value outside its bounds."""
+        from kinegen.runtime import from_module
+
+        system = from_module(self.module(model_file, parametrization), case, compiled, design)
+        return dataclasses.replace(system, source=str(model_file))
+
+    def solve(self, model_file: str | Path, case: str | None = None, parametrization: str = rotations.REFERENCE,
+              times: np.ndarray | None = None, options=None, design: Mapping[str, float] | None = None):  # fmt: skip
+        """Position, velocity and acceleration of ``case`` over ``times`` (default: the case's grid):
+        :class:`kinegen.runtime.Results`."""
+        from kinegen.runtime import SolverOptions, solve
+
+        options = options or SolverOptions()
+        return solve(self.system(model_file, case, parametrization, None if options.compiled else False, design), times, options)

@@ -1,0 +1,183 @@
+"""The C runtime's structs and status codes as a compiled library describes them.
+
+kinegen_solver.c exports ``kinegen_fields`` (every field of its public structs with offset,
+size and type), ``kinegen_structs`` (each struct's size) and ``kinegen_status_names`` (the
+status codes' names, by code); a generated model's C exports its kernels as ``kinegen_kernel``
+tables. :class:`Abi` lays ctypes structures out from those tables -- the one layout written
+here is that of a table entry itself -- so the Python runtime holds no copy of a struct, a
+status code or a kernel's signature that could drift from the C it loads.
+"""
+
+from __future__ import annotations
+
+import ctypes
+from dataclasses import dataclass
+from typing import Any
+
+import numpy as np
+
+
+class _Field(ctypes.Structure):
+    """One entry of ``kinegen_fields`` (kinegen_solver.h: ``kinegen_field``)."""
+
+    _fields_ = [("structure", ctypes.c_char_p), ("name", ctypes.c_char_p), ("type", ctypes.c_char_p), ("offset", ctypes.c_int), ("size", ctypes.c_int)]
+
+
+class _Struct(ctypes.Structure):
+    """One entry of ``kinegen_structs``."""
+
+    _fields_ = [("name", ctypes.c_char_p), ("size", ctypes.c_int)]
+
+
+class _FrameField(ctypes.Structure):
+    """One entry of ``kinegen_frame_fields``."""
+
+    _fields_ = [("name", ctypes.c_char_p), ("offset", ctypes.c_int), ("count", ctypes.c_int)]
+
+
+_SCALARS = {"double": ctypes.c_double, "int": ctypes.c_int}
+_POINTERS = {
+    "double*": ctypes.POINTER(ctypes.c_double), "int*": ctypes.POINTER(ctypes.c_int), "char*": ctypes.c_char_p,
+    "pointer": ctypes.c_void_p, "function": ctypes.c_void_p,
+}  # fmt: skip
+#: a kernel's entry point: void call(const double *const *arguments, double *const *outputs)
+KERNEL_CALL = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)
+
+
+class AbiError(RuntimeError):
+    """A library whose self-description does not describe what the runtime needs."""
+
+
+class Abi:
+    """The structs (``struct(name)``) and status codes (``status[name]``) of one loaded library."""
+
+    def __init__(self, library: ctypes.CDLL) -> None:
+        self.library = library
+        self._fields: dict[str, list[tuple[str, str, int, int]]] = {}
+        entries = ctypes.cast(library.kinegen_fields, ctypes.POINTER(_Field))
+        k = 0
+        while entries[k].structure is not None:
+            e = entries[k]
+            self._fields.setdefault(e.structure.decode(), []).append((e.name.decode(), e.type.decode(), e.offset, e.size))
+            k += 1
+        sizes = ctypes.cast(library.kinegen_structs, ctypes.POINTER(_Struct))
+        self._sizes: dict[str, int] = {}
+        k = 0
+        while sizes[k].name is not None:
+            self._sizes[sizes[k].name.decode()] = sizes[k].size
+            k += 1
+        names = ctypes.cast(library.kinegen_status_names, ctypes.POINTER(ctypes.c_char_p))
+        #: status name -> code (``kinegen_status``)
+        self.status: dict[str, int] = {}
+        while names[len(self.status)] is not None:
+            self.status[names[len(self.status)].decode()] = len(self.status)
+        self._structs: dict[str, type[ctypes.Structure]] = {}
+        frame = ctypes.cast(library.kinegen_frame_fields, ctypes.POINTER(_FrameField))
+        fields, k = [], 0
+        while frame[k].name is not None:
+            fields.append((frame[k].name.decode(), frame[k].offset, frame[k].count))
+            k += 1
+        #: the frames kernel's layout as the C runtime reads it: (name, offset, count)
+        self.frame_fields: tuple[tuple[str, int, int], ...] = tuple(fields)
+
+    def check_frames(self, declared: tuple[tuple[str, int], ...]) -> None:
+        """:class:`AbiError` unless the C runtime reads a body's frame values where a module
+        declares them (``FRAME_FIELDS``: name and count, in order)."""
+        offsets, start = [], 0
+        for name, count in declared:
+            offsets.append((name, start, count))
+            start += count
+        if tuple(offsets) != self.frame_fields:
+            raise AbiError(f"the C runtime's frame layout {self.frame_fields} is not the module's {tuple(offsets)}")
+
+    def struct(self, name: str) -> type[ctypes.Structure]:
+        """The ctypes structure of the C struct ``name``, at the offsets the library states
+        (explicit padding between fields; a gap wider than any alignment means a field the
+        description leaves out, and is an :class:`AbiError`)."""
+        if name in self._structs:
+            return self._structs[name]
+        if name not in self._sizes or name not in self._fields:
+            raise AbiError(f"the library does not describe the struct {name}")
+        fields: list[tuple[str, Any]] = []
+        position = 0
+        for field, kind, offset, size in sorted(self._fields[name], key=lambda f: f[2]):
+            gap = offset - position
+            if gap < 0 or gap >= 8:
+                raise AbiError(f"the library's description of {name} leaves bytes {position} to {offset} undescribed")
+            if gap:
+                fields.append((f"_pad{position}", ctypes.c_ubyte * gap))
+            fields.append((field, self._type(kind, size)))
+            position = offset + size
+        if not 0 <= self._sizes[name] - position < 8:
+            raise AbiError(f"the library's description of {name} ends at byte {position} of {self._sizes[name]}")
+        if self._sizes[name] > position:
+            fields.append(("_pad_end", ctypes.c_ubyte * (self._sizes[name] - position)))
+        made = type(name, (ctypes.Structure,), {"_pack_": 1, "_fields_": fields})
+        if ctypes.sizeof(made) != self._sizes[name]:  # pragma: no cover -- explicit padding makes them equal
+            raise AbiError(f"{name}: laid out in {ctypes.sizeof(made)} bytes, the library says {self._sizes[name]}")
+        self._structs[name] = made
+        return made
+
+    def _type(self, kind: str, size: int) -> Any:
+        if kind in _SCALARS:
+            scalar = _SCALARS[kind]
+            count, rest = divmod(size, ctypes.sizeof(scalar))
+            if rest or not count:
+                raise AbiError(f"a field of type {kind} of {size} bytes")
+            return scalar if count == 1 else scalar * count
+        if kind in _POINTERS:
+            return _POINTERS[kind]
+        return self.struct(kind)
+
+    def make(self, name: str, **values: Any) -> ctypes.Structure:
+        """An instance of struct ``name`` with the fields ``values`` set by name (an unknown
+        field is an :class:`AbiError`, not silently ignored)."""
+        made = self.struct(name)()
+        known = {f for f, _, _, _ in self._fields[name]}
+        for field, value in values.items():
+            if field not in known:
+                raise AbiError(f"the library's {name} has no field {field}")
+            setattr(made, field, value)
+        return made
+
+    def kernels(self, count: int, address: int) -> dict[str, BoundKernel]:
+        """The ``count`` kernels of a ``kinegen_kernel`` table at ``address``, by name."""
+        if not count:
+            return {}
+        entries = (self.struct("kinegen_kernel") * count).from_address(address)
+        out = {}
+        for entry in entries:
+            outputs = ctypes.cast(entry.output_names, ctypes.POINTER(ctypes.c_char_p))
+            names = tuple(outputs[k].decode() for k in range(entry.n_outputs))
+            sizes = tuple(entry.output_sizes[k] for k in range(entry.n_outputs))
+            name = entry.name.decode()
+            out[name] = BoundKernel(name, tuple(entry.slots.decode().split(",")), names, sizes, KERNEL_CALL(entry.call))
+        return out
+
+
+@dataclass(frozen=True)
+class BoundKernel:
+    """A compiled kernel as its table declares it: argument slots, outputs (names and sizes) and
+    its entry point. :meth:`bind` fixes the argument and output arrays once, for repeated calls."""
+
+    name: str
+    slots: tuple[str, ...]
+    outputs: tuple[str, ...]
+    sizes: tuple[int, ...]
+    entry: Any
+
+    def bind(self, arguments: dict[str, np.ndarray], outputs: dict[str, np.ndarray]) -> Any:
+        """A call without arguments that runs the kernel on these arrays (C-contiguous doubles,
+        kept alive by the caller; a ``t`` argument: an array of one value)."""
+        for name, size in zip(self.outputs, self.sizes):
+            if outputs[name].size < size:
+                raise ValueError(f"kernel {self.name}: output {name} needs {size} values, got {outputs[name].size}")
+        x = (ctypes.c_void_p * max(1, len(self.slots)))(*(arguments[s].ctypes.data for s in self.slots))
+        y = (ctypes.c_void_p * max(1, len(self.outputs)))(*(outputs[o].ctypes.data for o in self.outputs))
+        entry = self.entry
+
+        def call() -> None:
+            entry(x, y)
+
+        call.keep = (x, y)  # the pointer arrays live as long as the call
+        return call

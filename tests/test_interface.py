@@ -1,0 +1,191 @@
+"""The declared interface between generated code and the runtime (issue 26): the compiled library
+describes its structs, status codes, frame layout and kernels, and the runtime binds by that
+description; a kernel declared in the description reaches the Python module, the C and the
+runtime's binding with no other edit; the service layer loads or rebuilds a module by one rule."""
+
+from __future__ import annotations
+
+import ctypes
+import dataclasses
+import re
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import GENERATED, MODELS, generated_system, model
+
+from kinegen import rotations
+from kinegen.api import Session
+from kinegen.codegen import generate
+from kinegen.codegen.backends import get as backend
+from kinegen.codegen.kernels import Kernel, Output, describe
+from kinegen.runtime import from_module, load_module, solve
+from kinegen.runtime.abi import Abi, AbiError
+from kinegen.runtime.native import SOLVER_SOURCES, build_library, native_case, with_solver
+
+CC = shutil.which("cc") or shutil.which("gcc")
+
+
+def _solver_abi() -> Abi:
+    """The self-description of the C solver, from a library built with the committed boom's C."""
+    stem = GENERATED / "boom_quaternion"
+    library = build_library(with_solver({f"{stem.name}{s}": (stem.with_suffix(s)).read_text() for s in (".c", ".h")}))
+    return Abi(ctypes.CDLL(str(library)))
+
+
+def test_the_runtime_lays_out_every_struct_from_the_library_and_knows_no_status_code_of_its_own():
+    """The table in kinegen_solver.c names every field the header declares (read from the header's
+    text here, independently), and the ctypes layout built from it puts each where C does."""
+    abi = _solver_abi()
+    header = (SOLVER_SOURCES / "kinegen_solver.h").read_text()
+    declared = _header_fields(header)
+    assert {"kinegen_options", "kinegen_model", "kinegen_design_model", "kinegen_solver", "kinegen_layout", "kinegen_kernel"} <= set(declared)
+    for name, fields in declared.items():
+        if name in ("kinegen_field", "kinegen_struct", "kinegen_frame_field"):  # the description's own entries
+            continue
+        struct = abi.struct(name)
+        assert [f for f, *_ in abi._fields[name]] == fields, name
+        for field, _, offset, size in abi._fields[name]:
+            assert getattr(struct, field).offset == offset and getattr(struct, field).size == size, (name, field)
+    # the status names by code, as the header's enum numbers them
+    for status, code in abi.status.items():
+        assert f"KINEGEN_{status.upper()} = {code}" in header
+    assert abi.status["ok"] == 0 and len(set(abi.status.values())) == len(abi.status) == 6
+
+
+def _header_fields(header: str) -> dict[str, list[str]]:
+    """Struct name -> its field names in order, from the header's ``typedef struct name { ... } name;``."""
+    text = re.sub(r"/\*.*?\*/", "", header, flags=re.DOTALL)
+    out = {}
+    for name, body in re.findall(r"typedef struct (\w+) \{(.*?)\} \1;", text, flags=re.DOTALL):
+        fields = []
+        for declaration in body.split(";"):
+            declaration = declaration.strip()
+            if not declaration:
+                continue
+            pointer = re.match(r".*?\(\*(\w+)\)\s*\(", declaration, flags=re.DOTALL)
+            if pointer:
+                fields.append(pointer.group(1))
+                continue
+            _, names = re.match(r"((?:const\s+)?\w+(?:\s+const)?)\s+(.*)", declaration, flags=re.DOTALL).groups()
+            fields += [re.sub(r"[\s*]|\bconst\b|\[.*\]", "", n) for n in names.split(",")]
+        out[name] = fields
+    return out
+
+
+@pytest.mark.skipif(CC is None, reason="needs a C compiler")
+def test_a_library_whose_description_leaves_out_a_field_is_refused(tmp_path):
+    """A struct whose table misses a field (a drifted description) is an AbiError, not a wrong layout."""
+    source = tmp_path / "drifted.c"
+    source.write_text(
+        "#include <stddef.h>\n"
+        "typedef struct { double a; double b; int c; } kinegen_options;\n"
+        "typedef struct { const char *structure, *name, *type; int offset, size; } field;\n"
+        "typedef struct { const char *name; int size; } size;\n"
+        "const field kinegen_fields[] = {{\"kinegen_options\", \"a\", \"double\", 0, 8},"
+        " {\"kinegen_options\", \"c\", \"int\", (int)offsetof(kinegen_options, c), 4}, {0, 0, 0, 0, 0}};\n"
+        "const size kinegen_structs[] = {{\"kinegen_options\", (int)sizeof(kinegen_options)}, {0, 0}};\n"
+        "const char *const kinegen_status_names[] = {\"ok\", 0};\n"
+        "typedef struct { const char *name; int offset, count; } frame;\n"
+        "const frame kinegen_frame_fields[] = {{0, 0, 0}};\n"
+    )
+    library = tmp_path / "drifted.so"
+    subprocess.run([CC, "-shared", "-fPIC", "-o", str(library), str(source)], check=True)
+    abi = Abi(ctypes.CDLL(str(library)))
+    with pytest.raises(AbiError, match=r"kinegen_options leaves bytes 8 to 16 undescribed"):
+        abi.struct("kinegen_options")
+    with pytest.raises(AbiError, match="frame layout"):
+        abi.check_frames((("origin", 3),))
+
+
+def test_a_frame_layout_other_than_the_runtimes_is_refused():
+    abi = _solver_abi()
+    module = load_module(GENERATED / "boom_quaternion.py")
+    abi.check_frames(tuple(tuple(f) for f in module.FRAME_FIELDS))
+    swapped = list(module.FRAME_FIELDS)
+    swapped[2], swapped[3] = swapped[3], swapped[2]
+    with pytest.raises(AbiError, match="frame layout"):
+        abi.check_frames(tuple(tuple(f) for f in swapped))
+
+
+def test_a_kernel_declared_in_the_description_reaches_python_c_and_the_binding(tmp_path):
+    """Declaring a kernel (here: the joint rows' residuals alone, from a section the description
+    already has) is all it takes: the Python module gets a function for its output, the C an entry
+    in the case's kernel table, and the runtime binds it by that table -- the values agree."""
+    boom, param = model("boom"), rotations.get("quaternion")
+    description = describe(boom, param)
+    joints = description.sections["joints_phi"]
+    for case in description.cases.values():
+        case.kernels["joint_residuals"] = Kernel("joint_residuals", ("q",), (Output("residuals", ("joints_phi",), joints.size),),
+                                                 "The joint rows' residuals (a kernel declared by a test).")  # fmt: skip
+    stem = "boom_quaternion"
+    files = {**backend("c")(description, stem, standalone=False), **backend("python")(description, stem)}
+    from kinegen.integrity import seal
+
+    for name, text in files.items():
+        (tmp_path / name).write_text(seal(name, text))
+    import hashlib
+
+    c_files = {n: hashlib.sha256((tmp_path / n).read_bytes()).hexdigest() for n in (f"{stem}.c", f"{stem}.h")}
+    module = load_module(tmp_path / f"{stem}.py")
+    module.C_FILES = c_files  # (generate() records them; here the backends were called directly)
+    native = native_case(module, "swing")
+    python = module.CASES["swing"]["outputs"]["residuals"]
+    q = np.array(module.INITIAL_Q) + 0.01 * np.arange(len(module.INITIAL_Q))
+    (values,) = native.run("joint_residuals", q=q)
+    assert np.abs(values - python(q)).max() <= 1e-15 * max(1.0, np.abs(values).max())
+    assert np.abs(values).max() > 1e-3  # away from the solution: a real comparison
+
+
+def test_the_actuator_lengths_kernel_equals_the_lengths_from_the_point_positions():
+    """``lengths`` (a kernel added by declaring it: codegen/kernels.py only) in Python and C, along
+    the digging case, against the lengths computed from the solved poses' point positions."""
+    system = generated_system("excavator_quaternion", "digging", compiled=True)
+    results = solve(system)
+    module = load_module(GENERATED / "excavator_quaternion.py")
+    p = list(system.design.values())
+    python = np.asarray(module.lengths(results.q.T, p))  # (actuators, K)
+    reference = np.stack([results.actuator_length(name) for name in module.ACTUATORS])
+    assert np.abs(python - reference).max() <= 1e-12
+    native = np.stack([system.native.run("lengths", q=q)[0] for q in results.q[::17]], axis=1)
+    assert np.abs(native - reference[:, ::17]).max() <= 1e-12
+
+
+def test_the_session_loads_a_fresh_module_and_rebuilds_a_stale_one_once(tmp_path):
+    folder = tmp_path / "generated"
+    folder.mkdir()
+    model_file = tmp_path / "four_bar.yaml"
+    model_file.write_text((MODELS / "four_bar.yaml").read_text())
+    said: list[str] = []
+    session = Session(folder, announce=said.append)
+    first = session.solve(model_file, "crank_turn")
+    assert len(said) == 1 and "missing or stale" in said[0]
+    assert session.module(model_file) is session.module(model_file) and len(said) == 1
+    fresh = Session(folder, announce=said.append)
+    again = fresh.solve(model_file, "crank_turn")
+    assert len(said) == 1  # fresh on disk: loaded, not rebuilt
+    assert np.array_equal(first.q, again.q)
+    model_file.write_text(model_file.read_text() + "\n# edited\n")
+    Session(folder, announce=said.append).module(model_file)
+    assert len(said) == 2  # the model file changed: rebuilt
+    with pytest.raises(KeyError, match="no case"):
+        fresh.system(model_file, "no_such_case")
+
+
+def test_the_service_layer_and_the_runtime_give_the_same_solution():
+    """Session.solve is from_module + solve on the committed module, nothing else."""
+    direct = solve(from_module(load_module(GENERATED / "four_bar_quaternion.py", MODELS / "four_bar.yaml"), "crank_turn"))
+    through = Session(GENERATED).solve(MODELS / "four_bar.yaml", "crank_turn")
+    assert np.array_equal(direct.q, through.q) and dataclasses.is_dataclass(through.system)
+
+
+def test_generate_records_the_c_files_the_module_belongs_to():
+    made = generate(model("boom"), rotations.get("quaternion"))
+    import hashlib
+
+    module_text = made["python"]["boom_quaternion.py"]
+    for name, text in made["c-model"].items():
+        assert hashlib.sha256(text.encode()).hexdigest() in module_text, name
+    assert Path(GENERATED / "boom_quaternion.c").read_text() == made["c-model"]["boom_quaternion.c"]
