@@ -660,7 +660,8 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
     """Working range of the model's `working_range` point over its input ranges: its figures (and, for a
     model with design parameters, their exact sensitivities), its exact boundary (--boundary, --json,
     --plot)."""
-    from kinegen.analysis.envelope import plot_envelope, working_range
+    from kinegen.analysis.chart import plot_envelope
+    from kinegen.analysis.envelope import working_range
     from kinegen.errors import ModelError
     from kinegen.files import write_atomic
 

@@ -187,7 +187,8 @@ def main(argv: list[str] | None = None) -> int:
     except KinegenError as exc:
         print(f"FAILED: {exc}")
         return 1
-    from kinegen.analysis.envelope import plot_envelope, working_range
+    from kinegen.analysis.chart import plot_envelope
+    from kinegen.analysis.envelope import working_range
 
     spec = excavator_model.working_range
     excavator = from_module(excavator_module, spec.case)

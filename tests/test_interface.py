@@ -189,3 +189,74 @@ def test_generate_records_the_c_files_the_module_belongs_to():
     for name, text in made["c-model"].items():
         assert hashlib.sha256(text.encode()).hexdigest() in module_text, name
     assert Path(GENERATED / "boom_quaternion.c").read_text() == made["c-model"]["boom_quaternion.c"]
+
+
+@pytest.mark.parametrize("param", ["quaternion", "euler-parameters", "euler:zxz", "dual-quaternion", "dual-euler-parameters"])
+def test_the_update_of_a_step_is_defined_once_and_both_runtimes_follow_it(param):
+    """The symbolic retraction (the definition) evaluated by SymPy, the NumPy retract of the Python
+    runtime and the C retract printed from the definition (called in the compiled library) agree,
+    for ordinary steps and for steps under the small-angle branches (1e-10)."""
+    import sympy as sp
+
+    parametrization = rotations.get(param)
+    rng = np.random.default_rng(7)
+    k = 12
+    q = rng.normal(size=(parametrization.nq, k))
+    if param != "euler:zxz":  # a unit quaternion / dual quaternion
+        q = parametrization.project(q) if parametrization.nq == 7 else q
+    if param.startswith("dual"):
+        q[:4] /= np.linalg.norm(q[:4], axis=0)
+        q[4:] -= q[:4] * np.einsum("ik,ik->k", q[:4], q[4:])  # real part orthogonal to the dual part
+    step = rng.normal(scale=0.3, size=(parametrization.nv, k))
+    step[:, : k // 2] *= 1e-10
+    numpy_moved = parametrization.retract(q, step)
+    qs, ss = sp.symbols(f"q0:{parametrization.nq}", real=True), sp.symbols(f"s0:{parametrization.nv}", real=True)
+    exprs = parametrization.retraction(sp.Matrix(qs), sp.Matrix(ss))
+    for j in range(k):
+        values = {**dict(zip(qs, q[:, j])), **dict(zip(ss, step[:, j]))}
+        exact = np.array([float(e.xreplace(values).evalf(30)) for e in exprs])
+        assert np.abs(numpy_moved[:, j] - exact).max() <= 1e-14, (param, j)
+    stem = {"quaternion": "boom_quaternion", "euler-parameters": "boom_euler_parameters", "euler:zxz": "boom_euler_zxz",
+            "dual-quaternion": "boom_dual_quaternion", "dual-euler-parameters": "boom_dual_euler_parameters"}[param]  # fmt: skip
+    native = generated_system(stem, compiled=True).native
+    retract = ctypes.CFUNCTYPE(None, ctypes.c_void_p, ctypes.c_void_p)(native.model.retract)
+    for j in range(k):  # the boom has one body: its retract is retract_body
+        moved = np.ascontiguousarray(q[:, j])
+        retract(moved.ctypes.data, np.ascontiguousarray(step[:, j]).ctypes.data)
+        assert np.abs(moved - numpy_moved[:, j]).max() <= 1e-14, (param, j)
+
+
+def test_no_import_cycle_among_kinegens_modules():
+    """Every import of one kinegen module by another, module-level or inside a function (type-only
+    imports under TYPE_CHECKING aside), and no module reaches itself through them."""
+    import ast
+
+    package = Path(__file__).resolve().parents[1] / "kinegen"
+    modules = {}
+    for file in package.rglob("*.py"):
+        parts = file.relative_to(package.parent).with_suffix("").parts
+        modules[".".join(parts[:-1] if parts[-1] == "__init__" else parts)] = file
+    graph: dict[str, set[str]] = {name: set() for name in modules}
+    for name, file in modules.items():
+        tree = ast.parse(file.read_text())
+        typing_only = {id(n) for node in ast.walk(tree) if isinstance(node, ast.If) and "TYPE_CHECKING" in ast.unparse(node.test)
+                       for n in ast.walk(node)}  # fmt: skip
+        for node in ast.walk(tree):
+            if id(node) in typing_only:
+                continue
+            if isinstance(node, ast.ImportFrom) and node.level == 0 and (node.module or "").startswith("kinegen"):
+                targets = [node.module, *(f"{node.module}.{a.name}" for a in node.names)]
+            elif isinstance(node, ast.Import):
+                targets = [a.name for a in node.names]
+            else:
+                continue
+            graph[name] |= {t for t in targets if t in modules and t != name}
+    # a cycle is a module reachable from one of its own imports
+    for start in graph:
+        seen, frontier = set(), list(graph[start])
+        while frontier:
+            module = frontier.pop()
+            assert module != start, f"import cycle through {start}"
+            if module not in seen:
+                seen.add(module)
+                frontier += graph[module]

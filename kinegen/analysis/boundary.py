@@ -37,6 +37,7 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
+from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.errors import KinegenError
 from kinegen.runtime import NumericSystem
 from kinegen.runtime.batch import solve_batch, sweep_grid
@@ -159,10 +160,8 @@ def working_range_boundary(
 ) -> Boundary:
     """The exact outer boundary of ``spec``'s working range (see the module docstring) at the
     system's design values (``system``: the spec's forward case)."""
-    from kinegen.analysis.envelope import _Evaluator
-
     start = time.perf_counter()
-    evaluator = _Evaluator(system, spec)
+    evaluator = RangeEvaluator(system, spec)
     chart = _Chart(system, evaluator)
     names = evaluator.names
     lows = np.array([r[0] for r in evaluator.ranges])

@@ -15,7 +15,8 @@ from pathlib import Path
 import numpy as np
 
 from kinegen.analysis.boundary import Boundary
-from kinegen.analysis.envelope import Envelope, _Evaluator
+from kinegen.analysis.envelope import Envelope
+from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.runtime import NumericSystem
 
 #: letter, figure, how it is drawn: "h" a horizontal dimension from the swing axis, "v" a vertical one from the ground
@@ -53,7 +54,7 @@ class Mark:
 
 def figure_marks(envelope: Envelope, system: NumericSystem, direction: np.ndarray) -> list[Mark]:
     """Where each figure of ``envelope`` is, in the chart plane (reach along ``direction``)."""
-    evaluator = _Evaluator(system, envelope.spec)
+    evaluator = RangeEvaluator(system, envelope.spec)
     out = []
     for letter, name, kind in DIMENSIONS:
         if name == "min_front_swing_radius":
@@ -115,7 +116,7 @@ def _silhouette(ax, system: NumericSystem, q: np.ndarray, direction: np.ndarray,
 def transport_q(system: NumericSystem, envelope: Envelope) -> tuple[np.ndarray, str]:
     """The configuration the silhouette shows: the working_range section's ``transport`` inputs,
     else the pose of the minimum front swing radius; and its description."""
-    evaluator = _Evaluator(system, envelope.spec)
+    evaluator = RangeEvaluator(system, envelope.spec)
     if envelope.spec.transport:
         evaluator.move_to(np.array([envelope.spec.transport[n] for n in evaluator.names]))
         return evaluator.q, "transport pose"
@@ -179,7 +180,7 @@ def plot_working_range(envelope: Envelope, boundary: Boundary, system: NumericSy
 
 
 def _ranges(system: NumericSystem, envelope: Envelope) -> list[tuple[float, float]]:
-    return _Evaluator(system, envelope.spec).ranges
+    return RangeEvaluator(system, envelope.spec).ranges
 
 
 def _wrap(text: str, width: int) -> str:
@@ -201,3 +202,12 @@ def _dimension(ax, mark: Mark, right: bool = True) -> None:
         label = f" {mark.letter}" if right else f"{mark.letter} "
         ax.text(mark.reach, 0.5 * mark.height, label, ha="left" if right else "right", va="center", fontsize=10, fontweight="bold",
                 color="crimson", zorder=6)  # fmt: skip
+
+
+def plot_envelope(envelope: Envelope, system: NumericSystem, path: str | Path, boundary=None) -> Path:
+    """The working-range chart (:func:`plot_working_range`) with the exact
+    boundary (computed here unless given: :func:`kinegen.analysis.boundary.working_range_boundary`)."""
+    from kinegen.analysis.boundary import working_range_boundary
+
+    boundary = boundary if boundary is not None else working_range_boundary(system, envelope.spec)
+    return plot_working_range(envelope, boundary, system, path, boundary.direction)

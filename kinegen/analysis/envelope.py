@@ -28,20 +28,16 @@ from __future__ import annotations
 import time
 from collections.abc import Callable
 from dataclasses import dataclass, field
-from pathlib import Path
 
 import numpy as np
 from scipy.optimize import minimize
 
+from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.model.schema import WORKING_RANGE_FIGURES, WorkingRange, design_gradient
-from kinegen.runtime import NumericSystem, Solver, SolverOptions
+from kinegen.runtime import NumericSystem
 from kinegen.runtime.batch import sweep_grid
 
-STAGE = 0.065  # of an input's range, per continuation stage
 POLISH_STEPS = 8  # Newton steps on the optimality conditions after SLSQP, at most
-#: max |Phi| of the refinement's solves: the figures' own noise (the default 1e-10 leaves ~1e-10 m,
-#: which differences of figures and their optimality conditions would see)
-TOLERANCE = 1e-13
 FIGURES = WORKING_RANGE_FIGURES  # (the schema's list: the loader checks published figures against the same)
 
 
@@ -140,66 +136,11 @@ class FrontSwing:
     farthest: list[str]  #: "body.point" at the radius there (several at a min-max)
 
 
-class _Evaluator:
-    """Point position for given swept inputs, by Newton continuation from the last solve."""
-
-    def __init__(self, system: NumericSystem, spec: WorkingRange) -> None:
-        self.system = system
-        self.solver = Solver(system, SolverOptions(tolerance=TOLERANCE))
-        self.spec = spec
-        inputs = self.inputs_spec = spec.numbers(system.design)  # at the system's design values
-        self.names = [n for n in system.driver_names if isinstance(inputs[n], tuple)]
-        self.base = np.array([v if not isinstance(v, tuple) else 0.5 * (v[0] + v[1]) for v in (inputs[n] for n in system.driver_names)])
-        self.index = [system.driver_names.index(n) for n in self.names]
-        self.ranges = [inputs[n] for n in self.names]
-        #: largest change of each input per Newton stage: continuation never jumps branches
-        self.stage = np.array([STAGE * (high - low) for low, high in self.ranges])
-        self.tracked = [(spec.point.body, spec.point.name)]
-        if spec.dump_pivot is not None:
-            self.tracked.append((spec.dump_pivot.body, spec.dump_pivot.name))
-        if spec.arm_pivot is not None:
-            self.tracked.append((spec.arm_pivot.body, spec.arm_pivot.name))
-        self.q = system.initial_q.copy()
-        self.u = system.driver_inputs(system.t0)[0].copy()
-        self.solves = 0
-
-    def inputs(self, values: np.ndarray) -> np.ndarray:
-        u = self.base.copy()
-        u[self.index] = values
-        return u
-
-    def points(self, q: np.ndarray) -> np.ndarray:
-        """Global positions of the tracked point (and of the dump pivot): (1 or 2, 3) for
-        q of shape (n,), (K, 1 or 2, 3) for a batch (n, K)."""
-        points = self.system.point_positions(q.reshape(q.shape[0], -1).T, self.tracked)
-        return points[0] if q.ndim == 1 else points
-
-    def derivatives(self) -> tuple[np.ndarray, np.ndarray]:
-        """The tracked points at the last solve (P, 3) and their exact derivatives by the swept
-        inputs (P, 3, n_swept)."""
-        from kinegen.runtime.sensitivity import point_position_sensitivities
-
-        positions, _, by_input = point_position_sensitivities(self.system, self.q[:, None], self.u[:, None], self.tracked, design=False)
-        return positions[0], by_input[0][:, :, self.index]
-
-    def move_to(self, values: np.ndarray) -> np.ndarray:
-        """Solve at the swept ``values`` by continuation from the last solve; the tracked points."""
-        target = self.inputs(values)
-        steps = max(1, int(np.ceil(np.max(np.abs(target[self.index] - self.u[self.index]) / self.stage))))
-        q = self.q
-        for s in np.linspace(0, 1, steps + 1)[1:]:
-            u = self.u + s * (target - self.u)
-            q, _, _ = self.solver.position(q, u)
-            self.solves += 1
-        self.q, self.u = q, target
-        return self.points(q)
-
-
 def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ...] | None = None) -> Envelope:
     """Sample and refine the working range of ``spec.point`` (see the module docstring), at the
     system's design values."""
     start = time.perf_counter()
-    evaluator = _Evaluator(system, spec)
+    evaluator = RangeEvaluator(system, spec)
     names = evaluator.names
     counts = list(grid or [21, 11, 21][: len(names)] + [11] * max(0, len(names) - 3))
     if len(counts) != len(names) or any(c < 2 for c in counts):
@@ -228,7 +169,7 @@ def working_range(system: NumericSystem, spec: WorkingRange, grid: tuple[int, ..
     return envelope
 
 
-def _front_points(system: NumericSystem, evaluator: _Evaluator, q: np.ndarray) -> list[tuple[str, str]]:
+def _front_points(system: NumericSystem, evaluator: RangeEvaluator, q: np.ndarray) -> list[tuple[str, str]]:
     """Every named point of the bodies the swept inputs move (checked at the configuration q)."""
     from kinegen.runtime.sensitivity import point_position_sensitivities
 
@@ -238,7 +179,7 @@ def _front_points(system: NumericSystem, evaluator: _Evaluator, q: np.ndarray) -
     return [name for name, change in zip(names, moved) if change > 1e-9]
 
 
-def front_swing_radius(system: NumericSystem, evaluator: _Evaluator, samples: np.ndarray, q: np.ndarray) -> FrontSwing | None:
+def front_swing_radius(system: NumericSystem, evaluator: RangeEvaluator, samples: np.ndarray, q: np.ndarray) -> FrontSwing | None:
     """The minimum front swing radius (:class:`FrontSwing`): the best of the solved grid samples
     (swept inputs (N, d), q (n, N)), then SLSQP on min t subject to t >= r_i(u) for every front
     point i (r_i its horizontal distance from the z axis, exact gradients by the inputs)."""
@@ -292,7 +233,7 @@ def refine_from(system: NumericSystem, previous: Envelope) -> Envelope:
     ``previous`` (computed at another, nearby design) instead of from a new grid: what a design
     study re-evaluates at every design. The result has no samples."""
     start = time.perf_counter()
-    evaluator = _Evaluator(system, previous.spec)
+    evaluator = RangeEvaluator(system, previous.spec)
     envelope = Envelope(previous.spec, evaluator.names, np.empty((0, len(evaluator.names))), np.empty((0, 3)), np.empty((0, 3)),
                         design=dict(system.design))  # fmt: skip
     index = evaluator.index
@@ -329,7 +270,7 @@ def _grid_seeds(envelope: Envelope) -> dict[str, int]:
     return seeds
 
 
-def _refine(envelope: Envelope, evaluator: _Evaluator, starts: dict[str, tuple[np.ndarray, np.ndarray]], bar: bool = False) -> None:
+def _refine(envelope: Envelope, evaluator: RangeEvaluator, starts: dict[str, tuple[np.ndarray, np.ndarray]], bar: bool = False) -> None:
     """Each figure of ``starts`` (name -> (swept inputs, q solved there)) refined by SLSQP over the
     normalized inputs, every evaluation a solve by continuation."""
     lows = np.array([r[0] for r in evaluator.ranges])
@@ -445,7 +386,7 @@ def figure_sensitivities(envelope: Envelope, system: NumericSystem) -> dict[str,
     (:func:`kinegen.runtime.sensitivity.point_position_sensitivities`)."""
     from kinegen.runtime.sensitivity import point_position_sensitivities
 
-    evaluator = _Evaluator(system, envelope.spec)
+    evaluator = RangeEvaluator(system, envelope.spec)
     lows, highs = (np.array([r[k] for r in evaluator.ranges]) for k in (0, 1))
     moving = _bound_derivatives(envelope.spec, evaluator.names, system.design)  # (n_swept, 2, n_design)
     out = {}
@@ -478,13 +419,3 @@ def _bound_derivatives(spec: WorkingRange, names: list[str], design: dict[str, f
     return np.array([[design_gradient(bound, list(design), design) for bound in spec.inputs[name]] for name in names]).reshape(
         len(names), 2, len(design)
     )
-
-
-def plot_envelope(envelope: Envelope, system: NumericSystem, path: str | Path, boundary=None) -> Path:
-    """The working-range chart (:func:`kinegen.analysis.chart.plot_working_range`) with the exact
-    boundary (computed here unless given: :func:`kinegen.analysis.boundary.working_range_boundary`)."""
-    from kinegen.analysis.boundary import working_range_boundary
-    from kinegen.analysis.chart import plot_working_range
-
-    boundary = boundary if boundary is not None else working_range_boundary(system, envelope.spec)
-    return plot_working_range(envelope, boundary, system, path, boundary.direction)

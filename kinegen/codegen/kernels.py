@@ -28,7 +28,7 @@ import numpy as np
 import sympy as sp
 
 import kinegen
-from kinegen.codegen.shapes import Group, Shapes
+from kinegen.codegen.shapes import Definitions, Group, Shapes
 from kinegen.constraints import GROUND_FRAME
 from kinegen.interface import FRAME_FIELDS, FRAME_VALUES, SENSITIVITY_KERNELS
 from kinegen.model import Model
@@ -36,7 +36,6 @@ from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND
 from kinegen.rotations import Parametrization
 from kinegen.symbolic.assembly import (
-    GENERIC_NAME,
     Coordinates,
     Row,
     System,
@@ -128,17 +127,6 @@ class CaseDescription:
     #: a model with design parameters: the sparsity (rows, columns) of each sensitivity kernel's
     #: output (phi_p, dvel, dacc; :data:`SENSITIVITY_KERNELS`); empty without design parameters
     patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = field(default_factory=dict)
-
-
-@dataclass(frozen=True)
-class Definitions:
-    """The rotation-matrix entries ``<body>_a<ij>`` (and an origin that is not stored,
-    ``<body>_o<x,y,z>``) as expressions of the stored coordinates, the same for every body up
-    to its name: printed once for the generic body, renamed as text."""
-
-    bodies: tuple[tuple[str, tuple[sp.Symbol, ...], tuple[sp.Expr, ...]], ...]  # name, symbols, expressions
-    generic: tuple[sp.Expr, ...]
-    generic_name: str = GENERIC_NAME
 
 
 @dataclass

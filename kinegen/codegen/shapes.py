@@ -19,15 +19,12 @@ from __future__ import annotations
 import re
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, field
-from typing import TYPE_CHECKING
 
 import sympy as sp
 from sympy.printing.codeprinter import CodePrinter
 
 from kinegen.codegen.expressions import freeze_numbers
-
-if TYPE_CHECKING:
-    from kinegen.codegen.kernels import Definitions
+from kinegen.symbolic.assembly import GENERIC_NAME
 
 #: Statements per generated function part: Python's compiler needs ~60 bytes of memory per
 #: byte of a function it compiles, and C compilers grow faster than linearly with a
@@ -66,6 +63,17 @@ class Group:
     key: tuple | None
     expressions: Callable[[], list[sp.Expr]]
     rename: dict[sp.Symbol, sp.Symbol]
+
+
+@dataclass(frozen=True)
+class Definitions:
+    """The rotation-matrix entries ``<body>_a<ij>`` (and an origin that is not stored,
+    ``<body>_o<x,y,z>``) as expressions of the stored coordinates, the same for every body up
+    to its name: printed once for the generic body, renamed as text."""
+
+    bodies: tuple[tuple[str, tuple[sp.Symbol, ...], tuple[sp.Expr, ...]], ...]  # name, symbols, expressions
+    generic: tuple[sp.Expr, ...]
+    generic_name: str = GENERIC_NAME
 
 
 @dataclass

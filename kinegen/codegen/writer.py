@@ -6,7 +6,7 @@ import hashlib
 from collections.abc import Callable
 from pathlib import Path
 
-from kinegen.codegen import backends
+import kinegen.codegen.backends as backends
 from kinegen.codegen.kernels import describe
 from kinegen.errors import ModelError
 from kinegen.files import write_atomic

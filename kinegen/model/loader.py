@@ -18,9 +18,10 @@ import numpy as np
 import sympy as sp
 import yaml
 
+import kinegen.model.expressions as expressions
 from kinegen.errors import ExpressionError, ModelError, shown
 from kinegen.files import STDIN, read_bounded
-from kinegen.model import expressions
+from kinegen.model.expressions import compact
 from kinegen.model.schema import (
     GROUND,
     PUBLISHED_FIGURES,
@@ -806,24 +807,6 @@ class _Reader:
         return cases
 
 
-COMPACT_DIGITS = 34
-
-
-def compact(value: sp.Expr) -> sp.Expr:
-    """A geometry constant in compact exact form.
-
-    Rationals and small algebraic numbers (``sqrt(2)/2``) stay as they are; a constant
-    containing transcendental functions (``cos(3726279298/10**10)``), large numbers under a
-    root, or a large tree becomes
-    the exact decimal rational of its first 34 significant digits, so that it is one
-    number (not a tree) in every derivative, while evaluation stays exact rational.
-    """
-    if value.free_symbols:  # depends on design parameters: kept as an expression of them
-        return value
-    small = all(abs(r.p) < 10**6 and r.q < 10**6 for r in value.atoms(sp.Rational))
-    if value.is_Rational or (small and not value.has(sp.Function) and sp.count_ops(value) <= 12):
-        return value
-    return sp.Rational(str(sp.N(value, COMPACT_DIGITS)))
 
 
 def _compact_matrix(matrix: sp.MatrixBase) -> sp.ImmutableMatrix:

@@ -321,7 +321,7 @@ class Model:
 def _substitute(item: Any, mapping: dict[sp.Symbol, sp.Expr]) -> Any:
     """``item`` (a model or any part of it) with ``mapping`` applied to every expression in it;
     an expression that changes is put back in compact exact form (as the loader writes it)."""
-    from kinegen.model.loader import compact
+    from kinegen.model.expressions import compact
 
     if isinstance(item, sp.MatrixBase):
         return sp.ImmutableMatrix(item.applyfunc(lambda e: _substitute(e, mapping)))

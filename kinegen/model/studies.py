@@ -19,7 +19,7 @@ takes a working-range figure's published value); a constraint ``at_least`` and/o
 
 from __future__ import annotations
 
-from typing import TYPE_CHECKING, Any
+from typing import Any
 
 from kinegen.errors import shown
 from kinegen.model.schema import (
@@ -35,8 +35,9 @@ from kinegen.model.schema import (
     WorkingRange,
 )
 
-if TYPE_CHECKING:
-    from kinegen.model.loader import _Reader as Loader
+#: the loader's reader of a model file (kinegen.model.loader._Reader: mapping, fail, scalar, ...); the
+#: studies are read through it, so that their errors name the file and entry as every other's
+Loader = Any
 
 #: keys a term or constraint may have besides its quantity's
 _QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis")}

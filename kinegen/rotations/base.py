@@ -5,8 +5,9 @@ A parametrization owns the layout of one body's coordinates, as Pinocchio's mode
 ``nv`` *velocity* coordinates, body after body (body b at ``b * nq`` in q and ``b * nv`` in
 v), and only this package knows what they are. Velocity coordinates are what the Jacobian's
 columns, the Newton step and the velocity/acceleration solves use; a Newton step or a
-predicted motion is applied by :meth:`Parametrization.retract` (in Python) and by the C of
-:meth:`Parametrization.c_retract` (in generated C); results read poses, velocities and
+predicted motion is applied by :meth:`Parametrization.retraction`, written once symbolically
+(printed into the generated C; :meth:`Parametrization.retract` is its NumPy form, held to it by
+the tests); results read poses, velocities and
 accelerations through :meth:`pose`, :meth:`frame_velocity` and :meth:`frame_acceleration`.
 
 The parametrizations here store ``s = [r, o]`` (position ``r``, 3 values, then the
@@ -149,14 +150,24 @@ class Parametrization(ABC):
 
     @property
     def additive(self) -> bool:
-        """True when :meth:`retract` is plain addition (nq == nv, neither :meth:`retract` nor
-        :meth:`retract_orientation` overridden): the runtime then adds whole vectors at once."""
-        kind = type(self)
-        return kind.retract is Parametrization.retract and kind.retract_orientation is Parametrization.retract_orientation
+        """True when the update of a step is plain addition (:meth:`retraction` not overridden):
+        the runtime then adds whole vectors at once."""
+        return type(self).retraction is Parametrization.retraction
+
+    def retraction(self, q: sp.Matrix, step: sp.Matrix) -> list[sp.Expr]:
+        """One body's stored coordinates ``q`` (nq symbols) moved by ``step`` (nv symbols, velocity
+        coordinates), symbolically: the one definition of a Newton step's update, which the C
+        backend prints (``retract_body``) and :meth:`retract` evaluates. Added, unless the
+        parametrization says otherwise (a branch for small steps as ``sp.Piecewise``)."""
+        return list(q + step)
 
     def retract(self, q: np.ndarray, step: np.ndarray) -> np.ndarray:
         """A body's stored coordinates ``q`` (nq, ...) moved by ``step`` (nv, ...) in velocity
-        coordinates: positions added, the orientation by :meth:`retract_orientation`."""
+        coordinates, in NumPy: what :meth:`retraction` defines (positions added, the orientation
+        by :meth:`retract_orientation`), written out for speed -- a Newton step in Python calls it
+        once for all bodies; the tests hold it to :meth:`retraction` evaluated by SymPy."""
+        if self.additive:
+            return q + step
         out = np.array(q, dtype=float, copy=True)
         out[:3] += step[:3]
         out[3:] = self.retract_orientation(q[3:], step[3:])
@@ -164,13 +175,8 @@ class Parametrization(ABC):
 
     def retract_orientation(self, o: np.ndarray, step: np.ndarray) -> np.ndarray:
         """Orientation values (components first) moved by an increment of the orientation
-        velocity coordinates: added, unless the parametrization says otherwise."""
+        velocity coordinates, as :meth:`retraction` says (added, unless overridden)."""
         return o + step
-
-    def c_retract(self) -> str:
-        """Body of the C function ``retract_body(double *q, const double *step)`` that does what
-        :meth:`retract` does for one body (C99 and ``math.h``; the generated C loops it over the bodies)."""
-        return "\n".join(f"q[{i}] += step[{i}];" for i in range(self.nq))
 
     def project(self, q: np.ndarray) -> np.ndarray:
         """Stored coordinates (nq, ...) that interpolation may have moved off the set of valid
@@ -209,3 +215,4 @@ class Parametrization(ABC):
     @abstractmethod
     def omega_dot(self, o: np.ndarray, w: np.ndarray, w_dot: np.ndarray) -> np.ndarray:
         """Global angular acceleration from ``o``, ``w`` and their derivative ``w_dot``."""
+

@@ -35,8 +35,8 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kinegen.rotations import dual_quaternion_algebra as dq
-from kinegen.rotations import quaternion_algebra as qa
+import kinegen.rotations.dual_quaternion_algebra as dq
+import kinegen.rotations.quaternion_algebra as qa
 from kinegen.rotations.base import Parametrization
 from kinegen.rotations.euler_parameters import quaternion_matrix
 
@@ -148,8 +148,11 @@ class DualQuaternion(_DualQuaternionPose):
         middle += 0.5 * shift
         return dq.increment_parts(spin, shift + dq.cross_first(middle, spin), q)
 
-    def c_retract(self) -> str:
-        return _C_RETRACT
+    def retraction(self, q: sp.Matrix, step: sp.Matrix) -> list[sp.Expr]:
+        # σ <- exp(ξ₀) ⊗ σ, ξ₀ = (δθ, δr + (r + ½ δr) × δθ): the origin moves by δr, the rotation by δθ
+        spin, shift = step[:3, :], step[3:, :]
+        middle = dq.symbolic_translation(q) + shift / 2
+        return dq.symbolic_increment(spin, shift + middle.cross(spin), q)
 
     def frame_velocity(self, q: np.ndarray, v: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         v = np.asarray(v, dtype=float)
@@ -216,33 +219,3 @@ class DualEulerParameters(_DualQuaternionPose):
         )
         return 2.0 * terms[..., 1:], omega_dot
 
-
-#: retract_body in C: σ <- exp(ξ₀) ⊗ σ, ξ₀ = (δθ, δr + (r + ½ δr) × δθ) (as DualQuaternion.retract)
-_C_RETRACT = """\
-double rw = q[0], rx = q[1], ry = q[2], rz = q[3], sw = q[4], sx = q[5], sy = q[6], sz = q[7];
-double ox = 2.0 * (rw * sx - sw * rx + ry * sz - rz * sy) + 0.5 * step[3];
-double oy = 2.0 * (rw * sy - sw * ry + rz * sx - rx * sz) + 0.5 * step[4];
-double oz = 2.0 * (rw * sz - sw * rz + rx * sy - ry * sx) + 0.5 * step[5];
-double ax = 0.5 * step[0], ay = 0.5 * step[1], az = 0.5 * step[2];
-double bx = 0.5 * (step[3] + oy * step[2] - oz * step[1]);
-double by = 0.5 * (step[4] + oz * step[0] - ox * step[2]);
-double bz = 0.5 * (step[5] + ox * step[1] - oy * step[0]);
-double h2 = ax * ax + ay * ay + az * az, h = sqrt(h2), ab = ax * bx + ay * by + az * bz;
-double sinc, bend;
-if (h < 1e-4) {
-    sinc = 1.0 - h2 / 6.0 + h2 * h2 / 120.0;
-    bend = -1.0 / 3.0 + h2 / 30.0 - h2 * h2 / 840.0;
-} else {
-    sinc = sin(h) / h;
-    bend = (cos(h) - sin(h) / h) / h2;
-}
-double pw = cos(h), px = sinc * ax, py = sinc * ay, pz = sinc * az;
-double dw = -sinc * ab, dx = sinc * bx + bend * ab * ax, dy = sinc * by + bend * ab * ay, dz = sinc * bz + bend * ab * az;
-q[0] = pw * rw - px * rx - py * ry - pz * rz;
-q[1] = pw * rx + px * rw + py * rz - pz * ry;
-q[2] = pw * ry - px * rz + py * rw + pz * rx;
-q[3] = pw * rz + px * ry - py * rx + pz * rw;
-q[4] = (pw * sw - px * sx - py * sy - pz * sz) + (dw * rw - dx * rx - dy * ry - dz * rz);
-q[5] = (pw * sx + px * sw + py * sz - pz * sy) + (dw * rx + dx * rw + dy * rz - dz * ry);
-q[6] = (pw * sy - px * sz + py * sw + pz * sx) + (dw * ry - dx * rz + dy * rw + dz * rx);
-q[7] = (pw * sz + px * sy - py * sx + pz * sw) + (dw * rz + dx * ry - dy * rx + dz * rw);"""

@@ -15,7 +15,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kinegen.rotations import quaternion_algebra as qa
+import kinegen.rotations.quaternion_algebra as qa
 
 #: below this half-angle the exponential's coefficients use their Taylor series
 _SMALL = 1e-4
@@ -132,6 +132,23 @@ def to_homogeneous(s: np.ndarray) -> np.ndarray:
 def symbolic_translation(s: sp.Matrix) -> sp.Matrix:
     """The frame origin 2 vec(q_d ⊗ q_r*) of symbolic σ = (q_r, q_d) (8x1)."""
     return 2 * qa.symbolic_product(s[4:8, :], qa.symbolic_conjugate(s[0:4, :]))[1:, :]
+
+
+def symbolic_increment(angular: sp.Matrix, linear: sp.Matrix, s: sp.Matrix) -> list[sp.Expr]:
+    """``exp(ξ) ⊗ σ`` of a symbolic twist's angular and linear parts (3x1 each) and pose σ (8x1),
+    as :func:`increment_parts` computes it: with h the half-angle, sin(h)/h and
+    (cos h − sin h / h)/h² by their Taylor series below h = 1e-4 (where they would cancel)."""
+    a, b = angular / 2, linear / 2
+    h2 = sum((x * x for x in a), sp.Integer(0))
+    h = sp.sqrt(h2)
+    ab = sum((x * y for x, y in zip(a, b)), sp.Integer(0))
+    small = h < sp.Float(_SMALL)
+    sinc = sp.Piecewise((1 - h2 / 6 + h2 * h2 / 120, small), (sp.sin(h) / h, True))
+    bend = sp.Piecewise((-sp.Rational(1, 3) + h2 / 30 - h2 * h2 / 840, small), ((sp.cos(h) - sp.sin(h) / h) / h2, True))
+    real = sp.Matrix([sp.cos(h), *(sinc * x for x in a)])
+    dual = sp.Matrix([-sinc * ab, *(sinc * y + bend * ab * x for x, y in zip(a, b))])
+    r, d = s[0:4, :], s[4:8, :]
+    return [*qa.symbolic_product(real, r), *(qa.symbolic_product(real, d) + qa.symbolic_product(dual, r))]
 
 
 def increment(twist: np.ndarray, s: np.ndarray) -> np.ndarray:

@@ -7,7 +7,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kinegen.rotations import quaternion_algebra as qa
+import kinegen.rotations.quaternion_algebra as qa
 from kinegen.rotations.base import Parametrization
 
 

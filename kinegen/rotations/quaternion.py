@@ -13,7 +13,7 @@ from __future__ import annotations
 import numpy as np
 import sympy as sp
 
-from kinegen.rotations import quaternion_algebra as qa
+import kinegen.rotations.quaternion_algebra as qa
 from kinegen.rotations.base import Parametrization
 from kinegen.rotations.euler_parameters import quaternion_matrix
 
@@ -60,26 +60,12 @@ class Quaternion(Parametrization):
         # exp(theta/2) ⊗ q: stays unit to rounding, never renormalized
         return qa.increment(step, o)
 
-    def c_retract(self) -> str:
-        return _C_RETRACT
+    def retraction(self, q: sp.Matrix, step: sp.Matrix) -> list[sp.Expr]:
+        # positions added; q <- exp(theta/2) ⊗ q, which stays unit to rounding (never renormalized)
+        return [*(q[k] + step[k] for k in range(3)), *qa.symbolic_increment(step[3:, :], q[3:, :])]
 
     def project(self, q: np.ndarray) -> np.ndarray:
         out = np.array(q, dtype=float, copy=True)
         out[3:] /= np.linalg.norm(out[3:], axis=0)
         return out
 
-
-#: retract_body in C: positions added, q <- exp(theta/2) ⊗ q (as quaternion_algebra.increment)
-_C_RETRACT = """\
-double tx = step[3], ty = step[4], tz = step[5];
-double angle = sqrt(tx * tx + ty * ty + tz * tz), half = 0.5 * angle;
-double scale = angle <= 1e-8 ? 0.5 - angle * angle / 48.0 : sin(half) / angle;
-double pw = cos(half), px = scale * tx, py = scale * ty, pz = scale * tz;
-double qw = q[3], qx = q[4], qy = q[5], qz = q[6];
-q[0] += step[0];
-q[1] += step[1];
-q[2] += step[2];
-q[3] = pw * qw - px * qx - py * qy - pz * qz;
-q[4] = pw * qx + px * qw + py * qz - pz * qy;
-q[5] = pw * qy - px * qz + py * qw + pz * qx;
-q[6] = pw * qz + px * qy - py * qx + pz * qw;"""

@@ -103,6 +103,16 @@ def symbolic_product(p: sp.Matrix, q: sp.Matrix) -> sp.Matrix:
     return sp.Matrix([pw * qw - (pv.T * qv)[0], *(pw * qv + qw * pv + pv.cross(qv))])
 
 
+def symbolic_increment(theta: sp.Matrix, q: sp.Matrix) -> list[sp.Expr]:
+    """``exp(theta/2) ⊗ q`` of a symbolic rotation vector (3x1) and quaternion (4x1), as
+    :func:`increment` computes it: the rotation's half-angle sine over the angle by its series
+    below an angle of 1e-8 (where the quotient loses its digits)."""
+    angle = sp.sqrt(sum((x * x for x in theta), sp.Integer(0)))
+    scale = sp.Piecewise((sp.Rational(1, 2) - angle**2 / 48, angle <= sp.Float(1e-8)), (sp.sin(angle / 2) / angle, True))
+    exp = sp.Matrix([sp.cos(angle / 2), *(scale * x for x in theta)])
+    return list(symbolic_product(exp, q))
+
+
 def symbolic_conjugate(q: sp.Matrix) -> sp.Matrix:
     """Conjugate (w, -x, -y, -z)."""
     return sp.Matrix([q[0], -q[1], -q[2], -q[3]])

@@ -92,7 +92,8 @@ class Results:
         """Global angular acceleration, (K, 3)."""
         return self.system.parametrization.frame_acceleration(*self._body(body))[1]
 
-    def _arm(self, body: str, point: str) -> np.ndarray:
+    def arm(self, body: str, point: str) -> np.ndarray:
+        """The global vector [m] (K, 3) from a body's frame origin to its named point, at every time point."""
         points = self.system.points.get(body, {})
         if point not in points:
             raise KeyError(f"no point {point!r} on body {body!r} (points: {', '.join(points) or 'none'})")
@@ -108,19 +109,19 @@ class Results:
         """Global position of a named body point (``ground`` allowed), (K, 3)."""
         if body == GROUND:
             return self._ground_point(point)
-        return self.position(body) + self._arm(body, point)
+        return self.position(body) + self.arm(body, point)
 
     def point_velocity(self, body: str, point: str) -> np.ndarray:
         """Global velocity of a named body point: r' + omega x (A s'), (K, 3)."""
         if body == GROUND:
             return 0.0 * self._ground_point(point)
-        return self.velocity(body) + np.cross(self.omega(body), self._arm(body, point))
+        return self.velocity(body) + np.cross(self.omega(body), self.arm(body, point))
 
     def point_acceleration(self, body: str, point: str) -> np.ndarray:
         """Global acceleration: r'' + omega' x (A s') + omega x (omega x A s'), (K, 3)."""
         if body == GROUND:
             return 0.0 * self._ground_point(point)
-        arm = self._arm(body, point)
+        arm = self.arm(body, point)
         w = self.omega(body)
         return self.acceleration(body) + np.cross(self.omega_dot(body), arm) + np.cross(w, np.cross(w, arm))
 
@@ -189,7 +190,9 @@ class Results:
 
         return self._computed("state", state_sensitivities)
 
-    def _frame_sensitivities(self) -> np.ndarray:
+    def frame_sensitivities(self) -> np.ndarray:
+        """The change of every body's frame values per unit of each design parameter, (K, n_bodies,
+        FRAME_VALUES, n_design) (:func:`kinegen.runtime.sensitivity.frame_sensitivities`, computed once)."""
         from kinegen.runtime.sensitivity import frame_sensitivities
 
         return self._computed("frames", frame_sensitivities)

@@ -23,8 +23,9 @@ from typing import TYPE_CHECKING
 import numpy as np
 import scipy.linalg
 
+import kinegen.runtime.linear as linear
 from kinegen.model.schema import GROUND
-from kinegen.runtime import linear
+from kinegen.runtime.blocksolve import BlockSolve
 
 if TYPE_CHECKING:
     from kinegen.runtime.results import Results
@@ -100,8 +101,6 @@ def _block_solve(system: NumericSystem):
     system's Phi_q pattern, made once per pattern; None when it has no square block form."""
     key = np.asarray(system.jac_rows).tobytes() + b"|" + np.asarray(system.jac_cols).tobytes() + bytes(str(system.n_velocity), "ascii")
     if key not in _BLOCK_SOLVES:
-        from kinegen.runtime.batch import BlockSolve
-
         try:
             _BLOCK_SOLVES[key] = BlockSolve(system)
         except ValueError:
@@ -311,9 +310,9 @@ def point_sensitivity(results: Results, body: str, point: str, kind: str = "posi
     if body == GROUND:
         change = derivatives[point] if kind == "position" else np.zeros((3, n_design))
         return np.broadcast_to(change, (count, 3, n_design)).copy()
-    frame = results._frame_sensitivities()[:, list(system.bodies).index(body)]  # (K, FRAME_VALUES, n_design)
+    frame = results.frame_sensitivities()[:, list(system.bodies).index(body)]  # (K, FRAME_VALUES, n_design)
     at = system.frame_slices
-    rotation, arm = results.rotation_matrix(body), results._arm(body, point)
+    rotation, arm = results.rotation_matrix(body), results.arm(body, point)
     omega, omega_dot = results.omega(body), results.omega_dot(body)
     local = np.asarray(system.points[body][point], dtype=float)
     out = np.empty((count, 3, n_design))
@@ -339,7 +338,7 @@ def rotation_sensitivity(results: Results, body: str) -> np.ndarray:
     system = results.system
     if body not in system.bodies:
         raise KeyError(f"no body {body!r} (bodies: {', '.join(system.bodies)})")
-    d_rotation = results._frame_sensitivities()[:, list(system.bodies).index(body), system.frame_slices["rotation"]]  # (K, 9, n_design)
+    d_rotation = results.frame_sensitivities()[:, list(system.bodies).index(body), system.frame_slices["rotation"]]  # (K, 9, n_design)
     count = len(results.times)
     rotation = results.rotation_matrix(body)
     out = np.empty((count, 3, len(system.design)))

@@ -20,6 +20,7 @@ from typing import Any, NamedTuple
 
 import numpy as np
 
+import kinegen.runtime.linear as linear
 from kinegen.errors import (
     AssemblyError,
     BranchError,
@@ -29,7 +30,6 @@ from kinegen.errors import (
     UnreachableError,
 )
 from kinegen.progress import counter
-from kinegen.runtime import linear
 from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem, from_module, module_from_source
 from kinegen.symbolic.blocks import Block, block_triangular

@@ -367,7 +367,7 @@ def _design_points(module: ModuleType | Any, p: np.ndarray) -> tuple[dict, dict]
 def _native(module: ModuleType | Any, case: str, compiled: bool | None, design: np.ndarray | None = None) -> Any:
     if compiled is False or not hasattr(module, "KERNELS"):
         return None
-    from kinegen.runtime import native
+    import kinegen.runtime.native as native
 
     if compiled:
         sources = native._model_sources(module)

@@ -19,10 +19,10 @@ from types import SimpleNamespace
 
 import sympy as sp
 
-from kinegen.codegen.backends.c import config
+import kinegen.codegen.backends.c.config as config
 from kinegen.codegen.backends.c.printer import CPrinter
 from kinegen.codegen.kernels import CaseDescription, Kernel, ModuleDescription, Plan, Zeros
-from kinegen.codegen.shapes import Block, Printing
+from kinegen.codegen.shapes import Block, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
 from kinegen.model.expressions import T
@@ -279,7 +279,7 @@ class _Model:
         groups = self.source_groups()
         context = {
             "d": d, "stem": stem, "prefix": stem.upper(), "cases": cases, "points": points, "actuators": actuators,
-            "param": d.parametrization, "retract": d.parametrization.c_retract().splitlines(),
+            "param": d.parametrization, "retract": retract_lines(d.parametrization),
             "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__, "tables": self.tables,
             "groups": [[macros.function(f) for f in group] for group in groups],
             "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
@@ -291,6 +291,26 @@ class _Model:
             f"{stem}.h": templates.get_template("model.h.jinja").render(context),
             f"{stem}.c": templates.get_template("model.c.jinja").render(context),
         }
+
+
+def retract_lines(parametrization) -> list[str]:
+    """The body of ``retract_body(double *q, const double *step)``: the parametrization's
+    symbolic update of one body (:meth:`~kinegen.rotations.base.Parametrization.retraction`),
+    its common subexpressions eliminated, printed by the C printer (a small-step branch as a
+    conditional expression: only the branch taken is evaluated)."""
+    q = sp.symbols(f"q0:{parametrization.nq}", real=True)
+    step = sp.symbols(f"step0:{parametrization.nv}", real=True)
+    moved = parametrization.retraction(sp.Matrix(q), sp.Matrix(step))
+    statements = eliminate(moved)
+    printer = CPrinter()
+    used = statements.used
+    lines = [f"const double {s} = q[{i}];" for i, s in enumerate(q) if s in used]
+    lines += [f"const double {s} = step[{i}];" for i, s in enumerate(step) if s in used]
+    lines += [f"const double {name} = {' '.join(printer.doprint(value).split())};" for name, value in statements.temporaries]
+    changed = [(i, e) for i, e in enumerate(statements.outputs) if e != q[i]]
+    lines += [f"const double moved{i} = {' '.join(printer.doprint(e).split())};" for i, e in changed]
+    lines += [f"q[{i}] = moved{i};" for i, _ in changed]
+    return lines
 
 
 def _renamed_call(line: str, renamed: dict[str, str]) -> str:

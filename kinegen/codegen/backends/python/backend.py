@@ -15,7 +15,7 @@ from types import SimpleNamespace
 
 import sympy as sp
 
-from kinegen.codegen.backends.python import config
+import kinegen.codegen.backends.python.config as config
 from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter, used_numpy_names
 from kinegen.codegen.kernels import Kernel, ModuleDescription, Output, Section, Zeros
 from kinegen.codegen.shapes import Block, Printing
