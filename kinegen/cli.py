@@ -636,7 +636,7 @@ def models(destination: str | None, force: bool) -> None:
 
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
-@click.option("--param", "params", multiple=True, help=PARAM_HELP + " Repeatable (default: the five main ones).")
+@click.option("--param", "params", multiple=True, help=PARAM_HELP + f" Repeatable (default: {', '.join(rotations.SHOWN)}).")
 def info(model_file: str, params: tuple[str, ...]) -> None:
     """What MODEL_FILE holds: bodies, joints, cases and their time grids, actuators and ranges,
     design parameters and studies, coordinates and equations per parametrization."""

@@ -260,3 +260,31 @@ def test_no_import_cycle_among_kinegens_modules():
             if module not in seen:
                 seen.add(module)
                 frontier += graph[module]
+
+
+def test_kinds_are_listed_once_and_every_listed_kind_has_its_equations():
+    """The loader, the constraint builders, the studies and the CLI's choices read one list each;
+    a kind listed without equations (or equations of an unlisted kind) stops the import."""
+    from kinegen.analysis.studies import MEASURES
+    from kinegen.constraints import drivers, joints
+    from kinegen.model import loader
+    from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS, check_registered
+    from kinegen.model.schema import QUANTITY_KINDS
+
+    assert set(joints.BUILDERS) == set(JOINT_KINDS) and set(drivers.BUILDERS) == set(DRIVER_KINDS)
+    assert loader.JOINT_TYPES == tuple(JOINT_KINDS) and loader.DRIVER_TYPES == tuple(DRIVER_KINDS)
+    assert set(MEASURES) | {"working_range"} == set(QUANTITY_KINDS)
+    with pytest.raises(ImportError, match=r"kinds without equations \['helical'\]"):
+        check_registered("joints", {**JOINT_KINDS, "helical": None}, joints.BUILDERS)
+    for name, kind in JOINT_KINDS.items():  # each kind's equation count, as its builder gives it, for the model shipped with it
+        for m in ("boom", "four_bar", "rssr", "slider_crank", "excavator"):
+            for joint in model(m).joints:
+                if joint.type == name:
+                    from kinegen.constraints.joints import joint_equations
+                    from kinegen.symbolic.assembly import GROUND_FRAME, coordinates
+
+                    for param in ("quaternion", "dual-quaternion"):
+                        frames = {b.name: b.frame for b in coordinates(model(m), rotations.get(param)).bodies}
+                        rows = joint_equations(joint, frames.get(joint.body1, GROUND_FRAME), frames.get(joint.body2, GROUND_FRAME), ())
+                        assert len(rows) == kind.equations, (m, joint.name, param)
+    assert rotations.get("euler:zxz").name in rotations.SHOWN and set(rotations.SHOWN) <= set(rotations.NAMES)

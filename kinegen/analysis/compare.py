@@ -26,7 +26,7 @@ from kinegen.errors import KinegenError
 from kinegen.model.schema import Model
 
 #: The parametrizations compared by default (Euler angles in the two sequences of the paper's discussion).
-DEFAULT = ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters", "euler:zxz", "euler:zxy")
+DEFAULT = rotations.SHOWN
 #: Time-point counts tried for the largest converging step (the case's own grid first).
 STEP_COUNTS = (3, 5, 9, 17, 33, 65, 129, 257, 513)
 

@@ -27,7 +27,7 @@ def counts(model: Model, parametrization: rotations.Parametrization) -> dict[str
 
 
 #: what ``kinegen info`` counts unless told
-DEFAULT_PARAMETRIZATIONS = ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters", "euler:zxz")
+DEFAULT_PARAMETRIZATIONS = rotations.SHOWN
 
 
 def describe(model: Model, parametrizations: tuple[str, ...] = DEFAULT_PARAMETRIZATIONS) -> str:

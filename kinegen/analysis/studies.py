@@ -30,7 +30,8 @@ import numpy as np
 from scipy.optimize import minimize
 
 from kinegen.errors import KinegenError
-from kinegen.model.schema import GROUND, Model, Quantity, Study, design_gradient
+from kinegen.model.kinds import check_registered
+from kinegen.model.schema import GROUND, QUANTITY_KINDS, Model, Quantity, Study, design_gradient
 from kinegen.runtime import Solver, from_module
 from kinegen.runtime.results import Results
 
@@ -351,6 +352,9 @@ MEASURES: dict[str, Callable] = {
     "actuator_margin": _actuator_margin,
     "toggle_margin": _toggle_margin,
 }
+# every quantity a study may name (kinegen.model.schema.QUANTITY_KINDS, the one list) is measured here:
+# the working range's figures by the envelope (above), the others by MEASURES
+check_registered("kinegen.analysis.studies", {k: None for k in QUANTITY_KINDS if k != "working_range"}, MEASURES)
 
 
 # ---- running a study ----------------------------------------------------------------------------

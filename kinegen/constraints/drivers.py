@@ -23,6 +23,7 @@ import mpmath
 import sympy as sp
 
 from kinegen.constraints.frames import Equation, Frame, cross, dot
+from kinegen.model.kinds import DRIVER_KINDS, check_registered, registrar
 from kinegen.model.schema import Driver, Joint
 from kinegen.rotations.quaternion_algebra import symbolic_conjugate as conjugate
 from kinegen.rotations.quaternion_algebra import symbolic_product as quaternion_product
@@ -72,6 +73,14 @@ def _half_angle_residual(theta: sp.Expr, joint: Joint, frame1: Frame, frame2: Fr
     return 2 * (sp.sin(theta / 2) * p[0] - sp.cos(theta / 2) * along)
 
 
+#: a kind's equation: (driver, its input's value, joints by name, frame of a body, moving bodies filter) -> Equation
+Builder = Callable[[Driver, sp.Expr, dict, Callable[[str], Frame], Callable[[tuple[str, ...]], tuple[str, ...]]], Equation]
+#: the equation of every driver kind (kinegen.model.kinds.DRIVER_KINDS lists the kinds)
+BUILDERS: dict[str, Builder] = {}
+
+_builds = registrar(BUILDERS)
+
+
 def driver_equation(
     driver: Driver,
     joints: dict[str, Joint],
@@ -84,33 +93,54 @@ def driver_equation(
     ``value`` stands for the driver's input (an angle, a translation, a length or a
     coordinate); by default it is the driver's time function.
     """
-    theta = driver.function if value is None else value
-    if driver.type in ("joint_angle", "joint_translation"):
-        joint = joints[driver.joint]
-        frame1, frame2 = frame_of(joint.body1), frame_of(joint.body2)
-        bodies = moving((joint.body1, joint.body2))
-        f1 = frame1.vector(joint.reference1)
-        if driver.type == "joint_angle":
-            if frame1.e is not None and frame2.e is not None:
-                return Equation(driver.name, bodies, _half_angle_residual(theta, joint, frame1, frame2))
-            g1 = frame1.vector(cross(joint.axis1, joint.reference1))
-            f2 = frame2.vector(joint.reference2)
-            return Equation(driver.name, bodies, _angle_residual(theta, f1, g1, f2))
-        d = frame2.point(joint.point2) - frame1.point(joint.point1)
-        return Equation(driver.name, bodies, dot(frame1.vector(joint.axis1), d) - theta)
-    if driver.type == "distance":
-        p1, p2 = driver.points
-        gap = frame_of(p1.body).point(p1.local) - frame_of(p2.body).point(p2.local)
-        return Equation(driver.name, moving((p1.body, p2.body)), dot(gap, gap) - theta**2)
-    if driver.type == "coordinate":
-        (p,) = driver.points
-        return Equation(driver.name, moving((p.body,)), frame_of(p.body).point(p.local)[driver.component] - theta)
-    if driver.type == "body_angle":
-        f1 = sp.Matrix(driver.reference)
-        g1 = cross(driver.axis, driver.reference)
-        f2 = frame_of(driver.body).vector(driver.body_reference)
-        return Equation(driver.name, moving((driver.body,)), _angle_residual(theta, f1, g1, f2))
-    raise ValueError(f"unknown driver type {driver.type!r}")
+    if driver.type not in BUILDERS:
+        raise ValueError(f"unknown driver type {driver.type!r}")
+    return BUILDERS[driver.type](driver, driver.function if value is None else value, joints, frame_of, moving)
+
+
+@_builds("joint_angle")
+def _joint_angle(driver: Driver, theta: sp.Expr, joints: dict, frame_of, moving) -> Equation:
+    joint = joints[driver.joint]
+    frame1, frame2 = frame_of(joint.body1), frame_of(joint.body2)
+    bodies = moving((joint.body1, joint.body2))
+    if frame1.e is not None and frame2.e is not None:
+        return Equation(driver.name, bodies, _half_angle_residual(theta, joint, frame1, frame2))
+    f1 = frame1.vector(joint.reference1)
+    g1 = frame1.vector(cross(joint.axis1, joint.reference1))
+    f2 = frame2.vector(joint.reference2)
+    return Equation(driver.name, bodies, _angle_residual(theta, f1, g1, f2))
+
+
+@_builds("joint_translation")
+def _joint_translation(driver: Driver, theta: sp.Expr, joints: dict, frame_of, moving) -> Equation:
+    joint = joints[driver.joint]
+    frame1, frame2 = frame_of(joint.body1), frame_of(joint.body2)
+    d = frame2.point(joint.point2) - frame1.point(joint.point1)
+    return Equation(driver.name, moving((joint.body1, joint.body2)), dot(frame1.vector(joint.axis1), d) - theta)
+
+
+@_builds("distance")
+def _distance(driver: Driver, theta: sp.Expr, joints: dict, frame_of, moving) -> Equation:
+    p1, p2 = driver.points
+    gap = frame_of(p1.body).point(p1.local) - frame_of(p2.body).point(p2.local)
+    return Equation(driver.name, moving((p1.body, p2.body)), dot(gap, gap) - theta**2)
+
+
+@_builds("coordinate")
+def _coordinate(driver: Driver, theta: sp.Expr, joints: dict, frame_of, moving) -> Equation:
+    (p,) = driver.points
+    return Equation(driver.name, moving((p.body,)), frame_of(p.body).point(p.local)[driver.component] - theta)
+
+
+@_builds("body_angle")
+def _body_angle(driver: Driver, theta: sp.Expr, joints: dict, frame_of, moving) -> Equation:
+    f1 = sp.Matrix(driver.reference)
+    g1 = cross(driver.axis, driver.reference)
+    f2 = frame_of(driver.body).vector(driver.body_reference)
+    return Equation(driver.name, moving((driver.body,)), _angle_residual(theta, f1, g1, f2))
+
+
+check_registered("kinegen.constraints.drivers", DRIVER_KINDS, BUILDERS)
 
 
 __all__ = ["driver_equation", "exact_quaternion"]

@@ -42,57 +42,100 @@ fixed          P1 - P2 = 0, 2 vec(q_r1* ⊗ q_r2 ⊗ p0*) = 0 (p0: the         6
 
 from __future__ import annotations
 
+from collections.abc import Callable
+
 import sympy as sp
 
 from kinegen.constraints.drivers import exact_quaternion
 from kinegen.constraints.frames import Equation, Frame, cross, dot
+from kinegen.model.kinds import JOINT_KINDS, check_registered, registrar
 from kinegen.model.schema import Joint
 from kinegen.rotations.quaternion_algebra import symbolic_conjugate, symbolic_product
+
+#: a kind's equations: (joint, frame 1, frame 2, whether a frame is a dual quaternion) -> (suffix, expression) rows
+Builder = Callable[[Joint, Frame, Frame, bool], list[tuple[str, sp.Expr]]]
+#: the equations of every joint kind (kinegen.model.kinds.JOINT_KINDS lists the kinds)
+BUILDERS: dict[str, Builder] = {}
+
+_builds = registrar(BUILDERS)
 
 
 def joint_equations(joint: Joint, frame1: Frame, frame2: Frame, moving: tuple[str, ...]) -> list[Equation]:
     """The equations of ``joint`` given the two body frames; ``moving`` names its moving bodies."""
-    n = joint.name
+    unified = bool(frame1.unified or frame2.unified)
+    return [Equation(f"{joint.name}.{suffix}", moving, expr) for suffix, expr in BUILDERS[joint.type](joint, frame1, frame2, unified)]
 
-    def eq(suffix: str, expr: sp.Expr) -> Equation:
-        return Equation(f"{n}.{suffix}", moving, expr)
 
-    unified = frame1.unified or frame2.unified
-    equations: list[Equation] = []
-    if joint.type in ("spherical", "revolute", "universal", "fixed"):
-        gap = frame1.point(joint.point1) - frame2.point(joint.point2)
-        equations += [eq(axis, gap[i]) for i, axis in enumerate("xyz")]
-    if joint.type == "revolute" or (joint.type in ("cylindrical", "prismatic") and not unified):
-        h1 = frame1.vector(joint.axis1)
-        f2 = frame2.vector(joint.reference2)
-        g2 = frame2.vector(cross(joint.axis2, joint.reference2))
-        equations += [eq("axis_f", dot(h1, f2)), eq("axis_g", dot(h1, g2))]
-    if joint.type in ("cylindrical", "prismatic") and unified:
+def _points(joint: Joint, frame1: Frame, frame2: Frame) -> list[tuple[str, sp.Expr]]:
+    """P1 - P2 = 0."""
+    gap = frame1.point(joint.point1) - frame2.point(joint.point2)
+    return [(axis, gap[i]) for i, axis in enumerate("xyz")]
+
+
+def _axes(joint: Joint, frame1: Frame, frame2: Frame) -> list[tuple[str, sp.Expr]]:
+    """h1.f2 = 0, h1.g2 = 0: the axes aligned."""
+    h1 = frame1.vector(joint.axis1)
+    f2 = frame2.vector(joint.reference2)
+    g2 = frame2.vector(cross(joint.axis2, joint.reference2))
+    return [("axis_f", dot(h1, f2)), ("axis_g", dot(h1, g2))]
+
+
+def _line(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    """The axis of body 2 on body 1's axis line: as dual numbers where a frame is a dual quaternion."""
+    if unified:
         axis2 = frame2.line(joint.point2, joint.axis2)
         f_line = frame1.line(joint.point1, joint.reference1)
         g_line = frame1.line(joint.point1, cross(joint.axis1, joint.reference1))
         (f_real, f_dual), (g_real, g_dual) = f_line.dual_dot(axis2), g_line.dual_dot(axis2)
-        equations += [eq("axis_f", f_real), eq("axis_g", g_real), eq("line_f", f_dual), eq("line_g", g_dual)]
-    elif joint.type in ("cylindrical", "prismatic"):
-        d = frame2.point(joint.point2) - frame1.point(joint.point1)
-        f1 = frame1.vector(joint.reference1)
-        g1 = frame1.vector(cross(joint.axis1, joint.reference1))
-        equations += [eq("line_f", dot(f1, d)), eq("line_g", dot(g1, d))]
-    if joint.type == "prismatic":
-        f1 = frame1.vector(joint.reference1)
-        equations.append(eq("roll", dot(f1, frame2.vector(joint.lock2[1]))))
-    if joint.type == "universal":
-        equations.append(eq("cross", dot(frame1.vector(joint.axis1), frame2.vector(joint.axis2))))
-    if joint.type == "fixed" and unified:
-        # σ1* ⊗ σ2 = σ0: its translation by the coincident points, its rotation here
+        return [("axis_f", f_real), ("axis_g", g_real), ("line_f", f_dual), ("line_g", g_dual)]
+    d = frame2.point(joint.point2) - frame1.point(joint.point1)
+    f1 = frame1.vector(joint.reference1)
+    g1 = frame1.vector(cross(joint.axis1, joint.reference1))
+    return [*_axes(joint, frame1, frame2), ("line_f", dot(f1, d)), ("line_g", dot(g1, d))]
+
+
+@_builds("spherical")
+def _spherical(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    return _points(joint, frame1, frame2)
+
+
+@_builds("revolute")
+def _revolute(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    return [*_points(joint, frame1, frame2), *_axes(joint, frame1, frame2)]
+
+
+@_builds("cylindrical")
+def _cylindrical(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    return _line(joint, frame1, frame2, unified)
+
+
+@_builds("prismatic")
+def _prismatic(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    roll = dot(frame1.vector(joint.reference1), frame2.vector(joint.lock2[1]))
+    return [*_line(joint, frame1, frame2, unified), ("roll", roll)]
+
+
+@_builds("universal")
+def _universal(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    return [*_points(joint, frame1, frame2), ("cross", dot(frame1.vector(joint.axis1), frame2.vector(joint.axis2)))]
+
+
+@_builds("fixed")
+def _fixed(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    rows = _points(joint, frame1, frame2)
+    if unified:  # σ1* ⊗ σ2 = σ0: its translation by the coincident points, its rotation here
         zero_angle = exact_quaternion(sp.Matrix.hstack(*(sp.Matrix(v) for v in joint.lock2)).T)
         relative = symbolic_product(symbolic_product(symbolic_conjugate(frame1.e), frame2.e), symbolic_conjugate(zero_angle))
-        equations += [eq(f"rot_{axis}", 2 * relative[1 + i]) for i, axis in enumerate("xyz")]
-    elif joint.type == "fixed":
-        x1, y1, z1 = (frame1.vector(sp.eye(3)[:, i]) for i in range(3))
-        u2x, u2y, u2z = (frame2.vector(v) for v in joint.lock2)
-        equations += [eq("rot_xy", dot(x1, u2y)), eq("rot_yz", dot(y1, u2z)), eq("rot_zx", dot(z1, u2x))]
-    if joint.type == "distance":
-        gap = frame1.point(joint.point1) - frame2.point(joint.point2)
-        equations.append(eq("length", dot(gap, gap) - joint.length**2))
-    return equations
+        return rows + [(f"rot_{axis}", 2 * relative[1 + i]) for i, axis in enumerate("xyz")]
+    x1, y1, z1 = (frame1.vector(sp.eye(3)[:, i]) for i in range(3))
+    u2x, u2y, u2z = (frame2.vector(v) for v in joint.lock2)
+    return rows + [("rot_xy", dot(x1, u2y)), ("rot_yz", dot(y1, u2z)), ("rot_zx", dot(z1, u2x))]
+
+
+@_builds("distance")
+def _distance(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
+    gap = frame1.point(joint.point1) - frame2.point(joint.point2)
+    return [("length", dot(gap, gap) - joint.length**2)]
+
+
+check_registered("kinegen.constraints.joints", JOINT_KINDS, BUILDERS)

@@ -22,6 +22,7 @@ import kinegen.model.expressions as expressions
 from kinegen.errors import ExpressionError, ModelError, shown
 from kinegen.files import STDIN, read_bounded
 from kinegen.model.expressions import compact
+from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS
 from kinegen.model.schema import (
     GROUND,
     PUBLISHED_FIGURES,
@@ -42,10 +43,10 @@ from kinegen.rotations.euler_parameters import quaternion_matrix
 
 NAME_PATTERN = re.compile(r"^[A-Za-z][A-Za-z0-9_]{0,63}$")
 RESERVED = {"t", "pi", "ground", *expressions.FUNCTIONS}
-#: Joint types and how many scalar equations each contributes.
-JOINT_EQUATIONS = {"spherical": 3, "revolute": 5, "cylindrical": 4, "prismatic": 5, "universal": 4, "fixed": 6, "distance": 1}
-JOINT_TYPES = tuple(JOINT_EQUATIONS)
-DRIVER_TYPES = ("joint_angle", "joint_translation", "distance", "coordinate", "body_angle")
+#: Joint types and how many scalar equations each contributes (kinegen.model.kinds: the one list).
+JOINT_EQUATIONS = {name: kind.equations for name, kind in JOINT_KINDS.items()}
+JOINT_TYPES = tuple(JOINT_KINDS)
+DRIVER_TYPES = tuple(DRIVER_KINDS)
 ORTHONORMAL_TOLERANCE = 1e-9
 MAX_FILE_BYTES = 5_000_000
 #: Nodes that anchors and aliases may add to a document when expanded (each use of an
@@ -517,12 +518,9 @@ class _Reader:
         if b1 == b2:
             raise self.fail(f"{entry}.bodies", f"a joint needs two different bodies, got {shown(b1)} twice")
         pose1, pose2 = self.pose(b1), self.pose(b2)
-        needs_axis = kind in ("revolute", "cylindrical", "prismatic", "universal")
-        allowed = {"type", "bodies", "points", "at"} | ({"axes", "axis"} if needs_axis else set())
-        if kind in ("revolute", "cylindrical", "prismatic"):
-            allowed.add("references")
-        if kind == "distance":
-            allowed = {"type", "bodies", "points", "length"}
+        joint_kind = JOINT_KINDS[kind]
+        needs_axis = joint_kind.has_axes
+        allowed = {"type", "bodies", "points", *joint_kind.keys} | ({"at"} if kind != "distance" else set())
         for key in spec:
             if key not in allowed:
                 raise self.fail(f"{entry}.{key}", f"not used by a {kind} joint (allowed: {', '.join(sorted(allowed))})")
@@ -531,7 +529,7 @@ class _Reader:
         if needs_axis:
             axis1, axis2 = self.joint_axes(spec, entry, pose1, pose2, kind)
             fields.update(axis1=axis1, axis2=axis2)
-            if kind != "universal":
+            if joint_kind.has_references:
                 ref1, ref2 = self.references(spec, entry, pose1, pose2, axis1, axis2)
                 fields.update(reference1=ref1, reference2=ref2)
                 g1 = _cross(axis1, ref1)
@@ -707,18 +705,11 @@ class _Reader:
         kind = spec["type"]
         if kind not in DRIVER_TYPES:
             raise self.fail(f"{entry}.type", f"unknown driver type {shown(kind)} (one of {', '.join(DRIVER_TYPES)})")
-        needed = {
-            "joint_angle": {"joint"},
-            "joint_translation": {"joint"},
-            "distance": {"points"},
-            "coordinate": {"point", "component"},
-            "body_angle": {"body", "axis"},
-        }[kind]
-        optional = {"reference"} if kind == "body_angle" else set()
+        needed, optional = DRIVER_KINDS[kind].needs, DRIVER_KINDS[kind].optional
         for key in spec:
             if key not in needed | optional | {"type", "function"}:
                 raise self.fail(f"{entry}.{key}", f"not used by a {kind} driver")
-        for key in needed:
+        for key in sorted(needed):
             if key not in spec:
                 raise self.fail(entry, f"a {kind} driver needs '{key}'")
         function = self.scalar(spec["function"], f"{entry}.function", allow_time=True)
