@@ -288,3 +288,24 @@ def test_kinds_are_listed_once_and_every_listed_kind_has_its_equations():
                         rows = joint_equations(joint, frames.get(joint.body1, GROUND_FRAME), frames.get(joint.body2, GROUND_FRAME), ())
                         assert len(rows) == kind.equations, (m, joint.name, param)
     assert rotations.get("euler:zxz").name in rotations.SHOWN and set(rotations.SHOWN) <= set(rotations.NAMES)
+
+
+def test_a_case_named_jac_gets_distinct_temporaries_and_the_same_values(tmp_path):
+    """Temporaries are named by the section's place in a function, not by a test on its name:
+    a case called ``jac`` (whose driver sections' names end in 'jac') builds, and its plain-float,
+    NumPy and compiled Phi/Phi_q agree."""
+    text = (MODELS / "four_bar.yaml").read_text().replace("  crank_turn:", "  jac:")
+    model_file = tmp_path / "four_bar.yaml"
+    model_file.write_text(text)
+    system = Session(tmp_path / "generated").system(model_file, "jac")
+    source = (tmp_path / "generated" / "four_bar_quaternion.py").read_text()
+    for function in source.split("\n\n\ndef ")[1:]:  # no temporary assigned twice in one function
+        names = re.findall(r"^    (\w+) = ", function, flags=re.MULTILINE)
+        temporaries = [n for n in names if re.fullmatch(r"[cdefgh]\d+", n)]
+        assert len(temporaries) == len(set(temporaries)), function.splitlines()[0]
+    q = system.initial_q + 0.01
+    u = system.driver_inputs(0.3)[0]
+    phi_s, jac_s = system.phi_jac_s(q.tolist(), u.tolist())
+    assert np.abs(np.array(phi_s) - system.phi(q, u)).max() <= 1e-15 and np.abs(np.array(jac_s) - system.jac(q, u)).max() <= 1e-15
+    phi_c, jac_c = system.native.evaluate(q, u)
+    assert np.abs(phi_c - system.phi(q, u)).max() <= 1e-14 and np.abs(jac_c - system.jac(q, u)).max() <= 1e-14

@@ -49,6 +49,10 @@ class _Module:
     def __init__(self, description: ModuleDescription) -> None:
         self.d = description
         self.printing: Printing = description.shapes.printing((ModulePrinter(), ScalarPrinter()))
+        #: sections only NumPy functions compute (not those of SCALAR_KERNELS): printed in that style alone
+        self.array_printing: Printing = description.shapes.printing((ModulePrinter(),))
+        self.scalar_sections = {part for case in description.cases.values() for name in config.SCALAR_KERNELS if name in case.kernels
+                                for output in case.kernels[name].outputs for part in output.parts if isinstance(part, str)}  # fmt: skip
         self.functions: list[_Function] = []
         self.blocks: dict[tuple[str, str], Block] = {}
         self.made: set[str] = set()  # functions made once for every case (section and scalar functions)
@@ -57,7 +61,8 @@ class _Module:
         """The section's printed block, temporaries ``<prefix>0, ...`` (functions computing several
         sections give each its own prefix)."""
         if (name, prefix) not in self.blocks:
-            self.blocks[name, prefix] = self.printing.block(self.d.sections[name].groups, prefix)
+            printing = self.printing if name in self.scalar_sections else self.array_printing
+            self.blocks[name, prefix] = printing.block(self.d.sections[name].groups, prefix)
         return self.blocks[name, prefix]
 
     def slots(self, section: Section | tuple[str, ...], case: str | None) -> list[tuple[str, tuple[sp.Symbol, ...]]]:
@@ -68,7 +73,7 @@ class _Module:
     def prologue(self, args: list[tuple[str, tuple[sp.Symbol, ...]]], blocks: list[Block], style: int) -> list[str]:
         """Unpacking of the arguments and the definitions the blocks use, then their temporaries."""
         used = set().union(*(b.symbols for b in blocks))
-        defined, needs = self.printing.definitions(self.d.definitions, used)
+        defined, needs = (self.printing if style == SCALAR else self.array_printing).definitions(self.d.definitions, used)
         used |= needs
         lines = []
         for arg, symbols in args:
