@@ -724,10 +724,12 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
             names = list(system.design)
             click.echo("\nexact sensitivities of the figures (envelope theorem), m per unit of each design parameter:")
             click.echo(f"{'figure':<22}" + "".join(f" {n:>14}" for n in names))
+            scale = max((abs(v) for values in sensitivities.values() for v in values.values()), default=0.0)
             for figure, values in sensitivities.items():
-                click.echo(f"{figure:<22}" + "".join(f" {values[n]:>14.6g}" for n in names))
+                click.echo(f"{figure:<22}" + "".join(f" {_table_number(values[n], scale):>14}" for n in names))
         if result.front is not None:
-            click.echo(f"min_front_swing_radius at {', '.join(result.front.farthest)}")
+            click.echo(f"min_front_swing_radius {result.front.radius:.3f} m, at {', '.join(result.front.farthest)} (a min-max: its "
+                       "sensitivity is not computed, it is not differentiable where points tie)")
         if boundary is not None:
             click.echo(
                 f"exact boundary: {len(boundary.points) - 1} points on {len(set(boundary.curve.tolist()))} curves, "
@@ -739,6 +741,11 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
         click.echo(f"wrote {boundary_file}", err=as_json)
     if plot:
         click.echo(f"wrote {plot_envelope(result, system, plot, boundary)}", err=as_json)
+
+
+def _table_number(value: float, scale: float) -> str:
+    """A table entry: what is zero to rounding against the table's largest entry (1e-10 of it) as 0."""
+    return "0" if abs(value) <= 1e-10 * scale else f"{value:.6g}"
 
 
 def _boundary_document(boundary) -> dict:

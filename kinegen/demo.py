@@ -266,7 +266,7 @@ def _exploration(model_file: Path, module_path: Path, out: Path, samples: int = 
     except ImportError as exc:
         print(f"\nkinegen explore left out ({exc}): pip install 'kinegen[explore]'")
         return 0
-    target = out / "excavator_calibration.parquet"
+    target = out / f"excavator_calibration_{samples}.parquet"  # not kinegen explore's default: the tour runs that next
     shutil.rmtree(target, ignore_errors=True)  # this job's own output of an earlier run
     print(f"\nkinegen explore {model_file.name} --study calibration --samples {samples} (Sobol', Dask LocalCluster):\n")
     exploration = Exploration(model_file.resolve(), module_path.resolve(), "calibration", samples, partition_size=32)

@@ -7,6 +7,7 @@ from __future__ import annotations
 import re
 import shutil
 import subprocess
+import tempfile
 from pathlib import Path
 
 import numpy as np
@@ -18,7 +19,7 @@ from kinegen.codegen.backends.c import config
 from kinegen.errors import KinegenError
 from kinegen.runtime import Solver, SolverOptions, from_module, load_module
 from kinegen.runtime.native import build_library, with_solver
-from tests.conftest import GENERATED, MODELS, chain_yaml
+from tests.conftest import GENERATED, MODELS, ROOT, chain_yaml
 
 CC = shutil.which("cc") or shutil.which("gcc")
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler")
@@ -194,10 +195,18 @@ def _compare(program: Path, python_system, case: str) -> None:
     assert done.returncode == 0, done.stderr
     header, *rows = done.stdout.splitlines()
     c = np.array([[float(x) for x in row.split(",")] for row in rows])
-    names, table = Solver(python_system).solve().table()
+    results = Solver(python_system).solve()
+    names, table = results.table()
     assert header.split(",") == names
     assert c.shape == table.shape
     _same_rows(c, table, names)
+    # one format: the counts and flags as integers in both (C: %d; Python's CSV the same)
+    with tempfile.TemporaryDirectory() as folder:
+        python_rows = results.to_csv(Path(folder) / "python.csv").read_text().splitlines()[1:]
+    for column in ("converged", "newton_iterations"):
+        k = names.index(column)
+        assert all(re.fullmatch(r"\d+", row.split(",")[k]) for row in (*rows, *python_rows)), column
+        assert [row.split(",")[k] for row in rows] == [row.split(",")[k] for row in python_rows], column
 
 
 def _same_rows(c: np.ndarray, table: np.ndarray, names: list[str]) -> None:
@@ -265,3 +274,22 @@ def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path
     _same_rows(b, a, own.splitlines()[0].split(","))  # NumPy's and libm's sin differ in the last bit
     failed = subprocess.run([str(program), "bucket_toggle"], capture_output=True, text=True)
     assert failed.returncode in (1, 2, 3) and failed.stderr.startswith("error: excavator/bucket_toggle at t = ")
+
+
+def test_the_readmes_controller_snippet_compiles_strictly_and_solves_its_case(tmp_path):
+    """The C block of README's "Using kinegen in a controller", as printed, compiled with the
+    standalone directory's files under the strict flags, called from a main(): every step of the
+    level cut solved (KINEGEN_OK)."""
+    readme = (ROOT / "README.md").read_text()
+    section = readme[readme.index("## Using kinegen in a controller") :]
+    snippet = section[section.index("```c\n") + 5 : section.index("```", section.index("```c\n") + 5)]
+    folder = _standalone(tmp_path, MODELS / "excavator.yaml", "quaternion")
+    (folder / "controller.c").write_text(snippet)
+    (folder / "main.c").write_text('#include <stdio.h>\nint control_loop(void);\nint main(void) {\n'
+                                   '    int status = control_loop();\n    printf("%d\\n", status);\n    return status;\n}\n')  # fmt: skip
+    program = folder / "controller"
+    sources = [str(folder / n) for n in ("main.c", "controller.c", "excavator_quaternion.c", "kinegen_solver.c")]
+    done = subprocess.run([CC, *STRICT, "-O1", "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    ran = subprocess.run([str(program)], capture_output=True, text=True, timeout=120)
+    assert (ran.returncode, ran.stdout.strip()) == (0, "0"), ran.stderr

@@ -152,7 +152,7 @@ def test_in_memory_lambdify_asks_for_numbers():
 
 @pytest.mark.parametrize("sensitivities", [True, False])
 def test_the_c_of_a_design_model_compiles_strictly(tmp_path, sensitivities):
-    """The model's C with the kernels taking p and kinegen_design_model (with the sensitivity
+    """The model's C with the kernels taking p and its kinegen_design (with the sensitivity
     kernels, or built without them), and the solver, with the machine's cc: C99, every warning
     an error."""
     import shutil
@@ -172,7 +172,9 @@ def test_the_c_of_a_design_model_compiles_strictly(tmp_path, sensitivities):
         flags = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic", "-c", "-o", str(tmp_path / f"{name}.o")]
         done = subprocess.run([compiler, *flags, str(tmp_path / name)], capture_output=True, text=True)
         assert done.returncode == 0, done.stderr
-    assert "const kinegen_design_model slider_crank_quaternion_run = { {" in files["slider_crank_quaternion.c"]
+    # one case type, design parameters or not: the case's model points to its design
+    assert "const kinegen_model slider_crank_quaternion_run = {" in files["slider_crank_quaternion.c"]
+    assert "&design_run," in files["slider_crank_quaternion.c"]
     assert ("dacc_run(" in files["slider_crank_quaternion.c"]) == sensitivities
     assert f"sensitivities:   {'yes' if sensitivities else 'no'}" in files["slider_crank_quaternion.h"]
 

@@ -249,3 +249,17 @@ def test_a_folder_of_another_run_is_not_resumed_or_overwritten(one_worker_run: P
     # resumed with the same settings and nothing missing: nothing computed, no cluster started
     report = explore(calibration(), one_worker_run, resume=True, progress=False)
     assert report.computed == 0 and report.already == 5 and report.workers == 0
+
+
+def test_the_readmes_one_liner_reads_the_parquet_folder_with_what_kinegen_explore_installs(one_worker_run: Path) -> None:
+    """The README's pyarrow line, as printed (its folder swapped for this run's), reads every variant."""
+    import re
+    import subprocess
+    import sys
+
+    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    snippet = re.search(r'`python -c "(import pyarrow\.dataset[^"]+)"`', readme).group(1)
+    code = snippet.replace("out/excavator_calibration.parquet", str(one_worker_run)).replace("to_table())", "to_table().num_rows)")
+    done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)
+    assert done.returncode == 0, done.stderr
+    assert int(done.stdout) == sum(len(pq.read_table(part)) for part in one_worker_run.glob("part-*.parquet")) > 0

@@ -19,7 +19,7 @@ import sympy as sp
 import yaml
 
 import kinegen.model.expressions as expressions
-from kinegen.errors import ExpressionError, ModelError, shown
+from kinegen.errors import ExpressionError, KinegenError, ModelError, shown
 from kinegen.files import STDIN, read_bounded
 from kinegen.model.expressions import compact
 from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS
@@ -171,8 +171,24 @@ def load(path: str | Path) -> Model:
     try:
         raw = read_bounded(path, MAX_FILE_BYTES)
     except OSError as exc:
-        raise ModelError(name, "(file)", f"cannot read: {exc.strerror or exc}") from None
+        raise ModelError(name, "(file)", f"cannot read: {exc.strerror or exc}{_shipped_hint(path, exc)}") from None
     return loads(raw, name)
+
+
+def _shipped_hint(path: str | Path, exc: OSError) -> str:
+    """For a missing file named as a shipped model is: where the shipped ones are and how to copy them."""
+    import errno
+
+    if exc.errno != errno.ENOENT or str(path) == STDIN:
+        return ""
+    from kinegen.examples import models_folder
+
+    try:
+        shipped = models_folder() / Path(path).name
+    except KinegenError:
+        return ""
+    where = f" (kinegen ships {Path(path).name}: {shipped})" if shipped.is_file() else ""
+    return f"{where}; `kinegen models` lists the shipped models, `kinegen models --copy DIR` copies them"
 
 
 def source_digest(path: str | Path) -> str:

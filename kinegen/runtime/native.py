@@ -354,7 +354,7 @@ class NativeCase:
         self.design = None
         self.sensitivity_doubles = 0  #: work of kinegen_sensitivities (0: the model has no sensitivity kernels)
         if not m.phi_jac:  # a model with design parameters: its kernels take them last
-            owner = abi.struct("kinegen_design_model").in_dll(library, symbol)
+            owner = abi.struct("kinegen_design").from_address(m.design)
             self.sensitivity_doubles = owner.sensitivity_doubles
             nominal = np.ctypeslib.as_array(owner.nominal, (owner.n_design,))
             self.design = np.array(nominal if design is None else design, dtype=float)

@@ -339,7 +339,13 @@ class Results:
         return path
 
 
+#: columns that hold counts and flags: written as integers (as the C target's example writes them)
+INTEGER_COLUMNS = ("converged", "newton_iterations")
+
+
 def _csv_rows(handle: TextIO, names: list[str], values: np.ndarray) -> None:
+    """Values as round-trip decimals; the counts and flags of :data:`INTEGER_COLUMNS` as integers."""
     writer = csv.writer(handle)
     writer.writerow(names)
-    writer.writerows([[repr(float(x)) for x in row] for row in values])
+    whole = [name in INTEGER_COLUMNS for name in names]
+    writer.writerows([[str(int(x)) if w and np.isfinite(x) else repr(float(x)) for x, w in zip(row, whole)] for row in values])

@@ -37,18 +37,18 @@ void kinegen_default_options(kinegen_options *o) {
 }
 
 /* The case's design parameters and kernels taking them, or NULL (a model without them). */
-static const kinegen_design_model *design_model(const kinegen_model *m) {
-    return m->phi_jac == NULL ? (const kinegen_design_model *)m : NULL;
+static const kinegen_design *design_model(const kinegen_model *m) {
+    return m->design;
 }
 
 void kinegen_set_design(kinegen_solver *s, const double *p) {
-    const kinegen_design_model *d = design_model(s->model);
+    const kinegen_design *d = design_model(s->model);
     if (d != NULL) s->design = p != NULL ? p : d->nominal;
 }
 
 /* The case's kernels, with the design parameters when the model has them. */
 static void phi_jac(const kinegen_solver *s, const double *q, const double *u, double *phi, double *jac) {
-    const kinegen_design_model *d = design_model(s->model);
+    const kinegen_design *d = design_model(s->model);
     if (d != NULL) {
         d->phi_jac(q, u, s->design, phi, jac);
     } else {
@@ -57,7 +57,7 @@ static void phi_jac(const kinegen_solver *s, const double *q, const double *u, d
 }
 
 static void nu(const kinegen_solver *s, const double *q, const double *u, const double *ud, double *out) {
-    const kinegen_design_model *d = design_model(s->model);
+    const kinegen_design *d = design_model(s->model);
     if (d != NULL) {
         d->nu(q, u, ud, s->design, out);
     } else {
@@ -67,7 +67,7 @@ static void nu(const kinegen_solver *s, const double *q, const double *u, const 
 
 static void gamma_rhs(const kinegen_solver *s, const double *q, const double *v, const double *u, const double *ud,
                       const double *udd, double *out) {
-    const kinegen_design_model *d = design_model(s->model);
+    const kinegen_design *d = design_model(s->model);
     if (d != NULL) {
         d->gamma(q, v, u, ud, udd, s->design, out);
     } else {
@@ -767,7 +767,7 @@ static void solve_negated(kinegen_solver *s, const double *rhs, int np, double *
 
 int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
                           const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work) {
-    const kinegen_design_model *d = design_model(s->model);
+    const kinegen_design *d = design_model(s->model);
     if (d == NULL || d->dvel == NULL) return -1;
     const kinegen_model *m = s->model;
     int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, np = d->n_design;
@@ -889,17 +889,16 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_model, diag_value, "int*"), FIELD(kinegen_model, diag_slot, "int*"), FIELD(kinegen_model, n_off, "int"),
     FIELD(kinegen_model, off_start, "int*"), FIELD(kinegen_model, off_col, "int*"), FIELD(kinegen_model, off_value, "int*"),
     FIELD(kinegen_model, work_doubles, "int"), FIELD(kinegen_model, work_ints, "int"), FIELD(kinegen_model, n_kernels, "int"),
-    FIELD(kinegen_model, kernels, "pointer"),
+    FIELD(kinegen_model, kernels, "pointer"), FIELD(kinegen_model, design, "pointer"),
 
     FIELD(kinegen_pattern, n, "int"), FIELD(kinegen_pattern, rows, "int*"), FIELD(kinegen_pattern, cols, "int*"),
 
-    FIELD(kinegen_design_model, model, "kinegen_model"), FIELD(kinegen_design_model, n_design, "int"),
-    FIELD(kinegen_design_model, nominal, "double*"), FIELD(kinegen_design_model, phi_jac, "function"),
-    FIELD(kinegen_design_model, nu, "function"), FIELD(kinegen_design_model, gamma, "function"),
-    FIELD(kinegen_design_model, phi_p_pattern, "kinegen_pattern"), FIELD(kinegen_design_model, dvel_pattern, "kinegen_pattern"),
-    FIELD(kinegen_design_model, dacc_pattern, "kinegen_pattern"), FIELD(kinegen_design_model, phi_p, "function"),
-    FIELD(kinegen_design_model, dvel, "function"), FIELD(kinegen_design_model, dacc, "function"),
-    FIELD(kinegen_design_model, sensitivity_doubles, "int"),
+    FIELD(kinegen_design, n_design, "int"), FIELD(kinegen_design, nominal, "double*"), FIELD(kinegen_design, phi_jac, "function"),
+    FIELD(kinegen_design, nu, "function"), FIELD(kinegen_design, gamma, "function"),
+    FIELD(kinegen_design, phi_p_pattern, "kinegen_pattern"), FIELD(kinegen_design, dvel_pattern, "kinegen_pattern"),
+    FIELD(kinegen_design, dacc_pattern, "kinegen_pattern"), FIELD(kinegen_design, phi_p, "function"),
+    FIELD(kinegen_design, dvel, "function"), FIELD(kinegen_design, dacc, "function"),
+    FIELD(kinegen_design, sensitivity_doubles, "int"),
 
     FIELD(kinegen_solver, model, "pointer"), FIELD(kinegen_solver, options, "kinegen_options"), FIELD(kinegen_solver, t, "double"),
     FIELD(kinegen_solver, q, "double*"), FIELD(kinegen_solver, v, "double*"), FIELD(kinegen_solver, a, "double*"),
@@ -922,7 +921,7 @@ const kinegen_field kinegen_fields[] = {
 
 const kinegen_struct kinegen_structs[] = {
     STRUCT(kinegen_options), STRUCT(kinegen_kernel), STRUCT(kinegen_point), STRUCT(kinegen_actuator), STRUCT(kinegen_layout),
-    STRUCT(kinegen_model), STRUCT(kinegen_pattern), STRUCT(kinegen_design_model), STRUCT(kinegen_solver), {NULL, 0},
+    STRUCT(kinegen_model), STRUCT(kinegen_pattern), STRUCT(kinegen_design), STRUCT(kinegen_solver), {NULL, 0},
 };
 
 #undef STRUCT

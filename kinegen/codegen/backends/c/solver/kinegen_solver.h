@@ -22,6 +22,8 @@
 #ifndef KINEGEN_SOLVER_H
 #define KINEGEN_SOLVER_H
 
+#include <stddef.h> /* NULL: the functions below take it for "none" or "the default" */
+
 #ifdef __cplusplus
 extern "C" {
 #endif
@@ -129,6 +131,39 @@ typedef struct kinegen_layout {
     const kinegen_kernel *kernels;
 } kinegen_layout;
 
+/* A sparse matrix given by a kernel's values at a constant pattern (entry k at row rows[k],
+ * column cols[k]). */
+typedef struct kinegen_pattern {
+    int n;
+    const int *rows, *cols;
+} kinegen_pattern;
+
+/* The design parameters of a case of a model with a design: section (kinegen_model.design; the
+ * model's own phi_jac, nu and gamma are then NULL): their n_design nominal values and the kernels
+ * taking the parameters p last (kinegen_set_design; by default the nominal values).
+ *
+ * Then the kernels of the exact sensitivities (kinegen_sensitivities), each a sparse matrix
+ * (n_v rows; n_v velocity coordinates, n_p = n_design parameters):
+ *   phi_p: Phi_p = dPhi/dp (n_p columns);
+ *   dvel:  [M_v | E_v], M_v = D_q(Phi_q v - nu), E_v = d(Phi_q v - nu)/dp (n_v + n_p columns);
+ *   dacc:  [M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv,
+ *          E_a = d(Phi_q a - gamma)/dp (2 n_v + n_p columns);
+ * D_q: derivatives along the velocity coordinates' tangent directions, as for Phi_q. */
+typedef struct kinegen_design {
+    int n_design;
+    const double *nominal;
+    void (*phi_jac)(const double *q, const double *u, const double *p, double *phi, double *jac);
+    void (*nu)(const double *q, const double *u, const double *ud, const double *p, double *nu);
+    void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p,
+                  double *gamma);
+    kinegen_pattern phi_p_pattern, dvel_pattern, dacc_pattern;
+    void (*phi_p)(const double *q, const double *u, const double *p, double *out);
+    void (*dvel)(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
+    void (*dacc)(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd,
+                 const double *p, double *out);
+    int sensitivity_doubles; /* what kinegen_sensitivities needs as work: 2 n_v n_p + the largest kernel output */
+} kinegen_design;
+
 /* One case of a model: its kernels and the factorization plan of its Phi_q. */
 typedef struct kinegen_model {
     const kinegen_layout *layout;
@@ -159,42 +194,10 @@ typedef struct kinegen_model {
     int work_doubles, work_ints;   /* what kinegen_init needs for this case */
     int n_kernels;                 /* every kernel of the case, as data (with design parameters: */
     const kinegen_kernel *kernels; /*   the ones taking p, slot p last) */
+    const kinegen_design *design;  /* a model with design parameters: theirs and the kernels taking them; else NULL */
 } kinegen_model;
 
-/* A sparse matrix given by a kernel's values at a constant pattern (entry k at row rows[k],
- * column cols[k]). */
-typedef struct kinegen_pattern {
-    int n;
-    const int *rows, *cols;
-} kinegen_pattern;
 
-/* A case of a model with design parameters (a design: section in its file): the model, whose
- * phi_jac, nu and gamma are NULL, then its n_design parameters' nominal values and the kernels
- * taking the parameters p last (kinegen_set_design; by default the nominal values). A pointer
- * to it is a pointer to its model, which is what the solver takes.
- *
- * Then the kernels of the exact sensitivities (kinegen_sensitivities), each a sparse matrix
- * (n_v rows; n_v velocity coordinates, n_p = n_design parameters):
- *   phi_p: Phi_p = dPhi/dp (n_p columns);
- *   dvel:  [M_v | E_v], M_v = D_q(Phi_q v - nu), E_v = d(Phi_q v - nu)/dp (n_v + n_p columns);
- *   dacc:  [M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv,
- *          E_a = d(Phi_q a - gamma)/dp (2 n_v + n_p columns);
- * D_q: derivatives along the velocity coordinates' tangent directions, as for Phi_q. */
-typedef struct kinegen_design_model {
-    kinegen_model model;
-    int n_design;
-    const double *nominal;
-    void (*phi_jac)(const double *q, const double *u, const double *p, double *phi, double *jac);
-    void (*nu)(const double *q, const double *u, const double *ud, const double *p, double *nu);
-    void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p,
-                  double *gamma);
-    kinegen_pattern phi_p_pattern, dvel_pattern, dacc_pattern;
-    void (*phi_p)(const double *q, const double *u, const double *p, double *out);
-    void (*dvel)(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-    void (*dacc)(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd,
-                 const double *p, double *out);
-    int sensitivity_doubles; /* what kinegen_sensitivities needs as work: 2 n_v n_p + the largest kernel output */
-} kinegen_design_model;
 
 /* One solver instance. After a call returning KINEGEN_OK: q, v, a at time t, and the step's
  * Newton iterations, final max |Phi| and condition estimate. All arrays point into the
@@ -233,7 +236,7 @@ void kinegen_default_options(kinegen_options *options);
 void kinegen_init(kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles,
                   int *ints);
 
-/* The design parameters (n_design values of the case's kinegen_design_model, kept by the caller)
+/* The design parameters (model->design->n_design values, kept by the caller)
  * the solver's kernels take from now on; NULL: the nominal values. Without design parameters
  * nothing to set. */
 void kinegen_set_design(kinegen_solver *s, const double *p);
