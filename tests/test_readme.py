@@ -1,0 +1,79 @@
+"""The README is a promise the tests keep (issue 27): its command blocks are extracted from
+README.md and run as printed, in order, in a fresh folder holding copies of the shipped models
+(``kinegen models --copy models``, as the README tells a user without a clone)."""
+
+from __future__ import annotations
+
+import os
+import re
+import shlex
+import shutil
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+
+ROOT = Path(__file__).resolve().parents[1]
+README = (ROOT / "README.md").read_text()
+#: tour steps that take minutes as printed (every parametrization built, 1,024 Dask variants, two
+#: optimizations, exact boundaries): run by `make run`'s main job in another form, left out here
+SLOW = ("kinegen compare", "kinegen explore", "kinegen optimize", "kinegen scan", "kinegen envelope")
+
+
+def _block(heading: str, language: str = "sh") -> str:
+    """The first ``language`` code block after ``heading``."""
+    section = README[README.index(heading) :]
+    start = section.index(f"```{language}\n") + len(language) + 4
+    return section[start : section.index("```", start)]
+
+
+def _commands(block: str) -> list[tuple[str, int]]:
+    """(command line as printed, expected exit code) of each command of a shell block; a comment
+    ``exit N`` after a command is its expected code (0 otherwise)."""
+    out = []
+    for line in block.splitlines():
+        text = line.strip()
+        if not text or text.startswith(("#", ". ")):
+            continue
+        command, _, comment = text.partition("  #")
+        expected = re.search(r"\bexit (\d+)", comment)
+        out.append((command.strip(), int(expected.group(1)) if expected else 0))
+    return out
+
+
+def _run(commands: list[tuple[str, int]], folder: Path) -> None:
+    env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}", "MPLBACKEND": "Agg"}
+    for command, expected in commands:
+        done = subprocess.run(command, shell=True, cwd=folder, env=env, capture_output=True, text=True, timeout=600)
+        assert done.returncode == expected, f"{command}\nexit {done.returncode}, expected {expected}\n{done.stderr[-2000:]}"
+
+
+@pytest.fixture(scope="module")
+def user_folder(tmp_path_factory) -> Path:
+    """A folder as the tour expects it after `make run`: the shipped models copied into models/
+    (as a user without a clone makes it) and the generated modules the main job leaves (copies of
+    the committed ones: fresh for these models, so nothing is rebuilt that the tour does not build)."""
+    folder = tmp_path_factory.mktemp("user")
+    _run([("kinegen models --copy models", 0)], folder)
+    assert (folder / "models" / "excavator.yaml").is_file()
+    shutil.copytree(ROOT / "generated", folder / "generated")
+    return folder
+
+
+def test_the_tours_commands_run_as_printed(user_folder: Path) -> None:
+    commands = _commands(_block("## A 5-minute tour"))
+    assert len(commands) >= 15 and any(expected == 3 for _, expected in commands)
+    quick = [(c, e) for c, e in commands if not c.startswith(SLOW)]
+    _run(quick, user_folder)
+    for written in ("out/boom.csv", "out/boom.png", "out/excavator_digging.html", "out/digging.gif", "out/boom.html"):
+        assert (user_folder / written).stat().st_size > 0, written
+
+
+def test_the_controllers_commands_build_and_run_the_standalone_c_as_printed(user_folder: Path) -> None:
+    commands = _commands(_block("## Using kinegen in a controller"))
+    assert [shlex.split(c)[0] for c, _ in commands] == ["kinegen", "make", "out/excavator_c/excavator_quaternion_example"]
+    _run(commands, user_folder)
+    header, *rows = (user_folder / "out" / "level_cut.csv").read_text().splitlines()
+    assert header.startswith("t,converged,newton_iterations") and len(rows) > 10
+    assert all(row.split(",")[1] == "1" for row in rows)
