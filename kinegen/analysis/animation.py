@@ -13,7 +13,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegen.analysis.plots import _in_frame, pyplot
-from kinegen.analysis.view import TRACKED, _outline, frames
+from kinegen.analysis.view import _BARREL, _BODY, _OUT, _ROD, TRACKED, _outline, cylinder, frames
 from kinegen.files import atomic_path
 from kinegen.model.schema import GROUND
 from kinegen.runtime.results import Results
@@ -31,6 +31,21 @@ def animate(
     target = Path(path)
     if target.suffix.lower() not in (".gif", ".mp4"):
         raise ValueError(f"{path}: an animation is written as .gif or .mp4")
+    fig, draw, keep = animation_figure(results, frame_body, track)
+    movie = FuncAnimation(fig, draw, frames=[int(k) for k in keep], blit=False)
+    writer = PillowWriter(fps=fps) if target.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
+    with atomic_path(target) as partial:  # a failed or interrupted write keeps the previous file
+        movie.save(str(partial), writer=writer, dpi=80)
+    pyplot().close(fig)
+    return target
+
+
+def animation_figure(results: Results, frame_body: str | None = None, track: tuple[str, str] | None = None):
+    """(figure, draw(k) -> the artists of time point k, the time points drawn): bodies as stick
+    figures, each actuator as barrel + rod (red where out of its range), the tracked point's path,
+    a legend in a row below the axes."""
+    from matplotlib.lines import Line2D
+
     system = results.system
     solved, keep = frames(results, MAX_GIF_FRAMES)
     bodies = {b: list(p) for b, p in system.points.items() if b != GROUND and p}
@@ -44,33 +59,49 @@ def animate(
         basis, labels = np.array([[1.0, 0, 0], [0, 0, 1.0]]), (f"x of {frame_body} [m]", f"z of {frame_body} [m]")
     plane = {key: value @ basis.T for key, value in world.items()}
     path_2d = _in_frame(results, frame_body, results.point_position(*track)) @ basis.T if track else None
-    everything = np.vstack(list(plane.values()))
+    actuators = {name: (refs, limits) for name, (*refs, limits) in system.actuators.items()}
+    ends = {name: [_in_frame(results, frame_body, results.point_position(*ref)) @ basis.T for ref in refs] for name, (refs, _) in actuators.items()}
+    lengths = {name: results.actuator_length(name) for name in actuators}
+    everything = np.vstack([*plane.values(), *(e for pair in ends.values() for e in pair)])
     low, high = everything.min(axis=0), everything.max(axis=0)
-    pad = 0.05 * float(np.max(high - low) or 1.0)
+    pad = 0.04 * float(np.max(high - low) or 1.0)
+    low, high = low - pad, high + pad
 
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(8, 6))
-    ax.set(xlim=(low[0] - pad, high[0] + pad), ylim=(low[1] - pad, high[1] + pad), aspect="equal", xlabel=labels[0], ylabel=labels[1])
+    width = 8.0  # inches; the height follows the drawing's aspect (equal axes), the legend below it
+    fig, ax = plt.subplots(figsize=(width, min(10.0, max(3.0, width * (high[1] - low[1]) / (high[0] - low[0])) + 0.9)))
+    ax.set(xlim=(low[0], high[0]), ylim=(low[1], high[1]), aspect="equal", xlabel=labels[0], ylabel=labels[1])
     ax.grid(True, alpha=0.3)
-    lines = {b: ax.plot([], [], "-o", lw=2, ms=3)[0] for b in bodies}
+    lines = {b: ax.plot([], [], "-o", color=_BODY, lw=2, ms=3)[0] for b in bodies}
+    barrels = {n: ax.plot([], [], "-", color=_BARREL, lw=6, solid_capstyle="butt")[0] for n in actuators}
+    rods = {n: ax.plot([], [], "-", color=_ROD, lw=3, solid_capstyle="butt")[0] for n in actuators}
+    handles = [
+        Line2D([], [], color=_BODY, marker="o", lw=2, ms=3, label="bodies"),
+        *([Line2D([], [], color=_BARREL, lw=6, label="cylinder barrel"), Line2D([], [], color=_ROD, lw=3, label="cylinder rod"),
+           Line2D([], [], color=_OUT, lw=4, label="out of its range")] if actuators else []),
+    ]  # fmt: skip
     if path_2d is not None:
-        ax.plot(path_2d[solved, 0], path_2d[solved, 1], ":", color="green", lw=1, label=f"path of {track[0]}.{track[1]}")
+        handles.append(ax.plot(path_2d[solved, 0], path_2d[solved, 1], ":", color="green", lw=1, label=f"path of {track[0]}.{track[1]}")[0])
         marker = ax.plot([], [], "o", color=TRACKED, ms=7)[0]
-        ax.legend(loc="upper right", fontsize=8)
-    title = ax.set_title("")
+    fig.legend(handles=handles, loc="lower center", ncol=len(handles), fontsize=8, frameon=False)
+    title = ax.set_title(f"{system.model} / {system.case}   t = {results.times[0]:.2f} s", fontsize=10)
+    fig.tight_layout(rect=(0, 0.06, 1, 1))  # the legend's row below the axes, no wide margins
 
     def draw(k: int):
         for b, names in bodies.items():
             xy = np.array([plane[b, names[i]][k] for i in outlines[b]])
             lines[b].set_data(xy[:, 0], xy[:, 1])
+        for name, (base, eye) in ends.items():
+            barrel, rod = cylinder(base[k], eye[k], actuators[name][1])
+            limits = actuators[name][1]
+            out = limits is not None and not limits[0] - 1e-9 <= lengths[name][k] <= limits[1] + 1e-9
+            barrels[name].set_data(barrel[:, 0], barrel[:, 1])
+            rods[name].set_data(rod[:, 0], rod[:, 1])
+            barrels[name].set_color(_OUT if out else _BARREL)
+            rods[name].set_color(_OUT if out else _ROD)
         if path_2d is not None:
             marker.set_data([path_2d[k, 0]], [path_2d[k, 1]])
         title.set_text(f"{system.model} / {system.case}   t = {results.times[k]:.2f} s")
-        return [*lines.values(), title]
+        return [*lines.values(), *barrels.values(), *rods.values(), title]
 
-    movie = FuncAnimation(fig, draw, frames=[int(k) for k in keep], blit=False)
-    writer = PillowWriter(fps=fps) if target.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
-    with atomic_path(target) as partial:  # a failed or interrupted write keeps the previous file
-        movie.save(str(partial), writer=writer, dpi=80)
-    plt.close(fig)
-    return target
+    return fig, draw, keep

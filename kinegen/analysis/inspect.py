@@ -19,6 +19,7 @@ from typing import Any
 
 import numpy as np
 import sympy as sp
+import sympy.core.random as sympy_random
 
 from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import KinegenError
@@ -197,6 +198,10 @@ def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr |
     trigonometric ones (Euler angles) simplified with sums and multiples expanded first.
     None when the expression is too large to expand (the value at the configuration is then
     the exact matrix's determinant)."""
+    # SymPy's multivariate factoring (Wang's algorithm) draws random evaluation points; from a fixed
+    # seed its work -- and so its time -- is the same in every process (from an unlucky state the
+    # slider crank's dead-centre block, 5 s otherwise, took minutes in a full test run)
+    sympy_random.seed(0)
     det = matrix.det(method="berkowitz")
     if det.has(sp.sin, sp.cos, sp.tan):
         det = sp.expand_trig(sp.simplify(det) if simplify and matrix.shape[0] <= 3 else det)

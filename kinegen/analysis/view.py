@@ -59,6 +59,17 @@ def frames(results: Results, most: int) -> tuple[np.ndarray, np.ndarray]:
     return solved, solved[:: max(1, -(-len(solved) // most))]
 
 
+def cylinder(base: np.ndarray, eye: np.ndarray, limits: tuple[float, float] | None) -> tuple[np.ndarray, np.ndarray]:
+    """An actuator drawn as a hydraulic cylinder: the barrel from the base as long as the retracted
+    length, the rod back from the eye as long as the stroke (halves without a range), each (2, dim)."""
+    length = float(np.linalg.norm(eye - base))
+    direction = (eye - base) / max(length, 1e-12)
+    barrel_length = limits[0] if limits else 0.5 * length
+    rod_length = (limits[1] - limits[0]) if limits else 0.5 * length
+    return (np.array([base, base + direction * min(barrel_length, length)]),
+            np.array([eye - direction * min(rod_length, length), eye]))  # fmt: skip
+
+
 def _segments(polylines: list[np.ndarray]) -> np.ndarray:
     """Polylines joined into one trace's coordinates, separated by NaN (Plotly breaks lines there)."""
     parts = []
@@ -126,14 +137,7 @@ class _Scene:
         return out
 
     def _cylinder(self, name: str, base: np.ndarray, eye: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-        """Barrel (retracted length from the base) and rod (stroke back from the eye), each (2, 3)."""
-        length = float(np.linalg.norm(eye - base))
-        direction = (eye - base) / max(length, 1e-12)
-        limits = self.actuators[name][1]
-        barrel_length = limits[0] if limits else 0.5 * length
-        rod_length = (limits[1] - limits[0]) if limits else 0.5 * length
-        return (np.array([base, base + direction * min(barrel_length, length)]),
-                np.array([eye - direction * min(rod_length, length), eye]))  # fmt: skip
+        return cylinder(base, eye, self.actuators[name][1])
 
     def title(self, k: int) -> str:
         lengths = ", ".join(
