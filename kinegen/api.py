@@ -86,13 +86,14 @@ class Session:
         from kinegen.codegen import build, built_with_sensitivities
         from kinegen.runtime import check_source
 
-        path = self.module_path(model_file, parametrization)
+        name = rotations.get(parametrization).name
+        path = self.module_path(model_file, name)
         if self.announce is not None:
             self.announce(f"building {path}{f' ({reason})' if reason else ''}")
         keep = built_with_sensitivities(path) is not False if sensitivities is None else sensitivities
-        self._modules.pop((str(model_file), rotations.get(parametrization).name), None)
-        return build(model_file, rotations.get(parametrization).name, self.generated_dir, check=check_source if self.check else None,
-                     sensitivities=keep)
+        self._modules.pop((str(model_file), name), None)
+        return build(model_file, name, self.generated_dir, check=check_source if self.check else None, sensitivities=keep,
+                     model=self.model(model_file))
 
     def system(self, model_file: str | Path, case: str | None = None, parametrization: str = rotations.REFERENCE,
                compiled: bool | None = None, design: Mapping[str, float] | None = None):  # fmt: skip

@@ -405,11 +405,6 @@ def actuator_lengths(model: Model, coords: Coordinates) -> list[sp.Expr]:
     return out
 
 
-def _whole(name: str, section: Section) -> Kernel:
-    """A kernel computing one section, its one output named as the kernel."""
-    return Kernel(name, section.slots, (Output(name, (section.name,), section.size),), section.doc)
-
-
 def describe(
     model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None, sensitivities: bool = True
 ) -> ModuleDescription:
@@ -425,9 +420,16 @@ def describe(
     mj = len(joints)
     sections: dict[str, Section] = {}
 
+    shared: dict[str, Kernel] = {}  # kernels shared by every case, each computing one section
+
     def section(name: str, slots: tuple[str, ...], groups: tuple[Group, ...], size: int, doc: str) -> str:
         sections[name] = Section(name, slots, groups, size, doc)
         return name
+
+    def shared_section(name: str, slots: tuple[str, ...], groups: tuple[Group, ...], size: int, doc: str) -> None:
+        """A section every case shares, and the kernel computing it alone (its one output named as it)."""
+        section(name, slots, groups, size, doc)
+        shared[name] = Kernel(name, slots, (Output(name, (name,), size),), doc)
 
     n_joint_entries = sum(len(r.jacobian_columns) for r in joints)
     p = ("p",) if model.design else ()  # the design parameters' slot, last, in every kernel of Phi
@@ -446,13 +448,13 @@ def describe(
             size = sum(map(len, entries))
             section(f"joints_{kind}", (*(s for s in slots_ if s not in ("u", "ud", "udd")), "p"), _entry_groups(joints, entries, (f"joints_{kind}",)),
                     size, f"{doc} of the joint rows ({size} entries).")  # fmt: skip
-    frames = section(
+    shared_section(
         "frames", ("q", "v", "a"), _frame_groups(coords), FRAME_VALUES * len(coords.bodies),
         f"Per body {FRAME_VALUES} values, global: " + ", ".join(f"{name} ({count})" for name, count in FRAME_FIELDS)
         + "; the rotation matrix row by row.",
     )  # fmt: skip
     if model.actuators:
-        section("lengths", ("q", *p), (Group(None, lambda: actuator_lengths(model, coords), {}),), len(model.actuators),
+        shared_section("lengths", ("q", *p), (Group(None, lambda: actuator_lengths(model, coords), {}),), len(model.actuators),
                 "The length of every actuator (in the order of ACTUATORS) [m]: the distance between its two points.")  # fmt: skip
     cases: dict[str, CaseDescription] = {}
     for name, system in systems.items():
@@ -503,32 +505,25 @@ def describe(
             tuple(inputs.sources), rows_, cols_, {"u": tuple(inputs.u), "ud": tuple(inputs.ud), "udd": tuple(inputs.udd)},
             kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))), patterns,
         )  # fmt: skip
-    shared = {"frames": _whole("frames", sections[frames])}
-    if "lengths" in sections:
-        shared["lengths"] = _whole("lengths", sections["lengths"])
     slots = {"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)}
     if model.design:
         values = point_expressions(model)
-        section("points", ("p",), (Group(None, lambda: values, {}),), len(values),
+        shared_section("points", ("p",), (Group(None, lambda: values, {}),), len(values),
                 "Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the "
                 "order of POINTS), then the ground's (global, GROUND_POINTS).")  # fmt: skip
-        shared["points"] = _whole("points", sections["points"])
         bounds = [x for a in model.actuators if a.range is not None for x in a.range]
-        section("actuator_ranges", ("p",), (Group(None, lambda: bounds, {}),), len(bounds),
+        shared_section("actuator_ranges", ("p",), (Group(None, lambda: bounds, {}),), len(bounds),
                 "The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters.")  # fmt: skip
-        shared["actuator_ranges"] = _whole("actuator_ranges", sections["actuator_ranges"])
         slots["p"] = tuple(d.symbol for d in model.design)
     if sensitive:
         derivatives = [v.diff(p) for v in values for p in design_symbols]
-        section("points_p", ("p",), (Group(None, lambda: derivatives, {}),), len(derivatives),
+        shared_section("points_p", ("p",), (Group(None, lambda: derivatives, {}),), len(derivatives),
                 "d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), "
                 "a parameter per column).")  # fmt: skip
-        shared["points_p"] = _whole("points_p", sections["points_p"])
         for letter in "wyz":
             slots[letter] = _direction_symbols(tuple(coords.velocity_symbols), letter)
-        section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_groups(coords, tangent=True), FRAME_VALUES * len(coords.bodies),
+        shared_section("frames_d", ("q", "v", "a", "w", "y", "z"), _frame_groups(coords, tangent=True), FRAME_VALUES * len(coords.bodies),
                 f"Per body: the change of the frames kernel's {FRAME_VALUES} values when q moves along w, v by y and a by z.")  # fmt: skip
-        shared["frames_d"] = _whole("frames_d", sections["frames_d"])
     nominal = _nominal(model)
     nominal_values = {d.name: float(d.nominal) for d in model.design}
     definitions = Definitions(

@@ -94,6 +94,7 @@ def build(
     targets: tuple[str, ...] = DEFAULT_TARGETS,
     ready: Callable[[str, dict[str, str]], None] | None = None,
     sensitivities: bool = True,
+    model: Model | None = None,
 ) -> Path:
     """Build ``model_path`` in ``parametrization`` into ``out_dir``: by default
     ``<model>_<param>.py`` and the model's C (``.c``, ``.h``); ``targets=("c",)``: a standalone C
@@ -102,11 +103,11 @@ def build(
     ``check(source, model_path)`` (e.g. :func:`kinegen.runtime.check_source`) runs on the
     Python module's text (made for it whatever the targets) before anything is written; if it
     raises, nothing is written. ``ready`` and ``sensitivities`` as for :func:`generate`. Everything that can fail happens before the (atomic, file by
-    file) writes.
+    file) writes. ``model``: the model of ``model_path`` when the caller has read it already.
     """
     from kinegen.progress import Stages
 
-    model = load(model_path)
+    model = model if model is not None else load(model_path)
     param = get(parametrization)
     with Stages(f"build {model.name} ({param.name})", 3) as stages:
         stages.stage("deriving and printing")

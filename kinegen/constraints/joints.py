@@ -66,9 +66,14 @@ def joint_equations(joint: Joint, frame1: Frame, frame2: Frame, moving: tuple[st
     return [Equation(f"{joint.name}.{suffix}", moving, expr) for suffix, expr in BUILDERS[joint.type](joint, frame1, frame2, unified)]
 
 
+def _gap(joint: Joint, frame1: Frame, frame2: Frame) -> sp.Matrix:
+    """P1 - P2, global."""
+    return frame1.point(joint.point1) - frame2.point(joint.point2)
+
+
 def _points(joint: Joint, frame1: Frame, frame2: Frame) -> list[tuple[str, sp.Expr]]:
     """P1 - P2 = 0."""
-    gap = frame1.point(joint.point1) - frame2.point(joint.point2)
+    gap = _gap(joint, frame1, frame2)
     return [(axis, gap[i]) for i, axis in enumerate("xyz")]
 
 
@@ -134,7 +139,7 @@ def _fixed(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tu
 
 @_builds("distance")
 def _distance(joint: Joint, frame1: Frame, frame2: Frame, unified: bool) -> list[tuple[str, sp.Expr]]:
-    gap = frame1.point(joint.point1) - frame2.point(joint.point2)
+    gap = _gap(joint, frame1, frame2)
     return [("length", dot(gap, gap) - joint.length**2)]
 
 

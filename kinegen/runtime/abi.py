@@ -11,10 +11,13 @@ status code or a kernel's signature that could drift from the C it loads.
 from __future__ import annotations
 
 import ctypes
+from collections.abc import Mapping
 from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
+
+from kinegen.interface import frame_slices
 
 
 class _Field(ctypes.Structure):
@@ -54,41 +57,21 @@ class Abi:
     def __init__(self, library: ctypes.CDLL) -> None:
         self.library = library
         self._fields: dict[str, list[tuple[str, str, int, int]]] = {}
-        entries = ctypes.cast(library.kinegen_fields, ctypes.POINTER(_Field))
-        k = 0
-        while entries[k].structure is not None:
-            e = entries[k]
+        for e in _entries(library.kinegen_fields, _Field):
             self._fields.setdefault(e.structure.decode(), []).append((e.name.decode(), e.type.decode(), e.offset, e.size))
-            k += 1
-        sizes = ctypes.cast(library.kinegen_structs, ctypes.POINTER(_Struct))
-        self._sizes: dict[str, int] = {}
-        k = 0
-        while sizes[k].name is not None:
-            self._sizes[sizes[k].name.decode()] = sizes[k].size
-            k += 1
-        names = ctypes.cast(library.kinegen_status_names, ctypes.POINTER(ctypes.c_char_p))
+        self._sizes = {e.name.decode(): e.size for e in _entries(library.kinegen_structs, _Struct)}
         #: status name -> code (``kinegen_status``)
-        self.status: dict[str, int] = {}
-        while names[len(self.status)] is not None:
-            self.status[names[len(self.status)].decode()] = len(self.status)
-        self._structs: dict[str, type[ctypes.Structure]] = {}
-        frame = ctypes.cast(library.kinegen_frame_fields, ctypes.POINTER(_FrameField))
-        fields, k = [], 0
-        while frame[k].name is not None:
-            fields.append((frame[k].name.decode(), frame[k].offset, frame[k].count))
-            k += 1
+        self.status = {name.decode(): code for code, name in enumerate(_entries(library.kinegen_status_names, ctypes.c_char_p))}
         #: the frames kernel's layout as the C runtime reads it: (name, offset, count)
-        self.frame_fields: tuple[tuple[str, int, int], ...] = tuple(fields)
+        self.frame_fields = tuple((e.name.decode(), e.offset, e.count) for e in _entries(library.kinegen_frame_fields, _FrameField))
+        self._structs: dict[str, type[ctypes.Structure]] = {}
 
     def check_frames(self, declared: tuple[tuple[str, int], ...]) -> None:
         """:class:`AbiError` unless the C runtime reads a body's frame values where a module
         declares them (``FRAME_FIELDS``: name and count, in order)."""
-        offsets, start = [], 0
-        for name, count in declared:
-            offsets.append((name, start, count))
-            start += count
-        if tuple(offsets) != self.frame_fields:
-            raise AbiError(f"the C runtime's frame layout {self.frame_fields} is not the module's {tuple(offsets)}")
+        offsets = tuple((name, at.start, at.stop - at.start) for name, at in frame_slices(declared).items())
+        if offsets != self.frame_fields:
+            raise AbiError(f"the C runtime's frame layout {self.frame_fields} is not the module's {offsets}")
 
     def struct(self, name: str) -> type[ctypes.Structure]:
         """The ctypes structure of the C struct ``name``, at the offsets the library states
@@ -129,16 +112,15 @@ class Abi:
             return _POINTERS[kind]
         return self.struct(kind)
 
-    def make(self, name: str, **values: Any) -> ctypes.Structure:
-        """An instance of struct ``name`` with the fields ``values`` set by name (an unknown
-        field is an :class:`AbiError`, not silently ignored)."""
-        made = self.struct(name)()
+    def assign(self, instance: ctypes.Structure, values: Mapping[str, Any]) -> None:
+        """Set fields of an instance of a struct made by :meth:`struct`, by name (a field the
+        library's struct does not have is an :class:`AbiError`, not silently ignored)."""
+        name = type(instance).__name__
         known = {f for f, _, _, _ in self._fields[name]}
         for field, value in values.items():
             if field not in known:
                 raise AbiError(f"the library's {name} has no field {field}")
-            setattr(made, field, value)
-        return made
+            setattr(instance, field, value)
 
     def kernels(self, count: int, address: int) -> dict[str, BoundKernel]:
         """The ``count`` kernels of a ``kinegen_kernel`` table at ``address``, by name."""
@@ -153,6 +135,17 @@ class Abi:
             name = entry.name.decode()
             out[name] = BoundKernel(name, tuple(entry.slots.decode().split(",")), names, sizes, KERNEL_CALL(entry.call))
         return out
+
+
+def _entries(symbol: Any, kind: Any) -> list:
+    """The entries of a table the library exports (``kind``: a ctypes structure, or a pointer
+    type), up to the one whose first member is NULL."""
+    table = ctypes.cast(symbol, ctypes.POINTER(kind))
+    out, k = [], 0
+    while (table[k] if kind is ctypes.c_char_p else getattr(table[k], kind._fields_[0][0])) is not None:
+        out.append(table[k])
+        k += 1
+    return out
 
 
 @dataclass(frozen=True)

@@ -38,7 +38,7 @@ import numpy as np
 
 from kinegen.codegen.backends.c.config import source_parts
 from kinegen.errors import ExitCode, KinegenError
-from kinegen.runtime.abi import Abi, AbiError
+from kinegen.runtime.abi import Abi
 
 SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
 #: flags of the runtime's library (the standalone target's Makefile has its own). The library
@@ -362,12 +362,15 @@ class NativeCase:
         layout = abi.struct("kinegen_layout").from_address(m.layout)
         self.kernels = {**abi.kernels(layout.n_kernels, layout.kernels), **abi.kernels(m.n_kernels, m.kernels)}
         # buffers for one configuration, and the kernels bound to them once
-        n_out = max(o for k in self.kernels.values() for o in k.sizes)
         self._arrays = {"q": np.zeros(m.n_q), "v": np.zeros(m.n_v), "a": np.zeros(m.n_v), "t": np.zeros(1),
                         **{s: np.zeros(max(1, m.n_inputs)) for s in ("u", "ud", "udd")}, **{s: np.zeros(m.n_v) for s in "wyz"}}  # fmt: skip
         if self.design is not None:
             self._arrays["p"] = self.design
-        self._out = {o: np.zeros(n_out) for k in self.kernels.values() for o in k.outputs}
+        sizes: dict[str, int] = {}  # an output's buffer: the largest of that name
+        for kernel in self.kernels.values():
+            for output, size in zip(kernel.outputs, kernel.sizes):
+                sizes[output] = max(size, sizes.get(output, 0))
+        self._out = {output: np.zeros(size) for output, size in sizes.items()}
         self._calls = {
             name: kernel.bind(self._arrays, self._out)
             for name, kernel in self.kernels.items() if set(kernel.slots) <= set(self._arrays)
@@ -454,12 +457,9 @@ class NativeSolver:
         self.pointer = ctypes.addressof(self.state)
         self._doubles = np.zeros(case.model.work_doubles)
         self._ints = np.zeros(case.model.work_ints, dtype=np.intc)
-        self._options = abi.make("kinegen_options")
+        self._options = abi.struct("kinegen_options")()
         self.library.kinegen_default_options(ctypes.addressof(self._options))
-        for name, value in options.items():
-            if name.startswith("_") or not hasattr(self._options, name):
-                raise AbiError(f"the library's kinegen_options has no field {name}")
-            setattr(self._options, name, value)
+        abi.assign(self._options, options)
         self.library.kinegen_init(self.pointer, case.address, ctypes.addressof(self._options), self._doubles.ctypes.data, self._ints.ctypes.data)
         if case.design is not None:  # the case's array, alive as long as the case
             self.library.kinegen_set_design(self.pointer, case.design.ctypes.data)

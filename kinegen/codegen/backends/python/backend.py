@@ -38,8 +38,6 @@ class _Function:
     allocate: str = ""
     parts: list[str] = field(default_factory=list)
     results: list[str] = field(default_factory=list)
-    first: str = ""
-    second: str = ""
     result: str = ""
 
 

@@ -36,19 +36,14 @@ void kinegen_default_options(kinegen_options *o) {
     o->case_inputs = 0;
 }
 
-/* The case's design parameters and kernels taking them, or NULL (a model without them). */
-static const kinegen_design *design_model(const kinegen_model *m) {
-    return m->design;
-}
-
 void kinegen_set_design(kinegen_solver *s, const double *p) {
-    const kinegen_design *d = design_model(s->model);
+    const kinegen_design *d = s->model->design;
     if (d != NULL) s->design = p != NULL ? p : d->nominal;
 }
 
 /* The case's kernels, with the design parameters when the model has them. */
 static void phi_jac(const kinegen_solver *s, const double *q, const double *u, double *phi, double *jac) {
-    const kinegen_design *d = design_model(s->model);
+    const kinegen_design *d = s->model->design;
     if (d != NULL) {
         d->phi_jac(q, u, s->design, phi, jac);
     } else {
@@ -57,7 +52,7 @@ static void phi_jac(const kinegen_solver *s, const double *q, const double *u, d
 }
 
 static void nu(const kinegen_solver *s, const double *q, const double *u, const double *ud, double *out) {
-    const kinegen_design *d = design_model(s->model);
+    const kinegen_design *d = s->model->design;
     if (d != NULL) {
         d->nu(q, u, ud, s->design, out);
     } else {
@@ -67,7 +62,7 @@ static void nu(const kinegen_solver *s, const double *q, const double *u, const 
 
 static void gamma_rhs(const kinegen_solver *s, const double *q, const double *v, const double *u, const double *ud,
                       const double *udd, double *out) {
-    const kinegen_design *d = design_model(s->model);
+    const kinegen_design *d = s->model->design;
     if (d != NULL) {
         d->gamma(q, v, u, ud, udd, s->design, out);
     } else {
@@ -767,7 +762,7 @@ static void solve_negated(kinegen_solver *s, const double *rhs, int np, double *
 
 int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
                           const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work) {
-    const kinegen_design *d = design_model(s->model);
+    const kinegen_design *d = s->model->design;
     if (d == NULL || d->dvel == NULL) return -1;
     const kinegen_model *m = s->model;
     int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, np = d->n_design;
