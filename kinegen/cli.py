@@ -239,6 +239,8 @@ def _system(
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file,
               help="PNG: the mechanism at six instants in the plane that shows it, with a tip's path; actuator lengths and rates "
               "(or angular speeds), condition number.")
+@click.option("--track", "--point", "track", default=None, metavar="BODY.POINT",
+              help="--plot: the point whose path is drawn (default: the working range's point, else the farthest named point).")
 @click.option("--frame", "frame_body", default=None,
               help="--plot: draw in the x-z plane of this body's frame (default: the first body's when the motion is flatter there, "
               "else the global plane of largest spread).")
@@ -280,6 +282,7 @@ def solve(
     steps: int | None,
     out: str | None,
     plot: str | None,
+    track: str | None,
     frame_body: str | None,
     keep_going: bool,
     no_compile: bool,
@@ -297,6 +300,7 @@ def solve(
     parametrization = _parametrization(param)
     model, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
     _check_memory(system, steps or system.steps, force)
+    point = _named_point(system, track)
     if plot:
         _check_frame(system, frame_body)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
@@ -325,7 +329,7 @@ def solve(
     if plot:
         from kinegen.analysis.plots import plot_case
 
-        trace, frame = _picture_plane(results, model, frame_body)
+        trace, frame = _picture_plane(results, model, frame_body, point)
         click.echo(f"wrote {plot_case(results, plot, frame, trace)}", err=piped)
     _report_ranges(results)
     if view:
@@ -369,6 +373,17 @@ def _check_frame(system, frame_body: str | None) -> None:
     """--frame names a body of the model (checked before solving)."""
     if frame_body is not None and frame_body not in system.bodies:
         raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
+
+
+def _named_point(system, text: str | None) -> tuple[str, str] | None:
+    """--track/--point BODY.POINT: a named point of the model (None when not given)."""
+    if text is None:
+        return None
+    body, _, name = text.partition(".")
+    if body not in system.points or name not in system.points[body]:
+        known = ", ".join(f"{b}.{p}" for b, points in system.points.items() for p in points)
+        raise click.BadParameter(f"{text!r} is not a named point BODY.POINT of the model (known: {known})", param_hint="--point")
+    return body, name
 
 
 def _picture_plane(results, model, frame_body: str | None, point: tuple[str, str] | None = None) -> tuple[tuple[str, str] | None, str | None]:
@@ -560,7 +575,7 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
 @click.option("--case", default=None, help="Case to show (default: the first).")
 @PARAM
 @click.option("--out", type=click.Path(dir_okay=False), default=None, help="The HTML page (default: out/<model>_<case>.html).")
-@click.option("--track", default=None, metavar="BODY.POINT", help="The point whose path is drawn (default: the working range's point).")
+@click.option("--track", "--point", "track", default=None, metavar="BODY.POINT", help="The point whose path is drawn (default: the working range's point).")
 @click.option("--condition-warning", type=float, default=1e6, show_default=True, help="Bodies turn orange where cond(Phi_q) exceeds this.")
 @click.option("--animate", type=click.Path(dir_okay=False), default=None, help="Also a .gif (or .mp4, with ffmpeg) of the motion in one plane.")
 @click.option("--frame", "frame_body", default=None, help="--animate: draw in the x-z plane of this body's frame (default: as solve --plot chooses).")
@@ -584,12 +599,7 @@ def view(
     from kinegen.runtime import Solver, SolverOptions
 
     model, system = _system(model_file, _parametrization(param), case, generated_dir, None, _design_values(design))
-    point = None
-    if track:
-        body, _, name = track.partition(".")
-        if body not in system.points or name not in system.points[body]:
-            raise click.BadParameter(f"{track!r} is not a named point BODY.POINT of the model", param_hint="--track")
-        point = (body, name)
+    point = _named_point(system, track)
     _check_frame(system, frame_body)
     results = Solver(system, SolverOptions(condition="exact", on_failure="stop")).solve()
     page = Path(out) if out else Path("out") / f"{system.model}_{system.case}.html"
@@ -660,7 +670,7 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
     """Working range of the model's `working_range` point over its input ranges: its figures (and, for a
     model with design parameters, their exact sensitivities), its exact boundary (--boundary, --json,
     --plot)."""
-    from kinegen.analysis.chart import plot_envelope
+    from kinegen.analysis.chart import outlines, plot_envelope
     from kinegen.analysis.envelope import working_range
     from kinegen.errors import ModelError
     from kinegen.files import write_atomic
@@ -740,7 +750,7 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
         write_atomic(Path(boundary_file), text)
         click.echo(f"wrote {boundary_file}", err=as_json)
     if plot:
-        click.echo(f"wrote {plot_envelope(result, system, plot, boundary)}", err=as_json)
+        click.echo(f"wrote {plot_envelope(result, system, plot, boundary, outlines(model))}", err=as_json)
 
 
 def _table_number(value: float, scale: float) -> str:

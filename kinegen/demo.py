@@ -187,7 +187,7 @@ def main(argv: list[str] | None = None) -> int:
     except KinegenError as exc:
         print(f"FAILED: {exc}")
         return 1
-    from kinegen.analysis.chart import plot_envelope
+    from kinegen.analysis.chart import outlines, plot_envelope
     from kinegen.analysis.envelope import working_range
 
     spec = excavator_model.working_range
@@ -207,7 +207,7 @@ def main(argv: list[str] | None = None) -> int:
         f"-> excavator_envelope.png, excavator_envelope_boundary.csv"
     )
     write_atomic(args.out / "excavator_envelope_boundary.csv", boundary.to_csv())
-    plot_envelope(result, excavator, args.out / "excavator_envelope.png", boundary)
+    plot_envelope(result, excavator, args.out / "excavator_envelope.png", boundary, outlines(excavator_model))
     from kinegen.analysis.scan import plot_scan, scan
 
     toggle = from_module(excavator_module, "bucket_toggle")

@@ -4,12 +4,16 @@ file was written."""
 from __future__ import annotations
 
 import numpy as np
+from matplotlib.patches import Patch
 
 from kinegen.analysis.animation import animation_figure
+from kinegen.analysis.boundary import working_range_boundary
+from kinegen.analysis.chart import outlines, transport_q, working_range_figure
+from kinegen.analysis.envelope import working_range
 from kinegen.analysis.plots import _in_frame, pyplot
 from kinegen.analysis.view import _BARREL, _OUT, _ROD, cylinder
 from kinegen.runtime import solve
-from tests.conftest import generated_system
+from tests.conftest import generated_system, model
 
 
 def _bbox(artist, renderer):
@@ -53,4 +57,137 @@ def test_the_animation_draws_each_cylinder_as_barrel_and_rod_red_out_of_range_wi
     ax = fig.axes[0]
     assert not _bbox(legend, renderer).overlaps(ax.get_tightbbox(renderer))  # off the drawing and its labels
     assert _bbox(ax, renderer).width >= 0.8 * fig.bbox.width  # no wide margins
+    pyplot().close(fig)
+
+
+def test_the_working_range_chart_draws_the_machine_quotes_its_figures_and_keeps_its_labels_off_the_drawing():
+    """The excavator's chart: every dimension line runs from the swing axis (horizontal figures) or
+    the ground (vertical ones) to exactly the figure it quotes; the letters overlap neither each
+    other, nor any dimension line but their own, nor the boundary, nor the machine; the
+    undercarriage and the upper structure are the model's outlines (the upper one moved with the
+    transport pose), projected; no horizontal dimension lies on the ground band; the legend is
+    beside the drawing, and the drawing is sized to its content (equal scales, no blank band)."""
+    excavator = model("excavator")
+    spec = excavator.working_range
+    system = generated_system("excavator_quaternion", spec.case)
+    envelope = working_range(system, spec)
+    boundary = working_range_boundary(system, spec)
+    drawn = outlines(excavator)
+    assert set(drawn) == {"ground", "upper"}
+    fig = working_range_figure(envelope, boundary, system, boundary.direction, drawn)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    ax, side = fig.axes
+    by_gid = {a.get_gid(): a for a in ax.get_children() if a.get_gid()}
+    figures = {**envelope.figures, "min_front_swing_radius": envelope.front.radius}
+    letters = {"A": "max_reach", "B": "max_reach_at_ground", "C": "max_depth", "D": "max_cutting_height",
+               "E": "max_dumping_height", "F": "max_vertical_wall_depth", "G": "min_front_swing_radius"}  # fmt: skip
+    for letter, name in letters.items():
+        ends = np.column_stack(by_gid[f"dimension:{letter}"].get_data())
+        if letter in "ABG":  # horizontal, from the swing axis, not on the ground band
+            assert ends[0, 0] == 0.0 and abs(ends[1, 0] - figures[name]) < 1e-12 and ends[0, 1] == ends[1, 1]
+            assert not -0.2 <= ends[0, 1] <= 0.05, letter
+        else:  # vertical, from the ground
+            assert ends[0, 1] == 0.0 and abs(abs(ends[1, 1]) - figures[name]) < 1e-12 and ends[0, 0] == ends[1, 0]
+    labels = {letter: by_gid[f"label:{letter}"].get_window_extent(renderer) for letter in letters}
+    for a in letters:
+        for b in letters:
+            assert a >= b or not labels[a].overlaps(labels[b]), (a, b)
+    obstacles = [a for gid, a in by_gid.items() if gid.startswith(("machine:", "dimension:")) or gid == "boundary"]
+    for letter, box in labels.items():
+        for artist in obstacles:
+            if artist.get_gid() == f"dimension:{letter}":
+                continue
+            path = artist.get_transform().transform_path(artist.get_path())
+            assert not path.intersects_bbox(box, filled=isinstance(artist, Patch)), (letter, artist.get_gid())
+    ground = by_gid["machine:ground"].get_xy()[:-1]  # a closed polygon repeats its first vertex
+    assert np.allclose(ground, np.array(excavator.ground_outline)[:, [0, 2]], atol=1e-12)
+    q, _ = transport_q(system, envelope)
+    upper = system.local_positions(q, "upper", drawn["upper"])[0]
+    expected = np.column_stack([upper[:, :2] @ boundary.direction, upper[:, 2]])
+    assert np.allclose(by_gid["machine:upper"].get_xy()[:-1], expected, atol=1e-12)
+    assert ax.get_legend() is None and side.get_legend() is not None
+    assert not side.get_legend().get_window_extent(renderer).overlaps(ax.get_window_extent(renderer))
+    box = ax.get_window_extent(renderer)
+    (x0, x1), (y0, y1) = ax.get_xlim(), ax.get_ylim()
+    assert abs(box.width / box.height - (x1 - x0) / (y1 - y0)) < 0.02 * box.width / box.height  # the drawing fills its axes
+    assert box.width > 0.5 * fig.bbox.width and box.height > 0.8 * fig.bbox.height
+    pyplot().close(fig)
+
+
+def _panels(fig) -> dict:
+    return {ax.get_gid(): ax for ax in fig.axes}
+
+
+def test_the_case_plot_of_a_four_bar_traces_the_chosen_point_and_plots_signed_angular_rates():
+    """four_bar: the traced point is the one asked for (coupler.C, its projected path exactly);
+    each body's rate is signed about its fixed axis (z): the crank's and the rocker's equal the
+    time derivative of their angles from their points' positions (central differences, 1e-3 of
+    the largest); the condition curve is sigma_max / sigma_min of Phi_q (SciPy's svdvals); the
+    legends lie beside the panels, covering no curve."""
+    from scipy.linalg import svdvals
+
+    from kinegen.analysis.plots import case_figure
+
+    results = solve(generated_system("four_bar_quaternion"))
+    system = results.system
+    fig = case_figure(results, None, ("coupler", "C"))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    panels = _panels(fig)
+    (path,) = [line for line in panels["drawing"].lines if line.get_gid() == "path"]
+    expected = results.point_position("coupler", "C")[:, :2]  # the x-y plane: the four-bar's
+    assert np.allclose(np.column_stack(path.get_data()), expected, atol=1e-12)
+    assert panels["drawing"].get_xlabel() == "x [m]" and panels["drawing"].get_ylabel() == "y [m]"
+    curves = {line.get_label().split(",")[0]: line for line in panels["omega"].lines}
+    t = results.times
+    for body, (a, b) in {"crank": ("A", "B"), "rocker": ("D", "C")}.items():
+        d = results.point_position(body, b) - results.point_position(body, a)
+        angle = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
+        rate = np.gradient(angle, t, edge_order=2)
+        plotted = curves[body].get_ydata()
+        assert "about (0, 0, 1)" in curves[body].get_label()
+        assert np.abs(plotted[2:-2] - rate[2:-2]).max() < 1e-3 * np.abs(rate).max(), body
+    assert (curves["rocker"].get_ydata() < 0).any() and (curves["rocker"].get_ydata() > 0).any()  # signed: no |omega| cusps
+    condition = panels["condition"].lines[0].get_ydata()
+    for k in (0, len(t) // 3, len(t) - 1):
+        s = svdvals(system.jacobian(results.q[k], results.inputs[k]))
+        assert abs(condition[k] - s[0] / s[-1]) < 1e-9 * condition[k]
+    for name in ("omega",):
+        legend = panels[name].get_legend()
+        assert not legend.get_window_extent(renderer).overlaps(panels[name].get_window_extent(renderer))
+    pyplot().close(fig)
+
+
+def test_a_tilted_plane_is_named_and_its_axes_given_in_words():
+    """plane_axes: the x-y/x-z/y-z planes by name; a plane tilted 30 deg from the vertical with its
+    horizontal line at heading 40 deg is drawn along that line and up the plane, labelled with
+    those angles (no direction vectors), its axes orthonormal and in the plane."""
+    from kinegen.analysis.plots import plane_axes
+
+    assert plane_axes(np.array([0, 1.0, 0]))[1] == ("x [m]", "z [m]")
+    assert plane_axes(np.array([0, 0, -1.0]))[2] == "the x-y plane"
+    heading, tilt = np.radians(40.0), np.radians(30.0)
+    level = np.array([np.cos(heading), np.sin(heading), 0.0])
+    up = np.cos(tilt) * np.array([0, 0, 1.0]) + np.sin(tilt) * np.cross([0, 0, 1.0], level)
+    basis, labels, name = plane_axes(np.cross(level, up))
+    assert np.allclose(basis, [level, up], atol=1e-12)
+    assert labels == ("horizontal, heading 40 deg from x toward y [m]", "up the plane, 30 deg from the vertical [m]")
+    assert name == "a plane tilted 30 deg from the vertical, heading 40 deg" and "(" not in "".join(labels).replace("[m]", "")
+
+
+def test_the_excavators_case_plot_keeps_its_legends_off_the_curves():
+    """digging: the actuator-length legend beside its panel; the drawing's legend below it."""
+    from kinegen.analysis.plots import case_figure
+
+    results = solve(generated_system("excavator_quaternion", "digging", compiled=True))
+    fig = case_figure(results, "upper", ("bucket", "T"))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    panels = _panels(fig)
+    for name in ("lengths", "drawing"):
+        legend = panels[name].get_legend()
+        assert not legend.get_window_extent(renderer).overlaps(panels[name].get_window_extent(renderer)), name
+    labels = [tick.get_text() for tick in panels["condition"].get_yticklabels() if tick.get_text()]
+    assert labels and all("$" not in text for text in labels)  # plain numbers, not 10^x mathtext
     pyplot().close(fig)

@@ -17,8 +17,12 @@ import pytest
 ROOT = Path(__file__).resolve().parents[1]
 README = (ROOT / "README.md").read_text()
 #: tour steps that take minutes as printed (every parametrization built; 1,024 Dask variants): run
-#: by `make run`'s main job in another form, left out here
-SLOW = ("kinegen compare", "kinegen explore")
+#: here as printed plus options that make them small (make run's main job runs them in full)
+REDUCED = {
+    "kinegen compare": " --param quaternion --param euler:zxz --case level_cut --no-compile",
+    "kinegen explore": " --samples 32",
+}
+SLOW = tuple(REDUCED)
 #: the tour's analysis steps (working range, scan, studies: ~20 s), a test of their own so that they
 #: run beside the rest
 ANALYSES = ("kinegen envelope", "kinegen scan", "kinegen optimize")
@@ -45,11 +49,15 @@ def _commands(block: str) -> list[tuple[str, int]]:
     return out
 
 
-def _run(commands: list[tuple[str, int]], folder: Path) -> None:
+def _run(commands: list[tuple[str, int]], folder: Path) -> list[str]:
+    """Run each command in ``folder`` (this Python's kinegen first on PATH), checking its exit code; their outputs."""
     env = {**os.environ, "PATH": f"{Path(sys.executable).parent}{os.pathsep}{os.environ.get('PATH', '')}", "MPLBACKEND": "Agg"}
+    outputs = []
     for command, expected in commands:
         done = subprocess.run(command, shell=True, cwd=folder, env=env, capture_output=True, text=True, timeout=600)
         assert done.returncode == expected, f"{command}\nexit {done.returncode}, expected {expected}\n{done.stderr[-2000:]}"
+        outputs.append(done.stdout)
+    return outputs
 
 
 @pytest.fixture(scope="module")
@@ -78,6 +86,18 @@ def test_the_tours_analysis_steps_run_as_printed(user_folder: Path) -> None:
     _run(steps, user_folder)
     for written in ("out/envelope.png", "out/boundary.csv", "out/scan.png", "out/excavator_calibration.yaml", "out/excavator_bucket_linkage.yaml"):
         assert (user_folder / written).stat().st_size > 0, written
+
+
+def test_the_tours_slow_steps_run_as_printed_in_a_reduced_form(user_folder: Path) -> None:
+    steps = [(c, e) for c, e in _commands(_block("## A 5-minute tour")) if c.startswith(SLOW)]
+    assert [c.split()[1] for c, _ in steps] == ["compare", "explore"]
+    compared, _ = _run([(c + REDUCED[" ".join(c.split()[:2])], e) for c, e in steps], user_folder)
+    assert "quaternion" in compared and "euler:zxz" in compared and "singular where beta = 0 or pi" in compared
+    import pyarrow.dataset as ds
+
+    table = ds.dataset(user_folder / "out" / "excavator_calibration.parquet").to_table()
+    assert table.num_rows == 32 and "max_reach" in table.column_names
+    assert (user_folder / "out" / "explore.png").stat().st_size > 0
 
 
 def test_the_controllers_commands_build_and_run_the_standalone_c_as_printed(user_folder: Path) -> None:

@@ -99,20 +99,87 @@ def drawing_plane(results: Results, frame_body: str | None) -> tuple[np.ndarray,
     points = np.vstack([results.point_position(b, p) for b, names in results.system.points.items() for p in names])
     points = points[np.isfinite(points).all(axis=1)]
     _, _, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
-    k = int(np.argmax(np.abs(axes[2])))
-    if abs(abs(axes[2][k]) - 1) < 1e-6:  # a coordinate plane: its two axes, in order
+    basis, labels, name = plane_axes(axes[2])
+    return basis, labels, f"{name}\n(the plane of largest spread, global frame)"
+
+
+def plane_axes(normal: np.ndarray) -> tuple[np.ndarray, tuple[str, str], str]:
+    """Drawing axes of the plane with unit ``normal`` (global frame), in words: a coordinate plane
+    (to 1e-6) is drawn in its two axes (x-y, x-z, y-z); a tilted one along its horizontal line
+    (given by its heading from x toward y) and its line of steepest ascent (given by its angle
+    from the vertical), so that up on the drawing is up the plane; a horizontal plane in x and
+    y. Returns (2, 3) unit axes, their labels and the plane's name."""
+    normal = np.asarray(normal, dtype=float) / np.linalg.norm(normal)
+    k = int(np.argmax(np.abs(normal)))
+    if abs(abs(normal[k]) - 1) < 1e-6:  # a coordinate plane: its two axes, in order
         kept = [i for i in range(3) if i != k]
-        basis, labels = [np.eye(3)[i] for i in kept], [f"{'xyz'[i]} [m]" for i in kept]
-    else:
-        basis = list(axes[:2])
-        labels = ["(" + ", ".join(f"{c:.2f}" for c in axis) + ") [m]" for axis in basis]
-    return np.array(basis), (labels[0], labels[1]), "the plane of largest spread (global frame)"
+        return np.eye(3)[kept], (f"{'xyz'[kept[0]]} [m]", f"{'xyz'[kept[1]]} [m]"), f"the {'xyz'[kept[0]]}-{'xyz'[kept[1]]} plane"
+    up = np.array([0.0, 0.0, 1.0]) - normal[2] * normal
+    if np.linalg.norm(up) < 1e-9:
+        return np.eye(3)[:2], ("x [m]", "y [m]"), "the x-y plane"
+    up /= np.linalg.norm(up)
+    level = np.cross(up, normal)
+    if level[0] < 0 or (level[0] == 0 and level[1] < 0):
+        level = -level
+    heading = np.degrees(np.arctan2(level[1], level[0]))
+    tilt = np.degrees(np.arccos(np.clip(up[2], -1.0, 1.0)))
+    labels = (f"horizontal, heading {heading:.0f} deg from x toward y [m]",
+              f"up the plane, {tilt:.0f} deg from the vertical [m]")  # fmt: skip
+    slope = "a vertical plane" if tilt < 0.5 else f"a plane tilted {tilt:.0f} deg from the vertical"
+    return np.array([level, up]), labels, f"{slope}, heading {heading:.0f} deg"
+
+
+def angular_rate(omega: np.ndarray, tolerance: float = 1e-6) -> tuple[np.ndarray, np.ndarray | None]:
+    """A body's angular velocities (K, 3) as one curve: signed, omega . n, when they all lie
+    along one fixed axis n (to ``tolerance`` of the largest; a planar motion, a hinge), n's
+    sign chosen so its largest component is positive; else |omega| (and None)."""
+    finite = omega[np.isfinite(omega).all(axis=1)]
+    if len(finite) == 0 or not np.abs(finite).max() > 0:
+        return np.linalg.norm(omega, axis=1), None
+    _, sigma, vt = np.linalg.svd(finite, full_matrices=False)
+    if sigma[1] > tolerance * sigma[0]:
+        return np.linalg.norm(omega, axis=1), None
+    axis = vt[0] * np.sign(vt[0][np.argmax(np.abs(vt[0]))])
+    axis = np.where(np.abs(axis) < tolerance, 0.0, axis) + 0.0  # no -0 or 1e-16 in its label
+    return omega @ axis, axis
+
+
+def exact_conditions(results: Results) -> np.ndarray:
+    """The 2-norm condition number sigma_max / sigma_min of Phi_q at each solved time point (the
+    solver's own where it computed them exactly; else from the solved configurations): smooth
+    along a smooth motion, unlike the 1-norm estimate's steps. NaN where a point is not solved."""
+    if results.condition_kind == "exact":
+        return results.conditions
+    out = np.full(len(results.times), np.nan)
+    system = results.system
+    for k in np.flatnonzero(results.converged):
+        s = np.linalg.svd(system.jacobian(results.q[k], results.inputs[k]), compute_uv=False)
+        out[k] = s[0] / s[-1] if s[-1] > 0 else np.inf
+    return out
+
+
+def _readable_log_ticks(ax) -> None:
+    """A log axis labelled with plain numbers (300, 400, 1000, 1e+06): every integer multiple of
+    a power of ten within one decade, 1-2-5 steps within two, powers of ten beyond."""
+    from matplotlib.ticker import FuncFormatter, LogLocator, NullFormatter
+
+    low, high = ax.get_ylim()
+    decades = np.log10(high / low) if low > 0 else np.inf
+    subs = np.arange(1.0, 10.0) if decades < 1 else (1.0, 2.0, 5.0) if decades < 2 else (1.0,)
+    ax.yaxis.set_major_locator(LogLocator(subs=subs))
+    ax.yaxis.set_major_formatter(FuncFormatter(lambda value, _: f"{value:g}"))
+    ax.yaxis.set_minor_formatter(NullFormatter())
 
 
 def plot_case(
     results: Results, path: str | Path, frame_body: str | None = None, trace: tuple[str, str] | None = None, snapshots: int = 6
 ) -> Path:
-    """One PNG per case: the mechanism at several instants in the plane that shows it
+    """:func:`case_figure` written to ``path`` (PNG)."""
+    return save(case_figure(results, frame_body, trace, snapshots), path)
+
+
+def case_figure(results: Results, frame_body: str | None = None, trace: tuple[str, str] | None = None, snapshots: int = 6):
+    """One figure per case: the mechanism at several instants in the plane that shows it
     (:func:`drawing_plane`) with the traced point's path; beside it the actuator lengths against
     their ranges and their rates (or, without actuators, every body's angular speed), and the
     Jacobian's condition number against time. Panels without data are left out."""
@@ -124,8 +191,8 @@ def plot_case(
         panels.append("condition")
     fig = plt.figure(figsize=(15, 9))
     grid = fig.add_gridspec(len(panels), 2, width_ratios=[1.35, 1])
-    drawing = fig.add_subplot(grid[:, 0])
-    axes = {name: fig.add_subplot(grid[i, 1]) for i, name in enumerate(panels)}
+    drawing = fig.add_subplot(grid[:, 0], gid="drawing")
+    axes = {name: fig.add_subplot(grid[i, 1], gid=name) for i, name in enumerate(panels)}
     solved = np.flatnonzero(results.converged)
     instants = solved[np.linspace(0, len(solved) - 1, min(snapshots, len(solved))).round().astype(int)]
     colours = plt.cm.viridis(np.linspace(0, 0.9, len(instants)))
@@ -145,8 +212,8 @@ def plot_case(
                          color=colour, fontsize=8, va="top")  # fmt: skip
     if trace:
         tip = projected(*trace)
-        drawing.plot(tip[solved, 0], tip[solved, 1], "r-", lw=1.2, label=f"path of {trace[0]}.{trace[1]}")
-        drawing.legend(loc="lower left", fontsize=8)
+        drawing.plot(tip[solved, 0], tip[solved, 1], "r-", lw=1.2, label=f"path of {trace[0]}.{trace[1]}", gid="path")
+        drawing.legend(loc="upper center", bbox_to_anchor=(0.5, -0.07), fontsize=8, frameon=False)  # below the drawing
     if labels[1] == "z [m]":
         drawing.axhline(0, color="saddlebrown", lw=0.8)
     drawing.set(title=f"mechanism in {plane}", xlabel=labels[0], ylabel=labels[1], aspect="equal")
@@ -161,22 +228,25 @@ def plot_case(
     if "lengths" in axes:
         axes["lengths"].set(title="actuator lengths (dotted: range)", ylabel="m")
         axes["rates"].set(title="extension rates", ylabel="m/s")
-        if few:
-            axes["lengths"].legend(fontsize=7, ncol=2)
+        if few:  # beside the panel: it covers no curve
+            axes["lengths"].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if "omega" in axes:
         for body in system.bodies:
-            axes["omega"].plot(results.times, np.linalg.norm(results.omega(body), axis=1), label=body)
-        axes["omega"].set(title="angular speed |omega| of each body", ylabel="rad/s")
+            rate, axis = angular_rate(results.omega(body))
+            about = "|omega| (its axis moves)" if axis is None else "about (" + ", ".join(f"{c:.2g}" for c in axis) + ")"
+            axes["omega"].plot(results.times, rate, label=f"{body}, {about}")
+        axes["omega"].set(title="angular velocity of each body (signed about a fixed axis)", ylabel="rad/s")
         if len(system.bodies) <= 12:
-            axes["omega"].legend(fontsize=7, ncol=2)
+            axes["omega"].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
     if "condition" in axes:
-        axes["condition"].semilogy(results.times, results.conditions, "k-")
-        kind = {"exact": "2-norm", "estimate": "1-norm estimate"}.get(results.condition_kind, "not recorded")
-        axes["condition"].set(title=f"condition number of Phi_q ({kind})")
+        axes["condition"].semilogy(results.times, exact_conditions(results), "k-")
+        axes["condition"].set(title="condition number of Phi_q (2-norm: sigma_max / sigma_min)")
+        _readable_log_ticks(axes["condition"])
     list(axes.values())[-1].set(xlabel="t [s]")
     for ax in (drawing, *axes.values()):
         ax.grid(True, alpha=0.3)
     fig.suptitle(f"{system.model} / {system.case} [{system.parametrization.name}]")
-    return save(fig, path)
+    fig.tight_layout()
+    return fig
 
 

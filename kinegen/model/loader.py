@@ -359,10 +359,11 @@ class _Reader:
             if key in self.design:
                 raise self.fail(f"parameters.{key}", "already a design parameter")
             self.parameters[self.name(key, f"parameters.{key}")] = self.scalar(value, f"parameters.{key}", design=True)
-        ground = self.mapping(top.get("ground"), "ground", ("points", "vectors"))
+        ground = self.mapping(top.get("ground"), "ground", ("points", "vectors", "outline"))
         identity = Body(GROUND, sp.ImmutableMatrix([0, 0, 0]), sp.ImmutableMatrix(sp.eye(3)))
         self.ground_points = self.named_vectors(ground.get("points"), "ground.points", identity, False, False)
         self.ground_vectors = self.named_vectors(ground.get("vectors"), "ground.vectors", identity, True, False)
+        ground_outline = self.outline(ground.get("outline"), "ground.outline")
         bodies = self.mapping(top["bodies"], "bodies", tuple(_keys(top["bodies"])))
         if not bodies:
             raise self.fail("bodies", "a model needs at least one moving body")
@@ -391,6 +392,7 @@ class _Reader:
             working_range=working_range,
             redundant=self.redundant,
             ground_points=dict(self.ground_points),
+            ground_outline=ground_outline,
             design=tuple(self.design.values()),
             studies=studies,
         )
@@ -424,7 +426,7 @@ class _Reader:
         spec = self.mapping(
             value,
             entry,
-            ("position", "orientation", "points", "global_points", "vectors", "global_vectors"),
+            ("position", "orientation", "points", "global_points", "vectors", "global_vectors", "outline"),
             ("position",),
         )
         position = self.vector(spec["position"], f"{entry}.position")
@@ -440,7 +442,17 @@ class _Reader:
             if key in vectors:
                 raise self.fail(f"{entry}.global_vectors.{key}", "duplicate vector name (also in vectors)")
             vectors[key] = local
-        return Body(name, position, rotation, points, vectors)
+        return Body(name, position, rotation, points, vectors, self.outline(spec.get("outline"), f"{entry}.outline"))
+
+    def outline(self, value: Any, entry: str) -> tuple[tuple[float, float, float], ...]:
+        """``outline: [[x, y, z], ...]``: a closed polygon of at least 3 points (m, body coordinates;
+        design parameters at their nominal values) -- a drawing, not part of the kinematics."""
+        if value is None:
+            return ()
+        if not isinstance(value, (list, tuple)) or len(value) < 3:
+            raise self.fail(entry, f"expected a list of at least 3 points [x, y, z], got {_kind(value)}")
+        points = [self.vector(item, f"{entry}[{i}]") for i, item in enumerate(value)]
+        return tuple(tuple(self.value(x) for x in point) for point in points)
 
     def named_vectors(self, value: Any, entry: str, pose: Body, unit: bool, is_global: bool) -> dict[str, Vector]:
         result: dict[str, Vector] = {}

@@ -28,6 +28,8 @@ class Body:
     rotation: sp.ImmutableMatrix
     points: dict[str, Vector] = field(default_factory=dict)
     vectors: dict[str, Vector] = field(default_factory=dict)
+    #: a drawing of the body (m, body coordinates): a closed polygon, drawn projected on a chart's plane
+    outline: tuple[tuple[float, float, float], ...] = ()
 
 
 @dataclass(frozen=True)
@@ -291,6 +293,7 @@ class Model:
     working_range: WorkingRange | None = None
     redundant: bool = False  #: the model declares redundant (dependent) constraints
     ground_points: dict[str, Vector] = field(default_factory=dict)  #: named fixed points, global
+    ground_outline: tuple[tuple[float, float, float], ...] = ()  #: a drawing of the ground body (m, global): see Body.outline
     #: parameters kept symbolic in the geometry (empty: every geometry value is a number)
     design: tuple[DesignParameter, ...] = ()
     studies: dict[str, Study] = field(default_factory=dict)  #: design studies by name

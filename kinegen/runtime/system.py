@@ -190,6 +190,16 @@ class NumericSystem:
             out[:, j] = origin + rotation @ np.asarray(self.points[body][point], dtype=float)
         return out
 
+    def local_positions(self, q: np.ndarray, body: str, local: np.ndarray) -> np.ndarray:
+        """Global positions [m] (K, P, 3) of points given in ``body``'s coordinates ``local`` (P, 3)
+        at the configurations ``q`` (K, n); the ground's (``"ground"``) are their own."""
+        q = np.atleast_2d(q)
+        local = np.asarray(local, dtype=float)
+        if body not in self.bodies:
+            return np.broadcast_to(local, (len(q), *local.shape)).copy()
+        origin, rotation = self.parametrization.pose(self.body_coordinates(q, body))
+        return origin[:, None, :] + local @ rotation.swapaxes(1, 2)
+
     @cached_property
     def frame_slices(self) -> dict[str, slice]:
         """Where each frame value lies among a body's values in the frames kernels (name -> slice)."""

@@ -74,6 +74,17 @@ class BodyCoordinates:
         origin = list(self.origin_derivatives[k]) if self.origin_symbols else []
         return [*origin, *self.rotation_derivatives[k]]
 
+    @cached_property
+    def tangents(self) -> tuple[tuple[tuple[sp.Symbol, sp.Expr], ...], ...]:
+        """Per velocity coordinate k, the (configuration symbol, its derivative along v_k) pairs
+        not identically zero: frame symbols (dA/dv_k, dr/dv_k), then stored (B[:, k])."""
+        out = []
+        for k in range(len(self.velocity)):
+            pairs = [(s, d) for s, d in zip(self.frame_symbols, self.frame_derivatives(k)) if d != 0]
+            pairs += [(s, b) for s, b in zip(self.stored, self.velocity_map[:, k]) if b != 0]
+            out.append(tuple(pairs))
+        return tuple(out)
+
     def frame_rates(self, direction: tuple[sp.Symbol, ...] | None = None) -> list[sp.Expr]:
         """d(frame symbol)/dt = sum_k d/dv_k v_k, in order (along ``direction`` instead of the
         velocity symbols: the change as the body moves along that tangent direction)."""
@@ -445,17 +456,10 @@ def tangent_jacobian(expr: sp.Expr, bodies: list[BodyCoordinates]) -> dict[int, 
     coordinate k, d/dv_k = sum_ij d/da_ij (dA/dv_k)_ij + d/ds B(s)[:, k]; velocity and other
     symbols in ``expr`` are held."""
     gradient = _gradient(expr, [s for body in bodies for s in (*body.stored, *body.frame_symbols)])
-    zero = sp.Integer(0)
     out: dict[int, sp.Expr] = {}
     for body in bodies:
-        for k in range(len(body.velocity)):
-            total = zero
-            for symbol, entry in zip(body.frame_symbols, body.frame_derivatives(k)):
-                if entry != 0:
-                    total += gradient.get(symbol, zero) * entry
-            for s, b in zip(body.stored, body.velocity_map[:, k]):
-                if b != 0:
-                    total += gradient.get(s, zero) * b
+        for k, pairs in enumerate(body.tangents):
+            total = sp.Add(*(gradient[s] * d for s, d in pairs if s in gradient))
             if total != 0:
                 out[body.velocity_offset + k] = total
     return out
