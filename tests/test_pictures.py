@@ -191,3 +191,47 @@ def test_the_excavators_case_plot_keeps_its_legends_off_the_curves():
     labels = [tick.get_text() for tick in panels["condition"].get_yticklabels() if tick.get_text()]
     assert labels and all("$" not in text for text in labels)  # plain numbers, not 10^x mathtext
     pyplot().close(fig)
+
+
+def test_the_exploration_plot_has_units_a_colour_bar_readable_cells_full_labels_and_shows_the_variants_not_measured():
+    """An exploration of 60 variants (y1 = 2 a + b, y2 = b - a plus a little of c; 5 not ok): the
+    Pareto axes carry the quantities' units, no legend entry counts zero variants, the not-ok
+    variants are drawn (grey crosses, all 5) in the parameters that tell them apart, the map has a
+    colour bar, each cell's number is white on a dark colour and black on a light one, and the
+    quantities' full names label the columns without overlapping."""
+    import pyarrow as pa
+
+    from kinegen.explore.plots import exploration_figure
+
+    rng = np.random.default_rng(1)
+    a, b, c = rng.uniform(size=(3, 60))
+    ok = np.ones(60, dtype=bool)
+    ok[a > np.sort(a)[-6]] = False  # the 5 largest a: not measured
+    y1 = np.where(ok, 2 * a + b, np.nan)
+    y2 = np.where(ok, b - a + 0.01 * c, np.nan)
+    names = ["max_reach", "actuator_margin(boom_cylinder_left, digging)"]
+    table = pa.table({"a": a, "b": b, "c": c, "status": np.where(ok, "ok", "unreachable"), names[0]: y1, names[1]: y2,
+                      "feasible": ok})  # fmt: skip
+    provenance = {"model": "m", "study": "s", "parameters": ["a", "b", "c"], "quantities": names}
+    fig = exploration_figure(table, provenance, (names[0], names[1]), (True, True))
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    panels = _panels(fig)
+    pareto, failed, ranking = panels["pareto"], panels["failed"], panels["ranking"]
+    assert pareto.get_xlabel().startswith("max_reach [m]") and pareto.get_ylabel().startswith(f"{names[1]} [m]")
+    for ax in (pareto, failed):
+        assert all("(0)" not in text.get_text() for text in ax.get_legend().get_texts())
+    crosses = [c for c in failed.collections if c.get_label().startswith("not ok")]
+    assert len(crosses) == 1 and len(crosses[0].get_offsets()) == 5 and failed.get_xlabel() == "a"
+    (image,) = ranking.images
+    assert image.colorbar is not None
+    for text in ranking.texts:
+        x, y = (round(v) for v in text.get_position())
+        rgba = image.cmap(image.norm(image.get_array()[y, x]))
+        luminance = 0.299 * rgba[0] + 0.587 * rgba[1] + 0.114 * rgba[2]
+        assert abs((1.0 if text.get_color() == "white" else 0.0) - luminance) >= 0.5, (text.get_text(), luminance)
+    labels = [t for t in ranking.get_xticklabels() if t.get_text()]
+    assert [t.get_text().split("\nR²")[0].replace(",\n", ", ") for t in labels] == names
+    boxes = [t.get_window_extent(renderer) for t in labels]
+    assert not any(boxes[i].overlaps(boxes[j]) for i in range(len(boxes)) for j in range(i))
+    pyplot().close(fig)

@@ -98,9 +98,19 @@ def plot_exploration(
     maximize: tuple[bool, bool],
     path: str | Path,
 ) -> Path:
+    """:func:`exploration_figure` written to ``path`` (PNG)."""
+    from kinegen.analysis.plots import save
+
+    return save(exploration_figure(table, provenance, pareto, maximize), path, dpi=110)
+
+
+def exploration_figure(table, provenance: dict, pareto: tuple[str, str], maximize: tuple[bool, bool]):
     """The Pareto front of the two ``pareto`` quantities (every ok variant, the feasible ones, the
-    front, the nominal design) beside the parameters' SRC ranking for every quantity; a PNG."""
-    from kinegen.analysis.plots import pyplot, save
+    front, the nominal design; axes in the quantities' units) and, when some variants could not be
+    measured, where they lie among the ok ones in the two parameters that tell them apart best
+    (greyed); beside them the parameters' SRC ranking for every quantity, with its colour bar.
+    Legend entries only for what is drawn. Axes carry gids: ``pareto``, ``failed``, ``ranking``."""
+    from kinegen.analysis.plots import pyplot
 
     plt = pyplot()
     data = {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
@@ -109,47 +119,83 @@ def plot_exploration(
     x_label, y_label = pareto
     x, y = data[x_label], data[y_label]
     result = ranking_of(table, provenance)
+    failed = int((~ok).sum())
+    parameters = list(provenance["parameters"])
 
-    figure, (left, right) = plt.subplots(1, 2, figsize=(14, 6), gridspec_kw={"width_ratios": [1.1, 1]})
-    left.scatter(x[ok & ~feasible], y[ok & ~feasible], s=6, color="0.75", label=f"ok, a constraint not met ({int((ok & ~feasible).sum())})")
-    left.scatter(x[feasible], y[feasible], s=6, color="tab:blue", alpha=0.6, label=f"feasible ({int(feasible.sum())})")
+    figure = plt.figure(figsize=(15, 6.5))
+    grid = figure.add_gridspec(2 if failed else 1, 2, width_ratios=[1.0, 1.15], height_ratios=[2.2, 1] if failed else [1])
+    left = figure.add_subplot(grid[0, 0], gid="pareto")
+    right = figure.add_subplot(grid[:, 1], gid="ranking")
+    infeasible = ok & ~feasible
+    if infeasible.any():
+        left.scatter(x[infeasible], y[infeasible], s=6, color="0.7", label=f"ok, a constraint not met ({int(infeasible.sum())})")
+    if feasible.any():
+        left.scatter(x[feasible], y[feasible], s=6, color="tab:blue", alpha=0.6, label=f"feasible ({int(feasible.sum())})")
     front = np.flatnonzero(feasible)[pareto_front(x[feasible], y[feasible], maximize)] if feasible.any() else np.array([], dtype=int)
     if len(front):
         left.plot(x[front], y[front], "-o", color="tab:red", markersize=3, label=f"Pareto front ({len(front)})")
     nominal = provenance.get("nominal", {}).get("quantities", {})
     if x_label in nominal and y_label in nominal:
         left.plot(nominal[x_label], nominal[y_label], "*", color="black", markersize=14, label="nominal design")
-    senses = ["max" if m else "min" for m in maximize]
-    left.set_xlabel(f"{x_label} ({senses[0]})")
-    left.set_ylabel(f"{y_label} ({senses[1]})")
-    failed = int((~ok).sum())
+    senses = ["larger is better" if m else "smaller is better" for m in maximize]
+    left.set_xlabel(f"{x_label} [{quantity_unit(x_label)}] ({senses[0]})")
+    left.set_ylabel(f"{y_label} [{quantity_unit(y_label)}] ({senses[1]})")
     left.set_title(f"{provenance['model']} / {provenance['study']}: {len(ok)} variants" + (f", {failed} not ok" if failed else ""))
-    left.legend(loc="best", fontsize=8)
+    left.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
     left.grid(alpha=0.3)
-
+    if failed:
+        _failed_variants(figure.add_subplot(grid[1, 0], gid="failed"), data, parameters, ok)
     if result is None:
         right.text(0.5, 0.5, "too few ok variants to rank the parameters", ha="center", va="center")
         right.set_axis_off()
     else:
-        _ranking_map(right, result)
-    return save(figure, path, dpi=110)
+        _ranking_map(figure, right, result)
+    figure.tight_layout()
+    return figure
 
 
-def _ranking_map(axes, result: Ranking) -> None:
-    """The SRCs as a map: parameters (most influential first) down, quantities across."""
+def quantity_unit(label: str) -> str:
+    """The unit of a study quantity's column (a working-range figure's name, or ``kind(...)``)."""
+    from kinegen.model.schema import QUANTITY_UNITS, WORKING_RANGE_FIGURES
+
+    return "m" if label in WORKING_RANGE_FIGURES else QUANTITY_UNITS.get(label.split("(")[0], "?")
+
+
+def _failed_variants(axes, data: dict, parameters: list[str], ok: np.ndarray) -> None:
+    """The variants that could not be measured (grey crosses) among the ok ones (blue dots), in
+    the two parameters whose values tell the two groups apart best (difference of means over
+    the spread)."""
+    values = np.column_stack([np.asarray(data[p], dtype=float) for p in parameters])
+    spread = values.std(axis=0)
+    spread[spread == 0] = 1.0
+    separation = np.abs(values[~ok].mean(axis=0) - values[ok].mean(axis=0)) / spread
+    a, b = (list(np.argsort(-separation)) + [0, 0])[:2] if len(parameters) > 1 else (0, 0)
+    axes.scatter(values[ok, a], values[ok, b], s=5, color="tab:blue", alpha=0.35, label=f"ok ({int(ok.sum())})")
+    axes.scatter(values[~ok, a], values[~ok, b], s=22, marker="x", color="0.35", label=f"not ok ({int((~ok).sum())}): no measure")
+    axes.set_xlabel(parameters[a])
+    axes.set_ylabel(parameters[b])
+    axes.set_title("where the variants that could not be measured lie", fontsize=9)
+    axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    axes.grid(alpha=0.3)
+
+
+def _ranking_map(figure, axes, result: Ranking) -> None:
+    """The SRCs as a map: parameters (most influential first) down, quantities across, each cell's
+    value written in black or white (whichever contrasts more with its colour's luminance), a
+    colour bar beside it."""
     order = np.argsort(-np.abs(result.src).max(axis=0))
     shown = result.src[:, order].T
     limit = max(1e-12, float(np.abs(shown).max()))
-    axes.imshow(shown, cmap="RdBu_r", vmin=-limit, vmax=limit, aspect="auto")
+    image = axes.imshow(shown, cmap="RdBu_r", vmin=-limit, vmax=limit, aspect="auto")
     for r in range(shown.shape[0]):
         for c in range(shown.shape[1]):
-            axes.text(c, r, f"{shown[r, c]:+.2f}", ha="center", va="center", fontsize=8)
+            red, green, blue, _ = image.cmap(image.norm(shown[r, c]))
+            dark = 0.299 * red + 0.587 * green + 0.114 * blue < 0.5  # the cell's luminance: white text on it
+            value = f"{shown[r, c]:+.2f}" if abs(shown[r, c]) >= 0.005 else "0.00"  # no -0.00
+            axes.text(c, r, value, ha="center", va="center", fontsize=8, color="white" if dark else "black")
     axes.set_yticks(range(len(order)), [result.parameters[j] for j in order], fontsize=8)
-    ticks = [_short(q) + (f"\nR²={r2:.2f}" if np.isfinite(r2) else "\nconstant") for q, r2 in zip(result.quantities, result.r2)]
-    axes.set_xticks(range(len(result.quantities)), ticks, fontsize=7, rotation=30, ha="right")
+    ticks = [q.replace(", ", ",\n") + (f"\nR²={r2:.2f}" if np.isfinite(r2) else "\nconstant") for q, r2 in zip(result.quantities, result.r2)]
+    axes.set_xticks(range(len(result.quantities)), ticks, fontsize=7, rotation=35, ha="right", rotation_mode="anchor")
     axes.set_title(f"sensitivity ranking: standardized regression coefficients ({result.variants} ok variants)", fontsize=9)
-
-
-def _short(label: str) -> str:
-    """A quantity's label cut for a tick: its kind and first argument."""
-    return label if len(label) <= 28 else label[:26] + "…"
+    bar = figure.colorbar(image, ax=axes, fraction=0.05, pad=0.02)
+    bar.set_label("SRC: the quantity's change per parameter change (each in its standard deviations)", fontsize=8)

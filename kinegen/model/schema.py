@@ -196,7 +196,12 @@ class DesignParameter:
 
 
 #: what a design study can measure (:class:`Quantity`)
-QUANTITY_KINDS = ("working_range", "rotation_range", "stroke", "toggle_margin", "actuator_margin", "transmission_angle")
+#: every study quantity's kind and the unit it is measured in (see :class:`Quantity`; "1": a number)
+QUANTITY_UNITS = {
+    "working_range": "m", "rotation_range": "rad", "stroke": "m", "toggle_margin": "1", "actuator_margin": "m",
+    "transmission_angle": "rad",
+}  # fmt: skip
+QUANTITY_KINDS = tuple(QUANTITY_UNITS)
 
 
 @dataclass(frozen=True)
