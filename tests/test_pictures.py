@@ -177,7 +177,8 @@ def test_a_tilted_plane_is_named_and_its_axes_given_in_words():
 
 
 def test_the_excavators_case_plot_keeps_its_legends_off_the_curves():
-    """digging: the actuator-length legend beside its panel; the drawing's legend below it."""
+    """digging: the actuator-length legend beside its panel; the drawing has none (its title names
+    the traced path)."""
     from kinegen.analysis.plots import case_figure
 
     results = solve(generated_system("excavator_quaternion", "digging", compiled=True))
@@ -185,9 +186,9 @@ def test_the_excavators_case_plot_keeps_its_legends_off_the_curves():
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     panels = _panels(fig)
-    for name in ("lengths", "drawing"):
-        legend = panels[name].get_legend()
-        assert not legend.get_window_extent(renderer).overlaps(panels[name].get_window_extent(renderer)), name
+    legend = panels["lengths"].get_legend()
+    assert not legend.get_window_extent(renderer).overlaps(panels["lengths"].get_window_extent(renderer))
+    assert panels["drawing"].get_legend() is None and "red: the path of bucket.T" in panels["drawing"].get_title()
     labels = [tick.get_text() for tick in panels["condition"].get_yticklabels() if tick.get_text()]
     assert labels and all("$" not in text for text in labels)  # plain numbers, not 10^x mathtext
     pyplot().close(fig)

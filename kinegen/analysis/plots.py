@@ -213,10 +213,10 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
     if trace:
         tip = projected(*trace)
         drawing.plot(tip[solved, 0], tip[solved, 1], "r-", lw=1.2, label=f"path of {trace[0]}.{trace[1]}", gid="path")
-        drawing.legend(loc="upper center", bbox_to_anchor=(0.5, -0.07), fontsize=8, frameon=False)  # below the drawing
     if labels[1] == "z [m]":
         drawing.axhline(0, color="saddlebrown", lw=0.8)
-    drawing.set(title=f"mechanism in {plane}", xlabel=labels[0], ylabel=labels[1], aspect="equal")
+    path_note = f"; red: the path of {trace[0]}.{trace[1]}" if trace else ""  # in the title: no legend on the drawing
+    drawing.set(title=f"mechanism in {plane}{path_note}", xlabel=labels[0], ylabel=labels[1], aspect="equal")
     drawing.margins(0.08)
     few = len(system.actuators) <= 12
     for name, (_, _, limits) in system.actuators.items():
