@@ -5,6 +5,7 @@ from __future__ import annotations
 
 import numpy as np
 from matplotlib.patches import Patch
+from scipy.spatial.transform import Rotation
 
 from kinegen.analysis.animation import animation_figure
 from kinegen.analysis.boundary import working_range_boundary
@@ -103,7 +104,8 @@ def test_the_working_range_chart_draws_the_machine_quotes_its_figures_and_keeps_
     ground = by_gid["machine:ground"].get_xy()[:-1]  # a closed polygon repeats its first vertex
     assert np.allclose(ground, np.array(excavator.ground_outline)[:, [0, 2]], atol=1e-12)
     q, _ = transport_q(system, envelope)
-    upper = system.local_positions(q, "upper", drawn["upper"])[0]
+    stored = system.body_coordinates(q, "upper")  # x, y, z, then the unit quaternion w, x, y, z
+    upper = stored[:3] + Rotation.from_quat(stored[[4, 5, 6, 3]]).apply(drawn["upper"])  # SciPy: scalar last
     expected = np.column_stack([upper[:, :2] @ boundary.direction, upper[:, 2]])
     assert np.allclose(by_gid["machine:upper"].get_xy()[:-1], expected, atol=1e-12)
     assert ax.get_legend() is None and side.get_legend() is not None

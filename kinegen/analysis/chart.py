@@ -117,13 +117,13 @@ def machine_polygons(system: NumericSystem, q: np.ndarray, direction: np.ndarray
     return out
 
 
-def _silhouette(ax, system: NumericSystem, q: np.ndarray, direction: np.ndarray, drawn: dict[str, np.ndarray]) -> list:
-    """The machine at q: bodies as filled polygons (:func:`machine_polygons`), actuators as bars;
-    the artists drawn."""
+def _silhouette(ax, system: NumericSystem, q: np.ndarray, direction: np.ndarray, polygons: dict[str, np.ndarray]) -> list:
+    """The machine at q: bodies as filled ``polygons`` (:func:`machine_polygons`), actuators as
+    bars; the artists drawn."""
     from matplotlib.patches import Polygon
 
     artists = []
-    for body, polygon in machine_polygons(system, q, direction, drawn).items():
+    for body, polygon in polygons.items():
         fixed = body not in system.bodies
         if len(polygon) >= 3:
             artists.append(ax.add_patch(Polygon(polygon, closed=True, facecolor="0.4" if fixed else "0.62", edgecolor="0.2", lw=0.8,
@@ -191,7 +191,7 @@ def working_range_figure(envelope: Envelope, boundary: Boundary, system: Numeric
     ax.fill_between([left - 5, right + 5], [0, 0], [-0.12, -0.12], color="saddlebrown", alpha=0.25, lw=0, zorder=1, label="ground")
     ax.axvline(0.0, color="0.3", lw=0.8, ls="-.", zorder=1)
     ax.annotate("swing axis", (0.0, top), xytext=(4, -4), textcoords="offset points", fontsize=8, color="0.3", va="top")
-    machine = _silhouette(ax, system, q, direction, drawn)
+    machine = _silhouette(ax, system, q, direction, polygons)
     ax.fill([], [], facecolor="0.62", edgecolor="0.2", label=f"machine ({pose})")
     ax.set(xlim=(left, right), ylim=(bottom, top), aspect="equal", xlabel="horizontal distance from the swing axis [m]",
            ylabel="height above ground [m]")  # fmt: skip

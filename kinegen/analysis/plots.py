@@ -34,6 +34,11 @@ def save(fig, path: str | Path, dpi: int = 100) -> Path:
     return path
 
 
+def legend_beside(ax, **style) -> None:
+    """The axes' legend to the right of them, top-aligned: it covers none of their data."""
+    ax.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, **style)
+
+
 def image_format(path: str | Path) -> str:
     """The image format a file name asks for (its suffix; PNG without one), ValueError if
     matplotlib cannot write it."""
@@ -150,11 +155,11 @@ def exact_conditions(results: Results) -> np.ndarray:
     along a smooth motion, unlike the 1-norm estimate's steps. NaN where a point is not solved."""
     if results.condition_kind == "exact":
         return results.conditions
+    from kinegen.runtime.linear import condition_number
+
     out = np.full(len(results.times), np.nan)
-    system = results.system
     for k in np.flatnonzero(results.converged):
-        s = np.linalg.svd(system.jacobian(results.q[k], results.inputs[k]), compute_uv=False)
-        out[k] = s[0] / s[-1] if s[-1] > 0 else np.inf
+        out[k] = condition_number(results.system.jacobian(results.q[k], results.inputs[k]))
     return out
 
 
@@ -229,7 +234,7 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
         axes["lengths"].set(title="actuator lengths (dotted: range)", ylabel="m")
         axes["rates"].set(title="extension rates", ylabel="m/s")
         if few:  # beside the panel: it covers no curve
-            axes["lengths"].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+            legend_beside(axes["lengths"], fontsize=7)
     if "omega" in axes:
         for body in system.bodies:
             rate, axis = angular_rate(results.omega(body))
@@ -237,7 +242,7 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
             axes["omega"].plot(results.times, rate, label=f"{body}, {about}")
         axes["omega"].set(title="angular velocity of each body (signed about a fixed axis)", ylabel="rad/s")
         if len(system.bodies) <= 12:
-            axes["omega"].legend(fontsize=7, loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0)
+            legend_beside(axes["omega"], fontsize=7)
     if "condition" in axes:
         axes["condition"].semilogy(results.times, exact_conditions(results), "k-")
         axes["condition"].set(title="condition number of Phi_q (2-norm: sigma_max / sigma_min)")

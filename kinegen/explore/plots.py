@@ -110,7 +110,7 @@ def exploration_figure(table, provenance: dict, pareto: tuple[str, str], maximiz
     measured, where they lie among the ok ones in the two parameters that tell them apart best
     (greyed); beside them the parameters' SRC ranking for every quantity, with its colour bar.
     Legend entries only for what is drawn. Axes carry gids: ``pareto``, ``failed``, ``ranking``."""
-    from kinegen.analysis.plots import pyplot
+    from kinegen.analysis.plots import legend_beside, pyplot
 
     plt = pyplot()
     data = {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
@@ -141,7 +141,7 @@ def exploration_figure(table, provenance: dict, pareto: tuple[str, str], maximiz
     left.set_xlabel(f"{x_label} [{quantity_unit(x_label)}] ({senses[0]})")
     left.set_ylabel(f"{y_label} [{quantity_unit(y_label)}] ({senses[1]})")
     left.set_title(f"{provenance['model']} / {provenance['study']}: {len(ok)} variants" + (f", {failed} not ok" if failed else ""))
-    left.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    legend_beside(left, fontsize=8)
     left.grid(alpha=0.3)
     if failed:
         _failed_variants(figure.add_subplot(grid[1, 0], gid="failed"), data, parameters, ok)
@@ -165,17 +165,20 @@ def _failed_variants(axes, data: dict, parameters: list[str], ok: np.ndarray) ->
     """The variants that could not be measured (grey crosses) among the ok ones (blue dots), in
     the two parameters whose values tell the two groups apart best (difference of means over
     the spread)."""
+    from kinegen.analysis.plots import legend_beside
+
     values = np.column_stack([np.asarray(data[p], dtype=float) for p in parameters])
     spread = values.std(axis=0)
     spread[spread == 0] = 1.0
     separation = np.abs(values[~ok].mean(axis=0) - values[ok].mean(axis=0)) / spread
-    a, b = (list(np.argsort(-separation)) + [0, 0])[:2] if len(parameters) > 1 else (0, 0)
+    order = np.argsort(-separation)
+    a, b = order[0], order[min(1, len(order) - 1)]  # one parameter: against itself
     axes.scatter(values[ok, a], values[ok, b], s=5, color="tab:blue", alpha=0.35, label=f"ok ({int(ok.sum())})")
     axes.scatter(values[~ok, a], values[~ok, b], s=22, marker="x", color="0.35", label=f"not ok ({int((~ok).sum())}): no measure")
     axes.set_xlabel(parameters[a])
     axes.set_ylabel(parameters[b])
     axes.set_title("where the variants that could not be measured lie", fontsize=9)
-    axes.legend(loc="upper left", bbox_to_anchor=(1.01, 1.0), borderaxespad=0.0, fontsize=8)
+    legend_beside(axes, fontsize=8)
     axes.grid(alpha=0.3)
 
 

@@ -24,6 +24,12 @@ _getrf, _getrs, _gecon, _gbtrf, _gbtrs, _gbcon = scipy.linalg.get_lapack_funcs(
 )
 
 
+def condition_number(matrix: np.ndarray) -> float:
+    """The 2-norm condition number sigma_max / sigma_min of a dense square matrix (inf if singular)."""
+    s = np.linalg.svd(matrix, compute_uv=False)
+    return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+
+
 def _one_norm(matrix: np.ndarray) -> float:
     return float(np.abs(matrix).sum(axis=0).max())
 

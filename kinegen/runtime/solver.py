@@ -193,8 +193,7 @@ class Solver:
         if kind == "none":
             return float("nan")
         if kind == "exact" or self.redundant:
-            s = np.linalg.svd(self.linear.dense(factors.values), compute_uv=False)
-            return float(s[0] / s[-1]) if s[-1] > 0 else float("inf")
+            return linear.condition_number(self.linear.dense(factors.values))
         rcond = self.linear.rcond(factors.lu, factors.values)
         return float("inf") if rcond == 0 else 1.0 / rcond
 

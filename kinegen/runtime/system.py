@@ -182,12 +182,9 @@ class NumericSystem:
         at the configurations ``q`` (K, n) of stored coordinates."""
         q = np.atleast_2d(q)
         out = np.empty((len(q), len(names), 3))
-        poses: dict[str, tuple[np.ndarray, np.ndarray]] = {}
-        for j, (body, point) in enumerate(names):
-            if body not in poses:
-                poses[body] = self.parametrization.pose(self.body_coordinates(q, body))  # (K, 3), (K, 3, 3)
-            origin, rotation = poses[body]
-            out[:, j] = origin + rotation @ np.asarray(self.points[body][point], dtype=float)
+        for body in dict.fromkeys(b for b, _ in names):
+            columns = [j for j, (b, _) in enumerate(names) if b == body]
+            out[:, columns] = self.local_positions(q, body, [self.points[body][names[j][1]] for j in columns])
         return out
 
     def local_positions(self, q: np.ndarray, body: str, local: np.ndarray) -> np.ndarray:
