@@ -26,7 +26,7 @@ run: $(BIN)/kinegen
 ## test: lint, then the whole test suite
 test: $(VENV)/.dev
 	$(BIN)/ruff check kinegen tests generated
-	$(BIN)/python -m pytest -q -n auto --maxprocesses=4
+	$(BIN)/python -m pytest -q -n auto --maxprocesses=4 --dist loadgroup
 
 ## bench: kinegen vs CasADi, SymEngine, naive SymPy, SciPy on chain-N and the excavator (BENCH_ARGS="--sizes 14 50 100")
 bench: $(VENV)/.dev

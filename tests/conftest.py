@@ -49,6 +49,23 @@ def model(name: str):
     return load(MODELS / f"{name}.yaml")
 
 
+#: tests that read :func:`excavator_working_range` run in one test process (make test distributes
+#: with --dist loadgroup), so the excavator's working range and boundary (~15 s) are computed once
+WORKING_RANGE_GROUP = pytest.mark.xdist_group(name="excavator_working_range")
+
+
+@functools.cache
+def excavator_working_range():
+    """The excavator's working_range spec, its case's system (Python functions), the working range
+    and its exact boundary. Mark a test that uses it with :data:`WORKING_RANGE_GROUP`."""
+    from kinegen.analysis.boundary import working_range_boundary
+    from kinegen.analysis.envelope import working_range
+
+    spec = model("excavator").working_range
+    system = generated_system("excavator_quaternion", spec.case)
+    return spec, system, working_range(system, spec), working_range_boundary(system, spec)
+
+
 def chain_yaml(n: int) -> str:
     """The chain-N benchmark mechanism, shortened to t in [0, 2] with 41 steps."""
     return bench_chain.chain_yaml(n, t1=2.0, steps=41)

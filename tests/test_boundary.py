@@ -13,14 +13,14 @@ import pytest
 from click.testing import CliRunner
 
 from kinegen.analysis.boundary import working_range_boundary
-from kinegen.analysis.envelope import FrontSwing, working_range
+from kinegen.analysis.envelope import FrontSwing
 from kinegen.cli import main
 from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import ExitCode
 from kinegen.model import loads
 from kinegen.rotations import get
 from kinegen.runtime import from_module
-from tests.conftest import generated_system, model
+from tests.conftest import WORKING_RANGE_GROUP, excavator_working_range
 from tests.excavator_reference import planar_pins
 from tests.test_envelope import RANGES, closed_form_optimum
 
@@ -28,17 +28,16 @@ from tests.test_envelope import RANGES, closed_form_optimum
 ON_BOUNDARY = ("max_reach", "max_reach_at_ground", "max_depth", "max_cutting_height")
 
 
-@pytest.fixture(scope="module")
+@pytest.fixture
 def excavator():
-    spec = model("excavator").working_range
-    system = generated_system("excavator_quaternion", spec.case)
-    return spec, system, working_range(system, spec), working_range_boundary(system, spec)
+    return excavator_working_range()
 
 
 def _chart(pins: dict, name: str) -> tuple[float, float]:
     return float(pins[name][0]), float(pins[name][1])
 
 
+@WORKING_RANGE_GROUP
 def test_every_printed_figure_is_on_or_inside_the_drawn_boundary(excavator):
     _, system, envelope, boundary = excavator
     from kinegen.analysis.chart import figure_marks
@@ -63,6 +62,7 @@ def test_every_printed_figure_is_on_or_inside_the_drawn_boundary(excavator):
     assert boundary.chord_error < 1e-4
 
 
+@WORKING_RANGE_GROUP
 def test_boundary_points_are_exact_solutions_of_the_planar_closed_form(excavator):
     _, _, _, boundary = excavator
     rng = np.random.default_rng(3)
@@ -76,6 +76,7 @@ def test_boundary_points_are_exact_solutions_of_the_planar_closed_form(excavator
         assert np.all(boundary.inputs[k] >= RANGES[:, 0] - 1e-12) and np.all(boundary.inputs[k] <= RANGES[:, 1] + 1e-12)
 
 
+@WORKING_RANGE_GROUP
 def test_every_reachable_tip_lies_inside_the_boundary_and_the_boundary_is_tight(excavator):
     _, _, _, boundary = excavator
     rng = np.random.default_rng(5)
@@ -91,6 +92,7 @@ def test_every_reachable_tip_lies_inside_the_boundary_and_the_boundary_is_tight(
     assert np.all(boundary.inputs >= RANGES[:, 0] - 1e-12) and np.all(boundary.inputs <= RANGES[:, 1] + 1e-12)
 
 
+@WORKING_RANGE_GROUP
 def test_new_figures_match_the_closed_form(excavator):
     _, _, envelope, _ = excavator
     depth = -closed_form_optimum(lambda p: p["T"][1], lambda p: p["E"][0] - p["Q"][0])

@@ -8,13 +8,11 @@ from matplotlib.patches import Patch
 from scipy.spatial.transform import Rotation
 
 from kinegen.analysis.animation import animation_figure
-from kinegen.analysis.boundary import working_range_boundary
 from kinegen.analysis.chart import outlines, transport_q, working_range_figure
-from kinegen.analysis.envelope import working_range
 from kinegen.analysis.plots import _in_frame, pyplot
 from kinegen.analysis.view import _BARREL, _OUT, _ROD, cylinder
 from kinegen.runtime import solve
-from tests.conftest import generated_system, model
+from tests.conftest import WORKING_RANGE_GROUP, excavator_working_range, generated_system, model
 
 
 def _bbox(artist, renderer):
@@ -61,6 +59,7 @@ def test_the_animation_draws_each_cylinder_as_barrel_and_rod_red_out_of_range_wi
     pyplot().close(fig)
 
 
+@WORKING_RANGE_GROUP
 def test_the_working_range_chart_draws_the_machine_quotes_its_figures_and_keeps_its_labels_off_the_drawing():
     """The excavator's chart: every dimension line runs from the swing axis (horizontal figures) or
     the ground (vertical ones) to exactly the figure it quotes; the letters overlap neither each
@@ -69,10 +68,7 @@ def test_the_working_range_chart_draws_the_machine_quotes_its_figures_and_keeps_
     transport pose), projected; no horizontal dimension lies on the ground band; the legend is
     beside the drawing, and the drawing is sized to its content (equal scales, no blank band)."""
     excavator = model("excavator")
-    spec = excavator.working_range
-    system = generated_system("excavator_quaternion", spec.case)
-    envelope = working_range(system, spec)
-    boundary = working_range_boundary(system, spec)
+    _, system, envelope, boundary = excavator_working_range()
     drawn = outlines(excavator)
     assert set(drawn) == {"ground", "upper"}
     fig = working_range_figure(envelope, boundary, system, boundary.direction, drawn)
