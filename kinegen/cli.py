@@ -272,6 +272,9 @@ def _system(
 )
 @click.option("--view", is_flag=True, help="Also write the motion in 3-D as a self-contained HTML page, beside --out (or in out/).")
 @click.option("--force", is_flag=True, help="Solve even when the results would take more than half the memory available.")
+@click.option("--load", "loads", multiple=True, metavar="NAME",
+              help="A load of the model the machine holds (repeatable): report the actuation forces, the cylinder pressures "
+              "against their relief and holding settings, and the joint reactions (columns added to --out).")  # fmt: skip
 @GENERATED_DIR
 def solve(
     model_file: str,
@@ -290,10 +293,11 @@ def solve(
     sensitivities: str | None,
     view: bool,
     force: bool,
+    loads: tuple[str, ...],
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time; every time point where an
-    actuator leaves its range is reported."""
+    actuator leaves its range is reported. With --load, also the forces that hold the loads."""
     from kinegen.runtime import SolverOptions
     from kinegen.runtime import solve as run
 
@@ -301,6 +305,9 @@ def solve(
     model, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
     _check_memory(system, steps or system.steps, force)
     point = _named_point(system, track)
+    unknown = [name for name in loads if name not in model.loads]
+    if unknown:
+        raise click.BadParameter(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})", param_hint="--load")
     if plot:
         _check_frame(system, frame_body)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
@@ -317,8 +324,14 @@ def solve(
         f"max {results.iterations[done].max()}, max |Phi| {results.residuals[done].max():.1e}, {elapsed:.3f} s",
         err=piped,
     )
+    held = None
+    if loads and results.complete:
+        from kinegen.forces import forces
+
+        held = forces(results, model, loads)
+        _report_forces(held, piped)
     if out:
-        written = results.to_csv(out)
+        written = results.to_csv(out, held.table() if held is not None else None)
         if not piped:
             click.echo(f"wrote {written}")
     if sensitivities:
@@ -393,6 +406,37 @@ def _picture_plane(results, model, frame_body: str | None, point: tuple[str, str
 
     track = point or tracked_point(results, model)
     return track, frame_body if frame_body is not None else best_frame(results, track)
+
+
+def _report_forces(held, piped: bool) -> None:
+    """The peak of every actuation force and cylinder pressure, the largest pin reactions, and
+    every pressure beyond its relief or holding setting."""
+    times = held.results.times
+    click.echo(f"forces holding {', '.join(held.loads)}:", err=piped)
+    for k, element in enumerate(held.elements):
+        values = held.force[:, k]
+        i = int(np.argmax(np.abs(values)))
+        scale, unit = 1e3, "kN m" if element.unit == "N m" else "kN"
+        low, high = (round(float(x) / scale, 2) + 0.0 for x in (values.min(), values.max()))  # + 0.0: no "-0.00"
+        line = f"  {element.name:<20} {low:10.2f} .. {high:8.2f} {unit}, peak at t = {times[i]:g} s"
+        pressure = held.pressures.get(element.name)
+        if pressure is not None:
+            j = int(np.argmax(pressure.pressure / pressure.limit))
+            line += (f"; pressure up to {pressure.pressure[j] / 1e6:.1f} MPa ({'cap' if pressure.cap_side[j] else 'rod'} side) "
+                     f"of {pressure.limit[j] / 1e6:.1f} MPa {'relief' if pressure.working[j] else 'holding'}")  # fmt: skip
+        click.echo(line, err=piped)
+    peaks = sorted(((float(np.linalg.norm(r.force, axis=1).max()), name) for name, r in held.reactions.items()), reverse=True)
+    click.echo("  largest pin forces: " + ", ".join(f"{name} {value / 1e3:.1f} kN" for value, name in peaks[:4]), err=piped)
+    by_actuator: dict[str, list] = {}
+    for t, name, value, limit, what in held.violations():
+        by_actuator.setdefault(name, []).append((t, value, limit, what))
+    for name, hits in by_actuator.items():
+        worst = max(hits, key=lambda h: h[1] / h[2])
+        click.echo(
+            f"PRESSURE: {name} beyond its setting at {len(hits)} of {len(times)} time points, t = {hits[0][0]:g} .. {hits[-1][0]:g} s; "
+            f"worst {worst[1] / 1e6:.1f} MPa against {worst[2] / 1e6:.1f} MPa ({worst[3]}) at t = {worst[0]:g} s",
+            err=piped,
+        )
 
 
 def _report_ranges(results) -> None:

@@ -22,6 +22,7 @@ import kinegen.model.expressions as expressions
 from kinegen.errors import ExpressionError, KinegenError, ModelError, shown
 from kinegen.files import STDIN, read_bounded
 from kinegen.model.expressions import compact
+from kinegen.model.forces import check_actuation, read_hydraulics, read_loads, read_motors, read_tool_points
 from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS
 from kinegen.model.schema import (
     GROUND,
@@ -340,6 +341,9 @@ class _Reader:
                 "bodies",
                 "joints",
                 "actuators",
+                "motors",
+                "tool_points",
+                "loads",
                 "drivers",
                 "cases",
                 "working_range",
@@ -375,6 +379,10 @@ class _Reader:
         for key, value in joints.items():
             self.joints[key] = self.joint(self.name(key, f"joints.{key}"), value)
         actuators = self.actuators(top.get("actuators"))
+        motors = read_motors(self, top.get("motors"))
+        check_actuation(self, motors, actuators)
+        tool_points = read_tool_points(self, top.get("tool_points"))
+        loads = read_loads(self, top.get("loads"), tool_points)
         common = self.drivers(top.get("drivers"), "drivers")
         cases = self.cases(top.get("cases"), common)
         working_range = self.working_range(top.get("working_range"), cases) if "working_range" in top else None
@@ -395,6 +403,9 @@ class _Reader:
             ground_outline=ground_outline,
             design=tuple(self.design.values()),
             studies=studies,
+            motors=motors,
+            tool_points=tool_points,
+            loads=loads,
         )
 
     def read_design(self, value: Any) -> None:
@@ -654,7 +665,7 @@ class _Reader:
         for key, spec in self.mapping(value, "actuators", tuple(_keys(value))).items():
             entry = f"actuators.{key}"
             self.name(key, entry)
-            spec = self.mapping(spec, entry, ("points", "range"), ("points",))
+            spec = self.mapping(spec, entry, ("points", "range", "hydraulics"), ("points",))
             refs = spec["points"]
             if not isinstance(refs, (list, tuple)) or len(refs) != 2:
                 raise self.fail(f"{entry}.points", "expected two points 'body.point'")
@@ -668,7 +679,8 @@ class _Reader:
                 low, high = (self.value(x) for x in limits)
                 if not 0 <= low < high:
                     raise self.fail(f"{entry}.range", f"expected 0 <= min < max, got [{low}, {high}]")
-            result.append(Actuator(key, (p1, p2), limits))
+            hydraulics = read_hydraulics(self, spec["hydraulics"], f"{entry}.hydraulics") if "hydraulics" in spec else None
+            result.append(Actuator(key, (p1, p2), limits, hydraulics))
         return tuple(result)
 
     def working_range(self, value: Any, cases: dict) -> WorkingRange:

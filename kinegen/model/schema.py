@@ -115,16 +115,68 @@ def design_gradient(expr: Any, names: Sequence[str], design: Mapping[str, float]
 
 
 @dataclass(frozen=True)
+class Hydraulics:
+    """A hydraulic cylinder's data (``hydraulics:`` of an actuator). Diameters in m, pressures in Pa.
+
+    A pushing force (the actuator extends against its load) is carried by the cap side, area
+    pi/4 bore^2; a pulling force by the rod side, the annulus pi/4 (bore^2 - rod^2). ``relief``
+    is the pressure the circuit's relief valve allows when this cylinder does the work, per
+    side as (extend = cap side, retract = rod side); ``holding`` the port relief pressure that
+    limits it when another cylinder does the work and this one holds (same order). ``cylinders``
+    identical cylinders in parallel share the force (the model drives one of them).
+    """
+
+    bore: sp.Expr
+    rod: sp.Expr
+    relief: tuple[sp.Expr, sp.Expr]
+    holding: tuple[sp.Expr, sp.Expr]
+    cylinders: int = 1
+
+    def areas(self, design: Mapping[str, float] | None = None) -> tuple[float, float]:
+        """(cap side, rod side) areas of all the cylinders together [m^2] at ``design``."""
+        bore, rod = design_value(self.bore, design), design_value(self.rod, design)
+        return self.cylinders * np.pi / 4 * bore**2, self.cylinders * np.pi / 4 * (bore**2 - rod**2)
+
+
+@dataclass(frozen=True)
 class Actuator:
     """A length between two body points that a run reports (e.g. a hydraulic cylinder).
 
     ``range`` is its allowed (min, max) length, exact (it may use design parameters: a
-    cylinder's retracted length); leaving it is reported, not an error.
+    cylinder's retracted length); leaving it is reported, not an error. With ``hydraulics`` it
+    carries load: its force (pushing positive) is one of the model's actuation forces.
     """
 
     name: str
     points: tuple[PointRef, PointRef]
     range: tuple[sp.Expr, sp.Expr] | None = None
+    hydraulics: Hydraulics | None = None
+
+    def limits(self, design: Mapping[str, float] | None = None) -> tuple[float, float] | None:
+        """``range`` as numbers at the design values ``design`` (see :func:`design_value`)."""
+        return None if self.range is None else (design_value(self.range[0], design), design_value(self.range[1], design))
+
+
+@dataclass(frozen=True)
+class Motor:
+    """A rotary actuator at a revolute (or cylindrical) joint: it carries the torque about the
+    joint's axis that turns ``joint``'s second body relative to its first (positive about axis1)."""
+
+    name: str
+    joint: str
+
+
+@dataclass(frozen=True)
+class Load:
+    """A force [N] and moment [N m] applied to the machine at a body point (``loads:``), each a
+    3-vector of exact expressions of t, in global axes or (``axes`` = the body's name) in the
+    body's axes. The machine holds it: the actuation forces balance it."""
+
+    name: str
+    point: PointRef
+    force: Vector
+    moment: Vector
+    axes: str = GROUND  #: "ground": global axes; else the name of the point's body
 
     def limits(self, design: Mapping[str, float] | None = None) -> tuple[float, float] | None:
         """``range`` as numbers at the design values ``design`` (see :func:`design_value`)."""
@@ -302,6 +354,15 @@ class Model:
     #: parameters kept symbolic in the geometry (empty: every geometry value is a number)
     design: tuple[DesignParameter, ...] = ()
     studies: dict[str, Study] = field(default_factory=dict)  #: design studies by name
+    motors: tuple[Motor, ...] = ()  #: rotary actuators (a swing motor)
+    tool_points: dict[str, PointRef] = field(default_factory=dict)  #: named tool points (a bucket's lip)
+    loads: dict[str, Load] = field(default_factory=dict)  #: named loads on the machine
+
+    @property
+    def actuation(self) -> tuple[Actuator | Motor, ...]:
+        """What carries the machine's load: the motors, then the actuators with hydraulic data
+        (empty: the model declares none, and each case's drivers carry it)."""
+        return (*self.motors, *(a for a in self.actuators if a.hydraulics is not None))
 
     def at(self, values: Mapping[str, float] | None = None) -> Model:
         """This model with its design parameters replaced by numbers: ``values`` (by name; a

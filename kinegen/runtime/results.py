@@ -319,9 +319,13 @@ class Results:
         write_atomic(path, json.dumps(document))
         return path
 
-    def to_csv(self, path: str | Path) -> Path:
-        """Write every time history to a CSV file (one row per time point)."""
-        return self._write_csv(path, *self.table())
+    def to_csv(self, path: str | Path, extra: tuple[list[str], np.ndarray] | None = None) -> Path:
+        """Write every time history to a CSV file (one row per time point); ``extra``: more
+        columns (names, values (K, n)) after them, e.g. the forces of :mod:`kinegen.forces`."""
+        names, values = self.table()
+        if extra is not None:
+            names, values = names + list(extra[0]), np.hstack([values, extra[1]])
+        return self._write_csv(path, names, values)
 
     def _write_csv(self, path: str | Path, names: list[str], values: np.ndarray) -> Path:
         """The table as CSV into ``path`` (``-``: standard output), all or nothing: a full disk

@@ -1,0 +1,416 @@
+"""The forces that hold loads on a mechanism along a solved motion, by virtual work: Φ_qᵀ λ = Q.
+
+Conventions (SI: N, N m, Pa; global axes unless a field says otherwise):
+
+* **Tangent maps.** A body's velocity coordinates v_b give its origin's velocity and its
+  angular velocity linearly, [ṙ; ω] = T_b(q) v_b; T_b is the parametrization's own map
+  (``frame_velocity``) at unit velocities, so it is exact in every parametrization. A point P
+  of the body at the global arm s from its origin moves with J_P = T_v + ω(·) × s.
+* **Loads.** A force F at P and a moment M on a body do the virtual work (F·J_P + M·T_ω) δv:
+  their generalized force Q.
+* **Rows.** The joint rows of Φ_q and one row per *actuation element*: an actuator's length L
+  (its row is dL/dv), a motor's joint angle θ (dθ/dv = a·(T_ω2 − T_ω1), a the joint axis), or,
+  for a model that declares neither, each case driver's own row. The constraint forces are
+  −Φ_qᵀ λ; equilibrium with the loads is Φ_qᵀ λ = Q, one linear solve per time point.
+* **Element forces** f = −λ: an actuator's push [N] (positive pushes its two points apart), a
+  motor's torque [N m] on the joint's second body about its axis (positive turns it positively
+  relative to the first), a driver's generalized force along its input (N for lengths and
+  coordinates, N m for angles).
+* **Power.** For any motion the joints allow, Σ f_e ė_e + Σ_loads (F·v_P + M·ω) = 0: the
+  elements do the work the loads take.
+* **Reactions.** The force and moment the joint's first body exerts on its second, the moment
+  about the joint's point on the second body; also in the joint's axes (x: its reference
+  direction, z: its axis, both turning with the first body; a joint without an axis: the first
+  body's axes).
+* **Pressures.** A pushing cylinder is pressurized on its cap side (all ``cylinders`` of the
+  actuator together, area n π/4 bore²), a pulling one on its rod side (n π/4 (bore² − rod²)).
+  The pressure is limited by the circuit's relief setting while the cylinder moves with its
+  force (f·L̇ > 0: the pump does the work), else by the holding (port relief) setting.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from functools import cached_property
+
+import numpy as np
+import sympy as sp
+
+from kinegen.errors import KinegenError, SingularJacobianError
+from kinegen.model import Model
+from kinegen.model.expressions import T
+from kinegen.model.schema import GROUND, Actuator, Joint, Load, Motor, design_value
+from kinegen.runtime.results import Results
+
+
+@dataclass(frozen=True)
+class Element:
+    """One actuation element: what carries the load along one degree of freedom."""
+
+    name: str
+    kind: str  #: "actuator" (a length), "motor" (a joint angle) or "driver" (a case's driver)
+    unit: str  #: of its force: "N" or "N m"
+
+
+@dataclass(frozen=True)
+class Reaction:
+    """A joint's reaction over time: what ``body1`` exerts on ``body2``."""
+
+    joint: str
+    body1: str
+    body2: str
+    point: np.ndarray  #: (K, 3) where the moment is taken: the joint's point on body2
+    force: np.ndarray  #: (K, 3) [N]
+    moment: np.ndarray  #: (K, 3) [N m] about ``point``
+    axes: np.ndarray  #: (K, 3, 3) the joint's axes as columns (x, y, z), global
+
+    @property
+    def joint_force(self) -> np.ndarray:
+        """The force in the joint's axes, (K, 3)."""
+        return np.einsum("kji,kj->ki", self.axes, self.force)
+
+    @property
+    def joint_moment(self) -> np.ndarray:
+        """The moment in the joint's axes, (K, 3)."""
+        return np.einsum("kji,kj->ki", self.axes, self.moment)
+
+
+@dataclass(frozen=True)
+class Pressure:
+    """A hydraulic actuator's working pressure over time and the limit it meets."""
+
+    actuator: str
+    pressure: np.ndarray  #: (K,) [Pa] on the side that carries the force
+    cap_side: np.ndarray  #: (K,) True where it pushes (cap side), False where it pulls (rod side)
+    limit: np.ndarray  #: (K,) [Pa] the relief setting where it works, the holding setting where it holds
+    working: np.ndarray  #: (K,) True where the cylinder moves with its force (f L' > 0)
+
+    @property
+    def exceeded(self) -> np.ndarray:
+        """(K,) True where the pressure is beyond its limit."""
+        return self.pressure > self.limit
+
+
+@dataclass
+class Forces:
+    """The forces holding ``loads`` along a solved motion (see the module docstring)."""
+
+    results: Results
+    loads: tuple[str, ...]
+    elements: tuple[Element, ...]
+    force: np.ndarray  #: (K, n_elements) element forces [N or N m]
+    multipliers: np.ndarray  #: (K, rows) λ of the rows: the joint rows, then the elements
+    row_names: tuple[str, ...]
+    reactions: dict[str, Reaction]
+    pressures: dict[str, Pressure] = field(default_factory=dict)
+    #: (K, n_v) the loads' generalized force Q
+    generalized_load: np.ndarray | None = None
+
+    def element_force(self, name: str) -> np.ndarray:
+        """The force of one element over time, (K,)."""
+        names = [e.name for e in self.elements]
+        if name not in names:
+            raise KeyError(f"no actuation element {name!r} (elements: {', '.join(names)})")
+        return self.force[:, names.index(name)]
+
+    def violations(self) -> list[tuple[float, str, float, float, str]]:
+        """(time, actuator, pressure, limit, what) where a pressure is beyond its relief or holding setting."""
+        found = []
+        for name, p in self.pressures.items():
+            for k in np.flatnonzero(p.exceeded):
+                side = "cap" if p.cap_side[k] else "rod"
+                found.append((float(self.results.times[k]), name, float(p.pressure[k]), float(p.limit[k]),
+                              f"{'relief' if p.working[k] else 'holding'} setting, {side} side"))  # fmt: skip
+        return sorted(found)
+
+    def table(self) -> tuple[list[str], np.ndarray]:
+        """Column names and values (one row per time point) of the force export."""
+        names, columns = [], []
+        for k, element in enumerate(self.elements):
+            names.append(f"{element.name}.force")
+            columns.append(self.force[:, k : k + 1])
+        for name, p in self.pressures.items():
+            names += [f"{name}.pressure", f"{name}.pressure_limit"]
+            columns.append(np.c_[np.where(p.cap_side, p.pressure, -p.pressure), p.limit])
+        for name, r in self.reactions.items():
+            for label, values in (("force", r.force), ("moment", r.moment), ("joint_force", r.joint_force), ("joint_moment", r.joint_moment)):
+                names += [f"{name}.{label}_{c}" for c in "xyz"]
+                columns.append(values)
+        names += [f"lambda.{row}" for row in self.row_names]
+        columns.append(self.multipliers)
+        return names, np.hstack(columns)
+
+
+def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -> Forces:
+    """The forces that hold the model's named ``loads`` at every solved time point of ``results``
+    (a motion of ``model``; its time points must all have converged)."""
+    unknown = [name for name in loads if name not in model.loads]
+    if unknown:
+        raise KeyError(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})")
+    if not results.complete:
+        raise KinegenError("forces need every time point solved; this solve stopped early")
+    statics = _Statics(results, model)
+    q_load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), statics.n_v)))
+    matrix = statics.matrix()
+    multipliers = statics.solve(matrix, q_load)
+    elements = statics.elements
+    force = multipliers[:, statics.joint_rows :] * statics.input_gains()
+    reactions = {joint.name: statics.reaction(joint, matrix, multipliers) for joint in model.joints}
+    pressures = {}
+    for k, element in enumerate(elements):
+        actuator = statics.actuators.get(element.name)
+        if actuator is not None and actuator.hydraulics is not None:
+            pressures[element.name] = statics.pressure(actuator, force[:, k])
+    return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load)
+
+
+class _Statics:
+    """The numbers one force solve needs at every time point of ``results``."""
+
+    def __init__(self, results: Results, model: Model) -> None:
+        self.results = results
+        self.model = model
+        self.system = results.system
+        self.n_v = self.system.n_velocity
+        self.actuators = {a.name: a for a in model.actuators}
+        self.joints = {j.name: j for j in model.joints}
+        self.declared: tuple[Actuator | Motor, ...] = model.actuation
+        #: the joint (and normalization) rows come first in every case, then one row per driver
+        self.joint_rows = len(self.system.constraint_names) - len(self.system.driver_names)
+
+    @cached_property
+    def elements(self) -> tuple[Element, ...]:
+        if not self.declared:
+            units = {"joint_angle": "N m", "body_angle": "N m"}
+            kinds = {d.name: d.type for d in self.model.cases[self.system.case].drivers}
+            return tuple(Element(name, "driver", units.get(kinds.get(name, ""), "N")) for name in self.system.driver_names)
+        return tuple(Element(e.name, "motor", "N m") if isinstance(e, Motor) else Element(e.name, "actuator", "N") for e in self.declared)
+
+    @cached_property
+    def row_names(self) -> tuple[str, ...]:
+        return (*self.system.constraint_names[: self.joint_rows], *(e.name for e in self.elements))
+
+    def input_gains(self) -> np.ndarray:
+        """(K, n_elements) dPhi_e/du_e of each element's row by its input: an element's force along
+        its input is f = λ dPhi/du (the row's constraint force -λ Phi_q does the work f du, as
+        Phi_q dq + Phi_u du = 0 along it). -1 for the declared elements (rows L - u, θ - u); for a
+        case's drivers, -nu at a unit input rate (nu = -Phi_u u' exactly: a driver's row depends on
+        time only through its input)."""
+        k_points, n = len(self.results.times), len(self.elements)
+        if self.declared:
+            return -np.ones((k_points, n))
+        out = np.empty((k_points, n))
+        rate = np.zeros(n)
+        for k in range(k_points):
+            for j in range(n):
+                rate[:] = 0.0
+                rate[j] = 1.0
+                out[k, j] = -self.system.velocity_rhs(self.results.q[k], self.results.inputs[k], rate)[self.joint_rows + j]
+        return out
+
+    # ---- kinematic maps --------------------------------------------------------------
+    @cached_property
+    def tangents(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per body: (T_v, T_ω), each (K, 3, n_v of the body): [ṙ; ω] = T v_b."""
+        p = self.system.parametrization
+        out = {}
+        for body in self.system.bodies:
+            q = self.system.body_coordinates(self.results.q, body)
+            unit = np.zeros((len(q), p.nv))
+            tv, tw = np.empty((len(q), 3, p.nv)), np.empty((len(q), 3, p.nv))
+            for k in range(p.nv):
+                unit[:] = 0.0
+                unit[:, k] = 1.0
+                tv[:, :, k], tw[:, :, k] = p.frame_velocity(q, unit)
+            out[body] = tv, tw
+        return out
+
+    @cached_property
+    def poses(self) -> dict[str, tuple[np.ndarray, np.ndarray]]:
+        """Per body: origin (K, 3) and rotation matrix (K, 3, 3)."""
+        p = self.system.parametrization
+        return {body: p.pose(self.system.body_coordinates(self.results.q, body)) for body in self.system.bodies}
+
+    def columns(self, body: str) -> slice:
+        offset = self.system.bodies[body][1]
+        return slice(offset, offset + self.system.parametrization.nv)
+
+    def rotation(self, body: str) -> np.ndarray:
+        if body == GROUND:
+            return np.broadcast_to(np.eye(3), (len(self.results.times), 3, 3))
+        return self.poses[body][1]
+
+    def position(self, body: str, local: np.ndarray) -> np.ndarray:
+        """Global positions (K, 3) of a point given in ``body``'s coordinates."""
+        return self.system.local_positions(self.results.q, body, np.asarray(local, dtype=float)[None, :])[:, 0]
+
+    def point_jacobian(self, body: str, point: np.ndarray) -> np.ndarray:
+        """J_P (K, 3, n_v of the body) of the point at global position ``point`` (K, 3) moving with ``body``."""
+        tv, tw = self.tangents[body]
+        arm = point - self.poses[body][0]
+        return tv + np.cross(tw.swapaxes(1, 2), arm[:, None, :]).swapaxes(1, 2)
+
+    def local(self, body: str, name: str) -> np.ndarray:
+        points = self.system.ground_points if body == GROUND else self.system.points[body]
+        return np.asarray(points[name], dtype=float)
+
+    def design_vector(self, vector) -> np.ndarray:
+        return np.array([design_value(x, self.system.design) for x in vector], dtype=float)
+
+    # ---- the matrix and its solve ----------------------------------------------------
+    def matrix(self) -> np.ndarray:
+        """Φ_q of the joint rows with the elements' rows, (K, rows, n_v)."""
+        results, system = self.results, self.system
+        k_points = len(results.times)
+        rows = self.joint_rows + len(self.elements)
+        out = np.zeros((k_points, rows, self.n_v))
+        for k in range(k_points):
+            jacobian = system.jacobian(results.q[k], results.inputs[k])
+            out[k, : self.joint_rows if self.declared else rows] = jacobian[: self.joint_rows if self.declared else rows]
+        for i, element in enumerate(self.declared):
+            row = out[:, self.joint_rows + i]
+            if isinstance(element, Motor):
+                self._motor_row(element, row)
+            else:
+                self._actuator_row(element, row)
+        return out
+
+    def _actuator_row(self, actuator: Actuator, row: np.ndarray) -> None:
+        """dL/dv of an actuator's length L = |P1 - P2|: e.(J_P1 - J_P2), e the unit vector P2 -> P1."""
+        ends = [(ref.body, self.position(ref.body, self.local(ref.body, ref.name))) for ref in actuator.points]
+        gap = ends[0][1] - ends[1][1]
+        direction = gap / np.linalg.norm(gap, axis=1)[:, None]
+        for sign, (body, point) in zip((1.0, -1.0), ends):
+            if body != GROUND:
+                row[:, self.columns(body)] += sign * np.einsum("ki,kij->kj", direction, self.point_jacobian(body, point))
+
+    def _motor_row(self, motor: Motor, row: np.ndarray) -> None:
+        """dθ/dv of a joint angle: a.(T_ω2 - T_ω1), a the joint's axis (turning with its first body)."""
+        joint = self.joints[motor.joint]
+        axis = np.einsum("kij,j->ki", self.rotation(joint.body1), self.design_vector(joint.axis1))
+        for sign, body in ((1.0, joint.body2), (-1.0, joint.body1)):
+            if body != GROUND:
+                row[:, self.columns(body)] += sign * np.einsum("ki,kij->kj", axis, self.tangents[body][1])
+
+    def solve(self, matrix: np.ndarray, load: np.ndarray) -> np.ndarray:
+        """λ with Φ_qᵀ λ = Q at every time point; a singular Φ_q names the time and the dependent rows."""
+        rows, cols = matrix.shape[1:]
+        if rows != cols:
+            raise KinegenError(f"forces need a square Phi_q: {self.joint_rows} joint rows and {len(self.elements)} actuation "
+                               f"elements make {rows} rows for {cols} velocity coordinates")  # fmt: skip
+        try:
+            multipliers = np.linalg.solve(matrix.swapaxes(1, 2), load[:, :, None])[:, :, 0]
+        except np.linalg.LinAlgError:
+            multipliers = None
+        scale = np.abs(matrix).max(axis=(1, 2))
+        if multipliers is None or not np.isfinite(multipliers).all():
+            self._singular(matrix, int(np.argmax(~np.isfinite(multipliers).all(axis=1))) if multipliers is not None else None)
+        smallest = np.linalg.svd(matrix, compute_uv=False)[:, -1]
+        bad = np.flatnonzero(smallest <= 1e-10 * scale)
+        if bad.size:
+            self._singular(matrix, int(bad[0]))
+        return multipliers
+
+    def _singular(self, matrix: np.ndarray, k: int | None) -> None:
+        from kinegen.runtime.solver import describe_combination
+
+        if k is None:
+            k = int(np.argmin(np.linalg.svd(matrix, compute_uv=False)[:, -1]))
+        u, s, vt = np.linalg.svd(matrix[k])
+        rank = int(np.sum(s > 1e-10 * s[0]))
+        dependent = sorted({self.row_names[i] for j in range(rank, len(s)) for i in np.flatnonzero(np.abs(u[:, j]) > 1e-6)})
+        null = [describe_combination(vt[j], self.system.velocity_names) for j in range(rank, len(s))]
+        raise SingularJacobianError(float(self.results.times[k]), rank, matrix[k].shape, dependent, null,
+                                    "the actuation cannot hold the load here: a force is undetermined")  # fmt: skip
+
+    # ---- loads, reactions, pressures ---------------------------------------------------
+    def generalized_load(self, load: Load) -> np.ndarray:
+        """Q (K, n_v) of one load."""
+        times = self.results.times
+        body = load.point.body
+        rotation = self.rotation(load.axes)
+        force = np.einsum("kij,kj->ki", rotation, _time_vector(load.force, times))
+        moment = np.einsum("kij,kj->ki", rotation, _time_vector(load.moment, times))
+        point = self.position(body, self.local(body, load.point.name))
+        out = np.zeros((len(times), self.n_v))
+        out[:, self.columns(body)] = np.einsum("kij,ki->kj", self.point_jacobian(body, point), force) + np.einsum(
+            "kij,ki->kj", self.tangents[body][1], moment
+        )
+        return out
+
+    def _wrench(self, body: str, generalized: np.ndarray, matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """(F, M about the body's origin) whose generalized force on ``body`` is ``generalized`` (K, n_v).
+
+        A wrench w does the work w.(T_b v_b) for the velocities the body's normalization rows N_b
+        allow (N_b v_b = 0), so g = T_bᵀ w + N_bᵀ μ; T_b (6 rows) and N_b (one row per stored
+        coordinate beyond six) make a square system."""
+        tv, tw = self.tangents[body]
+        columns = self.columns(body)
+        norms = [i for i, name in enumerate(self.row_names[: self.joint_rows]) if name.startswith(f"{body}.norm")]
+        square = np.concatenate([tv, tw, matrix[:, norms, columns]], axis=1)  # (K, n_v of the body, n_v of the body)
+        w = np.linalg.solve(square.swapaxes(1, 2), generalized[:, columns, None])[:, :, 0]
+        return w[:, :3], w[:, 3:6]
+
+    def reaction(self, joint: Joint, matrix: np.ndarray, multipliers: np.ndarray) -> Reaction:
+        """What ``joint``'s first body exerts on its second, from the joint's rows and multipliers."""
+        rows = [i for i, name in enumerate(self.row_names[: self.joint_rows]) if _joint_of(name) == joint.name]
+        generalized = -np.einsum("kri,kr->ki", matrix[:, rows], multipliers[:, rows])
+        local2 = joint.point2 if joint.point2 is not None else [0, 0, 0]
+        point = self.position(joint.body2, self.design_vector(local2))
+        if joint.body2 != GROUND:
+            force, moment = self._wrench(joint.body2, generalized, matrix)
+            origin = self.poses[joint.body2][0]
+        else:  # the ground's side is the opposite of what it exerts on the first body
+            force, moment = self._wrench(joint.body1, generalized, matrix)
+            force, moment = -force, -moment
+            origin = self.poses[joint.body1][0]
+        moment = moment - np.cross(point - origin, force)
+        return Reaction(joint.name, joint.body1, joint.body2, point, force, moment, self._joint_axes(joint))
+
+    def _joint_axes(self, joint: Joint) -> np.ndarray:
+        """Columns (x, y, z) of the joint's axes, global: z its axis, x its reference direction."""
+        rotation = self.rotation(joint.body1)
+        if joint.axis1 is None:
+            return np.array(rotation)
+        z = self.design_vector(joint.axis1)
+        z = z / np.linalg.norm(z)
+        if joint.reference1 is not None:
+            x = self.design_vector(joint.reference1)
+        else:
+            helper = np.eye(3)[int(np.argmin(np.abs(z)))]
+            x = helper - z * (helper @ z)
+        x = x / np.linalg.norm(x)
+        local = np.column_stack([x, np.cross(z, x), z])
+        return rotation @ local
+
+    def pressure(self, actuator: Actuator, force: np.ndarray) -> Pressure:
+        """The pressure on the side that carries ``force`` (K,) and the limit it meets."""
+        hydraulics = actuator.hydraulics
+        assert hydraulics is not None
+        design = self.system.design
+        cap, annulus = hydraulics.areas(design)
+        pushing = force >= 0
+        pressure = np.where(pushing, force / cap, -force / annulus)
+        rate = self.results.actuator_rate(actuator.name)
+        working = force * rate > 0
+        relief = [design_value(x, design) for x in hydraulics.relief]
+        holding = [design_value(x, design) for x in hydraulics.holding]
+        limit = np.where(working, np.where(pushing, relief[0], relief[1]), np.where(pushing, holding[0], holding[1]))
+        return Pressure(actuator.name, pressure, pushing, limit, working)
+
+
+def _joint_of(row: str) -> str:
+    """The joint a joint row belongs to (``boom_foot.x`` -> ``boom_foot``); a body's normalization row -> ''."""
+    name, _, rest = row.partition(".")
+    return "" if rest.startswith("norm") else name
+
+
+def _time_vector(vector: sp.ImmutableMatrix, times: np.ndarray) -> np.ndarray:
+    """A 3-vector of exact functions of t at ``times``, (K, 3)."""
+    out = np.empty((len(times), 3))
+    for i, expr in enumerate(vector):
+        if expr.free_symbols:
+            out[:, i] = np.broadcast_to(sp.lambdify(T, expr, "numpy")(times), times.shape)
+        else:
+            out[:, i] = float(expr)
+    return out
