@@ -662,6 +662,43 @@ def view(
 
 
 @main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@PARAM
+@click.option("--json", "as_json", is_flag=True, help="Print the tool forces as JSON.")
+@click.option("--no-compile", is_flag=True, help="Use the generated Python functions only.")
+@GENERATED_DIR
+def forces(model_file: str, param: str, as_json: bool, no_compile: bool, generated_dir: str) -> None:
+    """ISO 6015 tool forces (hydraulic limit) of the model's `tool_forces` section: the bucket digging
+    force and the arm crowd force at the lip, each at the position of the front that gives the
+    largest, with the circuit that limits it (the working cylinder's relief setting or another's
+    holding setting) and the published figures beside them (docs/forces.md)."""
+    from kinegen.errors import ModelError
+    from kinegen.forces.iso6015 import report, tool_forces
+
+    parametrization = _parametrization(param)
+    model, _ = _system(model_file, parametrization, None, generated_dir, False)
+    if model.tool_forces is None:
+        raise ModelError(model_file, "tool_forces", "the model has no tool_forces section (what kinegen forces computes)")
+    _, system = _system(model_file, parametrization, model.tool_forces.case, generated_dir, False if no_compile else None)
+    start = time.perf_counter()
+    found = tool_forces(system, model)
+    elapsed = time.perf_counter() - start
+    if as_json:
+        document = {
+            "model": model.name, "lip": f"{model.tool_forces.lip.body}.{model.tool_forces.lip.name}", "seconds": elapsed,
+            "forces": {name: {
+                "force": r.force, "published": r.published, "limiting": {"actuator": r.limiting, "setting": r.setting, "pressure": r.pressure, "side": r.side},
+                "also": [{"actuator": a, "setting": s, "pressure": p, "side": d} for a, s, p, d in r.also],
+                "ceiling": r.ceiling, "ceiling_at": r.ceiling_at, "inputs": r.inputs, "lip": r.lip.tolist(), "radius": r.radius,
+                "stroke": r.stroke.tolist(), "curve": r.curve.tolist(),
+            } for name, r in found.items()},
+        }  # fmt: skip
+        click.echo(json.dumps(document, indent=2))
+        return
+    click.echo(report(found, model, elapsed))
+
+
+@main.command()
 @click.option("--copy", "destination", type=click.Path(file_okay=False), help="Copy the example models into this folder.")
 @click.option("--force", is_flag=True, help="With --copy: replace files that are already there and differ.")
 def models(destination: str | None, force: bool) -> None:

@@ -208,6 +208,11 @@ def main(argv: list[str] | None = None) -> int:
     )
     write_atomic(args.out / "excavator_envelope_boundary.csv", boundary.to_csv())
     plot_envelope(result, excavator, args.out / "excavator_envelope.png", boundary, outlines(excavator_model))
+    if excavator_model.tool_forces is not None:
+        from kinegen.forces.iso6015 import report, tool_forces
+
+        print("\nkinegen forces models/excavator.yaml (ESTIMATED hydraulic data; docs/forces.md):")
+        print(report(tool_forces(from_module(excavator_module, excavator_model.tool_forces.case), excavator_model), excavator_model))
     from kinegen.analysis.scan import plot_scan, scan
 
     toggle = from_module(excavator_module, "bucket_toggle")

@@ -130,6 +130,7 @@ def main(argv: list[str] | None = None) -> int:
         "kinegen explore": None if args.no_explore else lambda: run_contender("__import__('kinegen.bench.explore', fromlist=['x']).exploration_scaling()"),
         "certified steps": (lambda: run_contender(f"__import__('kinegen.bench.certified', fromlist=['x']).certificate_cost(repeats={3 if args.quick else 9})"))
         if "excavator-digging" in workloads else None,
+        "forces": (lambda: run_contender("__import__('kinegen.bench.forces', fromlist=['x']).force_cost()")) if "excavator-digging" in workloads else None,
         "C target memory": lambda: {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")},
     }
     measured: dict[str, dict | None] = {}
@@ -193,12 +194,25 @@ def main(argv: list[str] | None = None) -> int:
                 f"pure Python {s['python_solve']:.3f} s; build {s['build']:.1f} s"
             )
     failures += _section(exploration, "kinegen explore", _exploration_line)
+    held = measured["forces"]
+    failures += _section(held, "forces", lambda f: (
+        f"forces (excavator digging, payload + cutting, {f['points']} points): {f['forces']:.3f} s after a compiled trajectory solve of "
+        f"{f['solve']:.3f} s (Python, from the solved motion); ISO 6015 tool forces (kinegen forces) {f['tool_forces']:.3f} s", 0))
     print()
     print("Targets, on this run's figures:")
     failures += _section(studies, "design studies", _study_lines)
+    if held and "failed" not in held:
+        print("  " + _met("forces / compiled trajectory step (issue 28)", held["forces"] / held["solve"], 0.2, True))
+        print("  " + _met("ISO 6015 tool forces (issue 28)", held["tool_forces"], 0.5, True, " s"))
     for line in targets(rows, sweep, sensitivity, exploration, certified if certified and "failed" not in certified else None):
         print("  " + line)
     return 1 if failures else 0
+
+
+def _met(text: str, value: float, limit: float, below: bool, unit: str = "") -> str:
+    """One target's line: the figure, the target, met or not."""
+    met = value <= limit if below else value >= limit
+    return f"{text}: {value:.3g}{unit} ({'<=' if below else '>='} {limit:g}{unit}) {'met' if met else 'NOT met'}"
 
 
 def _section(row: dict | None, name: str, lines) -> int:
@@ -250,10 +264,7 @@ def targets(
         return None if row is None or "failed" in row else row[key]
 
     def line(text: str, value: float | None, limit: float, below: bool, unit: str = "") -> str | None:
-        if value is None:
-            return None
-        met = value <= limit if below else value >= limit
-        return f"{text}: {value:.3g}{unit} ({'<=' if below else '>='} {limit:g}{unit}) {'met' if met else 'NOT met'}"
+        return None if value is None else _met(text, value, limit, below, unit)
 
     out = []
     for case, row in (certified or {}).items():

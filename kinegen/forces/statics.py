@@ -35,12 +35,18 @@ from functools import cached_property
 
 import numpy as np
 import sympy as sp
+from scipy.linalg.lapack import dgecon as gecon
+from scipy.linalg.lapack import dgetrf as getrf
+from scipy.linalg.lapack import dgetrs as getrs
 
 from kinegen.errors import KinegenError, SingularJacobianError
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, Actuator, Joint, Load, Motor, design_value
 from kinegen.runtime.results import Results
+
+#: a reciprocal 1-norm condition of Phi_q at or below this is singular: no force holds the load there
+SINGULAR = 1e-12
 
 
 @dataclass(frozen=True)
@@ -149,12 +155,12 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -
         raise KeyError(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})")
     if not results.complete:
         raise KinegenError("forces need every time point solved; this solve stopped early")
-    statics = _Statics(results, model)
+    statics = Statics(results, model)
     q_load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), statics.n_v)))
     matrix = statics.matrix()
     multipliers = statics.solve(matrix, q_load)
     elements = statics.elements
-    force = multipliers[:, statics.joint_rows :] * statics.input_gains()
+    force = statics.element_forces(multipliers)
     reactions = {joint.name: statics.reaction(joint, matrix, multipliers) for joint in model.joints}
     pressures = {}
     for k, element in enumerate(elements):
@@ -164,8 +170,9 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -
     return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load)
 
 
-class _Statics:
-    """The numbers one force solve needs at every time point of ``results``."""
+class Statics:
+    """The numbers a force solve needs at every time point (or pose) of ``results``: the rows
+    (:meth:`matrix`), the loads' generalized forces, the solve, reactions and pressures."""
 
     def __init__(self, results: Results, model: Model) -> None:
         self.results = results
@@ -189,6 +196,10 @@ class _Statics:
     @cached_property
     def row_names(self) -> tuple[str, ...]:
         return (*self.system.constraint_names[: self.joint_rows], *(e.name for e in self.elements))
+
+    def element_forces(self, multipliers: np.ndarray) -> np.ndarray:
+        """(K, n_elements) the elements' forces from the multipliers of :meth:`solve`."""
+        return multipliers[:, self.joint_rows :] * self.input_gains()
 
     def input_gains(self) -> np.ndarray:
         """(K, n_elements) dPhi_e/du_e of each element's row by its input: an element's force along
@@ -298,24 +309,18 @@ class _Statics:
         if rows != cols:
             raise KinegenError(f"forces need a square Phi_q: {self.joint_rows} joint rows and {len(self.elements)} actuation "
                                f"elements make {rows} rows for {cols} velocity coordinates")  # fmt: skip
-        try:
-            multipliers = np.linalg.solve(matrix.swapaxes(1, 2), load[:, :, None])[:, :, 0]
-        except np.linalg.LinAlgError:
-            multipliers = None
-        scale = np.abs(matrix).max(axis=(1, 2))
-        if multipliers is None or not np.isfinite(multipliers).all():
-            self._singular(matrix, int(np.argmax(~np.isfinite(multipliers).all(axis=1))) if multipliers is not None else None)
-        smallest = np.linalg.svd(matrix, compute_uv=False)[:, -1]
-        bad = np.flatnonzero(smallest <= 1e-10 * scale)
-        if bad.size:
-            self._singular(matrix, int(bad[0]))
+        multipliers = np.empty(load.shape)
+        for k, (a, q) in enumerate(zip(matrix, load)):
+            lu, pivots, info = getrf(a)
+            rcond = gecon(lu, np.abs(a).sum(axis=0).max())[0] if info == 0 else 0.0
+            if not rcond > SINGULAR:
+                self._singular(matrix, k)
+            multipliers[k] = getrs(lu, pivots, q, trans=1)[0]
         return multipliers
 
-    def _singular(self, matrix: np.ndarray, k: int | None) -> None:
+    def _singular(self, matrix: np.ndarray, k: int) -> None:
         from kinegen.runtime.solver import describe_combination
 
-        if k is None:
-            k = int(np.argmin(np.linalg.svd(matrix, compute_uv=False)[:, -1]))
         u, s, vt = np.linalg.svd(matrix[k])
         rank = int(np.sum(s > 1e-10 * s[0]))
         dependent = sorted({self.row_names[i] for j in range(rank, len(s)) for i in np.flatnonzero(np.abs(u[:, j]) > 1e-6)})
@@ -327,15 +332,18 @@ class _Statics:
     def generalized_load(self, load: Load) -> np.ndarray:
         """Q (K, n_v) of one load."""
         times = self.results.times
-        body = load.point.body
         rotation = self.rotation(load.axes)
         force = np.einsum("kij,kj->ki", rotation, _time_vector(load.force, times))
         moment = np.einsum("kij,kj->ki", rotation, _time_vector(load.moment, times))
-        point = self.position(body, self.local(body, load.point.name))
-        out = np.zeros((len(times), self.n_v))
-        out[:, self.columns(body)] = np.einsum("kij,ki->kj", self.point_jacobian(body, point), force) + np.einsum(
-            "kij,ki->kj", self.tangents[body][1], moment
-        )
+        return self.point_load(load.point.body, load.point.name, force, moment)
+
+    def point_load(self, body: str, point: str, force: np.ndarray, moment: np.ndarray | None = None) -> np.ndarray:
+        """Q (K, n_v) of a force (K, 3) at a named point of ``body`` and a moment (K, 3) on it, global."""
+        position = self.position(body, self.local(body, point))
+        out = np.zeros((len(self.results.times), self.n_v))
+        out[:, self.columns(body)] = np.einsum("kij,ki->kj", self.point_jacobian(body, position), force)
+        if moment is not None:
+            out[:, self.columns(body)] += np.einsum("kij,ki->kj", self.tangents[body][1], moment)
         return out
 
     def _wrench(self, body: str, generalized: np.ndarray, matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -17,6 +17,12 @@ tool_points:
 loads:
   payload: {point: bucket.Q, force: [0, 0, -9806.65]}              # N, global axes
   cutting: {point: lip, force: ["-20000*t", 0, 0], axes: bucket}    # functions of t; body axes
+tool_forces:                   # ISO 6015 (kinegen forces)
+  case: digging                # a case whose drivers move the cylinders
+  lip: lip                     # the tool point the forces act at
+  bucket: {actuator: bucket_cylinder, driver: bucket_length, pivot: bucket.Q}
+  arm: {actuator: arm_cylinder, driver: arm_length, pivot: arm.E}   # stroke: [min, max] optional
+  published: {bucket: 158e3, arm: 111e3}                             # N, printed beside
 ```
 
 When a model declares motors or hydraulic actuators, they carry its load (``Model.actuation``)
@@ -31,7 +37,7 @@ import sympy as sp
 
 from kinegen.errors import shown
 from kinegen.model.kinds import JOINT_KINDS
-from kinegen.model.schema import GROUND, Actuator, Hydraulics, Load, Motor, PointRef
+from kinegen.model.schema import GROUND, Actuator, Case, Hydraulics, Load, Motor, PointRef, ToolForce, ToolForces, WorkingRange
 
 #: the loader's reader of a model file (kinegen.model.loader._Reader); errors name file and entry through it
 Loader = Any
@@ -142,3 +148,57 @@ def check_actuation(loader: Loader, motors: tuple[Motor, ...], actuators: tuple[
             f"the motors and the actuators with hydraulic data carry the load, so they must be as many as the mobility "
             f"({mobility}); {len(carrying)} are declared: {', '.join(carrying)}",
         )
+
+
+TOOL_FORCES = ("bucket", "arm")
+
+
+def read_tool_forces(
+    loader: Loader, value: Any, cases: dict[str, Case], actuators: tuple[Actuator, ...], tool_points: dict[str, PointRef],
+    working_range: WorkingRange | None,
+) -> ToolForces:  # fmt: skip
+    """``tool_forces:`` -- what ``kinegen forces`` computes (ISO 6015 bucket and arm cylinder tool forces)."""
+    entry = "tool_forces"
+    spec = loader.mapping(value, entry, ("case", "lip", *TOOL_FORCES, "published"), ("case", "lip"))
+    case = cases.get(spec["case"]) if isinstance(spec["case"], str) else None
+    if case is None:
+        raise loader.fail(f"{entry}.case", f"unknown case {shown(spec['case'])} (cases: {', '.join(cases)})")
+    lip = spec["lip"]
+    lip = tool_points[lip] if isinstance(lip, str) and lip in tool_points else loader.point_ref(lip, f"{entry}.lip")
+    hydraulic = {a.name: a for a in actuators if a.hydraulics is not None}
+    drivers = [d.name for d in case.drivers]
+    forces = {}
+    for name in TOOL_FORCES:
+        if name not in spec:
+            continue
+        where = f"{entry}.{name}"
+        item = loader.mapping(spec[name], where, ("actuator", "driver", "pivot", "stroke"), ("actuator", "driver", "pivot"))
+        if item["actuator"] not in hydraulic:
+            raise loader.fail(f"{where}.actuator", f"{shown(item['actuator'])} is not an actuator with hydraulic data "
+                              f"(those: {', '.join(hydraulic) or 'none'})")  # fmt: skip
+        if item["driver"] not in drivers:
+            raise loader.fail(f"{where}.driver", f"{shown(item['driver'])} is not a driver of case {case.name} ({', '.join(drivers)})")
+        pivot = loader.point_ref(item["pivot"], f"{where}.pivot")
+        forces[name] = ToolForce(name, item["actuator"], item["driver"], pivot, _stroke(loader, item, where, case.name, working_range))
+    if not forces:
+        raise loader.fail(entry, f"expected at least one of {', '.join(TOOL_FORCES)}")
+    published = {}
+    for key, item in loader.mapping(spec.get("published"), f"{entry}.published", TOOL_FORCES).items():
+        published[key] = float(loader.scalar(item, f"{entry}.published.{key}"))
+    return ToolForces(case.name, lip, forces, published)
+
+
+def _stroke(loader: Loader, item: dict, where: str, case: str, working_range: WorkingRange | None) -> tuple[float, float]:
+    """The searched range of the driver's input: given, or the working range's for that input."""
+    if "stroke" in item:
+        bounds = item["stroke"]
+        if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
+            raise loader.fail(f"{where}.stroke", "expected [min, max]")
+        low, high = (loader.value(loader.scalar(b, f"{where}.stroke[{i}]", design=True)) for i, b in enumerate(bounds))
+    elif working_range is not None and working_range.case == case and isinstance(working_range.inputs.get(item["driver"]), tuple):
+        low, high = (loader.value(x) for x in working_range.inputs[item["driver"]])
+    else:
+        raise loader.fail(where, f"no stroke: give stroke: [min, max] (the working range does not sweep {item['driver']} in {case})")
+    if not low < high:
+        raise loader.fail(f"{where}.stroke", f"min {low:g} must be below max {high:g}")
+    return float(low), float(high)

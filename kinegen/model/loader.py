@@ -22,7 +22,7 @@ import kinegen.model.expressions as expressions
 from kinegen.errors import ExpressionError, KinegenError, ModelError, shown
 from kinegen.files import STDIN, read_bounded
 from kinegen.model.expressions import compact
-from kinegen.model.forces import check_actuation, read_hydraulics, read_loads, read_motors, read_tool_points
+from kinegen.model.forces import check_actuation, read_hydraulics, read_loads, read_motors, read_tool_forces, read_tool_points
 from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS
 from kinegen.model.schema import (
     GROUND,
@@ -344,6 +344,7 @@ class _Reader:
                 "motors",
                 "tool_points",
                 "loads",
+                "tool_forces",
                 "drivers",
                 "cases",
                 "working_range",
@@ -387,6 +388,7 @@ class _Reader:
         cases = self.cases(top.get("cases"), common)
         working_range = self.working_range(top.get("working_range"), cases) if "working_range" in top else None
         studies = read_studies(self, top.get("studies"), cases, actuators, working_range) if "studies" in top else {}
+        tool_forces = read_tool_forces(self, top["tool_forces"], cases, actuators, tool_points, working_range) if "tool_forces" in top else None
         return Model(
             name=name,
             file=self.file,
@@ -406,6 +408,7 @@ class _Reader:
             motors=motors,
             tool_points=tool_points,
             loads=loads,
+            tool_forces=tool_forces,
         )
 
     def read_design(self, value: Any) -> None:

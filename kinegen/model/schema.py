@@ -184,6 +184,30 @@ class Load:
 
 
 @dataclass(frozen=True)
+class ToolForce:
+    """How to find one ISO 6015 tool force (``tool_forces:``): the force at the lip tangent to its
+    circle about ``pivot`` that ``actuator`` produces when it works, searched over ``stroke`` of
+    the case input ``driver`` that moves it (the other inputs at the case's start)."""
+
+    name: str  #: "bucket" (bucket cylinder tool force) or "arm" (arm cylinder tool force)
+    actuator: str
+    driver: str
+    pivot: PointRef
+    stroke: tuple[float, float]
+
+
+@dataclass(frozen=True)
+class ToolForces:
+    """The ISO 6015 tool forces of a backhoe (``kinegen forces``): computed in ``case`` at the tool
+    point ``lip``; ``published`` [N] holds figures to print beside them (unverified unless said)."""
+
+    case: str
+    lip: PointRef
+    forces: dict[str, ToolForce]
+    published: dict[str, float] = field(default_factory=dict)
+
+
+@dataclass(frozen=True)
 class Case:
     """A named way to drive the model, with its default time grid."""
 
@@ -357,6 +381,7 @@ class Model:
     motors: tuple[Motor, ...] = ()  #: rotary actuators (a swing motor)
     tool_points: dict[str, PointRef] = field(default_factory=dict)  #: named tool points (a bucket's lip)
     loads: dict[str, Load] = field(default_factory=dict)  #: named loads on the machine
+    tool_forces: ToolForces | None = None  #: how to compute the ISO 6015 tool forces
 
     @property
     def actuation(self) -> tuple[Actuator | Motor, ...]:
