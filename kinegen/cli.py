@@ -664,19 +664,36 @@ def view(
 @main.command()
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @PARAM
-@click.option("--json", "as_json", is_flag=True, help="Print the tool forces as JSON.")
+@click.option("--json", "as_json", is_flag=True, help="Print the tool forces (or the lift chart) as JSON.")
+@click.option("--lift", is_flag=True, help="The hydraulic lift capacity at the arm's end over the model's lift_chart grid instead "
+              "(the hydraulic half of an ISO 10567 lift chart).")  # fmt: skip
+@click.option("--map", "direction", type=click.Choice(["pull", "push", "up", "down", "tangent"]), default=None,
+              help="A force map instead: over a grid of the working range, the largest force the tool point can exert in this "
+              "direction and the cylinder that limits it (tangent: the bucket digging direction).")  # fmt: skip
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="--map: PNG of the map on the working range.")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, help="--map: CSV of every pose (inputs, tool point, force, limiting cylinder).")
 @click.option("--no-compile", is_flag=True, help="Use the generated Python functions only.")
 @GENERATED_DIR
-def forces(model_file: str, param: str, as_json: bool, no_compile: bool, generated_dir: str) -> None:
+def forces(model_file: str, param: str, as_json: bool, lift: bool, direction: str | None, plot: str | None, out: str | None,
+           no_compile: bool, generated_dir: str) -> None:  # fmt: skip
     """ISO 6015 tool forces (hydraulic limit) of the model's `tool_forces` section: the bucket digging
     force and the arm crowd force at the lip, each at the position of the front that gives the
     largest, with the circuit that limits it (the working cylinder's relief setting or another's
-    holding setting) and the published figures beside them (docs/forces.md)."""
+    holding setting) and the published figures beside them; --lift: the hydraulic lift capacity
+    table (docs/forces.md)."""
     from kinegen.errors import ModelError
     from kinegen.forces.iso6015 import report, tool_forces
 
     parametrization = _parametrization(param)
     model, _ = _system(model_file, parametrization, None, generated_dir, False)
+    if lift:
+        _lift(model_file, model, parametrization, generated_dir, as_json, no_compile)
+        return
+    if direction is not None:
+        _force_map(model_file, model, parametrization, generated_dir, direction, plot, out, no_compile)
+        return
+    if plot or out:
+        raise click.BadParameter("--plot and --out go with --map", param_hint="--plot" if plot else "--out")
     if model.tool_forces is None:
         raise ModelError(model_file, "tool_forces", "the model has no tool_forces section (what kinegen forces computes)")
     _, system = _system(model_file, parametrization, model.tool_forces.case, generated_dir, False if no_compile else None)
@@ -696,6 +713,56 @@ def forces(model_file: str, param: str, as_json: bool, no_compile: bool, generat
         click.echo(json.dumps(document, indent=2))
         return
     click.echo(report(found, model, elapsed))
+
+
+def _force_map(model_file: str, model, parametrization, generated_dir: str, direction: str, plot: str | None, out: str | None,
+               no_compile: bool) -> None:  # fmt: skip
+    """kinegen forces --map: the map's summary, its CSV and its picture."""
+    from kinegen.errors import ModelError
+    from kinegen.files import write_atomic
+    from kinegen.forces.maps import MEANING, force_map, plot_force_map
+
+    if model.working_range is None:
+        raise ModelError(model_file, "working_range", "the model has no working_range section (a force map covers it)")
+    _, system = _system(model_file, parametrization, model.working_range.case, generated_dir, False if no_compile else None)
+    found = force_map(system, model, direction)
+    best = int(np.argmax(found.force))
+    shares = ", ".join(f"{name} {np.mean(found.limiting == name):.0%}" for name in sorted(set(found.limiting)))
+    click.echo(f"{model.name}: the largest force at {found.point} {MEANING[direction]}, every cylinder at most at its relief setting: "
+               f"{len(found.force):,} poses in {found.seconds:.2f} s")  # fmt: skip
+    click.echo(f"  up to {found.force[best] / 1e3:.1f} kN, at x {found.points[best, 0]:.2f}, z {found.points[best, 2]:.2f} m "
+               f"(limited by {found.limiting[best]}); limited by: {shares}")  # fmt: skip
+    if out:
+        write_atomic(Path(out), found.to_csv())
+        click.echo(f"wrote {out}")
+    if plot:
+        from kinegen.analysis.boundary import working_range_boundary
+
+        click.echo(f"wrote {plot_force_map(found, plot, working_range_boundary(system, model.working_range))}")
+
+
+def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: bool, no_compile: bool) -> None:
+    """kinegen forces --lift: the lift chart's table, or its JSON."""
+    from kinegen.errors import ModelError
+    from kinegen.forces.lift import lift_chart
+
+    if model.lift_chart is None:
+        raise ModelError(model_file, "lift_chart", "the model has no lift_chart section (what kinegen forces --lift computes)")
+    _, system = _system(model_file, parametrization, model.lift_chart.case, generated_dir, False if no_compile else None)
+    chart = lift_chart(system, model)
+    if not as_json:
+        click.echo(chart.table())
+        return
+
+    def entry(p):
+        return None if p is None else {"radius": p.radius, "height": p.height, "capacity_n": p.capacity, "rated_kg": p.rated_kg,
+                                       "limiting": p.limiting, "setting": p.setting, "inputs": p.inputs}  # fmt: skip
+
+    click.echo(json.dumps({
+        "model": model.name, "point": chart.point, "lifting": chart.lifting, "heights": chart.heights, "radii": chart.radii,
+        "grid": [[entry(p) for p in row] for row in chart.grid], "max_reach": [entry(p) for p in chart.max_reach],
+        "tipping": None,  # needs masses
+    }, indent=2))  # fmt: skip
 
 
 @main.command()

@@ -10,8 +10,9 @@ MODELS = Path(__file__).resolve().parents[2] / "models"
 
 def force_cost(points: int = 1000, repeats: int = 3) -> dict:
     """Best of ``repeats``, in seconds: the compiled trajectory solve of the excavator's digging case
-    (``points`` time points), the forces holding its payload and cutting loads at those points, and
-    ``kinegen forces`` (the ISO 6015 tool forces, compiled)."""
+    (``points`` time points), the forces holding its payload and cutting loads at those points,
+    ``kinegen forces`` (the ISO 6015 tool forces), the tangent force map (10,625 poses) and the
+    hydraulic lift chart, all compiled."""
     import time
 
     import numpy as np
@@ -19,6 +20,8 @@ def force_cost(points: int = 1000, repeats: int = 3) -> dict:
     from kinegen.api import Session
     from kinegen.forces import forces
     from kinegen.forces.iso6015 import tool_forces
+    from kinegen.forces.lift import lift_chart
+    from kinegen.forces.maps import force_map
     from kinegen.runtime import solve
 
     session = Session(Path(__file__).resolve().parents[2] / "generated")
@@ -29,14 +32,17 @@ def force_cost(points: int = 1000, repeats: int = 3) -> dict:
     results = solve(system, times)  # warm: compilation, first calls
     forces(results, model, ["payload", "cutting"])
     tool_forces(system, model)
-    best = {"solve": float("inf"), "forces": float("inf"), "tool_forces": float("inf")}
+    force_map(system, model, "tangent")
+    lift_chart(system, model)
+    best = dict.fromkeys(("solve", "forces", "tool_forces", "map", "lift"), float("inf"))
     for _ in range(repeats):
         start = time.perf_counter()
         results = solve(system, times)
-        middle = time.perf_counter()
-        forces(results, model, ["payload", "cutting"])
-        end = time.perf_counter()
-        tool_forces(system, model)
-        best = {"solve": min(best["solve"], middle - start), "forces": min(best["forces"], end - middle),
-                "tool_forces": min(best["tool_forces"], time.perf_counter() - end)}  # fmt: skip
-    return {**best, "points": points}
+        laps = {"solve": time.perf_counter() - start}
+        for name, run in (("forces", lambda results=results: forces(results, model, ["payload", "cutting"])), ("tool_forces", lambda: tool_forces(system, model)),
+                          ("map", lambda: force_map(system, model, "tangent")), ("lift", lambda: lift_chart(system, model))):  # fmt: skip
+            start = time.perf_counter()
+            run()
+            laps[name] = time.perf_counter() - start
+        best = {name: min(best[name], laps[name]) for name in best}
+    return {**best, "points": points, "poses": 25 * 17 * 25}

@@ -29,9 +29,9 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from kinegen.errors import KinegenError
-from kinegen.forces.statics import Statics
+from kinegen.forces.statics import Statics, hydraulic_limit
 from kinegen.model import Model
-from kinegen.model.schema import Actuator, ToolForce, design_value
+from kinegen.model.schema import ToolForce
 from kinegen.runtime import NumericSystem, Solver, SolverOptions
 from kinegen.runtime.results import Results
 
@@ -211,26 +211,11 @@ class _Finder:
         capacities, settings = {}, {}
         for actuator in self.hydraulic:
             f = forces[:, names.index(actuator.name)]
-            capacity, pressure, side = self._capacity(actuator, f, working=actuator.name == item.actuator)
+            capacity, pressure, side = hydraulic_limit(actuator, f, self.system.design, working=actuator.name == item.actuator)
             capacities[actuator.name] = capacity
             what = "relief" if actuator.name == item.actuator else "holding"
             settings[actuator.name] = [(actuator.name, what, float(p), str(d)) for p, d in zip(pressure, side)]
         return capacities, settings
-
-    def _capacity(self, actuator: Actuator, per_newton: np.ndarray, working: bool) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """The tool force (K,) at which ``actuator`` reaches its setting, given its force per newton of
-        tool force; with the setting [Pa] and side ("cap"/"rod") that applies."""
-        hydraulics = actuator.hydraulics
-        design = self.system.design
-        cap, annulus = hydraulics.areas(design)
-        settings = hydraulics.relief if working else hydraulics.holding
-        extend, retract = (design_value(x, design) for x in settings)
-        pushing = per_newton >= 0
-        pressure = np.where(pushing, extend, retract)
-        area = np.where(pushing, cap, annulus)
-        with np.errstate(divide="ignore"):
-            capacity = np.where(per_newton == 0, np.inf, pressure * area / np.abs(per_newton))
-        return capacity, pressure, np.where(pushing, "cap", "rod")
 
 
 def _with(u: np.ndarray, values: dict[int, float]) -> np.ndarray:

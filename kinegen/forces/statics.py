@@ -50,6 +50,37 @@ SINGULAR = 1e-12
 
 
 @dataclass(frozen=True)
+class Rows:
+    """Rows of Φ_q at K poses, sparse: entry e is (``rows[e]``, ``cols[e]``), its values ``values[:, e]``."""
+
+    rows: np.ndarray
+    cols: np.ndarray
+    values: np.ndarray  #: (K, entries)
+    shape: tuple[int, int]
+
+    def dense(self, k: int) -> np.ndarray:
+        """The matrix at pose k."""
+        out = np.zeros(self.shape)
+        np.add.at(out, (self.rows, self.cols), self.values[k])
+        return out
+
+    def block(self, rows: list[int], columns: slice) -> np.ndarray:
+        """(K, len(rows), columns) the dense sub-block of ``rows`` and ``columns`` at every pose."""
+        out = np.zeros((len(self.values), len(rows), columns.stop - columns.start))
+        for i, r in enumerate(rows):
+            inside = np.flatnonzero((self.rows == r) & (self.cols >= columns.start) & (self.cols < columns.stop))
+            out[:, i, self.cols[inside] - columns.start] = self.values[:, inside]
+        return out
+
+    def transpose_times(self, multipliers: np.ndarray, rows: list[int]) -> np.ndarray:
+        """(K, n) the rows' part of Φ_qᵀ λ: Σ over those rows of λ_r times row r."""
+        inside = np.flatnonzero(np.isin(self.rows, rows))
+        out = np.zeros((len(self.values), self.shape[1]))
+        np.add.at(out.T, self.cols[inside], (self.values[:, inside] * multipliers[:, self.rows[inside]]).T)
+        return out
+
+
+@dataclass(frozen=True)
 class Element:
     """One actuation element: what carries the load along one degree of freedom."""
 
@@ -269,22 +300,28 @@ class Statics:
         return np.array([design_value(x, self.system.design) for x in vector], dtype=float)
 
     # ---- the matrix and its solve ----------------------------------------------------
-    def matrix(self) -> np.ndarray:
-        """Φ_q of the joint rows with the elements' rows, (K, rows, n_v)."""
+    def matrix(self) -> Rows:
+        """Φ_q of the joint rows with the elements' rows at every pose, sparse (:class:`Rows`)."""
         results, system = self.results, self.system
         k_points = len(results.times)
-        rows = self.joint_rows + len(self.elements)
-        out = np.zeros((k_points, rows, self.n_v))
+        case_rows, case_cols = np.asarray(system.jac_rows), np.asarray(system.jac_cols)
+        kept = case_rows < self.joint_rows if self.declared else np.ones(len(case_rows), dtype=bool)
+        values = np.empty((k_points, int(kept.sum())))
         for k in range(k_points):
-            jacobian = system.jacobian(results.q[k], results.inputs[k])
-            out[k, : self.joint_rows if self.declared else rows] = jacobian[: self.joint_rows if self.declared else rows]
+            values[k] = np.asarray(system.evaluate(results.q[k], results.inputs[k])[1], dtype=float)[kept]
+        rows, cols = [case_rows[kept]], [case_cols[kept]]
+        parts = [values]
         for i, element in enumerate(self.declared):
-            row = out[:, self.joint_rows + i]
+            row = np.zeros((k_points, self.n_v))
             if isinstance(element, Motor):
                 self._motor_row(element, row)
             else:
                 self._actuator_row(element, row)
-        return out
+            used = np.flatnonzero(np.any(row != 0, axis=0))
+            rows.append(np.full(len(used), self.joint_rows + i))
+            cols.append(used)
+            parts.append(row[:, used])
+        return Rows(np.concatenate(rows), np.concatenate(cols), np.hstack(parts), (self.joint_rows + len(self.elements), self.n_v))
 
     def _actuator_row(self, actuator: Actuator, row: np.ndarray) -> None:
         """dL/dv of an actuator's length L = |P1 - P2|: e.(J_P1 - J_P2), e the unit vector P2 -> P1."""
@@ -303,29 +340,43 @@ class Statics:
             if body != GROUND:
                 row[:, self.columns(body)] += sign * np.einsum("ki,kij->kj", axis, self.tangents[body][1])
 
-    def solve(self, matrix: np.ndarray, load: np.ndarray) -> np.ndarray:
-        """λ with Φ_qᵀ λ = Q at every time point; a singular Φ_q names the time and the dependent rows."""
-        rows, cols = matrix.shape[1:]
+    def solve(self, matrix: Rows, load: np.ndarray) -> np.ndarray:
+        """λ with Φ_qᵀ λ = Q at every time point, one LU per point; a singular Φ_q names the time and
+        the dependent rows."""
+        rows, cols = matrix.shape
         if rows != cols:
             raise KinegenError(f"forces need a square Phi_q: {self.joint_rows} joint rows and {len(self.elements)} actuation "
                                f"elements make {rows} rows for {cols} velocity coordinates")  # fmt: skip
         multipliers = np.empty(load.shape)
-        for k, (a, q) in enumerate(zip(matrix, load)):
+        for k, q in enumerate(load):
+            a = matrix.dense(k)
             lu, pivots, info = getrf(a)
             rcond = gecon(lu, np.abs(a).sum(axis=0).max())[0] if info == 0 else 0.0
             if not rcond > SINGULAR:
-                self._singular(matrix, k)
+                self._singular(a, k)
             multipliers[k] = getrs(lu, pivots, q, trans=1)[0]
         return multipliers
 
-    def _singular(self, matrix: np.ndarray, k: int) -> None:
+    def solve_batch(self, matrix: Rows, load: np.ndarray) -> np.ndarray:
+        """λ with Φ_qᵀ λ = Q at every pose at once, block by block over the transposed matrix's
+        block-triangular form (:class:`kinegen.runtime.blocksolve.BlockSolve`): for maps of many
+        poses. A pose where a block is singular gets NaN (no error: a map shows it as a gap)."""
+        from kinegen.runtime.blocksolve import BlockSolve
+
+        if matrix.shape[0] != matrix.shape[1]:
+            return self.solve(matrix, load)  # the same error
+        transposed = BlockSolve.for_pattern(matrix.cols, matrix.rows, matrix.shape[1], "the transposed actuation matrix")
+        with np.errstate(all="ignore"):
+            return transposed.solve(matrix.values.T, load.T).T
+
+    def _singular(self, a: np.ndarray, k: int) -> None:
         from kinegen.runtime.solver import describe_combination
 
-        u, s, vt = np.linalg.svd(matrix[k])
+        u, s, vt = np.linalg.svd(a)
         rank = int(np.sum(s > 1e-10 * s[0]))
         dependent = sorted({self.row_names[i] for j in range(rank, len(s)) for i in np.flatnonzero(np.abs(u[:, j]) > 1e-6)})
         null = [describe_combination(vt[j], self.system.velocity_names) for j in range(rank, len(s))]
-        raise SingularJacobianError(float(self.results.times[k]), rank, matrix[k].shape, dependent, null,
+        raise SingularJacobianError(float(self.results.times[k]), rank, a.shape, dependent, null,
                                     "the actuation cannot hold the load here: a force is undetermined")  # fmt: skip
 
     # ---- loads, reactions, pressures ---------------------------------------------------
@@ -346,7 +397,7 @@ class Statics:
             out[:, self.columns(body)] += np.einsum("kij,ki->kj", self.tangents[body][1], moment)
         return out
 
-    def _wrench(self, body: str, generalized: np.ndarray, matrix: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def _wrench(self, body: str, generalized: np.ndarray, matrix: Rows) -> tuple[np.ndarray, np.ndarray]:
         """(F, M about the body's origin) whose generalized force on ``body`` is ``generalized`` (K, n_v).
 
         A wrench w does the work w.(T_b v_b) for the velocities the body's normalization rows N_b
@@ -355,14 +406,14 @@ class Statics:
         tv, tw = self.tangents[body]
         columns = self.columns(body)
         norms = [i for i, name in enumerate(self.row_names[: self.joint_rows]) if name.startswith(f"{body}.norm")]
-        square = np.concatenate([tv, tw, matrix[:, norms, columns]], axis=1)  # (K, n_v of the body, n_v of the body)
+        square = np.concatenate([tv, tw, matrix.block(norms, columns)], axis=1)  # (K, n_v of the body, n_v of the body)
         w = np.linalg.solve(square.swapaxes(1, 2), generalized[:, columns, None])[:, :, 0]
         return w[:, :3], w[:, 3:6]
 
-    def reaction(self, joint: Joint, matrix: np.ndarray, multipliers: np.ndarray) -> Reaction:
+    def reaction(self, joint: Joint, matrix: Rows, multipliers: np.ndarray) -> Reaction:
         """What ``joint``'s first body exerts on its second, from the joint's rows and multipliers."""
         rows = [i for i, name in enumerate(self.row_names[: self.joint_rows]) if _joint_of(name) == joint.name]
-        generalized = -np.einsum("kri,kr->ki", matrix[:, rows], multipliers[:, rows])
+        generalized = -matrix.transpose_times(multipliers, rows)
         local2 = joint.point2 if joint.point2 is not None else [0, 0, 0]
         point = self.position(joint.body2, self.design_vector(local2))
         if joint.body2 != GROUND:
@@ -422,3 +473,20 @@ def _time_vector(vector: sp.ImmutableMatrix, times: np.ndarray) -> np.ndarray:
         else:
             out[:, i] = float(expr)
     return out
+
+
+def hydraulic_limit(
+    actuator: Actuator, per_unit: np.ndarray, design: dict[str, float], working: bool
+) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """The load (K,) at which a hydraulic ``actuator`` reaches its setting, given its force per unit
+    of that load ``per_unit`` (K,): its relief setting where it ``working``, else its holding setting,
+    on the side its force needs; with that setting [Pa] and the side ("cap"/"rod"). inf where the
+    load does not reach it."""
+    hydraulics = actuator.hydraulics
+    cap, annulus = hydraulics.areas(design)
+    extend, retract = (design_value(x, design) for x in (hydraulics.relief if working else hydraulics.holding))
+    pushing = per_unit >= 0
+    pressure = np.where(pushing, extend, retract)
+    with np.errstate(divide="ignore"):
+        limit = np.where(per_unit == 0, np.inf, pressure * np.where(pushing, cap, annulus) / np.abs(per_unit))
+    return limit, pressure, np.where(pushing, "cap", "rod")

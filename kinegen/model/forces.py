@@ -23,6 +23,13 @@ tool_forces:                   # ISO 6015 (kinegen forces)
   bucket: {actuator: bucket_cylinder, driver: bucket_length, pivot: bucket.Q}
   arm: {actuator: arm_cylinder, driver: arm_length, pivot: arm.E}   # stroke: [min, max] optional
   published: {bucket: 158e3, arm: 111e3}                             # N, printed beside
+lift_chart:                    # hydraulic lift capacity (kinegen forces --lift)
+  case: digging
+  point: arm.Q                 # the lift point: the arm's end (bucket pin), the bucket removed
+  lifting: boom_cylinder_left  # the cylinder that lifts (relief setting); the others hold
+  place: [boom_length, arm_length]   # the inputs that place the point (ranges: the working range's, or ranges:)
+  heights: [6, 4.5, 3, 1.5, 0, -1.5, -3]
+  radii: [3, 4.5, 6, 7.5]
 ```
 
 When a model declares motors or hydraulic actuators, they carry its load (``Model.actuation``)
@@ -37,7 +44,19 @@ import sympy as sp
 
 from kinegen.errors import shown
 from kinegen.model.kinds import JOINT_KINDS
-from kinegen.model.schema import GROUND, Actuator, Case, Hydraulics, Load, Motor, PointRef, ToolForce, ToolForces, WorkingRange
+from kinegen.model.schema import (
+    GROUND,
+    Actuator,
+    Case,
+    Hydraulics,
+    LiftChartSpec,
+    Load,
+    Motor,
+    PointRef,
+    ToolForce,
+    ToolForces,
+    WorkingRange,
+)
 
 #: the loader's reader of a model file (kinegen.model.loader._Reader); errors name file and entry through it
 Loader = Any
@@ -202,3 +221,48 @@ def _stroke(loader: Loader, item: dict, where: str, case: str, working_range: Wo
     if not low < high:
         raise loader.fail(f"{where}.stroke", f"min {low:g} must be below max {high:g}")
     return float(low), float(high)
+
+
+def read_lift_chart(loader: Loader, value: Any, cases: dict[str, Case], actuators: tuple[Actuator, ...], working_range: WorkingRange | None) -> LiftChartSpec:
+    """``lift_chart:`` -- where ``kinegen forces --lift`` finds the hydraulic lift capacity."""
+    entry = "lift_chart"
+    spec = loader.mapping(value, entry, ("case", "point", "lifting", "place", "ranges", "heights", "radii"),
+                          ("case", "point", "lifting", "place", "heights", "radii"))  # fmt: skip
+    case = cases.get(spec["case"]) if isinstance(spec["case"], str) else None
+    if case is None:
+        raise loader.fail(f"{entry}.case", f"unknown case {shown(spec['case'])} (cases: {', '.join(cases)})")
+    point = loader.point_ref(spec["point"], f"{entry}.point")
+    if point.body == GROUND:
+        raise loader.fail(f"{entry}.point", "the lift point is on a moving body")
+    hydraulic = [a.name for a in actuators if a.hydraulics is not None]
+    if spec["lifting"] not in hydraulic:
+        raise loader.fail(f"{entry}.lifting", f"{shown(spec['lifting'])} is not an actuator with hydraulic data (those: {', '.join(hydraulic) or 'none'})")
+    place = spec["place"]
+    drivers = [d.name for d in case.drivers]
+    if not isinstance(place, list) or len(place) != 2 or any(p not in drivers for p in place):
+        raise loader.fail(f"{entry}.place", f"expected two drivers of case {case.name} ({', '.join(drivers)}), got {shown(place)}")
+    given = loader.mapping(spec.get("ranges"), f"{entry}.ranges", tuple(place))
+    ranges = {}
+    for name in place:
+        if name in given:
+            bounds = given[name]
+            if not isinstance(bounds, list) or len(bounds) != 2:
+                raise loader.fail(f"{entry}.ranges.{name}", "expected [min, max]")
+            low, high = (loader.value(loader.scalar(b, f"{entry}.ranges.{name}[{i}]", design=True)) for i, b in enumerate(bounds))
+        elif working_range is not None and working_range.case == case.name and isinstance(working_range.inputs.get(name), tuple):
+            low, high = (loader.value(x) for x in working_range.inputs[name])
+        else:
+            raise loader.fail(f"{entry}.ranges", f"no range for {name}: give ranges: {{{name}: [min, max]}}")
+        if not low < high:
+            raise loader.fail(f"{entry}.ranges.{name}", f"min {low:g} must be below max {high:g}")
+        ranges[name] = (float(low), float(high))
+    heights, radii = (_numbers(loader, spec[k], f"{entry}.{k}") for k in ("heights", "radii"))
+    if any(r <= 0 for r in radii):
+        raise loader.fail(f"{entry}.radii", "radii are distances from the swing axis: positive")
+    return LiftChartSpec(case.name, point, spec["lifting"], tuple(place), ranges, heights, radii)
+
+
+def _numbers(loader: Loader, value: Any, entry: str) -> tuple[float, ...]:
+    if not isinstance(value, list) or not value:
+        raise loader.fail(entry, f"expected a list of numbers (m), got {shown(value)}")
+    return tuple(float(loader.scalar(v, f"{entry}[{i}]")) for i, v in enumerate(value))

@@ -22,7 +22,15 @@ import kinegen.model.expressions as expressions
 from kinegen.errors import ExpressionError, KinegenError, ModelError, shown
 from kinegen.files import STDIN, read_bounded
 from kinegen.model.expressions import compact
-from kinegen.model.forces import check_actuation, read_hydraulics, read_loads, read_motors, read_tool_forces, read_tool_points
+from kinegen.model.forces import (
+    check_actuation,
+    read_hydraulics,
+    read_lift_chart,
+    read_loads,
+    read_motors,
+    read_tool_forces,
+    read_tool_points,
+)
 from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS
 from kinegen.model.schema import (
     GROUND,
@@ -345,6 +353,7 @@ class _Reader:
                 "tool_points",
                 "loads",
                 "tool_forces",
+                "lift_chart",
                 "drivers",
                 "cases",
                 "working_range",
@@ -389,6 +398,7 @@ class _Reader:
         working_range = self.working_range(top.get("working_range"), cases) if "working_range" in top else None
         studies = read_studies(self, top.get("studies"), cases, actuators, working_range) if "studies" in top else {}
         tool_forces = read_tool_forces(self, top["tool_forces"], cases, actuators, tool_points, working_range) if "tool_forces" in top else None
+        lift_chart = read_lift_chart(self, top["lift_chart"], cases, actuators, working_range) if "lift_chart" in top else None
         return Model(
             name=name,
             file=self.file,
@@ -409,6 +419,7 @@ class _Reader:
             tool_points=tool_points,
             loads=loads,
             tool_forces=tool_forces,
+            lift_chart=lift_chart,
         )
 
     def read_design(self, value: Any) -> None:

@@ -208,6 +208,22 @@ class ToolForces:
 
 
 @dataclass(frozen=True)
+class LiftChartSpec:
+    """Where ``kinegen forces --lift`` finds the hydraulic lift capacity (``lift_chart:``): the load at
+    ``point`` (m; global heights and radii from the swing axis in the boom plane), the inputs of
+    ``case`` that place it (``place``, within ``ranges``; the others at the case's start),
+    ``lifting`` at its relief setting and the other cylinders holding."""
+
+    case: str
+    point: PointRef
+    lifting: str
+    place: tuple[str, ...]
+    ranges: dict[str, tuple[float, float]]
+    heights: tuple[float, ...]
+    radii: tuple[float, ...]
+
+
+@dataclass(frozen=True)
 class Case:
     """A named way to drive the model, with its default time grid."""
 
@@ -382,6 +398,7 @@ class Model:
     tool_points: dict[str, PointRef] = field(default_factory=dict)  #: named tool points (a bucket's lip)
     loads: dict[str, Load] = field(default_factory=dict)  #: named loads on the machine
     tool_forces: ToolForces | None = None  #: how to compute the ISO 6015 tool forces
+    lift_chart: LiftChartSpec | None = None  #: where to find the hydraulic lift capacity
 
     @property
     def actuation(self) -> tuple[Actuator | Motor, ...]:

@@ -26,11 +26,20 @@ class BlockSolve:
     """
 
     def __init__(self, system: NumericSystem) -> None:
-        rows, cols = system.jac_rows, system.jac_cols
-        n = system.n_velocity
-        blocks = block_triangular((len(system.constraint_names), n), rows, cols)
+        self._plan(system.jac_rows, system.jac_cols, len(system.constraint_names), system.n_velocity, f"{system.model}/{system.case}")
+
+    @classmethod
+    def for_pattern(cls, rows: np.ndarray, cols: np.ndarray, n: int, name: str = "the matrix") -> BlockSolve:
+        """The solver of any square n x n matrix with the sparsity pattern (rows, cols) (values given
+        to :meth:`solve` in that order): e.g. a transposed Phi_q, pattern (cols, rows)."""
+        solver = cls.__new__(cls)
+        solver._plan(np.asarray(rows), np.asarray(cols), n, n, name)
+        return solver
+
+    def _plan(self, rows: np.ndarray, cols: np.ndarray, m: int, n: int, name: str) -> None:
+        blocks = block_triangular((m, n), rows, cols)
         if blocks is None:
-            raise ValueError(f"{system.model}/{system.case}: Phi_q is not square or structurally singular")
+            raise ValueError(f"{name}: Phi_q is not square or structurally singular")
         self.n = n
         block_of_col = np.empty(n, dtype=np.intp)
         block_of_row = np.empty(n, dtype=np.intp)
