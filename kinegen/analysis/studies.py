@@ -31,7 +31,7 @@ from scipy.optimize import minimize
 
 from kinegen.errors import KinegenError
 from kinegen.model.kinds import check_registered
-from kinegen.model.schema import GROUND, QUANTITY_KINDS, Model, Quantity, Study, design_gradient
+from kinegen.model.schema import GROUND, QUANTITY_KINDS, Model, Quantity, Study, design_gradient, design_value
 from kinegen.runtime import Solver, from_module
 from kinegen.runtime.results import Results
 
@@ -345,7 +345,107 @@ def _transmission_angle(problem: StudyProblem | None, results: Results, q: Quant
     return float(points[k]), d_points[k], (points, d_points)
 
 
+def _tool_force(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """relief x cap area x |L'| / |v_lip| over the case (kN) -- the force at the lip along its path that
+    the actuator produces at its relief setting, by virtual work when only it moves -- at its largest
+    time point, and its derivative there (the rate's and the lip speed's exact sensitivities)."""
+    actuator = problem.actuators[str(q.actuator)]
+    hydraulics = actuator.hydraulics
+    system = results.system
+    design, order = system.design, list(system.design)
+    lip = problem.model.tool_forces.lip
+    (b1, p1), (b2, p2) = ((ref.body, ref.name) for ref in actuator.points)
+    gap = results.point_position(b2, p2) - results.point_position(b1, p1)
+    relative = results.point_velocity(b2, p2) - results.point_velocity(b1, p1)
+    length = np.linalg.norm(gap, axis=1)
+    e = gap / length[:, None]
+    rate = np.einsum("ki,ki->k", e, relative)
+    motion = results.point_velocity(lip.body, lip.name)
+    speed = np.linalg.norm(motion, axis=1)
+    cap = hydraulics.cylinders * np.pi / 4 * design_value(hydraulics.bore, design) ** 2
+    pressure = design_value(hydraulics.relief[0], design)
+    with np.errstate(divide="ignore", invalid="ignore"):
+        values = np.where(speed > 0, pressure * cap * np.abs(rate) / speed / 1e3, np.nan)
+    k = int(np.nanargmax(values))
+    if not gradients:
+        return float(values[k]), None
+    d_gap = results.sensitivity(b2, p2)[k] - results.sensitivity(b1, p1)[k]  # (3, n_design)
+    d_relative = results.sensitivity(b2, p2, kind="velocity")[k] - results.sensitivity(b1, p1, kind="velocity")[k]
+    d_e = (d_gap - np.outer(e[k], e[k] @ d_gap)) / length[k]
+    d_rate = relative[k] @ d_e + e[k] @ d_relative
+    d_speed = motion[k] @ results.sensitivity(lip.body, lip.name, kind="velocity")[k] / speed[k]
+    bore = design_value(hydraulics.bore, design)
+    d_cap = hydraulics.cylinders * np.pi / 2 * bore * design_gradient(hydraulics.bore, order, design)
+    d_pressure = design_gradient(hydraulics.relief[0], order, design)
+    magnitude = abs(rate[k])
+    gradient = (d_pressure * cap * magnitude + pressure * d_cap * magnitude + pressure * cap * np.sign(rate[k]) * d_rate) / speed[k] - (
+        pressure * cap * magnitude * d_speed / speed[k] ** 2
+    )
+    return float(values[k]), gradient / 1e3
+
+
+def _held_at(problem: StudyProblem, results: Results, q: Quantity, k: int):
+    """The solve holding ``q``'s load at time point k and its multipliers' design changes."""
+    from kinegen.forces.sensitivity import MultiplierChanges
+    from kinegen.forces.statics import Statics
+
+    load = problem.model.loads[str(q.load)]
+    if load.axes != GROUND or any(x != 0 for x in load.moment) or any(e.free_symbols for e in load.force):
+        raise KinegenError(f"{q.label}: its gradient needs a constant force in global axes (load {load.name})")
+    one = Results(results.system, results.times[k : k + 1], results.q[k : k + 1], results.v[k : k + 1], results.a[k : k + 1],
+                  results.iterations[k : k + 1], results.residuals[k : k + 1], results.conditions[k : k + 1], results.inputs[k : k + 1])  # fmt: skip
+    statics = Statics(one, problem.model)
+    force = np.array([[float(x) for x in load.force]])
+    matrix = statics.matrix()
+    multipliers = statics.solve(matrix, statics.point_load(load.point.body, load.point.name, force))
+    return statics, MultiplierChanges(statics, matrix, multipliers, load.point.body, load.point.name, force)
+
+
+def _pin_load(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """The largest force (kN) the joint carries over the case holding the load, and its derivative there."""
+    from kinegen.forces import forces
+
+    held = forces(results, problem.model, [str(q.load)])
+    magnitude = np.linalg.norm(held.reactions[str(q.actuator)].force, axis=1)
+    k = int(np.argmax(magnitude))
+    if not gradients:
+        return float(magnitude[k]) / 1e3, None
+    _, changes = _held_at(problem, results, q, k)
+    force, d_force, _, _ = changes.reaction(next(j for j in problem.model.joints if j.name == q.actuator))
+    return float(magnitude[k]) / 1e3, force[0] @ d_force[0] / magnitude[k] / 1e3
+
+
+def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """The largest pressure (MPa) the actuator needs over the case to hold the load, and its
+    derivative at that time point (:mod:`kinegen.forces.sensitivity`, the inputs held)."""
+    from kinegen.forces import forces
+
+    held = forces(results, problem.model, [str(q.load)])
+    pressure = held.pressures[str(q.actuator)]
+    k = int(np.argmax(pressure.pressure))
+    value = float(pressure.pressure[k]) / 1e6
+    if not gradients:
+        return value, None
+    statics, changes = _held_at(problem, results, q, k)
+    names = [e.name for e in statics.elements]
+    d_force = -changes.d_multipliers[0, statics.joint_rows + names.index(str(q.actuator))]
+    hydraulics = problem.actuators[str(q.actuator)].hydraulics
+    design, order = results.system.design, list(results.system.design)
+    cap, annulus = hydraulics.areas(design)
+    area = cap if pressure.cap_side[k] else annulus
+    bore, rod = design_value(hydraulics.bore, design), design_value(hydraulics.rod, design)
+    d_bore, d_rod = design_gradient(hydraulics.bore, order, design), design_gradient(hydraulics.rod, order, design)
+    d_area = hydraulics.cylinders * np.pi / 2 * (bore * d_bore - (0.0 if pressure.cap_side[k] else rod * d_rod))
+    f = held.element_force(str(q.actuator))[k]
+    gradient = np.sign(f) * d_force / area - abs(f) * d_area / area**2
+    return value, gradient / 1e6
+
+
 MEASURES: dict[str, Callable] = {
+    "digging_force": _tool_force,
+    "crowd_force": _tool_force,
+    "cylinder_pressure": _cylinder_pressure,
+    "pin_load": _pin_load,
     "transmission_angle": _transmission_angle,
     "rotation_range": _rotation_range,
     "stroke": _stroke,

@@ -291,7 +291,7 @@ class DesignParameter:
 #: every study quantity's kind and the unit it is measured in (see :class:`Quantity`; "1": a number)
 QUANTITY_UNITS = {
     "working_range": "m", "rotation_range": "rad", "stroke": "m", "toggle_margin": "1", "actuator_margin": "m",
-    "transmission_angle": "rad",
+    "transmission_angle": "rad", "digging_force": "kN", "crowd_force": "kN", "cylinder_pressure": "MPa", "pin_load": "kN",
 }  # fmt: skip
 QUANTITY_KINDS = tuple(QUANTITY_UNITS)
 
@@ -312,6 +312,14 @@ class Quantity:
     * ``transmission_angle``: over ``case``, the smallest distance of the angle at the second of
       ``points`` (between the lines to the first and the third) from 0 and from π (rad): a
       linkage transmits force badly near both (at 0 or π it is at a dead point).
+    * ``digging_force`` / ``crowd_force``: over ``case`` (one in which only ``actuator`` moves, such
+      as a sweep of its stroke), the largest force at the ``tool_forces`` lip along the lip's path
+      that ``actuator`` produces at its relief setting, relief x cap area x |L'| / |v_lip| by virtual
+      work (kN): the ISO 6015 bucket (arm) cylinder tool force before any other circuit limits it;
+    * ``cylinder_pressure``: over ``case``, the largest pressure ``actuator`` needs to hold ``load``
+      (MPa; :mod:`kinegen.forces`);
+    * ``pin_load``: over ``case``, the largest force the joint named ``actuator`` carries holding
+      ``load`` (kN).
     """
 
     kind: str
@@ -323,11 +331,12 @@ class Quantity:
     actuator: str | None = None
     bodies: tuple[str, ...] = ()
     points: tuple[tuple[str, str], ...] = ()  #: (body, point) each
+    load: str | None = None  #: the load a cylinder_pressure is measured under
 
     @property
     def unit(self) -> str:
-        """m, rad, or "" (a singular value of Φ_q, mixed units)."""
-        return {"rotation_range": "rad", "transmission_angle": "rad", "toggle_margin": ""}.get(self.kind, "m")
+        """Its unit (:data:`QUANTITY_UNITS`), "" for a singular value of Φ_q (mixed units)."""
+        return "" if self.kind == "toggle_margin" else QUANTITY_UNITS[self.kind]
 
     @property
     def label(self) -> str:
@@ -337,6 +346,7 @@ class Quantity:
         what = {
             "rotation_range": f"{self.body}/{self.relative_to}", "toggle_margin": "+".join(self.bodies),
             "transmission_angle": "-".join(f"{b}.{p}" for b, p in self.points),
+            "cylinder_pressure": f"{self.actuator} holding {self.load}", "pin_load": f"{self.actuator} holding {self.load}",
         }.get(self.kind, self.actuator)  # fmt: skip
         return f"{self.kind}({what}, {self.case})"
 

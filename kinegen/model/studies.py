@@ -40,7 +40,7 @@ from kinegen.model.schema import (
 Loader = Any
 
 #: keys a term or constraint may have besides its quantity's
-_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis")}
+_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis"), "cylinder_pressure": ("load",), "pin_load": ("load",)}
 
 
 def read_studies(
@@ -88,7 +88,7 @@ class _StudyReader:
         self.loader, self.cases, self.actuators, self.working_range = loader, cases, actuators, working_range
 
     def term(self, value: Any, entry: str) -> Term:
-        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "weight", "target"))
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "weight", "target"))
         quantity = self.quantity(spec, entry)
         weight = self.number(spec.get("weight", 1), f"{entry}.weight")
         target = spec.get("target")
@@ -102,7 +102,7 @@ class _StudyReader:
         return Term(quantity, weight, target)
 
     def constraint(self, value: Any, entry: str) -> StudyConstraint:
-        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "at_least", "at_most"))
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "at_least", "at_most"))
         quantity = self.quantity(spec, entry)
         low, high = (self.number(spec[k], f"{entry}.{k}") if k in spec else None for k in ("at_least", "at_most"))
         if low is None and high is None:
@@ -135,6 +135,26 @@ class _StudyReader:
         case = spec.get("case")
         if not isinstance(case, str) or case not in self.cases:
             raise self.loader.fail(f"{entry}.case", f"{kind} is measured over a case: expected one of {', '.join(self.cases)}, got {shown(case)}")
+        if kind == "pin_load":
+            joints = list(self.loader.joints)
+            if not isinstance(what, str) or what not in joints:
+                raise self.loader.fail(where, f"unknown joint {shown(what)} (joints: {', '.join(joints)})")
+            loads = getattr(self.loader, "loads", {})
+            if spec.get("load") not in loads:
+                raise self.loader.fail(f"{entry}.load", f"a pin load holds one of the model's loads ({', '.join(loads) or 'none'}), got {shown(spec.get('load'))}")
+            return Quantity(kind, case, actuator=what, load=spec["load"])
+        if kind in ("digging_force", "crowd_force", "cylinder_pressure"):
+            hydraulic = [a for a, actuator in self.actuators.items() if actuator.hydraulics is not None]
+            if not isinstance(what, str) or what not in hydraulic:
+                raise self.loader.fail(where, f"{shown(what)} is not an actuator with hydraulic data (those: {', '.join(hydraulic) or 'none'})")
+            if kind == "cylinder_pressure":
+                loads = getattr(self.loader, "loads", {})
+                if spec.get("load") not in loads:
+                    raise self.loader.fail(f"{entry}.load", f"a cylinder pressure holds one of the model's loads ({', '.join(loads) or 'none'}), got {shown(spec.get('load'))}")
+                return Quantity(kind, case, actuator=what, load=spec["load"])
+            if getattr(self.loader, "tool_forces", None) is None:
+                raise self.loader.fail(where, f"{kind} acts at the tool_forces section's lip: the model has none")
+            return Quantity(kind, case, actuator=what)
         if kind in ("stroke", "actuator_margin"):
             if not isinstance(what, str) or what not in self.actuators:
                 raise self.loader.fail(where, f"unknown actuator {shown(what)} (actuators: {', '.join(self.actuators) or 'none'})")

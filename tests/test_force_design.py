@@ -1,0 +1,126 @@
+"""Forces in design (issue 28, part 4): the exact design sensitivities of the actuation forces and
+the study quantities built on them, against central differences of the same forces at nearby
+design values (the module takes the design parameters at run time; the poses re-solved at the
+same inputs)."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pytest
+
+from kinegen.forces.iso6015 import tool_forces
+from kinegen.forces.sensitivity import element_force_sensitivities
+from kinegen.forces.statics import Statics
+from kinegen.runtime import Solver, SolverOptions, from_module, load_module
+from kinegen.runtime.results import Results
+from tests.conftest import GENERATED, generated_system, model
+
+H = 1e-6
+LOAD = np.array([-30000.0, 0.0, -10000.0])  # at the tip T, global
+
+
+@functools.cache
+def module():
+    return load_module(GENERATED / "excavator_quaternion.py")
+
+
+def _nominal() -> dict[str, float]:
+    return {d.name: float(d.nominal) for d in model("excavator").design}
+
+
+def _poses(system, q_start: np.ndarray, inputs: np.ndarray) -> np.ndarray:
+    solver = Solver(system, SolverOptions(tolerance=1e-13))
+    return np.stack([solver.position(q, u)[0] for q, u in zip(q_start, inputs)])
+
+
+def _held(system, q: np.ndarray, inputs: np.ndarray):
+    n = len(q)
+    results = Results(system, np.arange(n, dtype=float), q, np.zeros((n, system.n_velocity)), np.zeros((n, system.n_velocity)),
+                      np.zeros(n, dtype=int), np.zeros(n), np.full(n, np.nan), inputs)  # fmt: skip
+    statics = Statics(results, model("excavator"))
+    matrix = statics.matrix()
+    force = np.broadcast_to(LOAD, (n, 3))
+    multipliers = statics.solve(matrix, statics.point_load("bucket", "T", force))
+    return statics, matrix, multipliers, force
+
+
+def test_element_force_sensitivities_equal_central_differences():
+    """Four poses of the digging cycle, the load at the tip held fixed: d(cylinder and swing-motor
+    forces)/dp of pins on the boom (C), the arm (F) and the bucket linkage (K, its link lengths)."""
+    base = from_module(module(), "digging", compiled=False)
+    inputs = base.driver_inputs(np.array([0.0, 2.0, 5.0, 11.0]))[0].T
+    start = np.stack([Solver(base, SolverOptions()).position(base.initial_q, u)[0] for u in inputs])
+    q = _poses(base, start, inputs)
+    statics, matrix, multipliers, force = _held(base, q, inputs)
+    exact = element_force_sensitivities(statics, matrix, multipliers, "bucket", "T", force)
+    nominal = _nominal()
+    for name in ("C_x", "F_z", "K_x", "side_link"):
+        moved = []
+        for sign in (1, -1):
+            system = from_module(module(), "digging", compiled=False, design={**nominal, name: nominal[name] + sign * H})
+            s, _, lam, _ = _held(system, _poses(system, q, inputs), inputs)
+            moved.append(s.element_forces(lam))
+        difference = (moved[0] - moved[1]) / (2 * H)
+        k = list(nominal).index(name)
+        np.testing.assert_allclose(exact[:, :, k], difference, rtol=0, atol=1e-7 * np.abs(difference).max(), err_msg=name)
+        assert np.abs(difference).max() > 1e3  # each of them moves the forces (N per m)
+
+
+def test_digging_force_quantity_is_the_iso_ceiling():
+    """Two ways to the bucket cylinder's relief-limited tool force: virtual work by velocities over
+    the bucket_stroke case (the study quantity) and Phi_q^T lambda = Q over the stroke (kinegen forces)."""
+    from kinegen.analysis.studies import StudyProblem
+
+    excavator = model("excavator")
+    problem = StudyProblem(excavator, module(), excavator.studies["digging_force"], compiled=False)
+    measured = problem.measure(np.array([problem.nominal_design[n] for n in problem.names]), gradients=False)
+    ceiling = tool_forces(generated_system("excavator_quaternion", "digging"), excavator)["bucket"].ceiling
+    # the case samples the stroke at 101 points, the ISO search refines the maximum between them
+    assert measured.values["digging_force(bucket_cylinder, bucket_stroke)"] * 1e3 == pytest.approx(ceiling, rel=2e-4)
+    assert measured.values["digging_force(bucket_cylinder, bucket_stroke)"] * 1e3 <= ceiling * (1 + 1e-9)
+
+
+@pytest.mark.parametrize(
+    ("quantity", "parameters"),
+    [
+        ("{digging_force: bucket_cylinder, case: bucket_stroke}", ("side_link", "K_z")),
+        ("{cylinder_pressure: bucket_cylinder, load: cutting, case: level_cut}", ("K_x", "bucket_link")),
+        ("{cylinder_pressure: boom_cylinder_left, load: payload, case: digging}", ("C_x", "F_z")),
+        ("{pin_load: arm_pin, load: cutting, case: level_cut}", ("F_x", "F_z")),
+        ("{pin_load: boom_foot, load: payload, case: digging}", ("C_x", "C_z")),
+    ],
+)
+def test_force_quantities_gradients_equal_central_differences(quantity, parameters):
+    from kinegen.analysis.studies import StudyProblem
+    from kinegen.model import loads
+
+    text = (GENERATED.parent / "models" / "excavator.yaml").read_text()
+    study = f"\nstudies:\n  check:\n    parameters: [{', '.join(parameters)}]\n    maximize:\n      - {quantity}\n"
+    checked = loads(text.replace("\nstudies:\n", study, 1), "excavator.yaml")  # the shipped studies follow it
+    problem = StudyProblem(checked, module(), checked.studies["check"], compiled=False)
+    p = np.array([problem.nominal_design[n] for n in problem.names])
+    measured = problem.measure(p)
+    (label,) = measured.values
+    for i, name in enumerate(parameters):
+        step = H * np.eye(len(p))[i]
+        difference = (problem.measure(p + step, False).values[label] - problem.measure(p - step, False).values[label]) / (2 * H)
+        assert measured.gradients[label][i] == pytest.approx(difference, rel=1e-6, abs=1e-6), name
+        assert abs(difference) > 0.1  # kN or MPa per m: it depends on the parameter
+
+
+def test_force_quantities_are_checked_when_read():
+    from kinegen.errors import ModelError
+    from kinegen.model import loads
+
+    text = (GENERATED.parent / "models" / "excavator.yaml").read_text()
+    for quantity, problem in (
+        ("{cylinder_pressure: bucket_cylinder, load: wind, case: level_cut}", "one of the model's loads"),
+        ("{digging_force: boom_cylinder_right, case: bucket_stroke}", "not an actuator with hydraulic data"),
+        ("{pin_load: elbow, load: payload, case: digging}", "unknown joint 'elbow'"),
+        ("{pin_load: arm_pin, case: digging}", "a pin load holds one of the model's loads"),
+    ):
+        broken = text.replace("      - {digging_force: bucket_cylinder, case: bucket_stroke}", f"      - {quantity}")
+        with pytest.raises(ModelError, match=problem):
+            loads(broken, "excavator.yaml")
