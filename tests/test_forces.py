@@ -330,3 +330,48 @@ def test_solve_with_loads_writes_the_force_columns(tmp_path):
     assert {"A.force_x", "A.joint_moment_z", "lambda.crank_angle"} <= set(rows[0])
     bad = CliRunner().invoke(main, ["solve", "models/slider_crank.yaml", "--load", "wind"])
     assert bad.exit_code == 64 and "no load 'wind' (loads: gas)" in bad.output
+
+
+SHIPPED_CASES = [(m, c) for m in ("boom", "rssr", "four_bar", "slider_crank", "excavator") for c in model(m).cases]
+
+
+@functools.cache
+def solved_prefix(name: str, case: str):
+    """A case solved on 41 points; a case that ends at a singular pose on purpose (a toggle, a dead
+    centre) up to the last point before it."""
+    system = generated_system(f"{name}_quaternion", case)
+    results = solve(system, np.linspace(system.t0, system.t1, 41), SolverOptions(on_failure="stop"))
+    if results.complete:
+        return results
+    end = max(int(np.argmin(results.converged)) - 1, 2)
+    return dataclasses.replace(
+        results, times=results.times[:end], q=results.q[:end], v=results.v[:end], a=results.a[:end], iterations=results.iterations[:end],
+        residuals=results.residuals[:end], conditions=results.conditions[:end], inputs=results.inputs[:end], converged=None, failure=None,
+    )  # fmt: skip
+
+
+@settings(max_examples=30, deadline=None)
+@given(
+    which=st.sampled_from(SHIPPED_CASES),
+    force=st.lists(st.floats(-1e4, 1e4), min_size=3, max_size=3),
+    moment=st.lists(st.floats(-1e3, 1e3), min_size=3, max_size=3),
+    pick=st.integers(0, 10_000),
+    in_body_axes=st.booleans(),
+)
+def test_power_balance_along_every_shipped_case(which, force, moment, pick, in_body_axes):
+    """Any wrench at any named point of any moving body, along every shipped case (each model's own
+    actuation: its motors and hydraulic cylinders, else the case's drivers): the elements' power
+    balances the load's to 1e-9 of the largest term."""
+    name, case = which
+    m = model(name)
+    points = [(b.name, p) for b in m.bodies for p in b.points]
+    body, point = points[pick % len(points)]
+    load = Load("random", PointRef(body, point, m.body(body).points[point]), sp.ImmutableMatrix(force), sp.ImmutableMatrix(moment),
+                body if in_body_axes else GROUND)  # fmt: skip
+    loaded = dataclasses.replace(m, loads={"random": load})
+    results = solved_prefix(name, case)
+    held = forces(results, loaded, ["random"])
+    rates = _element_rates(held, loaded)
+    work = np.einsum("ki,ki->k", held.force, rates)
+    scale = max(np.abs(held.force * rates).max(), np.abs(_load_power(results, [load])).max(), 1.0)  # W
+    np.testing.assert_allclose(work + _load_power(results, [load]), 0.0, atol=1e-9 * scale)

@@ -34,6 +34,7 @@ import tempfile
 from collections import Counter
 from pathlib import Path
 
+import pytest
 import yaml
 from fuzzing import Worker
 from hypothesis import HealthCheck, given, settings
@@ -421,6 +422,12 @@ def check_model(layer: str, kind: str, data: bytes) -> None:
     assert not SENTINEL.exists(), "an expression in a model was executed"
 
 
+#: the fuzz test and its statistics run in one test process, in this order (make test distributes
+#: with --dist loadgroup): the statistics read what the fuzz test recorded in that process
+FUZZ_GROUP = pytest.mark.xdist_group(name="fuzz")
+
+
+@FUZZ_GROUP
 @settings(
     max_examples=EXAMPLES,
     deadline=None,
@@ -432,6 +439,7 @@ def test_fuzzed_models_end_in_a_model_error_naming_file_and_entry(model):
     check_model(*model)
 
 
+@FUZZ_GROUP
 def test_fuzz_statistics():
     """Runs after the fuzz test (file order): models of every layer ran and several error kinds were hit."""
     if PROGRESS:
