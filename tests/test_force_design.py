@@ -90,6 +90,8 @@ def test_digging_force_quantity_is_the_iso_ceiling():
         ("{cylinder_pressure: boom_cylinder_left, load: payload, case: digging}", ("C_x", "F_z")),
         ("{pin_load: arm_pin, load: cutting, case: level_cut}", ("F_x", "F_z")),
         ("{pin_load: boom_foot, load: payload, case: digging}", ("C_x", "C_z")),
+        ("{lift_capacity: [6.0, 1.5]}", ("C_x", "C_z")),  # the boom cylinders limit: their pins matter
+        ("{lift_capacity: [3.0, 0]}", ("F_x", "F_z")),  # the arm cylinder's holding limit: its pin matters
     ],
 )
 def test_force_quantities_gradients_equal_central_differences(quantity, parameters):
@@ -120,6 +122,8 @@ def test_force_quantities_are_checked_when_read():
         ("{digging_force: boom_cylinder_right, case: bucket_stroke}", "not an actuator with hydraulic data"),
         ("{pin_load: elbow, load: payload, case: digging}", "unknown joint 'elbow'"),
         ("{pin_load: arm_pin, case: digging}", "a pin load holds one of the model's loads"),
+        ("{lift_capacity: [6.0]}", "expected \\[radius, height\\]"),
+        ("{lift_capacity: [6.0, 1.5], case: digging}", "measured in the lift_chart section's case"),
     ):
         broken = text.replace("      - {digging_force: bucket_cylinder, case: bucket_stroke}", f"      - {quantity}")
         with pytest.raises(ModelError, match=problem):

@@ -375,3 +375,12 @@ def test_power_balance_along_every_shipped_case(which, force, moment, pick, in_b
     work = np.einsum("ki,ki->k", held.force, rates)
     scale = max(np.abs(held.force * rates).max(), np.abs(_load_power(results, [load])).max(), 1.0)  # W
     np.testing.assert_allclose(work + _load_power(results, [load]), 0.0, atol=1e-9 * scale)
+
+
+def test_info_shows_the_force_sections():
+    from kinegen.analysis.info import describe
+
+    text = describe(model("excavator"), ("quaternion",))
+    assert "cylinders 2 x 120/85 mm, relief 34.3 MPa" in text and "cylinder 1 x 115/80 mm, relief 34.3 MPa" in text
+    assert "motors: swing_motor (at swing)" in text and "loads: payload (at bucket.Q), cutting (at bucket.T)" in text
+    assert "tool forces (kinegen forces): bucket, arm at bucket.T, lift chart" in text

@@ -26,6 +26,8 @@ SLOW = tuple(REDUCED)
 #: the tour's analysis steps (working range, scan, studies: ~20 s), a test of their own so that they
 #: run beside the rest
 ANALYSES = ("kinegen envelope", "kinegen scan", "kinegen optimize")
+#: the tour's force steps and its 3-D view (~20 s together): a test of their own too
+FORCES_AND_VIEW = ("kinegen forces", "kinegen view")
 
 
 def _block(heading: str, language: str = "sh") -> str:
@@ -75,8 +77,17 @@ def user_folder(tmp_path_factory) -> Path:
 def test_the_tours_commands_run_as_printed(user_folder: Path) -> None:
     commands = _commands(_block("## A 5-minute tour"))
     assert len(commands) >= 15 and any(expected == 3 for _, expected in commands)
-    _run([(c, e) for c, e in commands if not c.startswith(SLOW + ANALYSES)], user_folder)
-    for written in ("out/boom.csv", "out/boom.png", "out/excavator_digging.html", "out/digging.gif", "out/boom.html"):
+    _run([(c, e) for c, e in commands if not c.startswith(SLOW + ANALYSES + FORCES_AND_VIEW)], user_folder)
+    for written in ("out/boom.csv", "out/boom.png", "out/boom.html"):
+        assert (user_folder / written).stat().st_size > 0, written
+
+
+def test_the_tours_force_and_view_steps_run_as_printed(user_folder: Path) -> None:
+    steps = [(c, e) for c, e in _commands(_block("## A 5-minute tour")) if c.startswith(FORCES_AND_VIEW)]
+    assert [c.split()[1] for c, _ in steps] == ["forces", "forces", "forces", "view"]
+    printed = _run(steps, user_folder)
+    assert "bucket digging force" in printed[0] and "87 % of the hydraulic lift capacity" in printed[1]
+    for written in ("out/digging_map.csv", "out/excavator_digging.html", "out/digging.gif"):
         assert (user_folder / written).stat().st_size > 0, written
 
 

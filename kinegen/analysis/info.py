@@ -1,5 +1,5 @@
 """``kinegen info``: what a model holds, in one screen -- bodies, joints, drivers, cases with
-their time grids, actuators with their ranges, design parameters, studies, and per
+their time grids, actuators with their ranges (and hydraulic data), motors and loads, design parameters, studies, and per
 parametrization the coordinates and equations it gives (counted from the equations, not built)."""
 
 from __future__ import annotations
@@ -7,7 +7,7 @@ from __future__ import annotations
 import sympy as sp
 
 from kinegen import rotations
-from kinegen.model.schema import GROUND, Model
+from kinegen.model.schema import GROUND, Model, design_value
 
 
 def counts(model: Model, parametrization: rotations.Parametrization) -> dict[str, int]:
@@ -45,7 +45,20 @@ def describe(model: Model, parametrizations: tuple[str, ...] = DEFAULT_PARAMETRI
         for a in model.actuators:
             limits = a.limits({d.name: float(d.nominal) for d in model.design})
             shown = f"[{limits[0]:.4f}, {limits[1]:.4f}] m" if limits else "no range"
-            lines.append(f"  {a.name:<22} {a.points[0].body}.{a.points[0].name} - {a.points[1].body}.{a.points[1].name}, {shown}")
+            hydraulics = ""
+            if a.hydraulics is not None:
+                h, nominal = a.hydraulics, {d.name: float(d.nominal) for d in model.design}
+                relief = design_value(h.relief[0], nominal) / 1e6
+                hydraulics = (f"; cylinder{'s' if h.cylinders > 1 else ''} {h.cylinders} x {1e3 * design_value(h.bore, nominal):.0f}/"
+                              f"{1e3 * design_value(h.rod, nominal):.0f} mm, relief {relief:.1f} MPa")  # fmt: skip
+            lines.append(f"  {a.name:<22} {a.points[0].body}.{a.points[0].name} - {a.points[1].body}.{a.points[1].name}, {shown}{hydraulics}")
+    if model.motors:
+        lines.append("motors: " + ", ".join(f"{m.name} (at {m.joint})" for m in model.motors))
+    if model.loads:
+        lines.append("loads: " + ", ".join(f"{name} (at {load.point.body}.{load.point.name})" for name, load in model.loads.items()))
+    if model.tool_forces is not None:
+        lines.append(f"tool forces (kinegen forces): {', '.join(model.tool_forces.forces)} at {model.tool_forces.lip.body}.{model.tool_forces.lip.name}"
+                     + (", lift chart (kinegen forces --lift)" if model.lift_chart is not None else ""))  # fmt: skip
     if model.design:
         lines.append(f"design parameters ({len(model.design)}):")
         lines += [f"  {d.name:<22} {float(d.nominal):.6g} in [{float(d.lower):g}, {float(d.upper):g}]" for d in model.design]

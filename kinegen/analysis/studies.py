@@ -415,6 +415,61 @@ def _pin_load(problem: StudyProblem, results: Results, q: Quantity, gradients: b
     return float(magnitude[k]) / 1e3, force[0] @ d_force[0] / magnitude[k] / 1e3
 
 
+def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """The hydraulic lift capacity (kN) with the lift point at ``q.at``; its derivative moves the
+    placing inputs with the design (du/dp = -(dP/du)^-1 dP/dp keeps the point in place)."""
+    from kinegen.forces.lift import _Placer
+    from kinegen.forces.sensitivity import MultiplierChanges, _TangentChanges
+    from kinegen.forces.statics import Statics, hydraulic_limit
+    from kinegen.runtime.sensitivity import configuration_sensitivities
+
+    system, model = results.system, problem.model
+    chart = model.lift_chart
+    placer = _Placer(system, model)
+    found = placer.at(*q.at)
+    if found is None:
+        raise KinegenError(f"{q.label}: the lift point cannot be placed there")
+    value = found.capacity / 1e3
+    if not gradients:
+        return value, None
+    u = np.array([found.inputs[n] for n in system.driver_names])
+    pose = placer._pose(u[placer.index])
+    one = Results(system, np.zeros(1), pose[None], np.zeros((1, system.n_velocity)), np.zeros((1, system.n_velocity)),
+                  np.zeros(1, dtype=int), np.zeros(1), np.full(1, np.nan), u[None])  # fmt: skip
+    statics = Statics(one, model)
+    body, point = chart.point.body, chart.point.name
+    force = np.array([[0.0, 0.0, -1.0]])
+    matrix = statics.matrix()
+    multipliers = statics.solve(matrix, statics.point_load(body, point, force))
+    by_design, by_input = configuration_sensitivities(system, pose[:, None], u[:, None])
+    position = statics.position(body, statics.local(body, point))
+    jacobian = np.zeros((3, system.n_velocity))
+    jacobian[:, statics.columns(body)] = statics.point_jacobian(body, position)[0]
+    moved = by_input[0][:, placer.index]  # dq/du of the placing inputs, (n_v, 2)
+    in_plane = [0, 2]
+    d_point = _TangentChanges(statics, by_design).point(body, point)[1][0]  # dP/dp at held inputs, (3, P)
+    d_inputs = -np.linalg.solve((jacobian @ moved)[in_plane], d_point[in_plane])  # (2, P)
+    change = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=by_design + (moved @ d_inputs)[None])
+    names = [e.name for e in statics.elements]
+    per_newton = statics.element_forces(multipliers)[0]
+    actuator = next(a for a in model.actuators if a.name == found.limiting)
+    k = names.index(actuator.name)
+    f, d_f = per_newton[k], -change.d_multipliers[0, statics.joint_rows + k]
+    hydraulics = actuator.hydraulics
+    design, order = system.design, list(system.design)
+    working = actuator.name == chart.lifting
+    capacity, setting, side = hydraulic_limit(actuator, np.array([f]), design, working)
+    bore, rod = design_value(hydraulics.bore, design), design_value(hydraulics.rod, design)
+    cap, annulus = hydraulics.areas(design)
+    area = cap if side[0] == "cap" else annulus
+    d_area = hydraulics.cylinders * np.pi / 2 * (bore * design_gradient(hydraulics.bore, order, design)
+                                                 - (0.0 if side[0] == "cap" else rod * design_gradient(hydraulics.rod, order, design)))  # fmt: skip
+    settings = hydraulics.relief if working else hydraulics.holding
+    d_setting = design_gradient(settings[0 if side[0] == "cap" else 1], order, design)
+    gradient = capacity[0] * (d_setting / setting[0] + d_area / area - np.sign(f) * d_f / abs(f))
+    return value, gradient / 1e3
+
+
 def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
     """The largest pressure (MPa) the actuator needs over the case to hold the load, and its
     derivative at that time point (:mod:`kinegen.forces.sensitivity`, the inputs held)."""
@@ -446,6 +501,7 @@ MEASURES: dict[str, Callable] = {
     "crowd_force": _tool_force,
     "cylinder_pressure": _cylinder_pressure,
     "pin_load": _pin_load,
+    "lift_capacity": _lift_capacity,
     "transmission_angle": _transmission_angle,
     "rotation_range": _rotation_range,
     "stroke": _stroke,

@@ -38,9 +38,12 @@ def element_force_sensitivities(statics: Statics, matrix: Rows, multipliers: np.
 
 class MultiplierChanges:
     """dλ/dp (K, rows, n_design) of the solve that holds a global ``force`` (K, 3) at ``body``'s named
-    ``point``, the inputs held (the module docstring); and the joints' reactions' changes from it."""
+    ``point``, the inputs held (the module docstring) -- or the pose moving by ``s`` (K, n_v, P) per
+    parameter, when the inputs move with the design (a lift point held in place); and the joints'
+    reactions' changes from it."""
 
-    def __init__(self, statics: Statics, matrix: Rows, multipliers: np.ndarray, body: str, point: str, force: np.ndarray) -> None:
+    def __init__(self, statics: Statics, matrix: Rows, multipliers: np.ndarray, body: str, point: str, force: np.ndarray,
+                 s: np.ndarray | None = None) -> None:  # fmt: skip
         system = statics.system
         if not statics.declared:
             raise KinegenError("force sensitivities need the model's declared actuation (motors, hydraulic actuators)")
@@ -48,7 +51,8 @@ class MultiplierChanges:
             raise KinegenError(f"{system.model}: force sensitivities need design parameters and the module's sensitivity kernels")
         self.statics, self.matrix, self.multipliers = statics, matrix, multipliers
         q, u = statics.results.q.T, statics.results.inputs.T
-        self.s = s = configuration_sensitivities(system, q, u)[0]  # (K, n_v, P)
+        # the pose's change per parameter: at held inputs, unless the caller moves them too (``s``)
+        self.s = s = configuration_sensitivities(system, q, u)[0] if s is None else s  # (K, n_v, P)
         self.maps = maps = _TangentChanges(statics, s)
         change = -_joint_rows_change(statics, multipliers, s)  # dQ - d(Phi_q^T) lambda, (K, n_v, P)
         for e, element in enumerate(statics.declared):

@@ -398,7 +398,7 @@ class _Reader:
         working_range = self.working_range(top.get("working_range"), cases) if "working_range" in top else None
         tool_forces = read_tool_forces(self, top["tool_forces"], cases, actuators, tool_points, working_range) if "tool_forces" in top else None
         lift_chart = read_lift_chart(self, top["lift_chart"], cases, actuators, working_range) if "lift_chart" in top else None
-        self.loads, self.tool_forces = loads, tool_forces  # what the studies' force quantities refer to
+        self.loads, self.tool_forces, self.lift_chart = loads, tool_forces, lift_chart  # what the studies' force quantities refer to
         studies = read_studies(self, top.get("studies"), cases, actuators, working_range) if "studies" in top else {}
         return Model(
             name=name,

@@ -292,6 +292,7 @@ class DesignParameter:
 QUANTITY_UNITS = {
     "working_range": "m", "rotation_range": "rad", "stroke": "m", "toggle_margin": "1", "actuator_margin": "m",
     "transmission_angle": "rad", "digging_force": "kN", "crowd_force": "kN", "cylinder_pressure": "MPa", "pin_load": "kN",
+    "lift_capacity": "kN",
 }  # fmt: skip
 QUANTITY_KINDS = tuple(QUANTITY_UNITS)
 
@@ -319,7 +320,9 @@ class Quantity:
     * ``cylinder_pressure``: over ``case``, the largest pressure ``actuator`` needs to hold ``load``
       (MPa; :mod:`kinegen.forces`);
     * ``pin_load``: over ``case``, the largest force the joint named ``actuator`` carries holding
-      ``load`` (kN).
+      ``load`` (kN);
+    * ``lift_capacity``: the hydraulic lift capacity with the ``lift_chart`` point at ``at`` (radius,
+      height; m), the placing inputs solved for each design (kN).
     """
 
     kind: str
@@ -332,6 +335,7 @@ class Quantity:
     bodies: tuple[str, ...] = ()
     points: tuple[tuple[str, str], ...] = ()  #: (body, point) each
     load: str | None = None  #: the load a cylinder_pressure is measured under
+    at: tuple[float, float] | None = None  #: a lift_capacity's radius and height [m]
 
     @property
     def unit(self) -> str:
@@ -343,6 +347,8 @@ class Quantity:
         """A short name: ``max_depth``, ``rotation_range(bucket/arm, bucket_stroke)``, ..."""
         if self.kind == "working_range":
             return str(self.figure)
+        if self.kind == "lift_capacity" and self.at is not None:
+            return f"lift_capacity({self.at[0]:g} m, {self.at[1]:g} m)"
         what = {
             "rotation_range": f"{self.body}/{self.relative_to}", "toggle_margin": "+".join(self.bodies),
             "transmission_angle": "-".join(f"{b}.{p}" for b, p in self.points),

@@ -132,6 +132,18 @@ class _StudyReader:
             if not isinstance(what, str) or what not in WORKING_RANGE_FIGURES:
                 raise self.loader.fail(where, f"unknown figure {shown(what)} (one of {', '.join(WORKING_RANGE_FIGURES)})")
             return Quantity(kind, figure=what)
+        if kind == "lift_capacity":
+            chart = getattr(self.loader, "lift_chart", None)
+            if chart is None:
+                raise self.loader.fail(where, "a lift capacity is measured at the lift_chart section's point: the model has none")
+            if "case" in spec:
+                raise self.loader.fail(f"{entry}.case", "a lift capacity is measured in the lift_chart section's case")
+            if not isinstance(what, list) or len(what) != 2:
+                raise self.loader.fail(where, f"expected [radius, height] (m), got {shown(what)}")
+            radius, height = (self.number(x, f"{where}[{i}]") for i, x in enumerate(what))
+            if radius <= 0:
+                raise self.loader.fail(f"{where}[0]", "the radius is a distance from the swing axis: positive")
+            return Quantity(kind, chart.case, at=(radius, height))
         case = spec.get("case")
         if not isinstance(case, str) or case not in self.cases:
             raise self.loader.fail(f"{entry}.case", f"{kind} is measured over a case: expected one of {', '.join(self.cases)}, got {shown(case)}")
