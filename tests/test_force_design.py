@@ -92,6 +92,7 @@ def test_digging_force_quantity_is_the_iso_ceiling():
         ("{pin_load: boom_foot, load: payload, case: digging}", ("C_x", "C_z")),
         ("{lift_capacity: [6.0, 1.5]}", ("C_x", "C_z")),  # the boom cylinders limit: their pins matter
         ("{lift_capacity: [3.0, 0]}", ("F_x", "F_z")),  # the arm cylinder's holding limit: its pin matters
+        ("{tool_force: bucket.T, direction: [-1, 0, 0], case: level_cut}", ("C_x", "C_z")),
     ],
 )
 def test_force_quantities_gradients_equal_central_differences(quantity, parameters):
@@ -123,6 +124,8 @@ def test_force_quantities_are_checked_when_read():
         ("{pin_load: elbow, load: payload, case: digging}", "unknown joint 'elbow'"),
         ("{pin_load: arm_pin, case: digging}", "a pin load holds one of the model's loads"),
         ("{lift_capacity: [6.0]}", "expected \\[radius, height\\]"),
+        ("{tool_force: bucket.T, case: level_cut}", "needs its direction"),
+        ("{tool_force: bucket.T, direction: [0, 0, 0], case: level_cut}", "non-zero vector"),
         ("{lift_capacity: [6.0, 1.5], case: digging}", "measured in the lift_chart section's case"),
     ):
         broken = text.replace("      - {digging_force: bucket_cylinder, case: bucket_stroke}", f"      - {quantity}")

@@ -345,7 +345,7 @@ def _transmission_angle(problem: StudyProblem | None, results: Results, q: Quant
     return float(points[k]), d_points[k], (points, d_points)
 
 
-def _tool_force(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+def _relief_tool_force(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
     """relief x cap area x |L'| / |v_lip| over the case (kN) -- the force at the lip along its path that
     the actuator produces at its relief setting, by virtual work when only it moves -- at its largest
     time point, and its derivative there (the rate's and the lip speed's exact sensitivities)."""
@@ -415,12 +415,62 @@ def _pin_load(problem: StudyProblem, results: Results, q: Quantity, gradients: b
     return float(magnitude[k]) / 1e3, force[0] @ d_force[0] / magnitude[k] / 1e3
 
 
+def _tool_force(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """Over the case's poses, the largest force (kN) the point can exert along the direction, every
+    cylinder at most at its relief setting (a force map's value), and its derivative at that pose."""
+    from kinegen.forces.sensitivity import MultiplierChanges
+    from kinegen.forces.statics import Statics, hydraulic_limit
+
+    system, model = results.system, problem.model
+    (body, point), direction = q.points[0], np.asarray(q.axis, dtype=float)
+    statics = Statics(results, model)
+    load = np.broadcast_to(-direction, (len(results.times), 3))  # the machine holds -F when the tool exerts F
+    matrix = statics.matrix()
+    multipliers = statics.solve(matrix, statics.point_load(body, point, load))
+    per_newton = statics.element_forces(multipliers)
+    names = [e.name for e in statics.elements]
+    hydraulic = [a for a in model.actuators if a.hydraulics is not None]
+    limits = np.stack([hydraulic_limit(a, per_newton[:, names.index(a.name)], system.design, True)[0] for a in hydraulic])
+    capacity = limits.min(axis=0)
+    k = int(np.argmax(capacity))
+    value = float(capacity[k]) / 1e3
+    if not gradients:
+        return value, None
+    one = Results(system, results.times[k : k + 1], results.q[k : k + 1], results.v[k : k + 1], results.a[k : k + 1],
+                  results.iterations[k : k + 1], results.residuals[k : k + 1], results.conditions[k : k + 1], results.inputs[k : k + 1])  # fmt: skip
+    single = Statics(one, model)
+    single_matrix = single.matrix()
+    single_multipliers = single.solve(single_matrix, single.point_load(body, point, load[k : k + 1]))
+    changes = MultiplierChanges(single, single_matrix, single_multipliers, body, point, load[k : k + 1])
+    actuator = hydraulic[int(np.argmin(limits[:, k]))]
+    j = names.index(actuator.name)
+    f, d_f = per_newton[k, j], -changes.d_multipliers[0, single.joint_rows + j]
+    return value, _limit_gradient(actuator, f, d_f, system.design, True) / 1e3
+
+
+def _limit_gradient(actuator, f: float, d_f: np.ndarray, design: dict[str, float], working: bool) -> np.ndarray:
+    """d/dp of the load at which ``actuator`` reaches its setting (setting x area / |f per unit load|)."""
+    from kinegen.forces.statics import hydraulic_limit
+
+    hydraulics = actuator.hydraulics
+    order = list(design)
+    capacity, setting, side = hydraulic_limit(actuator, np.array([f]), design, working)
+    bore, rod = design_value(hydraulics.bore, design), design_value(hydraulics.rod, design)
+    cap, annulus = hydraulics.areas(design)
+    area = cap if side[0] == "cap" else annulus
+    d_area = hydraulics.cylinders * np.pi / 2 * (bore * design_gradient(hydraulics.bore, order, design)
+                                                 - (0.0 if side[0] == "cap" else rod * design_gradient(hydraulics.rod, order, design)))  # fmt: skip
+    settings = hydraulics.relief if working else hydraulics.holding
+    d_setting = design_gradient(settings[0 if side[0] == "cap" else 1], order, design)
+    return capacity[0] * (d_setting / setting[0] + d_area / area - np.sign(f) * d_f / abs(f))
+
+
 def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
     """The hydraulic lift capacity (kN) with the lift point at ``q.at``; its derivative moves the
     placing inputs with the design (du/dp = -(dP/du)^-1 dP/dp keeps the point in place)."""
     from kinegen.forces.lift import _Placer
     from kinegen.forces.sensitivity import MultiplierChanges, _TangentChanges
-    from kinegen.forces.statics import Statics, hydraulic_limit
+    from kinegen.forces.statics import Statics
     from kinegen.runtime.sensitivity import configuration_sensitivities
 
     system, model = results.system, problem.model
@@ -455,19 +505,7 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     actuator = next(a for a in model.actuators if a.name == found.limiting)
     k = names.index(actuator.name)
     f, d_f = per_newton[k], -change.d_multipliers[0, statics.joint_rows + k]
-    hydraulics = actuator.hydraulics
-    design, order = system.design, list(system.design)
-    working = actuator.name == chart.lifting
-    capacity, setting, side = hydraulic_limit(actuator, np.array([f]), design, working)
-    bore, rod = design_value(hydraulics.bore, design), design_value(hydraulics.rod, design)
-    cap, annulus = hydraulics.areas(design)
-    area = cap if side[0] == "cap" else annulus
-    d_area = hydraulics.cylinders * np.pi / 2 * (bore * design_gradient(hydraulics.bore, order, design)
-                                                 - (0.0 if side[0] == "cap" else rod * design_gradient(hydraulics.rod, order, design)))  # fmt: skip
-    settings = hydraulics.relief if working else hydraulics.holding
-    d_setting = design_gradient(settings[0 if side[0] == "cap" else 1], order, design)
-    gradient = capacity[0] * (d_setting / setting[0] + d_area / area - np.sign(f) * d_f / abs(f))
-    return value, gradient / 1e3
+    return value, _limit_gradient(actuator, f, d_f, system.design, actuator.name == chart.lifting) / 1e3
 
 
 def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
@@ -497,11 +535,12 @@ def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gra
 
 
 MEASURES: dict[str, Callable] = {
-    "digging_force": _tool_force,
-    "crowd_force": _tool_force,
+    "digging_force": _relief_tool_force,
+    "crowd_force": _relief_tool_force,
     "cylinder_pressure": _cylinder_pressure,
     "pin_load": _pin_load,
     "lift_capacity": _lift_capacity,
+    "tool_force": _tool_force,
     "transmission_angle": _transmission_angle,
     "rotation_range": _rotation_range,
     "stroke": _stroke,

@@ -292,7 +292,7 @@ class DesignParameter:
 QUANTITY_UNITS = {
     "working_range": "m", "rotation_range": "rad", "stroke": "m", "toggle_margin": "1", "actuator_margin": "m",
     "transmission_angle": "rad", "digging_force": "kN", "crowd_force": "kN", "cylinder_pressure": "MPa", "pin_load": "kN",
-    "lift_capacity": "kN",
+    "lift_capacity": "kN", "tool_force": "kN",
 }  # fmt: skip
 QUANTITY_KINDS = tuple(QUANTITY_UNITS)
 
@@ -322,7 +322,10 @@ class Quantity:
     * ``pin_load``: over ``case``, the largest force the joint named ``actuator`` carries holding
       ``load`` (kN);
     * ``lift_capacity``: the hydraulic lift capacity with the ``lift_chart`` point at ``at`` (radius,
-      height; m), the placing inputs solved for each design (kN).
+      height; m), the placing inputs solved for each design (kN);
+    * ``tool_force``: over ``case``'s poses, the largest force the point ``points[0]`` can exert along
+      the global direction ``axis`` with every hydraulic cylinder at most at its relief setting (kN;
+      a force map's value, :mod:`kinegen.forces.maps`).
     """
 
     kind: str
@@ -349,6 +352,9 @@ class Quantity:
             return str(self.figure)
         if self.kind == "lift_capacity" and self.at is not None:
             return f"lift_capacity({self.at[0]:g} m, {self.at[1]:g} m)"
+        if self.kind == "tool_force" and self.points and self.axis is not None:
+            (body, point), d = self.points[0], self.axis
+            return f"tool_force({body}.{point} along [{d[0]:g}, {d[1]:g}, {d[2]:g}], {self.case})"
         what = {
             "rotation_range": f"{self.body}/{self.relative_to}", "toggle_margin": "+".join(self.bodies),
             "transmission_angle": "-".join(f"{b}.{p}" for b, p in self.points),

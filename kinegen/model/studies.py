@@ -40,7 +40,7 @@ from kinegen.model.schema import (
 Loader = Any
 
 #: keys a term or constraint may have besides its quantity's
-_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis"), "cylinder_pressure": ("load",), "pin_load": ("load",)}
+_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis"), "cylinder_pressure": ("load",), "pin_load": ("load",), "tool_force": ("direction",)}
 
 
 def read_studies(
@@ -88,7 +88,7 @@ class _StudyReader:
         self.loader, self.cases, self.actuators, self.working_range = loader, cases, actuators, working_range
 
     def term(self, value: Any, entry: str) -> Term:
-        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "weight", "target"))
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "direction", "weight", "target"))
         quantity = self.quantity(spec, entry)
         weight = self.number(spec.get("weight", 1), f"{entry}.weight")
         target = spec.get("target")
@@ -102,7 +102,7 @@ class _StudyReader:
         return Term(quantity, weight, target)
 
     def constraint(self, value: Any, entry: str) -> StudyConstraint:
-        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "at_least", "at_most"))
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "direction", "at_least", "at_most"))
         quantity = self.quantity(spec, entry)
         low, high = (self.number(spec[k], f"{entry}.{k}") if k in spec else None for k in ("at_least", "at_most"))
         if low is None and high is None:
@@ -147,6 +147,20 @@ class _StudyReader:
         case = spec.get("case")
         if not isinstance(case, str) or case not in self.cases:
             raise self.loader.fail(f"{entry}.case", f"{kind} is measured over a case: expected one of {', '.join(self.cases)}, got {shown(case)}")
+        if kind == "tool_force":
+            ref = self.loader.point_ref(what, where)
+            if ref.body == GROUND:
+                raise self.loader.fail(where, "a tool force acts at a point of a moving body")
+            if not any(a.hydraulics is not None for a in self.actuators.values()):
+                raise self.loader.fail(where, "a tool force is limited by the hydraulic cylinders: the model has none")
+            if "direction" not in spec:
+                raise self.loader.fail(entry, "a tool force needs its direction (global)")
+            direction = self.loader.vector(spec["direction"], f"{entry}.direction")
+            values = [float(x) for x in direction]
+            norm = sum(x * x for x in values) ** 0.5
+            if norm < 1e-12 or direction.free_symbols:
+                raise self.loader.fail(f"{entry}.direction", "expected a non-zero vector of numbers")
+            return Quantity(kind, case, points=((ref.body, ref.name),), axis=tuple(x / norm for x in values))
         if kind == "pin_load":
             joints = list(self.loader.joints)
             if not isinstance(what, str) or what not in joints:
