@@ -153,14 +153,8 @@ class _StudyReader:
                 raise self.loader.fail(where, "a tool force acts at a point of a moving body")
             if not any(a.hydraulics is not None for a in self.actuators.values()):
                 raise self.loader.fail(where, "a tool force is limited by the hydraulic cylinders: the model has none")
-            if "direction" not in spec:
-                raise self.loader.fail(entry, "a tool force needs its direction (global)")
-            direction = self.loader.vector(spec["direction"], f"{entry}.direction")
-            values = [float(x) for x in direction]
-            norm = sum(x * x for x in values) ** 0.5
-            if norm < 1e-12 or direction.free_symbols:
-                raise self.loader.fail(f"{entry}.direction", "expected a non-zero vector of numbers")
-            return Quantity(kind, case, points=((ref.body, ref.name),), axis=tuple(x / norm for x in values))
+            direction = self.unit(spec, "direction", entry, "a tool force needs its direction (global)")
+            return Quantity(kind, case, points=((ref.body, ref.name),), axis=direction)
         if kind == "pin_load":
             joints = list(self.loader.joints)
             if not isinstance(what, str) or what not in joints:
@@ -202,11 +196,16 @@ class _StudyReader:
         if body == GROUND:
             raise self.loader.fail(where, "the ground does not rotate: name a moving body")
         relative_to = self.loader.body_name(spec.get("relative_to", GROUND), f"{entry}.relative_to")
-        if "axis" not in spec:
-            raise self.loader.fail(entry, "a rotation range needs its axis (in the frame of relative_to)")
-        axis = self.loader.vector(spec["axis"], f"{entry}.axis")
-        values = [float(x) for x in axis]
+        axis = self.unit(spec, "axis", entry, "a rotation range needs its axis (in the frame of relative_to)")
+        return Quantity(kind, case, body=body, relative_to=relative_to, axis=axis)
+
+    def unit(self, spec: dict, key: str, entry: str, missing: str) -> tuple[float, float, float]:
+        """``spec[key]``: a non-zero vector of numbers, normalized."""
+        if key not in spec:
+            raise self.loader.fail(entry, missing)
+        vector = self.loader.vector(spec[key], f"{entry}.{key}")
+        values = [float(x) for x in vector]
         norm = sum(x * x for x in values) ** 0.5
-        if norm < 1e-12 or axis.free_symbols:
-            raise self.loader.fail(f"{entry}.axis", "expected a non-zero vector of numbers")
-        return Quantity(kind, case, body=body, relative_to=relative_to, axis=tuple(x / norm for x in values))
+        if norm < 1e-12 or vector.free_symbols:
+            raise self.loader.fail(f"{entry}.{key}", "expected a non-zero vector of numbers")
+        return (values[0] / norm, values[1] / norm, values[2] / norm)
