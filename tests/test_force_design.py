@@ -12,9 +12,8 @@ import pytest
 
 from kinegen.forces.iso6015 import tool_forces
 from kinegen.forces.sensitivity import element_force_sensitivities
-from kinegen.forces.statics import Statics
+from kinegen.forces.statics import Statics, pose_results
 from kinegen.runtime import Solver, SolverOptions, from_module, load_module
-from kinegen.runtime.results import Results
 from tests.conftest import GENERATED, generated_system, model
 
 H = 1e-6
@@ -36,13 +35,9 @@ def _poses(system, q_start: np.ndarray, inputs: np.ndarray) -> np.ndarray:
 
 
 def _held(system, q: np.ndarray, inputs: np.ndarray):
-    n = len(q)
-    results = Results(system, np.arange(n, dtype=float), q, np.zeros((n, system.n_velocity)), np.zeros((n, system.n_velocity)),
-                      np.zeros(n, dtype=int), np.zeros(n), np.full(n, np.nan), inputs)  # fmt: skip
-    statics = Statics(results, model("excavator"))
-    matrix = statics.matrix()
-    force = np.broadcast_to(LOAD, (n, 3))
-    multipliers = statics.solve(matrix, statics.point_load("bucket", "T", force))
+    statics = Statics(pose_results(system, q, inputs), model("excavator"))
+    force = np.broadcast_to(LOAD, (len(q), 3))
+    matrix, multipliers = statics.hold("bucket", "T", force)
     return statics, matrix, multipliers, force
 
 

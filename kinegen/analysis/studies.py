@@ -374,8 +374,7 @@ def _relief_tool_force(problem: StudyProblem, results: Results, q: Quantity, gra
     d_e = (d_gap - np.outer(e[k], e[k] @ d_gap)) / length[k]
     d_rate = relative[k] @ d_e + e[k] @ d_relative
     d_speed = motion[k] @ results.sensitivity(lip.body, lip.name, kind="velocity")[k] / speed[k]
-    bore = design_value(hydraulics.bore, design)
-    d_cap = hydraulics.cylinders * np.pi / 2 * bore * design_gradient(hydraulics.bore, order, design)
+    d_cap = hydraulics.area_gradients(order, design)[0]
     d_pressure = design_gradient(hydraulics.relief[0], order, design)
     magnitude = abs(rate[k])
     gradient = (d_pressure * cap * magnitude + pressure * d_cap * magnitude + pressure * cap * np.sign(rate[k]) * d_rate) / speed[k] - (
@@ -387,17 +386,14 @@ def _relief_tool_force(problem: StudyProblem, results: Results, q: Quantity, gra
 def _held_at(problem: StudyProblem, results: Results, q: Quantity, k: int):
     """The solve holding ``q``'s load at time point k and its multipliers' design changes."""
     from kinegen.forces.sensitivity import MultiplierChanges
-    from kinegen.forces.statics import Statics
+    from kinegen.forces.statics import Statics, pose_results
 
     load = problem.model.loads[str(q.load)]
     if load.axes != GROUND or any(x != 0 for x in load.moment) or any(e.free_symbols for e in load.force):
         raise KinegenError(f"{q.label}: its gradient needs a constant force in global axes (load {load.name})")
-    one = Results(results.system, results.times[k : k + 1], results.q[k : k + 1], results.v[k : k + 1], results.a[k : k + 1],
-                  results.iterations[k : k + 1], results.residuals[k : k + 1], results.conditions[k : k + 1], results.inputs[k : k + 1])  # fmt: skip
-    statics = Statics(one, problem.model)
+    statics = Statics(pose_results(results.system, results.q[k : k + 1], results.inputs[k : k + 1]), problem.model)
     force = np.array([[float(x) for x in load.force]])
-    matrix = statics.matrix()
-    multipliers = statics.solve(matrix, statics.point_load(load.point.body, load.point.name, force))
+    matrix, multipliers = statics.hold(load.point.body, load.point.name, force)
     return statics, MultiplierChanges(statics, matrix, multipliers, load.point.body, load.point.name, force)
 
 
@@ -419,31 +415,26 @@ def _tool_force(problem: StudyProblem, results: Results, q: Quantity, gradients:
     """Over the case's poses, the largest force (kN) the point can exert along the direction, every
     cylinder at most at its relief setting (a force map's value), and its derivative at that pose."""
     from kinegen.forces.sensitivity import MultiplierChanges
-    from kinegen.forces.statics import Statics, hydraulic_limit
+    from kinegen.forces.statics import Statics, pose_results
 
     system, model = results.system, problem.model
     (body, point), direction = q.points[0], np.asarray(q.axis, dtype=float)
     statics = Statics(results, model)
     load = np.broadcast_to(-direction, (len(results.times), 3))  # the machine holds -F when the tool exerts F
-    matrix = statics.matrix()
-    multipliers = statics.solve(matrix, statics.point_load(body, point, load))
-    per_newton = statics.element_forces(multipliers)
-    names = [e.name for e in statics.elements]
-    hydraulic = [a for a in model.actuators if a.hydraulics is not None]
-    limits = np.stack([hydraulic_limit(a, per_newton[:, names.index(a.name)], system.design, True)[0] for a in hydraulic])
+    per_newton = statics.element_forces(statics.hold(body, point, load)[1])
+    by_cylinder = statics.hydraulic_limits(per_newton, working=True)
+    names = list(by_cylinder)
+    limits = np.stack([by_cylinder[name][0] for name in names])
     capacity = limits.min(axis=0)
     k = int(np.argmax(capacity))
     value = float(capacity[k]) / 1e3
     if not gradients:
         return value, None
-    one = Results(system, results.times[k : k + 1], results.q[k : k + 1], results.v[k : k + 1], results.a[k : k + 1],
-                  results.iterations[k : k + 1], results.residuals[k : k + 1], results.conditions[k : k + 1], results.inputs[k : k + 1])  # fmt: skip
-    single = Statics(one, model)
-    single_matrix = single.matrix()
-    single_multipliers = single.solve(single_matrix, single.point_load(body, point, load[k : k + 1]))
-    changes = MultiplierChanges(single, single_matrix, single_multipliers, body, point, load[k : k + 1])
-    actuator = hydraulic[int(np.argmin(limits[:, k]))]
-    j = names.index(actuator.name)
+    single = Statics(pose_results(system, results.q[k : k + 1], results.inputs[k : k + 1]), model)
+    matrix, multipliers = single.hold(body, point, load[k : k + 1])
+    changes = MultiplierChanges(single, matrix, multipliers, body, point, load[k : k + 1])
+    actuator = problem.actuators[names[int(np.argmin(limits[:, k]))]]
+    j = [e.name for e in single.elements].index(actuator.name)
     f, d_f = per_newton[k, j], -changes.d_multipliers[0, single.joint_rows + j]
     return value, _limit_gradient(actuator, f, d_f, system.design, True) / 1e3
 
@@ -455,13 +446,11 @@ def _limit_gradient(actuator, f: float, d_f: np.ndarray, design: dict[str, float
     hydraulics = actuator.hydraulics
     order = list(design)
     capacity, setting, side = hydraulic_limit(actuator, np.array([f]), design, working)
-    bore, rod = design_value(hydraulics.bore, design), design_value(hydraulics.rod, design)
-    cap, annulus = hydraulics.areas(design)
-    area = cap if side[0] == "cap" else annulus
-    d_area = hydraulics.cylinders * np.pi / 2 * (bore * design_gradient(hydraulics.bore, order, design)
-                                                 - (0.0 if side[0] == "cap" else rod * design_gradient(hydraulics.rod, order, design)))  # fmt: skip
+    cap_side = side[0] == "cap"
+    area = hydraulics.areas(design)[0 if cap_side else 1]
+    d_area = hydraulics.area_gradients(order, design)[0 if cap_side else 1]
     settings = hydraulics.relief if working else hydraulics.holding
-    d_setting = design_gradient(settings[0 if side[0] == "cap" else 1], order, design)
+    d_setting = design_gradient(settings[0 if cap_side else 1], order, design)
     return capacity[0] * (d_setting / setting[0] + d_area / area - np.sign(f) * d_f / abs(f))
 
 
@@ -470,7 +459,7 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     placing inputs with the design (du/dp = -(dP/du)^-1 dP/dp keeps the point in place)."""
     from kinegen.forces.lift import _Placer
     from kinegen.forces.sensitivity import MultiplierChanges, _TangentChanges
-    from kinegen.forces.statics import Statics
+    from kinegen.forces.statics import Statics, pose_results
     from kinegen.runtime.sensitivity import configuration_sensitivities
 
     system, model = results.system, problem.model
@@ -484,13 +473,10 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
         return value, None
     u = np.array([found.inputs[n] for n in system.driver_names])
     pose = placer._pose(u[placer.index])
-    one = Results(system, np.zeros(1), pose[None], np.zeros((1, system.n_velocity)), np.zeros((1, system.n_velocity)),
-                  np.zeros(1, dtype=int), np.zeros(1), np.full(1, np.nan), u[None])  # fmt: skip
-    statics = Statics(one, model)
+    statics = Statics(pose_results(system, pose[None], u[None]), model)
     body, point = chart.point.body, chart.point.name
     force = np.array([[0.0, 0.0, -1.0]])
-    matrix = statics.matrix()
-    multipliers = statics.solve(matrix, statics.point_load(body, point, force))
+    matrix, multipliers = statics.hold(body, point, force)
     by_design, by_input = configuration_sensitivities(system, pose[:, None], u[:, None])
     position = statics.position(body, statics.local(body, point))
     jacobian = np.zeros((3, system.n_velocity))
@@ -524,11 +510,8 @@ def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gra
     d_force = -changes.d_multipliers[0, statics.joint_rows + names.index(str(q.actuator))]
     hydraulics = problem.actuators[str(q.actuator)].hydraulics
     design, order = results.system.design, list(results.system.design)
-    cap, annulus = hydraulics.areas(design)
-    area = cap if pressure.cap_side[k] else annulus
-    bore, rod = design_value(hydraulics.bore, design), design_value(hydraulics.rod, design)
-    d_bore, d_rod = design_gradient(hydraulics.bore, order, design), design_gradient(hydraulics.rod, order, design)
-    d_area = hydraulics.cylinders * np.pi / 2 * (bore * d_bore - (0.0 if pressure.cap_side[k] else rod * d_rod))
+    side = 0 if pressure.cap_side[k] else 1
+    area, d_area = hydraulics.areas(design)[side], hydraulics.area_gradients(order, design)[side]
     f = held.element_force(str(q.actuator))[k]
     gradient = np.sign(f) * d_force / area - abs(f) * d_area / area**2
     return value, gradient / 1e6

@@ -29,11 +29,10 @@ import numpy as np
 from scipy.optimize import minimize, minimize_scalar
 
 from kinegen.errors import KinegenError
-from kinegen.forces.statics import Statics, hydraulic_limit
+from kinegen.forces.statics import Statics, pose_results, unit_rate_velocities
 from kinegen.model import Model
 from kinegen.model.schema import ToolForce
 from kinegen.runtime import NumericSystem, Solver, SolverOptions
-from kinegen.runtime.results import Results
 
 #: poses on a stroke before the maximum is refined
 GRID = 41
@@ -195,28 +194,18 @@ class _Finder:
         ``inputs`` (K, n_inputs); and per actuator, per pose, (actuator, setting, pressure, side) that applies."""
         system = self.system
         q = np.stack([self.pose(u) for u in inputs])
-        k = system.driver_names.index(item.driver)
-        rate = np.zeros((len(inputs), system.n_inputs))
-        rate[:, k] = 1.0
-        v = np.stack([np.linalg.solve(system.jacobian(qi, ui), system.velocity_rhs(qi, ui, ri)) for qi, ui, ri in zip(q, inputs, rate)])
-        n = len(inputs)
-        results = Results(system, np.arange(n, dtype=float), q, v, np.zeros_like(v), np.zeros(n, dtype=int), np.zeros(n),
-                          np.full(n, np.nan), inputs)  # fmt: skip
+        results = pose_results(system, q, inputs, unit_rate_velocities(system, q, inputs, item.driver))
         motion = results.point_velocity(self.lip.body, self.lip.name)  # the lip's velocity per unit rate of the working input
         direction = motion / np.linalg.norm(motion, axis=1)[:, None]
         statics = Statics(results, self.model)
-        load = statics.point_load(self.lip.body, self.lip.name, -direction)  # 1 N resisting the lip's motion
-        forces = statics.element_forces(statics.solve(statics.matrix(), load))
-        names = [e.name for e in statics.elements]
-        capacities, settings = {}, {}
-        for actuator in self.hydraulic:
-            f = forces[:, names.index(actuator.name)]
-            capacity, pressure, side = hydraulic_limit(actuator, f, self.system.design, working=actuator.name == item.actuator)
-            capacities[actuator.name] = capacity
-            what = "relief" if actuator.name == item.actuator else "holding"
-            settings[actuator.name] = [(actuator.name, what, float(p), str(d)) for p, d in zip(pressure, side)]
+        _, multipliers = statics.hold(self.lip.body, self.lip.name, -direction)  # 1 N resisting the lip's motion
+        limits = statics.hydraulic_limits(statics.element_forces(multipliers), working=item.actuator)
+        capacities = {name: limit for name, (limit, _, _) in limits.items()}
+        settings = {
+            name: [(name, "relief" if name == item.actuator else "holding", float(p), str(d)) for p, d in zip(pressure, side)]
+            for name, (_, pressure, side) in limits.items()
+        }
         return capacities, settings
-
 
 def _with(u: np.ndarray, values: dict[int, float]) -> np.ndarray:
     out = u.copy()

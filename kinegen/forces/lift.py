@@ -18,11 +18,10 @@ import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from kinegen.errors import KinegenError
-from kinegen.forces.statics import Statics, hydraulic_limit
+from kinegen.forces.statics import Statics, pose_results
 from kinegen.model import Model
 from kinegen.runtime import NumericSystem, Solver, SolverOptions
 from kinegen.runtime.batch import sweep_grid
-from kinegen.runtime.results import Results
 
 #: standard gravity [m/s^2]: a load's mass in kg is its weight in N / G
 G = 9.80665
@@ -174,18 +173,9 @@ class _Placer:
         u = self._inputs(np.clip(values, self.low, self.high))
         q = self._pose(values)
         system = self.system
-        results = Results(system, np.zeros(1), q[None], np.zeros((1, system.n_velocity)), np.zeros((1, system.n_velocity)),
-                          np.zeros(1, dtype=int), np.zeros(1), np.full(1, np.nan), u[None])  # fmt: skip
-        statics = Statics(results, self.model)
-        load = statics.point_load(self.spec.point.body, self.spec.point.name, np.array([[0.0, 0.0, -1.0]]))
-        forces = statics.element_forces(statics.solve(statics.matrix(), load))[0]
-        names = [e.name for e in statics.elements]
-        best, limiting, setting = np.inf, "", ""
-        for actuator in self.model.actuators:
-            if actuator.hydraulics is None:
-                continue
-            working = actuator.name == self.spec.lifting
-            limit = float(hydraulic_limit(actuator, forces[[names.index(actuator.name)]], system.design, working)[0][0])
-            if limit < best:
-                best, limiting, setting = limit, actuator.name, "relief" if working else "holding"
-        return LiftPoint(radius, height, best, limiting, setting, dict(zip(system.driver_names, map(float, u))))
+        statics = Statics(pose_results(system, q[None], u[None]), self.model)
+        _, multipliers = statics.hold(self.spec.point.body, self.spec.point.name, np.array([[0.0, 0.0, -1.0]]))
+        limits = statics.hydraulic_limits(statics.element_forces(multipliers), working=self.spec.lifting)
+        limiting = min(limits, key=lambda name: limits[name][0][0])  # the first of equals, in the model's order
+        setting = "relief" if limiting == self.spec.lifting else "holding"
+        return LiftPoint(radius, height, float(limits[limiting][0][0]), limiting, setting, dict(zip(system.driver_names, map(float, u))))

@@ -21,12 +21,10 @@ import numpy as np
 
 from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.errors import KinegenError
-from kinegen.forces.statics import Statics, hydraulic_limit
+from kinegen.forces.statics import Statics, pose_results, unit_rate_velocities
 from kinegen.model import Model
 from kinegen.runtime import NumericSystem
 from kinegen.runtime.batch import sweep_grid
-from kinegen.runtime.blocksolve import BlockSolve
-from kinegen.runtime.results import Results
 
 #: global directions of the fixed maps (the boom plane at zero swing is x-z)
 DIRECTIONS = {"pull": (-1.0, 0.0, 0.0), "push": (1.0, 0.0, 0.0), "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0), "tangent": None}
@@ -98,36 +96,30 @@ def force_map(system: NumericSystem, model: Model, direction: str, grid: tuple[i
         inputs[:, k] = axes[d][index[d]]
     q = sweep.q.reshape(system.n_stored, -1)[:, ok].T
     point = spec.point
-    n = len(q)
-    zeros = np.zeros((n, system.n_velocity))
+    v = None
     if DIRECTIONS[direction] is None:  # the lip's velocity per unit rate of the bucket's input
         bucket = model.tool_forces.forces["bucket"].driver if model.tool_forces and "bucket" in model.tool_forces.forces else None
         if bucket is None:
             raise KinegenError("the tangent map needs tool_forces.bucket (the input that curls the bucket)")
-        rate = np.zeros(system.n_inputs)
-        rate[system.driver_names.index(bucket)] = 1.0
-        values = np.stack([np.asarray(system.evaluate(qi, ui)[1], dtype=float) for qi, ui in zip(q, inputs)], axis=1)
-        rhs = np.stack([system.velocity_rhs(qi, ui, rate) for qi, ui in zip(q, inputs)], axis=1)
-        v = BlockSolve(system).solve(values, rhs).T  # Phi_q v = nu, every pose at once
-        results = Results(system, np.arange(n, dtype=float), q, v, zeros, np.zeros(n, dtype=int), np.zeros(n), np.full(n, np.nan), inputs)
+        v = unit_rate_velocities(system, q, inputs, bucket)
+    results = pose_results(system, q, inputs, v)
+    if v is not None:
         motion = results.point_velocity(point.body, point.name)
         along = motion / np.linalg.norm(motion, axis=1)[:, None]
     else:
-        results = Results(system, np.arange(n, dtype=float), q, zeros, zeros, np.zeros(n, dtype=int), np.zeros(n), np.full(n, np.nan), inputs)
-        along = np.broadcast_to(np.array(DIRECTIONS[direction]), (n, 3))
+        along = np.broadcast_to(np.array(DIRECTIONS[direction]), (len(q), 3))
     statics = Statics(results, model)
-    load = statics.point_load(point.body, point.name, -along)  # the machine holds -F when the tool exerts F
-    per_newton = statics.element_forces(statics.solve_batch(statics.matrix(), load))
+    _, multipliers = statics.hold(point.body, point.name, -along, batch=True)  # the machine holds -F when the tool exerts F
+    per_newton = statics.element_forces(multipliers)
     solved = np.isfinite(per_newton).all(axis=1)
-    names = [e.name for e in statics.elements]
-    hydraulic = [a for a in model.actuators if a.hydraulics is not None]
     per_newton, inputs, q = per_newton[solved], inputs[solved], q[solved]  # a pose the actuation cannot hold: left out
-    limits = np.stack([hydraulic_limit(a, per_newton[:, names.index(a.name)], system.design, working=True)[0] for a in hydraulic])
+    by_cylinder = statics.hydraulic_limits(per_newton, working=True)
+    names = list(by_cylinder)
+    limits = np.stack([by_cylinder[name][0] for name in names])
     which = np.argmin(limits, axis=0)
     positions = system.point_positions(q, [(point.body, point.name)])[:, 0]
     return ForceMap(direction, f"{point.body}.{point.name}", list(system.driver_names), inputs, positions, limits[which, np.arange(len(q))],
-                    np.array([hydraulic[w].name for w in which], dtype=object), time.perf_counter() - start)  # fmt: skip
-
+                    np.array([names[w] for w in which], dtype=object), time.perf_counter() - start)  # fmt: skip
 
 def plot_force_map(found: ForceMap, path: str | Path, boundary=None, silhouette: dict[str, np.ndarray] | None = None) -> Path:
     """PNG: left, the largest force per cell [kN] with contour lines, the working range's exact

@@ -24,7 +24,7 @@ import numpy as np
 from scipy.linalg.lapack import dgetrf, dgetrs
 
 from kinegen.errors import KinegenError
-from kinegen.forces.statics import Rows, Statics, _joint_of
+from kinegen.forces.statics import Rows, Statics
 from kinegen.model.schema import GROUND, Motor
 from kinegen.runtime.sensitivity import configuration_sensitivities, frame_changes
 
@@ -72,7 +72,7 @@ class MultiplierChanges:
         """(force (K, 3), d force/dp (K, 3, P), moment about the joint's point (K, 3), its change) of
         what ``joint``'s first body exerts on its second (:meth:`Statics.reaction`, differentiated)."""
         statics, maps = self.statics, self.maps
-        rows = [i for i, name in enumerate(statics.row_names[: statics.joint_rows]) if _joint_of(name) == joint.name]
+        rows = statics.joint_row_indices(joint.name)
         mask = np.zeros(self.multipliers.shape[1])
         mask[rows] = 1.0
         generalized = -self.matrix.transpose_times(self.multipliers, rows)  # (K, n)
@@ -183,9 +183,9 @@ class _TangentChanges:
 
     def point_jacobian(self, body: str, name: str) -> tuple[np.ndarray, np.ndarray]:
         """J_P (K, 3, n_vb) and its change (K, 3, n_vb, P): J_P = T_v + T_ω × arm."""
-        tv, tw = self.statics.tangents[body]
-        _, _, arm, d_arm = self.point(body, name)
-        jacobian = tv + np.cross(tw.swapaxes(1, 2), arm[:, None, :]).swapaxes(1, 2)
+        tw = self.statics.tangents[body][1]
+        position, _, arm, d_arm = self.point(body, name)
+        jacobian = self.statics.point_jacobian(body, position)
         d_cross = np.cross(self.dw[body].transpose(0, 2, 3, 1), arm[:, None, None, :]) + np.cross(
             tw.swapaxes(1, 2)[:, :, None, :], d_arm.transpose(0, 2, 1)[:, None, :, :]
         )  # (K, n_vb, P, 3)

@@ -178,6 +178,24 @@ class Forces:
         return names, np.hstack(columns)
 
 
+def pose_results(system, q: np.ndarray, inputs: np.ndarray, v: np.ndarray | None = None) -> Results:
+    """K poses (stored coordinates q (K, n) at inputs (K, n_inputs); velocities v, zero when not
+    given) as :class:`Results`, so that :class:`Statics` and the point kinematics take them as they
+    take a motion: their "times" are the poses' indices."""
+    count = len(q)
+    v = np.zeros((count, system.n_velocity)) if v is None else v
+    return Results(system, np.arange(count, dtype=float), q, v, np.zeros_like(v), np.zeros(count, dtype=int), np.zeros(count),
+                   np.full(count, np.nan), inputs)  # fmt: skip
+
+
+def unit_rate_velocities(system, q: np.ndarray, inputs: np.ndarray, driver: str) -> np.ndarray:
+    """(K, n_v) the velocities at the poses q (K, n) when ``driver``'s input changes at unit rate and
+    the others stand still: dq/du of that input (implicit differentiation, every pose at once)."""
+    from kinegen.runtime.sensitivity import configuration_sensitivities
+
+    return configuration_sensitivities(system, q.T, inputs.T, design=False)[1][:, :, system.driver_names.index(driver)]
+
+
 def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -> Forces:
     """The forces that hold the model's named ``loads`` at every solved time point of ``results``
     (a motion of ``model``; its time points must all have converged)."""
@@ -231,6 +249,29 @@ class Statics:
     def element_forces(self, multipliers: np.ndarray) -> np.ndarray:
         """(K, n_elements) the elements' forces from the multipliers of :meth:`solve`."""
         return multipliers[:, self.joint_rows :] * self.input_gains()
+
+    def hold(self, body: str, point: str, force: np.ndarray, batch: bool = False) -> tuple[Rows, np.ndarray]:
+        """The rows and the multipliers that hold the global ``force`` (K, 3) at ``body``'s named
+        ``point``: :meth:`solve` (errors name a singular pose), or with ``batch`` :meth:`solve_batch`."""
+        matrix = self.matrix()
+        load = self.point_load(body, point, force)
+        return matrix, self.solve_batch(matrix, load) if batch else self.solve(matrix, load)
+
+    def hydraulic_limits(self, per_unit: np.ndarray, working) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+        """Per hydraulic actuator, :func:`hydraulic_limit` of its force per unit load (the columns of
+        ``per_unit``, (K, n_elements)): the load (K,) at which it reaches its setting, the setting and
+        the side. ``working``: True (every cylinder at its relief setting) or the name of the one that
+        works (the others hold)."""
+        names = [e.name for e in self.elements]
+        return {
+            a.name: hydraulic_limit(a, per_unit[:, names.index(a.name)], self.system.design, working is True or a.name == working)
+            for a in self.model.actuators
+            if a.hydraulics is not None
+        }
+
+    def joint_row_indices(self, joint: str) -> list[int]:
+        """The rows of ``joint`` among the joint rows (its equations, in order)."""
+        return [i for i, name in enumerate(self.row_names[: self.joint_rows]) if _joint_of(name) == joint]
 
     def input_gains(self) -> np.ndarray:
         """(K, n_elements) dPhi_e/du_e of each element's row by its input: an element's force along
@@ -412,7 +453,7 @@ class Statics:
 
     def reaction(self, joint: Joint, matrix: Rows, multipliers: np.ndarray) -> Reaction:
         """What ``joint``'s first body exerts on its second, from the joint's rows and multipliers."""
-        rows = [i for i, name in enumerate(self.row_names[: self.joint_rows]) if _joint_of(name) == joint.name]
+        rows = self.joint_row_indices(joint.name)
         generalized = -matrix.transpose_times(multipliers, rows)
         local2 = joint.point2 if joint.point2 is not None else [0, 0, 0]
         point = self.position(joint.body2, self.design_vector(local2))

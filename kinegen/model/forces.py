@@ -209,17 +209,25 @@ def read_tool_forces(
 
 def _stroke(loader: Loader, item: dict, where: str, case: str, working_range: WorkingRange | None) -> tuple[float, float]:
     """The searched range of the driver's input: given, or the working range's for that input."""
-    if "stroke" in item:
-        bounds = item["stroke"]
+    missing = (where, f"no stroke: give stroke: [min, max] (the working range does not sweep {item['driver']} in {case})")
+    return _input_range(loader, item.get("stroke"), f"{where}.stroke", item["driver"], case, working_range, missing)
+
+
+def _input_range(
+    loader: Loader, bounds: Any, where: str, driver: str, case: str, working_range: WorkingRange | None, missing: tuple[str, str]
+) -> tuple[float, float]:  # fmt: skip
+    """A driver input's range: ``bounds`` as given ([min, max], at entry ``where``), else the working
+    range's for ``driver`` when it sweeps it in ``case``; ``missing``: (entry, problem) when neither."""
+    if bounds is not None:
         if not isinstance(bounds, (list, tuple)) or len(bounds) != 2:
-            raise loader.fail(f"{where}.stroke", "expected [min, max]")
-        low, high = (loader.value(loader.scalar(b, f"{where}.stroke[{i}]", design=True)) for i, b in enumerate(bounds))
-    elif working_range is not None and working_range.case == case and isinstance(working_range.inputs.get(item["driver"]), tuple):
-        low, high = (loader.value(x) for x in working_range.inputs[item["driver"]])
+            raise loader.fail(where, "expected [min, max]")
+        low, high = (loader.value(loader.scalar(b, f"{where}[{i}]", design=True)) for i, b in enumerate(bounds))
+    elif working_range is not None and working_range.case == case and isinstance(working_range.inputs.get(driver), tuple):
+        low, high = (loader.value(x) for x in working_range.inputs[driver])
     else:
-        raise loader.fail(where, f"no stroke: give stroke: [min, max] (the working range does not sweep {item['driver']} in {case})")
+        raise loader.fail(*missing)
     if not low < high:
-        raise loader.fail(f"{where}.stroke", f"min {low:g} must be below max {high:g}")
+        raise loader.fail(where, f"min {low:g} must be below max {high:g}")
     return float(low), float(high)
 
 
@@ -244,18 +252,8 @@ def read_lift_chart(loader: Loader, value: Any, cases: dict[str, Case], actuator
     given = loader.mapping(spec.get("ranges"), f"{entry}.ranges", tuple(place))
     ranges = {}
     for name in place:
-        if name in given:
-            bounds = given[name]
-            if not isinstance(bounds, list) or len(bounds) != 2:
-                raise loader.fail(f"{entry}.ranges.{name}", "expected [min, max]")
-            low, high = (loader.value(loader.scalar(b, f"{entry}.ranges.{name}[{i}]", design=True)) for i, b in enumerate(bounds))
-        elif working_range is not None and working_range.case == case.name and isinstance(working_range.inputs.get(name), tuple):
-            low, high = (loader.value(x) for x in working_range.inputs[name])
-        else:
-            raise loader.fail(f"{entry}.ranges", f"no range for {name}: give ranges: {{{name}: [min, max]}}")
-        if not low < high:
-            raise loader.fail(f"{entry}.ranges.{name}", f"min {low:g} must be below max {high:g}")
-        ranges[name] = (float(low), float(high))
+        missing = (f"{entry}.ranges", f"no range for {name}: give ranges: {{{name}: [min, max]}}")
+        ranges[name] = _input_range(loader, given.get(name), f"{entry}.ranges.{name}", name, case.name, working_range, missing)
     heights, radii = (_numbers(loader, spec[k], f"{entry}.{k}") for k in ("heights", "radii"))
     if any(r <= 0 for r in radii):
         raise loader.fail(f"{entry}.radii", "radii are distances from the swing axis: positive")

@@ -137,6 +137,13 @@ class Hydraulics:
         bore, rod = design_value(self.bore, design), design_value(self.rod, design)
         return self.cylinders * np.pi / 4 * bore**2, self.cylinders * np.pi / 4 * (bore**2 - rod**2)
 
+    def area_gradients(self, names: Sequence[str], design: Mapping[str, float]) -> tuple[np.ndarray, np.ndarray]:
+        """d(cap side area)/dp and d(rod side area)/dp [m^2 per unit] for the design parameters ``names``."""
+        bore, rod = design_value(self.bore, design), design_value(self.rod, design)
+        d_bore, d_rod = design_gradient(self.bore, names, design), design_gradient(self.rod, names, design)
+        d_cap = self.cylinders * np.pi / 2 * bore * d_bore
+        return d_cap, d_cap - self.cylinders * np.pi / 2 * rod * d_rod
+
 
 @dataclass(frozen=True)
 class Actuator:

@@ -159,19 +159,13 @@ class _StudyReader:
             joints = list(self.loader.joints)
             if not isinstance(what, str) or what not in joints:
                 raise self.loader.fail(where, f"unknown joint {shown(what)} (joints: {', '.join(joints)})")
-            loads = getattr(self.loader, "loads", {})
-            if spec.get("load") not in loads:
-                raise self.loader.fail(f"{entry}.load", f"a pin load holds one of the model's loads ({', '.join(loads) or 'none'}), got {shown(spec.get('load'))}")
-            return Quantity(kind, case, actuator=what, load=spec["load"])
+            return Quantity(kind, case, actuator=what, load=self.load(spec, entry, "a pin load"))
         if kind in ("digging_force", "crowd_force", "cylinder_pressure"):
             hydraulic = [a for a, actuator in self.actuators.items() if actuator.hydraulics is not None]
             if not isinstance(what, str) or what not in hydraulic:
                 raise self.loader.fail(where, f"{shown(what)} is not an actuator with hydraulic data (those: {', '.join(hydraulic) or 'none'})")
             if kind == "cylinder_pressure":
-                loads = getattr(self.loader, "loads", {})
-                if spec.get("load") not in loads:
-                    raise self.loader.fail(f"{entry}.load", f"a cylinder pressure holds one of the model's loads ({', '.join(loads) or 'none'}), got {shown(spec.get('load'))}")
-                return Quantity(kind, case, actuator=what, load=spec["load"])
+                return Quantity(kind, case, actuator=what, load=self.load(spec, entry, "a cylinder pressure"))
             if getattr(self.loader, "tool_forces", None) is None:
                 raise self.loader.fail(where, f"{kind} acts at the tool_forces section's lip: the model has none")
             return Quantity(kind, case, actuator=what)
@@ -198,6 +192,13 @@ class _StudyReader:
         relative_to = self.loader.body_name(spec.get("relative_to", GROUND), f"{entry}.relative_to")
         axis = self.unit(spec, "axis", entry, "a rotation range needs its axis (in the frame of relative_to)")
         return Quantity(kind, case, body=body, relative_to=relative_to, axis=axis)
+
+    def load(self, spec: dict, entry: str, what: str) -> str:
+        """``spec["load"]``: one of the model's loads, which ``what`` (the quantity, in words) holds."""
+        loads = getattr(self.loader, "loads", {})
+        if spec.get("load") not in loads:
+            raise self.loader.fail(f"{entry}.load", f"{what} holds one of the model's loads ({', '.join(loads) or 'none'}), got {shown(spec.get('load'))}")
+        return spec["load"]
 
     def unit(self, spec: dict, key: str, entry: str, missing: str) -> tuple[float, float, float]:
         """``spec[key]``: a non-zero vector of numbers, normalized."""
