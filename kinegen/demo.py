@@ -213,6 +213,13 @@ def main(argv: list[str] | None = None) -> int:
 
         print("\nkinegen forces models/excavator.yaml (ESTIMATED hydraulic data; docs/forces.md):")
         print(report(tool_forces(from_module(excavator_module, excavator_model.tool_forces.case), excavator_model), excavator_model))
+        from kinegen.forces.maps import force_map, plot_force_map
+
+        found = force_map(excavator, excavator_model, "tangent")
+        best = int(np.argmax(found.force))
+        picture = plot_force_map(found, args.out / "excavator_force_map.png", boundary)
+        print(f"force map (kinegen forces --map tangent): {len(found.force):,} poses in {found.seconds:.2f} s, up to "
+              f"{found.force[best] / 1e3:.1f} kN along the lip's tangent (limited by {found.limiting[best]}) -> {picture.name}")  # fmt: skip
     from kinegen.analysis.scan import plot_scan, scan
 
     toggle = from_module(excavator_module, "bucket_toggle")

@@ -76,6 +76,50 @@ def test_the_compiled_path_is_the_default_and_matches_python():
     assert np.median(ratio) < 1e-12 and ratio.max() < np.log(3.0)
 
 
+@pytest.mark.parametrize(
+    ("stem", "case", "loads"),
+    [("excavator_quaternion", "digging", ("payload", "cutting")), ("excavator_dual_euler_parameters", "level_cut", ("payload",)),
+     ("excavator_euler_zxy", "level_cut", ("cutting",)), ("slider_crank_euler_parameters", "run", ("gas",)),
+     ("four_bar_dual_quaternion", None, ("rocker_torque",))],
+)  # fmt: skip
+def test_compiled_forces_equal_python(stem, case, loads):
+    """kinegen_forces (the generated actuation and loads kernels in C, the force matrix's block plan,
+    the transposed block solve) against the Python kernels and LAPACK: every multiplier and element
+    force to 1e-12 of its column's scale, along a solved case; the actuation elements' (excavator) and
+    the case drivers' (slider-crank, four-bar) forms both."""
+    from kinegen.forces.statics import Statics
+
+    python, native = systems(stem, case)
+    model = _model_of(stem)
+    results = Solver(python).solve()
+    statics = Statics(results, model)
+    load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), python.n_velocity)))
+    expected = statics.solve(statics.matrix(), load)
+    weights = np.array([float(name in loads) for name in python.statics.load_names])
+    multipliers, force = native.native.forces(results.times, results.q, results.inputs, weights)
+    _same_forces(multipliers, expected, statics.row_names)
+    expected_force = statics.element_forces(expected)
+    assert force.shape == expected_force.shape
+    _same_forces(force, expected_force, [e.name for e in statics.elements])
+
+
+def _same_forces(c: np.ndarray, python: np.ndarray, names: list[str]) -> None:
+    """Every column to 1e-12 of its scale: its largest value, or 1e-2 of the largest of all for a
+    column that is zero but for rounding (a multiplier the geometry leaves unloaded, the bucket
+    cylinder under a load at the bucket pin: both sides' rounding is that of the whole solve,
+    up to 2e-15 of the largest force in the dual Euler parameters)."""
+    scale = np.maximum(np.abs(python).max(axis=0), 1e-2 * np.abs(python).max())
+    error = np.abs(c - python).max(axis=0)
+    assert (error <= 1e-12 * scale).all(), [(names[i], error[i], scale[i]) for i in np.flatnonzero(error > 1e-12 * scale)]
+
+
+def _model_of(stem: str):
+    from kinegen.model import load
+
+    name = next(m.stem for m in MODELS.glob("*.yaml") if stem.startswith(m.stem + "_"))
+    return load(MODELS / f"{name}.yaml")
+
+
 def test_near_the_toggle_the_c_loop_halves_its_own_steps_and_the_branch_is_kept():
     """bucket_near_toggle (0.25 s steps): the C loop halves the steps it cannot certify itself
     (issue 25: no hand-over to Python for that), and every pose equals Python's."""
@@ -229,6 +273,27 @@ def test_standalone_excavator_builds_strictly_and_matches_python_in_every_case(t
     module = load_module(GENERATED / "excavator_quaternion.py")
     for case in ("digging", "level_cut", "trench_wall"):
         _compare(program, from_module(module, case, compiled=False), case)
+    _compare_forces(program, from_module(module, "level_cut", compiled=False))
+
+
+def _compare_forces(program: Path, system) -> None:
+    """`<program> case steps load ...` appends each element's force and the multipliers, named as
+    `kinegen solve --load` names them, equal to the Python runtime's to 1e-12 of each column's scale;
+    an unknown load is a usage error naming the model's loads."""
+    from kinegen.forces import forces
+
+    done = subprocess.run([str(program), system.case, "41", "payload", "cutting"], capture_output=True, text=True, timeout=300)
+    assert done.returncode == 0, done.stderr
+    header, *rows = done.stdout.splitlines()
+    names = header.split(",")
+    c = np.array([[float(x) for x in row.split(",")] for row in rows])
+    results = Solver(system).solve(np.linspace(system.t0, system.t1, 41))
+    force_names, table = forces(results, _model_of("excavator_quaternion"), ["payload", "cutting"]).table()
+    wanted = [n for n in force_names if n.endswith(".force") or n.startswith("lambda.")]
+    assert names[-len(wanted) :] == wanted
+    _same_forces(c[:, -len(wanted) :], table[:, [force_names.index(n) for n in wanted]], wanted)
+    unknown = subprocess.run([str(program), system.case, "41", "payload", "gravel"], capture_output=True, text=True, timeout=60)
+    assert unknown.returncode == 64 and "no load 'gravel'" in unknown.stderr and "payload cutting" in unknown.stderr
 
 
 def test_standalone_chain_and_boom_match_python(tmp_path):

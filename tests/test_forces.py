@@ -17,7 +17,7 @@ from kinegen.forces import forces
 from kinegen.forces.statics import Forces
 from kinegen.model.schema import GROUND, Load, Motor, PointRef
 from kinegen.runtime import SolverOptions, solve
-from tests.conftest import generated_system, model
+from tests.conftest import MODELS, generated_system, model
 
 PARAMETRIZATIONS = ("quaternion", "euler_parameters", "dual_quaternion", "dual_euler_parameters")
 
@@ -221,22 +221,21 @@ def test_cylinder_pressures_by_hand():
     assert len(violations) == sum(int(p.exceeded.sum()) for p in overloaded.pressures.values())
 
 
-def test_a_load_the_actuation_cannot_hold_is_named():
+def test_a_load_the_actuation_cannot_hold_is_named(tmp_path):
     """A four-bar held by a motor at its rocker cannot hold a torque on its crank where crank and
     coupler are in line (the rocker at its extreme: it does not move when the crank turns)."""
     from scipy.optimize import brentq
 
+    from kinegen.api import Session
+
     # in line: |AC| = a + b = 1.2, |DC| = 0.7, D = (1, 0) -> C = (0.975, sqrt(1.44 - 0.975^2))
     in_line = np.arctan2(np.sqrt(1.44 - 0.975**2), 0.975)
     t_star = brentq(lambda t: 0.5 + 2 * np.pi * t + 0.3 * np.sin(2 * np.pi * t) - in_line, 0.0, 0.1, xtol=1e-15)
-    four_bar = model("four_bar")
-    crank = four_bar.body("crank")
-    held_at_rocker = dataclasses.replace(
-        four_bar, motors=(Motor("rocker_motor", "D"),),
-        loads={"crank_torque": Load("crank_torque", PointRef("crank", "A", crank.points["A"]), sp.ImmutableMatrix([0, 0, 0]),
-                                    sp.ImmutableMatrix([0, 0, 10]))},
-    )  # fmt: skip
-    system = generated_system("four_bar_quaternion")
+    text = (MODELS / "four_bar.yaml").read_text().split("\nloads:")[0]
+    path = tmp_path / "held_at_rocker.yaml"
+    path.write_text(text + "\nmotors:\n  rocker_motor: {joint: D}\nloads:\n  crank_torque: {point: crank.A, moment: [0, 0, 10]}\n")
+    session = Session(tmp_path / "generated")
+    held_at_rocker, system = session.model(path), session.system(path, parametrization="quaternion")
     results = solve(system, np.array([0.0, t_star / 2, t_star]), SolverOptions())
     with pytest.raises(SingularJacobianError, match="cannot hold the load") as caught:
         forces(results, held_at_rocker, ["crank_torque"])

@@ -138,3 +138,15 @@ def test_malformed_tool_forces_name_the_entry(old, new, entry, problem):
         loads(text, "excavator.yaml")
     assert caught.value.entry == entry
     assert problem in caught.value.problem
+
+
+def test_the_readmes_forces_table_states_these_figures():
+    """The README's Forces table (kinegen's figures, to the 0.1 kN it prints) is this run's."""
+    from tests.conftest import ROOT
+
+    readme = (ROOT / "README.md").read_text()
+    table = readme[readme.index("## Forces (") : readme.index("## Design studies")]
+    for row, name in (("| bucket digging force |", "bucket"), ("| arm crowd force |", "arm")):
+        line = next(text for text in table.splitlines() if text.startswith(row))
+        stated = float(line.split("|")[2].strip().removesuffix(" kN"))
+        assert stated == round(found()[name].force / 1e3, 1), (name, stated, found()[name].force)

@@ -234,3 +234,29 @@ def test_the_exploration_plot_has_units_a_colour_bar_readable_cells_full_labels_
     boxes = [t.get_window_extent(renderer) for t in labels]
     assert not any(boxes[i].overlaps(boxes[j]) for i in range(len(boxes)) for j in range(i))
     pyplot().close(fig)
+
+
+@WORKING_RANGE_GROUP
+def test_the_force_map_draws_its_cells_inside_the_exact_boundary_and_states_its_assumptions():
+    """The tangent force map (a coarse grid): on both panels the cells (and the contours) are clipped
+    to the working range's exact boundary, which the axes show whole; the figure says what is assumed
+    (static, massless, no friction) and what a white cell means."""
+    from kinegen.forces.maps import force_map, force_map_figure
+
+    _, system, _, boundary = excavator_working_range()
+    found = force_map(system, model("excavator"), "tangent", grid=(9, 7, 9))
+    fig = force_map_figure(found, boundary)
+    for ax in fig.axes[:2]:  # the two panels (then the colour bar)
+        cells = [a for a in ax.collections if hasattr(a, "get_array") and a.get_array() is not None and a.get_array().size > 1]
+        assert cells
+        for artist in cells:
+            clip = artist.get_clip_path()
+            assert clip is not None
+            vertices = clip.get_fully_transformed_path().vertices  # display coordinates
+            drawn = ax.transData.transform(boundary.points[:, :2])
+            assert np.abs(vertices[: len(drawn)] - drawn).max() < 1e-6
+        (x0, x1), (z0, z1) = ax.get_xlim(), ax.get_ylim()
+        assert x0 < boundary.points[:, 0].min() and boundary.points[:, 0].max() < x1
+        assert z0 < boundary.points[:, 1].min() and boundary.points[:, 1].max() < z1
+    title = fig._suptitle.get_text()
+    assert "static, massless links, no friction" in title and "white: no pose" in title

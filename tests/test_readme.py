@@ -113,8 +113,14 @@ def test_the_tours_slow_steps_run_as_printed_in_a_reduced_form(user_folder: Path
 
 def test_the_controllers_commands_build_and_run_the_standalone_c_as_printed(user_folder: Path) -> None:
     commands = _commands(_block("## Using kinegen in a controller"))
-    assert [shlex.split(c)[0] for c, _ in commands] == ["kinegen", "make", "out/excavator_c/excavator_quaternion_example"]
+    program = "out/excavator_c/excavator_quaternion_example"
+    assert [shlex.split(c)[0] for c, _ in commands] == ["kinegen", "make", program, program]
     _run(commands, user_folder)
     header, *rows = (user_folder / "out" / "level_cut.csv").read_text().splitlines()
     assert header.startswith("t,converged,newton_iterations") and len(rows) > 10
     assert all(row.split(",")[1] == "1" for row in rows)
+    header, *rows = (user_folder / "out" / "level_cut_forces.csv").read_text().splitlines()
+    names = header.split(",")
+    assert len(rows) == 101 and {"swing_motor.force", "arm_cylinder.force", "bucket_cylinder.force", "lambda.swing.x"} <= set(names)
+    arm = names.index("arm_cylinder.force")
+    assert all(float(row.split(",")[arm]) > 0 for row in rows)  # the arm cylinder pushes along the level cut (docs/forces.md)

@@ -129,6 +129,28 @@ class CaseDescription:
     patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = field(default_factory=dict)
 
 
+@dataclass(frozen=True)
+class StaticsDescription:
+    """What a force solve Φ_qᵀ λ = Q needs beside a case's kernels (:mod:`kinegen.symbolic.statics`).
+
+    With actuation elements (``elements``: name, kind "actuator" or "motor"), the matrix is the
+    joint rows of Φ_q, then one row per element: the kernel ``actuation`` gives its values at
+    (``matrix_rows``, ``matrix_cols``) -- the joint rows' Φ_q values first, as in every case's
+    ``jac`` -- factorized in the block-triangular order ``plan``. Without elements each case's
+    drivers carry the load: the matrix is the case's Φ_q (``elements`` empty, no ``actuation``).
+    The kernel ``loads`` gives every load's Q (``loads``: names) at (``load_rows`` = the load's
+    index, ``load_cols``)."""
+
+    elements: tuple[tuple[str, str], ...]
+    matrix_rows: tuple[int, ...]
+    matrix_cols: tuple[int, ...]
+    plan: Plan | None
+    loads: tuple[str, ...]
+    load_rows: tuple[int, ...]
+    load_cols: tuple[int, ...]
+    load_keys: tuple[str, ...] = ()  #: each load's :attr:`~kinegen.model.schema.Load.fingerprint`
+
+
 @dataclass
 class ModuleDescription:
     """Everything a backend prints for one model in one parametrization (all its cases)."""
@@ -158,6 +180,8 @@ class ModuleDescription:
     #: the model's C files written beside the Python module (name -> SHA-256 of their bytes), made
     #: before it: the module names the C that belongs to it (empty: none does)
     c_files: dict[str, str] = field(default_factory=dict)
+    #: a model with loads or actuation elements: what the force solve's kernels compute (None: neither)
+    statics: StaticsDescription | None = None
 
     @property
     def joint_rows(self) -> int:
@@ -386,6 +410,44 @@ def _pattern(entries: list[list[tuple[int, sp.Expr]]], first_row: int = 0) -> li
     return [(first_row + i, c) for i, row in enumerate(entries) for c, _ in row]
 
 
+def _statics(
+    model: Model, coords: Coordinates, joint_pattern: list[tuple[int, int]], p: tuple[str, ...], section, shared: dict
+) -> StaticsDescription | None:  # fmt: skip
+    """The ``actuation`` and ``loads`` kernels (sections made with ``section``, kernels put into
+    ``shared``) and their description; None for a model with neither elements nor loads.
+    ``joint_pattern``: the joint rows' Phi_q pattern (the first values of every case's)."""
+    from kinegen.symbolic.statics import element_rows, load_row
+
+    if not model.actuation and not model.loads:
+        return None
+    elements = element_rows(model, coords)
+    mj = 1 + max((r for r, _ in joint_pattern), default=-1)
+    matrix = [*joint_pattern, *((mj + i, c) for i, (_, _, row) in enumerate(elements) for c in row)]
+    matrix_plan = None
+    if elements:
+        size = sum(len(row) for _, _, row in elements)
+        values = [e for _, _, row in elements for e in row.values()]
+        section("actuation_rows", ("q", *p), (Group(None, lambda: values, {}),), size,
+                f"The rows of the {len(elements)} actuation elements: d(length or angle)/dv, {size} values.")  # fmt: skip
+        shared["actuation"] = Kernel("actuation", ("q", *p), (Output("actuation_matrix", ("joints_jac", "actuation_rows"), len(matrix)),),
+                                     "The force solve's matrix: the joint rows' Phi_q values, then the actuation elements' rows, "
+                                     "at ACTUATION_ROWS, ACTUATION_COLS.")  # fmt: skip
+        matrix_plan = plan(tuple(r for r, _ in matrix), tuple(c for _, c in matrix), (mj + len(elements), len(coords.velocity_symbols)))
+    loads = [(name, load_row(load, coords)) for name, load in model.loads.items()]
+    load_pattern = [(k, c) for k, (_, row) in enumerate(loads) for c in row]
+    if loads:
+        values_q = [e for _, row in loads for e in row.values()]
+        section("loads", ("q", "t", *p), (Group(None, lambda: values_q, {}),), len(load_pattern),
+                f"Every load's generalized force Q (F.J_P + M.T_w), {len(load_pattern)} values at LOAD_ROWS, LOAD_COLS.")  # fmt: skip
+        shared["loads"] = Kernel("loads", ("q", "t", *p), (Output("loads", ("loads",), len(load_pattern)),),
+                                 "Every load's generalized force Q at time t, at LOAD_ROWS (the load), LOAD_COLS.")  # fmt: skip
+    return StaticsDescription(
+        tuple((name, kind) for name, kind, _ in elements), tuple(r for r, _ in matrix) if elements else (),
+        tuple(c for _, c in matrix) if elements else (), matrix_plan, tuple(name for name, _ in loads),
+        tuple(r for r, _ in load_pattern), tuple(c for _, c in load_pattern), tuple(load.fingerprint for load in model.loads.values()),
+    )  # fmt: skip
+
+
 def point_expressions(model: Model) -> list[sp.Expr]:
     """Every named point's coordinates, flattened: the bodies' (body coordinates) in the order
     of ``POINTS``, then the ground's (global) -- what the ``points`` kernel of a model with
@@ -456,6 +518,7 @@ def describe(
     if model.actuators:
         shared_section("lengths", ("q", *p), (Group(None, lambda: actuator_lengths(model, coords), {}),), len(model.actuators),
                 "The length of every actuator (in the order of ACTUATORS) [m]: the distance between its two points.")  # fmt: skip
+    statics = _statics(model, coords, first.jacobian_pattern[:n_joint_entries], p, section, shared)
     cases: dict[str, CaseDescription] = {}
     for name, system in systems.items():
         rows = system.rows
@@ -552,4 +615,5 @@ def describe(
         kernels=shared,
         design=tuple((d.name, float(d.nominal), float(d.lower), float(d.upper)) for d in model.design),
         sensitivities=sensitive,
+        statics=statics,
     )

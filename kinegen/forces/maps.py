@@ -122,11 +122,20 @@ def force_map(system: NumericSystem, model: Model, direction: str, grid: tuple[i
                     np.array([names[w] for w in which], dtype=object), time.perf_counter() - start)  # fmt: skip
 
 def plot_force_map(found: ForceMap, path: str | Path, boundary=None, silhouette: dict[str, np.ndarray] | None = None) -> Path:
-    """PNG: left, the largest force per cell [kN] with contour lines, the working range's exact
-    boundary and the machine; right, the cylinder that limits it."""
-    from matplotlib.colors import ListedColormap
+    """PNG of :func:`force_map_figure`."""
+    from kinegen.analysis.plots import save
 
-    from kinegen.analysis.plots import pyplot, save
+    return save(force_map_figure(found, boundary, silhouette), path)
+
+
+def force_map_figure(found: ForceMap, boundary=None, silhouette: dict[str, np.ndarray] | None = None):
+    """Left, the largest force per cell [kN] with contour lines, the working range's exact boundary
+    and the machine; right, the cylinder that limits it. The cells and contours are drawn inside the
+    boundary only (a 0.3 m cell holding poses near the boundary would reach past it)."""
+    from matplotlib.colors import ListedColormap
+    from matplotlib.patches import Polygon
+
+    from kinegen.analysis.plots import pyplot
 
     plt = pyplot()
     xs, zs, best, limiting = found.cells()
@@ -145,13 +154,22 @@ def plot_force_map(found: ForceMap, path: str | Path, boundary=None, silhouette:
     for k, name in enumerate(circuits):
         axes[1].fill([], [], color=palette(k), label=f"{name} at its relief setting")
     axes[1].legend(loc="upper right", fontsize=8)
-    for ax, title in zip(axes, (f"largest force at {found.point}, {MEANING[found.direction]}", "the cylinder that limits it")):
-        if boundary is not None:
+    lines_kept = [lines] if hasattr(lines, "set_clip_path") else list(getattr(lines, "collections", []))
+    clipped = [[mesh, *lines_kept], [axes[1].collections[0]]]
+    for ax, title, artists in zip(axes, (f"largest force at {found.point},\n{MEANING[found.direction]}", "the cylinder that limits it"), clipped):
+        if boundary is not None:  # the cells inside the exact boundary only: a cell's square may reach past it
+            outline = Polygon(boundary.points[:, :2], closed=True, transform=ax.transData, facecolor="none", edgecolor="none")
+            ax.add_patch(outline)
+            for artist in artists:
+                artist.set_clip_path(outline)
             ax.plot(boundary.points[:, 0], boundary.points[:, 1], color="black", lw=1.2, label=None)
+            low, high = boundary.points[:, :2].min(axis=0) - 0.3, boundary.points[:, :2].max(axis=0) + 0.3
+            ax.set(xlim=(low[0], high[0]), ylim=(low[1], high[1]))
         for polygon in (silhouette or {}).values():
             ax.fill(polygon[:, 0], polygon[:, 1], facecolor="0.75", edgecolor="0.3", lw=0.6)
         ax.axhline(0.0, color="saddlebrown", lw=1.2)
         ax.set(aspect="equal", xlabel="horizontal distance from the swing axis [m]", title=title)
     axes[0].set_ylabel("height above the ground [m]")
-    fig.suptitle(f"{found.direction} force map: {len(found.force):,} poses of the working range, every cylinder at most at its relief setting")
-    return save(fig, path)
+    fig.suptitle(f"{found.direction} force map: {len(found.force):,} poses of the working range, every cylinder at most at its relief setting\n"
+                 f"(static, massless links, no friction; white: no pose of the grid in that 0.3 m cell)", fontsize=10)  # fmt: skip
+    return fig

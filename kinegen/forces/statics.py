@@ -207,7 +207,9 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -
     statics = Statics(results, model)
     q_load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), statics.n_v)))
     matrix = statics.matrix()
-    multipliers = statics.solve(matrix, q_load)
+    multipliers = statics.compiled_multipliers([model.loads[name] for name in loads])
+    if multipliers is None:
+        multipliers = statics.solve(matrix, q_load)
     elements = statics.elements
     force = statics.element_forces(multipliers)
     reactions = {joint.name: statics.reaction(joint, matrix, multipliers) for joint in model.joints}
@@ -341,45 +343,42 @@ class Statics:
         return np.array([design_value(x, self.system.design) for x in vector], dtype=float)
 
     # ---- the matrix and its solve ----------------------------------------------------
+    @property
+    def kernels(self):
+        """The module's force-solve kernels (:class:`kinegen.runtime.system.StaticsKernels`)."""
+        kernels = self.system.statics
+        if kernels is None:
+            raise KinegenError(f"the generated module of {self.system.model!r} has no force kernels: "
+                               "its model declares no loads or actuation elements")  # fmt: skip
+        return kernels
+
     def matrix(self) -> Rows:
-        """Φ_q of the joint rows with the elements' rows at every pose, sparse (:class:`Rows`)."""
+        """Φ_q of the joint rows with the elements' rows at every pose, sparse (:class:`Rows`): the
+        generated ``actuation`` kernel, or without declared elements the case's Φ_q."""
         results, system = self.results, self.system
-        k_points = len(results.times)
-        case_rows, case_cols = np.asarray(system.jac_rows), np.asarray(system.jac_cols)
-        kept = case_rows < self.joint_rows if self.declared else np.ones(len(case_rows), dtype=bool)
-        values = np.empty((k_points, int(kept.sum())))
-        for k in range(k_points):
-            values[k] = np.asarray(system.evaluate(results.q[k], results.inputs[k])[1], dtype=float)[kept]
-        rows, cols = [case_rows[kept]], [case_cols[kept]]
-        parts = [values]
-        for i, element in enumerate(self.declared):
-            row = np.zeros((k_points, self.n_v))
-            if isinstance(element, Motor):
-                self._motor_row(element, row)
-            else:
-                self._actuator_row(element, row)
-            used = np.flatnonzero(np.any(row != 0, axis=0))
-            rows.append(np.full(len(used), self.joint_rows + i))
-            cols.append(used)
-            parts.append(row[:, used])
-        return Rows(np.concatenate(rows), np.concatenate(cols), np.hstack(parts), (self.joint_rows + len(self.elements), self.n_v))
+        shape = (self.joint_rows + len(self.elements), self.n_v)
+        q = np.ascontiguousarray(results.q.T)
+        if self.declared:
+            kernels = self.kernels
+            names = tuple(name for name, _ in kernels.elements)
+            if names != tuple(e.name for e in self.elements):
+                raise KinegenError(f"the generated module of {system.model!r} has the actuation elements {', '.join(names) or 'none'}, "
+                                   f"the model {', '.join(e.name for e in self.elements)}: build the module from this model")  # fmt: skip
+            return Rows(kernels.matrix_rows, kernels.matrix_cols, np.asarray(kernels.matrix(q), dtype=float).reshape(-1, len(q[0])).T.copy(), shape)
+        values = np.asarray(system.jac(q, np.ascontiguousarray(results.inputs.T)), dtype=float).reshape(-1, len(q[0])).T.copy()
+        return Rows(np.asarray(system.jac_rows), np.asarray(system.jac_cols), values, shape)
 
-    def _actuator_row(self, actuator: Actuator, row: np.ndarray) -> None:
-        """dL/dv of an actuator's length L = |P1 - P2|: e.(J_P1 - J_P2), e the unit vector P2 -> P1."""
-        ends = [(ref.body, self.position(ref.body, self.local(ref.body, ref.name))) for ref in actuator.points]
-        gap = ends[0][1] - ends[1][1]
-        direction = gap / np.linalg.norm(gap, axis=1)[:, None]
-        for sign, (body, point) in zip((1.0, -1.0), ends):
-            if body != GROUND:
-                row[:, self.columns(body)] += sign * np.einsum("ki,kij->kj", direction, self.point_jacobian(body, point))
-
-    def _motor_row(self, motor: Motor, row: np.ndarray) -> None:
-        """dθ/dv of a joint angle: a.(T_ω2 - T_ω1), a the joint's axis (turning with its first body)."""
-        joint = self.joints[motor.joint]
-        axis = np.einsum("kij,j->ki", self.rotation(joint.body1), self.design_vector(joint.axis1))
-        for sign, body in ((1.0, joint.body2), (-1.0, joint.body1)):
-            if body != GROUND:
-                row[:, self.columns(body)] += sign * np.einsum("ki,kij->kj", axis, self.tangents[body][1])
+    def compiled_multipliers(self, loads: list[Load]) -> np.ndarray | None:
+        """λ holding ``loads`` at every time point by the compiled force solve (``kinegen_forces``), or
+        None: no compiled case, a load the module was not built with, or a singular time point (then
+        :meth:`solve` decides, and names it)."""
+        native, kernels = self.system.native, self.system.statics
+        if native is None or kernels is None or not all(kernels.serves(load) for load in loads):
+            return None
+        weights = np.array([sum(load.name == name for load in loads) for name in kernels.load_names], dtype=float)
+        results = self.results
+        multipliers, _ = native.forces(results.times, results.q, results.inputs, weights)
+        return multipliers if np.isfinite(multipliers).all() else None
 
     def solve(self, matrix: Rows, load: np.ndarray) -> np.ndarray:
         """λ with Φ_qᵀ λ = Q at every time point, one LU per point; a singular Φ_q names the time and
@@ -422,12 +421,22 @@ class Statics:
 
     # ---- loads, reactions, pressures ---------------------------------------------------
     def generalized_load(self, load: Load) -> np.ndarray:
-        """Q (K, n_v) of one load."""
-        times = self.results.times
-        rotation = self.rotation(load.axes)
-        force = np.einsum("kij,kj->ki", rotation, _time_vector(load.force, times))
-        moment = np.einsum("kij,kj->ki", rotation, _time_vector(load.moment, times))
-        return self.point_load(load.point.body, load.point.name, force, moment)
+        """Q (K, n_v) of one load: the generated ``loads`` kernel for a load the module was built with
+        (by name and content), else (a load made at run time: a study's, a test's) from the numeric
+        tangent maps."""
+        times = np.asarray(self.results.times, dtype=float)
+        kernels = self.system.statics
+        if kernels is None or not kernels.serves(load):
+            rotation = self.rotation(load.axes)
+            force = np.einsum("kij,kj->ki", rotation, _time_vector(load.force, times))
+            moment = np.einsum("kij,kj->ki", rotation, _time_vector(load.moment, times))
+            return self.point_load(load.point.body, load.point.name, force, moment)
+        index = kernels.load_names.index(load.name)
+        values = np.asarray(kernels.loads(np.ascontiguousarray(self.results.q.T), times), dtype=float).reshape(-1, len(times))
+        mine = kernels.load_rows == index
+        out = np.zeros((len(times), self.n_v))
+        out[:, kernels.load_cols[mine]] = values[mine].T
+        return out
 
     def point_load(self, body: str, point: str, force: np.ndarray, moment: np.ndarray | None = None) -> np.ndarray:
         """Q (K, n_v) of a force (K, 3) at a named point of ``body`` and a moment (K, 3) on it, global."""

@@ -185,6 +185,16 @@ class Load:
     moment: Vector
     axes: str = GROUND  #: "ground": global axes; else the name of the point's body
 
+    @property
+    def fingerprint(self) -> str:
+        """SHA-256 of what the load is (point, force, moment, axes; exact): a generated module's
+        ``loads`` kernel serves a load only when its fingerprint is the one the module was built with."""
+        import hashlib
+
+        content = (self.point.body, self.point.name, tuple(map(sp.srepr, self.point.local)), tuple(map(sp.srepr, self.force)),
+                   tuple(map(sp.srepr, self.moment)), self.axes)  # fmt: skip
+        return hashlib.sha256(repr(content).encode()).hexdigest()
+
     def limits(self, design: Mapping[str, float] | None = None) -> tuple[float, float] | None:
         """``range`` as numbers at the design values ``design`` (see :func:`design_value`)."""
         return None if self.range is None else (design_value(self.range[0], design), design_value(self.range[1], design))

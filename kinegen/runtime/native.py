@@ -298,6 +298,7 @@ def _library(path: str) -> ctypes.CDLL:
         ("kinegen_newton", ctypes.c_int, [ctypes.c_void_p] * 6),
         ("kinegen_set_design", None, [ctypes.c_void_p] * 2),
         ("kinegen_sensitivities", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 10]),
+        ("kinegen_forces", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 8]),
     ):
         function = getattr(library, name)
         function.restype, function.argtypes = restype, argtypes
@@ -407,6 +408,32 @@ class NativeCase:
         solver = self.solver(Options.newton_only(1e-10, 1e-14))
         self.library.kinegen_sensitivities(solver.pointer, count, *(x.ctypes.data for x in (*rows, *out, work)))
         return out
+
+    @property
+    def statics(self) -> ctypes.Structure | None:
+        """The model's ``kinegen_statics`` (its force solve), or None (no loads, no actuation elements)."""
+        layout = self.abi.struct("kinegen_layout").from_address(self.model.layout)
+        return self.abi.struct("kinegen_statics").from_address(layout.statics) if layout.statics else None
+
+    def forces(self, times: np.ndarray, q: np.ndarray, u: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """The multipliers (K, n_v) and element forces (K, n_elements, or the case's n_inputs without
+        elements) holding the loads weighted by ``weights`` (one per load of the model, in its order) at
+        the K configurations q (K, n_q) with inputs u (K, n_inputs) at ``times`` (K,), by
+        ``kinegen_forces``; NaN rows where the matrix is singular."""
+        statics = self.statics
+        if statics is None:
+            raise ValueError("the model has no loads and no actuation elements")
+        count = len(times)
+        rows = [np.ascontiguousarray(np.asarray(x, dtype=float).reshape(count, -1)) for x in (times, q, u)]
+        weights = np.ascontiguousarray(weights, dtype=float)
+        if len(weights) != statics.n_loads:
+            raise ValueError(f"{len(weights)} load weights for {statics.n_loads} loads")
+        multipliers = np.empty((count, self.n_v))
+        force = np.empty((count, statics.n_elements or self.n_inputs))
+        work, iwork = np.empty(statics.work_doubles), np.empty(max(1, statics.work_ints), dtype=np.intc)
+        solver = self.solver(Options.newton_only(1e-10, 1e-10))
+        self.library.kinegen_forces(solver.pointer, count, *(x.ctypes.data for x in (*rows, weights, multipliers, force, work, iwork)))
+        return multipliers, force
 
     def solver(self, options: Options) -> NativeSolver:
         """A C solver instance of this case (its own workspace)."""

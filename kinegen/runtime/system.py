@@ -25,6 +25,49 @@ from kinegen.runtime.linear import Pattern
 
 
 @dataclass(frozen=True)
+class StaticsKernels:
+    """A module's force-solve kernels (``kinegen.codegen.kernels.StaticsDescription``), p bound:
+    ``matrix`` (q) -> the joint rows' Phi_q values, then the actuation elements' rows, at
+    (``matrix_rows``, ``matrix_cols``) (None: the model declares no elements, each case's drivers
+    carry the load); ``loads`` (q, t) -> every load's Q at (``load_rows`` = its index in
+    ``load_names``, ``load_cols``) (None: no loads). Both take one configuration or a batch
+    (q (n_q, K), t (K,))."""
+
+    elements: tuple[tuple[str, str], ...]
+    matrix: Callable[..., np.ndarray] | None
+    matrix_rows: np.ndarray
+    matrix_cols: np.ndarray
+    load_names: tuple[str, ...]
+    loads: Callable[..., np.ndarray] | None
+    load_rows: np.ndarray
+    load_cols: np.ndarray
+    #: each load's content (:attr:`kinegen.model.schema.Load.fingerprint`) as the module was built
+    load_keys: tuple[str, ...] = ()
+
+    def serves(self, load: Any) -> bool:
+        """Whether the ``loads`` kernel computes this load (:class:`~kinegen.model.schema.Load`): the
+        module was built with it, by name and content."""
+        return load.name in self.load_names and self.load_keys[self.load_names.index(load.name)] == load.fingerprint
+
+
+def _statics(module: ModuleType | Any, p: np.ndarray | None) -> StaticsKernels | None:
+    if not hasattr(module, "ELEMENTS"):
+        return None
+
+    def function(name: str) -> Callable[..., np.ndarray] | None:
+        f = getattr(module, name, None)
+        return f if f is None or p is None else _with_design(f, p)
+
+    index = np.intp
+    return StaticsKernels(
+        tuple(tuple(e) for e in module.ELEMENTS), function("actuation_matrix") if module.ELEMENTS else None,
+        np.array(module.ACTUATION_ROWS, dtype=index), np.array(module.ACTUATION_COLS, dtype=index), tuple(module.LOADS),
+        function("loads") if module.LOADS else None, np.array(module.LOAD_ROWS, dtype=index), np.array(module.LOAD_COLS, dtype=index),
+        tuple(module.LOAD_KEYS),
+    )  # fmt: skip
+
+
+@dataclass(frozen=True)
 class NumericSystem:
     """Compiled kinematics of one case: Phi, sparse Phi_q values, nu, gamma and metadata."""
 
@@ -77,6 +120,8 @@ class NumericSystem:
     frames_d: Callable[..., np.ndarray] | None = None
     #: per body, the frames kernels' values in order: (name, count) (the module's FRAME_FIELDS)
     frame_fields: tuple[tuple[str, int], ...] = FRAME_FIELDS
+    #: the force solve's kernels (a model with loads or actuation elements), else None
+    statics: StaticsKernels | None = None
 
     @property
     def n_stored(self) -> int:
@@ -309,6 +354,7 @@ def from_module(
         driver_sources=tuple(data.get("driver_sources", ())),
         ground_points=ground_points,
         native=_native(module, case, compiled, p),
+        statics=_statics(module, p),
         **design_fields,
     )
 

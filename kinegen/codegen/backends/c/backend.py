@@ -77,9 +77,10 @@ class _PlanArrays:
     off_value: list[int]
 
 
-def plan_arrays(case: CaseDescription, plan: Plan) -> _PlanArrays:
-    """Where each Phi_q value goes: into a diagonal block's dense storage (column-major) or,
-    below the blocks, into the list of its permuted row."""
+def plan_arrays(rows: tuple[int, ...], cols: tuple[int, ...], plan: Plan, name: str) -> _PlanArrays:
+    """Where each value of a matrix given at the pattern (``rows``, ``cols``) goes (a case's Phi_q,
+    the statics' matrix ``name``): into a diagonal block's dense storage (column-major) or, below
+    the blocks, into the list of its permuted row."""
     n = len(plan.row_order)
     position_of_row = [0] * n
     position_of_col = [0] * n
@@ -96,7 +97,7 @@ def plan_arrays(case: CaseDescription, plan: Plan) -> _PlanArrays:
         offset += (end - start) ** 2
     diag_value, diag_slot = [], []
     below: list[list[tuple[int, int]]] = [[] for _ in range(n)]
-    for k, (r, c) in enumerate(zip(case.jac_rows, case.jac_cols)):
+    for k, (r, c) in enumerate(zip(rows, cols)):
         i, j = position_of_row[r], position_of_col[c]
         b = block_of[i]
         if block_of[j] == b:
@@ -106,7 +107,7 @@ def plan_arrays(case: CaseDescription, plan: Plan) -> _PlanArrays:
         elif block_of[j] < b:
             below[i].append((j, k))
         else:  # pragma: no cover -- block_triangular guarantees a lower block-triangular form
-            raise ValueError(f"{case.name}: Phi_q entry ({r}, {c}) above the block diagonal")
+            raise ValueError(f"{name}: entry ({r}, {c}) above the block diagonal")
     off_start, off_col, off_value = [0], [], []
     for entries in below:
         for j, k in sorted(entries):
@@ -243,6 +244,30 @@ class _Model:
             f.statements = [_renamed_call(line, renamed) for line in f.statements]
         return groups
 
+    def statics(self, shared: list[str], cases: list[SimpleNamespace]) -> SimpleNamespace | None:
+        """The force solve's table (``kinegen_statics``): names, patterns, kernels (by their place in
+        the layout's table ``shared``), the matrix's plan and kinegen_forces' work."""
+        d = self.d
+        statics = d.statics
+        if statics is None:
+            return None
+        nv = len(d.velocity_names)
+        n_loads = max(1, len(statics.load_rows))
+        doubles = n_loads + 3 * nv + max(1, *(len(c.case.drivers) for c in cases))  # without elements: the case's Phi_q
+        arrays = None
+        if statics.elements:
+            if statics.plan is None:
+                raise ValueError(f"{d.model}: the C target needs a square, structurally regular force matrix "
+                                 f"(joint rows and {len(statics.elements)} actuation elements for {nv} velocity coordinates)")  # fmt: skip
+            arrays = plan_arrays(statics.matrix_rows, statics.matrix_cols, statics.plan, f"{d.model}: the force matrix")
+            doubles = max(doubles, n_loads + 2 * nv + len(statics.matrix_rows) + arrays.n_store + len(arrays.off_col))
+        return SimpleNamespace(
+            s=statics, plan=arrays, doubles=doubles, ints=nv,
+            actuation=f"&kernels[{shared.index('actuation')}]" if "actuation" in shared else "NULL",
+            loads=f"&kernels[{shared.index('loads')}]" if "loads" in shared else "NULL",
+            joint_rows=len(next(iter(d.cases.values())).constraints) - len(next(iter(d.cases.values())).drivers),
+        )  # fmt: skip
+
     def render(self, templates) -> dict[str, str]:
         d, stem = self.d, self.stem
         cases = []
@@ -255,7 +280,7 @@ class _Model:
             for kernel in case.kernels.values():
                 self.kernel(f"{kernel.name}_{name}", kernel, name)
             self.kernel_table(f"kernels_{name}", [(f"{kernel.name}_{name}", kernel) for kernel in case.kernels.values()])
-            arrays = plan_arrays(case, case.plan)
+            arrays = plan_arrays(case.jac_rows, case.jac_cols, case.plan, f"{d.model}/{name}: Phi_q")
             doubles, ints = work_sizes(d, case, arrays)
             sensitivity = 2 * len(d.velocity_names) * len(d.design) + max((len(rows) for rows, _ in case.patterns.values()), default=0)
             cases.append(SimpleNamespace(case=case, plan=arrays, doubles=doubles, ints=ints, sensitivity_doubles=sensitivity))
@@ -265,6 +290,7 @@ class _Model:
             self.kernel(function, kernel, None, static=kernel.name != "frames")
             shared.append((function, kernel))
         self.kernel_table("kernels", shared)
+        statics = self.statics([kernel.name for _, kernel in shared], cases)
         points, index = [], {}
         bodies = [b for b, _, _ in d.bodies]
         for body, named in d.points.items():
@@ -285,7 +311,7 @@ class _Model:
             "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
             "work_doubles": max(c.doubles for c in cases), "work_ints": max(c.ints for c in cases),
             "sensitivity_doubles": max(c.sensitivity_doubles for c in cases),
-            "max_inputs": max(1, *(len(c.case.drivers) for c in cases)),
+            "max_inputs": max(1, *(len(c.case.drivers) for c in cases)), "statics": statics,
         }  # fmt: skip
         return {
             f"{stem}.h": templates.get_template("model.h.jinja").render(context),

@@ -161,47 +161,74 @@ static inline int lu_block(double *A, int *piv, const int n, double *low, double
     return 0;
 }
 
-/* LU factors of every diagonal block of Phi_q (values jac). Returns 1 when singular. */
-static int factor(kinegen_solver *s, const double *jac) {
-    const kinegen_model *m = s->model;
-    double low = INFINITY, high = 0.0;
-    int odd = 0, failed = 0;
-    memset(s->store, 0, sizeof(double) * (size_t)m->n_store);
-    for (int k = 0; k < m->n_diag; ++k) s->store[m->diag_slot[k]] = jac[m->diag_value[k]];
-    for (int e = 0; e < m->n_off; ++e) s->off[e] = jac[m->off_value[e]]; /* kept with the factors (chord steps) */
+/* A block-triangular factorization plan (a case's Phi_q, or the statics' matrix) as one view. */
+typedef struct plan_view {
+    int n, n_blocks;
+    const int *block_start, *block_store, *row_order, *col_order;
+    int n_store, n_diag;
+    const int *diag_value, *diag_slot;
+    int n_off;
+    const int *off_start, *off_col, *off_value;
+} plan_view;
+
+static plan_view case_plan(const kinegen_model *m) {
+    plan_view p = {m->n_v, m->n_blocks, m->block_start, m->block_store, m->row_order, m->col_order, m->n_store, m->n_diag,
+                   m->diag_value, m->diag_slot, m->n_off, m->off_start, m->off_col, m->off_value};
+    return p;
+}
+
+/* LU factors of every diagonal block of the plan's matrix (its values at the plan's pattern) into store, the
+ * entries below the blocks into off; the smallest and largest |pivot| into low, high; each block's
+ * determinant sign into block_sign (if not NULL). Returns 1 at a zero or non-finite pivot, else 0; *odd:
+ * the parity of the whole determinant's sign. */
+static int factor_blocks(const plan_view *m, const double *values, double *store, double *off, int *pivots, int *block_sign,
+                         double *low, double *high, int *odd) {
+    int failed = 0;
+    *odd = 0;
+    memset(store, 0, sizeof(double) * (size_t)m->n_store);
+    for (int k = 0; k < m->n_diag; ++k) store[m->diag_slot[k]] = values[m->diag_value[k]];
+    for (int e = 0; e < m->n_off; ++e) off[e] = values[m->off_value[e]]; /* kept with the factors (chord steps) */
     for (int b = 0; b < m->n_blocks && !failed; ++b) {
         int first = m->block_start[b], n = m->block_start[b + 1] - first, block_odd = 0;
-        double *A = s->store + m->block_store[b];
-        int *piv = s->pivots + first;
+        double *A = store + m->block_store[b];
+        int *piv = pivots + first;
         switch (n) {
         case 1:
-            failed = lu_block(A, piv, 1, &low, &high, &block_odd);
+            failed = lu_block(A, piv, 1, low, high, &block_odd);
             break;
         case 2:
-            failed = lu_block(A, piv, 2, &low, &high, &block_odd);
+            failed = lu_block(A, piv, 2, low, high, &block_odd);
             break;
         case 3:
-            failed = lu_block(A, piv, 3, &low, &high, &block_odd);
+            failed = lu_block(A, piv, 3, low, high, &block_odd);
             break;
         case 4:
-            failed = lu_block(A, piv, 4, &low, &high, &block_odd);
+            failed = lu_block(A, piv, 4, low, high, &block_odd);
             break;
         case 6:
-            failed = lu_block(A, piv, 6, &low, &high, &block_odd);
+            failed = lu_block(A, piv, 6, low, high, &block_odd);
             break;
         case 7:
-            failed = lu_block(A, piv, 7, &low, &high, &block_odd);
+            failed = lu_block(A, piv, 7, low, high, &block_odd);
             break;
         case 9:
-            failed = lu_block(A, piv, 9, &low, &high, &block_odd);
+            failed = lu_block(A, piv, 9, low, high, &block_odd);
             break;
         default:
-            failed = lu_block(A, piv, n, &low, &high, &block_odd);
+            failed = lu_block(A, piv, n, low, high, &block_odd);
         }
-        s->factor_block_sign[b] = block_odd ? -1 : 1; /* the block's assembly mode */
-        odd ^= block_odd;
+        if (block_sign != NULL) block_sign[b] = block_odd ? -1 : 1; /* the block's assembly mode */
+        *odd ^= block_odd;
     }
-    if (failed) {
+    return failed;
+}
+
+/* LU factors of every diagonal block of Phi_q (values jac). Returns 1 when singular. */
+static int factor(kinegen_solver *s, const double *jac) {
+    plan_view plan = case_plan(s->model);
+    double low = INFINITY, high = 0.0;
+    int odd = 0;
+    if (factor_blocks(&plan, jac, s->store, s->off, s->pivots, s->factor_block_sign, &low, &high, &odd)) {
         s->have_factors = 0;
         return 1;
     }
@@ -313,15 +340,14 @@ static void solve3(kinegen_solver *s, double *b[3], double *y) {
     }
 }
 
-/* x = Phi_q^-T c (for the condition estimate; x and c may alias). */
-static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
-    const kinegen_model *m = s->model;
-    double *w = s->y;
-    for (int j = 0; j < m->n_v; ++j) w[j] = c[m->col_order[j]];
+/* x = M^-T c with the factors of the plan's matrix M (store, off, pivots); w: n values of work (x and c may alias). */
+static void solve_transposed_blocks(const plan_view *m, const double *store, const double *off, const int *pivots, double *w,
+                                    const double *c, double *x) {
+    for (int j = 0; j < m->n; ++j) w[j] = c[m->col_order[j]];
     for (int blk = m->n_blocks - 1; blk >= 0; --blk) {
         int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
-        const double *A = s->store + m->block_store[blk];
-        const int *piv = s->pivots + first;
+        const double *A = store + m->block_store[blk];
+        const int *piv = pivots + first;
         double *r = w + first;
         for (int k = 0; k < n; ++k) { /* U^T */
             double acc = r[k];
@@ -343,10 +369,16 @@ static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
         /* the entries below the blocks couple this block's rows to earlier blocks' columns */
         for (int i = 0; i < n; ++i) {
             int row = first + i;
-            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) w[m->off_col[e]] -= s->off[e] * r[i];
+            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) w[m->off_col[e]] -= off[e] * r[i];
         }
     }
-    for (int i = 0; i < m->n_v; ++i) x[m->row_order[i]] = w[i];
+    for (int i = 0; i < m->n; ++i) x[m->row_order[i]] = w[i];
+}
+
+/* x = Phi_q^-T c (for the condition estimate; x and c may alias). */
+static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
+    plan_view plan = case_plan(s->model);
+    solve_transposed_blocks(&plan, s->store, s->off, s->pivots, s->y, c, x);
 }
 
 /* 1-norm condition estimate of Phi_q from its factors: ||Phi_q||_1 times Higham's estimate of
@@ -791,6 +823,70 @@ int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const d
     return count;
 }
 
+/* ---- forces (kinegen_statics) ---- */
+
+/* Q (n_v) of the weighted loads at (q, t); values: room for the loads kernel's output. */
+static void load_vector(const kinegen_solver *s, const kinegen_statics *st, const double *q, double t, const double *weights,
+                        double *values, double *Q) {
+    memset(Q, 0, sizeof(double) * (size_t)s->model->n_v);
+    if (st->loads == NULL) return;
+    const double *x[3] = {q, &t, s->design}; /* slots q, t[, p] */
+    double *y[1] = {values};
+    st->loads->call(x, y);
+    for (int e = 0; e < st->load_pattern.n; ++e) {
+        int load = st->load_pattern.rows[e];
+        Q[st->load_pattern.cols[e]] += (weights != NULL ? weights[load] : 1.0) * values[e];
+    }
+}
+
+int kinegen_forces(kinegen_solver *s, int count, const double *times, const double *Q, const double *U, const double *weights,
+                   double *LAMBDA, double *F, double *work, int *iwork) {
+    const kinegen_model *m = s->model;
+    const kinegen_statics *st = m->layout->statics;
+    if (st == NULL) return -1;
+    int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, ne = st->n_elements, solved = 0;
+    int nf = ne > 0 ? ne : ni, first = nv - nf; /* the rows of the elements (drivers) come last */
+    double *load_values = work, *rhs = load_values + (st->load_pattern.n > 0 ? st->load_pattern.n : 1), *w = rhs + nv;
+    double *values = w + nv, *store = values + st->pattern.n, *off = store + st->n_store; /* with elements */
+    double *ud = values, *rate = ud + ni;                                                  /* without */
+    plan_view plan = {nv, st->n_blocks, st->block_start, st->block_store, st->row_order, st->col_order, st->n_store, st->n_diag,
+                      st->diag_value, st->diag_slot, st->n_off, st->off_start, st->off_col, st->off_value};
+    for (int k = 0; k < count; ++k) {
+        const double *q = Q + (size_t)k * nq, *u = U + (size_t)k * ni;
+        double *lambda = LAMBDA + (size_t)k * nv, *f = F + (size_t)k * nf;
+        int singular;
+        load_vector(s, st, q, times[k], weights, load_values, rhs);
+        if (ne > 0) {
+            const double *x[2] = {q, s->design}; /* slots q[, p] */
+            double *y[1] = {values};
+            double low = INFINITY, high = 0.0;
+            int odd = 0;
+            st->actuation->call(x, y);
+            singular = factor_blocks(&plan, values, store, off, iwork, NULL, &low, &high, &odd) ||
+                       !(low > s->options.singular_tolerance * fmax(high, 1e-300));
+            if (!singular) solve_transposed_blocks(&plan, store, off, iwork, w, rhs, lambda);
+            for (int j = 0; j < nf && !singular; ++j) f[j] = -lambda[first + j];
+        } else {
+            phi_jac(s, q, u, s->phi, s->jac);
+            singular = factor(s, s->jac);
+            if (!singular) solve_transposed(s, rhs, lambda);
+            for (int j = 0; j < nf && !singular; ++j) { /* dPhi_j/du_j = -nu_j at a unit rate of input j */
+                for (int i = 0; i < ni; ++i) ud[i] = i == j ? 1.0 : 0.0;
+                nu(s, q, u, ud, rate);
+                f[j] = -lambda[first + j] * rate[first + j];
+            }
+        }
+        if (singular) {
+            for (int i = 0; i < nv; ++i) lambda[i] = NAN;
+            for (int j = 0; j < nf; ++j) f[j] = NAN;
+        } else {
+            ++solved;
+        }
+    }
+    if (ne == 0) s->have_factors = 0; /* the case's Phi_q was factorized in the solver's store */
+    return solved;
+}
+
 const char *kinegen_status_text(int status) {
     switch (status) {
     case KINEGEN_OK:
@@ -871,6 +967,18 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_layout, velocity_names, "pointer"), FIELD(kinegen_layout, n_points, "int"),
     FIELD(kinegen_layout, points, "pointer"), FIELD(kinegen_layout, n_actuators, "int"), FIELD(kinegen_layout, actuators, "pointer"),
     FIELD(kinegen_layout, frames, "function"), FIELD(kinegen_layout, n_kernels, "int"), FIELD(kinegen_layout, kernels, "pointer"),
+    FIELD(kinegen_layout, statics, "pointer"),
+
+    FIELD(kinegen_statics, n_elements, "int"), FIELD(kinegen_statics, element_names, "pointer"),
+    FIELD(kinegen_statics, element_kinds, "pointer"), FIELD(kinegen_statics, n_joint_rows, "int"),
+    FIELD(kinegen_statics, pattern, "kinegen_pattern"), FIELD(kinegen_statics, actuation, "pointer"),
+    FIELD(kinegen_statics, n_loads, "int"), FIELD(kinegen_statics, load_names, "pointer"),
+    FIELD(kinegen_statics, load_pattern, "kinegen_pattern"), FIELD(kinegen_statics, loads, "pointer"),
+    FIELD(kinegen_statics, n_blocks, "int"), FIELD(kinegen_statics, block_start, "int*"), FIELD(kinegen_statics, block_store, "int*"),
+    FIELD(kinegen_statics, row_order, "int*"), FIELD(kinegen_statics, col_order, "int*"), FIELD(kinegen_statics, n_store, "int"),
+    FIELD(kinegen_statics, n_diag, "int"), FIELD(kinegen_statics, diag_value, "int*"), FIELD(kinegen_statics, diag_slot, "int*"),
+    FIELD(kinegen_statics, n_off, "int"), FIELD(kinegen_statics, off_start, "int*"), FIELD(kinegen_statics, off_col, "int*"),
+    FIELD(kinegen_statics, off_value, "int*"), FIELD(kinegen_statics, work_doubles, "int"), FIELD(kinegen_statics, work_ints, "int"),
 
     FIELD(kinegen_model, layout, "pointer"), FIELD(kinegen_model, case_name, "char*"), FIELD(kinegen_model, n_q, "int"),
     FIELD(kinegen_model, n_v, "int"), FIELD(kinegen_model, n_inputs, "int"), FIELD(kinegen_model, n_jac, "int"),
@@ -916,7 +1024,7 @@ const kinegen_field kinegen_fields[] = {
 
 const kinegen_struct kinegen_structs[] = {
     STRUCT(kinegen_options), STRUCT(kinegen_kernel), STRUCT(kinegen_point), STRUCT(kinegen_actuator), STRUCT(kinegen_layout),
-    STRUCT(kinegen_model), STRUCT(kinegen_pattern), STRUCT(kinegen_design), STRUCT(kinegen_solver), {NULL, 0},
+    STRUCT(kinegen_statics), STRUCT(kinegen_model), STRUCT(kinegen_pattern), STRUCT(kinegen_design), STRUCT(kinegen_solver), {NULL, 0},
 };
 
 #undef STRUCT

@@ -113,9 +113,49 @@ typedef struct kinegen_actuator {
     double min, max;
 } kinegen_actuator;
 
+/* A sparse matrix given by a kernel's values at a constant pattern (entry k at row rows[k],
+ * column cols[k]). */
+typedef struct kinegen_pattern {
+    int n;
+    const int *rows, *cols;
+} kinegen_pattern;
+
+/* The force solve of a model that declares loads or actuation elements (kinegen_layout.statics; NULL:
+ * neither): at a solved configuration, Phi_q^T lambda = Q (kinegen_forces). By virtual work the
+ * constraint forces -Phi_q^T lambda hold the loads' generalized force Q.
+ *   With actuation elements (n_elements > 0: the motors, then the actuators with hydraulic data), the
+ *   matrix is the joint rows of Phi_q (the first n_joint_rows rows; their values are the first of every
+ *   case's Phi_q) and one row per element, d(its length or joint angle)/dv: the kernel `actuation` gives
+ *   the matrix's values at `pattern`, factorized in the block lower triangular plan below (as a case's,
+ *   kinegen_model). An element's force is f = -lambda of its row: an actuator's push [N] (positive
+ *   pushes its points apart), a motor's torque [N m] about its joint's axis on the joint's second body.
+ *   Without elements, each case's drivers carry the load: the matrix is the case's Phi_q, and a driver's
+ *   force along its input is f = lambda dPhi/du (from nu at a unit input rate).
+ * The kernel `loads` gives every load's Q at load_pattern (rows: the load's index in load_names). */
+typedef struct kinegen_statics {
+    int n_elements;
+    const char *const *element_names;
+    const char *const *element_kinds; /* "actuator" or "motor" */
+    int n_joint_rows;
+    kinegen_pattern pattern;          /* of the matrix (n_elements > 0) */
+    const kinegen_kernel *actuation;  /* (q[, p]) -> the matrix's values; NULL without elements */
+    int n_loads;
+    const char *const *load_names;
+    kinegen_pattern load_pattern;
+    const kinegen_kernel *loads;      /* (q, t[, p]) -> the loads' Q values; NULL without loads */
+    int n_blocks;                     /* the matrix's plan (n_elements > 0), as kinegen_model's */
+    const int *block_start, *block_store, *row_order, *col_order;
+    int n_store, n_diag;
+    const int *diag_value, *diag_slot;
+    int n_off;
+    const int *off_start, *off_col, *off_value;
+    int work_doubles, work_ints;      /* what kinegen_forces needs as work, for any case */
+} kinegen_statics;
+
 /* What a model is, whatever the case: names, bodies, points, actuators, and the frames kernel
  * (per body 24 values: origin, rotation matrix row by row, origin velocity, angular velocity,
- * origin acceleration, angular acceleration; all global). */
+ * origin acceleration, angular acceleration; all global); with loads or actuation elements, its
+ * force solve (statics). */
 typedef struct kinegen_layout {
     const char *model, *parametrization, *source, *source_sha256, *kinegen_version;
     int n_q, n_v, n_bodies;
@@ -129,14 +169,8 @@ typedef struct kinegen_layout {
     void (*frames)(const double *q, const double *v, const double *a, double *out);
     int n_kernels;                 /* every kernel shared by the cases (frames first) */
     const kinegen_kernel *kernels;
+    const kinegen_statics *statics; /* NULL: the model declares no loads and no actuation elements */
 } kinegen_layout;
-
-/* A sparse matrix given by a kernel's values at a constant pattern (entry k at row rows[k],
- * column cols[k]). */
-typedef struct kinegen_pattern {
-    int n;
-    const int *rows, *cols;
-} kinegen_pattern;
 
 /* The design parameters of a case of a model with a design: section (kinegen_model.design; the
  * model's own phi_jac, nu and gamma are then NULL): their n_design nominal values and the kernels
@@ -284,6 +318,18 @@ int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iteration
  * model without design parameters or built without sensitivity kernels. The solver's state stays as it was (not its factors). */
 int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
                           const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work);
+
+/* The forces that hold the model's loads (kinegen_statics) at count solved configurations of the
+ * solver's case: rows of Q (count x n_q) at times[k] with the case's inputs U (count x n_inputs), each
+ * load weighted by weights[load] (n_loads values; NULL: each once). Writes the multipliers LAMBDA
+ * (count x n_v: the joint rows', then the elements' or the case drivers') and the forces F (count x
+ * n_elements, or the case's n_inputs without elements), row-major. A configuration whose matrix is
+ * singular (min |U_ii| <= options.singular_tolerance * max |U_ii|) gets NaN. work, iwork: the statics'
+ * work_doubles and work_ints. Returns the number of configurations solved (the others NaN), or -1 for
+ * a model without loads and actuation elements. The solver's state stays as it was; without elements
+ * (the case's Phi_q factorized) not its factors, so that a following step factorizes again. */
+int kinegen_forces(kinegen_solver *s, int count, const double *times, const double *Q, const double *U, const double *weights,
+                   double *LAMBDA, double *F, double *work, int *iwork);
 
 const char *kinegen_status_text(int status);
 
