@@ -275,6 +275,9 @@ def _system(
 @click.option("--load", "loads", multiple=True, metavar="NAME",
               help="A load of the model the machine holds (repeatable): report the actuation forces, the cylinder pressures "
               "against their relief and holding settings, and the joint reactions (columns added to --out).")  # fmt: skip
+@click.option("--dynamics", is_flag=True,
+              help="Add the bodies' weight and inertia along the motion (inverse dynamics; a model with masses): the forces "
+              "that move the machine, with --load also holding the loads, and its kinetic and potential energy (columns added to --out).")  # fmt: skip
 @GENERATED_DIR
 def solve(
     model_file: str,
@@ -294,10 +297,12 @@ def solve(
     view: bool,
     force: bool,
     loads: tuple[str, ...],
+    dynamics: bool,
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time; every time point where an
-    actuator leaves its range is reported. With --load, also the forces that hold the loads."""
+    actuator leaves its range is reported. With --load, also the forces that hold the loads; with
+    --dynamics, the forces that move the machine (its weight and inertia) and its energies."""
     from kinegen.runtime import SolverOptions
     from kinegen.runtime import solve as run
 
@@ -308,6 +313,8 @@ def solve(
     unknown = [name for name in loads if name not in model.loads]
     if unknown:
         raise click.BadParameter(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})", param_hint="--load")
+    if dynamics and not model.massive:
+        raise click.BadParameter("the model has no masses (a body's mass:, center_of_mass:, inertia:)", param_hint="--dynamics")
     if plot:
         _check_frame(system, frame_body)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
@@ -325,10 +332,10 @@ def solve(
         err=piped,
     )
     held = None
-    if loads and results.complete:
+    if (loads or dynamics) and results.complete:
         from kinegen.forces import forces
 
-        held = forces(results, model, loads)
+        held = forces(results, model, loads, inertia=dynamics)
         _report_forces(held, piped)
     if out:
         written = results.to_csv(out, held.table() if held is not None else None)
@@ -412,7 +419,8 @@ def _report_forces(held, piped: bool) -> None:
     """The peak of every actuation force and cylinder pressure, the largest pin reactions, and
     every pressure beyond its relief or holding setting."""
     times = held.results.times
-    click.echo(f"forces holding {', '.join(held.loads)}:", err=piped)
+    holding = f"holding {', '.join(held.loads)}" if held.loads else ""
+    click.echo(f"forces {'moving the machine (its weight and inertia)' + (' and ' if holding else '') if held.inertia else ''}{holding}:", err=piped)
     for k, element in enumerate(held.elements):
         values = held.force[:, k]
         i = int(np.argmax(np.abs(values)))
@@ -427,6 +435,10 @@ def _report_forces(held, piped: bool) -> None:
         click.echo(line, err=piped)
     peaks = sorted(((float(np.linalg.norm(r.force, axis=1).max()), name) for name, r in held.reactions.items()), reverse=True)
     click.echo("  largest pin forces: " + ", ".join(f"{name} {value / 1e3:.1f} kN" for value, name in peaks[:4]), err=piped)
+    if held.energies is not None:
+        e = held.energies
+        click.echo(f"  energy: kinetic up to {e.kinetic.max() / 1e3:.2f} kJ, potential {e.potential.min() / 1e3:.1f} .. "
+                   f"{e.potential.max() / 1e3:.1f} kJ", err=piped)  # fmt: skip
     by_actuator: dict[str, list] = {}
     for t, name, value, limit, what in held.violations():
         by_actuator.setdefault(name, []).append((t, value, limit, what))

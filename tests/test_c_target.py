@@ -77,16 +77,18 @@ def test_the_compiled_path_is_the_default_and_matches_python():
 
 
 @pytest.mark.parametrize(
-    ("stem", "case", "loads"),
-    [("excavator_quaternion", "digging", ("payload", "cutting")), ("excavator_dual_euler_parameters", "level_cut", ("payload",)),
-     ("excavator_euler_zxy", "level_cut", ("cutting",)), ("slider_crank_euler_parameters", "run", ("gas",)),
-     ("four_bar_dual_quaternion", None, ("rocker_torque",))],
+    ("stem", "case", "loads", "inertia"),
+    [("excavator_quaternion", "digging", ("payload", "cutting"), False), ("excavator_dual_euler_parameters", "level_cut", ("payload",), True),
+     ("excavator_euler_zxy", "level_cut", ("cutting",), False), ("excavator_quaternion", "digging", (), True),
+     ("slider_crank_euler_parameters", "run", ("gas",), False), ("four_bar_dual_quaternion", None, ("rocker_torque",), False)],
 )  # fmt: skip
-def test_compiled_forces_equal_python(stem, case, loads):
-    """kinegen_forces (the generated actuation and loads kernels in C, the force matrix's block plan,
-    the transposed block solve) against the Python kernels and LAPACK: every multiplier and element
-    force to 1e-12 of its column's scale, along a solved case; the actuation elements' (excavator) and
-    the case drivers' (slider-crank, four-bar) forms both."""
+def test_compiled_forces_equal_python(stem, case, loads, inertia):
+    """kinegen_forces (the generated actuation, loads and inertia kernels in C, the force matrix's
+    block plan, the transposed block solve) against the Python kernels and LAPACK: every multiplier
+    and element force to 1e-12 of its column's scale, along a solved case; the actuation elements'
+    (excavator) and the case drivers' (slider-crank, four-bar) forms both, statics and inverse
+    dynamics (the excavator's estimated masses)."""
+    from kinegen.forces.dynamics import inertial_load
     from kinegen.forces.statics import Statics
 
     python, native = systems(stem, case)
@@ -94,9 +96,12 @@ def test_compiled_forces_equal_python(stem, case, loads):
     results = Solver(python).solve()
     statics = Statics(results, model)
     load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), python.n_velocity)))
+    if inertia:
+        load = load + inertial_load(results)
     expected = statics.solve(statics.matrix(), load)
     weights = np.array([float(name in loads) for name in python.statics.load_names])
-    multipliers, force = native.native.forces(results.times, results.q, results.inputs, weights)
+    motion = (results.v, results.a) if inertia else None
+    multipliers, force = native.native.forces(results.times, results.q, results.inputs, weights, motion)
     _same_forces(multipliers, expected, statics.row_names)
     expected_force = statics.element_forces(expected)
     assert force.shape == expected_force.shape
@@ -187,7 +192,7 @@ def test_the_c_is_straight_line_in_short_functions_with_no_heap():
     reads = len(module.STORED_NAMES) + 9 * len(module.BODIES)  # the argument reads and rotation-matrix entries
     assert max(body.count(";") for body in bodies) <= config.PART_STATEMENTS + reads + 20  # a group is never cut
     # compiled whole by the standalone Makefile (test_standalone_*), in parallel parts by the runtime
-    assert config.source_parts(source) == [0, 1, 2, 3]
+    assert config.source_parts(source) == [0, 1, 2, 3, 4]
     solver = (config.SOLVER / "kinegen_solver.c").read_text()
     assert not re.search(r"\b(malloc|calloc|realloc|free)\s*\(", solver)
     assert not re.search(r"^static [^(]*;", solver, re.MULTILINE)  # no global state
@@ -210,9 +215,9 @@ def test_the_solver_object_is_compiled_once_for_every_model(tmp_path, monkeypatc
     monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
     objects = tmp_path / "cache" / "objects"
     build_library(with_solver(_model_files("excavator_euler_parameters")))
-    assert len(list(objects.glob("*.o"))) == 5  # the solver and the model's parts 0 to 3
+    assert len(list(objects.glob("*.o"))) == 6  # the solver and the model's parts 0 to 4
     build_library(with_solver(_model_files("boom_quaternion")))
-    assert len(list(objects.glob("*.o"))) == 6  # the boom's one object; the solver's reused
+    assert len(list(objects.glob("*.o"))) == 7  # the boom's one object; the solver's reused
 
 
 def _model_files(stem: str) -> dict[str, str]:
@@ -277,18 +282,19 @@ def test_standalone_excavator_builds_strictly_and_matches_python_in_every_case(t
 
 
 def _compare_forces(program: Path, system) -> None:
-    """`<program> case steps load ...` appends each element's force and the multipliers, named as
-    `kinegen solve --load` names them, equal to the Python runtime's to 1e-12 of each column's scale;
-    an unknown load is a usage error naming the model's loads."""
+    """`<program> case steps load ... +inertia` appends each element's force and the multipliers
+    (inverse dynamics: the loads, the bodies' weight and inertia), named as `kinegen solve --load`
+    names them, equal to the Python runtime's to 1e-12 of each column's scale; an unknown load is a
+    usage error naming the model's loads."""
     from kinegen.forces import forces
 
-    done = subprocess.run([str(program), system.case, "41", "payload", "cutting"], capture_output=True, text=True, timeout=300)
+    done = subprocess.run([str(program), system.case, "41", "payload", "+inertia", "cutting"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0, done.stderr
     header, *rows = done.stdout.splitlines()
     names = header.split(",")
     c = np.array([[float(x) for x in row.split(",")] for row in rows])
     results = Solver(system).solve(np.linspace(system.t0, system.t1, 41))
-    force_names, table = forces(results, _model_of("excavator_quaternion"), ["payload", "cutting"]).table()
+    force_names, table = forces(results, _model_of("excavator_quaternion"), ["payload", "cutting"], inertia=True).table()
     wanted = [n for n in force_names if n.endswith(".force") or n.startswith("lambda.")]
     assert names[-len(wanted) :] == wanted
     _same_forces(c[:, -len(wanted) :], table[:, [force_names.index(n) for n in wanted]], wanted)

@@ -382,4 +382,5 @@ def test_info_shows_the_force_sections():
     text = describe(model("excavator"), ("quaternion",))
     assert "cylinders 2 x 120/85 mm, relief 34.3 MPa" in text and "cylinder 1 x 115/80 mm, relief 34.3 MPa" in text
     assert "motors: swing_motor (at swing)" in text and "loads: payload (at bucket.Q), cutting (at bucket.T)" in text
+    assert "masses (kinegen solve --dynamics): 14 of 14 bodies, 12,700 kg" in text
     assert "tool forces (kinegen forces): bucket, arm at bucket.T, lift chart" in text

@@ -56,6 +56,10 @@ def describe(model: Model, parametrizations: tuple[str, ...] = DEFAULT_PARAMETRI
         lines.append("motors: " + ", ".join(f"{m.name} (at {m.joint})" for m in model.motors))
     if model.loads:
         lines.append("loads: " + ", ".join(f"{name} (at {load.point.body}.{load.point.name})" for name, load in model.loads.items()))
+    if model.massive:
+        total = sum(float(sp.N(b.inertia.mass.xreplace({d.symbol: d.nominal for d in model.design}))) for b in model.massive)
+        lines.append(f"masses (kinegen solve --dynamics): {len(model.massive)} of {len(model.bodies)} bodies, {total:,.0f} kg; "
+                     f"gravity {', '.join(f'{float(g):g}' for g in model.gravity)} m/s^2")  # fmt: skip
     if model.tool_forces is not None:
         lines.append(f"tool forces (kinegen forces): {', '.join(model.tool_forces.forces)} at {model.tool_forces.lip.body}.{model.tool_forces.lip.name}"
                      + (", lift chart (kinegen forces --lift)" if model.lift_chart is not None else ""))  # fmt: skip

@@ -149,6 +149,9 @@ class StaticsDescription:
     load_rows: tuple[int, ...]
     load_cols: tuple[int, ...]
     load_keys: tuple[str, ...] = ()  #: each load's :attr:`~kinegen.model.schema.Load.fingerprint`
+    #: a model with masses: the kernel ``inertia`` (q, v, a) gives the generalized force of gravity and
+    #: of the bodies' inertia at these columns (empty: no masses)
+    inertia_cols: tuple[int, ...] = ()
 
 
 @dataclass
@@ -410,15 +413,20 @@ def _pattern(entries: list[list[tuple[int, sp.Expr]]], first_row: int = 0) -> li
     return [(first_row + i, c) for i, row in enumerate(entries) for c, _ in row]
 
 
+def _constant(values: list[sp.Expr]):
+    """A group's expressions, already derived."""
+    return lambda: values
+
+
 def _statics(
     model: Model, coords: Coordinates, joint_pattern: list[tuple[int, int]], p: tuple[str, ...], section, shared: dict
 ) -> StaticsDescription | None:  # fmt: skip
     """The ``actuation`` and ``loads`` kernels (sections made with ``section``, kernels put into
     ``shared``) and their description; None for a model with neither elements nor loads.
     ``joint_pattern``: the joint rows' Phi_q pattern (the first values of every case's)."""
-    from kinegen.symbolic.statics import element_rows, load_row
+    from kinegen.symbolic.statics import element_rows, inertia_row, load_row
 
-    if not model.actuation and not model.loads:
+    if not model.actuation and not model.loads and not model.massive:
         return None
     elements = element_rows(model, coords)
     mj = 1 + max((r for r, _ in joint_pattern), default=-1)
@@ -441,10 +449,20 @@ def _statics(
                 f"Every load's generalized force Q (F.J_P + M.T_w), {len(load_pattern)} values at LOAD_ROWS, LOAD_COLS.")  # fmt: skip
         shared["loads"] = Kernel("loads", ("q", "t", *p), (Output("loads", ("loads",), len(load_pattern)),),
                                  "Every load's generalized force Q at time t, at LOAD_ROWS (the load), LOAD_COLS.")  # fmt: skip
+    per_body = inertia_row(model, coords) if model.massive else []  # a body's columns are its own: in order
+    inertia = {c: e for row in per_body for c, e in row.items()}
+    if inertia:
+        groups = tuple(Group(None, _constant(list(row.values())), {}) for row in per_body if row)
+        section("inertia", ("q", "v", "a", *p), groups, len(inertia),
+                f"The generalized force of gravity and of the {len(model.massive)} massive bodies' inertia (d'Alembert), "
+                f"{len(inertia)} values at INERTIA_COLS.")  # fmt: skip
+        shared["inertia"] = Kernel("inertia", ("q", "v", "a", *p), (Output("inertia", ("inertia",), len(inertia)),),
+                                   "The generalized force of gravity and the bodies' inertia at (q, v, a), at INERTIA_COLS.")  # fmt: skip
     return StaticsDescription(
         tuple((name, kind) for name, kind, _ in elements), tuple(r for r, _ in matrix) if elements else (),
         tuple(c for _, c in matrix) if elements else (), matrix_plan, tuple(name for name, _ in loads),
         tuple(r for r, _ in load_pattern), tuple(c for _, c in load_pattern), tuple(load.fingerprint for load in model.loads.values()),
+        tuple(inertia),
     )  # fmt: skip
 
 

@@ -32,6 +32,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import Any
 
 import numpy as np
 import sympy as sp
@@ -140,8 +141,12 @@ class Forces:
     row_names: tuple[str, ...]
     reactions: dict[str, Reaction]
     pressures: dict[str, Pressure] = field(default_factory=dict)
-    #: (K, n_v) the loads' generalized force Q
+    #: (K, n_v) the loads' generalized force Q (with ``inertia``: gravity and the bodies' inertia included)
     generalized_load: np.ndarray | None = None
+    #: whether the bodies' weight and inertia are held too (inverse dynamics)
+    inertia: bool = False
+    #: with ``inertia``: the kinetic and potential energy (:class:`kinegen.forces.dynamics.Energies`)
+    energies: Any = None
 
     def element_force(self, name: str) -> np.ndarray:
         """The force of one element over time, (K,)."""
@@ -175,6 +180,9 @@ class Forces:
                 columns.append(values)
         names += [f"lambda.{row}" for row in self.row_names]
         columns.append(self.multipliers)
+        if self.energies is not None:
+            names += ["energy.kinetic", "energy.potential"]
+            columns.append(np.c_[self.energies.kinetic, self.energies.potential])
         return names, np.hstack(columns)
 
 
@@ -196,9 +204,10 @@ def unit_rate_velocities(system, q: np.ndarray, inputs: np.ndarray, driver: str)
     return configuration_sensitivities(system, q.T, inputs.T, design=False)[1][:, :, system.driver_names.index(driver)]
 
 
-def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -> Forces:
+def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], inertia: bool = False) -> Forces:
     """The forces that hold the model's named ``loads`` at every solved time point of ``results``
-    (a motion of ``model``; its time points must all have converged)."""
+    (a motion of ``model``; its time points must all have converged); with ``inertia``, also the
+    bodies' weight and inertia along the motion (inverse dynamics, :mod:`kinegen.forces.dynamics`)."""
     unknown = [name for name in loads if name not in model.loads]
     if unknown:
         raise KeyError(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})")
@@ -206,8 +215,12 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -
         raise KinegenError("forces need every time point solved; this solve stopped early")
     statics = Statics(results, model)
     q_load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), statics.n_v)))
+    if inertia:
+        from kinegen.forces.dynamics import inertial_load
+
+        q_load = q_load + inertial_load(results)
     matrix = statics.matrix()
-    multipliers = statics.compiled_multipliers([model.loads[name] for name in loads])
+    multipliers = statics.compiled_multipliers([model.loads[name] for name in loads], inertia)
     if multipliers is None:
         multipliers = statics.solve(matrix, q_load)
     elements = statics.elements
@@ -218,7 +231,12 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str]) -
         actuator = statics.actuators.get(element.name)
         if actuator is not None and actuator.hydraulics is not None:
             pressures[element.name] = statics.pressure(actuator, force[:, k])
-    return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load)
+    energy = None
+    if inertia:
+        from kinegen.forces.dynamics import energies
+
+        energy = energies(results, model)
+    return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load, inertia, energy)
 
 
 class Statics:
@@ -368,16 +386,17 @@ class Statics:
         values = np.asarray(system.jac(q, np.ascontiguousarray(results.inputs.T)), dtype=float).reshape(-1, len(q[0])).T.copy()
         return Rows(np.asarray(system.jac_rows), np.asarray(system.jac_cols), values, shape)
 
-    def compiled_multipliers(self, loads: list[Load]) -> np.ndarray | None:
-        """λ holding ``loads`` at every time point by the compiled force solve (``kinegen_forces``), or
-        None: no compiled case, a load the module was not built with, or a singular time point (then
-        :meth:`solve` decides, and names it)."""
+    def compiled_multipliers(self, loads: list[Load], inertia: bool = False) -> np.ndarray | None:
+        """λ holding ``loads`` (with ``inertia``, also the bodies' weight and inertia) at every time
+        point by the compiled force solve (``kinegen_forces``), or None: no compiled case, a load the
+        module was not built with, or a singular time point (then :meth:`solve` decides, and names it)."""
         native, kernels = self.system.native, self.system.statics
         if native is None or kernels is None or not all(kernels.serves(load) for load in loads):
             return None
         weights = np.array([sum(load.name == name for load in loads) for name in kernels.load_names], dtype=float)
         results = self.results
-        multipliers, _ = native.forces(results.times, results.q, results.inputs, weights)
+        motion = (results.v, results.a) if inertia else None
+        multipliers, _ = native.forces(results.times, results.q, results.inputs, weights, motion)
         return multipliers if np.isfinite(multipliers).all() else None
 
     def solve(self, matrix: Rows, load: np.ndarray) -> np.ndarray:

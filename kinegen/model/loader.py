@@ -32,6 +32,8 @@ from kinegen.model.forces import (
     read_tool_points,
 )
 from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS
+from kinegen.model.masses import KEYS as MASS_KEYS
+from kinegen.model.masses import read_gravity, read_inertia
 from kinegen.model.schema import (
     GROUND,
     PUBLISHED_FIGURES,
@@ -354,6 +356,7 @@ class _Reader:
                 "loads",
                 "tool_forces",
                 "lift_chart",
+                "gravity",
                 "drivers",
                 "cases",
                 "working_range",
@@ -421,6 +424,7 @@ class _Reader:
             loads=loads,
             tool_forces=tool_forces,
             lift_chart=lift_chart,
+            gravity=read_gravity(self, top.get("gravity")),
         )
 
     def read_design(self, value: Any) -> None:
@@ -452,7 +456,7 @@ class _Reader:
         spec = self.mapping(
             value,
             entry,
-            ("position", "orientation", "points", "global_points", "vectors", "global_vectors", "outline"),
+            ("position", "orientation", "points", "global_points", "vectors", "global_vectors", "outline", *MASS_KEYS),
             ("position",),
         )
         position = self.vector(spec["position"], f"{entry}.position")
@@ -468,7 +472,8 @@ class _Reader:
             if key in vectors:
                 raise self.fail(f"{entry}.global_vectors.{key}", "duplicate vector name (also in vectors)")
             vectors[key] = local
-        return Body(name, position, rotation, points, vectors, self.outline(spec.get("outline"), f"{entry}.outline"))
+        inertia = read_inertia(self, spec, entry, pose, points)
+        return Body(name, position, rotation, points, vectors, self.outline(spec.get("outline"), f"{entry}.outline"), inertia)
 
     def outline(self, value: Any, entry: str) -> tuple[tuple[float, float, float], ...]:
         """``outline: [[x, y, z], ...]``: a closed polygon of at least 3 points (m, body coordinates;

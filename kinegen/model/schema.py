@@ -20,6 +20,16 @@ Vector = sp.ImmutableMatrix  # a 3x1 exact column
 
 
 @dataclass(frozen=True)
+class Inertia:
+    """A body's mass [kg], its centre of mass [m, body coordinates] and its inertia tensor about
+    the centre of mass in body axes [kg m^2]; exact, design parameters allowed."""
+
+    mass: sp.Expr
+    center: Vector
+    tensor: sp.ImmutableMatrix  #: 3 x 3, symmetric
+
+
+@dataclass(frozen=True)
 class Body:
     """A moving rigid body: initial pose and named geometry in body coordinates."""
 
@@ -30,6 +40,8 @@ class Body:
     vectors: dict[str, Vector] = field(default_factory=dict)
     #: a drawing of the body (m, body coordinates): a closed polygon, drawn projected on a chart's plane
     outline: tuple[tuple[float, float, float], ...] = ()
+    #: its mass, centre of mass and inertia (``mass:``, ``center_of_mass:``, ``inertia:``), or None: massless
+    inertia: Inertia | None = None
 
 
 @dataclass(frozen=True)
@@ -438,6 +450,13 @@ class Model:
     loads: dict[str, Load] = field(default_factory=dict)  #: named loads on the machine
     tool_forces: ToolForces | None = None  #: how to compute the ISO 6015 tool forces
     lift_chart: LiftChartSpec | None = None  #: where to find the hydraulic lift capacity
+    #: the acceleration of gravity, global [m/s^2] (``gravity:``; default 9.80665 along -z)
+    gravity: Vector = field(default_factory=lambda: sp.ImmutableMatrix([0, 0, -sp.Rational(980665, 100000)]))
+
+    @property
+    def massive(self) -> tuple[Body, ...]:
+        """The bodies with inertial data (their masses, gravity and inertia enter the dynamics)."""
+        return tuple(b for b in self.bodies if b.inertia is not None)
 
     @property
     def actuation(self) -> tuple[Actuator | Motor, ...]:

@@ -298,7 +298,7 @@ def _library(path: str) -> ctypes.CDLL:
         ("kinegen_newton", ctypes.c_int, [ctypes.c_void_p] * 6),
         ("kinegen_set_design", None, [ctypes.c_void_p] * 2),
         ("kinegen_sensitivities", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 10]),
-        ("kinegen_forces", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 8]),
+        ("kinegen_forces", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 6, ctypes.c_double, *[ctypes.c_void_p] * 4]),
     ):
         function = getattr(library, name)
         function.restype, function.argtypes = restype, argtypes
@@ -415,24 +415,34 @@ class NativeCase:
         layout = self.abi.struct("kinegen_layout").from_address(self.model.layout)
         return self.abi.struct("kinegen_statics").from_address(layout.statics) if layout.statics else None
 
-    def forces(self, times: np.ndarray, q: np.ndarray, u: np.ndarray, weights: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def forces(self, times: np.ndarray, q: np.ndarray, u: np.ndarray, weights: np.ndarray,
+               motion: tuple[np.ndarray, np.ndarray] | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
         """The multipliers (K, n_v) and element forces (K, n_elements, or the case's n_inputs without
         elements) holding the loads weighted by ``weights`` (one per load of the model, in its order) at
         the K configurations q (K, n_q) with inputs u (K, n_inputs) at ``times`` (K,), by
-        ``kinegen_forces``; NaN rows where the matrix is singular."""
+        ``kinegen_forces``; with ``motion`` = (v, a), each (K, n_v), also the bodies' weight and inertia
+        (inverse dynamics). NaN rows where the matrix is singular."""
         statics = self.statics
         if statics is None:
             raise ValueError("the model has no loads and no actuation elements")
         count = len(times)
-        rows = [np.ascontiguousarray(np.asarray(x, dtype=float).reshape(count, -1)) for x in (times, q, u)]
+        times, q, u = (np.ascontiguousarray(np.asarray(x, dtype=float).reshape(count, -1)) for x in (times, q, u))
+        v, a = (None, None) if motion is None else (np.ascontiguousarray(np.asarray(x, dtype=float).reshape(count, -1)) for x in motion)
         weights = np.ascontiguousarray(weights, dtype=float)
         if len(weights) != statics.n_loads:
             raise ValueError(f"{len(weights)} load weights for {statics.n_loads} loads")
+        if motion is not None and not statics.inertia:
+            raise ValueError("the model has no masses: no inertia to add")
         multipliers = np.empty((count, self.n_v))
         force = np.empty((count, statics.n_elements or self.n_inputs))
         work, iwork = np.empty(statics.work_doubles), np.empty(max(1, statics.work_ints), dtype=np.intc)
         solver = self.solver(Options.newton_only(1e-10, 1e-10))
-        self.library.kinegen_forces(solver.pointer, count, *(x.ctypes.data for x in (*rows, weights, multipliers, force, work, iwork)))
+
+        def pointer(x: np.ndarray | None) -> int | None:
+            return None if x is None else x.ctypes.data
+
+        self.library.kinegen_forces(solver.pointer, count, *(pointer(x) for x in (times, q, v, a, u, weights)), 0.0 if motion is None else 1.0,
+                                    *(x.ctypes.data for x in (multipliers, force, work, iwork)))  # fmt: skip
         return multipliers, force
 
     def solver(self, options: Options) -> NativeSolver:

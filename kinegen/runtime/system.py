@@ -43,6 +43,10 @@ class StaticsKernels:
     load_cols: np.ndarray
     #: each load's content (:attr:`kinegen.model.schema.Load.fingerprint`) as the module was built
     load_keys: tuple[str, ...] = ()
+    #: (q, v, a) -> the generalized force of gravity and the bodies' inertia at ``inertia_cols``
+    #: (None: a model without masses)
+    inertia: Callable[..., np.ndarray] | None = None
+    inertia_cols: np.ndarray = field(default_factory=lambda: np.zeros(0, dtype=np.intp))
 
     def serves(self, load: Any) -> bool:
         """Whether the ``loads`` kernel computes this load (:class:`~kinegen.model.schema.Load`): the
@@ -63,7 +67,8 @@ def _statics(module: ModuleType | Any, p: np.ndarray | None) -> StaticsKernels |
         tuple(tuple(e) for e in module.ELEMENTS), function("actuation_matrix") if module.ELEMENTS else None,
         np.array(module.ACTUATION_ROWS, dtype=index), np.array(module.ACTUATION_COLS, dtype=index), tuple(module.LOADS),
         function("loads") if module.LOADS else None, np.array(module.LOAD_ROWS, dtype=index), np.array(module.LOAD_COLS, dtype=index),
-        tuple(module.LOAD_KEYS),
+        tuple(module.LOAD_KEYS), function("inertia") if getattr(module, "INERTIA_COLS", ()) else None,
+        np.array(getattr(module, "INERTIA_COLS", ()), dtype=index),
     )  # fmt: skip
 
 

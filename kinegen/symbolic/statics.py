@@ -30,18 +30,33 @@ from kinegen.symbolic.assembly import BodyCoordinates, Coordinates, generic_body
 ElementRow = tuple[str, str, dict[int, sp.Expr]]
 
 
+def _acceleration(symbol: sp.Symbol) -> sp.Symbol:
+    """``v_<body>_<c>`` -> ``dv_<body>_<c>``: its time derivative (the kernels' slot ``a``)."""
+    return sp.Symbol("d" + str(symbol), real=True)
+
+
+def frame_rates(coords: Coordinates, body: BodyCoordinates) -> dict[str, sp.Matrix]:
+    """The body's global origin velocity and acceleration, angular velocity and acceleration (keys
+    as :data:`kinegen.interface.FRAME_FIELDS`), in its stored, frame, velocity and acceleration
+    symbols: the parametrization's own expressions (``frame_expressions``), renamed from the generic body."""
+    param = coords.parametrization
+    generic = generic_body(param)
+    accelerations = [_acceleration(s) for s in generic.velocity]
+    values = param.frame_expressions(sp.Matrix(generic.stored), sp.Matrix(generic.velocity), sp.Matrix(accelerations))
+    values = [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values]
+    rename = dict(zip([*generic.stored, *generic.frame_symbols, *generic.velocity, *accelerations],
+                      [*body.stored, *body.frame_symbols, *body.velocity, *(_acceleration(s) for s in body.velocity)]))  # fmt: skip
+    return {name: sp.Matrix([e.xreplace(rename) for e in values[at]]) for name, at in frame_slices().items()
+            if name in ("velocity", "angular_velocity", "acceleration", "angular_acceleration")}  # fmt: skip
+
+
 def angular_velocity_columns(coords: Coordinates, body: BodyCoordinates) -> dict[int, sp.Matrix]:
     """T_ω of ``body`` by column (its velocity offset + k): ∂ω/∂v_k, in the body's stored and frame
     symbols; columns identically zero left out."""
-    param = coords.parametrization
-    generic = generic_body(param)
-    accelerations = sp.Matrix([sp.Symbol("d" + str(s), real=True) for s in generic.velocity])
-    values = param.frame_expressions(sp.Matrix(generic.stored), sp.Matrix(generic.velocity), accelerations)
-    omega = [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values[frame_slices()["angular_velocity"]]]
-    rename = dict(zip([*generic.stored, *generic.frame_symbols], [*body.stored, *body.frame_symbols]))
+    omega = frame_rates(coords, body)["angular_velocity"]
     out = {}
-    for k, v in enumerate(generic.velocity):
-        column = sp.Matrix([sp.expand(e.diff(v)).xreplace(rename) for e in omega])
+    for k, v in enumerate(body.velocity):
+        column = sp.Matrix([sp.expand(e.diff(v)) for e in omega])
         if any(x != 0 for x in column):
             out[body.velocity_offset + k] = column
     return out
@@ -97,4 +112,32 @@ def load_row(load: Load, coords: Coordinates) -> dict[int, sp.Expr]:
     return {c: e for c, e in sorted(row.items()) if e != 0}
 
 
-__all__ = ["angular_velocity_columns", "element_rows", "load_row", "point_columns"]
+def inertia_row(model: Model, coords: Coordinates) -> list[dict[int, sp.Expr]]:
+    """The generalized force of gravity and of the bodies' inertia (d'Alembert) by column, one
+    dict per massive body (its own columns), in the stored, frame, velocity and acceleration
+    symbols: per body with a mass m, centre of mass C (c = A c_local from the origin) and inertia
+    J = A J_b Aᵀ about C, Q_k = m (g − a_C)·J_C[:, k] − (J ω̇ + ω × J ω)·T_ω[:, k],
+    a_C = a_O + ω̇ × c + ω × (ω × c)."""
+    gravity = sp.Matrix(model.gravity)
+    rows = []
+    for body in model.massive:
+        row: dict[int, sp.Expr] = {}
+        inertia = body.inertia
+        symbols = coords.body(body.name)
+        rates = frame_rates(coords, symbols)
+        rotation = symbols.frame.A
+        arm = rotation * sp.Matrix(inertia.center)
+        omega, omega_dot = rates["angular_velocity"], rates["angular_acceleration"]
+        center_acceleration = rates["acceleration"] + omega_dot.cross(arm) + omega.cross(omega.cross(arm))
+        force = inertia.mass * (gravity - center_acceleration)
+        tensor = rotation * sp.Matrix(inertia.tensor) * rotation.T
+        moment = -(tensor * omega_dot + omega.cross(tensor * omega))
+        for c, column in point_columns(coords, symbols, inertia.center).items():
+            row[c] = row.get(c, sp.Integer(0)) + dot(force, column)
+        for c, column in angular_velocity_columns(coords, symbols).items():
+            row[c] = row.get(c, sp.Integer(0)) + dot(moment, column)
+        rows.append({c: e for c, e in sorted(row.items()) if e != 0})
+    return rows
+
+
+__all__ = ["angular_velocity_columns", "element_rows", "frame_rates", "inertia_row", "load_row", "point_columns"]

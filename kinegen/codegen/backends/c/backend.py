@@ -253,6 +253,7 @@ class _Model:
             return None
         nv = len(d.velocity_names)
         n_loads = max(1, len(statics.load_rows))
+        n_loads += len(statics.inertia_cols)  # the inertia kernel's output before the loads'
         doubles = n_loads + 3 * nv + max(1, *(len(c.case.drivers) for c in cases))  # without elements: the case's Phi_q
         arrays = None
         if statics.elements:
@@ -265,6 +266,7 @@ class _Model:
             s=statics, plan=arrays, doubles=doubles, ints=nv,
             actuation=f"&kernels[{shared.index('actuation')}]" if "actuation" in shared else "NULL",
             loads=f"&kernels[{shared.index('loads')}]" if "loads" in shared else "NULL",
+            inertia=f"&kernels[{shared.index('inertia')}]" if "inertia" in shared else "NULL",
             joint_rows=len(next(iter(d.cases.values())).constraints) - len(next(iter(d.cases.values())).drivers),
         )  # fmt: skip
 

@@ -839,14 +839,15 @@ static void load_vector(const kinegen_solver *s, const kinegen_statics *st, cons
     }
 }
 
-int kinegen_forces(kinegen_solver *s, int count, const double *times, const double *Q, const double *U, const double *weights,
-                   double *LAMBDA, double *F, double *work, int *iwork) {
+int kinegen_forces(kinegen_solver *s, int count, const double *times, const double *Q, const double *V, const double *A,
+                   const double *U, const double *weights, double inertia, double *LAMBDA, double *F, double *work, int *iwork) {
     const kinegen_model *m = s->model;
     const kinegen_statics *st = m->layout->statics;
-    if (st == NULL) return -1;
+    if (st == NULL || (inertia != 0.0 && (st->inertia == NULL || V == NULL || A == NULL))) return -1;
     int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, ne = st->n_elements, solved = 0;
     int nf = ne > 0 ? ne : ni, first = nv - nf; /* the rows of the elements (drivers) come last */
-    double *load_values = work, *rhs = load_values + (st->load_pattern.n > 0 ? st->load_pattern.n : 1), *w = rhs + nv;
+    double *inertia_values = work, *load_values = inertia_values + st->n_inertia;
+    double *rhs = load_values + (st->load_pattern.n > 0 ? st->load_pattern.n : 1), *w = rhs + nv;
     double *values = w + nv, *store = values + st->pattern.n, *off = store + st->n_store; /* with elements */
     double *ud = values, *rate = ud + ni;                                                  /* without */
     plan_view plan = {nv, st->n_blocks, st->block_start, st->block_store, st->row_order, st->col_order, st->n_store, st->n_diag,
@@ -856,6 +857,12 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
         double *lambda = LAMBDA + (size_t)k * nv, *f = F + (size_t)k * nf;
         int singular;
         load_vector(s, st, q, times[k], weights, load_values, rhs);
+        if (inertia != 0.0) {
+            const double *x[4] = {q, V + (size_t)k * nv, A + (size_t)k * nv, s->design}; /* slots q, v, a[, p] */
+            double *y[1] = {inertia_values};
+            st->inertia->call(x, y);
+            for (int e = 0; e < st->n_inertia; ++e) rhs[st->inertia_cols[e]] += inertia * inertia_values[e];
+        }
         if (ne > 0) {
             const double *x[2] = {q, s->design}; /* slots q[, p] */
             double *y[1] = {values};
@@ -974,6 +981,7 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_statics, pattern, "kinegen_pattern"), FIELD(kinegen_statics, actuation, "pointer"),
     FIELD(kinegen_statics, n_loads, "int"), FIELD(kinegen_statics, load_names, "pointer"),
     FIELD(kinegen_statics, load_pattern, "kinegen_pattern"), FIELD(kinegen_statics, loads, "pointer"),
+    FIELD(kinegen_statics, n_inertia, "int"), FIELD(kinegen_statics, inertia_cols, "int*"), FIELD(kinegen_statics, inertia, "pointer"),
     FIELD(kinegen_statics, n_blocks, "int"), FIELD(kinegen_statics, block_start, "int*"), FIELD(kinegen_statics, block_store, "int*"),
     FIELD(kinegen_statics, row_order, "int*"), FIELD(kinegen_statics, col_order, "int*"), FIELD(kinegen_statics, n_store, "int"),
     FIELD(kinegen_statics, n_diag, "int"), FIELD(kinegen_statics, diag_value, "int*"), FIELD(kinegen_statics, diag_slot, "int*"),

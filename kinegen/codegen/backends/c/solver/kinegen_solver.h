@@ -131,7 +131,10 @@ typedef struct kinegen_pattern {
  *   pushes its points apart), a motor's torque [N m] about its joint's axis on the joint's second body.
  *   Without elements, each case's drivers carry the load: the matrix is the case's Phi_q, and a driver's
  *   force along its input is f = lambda dPhi/du (from nu at a unit input rate).
- * The kernel `loads` gives every load's Q at load_pattern (rows: the load's index in load_names). */
+ * The kernel `loads` gives every load's Q at load_pattern (rows: the load's index in load_names); a model
+ * with masses has the kernel `inertia` (q, v, a[, p]): the generalized force of gravity and of the bodies'
+ * inertia (d'Alembert: m (g - a_C) at each centre of mass, -(J w' + w x J w) on each body) at inertia_cols,
+ * which kinegen_forces adds for inverse dynamics. */
 typedef struct kinegen_statics {
     int n_elements;
     const char *const *element_names;
@@ -143,6 +146,9 @@ typedef struct kinegen_statics {
     const char *const *load_names;
     kinegen_pattern load_pattern;
     const kinegen_kernel *loads;      /* (q, t[, p]) -> the loads' Q values; NULL without loads */
+    int n_inertia;
+    const int *inertia_cols;
+    const kinegen_kernel *inertia;    /* (q, v, a[, p]) -> gravity's and inertia's Q values; NULL without masses */
     int n_blocks;                     /* the matrix's plan (n_elements > 0), as kinegen_model's */
     const int *block_start, *block_store, *row_order, *col_order;
     int n_store, n_diag;
@@ -321,15 +327,17 @@ int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const d
 
 /* The forces that hold the model's loads (kinegen_statics) at count solved configurations of the
  * solver's case: rows of Q (count x n_q) at times[k] with the case's inputs U (count x n_inputs), each
- * load weighted by weights[load] (n_loads values; NULL: each once). Writes the multipliers LAMBDA
+ * load weighted by weights[load] (n_loads values; NULL: each once); with inertia = 1 (a model with masses)
+ * also the bodies' weight and inertia at the velocities and accelerations V, A (count x n_v; NULL with
+ * inertia = 0): inverse dynamics. Writes the multipliers LAMBDA
  * (count x n_v: the joint rows', then the elements' or the case drivers') and the forces F (count x
  * n_elements, or the case's n_inputs without elements), row-major. A configuration whose matrix is
  * singular (min |U_ii| <= options.singular_tolerance * max |U_ii|) gets NaN. work, iwork: the statics'
  * work_doubles and work_ints. Returns the number of configurations solved (the others NaN), or -1 for
- * a model without loads and actuation elements. The solver's state stays as it was; without elements
+ * a model without loads, actuation elements and masses (or inertia asked of one without masses). The solver's state stays as it was; without elements
  * (the case's Phi_q factorized) not its factors, so that a following step factorizes again. */
-int kinegen_forces(kinegen_solver *s, int count, const double *times, const double *Q, const double *U, const double *weights,
-                   double *LAMBDA, double *F, double *work, int *iwork);
+int kinegen_forces(kinegen_solver *s, int count, const double *times, const double *Q, const double *V, const double *A,
+                   const double *U, const double *weights, double inertia, double *LAMBDA, double *F, double *work, int *iwork);
 
 const char *kinegen_status_text(int status);
 

@@ -1,0 +1,236 @@
+"""Inverse dynamics (kinegen.forces with inertia=True) against Pinocchio's recursive Newton-Euler
+algorithm (``pin``, an independent rigid-body dynamics library) on open chains, the energy balance
+along a motion, and every body's equilibrium with its d'Alembert forces."""
+
+from __future__ import annotations
+
+import functools
+
+import numpy as np
+import pinocchio as pin  # the independent reference: Pinocchio (`pin`, in the test extra)
+import pytest
+
+from kinegen.api import Session
+from kinegen.forces import forces
+from kinegen.forces.dynamics import energies
+from kinegen.model.schema import GROUND
+from kinegen.runtime import solve
+from tests.conftest import ROOT, chain_yaml
+
+ARM = ROOT / "tests" / "models" / "arm3.yaml"
+PARAMETRIZATIONS = ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters")
+
+
+@functools.cache
+def _session(folder: str) -> Session:
+    return Session(folder)
+
+
+def _solved(tmp_path_factory, path, parametrization: str, times=None):
+    session = _session(str(tmp_path_factory.getbasetemp() / "dynamics-modules"))
+    system = session.system(path, parametrization=parametrization, compiled=False)
+    return session.model(path), solve(system, times)
+
+
+def _floats(values) -> np.ndarray:
+    return np.array([float(v) for v in values], dtype=float)
+
+
+def pinocchio_chain(model):
+    """Pinocchio's model of an open chain of revolute joints rooted at the ground, from the model's
+    data alone: each joint frame at the joint's point on its child with the child's initial
+    orientation, placed in its parent's joint frame as at the initial pose; the axis and the body's
+    inertia (about its centre of mass, body axes) in that frame. Returns the model and, per joint
+    in Pinocchio's order, (joint, parent, child, axis in the child's axes)."""
+    bodies = {b.name: b for b in model.bodies}
+    frames = {GROUND: (np.eye(3), np.zeros(3))}
+    ids = {GROUND: 0}
+    chain = pin.Model()
+    chain.gravity = pin.Motion(np.r_[_floats(model.gravity), 0.0, 0.0, 0.0])
+    order, remaining = [], list(model.joints)
+    while remaining:
+        joint = next(j for j in remaining if j.body1 in ids or j.body2 in ids)
+        remaining.remove(joint)
+        assert joint.type == "revolute"
+        parent, child = (joint.body1, joint.body2) if joint.body1 in ids else (joint.body2, joint.body1)
+        point = _floats(joint.point2 if child == joint.body2 else joint.point1)
+        axis = _floats(joint.axis2 if child == joint.body2 else joint.axis1)
+        axis /= np.linalg.norm(axis)
+        body = bodies[child]
+        rotation = np.array(body.rotation.evalf(), dtype=float)
+        frame = (rotation, _floats(body.position) + rotation @ point)
+        parent_rotation, parent_origin = frames[parent]
+        placement = pin.SE3(parent_rotation.T @ frame[0], parent_rotation.T @ (frame[1] - parent_origin))
+        index = chain.addJoint(ids[parent], pin.JointModelRevoluteUnaligned(axis), placement, joint.name)
+        inertia = body.inertia
+        tensor = np.array(inertia.tensor.evalf(), dtype=float)
+        chain.appendBodyToJoint(index, pin.Inertia(float(inertia.mass), _floats(inertia.center) - point, tensor), pin.SE3.Identity())
+        frames[child], ids[child] = frame, index
+        order.append((joint, parent, child, axis))
+    return chain, order
+
+
+def joint_motion(model, results, order) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Pinocchio's (q, v, a) from kinegen's solved bodies: each joint's angle from the child's
+    rotation relative to its parent (zero at the model's initial pose, where Pinocchio's joint
+    frames were placed), its rate a.(w_child - w_parent) and that rate's derivative (a global =
+    turning with the child)."""
+    k = len(results.times)
+    initial = {b.name: np.array(b.rotation.evalf(), dtype=float) for b in model.bodies}
+    initial[GROUND] = np.eye(3)
+
+    def rotation(body):
+        return np.broadcast_to(np.eye(3), (k, 3, 3)) if body == GROUND else results.rotation_matrix(body)
+
+    def omega(body, derivative=False):
+        if body == GROUND:
+            return np.zeros((k, 3))
+        return results.omega_dot(body) if derivative else results.omega(body)
+
+    q, v, a = [], [], []
+    for _, parent, child, axis in order:
+        relative = np.einsum("kji,kjl->kil", rotation(parent), rotation(child))
+        at_zero = initial[parent].T @ initial[child]
+        turn = np.einsum("ji,kjl->kil", at_zero, relative)  # about the axis, in the child's axes
+        sine = np.stack([turn[:, 2, 1] - turn[:, 1, 2], turn[:, 0, 2] - turn[:, 2, 0], turn[:, 1, 0] - turn[:, 0, 1]], axis=1) @ axis / 2
+        cosine = (np.einsum("kii->k", turn) - 1) / 2
+        q.append(np.unwrap(np.arctan2(sine, cosine)))
+        global_axis = np.einsum("kij,j->ki", rotation(child), axis)
+        relative_rate = omega(child) - omega(parent)
+        v.append(np.einsum("ki,ki->k", global_axis, relative_rate))
+        a.append(np.einsum("ki,ki->k", global_axis, omega(child, True) - omega(parent, True))
+                 + np.einsum("ki,ki->k", np.cross(omega(parent), global_axis), relative_rate))  # fmt: skip
+    return np.array(q).T, np.array(v).T, np.array(a).T
+
+
+def _against_pinocchio(model, results) -> None:
+    chain, order = pinocchio_chain(model)
+    data = chain.createData()
+    q, v, a = joint_motion(model, results, order)
+    tau = np.array([pin.rnea(chain, data, q[k], v[k], a[k]) for k in range(len(q))])
+    held = forces(results, model, [], inertia=True)
+    # each driver is one joint's angle: its force is that joint's torque, with the sign of dq/du
+    drivers = {d.joint: d.name for d in model.cases[results.system.case].drivers}
+    ours = np.column_stack([held.element_force(drivers[joint.name]) for joint, *_ in order])
+    rates = results.system.driver_inputs(results.times)[1]
+    u_dot = np.column_stack([rates[results.system.driver_names.index(drivers[joint.name])] for joint, *_ in order])
+    sign = np.sign(np.einsum("ki,ki->i", v, u_dot))
+    assert set(sign) <= {-1.0, 1.0}
+    np.testing.assert_allclose(ours * sign, tau, rtol=0, atol=1e-9 * np.abs(tau).max())
+
+
+@pytest.mark.parametrize("parametrization", PARAMETRIZATIONS)
+def test_a_spatial_arm_equals_pinocchio(tmp_path_factory, parametrization):
+    """A 3-link spatial arm (yaw, shoulder, elbow; offset centres of mass, full inertia tensors, one
+    given by principal axes) driven at its joints: the joint torques along the motion equal
+    Pinocchio's RNEA to 1e-9 of the largest."""
+    model, results = _solved(tmp_path_factory, ARM, parametrization)
+    _against_pinocchio(model, results)
+
+
+def test_chain_n_with_masses_equals_pinocchio(tmp_path_factory):
+    """The chain-N benchmark mechanism (docs/chain-N.md, 8 links) with a mass on every link."""
+    text = chain_yaml(8)
+    lines = []
+    for line in text.splitlines():
+        lines.append(line)
+        if line.strip().startswith("vectors: {z: [0, 0, 1]}") and line.startswith("    "):
+            lines += ["    mass: 3.5", "    center_of_mass: [0.45, 0.03, 0.01]", "    inertia: [0.02, 0.3, 0.31, 0.002, 0.001, -0.003]"]
+    path = tmp_path_factory.mktemp("chain") / "chain8.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    model, results = _solved(tmp_path_factory, path, "quaternion")
+    assert len(model.massive) == 8
+    _against_pinocchio(model, results)
+
+
+def test_the_drivers_work_is_the_change_of_energy(tmp_path_factory):
+    """Along the arm's motion (no loads), the drivers' work (integrated power f.u') equals the
+    change of kinetic plus potential energy (computed from the solved frames, not the multipliers)
+    to 1e-8 of the energies' scale; and the power equals dE/dt at every point."""
+    path = ARM
+    session = _session(str(tmp_path_factory.getbasetemp() / "dynamics-modules"))
+    system = session.system(path, parametrization="quaternion", compiled=False)
+    times = np.linspace(system.t0, system.t1, 2001)
+    model, results = session.model(path), solve(system, times)
+    held = forces(results, model, [], inertia=True)
+    power = np.einsum("ki,ki->k", held.force, system.driver_inputs(times)[1].T)
+    energy = energies(results, model)
+    from scipy.integrate import simpson
+
+    work = simpson(power, x=times)
+    scale = np.abs(energy.kinetic).max() + np.abs(energy.potential).max()
+    assert abs(work - (energy.total[-1] - energy.total[0])) <= 1e-8 * scale
+    rate = np.gradient(energy.total, times, edge_order=2)
+    assert np.abs(power - rate)[5:-5].max() <= 1e-5 * np.abs(power).max()
+
+
+def test_every_body_is_in_equilibrium_with_its_dalembert_forces(tmp_path_factory):
+    """On every body of the arm at every time point: the joints' reactions, its weight m g and its
+    inertial force -m a_C sum to zero, and their moments about its centre of mass with -(J w' + w x J w)."""
+    model, results = _solved(tmp_path_factory, ARM, "euler-parameters")
+    held = forces(results, model, [], inertia=True)
+    gravity = _floats(model.gravity)
+    for body in model.bodies:
+        inertia = body.inertia
+        rotation = results.rotation_matrix(body.name)
+        center = results.position(body.name) + rotation @ _floats(inertia.center)
+        omega, omega_dot = results.omega(body.name), results.omega_dot(body.name)
+        arm = center - results.position(body.name)
+        acceleration = results.acceleration(body.name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
+        tensor = rotation @ np.array(inertia.tensor.evalf(), dtype=float) @ rotation.swapaxes(1, 2)
+        force = float(inertia.mass) * (gravity - acceleration)
+        moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
+        scale = np.abs(force).max()
+        for driver in model.cases[results.system.case].drivers:  # a joint-angle driver's torque f a: on body2, and -f a on body1
+            joint = next(j for j in model.joints if j.name == driver.joint)
+            carried = np.broadcast_to(_floats(joint.axis1), (len(force), 3)) if joint.body1 == GROUND else \
+                results.rotation_matrix(joint.body1) @ _floats(joint.axis1)
+            torque = held.element_force(driver.name)[:, None] * carried
+            moment = moment + (torque if joint.body2 == body.name else -torque if joint.body1 == body.name else 0.0)
+        for reaction in held.reactions.values():
+            for side, sign in ((reaction.body2, 1.0), (reaction.body1, -1.0)):
+                if side == body.name:
+                    force = force + sign * reaction.force
+                    moment = moment + sign * (reaction.moment + np.cross(reaction.point - center, reaction.force))
+                    scale = max(scale, np.abs(reaction.force).max())
+        assert np.abs(force).max() <= 1e-9 * scale, body.name
+        assert np.abs(moment).max() <= 1e-9 * scale * 1.0, body.name  # N m: the arm's lengths are ~1 m
+
+
+def test_the_compiled_inverse_dynamics_of_the_arm_equals_python(tmp_path_factory):
+    """The arm's drivers carry its weight and inertia (no actuation elements: each case's Phi_q):
+    kinegen_forces in C against the Python kernels and LAPACK, to 1e-12 of the largest torque."""
+    from kinegen.forces.dynamics import inertial_load
+    from kinegen.forces.statics import Statics
+
+    session = _session(str(tmp_path_factory.getbasetemp() / "dynamics-modules"))
+    system = session.system(ARM, parametrization="dual-quaternion", compiled=True)
+    if system.native is None:
+        pytest.skip("no C compiler")
+    model, results = session.model(ARM), solve(system)
+    statics = Statics(results, model)
+    expected = statics.element_forces(statics.solve(statics.matrix(), inertial_load(results)))
+    _, force = system.native.forces(results.times, results.q, results.inputs, np.zeros(0), (results.v, results.a))
+    np.testing.assert_allclose(force, expected, rtol=0, atol=1e-12 * np.abs(expected).max())
+
+
+def test_solve_dynamics_reports_the_forces_that_move_the_excavator_and_its_energy(tmp_path):
+    """`kinegen solve --dynamics` (the excavator's estimated masses): the report names what is held,
+    the CSV gains every force column and the energies; a model without masses is refused."""
+    from click.testing import CliRunner
+
+    from kinegen.cli import main
+
+    out = tmp_path / "digging.csv"
+    done = CliRunner().invoke(main, ["solve", "models/excavator.yaml", "--case", "digging", "--steps", "69", "--dynamics",
+                                     "--load", "payload", "--out", str(out), "--no-compile"])  # fmt: skip
+    assert done.exit_code == 0, done.output
+    assert "forces moving the machine (its weight and inertia) and holding payload:" in done.output and "energy: kinetic up to" in done.output
+    header = out.read_text().splitlines()[0].split(",")
+    assert {"swing_motor.force", "boom_cylinder_left.pressure", "energy.kinetic", "energy.potential"} <= set(header)
+    table = np.loadtxt(out, delimiter=",", skiprows=1)
+    kinetic, potential = table[:, header.index("energy.kinetic")], table[:, header.index("energy.potential")]
+    assert 0 < kinetic[0] < 1e-4 * kinetic.max()  # the cycle starts all but at rest (its tanh steps are not flat)
+    assert (potential > 0).all()  # every centre of mass above the ground (z = 0)
+    refused = CliRunner().invoke(main, ["solve", "models/four_bar.yaml", "--dynamics"])
+    assert refused.exit_code == 64 and "no masses" in refused.output  # a usage error (README: exit codes)
