@@ -439,6 +439,15 @@ def _report_forces(held, piped: bool) -> None:
         e = held.energies
         click.echo(f"  energy: kinetic up to {e.kinetic.max() / 1e3:.2f} kJ, potential {e.potential.min() / 1e3:.1f} .. "
                    f"{e.potential.max() / 1e3:.1f} kJ", err=piped)  # fmt: skip
+    if held.tipping is not None:
+        k = int(np.argmin(held.tipping.margin))
+        margin = held.tipping.margin[k]
+        click.echo(f"  tipping margin: smallest {margin / 1e3:.1f} kN m about the {held.tipping.line[k]} tipping line at t = {times[k]:g} s",
+                   err=piped)  # fmt: skip
+        if margin < 0:
+            unstable = held.tipping.margin < 0
+            click.echo(f"TIPPING: the machine would tip about its {held.tipping.line[k]} tipping line at {int(unstable.sum())} of "
+                       f"{len(times)} time points, t = {times[unstable][0]:g} .. {times[unstable][-1]:g} s", err=piped)  # fmt: skip
     by_actuator: dict[str, list] = {}
     for t, name, value, limit, what in held.violations():
         by_actuator.setdefault(name, []).append((t, value, limit, what))
@@ -753,28 +762,67 @@ def _force_map(model_file: str, model, parametrization, generated_dir: str, dire
         click.echo(f"wrote {plot_force_map(found, plot, working_range_boundary(system, model.working_range))}")
 
 
-def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: bool, no_compile: bool) -> None:
-    """kinegen forces --lift: the lift chart's table, or its JSON."""
+def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: bool, no_compile: bool, out: str | None = None) -> None:
+    """kinegen lift (and kinegen forces --lift): the lift chart's table, or its JSON; its CSV to ``out``."""
     from kinegen.errors import ModelError
+    from kinegen.files import write_atomic
     from kinegen.forces.lift import lift_chart
 
     if model.lift_chart is None:
-        raise ModelError(model_file, "lift_chart", "the model has no lift_chart section (what kinegen forces --lift computes)")
+        raise ModelError(model_file, "lift_chart", "the model has no lift_chart section (what kinegen lift computes)")
     _, system = _system(model_file, parametrization, model.lift_chart.case, generated_dir, False if no_compile else None)
+    start = time.perf_counter()
     chart = lift_chart(system, model)
-    if not as_json:
-        click.echo(chart.table())
-        return
+    elapsed = time.perf_counter() - start
 
     def entry(p):
-        return None if p is None else {"radius": p.radius, "height": p.height, "capacity_n": p.capacity, "rated_kg": p.rated_kg,
-                                       "limiting": p.limiting, "setting": p.setting, "inputs": p.inputs}  # fmt: skip
+        if p is None:
+            return None
+        (front, front_limit), (side, side_limit) = p.rated(False), p.rated(True)
+        finite = {"tipping_front_kg": p.tipping_front, "tipping_side_kg": p.tipping_side}
+        return {"radius": p.radius, "height": p.height, "capacity_n": p.capacity, "hydraulic_kg": p.hydraulic_kg,
+                **{k: (None if not np.isfinite(v) else v) for k, v in finite.items()},
+                "rated_front_kg": front, "front_limit": front_limit, "rated_side_kg": side, "side_limit": side_limit,
+                "limiting": p.limiting, "setting": p.setting, "inputs": p.inputs}  # fmt: skip
 
+    if out:
+        rows = ["height_m,radius_m,at_max_reach,hydraulic_capacity_n,tipping_front_kg,tipping_side_kg,rated_front_kg,front_limit,"
+                "rated_side_kg,side_limit,limiting_cylinder"]  # fmt: skip
+        for row, reach in zip(chart.grid, chart.max_reach):
+            for p, at_reach in [*((p, 0) for p in row), (reach, 1)]:
+                if p is not None and np.isfinite(p.capacity):
+                    e = entry(p)
+                    rows.append(",".join(str(x) for x in (p.height, f"{p.radius:.6g}", at_reach, f"{p.capacity:.6g}",
+                                                          f"{p.tipping_front:.6g}", f"{p.tipping_side:.6g}", f"{e['rated_front_kg']:.6g}",
+                                                          e["front_limit"], f"{e['rated_side_kg']:.6g}", e["side_limit"], p.limiting)))  # fmt: skip
+        write_atomic(Path(out), "\n".join(rows) + "\n")
+    if not as_json:
+        click.echo(chart.table())
+        click.echo(f"[{elapsed:.2f} s]" + (f"; wrote {out}" if out else ""))
+        return
     click.echo(json.dumps({
-        "model": model.name, "point": chart.point, "lifting": chart.lifting, "heights": chart.heights, "radii": chart.radii,
+        "model": model.name, "point": chart.point, "lifting": chart.lifting, "without": chart.without, "heights": chart.heights,
+        "radii": chart.radii, "tipping": chart.tipping,
         "grid": [[entry(p) for p in row] for row in chart.grid], "max_reach": [entry(p) for p in chart.max_reach],
-        "tipping": None,  # needs masses
     }, indent=2))  # fmt: skip
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@PARAM
+@click.option("--json", "as_json", is_flag=True, help="Print the chart as JSON.")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV of every grid point (capacities, ratings, limits).")
+@click.option("--no-compile", is_flag=True, help="Use the generated Python functions only.")
+@GENERATED_DIR
+def lift(model_file: str, param: str, as_json: bool, out: str | None, no_compile: bool, generated_dir: str) -> None:
+    """ISO 10567 lift chart of the model's `lift_chart` section: at the arm's end, over its grid of
+    heights and radii, over the front and over the side, the rated lift capacity -- the smaller of
+    87 % of the hydraulic lift capacity (the lifting cylinder at its relief setting, the others
+    holding, the front's own weight held) and 75 % of the tipping load (a model with masses and a
+    machine: section) -- with the limit that applies (docs/dynamics.md)."""
+    parametrization = _parametrization(param)
+    model, _ = _system(model_file, parametrization, None, generated_dir, False)
+    _lift(model_file, model, parametrization, generated_dir, as_json, no_compile, out)
 
 
 @main.command()

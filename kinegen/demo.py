@@ -220,6 +220,22 @@ def main(argv: list[str] | None = None) -> int:
         picture = plot_force_map(found, args.out / "excavator_force_map.png", boundary)
         print(f"force map (kinegen forces --map tangent): {len(found.force):,} poses in {found.seconds:.2f} s, up to "
               f"{found.force[best] / 1e3:.1f} kN along the lip's tangent (limited by {found.limiting[best]}) -> {picture.name}")  # fmt: skip
+    if excavator_model.lift_chart is not None:
+        from kinegen.forces.lift import lift_chart
+
+        print("\nkinegen lift models/excavator.yaml (ESTIMATED masses and hydraulic data; docs/dynamics.md):")
+        print(lift_chart(from_module(excavator_module, excavator_model.lift_chart.case), excavator_model).table())
+    if excavator_model.massive and "payload" in excavator_model.loads:
+        from kinegen.forces import forces
+        from kinegen.runtime import solve
+
+        moving = forces(solve(from_module(excavator_module, "digging")), excavator_model, ["payload"], inertia=True)
+        peaks = ", ".join(f"{name} {p.pressure.max() / 1e6:.1f} MPa" for name, p in moving.pressures.items())
+        line = f"dynamics (kinegen solve --case digging --dynamics --load payload): peak pressures {peaks}"
+        if moving.tipping is not None:
+            k = int(np.argmin(moving.tipping.margin))
+            line += f"; tipping margin down to {moving.tipping.margin[k] / 1e3:.1f} kN m ({moving.tipping.line[k]} line, t = {moving.results.times[k]:g} s)"
+        print(line)
     from kinegen.analysis.scan import plot_scan, scan
 
     toggle = from_module(excavator_module, "bucket_toggle")

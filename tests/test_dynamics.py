@@ -226,11 +226,87 @@ def test_solve_dynamics_reports_the_forces_that_move_the_excavator_and_its_energ
                                      "--load", "payload", "--out", str(out), "--no-compile"])  # fmt: skip
     assert done.exit_code == 0, done.output
     assert "forces moving the machine (its weight and inertia) and holding payload:" in done.output and "energy: kinetic up to" in done.output
+    assert "tipping margin: smallest" in done.output
     header = out.read_text().splitlines()[0].split(",")
-    assert {"swing_motor.force", "boom_cylinder_left.pressure", "energy.kinetic", "energy.potential"} <= set(header)
+    assert {"swing_motor.force", "boom_cylinder_left.pressure", "energy.kinetic", "energy.potential", "tipping_margin",
+            "tipping_margin.left"} <= set(header)
     table = np.loadtxt(out, delimiter=",", skiprows=1)
     kinetic, potential = table[:, header.index("energy.kinetic")], table[:, header.index("energy.potential")]
     assert 0 < kinetic[0] < 1e-4 * kinetic.max()  # the cycle starts all but at rest (its tanh steps are not flat)
     assert (potential > 0).all()  # every centre of mass above the ground (z = 0)
     refused = CliRunner().invoke(main, ["solve", "models/four_bar.yaml", "--dynamics"])
     assert refused.exit_code == 64 and "no masses" in refused.output  # a usage error (README: exit codes)
+
+
+def test_the_tipping_margin_is_the_moment_the_ground_sees(tmp_path_factory):
+    """Along the excavator's digging cycle with its payload, at speed: the tipping margin about each
+    line equals the moment of what the machine puts on the undercarriage -- the swing bearing's
+    reaction and the swing motor's torque from the multipliers (kinegen.forces), plus the
+    undercarriage's weight -- not the direct sum of weights and d'Alembert forces it is computed by,
+    to 1e-9 of the largest; standing still (no inertia), the front line's margin is the lever rule."""
+    from kinegen.forces.dynamics import TIPPING_LINES, tipping_margin
+    from tests.conftest import generated_system, model
+
+    excavator = model("excavator")
+    results = solve(generated_system("excavator_quaternion", "digging"), np.linspace(0, 17, 171))
+    held = forces(results, excavator, ["payload"], inertia=True)
+    swing = held.reactions["swing"]  # what the ground exerts on the upper structure, about the swing axis's point
+    torque = held.element_force("swing_motor")[:, None] * np.array([0.0, 0.0, 1.0])  # on the upper; its reaction on the ground
+    weight = 7300 * _floats(excavator.gravity)
+    under = np.array([0.0, 0.0, 0.45])
+    scale = max(np.abs(m).max() for m in held.tipping.margins.values())
+    for name, (normal, which) in TIPPING_LINES.items():
+        on_line = (3.37 / 2, 2.2 / 2)[which] * normal
+        along = np.cross([0.0, 0.0, 1.0], normal)
+        on_ground = np.cross(swing.point - on_line, -swing.force) - swing.moment - torque + np.cross(under - on_line, weight)
+        np.testing.assert_allclose(held.tipping.margins[name], -(on_ground @ along), rtol=0, atol=1e-9 * scale, err_msg=name)
+    still = tipping_margin(results, excavator, inertia=False)
+    lever = 7300 * 9.80665 * 3.37 / 2 + sum(
+        float(b.inertia.mass) * 9.80665 * (3.37 / 2 - (results.position(b.name) + results.rotation_matrix(b.name) @ _floats(b.inertia.center))[:, 0])
+        for b in excavator.massive)  # fmt: skip
+    np.testing.assert_allclose(still.margins["front"], lever, rtol=1e-12)
+
+
+def test_the_excavators_front_cut_open_equals_pinocchio(tmp_path_factory):
+    """The excavator's upper structure, boom, arm and bucket with their estimated masses, the loops cut
+    open (cylinders and links removed, each joint driven by its angle: the cylinders replaced by joint
+    torques), swinging and digging at once: the joint torques equal Pinocchio's RNEA to 1e-9."""
+    from tests.conftest import model
+
+    excavator = model("excavator")
+    bodies = {b.name: b for b in excavator.bodies}
+
+    def vector(v) -> str:
+        return "[" + ", ".join(repr(float(x)) for x in v) + "]"
+
+    lines = ["model: front", "ground:", "  points: {O: [0, 0, 0]}", "  vectors: {z: [0, 0, 1]}", "bodies:"]
+    for name in ("upper", "boom", "arm", "bucket"):
+        b = bodies[name]
+        matrix = "[" + ", ".join(vector(row) for row in np.array(b.rotation.evalf(), dtype=float)) + "]"
+        points = ", ".join(f"{p}: {vector(b.points[p])}" for p in ("O", "A", "E", "Q") if p in b.points)
+        tensor = np.array(b.inertia.tensor.evalf(), dtype=float)
+        lines += [f"  {name}:", f"    position: {vector(b.position)}", f"    orientation: {{matrix: {matrix}}}",
+                  f"    points: {{{points}}}", "    vectors: {y: [0, 1, 0], z: [0, 0, 1]}",
+                  f"    mass: {float(b.inertia.mass)!r}", f"    center_of_mass: {vector(b.inertia.center)}",
+                  f"    inertia: {vector([tensor[0, 0], tensor[1, 1], tensor[2, 2], tensor[0, 1], tensor[0, 2], tensor[1, 2]])}"]  # fmt: skip
+    lines += [
+        "joints:",
+        "  swing: {type: revolute, bodies: [ground, upper], points: [O, O], axes: [z, z]}",
+        "  boom_foot: {type: revolute, bodies: [upper, boom], points: [A, A], axes: [y, y]}",
+        "  arm_pin: {type: revolute, bodies: [boom, arm], points: [E, E], axes: [y, y]}",
+        "  bucket_pin: {type: revolute, bodies: [arm, bucket], points: [Q, Q], axes: [y, y]}",
+        "cases:",
+        "  dig:",
+        "    drivers:",
+        "      swing: {type: joint_angle, joint: swing, function: 0.6*sin(0.8*t)}",
+        "      boom: {type: joint_angle, joint: boom_foot, function: -0.3*sin(0.9*t)}",
+        "      arm: {type: joint_angle, joint: arm_pin, function: 0.5*sin(1.1*t)}",
+        "      bucket: {type: joint_angle, joint: bucket_pin, function: 0.8*sin(1.3*t)}",
+        "    t0: 0",
+        "    t1: 3",
+        "    steps: 61",
+    ]
+    path = tmp_path_factory.mktemp("front") / "front.yaml"
+    path.write_text("\n".join(lines) + "\n")
+    front, results = _solved(tmp_path_factory, path, "quaternion")
+    _against_pinocchio(front, results)

@@ -27,7 +27,7 @@ SLOW = tuple(REDUCED)
 #: run beside the rest
 ANALYSES = ("kinegen envelope", "kinegen scan", "kinegen optimize")
 #: the tour's force steps and its 3-D view (~20 s together): a test of their own too
-FORCES_AND_VIEW = ("kinegen forces", "kinegen view")
+FORCES_AND_VIEW = ("kinegen forces", "kinegen lift", "kinegen view")
 
 
 def _block(heading: str, language: str = "sh") -> str:
@@ -84,9 +84,9 @@ def test_the_tours_commands_run_as_printed(user_folder: Path) -> None:
 
 def test_the_tours_force_and_view_steps_run_as_printed(user_folder: Path) -> None:
     steps = [(c, e) for c, e in _commands(_block("## A 5-minute tour")) if c.startswith(FORCES_AND_VIEW)]
-    assert [c.split()[1] for c, _ in steps] == ["forces", "forces", "forces", "view"]
+    assert [c.split()[1] for c, _ in steps] == ["forces", "lift", "forces", "view"]
     printed = _run(steps, user_folder)
-    assert "bucket digging force" in printed[0] and "87 % of the hydraulic lift capacity" in printed[1]
+    assert "bucket digging force" in printed[0] and "75 % of the tipping load" in printed[1]
     for written in ("out/digging_map.csv", "out/excavator_digging.html", "out/digging.gif"):
         assert (user_folder / written).stat().st_size > 0, written
 

@@ -439,19 +439,26 @@ def _tool_force(problem: StudyProblem, results: Results, q: Quantity, gradients:
     return value, _limit_gradient(actuator, f, d_f, system.design, True) / 1e3
 
 
-def _limit_gradient(actuator, f: float, d_f: np.ndarray, design: dict[str, float], working: bool) -> np.ndarray:
-    """d/dp of the load at which ``actuator`` reaches its setting (setting x area / |f per unit load|)."""
+def _limit_gradient(actuator, f: float, d_f: np.ndarray, design: dict[str, float], working: bool, carried: float = 0.0,
+                    d_carried: np.ndarray | float = 0.0) -> np.ndarray:  # fmt: skip
+    """d/dp of the load W = (setting x area - s carried) / |f| at which ``actuator`` reaches its setting
+    (f its force per unit load, s = sign f, ``carried`` the force it holds before the load: the
+    machine's weight): dW = (setting area (d setting / setting + d area / area) - s d carried) / |f|
+    - W s df / |f|; zero where the carried force alone is beyond it."""
     from kinegen.forces.statics import hydraulic_limit
 
     hydraulics = actuator.hydraulics
     order = list(design)
-    capacity, setting, side = hydraulic_limit(actuator, np.array([f]), design, working)
+    capacity, setting, side = hydraulic_limit(actuator, np.array([f]), design, working, np.array([carried]))
+    if capacity[0] <= 0.0:
+        return np.zeros(len(order))
     cap_side = side[0] == "cap"
     area = hydraulics.areas(design)[0 if cap_side else 1]
     d_area = hydraulics.area_gradients(order, design)[0 if cap_side else 1]
     settings = hydraulics.relief if working else hydraulics.holding
     d_setting = design_gradient(settings[0 if cap_side else 1], order, design)
-    return capacity[0] * (d_setting / setting[0] + d_area / area - np.sign(f) * d_f / abs(f))
+    sign = np.sign(f)
+    return (setting[0] * area * (d_setting / setting[0] + d_area / area) - sign * d_carried) / abs(f) - capacity[0] * sign * d_f / abs(f)
 
 
 def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
@@ -485,13 +492,20 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     in_plane = [0, 2]
     d_point = _TangentChanges(statics, by_design).point(body, point)[1][0]  # dP/dp at held inputs, (3, P)
     d_inputs = -np.linalg.solve((jacobian @ moved)[in_plane], d_point[in_plane])  # (2, P)
-    change = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=by_design + (moved @ d_inputs)[None])
+    moving = by_design + (moved @ d_inputs)[None]
+    change = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=moving)
     names = [e.name for e in statics.elements]
     per_newton = statics.element_forces(multipliers)[0]
     actuator = next(a for a in model.actuators if a.name == found.limiting)
     k = names.index(actuator.name)
     f, d_f = per_newton[k], -change.d_multipliers[0, statics.joint_rows + k]
-    return value, _limit_gradient(actuator, f, d_f, system.design, actuator.name == chart.lifting) / 1e3
+    carried, d_carried = 0.0, 0.0
+    if placer.weighed:  # the front's own weight, held before the load: its force and that force's change
+        weights = statics.weight_terms(placer.weighed)
+        held = statics.solve(matrix, statics.weight_load(placer.weighed))
+        carried = statics.element_forces(held)[0, k]
+        d_carried = -MultiplierChanges(statics, matrix, held, None, None, None, s=moving, weights=weights).d_multipliers[0, statics.joint_rows + k]
+    return value, _limit_gradient(actuator, f, d_f, system.design, actuator.name == chart.lifting, carried, d_carried) / 1e3
 
 
 def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):

@@ -197,16 +197,19 @@ def main(argv: list[str] | None = None) -> int:
     held = measured["forces"]
     failures += _section(held, "forces", lambda f: (
         f"forces (excavator digging, payload + cutting, {f['points']} points) after a compiled trajectory solve of {f['solve']:.3f} s: "
-        f"compiled force solve (kinegen_forces: multipliers, element forces) {f['compiled_forces']:.4f} s; kinegen.forces.forces "
+        f"compiled force solve (kinegen_forces: multipliers, element forces) {f['compiled_forces']:.4f} s, with the bodies' weight "
+        f"and inertia (inverse dynamics) {f['compiled_dynamics']:.4f} s; kinegen.forces.forces "
         f"(also reactions and pressures, Python) {f['forces']:.3f} s; ISO 6015 tool forces (kinegen forces) {f['tool_forces']:.3f} s; "
-        f"tangent force map of {f['poses']:,} poses {f['map']:.3f} s; hydraulic lift chart {f['lift']:.3f} s", 0))
+        f"tangent force map of {f['poses']:,} poses {f['map']:.3f} s; ISO 10567 lift chart {f['lift']:.3f} s", 0))
     print()
     print("Targets, on this run's figures:")
     failures += _section(studies, "design studies", _study_lines)
     if held and "failed" not in held:
         print("  " + _met("compiled forces / compiled trajectory step (issue 28)", held["compiled_forces"] / held["solve"], 0.2, True))
+        print("  " + _met("compiled inverse dynamics / compiled trajectory step (issue 29)", held["compiled_dynamics"] / held["solve"], 0.3, True))
         print("  " + _met("ISO 6015 tool forces (issue 28)", held["tool_forces"], 0.5, True, " s"))
         print("  " + _met(f"force map of {held['poses']:,} poses (issue 28)", held["map"], 1.0, True, " s"))
+        print("  " + _met("ISO 10567 lift chart, both sides, every point's pose search (issue 29)", held["lift"], 1.0, True, " s"))
     for line in targets(rows, sweep, sensitivity, exploration, certified if certified and "failed" not in certified else None):
         print("  " + line)
     return 1 if failures else 0

@@ -11,7 +11,8 @@ MODELS = Path(__file__).resolve().parents[2] / "models"
 def force_cost(points: int = 1000, repeats: int = 3) -> dict:
     """Best of ``repeats``, in seconds: the compiled trajectory solve of the excavator's digging case
     (``points`` time points); the forces holding its payload and cutting loads at those points, by the
-    compiled force solve (``kinegen_forces``: multipliers and element forces) and by
+    compiled force solve (``kinegen_forces``: multipliers and element forces; ``compiled_dynamics``: with
+    the bodies' weight and inertia, inverse dynamics) and by
     :func:`kinegen.forces.forces` (also every reaction and pressure); ``kinegen forces`` (the ISO 6015
     tool forces), the tangent force map (10,625 poses) and the hydraulic lift chart, all compiled."""
     import time
@@ -36,12 +37,13 @@ def force_cost(points: int = 1000, repeats: int = 3) -> dict:
     force_map(system, model, "tangent")
     lift_chart(system, model)
     weights = np.array([float(name in ("payload", "cutting")) for name in system.statics.load_names])
-    best = dict.fromkeys(("solve", "compiled_forces", "forces", "tool_forces", "map", "lift"), float("inf"))
+    best = dict.fromkeys(("solve", "compiled_forces", "compiled_dynamics", "forces", "tool_forces", "map", "lift"), float("inf"))
     for _ in range(repeats):
         start = time.perf_counter()
         results = solve(system, times)
         laps = {"solve": time.perf_counter() - start}
         for name, run in (("compiled_forces", lambda r=results: system.native.forces(r.times, r.q, r.inputs, weights)),
+                          ("compiled_dynamics", lambda r=results: system.native.forces(r.times, r.q, r.inputs, weights, (r.v, r.a))),
                           ("forces", lambda results=results: forces(results, model, ["payload", "cutting"])), ("tool_forces", lambda: tool_forces(system, model)),
                           ("map", lambda: force_map(system, model, "tangent")), ("lift", lambda: lift_chart(system, model))):  # fmt: skip
             start = time.perf_counter()

@@ -16,10 +16,12 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import sympy as sp
 
 from kinegen.errors import KinegenError
 from kinegen.model import Model
-from kinegen.model.schema import design_value
+from kinegen.model.expressions import T
+from kinegen.model.schema import GROUND, design_value
 from kinegen.runtime.results import Results
 
 
@@ -69,3 +71,86 @@ def energies(results: Results, model: Model) -> Energies:
         kinetic += 0.5 * mass * np.einsum("ki,ki->k", velocity, velocity) + 0.5 * np.einsum("ki,ki->k", omega, spin)
         potential -= mass * (results.position(body.name) + arm) @ gravity
     return Energies(kinetic, potential)
+
+
+#: the tipping lines of a crawler undercarriage, by name: (outward normal, which half-size: 0 the
+#: tumbler distance, 1 the gauge), the lines at that half-size from the swing axis (global, fixed)
+TIPPING_LINES = {
+    "front": (np.array([1.0, 0.0, 0.0]), 0),
+    "rear": (np.array([-1.0, 0.0, 0.0]), 0),
+    "left": (np.array([0.0, 1.0, 0.0]), 1),
+    "right": (np.array([0.0, -1.0, 0.0]), 1),
+}
+
+
+@dataclass(frozen=True)
+class TippingMargin:
+    """The stability along a motion: per time point the moment [N m] that keeps the machine on the
+    ground about its nearest tipping line (positive: stable; the smallest of the four lines) and
+    that line's name."""
+
+    margin: np.ndarray  #: (K,)
+    line: np.ndarray  #: (K,) of str: front, rear, left or right
+    margins: dict[str, np.ndarray]  #: every line's (K,)
+
+
+def tipping_margin(results: Results, model: Model, loads: tuple[str, ...] = (), inertia: bool = True) -> TippingMargin:
+    """The tipping margin along ``results`` (a model with masses and a ``machine:`` section): about
+    each of the undercarriage's tipping lines (over the front and rear at half the tumbler distance,
+    over the sides at half the gauge; on the ground, z = 0), minus the moment of every force on the
+    machine tending to turn it over that line -- the weights (the undercarriage's too), the named
+    ``loads`` and, with ``inertia``, the bodies' d'Alembert forces."""
+    machine = model.machine
+    if machine is None or not model.massive:
+        raise KinegenError(f"the model {model.name!r} needs masses and a machine: section (undercarriage, tracks) for its tipping margin")
+    design = results.system.design
+
+    def number(x) -> float:
+        return design_value(x, design)
+
+    gravity = np.array([number(x) for x in model.gravity])
+    k = len(results.times)
+    forces_at: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (point (K, 3), force (K, 3), moment (K, 3))
+    under = np.array([number(x) for x in machine.undercarriage_center])
+    forces_at.append((np.broadcast_to(under, (k, 3)), np.broadcast_to(number(machine.undercarriage_mass) * gravity, (k, 3)), np.zeros((k, 3))))
+    for body in model.massive:
+        inertia_data = body.inertia
+        mass = number(inertia_data.mass)
+        rotation = results.rotation_matrix(body.name)
+        arm = rotation @ np.array([number(x) for x in inertia_data.center])
+        center = results.position(body.name) + arm
+        force, moment = np.broadcast_to(mass * gravity, (k, 3)).copy(), np.zeros((k, 3))
+        if inertia:
+            omega, omega_dot = results.omega(body.name), results.omega_dot(body.name)
+            acceleration = results.acceleration(body.name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
+            tensor = rotation @ np.array([[number(x) for x in row] for row in inertia_data.tensor.tolist()]) @ rotation.swapaxes(1, 2)
+            force -= mass * acceleration
+            moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
+        forces_at.append((center, force, moment))
+    for name in loads:
+        load = model.loads[name]
+        rotation = np.broadcast_to(np.eye(3), (k, 3, 3)) if load.axes == GROUND else results.rotation_matrix(load.axes)
+        point = results.point_position(load.point.body, load.point.name)
+        forces_at.append((point, np.einsum("kij,kj->ki", rotation, time_vector(load.force, results.times)),
+                          np.einsum("kij,kj->ki", rotation, time_vector(load.moment, results.times))))  # fmt: skip
+    halves = (number(machine.track_length) / 2, number(machine.gauge) / 2)
+    margins = {}
+    for name, (normal, which) in TIPPING_LINES.items():
+        on_line = halves[which] * normal  # a point of the line, on the ground
+        along = np.cross([0.0, 0.0, 1.0], normal)  # a force beyond the line pushing down turns the machine about +along
+        turning = sum(np.einsum("i,ki->k", along, np.cross(point - on_line, force) + moment) for point, force, moment in forces_at)
+        margins[name] = -turning
+    stacked = np.stack(list(margins.values()))
+    nearest = np.argmin(stacked, axis=0)
+    return TippingMargin(stacked[nearest, np.arange(k)], np.array(list(margins))[nearest], margins)
+
+
+def time_vector(vector: sp.ImmutableMatrix, times: np.ndarray) -> np.ndarray:
+    """A 3-vector of exact functions of t (a load's force or moment) at ``times``, (K, 3)."""
+    out = np.empty((len(times), 3))
+    for i, expr in enumerate(vector):
+        if expr.free_symbols:
+            out[:, i] = np.broadcast_to(sp.lambdify(T, expr, "numpy")(times), times.shape)
+        else:
+            out[:, i] = float(expr)
+    return out

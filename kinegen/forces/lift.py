@@ -1,17 +1,28 @@
-"""Hydraulic lift capacity at the arm's end over a grid of lift-point heights and radii: the
-hydraulic half of an ISO 10567 lift chart (the tipping half needs masses).
+"""ISO 10567 lift chart: the rated lift capacity at the arm's end over a grid of lift-point heights
+and radii, over the front and over the side -- at each point the smaller of 87 % of the hydraulic
+lift capacity and 75 % of the tipping load.
 
 At each grid point (radius r from the swing axis, height h, in the boom plane at zero swing) the
 inputs that place the lift point (``lift_chart.place``, e.g. boom and arm cylinders) are solved so
 that the point is there (bounded least squares on the inputs, from the nearest pose of a compiled
 grid sweep); the others stay at the case's start. The load hangs at the lift point on its body
-(the arm: the bucket removed); the lifting cylinder works at its relief setting and the others hold
-at their holding settings. The hydraulic lift capacity is the largest such load, and ISO 10567
-rates 87 % of it; the tipping load (rated at 75 %) is left for when the model has masses.
+(the arm: the bucket removed, ``lift_chart.without``).
+
+* **Hydraulic lift capacity**: the largest load with the lifting cylinder at most at its relief
+  setting and the others at most at their holding settings, the front's own weight (a model with
+  masses) held too.
+* **Tipping load** (a model with masses and a ``machine:`` section): the load whose moment about
+  the tipping line equals that of every weight on the machine's side of it -- the moving bodies at
+  the pose (less ``without``) and the undercarriage. kinegen's tipping lines (its own choice, where
+  the standard's text could not be read): over the front, the line across the tracks at half the
+  tumbler distance in front of the swing axis (the front idlers' centres); over the side, the
+  centreline of the track on that side (half the gauge from the swing axis), the upper structure
+  swung a quarter turn. The load tips the machine when its radius is beyond the line.
 """
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -20,6 +31,7 @@ from scipy.optimize import least_squares, minimize
 from kinegen.errors import KinegenError
 from kinegen.forces.statics import Statics, pose_results
 from kinegen.model import Model
+from kinegen.model.schema import design_value
 from kinegen.runtime import NumericSystem, Solver, SolverOptions
 from kinegen.runtime.batch import sweep_grid
 
@@ -27,11 +39,13 @@ from kinegen.runtime.batch import sweep_grid
 G = 9.80665
 #: ISO 10567: the rated lift capacity is at most this share of the hydraulic lift capacity
 HYDRAULIC_SHARE = 0.87
+#: ISO 10567: ... and at most this share of the tipping load
+TIPPING_SHARE = 0.75
 
 
 @dataclass(frozen=True)
 class LiftPoint:
-    """The hydraulic lift capacity at one lift-point position."""
+    """The lift capacities at one lift-point position."""
 
     radius: float  #: m from the swing axis
     height: float  #: m above the ground
@@ -39,11 +53,28 @@ class LiftPoint:
     limiting: str  #: the cylinder that limits it
     setting: str  #: "relief" or "holding"
     inputs: dict[str, float]  #: the pose's inputs
+    #: [kg] the tipping load over the front and over the side (inf: the radius is inside the tipping
+    #: line; NaN: no masses or no machine: section)
+    tipping_front: float = float("nan")
+    tipping_side: float = float("nan")
+
+    @property
+    def hydraulic_kg(self) -> float:
+        """ISO 10567's hydraulic rating: 87 % of the hydraulic capacity, in kg."""
+        return HYDRAULIC_SHARE * self.capacity / G
 
     @property
     def rated_kg(self) -> float:
-        """ISO 10567's hydraulic rating: 87 % of the capacity, in kg."""
-        return HYDRAULIC_SHARE * self.capacity / G
+        """The hydraulic rating (the rating over the front and side without tipping data)."""
+        return self.hydraulic_kg
+
+    def rated(self, side: bool) -> tuple[float, str]:
+        """The rated lift capacity over the front (``side`` False) or the side [kg] and its limit:
+        "hydraulic" or "tipping" (the hydraulic rating alone when the tipping load is unknown)."""
+        tipping = TIPPING_SHARE * (self.tipping_side if side else self.tipping_front)
+        if np.isnan(tipping) or self.hydraulic_kg <= tipping:
+            return self.hydraulic_kg, "hydraulic"
+        return tipping, "tipping"
 
 
 @dataclass(frozen=True)
@@ -58,15 +89,23 @@ class LiftChart:
     grid: tuple[tuple[LiftPoint | None, ...], ...]  #: [height][radius]
     max_reach: tuple[LiftPoint | None, ...]  #: per height
 
+    tipping: bool = False  #: whether the tipping loads are known (masses and a machine: section)
+    without: tuple[str, ...] = ()
+
     def table(self) -> str:
         """The manufacturers' layout: a row per lift-point height, per radius the rated load over the
         front and over the side, and the load at the largest radius; kg."""
         columns = [f"{r:g} m" for r in self.radii] + ["max reach"]
+        removed = f" (without {', '.join(self.without)})" if self.without else ""
+        if self.tipping:
+            rule = ("the smaller of 87 % of the hydraulic lift capacity and 75 % of the tipping load (ISO 10567); "
+                    "* hydraulic limit, otherwise tipping")  # fmt: skip
+        else:
+            rule = ("87 % of the hydraulic lift capacity (ISO 10567); * hydraulic limit. The tipping limit needs masses and a "
+                    "machine: section: read the side columns as an upper bound")  # fmt: skip
         lines = [
-            f"rated lift capacity at {self.point} (the bucket removed), kg: 87 % of the hydraulic lift capacity (ISO 10567), "
-            f"{self.lifting} lifting at its relief setting, the other cylinders holding",
-            "* hydraulic limit. The tipping limit (75 % of the tipping load) needs masses and is not checked yet: over the side it "
-            "usually rules, so read the side columns as an upper bound.",
+            f"rated lift capacity at {self.point}{removed}, kg: {rule}; {self.lifting} lifting at its relief setting, the "
+            "other cylinders holding",
             f"{'height':>7}  " + "  ".join(f"{c:^17}" for c in columns),
             f"{'m':>7}  " + "  ".join(f"{'front':>8} {'side':>8}" for _ in columns),
         ]
@@ -79,8 +118,11 @@ class LiftChart:
 def _cell(point: LiftPoint | None, radius: bool = False) -> str:
     if point is None or not np.isfinite(point.capacity):
         return f"{'-':>8} {'-':>8}"
-    value = f"*{point.rated_kg:,.0f}"
-    return f"{value:>8} {value:>8}" + (f" @{point.radius:.2f}" if radius else "")
+    texts = []
+    for side in (False, True):
+        value, limit = point.rated(side)
+        texts.append(f"{'*' if limit == 'hydraulic' else ''}{max(value, 0.0):,.0f}")
+    return f"{texts[0]:>8} {texts[1]:>8}" + (f" @{point.radius:.2f}" if radius else "")
 
 
 def lift_chart(system: NumericSystem, model: Model) -> LiftChart:
@@ -91,7 +133,8 @@ def lift_chart(system: NumericSystem, model: Model) -> LiftChart:
     placer = _Placer(system, model)
     grid = tuple(tuple(placer.at(r, h) for r in spec.radii) for h in spec.heights)
     reach = tuple(placer.farthest(h) for h in spec.heights)
-    return LiftChart(f"{spec.point.body}.{spec.point.name}", spec.lifting, spec.heights, spec.radii, grid, reach)
+    return LiftChart(f"{spec.point.body}.{spec.point.name}", spec.lifting, spec.heights, spec.radii, grid, reach,
+                     placer.tipping, spec.without)  # fmt: skip
 
 
 class _Placer:
@@ -169,13 +212,52 @@ class _Placer:
             return None
         return self._capacity(found.x, float(point[0]), height)
 
+    @property
+    def weighed(self) -> list:
+        """The massive bodies whose weight the lift carries (the model's, less ``without``)."""
+        return [b for b in self.model.massive if b.name not in self.spec.without]
+
+    @property
+    def tipping(self) -> bool:
+        return bool(self.model.massive) and self.model.machine is not None
+
     def _capacity(self, values: np.ndarray, radius: float, height: float) -> LiftPoint:
         u = self._inputs(np.clip(values, self.low, self.high))
         q = self._pose(values)
         system = self.system
         statics = Statics(pose_results(system, q[None], u[None]), self.model)
-        _, multipliers = statics.hold(self.spec.point.body, self.spec.point.name, np.array([[0.0, 0.0, -1.0]]))
-        limits = statics.hydraulic_limits(statics.element_forces(multipliers), working=self.spec.lifting)
+        matrix, multipliers = statics.hold(self.spec.point.body, self.spec.point.name, np.array([[0.0, 0.0, -1.0]]))
+        carried = None
+        if self.weighed:  # the front's own weight, held before any load
+            carried = statics.element_forces(statics.solve(matrix, statics.weight_load(self.weighed)))
+        limits = statics.hydraulic_limits(statics.element_forces(multipliers), working=self.spec.lifting, carried=carried)
         limiting = min(limits, key=lambda name: limits[name][0][0])  # the first of equals, in the model's order
         setting = "relief" if limiting == self.spec.lifting else "holding"
-        return LiftPoint(radius, height, float(limits[limiting][0][0]), limiting, setting, dict(zip(system.driver_names, map(float, u))))
+        front = side = float("nan")
+        if self.tipping:
+            front, side = tipping_loads(self.model, statics, self.weighed, radius)
+        return LiftPoint(radius, height, float(limits[limiting][0][0]), limiting, setting, dict(zip(system.driver_names, map(float, u))),
+                         front, side)  # fmt: skip
+
+
+def tipping_loads(model: Model, statics: Statics, bodies: list, radius: float) -> tuple[float, float]:
+    """The tipping loads [kg] over the front and over the side of a load hanging at ``radius`` from
+    the swing axis, the front of the pose (one pose: ``statics``'s first) pointing along +x: per
+    tipping line at distance d from the swing axis, Σ m_i (d - x_i) / (radius - d) over ``bodies``
+    (x_i their centres of mass along the front) and the undercarriage (x along the tracks over the
+    front; its y over the side: it does not swing); inf where the radius is inside the line."""
+    machine = model.machine
+    design = statics.system.design
+    value = functools.partial(design_value, design=design)
+    masses = np.array([value(b.inertia.mass) for b in bodies])
+    along = np.array([statics.position(b.name, statics.design_vector(b.inertia.center))[0, 0] for b in bodies])
+    under_mass = value(machine.undercarriage_mass)
+    under = [value(x) for x in machine.undercarriage_center]
+    out = []
+    for line, under_along in ((value(machine.track_length) / 2, under[0]), (value(machine.gauge) / 2, under[1])):
+        if radius <= line:
+            out.append(float("inf"))
+            continue
+        restoring = float(masses @ (line - along)) + under_mass * (line - under_along)
+        out.append(restoring / (radius - line))
+    return out[0], out[1]

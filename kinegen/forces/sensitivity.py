@@ -38,12 +38,13 @@ def element_force_sensitivities(statics: Statics, matrix: Rows, multipliers: np.
 
 class MultiplierChanges:
     """dλ/dp (K, rows, n_design) of the solve that holds a global ``force`` (K, 3) at ``body``'s named
-    ``point``, the inputs held (the module docstring) -- or the pose moving by ``s`` (K, n_v, P) per
-    parameter, when the inputs move with the design (a lift point held in place); and the joints'
+    ``point`` (None: no such load) and the ``weights`` (:meth:`Statics.weight_terms`: constant forces
+    at body points), the inputs held (the module docstring) -- or the pose moving by ``s`` (K, n_v, P)
+    per parameter, when the inputs move with the design (a lift point held in place); and the joints'
     reactions' changes from it."""
 
-    def __init__(self, statics: Statics, matrix: Rows, multipliers: np.ndarray, body: str, point: str, force: np.ndarray,
-                 s: np.ndarray | None = None) -> None:  # fmt: skip
+    def __init__(self, statics: Statics, matrix: Rows, multipliers: np.ndarray, body: str | None, point: str | None,
+                 force: np.ndarray | None, s: np.ndarray | None = None, weights: list | None = None) -> None:  # fmt: skip
         system = statics.system
         if not statics.declared:
             raise KinegenError("force sensitivities need the model's declared actuation (motors, hydraulic actuators)")
@@ -59,9 +60,12 @@ class MultiplierChanges:
             lam = multipliers[:, statics.joint_rows + e][:, None, None]
             for b, row in (maps.motor_row(element) if isinstance(element, Motor) else maps.actuator_row(element)).items():
                 change[:, statics.columns(b)] -= lam * row
-        if body != GROUND:
+        if body is not None and body != GROUND:
             jacobian_change = maps.point_jacobian(body, point)[1]  # (K, 3, n_vb, P)
             change[:, statics.columns(body)] += np.einsum("kicp,ki->kcp", jacobian_change, force)
+        for weighed, local, d_local, weight, d_weight in weights or ():  # constant forces at body points (the weights)
+            jacobian, jacobian_change = maps.point_jacobian_at(weighed, local, d_local)
+            change[:, statics.columns(weighed)] += np.einsum("kicp,i->kcp", jacobian_change, weight) + np.einsum("kic,ip->kcp", jacobian, d_weight)
         out = np.empty_like(change)
         for k in range(len(change)):
             lu, pivots, _ = dgetrf(matrix.dense(k))
@@ -167,12 +171,18 @@ class _TangentChanges:
                     self.drotation[body] = changes[:, b, slices["rotation"]].reshape(count, 3, 3, -1)
 
     def point(self, body: str, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
-        """(global position (K, 3), its change (K, 3, P), the arm from the origin (K, 3), its change)."""
+        """(global position (K, 3), its change (K, 3, P), the arm from the origin (K, 3), its change)
+        of ``body``'s named point."""
         statics, system = self.statics, self.statics.system
-        local = statics.local(body, name)
         derivative = system.point_derivatives.get(body, {}).get(name)
+        d_local = np.zeros((3, self.s.shape[2])) if derivative is None else np.asarray(derivative, dtype=float)
+        return self.point_at(body, statics.local(body, name), d_local)
+
+    def point_at(self, body: str, local: np.ndarray, d_local: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+        """:meth:`point` of the point at ``local`` (body coordinates) that moves by ``d_local`` (3, P)
+        in them with the design."""
+        statics = self.statics
         count, n_design = self.s.shape[0], self.s.shape[2]
-        d_local = np.zeros((3, n_design)) if derivative is None else np.asarray(derivative, dtype=float)
         if body == GROUND:
             position = np.broadcast_to(local, (count, 3))
             return position, np.broadcast_to(d_local, (count, 3, n_design)), np.zeros((count, 3)), np.zeros((count, 3, n_design))
@@ -183,8 +193,15 @@ class _TangentChanges:
 
     def point_jacobian(self, body: str, name: str) -> tuple[np.ndarray, np.ndarray]:
         """J_P (K, 3, n_vb) and its change (K, 3, n_vb, P): J_P = T_v + T_ω × arm."""
+        return self._jacobian(body, self.point(body, name))
+
+    def point_jacobian_at(self, body: str, local: np.ndarray, d_local: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """:meth:`point_jacobian` of the point at ``local`` (body coordinates; see :meth:`point_at`)."""
+        return self._jacobian(body, self.point_at(body, local, d_local))
+
+    def _jacobian(self, body: str, located: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
         tw = self.statics.tangents[body][1]
-        position, _, arm, d_arm = self.point(body, name)
+        position, _, arm, d_arm = located
         jacobian = self.statics.point_jacobian(body, position)
         d_cross = np.cross(self.dw[body].transpose(0, 2, 3, 1), arm[:, None, None, :]) + np.cross(
             tw.swapaxes(1, 2)[:, :, None, :], d_arm.transpose(0, 2, 1)[:, None, :, :]

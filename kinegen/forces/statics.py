@@ -35,14 +35,13 @@ from functools import cached_property
 from typing import Any
 
 import numpy as np
-import sympy as sp
 from scipy.linalg.lapack import dgecon as gecon
 from scipy.linalg.lapack import dgetrf as getrf
 from scipy.linalg.lapack import dgetrs as getrs
 
 from kinegen.errors import KinegenError, SingularJacobianError
+from kinegen.forces.dynamics import energies, inertial_load, time_vector, tipping_margin
 from kinegen.model import Model
-from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, Actuator, Joint, Load, Motor, design_value
 from kinegen.runtime.results import Results
 
@@ -147,6 +146,8 @@ class Forces:
     inertia: bool = False
     #: with ``inertia``: the kinetic and potential energy (:class:`kinegen.forces.dynamics.Energies`)
     energies: Any = None
+    #: with ``inertia`` and a ``machine:`` section: the tipping margin (:class:`kinegen.forces.dynamics.TippingMargin`)
+    tipping: Any = None
 
     def element_force(self, name: str) -> np.ndarray:
         """The force of one element over time, (K,)."""
@@ -183,6 +184,9 @@ class Forces:
         if self.energies is not None:
             names += ["energy.kinetic", "energy.potential"]
             columns.append(np.c_[self.energies.kinetic, self.energies.potential])
+        if self.tipping is not None:
+            names += ["tipping_margin", *(f"tipping_margin.{line}" for line in self.tipping.margins)]
+            columns.append(np.column_stack([self.tipping.margin, *self.tipping.margins.values()]))
         return names, np.hstack(columns)
 
 
@@ -216,8 +220,6 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], i
     statics = Statics(results, model)
     q_load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), statics.n_v)))
     if inertia:
-        from kinegen.forces.dynamics import inertial_load
-
         q_load = q_load + inertial_load(results)
     matrix = statics.matrix()
     multipliers = statics.compiled_multipliers([model.loads[name] for name in loads], inertia)
@@ -231,12 +233,12 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], i
         actuator = statics.actuators.get(element.name)
         if actuator is not None and actuator.hydraulics is not None:
             pressures[element.name] = statics.pressure(actuator, force[:, k])
-    energy = None
+    energy = tipping = None
     if inertia:
-        from kinegen.forces.dynamics import energies
-
         energy = energies(results, model)
-    return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load, inertia, energy)
+        tipping = tipping_margin(results, model, tuple(loads)) if model.machine is not None else None
+    return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load, inertia, energy,
+                  tipping)  # fmt: skip
 
 
 class Statics:
@@ -277,17 +279,49 @@ class Statics:
         load = self.point_load(body, point, force)
         return matrix, self.solve_batch(matrix, load) if batch else self.solve(matrix, load)
 
-    def hydraulic_limits(self, per_unit: np.ndarray, working) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
+    def hydraulic_limits(self, per_unit: np.ndarray, working, carried: np.ndarray | None = None) -> dict[str, tuple[np.ndarray, np.ndarray, np.ndarray]]:
         """Per hydraulic actuator, :func:`hydraulic_limit` of its force per unit load (the columns of
         ``per_unit``, (K, n_elements)): the load (K,) at which it reaches its setting, the setting and
         the side. ``working``: True (every cylinder at its relief setting) or the name of the one that
-        works (the others hold)."""
+        works (the others hold); ``carried`` (K, n_elements): forces the elements carry before any
+        load (the machine's own weight)."""
         names = [e.name for e in self.elements]
-        return {
-            a.name: hydraulic_limit(a, per_unit[:, names.index(a.name)], self.system.design, working is True or a.name == working)
-            for a in self.model.actuators
-            if a.hydraulics is not None
-        }
+        out = {}
+        for a in self.model.actuators:
+            if a.hydraulics is not None:
+                k = names.index(a.name)
+                before = None if carried is None else carried[:, k]
+                out[a.name] = hydraulic_limit(a, per_unit[:, k], self.system.design, working is True or a.name == working, before)
+        return out
+
+    def weight_terms(self, bodies) -> list[tuple[str, np.ndarray, np.ndarray, np.ndarray, np.ndarray]]:
+        """Per body of ``bodies``: (name, centre of mass (body coordinates), its derivative by the
+        design parameters (3, P), weight m g (3,), its derivative (3, P)) -- what
+        :class:`kinegen.forces.sensitivity.MultiplierChanges` differentiates the weights by."""
+        from kinegen.model.schema import design_gradient
+
+        design = self.system.design
+        order = list(design)
+        gravity = self.design_vector(self.model.gravity)
+        d_gravity = np.array([design_gradient(x, order, design) for x in self.model.gravity]).reshape(3, len(order))
+        out = []
+        for body in bodies:
+            mass = design_value(body.inertia.mass, design)
+            d_mass = np.asarray(design_gradient(body.inertia.mass, order, design), dtype=float).reshape(len(order))
+            d_center = np.array([design_gradient(x, order, design) for x in body.inertia.center]).reshape(3, len(order))
+            out.append((body.name, self.design_vector(body.inertia.center), d_center, mass * gravity,
+                        np.outer(gravity, d_mass) + mass * d_gravity))  # fmt: skip
+        return out
+
+    def weight_load(self, bodies) -> np.ndarray:
+        """Q (K, n_v) of the weight m g of ``bodies`` (with inertial data) at their centres of mass."""
+        gravity = self.design_vector(self.model.gravity)
+        out = np.zeros((len(self.results.times), self.n_v))
+        for body in bodies:
+            center = self.position(body.name, self.design_vector(body.inertia.center))
+            weight = design_value(body.inertia.mass, self.system.design) * gravity
+            out[:, self.columns(body.name)] += np.einsum("kij,i->kj", self.point_jacobian(body.name, center), weight)
+        return out
 
     def joint_row_indices(self, joint: str) -> list[int]:
         """The rows of ``joint`` among the joint rows (its equations, in order)."""
@@ -447,8 +481,8 @@ class Statics:
         kernels = self.system.statics
         if kernels is None or not kernels.serves(load):
             rotation = self.rotation(load.axes)
-            force = np.einsum("kij,kj->ki", rotation, _time_vector(load.force, times))
-            moment = np.einsum("kij,kj->ki", rotation, _time_vector(load.moment, times))
+            force = np.einsum("kij,kj->ki", rotation, time_vector(load.force, times))
+            moment = np.einsum("kij,kj->ki", rotation, time_vector(load.moment, times))
             return self.point_load(load.point.body, load.point.name, force, moment)
         index = kernels.load_names.index(load.name)
         values = np.asarray(kernels.loads(np.ascontiguousarray(self.results.q.T), times), dtype=float).reshape(-1, len(times))
@@ -533,29 +567,22 @@ def _joint_of(row: str) -> str:
     return "" if rest.startswith("norm") else name
 
 
-def _time_vector(vector: sp.ImmutableMatrix, times: np.ndarray) -> np.ndarray:
-    """A 3-vector of exact functions of t at ``times``, (K, 3)."""
-    out = np.empty((len(times), 3))
-    for i, expr in enumerate(vector):
-        if expr.free_symbols:
-            out[:, i] = np.broadcast_to(sp.lambdify(T, expr, "numpy")(times), times.shape)
-        else:
-            out[:, i] = float(expr)
-    return out
-
-
 def hydraulic_limit(
-    actuator: Actuator, per_unit: np.ndarray, design: dict[str, float], working: bool
+    actuator: Actuator, per_unit: np.ndarray, design: dict[str, float], working: bool, carried: np.ndarray | None = None
 ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """The load (K,) at which a hydraulic ``actuator`` reaches its setting, given its force per unit
-    of that load ``per_unit`` (K,): its relief setting where it ``working``, else its holding setting,
-    on the side its force needs; with that setting [Pa] and the side ("cap"/"rod"). inf where the
-    load does not reach it."""
+    of that load ``per_unit`` (K,) and the force it carries before any load ``carried`` (K,; the
+    machine's own weight, default none): its relief setting where it ``working``, else its holding
+    setting, on the side its force needs; with that setting [Pa] and the side ("cap"/"rod"). inf
+    where the load does not reach it, 0 where the carried force alone is beyond it."""
     hydraulics = actuator.hydraulics
     cap, annulus = hydraulics.areas(design)
     extend, retract = (design_value(x, design) for x in (hydraulics.relief if working else hydraulics.holding))
     pushing = per_unit >= 0
     pressure = np.where(pushing, extend, retract)
+    capacity = pressure * np.where(pushing, cap, annulus)
+    if carried is not None:  # the load adds per_unit each: the room left on that side
+        capacity = np.maximum(capacity - np.where(pushing, carried, -carried), 0.0)
     with np.errstate(divide="ignore"):
-        limit = np.where(per_unit == 0, np.inf, pressure * np.where(pushing, cap, annulus) / np.abs(per_unit))
+        limit = np.where(per_unit == 0, np.inf, capacity / np.abs(per_unit))
     return limit, pressure, np.where(pushing, "cap", "rod")

@@ -99,7 +99,7 @@ def _pressures(loader: Loader, value: Any, entry: str) -> tuple[sp.Expr, sp.Expr
 def read_motors(loader: Loader, value: Any) -> tuple[Motor, ...]:
     """``motors: {name: {joint: <revolute or cylindrical joint>}}``."""
     motors = []
-    for key, spec in loader.mapping(value, "motors", tuple(k for k in (value or {}) if isinstance(k, str))).items():
+    for key, spec in loader.mapping(value, "motors", loader.keys(value)).items():
         entry = f"motors.{key}"
         loader.name(key, entry)
         spec = loader.mapping(spec, entry, ("joint",), ("joint",))
@@ -115,7 +115,7 @@ def read_motors(loader: Loader, value: Any) -> tuple[Motor, ...]:
 def read_tool_points(loader: Loader, value: Any) -> dict[str, PointRef]:
     """``tool_points: {name: body.point}``: named points of moving bodies."""
     points = {}
-    for key, item in loader.mapping(value, "tool_points", tuple(k for k in (value or {}) if isinstance(k, str))).items():
+    for key, item in loader.mapping(value, "tool_points", loader.keys(value)).items():
         entry = f"tool_points.{key}"
         loader.name(key, entry)
         ref = loader.point_ref(item, entry)
@@ -128,7 +128,7 @@ def read_tool_points(loader: Loader, value: Any) -> dict[str, PointRef]:
 def read_loads(loader: Loader, value: Any, tool_points: dict[str, PointRef]) -> dict[str, Load]:
     """``loads: {name: {point: body.point or a tool point, force: [..], moment: [..], axes: global or the body}}``."""
     loads = {}
-    for key, spec in loader.mapping(value, "loads", tuple(k for k in (value or {}) if isinstance(k, str))).items():
+    for key, spec in loader.mapping(value, "loads", loader.keys(value)).items():
         entry = f"loads.{key}"
         loader.name(key, entry)
         spec = loader.mapping(spec, entry, ("point", "force", "moment", "axes"), ("point",))
@@ -234,7 +234,7 @@ def _input_range(
 def read_lift_chart(loader: Loader, value: Any, cases: dict[str, Case], actuators: tuple[Actuator, ...], working_range: WorkingRange | None) -> LiftChartSpec:
     """``lift_chart:`` -- where ``kinegen forces --lift`` finds the hydraulic lift capacity."""
     entry = "lift_chart"
-    spec = loader.mapping(value, entry, ("case", "point", "lifting", "place", "ranges", "heights", "radii"),
+    spec = loader.mapping(value, entry, ("case", "point", "lifting", "place", "ranges", "heights", "radii", "without"),
                           ("case", "point", "lifting", "place", "heights", "radii"))  # fmt: skip
     case = cases.get(spec["case"]) if isinstance(spec["case"], str) else None
     if case is None:
@@ -257,7 +257,11 @@ def read_lift_chart(loader: Loader, value: Any, cases: dict[str, Case], actuator
     heights, radii = (_numbers(loader, spec[k], f"{entry}.{k}") for k in ("heights", "radii"))
     if any(r <= 0 for r in radii):
         raise loader.fail(f"{entry}.radii", "radii are distances from the swing axis: positive")
-    return LiftChartSpec(case.name, point, spec["lifting"], tuple(place), ranges, heights, radii)
+    without = spec.get("without", [])
+    bodies = [b for b in loader.bodies]
+    if not isinstance(without, list) or any(b not in bodies for b in without):
+        raise loader.fail(f"{entry}.without", f"expected a list of bodies (of {', '.join(bodies)}), got {shown(without)}")
+    return LiftChartSpec(case.name, point, spec["lifting"], tuple(place), ranges, heights, radii, tuple(without))
 
 
 def _numbers(loader: Loader, value: Any, entry: str) -> tuple[float, ...]:

@@ -33,7 +33,7 @@ from kinegen.model.forces import (
 )
 from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS
 from kinegen.model.masses import KEYS as MASS_KEYS
-from kinegen.model.masses import read_gravity, read_inertia
+from kinegen.model.masses import read_gravity, read_inertia, read_machine
 from kinegen.model.schema import (
     GROUND,
     PUBLISHED_FIGURES,
@@ -272,6 +272,10 @@ class _Reader:
                 raise self.fail(entry, f"missing required key '{key}'")
         return dict(value)
 
+    def keys(self, value: Any) -> tuple[str, ...]:
+        """The string keys of a mapping (none of anything else: :meth:`mapping` then says what it is)."""
+        return tuple(_keys(value))
+
     def name(self, value: Any, entry: str) -> str:
         if not isinstance(value, str) or not NAME_PATTERN.match(value):
             raise self.fail(entry, f"{shown(value)} is not a valid name (letter first, then letters, digits, _)")
@@ -357,6 +361,7 @@ class _Reader:
                 "tool_forces",
                 "lift_chart",
                 "gravity",
+                "machine",
                 "drivers",
                 "cases",
                 "working_range",
@@ -425,6 +430,7 @@ class _Reader:
             tool_forces=tool_forces,
             lift_chart=lift_chart,
             gravity=read_gravity(self, top.get("gravity")),
+            machine=read_machine(self, top.get("machine")),
         )
 
     def read_design(self, value: Any) -> None:

@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from kinegen.model.schema import Body, Inertia, Vector
+from kinegen.model.schema import Body, Inertia, Machine, Vector
 
 #: a body's keys that carry its inertial data
 KEYS = ("mass", "center_of_mass", "inertia")
@@ -73,3 +73,25 @@ def read_gravity(loader: Any, value: Any) -> Vector:
     if value is None:
         return sp.ImmutableMatrix([0, 0, -sp.Rational(980665, 100000)])
     return loader.vector(value, "gravity")
+
+
+def read_machine(loader: Any, value: Any) -> Machine | None:
+    """``machine: {undercarriage: {mass, center_of_mass}, tracks: {length, gauge, shoe_width}}``: the
+    undercarriage (kg; m, global) and its tracks (m: tumbler distance, gauge, shoe width)."""
+    if value is None:
+        return None
+    spec = loader.mapping(value, "machine", ("undercarriage", "tracks"), ("undercarriage", "tracks"))
+    under = loader.mapping(spec["undercarriage"], "machine.undercarriage", ("mass", "center_of_mass"), ("mass", "center_of_mass"))
+    mass = loader.scalar(under["mass"], "machine.undercarriage.mass", design=True)
+    if not loader.value(mass) > 0:
+        raise loader.fail("machine.undercarriage.mass", f"{loader.value(mass):g} kg: a mass must be positive")
+    center = loader.vector(under["center_of_mass"], "machine.undercarriage.center_of_mass")
+    tracks = loader.mapping(spec["tracks"], "machine.tracks", ("length", "gauge", "shoe_width"), ("length", "gauge", "shoe_width"))
+    sizes = {}
+    for key in ("length", "gauge", "shoe_width"):
+        sizes[key] = loader.scalar(tracks[key], f"machine.tracks.{key}", design=True)
+        if not loader.value(sizes[key]) > 0:
+            raise loader.fail(f"machine.tracks.{key}", f"{loader.value(sizes[key]):g} m: a length must be positive")
+    if not loader.value(sizes["shoe_width"]) < loader.value(sizes["gauge"]):
+        raise loader.fail("machine.tracks.shoe_width", "the shoes are wider than the gauge: the tracks would overlap")
+    return Machine(mass, center, sizes["length"], sizes["gauge"], sizes["shoe_width"])

@@ -250,6 +250,22 @@ class LiftChartSpec:
     ranges: dict[str, tuple[float, float]]
     heights: tuple[float, ...]
     radii: tuple[float, ...]
+    #: bodies whose weight is left out (``without:``, e.g. the bucket: the load hangs at the arm's end)
+    without: tuple[str, ...] = ()
+
+
+@dataclass(frozen=True)
+class Machine:
+    """What the tipping limit needs beside the moving bodies (``machine:``): the undercarriage's mass
+    [kg] and centre of mass [m, global] (it does not move), and its tracks: ``track_length`` the
+    tumbler distance (sprocket to idler centres), ``gauge`` between the tracks' centrelines,
+    ``shoe_width``; the swing axis is the global z axis, at the middle of the tracks. Exact numbers."""
+
+    undercarriage_mass: sp.Expr
+    undercarriage_center: Vector
+    track_length: sp.Expr
+    gauge: sp.Expr
+    shoe_width: sp.Expr
 
 
 @dataclass(frozen=True)
@@ -450,6 +466,8 @@ class Model:
     loads: dict[str, Load] = field(default_factory=dict)  #: named loads on the machine
     tool_forces: ToolForces | None = None  #: how to compute the ISO 6015 tool forces
     lift_chart: LiftChartSpec | None = None  #: where to find the hydraulic lift capacity
+    #: the undercarriage and its tracks (``machine:``), for the tipping limit; None: not given
+    machine: Machine | None = None
     #: the acceleration of gravity, global [m/s^2] (``gravity:``; default 9.80665 along -z)
     gravity: Vector = field(default_factory=lambda: sp.ImmutableMatrix([0, 0, -sp.Rational(980665, 100000)]))
 

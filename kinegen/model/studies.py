@@ -48,7 +48,7 @@ def read_studies(
 ) -> dict[str, Study]:
     """The ``studies:`` section, every entry checked against the model (names, cases, figures)."""
     studies = {}
-    for key, spec in loader.mapping(value, "studies", tuple(k for k in (value or {}) if isinstance(k, str))).items():
+    for key, spec in loader.mapping(value, "studies", loader.keys(value)).items():
         entry = f"studies.{key}"
         name = loader.name(key, entry)
         spec = loader.mapping(spec, entry, ("description", "parameters", "minimize", "maximize", "constraints"), ("parameters",))
