@@ -762,7 +762,8 @@ def _force_map(model_file: str, model, parametrization, generated_dir: str, dire
         click.echo(f"wrote {plot_force_map(found, plot, working_range_boundary(system, model.working_range))}")
 
 
-def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: bool, no_compile: bool, out: str | None = None) -> None:
+def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: bool, no_compile: bool, out: str | None = None,
+          plot: str | None = None) -> None:  # fmt: skip
     """kinegen lift (and kinegen forces --lift): the lift chart's table, or its JSON; its CSV to ``out``."""
     from kinegen.errors import ModelError
     from kinegen.files import write_atomic
@@ -796,9 +797,19 @@ def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: 
                                                           f"{p.tipping_front:.6g}", f"{p.tipping_side:.6g}", f"{e['rated_front_kg']:.6g}",
                                                           e["front_limit"], f"{e['rated_side_kg']:.6g}", e["side_limit"], p.limiting)))  # fmt: skip
         write_atomic(Path(out), "\n".join(rows) + "\n")
+    if plot:
+        from kinegen.analysis.boundary import working_range_boundary
+        from kinegen.forces.lift import plot_lift_chart
+
+        boundary = None
+        if model.working_range is not None:
+            _, envelope_system = _system(model_file, parametrization, model.working_range.case, generated_dir, False if no_compile else None)
+            boundary = working_range_boundary(envelope_system, model.working_range)
+        plot_lift_chart(chart, plot, boundary)
     if not as_json:
         click.echo(chart.table())
-        click.echo(f"[{elapsed:.2f} s]" + (f"; wrote {out}" if out else ""))
+        wrote = ", ".join(x for x in (out, plot) if x)
+        click.echo(f"[{elapsed:.2f} s]" + (f"; wrote {wrote}" if wrote else ""))
         return
     click.echo(json.dumps({
         "model": model.name, "point": chart.point, "lifting": chart.lifting, "without": chart.without, "heights": chart.heights,
@@ -812,9 +823,11 @@ def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: 
 @PARAM
 @click.option("--json", "as_json", is_flag=True, help="Print the chart as JSON.")
 @click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV of every grid point (capacities, ratings, limits).")
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file,
+              help="PNG of the chart over the working range's outline.")  # fmt: skip
 @click.option("--no-compile", is_flag=True, help="Use the generated Python functions only.")
 @GENERATED_DIR
-def lift(model_file: str, param: str, as_json: bool, out: str | None, no_compile: bool, generated_dir: str) -> None:
+def lift(model_file: str, param: str, as_json: bool, out: str | None, plot: str | None, no_compile: bool, generated_dir: str) -> None:
     """ISO 10567 lift chart of the model's `lift_chart` section: at the arm's end, over its grid of
     heights and radii, over the front and over the side, the rated lift capacity -- the smaller of
     87 % of the hydraulic lift capacity (the lifting cylinder at its relief setting, the others
@@ -822,7 +835,7 @@ def lift(model_file: str, param: str, as_json: bool, out: str | None, no_compile
     machine: section) -- with the limit that applies (docs/dynamics.md)."""
     parametrization = _parametrization(param)
     model, _ = _system(model_file, parametrization, None, generated_dir, False)
-    _lift(model_file, model, parametrization, generated_dir, as_json, no_compile, out)
+    _lift(model_file, model, parametrization, generated_dir, as_json, no_compile, out, plot)
 
 
 @main.command()

@@ -224,7 +224,11 @@ def main(argv: list[str] | None = None) -> int:
         from kinegen.forces.lift import lift_chart
 
         print("\nkinegen lift models/excavator.yaml (ESTIMATED masses and hydraulic data; docs/dynamics.md):")
-        print(lift_chart(from_module(excavator_module, excavator_model.lift_chart.case), excavator_model).table())
+        chart = lift_chart(from_module(excavator_module, excavator_model.lift_chart.case), excavator_model)
+        print(chart.table())
+        from kinegen.forces.lift import plot_lift_chart
+
+        print(f"-> {plot_lift_chart(chart, args.out / 'excavator_lift_chart.png', boundary).name}")
     if excavator_model.massive and "payload" in excavator_model.loads:
         from kinegen.forces import forces
         from kinegen.runtime import solve

@@ -260,3 +260,28 @@ def test_the_force_map_draws_its_cells_inside_the_exact_boundary_and_states_its_
         assert z0 < boundary.points[:, 1].min() and boundary.points[:, 1].max() < z1
     title = fig._suptitle.get_text()
     assert "static, massless links, no friction" in title and "white: no pose" in title
+
+
+@WORKING_RANGE_GROUP
+def test_the_lift_chart_picture_writes_each_rating_at_its_point_coloured_by_its_limit():
+    """Every grid point and largest reach of the lift chart carries two labels, the ratings over the
+    front and the side as the table prints them ('*' where hydraulic), blue where the hydraulic limit
+    rules and red where tipping does, next to the point at its radius and height; the working range
+    is drawn and the rule is stated."""
+    from matplotlib.colors import to_hex
+
+    from kinegen.forces.lift import lift_chart, lift_chart_figure
+
+    _, _, _, boundary = excavator_working_range()
+    chart = lift_chart(generated_system("excavator_quaternion", "digging"), model("excavator"))
+    fig = lift_chart_figure(chart, boundary)
+    ax = fig.axes[0]
+    labels = {(round(t.xy[0], 9), round(t.xy[1], 9), t.get_text()): to_hex(t.get_color()) for t in ax.texts}
+    points = [p for row in chart.grid for p in row if p is not None] + [p for p in chart.max_reach if p is not None]
+    assert len(ax.texts) == 2 * len(points)
+    for p in points:
+        for side in (False, True):
+            value, limit = p.rated(side)
+            text = f"{'*' if limit == 'hydraulic' else ''}{value:,.0f}"
+            assert labels[(round(p.radius, 9), round(p.height, 9), text)] == to_hex("tab:blue" if limit == "hydraulic" else "tab:red")
+    assert "75 % of the tipping load" in fig._suptitle.get_text()

@@ -261,3 +261,45 @@ def tipping_loads(model: Model, statics: Statics, bodies: list, radius: float) -
         restoring = float(masses @ (line - along)) + under_mass * (line - under_along)
         out.append(restoring / (radius - line))
     return out[0], out[1]
+
+
+def lift_chart_figure(chart: LiftChart, boundary=None):
+    """The lift chart over the working range's outline (the boom plane: radius from the swing axis,
+    height above the ground): at each grid point and at each height's largest reach, the rated load
+    over the front (above) and over the side (below) in kg, blue where the hydraulic limit rules and
+    red where tipping does; the exact boundary of the lift point's working range if given."""
+    from kinegen.analysis.plots import pyplot
+
+    plt = pyplot()
+    fig, ax = plt.subplots(figsize=(9.5, 7.5))
+    if boundary is not None:
+        ax.plot(boundary.points[:, 0], boundary.points[:, 1], color="0.4", lw=1.0, label="working range of the bucket tip")
+    colours = {"hydraulic": "tab:blue", "tipping": "tab:red"}
+    reach = [p for p in chart.max_reach if p is not None and np.isfinite(p.capacity)]
+    ax.plot([p.radius for p in reach], [p.height for p in reach], "--", color="0.5", lw=0.8, label="largest reach at each height")
+    # grid points labelled on their left, the largest reaches on their right: the two never overlap
+    for points, side_of, align in (([p for row in chart.grid for p in row if p is not None], -4, "right"), (reach, 4, "left")):
+        for p in points:
+            if not np.isfinite(p.capacity):
+                continue
+            ax.plot(p.radius, p.height, "o", color="0.2", ms=3)
+            for side, offset in ((False, 3), (True, -10)):
+                value, limit = p.rated(side)
+                ax.annotate(f"{'*' if limit == 'hydraulic' else ''}{max(value, 0.0):,.0f}", (p.radius, p.height), xytext=(side_of, offset),
+                            textcoords="offset points", fontsize=7.5, color=colours[limit], ha=align)  # fmt: skip
+    for limit, colour in colours.items():
+        ax.plot([], [], "s", color=colour, label=f"{limit} limit")
+    ax.axhline(0.0, color="saddlebrown", lw=1.0)
+    ax.set(aspect="equal", xlabel="radius: horizontal distance from the swing axis [m]", ylabel="height of the lift point above the ground [m]",
+           title=f"rated lift capacity at {chart.point} [kg]: over the front (upper), over the side (lower)")  # fmt: skip
+    ax.legend(loc="lower left", fontsize=8)
+    fig.suptitle("ISO 10567: the smaller of 87 % of the hydraulic lift capacity and 75 % of the tipping load"
+                 + (f"; without {', '.join(chart.without)}" if chart.without else ""), fontsize=10)  # fmt: skip
+    return fig
+
+
+def plot_lift_chart(chart: LiftChart, path, boundary=None):
+    """PNG of :func:`lift_chart_figure`."""
+    from kinegen.analysis.plots import save
+
+    return save(lift_chart_figure(chart, boundary), path)
