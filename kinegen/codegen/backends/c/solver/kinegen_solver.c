@@ -340,7 +340,8 @@ static void solve3(kinegen_solver *s, double *b[3], double *y) {
     }
 }
 
-/* x = M^-T c with the factors of the plan's matrix M (store, off, pivots); w: n values of work (x and c may alias). */
+/* x = M^-T c with the factors of the plan's matrix M (store, off, pivots); w: n values of work (x and c may
+ * alias): the force solve's (kinegen_forces). */
 static void solve_transposed_blocks(const plan_view *m, const double *store, const double *off, const int *pivots, double *w,
                                     const double *c, double *x) {
     for (int j = 0; j < m->n; ++j) w[j] = c[m->col_order[j]];
@@ -375,10 +376,42 @@ static void solve_transposed_blocks(const plan_view *m, const double *store, con
     for (int i = 0; i < m->n; ++i) x[m->row_order[i]] = w[i];
 }
 
-/* x = Phi_q^-T c (for the condition estimate; x and c may alias). */
+/* x = Phi_q^-T c (for the condition estimate; x and c may alias). The same loops as solve_transposed_blocks,
+ * written on the solver's own fields: the condition estimate calls it at every step, and through the shared
+ * function the excavator's compiled trajectory took 0.021 s instead of 0.0165 s (one run, 1000 points). */
 static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
-    plan_view plan = case_plan(s->model);
-    solve_transposed_blocks(&plan, s->store, s->off, s->pivots, s->y, c, x);
+    const kinegen_model *m = s->model;
+    double *w = s->y;
+    for (int j = 0; j < m->n_v; ++j) w[j] = c[m->col_order[j]];
+    for (int blk = m->n_blocks - 1; blk >= 0; --blk) {
+        int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
+        const double *A = s->store + m->block_store[blk];
+        const int *piv = s->pivots + first;
+        double *r = w + first;
+        for (int k = 0; k < n; ++k) { /* U^T */
+            double acc = r[k];
+            for (int i = 0; i < k; ++i) acc -= A[i + k * n] * r[i];
+            r[k] = acc / A[k + k * n];
+        }
+        for (int k = n - 1; k >= 0; --k) { /* L^T */
+            double acc = r[k];
+            for (int i = k + 1; i < n; ++i) acc -= A[i + k * n] * r[i];
+            r[k] = acc;
+        }
+        for (int k = n - 1; k >= 0; --k) {
+            if (piv[k] != k) {
+                double tmp = r[k];
+                r[k] = r[piv[k]];
+                r[piv[k]] = tmp;
+            }
+        }
+        /* the entries below the blocks couple this block's rows to earlier blocks' columns */
+        for (int i = 0; i < n; ++i) {
+            int row = first + i;
+            for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) w[m->off_col[e]] -= s->off[e] * r[i];
+        }
+    }
+    for (int i = 0; i < m->n_v; ++i) x[m->row_order[i]] = w[i];
 }
 
 /* 1-norm condition estimate of Phi_q from its factors: ||Phi_q||_1 times Higham's estimate of
