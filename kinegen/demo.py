@@ -233,13 +233,14 @@ def main(argv: list[str] | None = None) -> int:
         from kinegen.forces import forces
         from kinegen.runtime import solve
 
-        moving = forces(solve(from_module(excavator_module, "digging")), excavator_model, ["payload"], inertia=True)
-        peaks = ", ".join(f"{name} {p.pressure.max() / 1e6:.1f} MPa" for name, p in moving.pressures.items())
-        line = f"dynamics (kinegen solve --case digging --dynamics --load payload): peak pressures {peaks}"
-        if moving.tipping is not None:
-            k = int(np.argmin(moving.tipping.margin))
-            line += f"; tipping margin down to {moving.tipping.margin[k] / 1e3:.1f} kN m ({moving.tipping.line[k]} line, t = {moving.results.times[k]:g} s)"
-        print(line)
+        for case in (c for c in ("digging", "digging_fast") if c in excavator_model.cases):
+            moving = forces(solve(from_module(excavator_module, case)), excavator_model, ["payload"], inertia=True)
+            peaks = ", ".join(f"{name} {p.pressure.max() / 1e6:.1f} MPa" for name, p in moving.pressures.items())
+            line = f"dynamics (kinegen solve --case {case} --dynamics --load payload): peak pressures {peaks}"
+            if moving.tipping is not None:
+                k = int(np.argmin(moving.tipping.margin))
+                line += f"; tipping margin down to {moving.tipping.margin[k] / 1e3:.1f} kN m ({moving.tipping.line[k]} line, t = {moving.results.times[k]:g} s)"
+            print(line)
     from kinegen.analysis.scan import plot_scan, scan
 
     toggle = from_module(excavator_module, "bucket_toggle")

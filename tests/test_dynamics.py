@@ -313,7 +313,7 @@ def test_the_excavators_front_cut_open_equals_pinocchio(tmp_path_factory):
 
 
 @pytest.mark.parametrize(("case", "loads"), [("digging", ["payload"]), ("level_cut", ["payload", "cutting"]), ("trench_wall", []),
-                                             ("bucket_stroke", ["cutting"]), ("bucket_near_toggle", [])])  # fmt: skip
+                                             ("bucket_stroke", ["cutting"]), ("bucket_near_toggle", []), ("digging_fast", ["payload"])])  # fmt: skip
 def test_along_the_excavators_cases_the_work_is_the_change_of_energy(case, loads):
     """Along every shipped excavator case at speed (but bucket_toggle, which runs into its toggle on
     purpose), with its estimated masses: the actuators' work
