@@ -466,7 +466,6 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     placing inputs with the design (du/dp = -(dP/du)^-1 dP/dp keeps the point in place)."""
     from kinegen.forces.lift import _Placer
     from kinegen.forces.sensitivity import MultiplierChanges, _TangentChanges
-    from kinegen.forces.statics import Statics, pose_results
     from kinegen.runtime.sensitivity import configuration_sensitivities
 
     system, model = results.system, problem.model
@@ -479,11 +478,9 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     if not gradients:
         return value, None
     u = np.array([found.inputs[n] for n in system.driver_names])
-    pose = placer._pose(u[placer.index])
-    statics = Statics(pose_results(system, pose[None], u[None]), model)
+    _, pose, statics, matrix, multipliers, weight = placer.held(u[placer.index])
     body, point = chart.point.body, chart.point.name
     force = np.array([[0.0, 0.0, -1.0]])
-    matrix, multipliers = statics.hold(body, point, force)
     by_design, by_input = configuration_sensitivities(system, pose[:, None], u[:, None])
     position = statics.position(body, statics.local(body, point))
     jacobian = np.zeros((3, system.n_velocity))
@@ -500,11 +497,10 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     k = names.index(actuator.name)
     f, d_f = per_newton[k], -change.d_multipliers[0, statics.joint_rows + k]
     carried, d_carried = 0.0, 0.0
-    if placer.weighed:  # the front's own weight, held before the load: its force and that force's change
-        weights = statics.weight_terms(placer.weighed)
-        held = statics.solve(matrix, statics.weight_load(placer.weighed))
-        carried = statics.element_forces(held)[0, k]
-        d_carried = -MultiplierChanges(statics, matrix, held, None, None, None, s=moving, weights=weights).d_multipliers[0, statics.joint_rows + k]
+    if weight is not None:  # the front's own weight, held before the load: its force and that force's change
+        carried = statics.element_forces(weight)[0, k]
+        changes = MultiplierChanges(statics, matrix, weight, None, None, None, s=moving, weights=statics.weight_terms(placer.weighed))
+        d_carried = -changes.d_multipliers[0, statics.joint_rows + k]
     return value, _limit_gradient(actuator, f, d_f, system.design, actuator.name == chart.lifting, carried, d_carried) / 1e3
 
 

@@ -419,23 +419,22 @@ def _constant(values: list[sp.Expr]):
 
 
 def _statics(
-    model: Model, coords: Coordinates, joint_pattern: list[tuple[int, int]], p: tuple[str, ...], section, shared: dict
+    model: Model, coords: Coordinates, joint_pattern: list[tuple[int, int]], mj: int, p: tuple[str, ...], section, shared: dict
 ) -> StaticsDescription | None:  # fmt: skip
-    """The ``actuation`` and ``loads`` kernels (sections made with ``section``, kernels put into
-    ``shared``) and their description; None for a model with neither elements nor loads.
-    ``joint_pattern``: the joint rows' Phi_q pattern (the first values of every case's)."""
+    """The ``actuation``, ``loads`` and ``inertia`` kernels (sections made with ``section``, kernels put
+    into ``shared``) and their description; None for a model with neither elements, loads nor masses.
+    ``joint_pattern``: the ``mj`` joint rows' Phi_q pattern (the first values of every case's)."""
     from kinegen.symbolic.statics import element_rows, inertia_row, load_row
 
     if not model.actuation and not model.loads and not model.massive:
         return None
     elements = element_rows(model, coords)
-    mj = 1 + max((r for r, _ in joint_pattern), default=-1)
     matrix = [*joint_pattern, *((mj + i, c) for i, (_, _, row) in enumerate(elements) for c in row)]
     matrix_plan = None
     if elements:
         size = sum(len(row) for _, _, row in elements)
         values = [e for _, _, row in elements for e in row.values()]
-        section("actuation_rows", ("q", *p), (Group(None, lambda: values, {}),), size,
+        section("actuation_rows", ("q", *p), (Group(None, _constant(values), {}),), size,
                 f"The rows of the {len(elements)} actuation elements: d(length or angle)/dv, {size} values.")  # fmt: skip
         shared["actuation"] = Kernel("actuation", ("q", *p), (Output("actuation_matrix", ("joints_jac", "actuation_rows"), len(matrix)),),
                                      "The force solve's matrix: the joint rows' Phi_q values, then the actuation elements' rows, "
@@ -444,8 +443,7 @@ def _statics(
     loads = [(name, load_row(load, coords)) for name, load in model.loads.items()]
     load_pattern = [(k, c) for k, (_, row) in enumerate(loads) for c in row]
     if loads:
-        values_q = [e for _, row in loads for e in row.values()]
-        section("loads", ("q", "t", *p), (Group(None, lambda: values_q, {}),), len(load_pattern),
+        section("loads", ("q", "t", *p), (Group(None, _constant([e for _, row in loads for e in row.values()]), {}),), len(load_pattern),
                 f"Every load's generalized force Q (F.J_P + M.T_w), {len(load_pattern)} values at LOAD_ROWS, LOAD_COLS.")  # fmt: skip
         shared["loads"] = Kernel("loads", ("q", "t", *p), (Output("loads", ("loads",), len(load_pattern)),),
                                  "Every load's generalized force Q at time t, at LOAD_ROWS (the load), LOAD_COLS.")  # fmt: skip
@@ -536,7 +534,7 @@ def describe(
     if model.actuators:
         shared_section("lengths", ("q", *p), (Group(None, lambda: actuator_lengths(model, coords), {}),), len(model.actuators),
                 "The length of every actuator (in the order of ACTUATORS) [m]: the distance between its two points.")  # fmt: skip
-    statics = _statics(model, coords, first.jacobian_pattern[:n_joint_entries], p, section, shared)
+    statics = _statics(model, coords, first.jacobian_pattern[:n_joint_entries], mj, p, section, shared)
     cases: dict[str, CaseDescription] = {}
     for name, system in systems.items():
         rows = system.rows

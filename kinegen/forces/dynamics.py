@@ -51,6 +51,23 @@ def inertial_load(results: Results) -> np.ndarray:
     return out
 
 
+def inertia_numbers(inertia, design: dict[str, float]) -> tuple[float, np.ndarray, np.ndarray]:
+    """A body's :class:`~kinegen.model.schema.Inertia` at the design values: mass [kg], centre of mass
+    (3,) [m, body coordinates], inertia tensor about it (3, 3) [kg m^2, body axes]."""
+    center = np.array([design_value(x, design) for x in inertia.center], dtype=float)
+    tensor = np.array([[design_value(x, design) for x in row] for row in inertia.tensor.tolist()], dtype=float)
+    return design_value(inertia.mass, design), center, tensor
+
+
+def load_wrench(results: Results, load) -> tuple[np.ndarray, np.ndarray]:
+    """A :class:`~kinegen.model.schema.Load`'s force and moment (each (K, 3), global) along
+    ``results``: its exact functions of t at the times, turned from the body's axes if it is given in them."""
+    count = len(results.times)
+    rotation = np.broadcast_to(np.eye(3), (count, 3, 3)) if load.axes == GROUND else results.rotation_matrix(load.axes)
+    return (np.einsum("kij,kj->ki", rotation, time_vector(load.force, results.times)),
+            np.einsum("kij,kj->ki", rotation, time_vector(load.moment, results.times)))  # fmt: skip
+
+
 def energies(results: Results, model: Model) -> Energies:
     """Kinetic and potential energy of the model's massive bodies along ``results`` (numeric, from
     the solved frames: independent of the generated inertia kernel)."""
@@ -59,10 +76,7 @@ def energies(results: Results, model: Model) -> Energies:
     kinetic = np.zeros(len(results.times))
     potential = np.zeros(len(results.times))
     for body in model.massive:
-        inertia = body.inertia
-        mass = design_value(inertia.mass, design)
-        center = np.array([design_value(x, design) for x in inertia.center], dtype=float)
-        tensor = np.array([[design_value(x, design) for x in row] for row in inertia.tensor.tolist()], dtype=float)
+        mass, center, tensor = inertia_numbers(body.inertia, design)
         rotation = results.rotation_matrix(body.name)
         arm = rotation @ center
         omega = results.omega(body.name)
@@ -114,25 +128,21 @@ def tipping_margin(results: Results, model: Model, loads: tuple[str, ...] = (), 
     under = np.array([number(x) for x in machine.undercarriage_center])
     forces_at.append((np.broadcast_to(under, (k, 3)), np.broadcast_to(number(machine.undercarriage_mass) * gravity, (k, 3)), np.zeros((k, 3))))
     for body in model.massive:
-        inertia_data = body.inertia
-        mass = number(inertia_data.mass)
+        mass, local, body_tensor = inertia_numbers(body.inertia, design)
         rotation = results.rotation_matrix(body.name)
-        arm = rotation @ np.array([number(x) for x in inertia_data.center])
+        arm = rotation @ local
         center = results.position(body.name) + arm
         force, moment = np.broadcast_to(mass * gravity, (k, 3)).copy(), np.zeros((k, 3))
         if inertia:
             omega, omega_dot = results.omega(body.name), results.omega_dot(body.name)
             acceleration = results.acceleration(body.name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
-            tensor = rotation @ np.array([[number(x) for x in row] for row in inertia_data.tensor.tolist()]) @ rotation.swapaxes(1, 2)
+            tensor = rotation @ body_tensor @ rotation.swapaxes(1, 2)
             force -= mass * acceleration
             moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
         forces_at.append((center, force, moment))
     for name in loads:
         load = model.loads[name]
-        rotation = np.broadcast_to(np.eye(3), (k, 3, 3)) if load.axes == GROUND else results.rotation_matrix(load.axes)
-        point = results.point_position(load.point.body, load.point.name)
-        forces_at.append((point, np.einsum("kij,kj->ki", rotation, time_vector(load.force, results.times)),
-                          np.einsum("kij,kj->ki", rotation, time_vector(load.moment, results.times))))  # fmt: skip
+        forces_at.append((results.point_position(load.point.body, load.point.name), *load_wrench(results, load)))
     halves = (number(machine.track_length) / 2, number(machine.gauge) / 2)
     margins = {}
     for name, (normal, which) in TIPPING_LINES.items():

@@ -24,19 +24,20 @@ from __future__ import annotations
 
 import functools
 from dataclasses import dataclass
+from typing import NamedTuple
 
 import numpy as np
 from scipy.optimize import least_squares, minimize
 
 from kinegen.errors import KinegenError
-from kinegen.forces.statics import Statics, pose_results
+from kinegen.forces.statics import Rows, Statics, pose_results
 from kinegen.model import Model
-from kinegen.model.schema import design_value
+from kinegen.model.schema import STANDARD_GRAVITY, design_value
 from kinegen.runtime import NumericSystem, Solver, SolverOptions
 from kinegen.runtime.batch import sweep_grid
 
 #: standard gravity [m/s^2]: a load's mass in kg is its weight in N / G
-G = 9.80665
+G = -float(STANDARD_GRAVITY[2])
 #: ISO 10567: the rated lift capacity is at most this share of the hydraulic lift capacity
 HYDRAULIC_SHARE = 0.87
 #: ISO 10567: ... and at most this share of the tipping load
@@ -63,11 +64,6 @@ class LiftPoint:
         """ISO 10567's hydraulic rating: 87 % of the hydraulic capacity, in kg."""
         return HYDRAULIC_SHARE * self.capacity / G
 
-    @property
-    def rated_kg(self) -> float:
-        """The hydraulic rating (the rating over the front and side without tipping data)."""
-        return self.hydraulic_kg
-
     def rated(self, side: bool) -> tuple[float, str]:
         """The rated lift capacity over the front (``side`` False) or the side [kg] and its limit:
         "hydraulic" or "tipping" (the hydraulic rating alone when the tipping load is unknown)."""
@@ -75,6 +71,17 @@ class LiftPoint:
         if np.isnan(tipping) or self.hydraulic_kg <= tipping:
             return self.hydraulic_kg, "hydraulic"
         return tipping, "tipping"
+
+
+class Held(NamedTuple):
+    """A lift pose and its solves (:meth:`_Placer.held`)."""
+
+    inputs: np.ndarray  #: every driver input
+    q: np.ndarray  #: stored coordinates
+    statics: Statics  #: at that one pose
+    matrix: Rows
+    multipliers: np.ndarray  #: (1, rows): holding a unit load (1 N, downward) at the lift point
+    weight: np.ndarray | None  #: (1, rows): holding the front's weight; None without masses
 
 
 @dataclass(frozen=True)
@@ -221,15 +228,20 @@ class _Placer:
     def tipping(self) -> bool:
         return bool(self.model.massive) and self.model.machine is not None
 
-    def _capacity(self, values: np.ndarray, radius: float, height: float) -> LiftPoint:
+    def held(self, values: np.ndarray) -> Held:
+        """The pose at the placing inputs ``values`` and what holds a unit load hanging at the lift
+        point there, and the front's own weight (less ``without``) before it."""
         u = self._inputs(np.clip(values, self.low, self.high))
         q = self._pose(values)
-        system = self.system
-        statics = Statics(pose_results(system, q[None], u[None]), self.model)
+        statics = Statics(pose_results(self.system, q[None], u[None]), self.model)
         matrix, multipliers = statics.hold(self.spec.point.body, self.spec.point.name, np.array([[0.0, 0.0, -1.0]]))
-        carried = None
-        if self.weighed:  # the front's own weight, held before any load
-            carried = statics.element_forces(statics.solve(matrix, statics.weight_load(self.weighed)))
+        weight = statics.solve(matrix, statics.weight_load(self.weighed)) if self.weighed else None
+        return Held(u, q, statics, matrix, multipliers, weight)
+
+    def _capacity(self, values: np.ndarray, radius: float, height: float) -> LiftPoint:
+        system = self.system
+        u, _, statics, _, multipliers, weight = self.held(values)
+        carried = None if weight is None else statics.element_forces(weight)
         limits = statics.hydraulic_limits(statics.element_forces(multipliers), working=self.spec.lifting, carried=carried)
         limiting = min(limits, key=lambda name: limits[name][0][0])  # the first of equals, in the model's order
         setting = "relief" if limiting == self.spec.lifting else "holding"

@@ -40,7 +40,7 @@ from scipy.linalg.lapack import dgetrf as getrf
 from scipy.linalg.lapack import dgetrs as getrs
 
 from kinegen.errors import KinegenError, SingularJacobianError
-from kinegen.forces.dynamics import energies, inertial_load, time_vector, tipping_margin
+from kinegen.forces.dynamics import energies, inertia_numbers, inertial_load, load_wrench, tipping_margin
 from kinegen.model import Model
 from kinegen.model.schema import GROUND, Actuator, Joint, Load, Motor, design_value
 from kinegen.runtime.results import Results
@@ -318,8 +318,9 @@ class Statics:
         gravity = self.design_vector(self.model.gravity)
         out = np.zeros((len(self.results.times), self.n_v))
         for body in bodies:
-            center = self.position(body.name, self.design_vector(body.inertia.center))
-            weight = design_value(body.inertia.mass, self.system.design) * gravity
+            mass, local, _ = inertia_numbers(body.inertia, self.system.design)
+            center = self.position(body.name, local)
+            weight = mass * gravity
             out[:, self.columns(body.name)] += np.einsum("kij,i->kj", self.point_jacobian(body.name, center), weight)
         return out
 
@@ -480,10 +481,7 @@ class Statics:
         times = np.asarray(self.results.times, dtype=float)
         kernels = self.system.statics
         if kernels is None or not kernels.serves(load):
-            rotation = self.rotation(load.axes)
-            force = np.einsum("kij,kj->ki", rotation, time_vector(load.force, times))
-            moment = np.einsum("kij,kj->ki", rotation, time_vector(load.moment, times))
-            return self.point_load(load.point.body, load.point.name, force, moment)
+            return self.point_load(load.point.body, load.point.name, *load_wrench(self.results, load))
         index = kernels.load_names.index(load.name)
         values = np.asarray(kernels.loads(np.ascontiguousarray(self.results.q.T), times), dtype=float).reshape(-1, len(times))
         mine = kernels.load_rows == index

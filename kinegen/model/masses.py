@@ -15,7 +15,7 @@ from typing import Any
 import numpy as np
 import sympy as sp
 
-from kinegen.model.schema import Body, Inertia, Machine, Vector
+from kinegen.model.schema import STANDARD_GRAVITY, Body, Inertia, Machine, Vector
 
 #: a body's keys that carry its inertial data
 KEYS = ("mass", "center_of_mass", "inertia")
@@ -28,9 +28,7 @@ def read_inertia(loader: Any, spec: dict, entry: str, pose: Body, points: dict[s
         return None
     if "mass" not in spec:
         raise loader.fail(entry, f"{', '.join(given)} without 'mass': give the body's mass [kg]")
-    mass = loader.scalar(spec["mass"], f"{entry}.mass", design=True)
-    if not loader.value(mass) > 0:
-        raise loader.fail(f"{entry}.mass", f"{loader.value(mass):g} kg: a mass must be positive")
+    mass = _positive(loader, spec["mass"], f"{entry}.mass", "kg: a mass")
     center_spec = spec.get("center_of_mass", [0, 0, 0])
     if isinstance(center_spec, str):
         if center_spec not in points:
@@ -68,11 +66,17 @@ def _tensor(loader: Any, value: Any, entry: str) -> sp.ImmutableMatrix:
     return tensor
 
 
+def _positive(loader: Any, value: Any, entry: str, what: str) -> sp.Expr:
+    """A positive constant (design parameters allowed); ``what``: its unit and name, for the error."""
+    expr = loader.scalar(value, entry, design=True)
+    if not loader.value(expr) > 0:
+        raise loader.fail(entry, f"{loader.value(expr):g} {what} must be positive")
+    return expr
+
+
 def read_gravity(loader: Any, value: Any) -> Vector:
     """``gravity: [gx, gy, gz]`` (m/s^2, global; default [0, 0, -9.80665])."""
-    if value is None:
-        return sp.ImmutableMatrix([0, 0, -sp.Rational(980665, 100000)])
-    return loader.vector(value, "gravity")
+    return STANDARD_GRAVITY if value is None else loader.vector(value, "gravity")
 
 
 def read_machine(loader: Any, value: Any) -> Machine | None:
@@ -82,16 +86,10 @@ def read_machine(loader: Any, value: Any) -> Machine | None:
         return None
     spec = loader.mapping(value, "machine", ("undercarriage", "tracks"), ("undercarriage", "tracks"))
     under = loader.mapping(spec["undercarriage"], "machine.undercarriage", ("mass", "center_of_mass"), ("mass", "center_of_mass"))
-    mass = loader.scalar(under["mass"], "machine.undercarriage.mass", design=True)
-    if not loader.value(mass) > 0:
-        raise loader.fail("machine.undercarriage.mass", f"{loader.value(mass):g} kg: a mass must be positive")
+    mass = _positive(loader, under["mass"], "machine.undercarriage.mass", "kg: a mass")
     center = loader.vector(under["center_of_mass"], "machine.undercarriage.center_of_mass")
     tracks = loader.mapping(spec["tracks"], "machine.tracks", ("length", "gauge", "shoe_width"), ("length", "gauge", "shoe_width"))
-    sizes = {}
-    for key in ("length", "gauge", "shoe_width"):
-        sizes[key] = loader.scalar(tracks[key], f"machine.tracks.{key}", design=True)
-        if not loader.value(sizes[key]) > 0:
-            raise loader.fail(f"machine.tracks.{key}", f"{loader.value(sizes[key]):g} m: a length must be positive")
+    sizes = {key: _positive(loader, tracks[key], f"machine.tracks.{key}", "m: a length") for key in ("length", "gauge", "shoe_width")}
     if not loader.value(sizes["shoe_width"]) < loader.value(sizes["gauge"]):
         raise loader.fail("machine.tracks.shoe_width", "the shoes are wider than the gauge: the tracks would overlap")
     return Machine(mass, center, sizes["length"], sizes["gauge"], sizes["shoe_width"])

@@ -19,6 +19,10 @@ GROUND = "ground"
 Vector = sp.ImmutableMatrix  # a 3x1 exact column
 
 
+#: the default acceleration of gravity [m/s^2, global]: standard gravity 9.80665 along -z, exact
+STANDARD_GRAVITY = sp.ImmutableMatrix([0, 0, -sp.Rational(980665, 100000)])
+
+
 @dataclass(frozen=True)
 class Inertia:
     """A body's mass [kg], its centre of mass [m, body coordinates] and its inertia tensor about
@@ -469,7 +473,7 @@ class Model:
     #: the undercarriage and its tracks (``machine:``), for the tipping limit; None: not given
     machine: Machine | None = None
     #: the acceleration of gravity, global [m/s^2] (``gravity:``; default 9.80665 along -z)
-    gravity: Vector = field(default_factory=lambda: sp.ImmutableMatrix([0, 0, -sp.Rational(980665, 100000)]))
+    gravity: Vector = STANDARD_GRAVITY
 
     @property
     def massive(self) -> tuple[Body, ...]:

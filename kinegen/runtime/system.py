@@ -67,8 +67,7 @@ def _statics(module: ModuleType | Any, p: np.ndarray | None) -> StaticsKernels |
         tuple(tuple(e) for e in module.ELEMENTS), function("actuation_matrix") if module.ELEMENTS else None,
         np.array(module.ACTUATION_ROWS, dtype=index), np.array(module.ACTUATION_COLS, dtype=index), tuple(module.LOADS),
         function("loads") if module.LOADS else None, np.array(module.LOAD_ROWS, dtype=index), np.array(module.LOAD_COLS, dtype=index),
-        tuple(module.LOAD_KEYS), function("inertia") if getattr(module, "INERTIA_COLS", ()) else None,
-        np.array(getattr(module, "INERTIA_COLS", ()), dtype=index),
+        tuple(module.LOAD_KEYS), function("inertia") if module.INERTIA_COLS else None, np.array(module.INERTIA_COLS, dtype=index),
     )  # fmt: skip
 
 

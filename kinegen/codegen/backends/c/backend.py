@@ -267,7 +267,7 @@ class _Model:
             actuation=f"&kernels[{shared.index('actuation')}]" if "actuation" in shared else "NULL",
             loads=f"&kernels[{shared.index('loads')}]" if "loads" in shared else "NULL",
             inertia=f"&kernels[{shared.index('inertia')}]" if "inertia" in shared else "NULL",
-            joint_rows=len(next(iter(d.cases.values())).constraints) - len(next(iter(d.cases.values())).drivers),
+            joint_rows=d.joint_rows,
         )  # fmt: skip
 
     def render(self, templates) -> dict[str, str]:
