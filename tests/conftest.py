@@ -5,6 +5,7 @@ from __future__ import annotations
 import functools
 from pathlib import Path
 
+import numpy as np
 import pytest
 
 from kinegen import rotations
@@ -47,6 +48,17 @@ def generated_system(stem: str, case: str | None = None, compiled: bool = False)
 @functools.cache
 def model(name: str):
     return load(MODELS / f"{name}.yaml")
+
+
+def nominal_inertia(name: str, body) -> tuple[float, np.ndarray, np.ndarray]:
+    """A body's mass [kg], centre of mass (3,) and inertia tensor (3, 3) of the model ``name`` at its
+    design parameters' nominal values (the excavator's upper structure depends on its counterweight)."""
+    from kinegen.model.schema import design_value
+
+    design = {d.name: float(d.nominal) for d in model(name).design}
+    inertia = body.inertia
+    return (design_value(inertia.mass, design), np.array([design_value(x, design) for x in inertia.center]),
+            np.array([[design_value(x, design) for x in row] for row in inertia.tensor.tolist()]))  # fmt: skip
 
 
 #: tests that read :func:`excavator_working_range` run in one test process (make test distributes

@@ -360,7 +360,13 @@ def solved_prefix(name: str, case: str):
 def test_power_balance_along_every_shipped_case(which, force, moment, pick, in_body_axes):
     """Any wrench at any named point of any moving body, along every shipped case (each model's own
     actuation: its motors and hydraulic cylinders, else the case's drivers): the elements' power
-    balances the load's to 1e-9 of the largest term."""
+    balances the load's to 1e-9 of |f| |L'| + (|F| + |M| / 1 m) s at each time point, s the case's
+    speed (the largest |v| + |ω| of a body frame). The forces carry the solve's rounding, about
+    eps x cond(force matrix) x |f|, and a point's velocity that of the motion's speed, so that is the
+    scale of the sum's error -- not the matched terms f_i L'_i: a small load beside a toggle needs
+    large forces whose powers cancel (4 N at bucket_link.J on bucket_toggle: 0.95 W each way), and a
+    point on a joint axis moves at rounding speed. Measured over 150 random loads on bucket_toggle
+    (cond <= 1.1e3): at most 1.8e-10 of |f| |L'| + |P_load|."""
     name, case = which
     m = model(name)
     points = [(b.name, p) for b in m.bodies for p in b.points]
@@ -372,8 +378,11 @@ def test_power_balance_along_every_shipped_case(which, force, moment, pick, in_b
     held = forces(results, loaded, ["random"])
     rates = _element_rates(held, loaded)
     work = np.einsum("ki,ki->k", held.force, rates)
-    scale = max(np.abs(held.force * rates).max(), np.abs(_load_power(results, [load])).max(), 1.0)  # W
-    np.testing.assert_allclose(work + _load_power(results, [load]), 0.0, atol=1e-9 * scale)
+    power = _load_power(results, [load])
+    speed = max((np.linalg.norm(results.velocity(b), axis=1) + np.linalg.norm(results.omega(b), axis=1)).max() for b in results.system.bodies)
+    size = functools.partial(np.hypot.reduce, axis=-1)  # |x| without the underflow of sum(x^2) (Hypothesis tries 1e-225 N)
+    scale = size(held.force) * size(rates) + (size(force) + size(moment)) * speed
+    assert np.all(np.abs(work + power) <= 1e-9 * scale + 1e-300)  # W, per time point
 
 
 def test_info_shows_the_force_sections():

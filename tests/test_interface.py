@@ -265,7 +265,7 @@ def test_no_import_cycle_among_kinegens_modules():
 def test_kinds_are_listed_once_and_every_listed_kind_has_its_equations():
     """The loader, the constraint builders, the studies and the CLI's choices read one list each;
     a kind listed without equations (or equations of an unlisted kind) stops the import."""
-    from kinegen.analysis.studies import MEASURES
+    from kinegen.analysis.studies import DESIGN_MEASURES, MEASURES
     from kinegen.constraints import drivers, joints
     from kinegen.model import loader
     from kinegen.model.kinds import DRIVER_KINDS, JOINT_KINDS, check_registered
@@ -273,7 +273,8 @@ def test_kinds_are_listed_once_and_every_listed_kind_has_its_equations():
 
     assert set(joints.BUILDERS) == set(JOINT_KINDS) and set(drivers.BUILDERS) == set(DRIVER_KINDS)
     assert loader.JOINT_TYPES == tuple(JOINT_KINDS) and loader.DRIVER_TYPES == tuple(DRIVER_KINDS)
-    assert set(MEASURES) | {"working_range"} == set(QUANTITY_KINDS)
+    assert set(MEASURES) | set(DESIGN_MEASURES) | {"working_range"} == set(QUANTITY_KINDS)
+    assert not set(MEASURES) & set(DESIGN_MEASURES)
     with pytest.raises(ImportError, match=r"kinds without equations \['helical'\]"):
         check_registered("joints", {**JOINT_KINDS, "helical": None}, joints.BUILDERS)
     for name, kind in JOINT_KINDS.items():  # each kind's equation count, as its builder gives it, for the model shipped with it

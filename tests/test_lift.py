@@ -15,7 +15,7 @@ import pytest
 
 from kinegen.forces.lift import HYDRAULIC_SHARE, TIPPING_SHARE, G, lift_chart
 from tests import excavator_reference as ref
-from tests.conftest import generated_system, model
+from tests.conftest import generated_system, model, nominal_inertia
 
 BUCKET0 = 1.857898  # the digging case's start
 H = 1e-6
@@ -34,7 +34,7 @@ def _q(boom: float, arm: float) -> np.ndarray:
 
 def _masses() -> dict[str, tuple[float, np.ndarray]]:
     """Each moving body's mass and centre of mass (x, z) in its body coordinates, from the model file."""
-    return {b.name: (float(b.inertia.mass), np.array([float(b.inertia.center[0]), float(b.inertia.center[2])])) for b in model("excavator").massive}
+    return {b.name: (nominal_inertia("excavator", b)[0], nominal_inertia("excavator", b)[1][[0, 2]]) for b in model("excavator").massive}
 
 
 def _centers(boom: float, arm: float) -> dict[str, np.ndarray]:

@@ -31,7 +31,7 @@ from scipy.optimize import minimize
 
 from kinegen.errors import KinegenError
 from kinegen.model.kinds import check_registered
-from kinegen.model.schema import GROUND, QUANTITY_KINDS, Model, Quantity, Study, design_gradient, design_value
+from kinegen.model.schema import GROUND, MACHINE, QUANTITY_KINDS, Model, Quantity, Study, design_gradient, design_value
 from kinegen.runtime import Solver, from_module
 from kinegen.runtime.results import Results
 
@@ -155,7 +155,11 @@ class StudyProblem:
         derivatives: dict[str, np.ndarray] = {}
         by_case: dict[str, list[Quantity]] = {}
         for quantity in self.quantities:
-            if quantity.kind == "working_range":
+            if quantity.kind in DESIGN_MEASURES:  # the design's alone: no solve
+                values[quantity.label], derivative = DESIGN_MEASURES[quantity.kind](self.model, design, quantity)
+                if gradients:
+                    derivatives[quantity.label] = derivative[self.index]
+            elif quantity.kind == "working_range":
                 by_case.setdefault("", []).append(quantity)
             else:
                 by_case.setdefault(str(quantity.case), []).append(quantity)
@@ -462,9 +466,11 @@ def _limit_gradient(actuator, f: float, d_f: np.ndarray, design: dict[str, float
 
 
 def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
-    """The hydraulic lift capacity (kN) with the lift point at ``q.at``; its derivative moves the
-    placing inputs with the design (du/dp = -(dP/du)^-1 dP/dp keeps the point in place)."""
-    from kinegen.forces.lift import _Placer
+    """The lift capacity (kN: a load's weight) with the lift point at ``q.at`` over ``q.over``: ISO
+    10567's rating (the smaller of 75 % of the tipping load and 87 % of the hydraulic capacity) or
+    either whole limit (``q.limit``). Its derivative is that of the limit that rules, the placing
+    inputs moving with the design (du/dp = -(dP/du)^-1 dP/dp keeps the point in place)."""
+    from kinegen.forces.lift import HYDRAULIC_SHARE, TIPPING_SHARE, G, _Placer, tipping_load_changes
     from kinegen.forces.sensitivity import MultiplierChanges, _TangentChanges
     from kinegen.runtime.sensitivity import configuration_sensitivities
 
@@ -474,13 +480,21 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     found = placer.at(*q.at)
     if found is None:
         raise KinegenError(f"{q.label}: the lift point cannot be placed there")
-    value = found.capacity / 1e3
+    side = q.over == "side"
+    tipping = found.tipping_side if side else found.tipping_front  # kg
+    if q.limit == "rated":
+        rated, ruling = found.rated(side)
+        value, share = rated * G, HYDRAULIC_SHARE if ruling == "hydraulic" else TIPPING_SHARE
+    else:
+        ruling, share = q.limit, 1.0
+        value = found.capacity if ruling == "hydraulic" else tipping * G
+    if not np.isfinite(value):
+        raise KinegenError(f"{q.label}: the machine cannot tip over its {q.over} with the load there (inside the tipping line)")
     if not gradients:
-        return value, None
+        return value / 1e3, None
     u = np.array([found.inputs[n] for n in system.driver_names])
     _, pose, statics, matrix, multipliers, weight = placer.held(u[placer.index])
     body, point = chart.point.body, chart.point.name
-    force = np.array([[0.0, 0.0, -1.0]])
     by_design, by_input = configuration_sensitivities(system, pose[:, None], u[:, None])
     position = statics.position(body, statics.local(body, point))
     jacobian = np.zeros((3, system.n_velocity))
@@ -490,7 +504,10 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     d_point = _TangentChanges(statics, by_design).point(body, point)[1][0]  # dP/dp at held inputs, (3, P)
     d_inputs = -np.linalg.solve((jacobian @ moved)[in_plane], d_point[in_plane])  # (2, P)
     moving = by_design + (moved @ d_inputs)[None]
-    change = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=moving)
+    if ruling == "tipping":
+        d_front, d_side = tipping_load_changes(model, statics, _TangentChanges(statics, moving), placer.weighed, q.at[0])
+        return value / 1e3, share * G * (d_side if side else d_front) / 1e3
+    change = MultiplierChanges(statics, matrix, multipliers, body, point, np.array([[0.0, 0.0, -1.0]]), s=moving)
     names = [e.name for e in statics.elements]
     per_newton = statics.element_forces(multipliers)[0]
     actuator = next(a for a in model.actuators if a.name == found.limiting)
@@ -501,7 +518,7 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
         carried = statics.element_forces(weight)[0, k]
         changes = MultiplierChanges(statics, matrix, weight, None, None, None, s=moving, weights=statics.weight_terms(placer.weighed))
         d_carried = -changes.d_multipliers[0, statics.joint_rows + k]
-    return value, _limit_gradient(actuator, f, d_f, system.design, actuator.name == chart.lifting, carried, d_carried) / 1e3
+    return value / 1e3, share * _limit_gradient(actuator, f, d_f, system.design, actuator.name == chart.lifting, carried, d_carried) / 1e3
 
 
 def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
@@ -527,12 +544,79 @@ def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gra
     return value, gradient / 1e6
 
 
+def _mass(model: Model, design: dict[str, float], q: Quantity) -> tuple[float, np.ndarray]:
+    """The mass (t) of ``q.body`` or of the whole machine at ``design``, and its exact gradient (every
+    design parameter, the module's order)."""
+    order = list(design)
+    if q.body == MACHINE:
+        expressions = [b.inertia.mass for b in model.massive] + [model.machine.undercarriage_mass]
+    else:
+        expressions = [next(b for b in model.massive if b.name == q.body).inertia.mass]
+    return (sum(design_value(e, design) for e in expressions) / 1e3,
+            sum(design_gradient(e, order, design) for e in expressions) / 1e3)  # fmt: skip
+
+
+def _tipping_margin(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """The smallest tipping margin (kN m) over the case and its lines; per time point every line's
+    margin and its exact derivative (:func:`kinegen.forces.dynamics.tipping_margin`)."""
+    from kinegen.forces.dynamics import tipping_margin
+
+    loads = (str(q.load),) if q.load else ()
+    margin = tipping_margin(results, problem.model, loads, q.inertia, changes=gradients)
+    points = np.concatenate(list(margin.margins.values())) / 1e3
+    k = int(np.argmin(points))
+    if not gradients:
+        return float(points[k]), None, (points, None)
+    d_points = np.concatenate(list(margin.changes.values())) / 1e3
+    return float(points[k]), d_points[k], (points, d_points)
+
+
+def _peak_pressure(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
+    """The largest pressure (MPa) the actuator needs over the case at its speed (inverse dynamics:
+    the weights, the d'Alembert forces and the load, if any), and its exact derivative at that time
+    point (:class:`kinegen.forces.sensitivity.MultiplierChanges` with ``inertia``, the inputs' time
+    functions held)."""
+    from kinegen.forces import forces
+    from kinegen.forces.sensitivity import MultiplierChanges
+    from kinegen.forces.statics import Statics
+
+    model, name = problem.model, str(q.actuator)
+    loads = [str(q.load)] if q.load else []
+    held = forces(results, model, loads, inertia=True)
+    pressure = held.pressures[name]
+    k = int(np.argmax(pressure.pressure))
+    value = float(pressure.pressure[k]) / 1e6
+    if not gradients:
+        return value, None
+    at = results.time_points(slice(k, k + 1))
+    statics = Statics(at, model)
+    matrix = statics.matrix()
+    multipliers = statics.solve(matrix, held.generalized_load[k : k + 1])
+    body = point = force = None
+    if q.load:
+        load = model.loads[str(q.load)]
+        if load.axes != GROUND or any(x != 0 for x in load.moment) or any(e.free_symbols for e in load.force):
+            raise KinegenError(f"{q.label}: its gradient needs a constant force in global axes (load {load.name})")
+        body, point, force = load.point.body, load.point.name, np.array([[float(x) for x in load.force]])
+    changes = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=at.state_sensitivities()[0], inertia=True)
+    names = [e.name for e in statics.elements]
+    d_force = -changes.d_multipliers[0, statics.joint_rows + names.index(name)]
+    hydraulics = problem.actuators[name].hydraulics
+    design, order = results.system.design, list(results.system.design)
+    side = 0 if pressure.cap_side[k] else 1
+    area, d_area = hydraulics.areas(design)[side], hydraulics.area_gradients(order, design)[side]
+    f = held.element_force(name)[k]
+    return value, (np.sign(f) * d_force / area - abs(f) * d_area / area**2) / 1e6
+
+
 MEASURES: dict[str, Callable] = {
     "digging_force": _relief_tool_force,
     "crowd_force": _relief_tool_force,
     "cylinder_pressure": _cylinder_pressure,
     "pin_load": _pin_load,
     "lift_capacity": _lift_capacity,
+    "tipping_margin": _tipping_margin,
+    "peak_pressure": _peak_pressure,
     "tool_force": _tool_force,
     "transmission_angle": _transmission_angle,
     "rotation_range": _rotation_range,
@@ -541,8 +625,10 @@ MEASURES: dict[str, Callable] = {
     "toggle_margin": _toggle_margin,
 }
 # every quantity a study may name (kinegen.model.schema.QUANTITY_KINDS, the one list) is measured here:
-# the working range's figures by the envelope (above), the others by MEASURES
-check_registered("kinegen.analysis.studies", {k: None for k in QUANTITY_KINDS if k != "working_range"}, MEASURES)
+#: quantities of the design alone, measured without a solve: (model, design, quantity) -> (value, gradient)
+DESIGN_MEASURES: dict[str, Callable] = {"mass": _mass}
+# the working range's figures by the envelope (above), the design's own by DESIGN_MEASURES, the others by MEASURES
+check_registered("kinegen.analysis.studies", {k: None for k in QUANTITY_KINDS if k not in ("working_range", *DESIGN_MEASURES)}, MEASURES)
 
 
 # ---- running a study ----------------------------------------------------------------------------

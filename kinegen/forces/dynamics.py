@@ -13,6 +13,7 @@ origin's height for g along −z). SI units; global axes.
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass
 
 import numpy as np
@@ -101,58 +102,146 @@ TIPPING_LINES = {
 class TippingMargin:
     """The stability along a motion: per time point the moment [N m] that keeps the machine on the
     ground about its nearest tipping line (positive: stable; the smallest of the four lines) and
-    that line's name."""
+    that line's name; with ``changes``, every line's margin's derivative by the design parameters."""
 
     margin: np.ndarray  #: (K,)
     line: np.ndarray  #: (K,) of str: front, rear, left or right
     margins: dict[str, np.ndarray]  #: every line's (K,)
+    changes: dict[str, np.ndarray] | None = None  #: every line's d margin / d p, (K, n_design) [N m per unit]
 
 
-def tipping_margin(results: Results, model: Model, loads: tuple[str, ...] = (), inertia: bool = True) -> TippingMargin:
+def tipping_margin(results: Results, model: Model, loads: tuple[str, ...] = (), inertia: bool = True, changes: bool = False) -> TippingMargin:
     """The tipping margin along ``results`` (a model with masses and a ``machine:`` section): about
     each of the undercarriage's tipping lines (over the front and rear at half the tumbler distance,
     over the sides at half the gauge; on the ground, z = 0), minus the moment of every force on the
     machine tending to turn it over that line -- the weights (the undercarriage's too), the named
-    ``loads`` and, with ``inertia``, the bodies' d'Alembert forces."""
+    ``loads`` and, with ``inertia``, the bodies' d'Alembert forces.
+
+    With ``changes``, also each line's margin's exact derivative by the design parameters (the
+    module's sensitivity kernels): the frames' changes along (dq/dp, dv/dp, da/dp)
+    (:func:`kinegen.runtime.sensitivity.frame_sensitivities`) and the design's own in the masses,
+    centres, inertias, loads' points and the undercarriage, by the product rule on the sums below."""
     machine = model.machine
     if machine is None or not model.massive:
         raise KinegenError(f"the model {model.name!r} needs masses and a machine: section (undercarriage, tracks) for its tipping margin")
-    design = results.system.design
-
-    def number(x) -> float:
-        return design_value(x, design)
-
-    gravity = np.array([number(x) for x in model.gravity])
-    k = len(results.times)
-    forces_at: list[tuple[np.ndarray, np.ndarray, np.ndarray]] = []  # (point (K, 3), force (K, 3), moment (K, 3))
-    under = np.array([number(x) for x in machine.undercarriage_center])
-    forces_at.append((np.broadcast_to(under, (k, 3)), np.broadcast_to(number(machine.undercarriage_mass) * gravity, (k, 3)), np.zeros((k, 3))))
+    wrenches = _Wrenches(results, model, changes)
+    wrenches.add_undercarriage(machine)
     for body in model.massive:
-        mass, local, body_tensor = inertia_numbers(body.inertia, design)
-        rotation = results.rotation_matrix(body.name)
-        arm = rotation @ local
-        center = results.position(body.name) + arm
-        force, moment = np.broadcast_to(mass * gravity, (k, 3)).copy(), np.zeros((k, 3))
-        if inertia:
-            omega, omega_dot = results.omega(body.name), results.omega_dot(body.name)
-            acceleration = results.acceleration(body.name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
-            tensor = rotation @ body_tensor @ rotation.swapaxes(1, 2)
-            force -= mass * acceleration
-            moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
-        forces_at.append((center, force, moment))
+        wrenches.add_body(body, inertia)
     for name in loads:
-        load = model.loads[name]
-        forces_at.append((results.point_position(load.point.body, load.point.name), *load_wrench(results, load)))
-    halves = (number(machine.track_length) / 2, number(machine.gauge) / 2)
-    margins = {}
+        wrenches.add_load(model.loads[name])
+    number, gradient = wrenches.number, wrenches.gradient
+    margins, d_margins = {}, {}
     for name, (normal, which) in TIPPING_LINES.items():
-        on_line = halves[which] * normal  # a point of the line, on the ground
+        size = (machine.track_length, machine.gauge)[which]
+        on_line, d_on_line = number(size) / 2 * normal, np.outer(normal, gradient(size) / 2)  # a point of the line, on the ground
         along = np.cross([0.0, 0.0, 1.0], normal)  # a force beyond the line pushing down turns the machine about +along
-        turning = sum(np.einsum("i,ki->k", along, np.cross(point - on_line, force) + moment) for point, force, moment in forces_at)
-        margins[name] = -turning
+        margins[name] = -sum(along @ (np.cross(point - on_line, force) + moment).T for point, force, moment, *_ in wrenches.items)
+        if changes:
+            d_turning = 0.0
+            for point, force, _, d_point, d_force, d_moment in wrenches.items:
+                arm_change = d_point - d_on_line[None]
+                d_turning = d_turning + np.einsum("i,kip->kp", along, np.cross(arm_change, force[:, :, None], axis=1)
+                                                  + np.cross((point - on_line)[:, :, None], d_force, axis=1) + d_moment)  # fmt: skip
+            d_margins[name] = -d_turning
     stacked = np.stack(list(margins.values()))
     nearest = np.argmin(stacked, axis=0)
-    return TippingMargin(stacked[nearest, np.arange(k)], np.array(list(margins))[nearest], margins)
+    count = np.arange(stacked.shape[1])
+    return TippingMargin(stacked[nearest, count], np.array(list(margins))[nearest], margins, d_margins if changes else None)
+
+
+class _Wrenches:
+    """The forces on the machine for its tipping margin, each (point (K, 3), force (K, 3), moment
+    (K, 3)) in global axes, with their design changes ((K, 3, P) each; zeros unless ``changes``)."""
+
+    def __init__(self, results: Results, model: Model, changes: bool) -> None:
+        from kinegen.model.schema import design_gradient
+
+        self.results, self.model, self.changes = results, model, changes
+        design = results.system.design
+        self.order = list(design)
+        self.count, self.n_design = len(results.times), len(self.order)
+        self.number = lambda x: design_value(x, design)
+        self.gradient = lambda x: np.asarray(design_gradient(x, self.order, design), dtype=float).reshape(self.n_design)
+        self.gravity = np.array([self.number(x) for x in model.gravity])
+        self.d_gravity = np.array([self.gradient(x) for x in model.gravity])  # (3, P)
+        self.frames = results.frame_sensitivities() if changes else None
+        self.items: list[tuple[np.ndarray, ...]] = []
+
+    def _zeros(self) -> np.ndarray:
+        return np.zeros((self.count, 3, self.n_design))
+
+    def _frame(self, body: str, field: str) -> np.ndarray:
+        """A frame value's change (K, 3, P) or the rotation's (K, 3, 3, P)."""
+        system = self.results.system
+        values = self.frames[:, list(system.bodies).index(body), system.frame_slices[field]]
+        return values.reshape(self.count, 3, 3, -1) if field == "rotation" else values
+
+    def add_undercarriage(self, machine) -> None:
+        mass = self.number(machine.undercarriage_mass)
+        center = np.array([self.number(x) for x in machine.undercarriage_center])
+        d_center = np.array([self.gradient(x) for x in machine.undercarriage_center])
+        d_force = np.outer(self.gravity, self.gradient(machine.undercarriage_mass)) + mass * self.d_gravity
+        k = self.count
+        self.items.append((np.broadcast_to(center, (k, 3)), np.broadcast_to(mass * self.gravity, (k, 3)), np.zeros((k, 3)),
+                           np.broadcast_to(d_center, (k, 3, self.n_design)), np.broadcast_to(d_force, (k, 3, self.n_design)), self._zeros()))  # fmt: skip
+
+    def add_body(self, body, inertia: bool) -> None:
+        results, name = self.results, body.name
+        mass, local, body_tensor = inertia_numbers(body.inertia, results.system.design)
+        rotation = results.rotation_matrix(name)
+        arm = rotation @ local
+        center = results.position(name) + arm
+        force, moment = np.broadcast_to(mass * self.gravity, (self.count, 3)).copy(), np.zeros((self.count, 3))
+        omega, omega_dot = results.omega(name), results.omega_dot(name)
+        acceleration = results.acceleration(name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
+        tensor = rotation @ body_tensor @ rotation.swapaxes(1, 2)
+        if inertia:
+            force -= mass * acceleration
+            moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
+        if not self.changes:
+            self.items.append((center, force, moment, None, None, None))
+            return
+        d_mass = self.gradient(body.inertia.mass)
+        d_local = np.array([self.gradient(x) for x in body.inertia.center])  # (3, P)
+        d_body_tensor = np.array([[self.gradient(x) for x in row] for row in body.inertia.tensor.tolist()])  # (3, 3, P)
+        d_rotation = self._frame(name, "rotation")
+        d_arm = np.einsum("kijp,j->kip", d_rotation, local) + np.einsum("kij,jp->kip", rotation, d_local)
+        d_center = self._frame(name, "origin") + d_arm
+        d_force = np.outer(self.gravity, d_mass)[None] + mass * self.d_gravity[None]
+        d_moment = self._zeros()
+        if inertia:
+            cross = functools.partial(np.cross, axis=1)
+            d_omega, d_omega_dot = self._frame(name, "angular_velocity"), self._frame(name, "angular_acceleration")
+            w, w_dot, r = omega[:, :, None], omega_dot[:, :, None], arm[:, :, None]
+            d_acceleration = (self._frame(name, "acceleration") + cross(d_omega_dot, r) + cross(w_dot, d_arm)
+                              + cross(d_omega, cross(w, r)) + cross(w, cross(d_omega, r) + cross(w, d_arm)))  # fmt: skip
+            d_force = d_force - acceleration[:, :, None] * d_mass[None, None] - mass * d_acceleration
+            d_tensor = (np.einsum("kijp,jl,kml->kimp", d_rotation, body_tensor, rotation)
+                        + np.einsum("kij,jlp,kml->kimp", rotation, d_body_tensor, rotation)
+                        + np.einsum("kij,jl,kmlp->kimp", rotation, body_tensor, d_rotation))  # fmt: skip
+            spin = np.einsum("kij,kj->ki", tensor, omega)[:, :, None]
+            d_spin = np.einsum("kijp,kj->kip", d_tensor, omega) + np.einsum("kij,kjp->kip", tensor, d_omega)
+            d_moment = -(np.einsum("kijp,kj->kip", d_tensor, omega_dot) + np.einsum("kij,kjp->kip", tensor, d_omega_dot)
+                         + cross(d_omega, spin) + cross(w, d_spin))  # fmt: skip
+        self.items.append((center, force, moment, d_center, np.broadcast_to(d_force, (self.count, 3, self.n_design)), d_moment))
+
+    def add_load(self, load) -> None:
+        from kinegen.runtime.sensitivity import point_sensitivity
+
+        results = self.results
+        body, point = load.point.body, load.point.name
+        force, moment = load_wrench(results, load)
+        if not self.changes:
+            self.items.append((results.point_position(body, point), force, moment, None, None, None))
+            return
+        d_force, d_moment = self._zeros(), self._zeros()
+        if load.axes != GROUND:  # turned with its body: F = R f, dF = dR f
+            d_rotation = self._frame(load.axes, "rotation")
+            inverse = results.rotation_matrix(load.axes).swapaxes(1, 2)
+            d_force = np.einsum("kijp,kjl,kl->kip", d_rotation, inverse, force)
+            d_moment = np.einsum("kijp,kjl,kl->kip", d_rotation, inverse, moment)
+        self.items.append((results.point_position(body, point), force, moment, point_sensitivity(results, body, point), d_force, d_moment))
 
 
 def time_vector(vector: sp.ImmutableMatrix, times: np.ndarray) -> np.ndarray:

@@ -275,6 +275,41 @@ def tipping_loads(model: Model, statics: Statics, bodies: list, radius: float) -
     return out[0], out[1]
 
 
+def tipping_load_changes(model: Model, statics: Statics, changes, bodies: list, radius: float) -> tuple[np.ndarray, np.ndarray]:
+    """d/d(design parameters) (P,) of :func:`tipping_loads` [kg per unit], the pose moving as
+    ``changes`` (a :class:`kinegen.forces.sensitivity._TangentChanges` along the pose's change) says
+    and the load's radius held: with T = R / (r - d), R = Σ m_i (d - x_i) + m_u (d - x_u),
+    dT = (Σ dm_i (d - x_i) + m_i (dd - dx_i) + dm_u (d - x_u) + m_u (dd - dx_u)) / (r - d) + T dd / (r - d);
+    zero where the radius is inside the line."""
+    from kinegen.model.schema import design_gradient
+
+    machine = model.machine
+    design = statics.system.design
+    order = list(design)
+    value = functools.partial(design_value, design=design)
+    gradient = functools.partial(design_gradient, names=order, design=design)
+    count = len(order)
+    restoring_terms = []  # (mass, d mass, along, d along) per weight: the bodies' at the pose, then the undercarriage's per line
+    for body in bodies:
+        local = statics.design_vector(body.inertia.center)
+        d_local = np.array([gradient(x) for x in body.inertia.center]).reshape(3, count)
+        position, d_position, _, _ = changes.point_at(body.name, local, d_local)
+        restoring_terms.append((value(body.inertia.mass), gradient(body.inertia.mass), position[0, 0], d_position[0, 0]))
+    under_mass, d_under_mass = value(machine.undercarriage_mass), gradient(machine.undercarriage_mass)
+    out = []
+    for line_size, axis in ((machine.track_length, 0), (machine.gauge, 1)):
+        line, d_line = value(line_size) / 2, gradient(line_size) / 2
+        if radius <= line:
+            out.append(np.zeros(count))
+            continue
+        center = machine.undercarriage_center[axis]
+        terms = [*restoring_terms, (under_mass, d_under_mass, value(center), gradient(center))]
+        restoring = sum(m * (line - x) for m, _, x, _ in terms)
+        d_restoring = sum(dm * (line - x) + m * (d_line - dx) for m, dm, x, dx in terms)
+        out.append(d_restoring / (radius - line) + restoring * d_line / (radius - line) ** 2)
+    return out[0], out[1]
+
+
 def lift_chart_figure(chart: LiftChart, boundary=None):
     """The lift chart over the working range's outline (the boom plane: radius from the swing axis,
     height above the ground): at each grid point and at each height's largest reach, the rated load

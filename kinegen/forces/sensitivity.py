@@ -41,10 +41,13 @@ class MultiplierChanges:
     ``point`` (None: no such load) and the ``weights`` (:meth:`Statics.weight_terms`: constant forces
     at body points), the inputs held (the module docstring) -- or the pose moving by ``s`` (K, n_v, P)
     per parameter, when the inputs move with the design (a lift point held in place); and the joints'
-    reactions' changes from it."""
+    reactions' changes from it. With ``inertia``, the load also holds the bodies' weights and
+    d'Alembert forces along the motion (``statics``' results with their velocities and accelerations:
+    inverse dynamics, the inputs' time functions held), :func:`inertial_load_changes`."""
 
     def __init__(self, statics: Statics, matrix: Rows, multipliers: np.ndarray, body: str | None, point: str | None,
-                 force: np.ndarray | None, s: np.ndarray | None = None, weights: list | None = None) -> None:  # fmt: skip
+                 force: np.ndarray | None, s: np.ndarray | None = None, weights: list | None = None,
+                 inertia: bool = False) -> None:  # fmt: skip
         system = statics.system
         if not statics.declared:
             raise KinegenError("force sensitivities need the model's declared actuation (motors, hydraulic actuators)")
@@ -66,6 +69,8 @@ class MultiplierChanges:
         for weighed, local, d_local, weight, d_weight in weights or ():  # constant forces at body points (the weights)
             jacobian, jacobian_change = maps.point_jacobian_at(weighed, local, d_local)
             change[:, statics.columns(weighed)] += np.einsum("kicp,i->kcp", jacobian_change, weight) + np.einsum("kic,ip->kcp", jacobian, d_weight)
+        if inertia:
+            change += inertial_load_changes(statics, maps)
         out = np.empty_like(change)
         for k in range(len(change)):
             lu, pivots, _ = dgetrf(matrix.dense(k))
@@ -104,6 +109,31 @@ class MultiplierChanges:
             arm[:, None, :], d_force.transpose(0, 2, 1)
         ).transpose(0, 2, 1)
         return force, d_force, moment_p, d_moment_p
+
+
+def inertial_load_changes(statics: Statics, maps: _TangentChanges) -> np.ndarray:
+    """d Q_inertia / dp (K, n_v, P) along ``statics``' motion (its results' q, v, a): per massive body
+    Q = J_Cᵀ F + T_ωᵀ M with F = m (g − a_C) at the centre of mass C and M = −(J ω̇ + ω × J ω)
+    (:mod:`kinegen.forces.dynamics`), so dQ = dJ_Cᵀ F + J_Cᵀ dF + dT_ωᵀ M + T_ωᵀ dM: the tangent maps'
+    changes from ``maps``, the wrench's from the frames' changes along (dq/dp, dv/dp, da/dp) and the
+    design's own in the masses, centres and inertias. The generated ``inertia`` kernel is its value."""
+    from kinegen.forces.dynamics import _Wrenches, inertia_numbers
+
+    results, model = statics.results, statics.model
+    design = statics.system.design
+    wrenches = _Wrenches(results, model, changes=True)
+    out = np.zeros((len(results.times), statics.n_v, maps.s.shape[2]))
+    for body in model.massive:
+        wrenches.add_body(body, inertia=True)
+        _, force, moment, _, d_force, d_moment = wrenches.items[-1]
+        local = inertia_numbers(body.inertia, design)[1]
+        d_local = np.array([wrenches.gradient(x) for x in body.inertia.center])
+        jacobian, d_jacobian = maps.point_jacobian_at(body.name, local, d_local)  # (K, 3, n_vb), (K, 3, n_vb, P)
+        tw = statics.tangents[body.name][1]
+        out[:, statics.columns(body.name)] += (np.einsum("kicp,ki->kcp", d_jacobian, force) + np.einsum("kic,kip->kcp", jacobian, d_force)
+                                               + np.einsum("kicp,ki->kcp", maps.dw[body.name], moment)
+                                               + np.einsum("kic,kip->kcp", tw, d_moment))  # fmt: skip
+    return out
 
 
 def _transpose_times_change(matrix: Rows, d_multipliers: np.ndarray, rows: list[int]) -> np.ndarray:

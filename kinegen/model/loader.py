@@ -406,7 +406,9 @@ class _Reader:
         working_range = self.working_range(top.get("working_range"), cases) if "working_range" in top else None
         tool_forces = read_tool_forces(self, top["tool_forces"], cases, actuators, tool_points, working_range) if "tool_forces" in top else None
         lift_chart = read_lift_chart(self, top["lift_chart"], cases, actuators, working_range) if "lift_chart" in top else None
-        self.loads, self.tool_forces, self.lift_chart = loads, tool_forces, lift_chart  # what the studies' force quantities refer to
+        machine = read_machine(self, top.get("machine"))
+        self.loads, self.tool_forces, self.lift_chart, self.machine = loads, tool_forces, lift_chart, machine  # what the studies' force quantities refer to
+        self.massive = tuple(name for name, body in self.bodies.items() if body.inertia is not None)
         studies = read_studies(self, top.get("studies"), cases, actuators, working_range) if "studies" in top else {}
         return Model(
             name=name,
@@ -430,7 +432,7 @@ class _Reader:
             tool_forces=tool_forces,
             lift_chart=lift_chart,
             gravity=read_gravity(self, top.get("gravity")),
-            machine=read_machine(self, top.get("machine")),
+            machine=machine,
         )
 
     def read_design(self, value: Any) -> None:

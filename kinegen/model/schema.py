@@ -341,8 +341,16 @@ class DesignParameter:
 QUANTITY_UNITS = {
     "working_range": "m", "rotation_range": "rad", "stroke": "m", "toggle_margin": "1", "actuator_margin": "m",
     "transmission_angle": "rad", "digging_force": "kN", "crowd_force": "kN", "cylinder_pressure": "MPa", "pin_load": "kN",
-    "lift_capacity": "kN", "tool_force": "kN",
+    "lift_capacity": "kN", "tool_force": "kN", "tipping_margin": "kN m", "peak_pressure": "MPa", "mass": "t",
 }  # fmt: skip
+#: a mass quantity's name for the whole machine (the moving bodies and the undercarriage)
+MACHINE = "machine"
+#: a lift_capacity's sides (``over``) and limits (``limit``): ISO 10567's rated capacity (the smaller of
+#: 75 % of the tipping load and 87 % of the hydraulic capacity) or either of its two halves unshared
+LIFT_SIDES = ("front", "side")
+LIFT_LIMITS = ("rated", "hydraulic", "tipping")
+#: a tipping_margin with or without the bodies' d'Alembert forces
+TIPPING_KINDS = ("dynamic", "static")
 QUANTITY_KINDS = tuple(QUANTITY_UNITS)
 
 
@@ -370,8 +378,19 @@ class Quantity:
       (MPa; :mod:`kinegen.forces`);
     * ``pin_load``: over ``case``, the largest force the joint named ``actuator`` carries holding
       ``load`` (kN);
-    * ``lift_capacity``: the hydraulic lift capacity with the ``lift_chart`` point at ``at`` (radius,
-      height; m), the placing inputs solved for each design (kN);
+    * ``lift_capacity``: with the ``lift_chart`` point at ``at`` (radius, height; m; the placing inputs
+      solved for each design), ``over`` the front or the side, the rated lift capacity (``limit``
+      "rated": the smaller of 75 % of the tipping load and 87 % of the hydraulic capacity, ISO 10567),
+      or the whole hydraulic capacity ("hydraulic") or the whole tipping load ("tipping"), as a
+      load's weight (kN);
+    * ``tipping_margin``: over ``case``, the smallest moment that keeps the machine on the ground
+      about its nearest tipping line (kN m; :func:`kinegen.forces.dynamics.tipping_margin`), with the
+      bodies' d'Alembert forces ("dynamic") or their weights alone ("static"), and ``load`` if named;
+    * ``mass``: the mass of ``body``, or of the whole machine (``body`` "machine": the moving bodies
+      and the ``machine:`` section's undercarriage) (t; no case: design parameters may appear in the
+      masses, e.g. a counterweight);
+    * ``peak_pressure``: over ``case`` at its speed, the largest pressure ``actuator`` needs (MPa): the
+      inverse dynamics with the bodies' weights and inertia, and ``load`` if named;
     * ``tool_force``: over ``case``'s poses, the largest force the point ``points[0]`` can exert along
       the global direction ``axis`` with every hydraulic cylinder at most at its relief setting (kN;
       a force map's value, :mod:`kinegen.forces.maps`).
@@ -388,6 +407,9 @@ class Quantity:
     points: tuple[tuple[str, str], ...] = ()  #: (body, point) each
     load: str | None = None  #: the load a cylinder_pressure is measured under
     at: tuple[float, float] | None = None  #: a lift_capacity's radius and height [m]
+    over: str = "front"  #: a lift_capacity's side (:data:`LIFT_SIDES`)
+    limit: str = "rated"  #: a lift_capacity's limit (:data:`LIFT_LIMITS`)
+    inertia: bool = True  #: a tipping_margin's d'Alembert forces ("dynamic") or not ("static")
 
     @property
     def unit(self) -> str:
@@ -400,7 +422,15 @@ class Quantity:
         if self.kind == "working_range":
             return str(self.figure)
         if self.kind == "lift_capacity" and self.at is not None:
-            return f"lift_capacity({self.at[0]:g} m, {self.at[1]:g} m)"
+            extra = "" if (self.over, self.limit) == ("front", "rated") else f", {self.over} {self.limit}"
+            return f"lift_capacity({self.at[0]:g} m, {self.at[1]:g} m{extra})"
+        if self.kind == "tipping_margin":
+            held = f" holding {self.load}" if self.load else ""
+            return f"tipping_margin({'dynamic' if self.inertia else 'static'}{held}, {self.case})"
+        if self.kind == "mass":
+            return f"mass({self.body})"
+        if self.kind == "peak_pressure" and self.load:
+            return f"peak_pressure({self.actuator} holding {self.load}, {self.case})"
         if self.kind == "tool_force" and self.points and self.axis is not None:
             (body, point), d = self.points[0], self.axis
             return f"tool_force({body}.{point} along [{d[0]:g}, {d[1]:g}, {d[2]:g}], {self.case})"

@@ -24,7 +24,11 @@ from typing import Any
 from kinegen.errors import shown
 from kinegen.model.schema import (
     GROUND,
+    LIFT_LIMITS,
+    LIFT_SIDES,
+    MACHINE,
     QUANTITY_KINDS,
+    TIPPING_KINDS,
     WORKING_RANGE_FIGURES,
     Actuator,
     Case,
@@ -40,7 +44,11 @@ from kinegen.model.schema import (
 Loader = Any
 
 #: keys a term or constraint may have besides its quantity's
-_QUANTITY_KEYS = {"rotation_range": ("relative_to", "axis"), "cylinder_pressure": ("load",), "pin_load": ("load",), "tool_force": ("direction",)}
+_QUANTITY_KEYS = {
+    "rotation_range": ("relative_to", "axis"), "cylinder_pressure": ("load",), "pin_load": ("load",), "tool_force": ("direction",),
+    "lift_capacity": ("over", "limit"), "tipping_margin": ("load",), "peak_pressure": ("load",),
+}  # fmt: skip
+_OPTIONAL_KEYS = tuple(sorted({key for keys in _QUANTITY_KEYS.values() for key in keys}))
 
 
 def read_studies(
@@ -88,7 +96,7 @@ class _StudyReader:
         self.loader, self.cases, self.actuators, self.working_range = loader, cases, actuators, working_range
 
     def term(self, value: Any, entry: str) -> Term:
-        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "direction", "weight", "target"))
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", *_OPTIONAL_KEYS, "weight", "target"))
         quantity = self.quantity(spec, entry)
         weight = self.number(spec.get("weight", 1), f"{entry}.weight")
         target = spec.get("target")
@@ -102,7 +110,7 @@ class _StudyReader:
         return Term(quantity, weight, target)
 
     def constraint(self, value: Any, entry: str) -> StudyConstraint:
-        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", "relative_to", "axis", "load", "direction", "at_least", "at_most"))
+        spec = self.loader.mapping(value, entry, (*QUANTITY_KINDS, "case", *_OPTIONAL_KEYS, "at_least", "at_most"))
         quantity = self.quantity(spec, entry)
         low, high = (self.number(spec[k], f"{entry}.{k}") if k in spec else None for k in ("at_least", "at_most"))
         if low is None and high is None:
@@ -120,7 +128,7 @@ class _StudyReader:
             raise self.loader.fail(entry, f"expected exactly one quantity ({', '.join(QUANTITY_KINDS)})")
         kind = kinds[0]
         where = f"{entry}.{kind}"
-        for key in ("relative_to", "axis"):
+        for key in _OPTIONAL_KEYS:
             if key in spec and key not in _QUANTITY_KEYS.get(kind, ()):
                 raise self.loader.fail(f"{entry}.{key}", f"not used by {kind}")
         what = spec[kind]
@@ -132,6 +140,16 @@ class _StudyReader:
             if not isinstance(what, str) or what not in WORKING_RANGE_FIGURES:
                 raise self.loader.fail(where, f"unknown figure {shown(what)} (one of {', '.join(WORKING_RANGE_FIGURES)})")
             return Quantity(kind, figure=what)
+        if kind == "mass":
+            if "case" in spec:
+                raise self.loader.fail(f"{entry}.case", "a mass is the design's, not a case's")
+            massive = getattr(self.loader, "massive", ())
+            if what == MACHINE:
+                if not self.tipping:
+                    raise self.loader.fail(where, "the machine's mass needs the bodies' masses and a machine: section (the undercarriage)")
+            elif what not in massive:
+                raise self.loader.fail(where, f"expected {MACHINE} or a body with a mass ({', '.join(massive) or 'none'}), got {shown(what)}")
+            return Quantity(kind, body=what)
         if kind == "lift_capacity":
             chart = getattr(self.loader, "lift_chart", None)
             if chart is None:
@@ -143,7 +161,10 @@ class _StudyReader:
             radius, height = (self.number(x, f"{where}[{i}]") for i, x in enumerate(what))
             if radius <= 0:
                 raise self.loader.fail(f"{where}[0]", "the radius is a distance from the swing axis: positive")
-            return Quantity(kind, chart.case, at=(radius, height))
+            over, limit = (self.choice(spec, key, choices, entry) for key, choices in (("over", LIFT_SIDES), ("limit", LIFT_LIMITS)))
+            if limit == "tipping" and not self.tipping:
+                raise self.loader.fail(f"{entry}.limit", "a tipping load needs the bodies' masses and a machine: section")
+            return Quantity(kind, chart.case, at=(radius, height), over=over, limit=limit)
         case = spec.get("case")
         if not isinstance(case, str) or case not in self.cases:
             raise self.loader.fail(f"{entry}.case", f"{kind} is measured over a case: expected one of {', '.join(self.cases)}, got {shown(case)}")
@@ -155,17 +176,28 @@ class _StudyReader:
                 raise self.loader.fail(where, "a tool force is limited by the hydraulic cylinders: the model has none")
             direction = self.unit(spec, "direction", entry, "a tool force needs its direction (global)")
             return Quantity(kind, case, points=((ref.body, ref.name),), axis=direction)
+        if kind == "tipping_margin":
+            if not self.tipping:
+                raise self.loader.fail(where, "a tipping margin needs the bodies' masses and a machine: section")
+            if what not in TIPPING_KINDS:
+                raise self.loader.fail(where, f"expected one of {', '.join(TIPPING_KINDS)} (with or without the d'Alembert forces), got {shown(what)}")
+            load = self.load(spec, entry, "a tipping margin") if "load" in spec else None
+            return Quantity(kind, case, load=load, inertia=what == "dynamic")
         if kind == "pin_load":
             joints = list(self.loader.joints)
             if not isinstance(what, str) or what not in joints:
                 raise self.loader.fail(where, f"unknown joint {shown(what)} (joints: {', '.join(joints)})")
             return Quantity(kind, case, actuator=what, load=self.load(spec, entry, "a pin load"))
-        if kind in ("digging_force", "crowd_force", "cylinder_pressure"):
+        if kind in ("digging_force", "crowd_force", "cylinder_pressure", "peak_pressure"):
             hydraulic = [a for a, actuator in self.actuators.items() if actuator.hydraulics is not None]
             if not isinstance(what, str) or what not in hydraulic:
                 raise self.loader.fail(where, f"{shown(what)} is not an actuator with hydraulic data (those: {', '.join(hydraulic) or 'none'})")
             if kind == "cylinder_pressure":
                 return Quantity(kind, case, actuator=what, load=self.load(spec, entry, "a cylinder pressure"))
+            if kind == "peak_pressure":
+                if not getattr(self.loader, "massive", ()):
+                    raise self.loader.fail(where, "a peak pressure is the inverse dynamics' at speed: the model's bodies have no masses")
+                return Quantity(kind, case, actuator=what, load=self.load(spec, entry, "a peak pressure") if "load" in spec else None)
             if getattr(self.loader, "tool_forces", None) is None:
                 raise self.loader.fail(where, f"{kind} acts at the tool_forces section's lip: the model has none")
             return Quantity(kind, case, actuator=what)
@@ -192,6 +224,18 @@ class _StudyReader:
         relative_to = self.loader.body_name(spec.get("relative_to", GROUND), f"{entry}.relative_to")
         axis = self.unit(spec, "axis", entry, "a rotation range needs its axis (in the frame of relative_to)")
         return Quantity(kind, case, body=body, relative_to=relative_to, axis=axis)
+
+    @property
+    def tipping(self) -> bool:
+        """Whether the model has what a tipping load needs: masses and a machine: section."""
+        return bool(getattr(self.loader, "massive", ())) and getattr(self.loader, "machine", None) is not None
+
+    def choice(self, spec: dict, key: str, choices: tuple[str, ...], entry: str) -> str:
+        """``spec[key]``, one of ``choices`` (the first when absent)."""
+        value = spec.get(key, choices[0])
+        if value not in choices:
+            raise self.loader.fail(f"{entry}.{key}", f"expected one of {', '.join(choices)}, got {shown(value)}")
+        return value
 
     def load(self, spec: dict, entry: str, what: str) -> str:
         """``spec["load"]``: one of the model's loads, which ``what`` (the quantity, in words) holds."""

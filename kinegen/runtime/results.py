@@ -8,6 +8,7 @@ global positions, velocities and accelerations of named body points.
 from __future__ import annotations
 
 import csv
+import dataclasses
 import io
 import sys
 from dataclasses import dataclass
@@ -183,6 +184,13 @@ class Results:
         change = point_sensitivity(self, b2, p2) - point_sensitivity(self, b1, p1)
         out = np.einsum("ki,kij->kj", d / np.linalg.norm(d, axis=1)[:, None], change)
         return self._by_parameter(out, parameter)
+
+    def time_points(self, which: slice | np.ndarray) -> Results:
+        """These results at some of their time points (a slice or indices): what a quantity measured
+        at one time point (its maximum over a motion) differentiates there. Sensitivities are
+        recomputed for them, not sliced."""
+        fields = ("times", "q", "v", "a", "iterations", "residuals", "conditions", "inputs", "converged")
+        return dataclasses.replace(self, **{name: getattr(self, name)[which] for name in fields})
 
     def state_sensitivities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """(dq/dp, dv/dp, da/dp), each (K, n_v, n_design), in velocity coordinates (computed once)."""
