@@ -112,8 +112,11 @@ def _same_forces(c: np.ndarray, python: np.ndarray, names: list[str]) -> None:
     """Every column to 1e-12 of its scale: its largest value, or 1e-2 of the largest of all for a
     column that is zero but for rounding (a multiplier the geometry leaves unloaded, the bucket
     cylinder under a load at the bucket pin: both sides' rounding is that of the whole solve,
-    up to 2e-15 of the largest force in the dual Euler parameters)."""
-    scale = np.maximum(np.abs(python).max(axis=0), 1e-2 * np.abs(python).max())
+    up to 2e-15 of the largest force in the dual Euler parameters); the largest of the columns of its
+    own unit: pressures [Pa], moments [N m], the others (forces and multipliers)."""
+    kinds = np.array([1 if ".pressure" in n else 2 if ".moment_" in n else 0 for n in names])
+    largest = {k: np.abs(python[:, kinds == k]).max() for k in set(kinds.tolist())}
+    scale = np.maximum(np.abs(python).max(axis=0), 1e-2 * np.array([largest[k] for k in kinds]))
     error = np.abs(c - python).max(axis=0)
     assert (error <= 1e-12 * scale).all(), [(names[i], error[i], scale[i]) for i in np.flatnonzero(error > 1e-12 * scale)]
 
@@ -282,7 +285,8 @@ def test_standalone_excavator_builds_strictly_and_matches_python_in_every_case(t
 
 
 def _compare_forces(program: Path, system) -> None:
-    """`<program> case steps load ... +inertia` appends each element's force and the multipliers
+    """`<program> case steps load ... +inertia` appends each element's force, each cylinder's pressure
+    and the limit it meets, every joint's reaction (force, moment about its point) and the multipliers
     (inverse dynamics: the loads, the bodies' weight and inertia), named as `kinegen solve --load`
     names them, equal to the Python runtime's to 1e-12 of each column's scale; an unknown load is a
     usage error naming the model's loads."""
@@ -295,7 +299,7 @@ def _compare_forces(program: Path, system) -> None:
     c = np.array([[float(x) for x in row.split(",")] for row in rows])
     results = Solver(system).solve(np.linspace(system.t0, system.t1, 41))
     force_names, table = forces(results, _model_of("excavator_quaternion"), ["payload", "cutting"], inertia=True).table()
-    wanted = [n for n in force_names if n.endswith(".force") or n.startswith("lambda.")]
+    wanted = [n for n in force_names if not any(part in n for part in (".joint_force_", ".joint_moment_", "energy.", "tipping_margin"))]
     assert names[-len(wanted) :] == wanted
     _same_forces(c[:, -len(wanted) :], table[:, [force_names.index(n) for n in wanted]], wanted)
     unknown = subprocess.run([str(program), system.case, "41", "payload", "gravel"], capture_output=True, text=True, timeout=60)
@@ -323,9 +327,22 @@ def test_standalone_runs_clean_under_address_and_undefined_behaviour_sanitizers(
     # the design excavator's solver without its sensitivity kernels: example_main does not call them
     folder = _standalone(tmp_path, MODELS / "excavator.yaml", "euler-parameters", "--no-sensitivities")
     program = _compile(folder, "excavator_euler_parameters", ["-O1", "-g", "-fsanitize=address,undefined", "-fno-sanitize-recover=all"])
-    done = subprocess.run([str(program), "digging", "101"], capture_output=True, text=True, timeout=300)
+    done = subprocess.run([str(program), "digging", "101", "payload", "+inertia"], capture_output=True, text=True, timeout=300)
     assert done.returncode == 0 and "runtime error" not in done.stderr, done.stderr
     assert len(done.stdout.splitlines()) == 102
+    # the force columns with a parametrization that has normalization rows (in each body's square map
+    # of the pin reactions), against the Python runtime's
+    from kinegen.forces import forces
+
+    header, *rows = done.stdout.splitlines()
+    names = header.split(",")
+    system = from_module(load_module(GENERATED / "excavator_euler_parameters.py"), "digging", compiled=False)
+    results = Solver(system).solve(np.linspace(system.t0, system.t1, 101))
+    force_names, table = forces(results, _model_of("excavator_euler_parameters"), ["payload"], inertia=True).table()
+    wanted = [n for n in force_names if not any(part in n for part in (".joint_force_", ".joint_moment_", "energy.", "tipping_margin"))]
+    assert names[-len(wanted) :] == wanted
+    c = np.array([[float(x) for x in row.split(",")[-len(wanted) :]] for row in rows])
+    _same_forces(c, table[:, [force_names.index(n) for n in wanted]], wanted)
 
 
 def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path):

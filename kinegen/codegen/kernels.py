@@ -33,7 +33,7 @@ from kinegen.constraints import GROUND_FRAME
 from kinegen.interface import FRAME_FIELDS, FRAME_VALUES, SENSITIVITY_KERNELS
 from kinegen.model import Model
 from kinegen.model.expressions import T
-from kinegen.model.schema import GROUND
+from kinegen.model.schema import GROUND, design_value
 from kinegen.rotations import Parametrization
 from kinegen.symbolic.assembly import (
     Coordinates,
@@ -152,6 +152,16 @@ class StaticsDescription:
     #: a model with masses: the kernel ``inertia`` (q, v, a) gives the generalized force of gravity and
     #: of the bodies' inertia at these columns (empty: no masses)
     inertia_cols: tuple[int, ...] = ()
+    #: pin reactions (the C target's kinegen_reactions), per joint: its name, the body whose wrench is
+    #: reported (index; its second, or its first when the second is the ground), that wrench's sign (1,
+    #: or -1 for the first body's), the body of the joint's point (index; -1: the ground), the point's
+    #: coordinates in it at the nominal design, and the joint's rows among the joint rows
+    joints: tuple[tuple[str, int, int, int, tuple[float, float, float], tuple[int, ...]], ...] = ()
+    #: per body (in order), its normalization rows among the joint rows (parametrizations with them)
+    norm_rows: tuple[tuple[int, ...], ...] = ()
+    #: per element at the nominal design: cap and rod side areas [m^2], relief (extend, retract) and
+    #: holding (extend, retract) settings [Pa], the index of its actuator; a motor's NaN and -1
+    hydraulics: tuple[tuple[float, float, float, float, float, float, int], ...] = ()
 
 
 @dataclass
@@ -419,15 +429,18 @@ def _constant(values: list[sp.Expr]):
 
 
 def _statics(
-    model: Model, coords: Coordinates, joint_pattern: list[tuple[int, int]], mj: int, p: tuple[str, ...], section, shared: dict
+    model: Model, coords: Coordinates, joint_pattern: list[tuple[int, int]], joint_names: list[str], p: tuple[str, ...], section,
+    shared: dict,
 ) -> StaticsDescription | None:  # fmt: skip
     """The ``actuation``, ``loads`` and ``inertia`` kernels (sections made with ``section``, kernels put
     into ``shared``) and their description; None for a model with neither elements, loads nor masses.
-    ``joint_pattern``: the ``mj`` joint rows' Phi_q pattern (the first values of every case's)."""
+    ``joint_pattern``: the joint rows' Phi_q pattern (the first values of every case's); ``joint_names``
+    the joint rows' names."""
     from kinegen.symbolic.statics import element_rows, inertia_row, load_row
 
     if not model.actuation and not model.loads and not model.massive:
         return None
+    mj = len(joint_names)
     elements = element_rows(model, coords)
     matrix = [*joint_pattern, *((mj + i, c) for i, (_, _, row) in enumerate(elements) for c in row)]
     matrix_plan = None
@@ -460,8 +473,36 @@ def _statics(
         tuple((name, kind) for name, kind, _ in elements), tuple(r for r, _ in matrix) if elements else (),
         tuple(c for _, c in matrix) if elements else (), matrix_plan, tuple(name for name, _ in loads),
         tuple(r for r, _ in load_pattern), tuple(c for _, c in load_pattern), tuple(load.fingerprint for load in model.loads.values()),
-        tuple(inertia),
+        tuple(inertia), *_reaction_tables(model, coords, joint_names, [name for name, _, _ in elements]),
     )  # fmt: skip
+
+
+def _reaction_tables(model: Model, coords: Coordinates, joint_names: list[str], elements: list[str]) -> tuple[tuple, tuple, tuple]:
+    """:class:`StaticsDescription`'s ``joints``, ``norm_rows`` and ``hydraulics`` (numbers at the
+    nominal design)."""
+    nominal = {d.name: float(d.nominal) for d in model.design}
+    index = {b.name: i for i, b in enumerate(coords.bodies)}
+    rows: dict[str, list[int]] = {}
+    norms: dict[str, list[int]] = {b.name: [] for b in coords.bodies}
+    for i, name in enumerate(joint_names):
+        owner, _, rest = name.partition(".")
+        (norms[owner] if rest.startswith("norm") else rows.setdefault(owner, [])).append(i)
+    joints = []
+    for joint in model.joints:
+        body, sign = (joint.body2, 1) if joint.body2 != GROUND else (joint.body1, -1)
+        local = tuple(float(design_value(x, nominal)) for x in (joint.point2 if joint.point2 is not None else (0, 0, 0)))
+        joints.append((joint.name, index[body], sign, -1 if joint.body2 == GROUND else index[joint.body2], local, tuple(rows.get(joint.name, ()))))
+    actuators = {a.name: (i, a) for i, a in enumerate(model.actuators)}
+    hydraulics = []
+    for name in elements:
+        if name not in actuators or actuators[name][1].hydraulics is None:
+            hydraulics.append((float("nan"),) * 6 + (-1,))
+            continue
+        k, actuator = actuators[name]
+        h = actuator.hydraulics
+        settings = [design_value(x, nominal) for x in (*h.relief, *h.holding)]
+        hydraulics.append((*(float(a) for a in h.areas(nominal)), *settings, k))
+    return tuple(joints), tuple(tuple(norms[b.name]) for b in coords.bodies), tuple(hydraulics)
 
 
 def point_expressions(model: Model) -> list[sp.Expr]:
@@ -534,7 +575,7 @@ def describe(
     if model.actuators:
         shared_section("lengths", ("q", *p), (Group(None, lambda: actuator_lengths(model, coords), {}),), len(model.actuators),
                 "The length of every actuator (in the order of ACTUATORS) [m]: the distance between its two points.")  # fmt: skip
-    statics = _statics(model, coords, first.jacobian_pattern[:n_joint_entries], mj, p, section, shared)
+    statics = _statics(model, coords, first.jacobian_pattern[:n_joint_entries], [r.name for r in joints], p, section, shared)
     cases: dict[str, CaseDescription] = {}
     for name, system in systems.items():
         rows = system.rows

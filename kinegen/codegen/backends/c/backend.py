@@ -17,6 +17,7 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 from types import SimpleNamespace
 
+import numpy as np
 import sympy as sp
 
 import kinegen.codegen.backends.c.config as config
@@ -25,6 +26,7 @@ from kinegen.codegen.kernels import CaseDescription, Kernel, ModuleDescription, 
 from kinegen.codegen.shapes import Block, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
+from kinegen.interface import FRAME_VALUES
 from kinegen.model.expressions import T
 
 TEXT = 1  # position of the printed text in a Block's temporaries (after the name)
@@ -57,8 +59,16 @@ def _string_array(values) -> str:
 
 
 def _double(value: float) -> str:
-    text = repr(float(value))
+    value = float(value)
+    if not np.isfinite(value):
+        return "NAN" if np.isnan(value) else ("INFINITY" if value > 0 else "-INFINITY")
+    text = repr(value)
     return text if any(c in text for c in ".en") else text + ".0"
+
+
+def _double_array(values) -> str:
+    values = list(values)
+    return "{" + ", ".join(_double(v) for v in values) + "}" if values else "{0.0}"
 
 
 @dataclass(frozen=True)
@@ -262,8 +272,25 @@ class _Model:
                                  f"(joint rows and {len(statics.elements)} actuation elements for {nv} velocity coordinates)")  # fmt: skip
             arrays = plan_arrays(statics.matrix_rows, statics.matrix_cols, statics.plan, f"{d.model}: the force matrix")
             doubles = max(doubles, n_loads + 2 * nv + len(statics.matrix_rows) + arrays.n_store + len(arrays.off_col))
+        nb = len(d.bodies)
+        nvb = nv // max(nb, 1)
+        if nb and (any(offset != b * nvb for b, (_, _, offset) in enumerate(d.bodies)) or nvb > 8):
+            raise ValueError(f"{d.model}: the C target's pin reactions need every body's {nvb} velocity coordinates in body order (at most 8)")
+        starts, norm_starts = [0], [0]
+        for joint in statics.joints:
+            starts.append(starts[-1] + len(joint[5]))
+        for rows in statics.norm_rows:
+            norm_starts.append(norm_starts[-1] + len(rows))
+        largest_jac = max(len(c.case.jac_rows) for c in cases)
+        reaction_doubles = FRAME_VALUES * nb + 2 * nv + 6 * nvb * nb + 2 * nvb + nvb * nvb + max(len(statics.matrix_rows), nv + largest_jac)
+        reactions = SimpleNamespace(
+            names=[j[0] for j in statics.joints], body=[j[1] for j in statics.joints], sign=[j[2] for j in statics.joints],
+            point_body=[j[3] for j in statics.joints], local=[x for j in statics.joints for x in j[4]], row_start=starts,
+            rows=[r for j in statics.joints for r in j[5]], norm_start=norm_starts, norm_rows=[r for rows in statics.norm_rows for r in rows],
+            hydraulics=[x for h in statics.hydraulics for x in h], doubles=reaction_doubles, ints=max(1, d.joint_rows),
+        )  # fmt: skip
         return SimpleNamespace(
-            s=statics, plan=arrays, doubles=doubles, ints=nv,
+            s=statics, plan=arrays, doubles=doubles, ints=nv, reactions=reactions,
             actuation=f"&kernels[{shared.index('actuation')}]" if "actuation" in shared else "NULL",
             loads=f"&kernels[{shared.index('loads')}]" if "loads" in shared else "NULL",
             inertia=f"&kernels[{shared.index('inertia')}]" if "inertia" in shared else "NULL",
@@ -363,4 +390,4 @@ def render(description: ModuleDescription, stem: str, standalone: bool = True) -
     return files
 
 
-FILTERS = {"c_string": c_string, "int_array": _int_array, "string_array": _string_array, "double": _double}
+FILTERS = {"c_string": c_string, "int_array": _int_array, "string_array": _string_array, "double": _double, "double_array": _double_array}

@@ -927,6 +927,104 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
     return solved;
 }
 
+/* Solves a^T x = b for x, a an n x n row-major matrix (n <= 8), by Gaussian elimination with partial
+ * pivoting on a copy; 1 if it is singular (a zero pivot). */
+static int small_solve_transposed(int n, const double *a, const double *b, double *x) {
+    double m[8][9];
+    for (int i = 0; i < n; ++i) {
+        for (int j = 0; j < n; ++j) m[i][j] = a[j * n + i];
+        m[i][n] = b[i];
+    }
+    for (int c = 0; c < n; ++c) {
+        int p = c;
+        for (int r = c + 1; r < n; ++r)
+            if (fabs(m[r][c]) > fabs(m[p][c])) p = r;
+        if (m[p][c] == 0.0) return 1;
+        if (p != c)
+            for (int j = c; j <= n; ++j) {
+                double t = m[c][j];
+                m[c][j] = m[p][j];
+                m[p][j] = t;
+            }
+        for (int r = c + 1; r < n; ++r) {
+            double f = m[r][c] / m[c][c];
+            for (int j = c; j <= n; ++j) m[r][j] -= f * m[c][j];
+        }
+    }
+    for (int i = n - 1; i >= 0; --i) {
+        double sum = m[i][n];
+        for (int j = i + 1; j < n; ++j) sum -= m[i][j] * x[j];
+        x[i] = sum / m[i][i];
+    }
+    return 0;
+}
+
+int kinegen_reactions(kinegen_solver *s, const double *q, const double *u, const double *lambda, double *out, double *work, int *iwork) {
+    const kinegen_model *m = s->model;
+    const kinegen_layout *l = m->layout;
+    const kinegen_statics *st = l->statics;
+    if (st == NULL || l->n_bodies == 0) return -1;
+    int nv = m->n_v, nb = l->n_bodies, nvb = nv / nb, n;
+    double *frames = work, *unit = frames + KINEGEN_FRAME_VALUES * nb, *zero = unit + nv, *tangent = zero + nv;
+    double *g = tangent + (size_t)6 * nvb * nb, *square = g + nvb, *w = square + nvb * nvb, *values = w + nvb, *phi = values;
+    const int *rows, *cols;
+    if (st->n_elements > 0) { /* the joint rows' values lead the force matrix's */
+        const double *x[2] = {q, s->design};
+        double *y[1] = {values};
+        st->actuation->call(x, y);
+        rows = st->pattern.rows, cols = st->pattern.cols, n = st->pattern.n;
+    } else { /* the case's Phi_q (its joint rows are the first) */
+        double *jac = phi + nv;
+        phi_jac(s, q, u, phi, jac);
+        values = jac, rows = m->jac_rows, cols = m->jac_cols, n = m->n_jac;
+    }
+    for (int i = 0; i < st->n_joint_rows; ++i) iwork[i] = -1; /* each joint row's joint */
+    for (int j = 0; j < st->n_joints; ++j)
+        for (int k = st->joint_row_start[j]; k < st->joint_row_start[j + 1]; ++k) iwork[st->joint_rows[k]] = j;
+    memset(zero, 0, sizeof(double) * (size_t)nv);
+    for (int k = 0; k < nvb; ++k) { /* the tangent maps: column k of every body's T_v and T_w at once */
+        for (int i = 0; i < nv; ++i) unit[i] = i % nvb == k ? 1.0 : 0.0;
+        l->frames(q, unit, zero, frames);
+        for (int b = 0; b < nb; ++b)
+            for (int i = 0; i < 3; ++i) {
+                tangent[((size_t)b * 6 + i) * nvb + k] = frames[KINEGEN_FRAME_VALUES * b + KINEGEN_FRAME_VELOCITY + i];
+                tangent[((size_t)b * 6 + 3 + i) * nvb + k] = frames[KINEGEN_FRAME_VALUES * b + KINEGEN_FRAME_ANGULAR_VELOCITY + i];
+            }
+    }
+    l->frames(q, zero, zero, frames); /* the poses */
+    for (int j = 0; j < st->n_joints; ++j) {
+        int b = st->joint_body[j], first = b * nvb;
+        double *r = out + (size_t)6 * j;
+        memset(g, 0, sizeof(double) * (size_t)nvb);
+        memcpy(square, tangent + (size_t)b * 6 * nvb, sizeof(double) * (size_t)(6 * nvb));
+        for (int e = 0; e < n; ++e) {
+            int row = rows[e], c = cols[e] - first;
+            if (row >= st->n_joint_rows || c < 0 || c >= nvb) continue;
+            if (iwork[row] == j) g[c] -= lambda[row] * values[e];
+            for (int k = st->body_norm_start[b]; k < st->body_norm_start[b + 1]; ++k)
+                if (st->body_norm_rows[k] == row) square[(6 + k - st->body_norm_start[b]) * nvb + c] = values[e];
+        }
+        if (small_solve_transposed(nvb, square, g, w)) {
+            for (int i = 0; i < 6; ++i) r[i] = NAN;
+            continue;
+        }
+        double sign = st->joint_sign[j], point[3], velocity[3], acceleration[3];
+        const double *local = st->joint_local + 3 * j, *origin = frames + KINEGEN_FRAME_VALUES * b + KINEGEN_FRAME_ORIGIN;
+        if (st->joint_point_body[j] < 0) {
+            for (int i = 0; i < 3; ++i) point[i] = local[i];
+        } else {
+            kinegen_point_kinematics(frames + KINEGEN_FRAME_VALUES * st->joint_point_body[j], local, point, velocity, acceleration);
+        }
+        double arm[3] = {point[0] - origin[0], point[1] - origin[1], point[2] - origin[2]};
+        double f[3] = {sign * w[0], sign * w[1], sign * w[2]};
+        r[0] = f[0], r[1] = f[1], r[2] = f[2]; /* the moment about the point: M_O - arm x F */
+        r[3] = sign * w[3] - (arm[1] * f[2] - arm[2] * f[1]);
+        r[4] = sign * w[4] - (arm[2] * f[0] - arm[0] * f[2]);
+        r[5] = sign * w[5] - (arm[0] * f[1] - arm[1] * f[0]);
+    }
+    return st->n_joints;
+}
+
 const char *kinegen_status_text(int status) {
     switch (status) {
     case KINEGEN_OK:
@@ -1020,6 +1118,12 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_statics, n_diag, "int"), FIELD(kinegen_statics, diag_value, "int*"), FIELD(kinegen_statics, diag_slot, "int*"),
     FIELD(kinegen_statics, n_off, "int"), FIELD(kinegen_statics, off_start, "int*"), FIELD(kinegen_statics, off_col, "int*"),
     FIELD(kinegen_statics, off_value, "int*"), FIELD(kinegen_statics, work_doubles, "int"), FIELD(kinegen_statics, work_ints, "int"),
+    FIELD(kinegen_statics, n_joints, "int"), FIELD(kinegen_statics, joint_names, "pointer"), FIELD(kinegen_statics, joint_body, "int*"),
+    FIELD(kinegen_statics, joint_sign, "int*"), FIELD(kinegen_statics, joint_point_body, "int*"),
+    FIELD(kinegen_statics, joint_local, "double*"), FIELD(kinegen_statics, joint_row_start, "int*"),
+    FIELD(kinegen_statics, joint_rows, "int*"), FIELD(kinegen_statics, body_norm_start, "int*"),
+    FIELD(kinegen_statics, body_norm_rows, "int*"), FIELD(kinegen_statics, element_hydraulics, "double*"),
+    FIELD(kinegen_statics, reaction_doubles, "int"), FIELD(kinegen_statics, reaction_ints, "int"),
 
     FIELD(kinegen_model, layout, "pointer"), FIELD(kinegen_model, case_name, "char*"), FIELD(kinegen_model, n_q, "int"),
     FIELD(kinegen_model, n_v, "int"), FIELD(kinegen_model, n_inputs, "int"), FIELD(kinegen_model, n_jac, "int"),

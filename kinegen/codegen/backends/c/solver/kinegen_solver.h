@@ -156,6 +156,24 @@ typedef struct kinegen_statics {
     int n_off;
     const int *off_start, *off_col, *off_value;
     int work_doubles, work_ints;      /* what kinegen_forces needs as work, for any case */
+    /* Pin reactions (kinegen_reactions): per joint, the body whose wrench its rows' multipliers give
+     * (joint_body: its second body, or its first with joint_sign -1 when the second is the ground), the
+     * body of the joint's point (joint_point_body; -1: the ground) and the point's coordinates in it
+     * (joint_local, 3 per joint; at the nominal design, as the layout's points), and its rows among the
+     * joint rows (joint_rows[joint_row_start[j] .. joint_row_start[j+1]-1]); per body its normalization
+     * rows (body_norm_rows[body_norm_start[b] ..]), which with the body's 6 tangent rows make its square
+     * map from wrenches to generalized forces. */
+    int n_joints;
+    const char *const *joint_names;
+    const int *joint_body, *joint_sign, *joint_point_body;
+    const double *joint_local;
+    const int *joint_row_start, *joint_rows;
+    const int *body_norm_start, *body_norm_rows;
+    /* Per element (7 values): cap and rod side areas [m^2], relief (extend, retract) and holding
+     * (extend, retract) settings [Pa] at the nominal design, and its actuator's index in the layout
+     * (a motor: NaN and -1): the pressure on the side that carries the force, and its limit. */
+    const double *element_hydraulics;
+    int reaction_doubles, reaction_ints; /* what kinegen_reactions needs as work */
 } kinegen_statics;
 
 /* What a model is, whatever the case: names, bodies, points, actuators, and the frames kernel
@@ -338,6 +356,16 @@ int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const d
  * (the case's Phi_q factorized) not its factors, so that a following step factorizes again. */
 int kinegen_forces(kinegen_solver *s, int count, const double *times, const double *Q, const double *V, const double *A,
                    const double *U, const double *weights, double inertia, double *LAMBDA, double *F, double *work, int *iwork);
+
+/* The pin reactions at one solved configuration q (inputs u) from the multipliers lambda of
+ * kinegen_forces: per joint 6 values in out, what its first body exerts on its second -- the force
+ * [N] and its moment [N m] about the joint's point (kinegen_statics.joint_local), global axes. The
+ * joint's rows carry the generalized force -Phi_q[rows]^T lambda[rows] on the body; its wrench w solves
+ * [T_v; T_w; N]^T w = that force restricted to the body's coordinates (T_v, T_w: the body's tangent
+ * maps, from the frames kernel at unit velocities; N: its normalization rows). work, iwork: the
+ * statics' reaction_doubles and reaction_ints. Returns the number of joints, or -1 for a model without
+ * a force solve; a joint whose square map is singular gets NaN. The solver's state stays as it was. */
+int kinegen_reactions(kinegen_solver *s, const double *q, const double *u, const double *lambda, double *out, double *work, int *iwork);
 
 const char *kinegen_status_text(int status);
 
