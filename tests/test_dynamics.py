@@ -337,3 +337,147 @@ def test_along_the_excavators_cases_the_work_is_the_change_of_energy(case, loads
     scale = np.abs(energy.kinetic).max() + np.abs(energy.potential).max()
     change = energy.total[-1] - energy.total[0]
     assert abs(simpson(power + load_power, x=times) - change) <= 1e-8 * scale, (simpson(power + load_power, x=times), change)
+
+
+FOUR_BAR_MASSES = {  # kg; m, body coordinates; kg m^2 [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about the centre of mass
+    "crank": (2.0, [0.15, 0.01, 0.005], [0.002, 0.016, 0.017, 0.0002, 0.0001, -0.0001]),
+    "coupler": (4.5, [0.45, 0.03, -0.01], [0.012, 0.30, 0.31, 0.001, -0.002, 0.0005]),
+    "rocker": (3.0, [0.35, -0.02, 0.0], [0.006, 0.12, 0.125, -0.0005, 0.0, 0.0003]),
+}
+
+
+@pytest.mark.parametrize("parametrization", ["quaternion", "euler-parameters"])
+def test_the_four_bars_crank_torque_drives_pinocchios_closed_loop(tmp_path_factory, parametrization):
+    """A closed loop against Pinocchio's constrained dynamics: the four-bar (models/four_bar.yaml) with
+    masses and gravity in its plane, its crank torque from kinegen's inverse dynamics (the multipliers
+    of Φ_qᵀλ = Q_inertia) applied to Pinocchio's tree (crank and coupler from A, rocker from D, joints
+    about z) closed by a point constraint between the coupler's and the rocker's C: Pinocchio's forward
+    dynamics (constraintDynamics) gives back kinegen's accelerations to 1e-9 of the largest."""
+    text = (ROOT / "models" / "four_bar.yaml").read_text().replace("ground:\n", "gravity: [0, -9.80665, 0]\nground:\n", 1)
+    for body, (mass, center, inertia) in FOUR_BAR_MASSES.items():
+        text = text.replace(f"  {body}:\n", f"  {body}:\n    mass: {mass}\n    center_of_mass: {center}\n    inertia: {inertia}\n", 1)
+    path = tmp_path_factory.mktemp("four_bar") / "four_bar_masses.yaml"
+    path.write_text(text)
+    model, results = _solved(tmp_path_factory, path, parametrization, np.linspace(0, 1, 41))
+    torque = forces(results, model, [], inertia=True).force[:, 0]  # the crank-angle driver's: about +z on the crank (du/dt > 0)
+    assert np.all(results.system.driver_inputs(results.times)[1] > 0)
+
+    chain = pin.Model()
+    chain.gravity = pin.Motion(np.r_[0.0, -9.80665, 0.0, 0.0, 0.0, 0.0])
+    joints = {}
+    for name, parent, at, body in (("A", 0, [0, 0, 0], "crank"), ("B", "A", [0.3, 0, 0], "coupler"), ("D", 0, [1.0, 0, 0], "rocker")):
+        joints[name] = chain.addJoint(joints.get(parent, 0), pin.JointModelRZ(), pin.SE3(np.eye(3), np.array(at, dtype=float)), name)
+        mass, center, (xx, yy, zz, xy, xz, yz) = FOUR_BAR_MASSES[body]
+        tensor = np.array([[xx, xy, xz], [xy, yy, yz], [xz, yz, zz]])
+        chain.appendBodyToJoint(joints[name], pin.Inertia(mass, np.array(center), tensor), pin.SE3.Identity())
+    closure = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, chain, joints["B"], pin.SE3(np.eye(3), np.array([0.9, 0.0, 0.0])),
+                                       joints["D"], pin.SE3(np.eye(3), np.array([0.7, 0.0, 0.0])), pin.ReferenceFrame.LOCAL)  # fmt: skip
+    data, closures, closure_data = chain.createData(), pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
+    closures.append(closure)
+    closure_data.append(closure.createData())
+    pin.initConstraintDynamics(chain, data, closures, closure_data)
+    settings = pin.ProximalSettings(1e-14, 1e-10, 100)  # the loop is planar: its out-of-plane equation is redundant
+
+    def angle(body: str) -> np.ndarray:
+        rotation = results.rotation_matrix(body)
+        return np.unwrap(np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0]))
+
+    crank, coupler, rocker = (np.column_stack([angle(b), results.omega(b)[:, 2], results.omega_dot(b)[:, 2]]) for b in FOUR_BAR_MASSES)
+    relative = coupler - crank  # joint B turns the coupler relative to the crank
+    q, v, a = (np.column_stack([crank[:, i], relative[:, i], rocker[:, i]]) for i in range(3))
+    found = np.array([pin.constraintDynamics(chain, data, q[k], v[k], np.array([torque[k], 0.0, 0.0]), closures, closure_data, settings)
+                      for k in range(len(q))])  # fmt: skip
+    np.testing.assert_allclose(found, a, rtol=0, atol=1e-9 * np.abs(a).max())
+    assert np.abs(torque).max() > 1.0  # N m: gravity and inertia both load the crank
+
+
+LIFTED_BOOM = """\
+# a boom lifted by a hydraulic cylinder, the excavator's cylinder joints (universal base, prismatic
+# barrel-rod, spherical eye): a closed loop whose element is a cylinder, not a driver
+model: lifted_boom
+ground:
+  points: {A: [0, 0, 0], B: [0.5, 0, -0.8]}
+  vectors: {y: [0, 1, 0]}
+bodies:
+  boom:
+    position: [0, 0, 0]
+    mass: 500
+    center_of_mass: [1.4, 0, 0.1]
+    inertia: [30, 400, 410, 0, 10, 0]
+    points: {A: [0, 0, 0], C: [1.2, 0, -0.15]}
+    vectors: {y: [0, 1, 0]}
+  barrel:
+    position: [0.5, 0, -0.8]
+    orientation: {axis: [0, 1, 0], angle: -0.748378}
+    mass: 60
+    center_of_mass: [0.3, 0, 0]
+    inertia: [0.5, 4, 4]
+    points: {base: [0, 0, 0]}
+    vectors: {x: [1, 0, 0], n: [0, 0, 1]}
+  rod:
+    position: [1.2, 0, -0.15]
+    orientation: {axis: [0, 1, 0], angle: -0.748378}
+    mass: 40
+    center_of_mass: [-0.3, 0, 0.01]
+    inertia: [0.3, 3, 3]
+    points: {eye: [0, 0, 0]}
+    vectors: {x: [1, 0, 0]}
+joints:
+  foot: {type: revolute, bodies: [ground, boom], points: [A, A], axes: [y, y]}
+  base: {type: universal, bodies: [ground, barrel], points: [B, base], axes: [y, n]}
+  slide: {type: prismatic, bodies: [barrel, rod], points: [base, eye], axes: [x, x]}
+  eye: {type: spherical, bodies: [rod, boom], points: [eye, C]}
+actuators:
+  lift: {points: [barrel.base, rod.eye], hydraulics: {bore: 0.1, rod: 0.07, relief: 30e6, holding: 35e6}}
+cases:
+  raise:
+    drivers:
+      lift: {type: distance, points: [barrel.base, rod.eye], function: sqrt(0.9125) + 0.25*t**2 - 0.1*sin(3*t)}
+    t0: 0
+    t1: 1.5
+    steps: 61
+"""
+
+
+@pytest.mark.parametrize("parametrization", ["quaternion", "euler-parameters"])
+def test_a_cylinders_force_drives_pinocchios_closed_loop(tmp_path_factory, parametrization):
+    """The cylinder's force from kinegen's inverse dynamics (its element row of Φ_qᵀλ = Q_inertia, the
+    bodies' weight and inertia) applied at the prismatic joint of Pinocchio's tree (boom about y at A;
+    barrel about y at B, the rod sliding along it) closed by a point constraint at the eye: Pinocchio's
+    constrained forward dynamics gives back kinegen's accelerations to 1e-9 of the largest."""
+    path = tmp_path_factory.mktemp("lifted_boom") / "lifted_boom.yaml"
+    path.write_text(LIFTED_BOOM)
+    model, results = _solved(tmp_path_factory, path, parametrization)
+    held = forces(results, model, [], inertia=True)
+    push = held.element_force("lift")  # N, positive pushing the cylinder's points apart
+
+    chain = pin.Model()
+    chain.gravity = pin.Motion(np.r_[0.0, 0.0, -9.80665, 0.0, 0.0, 0.0])
+    joints = {}
+    bodies = {b.name: b for b in model.bodies}
+    for name, parent, joint, at in (("boom", 0, pin.JointModelRY(), [0.0, 0, 0]), ("barrel", 0, pin.JointModelRY(), [0.5, 0, -0.8]),
+                                    ("rod", "barrel", pin.JointModelPX(), [0.0, 0, 0])):  # fmt: skip
+        joints[name] = chain.addJoint(joints.get(parent, 0), joint, pin.SE3(np.eye(3), np.array(at)), name)
+        inertia = bodies[name].inertia
+        chain.appendBodyToJoint(joints[name], pin.Inertia(float(inertia.mass), _floats(inertia.center), np.array(inertia.tensor.evalf(), dtype=float)),
+                                pin.SE3.Identity())  # fmt: skip
+    closure = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, chain, joints["rod"], pin.SE3.Identity(), joints["boom"],
+                                       pin.SE3(np.eye(3), np.array([1.2, 0.0, -0.15])), pin.ReferenceFrame.LOCAL)  # fmt: skip
+    data, closures, closure_data = chain.createData(), pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
+    closures.append(closure)
+    closure_data.append(closure.createData())
+    pin.initConstraintDynamics(chain, data, closures, closure_data)
+    settings = pin.ProximalSettings(1e-14, 1e-10, 100)  # the loop is planar: its out-of-plane equation is redundant
+
+    def about_y(body: str) -> np.ndarray:  # angle, rate and its rate about +y (each body turns about y alone)
+        rotation = results.rotation_matrix(body)
+        return np.column_stack([np.unwrap(np.arctan2(rotation[:, 0, 2], rotation[:, 0, 0])), results.omega(body)[:, 1], results.omega_dot(body)[:, 1]])
+
+    length = np.column_stack([results.actuator_length("lift"), results.actuator_rate("lift"), results.actuator_acceleration("lift")])
+    boom, barrel = about_y("boom"), about_y("barrel")
+    q, v, a = (np.column_stack([boom[:, i], barrel[:, i], length[:, i]]) for i in range(3))
+    found = np.array([pin.constraintDynamics(chain, data, q[k], v[k], np.array([0.0, 0.0, push[k]]), closures, closure_data, settings)
+                      for k in range(len(q))])  # fmt: skip
+    for i, scale in enumerate(np.abs(a).max(axis=0)):  # rad/s^2, rad/s^2, m/s^2: each to its own scale
+        np.testing.assert_allclose(found[:, i], a[:, i], rtol=0, atol=1e-9 * scale, err_msg=f"coordinate {i}")
+    assert push.min() > 1e3  # N: the cylinder holds the boom up
