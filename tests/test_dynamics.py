@@ -9,13 +9,14 @@ import functools
 import numpy as np
 import pinocchio as pin  # the independent reference: Pinocchio (`pin`, in the test extra)
 import pytest
+import scipy.linalg
 
 from kinegen.api import Session
 from kinegen.forces import forces
 from kinegen.forces.dynamics import energies
-from kinegen.model.schema import GROUND
+from kinegen.model.schema import GROUND, design_value
 from kinegen.runtime import solve
-from tests.conftest import ROOT, chain_yaml, nominal_inertia
+from tests.conftest import ROOT, chain_yaml, generated_system, model, nominal_inertia
 
 ARM = ROOT / "tests" / "models" / "arm3.yaml"
 PARAMETRIZATIONS = ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters")
@@ -481,3 +482,100 @@ def test_a_cylinders_force_drives_pinocchios_closed_loop(tmp_path_factory, param
     for i, scale in enumerate(np.abs(a).max(axis=0)):  # rad/s^2, rad/s^2, m/s^2: each to its own scale
         np.testing.assert_allclose(found[:, i], a[:, i], rtol=0, atol=1e-9 * scale, err_msg=f"coordinate {i}")
     assert push.min() > 1e3  # N: the cylinder holds the boom up
+
+
+def test_the_excavators_cylinder_forces_equal_pinocchios_closed_loop_inverse_dynamics():
+    """The whole excavator with its estimated masses along the digging cycle at speed: Pinocchio's
+    model of it as a tree (every revolute joint; each cylinder's base universal as a revolute about
+    its parent's pin axis, its barrel-rod prismatic; the bucket link hung from the bucket at K) closed
+    by point constraints at the cylinders' eyes and the link pin J. From kinegen's motion, Pinocchio's
+    M a + b(q, v) = S τ + Jᵀ λ, solved for the actuated forces τ (swing motor, left boom, arm and bucket
+    cylinders; the right boom cylinder follows without a force, as in the model) and the constraint
+    forces λ (least squares: the planar loops make J rank-deficient, τ stays unique), equals kinegen's
+    swing torque and cylinder forces to 1e-9 of each."""
+    excavator = model("excavator")
+    results = solve(generated_system("excavator_quaternion", "digging"), np.linspace(0, 17, 35))
+    held = forces(results, excavator, [], inertia=True)
+    nominal = {d.name: float(d.nominal) for d in excavator.design}
+    bodies = {b.name: b for b in excavator.bodies}
+    count = len(results.times)
+
+    def vector(values) -> np.ndarray:
+        return np.array([design_value(x, nominal) for x in values])
+
+    def rotation(body: str) -> np.ndarray:
+        return np.broadcast_to(np.eye(3), (count, 3, 3)) if body == GROUND else results.rotation_matrix(body)
+
+    def omega(body: str, derivative: bool = False) -> np.ndarray:
+        return np.zeros((count, 3)) if body == GROUND else results.omega_dot(body) if derivative else results.omega(body)
+
+    edges = []  # (parent, child, revolute?, the joint's point on the parent, its axis, the body that axis is given on)
+    for j in excavator.joints:
+        if j.type == "revolute":
+            edges.append((j.body1, j.body2, True, j.point1, j.axis2, j.body2))
+        elif j.type == "universal" and j.body1 != "bucket_link":  # a cylinder's base: about the parent's pin axis
+            edges.append((j.body1, j.body2, True, j.point1, j.axis1, j.body1))
+        elif j.type == "universal":  # link_K: the bucket link hung from the bucket, about the bucket's pin axis
+            edges.append((j.body2, j.body1, True, j.point2, j.axis2, j.body2))
+        elif j.type == "prismatic":
+            edges.append((j.body1, j.body2, False, None, j.axis1, j.body1))
+    chain = pin.Model()
+    chain.gravity = pin.Motion(np.r_[vector(excavator.gravity), 0.0, 0.0, 0.0])
+    ids, placed = {GROUND: 0}, []
+    while len(placed) < len(edges):
+        for parent, child, revolute, point, axis, on in edges:
+            if parent not in ids or child in ids:
+                continue
+            at_zero = rotation(parent)[0].T @ rotation(child)[0]  # joint frames = body frames, from the solved start
+            local_axis = rotation(child)[0].T @ rotation(on)[0] @ vector(axis)
+            local_axis /= np.linalg.norm(local_axis)
+            joint = pin.JointModelRevoluteUnaligned(local_axis) if revolute else pin.JointModelPrismaticUnaligned(local_axis)
+            ids[child] = chain.addJoint(ids[parent], joint, pin.SE3(at_zero, np.zeros(3) if point is None else vector(point)), child)
+            mass, center, tensor = nominal_inertia("excavator", bodies[child])
+            chain.appendBodyToJoint(ids[child], pin.Inertia(mass, center, tensor), pin.SE3.Identity())
+            placed.append((parent, child, revolute, local_axis, at_zero))
+    pairs = []  # the closures' two frames: the spherical joints' points on either body
+    for j in excavator.joints:
+        if j.type == "spherical":
+            pairs.append([chain.addFrame(pin.Frame(f"{j.name}.{i}", ids[b], 0, pin.SE3(np.eye(3), vector(p)), pin.FrameType.OP_FRAME))
+                          for i, (b, p) in enumerate(((j.body1, j.point1), (j.body2, j.point2)))])  # fmt: skip
+    data = chain.createData()
+
+    q, v, a = (np.zeros((count, chain.nv)) for _ in range(3))
+    rods = {act.points[1].body: act.name for act in excavator.actuators}
+    actuated = {}  # velocity index -> kinegen's force there
+    for parent, child, revolute, local_axis, at_zero in placed:
+        i = chain.joints[ids[child]].idx_v
+        if revolute:  # the angle from the start about the axis, its rate and acceleration (the axis turns with the child)
+            turn = np.einsum("ji,kjl->kil", at_zero, np.einsum("kji,kjl->kil", rotation(parent), rotation(child)))
+            sine = np.stack([turn[:, 2, 1] - turn[:, 1, 2], turn[:, 0, 2] - turn[:, 2, 0], turn[:, 1, 0] - turn[:, 0, 1]], axis=1) @ local_axis / 2
+            q[:, i] = np.unwrap(np.arctan2(sine, (np.einsum("kii->k", turn) - 1) / 2))
+            axis = np.einsum("kij,j->ki", rotation(child), local_axis)
+            rate = omega(child) - omega(parent)
+            v[:, i] = np.einsum("ki,ki->k", axis, rate)
+            a[:, i] = np.einsum("ki,ki->k", axis, omega(child, True) - omega(parent, True)) + np.einsum("ki,ki->k", np.cross(omega(parent), axis), rate)
+        else:  # the rod slides out of its barrel by the cylinder's length
+            name = rods[child]
+            q[:, i], v[:, i], a[:, i] = results.actuator_length(name), results.actuator_rate(name), results.actuator_acceleration(name)
+        element = "swing_motor" if child == "upper" else rods.get(child)
+        if element in [e.name for e in held.elements]:
+            actuated[i] = held.element_force(element)
+    assert len(actuated) == 4
+    columns = list(actuated)
+    select = np.zeros((chain.nv, len(columns)))
+    select[columns, range(len(columns))] = 1.0
+    found = np.empty((count, len(columns)))
+    for k in range(count):
+        demand = pin.rnea(chain, data, q[k], v[k], a[k])  # M a + b
+        pin.computeJointJacobians(chain, data, q[k])
+        pin.updateFramePlacements(chain, data)
+        jacobian = np.vstack([pin.getFrameJacobian(chain, data, f1, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3]
+                              - pin.getFrameJacobian(chain, data, f2, pin.ReferenceFrame.LOCAL_WORLD_ALIGNED)[:3] for f1, f2 in pairs])  # fmt: skip
+        system = np.hstack([select, jacobian.T])
+        solution = np.linalg.lstsq(system, demand, rcond=1e-12)[0]
+        assert np.abs(system @ solution - demand).max() < 1e-9 * np.abs(demand).max()  # kinegen's motion is one Pinocchio can make
+        unloaded = scipy.linalg.null_space(system)
+        assert np.abs(unloaded[: len(columns)]).max() < 1e-9  # the actuated forces are unique
+        found[k] = solution[: len(columns)]
+    for c, i in enumerate(columns):
+        np.testing.assert_allclose(found[:, c], actuated[i], rtol=0, atol=1e-9 * np.abs(actuated[i]).max(), err_msg=chain.names[i + 1])
