@@ -246,7 +246,6 @@ def test_the_tipping_margin_is_the_moment_the_ground_sees(tmp_path_factory):
     undercarriage's weight -- not the direct sum of weights and d'Alembert forces it is computed by,
     to 1e-9 of the largest; standing still (no inertia), the front line's margin is the lever rule."""
     from kinegen.forces.dynamics import TIPPING_LINES, tipping_margin
-    from tests.conftest import generated_system, model
 
     excavator = model("excavator")
     results = solve(generated_system("excavator_quaternion", "digging"), np.linspace(0, 17, 171))
@@ -273,8 +272,6 @@ def test_the_excavators_front_cut_open_equals_pinocchio(tmp_path_factory):
     """The excavator's upper structure, boom, arm and bucket with their estimated masses, the loops cut
     open (cylinders and links removed, each joint driven by its angle: the cylinders replaced by joint
     torques), swinging and digging at once: the joint torques equal Pinocchio's RNEA to 1e-9."""
-    from tests.conftest import model
-
     excavator = model("excavator")
     bodies = {b.name: b for b in excavator.bodies}
 
@@ -324,7 +321,6 @@ def test_along_the_excavators_cases_the_work_is_the_change_of_energy(case, loads
     scale (Simpson on 3,401 points); the rates and energies from the solved frames, not the multipliers."""
     from scipy.integrate import simpson
 
-    from tests.conftest import generated_system, model
     from tests.test_forces import _element_rates, _load_power
 
     excavator = model("excavator")

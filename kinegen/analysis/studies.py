@@ -392,13 +392,10 @@ def _held_at(problem: StudyProblem, results: Results, q: Quantity, k: int):
     from kinegen.forces.sensitivity import MultiplierChanges
     from kinegen.forces.statics import Statics, pose_results
 
-    load = problem.model.loads[str(q.load)]
-    if load.axes != GROUND or any(x != 0 for x in load.moment) or any(e.free_symbols for e in load.force):
-        raise KinegenError(f"{q.label}: its gradient needs a constant force in global axes (load {load.name})")
+    body, point, force = _constant_load(problem, q)
     statics = Statics(pose_results(results.system, results.q[k : k + 1], results.inputs[k : k + 1]), problem.model)
-    force = np.array([[float(x) for x in load.force]])
-    matrix, multipliers = statics.hold(load.point.body, load.point.name, force)
-    return statics, MultiplierChanges(statics, matrix, multipliers, load.point.body, load.point.name, force)
+    matrix, multipliers = statics.hold(body, point, force)
+    return statics, MultiplierChanges(statics, matrix, multipliers, body, point, force)
 
 
 def _pin_load(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
@@ -535,13 +532,26 @@ def _cylinder_pressure(problem: StudyProblem, results: Results, q: Quantity, gra
     statics, changes = _held_at(problem, results, q, k)
     names = [e.name for e in statics.elements]
     d_force = -changes.d_multipliers[0, statics.joint_rows + names.index(str(q.actuator))]
-    hydraulics = problem.actuators[str(q.actuator)].hydraulics
-    design, order = results.system.design, list(results.system.design)
-    side = 0 if pressure.cap_side[k] else 1
-    area, d_area = hydraulics.areas(design)[side], hydraulics.area_gradients(order, design)[side]
     f = held.element_force(str(q.actuator))[k]
-    gradient = np.sign(f) * d_force / area - abs(f) * d_area / area**2
-    return value, gradient / 1e6
+    return value, _pressure_gradient(problem.actuators[str(q.actuator)], results.system.design, bool(pressure.cap_side[k]), f, d_force)
+
+
+def _pressure_gradient(actuator, design: dict[str, float], cap_side: bool, f: float, d_force: np.ndarray) -> np.ndarray:
+    """d(pressure)/dp [MPa per unit] of the cylinder's force f on the side that carries it (p = |f| / A):
+    sign(f) df / A - |f| dA / A^2."""
+    hydraulics = actuator.hydraulics
+    side = 0 if cap_side else 1
+    area, d_area = hydraulics.areas(design)[side], hydraulics.area_gradients(list(design), design)[side]
+    return (np.sign(f) * d_force / area - abs(f) * d_area / area**2) / 1e6
+
+
+def _constant_load(problem: StudyProblem, q: Quantity) -> tuple[str, str, np.ndarray]:
+    """``q``'s load as (body, point, its global force (1, 3)): what a gradient through the multipliers'
+    sensitivities can hold (a constant force in global axes)."""
+    load = problem.model.loads[str(q.load)]
+    if load.axes != GROUND or any(x != 0 for x in load.moment) or any(e.free_symbols for e in load.force):
+        raise KinegenError(f"{q.label}: its gradient needs a constant force in global axes (load {load.name})")
+    return load.point.body, load.point.name, np.array([[float(x) for x in load.force]])
 
 
 def _mass(model: Model, design: dict[str, float], q: Quantity) -> tuple[float, np.ndarray]:
@@ -592,21 +602,12 @@ def _peak_pressure(problem: StudyProblem, results: Results, q: Quantity, gradien
     statics = Statics(at, model)
     matrix = statics.matrix()
     multipliers = statics.solve(matrix, held.generalized_load[k : k + 1])
-    body = point = force = None
-    if q.load:
-        load = model.loads[str(q.load)]
-        if load.axes != GROUND or any(x != 0 for x in load.moment) or any(e.free_symbols for e in load.force):
-            raise KinegenError(f"{q.label}: its gradient needs a constant force in global axes (load {load.name})")
-        body, point, force = load.point.body, load.point.name, np.array([[float(x) for x in load.force]])
+    body, point, force = _constant_load(problem, q) if q.load else (None, None, None)
     changes = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=at.state_sensitivities()[0], inertia=True)
     names = [e.name for e in statics.elements]
     d_force = -changes.d_multipliers[0, statics.joint_rows + names.index(name)]
-    hydraulics = problem.actuators[name].hydraulics
-    design, order = results.system.design, list(results.system.design)
-    side = 0 if pressure.cap_side[k] else 1
-    area, d_area = hydraulics.areas(design)[side], hydraulics.area_gradients(order, design)[side]
     f = held.element_force(name)[k]
-    return value, (np.sign(f) * d_force / area - abs(f) * d_area / area**2) / 1e6
+    return value, _pressure_gradient(problem.actuators[name], results.system.design, bool(pressure.cap_side[k]), f, d_force)
 
 
 MEASURES: dict[str, Callable] = {

@@ -124,7 +124,7 @@ def tipping_margin(results: Results, model: Model, loads: tuple[str, ...] = (), 
     machine = model.machine
     if machine is None or not model.massive:
         raise KinegenError(f"the model {model.name!r} needs masses and a machine: section (undercarriage, tracks) for its tipping margin")
-    wrenches = _Wrenches(results, model, changes)
+    wrenches = MachineWrenches(results, model, changes)
     wrenches.add_undercarriage(machine)
     for body in model.massive:
         wrenches.add_body(body, inertia)
@@ -150,7 +150,7 @@ def tipping_margin(results: Results, model: Model, loads: tuple[str, ...] = (), 
     return TippingMargin(stacked[nearest, count], np.array(list(margins))[nearest], margins, d_margins if changes else None)
 
 
-class _Wrenches:
+class MachineWrenches:
     """The forces on the machine for its tipping margin, each (point (K, 3), force (K, 3), moment
     (K, 3)) in global axes, with their design changes ((K, 3, P) each; zeros unless ``changes``)."""
 

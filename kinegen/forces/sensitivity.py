@@ -117,11 +117,11 @@ def inertial_load_changes(statics: Statics, maps: _TangentChanges) -> np.ndarray
     (:mod:`kinegen.forces.dynamics`), so dQ = dJ_Cᵀ F + J_Cᵀ dF + dT_ωᵀ M + T_ωᵀ dM: the tangent maps'
     changes from ``maps``, the wrench's from the frames' changes along (dq/dp, dv/dp, da/dp) and the
     design's own in the masses, centres and inertias. The generated ``inertia`` kernel is its value."""
-    from kinegen.forces.dynamics import _Wrenches, inertia_numbers
+    from kinegen.forces.dynamics import MachineWrenches, inertia_numbers
 
     results, model = statics.results, statics.model
     design = statics.system.design
-    wrenches = _Wrenches(results, model, changes=True)
+    wrenches = MachineWrenches(results, model, changes=True)
     out = np.zeros((len(results.times), statics.n_v, maps.s.shape[2]))
     for body in model.massive:
         wrenches.add_body(body, inertia=True)
