@@ -328,10 +328,10 @@ def command_line(draw) -> list[str]:
         else:
             args.append(draw(st.sampled_from(FLAGS)))
     args = [a.replace("\x00", "") for a in args]  # a process's arguments cannot hold NUL
-    if "--steps" in args:  # a long solve is not an error: keep each run short
-        at = args.index("--steps") + 1
-        if at < len(args) and args[at].strip().isdigit() and int(args[at]) > 2000:
-            args[at] = "2000"
+    if "--steps" in args:  # a long solve is not an error: keep each run short (every --steps: the last one counts)
+        for at in (i + 1 for i, a in enumerate(args) if a == "--steps"):
+            if at < len(args) and args[at].strip().isdigit() and int(args[at]) > 2000:
+                args[at] = "2000"
     elif command == "solve":
         args += ["--steps", "21"]
     if command == "inspect" and "--budget" not in args:
