@@ -6,6 +6,7 @@ compiled library's own tables) by the runtime -- never copied by hand.
 * :data:`FRAME_FIELDS`: what the ``frames`` kernel gives per body, in order.
 * :data:`SENSITIVITY_KERNELS`: the kernels of a model with design parameters that carry its
   exact sensitivities (each a sparse matrix given by its values at a constant pattern).
+* :func:`row_owner`: whose a constraint row is, from its name (the modules' constraint names).
 
 Which kernels a module has, their argument slots and their outputs' names and sizes are in the
 module itself (``KERNELS`` and each case's ``"kernels"`` in Python; the ``kinegen_kernel`` tables
@@ -65,3 +66,16 @@ SENSITIVITY_KERNELS = {
     "dacc": "[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), "
     "E_a = d(Phi_q a - gamma)/dp (n_p columns)",
 }
+
+
+def normalization_row(body: str, k: int) -> str:
+    """The name of ``body``'s k-th normalization row (a parametrization with more stored than velocity
+    coordinates): ``upper.norm``, ``upper.norm1``, ... A joint's rows are ``<joint>.<component>``."""
+    return f"{body}.norm{'' if k == 0 else k}"
+
+
+def row_owner(name: str) -> tuple[str, bool]:
+    """The joint a joint row belongs to (``boom_foot.x`` -> ``boom_foot``), or the body of a
+    normalization row (:func:`normalization_row`), and whether it is one."""
+    owner, _, rest = name.partition(".")
+    return owner, rest.startswith("norm")

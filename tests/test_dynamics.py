@@ -71,13 +71,13 @@ def pinocchio_chain(model):
     return chain, order
 
 
-def joint_motion(model, results, order) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def joint_motion(model, results, order, initial: dict | None = None) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Pinocchio's (q, v, a) from kinegen's solved bodies: each joint's angle from the child's
-    rotation relative to its parent (zero at the model's initial pose, where Pinocchio's joint
-    frames were placed), its rate a.(w_child - w_parent) and that rate's derivative (a global =
-    turning with the child)."""
+    rotation relative to its parent (zero at ``initial``, each body's rotation where Pinocchio's joint
+    frames were placed: by default the model's initial pose), its rate a.(w_child - w_parent) and that
+    rate's derivative (a global = turning with the child)."""
     k = len(results.times)
-    initial = {b.name: np.array(b.rotation.evalf(), dtype=float) for b in model.bodies}
+    initial = dict(initial or {b.name: np.array(b.rotation.evalf(), dtype=float) for b in model.bodies})
     initial[GROUND] = np.eye(3)
 
     def rotation(body):
@@ -336,6 +336,18 @@ def test_along_the_excavators_cases_the_work_is_the_change_of_energy(case, loads
     assert abs(simpson(power + load_power, x=times) - change) <= 1e-8 * scale, (simpson(power + load_power, x=times), change)
 
 
+def closed_loop_accelerations(chain, closure, q: np.ndarray, v: np.ndarray, tau: np.ndarray) -> np.ndarray:
+    """Pinocchio's constrained forward dynamics (``constraintDynamics``) of the tree ``chain`` closed by
+    the constraint ``closure``: the accelerations (K, nv) at each row of q, v and the joint forces tau.
+    The proximal solver takes the redundant out-of-plane equation of a planar loop."""
+    data, closures, closure_data = chain.createData(), pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
+    closures.append(closure)
+    closure_data.append(closure.createData())
+    pin.initConstraintDynamics(chain, data, closures, closure_data)
+    settings = pin.ProximalSettings(1e-14, 1e-10, 100)
+    return np.array([pin.constraintDynamics(chain, data, q[k], v[k], tau[k], closures, closure_data, settings) for k in range(len(q))])
+
+
 FOUR_BAR_MASSES = {  # kg; m, body coordinates; kg m^2 [Ixx, Iyy, Izz, Ixy, Ixz, Iyz] about the centre of mass
     "crank": (2.0, [0.15, 0.01, 0.005], [0.002, 0.016, 0.017, 0.0002, 0.0001, -0.0001]),
     "coupler": (4.5, [0.45, 0.03, -0.01], [0.012, 0.30, 0.31, 0.001, -0.002, 0.0005]),
@@ -369,11 +381,6 @@ def test_the_four_bars_crank_torque_drives_pinocchios_closed_loop(tmp_path_facto
         chain.appendBodyToJoint(joints[name], pin.Inertia(mass, np.array(center), tensor), pin.SE3.Identity())
     closure = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, chain, joints["B"], pin.SE3(np.eye(3), np.array([0.9, 0.0, 0.0])),
                                        joints["D"], pin.SE3(np.eye(3), np.array([0.7, 0.0, 0.0])), pin.ReferenceFrame.LOCAL)  # fmt: skip
-    data, closures, closure_data = chain.createData(), pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
-    closures.append(closure)
-    closure_data.append(closure.createData())
-    pin.initConstraintDynamics(chain, data, closures, closure_data)
-    settings = pin.ProximalSettings(1e-14, 1e-10, 100)  # the loop is planar: its out-of-plane equation is redundant
 
     def angle(body: str) -> np.ndarray:
         rotation = results.rotation_matrix(body)
@@ -382,8 +389,7 @@ def test_the_four_bars_crank_torque_drives_pinocchios_closed_loop(tmp_path_facto
     crank, coupler, rocker = (np.column_stack([angle(b), results.omega(b)[:, 2], results.omega_dot(b)[:, 2]]) for b in FOUR_BAR_MASSES)
     relative = coupler - crank  # joint B turns the coupler relative to the crank
     q, v, a = (np.column_stack([crank[:, i], relative[:, i], rocker[:, i]]) for i in range(3))
-    found = np.array([pin.constraintDynamics(chain, data, q[k], v[k], np.array([torque[k], 0.0, 0.0]), closures, closure_data, settings)
-                      for k in range(len(q))])  # fmt: skip
+    found = closed_loop_accelerations(chain, closure, q, v, np.column_stack([torque, np.zeros((len(q), 2))]))
     np.testing.assert_allclose(found, a, rtol=0, atol=1e-9 * np.abs(a).max())
     assert np.abs(torque).max() > 1.0  # N m: gravity and inertia both load the crank
 
@@ -460,11 +466,6 @@ def test_a_cylinders_force_drives_pinocchios_closed_loop(tmp_path_factory, param
                                 pin.SE3.Identity())  # fmt: skip
     closure = pin.RigidConstraintModel(pin.ContactType.CONTACT_3D, chain, joints["rod"], pin.SE3.Identity(), joints["boom"],
                                        pin.SE3(np.eye(3), np.array([1.2, 0.0, -0.15])), pin.ReferenceFrame.LOCAL)  # fmt: skip
-    data, closures, closure_data = chain.createData(), pin.StdVec_RigidConstraintModel(), pin.StdVec_RigidConstraintData()
-    closures.append(closure)
-    closure_data.append(closure.createData())
-    pin.initConstraintDynamics(chain, data, closures, closure_data)
-    settings = pin.ProximalSettings(1e-14, 1e-10, 100)  # the loop is planar: its out-of-plane equation is redundant
 
     def about_y(body: str) -> np.ndarray:  # angle, rate and its rate about +y (each body turns about y alone)
         rotation = results.rotation_matrix(body)
@@ -473,8 +474,7 @@ def test_a_cylinders_force_drives_pinocchios_closed_loop(tmp_path_factory, param
     length = np.column_stack([results.actuator_length("lift"), results.actuator_rate("lift"), results.actuator_acceleration("lift")])
     boom, barrel = about_y("boom"), about_y("barrel")
     q, v, a = (np.column_stack([boom[:, i], barrel[:, i], length[:, i]]) for i in range(3))
-    found = np.array([pin.constraintDynamics(chain, data, q[k], v[k], np.array([0.0, 0.0, push[k]]), closures, closure_data, settings)
-                      for k in range(len(q))])  # fmt: skip
+    found = closed_loop_accelerations(chain, closure, q, v, np.column_stack([np.zeros((len(q), 2)), push]))
     for i, scale in enumerate(np.abs(a).max(axis=0)):  # rad/s^2, rad/s^2, m/s^2: each to its own scale
         np.testing.assert_allclose(found[:, i], a[:, i], rtol=0, atol=1e-9 * scale, err_msg=f"coordinate {i}")
     assert push.min() > 1e3  # N: the cylinder holds the boom up
@@ -499,11 +499,7 @@ def test_the_excavators_cylinder_forces_equal_pinocchios_closed_loop_inverse_dyn
     def vector(values) -> np.ndarray:
         return np.array([design_value(x, nominal) for x in values])
 
-    def rotation(body: str) -> np.ndarray:
-        return np.broadcast_to(np.eye(3), (count, 3, 3)) if body == GROUND else results.rotation_matrix(body)
-
-    def omega(body: str, derivative: bool = False) -> np.ndarray:
-        return np.zeros((count, 3)) if body == GROUND else results.omega_dot(body) if derivative else results.omega(body)
+    start = {GROUND: np.eye(3), **{name: results.rotation_matrix(name)[0] for name in bodies}}  # Pinocchio's zero: the solved start
 
     edges = []  # (parent, child, revolute?, the joint's point on the parent, its axis, the body that axis is given on)
     for j in excavator.joints:
@@ -522,14 +518,14 @@ def test_the_excavators_cylinder_forces_equal_pinocchios_closed_loop_inverse_dyn
         for parent, child, revolute, point, axis, on in edges:
             if parent not in ids or child in ids:
                 continue
-            at_zero = rotation(parent)[0].T @ rotation(child)[0]  # joint frames = body frames, from the solved start
-            local_axis = rotation(child)[0].T @ rotation(on)[0] @ vector(axis)
+            at_zero = start[parent].T @ start[child]  # joint frames = body frames at the solved start
+            local_axis = start[child].T @ start[on] @ vector(axis)
             local_axis /= np.linalg.norm(local_axis)
             joint = pin.JointModelRevoluteUnaligned(local_axis) if revolute else pin.JointModelPrismaticUnaligned(local_axis)
             ids[child] = chain.addJoint(ids[parent], joint, pin.SE3(at_zero, np.zeros(3) if point is None else vector(point)), child)
             mass, center, tensor = nominal_inertia("excavator", bodies[child])
             chain.appendBodyToJoint(ids[child], pin.Inertia(mass, center, tensor), pin.SE3.Identity())
-            placed.append((parent, child, revolute, local_axis, at_zero))
+            placed.append((parent, child, revolute, local_axis))
     pairs = []  # the closures' two frames: the spherical joints' points on either body
     for j in excavator.joints:
         if j.type == "spherical":
@@ -539,17 +535,14 @@ def test_the_excavators_cylinder_forces_equal_pinocchios_closed_loop_inverse_dyn
 
     q, v, a = (np.zeros((count, chain.nv)) for _ in range(3))
     rods = {act.points[1].body: act.name for act in excavator.actuators}
+    revolutes = [(None, parent, child, local_axis) for parent, child, revolute, local_axis in placed if revolute]
+    angles, rates, accelerations = joint_motion(excavator, results, revolutes, start)
+    turned = {child: (angles[:, n], rates[:, n], accelerations[:, n]) for n, (_, _, child, _) in enumerate(revolutes)}
     actuated = {}  # velocity index -> kinegen's force there
-    for parent, child, revolute, local_axis, at_zero in placed:
+    for _, child, revolute, _ in placed:
         i = chain.joints[ids[child]].idx_v
-        if revolute:  # the angle from the start about the axis, its rate and acceleration (the axis turns with the child)
-            turn = np.einsum("ji,kjl->kil", at_zero, np.einsum("kji,kjl->kil", rotation(parent), rotation(child)))
-            sine = np.stack([turn[:, 2, 1] - turn[:, 1, 2], turn[:, 0, 2] - turn[:, 2, 0], turn[:, 1, 0] - turn[:, 0, 1]], axis=1) @ local_axis / 2
-            q[:, i] = np.unwrap(np.arctan2(sine, (np.einsum("kii->k", turn) - 1) / 2))
-            axis = np.einsum("kij,j->ki", rotation(child), local_axis)
-            rate = omega(child) - omega(parent)
-            v[:, i] = np.einsum("ki,ki->k", axis, rate)
-            a[:, i] = np.einsum("ki,ki->k", axis, omega(child, True) - omega(parent, True)) + np.einsum("ki,ki->k", np.cross(omega(parent), axis), rate)
+        if revolute:  # the angle from the start about the axis, its rate and acceleration
+            q[:, i], v[:, i], a[:, i] = turned[child]
         else:  # the rod slides out of its barrel by the cylinder's length
             name = rods[child]
             q[:, i], v[:, i], a[:, i] = results.actuator_length(name), results.actuator_rate(name), results.actuator_acceleration(name)

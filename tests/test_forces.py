@@ -343,10 +343,7 @@ def solved_prefix(name: str, case: str):
     if results.complete:
         return results
     end = max(int(np.argmin(results.converged)) - 1, 2)
-    return dataclasses.replace(
-        results, times=results.times[:end], q=results.q[:end], v=results.v[:end], a=results.a[:end], iterations=results.iterations[:end],
-        residuals=results.residuals[:end], conditions=results.conditions[:end], inputs=results.inputs[:end], converged=None, failure=None,
-    )  # fmt: skip
+    return dataclasses.replace(results.time_points(slice(end)), converged=None, failure=None)
 
 
 @settings(max_examples=30, deadline=None)

@@ -30,7 +30,7 @@ import sympy as sp
 import kinegen
 from kinegen.codegen.shapes import Definitions, Group, Shapes
 from kinegen.constraints import GROUND_FRAME
-from kinegen.interface import FRAME_FIELDS, FRAME_VALUES, SENSITIVITY_KERNELS
+from kinegen.interface import FRAME_FIELDS, FRAME_VALUES, SENSITIVITY_KERNELS, row_owner
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, design_value
@@ -485,8 +485,8 @@ def _reaction_tables(model: Model, coords: Coordinates, joint_names: list[str], 
     rows: dict[str, list[int]] = {}
     norms: dict[str, list[int]] = {b.name: [] for b in coords.bodies}
     for i, name in enumerate(joint_names):
-        owner, _, rest = name.partition(".")
-        (norms[owner] if rest.startswith("norm") else rows.setdefault(owner, [])).append(i)
+        owner, normalization = row_owner(name)
+        (norms[owner] if normalization else rows.setdefault(owner, [])).append(i)
     joints = []
     for joint in model.joints:
         body, sign = (joint.body2, 1) if joint.body2 != GROUND else (joint.body1, -1)

@@ -122,7 +122,7 @@ def tipping_margin(results: Results, model: Model, loads: tuple[str, ...] = (), 
     (:func:`kinegen.runtime.sensitivity.frame_sensitivities`) and the design's own in the masses,
     centres, inertias, loads' points and the undercarriage, by the product rule on the sums below."""
     machine = model.machine
-    if machine is None or not model.massive:
+    if not model.tips:
         raise KinegenError(f"the model {model.name!r} needs masses and a machine: section (undercarriage, tracks) for its tipping margin")
     wrenches = MachineWrenches(results, model, changes)
     wrenches.add_undercarriage(machine)
@@ -193,10 +193,10 @@ class MachineWrenches:
         arm = rotation @ local
         center = results.position(name) + arm
         force, moment = np.broadcast_to(mass * self.gravity, (self.count, 3)).copy(), np.zeros((self.count, 3))
-        omega, omega_dot = results.omega(name), results.omega_dot(name)
-        acceleration = results.acceleration(name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
-        tensor = rotation @ body_tensor @ rotation.swapaxes(1, 2)
-        if inertia:
+        if inertia:  # d'Alembert: -m a_C at the centre, -(J w' + w x J w) on the body
+            omega, omega_dot = results.omega(name), results.omega_dot(name)
+            acceleration = results.acceleration(name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
+            tensor = rotation @ body_tensor @ rotation.swapaxes(1, 2)
             force -= mass * acceleration
             moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
         if not self.changes:

@@ -141,7 +141,7 @@ def lift_chart(system: NumericSystem, model: Model) -> LiftChart:
     grid = tuple(tuple(placer.at(r, h) for r in spec.radii) for h in spec.heights)
     reach = tuple(placer.farthest(h) for h in spec.heights)
     return LiftChart(f"{spec.point.body}.{spec.point.name}", spec.lifting, spec.heights, spec.radii, grid, reach,
-                     placer.tipping, spec.without)  # fmt: skip
+                     model.tips, spec.without)  # fmt: skip
 
 
 class _Placer:
@@ -224,10 +224,6 @@ class _Placer:
         """The massive bodies whose weight the lift carries (the model's, less ``without``)."""
         return [b for b in self.model.massive if b.name not in self.spec.without]
 
-    @property
-    def tipping(self) -> bool:
-        return bool(self.model.massive) and self.model.machine is not None
-
     def held(self, values: np.ndarray) -> Held:
         """The pose at the placing inputs ``values`` and what holds a unit load hanging at the lift
         point there, and the front's own weight (less ``without``) before it."""
@@ -246,7 +242,7 @@ class _Placer:
         limiting = min(limits, key=lambda name: limits[name][0][0])  # the first of equals, in the model's order
         setting = "relief" if limiting == self.spec.lifting else "holding"
         front = side = float("nan")
-        if self.tipping:
+        if self.model.tips:
             front, side = tipping_loads(self.model, statics, self.weighed, radius)
         return LiftPoint(radius, height, float(limits[limiting][0][0]), limiting, setting, dict(zip(system.driver_names, map(float, u))),
                          front, side)  # fmt: skip
@@ -258,21 +254,9 @@ def tipping_loads(model: Model, statics: Statics, bodies: list, radius: float) -
     tipping line at distance d from the swing axis, Σ m_i (d - x_i) / (radius - d) over ``bodies``
     (x_i their centres of mass along the front) and the undercarriage (x along the tracks over the
     front; its y over the side: it does not swing); inf where the radius is inside the line."""
-    machine = model.machine
-    design = statics.system.design
-    value = functools.partial(design_value, design=design)
-    masses = np.array([value(b.inertia.mass) for b in bodies])
-    along = np.array([statics.position(b.name, statics.design_vector(b.inertia.center))[0, 0] for b in bodies])
-    under_mass = value(machine.undercarriage_mass)
-    under = [value(x) for x in machine.undercarriage_center]
-    out = []
-    for line, under_along in ((value(machine.track_length) / 2, under[0]), (value(machine.gauge) / 2, under[1])):
-        if radius <= line:
-            out.append(float("inf"))
-            continue
-        restoring = float(masses @ (line - along)) + under_mass * (line - under_along)
-        out.append(restoring / (radius - line))
-    return out[0], out[1]
+    front, side = (float("inf") if radius <= line else sum(m * (line - x) for m, _, x, _ in terms) / (radius - line)
+                   for line, _, terms in _levers(model, statics, bodies))  # fmt: skip
+    return front, side
 
 
 def tipping_load_changes(model: Model, statics: Statics, changes, bodies: list, radius: float) -> tuple[np.ndarray, np.ndarray]:
@@ -281,33 +265,48 @@ def tipping_load_changes(model: Model, statics: Statics, changes, bodies: list, 
     and the load's radius held: with T = R / (r - d), R = Σ m_i (d - x_i) + m_u (d - x_u),
     dT = (Σ dm_i (d - x_i) + m_i (dd - dx_i) + dm_u (d - x_u) + m_u (dd - dx_u)) / (r - d) + T dd / (r - d);
     zero where the radius is inside the line."""
-    from kinegen.model.schema import design_gradient
-
-    machine = model.machine
-    design = statics.system.design
-    order = list(design)
-    value = functools.partial(design_value, design=design)
-    gradient = functools.partial(design_gradient, names=order, design=design)
-    count = len(order)
-    restoring_terms = []  # (mass, d mass, along, d along) per weight: the bodies' at the pose, then the undercarriage's per line
-    for body in bodies:
-        local = statics.design_vector(body.inertia.center)
-        d_local = np.array([gradient(x) for x in body.inertia.center]).reshape(3, count)
-        position, d_position, _, _ = changes.point_at(body.name, local, d_local)
-        restoring_terms.append((value(body.inertia.mass), gradient(body.inertia.mass), position[0, 0], d_position[0, 0]))
-    under_mass, d_under_mass = value(machine.undercarriage_mass), gradient(machine.undercarriage_mass)
     out = []
-    for line_size, axis in ((machine.track_length, 0), (machine.gauge, 1)):
-        line, d_line = value(line_size) / 2, gradient(line_size) / 2
+    for line, d_line, terms in _levers(model, statics, bodies, changes):
         if radius <= line:
-            out.append(np.zeros(count))
+            out.append(np.zeros(len(statics.system.design)))
             continue
-        center = machine.undercarriage_center[axis]
-        terms = [*restoring_terms, (under_mass, d_under_mass, value(center), gradient(center))]
         restoring = sum(m * (line - x) for m, _, x, _ in terms)
         d_restoring = sum(dm * (line - x) + m * (d_line - dx) for m, dm, x, dx in terms)
         out.append(d_restoring / (radius - line) + restoring * d_line / (radius - line) ** 2)
     return out[0], out[1]
+
+
+def _levers(model: Model, statics: Statics, bodies: list, changes=None) -> list[tuple[float, np.ndarray, list]]:
+    """Per tipping line (over the front, over the side): its distance d from the swing axis, dd/dp and
+    per weight (``bodies`` at the pose, then the undercarriage) (mass, d mass/dp, its centre along the
+    front, that position's d/dp) -- the derivatives zero unless ``changes`` (the pose's change,
+    :class:`kinegen.forces.sensitivity._TangentChanges`) is given."""
+    from kinegen.model.schema import design_gradient
+
+    machine = model.machine
+    design = statics.system.design
+    count = len(design)
+    value = functools.partial(design_value, design=design)
+    if changes is None:  # the chart's values alone: no derivatives to take
+
+        def gradient(_) -> np.ndarray:
+            return np.zeros(count)
+    else:
+        gradient = functools.partial(design_gradient, names=list(design), design=design)
+    weights = []
+    for body in bodies:
+        local = statics.design_vector(body.inertia.center)
+        if changes is None:
+            along, d_along = statics.position(body.name, local)[0, 0], np.zeros(count)
+        else:
+            d_local = np.array([gradient(x) for x in body.inertia.center]).reshape(3, count)
+            position, d_position, _, _ = changes.point_at(body.name, local, d_local)
+            along, d_along = position[0, 0], d_position[0, 0]
+        weights.append((value(body.inertia.mass), gradient(body.inertia.mass), along, d_along))
+    under = (value(machine.undercarriage_mass), gradient(machine.undercarriage_mass))
+    return [(value(size) / 2, gradient(size) / 2, [*weights, (*under, value(machine.undercarriage_center[axis]),
+                                                               gradient(machine.undercarriage_center[axis]))])
+            for size, axis in ((machine.track_length, 0), (machine.gauge, 1))]  # fmt: skip
 
 
 def lift_chart_figure(chart: LiftChart, boundary=None):

@@ -87,7 +87,7 @@ class MultiplierChanges:
         generalized = -self.matrix.transpose_times(self.multipliers, rows)  # (K, n)
         d_generalized = -_joint_rows_change(statics, self.multipliers * mask, self.s) - _transpose_times_change(self.matrix, self.d_multipliers, rows)
         body, sign = (joint.body2, 1.0) if joint.body2 != GROUND else (joint.body1, -1.0)
-        if any(name.startswith(f"{body}.norm") for name in statics.row_names[: statics.joint_rows]):
+        if statics.normalization_rows(body):
             raise KinegenError(f"reaction sensitivities of {joint.name}: not yet for parametrizations with normalization rows")
         columns = statics.columns(body)
         tv, tw = statics.tangents[body]

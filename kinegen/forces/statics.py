@@ -41,6 +41,7 @@ from scipy.linalg.lapack import dgetrs as getrs
 
 from kinegen.errors import KinegenError, SingularJacobianError
 from kinegen.forces.dynamics import energies, inertia_numbers, inertial_load, load_wrench, tipping_margin
+from kinegen.interface import row_owner
 from kinegen.model import Model
 from kinegen.model.schema import GROUND, Actuator, Joint, Load, Motor, design_value
 from kinegen.runtime.results import Results
@@ -236,7 +237,7 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], i
     energy = tipping = None
     if inertia:
         energy = energies(results, model)
-        tipping = tipping_margin(results, model, tuple(loads)) if model.machine is not None else None
+        tipping = tipping_margin(results, model, tuple(loads)) if model.tips else None
     return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load, inertia, energy,
                   tipping)  # fmt: skip
 
@@ -326,7 +327,11 @@ class Statics:
 
     def joint_row_indices(self, joint: str) -> list[int]:
         """The rows of ``joint`` among the joint rows (its equations, in order)."""
-        return [i for i, name in enumerate(self.row_names[: self.joint_rows]) if _joint_of(name) == joint]
+        return [i for i, name in enumerate(self.row_names[: self.joint_rows]) if row_owner(name) == (joint, False)]
+
+    def normalization_rows(self, body: str) -> list[int]:
+        """``body``'s normalization rows among the joint rows (none in most parametrizations)."""
+        return [i for i, name in enumerate(self.row_names[: self.joint_rows]) if row_owner(name) == (body, True)]
 
     def input_gains(self) -> np.ndarray:
         """(K, n_elements) dPhi_e/du_e of each element's row by its input: an element's force along
@@ -506,7 +511,7 @@ class Statics:
         coordinate beyond six) make a square system."""
         tv, tw = self.tangents[body]
         columns = self.columns(body)
-        norms = [i for i, name in enumerate(self.row_names[: self.joint_rows]) if name.startswith(f"{body}.norm")]
+        norms = self.normalization_rows(body)
         square = np.concatenate([tv, tw, matrix.block(norms, columns)], axis=1)  # (K, n_v of the body, n_v of the body)
         w = np.linalg.solve(square.swapaxes(1, 2), generalized[:, columns, None])[:, :, 0]
         return w[:, :3], w[:, 3:6]
@@ -557,12 +562,6 @@ class Statics:
         holding = [design_value(x, design) for x in hydraulics.holding]
         limit = np.where(working, np.where(pushing, relief[0], relief[1]), np.where(pushing, holding[0], holding[1]))
         return Pressure(actuator.name, pressure, pushing, limit, working)
-
-
-def _joint_of(row: str) -> str:
-    """The joint a joint row belongs to (``boom_foot.x`` -> ``boom_foot``); a body's normalization row -> ''."""
-    name, _, rest = row.partition(".")
-    return "" if rest.startswith("norm") else name
 
 
 def hydraulic_limit(

@@ -511,6 +511,11 @@ class Model:
         return tuple(b for b in self.bodies if b.inertia is not None)
 
     @property
+    def tips(self) -> bool:
+        """Whether the machine's tipping can be computed: masses and a ``machine:`` section."""
+        return bool(self.massive) and self.machine is not None
+
+    @property
     def actuation(self) -> tuple[Actuator | Motor, ...]:
         """What carries the machine's load: the motors, then the actuators with hydraulic data
         (empty: the model declares none, and each case's drivers carry it)."""

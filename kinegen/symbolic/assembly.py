@@ -29,6 +29,7 @@ from functools import cached_property
 import sympy as sp
 
 from kinegen.constraints import GROUND_FRAME, Equation, Frame, driver_equation, joint_equations
+from kinegen.interface import normalization_row
 from kinegen.model.expressions import T, time_derivative
 from kinegen.model.schema import GROUND, Case, Model
 from kinegen.rotations import Parametrization
@@ -515,7 +516,7 @@ def kinematic_rows(model: Model, coords: Coordinates, templates: Templates | Non
             rows.append(derive(eq, coords, templates=templates, group=joint.name))
     for body in coords.bodies:
         for k, expr in enumerate(coords.parametrization.body_normalization(sp.Matrix(body.stored))):
-            equation = Equation(f"{body.name}.norm{'' if k == 0 else k}", (body.name,), expr)
+            equation = Equation(normalization_row(body.name, k), (body.name,), expr)
             rows.append(derive(equation, coords, templates=templates, group=f"norm:{body.name}"))
     return rows
 

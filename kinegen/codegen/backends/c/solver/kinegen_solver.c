@@ -927,34 +927,26 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
     return solved;
 }
 
-/* Solves a^T x = b for x, a an n x n row-major matrix (n <= 8), by Gaussian elimination with partial
- * pivoting on a copy; 1 if it is singular (a zero pivot). */
-static int small_solve_transposed(int n, const double *a, const double *b, double *x) {
-    double m[8][9];
-    for (int i = 0; i < n; ++i) {
-        for (int j = 0; j < n; ++j) m[i][j] = a[j * n + i];
-        m[i][n] = b[i];
-    }
-    for (int c = 0; c < n; ++c) {
-        int p = c;
-        for (int r = c + 1; r < n; ++r)
-            if (fabs(m[r][c]) > fabs(m[p][c])) p = r;
-        if (m[p][c] == 0.0) return 1;
-        if (p != c)
-            for (int j = c; j <= n; ++j) {
-                double t = m[c][j];
-                m[c][j] = m[p][j];
-                m[p][j] = t;
-            }
-        for (int r = c + 1; r < n; ++r) {
-            double f = m[r][c] / m[c][c];
-            for (int j = c; j <= n; ++j) m[r][j] -= f * m[c][j];
+/* Solves a^T x = b for x, a an n x n row-major matrix (n <= 8, overwritten with the factors): read
+ * column-major, a is a^T, which lu_block factorizes in place; then the substitutions of solve(). 1 if
+ * it is singular (a zero or non-finite pivot). */
+static int small_solve_transposed(int n, double *a, const double *b, double *x) {
+    int piv[8], odd = 0;
+    double low = INFINITY, high = 0.0;
+    if (lu_block(a, piv, n, &low, &high, &odd)) return 1;
+    for (int i = 0; i < n; ++i) x[i] = b[i];
+    for (int k = 0; k < n; ++k) {
+        if (piv[k] != k) {
+            double tmp = x[k];
+            x[k] = x[piv[k]];
+            x[piv[k]] = tmp;
         }
     }
-    for (int i = n - 1; i >= 0; --i) {
-        double sum = m[i][n];
-        for (int j = i + 1; j < n; ++j) sum -= m[i][j] * x[j];
-        x[i] = sum / m[i][i];
+    for (int k = 0; k < n; ++k)
+        for (int i = k + 1; i < n; ++i) x[i] -= a[i + k * n] * x[k];
+    for (int k = n - 1; k >= 0; --k) {
+        x[k] /= a[k + k * n];
+        for (int i = 0; i < k; ++i) x[i] -= a[i + k * n] * x[k];
     }
     return 0;
 }
