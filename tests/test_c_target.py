@@ -311,7 +311,7 @@ def test_standalone_chain_and_boom_match_python(tmp_path):
     model.write_text(chain_yaml(14))
     for path, param, case in ((model, "euler-parameters", "drive"), (MODELS / "boom.yaml", "quaternion", "swing")):
         folder = _standalone(tmp_path / path.stem, path, param)
-        stem = next(p.stem for p in folder.glob("*.h") if p.name != "kinegen_solver.h")
+        stem = next(p.stem for p in folder.glob("*.h") if p.name not in config.RUNTIME)
         program = _compile(folder, stem, ["-O2"])
         module = load_module(next(folder.parent.glob("*.py"), None) or _python_module(tmp_path / path.stem, path, param))
         _compare(program, from_module(module, case, compiled=False), case)

@@ -117,7 +117,7 @@ def test_one_generated_module_solves_any_design_without_a_rebuild(tmp_path, para
             (tmp_path / file).write_text(text)
     module = load_module(tmp_path / next(iter(made["python"])))
     assert module.DESIGN == {"r": (0.2, 0.15, 0.25), "l": (0.6, 0.5, 0.7)}
-    assert all(slots[-1] == "p" for kernel, (slots, _) in module.KERNELS.items() if kernel not in ("inputs", "frames", "frames_d"))
+    assert all(slots[-1] == "p" for kernel, (slots, _) in module.KERNELS.items() if kernel not in ("inputs", "input_ranges", "frames", "frames_d"))
     for values in ({}, {"r": 0.21, "l": 0.65}, {"r": 0.16}):
         system = from_module(module, "run", compiled=compiled, design=values)
         assert (system.native is not None) == compiled

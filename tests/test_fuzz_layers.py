@@ -12,12 +12,16 @@ generated file, the inputs of a solve and the command line.
 * **signals**: random input signals (random amplitudes, frequencies up to the grid's Nyquist rate,
   phases) on the excavator: every returned row equals a 1000x finer solve's to 1e-9 m, or the
   solve refuses;
+* **functions** (issue 38): the excavator's own time functions with all four inputs fast (the
+  oscillation case, 270-330 rad/s) on random grids of 0.3 to 7 rad of phase a step -- below and
+  above the grid's Nyquist rate (pi) -- from random start times, compiled and in Python: every
+  returned row equals the 2/42000 s solve's to 1e-9 m, or the solve refuses;
 * **cli**: random argument lists from the commands' own options and hostile values (non-numbers,
   NaN, huge numbers, broken JSON and expressions, devices, directories, unknown suffixes): each
   ends with an exit code of the table (kinegen.errors.ExitCode), no traceback, at most a few lines of error.
 
 The quick subset runs with the test suite; ``make fuzz`` runs KINEGEN_FUZZ_EXAMPLES / 200 name,
-/ 20 tamper, / 500 signal and / 10 command-line examples and appends the counts to its report.
+/ 20 tamper, / 500 signal, / 500 function and / 10 command-line examples and appends the counts to its report.
 """
 
 from __future__ import annotations
@@ -50,7 +54,7 @@ from tests.test_trust import _normalized
 
 EXAMPLES = int(os.environ.get("KINEGEN_FUZZ_EXAMPLES", "150"))
 COUNTS = {"names": max(3, EXAMPLES // 200), "tampered": max(12, EXAMPLES // 20), "signals": max(2, EXAMPLES // 500),
-          "cli": max(25, EXAMPLES // 10)}  # fmt: skip
+          "functions": max(2, EXAMPLES // 500), "cli": max(25, EXAMPLES // 10)}  # fmt: skip
 SEEN: Counter = Counter()  # layer -> examples run
 OUTCOMES: Counter = Counter()  # (layer, outcome) -> count
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -274,6 +278,46 @@ def test_random_signals_come_back_right_or_not_at_all(amplitudes, cycles, phases
     inputs = _signal(system, amplitudes, tuple(2 * np.pi * c for c in cycles), phases)
     accepted = _rows_equal_the_fine_solve_or_refuse(system, inputs, 41, TIGHT)
     OUTCOMES[("signals", {True: "equal to the fine solve", False: "refused (BranchError)", None: "no fine reference"}[accepted])] += 1
+
+
+# ---- the case's own fast time functions on random grids -------------------------------------------
+@pytest.fixture(scope="module")
+def oscillation():
+    """The excavator's oscillation case and its 2/42000 s solve (stored coordinates, body points)."""
+    from kinegen.runtime import Solver
+    from tests.test_trust import FINE_STEPS, TIGHT, _points
+
+    module = load_module(GENERATED / "excavator_quaternion.py", MODELS / "excavator.yaml")
+    system = from_module(module, "oscillation")
+    fine = Solver(system, TIGHT).solve(np.linspace(0.0, 2.0, FINE_STEPS + 1))
+    return module, fine.q, _points(system, fine.q)
+
+
+@pytest.mark.skipif(CC is None, reason="no C compiler")
+@settings(COSTLY, max_examples=COUNTS["functions"])
+@given(stride=st.integers(20, 450), count=st.integers(3, 12), start=st.floats(0.0, 1.0), compiled=st.booleans())
+def test_fast_time_functions_on_random_grids_come_back_right_or_not_at_all(oscillation, stride, count, start, compiled):
+    from kinegen.errors import BranchError
+    from kinegen.runtime import Solver, SolverOptions
+    from tests.test_trust import FINE_STEPS, _points
+
+    SEEN["functions"] += 1
+    module, q, points = oscillation
+    if not compiled:
+        count = min(count, 4)  # the Python runtime halves the steps of these grids thousands of times: a few steps
+    first = int(start * (FINE_STEPS - stride * (count - 1)))
+    rows = np.arange(first, first + stride * count, stride)  # the grid's points among the fine solve's
+    times = rows * (2.0 / FINE_STEPS)
+    system = from_module(module, "oscillation", compiled=compiled)
+    phase = 330.0 * (times[1] - times[0])
+    try:
+        results = Solver(system, SolverOptions(compiled=compiled)).solve(times, q0=q[first])
+    except BranchError:
+        OUTCOMES[("functions", f"refused (BranchError), {'above' if phase > np.pi else 'below'} Nyquist")] += 1
+        return
+    deviation = np.abs(_points(system, results.q) - points[rows]).max()
+    assert deviation <= 1e-9, f"a row {deviation:.3g} m from the fine solve came back ({phase:.2f} rad a step, {'C' if compiled else 'Python'})"
+    OUTCOMES[("functions", f"equal to the fine solve, {'above' if phase > np.pi else 'below'} Nyquist, {'C' if compiled else 'Python'}")] += 1
 
 
 # ---- command-line arguments --------------------------------------------------------------------

@@ -28,6 +28,7 @@ from kinegen.errors import BranchError, GeneratedModuleError, KinegenError
 from kinegen.integrity import c_string, comment_text, seal
 from kinegen.runtime import Solver, SolverOptions, from_module, load_module
 from kinegen.runtime import native as native_module
+from kinegen.runtime.solver import SamplingWarning
 from tests.conftest import GENERATED, MODELS
 
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -141,6 +142,7 @@ def test_a_jump_in_a_time_function_stops_with_an_error_naming_what_was_observed(
         Solver(system).solve()
     assert caught.value.exit_code == 3 and caught.value.t0 <= 0.5 <= caught.value.t1
     assert "continuation bound fails" in str(caught.value) and "alpha * omega" in str(caught.value)
+    assert "the input crank_angle moves too much within the step" in str(caught.value)
     stopped = Solver(system, SolverOptions(on_failure="stop")).solve()
     assert stopped.converged[:-1].all() and not stopped.converged[-1] and stopped.times[-1] >= 0.5
     assert np.isnan(stopped.q[-1]).all()
@@ -168,6 +170,73 @@ def test_random_input_signals_come_back_right_or_not_at_all(excavator, amplitude
     system = from_module(excavator, "digging")
     inputs = _signal(system, amplitudes, tuple(2 * np.pi * c for c in cycles), phases)
     _rows_equal_the_fine_solve_or_refuse(system, inputs, 41, TIGHT)
+
+
+# ---- certified along the case's own time functions (issue 38) ----------------------------------
+#: the oscillation case's fine grid: 200 x finer than its 211-point grids (h = 2/42000 s, 0.016 rad of phase a step)
+FINE_STEPS = 42_000
+
+
+@pytest.fixture(scope="module")
+def oscillation_reference(excavator):
+    """The oscillation case (every input at 270-330 rad/s) solved on a 2/42000 s grid: the body points."""
+    system = from_module(excavator, "oscillation")
+    fine = Solver(system, TIGHT).solve(np.linspace(0.0, 2.0, FINE_STEPS + 1))
+    return fine.q, _points(system, fine.q)
+
+
+@needs_cc
+@pytest.mark.parametrize("count", [101, 106, 151, 176, 201, 421])
+def test_every_input_oscillating_fast_comes_back_right_or_not_at_all(excavator, oscillation_reference, count):
+    """Four inputs at 270-330 rad/s on grids of 101-421 points (1-7 rad of phase a step): kinegen
+    before issue 38 returned these rows 2.8-7.8 m off the fine solve, certified. Now every row
+    equals the fine solve's (1e-9 m) or the solve refuses; without the certificate they are off."""
+    system = from_module(excavator, "oscillation")
+    times = np.linspace(0.0, 2.0, count)
+    fine = oscillation_reference[1][:: FINE_STEPS // (count - 1)]
+    try:
+        results = Solver(system).solve(times)
+    except BranchError:
+        return
+    assert np.abs(_points(system, results.q) - fine).max() <= 1e-9
+    try:
+        blind = Solver(system, SolverOptions(keep_branch=False)).solve(times)
+        assert np.abs(_points(system, blind.q) - fine).max() > 1e-3
+    except KinegenError:
+        pass
+
+
+def test_every_input_oscillating_fast_in_pure_python(excavator, oscillation_reference):
+    """The Python runtime's certificate (its own enclosures, its own halving) over the first 0.2 s on
+    the 101-point grid's steps, whose rows kinegen before issue 38 returned 2.7 m off."""
+    q, points = oscillation_reference
+    system = from_module(excavator, "oscillation", compiled=False)
+    results = Solver(system, SolverOptions(compiled=False)).solve(np.linspace(0.0, 0.2, 11), q0=q[0])
+    assert np.abs(_points(system, results.q) - points[:4201:420]).max() <= 1e-9
+
+
+@pytest.mark.parametrize("compiled", [True, False])
+def test_an_excursion_between_two_time_points_is_not_certified(tmp_path, compiled):
+    """The slider pushed to x = 0.9 m between every two time points and back to 0.6 m at each (its
+    samples and rates say it stands still, the crank cannot reach past 0.8 m): the solve refuses,
+    where the cubic path of the samples certified every row."""
+    model = tmp_path / "excursion.yaml"
+    model.write_text((MODELS / "slider_crank.yaml").read_text().replace("function: 0.8 - 0.1*t**2", "function: 0.6 + 0.3*sin(10*pi*t)**2")
+                     .replace("t0: -1", "t0: 0").replace("t1: 0\n", "t1: 1\n").replace("steps: 101", "steps: 11"))  # fmt: skip
+    module = load_module(build(model, "quaternion", tmp_path), model)
+    system = from_module(module, "dead_centre", compiled=compiled)
+    if compiled and system.native is None:
+        pytest.skip("no C compiler")
+    u, ud, udd = system.driver_inputs(np.linspace(0.0, 1.0, 11))
+    assert np.allclose(u, 0.6) and np.allclose(ud, 0.0, atol=1e-12)
+    # as a table (values, rates and accelerations of the samples) the path between them is the samples' cubic:
+    # the rows come back, and the table's accelerations (2 x 0.3 x (10 pi)^2) disagree with that path: a warning
+    with pytest.warns(SamplingWarning, match="slider_x"):
+        tabled = Solver(system, SolverOptions(compiled=compiled)).solve(np.linspace(0.0, 1.0, 11), inputs=(u, ud, udd))
+    assert tabled.converged.all()
+    with pytest.raises(KinegenError) as caught:
+        Solver(system, SolverOptions(compiled=compiled)).solve()
+    assert caught.value.exit_code in (3, 4) and caught.value.t < 0.1
 
 
 @needs_cc

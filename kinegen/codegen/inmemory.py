@@ -6,12 +6,15 @@ treats both alike. Building is quicker (no printing); evaluation is slower.
 
 from __future__ import annotations
 
+import functools
 from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import sympy as sp
 
+from kinegen.codegen.backends.python.intervals import evaluate
+from kinegen.codegen.intervals import interval_program
 from kinegen.codegen.kernels import initial_q
 from kinegen.errors import ModelError
 from kinegen.model import Model
@@ -80,6 +83,7 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
             "driver_sources": inputs.sources,
             "outputs": {  # the outputs of the kernels a generated module's case declares (no plain-float ones)
                 "inputs": _inputs(functions, T, len(functions)),
+                "input_ranges": functools.partial(evaluate, interval_program(functions)),
                 "phi": compile_([q, u], [r.phi for r in rows], m),
                 "jac": compile_([q, u], [e for _, _, e in entries], len(entries)),
                 "nu": compile_([q, u, ud], [r.nu for r in rows], m),

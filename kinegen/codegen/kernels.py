@@ -11,7 +11,8 @@ print it; nothing here knows Python or C.
   each), eliminated (CSE) once per shape (:class:`kinegen.codegen.shapes.Shapes`).
 * **Kernels** are what a runtime calls, per case: ``phi_jac`` (q, u -> Phi, Phi_q values at
   the case's pattern), ``nu`` (q, u, ud -> nu = -Phi_t), ``gamma`` (q, v, u, ud, udd ->
-  gamma), ``inputs`` (t -> u, ud, udd); and ``frames`` (q, v, a -> per body origin, rotation
+  gamma), ``inputs`` (t -> u, ud, udd), ``input_ranges`` (span = (t0, t1) -> enclosures of u,
+  ud, udd over that time interval: :mod:`kinegen.codegen.intervals`); and ``frames`` (q, v, a -> per body origin, rotation
   matrix, velocity, angular velocity, acceleration, angular acceleration). A kernel's output
   is the concatenation of sections (or zeros).
 * The **plan** of a case is the block-triangular order of its Phi_q (rows and columns
@@ -28,6 +29,7 @@ import numpy as np
 import sympy as sp
 
 import kinegen
+from kinegen.codegen.intervals import IntervalProgram, interval_program
 from kinegen.codegen.shapes import Definitions, Group, Shapes
 from kinegen.constraints import GROUND_FRAME
 from kinegen.interface import FRAME_FIELDS, FRAME_VALUES, SENSITIVITY_KERNELS, row_owner
@@ -63,6 +65,18 @@ class Section:
     name: str
     slots: tuple[str, ...]
     groups: tuple[Group, ...]
+    size: int
+    doc: str
+
+
+@dataclass(frozen=True)
+class Enclosure:
+    """Rows computed by interval arithmetic from the time interval ``span`` = (t0, t1): the lower
+    bounds of the program's outputs, then their upper bounds (``size`` = 2 x its outputs; an output
+    the program cannot enclose is the whole real line)."""
+
+    name: str
+    program: IntervalProgram
     size: int
     doc: str
 
@@ -195,6 +209,8 @@ class ModuleDescription:
     c_files: dict[str, str] = field(default_factory=dict)
     #: a model with loads or actuation elements: what the force solve's kernels compute (None: neither)
     statics: StaticsDescription | None = None
+    #: rows computed by interval arithmetic (each case's input_ranges), by name, like ``sections``
+    enclosures: dict[str, Enclosure] = field(default_factory=dict)
 
     @property
     def joint_rows(self) -> int:
@@ -577,6 +593,7 @@ def describe(
                 "The length of every actuator (in the order of ACTUATORS) [m]: the distance between its two points.")  # fmt: skip
     statics = _statics(model, coords, first.jacobian_pattern[:n_joint_entries], [r.name for r in joints], p, section, shared)
     cases: dict[str, CaseDescription] = {}
+    enclosures: dict[str, Enclosure] = {}
     for name, system in systems.items():
         rows = system.rows
         drivers = rows[mj:]
@@ -584,8 +601,14 @@ def describe(
         m, nd = len(rows), len(inputs.u)
         pattern = system.jacobian_pattern
         n_driver_entries = len(pattern) - n_joint_entries
-        section(f"inputs_{name}", ("t",), (Group(None, inputs.stacked, {}),), 3 * nd,
+        stacked = inputs.stacked()
+        section(f"inputs_{name}", ("t",), (Group(None, lambda stacked=stacked: stacked, {}),), 3 * nd,
                 f"Driver inputs of case {name!r} at time t: rows u ({nd}), then du/dt, then d2u/dt2.")  # fmt: skip
+        enclosures[f"input_ranges_{name}"] = Enclosure(
+            f"input_ranges_{name}", interval_program(stacked), 6 * nd,
+            f"Enclosures of the driver inputs of case {name!r} over the time interval span = (t0, t1): the lower bounds "
+            f"of u ({nd}), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward).",
+        )  # fmt: skip
         section(f"drivers_phi_{name}", ("q", "u", *p), _groups(drivers, templates, "phi"), m - mj, f"Phi of the driver rows of case {name!r}.")
         section(f"drivers_jac_{name}", ("q", "u", *p), _groups(drivers, templates, "jac"), n_driver_entries,
                 f"Phi_q values of the driver rows of case {name!r}.")  # fmt: skip
@@ -604,6 +627,9 @@ def describe(
                             f"gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case {name!r}."),
             "inputs": Kernel("inputs", ("t",), (Output("inputs", (f"inputs_{name}",), 3 * nd),),
                              f"Driver inputs of case {name!r} at time t: u, then du/dt, then d2u/dt2."),
+            "input_ranges": Kernel("input_ranges", ("span",), (Output("input_ranges", (f"input_ranges_{name}",), 6 * nd),),
+                                   f"Enclosures of the driver inputs of case {name!r} over span = (t0, t1): the lower bounds of "
+                                   "u, du/dt, d2u/dt2, then their upper bounds."),
         }  # fmt: skip
         patterns: dict[str, tuple[tuple[int, ...], tuple[int, ...]]] = {}
         if sensitive:
@@ -673,4 +699,5 @@ def describe(
         design=tuple((d.name, float(d.nominal), float(d.lower), float(d.upper)) for d in model.design),
         sensitivities=sensitive,
         statics=statics,
+        enclosures=enclosures,
     )

@@ -36,7 +36,7 @@ from types import ModuleType
 
 import numpy as np
 
-from kinegen.codegen.backends.c.config import source_parts
+from kinegen.codegen.backends.c.config import RUNTIME, source_parts
 from kinegen.errors import ExitCode, KinegenError
 from kinegen.runtime.abi import Abi
 
@@ -225,7 +225,7 @@ _INCLUDE = re.compile(r'^#include "([^"]+)"', re.MULTILINE)
 
 def with_solver(model_files: dict[str, str]) -> dict[str, str]:
     """A model's C files (``<stem>.c``, ``<stem>.h``) and kinegen's C solver: what a library is built from."""
-    return {**model_files, **{name: (SOLVER_SOURCES / name).read_text() for name in ("kinegen_solver.c", "kinegen_solver.h")}}
+    return {**model_files, **{name: (SOLVER_SOURCES / name).read_text() for name in RUNTIME}}
 
 
 def compile_in_background(model_files: dict[str, str]) -> threading.Thread:
@@ -363,7 +363,7 @@ class NativeCase:
         layout = abi.struct("kinegen_layout").from_address(m.layout)
         self.kernels = {**abi.kernels(layout.n_kernels, layout.kernels), **abi.kernels(m.n_kernels, m.kernels)}
         # buffers for one configuration, and the kernels bound to them once
-        self._arrays = {"q": np.zeros(m.n_q), "v": np.zeros(m.n_v), "a": np.zeros(m.n_v), "t": np.zeros(1),
+        self._arrays = {"q": np.zeros(m.n_q), "v": np.zeros(m.n_v), "a": np.zeros(m.n_v), "t": np.zeros(1), "span": np.zeros(2),
                         **{s: np.zeros(max(1, m.n_inputs)) for s in ("u", "ud", "udd")}, **{s: np.zeros(m.n_v) for s in "wyz"}}  # fmt: skip
         if self.design is not None:
             self._arrays["p"] = self.design

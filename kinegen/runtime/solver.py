@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import dataclasses
 import gc
+import warnings
 from dataclasses import dataclass
 from functools import cached_property
 from pathlib import Path
@@ -34,6 +35,14 @@ from kinegen.runtime.results import Results
 from kinegen.runtime.system import NumericSystem, from_module, module_from_source
 from kinegen.symbolic.blocks import Block, block_triangular
 
+#: The largest motion a certified step may make in any velocity coordinate (max-norm of Newton's path
+#: from the last solution, the predictor's included): a quarter turn. The certificate's ball about the
+#: new solution holds the last one; beyond half a turn a rotation coordinate repeats within it (its
+#: Jacobian too), where the Lipschitz constant measured over the step says nothing.
+MAX_MOTION = np.pi / 2
+#: ... and the least over which omega is measured: Phi_q's change over a smaller motion is rounding
+#: (a step that moves less is as certain as x0 itself; below 1e-154, |d|^2 underflows)
+MIN_MOTION = 1e-12
 #: Trajectories of at least this many time points get a progress bar on a terminal, shown once
 #: the solve has lasted PROGRESS_DELAY seconds (a compiled solve is mostly done by then) ...
 PROGRESS_STEPS = 2_000
@@ -425,6 +434,20 @@ class Solver:
         if tabulated and not all(np.isfinite(x).all() for x in (u_all, ud_all, udd_all)):
             first = int(np.argmax(~np.isfinite(np.vstack((u_all, ud_all, udd_all))).all(axis=0)))
             raise ValueError(f"tabulated driver inputs are not finite at t = {times[first]:.6g} (index {first})")
+        if tabulated and k > 1:
+            _warn_if_undersampled(system, times, u_all, ud_all, udd_all)
+
+        grid_ranges: list[np.ndarray] = []  # the case's inputs enclosed over every grid step, made when first needed
+
+        def ranges_of(t0: float, t1: float, i: int) -> np.ndarray | None:
+            """Enclosures of the case's inputs over [t0, t1] within grid step i (None: tabulated inputs)."""
+            if tabulated or system.input_ranges is None:
+                return None
+            if (t0, t1) != (times[i - 1], times[i]):
+                return np.asarray(system.input_ranges((np.array([t0]), np.array([t1]))), dtype=float)[:, 0]
+            if not grid_ranges:
+                grid_ranges.append(np.asarray(system.input_ranges((times[:-1], times[1:])), dtype=float).reshape(-1, k - 1))
+            return grid_ranges[0][:, i - 1]
 
         def inputs_at(t: float, i: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
             """Inputs at a refinement time between samples i-1 and i: the case's functions, or for
@@ -482,7 +505,8 @@ class Solver:
                     else:
                         start_inputs = (u_all[:, i - 1], ud_all[:, i - 1], udd_all[:, i - 1])
                         solution, factors = self._step(
-                            q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i), start_inputs
+                            q, v, a, factors, times[i - 1], t, (u, ud, udd), lambda s, i=i: inputs_at(s, i), start_inputs,
+                            lambda t0, t1, i=i: ranges_of(t0, t1, i),
                         )
                     q, iterations[i], residuals[i] = solution.q, solution.iterations, solution.norm
                     if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
@@ -526,9 +550,11 @@ class Solver:
             return None
         return _NativeSteps(native, self.options, self.chord, case_inputs)
 
-    def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, start_inputs, depth: int = 0) -> tuple:
+    def _step(self, q, v, a, previous: Factors, t0: float, t1: float, inputs, inputs_at, start_inputs, ranges_of=None,
+              depth: int = 0) -> tuple:  # fmt: skip
         """Position at t1 from the solved state (q, v, a) at t0 (inputs ``start_inputs``), whose
-        Phi_q is factorized in ``previous``, certified to continue it (:meth:`_certify`).
+        Phi_q is factorized in ``previous``, certified to continue it (:meth:`_certify`; ``ranges_of(t0,
+        t1)``: the enclosures of the case's inputs over a step, None for tabulated inputs).
 
         Returns the solution and the factors of its Phi_q. When the certificate fails (or Newton
         does), the interval is halved and both halves are solved in turn, up to
@@ -547,7 +573,8 @@ class Solver:
             observed = None
             if opts.keep_branch and (factors.lu is not None or factors.pinv is not None):  # pinv: redundant, least squares
                 moved = None if solution.moved is None else motion + solution.moved
-                observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs)
+                ranges = None if ranges_of is None else ranges_of(t0, t1)
+                observed = self._certify(previous, solution, factors, moved, h, start_inputs, inputs, ranges)
         except (ConvergenceError, SingularJacobianError):
             if depth >= self.options.max_refinements or not self.options.keep_branch:
                 raise
@@ -558,12 +585,13 @@ class Solver:
             raise BranchError(t0, t1, h, observed)
         middle = 0.5 * (t0 + t1)
         mid_inputs = inputs_at(middle)
-        first, factors_m = self._step(q, v, a, previous, t0, middle, mid_inputs, inputs_at, start_inputs, depth + 1)
+        first, factors_m = self._step(q, v, a, previous, t0, middle, mid_inputs, inputs_at, start_inputs, ranges_of, depth + 1)
         vm, am = self.rates(first.q, *mid_inputs, factors_m)
-        second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, mid_inputs, depth + 1)
+        second, factors = self._step(first.q, vm, am, factors_m, middle, t1, inputs, inputs_at, mid_inputs, ranges_of, depth + 1)
         return second._replace(iterations=first.iterations + second.iterations), factors
 
-    def _certify(self, previous: Factors, solution: Solution, factors: Factors, moved, h: float, start_inputs, inputs) -> str | None:
+    def _certify(self, previous: Factors, solution: Solution, factors: Factors, moved, h: float, start_inputs, inputs,
+                 ranges: np.ndarray | None = None) -> str | None:  # fmt: skip
         """None when the step from x0 (Phi_q values and factors ``previous``) to Newton's solution x1
         (``solution``, factors of its Phi_q in ``factors``; ``moved`` = x1 - x0 in velocity
         coordinates) over a time step h is certified to continue x0; else what was observed.
@@ -573,10 +601,10 @@ class Solver:
 
         * omega = safety |J1^-1 (J0 - J1) d| / |d|^2, the affine-covariant Lipschitz constant of
           Phi_q measured over the step (d = x1 - x0);
-        * alpha = |J1^-1 Phi(x1, u1)| + max over the step of |J1^-1 Phi_u (u(s) - u1)|, bounded for
-          the cubic Hermite path of the inputs' values and rates at both ends (u(s) - u1 =
-          -(1-r) D + r (1-r)^2 A - r^2 (1-r) B with D = u1 - u0, A = h ud0 - D, B = h ud1 - D, so
-          at most |W D| + 4/27 (|W A| + |W B|), W = J1^-1 Phi_u, Phi_u w = -nu(x1, u1, w)).
+        * alpha = |J1^-1 Phi(x1, u1)| + max over the step of |J1^-1 Phi_u (u(s) - u1)| (first order in
+          u), W = J1^-1 Phi_u (Phi_u w = -nu(x1, u1, w)), bounded by :func:`input_effect`: for the case's
+          own time functions over their enclosures on the step (``ranges``), for tabulated inputs along
+          the cubic Hermite path of their values and rates at both ends.
 
         If alpha omega <= 1/2 and omega |d| < 1, the Newton-Kantorovich theorem gives every
         Phi(., u(s)) exactly one zero in the ball of radius 1/omega about x1; these zeros form one
@@ -595,27 +623,36 @@ class Solver:
         system = self.system
         distance = float(abs(moved).max()) if moved.size else 0.0
         omega = 0.0
-        if distance > 0.0:
+        if distance > MIN_MOTION:
             change = (np.asarray(previous.values, dtype=float) - np.asarray(factors.values, dtype=float)) * moved[system.jac_cols]
             w = np.bincount(system.jac_rows, weights=change, minlength=len(system.constraint_names))
             omega = self.options.safety * float(abs(self._solve(factors, w)).max()) / distance**2
-        (u0, ud0, _), (u1, ud1, _) = start_inputs, inputs
-        x1 = solution.q
+        if not distance < MAX_MOTION:
+            return (
+                f"the step moves a coordinate by {distance:.3g} (Newton's path from the last solution), beyond a quarter turn "
+                f"({MAX_MOTION:.3g}): within such a ball a rotation coordinate repeats, so no continuation bound holds there"
+            )
+        x1, u1 = solution.q, inputs[0]
 
-        def effect(w: np.ndarray) -> float:
-            return float(abs(self._solve(factors, system.velocity_rhs(x1, u1, w))).max()) if w.size else 0.0
+        def columns(which: np.ndarray) -> np.ndarray:
+            """W's columns ``which`` (n_v, len(which)): J1^-1 Phi_u e_k, up to one sign for all."""
+            if not which.size:
+                return np.zeros((system.n_velocity, 0))
+            rhs = np.column_stack([system.velocity_rhs(x1, u1, np.eye(system.n_inputs)[k]) for k in which])
+            return np.asarray(self._solve(factors, rhs), dtype=float).reshape(system.n_velocity, -1)
 
-        change = u1 - u0
-        alpha = float(abs(self._solve(factors, solution.phi)).max()) + effect(change)
-        alpha += 4.0 / 27.0 * (effect(h * ud0 - change) + effect(h * ud1 - change))
+        effect, worst = input_effect(columns, h, start_inputs[:2], inputs[:2], ranges)
+        alpha = float(abs(self._solve(factors, solution.phi)).max()) + effect
         bound = alpha * omega
         if bound <= 0.5 and omega * distance < 1.0:
             return None
+        name = system.driver_names[worst[0]] if worst is not None else None
         return (
             f"the continuation bound fails: alpha * omega = {bound:.3g} (at most 0.5 certifies) and omega * |d| = "
             f"{omega * distance:.3g} (below 1 certifies), with alpha = {alpha:.3g} (the inputs' effect), omega = {omega:.3g} "
-            f"(Phi_q's change) and |d| = {distance:.3g} (the motion) -- the inputs change faster than the step can follow, "
-            f"or a singular pose is near; {self._worst_block(factors)}"
+            f"(Phi_q's change) and |d| = {distance:.3g} (the motion) -- "
+            + (f"the input {name} moves too much within the step ({worst[1]}), " if name else "the inputs change faster than the step can follow, ")
+            + f"or a singular pose is near; {self._worst_block(factors)}"
         )
 
     def _block_signs(self, factors: Factors) -> np.ndarray | None:
@@ -649,6 +686,107 @@ class Solver:
         ratios = [sv[-1] / sv[0] if sv[0] > 0 else 0.0 for sv in smallest]
         b = int(np.argmin(ratios))
         return f"the block nearest a singular pose: block {b} ({self._describe_block(self.blocks[b])}), sigma_min/sigma_max = {ratios[b]:.2e}"
+
+
+#: above this ratio (:func:`table_mismatch`) a table of inputs is sampled below its own variation
+TABLE_MISMATCH = 0.5
+
+
+class SamplingWarning(UserWarning):
+    """Tabulated inputs sampled below their own variation: between samples the solve follows the
+    cubic Hermite path of their values and rates, which is not the signal's."""
+
+
+def table_mismatch(times: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
+    """Per step and input (n_inputs, K - 1): how far tabulated inputs (u, du/dt, d2u/dt2, each
+    (n_inputs, K) at ``times``) disagree with the cubic Hermite path a halved step follows between
+    samples -- h^2 |the path's d2u/dt2 - the table's| at either end, relative to the input's own
+    change over the step (|du| + h |du/dt| + h^2 |d2u/dt2|, the two samples' means). About 0.2 for a
+    sine sampled 4 times a period, 1.6 at 2 (its Nyquist rate). As kinegen_table_mismatch (C)."""
+    h = np.diff(times)
+    change = np.diff(u, axis=1)
+    start = (6.0 * change - h * (4.0 * ud[:, :-1] + 2.0 * ud[:, 1:])) / h**2
+    end = (-6.0 * change + h * (2.0 * ud[:, :-1] + 4.0 * ud[:, 1:])) / h**2
+    scale = (np.abs(change) + h * (np.abs(ud[:, :-1]) + np.abs(ud[:, 1:])) / 2 + h**2 * (np.abs(udd[:, :-1]) + np.abs(udd[:, 1:])) / 4
+             + 1e-12 * (1.0 + np.abs(u[:, :-1])))  # fmt: skip
+    return h**2 * np.maximum(np.abs(start - udd[:, :-1]), np.abs(end - udd[:, 1:])) / scale
+
+
+def _warn_if_undersampled(system: NumericSystem, times: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> None:
+    """A :class:`SamplingWarning` naming the first step and input where a table of inputs is
+    sampled below its own variation (:func:`table_mismatch` above :data:`TABLE_MISMATCH`)."""
+    with np.errstate(all="ignore"):
+        ratio = table_mismatch(times, u, ud, udd)
+    coarse = ratio > TABLE_MISMATCH
+    if not coarse.any():
+        return
+    steps = coarse.any(axis=0)
+    i = int(np.argmax(steps))
+    k = int(np.argmax(ratio[:, i]))
+    warnings.warn(
+        f"{system.model}/{system.case}: the tabulated inputs are sampled below their own variation in {int(steps.sum())} of "
+        f"{len(times) - 1} steps, first from t = {times[i]:.6g} to {times[i + 1]:.6g} (input {system.driver_names[k]}: its "
+        f"d2u/dt2 there disagrees with the cubic path through its values and rates, ratio {ratio[k, i]:.3g} > {TABLE_MISMATCH}); "
+        "between samples the solve follows that cubic path, not the signal -- sample at least 4 times a period of the fastest input",
+        SamplingWarning, stacklevel=4,
+    )  # fmt: skip
+
+
+def chord_deviation(ranges: np.ndarray, h: float, u1: np.ndarray, change: np.ndarray) -> np.ndarray:
+    """Per input, a bound on |u(t) - L(t)| over a step of length h, L the chord from u(t0) to
+    u(t1) = ``u1`` (``change`` = u1 - u0), from the enclosures ``ranges`` of u, du/dt and d2u/dt2 over
+    the step (the ``input_ranges`` kernel's rows): h^2/8 max |d2u/dt2| (the linear interpolation's
+    error), or where that is not finite, min(max |u - u1|, h max |du/dt|) + |change| (|u - L| <=
+    |u - u1| + |L - u1|). Infinite where nothing bounds it."""
+    n = len(u1)
+    lower, upper = ranges[: 3 * n].reshape(3, n), ranges[3 * n :].reshape(3, n)
+    with np.errstate(all="ignore"):
+        magnitude = np.maximum(np.abs(lower), np.abs(upper))  # of u - 0, du/dt, d2u/dt2
+        offset = np.maximum(np.abs(lower[0] - u1), np.abs(upper[0] - u1))  # max |u - u1|
+        fine = h * h / 8.0 * magnitude[2]
+        coarse = np.minimum(offset, h * magnitude[1]) + np.abs(change)
+        bound = np.fmin(fine, coarse)
+    return np.where(np.isnan(bound), np.inf, bound)
+
+
+def input_effect(columns, h: float, start: tuple[np.ndarray, np.ndarray], end: tuple[np.ndarray, np.ndarray],
+                 ranges: np.ndarray | None) -> tuple[float, tuple[int, str] | None]:  # fmt: skip
+    """A bound on max over a step of h of |W (u(s) - u1)| (max-norm), W = J1^-1 Phi_u given by
+    ``columns(which)`` (its columns ``which``), the inputs (u, du/dt) at the step's ``start`` and
+    ``end``; and the input that contributes most, with what it does there (None when nothing moves).
+
+    * The case's own time functions (``ranges``: their enclosures over the step): u(s) - u1 =
+      -(1 - r) D + e(s), D = u1 - u0, |e_k| <= the chord deviation c_k (:func:`chord_deviation`), so
+      at most |W D| + |sum_k |W_k| c_k|: certified for the functions themselves, however they move
+      between the step's ends.
+    * Tabulated inputs (``ranges`` None): the cubic Hermite path of the values and rates at both
+      ends, u(s) - u1 = -(1-r) D + r (1-r)^2 A - r^2 (1-r) B with A = h ud0 - D, B = h ud1 - D, so at
+      most |W D| + 4/27 (|W A| + |W B|) -- certified for that path (the stated assumption).
+    """
+    (u0, ud0), (u1, ud1) = start, end
+    change = u1 - u0
+    if ranges is None:
+        a, b = h * ud0 - change, h * ud1 - change
+        deviation = np.zeros_like(change)
+    else:
+        a = b = np.zeros_like(change)
+        deviation = chord_deviation(ranges, h, u1, change)
+    moving = np.flatnonzero((change != 0) | (a != 0) | (b != 0) | (deviation != 0))
+    if not moving.size:
+        return 0.0, None
+    w = columns(moving)
+    with np.errstate(all="ignore"):
+        spread = np.abs(w) @ np.where(w.any(axis=0), deviation[moving], 0.0)  # an input that does nothing adds nothing
+        effect = float(abs(w @ change[moving]).max()) + float(spread.max())
+        effect += 4.0 / 27.0 * (float(abs(w @ a[moving]).max()) + float(abs(w @ b[moving]).max()))
+        shares = np.abs(w).max(axis=0) * (np.abs(change[moving]) + deviation[moving] + 4.0 / 27.0 * (np.abs(a[moving]) + np.abs(b[moving])))
+    j = int(np.nanargmax(np.where(np.isnan(shares), np.inf, shares)))
+    k = int(moving[j])
+    if ranges is None:
+        what = f"it changes by {change[k]:.3g} and its rates by {ud0[k]:.3g} .. {ud1[k]:.3g} along the samples' cubic path"
+    else:
+        what = f"it changes by {change[k]:.3g} between the step's ends and strays up to {deviation[k]:.3g} from that chord in between"
+    return (effect if np.isfinite(effect) else float("inf")), (k, what)
 
 
 def _block_groups(blocks: list[Block], rows: np.ndarray, cols: np.ndarray) -> list[tuple[np.ndarray, np.ndarray, np.ndarray, int]]:

@@ -126,6 +126,9 @@ class NumericSystem:
     frame_fields: tuple[tuple[str, int], ...] = FRAME_FIELDS
     #: the force solve's kernels (a model with loads or actuation elements), else None
     statics: StaticsKernels | None = None
+    #: span = (t0, t1) (floats or arrays) -> enclosures of the case's inputs over that time interval:
+    #: rows of the lower bounds of u, du/dt, d2u/dt2, then of their upper bounds; None: a module without them
+    input_ranges: Callable[[Any], np.ndarray] | None = None
 
     @property
     def n_stored(self) -> int:
@@ -359,6 +362,7 @@ def from_module(
         ground_points=ground_points,
         native=_native(module, case, compiled, p),
         statics=_statics(module, p),
+        input_ranges=outputs.get("input_ranges"),
         **design_fields,
     )
 

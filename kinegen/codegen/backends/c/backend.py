@@ -22,7 +22,7 @@ import sympy as sp
 
 import kinegen.codegen.backends.c.config as config
 from kinegen.codegen.backends.c.printer import CPrinter
-from kinegen.codegen.kernels import CaseDescription, Kernel, ModuleDescription, Plan, Zeros
+from kinegen.codegen.kernels import CaseDescription, Enclosure, Kernel, ModuleDescription, Plan, Zeros
 from kinegen.codegen.shapes import Block, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
@@ -132,10 +132,11 @@ def work_sizes(description: ModuleDescription, case: CaseDescription, arrays: _P
     """(doubles, ints) one solver of ``case`` needs (see kinegen_init)."""
     nq, nv = len(description.stored_names), len(description.velocity_names)
     # q, trial; v, a, phi, rhs, step, y, x, moved, w1, w2; the Phi_q values at the trial and at q; the blocks'
-    # factors and the entries below them; the inputs and their rates at q
-    doubles = 2 * nq + 10 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 2 * len(case.drivers)
-    # pivots, the condition estimate's signs; the sign of det of every diagonal block at q and in the factors
-    return doubles, 2 * nv + 2 * (len(arrays.block_start) - 1)
+    # factors and the entries below them; the inputs and their rates at q; the certificate's work (10 n_v + 7 n_inputs)
+    doubles = 2 * nq + 20 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 9 * len(case.drivers)
+    # pivots, the condition estimate's signs; the sign of det of every diagonal block at q and in the factors; the
+    # certificate's moving inputs
+    return doubles, 2 * nv + 2 * (len(arrays.block_start) - 1) + len(case.drivers)
 
 
 class _Model:
@@ -192,6 +193,37 @@ class _Model:
         self.sections[name] = names
         return names
 
+    def enclosure(self, enclosure: Enclosure) -> list[str]:
+        """The function of an interval program (kinegen_interval.h's helpers), made once: from
+        ``span`` = (t0, t1) the lower bounds of its outputs, then their upper bounds."""
+        name = f"compute_{enclosure.name}"
+        if enclosure.name not in self.sections:
+            program = enclosure.program
+            lines = ["const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);"]
+            for k, operation in enumerate(program.operations[1:], start=1):
+                op, args = operation.op, ", ".join(f"r{a}" for a in operation.args)
+                if op == "const":
+                    call = f"kinegen_iv_const({_double(operation.value[0])}, {_double(operation.value[1])})"
+                elif op == "powi":
+                    call = f"kinegen_iv_powi({args}, {operation.value})"
+                elif op == "powr":
+                    call = f"kinegen_iv_powr({args}, {_double(operation.value[0])}, {_double(operation.value[1])})"
+                else:
+                    call = f"kinegen_iv_{op}({args})"
+                lines.append(f"const kinegen_interval r{k} = {call};")
+            n = len(program.outputs)
+            statements = []
+            for i, register in enumerate(program.outputs):
+                lower, upper = ("-INFINITY", "INFINITY") if register is None else (f"r{register}.lo", f"r{register}.hi")
+                statements += [f"out[{i}] = {lower};", f"out[{n + i}] = {upper};"]
+            if not statements:
+                statements.append("(void)out;")
+            if n == 0:
+                lines = ["(void)span;"]
+            self.section_functions.append(_Function(name, ["const double *span", "double *out"], lines, statements, enclosure.doc))
+            self.sections[enclosure.name] = [name]
+        return self.sections[enclosure.name]
+
     def kernel_table(self, table: str, kernels: list[tuple[str, Kernel]]) -> None:
         """The kernels as data (``kinegen_kernel``, kinegen_solver.h): per kernel an entry point
         of the one fixed signature calling its function, its output names and sizes, then the
@@ -221,6 +253,11 @@ class _Model:
                     statements.append(f"for (int i = 0; i < {part.size}; ++i) {output.name}[{offset} + i] = 0.0;")
                     offset += part.size
                     continue
+                if part in self.d.enclosures:
+                    (function,) = self.enclosure(self.d.enclosures[part])
+                    statements.append(f"{function}(span, {f'{output.name} + {offset}' if offset else output.name});")
+                    offset += self.d.enclosures[part].size
+                    continue
                 section = self.d.sections[part]
                 for function in self.section(part, case):
                     args = ", ".join([*section.slots, f"{output.name} + {offset}" if offset else output.name])
@@ -228,7 +265,8 @@ class _Model:
                 offset += section.size
             if offset == 0:
                 statements.append(f"(void){output.name};")
-        used = {s for o in kernel.outputs for p in o.parts if not isinstance(p, Zeros) for s in self.d.sections[p].slots}
+        used = {s for o in kernel.outputs for p in o.parts if not isinstance(p, Zeros)
+                for s in (("span",) if p in self.d.enclosures else self.d.sections[p].slots)}  # fmt: skip
         statements = [f"(void){s};" for s in kernel.slots if s not in used] + statements
         self.functions.append(_Function(name, params, [], statements, kernel.doc, static))
 

@@ -7,7 +7,7 @@ from pathlib import Path
 TEMPLATES = Path(__file__).with_name("templates")
 #: Folder of the runtime's sources, copied verbatim into a standalone directory.
 SOLVER = Path(__file__).with_name("solver")
-RUNTIME = ("kinegen_solver.h", "kinegen_solver.c")
+RUNTIME = ("kinegen_solver.h", "kinegen_solver.c", "kinegen_interval.h")
 #: Statements per C function before it is split into parts (compile time grows faster than linearly with a function's length).
 PART_STATEMENTS = 250
 #: Statements of section functions per part of a model's C compiled apart (in parallel) by the runtime.

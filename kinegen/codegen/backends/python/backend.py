@@ -11,13 +11,14 @@ joined with each case's driver sections. Functions of more than
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from pathlib import Path
 from types import SimpleNamespace
 
 import sympy as sp
 
 import kinegen.codegen.backends.python.config as config
 from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter, used_numpy_names
-from kinegen.codegen.kernels import Kernel, ModuleDescription, Output, Section, Zeros
+from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Output, Section, Zeros
 from kinegen.codegen.shapes import Block, Printing
 from kinegen.codegen.templates import environment
 from kinegen.interface import FRAME_FIELDS
@@ -143,10 +144,36 @@ class _Module:
             self.array(name, s.doc, section, case, self.allocation(s.slots))
         return name
 
+    def enclosure(self, function: str, doc: str, enclosure: Enclosure) -> None:
+        """The NumPy function ``function(span)`` of an interval program: ``span`` = (t0, t1), two
+        floats or arrays of one shape (many time intervals at once); the rows of the lower bounds,
+        then of the upper bounds (the interval helpers ``_iv_*`` are printed once per module)."""
+        program = enclosure.program
+        lines = ["r0 = tuple(np.asarray(t, dtype=float) for t in span)"]
+        for k, operation in enumerate(program.operations[1:], start=1):
+            op, args = operation.op, ", ".join(f"r{a}" for a in operation.args)
+            if op == "const":
+                lines.append(f"r{k} = _iv_const({operation.value[0]!r}, {operation.value[1]!r}, r0)")
+            elif op == "powi":
+                lines.append(f"r{k} = _iv_powi({args}, {operation.value!r})")
+            elif op == "powr":
+                lines.append(f"r{k} = _iv_powr({args}, ({operation.value[0]!r}, {operation.value[1]!r}))")
+            else:
+                lines.append(f"r{k} = _iv_{op}({args})")
+        n = len(program.outputs)
+        lines.append(f"out = np.empty(({2 * n},) + np.shape(r0[0]))")
+        for i, register in enumerate(program.outputs):
+            lower, upper = ("-np.inf", "np.inf") if register is None else (f"r{register}[0]", f"r{register}[1]")
+            lines += [f"out[{i}] = {lower}", f"out[{n + i}] = {upper}"]
+        self.functions.append(_Function("returns", function, ["span"], doc, lines, result="out"))
+
     def output(self, function: str, kernel: Kernel, output: Output, case: str | None) -> None:
         """The NumPy function ``function`` of the kernel's slots giving ``output``: its one
         section's function, or its parts joined (zeros as their row count)."""
         parts = output.parts
+        if len(parts) == 1 and parts[0] in self.d.enclosures:
+            self.enclosure(function, _output_doc(kernel, output), self.d.enclosures[parts[0]])
+            return
         if len(parts) == 1 and not isinstance(parts[0], Zeros) and self.d.sections[parts[0]].slots == kernel.slots:
             self.array(function, _output_doc(kernel, output), parts[0], case, self.allocation(kernel.slots))
             return
@@ -211,6 +238,7 @@ class _Module:
             functions=code,
             cases=cases,
             frame_fields=FRAME_FIELDS,
+            interval_helpers=interval_helpers(),
         )
 
 
@@ -222,6 +250,13 @@ def _output_doc(kernel: Kernel, output: Output) -> str:
 
 def _scalar_list(block: Block) -> str:
     return "[" + ", ".join("0.0" if texts is None else texts[SCALAR - 1] for texts in block.outputs) + "]"
+
+
+def interval_helpers() -> str:
+    """The text of the interval helpers every module's enclosure kernels call: the part of
+    ``intervals.py`` (beside this file) below its ``# ---- helpers ----`` line."""
+    text = Path(__file__).with_name("intervals.py").read_text(encoding="utf-8")
+    return text.split("# ---- helpers ----\n", 1)[1].split("# ---- end of helpers ----", 1)[0].strip()
 
 
 def render(description: ModuleDescription, stem: str) -> dict[str, str]:

@@ -99,11 +99,14 @@ void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_optio
     s->jac_q = s->w2 + nv;
     s->u = s->jac_q + m->n_jac;
     s->ud = s->u + m->n_inputs;
+    s->cert = s->ud + m->n_inputs;
     s->pivots = ints;
     s->block_sign = ints + 2 * nv;
     s->factor_block_sign = s->block_sign + m->n_blocks;
+    s->moving = s->factor_block_sign + m->n_blocks;
     for (int b = 0; b < m->n_blocks; ++b) s->block_sign[b] = s->factor_block_sign[b] = 1;
     s->branch_block = -1;
+    s->branch_input = -1;
     s->branch_time = NAN;
     s->bound = NAN;
     s->t = m->t0;
@@ -273,71 +276,71 @@ static void solve(kinegen_solver *s, const double *b, double *x) {
     for (int j = 0; j < m->n_v; ++j) x[m->col_order[j]] = y[j];
 }
 
-/* b[k] = Phi_q^-1 b[k] for k < 3, in place, with the same factors in one pass over them (the three
- * input effects of a step's certificate); y: 3 n_v scratch values. The arithmetic of each column is
- * that of solve(). */
-static void solve3(kinegen_solver *s, double *b[3], double *y) {
+/* W's columns solved together by the certificate (the Hermite bound's three changes fit) */
+#define CERTIFY_COLUMNS 4
+
+/* The CERTIFY_COLUMNS columns of b (column c at b + c n_v) each replaced by Phi_q^-1 times it, with the
+ * same factors in one pass over them (the input effects of a step's certificate); y: CERTIFY_COLUMNS n_v
+ * scratch values (the solution in the permuted order, position by position). Blocks above the columns'
+ * first non-zero value are skipped (their solution is zero). The arithmetic of each column is that of solve(). */
+static int zero_block(const kinegen_model *m, int count, const double *b, int blk) {
+    for (int row = m->block_start[blk]; row < m->block_start[blk + 1]; ++row)
+        for (int c = 0; c < count; ++c)
+            if (b[(size_t)c * m->n_v + m->row_order[row]] != 0.0) return 0;
+    return 1;
+}
+
+static void solve_columns(kinegen_solver *s, double *b, double *y) {
+    enum { count = CERTIFY_COLUMNS }; /* a constant: each row's columns in one vector operation */
     const kinegen_model *m = s->model;
-    int nv = m->n_v;
-    double *y0 = y, *y1 = y + nv, *y2 = y + 2 * nv;
-    for (int blk = 0; blk < m->n_blocks; ++blk) {
+    int nv = m->n_v, start = 0; /* the first block where a column has a non-zero value */
+    while (start < m->n_blocks && zero_block(m, count, b, start)) ++start;
+    memset(y, 0, sizeof(double) * (size_t)count * (size_t)m->block_start[start]);
+    for (int blk = start; blk < m->n_blocks; ++blk) {
         int first = m->block_start[blk], n = m->block_start[blk + 1] - first;
         const double *A = s->store + m->block_store[blk];
         const int *piv = s->pivots + first;
-        double *r0 = y0 + first, *r1 = y1 + first, *r2 = y2 + first;
+        double *r = y + (size_t)first * count; /* position first + i, column c at r[i count + c] */
         for (int i = 0; i < n; ++i) {
             int row = first + i, source = m->row_order[row];
-            double a0 = b[0][source], a1 = b[1][source], a2 = b[2][source];
+            double *ri = r + (size_t)i * count;
+            for (int c = 0; c < count; ++c) ri[c] = b[(size_t)c * nv + source];
             for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) {
                 double f = s->off[e];
-                int c = m->off_col[e];
-                a0 -= f * y0[c];
-                a1 -= f * y1[c];
-                a2 -= f * y2[c];
+                const double *yc = y + (size_t)m->off_col[e] * count;
+                for (int c = 0; c < count; ++c) ri[c] -= f * yc[c];
             }
-            r0[i] = a0;
-            r1[i] = a1;
-            r2[i] = a2;
         }
         if (n == 1) {
-            r0[0] /= A[0];
-            r1[0] /= A[0];
-            r2[0] /= A[0];
+            for (int c = 0; c < count; ++c) r[c] /= A[0];
             continue;
         }
         for (int k = 0; k < n; ++k) {
             if (piv[k] != k) {
-                double t0 = r0[k], t1 = r1[k], t2 = r2[k];
-                r0[k] = r0[piv[k]], r1[k] = r1[piv[k]], r2[k] = r2[piv[k]];
-                r0[piv[k]] = t0, r1[piv[k]] = t1, r2[piv[k]] = t2;
+                double *rk = r + (size_t)k * count, *rp = r + (size_t)piv[k] * count;
+                for (int c = 0; c < count; ++c) {
+                    double tmp = rk[c];
+                    rk[c] = rp[c];
+                    rp[c] = tmp;
+                }
             }
         }
         for (int k = 0; k < n; ++k)
             for (int i = k + 1; i < n; ++i) {
                 double f = A[i + k * n];
-                r0[i] -= f * r0[k];
-                r1[i] -= f * r1[k];
-                r2[i] -= f * r2[k];
+                for (int c = 0; c < count; ++c) r[(size_t)i * count + c] -= f * r[(size_t)k * count + c];
             }
         for (int k = n - 1; k >= 0; --k) {
             double d = A[k + k * n];
-            r0[k] /= d;
-            r1[k] /= d;
-            r2[k] /= d;
+            for (int c = 0; c < count; ++c) r[(size_t)k * count + c] /= d;
             for (int i = 0; i < k; ++i) {
                 double f = A[i + k * n];
-                r0[i] -= f * r0[k];
-                r1[i] -= f * r1[k];
-                r2[i] -= f * r2[k];
+                for (int c = 0; c < count; ++c) r[(size_t)i * count + c] -= f * r[(size_t)k * count + c];
             }
         }
     }
-    for (int j = 0; j < nv; ++j) {
-        int c = m->col_order[j];
-        b[0][c] = y0[j];
-        b[1][c] = y1[j];
-        b[2][c] = y2[j];
-    }
+    for (int j = 0; j < nv; ++j)
+        for (int c = 0; c < count; ++c) b[(size_t)c * nv + m->col_order[j]] = y[(size_t)j * count + c];
 }
 
 /* x = M^-T c with the factors of the plan's matrix M (store, off, pivots); w: n values of work (x and c may
@@ -505,10 +508,7 @@ static int newton(kinegen_solver *s, const double *u, int chord, int *count, dou
     return KINEGEN_OK;
 }
 
-/* Largest n_v whose certificate solves its three input effects together on the stack (6 n_v doubles). */
-#define SOLVE3_LIMIT 4096
-
-/* The k-th change of the inputs the certificate bounds (w, n_inputs values), for the step of h from
+/* The k-th change of the inputs the Hermite bound takes (w, n_inputs values), for the step of h from
  * the state's inputs (s->u, s->ud) to (u, ud): D = u1 - u0, A = h ud0 - D, B = h ud1 - D. */
 static void input_change(const kinegen_solver *s, int k, double h, const double *u, const double *ud, double *w) {
     for (int i = 0; i < s->model->n_inputs; ++i) {
@@ -517,13 +517,93 @@ static void input_change(const kinegen_solver *s, int k, double h, const double 
     }
 }
 
+/* A bound on |u_k(t) - L_k(t)| over a step of h, L the chord from u_k(t0) to u_k(t1) = u1 (change = u1 -
+ * u_k(t0)), from the enclosures of u, du/dt, d2u/dt2 over the step (ranges: the input_ranges kernel's
+ * output): h^2/8 max |d2u/dt2| (linear interpolation's error), else min(max |u - u1|, h max |du/dt|) +
+ * |change|; infinite where nothing bounds it. */
+static double chord_deviation(const double *ranges, int ni, int k, double h, double u1, double change) {
+    const double *lo = ranges, *hi = ranges + 3 * ni;
+    double offset = fmax(fabs(lo[k] - u1), fabs(hi[k] - u1));
+    double rate = fmax(fabs(lo[ni + k]), fabs(hi[ni + k]));
+    double curvature = fmax(fabs(lo[2 * ni + k]), fabs(hi[2 * ni + k]));
+    double bound = fmin(h * h / 8.0 * curvature, fmin(offset, h * rate) + fabs(change));
+    return isnan(bound) ? INFINITY : bound;
+}
+
+/* A bound on max over the step (from the state at s->t to t = s->t + h, inputs u, ud) of |W (u(s) - u1)|,
+ * W = J1^-1 Phi_u (the factors in store), as input_effect in kinegen/runtime/solver.py:
+ *   the case's own time functions (options.case_inputs): u(s) - u1 = -(1 - r) D + e(s), |e_k| <= the chord
+ *     deviation c_k over the step's enclosures, so at most |W D| + |sum_k |W_k| c_k|; s->branch_input: the
+ *     input that contributes most;
+ *   tabulated inputs: along the cubic Hermite path of the values and rates at both ends, u(s) - u1 =
+ *     -(1 - r) D + r (1 - r)^2 A - r^2 (1 - r) B, so at most |W D| + 4/27 (|W A| + |W B|).
+ * Work: s->cert (10 n_v + 7 n_inputs doubles), s->moving, s->x (n_inputs). */
+static double input_effect(kinegen_solver *s, double t, double h, const double *u, const double *ud) {
+    const kinegen_model *m = s->model;
+    int nv = m->n_v, ni = m->n_inputs;
+    double *w = s->x; /* n_inputs <= n_v values */
+    double *columns = s->cert, *scratch = s->cert + CERTIFY_COLUMNS * nv; /* CERTIFY_COLUMNS columns of W at a time */
+    s->branch_input = -1;
+    if (s->options.case_inputs && m->input_ranges != NULL) {
+        double *sum = s->cert + 2 * CERTIFY_COLUMNS * nv, *spread = sum + nv, *ranges = spread + nv, *deviation = ranges + 6 * ni;
+        int *moving = s->moving, count = 0;
+        double span[2], worst = -1.0;
+        span[0] = s->t;
+        span[1] = t;
+        m->input_ranges(span, ranges);
+        memset(sum, 0, sizeof(double) * 2 * (size_t)nv);
+        for (int k = 0; k < ni; ++k) {
+            deviation[k] = chord_deviation(ranges, ni, k, h, u[k], u[k] - s->u[k]);
+            if (u[k] != s->u[k] || deviation[k] != 0.0) moving[count++] = k; /* the others stay put */
+        }
+        for (int first = 0; first < count; first += CERTIFY_COLUMNS) {
+            int group = count - first < CERTIFY_COLUMNS ? count - first : CERTIFY_COLUMNS;
+            for (int c = 0; c < CERTIFY_COLUMNS; ++c) {
+                if (c >= group) {
+                    memset(columns + (size_t)c * nv, 0, sizeof(double) * (size_t)nv);
+                    continue;
+                }
+                for (int i = 0; i < ni; ++i) w[i] = i == moving[first + c] ? 1.0 : 0.0;
+                nu(s, s->trial, u, w, columns + (size_t)c * nv); /* -Phi_u e_k */
+            }
+            solve_columns(s, columns, scratch);
+            for (int c = 0; c < group; ++c) {
+                int k = moving[first + c];
+                const double *column = columns + (size_t)c * nv;
+                double change = u[k] - s->u[k], spread_k = isinf(deviation[k]) ? 0.0 : deviation[k], size = 0.0;
+                for (int j = 0; j < nv; ++j) {
+                    double a = fabs(column[j]);
+                    size = a > size ? a : size;
+                    sum[j] += column[j] * change;
+                    spread[j] += a * spread_k;
+                }
+                double share = size * (fabs(change) + deviation[k]);
+                if (size > 0.0 && !(share <= worst)) { /* (an input that does nothing here adds nothing) */
+                    worst = share;
+                    s->branch_input = k;
+                }
+                if (size > 0.0 && isinf(deviation[k])) return INFINITY;
+            }
+        }
+        return max_abs(sum, nv) + max_abs(spread, nv);
+    }
+    for (int k = 0; k < 3; ++k) { /* |W D|, |W A|, |W B| solved together */
+        input_change(s, k, h, u, ud, w);
+        nu(s, s->trial, u, w, columns + (size_t)k * nv);
+    }
+    memset(columns + 3 * (size_t)nv, 0, sizeof(double) * (size_t)nv * (CERTIFY_COLUMNS - 3));
+    solve_columns(s, columns, scratch);
+    return max_abs(columns, nv) + 4.0 / 27.0 * (max_abs(columns + nv, nv) + max_abs(columns + 2 * nv, nv));
+}
+
 /* The step's certificate (see kinegen_options in kinegen_solver.h) for the converged s->trial at
- * the new inputs u, ud over a step of h from the state (q, u, ud at s->t): the factors in store are
+ * the new inputs u, ud at t, a step of h from the state (q, u, ud at s->t): the factors in store are
  * Phi_q's at s->trial and s->step is -Phi_q^-1 Phi there. KINEGEN_OK or KINEGEN_BRANCH. */
-static int certify(kinegen_solver *s, double h, const double *u, const double *ud) {
+static int certify(kinegen_solver *s, double t, double h, const double *u, const double *ud) {
     const kinegen_model *m = s->model;
     int nv = m->n_v;
     s->branch_block = -1;
+    s->branch_input = -1;
     for (int b = 0; b < m->n_blocks; ++b)
         if (s->factor_block_sign[b] != s->block_sign[b]) {
             s->branch_block = b;
@@ -531,36 +611,18 @@ static int certify(kinegen_solver *s, double h, const double *u, const double *u
             return KINEGEN_BRANCH;
         }
     double distance = max_abs(s->moved, nv), omega = 0.0;
-    if (distance > 0.0) { /* omega = safety |J1^-1 (J0 - J1) d| / |d|^2 */
+    if (!(distance < KINEGEN_MAX_MOTION)) { /* beyond a quarter turn: see KINEGEN_MAX_MOTION */
+        s->bound = INFINITY;
+        return KINEGEN_BRANCH;
+    }
+    if (distance > KINEGEN_MIN_MOTION) { /* omega = safety |J1^-1 (J0 - J1) d| / |d|^2 */
         memset(s->w1, 0, sizeof(double) * (size_t)nv);
         for (int k = 0; k < m->n_jac; ++k) s->w1[m->jac_rows[k]] += (s->jac_q[k] - s->jac[k]) * s->moved[m->jac_cols[k]];
         solve(s, s->w1, s->w1);
         omega = s->options.safety * max_abs(s->w1, nv) / (distance * distance);
     }
-    /* alpha: Newton's last correction, plus the inputs' change along the cubic Hermite path u(s):
-     * u(s) - u1 = -(1 - r) D + r (1 - r)^2 A - r^2 (1 - r) B, D = u1 - u0, A = h ud0 - D, B = h ud1 - D,
-     * whose effect is at most |W D| + 4/27 (|W A| + |W B|) */
-    double *w = s->x; /* n_inputs <= n_v values */
-    double change[3]; /* |W D|, |W A|, |W B| */
-    for (int k = 0; k < 3; ++k) change[k] = 0.0;
-    if (nv <= SOLVE3_LIMIT) { /* the three solves in one pass, on the stack (C99 variable-length arrays: no heap) */
-        double effects[3 * nv], scratch[3 * nv];
-        double *columns[3] = {effects, effects + nv, effects + 2 * nv};
-        for (int k = 0; k < 3; ++k) {
-            input_change(s, k, h, u, ud, w);
-            nu(s, s->trial, u, w, columns[k]);
-        }
-        solve3(s, columns, scratch);
-        for (int k = 0; k < 3; ++k) change[k] = max_abs(columns[k], nv);
-    } else { /* a large system: one solve after the other in the solver's workspace */
-        for (int k = 0; k < 3; ++k) {
-            input_change(s, k, h, u, ud, w);
-            nu(s, s->trial, u, w, s->w2);
-            solve(s, s->w2, s->w2);
-            change[k] = max_abs(s->w2, nv);
-        }
-    }
-    double alpha = max_abs(s->step, nv) + change[0] + 4.0 / 27.0 * (change[1] + change[2]);
+    /* alpha: Newton's last correction, plus the inputs' effect over the step */
+    double alpha = max_abs(s->step, nv) + input_effect(s, t, h, u, ud);
     s->bound = alpha * omega;
     if (!(s->bound <= 0.5 && omega * distance < 1.0)) return KINEGEN_BRANCH;
     return KINEGEN_OK;
@@ -577,7 +639,7 @@ static int finish(kinegen_solver *s, double t, const double *u, const double *ud
     solve(s, s->phi, s->step); /* the polishing correction */
     for (int j = 0; j < n; ++j) s->step[j] = -s->step[j];
     if (certify_h > 0.0 && o->keep_branch) {
-        int status = certify(s, certify_h, u, ud);
+        int status = certify(s, t, certify_h, u, ud);
         if (status != KINEGEN_OK) {
             s->have_factors = 0;
             return status;
@@ -687,6 +749,25 @@ int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud,
     s->refinements = 0;
     s->branch_block = -1;
     return advance(s, t, u, ud, udd, 0, &iterations);
+}
+
+double kinegen_table_mismatch(int n, double h, const double *u0, const double *ud0, const double *udd0, const double *u1,
+                              const double *ud1, const double *udd1, int *input) {
+    double worst = 0.0;
+    *input = -1;
+    for (int k = 0; k < n; ++k) {
+        double change = u1[k] - u0[k];
+        double start = (6.0 * change - h * (4.0 * ud0[k] + 2.0 * ud1[k])) / (h * h); /* the cubic path's d2u/dt2 at both ends */
+        double end = (-6.0 * change + h * (2.0 * ud0[k] + 4.0 * ud1[k])) / (h * h);
+        double scale = fabs(change) + h * (fabs(ud0[k]) + fabs(ud1[k])) / 2.0 + h * h * (fabs(udd0[k]) + fabs(udd1[k])) / 4.0 +
+                       1e-12 * (1.0 + fabs(u0[k]));
+        double ratio = h * h * fmax(fabs(start - udd0[k]), fabs(end - udd1[k])) / scale;
+        if (!(ratio <= worst)) {
+            worst = ratio;
+            *input = k;
+        }
+    }
+    return worst;
 }
 
 int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u,
@@ -1123,7 +1204,7 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_model, initial_q, "double*"), FIELD(kinegen_model, constraint_names, "pointer"),
     FIELD(kinegen_model, driver_names, "pointer"), FIELD(kinegen_model, jac_rows, "int*"), FIELD(kinegen_model, jac_cols, "int*"),
     FIELD(kinegen_model, phi_jac, "function"), FIELD(kinegen_model, nu, "function"), FIELD(kinegen_model, gamma, "function"),
-    FIELD(kinegen_model, inputs, "function"), FIELD(kinegen_model, retract, "function"), FIELD(kinegen_model, n_blocks, "int"),
+    FIELD(kinegen_model, inputs, "function"), FIELD(kinegen_model, input_ranges, "function"), FIELD(kinegen_model, retract, "function"), FIELD(kinegen_model, n_blocks, "int"),
     FIELD(kinegen_model, block_start, "int*"), FIELD(kinegen_model, block_store, "int*"), FIELD(kinegen_model, row_order, "int*"),
     FIELD(kinegen_model, col_order, "int*"), FIELD(kinegen_model, n_store, "int"), FIELD(kinegen_model, n_diag, "int"),
     FIELD(kinegen_model, diag_value, "int*"), FIELD(kinegen_model, diag_slot, "int*"), FIELD(kinegen_model, n_off, "int"),
@@ -1152,7 +1233,8 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_solver, moved, "double*"), FIELD(kinegen_solver, w1, "double*"), FIELD(kinegen_solver, w2, "double*"),
     FIELD(kinegen_solver, block_sign, "int*"), FIELD(kinegen_solver, factor_block_sign, "int*"),
     FIELD(kinegen_solver, refinements, "int"), FIELD(kinegen_solver, branch_block, "int"), FIELD(kinegen_solver, bound, "double"),
-    FIELD(kinegen_solver, branch_time, "double"),
+    FIELD(kinegen_solver, branch_time, "double"), FIELD(kinegen_solver, cert, "double*"), FIELD(kinegen_solver, branch_input, "int"),
+    FIELD(kinegen_solver, moving, "int*"),
     {NULL, NULL, NULL, 0, 0},
 };
 

@@ -47,12 +47,21 @@ enum kinegen_status {
  * new time, J1 = Phi_q(x1) factorized, d = x1 - x0 in velocity coordinates (the predictor's motion
  * plus Newton's steps) and norms the max-norm:
  *   omega = safety * |J1^-1 (Phi_q(x0) - J1) d| / |d|^2   (affine-covariant Lipschitz constant, measured)
- *   alpha = |J1^-1 Phi(x1)| + max over the step of |J1^-1 Phi_u (u(s) - u(t1))|, bounded for the cubic
- *           Hermite path of the inputs' values and rates at both ends (first order in u)
- * The step is accepted when every diagonal block keeps the sign of its determinant, alpha omega <= 1/2
- * and omega |d| < 1: by the Newton-Kantorovich theorem every Phi(., u(s)) then has exactly one zero
- * in the ball of radius 1/omega about x1, these zeros form one continuous path, and x0 and x1 both
- * lie on it. Otherwise the step is halved (inputs at the midpoint: options.case_inputs). */
+ *   alpha = |J1^-1 Phi(x1)| + max over the step of |J1^-1 Phi_u (u(s) - u(t1))| (first order in u), bounded
+ *           with options.case_inputs for the case's own time functions over their enclosures on the step
+ *           (model->input_ranges: interval arithmetic), however they move between its ends; otherwise
+ *           for the cubic Hermite path of the inputs' values and rates at both ends
+ * The step is accepted when every diagonal block keeps the sign of its determinant, |d| < KINEGEN_MAX_MOTION,
+ * alpha omega <= 1/2 and omega |d| < 1: by the Newton-Kantorovich theorem every Phi(., u(s)) then has
+ * exactly one zero in the ball of radius 1/omega about x1, these zeros form one continuous path, and x0
+ * and x1 both lie on it. Otherwise the step is halved (inputs at the midpoint: options.case_inputs). */
+/* The largest motion of a certified step in any velocity coordinate: a quarter turn. Beyond half a turn a
+ * rotation coordinate repeats within the certificate's ball (and Phi_q with it), where omega measured over
+ * the step says nothing. */
+#define KINEGEN_MAX_MOTION 1.5707963267948966
+/* ... and the least over which omega is measured: Phi_q's change over a smaller motion is rounding (a step
+ * that moves less is as certain as x0 itself; below 1e-154, |d|^2 underflows) */
+#define KINEGEN_MIN_MOTION 1e-12
 typedef struct kinegen_options {
     double tolerance;          /* max |Phi_i| at convergence (1e-10) */
     double singular_tolerance; /* see KINEGEN_SINGULAR (1e-10) */
@@ -237,6 +246,9 @@ typedef struct kinegen_model {
     void (*nu)(const double *q, const double *u, const double *ud, double *nu);
     void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma);
     void (*inputs)(double t, double *out); /* the case's own time functions: u, du/dt, d2u/dt2 (3 n_inputs) */
+    /* their enclosures over the time interval span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then
+     * the upper bounds (6 n_inputs; interval arithmetic, kinegen_interval.h) */
+    void (*input_ranges)(const double *span, double *out);
     void (*retract)(double *q, const double *step);              /* q moved by a velocity-coordinate step */
     /* Phi_q permuted to block lower triangular form: position i holds constraint row_order[i]
      * and coordinate col_order[i]; block k spans positions block_start[k] .. block_start[k+1]-1
@@ -282,8 +294,11 @@ typedef struct kinegen_solver {
     int *factor_block_sign; /* ... of the factors in store */
     int refinements;        /* halvings the last kinegen_step took (0: the whole step was certified) */
     int branch_block;       /* after KINEGEN_BRANCH: the block whose determinant changed sign, or -1 (the bound failed) */
-    double bound;           /* alpha omega of the last certified (or refused) step */
+    double bound;           /* alpha omega of the last certified (or refused) step (infinite: it moved too far) */
     double branch_time;     /* after KINEGEN_BRANCH: the start of the shortest step tried */
+    double *cert;           /* the certificate's work: 10 n_v + 7 n_inputs doubles */
+    int branch_input;       /* after KINEGEN_BRANCH: the input that contributed most to the refused bound, or -1 */
+    int *moving;            /* the certificate's work: the inputs that move over the step (n_inputs ints) */
 } kinegen_solver;
 
 void kinegen_default_options(kinegen_options *options);
@@ -307,6 +322,16 @@ int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u
  * that cannot be certified is halved, up to options.max_refinements times (refinements says how
  * often); the state then moves only to t. */
 int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd);
+
+/* How far rows of tabulated inputs (u, du/dt, d2u/dt2 of n inputs at two times h apart) disagree with
+ * the cubic Hermite path a halved step follows between them (their values and rates at both ends):
+ * h^2 |that path's d2u/dt2 - the rows' d2u/dt2| at either end, relative to the input's own change over
+ * the step (|du| + h |du/dt| + h^2 |d2u/dt2|, the rows' means). About 0.2 for a sine with 4 rows a period,
+ * 1.6 with 2 (its Nyquist rate); above KINEGEN_TABLE_MISMATCH the rows are sampled below their own
+ * variation and the path between them is not theirs. Returns the largest ratio, *input the input. */
+#define KINEGEN_TABLE_MISMATCH 0.5
+double kinegen_table_mismatch(int n, double h, const double *u0, const double *ud0, const double *udd0, const double *u1,
+                              const double *ud1, const double *udd1, int *input);
 
 /* Take (t, q, v, a) solved elsewhere as the current state (u, ud: the inputs and their rates at t). */
 int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u,

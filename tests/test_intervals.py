@@ -1,0 +1,232 @@
+"""Interval enclosures of time functions (issue 38): what the step certificate bounds the case's own
+inputs by between two time points.
+
+* Random expressions of the model language over random time intervals: the enclosure holds every
+  value the function takes there (evaluated at 200 points in 50-digit arithmetic by mpmath, an
+  independent evaluator) -- in Python (the helpers every generated module carries) and in C
+  (kinegen_interval.h, compiled with the machine's ``cc``, the same operations in the same order).
+* One elementary function of one interval: the enclosure is its true range to rounding.
+* The generated input_ranges kernels of every excavator case, Python and C, hold the case's inputs,
+  rates and accelerations (the generated ``inputs`` kernel) at 101 points of every grid step.
+"""
+
+from __future__ import annotations
+
+import shutil
+import subprocess
+
+import mpmath
+import numpy as np
+import pytest
+import sympy as sp
+from hypothesis import HealthCheck, given, reject, settings
+from hypothesis import strategies as st
+
+from kinegen.codegen.backends.c import config
+from kinegen.codegen.backends.python.intervals import evaluate
+from kinegen.codegen.intervals import interval_program
+from kinegen.errors import ExpressionError
+from kinegen.model.expressions import T, parse
+from kinegen.runtime import from_module, load_module
+from tests.conftest import GENERATED, MODELS
+
+CC = shutil.which("cc") or shutil.which("gcc")
+SAMPLES = np.linspace(0.0, 1.0, 200)
+
+leaves = st.one_of(st.just("t"), st.sampled_from(["0.5", "2", "pi", "3/7", "-1.25", "10"]))
+
+
+def _expressions(children):
+    unary = st.tuples(st.sampled_from(["sin", "cos", "tan", "exp", "log", "sqrt", "atan", "tanh", "sinh", "cosh", "abs", "-", "asin", "acos"]),
+                      children)  # fmt: skip
+    binary = st.tuples(st.sampled_from(["+", "-", "*", "/", "**2", "**3", "**(1/3)", "atan2"]), children, children)
+
+    def unary_text(item):
+        op, a = item
+        if op == "-":
+            return f"(-{a})"
+        if op in ("asin", "acos"):
+            return f"{op}(({a})/(1 + abs({a})))"  # within the domain
+        if op in ("exp", "sinh", "cosh"):
+            return f"{op}(tanh({a}))"  # no overflow
+        return f"{op}({a})"
+
+    def binary_text(item):
+        op, a, b = item
+        if op.startswith("**"):
+            return f"({a}){op}"
+        if op == "atan2":
+            return f"atan2({a}, {b})"
+        return f"({a}) {op} ({b})"
+
+    return st.one_of(unary.map(unary_text), binary.map(binary_text))
+
+
+expressions = st.recursive(leaves, _expressions, max_leaves=6)
+spans = st.tuples(st.floats(-20.0, 20.0), st.floats(0.0, 5.0)).map(lambda a: (a[0], a[0] + a[1]))
+
+
+def _parsed(text: str) -> sp.Expr:
+    """The expression of ``text``, as a model file's time function would be; not one the model
+    language refuses (a division by an exact zero)."""
+    try:
+        return parse(text, {})
+    except ExpressionError:
+        reject()
+
+
+def _values(expr: sp.Expr, t0: float, t1: float) -> np.ndarray:
+    """The function's real values at 200 points of [t0, t1] (50 digits), NaN where it is not real
+    or goes through a complex value (``cos(log(-1))``: kinegen refuses such time functions)."""
+    f = sp.lambdify(T, expr, modules="mpmath")
+    with np.errstate(all="ignore"):
+        real = np.isfinite(np.broadcast_to(sp.lambdify(T, expr, modules="numpy")(t0 + (t1 - t0) * SAMPLES), SAMPLES.shape))
+    out = []
+    with mpmath.workdps(50):
+        for s in SAMPLES:
+            try:
+                value = f(mpmath.mpf(t0) + (mpmath.mpf(t1) - mpmath.mpf(t0)) * mpmath.mpf(float(s)))
+                out.append(float(mpmath.re(value)) if mpmath.im(value) == 0 and mpmath.isfinite(value) else np.nan)
+            except (ZeroDivisionError, ValueError, OverflowError, TypeError, AttributeError):  # not real there
+                out.append(np.nan)
+    return np.where(real, np.array(out), np.nan)
+
+
+def _contains(bounds: np.ndarray, values: np.ndarray) -> bool:
+    real = values[np.isfinite(values)]
+    return bool(np.all(bounds[0] <= real) and np.all(real <= bounds[1]))
+
+
+@settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
+@given(text=expressions, span=spans)
+def test_python_enclosures_hold_every_value(text, span):
+    expr = _parsed(text)
+    program = interval_program([expr])
+    bounds = evaluate(program, (np.array([span[0]]), np.array([span[1]])))[:, 0]
+    assert not np.isnan(bounds).any() and bounds[0] <= bounds[1]
+    assert _contains(bounds, _values(expr, *span)), (text, span, bounds)
+
+
+@pytest.mark.parametrize(
+    ("function", "span"),
+    [("sin", (0.1, 2.0)), ("sin", (1.0, 8.0)), ("cos", (-1.0, 0.5)), ("cos", (2.0, 4.0)), ("tan", (-1.0, 1.2)), ("exp", (-3.0, 2.0)),
+     ("log", (0.5, 9.0)), ("sqrt", (0.0, 4.0)), ("atan", (-5.0, 5.0)), ("tanh", (-2.0, 0.3)), ("sinh", (-1.0, 3.0)),
+     ("cosh", (-1.0, 3.0)), ("abs", (-2.0, 1.0)), ("asin", (-0.9, 0.2)), ("acos", (-0.9, 0.2))],
+)  # fmt: skip
+def test_one_function_of_one_interval_is_its_true_range(function, span):
+    expr = parse(f"{function}(t)", {})
+    bounds = evaluate(interval_program([expr]), span)
+    grid = _values(expr, *span)
+    scale = 1.0 + np.abs(grid).max()
+    assert _contains(bounds, grid)
+    # no wider than the true range, here the extremes of 200,001 points (spaced 2.5e-5 at most: within 1e-9 of it)
+    dense = sp.lambdify(T, expr, modules="numpy")(np.union1d(np.linspace(*span, 200_001), [0.0] if span[0] <= 0 <= span[1] else []))  # (abs: its kink)
+    assert bounds[0] >= dense.min() - 1e-8 * scale and bounds[1] <= dense.max() + 1e-8 * scale
+
+
+# ---- the C helpers -------------------------------------------------------------------------------
+@pytest.fixture(scope="module")
+def c_evaluator(tmp_path_factory):
+    """A program that evaluates an interval program given on stdin with kinegen_interval.h."""
+    if CC is None:
+        pytest.skip("no C compiler")
+    folder = tmp_path_factory.mktemp("intervals")
+    (folder / "kinegen_interval.h").write_text((config.SOLVER / "kinegen_interval.h").read_text())
+    source = folder / "evaluate.c"
+    source.write_text(r"""
+#include <stdio.h>
+#include <string.h>
+#include "kinegen_interval.h"
+/* stdin: t0 t1, then one operation a line: name a b value (registers a, b; value: a constant's bounds or an exponent) */
+int main(void) {
+    static kinegen_interval r[4096];
+    char op[16];
+    double lo, hi, value;
+    int a, b, n = 1;
+    if (scanf("%lf %lf", &lo, &hi) != 2) return 2;
+    r[0] = kinegen_iv_const(lo, hi);
+    while (scanf("%15s %d %d %lf %lf", op, &a, &b, &value, &hi) == 5) {
+        kinegen_interval x = r[a], y = r[b], z;
+        if (!strcmp(op, "const")) z = kinegen_iv_const(value, hi);
+        else if (!strcmp(op, "add")) z = kinegen_iv_add(x, y);
+        else if (!strcmp(op, "mul")) z = kinegen_iv_mul(x, y);
+        else if (!strcmp(op, "neg")) z = kinegen_iv_neg(x);
+        else if (!strcmp(op, "inv")) z = kinegen_iv_inv(x);
+        else if (!strcmp(op, "powi")) z = kinegen_iv_powi(x, (int)value);
+        else if (!strcmp(op, "powr")) z = kinegen_iv_powr(x, value, hi);
+        else if (!strcmp(op, "sqrt")) z = kinegen_iv_sqrt(x);
+        else if (!strcmp(op, "exp")) z = kinegen_iv_exp(x);
+        else if (!strcmp(op, "log")) z = kinegen_iv_log(x);
+        else if (!strcmp(op, "sin")) z = kinegen_iv_sin(x);
+        else if (!strcmp(op, "cos")) z = kinegen_iv_cos(x);
+        else if (!strcmp(op, "tan")) z = kinegen_iv_tan(x);
+        else if (!strcmp(op, "asin")) z = kinegen_iv_asin(x);
+        else if (!strcmp(op, "acos")) z = kinegen_iv_acos(x);
+        else if (!strcmp(op, "atan")) z = kinegen_iv_atan(x);
+        else if (!strcmp(op, "sinh")) z = kinegen_iv_sinh(x);
+        else if (!strcmp(op, "cosh")) z = kinegen_iv_cosh(x);
+        else if (!strcmp(op, "tanh")) z = kinegen_iv_tanh(x);
+        else if (!strcmp(op, "abs")) z = kinegen_iv_abs(x);
+        else if (!strcmp(op, "sign")) z = kinegen_iv_sign(x);
+        else if (!strcmp(op, "atan2")) z = kinegen_iv_atan2(x, y);
+        else return 3;
+        r[n++] = z;
+    }
+    printf("%.17g %.17g\n", r[n - 1].lo, r[n - 1].hi);
+    return 0;
+}
+""")
+    program = folder / "evaluate"
+    subprocess.run([CC, "-std=c99", "-O1", "-Wall", "-Wextra", "-Werror", "-pedantic", "-o", str(program), str(source), "-lm"], check=True)
+
+    def run(text: str, span: tuple[float, float]) -> np.ndarray:
+        expr = parse(text, {})
+        program_ = interval_program([expr])
+        lines = [f"{span[0]!r} {span[1]!r}"]
+        for operation in program_.operations[1:]:
+            a, b = (*operation.args, 0, 0)[:2]
+            value = operation.value if operation.value is not None else (0.0, 0.0)
+            low, high = value if isinstance(value, tuple) else (value, 0.0)
+            lines.append(f"{operation.op} {a} {b} {low!r} {high!r}")
+        output = program_.outputs[0]
+        if output is None:
+            return np.array([-np.inf, np.inf])
+        lines = lines[: output + 1]  # the last register is the expression's
+        done = subprocess.run([str(program)], input="\n".join(lines) + "\n", capture_output=True, text=True, check=True)
+        return np.array([float(x) for x in done.stdout.split()])
+
+    return run
+
+
+@settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
+@given(text=expressions, span=spans)
+def test_c_enclosures_hold_every_value_and_match_python(c_evaluator, text, span):
+    expr = _parsed(text)
+    bounds = c_evaluator(text, span)
+    assert _contains(bounds, _values(expr, *span)), (text, span, bounds)
+    python = evaluate(interval_program([expr]), span)
+    finite = np.isfinite(python) & np.isfinite(bounds)
+    assert np.array_equal(np.isfinite(python), np.isfinite(bounds)), (text, span, python, bounds)
+    assert np.allclose(python[finite], bounds[finite], rtol=1e-12, atol=1e-12), (text, span, python, bounds)
+
+
+# ---- the generated kernels ------------------------------------------------------------------------
+@pytest.mark.parametrize("compiled", [False, True])
+def test_generated_input_ranges_hold_the_cases_inputs(compiled):
+    module = load_module(GENERATED / "excavator_quaternion.py", MODELS / "excavator.yaml")
+    for case in module.CASES:
+        system = from_module(module, case, compiled=compiled)
+        if compiled and system.native is None:
+            pytest.skip("no C compiler")
+        times = np.linspace(system.t0, system.t1, min(system.steps, 60))
+        t0, t1 = times[:-1], times[1:]
+        if compiled:
+            ranges = np.column_stack([system.native.run("input_ranges", span=np.array([a, b]))[0] for a, b in zip(t0, t1)])
+            python = system.input_ranges((t0, t1))
+            assert np.allclose(ranges, python, rtol=1e-12, atol=1e-12), case
+        else:
+            ranges = system.input_ranges((t0, t1))
+        n = 3 * system.n_inputs
+        inside = t0[None, :] + (t1 - t0)[None, :] * np.linspace(0.0, 1.0, 101)[:, None]
+        values = np.stack([system.inputs(row) for row in inside])  # (101, 3 n_inputs, steps)
+        assert np.all(ranges[:n][None] <= values) and np.all(values <= ranges[n:][None]), case
