@@ -4,12 +4,15 @@ The command line (:mod:`kinegen.cli`), the main job (:mod:`kinegen.demo`) and th
 through :class:`Session`, so that a model file is read once per session and every caller
 rebuilds a missing or stale module the same way:
 
-* a module is **fresh** when its seal holds, it was built by this kinegen and from the model
-  file's current bytes (:func:`kinegen.runtime.load_module`);
-* otherwise it is **rebuilt** into the same folder -- with the sensitivity kernels if the model
-  has design parameters and the stale module had them (or none was there), unless the caller
-  says otherwise -- checked (time functions finite, initial pose assembles; ``Session.check``)
-  before anything is written, and loaded.
+* a module is **fresh** when kinegen wrote its bytes (or regenerates them: :mod:`kinegen.integrity`),
+  it was built by this kinegen and from the model file's current bytes
+  (:func:`kinegen.runtime.load_module`);
+* a **missing or stale** one is **rebuilt** into the same folder -- with the sensitivity kernels if
+  the model has design parameters and the stale module had them (or none was there), unless the
+  caller says otherwise -- checked (time functions finite, initial pose assembles;
+  ``Session.check``) before anything is written, and loaded;
+* a **changed** one (bytes kinegen did not write: edited or planted, Python or C) is refused with
+  :class:`~kinegen.errors.ChangedFileError` (exit 5), never rebuilt over silently.
 
 Example::
 
@@ -30,7 +33,7 @@ from types import ModuleType
 import numpy as np
 
 from kinegen import rotations
-from kinegen.errors import GeneratedModuleError
+from kinegen.errors import ChangedFileError, GeneratedModuleError
 
 
 @dataclasses.dataclass
@@ -74,6 +77,8 @@ class Session:
         path = self.module_path(model_file, parametrization)
         try:
             module = load_module(path, model_file)
+        except ChangedFileError:
+            raise
         except GeneratedModuleError:
             module = load_module(self.build(model_file, parametrization, sensitivities, reason="missing or stale"), model_file)
         self._modules[key] = module

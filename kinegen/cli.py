@@ -33,15 +33,13 @@ class _Group(click.Group):
         try:
             return super().make_context(info_name, args, parent, **extra)
         except click.UsageError as exc:
-            exc.exit_code = ExitCode.USAGE
-            raise
+            self._usage(exc)
 
     def invoke(self, ctx: click.Context):
         try:
             return super().invoke(ctx)
         except click.UsageError as exc:  # a subcommand's argument (click's own code, 2, is a model error's here)
-            exc.exit_code = ExitCode.USAGE
-            raise
+            self._usage(exc)
         except KinegenError as exc:
             self._fail(ctx, f"error: {exc}", exc.exit_code)
         except BrokenPipeError:  # the reader stopped early (| head): quiet, as Unix tools are
@@ -50,6 +48,16 @@ class _Group(click.Group):
             ctx.exit(ExitCode.BROKEN_PIPE)
         except OSError as exc:
             self._fail(ctx, f"error: {exc}", ExitCode.IO)
+
+    @staticmethod
+    def _usage(exc: click.UsageError) -> None:
+        """A usage error as one line, like every other error (exit 64); kinegen alone shows the help."""
+        exc.exit_code = ExitCode.USAGE
+        if isinstance(exc, click.exceptions.NoArgsIsHelpError):
+            raise exc
+        command = exc.ctx.command_path if exc.ctx is not None else "kinegen"
+        click.echo(printable(f"error: {exc.format_message()} ('{command} --help' lists the options)"), err=True)
+        sys.exit(ExitCode.USAGE)
 
     @staticmethod
     def _fail(ctx: click.Context, message: str, code: int) -> None:
@@ -82,8 +90,20 @@ PARAMS = click.option("--param", "params", multiple=True, default=("quaternion",
 GENERATED_DIR = click.option("--generated-dir", default="generated", show_default=True, help="Where generated modules live.")
 
 
+def _output_file(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
+    """An output file name checked before any work: it can be written (- is standard output)."""
+    if value is None or value == STDOUT:
+        return value
+    from kinegen.files import writable
+
+    problem = writable(value)
+    if problem is not None:
+        raise click.BadParameter(f"cannot write {value}: {problem}", ctx=ctx, param=param)
+    return value
+
+
 def _image_file(ctx: click.Context, param: click.Parameter, value: str | None) -> str | None:
-    """A --plot file name checked before any work: matplotlib can write its type (its suffix)."""
+    """A --plot file name checked before any work: matplotlib can write its type (its suffix), and it can be written."""
     if value is None:
         return None
     from kinegen.analysis.plots import image_format
@@ -92,7 +112,7 @@ def _image_file(ctx: click.Context, param: click.Parameter, value: str | None) -
         image_format(value)
     except ValueError as exc:
         raise click.BadParameter(str(exc), ctx=ctx, param=param) from None
-    return value
+    return _output_file(ctx, param, value)
 
 
 def _parametrization(name: str) -> rotations.Parametrization:
@@ -235,7 +255,7 @@ def _system(
 @click.option("--t0", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="Start time [s] (default: the case's).")
 @click.option("--t1", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="End time [s] (default: the case's).")
 @click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
-@click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV file for all time histories (- for standard output; the summary then goes to standard error).")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_output_file, help="CSV file for all time histories (- for standard output; the summary then goes to standard error).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file,
               help="PNG: the mechanism at six instants in the plane that shows it, with a tip's path; actuator lengths and rates "
               "(or angular speeds), condition number.")
@@ -313,11 +333,19 @@ def solve(
     unknown = [name for name in loads if name not in model.loads]
     if unknown:
         raise click.BadParameter(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})", param_hint="--load")
+    twice = sorted({name for name in loads if loads.count(name) > 1})
+    if twice:
+        raise click.BadParameter(f"{', '.join(twice)} named more than once (each load is held once)", param_hint="--load")
     if dynamics and not model.massive:
         raise click.BadParameter("the model has no masses (a body's mass:, center_of_mass:, inertia:)", param_hint="--dynamics")
     if plot:
         _check_frame(system, frame_body)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
+    if loads:
+        from kinegen.forces.statics import check_load_functions
+
+        for name in dict.fromkeys(loads):
+            check_load_functions(model, model.loads[name], times)  # before the solve: a load's function outside its domain
     start = time.perf_counter()
     results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
     elapsed = time.perf_counter() - start
@@ -337,6 +365,9 @@ def solve(
 
         held = forces(results, model, loads, inertia=dynamics)
         _report_forces(held, piped)
+    elif loads or dynamics:
+        click.echo(f"forces: not computed -- the solve stopped at t = {results.times[-1]:g} s and forces need every time point; "
+                   "the CSV has no force columns", err=True)  # fmt: skip
     if out:
         written = results.to_csv(out, held.table() if held is not None else None)
         if not piped:
@@ -491,7 +522,7 @@ def _report_ranges(results) -> None:
 @click.option("--budget", type=click.FloatRange(min=0, min_open=True, max=86_400), default=60.0, show_default=True,
               help="Seconds of exact symbolic work allowed (the determinant is left out, or the inspection stops naming Phi_q's blocks, when they run out).")  # fmt: skip
 @click.option("--full", is_flag=True, help="Print long determinants in full (by default one longer than 600 characters is summarised).")
-@click.option("--det-file", type=click.Path(dir_okay=False), default=None, help="Write every symbolic determinant in full into this file.")
+@click.option("--det-file", type=click.Path(dir_okay=False), default=None, callback=_output_file, help="Write every symbolic determinant in full into this file.")
 @GENERATED_DIR
 def inspect(
     model_file: str,
@@ -639,7 +670,7 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--case", default=None, help="Case to show (default: the first).")
 @PARAM
-@click.option("--out", type=click.Path(dir_okay=False), default=None, help="The HTML page (default: out/<model>_<case>.html).")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_output_file, help="The HTML page (default: out/<model>_<case>.html).")
 @click.option("--track", "--point", "track", default=None, metavar="BODY.POINT", help="The point whose path is drawn (default: the working range's point).")
 @click.option("--condition-warning", type=float, default=1e6, show_default=True, help="Bodies turn orange where cond(Phi_q) exceeds this.")
 @click.option("--animate", type=click.Path(dir_okay=False), default=None, help="Also a .gif (or .mp4, with ffmpeg) of the motion in one plane.")
@@ -692,7 +723,7 @@ def view(
               help="A force map instead: over a grid of the working range, the largest force the tool point can exert in this "
               "direction and the cylinder that limits it (tangent: the bucket digging direction).")  # fmt: skip
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="--map: PNG of the map on the working range.")
-@click.option("--out", type=click.Path(dir_okay=False), default=None, help="--map: CSV of every pose (inputs, tool point, force, limiting cylinder).")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_output_file, help="--map: CSV of every pose (inputs, tool point, force, limiting cylinder).")
 @click.option("--no-compile", is_flag=True, help="Use the generated Python functions only.")
 @GENERATED_DIR
 def forces(model_file: str, param: str, as_json: bool, lift: bool, direction: str | None, plot: str | None, out: str | None,
@@ -705,6 +736,11 @@ def forces(model_file: str, param: str, as_json: bool, lift: bool, direction: st
     from kinegen.errors import ModelError
     from kinegen.forces.iso6015 import report, tool_forces
 
+    if lift and direction is not None:
+        raise click.BadParameter("--lift and --map are two different charts: give one", param_hint="--map")
+    if lift and (plot or out):
+        raise click.BadParameter("--plot and --out go with --map here (the lift chart's: `kinegen lift --plot/--out`)",
+                                 param_hint="--plot" if plot else "--out")  # fmt: skip
     parametrization = _parametrization(param)
     model, _ = _system(model_file, parametrization, None, generated_dir, False)
     if lift:
@@ -822,7 +858,7 @@ def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: 
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @PARAM
 @click.option("--json", "as_json", is_flag=True, help="Print the chart as JSON.")
-@click.option("--out", type=click.Path(dir_okay=False), default=None, help="CSV of every grid point (capacities, ratings, limits).")
+@click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_output_file, help="CSV of every grid point (capacities, ratings, limits).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file,
               help="PNG of the chart over the working range's outline.")  # fmt: skip
 @click.option("--no-compile", is_flag=True, help="Use the generated Python functions only.")
@@ -883,7 +919,7 @@ def info(model_file: str, params: tuple[str, ...]) -> None:
 @PARAM
 @click.option("--grid", default=None, help="Samples per swept input, e.g. 25,13,25 (default: 21,11,21).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file, help="PNG of the working-range chart (exact boundary, dimensions).")
-@click.option("--boundary", "boundary_file", type=click.Path(dir_okay=False), default=None,
+@click.option("--boundary", "boundary_file", type=click.Path(dir_okay=False), default=None, callback=_output_file,
               help="Write the exact boundary's points: CSV (.csv) or JSON (.json).")
 @click.option("--json", "as_json", is_flag=True, help="Print the figures (and the boundary) as JSON.")
 @GENERATED_DIR

@@ -162,6 +162,21 @@ class UnreachableError(ConvergenceError):
         )  # fmt: skip
 
 
+class PrecisionError(ConvergenceError):
+    """The tolerance is below what double precision resolves in the model's units: the residual
+    left is the rounding of the coordinates themselves (a model measured in units far too small for
+    its size: a 10^12 m boom in metres)."""
+
+    def __init__(self, t: float, iterations: int, residual: float, rounding: float, largest: float, tolerance: float) -> None:
+        super().__init__(
+            t, iterations, residual, [],
+            f"the constraints cannot be met to max |Phi| <= {tolerance:.1e} at t = {t:.6g}: rounding the coordinates alone "
+            f"leaves about {rounding:.1e} (coordinates up to {largest:.3g}, which double precision resolves to "
+            f"{largest * 2.2e-16:.1e}); {iterations} iterations reached max |Phi| = {residual:.3e}. Measure the model in larger "
+            f"units, or raise the tolerance (SolverOptions.tolerance) above {10 * rounding:.1e}",
+        )  # fmt: skip
+
+
 class BranchError(KinegenError):
     """A step could not be certified to continue the solution, however small: a diagonal block
     of Phi_q changes its assembly mode (a toggle or dead point lies within the step) or the
@@ -183,6 +198,11 @@ class GeneratedModuleError(KinegenError):
     """A generated module is missing, stale or was not written by kinegen."""
 
     exit_code = ExitCode.GENERATED_MODULE
+
+
+class ChangedFileError(GeneratedModuleError):
+    """A generated file (module, C) whose bytes kinegen did not write: changed since it wrote it, or
+    planted. Refused before anything in it runs, never rebuilt over silently (:mod:`kinegen.integrity`)."""
 
 
 class AssemblyError(ConvergenceError):

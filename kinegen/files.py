@@ -91,18 +91,44 @@ def atomic_path(path: Path, suffix: bool = True) -> Iterator[Path]:
 def atomic_writer(path: Path) -> Iterator[BinaryIO]:
     """A binary handle whose content becomes ``path`` (:func:`atomic_path`) when the block ends
     without an exception, flushed and fsynced first; on an exception (disk full, interrupted) the
-    previous file is untouched and the temporary file removed."""
-    with atomic_path(path, suffix=False) as target, open(target, "wb") as handle:
-        yield handle
-        handle.flush()
-        if stat.S_ISREG(os.fstat(handle.fileno()).st_mode):  # (a pipe or device has nothing to sync)
-            os.fsync(handle.fileno())
+    previous file is untouched and the temporary file removed. An OSError names the file (a full
+    device's ENOSPC does not by itself)."""
+    try:
+        with atomic_path(Path(path), suffix=False) as target, open(target, "wb") as handle:
+            yield handle
+            handle.flush()
+            if stat.S_ISREG(os.fstat(handle.fileno()).st_mode):  # (a pipe or device has nothing to sync)
+                os.fsync(handle.fileno())
+    except OSError as exc:
+        if exc.filename is None and exc.errno is not None:
+            raise OSError(exc.errno, exc.strerror, str(path)) from None
+        raise
 
 
 def write_atomic(path: Path, content: str | bytes) -> None:
-    """Write ``content`` (text as UTF-8, or bytes) to ``path`` all or nothing (:func:`atomic_writer`)."""
-    with atomic_writer(path) as handle:
+    """Write ``content`` (text as UTF-8, or bytes) to ``path`` all or nothing (:func:`atomic_writer`);
+    an OSError names the file."""
+    with atomic_writer(Path(path)) as handle:
         handle.write(content.encode("utf-8") if isinstance(content, str) else content)
+
+
+def writable(path: str | Path) -> str | None:
+    """Why ``path`` cannot be written, checked before any work (None: it can, as far as can be told
+    without writing): a folder in its place, a file that is not writable, or -- its missing folders
+    are made when it is written -- a file where a folder belongs or a folder that is not writable."""
+    target = Path(path)
+    if target.is_dir():
+        return f"{target} is a folder, not a file"
+    if target.exists():
+        return None if os.access(target, os.W_OK) else f"{target} is not writable"
+    folder = target.parent
+    while not folder.exists() and folder != folder.parent:
+        folder = folder.parent
+    if not folder.is_dir():
+        return f"{folder} is a file, not a folder"
+    if not os.access(folder, os.W_OK | os.X_OK):
+        return f"the folder {folder} is not writable"
+    return None
 
 
 def _is_special(path: Path) -> bool:

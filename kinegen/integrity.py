@@ -1,14 +1,19 @@
-"""Seals on generated files, and text from users made safe to stand inside generated code.
+"""How kinegen knows a file is its own, and text from users made safe to stand inside generated code.
 
-A generated Python module or model C file begins with one line that records the SHA-256 of
-the rest of the file (its UTF-8 bytes, from the byte after that line's newline to the end)::
+**The trust store.** kinegen keeps, in a folder of the user's that is not beside the files
+(``$KINEGEN_TRUST``, default ``$XDG_DATA_HOME/kinegen/trusted`` or ``~/.local/share/kinegen/trusted``),
+the SHA-256 of every file it wrote or verified: generated modules and their C (written by
+``kinegen build``), compiled libraries and object files (written by the runtime's compiler). A file
+is kinegen's own when its bytes' digest is in the store, or -- a generated module from elsewhere,
+e.g. a fresh clone's ``generated/`` -- when kinegen regenerates it from the model it names and gets
+the same bytes (generation is byte-reproducible); the digest is then remembered, so each content is
+verified once. Anything else is refused before a byte of it runs or is loaded: an edited or planted
+module, C file or library, whatever hash stands beside it or inside it. The store also remembers,
+per model version, parametrization and options, the digest of the module kinegen writes for them
+(:func:`remember_expected`), so a second changed copy is refused without regenerating.
 
-    # kinegen: sha256 of the rest of this file: 3f1c...          (Python)
-    /* kinegen: sha256 of the rest of this file: 3f1c... */      (C)
-
-The runtime reads a file's bytes, checks the seal and only then compiles exactly those bytes
-(:func:`verified_text`), so an edited coefficient, a truncated file or a module planted by
-hand is refused before anything in it runs.
+What it does not protect against: another program running as the same user (it can write the
+store, the cache or kinegen itself), and a library swapped between its check and ``dlopen``.
 
 Strings that come from a user (a model file's name, names, descriptions) reach generated code
 only as escaped literals: :func:`comment_text` for docstrings and C comments (nothing that can
@@ -18,50 +23,102 @@ literals. Python string literals are ``repr``, which is safe by construction.
 
 from __future__ import annotations
 
+import fcntl
 import hashlib
-import re
+import os
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
-SEAL_TEXT = "kinegen: sha256 of the rest of this file: "
-_SEAL = {
-    ".py": (f"# {SEAL_TEXT}", ""),
-    ".c": (f"/* {SEAL_TEXT}", " */"),
-    ".h": (f"/* {SEAL_TEXT}", " */"),
-}
-_SEAL_LINE = re.compile(rb"^(?:# |/\* )" + SEAL_TEXT.encode() + rb"([0-9a-f]{64})(?: \*/)?$")
+#: digests this process knows to be kinegen's (the store read once per digest)
+_KNOWN: set[str] = set()
 #: characters a comment or docstring may show as they are; every other one is escaped
 _PLAIN = frozenset("abcdefghijklmnopqrstuvwxyzABCDEFGHIJKLMNOPQRSTUVWXYZ0123456789 _.,:;+-=()[]{}<>@#%&!~^|$")
 
 
-class SealError(ValueError):
-    """A generated file's seal is missing or does not match its text (the message says which)."""
+def trust_folder() -> Path:
+    """The trust store: ``$KINEGEN_TRUST``, else ``$XDG_DATA_HOME/kinegen/trusted``, else ``~/.local/share/kinegen/trusted``."""
+    if os.environ.get("KINEGEN_TRUST"):
+        return Path(os.environ["KINEGEN_TRUST"])
+    data = os.environ.get("XDG_DATA_HOME") or str(Path.home() / ".local" / "share")
+    return Path(data) / "kinegen" / "trusted"
 
 
-def seal(name: str, text: str) -> str:
-    """``text`` of the generated file ``name`` (``.py``, ``.c`` or ``.h``) with its seal line first."""
-    before, after = _SEAL[Path(name).suffix]
-    digest = hashlib.sha256(text.encode("utf-8")).hexdigest()
-    return f"{before}{digest}{after}\n{text}"
+def digest(data: bytes) -> str:
+    return hashlib.sha256(data).hexdigest()
 
 
-def sealed(name: str) -> bool:
-    """Whether kinegen seals files of this kind (by their suffix)."""
-    return Path(name).suffix in _SEAL
+def _entry(name: str) -> Path:
+    return trust_folder() / name[:2] / name
 
 
-def verified_text(data: bytes, where: str) -> str:
-    """The text of a sealed file's bytes ``data`` (seal line included), after checking the seal;
-    :class:`SealError` naming ``where`` when it is missing, malformed or does not match."""
-    first, newline, rest = data.partition(b"\n")
-    match = _SEAL_LINE.match(first.rstrip(b"\r"))
-    if not newline or match is None:
-        raise SealError(f"{where}: no kinegen seal on its first line (not written by this kinegen, or edited)")
-    if hashlib.sha256(rest).hexdigest() != match.group(1).decode():
-        raise SealError(f"{where}: its text does not match its seal (edited or truncated since kinegen wrote it)")
+def remember(data: bytes) -> str:
+    """Record ``data`` (a file's bytes) as kinegen's own; returns its digest. Where the store cannot
+    be written (a read-only home) the digest is remembered for this process only."""
+    key = digest(data)
+    _KNOWN.add(key)
+    _write(_entry(key), "")
+    return key
+
+
+def trusted(data: bytes) -> bool:
+    """Whether ``data`` (a file's bytes) are kinegen's own: written or verified by it before."""
+    key = digest(data)
+    if key in _KNOWN:
+        return True
+    if _entry(key).is_file():
+        _KNOWN.add(key)
+        return True
+    return False
+
+
+def expected_key(*parts: str) -> str:
+    """The store's name for what kinegen writes for ``parts`` (model digest, parametrization, options, version)."""
+    return "expected-" + digest("\n".join(parts).encode())
+
+
+def remember_expected(key: str, module_digest: str) -> None:
+    """Record that kinegen writes the module of digest ``module_digest`` for ``key`` (:func:`expected_key`)."""
+    _write(_entry(key), module_digest)
+
+
+def expected(key: str) -> str | None:
+    """The digest of the module kinegen writes for ``key``, if recorded."""
     try:
-        return data.decode("utf-8")
-    except UnicodeDecodeError as exc:  # cannot happen for a matching seal over kinegen's own UTF-8 output
-        raise SealError(f"{where}: not UTF-8 text ({exc})") from None
+        return _entry(key).read_text().strip() or None
+    except OSError:
+        return None
+
+
+@contextmanager
+def locked(name: str) -> Iterator[None]:
+    """Hold the store's lock ``name`` (one process at a time verifies one thing; where the store
+    cannot be written, no lock)."""
+    try:
+        folder = trust_folder()
+        folder.mkdir(parents=True, exist_ok=True, mode=0o700)
+        handle = open(folder / f".{name}.lock", "a")
+    except OSError:
+        yield
+        return
+    with handle:
+        fcntl.flock(handle, fcntl.LOCK_EX)
+        try:
+            yield
+        finally:
+            fcntl.flock(handle, fcntl.LOCK_UN)
+
+
+def _write(path: Path, text: str) -> None:
+    """Write a store entry atomically (a private temporary file, then a rename); silently nothing
+    where the store cannot be written."""
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True, mode=0o700)
+        temporary = path.with_name(f".{path.name}.{os.getpid()}.tmp")
+        temporary.write_text(text)
+        os.replace(temporary, path)
+    except OSError:
+        pass
 
 
 def comment_text(text: object) -> str:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import functools
+import os
 from pathlib import Path
 
 import numpy as np
@@ -17,6 +18,9 @@ from kinegen.runtime import from_module, load_module
 ROOT = Path(__file__).resolve().parents[1]
 MODELS = ROOT / "models"
 GENERATED = ROOT / "generated"
+#: the tests' own trust store (kinegen.integrity), shared by the test processes of a run and kept
+#: between runs: a committed module is verified by regenerating it once, not in every process
+os.environ["KINEGEN_TRUST"] = str(ROOT / ".pytest_cache" / "kinegen-trust")
 
 #: A four-bar whose links cannot close (coupler 0.5 between points 2.3 m apart): no assembled pose.
 OPEN_LOOP = """\

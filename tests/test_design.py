@@ -107,14 +107,12 @@ def test_one_generated_module_solves_any_design_without_a_rebuild(tmp_path, para
     """The module takes p (its Python functions, or its C compiled with kinegen's C solver): at
     the nominal and at two other designs the slider follows the closed form, and every named
     point agrees with the model rebuilt at those numbers."""
-    from kinegen.codegen import generate
+    from kinegen.codegen import generate, write_files
     from kinegen.runtime import load_module
 
     model = loads(design_model(), "slider_crank_design.yaml")
     made = generate(model, rotations.get(param))
-    for files in made.values():
-        for file, text in files.items():
-            (tmp_path / file).write_text(text)
+    write_files(tmp_path, {file: text for files in made.values() for file, text in files.items()})
     module = load_module(tmp_path / next(iter(made["python"])))
     assert module.DESIGN == {"r": (0.2, 0.15, 0.25), "l": (0.6, 0.5, 0.7)}
     assert all(slots[-1] == "p" for kernel, (slots, _) in module.KERNELS.items() if kernel not in ("inputs", "input_ranges", "frames", "frames_d"))
@@ -183,15 +181,14 @@ def test_the_c_of_a_design_model_compiles_strictly(tmp_path, sensitivities):
 def test_a_module_built_without_sensitivity_kernels_solves_designs_and_says_what_it_lacks(tmp_path, compiled):
     """``kinegen build --no-sensitivities``: the same solutions at any design as the full module,
     its header says so, and asking it for sensitivities names the way out."""
-    from kinegen.codegen import built_with_sensitivities, generate
+    from kinegen.codegen import built_with_sensitivities, generate, write_files
     from kinegen.runtime import load_module
 
     model = loads(design_model(), "slider_crank_design.yaml")
     for folder, sensitivities in ((tmp_path / "full", True), (tmp_path / "lean", False)):
         folder.mkdir()
-        for files in generate(model, rotations.get("quaternion"), sensitivities=sensitivities).values():
-            for file, text in files.items():
-                (folder / file).write_text(text)
+        made = generate(model, rotations.get("quaternion"), sensitivities=sensitivities)
+        write_files(folder, {file: text for files in made.values() for file, text in files.items()})
         assert built_with_sensitivities(folder / "slider_crank_quaternion.py") is sensitivities
         assert built_with_sensitivities(folder / "slider_crank_quaternion.c") is sensitivities
     full, lean = (load_module(tmp_path / f / "slider_crank_quaternion.py") for f in ("full", "lean"))
@@ -221,13 +218,11 @@ def test_the_standalone_c_of_a_design_model_matches_python_at_the_nominal(tmp_pa
 
 
 def _design_module(tmp_path, text: str, param: str = "quaternion", name: str = "design.yaml"):
-    from kinegen.codegen import generate
+    from kinegen.codegen import generate, write_files
     from kinegen.runtime import load_module
 
     made = generate(loads(text, name), rotations.get(param))
-    for files in made.values():
-        for file, content in files.items():
-            (tmp_path / file).write_text(content)
+    write_files(tmp_path, {file: content for files in made.values() for file, content in files.items()})
     return load_module(tmp_path / next(iter(made["python"])))
 
 

@@ -7,7 +7,7 @@ generated file, the inputs of a solve and the command line.
   the harmless name's AST, the C header comment ends where the harmless one does, nothing runs;
   hostile entity names (bodies, points, cases) end in one model-error line;
 * **tampered**: a generated module, its C and a cached library with bytes flipped, cut, inserted
-  (with a payload) or the seal edited: refused before anything runs (exit 5), the library rebuilt
+  (with a payload) or a seal over the damaged text: refused before anything runs (exit 5), the library rebuilt
   and never loaded; a module of another model version is stale;
 * **signals**: random input signals (random amplitudes, frequencies up to the grid's Nyquist rate,
   phases) on the excavator: every returned row equals a 1000x finer solve's to 1e-9 m, or the
@@ -16,17 +16,23 @@ generated file, the inputs of a solve and the command line.
   oscillation case, 270-330 rad/s) on random grids of 0.3 to 7 rad of phase a step -- below and
   above the grid's Nyquist rate (pi) -- from random start times, compiled and in Python: every
   returned row equals the 2/42000 s solve's to 1e-9 m, or the solve refuses;
+* **sections** (issue 38): the excavator's force, lift, study, load, motor and machine sections with
+  a random entry replaced by a list, a mapping, nothing, a number, a ground point or another name:
+  the model loads, or the loader refuses it with a ModelError naming file and entry -- no other
+  exception (a list where a name belonged was a TypeError traceback);
 * **cli**: random argument lists from the commands' own options and hostile values (non-numbers,
   NaN, huge numbers, broken JSON and expressions, devices, directories, unknown suffixes): each
   ends with an exit code of the table (kinegen.errors.ExitCode), no traceback, at most a few lines of error.
 
 The quick subset runs with the test suite; ``make fuzz`` runs KINEGEN_FUZZ_EXAMPLES / 200 name,
-/ 20 tamper, / 500 signal, / 500 function and / 10 command-line examples and appends the counts to its report.
+/ 20 tamper, / 500 signal, / 500 function, / 20 section and / 10 command-line examples and appends the counts to its report.
 """
 
 from __future__ import annotations
 
 import atexit
+import copy
+import hashlib
 import json
 import os
 import shutil
@@ -40,6 +46,7 @@ from pathlib import Path
 
 import numpy as np
 import pytest
+import yaml
 from click.testing import CliRunner
 from hypothesis import HealthCheck, Phase, given, settings
 from hypothesis import strategies as st
@@ -54,7 +61,7 @@ from tests.test_trust import _normalized
 
 EXAMPLES = int(os.environ.get("KINEGEN_FUZZ_EXAMPLES", "150"))
 COUNTS = {"names": max(3, EXAMPLES // 200), "tampered": max(12, EXAMPLES // 20), "signals": max(2, EXAMPLES // 500),
-          "functions": max(2, EXAMPLES // 500), "cli": max(25, EXAMPLES // 10)}  # fmt: skip
+          "functions": max(2, EXAMPLES // 500), "sections": max(20, EXAMPLES // 20), "cli": max(25, EXAMPLES // 10)}  # fmt: skip
 SEEN: Counter = Counter()  # layer -> examples run
 OUTCOMES: Counter = Counter()  # (layer, outcome) -> count
 CC = shutil.which("cc") or shutil.which("gcc")
@@ -187,7 +194,8 @@ def sealed(tmp_path_factory):
 @st.composite
 def damage(draw, data: bytes) -> bytes:
     """``data`` with one damage: a byte changed, a range cut, bytes inserted (a payload among
-    them), the seal line's digest or the version edited, or the file truncated."""
+    them), a seal over the damaged text put first (a digest beside the text, which proves nothing),
+    the version edited, or the file truncated."""
     kind = draw(st.sampled_from(["flip", "cut", "insert", "seal", "version", "truncate"]))
     at = draw(st.integers(0, len(data) - 1))
     if kind == "flip":
@@ -198,11 +206,8 @@ def damage(draw, data: bytes) -> bytes:
         extra = draw(st.sampled_from([f"\nopen({MARKER!r}, 'w')\n".encode(), b"\n", b" ", b"0", draw(st.binary(min_size=1, max_size=20))]))
         return data[:at] + extra + data[at:]
     if kind == "seal":
-        line, rest = data.split(b"\n", 1)
-        digits = bytearray(line)
-        spot = draw(st.integers(len(line) - 64, len(line) - 1))
-        digits[spot] = ord("0") if digits[spot] != ord("0") else ord("1")
-        return bytes(digits) + b"\n" + rest
+        payload = data + f"\nopen({MARKER!r}, 'w')\n".encode()
+        return f"# kinegen: sha256 of the rest of this file: {hashlib.sha256(payload).hexdigest()}\n".encode() + payload
     if kind == "version":
         return data.replace(b"kinegen version: ", b"kinegen version: 9", 1)
     return data[:at]
@@ -318,6 +323,52 @@ def test_fast_time_functions_on_random_grids_come_back_right_or_not_at_all(oscil
     deviation = np.abs(_points(system, results.q) - points[rows]).max()
     assert deviation <= 1e-9, f"a row {deviation:.3g} m from the fine solve came back ({phase:.2f} rad a step, {'C' if compiled else 'Python'})"
     OUTCOMES[("functions", f"equal to the fine solve, {'above' if phase > np.pi else 'below'} Nyquist, {'C' if compiled else 'Python'}")] += 1
+
+
+# ---- the force, lift and study sections with hostile entries ---------------------------------------
+EXCAVATOR_DOCUMENT = yaml.safe_load((MODELS / "excavator.yaml").read_text())
+SECTIONS = ("tool_forces", "lift_chart", "studies", "loads", "tool_points", "motors", "machine", "gravity")
+
+
+def _entries(node, path):
+    """Every entry (a path of keys and indices) below ``node``, containers and leaves."""
+    if isinstance(node, dict):
+        for key, value in node.items():
+            yield from _entries(value, (*path, key))
+    elif isinstance(node, list):
+        for index, value in enumerate(node):
+            yield from _entries(value, (*path, index))
+    if len(path) > 1:
+        yield path
+
+
+SECTION_ENTRIES = [path for section in SECTIONS for path in _entries(EXCAVATOR_DOCUMENT.get(section), (section,))] + [("gravity",)]
+HOSTILE_VALUES = st.one_of(
+    st.sampled_from([["boom_cylinder_left"], {"name": "x"}, None, 0, -1.0, 1e300, "ground.O", "bucket.Q", "nobody.x", "", [],
+                     ["digging", "digging"], [0, 0, -9.7], "nan", "sqrt(t - 20)"]),
+    st.text(max_size=12), st.integers(-10, 10), st.lists(st.text(max_size=6), max_size=3),
+)  # fmt: skip
+
+
+@settings(FUZZ, max_examples=COUNTS["sections"])
+@given(path=st.sampled_from(SECTION_ENTRIES), value=HOSTILE_VALUES)
+def test_hostile_section_entries_end_in_a_model_error_naming_file_and_entry(path, value):
+    from kinegen.errors import ModelError
+    from kinegen.model import loads
+
+    SEEN["sections"] += 1
+    document = copy.deepcopy(EXCAVATOR_DOCUMENT)
+    node = document
+    for key in path[:-1]:
+        node = node[key]
+    node[path[-1]] = value
+    try:
+        loads(yaml.safe_dump(document, sort_keys=False), "excavator.yaml")
+    except ModelError as error:
+        assert str(error).startswith("excavator.yaml") and error.entry, error
+        OUTCOMES[("sections", "refused: a model error naming file and entry")] += 1
+        return
+    OUTCOMES[("sections", "accepted")] += 1
 
 
 # ---- command-line arguments --------------------------------------------------------------------

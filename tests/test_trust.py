@@ -23,9 +23,11 @@ from hypothesis import HealthCheck, given, settings
 from hypothesis import strategies as st
 
 import kinegen
-from kinegen.codegen import build
-from kinegen.errors import BranchError, GeneratedModuleError, KinegenError
-from kinegen.integrity import c_string, comment_text, seal
+from kinegen import integrity
+from kinegen.api import Session
+from kinegen.codegen import build, writer
+from kinegen.errors import BranchError, ChangedFileError, GeneratedModuleError, KinegenError
+from kinegen.integrity import c_string, comment_text
 from kinegen.runtime import Solver, SolverOptions, from_module, load_module
 from kinegen.runtime import native as native_module
 from kinegen.runtime.solver import SamplingWarning
@@ -339,28 +341,51 @@ def built(tmp_path):
 
 
 def test_an_edited_module_is_refused_before_it_runs(built, tmp_path):
+    """Edited, with a seal line recomputed over the new text as the old files carried (what issue 38
+    found running), or truncated: refused (exit 5) as changed since kinegen wrote it, nothing runs --
+    by the Session too, which rebuilds a stale module but never one that was changed."""
     model, path = built
     text = path.read_text()
     edited = text.replace("INITIAL_Q = (", "INITIAL_Q = (1.0 + ", 1) + f"\nopen({str(tmp_path / 'RAN')!r}, 'w')\n"
-    path.write_text(edited)
-    with pytest.raises(GeneratedModuleError, match="does not match its seal") as caught:
-        load_module(path, model)
-    assert caught.value.exit_code == 5 and "kinegen build" in str(caught.value)
+    forged = f"# kinegen: sha256 of the rest of this file: {hashlib.sha256(edited.encode()).hexdigest()}\n{edited}"
+    for changed in (edited, forged, text[: len(text) // 2]):
+        path.write_text(changed)
+        with pytest.raises(ChangedFileError, match="changed since kinegen wrote it") as caught:
+            load_module(path, model)
+        assert caught.value.exit_code == 5 and "kinegen build" in str(caught.value) and "nothing in it ran" in str(caught.value)
+        with pytest.raises(ChangedFileError):
+            Session(path.parent).module(model, "quaternion")
+        assert path.read_text() == changed  # never rebuilt over
     assert not (tmp_path / "RAN").exists()
-    path.write_text(text[: len(text) // 2])  # truncated
-    with pytest.raises(GeneratedModuleError, match="does not match its seal"):
-        load_module(path, model)
+
+
+def test_a_module_from_elsewhere_is_verified_by_regenerating_it_once(built, tmp_path, monkeypatch):
+    """A module kinegen wrote for another account (a fresh store): regenerated from its model to the
+    same bytes, then remembered -- the second load does not regenerate."""
+    model, path = built
+    monkeypatch.setenv("KINEGEN_TRUST", str(tmp_path / "another-store"))
+    monkeypatch.setattr(integrity, "_KNOWN", set())
+    calls = []
+    original = writer._regenerates
+    monkeypatch.setattr(writer, "_regenerates", lambda *a: calls.append(a) or original(*a))
+    assert load_module(path, model).MODEL == "four_bar"
+    assert load_module(path).MODEL == "four_bar"  # its bytes now in the store: no model needed
+    assert len(calls) == 1
 
 
 def test_a_planted_or_foreign_version_module_is_refused(built, tmp_path):
     model, path = built
     planted = path.with_name("planted.py")
     planted.write_text(f"open({str(tmp_path / 'RAN')!r}, 'w')\nMODEL = 'x'\n")
-    with pytest.raises(GeneratedModuleError, match="no kinegen seal"):
+    with pytest.raises(ChangedFileError, match="did not write these bytes"):
         load_module(planted)
+    # with the model's own header, pretending to be its module
+    path.write_text(path.read_text().split("\nMODEL =", 1)[0] + f"\nopen({str(tmp_path / 'RAN')!r}, 'w')\nMODEL = 'x'\n")
+    with pytest.raises(ChangedFileError, match="changed since kinegen wrote it"):
+        load_module(path, model)
     assert not (tmp_path / "RAN").exists()
-    body = path.read_text().split("\n", 1)[1].replace(f"kinegen version: {kinegen.__version__}", "kinegen version: 0.0.9", 1)
-    path.write_text(seal(path.name, body))
+    build(model, "quaternion", path.parent)
+    path.write_text(path.read_text().replace(f"kinegen version: {kinegen.__version__}", "kinegen version: 0.0.9", 1))
     with pytest.raises(GeneratedModuleError, match=r"built by kinegen 0\.0\.9"):
         load_module(path, model)
 
@@ -381,12 +406,13 @@ def test_a_module_rebuilt_at_once_is_the_new_one(tmp_path):
 
 
 @needs_cc
-def test_an_edited_c_file_is_refused(built):
+def test_an_edited_c_file_is_refused_by_the_same_rule(built):
     model, path = built
     c_file = path.with_suffix(".c")
     c_file.write_text(c_file.read_text().replace("static", "static ", 1))
-    with pytest.raises(GeneratedModuleError, match="does not match its seal"):
+    with pytest.raises(ChangedFileError, match="changed since kinegen wrote it") as caught:
         from_module(load_module(path, model), compiled=True)
+    assert caught.value.exit_code == 5
 
 
 @needs_cc
@@ -401,8 +427,15 @@ def test_a_tampered_or_truncated_cached_library_is_rebuilt_never_loaded(built):
         assert native_module.build_library(sources) == library
         assert library.read_bytes() == original
     library.write_bytes(original[:100])
-    with pytest.raises(native_module.CompileError, match="does not match its record"):
+    with pytest.raises(native_module.CompileError, match="not one kinegen compiled"):
         native_module._load(library)
+    # a planted library with a digest written beside it, as the old record was: rebuilt, its constructor never runs
+    planted = library.with_name("planted.c")
+    planted.write_text(f'#include <stdio.h>\n__attribute__((constructor)) static void run(void) {{ fopen("{library.parent / "RAN"}", "w"); }}\n')
+    subprocess.run([CC, "-shared", "-fPIC", "-o", str(library), str(planted)], check=True)
+    library.with_name(library.name + ".sha256").write_text(hashlib.sha256(library.read_bytes()).hexdigest())
+    assert native_module.build_library(sources) == library and library.read_bytes() == original
+    assert not (library.parent / "RAN").exists()
 
 
 def test_concurrent_builds_sharing_the_cache_all_succeed(tmp_path):
@@ -416,5 +449,5 @@ def test_concurrent_builds_sharing_the_cache_all_succeed(tmp_path):
     env = {**__import__("os").environ, "KINEGEN_CACHE": str(tmp_path / "shared-cache")}
     runs = [subprocess.Popen([__import__("sys").executable, "-c", script], env=env, stdout=subprocess.PIPE, stderr=subprocess.PIPE, text=True) for _ in range(4)]
     outputs = [run.communicate(timeout=300) for run in runs]
-    assert all(run.returncode == 0 for run in runs), [o[1] for o in outputs]
+    assert all(run.returncode == 0 for run in runs), [o[1][-600:] for o in outputs]
     assert not [p for p in (tmp_path / "shared-cache").rglob("tmp*")]

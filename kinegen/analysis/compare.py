@@ -67,7 +67,7 @@ def compare(model: Model, case: str | None = None, parametrizations: tuple[str, 
 def _one(model: Model, case: str, param: rotations.Parametrization, compiled: bool) -> Comparison:
     from sympy.core.cache import clear_cache
 
-    from kinegen.codegen import generate, module_name
+    from kinegen.codegen import generate, module_name, write_files
     from kinegen.runtime import Solver, SolverOptions, from_module, load_module
     from kinegen.symbolic.assembly import build_systems
 
@@ -82,9 +82,7 @@ def _one(model: Model, case: str, param: rotations.Parametrization, compiled: bo
         len(system.jacobian_pattern), _degree(system), build, lines, param.singular_set,
     )  # fmt: skip
     with tempfile.TemporaryDirectory() as folder:
-        for target in files.values():
-            for name, text in target.items():
-                (Path(folder) / name).write_text(text)
+        write_files(folder, {name: text for target in files.values() for name, text in target.items()})
         module = load_module(Path(folder) / f"{module_name(model, param)}.py")
         python = from_module(module, case, compiled=False)
         times = np.linspace(python.t0, python.t1, python.steps)

@@ -120,7 +120,7 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
     import tempfile
 
     from kinegen import rotations
-    from kinegen.codegen import generate, module_name
+    from kinegen.codegen import generate, module_name, write_files
     from kinegen.runtime import Solver, SolverOptions, from_module, load_module
     from kinegen.runtime.native import build_solver_object, compile_in_background
 
@@ -140,9 +140,7 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
         made = generate(w.model, param, ("python", "c-model") if compiled else ("python",), ready)
         for thread in compiling:
             thread.join()
-        for files in made.values():
-            for file, text in files.items():
-                (Path(folder) / file).write_text(text)
+        write_files(folder, {file: text for files in made.values() for file, text in files.items()})
         module = load_module(Path(folder) / f"{module_name(w.model, param)}.py")
         system = from_module(module, w.case, compiled=compiled)
         build = time.perf_counter() - start

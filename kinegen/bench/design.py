@@ -40,7 +40,7 @@ def sensitivity_cost(case: str = "digging", points: int = 1000, repeats: int = 3
     import numpy as np
 
     from kinegen import rotations
-    from kinegen.codegen import generate
+    from kinegen.codegen import generate, write_files
     from kinegen.model import loads
     from kinegen.runtime import from_module, load_module, solve
 
@@ -49,9 +49,7 @@ def sensitivity_cost(case: str = "digging", points: int = 1000, repeats: int = 3
         start = time.perf_counter()
         made = generate(model, rotations.get("quaternion"))
         build = time.perf_counter() - start
-        for files in made.values():
-            for name, text in files.items():
-                (Path(folder) / name).write_text(text)
+        write_files(folder, {name: text for files in made.values() for name, text in files.items()})
         module = load_module(Path(folder) / next(iter(made["python"])))
         row: dict = {"build": build, "parameters": len(model.design)}
         for label, compiled in (("compiled", True), ("python", False)):

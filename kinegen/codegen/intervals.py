@@ -25,6 +25,7 @@ from dataclasses import dataclass
 from fractions import Fraction
 
 import sympy as sp
+from sympy.core.evalf import PrecisionExhausted
 
 from kinegen.model.expressions import T
 
@@ -73,10 +74,23 @@ class _Unsupported(Exception):
 
 def constant_bounds(value: sp.Expr) -> tuple[float, float]:
     """The tightest doubles around an exact real constant: the same double twice where it is
-    exactly representable (integers, binary fractions), else its neighbours."""
-    number = float(sp.N(value, 40))
-    if value.is_Rational and Fraction(number) == Fraction(int(value.p), int(value.q)):
-        return number, number
+    exactly representable (integers, binary fractions), else its neighbours. ValueError or
+    TypeError where it is not a finite real number."""
+    value = sp.sympify(value)  # (not doit(): SymPy 1.14 evaluates Abs(acos(tanh(10))) to 0; evalf does not)
+    if value.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
+        raise ValueError(f"{value} is not a finite real number")
+    if value.is_Rational:
+        number = float(value)
+        if Fraction(number) == Fraction(int(value.p), int(value.q)):
+            return number, number
+        return math.nextafter(number, -math.inf), math.nextafter(number, math.inf)
+    try:
+        number = float(value.evalf(40, strict=True))
+    except PrecisionExhausted:  # a value SymPy cannot pin down relatively (a cancellation near zero): near zero, say so
+        number = float(value.evalf(40))
+        return number - 1e-15, number + 1e-15
+    if not math.isfinite(number):
+        raise ValueError(f"{value} is not a finite real number")
     return math.nextafter(number, -math.inf), math.nextafter(number, math.inf)
 
 
@@ -106,7 +120,11 @@ def interval_program(expressions: list[sp.Expr]) -> IntervalProgram:
         if e.is_number and not e.free_symbols:
             if e.is_real is False or e.has(sp.zoo, sp.nan, sp.oo, -sp.oo, sp.I):
                 raise _Unsupported(f"constant {e}")
-            result = emit(Operation("const", value=constant_bounds(e)))
+            try:
+                bounds = constant_bounds(e)
+            except (TypeError, ValueError):  # not a real number (log(-1) * log(-1) stays complex in double precision)
+                raise _Unsupported(f"constant {e}") from None
+            result = emit(Operation("const", value=bounds))
         elif e.is_Add or e.is_Mul:  # the constant terms or factors as one exact constant, first
             constant = [a for a in e.args if a.is_number and not a.free_symbols]
             rest = sorted((a for a in e.args if not (a.is_number and not a.free_symbols)), key=sp.default_sort_key)

@@ -119,16 +119,30 @@ class LiftChart:
         for h, row, reach in zip(self.heights, self.grid, self.max_reach):
             cells = [_cell(p) for p in row] + [_cell(reach, radius=True)]
             lines.append(f"{h:>7g}  " + "  ".join(cells))
+        points = [p for row in (*self.grid, self.max_reach) for p in row]
+        if any(p is None or not np.isfinite(p.capacity) for p in points):
+            lines.append(UNREACHED)
+        if any("tips" in _cell(p) for p in points):
+            lines.append(TIPS)
         return "\n".join(lines)
+
+
+#: what the chart's marks mean (the table's and the picture's notes)
+UNREACHED = "-: the lift point cannot be placed at that radius and height"
+TIPS = "tips: the machine tips over with no load there (its own weight's moment about the tipping line exceeds the undercarriage's)"
+
+
+def rated_text(point: LiftPoint, side: bool) -> str:
+    """A rated load as the chart shows it: kg, ``*`` where the hydraulic limit rules, ``tips`` where
+    the machine tips unloaded (a negative tipping load: no load can be held)."""
+    value, limit = point.rated(side)
+    return "tips" if value < 0 else f"{'*' if limit == 'hydraulic' else ''}{value:,.0f}"
 
 
 def _cell(point: LiftPoint | None, radius: bool = False) -> str:
     if point is None or not np.isfinite(point.capacity):
         return f"{'-':>8} {'-':>8}"
-    texts = []
-    for side in (False, True):
-        value, limit = point.rated(side)
-        texts.append(f"{'*' if limit == 'hydraulic' else ''}{max(value, 0.0):,.0f}")
+    texts = [rated_text(point, side) for side in (False, True)]
     return f"{texts[0]:>8} {texts[1]:>8}" + (f" @{point.radius:.2f}" if radius else "")
 
 
@@ -323,6 +337,7 @@ def lift_chart_figure(chart: LiftChart, boundary=None):
     colours = {"hydraulic": "tab:blue", "tipping": "tab:red"}
     reach = [p for p in chart.max_reach if p is not None and np.isfinite(p.capacity)]
     ax.plot([p.radius for p in reach], [p.height for p in reach], "--", color="0.5", lw=0.8, label="largest reach at each height")
+    tips = False  # whether a point shows "tips" (the note says what it means)
     # grid points labelled on their left, the largest reaches on their right: the two never overlap
     for points, side_of, align in (([p for row in chart.grid for p in row if p is not None], -4, "right"), (reach, 4, "left")):
         for p in points:
@@ -330,8 +345,9 @@ def lift_chart_figure(chart: LiftChart, boundary=None):
                 continue
             ax.plot(p.radius, p.height, "o", color="0.2", ms=3)
             for side, offset in ((False, 3), (True, -10)):
-                value, limit = p.rated(side)
-                ax.annotate(f"{'*' if limit == 'hydraulic' else ''}{max(value, 0.0):,.0f}", (p.radius, p.height), xytext=(side_of, offset),
+                _, limit = p.rated(side)
+                tips = tips or p.rated(side)[0] < 0
+                ax.annotate(rated_text(p, side), (p.radius, p.height), xytext=(side_of, offset),
                             textcoords="offset points", fontsize=7.5, color=colours[limit], ha=align)  # fmt: skip
     for limit, colour in colours.items():
         ax.plot([], [], "s", color=colour, label=f"{limit} limit")
@@ -341,6 +357,8 @@ def lift_chart_figure(chart: LiftChart, boundary=None):
     ax.legend(loc="lower left", fontsize=8)
     fig.suptitle("ISO 10567: the smaller of 87 % of the hydraulic lift capacity and 75 % of the tipping load"
                  + (f"; without {', '.join(chart.without)}" if chart.without else ""), fontsize=10)  # fmt: skip
+    if tips:
+        fig.text(0.5, 0.01, TIPS, ha="center", fontsize=8)
     return fig
 
 

@@ -30,19 +30,22 @@ Conventions (SI: N, N m, Pa; global axes unless a field says otherwise):
 
 from __future__ import annotations
 
+import functools
 from dataclasses import dataclass, field
 from functools import cached_property
 from typing import Any
 
 import numpy as np
+import sympy as sp
 from scipy.linalg.lapack import dgecon as gecon
 from scipy.linalg.lapack import dgetrf as getrf
 from scipy.linalg.lapack import dgetrs as getrs
 
-from kinegen.errors import KinegenError, SingularJacobianError
+from kinegen.errors import KinegenError, ModelError, SingularJacobianError
 from kinegen.forces.dynamics import energies, inertia_numbers, inertial_load, load_wrench, tipping_margin
 from kinegen.interface import row_owner
 from kinegen.model import Model
+from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, Actuator, Joint, Load, Motor, design_value
 from kinegen.runtime.results import Results
 
@@ -240,6 +243,38 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], i
         tipping = tipping_margin(results, model, tuple(loads)) if model.tips else None
     return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load, inertia, energy,
                   tipping)  # fmt: skip
+
+
+def check_load_functions(model: Model, load: Load, times: np.ndarray) -> None:
+    """A :class:`ModelError` naming the model file and the load's entry (``loads.<name>.force[i]``)
+    where a component of its force or moment is not a finite real number at one of ``times``
+    (``sqrt(t - 20)`` before t = 20, ``1/(t - 1)`` at 1, ``exp(1000 t)``): a function of t outside its
+    domain on the time grid, as the drivers' time functions are checked."""
+    for kind, vector in (("force", load.force), ("moment", load.moment)):
+        for i, expr in enumerate(vector):
+            if not expr.free_symbols:
+                continue
+            bad = ~np.isfinite(_time_function(expr)(times))
+            if bad.any():
+                first = int(np.argmax(bad))
+                raise ModelError(model.file, f"loads.{load.name}.{kind}[{i}]",
+                                 f"{sp.sstr(expr)}: not a finite real number at t = {times[first]:.6g} ({int(bad.sum())} of {len(times)} "
+                                 "time points) -- the function leaves its domain on this time grid")  # fmt: skip
+
+
+@functools.cache
+def _time_function(expr: sp.Expr):
+    """``expr`` (of t) as a NumPy function of the times (NaN where it leaves its domain), silent about it."""
+    function = sp.lambdify(T, expr, modules="numpy")
+
+    def evaluate(times: np.ndarray) -> np.ndarray:
+        with np.errstate(all="ignore"):
+            try:
+                return np.broadcast_to(np.asarray(function(times), dtype=float), times.shape)
+            except (ArithmeticError, ValueError, TypeError):
+                return np.full(times.shape, np.nan)
+
+    return evaluate
 
 
 class Statics:
@@ -482,8 +517,10 @@ class Statics:
     def generalized_load(self, load: Load) -> np.ndarray:
         """Q (K, n_v) of one load: the generated ``loads`` kernel for a load the module was built with
         (by name and content), else (a load made at run time: a study's, a test's) from the numeric
-        tangent maps."""
+        tangent maps. A :class:`ModelError` naming the load's entry where its force or moment is not a
+        finite real number at a time point (a function of t outside its domain there)."""
         times = np.asarray(self.results.times, dtype=float)
+        check_load_functions(self.model, load, times)
         kernels = self.system.statics
         if kernels is None or not kernels.serves(load):
             return self.point_load(load.point.body, load.point.name, *load_wrench(self.results, load))

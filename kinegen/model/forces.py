@@ -192,12 +192,14 @@ def read_tool_forces(
             continue
         where = f"{entry}.{name}"
         item = loader.mapping(spec[name], where, ("actuator", "driver", "pivot", "stroke"), ("actuator", "driver", "pivot"))
-        if item["actuator"] not in hydraulic:
+        if not isinstance(item["actuator"], str) or item["actuator"] not in hydraulic:
             raise loader.fail(f"{where}.actuator", f"{shown(item['actuator'])} is not an actuator with hydraulic data "
                               f"(those: {', '.join(hydraulic) or 'none'})")  # fmt: skip
         if item["driver"] not in drivers:
             raise loader.fail(f"{where}.driver", f"{shown(item['driver'])} is not a driver of case {case.name} ({', '.join(drivers)})")
         pivot = loader.point_ref(item["pivot"], f"{where}.pivot")
+        if pivot.body == GROUND:
+            raise loader.fail(f"{where}.pivot", "the pivot is the pin the working part turns about: a point of a moving body (bucket.Q)")
         forces[name] = ToolForce(name, item["actuator"], item["driver"], pivot, _stroke(loader, item, where, case.name, working_range))
     if not forces:
         raise loader.fail(entry, f"expected at least one of {', '.join(TOOL_FORCES)}")
@@ -243,12 +245,14 @@ def read_lift_chart(loader: Loader, value: Any, cases: dict[str, Case], actuator
     if point.body == GROUND:
         raise loader.fail(f"{entry}.point", "the lift point is on a moving body")
     hydraulic = [a.name for a in actuators if a.hydraulics is not None]
-    if spec["lifting"] not in hydraulic:
+    if not isinstance(spec["lifting"], str) or spec["lifting"] not in hydraulic:
         raise loader.fail(f"{entry}.lifting", f"{shown(spec['lifting'])} is not an actuator with hydraulic data (those: {', '.join(hydraulic) or 'none'})")
     place = spec["place"]
     drivers = [d.name for d in case.drivers]
-    if not isinstance(place, list) or len(place) != 2 or any(p not in drivers for p in place):
+    if not isinstance(place, list) or len(place) != 2 or any(not isinstance(p, str) or p not in drivers for p in place):
         raise loader.fail(f"{entry}.place", f"expected two drivers of case {case.name} ({', '.join(drivers)}), got {shown(place)}")
+    if place[0] == place[1]:
+        raise loader.fail(f"{entry}.place", f"two different drivers place the lift point (radius and height); {place[0]} is named twice")
     given = loader.mapping(spec.get("ranges"), f"{entry}.ranges", tuple(place))
     ranges = {}
     for name in place:
@@ -259,7 +263,7 @@ def read_lift_chart(loader: Loader, value: Any, cases: dict[str, Case], actuator
         raise loader.fail(f"{entry}.radii", "radii are distances from the swing axis: positive")
     without = spec.get("without", [])
     bodies = [b for b in loader.bodies]
-    if not isinstance(without, list) or any(b not in bodies for b in without):
+    if not isinstance(without, list) or any(not isinstance(b, str) or b not in bodies for b in without):
         raise loader.fail(f"{entry}.without", f"expected a list of bodies (of {', '.join(bodies)}), got {shown(without)}")
     return LiftChartSpec(case.name, point, spec["lifting"], tuple(place), ranges, heights, radii, tuple(without))
 

@@ -37,6 +37,7 @@ from kinegen.model.masses import read_gravity, read_inertia, read_machine
 from kinegen.model.schema import (
     GROUND,
     PUBLISHED_FIGURES,
+    STANDARD_GRAVITY,
     Actuator,
     Body,
     Case,
@@ -431,9 +432,18 @@ class _Reader:
             loads=loads,
             tool_forces=tool_forces,
             lift_chart=lift_chart,
-            gravity=read_gravity(self, top.get("gravity")),
+            gravity=self.lift_gravity(read_gravity(self, top.get("gravity")), lift_chart),
             machine=machine,
         )
+
+    def lift_gravity(self, gravity: Any, lift_chart: Any) -> Any:
+        """``gravity`` -- refused with a lift chart unless standard: ISO 10567 rates a lift capacity in
+        kg under standard gravity along -z (its tipping loads balance masses about lines on level
+        ground, its hydraulic capacity in N converts with 9.80665 m/s^2), so one g holds throughout."""
+        if lift_chart is not None and tuple(gravity) != tuple(STANDARD_GRAVITY):
+            raise self.fail("gravity", f"{shown([str(g) for g in gravity])} m/s^2 with a lift_chart: section: an ISO 10567 lift chart is "
+                            f"rated under standard gravity {[float(g) for g in STANDARD_GRAVITY]} m/s^2 (remove gravity: or the lift chart)")  # fmt: skip
+        return gravity
 
     def read_design(self, value: Any) -> None:
         """``design: {name: {nominal: x, bounds: [low, high], description: text}}``: parameters

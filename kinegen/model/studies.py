@@ -240,7 +240,7 @@ class _StudyReader:
     def load(self, spec: dict, entry: str, what: str) -> str:
         """``spec["load"]``: one of the model's loads, which ``what`` (the quantity, in words) holds."""
         loads = getattr(self.loader, "loads", {})
-        if spec.get("load") not in loads:
+        if not isinstance(spec.get("load"), str) or spec["load"] not in loads:
             raise self.loader.fail(f"{entry}.load", f"{what} holds one of the model's loads ({', '.join(loads) or 'none'}), got {shown(spec.get('load'))}")
         return spec["load"]
 

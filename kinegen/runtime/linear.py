@@ -59,7 +59,9 @@ class DenseLU(Pattern):
         return (lu, piv), abs(lu.diagonal()) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
-        x, _ = _getrs(factors[0], factors[1], rhs)
+        """Phi_q^-1 rhs; rhs (n,) or (n, k) (many columns: in Fortran order, as LAPACK takes them --
+        a C-ordered (84, 4) right-hand side took 3.3 ms through f2py instead of 17 us)."""
+        x, _ = _getrs(factors[0], factors[1], np.asfortranarray(rhs) if np.ndim(rhs) == 2 else rhs)
         return x
 
     def rcond(self, factors: tuple, values: Any) -> float:
@@ -96,7 +98,9 @@ class BandLU(Pattern):
         return (lu, piv), abs(lu[self.kl + self.ku]) if info == 0 else np.zeros(1)
 
     def solve(self, factors: tuple, rhs: np.ndarray) -> np.ndarray:
-        x, _ = _gbtrs(factors[0], self.kl, self.ku, rhs[self.row_order], factors[1])
+        """As DenseLU.solve, on the band (many columns in Fortran order)."""
+        permuted = rhs[self.row_order]
+        x, _ = _gbtrs(factors[0], self.kl, self.ku, np.asfortranarray(permuted) if permuted.ndim == 2 else permuted, factors[1])
         out = np.empty_like(x)
         out[self.col_order] = x
         return out

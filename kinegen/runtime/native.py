@@ -38,6 +38,7 @@ import numpy as np
 
 from kinegen.codegen.backends.c.config import RUNTIME, source_parts
 from kinegen.errors import ExitCode, KinegenError
+from kinegen.integrity import remember, trusted
 from kinegen.runtime.abi import Abi
 
 SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
@@ -105,12 +106,12 @@ def cache_folder() -> Path:
 
 def build_library(sources: dict[str, str]) -> Path:
     """The shared library of the C ``sources`` (file name -> text), compiled once: cached by a
-    key over the sources, the compiler and the flags, beside a record of its own SHA-256
-    (``<library>.sha256``) that :func:`_load` checks before it loads it. Each object file is
+    key over the sources, the compiler and the flags, its bytes recorded in the user's trust store
+    (:mod:`kinegen.integrity`), which :func:`_load` checks before it loads it. Each object file is
     cached too (:func:`_objects`): the solver's object is built once per machine and shared by
     every model. Builds are atomic (a private folder, then ``os.replace``): a concurrent or
-    interrupted build leaves a whole library or none, and a library whose bytes no longer match
-    their record (tampered, truncated) is built again, never loaded."""
+    interrupted build leaves a whole library or none, and a cached library whose bytes kinegen did
+    not write (tampered, truncated, planted) is built again, never loaded."""
     compiler = c_compiler()
     key = hashlib.sha256()
     for part in (_compiler_identity(compiler), " ".join((*COMMON_FLAGS, *SOLVER_FLAGS, *MODEL_FLAGS)),
@@ -124,32 +125,20 @@ def build_library(sources: dict[str, str]) -> Path:
     with _work_folder(folder) as work:
         built = work / library.name
         _run_all(compiler, [[compiler, "-shared", "-o", str(built), *map(str, objects), "-lm"]])
-        _record(built)
         _publish(built, library)
     return library
 
 
-def _record_of(path: Path) -> Path:
-    return path.with_name(path.name + ".sha256")
-
-
-def _record(path: Path) -> None:
-    """Write the SHA-256 of ``path``'s bytes beside it (``<name>.sha256``)."""
-    _record_of(path).write_text(hashlib.sha256(path.read_bytes()).hexdigest())
-
-
 def _publish(built: Path, cached: Path) -> None:
-    """Move a built file and its record into the cache (record first: a reader that finds the
-    file finds a record; one that finds another build's record with this build's file sees a
-    mismatch and builds again)."""
-    os.replace(_record_of(built), _record_of(cached))
+    """Record a built file's bytes as kinegen's own, then move it into the cache."""
+    remember(built.read_bytes())
     os.replace(built, cached)
 
 
 def _intact(path: Path) -> bool:
-    """Whether a cached file exists and its bytes match its recorded SHA-256."""
+    """Whether a cached file exists and its bytes are kinegen's own (in the trust store)."""
     try:
-        return hashlib.sha256(path.read_bytes()).hexdigest() == _record_of(path).read_text().strip()
+        return trusted(path.read_bytes())
     except OSError:
         return False
 
@@ -201,7 +190,6 @@ def _objects(compiler: str, sources: dict[str, str], names: list[str]) -> list[P
         _run_all(compiler, [[compiler, *command, "-c", "-o", str(o), str(work / name)]
                             for o, (name, _, command, _) in zip(made, missing)])  # fmt: skip
         for o, (_, _, _, cached) in zip(made, missing):
-            _record(o)
             _publish(o, cached)
     return objects
 
@@ -262,10 +250,9 @@ def _run_all(compiler: str, commands: list[list[str]]) -> None:
 def _model_sources(module: ModuleType) -> dict[str, str] | None:
     """The module's C and the solver's, if the C files the module names (``C_FILES``: file ->
     SHA-256 of its bytes, recorded when both were generated) lie beside it with exactly those
-    bytes; None otherwise (none named, missing, or from another build). A C file whose seal
-    does not match its text (edited, truncated) is a :class:`GeneratedModuleError`."""
-    from kinegen.errors import GeneratedModuleError
-    from kinegen.integrity import SealError, verified_text
+    bytes; None otherwise (none named, missing, or another build's C, which kinegen wrote too). A C
+    file whose bytes kinegen never wrote (edited, planted) is a :class:`ChangedFileError`."""
+    from kinegen.errors import ChangedFileError
 
     path = Path(getattr(module, "__file__", "") or "")
     named = getattr(module, "C_FILES", None) or {}
@@ -275,12 +262,14 @@ def _model_sources(module: ModuleType) -> dict[str, str] | None:
     texts = {}
     for name, file in files.items():
         data = file.read_bytes()
-        try:
-            texts[name] = verified_text(data, str(file))
-        except SealError as exc:
-            raise GeneratedModuleError(f"{exc}; rebuild it with `kinegen build <model>.yaml --param {module.PARAMETRIZATION}`") from None
         if hashlib.sha256(data).hexdigest() != named[name]:
-            return None  # another build's C (another model version or parametrization): not this module's kernels
+            if trusted(data):
+                return None  # another build's C (another model version or parametrization): not this module's kernels
+            raise ChangedFileError(
+                f"{file} was changed since kinegen wrote it: its bytes are neither the C its module names nor any kinegen wrote; "
+                f"nothing of it was compiled. Rebuild it with `kinegen build <model>.yaml --param {module.PARAMETRIZATION}` (which replaces it)"
+            )
+        texts[name] = data.decode("utf-8")
     return with_solver(texts)
 
 
@@ -312,12 +301,11 @@ def _abi(path: str) -> Abi:
 
 
 def _load(path: Path) -> ctypes.CDLL:
-    """dlopen of a cached library whose bytes match their record (else CompileError). (The cache
-    is the user's own folder: the check guards against damage and stale or planted files, not
-    against a process that swaps the file between the check and the load.)"""
-    data = path.read_bytes()
-    if hashlib.sha256(data).hexdigest() != _record_of(path).read_text().strip():
-        raise CompileError(f"{path}: the cached library does not match its record (tampered or truncated)")
+    """dlopen of a cached library whose bytes kinegen wrote (in the trust store; else CompileError).
+    (It guards against damaged, stale and planted files, not against a process of the same user
+    that swaps the file between the check and the load.)"""
+    if not trusted(path.read_bytes()):
+        raise CompileError(f"{path}: the cached library is not one kinegen compiled (tampered, truncated or planted); not loaded")
     return ctypes.CDLL(str(path))
 
 

@@ -27,6 +27,7 @@ from kinegen.errors import (
     BranchError,
     ConvergenceError,
     KinegenError,
+    PrecisionError,
     SingularJacobianError,
     UnreachableError,
 )
@@ -231,7 +232,21 @@ class Solver:
 
     def _failure(self, q: np.ndarray, u: np.ndarray, t: float, iterations: int) -> ConvergenceError:
         phi, norm = self.residual(q, u)
-        return ConvergenceError(t, iterations, norm, self.worst(phi))
+        return self._rounding_limited(q, u, t, iterations, norm) or ConvergenceError(t, iterations, norm, self.worst(phi))
+
+    def _rounding_limited(self, q: np.ndarray, u: np.ndarray, t: float, iterations: int, norm: float) -> PrecisionError | None:
+        """A :class:`PrecisionError` when the residual ``norm`` left at q is what double precision's
+        rounding of the coordinates alone makes of Phi there (within 100 times what moving every
+        coordinate by a few units in the last place changes it by): the tolerance cannot be met in
+        these units, whatever the solver does. None otherwise (a residual the solver could lower)."""
+        if not np.isfinite(norm) or not np.all(np.isfinite(q)):
+            return None
+        signs = np.where(np.arange(len(q)) % 2, 1.0, -1.0)
+        noise = max(_max_norm(self.system.phi(q * (1.0 + 8 * np.finfo(float).eps * signs), u) - self.system.phi(q, u)),
+                    _max_norm(self.system.phi(q * (1.0 - 8 * np.finfo(float).eps * signs), u) - self.system.phi(q, u)))  # fmt: skip
+        if not norm <= 100.0 * noise:
+            return None
+        return PrecisionError(t, iterations, norm, noise, float(np.abs(q).max()), self.options.tolerance)
 
     # ---- position ------------------------------------------------------------------------
     def position(self, q0: np.ndarray, u: np.ndarray, t: float = float("nan")) -> tuple[np.ndarray, int, float]:
@@ -311,7 +326,7 @@ class Solver:
         norm = _max_norm(phi)
         if norm <= self.options.tolerance:
             return Solution(q, iterations, norm, values, phi)
-        raise UnreachableError(t, iterations, norm, self.worst(phi))
+        raise self._rounding_limited(q, u, t, iterations, norm) or UnreachableError(t, iterations, norm, self.worst(phi))
 
     def _newton(
         self,
@@ -638,8 +653,9 @@ class Solver:
             """W's columns ``which`` (n_v, len(which)): J1^-1 Phi_u e_k, up to one sign for all."""
             if not which.size:
                 return np.zeros((system.n_velocity, 0))
-            rhs = np.column_stack([system.velocity_rhs(x1, u1, np.eye(system.n_inputs)[k]) for k in which])
-            return np.asarray(self._solve(factors, rhs), dtype=float).reshape(system.n_velocity, -1)
+            unit = np.eye(system.n_inputs)
+            # one solve per column: LAPACK's multi-column solve runs threaded, 50x slower on a busy machine
+            return np.column_stack([self._solve(factors, system.velocity_rhs(x1, u1, unit[k])) for k in which])
 
         effect, worst = input_effect(columns, h, start_inputs[:2], inputs[:2], ranges)
         alpha = float(abs(self._solve(factors, solution.phi)).max()) + effect

@@ -19,7 +19,7 @@ from typing import Any
 import numpy as np
 
 from kinegen import rotations
-from kinegen.errors import GeneratedModuleError, ModelError, shown
+from kinegen.errors import GeneratedModuleError, KinegenError, ModelError, shown
 from kinegen.interface import FRAME_FIELDS, SENSITIVITY_KERNELS, frame_slices
 from kinegen.runtime.linear import Pattern
 
@@ -459,48 +459,106 @@ def module_from_source(source: str, name: str = "kinegen_generated", filename: s
 def load_module(path: str | Path, model_file: str | Path | None = None) -> ModuleType:
     """Load a generated module from ``path``, verified before anything in it runs.
 
-    The file's bytes are read once; its seal (the SHA-256 of its text, recorded on its first
-    line by kinegen, :mod:`kinegen.integrity`) and the kinegen version in its header must match,
-    and then exactly those bytes are compiled and executed -- no bytecode cache is consulted, so
-    an edited, truncated or planted file, or one built by another kinegen, is refused with a
-    :class:`GeneratedModuleError` saying how to rebuild it. With ``model_file``, the module's
-    recorded source hash must also match that file's bytes (else it is stale).
+    The file's bytes are read once and must be kinegen's own (:mod:`kinegen.integrity`): in the
+    user's trust store (kinegen wrote or verified them), or regenerated from their model -- its
+    ``model_file``, else the file its header names in ``models/`` beside the module's folder or
+    among kinegen's own models -- to the same bytes (then remembered). Exactly those bytes are then
+    compiled and executed; no bytecode cache is consulted. A module built by another kinegen or
+    from another version of its model is refused with a :class:`GeneratedModuleError` saying how to
+    rebuild it; one whose bytes kinegen did not write (edited, planted) with a
+    :class:`~kinegen.errors.ChangedFileError`. With ``model_file``, the module's recorded source hash
+    must also match that file's bytes (else it is stale).
     """
     import kinegen
-    from kinegen.integrity import SealError, verified_text
+    from kinegen.integrity import trusted
 
     path = Path(path)
     if not path.is_file():
         raise GeneratedModuleError(f"{path}: no such generated module (run `kinegen build`)")
     rebuild = f"rebuild it with `kinegen build {model_file if model_file is not None else '<model>.yaml'}`"
     try:
-        text = verified_text(path.read_bytes(), str(path))
-    except SealError as exc:
-        raise GeneratedModuleError(f"{exc}; {rebuild}") from None
+        data = path.read_bytes()
+        text = data.decode("utf-8")
     except OSError as exc:
         raise GeneratedModuleError(f"{path}: cannot be read ({exc.strerror or exc})") from None
-    version = _header_field(text, "kinegen version")
-    if version != kinegen.__version__:
-        raise GeneratedModuleError(f"{path} was built by kinegen {version or '(unknown)'}, this is kinegen {kinegen.__version__}; {rebuild}")
+    except UnicodeDecodeError:
+        text = None
+    version = _header_field(text, "kinegen version") if text is not None else None
+    if text is not None and version is not None and version != kinegen.__version__:
+        raise GeneratedModuleError(f"{path} was built by kinegen {version}, this is kinegen {kinegen.__version__}; {rebuild}")
+    source = _header_field(text, "source sha256") if text is not None else None
+    if model_file is not None and source is not None:
+        from kinegen.model.loader import source_digest  # the model's reader (sympy) only where a model file is named
+
+        if source_digest(model_file) != source:
+            raise GeneratedModuleError(
+                f"{path} is stale: it was built from a different version of {model_file}; "
+                f"rebuild with `kinegen build {model_file} --param {_header_field(text, 'parametrization')}`"
+            )
+    if not trusted(data):
+        _verify_by_regeneration(path, data, text, model_file)
     name = f"kinegen_generated_{path.stem}_{hashlib.sha256(str(path.resolve()).encode()).hexdigest()[:8]}"
     try:
         module = module_from_source(text, name=name, filename=str(path))
-    except Exception as exc:  # a sealed file that does not run: say which and why
+    except Exception as exc:  # kinegen's own bytes that do not run here: say which and why
         raise GeneratedModuleError(f"{path}: not a valid generated module ({type(exc).__name__}: {exc}); {rebuild}") from exc
     for attribute in ("MODEL", "PARAMETRIZATION", "CASES", "SOURCE_SHA256"):
         if not hasattr(module, attribute):
             raise GeneratedModuleError(f"{path}: not a kinegen generated module (no {attribute})")
     sys.modules[name] = module
-    if model_file is not None:
-        from kinegen.model.loader import source_digest  # the model's reader (sympy) only where a model file is named
-
-        digest = source_digest(model_file)
-        if digest != module.SOURCE_SHA256:
-            raise GeneratedModuleError(
-                f"{path} is stale: it was built from a different version of {model_file}; "
-                f"rebuild with `kinegen build {model_file} --param {module.PARAMETRIZATION}`"
-            )
     return module
+
+
+def _verify_by_regeneration(path: Path, data: bytes, text: str | None, model_file: str | Path | None) -> None:
+    """Return when kinegen, building the model the module's header names, writes exactly ``data``
+    (then remembered as its own); else :class:`ChangedFileError` (nothing of it has run)."""
+    from kinegen.errors import ChangedFileError
+
+    header = {k: _header_field(text, k) if text is not None else None for k in ("source", "source sha256", "parametrization", "sensitivities")}
+    model = Path(model_file) if model_file is not None else _model_beside(path, header["source"], header["source sha256"])
+    if model is None or header["parametrization"] is None:
+        raise ChangedFileError(
+            f"{path}: kinegen on this account did not write these bytes, and cannot regenerate them to compare (the model "
+            f"{header['source'] or 'it came from'} is not given and not in models/ beside its folder); nothing in it ran. "
+            "Pass its model file, or build it with `kinegen build <model>.yaml`"
+        )
+    from kinegen.codegen.writer import regenerates
+
+    sensitivities = None if header["sensitivities"] is None else header["sensitivities"] == "yes"
+    with_c = text is not None and "\nC_FILES = {}\n" not in text
+    if not regenerates(data, model, header["parametrization"], sensitivities, with_c):
+        raise ChangedFileError(
+            f"{path} was changed since kinegen wrote it: its bytes are not what kinegen writes for {model} "
+            f"({header['parametrization']}); nothing in it ran. Rebuild it with `kinegen build {model} --param {header['parametrization']}` "
+            "(which replaces it)"
+        )
+
+
+def _model_beside(path: Path, source: str | None, source_sha256: str | None) -> Path | None:
+    """The model file a module's header names (``source``, its digest ``source_sha256``), in
+    ``models/`` beside the module's folder or among kinegen's own models; None where neither has it."""
+    if not source or not source_sha256 or Path(source).name != source:
+        return None
+    from kinegen.model.loader import source_digest
+
+    for folder in (path.resolve().parent.parent / "models", Path(kinegen_models_folder())):
+        candidate = folder / source
+        try:
+            if candidate.is_file() and source_digest(candidate) == source_sha256:
+                return candidate
+        except (OSError, KinegenError):  # an unreadable candidate: not this model
+            continue
+    return None
+
+
+def kinegen_models_folder() -> str:
+    """Where kinegen's own models lie (the package data ``kinegen.models``)."""
+    from importlib.resources import files
+
+    try:
+        return str(files("kinegen.models"))
+    except (ModuleNotFoundError, TypeError):  # (not installed with its models)
+        return str(Path(__file__).resolve().parents[2] / "models")
 
 
 def _header_field(text: str, field_name: str) -> str | None:
