@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   7384368ecde778e19b2618e2d7747e2b4aa257b29e6d6f2c5c10c3b3164db845
+source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
 parametrization: dual-euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '7384368ecde778e19b2618e2d7747e2b4aa257b29e6d6f2c5c10c3b3164db845'
+SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
 PARAMETRIZATION = 'dual-euler-parameters'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.rw', 'upper.rx', 'upper.ry', 'upper.rz', 'upper.dw', 'upper.dx', 'upper.dy', 'upper.dz', 'boom.rw', 'boom.rx', 'boom.ry', 'boom.rz', 'boom.dw', 'boom.dx', 'boom.dy', 'boom.dz', 'boom_cyl_l_barrel.rw', 'boom_cyl_l_barrel.rx', 'boom_cyl_l_barrel.ry', 'boom_cyl_l_barrel.rz', 'boom_cyl_l_barrel.dw', 'boom_cyl_l_barrel.dx', 'boom_cyl_l_barrel.dy', 'boom_cyl_l_barrel.dz', 'boom_cyl_l_rod.rw', 'boom_cyl_l_rod.rx', 'boom_cyl_l_rod.ry', 'boom_cyl_l_rod.rz', 'boom_cyl_l_rod.dw', 'boom_cyl_l_rod.dx', 'boom_cyl_l_rod.dy', 'boom_cyl_l_rod.dz', 'boom_cyl_r_barrel.rw', 'boom_cyl_r_barrel.rx', 'boom_cyl_r_barrel.ry', 'boom_cyl_r_barrel.rz', 'boom_cyl_r_barrel.dw', 'boom_cyl_r_barrel.dx', 'boom_cyl_r_barrel.dy', 'boom_cyl_r_barrel.dz', 'boom_cyl_r_rod.rw', 'boom_cyl_r_rod.rx', 'boom_cyl_r_rod.ry', 'boom_cyl_r_rod.rz', 'boom_cyl_r_rod.dw', 'boom_cyl_r_rod.dx', 'boom_cyl_r_rod.dy', 'boom_cyl_r_rod.dz', 'arm.rw', 'arm.rx', 'arm.ry', 'arm.rz', 'arm.dw', 'arm.dx', 'arm.dy', 'arm.dz', 'arm_cyl_barrel.rw', 'arm_cyl_barrel.rx', 'arm_cyl_barrel.ry', 'arm_cyl_barrel.rz', 'arm_cyl_barrel.dw', 'arm_cyl_barrel.dx', 'arm_cyl_barrel.dy', 'arm_cyl_barrel.dz', 'arm_cyl_rod.rw', 'arm_cyl_rod.rx', 'arm_cyl_rod.ry', 'arm_cyl_rod.rz', 'arm_cyl_rod.dw', 'arm_cyl_rod.dx', 'arm_cyl_rod.dy', 'arm_cyl_rod.dz', 'bucket_cyl_barrel.rw', 'bucket_cyl_barrel.rx', 'bucket_cyl_barrel.ry', 'bucket_cyl_barrel.rz', 'bucket_cyl_barrel.dw', 'bucket_cyl_barrel.dx', 'bucket_cyl_barrel.dy', 'bucket_cyl_barrel.dz', 'bucket_cyl_rod.rw', 'bucket_cyl_rod.rx', 'bucket_cyl_rod.ry', 'bucket_cyl_rod.rz', 'bucket_cyl_rod.dw', 'bucket_cyl_rod.dx', 'bucket_cyl_rod.dy', 'bucket_cyl_rod.dz', 'side_link.rw', 'side_link.rx', 'side_link.ry', 'side_link.rz', 'side_link.dw', 'side_link.dx', 'side_link.dy', 'side_link.dz', 'bucket_link.rw', 'bucket_link.rx', 'bucket_link.ry', 'bucket_link.rz', 'bucket_link.dw', 'bucket_link.dx', 'bucket_link.dy', 'bucket_link.dz', 'bucket.rw', 'bucket.rx', 'bucket.ry', 'bucket.rz', 'bucket.dw', 'bucket.dx', 'bucket.dy', 'bucket.dz')
@@ -85,7 +85,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_euler_parameters.h': '769d9fbefd37e071243feea4f75b0ea4a31ad71684c06fe4292bf5dd3591de35', 'excavator_dual_euler_parameters.c': '8d9151b0b48140108ac233d1c51560eb6c0780e192139c3eb668abcf24f69426'}
+C_FILES = {'excavator_dual_euler_parameters.h': '10aa35cbe6f8306c47a61e4e8db82e4e022d73ab863b1cb1a96eda488231a50b', 'excavator_dual_euler_parameters.c': '5ebf5e3f2e4cd03f409053b83f84505840472c09b265ff87952abb974e985939'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -93,8 +93,8 @@ FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_veloc
 # per element (empty: each case's drivers carry the load); the loads, and the loads kernel's values
 # at (LOAD_ROWS: the load's index, LOAD_COLS), each load's content as LOAD_KEYS (SHA-256) says
 ELEMENTS = (('swing_motor', 'motor'), ('boom_cylinder_left', 'actuator'), ('arm_cylinder', 'actuator'), ('bucket_cylinder', 'actuator'))
-ACTUATION_ROWS = (0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 93, 93, 93, 93, 94, 94, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 98, 98, 98, 98, 99, 99, 99, 99, 99, 99, 99, 99, 100, 100, 100, 100, 101, 101, 101, 101, 101, 101, 101, 101, 102, 102, 102, 102, 103, 103, 103, 103, 103, 103, 103, 103, 104, 104, 104, 104, 105, 105, 105, 105, 105, 105, 105, 105, 106, 106, 106, 106, 107, 107, 107, 107, 107, 107, 107, 107, 108, 108, 108, 108, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111)
-ACTUATION_COLS = (0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 16, 17, 18, 19, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 24, 25, 26, 27, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 32, 33, 34, 35, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 40, 41, 42, 43, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 56, 57, 58, 59, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 64, 65, 66, 67, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 88, 89, 90, 91, 48, 49, 50, 51, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 72, 73, 74, 75, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 104, 105, 106, 107, 108, 109, 110, 111, 0, 1, 2, 3, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87)
+ACTUATION_ROWS = (0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 93, 93, 93, 93, 94, 94, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 98, 98, 98, 98, 99, 99, 99, 99, 99, 99, 99, 99, 100, 100, 100, 100, 101, 101, 101, 101, 101, 101, 101, 101, 102, 102, 102, 102, 103, 103, 103, 103, 103, 103, 103, 103, 104, 104, 104, 104, 105, 105, 105, 105, 105, 105, 105, 105, 106, 106, 106, 106, 107, 107, 107, 107, 107, 107, 107, 107, 108, 108, 108, 108, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111)
+ACTUATION_COLS = (0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 16, 17, 18, 19, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 24, 25, 26, 27, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 32, 33, 34, 35, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 40, 41, 42, 43, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 56, 57, 58, 59, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 64, 65, 66, 67, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 88, 89, 90, 91, 48, 49, 50, 51, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 72, 73, 74, 75, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 104, 105, 106, 107, 108, 109, 110, 111, 0, 1, 2, 3, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87)
 LOADS = ('payload', 'cutting')
 LOAD_ROWS = (0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1)
 LOAD_COLS = (104, 105, 106, 107, 108, 109, 110, 111, 104, 105, 106, 107, 108, 109, 110, 111)
@@ -3038,14 +3038,20 @@ def _joints_jac(q, p):
 
 
 def _actuation_rows(q, p):
-    """The rows of the 4 actuation elements: d(length or angle)/dv, 52 values."""
-    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    """The rows of the 4 actuation elements: d(length or angle)/dv, 68 values."""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, boom_cyl_r_barrel_rw, boom_cyl_r_barrel_rx, boom_cyl_r_barrel_ry, boom_cyl_r_barrel_rz, boom_cyl_r_barrel_dw, boom_cyl_r_barrel_dx, boom_cyl_r_barrel_dy, boom_cyl_r_barrel_dz, boom_cyl_r_rod_rw, boom_cyl_r_rod_rx, boom_cyl_r_rod_ry, boom_cyl_r_rod_rz, boom_cyl_r_rod_dw, boom_cyl_r_rod_dx, boom_cyl_r_rod_dy, boom_cyl_r_rod_dz, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
     boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
     boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
     boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
     boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
     boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    boom_cyl_r_barrel_ox = -2*boom_cyl_r_barrel_dw*boom_cyl_r_barrel_rx - 2*boom_cyl_r_barrel_dy*boom_cyl_r_barrel_rz + 2*boom_cyl_r_barrel_dx*boom_cyl_r_barrel_rw + 2*boom_cyl_r_barrel_dz*boom_cyl_r_barrel_ry
+    boom_cyl_r_barrel_oy = -2*boom_cyl_r_barrel_dw*boom_cyl_r_barrel_ry - 2*boom_cyl_r_barrel_dz*boom_cyl_r_barrel_rx + 2*boom_cyl_r_barrel_dx*boom_cyl_r_barrel_rz + 2*boom_cyl_r_barrel_dy*boom_cyl_r_barrel_rw
+    boom_cyl_r_barrel_oz = -2*boom_cyl_r_barrel_dw*boom_cyl_r_barrel_rz - 2*boom_cyl_r_barrel_dx*boom_cyl_r_barrel_ry + 2*boom_cyl_r_barrel_dy*boom_cyl_r_barrel_rx + 2*boom_cyl_r_barrel_dz*boom_cyl_r_barrel_rw
+    boom_cyl_r_rod_ox = -2*boom_cyl_r_rod_dw*boom_cyl_r_rod_rx - 2*boom_cyl_r_rod_dy*boom_cyl_r_rod_rz + 2*boom_cyl_r_rod_dx*boom_cyl_r_rod_rw + 2*boom_cyl_r_rod_dz*boom_cyl_r_rod_ry
+    boom_cyl_r_rod_oy = -2*boom_cyl_r_rod_dw*boom_cyl_r_rod_ry - 2*boom_cyl_r_rod_dz*boom_cyl_r_rod_rx + 2*boom_cyl_r_rod_dx*boom_cyl_r_rod_rz + 2*boom_cyl_r_rod_dy*boom_cyl_r_rod_rw
+    boom_cyl_r_rod_oz = -2*boom_cyl_r_rod_dw*boom_cyl_r_rod_rz - 2*boom_cyl_r_rod_dx*boom_cyl_r_rod_ry + 2*boom_cyl_r_rod_dy*boom_cyl_r_rod_rx + 2*boom_cyl_r_rod_dz*boom_cyl_r_rod_rw
     arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
     arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
     arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
@@ -3072,9 +3078,9 @@ def _actuation_rows(q, p):
     c11 = c10*c4
     c12 = -c2
     c13 = c12*c4
-    c14 = arm_cyl_barrel_ox - arm_cyl_rod_ox
-    c15 = arm_cyl_barrel_oy - arm_cyl_rod_oy
-    c16 = arm_cyl_barrel_oz - arm_cyl_rod_oz
+    c14 = boom_cyl_r_barrel_ox - boom_cyl_r_rod_ox
+    c15 = boom_cyl_r_barrel_oy - boom_cyl_r_rod_oy
+    c16 = boom_cyl_r_barrel_oz - boom_cyl_r_rod_oz
     c17 = 1/sqrt(c14**2 + c15**2 + c16**2)
     c18 = 2*c17
     c19 = c14*c18
@@ -3086,9 +3092,9 @@ def _actuation_rows(q, p):
     c25 = c18*c24
     c26 = -c16
     c27 = c18*c26
-    c28 = bucket_cyl_barrel_ox - bucket_cyl_rod_ox
-    c29 = bucket_cyl_barrel_oy - bucket_cyl_rod_oy
-    c30 = bucket_cyl_barrel_oz - bucket_cyl_rod_oz
+    c28 = arm_cyl_barrel_ox - arm_cyl_rod_ox
+    c29 = arm_cyl_barrel_oy - arm_cyl_rod_oy
+    c30 = arm_cyl_barrel_oz - arm_cyl_rod_oz
     c31 = 1/sqrt(c28**2 + c29**2 + c30**2)
     c32 = 2*c31
     c33 = c28*c32
@@ -3100,7 +3106,21 @@ def _actuation_rows(q, p):
     c39 = c32*c38
     c40 = -c30
     c41 = c32*c40
-    out = _zeros(52, q, ())
+    c42 = bucket_cyl_barrel_ox - bucket_cyl_rod_ox
+    c43 = bucket_cyl_barrel_oy - bucket_cyl_rod_oy
+    c44 = bucket_cyl_barrel_oz - bucket_cyl_rod_oz
+    c45 = 1/sqrt(c42**2 + c43**2 + c44**2)
+    c46 = 2*c45
+    c47 = c42*c46
+    c48 = c43*c46
+    c49 = c44*c46
+    c50 = -c42
+    c51 = c46*c50
+    c52 = -c43
+    c53 = c46*c52
+    c54 = -c44
+    c55 = c46*c54
+    out = _zeros(68, q, ())
     out[0] = -2*upper_rz
     out[1] = -2*upper_ry
     out[2] = 2*upper_rx
@@ -3121,38 +3141,54 @@ def _actuation_rows(q, p):
     out[17] = c11*boom_cyl_l_rod_rz + c9*boom_cyl_l_rod_rw - c13*boom_cyl_l_rod_ry
     out[18] = c11*boom_cyl_l_rod_rw + c13*boom_cyl_l_rod_rx - c9*boom_cyl_l_rod_rz
     out[19] = c13*boom_cyl_l_rod_rw + c9*boom_cyl_l_rod_ry - c11*boom_cyl_l_rod_rx
-    out[20] = c19*arm_cyl_barrel_dx + c20*arm_cyl_barrel_dy + c21*arm_cyl_barrel_dz
-    out[21] = -c19*arm_cyl_barrel_dw - c20*arm_cyl_barrel_dz + 2*c16*c17*arm_cyl_barrel_dy
-    out[22] = -c20*arm_cyl_barrel_dw - c21*arm_cyl_barrel_dx + 2*c14*c17*arm_cyl_barrel_dz
-    out[23] = -c19*arm_cyl_barrel_dy - c21*arm_cyl_barrel_dw + 2*c15*c17*arm_cyl_barrel_dx
-    out[24] = -c19*arm_cyl_barrel_rx - c20*arm_cyl_barrel_ry - c21*arm_cyl_barrel_rz
-    out[25] = c19*arm_cyl_barrel_rw + c20*arm_cyl_barrel_rz - c21*arm_cyl_barrel_ry
-    out[26] = c20*arm_cyl_barrel_rw + c21*arm_cyl_barrel_rx - c19*arm_cyl_barrel_rz
-    out[27] = c19*arm_cyl_barrel_ry + c21*arm_cyl_barrel_rw - c20*arm_cyl_barrel_rx
-    out[28] = c23*arm_cyl_rod_dx + c25*arm_cyl_rod_dy + c27*arm_cyl_rod_dz
-    out[29] = -c23*arm_cyl_rod_dw - c25*arm_cyl_rod_dz + 2*c17*c26*arm_cyl_rod_dy
-    out[30] = -c25*arm_cyl_rod_dw - c27*arm_cyl_rod_dx + 2*c17*c22*arm_cyl_rod_dz
-    out[31] = -c23*arm_cyl_rod_dy - c27*arm_cyl_rod_dw + 2*c17*c24*arm_cyl_rod_dx
-    out[32] = -c23*arm_cyl_rod_rx - c25*arm_cyl_rod_ry - c27*arm_cyl_rod_rz
-    out[33] = c23*arm_cyl_rod_rw + c25*arm_cyl_rod_rz - c27*arm_cyl_rod_ry
-    out[34] = c25*arm_cyl_rod_rw + c27*arm_cyl_rod_rx - c23*arm_cyl_rod_rz
-    out[35] = c23*arm_cyl_rod_ry + c27*arm_cyl_rod_rw - c25*arm_cyl_rod_rx
-    out[36] = c33*bucket_cyl_barrel_dx + c34*bucket_cyl_barrel_dy + c35*bucket_cyl_barrel_dz
-    out[37] = -c33*bucket_cyl_barrel_dw - c34*bucket_cyl_barrel_dz + 2*c30*c31*bucket_cyl_barrel_dy
-    out[38] = -c34*bucket_cyl_barrel_dw - c35*bucket_cyl_barrel_dx + 2*c28*c31*bucket_cyl_barrel_dz
-    out[39] = -c33*bucket_cyl_barrel_dy - c35*bucket_cyl_barrel_dw + 2*c29*c31*bucket_cyl_barrel_dx
-    out[40] = -c33*bucket_cyl_barrel_rx - c34*bucket_cyl_barrel_ry - c35*bucket_cyl_barrel_rz
-    out[41] = c33*bucket_cyl_barrel_rw + c34*bucket_cyl_barrel_rz - c35*bucket_cyl_barrel_ry
-    out[42] = c34*bucket_cyl_barrel_rw + c35*bucket_cyl_barrel_rx - c33*bucket_cyl_barrel_rz
-    out[43] = c33*bucket_cyl_barrel_ry + c35*bucket_cyl_barrel_rw - c34*bucket_cyl_barrel_rx
-    out[44] = c37*bucket_cyl_rod_dx + c39*bucket_cyl_rod_dy + c41*bucket_cyl_rod_dz
-    out[45] = -c37*bucket_cyl_rod_dw - c39*bucket_cyl_rod_dz + 2*c31*c40*bucket_cyl_rod_dy
-    out[46] = -c39*bucket_cyl_rod_dw - c41*bucket_cyl_rod_dx + 2*c31*c36*bucket_cyl_rod_dz
-    out[47] = -c37*bucket_cyl_rod_dy - c41*bucket_cyl_rod_dw + 2*c31*c38*bucket_cyl_rod_dx
-    out[48] = -c37*bucket_cyl_rod_rx - c39*bucket_cyl_rod_ry - c41*bucket_cyl_rod_rz
-    out[49] = c37*bucket_cyl_rod_rw + c39*bucket_cyl_rod_rz - c41*bucket_cyl_rod_ry
-    out[50] = c39*bucket_cyl_rod_rw + c41*bucket_cyl_rod_rx - c37*bucket_cyl_rod_rz
-    out[51] = c37*bucket_cyl_rod_ry + c41*bucket_cyl_rod_rw - c39*bucket_cyl_rod_rx
+    out[20] = c19*boom_cyl_r_barrel_dx + c20*boom_cyl_r_barrel_dy + c21*boom_cyl_r_barrel_dz
+    out[21] = -c19*boom_cyl_r_barrel_dw - c20*boom_cyl_r_barrel_dz + 2*c16*c17*boom_cyl_r_barrel_dy
+    out[22] = -c20*boom_cyl_r_barrel_dw - c21*boom_cyl_r_barrel_dx + 2*c14*c17*boom_cyl_r_barrel_dz
+    out[23] = -c19*boom_cyl_r_barrel_dy - c21*boom_cyl_r_barrel_dw + 2*c15*c17*boom_cyl_r_barrel_dx
+    out[24] = -c19*boom_cyl_r_barrel_rx - c20*boom_cyl_r_barrel_ry - c21*boom_cyl_r_barrel_rz
+    out[25] = c19*boom_cyl_r_barrel_rw + c20*boom_cyl_r_barrel_rz - c21*boom_cyl_r_barrel_ry
+    out[26] = c20*boom_cyl_r_barrel_rw + c21*boom_cyl_r_barrel_rx - c19*boom_cyl_r_barrel_rz
+    out[27] = c19*boom_cyl_r_barrel_ry + c21*boom_cyl_r_barrel_rw - c20*boom_cyl_r_barrel_rx
+    out[28] = c23*boom_cyl_r_rod_dx + c25*boom_cyl_r_rod_dy + c27*boom_cyl_r_rod_dz
+    out[29] = -c23*boom_cyl_r_rod_dw - c25*boom_cyl_r_rod_dz + 2*c17*c26*boom_cyl_r_rod_dy
+    out[30] = -c25*boom_cyl_r_rod_dw - c27*boom_cyl_r_rod_dx + 2*c17*c22*boom_cyl_r_rod_dz
+    out[31] = -c23*boom_cyl_r_rod_dy - c27*boom_cyl_r_rod_dw + 2*c17*c24*boom_cyl_r_rod_dx
+    out[32] = -c23*boom_cyl_r_rod_rx - c25*boom_cyl_r_rod_ry - c27*boom_cyl_r_rod_rz
+    out[33] = c23*boom_cyl_r_rod_rw + c25*boom_cyl_r_rod_rz - c27*boom_cyl_r_rod_ry
+    out[34] = c25*boom_cyl_r_rod_rw + c27*boom_cyl_r_rod_rx - c23*boom_cyl_r_rod_rz
+    out[35] = c23*boom_cyl_r_rod_ry + c27*boom_cyl_r_rod_rw - c25*boom_cyl_r_rod_rx
+    out[36] = c33*arm_cyl_barrel_dx + c34*arm_cyl_barrel_dy + c35*arm_cyl_barrel_dz
+    out[37] = -c33*arm_cyl_barrel_dw - c34*arm_cyl_barrel_dz + 2*c30*c31*arm_cyl_barrel_dy
+    out[38] = -c34*arm_cyl_barrel_dw - c35*arm_cyl_barrel_dx + 2*c28*c31*arm_cyl_barrel_dz
+    out[39] = -c33*arm_cyl_barrel_dy - c35*arm_cyl_barrel_dw + 2*c29*c31*arm_cyl_barrel_dx
+    out[40] = -c33*arm_cyl_barrel_rx - c34*arm_cyl_barrel_ry - c35*arm_cyl_barrel_rz
+    out[41] = c33*arm_cyl_barrel_rw + c34*arm_cyl_barrel_rz - c35*arm_cyl_barrel_ry
+    out[42] = c34*arm_cyl_barrel_rw + c35*arm_cyl_barrel_rx - c33*arm_cyl_barrel_rz
+    out[43] = c33*arm_cyl_barrel_ry + c35*arm_cyl_barrel_rw - c34*arm_cyl_barrel_rx
+    out[44] = c37*arm_cyl_rod_dx + c39*arm_cyl_rod_dy + c41*arm_cyl_rod_dz
+    out[45] = -c37*arm_cyl_rod_dw - c39*arm_cyl_rod_dz + 2*c31*c40*arm_cyl_rod_dy
+    out[46] = -c39*arm_cyl_rod_dw - c41*arm_cyl_rod_dx + 2*c31*c36*arm_cyl_rod_dz
+    out[47] = -c37*arm_cyl_rod_dy - c41*arm_cyl_rod_dw + 2*c31*c38*arm_cyl_rod_dx
+    out[48] = -c37*arm_cyl_rod_rx - c39*arm_cyl_rod_ry - c41*arm_cyl_rod_rz
+    out[49] = c37*arm_cyl_rod_rw + c39*arm_cyl_rod_rz - c41*arm_cyl_rod_ry
+    out[50] = c39*arm_cyl_rod_rw + c41*arm_cyl_rod_rx - c37*arm_cyl_rod_rz
+    out[51] = c37*arm_cyl_rod_ry + c41*arm_cyl_rod_rw - c39*arm_cyl_rod_rx
+    out[52] = c47*bucket_cyl_barrel_dx + c48*bucket_cyl_barrel_dy + c49*bucket_cyl_barrel_dz
+    out[53] = -c47*bucket_cyl_barrel_dw - c48*bucket_cyl_barrel_dz + 2*c44*c45*bucket_cyl_barrel_dy
+    out[54] = -c48*bucket_cyl_barrel_dw - c49*bucket_cyl_barrel_dx + 2*c42*c45*bucket_cyl_barrel_dz
+    out[55] = -c47*bucket_cyl_barrel_dy - c49*bucket_cyl_barrel_dw + 2*c43*c45*bucket_cyl_barrel_dx
+    out[56] = -c47*bucket_cyl_barrel_rx - c48*bucket_cyl_barrel_ry - c49*bucket_cyl_barrel_rz
+    out[57] = c47*bucket_cyl_barrel_rw + c48*bucket_cyl_barrel_rz - c49*bucket_cyl_barrel_ry
+    out[58] = c48*bucket_cyl_barrel_rw + c49*bucket_cyl_barrel_rx - c47*bucket_cyl_barrel_rz
+    out[59] = c47*bucket_cyl_barrel_ry + c49*bucket_cyl_barrel_rw - c48*bucket_cyl_barrel_rx
+    out[60] = c51*bucket_cyl_rod_dx + c53*bucket_cyl_rod_dy + c55*bucket_cyl_rod_dz
+    out[61] = -c51*bucket_cyl_rod_dw - c53*bucket_cyl_rod_dz + 2*c45*c54*bucket_cyl_rod_dy
+    out[62] = -c53*bucket_cyl_rod_dw - c55*bucket_cyl_rod_dx + 2*c45*c50*bucket_cyl_rod_dz
+    out[63] = -c51*bucket_cyl_rod_dy - c55*bucket_cyl_rod_dw + 2*c45*c52*bucket_cyl_rod_dx
+    out[64] = -c51*bucket_cyl_rod_rx - c53*bucket_cyl_rod_ry - c55*bucket_cyl_rod_rz
+    out[65] = c51*bucket_cyl_rod_rw + c53*bucket_cyl_rod_rz - c55*bucket_cyl_rod_ry
+    out[66] = c53*bucket_cyl_rod_rw + c55*bucket_cyl_rod_rx - c51*bucket_cyl_rod_rz
+    out[67] = c51*bucket_cyl_rod_ry + c55*bucket_cyl_rod_rw - c53*bucket_cyl_rod_rx
     return out
 
 

@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   7384368ecde778e19b2618e2d7747e2b4aa257b29e6d6f2c5c10c3b3164db845
+source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
 parametrization: dual-quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '7384368ecde778e19b2618e2d7747e2b4aa257b29e6d6f2c5c10c3b3164db845'
+SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
 PARAMETRIZATION = 'dual-quaternion'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.rw', 'upper.rx', 'upper.ry', 'upper.rz', 'upper.dw', 'upper.dx', 'upper.dy', 'upper.dz', 'boom.rw', 'boom.rx', 'boom.ry', 'boom.rz', 'boom.dw', 'boom.dx', 'boom.dy', 'boom.dz', 'boom_cyl_l_barrel.rw', 'boom_cyl_l_barrel.rx', 'boom_cyl_l_barrel.ry', 'boom_cyl_l_barrel.rz', 'boom_cyl_l_barrel.dw', 'boom_cyl_l_barrel.dx', 'boom_cyl_l_barrel.dy', 'boom_cyl_l_barrel.dz', 'boom_cyl_l_rod.rw', 'boom_cyl_l_rod.rx', 'boom_cyl_l_rod.ry', 'boom_cyl_l_rod.rz', 'boom_cyl_l_rod.dw', 'boom_cyl_l_rod.dx', 'boom_cyl_l_rod.dy', 'boom_cyl_l_rod.dz', 'boom_cyl_r_barrel.rw', 'boom_cyl_r_barrel.rx', 'boom_cyl_r_barrel.ry', 'boom_cyl_r_barrel.rz', 'boom_cyl_r_barrel.dw', 'boom_cyl_r_barrel.dx', 'boom_cyl_r_barrel.dy', 'boom_cyl_r_barrel.dz', 'boom_cyl_r_rod.rw', 'boom_cyl_r_rod.rx', 'boom_cyl_r_rod.ry', 'boom_cyl_r_rod.rz', 'boom_cyl_r_rod.dw', 'boom_cyl_r_rod.dx', 'boom_cyl_r_rod.dy', 'boom_cyl_r_rod.dz', 'arm.rw', 'arm.rx', 'arm.ry', 'arm.rz', 'arm.dw', 'arm.dx', 'arm.dy', 'arm.dz', 'arm_cyl_barrel.rw', 'arm_cyl_barrel.rx', 'arm_cyl_barrel.ry', 'arm_cyl_barrel.rz', 'arm_cyl_barrel.dw', 'arm_cyl_barrel.dx', 'arm_cyl_barrel.dy', 'arm_cyl_barrel.dz', 'arm_cyl_rod.rw', 'arm_cyl_rod.rx', 'arm_cyl_rod.ry', 'arm_cyl_rod.rz', 'arm_cyl_rod.dw', 'arm_cyl_rod.dx', 'arm_cyl_rod.dy', 'arm_cyl_rod.dz', 'bucket_cyl_barrel.rw', 'bucket_cyl_barrel.rx', 'bucket_cyl_barrel.ry', 'bucket_cyl_barrel.rz', 'bucket_cyl_barrel.dw', 'bucket_cyl_barrel.dx', 'bucket_cyl_barrel.dy', 'bucket_cyl_barrel.dz', 'bucket_cyl_rod.rw', 'bucket_cyl_rod.rx', 'bucket_cyl_rod.ry', 'bucket_cyl_rod.rz', 'bucket_cyl_rod.dw', 'bucket_cyl_rod.dx', 'bucket_cyl_rod.dy', 'bucket_cyl_rod.dz', 'side_link.rw', 'side_link.rx', 'side_link.ry', 'side_link.rz', 'side_link.dw', 'side_link.dx', 'side_link.dy', 'side_link.dz', 'bucket_link.rw', 'bucket_link.rx', 'bucket_link.ry', 'bucket_link.rz', 'bucket_link.dw', 'bucket_link.dx', 'bucket_link.dy', 'bucket_link.dz', 'bucket.rw', 'bucket.rx', 'bucket.ry', 'bucket.rz', 'bucket.dw', 'bucket.dx', 'bucket.dy', 'bucket.dz')
@@ -85,7 +85,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_quaternion.h': '82da2027742dc8c03c8d3647a2b69b718464726a37d24326b94e1a6b374baec7', 'excavator_dual_quaternion.c': '67468c485d25e9e78e8cd2982e7f3f74923e4e58640a1ac3b5d50986911f6e22'}
+C_FILES = {'excavator_dual_quaternion.h': '18383a59db65cd5b16da9f20c3788896e28e224d632a3b5cc759f6bd7d1ae775', 'excavator_dual_quaternion.c': 'd0bc60bf7dc92eacbb2b2fcf62abae36c91df7cb174ec09742b0550f418f15e6'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -93,8 +93,8 @@ FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_veloc
 # per element (empty: each case's drivers carry the load); the loads, and the loads kernel's values
 # at (LOAD_ROWS: the load's index, LOAD_COLS), each load's content as LOAD_KEYS (SHA-256) says
 ELEMENTS = (('swing_motor', 'motor'), ('boom_cylinder_left', 'actuator'), ('arm_cylinder', 'actuator'), ('bucket_cylinder', 'actuator'))
-ACTUATION_ROWS = (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83)
-ACTUATION_COLS = (3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 0, 1, 2, 6, 7, 8, 0, 1, 2, 6, 7, 8, 1, 2, 3, 15, 0, 2, 4, 16, 0, 1, 5, 17, 0, 1, 2, 12, 13, 14, 12, 13, 14, 18, 19, 20, 12, 13, 14, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 18, 19, 20, 7, 8, 9, 21, 6, 8, 10, 22, 6, 7, 11, 23, 1, 2, 3, 27, 0, 2, 4, 28, 0, 1, 5, 29, 0, 1, 2, 24, 25, 26, 24, 25, 26, 30, 31, 32, 24, 25, 26, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 30, 31, 32, 7, 8, 9, 33, 6, 8, 10, 34, 6, 7, 11, 35, 7, 8, 9, 39, 6, 8, 10, 40, 6, 7, 11, 41, 6, 7, 8, 36, 37, 38, 6, 7, 8, 36, 37, 38, 7, 8, 9, 45, 6, 8, 10, 46, 6, 7, 11, 47, 6, 7, 8, 42, 43, 44, 42, 43, 44, 48, 49, 50, 42, 43, 44, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 48, 49, 50, 37, 38, 39, 51, 36, 38, 40, 52, 36, 37, 41, 53, 37, 38, 39, 81, 36, 38, 40, 82, 36, 37, 41, 83, 36, 37, 38, 78, 79, 80, 36, 37, 38, 78, 79, 80, 37, 38, 39, 69, 36, 38, 40, 70, 36, 37, 41, 71, 36, 37, 38, 66, 67, 68, 36, 37, 38, 66, 67, 68, 67, 68, 69, 73, 74, 75, 66, 68, 70, 72, 74, 76, 66, 67, 71, 72, 73, 77, 75, 79, 80, 81, 76, 78, 80, 82, 77, 78, 79, 83, 72, 73, 74, 78, 79, 80, 37, 38, 39, 57, 36, 38, 40, 58, 36, 37, 41, 59, 36, 37, 38, 54, 55, 56, 54, 55, 56, 60, 61, 62, 54, 55, 56, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 60, 61, 62, 63, 67, 68, 69, 64, 66, 68, 70, 65, 66, 67, 71, 2, 15, 16, 17, 21, 22, 23, 45, 46, 47, 51, 52, 53, 57, 58, 59, 63, 64, 65)
+ACTUATION_ROWS = (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83)
+ACTUATION_COLS = (3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 0, 1, 2, 6, 7, 8, 0, 1, 2, 6, 7, 8, 1, 2, 3, 15, 0, 2, 4, 16, 0, 1, 5, 17, 0, 1, 2, 12, 13, 14, 12, 13, 14, 18, 19, 20, 12, 13, 14, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 18, 19, 20, 7, 8, 9, 21, 6, 8, 10, 22, 6, 7, 11, 23, 1, 2, 3, 27, 0, 2, 4, 28, 0, 1, 5, 29, 0, 1, 2, 24, 25, 26, 24, 25, 26, 30, 31, 32, 24, 25, 26, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 30, 31, 32, 7, 8, 9, 33, 6, 8, 10, 34, 6, 7, 11, 35, 7, 8, 9, 39, 6, 8, 10, 40, 6, 7, 11, 41, 6, 7, 8, 36, 37, 38, 6, 7, 8, 36, 37, 38, 7, 8, 9, 45, 6, 8, 10, 46, 6, 7, 11, 47, 6, 7, 8, 42, 43, 44, 42, 43, 44, 48, 49, 50, 42, 43, 44, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 48, 49, 50, 37, 38, 39, 51, 36, 38, 40, 52, 36, 37, 41, 53, 37, 38, 39, 81, 36, 38, 40, 82, 36, 37, 41, 83, 36, 37, 38, 78, 79, 80, 36, 37, 38, 78, 79, 80, 37, 38, 39, 69, 36, 38, 40, 70, 36, 37, 41, 71, 36, 37, 38, 66, 67, 68, 36, 37, 38, 66, 67, 68, 67, 68, 69, 73, 74, 75, 66, 68, 70, 72, 74, 76, 66, 67, 71, 72, 73, 77, 75, 79, 80, 81, 76, 78, 80, 82, 77, 78, 79, 83, 72, 73, 74, 78, 79, 80, 37, 38, 39, 57, 36, 38, 40, 58, 36, 37, 41, 59, 36, 37, 38, 54, 55, 56, 54, 55, 56, 60, 61, 62, 54, 55, 56, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 60, 61, 62, 63, 67, 68, 69, 64, 66, 68, 70, 65, 66, 67, 71, 2, 15, 16, 17, 21, 22, 23, 27, 28, 29, 33, 34, 35, 45, 46, 47, 51, 52, 53, 57, 58, 59, 63, 64, 65)
 LOADS = ('payload', 'cutting')
 LOAD_ROWS = (0, 1, 1, 1, 1, 1)
 LOAD_COLS = (83, 78, 79, 80, 81, 83)
@@ -1565,14 +1565,20 @@ def _joints_jac(q, p):
 
 
 def _actuation_rows(q, p):
-    """The rows of the 4 actuation elements: d(length or angle)/dv, 19 values."""
-    _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    """The rows of the 4 actuation elements: d(length or angle)/dv, 25 values."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, boom_cyl_r_barrel_rw, boom_cyl_r_barrel_rx, boom_cyl_r_barrel_ry, boom_cyl_r_barrel_rz, boom_cyl_r_barrel_dw, boom_cyl_r_barrel_dx, boom_cyl_r_barrel_dy, boom_cyl_r_barrel_dz, boom_cyl_r_rod_rw, boom_cyl_r_rod_rx, boom_cyl_r_rod_ry, boom_cyl_r_rod_rz, boom_cyl_r_rod_dw, boom_cyl_r_rod_dx, boom_cyl_r_rod_dy, boom_cyl_r_rod_dz, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
     boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
     boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
     boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
     boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
     boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    boom_cyl_r_barrel_ox = -2*boom_cyl_r_barrel_dw*boom_cyl_r_barrel_rx - 2*boom_cyl_r_barrel_dy*boom_cyl_r_barrel_rz + 2*boom_cyl_r_barrel_dx*boom_cyl_r_barrel_rw + 2*boom_cyl_r_barrel_dz*boom_cyl_r_barrel_ry
+    boom_cyl_r_barrel_oy = -2*boom_cyl_r_barrel_dw*boom_cyl_r_barrel_ry - 2*boom_cyl_r_barrel_dz*boom_cyl_r_barrel_rx + 2*boom_cyl_r_barrel_dx*boom_cyl_r_barrel_rz + 2*boom_cyl_r_barrel_dy*boom_cyl_r_barrel_rw
+    boom_cyl_r_barrel_oz = -2*boom_cyl_r_barrel_dw*boom_cyl_r_barrel_rz - 2*boom_cyl_r_barrel_dx*boom_cyl_r_barrel_ry + 2*boom_cyl_r_barrel_dy*boom_cyl_r_barrel_rx + 2*boom_cyl_r_barrel_dz*boom_cyl_r_barrel_rw
+    boom_cyl_r_rod_ox = -2*boom_cyl_r_rod_dw*boom_cyl_r_rod_rx - 2*boom_cyl_r_rod_dy*boom_cyl_r_rod_rz + 2*boom_cyl_r_rod_dx*boom_cyl_r_rod_rw + 2*boom_cyl_r_rod_dz*boom_cyl_r_rod_ry
+    boom_cyl_r_rod_oy = -2*boom_cyl_r_rod_dw*boom_cyl_r_rod_ry - 2*boom_cyl_r_rod_dz*boom_cyl_r_rod_rx + 2*boom_cyl_r_rod_dx*boom_cyl_r_rod_rz + 2*boom_cyl_r_rod_dy*boom_cyl_r_rod_rw
+    boom_cyl_r_rod_oz = -2*boom_cyl_r_rod_dw*boom_cyl_r_rod_rz - 2*boom_cyl_r_rod_dx*boom_cyl_r_rod_ry + 2*boom_cyl_r_rod_dy*boom_cyl_r_rod_rx + 2*boom_cyl_r_rod_dz*boom_cyl_r_rod_rw
     arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
     arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
     arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
@@ -1589,15 +1595,19 @@ def _actuation_rows(q, p):
     c1 = boom_cyl_l_barrel_oy - boom_cyl_l_rod_oy
     c2 = boom_cyl_l_barrel_oz - boom_cyl_l_rod_oz
     c3 = 1/sqrt(c0**2 + c1**2 + c2**2)
-    c4 = arm_cyl_barrel_ox - arm_cyl_rod_ox
-    c5 = arm_cyl_barrel_oy - arm_cyl_rod_oy
-    c6 = arm_cyl_barrel_oz - arm_cyl_rod_oz
+    c4 = boom_cyl_r_barrel_ox - boom_cyl_r_rod_ox
+    c5 = boom_cyl_r_barrel_oy - boom_cyl_r_rod_oy
+    c6 = boom_cyl_r_barrel_oz - boom_cyl_r_rod_oz
     c7 = 1/sqrt(c4**2 + c5**2 + c6**2)
-    c8 = bucket_cyl_barrel_ox - bucket_cyl_rod_ox
-    c9 = bucket_cyl_barrel_oy - bucket_cyl_rod_oy
-    c10 = bucket_cyl_barrel_oz - bucket_cyl_rod_oz
+    c8 = arm_cyl_barrel_ox - arm_cyl_rod_ox
+    c9 = arm_cyl_barrel_oy - arm_cyl_rod_oy
+    c10 = arm_cyl_barrel_oz - arm_cyl_rod_oz
     c11 = 1/sqrt(c10**2 + c8**2 + c9**2)
-    out = _zeros(19, q, ())
+    c12 = bucket_cyl_barrel_ox - bucket_cyl_rod_ox
+    c13 = bucket_cyl_barrel_oy - bucket_cyl_rod_oy
+    c14 = bucket_cyl_barrel_oz - bucket_cyl_rod_oz
+    c15 = 1/sqrt(c12**2 + c13**2 + c14**2)
+    out = _zeros(25, q, ())
     out[0] = 1
     out[1] = c0*c3
     out[2] = c1*c3
@@ -1617,6 +1627,12 @@ def _actuation_rows(q, p):
     out[16] = -c11*c8
     out[17] = -c11*c9
     out[18] = -c10*c11
+    out[19] = c12*c15
+    out[20] = c13*c15
+    out[21] = c14*c15
+    out[22] = -c12*c15
+    out[23] = -c13*c15
+    out[24] = -c14*c15
     return out
 
 

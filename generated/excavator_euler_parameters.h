@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   7384368ecde778e19b2618e2d7747e2b4aa257b29e6d6f2c5c10c3b3164db845
+ * source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
  * parametrization: euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -34,7 +34,7 @@ extern "C" {
  * whether the model has masses (kinegen_forces' inertia) */
 #define EXCAVATOR_EULER_PARAMETERS_N_LOADS 2
 #define EXCAVATOR_EULER_PARAMETERS_N_FORCES 4
-#define EXCAVATOR_EULER_PARAMETERS_FORCE_WORK_DOUBLES 1691
+#define EXCAVATOR_EULER_PARAMETERS_FORCE_WORK_DOUBLES 1736
 #define EXCAVATOR_EULER_PARAMETERS_FORCE_WORK_INTS 98
 #define EXCAVATOR_EULER_PARAMETERS_HAS_MASSES 1
 /* the pin reactions (kinegen_reactions): joints, work */

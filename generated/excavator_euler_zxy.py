@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   7384368ecde778e19b2618e2d7747e2b4aa257b29e6d6f2c5c10c3b3164db845
+source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
 parametrization: euler:zxy
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '7384368ecde778e19b2618e2d7747e2b4aa257b29e6d6f2c5c10c3b3164db845'
+SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
 PARAMETRIZATION = 'euler:zxy'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.alpha', 'upper.beta', 'upper.gamma', 'boom.x', 'boom.y', 'boom.z', 'boom.alpha', 'boom.beta', 'boom.gamma', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.alpha', 'boom_cyl_l_barrel.beta', 'boom_cyl_l_barrel.gamma', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.alpha', 'boom_cyl_l_rod.beta', 'boom_cyl_l_rod.gamma', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.alpha', 'boom_cyl_r_barrel.beta', 'boom_cyl_r_barrel.gamma', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.alpha', 'boom_cyl_r_rod.beta', 'boom_cyl_r_rod.gamma', 'arm.x', 'arm.y', 'arm.z', 'arm.alpha', 'arm.beta', 'arm.gamma', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.alpha', 'arm_cyl_barrel.beta', 'arm_cyl_barrel.gamma', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.alpha', 'arm_cyl_rod.beta', 'arm_cyl_rod.gamma', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.alpha', 'bucket_cyl_barrel.beta', 'bucket_cyl_barrel.gamma', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.alpha', 'bucket_cyl_rod.beta', 'bucket_cyl_rod.gamma', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.alpha', 'side_link.beta', 'side_link.gamma', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.alpha', 'bucket_link.beta', 'bucket_link.gamma', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.alpha', 'bucket.beta', 'bucket.gamma')
@@ -85,7 +85,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxy.h': '5b86695bf5a25bf642e91e64b9c0bf74be8d9b705d56520b7faae6e6bf74caac', 'excavator_euler_zxy.c': '5266c29c0a9a0e151ee55b64636aa295fde901d3ba60a3b6469e919d1169de67'}
+C_FILES = {'excavator_euler_zxy.h': '66da2dc65b921e4462e40cbb5671e6e7cb7ba7492b24e62ca3af878ea212db6d', 'excavator_euler_zxy.c': 'bfa37e1ff26107b7c40030b24d2b910b111354f67caa14d9ee63b743707dbf63'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -93,8 +93,8 @@ FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_veloc
 # per element (empty: each case's drivers carry the load); the loads, and the loads kernel's values
 # at (LOAD_ROWS: the load's index, LOAD_COLS), each load's content as LOAD_KEYS (SHA-256) says
 ELEMENTS = (('swing_motor', 'motor'), ('boom_cylinder_left', 'actuator'), ('arm_cylinder', 'actuator'), ('bucket_cylinder', 'actuator'))
-ACTUATION_ROWS = (0, 1, 2, 3, 3, 4, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83)
-ACTUATION_COLS = (0, 1, 2, 4, 5, 4, 0, 3, 4, 5, 6, 1, 3, 4, 5, 7, 2, 4, 5, 8, 3, 4, 9, 10, 11, 3, 4, 9, 10, 11, 0, 3, 4, 5, 12, 1, 3, 4, 5, 13, 2, 4, 5, 14, 3, 4, 15, 16, 17, 15, 16, 17, 21, 22, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 21, 22, 23, 6, 9, 10, 11, 18, 7, 9, 10, 11, 19, 8, 10, 11, 20, 0, 3, 4, 5, 24, 1, 3, 4, 5, 25, 2, 4, 5, 26, 3, 4, 27, 28, 29, 27, 28, 29, 33, 34, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 33, 34, 35, 6, 9, 10, 11, 30, 7, 9, 10, 11, 31, 8, 10, 11, 32, 6, 9, 10, 11, 36, 7, 9, 10, 11, 37, 8, 10, 11, 38, 9, 10, 39, 40, 41, 9, 10, 39, 40, 41, 6, 9, 10, 11, 42, 7, 9, 10, 11, 43, 8, 10, 11, 44, 9, 10, 45, 46, 47, 45, 46, 47, 51, 52, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 51, 52, 53, 36, 39, 40, 41, 48, 37, 39, 40, 41, 49, 38, 40, 41, 50, 36, 39, 40, 41, 78, 37, 39, 40, 41, 79, 38, 40, 41, 80, 39, 40, 81, 82, 83, 39, 40, 81, 82, 83, 36, 39, 40, 41, 66, 37, 39, 40, 41, 67, 38, 40, 41, 68, 39, 40, 69, 70, 71, 39, 40, 69, 70, 71, 66, 69, 70, 71, 72, 75, 76, 77, 67, 69, 70, 71, 73, 75, 76, 77, 68, 70, 71, 74, 76, 77, 72, 78, 81, 82, 83, 73, 79, 81, 82, 83, 74, 80, 82, 83, 75, 76, 77, 81, 82, 36, 39, 40, 41, 54, 37, 39, 40, 41, 55, 38, 40, 41, 56, 39, 40, 57, 58, 59, 57, 58, 59, 63, 64, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 63, 64, 65, 60, 66, 69, 70, 71, 61, 67, 69, 70, 71, 62, 68, 70, 71, 3, 5, 12, 13, 14, 18, 19, 20, 42, 43, 44, 48, 49, 50, 54, 55, 56, 60, 61, 62)
+ACTUATION_ROWS = (0, 1, 2, 3, 3, 4, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83)
+ACTUATION_COLS = (0, 1, 2, 4, 5, 4, 0, 3, 4, 5, 6, 1, 3, 4, 5, 7, 2, 4, 5, 8, 3, 4, 9, 10, 11, 3, 4, 9, 10, 11, 0, 3, 4, 5, 12, 1, 3, 4, 5, 13, 2, 4, 5, 14, 3, 4, 15, 16, 17, 15, 16, 17, 21, 22, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 21, 22, 23, 6, 9, 10, 11, 18, 7, 9, 10, 11, 19, 8, 10, 11, 20, 0, 3, 4, 5, 24, 1, 3, 4, 5, 25, 2, 4, 5, 26, 3, 4, 27, 28, 29, 27, 28, 29, 33, 34, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 33, 34, 35, 6, 9, 10, 11, 30, 7, 9, 10, 11, 31, 8, 10, 11, 32, 6, 9, 10, 11, 36, 7, 9, 10, 11, 37, 8, 10, 11, 38, 9, 10, 39, 40, 41, 9, 10, 39, 40, 41, 6, 9, 10, 11, 42, 7, 9, 10, 11, 43, 8, 10, 11, 44, 9, 10, 45, 46, 47, 45, 46, 47, 51, 52, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 51, 52, 53, 36, 39, 40, 41, 48, 37, 39, 40, 41, 49, 38, 40, 41, 50, 36, 39, 40, 41, 78, 37, 39, 40, 41, 79, 38, 40, 41, 80, 39, 40, 81, 82, 83, 39, 40, 81, 82, 83, 36, 39, 40, 41, 66, 37, 39, 40, 41, 67, 38, 40, 41, 68, 39, 40, 69, 70, 71, 39, 40, 69, 70, 71, 66, 69, 70, 71, 72, 75, 76, 77, 67, 69, 70, 71, 73, 75, 76, 77, 68, 70, 71, 74, 76, 77, 72, 78, 81, 82, 83, 73, 79, 81, 82, 83, 74, 80, 82, 83, 75, 76, 77, 81, 82, 36, 39, 40, 41, 54, 37, 39, 40, 41, 55, 38, 40, 41, 56, 39, 40, 57, 58, 59, 57, 58, 59, 63, 64, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 63, 64, 65, 60, 66, 69, 70, 71, 61, 67, 69, 70, 71, 62, 68, 70, 71, 3, 5, 12, 13, 14, 18, 19, 20, 24, 25, 26, 30, 31, 32, 42, 43, 44, 48, 49, 50, 54, 55, 56, 60, 61, 62)
 LOADS = ('payload', 'cutting')
 LOAD_ROWS = (0, 1, 1, 1, 1, 1)
 LOAD_COLS = (80, 78, 80, 81, 82, 83)
@@ -1975,22 +1975,26 @@ def _joints_jac(q, p):
 
 
 def _actuation_rows(q, p):
-    """The rows of the 4 actuation elements: d(length or angle)/dv, 20 values."""
-    _, _, _, _, upper_beta, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, _, _, _, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, _, _, _, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, _, _, _, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    """The rows of the 4 actuation elements: d(length or angle)/dv, 26 values."""
+    _, _, _, _, upper_beta, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, _, _, _, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, _, _, _, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, _, _, _, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, _, _, _, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
     upper_a21 = sin(upper_beta)
     c0 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
     c1 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
     c2 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
     c3 = 1/sqrt(c0**2 + c1**2 + c2**2)
-    c4 = arm_cyl_barrel_x - arm_cyl_rod_x
-    c5 = arm_cyl_barrel_y - arm_cyl_rod_y
-    c6 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c4 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x
+    c5 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y
+    c6 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z
     c7 = 1/sqrt(c4**2 + c5**2 + c6**2)
-    c8 = bucket_cyl_barrel_x - bucket_cyl_rod_x
-    c9 = bucket_cyl_barrel_y - bucket_cyl_rod_y
-    c10 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c8 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c9 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c10 = arm_cyl_barrel_z - arm_cyl_rod_z
     c11 = 1/sqrt(c10**2 + c8**2 + c9**2)
-    out = _zeros(20, q, ())
+    c12 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c13 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c14 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c15 = 1/sqrt(c12**2 + c13**2 + c14**2)
+    out = _zeros(26, q, ())
     out[0] = 1
     out[1] = upper_a21
     out[2] = c0*c3
@@ -2011,6 +2015,12 @@ def _actuation_rows(q, p):
     out[17] = -c11*c8
     out[18] = -c11*c9
     out[19] = -c10*c11
+    out[20] = c12*c15
+    out[21] = c13*c15
+    out[22] = c14*c15
+    out[23] = -c12*c15
+    out[24] = -c13*c15
+    out[25] = -c14*c15
     return out
 
 

@@ -52,12 +52,19 @@ class Session:
     _modules: dict = dataclasses.field(default_factory=dict, repr=False)
 
     def model(self, model_file: str | Path):
-        """The model of ``model_file`` (:class:`kinegen.model.Model`), read once per session."""
+        """The model of ``model_file`` (:class:`kinegen.model.Model`), read once per session; an
+        over-constrained one is refused naming the joints whose equations repeat each other."""
+        from kinegen.errors import OverConstrainedError
         from kinegen.model import load
 
         key = str(model_file)
         if key not in self._models:
-            self._models[key] = load(model_file)
+            try:
+                self._models[key] = load(model_file)
+            except OverConstrainedError as error:
+                from kinegen.symbolic.rank import explain
+
+                raise explain(error) from None
         return self._models[key]
 
     def module_path(self, model_file: str | Path, parametrization: str = rotations.REFERENCE) -> Path:

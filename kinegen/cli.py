@@ -15,12 +15,14 @@ import warnings
 from pathlib import Path
 
 import click
-import numpy as np
 
 from kinegen import __version__, rotations
-from kinegen.errors import ExitCode, KinegenError, printable
-from kinegen.files import STDOUT, read_bounded
+from kinegen.errors import ExitCode, KinegenError, OverConstrainedError, printable
+from kinegen.files import MAX_MODEL_BYTES, STDOUT, read_bounded
 from kinegen.interface import FRAME_VALUES
+from kinegen.lazy import lazy_import
+
+np = lazy_import("numpy")  # imported at its first use: `kinegen --help` and `kinegen models` do not need it
 
 #: Most samples `kinegen envelope --grid` takes (the default grid has 4,851)
 MAX_GRID = 1_000_000
@@ -41,6 +43,10 @@ class _Group(click.Group):
         except click.UsageError as exc:  # a subcommand's argument (click's own code, 2, is a model error's here)
             self._usage(exc)
         except KinegenError as exc:
+            if isinstance(exc, OverConstrainedError):  # which joints' equations repeat: the rank at the initial pose
+                from kinegen.symbolic.rank import explain
+
+                exc = explain(exc)
             self._fail(ctx, f"error: {exc}", exc.exit_code)
         except BrokenPipeError:  # the reader stopped early (| head): quiet, as Unix tools are
             devnull = os.open(os.devnull, os.O_WRONLY)
@@ -298,6 +304,9 @@ def _system(
 @click.option("--dynamics", is_flag=True,
               help="Add the bodies' weight and inertia along the motion (inverse dynamics; a model with masses): the forces "
               "that move the machine, with --load also holding the loads, and its kinetic and potential energy (columns added to --out).")  # fmt: skip
+@click.option("--no-weight", is_flag=True,
+              help="With --load on a model with masses: hold the loads alone, without the bodies' own weight "
+              "(by default the weight is held too, and the output says so).")  # fmt: skip
 @GENERATED_DIR
 def solve(
     model_file: str,
@@ -318,11 +327,13 @@ def solve(
     force: bool,
     loads: tuple[str, ...],
     dynamics: bool,
+    no_weight: bool,
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time; every time point where an
-    actuator leaves its range is reported. With --load, also the forces that hold the loads; with
-    --dynamics, the forces that move the machine (its weight and inertia) and its energies."""
+    actuator leaves its range is reported. With --load, also the forces that hold the loads (and the
+    machine's own weight, where the model declares masses); with --dynamics, the forces that move the
+    machine (its weight and inertia) and its energies."""
     from kinegen.runtime import SolverOptions
     from kinegen.runtime import solve as run
 
@@ -338,6 +349,9 @@ def solve(
         raise click.BadParameter(f"{', '.join(twice)} named more than once (each load is held once)", param_hint="--load")
     if dynamics and not model.massive:
         raise click.BadParameter("the model has no masses (a body's mass:, center_of_mass:, inertia:)", param_hint="--dynamics")
+    if no_weight and (dynamics or not loads):
+        raise click.BadParameter("leaves the weight out of --load's statics; --dynamics holds the weight with the inertia"
+                                 if dynamics else "goes with --load (the statics it leaves the weight out of)", param_hint="--no-weight")  # fmt: skip
     if plot:
         _check_frame(system, frame_body)
     times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
@@ -363,8 +377,8 @@ def solve(
     if (loads or dynamics) and results.complete:
         from kinegen.forces import forces
 
-        held = forces(results, model, loads, inertia=dynamics)
-        _report_forces(held, piped)
+        held = forces(results, model, loads, inertia=dynamics, weight=bool(model.massive) and not no_weight)
+        _report_forces(held, model, piped)
     elif loads or dynamics:
         click.echo(f"forces: not computed -- the solve stopped at t = {results.times[-1]:g} s and forces need every time point; "
                    "the CSV has no force columns", err=True)  # fmt: skip
@@ -381,7 +395,7 @@ def solve(
         from kinegen.analysis.plots import plot_case
 
         trace, frame = _picture_plane(results, model, frame_body, point)
-        click.echo(f"wrote {plot_case(results, plot, frame, trace)}", err=piped)
+        click.echo(f"wrote {plot_case(results, plot, frame, trace, model=model)}", err=piped)
     _report_ranges(results)
     if view:
         from kinegen.analysis.view import motion_view
@@ -446,23 +460,52 @@ def _picture_plane(results, model, frame_body: str | None, point: tuple[str, str
     return track, frame_body if frame_body is not None else best_frame(results, track)
 
 
-def _report_forces(held, piped: bool) -> None:
-    """The peak of every actuation force and cylinder pressure, the largest pin reactions, and
-    every pressure beyond its relief or holding setting."""
+def _pressure_text(pressure: float) -> str:
+    """A pressure [Pa] in MPa to 0.1 from 1 bar up, in kPa to 3 figures below (no "0.0 MPa")."""
+    return f"{pressure / 1e6:.1f} MPa" if pressure >= 1e5 else f"{pressure / 1e3:.3g} kPa"
+
+
+def _report_forces(held, model, piped: bool) -> None:
+    """What the forces hold (the loads, the machine's weight, its inertia), the peak of every
+    actuation force and cylinder pressure, the largest pin reactions, and every pressure beyond its
+    relief or holding setting."""
+    from kinegen.model.schema import design_value
+
     times = held.results.times
-    holding = f"holding {', '.join(held.loads)}" if held.loads else ""
-    click.echo(f"forces {'moving the machine (its weight and inertia)' + (' and ' if holding else '') if held.inertia else ''}{holding}:", err=piped)
+    design = held.results.system.design
+    mass = sum(design_value(b.inertia.mass, design) for b in model.massive)
+    bodies = f"{len(model.massive)} bod{'ies' if len(model.massive) != 1 else 'y'}, {mass:,.0f} kg"
+    held_parts = list(held.loads)
+    if held.inertia:
+        held_parts.insert(0, f"moving the machine (its weight and inertia: {bodies})")
+    elif held.weight:
+        held_parts.append(f"the machine's own weight ({bodies}; --no-weight leaves it out)")
+    elif model.massive:
+        held_parts.append("not the machine's weight (--no-weight)")
+    words = held_parts[0] if held.inertia else "holding " + held_parts[0]
+    if len(held_parts) > 1:
+        words += (" and holding " if held.inertia else ", ") + ", ".join(held_parts[1:])
+    click.echo(f"forces {words}:", err=piped)
+    rounding = 1e-9 * max(1.0, float(np.abs(held.force).max()))  # a force this small is the solve's rounding
     for k, element in enumerate(held.elements):
         values = held.force[:, k]
         i = int(np.argmax(np.abs(values)))
-        scale, unit = 1e3, "kN m" if element.unit == "N m" else "kN"
+        peak = float(np.abs(values).max())
+        kilo = peak >= 1e3  # kN (kN m) from 1 kN up, N (N m) below: no "0.00 .. 0.00 kN"
+        scale, unit = (1e3, "k" + element.unit) if kilo else (1.0, element.unit)
         low, high = (round(float(x) / scale, 2) + 0.0 for x in (values.min(), values.max()))  # + 0.0: no "-0.00"
-        line = f"  {element.name:<20} {low:10.2f} .. {high:8.2f} {unit}, peak at t = {times[i]:g} s"
+        if peak <= rounding:
+            line = f"  {element.name:<20} {'0':>10} {element.unit}: carries nothing here (|f| <= {peak:.0e} {element.unit}, rounding)"
+        else:
+            line = f"  {element.name:<20} {low:10.2f} .. {high:8.2f} {unit}, peak at t = {times[i]:g} s"
+        parallel = [name for name, lead in held.parallel.items() if lead == element.name]
+        if parallel:
+            line += f" (each of {', '.join([element.name, *parallel])})"
         pressure = held.pressures.get(element.name)
-        if pressure is not None:
+        if pressure is not None and peak > rounding:
             j = int(np.argmax(pressure.pressure / pressure.limit))
-            line += (f"; pressure up to {pressure.pressure[j] / 1e6:.1f} MPa ({'cap' if pressure.cap_side[j] else 'rod'} side) "
-                     f"of {pressure.limit[j] / 1e6:.1f} MPa {'relief' if pressure.working[j] else 'holding'}")  # fmt: skip
+            line += (f"; pressure up to {_pressure_text(pressure.pressure[j])} ({'cap' if pressure.cap_side[j] else 'rod'} side) "
+                     f"of {_pressure_text(pressure.limit[j])} {'relief' if pressure.working[j] else 'holding'}")  # fmt: skip
         click.echo(line, err=piped)
     peaks = sorted(((float(np.linalg.norm(r.force, axis=1).max()), name) for name, r in held.reactions.items()), reverse=True)
     click.echo("  largest pin forces: " + ", ".join(f"{name} {value / 1e3:.1f} kN" for value, name in peaks[:4]), err=piped)
@@ -697,7 +740,7 @@ def view(
     model, system = _system(model_file, _parametrization(param), case, generated_dir, None, _design_values(design))
     point = _named_point(system, track)
     _check_frame(system, frame_body)
-    results = Solver(system, SolverOptions(condition="exact", on_failure="stop")).solve()
+    results = Solver(system, SolverOptions(on_failure="stop")).solve()  # kinegen's condition number: the CSV's and the plot's
     page = Path(out) if out else Path("out") / f"{system.model}_{system.case}.html"
     click.echo(f"wrote {motion_view(results, model, page, f'{system.model} / {system.case}', point, condition_warning)}")
     if animate:
@@ -705,7 +748,7 @@ def view(
 
         track_point, frame = _picture_plane(results, model, frame_body, point)
         try:
-            click.echo(f"wrote {write_animation(results, animate, frame, track_point)}")
+            click.echo(f"wrote {write_animation(results, animate, frame, track_point, model=model)}")
         except ValueError as exc:
             raise click.BadParameter(str(exc), param_hint="--animate") from None
     _report_ranges(results)
@@ -792,10 +835,15 @@ def _force_map(model_file: str, model, parametrization, generated_dir: str, dire
     if out:
         write_atomic(Path(out), found.to_csv())
         click.echo(f"wrote {out}")
-    if plot:
+    if plot:  # the picture: the largest force at each place over the tool's attitude, a smooth function of the place
         from kinegen.analysis.boundary import working_range_boundary
+        from kinegen.forces.maps import reach_map
 
-        click.echo(f"wrote {plot_force_map(found, plot, working_range_boundary(system, model.working_range))}")
+        smooth = reach_map(system, model, direction)
+        i, j = np.unravel_index(np.nanargmax(smooth.force), smooth.force.shape)
+        click.echo(f"  over the tool's attitude ({smooth.attitude_input}; {smooth.poses:,} poses in {smooth.seconds:.1f} s): up to "
+                   f"{smooth.force[i, j] / 1e3:.1f} kN, at x {smooth.radius[j]:.2f}, z {smooth.height[i]:.2f} m")  # fmt: skip
+        click.echo(f"wrote {plot_force_map(smooth, plot, working_range_boundary(system, model.working_range))}")
 
 
 def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: bool, no_compile: bool, out: str | None = None,
@@ -880,8 +928,7 @@ def lift(model_file: str, param: str, as_json: bool, out: str | None, plot: str 
 def models(destination: str | None, force: bool) -> None:
     """The example models shipped with kinegen (the paper's boom, the ZX200 excavator, closed-form
     mechanisms): where they are installed, what each holds; --copy DIR to get editable copies."""
-    from kinegen.examples import copy_models, example_models, models_folder
-    from kinegen.model import load
+    from kinegen.examples import copy_models, example_models, models_folder, summary
 
     if destination is not None:
         copied = copy_models(Path(destination), overwrite=force)
@@ -893,9 +940,9 @@ def models(destination: str | None, force: bool) -> None:
         return
     click.echo(f"example models of kinegen {__version__} in {models_folder()}:")
     for path in example_models():
-        model = load(path)
+        model = summary(path)
         cases = ", ".join(model.cases)
-        bodies = f"{len(model.bodies)} bod{'y' if len(model.bodies) == 1 else 'ies'}"
+        bodies = f"{model.bodies} bod{'y' if model.bodies == 1 else 'ies'}"
         click.echo(f"  {path.name:<18} {bodies:>9}; cases: {cases}")
         click.echo(f"  {'':<18} {model.description}")
     click.echo("kinegen models --copy DIR copies them; kinegen info FILE tells more of one")
@@ -907,11 +954,22 @@ def models(destination: str | None, force: bool) -> None:
 def info(model_file: str, params: tuple[str, ...]) -> None:
     """What MODEL_FILE holds: bodies, joints, cases and their time grids, actuators and ranges,
     design parameters and studies, coordinates and equations per parametrization."""
-    from kinegen.analysis.info import DEFAULT_PARAMETRIZATIONS, describe
-    from kinegen.model import load
+    from kinegen.textcache import cached_text
 
-    names = tuple(_parametrization(p).name for p in params) or DEFAULT_PARAMETRIZATIONS
-    click.echo(describe(load(model_file), names))
+    names = tuple(_parametrization(p).name for p in params) or rotations.SHOWN
+    try:
+        source = read_bounded(model_file, MAX_MODEL_BYTES)
+    except OSError:
+        source = None  # the loader names the file and what is wrong
+
+    def describe() -> str:
+        from kinegen.analysis.info import describe
+        from kinegen.model import load
+
+        return describe(load(model_file), names)
+
+    # the same bytes described by the same kinegen: from the cache (no SymPy to import)
+    click.echo(describe() if source is None else cached_text("info", source, ",".join(names), describe))
 
 
 @main.command()

@@ -91,7 +91,7 @@ def _excavator(session: Session, models: Path, module, excavator_model, out: Pat
         results.to_csv(out / f"{stem}.csv")
         from kinegen.analysis.plots import plot_case
 
-        plot_case(results, out / f"{stem}.png", frame_body="upper", trace=("bucket", "T"))
+        plot_case(results, out / f"{stem}.png", frame_body="upper", trace=("bucket", "T"), model=excavator_model)
         motion_view(results, excavator_model, out / f"{stem}.html", title=f"excavator / {case}")
     print(f"3-D views (kinegen view): {', '.join(f'excavator_{c}.html' for c in runs)} in {out}")
     print()
@@ -213,13 +213,14 @@ def main(argv: list[str] | None = None) -> int:
 
         print("\nkinegen forces models/excavator.yaml (ESTIMATED hydraulic data; docs/forces.md):")
         print(report(tool_forces(from_module(excavator_module, excavator_model.tool_forces.case), excavator_model), excavator_model))
-        from kinegen.forces.maps import force_map, plot_force_map
+        from kinegen.forces.maps import plot_force_map, reach_map
 
-        found = force_map(excavator, excavator_model, "tangent")
-        best = int(np.argmax(found.force))
+        found = reach_map(excavator, excavator_model, "tangent")
+        i, j = np.unravel_index(np.nanargmax(found.force), found.force.shape)
         picture = plot_force_map(found, args.out / "excavator_force_map.png", boundary)
-        print(f"force map (kinegen forces --map tangent): {len(found.force):,} poses in {found.seconds:.2f} s, up to "
-              f"{found.force[best] / 1e3:.1f} kN along the lip's tangent (limited by {found.limiting[best]}) -> {picture.name}")  # fmt: skip
+        print(f"force map (kinegen forces --map tangent --plot): {found.poses:,} poses in {found.seconds:.1f} s, up to "
+              f"{found.force[i, j] / 1e3:.1f} kN along the lip's tangent over the bucket's attitude, at x {found.radius[j]:.2f}, "
+              f"z {found.height[i]:.2f} m (limited by {found.regions[found.limiting[i, j]]}) -> {picture.name}")  # fmt: skip
     if excavator_model.lift_chart is not None:
         from kinegen.forces.lift import lift_chart
 

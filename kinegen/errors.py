@@ -9,7 +9,7 @@ from typing import Any
 
 
 class ExitCode(IntEnum):
-    """How the ``kinegen`` command ends: one code per kind of failure (README, "Errors and exit
+    """How the ``kinegen`` command ends: one code per kind of failure (docs/errors.md, "Errors and exit
     codes"). A subclass of an error shares its parent's code (an UnreachableError is a
     ConvergenceError); a BranchError shares 3 with a singular Phi_q: the motion cannot go on."""
 
@@ -54,6 +54,18 @@ class ModelError(KinegenError):
         shown_file = printable(file)  # a file name may hold newlines and control characters
         where = shown_file if line is None else f"{shown_file}:{line}"
         super().__init__(f"{where}: {self.entry}: {self.problem}")
+
+
+class OverConstrainedError(ModelError):
+    """A model whose joints leave fewer degrees of freedom than its drivers (or its motors and
+    hydraulic actuators) by count. ``stand_in``: a model of its bodies and joints, from which
+    :func:`kinegen.symbolic.rank.explain` finds which joints' equations repeat each other (the
+    command line and :class:`kinegen.api.Session` say it that way); ``count`` and ``what``: the
+    elements the joints leave too little freedom for."""
+
+    def __init__(self, file: str, entry: str, problem: str, line: int | None, stand_in: Any, count: int, what: str) -> None:
+        super().__init__(file, entry, problem, line)
+        self.stand_in, self.count, self.what = stand_in, count, what
 
 
 class _BoundedRepr(reprlib.Repr):
@@ -192,6 +204,31 @@ class BranchError(KinegenError):
             f"the solve cannot follow the motion from t = {t0:.6g} to t = {t1:.6g}: {observed}, even over a step of "
             f"{step:.2e} s; no row on another branch is returned: the run stops at t = {t0:.6g}"
         )
+
+
+class UnassembledError(BranchError):
+    """The motion asks for a pose the linkage cannot take: with the drivers at their values, no
+    configuration closes every joint (a link too short or too long for the motion). Said in the
+    mechanism's words first -- which joints' loop stays open and by how much -- then what the solver
+    observed (``cause``). ``gaps``: (joint, how far it stays open: its points' distance [m] or, for a
+    joint without point rows, its largest residual) at ``t1``; ``widest``: (time, total gap) the
+    widest on the rest of the grid."""
+
+    def __init__(self, t0: float, t1: float, inputs: str, gaps: list[tuple[str, float]], widest: tuple[float, float] | None,
+                 cause: BranchError | ConvergenceError) -> None:  # fmt: skip
+        self.gaps, self.widest, self.cause = gaps, widest, cause
+        total = sum(g for _, g in gaps)
+        names = [j for j, _ in gaps]
+        loop = f"joint {names[0]} cannot close" if len(names) == 1 else f"the loop through joints {', '.join(names)} cannot close"
+        later = f"; at t = {widest[0]:.6g} s, {widest[1]:.3g} m" if widest is not None and widest[1] > total else ""
+        each = "" if len(gaps) == 1 else " (" + ", ".join(f"{j} {g:.2g}" for j, g in gaps) + ")"
+        observed = (f"the linkage cannot assemble at t = {t1:.6g} s: with {inputs}, {loop} -- its points stay at least "
+                    f"{total:.3g} m apart{each}{later}. A link is too short or too long for this motion, or the motion asks "
+                    f"for a pose beyond the mechanism's reach. The solver saw: {cause}")  # fmt: skip
+        KinegenError.__init__(self, observed)
+        self.t0, self.t1, self.t = t0, t1, t0
+        self.step = getattr(cause, "step", t1 - t0)
+        self.observed = observed
 
 
 class GeneratedModuleError(KinegenError):

@@ -38,6 +38,26 @@ def example_models() -> list[Path]:
 
 
 @dataclass(frozen=True)
+class Summary:
+    """What ``kinegen models`` lists of a shipped model: read from its YAML as written (a shipped
+    model is valid: the tests load every one), without parsing its expressions."""
+
+    path: Path
+    bodies: int
+    cases: tuple[str, ...]
+    description: str
+
+
+def summary(path: Path) -> Summary:
+    """The :class:`Summary` of the shipped model file at ``path`` (LibYAML's parser where installed)."""
+    import yaml
+
+    document = yaml.load(path.read_text(encoding="utf-8"), Loader=getattr(yaml, "CSafeLoader", yaml.SafeLoader))
+    cases = document.get("cases") or {"default": None}
+    return Summary(path, len(document.get("bodies") or {}), tuple(cases), " ".join(str(document.get("description", "")).split()))
+
+
+@dataclass(frozen=True)
 class Copied:
     """One file of :func:`copy_models`: where it went and what happened (``written``, ``same``:
     already there, identical; ``kept``: already there and different, left alone)."""

@@ -105,6 +105,16 @@ def atomic_writer(path: Path) -> Iterator[BinaryIO]:
         raise
 
 
+#: the largest model file kinegen reads (bytes)
+MAX_MODEL_BYTES = 5_000_000
+
+
+def cache_folder() -> Path:
+    """kinegen's cache (``$KINEGEN_CACHE``, default ``~/.cache/kinegen``): compiled libraries, and
+    what a command computes once per model version (``kinegen info``)."""
+    return Path(os.environ.get("KINEGEN_CACHE", Path.home() / ".cache" / "kinegen"))
+
+
 def write_atomic(path: Path, content: str | bytes) -> None:
     """Write ``content`` (text as UTF-8, or bytes) to ``path`` all or nothing (:func:`atomic_writer`);
     an OSError names the file."""

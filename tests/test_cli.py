@@ -149,7 +149,7 @@ def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path
     boom = solve(generated_system("boom_quaternion"))
     assert tracked_point(boom) == ("boom", "tip") and best_frame(boom, ("boom", "tip")) is None
     basis, labels, _ = drawing_plane(boom, None)
-    assert labels == ("x [m]", "y [m]") and np.array_equal(basis, np.eye(3)[:2])
+    assert labels == ("x, global [m]", "y, global [m]") and np.array_equal(basis, np.eye(3)[:2])
     tip = boom.point_position("boom", "tip")
     assert np.abs(tip[:, 2]).max() < 1e-12  # the motion is in that plane: nothing is lost drawing it there
     excavator = solve(generated_system("excavator_quaternion", "digging"))

@@ -1,6 +1,6 @@
 """One table of exit codes (issue 26): every error class takes its code from
 ``kinegen.errors.ExitCode``; classes not derived from one another end differently (but for the
-two of exit 3, which both say that the motion cannot go on); the README lists every code; the
+two of exit 3, which both say that the motion cannot go on); docs/errors.md lists every code; the
 command really ends with them."""
 
 from __future__ import annotations
@@ -42,8 +42,8 @@ def test_every_error_class_takes_a_code_of_the_table_and_unrelated_classes_diffe
             assert related or a.exit_code != b.exit_code, f"{a.__name__} and {b.__name__} both exit {a.exit_code}"
 
 
-def test_the_readme_lists_every_code():
-    text = (ROOT / "README.md").read_text()
+def test_the_docs_list_every_code():
+    text = (ROOT / "docs" / "errors.md").read_text()
     table = text[text.index("| exit | error |") :].split("\n\n", 1)[0]
     listed = {int(code) for code in re.findall(r"^\| (\d+) \|", table, re.MULTILINE)}
     assert listed == {int(code) for code in ExitCode if code != ExitCode.OK}

@@ -252,12 +252,12 @@ def test_a_folder_of_another_run_is_not_resumed_or_overwritten(one_worker_run: P
 
 
 def test_the_readmes_one_liner_reads_the_parquet_folder_with_what_kinegen_explore_installs(one_worker_run: Path) -> None:
-    """The README's pyarrow line, as printed (its folder swapped for this run's), reads every variant."""
+    """docs/studies.md's pyarrow line, as printed (its folder swapped for this run's), reads every variant."""
     import re
     import subprocess
     import sys
 
-    readme = (Path(__file__).resolve().parents[1] / "README.md").read_text()
+    readme = (Path(__file__).resolve().parents[1] / "docs" / "studies.md").read_text()
     snippet = re.search(r'`python -c "(import pyarrow\.dataset[^"]+)"`', readme).group(1)
     code = snippet.replace("out/excavator_calibration.parquet", str(one_worker_run)).replace("to_table())", "to_table().num_rows)")
     done = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120)

@@ -140,12 +140,13 @@ def test_malformed_tool_forces_name_the_entry(old, new, entry, problem):
     assert problem in caught.value.problem
 
 
-def test_the_readmes_forces_table_states_these_figures():
-    """The README's Forces table (kinegen's figures, to the 0.1 kN it prints) is this run's."""
+def test_the_docs_forces_table_states_these_figures():
+    """docs/forces.md's table (kinegen's figures, to the 0.1 kN it prints) is this run's."""
     from tests.conftest import ROOT
 
-    readme = (ROOT / "README.md").read_text()
-    table = readme[readme.index("## Forces (") : readme.index("## Design studies")]
+    text = (ROOT / "docs" / "forces.md").read_text()
+    start = text.index("## In short")
+    table = text[start : text.index("\n## ", start + 1)]
     for row, name in (("| bucket digging force |", "bucket"), ("| arm crowd force |", "arm")):
         line = next(text for text in table.splitlines() if text.startswith(row))
         stated = float(line.split("|")[2].strip().removesuffix(" kN"))

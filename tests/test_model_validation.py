@@ -101,7 +101,7 @@ def test_base_model_is_valid():
             "drivers:\n      angle",
             "drivers:\n      extra: {type: coordinate, point: arm.tip, component: z, function: 0}\n      angle",
             "cases.spin.drivers",
-            "degree-of-freedom count",
+            "over-constrained: 5 joint equations on 6 coordinates (6 per body) leave mobility 1 for 2 driver(s)",
         ),
         ("cases:", "cases: {}\nx:", "x", "unknown key"),
         ("bodies:\n  arm:", "bodies:\n  arm: 3\n  other:", "bodies.arm", "expected a mapping"),

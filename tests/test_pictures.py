@@ -3,6 +3,8 @@ file was written."""
 
 from __future__ import annotations
 
+import re
+
 import numpy as np
 from matplotlib.patches import Patch
 from scipy.spatial.transform import Rotation
@@ -86,6 +88,20 @@ def test_the_working_range_chart_draws_the_machine_quotes_its_figures_and_keeps_
             assert not -0.2 <= ends[0, 1] <= 0.05, letter
         else:  # vertical, from the ground
             assert ends[0, 1] == 0.0 and abs(abs(ends[1, 1]) - figures[name]) < 1e-12 and ends[0, 0] == ends[1, 0]
+    vertical = sorted(np.column_stack(by_gid[f"dimension:{letter}"].get_data())[0, 0] for letter in "CDEF")
+    assert min(np.diff(vertical)) >= 0.45 - 1e-12  # no two vertical dimension lines on each other (C and F sit near one reach)
+    from kinegen.analysis.chart import DIFFERS
+
+    for letter, name in letters.items():  # each published figure that differs is on its own dimension line
+        published = excavator.working_range.published.get(name)
+        if published is not None and abs(published - figures[name]) > DIFFERS:
+            at = by_gid[f"published:{letter}"].get_xydata()[0]
+            ends = np.column_stack(by_gid[f"dimension:{letter}"].get_data())
+            assert abs((at[0] if letter in "ABG" else abs(at[1])) - published) < 1e-12 and (at[1] if letter in "ABG" else at[0]) == ends[0, 1 if letter in "ABG" else 0]
+        else:
+            assert f"published:{letter}" not in by_gid
+    words = " ".join(t.get_text() for t in [*side.texts, *ax.texts, ax.title])
+    assert "solves" not in words and not re.search(r"\d s\b", words)  # no run statistics in the drawing
     labels = {letter: by_gid[f"label:{letter}"].get_window_extent(renderer) for letter in letters}
     for a in letters:
         for b in letters:
@@ -136,7 +152,7 @@ def test_the_case_plot_of_a_four_bar_traces_the_chosen_point_and_plots_signed_an
     (path,) = [line for line in panels["drawing"].lines if line.get_gid() == "path"]
     expected = results.point_position("coupler", "C")[:, :2]  # the x-y plane: the four-bar's
     assert np.allclose(np.column_stack(path.get_data()), expected, atol=1e-12)
-    assert panels["drawing"].get_xlabel() == "x [m]" and panels["drawing"].get_ylabel() == "y [m]"
+    assert panels["drawing"].get_xlabel() == "x, global [m]" and panels["drawing"].get_ylabel() == "y, global [m]"
     curves = {line.get_label().split(",")[0]: line for line in panels["omega"].lines}
     t = results.times
     for body, (a, b) in {"crank": ("A", "B"), "rocker": ("D", "C")}.items():
@@ -163,7 +179,7 @@ def test_a_tilted_plane_is_named_and_its_axes_given_in_words():
     those angles (no direction vectors), its axes orthonormal and in the plane."""
     from kinegen.analysis.plots import plane_axes
 
-    assert plane_axes(np.array([0, 1.0, 0]))[1] == ("x [m]", "z [m]")
+    assert plane_axes(np.array([0, 1.0, 0]))[1] == ("x, global [m]", "z, global [m]")
     assert plane_axes(np.array([0, 0, -1.0]))[2] == "the x-y plane"
     heading, tilt = np.radians(40.0), np.radians(30.0)
     level = np.array([np.cos(heading), np.sin(heading), 0.0])
@@ -192,9 +208,76 @@ def test_the_excavators_case_plot_keeps_its_legends_off_the_curves():
     pyplot().close(fig)
 
 
+def test_the_case_plot_shows_both_twin_cylinders_labels_its_ranges_and_draws_the_ground_only_where_the_model_does(tmp_path):
+    """The excavator's digging plot (with its model): the right boom cylinder, whose length is the
+    left one's, is drawn dashed over it (in the drawing and both panels), each distinct range once
+    with its min and max labelled by the cylinders that share it, the ground line (the model draws
+    the ground); the condition curve is the CSV's jacobian_condition, sigma_max / sigma_min (SciPy's
+    svdvals). The boom (no ground outline) gets no ground line; every axis is named in words."""
+    from scipy.linalg import svdvals
+
+    from kinegen.analysis.plots import case_figure
+
+    excavator = model("excavator")
+    results = solve(generated_system("excavator_quaternion", "digging", compiled=True))
+    fig = case_figure(results, "upper", ("bucket", "T"), model=excavator)
+    panels = _panels(fig)
+    twins = [line for line in panels["drawing"].lines if line.get_gid() == "twin:boom_cylinder_right"]
+    assert len(twins) == 6 and all(line.get_linestyle() == "--" for line in twins)
+    for name in ("lengths", "rates"):
+        (dashed,) = [line for line in panels[name].lines if line.get_label() == "boom_cylinder_right (= boom_cylinder_left)"]
+        (left,) = [line for line in panels[name].lines if line.get_label() == "boom_cylinder_left"]
+        assert np.allclose(dashed.get_ydata(), left.get_ydata(), atol=1e-9) and dashed.get_linestyle() != left.get_linestyle()
+    texts = [t.get_text() for t in panels["lengths"].texts]
+    assert "min boom_cylinder_left, boom_cylinder_right" in texts and "max boom_cylinder_left, boom_cylinder_right" in texts
+    assert {"min arm_cylinder", "max arm_cylinder", "min bucket_cylinder", "max bucket_cylinder"} <= set(texts)
+    assert any(line.get_gid() == "ground" for line in panels["drawing"].lines)
+    names, table = results.table()
+    condition = panels["condition"].lines[0].get_ydata()
+    np.testing.assert_array_equal(condition, table[:, names.index("jacobian_condition")])
+    for k in (0, len(condition) // 2, len(condition) - 1):
+        s = svdvals(results.system.jacobian(results.q[k], results.inputs[k]))
+        assert abs(condition[k] - s[0] / s[-1]) < 1e-9 * condition[k]
+    for ax in panels.values():
+        assert ax.get_ylabel() and not ax.get_ylabel().startswith("[")
+    assert panels["drawing"].get_xlabel() == "x along the upper frame [m]"
+    pyplot().close(fig)
+    boom = solve(generated_system("boom_quaternion"))
+    fig = case_figure(boom, None, ("boom", "tip"), model=model("boom"))
+    assert not any(line.get_gid() == "ground" for line in _panels(fig)["drawing"].lines)
+    pyplot().close(fig)
+
+
+def test_a_distance_joints_coupler_is_drawn_in_the_plot_the_animation_and_the_page(tmp_path):
+    """The RSSR's coupler is a distance joint, carried by no body: the case plot, the animation's
+    frames and the 3-D page each draw it as a line between exactly its two points."""
+    from kinegen.analysis.plots import case_figure
+    from kinegen.analysis.view import _Scene
+
+    rssr = model("rssr")
+    results = solve(generated_system("rssr_quaternion"))
+    ends = [results.point_position("crank", "B"), results.point_position("rocker", "C")]
+    fig = case_figure(results, None, None, model=rssr)
+    drawn = [line for line in _panels(fig)["drawing"].lines if (line.get_gid() or "").startswith("coupler:")]
+    assert len(drawn) == 6
+    pyplot().close(fig)
+    fig, draw, keep = animation_figure(results, None, None, rssr)
+    (line,) = [a for a in fig.axes[0].lines if (a.get_gid() or "").startswith("coupler:")]
+    k = int(keep[len(keep) // 2])
+    draw(k)
+    xy = np.column_stack(line.get_data())
+    assert abs(np.linalg.norm(ends[1][k] - ends[0][k]) - 0.52) < 1e-9  # the coupler's length, in space
+    assert 0 < np.linalg.norm(xy[1] - xy[0]) <= 0.52 + 1e-9  # drawn: its projection on the animation's plane
+    pyplot().close(fig)
+    scene = _Scene(results, rssr, None, 1e6)
+    (trace,) = [t for t in scene.traces(k) if t.name == "couplers (distance joints)"]
+    np.testing.assert_allclose(np.column_stack([trace.x, trace.y, trace.z])[:2], np.array([ends[0][k], ends[1][k]]), atol=1e-12)
+
+
 def test_the_exploration_plot_has_units_a_colour_bar_readable_cells_full_labels_and_shows_the_variants_not_measured():
     """An exploration of 60 variants (y1 = 2 a + b, y2 = b - a plus a little of c; 5 not ok): the
-    Pareto axes carry the quantities' units, no legend entry counts zero variants, the not-ok
+    Pareto axes carry the quantities' units and say "larger is better" only for what the study maximizes,
+    the parameters' axes their units, no legend entry counts zero variants, the not-ok
     variants are drawn (grey crosses, all 5) in the parameters that tell them apart, the map has a
     colour bar, each cell's number is white on a dark colour and black on a light one, and the
     quantities' full names label the columns without overlapping."""
@@ -211,17 +294,21 @@ def test_the_exploration_plot_has_units_a_colour_bar_readable_cells_full_labels_
     names = ["max_reach", "actuator_margin(boom_cylinder_left, digging)"]
     table = pa.table({"a": a, "b": b, "c": c, "status": np.where(ok, "ok", "unreachable"), names[0]: y1, names[1]: y2,
                       "feasible": ok})  # fmt: skip
-    provenance = {"model": "m", "study": "s", "parameters": ["a", "b", "c"], "quantities": names}
+    provenance = {"model": "m", "study": "s", "parameters": ["a", "b", "c"], "quantities": names, "senses": {names[0]: "maximize"},
+                  "units": {"a": "m", "b": "m", "c": "kg"}}  # fmt: skip
     fig = exploration_figure(table, provenance, (names[0], names[1]), (True, True))
     fig.canvas.draw()
     renderer = fig.canvas.get_renderer()
     panels = _panels(fig)
     pareto, failed, ranking = panels["pareto"], panels["failed"], panels["ranking"]
     assert pareto.get_xlabel().startswith("max_reach [m]") and pareto.get_ylabel().startswith(f"{names[1]} [m]")
+    # "larger is better" only where the study's objective says so: max_reach is its term, the margin only a constraint
+    assert "the study maximizes it: larger is better" in pareto.get_xlabel()
+    assert "better" not in pareto.get_ylabel() and "the study does not rank it" in pareto.get_ylabel()
     for ax in (pareto, failed):
         assert all("(0)" not in text.get_text() for text in ax.get_legend().get_texts())
     crosses = [c for c in failed.collections if c.get_label().startswith("not ok")]
-    assert len(crosses) == 1 and len(crosses[0].get_offsets()) == 5 and failed.get_xlabel() == "a"
+    assert len(crosses) == 1 and len(crosses[0].get_offsets()) == 5 and failed.get_xlabel() == "a [m]" and failed.get_ylabel().endswith("]")
     (image,) = ranking.images
     assert image.colorbar is not None
     for text in ranking.texts:
@@ -238,50 +325,83 @@ def test_the_exploration_plot_has_units_a_colour_bar_readable_cells_full_labels_
 
 @WORKING_RANGE_GROUP
 def test_the_force_map_draws_its_cells_inside_the_exact_boundary_and_states_its_assumptions():
-    """The tangent force map (a coarse grid): on both panels the cells (and the contours) are clipped
-    to the working range's exact boundary, which the axes show whole; the figure says what is assumed
-    (static, massless, no friction) and what a white cell means."""
-    from kinegen.forces.maps import force_map, force_map_figure
+    """The tangent force map (a coarse raster): on both panels the filled contours (and the lines)
+    are clipped to the working range's exact boundary, which the axes show whole; every raster point
+    inside the boundary is coloured (no white holes); the legend of the limiting cylinders lies below
+    the panels; the figure says what is assumed (static, massless, no friction), how it is made and
+    how it differs from the ISO 6015 figure."""
+    from kinegen.forces.maps import _filled, force_map_figure, reach_map
 
     _, system, _, boundary = excavator_working_range()
-    found = force_map(system, model("excavator"), "tangent", grid=(9, 7, 9))
+    found = reach_map(system, model("excavator"), "tangent", attitudes=9, per_input=11, spacing=0.1)
     fig = force_map_figure(found, boundary)
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
     for ax in fig.axes[:2]:  # the two panels (then the colour bar)
-        cells = [a for a in ax.collections if hasattr(a, "get_array") and a.get_array() is not None and a.get_array().size > 1]
-        assert cells
-        for artist in cells:
-            clip = artist.get_clip_path()
-            assert clip is not None
-            vertices = clip.get_fully_transformed_path().vertices  # display coordinates
+        filled = [a for a in ax.collections if a.get_clip_path() is not None]
+        assert filled
+        for artist in filled:
+            vertices = artist.get_clip_path().get_fully_transformed_path().vertices  # display coordinates
             drawn = ax.transData.transform(boundary.points[:, :2])
             assert np.abs(vertices[: len(drawn)] - drawn).max() < 1e-6
         (x0, x1), (z0, z1) = ax.get_xlim(), ax.get_ylim()
         assert x0 < boundary.points[:, 0].min() and boundary.points[:, 0].max() < x1
         assert z0 < boundary.points[:, 1].min() and boundary.points[:, 1].max() < z1
+    force, limiting, _ = _filled(found, boundary)
+    from matplotlib.path import Path as Outline
+
+    rr, hh = np.meshgrid(found.radius, found.height)
+    inside = Outline(boundary.points[:, :2]).contains_points(np.column_stack([rr.ravel(), hh.ravel()])).reshape(rr.shape)
+    assert np.isfinite(force[inside]).all() and (limiting[inside] >= 0).all()
+    legend = fig.axes[1].get_legend().get_window_extent(renderer)
+    assert legend.y1 < fig.axes[1].get_window_extent(renderer).y0
     title = fig._suptitle.get_text()
-    assert "static, massless links, no friction" in title and "white: no pose" in title
+    assert "static, massless links, no friction" in title and "Not the ISO 6015 figure" in title and "exact poses" in title
 
 
 @WORKING_RANGE_GROUP
 def test_the_lift_chart_picture_writes_each_rating_at_its_point_coloured_by_its_limit():
-    """Every grid point and largest reach of the lift chart carries two labels, the ratings over the
-    front and the side as the table prints them ('*' where hydraulic), blue where the hydraulic limit
-    rules and red where tipping does, next to the point at its radius and height; the working range
-    is drawn and the rule is stated."""
+    """Every grid point of the lift chart carries two labels, the ratings over the front and the side
+    as the table prints them ('*' where hydraulic), blue where the hydraulic limit rules and red where
+    tipping does, next to the point; beside the drawing, the table in the manufacturers' layout (a
+    row per height, front and side per radius, the largest reach's ratings and radius), coloured the
+    same; the outline drawn is the lift point's own range: every rated grid point inside it, every
+    point the lift point cannot reach outside; the rule is stated, and the legend covers no label."""
     from matplotlib.colors import to_hex
+    from matplotlib.path import Path as Outline
 
     from kinegen.forces.lift import lift_chart, lift_chart_figure
 
     _, _, _, boundary = excavator_working_range()
     chart = lift_chart(generated_system("excavator_quaternion", "digging"), model("excavator"))
     fig = lift_chart_figure(chart, boundary)
-    ax = fig.axes[0]
+    fig.canvas.draw()
+    renderer = fig.canvas.get_renderer()
+    ax, side = fig.axes
     labels = {(round(t.xy[0], 9), round(t.xy[1], 9), t.get_text()): to_hex(t.get_color()) for t in ax.texts}
-    points = [p for row in chart.grid for p in row if p is not None] + [p for p in chart.max_reach if p is not None]
+    points = [p for row in chart.grid for p in row if p is not None]
     assert len(ax.texts) == 2 * len(points)
     for p in points:
-        for side in (False, True):
-            value, limit = p.rated(side)
+        for on_side in (False, True):
+            value, limit = p.rated(on_side)
             text = f"{'*' if limit == 'hydraulic' else ''}{value:,.0f}"
             assert labels[(round(p.radius, 9), round(p.height, 9), text)] == to_hex("tab:blue" if limit == "hydraulic" else "tab:red")
+    cells = {gid: c for c in side.tables[0].get_celld().values() if (gid := c.get_gid())}
+    radii = len(chart.radii)
+    for r, (height, far) in enumerate(zip(chart.heights, chart.max_reach), start=1):
+        assert cells[f"cell:{r}:0"].get_text().get_text() == f"{height:g} m"
+        for on_side in (False, True):
+            value, limit = far.rated(on_side)
+            cell = cells[f"cell:{r}:{1 + 2 * radii + on_side}"].get_text()
+            assert cell.get_text() == f"{'*' if limit == 'hydraulic' else ''}{value:,.0f}"
+            assert to_hex(cell.get_color()) == to_hex("tab:blue" if limit == "hydraulic" else "tab:red")
+        assert cells[f"cell:{r}:{3 + 2 * radii}"].get_text().get_text() == f"{far.radius:.2f} m"
+    (outline,) = [line for line in ax.lines if line.get_gid() == "outline"]
+    assert "range of the lift point arm.Q" in outline.get_label()
+    inside = Outline(np.column_stack(outline.get_data()))
+    for row, height in zip(chart.grid, chart.heights):
+        for p, radius in zip(row, chart.radii):
+            assert inside.contains_point((radius, height)) == (p is not None), (radius, height)
+    legend = ax.get_legend().get_window_extent(renderer)
+    assert not any(legend.overlaps(t.get_window_extent(renderer)) for t in ax.texts)
     assert "75 % of the tipping load" in fig._suptitle.get_text()

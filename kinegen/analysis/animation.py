@@ -23,7 +23,7 @@ MAX_GIF_FRAMES = 100
 
 
 def animate(
-    results: Results, path: str | Path, frame_body: str | None = None, track: tuple[str, str] | None = None, fps: int = 20
+    results: Results, path: str | Path, frame_body: str | None = None, track: tuple[str, str] | None = None, fps: int = 20, model=None
 ) -> Path:
     """Write the animation to ``path`` (.gif with Pillow; .mp4 needs ffmpeg)."""
     from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
@@ -31,7 +31,7 @@ def animate(
     target = Path(path)
     if target.suffix.lower() not in (".gif", ".mp4"):
         raise ValueError(f"{path}: an animation is written as .gif or .mp4")
-    fig, draw, keep = animation_figure(results, frame_body, track)
+    fig, draw, keep = animation_figure(results, frame_body, track, model)
     movie = FuncAnimation(fig, draw, frames=[int(k) for k in keep], blit=False)
     writer = PillowWriter(fps=fps) if target.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
     with atomic_path(target) as partial:  # a failed or interrupted write keeps the previous file
@@ -40,11 +40,13 @@ def animate(
     return target
 
 
-def animation_figure(results: Results, frame_body: str | None = None, track: tuple[str, str] | None = None):
+def animation_figure(results: Results, frame_body: str | None = None, track: tuple[str, str] | None = None, model=None):
     """(figure, draw(k) -> the artists of time point k, the time points drawn): bodies as stick
-    figures, each actuator as barrel + rod (red where out of its range), the tracked point's path,
-    a legend in a row below the axes."""
+    figures, each actuator as barrel + rod (red where out of its range), the ``model``'s distance
+    joints as their couplers, the tracked point's path, a legend in a row below the axes."""
     from matplotlib.lines import Line2D
+
+    from kinegen.analysis.plots import couplers
 
     system = results.system
     solved, keep = frames(results, MAX_GIF_FRAMES)
@@ -62,7 +64,9 @@ def animation_figure(results: Results, frame_body: str | None = None, track: tup
     actuators = {name: (refs, limits) for name, (*refs, limits) in system.actuators.items()}
     ends = {name: [_in_frame(results, frame_body, results.point_position(*ref)) @ basis.T for ref in refs] for name, (refs, _) in actuators.items()}
     lengths = {name: results.actuator_length(name) for name in actuators}
-    everything = np.vstack([*plane.values(), *(e for pair in ends.values() for e in pair)])
+    links = {f"{b1}.{p1}-{b2}.{p2}": [_in_frame(results, frame_body, results.point_position(*ref)) @ basis.T for ref in ((b1, p1), (b2, p2))]
+             for (b1, p1), (b2, p2) in (couplers(model, system) if model is not None else [])}  # fmt: skip
+    everything = np.vstack([*plane.values(), *(e for pair in [*ends.values(), *links.values()] for e in pair)])
     low, high = everything.min(axis=0), everything.max(axis=0)
     pad = 0.04 * float(np.max(high - low) or 1.0)
     low, high = low - pad, high + pad
@@ -75,6 +79,7 @@ def animation_figure(results: Results, frame_body: str | None = None, track: tup
     lines = {b: ax.plot([], [], "-o", color=_BODY, lw=2, ms=3)[0] for b in bodies}
     barrels = {n: ax.plot([], [], "-", color=_BARREL, lw=6, solid_capstyle="butt")[0] for n in actuators}
     rods = {n: ax.plot([], [], "-", color=_ROD, lw=3, solid_capstyle="butt")[0] for n in actuators}
+    drawn_links = {n: ax.plot([], [], "-", color=_BODY, lw=1.2, gid=f"coupler:{n}")[0] for n in links}
     handles = [
         Line2D([], [], color=_BODY, marker="o", lw=2, ms=3, label="bodies"),
         *([Line2D([], [], color=_BARREL, lw=6, label="cylinder barrel"), Line2D([], [], color=_ROD, lw=3, label="cylinder rod"),
@@ -99,9 +104,11 @@ def animation_figure(results: Results, frame_body: str | None = None, track: tup
             rods[name].set_data(rod[:, 0], rod[:, 1])
             barrels[name].set_color(_OUT if out else _BARREL)
             rods[name].set_color(_OUT if out else _ROD)
+        for name, (one, other) in links.items():
+            drawn_links[name].set_data([one[k, 0], other[k, 0]], [one[k, 1], other[k, 1]])
         if path_2d is not None:
             marker.set_data([path_2d[k, 0]], [path_2d[k, 1]])
         title.set_text(f"{system.model} / {system.case}   t = {results.times[k]:.2f} s")
-        return [*lines.values(), *barrels.values(), *rods.values(), title]
+        return [*lines.values(), *barrels.values(), *rods.values(), *drawn_links.values(), title]
 
     return fig, draw, keep

@@ -201,7 +201,16 @@ def working_range_figure(envelope: Envelope, boundary: Boundary, system: Numeric
     spec = envelope.spec
     ax.set_title(f"working range of {spec.point.body}.{spec.point.name}: {len(set(boundary.curve.tolist()))} curves with inputs at limits or folds, "
                  f"{len(boundary.switching)} switching points", fontsize=10)  # fmt: skip
-    lines = [_dimension(ax, mark) for mark in marks]
+    offsets = _offsets(marks)
+    lines = [_dimension(ax, mark, offset) for mark, offset in zip(marks, offsets)]
+    for mark, offset in zip(marks, offsets):  # the published figure on the same line, where it differs
+        published = spec.published.get(mark.figure)
+        if published is not None and abs(published - mark.value) > DIFFERS:
+            at = (published, -BELOW_GROUND if abs(mark.height) < BELOW_GROUND else mark.height) if mark.kind == "h" else (
+                mark.reach + offset, np.sign(mark.height) * published)
+            ax.plot(*at, marker="D", ms=5, mfc="none", mec="0.25", mew=1.1, ls="none", zorder=6, gid=f"published:{mark.letter}")
+    if any(a.get_gid() and a.get_gid().startswith("published:") for a in ax.lines):
+        ax.plot([], [], marker="D", ms=5, mfc="none", mec="0.25", ls="none", label=f"published figure, where it differs by more than {DIFFERS:g} m")
     fig.tight_layout()  # the labels are placed at the size they are drawn
     _place_labels(fig, ax, marks, lines, [ax.lines[0], *machine])
     side.axis("off")
@@ -218,7 +227,6 @@ def working_range_figure(envelope: Envelope, boundary: Boundary, system: Numeric
     notes = [
         "* as quoted, unverified",
         f"boundary: {len(boundary.points) - 1} exact points, chord error {1e3 * boundary.chord_error:.3f} mm",
-        f"{boundary.refined} crossings found by Newton; {boundary.solves} solves, {boundary.seconds:.1f} s",
         "inputs: " + ", ".join(f"{n} [{lo:g}, {hi:g}]" for n, (lo, hi) in zip(envelope.names, _ranges(system, envelope))),
         *(["machine outline: the model's drawing (outline:) where it has one, else the hull of a body's points"] if drawn else []),
         *boundary.notes,
@@ -245,10 +253,34 @@ def _wrap(text: str, width: int) -> str:
     return "\n".join(textwrap.wrap(text, width)) or text
 
 
-def _dimension(ax, mark: Mark):
+#: a published figure further than this (m) from kinegen's is drawn on its dimension line too
+DIFFERS = 0.05
+#: vertical dimension lines closer than this (m) are drawn apart: the later one moved by :data:`APART`
+CLOSE = 0.45
+APART = 0.6
+
+
+def _offsets(marks: list[Mark]) -> list[float]:
+    """How far (m, along the reach) each vertical dimension line is drawn from its point: 0, or
+    :data:`APART` beyond the last line drawn within :data:`CLOSE` of it (max. digging depth and the
+    vertical wall depth often sit at nearly one reach: their lines would lie on each other)."""
+    drawn: list[float] = []
+    out = []
+    for mark in marks:
+        offset = 0.0
+        if mark.kind == "v":
+            while any(abs(mark.reach + offset - x) < CLOSE for x in drawn):
+                offset += APART
+            drawn.append(mark.reach + offset)
+        out.append(offset)
+    return out
+
+
+def _dimension(ax, mark: Mark, offset: float = 0.0):
     """A dimension line with arrows at both ends between the swing axis (h) or the ground (v) and
     the figure's point, with an extension line where it is drawn off that point (a horizontal one
-    near the ground goes :data:`BELOW_GROUND` below it, off the ground band); the line (Line2D)."""
+    near the ground goes :data:`BELOW_GROUND` below it, off the ground band; a vertical one ``offset``
+    along the reach, off another's); the line (Line2D)."""
     style = {"arrowstyle": "<|-|>", "color": "0.15", "lw": 0.8, "shrinkA": 0, "shrinkB": 0, "mutation_scale": 8}
     ax.plot([mark.reach], [mark.height], "o", ms=5, mfc="white", mec="crimson", mew=1.4, zorder=6)
     if mark.kind == "h":
@@ -258,7 +290,10 @@ def _dimension(ax, mark: Mark):
             ax.plot([mark.reach, mark.reach], [mark.height, level - 0.1], color="0.15", lw=0.5, zorder=5)
             ax.plot([0.0, 0.0], [0.0, level - 0.1], color="0.15", lw=0.5, zorder=5)
     else:
-        ends = np.array([[mark.reach, 0.0], [mark.reach, np.sign(mark.height) * mark.value]])
+        x = mark.reach + offset
+        ends = np.array([[x, 0.0], [x, np.sign(mark.height) * mark.value]])
+        if offset:
+            ax.plot([mark.reach, x + 0.1 * np.sign(offset)], [mark.height, mark.height], color="0.15", lw=0.5, zorder=5)
     ax.annotate("", xy=tuple(ends[0]), xytext=tuple(ends[1]), arrowprops=style, zorder=5)
     (line,) = ax.plot(ends[:, 0], ends[:, 1], lw=0, gid=f"dimension:{mark.letter}")  # the geometry, for tests and placement
     return line

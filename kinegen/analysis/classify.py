@@ -114,7 +114,7 @@ def classify(
             rank, ratio, _ = _numeric_rank(system, q_other, u)
             evidence.append(
                 f"{other.name}: rank {rank} of {len(system.constraint_names)} x {system.n_velocity} at the same physical "
-                f"configuration (double precision, sigma_min/sigma_max = {ratio:.1e})"
+                f"configuration (double precision, sigma_min/sigma_max = {abs(ratio):.1e})"
             )
             if rank == system.n_velocity:
                 regular_elsewhere.append(other.name)
@@ -128,12 +128,12 @@ def classify(
     residual = float(np.max(np.abs(numeric.phi(physical, u))))
     evidence.append(f"max |Phi| at this configuration = {residual:.1e}")
     rank_here, ratio_here, dependent_here = _numeric_rank(numeric, physical, u)
-    evidence.append(f"here: rank {rank_here} (double precision, sigma_min/sigma_max = {ratio_here:.1e})")
+    evidence.append(f"here: rank {rank_here} (double precision, sigma_min/sigma_max = {abs(ratio_here):.1e})")
     span = max(numeric.t1 - numeric.t0, 1e-9)
     nearby = _nearby(numeric, physical, t, 0.01 * span)
     for when, rank, ratio, dependent in nearby:
         evidence.append(
-            f"nearby t = {when:.6g}: rank {rank} (sigma_min/sigma_max = {ratio:.1e}), dependent: {', '.join(dependent) or '-'}"
+            f"nearby t = {when:.6g}: rank {rank} (sigma_min/sigma_max = {abs(ratio):.1e}), dependent: {', '.join(dependent) or '-'}"
         )
     persistent = bool(nearby) and all(rank == rank_here and dependent == dependent_here for _, rank, _, dependent in nearby)
     if rank_here == n and residual <= 1e-8 and persistent:

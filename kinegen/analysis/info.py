@@ -51,6 +51,8 @@ def describe(model: Model, parametrizations: tuple[str, ...] = DEFAULT_PARAMETRI
                 relief = design_value(h.relief[0], nominal) / 1e6
                 hydraulics = (f"; cylinder{'s' if h.cylinders > 1 else ''} {h.cylinders} x {1e3 * design_value(h.bore, nominal):.0f}/"
                               f"{1e3 * design_value(h.rod, nominal):.0f} mm, relief {relief:.1f} MPa")  # fmt: skip
+            elif a.parallel is not None:
+                hydraulics = f"; parallel to {a.parallel} (its data and pressure: the same force, at its own pins)"
             lines.append(f"  {a.name:<22} {a.points[0].body}.{a.points[0].name} - {a.points[1].body}.{a.points[1].name}, {shown}{hydraulics}")
     if model.motors:
         lines.append("motors: " + ", ".join(f"{m.name} (at {m.joint})" for m in model.motors))

@@ -100,7 +100,8 @@ def drawing_plane(results: Results, frame_body: str | None) -> tuple[np.ndarray,
     directions in which the named points spread most over the motion (global frame) -- two of
     x, y, z when that plane is a coordinate plane (to 1e-6)."""
     if frame_body is not None:
-        return np.array([[1.0, 0, 0], [0, 0, 1.0]]), ("x [m]", "z [m]"), f"the x-z plane of the {frame_body} frame"
+        return (np.array([[1.0, 0, 0], [0, 0, 1.0]]), (f"x along the {frame_body} frame [m]", f"z along the {frame_body} frame [m]"),
+                f"the x-z plane of the {frame_body} frame")  # fmt: skip
     points = np.vstack([results.point_position(b, p) for b, names in results.system.points.items() for p in names])
     points = points[np.isfinite(points).all(axis=1)]
     _, _, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
@@ -118,10 +119,11 @@ def plane_axes(normal: np.ndarray) -> tuple[np.ndarray, tuple[str, str], str]:
     k = int(np.argmax(np.abs(normal)))
     if abs(abs(normal[k]) - 1) < 1e-6:  # a coordinate plane: its two axes, in order
         kept = [i for i in range(3) if i != k]
-        return np.eye(3)[kept], (f"{'xyz'[kept[0]]} [m]", f"{'xyz'[kept[1]]} [m]"), f"the {'xyz'[kept[0]]}-{'xyz'[kept[1]]} plane"
+        return (np.eye(3)[kept], (f"{'xyz'[kept[0]]}, global [m]", f"{'xyz'[kept[1]]}, global [m]"),
+                f"the {'xyz'[kept[0]]}-{'xyz'[kept[1]]} plane")  # fmt: skip
     up = np.array([0.0, 0.0, 1.0]) - normal[2] * normal
     if np.linalg.norm(up) < 1e-9:
-        return np.eye(3)[:2], ("x [m]", "y [m]"), "the x-y plane"
+        return np.eye(3)[:2], ("x, global [m]", "y, global [m]"), "the x-y plane"
     up /= np.linalg.norm(up)
     level = np.cross(up, normal)
     if level[0] < 0 or (level[0] == 0 and level[1] < 0):
@@ -149,20 +151,6 @@ def angular_rate(omega: np.ndarray, tolerance: float = 1e-6) -> tuple[np.ndarray
     return omega @ axis, axis
 
 
-def exact_conditions(results: Results) -> np.ndarray:
-    """The 2-norm condition number sigma_max / sigma_min of Phi_q at each solved time point (the
-    solver's own where it computed them exactly; else from the solved configurations): smooth
-    along a smooth motion, unlike the 1-norm estimate's steps. NaN where a point is not solved."""
-    if results.condition_kind == "exact":
-        return results.conditions
-    from kinegen.runtime.linear import condition_number
-
-    out = np.full(len(results.times), np.nan)
-    for k in np.flatnonzero(results.converged):
-        out[k] = condition_number(results.system.jacobian(results.q[k], results.inputs[k]))
-    return out
-
-
 def _readable_log_ticks(ax) -> None:
     """A log axis labelled with plain numbers (300, 400, 1000, 1e+06): every integer multiple of
     a power of ten within one decade, 1-2-5 steps within two, powers of ten beyond."""
@@ -176,18 +164,58 @@ def _readable_log_ticks(ax) -> None:
     ax.yaxis.set_minor_formatter(NullFormatter())
 
 
+def couplers(model, system) -> list[tuple[tuple[str, str], tuple[str, str]]]:
+    """The distance joints of ``model`` as the two named points they hold apart (body, point) --
+    a coupler drawn as a line, though no body carries it; a joint point that is no named point of
+    its body (to 1e-12 at the nominal design) is left out."""
+    from kinegen.model.schema import GROUND, design_value
+
+    nominal = {d.name: float(d.nominal) for d in model.design}
+
+    def named(body: str, local) -> tuple[str, str] | None:
+        points = system.ground_points if body == GROUND else system.points.get(body, {})
+        where = np.array([design_value(x, nominal) for x in local])
+        return next(((body, name) for name, at in points.items() if np.abs(np.asarray(at, dtype=float) - where).max() < 1e-12), None)
+
+    out = []
+    for joint in model.joints:
+        if joint.type == "distance":
+            ends = named(joint.body1, joint.point1), named(joint.body2, joint.point2)
+            if None not in ends:
+                out.append(ends)
+    return out
+
+
+def twins(results: Results) -> dict[str, str]:
+    """Actuators whose length follows an earlier one's at every solved time point (to 1e-9 m: the
+    excavator's two boom cylinders): name -> the earlier one's. Drawn dashed over it, so both show."""
+    out: dict[str, str] = {}
+    names = list(results.system.actuators)
+    solved = results.converged
+    for i, name in enumerate(names):
+        mine = results.actuator_length(name)[solved]
+        for other in names[:i]:
+            if other not in out and np.abs(results.actuator_length(other)[solved] - mine).max(initial=0.0) < 1e-9:
+                out[name] = other
+                break
+    return out
+
+
 def plot_case(
-    results: Results, path: str | Path, frame_body: str | None = None, trace: tuple[str, str] | None = None, snapshots: int = 6
-) -> Path:
+    results: Results, path: str | Path, frame_body: str | None = None, trace: tuple[str, str] | None = None, snapshots: int = 6,
+    model=None,
+) -> Path:  # fmt: skip
     """:func:`case_figure` written to ``path`` (PNG)."""
-    return save(case_figure(results, frame_body, trace, snapshots), path)
+    return save(case_figure(results, frame_body, trace, snapshots, model), path)
 
 
-def case_figure(results: Results, frame_body: str | None = None, trace: tuple[str, str] | None = None, snapshots: int = 6):
+def case_figure(results: Results, frame_body: str | None = None, trace: tuple[str, str] | None = None, snapshots: int = 6, model=None):
     """One figure per case: the mechanism at several instants in the plane that shows it
-    (:func:`drawing_plane`) with the traced point's path; beside it the actuator lengths against
-    their ranges and their rates (or, without actuators, every body's angular speed), and the
-    Jacobian's condition number against time. Panels without data are left out."""
+    (:func:`drawing_plane`) with the traced point's path (and, given the ``model``, its distance
+    joints' couplers and, where it draws the ground, the ground line); beside it the actuator lengths
+    against their labelled ranges and their rates (twins dashed over the one they follow; without
+    actuators, every body's angular speed), and the Jacobian's condition number against time.
+    Panels without data are left out."""
     plt = pyplot()
     system = results.system
     basis, labels, plane = drawing_plane(results, frame_body)
@@ -200,6 +228,8 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
     axes = {name: fig.add_subplot(grid[i, 1], gid=name) for i, name in enumerate(panels)}
     solved = np.flatnonzero(results.converged)
     instants = solved[np.linspace(0, len(solved) - 1, min(snapshots, len(solved))).round().astype(int)]
+    following = twins(results)
+    links = couplers(model, system) if model is not None else []
     colours = plt.cm.viridis(np.linspace(0, 0.9, len(instants)))
 
     def projected(body: str, point: str) -> np.ndarray:
@@ -210,29 +240,44 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
             xy = np.array([projected(body, p)[k] for p in points])
             closed = np.vstack([xy, xy[:1]]) if len(points) > 2 else xy
             drawing.plot(closed[:, 0], closed[:, 1], "-o", color=colour, lw=1.6, ms=2.5)
-        for (b1, p1), (b2, p2), _ in system.actuators.values():
+        for name, ((b1, p1), (b2, p2), _) in system.actuators.items():
             ends = np.array([projected(b, p)[k] for b, p in ((b1, p1), (b2, p2))])
-            drawing.plot(ends[:, 0], ends[:, 1], "-", color=colour, lw=4, alpha=0.45, solid_capstyle="round")
+            if name in following:  # a twin drawn over the one it follows: dashed, narrower, so both show
+                drawing.plot(ends[:, 0], ends[:, 1], "--", color="white", lw=1.2, gid=f"twin:{name}")
+            else:
+                drawing.plot(ends[:, 0], ends[:, 1], "-", color=colour, lw=4, alpha=0.45, solid_capstyle="round", gid=f"actuator:{name}")
+        for (b1, p1), (b2, p2) in links:
+            ends = np.array([projected(b, p)[k] for b, p in ((b1, p1), (b2, p2))])
+            drawing.plot(ends[:, 0], ends[:, 1], "-", color=colour, lw=1.2, gid=f"coupler:{b1}.{p1}-{b2}.{p2}")
         drawing.annotate(f"t={results.times[k]:.2f}s", xy=(0.02, 0.97 - 0.035 * list(instants).index(k)), xycoords="axes fraction",
                          color=colour, fontsize=8, va="top")  # fmt: skip
     if trace:
         tip = projected(*trace)
         drawing.plot(tip[solved, 0], tip[solved, 1], "r-", lw=1.2, label=f"path of {trace[0]}.{trace[1]}", gid="path")
-    if labels[1] == "z [m]":
-        drawing.axhline(0, color="saddlebrown", lw=0.8)
+    if model is not None and model.ground_outline and labels[1].startswith("z"):  # the ground where the model draws one
+        drawing.axhline(0, color="saddlebrown", lw=0.8, gid="ground")
     path_note = f"; red: the path of {trace[0]}.{trace[1]}" if trace else ""  # in the title: no legend on the drawing
     drawing.set(title=f"mechanism in {plane}{path_note}", xlabel=labels[0], ylabel=labels[1], aspect="equal")
     drawing.margins(0.08)
     few = len(system.actuators) <= 12
+    colour_of: dict[str, str] = {}
+    ranges: dict[tuple[float, float], list[str]] = {}
     for name, (_, _, limits) in system.actuators.items():
-        line = axes["lengths"].plot(results.times, results.actuator_length(name), label=name)[0]
+        twin = following.get(name)
+        style = {"ls": (0, (4, 3)), "lw": 1.6, "color": "black", "label": f"{name} (= {twin})"} if twin else {"label": name}
+        line = axes["lengths"].plot(results.times, results.actuator_length(name), **style)[0]
+        colour_of[name] = line.get_color()
+        axes["rates"].plot(results.times, results.actuator_rate(name), **style)
         if limits:
-            for value in limits:
-                axes["lengths"].axhline(value, color=line.get_color(), ls=":", lw=0.8)
-        axes["rates"].plot(results.times, results.actuator_rate(name), label=name)
+            ranges.setdefault(tuple(limits), []).append(name)
+    for limits, names in ranges.items():  # each range once, labelled at its right end
+        for value, end in zip(limits, ("min", "max")):
+            axes["lengths"].axhline(value, color=colour_of[names[0]], ls=":", lw=0.8, gid=f"range:{names[0]}:{end}")
+            axes["lengths"].annotate(f"{end} {', '.join(names)}", (1.0, value), xycoords=("axes fraction", "data"), xytext=(-2, 2),
+                                     textcoords="offset points", ha="right", va="bottom", fontsize=6, color=colour_of[names[0]])  # fmt: skip
     if "lengths" in axes:
-        axes["lengths"].set(title="actuator lengths (dotted: range)", ylabel="m")
-        axes["rates"].set(title="extension rates", ylabel="m/s")
+        axes["lengths"].set(title="actuator lengths (dotted: their ranges)", ylabel="length [m]")
+        axes["rates"].set(title="extension rates", ylabel="extension rate [m/s]")
         if few:  # beside the panel: it covers no curve
             legend_beside(axes["lengths"], fontsize=7)
     if "omega" in axes:
@@ -240,14 +285,15 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
             rate, axis = angular_rate(results.omega(body))
             about = "|omega| (its axis moves)" if axis is None else "about (" + ", ".join(f"{c:.2g}" for c in axis) + ")"
             axes["omega"].plot(results.times, rate, label=f"{body}, {about}")
-        axes["omega"].set(title="angular velocity of each body (signed about a fixed axis)", ylabel="rad/s")
+        axes["omega"].set(title="angular velocity of each body (signed about a fixed axis)", ylabel="angular velocity [rad/s]")
         if len(system.bodies) <= 12:
             legend_beside(axes["omega"], fontsize=7)
     if "condition" in axes:
-        axes["condition"].semilogy(results.times, exact_conditions(results), "k-")
-        axes["condition"].set(title="condition number of Phi_q (2-norm: sigma_max / sigma_min)")
+        axes["condition"].semilogy(results.times, results.condition_numbers(), "k-")
+        axes["condition"].set(title="condition number of Phi_q (2-norm: sigma_max / sigma_min; the CSV's jacobian_condition)",
+                              ylabel="condition number")
         _readable_log_ticks(axes["condition"])
-    list(axes.values())[-1].set(xlabel="t [s]")
+    list(axes.values())[-1].set(xlabel="time t [s]")
     for ax in (drawing, *axes.values()):
         ax.grid(True, alpha=0.3)
     fig.suptitle(f"{system.model} / {system.case} [{system.parametrization.name}]")

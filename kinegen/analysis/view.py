@@ -91,11 +91,14 @@ class _Scene:
         self.ground = np.array(list(system.ground_points.values()), dtype=float).reshape(-1, 3)
         self.joints = [self._joint_point(results, j.body1, [design_value(x, system.design) for x in j.point1])
                        for j in model.joints if j.point1 is not None]  # fmt: skip
+        self.couplers = [(self._joint_point(results, j.body1, [design_value(x, system.design) for x in j.point1]),
+                          self._joint_point(results, j.body2, [design_value(x, system.design) for x in j.point2]))
+                         for j in model.joints if j.type == "distance"]  # fmt: skip
         self.actuators = {name: (refs, limits) for name, (*refs, limits) in system.actuators.items()}
         self.lengths = {name: results.actuator_length(name) for name in self.actuators}
         self.track = track
         self.path = results.point_position(*track) if track else None
-        self.conditions = results.conditions
+        self.conditions = results.condition_numbers()  # kinegen's condition number: the CSV's and the plot's
         self.warn = np.isfinite(self.conditions) & (self.conditions > condition_warning)
 
     @staticmethod
@@ -110,7 +113,8 @@ class _Scene:
         return limits is not None and not limits[0] - 1e-9 <= self.lengths[name][k] <= limits[1] + 1e-9
 
     def traces(self, k: int) -> list:
-        """The frame's moving traces, in a fixed order: bodies, joints, each actuator's barrel and rod, the tracked point."""
+        """The frame's moving traces, in a fixed order: bodies, joints, the couplers of distance joints (if any), each
+        actuator's barrel and rod, the tracked point."""
         import plotly.graph_objects as go
 
         out = []
@@ -122,6 +126,10 @@ class _Scene:
         joints = np.array([j[k] for j in self.joints]).reshape(-1, 3)
         out.append(go.Scatter3d(x=joints[:, 0], y=joints[:, 1], z=joints[:, 2], mode="markers", name="joints",
                                 marker={"symbol": "diamond", "size": 4, "color": "black"}, hoverinfo="skip"))  # fmt: skip
+        if self.couplers:  # the distance joints' couplers: lines no body carries
+            xyz = _segments([np.array([one[k], other[k]]) for one, other in self.couplers])
+            out.append(go.Scatter3d(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2], mode="lines", name="couplers (distance joints)",
+                                    line={"color": _BODY, "width": 3}, hoverinfo="skip"))  # fmt: skip
         for name, ((b1, p1), (b2, p2)), in ((n, refs) for n, (refs, _) in self.actuators.items()):
             base, eye = self.results.point_position(b1, p1)[k], self.results.point_position(b2, p2)[k]
             barrel, rod = self._cylinder(name, base, eye)

@@ -132,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
         if "excavator-digging" in workloads else None,
         "forces": (lambda: run_contender("__import__('kinegen.bench.forces', fromlist=['x']).force_cost()")) if "excavator-digging" in workloads else None,
         "C target memory": lambda: {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")},
+        "command start-up": (lambda: run_contender("__import__('kinegen.bench.startup', fromlist=['x']).startup_cost()"))
+        if "excavator-digging" in workloads else None,  # kinegen info of the excavator among them
     }
     measured: dict[str, dict | None] = {}
     with Stages("bench", len(plan) + sum(f is not None for f in sections.values()), unit="runs") as bar:
@@ -202,6 +204,10 @@ def main(argv: list[str] | None = None) -> int:
         f"and inertia (inverse dynamics) {f['compiled_dynamics']:.4f} s; kinegen.forces.forces "
         f"(also reactions and pressures, Python) {f['forces']:.3f} s; ISO 6015 tool forces (kinegen forces) {f['tool_forces']:.3f} s; "
         f"tangent force map of {f['poses']:,} poses {f['map']:.3f} s; ISO 10567 lift chart {f['lift']:.3f} s", 0))
+    startup = measured["command start-up"]
+    failures += _section(startup, "command start-up", lambda c: (
+        "command start-up (wall time, median of 7 fresh processes): " + ", ".join(f"{name} {c[name]:.3f} s" for name in
+        ("python -c pass", "kinegen --help", "kinegen models", "kinegen info (first)", "kinegen info (cached)")), 0))
     print()
     print("Targets, on this run's figures:")
     failures += _section(studies, "design studies", _study_lines)
@@ -211,6 +217,9 @@ def main(argv: list[str] | None = None) -> int:
         print("  " + _met("ISO 6015 tool forces (issue 28)", held["tool_forces"], 0.5, True, " s"))
         print("  " + _met(f"force map of {held['poses']:,} poses (issue 28)", held["map"], 1.0, True, " s"))
         print("  " + _met("ISO 10567 lift chart, both sides, every point's pose search (issue 29)", held["lift"], 1.0, True, " s"))
+    if startup and "failed" not in startup:
+        for name in ("kinegen --help", "kinegen models", "kinegen info (cached)"):
+            print("  " + _met(f"{name}, start to end (issue 39)", startup[name], 0.3, True, " s"))
     for line in targets(rows, sweep, sensitivity, exploration, certified if certified and "failed" not in certified else None):
         print("  " + line)
     return 1 if failures else 0

@@ -176,6 +176,9 @@ class StaticsDescription:
     #: per element at the nominal design: cap and rod side areas [m^2], relief (extend, retract) and
     #: holding (extend, retract) settings [Pa], the index of its actuator; a motor's NaN and -1
     hydraulics: tuple[tuple[float, float, float, float, float, float, int], ...] = ()
+    #: cylinders parallel to an element (each pushes with its force): name, the element's index, the
+    #: cylinder's index among the actuators
+    parallel: tuple[tuple[str, int, int], ...] = ()
 
 
 @dataclass
@@ -490,7 +493,14 @@ def _statics(
         tuple(c for _, c in matrix) if elements else (), matrix_plan, tuple(name for name, _ in loads),
         tuple(r for r, _ in load_pattern), tuple(c for _, c in load_pattern), tuple(load.fingerprint for load in model.loads.values()),
         tuple(inertia), *_reaction_tables(model, coords, joint_names, [name for name, _, _ in elements]),
+        _parallel_table(model, [name for name, _, _ in elements]),
     )  # fmt: skip
+
+
+def _parallel_table(model: Model, elements: list[str]) -> tuple[tuple[str, int, int], ...]:
+    """:class:`StaticsDescription`'s ``parallel``: each cylinder parallel to an element."""
+    index = [a.name for a in model.actuators]
+    return tuple((a.name, elements.index(a.parallel), index.index(a.name)) for a in model.actuators if a.parallel in elements)
 
 
 def _reaction_tables(model: Model, coords: Coordinates, joint_names: list[str], elements: list[str]) -> tuple[tuple, tuple, tuple]:

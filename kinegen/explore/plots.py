@@ -137,14 +137,15 @@ def exploration_figure(table, provenance: dict, pareto: tuple[str, str], maximiz
     nominal = provenance.get("nominal", {}).get("quantities", {})
     if x_label in nominal and y_label in nominal:
         left.plot(nominal[x_label], nominal[y_label], "*", color="black", markersize=14, label="nominal design")
-    senses = ["larger is better" if m else "smaller is better" for m in maximize]
-    left.set_xlabel(f"{x_label} [{quantity_unit(x_label)}] ({senses[0]})")
-    left.set_ylabel(f"{y_label} [{quantity_unit(y_label)}] ({senses[1]})")
+    said = provenance.get("senses", {})
+    senses = [_sense(label, said.get(label), m) for label, m in zip(pareto, maximize)]
+    left.set_xlabel(f"{x_label} [{quantity_unit(x_label)}]\n({senses[0]})")
+    left.set_ylabel(f"{y_label} [{quantity_unit(y_label)}]\n({senses[1]})")
     left.set_title(f"{provenance['model']} / {provenance['study']}: {len(ok)} variants" + (f", {failed} not ok" if failed else ""))
     legend_beside(left, fontsize=8)
     left.grid(alpha=0.3)
     if failed:
-        _failed_variants(figure.add_subplot(grid[1, 0], gid="failed"), data, parameters, ok)
+        _failed_variants(figure.add_subplot(grid[1, 0], gid="failed"), data, parameters, ok, provenance.get("units", {}))
     if result is None:
         right.text(0.5, 0.5, "too few ok variants to rank the parameters", ha="center", va="center")
         right.set_axis_off()
@@ -154,6 +155,20 @@ def exploration_figure(table, provenance: dict, pareto: tuple[str, str], maximiz
     return figure
 
 
+def _sense(label: str, study: str | None, maximize: bool) -> str:
+    """What an axis says of its quantity: "larger is better" only where the study's objective says
+    so (``study``: ``maximize``, ``minimize`` or ``target``; None: the study does not rank it), else
+    only how the front was drawn."""
+    taken = "larger" if maximize else "smaller"
+    if study == "maximize":
+        return "the study maximizes it: larger is better" + ("" if maximize else "; the front takes smaller")
+    if study == "minimize":
+        return "the study minimizes it: smaller is better" + ("" if not maximize else "; the front takes larger")
+    if study == "target":
+        return f"the study aims it at a target; the front takes {taken}"
+    return f"the study does not rank it; the front takes {taken} (--minimize to reverse)"
+
+
 def quantity_unit(label: str) -> str:
     """The unit of a study quantity's column (a working-range figure's name, or ``kind(...)``)."""
     from kinegen.model.schema import QUANTITY_UNITS, WORKING_RANGE_FIGURES
@@ -161,7 +176,7 @@ def quantity_unit(label: str) -> str:
     return "m" if label in WORKING_RANGE_FIGURES else QUANTITY_UNITS.get(label.split("(")[0], "?")
 
 
-def _failed_variants(axes, data: dict, parameters: list[str], ok: np.ndarray) -> None:
+def _failed_variants(axes, data: dict, parameters: list[str], ok: np.ndarray, parameter_units: dict[str, str]) -> None:
     """The variants that could not be measured (grey crosses) among the ok ones (blue dots), in
     the two parameters whose values tell the two groups apart best (difference of means over
     the spread)."""
@@ -175,8 +190,8 @@ def _failed_variants(axes, data: dict, parameters: list[str], ok: np.ndarray) ->
     a, b = order[0], order[min(1, len(order) - 1)]  # one parameter: against itself
     axes.scatter(values[ok, a], values[ok, b], s=5, color="tab:blue", alpha=0.35, label=f"ok ({int(ok.sum())})")
     axes.scatter(values[~ok, a], values[~ok, b], s=22, marker="x", color="0.35", label=f"not ok ({int((~ok).sum())}): no measure")
-    axes.set_xlabel(parameters[a])
-    axes.set_ylabel(parameters[b])
+    axes.set_xlabel(f"{parameters[a]} [{parameter_units.get(parameters[a], '?')}]")
+    axes.set_ylabel(f"{parameters[b]} [{parameter_units.get(parameters[b], '?')}]")
     axes.set_title("where the variants that could not be measured lie", fontsize=9)
     legend_beside(axes, fontsize=8)
     axes.grid(alpha=0.3)

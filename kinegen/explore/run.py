@@ -107,6 +107,15 @@ class Report:
         return "\n".join(lines)
 
 
+def parameter_unit(description: str) -> str:
+    """A design parameter's unit as its description states it first ("... (m; ...)", "(kg; ESTIMATED)");
+    without one, the geometry's (m for lengths, rad for angles)."""
+    import re
+
+    found = re.search(r"\((kg|rad|deg|MPa|Pa|N m|N|m)\b", description)
+    return found.group(1) if found else "m or rad"
+
+
 def provenance(exploration: Exploration, nominal: VariantEvaluator) -> dict:
     """What fixes the variants and their numbers (checked on ``--resume``), and when the run began."""
     problem = nominal.problem
@@ -119,6 +128,9 @@ def provenance(exploration: Exploration, nominal: VariantEvaluator) -> dict:
         "study": exploration.study,
         "parameters": {n: [float(lo), float(hi)] for n, (lo, hi) in zip(problem.names, problem.bounds)},
         "quantities": nominal.columns,
+        # what the study says of each quantity it ranks (its objective's terms): the plot's "larger is better" only there
+        "senses": {t.quantity.label: ("target" if t.target is not None else problem.study.sense) for t in problem.study.terms},
+        "units": {d.name: parameter_unit(d.description) for d in problem.model.design if d.name in problem.names},
         "sampler": exploration.sampler,
         "seed": exploration.seed,
         "samples": exploration.samples,

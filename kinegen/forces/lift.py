@@ -23,6 +23,7 @@ grid sweep); the others stay at the case's start. The load hangs at the lift poi
 from __future__ import annotations
 
 import functools
+import itertools
 from dataclasses import dataclass
 from typing import NamedTuple
 
@@ -98,6 +99,9 @@ class LiftChart:
 
     tipping: bool = False  #: whether the tipping loads are known (masses and a machine: section)
     without: tuple[str, ...] = ()
+    #: the lift point's range in the boom plane (radius, height) [m], (P, 2), closed: the placing
+    #: inputs' range boundary mapped by exact poses (no fold inside it); None where it has a fold
+    outline: np.ndarray | None = None
 
     def table(self) -> str:
         """The manufacturers' layout: a row per lift-point height, per radius the rated load over the
@@ -155,7 +159,7 @@ def lift_chart(system: NumericSystem, model: Model) -> LiftChart:
     grid = tuple(tuple(placer.at(r, h) for r in spec.radii) for h in spec.heights)
     reach = tuple(placer.farthest(h) for h in spec.heights)
     return LiftChart(f"{spec.point.body}.{spec.point.name}", spec.lifting, spec.heights, spec.radii, grid, reach,
-                     model.tips, spec.without)  # fmt: skip
+                     model.tips, spec.without, placer.outline())  # fmt: skip
 
 
 class _Placer:
@@ -202,6 +206,27 @@ class _Placer:
     def _point(self, values: np.ndarray) -> np.ndarray:
         q = self._pose(values)
         return self.system.point_positions(q[None], [(self.spec.point.body, self.spec.point.name)])[0, 0]
+
+    def outline(self, per_edge: int = 81) -> np.ndarray | None:
+        """The lift point's range in the boom plane (radius, height): the boundary of the placing
+        inputs' rectangle, ``per_edge`` exact poses along each edge (by continuation), when the map
+        from those inputs to the point has no fold inside (its Jacobian's determinant keeps one sign
+        over the sampled grid: the range is then the image of the boundary); else None."""
+        count = [len(np.unique(self.samples[:, d])) for d in range(2)]
+        if len(self.samples) != count[0] * count[1]:
+            return None  # a pose of the grid did not solve: no fold test
+        plane = self.points[:, [0, 2]].reshape(count[0], count[1], 2)
+        du, dv = np.diff(plane, axis=0)[:, :-1], np.diff(plane, axis=1)[:-1]
+        det = du[..., 0] * dv[..., 1] - du[..., 1] * dv[..., 0]
+        if not (np.all(det > 0) or np.all(det < 0)):
+            return None
+        (low0, low1), (high0, high1) = self.low, self.high
+        along = np.linspace(0.0, 1.0, per_edge)
+        corners = [(low0, low1), (high0, low1), (high0, high1), (low0, high1), (low0, low1)]
+        inputs = np.vstack([np.outer(1 - along[:-1], start) + np.outer(along[:-1], end) for start, end in itertools.pairwise(corners)])
+        self._start(0)  # the grid's first sample: the rectangle's corner (low, low)
+        points = np.array([self._point(x)[[0, 2]] for x in inputs])
+        return np.vstack([points, points[:1]])
 
     def _start(self, k: int) -> np.ndarray:
         self.last = (self.q[k], self._inputs(self.samples[k]))
@@ -324,42 +349,81 @@ def _levers(model: Model, statics: Statics, bodies: list, changes=None) -> list[
 
 
 def lift_chart_figure(chart: LiftChart, boundary=None):
-    """The lift chart over the working range's outline (the boom plane: radius from the swing axis,
-    height above the ground): at each grid point and at each height's largest reach, the rated load
-    over the front (above) and over the side (below) in kg, blue where the hydraulic limit rules and
-    red where tipping does; the exact boundary of the lift point's working range if given."""
+    """The lift chart as an engineer reads it: on the left, the boom plane (radius from the swing axis,
+    height above the ground) with the lift point's own range (:attr:`LiftChart.outline`; without it,
+    the working range ``boundary`` of the tool point, so named), each grid point's ratings over the
+    front (above) and over the side (below) in kg -- blue where the hydraulic limit rules, red where
+    tipping does -- and the largest reach at each height as a dashed line; on the right, the table in
+    the layout manufacturers print (heights as rows, radii as columns, front and side, the largest
+    reach with its radius), coloured the same."""
     from kinegen.analysis.plots import pyplot
 
     plt = pyplot()
-    fig, ax = plt.subplots(figsize=(9.5, 7.5))
-    if boundary is not None:
-        ax.plot(boundary.points[:, 0], boundary.points[:, 1], color="0.4", lw=1.0, label="working range of the bucket tip")
+    fig, (ax, side) = plt.subplots(1, 2, figsize=(16.5, 8.0), gridspec_kw={"width_ratios": [1.0, 1.25]})
+    if chart.outline is not None:
+        ax.plot(chart.outline[:, 0], chart.outline[:, 1], color="0.35", lw=1.2, label=f"range of the lift point {chart.point}", gid="outline")
+    elif boundary is not None:
+        ax.plot(boundary.points[:, 0], boundary.points[:, 1], color="0.4", lw=1.0, label="working range of the tool point", gid="boundary")
     colours = {"hydraulic": "tab:blue", "tipping": "tab:red"}
     reach = [p for p in chart.max_reach if p is not None and np.isfinite(p.capacity)]
-    ax.plot([p.radius for p in reach], [p.height for p in reach], "--", color="0.5", lw=0.8, label="largest reach at each height")
+    ax.plot([p.radius for p in reach], [p.height for p in reach], "--", color="0.5", lw=0.8, marker="o", ms=3,
+            label="largest reach at each height (ratings: the table)", gid="reach")  # fmt: skip
     tips = False  # whether a point shows "tips" (the note says what it means)
-    # grid points labelled on their left, the largest reaches on their right: the two never overlap
-    for points, side_of, align in (([p for row in chart.grid for p in row if p is not None], -4, "right"), (reach, 4, "left")):
-        for p in points:
-            if not np.isfinite(p.capacity):
-                continue
-            ax.plot(p.radius, p.height, "o", color="0.2", ms=3)
-            for side, offset in ((False, 3), (True, -10)):
-                _, limit = p.rated(side)
-                tips = tips or p.rated(side)[0] < 0
-                ax.annotate(rated_text(p, side), (p.radius, p.height), xytext=(side_of, offset),
-                            textcoords="offset points", fontsize=7.5, color=colours[limit], ha=align)  # fmt: skip
+    for p in (p for row in chart.grid for p in row if p is not None and np.isfinite(p.capacity)):
+        ax.plot(p.radius, p.height, "o", color="0.2", ms=3)
+        for on_side, offset in ((False, 3), (True, -10)):
+            _, limit = p.rated(on_side)
+            tips = tips or p.rated(on_side)[0] < 0
+            ax.annotate(rated_text(p, on_side), (p.radius, p.height), xytext=(-4, offset), textcoords="offset points", fontsize=7.5,
+                        color=colours[limit], ha="right")  # fmt: skip
     for limit, colour in colours.items():
         ax.plot([], [], "s", color=colour, label=f"{limit} limit")
     ax.axhline(0.0, color="saddlebrown", lw=1.0)
     ax.set(aspect="equal", xlabel="radius: horizontal distance from the swing axis [m]", ylabel="height of the lift point above the ground [m]",
            title=f"rated lift capacity at {chart.point} [kg]: over the front (upper), over the side (lower)")  # fmt: skip
-    ax.legend(loc="lower left", fontsize=8)
+    ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.09), ncol=2, fontsize=8, frameon=False)  # below the drawing: it covers nothing
+    _table_panel(side, chart, colours)
     fig.suptitle("ISO 10567: the smaller of 87 % of the hydraulic lift capacity and 75 % of the tipping load"
                  + (f"; without {', '.join(chart.without)}" if chart.without else ""), fontsize=10)  # fmt: skip
-    if tips:
-        fig.text(0.5, 0.01, TIPS, ha="center", fontsize=8)
+    notes = [UNREACHED, *([TIPS] if tips else [])]
+    fig.text(0.5, 0.01, "   ".join(notes), ha="center", fontsize=8)
+    fig.tight_layout(rect=(0, 0.03, 1, 0.96))
     return fig
+
+
+def _table_panel(side, chart: LiftChart, colours: dict[str, str]) -> None:
+    """The manufacturers' table on ``side``: a row per height, per radius the front and side
+    ratings, the largest reach's ratings and radius; each rating coloured by its limit."""
+    side.axis("off")
+    header = ["height", *(f"{r:g} m {which}" for r in chart.radii for which in ("front", "side")), "max reach front", "max reach side",
+              "at radius"]  # fmt: skip
+    cells, colour_rows = [], []
+    for h, row, far in zip(chart.heights, chart.grid, chart.max_reach):
+        texts, tints = [f"{h:g} m"], ["black"]
+        for p in (*row, far):
+            for on_side in (False, True):
+                if p is None or not np.isfinite(p.capacity):
+                    texts.append("-")
+                    tints.append("0.4")
+                else:
+                    texts.append(rated_text(p, on_side))
+                    tints.append(colours[p.rated(on_side)[1]])
+        texts.append("-" if far is None or not np.isfinite(far.capacity) else f"{far.radius:.2f} m")
+        tints.append("black")
+        cells.append(texts)
+        colour_rows.append(tints)
+    table = side.table(cellText=cells, colLabels=header, loc="center", cellLoc="right")
+    table.auto_set_font_size(False)
+    table.set_fontsize(7.5)
+    table.scale(1.0, 1.5)
+    for (r, c), cell in table.get_celld().items():
+        if r == 0:
+            cell.set_text_props(fontweight="bold", fontsize=6.5, wrap=True)
+        else:
+            cell.get_text().set_color(colour_rows[r - 1][c])
+        cell.set_gid(f"cell:{r}:{c}")
+    side.set_title(f"rated lift capacity at {chart.point} [kg] ({chart.lifting} lifting at its relief setting, the others holding)",
+                   fontsize=9)  # fmt: skip
 
 
 def plot_lift_chart(chart: LiftChart, path, boundary=None):

@@ -239,7 +239,16 @@ class _TangentChanges:
         return jacobian, self.dv[body] + d_cross.transpose(0, 3, 1, 2)
 
     def actuator_row(self, actuator) -> dict[str, np.ndarray]:
-        """Per body, the change of the row dL/dv = e.(J_P1 - J_P2) along S: (K, n_vb, P)."""
+        """Per body, the change of the element's row along S: (K, n_vb, P) -- the sum of its cylinders'
+        (the actuator and those parallel to it, :meth:`kinegen.model.schema.Model.members`)."""
+        out: dict[str, np.ndarray] = {}
+        for member in self.statics.model.members(actuator.name):
+            for body, change in self._length_row(member).items():
+                out[body] = out.get(body, 0.0) + change
+        return out
+
+    def _length_row(self, actuator) -> dict[str, np.ndarray]:
+        """Per body, the change of one cylinder's row dL/dv = e.(J_P1 - J_P2) along S: (K, n_vb, P)."""
         ends = [(ref.body, ref.name) for ref in actuator.points]
         (r1, d1, _, _), (r2, d2, _, _) = (self.point(b, p) for b, p in ends)
         gap, d_gap = r1 - r2, d1 - d2

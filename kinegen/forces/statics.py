@@ -17,11 +17,15 @@ Conventions (SI: N, N m, Pa; global axes unless a field says otherwise):
   relative to the first), a driver's generalized force along its input (N for lengths and
   coordinates, N m for angles).
 * **Power.** For any motion the joints allow, Σ f_e ė_e + Σ_loads (F·v_P + M·ω) = 0: the
-  elements do the work the loads take.
+  elements do the work the loads take (ė_e of parallel cylinders: the sum of their rates).
 * **Reactions.** The force and moment the joint's first body exerts on its second, the moment
   about the joint's point on the second body; also in the joint's axes (x: its reference
   direction, z: its axis, both turning with the first body; a joint without an axis: the first
   body's axes).
+* **Parallel cylinders.** An actuator declared ``parallel`` to a hydraulic one sits on the same
+  circuit with the same data: at one pressure both push with the same force, each at its own pins.
+  The two are one element whose row is the sum of their length rows (the element's force f does
+  the work f (L̇1 + L̇2)); its force is each cylinder's, and the pins of both carry their share.
 * **Pressures.** A pushing cylinder is pressurized on its cap side (all ``cylinders`` of the
   actuator together, area n π/4 bore²), a pulling one on its rod side (n π/4 (bore² − rod²)).
   The pressure is limited by the circuit's relief setting while the cylinder moves with its
@@ -152,13 +156,17 @@ class Forces:
     energies: Any = None
     #: with ``inertia`` and a ``machine:`` section: the tipping margin (:class:`kinegen.forces.dynamics.TippingMargin`)
     tipping: Any = None
+    #: cylinders parallel to an element (name -> the element's name): each pushes with its element's force
+    parallel: dict[str, str] = field(default_factory=dict)
+    #: whether the bodies' own weight is held (statics with ``weight``, or with ``inertia``)
+    weight: bool = False
 
     def element_force(self, name: str) -> np.ndarray:
-        """The force of one element over time, (K,)."""
+        """The force of one element, or of a cylinder parallel to one (the same), over time, (K,)."""
         names = [e.name for e in self.elements]
-        if name not in names:
-            raise KeyError(f"no actuation element {name!r} (elements: {', '.join(names)})")
-        return self.force[:, names.index(name)]
+        if name not in names and name not in self.parallel:
+            raise KeyError(f"no actuation element {name!r} (elements: {', '.join([*names, *self.parallel])})")
+        return self.force[:, names.index(self.parallel.get(name, name))]
 
     def violations(self) -> list[tuple[float, str, float, float, str]]:
         """(time, actuator, pressure, limit, what) where a pressure is beyond its relief or holding setting."""
@@ -176,6 +184,9 @@ class Forces:
         for k, element in enumerate(self.elements):
             names.append(f"{element.name}.force")
             columns.append(self.force[:, k : k + 1])
+        for name, element in self.parallel.items():  # each physical cylinder's own force
+            names.append(f"{name}.force")
+            columns.append(self.element_force(element)[:, None])
         for name, p in self.pressures.items():
             names += [f"{name}.pressure", f"{name}.pressure_limit"]
             columns.append(np.c_[np.where(p.cap_side, p.pressure, -p.pressure), p.limit])
@@ -212,21 +223,28 @@ def unit_rate_velocities(system, q: np.ndarray, inputs: np.ndarray, driver: str)
     return configuration_sensitivities(system, q.T, inputs.T, design=False)[1][:, :, system.driver_names.index(driver)]
 
 
-def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], inertia: bool = False) -> Forces:
+def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], inertia: bool = False, weight: bool = False) -> Forces:
     """The forces that hold the model's named ``loads`` at every solved time point of ``results``
-    (a motion of ``model``; its time points must all have converged); with ``inertia``, also the
-    bodies' weight and inertia along the motion (inverse dynamics, :mod:`kinegen.forces.dynamics`)."""
+    (a motion of ``model``; its time points must all have converged); with ``weight``, also the
+    bodies' own weight (statics: the masses at rest in every pose); with ``inertia``, their weight
+    and inertia along the motion (inverse dynamics, :mod:`kinegen.forces.dynamics`; the weight
+    included). ``weight`` and ``inertia`` need a model with masses."""
     unknown = [name for name in loads if name not in model.loads]
     if unknown:
         raise KeyError(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})")
     if not results.complete:
         raise KinegenError("forces need every time point solved; this solve stopped early")
+    if (weight or inertia) and not model.massive:
+        raise KinegenError(f"{model.name} declares no masses: no weight or inertia to hold (a body's mass:, center_of_mass:, inertia:)")
+    weight = weight and not inertia
     statics = Statics(results, model)
     q_load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), statics.n_v)))
     if inertia:
         q_load = q_load + inertial_load(results)
+    elif weight:
+        q_load = q_load + statics.weight_load(model.massive)
     matrix = statics.matrix()
-    multipliers = statics.compiled_multipliers([model.loads[name] for name in loads], inertia)
+    multipliers = statics.compiled_multipliers([model.loads[name] for name in loads], inertia, weight)
     if multipliers is None:
         multipliers = statics.solve(matrix, q_load)
     elements = statics.elements
@@ -241,8 +259,9 @@ def forces(results: Results, model: Model, loads: tuple[str, ...] | list[str], i
     if inertia:
         energy = energies(results, model)
         tipping = tipping_margin(results, model, tuple(loads)) if model.tips else None
+    parallel = {a.name: a.parallel for a in model.actuators if a.parallel is not None and statics.declared}
     return Forces(results, tuple(loads), elements, force, multipliers, statics.row_names, reactions, pressures, q_load, inertia, energy,
-                  tipping)  # fmt: skip
+                  tipping, parallel, weight or inertia)  # fmt: skip
 
 
 def check_load_functions(model: Model, load: Load, times: np.ndarray) -> None:
@@ -461,16 +480,18 @@ class Statics:
         values = np.asarray(system.jac(q, np.ascontiguousarray(results.inputs.T)), dtype=float).reshape(-1, len(q[0])).T.copy()
         return Rows(np.asarray(system.jac_rows), np.asarray(system.jac_cols), values, shape)
 
-    def compiled_multipliers(self, loads: list[Load], inertia: bool = False) -> np.ndarray | None:
-        """λ holding ``loads`` (with ``inertia``, also the bodies' weight and inertia) at every time
-        point by the compiled force solve (``kinegen_forces``), or None: no compiled case, a load the
-        module was not built with, or a singular time point (then :meth:`solve` decides, and names it)."""
+    def compiled_multipliers(self, loads: list[Load], inertia: bool = False, weight: bool = False) -> np.ndarray | None:
+        """λ holding ``loads`` (with ``inertia``, also the bodies' weight and inertia; with ``weight``,
+        their weight at rest) at every time point by the compiled force solve (``kinegen_forces``), or
+        None: no compiled case, a load the module was not built with, or a singular time point (then
+        :meth:`solve` decides, and names it)."""
         native, kernels = self.system.native, self.system.statics
         if native is None or kernels is None or not all(kernels.serves(load) for load in loads):
             return None
         weights = np.array([sum(load.name == name for load in loads) for name in kernels.load_names], dtype=float)
         results = self.results
-        motion = (results.v, results.a) if inertia else None
+        # the inertia kernel at zero velocity and acceleration is gravity alone: the weight
+        motion = (results.v, results.a) if inertia else (np.zeros_like(results.v), np.zeros_like(results.a)) if weight else None
         multipliers, _ = native.forces(results.times, results.q, results.inputs, weights, motion)
         return multipliers if np.isfinite(multipliers).all() else None
 
@@ -593,8 +614,8 @@ class Statics:
         cap, annulus = hydraulics.areas(design)
         pushing = force >= 0
         pressure = np.where(pushing, force / cap, -force / annulus)
-        rate = self.results.actuator_rate(actuator.name)
-        working = force * rate > 0
+        rate = sum(self.results.actuator_rate(member.name) for member in self.model.members(actuator.name))
+        working = force * rate > 0  # the pump does work on the element's cylinders
         relief = [design_value(x, design) for x in hydraulics.relief]
         holding = [design_value(x, design) for x in hydraulics.holding]
         limit = np.where(working, np.where(pushing, relief[0], relief[1]), np.where(pushing, holding[0], holding[1]))

@@ -72,6 +72,9 @@ def read_hydraulics(loader: Loader, value: Any, entry: str) -> Hydraulics:
     rod = loader.scalar(spec["rod"], f"{entry}.rod", design=True)
     if not 0 < loader.value(rod) < loader.value(bore):
         raise loader.fail(f"{entry}.rod", f"expected 0 < rod < bore (diameters in m), got rod {shown(spec['rod'])}, bore {shown(spec['bore'])}")
+    for key, value in (("bore", bore), ("rod", rod)):
+        loader.plausible(value, f"{entry}.{key}", "m", (0.01, 1.0), f"a hydraulic cylinder's {key} diameter",
+                         f"diameters are in m: {loader.value(value):g} mm is {loader.value(value) / 1e3:g}")  # fmt: skip
     relief = _pressures(loader, spec["relief"], f"{entry}.relief")
     holding = _pressures(loader, spec["holding"], f"{entry}.holding") if "holding" in spec else relief
     cylinders = spec.get("cylinders", 1)
@@ -93,6 +96,7 @@ def _pressures(loader: Loader, value: Any, entry: str) -> tuple[sp.Expr, sp.Expr
             raise loader.fail(entry, f"the {side} pressure must be positive (Pa), got {loader.value(pressure):g}")
         if loader.value(pressure) < 1e5:
             raise loader.fail(entry, f"{loader.value(pressure):g} Pa is below 1 bar: pressures are in Pa (34.3 MPa is 34.3e6)")
+        loader.plausible(pressure, entry, "Pa", (1e6, 1e8), "a hydraulic circuit's setting (10 .. 1,000 bar)", "pressures are in Pa (34.3 MPa is 34.3e6)")
     return pair
 
 
@@ -161,6 +165,8 @@ def check_actuation(loader: Loader, motors: tuple[Motor, ...], actuators: tuple[
     if not carrying or loader.redundant:
         return
     mobility = 6 * len(loader.bodies) - sum(JOINT_KINDS[j.type].equations for j in loader.joints.values())
+    if len(carrying) > mobility:
+        raise loader.over_constrained("motors" if motors else "actuators", len(carrying), "motors and hydraulic actuators")
     if len(carrying) != mobility:
         raise loader.fail(
             "motors" if motors else "actuators",

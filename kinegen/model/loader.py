@@ -19,8 +19,8 @@ import sympy as sp
 import yaml
 
 import kinegen.model.expressions as expressions
-from kinegen.errors import ExpressionError, KinegenError, ModelError, shown
-from kinegen.files import STDIN, read_bounded
+from kinegen.errors import ExpressionError, KinegenError, ModelError, OverConstrainedError, shown
+from kinegen.files import MAX_MODEL_BYTES, STDIN, read_bounded
 from kinegen.model.expressions import compact
 from kinegen.model.forces import (
     check_actuation,
@@ -60,7 +60,7 @@ JOINT_EQUATIONS = {name: kind.equations for name, kind in JOINT_KINDS.items()}
 JOINT_TYPES = tuple(JOINT_KINDS)
 DRIVER_TYPES = tuple(DRIVER_KINDS)
 ORTHONORMAL_TOLERANCE = 1e-9
-MAX_FILE_BYTES = 5_000_000
+MAX_FILE_BYTES = MAX_MODEL_BYTES
 #: Nodes that anchors and aliases may add to a document when expanded (each use of an
 #: alias counts its whole subtree): enough to share pieces, far too few for a "billion laughs".
 MAX_ALIAS_NODES = 10_000
@@ -245,6 +245,19 @@ class _Reader:
     # ---- helpers ---------------------------------------------------------------------
     def fail(self, entry: str, problem: str) -> ModelError:
         return ModelError(self.file, entry, problem, self.line(entry))
+
+    def plausible(self, value: sp.Expr, entry: str, unit: str, usual: tuple[float, float], what: str, hint: str = "") -> None:
+        """A :class:`ModelWarning` naming file, line and entry when ``value`` (at the nominal design)
+        lies outside the ``usual`` range for ``what``, in its ``unit``: a number typed in another
+        unit (a bore of 100 m: millimetres typed as metres) is accepted but said, with ``hint``."""
+        number = self.value(value)
+        low, high = usual
+        if low <= number <= high:
+            return
+        line = self.line(entry)
+        where = self.file if line is None else f"{self.file}:{line}"
+        warnings.warn(f"{where}: {entry}: {number:g} {unit} is outside the usual {low:g} .. {high:g} {unit} for {what}"
+                      f"{' -- ' + hint if hint else ''}", ModelWarning, stacklevel=2)  # fmt: skip
 
     def line(self, entry: str) -> int | None:
         """Line of ``entry`` in the file, or of the nearest entry that contains it."""
@@ -703,7 +716,7 @@ class _Reader:
         for key, spec in self.mapping(value, "actuators", tuple(_keys(value))).items():
             entry = f"actuators.{key}"
             self.name(key, entry)
-            spec = self.mapping(spec, entry, ("points", "range", "hydraulics"), ("points",))
+            spec = self.mapping(spec, entry, ("points", "range", "hydraulics", "parallel"), ("points",))
             refs = spec["points"]
             if not isinstance(refs, (list, tuple)) or len(refs) != 2:
                 raise self.fail(f"{entry}.points", "expected two points 'body.point'")
@@ -717,8 +730,21 @@ class _Reader:
                 low, high = (self.value(x) for x in limits)
                 if not 0 <= low < high:
                     raise self.fail(f"{entry}.range", f"expected 0 <= min < max, got [{low}, {high}]")
+            if limits is not None:
+                for i, bound in enumerate(limits):
+                    if self.value(bound) > 0:
+                        self.plausible(bound, f"{entry}.range[{i}]", "m", (0.01, 100.0), "an actuator's length", "lengths are in m")
             hydraulics = read_hydraulics(self, spec["hydraulics"], f"{entry}.hydraulics") if "hydraulics" in spec else None
-            result.append(Actuator(key, (p1, p2), limits, hydraulics))
+            parallel = spec.get("parallel")
+            if parallel is not None:
+                lead = next((a for a in result if a.name == parallel), None)
+                if "hydraulics" in spec:
+                    raise self.fail(f"{entry}.hydraulics", f"a cylinder parallel to {shown(parallel)} has its data: leave hydraulics out")
+                if lead is None or lead.hydraulics is None or lead.parallel is not None:
+                    named = [a.name for a in result if a.hydraulics is not None]
+                    raise self.fail(f"{entry}.parallel", f"{shown(parallel)} is not an actuator with hydraulic data declared above this one "
+                                    f"({', '.join(named) or 'none'})")  # fmt: skip
+            result.append(Actuator(key, (p1, p2), limits, hydraulics, parallel))
         return tuple(result)
 
     def working_range(self, value: Any, cases: dict) -> WorkingRange:
@@ -833,19 +859,34 @@ class _Reader:
         return Driver(name, kind, function, body=body, axis=axis, reference=reference, body_reference=reference, **source)
 
     def check_mobility(self, entry: str, drivers: list[Driver]) -> None:
-        """Coordinates (6 per body) must equal joint equations + drivers (no redundancy allowed)."""
+        """Coordinates (6 per body) must equal joint equations + drivers (no redundancy allowed); an
+        over-constrained model is told which joints' equations repeat each other (:meth:`over_constrained`)."""
         coordinates = 6 * len(self.bodies)
         equations = sum(JOINT_EQUATIONS[j.type] for j in self.joints.values())
         mobility = coordinates - equations
         if self.redundant and mobility <= len(drivers):
             return  # declared redundant: more equations than coordinates is intended
+        where = f"{entry}.drivers" if entry != "drivers" else entry
+        if mobility < len(drivers):
+            raise self.over_constrained(where, len(drivers), "driver(s)")
         if mobility != len(drivers):
-            raise self.fail(
-                f"{entry}.drivers" if entry != "drivers" else entry,
-                f"degree-of-freedom count does not match: {coordinates} coordinates (6 per body), "
-                f"{equations} joint equations, so mobility {mobility}, but {len(drivers)} driver(s)"
-                + ("" if mobility > len(drivers) else "; if the constraints are redundant on purpose, declare `redundant: true`"),
-            )
+            raise self.fail(where, f"degree-of-freedom count does not match: {coordinates} coordinates (6 per body), "
+                            f"{equations} joint equations, so mobility {mobility}, but {len(drivers)} driver(s): add a driver "
+                            "for each free motion")  # fmt: skip
+
+    def over_constrained(self, entry: str, count: int, what: str) -> OverConstrainedError:
+        """The error of a model whose joints leave fewer degrees of freedom than its ``count``
+        drivers or actuation elements (``what``) by count; it carries a stand-in model of the bodies
+        and joints read so far, for :func:`kinegen.symbolic.rank.explain` to name the joints whose
+        equations repeat each other."""
+        coordinates = 6 * len(self.bodies)
+        equations = sum(JOINT_EQUATIONS[j.type] for j in self.joints.values())
+        stand_in = Model(name="rank", file=self.file, source_sha256=self.sha256, description="", parameters=dict(self.parameters),
+                         bodies=tuple(self.bodies.values()), joints=tuple(self.joints.values()), cases={},
+                         ground_points=dict(self.ground_points), design=tuple(self.design.values()))  # fmt: skip
+        problem = (f"over-constrained: {equations} joint equations on {coordinates} coordinates (6 per body) leave mobility "
+                   f"{coordinates - equations} for {count} {what}")  # fmt: skip
+        return OverConstrainedError(self.file, entry, problem, self.line(entry), stand_in, count, what)
 
     def cases(self, value: Any, common: list[Driver]) -> dict:
         if value is None:

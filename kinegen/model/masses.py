@@ -29,6 +29,7 @@ def read_inertia(loader: Any, spec: dict, entry: str, pose: Body, points: dict[s
     if "mass" not in spec:
         raise loader.fail(entry, f"{', '.join(given)} without 'mass': give the body's mass [kg]")
     mass = _positive(loader, spec["mass"], f"{entry}.mass", "kg: a mass")
+    loader.plausible(mass, f"{entry}.mass", "kg", (1e-3, 1e6), "a machine part's mass", "masses are in kg")
     center_spec = spec.get("center_of_mass", [0, 0, 0])
     if isinstance(center_spec, str):
         if center_spec not in points:
@@ -87,6 +88,7 @@ def read_machine(loader: Any, value: Any) -> Machine | None:
     spec = loader.mapping(value, "machine", ("undercarriage", "tracks"), ("undercarriage", "tracks"))
     under = loader.mapping(spec["undercarriage"], "machine.undercarriage", ("mass", "center_of_mass"), ("mass", "center_of_mass"))
     mass = _positive(loader, under["mass"], "machine.undercarriage.mass", "kg: a mass")
+    loader.plausible(mass, "machine.undercarriage.mass", "kg", (1.0, 1e6), "an undercarriage's mass", "masses are in kg")
     center = loader.vector(under["center_of_mass"], "machine.undercarriage.center_of_mass")
     tracks = loader.mapping(spec["tracks"], "machine.tracks", ("length", "gauge", "shoe_width"), ("length", "gauge", "shoe_width"))
     sizes = {key: _positive(loader, tracks[key], f"machine.tracks.{key}", "m: a length") for key in ("length", "gauge", "shoe_width")}

@@ -168,12 +168,16 @@ class Actuator:
     ``range`` is its allowed (min, max) length, exact (it may use design parameters: a
     cylinder's retracted length); leaving it is reported, not an error. With ``hydraulics`` it
     carries load: its force (pushing positive) is one of the model's actuation forces.
+    ``parallel`` names the hydraulic actuator this one works beside (a twin cylinder on the same
+    circuit, e.g. an excavator's two boom cylinders): it has that actuator's data and pressure, so
+    it pushes with the same force, at its own pins; the two make one actuation element.
     """
 
     name: str
     points: tuple[PointRef, PointRef]
     range: tuple[sp.Expr, sp.Expr] | None = None
     hydraulics: Hydraulics | None = None
+    parallel: str | None = None
 
     def limits(self, design: Mapping[str, float] | None = None) -> tuple[float, float] | None:
         """``range`` as numbers at the design values ``design`` (see :func:`design_value`)."""
@@ -520,6 +524,18 @@ class Model:
         """What carries the machine's load: the motors, then the actuators with hydraulic data
         (empty: the model declares none, and each case's drivers carry it)."""
         return (*self.motors, *(a for a in self.actuators if a.hydraulics is not None))
+
+    def members(self, name: str) -> tuple[Actuator, ...]:
+        """The physical cylinders of the actuation element ``name``: the actuator itself, then those
+        declared ``parallel`` to it (empty for a motor or an unknown name)."""
+        return tuple(a for a in self.actuators if a.name == name or a.parallel == name)
+
+    def lead(self, name: str) -> str:
+        """The actuation element an actuator's force belongs to: the one it is ``parallel`` to, else itself."""
+        for a in self.actuators:
+            if a.name == name and a.parallel is not None:
+                return a.parallel
+        return name
 
     def at(self, values: Mapping[str, float] | None = None) -> Model:
         """This model with its design parameters replaced by numbers: ``values`` (by name; a

@@ -1,17 +1,38 @@
 """Orientation parametrizations, one module each, registered here: :data:`REGISTRY` is the one
 list (the CLI's choices and help, ``kinegen info`` and ``kinegen compare`` read it);
-:func:`get` picks one by name."""
+:func:`get` picks one by name.
+
+The registry names the modules without importing them (they import SymPy, which a command's
+start-up should not pay for): a parametrization's module is imported when one is made."""
 
 from __future__ import annotations
 
+import importlib
 from collections.abc import Callable
 from dataclasses import dataclass
+from typing import TYPE_CHECKING, Any
 
-from kinegen.rotations.base import Parametrization
-from kinegen.rotations.dual_quaternion import DualEulerParameters, DualQuaternion
-from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
-from kinegen.rotations.euler_parameters import EulerParameters
-from kinegen.rotations.quaternion import Quaternion
+if TYPE_CHECKING:
+    from kinegen.rotations.base import Parametrization
+
+#: the twelve intrinsic Euler-angle sequences (Tait-Bryan and proper)
+SEQUENCES = tuple(a + b + c for a in "xyz" for b in "xyz" for c in "xyz" if a != b and b != c)
+
+
+def _class(module: str, name: str) -> Callable[..., Parametrization]:
+    """The parametrization class ``name`` of ``kinegen.rotations.<module>``, imported when called."""
+
+    def make(*args: Any) -> Parametrization:
+        return getattr(importlib.import_module(f"kinegen.rotations.{module}"), name)(*args)
+
+    return make
+
+
+Quaternion = _class("quaternion", "Quaternion")
+EulerParameters = _class("euler_parameters", "EulerParameters")
+DualQuaternion = _class("dual_quaternion", "DualQuaternion")
+DualEulerParameters = _class("dual_quaternion", "DualEulerParameters")
+EulerAngles = _class("euler_angles", "EulerAngles")
 
 
 @dataclass(frozen=True)
@@ -60,4 +81,15 @@ def get(name: str) -> Parametrization:
     raise ValueError(f"unknown parametrization {name!r}; use {', '.join(families[:-1])} or {families[-1]}")
 
 
-__all__ = ["NAMES", "REFERENCE", "REGISTRY", "SHOWN", "Parametrization", "get"]
+
+
+def __getattr__(name: str) -> Any:
+    """``Parametrization`` (the base class), imported when first asked for."""
+    if name == "Parametrization":
+        from kinegen.rotations.base import Parametrization
+
+        return Parametrization
+    raise AttributeError(f"module {__name__!r} has no attribute {name!r}")
+
+
+__all__ = ["NAMES", "REFERENCE", "REGISTRY", "SEQUENCES", "SHOWN", "Parametrization", "get"]

@@ -13,9 +13,9 @@ import warnings
 import numpy as np
 import sympy as sp
 
+from kinegen.rotations import SEQUENCES
 from kinegen.rotations.base import Parametrization
 
-SEQUENCES = tuple(a + b + c for a in "xyz" for b in "xyz" for c in "xyz" if a != b and b != c)
 _AXIS = {"x": 0, "y": 1, "z": 2}
 
 

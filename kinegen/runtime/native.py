@@ -38,6 +38,7 @@ import numpy as np
 
 from kinegen.codegen.backends.c.config import RUNTIME, source_parts
 from kinegen.errors import ExitCode, KinegenError
+from kinegen.files import cache_folder
 from kinegen.integrity import remember, trusted
 from kinegen.runtime.abi import Abi
 
@@ -98,10 +99,6 @@ def _compiler_identity(compiler: str) -> str:
         lines = Path("/proc/cpuinfo").read_text(errors="replace").splitlines()
         cpu = "\n".join(sorted({line for line in lines if line.startswith(("model name", "flags", "Features", "CPU part"))}))
     return f"{compiler}\n{done.stdout}\n{platform.machine()}\n{cpu}"
-
-
-def cache_folder() -> Path:
-    return Path(os.environ.get("KINEGEN_CACHE", Path.home() / ".cache" / "kinegen"))
 
 
 def build_library(sources: dict[str, str]) -> Path:

@@ -33,7 +33,7 @@ class Results:
     a: np.ndarray  #: their time derivatives, (K, nv)
     iterations: np.ndarray  #: Newton iterations per time point
     residuals: np.ndarray  #: max |Phi| at convergence per time point
-    conditions: np.ndarray  #: 1-norm condition estimate of Phi_q per time point
+    conditions: np.ndarray  #: the solver's condition number of Phi_q per time point (``condition_kind``)
     inputs: np.ndarray  #: driver inputs u per time point, (K, n_inputs)
     condition_kind: str = "estimate"  #: "estimate" (1-norm), "exact" (2-norm) or "none"
     #: per time point: True where Newton reached the tolerance (False only for the last
@@ -205,6 +205,26 @@ class Results:
 
         return self._computed("frames", frame_sensitivities)
 
+    def condition_numbers(self) -> np.ndarray:
+        """kinegen's condition number of Phi_q at each time point -- one definition everywhere (the
+        CSV's ``jacobian_condition``, the case plot, ``kinegen compare``): the 2-norm condition number
+        sigma_max / sigma_min, exact (the solve's own where it computed them so, else from the solved
+        configurations, one SVD per point); NaN where a point is not solved, inf where Phi_q is singular."""
+
+        def compute(results: Results) -> np.ndarray:
+            if results.condition_kind == "exact":
+                return results.conditions
+            out = np.full(len(results.times), np.nan)
+            solved = np.flatnonzero(results.converged)
+            if len(solved):
+                matrices = np.stack([results.system.jacobian(results.q[k], results.inputs[k]) for k in solved])
+                s = np.linalg.svd(matrices, compute_uv=False)
+                with np.errstate(divide="ignore"):
+                    out[solved] = np.where(s[:, -1] > 0, s[:, 0] / s[:, -1], np.inf)
+            return out
+
+        return self._computed("condition_numbers", compute)
+
     def _computed(self, name: str, compute):
         """``compute(self)``, computed once per results (the sensitivities of one solve)."""
         cache = self.__dict__.setdefault("_sensitivity_cache", {})
@@ -259,7 +279,7 @@ class Results:
         """Column names and values of the CSV export."""
         columns = [
             self.times[:, None], self.converged[:, None].astype(float), self.iterations[:, None], self.residuals[:, None],
-            self.conditions[:, None], self.inputs,
+            self.condition_numbers()[:, None], self.inputs,
         ]  # fmt: skip
         names = [
             "t", "converged", "newton_iterations", "max_abs_phi", "jacobian_condition",

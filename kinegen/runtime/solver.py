@@ -29,6 +29,7 @@ from kinegen.errors import (
     KinegenError,
     PrecisionError,
     SingularJacobianError,
+    UnassembledError,
     UnreachableError,
 )
 from kinegen.progress import counter
@@ -219,7 +220,7 @@ class Solver:
         for k in range(rank, jacobian.shape[0]):
             dependent += [names[i] for i in np.flatnonzero(np.abs(u[:, k]) > 1e-6) if names[i] not in dependent]
         null = [describe_combination(vt[k], self.system.velocity_names) for k in range(rank, jacobian.shape[1])]
-        raise SingularJacobianError(t, rank, jacobian.shape, dependent, null, f"sigma_min/sigma_max = {s[-1] / s[0]:.2e}")
+        raise SingularJacobianError(t, rank, jacobian.shape, dependent, null, f"sigma_min/sigma_max = {abs(s[-1] / s[0]):.2e}")
 
     def residual(self, q: np.ndarray, u: np.ndarray) -> tuple[np.ndarray, float]:
         """Phi(q, u) and its max norm."""
@@ -288,13 +289,59 @@ class Solver:
                 raise first from None  # a singular Phi_q is the finding, not an unreachable target
             raise
 
-    def _least_squares(self, q: np.ndarray, u: np.ndarray, t: float, max_iterations: int = 100) -> Solution:
-        """Levenberg-Marquardt on sum(w_i Phi_i^2), joint rows weighted 1e4 over driver rows:
-        the solution if one exists nearby; otherwise the assembled configuration closest to
-        the drivers' targets, reported by UnreachableError (the target is outside the workspace)."""
-        m = len(self.system.constraint_names)
-        weights = np.ones(m)
-        weights[: m - self.system.n_inputs] = 1e4
+    def _unassembled(self, error: BranchError | ConvergenceError, q: np.ndarray, times: np.ndarray, u_all: np.ndarray, i: int) -> UnassembledError | None:
+        """The failed step to ``times[i]`` (from the solved pose ``q``) in the mechanism's words, when
+        the linkage cannot assemble there: an :class:`UnassembledError` naming the joints that stay
+        open and by how much (and the widest gap on up to 12 later time points); None when a pose
+        closes every joint (the failure is the solver's to explain)."""
+        drivers = self.system.driver_names
+        closest, gaps = self.closest_assembly(q, u_all[:, i])
+        if not gaps:
+            return None
+        widest = None
+        later = np.unique(np.linspace(i + 1, len(times) - 1, min(12, len(times) - 1 - i)).round().astype(int)) if i + 1 < len(times) else []
+        for j in later:
+            closest, found = self.closest_assembly(closest, u_all[:, j])
+            total = sum(g for _, g in found)
+            if found and (widest is None or total > widest[1]):
+                widest = (float(times[j]), total)
+        inputs = ", ".join(f"{name} = {value:.6g}" for name, value in zip(drivers, u_all[:, i]))
+        stop = error.t0 if isinstance(error, BranchError) else float(times[i - 1])  # where the solved rows end
+        return UnassembledError(float(stop), float(times[i]), inputs, gaps, widest, error)
+
+    def closest_assembly(self, q: np.ndarray, u: np.ndarray, max_iterations: int = 100) -> tuple[np.ndarray, list[tuple[str, float]]]:
+        """The pose nearest to closing every joint with the drivers (and the normalization rows) held
+        at ``u``: Levenberg-Marquardt on sum(w_i Phi_i^2), the drivers' and normalization rows weighted
+        1e4 over the joints', from ``q``. Returns it and the joints it leaves open beyond 1e3 times the
+        tolerance, widest first: (joint, its points' distance in m, or its largest residual for a joint
+        without point rows)."""
+        from kinegen.interface import row_owner
+
+        names = self.system.constraint_names
+        n_joint_rows = len(names) - self.system.n_inputs
+        held = np.array([i >= n_joint_rows or row_owner(name)[1] for i, name in enumerate(names)])
+        weights = np.where(held, 1e4, 1.0)
+
+        q, phi, _, _ = self._weighted_least_squares(q, u, weights, max_iterations)
+        if not np.all(np.isfinite(phi)) or np.abs(phi[held]).max(initial=0.0) > 1e3 * self.options.tolerance:
+            return q, []  # the drivers themselves cannot be held: not a question of the joints
+        by_joint: dict[str, dict[str, float]] = {}
+        for k in range(n_joint_rows):
+            joint, normalization = row_owner(names[k])
+            if not normalization:
+                by_joint.setdefault(joint, {})[names[k].rsplit(".", 1)[-1]] = float(phi[k])
+        gaps = []
+        for joint, rows in by_joint.items():
+            point = [rows[c] for c in "xyz" if c in rows]
+            gap = float(np.linalg.norm(point)) if point else max(abs(x) for x in rows.values())
+            if gap > 1e3 * self.options.tolerance:
+                gaps.append((joint, gap))
+        return q, sorted(gaps, key=lambda item: -item[1])
+
+    def _weighted_least_squares(self, q: np.ndarray, u: np.ndarray, weights: np.ndarray, max_iterations: int) -> tuple[np.ndarray, np.ndarray, Any, int]:
+        """Levenberg-Marquardt on sum((w_i Phi_i)^2) at inputs ``u`` from ``q`` (steps retracted onto the
+        parametrization's manifold), until max |Phi| meets the tolerance, no step descends (a local
+        minimum) or the cost stops improving: (q, Phi, Phi's values, iterations)."""
 
         def evaluate(x: np.ndarray) -> tuple[np.ndarray, Any, float]:
             phi, values = self.system.evaluate(x, u)
@@ -310,8 +357,7 @@ class Solver:
             normal = jacobian.T @ jacobian
             scale = np.diag(normal) + 1e-12 * max(1.0, float(np.diag(normal).max()))
             while damping < 1e12:
-                step = -np.linalg.solve(normal + damping * np.diag(scale), gradient)
-                trial = self.retract(q, step)
+                trial = self.retract(q, -np.linalg.solve(normal + damping * np.diag(scale), gradient))
                 trial_phi, trial_values, trial_cost = evaluate(trial)
                 if trial_cost < cost:
                     break
@@ -323,6 +369,17 @@ class Solver:
             damping = max(damping / 3, 1e-12)
             if improvement <= 1e-15 * cost:
                 break
+        return q, phi, values, iterations
+
+    def _least_squares(self, q: np.ndarray, u: np.ndarray, t: float, max_iterations: int = 100) -> Solution:
+        """Levenberg-Marquardt on sum(w_i Phi_i^2), joint rows weighted 1e4 over driver rows:
+        the solution if one exists nearby; otherwise the assembled configuration closest to
+        the drivers' targets, reported by UnreachableError (the target is outside the workspace)."""
+        m = len(self.system.constraint_names)
+        weights = np.ones(m)
+        weights[: m - self.system.n_inputs] = 1e4
+
+        q, phi, values, iterations = self._weighted_least_squares(q, u, weights, max_iterations)
         norm = _max_norm(phi)
         if norm <= self.options.tolerance:
             return Solution(q, iterations, norm, values, phi)
@@ -527,8 +584,10 @@ class Solver:
                     if (self.options.polish or self.chord) and solution.iterations > 0 and factors.lu is not None:
                         q = self.retract(q, -self._solve(factors, solution.phi))
                 except KinegenError as error:
+                    if i > 0 and isinstance(error, (BranchError, ConvergenceError)) and not isinstance(error, PrecisionError):
+                        error = self._unassembled(error, q, times, u_all, i) or error
                     if self.options.on_failure != "stop":
-                        raise
+                        raise error from error.cause if isinstance(error, UnassembledError) else None
                     failure = error
                     residuals[i] = getattr(error, "residual", np.nan)
                     k = i + 1
@@ -701,7 +760,7 @@ class Solver:
         smallest = [np.linalg.svd(dense[np.ix_(b.rows, b.cols)], compute_uv=False) for b in self.blocks]
         ratios = [sv[-1] / sv[0] if sv[0] > 0 else 0.0 for sv in smallest]
         b = int(np.argmin(ratios))
-        return f"the block nearest a singular pose: block {b} ({self._describe_block(self.blocks[b])}), sigma_min/sigma_max = {ratios[b]:.2e}"
+        return f"the block nearest a singular pose: block {b} ({self._describe_block(self.blocks[b])}), sigma_min/sigma_max = {abs(ratios[b]):.2e}"
 
 
 #: above this ratio (:func:`table_mismatch`) a table of inputs is sampled below its own variation

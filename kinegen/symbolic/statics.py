@@ -8,7 +8,8 @@ Conventions (velocity coordinates v as the parametrization defines them; global 
   is ∂ω/∂v_k of the parametrization's own expression (``frame_expressions``), exact in each.
 * A body point P moves with J_P = ∂P/∂v: the tangent derivatives of its position
   (:func:`~kinegen.symbolic.assembly.tangent_jacobian`, as for Φ_q).
-* An actuator's row is dL/dv of its length L = |P1 − P2|; a motor's is dθ/dv = a·(T_ω2 − T_ω1) of
+* An actuator's row is dL/dv of its length L = |P1 − P2| (an element of parallel cylinders: the
+  sum of their rows, as they push with one force); a motor's is dθ/dv = a·(T_ω2 − T_ω1) of
   its joint's angle θ, a = the joint's axis (turning with the first body). Each element's
   equation is thus "its length (angle) minus its input" with unit slope in the input.
 * A load (force F at P, moment M on its body, both turned to global axes) does the virtual work
@@ -89,11 +90,15 @@ def element_rows(model: Model, coords: Coordinates) -> list[ElementRow]:
                     for c, column in angular_velocity_columns(coords, coords.body(name)).items():
                         row[c] = row.get(c, sp.Integer(0)) + sign * dot(axis, column)
             rows.append((element.name, "motor", {c: e for c, e in sorted(row.items()) if e != 0}))
-        else:
-            ends = [frame_of(p.body).point(sp.Matrix(p.local)) for p in element.points]
-            gap = ends[0] - ends[1]
-            bodies = [coords.body(n) for n in dict.fromkeys(p.body for p in element.points) if n != GROUND]
-            rows.append((element.name, "actuator", dict(sorted(tangent_jacobian(sp.sqrt(dot(gap, gap)), bodies).items()))))
+        else:  # the element's cylinders (itself and those parallel to it) push with one force
+            row = {}
+            for member in model.members(element.name):
+                ends = [frame_of(p.body).point(sp.Matrix(p.local)) for p in member.points]
+                gap = ends[0] - ends[1]
+                bodies = [coords.body(n) for n in dict.fromkeys(p.body for p in member.points) if n != GROUND]
+                for c, e in tangent_jacobian(sp.sqrt(dot(gap, gap)), bodies).items():
+                    row[c] = row[c] + e if c in row else e
+            rows.append((element.name, "actuator", dict(sorted(row.items()))))
     return rows
 
 

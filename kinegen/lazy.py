@@ -1,0 +1,24 @@
+"""Modules imported at their first use, so that a command's start-up does not pay for them
+(``kinegen --help`` needs neither NumPy nor SymPy): the standard library's ``LazyLoader``."""
+
+from __future__ import annotations
+
+import importlib.util
+import sys
+from types import ModuleType
+
+
+def lazy_import(name: str) -> ModuleType:
+    """The module ``name``: already imported, or registered now and executed when one of its
+    attributes is first read (an import error then surfaces at that first use)."""
+    if name in sys.modules:
+        return sys.modules[name]
+    spec = importlib.util.find_spec(name)
+    if spec is None or spec.loader is None:
+        raise ModuleNotFoundError(f"No module named {name!r}", name=name)
+    loader = importlib.util.LazyLoader(spec.loader)
+    spec.loader = loader
+    module = importlib.util.module_from_spec(spec)
+    sys.modules[name] = module
+    loader.exec_module(module)
+    return module
