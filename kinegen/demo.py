@@ -142,6 +142,16 @@ def _branch_keeping(module) -> int:
     return 0 if kept < 1e-9 else 1
 
 
+def models_folder_of_package() -> Path | None:
+    """The shipped models' folder, resolved (None where kinegen's models are not installed)."""
+    from kinegen.examples import models_folder
+
+    try:
+        return models_folder().resolve()
+    except KinegenError:
+        return None
+
+
 def folders(models: Path | None, generated: Path | None, out: Path) -> tuple[Path, Path]:
     """The models folder and the generated-modules folder of a run. Defaults: in a clone (a
     ``models/`` folder with the excavator in the working directory) ``models/`` and the committed
@@ -172,6 +182,12 @@ def main(argv: list[str] | None = None) -> int:
         parser.error(str(exc))
     print(f"models from {args.models}")
     start = time.perf_counter()
+    if not args.regenerate_only and args.models.resolve() == models_folder_of_package():
+        from kinegen.examples import place_shipped_modules
+
+        placed = place_shipped_modules(args.generated)
+        if placed:
+            print(f"{placed} generated files shipped with kinegen placed in {args.generated}/ (not built again)")
     session = regenerate(args.models, args.generated, force=args.regenerate_only)
     print(f"{sum(map(len, MAIN_JOB.values()))} generated modules ready in {args.generated}/ ({time.perf_counter() - start:.1f} s)")
     if args.regenerate_only:

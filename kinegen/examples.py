@@ -37,6 +37,26 @@ def example_models() -> list[Path]:
     return sorted(models_folder().glob("*.yaml"))
 
 
+def place_shipped_modules(destination: Path) -> int:
+    """Copy the generated modules an installed wheel ships (``kinegen/generated``: the committed
+    ones of the shipped models) into ``destination`` where it has none of that name, so that the
+    main job outside a clone loads them instead of building them again (the runtime trusts them: see
+    :func:`kinegen.integrity.shipped`; a stale one is rebuilt by the usual rule). Returns how many
+    were copied (none in a clone, which ships nothing there)."""
+    from kinegen.integrity import shipped_folder
+
+    folder = shipped_folder()
+    if not folder.is_dir():
+        return 0
+    copied = 0
+    for source in sorted(p for p in folder.iterdir() if p.suffix in (".py", ".c", ".h") and p.name != "__init__.py"):
+        target = destination / source.name
+        if not target.exists():
+            write_atomic(target, source.read_bytes())
+            copied += 1
+    return copied
+
+
 @dataclass(frozen=True)
 class Summary:
     """What ``kinegen models`` lists of a shipped model: read from its YAML as written (a shipped

@@ -24,6 +24,7 @@ literals. Python string literals are ``repr``, which is safe by construction.
 from __future__ import annotations
 
 import fcntl
+import functools
 import hashlib
 import os
 from collections.abc import Iterator
@@ -62,14 +63,33 @@ def remember(data: bytes) -> str:
 
 
 def trusted(data: bytes) -> bool:
-    """Whether ``data`` (a file's bytes) are kinegen's own: written or verified by it before."""
+    """Whether ``data`` (a file's bytes) are kinegen's own: written or verified by it before, or
+    shipped with the installed kinegen (:func:`shipped`)."""
     key = digest(data)
     if key in _KNOWN:
         return True
-    if _entry(key).is_file():
+    if _entry(key).is_file() or key in shipped():
         _KNOWN.add(key)
         return True
     return False
+
+
+def shipped_folder() -> Path:
+    """Where an installed wheel keeps the generated modules it ships (``kinegen/generated``; a clone
+    has none there: its ``generated/`` is the user's, verified like any other)."""
+    import kinegen
+
+    return Path(kinegen.__file__).resolve().parent / "generated"
+
+
+@functools.cache
+def shipped() -> frozenset[str]:
+    """The digests of the generated files shipped inside the installed kinegen package: as much
+    kinegen's own as its code beside them (whoever can change them can change kinegen)."""
+    folder = shipped_folder()
+    if not folder.is_dir():
+        return frozenset()
+    return frozenset(digest(p.read_bytes()) for p in folder.iterdir() if p.suffix in (".py", ".c", ".h") and p.is_file())
 
 
 def expected_key(*parts: str) -> str:

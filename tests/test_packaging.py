@@ -38,6 +38,9 @@ def wheel(tmp_path_factory) -> Path:
 
 def test_the_wheel_carries_every_model_and_the_code_generator_templates(wheel):
     names = set(zipfile.ZipFile(wheel).namelist())
+    for path in (ROOT / "generated").iterdir():  # the main job's committed modules too
+        if path.suffix in (".py", ".c", ".h"):
+            assert zipfile.ZipFile(wheel).read(f"kinegen/generated/{path.name}") == path.read_bytes()
     for path in MODELS.glob("*.yaml"):
         assert f"kinegen/models/{path.name}" in names
         assert zipfile.ZipFile(wheel).read(f"kinegen/models/{path.name}") == path.read_bytes()
@@ -79,6 +82,20 @@ def test_the_installed_package_finds_its_models_and_solves_outside_a_clone(wheel
     assert (work / "out" / "generated" / "boom_quaternion.py").is_file()
     rows = (work / "out" / "boom.csv").read_text().splitlines()
     assert len(rows) > 10 and not (work / "models").exists() and not (work / "generated").exists()
+    # the main job's modules travel with the wheel: placed in out/generated and loaded as they are, not built
+    # again (a fresh trust store: the runtime trusts them as kinegen's own because the installed package ships them)
+    env["KINEGEN_TRUST"] = str(tmp_path / "trust")
+    placed = python(
+        "from pathlib import Path; from kinegen.examples import place_shipped_modules; from kinegen.api import Session\n"
+        "out = Path('out/shipped'); n = place_shipped_modules(out)\n"
+        "module = Session(out).module(Path(" + repr(str(site / "kinegen" / "models" / "excavator.yaml")) + "), 'quaternion')\n"
+        "print(n, module.__file__)"
+    ).split()
+    shipped = sorted(p.name for p in (ROOT / "generated").iterdir() if p.suffix in (".py", ".c", ".h"))
+    assert int(placed[0]) == len(shipped) and Path(placed[1]).name == "excavator_quaternion.py"
+    assert (work / "out" / "shipped" / "excavator_quaternion.py").read_bytes() == (ROOT / "generated" / "excavator_quaternion.py").read_bytes()
+    # nothing built or verified by building it again: either would have written to the trust store
+    assert not (tmp_path / "trust").exists() or not any(p.is_file() for p in (tmp_path / "trust").rglob("*"))
 
 
 def test_the_main_job_finds_the_models_of_the_clone_or_says_where_they_must_be(tmp_path, monkeypatch, capsys):

@@ -270,11 +270,13 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
         axes["rates"].plot(results.times, results.actuator_rate(name), **style)
         if limits:
             ranges.setdefault(tuple(limits), []).append(name)
-    for limits, names in ranges.items():  # each range once, labelled at its right end
+    for k, (limits, names) in enumerate(ranges.items()):  # each range once, labelled; nearby ranges' labels side by side
         for value, end in zip(limits, ("min", "max")):
             axes["lengths"].axhline(value, color=colour_of[names[0]], ls=":", lw=0.8, gid=f"range:{names[0]}:{end}")
-            axes["lengths"].annotate(f"{end} {', '.join(names)}", (1.0, value), xycoords=("axes fraction", "data"), xytext=(-2, 2),
-                                     textcoords="offset points", ha="right", va="bottom", fontsize=6, color=colour_of[names[0]])  # fmt: skip
+            label = f"{end} {names[0]}" + (f" (+{len(names) - 1})" if len(names) > 1 else "")
+            axes["lengths"].annotate(label, (0.99 - 0.33 * (k % 3), value), xycoords=("axes fraction", "data"), xytext=(0, 2 if end == "max" else -2),
+                                     textcoords="offset points", ha="right", va="bottom" if end == "max" else "top", fontsize=6,
+                                     color=colour_of[names[0]], gid=f"range-label:{names[0]}:{end}")  # fmt: skip
     if "lengths" in axes:
         axes["lengths"].set(title="actuator lengths (dotted: their ranges)", ylabel="length [m]")
         axes["rates"].set(title="extension rates", ylabel="extension rate [m/s]")
@@ -290,8 +292,7 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
             legend_beside(axes["omega"], fontsize=7)
     if "condition" in axes:
         axes["condition"].semilogy(results.times, results.condition_numbers(), "k-")
-        axes["condition"].set(title="condition number of Phi_q (2-norm: sigma_max / sigma_min; the CSV's jacobian_condition)",
-                              ylabel="condition number")
+        axes["condition"].set(title="condition number of Phi_q: sigma_max / sigma_min (the CSV's)", ylabel="condition number")
         _readable_log_ticks(axes["condition"])
     list(axes.values())[-1].set(xlabel="time t [s]")
     for ax in (drawing, *axes.values()):
