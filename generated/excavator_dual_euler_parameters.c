@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+ * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
  * parametrization: dual-euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -82,6 +82,12 @@ void excavator_dual_euler_parameters_compute_drivers_nu_digging_fast(const doubl
 void excavator_dual_euler_parameters_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_euler_parameters_compute_inputs_digging_fast(double t, double *out);
 void excavator_dual_euler_parameters_compute_input_ranges_digging_fast(const double *span, double *out);
+void excavator_dual_euler_parameters_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_euler_parameters_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_euler_parameters_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_euler_parameters_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_dual_euler_parameters_compute_inputs_digging_paced(double t, double *out);
+void excavator_dual_euler_parameters_compute_input_ranges_digging_paced(const double *span, double *out);
 void excavator_dual_euler_parameters_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_dual_euler_parameters_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_dual_euler_parameters_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
@@ -8823,6 +8829,756 @@ void excavator_dual_euler_parameters_compute_input_ranges_digging_fast(const dou
     out[23] = r143.hi;
 }
 
+/* Phi of the driver rows of case 'digging_paced'. */
+void excavator_dual_euler_parameters_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double u0 = u[0];
+    const double u1 = u[1];
+    const double u2 = u[2];
+    const double u3 = u[3];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -2.0*upper_rz*cos(c0) + 2.0*upper_rw*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz);
+}
+
+/* Phi_q values of the driver rows of case 'digging_paced'. */
+void excavator_dual_euler_parameters_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double u0 = u[0];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = 2.0*boom_cyl_l_barrel_a00;
+    const double c2 = 2.0*boom_cyl_l_barrel_dy;
+    const double c3 = 2.0*boom_cyl_l_barrel_dz;
+    const double c4 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
+    const double c5 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
+    const double c6 = 2.0*boom_cyl_l_barrel_ry;
+    const double c7 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
+    const double c8 = 2.0*boom_cyl_l_barrel_rz;
+    const double c9 = 2.0*boom_cyl_l_barrel_a10;
+    const double c10 = 2.0*boom_cyl_l_barrel_a20;
+    const double c11 = 2.0*boom_cyl_l_barrel_rw;
+    const double c12 = 2.0*boom_cyl_l_barrel_rx;
+    const double c13 = 2.0*arm_cyl_barrel_a00;
+    const double c14 = 2.0*arm_cyl_barrel_dy;
+    const double c15 = 2.0*arm_cyl_barrel_dz;
+    const double c16 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
+    const double c17 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
+    const double c18 = 2.0*arm_cyl_barrel_ry;
+    const double c19 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
+    const double c20 = 2.0*arm_cyl_barrel_rz;
+    const double c21 = 2.0*arm_cyl_barrel_a10;
+    const double c22 = 2.0*arm_cyl_barrel_a20;
+    const double c23 = 2.0*arm_cyl_barrel_rw;
+    const double c24 = 2.0*arm_cyl_barrel_rx;
+    const double c25 = 2.0*bucket_cyl_barrel_a00;
+    const double c26 = 2.0*bucket_cyl_barrel_dy;
+    const double c27 = 2.0*bucket_cyl_barrel_dz;
+    const double c28 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
+    const double c29 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
+    const double c30 = 2.0*bucket_cyl_barrel_ry;
+    const double c31 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
+    const double c32 = 2.0*bucket_cyl_barrel_rz;
+    const double c33 = 2.0*bucket_cyl_barrel_a10;
+    const double c34 = 2.0*bucket_cyl_barrel_a20;
+    const double c35 = 2.0*bucket_cyl_barrel_rw;
+    const double c36 = 2.0*bucket_cyl_barrel_rx;
+    out[0] = 2.0*sin(c0);
+    out[1] = -2.0*cos(c0);
+    out[2] = -c1*boom_cyl_l_barrel_dx - c2*boom_cyl_l_barrel_a10 - c3*boom_cyl_l_barrel_a20 - c5*c6 + 2.0*c7*boom_cyl_l_barrel_rz + 4.0*c4*boom_cyl_l_barrel_rw;
+    out[3] = c1*boom_cyl_l_barrel_dw + c3*boom_cyl_l_barrel_a10 + c5*c8 + c6*c7 - c2*boom_cyl_l_barrel_a20 + 4.0*c4*boom_cyl_l_barrel_rx;
+    out[4] = c12*c7 + c9*boom_cyl_l_barrel_dw + c10*boom_cyl_l_barrel_dx - c1*boom_cyl_l_barrel_dz - c11*c5;
+    out[5] = c1*boom_cyl_l_barrel_dy + c11*c7 + c12*c5 + c10*boom_cyl_l_barrel_dw - c9*boom_cyl_l_barrel_dx;
+    out[6] = c1*boom_cyl_l_barrel_rx + c6*boom_cyl_l_barrel_a10 + c8*boom_cyl_l_barrel_a20;
+    out[7] = -c1*boom_cyl_l_barrel_rw - c8*boom_cyl_l_barrel_a10 + 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_barrel_ry;
+    out[8] = -c11*boom_cyl_l_barrel_a10 - c10*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_a00*boom_cyl_l_barrel_rz;
+    out[9] = -c1*boom_cyl_l_barrel_ry - c11*boom_cyl_l_barrel_a20 + 2.0*boom_cyl_l_barrel_a10*boom_cyl_l_barrel_rx;
+    out[10] = c1*boom_cyl_l_rod_dx + c9*boom_cyl_l_rod_dy + c10*boom_cyl_l_rod_dz;
+    out[11] = -c1*boom_cyl_l_rod_dw - c9*boom_cyl_l_rod_dz + 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_rod_dy;
+    out[12] = -c9*boom_cyl_l_rod_dw - c10*boom_cyl_l_rod_dx + 2.0*boom_cyl_l_barrel_a00*boom_cyl_l_rod_dz;
+    out[13] = -c1*boom_cyl_l_rod_dy - c10*boom_cyl_l_rod_dw + 2.0*boom_cyl_l_barrel_a10*boom_cyl_l_rod_dx;
+    out[14] = -c1*boom_cyl_l_rod_rx - c9*boom_cyl_l_rod_ry - c10*boom_cyl_l_rod_rz;
+    out[15] = c1*boom_cyl_l_rod_rw + c9*boom_cyl_l_rod_rz - c10*boom_cyl_l_rod_ry;
+    out[16] = c9*boom_cyl_l_rod_rw + c10*boom_cyl_l_rod_rx - c1*boom_cyl_l_rod_rz;
+    out[17] = c1*boom_cyl_l_rod_ry + c10*boom_cyl_l_rod_rw - c9*boom_cyl_l_rod_rx;
+    out[18] = -c13*arm_cyl_barrel_dx - c14*arm_cyl_barrel_a10 - c15*arm_cyl_barrel_a20 - c17*c18 + 2.0*c19*arm_cyl_barrel_rz + 4.0*c16*arm_cyl_barrel_rw;
+    out[19] = c13*arm_cyl_barrel_dw + c15*arm_cyl_barrel_a10 + c17*c20 + c18*c19 - c14*arm_cyl_barrel_a20 + 4.0*c16*arm_cyl_barrel_rx;
+    out[20] = c24*c19 + c21*arm_cyl_barrel_dw + c22*arm_cyl_barrel_dx - c13*arm_cyl_barrel_dz - c23*c17;
+    out[21] = c13*arm_cyl_barrel_dy + c23*c19 + c24*c17 + c22*arm_cyl_barrel_dw - c21*arm_cyl_barrel_dx;
+    out[22] = c13*arm_cyl_barrel_rx + c18*arm_cyl_barrel_a10 + c20*arm_cyl_barrel_a20;
+    out[23] = -c13*arm_cyl_barrel_rw - c20*arm_cyl_barrel_a10 + 2.0*arm_cyl_barrel_a20*arm_cyl_barrel_ry;
+    out[24] = -c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_a00*arm_cyl_barrel_rz;
+    out[25] = -c13*arm_cyl_barrel_ry - c23*arm_cyl_barrel_a20 + 2.0*arm_cyl_barrel_a10*arm_cyl_barrel_rx;
+    out[26] = c13*arm_cyl_rod_dx + c21*arm_cyl_rod_dy + c22*arm_cyl_rod_dz;
+    out[27] = -c13*arm_cyl_rod_dw - c21*arm_cyl_rod_dz + 2.0*arm_cyl_barrel_a20*arm_cyl_rod_dy;
+    out[28] = -c21*arm_cyl_rod_dw - c22*arm_cyl_rod_dx + 2.0*arm_cyl_barrel_a00*arm_cyl_rod_dz;
+    out[29] = -c13*arm_cyl_rod_dy - c22*arm_cyl_rod_dw + 2.0*arm_cyl_barrel_a10*arm_cyl_rod_dx;
+    out[30] = -c13*arm_cyl_rod_rx - c21*arm_cyl_rod_ry - c22*arm_cyl_rod_rz;
+    out[31] = c13*arm_cyl_rod_rw + c21*arm_cyl_rod_rz - c22*arm_cyl_rod_ry;
+    out[32] = c21*arm_cyl_rod_rw + c22*arm_cyl_rod_rx - c13*arm_cyl_rod_rz;
+    out[33] = c13*arm_cyl_rod_ry + c22*arm_cyl_rod_rw - c21*arm_cyl_rod_rx;
+    out[34] = -c25*bucket_cyl_barrel_dx - c26*bucket_cyl_barrel_a10 - c27*bucket_cyl_barrel_a20 - c29*c30 + 2.0*c31*bucket_cyl_barrel_rz + 4.0*c28*bucket_cyl_barrel_rw;
+    out[35] = c25*bucket_cyl_barrel_dw + c27*bucket_cyl_barrel_a10 + c29*c32 + c30*c31 - c26*bucket_cyl_barrel_a20 + 4.0*c28*bucket_cyl_barrel_rx;
+    out[36] = c36*c31 + c33*bucket_cyl_barrel_dw + c34*bucket_cyl_barrel_dx - c25*bucket_cyl_barrel_dz - c35*c29;
+    out[37] = c25*bucket_cyl_barrel_dy + c35*c31 + c36*c29 + c34*bucket_cyl_barrel_dw - c33*bucket_cyl_barrel_dx;
+    out[38] = c25*bucket_cyl_barrel_rx + c30*bucket_cyl_barrel_a10 + c32*bucket_cyl_barrel_a20;
+    out[39] = -c25*bucket_cyl_barrel_rw - c32*bucket_cyl_barrel_a10 + 2.0*bucket_cyl_barrel_a20*bucket_cyl_barrel_ry;
+    out[40] = -c35*bucket_cyl_barrel_a10 - c34*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_a00*bucket_cyl_barrel_rz;
+    out[41] = -c25*bucket_cyl_barrel_ry - c35*bucket_cyl_barrel_a20 + 2.0*bucket_cyl_barrel_a10*bucket_cyl_barrel_rx;
+    out[42] = c25*bucket_cyl_rod_dx + c33*bucket_cyl_rod_dy + c34*bucket_cyl_rod_dz;
+    out[43] = -c25*bucket_cyl_rod_dw - c33*bucket_cyl_rod_dz + 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_dy;
+    out[44] = -c33*bucket_cyl_rod_dw - c34*bucket_cyl_rod_dx + 2.0*bucket_cyl_barrel_a00*bucket_cyl_rod_dz;
+    out[45] = -c25*bucket_cyl_rod_dy - c34*bucket_cyl_rod_dw + 2.0*bucket_cyl_barrel_a10*bucket_cyl_rod_dx;
+    out[46] = -c25*bucket_cyl_rod_rx - c33*bucket_cyl_rod_ry - c34*bucket_cyl_rod_rz;
+    out[47] = c25*bucket_cyl_rod_rw + c33*bucket_cyl_rod_rz - c34*bucket_cyl_rod_ry;
+    out[48] = c33*bucket_cyl_rod_rw + c34*bucket_cyl_rod_rx - c25*bucket_cyl_rod_rz;
+    out[49] = c25*bucket_cyl_rod_ry + c34*bucket_cyl_rod_rw - c33*bucket_cyl_rod_rx;
+}
+
+/* nu of the driver rows of case 'digging_paced'. */
+void excavator_dual_euler_parameters_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rz = q[3];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double ud1 = ud[1];
+    const double ud2 = ud[2];
+    const double ud3 = ud[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0));
+    out[1] = ud1;
+    out[2] = ud2;
+    out[3] = ud3;
+}
+
+/* gamma of the driver rows of case 'digging_paced'. */
+void excavator_dual_euler_parameters_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double v_upper_rw = v[0];
+    const double v_upper_rz = v[3];
+    const double v_boom_cyl_l_barrel_rw = v[16];
+    const double v_boom_cyl_l_barrel_rx = v[17];
+    const double v_boom_cyl_l_barrel_ry = v[18];
+    const double v_boom_cyl_l_barrel_rz = v[19];
+    const double v_boom_cyl_l_barrel_dw = v[20];
+    const double v_boom_cyl_l_barrel_dx = v[21];
+    const double v_boom_cyl_l_barrel_dy = v[22];
+    const double v_boom_cyl_l_barrel_dz = v[23];
+    const double v_boom_cyl_l_rod_rw = v[24];
+    const double v_boom_cyl_l_rod_rx = v[25];
+    const double v_boom_cyl_l_rod_ry = v[26];
+    const double v_boom_cyl_l_rod_rz = v[27];
+    const double v_boom_cyl_l_rod_dw = v[28];
+    const double v_boom_cyl_l_rod_dx = v[29];
+    const double v_boom_cyl_l_rod_dy = v[30];
+    const double v_boom_cyl_l_rod_dz = v[31];
+    const double v_arm_cyl_barrel_rw = v[56];
+    const double v_arm_cyl_barrel_rx = v[57];
+    const double v_arm_cyl_barrel_ry = v[58];
+    const double v_arm_cyl_barrel_rz = v[59];
+    const double v_arm_cyl_barrel_dw = v[60];
+    const double v_arm_cyl_barrel_dx = v[61];
+    const double v_arm_cyl_barrel_dy = v[62];
+    const double v_arm_cyl_barrel_dz = v[63];
+    const double v_arm_cyl_rod_rw = v[64];
+    const double v_arm_cyl_rod_rx = v[65];
+    const double v_arm_cyl_rod_ry = v[66];
+    const double v_arm_cyl_rod_rz = v[67];
+    const double v_arm_cyl_rod_dw = v[68];
+    const double v_arm_cyl_rod_dx = v[69];
+    const double v_arm_cyl_rod_dy = v[70];
+    const double v_arm_cyl_rod_dz = v[71];
+    const double v_bucket_cyl_barrel_rw = v[72];
+    const double v_bucket_cyl_barrel_rx = v[73];
+    const double v_bucket_cyl_barrel_ry = v[74];
+    const double v_bucket_cyl_barrel_rz = v[75];
+    const double v_bucket_cyl_barrel_dw = v[76];
+    const double v_bucket_cyl_barrel_dx = v[77];
+    const double v_bucket_cyl_barrel_dy = v[78];
+    const double v_bucket_cyl_barrel_dz = v[79];
+    const double v_bucket_cyl_rod_rw = v[80];
+    const double v_bucket_cyl_rod_rx = v[81];
+    const double v_bucket_cyl_rod_ry = v[82];
+    const double v_bucket_cyl_rod_rz = v[83];
+    const double v_bucket_cyl_rod_dw = v[84];
+    const double v_bucket_cyl_rod_dx = v[85];
+    const double v_bucket_cyl_rod_dy = v[86];
+    const double v_bucket_cyl_rod_dz = v[87];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    const double udd1 = udd[1];
+    const double udd2 = udd[2];
+    const double udd3 = udd[3];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = cos(c0);
+    const double c2 = sin(c0);
+    const double c3 = 2.0*boom_cyl_l_barrel_a00;
+    const double c4 = 2.0*boom_cyl_l_barrel_a10;
+    const double c5 = 2.0*boom_cyl_l_barrel_a20;
+    const double c6 = 2.0*v_boom_cyl_l_barrel_rx;
+    const double c7 = 2.0*v_boom_cyl_l_barrel_rw;
+    const double c8 = 4.0*v_boom_cyl_l_barrel_rw;
+    const double c9 = 2.0*v_boom_cyl_l_barrel_rz;
+    const double c10 = 2.0*v_boom_cyl_l_barrel_ry;
+    const double c11 = 4.0*v_boom_cyl_l_barrel_rx;
+    const double c12 = c8*boom_cyl_l_barrel_rw + c11*boom_cyl_l_barrel_rx;
+    const double c13 = 2.0*boom_cyl_l_barrel_rw;
+    const double c14 = 2.0*boom_cyl_l_barrel_rx;
+    const double c15 = 2.0*boom_cyl_l_barrel_ry;
+    const double c16 = 2.0*boom_cyl_l_barrel_rz;
+    const double c17 = c14*v_boom_cyl_l_barrel_dw + c16*v_boom_cyl_l_barrel_dy + c6*boom_cyl_l_barrel_dw + c9*boom_cyl_l_barrel_dy - c13*v_boom_cyl_l_barrel_dx - c15*v_boom_cyl_l_barrel_dz - c7*boom_cyl_l_barrel_dx - c10*boom_cyl_l_barrel_dz;
+    const double c18 = 2.0*boom_cyl_l_rod_dw;
+    const double c19 = c18*v_boom_cyl_l_rod_rx;
+    const double c20 = 2.0*boom_cyl_l_rod_dy;
+    const double c21 = c20*v_boom_cyl_l_rod_rz;
+    const double c22 = 2.0*v_boom_cyl_l_rod_dw;
+    const double c23 = c22*boom_cyl_l_rod_rx;
+    const double c24 = 2.0*v_boom_cyl_l_rod_dy;
+    const double c25 = c24*boom_cyl_l_rod_rz;
+    const double c26 = c7*boom_cyl_l_barrel_ry + c10*boom_cyl_l_barrel_rw - 2.0*boom_cyl_l_barrel_rx*v_boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_rz*v_boom_cyl_l_barrel_rx;
+    const double c27 = -c26;
+    const double c28 = c18*v_boom_cyl_l_rod_rz;
+    const double c29 = 2.0*boom_cyl_l_rod_dx;
+    const double c30 = c29*v_boom_cyl_l_rod_ry;
+    const double c31 = 2.0*v_boom_cyl_l_rod_dx;
+    const double c32 = c31*boom_cyl_l_rod_ry;
+    const double c33 = c22*boom_cyl_l_rod_rz;
+    const double c34 = c15*v_boom_cyl_l_barrel_dx + c16*v_boom_cyl_l_barrel_dw + c9*boom_cyl_l_barrel_dw + c10*boom_cyl_l_barrel_dx - c13*v_boom_cyl_l_barrel_dz - c14*v_boom_cyl_l_barrel_dy - c6*boom_cyl_l_barrel_dy - c7*boom_cyl_l_barrel_dz;
+    const double c35 = c6*boom_cyl_l_barrel_ry + c7*boom_cyl_l_barrel_rz + c9*boom_cyl_l_barrel_rw + c10*boom_cyl_l_barrel_rx;
+    const double c36 = c14*v_boom_cyl_l_barrel_dz + c15*v_boom_cyl_l_barrel_dw + c6*boom_cyl_l_barrel_dz + c10*boom_cyl_l_barrel_dw - c13*v_boom_cyl_l_barrel_dy - c16*v_boom_cyl_l_barrel_dx - c7*boom_cyl_l_barrel_dy - c9*boom_cyl_l_barrel_dx;
+    const double c37 = c18*v_boom_cyl_l_rod_ry;
+    const double c38 = 2.0*boom_cyl_l_rod_dz;
+    const double c39 = c38*v_boom_cyl_l_rod_rx;
+    const double c40 = 2.0*v_boom_cyl_l_rod_dz;
+    const double c41 = c40*boom_cyl_l_rod_rx;
+    const double c42 = c22*boom_cyl_l_rod_ry;
+    const double c43 = 2.0*arm_cyl_barrel_a00;
+    const double c44 = 2.0*arm_cyl_barrel_a10;
+    const double c45 = 2.0*arm_cyl_barrel_a20;
+    const double c46 = 2.0*v_arm_cyl_barrel_rx;
+    const double c47 = 2.0*v_arm_cyl_barrel_rw;
+    const double c48 = 4.0*v_arm_cyl_barrel_rw;
+    const double c49 = 2.0*v_arm_cyl_barrel_rz;
+    const double c50 = 2.0*v_arm_cyl_barrel_ry;
+    const double c51 = 4.0*v_arm_cyl_barrel_rx;
+    const double c52 = c48*arm_cyl_barrel_rw + c51*arm_cyl_barrel_rx;
+    const double c53 = 2.0*arm_cyl_barrel_rw;
+    const double c54 = 2.0*arm_cyl_barrel_rx;
+    const double c55 = 2.0*arm_cyl_barrel_ry;
+    const double c56 = 2.0*arm_cyl_barrel_rz;
+    const double c57 = c54*v_arm_cyl_barrel_dw + c56*v_arm_cyl_barrel_dy + c46*arm_cyl_barrel_dw + c49*arm_cyl_barrel_dy - c53*v_arm_cyl_barrel_dx - c55*v_arm_cyl_barrel_dz - c47*arm_cyl_barrel_dx - c50*arm_cyl_barrel_dz;
+    const double c58 = 2.0*arm_cyl_rod_dw;
+    const double c59 = c58*v_arm_cyl_rod_rx;
+    const double c60 = 2.0*arm_cyl_rod_dy;
+    const double c61 = c60*v_arm_cyl_rod_rz;
+    const double c62 = 2.0*v_arm_cyl_rod_dw;
+    const double c63 = c62*arm_cyl_rod_rx;
+    const double c64 = 2.0*v_arm_cyl_rod_dy;
+    const double c65 = c64*arm_cyl_rod_rz;
+    const double c66 = c47*arm_cyl_barrel_ry + c50*arm_cyl_barrel_rw - 2.0*arm_cyl_barrel_rx*v_arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_rz*v_arm_cyl_barrel_rx;
+    const double c67 = -c66;
+    const double c68 = c58*v_arm_cyl_rod_rz;
+    const double c69 = 2.0*arm_cyl_rod_dx;
+    const double c70 = c69*v_arm_cyl_rod_ry;
+    const double c71 = 2.0*v_arm_cyl_rod_dx;
+    const double c72 = c71*arm_cyl_rod_ry;
+    const double c73 = c62*arm_cyl_rod_rz;
+    const double c74 = c55*v_arm_cyl_barrel_dx + c56*v_arm_cyl_barrel_dw + c49*arm_cyl_barrel_dw + c50*arm_cyl_barrel_dx - c53*v_arm_cyl_barrel_dz - c54*v_arm_cyl_barrel_dy - c46*arm_cyl_barrel_dy - c47*arm_cyl_barrel_dz;
+    const double c75 = c46*arm_cyl_barrel_ry + c47*arm_cyl_barrel_rz + c49*arm_cyl_barrel_rw + c50*arm_cyl_barrel_rx;
+    const double c76 = c54*v_arm_cyl_barrel_dz + c55*v_arm_cyl_barrel_dw + c46*arm_cyl_barrel_dz + c50*arm_cyl_barrel_dw - c53*v_arm_cyl_barrel_dy - c56*v_arm_cyl_barrel_dx - c47*arm_cyl_barrel_dy - c49*arm_cyl_barrel_dx;
+    const double c77 = c58*v_arm_cyl_rod_ry;
+    const double c78 = 2.0*arm_cyl_rod_dz;
+    const double c79 = c78*v_arm_cyl_rod_rx;
+    const double c80 = 2.0*v_arm_cyl_rod_dz;
+    const double c81 = c80*arm_cyl_rod_rx;
+    const double c82 = c62*arm_cyl_rod_ry;
+    const double c83 = 2.0*bucket_cyl_barrel_a00;
+    const double c84 = 2.0*bucket_cyl_barrel_a10;
+    const double c85 = 2.0*bucket_cyl_barrel_a20;
+    const double c86 = 2.0*v_bucket_cyl_barrel_rx;
+    const double c87 = 2.0*v_bucket_cyl_barrel_rw;
+    const double c88 = 4.0*v_bucket_cyl_barrel_rw;
+    const double c89 = 2.0*v_bucket_cyl_barrel_rz;
+    const double c90 = 2.0*v_bucket_cyl_barrel_ry;
+    const double c91 = 4.0*v_bucket_cyl_barrel_rx;
+    const double c92 = c88*bucket_cyl_barrel_rw + c91*bucket_cyl_barrel_rx;
+    const double c93 = 2.0*bucket_cyl_barrel_rw;
+    const double c94 = 2.0*bucket_cyl_barrel_rx;
+    const double c95 = 2.0*bucket_cyl_barrel_ry;
+    const double c96 = 2.0*bucket_cyl_barrel_rz;
+    const double c97 = c94*v_bucket_cyl_barrel_dw + c96*v_bucket_cyl_barrel_dy + c86*bucket_cyl_barrel_dw + c89*bucket_cyl_barrel_dy - c93*v_bucket_cyl_barrel_dx - c95*v_bucket_cyl_barrel_dz - c87*bucket_cyl_barrel_dx - c90*bucket_cyl_barrel_dz;
+    const double c98 = 2.0*bucket_cyl_rod_dw;
+    const double c99 = c98*v_bucket_cyl_rod_rx;
+    const double c100 = 2.0*bucket_cyl_rod_dy;
+    const double c101 = c100*v_bucket_cyl_rod_rz;
+    const double c102 = 2.0*v_bucket_cyl_rod_dw;
+    const double c103 = c102*bucket_cyl_rod_rx;
+    const double c104 = 2.0*v_bucket_cyl_rod_dy;
+    const double c105 = c104*bucket_cyl_rod_rz;
+    const double c106 = c87*bucket_cyl_barrel_ry + c90*bucket_cyl_barrel_rw - 2.0*bucket_cyl_barrel_rx*v_bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_rz*v_bucket_cyl_barrel_rx;
+    const double c107 = -c106;
+    const double c108 = c98*v_bucket_cyl_rod_rz;
+    const double c109 = 2.0*bucket_cyl_rod_dx;
+    const double c110 = c109*v_bucket_cyl_rod_ry;
+    const double c111 = 2.0*v_bucket_cyl_rod_dx;
+    const double c112 = c111*bucket_cyl_rod_ry;
+    const double c113 = c102*bucket_cyl_rod_rz;
+    const double c114 = c95*v_bucket_cyl_barrel_dx + c96*v_bucket_cyl_barrel_dw + c89*bucket_cyl_barrel_dw + c90*bucket_cyl_barrel_dx - c93*v_bucket_cyl_barrel_dz - c94*v_bucket_cyl_barrel_dy - c86*bucket_cyl_barrel_dy - c87*bucket_cyl_barrel_dz;
+    const double c115 = c86*bucket_cyl_barrel_ry + c87*bucket_cyl_barrel_rz + c89*bucket_cyl_barrel_rw + c90*bucket_cyl_barrel_rx;
+    const double c116 = c94*v_bucket_cyl_barrel_dz + c95*v_bucket_cyl_barrel_dw + c86*bucket_cyl_barrel_dz + c90*bucket_cyl_barrel_dw - c93*v_bucket_cyl_barrel_dy - c96*v_bucket_cyl_barrel_dx - c87*bucket_cyl_barrel_dy - c89*bucket_cyl_barrel_dx;
+    const double c117 = c98*v_bucket_cyl_rod_ry;
+    const double c118 = 2.0*bucket_cyl_rod_dz;
+    const double c119 = c118*v_bucket_cyl_rod_rx;
+    const double c120 = 2.0*v_bucket_cyl_rod_dz;
+    const double c121 = c120*bucket_cyl_rod_rx;
+    const double c122 = c102*bucket_cyl_rod_ry;
+    out[0] = -udd0*(c1*upper_rw + c2*upper_rz) - (ud0*ud0)*((1.0/2.0)*c1*upper_rz - 1.0/2.0*c2*upper_rw) - 2.0*ud0*(c1*v_upper_rw + c2*v_upper_rz);
+    out[1] = udd1 + c26*c34 - c17*c12 - c27*(-c28 - c30 - c32 - c33 + 2.0*boom_cyl_l_rod_dy*v_boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*v_boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dz + 2.0*boom_cyl_l_rod_rx*v_boom_cyl_l_rod_dy) - c27*(c34 - c28 - c30 - c32 - c33 + c20*v_boom_cyl_l_rod_rx + c24*boom_cyl_l_rod_rx + c38*v_boom_cyl_l_rod_rw + c40*boom_cyl_l_rod_rw) - c35*c36 - c35*(-c37 - c39 - c41 - c42 + 2.0*boom_cyl_l_rod_dx*v_boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*v_boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dy + 2.0*boom_cyl_l_rod_rz*v_boom_cyl_l_rod_dx) - c35*(c36 - c37 - c39 - c41 - c42 + c20*v_boom_cyl_l_rod_rw + c24*boom_cyl_l_rod_rw + c29*v_boom_cyl_l_rod_rz + c31*boom_cyl_l_rod_rz) - c12*(-c19 - c21 - c23 - c25 + 2.0*boom_cyl_l_rod_dx*v_boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*v_boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dx + 2.0*boom_cyl_l_rod_ry*v_boom_cyl_l_rod_dz) - c12*(c17 - c19 - c21 - c23 - c25 + c29*v_boom_cyl_l_rod_rw + c31*boom_cyl_l_rod_rw + c38*v_boom_cyl_l_rod_ry + c40*boom_cyl_l_rod_ry) - v_boom_cyl_l_barrel_dw*(c3*v_boom_cyl_l_barrel_rx + c4*v_boom_cyl_l_barrel_ry + c5*v_boom_cyl_l_barrel_rz) - v_boom_cyl_l_barrel_dx*(-c3*v_boom_cyl_l_barrel_rw - c4*v_boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_ry) - v_boom_cyl_l_barrel_dy*(-c4*v_boom_cyl_l_barrel_rw - c5*v_boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_rz) - v_boom_cyl_l_barrel_dz*(-c3*v_boom_cyl_l_barrel_ry - c5*v_boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_rx) - v_boom_cyl_l_barrel_rw*(-c3*v_boom_cyl_l_barrel_dx - c4*v_boom_cyl_l_barrel_dy - c5*v_boom_cyl_l_barrel_dz - c8*boom_cyl_l_barrel_ox - c9*boom_cyl_l_barrel_oy - c10*boom_cyl_l_rod_oz + 2.0*boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_rz + 4.0*boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_rw) - v_boom_cyl_l_barrel_rx*(c3*v_boom_cyl_l_barrel_dw + c4*v_boom_cyl_l_barrel_dz + c9*boom_cyl_l_rod_oz + c10*boom_cyl_l_rod_oy + c11*boom_cyl_l_rod_ox - c5*v_boom_cyl_l_barrel_dy - c9*boom_cyl_l_barrel_oz - c10*boom_cyl_l_barrel_oy - c11*boom_cyl_l_barrel_ox) - v_boom_cyl_l_barrel_ry*(c4*v_boom_cyl_l_barrel_dw + c5*v_boom_cyl_l_barrel_dx + c6*boom_cyl_l_rod_oy + c7*boom_cyl_l_barrel_oz - c3*v_boom_cyl_l_barrel_dz - c6*boom_cyl_l_barrel_oy - c7*boom_cyl_l_rod_oz) - v_boom_cyl_l_barrel_rz*(c3*v_boom_cyl_l_barrel_dy + c5*v_boom_cyl_l_barrel_dw + c6*boom_cyl_l_rod_oz + c7*boom_cyl_l_rod_oy - c4*v_boom_cyl_l_barrel_dx - c6*boom_cyl_l_barrel_oz - c7*boom_cyl_l_barrel_oy) - v_boom_cyl_l_rod_dw*(-c3*v_boom_cyl_l_rod_rx - c4*v_boom_cyl_l_rod_ry - c5*v_boom_cyl_l_rod_rz) - v_boom_cyl_l_rod_dx*(c3*v_boom_cyl_l_rod_rw + c4*v_boom_cyl_l_rod_rz - c5*v_boom_cyl_l_rod_ry) - v_boom_cyl_l_rod_dy*(c4*v_boom_cyl_l_rod_rw + c5*v_boom_cyl_l_rod_rx - c3*v_boom_cyl_l_rod_rz) - v_boom_cyl_l_rod_dz*(c3*v_boom_cyl_l_rod_ry + c5*v_boom_cyl_l_rod_rw - c4*v_boom_cyl_l_rod_rx) - v_boom_cyl_l_rod_rw*(c3*v_boom_cyl_l_rod_dx + c4*v_boom_cyl_l_rod_dy + c5*v_boom_cyl_l_rod_dz) - v_boom_cyl_l_rod_rx*(-c3*v_boom_cyl_l_rod_dw - c4*v_boom_cyl_l_rod_dz + 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_dy) - v_boom_cyl_l_rod_ry*(-c4*v_boom_cyl_l_rod_dw - c5*v_boom_cyl_l_rod_dx + 2.0*boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_dz) - v_boom_cyl_l_rod_rz*(-c3*v_boom_cyl_l_rod_dy - c5*v_boom_cyl_l_rod_dw + 2.0*boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_dx);
+    out[2] = udd2 + c66*c74 - c57*c52 - c67*(-c68 - c70 - c72 - c73 + 2.0*arm_cyl_rod_dy*v_arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*v_arm_cyl_rod_rw + 2.0*arm_cyl_rod_rw*v_arm_cyl_rod_dz + 2.0*arm_cyl_rod_rx*v_arm_cyl_rod_dy) - c67*(c74 - c68 - c70 - c72 - c73 + c60*v_arm_cyl_rod_rx + c64*arm_cyl_rod_rx + c78*v_arm_cyl_rod_rw + c80*arm_cyl_rod_rw) - c75*c76 - c75*(-c77 - c79 - c81 - c82 + 2.0*arm_cyl_rod_dx*v_arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*v_arm_cyl_rod_rw + 2.0*arm_cyl_rod_rw*v_arm_cyl_rod_dy + 2.0*arm_cyl_rod_rz*v_arm_cyl_rod_dx) - c75*(c76 - c77 - c79 - c81 - c82 + c60*v_arm_cyl_rod_rw + c64*arm_cyl_rod_rw + c69*v_arm_cyl_rod_rz + c71*arm_cyl_rod_rz) - c52*(-c59 - c61 - c63 - c65 + 2.0*arm_cyl_rod_dx*v_arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*v_arm_cyl_rod_ry + 2.0*arm_cyl_rod_rw*v_arm_cyl_rod_dx + 2.0*arm_cyl_rod_ry*v_arm_cyl_rod_dz) - c52*(c57 - c59 - c61 - c63 - c65 + c69*v_arm_cyl_rod_rw + c71*arm_cyl_rod_rw + c78*v_arm_cyl_rod_ry + c80*arm_cyl_rod_ry) - v_arm_cyl_barrel_dw*(c43*v_arm_cyl_barrel_rx + c44*v_arm_cyl_barrel_ry + c45*v_arm_cyl_barrel_rz) - v_arm_cyl_barrel_dx*(-c43*v_arm_cyl_barrel_rw - c44*v_arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_a20*v_arm_cyl_barrel_ry) - v_arm_cyl_barrel_dy*(-c44*v_arm_cyl_barrel_rw - c45*v_arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_a00*v_arm_cyl_barrel_rz) - v_arm_cyl_barrel_dz*(-c43*v_arm_cyl_barrel_ry - c45*v_arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_a10*v_arm_cyl_barrel_rx) - v_arm_cyl_barrel_rw*(-c43*v_arm_cyl_barrel_dx - c44*v_arm_cyl_barrel_dy - c45*v_arm_cyl_barrel_dz - c48*arm_cyl_barrel_ox - c49*arm_cyl_barrel_oy - c50*arm_cyl_rod_oz + 2.0*arm_cyl_barrel_oz*v_arm_cyl_barrel_ry + 2.0*arm_cyl_rod_oy*v_arm_cyl_barrel_rz + 4.0*arm_cyl_rod_ox*v_arm_cyl_barrel_rw) - v_arm_cyl_barrel_rx*(c43*v_arm_cyl_barrel_dw + c44*v_arm_cyl_barrel_dz + c49*arm_cyl_rod_oz + c50*arm_cyl_rod_oy + c51*arm_cyl_rod_ox - c45*v_arm_cyl_barrel_dy - c49*arm_cyl_barrel_oz - c50*arm_cyl_barrel_oy - c51*arm_cyl_barrel_ox) - v_arm_cyl_barrel_ry*(c44*v_arm_cyl_barrel_dw + c45*v_arm_cyl_barrel_dx + c46*arm_cyl_rod_oy + c47*arm_cyl_barrel_oz - c43*v_arm_cyl_barrel_dz - c46*arm_cyl_barrel_oy - c47*arm_cyl_rod_oz) - v_arm_cyl_barrel_rz*(c43*v_arm_cyl_barrel_dy + c45*v_arm_cyl_barrel_dw + c46*arm_cyl_rod_oz + c47*arm_cyl_rod_oy - c44*v_arm_cyl_barrel_dx - c46*arm_cyl_barrel_oz - c47*arm_cyl_barrel_oy) - v_arm_cyl_rod_dw*(-c43*v_arm_cyl_rod_rx - c44*v_arm_cyl_rod_ry - c45*v_arm_cyl_rod_rz) - v_arm_cyl_rod_dx*(c43*v_arm_cyl_rod_rw + c44*v_arm_cyl_rod_rz - c45*v_arm_cyl_rod_ry) - v_arm_cyl_rod_dy*(c44*v_arm_cyl_rod_rw + c45*v_arm_cyl_rod_rx - c43*v_arm_cyl_rod_rz) - v_arm_cyl_rod_dz*(c43*v_arm_cyl_rod_ry + c45*v_arm_cyl_rod_rw - c44*v_arm_cyl_rod_rx) - v_arm_cyl_rod_rw*(c43*v_arm_cyl_rod_dx + c44*v_arm_cyl_rod_dy + c45*v_arm_cyl_rod_dz) - v_arm_cyl_rod_rx*(-c43*v_arm_cyl_rod_dw - c44*v_arm_cyl_rod_dz + 2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_dy) - v_arm_cyl_rod_ry*(-c44*v_arm_cyl_rod_dw - c45*v_arm_cyl_rod_dx + 2.0*arm_cyl_barrel_a00*v_arm_cyl_rod_dz) - v_arm_cyl_rod_rz*(-c43*v_arm_cyl_rod_dy - c45*v_arm_cyl_rod_dw + 2.0*arm_cyl_barrel_a10*v_arm_cyl_rod_dx);
+    out[3] = udd3 + c106*c114 - c97*c92 - c107*(-c108 - c110 - c112 - c113 + 2.0*bucket_cyl_rod_dy*v_bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*v_bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_rw*v_bucket_cyl_rod_dz + 2.0*bucket_cyl_rod_rx*v_bucket_cyl_rod_dy) - c107*(c114 - c108 - c110 - c112 - c113 + c100*v_bucket_cyl_rod_rx + c104*bucket_cyl_rod_rx + c118*v_bucket_cyl_rod_rw + c120*bucket_cyl_rod_rw) - c115*c116 - c115*(-c117 - c119 - c121 - c122 + 2.0*bucket_cyl_rod_dx*v_bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*v_bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_rw*v_bucket_cyl_rod_dy + 2.0*bucket_cyl_rod_rz*v_bucket_cyl_rod_dx) - c115*(c116 - c117 - c119 - c121 - c122 + c100*v_bucket_cyl_rod_rw + c104*bucket_cyl_rod_rw + c109*v_bucket_cyl_rod_rz + c111*bucket_cyl_rod_rz) - c92*(-c99 - c101 - c103 - c105 + 2.0*bucket_cyl_rod_dx*v_bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*v_bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_rw*v_bucket_cyl_rod_dx + 2.0*bucket_cyl_rod_ry*v_bucket_cyl_rod_dz) - c92*(c97 - c99 - c101 - c103 - c105 + c109*v_bucket_cyl_rod_rw + c111*bucket_cyl_rod_rw + c118*v_bucket_cyl_rod_ry + c120*bucket_cyl_rod_ry) - v_bucket_cyl_barrel_dw*(c83*v_bucket_cyl_barrel_rx + c84*v_bucket_cyl_barrel_ry + c85*v_bucket_cyl_barrel_rz) - v_bucket_cyl_barrel_dx*(-c83*v_bucket_cyl_barrel_rw - c84*v_bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_ry) - v_bucket_cyl_barrel_dy*(-c84*v_bucket_cyl_barrel_rw - c85*v_bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_a00*v_bucket_cyl_barrel_rz) - v_bucket_cyl_barrel_dz*(-c83*v_bucket_cyl_barrel_ry - c85*v_bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_rx) - v_bucket_cyl_barrel_rw*(-c83*v_bucket_cyl_barrel_dx - c84*v_bucket_cyl_barrel_dy - c85*v_bucket_cyl_barrel_dz - c88*bucket_cyl_barrel_ox - c89*bucket_cyl_barrel_oy - c90*bucket_cyl_rod_oz + 2.0*bucket_cyl_barrel_oz*v_bucket_cyl_barrel_ry + 2.0*bucket_cyl_rod_oy*v_bucket_cyl_barrel_rz + 4.0*bucket_cyl_rod_ox*v_bucket_cyl_barrel_rw) - v_bucket_cyl_barrel_rx*(c83*v_bucket_cyl_barrel_dw + c84*v_bucket_cyl_barrel_dz + c89*bucket_cyl_rod_oz + c90*bucket_cyl_rod_oy + c91*bucket_cyl_rod_ox - c85*v_bucket_cyl_barrel_dy - c89*bucket_cyl_barrel_oz - c90*bucket_cyl_barrel_oy - c91*bucket_cyl_barrel_ox) - v_bucket_cyl_barrel_ry*(c84*v_bucket_cyl_barrel_dw + c85*v_bucket_cyl_barrel_dx + c86*bucket_cyl_rod_oy + c87*bucket_cyl_barrel_oz - c83*v_bucket_cyl_barrel_dz - c86*bucket_cyl_barrel_oy - c87*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_rz*(c83*v_bucket_cyl_barrel_dy + c85*v_bucket_cyl_barrel_dw + c86*bucket_cyl_rod_oz + c87*bucket_cyl_rod_oy - c84*v_bucket_cyl_barrel_dx - c86*bucket_cyl_barrel_oz - c87*bucket_cyl_barrel_oy) - v_bucket_cyl_rod_dw*(-c83*v_bucket_cyl_rod_rx - c84*v_bucket_cyl_rod_ry - c85*v_bucket_cyl_rod_rz) - v_bucket_cyl_rod_dx*(c83*v_bucket_cyl_rod_rw + c84*v_bucket_cyl_rod_rz - c85*v_bucket_cyl_rod_ry) - v_bucket_cyl_rod_dy*(c84*v_bucket_cyl_rod_rw + c85*v_bucket_cyl_rod_rx - c83*v_bucket_cyl_rod_rz) - v_bucket_cyl_rod_dz*(c83*v_bucket_cyl_rod_ry + c85*v_bucket_cyl_rod_rw - c84*v_bucket_cyl_rod_rx) - v_bucket_cyl_rod_rw*(c83*v_bucket_cyl_rod_dx + c84*v_bucket_cyl_rod_dy + c85*v_bucket_cyl_rod_dz) - v_bucket_cyl_rod_rx*(-c83*v_bucket_cyl_rod_dw - c84*v_bucket_cyl_rod_dz + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_dy) - v_bucket_cyl_rod_ry*(-c84*v_bucket_cyl_rod_dw - c85*v_bucket_cyl_rod_dx + 2.0*bucket_cyl_barrel_a00*v_bucket_cyl_rod_dz) - v_bucket_cyl_rod_rz*(-c83*v_bucket_cyl_rod_dy - c85*v_bucket_cyl_rod_dw + 2.0*bucket_cyl_barrel_a10*v_bucket_cyl_rod_dx);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
+void excavator_dual_euler_parameters_compute_inputs_digging_paced(double t, double *out) {
+    const double c0 = (4.0/7.0)*t;
+    const double c1 = tanh(-27.0 + c0);
+    const double c2 = tanh(-17.0 + c0);
+    const double c3 = tanh(-29.0 + c0);
+    const double c4 = tanh(-14.0 + c0);
+    const double c5 = tanh(-3.0 + c0);
+    const double c6 = (9.0/40.0)*c5;
+    const double c7 = tanh(-23.0 + c0);
+    const double c8 = tanh(-9.0 + c0);
+    const double c9 = (c1*c1);
+    const double c10 = (c2*c2);
+    const double c11 = (c3*c3);
+    const double c12 = (c4*c4);
+    const double c13 = (c5*c5);
+    const double c14 = (9.0/70.0)*c13;
+    const double c15 = (c7*c7);
+    const double c16 = (c8*c8);
+    const double c17 = c3*(8.0/7.0 - 8.0/7.0*c11);
+    const double c18 = (9.0/70.0)*c5*(8.0/7.0 - 8.0/7.0*c13);
+    const double c19 = 8.0/7.0 - 8.0/7.0*c15;
+    const double c20 = c8*(8.0/7.0 - 8.0/7.0*c16);
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1;
+    out[1] = 626973.0/250000.0 - c6 - 1.0/5.0*c3 + (17.0/40.0)*c4;
+    out[2] = 485803.0/250000.0 + c6 - 17.0/40.0*c7 - 7.0/40.0*c3 + (3.0/8.0)*c8;
+    out[3] = 928949.0/500000.0 - 3.0/8.0*c7 + (1.0/20.0)*c3 + (13.0/40.0)*c8;
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10;
+    out[5] = c14 - 17.0/70.0*c12 + (4.0/35.0)*c11;
+    out[6] = -c14 - 3.0/14.0*c16 + (1.0/10.0)*c11 + (17.0/70.0)*c15;
+    out[7] = -13.0/70.0*c16 - 1.0/35.0*c11 + (3.0/14.0)*c15;
+    out[8] = 0.4487989505128276*c1*(8.0/7.0 - 8.0/7.0*c9) - 0.4487989505128276*c2*(8.0/7.0 - 8.0/7.0*c10);
+    out[9] = c18 + (4.0/35.0)*c17 - 17.0/70.0*c4*(8.0/7.0 - 8.0/7.0*c12);
+    out[10] = -c18 - 3.0/14.0*c20 + (1.0/10.0)*c17 + (17.0/70.0)*c19*c7;
+    out[11] = -13.0/70.0*c20 - 1.0/35.0*c17 + (3.0/14.0)*c19*c7;
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
+void excavator_dual_euler_parameters_compute_input_ranges_digging_paced(const double *span, double *out) {
+    const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
+    const kinegen_interval r1 = kinegen_iv_const(0.5714285714285713, 0.5714285714285715);
+    const kinegen_interval r2 = kinegen_iv_mul(r1, r0);
+    const kinegen_interval r3 = kinegen_iv_const(-27.0, -27.0);
+    const kinegen_interval r4 = kinegen_iv_add(r3, r2);
+    const kinegen_interval r5 = kinegen_iv_tanh(r4);
+    const kinegen_interval r6 = kinegen_iv_neg(r5);
+    const kinegen_interval r7 = kinegen_iv_const(-17.0, -17.0);
+    const kinegen_interval r8 = kinegen_iv_add(r7, r2);
+    const kinegen_interval r9 = kinegen_iv_tanh(r8);
+    const kinegen_interval r10 = kinegen_iv_add(r6, r9);
+    const kinegen_interval r11 = kinegen_iv_const(0.7853981633974482, 0.7853981633974484);
+    const kinegen_interval r12 = kinegen_iv_mul(r11, r10);
+    const kinegen_interval r13 = kinegen_iv_const(-29.0, -29.0);
+    const kinegen_interval r14 = kinegen_iv_add(r13, r2);
+    const kinegen_interval r15 = kinegen_iv_tanh(r14);
+    const kinegen_interval r16 = kinegen_iv_const(-0.20000000000000004, -0.19999999999999998);
+    const kinegen_interval r17 = kinegen_iv_mul(r16, r15);
+    const kinegen_interval r18 = kinegen_iv_const(-14.0, -14.0);
+    const kinegen_interval r19 = kinegen_iv_add(r18, r2);
+    const kinegen_interval r20 = kinegen_iv_tanh(r19);
+    const kinegen_interval r21 = kinegen_iv_const(0.42499999999999993, 0.42500000000000004);
+    const kinegen_interval r22 = kinegen_iv_mul(r21, r20);
+    const kinegen_interval r23 = kinegen_iv_const(-3.0, -3.0);
+    const kinegen_interval r24 = kinegen_iv_add(r23, r2);
+    const kinegen_interval r25 = kinegen_iv_tanh(r24);
+    const kinegen_interval r26 = kinegen_iv_const(-0.22500000000000003, -0.22499999999999998);
+    const kinegen_interval r27 = kinegen_iv_mul(r26, r25);
+    const kinegen_interval r28 = kinegen_iv_add(r17, r22);
+    const kinegen_interval r29 = kinegen_iv_add(r28, r27);
+    const kinegen_interval r30 = kinegen_iv_const(2.5078919999999996, 2.5078920000000005);
+    const kinegen_interval r31 = kinegen_iv_add(r30, r29);
+    const kinegen_interval r32 = kinegen_iv_const(-0.17500000000000002, -0.17499999999999996);
+    const kinegen_interval r33 = kinegen_iv_mul(r32, r15);
+    const kinegen_interval r34 = kinegen_iv_const(-23.0, -23.0);
+    const kinegen_interval r35 = kinegen_iv_add(r34, r2);
+    const kinegen_interval r36 = kinegen_iv_tanh(r35);
+    const kinegen_interval r37 = kinegen_iv_const(-0.42500000000000004, -0.42499999999999993);
+    const kinegen_interval r38 = kinegen_iv_mul(r37, r36);
+    const kinegen_interval r39 = kinegen_iv_const(-9.0, -9.0);
+    const kinegen_interval r40 = kinegen_iv_add(r39, r2);
+    const kinegen_interval r41 = kinegen_iv_tanh(r40);
+    const kinegen_interval r42 = kinegen_iv_const(0.375, 0.375);
+    const kinegen_interval r43 = kinegen_iv_mul(r42, r41);
+    const kinegen_interval r44 = kinegen_iv_const(0.22499999999999998, 0.22500000000000003);
+    const kinegen_interval r45 = kinegen_iv_mul(r44, r25);
+    const kinegen_interval r46 = kinegen_iv_add(r33, r38);
+    const kinegen_interval r47 = kinegen_iv_add(r46, r43);
+    const kinegen_interval r48 = kinegen_iv_add(r47, r45);
+    const kinegen_interval r49 = kinegen_iv_const(1.9432119999999997, 1.9432120000000002);
+    const kinegen_interval r50 = kinegen_iv_add(r49, r48);
+    const kinegen_interval r51 = kinegen_iv_const(0.049999999999999996, 0.05000000000000001);
+    const kinegen_interval r52 = kinegen_iv_mul(r51, r15);
+    const kinegen_interval r53 = kinegen_iv_const(-0.375, -0.375);
+    const kinegen_interval r54 = kinegen_iv_mul(r53, r36);
+    const kinegen_interval r55 = kinegen_iv_const(0.32499999999999996, 0.32500000000000007);
+    const kinegen_interval r56 = kinegen_iv_mul(r55, r41);
+    const kinegen_interval r57 = kinegen_iv_add(r52, r54);
+    const kinegen_interval r58 = kinegen_iv_add(r57, r56);
+    const kinegen_interval r59 = kinegen_iv_const(1.8578979999999998, 1.8578980000000003);
+    const kinegen_interval r60 = kinegen_iv_add(r59, r58);
+    const kinegen_interval r61 = kinegen_iv_powi(r5, 2);
+    const kinegen_interval r62 = kinegen_iv_mul(r1, r61);
+    const kinegen_interval r63 = kinegen_iv_powi(r9, 2);
+    const kinegen_interval r64 = kinegen_iv_const(-0.5714285714285715, -0.5714285714285713);
+    const kinegen_interval r65 = kinegen_iv_mul(r64, r63);
+    const kinegen_interval r66 = kinegen_iv_add(r62, r65);
+    const kinegen_interval r67 = kinegen_iv_mul(r11, r66);
+    const kinegen_interval r68 = kinegen_iv_powi(r15, 2);
+    const kinegen_interval r69 = kinegen_iv_const(0.11428571428571427, 0.1142857142857143);
+    const kinegen_interval r70 = kinegen_iv_mul(r69, r68);
+    const kinegen_interval r71 = kinegen_iv_powi(r20, 2);
+    const kinegen_interval r72 = kinegen_iv_const(-0.24285714285714288, -0.24285714285714283);
+    const kinegen_interval r73 = kinegen_iv_mul(r72, r71);
+    const kinegen_interval r74 = kinegen_iv_powi(r25, 2);
+    const kinegen_interval r75 = kinegen_iv_const(0.12857142857142853, 0.1285714285714286);
+    const kinegen_interval r76 = kinegen_iv_mul(r75, r74);
+    const kinegen_interval r77 = kinegen_iv_add(r70, r73);
+    const kinegen_interval r78 = kinegen_iv_add(r77, r76);
+    const kinegen_interval r79 = kinegen_iv_const(0.09999999999999999, 0.10000000000000002);
+    const kinegen_interval r80 = kinegen_iv_mul(r79, r68);
+    const kinegen_interval r81 = kinegen_iv_powi(r36, 2);
+    const kinegen_interval r82 = kinegen_iv_const(0.24285714285714283, 0.24285714285714288);
+    const kinegen_interval r83 = kinegen_iv_mul(r82, r81);
+    const kinegen_interval r84 = kinegen_iv_powi(r41, 2);
+    const kinegen_interval r85 = kinegen_iv_const(-0.2142857142857143, -0.21428571428571425);
+    const kinegen_interval r86 = kinegen_iv_mul(r85, r84);
+    const kinegen_interval r87 = kinegen_iv_const(-0.1285714285714286, -0.12857142857142853);
+    const kinegen_interval r88 = kinegen_iv_mul(r87, r74);
+    const kinegen_interval r89 = kinegen_iv_add(r80, r83);
+    const kinegen_interval r90 = kinegen_iv_add(r89, r86);
+    const kinegen_interval r91 = kinegen_iv_add(r90, r88);
+    const kinegen_interval r92 = kinegen_iv_const(-0.028571428571428574, -0.028571428571428567);
+    const kinegen_interval r93 = kinegen_iv_mul(r92, r68);
+    const kinegen_interval r94 = kinegen_iv_const(0.21428571428571425, 0.2142857142857143);
+    const kinegen_interval r95 = kinegen_iv_mul(r94, r81);
+    const kinegen_interval r96 = kinegen_iv_const(-0.18571428571428575, -0.1857142857142857);
+    const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
+    const kinegen_interval r98 = kinegen_iv_add(r93, r95);
+    const kinegen_interval r99 = kinegen_iv_add(r98, r97);
+    const kinegen_interval r100 = kinegen_iv_const(-1.142857142857143, -1.1428571428571426);
+    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
+    const kinegen_interval r102 = kinegen_iv_const(1.1428571428571426, 1.142857142857143);
+    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
+    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
+    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
+    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
+    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
+    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
+    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
+    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
+    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
+    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
+    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
+    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
+    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
+    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
+    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
+    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
+    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
+    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
+    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
+    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
+    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
+    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
+    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
+    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
+    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
+    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
+    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
+    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
+    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
+    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
+    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
+    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
+    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
+    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
+    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
+    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
+    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
+    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
+    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    out[0] = r12.lo;
+    out[12] = r12.hi;
+    out[1] = r31.lo;
+    out[13] = r31.hi;
+    out[2] = r50.lo;
+    out[14] = r50.hi;
+    out[3] = r60.lo;
+    out[15] = r60.hi;
+    out[4] = r67.lo;
+    out[16] = r67.hi;
+    out[5] = r78.lo;
+    out[17] = r78.hi;
+    out[6] = r91.lo;
+    out[18] = r91.hi;
+    out[7] = r99.lo;
+    out[19] = r99.hi;
+    out[8] = r111.lo;
+    out[20] = r111.hi;
+    out[9] = r125.lo;
+    out[21] = r125.hi;
+    out[10] = r138.lo;
+    out[22] = r138.hi;
+    out[11] = r143.lo;
+    out[23] = r143.hi;
+}
+
 /* Phi of the driver rows of case 'oscillation'. */
 void excavator_dual_euler_parameters_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
@@ -9468,6 +10224,10 @@ void excavator_dual_euler_parameters_compute_input_ranges_oscillation(const doub
     out[23] = r51.hi;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 6
+
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 0 to 167. */
 void excavator_dual_euler_parameters_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
     const double upper_rw = q[0];
@@ -9961,10 +10721,6 @@ void excavator_dual_euler_parameters_compute_frames_part0(const double *q, const
     out[166] = c66*dv_arm_rx + c69*dv_arm_ry - c62*dv_arm_rz - c64*dv_arm_rw;
     out[167] = c62*dv_arm_ry + c69*dv_arm_rz - c64*dv_arm_rx - c66*dv_arm_rw;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 6
 
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 168 to 335. */
 void excavator_dual_euler_parameters_compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
@@ -11422,6 +12178,10 @@ void excavator_dual_euler_parameters_compute_inertia_part1(const double *q, cons
     out[47] = c328*c315 + c338*c313 - c335*c314;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 7
+
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 112 values at INERTIA_COLS. Rows 48 to 71. */
 void excavator_dual_euler_parameters_compute_inertia_part2(const double *q, const double *v, const double *a, const double *p, double *out) {
     const double arm_rw = q[48];
@@ -11723,10 +12483,6 @@ void excavator_dual_euler_parameters_compute_inertia_part2(const double *q, cons
     out[70] = c509*c487 + c512*c488 - c490*c502;
     out[71] = c502*c489 + c512*c487 - c509*c488;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 7
 
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 112 values at INERTIA_COLS. Rows 72 to 103. */
 void excavator_dual_euler_parameters_compute_inertia_part3(const double *q, const double *v, const double *a, const double *p, double *out) {
@@ -12881,6 +13637,78 @@ static void call_input_ranges_digging_fast(const double *const *x, double *const
     input_ranges_digging_fast(x[0], y[0]);
 }
 
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
+static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_dual_euler_parameters_compute_drivers_phi_digging_paced(q, u, p, phi + 108);
+    excavator_dual_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part5(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part6(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part7(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part8(q, p, jac);
+    excavator_dual_euler_parameters_compute_joints_jac_part9(q, p, jac);
+    excavator_dual_euler_parameters_compute_drivers_jac_digging_paced(q, u, p, jac + 1200);
+}
+
+/* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
+static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
+    for (int i = 0; i < 108; ++i) nu[0 + i] = 0.0;
+    excavator_dual_euler_parameters_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 108);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
+static void gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part4(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part5(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part6(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part7(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_joints_gamma_part8(q, v, p, gamma);
+    excavator_dual_euler_parameters_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 108);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_digging_paced(double t, double *inputs) {
+    excavator_dual_euler_parameters_compute_inputs_digging_paced(t, inputs);
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds. */
+static void input_ranges_digging_paced(const double *span, double *input_ranges) {
+    excavator_dual_euler_parameters_compute_input_ranges_digging_paced(span, input_ranges);
+}
+
+/* phi_jac as a kinegen_kernel entry point. */
+static void call_phi_jac_digging_paced(const double *const *x, double *const *y) {
+    phi_jac_digging_paced(x[0], x[1], x[2], y[0], y[1]);
+}
+
+/* nu as a kinegen_kernel entry point. */
+static void call_nu_digging_paced(const double *const *x, double *const *y) {
+    nu_digging_paced(x[0], x[1], x[2], x[3], y[0]);
+}
+
+/* gamma as a kinegen_kernel entry point. */
+static void call_gamma_digging_paced(const double *const *x, double *const *y) {
+    gamma_digging_paced(x[0], x[1], x[2], x[3], x[4], x[5], y[0]);
+}
+
+/* inputs as a kinegen_kernel entry point. */
+static void call_inputs_digging_paced(const double *const *x, double *const *y) {
+    inputs_digging_paced(x[0][0], y[0]);
+}
+
+/* input_ranges as a kinegen_kernel entry point. */
+static void call_input_ranges_digging_paced(const double *const *x, double *const *y) {
+    input_ranges_digging_paced(x[0], y[0]);
+}
+
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_euler_parameters_compute_joints_phi(q, p, phi);
@@ -13158,6 +13986,23 @@ static const kinegen_kernel kernels_digging_fast[] = {
     {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
     {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
 };
+static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
+static const int sizes_phi_jac_digging_paced[] = {112, 1250};
+static const char *const outputs_nu_digging_paced[] = {"nu"};
+static const int sizes_nu_digging_paced[] = {112};
+static const char *const outputs_gamma_digging_paced[] = {"gamma"};
+static const int sizes_gamma_digging_paced[] = {112};
+static const char *const outputs_inputs_digging_paced[] = {"inputs"};
+static const int sizes_inputs_digging_paced[] = {12};
+static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
+static const int sizes_input_ranges_digging_paced[] = {24};
+static const kinegen_kernel kernels_digging_paced[] = {
+    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
+    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
+    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
+    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
+    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+};
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {112, 1250};
 static const char *const outputs_nu_oscillation[] = {"nu"};
@@ -13286,7 +14131,7 @@ static const kinegen_statics statics = {
 };
 
 const kinegen_layout excavator_dual_euler_parameters_layout = {
-    "excavator", "dual-euler-parameters", "excavator.yaml", "e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5", "0.2.0",
+    "excavator", "dual-euler-parameters", "excavator.yaml", "787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b", "0.2.0",
     EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, EXCAVATOR_DUAL_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_dual_euler_parameters_frames,
     7, kernels, &statics,
@@ -13520,6 +14365,38 @@ const kinegen_model excavator_dual_euler_parameters_digging_fast = {
     7576, 242, 5, kernels_digging_fast, &design_digging_fast,
 };
 
+/* ---- case digging_paced ---- */
+static const char *const constraints_digging_paced[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "upper.norm", "upper.norm1", "boom.norm", "boom.norm1", "boom_cyl_l_barrel.norm", "boom_cyl_l_barrel.norm1", "boom_cyl_l_rod.norm", "boom_cyl_l_rod.norm1", "boom_cyl_r_barrel.norm", "boom_cyl_r_barrel.norm1", "boom_cyl_r_rod.norm", "boom_cyl_r_rod.norm1", "arm.norm", "arm.norm1", "arm_cyl_barrel.norm", "arm_cyl_barrel.norm1", "arm_cyl_rod.norm", "arm_cyl_rod.norm1", "bucket_cyl_barrel.norm", "bucket_cyl_barrel.norm1", "bucket_cyl_rod.norm", "bucket_cyl_rod.norm1", "side_link.norm", "side_link.norm1", "bucket_link.norm", "bucket_link.norm1", "bucket.norm", "bucket.norm1", "swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const char *const drivers_digging_paced[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const int jac_rows_digging_paced[] = {0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 93, 93, 93, 93, 94, 94, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 98, 98, 98, 98, 99, 99, 99, 99, 99, 99, 99, 99, 100, 100, 100, 100, 101, 101, 101, 101, 101, 101, 101, 101, 102, 102, 102, 102, 103, 103, 103, 103, 103, 103, 103, 103, 104, 104, 104, 104, 105, 105, 105, 105, 105, 105, 105, 105, 106, 106, 106, 106, 107, 107, 107, 107, 107, 107, 107, 107, 108, 108, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111};
+static const int jac_cols_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 16, 17, 18, 19, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 24, 25, 26, 27, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 32, 33, 34, 35, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 40, 41, 42, 43, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 56, 57, 58, 59, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 64, 65, 66, 67, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 88, 89, 90, 91, 48, 49, 50, 51, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 72, 73, 74, 75, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 104, 105, 106, 107, 108, 109, 110, 111, 0, 3, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87};
+/* Phi_q in block lower triangular form: 7 blocks, the largest 24 x 24 */
+static const int block_start_digging_paced[] = {0, 4, 8, 32, 48, 72, 96, 112};
+static const int block_store_digging_paced[] = {0, 16, 32, 608, 864, 1440, 2016};
+static const int row_order_digging_paced[] = {3, 4, 80, 108, 0, 1, 2, 81, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 82, 83, 84, 85, 86, 87, 109, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 88, 89, 90, 91, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 92, 93, 94, 95, 96, 97, 110, 56, 57, 58, 59, 60, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 98, 99, 100, 101, 102, 103, 111, 51, 52, 53, 54, 55, 61, 62, 63, 64, 65, 66, 67, 104, 105, 106, 107};
+static const int col_order_digging_paced[] = {3, 2, 1, 0, 4, 5, 6, 7, 11, 13, 14, 8, 9, 23, 16, 17, 18, 27, 24, 20, 21, 25, 29, 28, 12, 10, 15, 19, 22, 26, 31, 30, 32, 33, 39, 35, 40, 41, 36, 37, 42, 47, 46, 45, 34, 38, 43, 44, 48, 53, 54, 51, 49, 56, 57, 63, 59, 64, 65, 60, 61, 66, 52, 71, 69, 50, 55, 58, 62, 67, 68, 70, 88, 93, 94, 91, 90, 72, 73, 79, 75, 80, 81, 76, 77, 82, 92, 84, 85, 74, 78, 83, 86, 89, 95, 87, 109, 104, 110, 106, 107, 101, 103, 102, 96, 97, 111, 99, 98, 100, 105, 108};
+static const int diag_value_digging_paced[] = {4, 5, 6, 7, 12, 13, 14, 15, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 40, 41, 42, 43, 44, 45, 46, 47, 56, 57, 58, 59, 60, 61, 62, 63, 72, 73, 74, 75, 76, 77, 78, 79, 84, 85, 86, 87, 92, 93, 94, 95, 104, 105, 106, 107, 108, 109, 110, 111, 120, 121, 122, 123, 124, 125, 126, 127, 136, 137, 138, 139, 140, 141, 142, 143, 148, 149, 150, 151, 152, 153, 154, 155, 156, 157, 158, 159, 160, 161, 162, 163, 164, 165, 166, 167, 168, 169, 170, 171, 172, 173, 174, 175, 176, 177, 178, 179, 180, 181, 182, 183, 184, 185, 186, 187, 188, 189, 190, 191, 192, 193, 194, 195, 196, 197, 198, 199, 200, 201, 202, 203, 204, 205, 206, 207, 208, 209, 210, 211, 212, 213, 214, 215, 216, 217, 218, 219, 220, 221, 222, 223, 224, 225, 226, 227, 228, 229, 230, 231, 232, 233, 234, 235, 236, 237, 238, 239, 240, 241, 242, 243, 244, 245, 246, 247, 248, 249, 250, 251, 252, 253, 254, 255, 264, 265, 266, 267, 268, 269, 270, 271, 280, 281, 282, 283, 284, 285, 286, 287, 296, 297, 298, 299, 300, 301, 302, 303, 308, 309, 310, 311, 312, 313, 314, 315, 316, 317, 318, 319, 320, 321, 322, 323, 324, 325, 326, 327, 328, 329, 330, 331, 332, 333, 334, 335, 336, 337, 338, 339, 340, 341, 342, 343, 344, 345, 346, 347, 348, 349, 350, 351, 352, 353, 354, 355, 356, 357, 358, 359, 360, 361, 362, 363, 364, 365, 366, 367, 376, 377, 378, 379, 380, 381, 382, 383, 392, 393, 394, 395, 396, 397, 398, 399, 408, 409, 410, 411, 412, 413, 414, 415, 424, 425, 426, 427, 428, 429, 430, 431, 440, 441, 442, 443, 444, 445, 446, 447, 456, 457, 458, 459, 460, 461, 462, 463, 468, 469, 470, 471, 476, 477, 478, 479, 488, 489, 490, 491, 492, 493, 494, 495, 504, 505, 506, 507, 508, 509, 510, 511, 520, 521, 522, 523, 524, 525, 526, 527, 532, 533, 534, 535, 536, 537, 538, 539, 540, 541, 542, 543, 544, 545, 546, 547, 548, 549, 550, 551, 552, 553, 554, 555, 556, 557, 558, 559, 560, 561, 562, 563, 564, 565, 566, 567, 568, 569, 570, 571, 572, 573, 574, 575, 576, 577, 578, 579, 580, 581, 582, 583, 584, 585, 586, 587, 588, 589, 590, 591, 592, 593, 594, 595, 596, 597, 598, 599, 600, 601, 602, 603, 604, 605, 606, 607, 608, 609, 610, 611, 612, 613, 614, 615, 616, 617, 618, 619, 620, 621, 622, 623, 624, 625, 626, 627, 628, 629, 630, 631, 632, 633, 634, 635, 636, 637, 638, 639, 648, 649, 650, 651, 652, 653, 654, 655, 664, 665, 666, 667, 668, 669, 670, 671, 680, 681, 682, 683, 684, 685, 686, 687, 692, 693, 694, 695, 700, 701, 702, 703, 712, 713, 714, 715, 716, 717, 718, 719, 728, 729, 730, 731, 732, 733, 734, 735, 744, 745, 746, 747, 748, 749, 750, 751, 756, 757, 758, 759, 764, 765, 766, 767, 776, 777, 778, 779, 780, 781, 782, 783, 792, 793, 794, 795, 796, 797, 798, 799, 808, 809, 810, 811, 812, 813, 814, 815, 816, 817, 818, 819, 820, 821, 822, 823, 824, 825, 826, 827, 828, 829, 830, 831, 832, 833, 834, 835, 836, 837, 838, 839, 840, 841, 842, 843, 844, 845, 846, 847, 848, 849, 850, 851, 852, 853, 854, 855, 856, 857, 858, 859, 860, 861, 862, 863, 864, 865, 866, 867, 868, 869, 870, 871, 880, 881, 882, 883, 884, 885, 886, 887, 896, 897, 898, 899, 900, 901, 902, 903, 912, 913, 914, 915, 916, 917, 918, 919, 924, 925, 926, 927, 928, 929, 930, 931, 932, 933, 934, 935, 936, 937, 938, 939, 940, 941, 942, 943, 944, 945, 946, 947, 948, 949, 950, 951, 952, 953, 954, 955, 956, 957, 958, 959, 960, 961, 962, 963, 964, 965, 966, 967, 968, 969, 970, 971, 972, 973, 974, 975, 976, 977, 978, 979, 980, 981, 982, 983, 984, 985, 986, 987, 988, 989, 990, 991, 992, 993, 994, 995, 996, 997, 998, 999, 1000, 1001, 1002, 1003, 1004, 1005, 1006, 1007, 1008, 1009, 1010, 1011, 1012, 1013, 1014, 1015, 1016, 1017, 1018, 1019, 1020, 1021, 1022, 1023, 1024, 1025, 1026, 1027, 1028, 1029, 1030, 1031, 1032, 1033, 1034, 1035, 1040, 1041, 1042, 1043, 1044, 1045, 1046, 1047, 1048, 1049, 1050, 1051, 1052, 1053, 1054, 1055, 1056, 1057, 1058, 1059, 1060, 1061, 1062, 1063, 1064, 1065, 1066, 1067, 1068, 1069, 1070, 1071, 1072, 1073, 1074, 1075, 1076, 1077, 1078, 1079, 1080, 1081, 1082, 1083, 1084, 1085, 1086, 1087, 1088, 1089, 1090, 1091, 1092, 1093, 1094, 1095, 1096, 1097, 1098, 1099, 1100, 1101, 1102, 1103, 1104, 1105, 1106, 1107, 1108, 1109, 1110, 1111, 1112, 1113, 1114, 1115, 1116, 1117, 1118, 1119, 1120, 1121, 1122, 1123, 1124, 1125, 1126, 1127, 1128, 1129, 1130, 1131, 1132, 1133, 1134, 1135, 1136, 1137, 1138, 1139, 1140, 1141, 1142, 1143, 1144, 1145, 1146, 1147, 1148, 1149, 1150, 1151, 1152, 1153, 1154, 1155, 1156, 1157, 1158, 1159, 1160, 1161, 1162, 1163, 1164, 1165, 1166, 1167, 1168, 1169, 1170, 1171, 1172, 1173, 1174, 1175, 1176, 1177, 1178, 1179, 1180, 1181, 1182, 1183, 1184, 1185, 1186, 1187, 1188, 1189, 1190, 1191, 1192, 1193, 1194, 1195, 1196, 1197, 1198, 1199, 1200, 1201, 1202, 1203, 1204, 1205, 1206, 1207, 1208, 1209, 1210, 1211, 1212, 1213, 1214, 1215, 1216, 1217, 1218, 1219, 1220, 1221, 1222, 1223, 1224, 1225, 1226, 1227, 1228, 1229, 1230, 1231, 1232, 1233, 1234, 1235, 1236, 1237, 1238, 1239, 1240, 1241, 1242, 1243, 1244, 1245, 1246, 1247, 1248, 1249};
+static const int diag_slot_digging_paced[] = {16, 20, 24, 28, 17, 21, 25, 29, 18, 22, 26, 30, 12, 8, 4, 0, 13, 9, 5, 1, 104, 128, 440, 32, 416, 56, 80, 464, 105, 129, 441, 33, 417, 57, 81, 465, 106, 130, 442, 34, 418, 58, 82, 466, 107, 131, 443, 35, 108, 132, 444, 36, 181, 205, 229, 493, 301, 325, 517, 157, 182, 206, 230, 494, 302, 326, 518, 158, 183, 207, 231, 495, 303, 327, 519, 159, 184, 208, 232, 496, 185, 209, 233, 497, 281, 353, 545, 257, 186, 210, 234, 498, 282, 354, 546, 258, 187, 211, 235, 499, 307, 331, 523, 163, 283, 355, 547, 259, 403, 379, 595, 571, 188, 212, 236, 500, 308, 332, 524, 164, 284, 356, 548, 260, 404, 380, 596, 572, 189, 213, 237, 501, 285, 357, 549, 261, 118, 142, 454, 46, 430, 70, 94, 478, 286, 358, 550, 262, 406, 382, 598, 574, 119, 143, 455, 47, 431, 71, 95, 479, 287, 359, 551, 263, 407, 383, 599, 575, 120, 144, 456, 48, 432, 72, 96, 480, 288, 360, 552, 264, 408, 384, 600, 576, 608, 624, 800, 656, 704, 720, 816, 640, 609, 625, 801, 657, 705, 721, 817, 641, 610, 626, 802, 658, 706, 722, 818, 642, 611, 627, 803, 659, 612, 628, 804, 660, 676, 692, 740, 836, 613, 629, 805, 661, 677, 693, 741, 837, 614, 630, 806, 662, 710, 726, 822, 646, 678, 694, 742, 838, 854, 790, 774, 758, 615, 631, 807, 663, 711, 727, 823, 647, 679, 695, 743, 839, 855, 791, 775, 759, 616, 632, 808, 664, 680, 696, 744, 840, 681, 697, 745, 841, 857, 793, 777, 761, 682, 698, 746, 842, 858, 794, 778, 762, 683, 699, 747, 843, 859, 795, 779, 763, 864, 960, 1272, 936, 1200, 888, 912, 1296, 865, 961, 1273, 937, 1201, 889, 913, 1297, 866, 962, 1274, 938, 1202, 890, 914, 1298, 867, 963, 1275, 939, 868, 964, 1276, 940, 989, 1013, 1325, 1061, 1133, 1157, 1349, 1037, 990, 1014, 1326, 1062, 1134, 1158, 1350, 1038, 991, 1015, 1327, 1063, 1135, 1159, 1351, 1039, 992, 1016, 1328, 1064, 993, 1017, 1329, 1065, 1089, 1113, 1185, 1377, 994, 1018, 1330, 1066, 1090, 1114, 1186, 1378, 995, 1019, 1331, 1067, 1139, 1163, 1355, 1043, 1091, 1115, 1187, 1379, 1403, 1259, 1427, 1235, 996, 1020, 1332, 1068, 1140, 1164, 1356, 1044, 1092, 1116, 1188, 1380, 1404, 1260, 1428, 1236, 997, 1021, 1333, 1069, 1093, 1117, 1189, 1381, 878, 974, 1286, 950, 1214, 902, 926, 1310, 1094, 1118, 1190, 1382, 1406, 1262, 1430, 1238, 879, 975, 1287, 951, 1215, 903, 927, 1311, 1095, 1119, 1191, 1383, 1407, 1263, 1431, 1239, 880, 976, 1288, 952, 1216, 904, 928, 1312, 1096, 1120, 1192, 1384, 1408, 1264, 1432, 1240, 2032, 2240, 2064, 2080, 2256, 2016, 2048, 2176, 2033, 2241, 2065, 2081, 2257, 2017, 2049, 2177, 2034, 2242, 2066, 2082, 2258, 2018, 2050, 2178, 2035, 2243, 2067, 2083, 2036, 2244, 2068, 2084, 1440, 1944, 1536, 1512, 1776, 1464, 1488, 1968, 1441, 1945, 1537, 1513, 1777, 1465, 1489, 1969, 1442, 1946, 1538, 1514, 1778, 1466, 1490, 1970, 1443, 1947, 1539, 1515, 1444, 1948, 1540, 1516, 2149, 2165, 2213, 2197, 2229, 2101, 2133, 2117, 2150, 2166, 2214, 2198, 2230, 2102, 2134, 2118, 2151, 2167, 2215, 2199, 2231, 2103, 2135, 2119, 2152, 2168, 2216, 2200, 2232, 2104, 2136, 2120, 2040, 2248, 2072, 2088, 2264, 2024, 2056, 2184, 2153, 2169, 2217, 2201, 2233, 2105, 2137, 2121, 2041, 2249, 2073, 2089, 2265, 2025, 2057, 2185, 2154, 2170, 2218, 2202, 2234, 2106, 2138, 2122, 2042, 2250, 2074, 2090, 2266, 2026, 2058, 2186, 2155, 2171, 2219, 2203, 2043, 2251, 2075, 2091, 1565, 1589, 1853, 1637, 1709, 1733, 1877, 1613, 1566, 1590, 1854, 1638, 1710, 1734, 1878, 1614, 1567, 1591, 1855, 1639, 1711, 1735, 1879, 1615, 1568, 1592, 1856, 1640, 1569, 1593, 1857, 1641, 1665, 1689, 1761, 1905, 1570, 1594, 1858, 1642, 1666, 1690, 1762, 1906, 1571, 1595, 1859, 1643, 1715, 1739, 1883, 1619, 1667, 1691, 1763, 1907, 1811, 1835, 1931, 2003, 1572, 1596, 1860, 1644, 1716, 1740, 1884, 1620, 1668, 1692, 1764, 1908, 1812, 1836, 1932, 2004, 1573, 1597, 1861, 1645, 1669, 1693, 1765, 1909, 1670, 1694, 1766, 1910, 1814, 1838, 1934, 2006, 1454, 1958, 1550, 1526, 1790, 1478, 1502, 1982, 1671, 1695, 1767, 1911, 1815, 1839, 1935, 2007, 1455, 1959, 1551, 1527, 1791, 1479, 1503, 1983, 1672, 1696, 1768, 1912, 1816, 1840, 1936, 2008, 1456, 1960, 1552, 1528, 1792, 1480, 1504, 1984, 14, 10, 6, 2, 19, 23, 27, 31, 121, 145, 457, 49, 122, 146, 458, 50, 434, 74, 98, 482, 195, 219, 243, 507, 196, 220, 244, 508, 316, 340, 532, 172, 293, 365, 557, 269, 294, 366, 558, 270, 414, 390, 606, 582, 620, 636, 812, 668, 621, 637, 813, 669, 717, 733, 829, 653, 686, 702, 750, 846, 687, 703, 751, 847, 863, 799, 783, 767, 881, 977, 1289, 953, 882, 978, 1290, 954, 1218, 906, 930, 1314, 1003, 1027, 1339, 1075, 1004, 1028, 1340, 1076, 1148, 1172, 1364, 1052, 1101, 1125, 1197, 1389, 1102, 1126, 1198, 1390, 1414, 1270, 1438, 1246, 1577, 1601, 1865, 1649, 1578, 1602, 1866, 1650, 1722, 1746, 1890, 1626, 1675, 1699, 1771, 1915, 1676, 1700, 1772, 1916, 1820, 1844, 1940, 2012, 1461, 1965, 1557, 1533, 1462, 1966, 1558, 1534, 1798, 1486, 1510, 1990, 2156, 2172, 2220, 2204, 2157, 2173, 2221, 2205, 2237, 2109, 2141, 2125, 2046, 2254, 2078, 2094, 2047, 2255, 2079, 2095, 2271, 2031, 2063, 2191, 15, 3, 199, 223, 247, 511, 319, 343, 535, 175, 295, 367, 559, 271, 415, 391, 607, 583, 1007, 1031, 1343, 1079, 1151, 1175, 1367, 1055, 1103, 1127, 1199, 1391, 1415, 1271, 1439, 1247, 1583, 1607, 1871, 1655, 1727, 1751, 1895, 1631, 1679, 1703, 1775, 1919, 1823, 1847, 1943, 2015};
+static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40, 44, 48, 56, 64, 72, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 84, 92, 100, 104, 104, 104, 104, 104, 104, 112, 120, 128, 128, 128, 128, 128, 136, 144, 152, 156, 160, 168, 176, 184, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 188, 196, 204, 212, 216, 220, 228, 236, 244, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 248, 256, 264, 272, 276, 280, 288, 296, 304, 304, 304, 304, 304, 304, 304, 304, 304};
+static const int off_col_digging_paced[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
+static const int off_value_digging_paced[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
+static const kinegen_design design_digging_paced = {
+    11, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+};
+
+const kinegen_model excavator_dual_euler_parameters_digging_paced = {
+    &excavator_dual_euler_parameters_layout, "digging_paced",
+    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
+    0.0, 59.5, 341,
+    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
+    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
+    7, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
+    2272, 946, diag_value_digging_paced, diag_slot_digging_paced,
+    304, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
+    7576, 242, 5, kernels_digging_paced, &design_digging_paced,
+};
+
 /* ---- case oscillation ---- */
 static const char *const constraints_oscillation[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "upper.norm", "upper.norm1", "boom.norm", "boom.norm1", "boom_cyl_l_barrel.norm", "boom_cyl_l_barrel.norm1", "boom_cyl_l_rod.norm", "boom_cyl_l_rod.norm1", "boom_cyl_r_barrel.norm", "boom_cyl_r_barrel.norm1", "boom_cyl_r_rod.norm", "boom_cyl_r_rod.norm1", "arm.norm", "arm.norm1", "arm_cyl_barrel.norm", "arm_cyl_barrel.norm1", "arm_cyl_rod.norm", "arm_cyl_rod.norm1", "bucket_cyl_barrel.norm", "bucket_cyl_barrel.norm1", "bucket_cyl_rod.norm", "bucket_cyl_rod.norm1", "side_link.norm", "side_link.norm1", "bucket_link.norm", "bucket_link.norm1", "bucket.norm", "bucket.norm1", "swing_angle", "boom_length", "arm_length", "bucket_length"};
 static const char *const drivers_oscillation[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
@@ -13552,6 +14429,6 @@ const kinegen_model excavator_dual_euler_parameters_oscillation = {
     7576, 242, 5, kernels_oscillation, &design_oscillation,
 };
 
-const kinegen_model *const excavator_dual_euler_parameters_cases[EXCAVATOR_DUAL_EULER_PARAMETERS_N_CASES] = {&excavator_dual_euler_parameters_digging, &excavator_dual_euler_parameters_level_cut, &excavator_dual_euler_parameters_trench_wall, &excavator_dual_euler_parameters_bucket_toggle, &excavator_dual_euler_parameters_bucket_stroke, &excavator_dual_euler_parameters_bucket_near_toggle, &excavator_dual_euler_parameters_digging_fast, &excavator_dual_euler_parameters_oscillation};
+const kinegen_model *const excavator_dual_euler_parameters_cases[EXCAVATOR_DUAL_EULER_PARAMETERS_N_CASES] = {&excavator_dual_euler_parameters_digging, &excavator_dual_euler_parameters_level_cut, &excavator_dual_euler_parameters_trench_wall, &excavator_dual_euler_parameters_bucket_toggle, &excavator_dual_euler_parameters_bucket_stroke, &excavator_dual_euler_parameters_bucket_near_toggle, &excavator_dual_euler_parameters_digging_fast, &excavator_dual_euler_parameters_digging_paced, &excavator_dual_euler_parameters_oscillation};
 
 #endif

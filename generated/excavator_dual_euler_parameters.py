@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
 parametrization: dual-euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
+SOURCE_SHA256 = '787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b'
 PARAMETRIZATION = 'dual-euler-parameters'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.rw', 'upper.rx', 'upper.ry', 'upper.rz', 'upper.dw', 'upper.dx', 'upper.dy', 'upper.dz', 'boom.rw', 'boom.rx', 'boom.ry', 'boom.rz', 'boom.dw', 'boom.dx', 'boom.dy', 'boom.dz', 'boom_cyl_l_barrel.rw', 'boom_cyl_l_barrel.rx', 'boom_cyl_l_barrel.ry', 'boom_cyl_l_barrel.rz', 'boom_cyl_l_barrel.dw', 'boom_cyl_l_barrel.dx', 'boom_cyl_l_barrel.dy', 'boom_cyl_l_barrel.dz', 'boom_cyl_l_rod.rw', 'boom_cyl_l_rod.rx', 'boom_cyl_l_rod.ry', 'boom_cyl_l_rod.rz', 'boom_cyl_l_rod.dw', 'boom_cyl_l_rod.dx', 'boom_cyl_l_rod.dy', 'boom_cyl_l_rod.dz', 'boom_cyl_r_barrel.rw', 'boom_cyl_r_barrel.rx', 'boom_cyl_r_barrel.ry', 'boom_cyl_r_barrel.rz', 'boom_cyl_r_barrel.dw', 'boom_cyl_r_barrel.dx', 'boom_cyl_r_barrel.dy', 'boom_cyl_r_barrel.dz', 'boom_cyl_r_rod.rw', 'boom_cyl_r_rod.rx', 'boom_cyl_r_rod.ry', 'boom_cyl_r_rod.rz', 'boom_cyl_r_rod.dw', 'boom_cyl_r_rod.dx', 'boom_cyl_r_rod.dy', 'boom_cyl_r_rod.dz', 'arm.rw', 'arm.rx', 'arm.ry', 'arm.rz', 'arm.dw', 'arm.dx', 'arm.dy', 'arm.dz', 'arm_cyl_barrel.rw', 'arm_cyl_barrel.rx', 'arm_cyl_barrel.ry', 'arm_cyl_barrel.rz', 'arm_cyl_barrel.dw', 'arm_cyl_barrel.dx', 'arm_cyl_barrel.dy', 'arm_cyl_barrel.dz', 'arm_cyl_rod.rw', 'arm_cyl_rod.rx', 'arm_cyl_rod.ry', 'arm_cyl_rod.rz', 'arm_cyl_rod.dw', 'arm_cyl_rod.dx', 'arm_cyl_rod.dy', 'arm_cyl_rod.dz', 'bucket_cyl_barrel.rw', 'bucket_cyl_barrel.rx', 'bucket_cyl_barrel.ry', 'bucket_cyl_barrel.rz', 'bucket_cyl_barrel.dw', 'bucket_cyl_barrel.dx', 'bucket_cyl_barrel.dy', 'bucket_cyl_barrel.dz', 'bucket_cyl_rod.rw', 'bucket_cyl_rod.rx', 'bucket_cyl_rod.ry', 'bucket_cyl_rod.rz', 'bucket_cyl_rod.dw', 'bucket_cyl_rod.dx', 'bucket_cyl_rod.dy', 'bucket_cyl_rod.dz', 'side_link.rw', 'side_link.rx', 'side_link.ry', 'side_link.rz', 'side_link.dw', 'side_link.dx', 'side_link.dy', 'side_link.dz', 'bucket_link.rw', 'bucket_link.rx', 'bucket_link.ry', 'bucket_link.rz', 'bucket_link.dw', 'bucket_link.dx', 'bucket_link.dy', 'bucket_link.dz', 'bucket.rw', 'bucket.rx', 'bucket.ry', 'bucket.rz', 'bucket.dw', 'bucket.dx', 'bucket.dy', 'bucket.dz')
@@ -85,7 +85,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_euler_parameters.h': '10aa35cbe6f8306c47a61e4e8db82e4e022d73ab863b1cb1a96eda488231a50b', 'excavator_dual_euler_parameters.c': '5ebf5e3f2e4cd03f409053b83f84505840472c09b265ff87952abb974e985939'}
+C_FILES = {'excavator_dual_euler_parameters.h': '07f4d511e6424383118c9b2c614d3db76384fff623c07e8a079c878e4ecda0b1', 'excavator_dual_euler_parameters.c': '1e755849b2e5c1caa54e80ff3312a924e3f6ec30fbc5a40bed529e6617469db0'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -12868,6 +12868,841 @@ def input_ranges_digging_fast(span):
     return out
 
 
+def _drivers_phi_digging_paced(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -2*upper_rz*cos(c0) + 2*upper_rw*sin(c0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)
+    return out
+
+
+def phi_digging_paced(q, u, p):
+    """Output 'phi' (112 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
+
+
+def _drivers_jac_digging_paced(q, u, p):
+    """Phi_q values of the driver rows of case 'digging_paced'."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = 2*boom_cyl_l_barrel_a00
+    c2 = 2*boom_cyl_l_barrel_dy
+    c3 = 2*boom_cyl_l_barrel_dz
+    c4 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
+    c5 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
+    c6 = 2*boom_cyl_l_barrel_ry
+    c7 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
+    c8 = 2*boom_cyl_l_barrel_rz
+    c9 = 2*boom_cyl_l_barrel_a10
+    c10 = 2*boom_cyl_l_barrel_a20
+    c11 = 2*boom_cyl_l_barrel_rw
+    c12 = 2*boom_cyl_l_barrel_rx
+    c13 = 2*arm_cyl_barrel_a00
+    c14 = 2*arm_cyl_barrel_dy
+    c15 = 2*arm_cyl_barrel_dz
+    c16 = arm_cyl_rod_ox - arm_cyl_barrel_ox
+    c17 = arm_cyl_rod_oz - arm_cyl_barrel_oz
+    c18 = 2*arm_cyl_barrel_ry
+    c19 = arm_cyl_rod_oy - arm_cyl_barrel_oy
+    c20 = 2*arm_cyl_barrel_rz
+    c21 = 2*arm_cyl_barrel_a10
+    c22 = 2*arm_cyl_barrel_a20
+    c23 = 2*arm_cyl_barrel_rw
+    c24 = 2*arm_cyl_barrel_rx
+    c25 = 2*bucket_cyl_barrel_a00
+    c26 = 2*bucket_cyl_barrel_dy
+    c27 = 2*bucket_cyl_barrel_dz
+    c28 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    c29 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    c30 = 2*bucket_cyl_barrel_ry
+    c31 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    c32 = 2*bucket_cyl_barrel_rz
+    c33 = 2*bucket_cyl_barrel_a10
+    c34 = 2*bucket_cyl_barrel_a20
+    c35 = 2*bucket_cyl_barrel_rw
+    c36 = 2*bucket_cyl_barrel_rx
+    out = _zeros(50, q, u)
+    out[0] = 2*sin(c0)
+    out[1] = -2*cos(c0)
+    out[2] = -c1*boom_cyl_l_barrel_dx - c2*boom_cyl_l_barrel_a10 - c3*boom_cyl_l_barrel_a20 - c5*c6 + 2*c7*boom_cyl_l_barrel_rz + 4*c4*boom_cyl_l_barrel_rw
+    out[3] = c1*boom_cyl_l_barrel_dw + c3*boom_cyl_l_barrel_a10 + c5*c8 + c6*c7 - c2*boom_cyl_l_barrel_a20 + 4*c4*boom_cyl_l_barrel_rx
+    out[4] = c12*c7 + c9*boom_cyl_l_barrel_dw + c10*boom_cyl_l_barrel_dx - c1*boom_cyl_l_barrel_dz - c11*c5
+    out[5] = c1*boom_cyl_l_barrel_dy + c11*c7 + c12*c5 + c10*boom_cyl_l_barrel_dw - c9*boom_cyl_l_barrel_dx
+    out[6] = c1*boom_cyl_l_barrel_rx + c6*boom_cyl_l_barrel_a10 + c8*boom_cyl_l_barrel_a20
+    out[7] = -c1*boom_cyl_l_barrel_rw - c8*boom_cyl_l_barrel_a10 + 2*boom_cyl_l_barrel_a20*boom_cyl_l_barrel_ry
+    out[8] = -c11*boom_cyl_l_barrel_a10 - c10*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_a00*boom_cyl_l_barrel_rz
+    out[9] = -c1*boom_cyl_l_barrel_ry - c11*boom_cyl_l_barrel_a20 + 2*boom_cyl_l_barrel_a10*boom_cyl_l_barrel_rx
+    out[10] = c1*boom_cyl_l_rod_dx + c9*boom_cyl_l_rod_dy + c10*boom_cyl_l_rod_dz
+    out[11] = -c1*boom_cyl_l_rod_dw - c9*boom_cyl_l_rod_dz + 2*boom_cyl_l_barrel_a20*boom_cyl_l_rod_dy
+    out[12] = -c9*boom_cyl_l_rod_dw - c10*boom_cyl_l_rod_dx + 2*boom_cyl_l_barrel_a00*boom_cyl_l_rod_dz
+    out[13] = -c1*boom_cyl_l_rod_dy - c10*boom_cyl_l_rod_dw + 2*boom_cyl_l_barrel_a10*boom_cyl_l_rod_dx
+    out[14] = -c1*boom_cyl_l_rod_rx - c9*boom_cyl_l_rod_ry - c10*boom_cyl_l_rod_rz
+    out[15] = c1*boom_cyl_l_rod_rw + c9*boom_cyl_l_rod_rz - c10*boom_cyl_l_rod_ry
+    out[16] = c9*boom_cyl_l_rod_rw + c10*boom_cyl_l_rod_rx - c1*boom_cyl_l_rod_rz
+    out[17] = c1*boom_cyl_l_rod_ry + c10*boom_cyl_l_rod_rw - c9*boom_cyl_l_rod_rx
+    out[18] = -c13*arm_cyl_barrel_dx - c14*arm_cyl_barrel_a10 - c15*arm_cyl_barrel_a20 - c17*c18 + 2*c19*arm_cyl_barrel_rz + 4*c16*arm_cyl_barrel_rw
+    out[19] = c13*arm_cyl_barrel_dw + c15*arm_cyl_barrel_a10 + c17*c20 + c18*c19 - c14*arm_cyl_barrel_a20 + 4*c16*arm_cyl_barrel_rx
+    out[20] = c24*c19 + c21*arm_cyl_barrel_dw + c22*arm_cyl_barrel_dx - c13*arm_cyl_barrel_dz - c23*c17
+    out[21] = c13*arm_cyl_barrel_dy + c23*c19 + c24*c17 + c22*arm_cyl_barrel_dw - c21*arm_cyl_barrel_dx
+    out[22] = c13*arm_cyl_barrel_rx + c18*arm_cyl_barrel_a10 + c20*arm_cyl_barrel_a20
+    out[23] = -c13*arm_cyl_barrel_rw - c20*arm_cyl_barrel_a10 + 2*arm_cyl_barrel_a20*arm_cyl_barrel_ry
+    out[24] = -c23*arm_cyl_barrel_a10 - c22*arm_cyl_barrel_rx + 2*arm_cyl_barrel_a00*arm_cyl_barrel_rz
+    out[25] = -c13*arm_cyl_barrel_ry - c23*arm_cyl_barrel_a20 + 2*arm_cyl_barrel_a10*arm_cyl_barrel_rx
+    out[26] = c13*arm_cyl_rod_dx + c21*arm_cyl_rod_dy + c22*arm_cyl_rod_dz
+    out[27] = -c13*arm_cyl_rod_dw - c21*arm_cyl_rod_dz + 2*arm_cyl_barrel_a20*arm_cyl_rod_dy
+    out[28] = -c21*arm_cyl_rod_dw - c22*arm_cyl_rod_dx + 2*arm_cyl_barrel_a00*arm_cyl_rod_dz
+    out[29] = -c13*arm_cyl_rod_dy - c22*arm_cyl_rod_dw + 2*arm_cyl_barrel_a10*arm_cyl_rod_dx
+    out[30] = -c13*arm_cyl_rod_rx - c21*arm_cyl_rod_ry - c22*arm_cyl_rod_rz
+    out[31] = c13*arm_cyl_rod_rw + c21*arm_cyl_rod_rz - c22*arm_cyl_rod_ry
+    out[32] = c21*arm_cyl_rod_rw + c22*arm_cyl_rod_rx - c13*arm_cyl_rod_rz
+    out[33] = c13*arm_cyl_rod_ry + c22*arm_cyl_rod_rw - c21*arm_cyl_rod_rx
+    out[34] = -c25*bucket_cyl_barrel_dx - c26*bucket_cyl_barrel_a10 - c27*bucket_cyl_barrel_a20 - c29*c30 + 2*c31*bucket_cyl_barrel_rz + 4*c28*bucket_cyl_barrel_rw
+    out[35] = c25*bucket_cyl_barrel_dw + c27*bucket_cyl_barrel_a10 + c29*c32 + c30*c31 - c26*bucket_cyl_barrel_a20 + 4*c28*bucket_cyl_barrel_rx
+    out[36] = c36*c31 + c33*bucket_cyl_barrel_dw + c34*bucket_cyl_barrel_dx - c25*bucket_cyl_barrel_dz - c35*c29
+    out[37] = c25*bucket_cyl_barrel_dy + c35*c31 + c36*c29 + c34*bucket_cyl_barrel_dw - c33*bucket_cyl_barrel_dx
+    out[38] = c25*bucket_cyl_barrel_rx + c30*bucket_cyl_barrel_a10 + c32*bucket_cyl_barrel_a20
+    out[39] = -c25*bucket_cyl_barrel_rw - c32*bucket_cyl_barrel_a10 + 2*bucket_cyl_barrel_a20*bucket_cyl_barrel_ry
+    out[40] = -c35*bucket_cyl_barrel_a10 - c34*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_a00*bucket_cyl_barrel_rz
+    out[41] = -c25*bucket_cyl_barrel_ry - c35*bucket_cyl_barrel_a20 + 2*bucket_cyl_barrel_a10*bucket_cyl_barrel_rx
+    out[42] = c25*bucket_cyl_rod_dx + c33*bucket_cyl_rod_dy + c34*bucket_cyl_rod_dz
+    out[43] = -c25*bucket_cyl_rod_dw - c33*bucket_cyl_rod_dz + 2*bucket_cyl_barrel_a20*bucket_cyl_rod_dy
+    out[44] = -c33*bucket_cyl_rod_dw - c34*bucket_cyl_rod_dx + 2*bucket_cyl_barrel_a00*bucket_cyl_rod_dz
+    out[45] = -c25*bucket_cyl_rod_dy - c34*bucket_cyl_rod_dw + 2*bucket_cyl_barrel_a10*bucket_cyl_rod_dx
+    out[46] = -c25*bucket_cyl_rod_rx - c33*bucket_cyl_rod_ry - c34*bucket_cyl_rod_rz
+    out[47] = c25*bucket_cyl_rod_rw + c33*bucket_cyl_rod_rz - c34*bucket_cyl_rod_ry
+    out[48] = c33*bucket_cyl_rod_rw + c34*bucket_cyl_rod_rx - c25*bucket_cyl_rod_rz
+    out[49] = c25*bucket_cyl_rod_ry + c34*bucket_cyl_rod_rw - c33*bucket_cyl_rod_rx
+    return out
+
+
+def jac_digging_paced(q, u, p):
+    """Output 'jac' (1250 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
+
+
+def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = 2.0*boom_cyl_l_barrel_a00
+    d2 = 2.0*boom_cyl_l_barrel_dy
+    d3 = 2.0*boom_cyl_l_barrel_dz
+    d4 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
+    d5 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
+    d6 = 2.0*boom_cyl_l_barrel_ry
+    d7 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
+    d8 = 2.0*boom_cyl_l_barrel_rz
+    d9 = 2.0*boom_cyl_l_barrel_a10
+    d10 = 2.0*boom_cyl_l_barrel_a20
+    d11 = 2.0*boom_cyl_l_barrel_rw
+    d12 = 2.0*boom_cyl_l_barrel_rx
+    d13 = 2.0*arm_cyl_barrel_a00
+    d14 = 2.0*arm_cyl_barrel_dy
+    d15 = 2.0*arm_cyl_barrel_dz
+    d16 = arm_cyl_rod_ox - arm_cyl_barrel_ox
+    d17 = arm_cyl_rod_oz - arm_cyl_barrel_oz
+    d18 = 2.0*arm_cyl_barrel_ry
+    d19 = arm_cyl_rod_oy - arm_cyl_barrel_oy
+    d20 = 2.0*arm_cyl_barrel_rz
+    d21 = 2.0*arm_cyl_barrel_a10
+    d22 = 2.0*arm_cyl_barrel_a20
+    d23 = 2.0*arm_cyl_barrel_rw
+    d24 = 2.0*arm_cyl_barrel_rx
+    d25 = 2.0*bucket_cyl_barrel_a00
+    d26 = 2.0*bucket_cyl_barrel_dy
+    d27 = 2.0*bucket_cyl_barrel_dz
+    d28 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    d29 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    d30 = 2.0*bucket_cyl_barrel_ry
+    d31 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    d32 = 2.0*bucket_cyl_barrel_rz
+    d33 = 2.0*bucket_cyl_barrel_a10
+    d34 = 2.0*bucket_cyl_barrel_a20
+    d35 = 2.0*bucket_cyl_barrel_rw
+    d36 = 2.0*bucket_cyl_barrel_rx
+    return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)], [2.0*math.sin(d0), -2.0*math.cos(d0), -d1*boom_cyl_l_barrel_dx - d2*boom_cyl_l_barrel_a10 - d3*boom_cyl_l_barrel_a20 - d5*d6 + 2.0*d7*boom_cyl_l_barrel_rz + 4.0*d4*boom_cyl_l_barrel_rw, d1*boom_cyl_l_barrel_dw + d3*boom_cyl_l_barrel_a10 + d5*d8 + d6*d7 - d2*boom_cyl_l_barrel_a20 + 4.0*d4*boom_cyl_l_barrel_rx, d12*d7 + d9*boom_cyl_l_barrel_dw + d10*boom_cyl_l_barrel_dx - d1*boom_cyl_l_barrel_dz - d11*d5, d1*boom_cyl_l_barrel_dy + d11*d7 + d12*d5 + d10*boom_cyl_l_barrel_dw - d9*boom_cyl_l_barrel_dx, d1*boom_cyl_l_barrel_rx + d6*boom_cyl_l_barrel_a10 + d8*boom_cyl_l_barrel_a20, -d1*boom_cyl_l_barrel_rw - d8*boom_cyl_l_barrel_a10 + 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_barrel_ry, -d11*boom_cyl_l_barrel_a10 - d10*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_a00*boom_cyl_l_barrel_rz, -d1*boom_cyl_l_barrel_ry - d11*boom_cyl_l_barrel_a20 + 2.0*boom_cyl_l_barrel_a10*boom_cyl_l_barrel_rx, d1*boom_cyl_l_rod_dx + d9*boom_cyl_l_rod_dy + d10*boom_cyl_l_rod_dz, -d1*boom_cyl_l_rod_dw - d9*boom_cyl_l_rod_dz + 2.0*boom_cyl_l_barrel_a20*boom_cyl_l_rod_dy, -d9*boom_cyl_l_rod_dw - d10*boom_cyl_l_rod_dx + 2.0*boom_cyl_l_barrel_a00*boom_cyl_l_rod_dz, -d1*boom_cyl_l_rod_dy - d10*boom_cyl_l_rod_dw + 2.0*boom_cyl_l_barrel_a10*boom_cyl_l_rod_dx, -d1*boom_cyl_l_rod_rx - d9*boom_cyl_l_rod_ry - d10*boom_cyl_l_rod_rz, d1*boom_cyl_l_rod_rw + d9*boom_cyl_l_rod_rz - d10*boom_cyl_l_rod_ry, d9*boom_cyl_l_rod_rw + d10*boom_cyl_l_rod_rx - d1*boom_cyl_l_rod_rz, d1*boom_cyl_l_rod_ry + d10*boom_cyl_l_rod_rw - d9*boom_cyl_l_rod_rx, -d13*arm_cyl_barrel_dx - d14*arm_cyl_barrel_a10 - d15*arm_cyl_barrel_a20 - d17*d18 + 2.0*d19*arm_cyl_barrel_rz + 4.0*d16*arm_cyl_barrel_rw, d13*arm_cyl_barrel_dw + d15*arm_cyl_barrel_a10 + d17*d20 + d18*d19 - d14*arm_cyl_barrel_a20 + 4.0*d16*arm_cyl_barrel_rx, d24*d19 + d21*arm_cyl_barrel_dw + d22*arm_cyl_barrel_dx - d13*arm_cyl_barrel_dz - d23*d17, d13*arm_cyl_barrel_dy + d23*d19 + d24*d17 + d22*arm_cyl_barrel_dw - d21*arm_cyl_barrel_dx, d13*arm_cyl_barrel_rx + d18*arm_cyl_barrel_a10 + d20*arm_cyl_barrel_a20, -d13*arm_cyl_barrel_rw - d20*arm_cyl_barrel_a10 + 2.0*arm_cyl_barrel_a20*arm_cyl_barrel_ry, -d23*arm_cyl_barrel_a10 - d22*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_a00*arm_cyl_barrel_rz, -d13*arm_cyl_barrel_ry - d23*arm_cyl_barrel_a20 + 2.0*arm_cyl_barrel_a10*arm_cyl_barrel_rx, d13*arm_cyl_rod_dx + d21*arm_cyl_rod_dy + d22*arm_cyl_rod_dz, -d13*arm_cyl_rod_dw - d21*arm_cyl_rod_dz + 2.0*arm_cyl_barrel_a20*arm_cyl_rod_dy, -d21*arm_cyl_rod_dw - d22*arm_cyl_rod_dx + 2.0*arm_cyl_barrel_a00*arm_cyl_rod_dz, -d13*arm_cyl_rod_dy - d22*arm_cyl_rod_dw + 2.0*arm_cyl_barrel_a10*arm_cyl_rod_dx, -d13*arm_cyl_rod_rx - d21*arm_cyl_rod_ry - d22*arm_cyl_rod_rz, d13*arm_cyl_rod_rw + d21*arm_cyl_rod_rz - d22*arm_cyl_rod_ry, d21*arm_cyl_rod_rw + d22*arm_cyl_rod_rx - d13*arm_cyl_rod_rz, d13*arm_cyl_rod_ry + d22*arm_cyl_rod_rw - d21*arm_cyl_rod_rx, -d25*bucket_cyl_barrel_dx - d26*bucket_cyl_barrel_a10 - d27*bucket_cyl_barrel_a20 - d29*d30 + 2.0*d31*bucket_cyl_barrel_rz + 4.0*d28*bucket_cyl_barrel_rw, d25*bucket_cyl_barrel_dw + d27*bucket_cyl_barrel_a10 + d29*d32 + d30*d31 - d26*bucket_cyl_barrel_a20 + 4.0*d28*bucket_cyl_barrel_rx, d36*d31 + d33*bucket_cyl_barrel_dw + d34*bucket_cyl_barrel_dx - d25*bucket_cyl_barrel_dz - d35*d29, d25*bucket_cyl_barrel_dy + d35*d31 + d36*d29 + d34*bucket_cyl_barrel_dw - d33*bucket_cyl_barrel_dx, d25*bucket_cyl_barrel_rx + d30*bucket_cyl_barrel_a10 + d32*bucket_cyl_barrel_a20, -d25*bucket_cyl_barrel_rw - d32*bucket_cyl_barrel_a10 + 2.0*bucket_cyl_barrel_a20*bucket_cyl_barrel_ry, -d35*bucket_cyl_barrel_a10 - d34*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_a00*bucket_cyl_barrel_rz, -d25*bucket_cyl_barrel_ry - d35*bucket_cyl_barrel_a20 + 2.0*bucket_cyl_barrel_a10*bucket_cyl_barrel_rx, d25*bucket_cyl_rod_dx + d33*bucket_cyl_rod_dy + d34*bucket_cyl_rod_dz, -d25*bucket_cyl_rod_dw - d33*bucket_cyl_rod_dz + 2.0*bucket_cyl_barrel_a20*bucket_cyl_rod_dy, -d33*bucket_cyl_rod_dw - d34*bucket_cyl_rod_dx + 2.0*bucket_cyl_barrel_a00*bucket_cyl_rod_dz, -d25*bucket_cyl_rod_dy - d34*bucket_cyl_rod_dw + 2.0*bucket_cyl_barrel_a10*bucket_cyl_rod_dx, -d25*bucket_cyl_rod_rx - d33*bucket_cyl_rod_ry - d34*bucket_cyl_rod_rz, d25*bucket_cyl_rod_rw + d33*bucket_cyl_rod_rz - d34*bucket_cyl_rod_ry, d33*bucket_cyl_rod_rw + d34*bucket_cyl_rod_rx - d25*bucket_cyl_rod_rz, d25*bucket_cyl_rod_ry + d34*bucket_cyl_rod_rw - d33*bucket_cyl_rod_rx]
+
+
+def phi_jac_s_digging_paced(q, u, p):
+    """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
+    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    return s0_0 + s1_0, s0_1 + s1_1
+
+
+def _drivers_nu_digging_paced(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def nu_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
+    return _join(108, _drivers_nu_digging_paced(q, u, ud, p))
+
+
+def _drivers_nu_digging_paced_s(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, ud3]
+
+
+def nu_s_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
+    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    return [0.0] * 108 + s1_0
+
+
+def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    v_upper_rw, _, _, v_upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_rw, v_boom_cyl_l_barrel_rx, v_boom_cyl_l_barrel_ry, v_boom_cyl_l_barrel_rz, v_boom_cyl_l_barrel_dw, v_boom_cyl_l_barrel_dx, v_boom_cyl_l_barrel_dy, v_boom_cyl_l_barrel_dz, v_boom_cyl_l_rod_rw, v_boom_cyl_l_rod_rx, v_boom_cyl_l_rod_ry, v_boom_cyl_l_rod_rz, v_boom_cyl_l_rod_dw, v_boom_cyl_l_rod_dx, v_boom_cyl_l_rod_dy, v_boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_rw, v_arm_cyl_barrel_rx, v_arm_cyl_barrel_ry, v_arm_cyl_barrel_rz, v_arm_cyl_barrel_dw, v_arm_cyl_barrel_dx, v_arm_cyl_barrel_dy, v_arm_cyl_barrel_dz, v_arm_cyl_rod_rw, v_arm_cyl_rod_rx, v_arm_cyl_rod_ry, v_arm_cyl_rod_rz, v_arm_cyl_rod_dw, v_arm_cyl_rod_dx, v_arm_cyl_rod_dy, v_arm_cyl_rod_dz, v_bucket_cyl_barrel_rw, v_bucket_cyl_barrel_rx, v_bucket_cyl_barrel_ry, v_bucket_cyl_barrel_rz, v_bucket_cyl_barrel_dw, v_bucket_cyl_barrel_dx, v_bucket_cyl_barrel_dy, v_bucket_cyl_barrel_dz, v_bucket_cyl_rod_rw, v_bucket_cyl_rod_rx, v_bucket_cyl_rod_ry, v_bucket_cyl_rod_rz, v_bucket_cyl_rod_dw, v_bucket_cyl_rod_dx, v_bucket_cyl_rod_dy, v_bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = 2*boom_cyl_l_barrel_a00
+    c4 = 2*boom_cyl_l_barrel_a10
+    c5 = 2*boom_cyl_l_barrel_a20
+    c6 = 2*v_boom_cyl_l_barrel_rx
+    c7 = 2*v_boom_cyl_l_barrel_rw
+    c8 = 4*v_boom_cyl_l_barrel_rw
+    c9 = 2*v_boom_cyl_l_barrel_rz
+    c10 = 2*v_boom_cyl_l_barrel_ry
+    c11 = 4*v_boom_cyl_l_barrel_rx
+    c12 = c8*boom_cyl_l_barrel_rw + c11*boom_cyl_l_barrel_rx
+    c13 = 2*boom_cyl_l_barrel_rw
+    c14 = 2*boom_cyl_l_barrel_rx
+    c15 = 2*boom_cyl_l_barrel_ry
+    c16 = 2*boom_cyl_l_barrel_rz
+    c17 = c14*v_boom_cyl_l_barrel_dw + c16*v_boom_cyl_l_barrel_dy + c6*boom_cyl_l_barrel_dw + c9*boom_cyl_l_barrel_dy - c13*v_boom_cyl_l_barrel_dx - c15*v_boom_cyl_l_barrel_dz - c7*boom_cyl_l_barrel_dx - c10*boom_cyl_l_barrel_dz
+    c18 = 2*boom_cyl_l_rod_dw
+    c19 = c18*v_boom_cyl_l_rod_rx
+    c20 = 2*boom_cyl_l_rod_dy
+    c21 = c20*v_boom_cyl_l_rod_rz
+    c22 = 2*v_boom_cyl_l_rod_dw
+    c23 = c22*boom_cyl_l_rod_rx
+    c24 = 2*v_boom_cyl_l_rod_dy
+    c25 = c24*boom_cyl_l_rod_rz
+    c26 = c7*boom_cyl_l_barrel_ry + c10*boom_cyl_l_barrel_rw - 2*boom_cyl_l_barrel_rx*v_boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_rz*v_boom_cyl_l_barrel_rx
+    c27 = -c26
+    c28 = c18*v_boom_cyl_l_rod_rz
+    c29 = 2*boom_cyl_l_rod_dx
+    c30 = c29*v_boom_cyl_l_rod_ry
+    c31 = 2*v_boom_cyl_l_rod_dx
+    c32 = c31*boom_cyl_l_rod_ry
+    c33 = c22*boom_cyl_l_rod_rz
+    c34 = c15*v_boom_cyl_l_barrel_dx + c16*v_boom_cyl_l_barrel_dw + c9*boom_cyl_l_barrel_dw + c10*boom_cyl_l_barrel_dx - c13*v_boom_cyl_l_barrel_dz - c14*v_boom_cyl_l_barrel_dy - c6*boom_cyl_l_barrel_dy - c7*boom_cyl_l_barrel_dz
+    c35 = c6*boom_cyl_l_barrel_ry + c7*boom_cyl_l_barrel_rz + c9*boom_cyl_l_barrel_rw + c10*boom_cyl_l_barrel_rx
+    c36 = c14*v_boom_cyl_l_barrel_dz + c15*v_boom_cyl_l_barrel_dw + c6*boom_cyl_l_barrel_dz + c10*boom_cyl_l_barrel_dw - c13*v_boom_cyl_l_barrel_dy - c16*v_boom_cyl_l_barrel_dx - c7*boom_cyl_l_barrel_dy - c9*boom_cyl_l_barrel_dx
+    c37 = c18*v_boom_cyl_l_rod_ry
+    c38 = 2*boom_cyl_l_rod_dz
+    c39 = c38*v_boom_cyl_l_rod_rx
+    c40 = 2*v_boom_cyl_l_rod_dz
+    c41 = c40*boom_cyl_l_rod_rx
+    c42 = c22*boom_cyl_l_rod_ry
+    c43 = 2*arm_cyl_barrel_a00
+    c44 = 2*arm_cyl_barrel_a10
+    c45 = 2*arm_cyl_barrel_a20
+    c46 = 2*v_arm_cyl_barrel_rx
+    c47 = 2*v_arm_cyl_barrel_rw
+    c48 = 4*v_arm_cyl_barrel_rw
+    c49 = 2*v_arm_cyl_barrel_rz
+    c50 = 2*v_arm_cyl_barrel_ry
+    c51 = 4*v_arm_cyl_barrel_rx
+    c52 = c48*arm_cyl_barrel_rw + c51*arm_cyl_barrel_rx
+    c53 = 2*arm_cyl_barrel_rw
+    c54 = 2*arm_cyl_barrel_rx
+    c55 = 2*arm_cyl_barrel_ry
+    c56 = 2*arm_cyl_barrel_rz
+    c57 = c54*v_arm_cyl_barrel_dw + c56*v_arm_cyl_barrel_dy + c46*arm_cyl_barrel_dw + c49*arm_cyl_barrel_dy - c53*v_arm_cyl_barrel_dx - c55*v_arm_cyl_barrel_dz - c47*arm_cyl_barrel_dx - c50*arm_cyl_barrel_dz
+    c58 = 2*arm_cyl_rod_dw
+    c59 = c58*v_arm_cyl_rod_rx
+    c60 = 2*arm_cyl_rod_dy
+    c61 = c60*v_arm_cyl_rod_rz
+    c62 = 2*v_arm_cyl_rod_dw
+    c63 = c62*arm_cyl_rod_rx
+    c64 = 2*v_arm_cyl_rod_dy
+    c65 = c64*arm_cyl_rod_rz
+    c66 = c47*arm_cyl_barrel_ry + c50*arm_cyl_barrel_rw - 2*arm_cyl_barrel_rx*v_arm_cyl_barrel_rz - 2*arm_cyl_barrel_rz*v_arm_cyl_barrel_rx
+    c67 = -c66
+    c68 = c58*v_arm_cyl_rod_rz
+    c69 = 2*arm_cyl_rod_dx
+    c70 = c69*v_arm_cyl_rod_ry
+    c71 = 2*v_arm_cyl_rod_dx
+    c72 = c71*arm_cyl_rod_ry
+    c73 = c62*arm_cyl_rod_rz
+    c74 = c55*v_arm_cyl_barrel_dx + c56*v_arm_cyl_barrel_dw + c49*arm_cyl_barrel_dw + c50*arm_cyl_barrel_dx - c53*v_arm_cyl_barrel_dz - c54*v_arm_cyl_barrel_dy - c46*arm_cyl_barrel_dy - c47*arm_cyl_barrel_dz
+    c75 = c46*arm_cyl_barrel_ry + c47*arm_cyl_barrel_rz + c49*arm_cyl_barrel_rw + c50*arm_cyl_barrel_rx
+    c76 = c54*v_arm_cyl_barrel_dz + c55*v_arm_cyl_barrel_dw + c46*arm_cyl_barrel_dz + c50*arm_cyl_barrel_dw - c53*v_arm_cyl_barrel_dy - c56*v_arm_cyl_barrel_dx - c47*arm_cyl_barrel_dy - c49*arm_cyl_barrel_dx
+    c77 = c58*v_arm_cyl_rod_ry
+    c78 = 2*arm_cyl_rod_dz
+    c79 = c78*v_arm_cyl_rod_rx
+    c80 = 2*v_arm_cyl_rod_dz
+    c81 = c80*arm_cyl_rod_rx
+    c82 = c62*arm_cyl_rod_ry
+    c83 = 2*bucket_cyl_barrel_a00
+    c84 = 2*bucket_cyl_barrel_a10
+    c85 = 2*bucket_cyl_barrel_a20
+    c86 = 2*v_bucket_cyl_barrel_rx
+    c87 = 2*v_bucket_cyl_barrel_rw
+    c88 = 4*v_bucket_cyl_barrel_rw
+    c89 = 2*v_bucket_cyl_barrel_rz
+    c90 = 2*v_bucket_cyl_barrel_ry
+    c91 = 4*v_bucket_cyl_barrel_rx
+    c92 = c88*bucket_cyl_barrel_rw + c91*bucket_cyl_barrel_rx
+    c93 = 2*bucket_cyl_barrel_rw
+    c94 = 2*bucket_cyl_barrel_rx
+    c95 = 2*bucket_cyl_barrel_ry
+    c96 = 2*bucket_cyl_barrel_rz
+    c97 = c94*v_bucket_cyl_barrel_dw + c96*v_bucket_cyl_barrel_dy + c86*bucket_cyl_barrel_dw + c89*bucket_cyl_barrel_dy - c93*v_bucket_cyl_barrel_dx - c95*v_bucket_cyl_barrel_dz - c87*bucket_cyl_barrel_dx - c90*bucket_cyl_barrel_dz
+    c98 = 2*bucket_cyl_rod_dw
+    c99 = c98*v_bucket_cyl_rod_rx
+    c100 = 2*bucket_cyl_rod_dy
+    c101 = c100*v_bucket_cyl_rod_rz
+    c102 = 2*v_bucket_cyl_rod_dw
+    c103 = c102*bucket_cyl_rod_rx
+    c104 = 2*v_bucket_cyl_rod_dy
+    c105 = c104*bucket_cyl_rod_rz
+    c106 = c87*bucket_cyl_barrel_ry + c90*bucket_cyl_barrel_rw - 2*bucket_cyl_barrel_rx*v_bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_rz*v_bucket_cyl_barrel_rx
+    c107 = -c106
+    c108 = c98*v_bucket_cyl_rod_rz
+    c109 = 2*bucket_cyl_rod_dx
+    c110 = c109*v_bucket_cyl_rod_ry
+    c111 = 2*v_bucket_cyl_rod_dx
+    c112 = c111*bucket_cyl_rod_ry
+    c113 = c102*bucket_cyl_rod_rz
+    c114 = c95*v_bucket_cyl_barrel_dx + c96*v_bucket_cyl_barrel_dw + c89*bucket_cyl_barrel_dw + c90*bucket_cyl_barrel_dx - c93*v_bucket_cyl_barrel_dz - c94*v_bucket_cyl_barrel_dy - c86*bucket_cyl_barrel_dy - c87*bucket_cyl_barrel_dz
+    c115 = c86*bucket_cyl_barrel_ry + c87*bucket_cyl_barrel_rz + c89*bucket_cyl_barrel_rw + c90*bucket_cyl_barrel_rx
+    c116 = c94*v_bucket_cyl_barrel_dz + c95*v_bucket_cyl_barrel_dw + c86*bucket_cyl_barrel_dz + c90*bucket_cyl_barrel_dw - c93*v_bucket_cyl_barrel_dy - c96*v_bucket_cyl_barrel_dx - c87*bucket_cyl_barrel_dy - c89*bucket_cyl_barrel_dx
+    c117 = c98*v_bucket_cyl_rod_ry
+    c118 = 2*bucket_cyl_rod_dz
+    c119 = c118*v_bucket_cyl_rod_rx
+    c120 = 2*v_bucket_cyl_rod_dz
+    c121 = c120*bucket_cyl_rod_rx
+    c122 = c102*bucket_cyl_rod_ry
+    out = _zeros(4, q, u)
+    out[0] = -udd0*(c1*upper_rw + c2*upper_rz) - ud0**2*((1/2)*c1*upper_rz - 1/2*c2*upper_rw) - 2*ud0*(c1*v_upper_rw + c2*v_upper_rz)
+    out[1] = udd1 + c26*c34 - c17*c12 - c27*(-c28 - c30 - c32 - c33 + 2*boom_cyl_l_rod_dy*v_boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*v_boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dz + 2*boom_cyl_l_rod_rx*v_boom_cyl_l_rod_dy) - c27*(c34 - c28 - c30 - c32 - c33 + c20*v_boom_cyl_l_rod_rx + c24*boom_cyl_l_rod_rx + c38*v_boom_cyl_l_rod_rw + c40*boom_cyl_l_rod_rw) - c35*c36 - c35*(-c37 - c39 - c41 - c42 + 2*boom_cyl_l_rod_dx*v_boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*v_boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dy + 2*boom_cyl_l_rod_rz*v_boom_cyl_l_rod_dx) - c35*(c36 - c37 - c39 - c41 - c42 + c20*v_boom_cyl_l_rod_rw + c24*boom_cyl_l_rod_rw + c29*v_boom_cyl_l_rod_rz + c31*boom_cyl_l_rod_rz) - c12*(-c19 - c21 - c23 - c25 + 2*boom_cyl_l_rod_dx*v_boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*v_boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dx + 2*boom_cyl_l_rod_ry*v_boom_cyl_l_rod_dz) - c12*(c17 - c19 - c21 - c23 - c25 + c29*v_boom_cyl_l_rod_rw + c31*boom_cyl_l_rod_rw + c38*v_boom_cyl_l_rod_ry + c40*boom_cyl_l_rod_ry) - v_boom_cyl_l_barrel_dw*(c3*v_boom_cyl_l_barrel_rx + c4*v_boom_cyl_l_barrel_ry + c5*v_boom_cyl_l_barrel_rz) - v_boom_cyl_l_barrel_dx*(-c3*v_boom_cyl_l_barrel_rw - c4*v_boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_ry) - v_boom_cyl_l_barrel_dy*(-c4*v_boom_cyl_l_barrel_rw - c5*v_boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_rz) - v_boom_cyl_l_barrel_dz*(-c3*v_boom_cyl_l_barrel_ry - c5*v_boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_rx) - v_boom_cyl_l_barrel_rw*(-c3*v_boom_cyl_l_barrel_dx - c4*v_boom_cyl_l_barrel_dy - c5*v_boom_cyl_l_barrel_dz - c8*boom_cyl_l_barrel_ox - c9*boom_cyl_l_barrel_oy - c10*boom_cyl_l_rod_oz + 2*boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_ry + 2*boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_rz + 4*boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_rw) - v_boom_cyl_l_barrel_rx*(c3*v_boom_cyl_l_barrel_dw + c4*v_boom_cyl_l_barrel_dz + c9*boom_cyl_l_rod_oz + c10*boom_cyl_l_rod_oy + c11*boom_cyl_l_rod_ox - c5*v_boom_cyl_l_barrel_dy - c9*boom_cyl_l_barrel_oz - c10*boom_cyl_l_barrel_oy - c11*boom_cyl_l_barrel_ox) - v_boom_cyl_l_barrel_ry*(c4*v_boom_cyl_l_barrel_dw + c5*v_boom_cyl_l_barrel_dx + c6*boom_cyl_l_rod_oy + c7*boom_cyl_l_barrel_oz - c3*v_boom_cyl_l_barrel_dz - c6*boom_cyl_l_barrel_oy - c7*boom_cyl_l_rod_oz) - v_boom_cyl_l_barrel_rz*(c3*v_boom_cyl_l_barrel_dy + c5*v_boom_cyl_l_barrel_dw + c6*boom_cyl_l_rod_oz + c7*boom_cyl_l_rod_oy - c4*v_boom_cyl_l_barrel_dx - c6*boom_cyl_l_barrel_oz - c7*boom_cyl_l_barrel_oy) - v_boom_cyl_l_rod_dw*(-c3*v_boom_cyl_l_rod_rx - c4*v_boom_cyl_l_rod_ry - c5*v_boom_cyl_l_rod_rz) - v_boom_cyl_l_rod_dx*(c3*v_boom_cyl_l_rod_rw + c4*v_boom_cyl_l_rod_rz - c5*v_boom_cyl_l_rod_ry) - v_boom_cyl_l_rod_dy*(c4*v_boom_cyl_l_rod_rw + c5*v_boom_cyl_l_rod_rx - c3*v_boom_cyl_l_rod_rz) - v_boom_cyl_l_rod_dz*(c3*v_boom_cyl_l_rod_ry + c5*v_boom_cyl_l_rod_rw - c4*v_boom_cyl_l_rod_rx) - v_boom_cyl_l_rod_rw*(c3*v_boom_cyl_l_rod_dx + c4*v_boom_cyl_l_rod_dy + c5*v_boom_cyl_l_rod_dz) - v_boom_cyl_l_rod_rx*(-c3*v_boom_cyl_l_rod_dw - c4*v_boom_cyl_l_rod_dz + 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_dy) - v_boom_cyl_l_rod_ry*(-c4*v_boom_cyl_l_rod_dw - c5*v_boom_cyl_l_rod_dx + 2*boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_dz) - v_boom_cyl_l_rod_rz*(-c3*v_boom_cyl_l_rod_dy - c5*v_boom_cyl_l_rod_dw + 2*boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_dx)
+    out[2] = udd2 + c66*c74 - c57*c52 - c67*(-c68 - c70 - c72 - c73 + 2*arm_cyl_rod_dy*v_arm_cyl_rod_rx + 2*arm_cyl_rod_dz*v_arm_cyl_rod_rw + 2*arm_cyl_rod_rw*v_arm_cyl_rod_dz + 2*arm_cyl_rod_rx*v_arm_cyl_rod_dy) - c67*(c74 - c68 - c70 - c72 - c73 + c60*v_arm_cyl_rod_rx + c64*arm_cyl_rod_rx + c78*v_arm_cyl_rod_rw + c80*arm_cyl_rod_rw) - c75*c76 - c75*(-c77 - c79 - c81 - c82 + 2*arm_cyl_rod_dx*v_arm_cyl_rod_rz + 2*arm_cyl_rod_dy*v_arm_cyl_rod_rw + 2*arm_cyl_rod_rw*v_arm_cyl_rod_dy + 2*arm_cyl_rod_rz*v_arm_cyl_rod_dx) - c75*(c76 - c77 - c79 - c81 - c82 + c60*v_arm_cyl_rod_rw + c64*arm_cyl_rod_rw + c69*v_arm_cyl_rod_rz + c71*arm_cyl_rod_rz) - c52*(-c59 - c61 - c63 - c65 + 2*arm_cyl_rod_dx*v_arm_cyl_rod_rw + 2*arm_cyl_rod_dz*v_arm_cyl_rod_ry + 2*arm_cyl_rod_rw*v_arm_cyl_rod_dx + 2*arm_cyl_rod_ry*v_arm_cyl_rod_dz) - c52*(c57 - c59 - c61 - c63 - c65 + c69*v_arm_cyl_rod_rw + c71*arm_cyl_rod_rw + c78*v_arm_cyl_rod_ry + c80*arm_cyl_rod_ry) - v_arm_cyl_barrel_dw*(c43*v_arm_cyl_barrel_rx + c44*v_arm_cyl_barrel_ry + c45*v_arm_cyl_barrel_rz) - v_arm_cyl_barrel_dx*(-c43*v_arm_cyl_barrel_rw - c44*v_arm_cyl_barrel_rz + 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_ry) - v_arm_cyl_barrel_dy*(-c44*v_arm_cyl_barrel_rw - c45*v_arm_cyl_barrel_rx + 2*arm_cyl_barrel_a00*v_arm_cyl_barrel_rz) - v_arm_cyl_barrel_dz*(-c43*v_arm_cyl_barrel_ry - c45*v_arm_cyl_barrel_rw + 2*arm_cyl_barrel_a10*v_arm_cyl_barrel_rx) - v_arm_cyl_barrel_rw*(-c43*v_arm_cyl_barrel_dx - c44*v_arm_cyl_barrel_dy - c45*v_arm_cyl_barrel_dz - c48*arm_cyl_barrel_ox - c49*arm_cyl_barrel_oy - c50*arm_cyl_rod_oz + 2*arm_cyl_barrel_oz*v_arm_cyl_barrel_ry + 2*arm_cyl_rod_oy*v_arm_cyl_barrel_rz + 4*arm_cyl_rod_ox*v_arm_cyl_barrel_rw) - v_arm_cyl_barrel_rx*(c43*v_arm_cyl_barrel_dw + c44*v_arm_cyl_barrel_dz + c49*arm_cyl_rod_oz + c50*arm_cyl_rod_oy + c51*arm_cyl_rod_ox - c45*v_arm_cyl_barrel_dy - c49*arm_cyl_barrel_oz - c50*arm_cyl_barrel_oy - c51*arm_cyl_barrel_ox) - v_arm_cyl_barrel_ry*(c44*v_arm_cyl_barrel_dw + c45*v_arm_cyl_barrel_dx + c46*arm_cyl_rod_oy + c47*arm_cyl_barrel_oz - c43*v_arm_cyl_barrel_dz - c46*arm_cyl_barrel_oy - c47*arm_cyl_rod_oz) - v_arm_cyl_barrel_rz*(c43*v_arm_cyl_barrel_dy + c45*v_arm_cyl_barrel_dw + c46*arm_cyl_rod_oz + c47*arm_cyl_rod_oy - c44*v_arm_cyl_barrel_dx - c46*arm_cyl_barrel_oz - c47*arm_cyl_barrel_oy) - v_arm_cyl_rod_dw*(-c43*v_arm_cyl_rod_rx - c44*v_arm_cyl_rod_ry - c45*v_arm_cyl_rod_rz) - v_arm_cyl_rod_dx*(c43*v_arm_cyl_rod_rw + c44*v_arm_cyl_rod_rz - c45*v_arm_cyl_rod_ry) - v_arm_cyl_rod_dy*(c44*v_arm_cyl_rod_rw + c45*v_arm_cyl_rod_rx - c43*v_arm_cyl_rod_rz) - v_arm_cyl_rod_dz*(c43*v_arm_cyl_rod_ry + c45*v_arm_cyl_rod_rw - c44*v_arm_cyl_rod_rx) - v_arm_cyl_rod_rw*(c43*v_arm_cyl_rod_dx + c44*v_arm_cyl_rod_dy + c45*v_arm_cyl_rod_dz) - v_arm_cyl_rod_rx*(-c43*v_arm_cyl_rod_dw - c44*v_arm_cyl_rod_dz + 2*arm_cyl_barrel_a20*v_arm_cyl_rod_dy) - v_arm_cyl_rod_ry*(-c44*v_arm_cyl_rod_dw - c45*v_arm_cyl_rod_dx + 2*arm_cyl_barrel_a00*v_arm_cyl_rod_dz) - v_arm_cyl_rod_rz*(-c43*v_arm_cyl_rod_dy - c45*v_arm_cyl_rod_dw + 2*arm_cyl_barrel_a10*v_arm_cyl_rod_dx)
+    out[3] = udd3 + c106*c114 - c97*c92 - c107*(-c108 - c110 - c112 - c113 + 2*bucket_cyl_rod_dy*v_bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*v_bucket_cyl_rod_rw + 2*bucket_cyl_rod_rw*v_bucket_cyl_rod_dz + 2*bucket_cyl_rod_rx*v_bucket_cyl_rod_dy) - c107*(c114 - c108 - c110 - c112 - c113 + c100*v_bucket_cyl_rod_rx + c104*bucket_cyl_rod_rx + c118*v_bucket_cyl_rod_rw + c120*bucket_cyl_rod_rw) - c115*c116 - c115*(-c117 - c119 - c121 - c122 + 2*bucket_cyl_rod_dx*v_bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*v_bucket_cyl_rod_rw + 2*bucket_cyl_rod_rw*v_bucket_cyl_rod_dy + 2*bucket_cyl_rod_rz*v_bucket_cyl_rod_dx) - c115*(c116 - c117 - c119 - c121 - c122 + c100*v_bucket_cyl_rod_rw + c104*bucket_cyl_rod_rw + c109*v_bucket_cyl_rod_rz + c111*bucket_cyl_rod_rz) - c92*(-c99 - c101 - c103 - c105 + 2*bucket_cyl_rod_dx*v_bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*v_bucket_cyl_rod_ry + 2*bucket_cyl_rod_rw*v_bucket_cyl_rod_dx + 2*bucket_cyl_rod_ry*v_bucket_cyl_rod_dz) - c92*(c97 - c99 - c101 - c103 - c105 + c109*v_bucket_cyl_rod_rw + c111*bucket_cyl_rod_rw + c118*v_bucket_cyl_rod_ry + c120*bucket_cyl_rod_ry) - v_bucket_cyl_barrel_dw*(c83*v_bucket_cyl_barrel_rx + c84*v_bucket_cyl_barrel_ry + c85*v_bucket_cyl_barrel_rz) - v_bucket_cyl_barrel_dx*(-c83*v_bucket_cyl_barrel_rw - c84*v_bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_ry) - v_bucket_cyl_barrel_dy*(-c84*v_bucket_cyl_barrel_rw - c85*v_bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_a00*v_bucket_cyl_barrel_rz) - v_bucket_cyl_barrel_dz*(-c83*v_bucket_cyl_barrel_ry - c85*v_bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_rx) - v_bucket_cyl_barrel_rw*(-c83*v_bucket_cyl_barrel_dx - c84*v_bucket_cyl_barrel_dy - c85*v_bucket_cyl_barrel_dz - c88*bucket_cyl_barrel_ox - c89*bucket_cyl_barrel_oy - c90*bucket_cyl_rod_oz + 2*bucket_cyl_barrel_oz*v_bucket_cyl_barrel_ry + 2*bucket_cyl_rod_oy*v_bucket_cyl_barrel_rz + 4*bucket_cyl_rod_ox*v_bucket_cyl_barrel_rw) - v_bucket_cyl_barrel_rx*(c83*v_bucket_cyl_barrel_dw + c84*v_bucket_cyl_barrel_dz + c89*bucket_cyl_rod_oz + c90*bucket_cyl_rod_oy + c91*bucket_cyl_rod_ox - c85*v_bucket_cyl_barrel_dy - c89*bucket_cyl_barrel_oz - c90*bucket_cyl_barrel_oy - c91*bucket_cyl_barrel_ox) - v_bucket_cyl_barrel_ry*(c84*v_bucket_cyl_barrel_dw + c85*v_bucket_cyl_barrel_dx + c86*bucket_cyl_rod_oy + c87*bucket_cyl_barrel_oz - c83*v_bucket_cyl_barrel_dz - c86*bucket_cyl_barrel_oy - c87*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_rz*(c83*v_bucket_cyl_barrel_dy + c85*v_bucket_cyl_barrel_dw + c86*bucket_cyl_rod_oz + c87*bucket_cyl_rod_oy - c84*v_bucket_cyl_barrel_dx - c86*bucket_cyl_barrel_oz - c87*bucket_cyl_barrel_oy) - v_bucket_cyl_rod_dw*(-c83*v_bucket_cyl_rod_rx - c84*v_bucket_cyl_rod_ry - c85*v_bucket_cyl_rod_rz) - v_bucket_cyl_rod_dx*(c83*v_bucket_cyl_rod_rw + c84*v_bucket_cyl_rod_rz - c85*v_bucket_cyl_rod_ry) - v_bucket_cyl_rod_dy*(c84*v_bucket_cyl_rod_rw + c85*v_bucket_cyl_rod_rx - c83*v_bucket_cyl_rod_rz) - v_bucket_cyl_rod_dz*(c83*v_bucket_cyl_rod_ry + c85*v_bucket_cyl_rod_rw - c84*v_bucket_cyl_rod_rx) - v_bucket_cyl_rod_rw*(c83*v_bucket_cyl_rod_dx + c84*v_bucket_cyl_rod_dy + c85*v_bucket_cyl_rod_dz) - v_bucket_cyl_rod_rx*(-c83*v_bucket_cyl_rod_dw - c84*v_bucket_cyl_rod_dz + 2*bucket_cyl_barrel_a20*v_bucket_cyl_rod_dy) - v_bucket_cyl_rod_ry*(-c84*v_bucket_cyl_rod_dw - c85*v_bucket_cyl_rod_dx + 2*bucket_cyl_barrel_a00*v_bucket_cyl_rod_dz) - v_bucket_cyl_rod_rz*(-c83*v_bucket_cyl_rod_dy - c85*v_bucket_cyl_rod_dw + 2*bucket_cyl_barrel_a10*v_bucket_cyl_rod_dx)
+    return out
+
+
+def gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
+
+
+def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    v_upper_rw, _, _, v_upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_rw, v_boom_cyl_l_barrel_rx, v_boom_cyl_l_barrel_ry, v_boom_cyl_l_barrel_rz, v_boom_cyl_l_barrel_dw, v_boom_cyl_l_barrel_dx, v_boom_cyl_l_barrel_dy, v_boom_cyl_l_barrel_dz, v_boom_cyl_l_rod_rw, v_boom_cyl_l_rod_rx, v_boom_cyl_l_rod_ry, v_boom_cyl_l_rod_rz, v_boom_cyl_l_rod_dw, v_boom_cyl_l_rod_dx, v_boom_cyl_l_rod_dy, v_boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_rw, v_arm_cyl_barrel_rx, v_arm_cyl_barrel_ry, v_arm_cyl_barrel_rz, v_arm_cyl_barrel_dw, v_arm_cyl_barrel_dx, v_arm_cyl_barrel_dy, v_arm_cyl_barrel_dz, v_arm_cyl_rod_rw, v_arm_cyl_rod_rx, v_arm_cyl_rod_ry, v_arm_cyl_rod_rz, v_arm_cyl_rod_dw, v_arm_cyl_rod_dx, v_arm_cyl_rod_dy, v_arm_cyl_rod_dz, v_bucket_cyl_barrel_rw, v_bucket_cyl_barrel_rx, v_bucket_cyl_barrel_ry, v_bucket_cyl_barrel_rz, v_bucket_cyl_barrel_dw, v_bucket_cyl_barrel_dx, v_bucket_cyl_barrel_dy, v_bucket_cyl_barrel_dz, v_bucket_cyl_rod_rw, v_bucket_cyl_rod_rx, v_bucket_cyl_rod_ry, v_bucket_cyl_rod_rz, v_bucket_cyl_rod_dw, v_bucket_cyl_rod_dx, v_bucket_cyl_rod_dy, v_bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = 2.0*boom_cyl_l_barrel_a00
+    c4 = 2.0*boom_cyl_l_barrel_a10
+    c5 = 2.0*boom_cyl_l_barrel_a20
+    c6 = 2.0*v_boom_cyl_l_barrel_rx
+    c7 = 2.0*v_boom_cyl_l_barrel_rw
+    c8 = 4.0*v_boom_cyl_l_barrel_rw
+    c9 = 2.0*v_boom_cyl_l_barrel_rz
+    c10 = 2.0*v_boom_cyl_l_barrel_ry
+    c11 = 4.0*v_boom_cyl_l_barrel_rx
+    c12 = c8*boom_cyl_l_barrel_rw + c11*boom_cyl_l_barrel_rx
+    c13 = 2.0*boom_cyl_l_barrel_rw
+    c14 = 2.0*boom_cyl_l_barrel_rx
+    c15 = 2.0*boom_cyl_l_barrel_ry
+    c16 = 2.0*boom_cyl_l_barrel_rz
+    c17 = c14*v_boom_cyl_l_barrel_dw + c16*v_boom_cyl_l_barrel_dy + c6*boom_cyl_l_barrel_dw + c9*boom_cyl_l_barrel_dy - c13*v_boom_cyl_l_barrel_dx - c15*v_boom_cyl_l_barrel_dz - c7*boom_cyl_l_barrel_dx - c10*boom_cyl_l_barrel_dz
+    c18 = 2.0*boom_cyl_l_rod_dw
+    c19 = c18*v_boom_cyl_l_rod_rx
+    c20 = 2.0*boom_cyl_l_rod_dy
+    c21 = c20*v_boom_cyl_l_rod_rz
+    c22 = 2.0*v_boom_cyl_l_rod_dw
+    c23 = c22*boom_cyl_l_rod_rx
+    c24 = 2.0*v_boom_cyl_l_rod_dy
+    c25 = c24*boom_cyl_l_rod_rz
+    c26 = c7*boom_cyl_l_barrel_ry + c10*boom_cyl_l_barrel_rw - 2.0*boom_cyl_l_barrel_rx*v_boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_rz*v_boom_cyl_l_barrel_rx
+    c27 = -c26
+    c28 = c18*v_boom_cyl_l_rod_rz
+    c29 = 2.0*boom_cyl_l_rod_dx
+    c30 = c29*v_boom_cyl_l_rod_ry
+    c31 = 2.0*v_boom_cyl_l_rod_dx
+    c32 = c31*boom_cyl_l_rod_ry
+    c33 = c22*boom_cyl_l_rod_rz
+    c34 = c15*v_boom_cyl_l_barrel_dx + c16*v_boom_cyl_l_barrel_dw + c9*boom_cyl_l_barrel_dw + c10*boom_cyl_l_barrel_dx - c13*v_boom_cyl_l_barrel_dz - c14*v_boom_cyl_l_barrel_dy - c6*boom_cyl_l_barrel_dy - c7*boom_cyl_l_barrel_dz
+    c35 = c6*boom_cyl_l_barrel_ry + c7*boom_cyl_l_barrel_rz + c9*boom_cyl_l_barrel_rw + c10*boom_cyl_l_barrel_rx
+    c36 = c14*v_boom_cyl_l_barrel_dz + c15*v_boom_cyl_l_barrel_dw + c6*boom_cyl_l_barrel_dz + c10*boom_cyl_l_barrel_dw - c13*v_boom_cyl_l_barrel_dy - c16*v_boom_cyl_l_barrel_dx - c7*boom_cyl_l_barrel_dy - c9*boom_cyl_l_barrel_dx
+    c37 = c18*v_boom_cyl_l_rod_ry
+    c38 = 2.0*boom_cyl_l_rod_dz
+    c39 = c38*v_boom_cyl_l_rod_rx
+    c40 = 2.0*v_boom_cyl_l_rod_dz
+    c41 = c40*boom_cyl_l_rod_rx
+    c42 = c22*boom_cyl_l_rod_ry
+    c43 = 2.0*arm_cyl_barrel_a00
+    c44 = 2.0*arm_cyl_barrel_a10
+    c45 = 2.0*arm_cyl_barrel_a20
+    c46 = 2.0*v_arm_cyl_barrel_rx
+    c47 = 2.0*v_arm_cyl_barrel_rw
+    c48 = 4.0*v_arm_cyl_barrel_rw
+    c49 = 2.0*v_arm_cyl_barrel_rz
+    c50 = 2.0*v_arm_cyl_barrel_ry
+    c51 = 4.0*v_arm_cyl_barrel_rx
+    c52 = c48*arm_cyl_barrel_rw + c51*arm_cyl_barrel_rx
+    c53 = 2.0*arm_cyl_barrel_rw
+    c54 = 2.0*arm_cyl_barrel_rx
+    c55 = 2.0*arm_cyl_barrel_ry
+    c56 = 2.0*arm_cyl_barrel_rz
+    c57 = c54*v_arm_cyl_barrel_dw + c56*v_arm_cyl_barrel_dy + c46*arm_cyl_barrel_dw + c49*arm_cyl_barrel_dy - c53*v_arm_cyl_barrel_dx - c55*v_arm_cyl_barrel_dz - c47*arm_cyl_barrel_dx - c50*arm_cyl_barrel_dz
+    c58 = 2.0*arm_cyl_rod_dw
+    c59 = c58*v_arm_cyl_rod_rx
+    c60 = 2.0*arm_cyl_rod_dy
+    c61 = c60*v_arm_cyl_rod_rz
+    c62 = 2.0*v_arm_cyl_rod_dw
+    c63 = c62*arm_cyl_rod_rx
+    c64 = 2.0*v_arm_cyl_rod_dy
+    c65 = c64*arm_cyl_rod_rz
+    c66 = c47*arm_cyl_barrel_ry + c50*arm_cyl_barrel_rw - 2.0*arm_cyl_barrel_rx*v_arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_rz*v_arm_cyl_barrel_rx
+    c67 = -c66
+    c68 = c58*v_arm_cyl_rod_rz
+    c69 = 2.0*arm_cyl_rod_dx
+    c70 = c69*v_arm_cyl_rod_ry
+    c71 = 2.0*v_arm_cyl_rod_dx
+    c72 = c71*arm_cyl_rod_ry
+    c73 = c62*arm_cyl_rod_rz
+    c74 = c55*v_arm_cyl_barrel_dx + c56*v_arm_cyl_barrel_dw + c49*arm_cyl_barrel_dw + c50*arm_cyl_barrel_dx - c53*v_arm_cyl_barrel_dz - c54*v_arm_cyl_barrel_dy - c46*arm_cyl_barrel_dy - c47*arm_cyl_barrel_dz
+    c75 = c46*arm_cyl_barrel_ry + c47*arm_cyl_barrel_rz + c49*arm_cyl_barrel_rw + c50*arm_cyl_barrel_rx
+    c76 = c54*v_arm_cyl_barrel_dz + c55*v_arm_cyl_barrel_dw + c46*arm_cyl_barrel_dz + c50*arm_cyl_barrel_dw - c53*v_arm_cyl_barrel_dy - c56*v_arm_cyl_barrel_dx - c47*arm_cyl_barrel_dy - c49*arm_cyl_barrel_dx
+    c77 = c58*v_arm_cyl_rod_ry
+    c78 = 2.0*arm_cyl_rod_dz
+    c79 = c78*v_arm_cyl_rod_rx
+    c80 = 2.0*v_arm_cyl_rod_dz
+    c81 = c80*arm_cyl_rod_rx
+    c82 = c62*arm_cyl_rod_ry
+    c83 = 2.0*bucket_cyl_barrel_a00
+    c84 = 2.0*bucket_cyl_barrel_a10
+    c85 = 2.0*bucket_cyl_barrel_a20
+    c86 = 2.0*v_bucket_cyl_barrel_rx
+    c87 = 2.0*v_bucket_cyl_barrel_rw
+    c88 = 4.0*v_bucket_cyl_barrel_rw
+    c89 = 2.0*v_bucket_cyl_barrel_rz
+    c90 = 2.0*v_bucket_cyl_barrel_ry
+    c91 = 4.0*v_bucket_cyl_barrel_rx
+    c92 = c88*bucket_cyl_barrel_rw + c91*bucket_cyl_barrel_rx
+    c93 = 2.0*bucket_cyl_barrel_rw
+    c94 = 2.0*bucket_cyl_barrel_rx
+    c95 = 2.0*bucket_cyl_barrel_ry
+    c96 = 2.0*bucket_cyl_barrel_rz
+    c97 = c94*v_bucket_cyl_barrel_dw + c96*v_bucket_cyl_barrel_dy + c86*bucket_cyl_barrel_dw + c89*bucket_cyl_barrel_dy - c93*v_bucket_cyl_barrel_dx - c95*v_bucket_cyl_barrel_dz - c87*bucket_cyl_barrel_dx - c90*bucket_cyl_barrel_dz
+    c98 = 2.0*bucket_cyl_rod_dw
+    c99 = c98*v_bucket_cyl_rod_rx
+    c100 = 2.0*bucket_cyl_rod_dy
+    c101 = c100*v_bucket_cyl_rod_rz
+    c102 = 2.0*v_bucket_cyl_rod_dw
+    c103 = c102*bucket_cyl_rod_rx
+    c104 = 2.0*v_bucket_cyl_rod_dy
+    c105 = c104*bucket_cyl_rod_rz
+    c106 = c87*bucket_cyl_barrel_ry + c90*bucket_cyl_barrel_rw - 2.0*bucket_cyl_barrel_rx*v_bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_rz*v_bucket_cyl_barrel_rx
+    c107 = -c106
+    c108 = c98*v_bucket_cyl_rod_rz
+    c109 = 2.0*bucket_cyl_rod_dx
+    c110 = c109*v_bucket_cyl_rod_ry
+    c111 = 2.0*v_bucket_cyl_rod_dx
+    c112 = c111*bucket_cyl_rod_ry
+    c113 = c102*bucket_cyl_rod_rz
+    c114 = c95*v_bucket_cyl_barrel_dx + c96*v_bucket_cyl_barrel_dw + c89*bucket_cyl_barrel_dw + c90*bucket_cyl_barrel_dx - c93*v_bucket_cyl_barrel_dz - c94*v_bucket_cyl_barrel_dy - c86*bucket_cyl_barrel_dy - c87*bucket_cyl_barrel_dz
+    c115 = c86*bucket_cyl_barrel_ry + c87*bucket_cyl_barrel_rz + c89*bucket_cyl_barrel_rw + c90*bucket_cyl_barrel_rx
+    c116 = c94*v_bucket_cyl_barrel_dz + c95*v_bucket_cyl_barrel_dw + c86*bucket_cyl_barrel_dz + c90*bucket_cyl_barrel_dw - c93*v_bucket_cyl_barrel_dy - c96*v_bucket_cyl_barrel_dx - c87*bucket_cyl_barrel_dy - c89*bucket_cyl_barrel_dx
+    c117 = c98*v_bucket_cyl_rod_ry
+    c118 = 2.0*bucket_cyl_rod_dz
+    c119 = c118*v_bucket_cyl_rod_rx
+    c120 = 2.0*v_bucket_cyl_rod_dz
+    c121 = c120*bucket_cyl_rod_rx
+    c122 = c102*bucket_cyl_rod_ry
+    return [-udd0*(c1*upper_rw + c2*upper_rz) - (ud0*ud0)*((1/2)*c1*upper_rz - 1/2*c2*upper_rw) - 2.0*ud0*(c1*v_upper_rw + c2*v_upper_rz), udd1 + c26*c34 - c17*c12 - c27*(-c28 - c30 - c32 - c33 + 2.0*boom_cyl_l_rod_dy*v_boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*v_boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dz + 2.0*boom_cyl_l_rod_rx*v_boom_cyl_l_rod_dy) - c27*(c34 - c28 - c30 - c32 - c33 + c20*v_boom_cyl_l_rod_rx + c24*boom_cyl_l_rod_rx + c38*v_boom_cyl_l_rod_rw + c40*boom_cyl_l_rod_rw) - c35*c36 - c35*(-c37 - c39 - c41 - c42 + 2.0*boom_cyl_l_rod_dx*v_boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*v_boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dy + 2.0*boom_cyl_l_rod_rz*v_boom_cyl_l_rod_dx) - c35*(c36 - c37 - c39 - c41 - c42 + c20*v_boom_cyl_l_rod_rw + c24*boom_cyl_l_rod_rw + c29*v_boom_cyl_l_rod_rz + c31*boom_cyl_l_rod_rz) - c12*(-c19 - c21 - c23 - c25 + 2.0*boom_cyl_l_rod_dx*v_boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*v_boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_rw*v_boom_cyl_l_rod_dx + 2.0*boom_cyl_l_rod_ry*v_boom_cyl_l_rod_dz) - c12*(c17 - c19 - c21 - c23 - c25 + c29*v_boom_cyl_l_rod_rw + c31*boom_cyl_l_rod_rw + c38*v_boom_cyl_l_rod_ry + c40*boom_cyl_l_rod_ry) - v_boom_cyl_l_barrel_dw*(c3*v_boom_cyl_l_barrel_rx + c4*v_boom_cyl_l_barrel_ry + c5*v_boom_cyl_l_barrel_rz) - v_boom_cyl_l_barrel_dx*(-c3*v_boom_cyl_l_barrel_rw - c4*v_boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_ry) - v_boom_cyl_l_barrel_dy*(-c4*v_boom_cyl_l_barrel_rw - c5*v_boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_rz) - v_boom_cyl_l_barrel_dz*(-c3*v_boom_cyl_l_barrel_ry - c5*v_boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_rx) - v_boom_cyl_l_barrel_rw*(-c3*v_boom_cyl_l_barrel_dx - c4*v_boom_cyl_l_barrel_dy - c5*v_boom_cyl_l_barrel_dz - c8*boom_cyl_l_barrel_ox - c9*boom_cyl_l_barrel_oy - c10*boom_cyl_l_rod_oz + 2.0*boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_rz + 4.0*boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_rw) - v_boom_cyl_l_barrel_rx*(c3*v_boom_cyl_l_barrel_dw + c4*v_boom_cyl_l_barrel_dz + c9*boom_cyl_l_rod_oz + c10*boom_cyl_l_rod_oy + c11*boom_cyl_l_rod_ox - c5*v_boom_cyl_l_barrel_dy - c9*boom_cyl_l_barrel_oz - c10*boom_cyl_l_barrel_oy - c11*boom_cyl_l_barrel_ox) - v_boom_cyl_l_barrel_ry*(c4*v_boom_cyl_l_barrel_dw + c5*v_boom_cyl_l_barrel_dx + c6*boom_cyl_l_rod_oy + c7*boom_cyl_l_barrel_oz - c3*v_boom_cyl_l_barrel_dz - c6*boom_cyl_l_barrel_oy - c7*boom_cyl_l_rod_oz) - v_boom_cyl_l_barrel_rz*(c3*v_boom_cyl_l_barrel_dy + c5*v_boom_cyl_l_barrel_dw + c6*boom_cyl_l_rod_oz + c7*boom_cyl_l_rod_oy - c4*v_boom_cyl_l_barrel_dx - c6*boom_cyl_l_barrel_oz - c7*boom_cyl_l_barrel_oy) - v_boom_cyl_l_rod_dw*(-c3*v_boom_cyl_l_rod_rx - c4*v_boom_cyl_l_rod_ry - c5*v_boom_cyl_l_rod_rz) - v_boom_cyl_l_rod_dx*(c3*v_boom_cyl_l_rod_rw + c4*v_boom_cyl_l_rod_rz - c5*v_boom_cyl_l_rod_ry) - v_boom_cyl_l_rod_dy*(c4*v_boom_cyl_l_rod_rw + c5*v_boom_cyl_l_rod_rx - c3*v_boom_cyl_l_rod_rz) - v_boom_cyl_l_rod_dz*(c3*v_boom_cyl_l_rod_ry + c5*v_boom_cyl_l_rod_rw - c4*v_boom_cyl_l_rod_rx) - v_boom_cyl_l_rod_rw*(c3*v_boom_cyl_l_rod_dx + c4*v_boom_cyl_l_rod_dy + c5*v_boom_cyl_l_rod_dz) - v_boom_cyl_l_rod_rx*(-c3*v_boom_cyl_l_rod_dw - c4*v_boom_cyl_l_rod_dz + 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_dy) - v_boom_cyl_l_rod_ry*(-c4*v_boom_cyl_l_rod_dw - c5*v_boom_cyl_l_rod_dx + 2.0*boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_dz) - v_boom_cyl_l_rod_rz*(-c3*v_boom_cyl_l_rod_dy - c5*v_boom_cyl_l_rod_dw + 2.0*boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_dx), udd2 + c66*c74 - c57*c52 - c67*(-c68 - c70 - c72 - c73 + 2.0*arm_cyl_rod_dy*v_arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*v_arm_cyl_rod_rw + 2.0*arm_cyl_rod_rw*v_arm_cyl_rod_dz + 2.0*arm_cyl_rod_rx*v_arm_cyl_rod_dy) - c67*(c74 - c68 - c70 - c72 - c73 + c60*v_arm_cyl_rod_rx + c64*arm_cyl_rod_rx + c78*v_arm_cyl_rod_rw + c80*arm_cyl_rod_rw) - c75*c76 - c75*(-c77 - c79 - c81 - c82 + 2.0*arm_cyl_rod_dx*v_arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*v_arm_cyl_rod_rw + 2.0*arm_cyl_rod_rw*v_arm_cyl_rod_dy + 2.0*arm_cyl_rod_rz*v_arm_cyl_rod_dx) - c75*(c76 - c77 - c79 - c81 - c82 + c60*v_arm_cyl_rod_rw + c64*arm_cyl_rod_rw + c69*v_arm_cyl_rod_rz + c71*arm_cyl_rod_rz) - c52*(-c59 - c61 - c63 - c65 + 2.0*arm_cyl_rod_dx*v_arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*v_arm_cyl_rod_ry + 2.0*arm_cyl_rod_rw*v_arm_cyl_rod_dx + 2.0*arm_cyl_rod_ry*v_arm_cyl_rod_dz) - c52*(c57 - c59 - c61 - c63 - c65 + c69*v_arm_cyl_rod_rw + c71*arm_cyl_rod_rw + c78*v_arm_cyl_rod_ry + c80*arm_cyl_rod_ry) - v_arm_cyl_barrel_dw*(c43*v_arm_cyl_barrel_rx + c44*v_arm_cyl_barrel_ry + c45*v_arm_cyl_barrel_rz) - v_arm_cyl_barrel_dx*(-c43*v_arm_cyl_barrel_rw - c44*v_arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_a20*v_arm_cyl_barrel_ry) - v_arm_cyl_barrel_dy*(-c44*v_arm_cyl_barrel_rw - c45*v_arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_a00*v_arm_cyl_barrel_rz) - v_arm_cyl_barrel_dz*(-c43*v_arm_cyl_barrel_ry - c45*v_arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_a10*v_arm_cyl_barrel_rx) - v_arm_cyl_barrel_rw*(-c43*v_arm_cyl_barrel_dx - c44*v_arm_cyl_barrel_dy - c45*v_arm_cyl_barrel_dz - c48*arm_cyl_barrel_ox - c49*arm_cyl_barrel_oy - c50*arm_cyl_rod_oz + 2.0*arm_cyl_barrel_oz*v_arm_cyl_barrel_ry + 2.0*arm_cyl_rod_oy*v_arm_cyl_barrel_rz + 4.0*arm_cyl_rod_ox*v_arm_cyl_barrel_rw) - v_arm_cyl_barrel_rx*(c43*v_arm_cyl_barrel_dw + c44*v_arm_cyl_barrel_dz + c49*arm_cyl_rod_oz + c50*arm_cyl_rod_oy + c51*arm_cyl_rod_ox - c45*v_arm_cyl_barrel_dy - c49*arm_cyl_barrel_oz - c50*arm_cyl_barrel_oy - c51*arm_cyl_barrel_ox) - v_arm_cyl_barrel_ry*(c44*v_arm_cyl_barrel_dw + c45*v_arm_cyl_barrel_dx + c46*arm_cyl_rod_oy + c47*arm_cyl_barrel_oz - c43*v_arm_cyl_barrel_dz - c46*arm_cyl_barrel_oy - c47*arm_cyl_rod_oz) - v_arm_cyl_barrel_rz*(c43*v_arm_cyl_barrel_dy + c45*v_arm_cyl_barrel_dw + c46*arm_cyl_rod_oz + c47*arm_cyl_rod_oy - c44*v_arm_cyl_barrel_dx - c46*arm_cyl_barrel_oz - c47*arm_cyl_barrel_oy) - v_arm_cyl_rod_dw*(-c43*v_arm_cyl_rod_rx - c44*v_arm_cyl_rod_ry - c45*v_arm_cyl_rod_rz) - v_arm_cyl_rod_dx*(c43*v_arm_cyl_rod_rw + c44*v_arm_cyl_rod_rz - c45*v_arm_cyl_rod_ry) - v_arm_cyl_rod_dy*(c44*v_arm_cyl_rod_rw + c45*v_arm_cyl_rod_rx - c43*v_arm_cyl_rod_rz) - v_arm_cyl_rod_dz*(c43*v_arm_cyl_rod_ry + c45*v_arm_cyl_rod_rw - c44*v_arm_cyl_rod_rx) - v_arm_cyl_rod_rw*(c43*v_arm_cyl_rod_dx + c44*v_arm_cyl_rod_dy + c45*v_arm_cyl_rod_dz) - v_arm_cyl_rod_rx*(-c43*v_arm_cyl_rod_dw - c44*v_arm_cyl_rod_dz + 2.0*arm_cyl_barrel_a20*v_arm_cyl_rod_dy) - v_arm_cyl_rod_ry*(-c44*v_arm_cyl_rod_dw - c45*v_arm_cyl_rod_dx + 2.0*arm_cyl_barrel_a00*v_arm_cyl_rod_dz) - v_arm_cyl_rod_rz*(-c43*v_arm_cyl_rod_dy - c45*v_arm_cyl_rod_dw + 2.0*arm_cyl_barrel_a10*v_arm_cyl_rod_dx), udd3 + c106*c114 - c97*c92 - c107*(-c108 - c110 - c112 - c113 + 2.0*bucket_cyl_rod_dy*v_bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*v_bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_rw*v_bucket_cyl_rod_dz + 2.0*bucket_cyl_rod_rx*v_bucket_cyl_rod_dy) - c107*(c114 - c108 - c110 - c112 - c113 + c100*v_bucket_cyl_rod_rx + c104*bucket_cyl_rod_rx + c118*v_bucket_cyl_rod_rw + c120*bucket_cyl_rod_rw) - c115*c116 - c115*(-c117 - c119 - c121 - c122 + 2.0*bucket_cyl_rod_dx*v_bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*v_bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_rw*v_bucket_cyl_rod_dy + 2.0*bucket_cyl_rod_rz*v_bucket_cyl_rod_dx) - c115*(c116 - c117 - c119 - c121 - c122 + c100*v_bucket_cyl_rod_rw + c104*bucket_cyl_rod_rw + c109*v_bucket_cyl_rod_rz + c111*bucket_cyl_rod_rz) - c92*(-c99 - c101 - c103 - c105 + 2.0*bucket_cyl_rod_dx*v_bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*v_bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_rw*v_bucket_cyl_rod_dx + 2.0*bucket_cyl_rod_ry*v_bucket_cyl_rod_dz) - c92*(c97 - c99 - c101 - c103 - c105 + c109*v_bucket_cyl_rod_rw + c111*bucket_cyl_rod_rw + c118*v_bucket_cyl_rod_ry + c120*bucket_cyl_rod_ry) - v_bucket_cyl_barrel_dw*(c83*v_bucket_cyl_barrel_rx + c84*v_bucket_cyl_barrel_ry + c85*v_bucket_cyl_barrel_rz) - v_bucket_cyl_barrel_dx*(-c83*v_bucket_cyl_barrel_rw - c84*v_bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_ry) - v_bucket_cyl_barrel_dy*(-c84*v_bucket_cyl_barrel_rw - c85*v_bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_a00*v_bucket_cyl_barrel_rz) - v_bucket_cyl_barrel_dz*(-c83*v_bucket_cyl_barrel_ry - c85*v_bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_rx) - v_bucket_cyl_barrel_rw*(-c83*v_bucket_cyl_barrel_dx - c84*v_bucket_cyl_barrel_dy - c85*v_bucket_cyl_barrel_dz - c88*bucket_cyl_barrel_ox - c89*bucket_cyl_barrel_oy - c90*bucket_cyl_rod_oz + 2.0*bucket_cyl_barrel_oz*v_bucket_cyl_barrel_ry + 2.0*bucket_cyl_rod_oy*v_bucket_cyl_barrel_rz + 4.0*bucket_cyl_rod_ox*v_bucket_cyl_barrel_rw) - v_bucket_cyl_barrel_rx*(c83*v_bucket_cyl_barrel_dw + c84*v_bucket_cyl_barrel_dz + c89*bucket_cyl_rod_oz + c90*bucket_cyl_rod_oy + c91*bucket_cyl_rod_ox - c85*v_bucket_cyl_barrel_dy - c89*bucket_cyl_barrel_oz - c90*bucket_cyl_barrel_oy - c91*bucket_cyl_barrel_ox) - v_bucket_cyl_barrel_ry*(c84*v_bucket_cyl_barrel_dw + c85*v_bucket_cyl_barrel_dx + c86*bucket_cyl_rod_oy + c87*bucket_cyl_barrel_oz - c83*v_bucket_cyl_barrel_dz - c86*bucket_cyl_barrel_oy - c87*bucket_cyl_rod_oz) - v_bucket_cyl_barrel_rz*(c83*v_bucket_cyl_barrel_dy + c85*v_bucket_cyl_barrel_dw + c86*bucket_cyl_rod_oz + c87*bucket_cyl_rod_oy - c84*v_bucket_cyl_barrel_dx - c86*bucket_cyl_barrel_oz - c87*bucket_cyl_barrel_oy) - v_bucket_cyl_rod_dw*(-c83*v_bucket_cyl_rod_rx - c84*v_bucket_cyl_rod_ry - c85*v_bucket_cyl_rod_rz) - v_bucket_cyl_rod_dx*(c83*v_bucket_cyl_rod_rw + c84*v_bucket_cyl_rod_rz - c85*v_bucket_cyl_rod_ry) - v_bucket_cyl_rod_dy*(c84*v_bucket_cyl_rod_rw + c85*v_bucket_cyl_rod_rx - c83*v_bucket_cyl_rod_rz) - v_bucket_cyl_rod_dz*(c83*v_bucket_cyl_rod_ry + c85*v_bucket_cyl_rod_rw - c84*v_bucket_cyl_rod_rx) - v_bucket_cyl_rod_rw*(c83*v_bucket_cyl_rod_dx + c84*v_bucket_cyl_rod_dy + c85*v_bucket_cyl_rod_dz) - v_bucket_cyl_rod_rx*(-c83*v_bucket_cyl_rod_dw - c84*v_bucket_cyl_rod_dz + 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_rod_dy) - v_bucket_cyl_rod_ry*(-c84*v_bucket_cyl_rod_dw - c85*v_bucket_cyl_rod_dx + 2.0*bucket_cyl_barrel_a00*v_bucket_cyl_rod_dz) - v_bucket_cyl_rod_rz*(-c83*v_bucket_cyl_rod_dy - c85*v_bucket_cyl_rod_dw + 2.0*bucket_cyl_barrel_a10*v_bucket_cyl_rod_dx)]
+
+
+def gamma_s_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0 = _joints_gamma_s(q, v, p)
+    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    return s0_0 + s1_0
+
+
+def inputs_digging_paced(t):
+    """Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2."""
+    c0 = (4/7)*t
+    c1 = tanh(-27 + c0)
+    c2 = tanh(-17 + c0)
+    c3 = tanh(-29 + c0)
+    c4 = tanh(-14 + c0)
+    c5 = tanh(-3 + c0)
+    c6 = (9/40)*c5
+    c7 = tanh(-23 + c0)
+    c8 = tanh(-9 + c0)
+    c9 = c1**2
+    c10 = c2**2
+    c11 = c3**2
+    c12 = c4**2
+    c13 = c5**2
+    c14 = (9/70)*c13
+    c15 = c7**2
+    c16 = c8**2
+    c17 = c3*(8/7 - 8/7*c11)
+    c18 = (9/70)*c5*(8/7 - 8/7*c13)
+    c19 = 8/7 - 8/7*c15
+    c20 = c8*(8/7 - 8/7*c16)
+    out = np.zeros((12,) + np.shape(t))
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1
+    out[1] = 626973/250000 - c6 - 1/5*c3 + (17/40)*c4
+    out[2] = 485803/250000 + c6 - 17/40*c7 - 7/40*c3 + (3/8)*c8
+    out[3] = 928949/500000 - 3/8*c7 + (1/20)*c3 + (13/40)*c8
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10
+    out[5] = c14 - 17/70*c12 + (4/35)*c11
+    out[6] = -c14 - 3/14*c16 + (1/10)*c11 + (17/70)*c15
+    out[7] = -13/70*c16 - 1/35*c11 + (3/14)*c15
+    out[8] = 0.4487989505128276*c1*(8/7 - 8/7*c9) - 0.4487989505128276*c2*(8/7 - 8/7*c10)
+    out[9] = c18 + (4/35)*c17 - 17/70*c4*(8/7 - 8/7*c12)
+    out[10] = -c18 - 3/14*c20 + (1/10)*c17 + (17/70)*c19*c7
+    out[11] = -13/70*c20 - 1/35*c17 + (3/14)*c19*c7
+    return out
+
+
+def input_ranges_digging_paced(span):
+    """Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds."""
+    r0 = tuple(np.asarray(t, dtype=float) for t in span)
+    r1 = _iv_const(0.5714285714285713, 0.5714285714285715, r0)
+    r2 = _iv_mul(r1, r0)
+    r3 = _iv_const(-27.0, -27.0, r0)
+    r4 = _iv_add(r3, r2)
+    r5 = _iv_tanh(r4)
+    r6 = _iv_neg(r5)
+    r7 = _iv_const(-17.0, -17.0, r0)
+    r8 = _iv_add(r7, r2)
+    r9 = _iv_tanh(r8)
+    r10 = _iv_add(r6, r9)
+    r11 = _iv_const(0.7853981633974482, 0.7853981633974484, r0)
+    r12 = _iv_mul(r11, r10)
+    r13 = _iv_const(-29.0, -29.0, r0)
+    r14 = _iv_add(r13, r2)
+    r15 = _iv_tanh(r14)
+    r16 = _iv_const(-0.20000000000000004, -0.19999999999999998, r0)
+    r17 = _iv_mul(r16, r15)
+    r18 = _iv_const(-14.0, -14.0, r0)
+    r19 = _iv_add(r18, r2)
+    r20 = _iv_tanh(r19)
+    r21 = _iv_const(0.42499999999999993, 0.42500000000000004, r0)
+    r22 = _iv_mul(r21, r20)
+    r23 = _iv_const(-3.0, -3.0, r0)
+    r24 = _iv_add(r23, r2)
+    r25 = _iv_tanh(r24)
+    r26 = _iv_const(-0.22500000000000003, -0.22499999999999998, r0)
+    r27 = _iv_mul(r26, r25)
+    r28 = _iv_add(r17, r22)
+    r29 = _iv_add(r28, r27)
+    r30 = _iv_const(2.5078919999999996, 2.5078920000000005, r0)
+    r31 = _iv_add(r30, r29)
+    r32 = _iv_const(-0.17500000000000002, -0.17499999999999996, r0)
+    r33 = _iv_mul(r32, r15)
+    r34 = _iv_const(-23.0, -23.0, r0)
+    r35 = _iv_add(r34, r2)
+    r36 = _iv_tanh(r35)
+    r37 = _iv_const(-0.42500000000000004, -0.42499999999999993, r0)
+    r38 = _iv_mul(r37, r36)
+    r39 = _iv_const(-9.0, -9.0, r0)
+    r40 = _iv_add(r39, r2)
+    r41 = _iv_tanh(r40)
+    r42 = _iv_const(0.375, 0.375, r0)
+    r43 = _iv_mul(r42, r41)
+    r44 = _iv_const(0.22499999999999998, 0.22500000000000003, r0)
+    r45 = _iv_mul(r44, r25)
+    r46 = _iv_add(r33, r38)
+    r47 = _iv_add(r46, r43)
+    r48 = _iv_add(r47, r45)
+    r49 = _iv_const(1.9432119999999997, 1.9432120000000002, r0)
+    r50 = _iv_add(r49, r48)
+    r51 = _iv_const(0.049999999999999996, 0.05000000000000001, r0)
+    r52 = _iv_mul(r51, r15)
+    r53 = _iv_const(-0.375, -0.375, r0)
+    r54 = _iv_mul(r53, r36)
+    r55 = _iv_const(0.32499999999999996, 0.32500000000000007, r0)
+    r56 = _iv_mul(r55, r41)
+    r57 = _iv_add(r52, r54)
+    r58 = _iv_add(r57, r56)
+    r59 = _iv_const(1.8578979999999998, 1.8578980000000003, r0)
+    r60 = _iv_add(r59, r58)
+    r61 = _iv_powi(r5, 2)
+    r62 = _iv_mul(r1, r61)
+    r63 = _iv_powi(r9, 2)
+    r64 = _iv_const(-0.5714285714285715, -0.5714285714285713, r0)
+    r65 = _iv_mul(r64, r63)
+    r66 = _iv_add(r62, r65)
+    r67 = _iv_mul(r11, r66)
+    r68 = _iv_powi(r15, 2)
+    r69 = _iv_const(0.11428571428571427, 0.1142857142857143, r0)
+    r70 = _iv_mul(r69, r68)
+    r71 = _iv_powi(r20, 2)
+    r72 = _iv_const(-0.24285714285714288, -0.24285714285714283, r0)
+    r73 = _iv_mul(r72, r71)
+    r74 = _iv_powi(r25, 2)
+    r75 = _iv_const(0.12857142857142853, 0.1285714285714286, r0)
+    r76 = _iv_mul(r75, r74)
+    r77 = _iv_add(r70, r73)
+    r78 = _iv_add(r77, r76)
+    r79 = _iv_const(0.09999999999999999, 0.10000000000000002, r0)
+    r80 = _iv_mul(r79, r68)
+    r81 = _iv_powi(r36, 2)
+    r82 = _iv_const(0.24285714285714283, 0.24285714285714288, r0)
+    r83 = _iv_mul(r82, r81)
+    r84 = _iv_powi(r41, 2)
+    r85 = _iv_const(-0.2142857142857143, -0.21428571428571425, r0)
+    r86 = _iv_mul(r85, r84)
+    r87 = _iv_const(-0.1285714285714286, -0.12857142857142853, r0)
+    r88 = _iv_mul(r87, r74)
+    r89 = _iv_add(r80, r83)
+    r90 = _iv_add(r89, r86)
+    r91 = _iv_add(r90, r88)
+    r92 = _iv_const(-0.028571428571428574, -0.028571428571428567, r0)
+    r93 = _iv_mul(r92, r68)
+    r94 = _iv_const(0.21428571428571425, 0.2142857142857143, r0)
+    r95 = _iv_mul(r94, r81)
+    r96 = _iv_const(-0.18571428571428575, -0.1857142857142857, r0)
+    r97 = _iv_mul(r96, r84)
+    r98 = _iv_add(r93, r95)
+    r99 = _iv_add(r98, r97)
+    r100 = _iv_const(-1.142857142857143, -1.1428571428571426, r0)
+    r101 = _iv_mul(r100, r61)
+    r102 = _iv_const(1.1428571428571426, 1.142857142857143, r0)
+    r103 = _iv_add(r102, r101)
+    r104 = _iv_mul(r103, r5)
+    r105 = _iv_mul(r1, r104)
+    r106 = _iv_mul(r100, r63)
+    r107 = _iv_add(r102, r106)
+    r108 = _iv_mul(r107, r9)
+    r109 = _iv_mul(r64, r108)
+    r110 = _iv_add(r105, r109)
+    r111 = _iv_mul(r11, r110)
+    r112 = _iv_mul(r100, r68)
+    r113 = _iv_add(r102, r112)
+    r114 = _iv_mul(r113, r15)
+    r115 = _iv_mul(r69, r114)
+    r116 = _iv_mul(r100, r71)
+    r117 = _iv_add(r102, r116)
+    r118 = _iv_mul(r117, r20)
+    r119 = _iv_mul(r72, r118)
+    r120 = _iv_mul(r100, r74)
+    r121 = _iv_add(r102, r120)
+    r122 = _iv_mul(r121, r25)
+    r123 = _iv_mul(r75, r122)
+    r124 = _iv_add(r115, r119)
+    r125 = _iv_add(r124, r123)
+    r126 = _iv_mul(r79, r114)
+    r127 = _iv_mul(r100, r81)
+    r128 = _iv_add(r102, r127)
+    r129 = _iv_mul(r128, r36)
+    r130 = _iv_mul(r82, r129)
+    r131 = _iv_mul(r100, r84)
+    r132 = _iv_add(r102, r131)
+    r133 = _iv_mul(r132, r41)
+    r134 = _iv_mul(r85, r133)
+    r135 = _iv_mul(r87, r122)
+    r136 = _iv_add(r126, r130)
+    r137 = _iv_add(r136, r134)
+    r138 = _iv_add(r137, r135)
+    r139 = _iv_mul(r92, r114)
+    r140 = _iv_mul(r94, r129)
+    r141 = _iv_mul(r96, r133)
+    r142 = _iv_add(r139, r140)
+    r143 = _iv_add(r142, r141)
+    out = np.empty((24,) + np.shape(r0[0]))
+    out[0] = r12[0]
+    out[12] = r12[1]
+    out[1] = r31[0]
+    out[13] = r31[1]
+    out[2] = r50[0]
+    out[14] = r50[1]
+    out[3] = r60[0]
+    out[15] = r60[1]
+    out[4] = r67[0]
+    out[16] = r67[1]
+    out[5] = r78[0]
+    out[17] = r78[1]
+    out[6] = r91[0]
+    out[18] = r91[1]
+    out[7] = r99[0]
+    out[19] = r99[1]
+    out[8] = r111[0]
+    out[20] = r111[1]
+    out[9] = r125[0]
+    out[21] = r125[1]
+    out[10] = r138[0]
+    out[22] = r138[1]
+    out[11] = r143[0]
+    out[23] = r143[1]
+    return out
+
+
 def _drivers_phi_oscillation(q, u, p):
     """Phi of the driver rows of case 'oscillation'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
@@ -13674,6 +14509,17 @@ CASES = {
         'driver_sources': (('cases.digging_fast.drivers.swing_angle.function', 'pi/4*(tanh((1.25*t - 8.5)/0.5) - tanh((1.25*t - 13.5)/0.5))'), ('cases.digging_fast.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.425*(1 + tanh((1.25*t - 7)/0.5)) - 0.2*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.375*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.425*(1 + tanh((1.25*t - 11.5)/0.5)) - 0.175*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.375*(1 + tanh((1.25*t - 11.5)/0.5)) + 0.05*(1 + tanh((1.25*t - 14.5)/0.5))')),
         'outputs': {'phi': phi_digging_fast, 'jac': jac_digging_fast, 'nu': nu_digging_fast, 'gamma': gamma_digging_fast, 'inputs': inputs_digging_fast, 'input_ranges': input_ranges_digging_fast},
         'scalar': {'phi_jac': phi_jac_s_digging_fast, 'nu': nu_s_digging_fast, 'gamma': gamma_s_digging_fast},
+        'patterns': {},
+    },
+    'digging_paced': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'upper.norm', 'upper.norm1', 'boom.norm', 'boom.norm1', 'boom_cyl_l_barrel.norm', 'boom_cyl_l_barrel.norm1', 'boom_cyl_l_rod.norm', 'boom_cyl_l_rod.norm1', 'boom_cyl_r_barrel.norm', 'boom_cyl_r_barrel.norm1', 'boom_cyl_r_rod.norm', 'boom_cyl_r_rod.norm1', 'arm.norm', 'arm.norm1', 'arm_cyl_barrel.norm', 'arm_cyl_barrel.norm1', 'arm_cyl_rod.norm', 'arm_cyl_rod.norm1', 'bucket_cyl_barrel.norm', 'bucket_cyl_barrel.norm1', 'bucket_cyl_rod.norm', 'bucket_cyl_rod.norm1', 'side_link.norm', 'side_link.norm1', 'bucket_link.norm', 'bucket_link.norm1', 'bucket.norm', 'bucket.norm1', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 0, 0, 0, 0, 0, 0, 0, 1, 1, 1, 1, 1, 1, 1, 1, 2, 2, 2, 2, 2, 2, 2, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 93, 93, 93, 93, 94, 94, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 98, 98, 98, 98, 99, 99, 99, 99, 99, 99, 99, 99, 100, 100, 100, 100, 101, 101, 101, 101, 101, 101, 101, 101, 102, 102, 102, 102, 103, 103, 103, 103, 103, 103, 103, 103, 104, 104, 104, 104, 105, 105, 105, 105, 105, 105, 105, 105, 106, 106, 106, 106, 107, 107, 107, 107, 107, 107, 107, 107, 108, 108, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 109, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 110, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111, 111),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 8, 9, 10, 11, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 4, 5, 6, 7, 16, 17, 18, 19, 20, 21, 22, 23, 0, 1, 2, 3, 16, 17, 18, 19, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 24, 25, 26, 27, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 16, 17, 18, 19, 24, 25, 26, 27, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 8, 9, 10, 11, 12, 13, 14, 15, 24, 25, 26, 27, 28, 29, 30, 31, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 4, 5, 6, 7, 32, 33, 34, 35, 36, 37, 38, 39, 0, 1, 2, 3, 32, 33, 34, 35, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 40, 41, 42, 43, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 44, 45, 46, 47, 32, 33, 34, 35, 40, 41, 42, 43, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 40, 41, 42, 43, 44, 45, 46, 47, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 12, 13, 14, 15, 48, 49, 50, 51, 52, 53, 54, 55, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 48, 49, 50, 51, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 12, 13, 14, 15, 56, 57, 58, 59, 60, 61, 62, 63, 8, 9, 10, 11, 56, 57, 58, 59, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 64, 65, 66, 67, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 56, 57, 58, 59, 64, 65, 66, 67, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 64, 65, 66, 67, 68, 69, 70, 71, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 52, 53, 54, 55, 104, 105, 106, 107, 108, 109, 110, 111, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 52, 53, 54, 55, 88, 89, 90, 91, 92, 93, 94, 95, 48, 49, 50, 51, 88, 89, 90, 91, 48, 49, 50, 51, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 100, 101, 102, 103, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 108, 109, 110, 111, 96, 97, 98, 99, 104, 105, 106, 107, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 52, 53, 54, 55, 72, 73, 74, 75, 76, 77, 78, 79, 48, 49, 50, 51, 72, 73, 74, 75, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 80, 81, 82, 83, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87, 72, 73, 74, 75, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 93, 94, 95, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 18, 19, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 32, 33, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 88, 89, 90, 91, 92, 93, 94, 95, 96, 97, 98, 99, 96, 97, 98, 99, 100, 101, 102, 103, 104, 105, 106, 107, 104, 105, 106, 107, 108, 109, 110, 111, 0, 3, 16, 17, 18, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 29, 30, 31, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 73, 74, 75, 76, 77, 78, 79, 80, 81, 82, 83, 84, 85, 86, 87),
+        't0': 0.0, 't1': 59.5, 'steps': 341,
+        'driver_sources': (('cases.digging_paced.drivers.swing_angle.function', 'pi/4*(tanh((2*t/7 - 8.5)/0.5) - tanh((2*t/7 - 13.5)/0.5))'), ('cases.digging_paced.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.425*(1 + tanh((2*t/7 - 7)/0.5)) - 0.2*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.375*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.425*(1 + tanh((2*t/7 - 11.5)/0.5)) - 0.175*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.375*(1 + tanh((2*t/7 - 11.5)/0.5)) + 0.05*(1 + tanh((2*t/7 - 14.5)/0.5))')),
+        'outputs': {'phi': phi_digging_paced, 'jac': jac_digging_paced, 'nu': nu_digging_paced, 'gamma': gamma_digging_paced, 'inputs': inputs_digging_paced, 'input_ranges': input_ranges_digging_paced},
+        'scalar': {'phi_jac': phi_jac_s_digging_paced, 'nu': nu_s_digging_paced, 'gamma': gamma_s_digging_paced},
         'patterns': {},
     },
     'oscillation': {

@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+ * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
  * parametrization: dual-quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -17,8 +17,8 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The section functions come in 4 groups, each under its KINEGEN_PART value
- * (1 to 4; the retraction, kernels and tables under 0): the file compiles whole, or
+/* The section functions come in 5 groups, each under its KINEGEN_PART value
+ * (1 to 5; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
 void excavator_dual_quaternion_compute_joints_phi(const double *q, const double *p, double *out);
 void excavator_dual_quaternion_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
@@ -70,6 +70,12 @@ void excavator_dual_quaternion_compute_drivers_nu_digging_fast(const double *q, 
 void excavator_dual_quaternion_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_dual_quaternion_compute_inputs_digging_fast(double t, double *out);
 void excavator_dual_quaternion_compute_input_ranges_digging_fast(const double *span, double *out);
+void excavator_dual_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_dual_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_dual_quaternion_compute_inputs_digging_paced(double t, double *out);
+void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *span, double *out);
 void excavator_dual_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_dual_quaternion_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_dual_quaternion_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
@@ -5407,6 +5413,603 @@ void excavator_dual_quaternion_compute_input_ranges_digging_fast(const double *s
     out[23] = r143.hi;
 }
 
+/* Phi of the driver rows of case 'digging_paced'. */
+void excavator_dual_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double u0 = u[0];
+    const double u1 = u[1];
+    const double u2 = u[2];
+    const double u3 = u[3];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -2.0*upper_rz*cos(c0) + 2.0*upper_rw*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz);
+}
+
+/* Phi_q values of the driver rows of case 'digging_paced'. */
+void excavator_dual_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rx = q[1];
+    const double upper_ry = q[2];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double u0 = u[0];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = sin(c0);
+    const double c2 = cos(c0);
+    const double c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz;
+    const double c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy;
+    const double c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox;
+    const double c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz;
+    const double c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy;
+    const double c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox;
+    const double c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz;
+    const double c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy;
+    const double c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox;
+    out[0] = -c1*upper_rx - c2*upper_ry;
+    out[1] = c2*upper_rx - c1*upper_ry;
+    out[2] = -c1*upper_rz - c2*upper_rw;
+    out[3] = c3*boom_cyl_l_barrel_a10 - c4*boom_cyl_l_barrel_a20;
+    out[4] = c5*boom_cyl_l_barrel_a20 - c3*boom_cyl_l_barrel_a00;
+    out[5] = c4*boom_cyl_l_barrel_a00 - c5*boom_cyl_l_barrel_a10;
+    out[6] = -boom_cyl_l_barrel_a00;
+    out[7] = -boom_cyl_l_barrel_a10;
+    out[8] = -boom_cyl_l_barrel_a20;
+    out[9] = boom_cyl_l_barrel_a00;
+    out[10] = boom_cyl_l_barrel_a10;
+    out[11] = boom_cyl_l_barrel_a20;
+    out[12] = c6*arm_cyl_barrel_a10 - c7*arm_cyl_barrel_a20;
+    out[13] = c8*arm_cyl_barrel_a20 - c6*arm_cyl_barrel_a00;
+    out[14] = c7*arm_cyl_barrel_a00 - c8*arm_cyl_barrel_a10;
+    out[15] = -arm_cyl_barrel_a00;
+    out[16] = -arm_cyl_barrel_a10;
+    out[17] = -arm_cyl_barrel_a20;
+    out[18] = arm_cyl_barrel_a00;
+    out[19] = arm_cyl_barrel_a10;
+    out[20] = arm_cyl_barrel_a20;
+    out[21] = c9*bucket_cyl_barrel_a10 - c10*bucket_cyl_barrel_a20;
+    out[22] = c11*bucket_cyl_barrel_a20 - c9*bucket_cyl_barrel_a00;
+    out[23] = c10*bucket_cyl_barrel_a00 - c11*bucket_cyl_barrel_a10;
+    out[24] = -bucket_cyl_barrel_a00;
+    out[25] = -bucket_cyl_barrel_a10;
+    out[26] = -bucket_cyl_barrel_a20;
+    out[27] = bucket_cyl_barrel_a00;
+    out[28] = bucket_cyl_barrel_a10;
+    out[29] = bucket_cyl_barrel_a20;
+}
+
+/* nu of the driver rows of case 'digging_paced'. */
+void excavator_dual_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rz = q[3];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double ud1 = ud[1];
+    const double ud2 = ud[2];
+    const double ud3 = ud[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0));
+    out[1] = ud1;
+    out[2] = ud2;
+    out[3] = ud3;
+}
+
+/* gamma of the driver rows of case 'digging_paced'. */
+void excavator_dual_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_rw = q[0];
+    const double upper_rx = q[1];
+    const double upper_ry = q[2];
+    const double upper_rz = q[3];
+    const double boom_cyl_l_barrel_rw = q[16];
+    const double boom_cyl_l_barrel_rx = q[17];
+    const double boom_cyl_l_barrel_ry = q[18];
+    const double boom_cyl_l_barrel_rz = q[19];
+    const double boom_cyl_l_barrel_dw = q[20];
+    const double boom_cyl_l_barrel_dx = q[21];
+    const double boom_cyl_l_barrel_dy = q[22];
+    const double boom_cyl_l_barrel_dz = q[23];
+    const double boom_cyl_l_rod_rw = q[24];
+    const double boom_cyl_l_rod_rx = q[25];
+    const double boom_cyl_l_rod_ry = q[26];
+    const double boom_cyl_l_rod_rz = q[27];
+    const double boom_cyl_l_rod_dw = q[28];
+    const double boom_cyl_l_rod_dx = q[29];
+    const double boom_cyl_l_rod_dy = q[30];
+    const double boom_cyl_l_rod_dz = q[31];
+    const double arm_cyl_barrel_rw = q[56];
+    const double arm_cyl_barrel_rx = q[57];
+    const double arm_cyl_barrel_ry = q[58];
+    const double arm_cyl_barrel_rz = q[59];
+    const double arm_cyl_barrel_dw = q[60];
+    const double arm_cyl_barrel_dx = q[61];
+    const double arm_cyl_barrel_dy = q[62];
+    const double arm_cyl_barrel_dz = q[63];
+    const double arm_cyl_rod_rw = q[64];
+    const double arm_cyl_rod_rx = q[65];
+    const double arm_cyl_rod_ry = q[66];
+    const double arm_cyl_rod_rz = q[67];
+    const double arm_cyl_rod_dw = q[68];
+    const double arm_cyl_rod_dx = q[69];
+    const double arm_cyl_rod_dy = q[70];
+    const double arm_cyl_rod_dz = q[71];
+    const double bucket_cyl_barrel_rw = q[72];
+    const double bucket_cyl_barrel_rx = q[73];
+    const double bucket_cyl_barrel_ry = q[74];
+    const double bucket_cyl_barrel_rz = q[75];
+    const double bucket_cyl_barrel_dw = q[76];
+    const double bucket_cyl_barrel_dx = q[77];
+    const double bucket_cyl_barrel_dy = q[78];
+    const double bucket_cyl_barrel_dz = q[79];
+    const double bucket_cyl_rod_rw = q[80];
+    const double bucket_cyl_rod_rx = q[81];
+    const double bucket_cyl_rod_ry = q[82];
+    const double bucket_cyl_rod_rz = q[83];
+    const double bucket_cyl_rod_dw = q[84];
+    const double bucket_cyl_rod_dx = q[85];
+    const double bucket_cyl_rod_dy = q[86];
+    const double bucket_cyl_rod_dz = q[87];
+    const double v_upper_wx = v[0];
+    const double v_upper_wy = v[1];
+    const double v_upper_wz = v[2];
+    const double v_boom_cyl_l_barrel_wx = v[12];
+    const double v_boom_cyl_l_barrel_wy = v[13];
+    const double v_boom_cyl_l_barrel_wz = v[14];
+    const double v_boom_cyl_l_barrel_vx = v[15];
+    const double v_boom_cyl_l_barrel_vy = v[16];
+    const double v_boom_cyl_l_barrel_vz = v[17];
+    const double v_boom_cyl_l_rod_vx = v[21];
+    const double v_boom_cyl_l_rod_vy = v[22];
+    const double v_boom_cyl_l_rod_vz = v[23];
+    const double v_arm_cyl_barrel_wx = v[42];
+    const double v_arm_cyl_barrel_wy = v[43];
+    const double v_arm_cyl_barrel_wz = v[44];
+    const double v_arm_cyl_barrel_vx = v[45];
+    const double v_arm_cyl_barrel_vy = v[46];
+    const double v_arm_cyl_barrel_vz = v[47];
+    const double v_arm_cyl_rod_vx = v[51];
+    const double v_arm_cyl_rod_vy = v[52];
+    const double v_arm_cyl_rod_vz = v[53];
+    const double v_bucket_cyl_barrel_wx = v[54];
+    const double v_bucket_cyl_barrel_wy = v[55];
+    const double v_bucket_cyl_barrel_wz = v[56];
+    const double v_bucket_cyl_barrel_vx = v[57];
+    const double v_bucket_cyl_barrel_vy = v[58];
+    const double v_bucket_cyl_barrel_vz = v[59];
+    const double v_bucket_cyl_rod_vx = v[63];
+    const double v_bucket_cyl_rod_vy = v[64];
+    const double v_bucket_cyl_rod_vz = v[65];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    const double udd1 = udd[1];
+    const double udd2 = udd[2];
+    const double udd3 = udd[3];
+    (void)p;
+    const double boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz;
+    const double boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry;
+    const double boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw;
+    const double boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw;
+    const double arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz;
+    const double arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry;
+    const double arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw;
+    const double arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw;
+    const double bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz;
+    const double bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry;
+    const double bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw;
+    const double bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = cos(c0);
+    const double c2 = sin(c0);
+    const double c3 = (1.0/2.0)*upper_rw;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_rz;
+    const double c5 = (1.0/2.0)*v_upper_wy;
+    const double c6 = (1.0/2.0)*v_upper_wx;
+    const double c7 = (1.0/2.0)*upper_rz;
+    const double c8 = (1.0/2.0)*v_upper_wz;
+    const double c9 = (1.0/2.0)*c1;
+    const double c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy;
+    const double c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx;
+    const double c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx;
+    const double c13 = -c10;
+    const double c14 = -c12;
+    const double c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wy;
+    const double c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wx;
+    const double c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy - arm_cyl_barrel_a10*v_arm_cyl_barrel_wx;
+    const double c18 = -c15;
+    const double c19 = -c17;
+    const double c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy;
+    const double c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx;
+    const double c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx;
+    const double c23 = -c20;
+    const double c24 = -c22;
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1.0/2.0)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1.0/2.0*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx);
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx);
+    out[2] = udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx);
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
+void excavator_dual_quaternion_compute_inputs_digging_paced(double t, double *out) {
+    const double c0 = (4.0/7.0)*t;
+    const double c1 = tanh(-27.0 + c0);
+    const double c2 = tanh(-17.0 + c0);
+    const double c3 = tanh(-29.0 + c0);
+    const double c4 = tanh(-14.0 + c0);
+    const double c5 = tanh(-3.0 + c0);
+    const double c6 = (9.0/40.0)*c5;
+    const double c7 = tanh(-23.0 + c0);
+    const double c8 = tanh(-9.0 + c0);
+    const double c9 = (c1*c1);
+    const double c10 = (c2*c2);
+    const double c11 = (c3*c3);
+    const double c12 = (c4*c4);
+    const double c13 = (c5*c5);
+    const double c14 = (9.0/70.0)*c13;
+    const double c15 = (c7*c7);
+    const double c16 = (c8*c8);
+    const double c17 = c3*(8.0/7.0 - 8.0/7.0*c11);
+    const double c18 = (9.0/70.0)*c5*(8.0/7.0 - 8.0/7.0*c13);
+    const double c19 = 8.0/7.0 - 8.0/7.0*c15;
+    const double c20 = c8*(8.0/7.0 - 8.0/7.0*c16);
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1;
+    out[1] = 626973.0/250000.0 - c6 - 1.0/5.0*c3 + (17.0/40.0)*c4;
+    out[2] = 485803.0/250000.0 + c6 - 17.0/40.0*c7 - 7.0/40.0*c3 + (3.0/8.0)*c8;
+    out[3] = 928949.0/500000.0 - 3.0/8.0*c7 + (1.0/20.0)*c3 + (13.0/40.0)*c8;
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10;
+    out[5] = c14 - 17.0/70.0*c12 + (4.0/35.0)*c11;
+    out[6] = -c14 - 3.0/14.0*c16 + (1.0/10.0)*c11 + (17.0/70.0)*c15;
+    out[7] = -13.0/70.0*c16 - 1.0/35.0*c11 + (3.0/14.0)*c15;
+    out[8] = 0.4487989505128276*c1*(8.0/7.0 - 8.0/7.0*c9) - 0.4487989505128276*c2*(8.0/7.0 - 8.0/7.0*c10);
+    out[9] = c18 + (4.0/35.0)*c17 - 17.0/70.0*c4*(8.0/7.0 - 8.0/7.0*c12);
+    out[10] = -c18 - 3.0/14.0*c20 + (1.0/10.0)*c17 + (17.0/70.0)*c19*c7;
+    out[11] = -13.0/70.0*c20 - 1.0/35.0*c17 + (3.0/14.0)*c19*c7;
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
+void excavator_dual_quaternion_compute_input_ranges_digging_paced(const double *span, double *out) {
+    const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
+    const kinegen_interval r1 = kinegen_iv_const(0.5714285714285713, 0.5714285714285715);
+    const kinegen_interval r2 = kinegen_iv_mul(r1, r0);
+    const kinegen_interval r3 = kinegen_iv_const(-27.0, -27.0);
+    const kinegen_interval r4 = kinegen_iv_add(r3, r2);
+    const kinegen_interval r5 = kinegen_iv_tanh(r4);
+    const kinegen_interval r6 = kinegen_iv_neg(r5);
+    const kinegen_interval r7 = kinegen_iv_const(-17.0, -17.0);
+    const kinegen_interval r8 = kinegen_iv_add(r7, r2);
+    const kinegen_interval r9 = kinegen_iv_tanh(r8);
+    const kinegen_interval r10 = kinegen_iv_add(r6, r9);
+    const kinegen_interval r11 = kinegen_iv_const(0.7853981633974482, 0.7853981633974484);
+    const kinegen_interval r12 = kinegen_iv_mul(r11, r10);
+    const kinegen_interval r13 = kinegen_iv_const(-29.0, -29.0);
+    const kinegen_interval r14 = kinegen_iv_add(r13, r2);
+    const kinegen_interval r15 = kinegen_iv_tanh(r14);
+    const kinegen_interval r16 = kinegen_iv_const(-0.20000000000000004, -0.19999999999999998);
+    const kinegen_interval r17 = kinegen_iv_mul(r16, r15);
+    const kinegen_interval r18 = kinegen_iv_const(-14.0, -14.0);
+    const kinegen_interval r19 = kinegen_iv_add(r18, r2);
+    const kinegen_interval r20 = kinegen_iv_tanh(r19);
+    const kinegen_interval r21 = kinegen_iv_const(0.42499999999999993, 0.42500000000000004);
+    const kinegen_interval r22 = kinegen_iv_mul(r21, r20);
+    const kinegen_interval r23 = kinegen_iv_const(-3.0, -3.0);
+    const kinegen_interval r24 = kinegen_iv_add(r23, r2);
+    const kinegen_interval r25 = kinegen_iv_tanh(r24);
+    const kinegen_interval r26 = kinegen_iv_const(-0.22500000000000003, -0.22499999999999998);
+    const kinegen_interval r27 = kinegen_iv_mul(r26, r25);
+    const kinegen_interval r28 = kinegen_iv_add(r17, r22);
+    const kinegen_interval r29 = kinegen_iv_add(r28, r27);
+    const kinegen_interval r30 = kinegen_iv_const(2.5078919999999996, 2.5078920000000005);
+    const kinegen_interval r31 = kinegen_iv_add(r30, r29);
+    const kinegen_interval r32 = kinegen_iv_const(-0.17500000000000002, -0.17499999999999996);
+    const kinegen_interval r33 = kinegen_iv_mul(r32, r15);
+    const kinegen_interval r34 = kinegen_iv_const(-23.0, -23.0);
+    const kinegen_interval r35 = kinegen_iv_add(r34, r2);
+    const kinegen_interval r36 = kinegen_iv_tanh(r35);
+    const kinegen_interval r37 = kinegen_iv_const(-0.42500000000000004, -0.42499999999999993);
+    const kinegen_interval r38 = kinegen_iv_mul(r37, r36);
+    const kinegen_interval r39 = kinegen_iv_const(-9.0, -9.0);
+    const kinegen_interval r40 = kinegen_iv_add(r39, r2);
+    const kinegen_interval r41 = kinegen_iv_tanh(r40);
+    const kinegen_interval r42 = kinegen_iv_const(0.375, 0.375);
+    const kinegen_interval r43 = kinegen_iv_mul(r42, r41);
+    const kinegen_interval r44 = kinegen_iv_const(0.22499999999999998, 0.22500000000000003);
+    const kinegen_interval r45 = kinegen_iv_mul(r44, r25);
+    const kinegen_interval r46 = kinegen_iv_add(r33, r38);
+    const kinegen_interval r47 = kinegen_iv_add(r46, r43);
+    const kinegen_interval r48 = kinegen_iv_add(r47, r45);
+    const kinegen_interval r49 = kinegen_iv_const(1.9432119999999997, 1.9432120000000002);
+    const kinegen_interval r50 = kinegen_iv_add(r49, r48);
+    const kinegen_interval r51 = kinegen_iv_const(0.049999999999999996, 0.05000000000000001);
+    const kinegen_interval r52 = kinegen_iv_mul(r51, r15);
+    const kinegen_interval r53 = kinegen_iv_const(-0.375, -0.375);
+    const kinegen_interval r54 = kinegen_iv_mul(r53, r36);
+    const kinegen_interval r55 = kinegen_iv_const(0.32499999999999996, 0.32500000000000007);
+    const kinegen_interval r56 = kinegen_iv_mul(r55, r41);
+    const kinegen_interval r57 = kinegen_iv_add(r52, r54);
+    const kinegen_interval r58 = kinegen_iv_add(r57, r56);
+    const kinegen_interval r59 = kinegen_iv_const(1.8578979999999998, 1.8578980000000003);
+    const kinegen_interval r60 = kinegen_iv_add(r59, r58);
+    const kinegen_interval r61 = kinegen_iv_powi(r5, 2);
+    const kinegen_interval r62 = kinegen_iv_mul(r1, r61);
+    const kinegen_interval r63 = kinegen_iv_powi(r9, 2);
+    const kinegen_interval r64 = kinegen_iv_const(-0.5714285714285715, -0.5714285714285713);
+    const kinegen_interval r65 = kinegen_iv_mul(r64, r63);
+    const kinegen_interval r66 = kinegen_iv_add(r62, r65);
+    const kinegen_interval r67 = kinegen_iv_mul(r11, r66);
+    const kinegen_interval r68 = kinegen_iv_powi(r15, 2);
+    const kinegen_interval r69 = kinegen_iv_const(0.11428571428571427, 0.1142857142857143);
+    const kinegen_interval r70 = kinegen_iv_mul(r69, r68);
+    const kinegen_interval r71 = kinegen_iv_powi(r20, 2);
+    const kinegen_interval r72 = kinegen_iv_const(-0.24285714285714288, -0.24285714285714283);
+    const kinegen_interval r73 = kinegen_iv_mul(r72, r71);
+    const kinegen_interval r74 = kinegen_iv_powi(r25, 2);
+    const kinegen_interval r75 = kinegen_iv_const(0.12857142857142853, 0.1285714285714286);
+    const kinegen_interval r76 = kinegen_iv_mul(r75, r74);
+    const kinegen_interval r77 = kinegen_iv_add(r70, r73);
+    const kinegen_interval r78 = kinegen_iv_add(r77, r76);
+    const kinegen_interval r79 = kinegen_iv_const(0.09999999999999999, 0.10000000000000002);
+    const kinegen_interval r80 = kinegen_iv_mul(r79, r68);
+    const kinegen_interval r81 = kinegen_iv_powi(r36, 2);
+    const kinegen_interval r82 = kinegen_iv_const(0.24285714285714283, 0.24285714285714288);
+    const kinegen_interval r83 = kinegen_iv_mul(r82, r81);
+    const kinegen_interval r84 = kinegen_iv_powi(r41, 2);
+    const kinegen_interval r85 = kinegen_iv_const(-0.2142857142857143, -0.21428571428571425);
+    const kinegen_interval r86 = kinegen_iv_mul(r85, r84);
+    const kinegen_interval r87 = kinegen_iv_const(-0.1285714285714286, -0.12857142857142853);
+    const kinegen_interval r88 = kinegen_iv_mul(r87, r74);
+    const kinegen_interval r89 = kinegen_iv_add(r80, r83);
+    const kinegen_interval r90 = kinegen_iv_add(r89, r86);
+    const kinegen_interval r91 = kinegen_iv_add(r90, r88);
+    const kinegen_interval r92 = kinegen_iv_const(-0.028571428571428574, -0.028571428571428567);
+    const kinegen_interval r93 = kinegen_iv_mul(r92, r68);
+    const kinegen_interval r94 = kinegen_iv_const(0.21428571428571425, 0.2142857142857143);
+    const kinegen_interval r95 = kinegen_iv_mul(r94, r81);
+    const kinegen_interval r96 = kinegen_iv_const(-0.18571428571428575, -0.1857142857142857);
+    const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
+    const kinegen_interval r98 = kinegen_iv_add(r93, r95);
+    const kinegen_interval r99 = kinegen_iv_add(r98, r97);
+    const kinegen_interval r100 = kinegen_iv_const(-1.142857142857143, -1.1428571428571426);
+    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
+    const kinegen_interval r102 = kinegen_iv_const(1.1428571428571426, 1.142857142857143);
+    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
+    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
+    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
+    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
+    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
+    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
+    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
+    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
+    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
+    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
+    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
+    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
+    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
+    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
+    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
+    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
+    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
+    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
+    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
+    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
+    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
+    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
+    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
+    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
+    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
+    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
+    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
+    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
+    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
+    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
+    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
+    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
+    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
+    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
+    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
+    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
+    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
+    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
+    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    out[0] = r12.lo;
+    out[12] = r12.hi;
+    out[1] = r31.lo;
+    out[13] = r31.hi;
+    out[2] = r50.lo;
+    out[14] = r50.hi;
+    out[3] = r60.lo;
+    out[15] = r60.hi;
+    out[4] = r67.lo;
+    out[16] = r67.hi;
+    out[5] = r78.lo;
+    out[17] = r78.hi;
+    out[6] = r91.lo;
+    out[18] = r91.hi;
+    out[7] = r99.lo;
+    out[19] = r99.hi;
+    out[8] = r111.lo;
+    out[20] = r111.hi;
+    out[9] = r125.lo;
+    out[21] = r125.hi;
+    out[10] = r138.lo;
+    out[22] = r138.hi;
+    out[11] = r143.lo;
+    out[23] = r143.hi;
+}
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
+
 /* Phi of the driver rows of case 'oscillation'. */
 void excavator_dual_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
     const double upper_rw = q[0];
@@ -5894,10 +6497,6 @@ void excavator_dual_quaternion_compute_input_ranges_oscillation(const double *sp
     out[11] = r51.lo;
     out[23] = r51.hi;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
 
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 0 to 239. */
 void excavator_dual_quaternion_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
@@ -7344,6 +7943,10 @@ void excavator_dual_quaternion_compute_inertia_part0(const double *q, const doub
     out[41] = c195;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
+
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 84 values at INERTIA_COLS. Rows 42 to 83. */
 void excavator_dual_quaternion_compute_inertia_part1(const double *q, const double *v, const double *a, const double *p, double *out) {
     const double arm_cyl_barrel_rw = q[56];
@@ -8311,6 +8914,66 @@ static void call_input_ranges_digging_fast(const double *const *x, double *const
     input_ranges_digging_fast(x[0], y[0]);
 }
 
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
+static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_dual_quaternion_compute_joints_phi(q, p, phi);
+    excavator_dual_quaternion_compute_drivers_phi_digging_paced(q, u, p, phi + 80);
+    excavator_dual_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_dual_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_dual_quaternion_compute_drivers_jac_digging_paced(q, u, p, jac + 427);
+}
+
+/* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
+static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_dual_quaternion_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
+static void gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_dual_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_dual_quaternion_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_dual_quaternion_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 80);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_digging_paced(double t, double *inputs) {
+    excavator_dual_quaternion_compute_inputs_digging_paced(t, inputs);
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds. */
+static void input_ranges_digging_paced(const double *span, double *input_ranges) {
+    excavator_dual_quaternion_compute_input_ranges_digging_paced(span, input_ranges);
+}
+
+/* phi_jac as a kinegen_kernel entry point. */
+static void call_phi_jac_digging_paced(const double *const *x, double *const *y) {
+    phi_jac_digging_paced(x[0], x[1], x[2], y[0], y[1]);
+}
+
+/* nu as a kinegen_kernel entry point. */
+static void call_nu_digging_paced(const double *const *x, double *const *y) {
+    nu_digging_paced(x[0], x[1], x[2], x[3], y[0]);
+}
+
+/* gamma as a kinegen_kernel entry point. */
+static void call_gamma_digging_paced(const double *const *x, double *const *y) {
+    gamma_digging_paced(x[0], x[1], x[2], x[3], x[4], x[5], y[0]);
+}
+
+/* inputs as a kinegen_kernel entry point. */
+static void call_inputs_digging_paced(const double *const *x, double *const *y) {
+    inputs_digging_paced(x[0][0], y[0]);
+}
+
+/* input_ranges as a kinegen_kernel entry point. */
+static void call_input_ranges_digging_paced(const double *const *x, double *const *y) {
+    input_ranges_digging_paced(x[0], y[0]);
+}
+
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_dual_quaternion_compute_joints_phi(q, p, phi);
@@ -8566,6 +9229,23 @@ static const kinegen_kernel kernels_digging_fast[] = {
     {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
     {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
 };
+static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
+static const int sizes_phi_jac_digging_paced[] = {84, 457};
+static const char *const outputs_nu_digging_paced[] = {"nu"};
+static const int sizes_nu_digging_paced[] = {84};
+static const char *const outputs_gamma_digging_paced[] = {"gamma"};
+static const int sizes_gamma_digging_paced[] = {84};
+static const char *const outputs_inputs_digging_paced[] = {"inputs"};
+static const int sizes_inputs_digging_paced[] = {12};
+static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
+static const int sizes_input_ranges_digging_paced[] = {24};
+static const kinegen_kernel kernels_digging_paced[] = {
+    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
+    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
+    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
+    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
+    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+};
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {84, 457};
 static const char *const outputs_nu_oscillation[] = {"nu"};
@@ -8694,7 +9374,7 @@ static const kinegen_statics statics = {
 };
 
 const kinegen_layout excavator_dual_quaternion_layout = {
-    "excavator", "dual-quaternion", "excavator.yaml", "e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5", "0.2.0",
+    "excavator", "dual-quaternion", "excavator.yaml", "787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b", "0.2.0",
     EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, EXCAVATOR_DUAL_QUATERNION_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_dual_quaternion_frames,
     7, kernels, &statics,
@@ -8928,6 +9608,38 @@ const kinegen_model excavator_dual_quaternion_digging_fast = {
     3617, 246, 5, kernels_digging_fast, &design_digging_fast,
 };
 
+/* ---- case digging_paced ---- */
+static const char *const constraints_digging_paced[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const char *const drivers_digging_paced[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const int jac_rows_digging_paced[] = {0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
+static const int jac_cols_digging_paced[] = {3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 0, 1, 2, 6, 7, 8, 0, 1, 2, 6, 7, 8, 1, 2, 3, 15, 0, 2, 4, 16, 0, 1, 5, 17, 0, 1, 2, 12, 13, 14, 12, 13, 14, 18, 19, 20, 12, 13, 14, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 18, 19, 20, 7, 8, 9, 21, 6, 8, 10, 22, 6, 7, 11, 23, 1, 2, 3, 27, 0, 2, 4, 28, 0, 1, 5, 29, 0, 1, 2, 24, 25, 26, 24, 25, 26, 30, 31, 32, 24, 25, 26, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 30, 31, 32, 7, 8, 9, 33, 6, 8, 10, 34, 6, 7, 11, 35, 7, 8, 9, 39, 6, 8, 10, 40, 6, 7, 11, 41, 6, 7, 8, 36, 37, 38, 6, 7, 8, 36, 37, 38, 7, 8, 9, 45, 6, 8, 10, 46, 6, 7, 11, 47, 6, 7, 8, 42, 43, 44, 42, 43, 44, 48, 49, 50, 42, 43, 44, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 48, 49, 50, 37, 38, 39, 51, 36, 38, 40, 52, 36, 37, 41, 53, 37, 38, 39, 81, 36, 38, 40, 82, 36, 37, 41, 83, 36, 37, 38, 78, 79, 80, 36, 37, 38, 78, 79, 80, 37, 38, 39, 69, 36, 38, 40, 70, 36, 37, 41, 71, 36, 37, 38, 66, 67, 68, 36, 37, 38, 66, 67, 68, 67, 68, 69, 73, 74, 75, 66, 68, 70, 72, 74, 76, 66, 67, 71, 72, 73, 77, 75, 79, 80, 81, 76, 78, 80, 82, 77, 78, 79, 83, 72, 73, 74, 78, 79, 80, 37, 38, 39, 57, 36, 38, 40, 58, 36, 37, 41, 59, 36, 37, 38, 54, 55, 56, 54, 55, 56, 60, 61, 62, 54, 55, 56, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 60, 61, 62, 63, 67, 68, 69, 64, 66, 68, 70, 65, 66, 67, 71, 0, 1, 2, 12, 13, 14, 15, 16, 17, 21, 22, 23, 42, 43, 44, 45, 46, 47, 51, 52, 53, 54, 55, 56, 57, 58, 59, 63, 64, 65};
+/* Phi_q in block lower triangular form: 37 blocks, the largest 12 x 12 */
+static const int block_start_digging_paced[] = {0, 1, 2, 3, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 42, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 75, 84};
+static const int block_store_digging_paced[] = {0, 1, 2, 3, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 161, 162, 163, 164, 165, 166, 167, 168, 169, 170, 206, 350, 351, 352, 353, 354, 355, 356, 357, 358, 359, 503};
+static const int row_order_digging_paced[] = {0, 1, 2, 3, 4, 80, 7, 12, 24, 5, 6, 11, 10, 22, 23, 8, 9, 13, 14, 15, 16, 17, 18, 19, 20, 21, 81, 33, 32, 31, 34, 35, 36, 41, 40, 39, 25, 26, 27, 28, 29, 30, 37, 38, 42, 43, 44, 45, 46, 47, 48, 49, 50, 82, 51, 52, 53, 58, 56, 70, 69, 68, 57, 59, 60, 71, 72, 73, 74, 75, 76, 77, 78, 79, 83, 54, 55, 61, 62, 63, 64, 65, 66, 67};
+static const int col_order_digging_paced[] = {3, 4, 5, 0, 1, 2, 11, 17, 29, 9, 10, 16, 15, 27, 28, 6, 7, 12, 13, 14, 18, 19, 20, 8, 22, 23, 21, 35, 34, 33, 39, 40, 41, 47, 46, 45, 24, 25, 26, 30, 31, 32, 36, 37, 42, 43, 44, 48, 49, 50, 38, 52, 53, 51, 81, 82, 83, 71, 69, 59, 58, 57, 70, 66, 67, 54, 55, 56, 60, 61, 62, 63, 68, 65, 64, 78, 79, 75, 72, 73, 80, 76, 77, 74};
+static const int diag_value_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 10, 14, 18, 22, 23, 24, 28, 29, 30, 34, 38, 42, 46, 47, 48, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 67, 68, 69, 70, 71, 72, 73, 74, 75, 79, 80, 81, 82, 83, 84, 85, 86, 87, 88, 89, 90, 91, 92, 94, 95, 96, 98, 99, 100, 102, 106, 110, 114, 118, 119, 120, 121, 122, 123, 124, 125, 126, 127, 128, 129, 130, 131, 132, 133, 134, 135, 139, 140, 141, 145, 146, 147, 151, 152, 153, 157, 158, 159, 160, 161, 162, 166, 170, 174, 178, 182, 186, 190, 191, 192, 196, 197, 198, 202, 206, 210, 214, 215, 216, 217, 218, 219, 220, 221, 222, 223, 224, 225, 226, 227, 228, 229, 230, 231, 235, 236, 237, 238, 239, 240, 241, 242, 243, 247, 248, 249, 250, 251, 252, 253, 254, 255, 256, 257, 258, 259, 260, 262, 263, 264, 266, 267, 268, 270, 274, 278, 282, 286, 287, 288, 292, 293, 294, 298, 302, 306, 310, 311, 312, 316, 317, 318, 322, 323, 324, 328, 329, 330, 334, 335, 336, 337, 338, 339, 341, 342, 343, 345, 346, 347, 349, 350, 351, 352, 353, 354, 358, 362, 366, 370, 371, 372, 373, 374, 375, 376, 377, 378, 379, 380, 381, 382, 383, 384, 385, 386, 387, 391, 392, 393, 394, 395, 396, 397, 398, 399, 403, 404, 405, 406, 407, 408, 409, 410, 411, 412, 413, 414, 415, 416, 417, 419, 420, 421, 423, 424, 425, 429, 430, 431, 432, 436, 437, 438, 439, 440, 441, 445, 446, 447, 448, 449, 450, 454, 455, 456};
+static const int diag_slot_digging_paced[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 29, 113, 18, 30, 114, 14, 13, 9, 43, 55, 67, 44, 56, 68, 80, 92, 104, 45, 57, 69, 81, 93, 105, 46, 58, 70, 82, 94, 106, 154, 130, 142, 47, 59, 71, 83, 95, 107, 155, 131, 143, 48, 60, 72, 84, 96, 108, 37, 121, 157, 26, 122, 134, 27, 39, 147, 15, 16, 10, 170, 176, 182, 171, 177, 183, 189, 195, 201, 172, 178, 184, 190, 196, 202, 173, 179, 185, 191, 197, 203, 174, 180, 186, 192, 198, 204, 175, 181, 187, 193, 199, 205, 163, 162, 161, 164, 165, 166, 206, 218, 302, 207, 219, 303, 169, 168, 167, 232, 244, 256, 233, 245, 257, 269, 281, 293, 234, 246, 258, 270, 282, 294, 235, 247, 259, 271, 283, 295, 343, 319, 331, 236, 248, 260, 272, 284, 296, 344, 320, 332, 237, 249, 261, 273, 285, 297, 226, 310, 346, 215, 311, 323, 216, 228, 336, 350, 351, 352, 503, 512, 548, 504, 513, 549, 354, 358, 353, 359, 371, 467, 360, 372, 468, 541, 577, 523, 533, 578, 560, 534, 543, 570, 526, 517, 553, 563, 509, 554, 573, 510, 519, 538, 547, 583, 511, 520, 556, 357, 356, 355, 385, 397, 409, 386, 398, 410, 422, 434, 446, 387, 399, 411, 423, 435, 447, 388, 400, 412, 424, 436, 448, 460, 496, 484, 389, 401, 413, 425, 437, 449, 461, 497, 485, 390, 402, 414, 426, 438, 450, 463, 379, 475, 500, 368, 476, 489, 369, 381, 7, 52, 64, 76, 160, 136, 148, 241, 253, 265, 349, 325, 337, 394, 406, 418, 466, 502, 490};
+static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 38, 38, 41, 44, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 80, 80, 86, 92, 92, 95, 98, 101, 101, 101, 104, 107, 107, 108, 109, 110, 113, 116, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 149, 149, 152, 155, 155, 156, 157, 158, 161, 164, 167, 170, 173, 176, 177, 178, 179, 179};
+static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
+static const int off_value_digging_paced[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
+static const kinegen_design design_digging_paced = {
+    11, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+};
+
+const kinegen_model excavator_dual_quaternion_digging_paced = {
+    &excavator_dual_quaternion_layout, "digging_paced",
+    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
+    0.0, 59.5, 341,
+    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
+    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
+    37, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
+    584, 278, diag_value_digging_paced, diag_slot_digging_paced,
+    179, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
+    3617, 246, 5, kernels_digging_paced, &design_digging_paced,
+};
+
 /* ---- case oscillation ---- */
 static const char *const constraints_oscillation[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
 static const char *const drivers_oscillation[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
@@ -8960,6 +9672,6 @@ const kinegen_model excavator_dual_quaternion_oscillation = {
     3617, 246, 5, kernels_oscillation, &design_oscillation,
 };
 
-const kinegen_model *const excavator_dual_quaternion_cases[EXCAVATOR_DUAL_QUATERNION_N_CASES] = {&excavator_dual_quaternion_digging, &excavator_dual_quaternion_level_cut, &excavator_dual_quaternion_trench_wall, &excavator_dual_quaternion_bucket_toggle, &excavator_dual_quaternion_bucket_stroke, &excavator_dual_quaternion_bucket_near_toggle, &excavator_dual_quaternion_digging_fast, &excavator_dual_quaternion_oscillation};
+const kinegen_model *const excavator_dual_quaternion_cases[EXCAVATOR_DUAL_QUATERNION_N_CASES] = {&excavator_dual_quaternion_digging, &excavator_dual_quaternion_level_cut, &excavator_dual_quaternion_trench_wall, &excavator_dual_quaternion_bucket_toggle, &excavator_dual_quaternion_bucket_stroke, &excavator_dual_quaternion_bucket_near_toggle, &excavator_dual_quaternion_digging_fast, &excavator_dual_quaternion_digging_paced, &excavator_dual_quaternion_oscillation};
 
 #endif

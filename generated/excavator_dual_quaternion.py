@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
 parametrization: dual-quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
+SOURCE_SHA256 = '787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b'
 PARAMETRIZATION = 'dual-quaternion'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.rw', 'upper.rx', 'upper.ry', 'upper.rz', 'upper.dw', 'upper.dx', 'upper.dy', 'upper.dz', 'boom.rw', 'boom.rx', 'boom.ry', 'boom.rz', 'boom.dw', 'boom.dx', 'boom.dy', 'boom.dz', 'boom_cyl_l_barrel.rw', 'boom_cyl_l_barrel.rx', 'boom_cyl_l_barrel.ry', 'boom_cyl_l_barrel.rz', 'boom_cyl_l_barrel.dw', 'boom_cyl_l_barrel.dx', 'boom_cyl_l_barrel.dy', 'boom_cyl_l_barrel.dz', 'boom_cyl_l_rod.rw', 'boom_cyl_l_rod.rx', 'boom_cyl_l_rod.ry', 'boom_cyl_l_rod.rz', 'boom_cyl_l_rod.dw', 'boom_cyl_l_rod.dx', 'boom_cyl_l_rod.dy', 'boom_cyl_l_rod.dz', 'boom_cyl_r_barrel.rw', 'boom_cyl_r_barrel.rx', 'boom_cyl_r_barrel.ry', 'boom_cyl_r_barrel.rz', 'boom_cyl_r_barrel.dw', 'boom_cyl_r_barrel.dx', 'boom_cyl_r_barrel.dy', 'boom_cyl_r_barrel.dz', 'boom_cyl_r_rod.rw', 'boom_cyl_r_rod.rx', 'boom_cyl_r_rod.ry', 'boom_cyl_r_rod.rz', 'boom_cyl_r_rod.dw', 'boom_cyl_r_rod.dx', 'boom_cyl_r_rod.dy', 'boom_cyl_r_rod.dz', 'arm.rw', 'arm.rx', 'arm.ry', 'arm.rz', 'arm.dw', 'arm.dx', 'arm.dy', 'arm.dz', 'arm_cyl_barrel.rw', 'arm_cyl_barrel.rx', 'arm_cyl_barrel.ry', 'arm_cyl_barrel.rz', 'arm_cyl_barrel.dw', 'arm_cyl_barrel.dx', 'arm_cyl_barrel.dy', 'arm_cyl_barrel.dz', 'arm_cyl_rod.rw', 'arm_cyl_rod.rx', 'arm_cyl_rod.ry', 'arm_cyl_rod.rz', 'arm_cyl_rod.dw', 'arm_cyl_rod.dx', 'arm_cyl_rod.dy', 'arm_cyl_rod.dz', 'bucket_cyl_barrel.rw', 'bucket_cyl_barrel.rx', 'bucket_cyl_barrel.ry', 'bucket_cyl_barrel.rz', 'bucket_cyl_barrel.dw', 'bucket_cyl_barrel.dx', 'bucket_cyl_barrel.dy', 'bucket_cyl_barrel.dz', 'bucket_cyl_rod.rw', 'bucket_cyl_rod.rx', 'bucket_cyl_rod.ry', 'bucket_cyl_rod.rz', 'bucket_cyl_rod.dw', 'bucket_cyl_rod.dx', 'bucket_cyl_rod.dy', 'bucket_cyl_rod.dz', 'side_link.rw', 'side_link.rx', 'side_link.ry', 'side_link.rz', 'side_link.dw', 'side_link.dx', 'side_link.dy', 'side_link.dz', 'bucket_link.rw', 'bucket_link.rx', 'bucket_link.ry', 'bucket_link.rz', 'bucket_link.dw', 'bucket_link.dx', 'bucket_link.dy', 'bucket_link.dz', 'bucket.rw', 'bucket.rx', 'bucket.ry', 'bucket.rz', 'bucket.dw', 'bucket.dx', 'bucket.dy', 'bucket.dz')
@@ -85,7 +85,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_quaternion.h': '18383a59db65cd5b16da9f20c3788896e28e224d632a3b5cc759f6bd7d1ae775', 'excavator_dual_quaternion.c': 'd0bc60bf7dc92eacbb2b2fcf62abae36c91df7cb174ec09742b0550f418f15e6'}
+C_FILES = {'excavator_dual_quaternion.h': '59ea29295bb6cad4fdb4e1ce337dbb7f6e983855d15294de6e1777cfacda1487', 'excavator_dual_quaternion.c': 'e8888935a3148aef943ba432998e16a1aa686ef444877901affd25b899916d0b'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -7423,6 +7423,575 @@ def input_ranges_digging_fast(span):
     return out
 
 
+def _drivers_phi_digging_paced(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -2*upper_rz*cos(c0) + 2*upper_rw*sin(c0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)
+    return out
+
+
+def phi_digging_paced(q, u, p):
+    """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
+
+
+def _drivers_jac_digging_paced(q, u, p):
+    """Phi_q values of the driver rows of case 'digging_paced'."""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
+    c4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
+    c5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
+    c6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
+    c7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
+    c8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
+    c9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    c10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    c11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    out = _zeros(30, q, u)
+    out[0] = -c1*upper_rx - c2*upper_ry
+    out[1] = c2*upper_rx - c1*upper_ry
+    out[2] = -c1*upper_rz - c2*upper_rw
+    out[3] = c3*boom_cyl_l_barrel_a10 - c4*boom_cyl_l_barrel_a20
+    out[4] = c5*boom_cyl_l_barrel_a20 - c3*boom_cyl_l_barrel_a00
+    out[5] = c4*boom_cyl_l_barrel_a00 - c5*boom_cyl_l_barrel_a10
+    out[6] = -boom_cyl_l_barrel_a00
+    out[7] = -boom_cyl_l_barrel_a10
+    out[8] = -boom_cyl_l_barrel_a20
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = c6*arm_cyl_barrel_a10 - c7*arm_cyl_barrel_a20
+    out[13] = c8*arm_cyl_barrel_a20 - c6*arm_cyl_barrel_a00
+    out[14] = c7*arm_cyl_barrel_a00 - c8*arm_cyl_barrel_a10
+    out[15] = -arm_cyl_barrel_a00
+    out[16] = -arm_cyl_barrel_a10
+    out[17] = -arm_cyl_barrel_a20
+    out[18] = arm_cyl_barrel_a00
+    out[19] = arm_cyl_barrel_a10
+    out[20] = arm_cyl_barrel_a20
+    out[21] = c9*bucket_cyl_barrel_a10 - c10*bucket_cyl_barrel_a20
+    out[22] = c11*bucket_cyl_barrel_a20 - c9*bucket_cyl_barrel_a00
+    out[23] = c10*bucket_cyl_barrel_a00 - c11*bucket_cyl_barrel_a10
+    out[24] = -bucket_cyl_barrel_a00
+    out[25] = -bucket_cyl_barrel_a10
+    out[26] = -bucket_cyl_barrel_a20
+    out[27] = bucket_cyl_barrel_a00
+    out[28] = bucket_cyl_barrel_a10
+    out[29] = bucket_cyl_barrel_a20
+    return out
+
+
+def jac_digging_paced(q, u, p):
+    """Output 'jac' (457 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
+
+
+def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    d3 = boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz
+    d4 = boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy
+    d5 = boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox
+    d6 = arm_cyl_rod_oz - arm_cyl_barrel_oz
+    d7 = arm_cyl_rod_oy - arm_cyl_barrel_oy
+    d8 = arm_cyl_rod_ox - arm_cyl_barrel_ox
+    d9 = bucket_cyl_rod_oz - bucket_cyl_barrel_oz
+    d10 = bucket_cyl_rod_oy - bucket_cyl_barrel_oy
+    d11 = bucket_cyl_rod_ox - bucket_cyl_barrel_ox
+    return [-2.0*upper_rz*math.cos(c0) + 2.0*upper_rw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_ox - boom_cyl_l_barrel_ox) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_oy - boom_cyl_l_barrel_oy) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_oz - boom_cyl_l_barrel_oz), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_ox - arm_cyl_barrel_ox) + arm_cyl_barrel_a10*(arm_cyl_rod_oy - arm_cyl_barrel_oy) + arm_cyl_barrel_a20*(arm_cyl_rod_oz - arm_cyl_barrel_oz), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_ox - bucket_cyl_barrel_ox) + bucket_cyl_barrel_a10*(bucket_cyl_rod_oy - bucket_cyl_barrel_oy) + bucket_cyl_barrel_a20*(bucket_cyl_rod_oz - bucket_cyl_barrel_oz)], [-d1*upper_rx - d2*upper_ry, d2*upper_rx - d1*upper_ry, -d1*upper_rz - d2*upper_rw, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def phi_jac_s_digging_paced(q, u, p):
+    """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
+    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    return s0_0 + s1_0, s0_1 + s1_1
+
+
+def _drivers_nu_digging_paced(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'."""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_rw*cos(c0) + upper_rz*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def nu_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
+    return _join(80, _drivers_nu_digging_paced(q, u, ud, p))
+
+
+def _drivers_nu_digging_paced_s(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_rw*math.cos(c0) + upper_rz*math.sin(c0)), ud1, ud2, ud3]
+
+
+def nu_s_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
+    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    return [0.0] * 80 + s1_0
+
+
+def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'."""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_ox = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_rw**2 + 2*boom_cyl_l_barrel_rx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_rw**2 + 2*arm_cyl_barrel_rx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2*arm_cyl_rod_dw*arm_cyl_rod_rx - 2*arm_cyl_rod_dy*arm_cyl_rod_rz + 2*arm_cyl_rod_dx*arm_cyl_rod_rw + 2*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2*arm_cyl_rod_dw*arm_cyl_rod_ry - 2*arm_cyl_rod_dz*arm_cyl_rod_rx + 2*arm_cyl_rod_dx*arm_cyl_rod_rz + 2*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2*arm_cyl_rod_dw*arm_cyl_rod_rz - 2*arm_cyl_rod_dx*arm_cyl_rod_ry + 2*arm_cyl_rod_dy*arm_cyl_rod_rx + 2*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_rw**2 + 2*bucket_cyl_barrel_rx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*upper_rw
+    c4 = c2*c3 - 1/2*c1*upper_rz
+    c5 = (1/2)*v_upper_wy
+    c6 = (1/2)*v_upper_wx
+    c7 = (1/2)*upper_rz
+    c8 = (1/2)*v_upper_wz
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy - arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
+    c23 = -c20
+    c24 = -c22
+    out = _zeros(4, q, u)
+    out[0] = c4*ud0**2 - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx)
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx)
+    out[2] = udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx)
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx)
+    return out
+
+
+def gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
+
+
+def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    upper_rw, upper_rx, upper_ry, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    v_upper_wx, v_upper_wy, v_upper_wz, _, _, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_wx, v_boom_cyl_l_barrel_wy, v_boom_cyl_l_barrel_wz, v_boom_cyl_l_barrel_vx, v_boom_cyl_l_barrel_vy, v_boom_cyl_l_barrel_vz, _, _, _, v_boom_cyl_l_rod_vx, v_boom_cyl_l_rod_vy, v_boom_cyl_l_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_wx, v_arm_cyl_barrel_wy, v_arm_cyl_barrel_wz, v_arm_cyl_barrel_vx, v_arm_cyl_barrel_vy, v_arm_cyl_barrel_vz, _, _, _, v_arm_cyl_rod_vx, v_arm_cyl_rod_vy, v_arm_cyl_rod_vz, v_bucket_cyl_barrel_wx, v_bucket_cyl_barrel_wy, v_bucket_cyl_barrel_wz, v_bucket_cyl_barrel_vx, v_bucket_cyl_barrel_vy, v_bucket_cyl_barrel_vz, _, _, _, v_bucket_cyl_rod_vx, v_bucket_cyl_rod_vy, v_bucket_cyl_rod_vz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_ox = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rx - 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rw + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_oy = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_ry - 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_oz = -2.0*boom_cyl_l_barrel_dw*boom_cyl_l_barrel_rz - 2.0*boom_cyl_l_barrel_dx*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_dy*boom_cyl_l_barrel_rx + 2.0*boom_cyl_l_barrel_dz*boom_cyl_l_barrel_rw
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rw) + 2.0*(boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_rz + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_ry
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_rw*boom_cyl_l_barrel_ry + 2.0*boom_cyl_l_barrel_rx*boom_cyl_l_barrel_rz
+    boom_cyl_l_rod_ox = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rx - 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rw + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_ry
+    boom_cyl_l_rod_oy = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_ry - 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_rz + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rw
+    boom_cyl_l_rod_oz = -2.0*boom_cyl_l_rod_dw*boom_cyl_l_rod_rz - 2.0*boom_cyl_l_rod_dx*boom_cyl_l_rod_ry + 2.0*boom_cyl_l_rod_dy*boom_cyl_l_rod_rx + 2.0*boom_cyl_l_rod_dz*boom_cyl_l_rod_rw
+    arm_cyl_barrel_ox = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rx - 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rw + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_ry
+    arm_cyl_barrel_oy = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_ry - 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rw
+    arm_cyl_barrel_oz = -2.0*arm_cyl_barrel_dw*arm_cyl_barrel_rz - 2.0*arm_cyl_barrel_dx*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_dy*arm_cyl_barrel_rx + 2.0*arm_cyl_barrel_dz*arm_cyl_barrel_rw
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_rw*arm_cyl_barrel_rw) + 2.0*(arm_cyl_barrel_rx*arm_cyl_barrel_rx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_rw*arm_cyl_barrel_rz + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_ry
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_rw*arm_cyl_barrel_ry + 2.0*arm_cyl_barrel_rx*arm_cyl_barrel_rz
+    arm_cyl_rod_ox = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rx - 2.0*arm_cyl_rod_dy*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rw + 2.0*arm_cyl_rod_dz*arm_cyl_rod_ry
+    arm_cyl_rod_oy = -2.0*arm_cyl_rod_dw*arm_cyl_rod_ry - 2.0*arm_cyl_rod_dz*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dx*arm_cyl_rod_rz + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rw
+    arm_cyl_rod_oz = -2.0*arm_cyl_rod_dw*arm_cyl_rod_rz - 2.0*arm_cyl_rod_dx*arm_cyl_rod_ry + 2.0*arm_cyl_rod_dy*arm_cyl_rod_rx + 2.0*arm_cyl_rod_dz*arm_cyl_rod_rw
+    bucket_cyl_barrel_ox = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rx - 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rw + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_oy = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_ry - 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_oz = -2.0*bucket_cyl_barrel_dw*bucket_cyl_barrel_rz - 2.0*bucket_cyl_barrel_dx*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_dy*bucket_cyl_barrel_rx + 2.0*bucket_cyl_barrel_dz*bucket_cyl_barrel_rw
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_rw*bucket_cyl_barrel_rw) + 2.0*(bucket_cyl_barrel_rx*bucket_cyl_barrel_rx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_rz + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_ry
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_rw*bucket_cyl_barrel_ry + 2.0*bucket_cyl_barrel_rx*bucket_cyl_barrel_rz
+    bucket_cyl_rod_ox = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rx - 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rw + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_ry
+    bucket_cyl_rod_oy = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_ry - 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_rz + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rw
+    bucket_cyl_rod_oz = -2.0*bucket_cyl_rod_dw*bucket_cyl_rod_rz - 2.0*bucket_cyl_rod_dx*bucket_cyl_rod_ry + 2.0*bucket_cyl_rod_dy*bucket_cyl_rod_rx + 2.0*bucket_cyl_rod_dz*bucket_cyl_rod_rw
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*upper_rw
+    c4 = c2*c3 - 1/2*c1*upper_rz
+    c5 = (1/2)*v_upper_wy
+    c6 = (1/2)*v_upper_wx
+    c7 = (1/2)*upper_rz
+    c8 = (1/2)*v_upper_wz
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wy
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_wx
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_wx
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wy
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wz - arm_cyl_barrel_a20*v_arm_cyl_barrel_wx
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_wy - arm_cyl_barrel_a10*v_arm_cyl_barrel_wx
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wy
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_wx
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_wx
+    c23 = -c20
+    c24 = -c22
+    return [c4*(ud0*ud0) - udd0*(c1*upper_rw + c2*upper_rz) - (c1*v_upper_wy - c2*v_upper_wx)*(c3*v_upper_wx + c7*v_upper_wy - c8*upper_ry) - (-c1*v_upper_wx - c2*v_upper_wy)*(c3*v_upper_wy + c8*upper_rx - c7*v_upper_wx) - 2.0*ud0*(c4*v_upper_wz + v_upper_wx*((1/2)*c2*upper_ry - c9*upper_rx) + v_upper_wy*(-c9*upper_ry - 1/2*c2*upper_rx)) + c1*v_upper_wz*(-c5*upper_ry - c6*upper_rx - c7*v_upper_wz) + c2*v_upper_wz*(c3*v_upper_wz + c6*upper_ry - c5*upper_rx), udd1 + c11*v_boom_cyl_l_barrel_vy - c10*v_boom_cyl_l_barrel_vx - c11*v_boom_cyl_l_rod_vy - c11*(v_boom_cyl_l_rod_vy - v_boom_cyl_l_barrel_vy + boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wz + boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wx - boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wz) - c12*v_boom_cyl_l_barrel_vz - c13*v_boom_cyl_l_rod_vx - c13*(v_boom_cyl_l_rod_vx - v_boom_cyl_l_barrel_vx + boom_cyl_l_barrel_oz*v_boom_cyl_l_barrel_wy + boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wz - boom_cyl_l_rod_oz*v_boom_cyl_l_barrel_wy) - c14*v_boom_cyl_l_rod_vz - c14*(v_boom_cyl_l_rod_vz - v_boom_cyl_l_barrel_vz + boom_cyl_l_barrel_oy*v_boom_cyl_l_barrel_wx + boom_cyl_l_rod_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_barrel_ox*v_boom_cyl_l_barrel_wy - boom_cyl_l_rod_oy*v_boom_cyl_l_barrel_wx), udd2 + c16*v_arm_cyl_barrel_vy - c15*v_arm_cyl_barrel_vx - c16*v_arm_cyl_rod_vy - c16*(v_arm_cyl_rod_vy - v_arm_cyl_barrel_vy + arm_cyl_barrel_ox*v_arm_cyl_barrel_wz + arm_cyl_rod_oz*v_arm_cyl_barrel_wx - arm_cyl_barrel_oz*v_arm_cyl_barrel_wx - arm_cyl_rod_ox*v_arm_cyl_barrel_wz) - c17*v_arm_cyl_barrel_vz - c18*v_arm_cyl_rod_vx - c18*(v_arm_cyl_rod_vx - v_arm_cyl_barrel_vx + arm_cyl_barrel_oz*v_arm_cyl_barrel_wy + arm_cyl_rod_oy*v_arm_cyl_barrel_wz - arm_cyl_barrel_oy*v_arm_cyl_barrel_wz - arm_cyl_rod_oz*v_arm_cyl_barrel_wy) - c19*v_arm_cyl_rod_vz - c19*(v_arm_cyl_rod_vz - v_arm_cyl_barrel_vz + arm_cyl_barrel_oy*v_arm_cyl_barrel_wx + arm_cyl_rod_ox*v_arm_cyl_barrel_wy - arm_cyl_barrel_ox*v_arm_cyl_barrel_wy - arm_cyl_rod_oy*v_arm_cyl_barrel_wx), udd3 + c21*v_bucket_cyl_barrel_vy - c20*v_bucket_cyl_barrel_vx - c21*v_bucket_cyl_rod_vy - c21*(v_bucket_cyl_rod_vy - v_bucket_cyl_barrel_vy + bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wz + bucket_cyl_rod_oz*v_bucket_cyl_barrel_wx - bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wx - bucket_cyl_rod_ox*v_bucket_cyl_barrel_wz) - c22*v_bucket_cyl_barrel_vz - c23*v_bucket_cyl_rod_vx - c23*(v_bucket_cyl_rod_vx - v_bucket_cyl_barrel_vx + bucket_cyl_barrel_oz*v_bucket_cyl_barrel_wy + bucket_cyl_rod_oy*v_bucket_cyl_barrel_wz - bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wz - bucket_cyl_rod_oz*v_bucket_cyl_barrel_wy) - c24*v_bucket_cyl_rod_vz - c24*(v_bucket_cyl_rod_vz - v_bucket_cyl_barrel_vz + bucket_cyl_barrel_oy*v_bucket_cyl_barrel_wx + bucket_cyl_rod_ox*v_bucket_cyl_barrel_wy - bucket_cyl_barrel_ox*v_bucket_cyl_barrel_wy - bucket_cyl_rod_oy*v_bucket_cyl_barrel_wx)]
+
+
+def gamma_s_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0 = _joints_gamma_s(q, v, p)
+    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    return s0_0 + s1_0
+
+
+def inputs_digging_paced(t):
+    """Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2."""
+    c0 = (4/7)*t
+    c1 = tanh(-27 + c0)
+    c2 = tanh(-17 + c0)
+    c3 = tanh(-29 + c0)
+    c4 = tanh(-14 + c0)
+    c5 = tanh(-3 + c0)
+    c6 = (9/40)*c5
+    c7 = tanh(-23 + c0)
+    c8 = tanh(-9 + c0)
+    c9 = c1**2
+    c10 = c2**2
+    c11 = c3**2
+    c12 = c4**2
+    c13 = c5**2
+    c14 = (9/70)*c13
+    c15 = c7**2
+    c16 = c8**2
+    c17 = c3*(8/7 - 8/7*c11)
+    c18 = (9/70)*c5*(8/7 - 8/7*c13)
+    c19 = 8/7 - 8/7*c15
+    c20 = c8*(8/7 - 8/7*c16)
+    out = np.zeros((12,) + np.shape(t))
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1
+    out[1] = 626973/250000 - c6 - 1/5*c3 + (17/40)*c4
+    out[2] = 485803/250000 + c6 - 17/40*c7 - 7/40*c3 + (3/8)*c8
+    out[3] = 928949/500000 - 3/8*c7 + (1/20)*c3 + (13/40)*c8
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10
+    out[5] = c14 - 17/70*c12 + (4/35)*c11
+    out[6] = -c14 - 3/14*c16 + (1/10)*c11 + (17/70)*c15
+    out[7] = -13/70*c16 - 1/35*c11 + (3/14)*c15
+    out[8] = 0.4487989505128276*c1*(8/7 - 8/7*c9) - 0.4487989505128276*c2*(8/7 - 8/7*c10)
+    out[9] = c18 + (4/35)*c17 - 17/70*c4*(8/7 - 8/7*c12)
+    out[10] = -c18 - 3/14*c20 + (1/10)*c17 + (17/70)*c19*c7
+    out[11] = -13/70*c20 - 1/35*c17 + (3/14)*c19*c7
+    return out
+
+
+def input_ranges_digging_paced(span):
+    """Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds."""
+    r0 = tuple(np.asarray(t, dtype=float) for t in span)
+    r1 = _iv_const(0.5714285714285713, 0.5714285714285715, r0)
+    r2 = _iv_mul(r1, r0)
+    r3 = _iv_const(-27.0, -27.0, r0)
+    r4 = _iv_add(r3, r2)
+    r5 = _iv_tanh(r4)
+    r6 = _iv_neg(r5)
+    r7 = _iv_const(-17.0, -17.0, r0)
+    r8 = _iv_add(r7, r2)
+    r9 = _iv_tanh(r8)
+    r10 = _iv_add(r6, r9)
+    r11 = _iv_const(0.7853981633974482, 0.7853981633974484, r0)
+    r12 = _iv_mul(r11, r10)
+    r13 = _iv_const(-29.0, -29.0, r0)
+    r14 = _iv_add(r13, r2)
+    r15 = _iv_tanh(r14)
+    r16 = _iv_const(-0.20000000000000004, -0.19999999999999998, r0)
+    r17 = _iv_mul(r16, r15)
+    r18 = _iv_const(-14.0, -14.0, r0)
+    r19 = _iv_add(r18, r2)
+    r20 = _iv_tanh(r19)
+    r21 = _iv_const(0.42499999999999993, 0.42500000000000004, r0)
+    r22 = _iv_mul(r21, r20)
+    r23 = _iv_const(-3.0, -3.0, r0)
+    r24 = _iv_add(r23, r2)
+    r25 = _iv_tanh(r24)
+    r26 = _iv_const(-0.22500000000000003, -0.22499999999999998, r0)
+    r27 = _iv_mul(r26, r25)
+    r28 = _iv_add(r17, r22)
+    r29 = _iv_add(r28, r27)
+    r30 = _iv_const(2.5078919999999996, 2.5078920000000005, r0)
+    r31 = _iv_add(r30, r29)
+    r32 = _iv_const(-0.17500000000000002, -0.17499999999999996, r0)
+    r33 = _iv_mul(r32, r15)
+    r34 = _iv_const(-23.0, -23.0, r0)
+    r35 = _iv_add(r34, r2)
+    r36 = _iv_tanh(r35)
+    r37 = _iv_const(-0.42500000000000004, -0.42499999999999993, r0)
+    r38 = _iv_mul(r37, r36)
+    r39 = _iv_const(-9.0, -9.0, r0)
+    r40 = _iv_add(r39, r2)
+    r41 = _iv_tanh(r40)
+    r42 = _iv_const(0.375, 0.375, r0)
+    r43 = _iv_mul(r42, r41)
+    r44 = _iv_const(0.22499999999999998, 0.22500000000000003, r0)
+    r45 = _iv_mul(r44, r25)
+    r46 = _iv_add(r33, r38)
+    r47 = _iv_add(r46, r43)
+    r48 = _iv_add(r47, r45)
+    r49 = _iv_const(1.9432119999999997, 1.9432120000000002, r0)
+    r50 = _iv_add(r49, r48)
+    r51 = _iv_const(0.049999999999999996, 0.05000000000000001, r0)
+    r52 = _iv_mul(r51, r15)
+    r53 = _iv_const(-0.375, -0.375, r0)
+    r54 = _iv_mul(r53, r36)
+    r55 = _iv_const(0.32499999999999996, 0.32500000000000007, r0)
+    r56 = _iv_mul(r55, r41)
+    r57 = _iv_add(r52, r54)
+    r58 = _iv_add(r57, r56)
+    r59 = _iv_const(1.8578979999999998, 1.8578980000000003, r0)
+    r60 = _iv_add(r59, r58)
+    r61 = _iv_powi(r5, 2)
+    r62 = _iv_mul(r1, r61)
+    r63 = _iv_powi(r9, 2)
+    r64 = _iv_const(-0.5714285714285715, -0.5714285714285713, r0)
+    r65 = _iv_mul(r64, r63)
+    r66 = _iv_add(r62, r65)
+    r67 = _iv_mul(r11, r66)
+    r68 = _iv_powi(r15, 2)
+    r69 = _iv_const(0.11428571428571427, 0.1142857142857143, r0)
+    r70 = _iv_mul(r69, r68)
+    r71 = _iv_powi(r20, 2)
+    r72 = _iv_const(-0.24285714285714288, -0.24285714285714283, r0)
+    r73 = _iv_mul(r72, r71)
+    r74 = _iv_powi(r25, 2)
+    r75 = _iv_const(0.12857142857142853, 0.1285714285714286, r0)
+    r76 = _iv_mul(r75, r74)
+    r77 = _iv_add(r70, r73)
+    r78 = _iv_add(r77, r76)
+    r79 = _iv_const(0.09999999999999999, 0.10000000000000002, r0)
+    r80 = _iv_mul(r79, r68)
+    r81 = _iv_powi(r36, 2)
+    r82 = _iv_const(0.24285714285714283, 0.24285714285714288, r0)
+    r83 = _iv_mul(r82, r81)
+    r84 = _iv_powi(r41, 2)
+    r85 = _iv_const(-0.2142857142857143, -0.21428571428571425, r0)
+    r86 = _iv_mul(r85, r84)
+    r87 = _iv_const(-0.1285714285714286, -0.12857142857142853, r0)
+    r88 = _iv_mul(r87, r74)
+    r89 = _iv_add(r80, r83)
+    r90 = _iv_add(r89, r86)
+    r91 = _iv_add(r90, r88)
+    r92 = _iv_const(-0.028571428571428574, -0.028571428571428567, r0)
+    r93 = _iv_mul(r92, r68)
+    r94 = _iv_const(0.21428571428571425, 0.2142857142857143, r0)
+    r95 = _iv_mul(r94, r81)
+    r96 = _iv_const(-0.18571428571428575, -0.1857142857142857, r0)
+    r97 = _iv_mul(r96, r84)
+    r98 = _iv_add(r93, r95)
+    r99 = _iv_add(r98, r97)
+    r100 = _iv_const(-1.142857142857143, -1.1428571428571426, r0)
+    r101 = _iv_mul(r100, r61)
+    r102 = _iv_const(1.1428571428571426, 1.142857142857143, r0)
+    r103 = _iv_add(r102, r101)
+    r104 = _iv_mul(r103, r5)
+    r105 = _iv_mul(r1, r104)
+    r106 = _iv_mul(r100, r63)
+    r107 = _iv_add(r102, r106)
+    r108 = _iv_mul(r107, r9)
+    r109 = _iv_mul(r64, r108)
+    r110 = _iv_add(r105, r109)
+    r111 = _iv_mul(r11, r110)
+    r112 = _iv_mul(r100, r68)
+    r113 = _iv_add(r102, r112)
+    r114 = _iv_mul(r113, r15)
+    r115 = _iv_mul(r69, r114)
+    r116 = _iv_mul(r100, r71)
+    r117 = _iv_add(r102, r116)
+    r118 = _iv_mul(r117, r20)
+    r119 = _iv_mul(r72, r118)
+    r120 = _iv_mul(r100, r74)
+    r121 = _iv_add(r102, r120)
+    r122 = _iv_mul(r121, r25)
+    r123 = _iv_mul(r75, r122)
+    r124 = _iv_add(r115, r119)
+    r125 = _iv_add(r124, r123)
+    r126 = _iv_mul(r79, r114)
+    r127 = _iv_mul(r100, r81)
+    r128 = _iv_add(r102, r127)
+    r129 = _iv_mul(r128, r36)
+    r130 = _iv_mul(r82, r129)
+    r131 = _iv_mul(r100, r84)
+    r132 = _iv_add(r102, r131)
+    r133 = _iv_mul(r132, r41)
+    r134 = _iv_mul(r85, r133)
+    r135 = _iv_mul(r87, r122)
+    r136 = _iv_add(r126, r130)
+    r137 = _iv_add(r136, r134)
+    r138 = _iv_add(r137, r135)
+    r139 = _iv_mul(r92, r114)
+    r140 = _iv_mul(r94, r129)
+    r141 = _iv_mul(r96, r133)
+    r142 = _iv_add(r139, r140)
+    r143 = _iv_add(r142, r141)
+    out = np.empty((24,) + np.shape(r0[0]))
+    out[0] = r12[0]
+    out[12] = r12[1]
+    out[1] = r31[0]
+    out[13] = r31[1]
+    out[2] = r50[0]
+    out[14] = r50[1]
+    out[3] = r60[0]
+    out[15] = r60[1]
+    out[4] = r67[0]
+    out[16] = r67[1]
+    out[5] = r78[0]
+    out[17] = r78[1]
+    out[6] = r91[0]
+    out[18] = r91[1]
+    out[7] = r99[0]
+    out[19] = r99[1]
+    out[8] = r111[0]
+    out[20] = r111[1]
+    out[9] = r125[0]
+    out[21] = r125[1]
+    out[10] = r138[0]
+    out[22] = r138[1]
+    out[11] = r143[0]
+    out[23] = r143[1]
+    return out
+
+
 def _drivers_phi_oscillation(q, u, p):
     """Phi of the driver rows of case 'oscillation'."""
     upper_rw, _, _, upper_rz, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_rw, boom_cyl_l_barrel_rx, boom_cyl_l_barrel_ry, boom_cyl_l_barrel_rz, boom_cyl_l_barrel_dw, boom_cyl_l_barrel_dx, boom_cyl_l_barrel_dy, boom_cyl_l_barrel_dz, boom_cyl_l_rod_rw, boom_cyl_l_rod_rx, boom_cyl_l_rod_ry, boom_cyl_l_rod_rz, boom_cyl_l_rod_dw, boom_cyl_l_rod_dx, boom_cyl_l_rod_dy, boom_cyl_l_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_rw, arm_cyl_barrel_rx, arm_cyl_barrel_ry, arm_cyl_barrel_rz, arm_cyl_barrel_dw, arm_cyl_barrel_dx, arm_cyl_barrel_dy, arm_cyl_barrel_dz, arm_cyl_rod_rw, arm_cyl_rod_rx, arm_cyl_rod_ry, arm_cyl_rod_rz, arm_cyl_rod_dw, arm_cyl_rod_dx, arm_cyl_rod_dy, arm_cyl_rod_dz, bucket_cyl_barrel_rw, bucket_cyl_barrel_rx, bucket_cyl_barrel_ry, bucket_cyl_barrel_rz, bucket_cyl_barrel_dw, bucket_cyl_barrel_dx, bucket_cyl_barrel_dy, bucket_cyl_barrel_dz, bucket_cyl_rod_rw, bucket_cyl_rod_rx, bucket_cyl_rod_ry, bucket_cyl_rod_rz, bucket_cyl_rod_dw, bucket_cyl_rod_dx, bucket_cyl_rod_dy, bucket_cyl_rod_dz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
@@ -7963,6 +8532,17 @@ CASES = {
         'driver_sources': (('cases.digging_fast.drivers.swing_angle.function', 'pi/4*(tanh((1.25*t - 8.5)/0.5) - tanh((1.25*t - 13.5)/0.5))'), ('cases.digging_fast.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.425*(1 + tanh((1.25*t - 7)/0.5)) - 0.2*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.375*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.425*(1 + tanh((1.25*t - 11.5)/0.5)) - 0.175*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.375*(1 + tanh((1.25*t - 11.5)/0.5)) + 0.05*(1 + tanh((1.25*t - 14.5)/0.5))')),
         'outputs': {'phi': phi_digging_fast, 'jac': jac_digging_fast, 'nu': nu_digging_fast, 'gamma': gamma_digging_fast, 'inputs': inputs_digging_fast, 'input_ranges': input_ranges_digging_fast},
         'scalar': {'phi_jac': phi_jac_s_digging_fast, 'nu': nu_s_digging_fast, 'gamma': gamma_s_digging_fast},
+        'patterns': {},
+    },
+    'digging_paced': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83),
+        'jac_cols': (3, 4, 5, 0, 1, 0, 1, 1, 2, 3, 9, 0, 2, 4, 10, 0, 1, 5, 11, 0, 1, 2, 6, 7, 8, 0, 1, 2, 6, 7, 8, 1, 2, 3, 15, 0, 2, 4, 16, 0, 1, 5, 17, 0, 1, 2, 12, 13, 14, 12, 13, 14, 18, 19, 20, 12, 13, 14, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 12, 13, 14, 18, 19, 20, 7, 8, 9, 21, 6, 8, 10, 22, 6, 7, 11, 23, 1, 2, 3, 27, 0, 2, 4, 28, 0, 1, 5, 29, 0, 1, 2, 24, 25, 26, 24, 25, 26, 30, 31, 32, 24, 25, 26, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 33, 34, 35, 24, 25, 26, 30, 31, 32, 7, 8, 9, 33, 6, 8, 10, 34, 6, 7, 11, 35, 7, 8, 9, 39, 6, 8, 10, 40, 6, 7, 11, 41, 6, 7, 8, 36, 37, 38, 6, 7, 8, 36, 37, 38, 7, 8, 9, 45, 6, 8, 10, 46, 6, 7, 11, 47, 6, 7, 8, 42, 43, 44, 42, 43, 44, 48, 49, 50, 42, 43, 44, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 51, 52, 53, 42, 43, 44, 48, 49, 50, 37, 38, 39, 51, 36, 38, 40, 52, 36, 37, 41, 53, 37, 38, 39, 81, 36, 38, 40, 82, 36, 37, 41, 83, 36, 37, 38, 78, 79, 80, 36, 37, 38, 78, 79, 80, 37, 38, 39, 69, 36, 38, 40, 70, 36, 37, 41, 71, 36, 37, 38, 66, 67, 68, 36, 37, 38, 66, 67, 68, 67, 68, 69, 73, 74, 75, 66, 68, 70, 72, 74, 76, 66, 67, 71, 72, 73, 77, 75, 79, 80, 81, 76, 78, 80, 82, 77, 78, 79, 83, 72, 73, 74, 78, 79, 80, 37, 38, 39, 57, 36, 38, 40, 58, 36, 37, 41, 59, 36, 37, 38, 54, 55, 56, 54, 55, 56, 60, 61, 62, 54, 55, 56, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 64, 65, 54, 55, 56, 60, 61, 62, 63, 67, 68, 69, 64, 66, 68, 70, 65, 66, 67, 71, 0, 1, 2, 12, 13, 14, 15, 16, 17, 21, 22, 23, 42, 43, 44, 45, 46, 47, 51, 52, 53, 54, 55, 56, 57, 58, 59, 63, 64, 65),
+        't0': 0.0, 't1': 59.5, 'steps': 341,
+        'driver_sources': (('cases.digging_paced.drivers.swing_angle.function', 'pi/4*(tanh((2*t/7 - 8.5)/0.5) - tanh((2*t/7 - 13.5)/0.5))'), ('cases.digging_paced.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.425*(1 + tanh((2*t/7 - 7)/0.5)) - 0.2*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.375*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.425*(1 + tanh((2*t/7 - 11.5)/0.5)) - 0.175*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.375*(1 + tanh((2*t/7 - 11.5)/0.5)) + 0.05*(1 + tanh((2*t/7 - 14.5)/0.5))')),
+        'outputs': {'phi': phi_digging_paced, 'jac': jac_digging_paced, 'nu': nu_digging_paced, 'gamma': gamma_digging_paced, 'inputs': inputs_digging_paced, 'input_ranges': input_ranges_digging_paced},
+        'scalar': {'phi_jac': phi_jac_s_digging_paced, 'nu': nu_s_digging_paced, 'gamma': gamma_s_digging_paced},
         'patterns': {},
     },
     'oscillation': {

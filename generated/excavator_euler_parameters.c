@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+ * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
  * parametrization: euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -17,8 +17,8 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The section functions come in 4 groups, each under its KINEGEN_PART value
- * (1 to 4; the retraction, kernels and tables under 0): the file compiles whole, or
+/* The section functions come in 5 groups, each under its KINEGEN_PART value
+ * (1 to 5; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
 void excavator_euler_parameters_compute_joints_phi(const double *q, const double *p, double *out);
 void excavator_euler_parameters_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
@@ -72,6 +72,12 @@ void excavator_euler_parameters_compute_drivers_nu_digging_fast(const double *q,
 void excavator_euler_parameters_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_parameters_compute_inputs_digging_fast(double t, double *out);
 void excavator_euler_parameters_compute_input_ranges_digging_fast(const double *span, double *out);
+void excavator_euler_parameters_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_parameters_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_euler_parameters_compute_inputs_digging_paced(double t, double *out);
+void excavator_euler_parameters_compute_input_ranges_digging_paced(const double *span, double *out);
 void excavator_euler_parameters_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_euler_parameters_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_euler_parameters_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
@@ -5155,6 +5161,495 @@ void excavator_euler_parameters_compute_input_ranges_digging_fast(const double *
     out[23] = r143.hi;
 }
 
+/* Phi of the driver rows of case 'digging_paced'. */
+void excavator_euler_parameters_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_e0 = q[3];
+    const double upper_e3 = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_e0 = q[17];
+    const double boom_cyl_l_barrel_e1 = q[18];
+    const double boom_cyl_l_barrel_e2 = q[19];
+    const double boom_cyl_l_barrel_e3 = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_e0 = q[52];
+    const double arm_cyl_barrel_e1 = q[53];
+    const double arm_cyl_barrel_e2 = q[54];
+    const double arm_cyl_barrel_e3 = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_e0 = q[66];
+    const double bucket_cyl_barrel_e1 = q[67];
+    const double bucket_cyl_barrel_e2 = q[68];
+    const double bucket_cyl_barrel_e3 = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double u0 = u[0];
+    const double u1 = u[1];
+    const double u2 = u[2];
+    const double u3 = u[3];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -2.0*upper_e3*cos(c0) + 2.0*upper_e0*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
+}
+
+/* Phi_q values of the driver rows of case 'digging_paced'. */
+void excavator_euler_parameters_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_e0 = q[17];
+    const double boom_cyl_l_barrel_e1 = q[18];
+    const double boom_cyl_l_barrel_e2 = q[19];
+    const double boom_cyl_l_barrel_e3 = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_e0 = q[52];
+    const double arm_cyl_barrel_e1 = q[53];
+    const double arm_cyl_barrel_e2 = q[54];
+    const double arm_cyl_barrel_e3 = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_e0 = q[66];
+    const double bucket_cyl_barrel_e1 = q[67];
+    const double bucket_cyl_barrel_e2 = q[68];
+    const double bucket_cyl_barrel_e3 = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double u0 = u[0];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x;
+    const double c2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double c3 = 2.0*boom_cyl_l_barrel_e2;
+    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double c5 = 2.0*boom_cyl_l_barrel_e3;
+    const double c6 = 2.0*boom_cyl_l_barrel_e0;
+    const double c7 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x;
+    const double c8 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double c9 = 2.0*arm_cyl_barrel_e2;
+    const double c10 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double c11 = 2.0*arm_cyl_barrel_e3;
+    const double c12 = 2.0*arm_cyl_barrel_e0;
+    const double c13 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x;
+    const double c14 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double c15 = 2.0*bucket_cyl_barrel_e2;
+    const double c16 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double c17 = 2.0*bucket_cyl_barrel_e3;
+    const double c18 = 2.0*bucket_cyl_barrel_e0;
+    out[0] = 2.0*sin(c0);
+    out[1] = -2.0*cos(c0);
+    out[2] = -boom_cyl_l_barrel_a00;
+    out[3] = -boom_cyl_l_barrel_a10;
+    out[4] = -boom_cyl_l_barrel_a20;
+    out[5] = c1*boom_cyl_l_barrel_e0 + c4*c5 - c2*c3;
+    out[6] = c1*boom_cyl_l_barrel_e1 + c2*c5 + c3*c4;
+    out[7] = -c2*c6 + 2.0*c4*boom_cyl_l_barrel_e1;
+    out[8] = c4*c6 + 2.0*c2*boom_cyl_l_barrel_e1;
+    out[9] = boom_cyl_l_barrel_a00;
+    out[10] = boom_cyl_l_barrel_a10;
+    out[11] = boom_cyl_l_barrel_a20;
+    out[12] = -arm_cyl_barrel_a00;
+    out[13] = -arm_cyl_barrel_a10;
+    out[14] = -arm_cyl_barrel_a20;
+    out[15] = c7*arm_cyl_barrel_e0 + c10*c11 - c8*c9;
+    out[16] = c7*arm_cyl_barrel_e1 + c8*c11 + c9*c10;
+    out[17] = -c8*c12 + 2.0*c10*arm_cyl_barrel_e1;
+    out[18] = c10*c12 + 2.0*c8*arm_cyl_barrel_e1;
+    out[19] = arm_cyl_barrel_a00;
+    out[20] = arm_cyl_barrel_a10;
+    out[21] = arm_cyl_barrel_a20;
+    out[22] = -bucket_cyl_barrel_a00;
+    out[23] = -bucket_cyl_barrel_a10;
+    out[24] = -bucket_cyl_barrel_a20;
+    out[25] = c13*bucket_cyl_barrel_e0 + c16*c17 - c14*c15;
+    out[26] = c13*bucket_cyl_barrel_e1 + c14*c17 + c15*c16;
+    out[27] = -c14*c18 + 2.0*c16*bucket_cyl_barrel_e1;
+    out[28] = c16*c18 + 2.0*c14*bucket_cyl_barrel_e1;
+    out[29] = bucket_cyl_barrel_a00;
+    out[30] = bucket_cyl_barrel_a10;
+    out[31] = bucket_cyl_barrel_a20;
+}
+
+/* nu of the driver rows of case 'digging_paced'. */
+void excavator_euler_parameters_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_e0 = q[3];
+    const double upper_e3 = q[6];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double ud1 = ud[1];
+    const double ud2 = ud[2];
+    const double ud3 = ud[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0));
+    out[1] = ud1;
+    out[2] = ud2;
+    out[3] = ud3;
+}
+
+/* gamma of the driver rows of case 'digging_paced'. */
+void excavator_euler_parameters_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_e0 = q[3];
+    const double upper_e3 = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_e0 = q[17];
+    const double boom_cyl_l_barrel_e1 = q[18];
+    const double boom_cyl_l_barrel_e2 = q[19];
+    const double boom_cyl_l_barrel_e3 = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_e0 = q[52];
+    const double arm_cyl_barrel_e1 = q[53];
+    const double arm_cyl_barrel_e2 = q[54];
+    const double arm_cyl_barrel_e3 = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_e0 = q[66];
+    const double bucket_cyl_barrel_e1 = q[67];
+    const double bucket_cyl_barrel_e2 = q[68];
+    const double bucket_cyl_barrel_e3 = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double v_upper_e0 = v[3];
+    const double v_upper_e3 = v[6];
+    const double v_boom_cyl_l_barrel_x = v[14];
+    const double v_boom_cyl_l_barrel_y = v[15];
+    const double v_boom_cyl_l_barrel_z = v[16];
+    const double v_boom_cyl_l_barrel_e0 = v[17];
+    const double v_boom_cyl_l_barrel_e1 = v[18];
+    const double v_boom_cyl_l_barrel_e2 = v[19];
+    const double v_boom_cyl_l_barrel_e3 = v[20];
+    const double v_boom_cyl_l_rod_x = v[21];
+    const double v_boom_cyl_l_rod_y = v[22];
+    const double v_boom_cyl_l_rod_z = v[23];
+    const double v_arm_cyl_barrel_x = v[49];
+    const double v_arm_cyl_barrel_y = v[50];
+    const double v_arm_cyl_barrel_z = v[51];
+    const double v_arm_cyl_barrel_e0 = v[52];
+    const double v_arm_cyl_barrel_e1 = v[53];
+    const double v_arm_cyl_barrel_e2 = v[54];
+    const double v_arm_cyl_barrel_e3 = v[55];
+    const double v_arm_cyl_rod_x = v[56];
+    const double v_arm_cyl_rod_y = v[57];
+    const double v_arm_cyl_rod_z = v[58];
+    const double v_bucket_cyl_barrel_x = v[63];
+    const double v_bucket_cyl_barrel_y = v[64];
+    const double v_bucket_cyl_barrel_z = v[65];
+    const double v_bucket_cyl_barrel_e0 = v[66];
+    const double v_bucket_cyl_barrel_e1 = v[67];
+    const double v_bucket_cyl_barrel_e2 = v[68];
+    const double v_bucket_cyl_barrel_e3 = v[69];
+    const double v_bucket_cyl_rod_x = v[70];
+    const double v_bucket_cyl_rod_y = v[71];
+    const double v_bucket_cyl_rod_z = v[72];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    const double udd1 = udd[1];
+    const double udd2 = udd[2];
+    const double udd3 = udd[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = cos(c0);
+    const double c2 = sin(c0);
+    const double c3 = 4.0*v_boom_cyl_l_barrel_e0;
+    const double c4 = 4.0*v_boom_cyl_l_barrel_e1;
+    const double c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1;
+    const double c6 = 2.0*v_boom_cyl_l_barrel_e1;
+    const double c7 = 2.0*v_boom_cyl_l_barrel_e0;
+    const double c8 = 2.0*v_boom_cyl_l_barrel_e3;
+    const double c9 = 2.0*v_boom_cyl_l_barrel_e2;
+    const double c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1;
+    const double c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1;
+    const double c12 = -c11;
+    const double c13 = 4.0*v_arm_cyl_barrel_e0;
+    const double c14 = 4.0*v_arm_cyl_barrel_e1;
+    const double c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1;
+    const double c16 = 2.0*v_arm_cyl_barrel_e1;
+    const double c17 = 2.0*v_arm_cyl_barrel_e0;
+    const double c18 = 2.0*v_arm_cyl_barrel_e3;
+    const double c19 = 2.0*v_arm_cyl_barrel_e2;
+    const double c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1;
+    const double c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1;
+    const double c22 = -c21;
+    const double c23 = 4.0*v_bucket_cyl_barrel_e0;
+    const double c24 = 4.0*v_bucket_cyl_barrel_e1;
+    const double c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1;
+    const double c26 = 2.0*v_bucket_cyl_barrel_e1;
+    const double c27 = 2.0*v_bucket_cyl_barrel_e0;
+    const double c28 = 2.0*v_bucket_cyl_barrel_e3;
+    const double c29 = 2.0*v_bucket_cyl_barrel_e2;
+    const double c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1;
+    const double c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1;
+    const double c32 = -c31;
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1.0/2.0)*c1*upper_e3 - 1.0/2.0*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3);
+    out[1] = udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1);
+    out[2] = udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1);
+    out[3] = udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
+void excavator_euler_parameters_compute_inputs_digging_paced(double t, double *out) {
+    const double c0 = (4.0/7.0)*t;
+    const double c1 = tanh(-27.0 + c0);
+    const double c2 = tanh(-17.0 + c0);
+    const double c3 = tanh(-29.0 + c0);
+    const double c4 = tanh(-14.0 + c0);
+    const double c5 = tanh(-3.0 + c0);
+    const double c6 = (9.0/40.0)*c5;
+    const double c7 = tanh(-23.0 + c0);
+    const double c8 = tanh(-9.0 + c0);
+    const double c9 = (c1*c1);
+    const double c10 = (c2*c2);
+    const double c11 = (c3*c3);
+    const double c12 = (c4*c4);
+    const double c13 = (c5*c5);
+    const double c14 = (9.0/70.0)*c13;
+    const double c15 = (c7*c7);
+    const double c16 = (c8*c8);
+    const double c17 = c3*(8.0/7.0 - 8.0/7.0*c11);
+    const double c18 = (9.0/70.0)*c5*(8.0/7.0 - 8.0/7.0*c13);
+    const double c19 = 8.0/7.0 - 8.0/7.0*c15;
+    const double c20 = c8*(8.0/7.0 - 8.0/7.0*c16);
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1;
+    out[1] = 626973.0/250000.0 - c6 - 1.0/5.0*c3 + (17.0/40.0)*c4;
+    out[2] = 485803.0/250000.0 + c6 - 17.0/40.0*c7 - 7.0/40.0*c3 + (3.0/8.0)*c8;
+    out[3] = 928949.0/500000.0 - 3.0/8.0*c7 + (1.0/20.0)*c3 + (13.0/40.0)*c8;
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10;
+    out[5] = c14 - 17.0/70.0*c12 + (4.0/35.0)*c11;
+    out[6] = -c14 - 3.0/14.0*c16 + (1.0/10.0)*c11 + (17.0/70.0)*c15;
+    out[7] = -13.0/70.0*c16 - 1.0/35.0*c11 + (3.0/14.0)*c15;
+    out[8] = 0.4487989505128276*c1*(8.0/7.0 - 8.0/7.0*c9) - 0.4487989505128276*c2*(8.0/7.0 - 8.0/7.0*c10);
+    out[9] = c18 + (4.0/35.0)*c17 - 17.0/70.0*c4*(8.0/7.0 - 8.0/7.0*c12);
+    out[10] = -c18 - 3.0/14.0*c20 + (1.0/10.0)*c17 + (17.0/70.0)*c19*c7;
+    out[11] = -13.0/70.0*c20 - 1.0/35.0*c17 + (3.0/14.0)*c19*c7;
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
+void excavator_euler_parameters_compute_input_ranges_digging_paced(const double *span, double *out) {
+    const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
+    const kinegen_interval r1 = kinegen_iv_const(0.5714285714285713, 0.5714285714285715);
+    const kinegen_interval r2 = kinegen_iv_mul(r1, r0);
+    const kinegen_interval r3 = kinegen_iv_const(-27.0, -27.0);
+    const kinegen_interval r4 = kinegen_iv_add(r3, r2);
+    const kinegen_interval r5 = kinegen_iv_tanh(r4);
+    const kinegen_interval r6 = kinegen_iv_neg(r5);
+    const kinegen_interval r7 = kinegen_iv_const(-17.0, -17.0);
+    const kinegen_interval r8 = kinegen_iv_add(r7, r2);
+    const kinegen_interval r9 = kinegen_iv_tanh(r8);
+    const kinegen_interval r10 = kinegen_iv_add(r6, r9);
+    const kinegen_interval r11 = kinegen_iv_const(0.7853981633974482, 0.7853981633974484);
+    const kinegen_interval r12 = kinegen_iv_mul(r11, r10);
+    const kinegen_interval r13 = kinegen_iv_const(-29.0, -29.0);
+    const kinegen_interval r14 = kinegen_iv_add(r13, r2);
+    const kinegen_interval r15 = kinegen_iv_tanh(r14);
+    const kinegen_interval r16 = kinegen_iv_const(-0.20000000000000004, -0.19999999999999998);
+    const kinegen_interval r17 = kinegen_iv_mul(r16, r15);
+    const kinegen_interval r18 = kinegen_iv_const(-14.0, -14.0);
+    const kinegen_interval r19 = kinegen_iv_add(r18, r2);
+    const kinegen_interval r20 = kinegen_iv_tanh(r19);
+    const kinegen_interval r21 = kinegen_iv_const(0.42499999999999993, 0.42500000000000004);
+    const kinegen_interval r22 = kinegen_iv_mul(r21, r20);
+    const kinegen_interval r23 = kinegen_iv_const(-3.0, -3.0);
+    const kinegen_interval r24 = kinegen_iv_add(r23, r2);
+    const kinegen_interval r25 = kinegen_iv_tanh(r24);
+    const kinegen_interval r26 = kinegen_iv_const(-0.22500000000000003, -0.22499999999999998);
+    const kinegen_interval r27 = kinegen_iv_mul(r26, r25);
+    const kinegen_interval r28 = kinegen_iv_add(r17, r22);
+    const kinegen_interval r29 = kinegen_iv_add(r28, r27);
+    const kinegen_interval r30 = kinegen_iv_const(2.5078919999999996, 2.5078920000000005);
+    const kinegen_interval r31 = kinegen_iv_add(r30, r29);
+    const kinegen_interval r32 = kinegen_iv_const(-0.17500000000000002, -0.17499999999999996);
+    const kinegen_interval r33 = kinegen_iv_mul(r32, r15);
+    const kinegen_interval r34 = kinegen_iv_const(-23.0, -23.0);
+    const kinegen_interval r35 = kinegen_iv_add(r34, r2);
+    const kinegen_interval r36 = kinegen_iv_tanh(r35);
+    const kinegen_interval r37 = kinegen_iv_const(-0.42500000000000004, -0.42499999999999993);
+    const kinegen_interval r38 = kinegen_iv_mul(r37, r36);
+    const kinegen_interval r39 = kinegen_iv_const(-9.0, -9.0);
+    const kinegen_interval r40 = kinegen_iv_add(r39, r2);
+    const kinegen_interval r41 = kinegen_iv_tanh(r40);
+    const kinegen_interval r42 = kinegen_iv_const(0.375, 0.375);
+    const kinegen_interval r43 = kinegen_iv_mul(r42, r41);
+    const kinegen_interval r44 = kinegen_iv_const(0.22499999999999998, 0.22500000000000003);
+    const kinegen_interval r45 = kinegen_iv_mul(r44, r25);
+    const kinegen_interval r46 = kinegen_iv_add(r33, r38);
+    const kinegen_interval r47 = kinegen_iv_add(r46, r43);
+    const kinegen_interval r48 = kinegen_iv_add(r47, r45);
+    const kinegen_interval r49 = kinegen_iv_const(1.9432119999999997, 1.9432120000000002);
+    const kinegen_interval r50 = kinegen_iv_add(r49, r48);
+    const kinegen_interval r51 = kinegen_iv_const(0.049999999999999996, 0.05000000000000001);
+    const kinegen_interval r52 = kinegen_iv_mul(r51, r15);
+    const kinegen_interval r53 = kinegen_iv_const(-0.375, -0.375);
+    const kinegen_interval r54 = kinegen_iv_mul(r53, r36);
+    const kinegen_interval r55 = kinegen_iv_const(0.32499999999999996, 0.32500000000000007);
+    const kinegen_interval r56 = kinegen_iv_mul(r55, r41);
+    const kinegen_interval r57 = kinegen_iv_add(r52, r54);
+    const kinegen_interval r58 = kinegen_iv_add(r57, r56);
+    const kinegen_interval r59 = kinegen_iv_const(1.8578979999999998, 1.8578980000000003);
+    const kinegen_interval r60 = kinegen_iv_add(r59, r58);
+    const kinegen_interval r61 = kinegen_iv_powi(r5, 2);
+    const kinegen_interval r62 = kinegen_iv_mul(r1, r61);
+    const kinegen_interval r63 = kinegen_iv_powi(r9, 2);
+    const kinegen_interval r64 = kinegen_iv_const(-0.5714285714285715, -0.5714285714285713);
+    const kinegen_interval r65 = kinegen_iv_mul(r64, r63);
+    const kinegen_interval r66 = kinegen_iv_add(r62, r65);
+    const kinegen_interval r67 = kinegen_iv_mul(r11, r66);
+    const kinegen_interval r68 = kinegen_iv_powi(r15, 2);
+    const kinegen_interval r69 = kinegen_iv_const(0.11428571428571427, 0.1142857142857143);
+    const kinegen_interval r70 = kinegen_iv_mul(r69, r68);
+    const kinegen_interval r71 = kinegen_iv_powi(r20, 2);
+    const kinegen_interval r72 = kinegen_iv_const(-0.24285714285714288, -0.24285714285714283);
+    const kinegen_interval r73 = kinegen_iv_mul(r72, r71);
+    const kinegen_interval r74 = kinegen_iv_powi(r25, 2);
+    const kinegen_interval r75 = kinegen_iv_const(0.12857142857142853, 0.1285714285714286);
+    const kinegen_interval r76 = kinegen_iv_mul(r75, r74);
+    const kinegen_interval r77 = kinegen_iv_add(r70, r73);
+    const kinegen_interval r78 = kinegen_iv_add(r77, r76);
+    const kinegen_interval r79 = kinegen_iv_const(0.09999999999999999, 0.10000000000000002);
+    const kinegen_interval r80 = kinegen_iv_mul(r79, r68);
+    const kinegen_interval r81 = kinegen_iv_powi(r36, 2);
+    const kinegen_interval r82 = kinegen_iv_const(0.24285714285714283, 0.24285714285714288);
+    const kinegen_interval r83 = kinegen_iv_mul(r82, r81);
+    const kinegen_interval r84 = kinegen_iv_powi(r41, 2);
+    const kinegen_interval r85 = kinegen_iv_const(-0.2142857142857143, -0.21428571428571425);
+    const kinegen_interval r86 = kinegen_iv_mul(r85, r84);
+    const kinegen_interval r87 = kinegen_iv_const(-0.1285714285714286, -0.12857142857142853);
+    const kinegen_interval r88 = kinegen_iv_mul(r87, r74);
+    const kinegen_interval r89 = kinegen_iv_add(r80, r83);
+    const kinegen_interval r90 = kinegen_iv_add(r89, r86);
+    const kinegen_interval r91 = kinegen_iv_add(r90, r88);
+    const kinegen_interval r92 = kinegen_iv_const(-0.028571428571428574, -0.028571428571428567);
+    const kinegen_interval r93 = kinegen_iv_mul(r92, r68);
+    const kinegen_interval r94 = kinegen_iv_const(0.21428571428571425, 0.2142857142857143);
+    const kinegen_interval r95 = kinegen_iv_mul(r94, r81);
+    const kinegen_interval r96 = kinegen_iv_const(-0.18571428571428575, -0.1857142857142857);
+    const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
+    const kinegen_interval r98 = kinegen_iv_add(r93, r95);
+    const kinegen_interval r99 = kinegen_iv_add(r98, r97);
+    const kinegen_interval r100 = kinegen_iv_const(-1.142857142857143, -1.1428571428571426);
+    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
+    const kinegen_interval r102 = kinegen_iv_const(1.1428571428571426, 1.142857142857143);
+    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
+    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
+    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
+    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
+    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
+    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
+    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
+    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
+    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
+    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
+    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
+    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
+    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
+    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
+    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
+    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
+    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
+    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
+    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
+    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
+    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
+    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
+    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
+    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
+    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
+    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
+    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
+    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
+    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
+    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
+    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
+    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
+    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
+    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
+    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
+    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
+    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
+    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
+    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    out[0] = r12.lo;
+    out[12] = r12.hi;
+    out[1] = r31.lo;
+    out[13] = r31.hi;
+    out[2] = r50.lo;
+    out[14] = r50.hi;
+    out[3] = r60.lo;
+    out[15] = r60.hi;
+    out[4] = r67.lo;
+    out[16] = r67.hi;
+    out[5] = r78.lo;
+    out[17] = r78.hi;
+    out[6] = r91.lo;
+    out[18] = r91.hi;
+    out[7] = r99.lo;
+    out[19] = r99.hi;
+    out[8] = r111.lo;
+    out[20] = r111.hi;
+    out[9] = r125.lo;
+    out[21] = r125.hi;
+    out[10] = r138.lo;
+    out[22] = r138.hi;
+    out[11] = r143.lo;
+    out[23] = r143.hi;
+}
+
 /* Phi of the driver rows of case 'oscillation'. */
 void excavator_euler_parameters_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
     const double upper_e0 = q[3];
@@ -5538,6 +6033,10 @@ void excavator_euler_parameters_compute_input_ranges_oscillation(const double *s
     out[11] = r51.lo;
     out[23] = r51.hi;
 }
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
 
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 0 to 191. */
 void excavator_euler_parameters_compute_frames_part0(const double *q, const double *v, const double *a, double *out) {
@@ -6022,10 +6521,6 @@ void excavator_euler_parameters_compute_frames_part0(const double *q, const doub
     out[190] = c46*dv_arm_cyl_barrel_e2 + c47*dv_arm_cyl_barrel_e1 - c43*dv_arm_cyl_barrel_e3 - c44*dv_arm_cyl_barrel_e0;
     out[191] = c43*dv_arm_cyl_barrel_e2 + c46*dv_arm_cyl_barrel_e3 - c44*dv_arm_cyl_barrel_e1 - c47*dv_arm_cyl_barrel_e0;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 4
 
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 192 to 335. */
 void excavator_euler_parameters_compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
@@ -7555,6 +8050,10 @@ void excavator_euler_parameters_compute_inertia_part2(const double *q, const dou
     out[97] = c551*c584 + c564*bucket_e1 + c567*(c585 + bucket_e2) + c568*(c586 + c554) + c553*c581 - c552*c583;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
+
 /* Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS). */
 void excavator_euler_parameters_compute_points(const double *p, double *out) {
     const double p_C_x = p[0];
@@ -8144,6 +8643,68 @@ static void call_input_ranges_digging_fast(const double *const *x, double *const
     input_ranges_digging_fast(x[0], y[0]);
 }
 
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
+static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_parameters_compute_joints_phi(q, p, phi);
+    excavator_euler_parameters_compute_drivers_phi_digging_paced(q, u, p, phi + 94);
+    excavator_euler_parameters_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_parameters_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_parameters_compute_drivers_jac_digging_paced(q, u, p, jac + 611);
+}
+
+/* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
+static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
+    for (int i = 0; i < 94; ++i) nu[0 + i] = 0.0;
+    excavator_euler_parameters_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 94);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
+static void gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_parameters_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_parameters_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_parameters_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 94);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_digging_paced(double t, double *inputs) {
+    excavator_euler_parameters_compute_inputs_digging_paced(t, inputs);
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds. */
+static void input_ranges_digging_paced(const double *span, double *input_ranges) {
+    excavator_euler_parameters_compute_input_ranges_digging_paced(span, input_ranges);
+}
+
+/* phi_jac as a kinegen_kernel entry point. */
+static void call_phi_jac_digging_paced(const double *const *x, double *const *y) {
+    phi_jac_digging_paced(x[0], x[1], x[2], y[0], y[1]);
+}
+
+/* nu as a kinegen_kernel entry point. */
+static void call_nu_digging_paced(const double *const *x, double *const *y) {
+    nu_digging_paced(x[0], x[1], x[2], x[3], y[0]);
+}
+
+/* gamma as a kinegen_kernel entry point. */
+static void call_gamma_digging_paced(const double *const *x, double *const *y) {
+    gamma_digging_paced(x[0], x[1], x[2], x[3], x[4], x[5], y[0]);
+}
+
+/* inputs as a kinegen_kernel entry point. */
+static void call_inputs_digging_paced(const double *const *x, double *const *y) {
+    inputs_digging_paced(x[0][0], y[0]);
+}
+
+/* input_ranges as a kinegen_kernel entry point. */
+static void call_input_ranges_digging_paced(const double *const *x, double *const *y) {
+    input_ranges_digging_paced(x[0], y[0]);
+}
+
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_parameters_compute_joints_phi(q, p, phi);
@@ -8404,6 +8965,23 @@ static const kinegen_kernel kernels_digging_fast[] = {
     {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
     {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
 };
+static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
+static const int sizes_phi_jac_digging_paced[] = {98, 643};
+static const char *const outputs_nu_digging_paced[] = {"nu"};
+static const int sizes_nu_digging_paced[] = {98};
+static const char *const outputs_gamma_digging_paced[] = {"gamma"};
+static const int sizes_gamma_digging_paced[] = {98};
+static const char *const outputs_inputs_digging_paced[] = {"inputs"};
+static const int sizes_inputs_digging_paced[] = {12};
+static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
+static const int sizes_input_ranges_digging_paced[] = {24};
+static const kinegen_kernel kernels_digging_paced[] = {
+    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
+    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
+    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
+    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
+    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+};
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {98, 643};
 static const char *const outputs_nu_oscillation[] = {"nu"};
@@ -8532,7 +9110,7 @@ static const kinegen_statics statics = {
 };
 
 const kinegen_layout excavator_euler_parameters_layout = {
-    "excavator", "euler-parameters", "excavator.yaml", "e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5", "0.2.0",
+    "excavator", "euler-parameters", "excavator.yaml", "787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b", "0.2.0",
     EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, EXCAVATOR_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_euler_parameters_frames,
     7, kernels, &statics,
@@ -8766,6 +9344,38 @@ const kinegen_model excavator_euler_parameters_digging_fast = {
     4385, 280, 5, kernels_digging_fast, &design_digging_fast,
 };
 
+/* ---- case digging_paced ---- */
+static const char *const constraints_digging_paced[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "upper.norm", "boom.norm", "boom_cyl_l_barrel.norm", "boom_cyl_l_rod.norm", "boom_cyl_r_barrel.norm", "boom_cyl_r_rod.norm", "arm.norm", "arm_cyl_barrel.norm", "arm_cyl_rod.norm", "bucket_cyl_barrel.norm", "bucket_cyl_rod.norm", "side_link.norm", "bucket_link.norm", "bucket.norm", "swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const char *const drivers_digging_paced[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const int jac_rows_digging_paced[] = {0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 96, 96, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 97, 97};
+static const int jac_cols_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 5, 6, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 3, 4, 5, 6, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 0, 3, 4, 5, 6, 14, 1, 3, 4, 5, 6, 15, 2, 3, 4, 5, 6, 16, 3, 4, 5, 6, 17, 18, 19, 20, 17, 18, 19, 20, 24, 25, 26, 27, 17, 18, 19, 20, 24, 25, 26, 27, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 17, 18, 19, 20, 24, 25, 26, 27, 7, 10, 11, 12, 13, 21, 8, 10, 11, 12, 13, 22, 9, 10, 11, 12, 13, 23, 0, 3, 4, 5, 6, 28, 1, 3, 4, 5, 6, 29, 2, 3, 4, 5, 6, 30, 3, 4, 5, 6, 31, 32, 33, 34, 31, 32, 33, 34, 38, 39, 40, 41, 31, 32, 33, 34, 38, 39, 40, 41, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 31, 32, 33, 34, 38, 39, 40, 41, 7, 10, 11, 12, 13, 35, 8, 10, 11, 12, 13, 36, 9, 10, 11, 12, 13, 37, 7, 10, 11, 12, 13, 42, 8, 10, 11, 12, 13, 43, 9, 10, 11, 12, 13, 44, 10, 11, 12, 13, 45, 46, 47, 48, 10, 11, 12, 13, 45, 46, 47, 48, 7, 10, 11, 12, 13, 49, 8, 10, 11, 12, 13, 50, 9, 10, 11, 12, 13, 51, 10, 11, 12, 13, 52, 53, 54, 55, 52, 53, 54, 55, 59, 60, 61, 62, 52, 53, 54, 55, 59, 60, 61, 62, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 52, 53, 54, 55, 59, 60, 61, 62, 42, 45, 46, 47, 48, 56, 43, 45, 46, 47, 48, 57, 44, 45, 46, 47, 48, 58, 42, 45, 46, 47, 48, 91, 43, 45, 46, 47, 48, 92, 44, 45, 46, 47, 48, 93, 45, 46, 47, 48, 94, 95, 96, 97, 45, 46, 47, 48, 94, 95, 96, 97, 42, 45, 46, 47, 48, 77, 43, 45, 46, 47, 48, 78, 44, 45, 46, 47, 48, 79, 45, 46, 47, 48, 80, 81, 82, 83, 45, 46, 47, 48, 80, 81, 82, 83, 77, 80, 81, 82, 83, 84, 87, 88, 89, 90, 78, 80, 81, 82, 83, 85, 87, 88, 89, 90, 79, 80, 81, 82, 83, 86, 87, 88, 89, 90, 84, 91, 94, 95, 96, 97, 85, 92, 94, 95, 96, 97, 86, 93, 94, 95, 96, 97, 87, 88, 89, 90, 94, 95, 96, 97, 42, 45, 46, 47, 48, 63, 43, 45, 46, 47, 48, 64, 44, 45, 46, 47, 48, 65, 45, 46, 47, 48, 66, 67, 68, 69, 66, 67, 68, 69, 73, 74, 75, 76, 66, 67, 68, 69, 73, 74, 75, 76, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 66, 67, 68, 69, 73, 74, 75, 76, 70, 77, 80, 81, 82, 83, 71, 78, 80, 81, 82, 83, 72, 79, 80, 81, 82, 83, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 24, 25, 26, 27, 31, 32, 33, 34, 38, 39, 40, 41, 45, 46, 47, 48, 52, 53, 54, 55, 59, 60, 61, 62, 66, 67, 68, 69, 73, 74, 75, 76, 80, 81, 82, 83, 87, 88, 89, 90, 94, 95, 96, 97, 3, 6, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72};
+/* Phi_q in block lower triangular form: 40 blocks, the largest 11 x 11 */
+static const int block_start_digging_paced[] = {0, 1, 2, 3, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 27, 31, 32, 33, 34, 35, 36, 37, 38, 39, 40, 44, 55, 59, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 83, 94, 98};
+static const int block_store_digging_paced[] = {0, 1, 2, 3, 19, 20, 21, 22, 23, 24, 25, 26, 27, 28, 149, 165, 166, 167, 168, 169, 170, 171, 172, 173, 174, 190, 311, 327, 343, 344, 345, 346, 347, 348, 349, 350, 351, 352, 473, 594};
+static const int row_order_digging_paced[] = {0, 1, 2, 3, 4, 80, 94, 5, 6, 7, 12, 11, 10, 22, 23, 24, 8, 9, 13, 16, 17, 19, 20, 21, 81, 82, 95, 14, 15, 18, 83, 33, 32, 31, 34, 35, 36, 41, 40, 39, 25, 28, 29, 84, 37, 38, 42, 45, 46, 48, 49, 50, 86, 87, 96, 26, 27, 30, 85, 43, 44, 47, 88, 51, 52, 53, 58, 57, 70, 69, 68, 56, 59, 60, 71, 74, 75, 77, 78, 79, 89, 91, 97, 54, 55, 61, 62, 63, 64, 65, 66, 67, 92, 93, 72, 73, 76, 90};
+static const int col_order_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 16, 15, 14, 28, 29, 30, 10, 11, 17, 20, 21, 13, 22, 23, 12, 19, 18, 27, 26, 24, 25, 37, 36, 35, 42, 43, 44, 51, 50, 49, 31, 34, 32, 33, 45, 46, 52, 55, 56, 47, 57, 58, 48, 54, 53, 41, 40, 38, 39, 62, 61, 59, 60, 91, 92, 93, 79, 78, 65, 64, 63, 77, 80, 81, 66, 69, 70, 83, 71, 72, 68, 82, 67, 94, 95, 90, 89, 86, 84, 85, 96, 87, 88, 97, 76, 75, 73, 74};
+static const int diag_value_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 16, 22, 28, 33, 34, 35, 36, 41, 42, 43, 44, 50, 56, 62, 67, 68, 69, 70, 75, 76, 77, 78, 83, 84, 85, 86, 90, 91, 92, 93, 94, 95, 96, 100, 101, 102, 103, 104, 105, 106, 111, 112, 113, 114, 116, 117, 118, 119, 120, 122, 123, 124, 125, 126, 128, 129, 130, 131, 132, 138, 144, 150, 155, 156, 157, 158, 163, 164, 165, 166, 171, 172, 173, 174, 178, 179, 180, 181, 188, 189, 190, 191, 199, 200, 201, 202, 208, 214, 220, 226, 232, 238, 243, 244, 245, 246, 251, 252, 253, 254, 260, 266, 272, 277, 278, 279, 280, 285, 286, 287, 288, 293, 294, 295, 296, 300, 301, 302, 303, 304, 305, 306, 310, 311, 312, 313, 314, 315, 316, 321, 322, 323, 324, 326, 327, 328, 329, 330, 332, 333, 334, 335, 336, 338, 339, 340, 341, 342, 348, 354, 360, 365, 366, 367, 368, 373, 374, 375, 376, 382, 388, 394, 399, 400, 401, 402, 407, 408, 409, 410, 416, 417, 418, 419, 420, 426, 427, 428, 429, 430, 436, 437, 438, 439, 440, 441, 443, 444, 445, 446, 447, 449, 450, 451, 452, 453, 455, 456, 457, 458, 459, 460, 461, 462, 463, 464, 465, 466, 472, 478, 484, 489, 490, 491, 492, 497, 498, 499, 500, 505, 506, 507, 508, 512, 513, 514, 515, 516, 517, 518, 522, 523, 524, 525, 526, 527, 528, 533, 534, 535, 536, 537, 539, 540, 541, 542, 543, 545, 546, 547, 548, 549, 551, 552, 553, 554, 555, 556, 557, 558, 559, 560, 561, 562, 563, 564, 565, 566, 567, 568, 569, 570, 571, 572, 573, 574, 575, 576, 577, 578, 579, 580, 581, 582, 583, 584, 585, 586, 587, 588, 589, 590, 591, 592, 593, 594, 595, 596, 597, 598, 599, 600, 601, 602, 603, 604, 605, 606, 607, 608, 609, 610, 611, 612, 616, 617, 618, 619, 620, 621, 622, 626, 627, 628, 629, 630, 631, 632, 636, 637, 638, 639, 640, 641, 642};
+static const int diag_slot_digging_paced[] = {0, 1, 2, 3, 7, 11, 15, 4, 8, 12, 16, 19, 20, 21, 28, 39, 116, 83, 29, 40, 117, 84, 24, 23, 22, 52, 140, 129, 63, 157, 161, 153, 149, 158, 162, 154, 150, 53, 141, 130, 64, 75, 97, 108, 54, 142, 131, 65, 76, 98, 109, 159, 163, 155, 151, 33, 44, 121, 88, 77, 34, 45, 122, 89, 100, 35, 46, 123, 90, 112, 25, 26, 27, 174, 182, 186, 178, 319, 323, 315, 311, 320, 324, 316, 312, 175, 183, 187, 179, 176, 184, 188, 180, 321, 325, 317, 313, 167, 166, 165, 168, 169, 170, 190, 201, 245, 278, 191, 202, 246, 279, 173, 172, 171, 214, 302, 291, 225, 335, 339, 331, 327, 336, 340, 332, 328, 215, 303, 292, 226, 237, 259, 270, 216, 304, 293, 227, 238, 260, 271, 337, 341, 333, 329, 195, 206, 250, 283, 239, 196, 207, 251, 284, 262, 197, 208, 252, 285, 274, 343, 344, 345, 473, 484, 550, 583, 474, 485, 551, 584, 351, 347, 346, 352, 363, 451, 407, 353, 364, 452, 408, 530, 563, 574, 508, 497, 542, 564, 575, 509, 498, 521, 565, 576, 510, 499, 533, 478, 489, 555, 588, 545, 479, 490, 556, 589, 524, 480, 491, 557, 590, 569, 580, 514, 503, 481, 492, 558, 591, 350, 349, 348, 376, 464, 442, 387, 602, 606, 598, 594, 603, 607, 599, 595, 377, 465, 443, 388, 399, 421, 432, 378, 466, 444, 389, 400, 422, 433, 604, 608, 600, 596, 401, 357, 368, 456, 412, 424, 358, 369, 457, 413, 436, 359, 370, 458, 414, 5, 9, 13, 17, 36, 47, 124, 91, 59, 147, 136, 70, 160, 164, 156, 152, 177, 185, 189, 181, 322, 326, 318, 314, 198, 209, 253, 286, 221, 309, 298, 232, 338, 342, 334, 330, 382, 470, 448, 393, 605, 609, 601, 597, 361, 372, 460, 416, 570, 581, 515, 504, 483, 494, 560, 593, 6, 18, 60, 148, 137, 71, 82, 104, 115, 222, 310, 299, 233, 244, 266, 277, 384, 472, 450, 395, 406, 428, 439};
+static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 25, 30, 35, 40, 45, 49, 53, 57, 60, 63, 64, 65, 66, 66, 66, 69, 73, 77, 81, 81, 86, 91, 96, 101, 106, 111, 116, 121, 126, 130, 136, 142, 142, 146, 150, 154, 157, 160, 161, 162, 163, 163, 163, 166, 170, 174, 178, 178, 182, 186, 190, 190, 195, 200, 205, 210, 215, 220, 225, 230, 235, 239, 243, 247, 250, 253, 254, 255, 256, 256, 256, 259, 263, 267, 272, 277, 282, 283, 284, 285, 285, 285, 285, 289, 293, 297, 297};
+static const int off_col_digging_paced[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
+static const int off_value_digging_paced[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
+static const kinegen_design design_digging_paced = {
+    11, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+};
+
+const kinegen_model excavator_euler_parameters_digging_paced = {
+    &excavator_euler_parameters_layout, "digging_paced",
+    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
+    0.0, 59.5, 341,
+    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
+    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
+    40, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
+    610, 346, diag_value_digging_paced, diag_slot_digging_paced,
+    297, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
+    4385, 280, 5, kernels_digging_paced, &design_digging_paced,
+};
+
 /* ---- case oscillation ---- */
 static const char *const constraints_oscillation[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "upper.norm", "boom.norm", "boom_cyl_l_barrel.norm", "boom_cyl_l_rod.norm", "boom_cyl_r_barrel.norm", "boom_cyl_r_rod.norm", "arm.norm", "arm_cyl_barrel.norm", "arm_cyl_rod.norm", "bucket_cyl_barrel.norm", "bucket_cyl_rod.norm", "side_link.norm", "bucket_link.norm", "bucket.norm", "swing_angle", "boom_length", "arm_length", "bucket_length"};
 static const char *const drivers_oscillation[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
@@ -8798,6 +9408,6 @@ const kinegen_model excavator_euler_parameters_oscillation = {
     4385, 280, 5, kernels_oscillation, &design_oscillation,
 };
 
-const kinegen_model *const excavator_euler_parameters_cases[EXCAVATOR_EULER_PARAMETERS_N_CASES] = {&excavator_euler_parameters_digging, &excavator_euler_parameters_level_cut, &excavator_euler_parameters_trench_wall, &excavator_euler_parameters_bucket_toggle, &excavator_euler_parameters_bucket_stroke, &excavator_euler_parameters_bucket_near_toggle, &excavator_euler_parameters_digging_fast, &excavator_euler_parameters_oscillation};
+const kinegen_model *const excavator_euler_parameters_cases[EXCAVATOR_EULER_PARAMETERS_N_CASES] = {&excavator_euler_parameters_digging, &excavator_euler_parameters_level_cut, &excavator_euler_parameters_trench_wall, &excavator_euler_parameters_bucket_toggle, &excavator_euler_parameters_bucket_stroke, &excavator_euler_parameters_bucket_near_toggle, &excavator_euler_parameters_digging_fast, &excavator_euler_parameters_digging_paced, &excavator_euler_parameters_oscillation};
 
 #endif

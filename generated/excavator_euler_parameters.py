@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
 parametrization: euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
+SOURCE_SHA256 = '787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b'
 PARAMETRIZATION = 'euler-parameters'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.e0', 'upper.e1', 'upper.e2', 'upper.e3', 'boom.x', 'boom.y', 'boom.z', 'boom.e0', 'boom.e1', 'boom.e2', 'boom.e3', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.e0', 'boom_cyl_l_barrel.e1', 'boom_cyl_l_barrel.e2', 'boom_cyl_l_barrel.e3', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.e0', 'boom_cyl_l_rod.e1', 'boom_cyl_l_rod.e2', 'boom_cyl_l_rod.e3', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.e0', 'boom_cyl_r_barrel.e1', 'boom_cyl_r_barrel.e2', 'boom_cyl_r_barrel.e3', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.e0', 'boom_cyl_r_rod.e1', 'boom_cyl_r_rod.e2', 'boom_cyl_r_rod.e3', 'arm.x', 'arm.y', 'arm.z', 'arm.e0', 'arm.e1', 'arm.e2', 'arm.e3', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.e0', 'arm_cyl_barrel.e1', 'arm_cyl_barrel.e2', 'arm_cyl_barrel.e3', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.e0', 'arm_cyl_rod.e1', 'arm_cyl_rod.e2', 'arm_cyl_rod.e3', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.e0', 'bucket_cyl_barrel.e1', 'bucket_cyl_barrel.e2', 'bucket_cyl_barrel.e3', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.e0', 'bucket_cyl_rod.e1', 'bucket_cyl_rod.e2', 'bucket_cyl_rod.e3', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.e0', 'side_link.e1', 'side_link.e2', 'side_link.e3', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.e0', 'bucket_link.e1', 'bucket_link.e2', 'bucket_link.e3', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.e0', 'bucket.e1', 'bucket.e2', 'bucket.e3')
@@ -85,7 +85,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_parameters.h': '54613389eb12facff7b20735a665cea0a8b5122251c9f0ef2e9d8eb706dba86b', 'excavator_euler_parameters.c': '7c18b21825b4726e0282c695e6f1f135f271e5252fc39895bec1caadd6c56e8f'}
+C_FILES = {'excavator_euler_parameters.h': 'c6b21714eb17ee67c7f168782223c4e4a8a8970e533639d95ce7879f252eb1ea', 'excavator_euler_parameters.c': 'aece9d35778b177e74567b111b42e8b855b05cb69f8f3581d2415b6c19332c1d'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -7576,6 +7576,499 @@ def input_ranges_digging_fast(span):
     return out
 
 
+def _drivers_phi_digging_paced(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -2*upper_e3*cos(c0) + 2*upper_e0*sin(c0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
+    return out
+
+
+def phi_digging_paced(q, u, p):
+    """Output 'phi' (98 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
+
+
+def _drivers_jac_digging_paced(q, u, p):
+    """Phi_q values of the driver rows of case 'digging_paced'."""
+    _, _, _, _, _, _, _, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_e0**2 + 2*boom_cyl_l_barrel_e1**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_e0**2 + 2*arm_cyl_barrel_e1**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_e0**2 + 2*bucket_cyl_barrel_e1**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    c0 = (1/2)*u0
+    c1 = -4*boom_cyl_l_barrel_x + 4*boom_cyl_l_rod_x
+    c2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    c3 = 2*boom_cyl_l_barrel_e2
+    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    c5 = 2*boom_cyl_l_barrel_e3
+    c6 = 2*boom_cyl_l_barrel_e0
+    c7 = -4*arm_cyl_barrel_x + 4*arm_cyl_rod_x
+    c8 = arm_cyl_rod_z - arm_cyl_barrel_z
+    c9 = 2*arm_cyl_barrel_e2
+    c10 = arm_cyl_rod_y - arm_cyl_barrel_y
+    c11 = 2*arm_cyl_barrel_e3
+    c12 = 2*arm_cyl_barrel_e0
+    c13 = -4*bucket_cyl_barrel_x + 4*bucket_cyl_rod_x
+    c14 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c15 = 2*bucket_cyl_barrel_e2
+    c16 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c17 = 2*bucket_cyl_barrel_e3
+    c18 = 2*bucket_cyl_barrel_e0
+    out = _zeros(32, q, u)
+    out[0] = 2*sin(c0)
+    out[1] = -2*cos(c0)
+    out[2] = -boom_cyl_l_barrel_a00
+    out[3] = -boom_cyl_l_barrel_a10
+    out[4] = -boom_cyl_l_barrel_a20
+    out[5] = c1*boom_cyl_l_barrel_e0 + c4*c5 - c2*c3
+    out[6] = c1*boom_cyl_l_barrel_e1 + c2*c5 + c3*c4
+    out[7] = -c2*c6 + 2*c4*boom_cyl_l_barrel_e1
+    out[8] = c4*c6 + 2*c2*boom_cyl_l_barrel_e1
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = c7*arm_cyl_barrel_e0 + c10*c11 - c8*c9
+    out[16] = c7*arm_cyl_barrel_e1 + c8*c11 + c9*c10
+    out[17] = -c8*c12 + 2*c10*arm_cyl_barrel_e1
+    out[18] = c10*c12 + 2*c8*arm_cyl_barrel_e1
+    out[19] = arm_cyl_barrel_a00
+    out[20] = arm_cyl_barrel_a10
+    out[21] = arm_cyl_barrel_a20
+    out[22] = -bucket_cyl_barrel_a00
+    out[23] = -bucket_cyl_barrel_a10
+    out[24] = -bucket_cyl_barrel_a20
+    out[25] = c13*bucket_cyl_barrel_e0 + c16*c17 - c14*c15
+    out[26] = c13*bucket_cyl_barrel_e1 + c14*c17 + c15*c16
+    out[27] = -c14*c18 + 2*c16*bucket_cyl_barrel_e1
+    out[28] = c16*c18 + 2*c14*bucket_cyl_barrel_e1
+    out[29] = bucket_cyl_barrel_a00
+    out[30] = bucket_cyl_barrel_a10
+    out[31] = bucket_cyl_barrel_a20
+    return out
+
+
+def jac_digging_paced(q, u, p):
+    """Output 'jac' (643 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
+
+
+def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e0) + 2.0*(boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e1)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e3 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e2
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_e0*boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_barrel_e1*boom_cyl_l_barrel_e3
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_e0*arm_cyl_barrel_e0) + 2.0*(arm_cyl_barrel_e1*arm_cyl_barrel_e1)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e3 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e2
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_e0*arm_cyl_barrel_e2 + 2.0*arm_cyl_barrel_e1*arm_cyl_barrel_e3
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_e0*bucket_cyl_barrel_e0) + 2.0*(bucket_cyl_barrel_e1*bucket_cyl_barrel_e1)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e3 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e2
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_e0*bucket_cyl_barrel_e2 + 2.0*bucket_cyl_barrel_e1*bucket_cyl_barrel_e3
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = -4.0*boom_cyl_l_barrel_x + 4.0*boom_cyl_l_rod_x
+    d2 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    d3 = 2.0*boom_cyl_l_barrel_e2
+    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    d5 = 2.0*boom_cyl_l_barrel_e3
+    d6 = 2.0*boom_cyl_l_barrel_e0
+    d7 = -4.0*arm_cyl_barrel_x + 4.0*arm_cyl_rod_x
+    d8 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d9 = 2.0*arm_cyl_barrel_e2
+    d10 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d11 = 2.0*arm_cyl_barrel_e3
+    d12 = 2.0*arm_cyl_barrel_e0
+    d13 = -4.0*bucket_cyl_barrel_x + 4.0*bucket_cyl_rod_x
+    d14 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d15 = 2.0*bucket_cyl_barrel_e2
+    d16 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d17 = 2.0*bucket_cyl_barrel_e3
+    d18 = 2.0*bucket_cyl_barrel_e0
+    return [-2.0*upper_e3*math.cos(c0) + 2.0*upper_e0*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [2.0*math.sin(d0), -2.0*math.cos(d0), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d1*boom_cyl_l_barrel_e0 + d4*d5 - d2*d3, d1*boom_cyl_l_barrel_e1 + d2*d5 + d3*d4, -d2*d6 + 2.0*d4*boom_cyl_l_barrel_e1, d4*d6 + 2.0*d2*boom_cyl_l_barrel_e1, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d7*arm_cyl_barrel_e0 + d10*d11 - d8*d9, d7*arm_cyl_barrel_e1 + d8*d11 + d9*d10, -d8*d12 + 2.0*d10*arm_cyl_barrel_e1, d10*d12 + 2.0*d8*arm_cyl_barrel_e1, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d13*bucket_cyl_barrel_e0 + d16*d17 - d14*d15, d13*bucket_cyl_barrel_e1 + d14*d17 + d15*d16, -d14*d18 + 2.0*d16*bucket_cyl_barrel_e1, d16*d18 + 2.0*d14*bucket_cyl_barrel_e1, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def phi_jac_s_digging_paced(q, u, p):
+    """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
+    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    return s0_0 + s1_0, s0_1 + s1_1
+
+
+def _drivers_nu_digging_paced(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_e0*cos(c0) + upper_e3*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def nu_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
+    return _join(94, _drivers_nu_digging_paced(q, u, ud, p))
+
+
+def _drivers_nu_digging_paced_s(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_e0*math.cos(c0) + upper_e3*math.sin(c0)), ud1, ud2, ud3]
+
+
+def nu_s_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
+    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    return [0.0] * 94 + s1_0
+
+
+def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = 4*v_boom_cyl_l_barrel_e0
+    c4 = 4*v_boom_cyl_l_barrel_e1
+    c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1
+    c6 = 2*v_boom_cyl_l_barrel_e1
+    c7 = 2*v_boom_cyl_l_barrel_e0
+    c8 = 2*v_boom_cyl_l_barrel_e3
+    c9 = 2*v_boom_cyl_l_barrel_e2
+    c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1
+    c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1
+    c12 = -c11
+    c13 = 4*v_arm_cyl_barrel_e0
+    c14 = 4*v_arm_cyl_barrel_e1
+    c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1
+    c16 = 2*v_arm_cyl_barrel_e1
+    c17 = 2*v_arm_cyl_barrel_e0
+    c18 = 2*v_arm_cyl_barrel_e3
+    c19 = 2*v_arm_cyl_barrel_e2
+    c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1
+    c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1
+    c22 = -c21
+    c23 = 4*v_bucket_cyl_barrel_e0
+    c24 = 4*v_bucket_cyl_barrel_e1
+    c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1
+    c26 = 2*v_bucket_cyl_barrel_e1
+    c27 = 2*v_bucket_cyl_barrel_e0
+    c28 = 2*v_bucket_cyl_barrel_e3
+    c29 = 2*v_bucket_cyl_barrel_e2
+    c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1
+    c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1
+    c32 = -c31
+    out = _zeros(4, q, u)
+    out[0] = -udd0*(c1*upper_e0 + c2*upper_e3) - ud0**2*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2*ud0*(c1*v_upper_e0 + c2*v_upper_e3)
+    out[1] = udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1)
+    out[2] = udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2*arm_cyl_rod_z*v_arm_cyl_barrel_e1)
+    out[3] = udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1)
+    return out
+
+
+def gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
+
+
+def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, _, _, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_e0, v_boom_cyl_l_barrel_e1, v_boom_cyl_l_barrel_e2, v_boom_cyl_l_barrel_e3, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_e0, v_arm_cyl_barrel_e1, v_arm_cyl_barrel_e2, v_arm_cyl_barrel_e3, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_e0, v_bucket_cyl_barrel_e1, v_bucket_cyl_barrel_e2, v_bucket_cyl_barrel_e3, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = 4.0*v_boom_cyl_l_barrel_e0
+    c4 = 4.0*v_boom_cyl_l_barrel_e1
+    c5 = c3*boom_cyl_l_barrel_e0 + c4*boom_cyl_l_barrel_e1
+    c6 = 2.0*v_boom_cyl_l_barrel_e1
+    c7 = 2.0*v_boom_cyl_l_barrel_e0
+    c8 = 2.0*v_boom_cyl_l_barrel_e3
+    c9 = 2.0*v_boom_cyl_l_barrel_e2
+    c10 = c6*boom_cyl_l_barrel_e2 + c7*boom_cyl_l_barrel_e3 + c8*boom_cyl_l_barrel_e0 + c9*boom_cyl_l_barrel_e1
+    c11 = c7*boom_cyl_l_barrel_e2 + c9*boom_cyl_l_barrel_e0 - c6*boom_cyl_l_barrel_e3 - c8*boom_cyl_l_barrel_e1
+    c12 = -c11
+    c13 = 4.0*v_arm_cyl_barrel_e0
+    c14 = 4.0*v_arm_cyl_barrel_e1
+    c15 = c13*arm_cyl_barrel_e0 + c14*arm_cyl_barrel_e1
+    c16 = 2.0*v_arm_cyl_barrel_e1
+    c17 = 2.0*v_arm_cyl_barrel_e0
+    c18 = 2.0*v_arm_cyl_barrel_e3
+    c19 = 2.0*v_arm_cyl_barrel_e2
+    c20 = c16*arm_cyl_barrel_e2 + c17*arm_cyl_barrel_e3 + c18*arm_cyl_barrel_e0 + c19*arm_cyl_barrel_e1
+    c21 = c17*arm_cyl_barrel_e2 + c19*arm_cyl_barrel_e0 - c16*arm_cyl_barrel_e3 - c18*arm_cyl_barrel_e1
+    c22 = -c21
+    c23 = 4.0*v_bucket_cyl_barrel_e0
+    c24 = 4.0*v_bucket_cyl_barrel_e1
+    c25 = c23*bucket_cyl_barrel_e0 + c24*bucket_cyl_barrel_e1
+    c26 = 2.0*v_bucket_cyl_barrel_e1
+    c27 = 2.0*v_bucket_cyl_barrel_e0
+    c28 = 2.0*v_bucket_cyl_barrel_e3
+    c29 = 2.0*v_bucket_cyl_barrel_e2
+    c30 = c26*bucket_cyl_barrel_e2 + c27*bucket_cyl_barrel_e3 + c28*bucket_cyl_barrel_e0 + c29*bucket_cyl_barrel_e1
+    c31 = c27*bucket_cyl_barrel_e2 + c29*bucket_cyl_barrel_e0 - c26*bucket_cyl_barrel_e3 - c28*bucket_cyl_barrel_e1
+    c32 = -c31
+    return [-udd0*(c1*upper_e0 + c2*upper_e3) - (ud0*ud0)*((1/2)*c1*upper_e3 - 1/2*c2*upper_e0) - 2.0*ud0*(c1*v_upper_e0 + c2*v_upper_e3), udd1 + c5*v_boom_cyl_l_barrel_x + c10*v_boom_cyl_l_barrel_y - c5*v_boom_cyl_l_rod_x - c5*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c10*v_boom_cyl_l_rod_y - c10*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c11*v_boom_cyl_l_barrel_z - c12*v_boom_cyl_l_rod_z - c12*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_e0*(-c3*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_y - c9*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e0) - v_boom_cyl_l_barrel_e1*(-c4*boom_cyl_l_barrel_x - c8*boom_cyl_l_barrel_z - c9*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e2 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e3 + 4.0*boom_cyl_l_rod_x*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e2*(-c6*boom_cyl_l_barrel_y - c7*boom_cyl_l_rod_z + 2.0*boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e1) - v_boom_cyl_l_barrel_e3*(-c6*boom_cyl_l_barrel_z - c7*boom_cyl_l_barrel_y + 2.0*boom_cyl_l_rod_y*v_boom_cyl_l_barrel_e0 + 2.0*boom_cyl_l_rod_z*v_boom_cyl_l_barrel_e1), udd2 + c15*v_arm_cyl_barrel_x + c20*v_arm_cyl_barrel_y - c15*v_arm_cyl_rod_x - c15*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c20*v_arm_cyl_rod_y - c20*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c21*v_arm_cyl_barrel_z - c22*v_arm_cyl_rod_z - c22*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_e0*(-c13*arm_cyl_barrel_x - c18*arm_cyl_barrel_y - c19*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e0) - v_arm_cyl_barrel_e1*(-c14*arm_cyl_barrel_x - c18*arm_cyl_barrel_z - c19*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e2 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e3 + 4.0*arm_cyl_rod_x*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e2*(-c16*arm_cyl_barrel_y - c17*arm_cyl_rod_z + 2.0*arm_cyl_barrel_z*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e1) - v_arm_cyl_barrel_e3*(-c16*arm_cyl_barrel_z - c17*arm_cyl_barrel_y + 2.0*arm_cyl_rod_y*v_arm_cyl_barrel_e0 + 2.0*arm_cyl_rod_z*v_arm_cyl_barrel_e1), udd3 + c25*v_bucket_cyl_barrel_x + c30*v_bucket_cyl_barrel_y - c25*v_bucket_cyl_rod_x - c25*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c30*v_bucket_cyl_rod_y - c30*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c31*v_bucket_cyl_barrel_z - c32*v_bucket_cyl_rod_z - c32*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_e0*(-c23*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_y - c29*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e0) - v_bucket_cyl_barrel_e1*(-c24*bucket_cyl_barrel_x - c28*bucket_cyl_barrel_z - c29*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e2 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e3 + 4.0*bucket_cyl_rod_x*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e2*(-c26*bucket_cyl_barrel_y - c27*bucket_cyl_rod_z + 2.0*bucket_cyl_barrel_z*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e1) - v_bucket_cyl_barrel_e3*(-c26*bucket_cyl_barrel_z - c27*bucket_cyl_barrel_y + 2.0*bucket_cyl_rod_y*v_bucket_cyl_barrel_e0 + 2.0*bucket_cyl_rod_z*v_bucket_cyl_barrel_e1)]
+
+
+def gamma_s_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0 = _joints_gamma_s(q, v, p)
+    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    return s0_0 + s1_0
+
+
+def inputs_digging_paced(t):
+    """Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2."""
+    c0 = (4/7)*t
+    c1 = tanh(-27 + c0)
+    c2 = tanh(-17 + c0)
+    c3 = tanh(-29 + c0)
+    c4 = tanh(-14 + c0)
+    c5 = tanh(-3 + c0)
+    c6 = (9/40)*c5
+    c7 = tanh(-23 + c0)
+    c8 = tanh(-9 + c0)
+    c9 = c1**2
+    c10 = c2**2
+    c11 = c3**2
+    c12 = c4**2
+    c13 = c5**2
+    c14 = (9/70)*c13
+    c15 = c7**2
+    c16 = c8**2
+    c17 = c3*(8/7 - 8/7*c11)
+    c18 = (9/70)*c5*(8/7 - 8/7*c13)
+    c19 = 8/7 - 8/7*c15
+    c20 = c8*(8/7 - 8/7*c16)
+    out = np.zeros((12,) + np.shape(t))
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1
+    out[1] = 626973/250000 - c6 - 1/5*c3 + (17/40)*c4
+    out[2] = 485803/250000 + c6 - 17/40*c7 - 7/40*c3 + (3/8)*c8
+    out[3] = 928949/500000 - 3/8*c7 + (1/20)*c3 + (13/40)*c8
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10
+    out[5] = c14 - 17/70*c12 + (4/35)*c11
+    out[6] = -c14 - 3/14*c16 + (1/10)*c11 + (17/70)*c15
+    out[7] = -13/70*c16 - 1/35*c11 + (3/14)*c15
+    out[8] = 0.4487989505128276*c1*(8/7 - 8/7*c9) - 0.4487989505128276*c2*(8/7 - 8/7*c10)
+    out[9] = c18 + (4/35)*c17 - 17/70*c4*(8/7 - 8/7*c12)
+    out[10] = -c18 - 3/14*c20 + (1/10)*c17 + (17/70)*c19*c7
+    out[11] = -13/70*c20 - 1/35*c17 + (3/14)*c19*c7
+    return out
+
+
+def input_ranges_digging_paced(span):
+    """Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds."""
+    r0 = tuple(np.asarray(t, dtype=float) for t in span)
+    r1 = _iv_const(0.5714285714285713, 0.5714285714285715, r0)
+    r2 = _iv_mul(r1, r0)
+    r3 = _iv_const(-27.0, -27.0, r0)
+    r4 = _iv_add(r3, r2)
+    r5 = _iv_tanh(r4)
+    r6 = _iv_neg(r5)
+    r7 = _iv_const(-17.0, -17.0, r0)
+    r8 = _iv_add(r7, r2)
+    r9 = _iv_tanh(r8)
+    r10 = _iv_add(r6, r9)
+    r11 = _iv_const(0.7853981633974482, 0.7853981633974484, r0)
+    r12 = _iv_mul(r11, r10)
+    r13 = _iv_const(-29.0, -29.0, r0)
+    r14 = _iv_add(r13, r2)
+    r15 = _iv_tanh(r14)
+    r16 = _iv_const(-0.20000000000000004, -0.19999999999999998, r0)
+    r17 = _iv_mul(r16, r15)
+    r18 = _iv_const(-14.0, -14.0, r0)
+    r19 = _iv_add(r18, r2)
+    r20 = _iv_tanh(r19)
+    r21 = _iv_const(0.42499999999999993, 0.42500000000000004, r0)
+    r22 = _iv_mul(r21, r20)
+    r23 = _iv_const(-3.0, -3.0, r0)
+    r24 = _iv_add(r23, r2)
+    r25 = _iv_tanh(r24)
+    r26 = _iv_const(-0.22500000000000003, -0.22499999999999998, r0)
+    r27 = _iv_mul(r26, r25)
+    r28 = _iv_add(r17, r22)
+    r29 = _iv_add(r28, r27)
+    r30 = _iv_const(2.5078919999999996, 2.5078920000000005, r0)
+    r31 = _iv_add(r30, r29)
+    r32 = _iv_const(-0.17500000000000002, -0.17499999999999996, r0)
+    r33 = _iv_mul(r32, r15)
+    r34 = _iv_const(-23.0, -23.0, r0)
+    r35 = _iv_add(r34, r2)
+    r36 = _iv_tanh(r35)
+    r37 = _iv_const(-0.42500000000000004, -0.42499999999999993, r0)
+    r38 = _iv_mul(r37, r36)
+    r39 = _iv_const(-9.0, -9.0, r0)
+    r40 = _iv_add(r39, r2)
+    r41 = _iv_tanh(r40)
+    r42 = _iv_const(0.375, 0.375, r0)
+    r43 = _iv_mul(r42, r41)
+    r44 = _iv_const(0.22499999999999998, 0.22500000000000003, r0)
+    r45 = _iv_mul(r44, r25)
+    r46 = _iv_add(r33, r38)
+    r47 = _iv_add(r46, r43)
+    r48 = _iv_add(r47, r45)
+    r49 = _iv_const(1.9432119999999997, 1.9432120000000002, r0)
+    r50 = _iv_add(r49, r48)
+    r51 = _iv_const(0.049999999999999996, 0.05000000000000001, r0)
+    r52 = _iv_mul(r51, r15)
+    r53 = _iv_const(-0.375, -0.375, r0)
+    r54 = _iv_mul(r53, r36)
+    r55 = _iv_const(0.32499999999999996, 0.32500000000000007, r0)
+    r56 = _iv_mul(r55, r41)
+    r57 = _iv_add(r52, r54)
+    r58 = _iv_add(r57, r56)
+    r59 = _iv_const(1.8578979999999998, 1.8578980000000003, r0)
+    r60 = _iv_add(r59, r58)
+    r61 = _iv_powi(r5, 2)
+    r62 = _iv_mul(r1, r61)
+    r63 = _iv_powi(r9, 2)
+    r64 = _iv_const(-0.5714285714285715, -0.5714285714285713, r0)
+    r65 = _iv_mul(r64, r63)
+    r66 = _iv_add(r62, r65)
+    r67 = _iv_mul(r11, r66)
+    r68 = _iv_powi(r15, 2)
+    r69 = _iv_const(0.11428571428571427, 0.1142857142857143, r0)
+    r70 = _iv_mul(r69, r68)
+    r71 = _iv_powi(r20, 2)
+    r72 = _iv_const(-0.24285714285714288, -0.24285714285714283, r0)
+    r73 = _iv_mul(r72, r71)
+    r74 = _iv_powi(r25, 2)
+    r75 = _iv_const(0.12857142857142853, 0.1285714285714286, r0)
+    r76 = _iv_mul(r75, r74)
+    r77 = _iv_add(r70, r73)
+    r78 = _iv_add(r77, r76)
+    r79 = _iv_const(0.09999999999999999, 0.10000000000000002, r0)
+    r80 = _iv_mul(r79, r68)
+    r81 = _iv_powi(r36, 2)
+    r82 = _iv_const(0.24285714285714283, 0.24285714285714288, r0)
+    r83 = _iv_mul(r82, r81)
+    r84 = _iv_powi(r41, 2)
+    r85 = _iv_const(-0.2142857142857143, -0.21428571428571425, r0)
+    r86 = _iv_mul(r85, r84)
+    r87 = _iv_const(-0.1285714285714286, -0.12857142857142853, r0)
+    r88 = _iv_mul(r87, r74)
+    r89 = _iv_add(r80, r83)
+    r90 = _iv_add(r89, r86)
+    r91 = _iv_add(r90, r88)
+    r92 = _iv_const(-0.028571428571428574, -0.028571428571428567, r0)
+    r93 = _iv_mul(r92, r68)
+    r94 = _iv_const(0.21428571428571425, 0.2142857142857143, r0)
+    r95 = _iv_mul(r94, r81)
+    r96 = _iv_const(-0.18571428571428575, -0.1857142857142857, r0)
+    r97 = _iv_mul(r96, r84)
+    r98 = _iv_add(r93, r95)
+    r99 = _iv_add(r98, r97)
+    r100 = _iv_const(-1.142857142857143, -1.1428571428571426, r0)
+    r101 = _iv_mul(r100, r61)
+    r102 = _iv_const(1.1428571428571426, 1.142857142857143, r0)
+    r103 = _iv_add(r102, r101)
+    r104 = _iv_mul(r103, r5)
+    r105 = _iv_mul(r1, r104)
+    r106 = _iv_mul(r100, r63)
+    r107 = _iv_add(r102, r106)
+    r108 = _iv_mul(r107, r9)
+    r109 = _iv_mul(r64, r108)
+    r110 = _iv_add(r105, r109)
+    r111 = _iv_mul(r11, r110)
+    r112 = _iv_mul(r100, r68)
+    r113 = _iv_add(r102, r112)
+    r114 = _iv_mul(r113, r15)
+    r115 = _iv_mul(r69, r114)
+    r116 = _iv_mul(r100, r71)
+    r117 = _iv_add(r102, r116)
+    r118 = _iv_mul(r117, r20)
+    r119 = _iv_mul(r72, r118)
+    r120 = _iv_mul(r100, r74)
+    r121 = _iv_add(r102, r120)
+    r122 = _iv_mul(r121, r25)
+    r123 = _iv_mul(r75, r122)
+    r124 = _iv_add(r115, r119)
+    r125 = _iv_add(r124, r123)
+    r126 = _iv_mul(r79, r114)
+    r127 = _iv_mul(r100, r81)
+    r128 = _iv_add(r102, r127)
+    r129 = _iv_mul(r128, r36)
+    r130 = _iv_mul(r82, r129)
+    r131 = _iv_mul(r100, r84)
+    r132 = _iv_add(r102, r131)
+    r133 = _iv_mul(r132, r41)
+    r134 = _iv_mul(r85, r133)
+    r135 = _iv_mul(r87, r122)
+    r136 = _iv_add(r126, r130)
+    r137 = _iv_add(r136, r134)
+    r138 = _iv_add(r137, r135)
+    r139 = _iv_mul(r92, r114)
+    r140 = _iv_mul(r94, r129)
+    r141 = _iv_mul(r96, r133)
+    r142 = _iv_add(r139, r140)
+    r143 = _iv_add(r142, r141)
+    out = np.empty((24,) + np.shape(r0[0]))
+    out[0] = r12[0]
+    out[12] = r12[1]
+    out[1] = r31[0]
+    out[13] = r31[1]
+    out[2] = r50[0]
+    out[14] = r50[1]
+    out[3] = r60[0]
+    out[15] = r60[1]
+    out[4] = r67[0]
+    out[16] = r67[1]
+    out[5] = r78[0]
+    out[17] = r78[1]
+    out[6] = r91[0]
+    out[18] = r91[1]
+    out[7] = r99[0]
+    out[19] = r99[1]
+    out[8] = r111[0]
+    out[20] = r111[1]
+    out[9] = r125[0]
+    out[21] = r125[1]
+    out[10] = r138[0]
+    out[22] = r138[1]
+    out[11] = r143[0]
+    out[23] = r143[1]
+    return out
+
+
 def _drivers_phi_oscillation(q, u, p):
     """Phi of the driver rows of case 'oscillation'."""
     _, _, _, upper_e0, _, _, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_e0, boom_cyl_l_barrel_e1, boom_cyl_l_barrel_e2, boom_cyl_l_barrel_e3, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_e0, arm_cyl_barrel_e1, arm_cyl_barrel_e2, arm_cyl_barrel_e3, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_e0, bucket_cyl_barrel_e1, bucket_cyl_barrel_e2, bucket_cyl_barrel_e3, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
@@ -8040,6 +8533,17 @@ CASES = {
         'driver_sources': (('cases.digging_fast.drivers.swing_angle.function', 'pi/4*(tanh((1.25*t - 8.5)/0.5) - tanh((1.25*t - 13.5)/0.5))'), ('cases.digging_fast.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.425*(1 + tanh((1.25*t - 7)/0.5)) - 0.2*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.375*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.425*(1 + tanh((1.25*t - 11.5)/0.5)) - 0.175*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.375*(1 + tanh((1.25*t - 11.5)/0.5)) + 0.05*(1 + tanh((1.25*t - 14.5)/0.5))')),
         'outputs': {'phi': phi_digging_fast, 'jac': jac_digging_fast, 'nu': nu_digging_fast, 'gamma': gamma_digging_fast, 'inputs': inputs_digging_fast, 'input_ranges': input_ranges_digging_fast},
         'scalar': {'phi_jac': phi_jac_s_digging_fast, 'nu': nu_s_digging_fast, 'gamma': gamma_s_digging_fast},
+        'patterns': {},
+    },
+    'digging_paced': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'upper.norm', 'boom.norm', 'boom_cyl_l_barrel.norm', 'boom_cyl_l_rod.norm', 'boom_cyl_r_barrel.norm', 'boom_cyl_r_rod.norm', 'arm.norm', 'arm_cyl_barrel.norm', 'arm_cyl_rod.norm', 'bucket_cyl_barrel.norm', 'bucket_cyl_rod.norm', 'side_link.norm', 'bucket_link.norm', 'bucket.norm', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 3, 3, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 81, 81, 81, 81, 82, 82, 82, 82, 83, 83, 83, 83, 84, 84, 84, 84, 85, 85, 85, 85, 86, 86, 86, 86, 87, 87, 87, 87, 88, 88, 88, 88, 89, 89, 89, 89, 90, 90, 90, 90, 91, 91, 91, 91, 92, 92, 92, 92, 93, 93, 93, 93, 94, 94, 95, 95, 95, 95, 95, 95, 95, 95, 95, 95, 96, 96, 96, 96, 96, 96, 96, 96, 96, 96, 97, 97, 97, 97, 97, 97, 97, 97, 97, 97),
+        'jac_cols': (0, 1, 2, 3, 4, 5, 6, 3, 4, 5, 6, 0, 3, 4, 5, 6, 7, 1, 3, 4, 5, 6, 8, 2, 3, 4, 5, 6, 9, 3, 4, 5, 6, 10, 11, 12, 13, 3, 4, 5, 6, 10, 11, 12, 13, 0, 3, 4, 5, 6, 14, 1, 3, 4, 5, 6, 15, 2, 3, 4, 5, 6, 16, 3, 4, 5, 6, 17, 18, 19, 20, 17, 18, 19, 20, 24, 25, 26, 27, 17, 18, 19, 20, 24, 25, 26, 27, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 17, 18, 19, 20, 24, 25, 26, 27, 7, 10, 11, 12, 13, 21, 8, 10, 11, 12, 13, 22, 9, 10, 11, 12, 13, 23, 0, 3, 4, 5, 6, 28, 1, 3, 4, 5, 6, 29, 2, 3, 4, 5, 6, 30, 3, 4, 5, 6, 31, 32, 33, 34, 31, 32, 33, 34, 38, 39, 40, 41, 31, 32, 33, 34, 38, 39, 40, 41, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 28, 29, 30, 31, 32, 33, 34, 35, 36, 37, 31, 32, 33, 34, 38, 39, 40, 41, 7, 10, 11, 12, 13, 35, 8, 10, 11, 12, 13, 36, 9, 10, 11, 12, 13, 37, 7, 10, 11, 12, 13, 42, 8, 10, 11, 12, 13, 43, 9, 10, 11, 12, 13, 44, 10, 11, 12, 13, 45, 46, 47, 48, 10, 11, 12, 13, 45, 46, 47, 48, 7, 10, 11, 12, 13, 49, 8, 10, 11, 12, 13, 50, 9, 10, 11, 12, 13, 51, 10, 11, 12, 13, 52, 53, 54, 55, 52, 53, 54, 55, 59, 60, 61, 62, 52, 53, 54, 55, 59, 60, 61, 62, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 52, 53, 54, 55, 59, 60, 61, 62, 42, 45, 46, 47, 48, 56, 43, 45, 46, 47, 48, 57, 44, 45, 46, 47, 48, 58, 42, 45, 46, 47, 48, 91, 43, 45, 46, 47, 48, 92, 44, 45, 46, 47, 48, 93, 45, 46, 47, 48, 94, 95, 96, 97, 45, 46, 47, 48, 94, 95, 96, 97, 42, 45, 46, 47, 48, 77, 43, 45, 46, 47, 48, 78, 44, 45, 46, 47, 48, 79, 45, 46, 47, 48, 80, 81, 82, 83, 45, 46, 47, 48, 80, 81, 82, 83, 77, 80, 81, 82, 83, 84, 87, 88, 89, 90, 78, 80, 81, 82, 83, 85, 87, 88, 89, 90, 79, 80, 81, 82, 83, 86, 87, 88, 89, 90, 84, 91, 94, 95, 96, 97, 85, 92, 94, 95, 96, 97, 86, 93, 94, 95, 96, 97, 87, 88, 89, 90, 94, 95, 96, 97, 42, 45, 46, 47, 48, 63, 43, 45, 46, 47, 48, 64, 44, 45, 46, 47, 48, 65, 45, 46, 47, 48, 66, 67, 68, 69, 66, 67, 68, 69, 73, 74, 75, 76, 66, 67, 68, 69, 73, 74, 75, 76, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72, 66, 67, 68, 69, 73, 74, 75, 76, 70, 77, 80, 81, 82, 83, 71, 78, 80, 81, 82, 83, 72, 79, 80, 81, 82, 83, 3, 4, 5, 6, 10, 11, 12, 13, 17, 18, 19, 20, 24, 25, 26, 27, 31, 32, 33, 34, 38, 39, 40, 41, 45, 46, 47, 48, 52, 53, 54, 55, 59, 60, 61, 62, 66, 67, 68, 69, 73, 74, 75, 76, 80, 81, 82, 83, 87, 88, 89, 90, 94, 95, 96, 97, 3, 6, 14, 15, 16, 17, 18, 19, 20, 21, 22, 23, 49, 50, 51, 52, 53, 54, 55, 56, 57, 58, 63, 64, 65, 66, 67, 68, 69, 70, 71, 72),
+        't0': 0.0, 't1': 59.5, 'steps': 341,
+        'driver_sources': (('cases.digging_paced.drivers.swing_angle.function', 'pi/4*(tanh((2*t/7 - 8.5)/0.5) - tanh((2*t/7 - 13.5)/0.5))'), ('cases.digging_paced.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.425*(1 + tanh((2*t/7 - 7)/0.5)) - 0.2*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.375*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.425*(1 + tanh((2*t/7 - 11.5)/0.5)) - 0.175*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.375*(1 + tanh((2*t/7 - 11.5)/0.5)) + 0.05*(1 + tanh((2*t/7 - 14.5)/0.5))')),
+        'outputs': {'phi': phi_digging_paced, 'jac': jac_digging_paced, 'nu': nu_digging_paced, 'gamma': gamma_digging_paced, 'inputs': inputs_digging_paced, 'input_ranges': input_ranges_digging_paced},
+        'scalar': {'phi_jac': phi_jac_s_digging_paced, 'nu': nu_s_digging_paced, 'gamma': gamma_s_digging_paced},
         'patterns': {},
     },
     'oscillation': {

@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+ * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
  * parametrization: euler:zxy
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -75,6 +75,12 @@ void excavator_euler_zxy_compute_drivers_nu_digging_fast(const double *q, const 
 void excavator_euler_zxy_compute_drivers_gamma_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_euler_zxy_compute_inputs_digging_fast(double t, double *out);
 void excavator_euler_zxy_compute_input_ranges_digging_fast(const double *span, double *out);
+void excavator_euler_zxy_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_zxy_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_euler_zxy_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_euler_zxy_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_euler_zxy_compute_inputs_digging_paced(double t, double *out);
+void excavator_euler_zxy_compute_input_ranges_digging_paced(const double *span, double *out);
 void excavator_euler_zxy_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_euler_zxy_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_euler_zxy_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
@@ -6565,6 +6571,613 @@ void excavator_euler_zxy_compute_input_ranges_digging_fast(const double *span, d
     out[23] = r143.hi;
 }
 
+/* Phi of the driver rows of case 'digging_paced'. */
+void excavator_euler_zxy_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_alpha = q[3];
+    const double upper_beta = q[4];
+    const double upper_gamma = q[5];
+    const double boom_cyl_l_barrel_x = q[12];
+    const double boom_cyl_l_barrel_y = q[13];
+    const double boom_cyl_l_barrel_z = q[14];
+    const double boom_cyl_l_barrel_alpha = q[15];
+    const double boom_cyl_l_barrel_beta = q[16];
+    const double boom_cyl_l_barrel_gamma = q[17];
+    const double boom_cyl_l_rod_x = q[18];
+    const double boom_cyl_l_rod_y = q[19];
+    const double boom_cyl_l_rod_z = q[20];
+    const double arm_cyl_barrel_x = q[42];
+    const double arm_cyl_barrel_y = q[43];
+    const double arm_cyl_barrel_z = q[44];
+    const double arm_cyl_barrel_alpha = q[45];
+    const double arm_cyl_barrel_beta = q[46];
+    const double arm_cyl_barrel_gamma = q[47];
+    const double arm_cyl_rod_x = q[48];
+    const double arm_cyl_rod_y = q[49];
+    const double arm_cyl_rod_z = q[50];
+    const double bucket_cyl_barrel_x = q[54];
+    const double bucket_cyl_barrel_y = q[55];
+    const double bucket_cyl_barrel_z = q[56];
+    const double bucket_cyl_barrel_alpha = q[57];
+    const double bucket_cyl_barrel_beta = q[58];
+    const double bucket_cyl_barrel_gamma = q[59];
+    const double bucket_cyl_rod_x = q[60];
+    const double bucket_cyl_rod_y = q[61];
+    const double bucket_cyl_rod_z = q[62];
+    const double u0 = u[0];
+    const double u1 = u[1];
+    const double u2 = u[2];
+    const double u3 = u[3];
+    (void)p;
+    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
+    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
+    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
+    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
+    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
+    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
+    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
+    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
+    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
+    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
+    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
+    out[0] = upper_a00*sin(u0) - upper_a10*cos(u0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
+}
+
+/* Phi_q values of the driver rows of case 'digging_paced'. */
+void excavator_euler_zxy_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_alpha = q[3];
+    const double upper_beta = q[4];
+    const double upper_gamma = q[5];
+    const double boom_cyl_l_barrel_x = q[12];
+    const double boom_cyl_l_barrel_y = q[13];
+    const double boom_cyl_l_barrel_z = q[14];
+    const double boom_cyl_l_barrel_alpha = q[15];
+    const double boom_cyl_l_barrel_beta = q[16];
+    const double boom_cyl_l_barrel_gamma = q[17];
+    const double boom_cyl_l_rod_x = q[18];
+    const double boom_cyl_l_rod_y = q[19];
+    const double boom_cyl_l_rod_z = q[20];
+    const double arm_cyl_barrel_x = q[42];
+    const double arm_cyl_barrel_y = q[43];
+    const double arm_cyl_barrel_z = q[44];
+    const double arm_cyl_barrel_alpha = q[45];
+    const double arm_cyl_barrel_beta = q[46];
+    const double arm_cyl_barrel_gamma = q[47];
+    const double arm_cyl_rod_x = q[48];
+    const double arm_cyl_rod_y = q[49];
+    const double arm_cyl_rod_z = q[50];
+    const double bucket_cyl_barrel_x = q[54];
+    const double bucket_cyl_barrel_y = q[55];
+    const double bucket_cyl_barrel_z = q[56];
+    const double bucket_cyl_barrel_alpha = q[57];
+    const double bucket_cyl_barrel_beta = q[58];
+    const double bucket_cyl_barrel_gamma = q[59];
+    const double bucket_cyl_rod_x = q[60];
+    const double bucket_cyl_rod_y = q[61];
+    const double bucket_cyl_rod_z = q[62];
+    const double u0 = u[0];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
+    const double boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
+    const double boom_cyl_l_barrel_a20 = -cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma);
+    const double arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
+    const double arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
+    const double arm_cyl_barrel_a20 = -cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma);
+    const double bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
+    const double bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
+    const double bucket_cyl_barrel_a20 = -cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma);
+    const double c0 = sin(u0);
+    const double c1 = sin(upper_alpha);
+    const double c2 = cos(upper_gamma);
+    const double c3 = c1*c2;
+    const double c4 = sin(upper_beta);
+    const double c5 = sin(upper_gamma);
+    const double c6 = cos(upper_alpha);
+    const double c7 = c5*c6;
+    const double c8 = cos(u0);
+    const double c9 = c1*c5;
+    const double c10 = cos(upper_beta);
+    const double c11 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double c12 = cos(boom_cyl_l_barrel_alpha);
+    const double c13 = cos(boom_cyl_l_barrel_gamma);
+    const double c14 = sin(boom_cyl_l_barrel_beta);
+    const double c15 = sin(boom_cyl_l_barrel_alpha);
+    const double c16 = sin(boom_cyl_l_barrel_gamma);
+    const double c17 = c15*c16;
+    const double c18 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double c19 = c13*c15;
+    const double c20 = c12*c16;
+    const double c21 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double c22 = cos(boom_cyl_l_barrel_beta);
+    const double c23 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double c24 = cos(arm_cyl_barrel_alpha);
+    const double c25 = cos(arm_cyl_barrel_gamma);
+    const double c26 = sin(arm_cyl_barrel_beta);
+    const double c27 = sin(arm_cyl_barrel_alpha);
+    const double c28 = sin(arm_cyl_barrel_gamma);
+    const double c29 = c27*c28;
+    const double c30 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double c31 = c25*c27;
+    const double c32 = c24*c28;
+    const double c33 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double c34 = cos(arm_cyl_barrel_beta);
+    const double c35 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double c36 = cos(bucket_cyl_barrel_alpha);
+    const double c37 = cos(bucket_cyl_barrel_gamma);
+    const double c38 = sin(bucket_cyl_barrel_beta);
+    const double c39 = sin(bucket_cyl_barrel_alpha);
+    const double c40 = sin(bucket_cyl_barrel_gamma);
+    const double c41 = c39*c40;
+    const double c42 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    const double c43 = c37*c39;
+    const double c44 = c36*c40;
+    const double c45 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double c46 = cos(bucket_cyl_barrel_beta);
+    out[0] = c0*(-c3 - c4*c7) - c8*(c2*c6 - c4*c9);
+    out[1] = -c0*c10*c9 - c10*c7*c8;
+    out[2] = c0*(-c7 - c3*c4) - c8*(-c9 + c2*c4*c6);
+    out[3] = -boom_cyl_l_barrel_a00;
+    out[4] = -boom_cyl_l_barrel_a10;
+    out[5] = -boom_cyl_l_barrel_a20;
+    out[6] = c11*(c12*c13 - c14*c17) + c18*(-c19 - c14*c20);
+    out[7] = c11*c22*c20 + c21*c14*c16 - c22*c17*c18;
+    out[8] = c11*(-c17 + c12*c13*c14) + c18*(-c20 - c14*c19) - c21*c22*c13;
+    out[9] = boom_cyl_l_barrel_a00;
+    out[10] = boom_cyl_l_barrel_a10;
+    out[11] = boom_cyl_l_barrel_a20;
+    out[12] = -arm_cyl_barrel_a00;
+    out[13] = -arm_cyl_barrel_a10;
+    out[14] = -arm_cyl_barrel_a20;
+    out[15] = c23*(c24*c25 - c26*c29) + c30*(-c31 - c26*c32);
+    out[16] = c23*c34*c32 + c33*c26*c28 - c34*c29*c30;
+    out[17] = c23*(-c29 + c24*c25*c26) + c30*(-c32 - c26*c31) - c33*c34*c25;
+    out[18] = arm_cyl_barrel_a00;
+    out[19] = arm_cyl_barrel_a10;
+    out[20] = arm_cyl_barrel_a20;
+    out[21] = -bucket_cyl_barrel_a00;
+    out[22] = -bucket_cyl_barrel_a10;
+    out[23] = -bucket_cyl_barrel_a20;
+    out[24] = c35*(c36*c37 - c38*c41) + c42*(-c43 - c38*c44);
+    out[25] = c35*c46*c44 + c45*c38*c40 - c46*c41*c42;
+    out[26] = c35*(-c41 + c36*c37*c38) + c42*(-c44 - c38*c43) - c45*c46*c37;
+    out[27] = bucket_cyl_barrel_a00;
+    out[28] = bucket_cyl_barrel_a10;
+    out[29] = bucket_cyl_barrel_a20;
+}
+
+/* nu of the driver rows of case 'digging_paced'. */
+void excavator_euler_zxy_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_alpha = q[3];
+    const double upper_beta = q[4];
+    const double upper_gamma = q[5];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double ud1 = ud[1];
+    const double ud2 = ud[2];
+    const double ud3 = ud[3];
+    (void)p;
+    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
+    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
+    out[0] = -ud0*(upper_a00*cos(u0) + upper_a10*sin(u0));
+    out[1] = ud1;
+    out[2] = ud2;
+    out[3] = ud3;
+}
+
+/* gamma of the driver rows of case 'digging_paced'. */
+void excavator_euler_zxy_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_alpha = q[3];
+    const double upper_beta = q[4];
+    const double upper_gamma = q[5];
+    const double boom_cyl_l_barrel_x = q[12];
+    const double boom_cyl_l_barrel_y = q[13];
+    const double boom_cyl_l_barrel_z = q[14];
+    const double boom_cyl_l_barrel_alpha = q[15];
+    const double boom_cyl_l_barrel_beta = q[16];
+    const double boom_cyl_l_barrel_gamma = q[17];
+    const double boom_cyl_l_rod_x = q[18];
+    const double boom_cyl_l_rod_y = q[19];
+    const double boom_cyl_l_rod_z = q[20];
+    const double arm_cyl_barrel_x = q[42];
+    const double arm_cyl_barrel_y = q[43];
+    const double arm_cyl_barrel_z = q[44];
+    const double arm_cyl_barrel_alpha = q[45];
+    const double arm_cyl_barrel_beta = q[46];
+    const double arm_cyl_barrel_gamma = q[47];
+    const double arm_cyl_rod_x = q[48];
+    const double arm_cyl_rod_y = q[49];
+    const double arm_cyl_rod_z = q[50];
+    const double bucket_cyl_barrel_x = q[54];
+    const double bucket_cyl_barrel_y = q[55];
+    const double bucket_cyl_barrel_z = q[56];
+    const double bucket_cyl_barrel_alpha = q[57];
+    const double bucket_cyl_barrel_beta = q[58];
+    const double bucket_cyl_barrel_gamma = q[59];
+    const double bucket_cyl_rod_x = q[60];
+    const double bucket_cyl_rod_y = q[61];
+    const double bucket_cyl_rod_z = q[62];
+    const double v_upper_alpha = v[3];
+    const double v_upper_beta = v[4];
+    const double v_upper_gamma = v[5];
+    const double v_boom_cyl_l_barrel_x = v[12];
+    const double v_boom_cyl_l_barrel_y = v[13];
+    const double v_boom_cyl_l_barrel_z = v[14];
+    const double v_boom_cyl_l_barrel_alpha = v[15];
+    const double v_boom_cyl_l_barrel_beta = v[16];
+    const double v_boom_cyl_l_barrel_gamma = v[17];
+    const double v_boom_cyl_l_rod_x = v[18];
+    const double v_boom_cyl_l_rod_y = v[19];
+    const double v_boom_cyl_l_rod_z = v[20];
+    const double v_arm_cyl_barrel_x = v[42];
+    const double v_arm_cyl_barrel_y = v[43];
+    const double v_arm_cyl_barrel_z = v[44];
+    const double v_arm_cyl_barrel_alpha = v[45];
+    const double v_arm_cyl_barrel_beta = v[46];
+    const double v_arm_cyl_barrel_gamma = v[47];
+    const double v_arm_cyl_rod_x = v[48];
+    const double v_arm_cyl_rod_y = v[49];
+    const double v_arm_cyl_rod_z = v[50];
+    const double v_bucket_cyl_barrel_x = v[54];
+    const double v_bucket_cyl_barrel_y = v[55];
+    const double v_bucket_cyl_barrel_z = v[56];
+    const double v_bucket_cyl_barrel_alpha = v[57];
+    const double v_bucket_cyl_barrel_beta = v[58];
+    const double v_bucket_cyl_barrel_gamma = v[59];
+    const double v_bucket_cyl_rod_x = v[60];
+    const double v_bucket_cyl_rod_y = v[61];
+    const double v_bucket_cyl_rod_z = v[62];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    const double udd1 = udd[1];
+    const double udd2 = udd[2];
+    const double udd3 = udd[3];
+    (void)p;
+    const double upper_a00 = cos(upper_alpha)*cos(upper_gamma) - sin(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
+    const double upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*sin(upper_beta)*sin(upper_gamma);
+    const double c0 = cos(u0);
+    const double c1 = sin(u0);
+    const double c2 = sin(upper_beta);
+    const double c3 = sin(upper_alpha);
+    const double c4 = sin(upper_gamma);
+    const double c5 = c3*c4;
+    const double c6 = c2*c5;
+    const double c7 = cos(upper_alpha);
+    const double c8 = c4*c7;
+    const double c9 = c2*c8;
+    const double c10 = cos(upper_beta);
+    const double c11 = c0*c10;
+    const double c12 = c1*c10;
+    const double c13 = c11*c5 - c12*c8;
+    const double c14 = cos(upper_gamma);
+    const double c15 = c14*c3;
+    const double c16 = c14*c7;
+    const double c17 = -c11*c16 - c12*c15;
+    const double c18 = c6 - c16;
+    const double c19 = c0*(-c15 - c9);
+    const double c20 = c5 - c16*c2;
+    const double c21 = c0*(-c8 - c15*c2);
+    const double c22 = -c19 + c1*c18;
+    const double c23 = -c21 + c1*c20;
+    const double c24 = sin(boom_cyl_l_barrel_beta);
+    const double c25 = sin(boom_cyl_l_barrel_gamma);
+    const double c26 = cos(boom_cyl_l_barrel_beta);
+    const double c27 = cos(boom_cyl_l_barrel_gamma);
+    const double c28 = c24*c25*v_boom_cyl_l_barrel_beta - c26*c27*v_boom_cyl_l_barrel_gamma;
+    const double c29 = sin(boom_cyl_l_barrel_alpha);
+    const double c30 = c25*c29;
+    const double c31 = c26*v_boom_cyl_l_barrel_beta;
+    const double c32 = c30*c31;
+    const double c33 = c27*c29;
+    const double c34 = cos(boom_cyl_l_barrel_alpha);
+    const double c35 = c25*c34;
+    const double c36 = c24*c35;
+    const double c37 = c36 + c33;
+    const double c38 = c35 + c24*c33;
+    const double c39 = c35*c31;
+    const double c40 = c34*c27;
+    const double c41 = c24*c30;
+    const double c42 = c41 - c40;
+    const double c43 = c30 - c24*c40;
+    const double c44 = c39 - c42*v_boom_cyl_l_barrel_alpha - c43*v_boom_cyl_l_barrel_gamma;
+    const double c45 = -c37;
+    const double c46 = -c38;
+    const double c47 = -c32 + c45*v_boom_cyl_l_barrel_alpha + c46*v_boom_cyl_l_barrel_gamma;
+    const double c48 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double c49 = c26*c48;
+    const double c50 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double c51 = c26*c50;
+    const double c52 = -c35*c49 - c51*c30;
+    const double c53 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double c54 = c25*c26*c53;
+    const double c55 = c40*c51 - c49*c33 + c24*c53*c27;
+    const double c56 = c42*c48 + c45*c50;
+    const double c57 = c43*c48 + c46*c50;
+    const double c58 = sin(arm_cyl_barrel_beta);
+    const double c59 = sin(arm_cyl_barrel_gamma);
+    const double c60 = cos(arm_cyl_barrel_beta);
+    const double c61 = cos(arm_cyl_barrel_gamma);
+    const double c62 = c58*c59*v_arm_cyl_barrel_beta - c60*c61*v_arm_cyl_barrel_gamma;
+    const double c63 = sin(arm_cyl_barrel_alpha);
+    const double c64 = c59*c63;
+    const double c65 = c60*v_arm_cyl_barrel_beta;
+    const double c66 = c64*c65;
+    const double c67 = c61*c63;
+    const double c68 = cos(arm_cyl_barrel_alpha);
+    const double c69 = c59*c68;
+    const double c70 = c58*c69;
+    const double c71 = c70 + c67;
+    const double c72 = c69 + c58*c67;
+    const double c73 = c69*c65;
+    const double c74 = c68*c61;
+    const double c75 = c58*c64;
+    const double c76 = c75 - c74;
+    const double c77 = c64 - c58*c74;
+    const double c78 = c73 - c76*v_arm_cyl_barrel_alpha - c77*v_arm_cyl_barrel_gamma;
+    const double c79 = -c71;
+    const double c80 = -c72;
+    const double c81 = -c66 + c79*v_arm_cyl_barrel_alpha + c80*v_arm_cyl_barrel_gamma;
+    const double c82 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double c83 = c60*c82;
+    const double c84 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double c85 = c60*c84;
+    const double c86 = -c69*c83 - c85*c64;
+    const double c87 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double c88 = c59*c60*c87;
+    const double c89 = c74*c85 - c83*c67 + c58*c87*c61;
+    const double c90 = c76*c82 + c79*c84;
+    const double c91 = c77*c82 + c80*c84;
+    const double c92 = sin(bucket_cyl_barrel_beta);
+    const double c93 = sin(bucket_cyl_barrel_gamma);
+    const double c94 = cos(bucket_cyl_barrel_beta);
+    const double c95 = cos(bucket_cyl_barrel_gamma);
+    const double c96 = c92*c93*v_bucket_cyl_barrel_beta - c94*c95*v_bucket_cyl_barrel_gamma;
+    const double c97 = sin(bucket_cyl_barrel_alpha);
+    const double c98 = c93*c97;
+    const double c99 = c94*v_bucket_cyl_barrel_beta;
+    const double c100 = c98*c99;
+    const double c101 = c95*c97;
+    const double c102 = cos(bucket_cyl_barrel_alpha);
+    const double c103 = c93*c102;
+    const double c104 = c92*c103;
+    const double c105 = c104 + c101;
+    const double c106 = c103 + c92*c101;
+    const double c107 = c103*c99;
+    const double c108 = c102*c95;
+    const double c109 = c92*c98;
+    const double c110 = c109 - c108;
+    const double c111 = c98 - c92*c108;
+    const double c112 = c107 - c110*v_bucket_cyl_barrel_alpha - c111*v_bucket_cyl_barrel_gamma;
+    const double c113 = -c105;
+    const double c114 = -c106;
+    const double c115 = -c100 + c113*v_bucket_cyl_barrel_alpha + c114*v_bucket_cyl_barrel_gamma;
+    const double c116 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    const double c117 = c94*c116;
+    const double c118 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double c119 = c94*c118;
+    const double c120 = -c103*c117 - c119*c98;
+    const double c121 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double c122 = c93*c94*c121;
+    const double c123 = c108*c119 - c117*c101 + c92*c121*c95;
+    const double c124 = c110*c116 + c113*c118;
+    const double c125 = c111*c116 + c114*c118;
+    out[0] = -udd0*(c0*upper_a00 + c1*upper_a10) - v_upper_alpha*(c13*v_upper_beta + c22*v_upper_alpha + c23*v_upper_gamma) - v_upper_beta*(c13*v_upper_alpha + c17*v_upper_gamma + v_upper_beta*(c0*c9 + c1*c6)) - v_upper_gamma*(c17*v_upper_beta + c22*v_upper_gamma + c23*v_upper_alpha) - (ud0*ud0)*(c0*upper_a10 - c1*upper_a00) - 2.0*ud0*(v_upper_alpha*(c19 - c1*c18) + v_upper_gamma*(c21 - c1*c20) - c13*v_upper_beta);
+    out[1] = udd1 + c28*v_boom_cyl_l_barrel_z - c44*v_boom_cyl_l_rod_y - c44*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c47*v_boom_cyl_l_rod_x - c47*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c28*v_boom_cyl_l_rod_z - c28*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_alpha*(c52*v_boom_cyl_l_barrel_beta + c56*v_boom_cyl_l_barrel_alpha + c57*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_beta*(c52*v_boom_cyl_l_barrel_alpha + c55*v_boom_cyl_l_barrel_gamma + v_boom_cyl_l_barrel_beta*(c54 + c41*c48 - c36*c50)) - v_boom_cyl_l_barrel_gamma*(c55*v_boom_cyl_l_barrel_beta + c57*v_boom_cyl_l_barrel_alpha + v_boom_cyl_l_barrel_gamma*(c54 + c56)) - v_boom_cyl_l_barrel_x*(c32 + c37*v_boom_cyl_l_barrel_alpha + c38*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_y*(-c39 + c42*v_boom_cyl_l_barrel_alpha + c43*v_boom_cyl_l_barrel_gamma);
+    out[2] = udd2 + c62*v_arm_cyl_barrel_z - c78*v_arm_cyl_rod_y - c78*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c81*v_arm_cyl_rod_x - c81*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c62*v_arm_cyl_rod_z - c62*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_alpha*(c86*v_arm_cyl_barrel_beta + c90*v_arm_cyl_barrel_alpha + c91*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_beta*(c86*v_arm_cyl_barrel_alpha + c89*v_arm_cyl_barrel_gamma + v_arm_cyl_barrel_beta*(c88 + c75*c82 - c70*c84)) - v_arm_cyl_barrel_gamma*(c89*v_arm_cyl_barrel_beta + c91*v_arm_cyl_barrel_alpha + v_arm_cyl_barrel_gamma*(c88 + c90)) - v_arm_cyl_barrel_x*(c66 + c71*v_arm_cyl_barrel_alpha + c72*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_y*(-c73 + c76*v_arm_cyl_barrel_alpha + c77*v_arm_cyl_barrel_gamma);
+    out[3] = udd3 + c96*v_bucket_cyl_barrel_z - c112*v_bucket_cyl_rod_y - c112*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c115*v_bucket_cyl_rod_x - c115*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c96*v_bucket_cyl_rod_z - c96*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_alpha*(c120*v_bucket_cyl_barrel_beta + c124*v_bucket_cyl_barrel_alpha + c125*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_beta*(c120*v_bucket_cyl_barrel_alpha + c123*v_bucket_cyl_barrel_gamma + v_bucket_cyl_barrel_beta*(c122 + c109*c116 - c104*c118)) - v_bucket_cyl_barrel_gamma*(c123*v_bucket_cyl_barrel_beta + c125*v_bucket_cyl_barrel_alpha + v_bucket_cyl_barrel_gamma*(c122 + c124)) - v_bucket_cyl_barrel_x*(c100 + c105*v_bucket_cyl_barrel_alpha + c106*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_y*(-c107 + c110*v_bucket_cyl_barrel_alpha + c111*v_bucket_cyl_barrel_gamma);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
+void excavator_euler_zxy_compute_inputs_digging_paced(double t, double *out) {
+    const double c0 = (4.0/7.0)*t;
+    const double c1 = tanh(-27.0 + c0);
+    const double c2 = tanh(-17.0 + c0);
+    const double c3 = tanh(-29.0 + c0);
+    const double c4 = tanh(-14.0 + c0);
+    const double c5 = tanh(-3.0 + c0);
+    const double c6 = (9.0/40.0)*c5;
+    const double c7 = tanh(-23.0 + c0);
+    const double c8 = tanh(-9.0 + c0);
+    const double c9 = (c1*c1);
+    const double c10 = (c2*c2);
+    const double c11 = (c3*c3);
+    const double c12 = (c4*c4);
+    const double c13 = (c5*c5);
+    const double c14 = (9.0/70.0)*c13;
+    const double c15 = (c7*c7);
+    const double c16 = (c8*c8);
+    const double c17 = c3*(8.0/7.0 - 8.0/7.0*c11);
+    const double c18 = (9.0/70.0)*c5*(8.0/7.0 - 8.0/7.0*c13);
+    const double c19 = 8.0/7.0 - 8.0/7.0*c15;
+    const double c20 = c8*(8.0/7.0 - 8.0/7.0*c16);
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1;
+    out[1] = 626973.0/250000.0 - c6 - 1.0/5.0*c3 + (17.0/40.0)*c4;
+    out[2] = 485803.0/250000.0 + c6 - 17.0/40.0*c7 - 7.0/40.0*c3 + (3.0/8.0)*c8;
+    out[3] = 928949.0/500000.0 - 3.0/8.0*c7 + (1.0/20.0)*c3 + (13.0/40.0)*c8;
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10;
+    out[5] = c14 - 17.0/70.0*c12 + (4.0/35.0)*c11;
+    out[6] = -c14 - 3.0/14.0*c16 + (1.0/10.0)*c11 + (17.0/70.0)*c15;
+    out[7] = -13.0/70.0*c16 - 1.0/35.0*c11 + (3.0/14.0)*c15;
+    out[8] = 0.4487989505128276*c1*(8.0/7.0 - 8.0/7.0*c9) - 0.4487989505128276*c2*(8.0/7.0 - 8.0/7.0*c10);
+    out[9] = c18 + (4.0/35.0)*c17 - 17.0/70.0*c4*(8.0/7.0 - 8.0/7.0*c12);
+    out[10] = -c18 - 3.0/14.0*c20 + (1.0/10.0)*c17 + (17.0/70.0)*c19*c7;
+    out[11] = -13.0/70.0*c20 - 1.0/35.0*c17 + (3.0/14.0)*c19*c7;
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
+void excavator_euler_zxy_compute_input_ranges_digging_paced(const double *span, double *out) {
+    const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
+    const kinegen_interval r1 = kinegen_iv_const(0.5714285714285713, 0.5714285714285715);
+    const kinegen_interval r2 = kinegen_iv_mul(r1, r0);
+    const kinegen_interval r3 = kinegen_iv_const(-27.0, -27.0);
+    const kinegen_interval r4 = kinegen_iv_add(r3, r2);
+    const kinegen_interval r5 = kinegen_iv_tanh(r4);
+    const kinegen_interval r6 = kinegen_iv_neg(r5);
+    const kinegen_interval r7 = kinegen_iv_const(-17.0, -17.0);
+    const kinegen_interval r8 = kinegen_iv_add(r7, r2);
+    const kinegen_interval r9 = kinegen_iv_tanh(r8);
+    const kinegen_interval r10 = kinegen_iv_add(r6, r9);
+    const kinegen_interval r11 = kinegen_iv_const(0.7853981633974482, 0.7853981633974484);
+    const kinegen_interval r12 = kinegen_iv_mul(r11, r10);
+    const kinegen_interval r13 = kinegen_iv_const(-29.0, -29.0);
+    const kinegen_interval r14 = kinegen_iv_add(r13, r2);
+    const kinegen_interval r15 = kinegen_iv_tanh(r14);
+    const kinegen_interval r16 = kinegen_iv_const(-0.20000000000000004, -0.19999999999999998);
+    const kinegen_interval r17 = kinegen_iv_mul(r16, r15);
+    const kinegen_interval r18 = kinegen_iv_const(-14.0, -14.0);
+    const kinegen_interval r19 = kinegen_iv_add(r18, r2);
+    const kinegen_interval r20 = kinegen_iv_tanh(r19);
+    const kinegen_interval r21 = kinegen_iv_const(0.42499999999999993, 0.42500000000000004);
+    const kinegen_interval r22 = kinegen_iv_mul(r21, r20);
+    const kinegen_interval r23 = kinegen_iv_const(-3.0, -3.0);
+    const kinegen_interval r24 = kinegen_iv_add(r23, r2);
+    const kinegen_interval r25 = kinegen_iv_tanh(r24);
+    const kinegen_interval r26 = kinegen_iv_const(-0.22500000000000003, -0.22499999999999998);
+    const kinegen_interval r27 = kinegen_iv_mul(r26, r25);
+    const kinegen_interval r28 = kinegen_iv_add(r17, r22);
+    const kinegen_interval r29 = kinegen_iv_add(r28, r27);
+    const kinegen_interval r30 = kinegen_iv_const(2.5078919999999996, 2.5078920000000005);
+    const kinegen_interval r31 = kinegen_iv_add(r30, r29);
+    const kinegen_interval r32 = kinegen_iv_const(-0.17500000000000002, -0.17499999999999996);
+    const kinegen_interval r33 = kinegen_iv_mul(r32, r15);
+    const kinegen_interval r34 = kinegen_iv_const(-23.0, -23.0);
+    const kinegen_interval r35 = kinegen_iv_add(r34, r2);
+    const kinegen_interval r36 = kinegen_iv_tanh(r35);
+    const kinegen_interval r37 = kinegen_iv_const(-0.42500000000000004, -0.42499999999999993);
+    const kinegen_interval r38 = kinegen_iv_mul(r37, r36);
+    const kinegen_interval r39 = kinegen_iv_const(-9.0, -9.0);
+    const kinegen_interval r40 = kinegen_iv_add(r39, r2);
+    const kinegen_interval r41 = kinegen_iv_tanh(r40);
+    const kinegen_interval r42 = kinegen_iv_const(0.375, 0.375);
+    const kinegen_interval r43 = kinegen_iv_mul(r42, r41);
+    const kinegen_interval r44 = kinegen_iv_const(0.22499999999999998, 0.22500000000000003);
+    const kinegen_interval r45 = kinegen_iv_mul(r44, r25);
+    const kinegen_interval r46 = kinegen_iv_add(r33, r38);
+    const kinegen_interval r47 = kinegen_iv_add(r46, r43);
+    const kinegen_interval r48 = kinegen_iv_add(r47, r45);
+    const kinegen_interval r49 = kinegen_iv_const(1.9432119999999997, 1.9432120000000002);
+    const kinegen_interval r50 = kinegen_iv_add(r49, r48);
+    const kinegen_interval r51 = kinegen_iv_const(0.049999999999999996, 0.05000000000000001);
+    const kinegen_interval r52 = kinegen_iv_mul(r51, r15);
+    const kinegen_interval r53 = kinegen_iv_const(-0.375, -0.375);
+    const kinegen_interval r54 = kinegen_iv_mul(r53, r36);
+    const kinegen_interval r55 = kinegen_iv_const(0.32499999999999996, 0.32500000000000007);
+    const kinegen_interval r56 = kinegen_iv_mul(r55, r41);
+    const kinegen_interval r57 = kinegen_iv_add(r52, r54);
+    const kinegen_interval r58 = kinegen_iv_add(r57, r56);
+    const kinegen_interval r59 = kinegen_iv_const(1.8578979999999998, 1.8578980000000003);
+    const kinegen_interval r60 = kinegen_iv_add(r59, r58);
+    const kinegen_interval r61 = kinegen_iv_powi(r5, 2);
+    const kinegen_interval r62 = kinegen_iv_mul(r1, r61);
+    const kinegen_interval r63 = kinegen_iv_powi(r9, 2);
+    const kinegen_interval r64 = kinegen_iv_const(-0.5714285714285715, -0.5714285714285713);
+    const kinegen_interval r65 = kinegen_iv_mul(r64, r63);
+    const kinegen_interval r66 = kinegen_iv_add(r62, r65);
+    const kinegen_interval r67 = kinegen_iv_mul(r11, r66);
+    const kinegen_interval r68 = kinegen_iv_powi(r15, 2);
+    const kinegen_interval r69 = kinegen_iv_const(0.11428571428571427, 0.1142857142857143);
+    const kinegen_interval r70 = kinegen_iv_mul(r69, r68);
+    const kinegen_interval r71 = kinegen_iv_powi(r20, 2);
+    const kinegen_interval r72 = kinegen_iv_const(-0.24285714285714288, -0.24285714285714283);
+    const kinegen_interval r73 = kinegen_iv_mul(r72, r71);
+    const kinegen_interval r74 = kinegen_iv_powi(r25, 2);
+    const kinegen_interval r75 = kinegen_iv_const(0.12857142857142853, 0.1285714285714286);
+    const kinegen_interval r76 = kinegen_iv_mul(r75, r74);
+    const kinegen_interval r77 = kinegen_iv_add(r70, r73);
+    const kinegen_interval r78 = kinegen_iv_add(r77, r76);
+    const kinegen_interval r79 = kinegen_iv_const(0.09999999999999999, 0.10000000000000002);
+    const kinegen_interval r80 = kinegen_iv_mul(r79, r68);
+    const kinegen_interval r81 = kinegen_iv_powi(r36, 2);
+    const kinegen_interval r82 = kinegen_iv_const(0.24285714285714283, 0.24285714285714288);
+    const kinegen_interval r83 = kinegen_iv_mul(r82, r81);
+    const kinegen_interval r84 = kinegen_iv_powi(r41, 2);
+    const kinegen_interval r85 = kinegen_iv_const(-0.2142857142857143, -0.21428571428571425);
+    const kinegen_interval r86 = kinegen_iv_mul(r85, r84);
+    const kinegen_interval r87 = kinegen_iv_const(-0.1285714285714286, -0.12857142857142853);
+    const kinegen_interval r88 = kinegen_iv_mul(r87, r74);
+    const kinegen_interval r89 = kinegen_iv_add(r80, r83);
+    const kinegen_interval r90 = kinegen_iv_add(r89, r86);
+    const kinegen_interval r91 = kinegen_iv_add(r90, r88);
+    const kinegen_interval r92 = kinegen_iv_const(-0.028571428571428574, -0.028571428571428567);
+    const kinegen_interval r93 = kinegen_iv_mul(r92, r68);
+    const kinegen_interval r94 = kinegen_iv_const(0.21428571428571425, 0.2142857142857143);
+    const kinegen_interval r95 = kinegen_iv_mul(r94, r81);
+    const kinegen_interval r96 = kinegen_iv_const(-0.18571428571428575, -0.1857142857142857);
+    const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
+    const kinegen_interval r98 = kinegen_iv_add(r93, r95);
+    const kinegen_interval r99 = kinegen_iv_add(r98, r97);
+    const kinegen_interval r100 = kinegen_iv_const(-1.142857142857143, -1.1428571428571426);
+    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
+    const kinegen_interval r102 = kinegen_iv_const(1.1428571428571426, 1.142857142857143);
+    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
+    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
+    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
+    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
+    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
+    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
+    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
+    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
+    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
+    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
+    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
+    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
+    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
+    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
+    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
+    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
+    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
+    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
+    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
+    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
+    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
+    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
+    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
+    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
+    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
+    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
+    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
+    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
+    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
+    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
+    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
+    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
+    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
+    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
+    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
+    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
+    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
+    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
+    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    out[0] = r12.lo;
+    out[12] = r12.hi;
+    out[1] = r31.lo;
+    out[13] = r31.hi;
+    out[2] = r50.lo;
+    out[14] = r50.hi;
+    out[3] = r60.lo;
+    out[15] = r60.hi;
+    out[4] = r67.lo;
+    out[16] = r67.hi;
+    out[5] = r78.lo;
+    out[17] = r78.hi;
+    out[6] = r91.lo;
+    out[18] = r91.hi;
+    out[7] = r99.lo;
+    out[19] = r99.hi;
+    out[8] = r111.lo;
+    out[20] = r111.hi;
+    out[9] = r125.lo;
+    out[21] = r125.hi;
+    out[10] = r138.lo;
+    out[22] = r138.hi;
+    out[11] = r143.lo;
+    out[23] = r143.hi;
+}
+
 /* Phi of the driver rows of case 'oscillation'. */
 void excavator_euler_zxy_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
     const double upper_alpha = q[3];
@@ -7491,6 +8104,10 @@ void excavator_euler_zxy_compute_frames_part0(const double *q, const double *v, 
     out[167] = dv_arm_alpha + arm_a21*dv_arm_gamma + v_arm_gamma*(c62*(c54*c54) + c62*(c56*c56));
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
+
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 168 to 335. */
 void excavator_euler_zxy_compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
     const double arm_cyl_barrel_x = q[42];
@@ -8046,10 +8663,6 @@ void excavator_euler_zxy_compute_loads(const double *q, double t, const double *
     out[4] = -12800.0*c7 + 8060.0*c3*c6 - c0*c10*c4 + 32240.0*c1*c10*c3;
     out[5] = -c0*c9 - c2*c6 - c5*c6 + 8060.0*c0*c10 + 12800.0*c10*c3 + 32240.0*c3*c8;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 5
 
 /* The generalized force of gravity and of the 14 massive bodies' inertia (d'Alembert), 84 values at INERTIA_COLS. Rows 0 to 23. */
 void excavator_euler_zxy_compute_inertia_part0(const double *q, const double *v, const double *a, const double *p, double *out) {
@@ -9760,6 +10373,71 @@ static void call_input_ranges_digging_fast(const double *const *x, double *const
     input_ranges_digging_fast(x[0], y[0]);
 }
 
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
+static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_euler_zxy_compute_joints_phi(q, p, phi);
+    excavator_euler_zxy_compute_drivers_phi_digging_paced(q, u, p, phi + 80);
+    excavator_euler_zxy_compute_joints_jac_part0(q, p, jac);
+    excavator_euler_zxy_compute_joints_jac_part1(q, p, jac);
+    excavator_euler_zxy_compute_joints_jac_part2(q, p, jac);
+    excavator_euler_zxy_compute_joints_jac_part3(q, p, jac);
+    excavator_euler_zxy_compute_joints_jac_part4(q, p, jac);
+    excavator_euler_zxy_compute_drivers_jac_digging_paced(q, u, p, jac + 407);
+}
+
+/* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
+static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_euler_zxy_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
+static void gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_euler_zxy_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_euler_zxy_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_euler_zxy_compute_joints_gamma_part2(q, v, p, gamma);
+    excavator_euler_zxy_compute_joints_gamma_part3(q, v, p, gamma);
+    excavator_euler_zxy_compute_joints_gamma_part4(q, v, p, gamma);
+    excavator_euler_zxy_compute_joints_gamma_part5(q, v, p, gamma);
+    excavator_euler_zxy_compute_joints_gamma_part6(q, v, p, gamma);
+    excavator_euler_zxy_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 80);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_digging_paced(double t, double *inputs) {
+    excavator_euler_zxy_compute_inputs_digging_paced(t, inputs);
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds. */
+static void input_ranges_digging_paced(const double *span, double *input_ranges) {
+    excavator_euler_zxy_compute_input_ranges_digging_paced(span, input_ranges);
+}
+
+/* phi_jac as a kinegen_kernel entry point. */
+static void call_phi_jac_digging_paced(const double *const *x, double *const *y) {
+    phi_jac_digging_paced(x[0], x[1], x[2], y[0], y[1]);
+}
+
+/* nu as a kinegen_kernel entry point. */
+static void call_nu_digging_paced(const double *const *x, double *const *y) {
+    nu_digging_paced(x[0], x[1], x[2], x[3], y[0]);
+}
+
+/* gamma as a kinegen_kernel entry point. */
+static void call_gamma_digging_paced(const double *const *x, double *const *y) {
+    gamma_digging_paced(x[0], x[1], x[2], x[3], x[4], x[5], y[0]);
+}
+
+/* inputs as a kinegen_kernel entry point. */
+static void call_inputs_digging_paced(const double *const *x, double *const *y) {
+    inputs_digging_paced(x[0][0], y[0]);
+}
+
+/* input_ranges as a kinegen_kernel entry point. */
+static void call_input_ranges_digging_paced(const double *const *x, double *const *y) {
+    input_ranges_digging_paced(x[0], y[0]);
+}
+
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_euler_zxy_compute_joints_phi(q, p, phi);
@@ -10024,6 +10702,23 @@ static const kinegen_kernel kernels_digging_fast[] = {
     {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
     {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
 };
+static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
+static const int sizes_phi_jac_digging_paced[] = {84, 437};
+static const char *const outputs_nu_digging_paced[] = {"nu"};
+static const int sizes_nu_digging_paced[] = {84};
+static const char *const outputs_gamma_digging_paced[] = {"gamma"};
+static const int sizes_gamma_digging_paced[] = {84};
+static const char *const outputs_inputs_digging_paced[] = {"inputs"};
+static const int sizes_inputs_digging_paced[] = {12};
+static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
+static const int sizes_input_ranges_digging_paced[] = {24};
+static const kinegen_kernel kernels_digging_paced[] = {
+    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
+    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
+    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
+    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
+    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+};
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {84, 437};
 static const char *const outputs_nu_oscillation[] = {"nu"};
@@ -10152,7 +10847,7 @@ static const kinegen_statics statics = {
 };
 
 const kinegen_layout excavator_euler_zxy_layout = {
-    "excavator", "euler:zxy", "excavator.yaml", "e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5", "0.2.0",
+    "excavator", "euler:zxy", "excavator.yaml", "787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b", "0.2.0",
     EXCAVATOR_EULER_ZXY_N_Q, EXCAVATOR_EULER_ZXY_N_V, EXCAVATOR_EULER_ZXY_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_euler_zxy_frames,
     7, kernels, &statics,
@@ -10386,6 +11081,38 @@ const kinegen_model excavator_euler_zxy_digging_fast = {
     3380, 256, 5, kernels_digging_fast, &design_digging_fast,
 };
 
+/* ---- case digging_paced ---- */
+static const char *const constraints_digging_paced[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const char *const drivers_digging_paced[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const int jac_rows_digging_paced[] = {0, 1, 2, 3, 3, 4, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
+static const int jac_cols_digging_paced[] = {0, 1, 2, 4, 5, 4, 0, 3, 4, 5, 6, 1, 3, 4, 5, 7, 2, 4, 5, 8, 3, 4, 9, 10, 11, 3, 4, 9, 10, 11, 0, 3, 4, 5, 12, 1, 3, 4, 5, 13, 2, 4, 5, 14, 3, 4, 15, 16, 17, 15, 16, 17, 21, 22, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 21, 22, 23, 6, 9, 10, 11, 18, 7, 9, 10, 11, 19, 8, 10, 11, 20, 0, 3, 4, 5, 24, 1, 3, 4, 5, 25, 2, 4, 5, 26, 3, 4, 27, 28, 29, 27, 28, 29, 33, 34, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 33, 34, 35, 6, 9, 10, 11, 30, 7, 9, 10, 11, 31, 8, 10, 11, 32, 6, 9, 10, 11, 36, 7, 9, 10, 11, 37, 8, 10, 11, 38, 9, 10, 39, 40, 41, 9, 10, 39, 40, 41, 6, 9, 10, 11, 42, 7, 9, 10, 11, 43, 8, 10, 11, 44, 9, 10, 45, 46, 47, 45, 46, 47, 51, 52, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 51, 52, 53, 36, 39, 40, 41, 48, 37, 39, 40, 41, 49, 38, 40, 41, 50, 36, 39, 40, 41, 78, 37, 39, 40, 41, 79, 38, 40, 41, 80, 39, 40, 81, 82, 83, 39, 40, 81, 82, 83, 36, 39, 40, 41, 66, 37, 39, 40, 41, 67, 38, 40, 41, 68, 39, 40, 69, 70, 71, 39, 40, 69, 70, 71, 66, 69, 70, 71, 72, 75, 76, 77, 67, 69, 70, 71, 73, 75, 76, 77, 68, 70, 71, 74, 76, 77, 72, 78, 81, 82, 83, 73, 79, 81, 82, 83, 74, 80, 82, 83, 75, 76, 77, 81, 82, 36, 39, 40, 41, 54, 37, 39, 40, 41, 55, 38, 40, 41, 56, 39, 40, 57, 58, 59, 57, 58, 59, 63, 64, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 63, 64, 65, 60, 66, 69, 70, 71, 61, 67, 69, 70, 71, 62, 68, 70, 71, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62};
+/* Phi_q in block lower triangular form: 42 blocks, the largest 9 x 9 */
+static const int block_start_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 24, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 39, 48, 51, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 72, 81, 84};
+static const int block_store_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 96, 105, 106, 107, 108, 109, 110, 111, 112, 113, 114, 123, 204, 213, 222, 223, 224, 225, 226, 227, 228, 229, 230, 231, 312, 393};
+static const int row_order_digging_paced[] = {0, 1, 2, 4, 3, 80, 7, 12, 24, 5, 6, 11, 10, 22, 23, 8, 9, 13, 16, 17, 19, 20, 21, 81, 14, 15, 18, 33, 32, 31, 34, 35, 36, 41, 40, 39, 25, 28, 29, 37, 38, 42, 45, 46, 48, 49, 50, 82, 26, 27, 30, 43, 44, 47, 51, 52, 53, 58, 57, 70, 69, 68, 56, 59, 60, 71, 74, 75, 77, 78, 79, 83, 54, 55, 61, 62, 63, 64, 65, 66, 67, 72, 73, 76};
+static const int col_order_digging_paced[] = {0, 1, 2, 4, 5, 3, 8, 14, 26, 6, 7, 13, 12, 24, 25, 9, 10, 15, 16, 17, 18, 19, 11, 20, 22, 23, 21, 32, 31, 30, 36, 37, 38, 44, 43, 42, 27, 28, 29, 39, 40, 45, 48, 46, 41, 49, 50, 47, 34, 35, 33, 52, 53, 51, 78, 79, 80, 68, 67, 56, 55, 54, 66, 69, 70, 57, 60, 58, 71, 61, 62, 59, 81, 82, 77, 73, 76, 72, 83, 74, 75, 64, 65, 63};
+static const int diag_value_digging_paced[] = {0, 1, 2, 4, 5, 10, 15, 19, 22, 23, 24, 27, 28, 29, 34, 39, 43, 46, 47, 48, 52, 53, 57, 58, 59, 63, 64, 65, 66, 67, 71, 72, 73, 74, 75, 76, 79, 80, 81, 83, 84, 85, 86, 88, 89, 90, 91, 93, 94, 95, 100, 105, 109, 112, 113, 114, 118, 119, 123, 124, 125, 129, 130, 137, 138, 139, 145, 146, 147, 152, 157, 161, 166, 171, 175, 178, 179, 180, 183, 184, 185, 190, 195, 199, 202, 203, 204, 208, 209, 213, 214, 215, 219, 220, 221, 222, 223, 227, 228, 229, 230, 231, 232, 235, 236, 237, 239, 240, 241, 242, 244, 245, 246, 247, 249, 250, 251, 256, 261, 265, 268, 269, 270, 273, 274, 275, 280, 285, 289, 292, 293, 294, 297, 298, 299, 304, 305, 306, 307, 312, 313, 314, 315, 319, 320, 321, 322, 324, 325, 326, 327, 329, 330, 331, 332, 334, 335, 336, 337, 338, 339, 340, 345, 350, 354, 357, 358, 359, 363, 364, 368, 369, 370, 374, 375, 376, 377, 378, 382, 383, 384, 385, 386, 387, 390, 391, 392, 393, 395, 396, 397, 398, 400, 401, 402, 403, 405, 406, 407, 413, 414, 415, 416, 417, 418, 422, 423, 424, 425, 426, 427, 431, 432, 433, 434, 435, 436};
+static const int diag_slot_digging_paced[] = {0, 1, 2, 4, 3, 9, 10, 6, 15, 24, 78, 16, 25, 79, 12, 11, 7, 35, 44, 53, 102, 96, 103, 97, 100, 36, 45, 63, 72, 90, 37, 46, 55, 64, 73, 91, 104, 98, 101, 20, 29, 83, 65, 21, 30, 84, 75, 31, 85, 94, 13, 14, 8, 114, 117, 120, 210, 204, 211, 205, 208, 115, 118, 116, 119, 122, 212, 206, 209, 107, 106, 105, 108, 109, 110, 123, 132, 168, 124, 133, 169, 113, 112, 111, 143, 161, 197, 219, 213, 220, 214, 217, 144, 162, 153, 180, 189, 145, 163, 199, 154, 181, 190, 221, 215, 218, 128, 137, 173, 155, 129, 138, 174, 183, 139, 175, 193, 222, 223, 224, 312, 321, 366, 313, 322, 367, 230, 226, 225, 231, 240, 276, 232, 241, 277, 359, 386, 350, 332, 342, 387, 351, 333, 379, 352, 334, 362, 317, 326, 371, 345, 318, 327, 372, 382, 328, 373, 392, 356, 338, 320, 329, 229, 228, 227, 251, 269, 305, 399, 393, 400, 394, 397, 252, 270, 261, 288, 297, 253, 271, 307, 262, 289, 298, 401, 395, 398, 263, 236, 245, 281, 291, 237, 246, 282, 301, 247, 283, 5, 41, 50, 59, 68, 77, 95, 149, 167, 203, 158, 185, 194, 257, 275, 311, 266, 293, 302};
+static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 24, 28, 32, 36, 38, 40, 42, 45, 48, 49, 50, 51, 54, 57, 60, 62, 65, 69, 73, 77, 81, 84, 87, 91, 95, 97, 103, 109, 111, 113, 115, 118, 121, 122, 123, 124, 127, 130, 133, 135, 138, 141, 143, 147, 151, 154, 157, 161, 164, 168, 172, 176, 178, 180, 182, 185, 188, 189, 190, 191, 194, 196, 198, 202, 206, 209, 210, 211, 212, 212, 215, 218, 220};
+static const int off_col_digging_paced[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
+static const int off_value_digging_paced[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
+static const kinegen_design design_digging_paced = {
+    11, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
+    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+};
+
+const kinegen_model excavator_euler_zxy_digging_paced = {
+    &excavator_euler_zxy_layout, "digging_paced",
+    EXCAVATOR_EULER_ZXY_N_Q, EXCAVATOR_EULER_ZXY_N_V, 4, 437,
+    0.0, 59.5, 341,
+    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
+    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
+    42, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
+    402, 217, diag_value_digging_paced, diag_slot_digging_paced,
+    220, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
+    3380, 256, 5, kernels_digging_paced, &design_digging_paced,
+};
+
 /* ---- case oscillation ---- */
 static const char *const constraints_oscillation[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
 static const char *const drivers_oscillation[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
@@ -10418,6 +11145,6 @@ const kinegen_model excavator_euler_zxy_oscillation = {
     3380, 256, 5, kernels_oscillation, &design_oscillation,
 };
 
-const kinegen_model *const excavator_euler_zxy_cases[EXCAVATOR_EULER_ZXY_N_CASES] = {&excavator_euler_zxy_digging, &excavator_euler_zxy_level_cut, &excavator_euler_zxy_trench_wall, &excavator_euler_zxy_bucket_toggle, &excavator_euler_zxy_bucket_stroke, &excavator_euler_zxy_bucket_near_toggle, &excavator_euler_zxy_digging_fast, &excavator_euler_zxy_oscillation};
+const kinegen_model *const excavator_euler_zxy_cases[EXCAVATOR_EULER_ZXY_N_CASES] = {&excavator_euler_zxy_digging, &excavator_euler_zxy_level_cut, &excavator_euler_zxy_trench_wall, &excavator_euler_zxy_bucket_toggle, &excavator_euler_zxy_bucket_stroke, &excavator_euler_zxy_bucket_near_toggle, &excavator_euler_zxy_digging_fast, &excavator_euler_zxy_digging_paced, &excavator_euler_zxy_oscillation};
 
 #endif

@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
 parametrization: euler:zxz
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
+SOURCE_SHA256 = '787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b'
 PARAMETRIZATION = 'euler:zxz'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.alpha', 'upper.beta', 'upper.gamma', 'boom.x', 'boom.y', 'boom.z', 'boom.alpha', 'boom.beta', 'boom.gamma', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.alpha', 'boom_cyl_l_barrel.beta', 'boom_cyl_l_barrel.gamma', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.alpha', 'boom_cyl_l_rod.beta', 'boom_cyl_l_rod.gamma', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.alpha', 'boom_cyl_r_barrel.beta', 'boom_cyl_r_barrel.gamma', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.alpha', 'boom_cyl_r_rod.beta', 'boom_cyl_r_rod.gamma', 'arm.x', 'arm.y', 'arm.z', 'arm.alpha', 'arm.beta', 'arm.gamma', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.alpha', 'arm_cyl_barrel.beta', 'arm_cyl_barrel.gamma', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.alpha', 'arm_cyl_rod.beta', 'arm_cyl_rod.gamma', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.alpha', 'bucket_cyl_barrel.beta', 'bucket_cyl_barrel.gamma', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.alpha', 'bucket_cyl_rod.beta', 'bucket_cyl_rod.gamma', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.alpha', 'side_link.beta', 'side_link.gamma', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.alpha', 'bucket_link.beta', 'bucket_link.gamma', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.alpha', 'bucket.beta', 'bucket.gamma')
@@ -85,7 +85,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxz.h': 'a33afb5182c7adae128bd1d25537a318db865b8284a0d94268f2123de5e4d098', 'excavator_euler_zxz.c': '953ced087480a46ae9591e80ad9b237e5ef39727d97184b7dc25833ec9a566b5'}
+C_FILES = {'excavator_euler_zxz.h': '461e2e77d167b180a66e8de14095a537f061dd27ae39092d3c5307be216f58ed', 'excavator_euler_zxz.c': 'bf37964a53a14e06f0a60c46ffdeb4d573f6f7e693fbc6c7a3a5d170a294296f'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -10560,6 +10560,741 @@ def input_ranges_digging_fast(span):
     return out
 
 
+def _drivers_phi_digging_paced(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
+    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
+    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
+    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
+    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
+    out = _zeros(4, q, u)
+    out[0] = upper_a00*sin(u0) - upper_a10*cos(u0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
+    return out
+
+
+def phi_digging_paced(q, u, p):
+    """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
+
+
+def _drivers_jac_digging_paced(q, u, p):
+    """Phi_q values of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_gamma) - cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_alpha)*sin(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a10 = cos(boom_cyl_l_barrel_gamma)*sin(boom_cyl_l_barrel_alpha) + cos(boom_cyl_l_barrel_alpha)*cos(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a20 = sin(boom_cyl_l_barrel_beta)*sin(boom_cyl_l_barrel_gamma)
+    arm_cyl_barrel_a00 = cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_gamma) - cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_alpha)*sin(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a10 = cos(arm_cyl_barrel_gamma)*sin(arm_cyl_barrel_alpha) + cos(arm_cyl_barrel_alpha)*cos(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a20 = sin(arm_cyl_barrel_beta)*sin(arm_cyl_barrel_gamma)
+    bucket_cyl_barrel_a00 = cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_gamma) - cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_alpha)*sin(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a10 = cos(bucket_cyl_barrel_gamma)*sin(bucket_cyl_barrel_alpha) + cos(bucket_cyl_barrel_alpha)*cos(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a20 = sin(bucket_cyl_barrel_beta)*sin(bucket_cyl_barrel_gamma)
+    c0 = sin(u0)
+    c1 = sin(upper_alpha)
+    c2 = cos(upper_gamma)
+    c3 = c1*c2
+    c4 = cos(upper_beta)
+    c5 = sin(upper_gamma)
+    c6 = cos(upper_alpha)
+    c7 = c5*c6
+    c8 = cos(u0)
+    c9 = c1*c5
+    c10 = sin(upper_beta)
+    c11 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    c12 = cos(boom_cyl_l_barrel_alpha)
+    c13 = cos(boom_cyl_l_barrel_gamma)
+    c14 = cos(boom_cyl_l_barrel_beta)
+    c15 = sin(boom_cyl_l_barrel_alpha)
+    c16 = sin(boom_cyl_l_barrel_gamma)
+    c17 = c15*c16
+    c18 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    c19 = c13*c15
+    c20 = c12*c16
+    c21 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    c22 = sin(boom_cyl_l_barrel_beta)
+    c23 = arm_cyl_rod_y - arm_cyl_barrel_y
+    c24 = cos(arm_cyl_barrel_alpha)
+    c25 = cos(arm_cyl_barrel_gamma)
+    c26 = cos(arm_cyl_barrel_beta)
+    c27 = sin(arm_cyl_barrel_alpha)
+    c28 = sin(arm_cyl_barrel_gamma)
+    c29 = c27*c28
+    c30 = arm_cyl_rod_x - arm_cyl_barrel_x
+    c31 = c25*c27
+    c32 = c24*c28
+    c33 = arm_cyl_rod_z - arm_cyl_barrel_z
+    c34 = sin(arm_cyl_barrel_beta)
+    c35 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c36 = cos(bucket_cyl_barrel_alpha)
+    c37 = cos(bucket_cyl_barrel_gamma)
+    c38 = cos(bucket_cyl_barrel_beta)
+    c39 = sin(bucket_cyl_barrel_alpha)
+    c40 = sin(bucket_cyl_barrel_gamma)
+    c41 = c39*c40
+    c42 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    c43 = c37*c39
+    c44 = c36*c40
+    c45 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c46 = sin(bucket_cyl_barrel_beta)
+    out = _zeros(30, q, u)
+    out[0] = c0*(-c3 - c4*c7) - c8*(c2*c6 - c4*c9)
+    out[1] = c0*c10*c9 + c10*c7*c8
+    out[2] = c0*(-c7 - c3*c4) - c8*(-c9 + c2*c4*c6)
+    out[3] = -boom_cyl_l_barrel_a00
+    out[4] = -boom_cyl_l_barrel_a10
+    out[5] = -boom_cyl_l_barrel_a20
+    out[6] = c11*(c12*c13 - c14*c17) + c18*(-c19 - c14*c20)
+    out[7] = c21*c14*c16 + c22*c17*c18 - c11*c22*c20
+    out[8] = c11*(-c17 + c12*c13*c14) + c18*(-c20 - c14*c19) + c21*c22*c13
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = c23*(c24*c25 - c26*c29) + c30*(-c31 - c26*c32)
+    out[16] = c33*c26*c28 + c34*c29*c30 - c23*c34*c32
+    out[17] = c23*(-c29 + c24*c25*c26) + c30*(-c32 - c26*c31) + c33*c34*c25
+    out[18] = arm_cyl_barrel_a00
+    out[19] = arm_cyl_barrel_a10
+    out[20] = arm_cyl_barrel_a20
+    out[21] = -bucket_cyl_barrel_a00
+    out[22] = -bucket_cyl_barrel_a10
+    out[23] = -bucket_cyl_barrel_a20
+    out[24] = c35*(c36*c37 - c38*c41) + c42*(-c43 - c38*c44)
+    out[25] = c45*c38*c40 + c46*c41*c42 - c35*c46*c44
+    out[26] = c35*(-c41 + c36*c37*c38) + c42*(-c44 - c38*c43) + c45*c46*c37
+    out[27] = bucket_cyl_barrel_a00
+    out[28] = bucket_cyl_barrel_a10
+    out[29] = bucket_cyl_barrel_a20
+    return out
+
+
+def jac_digging_paced(q, u, p):
+    """Output 'jac' (443 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
+
+
+def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
+    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
+    boom_cyl_l_barrel_a00 = math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_gamma) - math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_alpha)*math.sin(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a10 = math.cos(boom_cyl_l_barrel_gamma)*math.sin(boom_cyl_l_barrel_alpha) + math.cos(boom_cyl_l_barrel_alpha)*math.cos(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
+    boom_cyl_l_barrel_a20 = math.sin(boom_cyl_l_barrel_beta)*math.sin(boom_cyl_l_barrel_gamma)
+    arm_cyl_barrel_a00 = math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_gamma) - math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_alpha)*math.sin(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a10 = math.cos(arm_cyl_barrel_gamma)*math.sin(arm_cyl_barrel_alpha) + math.cos(arm_cyl_barrel_alpha)*math.cos(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
+    arm_cyl_barrel_a20 = math.sin(arm_cyl_barrel_beta)*math.sin(arm_cyl_barrel_gamma)
+    bucket_cyl_barrel_a00 = math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_gamma) - math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_alpha)*math.sin(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a10 = math.cos(bucket_cyl_barrel_gamma)*math.sin(bucket_cyl_barrel_alpha) + math.cos(bucket_cyl_barrel_alpha)*math.cos(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
+    bucket_cyl_barrel_a20 = math.sin(bucket_cyl_barrel_beta)*math.sin(bucket_cyl_barrel_gamma)
+    d0 = math.sin(u0)
+    d1 = math.sin(upper_alpha)
+    d2 = math.cos(upper_gamma)
+    d3 = d1*d2
+    d4 = math.cos(upper_beta)
+    d5 = math.sin(upper_gamma)
+    d6 = math.cos(upper_alpha)
+    d7 = d5*d6
+    d8 = math.cos(u0)
+    d9 = d1*d5
+    d10 = math.sin(upper_beta)
+    d11 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    d12 = math.cos(boom_cyl_l_barrel_alpha)
+    d13 = math.cos(boom_cyl_l_barrel_gamma)
+    d14 = math.cos(boom_cyl_l_barrel_beta)
+    d15 = math.sin(boom_cyl_l_barrel_alpha)
+    d16 = math.sin(boom_cyl_l_barrel_gamma)
+    d17 = d15*d16
+    d18 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    d19 = d13*d15
+    d20 = d12*d16
+    d21 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    d22 = math.sin(boom_cyl_l_barrel_beta)
+    d23 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d24 = math.cos(arm_cyl_barrel_alpha)
+    d25 = math.cos(arm_cyl_barrel_gamma)
+    d26 = math.cos(arm_cyl_barrel_beta)
+    d27 = math.sin(arm_cyl_barrel_alpha)
+    d28 = math.sin(arm_cyl_barrel_gamma)
+    d29 = d27*d28
+    d30 = arm_cyl_rod_x - arm_cyl_barrel_x
+    d31 = d25*d27
+    d32 = d24*d28
+    d33 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d34 = math.sin(arm_cyl_barrel_beta)
+    d35 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d36 = math.cos(bucket_cyl_barrel_alpha)
+    d37 = math.cos(bucket_cyl_barrel_gamma)
+    d38 = math.cos(bucket_cyl_barrel_beta)
+    d39 = math.sin(bucket_cyl_barrel_alpha)
+    d40 = math.sin(bucket_cyl_barrel_gamma)
+    d41 = d39*d40
+    d42 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    d43 = d37*d39
+    d44 = d36*d40
+    d45 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d46 = math.sin(bucket_cyl_barrel_beta)
+    return [upper_a00*math.sin(u0) - upper_a10*math.cos(u0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9), d0*d10*d9 + d10*d7*d8, d0*(-d7 - d3*d4) - d8*(-d9 + d2*d4*d6), -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d11*(d12*d13 - d14*d17) + d18*(-d19 - d14*d20), d21*d14*d16 + d22*d17*d18 - d11*d22*d20, d11*(-d17 + d12*d13*d14) + d18*(-d20 - d14*d19) + d21*d22*d13, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d23*(d24*d25 - d26*d29) + d30*(-d31 - d26*d32), d33*d26*d28 + d34*d29*d30 - d23*d34*d32, d23*(-d29 + d24*d25*d26) + d30*(-d32 - d26*d31) + d33*d34*d25, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d35*(d36*d37 - d38*d41) + d42*(-d43 - d38*d44), d45*d38*d40 + d46*d41*d42 - d35*d46*d44, d35*(-d41 + d36*d37*d38) + d42*(-d44 - d38*d43) + d45*d46*d37, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def phi_jac_s_digging_paced(q, u, p):
+    """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
+    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    return s0_0 + s1_0, s0_1 + s1_1
+
+
+def _drivers_nu_digging_paced(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
+    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_a00*cos(u0) + upper_a10*sin(u0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def nu_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
+    return _join(80, _drivers_nu_digging_paced(q, u, ud, p))
+
+
+def _drivers_nu_digging_paced_s(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
+    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
+    return [-ud0*(upper_a00*math.cos(u0) + upper_a10*math.sin(u0)), ud1, ud2, ud3]
+
+
+def nu_s_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
+    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    return [0.0] * 80 + s1_0
+
+
+def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
+    upper_a10 = cos(upper_gamma)*sin(upper_alpha) + cos(upper_alpha)*cos(upper_beta)*sin(upper_gamma)
+    c0 = cos(u0)
+    c1 = sin(u0)
+    c2 = cos(upper_beta)
+    c3 = sin(upper_alpha)
+    c4 = sin(upper_gamma)
+    c5 = c3*c4
+    c6 = c2*c5
+    c7 = cos(upper_alpha)
+    c8 = c4*c7
+    c9 = c2*c8
+    c10 = cos(upper_gamma)
+    c11 = c10*c3
+    c12 = sin(upper_beta)
+    c13 = c10*c7
+    c14 = c0*c12
+    c15 = c13*c14 + c1*c11*c12
+    c16 = c14*c5 - c1*c12*c4*c7
+    c17 = -c16
+    c18 = c6 - c13
+    c19 = c0*(-c11 - c9)
+    c20 = c5 - c13*c2
+    c21 = c0*(-c8 - c11*c2)
+    c22 = -c21 + c1*c20
+    c23 = -c19 + c1*c18
+    c24 = sin(boom_cyl_l_barrel_gamma)
+    c25 = cos(boom_cyl_l_barrel_beta)
+    c26 = sin(boom_cyl_l_barrel_beta)
+    c27 = cos(boom_cyl_l_barrel_gamma)
+    c28 = c24*c25*v_boom_cyl_l_barrel_beta + c26*c27*v_boom_cyl_l_barrel_gamma
+    c29 = sin(boom_cyl_l_barrel_alpha)
+    c30 = c24*c29
+    c31 = c26*v_boom_cyl_l_barrel_beta
+    c32 = c30*c31
+    c33 = c27*c29
+    c34 = cos(boom_cyl_l_barrel_alpha)
+    c35 = c24*c34
+    c36 = c25*c35
+    c37 = c36 + c33
+    c38 = c35 + c25*c33
+    c39 = c35*c31
+    c40 = c34*c27
+    c41 = -c40 + c25*c30
+    c42 = c30 - c25*c40
+    c43 = -c39 - c41*v_boom_cyl_l_barrel_alpha - c42*v_boom_cyl_l_barrel_gamma
+    c44 = -c37
+    c45 = -c38
+    c46 = c32 + c44*v_boom_cyl_l_barrel_alpha + c45*v_boom_cyl_l_barrel_gamma
+    c47 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    c48 = c26*c47
+    c49 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    c50 = c26*c49
+    c51 = c35*c48 + c50*c30
+    c52 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    c53 = c48*c33 - c40*c50 + c25*c52*c27
+    c54 = c24*c26*c52
+    c55 = c41*c47 + c44*c49
+    c56 = c42*c47 + c45*c49
+    c57 = sin(arm_cyl_barrel_gamma)
+    c58 = cos(arm_cyl_barrel_beta)
+    c59 = sin(arm_cyl_barrel_beta)
+    c60 = cos(arm_cyl_barrel_gamma)
+    c61 = c57*c58*v_arm_cyl_barrel_beta + c59*c60*v_arm_cyl_barrel_gamma
+    c62 = sin(arm_cyl_barrel_alpha)
+    c63 = c57*c62
+    c64 = c59*v_arm_cyl_barrel_beta
+    c65 = c63*c64
+    c66 = c60*c62
+    c67 = cos(arm_cyl_barrel_alpha)
+    c68 = c57*c67
+    c69 = c58*c68
+    c70 = c69 + c66
+    c71 = c68 + c58*c66
+    c72 = c68*c64
+    c73 = c67*c60
+    c74 = -c73 + c58*c63
+    c75 = c63 - c58*c73
+    c76 = -c72 - c74*v_arm_cyl_barrel_alpha - c75*v_arm_cyl_barrel_gamma
+    c77 = -c70
+    c78 = -c71
+    c79 = c65 + c77*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma
+    c80 = arm_cyl_rod_x - arm_cyl_barrel_x
+    c81 = c59*c80
+    c82 = arm_cyl_rod_y - arm_cyl_barrel_y
+    c83 = c59*c82
+    c84 = c68*c81 + c83*c63
+    c85 = arm_cyl_rod_z - arm_cyl_barrel_z
+    c86 = c81*c66 - c73*c83 + c58*c85*c60
+    c87 = c57*c59*c85
+    c88 = c74*c80 + c77*c82
+    c89 = c75*c80 + c78*c82
+    c90 = sin(bucket_cyl_barrel_gamma)
+    c91 = cos(bucket_cyl_barrel_beta)
+    c92 = sin(bucket_cyl_barrel_beta)
+    c93 = cos(bucket_cyl_barrel_gamma)
+    c94 = c90*c91*v_bucket_cyl_barrel_beta + c92*c93*v_bucket_cyl_barrel_gamma
+    c95 = sin(bucket_cyl_barrel_alpha)
+    c96 = c90*c95
+    c97 = c92*v_bucket_cyl_barrel_beta
+    c98 = c96*c97
+    c99 = c93*c95
+    c100 = cos(bucket_cyl_barrel_alpha)
+    c101 = c90*c100
+    c102 = c91*c101
+    c103 = c102 + c99
+    c104 = c101 + c91*c99
+    c105 = c101*c97
+    c106 = c100*c93
+    c107 = -c106 + c91*c96
+    c108 = c96 - c91*c106
+    c109 = -c105 - c107*v_bucket_cyl_barrel_alpha - c108*v_bucket_cyl_barrel_gamma
+    c110 = -c103
+    c111 = -c104
+    c112 = c98 + c110*v_bucket_cyl_barrel_alpha + c111*v_bucket_cyl_barrel_gamma
+    c113 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    c114 = c92*c113
+    c115 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c116 = c92*c115
+    c117 = c101*c114 + c116*c96
+    c118 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c119 = c114*c99 - c106*c116 + c91*c118*c93
+    c120 = c90*c92*c118
+    c121 = c107*c113 + c110*c115
+    c122 = c108*c113 + c111*c115
+    out = _zeros(4, q, u)
+    out[0] = -udd0*(c0*upper_a00 + c1*upper_a10) - v_upper_alpha*(c17*v_upper_beta + c22*v_upper_gamma + c23*v_upper_alpha) - v_upper_beta*(c15*v_upper_gamma + c17*v_upper_alpha + v_upper_beta*(c0*c9 + c1*c6)) - v_upper_gamma*(c15*v_upper_beta + c22*v_upper_alpha + c23*v_upper_gamma) - ud0**2*(c0*upper_a10 - c1*upper_a00) - 2*ud0*(c16*v_upper_beta + v_upper_alpha*(c19 - c1*c18) + v_upper_gamma*(c21 - c1*c20))
+    out[1] = udd1 + c28*v_boom_cyl_l_barrel_z - c43*v_boom_cyl_l_rod_y - c43*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c46*v_boom_cyl_l_rod_x - c46*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c28*v_boom_cyl_l_rod_z - c28*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_alpha*(c51*v_boom_cyl_l_barrel_beta + c55*v_boom_cyl_l_barrel_alpha + c56*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_beta*(c51*v_boom_cyl_l_barrel_alpha + c53*v_boom_cyl_l_barrel_gamma + v_boom_cyl_l_barrel_beta*(-c54 - c36*c49 + c24*c25*c47*c29)) - v_boom_cyl_l_barrel_gamma*(c53*v_boom_cyl_l_barrel_beta + c56*v_boom_cyl_l_barrel_alpha + v_boom_cyl_l_barrel_gamma*(c55 - c54)) - v_boom_cyl_l_barrel_x*(-c32 + c37*v_boom_cyl_l_barrel_alpha + c38*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_y*(c39 + c41*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma)
+    out[2] = udd2 + c61*v_arm_cyl_barrel_z - c76*v_arm_cyl_rod_y - c76*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c79*v_arm_cyl_rod_x - c79*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c61*v_arm_cyl_rod_z - c61*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_alpha*(c84*v_arm_cyl_barrel_beta + c88*v_arm_cyl_barrel_alpha + c89*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_beta*(c84*v_arm_cyl_barrel_alpha + c86*v_arm_cyl_barrel_gamma + v_arm_cyl_barrel_beta*(-c87 - c69*c82 + c57*c58*c80*c62)) - v_arm_cyl_barrel_gamma*(c86*v_arm_cyl_barrel_beta + c89*v_arm_cyl_barrel_alpha + v_arm_cyl_barrel_gamma*(c88 - c87)) - v_arm_cyl_barrel_x*(-c65 + c70*v_arm_cyl_barrel_alpha + c71*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_y*(c72 + c74*v_arm_cyl_barrel_alpha + c75*v_arm_cyl_barrel_gamma)
+    out[3] = udd3 + c94*v_bucket_cyl_barrel_z - c109*v_bucket_cyl_rod_y - c109*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c112*v_bucket_cyl_rod_x - c112*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c94*v_bucket_cyl_rod_z - c94*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_alpha*(c117*v_bucket_cyl_barrel_beta + c121*v_bucket_cyl_barrel_alpha + c122*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_beta*(c117*v_bucket_cyl_barrel_alpha + c119*v_bucket_cyl_barrel_gamma + v_bucket_cyl_barrel_beta*(-c120 - c102*c115 + c90*c91*c113*c95)) - v_bucket_cyl_barrel_gamma*(c119*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha + v_bucket_cyl_barrel_gamma*(c121 - c120)) - v_bucket_cyl_barrel_x*(-c98 + c103*v_bucket_cyl_barrel_alpha + c104*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_y*(c105 + c107*v_bucket_cyl_barrel_alpha + c108*v_bucket_cyl_barrel_gamma)
+    return out
+
+
+def gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
+
+
+def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
+    upper_a10 = math.cos(upper_gamma)*math.sin(upper_alpha) + math.cos(upper_alpha)*math.cos(upper_beta)*math.sin(upper_gamma)
+    c0 = math.cos(u0)
+    c1 = math.sin(u0)
+    c2 = math.cos(upper_beta)
+    c3 = math.sin(upper_alpha)
+    c4 = math.sin(upper_gamma)
+    c5 = c3*c4
+    c6 = c2*c5
+    c7 = math.cos(upper_alpha)
+    c8 = c4*c7
+    c9 = c2*c8
+    c10 = math.cos(upper_gamma)
+    c11 = c10*c3
+    c12 = math.sin(upper_beta)
+    c13 = c10*c7
+    c14 = c0*c12
+    c15 = c13*c14 + c1*c11*c12
+    c16 = c14*c5 - c1*c12*c4*c7
+    c17 = -c16
+    c18 = c6 - c13
+    c19 = c0*(-c11 - c9)
+    c20 = c5 - c13*c2
+    c21 = c0*(-c8 - c11*c2)
+    c22 = -c21 + c1*c20
+    c23 = -c19 + c1*c18
+    c24 = math.sin(boom_cyl_l_barrel_gamma)
+    c25 = math.cos(boom_cyl_l_barrel_beta)
+    c26 = math.sin(boom_cyl_l_barrel_beta)
+    c27 = math.cos(boom_cyl_l_barrel_gamma)
+    c28 = c24*c25*v_boom_cyl_l_barrel_beta + c26*c27*v_boom_cyl_l_barrel_gamma
+    c29 = math.sin(boom_cyl_l_barrel_alpha)
+    c30 = c24*c29
+    c31 = c26*v_boom_cyl_l_barrel_beta
+    c32 = c30*c31
+    c33 = c27*c29
+    c34 = math.cos(boom_cyl_l_barrel_alpha)
+    c35 = c24*c34
+    c36 = c25*c35
+    c37 = c36 + c33
+    c38 = c35 + c25*c33
+    c39 = c35*c31
+    c40 = c34*c27
+    c41 = -c40 + c25*c30
+    c42 = c30 - c25*c40
+    c43 = -c39 - c41*v_boom_cyl_l_barrel_alpha - c42*v_boom_cyl_l_barrel_gamma
+    c44 = -c37
+    c45 = -c38
+    c46 = c32 + c44*v_boom_cyl_l_barrel_alpha + c45*v_boom_cyl_l_barrel_gamma
+    c47 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    c48 = c26*c47
+    c49 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    c50 = c26*c49
+    c51 = c35*c48 + c50*c30
+    c52 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    c53 = c48*c33 - c40*c50 + c25*c52*c27
+    c54 = c24*c26*c52
+    c55 = c41*c47 + c44*c49
+    c56 = c42*c47 + c45*c49
+    c57 = math.sin(arm_cyl_barrel_gamma)
+    c58 = math.cos(arm_cyl_barrel_beta)
+    c59 = math.sin(arm_cyl_barrel_beta)
+    c60 = math.cos(arm_cyl_barrel_gamma)
+    c61 = c57*c58*v_arm_cyl_barrel_beta + c59*c60*v_arm_cyl_barrel_gamma
+    c62 = math.sin(arm_cyl_barrel_alpha)
+    c63 = c57*c62
+    c64 = c59*v_arm_cyl_barrel_beta
+    c65 = c63*c64
+    c66 = c60*c62
+    c67 = math.cos(arm_cyl_barrel_alpha)
+    c68 = c57*c67
+    c69 = c58*c68
+    c70 = c69 + c66
+    c71 = c68 + c58*c66
+    c72 = c68*c64
+    c73 = c67*c60
+    c74 = -c73 + c58*c63
+    c75 = c63 - c58*c73
+    c76 = -c72 - c74*v_arm_cyl_barrel_alpha - c75*v_arm_cyl_barrel_gamma
+    c77 = -c70
+    c78 = -c71
+    c79 = c65 + c77*v_arm_cyl_barrel_alpha + c78*v_arm_cyl_barrel_gamma
+    c80 = arm_cyl_rod_x - arm_cyl_barrel_x
+    c81 = c59*c80
+    c82 = arm_cyl_rod_y - arm_cyl_barrel_y
+    c83 = c59*c82
+    c84 = c68*c81 + c83*c63
+    c85 = arm_cyl_rod_z - arm_cyl_barrel_z
+    c86 = c81*c66 - c73*c83 + c58*c85*c60
+    c87 = c57*c59*c85
+    c88 = c74*c80 + c77*c82
+    c89 = c75*c80 + c78*c82
+    c90 = math.sin(bucket_cyl_barrel_gamma)
+    c91 = math.cos(bucket_cyl_barrel_beta)
+    c92 = math.sin(bucket_cyl_barrel_beta)
+    c93 = math.cos(bucket_cyl_barrel_gamma)
+    c94 = c90*c91*v_bucket_cyl_barrel_beta + c92*c93*v_bucket_cyl_barrel_gamma
+    c95 = math.sin(bucket_cyl_barrel_alpha)
+    c96 = c90*c95
+    c97 = c92*v_bucket_cyl_barrel_beta
+    c98 = c96*c97
+    c99 = c93*c95
+    c100 = math.cos(bucket_cyl_barrel_alpha)
+    c101 = c90*c100
+    c102 = c91*c101
+    c103 = c102 + c99
+    c104 = c101 + c91*c99
+    c105 = c101*c97
+    c106 = c100*c93
+    c107 = -c106 + c91*c96
+    c108 = c96 - c91*c106
+    c109 = -c105 - c107*v_bucket_cyl_barrel_alpha - c108*v_bucket_cyl_barrel_gamma
+    c110 = -c103
+    c111 = -c104
+    c112 = c98 + c110*v_bucket_cyl_barrel_alpha + c111*v_bucket_cyl_barrel_gamma
+    c113 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    c114 = c92*c113
+    c115 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c116 = c92*c115
+    c117 = c101*c114 + c116*c96
+    c118 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c119 = c114*c99 - c106*c116 + c91*c118*c93
+    c120 = c90*c92*c118
+    c121 = c107*c113 + c110*c115
+    c122 = c108*c113 + c111*c115
+    return [-udd0*(c0*upper_a00 + c1*upper_a10) - v_upper_alpha*(c17*v_upper_beta + c22*v_upper_gamma + c23*v_upper_alpha) - v_upper_beta*(c15*v_upper_gamma + c17*v_upper_alpha + v_upper_beta*(c0*c9 + c1*c6)) - v_upper_gamma*(c15*v_upper_beta + c22*v_upper_alpha + c23*v_upper_gamma) - (ud0*ud0)*(c0*upper_a10 - c1*upper_a00) - 2.0*ud0*(c16*v_upper_beta + v_upper_alpha*(c19 - c1*c18) + v_upper_gamma*(c21 - c1*c20)), udd1 + c28*v_boom_cyl_l_barrel_z - c43*v_boom_cyl_l_rod_y - c43*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y) - c46*v_boom_cyl_l_rod_x - c46*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x) - c28*v_boom_cyl_l_rod_z - c28*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z) - v_boom_cyl_l_barrel_alpha*(c51*v_boom_cyl_l_barrel_beta + c55*v_boom_cyl_l_barrel_alpha + c56*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_beta*(c51*v_boom_cyl_l_barrel_alpha + c53*v_boom_cyl_l_barrel_gamma + v_boom_cyl_l_barrel_beta*(-c54 - c36*c49 + c24*c25*c47*c29)) - v_boom_cyl_l_barrel_gamma*(c53*v_boom_cyl_l_barrel_beta + c56*v_boom_cyl_l_barrel_alpha + v_boom_cyl_l_barrel_gamma*(c55 - c54)) - v_boom_cyl_l_barrel_x*(-c32 + c37*v_boom_cyl_l_barrel_alpha + c38*v_boom_cyl_l_barrel_gamma) - v_boom_cyl_l_barrel_y*(c39 + c41*v_boom_cyl_l_barrel_alpha + c42*v_boom_cyl_l_barrel_gamma), udd2 + c61*v_arm_cyl_barrel_z - c76*v_arm_cyl_rod_y - c76*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y) - c79*v_arm_cyl_rod_x - c79*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x) - c61*v_arm_cyl_rod_z - c61*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z) - v_arm_cyl_barrel_alpha*(c84*v_arm_cyl_barrel_beta + c88*v_arm_cyl_barrel_alpha + c89*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_beta*(c84*v_arm_cyl_barrel_alpha + c86*v_arm_cyl_barrel_gamma + v_arm_cyl_barrel_beta*(-c87 - c69*c82 + c57*c58*c80*c62)) - v_arm_cyl_barrel_gamma*(c86*v_arm_cyl_barrel_beta + c89*v_arm_cyl_barrel_alpha + v_arm_cyl_barrel_gamma*(c88 - c87)) - v_arm_cyl_barrel_x*(-c65 + c70*v_arm_cyl_barrel_alpha + c71*v_arm_cyl_barrel_gamma) - v_arm_cyl_barrel_y*(c72 + c74*v_arm_cyl_barrel_alpha + c75*v_arm_cyl_barrel_gamma), udd3 + c94*v_bucket_cyl_barrel_z - c109*v_bucket_cyl_rod_y - c109*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y) - c112*v_bucket_cyl_rod_x - c112*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x) - c94*v_bucket_cyl_rod_z - c94*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z) - v_bucket_cyl_barrel_alpha*(c117*v_bucket_cyl_barrel_beta + c121*v_bucket_cyl_barrel_alpha + c122*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_beta*(c117*v_bucket_cyl_barrel_alpha + c119*v_bucket_cyl_barrel_gamma + v_bucket_cyl_barrel_beta*(-c120 - c102*c115 + c90*c91*c113*c95)) - v_bucket_cyl_barrel_gamma*(c119*v_bucket_cyl_barrel_beta + c122*v_bucket_cyl_barrel_alpha + v_bucket_cyl_barrel_gamma*(c121 - c120)) - v_bucket_cyl_barrel_x*(-c98 + c103*v_bucket_cyl_barrel_alpha + c104*v_bucket_cyl_barrel_gamma) - v_bucket_cyl_barrel_y*(c105 + c107*v_bucket_cyl_barrel_alpha + c108*v_bucket_cyl_barrel_gamma)]
+
+
+def gamma_s_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0 = _joints_gamma_s(q, v, p)
+    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    return s0_0 + s1_0
+
+
+def inputs_digging_paced(t):
+    """Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2."""
+    c0 = (4/7)*t
+    c1 = tanh(-27 + c0)
+    c2 = tanh(-17 + c0)
+    c3 = tanh(-29 + c0)
+    c4 = tanh(-14 + c0)
+    c5 = tanh(-3 + c0)
+    c6 = (9/40)*c5
+    c7 = tanh(-23 + c0)
+    c8 = tanh(-9 + c0)
+    c9 = c1**2
+    c10 = c2**2
+    c11 = c3**2
+    c12 = c4**2
+    c13 = c5**2
+    c14 = (9/70)*c13
+    c15 = c7**2
+    c16 = c8**2
+    c17 = c3*(8/7 - 8/7*c11)
+    c18 = (9/70)*c5*(8/7 - 8/7*c13)
+    c19 = 8/7 - 8/7*c15
+    c20 = c8*(8/7 - 8/7*c16)
+    out = np.zeros((12,) + np.shape(t))
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1
+    out[1] = 626973/250000 - c6 - 1/5*c3 + (17/40)*c4
+    out[2] = 485803/250000 + c6 - 17/40*c7 - 7/40*c3 + (3/8)*c8
+    out[3] = 928949/500000 - 3/8*c7 + (1/20)*c3 + (13/40)*c8
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10
+    out[5] = c14 - 17/70*c12 + (4/35)*c11
+    out[6] = -c14 - 3/14*c16 + (1/10)*c11 + (17/70)*c15
+    out[7] = -13/70*c16 - 1/35*c11 + (3/14)*c15
+    out[8] = 0.4487989505128276*c1*(8/7 - 8/7*c9) - 0.4487989505128276*c2*(8/7 - 8/7*c10)
+    out[9] = c18 + (4/35)*c17 - 17/70*c4*(8/7 - 8/7*c12)
+    out[10] = -c18 - 3/14*c20 + (1/10)*c17 + (17/70)*c19*c7
+    out[11] = -13/70*c20 - 1/35*c17 + (3/14)*c19*c7
+    return out
+
+
+def input_ranges_digging_paced(span):
+    """Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds."""
+    r0 = tuple(np.asarray(t, dtype=float) for t in span)
+    r1 = _iv_const(0.5714285714285713, 0.5714285714285715, r0)
+    r2 = _iv_mul(r1, r0)
+    r3 = _iv_const(-27.0, -27.0, r0)
+    r4 = _iv_add(r3, r2)
+    r5 = _iv_tanh(r4)
+    r6 = _iv_neg(r5)
+    r7 = _iv_const(-17.0, -17.0, r0)
+    r8 = _iv_add(r7, r2)
+    r9 = _iv_tanh(r8)
+    r10 = _iv_add(r6, r9)
+    r11 = _iv_const(0.7853981633974482, 0.7853981633974484, r0)
+    r12 = _iv_mul(r11, r10)
+    r13 = _iv_const(-29.0, -29.0, r0)
+    r14 = _iv_add(r13, r2)
+    r15 = _iv_tanh(r14)
+    r16 = _iv_const(-0.20000000000000004, -0.19999999999999998, r0)
+    r17 = _iv_mul(r16, r15)
+    r18 = _iv_const(-14.0, -14.0, r0)
+    r19 = _iv_add(r18, r2)
+    r20 = _iv_tanh(r19)
+    r21 = _iv_const(0.42499999999999993, 0.42500000000000004, r0)
+    r22 = _iv_mul(r21, r20)
+    r23 = _iv_const(-3.0, -3.0, r0)
+    r24 = _iv_add(r23, r2)
+    r25 = _iv_tanh(r24)
+    r26 = _iv_const(-0.22500000000000003, -0.22499999999999998, r0)
+    r27 = _iv_mul(r26, r25)
+    r28 = _iv_add(r17, r22)
+    r29 = _iv_add(r28, r27)
+    r30 = _iv_const(2.5078919999999996, 2.5078920000000005, r0)
+    r31 = _iv_add(r30, r29)
+    r32 = _iv_const(-0.17500000000000002, -0.17499999999999996, r0)
+    r33 = _iv_mul(r32, r15)
+    r34 = _iv_const(-23.0, -23.0, r0)
+    r35 = _iv_add(r34, r2)
+    r36 = _iv_tanh(r35)
+    r37 = _iv_const(-0.42500000000000004, -0.42499999999999993, r0)
+    r38 = _iv_mul(r37, r36)
+    r39 = _iv_const(-9.0, -9.0, r0)
+    r40 = _iv_add(r39, r2)
+    r41 = _iv_tanh(r40)
+    r42 = _iv_const(0.375, 0.375, r0)
+    r43 = _iv_mul(r42, r41)
+    r44 = _iv_const(0.22499999999999998, 0.22500000000000003, r0)
+    r45 = _iv_mul(r44, r25)
+    r46 = _iv_add(r33, r38)
+    r47 = _iv_add(r46, r43)
+    r48 = _iv_add(r47, r45)
+    r49 = _iv_const(1.9432119999999997, 1.9432120000000002, r0)
+    r50 = _iv_add(r49, r48)
+    r51 = _iv_const(0.049999999999999996, 0.05000000000000001, r0)
+    r52 = _iv_mul(r51, r15)
+    r53 = _iv_const(-0.375, -0.375, r0)
+    r54 = _iv_mul(r53, r36)
+    r55 = _iv_const(0.32499999999999996, 0.32500000000000007, r0)
+    r56 = _iv_mul(r55, r41)
+    r57 = _iv_add(r52, r54)
+    r58 = _iv_add(r57, r56)
+    r59 = _iv_const(1.8578979999999998, 1.8578980000000003, r0)
+    r60 = _iv_add(r59, r58)
+    r61 = _iv_powi(r5, 2)
+    r62 = _iv_mul(r1, r61)
+    r63 = _iv_powi(r9, 2)
+    r64 = _iv_const(-0.5714285714285715, -0.5714285714285713, r0)
+    r65 = _iv_mul(r64, r63)
+    r66 = _iv_add(r62, r65)
+    r67 = _iv_mul(r11, r66)
+    r68 = _iv_powi(r15, 2)
+    r69 = _iv_const(0.11428571428571427, 0.1142857142857143, r0)
+    r70 = _iv_mul(r69, r68)
+    r71 = _iv_powi(r20, 2)
+    r72 = _iv_const(-0.24285714285714288, -0.24285714285714283, r0)
+    r73 = _iv_mul(r72, r71)
+    r74 = _iv_powi(r25, 2)
+    r75 = _iv_const(0.12857142857142853, 0.1285714285714286, r0)
+    r76 = _iv_mul(r75, r74)
+    r77 = _iv_add(r70, r73)
+    r78 = _iv_add(r77, r76)
+    r79 = _iv_const(0.09999999999999999, 0.10000000000000002, r0)
+    r80 = _iv_mul(r79, r68)
+    r81 = _iv_powi(r36, 2)
+    r82 = _iv_const(0.24285714285714283, 0.24285714285714288, r0)
+    r83 = _iv_mul(r82, r81)
+    r84 = _iv_powi(r41, 2)
+    r85 = _iv_const(-0.2142857142857143, -0.21428571428571425, r0)
+    r86 = _iv_mul(r85, r84)
+    r87 = _iv_const(-0.1285714285714286, -0.12857142857142853, r0)
+    r88 = _iv_mul(r87, r74)
+    r89 = _iv_add(r80, r83)
+    r90 = _iv_add(r89, r86)
+    r91 = _iv_add(r90, r88)
+    r92 = _iv_const(-0.028571428571428574, -0.028571428571428567, r0)
+    r93 = _iv_mul(r92, r68)
+    r94 = _iv_const(0.21428571428571425, 0.2142857142857143, r0)
+    r95 = _iv_mul(r94, r81)
+    r96 = _iv_const(-0.18571428571428575, -0.1857142857142857, r0)
+    r97 = _iv_mul(r96, r84)
+    r98 = _iv_add(r93, r95)
+    r99 = _iv_add(r98, r97)
+    r100 = _iv_const(-1.142857142857143, -1.1428571428571426, r0)
+    r101 = _iv_mul(r100, r61)
+    r102 = _iv_const(1.1428571428571426, 1.142857142857143, r0)
+    r103 = _iv_add(r102, r101)
+    r104 = _iv_mul(r103, r5)
+    r105 = _iv_mul(r1, r104)
+    r106 = _iv_mul(r100, r63)
+    r107 = _iv_add(r102, r106)
+    r108 = _iv_mul(r107, r9)
+    r109 = _iv_mul(r64, r108)
+    r110 = _iv_add(r105, r109)
+    r111 = _iv_mul(r11, r110)
+    r112 = _iv_mul(r100, r68)
+    r113 = _iv_add(r102, r112)
+    r114 = _iv_mul(r113, r15)
+    r115 = _iv_mul(r69, r114)
+    r116 = _iv_mul(r100, r71)
+    r117 = _iv_add(r102, r116)
+    r118 = _iv_mul(r117, r20)
+    r119 = _iv_mul(r72, r118)
+    r120 = _iv_mul(r100, r74)
+    r121 = _iv_add(r102, r120)
+    r122 = _iv_mul(r121, r25)
+    r123 = _iv_mul(r75, r122)
+    r124 = _iv_add(r115, r119)
+    r125 = _iv_add(r124, r123)
+    r126 = _iv_mul(r79, r114)
+    r127 = _iv_mul(r100, r81)
+    r128 = _iv_add(r102, r127)
+    r129 = _iv_mul(r128, r36)
+    r130 = _iv_mul(r82, r129)
+    r131 = _iv_mul(r100, r84)
+    r132 = _iv_add(r102, r131)
+    r133 = _iv_mul(r132, r41)
+    r134 = _iv_mul(r85, r133)
+    r135 = _iv_mul(r87, r122)
+    r136 = _iv_add(r126, r130)
+    r137 = _iv_add(r136, r134)
+    r138 = _iv_add(r137, r135)
+    r139 = _iv_mul(r92, r114)
+    r140 = _iv_mul(r94, r129)
+    r141 = _iv_mul(r96, r133)
+    r142 = _iv_add(r139, r140)
+    r143 = _iv_add(r142, r141)
+    out = np.empty((24,) + np.shape(r0[0]))
+    out[0] = r12[0]
+    out[12] = r12[1]
+    out[1] = r31[0]
+    out[13] = r31[1]
+    out[2] = r50[0]
+    out[14] = r50[1]
+    out[3] = r60[0]
+    out[15] = r60[1]
+    out[4] = r67[0]
+    out[16] = r67[1]
+    out[5] = r78[0]
+    out[17] = r78[1]
+    out[6] = r91[0]
+    out[18] = r91[1]
+    out[7] = r99[0]
+    out[19] = r99[1]
+    out[8] = r111[0]
+    out[20] = r111[1]
+    out[9] = r125[0]
+    out[21] = r125[1]
+    out[10] = r138[0]
+    out[22] = r138[1]
+    out[11] = r143[0]
+    out[23] = r143[1]
+    return out
+
+
 def _drivers_phi_oscillation(q, u, p):
     """Phi of the driver rows of case 'oscillation'."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
@@ -11266,6 +12001,17 @@ CASES = {
         'driver_sources': (('cases.digging_fast.drivers.swing_angle.function', 'pi/4*(tanh((1.25*t - 8.5)/0.5) - tanh((1.25*t - 13.5)/0.5))'), ('cases.digging_fast.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.425*(1 + tanh((1.25*t - 7)/0.5)) - 0.2*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.375*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.425*(1 + tanh((1.25*t - 11.5)/0.5)) - 0.175*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.375*(1 + tanh((1.25*t - 11.5)/0.5)) + 0.05*(1 + tanh((1.25*t - 14.5)/0.5))')),
         'outputs': {'phi': phi_digging_fast, 'jac': jac_digging_fast, 'nu': nu_digging_fast, 'gamma': gamma_digging_fast, 'inputs': inputs_digging_fast, 'input_ranges': input_ranges_digging_fast},
         'scalar': {'phi_jac': phi_jac_s_digging_fast, 'nu': nu_s_digging_fast, 'gamma': gamma_s_digging_fast},
+        'patterns': {},
+    },
+    'digging_paced': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83),
+        'jac_cols': (0, 1, 2, 4, 5, 4, 5, 0, 3, 4, 5, 6, 1, 3, 4, 5, 7, 2, 4, 5, 8, 3, 4, 5, 9, 10, 3, 4, 5, 9, 10, 11, 0, 3, 4, 5, 12, 1, 3, 4, 5, 13, 2, 4, 5, 14, 3, 4, 5, 15, 16, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 18, 19, 20, 15, 16, 17, 21, 22, 6, 9, 10, 11, 18, 7, 9, 10, 11, 19, 8, 10, 11, 20, 0, 3, 4, 5, 24, 1, 3, 4, 5, 25, 2, 4, 5, 26, 3, 4, 5, 27, 28, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 30, 31, 32, 27, 28, 29, 33, 34, 6, 9, 10, 11, 30, 7, 9, 10, 11, 31, 8, 10, 11, 32, 6, 9, 10, 11, 36, 7, 9, 10, 11, 37, 8, 10, 11, 38, 9, 10, 11, 39, 40, 9, 10, 11, 39, 40, 41, 6, 9, 10, 11, 42, 7, 9, 10, 11, 43, 8, 10, 11, 44, 9, 10, 11, 45, 46, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 48, 49, 50, 45, 46, 47, 51, 52, 36, 39, 40, 41, 48, 37, 39, 40, 41, 49, 38, 40, 41, 50, 36, 39, 40, 41, 78, 37, 39, 40, 41, 79, 38, 40, 41, 80, 39, 40, 41, 81, 82, 39, 40, 41, 81, 82, 83, 36, 39, 40, 41, 66, 37, 39, 40, 41, 67, 38, 40, 41, 68, 39, 40, 41, 69, 70, 39, 40, 41, 69, 70, 71, 66, 69, 70, 71, 72, 75, 76, 77, 67, 69, 70, 71, 73, 75, 76, 77, 68, 70, 71, 74, 76, 77, 72, 78, 81, 82, 83, 73, 79, 81, 82, 83, 74, 80, 82, 83, 75, 76, 77, 81, 82, 83, 36, 39, 40, 41, 54, 37, 39, 40, 41, 55, 38, 40, 41, 56, 39, 40, 41, 57, 58, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 60, 61, 62, 57, 58, 59, 63, 64, 60, 66, 69, 70, 71, 61, 67, 69, 70, 71, 62, 68, 70, 71, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        't0': 0.0, 't1': 59.5, 'steps': 341,
+        'driver_sources': (('cases.digging_paced.drivers.swing_angle.function', 'pi/4*(tanh((2*t/7 - 8.5)/0.5) - tanh((2*t/7 - 13.5)/0.5))'), ('cases.digging_paced.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.425*(1 + tanh((2*t/7 - 7)/0.5)) - 0.2*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.375*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.425*(1 + tanh((2*t/7 - 11.5)/0.5)) - 0.175*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.375*(1 + tanh((2*t/7 - 11.5)/0.5)) + 0.05*(1 + tanh((2*t/7 - 14.5)/0.5))')),
+        'outputs': {'phi': phi_digging_paced, 'jac': jac_digging_paced, 'nu': nu_digging_paced, 'gamma': gamma_digging_paced, 'inputs': inputs_digging_paced, 'input_ranges': input_ranges_digging_paced},
+        'scalar': {'phi_jac': phi_jac_s_digging_paced, 'nu': nu_s_digging_paced, 'gamma': gamma_s_digging_paced},
         'patterns': {},
     },
     'oscillation': {

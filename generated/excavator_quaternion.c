@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+ * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
  * parametrization: quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -111,6 +111,15 @@ void excavator_quaternion_compute_input_ranges_digging_fast(const double *span, 
 void excavator_quaternion_compute_drivers_phi_p_digging_fast(const double *q, const double *u, const double *p, double *out);
 void excavator_quaternion_compute_drivers_dvel_digging_fast(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
 void excavator_quaternion_compute_drivers_dacc_digging_fast(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out);
+void excavator_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out);
+void excavator_quaternion_compute_inputs_digging_paced(double t, double *out);
+void excavator_quaternion_compute_input_ranges_digging_paced(const double *span, double *out);
+void excavator_quaternion_compute_drivers_phi_p_digging_paced(const double *q, const double *u, const double *p, double *out);
+void excavator_quaternion_compute_drivers_dvel_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
+void excavator_quaternion_compute_drivers_dacc_digging_paced(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out);
 void excavator_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_quaternion_compute_drivers_jac_oscillation(const double *q, const double *u, const double *p, double *out);
 void excavator_quaternion_compute_drivers_nu_oscillation(const double *q, const double *u, const double *ud, const double *p, double *out);
@@ -12298,6 +12307,970 @@ void excavator_quaternion_compute_drivers_dacc_digging_fast(const double *q, con
     out[59] = -c152;
 }
 
+/* Phi of the driver rows of case 'digging_paced'. */
+void excavator_quaternion_compute_drivers_phi_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_qw = q[3];
+    const double upper_qz = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_qw = q[17];
+    const double boom_cyl_l_barrel_qx = q[18];
+    const double boom_cyl_l_barrel_qy = q[19];
+    const double boom_cyl_l_barrel_qz = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_qw = q[52];
+    const double arm_cyl_barrel_qx = q[53];
+    const double arm_cyl_barrel_qy = q[54];
+    const double arm_cyl_barrel_qz = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_qw = q[66];
+    const double bucket_cyl_barrel_qx = q[67];
+    const double bucket_cyl_barrel_qy = q[68];
+    const double bucket_cyl_barrel_qz = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double u0 = u[0];
+    const double u1 = u[1];
+    const double u2 = u[2];
+    const double u3 = u[3];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -2.0*upper_qz*cos(c0) + 2.0*upper_qw*sin(c0);
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z);
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z);
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z);
+}
+
+/* Phi_q values of the driver rows of case 'digging_paced'. */
+void excavator_quaternion_compute_drivers_jac_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    const double upper_qw = q[3];
+    const double upper_qx = q[4];
+    const double upper_qy = q[5];
+    const double upper_qz = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_qw = q[17];
+    const double boom_cyl_l_barrel_qx = q[18];
+    const double boom_cyl_l_barrel_qy = q[19];
+    const double boom_cyl_l_barrel_qz = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_qw = q[52];
+    const double arm_cyl_barrel_qx = q[53];
+    const double arm_cyl_barrel_qy = q[54];
+    const double arm_cyl_barrel_qz = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_qw = q[66];
+    const double bucket_cyl_barrel_qx = q[67];
+    const double bucket_cyl_barrel_qy = q[68];
+    const double bucket_cyl_barrel_qz = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double u0 = u[0];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = sin(c0);
+    const double c2 = cos(c0);
+    const double c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z;
+    const double c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y;
+    const double c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x;
+    const double c6 = arm_cyl_rod_z - arm_cyl_barrel_z;
+    const double c7 = arm_cyl_rod_y - arm_cyl_barrel_y;
+    const double c8 = arm_cyl_rod_x - arm_cyl_barrel_x;
+    const double c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z;
+    const double c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y;
+    const double c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x;
+    out[0] = -c1*upper_qx - c2*upper_qy;
+    out[1] = c2*upper_qx - c1*upper_qy;
+    out[2] = -c1*upper_qz - c2*upper_qw;
+    out[3] = -boom_cyl_l_barrel_a00;
+    out[4] = -boom_cyl_l_barrel_a10;
+    out[5] = -boom_cyl_l_barrel_a20;
+    out[6] = c3*boom_cyl_l_barrel_a10 - c4*boom_cyl_l_barrel_a20;
+    out[7] = c5*boom_cyl_l_barrel_a20 - c3*boom_cyl_l_barrel_a00;
+    out[8] = c4*boom_cyl_l_barrel_a00 - c5*boom_cyl_l_barrel_a10;
+    out[9] = boom_cyl_l_barrel_a00;
+    out[10] = boom_cyl_l_barrel_a10;
+    out[11] = boom_cyl_l_barrel_a20;
+    out[12] = -arm_cyl_barrel_a00;
+    out[13] = -arm_cyl_barrel_a10;
+    out[14] = -arm_cyl_barrel_a20;
+    out[15] = c6*arm_cyl_barrel_a10 - c7*arm_cyl_barrel_a20;
+    out[16] = c8*arm_cyl_barrel_a20 - c6*arm_cyl_barrel_a00;
+    out[17] = c7*arm_cyl_barrel_a00 - c8*arm_cyl_barrel_a10;
+    out[18] = arm_cyl_barrel_a00;
+    out[19] = arm_cyl_barrel_a10;
+    out[20] = arm_cyl_barrel_a20;
+    out[21] = -bucket_cyl_barrel_a00;
+    out[22] = -bucket_cyl_barrel_a10;
+    out[23] = -bucket_cyl_barrel_a20;
+    out[24] = c9*bucket_cyl_barrel_a10 - c10*bucket_cyl_barrel_a20;
+    out[25] = c11*bucket_cyl_barrel_a20 - c9*bucket_cyl_barrel_a00;
+    out[26] = c10*bucket_cyl_barrel_a00 - c11*bucket_cyl_barrel_a10;
+    out[27] = bucket_cyl_barrel_a00;
+    out[28] = bucket_cyl_barrel_a10;
+    out[29] = bucket_cyl_barrel_a20;
+}
+
+/* nu of the driver rows of case 'digging_paced'. */
+void excavator_quaternion_compute_drivers_nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_qw = q[3];
+    const double upper_qz = q[6];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double ud1 = ud[1];
+    const double ud2 = ud[2];
+    const double ud3 = ud[3];
+    (void)p;
+    const double c0 = (1.0/2.0)*u0;
+    out[0] = -ud0*(upper_qw*cos(c0) + upper_qz*sin(c0));
+    out[1] = ud1;
+    out[2] = ud2;
+    out[3] = ud3;
+}
+
+/* gamma of the driver rows of case 'digging_paced'. */
+void excavator_quaternion_compute_drivers_gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_qw = q[3];
+    const double upper_qx = q[4];
+    const double upper_qy = q[5];
+    const double upper_qz = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_qw = q[17];
+    const double boom_cyl_l_barrel_qx = q[18];
+    const double boom_cyl_l_barrel_qy = q[19];
+    const double boom_cyl_l_barrel_qz = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_qw = q[52];
+    const double arm_cyl_barrel_qx = q[53];
+    const double arm_cyl_barrel_qy = q[54];
+    const double arm_cyl_barrel_qz = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_qw = q[66];
+    const double bucket_cyl_barrel_qx = q[67];
+    const double bucket_cyl_barrel_qy = q[68];
+    const double bucket_cyl_barrel_qz = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double v_upper_theta_x = v[3];
+    const double v_upper_theta_y = v[4];
+    const double v_upper_theta_z = v[5];
+    const double v_boom_cyl_l_barrel_x = v[12];
+    const double v_boom_cyl_l_barrel_y = v[13];
+    const double v_boom_cyl_l_barrel_z = v[14];
+    const double v_boom_cyl_l_barrel_theta_x = v[15];
+    const double v_boom_cyl_l_barrel_theta_y = v[16];
+    const double v_boom_cyl_l_barrel_theta_z = v[17];
+    const double v_boom_cyl_l_rod_x = v[18];
+    const double v_boom_cyl_l_rod_y = v[19];
+    const double v_boom_cyl_l_rod_z = v[20];
+    const double v_arm_cyl_barrel_x = v[42];
+    const double v_arm_cyl_barrel_y = v[43];
+    const double v_arm_cyl_barrel_z = v[44];
+    const double v_arm_cyl_barrel_theta_x = v[45];
+    const double v_arm_cyl_barrel_theta_y = v[46];
+    const double v_arm_cyl_barrel_theta_z = v[47];
+    const double v_arm_cyl_rod_x = v[48];
+    const double v_arm_cyl_rod_y = v[49];
+    const double v_arm_cyl_rod_z = v[50];
+    const double v_bucket_cyl_barrel_x = v[54];
+    const double v_bucket_cyl_barrel_y = v[55];
+    const double v_bucket_cyl_barrel_z = v[56];
+    const double v_bucket_cyl_barrel_theta_x = v[57];
+    const double v_bucket_cyl_barrel_theta_y = v[58];
+    const double v_bucket_cyl_barrel_theta_z = v[59];
+    const double v_bucket_cyl_rod_x = v[60];
+    const double v_bucket_cyl_rod_y = v[61];
+    const double v_bucket_cyl_rod_z = v[62];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    const double udd1 = udd[1];
+    const double udd2 = udd[2];
+    const double udd3 = udd[3];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = cos(c0);
+    const double c2 = sin(c0);
+    const double c3 = (1.0/2.0)*upper_qw;
+    const double c4 = c2*c3 - 1.0/2.0*c1*upper_qz;
+    const double c5 = (1.0/2.0)*v_upper_theta_y;
+    const double c6 = (1.0/2.0)*v_upper_theta_x;
+    const double c7 = (1.0/2.0)*upper_qz;
+    const double c8 = (1.0/2.0)*v_upper_theta_z;
+    const double c9 = (1.0/2.0)*c1;
+    const double c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
+    const double c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
+    const double c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
+    const double c13 = -c10;
+    const double c14 = -c12;
+    const double c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
+    const double c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
+    const double c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
+    const double c18 = -c15;
+    const double c19 = -c17;
+    const double c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
+    const double c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
+    const double c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
+    const double c23 = -c20;
+    const double c24 = -c22;
+    out[0] = c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1.0/2.0)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1.0/2.0*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx);
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x);
+    out[2] = udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x);
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: rows u (4), then du/dt, then d2u/dt2. */
+void excavator_quaternion_compute_inputs_digging_paced(double t, double *out) {
+    const double c0 = (4.0/7.0)*t;
+    const double c1 = tanh(-27.0 + c0);
+    const double c2 = tanh(-17.0 + c0);
+    const double c3 = tanh(-29.0 + c0);
+    const double c4 = tanh(-14.0 + c0);
+    const double c5 = tanh(-3.0 + c0);
+    const double c6 = (9.0/40.0)*c5;
+    const double c7 = tanh(-23.0 + c0);
+    const double c8 = tanh(-9.0 + c0);
+    const double c9 = (c1*c1);
+    const double c10 = (c2*c2);
+    const double c11 = (c3*c3);
+    const double c12 = (c4*c4);
+    const double c13 = (c5*c5);
+    const double c14 = (9.0/70.0)*c13;
+    const double c15 = (c7*c7);
+    const double c16 = (c8*c8);
+    const double c17 = c3*(8.0/7.0 - 8.0/7.0*c11);
+    const double c18 = (9.0/70.0)*c5*(8.0/7.0 - 8.0/7.0*c13);
+    const double c19 = 8.0/7.0 - 8.0/7.0*c15;
+    const double c20 = c8*(8.0/7.0 - 8.0/7.0*c16);
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1;
+    out[1] = 626973.0/250000.0 - c6 - 1.0/5.0*c3 + (17.0/40.0)*c4;
+    out[2] = 485803.0/250000.0 + c6 - 17.0/40.0*c7 - 7.0/40.0*c3 + (3.0/8.0)*c8;
+    out[3] = 928949.0/500000.0 - 3.0/8.0*c7 + (1.0/20.0)*c3 + (13.0/40.0)*c8;
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10;
+    out[5] = c14 - 17.0/70.0*c12 + (4.0/35.0)*c11;
+    out[6] = -c14 - 3.0/14.0*c16 + (1.0/10.0)*c11 + (17.0/70.0)*c15;
+    out[7] = -13.0/70.0*c16 - 1.0/35.0*c11 + (3.0/14.0)*c15;
+    out[8] = 0.4487989505128276*c1*(8.0/7.0 - 8.0/7.0*c9) - 0.4487989505128276*c2*(8.0/7.0 - 8.0/7.0*c10);
+    out[9] = c18 + (4.0/35.0)*c17 - 17.0/70.0*c4*(8.0/7.0 - 8.0/7.0*c12);
+    out[10] = -c18 - 3.0/14.0*c20 + (1.0/10.0)*c17 + (17.0/70.0)*c19*c7;
+    out[11] = -13.0/70.0*c20 - 1.0/35.0*c17 + (3.0/14.0)*c19*c7;
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over the time interval span = (t0, t1): the lower bounds of u (4), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
+void excavator_quaternion_compute_input_ranges_digging_paced(const double *span, double *out) {
+    const kinegen_interval r0 = kinegen_iv_const(span[0], span[1]);
+    const kinegen_interval r1 = kinegen_iv_const(0.5714285714285713, 0.5714285714285715);
+    const kinegen_interval r2 = kinegen_iv_mul(r1, r0);
+    const kinegen_interval r3 = kinegen_iv_const(-27.0, -27.0);
+    const kinegen_interval r4 = kinegen_iv_add(r3, r2);
+    const kinegen_interval r5 = kinegen_iv_tanh(r4);
+    const kinegen_interval r6 = kinegen_iv_neg(r5);
+    const kinegen_interval r7 = kinegen_iv_const(-17.0, -17.0);
+    const kinegen_interval r8 = kinegen_iv_add(r7, r2);
+    const kinegen_interval r9 = kinegen_iv_tanh(r8);
+    const kinegen_interval r10 = kinegen_iv_add(r6, r9);
+    const kinegen_interval r11 = kinegen_iv_const(0.7853981633974482, 0.7853981633974484);
+    const kinegen_interval r12 = kinegen_iv_mul(r11, r10);
+    const kinegen_interval r13 = kinegen_iv_const(-29.0, -29.0);
+    const kinegen_interval r14 = kinegen_iv_add(r13, r2);
+    const kinegen_interval r15 = kinegen_iv_tanh(r14);
+    const kinegen_interval r16 = kinegen_iv_const(-0.20000000000000004, -0.19999999999999998);
+    const kinegen_interval r17 = kinegen_iv_mul(r16, r15);
+    const kinegen_interval r18 = kinegen_iv_const(-14.0, -14.0);
+    const kinegen_interval r19 = kinegen_iv_add(r18, r2);
+    const kinegen_interval r20 = kinegen_iv_tanh(r19);
+    const kinegen_interval r21 = kinegen_iv_const(0.42499999999999993, 0.42500000000000004);
+    const kinegen_interval r22 = kinegen_iv_mul(r21, r20);
+    const kinegen_interval r23 = kinegen_iv_const(-3.0, -3.0);
+    const kinegen_interval r24 = kinegen_iv_add(r23, r2);
+    const kinegen_interval r25 = kinegen_iv_tanh(r24);
+    const kinegen_interval r26 = kinegen_iv_const(-0.22500000000000003, -0.22499999999999998);
+    const kinegen_interval r27 = kinegen_iv_mul(r26, r25);
+    const kinegen_interval r28 = kinegen_iv_add(r17, r22);
+    const kinegen_interval r29 = kinegen_iv_add(r28, r27);
+    const kinegen_interval r30 = kinegen_iv_const(2.5078919999999996, 2.5078920000000005);
+    const kinegen_interval r31 = kinegen_iv_add(r30, r29);
+    const kinegen_interval r32 = kinegen_iv_const(-0.17500000000000002, -0.17499999999999996);
+    const kinegen_interval r33 = kinegen_iv_mul(r32, r15);
+    const kinegen_interval r34 = kinegen_iv_const(-23.0, -23.0);
+    const kinegen_interval r35 = kinegen_iv_add(r34, r2);
+    const kinegen_interval r36 = kinegen_iv_tanh(r35);
+    const kinegen_interval r37 = kinegen_iv_const(-0.42500000000000004, -0.42499999999999993);
+    const kinegen_interval r38 = kinegen_iv_mul(r37, r36);
+    const kinegen_interval r39 = kinegen_iv_const(-9.0, -9.0);
+    const kinegen_interval r40 = kinegen_iv_add(r39, r2);
+    const kinegen_interval r41 = kinegen_iv_tanh(r40);
+    const kinegen_interval r42 = kinegen_iv_const(0.375, 0.375);
+    const kinegen_interval r43 = kinegen_iv_mul(r42, r41);
+    const kinegen_interval r44 = kinegen_iv_const(0.22499999999999998, 0.22500000000000003);
+    const kinegen_interval r45 = kinegen_iv_mul(r44, r25);
+    const kinegen_interval r46 = kinegen_iv_add(r33, r38);
+    const kinegen_interval r47 = kinegen_iv_add(r46, r43);
+    const kinegen_interval r48 = kinegen_iv_add(r47, r45);
+    const kinegen_interval r49 = kinegen_iv_const(1.9432119999999997, 1.9432120000000002);
+    const kinegen_interval r50 = kinegen_iv_add(r49, r48);
+    const kinegen_interval r51 = kinegen_iv_const(0.049999999999999996, 0.05000000000000001);
+    const kinegen_interval r52 = kinegen_iv_mul(r51, r15);
+    const kinegen_interval r53 = kinegen_iv_const(-0.375, -0.375);
+    const kinegen_interval r54 = kinegen_iv_mul(r53, r36);
+    const kinegen_interval r55 = kinegen_iv_const(0.32499999999999996, 0.32500000000000007);
+    const kinegen_interval r56 = kinegen_iv_mul(r55, r41);
+    const kinegen_interval r57 = kinegen_iv_add(r52, r54);
+    const kinegen_interval r58 = kinegen_iv_add(r57, r56);
+    const kinegen_interval r59 = kinegen_iv_const(1.8578979999999998, 1.8578980000000003);
+    const kinegen_interval r60 = kinegen_iv_add(r59, r58);
+    const kinegen_interval r61 = kinegen_iv_powi(r5, 2);
+    const kinegen_interval r62 = kinegen_iv_mul(r1, r61);
+    const kinegen_interval r63 = kinegen_iv_powi(r9, 2);
+    const kinegen_interval r64 = kinegen_iv_const(-0.5714285714285715, -0.5714285714285713);
+    const kinegen_interval r65 = kinegen_iv_mul(r64, r63);
+    const kinegen_interval r66 = kinegen_iv_add(r62, r65);
+    const kinegen_interval r67 = kinegen_iv_mul(r11, r66);
+    const kinegen_interval r68 = kinegen_iv_powi(r15, 2);
+    const kinegen_interval r69 = kinegen_iv_const(0.11428571428571427, 0.1142857142857143);
+    const kinegen_interval r70 = kinegen_iv_mul(r69, r68);
+    const kinegen_interval r71 = kinegen_iv_powi(r20, 2);
+    const kinegen_interval r72 = kinegen_iv_const(-0.24285714285714288, -0.24285714285714283);
+    const kinegen_interval r73 = kinegen_iv_mul(r72, r71);
+    const kinegen_interval r74 = kinegen_iv_powi(r25, 2);
+    const kinegen_interval r75 = kinegen_iv_const(0.12857142857142853, 0.1285714285714286);
+    const kinegen_interval r76 = kinegen_iv_mul(r75, r74);
+    const kinegen_interval r77 = kinegen_iv_add(r70, r73);
+    const kinegen_interval r78 = kinegen_iv_add(r77, r76);
+    const kinegen_interval r79 = kinegen_iv_const(0.09999999999999999, 0.10000000000000002);
+    const kinegen_interval r80 = kinegen_iv_mul(r79, r68);
+    const kinegen_interval r81 = kinegen_iv_powi(r36, 2);
+    const kinegen_interval r82 = kinegen_iv_const(0.24285714285714283, 0.24285714285714288);
+    const kinegen_interval r83 = kinegen_iv_mul(r82, r81);
+    const kinegen_interval r84 = kinegen_iv_powi(r41, 2);
+    const kinegen_interval r85 = kinegen_iv_const(-0.2142857142857143, -0.21428571428571425);
+    const kinegen_interval r86 = kinegen_iv_mul(r85, r84);
+    const kinegen_interval r87 = kinegen_iv_const(-0.1285714285714286, -0.12857142857142853);
+    const kinegen_interval r88 = kinegen_iv_mul(r87, r74);
+    const kinegen_interval r89 = kinegen_iv_add(r80, r83);
+    const kinegen_interval r90 = kinegen_iv_add(r89, r86);
+    const kinegen_interval r91 = kinegen_iv_add(r90, r88);
+    const kinegen_interval r92 = kinegen_iv_const(-0.028571428571428574, -0.028571428571428567);
+    const kinegen_interval r93 = kinegen_iv_mul(r92, r68);
+    const kinegen_interval r94 = kinegen_iv_const(0.21428571428571425, 0.2142857142857143);
+    const kinegen_interval r95 = kinegen_iv_mul(r94, r81);
+    const kinegen_interval r96 = kinegen_iv_const(-0.18571428571428575, -0.1857142857142857);
+    const kinegen_interval r97 = kinegen_iv_mul(r96, r84);
+    const kinegen_interval r98 = kinegen_iv_add(r93, r95);
+    const kinegen_interval r99 = kinegen_iv_add(r98, r97);
+    const kinegen_interval r100 = kinegen_iv_const(-1.142857142857143, -1.1428571428571426);
+    const kinegen_interval r101 = kinegen_iv_mul(r100, r61);
+    const kinegen_interval r102 = kinegen_iv_const(1.1428571428571426, 1.142857142857143);
+    const kinegen_interval r103 = kinegen_iv_add(r102, r101);
+    const kinegen_interval r104 = kinegen_iv_mul(r103, r5);
+    const kinegen_interval r105 = kinegen_iv_mul(r1, r104);
+    const kinegen_interval r106 = kinegen_iv_mul(r100, r63);
+    const kinegen_interval r107 = kinegen_iv_add(r102, r106);
+    const kinegen_interval r108 = kinegen_iv_mul(r107, r9);
+    const kinegen_interval r109 = kinegen_iv_mul(r64, r108);
+    const kinegen_interval r110 = kinegen_iv_add(r105, r109);
+    const kinegen_interval r111 = kinegen_iv_mul(r11, r110);
+    const kinegen_interval r112 = kinegen_iv_mul(r100, r68);
+    const kinegen_interval r113 = kinegen_iv_add(r102, r112);
+    const kinegen_interval r114 = kinegen_iv_mul(r113, r15);
+    const kinegen_interval r115 = kinegen_iv_mul(r69, r114);
+    const kinegen_interval r116 = kinegen_iv_mul(r100, r71);
+    const kinegen_interval r117 = kinegen_iv_add(r102, r116);
+    const kinegen_interval r118 = kinegen_iv_mul(r117, r20);
+    const kinegen_interval r119 = kinegen_iv_mul(r72, r118);
+    const kinegen_interval r120 = kinegen_iv_mul(r100, r74);
+    const kinegen_interval r121 = kinegen_iv_add(r102, r120);
+    const kinegen_interval r122 = kinegen_iv_mul(r121, r25);
+    const kinegen_interval r123 = kinegen_iv_mul(r75, r122);
+    const kinegen_interval r124 = kinegen_iv_add(r115, r119);
+    const kinegen_interval r125 = kinegen_iv_add(r124, r123);
+    const kinegen_interval r126 = kinegen_iv_mul(r79, r114);
+    const kinegen_interval r127 = kinegen_iv_mul(r100, r81);
+    const kinegen_interval r128 = kinegen_iv_add(r102, r127);
+    const kinegen_interval r129 = kinegen_iv_mul(r128, r36);
+    const kinegen_interval r130 = kinegen_iv_mul(r82, r129);
+    const kinegen_interval r131 = kinegen_iv_mul(r100, r84);
+    const kinegen_interval r132 = kinegen_iv_add(r102, r131);
+    const kinegen_interval r133 = kinegen_iv_mul(r132, r41);
+    const kinegen_interval r134 = kinegen_iv_mul(r85, r133);
+    const kinegen_interval r135 = kinegen_iv_mul(r87, r122);
+    const kinegen_interval r136 = kinegen_iv_add(r126, r130);
+    const kinegen_interval r137 = kinegen_iv_add(r136, r134);
+    const kinegen_interval r138 = kinegen_iv_add(r137, r135);
+    const kinegen_interval r139 = kinegen_iv_mul(r92, r114);
+    const kinegen_interval r140 = kinegen_iv_mul(r94, r129);
+    const kinegen_interval r141 = kinegen_iv_mul(r96, r133);
+    const kinegen_interval r142 = kinegen_iv_add(r139, r140);
+    const kinegen_interval r143 = kinegen_iv_add(r142, r141);
+    out[0] = r12.lo;
+    out[12] = r12.hi;
+    out[1] = r31.lo;
+    out[13] = r31.hi;
+    out[2] = r50.lo;
+    out[14] = r50.hi;
+    out[3] = r60.lo;
+    out[15] = r60.hi;
+    out[4] = r67.lo;
+    out[16] = r67.hi;
+    out[5] = r78.lo;
+    out[17] = r78.hi;
+    out[6] = r91.lo;
+    out[18] = r91.hi;
+    out[7] = r99.lo;
+    out[19] = r99.hi;
+    out[8] = r111.lo;
+    out[20] = r111.hi;
+    out[9] = r125.lo;
+    out[21] = r125.hi;
+    out[10] = r138.lo;
+    out[22] = r138.hi;
+    out[11] = r143.lo;
+    out[23] = r143.hi;
+}
+
+/* Phi_p values of the driver rows of case 'digging_paced'. */
+void excavator_quaternion_compute_drivers_phi_p_digging_paced(const double *q, const double *u, const double *p, double *out) {
+    (void)q;
+    (void)u;
+    (void)p;
+    (void)out;
+}
+
+/* [M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging_paced'. */
+void excavator_quaternion_compute_drivers_dvel_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out) {
+    const double upper_qw = q[3];
+    const double upper_qx = q[4];
+    const double upper_qy = q[5];
+    const double upper_qz = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_qw = q[17];
+    const double boom_cyl_l_barrel_qx = q[18];
+    const double boom_cyl_l_barrel_qy = q[19];
+    const double boom_cyl_l_barrel_qz = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_qw = q[52];
+    const double arm_cyl_barrel_qx = q[53];
+    const double arm_cyl_barrel_qy = q[54];
+    const double arm_cyl_barrel_qz = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_qw = q[66];
+    const double bucket_cyl_barrel_qx = q[67];
+    const double bucket_cyl_barrel_qy = q[68];
+    const double bucket_cyl_barrel_qz = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double v_upper_theta_x = v[3];
+    const double v_upper_theta_y = v[4];
+    const double v_upper_theta_z = v[5];
+    const double v_boom_cyl_l_barrel_x = v[12];
+    const double v_boom_cyl_l_barrel_y = v[13];
+    const double v_boom_cyl_l_barrel_z = v[14];
+    const double v_boom_cyl_l_barrel_theta_x = v[15];
+    const double v_boom_cyl_l_barrel_theta_y = v[16];
+    const double v_boom_cyl_l_barrel_theta_z = v[17];
+    const double v_boom_cyl_l_rod_x = v[18];
+    const double v_boom_cyl_l_rod_y = v[19];
+    const double v_boom_cyl_l_rod_z = v[20];
+    const double v_arm_cyl_barrel_x = v[42];
+    const double v_arm_cyl_barrel_y = v[43];
+    const double v_arm_cyl_barrel_z = v[44];
+    const double v_arm_cyl_barrel_theta_x = v[45];
+    const double v_arm_cyl_barrel_theta_y = v[46];
+    const double v_arm_cyl_barrel_theta_z = v[47];
+    const double v_arm_cyl_rod_x = v[48];
+    const double v_arm_cyl_rod_y = v[49];
+    const double v_arm_cyl_rod_z = v[50];
+    const double v_bucket_cyl_barrel_x = v[54];
+    const double v_bucket_cyl_barrel_y = v[55];
+    const double v_bucket_cyl_barrel_z = v[56];
+    const double v_bucket_cyl_barrel_theta_x = v[57];
+    const double v_bucket_cyl_barrel_theta_y = v[58];
+    const double v_bucket_cyl_barrel_theta_z = v[59];
+    const double v_bucket_cyl_rod_x = v[60];
+    const double v_bucket_cyl_rod_y = v[61];
+    const double v_bucket_cyl_rod_z = v[62];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = sin(c0);
+    const double c2 = cos(c0);
+    const double c3 = c2*v_upper_theta_y - c1*v_upper_theta_x;
+    const double c4 = (1.0/2.0)*upper_qw;
+    const double c5 = (1.0/2.0)*c2*ud0 - 1.0/2.0*c2*v_upper_theta_z;
+    const double c6 = c1*ud0 - c1*v_upper_theta_z;
+    const double c7 = (1.0/2.0)*c6;
+    const double c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x;
+    const double c9 = (1.0/2.0)*upper_qz;
+    const double c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
+    const double c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
+    const double c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
+    const double c13 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x;
+    const double c14 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z;
+    const double c15 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y;
+    const double c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
+    const double c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
+    const double c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
+    const double c19 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x;
+    const double c20 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z;
+    const double c21 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y;
+    const double c22 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
+    const double c23 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
+    const double c24 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
+    const double c25 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x;
+    const double c26 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z;
+    const double c27 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y;
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9;
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx;
+    out[2] = c4*c6 + (1.0/2.0)*c8*upper_qx - c5*upper_qz - 1.0/2.0*c3*upper_qy;
+    out[3] = c10;
+    out[4] = -c11;
+    out[5] = c12;
+    out[6] = c13*boom_cyl_l_barrel_a10 - c14*boom_cyl_l_barrel_a20;
+    out[7] = c15*boom_cyl_l_barrel_a20 - c13*boom_cyl_l_barrel_a00;
+    out[8] = c14*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10;
+    out[9] = -c10;
+    out[10] = c11;
+    out[11] = -c12;
+    out[12] = c16;
+    out[13] = -c17;
+    out[14] = c18;
+    out[15] = c19*arm_cyl_barrel_a10 - c20*arm_cyl_barrel_a20;
+    out[16] = c21*arm_cyl_barrel_a20 - c19*arm_cyl_barrel_a00;
+    out[17] = c20*arm_cyl_barrel_a00 - c21*arm_cyl_barrel_a10;
+    out[18] = -c16;
+    out[19] = c17;
+    out[20] = -c18;
+    out[21] = c22;
+    out[22] = -c23;
+    out[23] = c24;
+    out[24] = c25*bucket_cyl_barrel_a10 - c26*bucket_cyl_barrel_a20;
+    out[25] = c27*bucket_cyl_barrel_a20 - c25*bucket_cyl_barrel_a00;
+    out[26] = c26*bucket_cyl_barrel_a00 - c27*bucket_cyl_barrel_a10;
+    out[27] = -c22;
+    out[28] = c23;
+    out[29] = -c24;
+}
+
+/* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging_paced'. */
+void excavator_quaternion_compute_drivers_dacc_digging_paced(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
+    const double upper_qw = q[3];
+    const double upper_qx = q[4];
+    const double upper_qy = q[5];
+    const double upper_qz = q[6];
+    const double boom_cyl_l_barrel_x = q[14];
+    const double boom_cyl_l_barrel_y = q[15];
+    const double boom_cyl_l_barrel_z = q[16];
+    const double boom_cyl_l_barrel_qw = q[17];
+    const double boom_cyl_l_barrel_qx = q[18];
+    const double boom_cyl_l_barrel_qy = q[19];
+    const double boom_cyl_l_barrel_qz = q[20];
+    const double boom_cyl_l_rod_x = q[21];
+    const double boom_cyl_l_rod_y = q[22];
+    const double boom_cyl_l_rod_z = q[23];
+    const double arm_cyl_barrel_x = q[49];
+    const double arm_cyl_barrel_y = q[50];
+    const double arm_cyl_barrel_z = q[51];
+    const double arm_cyl_barrel_qw = q[52];
+    const double arm_cyl_barrel_qx = q[53];
+    const double arm_cyl_barrel_qy = q[54];
+    const double arm_cyl_barrel_qz = q[55];
+    const double arm_cyl_rod_x = q[56];
+    const double arm_cyl_rod_y = q[57];
+    const double arm_cyl_rod_z = q[58];
+    const double bucket_cyl_barrel_x = q[63];
+    const double bucket_cyl_barrel_y = q[64];
+    const double bucket_cyl_barrel_z = q[65];
+    const double bucket_cyl_barrel_qw = q[66];
+    const double bucket_cyl_barrel_qx = q[67];
+    const double bucket_cyl_barrel_qy = q[68];
+    const double bucket_cyl_barrel_qz = q[69];
+    const double bucket_cyl_rod_x = q[70];
+    const double bucket_cyl_rod_y = q[71];
+    const double bucket_cyl_rod_z = q[72];
+    const double v_upper_theta_x = v[3];
+    const double v_upper_theta_y = v[4];
+    const double v_upper_theta_z = v[5];
+    const double v_boom_cyl_l_barrel_x = v[12];
+    const double v_boom_cyl_l_barrel_y = v[13];
+    const double v_boom_cyl_l_barrel_z = v[14];
+    const double v_boom_cyl_l_barrel_theta_x = v[15];
+    const double v_boom_cyl_l_barrel_theta_y = v[16];
+    const double v_boom_cyl_l_barrel_theta_z = v[17];
+    const double v_boom_cyl_l_rod_x = v[18];
+    const double v_boom_cyl_l_rod_y = v[19];
+    const double v_boom_cyl_l_rod_z = v[20];
+    const double v_arm_cyl_barrel_x = v[42];
+    const double v_arm_cyl_barrel_y = v[43];
+    const double v_arm_cyl_barrel_z = v[44];
+    const double v_arm_cyl_barrel_theta_x = v[45];
+    const double v_arm_cyl_barrel_theta_y = v[46];
+    const double v_arm_cyl_barrel_theta_z = v[47];
+    const double v_arm_cyl_rod_x = v[48];
+    const double v_arm_cyl_rod_y = v[49];
+    const double v_arm_cyl_rod_z = v[50];
+    const double v_bucket_cyl_barrel_x = v[54];
+    const double v_bucket_cyl_barrel_y = v[55];
+    const double v_bucket_cyl_barrel_z = v[56];
+    const double v_bucket_cyl_barrel_theta_x = v[57];
+    const double v_bucket_cyl_barrel_theta_y = v[58];
+    const double v_bucket_cyl_barrel_theta_z = v[59];
+    const double v_bucket_cyl_rod_x = v[60];
+    const double v_bucket_cyl_rod_y = v[61];
+    const double v_bucket_cyl_rod_z = v[62];
+    const double dv_upper_theta_x = a[3];
+    const double dv_upper_theta_y = a[4];
+    const double dv_upper_theta_z = a[5];
+    const double dv_boom_cyl_l_barrel_x = a[12];
+    const double dv_boom_cyl_l_barrel_y = a[13];
+    const double dv_boom_cyl_l_barrel_z = a[14];
+    const double dv_boom_cyl_l_barrel_theta_x = a[15];
+    const double dv_boom_cyl_l_barrel_theta_y = a[16];
+    const double dv_boom_cyl_l_barrel_theta_z = a[17];
+    const double dv_boom_cyl_l_rod_x = a[18];
+    const double dv_boom_cyl_l_rod_y = a[19];
+    const double dv_boom_cyl_l_rod_z = a[20];
+    const double dv_arm_cyl_barrel_x = a[42];
+    const double dv_arm_cyl_barrel_y = a[43];
+    const double dv_arm_cyl_barrel_z = a[44];
+    const double dv_arm_cyl_barrel_theta_x = a[45];
+    const double dv_arm_cyl_barrel_theta_y = a[46];
+    const double dv_arm_cyl_barrel_theta_z = a[47];
+    const double dv_arm_cyl_rod_x = a[48];
+    const double dv_arm_cyl_rod_y = a[49];
+    const double dv_arm_cyl_rod_z = a[50];
+    const double dv_bucket_cyl_barrel_x = a[54];
+    const double dv_bucket_cyl_barrel_y = a[55];
+    const double dv_bucket_cyl_barrel_z = a[56];
+    const double dv_bucket_cyl_barrel_theta_x = a[57];
+    const double dv_bucket_cyl_barrel_theta_y = a[58];
+    const double dv_bucket_cyl_barrel_theta_z = a[59];
+    const double dv_bucket_cyl_rod_x = a[60];
+    const double dv_bucket_cyl_rod_y = a[61];
+    const double dv_bucket_cyl_rod_z = a[62];
+    const double u0 = u[0];
+    const double ud0 = ud[0];
+    const double udd0 = udd[0];
+    (void)p;
+    const double boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx);
+    const double boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy;
+    const double boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz;
+    const double arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx);
+    const double arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy;
+    const double arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz;
+    const double bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx);
+    const double bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy;
+    const double bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz;
+    const double c0 = (1.0/2.0)*u0;
+    const double c1 = sin(c0);
+    const double c2 = cos(c0);
+    const double c3 = c2*v_upper_theta_x;
+    const double c4 = c1*v_upper_theta_y;
+    const double c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0;
+    const double c6 = (1.0/2.0)*upper_qw;
+    const double c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y;
+    const double c8 = (1.0/2.0)*upper_qz;
+    const double c9 = (ud0*ud0);
+    const double c10 = (1.0/2.0)*c1;
+    const double c11 = (v_upper_theta_x*v_upper_theta_x);
+    const double c12 = (v_upper_theta_y*v_upper_theta_y);
+    const double c13 = (v_upper_theta_z*v_upper_theta_z);
+    const double c14 = (1.0/2.0)*c2*udd0 - 1.0/2.0*c10*c11 - 1.0/2.0*c10*c12 - 1.0/2.0*c10*c13 - 1.0/2.0*c10*c9 - 1.0/2.0*c2*dv_upper_theta_z + (1.0/2.0)*c1*ud0*v_upper_theta_z;
+    const double c15 = (1.0/2.0)*c2;
+    const double c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z;
+    const double c17 = (1.0/2.0)*c16;
+    const double c18 = (1.0/2.0)*upper_qx;
+    const double c19 = (1.0/2.0)*upper_qy;
+    const double c20 = c2*v_upper_theta_y - c1*v_upper_theta_x;
+    const double c21 = -c3 - c4;
+    const double c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z;
+    const double c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x;
+    const double c24 = c10*upper_qx;
+    const double c25 = c15*upper_qy;
+    const double c26 = c6*v_upper_theta_z;
+    const double c27 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y;
+    const double c28 = dv_boom_cyl_l_barrel_theta_z - c27;
+    const double c29 = (v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_y);
+    const double c30 = (v_boom_cyl_l_barrel_theta_z*v_boom_cyl_l_barrel_theta_z);
+    const double c31 = c29 + c30;
+    const double c32 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z;
+    const double c33 = c32 + dv_boom_cyl_l_barrel_theta_y;
+    const double c34 = -c33;
+    const double c35 = v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z;
+    const double c36 = dv_boom_cyl_l_barrel_theta_x - c35;
+    const double c37 = (v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_x);
+    const double c38 = c37 + c30;
+    const double c39 = c27 + dv_boom_cyl_l_barrel_theta_z;
+    const double c40 = -c39;
+    const double c41 = dv_boom_cyl_l_barrel_theta_y - c32;
+    const double c42 = c37 + c29;
+    const double c43 = c35 + dv_boom_cyl_l_barrel_theta_x;
+    const double c44 = -c43;
+    const double c45 = 2.0*v_boom_cyl_l_barrel_theta_x;
+    const double c46 = 2.0*v_boom_cyl_l_barrel_theta_y;
+    const double c47 = -c36;
+    const double c48 = -c42;
+    const double c49 = dv_boom_cyl_l_rod_z - dv_boom_cyl_l_barrel_z + c42*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_barrel_y + c46*v_boom_cyl_l_rod_x + c47*boom_cyl_l_rod_y + c48*boom_cyl_l_rod_z + c33*boom_cyl_l_rod_x + c34*boom_cyl_l_barrel_x + c36*boom_cyl_l_barrel_y - c45*v_boom_cyl_l_rod_y - c46*v_boom_cyl_l_barrel_x;
+    const double c50 = 2.0*v_boom_cyl_l_barrel_theta_z;
+    const double c51 = -c28;
+    const double c52 = -c38;
+    const double c53 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + c28*boom_cyl_l_barrel_x + c38*boom_cyl_l_barrel_y + c43*boom_cyl_l_rod_z + c44*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_rod_z + c50*v_boom_cyl_l_barrel_x + c51*boom_cyl_l_rod_x + c52*boom_cyl_l_rod_y - c45*v_boom_cyl_l_barrel_z - c50*v_boom_cyl_l_rod_x;
+    const double c54 = -c41;
+    const double c55 = -c31;
+    const double c56 = dv_boom_cyl_l_rod_x - dv_boom_cyl_l_barrel_x + c39*boom_cyl_l_rod_y + c40*boom_cyl_l_barrel_y + c41*boom_cyl_l_barrel_z + c46*v_boom_cyl_l_barrel_z + c50*v_boom_cyl_l_rod_y + c54*boom_cyl_l_rod_z + c55*boom_cyl_l_rod_x + c31*boom_cyl_l_barrel_x - c46*v_boom_cyl_l_rod_z - c50*v_boom_cyl_l_barrel_y;
+    const double c57 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z;
+    const double c58 = 2.0*c57 - 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
+    const double c59 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z;
+    const double c60 = 2.0*c59 - 2.0*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
+    const double c61 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y;
+    const double c62 = 2.0*c61 - 2.0*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
+    const double c63 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
+    const double c64 = -c61 + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x;
+    const double c65 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z;
+    const double c66 = c59 - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x;
+    const double c67 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x;
+    const double c68 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z;
+    const double c69 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x;
+    const double c70 = -c57 + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y;
+    const double c71 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y;
+    const double c72 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y;
+    const double c73 = dv_arm_cyl_barrel_theta_z - c72;
+    const double c74 = (v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_y);
+    const double c75 = (v_arm_cyl_barrel_theta_z*v_arm_cyl_barrel_theta_z);
+    const double c76 = c74 + c75;
+    const double c77 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z;
+    const double c78 = c77 + dv_arm_cyl_barrel_theta_y;
+    const double c79 = -c78;
+    const double c80 = v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z;
+    const double c81 = dv_arm_cyl_barrel_theta_x - c80;
+    const double c82 = (v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_x);
+    const double c83 = c82 + c75;
+    const double c84 = c72 + dv_arm_cyl_barrel_theta_z;
+    const double c85 = -c84;
+    const double c86 = dv_arm_cyl_barrel_theta_y - c77;
+    const double c87 = c82 + c74;
+    const double c88 = c80 + dv_arm_cyl_barrel_theta_x;
+    const double c89 = -c88;
+    const double c90 = 2.0*v_arm_cyl_barrel_theta_x;
+    const double c91 = 2.0*v_arm_cyl_barrel_theta_y;
+    const double c92 = -c81;
+    const double c93 = -c87;
+    const double c94 = dv_arm_cyl_rod_z - dv_arm_cyl_barrel_z + c87*arm_cyl_barrel_z + c90*v_arm_cyl_barrel_y + c91*v_arm_cyl_rod_x + c92*arm_cyl_rod_y + c93*arm_cyl_rod_z + c78*arm_cyl_rod_x + c79*arm_cyl_barrel_x + c81*arm_cyl_barrel_y - c90*v_arm_cyl_rod_y - c91*v_arm_cyl_barrel_x;
+    const double c95 = 2.0*v_arm_cyl_barrel_theta_z;
+    const double c96 = -c73;
+    const double c97 = -c83;
+    const double c98 = dv_arm_cyl_rod_y - dv_arm_cyl_barrel_y + c73*arm_cyl_barrel_x + c83*arm_cyl_barrel_y + c88*arm_cyl_rod_z + c89*arm_cyl_barrel_z + c90*v_arm_cyl_rod_z + c95*v_arm_cyl_barrel_x + c96*arm_cyl_rod_x + c97*arm_cyl_rod_y - c90*v_arm_cyl_barrel_z - c95*v_arm_cyl_rod_x;
+    const double c99 = -c86;
+    const double c100 = -c76;
+    const double c101 = dv_arm_cyl_rod_x - dv_arm_cyl_barrel_x + c84*arm_cyl_rod_y + c85*arm_cyl_barrel_y + c86*arm_cyl_barrel_z + c91*v_arm_cyl_barrel_z + c95*v_arm_cyl_rod_y + c99*arm_cyl_rod_z + c100*arm_cyl_rod_x + c76*arm_cyl_barrel_x - c91*v_arm_cyl_rod_z - c95*v_arm_cyl_barrel_y;
+    const double c102 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z;
+    const double c103 = 2.0*c102 - 2.0*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
+    const double c104 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z;
+    const double c105 = 2.0*c104 - 2.0*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
+    const double c106 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y;
+    const double c107 = 2.0*c106 - 2.0*arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
+    const double c108 = arm_cyl_barrel_y - arm_cyl_rod_y;
+    const double c109 = -c106 + arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x;
+    const double c110 = arm_cyl_barrel_z - arm_cyl_rod_z;
+    const double c111 = c104 - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x;
+    const double c112 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x;
+    const double c113 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z;
+    const double c114 = arm_cyl_barrel_x - arm_cyl_rod_x;
+    const double c115 = -c102 + arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y;
+    const double c116 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y;
+    const double c117 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y;
+    const double c118 = dv_bucket_cyl_barrel_theta_z - c117;
+    const double c119 = (v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_y);
+    const double c120 = (v_bucket_cyl_barrel_theta_z*v_bucket_cyl_barrel_theta_z);
+    const double c121 = c119 + c120;
+    const double c122 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z;
+    const double c123 = c122 + dv_bucket_cyl_barrel_theta_y;
+    const double c124 = -c123;
+    const double c125 = v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z;
+    const double c126 = dv_bucket_cyl_barrel_theta_x - c125;
+    const double c127 = (v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_x);
+    const double c128 = c127 + c120;
+    const double c129 = c117 + dv_bucket_cyl_barrel_theta_z;
+    const double c130 = -c129;
+    const double c131 = dv_bucket_cyl_barrel_theta_y - c122;
+    const double c132 = c127 + c119;
+    const double c133 = c125 + dv_bucket_cyl_barrel_theta_x;
+    const double c134 = -c133;
+    const double c135 = 2.0*v_bucket_cyl_barrel_theta_x;
+    const double c136 = 2.0*v_bucket_cyl_barrel_theta_y;
+    const double c137 = -c126;
+    const double c138 = -c132;
+    const double c139 = dv_bucket_cyl_rod_z - dv_bucket_cyl_barrel_z + c132*bucket_cyl_barrel_z + c135*v_bucket_cyl_barrel_y + c136*v_bucket_cyl_rod_x + c137*bucket_cyl_rod_y + c138*bucket_cyl_rod_z + c123*bucket_cyl_rod_x + c124*bucket_cyl_barrel_x + c126*bucket_cyl_barrel_y - c135*v_bucket_cyl_rod_y - c136*v_bucket_cyl_barrel_x;
+    const double c140 = 2.0*v_bucket_cyl_barrel_theta_z;
+    const double c141 = -c118;
+    const double c142 = -c128;
+    const double c143 = dv_bucket_cyl_rod_y - dv_bucket_cyl_barrel_y + c118*bucket_cyl_barrel_x + c128*bucket_cyl_barrel_y + c133*bucket_cyl_rod_z + c134*bucket_cyl_barrel_z + c135*v_bucket_cyl_rod_z + c140*v_bucket_cyl_barrel_x + c141*bucket_cyl_rod_x + c142*bucket_cyl_rod_y - c135*v_bucket_cyl_barrel_z - c140*v_bucket_cyl_rod_x;
+    const double c144 = -c131;
+    const double c145 = -c121;
+    const double c146 = dv_bucket_cyl_rod_x - dv_bucket_cyl_barrel_x + c129*bucket_cyl_rod_y + c130*bucket_cyl_barrel_y + c131*bucket_cyl_barrel_z + c136*v_bucket_cyl_barrel_z + c140*v_bucket_cyl_rod_y + c144*bucket_cyl_rod_z + c145*bucket_cyl_rod_x + c121*bucket_cyl_barrel_x - c136*v_bucket_cyl_rod_z - c140*v_bucket_cyl_barrel_y;
+    const double c147 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z;
+    const double c148 = 2.0*c147 - 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
+    const double c149 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z;
+    const double c150 = 2.0*c149 - 2.0*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
+    const double c151 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y;
+    const double c152 = 2.0*c151 - 2.0*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
+    const double c153 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
+    const double c154 = -c151 + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x;
+    const double c155 = bucket_cyl_barrel_z - bucket_cyl_rod_z;
+    const double c156 = c149 - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x;
+    const double c157 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x;
+    const double c158 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z;
+    const double c159 = bucket_cyl_barrel_x - bucket_cyl_rod_x;
+    const double c160 = -c147 + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y;
+    const double c161 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y;
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8;
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx;
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5;
+    out[3] = (1.0/2.0)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2.0*ud0*((1.0/2.0)*c1*upper_qy - c15*upper_qx) + (1.0/2.0)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z;
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2.0*ud0*(-c24 - c25);
+    out[5] = (1.0/2.0)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2.0*ud0*(c1*c6 - c15*upper_qz) + (1.0/2.0)*c2*upper_qz*v_upper_theta_z;
+    out[6] = c28*boom_cyl_l_barrel_a10 + c31*boom_cyl_l_barrel_a00 + c34*boom_cyl_l_barrel_a20;
+    out[7] = c38*boom_cyl_l_barrel_a10 + c40*boom_cyl_l_barrel_a00 + c36*boom_cyl_l_barrel_a20;
+    out[8] = c41*boom_cyl_l_barrel_a00 + c42*boom_cyl_l_barrel_a20 + c44*boom_cyl_l_barrel_a10;
+    out[9] = c49*boom_cyl_l_barrel_a10 - c53*boom_cyl_l_barrel_a20;
+    out[10] = c56*boom_cyl_l_barrel_a20 - c49*boom_cyl_l_barrel_a00;
+    out[11] = c53*boom_cyl_l_barrel_a00 - c56*boom_cyl_l_barrel_a10;
+    out[12] = c51*boom_cyl_l_barrel_a10 + c55*boom_cyl_l_barrel_a00 + c33*boom_cyl_l_barrel_a20;
+    out[13] = c39*boom_cyl_l_barrel_a00 + c47*boom_cyl_l_barrel_a20 + c52*boom_cyl_l_barrel_a10;
+    out[14] = c43*boom_cyl_l_barrel_a10 + c48*boom_cyl_l_barrel_a20 + c54*boom_cyl_l_barrel_a00;
+    out[15] = c58;
+    out[16] = -c60;
+    out[17] = c62;
+    out[18] = c63*c64 + c67*boom_cyl_l_barrel_a10 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_y - c65*c66 - c68*boom_cyl_l_barrel_a20 - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y;
+    out[19] = c65*c70 + c71*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x - c64*c69 - c67*boom_cyl_l_barrel_a00 - boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_x;
+    out[20] = c66*c69 + c68*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_x - c63*c70 - c71*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x;
+    out[21] = -c58;
+    out[22] = c60;
+    out[23] = -c62;
+    out[24] = c73*arm_cyl_barrel_a10 + c76*arm_cyl_barrel_a00 + c79*arm_cyl_barrel_a20;
+    out[25] = c83*arm_cyl_barrel_a10 + c85*arm_cyl_barrel_a00 + c81*arm_cyl_barrel_a20;
+    out[26] = c86*arm_cyl_barrel_a00 + c87*arm_cyl_barrel_a20 + c89*arm_cyl_barrel_a10;
+    out[27] = c94*arm_cyl_barrel_a10 - c98*arm_cyl_barrel_a20;
+    out[28] = c101*arm_cyl_barrel_a20 - c94*arm_cyl_barrel_a00;
+    out[29] = c98*arm_cyl_barrel_a00 - c101*arm_cyl_barrel_a10;
+    out[30] = c96*arm_cyl_barrel_a10 + c100*arm_cyl_barrel_a00 + c78*arm_cyl_barrel_a20;
+    out[31] = c84*arm_cyl_barrel_a00 + c92*arm_cyl_barrel_a20 + c97*arm_cyl_barrel_a10;
+    out[32] = c88*arm_cyl_barrel_a10 + c93*arm_cyl_barrel_a20 + c99*arm_cyl_barrel_a00;
+    out[33] = c103;
+    out[34] = -c105;
+    out[35] = c107;
+    out[36] = c108*c109 + c112*arm_cyl_barrel_a10 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c110*c111 - c113*arm_cyl_barrel_a20 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_rod_y;
+    out[37] = c110*c115 + c116*arm_cyl_barrel_a20 + arm_cyl_barrel_a00*v_arm_cyl_barrel_z + arm_cyl_barrel_a20*v_arm_cyl_rod_x - c109*c114 - c112*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x;
+    out[38] = c111*c114 + c113*arm_cyl_barrel_a00 + arm_cyl_barrel_a00*v_arm_cyl_rod_y + arm_cyl_barrel_a10*v_arm_cyl_barrel_x - c108*c115 - c116*arm_cyl_barrel_a10 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y - arm_cyl_barrel_a10*v_arm_cyl_rod_x;
+    out[39] = -c103;
+    out[40] = c105;
+    out[41] = -c107;
+    out[42] = c118*bucket_cyl_barrel_a10 + c121*bucket_cyl_barrel_a00 + c124*bucket_cyl_barrel_a20;
+    out[43] = c128*bucket_cyl_barrel_a10 + c130*bucket_cyl_barrel_a00 + c126*bucket_cyl_barrel_a20;
+    out[44] = c131*bucket_cyl_barrel_a00 + c132*bucket_cyl_barrel_a20 + c134*bucket_cyl_barrel_a10;
+    out[45] = c139*bucket_cyl_barrel_a10 - c143*bucket_cyl_barrel_a20;
+    out[46] = c146*bucket_cyl_barrel_a20 - c139*bucket_cyl_barrel_a00;
+    out[47] = c143*bucket_cyl_barrel_a00 - c146*bucket_cyl_barrel_a10;
+    out[48] = c141*bucket_cyl_barrel_a10 + c145*bucket_cyl_barrel_a00 + c123*bucket_cyl_barrel_a20;
+    out[49] = c129*bucket_cyl_barrel_a00 + c137*bucket_cyl_barrel_a20 + c142*bucket_cyl_barrel_a10;
+    out[50] = c133*bucket_cyl_barrel_a10 + c138*bucket_cyl_barrel_a20 + c144*bucket_cyl_barrel_a00;
+    out[51] = c148;
+    out[52] = -c150;
+    out[53] = c152;
+    out[54] = c153*c154 + c157*bucket_cyl_barrel_a10 + bucket_cyl_barrel_a10*v_bucket_cyl_rod_z + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_y - c155*c156 - c158*bucket_cyl_barrel_a20 - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a20*v_bucket_cyl_rod_y;
+    out[55] = c155*c160 + c161*bucket_cyl_barrel_a20 + bucket_cyl_barrel_a00*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a20*v_bucket_cyl_rod_x - c154*c159 - c157*bucket_cyl_barrel_a00 - bucket_cyl_barrel_a00*v_bucket_cyl_rod_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_x;
+    out[56] = c156*c159 + c158*bucket_cyl_barrel_a00 + bucket_cyl_barrel_a00*v_bucket_cyl_rod_y + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_x - c153*c160 - c161*bucket_cyl_barrel_a10 - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a10*v_bucket_cyl_rod_x;
+    out[57] = -c148;
+    out[58] = c150;
+    out[59] = -c152;
+}
+
 /* Phi of the driver rows of case 'oscillation'. */
 void excavator_quaternion_compute_drivers_phi_oscillation(const double *q, const double *u, const double *p, double *out) {
     const double upper_qw = q[3];
@@ -12823,6 +13796,10 @@ void excavator_quaternion_compute_drivers_dvel_oscillation(const double *q, cons
     out[28] = c23;
     out[29] = -c24;
 }
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 8
 
 /* [M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'oscillation'. */
 void excavator_quaternion_compute_drivers_dacc_oscillation(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *out) {
@@ -13680,10 +14657,6 @@ void excavator_quaternion_compute_frames_part0(const double *q, const double *v,
     out[238] = dv_bucket_cyl_barrel_theta_y;
     out[239] = dv_bucket_cyl_barrel_theta_z;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 8
 
 /* Per body 24 values, global: origin (3), rotation (9), velocity (3), angular_velocity (3), acceleration (3), angular_acceleration (3); the rotation matrix row by row. Rows 240 to 335. */
 void excavator_quaternion_compute_frames_part1(const double *q, const double *v, const double *a, double *out) {
@@ -14770,6 +15743,10 @@ void excavator_quaternion_compute_inertia_part1(const double *q, const double *v
     out[83] = c326*c331 + c344*v_bucket_theta_y - c325*c329 - c337*dv_bucket_theta_x - c339*dv_bucket_theta_y - c340*dv_bucket_theta_z - c343*v_bucket_theta_x;
 }
 
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 9
+
 /* Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS). */
 void excavator_quaternion_compute_points(const double *p, double *out) {
     const double p_C_x = p[0];
@@ -14884,10 +15861,6 @@ void excavator_quaternion_compute_actuator_ranges(const double *p, double *out) 
     out[6] = 16529.0/10000.0;
     out[7] = 26613.0/10000.0;
 }
-
-#endif
-
-#if !defined(KINEGEN_PART) || KINEGEN_PART == 9
 
 /* d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), a parameter per column). */
 void excavator_quaternion_compute_points_p(const double *p, double *out) {
@@ -17485,6 +18458,116 @@ static void call_dacc_digging_fast(const double *const *x, double *const *y) {
     dacc_digging_fast(x[0], x[1], x[2], x[3], x[4], x[5], x[6], y[0]);
 }
 
+/* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. */
+static void phi_jac_digging_paced(const double *q, const double *u, const double *p, double *phi, double *jac) {
+    excavator_quaternion_compute_joints_phi(q, p, phi);
+    excavator_quaternion_compute_drivers_phi_digging_paced(q, u, p, phi + 80);
+    excavator_quaternion_compute_joints_jac_part0(q, p, jac);
+    excavator_quaternion_compute_joints_jac_part1(q, p, jac);
+    excavator_quaternion_compute_joints_jac_part2(q, p, jac);
+    excavator_quaternion_compute_drivers_jac_digging_paced(q, u, p, jac + 403);
+}
+
+/* nu = -Phi_t of case 'digging_paced' (zero in the joint rows). */
+static void nu_digging_paced(const double *q, const double *u, const double *ud, const double *p, double *nu) {
+    for (int i = 0; i < 80; ++i) nu[0 + i] = 0.0;
+    excavator_quaternion_compute_drivers_nu_digging_paced(q, u, ud, p, nu + 80);
+}
+
+/* gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. */
+static void gamma_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p, double *gamma) {
+    excavator_quaternion_compute_joints_gamma_part0(q, v, p, gamma);
+    excavator_quaternion_compute_joints_gamma_part1(q, v, p, gamma);
+    excavator_quaternion_compute_drivers_gamma_digging_paced(q, v, u, ud, udd, p, gamma + 80);
+}
+
+/* Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2. */
+static void inputs_digging_paced(double t, double *inputs) {
+    excavator_quaternion_compute_inputs_digging_paced(t, inputs);
+}
+
+/* Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds. */
+static void input_ranges_digging_paced(const double *span, double *input_ranges) {
+    excavator_quaternion_compute_input_ranges_digging_paced(span, input_ranges);
+}
+
+/* Phi_p = dPhi/dp (n_p columns) of case 'digging_paced': values at phi_p_rows, phi_p_cols. */
+static void phi_p_digging_paced(const double *q, const double *u, const double *p, double *phi_p) {
+    excavator_quaternion_compute_joints_phi_p(q, p, phi_p);
+    excavator_quaternion_compute_drivers_phi_p_digging_paced(q, u, p, phi_p + 33);
+}
+
+/* [M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'digging_paced': values at dvel_rows, dvel_cols. */
+static void dvel_digging_paced(const double *q, const double *v, const double *u, const double *ud, const double *p, double *dvel) {
+    excavator_quaternion_compute_joints_dvel_part0(q, v, p, dvel);
+    excavator_quaternion_compute_joints_dvel_part1(q, v, p, dvel);
+    excavator_quaternion_compute_joints_dvel_part2(q, v, p, dvel);
+    excavator_quaternion_compute_joints_dvel_part3(q, v, p, dvel);
+    excavator_quaternion_compute_joints_dvel_part4(q, v, p, dvel);
+    excavator_quaternion_compute_drivers_dvel_digging_paced(q, v, u, ud, p, dvel + 396);
+}
+
+/* [M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'digging_paced': values at dacc_rows, dacc_cols. */
+static void dacc_digging_paced(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd, const double *p, double *dacc) {
+    excavator_quaternion_compute_joints_dacc_part0(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part1(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part2(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part3(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part4(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part5(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part6(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part7(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part8(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part9(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part10(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part11(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part12(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part13(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part14(q, v, a, p, dacc);
+    excavator_quaternion_compute_joints_dacc_part15(q, v, a, p, dacc);
+    excavator_quaternion_compute_drivers_dacc_digging_paced(q, v, a, u, ud, udd, p, dacc + 759);
+}
+
+/* phi_jac as a kinegen_kernel entry point. */
+static void call_phi_jac_digging_paced(const double *const *x, double *const *y) {
+    phi_jac_digging_paced(x[0], x[1], x[2], y[0], y[1]);
+}
+
+/* nu as a kinegen_kernel entry point. */
+static void call_nu_digging_paced(const double *const *x, double *const *y) {
+    nu_digging_paced(x[0], x[1], x[2], x[3], y[0]);
+}
+
+/* gamma as a kinegen_kernel entry point. */
+static void call_gamma_digging_paced(const double *const *x, double *const *y) {
+    gamma_digging_paced(x[0], x[1], x[2], x[3], x[4], x[5], y[0]);
+}
+
+/* inputs as a kinegen_kernel entry point. */
+static void call_inputs_digging_paced(const double *const *x, double *const *y) {
+    inputs_digging_paced(x[0][0], y[0]);
+}
+
+/* input_ranges as a kinegen_kernel entry point. */
+static void call_input_ranges_digging_paced(const double *const *x, double *const *y) {
+    input_ranges_digging_paced(x[0], y[0]);
+}
+
+/* phi_p as a kinegen_kernel entry point. */
+static void call_phi_p_digging_paced(const double *const *x, double *const *y) {
+    phi_p_digging_paced(x[0], x[1], x[2], y[0]);
+}
+
+/* dvel as a kinegen_kernel entry point. */
+static void call_dvel_digging_paced(const double *const *x, double *const *y) {
+    dvel_digging_paced(x[0], x[1], x[2], x[3], x[4], y[0]);
+}
+
+/* dacc as a kinegen_kernel entry point. */
+static void call_dacc_digging_paced(const double *const *x, double *const *y) {
+    dacc_digging_paced(x[0], x[1], x[2], x[3], x[4], x[5], x[6], y[0]);
+}
+
 /* Phi and the Phi_q values (at jac_rows, jac_cols) of case 'oscillation'. */
 static void phi_jac_oscillation(const double *q, const double *u, const double *p, double *phi, double *jac) {
     excavator_quaternion_compute_joints_phi(q, p, phi);
@@ -17874,6 +18957,32 @@ static const kinegen_kernel kernels_digging_fast[] = {
     {"dvel", "q,v,u,ud,p", 1, outputs_dvel_digging_fast, sizes_dvel_digging_fast, call_dvel_digging_fast},
     {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_digging_fast, sizes_dacc_digging_fast, call_dacc_digging_fast},
 };
+static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
+static const int sizes_phi_jac_digging_paced[] = {84, 433};
+static const char *const outputs_nu_digging_paced[] = {"nu"};
+static const int sizes_nu_digging_paced[] = {84};
+static const char *const outputs_gamma_digging_paced[] = {"gamma"};
+static const int sizes_gamma_digging_paced[] = {84};
+static const char *const outputs_inputs_digging_paced[] = {"inputs"};
+static const int sizes_inputs_digging_paced[] = {12};
+static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
+static const int sizes_input_ranges_digging_paced[] = {24};
+static const char *const outputs_phi_p_digging_paced[] = {"phi_p"};
+static const int sizes_phi_p_digging_paced[] = {33};
+static const char *const outputs_dvel_digging_paced[] = {"dvel"};
+static const int sizes_dvel_digging_paced[] = {426};
+static const char *const outputs_dacc_digging_paced[] = {"dacc"};
+static const int sizes_dacc_digging_paced[] = {819};
+static const kinegen_kernel kernels_digging_paced[] = {
+    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
+    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
+    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
+    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
+    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+    {"phi_p", "q,u,p", 1, outputs_phi_p_digging_paced, sizes_phi_p_digging_paced, call_phi_p_digging_paced},
+    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_digging_paced, sizes_dvel_digging_paced, call_dvel_digging_paced},
+    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_digging_paced, sizes_dacc_digging_paced, call_dacc_digging_paced},
+};
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {84, 433};
 static const char *const outputs_nu_oscillation[] = {"nu"};
@@ -18017,7 +19126,7 @@ static const kinegen_statics statics = {
 };
 
 const kinegen_layout excavator_quaternion_layout = {
-    "excavator", "quaternion", "excavator.yaml", "e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5", "0.2.0",
+    "excavator", "quaternion", "excavator.yaml", "787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b", "0.2.0",
     EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, EXCAVATOR_QUATERNION_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_quaternion_frames,
     9, kernels, &statics,
@@ -18286,6 +19395,43 @@ const kinegen_model excavator_quaternion_digging_fast = {
     3397, 254, 8, kernels_digging_fast, &design_digging_fast,
 };
 
+/* ---- case digging_paced ---- */
+static const char *const constraints_digging_paced[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const char *const drivers_digging_paced[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
+static const int jac_rows_digging_paced[] = {0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
+static const int jac_cols_digging_paced[] = {0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 0, 4, 5, 12, 1, 3, 5, 13, 2, 3, 4, 14, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 6, 10, 11, 18, 7, 9, 11, 19, 8, 9, 10, 20, 0, 4, 5, 24, 1, 3, 5, 25, 2, 3, 4, 26, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 6, 10, 11, 30, 7, 9, 11, 31, 8, 9, 10, 32, 6, 10, 11, 36, 7, 9, 11, 37, 8, 9, 10, 38, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 6, 10, 11, 42, 7, 9, 11, 43, 8, 9, 10, 44, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 36, 40, 41, 48, 37, 39, 41, 49, 38, 39, 40, 50, 36, 40, 41, 78, 37, 39, 41, 79, 38, 39, 40, 80, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 36, 40, 41, 66, 37, 39, 41, 67, 38, 39, 40, 68, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 66, 70, 71, 72, 76, 77, 67, 69, 71, 73, 75, 77, 68, 69, 70, 74, 75, 76, 72, 78, 82, 83, 73, 79, 81, 83, 74, 80, 81, 82, 75, 76, 77, 81, 82, 83, 36, 40, 41, 54, 37, 39, 41, 55, 38, 39, 40, 56, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 60, 66, 70, 71, 61, 67, 69, 71, 62, 68, 69, 70, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62};
+/* Phi_q in block lower triangular form: 41 blocks, the largest 9 x 9 */
+static const int block_start_digging_paced[] = {0, 1, 2, 3, 5, 6, 7, 8, 9, 10, 11, 12, 13, 14, 15, 24, 27, 28, 29, 30, 31, 32, 33, 34, 35, 36, 39, 48, 51, 54, 55, 56, 57, 58, 59, 60, 61, 62, 63, 72, 81, 84};
+static const int block_store_digging_paced[] = {0, 1, 2, 3, 7, 8, 9, 10, 11, 12, 13, 14, 15, 16, 17, 98, 107, 108, 109, 110, 111, 112, 113, 114, 115, 116, 125, 206, 215, 224, 225, 226, 227, 228, 229, 230, 231, 232, 233, 314, 395};
+static const int row_order_digging_paced[] = {0, 1, 2, 3, 4, 80, 7, 12, 24, 5, 6, 11, 10, 22, 23, 8, 9, 13, 16, 17, 19, 20, 21, 81, 14, 15, 18, 33, 32, 31, 34, 35, 36, 41, 40, 39, 25, 28, 29, 37, 38, 42, 45, 46, 48, 49, 50, 82, 26, 27, 30, 43, 44, 47, 51, 52, 53, 58, 57, 70, 69, 68, 56, 59, 60, 71, 74, 75, 77, 78, 79, 83, 54, 55, 61, 62, 63, 64, 65, 66, 67, 72, 73, 76};
+static const int col_order_digging_paced[] = {0, 1, 2, 3, 4, 5, 8, 14, 26, 6, 7, 13, 12, 24, 25, 9, 10, 15, 16, 19, 18, 11, 20, 17, 23, 22, 21, 32, 31, 30, 36, 37, 38, 44, 43, 42, 27, 29, 28, 39, 40, 45, 48, 46, 41, 49, 50, 47, 35, 34, 33, 53, 52, 51, 78, 79, 80, 68, 67, 56, 55, 54, 66, 69, 70, 57, 60, 58, 71, 61, 62, 59, 81, 82, 77, 73, 76, 72, 83, 74, 75, 65, 64, 63};
+static const int diag_value_digging_paced[] = {0, 1, 2, 3, 4, 5, 6, 10, 14, 18, 22, 23, 24, 28, 29, 30, 34, 38, 42, 46, 47, 48, 52, 53, 54, 58, 59, 60, 64, 65, 66, 67, 68, 69, 73, 74, 75, 76, 77, 78, 82, 83, 84, 86, 87, 88, 90, 91, 92, 94, 95, 96, 100, 104, 108, 112, 113, 114, 118, 119, 120, 124, 125, 126, 130, 131, 132, 139, 140, 141, 148, 149, 150, 154, 158, 162, 166, 170, 174, 178, 179, 180, 184, 185, 186, 190, 194, 198, 202, 203, 204, 208, 209, 210, 214, 215, 216, 220, 221, 222, 223, 224, 225, 229, 230, 231, 232, 233, 234, 238, 239, 240, 242, 243, 244, 246, 247, 248, 250, 251, 252, 256, 260, 264, 268, 269, 270, 274, 275, 276, 280, 284, 288, 292, 293, 294, 298, 299, 300, 304, 305, 306, 310, 311, 312, 316, 317, 318, 319, 321, 322, 323, 325, 326, 327, 329, 330, 331, 332, 333, 334, 335, 336, 340, 344, 348, 352, 353, 354, 358, 359, 360, 364, 365, 366, 370, 371, 372, 373, 374, 375, 379, 380, 381, 382, 383, 384, 388, 389, 390, 391, 393, 394, 395, 397, 398, 399, 401, 402, 405, 409, 410, 411, 412, 413, 414, 418, 419, 420, 421, 422, 423, 427, 428, 429, 430, 431, 432};
+static const int diag_slot_digging_paced[] = {0, 1, 2, 3, 5, 4, 6, 11, 12, 8, 17, 26, 71, 18, 27, 72, 14, 13, 9, 37, 46, 91, 104, 101, 98, 105, 102, 99, 38, 47, 92, 65, 56, 83, 39, 48, 93, 66, 57, 84, 106, 103, 100, 31, 76, 67, 23, 77, 59, 24, 33, 87, 15, 16, 10, 116, 122, 119, 212, 209, 206, 213, 210, 207, 117, 123, 120, 118, 124, 121, 214, 211, 208, 109, 108, 107, 110, 111, 112, 125, 134, 170, 126, 135, 171, 115, 114, 113, 145, 163, 199, 221, 218, 215, 222, 219, 216, 146, 164, 200, 155, 182, 191, 147, 165, 201, 156, 183, 192, 223, 220, 217, 139, 175, 157, 131, 176, 185, 132, 141, 195, 224, 225, 226, 314, 323, 368, 315, 324, 369, 232, 228, 227, 233, 242, 278, 234, 243, 279, 361, 352, 334, 344, 389, 335, 381, 390, 354, 364, 328, 373, 347, 320, 374, 384, 321, 330, 394, 358, 340, 322, 331, 376, 231, 230, 229, 253, 271, 307, 401, 398, 395, 402, 399, 396, 254, 272, 308, 263, 290, 299, 255, 273, 309, 264, 291, 300, 403, 400, 397, 265, 247, 283, 293, 239, 284, 303, 240, 249, 7, 43, 52, 97, 70, 61, 88, 151, 169, 205, 160, 187, 196, 259, 277, 313, 268, 295, 304};
+static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 20, 23, 26, 29, 32, 35, 38, 41, 44, 45, 46, 47, 50, 53, 56, 59, 62, 65, 68, 71, 74, 77, 80, 83, 86, 89, 95, 101, 104, 107, 110, 113, 116, 117, 118, 119, 122, 125, 128, 131, 134, 137, 140, 143, 146, 149, 152, 155, 158, 161, 164, 167, 170, 173, 176, 179, 182, 183, 184, 185, 188, 191, 194, 197, 200, 203, 204, 205, 206, 206, 209, 212, 215};
+static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 17, 18, 23, 6, 15, 16, 10, 15, 21, 9, 16, 21, 9, 16, 21, 10, 15, 21, 6, 15, 16, 6, 15, 16, 10, 15, 21, 9, 16, 21, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 21, 15, 16, 21, 15, 16, 21, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 38, 41, 43, 47, 41, 43, 47, 41, 43, 47, 30, 40, 44, 31, 39, 44, 32, 39, 40, 32, 39, 40, 31, 39, 44, 32, 39, 40, 31, 39, 44, 30, 40, 44, 30, 40, 44, 39, 40, 44, 39, 40, 44, 39, 40, 44, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 44, 39, 40, 44, 62, 64, 68, 58, 63, 68, 57, 63, 64, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67, 71};
+static const int off_value_digging_paced[] = {403, 404, 15, 16, 17, 39, 40, 41, 105, 106, 107, 7, 8, 9, 11, 12, 13, 35, 36, 37, 31, 32, 33, 97, 98, 99, 101, 102, 103, 19, 20, 21, 25, 26, 27, 43, 44, 45, 63, 62, 61, 72, 71, 70, 85, 89, 93, 408, 407, 406, 49, 50, 51, 55, 56, 57, 79, 80, 81, 159, 160, 161, 155, 156, 157, 151, 152, 153, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 109, 110, 111, 129, 127, 128, 135, 134, 133, 138, 136, 137, 144, 143, 142, 175, 176, 177, 181, 182, 183, 199, 200, 201, 219, 218, 217, 228, 227, 226, 241, 245, 249, 417, 416, 415, 115, 117, 116, 121, 123, 122, 145, 147, 146, 205, 206, 207, 211, 212, 213, 235, 236, 237, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 289, 290, 291, 295, 296, 297, 349, 350, 351, 369, 368, 367, 378, 377, 376, 392, 396, 400, 426, 425, 424, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 355, 356, 357, 361, 362, 363, 385, 386, 387};
+static const int phi_p_rows_digging_paced[] = {19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79};
+static const int phi_p_cols_digging_paced[] = {0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5};
+static const int dvel_rows_digging_paced[] = {3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83};
+static const int dvel_cols_digging_paced[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62};
+static const int dacc_rows_digging_paced[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
+static const int dacc_cols_digging_paced[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
+static const kinegen_design design_digging_paced = {
+    11, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced, {33, phi_p_rows_digging_paced, phi_p_cols_digging_paced}, {426, dvel_rows_digging_paced, dvel_cols_digging_paced}, {819, dacc_rows_digging_paced, dacc_cols_digging_paced}, phi_p_digging_paced, dvel_digging_paced, dacc_digging_paced, 2667,
+};
+
+const kinegen_model excavator_quaternion_digging_paced = {
+    &excavator_quaternion_layout, "digging_paced",
+    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
+    0.0, 59.5, 341,
+    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
+    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
+    41, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
+    404, 218, diag_value_digging_paced, diag_slot_digging_paced,
+    215, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
+    3397, 254, 8, kernels_digging_paced, &design_digging_paced,
+};
+
 /* ---- case oscillation ---- */
 static const char *const constraints_oscillation[] = {"swing.x", "swing.y", "swing.z", "swing.axis_f", "swing.axis_g", "boom_foot.x", "boom_foot.y", "boom_foot.z", "boom_foot.axis_f", "boom_foot.axis_g", "boom_cyl_l_base.x", "boom_cyl_l_base.y", "boom_cyl_l_base.z", "boom_cyl_l_base.cross", "boom_cyl_l.axis_f", "boom_cyl_l.axis_g", "boom_cyl_l.line_f", "boom_cyl_l.line_g", "boom_cyl_l.roll", "boom_cyl_l_eye.x", "boom_cyl_l_eye.y", "boom_cyl_l_eye.z", "boom_cyl_r_base.x", "boom_cyl_r_base.y", "boom_cyl_r_base.z", "boom_cyl_r_base.cross", "boom_cyl_r.axis_f", "boom_cyl_r.axis_g", "boom_cyl_r.line_f", "boom_cyl_r.line_g", "boom_cyl_r.roll", "boom_cyl_r_eye.x", "boom_cyl_r_eye.y", "boom_cyl_r_eye.z", "arm_pin.x", "arm_pin.y", "arm_pin.z", "arm_pin.axis_f", "arm_pin.axis_g", "arm_cyl_base.x", "arm_cyl_base.y", "arm_cyl_base.z", "arm_cyl_base.cross", "arm_cyl.axis_f", "arm_cyl.axis_g", "arm_cyl.line_f", "arm_cyl.line_g", "arm_cyl.roll", "arm_cyl_eye.x", "arm_cyl_eye.y", "arm_cyl_eye.z", "bucket_pin.x", "bucket_pin.y", "bucket_pin.z", "bucket_pin.axis_f", "bucket_pin.axis_g", "side_link_pin.x", "side_link_pin.y", "side_link_pin.z", "side_link_pin.axis_f", "side_link_pin.axis_g", "link_J.x", "link_J.y", "link_J.z", "link_K.x", "link_K.y", "link_K.z", "link_K.cross", "bucket_cyl_base.x", "bucket_cyl_base.y", "bucket_cyl_base.z", "bucket_cyl_base.cross", "bucket_cyl.axis_f", "bucket_cyl.axis_g", "bucket_cyl.line_f", "bucket_cyl.line_g", "bucket_cyl.roll", "bucket_cyl_eye.x", "bucket_cyl_eye.y", "bucket_cyl_eye.z", "swing_angle", "boom_length", "arm_length", "bucket_length"};
 static const char *const drivers_oscillation[] = {"swing_angle", "boom_length", "arm_length", "bucket_length"};
@@ -18323,6 +19469,6 @@ const kinegen_model excavator_quaternion_oscillation = {
     3397, 254, 8, kernels_oscillation, &design_oscillation,
 };
 
-const kinegen_model *const excavator_quaternion_cases[EXCAVATOR_QUATERNION_N_CASES] = {&excavator_quaternion_digging, &excavator_quaternion_level_cut, &excavator_quaternion_trench_wall, &excavator_quaternion_bucket_toggle, &excavator_quaternion_bucket_stroke, &excavator_quaternion_bucket_near_toggle, &excavator_quaternion_digging_fast, &excavator_quaternion_oscillation};
+const kinegen_model *const excavator_quaternion_cases[EXCAVATOR_QUATERNION_N_CASES] = {&excavator_quaternion_digging, &excavator_quaternion_level_cut, &excavator_quaternion_trench_wall, &excavator_quaternion_bucket_toggle, &excavator_quaternion_bucket_stroke, &excavator_quaternion_bucket_near_toggle, &excavator_quaternion_digging_fast, &excavator_quaternion_digging_paced, &excavator_quaternion_oscillation};
 
 #endif

@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+ * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
  * parametrization: quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -25,7 +25,7 @@ extern "C" {
 #define EXCAVATOR_QUATERNION_N_V 84  /* velocity coordinates = constraints */
 #define EXCAVATOR_QUATERNION_N_BODIES 14
 #define EXCAVATOR_QUATERNION_N_ACTUATORS 4
-#define EXCAVATOR_QUATERNION_N_CASES 8
+#define EXCAVATOR_QUATERNION_N_CASES 9
 #define EXCAVATOR_QUATERNION_MAX_INPUTS 4  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
 #define EXCAVATOR_QUATERNION_WORK_DOUBLES 3397
@@ -57,6 +57,7 @@ extern const kinegen_model excavator_quaternion_bucket_toggle;  /* 4 driver(s), 
 extern const kinegen_model excavator_quaternion_bucket_stroke;  /* 4 driver(s), t = 0.0 .. 1.0 s */
 extern const kinegen_model excavator_quaternion_bucket_near_toggle;  /* 4 driver(s), t = 0.0 .. 2.0 s */
 extern const kinegen_model excavator_quaternion_digging_fast;  /* 4 driver(s), t = 0.0 .. 13.6 s */
+extern const kinegen_model excavator_quaternion_digging_paced;  /* 4 driver(s), t = 0.0 .. 59.5 s */
 extern const kinegen_model excavator_quaternion_oscillation;  /* 4 driver(s), t = 0.0 .. 2.0 s */
 extern const kinegen_model *const excavator_quaternion_cases[EXCAVATOR_QUATERNION_N_CASES];
 

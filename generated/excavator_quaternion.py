@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5
+source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
 parametrization: quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = 'e4601f2e5680028542553051c8c312a48c43b9333c4a16079c75bfa8670a74f5'
+SOURCE_SHA256 = '787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b'
 PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.qw', 'upper.qx', 'upper.qy', 'upper.qz', 'boom.x', 'boom.y', 'boom.z', 'boom.qw', 'boom.qx', 'boom.qy', 'boom.qz', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.qw', 'boom_cyl_l_barrel.qx', 'boom_cyl_l_barrel.qy', 'boom_cyl_l_barrel.qz', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.qw', 'boom_cyl_l_rod.qx', 'boom_cyl_l_rod.qy', 'boom_cyl_l_rod.qz', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.qw', 'boom_cyl_r_barrel.qx', 'boom_cyl_r_barrel.qy', 'boom_cyl_r_barrel.qz', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.qw', 'boom_cyl_r_rod.qx', 'boom_cyl_r_rod.qy', 'boom_cyl_r_rod.qz', 'arm.x', 'arm.y', 'arm.z', 'arm.qw', 'arm.qx', 'arm.qy', 'arm.qz', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.qw', 'arm_cyl_barrel.qx', 'arm_cyl_barrel.qy', 'arm_cyl_barrel.qz', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.qw', 'arm_cyl_rod.qx', 'arm_cyl_rod.qy', 'arm_cyl_rod.qz', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.qw', 'bucket_cyl_barrel.qx', 'bucket_cyl_barrel.qy', 'bucket_cyl_barrel.qz', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.qw', 'bucket_cyl_rod.qx', 'bucket_cyl_rod.qy', 'bucket_cyl_rod.qz', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.qw', 'side_link.qx', 'side_link.qy', 'side_link.qz', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.qw', 'bucket_link.qx', 'bucket_link.qy', 'bucket_link.qz', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.qw', 'bucket.qx', 'bucket.qy', 'bucket.qz')
@@ -90,7 +90,7 @@ KERNELS = {
     'frames_d': (('q', 'v', 'a', 'w', 'y', 'z'), ('frames_d',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_quaternion.h': 'd2e00f9665549cae27b2ac5ab146ffa9cd2b6e50da24a23c477d8d81eb5fcb3c', 'excavator_quaternion.c': '82a843c7a5c9de975f8e2abf7109bd114e72f722a3620557ebe546ce67891a57'}
+C_FILES = {'excavator_quaternion.h': '3bdbd70b15c4e18362e47a0af89619ec7f7f357c0883832afeb94391bb2ce31c', 'excavator_quaternion.c': 'f51c61e2b0708321710886c612a649bdb3ffa5bfc5c34f1c66cb9749b438dcff'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -12868,6 +12868,826 @@ def dacc_digging_fast(q, v, a, u, ud, udd, p):
     return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging_fast(q, v, a, u, ud, udd, p))
 
 
+def _drivers_phi_digging_paced(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -2*upper_qz*cos(c0) + 2*upper_qw*sin(c0)
+    out[1] = -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z)
+    out[2] = -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z)
+    out[3] = -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)
+    return out
+
+
+def phi_digging_paced(q, u, p):
+    """Output 'phi' (84 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_phi(q, p), _drivers_phi_digging_paced(q, u, p))
+
+
+def _drivers_jac_digging_paced(q, u, p):
+    """Phi_q values of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    c4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    c5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    c6 = arm_cyl_rod_z - arm_cyl_barrel_z
+    c7 = arm_cyl_rod_y - arm_cyl_barrel_y
+    c8 = arm_cyl_rod_x - arm_cyl_barrel_x
+    c9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    c10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    c11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    out = _zeros(30, q, u)
+    out[0] = -c1*upper_qx - c2*upper_qy
+    out[1] = c2*upper_qx - c1*upper_qy
+    out[2] = -c1*upper_qz - c2*upper_qw
+    out[3] = -boom_cyl_l_barrel_a00
+    out[4] = -boom_cyl_l_barrel_a10
+    out[5] = -boom_cyl_l_barrel_a20
+    out[6] = c3*boom_cyl_l_barrel_a10 - c4*boom_cyl_l_barrel_a20
+    out[7] = c5*boom_cyl_l_barrel_a20 - c3*boom_cyl_l_barrel_a00
+    out[8] = c4*boom_cyl_l_barrel_a00 - c5*boom_cyl_l_barrel_a10
+    out[9] = boom_cyl_l_barrel_a00
+    out[10] = boom_cyl_l_barrel_a10
+    out[11] = boom_cyl_l_barrel_a20
+    out[12] = -arm_cyl_barrel_a00
+    out[13] = -arm_cyl_barrel_a10
+    out[14] = -arm_cyl_barrel_a20
+    out[15] = c6*arm_cyl_barrel_a10 - c7*arm_cyl_barrel_a20
+    out[16] = c8*arm_cyl_barrel_a20 - c6*arm_cyl_barrel_a00
+    out[17] = c7*arm_cyl_barrel_a00 - c8*arm_cyl_barrel_a10
+    out[18] = arm_cyl_barrel_a00
+    out[19] = arm_cyl_barrel_a10
+    out[20] = arm_cyl_barrel_a20
+    out[21] = -bucket_cyl_barrel_a00
+    out[22] = -bucket_cyl_barrel_a10
+    out[23] = -bucket_cyl_barrel_a20
+    out[24] = c9*bucket_cyl_barrel_a10 - c10*bucket_cyl_barrel_a20
+    out[25] = c11*bucket_cyl_barrel_a20 - c9*bucket_cyl_barrel_a00
+    out[26] = c10*bucket_cyl_barrel_a00 - c11*bucket_cyl_barrel_a10
+    out[27] = bucket_cyl_barrel_a00
+    out[28] = bucket_cyl_barrel_a10
+    out[29] = bucket_cyl_barrel_a20
+    return out
+
+
+def jac_digging_paced(q, u, p):
+    """Output 'jac' (433 values) of the kernel phi_jac: Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'."""
+    return _join(_joints_jac(q, p), _drivers_jac_digging_paced(q, u, p))
+
+
+def _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p):
+    """Phi of the driver rows of case 'digging_paced'.; Phi_q values of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, u1, u2, u3 = u
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    d0 = (1/2)*u0
+    d1 = math.sin(d0)
+    d2 = math.cos(d0)
+    d3 = boom_cyl_l_rod_z - boom_cyl_l_barrel_z
+    d4 = boom_cyl_l_rod_y - boom_cyl_l_barrel_y
+    d5 = boom_cyl_l_rod_x - boom_cyl_l_barrel_x
+    d6 = arm_cyl_rod_z - arm_cyl_barrel_z
+    d7 = arm_cyl_rod_y - arm_cyl_barrel_y
+    d8 = arm_cyl_rod_x - arm_cyl_barrel_x
+    d9 = bucket_cyl_rod_z - bucket_cyl_barrel_z
+    d10 = bucket_cyl_rod_y - bucket_cyl_barrel_y
+    d11 = bucket_cyl_rod_x - bucket_cyl_barrel_x
+    return [-2.0*upper_qz*math.cos(c0) + 2.0*upper_qw*math.sin(c0), -u1 + boom_cyl_l_barrel_a00*(boom_cyl_l_rod_x - boom_cyl_l_barrel_x) + boom_cyl_l_barrel_a10*(boom_cyl_l_rod_y - boom_cyl_l_barrel_y) + boom_cyl_l_barrel_a20*(boom_cyl_l_rod_z - boom_cyl_l_barrel_z), -u2 + arm_cyl_barrel_a00*(arm_cyl_rod_x - arm_cyl_barrel_x) + arm_cyl_barrel_a10*(arm_cyl_rod_y - arm_cyl_barrel_y) + arm_cyl_barrel_a20*(arm_cyl_rod_z - arm_cyl_barrel_z), -u3 + bucket_cyl_barrel_a00*(bucket_cyl_rod_x - bucket_cyl_barrel_x) + bucket_cyl_barrel_a10*(bucket_cyl_rod_y - bucket_cyl_barrel_y) + bucket_cyl_barrel_a20*(bucket_cyl_rod_z - bucket_cyl_barrel_z)], [-d1*upper_qx - d2*upper_qy, d2*upper_qx - d1*upper_qy, -d1*upper_qz - d2*upper_qw, -boom_cyl_l_barrel_a00, -boom_cyl_l_barrel_a10, -boom_cyl_l_barrel_a20, d3*boom_cyl_l_barrel_a10 - d4*boom_cyl_l_barrel_a20, d5*boom_cyl_l_barrel_a20 - d3*boom_cyl_l_barrel_a00, d4*boom_cyl_l_barrel_a00 - d5*boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a00, boom_cyl_l_barrel_a10, boom_cyl_l_barrel_a20, -arm_cyl_barrel_a00, -arm_cyl_barrel_a10, -arm_cyl_barrel_a20, d6*arm_cyl_barrel_a10 - d7*arm_cyl_barrel_a20, d8*arm_cyl_barrel_a20 - d6*arm_cyl_barrel_a00, d7*arm_cyl_barrel_a00 - d8*arm_cyl_barrel_a10, arm_cyl_barrel_a00, arm_cyl_barrel_a10, arm_cyl_barrel_a20, -bucket_cyl_barrel_a00, -bucket_cyl_barrel_a10, -bucket_cyl_barrel_a20, d9*bucket_cyl_barrel_a10 - d10*bucket_cyl_barrel_a20, d11*bucket_cyl_barrel_a20 - d9*bucket_cyl_barrel_a00, d10*bucket_cyl_barrel_a00 - d11*bucket_cyl_barrel_a10, bucket_cyl_barrel_a00, bucket_cyl_barrel_a10, bucket_cyl_barrel_a20]
+
+
+def phi_jac_s_digging_paced(q, u, p):
+    """Phi and the Phi_q values (at jac_rows, jac_cols) of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0, s0_1 = _joints_phi_joints_jac_s(q, p)
+    s1_0, s1_1 = _drivers_phi_digging_paced_drivers_jac_digging_paced_s(q, u, p)
+    return s0_0 + s1_0, s0_1 + s1_1
+
+
+def _drivers_nu_digging_paced(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    out = _zeros(4, q, u)
+    out[0] = -ud0*(upper_qw*cos(c0) + upper_qz*sin(c0))
+    out[1] = ud1
+    out[2] = ud2
+    out[3] = ud3
+    return out
+
+
+def nu_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows)."""
+    return _join(80, _drivers_nu_digging_paced(q, u, ud, p))
+
+
+def _drivers_nu_digging_paced_s(q, u, ud, p):
+    """nu of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    u0, _, _, _ = u
+    ud0, ud1, ud2, ud3 = ud
+    c0 = (1/2)*u0
+    return [-ud0*(upper_qw*math.cos(c0) + upper_qz*math.sin(c0)), ud1, ud2, ud3]
+
+
+def nu_s_digging_paced(q, u, ud, p):
+    """nu = -Phi_t of case 'digging_paced' (zero in the joint rows). At one configuration (lists of floats)."""
+    s1_0 = _drivers_nu_digging_paced_s(q, u, ud, p)
+    return [0.0] * 80 + s1_0
+
+
+def _drivers_gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = cos(c0)
+    c2 = sin(c0)
+    c3 = (1/2)*upper_qw
+    c4 = c2*c3 - 1/2*c1*upper_qz
+    c5 = (1/2)*v_upper_theta_y
+    c6 = (1/2)*v_upper_theta_x
+    c7 = (1/2)*upper_qz
+    c8 = (1/2)*v_upper_theta_z
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c23 = -c20
+    c24 = -c22
+    out = _zeros(4, q, u)
+    out[0] = c4*ud0**2 - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx)
+    out[1] = udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x)
+    out[2] = udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x)
+    out[3] = udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x)
+    return out
+
+
+def gamma_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'."""
+    return _join(_joints_gamma(q, v, p), _drivers_gamma_digging_paced(q, v, u, ud, udd, p))
+
+
+def _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p):
+    """gamma of the driver rows of case 'digging_paced'. (one configuration, lists of floats)"""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, udd1, udd2, udd3 = udd
+    boom_cyl_l_barrel_a00 = -1.0 + 2.0*(boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qw) + 2.0*(boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qx)
+    boom_cyl_l_barrel_a10 = 2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2.0*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2.0*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1.0 + 2.0*(arm_cyl_barrel_qw*arm_cyl_barrel_qw) + 2.0*(arm_cyl_barrel_qx*arm_cyl_barrel_qx)
+    arm_cyl_barrel_a10 = 2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2.0*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2.0*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1.0 + 2.0*(bucket_cyl_barrel_qw*bucket_cyl_barrel_qw) + 2.0*(bucket_cyl_barrel_qx*bucket_cyl_barrel_qx)
+    bucket_cyl_barrel_a10 = 2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2.0*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2.0*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = math.cos(c0)
+    c2 = math.sin(c0)
+    c3 = (1/2)*upper_qw
+    c4 = c2*c3 - 1/2*c1*upper_qz
+    c5 = (1/2)*v_upper_theta_y
+    c6 = (1/2)*v_upper_theta_x
+    c7 = (1/2)*upper_qz
+    c8 = (1/2)*v_upper_theta_z
+    c9 = (1/2)*c1
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = -c10
+    c14 = -c12
+    c15 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c16 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c18 = -c15
+    c19 = -c17
+    c20 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c21 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c22 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c23 = -c20
+    c24 = -c22
+    return [c4*(ud0*ud0) - udd0*(c1*upper_qw + c2*upper_qz) - (c1*v_upper_theta_y - c2*v_upper_theta_x)*(c3*v_upper_theta_x + c7*v_upper_theta_y - c8*upper_qy) - (-c1*v_upper_theta_x - c2*v_upper_theta_y)*(c3*v_upper_theta_y + c8*upper_qx - c7*v_upper_theta_x) - 2.0*ud0*(c4*v_upper_theta_z + v_upper_theta_x*((1/2)*c2*upper_qy - c9*upper_qx) + v_upper_theta_y*(-c9*upper_qy - 1/2*c2*upper_qx)) + c1*v_upper_theta_z*(-c5*upper_qy - c6*upper_qx - c7*v_upper_theta_z) + c2*v_upper_theta_z*(c3*v_upper_theta_z + c6*upper_qy - c5*upper_qx), udd1 + c11*v_boom_cyl_l_barrel_y - c10*v_boom_cyl_l_barrel_x - c11*v_boom_cyl_l_rod_y - c11*(v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z) - c12*v_boom_cyl_l_barrel_z - c13*v_boom_cyl_l_rod_x - c13*(v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y) - c14*v_boom_cyl_l_rod_z - c14*(v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x), udd2 + c16*v_arm_cyl_barrel_y - c15*v_arm_cyl_barrel_x - c16*v_arm_cyl_rod_y - c16*(v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z) - c17*v_arm_cyl_barrel_z - c18*v_arm_cyl_rod_x - c18*(v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y) - c19*v_arm_cyl_rod_z - c19*(v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x), udd3 + c21*v_bucket_cyl_barrel_y - c20*v_bucket_cyl_barrel_x - c21*v_bucket_cyl_rod_y - c21*(v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z) - c22*v_bucket_cyl_barrel_z - c23*v_bucket_cyl_rod_x - c23*(v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y) - c24*v_bucket_cyl_rod_z - c24*(v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x)]
+
+
+def gamma_s_digging_paced(q, v, u, ud, udd, p):
+    """gamma = -(Phi_q v)_q v - 2 Phi_qt v - Phi_tt of case 'digging_paced'. At one configuration (lists of floats)."""
+    s0_0 = _joints_gamma_s(q, v, p)
+    s1_0 = _drivers_gamma_digging_paced_s(q, v, u, ud, udd, p)
+    return s0_0 + s1_0
+
+
+def inputs_digging_paced(t):
+    """Driver inputs of case 'digging_paced' at time t: u, then du/dt, then d2u/dt2."""
+    c0 = (4/7)*t
+    c1 = tanh(-27 + c0)
+    c2 = tanh(-17 + c0)
+    c3 = tanh(-29 + c0)
+    c4 = tanh(-14 + c0)
+    c5 = tanh(-3 + c0)
+    c6 = (9/40)*c5
+    c7 = tanh(-23 + c0)
+    c8 = tanh(-9 + c0)
+    c9 = c1**2
+    c10 = c2**2
+    c11 = c3**2
+    c12 = c4**2
+    c13 = c5**2
+    c14 = (9/70)*c13
+    c15 = c7**2
+    c16 = c8**2
+    c17 = c3*(8/7 - 8/7*c11)
+    c18 = (9/70)*c5*(8/7 - 8/7*c13)
+    c19 = 8/7 - 8/7*c15
+    c20 = c8*(8/7 - 8/7*c16)
+    out = np.zeros((12,) + np.shape(t))
+    out[0] = 0.7853981633974483*c2 - 0.7853981633974483*c1
+    out[1] = 626973/250000 - c6 - 1/5*c3 + (17/40)*c4
+    out[2] = 485803/250000 + c6 - 17/40*c7 - 7/40*c3 + (3/8)*c8
+    out[3] = 928949/500000 - 3/8*c7 + (1/20)*c3 + (13/40)*c8
+    out[4] = 0.4487989505128276*c9 - 0.4487989505128276*c10
+    out[5] = c14 - 17/70*c12 + (4/35)*c11
+    out[6] = -c14 - 3/14*c16 + (1/10)*c11 + (17/70)*c15
+    out[7] = -13/70*c16 - 1/35*c11 + (3/14)*c15
+    out[8] = 0.4487989505128276*c1*(8/7 - 8/7*c9) - 0.4487989505128276*c2*(8/7 - 8/7*c10)
+    out[9] = c18 + (4/35)*c17 - 17/70*c4*(8/7 - 8/7*c12)
+    out[10] = -c18 - 3/14*c20 + (1/10)*c17 + (17/70)*c19*c7
+    out[11] = -13/70*c20 - 1/35*c17 + (3/14)*c19*c7
+    return out
+
+
+def input_ranges_digging_paced(span):
+    """Enclosures of the driver inputs of case 'digging_paced' over span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then their upper bounds."""
+    r0 = tuple(np.asarray(t, dtype=float) for t in span)
+    r1 = _iv_const(0.5714285714285713, 0.5714285714285715, r0)
+    r2 = _iv_mul(r1, r0)
+    r3 = _iv_const(-27.0, -27.0, r0)
+    r4 = _iv_add(r3, r2)
+    r5 = _iv_tanh(r4)
+    r6 = _iv_neg(r5)
+    r7 = _iv_const(-17.0, -17.0, r0)
+    r8 = _iv_add(r7, r2)
+    r9 = _iv_tanh(r8)
+    r10 = _iv_add(r6, r9)
+    r11 = _iv_const(0.7853981633974482, 0.7853981633974484, r0)
+    r12 = _iv_mul(r11, r10)
+    r13 = _iv_const(-29.0, -29.0, r0)
+    r14 = _iv_add(r13, r2)
+    r15 = _iv_tanh(r14)
+    r16 = _iv_const(-0.20000000000000004, -0.19999999999999998, r0)
+    r17 = _iv_mul(r16, r15)
+    r18 = _iv_const(-14.0, -14.0, r0)
+    r19 = _iv_add(r18, r2)
+    r20 = _iv_tanh(r19)
+    r21 = _iv_const(0.42499999999999993, 0.42500000000000004, r0)
+    r22 = _iv_mul(r21, r20)
+    r23 = _iv_const(-3.0, -3.0, r0)
+    r24 = _iv_add(r23, r2)
+    r25 = _iv_tanh(r24)
+    r26 = _iv_const(-0.22500000000000003, -0.22499999999999998, r0)
+    r27 = _iv_mul(r26, r25)
+    r28 = _iv_add(r17, r22)
+    r29 = _iv_add(r28, r27)
+    r30 = _iv_const(2.5078919999999996, 2.5078920000000005, r0)
+    r31 = _iv_add(r30, r29)
+    r32 = _iv_const(-0.17500000000000002, -0.17499999999999996, r0)
+    r33 = _iv_mul(r32, r15)
+    r34 = _iv_const(-23.0, -23.0, r0)
+    r35 = _iv_add(r34, r2)
+    r36 = _iv_tanh(r35)
+    r37 = _iv_const(-0.42500000000000004, -0.42499999999999993, r0)
+    r38 = _iv_mul(r37, r36)
+    r39 = _iv_const(-9.0, -9.0, r0)
+    r40 = _iv_add(r39, r2)
+    r41 = _iv_tanh(r40)
+    r42 = _iv_const(0.375, 0.375, r0)
+    r43 = _iv_mul(r42, r41)
+    r44 = _iv_const(0.22499999999999998, 0.22500000000000003, r0)
+    r45 = _iv_mul(r44, r25)
+    r46 = _iv_add(r33, r38)
+    r47 = _iv_add(r46, r43)
+    r48 = _iv_add(r47, r45)
+    r49 = _iv_const(1.9432119999999997, 1.9432120000000002, r0)
+    r50 = _iv_add(r49, r48)
+    r51 = _iv_const(0.049999999999999996, 0.05000000000000001, r0)
+    r52 = _iv_mul(r51, r15)
+    r53 = _iv_const(-0.375, -0.375, r0)
+    r54 = _iv_mul(r53, r36)
+    r55 = _iv_const(0.32499999999999996, 0.32500000000000007, r0)
+    r56 = _iv_mul(r55, r41)
+    r57 = _iv_add(r52, r54)
+    r58 = _iv_add(r57, r56)
+    r59 = _iv_const(1.8578979999999998, 1.8578980000000003, r0)
+    r60 = _iv_add(r59, r58)
+    r61 = _iv_powi(r5, 2)
+    r62 = _iv_mul(r1, r61)
+    r63 = _iv_powi(r9, 2)
+    r64 = _iv_const(-0.5714285714285715, -0.5714285714285713, r0)
+    r65 = _iv_mul(r64, r63)
+    r66 = _iv_add(r62, r65)
+    r67 = _iv_mul(r11, r66)
+    r68 = _iv_powi(r15, 2)
+    r69 = _iv_const(0.11428571428571427, 0.1142857142857143, r0)
+    r70 = _iv_mul(r69, r68)
+    r71 = _iv_powi(r20, 2)
+    r72 = _iv_const(-0.24285714285714288, -0.24285714285714283, r0)
+    r73 = _iv_mul(r72, r71)
+    r74 = _iv_powi(r25, 2)
+    r75 = _iv_const(0.12857142857142853, 0.1285714285714286, r0)
+    r76 = _iv_mul(r75, r74)
+    r77 = _iv_add(r70, r73)
+    r78 = _iv_add(r77, r76)
+    r79 = _iv_const(0.09999999999999999, 0.10000000000000002, r0)
+    r80 = _iv_mul(r79, r68)
+    r81 = _iv_powi(r36, 2)
+    r82 = _iv_const(0.24285714285714283, 0.24285714285714288, r0)
+    r83 = _iv_mul(r82, r81)
+    r84 = _iv_powi(r41, 2)
+    r85 = _iv_const(-0.2142857142857143, -0.21428571428571425, r0)
+    r86 = _iv_mul(r85, r84)
+    r87 = _iv_const(-0.1285714285714286, -0.12857142857142853, r0)
+    r88 = _iv_mul(r87, r74)
+    r89 = _iv_add(r80, r83)
+    r90 = _iv_add(r89, r86)
+    r91 = _iv_add(r90, r88)
+    r92 = _iv_const(-0.028571428571428574, -0.028571428571428567, r0)
+    r93 = _iv_mul(r92, r68)
+    r94 = _iv_const(0.21428571428571425, 0.2142857142857143, r0)
+    r95 = _iv_mul(r94, r81)
+    r96 = _iv_const(-0.18571428571428575, -0.1857142857142857, r0)
+    r97 = _iv_mul(r96, r84)
+    r98 = _iv_add(r93, r95)
+    r99 = _iv_add(r98, r97)
+    r100 = _iv_const(-1.142857142857143, -1.1428571428571426, r0)
+    r101 = _iv_mul(r100, r61)
+    r102 = _iv_const(1.1428571428571426, 1.142857142857143, r0)
+    r103 = _iv_add(r102, r101)
+    r104 = _iv_mul(r103, r5)
+    r105 = _iv_mul(r1, r104)
+    r106 = _iv_mul(r100, r63)
+    r107 = _iv_add(r102, r106)
+    r108 = _iv_mul(r107, r9)
+    r109 = _iv_mul(r64, r108)
+    r110 = _iv_add(r105, r109)
+    r111 = _iv_mul(r11, r110)
+    r112 = _iv_mul(r100, r68)
+    r113 = _iv_add(r102, r112)
+    r114 = _iv_mul(r113, r15)
+    r115 = _iv_mul(r69, r114)
+    r116 = _iv_mul(r100, r71)
+    r117 = _iv_add(r102, r116)
+    r118 = _iv_mul(r117, r20)
+    r119 = _iv_mul(r72, r118)
+    r120 = _iv_mul(r100, r74)
+    r121 = _iv_add(r102, r120)
+    r122 = _iv_mul(r121, r25)
+    r123 = _iv_mul(r75, r122)
+    r124 = _iv_add(r115, r119)
+    r125 = _iv_add(r124, r123)
+    r126 = _iv_mul(r79, r114)
+    r127 = _iv_mul(r100, r81)
+    r128 = _iv_add(r102, r127)
+    r129 = _iv_mul(r128, r36)
+    r130 = _iv_mul(r82, r129)
+    r131 = _iv_mul(r100, r84)
+    r132 = _iv_add(r102, r131)
+    r133 = _iv_mul(r132, r41)
+    r134 = _iv_mul(r85, r133)
+    r135 = _iv_mul(r87, r122)
+    r136 = _iv_add(r126, r130)
+    r137 = _iv_add(r136, r134)
+    r138 = _iv_add(r137, r135)
+    r139 = _iv_mul(r92, r114)
+    r140 = _iv_mul(r94, r129)
+    r141 = _iv_mul(r96, r133)
+    r142 = _iv_add(r139, r140)
+    r143 = _iv_add(r142, r141)
+    out = np.empty((24,) + np.shape(r0[0]))
+    out[0] = r12[0]
+    out[12] = r12[1]
+    out[1] = r31[0]
+    out[13] = r31[1]
+    out[2] = r50[0]
+    out[14] = r50[1]
+    out[3] = r60[0]
+    out[15] = r60[1]
+    out[4] = r67[0]
+    out[16] = r67[1]
+    out[5] = r78[0]
+    out[17] = r78[1]
+    out[6] = r91[0]
+    out[18] = r91[1]
+    out[7] = r99[0]
+    out[19] = r99[1]
+    out[8] = r111[0]
+    out[20] = r111[1]
+    out[9] = r125[0]
+    out[21] = r125[1]
+    out[10] = r138[0]
+    out[22] = r138[1]
+    out[11] = r143[0]
+    out[23] = r143[1]
+    return out
+
+
+def _drivers_phi_p_digging_paced(q, u, p):
+    """Phi_p values of the driver rows of case 'digging_paced'."""
+    out = _zeros(0, q, u)
+    return out
+
+
+def phi_p_digging_paced(q, u, p):
+    """Phi_p = dPhi/dp (n_p columns) of case 'digging_paced': values at phi_p_rows, phi_p_cols."""
+    return _join(_joints_phi_p(q, p), _drivers_phi_p_digging_paced(q, u, p))
+
+
+def _drivers_dvel_digging_paced(q, v, u, ud, p):
+    """[M_v | E_v] values (velocity sensitivity) of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c4 = (1/2)*upper_qw
+    c5 = (1/2)*c2*ud0 - 1/2*c2*v_upper_theta_z
+    c6 = c1*ud0 - c1*v_upper_theta_z
+    c7 = (1/2)*c6
+    c8 = -c1*v_upper_theta_y - c2*v_upper_theta_x
+    c9 = (1/2)*upper_qz
+    c10 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c11 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c12 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c13 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c14 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c15 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c16 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c17 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c18 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c19 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c20 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c21 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c22 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c23 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c24 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c25 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c26 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c27 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(30, q, u)
+    out[0] = c3*c4 + c7*upper_qy - c5*upper_qx - c8*c9
+    out[1] = c3*c9 + c4*c8 - c5*upper_qy - c7*upper_qx
+    out[2] = c4*c6 + (1/2)*c8*upper_qx - c5*upper_qz - 1/2*c3*upper_qy
+    out[3] = c10
+    out[4] = -c11
+    out[5] = c12
+    out[6] = c13*boom_cyl_l_barrel_a10 - c14*boom_cyl_l_barrel_a20
+    out[7] = c15*boom_cyl_l_barrel_a20 - c13*boom_cyl_l_barrel_a00
+    out[8] = c14*boom_cyl_l_barrel_a00 - c15*boom_cyl_l_barrel_a10
+    out[9] = -c10
+    out[10] = c11
+    out[11] = -c12
+    out[12] = c16
+    out[13] = -c17
+    out[14] = c18
+    out[15] = c19*arm_cyl_barrel_a10 - c20*arm_cyl_barrel_a20
+    out[16] = c21*arm_cyl_barrel_a20 - c19*arm_cyl_barrel_a00
+    out[17] = c20*arm_cyl_barrel_a00 - c21*arm_cyl_barrel_a10
+    out[18] = -c16
+    out[19] = c17
+    out[20] = -c18
+    out[21] = c22
+    out[22] = -c23
+    out[23] = c24
+    out[24] = c25*bucket_cyl_barrel_a10 - c26*bucket_cyl_barrel_a20
+    out[25] = c27*bucket_cyl_barrel_a20 - c25*bucket_cyl_barrel_a00
+    out[26] = c26*bucket_cyl_barrel_a00 - c27*bucket_cyl_barrel_a10
+    out[27] = -c22
+    out[28] = c23
+    out[29] = -c24
+    return out
+
+
+def dvel_digging_paced(q, v, u, ud, p):
+    """[M_v | E_v], M_v = D_q(Phi_q v - nu) (n_v columns), E_v = d(Phi_q v - nu)/dp (n_p columns) of case 'digging_paced': values at dvel_rows, dvel_cols."""
+    return _join(_joints_dvel(q, v, p), _drivers_dvel_digging_paced(q, v, u, ud, p))
+
+
+def _drivers_dacc_digging_paced(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a] values (acceleration sensitivity) of the driver rows of case 'digging_paced'."""
+    _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, _, _, _, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, _, _, _, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = a
+    u0, _, _, _ = u
+    ud0, _, _, _ = ud
+    udd0, _, _, _ = udd
+    boom_cyl_l_barrel_a00 = -1 + 2*boom_cyl_l_barrel_qw**2 + 2*boom_cyl_l_barrel_qx**2
+    boom_cyl_l_barrel_a10 = 2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qz + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qy
+    boom_cyl_l_barrel_a20 = -2*boom_cyl_l_barrel_qw*boom_cyl_l_barrel_qy + 2*boom_cyl_l_barrel_qx*boom_cyl_l_barrel_qz
+    arm_cyl_barrel_a00 = -1 + 2*arm_cyl_barrel_qw**2 + 2*arm_cyl_barrel_qx**2
+    arm_cyl_barrel_a10 = 2*arm_cyl_barrel_qw*arm_cyl_barrel_qz + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qy
+    arm_cyl_barrel_a20 = -2*arm_cyl_barrel_qw*arm_cyl_barrel_qy + 2*arm_cyl_barrel_qx*arm_cyl_barrel_qz
+    bucket_cyl_barrel_a00 = -1 + 2*bucket_cyl_barrel_qw**2 + 2*bucket_cyl_barrel_qx**2
+    bucket_cyl_barrel_a10 = 2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qz + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qy
+    bucket_cyl_barrel_a20 = -2*bucket_cyl_barrel_qw*bucket_cyl_barrel_qy + 2*bucket_cyl_barrel_qx*bucket_cyl_barrel_qz
+    c0 = (1/2)*u0
+    c1 = sin(c0)
+    c2 = cos(c0)
+    c3 = c2*v_upper_theta_x
+    c4 = c1*v_upper_theta_y
+    c5 = c2*dv_upper_theta_y - c1*dv_upper_theta_x - c3*ud0 - c4*ud0
+    c6 = (1/2)*upper_qw
+    c7 = -c1*dv_upper_theta_y - c2*dv_upper_theta_x + c1*ud0*v_upper_theta_x - c2*ud0*v_upper_theta_y
+    c8 = (1/2)*upper_qz
+    c9 = ud0**2
+    c10 = (1/2)*c1
+    c11 = v_upper_theta_x**2
+    c12 = v_upper_theta_y**2
+    c13 = v_upper_theta_z**2
+    c14 = (1/2)*c2*udd0 - 1/2*c10*c11 - 1/2*c10*c12 - 1/2*c10*c13 - 1/2*c10*c9 - 1/2*c2*dv_upper_theta_z + (1/2)*c1*ud0*v_upper_theta_z
+    c15 = (1/2)*c2
+    c16 = c1*udd0 + c11*c15 + c12*c15 + c13*c15 + c15*c9 - c1*dv_upper_theta_z - c2*ud0*v_upper_theta_z
+    c17 = (1/2)*c16
+    c18 = (1/2)*upper_qx
+    c19 = (1/2)*upper_qy
+    c20 = c2*v_upper_theta_y - c1*v_upper_theta_x
+    c21 = -c3 - c4
+    c22 = c6*v_upper_theta_x + c8*v_upper_theta_y - c19*v_upper_theta_z
+    c23 = c18*v_upper_theta_z + c6*v_upper_theta_y - c8*v_upper_theta_x
+    c24 = c10*upper_qx
+    c25 = c15*upper_qy
+    c26 = c6*v_upper_theta_z
+    c27 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_y
+    c28 = dv_boom_cyl_l_barrel_theta_z - c27
+    c29 = v_boom_cyl_l_barrel_theta_y**2
+    c30 = v_boom_cyl_l_barrel_theta_z**2
+    c31 = c29 + c30
+    c32 = v_boom_cyl_l_barrel_theta_x*v_boom_cyl_l_barrel_theta_z
+    c33 = c32 + dv_boom_cyl_l_barrel_theta_y
+    c34 = -c33
+    c35 = v_boom_cyl_l_barrel_theta_y*v_boom_cyl_l_barrel_theta_z
+    c36 = dv_boom_cyl_l_barrel_theta_x - c35
+    c37 = v_boom_cyl_l_barrel_theta_x**2
+    c38 = c37 + c30
+    c39 = c27 + dv_boom_cyl_l_barrel_theta_z
+    c40 = -c39
+    c41 = dv_boom_cyl_l_barrel_theta_y - c32
+    c42 = c37 + c29
+    c43 = c35 + dv_boom_cyl_l_barrel_theta_x
+    c44 = -c43
+    c45 = 2*v_boom_cyl_l_barrel_theta_x
+    c46 = 2*v_boom_cyl_l_barrel_theta_y
+    c47 = -c36
+    c48 = -c42
+    c49 = dv_boom_cyl_l_rod_z - dv_boom_cyl_l_barrel_z + c42*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_barrel_y + c46*v_boom_cyl_l_rod_x + c47*boom_cyl_l_rod_y + c48*boom_cyl_l_rod_z + c33*boom_cyl_l_rod_x + c34*boom_cyl_l_barrel_x + c36*boom_cyl_l_barrel_y - c45*v_boom_cyl_l_rod_y - c46*v_boom_cyl_l_barrel_x
+    c50 = 2*v_boom_cyl_l_barrel_theta_z
+    c51 = -c28
+    c52 = -c38
+    c53 = dv_boom_cyl_l_rod_y - dv_boom_cyl_l_barrel_y + c28*boom_cyl_l_barrel_x + c38*boom_cyl_l_barrel_y + c43*boom_cyl_l_rod_z + c44*boom_cyl_l_barrel_z + c45*v_boom_cyl_l_rod_z + c50*v_boom_cyl_l_barrel_x + c51*boom_cyl_l_rod_x + c52*boom_cyl_l_rod_y - c45*v_boom_cyl_l_barrel_z - c50*v_boom_cyl_l_rod_x
+    c54 = -c41
+    c55 = -c31
+    c56 = dv_boom_cyl_l_rod_x - dv_boom_cyl_l_barrel_x + c39*boom_cyl_l_rod_y + c40*boom_cyl_l_barrel_y + c41*boom_cyl_l_barrel_z + c46*v_boom_cyl_l_barrel_z + c50*v_boom_cyl_l_rod_y + c54*boom_cyl_l_rod_z + c55*boom_cyl_l_rod_x + c31*boom_cyl_l_barrel_x - c46*v_boom_cyl_l_rod_z - c50*v_boom_cyl_l_barrel_y
+    c57 = boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_z
+    c58 = 2*c57 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c59 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_z
+    c60 = 2*c59 - 2*boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c61 = boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_theta_y
+    c62 = 2*c61 - 2*boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c63 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c64 = -c61 + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_theta_x
+    c65 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c66 = c59 - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_x
+    c67 = v_boom_cyl_l_rod_z - v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_x + boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_y - boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_x
+    c68 = v_boom_cyl_l_rod_y - v_boom_cyl_l_barrel_y + boom_cyl_l_barrel_x*v_boom_cyl_l_barrel_theta_z + boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_x - boom_cyl_l_rod_x*v_boom_cyl_l_barrel_theta_z
+    c69 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c70 = -c57 + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_theta_y
+    c71 = v_boom_cyl_l_rod_x - v_boom_cyl_l_barrel_x + boom_cyl_l_barrel_z*v_boom_cyl_l_barrel_theta_y + boom_cyl_l_rod_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_barrel_y*v_boom_cyl_l_barrel_theta_z - boom_cyl_l_rod_z*v_boom_cyl_l_barrel_theta_y
+    c72 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_y
+    c73 = dv_arm_cyl_barrel_theta_z - c72
+    c74 = v_arm_cyl_barrel_theta_y**2
+    c75 = v_arm_cyl_barrel_theta_z**2
+    c76 = c74 + c75
+    c77 = v_arm_cyl_barrel_theta_x*v_arm_cyl_barrel_theta_z
+    c78 = c77 + dv_arm_cyl_barrel_theta_y
+    c79 = -c78
+    c80 = v_arm_cyl_barrel_theta_y*v_arm_cyl_barrel_theta_z
+    c81 = dv_arm_cyl_barrel_theta_x - c80
+    c82 = v_arm_cyl_barrel_theta_x**2
+    c83 = c82 + c75
+    c84 = c72 + dv_arm_cyl_barrel_theta_z
+    c85 = -c84
+    c86 = dv_arm_cyl_barrel_theta_y - c77
+    c87 = c82 + c74
+    c88 = c80 + dv_arm_cyl_barrel_theta_x
+    c89 = -c88
+    c90 = 2*v_arm_cyl_barrel_theta_x
+    c91 = 2*v_arm_cyl_barrel_theta_y
+    c92 = -c81
+    c93 = -c87
+    c94 = dv_arm_cyl_rod_z - dv_arm_cyl_barrel_z + c87*arm_cyl_barrel_z + c90*v_arm_cyl_barrel_y + c91*v_arm_cyl_rod_x + c92*arm_cyl_rod_y + c93*arm_cyl_rod_z + c78*arm_cyl_rod_x + c79*arm_cyl_barrel_x + c81*arm_cyl_barrel_y - c90*v_arm_cyl_rod_y - c91*v_arm_cyl_barrel_x
+    c95 = 2*v_arm_cyl_barrel_theta_z
+    c96 = -c73
+    c97 = -c83
+    c98 = dv_arm_cyl_rod_y - dv_arm_cyl_barrel_y + c73*arm_cyl_barrel_x + c83*arm_cyl_barrel_y + c88*arm_cyl_rod_z + c89*arm_cyl_barrel_z + c90*v_arm_cyl_rod_z + c95*v_arm_cyl_barrel_x + c96*arm_cyl_rod_x + c97*arm_cyl_rod_y - c90*v_arm_cyl_barrel_z - c95*v_arm_cyl_rod_x
+    c99 = -c86
+    c100 = -c76
+    c101 = dv_arm_cyl_rod_x - dv_arm_cyl_barrel_x + c84*arm_cyl_rod_y + c85*arm_cyl_barrel_y + c86*arm_cyl_barrel_z + c91*v_arm_cyl_barrel_z + c95*v_arm_cyl_rod_y + c99*arm_cyl_rod_z + c100*arm_cyl_rod_x + c76*arm_cyl_barrel_x - c91*v_arm_cyl_rod_z - c95*v_arm_cyl_barrel_y
+    c102 = arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_z
+    c103 = 2*c102 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c104 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_z
+    c105 = 2*c104 - 2*arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c106 = arm_cyl_barrel_a00*v_arm_cyl_barrel_theta_y
+    c107 = 2*c106 - 2*arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c108 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c109 = -c106 + arm_cyl_barrel_a10*v_arm_cyl_barrel_theta_x
+    c110 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c111 = c104 - arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_x
+    c112 = v_arm_cyl_rod_z - v_arm_cyl_barrel_z + arm_cyl_barrel_y*v_arm_cyl_barrel_theta_x + arm_cyl_rod_x*v_arm_cyl_barrel_theta_y - arm_cyl_barrel_x*v_arm_cyl_barrel_theta_y - arm_cyl_rod_y*v_arm_cyl_barrel_theta_x
+    c113 = v_arm_cyl_rod_y - v_arm_cyl_barrel_y + arm_cyl_barrel_x*v_arm_cyl_barrel_theta_z + arm_cyl_rod_z*v_arm_cyl_barrel_theta_x - arm_cyl_barrel_z*v_arm_cyl_barrel_theta_x - arm_cyl_rod_x*v_arm_cyl_barrel_theta_z
+    c114 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c115 = -c102 + arm_cyl_barrel_a20*v_arm_cyl_barrel_theta_y
+    c116 = v_arm_cyl_rod_x - v_arm_cyl_barrel_x + arm_cyl_barrel_z*v_arm_cyl_barrel_theta_y + arm_cyl_rod_y*v_arm_cyl_barrel_theta_z - arm_cyl_barrel_y*v_arm_cyl_barrel_theta_z - arm_cyl_rod_z*v_arm_cyl_barrel_theta_y
+    c117 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_y
+    c118 = dv_bucket_cyl_barrel_theta_z - c117
+    c119 = v_bucket_cyl_barrel_theta_y**2
+    c120 = v_bucket_cyl_barrel_theta_z**2
+    c121 = c119 + c120
+    c122 = v_bucket_cyl_barrel_theta_x*v_bucket_cyl_barrel_theta_z
+    c123 = c122 + dv_bucket_cyl_barrel_theta_y
+    c124 = -c123
+    c125 = v_bucket_cyl_barrel_theta_y*v_bucket_cyl_barrel_theta_z
+    c126 = dv_bucket_cyl_barrel_theta_x - c125
+    c127 = v_bucket_cyl_barrel_theta_x**2
+    c128 = c127 + c120
+    c129 = c117 + dv_bucket_cyl_barrel_theta_z
+    c130 = -c129
+    c131 = dv_bucket_cyl_barrel_theta_y - c122
+    c132 = c127 + c119
+    c133 = c125 + dv_bucket_cyl_barrel_theta_x
+    c134 = -c133
+    c135 = 2*v_bucket_cyl_barrel_theta_x
+    c136 = 2*v_bucket_cyl_barrel_theta_y
+    c137 = -c126
+    c138 = -c132
+    c139 = dv_bucket_cyl_rod_z - dv_bucket_cyl_barrel_z + c132*bucket_cyl_barrel_z + c135*v_bucket_cyl_barrel_y + c136*v_bucket_cyl_rod_x + c137*bucket_cyl_rod_y + c138*bucket_cyl_rod_z + c123*bucket_cyl_rod_x + c124*bucket_cyl_barrel_x + c126*bucket_cyl_barrel_y - c135*v_bucket_cyl_rod_y - c136*v_bucket_cyl_barrel_x
+    c140 = 2*v_bucket_cyl_barrel_theta_z
+    c141 = -c118
+    c142 = -c128
+    c143 = dv_bucket_cyl_rod_y - dv_bucket_cyl_barrel_y + c118*bucket_cyl_barrel_x + c128*bucket_cyl_barrel_y + c133*bucket_cyl_rod_z + c134*bucket_cyl_barrel_z + c135*v_bucket_cyl_rod_z + c140*v_bucket_cyl_barrel_x + c141*bucket_cyl_rod_x + c142*bucket_cyl_rod_y - c135*v_bucket_cyl_barrel_z - c140*v_bucket_cyl_rod_x
+    c144 = -c131
+    c145 = -c121
+    c146 = dv_bucket_cyl_rod_x - dv_bucket_cyl_barrel_x + c129*bucket_cyl_rod_y + c130*bucket_cyl_barrel_y + c131*bucket_cyl_barrel_z + c136*v_bucket_cyl_barrel_z + c140*v_bucket_cyl_rod_y + c144*bucket_cyl_rod_z + c145*bucket_cyl_rod_x + c121*bucket_cyl_barrel_x - c136*v_bucket_cyl_rod_z - c140*v_bucket_cyl_barrel_y
+    c147 = bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_z
+    c148 = 2*c147 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c149 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_z
+    c150 = 2*c149 - 2*bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c151 = bucket_cyl_barrel_a00*v_bucket_cyl_barrel_theta_y
+    c152 = 2*c151 - 2*bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c153 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c154 = -c151 + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_theta_x
+    c155 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c156 = c149 - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_x
+    c157 = v_bucket_cyl_rod_z - v_bucket_cyl_barrel_z + bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_x + bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_y - bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_x
+    c158 = v_bucket_cyl_rod_y - v_bucket_cyl_barrel_y + bucket_cyl_barrel_x*v_bucket_cyl_barrel_theta_z + bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_x - bucket_cyl_rod_x*v_bucket_cyl_barrel_theta_z
+    c159 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c160 = -c147 + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_theta_y
+    c161 = v_bucket_cyl_rod_x - v_bucket_cyl_barrel_x + bucket_cyl_barrel_z*v_bucket_cyl_barrel_theta_y + bucket_cyl_rod_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_barrel_y*v_bucket_cyl_barrel_theta_z - bucket_cyl_rod_z*v_bucket_cyl_barrel_theta_y
+    out = _zeros(60, q, u)
+    out[0] = c17*upper_qy + c5*c6 - c14*upper_qx - c7*c8
+    out[1] = c5*c8 + c6*c7 - c14*upper_qy - c17*upper_qx
+    out[2] = c16*c6 + c18*c7 - c14*upper_qz - c19*c5
+    out[3] = (1/2)*c20*upper_qw - c1*c22 - c2*c23 - c21*c8 + 2*ud0*((1/2)*c1*upper_qy - c15*upper_qx) + (1/2)*c2*upper_qx*v_upper_theta_z - c10*upper_qy*v_upper_theta_z
+    out[4] = c2*c22 + c20*c8 + c21*c6 + c24*v_upper_theta_z + c25*v_upper_theta_z - c1*c23 + 2*ud0*(-c24 - c25)
+    out[5] = (1/2)*c21*upper_qx - c1*c26 - c1*(c26 + c19*v_upper_theta_x - c18*v_upper_theta_y) - c19*c20 - c2*(-c18*v_upper_theta_x - c19*v_upper_theta_y - c8*v_upper_theta_z) + 2*ud0*(c1*c6 - c15*upper_qz) + (1/2)*c2*upper_qz*v_upper_theta_z
+    out[6] = c28*boom_cyl_l_barrel_a10 + c31*boom_cyl_l_barrel_a00 + c34*boom_cyl_l_barrel_a20
+    out[7] = c38*boom_cyl_l_barrel_a10 + c40*boom_cyl_l_barrel_a00 + c36*boom_cyl_l_barrel_a20
+    out[8] = c41*boom_cyl_l_barrel_a00 + c42*boom_cyl_l_barrel_a20 + c44*boom_cyl_l_barrel_a10
+    out[9] = c49*boom_cyl_l_barrel_a10 - c53*boom_cyl_l_barrel_a20
+    out[10] = c56*boom_cyl_l_barrel_a20 - c49*boom_cyl_l_barrel_a00
+    out[11] = c53*boom_cyl_l_barrel_a00 - c56*boom_cyl_l_barrel_a10
+    out[12] = c51*boom_cyl_l_barrel_a10 + c55*boom_cyl_l_barrel_a00 + c33*boom_cyl_l_barrel_a20
+    out[13] = c39*boom_cyl_l_barrel_a00 + c47*boom_cyl_l_barrel_a20 + c52*boom_cyl_l_barrel_a10
+    out[14] = c43*boom_cyl_l_barrel_a10 + c48*boom_cyl_l_barrel_a20 + c54*boom_cyl_l_barrel_a00
+    out[15] = c58
+    out[16] = -c60
+    out[17] = c62
+    out[18] = c63*c64 + c67*boom_cyl_l_barrel_a10 + boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_y - c65*c66 - c68*boom_cyl_l_barrel_a20 - boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_y
+    out[19] = c65*c70 + c71*boom_cyl_l_barrel_a20 + boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_z + boom_cyl_l_barrel_a20*v_boom_cyl_l_rod_x - c64*c69 - c67*boom_cyl_l_barrel_a00 - boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_z - boom_cyl_l_barrel_a20*v_boom_cyl_l_barrel_x
+    out[20] = c66*c69 + c68*boom_cyl_l_barrel_a00 + boom_cyl_l_barrel_a00*v_boom_cyl_l_rod_y + boom_cyl_l_barrel_a10*v_boom_cyl_l_barrel_x - c63*c70 - c71*boom_cyl_l_barrel_a10 - boom_cyl_l_barrel_a00*v_boom_cyl_l_barrel_y - boom_cyl_l_barrel_a10*v_boom_cyl_l_rod_x
+    out[21] = -c58
+    out[22] = c60
+    out[23] = -c62
+    out[24] = c73*arm_cyl_barrel_a10 + c76*arm_cyl_barrel_a00 + c79*arm_cyl_barrel_a20
+    out[25] = c83*arm_cyl_barrel_a10 + c85*arm_cyl_barrel_a00 + c81*arm_cyl_barrel_a20
+    out[26] = c86*arm_cyl_barrel_a00 + c87*arm_cyl_barrel_a20 + c89*arm_cyl_barrel_a10
+    out[27] = c94*arm_cyl_barrel_a10 - c98*arm_cyl_barrel_a20
+    out[28] = c101*arm_cyl_barrel_a20 - c94*arm_cyl_barrel_a00
+    out[29] = c98*arm_cyl_barrel_a00 - c101*arm_cyl_barrel_a10
+    out[30] = c96*arm_cyl_barrel_a10 + c100*arm_cyl_barrel_a00 + c78*arm_cyl_barrel_a20
+    out[31] = c84*arm_cyl_barrel_a00 + c92*arm_cyl_barrel_a20 + c97*arm_cyl_barrel_a10
+    out[32] = c88*arm_cyl_barrel_a10 + c93*arm_cyl_barrel_a20 + c99*arm_cyl_barrel_a00
+    out[33] = c103
+    out[34] = -c105
+    out[35] = c107
+    out[36] = c108*c109 + c112*arm_cyl_barrel_a10 + arm_cyl_barrel_a10*v_arm_cyl_rod_z + arm_cyl_barrel_a20*v_arm_cyl_barrel_y - c110*c111 - c113*arm_cyl_barrel_a20 - arm_cyl_barrel_a10*v_arm_cyl_barrel_z - arm_cyl_barrel_a20*v_arm_cyl_rod_y
+    out[37] = c110*c115 + c116*arm_cyl_barrel_a20 + arm_cyl_barrel_a00*v_arm_cyl_barrel_z + arm_cyl_barrel_a20*v_arm_cyl_rod_x - c109*c114 - c112*arm_cyl_barrel_a00 - arm_cyl_barrel_a00*v_arm_cyl_rod_z - arm_cyl_barrel_a20*v_arm_cyl_barrel_x
+    out[38] = c111*c114 + c113*arm_cyl_barrel_a00 + arm_cyl_barrel_a00*v_arm_cyl_rod_y + arm_cyl_barrel_a10*v_arm_cyl_barrel_x - c108*c115 - c116*arm_cyl_barrel_a10 - arm_cyl_barrel_a00*v_arm_cyl_barrel_y - arm_cyl_barrel_a10*v_arm_cyl_rod_x
+    out[39] = -c103
+    out[40] = c105
+    out[41] = -c107
+    out[42] = c118*bucket_cyl_barrel_a10 + c121*bucket_cyl_barrel_a00 + c124*bucket_cyl_barrel_a20
+    out[43] = c128*bucket_cyl_barrel_a10 + c130*bucket_cyl_barrel_a00 + c126*bucket_cyl_barrel_a20
+    out[44] = c131*bucket_cyl_barrel_a00 + c132*bucket_cyl_barrel_a20 + c134*bucket_cyl_barrel_a10
+    out[45] = c139*bucket_cyl_barrel_a10 - c143*bucket_cyl_barrel_a20
+    out[46] = c146*bucket_cyl_barrel_a20 - c139*bucket_cyl_barrel_a00
+    out[47] = c143*bucket_cyl_barrel_a00 - c146*bucket_cyl_barrel_a10
+    out[48] = c141*bucket_cyl_barrel_a10 + c145*bucket_cyl_barrel_a00 + c123*bucket_cyl_barrel_a20
+    out[49] = c129*bucket_cyl_barrel_a00 + c137*bucket_cyl_barrel_a20 + c142*bucket_cyl_barrel_a10
+    out[50] = c133*bucket_cyl_barrel_a10 + c138*bucket_cyl_barrel_a20 + c144*bucket_cyl_barrel_a00
+    out[51] = c148
+    out[52] = -c150
+    out[53] = c152
+    out[54] = c153*c154 + c157*bucket_cyl_barrel_a10 + bucket_cyl_barrel_a10*v_bucket_cyl_rod_z + bucket_cyl_barrel_a20*v_bucket_cyl_barrel_y - c155*c156 - c158*bucket_cyl_barrel_a20 - bucket_cyl_barrel_a10*v_bucket_cyl_barrel_z - bucket_cyl_barrel_a20*v_bucket_cyl_rod_y
+    out[55] = c155*c160 + c161*bucket_cyl_barrel_a20 + bucket_cyl_barrel_a00*v_bucket_cyl_barrel_z + bucket_cyl_barrel_a20*v_bucket_cyl_rod_x - c154*c159 - c157*bucket_cyl_barrel_a00 - bucket_cyl_barrel_a00*v_bucket_cyl_rod_z - bucket_cyl_barrel_a20*v_bucket_cyl_barrel_x
+    out[56] = c156*c159 + c158*bucket_cyl_barrel_a00 + bucket_cyl_barrel_a00*v_bucket_cyl_rod_y + bucket_cyl_barrel_a10*v_bucket_cyl_barrel_x - c153*c160 - c161*bucket_cyl_barrel_a10 - bucket_cyl_barrel_a00*v_bucket_cyl_barrel_y - bucket_cyl_barrel_a10*v_bucket_cyl_rod_x
+    out[57] = -c148
+    out[58] = c150
+    out[59] = -c152
+    return out
+
+
+def dacc_digging_paced(q, v, a, u, ud, udd, p):
+    """[M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv (n_v columns each), E_a = d(Phi_q a - gamma)/dp (n_p columns) of case 'digging_paced': values at dacc_rows, dacc_cols."""
+    return _join(_joints_dacc(q, v, a, p), _drivers_dacc_digging_paced(q, v, a, u, ud, udd, p))
+
+
 def _drivers_phi_oscillation(q, u, p):
     """Phi of the driver rows of case 'oscillation'."""
     _, _, _, upper_qw, _, _, upper_qz, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
@@ -13659,6 +14479,17 @@ CASES = {
         'driver_sources': (('cases.digging_fast.drivers.swing_angle.function', 'pi/4*(tanh((1.25*t - 8.5)/0.5) - tanh((1.25*t - 13.5)/0.5))'), ('cases.digging_fast.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.425*(1 + tanh((1.25*t - 7)/0.5)) - 0.2*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((1.25*t - 1.5)/0.5)) + 0.375*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.425*(1 + tanh((1.25*t - 11.5)/0.5)) - 0.175*(1 + tanh((1.25*t - 14.5)/0.5))'), ('cases.digging_fast.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((1.25*t - 4.5)/0.5)) - 0.375*(1 + tanh((1.25*t - 11.5)/0.5)) + 0.05*(1 + tanh((1.25*t - 14.5)/0.5))')),
         'outputs': {'phi': phi_digging_fast, 'jac': jac_digging_fast, 'nu': nu_digging_fast, 'gamma': gamma_digging_fast, 'inputs': inputs_digging_fast, 'input_ranges': input_ranges_digging_fast, 'phi_p': phi_p_digging_fast, 'dvel': dvel_digging_fast, 'dacc': dacc_digging_fast},
         'scalar': {'phi_jac': phi_jac_s_digging_fast, 'nu': nu_s_digging_fast, 'gamma': gamma_s_digging_fast},
+        'patterns': {'phi_p': ((19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5)), 'dvel': ((3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83), (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62)), 'dacc': ((3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83), (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146))},
+    },
+    'digging_paced': {
+        'constraints': ('swing.x', 'swing.y', 'swing.z', 'swing.axis_f', 'swing.axis_g', 'boom_foot.x', 'boom_foot.y', 'boom_foot.z', 'boom_foot.axis_f', 'boom_foot.axis_g', 'boom_cyl_l_base.x', 'boom_cyl_l_base.y', 'boom_cyl_l_base.z', 'boom_cyl_l_base.cross', 'boom_cyl_l.axis_f', 'boom_cyl_l.axis_g', 'boom_cyl_l.line_f', 'boom_cyl_l.line_g', 'boom_cyl_l.roll', 'boom_cyl_l_eye.x', 'boom_cyl_l_eye.y', 'boom_cyl_l_eye.z', 'boom_cyl_r_base.x', 'boom_cyl_r_base.y', 'boom_cyl_r_base.z', 'boom_cyl_r_base.cross', 'boom_cyl_r.axis_f', 'boom_cyl_r.axis_g', 'boom_cyl_r.line_f', 'boom_cyl_r.line_g', 'boom_cyl_r.roll', 'boom_cyl_r_eye.x', 'boom_cyl_r_eye.y', 'boom_cyl_r_eye.z', 'arm_pin.x', 'arm_pin.y', 'arm_pin.z', 'arm_pin.axis_f', 'arm_pin.axis_g', 'arm_cyl_base.x', 'arm_cyl_base.y', 'arm_cyl_base.z', 'arm_cyl_base.cross', 'arm_cyl.axis_f', 'arm_cyl.axis_g', 'arm_cyl.line_f', 'arm_cyl.line_g', 'arm_cyl.roll', 'arm_cyl_eye.x', 'arm_cyl_eye.y', 'arm_cyl_eye.z', 'bucket_pin.x', 'bucket_pin.y', 'bucket_pin.z', 'bucket_pin.axis_f', 'bucket_pin.axis_g', 'side_link_pin.x', 'side_link_pin.y', 'side_link_pin.z', 'side_link_pin.axis_f', 'side_link_pin.axis_g', 'link_J.x', 'link_J.y', 'link_J.z', 'link_K.x', 'link_K.y', 'link_K.z', 'link_K.cross', 'bucket_cyl_base.x', 'bucket_cyl_base.y', 'bucket_cyl_base.z', 'bucket_cyl_base.cross', 'bucket_cyl.axis_f', 'bucket_cyl.axis_g', 'bucket_cyl.line_f', 'bucket_cyl.line_g', 'bucket_cyl.roll', 'bucket_cyl_eye.x', 'bucket_cyl_eye.y', 'bucket_cyl_eye.z', 'swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'drivers': ('swing_angle', 'boom_length', 'arm_length', 'bucket_length'),
+        'jac_rows': (0, 1, 2, 3, 3, 4, 4, 5, 5, 5, 5, 6, 6, 6, 6, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 11, 11, 11, 11, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 20, 20, 20, 20, 21, 21, 21, 21, 22, 22, 22, 22, 23, 23, 23, 23, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 32, 32, 32, 32, 33, 33, 33, 33, 34, 34, 34, 34, 35, 35, 35, 35, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 40, 40, 40, 40, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 49, 49, 49, 49, 50, 50, 50, 50, 51, 51, 51, 51, 52, 52, 52, 52, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 57, 57, 57, 57, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 65, 65, 65, 65, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 69, 69, 69, 69, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83),
+        'jac_cols': (0, 1, 2, 3, 4, 3, 4, 0, 4, 5, 6, 1, 3, 5, 7, 2, 3, 4, 8, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 0, 4, 5, 12, 1, 3, 5, 13, 2, 3, 4, 14, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 6, 10, 11, 18, 7, 9, 11, 19, 8, 9, 10, 20, 0, 4, 5, 24, 1, 3, 5, 25, 2, 3, 4, 26, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 6, 10, 11, 30, 7, 9, 11, 31, 8, 9, 10, 32, 6, 10, 11, 36, 7, 9, 11, 37, 8, 9, 10, 38, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 6, 10, 11, 42, 7, 9, 11, 43, 8, 9, 10, 44, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 36, 40, 41, 48, 37, 39, 41, 49, 38, 39, 40, 50, 36, 40, 41, 78, 37, 39, 41, 79, 38, 39, 40, 80, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 36, 40, 41, 66, 37, 39, 41, 67, 38, 39, 40, 68, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 66, 70, 71, 72, 76, 77, 67, 69, 71, 73, 75, 77, 68, 69, 70, 74, 75, 76, 72, 78, 82, 83, 73, 79, 81, 83, 74, 80, 81, 82, 75, 76, 77, 81, 82, 83, 36, 40, 41, 54, 37, 39, 41, 55, 38, 39, 40, 56, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 60, 66, 70, 71, 61, 67, 69, 71, 62, 68, 69, 70, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62),
+        't0': 0.0, 't1': 59.5, 'steps': 341,
+        'driver_sources': (('cases.digging_paced.drivers.swing_angle.function', 'pi/4*(tanh((2*t/7 - 8.5)/0.5) - tanh((2*t/7 - 13.5)/0.5))'), ('cases.digging_paced.drivers.boom_length.function', '2.507892 - 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.425*(1 + tanh((2*t/7 - 7)/0.5)) - 0.2*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.arm_length.function', '1.943212 + 0.225*(1 + tanh((2*t/7 - 1.5)/0.5)) + 0.375*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.425*(1 + tanh((2*t/7 - 11.5)/0.5)) - 0.175*(1 + tanh((2*t/7 - 14.5)/0.5))'), ('cases.digging_paced.drivers.bucket_length.function', '1.857898 + 0.325*(1 + tanh((2*t/7 - 4.5)/0.5)) - 0.375*(1 + tanh((2*t/7 - 11.5)/0.5)) + 0.05*(1 + tanh((2*t/7 - 14.5)/0.5))')),
+        'outputs': {'phi': phi_digging_paced, 'jac': jac_digging_paced, 'nu': nu_digging_paced, 'gamma': gamma_digging_paced, 'inputs': inputs_digging_paced, 'input_ranges': input_ranges_digging_paced, 'phi_p': phi_p_digging_paced, 'dvel': dvel_digging_paced, 'dacc': dacc_digging_paced},
+        'scalar': {'phi_jac': phi_jac_s_digging_paced, 'nu': nu_s_digging_paced, 'gamma': gamma_s_digging_paced},
         'patterns': {'phi_p': ((19, 19, 20, 20, 21, 21, 31, 31, 32, 32, 33, 33, 48, 48, 49, 49, 50, 50, 61, 61, 62, 62, 63, 63, 64, 64, 65, 65, 66, 66, 77, 78, 79), (0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 0, 1, 2, 3, 2, 3, 2, 3, 5, 6, 5, 6, 5, 6, 7, 8, 7, 8, 7, 8, 5, 5, 5)), 'dvel': ((3, 3, 3, 4, 4, 4, 5, 5, 5, 6, 6, 6, 7, 7, 7, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 10, 10, 10, 11, 11, 11, 12, 12, 12, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 22, 22, 22, 23, 23, 23, 24, 24, 24, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 34, 34, 34, 35, 35, 35, 36, 36, 36, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 39, 39, 39, 40, 40, 40, 41, 41, 41, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 51, 51, 51, 52, 52, 52, 53, 53, 53, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 56, 56, 56, 57, 57, 57, 58, 58, 58, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 68, 68, 68, 69, 69, 69, 70, 70, 70, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 78, 78, 78, 78, 79, 79, 79, 79, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83), (3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 10, 11, 3, 4, 5, 9, 10, 11, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 15, 16, 17, 15, 16, 17, 21, 22, 23, 15, 16, 17, 21, 22, 23, 12, 13, 14, 15, 16, 17, 18, 19, 20, 12, 13, 14, 15, 16, 17, 18, 19, 20, 15, 16, 17, 21, 22, 23, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 27, 28, 29, 27, 28, 29, 33, 34, 35, 27, 28, 29, 33, 34, 35, 24, 25, 26, 27, 28, 29, 30, 31, 32, 24, 25, 26, 27, 28, 29, 30, 31, 32, 27, 28, 29, 33, 34, 35, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 84, 85, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 39, 40, 41, 9, 10, 11, 39, 40, 41, 9, 10, 11, 9, 10, 11, 9, 10, 11, 9, 10, 11, 45, 46, 47, 45, 46, 47, 51, 52, 53, 45, 46, 47, 51, 52, 53, 42, 43, 44, 45, 46, 47, 48, 49, 50, 42, 43, 44, 45, 46, 47, 48, 49, 50, 45, 46, 47, 51, 52, 53, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 86, 87, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 81, 82, 83, 39, 40, 41, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 69, 70, 71, 39, 40, 41, 69, 70, 71, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 69, 70, 71, 75, 76, 77, 89, 90, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 81, 82, 83, 91, 92, 75, 76, 77, 81, 82, 83, 39, 40, 41, 39, 40, 41, 39, 40, 41, 39, 40, 41, 57, 58, 59, 57, 58, 59, 63, 64, 65, 57, 58, 59, 63, 64, 65, 54, 55, 56, 57, 58, 59, 60, 61, 62, 54, 55, 56, 57, 58, 59, 60, 61, 62, 57, 58, 59, 63, 64, 65, 69, 70, 71, 89, 69, 70, 71, 89, 69, 70, 71, 89, 3, 4, 5, 12, 13, 14, 15, 16, 17, 18, 19, 20, 42, 43, 44, 45, 46, 47, 48, 49, 50, 54, 55, 56, 57, 58, 59, 60, 61, 62)), 'dacc': ((3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83), (3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146))},
     },
     'oscillation': {

@@ -382,8 +382,16 @@ def solve(
     elif loads or dynamics:
         click.echo(f"forces: not computed -- the solve stopped at t = {results.times[-1]:g} s and forces need every time point; "
                    "the CSV has no force columns", err=True)  # fmt: skip
+    supplied = None
+    if model.supply is not None and results.complete:  # the oil the motion asks of the pumps (and, with forces, their power)
+        from kinegen.forces.supply import flows
+
+        supplied = flows(results, model, held)
+        _report_supply(supplied, piped)
     if out:
-        written = results.to_csv(out, held.table() if held is not None else None)
+        extra = [t for t in (held.table() if held is not None else None, supplied.table() if supplied is not None else None) if t]
+        joined = ([n for names, _ in extra for n in names], np.hstack([values for _, values in extra])) if extra else None
+        written = results.to_csv(out, joined)
         if not piped:
             click.echo(f"wrote {written}")
     if sensitivities:
@@ -532,6 +540,34 @@ def _report_forces(held, model, piped: bool) -> None:
             f"worst {worst[1] / 1e6:.1f} MPa against {worst[2] / 1e6:.1f} MPa ({worst[3]}) at t = {worst[0]:g} s",
             err=piped,
         )
+
+
+def _report_supply(supplied, piped: bool) -> None:
+    """Each pump's largest demanded flow against its limit (and, with forces, its pressure and power),
+    then a FLOW: line per span where a pump's demand exceeds its largest flow and a POWER: line per
+    span where the pumps need more than the engine gives."""
+    from kinegen.forces.supply import LITRES_PER_MINUTE as LPM
+
+    click.echo("pumps:", err=piped)
+    for p, name in enumerate(supplied.pumps):
+        k = int(np.argmax(supplied.flow[p]))
+        line = f"  {name:<20} flow up to {supplied.flow[p, k] * LPM:7.0f} L/min of {supplied.max_flow[p] * LPM:.0f} L/min (t = {supplied.times[k]:g} s)"
+        if supplied.power is not None:
+            j = int(np.argmax(supplied.power[p]))
+            line += f"; power up to {supplied.power[p, j] / 1e3:.1f} kW at {supplied.pressure[p, j] / 1e6:.1f} MPa (t = {supplied.times[j]:g} s)"
+        click.echo(line, err=piped)
+    if supplied.power is not None:
+        total = supplied.power.sum(axis=0)
+        k = int(np.argmax(total))
+        click.echo(f"  engine: the pumps take up to {total[k] / 1e3:.1f} kW of {supplied.engine_power / 1e3:.0f} kW (t = {supplied.times[k]:g} s)",
+                   err=piped)  # fmt: skip
+    for name, t0, t1, largest, at in supplied.flow_excesses():
+        limit = supplied.max_flow[supplied.pumps.index(name)]
+        click.echo(f"FLOW: pump {name} asked more than its {limit * LPM:.0f} L/min, t = {t0:g} .. {t1:g} s; up to {largest * LPM:.0f} L/min "
+                   f"({largest / limit:.2f} times) at t = {at:g} s")  # fmt: skip
+    for t0, t1, largest, at in supplied.power_excesses():
+        click.echo(f"POWER: the pumps need more than the engine's {supplied.engine_power / 1e3:.0f} kW, t = {t0:g} .. {t1:g} s; up to "
+                   f"{largest / 1e3:.1f} kW at t = {at:g} s")  # fmt: skip
 
 
 def _report_ranges(results) -> None:

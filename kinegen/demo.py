@@ -250,13 +250,21 @@ def main(argv: list[str] | None = None) -> int:
         from kinegen.forces import forces
         from kinegen.runtime import solve
 
-        for case in (c for c in ("digging", "digging_fast") if c in excavator_model.cases):
+        for case in (c for c in ("digging", "digging_fast", "digging_paced") if c in excavator_model.cases):
             moving = forces(solve(from_module(excavator_module, case)), excavator_model, ["payload"], inertia=True)
             peaks = ", ".join(f"{name} {p.pressure.max() / 1e6:.1f} MPa" for name, p in moving.pressures.items())
             line = f"dynamics (kinegen solve --case {case} --dynamics --load payload): peak pressures {peaks}"
             if moving.tipping is not None:
                 k = int(np.argmin(moving.tipping.margin))
                 line += f"; tipping margin down to {moving.tipping.margin[k] / 1e3:.1f} kN m ({moving.tipping.line[k]} line, t = {moving.results.times[k]:g} s)"
+            if excavator_model.supply is not None:  # the oil it asks of the pumps (docs/supply.md)
+                from kinegen.forces.supply import LITRES_PER_MINUTE, flows
+
+                supplied = flows(moving.results, excavator_model, moving)
+                p, k = np.unravel_index(np.argmax(supplied.flow / supplied.max_flow[:, None]), supplied.flow.shape)
+                line += (f"; pumps up to {supplied.flow[p, k] * LITRES_PER_MINUTE:.0f} L/min ({supplied.pumps[p]}, "
+                         f"{supplied.flow[p, k] / supplied.max_flow[p]:.2f} times its {supplied.max_flow[p] * LITRES_PER_MINUTE:.0f}), "
+                         f"{supplied.power.sum(axis=0).max() / 1e3:.0f} of the engine's {supplied.engine_power / 1e3:.0f} kW")  # fmt: skip
             print(line)
     from kinegen.analysis.scan import plot_scan, scan
 

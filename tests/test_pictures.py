@@ -307,8 +307,8 @@ def test_the_exploration_plot_has_units_a_colour_bar_readable_cells_full_labels_
     pareto, failed, ranking = panels["pareto"], panels["failed"], panels["ranking"]
     assert pareto.get_xlabel().startswith("max_reach [m]") and pareto.get_ylabel().startswith(f"{names[1]} [m]")
     # "larger is better" only where the study's objective says so: max_reach is its term, the margin only a constraint
-    assert "the study maximizes it: larger is better" in pareto.get_xlabel()
-    assert "better" not in pareto.get_ylabel() and "the study does not rank it" in pareto.get_ylabel()
+    assert "larger is better: the study maximizes it" in pareto.get_xlabel()
+    assert "better" not in pareto.get_ylabel() and "not ranked by the study" in pareto.get_ylabel()
     for ax in (pareto, failed):
         assert all("(0)" not in text.get_text() for text in ax.get_legend().get_texts())
     crosses = [c for c in failed.collections if c.get_label().startswith("not ok")]

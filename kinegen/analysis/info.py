@@ -56,6 +56,12 @@ def describe(model: Model, parametrizations: tuple[str, ...] = DEFAULT_PARAMETRI
             lines.append(f"  {a.name:<22} {a.points[0].body}.{a.points[0].name} - {a.points[1].body}.{a.points[1].name}, {shown}{hydraulics}")
     if model.motors:
         lines.append("motors: " + ", ".join(f"{m.name} (at {m.joint})" for m in model.motors))
+    if model.supply is not None:
+        nominal = {d.name: float(d.nominal) for d in model.design}
+        pumps = ", ".join(f"{p.name} {design_value(p.max_flow, nominal) * 60000:.0f} L/min" for p in model.supply.pumps)
+        circuits = "; ".join(f"{name} <- {' + '.join(fed)}" for name, fed in model.supply.circuits.items())
+        lines.append(f"pumps (kinegen solve: FLOW, POWER): {pumps}; engine {design_value(model.supply.engine_power, nominal) / 1e3:.0f} kW; "
+                     f"circuits {circuits}")  # fmt: skip
     if model.loads:
         lines.append("loads: " + ", ".join(f"{name} (at {load.point.body}.{load.point.name})" for name, load in model.loads.items()))
     if model.massive:

@@ -161,12 +161,12 @@ def _sense(label: str, study: str | None, maximize: bool) -> str:
     only how the front was drawn."""
     taken = "larger" if maximize else "smaller"
     if study == "maximize":
-        return "the study maximizes it: larger is better" + ("" if maximize else "; the front takes smaller")
+        return "larger is better: the study maximizes it" + ("" if maximize else "; front: smaller")
     if study == "minimize":
-        return "the study minimizes it: smaller is better" + ("" if not maximize else "; the front takes larger")
+        return "smaller is better: the study minimizes it" + ("" if not maximize else "; front: larger")
     if study == "target":
-        return f"the study aims it at a target; the front takes {taken}"
-    return f"the study does not rank it; the front takes {taken} (--minimize to reverse)"
+        return f"the study aims at a target; front: {taken}"
+    return f"not ranked by the study; front: {taken}"
 
 
 def quantity_unit(label: str) -> str:

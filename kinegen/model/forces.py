@@ -106,13 +106,20 @@ def read_motors(loader: Loader, value: Any) -> tuple[Motor, ...]:
     for key, spec in loader.mapping(value, "motors", loader.keys(value)).items():
         entry = f"motors.{key}"
         loader.name(key, entry)
-        spec = loader.mapping(spec, entry, ("joint",), ("joint",))
+        spec = loader.mapping(spec, entry, ("joint", "displacement"), ("joint",))
         joint = loader.joints.get(spec["joint"]) if isinstance(spec["joint"], str) else None
         if joint is None:
             raise loader.fail(f"{entry}.joint", f"unknown joint {shown(spec['joint'])} (joints: {', '.join(loader.joints)})")
         if joint.type not in MOTOR_JOINTS:
             raise loader.fail(f"{entry}.joint", f"{joint.name} is a {joint.type} joint: a motor turns a {' or '.join(MOTOR_JOINTS)} joint")
-        motors.append(Motor(key, joint.name))
+        displacement = None
+        if "displacement" in spec:
+            displacement = loader.scalar(spec["displacement"], f"{entry}.displacement", design=True)
+            if not loader.value(displacement) > 0:
+                raise loader.fail(f"{entry}.displacement", "the oil per radian of the joint's turn (m^3/rad) must be positive")
+            loader.plausible(displacement, f"{entry}.displacement", "m^3/rad", (1e-7, 1e-2), "a motor's displacement per radian of its joint",
+                             "m^3 per radian of the joint (the gear included)")  # fmt: skip
+        motors.append(Motor(key, joint.name, displacement))
     return tuple(motors)
 
 

@@ -50,6 +50,7 @@ from kinegen.model.schema import (
     WorkingRange,
 )
 from kinegen.model.studies import read_studies
+from kinegen.model.supply import read_supply
 from kinegen.rotations.euler_angles import SEQUENCES, EulerAngles
 from kinegen.rotations.euler_parameters import quaternion_matrix
 
@@ -376,6 +377,7 @@ class _Reader:
                 "lift_chart",
                 "gravity",
                 "machine",
+                "pumps",
                 "drivers",
                 "cases",
                 "working_range",
@@ -421,6 +423,7 @@ class _Reader:
         tool_forces = read_tool_forces(self, top["tool_forces"], cases, actuators, tool_points, working_range) if "tool_forces" in top else None
         lift_chart = read_lift_chart(self, top["lift_chart"], cases, actuators, working_range) if "lift_chart" in top else None
         machine = read_machine(self, top.get("machine"))
+        supply = read_supply(self, top["pumps"], actuators, motors) if "pumps" in top else None
         self.loads, self.tool_forces, self.lift_chart, self.machine = loads, tool_forces, lift_chart, machine  # what the studies' force quantities refer to
         self.massive = tuple(name for name, body in self.bodies.items() if body.inertia is not None)
         studies = read_studies(self, top.get("studies"), cases, actuators, working_range) if "studies" in top else {}
@@ -447,6 +450,7 @@ class _Reader:
             lift_chart=lift_chart,
             gravity=self.lift_gravity(read_gravity(self, top.get("gravity")), lift_chart),
             machine=machine,
+            supply=supply,
         )
 
     def lift_gravity(self, gravity: Any, lift_chart: Any) -> Any:

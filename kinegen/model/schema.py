@@ -187,10 +187,37 @@ class Actuator:
 @dataclass(frozen=True)
 class Motor:
     """A rotary actuator at a revolute (or cylindrical) joint: it carries the torque about the
-    joint's axis that turns ``joint``'s second body relative to its first (positive about axis1)."""
+    joint's axis that turns ``joint``'s second body relative to its first (positive about axis1).
+    ``displacement``: the oil it takes per radian of the joint's turn [m^3/rad] (a hydraulic motor
+    through its gear: flow = displacement x |turn rate|; its pressure = torque / displacement), None
+    where it is not hydraulic."""
 
     name: str
     joint: str
+    displacement: sp.Expr | None = None
+
+
+@dataclass(frozen=True)
+class Pump:
+    """A hydraulic pump (``pumps.pumps``): its largest flow [m^3/s] and the pressure it can reach [Pa]."""
+
+    name: str
+    max_flow: sp.Expr
+    max_pressure: sp.Expr
+
+
+@dataclass(frozen=True)
+class Supply:
+    """The machine's hydraulic supply (``pumps:``): the pumps, the engine power they share [W] and which
+    pumps feed each actuation element (``circuits``: a hydraulic actuator or a motor with a displacement
+    -> its pumps). Confluence: an element fed by several pumps draws its flow from them in equal shares
+    (their flows merged); a pump's flow is the sum of its shares. A pump delivers at the highest pressure
+    among the elements it feeds; the pumps together take at most ``engine_power`` (total power control:
+    the sum of pressure x flow), each at most its own largest flow and pressure."""
+
+    pumps: tuple[Pump, ...]
+    engine_power: sp.Expr
+    circuits: dict[str, tuple[str, ...]]
 
 
 @dataclass(frozen=True)
@@ -506,6 +533,8 @@ class Model:
     lift_chart: LiftChartSpec | None = None  #: where to find the hydraulic lift capacity
     #: the undercarriage and its tracks (``machine:``), for the tipping limit; None: not given
     machine: Machine | None = None
+    #: the hydraulic supply (``pumps:``): pumps, engine power, circuits; None: not given
+    supply: Supply | None = None
     #: the acceleration of gravity, global [m/s^2] (``gravity:``; default 9.80665 along -z)
     gravity: Vector = STANDARD_GRAVITY
 
