@@ -516,7 +516,8 @@ def _report_forces(held, model, piped: bool) -> None:
                      f"of {_pressure_text(pressure.limit[j])} {'relief' if pressure.working[j] else 'holding'}")  # fmt: skip
         click.echo(line, err=piped)
     peaks = sorted(((float(np.linalg.norm(r.force, axis=1).max()), name) for name, r in held.reactions.items()), reverse=True)
-    click.echo("  largest pin forces: " + ", ".join(f"{name} {value / 1e3:.1f} kN" for value, name in peaks[:4]), err=piped)
+    click.echo("  largest pin forces: " + ", ".join(f"{name} {value / 1e3:.1f} kN" if value >= 1e3 else f"{name} {value:.1f} N"
+                                                    for value, name in peaks[:4]), err=piped)  # fmt: skip
     if held.energies is not None:
         e = held.energies
         click.echo(f"  energy: kinetic up to {e.kinetic.max() / 1e3:.2f} kJ, potential {e.potential.min() / 1e3:.1f} .. "

@@ -267,6 +267,8 @@ def test_a_distance_joints_coupler_is_drawn_in_the_plot_the_animation_and_the_pa
     pyplot().close(fig)
     fig, draw, keep = animation_figure(results, None, None, rssr)
     (line,) = [a for a in fig.axes[0].lines if (a.get_gid() or "").startswith("coupler:")]
+    assert fig.axes[0].get_xlabel().startswith("horizontal, heading") and fig.axes[0].get_ylabel().startswith("up the plane")  # in words
+    assert "coupler (distance joint)" in [t.get_text() for t in fig.legends[0].get_texts()]
     k = int(keep[len(keep) // 2])
     draw(k)
     xy = np.column_stack(line.get_data())

@@ -53,12 +53,9 @@ def animation_figure(results: Results, frame_body: str | None = None, track: tup
     bodies = {b: list(p) for b, p in system.points.items() if b != GROUND and p}
     outlines = {b: _outline(np.array([system.points[b][p] for p in names], dtype=float)) for b, names in bodies.items()}
     world = {(b, p): _in_frame(results, frame_body, results.point_position(b, p)) for b, names in bodies.items() for p in names}
-    if frame_body is None:  # the plane of largest spread
-        stacked = np.vstack(list(world.values()))
-        _, _, axes = np.linalg.svd(stacked - stacked.mean(axis=0), full_matrices=False)
-        basis, labels = axes[:2], ("u [m]", "w [m]")
-    else:
-        basis, labels = np.array([[1.0, 0, 0], [0, 0, 1.0]]), (f"x of {frame_body} [m]", f"z of {frame_body} [m]")
+    from kinegen.analysis.plots import drawing_plane
+
+    basis, labels, _ = drawing_plane(results, frame_body)  # the case plot's plane, its axes in words
     plane = {key: value @ basis.T for key, value in world.items()}
     path_2d = _in_frame(results, frame_body, results.point_position(*track)) @ basis.T if track else None
     actuators = {name: (refs, limits) for name, (*refs, limits) in system.actuators.items()}
@@ -85,6 +82,8 @@ def animation_figure(results: Results, frame_body: str | None = None, track: tup
         *([Line2D([], [], color=_BARREL, lw=6, label="cylinder barrel"), Line2D([], [], color=_ROD, lw=3, label="cylinder rod"),
            Line2D([], [], color=_OUT, lw=4, label="out of its range")] if actuators else []),
     ]  # fmt: skip
+    if links:
+        handles.append(Line2D([], [], color=_BODY, lw=1.2, label="coupler (distance joint)"))
     if path_2d is not None:
         handles.append(ax.plot(path_2d[solved, 0], path_2d[solved, 1], ":", color="green", lw=1, label=f"path of {track[0]}.{track[1]}")[0])
         marker = ax.plot([], [], "o", color=TRACKED, ms=7)[0]
