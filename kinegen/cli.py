@@ -18,7 +18,7 @@ import click
 
 from kinegen import __version__, rotations
 from kinegen.errors import ExitCode, KinegenError, OverConstrainedError, printable
-from kinegen.files import MAX_MODEL_BYTES, STDOUT, read_bounded
+from kinegen.files import MAX_MODEL_BYTES, STDIN, STDOUT, read_bounded
 from kinegen.interface import FRAME_VALUES
 from kinegen.lazy import lazy_import
 
@@ -1001,9 +1001,11 @@ def info(model_file: str, params: tuple[str, ...]) -> None:
 
     def describe() -> str:
         from kinegen.analysis.info import describe
-        from kinegen.model import load
+        from kinegen.model import load, loads
 
-        return describe(load(model_file), names)
+        # the bytes read once: the cache's key is what is described
+        model = load(model_file) if source is None else loads(source, "<stdin>" if model_file == STDIN else model_file)
+        return describe(model, names)
 
     # the same bytes described by the same kinegen: from the cache (no SymPy to import)
     click.echo(describe() if source is None else cached_text("info", source, ",".join(names), describe))

@@ -43,13 +43,10 @@ def place_shipped_modules(destination: Path) -> int:
     main job outside a clone loads them instead of building them again (the runtime trusts them: see
     :func:`kinegen.integrity.shipped`; a stale one is rebuilt by the usual rule). Returns how many
     were copied (none in a clone, which ships nothing there)."""
-    from kinegen.integrity import shipped_folder
+    from kinegen.integrity import shipped_files
 
-    folder = shipped_folder()
-    if not folder.is_dir():
-        return 0
     copied = 0
-    for source in sorted(p for p in folder.iterdir() if p.suffix in (".py", ".c", ".h") and p.name != "__init__.py"):
+    for source in shipped_files():
         target = destination / source.name
         if not target.exists():
             write_atomic(target, source.read_bytes())

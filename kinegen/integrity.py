@@ -82,14 +82,19 @@ def shipped_folder() -> Path:
     return Path(kinegen.__file__).resolve().parent / "generated"
 
 
+def shipped_files() -> list[Path]:
+    """The generated modules and C files an installed wheel ships (:func:`shipped_folder`; none in a clone)."""
+    folder = shipped_folder()
+    if not folder.is_dir():
+        return []
+    return sorted(p for p in folder.iterdir() if p.suffix in (".py", ".c", ".h") and p.name != "__init__.py" and p.is_file())
+
+
 @functools.cache
 def shipped() -> frozenset[str]:
     """The digests of the generated files shipped inside the installed kinegen package: as much
     kinegen's own as its code beside them (whoever can change them can change kinegen)."""
-    folder = shipped_folder()
-    if not folder.is_dir():
-        return frozenset()
-    return frozenset(digest(p.read_bytes()) for p in folder.iterdir() if p.suffix in (".py", ".c", ".h") and p.is_file())
+    return frozenset(digest(p.read_bytes()) for p in shipped_files())
 
 
 def expected_key(*parts: str) -> str:

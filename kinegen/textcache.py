@@ -22,15 +22,16 @@ from kinegen.files import cache_folder, write_atomic
 
 
 @functools.cache
-def code_fingerprint() -> str:
-    """SHA-256 over kinegen's version, its source files and SymPy's installed version."""
+def code_fingerprint(suffixes: tuple[str, ...] = (".py",)) -> str:
+    """SHA-256 over kinegen's version, SymPy's installed version and the package's files ending in
+    ``suffixes`` (the code generator's fingerprint adds its templates and C: ``.jinja``, ``.c``, ``.h``)."""
     root = Path(kinegen.__file__).resolve().parent
     try:
         sympy_version = metadata.version("sympy")
     except metadata.PackageNotFoundError:
         sympy_version = "?"
     key = hashlib.sha256(f"{kinegen.__version__}\n{sympy_version}".encode())
-    for file in sorted(p for p in root.rglob("*.py") if "__pycache__" not in p.parts):
+    for file in sorted(p for p in root.rglob("*") if p.suffix in suffixes and "__pycache__" not in p.parts):
         key.update(f"\n{file.relative_to(root).as_posix()}\n".encode() + file.read_bytes())
     return key.hexdigest()
 

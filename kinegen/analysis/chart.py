@@ -206,8 +206,7 @@ def working_range_figure(envelope: Envelope, boundary: Boundary, system: Numeric
     for mark, offset in zip(marks, offsets):  # the published figure on the same line, where it differs
         published = spec.published.get(mark.figure)
         if published is not None and abs(published - mark.value) > DIFFERS:
-            at = (published, -BELOW_GROUND if abs(mark.height) < BELOW_GROUND else mark.height) if mark.kind == "h" else (
-                mark.reach + offset, np.sign(mark.height) * published)
+            at = (published, _level(mark)) if mark.kind == "h" else (mark.reach + offset, np.sign(mark.height) * published)
             ax.plot(*at, marker="D", ms=5, mfc="none", mec="0.25", mew=1.1, ls="none", zorder=6, gid=f"published:{mark.letter}")
     if any(a.get_gid() and a.get_gid().startswith("published:") for a in ax.lines):
         ax.plot([], [], marker="D", ms=5, mfc="none", mec="0.25", ls="none", label=f"published figure, where it differs by more than {DIFFERS:g} m")
@@ -276,6 +275,12 @@ def _offsets(marks: list[Mark]) -> list[float]:
     return out
 
 
+def _level(mark: Mark) -> float:
+    """Where a horizontal dimension line is drawn: at its point's height, or :data:`BELOW_GROUND`
+    below the ground when its point is near it (off the ground band)."""
+    return -BELOW_GROUND if abs(mark.height) < BELOW_GROUND else mark.height
+
+
 def _dimension(ax, mark: Mark, offset: float = 0.0):
     """A dimension line with arrows at both ends between the swing axis (h) or the ground (v) and
     the figure's point, with an extension line where it is drawn off that point (a horizontal one
@@ -284,7 +289,7 @@ def _dimension(ax, mark: Mark, offset: float = 0.0):
     style = {"arrowstyle": "<|-|>", "color": "0.15", "lw": 0.8, "shrinkA": 0, "shrinkB": 0, "mutation_scale": 8}
     ax.plot([mark.reach], [mark.height], "o", ms=5, mfc="white", mec="crimson", mew=1.4, zorder=6)
     if mark.kind == "h":
-        level = -BELOW_GROUND if abs(mark.height) < BELOW_GROUND else mark.height
+        level = _level(mark)
         ends = np.array([[0.0, level], [mark.value, level]])
         if level != mark.height:
             ax.plot([mark.reach, mark.reach], [mark.height, level - 0.1], color="0.15", lw=0.5, zorder=5)

@@ -103,7 +103,7 @@ def force_map(system: NumericSystem, model: Model, direction: str, grid: tuple[i
     point = spec.point
     v = None
     if DIRECTIONS[direction] is None:  # the lip's velocity per unit rate of the bucket's input
-        bucket = model.tool_forces.forces["bucket"].driver if model.tool_forces and "bucket" in model.tool_forces.forces else None
+        bucket = _bucket_driver(model)
         if bucket is None:
             raise KinegenError("the tangent map needs tool_forces.bucket (the input that curls the bucket)")
         v = unit_rate_velocities(system, q, inputs, bucket)
@@ -169,10 +169,10 @@ def reach_map(system: NumericSystem, model: Model, direction: str = "tangent", a
     and the cylinder (or the two cylinders) that limit there."""
     start = time.perf_counter()
     spec = model.working_range
-    tool = model.tool_forces.forces["bucket"].driver if model.tool_forces and "bucket" in model.tool_forces.forces else None
-    if spec is None or tool is None or tool not in RangeEvaluator(system, spec).names:
+    tool = _bucket_driver(model)
+    names = RangeEvaluator(system, spec).names if spec is not None else []
+    if tool is None or tool not in names:
         raise KinegenError("the reach map needs a working_range: section whose swept inputs include tool_forces.bucket's driver")
-    names = RangeEvaluator(system, spec).names
     if len(names) != 3:
         raise KinegenError(f"the reach map sweeps three inputs (two that place the tool point, one that turns it); {spec.case} sweeps {len(names)}")
     turn = names.index(tool)
@@ -192,17 +192,8 @@ def reach_map(system: NumericSystem, model: Model, direction: str = "tangent", a
         if len(mine) < 3:
             continue
         values[layer] = found.inputs[mine[0], system.driver_names.index(tool)]
-        place = -np.ones((per_input, per_input), dtype=int)
-        place[found.index[others[0], mine], found.index[others[1], mine]] = mine
-        corners = np.stack([place[:-1, :-1], place[1:, :-1], place[1:, 1:], place[:-1, 1:]], axis=-1).reshape(-1, 4)
-        corners = corners[(corners >= 0).all(axis=1)]
-        triangles = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])
-        force, limiting, flat, cylinders = _rasterize(x, z, limits, triangles, radius, height)
-        order = np.argsort(force)  # ascending: where triangles overlap (two poses reach the point) the largest is written last
-        per_layer[layer].flat[flat[order]] = force[order]
-        limiting_of[layer].flat[flat[order]] = limiting[order]
-        for c in range(len(found.cylinders)):
-            each[layer, c].flat[flat[order]] = cylinders[c, order]
+        triangles = _grid_triangles(found.index[others[0], mine], found.index[others[1], mine], mine, (per_input, per_input))
+        per_layer[layer], limiting_of[layer], each[layer] = _largest_per_cell(shape, *_rasterize(x, z, limits, triangles, radius, height))
     reached = np.isfinite(per_layer).any(axis=0)
     best = np.argmax(np.where(np.isfinite(per_layer), per_layer, -np.inf), axis=0)
     rows, cols = np.indices(shape)
@@ -241,23 +232,12 @@ def reach_map(system: NumericSystem, model: Model, direction: str = "tangent", a
         free = others[1 - others.index(k)]
         for end in (0, per_input - 1):
             face = np.flatnonzero(found.index[k] == end)
-            place = -np.ones((per_input, attitudes), dtype=int)
-            place[found.index[free, face], found.index[turn, face]] = face
-            corners = np.stack([place[:-1, :-1], place[1:, :-1], place[1:, 1:], place[:-1, 1:]], axis=-1).reshape(-1, 4)
-            corners = corners[(corners >= 0).all(axis=1)]
-            if not len(corners):
-                continue
-            triangles = np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])
-            on_face, limit_face, flat, _ = _rasterize(x, z, limits, triangles, radius, height)
-            order = np.argsort(on_face)
-            larger = np.full(shape, -np.inf)
-            larger.flat[flat[order]] = on_face[order]
-            which = np.full(shape, -1)
-            which.flat[flat[order]] = limit_face[order]
+            triangles = _grid_triangles(found.index[free, face], found.index[turn, face], face, (per_input, attitudes))
+            larger, which, _ = _largest_per_cell(shape, *_rasterize(x, z, limits, triangles, radius, height))
             wins = reached & (larger > force)
             force, limiting = np.where(wins, larger, force), np.where(wins, which, limiting)
             on_a_face |= wins
-            edge &= ~(wins | (reached & (larger >= force - 1e-9 * np.abs(force))))
+            edge &= ~(reached & (larger >= force - 1e-9 * np.abs(force)))  # the largest is on this face (where it wins, too)
     count = len(found.cylinders)
     pairs = [(i, j) for i in range(count) for j in range(i + 1, count)]
     # the best attitude lies where the limit passes from one cylinder to the other (not at a placing cylinder's end)
@@ -353,6 +333,38 @@ def _filled(found: ReachMap, boundary) -> tuple[np.ndarray, np.ndarray, str]:
     return force, limiting, f"; the {share:.1%} of the range no sampled pose covers (along its edges) shows its nearest value"
 
 
+def _bucket_driver(model: Model) -> str | None:
+    """The input that curls the bucket (``tool_forces.bucket``'s driver), or None."""
+    tool_forces = model.tool_forces
+    return tool_forces.forces["bucket"].driver if tool_forces and "bucket" in tool_forces.forces else None
+
+
+def _grid_triangles(rows: np.ndarray, cols: np.ndarray, poses: np.ndarray, shape: tuple[int, int]) -> np.ndarray:
+    """The triangles (T, 3) of the poses ``poses`` laid out on a grid of ``shape`` at (``rows``,
+    ``cols``): two per grid cell whose four corners were solved."""
+    place = -np.ones(shape, dtype=int)
+    place[rows, cols] = poses
+    corners = np.stack([place[:-1, :-1], place[1:, :-1], place[1:, 1:], place[:-1, 1:]], axis=-1).reshape(-1, 4)
+    corners = corners[(corners >= 0).all(axis=1)]
+    return np.vstack([corners[:, [0, 1, 2]], corners[:, [0, 2, 3]]])
+
+
+def _largest_per_cell(shape: tuple[int, int], force: np.ndarray, limiting: np.ndarray, flat: np.ndarray,
+                      cylinders: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
+    """Per raster cell (``shape``) the largest of the covered points' ``force`` that fall in it (``flat``:
+    their cells; a point inside two overlapping triangles -- two poses reach it -- comes twice), that
+    point's ``limiting`` cylinder and every cylinder's limit there (``cylinders``, (C, K)); NaN and -1
+    where no point falls."""
+    largest, which = np.full(shape, np.nan), np.full(shape, -1)
+    each = np.full((len(cylinders), *shape), np.nan)
+    order = np.argsort(force)  # ascending: the largest is written last
+    largest.flat[flat[order]] = force[order]
+    which.flat[flat[order]] = limiting[order]
+    for c in range(len(cylinders)):
+        each[c].flat[flat[order]] = cylinders[c, order]
+    return largest, which, each
+
+
 def _rasterize(x: np.ndarray, z: np.ndarray, limits: np.ndarray, triangles: np.ndarray, radius: np.ndarray,
                height: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:  # fmt: skip
     """Each cylinder's limit (``limits``, (C, N) at the poses' points (x, z)) interpolated linearly over
@@ -360,6 +372,8 @@ def _rasterize(x: np.ndarray, z: np.ndarray, limits: np.ndarray, triangles: np.n
     raster point, the smallest over the cylinders, which cylinder that is, and the raster's flat index
     (a point inside two overlapping triangles -- a fold: two poses reach it -- comes twice), and every
     cylinder's value there (C, K)."""
+    if not len(triangles):  # no grid cell with four solved corners
+        return np.zeros(0), np.zeros(0, dtype=int), np.zeros(0, dtype=int), np.zeros((len(limits), 0))
     spacing = radius[1] - radius[0] if len(radius) > 1 else 1.0
     p0, p1, p2 = (np.column_stack([x[triangles[:, k]], z[triangles[:, k]]]) for k in range(3))
     e1, e2 = p1 - p0, p2 - p0

@@ -114,9 +114,7 @@ def read_motors(loader: Loader, value: Any) -> tuple[Motor, ...]:
             raise loader.fail(f"{entry}.joint", f"{joint.name} is a {joint.type} joint: a motor turns a {' or '.join(MOTOR_JOINTS)} joint")
         displacement = None
         if "displacement" in spec:
-            displacement = loader.scalar(spec["displacement"], f"{entry}.displacement", design=True)
-            if not loader.value(displacement) > 0:
-                raise loader.fail(f"{entry}.displacement", "the oil per radian of the joint's turn (m^3/rad) must be positive")
+            displacement = loader.positive(spec["displacement"], f"{entry}.displacement", "m^3/rad: the oil per radian of the joint's turn")
             loader.plausible(displacement, f"{entry}.displacement", "m^3/rad", (1e-7, 1e-2), "a motor's displacement per radian of its joint",
                              "m^3 per radian of the joint (the gear included)")  # fmt: skip
         motors.append(Motor(key, joint.name, displacement))

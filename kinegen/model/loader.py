@@ -247,6 +247,13 @@ class _Reader:
     def fail(self, entry: str, problem: str) -> ModelError:
         return ModelError(self.file, entry, problem, self.line(entry))
 
+    def positive(self, value: Any, entry: str, what: str) -> sp.Expr:
+        """A positive constant (design parameters allowed); ``what``: its unit and name, for the error."""
+        expr = self.scalar(value, entry, design=True)
+        if not self.value(expr) > 0:
+            raise self.fail(entry, f"{self.value(expr):g} {what} must be positive")
+        return expr
+
     def plausible(self, value: sp.Expr, entry: str, unit: str, usual: tuple[float, float], what: str, hint: str = "") -> None:
         """A :class:`ModelWarning` naming file, line and entry when ``value`` (at the nominal design)
         lies outside the ``usual`` range for ``what``, in its ``unit``: a number typed in another

@@ -28,7 +28,7 @@ def read_inertia(loader: Any, spec: dict, entry: str, pose: Body, points: dict[s
         return None
     if "mass" not in spec:
         raise loader.fail(entry, f"{', '.join(given)} without 'mass': give the body's mass [kg]")
-    mass = _positive(loader, spec["mass"], f"{entry}.mass", "kg: a mass")
+    mass = loader.positive(spec["mass"], f"{entry}.mass", "kg: a mass")
     loader.plausible(mass, f"{entry}.mass", "kg", (1e-3, 1e6), "a machine part's mass", "masses are in kg")
     center_spec = spec.get("center_of_mass", [0, 0, 0])
     if isinstance(center_spec, str):
@@ -67,14 +67,6 @@ def _tensor(loader: Any, value: Any, entry: str) -> sp.ImmutableMatrix:
     return tensor
 
 
-def _positive(loader: Any, value: Any, entry: str, what: str) -> sp.Expr:
-    """A positive constant (design parameters allowed); ``what``: its unit and name, for the error."""
-    expr = loader.scalar(value, entry, design=True)
-    if not loader.value(expr) > 0:
-        raise loader.fail(entry, f"{loader.value(expr):g} {what} must be positive")
-    return expr
-
-
 def read_gravity(loader: Any, value: Any) -> Vector:
     """``gravity: [gx, gy, gz]`` (m/s^2, global; default [0, 0, -9.80665])."""
     return STANDARD_GRAVITY if value is None else loader.vector(value, "gravity")
@@ -87,11 +79,11 @@ def read_machine(loader: Any, value: Any) -> Machine | None:
         return None
     spec = loader.mapping(value, "machine", ("undercarriage", "tracks"), ("undercarriage", "tracks"))
     under = loader.mapping(spec["undercarriage"], "machine.undercarriage", ("mass", "center_of_mass"), ("mass", "center_of_mass"))
-    mass = _positive(loader, under["mass"], "machine.undercarriage.mass", "kg: a mass")
+    mass = loader.positive(under["mass"], "machine.undercarriage.mass", "kg: a mass")
     loader.plausible(mass, "machine.undercarriage.mass", "kg", (1.0, 1e6), "an undercarriage's mass", "masses are in kg")
     center = loader.vector(under["center_of_mass"], "machine.undercarriage.center_of_mass")
     tracks = loader.mapping(spec["tracks"], "machine.tracks", ("length", "gauge", "shoe_width"), ("length", "gauge", "shoe_width"))
-    sizes = {key: _positive(loader, tracks[key], f"machine.tracks.{key}", "m: a length") for key in ("length", "gauge", "shoe_width")}
+    sizes = {key: loader.positive(tracks[key], f"machine.tracks.{key}", "m: a length") for key in ("length", "gauge", "shoe_width")}
     if not loader.value(sizes["shoe_width"]) < loader.value(sizes["gauge"]):
         raise loader.fail("machine.tracks.shoe_width", "the shoes are wider than the gauge: the tracks would overlap")
     return Machine(mass, center, sizes["length"], sizes["gauge"], sizes["shoe_width"])

@@ -24,14 +24,14 @@ def read_supply(loader: Any, value: Any, actuators: tuple[Actuator, ...], motors
         entry = f"pumps.pumps.{key}"
         loader.name(key, entry)
         item = loader.mapping(item, entry, ("max_flow", "max_pressure"), ("max_flow", "max_pressure"))
-        flow = _positive(loader, item["max_flow"], f"{entry}.max_flow", "m^3/s: a flow")
+        flow = loader.positive(item["max_flow"], f"{entry}.max_flow", "m^3/s: a flow")
         loader.plausible(flow, f"{entry}.max_flow", "m^3/s", (1e-5, 0.1), "a pump's largest flow", "flows are in m^3/s: 212 L/min is 212/60000")
-        pressure = _positive(loader, item["max_pressure"], f"{entry}.max_pressure", "Pa: a pressure")
+        pressure = loader.positive(item["max_pressure"], f"{entry}.max_pressure", "Pa: a pressure")
         loader.plausible(pressure, f"{entry}.max_pressure", "Pa", (1e6, 1e8), "a pump's largest pressure", "pressures are in Pa")
         pumps.append(Pump(key, flow, pressure))
     if not pumps:
         raise loader.fail("pumps.pumps", "name at least one pump")
-    power = _positive(loader, spec["engine_power"], "pumps.engine_power", "W: a power")
+    power = loader.positive(spec["engine_power"], "pumps.engine_power", "W: a power")
     loader.plausible(power, "pumps.engine_power", "W", (1e3, 2e6), "the engine power the pumps share", "power is in W: 110 kW is 110e3")
     hydraulic = {a.name for a in actuators if a.hydraulics is not None} | {m.name for m in motors if m.displacement is not None}
     names = [p.name for p in pumps]
@@ -52,9 +52,3 @@ def read_supply(loader: Any, value: Any, actuators: tuple[Actuator, ...], motors
         raise loader.fail("pumps.circuits", f"no pump feeds {', '.join(missing)}: give each hydraulic element its pumps")
     return Supply(tuple(pumps), power, circuits)
 
-
-def _positive(loader: Any, value: Any, entry: str, what: str):
-    expr = loader.scalar(value, entry, design=True)
-    if not loader.value(expr) > 0:
-        raise loader.fail(entry, f"{loader.value(expr):g} {what} must be positive")
-    return expr
