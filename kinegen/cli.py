@@ -307,6 +307,8 @@ def _system(
 @click.option("--no-weight", is_flag=True,
               help="With --load on a model with masses: hold the loads alone, without the bodies' own weight "
               "(by default the weight is held too, and the output says so).")  # fmt: skip
+@click.option("--timing", type=click.Path(dir_okay=False, exists=True), default=None,
+              help="A re-timing of the case written by `kinegen cycle --out`: solve the case's path at that timing, at its points.")  # fmt: skip
 @GENERATED_DIR
 def solve(
     model_file: str,
@@ -328,6 +330,7 @@ def solve(
     loads: tuple[str, ...],
     dynamics: bool,
     no_weight: bool,
+    timing: str | None,
     generated_dir: str,
 ) -> None:
     """Solve position, velocity and acceleration of a case over time; every time point where an
@@ -354,14 +357,32 @@ def solve(
                                  if dynamics else "goes with --load (the statics it leaves the weight out of)", param_hint="--no-weight")  # fmt: skip
     if plot:
         _check_frame(system, frame_body)
-    times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
+    retimed = None
+    if timing is not None:
+        from kinegen.forces.cycle import read_timing, retimed_motion
+
+        if t0 is not None or t1 is not None or steps is not None:
+            raise click.BadParameter(
+                "the timing file gives the time points: no --t0, --t1 or --steps with it", param_hint="--timing"
+            )
+        retimed = read_timing(timing)
+        if (retimed.model, retimed.case) != (system.model, system.case):
+            raise click.BadParameter(f"{timing} re-times {retimed.model}/{retimed.case}, not {system.model}/{system.case} (--case)",
+                                     param_hint="--timing")  # fmt: skip
+        times = retimed.times
+    else:
+        times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
     if loads:
         from kinegen.forces.statics import check_load_functions
 
         for name in dict.fromkeys(loads):
             check_load_functions(model, model.loads[name], times)  # before the solve: a load's function outside its domain
     start = time.perf_counter()
-    results = run(system, times, SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile))
+    options = SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile)
+    if retimed is not None:
+        results = retimed_motion(system, retimed.s, retimed.speed, retimed.acceleration, times, options)
+    else:
+        results = run(system, times, options)
     elapsed = time.perf_counter() - start
     done = results.converged
     piped = out == STDOUT  # the CSV on standard output: everything else on standard error
@@ -937,6 +958,98 @@ def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: 
         "radii": chart.radii, "tipping": chart.tipping,
         "grid": [[entry(p) for p in row] for row in chart.grid], "max_reach": [entry(p) for p in chart.max_reach],
     }, indent=2))  # fmt: skip
+
+
+@main.command()
+@click.argument("model_file", type=click.Path(dir_okay=False))
+@click.option("--case", default=None, help="The case whose path is re-timed (default: the first).")
+@PARAM
+@click.option("--load", "loads", multiple=True, metavar="NAME", help="A load of the model held along the path (repeatable), "
+              "besides the machine's weight and inertia.")  # fmt: skip
+@click.option(
+    "--steps",
+    type=click.IntRange(min=3),
+    default=None,
+    help="Points along the path where every limit is met (default: the case's).",
+)
+@click.option(
+    "--no-tipping",
+    is_flag=True,
+    help="Leave the tipping margin out (by default it stays >= 0 where the model has a machine: section).",
+)
+@click.option("--max-speed", "speed_limits", multiple=True, metavar="ACTUATOR=VALUE",
+              help="An actuator's largest speed [m/s; a motor's joint: rad/s] (repeatable).")  # fmt: skip
+@click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_output_file,
+              help="CSV of the re-timing (t, s, ds/dt, d2s/dt2 and the limit per point): `kinegen solve --timing` solves it.")  # fmt: skip
+@click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file,
+              help="PNG: the path speed along the path coloured by its limit; the pumps' flows and the engine's power along the cycle.")  # fmt: skip
+@click.option("--json", "as_json", is_flag=True, help="Print the result as JSON.")
+@click.option("--no-compile", is_flag=True, help="Use the generated Python functions only.")
+@GENERATED_DIR
+def cycle(model_file: str, case: str | None, param: str, loads: tuple[str, ...], steps: int | None, no_tipping: bool,
+          speed_limits: tuple[str, ...], out: str | None, plot: str | None, as_json: bool, no_compile: bool, generated_dir: str) -> None:  # fmt: skip
+    """The fastest timing of a case's path (the same poses, re-timed): every pump's flow and the
+    engine's power, every cylinder's pressure within its relief or holding setting and the motors'
+    torque within their pumps' pressure (with the machine's weight and inertia and the --load), the
+    tipping margin >= 0, and --max-speed -- met at every point of the path (docs/cycle.md)."""
+    from kinegen.forces.cycle import check_retimed, fastest, phase_summary, shares, write_timing
+    from kinegen.runtime import SolverOptions
+    from kinegen.runtime import solve as run
+
+    parametrization = _parametrization(param)
+    model, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None)
+    unknown = [name for name in loads if name not in model.loads]
+    if unknown:
+        raise click.BadParameter(
+            f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})", param_hint="--load"
+        )
+    limits = {}
+    movers = [a.name for a in model.actuators] + [m.name for m in model.motors]
+    for pair in speed_limits:
+        name, _, value = pair.partition("=")
+        try:
+            limits[name] = float(value)
+        except ValueError:
+            raise click.BadParameter(f"expected ACTUATOR=VALUE, got {pair!r}", param_hint="--max-speed") from None
+        if name not in movers or not limits[name] > 0:
+            raise click.BadParameter(
+                f"{pair!r}: name an actuator or motor ({', '.join(movers)}) and a speed > 0", param_hint="--max-speed"
+            )
+    if not model.massive and model.supply is None and not limits:
+        raise click.BadParameter("the model has no masses, no pumps: section and no --max-speed: nothing limits how fast the path "
+                                 "can be followed", param_hint="MODEL_FILE")  # fmt: skip
+    times = np.linspace(system.t0, system.t1, steps or system.steps)
+    start = time.perf_counter()
+    path = run(system, times, SolverOptions(compiled=not no_compile))
+    found = fastest(path, model, tuple(dict.fromkeys(loads)), tipping=not no_tipping, speed_limits=limits)
+    elapsed = time.perf_counter() - start
+    checked = check_retimed(system, model, found)
+    say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
+    held = [*found.loads, "the machine's weight and inertia"] if model.massive else list(found.loads)
+    say(f"{system.model}/{system.case} [{parametrization.name}]: fastest timing {found.duration:.2f} s, the case's own "
+        f"{found.own_duration:.2f} s ({found.duration / found.own_duration:.2f} times){'; holding ' + ', '.join(held) if held else ''}; "
+        f"{len(times)} points, {elapsed:.2f} s")  # fmt: skip
+    share = shares(found)
+    say(
+        "  limits (share of the cycle time): "
+        + ", ".join(f"{name} {100 * value:.0f} %" for name, value in share.items() if value >= 0.005)
+    )
+    say("  phases (re-timed t, the case's own s):")
+    for name, s0, s1, t0, t1 in phase_summary(found):
+        say(f"    t {t0:6.2f} .. {t1:6.2f} s   s {s0:6.2f} .. {s1:6.2f} s   {name}")
+    for line in checked.lines():
+        say("  " + line)
+    if out:
+        write_timing(found, out)
+        solve_line = (f"kinegen solve {model_file} --case {system.case} --timing {out}" + "".join(f" --load {n}" for n in found.loads)
+                      + (" --dynamics" if model.massive else "") + (f" --param {param}" if param != "quaternion" else ""))  # fmt: skip
+        say(f"wrote {out} (solve the re-timed case: {solve_line})")
+    if plot:
+        from kinegen.analysis.cycleplot import plot_cycle
+
+        say(f"wrote {plot_cycle(found, plot, checked.flows)}")
+    if as_json:
+        click.echo(json.dumps(checked.document(found, parametrization.name, share, phase_summary(found)), indent=2))
 
 
 @main.command()

@@ -36,6 +36,11 @@ MAIN_JOB: dict[str, tuple[str, ...]] = {
 SENSITIVITIES = "quaternion"
 
 
+#: the digging case's phases in its own time, as its description gives them
+DIGGING_PHASES = [("penetrate (boom down, arm in)", 0, 3), ("curl (arm and bucket in)", 3, 6), ("lift (boom up)", 6, 8),
+                  ("swing 90 deg loaded", 8, 10), ("dump (arm out, bucket open)", 10, 13), ("swing back and return", 13, 17)]  # fmt: skip
+
+
 def regenerate(models: Path, generated: Path, force: bool = True) -> Session:
     """Every module of :data:`MAIN_JOB` through one session (:class:`kinegen.api.Session`): built
     anew (``force``), or only where missing or stale -- the rule every command follows."""
@@ -266,6 +271,24 @@ def main(argv: list[str] | None = None) -> int:
                          f"{supplied.flow[p, k] / supplied.max_flow[p]:.2f} times its {supplied.max_flow[p] * LITRES_PER_MINUTE:.0f}), "
                          f"{supplied.power.sum(axis=0).max() / 1e3:.0f} of the engine's {supplied.engine_power / 1e3:.0f} kW")  # fmt: skip
             print(line)
+        if excavator_model.supply is not None:  # the fastest timing of each working path (docs/cycle.md)
+            from kinegen.analysis.cycleplot import plot_cycle
+            from kinegen.forces.cycle import check_retimed, fastest, window_limits
+
+            print(
+                "\nkinegen cycle models/excavator.yaml --load payload (the fastest timing of each path; ESTIMATED pumps and engine):"
+            )
+            for case in (c for c in ("digging", "level_cut", "trench_wall", "digging_paced") if c in excavator_model.cases):
+                system = from_module(excavator_module, case)
+                found = fastest(solve(system), excavator_model, ("payload",))
+                checked = check_retimed(system, excavator_model, found)
+                failures += bool(checked.exceeded())
+                picture = plot_cycle(found, args.out / f"excavator_cycle_{case}.png", checked.flows)
+                print(f"  {case:<14} {found.duration:6.2f} s (its own {found.own_duration:g} s), the re-timed case solved again: "
+                      f"{'no limit exceeded' if not checked.exceeded() else 'EXCEEDED ' + ', '.join(checked.exceeded())} -> {picture.name}")  # fmt: skip
+                if case == "digging":  # its phases as its description gives them, in its own time
+                    for label, spent, name, share in window_limits(found, DIGGING_PHASES):
+                        print(f"    {label:<28} {spent:5.2f} s, limited by {name} ({100 * share:.0f} % of it)")
     from kinegen.analysis.scan import plot_scan, scan
 
     toggle = from_module(excavator_module, "bucket_toggle")

@@ -58,6 +58,7 @@ STATED = {
     "kinegen solve models/excavator.yaml --case bucket_near_toggle": ("RANGE: bucket_cylinder", "[1.6529, 2.6613] m at 5 of 9 time points"),
     "kinegen solve models/excavator.yaml --case level_cut --load payload": ("the machine's own weight", "--no-weight leaves it out"),
     "kinegen solve models/excavator.yaml --case digging --dynamics": ("TIPPING:", "FLOW: pump front asked more than its 212 L/min", "(3.43 times)"),
+    "kinegen cycle models/excavator.yaml --case digging --load payload": ("fastest timing 14.68 s", "no limit exceeded"),
     "kinegen solve models/boom.yaml --param euler:zxz": ("singular", "t = 0", "boom.alpha - boom.gamma"),
     "kinegen inspect models/boom.yaml --param euler:zxz --at 0": ("rank 5", "sin(boom_beta)"),
     "kinegen inspect models/boom.yaml --param quaternion --at 0": ("det Phi_q at this configuration = 1\n",),
