@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
+ * source sha256:   224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583
  * parametrization: dual-euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0

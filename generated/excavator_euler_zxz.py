@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
+source sha256:   224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583
 parametrization: euler:zxz
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b'
+SOURCE_SHA256 = '224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583'
 PARAMETRIZATION = 'euler:zxz'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.alpha', 'upper.beta', 'upper.gamma', 'boom.x', 'boom.y', 'boom.z', 'boom.alpha', 'boom.beta', 'boom.gamma', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.alpha', 'boom_cyl_l_barrel.beta', 'boom_cyl_l_barrel.gamma', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.alpha', 'boom_cyl_l_rod.beta', 'boom_cyl_l_rod.gamma', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.alpha', 'boom_cyl_r_barrel.beta', 'boom_cyl_r_barrel.gamma', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.alpha', 'boom_cyl_r_rod.beta', 'boom_cyl_r_rod.gamma', 'arm.x', 'arm.y', 'arm.z', 'arm.alpha', 'arm.beta', 'arm.gamma', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.alpha', 'arm_cyl_barrel.beta', 'arm_cyl_barrel.gamma', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.alpha', 'arm_cyl_rod.beta', 'arm_cyl_rod.gamma', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.alpha', 'bucket_cyl_barrel.beta', 'bucket_cyl_barrel.gamma', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.alpha', 'bucket_cyl_rod.beta', 'bucket_cyl_rod.gamma', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.alpha', 'side_link.beta', 'side_link.gamma', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.alpha', 'bucket_link.beta', 'bucket_link.gamma', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.alpha', 'bucket.beta', 'bucket.gamma')
@@ -66,6 +66,7 @@ DESIGN = {
     'K_x': (-0.32404, -0.35404, -0.29404),
     'K_z': (0.33854, 0.30854, 0.36854),
     'counterweight': (4000.0, 3000.0, 5500.0),
+    'bucket_bore': (0.115, 0.1, 0.135),
     'counterweight_x': (-2.3, -2.45, -2.15),
 }
 # kernels: name -> (argument slots, (output ...)); each output a function named as it (per case
@@ -85,7 +86,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxz.h': '461e2e77d167b180a66e8de14095a537f061dd27ae39092d3c5307be216f58ed', 'excavator_euler_zxz.c': 'bf37964a53a14e06f0a60c46ffdeb4d573f6f7e693fbc6c7a3a5d170a294296f'}
+C_FILES = {'excavator_euler_zxz.h': '415a9e1a1021811bc5677e7345df157a8c122bb665e59072140eb8dbab74291a', 'excavator_euler_zxz.c': '4a9dee1ce28515c2c36eb00fe335023d1e859944191ccb1e6e84fe643bf97988'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -865,7 +866,7 @@ def lengths(q, p):
 def _joints_jac(q, p):
     """Phi_q values of the joint rows (413 entries)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, boom_alpha, boom_beta, boom_gamma, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_alpha, boom_cyl_l_rod_beta, boom_cyl_l_rod_gamma, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_alpha, boom_cyl_r_barrel_beta, boom_cyl_r_barrel_gamma, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_alpha, boom_cyl_r_rod_beta, boom_cyl_r_rod_gamma, _, _, _, arm_alpha, arm_beta, arm_gamma, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_alpha, arm_cyl_rod_beta, arm_cyl_rod_gamma, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_alpha, bucket_cyl_rod_beta, bucket_cyl_rod_gamma, _, _, _, side_link_alpha, side_link_beta, side_link_gamma, _, _, _, bucket_link_alpha, bucket_link_beta, bucket_link_gamma, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a01 = -cos(upper_alpha)*sin(upper_gamma) - cos(upper_beta)*cos(upper_gamma)*sin(upper_alpha)
     upper_a11 = -sin(upper_alpha)*sin(upper_gamma) + cos(upper_alpha)*cos(upper_beta)*cos(upper_gamma)
     upper_a21 = cos(upper_gamma)*sin(upper_beta)
@@ -1990,7 +1991,7 @@ def inertia(q, v, a, p):
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, boom_alpha, boom_beta, boom_gamma, _, _, _, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, _, _, _, boom_cyl_l_rod_alpha, boom_cyl_l_rod_beta, boom_cyl_l_rod_gamma, _, _, _, boom_cyl_r_barrel_alpha, boom_cyl_r_barrel_beta, boom_cyl_r_barrel_gamma, _, _, _, boom_cyl_r_rod_alpha, boom_cyl_r_rod_beta, boom_cyl_r_rod_gamma, _, _, _, arm_alpha, arm_beta, arm_gamma, _, _, _, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, _, _, _, arm_cyl_rod_alpha, arm_cyl_rod_beta, arm_cyl_rod_gamma, _, _, _, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, _, _, _, bucket_cyl_rod_alpha, bucket_cyl_rod_beta, bucket_cyl_rod_gamma, _, _, _, side_link_alpha, side_link_beta, side_link_gamma, _, _, _, bucket_link_alpha, bucket_link_beta, bucket_link_gamma, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma, _, _, _, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, _, _, _, v_boom_cyl_l_rod_alpha, v_boom_cyl_l_rod_beta, v_boom_cyl_l_rod_gamma, _, _, _, v_boom_cyl_r_barrel_alpha, v_boom_cyl_r_barrel_beta, v_boom_cyl_r_barrel_gamma, _, _, _, v_boom_cyl_r_rod_alpha, v_boom_cyl_r_rod_beta, v_boom_cyl_r_rod_gamma, _, _, _, v_arm_alpha, v_arm_beta, v_arm_gamma, _, _, _, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, _, _, _, v_arm_cyl_rod_alpha, v_arm_cyl_rod_beta, v_arm_cyl_rod_gamma, _, _, _, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, _, _, _, v_bucket_cyl_rod_alpha, v_bucket_cyl_rod_beta, v_bucket_cyl_rod_gamma, _, _, _, v_side_link_alpha, v_side_link_beta, v_side_link_gamma, _, _, _, v_bucket_link_alpha, v_bucket_link_beta, v_bucket_link_gamma, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
     dv_upper_x, dv_upper_y, dv_upper_z, dv_upper_alpha, dv_upper_beta, dv_upper_gamma, dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_alpha, dv_boom_beta, dv_boom_gamma, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_alpha, dv_boom_cyl_l_barrel_beta, dv_boom_cyl_l_barrel_gamma, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, dv_boom_cyl_l_rod_alpha, dv_boom_cyl_l_rod_beta, dv_boom_cyl_l_rod_gamma, dv_boom_cyl_r_barrel_x, dv_boom_cyl_r_barrel_y, dv_boom_cyl_r_barrel_z, dv_boom_cyl_r_barrel_alpha, dv_boom_cyl_r_barrel_beta, dv_boom_cyl_r_barrel_gamma, dv_boom_cyl_r_rod_x, dv_boom_cyl_r_rod_y, dv_boom_cyl_r_rod_z, dv_boom_cyl_r_rod_alpha, dv_boom_cyl_r_rod_beta, dv_boom_cyl_r_rod_gamma, dv_arm_x, dv_arm_y, dv_arm_z, dv_arm_alpha, dv_arm_beta, dv_arm_gamma, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_alpha, dv_arm_cyl_barrel_beta, dv_arm_cyl_barrel_gamma, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, dv_arm_cyl_rod_alpha, dv_arm_cyl_rod_beta, dv_arm_cyl_rod_gamma, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_alpha, dv_bucket_cyl_barrel_beta, dv_bucket_cyl_barrel_gamma, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, dv_bucket_cyl_rod_alpha, dv_bucket_cyl_rod_beta, dv_bucket_cyl_rod_gamma, dv_side_link_x, dv_side_link_y, dv_side_link_z, dv_side_link_alpha, dv_side_link_beta, dv_side_link_gamma, dv_bucket_link_x, dv_bucket_link_y, dv_bucket_link_z, dv_bucket_link_alpha, dv_bucket_link_beta, dv_bucket_link_gamma, dv_bucket_x, dv_bucket_y, dv_bucket_z, dv_bucket_alpha, dv_bucket_beta, dv_bucket_gamma = a
-    _, _, _, _, _, _, _, _, _, p_counterweight, p_counterweight_x = p
+    _, _, _, _, _, _, _, _, _, p_counterweight, _, p_counterweight_x = p
     upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
     upper_a01 = -cos(upper_alpha)*sin(upper_gamma) - cos(upper_beta)*cos(upper_gamma)*sin(upper_alpha)
     upper_a02 = sin(upper_alpha)*sin(upper_beta)
@@ -2878,7 +2879,7 @@ def inertia(q, v, a, p):
 
 def points(p):
     """Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS)."""
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     out = np.zeros((90,) + np.shape(p[0]))
     out[3] = 22767/100000
     out[5] = 195729/100000
@@ -2919,7 +2920,7 @@ def points(p):
 
 def actuator_ranges(p):
     """The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters."""
-    _, _, _, _, p_boom_retracted, _, _, _, _, _, _ = p
+    _, _, _, _, p_boom_retracted, _, _, _, _, _, _, _ = p
     out = np.zeros((8,) + np.shape(p[0]))
     out[0] = p_boom_retracted
     out[1] = 30649/10000
@@ -2935,7 +2936,7 @@ def actuator_ranges(p):
 def _joints_phi(q, p):
     """Phi of the 80 joint (and normalization) rows, common to every case."""
     upper_x, upper_y, upper_z, upper_alpha, upper_beta, upper_gamma, boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_alpha, boom_cyl_l_rod_beta, boom_cyl_l_rod_gamma, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_alpha, boom_cyl_r_barrel_beta, boom_cyl_r_barrel_gamma, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_alpha, boom_cyl_r_rod_beta, boom_cyl_r_rod_gamma, arm_x, arm_y, arm_z, arm_alpha, arm_beta, arm_gamma, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_alpha, arm_cyl_rod_beta, arm_cyl_rod_gamma, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_alpha, bucket_cyl_rod_beta, bucket_cyl_rod_gamma, side_link_x, side_link_y, side_link_z, side_link_alpha, side_link_beta, side_link_gamma, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_alpha, bucket_link_beta, bucket_link_gamma, bucket_x, bucket_y, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = cos(upper_alpha)*cos(upper_gamma) - cos(upper_beta)*sin(upper_alpha)*sin(upper_gamma)
     upper_a01 = -cos(upper_alpha)*sin(upper_gamma) - cos(upper_beta)*cos(upper_gamma)*sin(upper_alpha)
     upper_a02 = sin(upper_alpha)*sin(upper_beta)
@@ -3276,7 +3277,7 @@ def jac_digging(q, u, p):
 def _joints_phi_joints_jac_s(q, p):
     """Phi of the 80 joint (and normalization) rows, common to every case.; Phi_q values of the joint rows (413 entries). (one configuration, lists of floats)"""
     upper_x, upper_y, upper_z, upper_alpha, upper_beta, upper_gamma, boom_x, boom_y, boom_z, boom_alpha, boom_beta, boom_gamma, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_alpha, boom_cyl_l_rod_beta, boom_cyl_l_rod_gamma, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_alpha, boom_cyl_r_barrel_beta, boom_cyl_r_barrel_gamma, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_alpha, boom_cyl_r_rod_beta, boom_cyl_r_rod_gamma, arm_x, arm_y, arm_z, arm_alpha, arm_beta, arm_gamma, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_alpha, arm_cyl_rod_beta, arm_cyl_rod_gamma, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_alpha, bucket_cyl_rod_beta, bucket_cyl_rod_gamma, side_link_x, side_link_y, side_link_z, side_link_alpha, side_link_beta, side_link_gamma, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_alpha, bucket_link_beta, bucket_link_gamma, bucket_x, bucket_y, bucket_z, bucket_alpha, bucket_beta, bucket_gamma = q
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = math.cos(upper_alpha)*math.cos(upper_gamma) - math.cos(upper_beta)*math.sin(upper_alpha)*math.sin(upper_gamma)
     upper_a01 = -math.cos(upper_alpha)*math.sin(upper_gamma) - math.cos(upper_beta)*math.cos(upper_gamma)*math.sin(upper_alpha)
     upper_a02 = math.sin(upper_alpha)*math.sin(upper_beta)
@@ -4040,7 +4041,7 @@ def _joints_gamma(q, v, p):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, boom_alpha, boom_beta, boom_gamma, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_alpha, boom_cyl_l_rod_beta, boom_cyl_l_rod_gamma, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_alpha, boom_cyl_r_barrel_beta, boom_cyl_r_barrel_gamma, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_alpha, boom_cyl_r_rod_beta, boom_cyl_r_rod_gamma, _, _, _, arm_alpha, arm_beta, arm_gamma, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_alpha, arm_cyl_rod_beta, arm_cyl_rod_gamma, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_alpha, bucket_cyl_rod_beta, bucket_cyl_rod_gamma, _, _, _, side_link_alpha, side_link_beta, side_link_gamma, _, _, _, bucket_link_alpha, bucket_link_beta, bucket_link_gamma, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_alpha, v_boom_cyl_l_rod_beta, v_boom_cyl_l_rod_gamma, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_alpha, v_boom_cyl_r_barrel_beta, v_boom_cyl_r_barrel_gamma, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_alpha, v_boom_cyl_r_rod_beta, v_boom_cyl_r_rod_gamma, _, _, _, v_arm_alpha, v_arm_beta, v_arm_gamma, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_alpha, v_arm_cyl_rod_beta, v_arm_cyl_rod_gamma, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_alpha, v_bucket_cyl_rod_beta, v_bucket_cyl_rod_gamma, _, _, _, v_side_link_alpha, v_side_link_beta, v_side_link_gamma, _, _, _, v_bucket_link_alpha, v_bucket_link_beta, v_bucket_link_gamma, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a01 = -cos(upper_alpha)*sin(upper_gamma) - cos(upper_beta)*cos(upper_gamma)*sin(upper_alpha)
     upper_a11 = -sin(upper_alpha)*sin(upper_gamma) + cos(upper_alpha)*cos(upper_beta)*cos(upper_gamma)
     upper_a21 = cos(upper_gamma)*sin(upper_beta)
@@ -5631,7 +5632,7 @@ def _joints_gamma_s(q, v, p):
     """gamma of the joint rows (they do not depend on time). (one configuration, lists of floats)"""
     _, _, _, upper_alpha, upper_beta, upper_gamma, _, _, _, boom_alpha, boom_beta, boom_gamma, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_alpha, boom_cyl_l_barrel_beta, boom_cyl_l_barrel_gamma, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_alpha, boom_cyl_l_rod_beta, boom_cyl_l_rod_gamma, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_alpha, boom_cyl_r_barrel_beta, boom_cyl_r_barrel_gamma, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_alpha, boom_cyl_r_rod_beta, boom_cyl_r_rod_gamma, _, _, _, arm_alpha, arm_beta, arm_gamma, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_alpha, arm_cyl_barrel_beta, arm_cyl_barrel_gamma, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_alpha, arm_cyl_rod_beta, arm_cyl_rod_gamma, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_alpha, bucket_cyl_barrel_beta, bucket_cyl_barrel_gamma, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_alpha, bucket_cyl_rod_beta, bucket_cyl_rod_gamma, _, _, _, side_link_alpha, side_link_beta, side_link_gamma, _, _, _, bucket_link_alpha, bucket_link_beta, bucket_link_gamma, _, _, _, bucket_alpha, bucket_beta, bucket_gamma = q
     _, _, _, v_upper_alpha, v_upper_beta, v_upper_gamma, _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_alpha, v_boom_cyl_l_barrel_beta, v_boom_cyl_l_barrel_gamma, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_alpha, v_boom_cyl_l_rod_beta, v_boom_cyl_l_rod_gamma, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_alpha, v_boom_cyl_r_barrel_beta, v_boom_cyl_r_barrel_gamma, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_alpha, v_boom_cyl_r_rod_beta, v_boom_cyl_r_rod_gamma, _, _, _, v_arm_alpha, v_arm_beta, v_arm_gamma, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_alpha, v_arm_cyl_barrel_beta, v_arm_cyl_barrel_gamma, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_alpha, v_arm_cyl_rod_beta, v_arm_cyl_rod_gamma, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_alpha, v_bucket_cyl_barrel_beta, v_bucket_cyl_barrel_gamma, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_alpha, v_bucket_cyl_rod_beta, v_bucket_cyl_rod_gamma, _, _, _, v_side_link_alpha, v_side_link_beta, v_side_link_gamma, _, _, _, v_bucket_link_alpha, v_bucket_link_beta, v_bucket_link_gamma, _, _, _, v_bucket_alpha, v_bucket_beta, v_bucket_gamma = v
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a01 = -math.cos(upper_alpha)*math.sin(upper_gamma) - math.cos(upper_beta)*math.cos(upper_gamma)*math.sin(upper_alpha)
     upper_a11 = -math.sin(upper_alpha)*math.sin(upper_gamma) + math.cos(upper_alpha)*math.cos(upper_beta)*math.cos(upper_gamma)
     upper_a21 = math.cos(upper_gamma)*math.sin(upper_beta)

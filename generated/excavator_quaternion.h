@@ -2,7 +2,7 @@
  *
  * model:           excavator
  * source:          excavator.yaml
- * source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
+ * source sha256:   224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583
  * parametrization: quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
@@ -31,7 +31,7 @@ extern "C" {
 #define EXCAVATOR_QUATERNION_WORK_DOUBLES 3397
 #define EXCAVATOR_QUATERNION_WORK_INTS 272
 /* work of kinegen_sensitivities for any case (doubles) */
-#define EXCAVATOR_QUATERNION_SENSITIVITY_DOUBLES 2667
+#define EXCAVATOR_QUATERNION_SENSITIVITY_DOUBLES 2835
 /* the force solve (kinegen_forces): loads, forces per configuration (elements, or the most drivers), work;
  * whether the model has masses (kinegen_forces' inertia) */
 #define EXCAVATOR_QUATERNION_N_LOADS 2

@@ -2,7 +2,7 @@
 
 model:           excavator
 source:          excavator.yaml
-source sha256:   787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b
+source sha256:   224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583
 parametrization: quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
@@ -19,7 +19,7 @@ from numpy import cos, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
-SOURCE_SHA256 = '787c2b42fcbf0cb8e038133294a9ccb485c8f626228195bf800ebe503c83ae2b'
+SOURCE_SHA256 = '224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583'
 PARAMETRIZATION = 'quaternion'
 KINEGEN_VERSION = '0.2.0'
 STORED_NAMES = ('upper.x', 'upper.y', 'upper.z', 'upper.qw', 'upper.qx', 'upper.qy', 'upper.qz', 'boom.x', 'boom.y', 'boom.z', 'boom.qw', 'boom.qx', 'boom.qy', 'boom.qz', 'boom_cyl_l_barrel.x', 'boom_cyl_l_barrel.y', 'boom_cyl_l_barrel.z', 'boom_cyl_l_barrel.qw', 'boom_cyl_l_barrel.qx', 'boom_cyl_l_barrel.qy', 'boom_cyl_l_barrel.qz', 'boom_cyl_l_rod.x', 'boom_cyl_l_rod.y', 'boom_cyl_l_rod.z', 'boom_cyl_l_rod.qw', 'boom_cyl_l_rod.qx', 'boom_cyl_l_rod.qy', 'boom_cyl_l_rod.qz', 'boom_cyl_r_barrel.x', 'boom_cyl_r_barrel.y', 'boom_cyl_r_barrel.z', 'boom_cyl_r_barrel.qw', 'boom_cyl_r_barrel.qx', 'boom_cyl_r_barrel.qy', 'boom_cyl_r_barrel.qz', 'boom_cyl_r_rod.x', 'boom_cyl_r_rod.y', 'boom_cyl_r_rod.z', 'boom_cyl_r_rod.qw', 'boom_cyl_r_rod.qx', 'boom_cyl_r_rod.qy', 'boom_cyl_r_rod.qz', 'arm.x', 'arm.y', 'arm.z', 'arm.qw', 'arm.qx', 'arm.qy', 'arm.qz', 'arm_cyl_barrel.x', 'arm_cyl_barrel.y', 'arm_cyl_barrel.z', 'arm_cyl_barrel.qw', 'arm_cyl_barrel.qx', 'arm_cyl_barrel.qy', 'arm_cyl_barrel.qz', 'arm_cyl_rod.x', 'arm_cyl_rod.y', 'arm_cyl_rod.z', 'arm_cyl_rod.qw', 'arm_cyl_rod.qx', 'arm_cyl_rod.qy', 'arm_cyl_rod.qz', 'bucket_cyl_barrel.x', 'bucket_cyl_barrel.y', 'bucket_cyl_barrel.z', 'bucket_cyl_barrel.qw', 'bucket_cyl_barrel.qx', 'bucket_cyl_barrel.qy', 'bucket_cyl_barrel.qz', 'bucket_cyl_rod.x', 'bucket_cyl_rod.y', 'bucket_cyl_rod.z', 'bucket_cyl_rod.qw', 'bucket_cyl_rod.qx', 'bucket_cyl_rod.qy', 'bucket_cyl_rod.qz', 'side_link.x', 'side_link.y', 'side_link.z', 'side_link.qw', 'side_link.qx', 'side_link.qy', 'side_link.qz', 'bucket_link.x', 'bucket_link.y', 'bucket_link.z', 'bucket_link.qw', 'bucket_link.qx', 'bucket_link.qy', 'bucket_link.qz', 'bucket.x', 'bucket.y', 'bucket.z', 'bucket.qw', 'bucket.qx', 'bucket.qy', 'bucket.qz')
@@ -66,6 +66,7 @@ DESIGN = {
     'K_x': (-0.32404, -0.35404, -0.29404),
     'K_z': (0.33854, 0.30854, 0.36854),
     'counterweight': (4000.0, 3000.0, 5500.0),
+    'bucket_bore': (0.115, 0.1, 0.135),
     'counterweight_x': (-2.3, -2.45, -2.15),
 }
 # kernels: name -> (argument slots, (output ...)); each output a function named as it (per case
@@ -90,7 +91,7 @@ KERNELS = {
     'frames_d': (('q', 'v', 'a', 'w', 'y', 'z'), ('frames_d',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_quaternion.h': '3bdbd70b15c4e18362e47a0af89619ec7f7f357c0883832afeb94391bb2ce31c', 'excavator_quaternion.c': 'f51c61e2b0708321710886c612a649bdb3ffa5bfc5c34f1c66cb9749b438dcff'}
+C_FILES = {'excavator_quaternion.h': 'c4fff27d2aef94f4879007022819a124fab6e68b41c74ddfd20b76859591b1ed', 'excavator_quaternion.c': '8d3a6e7faf7f82f0353f7efec4c50a1eb2433725e2de85b43a692d1568fd4f48'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -758,7 +759,7 @@ def lengths(q, p):
 def _joints_jac(q, p):
     """Phi_q values of the joint rows (403 entries)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -1496,7 +1497,7 @@ def inertia(q, v, a, p):
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, _, _, _, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, _, _, _, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, _, _, _, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, _, _, _, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, _, _, _, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, _, _, _, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, _, _, _, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, _, _, _, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, _, _, _, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, _, _, _, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, _, _, _, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, _, _, _, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, _, _, _, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, _, _, _, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, _, _, _, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, _, _, _, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
     dv_upper_x, dv_upper_y, dv_upper_z, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, dv_boom_x, dv_boom_y, dv_boom_z, dv_boom_theta_x, dv_boom_theta_y, dv_boom_theta_z, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, dv_boom_cyl_l_rod_theta_x, dv_boom_cyl_l_rod_theta_y, dv_boom_cyl_l_rod_theta_z, dv_boom_cyl_r_barrel_x, dv_boom_cyl_r_barrel_y, dv_boom_cyl_r_barrel_z, dv_boom_cyl_r_barrel_theta_x, dv_boom_cyl_r_barrel_theta_y, dv_boom_cyl_r_barrel_theta_z, dv_boom_cyl_r_rod_x, dv_boom_cyl_r_rod_y, dv_boom_cyl_r_rod_z, dv_boom_cyl_r_rod_theta_x, dv_boom_cyl_r_rod_theta_y, dv_boom_cyl_r_rod_theta_z, dv_arm_x, dv_arm_y, dv_arm_z, dv_arm_theta_x, dv_arm_theta_y, dv_arm_theta_z, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, dv_arm_cyl_rod_theta_x, dv_arm_cyl_rod_theta_y, dv_arm_cyl_rod_theta_z, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, dv_bucket_cyl_rod_theta_x, dv_bucket_cyl_rod_theta_y, dv_bucket_cyl_rod_theta_z, dv_side_link_x, dv_side_link_y, dv_side_link_z, dv_side_link_theta_x, dv_side_link_theta_y, dv_side_link_theta_z, dv_bucket_link_x, dv_bucket_link_y, dv_bucket_link_z, dv_bucket_link_theta_x, dv_bucket_link_theta_y, dv_bucket_link_theta_z, dv_bucket_x, dv_bucket_y, dv_bucket_z, dv_bucket_theta_x, dv_bucket_theta_y, dv_bucket_theta_z = a
-    _, _, _, _, _, _, _, _, _, p_counterweight, p_counterweight_x = p
+    _, _, _, _, _, _, _, _, _, p_counterweight, _, p_counterweight_x = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -2058,7 +2059,7 @@ def inertia(q, v, a, p):
 
 def points(p):
     """Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS)."""
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     out = np.zeros((90,) + np.shape(p[0]))
     out[3] = 22767/100000
     out[5] = 195729/100000
@@ -2099,7 +2100,7 @@ def points(p):
 
 def actuator_ranges(p):
     """The ranges of the actuators that have one (in the order of ACTUATORS), min then max, from the design parameters."""
-    _, _, _, _, p_boom_retracted, _, _, _, _, _, _ = p
+    _, _, _, _, p_boom_retracted, _, _, _, _, _, _, _ = p
     out = np.zeros((8,) + np.shape(p[0]))
     out[0] = p_boom_retracted
     out[1] = 30649/10000
@@ -2114,19 +2115,19 @@ def actuator_ranges(p):
 
 def points_p(p):
     """d(point coordinate)/d(design parameter), row-major (coordinate by coordinate as in points(p), a parameter per column)."""
-    out = np.zeros((990,) + np.shape(p[0]))
-    out[165] = 1
-    out[188] = 1
-    out[198] = 1
-    out[221] = 1
-    out[464] = 1
-    out[487] = 1
-    out[764] = -0.5686266556413632
-    out[786] = 0.822595724821202
-    out[831] = -0.60493530832545
-    out[853] = -0.796274621434837
-    out[898] = 1
-    out[921] = 1
+    out = np.zeros((1080,) + np.shape(p[0]))
+    out[180] = 1
+    out[205] = 1
+    out[216] = 1
+    out[241] = 1
+    out[506] = 1
+    out[531] = 1
+    out[833] = -0.5686266556413632
+    out[857] = 0.822595724821202
+    out[906] = -0.60493530832545
+    out[930] = -0.796274621434837
+    out[979] = 1
+    out[1004] = 1
     return out
 
 
@@ -2605,7 +2606,7 @@ def frames_d(q, v, a, w, y, z):
 def _joints_phi(q, p):
     """Phi of the 80 joint (and normalization) rows, common to every case."""
     upper_x, upper_y, upper_z, upper_qw, upper_qx, upper_qy, upper_qz, boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, arm_x, arm_y, arm_z, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, side_link_x, side_link_y, side_link_z, side_link_qw, side_link_qx, side_link_qy, side_link_qz, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, bucket_x, bucket_y, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -2910,7 +2911,7 @@ def jac_digging(q, u, p):
 def _joints_phi_joints_jac_s(q, p):
     """Phi of the 80 joint (and normalization) rows, common to every case.; Phi_q values of the joint rows (403 entries). (one configuration, lists of floats)"""
     upper_x, upper_y, upper_z, upper_qw, upper_qx, upper_qy, upper_qz, boom_x, boom_y, boom_z, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, arm_x, arm_y, arm_z, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, side_link_x, side_link_y, side_link_z, side_link_qw, side_link_qx, side_link_qy, side_link_qz, bucket_link_x, bucket_link_y, bucket_link_z, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, bucket_x, bucket_y, bucket_z, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx)
     upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
     upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
@@ -3259,7 +3260,7 @@ def _joints_gamma(q, v, p):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -3842,7 +3843,7 @@ def _joints_gamma_s(q, v, p):
     """gamma of the joint rows (they do not depend on time). (one configuration, lists of floats)"""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = -1.0 + 2.0*(upper_qw*upper_qw) + 2.0*(upper_qx*upper_qx)
     upper_a01 = -2.0*upper_qw*upper_qz + 2.0*upper_qx*upper_qy
     upper_a02 = 2.0*upper_qw*upper_qy + 2.0*upper_qx*upper_qz
@@ -4638,7 +4639,7 @@ def _joints_dvel(q, v, p):
     """[M_v | E_v] values (velocity sensitivity) of the joint rows (396 entries)."""
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz
@@ -5872,7 +5873,7 @@ def _joints_dacc(q, v, a, p):
     _, _, _, upper_qw, upper_qx, upper_qy, upper_qz, _, _, _, boom_qw, boom_qx, boom_qy, boom_qz, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, boom_cyl_l_barrel_qw, boom_cyl_l_barrel_qx, boom_cyl_l_barrel_qy, boom_cyl_l_barrel_qz, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, boom_cyl_l_rod_qw, boom_cyl_l_rod_qx, boom_cyl_l_rod_qy, boom_cyl_l_rod_qz, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, boom_cyl_r_barrel_qw, boom_cyl_r_barrel_qx, boom_cyl_r_barrel_qy, boom_cyl_r_barrel_qz, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, boom_cyl_r_rod_qw, boom_cyl_r_rod_qx, boom_cyl_r_rod_qy, boom_cyl_r_rod_qz, _, _, _, arm_qw, arm_qx, arm_qy, arm_qz, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, arm_cyl_barrel_qw, arm_cyl_barrel_qx, arm_cyl_barrel_qy, arm_cyl_barrel_qz, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, arm_cyl_rod_qw, arm_cyl_rod_qx, arm_cyl_rod_qy, arm_cyl_rod_qz, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, bucket_cyl_barrel_qw, bucket_cyl_barrel_qx, bucket_cyl_barrel_qy, bucket_cyl_barrel_qz, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, bucket_cyl_rod_qw, bucket_cyl_rod_qx, bucket_cyl_rod_qy, bucket_cyl_rod_qz, _, _, _, side_link_qw, side_link_qx, side_link_qy, side_link_qz, _, _, _, bucket_link_qw, bucket_link_qx, bucket_link_qy, bucket_link_qz, _, _, _, bucket_qw, bucket_qx, bucket_qy, bucket_qz = q
     _, _, _, v_upper_theta_x, v_upper_theta_y, v_upper_theta_z, _, _, _, v_boom_theta_x, v_boom_theta_y, v_boom_theta_z, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, v_boom_cyl_l_barrel_theta_x, v_boom_cyl_l_barrel_theta_y, v_boom_cyl_l_barrel_theta_z, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, v_boom_cyl_l_rod_theta_x, v_boom_cyl_l_rod_theta_y, v_boom_cyl_l_rod_theta_z, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, v_boom_cyl_r_barrel_theta_x, v_boom_cyl_r_barrel_theta_y, v_boom_cyl_r_barrel_theta_z, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, v_boom_cyl_r_rod_theta_x, v_boom_cyl_r_rod_theta_y, v_boom_cyl_r_rod_theta_z, _, _, _, v_arm_theta_x, v_arm_theta_y, v_arm_theta_z, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, v_arm_cyl_barrel_theta_x, v_arm_cyl_barrel_theta_y, v_arm_cyl_barrel_theta_z, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, v_arm_cyl_rod_theta_x, v_arm_cyl_rod_theta_y, v_arm_cyl_rod_theta_z, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, v_bucket_cyl_barrel_theta_x, v_bucket_cyl_barrel_theta_y, v_bucket_cyl_barrel_theta_z, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, v_bucket_cyl_rod_theta_x, v_bucket_cyl_rod_theta_y, v_bucket_cyl_rod_theta_z, _, _, _, v_side_link_theta_x, v_side_link_theta_y, v_side_link_theta_z, _, _, _, v_bucket_link_theta_x, v_bucket_link_theta_y, v_bucket_link_theta_z, _, _, _, v_bucket_theta_x, v_bucket_theta_y, v_bucket_theta_z = v
     _, _, _, dv_upper_theta_x, dv_upper_theta_y, dv_upper_theta_z, _, _, _, dv_boom_theta_x, dv_boom_theta_y, dv_boom_theta_z, dv_boom_cyl_l_barrel_x, dv_boom_cyl_l_barrel_y, dv_boom_cyl_l_barrel_z, dv_boom_cyl_l_barrel_theta_x, dv_boom_cyl_l_barrel_theta_y, dv_boom_cyl_l_barrel_theta_z, dv_boom_cyl_l_rod_x, dv_boom_cyl_l_rod_y, dv_boom_cyl_l_rod_z, dv_boom_cyl_l_rod_theta_x, dv_boom_cyl_l_rod_theta_y, dv_boom_cyl_l_rod_theta_z, dv_boom_cyl_r_barrel_x, dv_boom_cyl_r_barrel_y, dv_boom_cyl_r_barrel_z, dv_boom_cyl_r_barrel_theta_x, dv_boom_cyl_r_barrel_theta_y, dv_boom_cyl_r_barrel_theta_z, dv_boom_cyl_r_rod_x, dv_boom_cyl_r_rod_y, dv_boom_cyl_r_rod_z, dv_boom_cyl_r_rod_theta_x, dv_boom_cyl_r_rod_theta_y, dv_boom_cyl_r_rod_theta_z, _, _, _, dv_arm_theta_x, dv_arm_theta_y, dv_arm_theta_z, dv_arm_cyl_barrel_x, dv_arm_cyl_barrel_y, dv_arm_cyl_barrel_z, dv_arm_cyl_barrel_theta_x, dv_arm_cyl_barrel_theta_y, dv_arm_cyl_barrel_theta_z, dv_arm_cyl_rod_x, dv_arm_cyl_rod_y, dv_arm_cyl_rod_z, dv_arm_cyl_rod_theta_x, dv_arm_cyl_rod_theta_y, dv_arm_cyl_rod_theta_z, dv_bucket_cyl_barrel_x, dv_bucket_cyl_barrel_y, dv_bucket_cyl_barrel_z, dv_bucket_cyl_barrel_theta_x, dv_bucket_cyl_barrel_theta_y, dv_bucket_cyl_barrel_theta_z, dv_bucket_cyl_rod_x, dv_bucket_cyl_rod_y, dv_bucket_cyl_rod_z, dv_bucket_cyl_rod_theta_x, dv_bucket_cyl_rod_theta_y, dv_bucket_cyl_rod_theta_z, _, _, _, dv_side_link_theta_x, dv_side_link_theta_y, dv_side_link_theta_z, _, _, _, dv_bucket_link_theta_x, dv_bucket_link_theta_y, dv_bucket_link_theta_z, _, _, _, dv_bucket_theta_x, dv_bucket_theta_y, dv_bucket_theta_z = a
-    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _ = p
+    p_C_x, p_C_z, p_F_x, p_F_z, _, p_side_link, p_bucket_link, p_K_x, p_K_z, _, _, _ = p
     upper_a00 = -1 + 2*upper_qw**2 + 2*upper_qx**2
     upper_a01 = -2*upper_qw*upper_qz + 2*upper_qx*upper_qy
     upper_a02 = 2*upper_qw*upper_qy + 2*upper_qx*upper_qz

@@ -105,8 +105,8 @@ def test_kinegen_envelope_prints_the_figures_and_their_sensitivities_by_the_desi
     document = json.loads(result.output[result.output.index("{") :])
     assert set(document["figures"]) == set(document["sensitivities"])
     depth = document["sensitivities"]["max_depth"]
-    assert len(depth) == 11 and depth["boom_retracted"] < -8
-    assert depth["counterweight"] == depth["counterweight_x"] == 0  # masses: the kinematics do not see them
+    assert len(depth) == 12 and depth["boom_retracted"] < -8
+    assert depth["counterweight"] == depth["counterweight_x"] == depth["bucket_bore"] == 0  # masses and bores: the kinematics do not see them
     assert all(abs(values["boom_retracted"]) < 1e-9 for f, values in document["sensitivities"].items() if f != "max_depth")
     # the text: entries zero to rounding (1e-14 m/m against entries of order 1) print as 0, never as
     # 5.8e-15 or -0; every other entry is the JSON's value; the front swing radius line gives its figure

@@ -132,6 +132,8 @@ def main(argv: list[str] | None = None) -> int:
         if "excavator-digging" in workloads else None,
         "forces": (lambda: run_contender("__import__('kinegen.bench.forces', fromlist=['x']).force_cost()")) if "excavator-digging" in workloads else None,
         "C target memory": lambda: {w: run_contender(f"c_target_memory({w!r})") for w in workloads if w.startswith("excavator")},
+        "time-optimal cycle": (lambda: run_contender("__import__('kinegen.bench.cycle', fromlist=['x']).cycle_cost()"))
+        if "excavator-digging" in workloads else None,
         "command start-up": (lambda: run_contender("__import__('kinegen.bench.startup', fromlist=['x']).startup_cost()"))
         if "excavator-digging" in workloads else None,  # kinegen info of the excavator among them
     }
@@ -208,6 +210,12 @@ def main(argv: list[str] | None = None) -> int:
     failures += _section(startup, "command start-up", lambda c: (
         "command start-up (wall time, median of 7 fresh processes): " + ", ".join(f"{name} {c[name]:.3f} s" for name in
         ("python -c pass", "kinegen --help", "kinegen models", "kinegen info (first)", "kinegen info (cached)")), 0))
+    timed = measured["time-optimal cycle"]
+    failures += _section(timed, "time-optimal cycle", lambda c: (
+        f"time-optimal cycle (excavator digging, payload, {c['points']} points, compiled): the path's solve {c['solve']:.3f} s, "
+        f"its fastest timing (kinegen.forces.cycle.fastest) {c['retiming']:.3f} s = {c['retiming'] / c['solve']:.1f}x the solve; "
+        f"cycle time {c['cycle_time']:.2f} s; cycle_time with its gradient by {c['parameters']} parameters on the case's "
+        f"{c['gradient_points']} points, solve included: {c['with_gradient']:.3f} s", 0))
     print()
     print("Targets, on this run's figures:")
     failures += _section(studies, "design studies", _study_lines)
@@ -217,6 +225,9 @@ def main(argv: list[str] | None = None) -> int:
         print("  " + _met("ISO 6015 tool forces (issue 28)", held["tool_forces"], 0.5, True, " s"))
         print("  " + _met(f"force map of {held['poses']:,} poses (issue 28)", held["map"], 1.0, True, " s"))
         print("  " + _met("ISO 10567 lift chart, both sides, every point's pose search (issue 29)", held["lift"], 1.0, True, " s"))
+    if timed and "failed" not in timed:
+        print("  " + _met(f"re-timing the {timed['points']:,}-point digging path, compiled (issue 40)", timed["retiming"], 1.0, True, " s"))
+        print("  " + _met("one cycle_time evaluation with its gradient (issue 40)", timed["with_gradient"], 2.0, True, " s"))
     if startup and "failed" not in startup:
         for name in ("kinegen --help", "kinegen models", "kinegen info (cached)"):
             print("  " + _met(f"{name}, start to end (issue 39)", startup[name], 0.3, True, " s"))

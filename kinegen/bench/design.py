@@ -1,9 +1,10 @@
 """The shipped excavator with more design parameters, for the benchmark of sensitivities.
 
-models/excavator.yaml has eleven design parameters (the boom- and arm-cylinder rod pins C and F,
-the boom cylinder's retracted length, the two bucket-linkage lengths, the bucket-link pin K and the
-counterweight's mass and position); the benchmark adds the arm-cylinder base D on the boom (x, z;
-±2 cm): thirteen, ten of them in the geometry (one an actuator's range, two masses). At the nominal
+models/excavator.yaml has twelve design parameters (the boom- and arm-cylinder rod pins C and F,
+the boom cylinder's retracted length, the two bucket-linkage lengths, the bucket-link pin K, the
+bucket cylinder's bore and the counterweight's mass and position); the benchmark adds the
+arm-cylinder base D on the boom (x, z; ±2 cm): fourteen, ten of them in the geometry (one an
+actuator's range, one a bore, two masses). At the nominal
 values the model is the shipped one, number for number.
 """
 
@@ -32,7 +33,7 @@ def excavator_design_yaml() -> str:
 
 def sensitivity_cost(case: str = "digging", points: int = 1000, repeats: int = 3) -> dict:
     """Issue 13's figure: the trajectory solve of ``case`` (``points`` time points) of the
-    excavator with thirteen design parameters, compiled and pure Python, and its sensitivities by
+    excavator with fourteen design parameters, compiled and pure Python, and its sensitivities by
     all of them (dq/dp, dv/dp, da/dp), best of ``repeats`` each, in seconds; and the build time."""
     import tempfile
     import time

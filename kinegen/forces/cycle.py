@@ -45,7 +45,6 @@ import numpy as np
 from kinegen.errors import KinegenError
 from kinegen.forces.reachability import PowerLimit
 from kinegen.model import Model
-from kinegen.model.schema import design_value
 from kinegen.runtime.results import Results
 
 #: every limit is met with this relative room (the re-timed solve's checks allow no excess at all)
@@ -69,6 +68,8 @@ class PathConstraints:
     speed_names: tuple[str, ...]
     speed_bound: np.ndarray
     power: PowerLimit | None = None
+    #: with changes: each field's exact derivative by the design parameters (parameters last)
+    changes: dict = dataclasses.field(default_factory=dict)
 
     def slack(self, u: np.ndarray, x: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
         """The fraction of every limit left at (u, x) (N+1,) each: rows (N+1, m), speeds (N+1, k)."""
@@ -173,120 +174,212 @@ def affine_parts(results: Results, compute) -> tuple[np.ndarray, np.ndarray, np.
 
 
 def path_constraints(results: Results, model: Model, loads: tuple[str, ...] = (), tipping: bool = True,
-                     speed_limits: dict[str, float] | None = None) -> PathConstraints:  # fmt: skip
+                     speed_limits: dict[str, float] | None = None, changes: bool = False) -> PathConstraints:  # fmt: skip
     """The limits of :mod:`this module <kinegen.forces.cycle>` along ``results`` (a case solved on its
-    path grid), tightened by :data:`MARGIN`."""
+    path grid), tightened by :data:`MARGIN`; with ``changes``, every coefficient's exact derivative by
+    the design parameters too (:mod:`kinegen.forces.cycle_changes`; ``PathConstraints.changes``)."""
+    from kinegen.forces import cycle_changes as cc
     from kinegen.forces.dynamics import tipping_margin
     from kinegen.forces.supply import flows, turn_rate
 
     supply = model.supply
     design = results.system.design
-    count = len(results.times)
+    count, n_design = len(results.times), len(design)
     names, row_u, row_x, bound = [], [], [], []
+    d_row_u, d_row_x, d_bound = [], [], []
+    zeros = np.zeros((count, n_design))
 
-    def add(name: str, rest: np.ndarray, per_u: np.ndarray, per_x: np.ndarray, limit: np.ndarray, sign: float) -> None:
+    def add(name: str, parts, d_parts, limit: np.ndarray, d_limit: np.ndarray, sign: float) -> None:
         """sign * (rest + per_u u + per_x x) <= limit, as a fraction of |limit|."""
-        scale = np.abs(limit)
+        (rest, per_u, per_x), scale = parts, np.abs(limit)
         names.append(name)
         row_u.append(sign * per_u / scale)
         row_x.append(sign * per_x / scale)
         bound.append(np.sign(limit) * (1 - MARGIN) - sign * rest / scale)
+        if changes:
+            d_scale = np.sign(limit)[:, None] * d_limit
+            (d_rest, d_u, d_x), s2 = d_parts, scale[:, None]
+            d_row_u.append(sign * (d_u / s2 - per_u[:, None] * d_scale / s2**2))
+            d_row_x.append(sign * (d_x / s2 - per_x[:, None] * d_scale / s2**2))
+            d_bound.append(-sign * (d_rest / s2 - rest[:, None] * d_scale / s2**2))
 
-    elements, (f_rest, f_u, f_x) = None, (None, None, None)
+    elements = None
     if model.massive:
-        elements = _element_forces(results, model, loads)[0]
-        f_rest, f_u, f_x = affine_parts(results, lambda r: _element_forces(r, model, loads)[1])
-    pump_pressure = {p.name: design_value(p.max_pressure, design) for p in supply.pumps} if supply is not None else {}
+        stacked = cc.stacked_motions(results, changes)
+        if changes:
+            elements, force, d_force = cc.element_force_changes(stacked, model, loads)
+            d_parts_all = cc.split(d_force)
+        else:
+            elements, force = _element_forces(stacked, model, loads)
+        parts_all = cc.split(force)
+    pump_pressure = {p.name: cc.number(p.max_pressure, design) for p in supply.pumps} if supply is not None else {}
     fed_by = supply.circuits if supply is not None else {}
+    element_rates: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # element -> its cylinders' rates together, or its turn rate
     for actuator in model.actuators:
         hydraulics = actuator.hydraulics
         if hydraulics is None or elements is None or actuator.name not in elements:
             continue
         k = elements.index(actuator.name)
         cap, annulus = hydraulics.areas(design)
-        relief = [design_value(x, design) for x in hydraulics.relief]
-        holding = [design_value(x, design) for x in hydraulics.holding]
-        supplied = min((pump_pressure[p] for p in fed_by.get(actuator.name, ())), default=np.inf)
+        d_cap, d_annulus = hydraulics.area_gradients(list(design), design) if changes else (np.zeros(n_design),) * 2
+        relief = [cc.number(x, design) for x in hydraulics.relief]
+        holding = [cc.number(x, design) for x in hydraulics.holding]
+        supplied = min((pump_pressure[p] for p in fed_by.get(actuator.name, ())), key=lambda item: item[0], default=(np.inf, zeros[0]))
         rate = sum(results.actuator_rate(member.name) for member in model.members(actuator.name))
-        push = (
-            np.where(rate > 0, min(relief[0], supplied), holding[0]) * cap
-        )  # the working side: relief (and the pumps' pressure)
-        pull = np.where(rate < 0, min(relief[1], supplied), holding[1]) * annulus
-        add(f"{actuator.name} pressure (cap side)", f_rest[:, k], f_u[:, k], f_x[:, k], push, 1.0)
-        add(f"{actuator.name} pressure (rod side)", f_rest[:, k], f_u[:, k], f_x[:, k], pull, -1.0)
+        element_rates[actuator.name] = (rate, None)
+        working = [min(relief[side], supplied, key=lambda item: item[0]) for side in (0, 1)]  # relief, no higher than the pumps give
+        setting = [np.where(rate > 0, working[0][0], holding[0][0]), np.where(rate < 0, working[1][0], holding[1][0])]
+        d_setting = [np.where((rate > 0)[:, None], working[0][1], holding[0][1]), np.where((rate < 0)[:, None], working[1][1], holding[1][1])]
+        parts = tuple(x[:, k] for x in parts_all)
+        d_parts = tuple(x[:, k] for x in d_parts_all) if changes else None
+        add(f"{actuator.name} pressure (cap side)", parts, d_parts, setting[0] * cap, d_setting[0] * cap + setting[0][:, None] * d_cap, 1.0)
+        add(f"{actuator.name} pressure (rod side)", parts, d_parts, setting[1] * annulus, d_setting[1] * annulus + setting[1][:, None] * d_annulus, -1.0)
     for motor in model.motors:
         if motor.displacement is None or elements is None or motor.name not in elements or not fed_by.get(motor.name):
             continue
         k = elements.index(motor.name)
-        torque = design_value(motor.displacement, design) * min(pump_pressure[p] for p in fed_by[motor.name]) * np.ones(count)
-        add(f"{motor.name} torque (positive)", f_rest[:, k], f_u[:, k], f_x[:, k], torque, 1.0)
-        add(f"{motor.name} torque (negative)", f_rest[:, k], f_u[:, k], f_x[:, k], torque, -1.0)
+        displacement = cc.number(motor.displacement, design)
+        pressure = min((pump_pressure[p] for p in fed_by[motor.name]), key=lambda item: item[0])
+        torque = displacement[0] * pressure[0] * np.ones(count)
+        d_torque = np.broadcast_to(displacement[1] * pressure[0] + displacement[0] * pressure[1], (count, n_design))
+        parts = tuple(x[:, k] for x in parts_all)
+        d_parts = tuple(x[:, k] for x in d_parts_all) if changes else None
+        add(f"{motor.name} torque (positive)", parts, d_parts, torque, d_torque, 1.0)
+        add(f"{motor.name} torque (negative)", parts, d_parts, torque, d_torque, -1.0)
     if tipping and model.tips:
-        lines = affine_parts(results, lambda r: np.stack(list(tipping_margin(r, model, loads).margins.values()), axis=1))
-        rest, per_u, per_x = lines
-        scale = np.abs(rest).max(axis=0)  # the margin at rest's size along the path, per line
-        for j, line in enumerate(tipping_margin(results, model, loads).margins):
+        margin = tipping_margin(stacked, model, loads, changes=changes)
+        for line in margin.margins:
+            rest, per_u, per_x = cc.split(margin.margins[line])
+            top = int(np.argmax(np.abs(rest)))
+            scale = abs(rest[top])  # the margin at rest's size along the path
             names.append(f"tipping ({line})")
-            row_u.append(-per_u[:, j] / scale[j])
-            row_x.append(-per_x[:, j] / scale[j])
-            bound.append(rest[:, j] / scale[j] - MARGIN)
-    speed_names, speed_bound = [], []
-    with np.errstate(divide="ignore"):
-        if supply is not None:
-            demand = flows(results, model)
-            for p, name in enumerate(demand.pumps):
-                speed_names.append(f"pump {name} flow")
-                speed_bound.append(demand.max_flow[p] * (1 - MARGIN) / demand.flow[p])
-        for name, limit in (speed_limits or {}).items():
-            if name in {a.name for a in model.actuators}:
-                rate = np.abs(results.actuator_rate(name))
+            row_u.append(-per_u / scale)
+            row_x.append(-per_x / scale)
+            bound.append(rest / scale - MARGIN)
+            if changes:
+                d_rest, d_u, d_x = cc.split(margin.changes[line])
+                d_scale = np.sign(rest[top]) * d_rest[top]
+                d_row_u.append(-(d_u / scale - per_u[:, None] * d_scale / scale**2))
+                d_row_x.append(-(d_x / scale - per_x[:, None] * d_scale / scale**2))
+                d_bound.append(d_rest / scale - rest[:, None] * d_scale / scale**2)
+    speed_names, speed_bound, d_speed_bound = [], [], []
+    rates = {}  # a hydraulic element's or speed-limited actuator's (rate, its derivative)
+
+    def rate_of(name: str) -> tuple[np.ndarray, np.ndarray]:
+        if name not in rates:
+            if name in {m.name for m in model.motors}:
+                joint = next(m.joint for m in model.motors if m.name == name)
+                rates[name] = cc.turn_rate_changes(results, model, joint) if changes else (turn_rate(results, model, joint), None)
             else:
-                motor = next(m for m in model.motors if m.name == name)
-                rate = np.abs(turn_rate(results, model, motor.joint))
-            speed_names.append(f"{name} speed")
-            speed_bound.append(limit * (1 - MARGIN) / rate)
+                rates[name] = cc.actuator_rate_changes(results, name) if changes else (results.actuator_rate(name), None)
+        return rates[name]
+
+    def add_speed(name: str, limit: float, d_limit: np.ndarray, per_speed: np.ndarray, d_per_speed) -> None:
+        """ṡ <= limit / per_speed (per_speed >= 0: what moves per unit path speed)."""
+        with np.errstate(divide="ignore", invalid="ignore"):
+            value = limit * (1 - MARGIN) / per_speed
+            speed_names.append(name)
+            speed_bound.append(value)
+            if changes:
+                d_value = np.where(per_speed[:, None] > 0, (d_limit * (1 - MARGIN) - value[:, None] * d_per_speed) / per_speed[:, None], 0.0)
+                d_speed_bound.append(d_value)
+
+    demand = None
+    element_flow: dict[str, tuple[np.ndarray, np.ndarray | None]] = {}
+    if supply is not None:
+        demand = flows(results, model)
+        actuators, motors = {a.name: a for a in model.actuators}, {m.name: m for m in model.motors}
+        for name in supply.circuits:  # each element's flow per unit path speed, and its derivative
+            if not changes:
+                element_flow[name] = (demand.elements[name], None)
+                continue
+            if name in actuators:
+                cap, annulus = actuators[name].hydraulics.areas(design)
+                d_cap, d_annulus = actuators[name].hydraulics.area_gradients(list(design), design)
+                total, d_total = np.zeros(count), np.zeros((count, n_design))
+                for member in model.members(name):
+                    rate, d_rate = rate_of(member.name)
+                    side, d_side = np.where(rate > 0, cap, annulus), np.where((rate > 0)[:, None], d_cap, d_annulus)
+                    total += side * np.abs(rate)
+                    d_total += d_side * np.abs(rate)[:, None] + side[:, None] * np.sign(rate)[:, None] * d_rate
+            else:
+                displacement = cc.number(motors[name].displacement, design)
+                rate, d_rate = rate_of(name)
+                total = displacement[0] * np.abs(rate)
+                d_total = np.outer(np.abs(rate), displacement[1]) + displacement[0] * np.sign(rate)[:, None] * d_rate
+            element_flow[name] = (total, d_total)
+        for p, pump in enumerate(supply.pumps):
+            d_flow = None
+            if changes:
+                d_flow = sum((element_flow[e][1] / len(fed) for e, fed in supply.circuits.items() if pump.name in fed), zeros)
+            add_speed(f"pump {pump.name} flow", *cc.number(pump.max_flow, design), demand.flow[p], d_flow)
+    for name, limit in (speed_limits or {}).items():
+        rate, d_rate = rate_of(name)
+        add_speed(f"{name} speed", limit, np.zeros(n_design), np.abs(rate), None if d_rate is None else np.sign(rate)[:, None] * d_rate)
     power = None
     if supply is not None and elements is not None:
-        power = _power_limit(results, model, demand, elements, (f_rest, f_u, f_x))
+        power = _power_limit(results, model, demand, elements, parts_all, d_parts_all if changes else None, element_flow, changes)
 
-    def stack(items: list) -> np.ndarray:
-        return np.stack(items, axis=1) if items else np.zeros((count, 0))
+    def stack(items: list, shape: tuple) -> np.ndarray:
+        return np.stack(items, axis=1) if items else np.zeros(shape)
 
-    return PathConstraints(results.times.copy(), tuple(names), stack(row_u), stack(row_x), stack(bound), tuple(speed_names),
-                           stack(speed_bound), power)  # fmt: skip
+    found = PathConstraints(results.times.copy(), tuple(names), stack(row_u, (count, 0)), stack(row_x, (count, 0)),
+                            stack(bound, (count, 0)), tuple(speed_names), stack(speed_bound, (count, 0)), power)  # fmt: skip
+    if changes:
+        shape = (count, 0, n_design)
+        found.changes.update(rows_u=stack(d_row_u, shape), rows_x=stack(d_row_x, shape), rows_bound=stack(d_bound, shape),
+                             speed_bound=stack(d_speed_bound, shape))  # fmt: skip
+    return found
 
 
-def _power_limit(results: Results, model: Model, demand, elements: tuple[str, ...], parts) -> PowerLimit:
+def _power_limit(results: Results, model: Model, demand, elements: tuple[str, ...], parts, d_parts, element_flow,
+                 changes: bool) -> PowerLimit:  # fmt: skip
     """The engine's limit on the pumps' power: each pump's flow per unit path speed and the filling
     pressures of the elements it feeds as affine functions of (s̈, ṡ²) (:mod:`kinegen.forces.supply`'s
     conventions: the cap side's force / cap area extending, the rod side's retracting, a motor's
-    torque / displacement where it drives; nothing where the element does not take oil)."""
+    torque / displacement where it drives; nothing where the element does not take oil); with
+    ``changes``, their derivatives (``PowerLimit.changes``)."""
+    from kinegen.forces import cycle_changes as cc
     from kinegen.forces.supply import turn_rate
 
     design = results.system.design
+    n_design = len(design)
     supply = model.supply
     actuators, motors = {a.name: a for a in model.actuators}, {m.name: m for m in model.motors}
-    pump_of, rest, per_u, per_x = [], [], [], []
+    pump_of, rest, per_u, per_x, d_rest, d_per_u, d_per_x = [], [], [], [], [], [], []
     for name, fed in supply.circuits.items():
         k = elements.index(name)
         if name in actuators:
             cap, annulus = actuators[name].hydraulics.areas(design)
+            d_cap, d_annulus = actuators[name].hydraulics.area_gradients(list(design), design)
             rate = sum(results.actuator_rate(member.name) for member in model.members(name))
             scale = np.where(rate > 0, 1 / cap, np.where(rate < 0, -1 / annulus, 0.0))
+            d_scale = np.where((rate > 0)[:, None], -d_cap / cap**2, np.where((rate < 0)[:, None], d_annulus / annulus**2, 0.0))
         else:
             motor = motors[name]
             rate = turn_rate(results, model, motor.joint)
-            scale = np.sign(rate) / design_value(motor.displacement, design)
+            displacement, d_displacement = cc.number(motor.displacement, design)
+            scale = np.sign(rate) / displacement
+            d_scale = -np.outer(np.sign(rate), d_displacement) / displacement**2
         taking = demand.elements[name] > 0
         for pump in fed:
             pump_of.append(demand.pumps.index(pump))
-            rest.append(np.where(taking, parts[0][:, k] * scale, -np.inf))
-            per_u.append(np.where(taking, parts[1][:, k] * scale, 0.0))
-            per_x.append(np.where(taking, parts[2][:, k] * scale, 0.0))
-    engine = design_value(supply.engine_power, design) * (1 - MARGIN)
-    return PowerLimit(
-        engine, np.array(pump_of), demand.flow.T.copy(), np.column_stack(rest), np.column_stack(per_u), np.column_stack(per_x)
-    )
+            for values, out, j in ((rest, d_rest, 0), (per_u, d_per_u, 1), (per_x, d_per_x, 2)):
+                values.append(np.where(taking, parts[j][:, k] * scale, -np.inf if j == 0 else 0.0))
+                if changes:
+                    change = d_parts[j][:, k] * scale[:, None] + parts[j][:, k][:, None] * d_scale
+                    out.append(np.where(taking[:, None], change, 0.0))
+    engine, d_engine = cc.number(supply.engine_power, design)
+    flow = demand.flow.T.copy()
+    found = PowerLimit(engine * (1 - MARGIN), np.array(pump_of), flow, np.column_stack(rest), np.column_stack(per_u), np.column_stack(per_x))
+    if changes:
+        d_flow = np.zeros((*flow.shape, n_design))
+        for p, pump in enumerate(supply.pumps):
+            d_flow[:, p] = sum((element_flow[e][1] / len(fed) for e, fed in supply.circuits.items() if pump.name in fed),
+                               np.zeros((len(flow), n_design)))  # fmt: skip
+        found.changes.update(power=d_engine * (1 - MARGIN), flow=d_flow, rest=np.stack(d_rest, axis=1), per_u=np.stack(d_per_u, axis=1),
+                             per_x=np.stack(d_per_x, axis=1))  # fmt: skip
+    return found
 
 
 def fastest(results: Results, model: Model, loads: tuple[str, ...] = (), tipping: bool = True,
@@ -497,3 +590,34 @@ def window_limits(cycle: Cycle, windows: list[tuple[str, float, float]]) -> list
         name = max(spent, key=spent.get) if spent else "-"
         out.append((label, total, name, spent.get(name, 0.0) / total if total else 0.0))
     return out
+
+
+def cycle_time(results: Results, model: Model, loads: tuple[str, ...] = (), tipping: bool = True,
+               speed_limits: dict[str, float] | None = None, gradient: bool = True) -> tuple[float, np.ndarray | None]:  # fmt: skip
+    """The fastest cycle time along the path of ``results`` [s] (:func:`fastest`'s, on the same grid)
+    and, with ``gradient``, its exact derivative by every design parameter (P,) [s per unit]: the
+    derivative of the discretized problem along its active constraints, the limits' coefficients
+    differentiated exactly (:mod:`kinegen.forces.cycle_changes`) and carried through the profile's
+    decisions (:func:`kinegen.forces.reachability.tangent_profile`)."""
+    from kinegen.forces.reachability import Reachability, tangent_profile
+
+    if not results.complete:
+        raise KinegenError("a cycle needs the whole path solved; this solve stopped early")
+    constraints = path_constraints(results, model, loads, tipping, speed_limits, changes=gradient)
+    squared = constraints.speed_bound**2
+    x_max = np.min(squared, axis=1, initial=np.inf)
+    reach = Reachability(constraints.s, constraints.rows_u, constraints.rows_x, constraints.rows_bound, x_max, constraints.power)
+    profile = reach.solve()
+    duration = float(path_times(constraints.s, profile.speed)[-1])
+    if not gradient:
+        return duration, None
+    n_design = len(results.system.design)
+    d_x_max = np.zeros((len(x_max), n_design))
+    if squared.shape[1]:
+        which = np.argmin(squared, axis=1)
+        at = np.arange(len(x_max))
+        finite = np.isfinite(x_max)
+        d_x_max[finite] = (2 * constraints.speed_bound[at, which][:, None] * constraints.changes["speed_bound"][at, which])[finite]
+    power_changes = constraints.power.changes if constraints.power is not None else None
+    _, _, d_duration = tangent_profile(reach, constraints.changes, power_changes, d_x_max)
+    return duration, d_duration

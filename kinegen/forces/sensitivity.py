@@ -151,25 +151,46 @@ def _point_named(statics: Statics, body: str, local: np.ndarray) -> str | None:
 
 
 def _joint_rows_change(statics: Statics, multipliers: np.ndarray, s: np.ndarray) -> np.ndarray:
-    """Σ_i λ_i dΦ_q[i, :] over the joint rows along S and p: (K, n_v, P)."""
+    """Σ_i λ_i dΦ_q[i, :] over the joint rows along S and p: (K, n_v, P). The ``dvel`` kernel runs
+    once per velocity coordinate j at a unit velocity e_j -- on the distinct poses only, when the
+    results repeat their poses (a cycle's stacked motions) -- and each j's sum runs over the entries
+    it moves (the rows of the bodies of coordinate j)."""
     system = statics.system
     n, count, n_design = system.n_velocity, s.shape[0], s.shape[2]
     rows, cols = (np.asarray(x) for x in system.sensitivity_patterns["dvel"])
     joint = rows < statics.joint_rows
     rows, cols = rows[joint], cols[joint]
-    state, parameter = cols < n, cols >= n
+    state = cols < n
     q, u = statics.results.q.T, statics.results.inputs.T
-    still = np.zeros((system.n_inputs, count))
+    distinct = count
+    for parts in (3, 2):  # the same poses repeated: the kernel's values are the same
+        if count % parts == 0 and all(np.array_equal(q[:, : count // parts], q[:, k * count // parts : (k + 1) * count // parts])
+                                      and np.array_equal(u[:, : count // parts], u[:, k * count // parts : (k + 1) * count // parts])
+                                      for k in range(1, parts)):  # fmt: skip
+            distinct = count // parts
+            break
+    still = np.zeros((system.n_inputs, distinct))
+    lam = multipliers[:, rows]  # (K, entries)
+    s_state = s[:, cols[state], :]  # (K, state entries, P)
+    state_index = np.flatnonzero(state)
     out = np.zeros((count, n, n_design))
     for j in range(n):
-        v = np.zeros((n, count))
+        v = np.zeros((n, distinct))
         v[j] = 1.0
-        values = np.broadcast_to(np.asarray(system.sensitivity_kernels["dvel"](q, v, u, still), dtype=float).reshape(len(joint), -1), (len(joint), count))
-        weights = values[joint].T * multipliers[:, rows]  # (K, entries): λ_i times the entry
-        out[:, j] += np.einsum("ke,kep->kp", weights[:, state], s[:, cols[state], :])
-        explicit = np.zeros((n_design, count))
-        np.add.at(explicit, cols[parameter] - n, weights[:, parameter].T)
-        out[:, j] += explicit.T
+        values = np.asarray(system.sensitivity_kernels["dvel"](q[:, :distinct], v, u[:, :distinct], still), dtype=float).reshape(len(joint), -1)
+        values = np.broadcast_to(values, (len(joint), distinct))[joint]  # (entries, distinct)
+        moved = np.flatnonzero(np.any(values != 0, axis=1))
+        if len(moved) == 0:
+            continue
+        weights = np.tile(values[moved].T, (count // distinct, 1)) * lam[:, moved]  # (K, moved entries)
+        in_state = state[moved]
+        if in_state.any():
+            positions = np.searchsorted(state_index, moved[in_state])
+            out[:, j] += np.einsum("ke,kep->kp", weights[:, in_state], s_state[:, positions, :])
+        if (~in_state).any():
+            explicit = np.zeros((n_design, count))
+            np.add.at(explicit, cols[moved[~in_state]] - n, weights[:, ~in_state].T)
+            out[:, j] += explicit.T
     return out
 
 

@@ -433,6 +433,7 @@ class _Reader:
         supply = read_supply(self, top["pumps"], actuators, motors) if "pumps" in top else None
         self.loads, self.tool_forces, self.lift_chart, self.machine = loads, tool_forces, lift_chart, machine  # what the studies' force quantities refer to
         self.massive = tuple(name for name, body in self.bodies.items() if body.inertia is not None)
+        self.supply = supply
         studies = read_studies(self, top.get("studies"), cases, actuators, working_range) if "studies" in top else {}
         return Model(
             name=name,

@@ -373,6 +373,7 @@ QUANTITY_UNITS = {
     "working_range": "m", "rotation_range": "rad", "stroke": "m", "toggle_margin": "1", "actuator_margin": "m",
     "transmission_angle": "rad", "digging_force": "kN", "crowd_force": "kN", "cylinder_pressure": "MPa", "pin_load": "kN",
     "lift_capacity": "kN", "tool_force": "kN", "tipping_margin": "kN m", "peak_pressure": "MPa", "mass": "t",
+    "cycle_time": "s",
 }  # fmt: skip
 #: a mass quantity's name for the whole machine (the moving bodies and the undercarriage)
 MACHINE = "machine"
@@ -422,6 +423,9 @@ class Quantity:
       masses, e.g. a counterweight);
     * ``peak_pressure``: over ``case`` at its speed, the largest pressure ``actuator`` needs (MPa): the
       inverse dynamics with the bodies' weights and inertia, and ``load`` if named;
+    * ``cycle_time``: the fastest timing of ``case``'s path from rest to rest within the pumps, the
+      engine, the pressures, the motors' torque and the tipping margin, with the bodies' weight and
+      inertia and ``load`` if named (s; :func:`kinegen.forces.cycle.cycle_time`, on the case's grid);
     * ``tool_force``: over ``case``'s poses, the largest force the point ``points[0]`` can exert along
       the global direction ``axis`` with every hydraulic cylinder at most at its relief setting (kN;
       a force map's value, :mod:`kinegen.forces.maps`).
@@ -460,6 +464,8 @@ class Quantity:
             return f"tipping_margin({'dynamic' if self.inertia else 'static'}{held}, {self.case})"
         if self.kind == "mass":
             return f"mass({self.body})"
+        if self.kind == "cycle_time":
+            return f"cycle_time({self.case}{f' holding {self.load}' if self.load else ''})"
         if self.kind == "peak_pressure" and self.load:
             return f"peak_pressure({self.actuator} holding {self.load}, {self.case})"
         if self.kind == "tool_force" and self.points and self.axis is not None:

@@ -46,7 +46,7 @@ Loader = Any
 #: keys a term or constraint may have besides its quantity's
 _QUANTITY_KEYS = {
     "rotation_range": ("relative_to", "axis"), "cylinder_pressure": ("load",), "pin_load": ("load",), "tool_force": ("direction",),
-    "lift_capacity": ("over", "limit"), "tipping_margin": ("load",), "peak_pressure": ("load",),
+    "lift_capacity": ("over", "limit"), "tipping_margin": ("load",), "peak_pressure": ("load",), "cycle_time": ("load",),
 }  # fmt: skip
 _OPTIONAL_KEYS = tuple(sorted({key for keys in _QUANTITY_KEYS.values() for key in keys}))
 
@@ -165,6 +165,14 @@ class _StudyReader:
             if limit == "tipping" and not self.tipping:
                 raise self.loader.fail(f"{entry}.limit", "a tipping load needs the bodies' masses and a machine: section")
             return Quantity(kind, chart.case, at=(radius, height), over=over, limit=limit)
+        if kind == "cycle_time":  # {cycle_time: <case>, load: ...}: the case is its value
+            if "case" in spec:
+                raise self.loader.fail(f"{entry}.case", "a cycle time names its case as its value: {cycle_time: digging}")
+            if not isinstance(what, str) or what not in self.cases:
+                raise self.loader.fail(where, f"a cycle time re-times a case's path: expected one of {', '.join(self.cases)}, got {shown(what)}")
+            if not getattr(self.loader, "massive", ()) and getattr(self.loader, "supply", None) is None:
+                raise self.loader.fail(where, "a cycle time needs what limits the motion: the bodies' masses or a pumps: section")
+            return Quantity(kind, what, load=self.load(spec, entry, "a cycle time") if "load" in spec else None)
         case = spec.get("case")
         if not isinstance(case, str) or case not in self.cases:
             raise self.loader.fail(f"{entry}.case", f"{kind} is measured over a case: expected one of {', '.join(self.cases)}, got {shown(case)}")
