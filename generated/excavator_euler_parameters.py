@@ -15,7 +15,7 @@ STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x,
 import math
 
 import numpy as np
-from numpy import cos, sin, sqrt, tanh
+from numpy import abs, cos, sign, sin, sqrt, tanh
 
 MODEL = 'excavator'
 SOURCE = 'excavator.yaml'
@@ -82,11 +82,12 @@ KERNELS = {
     'actuation': (('q', 'p'), ('actuation_matrix',)),
     'loads': (('q', 't', 'p'), ('loads',)),
     'inertia': (('q', 'v', 'a', 'p'), ('inertia',)),
+    'supply': (('q', 'v', 'f', 'p'), ('pump_flows', 'pump_pressures', 'pump_powers', 'pump_limits')),
     'points': (('p',), ('points',)),
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_parameters.h': 'fbe803cedca00cc9049c61ecd266276ab11fa6a8a7640fdcb6ffbf35c9895dfd', 'excavator_euler_parameters.c': 'b5a93b9c6d025671f493a4b481ce2b154b322d21cb2d46d7eb38b46a7f403f0e'}
+C_FILES = {'excavator_euler_parameters.h': 'fbe803cedca00cc9049c61ecd266276ab11fa6a8a7640fdcb6ffbf35c9895dfd', 'excavator_euler_parameters.c': 'ada3956a215fccb52b1e8232883f3aa8e62060346e1d23c47f1268c5e40bf30d'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -2817,6 +2818,256 @@ def inertia(q, v, a, p):
     out[95] = c551*c581 + c564*(bucket_e3 + (12/5)*bucket_e1) + c567*(-c569 - bucket_e0) + c583*c554 - c553*c584 + (6/5)*c568*bucket_e3
     out[96] = c551*c583 + c564*bucket_e0 + c567*(c586 + bucket_e3) + c552*c584 - c568*c585 - c581*c554
     out[97] = c551*c584 + c564*bucket_e1 + c567*(c585 + bucket_e2) + c568*(c586 + c554) + c553*c581 - c552*c583
+    return out
+
+
+def pump_flows(q, v, f, p):
+    """Output 'pump_flows' (2 values) of the kernel supply: The hydraulic supply along a motion: the pumps' flows, pressures, powers and limits (kinegen.forces.supply's conventions)."""
+    _, _, _, upper_e0, upper_e1, upper_e2, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, _, _, _, _, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, _, _, _, _, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, _, _, _, _, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, _, _, _, _, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, v_upper_e1, v_upper_e2, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, _, _, _, _, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, _, _, _, _, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, _, _, _, _, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, _, _, _, _, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    _, _, _, _, _, _, _, _, _, _, p_bucket_bore, _ = p
+    c0 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c1 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c2 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c3 = 1/sqrt(c0**2 + c1**2 + c2**2)
+    c4 = c0*c3*v_bucket_cyl_barrel_x
+    c5 = c1*c3*v_bucket_cyl_barrel_y
+    c6 = c2*c3*v_bucket_cyl_barrel_z
+    c7 = -c0*c3*v_bucket_cyl_rod_x
+    c8 = -c1*c3*v_bucket_cyl_rod_y
+    c9 = -c2*c3*v_bucket_cyl_rod_z
+    c10 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c11 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c12 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c13 = 1/sqrt(c10**2 + c11**2 + c12**2)
+    c14 = c10*c13*v_boom_cyl_l_barrel_x
+    c15 = c11*c13*v_boom_cyl_l_barrel_y
+    c16 = c12*c13*v_boom_cyl_l_barrel_z
+    c17 = -c10*c13*v_boom_cyl_l_rod_x
+    c18 = -c11*c13*v_boom_cyl_l_rod_y
+    c19 = -c12*c13*v_boom_cyl_l_rod_z
+    c20 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x
+    c21 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y
+    c22 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z
+    c23 = 1/sqrt(c20**2 + c21**2 + c22**2)
+    c24 = c20*c23*v_boom_cyl_r_barrel_x
+    c25 = c21*c23*v_boom_cyl_r_barrel_y
+    c26 = c22*c23*v_boom_cyl_r_barrel_z
+    c27 = -c20*c23*v_boom_cyl_r_rod_x
+    c28 = -c21*c23*v_boom_cyl_r_rod_y
+    c29 = -c22*c23*v_boom_cyl_r_rod_z
+    c30 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c31 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c32 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c33 = 1/sqrt(c30**2 + c31**2 + c32**2)
+    c34 = c30*c33*v_arm_cyl_barrel_x
+    c35 = c31*c33*v_arm_cyl_barrel_y
+    c36 = c32*c33*v_arm_cyl_barrel_z
+    c37 = -c30*c33*v_arm_cyl_rod_x
+    c38 = -c31*c33*v_arm_cyl_rod_y
+    c39 = -c32*c33*v_arm_cyl_rod_z
+    c40 = 0.0017720546061654927*c34 + 0.0017720546061654927*c35 + 0.0017720546061654927*c36 + 0.0017720546061654927*c37 + 0.0017720546061654927*c38 + 0.0017720546061654927*c39 + 0.004236241343824987*abs(c14 + c15 + c16 + c17 + c18 + c19 + c24 + c25 + c26 + c27 + c28 + c29) + 0.005384886157793755*abs(c34 + c35 + c36 + c37 + c38 + c39) + 0.0014186254326366409*c14 + 0.0014186254326366409*c15 + 0.0014186254326366409*c16 + 0.0014186254326366409*c17 + 0.0014186254326366409*c18 + 0.0014186254326366409*c19 + 0.0014186254326366409*c24 + 0.0014186254326366409*c25 + 0.0014186254326366409*c26 + 0.0014186254326366409*c27 + 0.0014186254326366409*c28 + 0.0014186254326366409*c29
+    out = _zeros(2, q, ())
+    out[0] = c40 + 0.0025132741228718345*c4 + 0.0025132741228718345*c5 + 0.0025132741228718345*c6 + 0.0025132741228718345*c7 + 0.0025132741228718345*c8 + 0.0025132741228718345*c9 + (-0.0025132741228718345 + 0.7853981633974483*p_bucket_bore**2)*abs(c4 + c5 + c6 + c7 + c8 + c9)
+    out[1] = c40 + (13/5000)*abs(-2*upper_e2*v_upper_e1 - 2*upper_e3*v_upper_e0 + 2*upper_e0*v_upper_e3 + 2*upper_e1*v_upper_e2)
+    return out
+
+
+def pump_pressures(q, v, f, p):
+    """Output 'pump_pressures' (2 values) of the kernel supply: The hydraulic supply along a motion: the pumps' flows, pressures, powers and limits (kinegen.forces.supply's conventions)."""
+    _, _, _, upper_e0, upper_e1, upper_e2, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, _, _, _, _, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, _, _, _, _, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, _, _, _, _, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, _, _, _, _, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, v_upper_e1, v_upper_e2, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, _, _, _, _, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, _, _, _, _, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, _, _, _, _, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, _, _, _, _, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    f_swing_motor, f_boom_cylinder_left, f_arm_cylinder, f_bucket_cylinder = f
+    _, _, _, _, _, _, _, _, _, _, p_bucket_bore, _ = p
+    c0 = abs(f_arm_cylinder)
+    c1 = c0 + f_arm_cylinder
+    c2 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c3 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c4 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c5 = 1/sqrt(c2**2 + c3**2 + c4**2)
+    c6 = c2*c5
+    c7 = c3*c5
+    c8 = c4*c5
+    c9 = c6*v_arm_cyl_barrel_x + c7*v_arm_cyl_barrel_y + c8*v_arm_cyl_barrel_z
+    c10 = sign(c9 - c2*c5*v_arm_cyl_rod_x - c3*c5*v_arm_cyl_rod_y - c4*c5*v_arm_cyl_rod_z)
+    c11 = (1/2)*c10
+    c12 = (1/2)*abs(c10)
+    c13 = c1*(c11 + c12)
+    c14 = f_arm_cylinder - c0
+    c15 = -c14*(c12 - c11)
+    c16 = p_bucket_bore**2
+    c17 = abs(f_bucket_cylinder)
+    c18 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c19 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c20 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c21 = 1/sqrt(c18**2 + c19**2 + c20**2)
+    c22 = sign(c18*c21*v_bucket_cyl_barrel_x + c19*c21*v_bucket_cyl_barrel_y + c20*c21*v_bucket_cyl_barrel_z - c18*c21*v_bucket_cyl_rod_x - c19*c21*v_bucket_cyl_rod_y - c20*c21*v_bucket_cyl_rod_z)
+    c23 = (1/2)*c22
+    c24 = (1/2)*abs(c22)
+    c25 = (c17 + f_bucket_cylinder)*(c23 + c24)/c16
+    c26 = (c17 - f_bucket_cylinder)*(c24 - c23)/(-4/625 + c16)
+    c27 = abs(f_boom_cylinder_left)
+    c28 = c27 + f_boom_cylinder_left
+    c29 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c30 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c31 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c32 = 1/sqrt(c29**2 + c30**2 + c31**2)
+    c33 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x
+    c34 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y
+    c35 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z
+    c36 = 1/sqrt(c33**2 + c34**2 + c35**2)
+    c37 = c29*c32
+    c38 = c30*c32
+    c39 = c31*c32
+    c40 = c33*c36
+    c41 = c34*c36
+    c42 = c35*c36
+    c43 = c37*v_boom_cyl_l_barrel_x + c38*v_boom_cyl_l_barrel_y + c39*v_boom_cyl_l_barrel_z + c40*v_boom_cyl_r_barrel_x + c41*v_boom_cyl_r_barrel_y + c42*v_boom_cyl_r_barrel_z
+    c44 = sign(c43 - c29*c32*v_boom_cyl_l_rod_x - c30*c32*v_boom_cyl_l_rod_y - c31*c32*v_boom_cyl_l_rod_z - c33*c36*v_boom_cyl_r_rod_x - c34*c36*v_boom_cyl_r_rod_y - c35*c36*v_boom_cyl_r_rod_z)
+    c45 = (1/2)*c44
+    c46 = (1/2)*abs(c44)
+    c47 = c45 + c46
+    c48 = c28*c47
+    c49 = c46 - c45
+    c50 = f_boom_cylinder_left - c27
+    c51 = -c50
+    c52 = c49*c51
+    c53 = abs(69.19780134430232*c15 + 34.93112605583437*c13 - 44.20970641441537*c28*c47 - 88.72749440663155*c49*c51)
+    c54 = (1/4)*c53 + 17.29945033607558*c15 + 8.732781513958592*c13 + 11.052426603603843*c48 + 22.181873601657887*c52
+    c55 = sign(-2*upper_e2*v_upper_e1 - 2*upper_e3*v_upper_e0 + 2*upper_e0*v_upper_e3 + 2*upper_e1*v_upper_e2)
+    c56 = c55*f_swing_motor
+    c57 = abs(c55)*abs(f_swing_motor)
+    c58 = sign(c9 - c6*v_arm_cyl_rod_x - c7*v_arm_cyl_rod_y - c8*v_arm_cyl_rod_z)
+    c59 = (1/2)*c58
+    c60 = (1/2)*abs(c58)
+    c61 = c1*(c59 + c60)
+    c62 = c14*(c60 - c59)
+    c63 = sign(c43 - c37*v_boom_cyl_l_rod_x - c38*v_boom_cyl_l_rod_y - c39*v_boom_cyl_l_rod_z - c40*v_boom_cyl_r_rod_x - c41*v_boom_cyl_r_rod_y - c42*v_boom_cyl_r_rod_z)
+    c64 = (1/2)*c63
+    c65 = (1/2)*abs(c63)
+    c66 = c28*(c64 + c65)
+    c67 = c50*(c65 - c64)
+    out = _zeros(2, q, ())
+    out[0] = c54 + (1/2)*abs((1/2)*c53 + 34.59890067215116*c15 + 17.465563027917185*c13 + 22.104853207207686*c48 + 44.363747203315775*c52 - 0.6366197723675814*c25 - 0.6366197723675814*c26) + 0.3183098861837907*c25 + 0.3183098861837907*c26
+    out[1] = c54 + (1/2)*abs(-1/2*abs(34.93112605583437*c61 + 88.72749440663155*c67 - 69.19780134430232*c62 - 44.20970641441537*c66) + (2500/13)*c56 + (2500/13)*c57 + 34.59890067215116*c62 + 44.363747203315775*c67 - 17.465563027917185*c61 - 22.104853207207686*c66) + (1250/13)*c56 + (1250/13)*c57
+    return out
+
+
+def pump_powers(q, v, f, p):
+    """Output 'pump_powers' (2 values) of the kernel supply: The hydraulic supply along a motion: the pumps' flows, pressures, powers and limits (kinegen.forces.supply's conventions)."""
+    _, _, _, upper_e0, upper_e1, upper_e2, upper_e3, _, _, _, _, _, _, _, boom_cyl_l_barrel_x, boom_cyl_l_barrel_y, boom_cyl_l_barrel_z, _, _, _, _, boom_cyl_l_rod_x, boom_cyl_l_rod_y, boom_cyl_l_rod_z, _, _, _, _, boom_cyl_r_barrel_x, boom_cyl_r_barrel_y, boom_cyl_r_barrel_z, _, _, _, _, boom_cyl_r_rod_x, boom_cyl_r_rod_y, boom_cyl_r_rod_z, _, _, _, _, _, _, _, _, _, _, _, arm_cyl_barrel_x, arm_cyl_barrel_y, arm_cyl_barrel_z, _, _, _, _, arm_cyl_rod_x, arm_cyl_rod_y, arm_cyl_rod_z, _, _, _, _, bucket_cyl_barrel_x, bucket_cyl_barrel_y, bucket_cyl_barrel_z, _, _, _, _, bucket_cyl_rod_x, bucket_cyl_rod_y, bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = q
+    _, _, _, v_upper_e0, v_upper_e1, v_upper_e2, v_upper_e3, _, _, _, _, _, _, _, v_boom_cyl_l_barrel_x, v_boom_cyl_l_barrel_y, v_boom_cyl_l_barrel_z, _, _, _, _, v_boom_cyl_l_rod_x, v_boom_cyl_l_rod_y, v_boom_cyl_l_rod_z, _, _, _, _, v_boom_cyl_r_barrel_x, v_boom_cyl_r_barrel_y, v_boom_cyl_r_barrel_z, _, _, _, _, v_boom_cyl_r_rod_x, v_boom_cyl_r_rod_y, v_boom_cyl_r_rod_z, _, _, _, _, _, _, _, _, _, _, _, v_arm_cyl_barrel_x, v_arm_cyl_barrel_y, v_arm_cyl_barrel_z, _, _, _, _, v_arm_cyl_rod_x, v_arm_cyl_rod_y, v_arm_cyl_rod_z, _, _, _, _, v_bucket_cyl_barrel_x, v_bucket_cyl_barrel_y, v_bucket_cyl_barrel_z, _, _, _, _, v_bucket_cyl_rod_x, v_bucket_cyl_rod_y, v_bucket_cyl_rod_z, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _ = v
+    f_swing_motor, f_boom_cylinder_left, f_arm_cylinder, f_bucket_cylinder = f
+    _, _, _, _, _, _, _, _, _, _, p_bucket_bore, _ = p
+    c0 = p_bucket_bore**2
+    c1 = bucket_cyl_barrel_x - bucket_cyl_rod_x
+    c2 = bucket_cyl_barrel_y - bucket_cyl_rod_y
+    c3 = bucket_cyl_barrel_z - bucket_cyl_rod_z
+    c4 = 1/sqrt(c1**2 + c2**2 + c3**2)
+    c5 = c1*c4*v_bucket_cyl_barrel_x
+    c6 = c2*c4*v_bucket_cyl_barrel_y
+    c7 = c3*c4*v_bucket_cyl_barrel_z
+    c8 = -c1*c4*v_bucket_cyl_rod_x
+    c9 = -c2*c4*v_bucket_cyl_rod_y
+    c10 = -c3*c4*v_bucket_cyl_rod_z
+    c11 = c10 + c5 + c6 + c7 + c8 + c9
+    c12 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x
+    c13 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y
+    c14 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z
+    c15 = 1/sqrt(c12**2 + c13**2 + c14**2)
+    c16 = -c12*c15*v_boom_cyl_l_rod_x
+    c17 = -c13*c15*v_boom_cyl_l_rod_y
+    c18 = -c14*c15*v_boom_cyl_l_rod_z
+    c19 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x
+    c20 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y
+    c21 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z
+    c22 = 1/sqrt(c19**2 + c20**2 + c21**2)
+    c23 = -c19*c22*v_boom_cyl_r_rod_x
+    c24 = -c20*c22*v_boom_cyl_r_rod_y
+    c25 = -c21*c22*v_boom_cyl_r_rod_z
+    c26 = c12*c15
+    c27 = c26*v_boom_cyl_l_barrel_x
+    c28 = c13*c15
+    c29 = c28*v_boom_cyl_l_barrel_y
+    c30 = c14*c15
+    c31 = c30*v_boom_cyl_l_barrel_z
+    c32 = c19*c22
+    c33 = c32*v_boom_cyl_r_barrel_x
+    c34 = c20*c22
+    c35 = c34*v_boom_cyl_r_barrel_y
+    c36 = c21*c22
+    c37 = c36*v_boom_cyl_r_barrel_z
+    c38 = c27 + c29 + c31 + c33 + c35 + c37
+    c39 = c16 + c17 + c18 + c23 + c24 + c25 + c38
+    c40 = arm_cyl_barrel_x - arm_cyl_rod_x
+    c41 = arm_cyl_barrel_y - arm_cyl_rod_y
+    c42 = arm_cyl_barrel_z - arm_cyl_rod_z
+    c43 = 1/sqrt(c40**2 + c41**2 + c42**2)
+    c44 = -c40*c43*v_arm_cyl_rod_x
+    c45 = -c41*c43*v_arm_cyl_rod_y
+    c46 = -c42*c43*v_arm_cyl_rod_z
+    c47 = c40*c43
+    c48 = c47*v_arm_cyl_barrel_x
+    c49 = c41*c43
+    c50 = c49*v_arm_cyl_barrel_y
+    c51 = c42*c43
+    c52 = c51*v_arm_cyl_barrel_z
+    c53 = c48 + c50 + c52
+    c54 = c44 + c45 + c46 + c53
+    c55 = 0.0017720546061654927*c44 + 0.0017720546061654927*c45 + 0.0017720546061654927*c46 + 0.0017720546061654927*c48 + 0.0017720546061654927*c50 + 0.0017720546061654927*c52 + 0.004236241343824987*abs(c39) + 0.005384886157793755*abs(c54) + 0.0014186254326366409*c16 + 0.0014186254326366409*c17 + 0.0014186254326366409*c18 + 0.0014186254326366409*c23 + 0.0014186254326366409*c24 + 0.0014186254326366409*c25 + 0.0014186254326366409*c27 + 0.0014186254326366409*c29 + 0.0014186254326366409*c31 + 0.0014186254326366409*c33 + 0.0014186254326366409*c35 + 0.0014186254326366409*c37
+    c56 = abs(f_arm_cylinder)
+    c57 = c56 + f_arm_cylinder
+    c58 = sign(c54)
+    c59 = (1/2)*c58
+    c60 = (1/2)*abs(c58)
+    c61 = c57*(c59 + c60)
+    c62 = f_arm_cylinder - c56
+    c63 = -c62*(c60 - c59)
+    c64 = abs(f_bucket_cylinder)
+    c65 = sign(c11)
+    c66 = (1/2)*c65
+    c67 = (1/2)*abs(c65)
+    c68 = (c64 + f_bucket_cylinder)*(c66 + c67)/c0
+    c69 = (c64 - f_bucket_cylinder)*(c67 - c66)/(-4/625 + c0)
+    c70 = abs(f_boom_cylinder_left)
+    c71 = c70 + f_boom_cylinder_left
+    c72 = sign(c39)
+    c73 = (1/2)*c72
+    c74 = (1/2)*abs(c72)
+    c75 = c73 + c74
+    c76 = c71*c75
+    c77 = c74 - c73
+    c78 = f_boom_cylinder_left - c70
+    c79 = -c78
+    c80 = c77*c79
+    c81 = abs(69.19780134430232*c63 + 34.93112605583437*c61 - 44.20970641441537*c71*c75 - 88.72749440663155*c77*c79)
+    c82 = (1/4)*c81 + 17.29945033607558*c63 + 8.732781513958592*c61 + 11.052426603603843*c76 + 22.181873601657887*c80
+    c83 = -2*upper_e2*v_upper_e1 - 2*upper_e3*v_upper_e0 + 2*upper_e0*v_upper_e3 + 2*upper_e1*v_upper_e2
+    c84 = sign(c83)
+    c85 = c84*f_swing_motor
+    c86 = abs(c84)*abs(f_swing_motor)
+    c87 = sign(c53 - c47*v_arm_cyl_rod_x - c49*v_arm_cyl_rod_y - c51*v_arm_cyl_rod_z)
+    c88 = (1/2)*c87
+    c89 = (1/2)*abs(c87)
+    c90 = c57*(c88 + c89)
+    c91 = c62*(c89 - c88)
+    c92 = sign(c38 - c26*v_boom_cyl_l_rod_x - c28*v_boom_cyl_l_rod_y - c30*v_boom_cyl_l_rod_z - c32*v_boom_cyl_r_rod_x - c34*v_boom_cyl_r_rod_y - c36*v_boom_cyl_r_rod_z)
+    c93 = (1/2)*c92
+    c94 = (1/2)*abs(c92)
+    c95 = c71*(c93 + c94)
+    c96 = c78*(c94 - c93)
+    out = _zeros(2, q, ())
+    out[0] = (c82 + (1/2)*abs((1/2)*c81 + 34.59890067215116*c63 + 17.465563027917185*c61 + 22.104853207207686*c76 + 44.363747203315775*c80 - 0.6366197723675814*c68 - 0.6366197723675814*c69) + 0.3183098861837907*c68 + 0.3183098861837907*c69)*(c55 + 0.0025132741228718345*c10 + 0.0025132741228718345*c5 + 0.0025132741228718345*c6 + 0.0025132741228718345*c7 + 0.0025132741228718345*c8 + 0.0025132741228718345*c9 + (-0.0025132741228718345 + 0.7853981633974483*c0)*abs(c11))
+    out[1] = (c55 + (13/5000)*abs(c83))*(c82 + (1/2)*abs(-1/2*abs(34.93112605583437*c90 + 88.72749440663155*c96 - 69.19780134430232*c91 - 44.20970641441537*c95) + (2500/13)*c85 + (2500/13)*c86 + 34.59890067215116*c91 + 44.363747203315775*c96 - 17.465563027917185*c90 - 22.104853207207686*c95) + (1250/13)*c85 + (1250/13)*c86)
+    return out
+
+
+def pump_limits(q, v, f, p):
+    """Output 'pump_limits' (3 values) of the kernel supply: The hydraulic supply along a motion: the pumps' flows, pressures, powers and limits (kinegen.forces.supply's conventions)."""
+    out = _zeros(3, q, ())
+    out[0] = 53/15000
+    out[1] = 53/15000
+    out[2] = 110000
     return out
 
 

@@ -17,8 +17,8 @@
 #include <math.h>
 #include <stddef.h>
 
-/* The section functions come in 5 groups, each under its KINEGEN_PART value
- * (1 to 5; the retraction, kernels and tables under 0): the file compiles whole, or
+/* The section functions come in 6 groups, each under its KINEGEN_PART value
+ * (1 to 6; the retraction, kernels and tables under 0): the file compiles whole, or
  * part by part with -DKINEGEN_PART=k, in parallel. */
 void excavator_euler_zxy_compute_joints_phi(const double *q, const double *p, double *out);
 void excavator_euler_zxy_compute_drivers_phi_digging(const double *q, const double *u, const double *p, double *out);
@@ -96,6 +96,10 @@ void excavator_euler_zxy_compute_inertia_part0(const double *q, const double *v,
 void excavator_euler_zxy_compute_inertia_part1(const double *q, const double *v, const double *a, const double *p, double *out);
 void excavator_euler_zxy_compute_inertia_part2(const double *q, const double *v, const double *a, const double *p, double *out);
 void excavator_euler_zxy_compute_inertia_part3(const double *q, const double *v, const double *a, const double *p, double *out);
+void excavator_euler_zxy_compute_pump_flows(const double *q, const double *v, const double *f, const double *p, double *out);
+void excavator_euler_zxy_compute_pump_pressures(const double *q, const double *v, const double *f, const double *p, double *out);
+void excavator_euler_zxy_compute_pump_powers(const double *q, const double *v, const double *f, const double *p, double *out);
+void excavator_euler_zxy_compute_pump_limits(const double *q, const double *v, const double *f, const double *p, double *out);
 void excavator_euler_zxy_compute_points(const double *p, double *out);
 void excavator_euler_zxy_compute_actuator_ranges(const double *p, double *out);
 
@@ -9767,6 +9771,413 @@ void excavator_euler_zxy_compute_inertia_part3(const double *q, const double *v,
     out[83] = c671*((1.0/2.0)*c679*c657 - c682*c687 - c682*c688 - c683*c657) + c674*(c654*c685 + c678*c682 + c681*c682 - c654*c683) + c675*(-c655*c677 - c655*c680) + c703*c660 - c700*bucket_a21 - c702*c661;
 }
 
+/* Each pump's flow [m^3/s] (in the order of PUMPS): its shares of the elements it feeds. */
+void excavator_euler_zxy_compute_pump_flows(const double *q, const double *v, const double *f, const double *p, double *out) {
+    const double upper_beta = q[4];
+    const double boom_cyl_l_barrel_x = q[12];
+    const double boom_cyl_l_barrel_y = q[13];
+    const double boom_cyl_l_barrel_z = q[14];
+    const double boom_cyl_l_rod_x = q[18];
+    const double boom_cyl_l_rod_y = q[19];
+    const double boom_cyl_l_rod_z = q[20];
+    const double boom_cyl_r_barrel_x = q[24];
+    const double boom_cyl_r_barrel_y = q[25];
+    const double boom_cyl_r_barrel_z = q[26];
+    const double boom_cyl_r_rod_x = q[30];
+    const double boom_cyl_r_rod_y = q[31];
+    const double boom_cyl_r_rod_z = q[32];
+    const double arm_cyl_barrel_x = q[42];
+    const double arm_cyl_barrel_y = q[43];
+    const double arm_cyl_barrel_z = q[44];
+    const double arm_cyl_rod_x = q[48];
+    const double arm_cyl_rod_y = q[49];
+    const double arm_cyl_rod_z = q[50];
+    const double bucket_cyl_barrel_x = q[54];
+    const double bucket_cyl_barrel_y = q[55];
+    const double bucket_cyl_barrel_z = q[56];
+    const double bucket_cyl_rod_x = q[60];
+    const double bucket_cyl_rod_y = q[61];
+    const double bucket_cyl_rod_z = q[62];
+    const double v_upper_alpha = v[3];
+    const double v_upper_gamma = v[5];
+    const double v_boom_cyl_l_barrel_x = v[12];
+    const double v_boom_cyl_l_barrel_y = v[13];
+    const double v_boom_cyl_l_barrel_z = v[14];
+    const double v_boom_cyl_l_rod_x = v[18];
+    const double v_boom_cyl_l_rod_y = v[19];
+    const double v_boom_cyl_l_rod_z = v[20];
+    const double v_boom_cyl_r_barrel_x = v[24];
+    const double v_boom_cyl_r_barrel_y = v[25];
+    const double v_boom_cyl_r_barrel_z = v[26];
+    const double v_boom_cyl_r_rod_x = v[30];
+    const double v_boom_cyl_r_rod_y = v[31];
+    const double v_boom_cyl_r_rod_z = v[32];
+    const double v_arm_cyl_barrel_x = v[42];
+    const double v_arm_cyl_barrel_y = v[43];
+    const double v_arm_cyl_barrel_z = v[44];
+    const double v_arm_cyl_rod_x = v[48];
+    const double v_arm_cyl_rod_y = v[49];
+    const double v_arm_cyl_rod_z = v[50];
+    const double v_bucket_cyl_barrel_x = v[54];
+    const double v_bucket_cyl_barrel_y = v[55];
+    const double v_bucket_cyl_barrel_z = v[56];
+    const double v_bucket_cyl_rod_x = v[60];
+    const double v_bucket_cyl_rod_y = v[61];
+    const double v_bucket_cyl_rod_z = v[62];
+    (void)f;
+    const double p_bucket_bore = p[10];
+    const double upper_a21 = sin(upper_beta);
+    const double c0 = bucket_cyl_barrel_x - bucket_cyl_rod_x;
+    const double c1 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
+    const double c2 = bucket_cyl_barrel_z - bucket_cyl_rod_z;
+    const double c3 = 1.0/sqrt((c0*c0) + (c1*c1) + (c2*c2));
+    const double c4 = c0*c3*v_bucket_cyl_barrel_x;
+    const double c5 = c1*c3*v_bucket_cyl_barrel_y;
+    const double c6 = c2*c3*v_bucket_cyl_barrel_z;
+    const double c7 = -c0*c3*v_bucket_cyl_rod_x;
+    const double c8 = -c1*c3*v_bucket_cyl_rod_y;
+    const double c9 = -c2*c3*v_bucket_cyl_rod_z;
+    const double c10 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x;
+    const double c11 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
+    const double c12 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z;
+    const double c13 = 1.0/sqrt((c10*c10) + (c11*c11) + (c12*c12));
+    const double c14 = c10*c13*v_boom_cyl_l_barrel_x;
+    const double c15 = c11*c13*v_boom_cyl_l_barrel_y;
+    const double c16 = c12*c13*v_boom_cyl_l_barrel_z;
+    const double c17 = -c10*c13*v_boom_cyl_l_rod_x;
+    const double c18 = -c11*c13*v_boom_cyl_l_rod_y;
+    const double c19 = -c12*c13*v_boom_cyl_l_rod_z;
+    const double c20 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x;
+    const double c21 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y;
+    const double c22 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z;
+    const double c23 = 1.0/sqrt((c20*c20) + (c21*c21) + (c22*c22));
+    const double c24 = c20*c23*v_boom_cyl_r_barrel_x;
+    const double c25 = c21*c23*v_boom_cyl_r_barrel_y;
+    const double c26 = c22*c23*v_boom_cyl_r_barrel_z;
+    const double c27 = -c20*c23*v_boom_cyl_r_rod_x;
+    const double c28 = -c21*c23*v_boom_cyl_r_rod_y;
+    const double c29 = -c22*c23*v_boom_cyl_r_rod_z;
+    const double c30 = arm_cyl_barrel_x - arm_cyl_rod_x;
+    const double c31 = arm_cyl_barrel_y - arm_cyl_rod_y;
+    const double c32 = arm_cyl_barrel_z - arm_cyl_rod_z;
+    const double c33 = 1.0/sqrt((c30*c30) + (c31*c31) + (c32*c32));
+    const double c34 = c30*c33*v_arm_cyl_barrel_x;
+    const double c35 = c31*c33*v_arm_cyl_barrel_y;
+    const double c36 = c32*c33*v_arm_cyl_barrel_z;
+    const double c37 = -c30*c33*v_arm_cyl_rod_x;
+    const double c38 = -c31*c33*v_arm_cyl_rod_y;
+    const double c39 = -c32*c33*v_arm_cyl_rod_z;
+    const double c40 = 0.0017720546061654927*c34 + 0.0017720546061654927*c35 + 0.0017720546061654927*c36 + 0.0017720546061654927*c37 + 0.0017720546061654927*c38 + 0.0017720546061654927*c39 + 0.004236241343824987*fabs(c14 + c15 + c16 + c17 + c18 + c19 + c24 + c25 + c26 + c27 + c28 + c29) + 0.005384886157793755*fabs(c34 + c35 + c36 + c37 + c38 + c39) + 0.0014186254326366409*c14 + 0.0014186254326366409*c15 + 0.0014186254326366409*c16 + 0.0014186254326366409*c17 + 0.0014186254326366409*c18 + 0.0014186254326366409*c19 + 0.0014186254326366409*c24 + 0.0014186254326366409*c25 + 0.0014186254326366409*c26 + 0.0014186254326366409*c27 + 0.0014186254326366409*c28 + 0.0014186254326366409*c29;
+    out[0] = c40 + 0.0025132741228718345*c4 + 0.0025132741228718345*c5 + 0.0025132741228718345*c6 + 0.0025132741228718345*c7 + 0.0025132741228718345*c8 + 0.0025132741228718345*c9 + (-0.0025132741228718345 + 0.7853981633974483*(p_bucket_bore*p_bucket_bore))*fabs(c4 + c5 + c6 + c7 + c8 + c9);
+    out[1] = c40 + (13.0/5000.0)*fabs(v_upper_alpha + upper_a21*v_upper_gamma);
+}
+
+/* Each pump's pressure [Pa]: the highest filling pressure of the elements it feeds, from their forces f. */
+void excavator_euler_zxy_compute_pump_pressures(const double *q, const double *v, const double *f, const double *p, double *out) {
+    const double upper_beta = q[4];
+    const double boom_cyl_l_barrel_x = q[12];
+    const double boom_cyl_l_barrel_y = q[13];
+    const double boom_cyl_l_barrel_z = q[14];
+    const double boom_cyl_l_rod_x = q[18];
+    const double boom_cyl_l_rod_y = q[19];
+    const double boom_cyl_l_rod_z = q[20];
+    const double boom_cyl_r_barrel_x = q[24];
+    const double boom_cyl_r_barrel_y = q[25];
+    const double boom_cyl_r_barrel_z = q[26];
+    const double boom_cyl_r_rod_x = q[30];
+    const double boom_cyl_r_rod_y = q[31];
+    const double boom_cyl_r_rod_z = q[32];
+    const double arm_cyl_barrel_x = q[42];
+    const double arm_cyl_barrel_y = q[43];
+    const double arm_cyl_barrel_z = q[44];
+    const double arm_cyl_rod_x = q[48];
+    const double arm_cyl_rod_y = q[49];
+    const double arm_cyl_rod_z = q[50];
+    const double bucket_cyl_barrel_x = q[54];
+    const double bucket_cyl_barrel_y = q[55];
+    const double bucket_cyl_barrel_z = q[56];
+    const double bucket_cyl_rod_x = q[60];
+    const double bucket_cyl_rod_y = q[61];
+    const double bucket_cyl_rod_z = q[62];
+    const double v_upper_alpha = v[3];
+    const double v_upper_gamma = v[5];
+    const double v_boom_cyl_l_barrel_x = v[12];
+    const double v_boom_cyl_l_barrel_y = v[13];
+    const double v_boom_cyl_l_barrel_z = v[14];
+    const double v_boom_cyl_l_rod_x = v[18];
+    const double v_boom_cyl_l_rod_y = v[19];
+    const double v_boom_cyl_l_rod_z = v[20];
+    const double v_boom_cyl_r_barrel_x = v[24];
+    const double v_boom_cyl_r_barrel_y = v[25];
+    const double v_boom_cyl_r_barrel_z = v[26];
+    const double v_boom_cyl_r_rod_x = v[30];
+    const double v_boom_cyl_r_rod_y = v[31];
+    const double v_boom_cyl_r_rod_z = v[32];
+    const double v_arm_cyl_barrel_x = v[42];
+    const double v_arm_cyl_barrel_y = v[43];
+    const double v_arm_cyl_barrel_z = v[44];
+    const double v_arm_cyl_rod_x = v[48];
+    const double v_arm_cyl_rod_y = v[49];
+    const double v_arm_cyl_rod_z = v[50];
+    const double v_bucket_cyl_barrel_x = v[54];
+    const double v_bucket_cyl_barrel_y = v[55];
+    const double v_bucket_cyl_barrel_z = v[56];
+    const double v_bucket_cyl_rod_x = v[60];
+    const double v_bucket_cyl_rod_y = v[61];
+    const double v_bucket_cyl_rod_z = v[62];
+    const double f_swing_motor = f[0];
+    const double f_boom_cylinder_left = f[1];
+    const double f_arm_cylinder = f[2];
+    const double f_bucket_cylinder = f[3];
+    const double p_bucket_bore = p[10];
+    const double upper_a21 = sin(upper_beta);
+    const double c0 = fabs(f_arm_cylinder);
+    const double c1 = c0 + f_arm_cylinder;
+    const double c2 = arm_cyl_barrel_x - arm_cyl_rod_x;
+    const double c3 = arm_cyl_barrel_y - arm_cyl_rod_y;
+    const double c4 = arm_cyl_barrel_z - arm_cyl_rod_z;
+    const double c5 = 1.0/sqrt((c2*c2) + (c3*c3) + (c4*c4));
+    const double c6 = c2*c5;
+    const double c7 = c3*c5;
+    const double c8 = c4*c5;
+    const double c9 = c6*v_arm_cyl_barrel_x + c7*v_arm_cyl_barrel_y + c8*v_arm_cyl_barrel_z;
+    const double c10 = ((double)((c9 - c2*c5*v_arm_cyl_rod_x - c3*c5*v_arm_cyl_rod_y - c4*c5*v_arm_cyl_rod_z) > 0.0) - (double)((c9 - c2*c5*v_arm_cyl_rod_x - c3*c5*v_arm_cyl_rod_y - c4*c5*v_arm_cyl_rod_z) < 0.0));
+    const double c11 = (1.0/2.0)*c10;
+    const double c12 = (1.0/2.0)*fabs(c10);
+    const double c13 = c1*(c11 + c12);
+    const double c14 = f_arm_cylinder - c0;
+    const double c15 = -c14*(c12 - c11);
+    const double c16 = (p_bucket_bore*p_bucket_bore);
+    const double c17 = fabs(f_bucket_cylinder);
+    const double c18 = bucket_cyl_barrel_x - bucket_cyl_rod_x;
+    const double c19 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
+    const double c20 = bucket_cyl_barrel_z - bucket_cyl_rod_z;
+    const double c21 = 1.0/sqrt((c18*c18) + (c19*c19) + (c20*c20));
+    const double c22 = ((double)((c18*c21*v_bucket_cyl_barrel_x + c19*c21*v_bucket_cyl_barrel_y + c20*c21*v_bucket_cyl_barrel_z - c18*c21*v_bucket_cyl_rod_x - c19*c21*v_bucket_cyl_rod_y - c20*c21*v_bucket_cyl_rod_z) > 0.0) - (double)((c18*c21*v_bucket_cyl_barrel_x + c19*c21*v_bucket_cyl_barrel_y + c20*c21*v_bucket_cyl_barrel_z - c18*c21*v_bucket_cyl_rod_x - c19*c21*v_bucket_cyl_rod_y - c20*c21*v_bucket_cyl_rod_z) < 0.0));
+    const double c23 = (1.0/2.0)*c22;
+    const double c24 = (1.0/2.0)*fabs(c22);
+    const double c25 = (c17 + f_bucket_cylinder)*(c23 + c24)/c16;
+    const double c26 = (c17 - f_bucket_cylinder)*(c24 - c23)/(-4.0/625.0 + c16);
+    const double c27 = fabs(f_boom_cylinder_left);
+    const double c28 = c27 + f_boom_cylinder_left;
+    const double c29 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x;
+    const double c30 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
+    const double c31 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z;
+    const double c32 = 1.0/sqrt((c29*c29) + (c30*c30) + (c31*c31));
+    const double c33 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x;
+    const double c34 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y;
+    const double c35 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z;
+    const double c36 = 1.0/sqrt((c33*c33) + (c34*c34) + (c35*c35));
+    const double c37 = c29*c32;
+    const double c38 = c30*c32;
+    const double c39 = c31*c32;
+    const double c40 = c33*c36;
+    const double c41 = c34*c36;
+    const double c42 = c35*c36;
+    const double c43 = c37*v_boom_cyl_l_barrel_x + c38*v_boom_cyl_l_barrel_y + c39*v_boom_cyl_l_barrel_z + c40*v_boom_cyl_r_barrel_x + c41*v_boom_cyl_r_barrel_y + c42*v_boom_cyl_r_barrel_z;
+    const double c44 = ((double)((c43 - c29*c32*v_boom_cyl_l_rod_x - c30*c32*v_boom_cyl_l_rod_y - c31*c32*v_boom_cyl_l_rod_z - c33*c36*v_boom_cyl_r_rod_x - c34*c36*v_boom_cyl_r_rod_y - c35*c36*v_boom_cyl_r_rod_z) > 0.0) - (double)((c43 - c29*c32*v_boom_cyl_l_rod_x - c30*c32*v_boom_cyl_l_rod_y - c31*c32*v_boom_cyl_l_rod_z - c33*c36*v_boom_cyl_r_rod_x - c34*c36*v_boom_cyl_r_rod_y - c35*c36*v_boom_cyl_r_rod_z) < 0.0));
+    const double c45 = (1.0/2.0)*c44;
+    const double c46 = (1.0/2.0)*fabs(c44);
+    const double c47 = c45 + c46;
+    const double c48 = c28*c47;
+    const double c49 = c46 - c45;
+    const double c50 = f_boom_cylinder_left - c27;
+    const double c51 = -c50;
+    const double c52 = c49*c51;
+    const double c53 = fabs(69.19780134430232*c15 + 34.93112605583437*c13 - 44.20970641441537*c28*c47 - 88.72749440663155*c49*c51);
+    const double c54 = (1.0/4.0)*c53 + 17.29945033607558*c15 + 8.732781513958592*c13 + 11.052426603603843*c48 + 22.181873601657887*c52;
+    const double c55 = ((double)((v_upper_alpha + upper_a21*v_upper_gamma) > 0.0) - (double)((v_upper_alpha + upper_a21*v_upper_gamma) < 0.0));
+    const double c56 = c55*f_swing_motor;
+    const double c57 = fabs(c55)*fabs(f_swing_motor);
+    const double c58 = ((double)((c9 - c6*v_arm_cyl_rod_x - c7*v_arm_cyl_rod_y - c8*v_arm_cyl_rod_z) > 0.0) - (double)((c9 - c6*v_arm_cyl_rod_x - c7*v_arm_cyl_rod_y - c8*v_arm_cyl_rod_z) < 0.0));
+    const double c59 = (1.0/2.0)*c58;
+    const double c60 = (1.0/2.0)*fabs(c58);
+    const double c61 = c1*(c59 + c60);
+    const double c62 = c14*(c60 - c59);
+    const double c63 = ((double)((c43 - c37*v_boom_cyl_l_rod_x - c38*v_boom_cyl_l_rod_y - c39*v_boom_cyl_l_rod_z - c40*v_boom_cyl_r_rod_x - c41*v_boom_cyl_r_rod_y - c42*v_boom_cyl_r_rod_z) > 0.0) - (double)((c43 - c37*v_boom_cyl_l_rod_x - c38*v_boom_cyl_l_rod_y - c39*v_boom_cyl_l_rod_z - c40*v_boom_cyl_r_rod_x - c41*v_boom_cyl_r_rod_y - c42*v_boom_cyl_r_rod_z) < 0.0));
+    const double c64 = (1.0/2.0)*c63;
+    const double c65 = (1.0/2.0)*fabs(c63);
+    const double c66 = c28*(c64 + c65);
+    const double c67 = c50*(c65 - c64);
+    out[0] = c54 + (1.0/2.0)*fabs((1.0/2.0)*c53 + 34.59890067215116*c15 + 17.465563027917185*c13 + 22.104853207207686*c48 + 44.363747203315775*c52 - 0.6366197723675814*c25 - 0.6366197723675814*c26) + 0.3183098861837907*c25 + 0.3183098861837907*c26;
+    out[1] = c54 + (1.0/2.0)*fabs(-1.0/2.0*fabs(34.93112605583437*c61 + 88.72749440663155*c67 - 69.19780134430232*c62 - 44.20970641441537*c66) + (2500.0/13.0)*c56 + (2500.0/13.0)*c57 + 34.59890067215116*c62 + 44.363747203315775*c67 - 17.465563027917185*c61 - 22.104853207207686*c66) + (1250.0/13.0)*c56 + (1250.0/13.0)*c57;
+}
+
+#endif
+
+#if !defined(KINEGEN_PART) || KINEGEN_PART == 6
+
+/* Each pump's power [W]: its pressure times its flow. */
+void excavator_euler_zxy_compute_pump_powers(const double *q, const double *v, const double *f, const double *p, double *out) {
+    const double upper_beta = q[4];
+    const double boom_cyl_l_barrel_x = q[12];
+    const double boom_cyl_l_barrel_y = q[13];
+    const double boom_cyl_l_barrel_z = q[14];
+    const double boom_cyl_l_rod_x = q[18];
+    const double boom_cyl_l_rod_y = q[19];
+    const double boom_cyl_l_rod_z = q[20];
+    const double boom_cyl_r_barrel_x = q[24];
+    const double boom_cyl_r_barrel_y = q[25];
+    const double boom_cyl_r_barrel_z = q[26];
+    const double boom_cyl_r_rod_x = q[30];
+    const double boom_cyl_r_rod_y = q[31];
+    const double boom_cyl_r_rod_z = q[32];
+    const double arm_cyl_barrel_x = q[42];
+    const double arm_cyl_barrel_y = q[43];
+    const double arm_cyl_barrel_z = q[44];
+    const double arm_cyl_rod_x = q[48];
+    const double arm_cyl_rod_y = q[49];
+    const double arm_cyl_rod_z = q[50];
+    const double bucket_cyl_barrel_x = q[54];
+    const double bucket_cyl_barrel_y = q[55];
+    const double bucket_cyl_barrel_z = q[56];
+    const double bucket_cyl_rod_x = q[60];
+    const double bucket_cyl_rod_y = q[61];
+    const double bucket_cyl_rod_z = q[62];
+    const double v_upper_alpha = v[3];
+    const double v_upper_gamma = v[5];
+    const double v_boom_cyl_l_barrel_x = v[12];
+    const double v_boom_cyl_l_barrel_y = v[13];
+    const double v_boom_cyl_l_barrel_z = v[14];
+    const double v_boom_cyl_l_rod_x = v[18];
+    const double v_boom_cyl_l_rod_y = v[19];
+    const double v_boom_cyl_l_rod_z = v[20];
+    const double v_boom_cyl_r_barrel_x = v[24];
+    const double v_boom_cyl_r_barrel_y = v[25];
+    const double v_boom_cyl_r_barrel_z = v[26];
+    const double v_boom_cyl_r_rod_x = v[30];
+    const double v_boom_cyl_r_rod_y = v[31];
+    const double v_boom_cyl_r_rod_z = v[32];
+    const double v_arm_cyl_barrel_x = v[42];
+    const double v_arm_cyl_barrel_y = v[43];
+    const double v_arm_cyl_barrel_z = v[44];
+    const double v_arm_cyl_rod_x = v[48];
+    const double v_arm_cyl_rod_y = v[49];
+    const double v_arm_cyl_rod_z = v[50];
+    const double v_bucket_cyl_barrel_x = v[54];
+    const double v_bucket_cyl_barrel_y = v[55];
+    const double v_bucket_cyl_barrel_z = v[56];
+    const double v_bucket_cyl_rod_x = v[60];
+    const double v_bucket_cyl_rod_y = v[61];
+    const double v_bucket_cyl_rod_z = v[62];
+    const double f_swing_motor = f[0];
+    const double f_boom_cylinder_left = f[1];
+    const double f_arm_cylinder = f[2];
+    const double f_bucket_cylinder = f[3];
+    const double p_bucket_bore = p[10];
+    const double upper_a21 = sin(upper_beta);
+    const double c0 = (p_bucket_bore*p_bucket_bore);
+    const double c1 = bucket_cyl_barrel_x - bucket_cyl_rod_x;
+    const double c2 = bucket_cyl_barrel_y - bucket_cyl_rod_y;
+    const double c3 = bucket_cyl_barrel_z - bucket_cyl_rod_z;
+    const double c4 = 1.0/sqrt((c1*c1) + (c2*c2) + (c3*c3));
+    const double c5 = c1*c4*v_bucket_cyl_barrel_x;
+    const double c6 = c2*c4*v_bucket_cyl_barrel_y;
+    const double c7 = c3*c4*v_bucket_cyl_barrel_z;
+    const double c8 = -c1*c4*v_bucket_cyl_rod_x;
+    const double c9 = -c2*c4*v_bucket_cyl_rod_y;
+    const double c10 = -c3*c4*v_bucket_cyl_rod_z;
+    const double c11 = c10 + c5 + c6 + c7 + c8 + c9;
+    const double c12 = boom_cyl_l_barrel_x - boom_cyl_l_rod_x;
+    const double c13 = boom_cyl_l_barrel_y - boom_cyl_l_rod_y;
+    const double c14 = boom_cyl_l_barrel_z - boom_cyl_l_rod_z;
+    const double c15 = 1.0/sqrt((c12*c12) + (c13*c13) + (c14*c14));
+    const double c16 = -c12*c15*v_boom_cyl_l_rod_x;
+    const double c17 = -c13*c15*v_boom_cyl_l_rod_y;
+    const double c18 = -c14*c15*v_boom_cyl_l_rod_z;
+    const double c19 = boom_cyl_r_barrel_x - boom_cyl_r_rod_x;
+    const double c20 = boom_cyl_r_barrel_y - boom_cyl_r_rod_y;
+    const double c21 = boom_cyl_r_barrel_z - boom_cyl_r_rod_z;
+    const double c22 = 1.0/sqrt((c19*c19) + (c20*c20) + (c21*c21));
+    const double c23 = -c19*c22*v_boom_cyl_r_rod_x;
+    const double c24 = -c20*c22*v_boom_cyl_r_rod_y;
+    const double c25 = -c21*c22*v_boom_cyl_r_rod_z;
+    const double c26 = c12*c15;
+    const double c27 = c26*v_boom_cyl_l_barrel_x;
+    const double c28 = c13*c15;
+    const double c29 = c28*v_boom_cyl_l_barrel_y;
+    const double c30 = c14*c15;
+    const double c31 = c30*v_boom_cyl_l_barrel_z;
+    const double c32 = c19*c22;
+    const double c33 = c32*v_boom_cyl_r_barrel_x;
+    const double c34 = c20*c22;
+    const double c35 = c34*v_boom_cyl_r_barrel_y;
+    const double c36 = c21*c22;
+    const double c37 = c36*v_boom_cyl_r_barrel_z;
+    const double c38 = c27 + c29 + c31 + c33 + c35 + c37;
+    const double c39 = c16 + c17 + c18 + c23 + c24 + c25 + c38;
+    const double c40 = arm_cyl_barrel_x - arm_cyl_rod_x;
+    const double c41 = arm_cyl_barrel_y - arm_cyl_rod_y;
+    const double c42 = arm_cyl_barrel_z - arm_cyl_rod_z;
+    const double c43 = 1.0/sqrt((c40*c40) + (c41*c41) + (c42*c42));
+    const double c44 = -c40*c43*v_arm_cyl_rod_x;
+    const double c45 = -c41*c43*v_arm_cyl_rod_y;
+    const double c46 = -c42*c43*v_arm_cyl_rod_z;
+    const double c47 = c40*c43;
+    const double c48 = c47*v_arm_cyl_barrel_x;
+    const double c49 = c41*c43;
+    const double c50 = c49*v_arm_cyl_barrel_y;
+    const double c51 = c42*c43;
+    const double c52 = c51*v_arm_cyl_barrel_z;
+    const double c53 = c48 + c50 + c52;
+    const double c54 = c44 + c45 + c46 + c53;
+    const double c55 = 0.0017720546061654927*c44 + 0.0017720546061654927*c45 + 0.0017720546061654927*c46 + 0.0017720546061654927*c48 + 0.0017720546061654927*c50 + 0.0017720546061654927*c52 + 0.004236241343824987*fabs(c39) + 0.005384886157793755*fabs(c54) + 0.0014186254326366409*c16 + 0.0014186254326366409*c17 + 0.0014186254326366409*c18 + 0.0014186254326366409*c23 + 0.0014186254326366409*c24 + 0.0014186254326366409*c25 + 0.0014186254326366409*c27 + 0.0014186254326366409*c29 + 0.0014186254326366409*c31 + 0.0014186254326366409*c33 + 0.0014186254326366409*c35 + 0.0014186254326366409*c37;
+    const double c56 = fabs(f_arm_cylinder);
+    const double c57 = c56 + f_arm_cylinder;
+    const double c58 = ((double)((c54) > 0.0) - (double)((c54) < 0.0));
+    const double c59 = (1.0/2.0)*c58;
+    const double c60 = (1.0/2.0)*fabs(c58);
+    const double c61 = c57*(c59 + c60);
+    const double c62 = f_arm_cylinder - c56;
+    const double c63 = -c62*(c60 - c59);
+    const double c64 = fabs(f_bucket_cylinder);
+    const double c65 = ((double)((c11) > 0.0) - (double)((c11) < 0.0));
+    const double c66 = (1.0/2.0)*c65;
+    const double c67 = (1.0/2.0)*fabs(c65);
+    const double c68 = (c64 + f_bucket_cylinder)*(c66 + c67)/c0;
+    const double c69 = (c64 - f_bucket_cylinder)*(c67 - c66)/(-4.0/625.0 + c0);
+    const double c70 = fabs(f_boom_cylinder_left);
+    const double c71 = c70 + f_boom_cylinder_left;
+    const double c72 = ((double)((c39) > 0.0) - (double)((c39) < 0.0));
+    const double c73 = (1.0/2.0)*c72;
+    const double c74 = (1.0/2.0)*fabs(c72);
+    const double c75 = c73 + c74;
+    const double c76 = c71*c75;
+    const double c77 = c74 - c73;
+    const double c78 = f_boom_cylinder_left - c70;
+    const double c79 = -c78;
+    const double c80 = c77*c79;
+    const double c81 = fabs(69.19780134430232*c63 + 34.93112605583437*c61 - 44.20970641441537*c71*c75 - 88.72749440663155*c77*c79);
+    const double c82 = (1.0/4.0)*c81 + 17.29945033607558*c63 + 8.732781513958592*c61 + 11.052426603603843*c76 + 22.181873601657887*c80;
+    const double c83 = v_upper_alpha + upper_a21*v_upper_gamma;
+    const double c84 = ((double)((c83) > 0.0) - (double)((c83) < 0.0));
+    const double c85 = c84*f_swing_motor;
+    const double c86 = fabs(c84)*fabs(f_swing_motor);
+    const double c87 = ((double)((c53 - c47*v_arm_cyl_rod_x - c49*v_arm_cyl_rod_y - c51*v_arm_cyl_rod_z) > 0.0) - (double)((c53 - c47*v_arm_cyl_rod_x - c49*v_arm_cyl_rod_y - c51*v_arm_cyl_rod_z) < 0.0));
+    const double c88 = (1.0/2.0)*c87;
+    const double c89 = (1.0/2.0)*fabs(c87);
+    const double c90 = c57*(c88 + c89);
+    const double c91 = c62*(c89 - c88);
+    const double c92 = ((double)((c38 - c26*v_boom_cyl_l_rod_x - c28*v_boom_cyl_l_rod_y - c30*v_boom_cyl_l_rod_z - c32*v_boom_cyl_r_rod_x - c34*v_boom_cyl_r_rod_y - c36*v_boom_cyl_r_rod_z) > 0.0) - (double)((c38 - c26*v_boom_cyl_l_rod_x - c28*v_boom_cyl_l_rod_y - c30*v_boom_cyl_l_rod_z - c32*v_boom_cyl_r_rod_x - c34*v_boom_cyl_r_rod_y - c36*v_boom_cyl_r_rod_z) < 0.0));
+    const double c93 = (1.0/2.0)*c92;
+    const double c94 = (1.0/2.0)*fabs(c92);
+    const double c95 = c71*(c93 + c94);
+    const double c96 = c78*(c94 - c93);
+    out[0] = (c82 + (1.0/2.0)*fabs((1.0/2.0)*c81 + 34.59890067215116*c63 + 17.465563027917185*c61 + 22.104853207207686*c76 + 44.363747203315775*c80 - 0.6366197723675814*c68 - 0.6366197723675814*c69) + 0.3183098861837907*c68 + 0.3183098861837907*c69)*(c55 + 0.0025132741228718345*c10 + 0.0025132741228718345*c5 + 0.0025132741228718345*c6 + 0.0025132741228718345*c7 + 0.0025132741228718345*c8 + 0.0025132741228718345*c9 + (-0.0025132741228718345 + 0.7853981633974483*c0)*fabs(c11));
+    out[1] = (c55 + (13.0/5000.0)*fabs(c83))*(c82 + (1.0/2.0)*fabs(-1.0/2.0*fabs(34.93112605583437*c90 + 88.72749440663155*c96 - 69.19780134430232*c91 - 44.20970641441537*c95) + (2500.0/13.0)*c85 + (2500.0/13.0)*c86 + 34.59890067215116*c91 + 44.363747203315775*c96 - 17.465563027917185*c90 - 22.104853207207686*c95) + (1250.0/13.0)*c85 + (1250.0/13.0)*c86);
+}
+
+/* Each pump's largest flow [m^3/s], then the engine's power for them all [W]. */
+void excavator_euler_zxy_compute_pump_limits(const double *q, const double *v, const double *f, const double *p, double *out) {
+    (void)q;
+    (void)v;
+    (void)f;
+    (void)p;
+    out[0] = 53.0/15000.0;
+    out[1] = 53.0/15000.0;
+    out[2] = 110000.0;
+}
+
 /* Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS). */
 void excavator_euler_zxy_compute_points(const double *p, double *out) {
     const double p_C_x = p[0];
@@ -10537,6 +10948,14 @@ static void shared_inertia(const double *q, const double *v, const double *a, co
     excavator_euler_zxy_compute_inertia_part3(q, v, a, p, inertia);
 }
 
+/* The hydraulic supply along a motion: the pumps' flows, pressures, powers and limits (kinegen.forces.supply's conventions). */
+static void shared_supply(const double *q, const double *v, const double *f, const double *p, double *pump_flows, double *pump_pressures, double *pump_powers, double *pump_limits) {
+    excavator_euler_zxy_compute_pump_flows(q, v, f, p, pump_flows);
+    excavator_euler_zxy_compute_pump_pressures(q, v, f, p, pump_pressures);
+    excavator_euler_zxy_compute_pump_powers(q, v, f, p, pump_powers);
+    excavator_euler_zxy_compute_pump_limits(q, v, f, p, pump_limits);
+}
+
 /* Every named point's coordinates from the design parameters: the bodies' (body coordinates, in the order of POINTS), then the ground's (global, GROUND_POINTS). */
 static void shared_points(const double *p, double *points) {
     excavator_euler_zxy_compute_points(p, points);
@@ -10570,6 +10989,11 @@ static void call_shared_loads(const double *const *x, double *const *y) {
 /* inertia as a kinegen_kernel entry point. */
 static void call_shared_inertia(const double *const *x, double *const *y) {
     shared_inertia(x[0], x[1], x[2], x[3], y[0]);
+}
+
+/* supply as a kinegen_kernel entry point. */
+static void call_shared_supply(const double *const *x, double *const *y) {
+    shared_supply(x[0], x[1], x[2], x[3], y[0], y[1], y[2], y[3]);
 }
 
 /* points as a kinegen_kernel entry point. */
@@ -10746,6 +11170,8 @@ static const char *const outputs_shared_loads[] = {"loads"};
 static const int sizes_shared_loads[] = {6};
 static const char *const outputs_shared_inertia[] = {"inertia"};
 static const int sizes_shared_inertia[] = {84};
+static const char *const outputs_shared_supply[] = {"pump_flows", "pump_pressures", "pump_powers", "pump_limits"};
+static const int sizes_shared_supply[] = {2, 2, 2, 3};
 static const char *const outputs_shared_points[] = {"points"};
 static const int sizes_shared_points[] = {90};
 static const char *const outputs_shared_actuator_ranges[] = {"actuator_ranges"};
@@ -10756,6 +11182,7 @@ static const kinegen_kernel kernels[] = {
     {"actuation", "q,p", 1, outputs_shared_actuation, sizes_shared_actuation, call_shared_actuation},
     {"loads", "q,t,p", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
     {"inertia", "q,v,a,p", 1, outputs_shared_inertia, sizes_shared_inertia, call_shared_inertia},
+    {"supply", "q,v,f,p", 4, outputs_shared_supply, sizes_shared_supply, call_shared_supply},
     {"points", "p", 1, outputs_shared_points, sizes_shared_points, call_shared_points},
     {"actuator_ranges", "p", 1, outputs_shared_actuator_ranges, sizes_shared_actuator_ranges, call_shared_actuator_ranges},
 };
@@ -10850,7 +11277,7 @@ const kinegen_layout excavator_euler_zxy_layout = {
     "excavator", "euler:zxy", "excavator.yaml", "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", "0.2.0",
     EXCAVATOR_EULER_ZXY_N_Q, EXCAVATOR_EULER_ZXY_N_V, EXCAVATOR_EULER_ZXY_N_BODIES, body_names, stored_names, velocity_names,
     30, points, 4, actuators, excavator_euler_zxy_frames,
-    7, kernels, &statics,
+    8, kernels, &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, -0.0, 0.0, 0.0, 0.22767, 0.0, 1.95729, -0.0, 0.0, 0.37262792980000004, 0.68912, 0.32, 1.35478, -0.0, 0.0, -0.8970987087, 2.253743682, 0.32, 3.314748116, -0.0, 0.0, -0.8970987087, 0.68912, -0.32, 1.35478, -0.0, 0.0, -0.8970987087, 2.253743682, -0.32, 3.314748116, -0.0, 0.0, -0.8970987087, 5.777601761, 0.0, 3.004525931, -0.0, 0.0, 1.4491465430000001, 3.372106626, 0.0, 3.718369089, -0.0, 0.0, -0.01134434347, 5.315193587, 0.0, 3.74041308, -0.0, 0.0, -0.01134434347, 6.478145341, 0.0, 3.338877801, -0.0, 0.0, 0.6348178114999999, 7.974087195, 0.0, 2.237087009, -0.0, 0.0, 0.6348178114999999, 7.834783629, 0.0, 1.668894271, -0.0, 0.0, 0.8452625926000001, 8.355750886, 0.0, 1.819051598, -0.0, 0.0, 1.7519603019999999, 8.172391163, 0.0, 1.387785479, -0.0, 0.0, 1.165528812};

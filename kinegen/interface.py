@@ -31,6 +31,7 @@ SLOTS = {
     "w": "a change of the configuration, in velocity coordinates (sensitivity kernels)",
     "y": "a change of the velocity coordinates (sensitivity kernels)",
     "z": "a change of the accelerations (sensitivity kernels)",
+    "f": "the actuation elements' forces [N or N m], in the order of the statics' elements (the supply kernel)",
 }
 
 #: The ``frames`` kernel's values per body, in order: (name, count). All global; the rotation

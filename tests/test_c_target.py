@@ -121,6 +121,19 @@ def _same_forces(c: np.ndarray, python: np.ndarray, names: list[str]) -> None:
     assert (error <= 1e-12 * scale).all(), [(names[i], error[i], scale[i]) for i in np.flatnonzero(error > 1e-12 * scale)]
 
 
+def _same_supply(c: np.ndarray, python: np.ndarray, names: list[str]) -> None:
+    """The pump columns (flows, largest flows, pressures, powers, the engine's) to 1e-12 of each
+    column's largest value -- except a pump's pressure where what it feeds stands still: there C's
+    and Python's rates are rounding of either sign, and the filling side is either's."""
+    moving = np.ones(len(c), dtype=bool)
+    for k, name in enumerate(names):
+        if name.endswith(".flow"):
+            moving &= python[:, k] > 1e-9 * np.abs(python[:, k]).max()
+    scale = np.maximum(np.abs(python).max(axis=0), 1e-300)
+    error = np.abs(c - python)[moving].max(axis=0)
+    assert (error <= 1e-12 * scale).all(), [(names[i], error[i], scale[i]) for i in np.flatnonzero(error > 1e-12 * scale)]
+
+
 def _model_of(stem: str):
     from kinegen.model import load
 
@@ -252,6 +265,9 @@ def _compare(program: Path, python_system, case: str) -> None:
     c = np.array([[float(x) for x in row.split(",")] for row in rows])
     results = Solver(python_system).solve()
     names, table = results.table()
+    supplied = _supply_table(python_system, results)
+    if supplied is not None:  # a model with pumps: the flows follow (the declared supply kernel's outputs)
+        names, table = [*names, *supplied[0]], np.hstack([table, supplied[1]])
     # the C program writes its 1-norm estimate where kinegen solve writes the 2-norm condition number (an SVD)
     assert header.split(",") == [n if n != "jacobian_condition" else "jacobian_condition_estimate" for n in names]
     assert c.shape == table.shape
@@ -264,6 +280,18 @@ def _compare(program: Path, python_system, case: str) -> None:
         k = names.index(column)
         assert all(re.fullmatch(r"\d+", row.split(",")[k]) for row in (*rows, *python_rows)), column
         assert [row.split(",")[k] for row in rows] == [row.split(",")[k] for row in python_rows], column
+
+
+def _supply_table(system, results, held=None):
+    """The pump columns `kinegen solve` writes for this motion (None: the model has no pumps):
+    kinegen.forces.supply's numbers, beside which the C program's come from its supply kernel."""
+    from kinegen.forces.supply import flows
+
+    path = MODELS / f"{system.model}.yaml"
+    if not path.exists():
+        return None
+    m = _model_of(f"{system.model}_x")
+    return None if m.supply is None else flows(results, m, held).table()
 
 
 def _same_rows(c: np.ndarray, table: np.ndarray, names: list[str]) -> None:
@@ -304,10 +332,13 @@ def _compare_forces(program: Path, system) -> None:
     names = header.split(",")
     c = np.array([[float(x) for x in row.split(",")] for row in rows])
     results = Solver(system).solve(np.linspace(system.t0, system.t1, 41))
-    force_names, table = forces(results, _model_of("excavator_quaternion"), ["payload", "cutting"], inertia=True).table()
+    held = forces(results, _model_of("excavator_quaternion"), ["payload", "cutting"], inertia=True)
+    force_names, table = held.table()
     wanted = [n for n in force_names if not any(part in n for part in (".joint_force_", ".joint_moment_", "energy.", "tipping_margin"))]
-    assert names[-len(wanted) :] == wanted
-    _same_forces(c[:, -len(wanted) :], table[:, [force_names.index(n) for n in wanted]], wanted)
+    pump_names, pumps = _supply_table(system, results, held)  # then the pumps' flows, pressures and power
+    assert names[-len(wanted) - len(pump_names) :] == [*wanted, *pump_names]
+    _same_forces(c[:, -len(wanted) - len(pump_names) : -len(pump_names)], table[:, [force_names.index(n) for n in wanted]], wanted)
+    _same_supply(c[:, -len(pump_names) :], pumps, pump_names)
     unknown = subprocess.run([str(program), system.case, "41", "payload", "gravel"], capture_output=True, text=True, timeout=60)
     assert unknown.returncode == 64 and "no load 'gravel'" in unknown.stderr and "payload cutting" in unknown.stderr
 
@@ -344,11 +375,14 @@ def test_standalone_runs_clean_under_address_and_undefined_behaviour_sanitizers(
     names = header.split(",")
     system = from_module(load_module(GENERATED / "excavator_euler_parameters.py"), "digging", compiled=False)
     results = Solver(system).solve(np.linspace(system.t0, system.t1, 101))
-    force_names, table = forces(results, _model_of("excavator_euler_parameters"), ["payload"], inertia=True).table()
+    held = forces(results, _model_of("excavator_euler_parameters"), ["payload"], inertia=True)
+    force_names, table = held.table()
     wanted = [n for n in force_names if not any(part in n for part in (".joint_force_", ".joint_moment_", "energy.", "tipping_margin"))]
-    assert names[-len(wanted) :] == wanted
-    c = np.array([[float(x) for x in row.split(",")[-len(wanted) :]] for row in rows])
-    _same_forces(c, table[:, [force_names.index(n) for n in wanted]], wanted)
+    pump_names, pumps = _supply_table(system, results, held)
+    assert names[-len(wanted) - len(pump_names) :] == [*wanted, *pump_names]
+    c = np.array([[float(x) for x in row.split(",")[-len(wanted) - len(pump_names) :]] for row in rows])
+    _same_forces(c[:, : len(wanted)], table[:, [force_names.index(n) for n in wanted]], wanted)
+    _same_supply(c[:, len(wanted) :], pumps, pump_names)
 
 
 def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path):

@@ -214,6 +214,8 @@ class ModuleDescription:
     statics: StaticsDescription | None = None
     #: rows computed by interval arithmetic (each case's input_ranges), by name, like ``sections``
     enclosures: dict[str, Enclosure] = field(default_factory=dict)
+    #: a model with a pumps: section: the pumps' names, in the order of the ``supply`` kernel's outputs
+    pumps: tuple[str, ...] = ()
 
     @property
     def joint_rows(self) -> int:
@@ -550,6 +552,81 @@ def actuator_lengths(model: Model, coords: Coordinates) -> list[sp.Expr]:
     return out
 
 
+def _max(values: list[sp.Expr]) -> sp.Expr:
+    """The largest of ``values`` (none: 0) in the functions the printers know: max(a, b) = (a + b + |a - b|)/2."""
+    out = values[0] if values else sp.Integer(0)
+    for value in values[1:]:
+        out = (out + value + sp.Abs(out - value)) / 2
+    return out
+
+
+def supply_expressions(model: Model, coords: Coordinates, forces: tuple[sp.Symbol, ...]) -> dict[str, list[sp.Expr]]:
+    """The pumps' flows, pressures and powers as expressions of q, v, the actuation elements' forces
+    ``forces`` (in the order of ``model.actuation``) and the design parameters
+    (:mod:`kinegen.forces.supply`'s conventions: a cylinder's flow is its cap area times its rate
+    extending, its annulus times the rate retracting; a motor's, its displacement times the turn rate;
+    an element fed by several pumps takes equal shares; a pump delivers at the highest filling
+    pressure of what it feeds, its power that pressure times its flow); and their limits (each pump's
+    largest flow, then the engine's power)."""
+    supply = model.supply
+    bodies = {b.name: b for b in coords.bodies}
+    frames = {b.name: b.frame for b in coords.bodies}
+    names = [e.name for e in model.actuation]
+    actuators, motors = {a.name: a for a in model.actuators}, {m.name: m for m in model.motors}
+    generic = generic_body(coords.parametrization)
+
+    def moving(refs) -> list:
+        return [bodies[r] for r in dict.fromkeys(refs) if r != GROUND]
+
+    def omega(body: str) -> sp.Matrix:
+        """A body's angular velocity (global) in its symbols."""
+        if body == GROUND:
+            return sp.zeros(3, 1)
+        b = bodies[body]
+        values = coords.parametrization.frame_expressions(sp.Matrix(generic.stored), sp.Matrix(generic.velocity), sp.zeros(len(generic.velocity), 1))
+        values = [e.xreplace(dict(zip(generic.frame_values, generic.frame_symbols))) for e in values]
+        rename = {**dict(zip(generic.stored, b.stored)), **dict(zip(generic.velocity, b.velocity)), **dict(zip(generic.frame_symbols, b.frame_symbols))}
+        offset = sum(count for _, count in FRAME_FIELDS[: [n for n, _ in FRAME_FIELDS].index("angular_velocity")])
+        return sp.Matrix([values[offset + k].xreplace(rename) for k in range(3)])
+
+    flows, filling = {}, {}
+    for name in supply.circuits:
+        force = forces[names.index(name)]
+        if name in actuators:
+            hydraulics = actuators[name].hydraulics
+            cap = hydraulics.cylinders * sp.pi / 4 * hydraulics.bore**2
+            annulus = hydraulics.cylinders * sp.pi / 4 * (hydraulics.bore**2 - hydraulics.rod**2)
+            rate = sp.Integer(0)
+            for member in model.members(name):
+                ends = [GROUND_FRAME.point(ref.local) if ref.body == GROUND else frames[ref.body].point(ref.local) for ref in member.points]
+                gap = ends[0] - ends[1]
+                length = sp.sqrt(sum((x * x for x in gap), sp.Integer(0)))
+                rate += along(length, moving([ref.body for ref in member.points]))
+            flows[name] = (cap + annulus) / 2 * sp.Abs(rate) + (cap - annulus) / 2 * rate
+            sign = sp.sign(rate)
+            filling[name] = ((sign + sp.Abs(sign)) / 2 * (force + sp.Abs(force)) / (2 * cap)
+                             + (sp.Abs(sign) - sign) / 2 * (sp.Abs(force) - force) / (2 * annulus))  # fmt: skip
+        else:
+            motor = motors[name]
+            joint = next(j for j in model.joints if j.name == motor.joint)
+            axis = sp.Matrix(joint.axis1)
+            axis = axis / sp.sqrt(sum((x * x for x in axis), sp.Integer(0)))
+            carried = axis if joint.body1 == GROUND else frames[joint.body1].A * axis
+            rate = (carried.T * (omega(joint.body2) - omega(joint.body1)))[0]
+            flows[name] = motor.displacement * sp.Abs(rate)
+            sign = sp.sign(rate)
+            filling[name] = (force * sign + sp.Abs(force) * sp.Abs(sign)) / (2 * motor.displacement)
+    pump_flows, pressures = [], []
+    for pump in supply.pumps:
+        fed = [name for name, pumps in supply.circuits.items() if pump.name in pumps]
+        pump_flows.append(sum((flows[name] / len(supply.circuits[name]) for name in fed), sp.Integer(0)))
+        pressures.append(_max([filling[name] for name in fed]))
+    return {
+        "pump_flows": pump_flows, "pump_pressures": pressures, "pump_powers": [p * q for p, q in zip(pressures, pump_flows)],
+        "pump_limits": [*(pump.max_flow for pump in supply.pumps), supply.engine_power],
+    }  # fmt: skip
+
+
 def describe(
     model: Model, parametrization: Parametrization, systems: dict[str, System] | None = None, sensitivities: bool = True
 ) -> ModuleDescription:
@@ -602,6 +679,22 @@ def describe(
         shared_section("lengths", ("q", *p), (Group(None, lambda: actuator_lengths(model, coords), {}),), len(model.actuators),
                 "The length of every actuator (in the order of ACTUATORS) [m]: the distance between its two points.")  # fmt: skip
     statics = _statics(model, coords, first.jacobian_pattern[:n_joint_entries], [r.name for r in joints], p, section, shared)
+    force_symbols: tuple[sp.Symbol, ...] = ()
+    if model.supply is not None:  # the pumps: flows (q, v), pressures and powers (with the elements' forces f), limits
+        force_symbols = tuple(sp.Symbol(f"f_{e.name}", real=True) for e in model.actuation)
+        supplied = supply_expressions(model, coords, force_symbols)
+        docs = {
+            "pump_flows": "Each pump's flow [m^3/s] (in the order of PUMPS): its shares of the elements it feeds.",
+            "pump_pressures": "Each pump's pressure [Pa]: the highest filling pressure of the elements it feeds, from their forces f.",
+            "pump_powers": "Each pump's power [W]: its pressure times its flow.",
+            "pump_limits": "Each pump's largest flow [m^3/s], then the engine's power for them all [W].",
+        }
+        slots_supply = ("q", "v", "f", *p)
+        for name, values in supplied.items():
+            section(name, slots_supply, (Group(None, lambda values=values: values, {}),), len(values), docs[name])
+        shared["supply"] = Kernel("supply", slots_supply, tuple(Output(name, (name,), len(values)) for name, values in supplied.items()),
+                                  "The hydraulic supply along a motion: the pumps' flows, pressures, powers and limits "
+                                  "(kinegen.forces.supply's conventions).")  # fmt: skip
     cases: dict[str, CaseDescription] = {}
     enclosures: dict[str, Enclosure] = {}
     for name, system in systems.items():
@@ -662,6 +755,8 @@ def describe(
             kernels, plan(rows_, cols_, (m, len(coords.velocity_symbols))), patterns,
         )  # fmt: skip
     slots = {"t": (T,), "q": tuple(coords.stored_symbols), "v": tuple(coords.velocity_symbols), "a": _acceleration_symbols(coords)}
+    if force_symbols:
+        slots["f"] = force_symbols
     if model.design:
         values = point_expressions(model)
         shared_section("points", ("p",), (Group(None, lambda: values, {}),), len(values),
@@ -710,4 +805,5 @@ def describe(
         sensitivities=sensitive,
         statics=statics,
         enclosures=enclosures,
+        pumps=tuple(pump.name for pump in model.supply.pumps) if model.supply is not None else (),
     )

@@ -30,6 +30,10 @@ from kinegen.errors import KinegenError
 
 #: the relative precision of the highest ṡ² the power limit allows at a point (Brent's method)
 POWER_XTOL = 1e-10
+#: samples of the range of ṡ² the linear rows allow at a point, where the power limit is looked for
+POWER_SAMPLES = 8
+#: forward passes that may find the power exceeded below a controllable set's top before every point is sampled
+POWER_ROUNDS = 6
 
 
 @dataclass(frozen=True)
@@ -195,6 +199,28 @@ class Reachability:
             low = high = 0.5 * (low + high)
         return float(np.sqrt(x)) * self.power.lowest(i, x, low, high)[1] - self.power.power
 
+    def _power_top(self, i: int, low: float, high: float, why: tuple, following: np.ndarray) -> tuple[float, tuple, bool]:
+        """The highest ṡ² at point i below which every ṡ² from ``low`` is within the power limit too:
+        the need is not monotone in ṡ everywhere (a faster point must brake harder, and braking
+        takes no pressure). At the points of ``self.sampled`` (where a forward pass found the limit
+        exceeded below the top) the range the linear rows allow is sampled from below
+        (:data:`POWER_SAMPLES`), elsewhere only its top is checked; the range is cut at the first
+        sample beyond the limit, at the root between it and the one before (Brent's method).
+        (top, what sets it, whether ``low`` itself is within the limit)."""
+        excess = lambda x: self._excess(i, x, *following)  # noqa: E731
+        if excess(low) > 0:
+            return high, why, False
+        below = low
+        samples = low + (high - low) * np.arange(1, POWER_SAMPLES + 1) / POWER_SAMPLES if i in self.sampled else [high]
+        for x in samples:
+            if excess(x) > 0:
+                top = brentq(excess, below, x, xtol=1e-300, rtol=POWER_XTOL)
+                if excess(top) > 0:  # the root's own side: within the limit
+                    top = max(low, top * (1 - 4 * POWER_XTOL))
+                return top, ("power", top), True
+            below = x
+        return high, why, True
+
     def controllable_sets(self) -> np.ndarray:
         """K (N+1, 2): at each point the lowest and highest ṡ² from which the path can be followed to
         rest; what sets each highest is kept (``self.backward``) for :meth:`tangent`."""
@@ -211,21 +237,11 @@ class Reachability:
                 return sets
             if high < low:
                 high, why = low, ("low",)
-            if self.power is not None and self._excess(i, high, *sets[i + 1]) > 0:
-                if self._excess(i, low, *sets[i + 1]) > 0:
+            if self.power is not None:
+                high, why, feasible = self._power_top(i, low, high, why, sets[i + 1])
+                if not feasible:
                     sets[: i + 1] = np.nan
                     return sets
-                excess = lambda x, i=i: self._excess(i, x, *sets[i + 1])  # noqa: E731
-                bottom, top = low, high
-                guess = sets[i + 1, 1]  # the next point's limit: close by where the power binds along a stretch
-                if low < guess * (1 - 1e-3) and excess(guess * (1 - 1e-3)) <= 0:
-                    bottom = guess * (1 - 1e-3)
-                    if guess * (1 + 1e-3) < high and excess(guess * (1 + 1e-3)) > 0:
-                        top = guess * (1 + 1e-3)
-                high = brentq(excess, bottom, top, xtol=1e-300, rtol=POWER_XTOL)
-                why = ("power", high)  # the root itself; its neighbourhood's structure is found again by tangent()
-                if self._excess(i, high, *sets[i + 1]) > 0:  # the root's own side: within the limit
-                    high = max(low, high * (1 - 4 * POWER_XTOL))
             sets[i] = low, high
             self.backward[i] = why
         return sets
@@ -233,14 +249,37 @@ class Reachability:
     def solve(self) -> Profile:
         """The fastest profile from rest (ṡ = 0 at s_0) to rest (at s_N); what sets each s̈ is kept
         (``self.forward``) for :meth:`tangent`."""
-        sets = self.controllable_sets()
+        self.sampled: set[int] = set()
+        for _ in range(POWER_ROUNDS):
+            sets = self.controllable_sets()
+            if np.isnan(sets).any() or sets[0, 0] > 0 or self.power is None:
+                break
+            beyond = self._forward(sets)[2]
+            if not beyond:
+                break
+            self.sampled |= {j for i in beyond for j in (i - 1, i, i + 1)}
+        else:
+            self.sampled = set(range(len(self.s)))
+            sets = self.controllable_sets()
         if np.isnan(sets).any() or sets[0, 0] > 0:
             bad = int(np.flatnonzero(np.isnan(sets[:, 0]))[-1]) if np.isnan(sets).any() else 0
             raise KinegenError(f"no timing of the path meets the limits from rest to rest: at s = {self.s[bad]:g} s no path speed "
                                "keeps every limit (the weight and loads alone exceed one there)")  # fmt: skip
+        x, u, beyond = self._forward(sets)
+        if beyond:
+            raise KinegenError(f"no timing of the path keeps the engine's power at s = {self.s[beyond[0]]:g} s (the power "
+                               "a point needs is not monotone in its speed there)")  # fmt: skip
+        self.profile = Profile(np.sqrt(x), u, sets)
+        return self.profile
+
+    def _forward(self, sets: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[int]]:
+        """The forward pass from rest: at each point the largest s̈ that keeps the next ṡ² within
+        its controllable set (and the power within the limit); (ṡ², s̈, the points where no s̈ keeps
+        the power within it); what sets each s̈ is kept (``self.forward``)."""
         count = len(self.s)
         x, u = np.zeros(count), np.zeros(count - 1)
         self.forward: list = [None] * (count - 1)
+        beyond = []
         for i in range(count - 1):
             d = self.deltas[i]
             up, down, _ = self._bounds(i, *sets[i + 1])
@@ -249,15 +288,16 @@ class Reachability:
             if self.power is not None:
                 low = max(bound[0] + bound[1] * x[i] for bound in down)
                 allowed = self.power.highest_within(i, x[i], low, high)
-                if allowed is not None and allowed < high:
+                if allowed is None:
+                    beyond.append(i)
+                elif allowed < high:
                     high, why = allowed, ("power",)
             u[i] = high
             self.forward[i] = why
             x[i + 1] = max(x[i] + 2 * d * u[i], 0.0)
         x[-1] = 0.0
         u[-1] = -x[-2] / (2 * self.deltas[-1])
-        self.profile = Profile(np.sqrt(x), u, sets)
-        return self.profile
+        return x, u, beyond
 
 
 class Dual:
