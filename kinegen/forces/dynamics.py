@@ -187,6 +187,18 @@ class MachineWrenches:
                            np.broadcast_to(d_center, (k, 3, self.n_design)), np.broadcast_to(d_force, (k, 3, self.n_design)), self._zeros()))  # fmt: skip
 
     def add_body(self, body, inertia: bool) -> None:
+        """The body's weight (and with ``inertia`` its d'Alembert forces) at its centre of mass, with
+        their changes; computed once per results (a cycle's limits ask it twice: the inertia's
+        changes and the tipping margin's)."""
+        cache = self.results.__dict__.setdefault("_wrench_cache", {})
+        key = (body.name, body.inertia, inertia, self.changes)
+        if key not in cache:
+            self._add_body(body, inertia)
+            cache[key] = self.items[-1]
+        else:
+            self.items.append(cache[key])
+
+    def _add_body(self, body, inertia: bool) -> None:
         results, name = self.results, body.name
         mass, local, body_tensor = inertia_numbers(body.inertia, results.system.design)
         rotation = results.rotation_matrix(name)

@@ -455,17 +455,19 @@ class Newton:
 
     def __init__(self, case: NativeCase, options: Options) -> None:
         self.solver = case.solver(options)
+        self._names = {code: name for name, code in case.abi.status.items()}  # the library's own table
         self._q = np.zeros(case.n_q)
         self._u = np.zeros(case.n_inputs)
         self._out = (ctypes.c_int(0), ctypes.c_double(0.0), ctypes.c_double(0.0))
         self._args = (self.solver.pointer, self._q.ctypes.data, self._u.ctypes.data, *(ctypes.addressof(x) for x in self._out))
 
-    def __call__(self, q0: np.ndarray, u: np.ndarray) -> tuple[int, np.ndarray, int, float]:
-        """(status, q, iterations, max |Phi|)."""
+    def __call__(self, q0: np.ndarray, u: np.ndarray) -> tuple[str, np.ndarray, int, float]:
+        """(status by its name in the library's kinegen_status_names: "ok", "not_converged",
+        "singular", ...; q, iterations, max |Phi|)."""
         self._q[:], self._u[:] = q0, u
-        status = self.solver.library.kinegen_newton(*self._args)
+        code = self.solver.library.kinegen_newton(*self._args)
         iterations, residual, _ = (x.value for x in self._out)
-        return status, self._q.copy(), iterations, residual
+        return self._names.get(code, f"status {code}"), self._q.copy(), iterations, residual
 
 
 class NativeSolver:

@@ -402,10 +402,10 @@ class Solver:
         evaluate = self.system.evaluate
         if native and not damped and offset is None and factors is None and self.system.native is not None:
             status, x, iterations, norm = self._native_newton(q, u)
-            if status == 0:  # converged in C: Phi and Phi_q at the solution for the caller (its motion not tracked)
+            if status == "ok":  # converged in C: Phi and Phi_q at the solution for the caller (its motion not tracked)
                 phi, values = evaluate(x, u)
                 return Solution(x, iterations, _max_norm(phi), values, phi)
-            if status != 2:  # not converged (a singular Phi_q on the way: the Python loop below names it)
+            if status != "singular":  # not converged (a singular Phi_q on the way: the Python loop below names it)
                 raise self._failure(x, u, t, iterations)
 
         def residual(x: np.ndarray) -> tuple[np.ndarray, float, Any]:
