@@ -270,3 +270,13 @@ def test_the_bucket_cylinder_study_measures_digging_force_against_cycle_time(exc
     force, cycle = "digging_force(bucket_cylinder, bucket_stroke)", "cycle_time(digging holding payload)"
     assert measured.values[cycle] < 15.0 and measured.values[force] > 100
     assert measured.gradients[force][0] > 0 and measured.gradients[cycle][0] > 0
+
+
+def test_a_speed_limit_holds_the_retimed_level_cut_and_is_touched():
+    """--max-speed arm_cylinder=0.2: the re-timed level cut, solved again, moves the arm cylinder at
+    most 0.2 m/s and reaches it (1 - 1e-5); the cut takes longer than its own 4 s."""
+    system = generated_system("excavator_quaternion", "level_cut")
+    m = model("excavator")
+    found = fastest(solve(system), m, ("payload",), speed_limits={"arm_cylinder": 0.2})
+    used = check_retimed(system, m, found).used["arm_cylinder speed"]
+    assert 1 - 1e-5 <= used <= 1.0 and found.duration > found.own_duration

@@ -94,6 +94,7 @@ class Cycle:
     room: np.ndarray  #: (N+1,) that constraint's fraction left (<= ACTIVE: active)
     controllable: np.ndarray  #: (N+1, 2) the controllable sets of ṡ² (reachability analysis)
     loads: tuple[str, ...]
+    speed_limits: dict[str, float] = dataclasses.field(default_factory=dict)  #: actuator or motor -> largest speed
 
     @property
     def duration(self) -> float:
@@ -405,7 +406,8 @@ def fastest(results: Results, model: Model, loads: tuple[str, ...] = (), tipping
         labels.append("engine power")
     least = np.argmin(room, axis=1)
     return Cycle(model.name, results.system.case, results.times.copy(), speed, acceleration, path_times(results.times, speed),
-                 constraints, np.array(labels)[least], room[np.arange(len(least)), least], profile.controllable, tuple(loads))  # fmt: skip
+                 constraints, np.array(labels)[least], room[np.arange(len(least)), least], profile.controllable, tuple(loads),
+                 dict(speed_limits or {}))  # fmt: skip
 
 
 def retimed_inputs(
@@ -554,7 +556,7 @@ def check_retimed(system, model: Model, cycle: Cycle) -> Check:
     flows and power (:func:`kinegen.forces.supply.flows`), pressures and the tipping margin
     (:func:`kinegen.forces.statics.forces` with inertia), speed limits from the actuators' rates."""
     from kinegen.forces.statics import forces
-    from kinegen.forces.supply import flows
+    from kinegen.forces.supply import flows, turn_rate
 
     results = retimed_motion(system, cycle.s, cycle.speed, cycle.acceleration, cycle.times)
     used: dict[str, float] = {}
@@ -572,6 +574,10 @@ def check_retimed(system, model: Model, cycle: Cycle) -> Check:
         if held.tipping is not None and "tipping" in " ".join(cycle.constraints.row_names):
             scale = np.abs(np.stack(list(held.tipping.margins.values()))).max()
             used["tipping"] = float(1 - held.tipping.margin.min() / scale)  # 1: the margin touches zero
+    for name, limit in cycle.speed_limits.items():
+        motor = next((m for m in model.motors if m.name == name), None)
+        rate = results.actuator_rate(name) if motor is None else turn_rate(results, model, motor.joint)
+        used[f"{name} speed"] = float(np.abs(rate).max() / limit)
     return Check(results, used, supplied)
 
 
