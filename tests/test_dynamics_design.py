@@ -148,7 +148,7 @@ def test_inertial_load_changes_equal_central_differences():
     """dQ_inertia/dp (the peak pressure's load change): Q summed from the frames equals the generated
     ``inertia`` kernel (the nominal masses), and its derivative equals central differences of it with
     the masses moving with the design too (:func:`_massive_design`)."""
-    from kinegen.forces.sensitivity import _TangentChanges, inertial_load_changes
+    from kinegen.forces.sensitivity import TangentChanges, inertial_load_changes
     from kinegen.forces.statics import Statics
 
     excavator, nominal = model("excavator"), _nominal()
@@ -157,9 +157,9 @@ def test_inertial_load_changes_equal_central_differences():
     np.testing.assert_allclose(inertial_load(results), reference, rtol=0, atol=1e-11 * np.abs(reference).max())
     changed = _massive_design(excavator)
     statics = Statics(results, changed)
-    exact = inertial_load_changes(statics, _TangentChanges(statics, results.state_sensitivities()[0]))
+    exact = inertial_load_changes(statics, TangentChanges(statics, results.state_sensitivities()[0]))
     nominal_masses = Statics(results, excavator)
-    pose_only = inertial_load_changes(nominal_masses, _TangentChanges(nominal_masses, results.state_sensitivities()[0]))
+    pose_only = inertial_load_changes(nominal_masses, TangentChanges(nominal_masses, results.state_sensitivities()[0]))
     assert np.abs(exact - pose_only).max() > 1e5  # the masses' share (N per m)
     for name in ("C_x", "F_z"):
         moved = [_numeric_inertial_load(_solved({**nominal, name: nominal[name] + sign * H}, points=21), changed) for sign in (1, -1)]
@@ -211,7 +211,7 @@ def test_the_counterweight_study_rates_its_target_by_the_lever_rule():
     centre at the rear bound and adds just enough mass -- which the lever rule confirms, the upper
     structure's centre of mass composed by hand from its rest (5,020 kg) and the counterweight."""
     from kinegen.analysis.studies import StudyProblem, optimize
-    from kinegen.forces.lift import TIPPING_SHARE, _Placer
+    from kinegen.forces.lift import TIPPING_SHARE, Placer
     from tests.test_lift import _centers, _masses
 
     excavator = model("excavator")
@@ -219,7 +219,7 @@ def test_the_counterweight_study_rates_its_target_by_the_lever_rule():
     mass, x = result.optimum["counterweight"], result.optimum["counterweight_x"]
     assert result.success and x == pytest.approx(-2.45, abs=1e-9) and 4000 < mass < 5500
     assert result.after["mass(machine)"] == pytest.approx(20.0 + (mass - 4000) / 1e3, rel=1e-12)
-    placed = _Placer(from_module(module(), "digging", compiled=False), excavator).at(6.0, 1.5)
+    placed = Placer(from_module(module(), "digging", compiled=False), excavator).at(6.0, 1.5)
     centers, masses = _centers(placed.inputs["boom_length"], placed.inputs["arm_length"]), _masses()
     upper = (5020 * 1533 / 5020 + mass * x) / (5020 + mass)  # the rest's and the counterweight's centres along x
     line = 2.2 / 2  # over the side: the track's centreline, the front swung over it

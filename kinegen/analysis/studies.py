@@ -467,13 +467,13 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     10567's rating (the smaller of 75 % of the tipping load and 87 % of the hydraulic capacity) or
     either whole limit (``q.limit``). Its derivative is that of the limit that rules, the placing
     inputs moving with the design (du/dp = -(dP/du)^-1 dP/dp keeps the point in place)."""
-    from kinegen.forces.lift import HYDRAULIC_SHARE, TIPPING_SHARE, G, _Placer, tipping_load_changes
-    from kinegen.forces.sensitivity import MultiplierChanges, _TangentChanges
+    from kinegen.forces.lift import HYDRAULIC_SHARE, TIPPING_SHARE, G, Placer, tipping_load_changes
+    from kinegen.forces.sensitivity import MultiplierChanges, TangentChanges
     from kinegen.runtime.sensitivity import configuration_sensitivities
 
     system, model = results.system, problem.model
     chart = model.lift_chart
-    placer = _Placer(system, model)
+    placer = Placer(system, model)
     found = placer.at(*q.at)
     if found is None:
         raise KinegenError(f"{q.label}: the lift point cannot be placed there")
@@ -498,11 +498,11 @@ def _lift_capacity(problem: StudyProblem, results: Results, q: Quantity, gradien
     jacobian[:, statics.columns(body)] = statics.point_jacobian(body, position)[0]
     moved = by_input[0][:, placer.index]  # dq/du of the placing inputs, (n_v, 2)
     in_plane = [0, 2]
-    d_point = _TangentChanges(statics, by_design).point(body, point)[1][0]  # dP/dp at held inputs, (3, P)
+    d_point = TangentChanges(statics, by_design).point(body, point)[1][0]  # dP/dp at held inputs, (3, P)
     d_inputs = -np.linalg.solve((jacobian @ moved)[in_plane], d_point[in_plane])  # (2, P)
     moving = by_design + (moved @ d_inputs)[None]
     if ruling == "tipping":
-        d_front, d_side = tipping_load_changes(model, statics, _TangentChanges(statics, moving), placer.weighed, q.at[0])
+        d_front, d_side = tipping_load_changes(model, statics, TangentChanges(statics, moving), placer.weighed, q.at[0])
         return value / 1e3, share * G * (d_side if side else d_front) / 1e3
     change = MultiplierChanges(statics, matrix, multipliers, body, point, np.array([[0.0, 0.0, -1.0]]), s=moving)
     names = [e.name for e in statics.elements]

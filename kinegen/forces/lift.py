@@ -75,7 +75,7 @@ class LiftPoint:
 
 
 class Held(NamedTuple):
-    """A lift pose and its solves (:meth:`_Placer.held`)."""
+    """A lift pose and its solves (:meth:`Placer.held`)."""
 
     inputs: np.ndarray  #: every driver input
     q: np.ndarray  #: stored coordinates
@@ -155,14 +155,14 @@ def lift_chart(system: NumericSystem, model: Model) -> LiftChart:
     spec = model.lift_chart
     if spec is None:
         raise KinegenError(f"{model.name} has no lift_chart: section")
-    placer = _Placer(system, model)
+    placer = Placer(system, model)
     grid = tuple(tuple(placer.at(r, h) for r in spec.radii) for h in spec.heights)
     reach = tuple(placer.farthest(h) for h in spec.heights)
     return LiftChart(f"{spec.point.body}.{spec.point.name}", spec.lifting, spec.heights, spec.radii, grid, reach,
                      model.tips, spec.without, placer.outline())  # fmt: skip
 
 
-class _Placer:
+class Placer:
     """Poses that put the lift point at a radius and height, and the capacity there."""
 
     def __init__(self, system: NumericSystem, model: Model) -> None:
@@ -300,7 +300,7 @@ def tipping_loads(model: Model, statics: Statics, bodies: list, radius: float) -
 
 def tipping_load_changes(model: Model, statics: Statics, changes, bodies: list, radius: float) -> tuple[np.ndarray, np.ndarray]:
     """d/d(design parameters) (P,) of :func:`tipping_loads` [kg per unit], the pose moving as
-    ``changes`` (a :class:`kinegen.forces.sensitivity._TangentChanges` along the pose's change) says
+    ``changes`` (a :class:`kinegen.forces.sensitivity.TangentChanges` along the pose's change) says
     and the load's radius held: with T = R / (r - d), R = Σ m_i (d - x_i) + m_u (d - x_u),
     dT = (Σ dm_i (d - x_i) + m_i (dd - dx_i) + dm_u (d - x_u) + m_u (dd - dx_u)) / (r - d) + T dd / (r - d);
     zero where the radius is inside the line."""
@@ -319,7 +319,7 @@ def _levers(model: Model, statics: Statics, bodies: list, changes=None) -> list[
     """Per tipping line (over the front, over the side): its distance d from the swing axis, dd/dp and
     per weight (``bodies`` at the pose, then the undercarriage) (mass, d mass/dp, its centre along the
     front, that position's d/dp) -- the derivatives zero unless ``changes`` (the pose's change,
-    :class:`kinegen.forces.sensitivity._TangentChanges`) is given."""
+    :class:`kinegen.forces.sensitivity.TangentChanges`) is given."""
     from kinegen.model.schema import design_gradient
 
     machine = model.machine

@@ -57,7 +57,7 @@ class MultiplierChanges:
         q, u = statics.results.q.T, statics.results.inputs.T
         # the pose's change per parameter: at held inputs, unless the caller moves them too (``s``)
         self.s = s = configuration_sensitivities(system, q, u)[0] if s is None else s  # (K, n_v, P)
-        self.maps = maps = _TangentChanges(statics, s)
+        self.maps = maps = TangentChanges(statics, s)
         change = -_joint_rows_change(statics, multipliers, s)  # dQ - d(Phi_q^T) lambda, (K, n_v, P)
         for e, element in enumerate(statics.declared):
             lam = multipliers[:, statics.joint_rows + e][:, None, None]
@@ -111,7 +111,7 @@ class MultiplierChanges:
         return force, d_force, moment_p, d_moment_p
 
 
-def inertial_load_changes(statics: Statics, maps: _TangentChanges) -> np.ndarray:
+def inertial_load_changes(statics: Statics, maps: TangentChanges) -> np.ndarray:
     """d Q_inertia / dp (K, n_v, P) along ``statics``' motion (its results' q, v, a): per massive body
     Q = J_Cᵀ F + T_ωᵀ M with F = m (g − a_C) at the centre of mass C and M = −(J ω̇ + ω × J ω)
     (:mod:`kinegen.forces.dynamics`), so dQ = dJ_Cᵀ F + J_Cᵀ dF + dT_ωᵀ M + T_ωᵀ dM: the tangent maps'
@@ -194,7 +194,7 @@ def _joint_rows_change(statics: Statics, multipliers: np.ndarray, s: np.ndarray)
     return out
 
 
-class _TangentChanges:
+class TangentChanges:
     """The bodies' tangent maps, origins and rotations and their changes along S (per parameter)."""
 
     def __init__(self, statics: Statics, s: np.ndarray) -> None:
