@@ -139,17 +139,6 @@ def path_times(s: np.ndarray, speed: np.ndarray) -> np.ndarray:
     return np.concatenate([[0.0], np.cumsum(taken)])
 
 
-def motion_along(results: Results, speed: np.ndarray, acceleration: np.ndarray) -> Results:
-    """The re-timed motion at the path's points: ``results`` (the case solved at s) with v = q' ṡ and
-    a = q' s̈ + q'' ṡ² (its times still s)."""
-    return dataclasses.replace(results, v=results.v * speed[:, None],
-                               a=results.a * speed[:, None] ** 2 + results.v * acceleration[:, None])  # fmt: skip
-
-
-def _replaced(results: Results, v: np.ndarray, a: np.ndarray) -> Results:
-    return dataclasses.replace(results, v=v, a=a)
-
-
 def _element_forces(results: Results, model: Model, loads: tuple[str, ...]) -> tuple[tuple[str, ...], np.ndarray]:
     """The elements' names and forces (K, n_elements) moving ``results`` with its inertia and weight
     and holding ``loads``."""
@@ -162,16 +151,6 @@ def _element_forces(results: Results, model: Model, loads: tuple[str, ...]) -> t
         load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(results.times), statics.n_v)))
         multipliers = statics.solve(statics.matrix(), load + inertial_load(results))
     return tuple(e.name for e in statics.elements), statics.element_forces(multipliers)
-
-
-def affine_parts(results: Results, compute) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(value at rest, per unit s̈, per unit ṡ²) of a quantity ``compute(results)`` that is affine in
-    the inertia: from the motion at rest, at (v, a) = (0, q') and at (q', q'')."""
-    zero = np.zeros_like(results.v)
-    rest = compute(_replaced(results, zero, zero))
-    per_u = compute(_replaced(results, zero, results.v)) - rest
-    per_x = compute(results) - rest
-    return rest, per_u, per_x
 
 
 def path_constraints(results: Results, model: Model, loads: tuple[str, ...] = (), tipping: bool = True,
@@ -215,7 +194,6 @@ def path_constraints(results: Results, model: Model, loads: tuple[str, ...] = ()
         parts_all = cc.split(force)
     pump_pressure = {p.name: cc.number(p.max_pressure, design) for p in supply.pumps} if supply is not None else {}
     fed_by = supply.circuits if supply is not None else {}
-    element_rates: dict[str, tuple[np.ndarray, np.ndarray]] = {}  # element -> its cylinders' rates together, or its turn rate
     for actuator in model.actuators:
         hydraulics = actuator.hydraulics
         if hydraulics is None or elements is None or actuator.name not in elements:
@@ -227,7 +205,6 @@ def path_constraints(results: Results, model: Model, loads: tuple[str, ...] = ()
         holding = [cc.number(x, design) for x in hydraulics.holding]
         supplied = min((pump_pressure[p] for p in fed_by.get(actuator.name, ())), key=lambda item: item[0], default=(np.inf, zeros[0]))
         rate = sum(results.actuator_rate(member.name) for member in model.members(actuator.name))
-        element_rates[actuator.name] = (rate, None)
         working = [min(relief[side], supplied, key=lambda item: item[0]) for side in (0, 1)]  # relief, no higher than the pumps give
         setting = [np.where(rate > 0, working[0][0], holding[0][0]), np.where(rate < 0, working[1][0], holding[1][0])]
         d_setting = [np.where((rate > 0)[:, None], working[0][1], holding[0][1]), np.where((rate < 0)[:, None], working[1][1], holding[1][1])]
@@ -429,8 +406,7 @@ def phase_summary(cycle: Cycle, smallest: float = 0.02) -> list[tuple[str, float
             merged[-1][2], merged[-1][4] = s1, t1
         else:
             merged.append([name, s0, s1, t0, t1])
-    out = [tuple(item) for item in merged]
-    return [(n, s0, s1, t0, t1) for n, s0, s1, t0, t1 in out]
+    return [tuple(item) for item in merged]
 
 
 def shares(cycle: Cycle) -> dict[str, float]:
