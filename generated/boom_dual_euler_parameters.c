@@ -455,7 +455,7 @@ const kinegen_model boom_dual_euler_parameters_swing = {
     2, block_start_swing, block_store_swing, row_order_swing, col_order_swing,
     32, 30, diag_value_swing, diag_slot_swing,
     16, off_start_swing, off_col_swing, off_value_swing,
-    325, 21, 5, kernels_swing, NULL,
+    330, 21, 5, kernels_swing, NULL,
 };
 
 const kinegen_model *const boom_dual_euler_parameters_cases[BOOM_DUAL_EULER_PARAMETERS_N_CASES] = {&boom_dual_euler_parameters_swing};

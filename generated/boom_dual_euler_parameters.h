@@ -27,7 +27,7 @@ extern "C" {
 #define BOOM_DUAL_EULER_PARAMETERS_N_CASES 1
 #define BOOM_DUAL_EULER_PARAMETERS_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define BOOM_DUAL_EULER_PARAMETERS_WORK_DOUBLES 325
+#define BOOM_DUAL_EULER_PARAMETERS_WORK_DOUBLES 330
 #define BOOM_DUAL_EULER_PARAMETERS_WORK_INTS 21
 
 typedef struct boom_dual_euler_parameters_workspace {

@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_euler_parameters.h': '621718f4f3bfc62540a0e6151c34737505de246df9541a6388fcea0752c8ff78', 'boom_dual_euler_parameters.c': 'c21b332c347ce126c8efb6b274a5346c29db80a83e99102b2eb03ab28cbc39e6'}
+C_FILES = {'boom_dual_euler_parameters.h': 'b488367b64cd011051792f0495520942c4be05c7246c002d4814465cc915e360', 'boom_dual_euler_parameters.c': '3a3a92eab04e17760cbfca557b6e733c1cdf37c0ca848adb09121988fc49c313'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

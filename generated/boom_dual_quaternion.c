@@ -445,7 +445,7 @@ const kinegen_model boom_dual_quaternion_swing = {
     5, block_start_swing, block_store_swing, row_order_swing, col_order_swing,
     8, 8, diag_value_swing, diag_slot_swing,
     8, off_start_swing, off_col_swing, off_value_swing,
-    193, 23, 5, kernels_swing, NULL,
+    198, 23, 5, kernels_swing, NULL,
 };
 
 const kinegen_model *const boom_dual_quaternion_cases[BOOM_DUAL_QUATERNION_N_CASES] = {&boom_dual_quaternion_swing};

@@ -27,7 +27,7 @@ extern "C" {
 #define BOOM_DUAL_QUATERNION_N_CASES 1
 #define BOOM_DUAL_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define BOOM_DUAL_QUATERNION_WORK_DOUBLES 193
+#define BOOM_DUAL_QUATERNION_WORK_DOUBLES 198
 #define BOOM_DUAL_QUATERNION_WORK_INTS 23
 
 typedef struct boom_dual_quaternion_workspace {

@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_quaternion.h': '4c87761a3cc51a1d329bb9026db3ace1f82021df75158346ab9f06b90a932715', 'boom_dual_quaternion.c': '70da9187eed9874f1af6dd2048a58ac6cdbe645a5949f7747c74c9b56e37dda3'}
+C_FILES = {'boom_dual_quaternion.h': 'c9e11a7e33b14b9f2146bd2c3d040c364d6fb68b3f92fcf7527a1e7c0ff3082c', 'boom_dual_quaternion.c': 'd83733d83b3a063a731f879ac6d2d4c057969f6ef36ff51e7d5e2dbf913872a8'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -398,7 +398,7 @@ const kinegen_model boom_euler_parameters_swing = {
     4, block_start_swing, block_store_swing, row_order_swing, col_order_swing,
     19, 17, diag_value_swing, diag_slot_swing,
     10, off_start_swing, off_col_swing, off_value_swing,
-    246, 23, 5, kernels_swing, NULL,
+    251, 23, 5, kernels_swing, NULL,
 };
 
 const kinegen_model *const boom_euler_parameters_cases[BOOM_EULER_PARAMETERS_N_CASES] = {&boom_euler_parameters_swing};

@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_parameters.h': '457c243cfe5522e629e22f266dfa974b7a6f3e4d9aace26423f714aa355fa3a3', 'boom_euler_parameters.c': '64ff17403b8d258a297e805fe34e4aaf9d31400b7d0c4d6376e4f5c93841d23e'}
+C_FILES = {'boom_euler_parameters.h': '0a1e7f03d29a716ca3a983f99f21aa54c11e11d487532c4c72f292aee56e80d7', 'boom_euler_parameters.c': '3d2050d97d454623727dee2d23a4e4494f9f9d54d719d7c1afb2e198b56d960f'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -448,7 +448,7 @@ const kinegen_model boom_euler_zxz_swing = {
     5, block_start_swing, block_store_swing, row_order_swing, col_order_swing,
     8, 8, diag_value_swing, diag_slot_swing,
     10, off_start_swing, off_col_swing, off_value_swing,
-    195, 23, 5, kernels_swing, NULL,
+    200, 23, 5, kernels_swing, NULL,
 };
 
 const kinegen_model *const boom_euler_zxz_cases[BOOM_EULER_ZXZ_N_CASES] = {&boom_euler_zxz_swing};

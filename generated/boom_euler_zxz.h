@@ -27,7 +27,7 @@ extern "C" {
 #define BOOM_EULER_ZXZ_N_CASES 1
 #define BOOM_EULER_ZXZ_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define BOOM_EULER_ZXZ_WORK_DOUBLES 195
+#define BOOM_EULER_ZXZ_WORK_DOUBLES 200
 #define BOOM_EULER_ZXZ_WORK_INTS 23
 
 typedef struct boom_euler_zxz_workspace {

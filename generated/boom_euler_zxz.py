@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_zxz.h': '92a2fa880c1f59accce43e5374ad379668a9273d75474e677a89311c5a4d77a2', 'boom_euler_zxz.c': 'f777b02eac4c29551404dea92cf3ae8af3fc7b353a0d6d3204614a5b682fdf06'}
+C_FILES = {'boom_euler_zxz.h': '6c490981694256109c1ae0e0fbc745d2f8d708cd17441bf9ca9e9f95681412ec', 'boom_euler_zxz.c': '006358f5201aff73a3b3485c31586806c7fc66573d50fbf0ecd689d5a6e95505'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

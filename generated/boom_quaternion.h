@@ -27,7 +27,7 @@ extern "C" {
 #define BOOM_QUATERNION_N_CASES 1
 #define BOOM_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define BOOM_QUATERNION_WORK_DOUBLES 191
+#define BOOM_QUATERNION_WORK_DOUBLES 196
 #define BOOM_QUATERNION_WORK_INTS 23
 
 typedef struct boom_quaternion_workspace {

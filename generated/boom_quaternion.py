@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_quaternion.h': 'aeb96a6b0a090b0b85c786db006a7ecb22e5a36eafa6ff414a3ece17a467798d', 'boom_quaternion.c': 'eed314fb0cf33dae5ff27e2fb56322d0c07283c617cf9c2fb2a0492ff7c9c354'}
+C_FILES = {'boom_quaternion.h': '117ffadc169219e3361a46d968fa9805a74dccc540f83a51658c6789f779544e', 'boom_quaternion.c': '20ce4221e3021100d1123a9dccc096de40bc076a620c224cc60b55c4c9fc3e40'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

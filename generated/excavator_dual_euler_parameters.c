@@ -15163,7 +15163,7 @@ const kinegen_model excavator_dual_euler_parameters_digging = {
     7, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
     2272, 946, diag_value_digging, diag_slot_digging,
     304, off_start_digging, off_col_digging, off_value_digging,
-    7576, 242, 5, kernels_digging, &design_digging,
+    7596, 242, 5, kernels_digging, &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -15195,7 +15195,7 @@ const kinegen_model excavator_dual_euler_parameters_level_cut = {
     8, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
     1888, 906, diag_value_level_cut, diag_slot_level_cut,
     316, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    7148, 244, 5, kernels_level_cut, &design_level_cut,
+    7168, 244, 5, kernels_level_cut, &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -15227,7 +15227,7 @@ const kinegen_model excavator_dual_euler_parameters_trench_wall = {
     8, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
     1888, 906, diag_value_trench_wall, diag_slot_trench_wall,
     316, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    7148, 244, 5, kernels_trench_wall, &design_trench_wall,
+    7168, 244, 5, kernels_trench_wall, &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -15259,7 +15259,7 @@ const kinegen_model excavator_dual_euler_parameters_bucket_toggle = {
     7, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
     2272, 946, diag_value_bucket_toggle, diag_slot_bucket_toggle,
     304, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    7576, 242, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    7596, 242, 5, kernels_bucket_toggle, &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -15291,7 +15291,7 @@ const kinegen_model excavator_dual_euler_parameters_bucket_stroke = {
     7, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
     2272, 946, diag_value_bucket_stroke, diag_slot_bucket_stroke,
     304, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    7576, 242, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    7596, 242, 5, kernels_bucket_stroke, &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -15323,7 +15323,7 @@ const kinegen_model excavator_dual_euler_parameters_bucket_near_toggle = {
     7, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
     2272, 946, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
     304, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    7576, 242, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    7596, 242, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -15355,7 +15355,7 @@ const kinegen_model excavator_dual_euler_parameters_digging_fast = {
     7, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
     2272, 946, diag_value_digging_fast, diag_slot_digging_fast,
     304, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    7576, 242, 5, kernels_digging_fast, &design_digging_fast,
+    7596, 242, 5, kernels_digging_fast, &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -15387,7 +15387,7 @@ const kinegen_model excavator_dual_euler_parameters_digging_paced = {
     7, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
     2272, 946, diag_value_digging_paced, diag_slot_digging_paced,
     304, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    7576, 242, 5, kernels_digging_paced, &design_digging_paced,
+    7596, 242, 5, kernels_digging_paced, &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -15419,7 +15419,7 @@ const kinegen_model excavator_dual_euler_parameters_oscillation = {
     7, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
     2272, 946, diag_value_oscillation, diag_slot_oscillation,
     304, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    7576, 242, 5, kernels_oscillation, &design_oscillation,
+    7596, 242, 5, kernels_oscillation, &design_oscillation,
 };
 
 const kinegen_model *const excavator_dual_euler_parameters_cases[EXCAVATOR_DUAL_EULER_PARAMETERS_N_CASES] = {&excavator_dual_euler_parameters_digging, &excavator_dual_euler_parameters_level_cut, &excavator_dual_euler_parameters_trench_wall, &excavator_dual_euler_parameters_bucket_toggle, &excavator_dual_euler_parameters_bucket_stroke, &excavator_dual_euler_parameters_bucket_near_toggle, &excavator_dual_euler_parameters_digging_fast, &excavator_dual_euler_parameters_digging_paced, &excavator_dual_euler_parameters_oscillation};

@@ -10018,7 +10018,7 @@ const kinegen_model excavator_dual_quaternion_digging = {
     37, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
     584, 278, diag_value_digging, diag_slot_digging,
     179, off_start_digging, off_col_digging, off_value_digging,
-    3617, 246, 5, kernels_digging, &design_digging,
+    3637, 246, 5, kernels_digging, &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -10050,7 +10050,7 @@ const kinegen_model excavator_dual_quaternion_level_cut = {
     46, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
     392, 249, diag_value_level_cut, diag_slot_level_cut,
     190, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    3400, 264, 5, kernels_level_cut, &design_level_cut,
+    3420, 264, 5, kernels_level_cut, &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -10082,7 +10082,7 @@ const kinegen_model excavator_dual_quaternion_trench_wall = {
     46, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
     392, 249, diag_value_trench_wall, diag_slot_trench_wall,
     190, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    3400, 264, 5, kernels_trench_wall, &design_trench_wall,
+    3420, 264, 5, kernels_trench_wall, &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -10114,7 +10114,7 @@ const kinegen_model excavator_dual_quaternion_bucket_toggle = {
     37, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
     584, 278, diag_value_bucket_toggle, diag_slot_bucket_toggle,
     179, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    3617, 246, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    3637, 246, 5, kernels_bucket_toggle, &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -10146,7 +10146,7 @@ const kinegen_model excavator_dual_quaternion_bucket_stroke = {
     37, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
     584, 278, diag_value_bucket_stroke, diag_slot_bucket_stroke,
     179, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    3617, 246, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    3637, 246, 5, kernels_bucket_stroke, &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -10178,7 +10178,7 @@ const kinegen_model excavator_dual_quaternion_bucket_near_toggle = {
     37, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
     584, 278, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
     179, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    3617, 246, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    3637, 246, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -10210,7 +10210,7 @@ const kinegen_model excavator_dual_quaternion_digging_fast = {
     37, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
     584, 278, diag_value_digging_fast, diag_slot_digging_fast,
     179, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    3617, 246, 5, kernels_digging_fast, &design_digging_fast,
+    3637, 246, 5, kernels_digging_fast, &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -10242,7 +10242,7 @@ const kinegen_model excavator_dual_quaternion_digging_paced = {
     37, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
     584, 278, diag_value_digging_paced, diag_slot_digging_paced,
     179, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    3617, 246, 5, kernels_digging_paced, &design_digging_paced,
+    3637, 246, 5, kernels_digging_paced, &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -10274,7 +10274,7 @@ const kinegen_model excavator_dual_quaternion_oscillation = {
     37, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
     584, 278, diag_value_oscillation, diag_slot_oscillation,
     179, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    3617, 246, 5, kernels_oscillation, &design_oscillation,
+    3637, 246, 5, kernels_oscillation, &design_oscillation,
 };
 
 const kinegen_model *const excavator_dual_quaternion_cases[EXCAVATOR_DUAL_QUATERNION_N_CASES] = {&excavator_dual_quaternion_digging, &excavator_dual_quaternion_level_cut, &excavator_dual_quaternion_trench_wall, &excavator_dual_quaternion_bucket_toggle, &excavator_dual_quaternion_bucket_stroke, &excavator_dual_quaternion_bucket_near_toggle, &excavator_dual_quaternion_digging_fast, &excavator_dual_quaternion_digging_paced, &excavator_dual_quaternion_oscillation};

@@ -9584,7 +9584,7 @@ const kinegen_model excavator_euler_parameters_digging = {
     40, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
     610, 346, diag_value_digging, diag_slot_digging,
     297, off_start_digging, off_col_digging, off_value_digging,
-    4385, 280, 5, kernels_digging, &design_digging,
+    4405, 280, 5, kernels_digging, &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -9616,7 +9616,7 @@ const kinegen_model excavator_euler_parameters_level_cut = {
     49, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
     502, 312, diag_value_level_cut, diag_slot_level_cut,
     315, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    4263, 298, 5, kernels_level_cut, &design_level_cut,
+    4283, 298, 5, kernels_level_cut, &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -9648,7 +9648,7 @@ const kinegen_model excavator_euler_parameters_trench_wall = {
     49, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
     502, 312, diag_value_trench_wall, diag_slot_trench_wall,
     315, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    4263, 298, 5, kernels_trench_wall, &design_trench_wall,
+    4283, 298, 5, kernels_trench_wall, &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -9680,7 +9680,7 @@ const kinegen_model excavator_euler_parameters_bucket_toggle = {
     40, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
     610, 346, diag_value_bucket_toggle, diag_slot_bucket_toggle,
     297, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    4385, 280, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    4405, 280, 5, kernels_bucket_toggle, &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -9712,7 +9712,7 @@ const kinegen_model excavator_euler_parameters_bucket_stroke = {
     40, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
     610, 346, diag_value_bucket_stroke, diag_slot_bucket_stroke,
     297, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    4385, 280, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    4405, 280, 5, kernels_bucket_stroke, &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -9744,7 +9744,7 @@ const kinegen_model excavator_euler_parameters_bucket_near_toggle = {
     40, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
     610, 346, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
     297, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    4385, 280, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    4405, 280, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -9776,7 +9776,7 @@ const kinegen_model excavator_euler_parameters_digging_fast = {
     40, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
     610, 346, diag_value_digging_fast, diag_slot_digging_fast,
     297, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    4385, 280, 5, kernels_digging_fast, &design_digging_fast,
+    4405, 280, 5, kernels_digging_fast, &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -9808,7 +9808,7 @@ const kinegen_model excavator_euler_parameters_digging_paced = {
     40, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
     610, 346, diag_value_digging_paced, diag_slot_digging_paced,
     297, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    4385, 280, 5, kernels_digging_paced, &design_digging_paced,
+    4405, 280, 5, kernels_digging_paced, &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -9840,7 +9840,7 @@ const kinegen_model excavator_euler_parameters_oscillation = {
     40, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
     610, 346, diag_value_oscillation, diag_slot_oscillation,
     297, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    4385, 280, 5, kernels_oscillation, &design_oscillation,
+    4405, 280, 5, kernels_oscillation, &design_oscillation,
 };
 
 const kinegen_model *const excavator_euler_parameters_cases[EXCAVATOR_EULER_PARAMETERS_N_CASES] = {&excavator_euler_parameters_digging, &excavator_euler_parameters_level_cut, &excavator_euler_parameters_trench_wall, &excavator_euler_parameters_bucket_toggle, &excavator_euler_parameters_bucket_stroke, &excavator_euler_parameters_bucket_near_toggle, &excavator_euler_parameters_digging_fast, &excavator_euler_parameters_digging_paced, &excavator_euler_parameters_oscillation};

@@ -28,7 +28,7 @@ extern "C" {
 #define EXCAVATOR_EULER_ZXY_N_CASES 9
 #define EXCAVATOR_EULER_ZXY_MAX_INPUTS 4  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define EXCAVATOR_EULER_ZXY_WORK_DOUBLES 3380
+#define EXCAVATOR_EULER_ZXY_WORK_DOUBLES 3400
 #define EXCAVATOR_EULER_ZXY_WORK_INTS 274
 /* the force solve (kinegen_forces): loads, forces per configuration (elements, or the most drivers), work;
  * whether the model has masses (kinegen_forces' inertia) */

@@ -87,7 +87,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxy.h': 'ffb093f86ef156132168a62fc4e59b808b95101e4ff27a7dd4c0f8d89ba11f9c', 'excavator_euler_zxy.c': '07706882f53b1de5afdd967595a88f6b33704614951896ff88a576f7a7b132c3'}
+C_FILES = {'excavator_euler_zxy.h': '1d22151826fb76d2b6e9642302b8d0dd7363daba15412e981607a42c79ba8b26', 'excavator_euler_zxy.c': '3a18ef42e3f4521edcdac0eae4fede7ea0b980e61838bf165989d09e68d67d74'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

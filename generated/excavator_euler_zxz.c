@@ -11028,7 +11028,7 @@ const kinegen_model excavator_euler_zxz_digging = {
     46, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
     384, 198, diag_value_digging, diag_slot_digging,
     245, off_start_digging, off_col_digging, off_value_digging,
-    3399, 264, 5, kernels_digging, &design_digging,
+    3419, 264, 5, kernels_digging, &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -11060,7 +11060,7 @@ const kinegen_model excavator_euler_zxz_level_cut = {
     58, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
     288, 159, diag_value_level_cut, diag_slot_level_cut,
     266, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    3288, 288, 5, kernels_level_cut, &design_level_cut,
+    3308, 288, 5, kernels_level_cut, &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -11092,7 +11092,7 @@ const kinegen_model excavator_euler_zxz_trench_wall = {
     58, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
     288, 159, diag_value_trench_wall, diag_slot_trench_wall,
     266, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    3288, 288, 5, kernels_trench_wall, &design_trench_wall,
+    3308, 288, 5, kernels_trench_wall, &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -11124,7 +11124,7 @@ const kinegen_model excavator_euler_zxz_bucket_toggle = {
     46, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
     384, 198, diag_value_bucket_toggle, diag_slot_bucket_toggle,
     245, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    3399, 264, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    3419, 264, 5, kernels_bucket_toggle, &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -11156,7 +11156,7 @@ const kinegen_model excavator_euler_zxz_bucket_stroke = {
     46, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
     384, 198, diag_value_bucket_stroke, diag_slot_bucket_stroke,
     245, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    3399, 264, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    3419, 264, 5, kernels_bucket_stroke, &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -11188,7 +11188,7 @@ const kinegen_model excavator_euler_zxz_bucket_near_toggle = {
     46, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
     384, 198, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
     245, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    3399, 264, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    3419, 264, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -11220,7 +11220,7 @@ const kinegen_model excavator_euler_zxz_digging_fast = {
     46, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
     384, 198, diag_value_digging_fast, diag_slot_digging_fast,
     245, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    3399, 264, 5, kernels_digging_fast, &design_digging_fast,
+    3419, 264, 5, kernels_digging_fast, &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -11252,7 +11252,7 @@ const kinegen_model excavator_euler_zxz_digging_paced = {
     46, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
     384, 198, diag_value_digging_paced, diag_slot_digging_paced,
     245, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    3399, 264, 5, kernels_digging_paced, &design_digging_paced,
+    3419, 264, 5, kernels_digging_paced, &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -11284,7 +11284,7 @@ const kinegen_model excavator_euler_zxz_oscillation = {
     46, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
     384, 198, diag_value_oscillation, diag_slot_oscillation,
     245, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    3399, 264, 5, kernels_oscillation, &design_oscillation,
+    3419, 264, 5, kernels_oscillation, &design_oscillation,
 };
 
 const kinegen_model *const excavator_euler_zxz_cases[EXCAVATOR_EULER_ZXZ_N_CASES] = {&excavator_euler_zxz_digging, &excavator_euler_zxz_level_cut, &excavator_euler_zxz_trench_wall, &excavator_euler_zxz_bucket_toggle, &excavator_euler_zxz_bucket_stroke, &excavator_euler_zxz_bucket_near_toggle, &excavator_euler_zxz_digging_fast, &excavator_euler_zxz_digging_paced, &excavator_euler_zxz_oscillation};

@@ -87,7 +87,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxz.h': '415a9e1a1021811bc5677e7345df157a8c122bb665e59072140eb8dbab74291a', 'excavator_euler_zxz.c': '2287104dfa1e57a0868c094847d58cb00adf9ab9819fb23d21bb3ee6ec795616'}
+C_FILES = {'excavator_euler_zxz.h': '5788cad81e67cd7827e74d32974522e938ebe3a3396d2027f154c0b130db475a', 'excavator_euler_zxz.c': '32b358ad456919ecfc449afd1cd665a264bcacd618adac509051a853ec2f6e5b'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -19677,7 +19677,7 @@ const kinegen_model excavator_quaternion_digging = {
     41, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
     404, 218, diag_value_digging, diag_slot_digging,
     215, off_start_digging, off_col_digging, off_value_digging,
-    3397, 254, 8, kernels_digging, &design_digging,
+    3417, 254, 8, kernels_digging, &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -19714,7 +19714,7 @@ const kinegen_model excavator_quaternion_level_cut = {
     50, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
     320, 189, diag_value_level_cut, diag_slot_level_cut,
     226, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    3288, 272, 8, kernels_level_cut, &design_level_cut,
+    3308, 272, 8, kernels_level_cut, &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -19751,7 +19751,7 @@ const kinegen_model excavator_quaternion_trench_wall = {
     50, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
     320, 189, diag_value_trench_wall, diag_slot_trench_wall,
     226, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    3288, 272, 8, kernels_trench_wall, &design_trench_wall,
+    3308, 272, 8, kernels_trench_wall, &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -19788,7 +19788,7 @@ const kinegen_model excavator_quaternion_bucket_toggle = {
     41, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
     404, 218, diag_value_bucket_toggle, diag_slot_bucket_toggle,
     215, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    3397, 254, 8, kernels_bucket_toggle, &design_bucket_toggle,
+    3417, 254, 8, kernels_bucket_toggle, &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -19825,7 +19825,7 @@ const kinegen_model excavator_quaternion_bucket_stroke = {
     41, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
     404, 218, diag_value_bucket_stroke, diag_slot_bucket_stroke,
     215, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    3397, 254, 8, kernels_bucket_stroke, &design_bucket_stroke,
+    3417, 254, 8, kernels_bucket_stroke, &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -19862,7 +19862,7 @@ const kinegen_model excavator_quaternion_bucket_near_toggle = {
     41, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
     404, 218, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
     215, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    3397, 254, 8, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    3417, 254, 8, kernels_bucket_near_toggle, &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -19899,7 +19899,7 @@ const kinegen_model excavator_quaternion_digging_fast = {
     41, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
     404, 218, diag_value_digging_fast, diag_slot_digging_fast,
     215, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    3397, 254, 8, kernels_digging_fast, &design_digging_fast,
+    3417, 254, 8, kernels_digging_fast, &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -19936,7 +19936,7 @@ const kinegen_model excavator_quaternion_digging_paced = {
     41, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
     404, 218, diag_value_digging_paced, diag_slot_digging_paced,
     215, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    3397, 254, 8, kernels_digging_paced, &design_digging_paced,
+    3417, 254, 8, kernels_digging_paced, &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -19973,7 +19973,7 @@ const kinegen_model excavator_quaternion_oscillation = {
     41, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
     404, 218, diag_value_oscillation, diag_slot_oscillation,
     215, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    3397, 254, 8, kernels_oscillation, &design_oscillation,
+    3417, 254, 8, kernels_oscillation, &design_oscillation,
 };
 
 const kinegen_model *const excavator_quaternion_cases[EXCAVATOR_QUATERNION_N_CASES] = {&excavator_quaternion_digging, &excavator_quaternion_level_cut, &excavator_quaternion_trench_wall, &excavator_quaternion_bucket_toggle, &excavator_quaternion_bucket_stroke, &excavator_quaternion_bucket_near_toggle, &excavator_quaternion_digging_fast, &excavator_quaternion_digging_paced, &excavator_quaternion_oscillation};

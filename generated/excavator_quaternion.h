@@ -28,7 +28,7 @@ extern "C" {
 #define EXCAVATOR_QUATERNION_N_CASES 9
 #define EXCAVATOR_QUATERNION_MAX_INPUTS 4  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define EXCAVATOR_QUATERNION_WORK_DOUBLES 3397
+#define EXCAVATOR_QUATERNION_WORK_DOUBLES 3417
 #define EXCAVATOR_QUATERNION_WORK_INTS 272
 /* work of kinegen_sensitivities for any case (doubles) */
 #define EXCAVATOR_QUATERNION_SENSITIVITY_DOUBLES 2835

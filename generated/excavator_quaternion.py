@@ -92,7 +92,7 @@ KERNELS = {
     'frames_d': (('q', 'v', 'a', 'w', 'y', 'z'), ('frames_d',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_quaternion.h': 'c4fff27d2aef94f4879007022819a124fab6e68b41c74ddfd20b76859591b1ed', 'excavator_quaternion.c': 'ef4596ddad0e3b03725eea249a89f932b7417ddb63810548cddb89cd11c89dce'}
+C_FILES = {'excavator_quaternion.h': '7245f1aadc64e296fadc552c3718433aa5e6eb73a4f1c88ce5ffad915e3495fd', 'excavator_quaternion.c': '1125b808c078584dc82c4aaa4e4237715d13829f64bf7c4a95682fb0be225c6c'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -1079,7 +1079,7 @@ const kinegen_model four_bar_dual_euler_parameters_crank_turn = {
     3, block_start_crank_turn, block_store_crank_turn, row_order_crank_turn, col_order_crank_turn,
     288, 166, diag_value_crank_turn, diag_slot_crank_turn,
     40, off_start_crank_turn, off_col_crank_turn, off_value_crank_turn,
-    1277, 55, 5, kernels_crank_turn, NULL,
+    1282, 55, 5, kernels_crank_turn, NULL,
 };
 
 const kinegen_model *const four_bar_dual_euler_parameters_cases[FOUR_BAR_DUAL_EULER_PARAMETERS_N_CASES] = {&four_bar_dual_euler_parameters_crank_turn};

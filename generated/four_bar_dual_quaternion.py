@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_dual_quaternion.h': '4ff8f674eefc8df738996452e4b88afb11428f585cd9b4371b0cc4bde237b9b5', 'four_bar_dual_quaternion.c': '5b9e81f2db603527569dc038f4efced1a836aa07fd896fecfb1c278840656185'}
+C_FILES = {'four_bar_dual_quaternion.h': '178d22bd1def3ab54df37b5b605ad8b4b0b89c25b87ed1978312cc182a4f7a80', 'four_bar_dual_quaternion.c': '0a06cb10f404dfbe5ed6fdfa046bb0bed3f15233a42096d1af2a869722c64e06'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -774,7 +774,7 @@ const kinegen_model four_bar_euler_parameters_crank_turn = {
     11, block_start_crank_turn, block_store_crank_turn, row_order_crank_turn, col_order_crank_turn,
     89, 67, diag_value_crank_turn, diag_slot_crank_turn,
     19, off_start_crank_turn, off_col_crank_turn, off_value_crank_turn,
-    751, 65, 5, kernels_crank_turn, NULL,
+    756, 65, 5, kernels_crank_turn, NULL,
 };
 
 const kinegen_model *const four_bar_euler_parameters_cases[FOUR_BAR_EULER_PARAMETERS_N_CASES] = {&four_bar_euler_parameters_crank_turn};

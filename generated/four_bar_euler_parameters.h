@@ -27,7 +27,7 @@ extern "C" {
 #define FOUR_BAR_EULER_PARAMETERS_N_CASES 1
 #define FOUR_BAR_EULER_PARAMETERS_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define FOUR_BAR_EULER_PARAMETERS_WORK_DOUBLES 751
+#define FOUR_BAR_EULER_PARAMETERS_WORK_DOUBLES 756
 #define FOUR_BAR_EULER_PARAMETERS_WORK_INTS 65
 /* the force solve (kinegen_forces): loads, forces per configuration (elements, or the most drivers), work;
  * whether the model has masses (kinegen_forces' inertia) */

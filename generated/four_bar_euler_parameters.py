@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_euler_parameters.h': '437d90ac92fb8a438010e758f58d2a51cb6583365e149fe89cef445b5be7ec61', 'four_bar_euler_parameters.c': '476c48fac213e4a2bea474bfe770805a29bf84c9df2b688fc01de5858a572a34'}
+C_FILES = {'four_bar_euler_parameters.h': 'a762619991c3dbb5574f5f919d1cb0c7510788ad3aa906f2fc8bcd34c34b1c3f', 'four_bar_euler_parameters.c': '05d12b275ea1f6bc8ce346351c4e4eb9e980db10538b126dec2f94c49f43d9fc'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

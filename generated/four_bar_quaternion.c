@@ -742,7 +742,7 @@ const kinegen_model four_bar_quaternion_crank_turn = {
     13, block_start_crank_turn, block_store_crank_turn, row_order_crank_turn, col_order_crank_turn,
     34, 30, diag_value_crank_turn, diag_slot_crank_turn,
     23, off_start_crank_turn, off_col_crank_turn, off_value_crank_turn,
-    574, 63, 5, kernels_crank_turn, NULL,
+    579, 63, 5, kernels_crank_turn, NULL,
 };
 
 const kinegen_model *const four_bar_quaternion_cases[FOUR_BAR_QUATERNION_N_CASES] = {&four_bar_quaternion_crank_turn};

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_quaternion.h': '86a0a84e89b6124fb2bb4f47c7a3ba013bd51b8eb4f6915ca9dce66f24b53f0c', 'four_bar_quaternion.c': '5b713cc5cad391e34e56897519eec98d770efc16bd420cf4a5e7c0f539fa8425'}
+C_FILES = {'four_bar_quaternion.h': 'a2c42a8d4a5c20d4919c002a9ceab6bce77b15c117aee83721659aac4475ab18', 'four_bar_quaternion.c': 'f641e837ed1b0e957815d5301e98cb065ee3b3a2aebde53325490972bbc16a1b'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -1003,7 +1003,7 @@ const kinegen_model rssr_dual_euler_parameters_turn = {
     3, block_start_turn, block_store_turn, row_order_turn, col_order_turn,
     96, 82, diag_value_turn, diag_slot_turn,
     24, off_start_turn, off_col_turn, off_value_turn,
-    693, 39, 5, kernels_turn, NULL,
+    698, 39, 5, kernels_turn, NULL,
 };
 
 const kinegen_model *const rssr_dual_euler_parameters_cases[RSSR_DUAL_EULER_PARAMETERS_N_CASES] = {&rssr_dual_euler_parameters_turn};

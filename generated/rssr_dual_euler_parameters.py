@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_euler_parameters.h': '37f4f254b48ad686dc317680136a7222f323245739c4926fab1127e44ba6be53', 'rssr_dual_euler_parameters.c': '5ad210a2258b030d07bea48dececcc7342b04df53613ebbf77b6fd50f639619a'}
+C_FILES = {'rssr_dual_euler_parameters.h': '7d16d55020c4268fb3f82b464b5ddd36b396685e9321b31bbf84a16da5d07c5e', 'rssr_dual_euler_parameters.c': 'b727f84ef8a28e8e0aca800723fa528b346b7b696debf1ad4eb40cd8347140e1'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -662,7 +662,7 @@ const kinegen_model rssr_dual_quaternion_turn = {
     10, block_start_turn, block_store_turn, row_order_turn, col_order_turn,
     16, 16, diag_value_turn, diag_slot_turn,
     13, off_start_turn, off_col_turn, off_value_turn,
-    368, 45, 5, kernels_turn, NULL,
+    373, 45, 5, kernels_turn, NULL,
 };
 
 const kinegen_model *const rssr_dual_quaternion_cases[RSSR_DUAL_QUATERNION_N_CASES] = {&rssr_dual_quaternion_turn};

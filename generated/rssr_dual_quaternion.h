@@ -27,7 +27,7 @@ extern "C" {
 #define RSSR_DUAL_QUATERNION_N_CASES 1
 #define RSSR_DUAL_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define RSSR_DUAL_QUATERNION_WORK_DOUBLES 368
+#define RSSR_DUAL_QUATERNION_WORK_DOUBLES 373
 #define RSSR_DUAL_QUATERNION_WORK_INTS 45
 
 typedef struct rssr_dual_quaternion_workspace {

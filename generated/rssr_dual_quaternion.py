@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_quaternion.h': '3f29944b8b4ac7da61cf3db2b73208443783b8a1ba526bff9884f44d8098cec8', 'rssr_dual_quaternion.c': 'd8ebb0a4e8380550baf894a9dd56d011d3119f16b010bba2e384440dd8d4d6e6'}
+C_FILES = {'rssr_dual_quaternion.h': '64726565a0d0b51ed957601f1daa9a6d994f1afca56d025ceaf686687d399e07', 'rssr_dual_quaternion.c': '41abd24b7c16cf81115f12dd856e092284b97ee67ccc4006a4e528650372ce32'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

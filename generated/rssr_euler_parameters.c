@@ -716,7 +716,7 @@ const kinegen_model rssr_euler_parameters_turn = {
     8, block_start_turn, block_store_turn, row_order_turn, col_order_turn,
     38, 36, diag_value_turn, diag_slot_turn,
     10, off_start_turn, off_col_turn, off_value_turn,
-    457, 45, 5, kernels_turn, NULL,
+    462, 45, 5, kernels_turn, NULL,
 };
 
 const kinegen_model *const rssr_euler_parameters_cases[RSSR_EULER_PARAMETERS_N_CASES] = {&rssr_euler_parameters_turn};

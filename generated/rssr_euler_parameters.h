@@ -27,7 +27,7 @@ extern "C" {
 #define RSSR_EULER_PARAMETERS_N_CASES 1
 #define RSSR_EULER_PARAMETERS_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define RSSR_EULER_PARAMETERS_WORK_DOUBLES 457
+#define RSSR_EULER_PARAMETERS_WORK_DOUBLES 462
 #define RSSR_EULER_PARAMETERS_WORK_INTS 45
 
 typedef struct rssr_euler_parameters_workspace {

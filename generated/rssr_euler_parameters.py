@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_euler_parameters.h': 'c3b98f9809154a36cb24e402bd71d88d979ba38970ec17d1179c1b0e94cbf207', 'rssr_euler_parameters.c': 'e8545a0f0eaeca00987ed9954077714502bc57bb38e7def2edf5528d39f7911f'}
+C_FILES = {'rssr_euler_parameters.h': '851ce9df8d78eb2e91ef4ead6080627206afff8ca98090cb4f878e314b109d48', 'rssr_euler_parameters.c': 'be4f9831b3bded42a1e7198fd8f83049fb136197802c054753c772d8e692e334'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -27,7 +27,7 @@ extern "C" {
 #define RSSR_QUATERNION_N_CASES 1
 #define RSSR_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define RSSR_QUATERNION_WORK_DOUBLES 364
+#define RSSR_QUATERNION_WORK_DOUBLES 369
 #define RSSR_QUATERNION_WORK_INTS 45
 
 typedef struct rssr_quaternion_workspace {

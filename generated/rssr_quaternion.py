@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_quaternion.h': '8082d190c19685df796a51a84b107e1b29bba7428cb9232ca8be795f4f8248e6', 'rssr_quaternion.c': '4f3b492545f81779a9e4c08259e753e7414344895d63ca1100b133c9ca617e91'}
+C_FILES = {'rssr_quaternion.h': '15f4cefcd6874075900786f7d85ade883c7c9fb3798d4f5b55e5528ffb6f7e9e', 'rssr_quaternion.c': 'ddaa63d55da65859f292df8705719920cc8a848d17cc4d75e0f3c122bec71933'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

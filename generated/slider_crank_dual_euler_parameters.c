@@ -1272,7 +1272,7 @@ const kinegen_model slider_crank_dual_euler_parameters_run = {
     4, block_start_run, block_store_run, row_order_run, col_order_run,
     192, 134, diag_value_run, diag_slot_run,
     68, off_start_run, off_col_run, off_value_run,
-    1201, 57, 5, kernels_run, NULL,
+    1206, 57, 5, kernels_run, NULL,
 };
 
 /* ---- case dead_centre ---- */
@@ -1300,7 +1300,7 @@ const kinegen_model slider_crank_dual_euler_parameters_dead_centre = {
     3, block_start_dead_centre, block_store_dead_centre, row_order_dead_centre, col_order_dead_centre,
     288, 164, diag_value_dead_centre, diag_slot_dead_centre,
     44, off_start_dead_centre, off_col_dead_centre, off_value_dead_centre,
-    1285, 55, 5, kernels_dead_centre, NULL,
+    1290, 55, 5, kernels_dead_centre, NULL,
 };
 
 const kinegen_model *const slider_crank_dual_euler_parameters_cases[SLIDER_CRANK_DUAL_EULER_PARAMETERS_N_CASES] = {&slider_crank_dual_euler_parameters_run, &slider_crank_dual_euler_parameters_dead_centre};

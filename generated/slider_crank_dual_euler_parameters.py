@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_euler_parameters.h': 'd6fde753e377a74dba8bcab5b91b54f3cb20c248a0f5a28f77093c8399c4cd88', 'slider_crank_dual_euler_parameters.c': 'be0040ea7c6eed11f34e28e8cc9d05a919476a1f6ee8d1ee1e117928388ed139'}
+C_FILES = {'slider_crank_dual_euler_parameters.h': '327c42a336eb3fe69a72ff8a0657d19bbf1876a205741911694701435acbbb45', 'slider_crank_dual_euler_parameters.c': 'f2e6f156e2d80a5e84cee14b7f4a988045c569711cb1e63135647e1c36f4e131'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

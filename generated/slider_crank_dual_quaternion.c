@@ -938,7 +938,7 @@ const kinegen_model slider_crank_dual_quaternion_run = {
     11, block_start_run, block_store_run, row_order_run, col_order_run,
     52, 32, diag_value_run, diag_slot_run,
     24, off_start_run, off_col_run, off_value_run,
-    605, 59, 5, kernels_run, NULL,
+    610, 59, 5, kernels_run, NULL,
 };
 
 /* ---- case dead_centre ---- */
@@ -966,7 +966,7 @@ const kinegen_model slider_crank_dual_quaternion_dead_centre = {
     11, block_start_dead_centre, block_store_dead_centre, row_order_dead_centre, col_order_dead_centre,
     52, 31, diag_value_dead_centre, diag_slot_dead_centre,
     23, off_start_dead_centre, off_col_dead_centre, off_value_dead_centre,
-    600, 59, 5, kernels_dead_centre, NULL,
+    605, 59, 5, kernels_dead_centre, NULL,
 };
 
 const kinegen_model *const slider_crank_dual_quaternion_cases[SLIDER_CRANK_DUAL_QUATERNION_N_CASES] = {&slider_crank_dual_quaternion_run, &slider_crank_dual_quaternion_dead_centre};

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_quaternion.h': '076bd9000b1913ee6f6baf34a63b3dc44a453502b4b1da611c7f02541fa8a039', 'slider_crank_dual_quaternion.c': 'a447a391b56ea80691d28ac21ebd4190e17bfb0fd81740c289e654eb2fda1d32'}
+C_FILES = {'slider_crank_dual_quaternion.h': 'bf8f00bd1c82315f2d1faf24558a026cf0d85ff5baba3b0c8b2cfb83e5acab37', 'slider_crank_dual_quaternion.c': 'fc95cc57cbc8562a0cba76a82cfcac63b9399ccdcf66ce2c5ddfc858c23fc757'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -875,7 +875,7 @@ const kinegen_model slider_crank_euler_parameters_run = {
     12, block_start_run, block_store_run, row_order_run, col_order_run,
     57, 55, diag_value_run, diag_slot_run,
     24, off_start_run, off_col_run, off_value_run,
-    710, 67, 5, kernels_run, NULL,
+    715, 67, 5, kernels_run, NULL,
 };
 
 /* ---- case dead_centre ---- */
@@ -903,7 +903,7 @@ const kinegen_model slider_crank_euler_parameters_dead_centre = {
     8, block_start_dead_centre, block_store_dead_centre, row_order_dead_centre, col_order_dead_centre,
     143, 68, diag_value_dead_centre, diag_slot_dead_centre,
     10, off_start_dead_centre, off_col_dead_centre, off_value_dead_centre,
-    780, 59, 5, kernels_dead_centre, NULL,
+    785, 59, 5, kernels_dead_centre, NULL,
 };
 
 const kinegen_model *const slider_crank_euler_parameters_cases[SLIDER_CRANK_EULER_PARAMETERS_N_CASES] = {&slider_crank_euler_parameters_run, &slider_crank_euler_parameters_dead_centre};

@@ -27,7 +27,7 @@ extern "C" {
 #define SLIDER_CRANK_EULER_PARAMETERS_N_CASES 2
 #define SLIDER_CRANK_EULER_PARAMETERS_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES 780
+#define SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES 785
 #define SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS 67
 /* the force solve (kinegen_forces): loads, forces per configuration (elements, or the most drivers), work;
  * whether the model has masses (kinegen_forces' inertia) */

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_euler_parameters.h': 'b6404fa5ad38c2241b4cdd982d164f7d7d9ea7190d3109139803029300542cdc', 'slider_crank_euler_parameters.c': '49726230d78d88ecbead46265eca4c00728818bfa42c869a80c4f1b2714b32b4'}
+C_FILES = {'slider_crank_euler_parameters.h': 'b73c94bdce842ce1e154ca50e4850a165e3f4b8b8acfd2ac469b02ca7356e885', 'slider_crank_euler_parameters.c': 'a7bd95f7ebec68b2983fb47021d0d014b07aa916f3ac90f6eda092a4b77b18b4'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

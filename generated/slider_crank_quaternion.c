@@ -842,7 +842,7 @@ const kinegen_model slider_crank_quaternion_run = {
     14, block_start_run, block_store_run, row_order_run, col_order_run,
     28, 26, diag_value_run, diag_slot_run,
     22, off_start_run, off_col_run, off_value_run,
-    557, 65, 5, kernels_run, NULL,
+    562, 65, 5, kernels_run, NULL,
 };
 
 /* ---- case dead_centre ---- */
@@ -870,7 +870,7 @@ const kinegen_model slider_crank_quaternion_dead_centre = {
     11, block_start_dead_centre, block_store_dead_centre, row_order_dead_centre, col_order_dead_centre,
     52, 31, diag_value_dead_centre, diag_slot_dead_centre,
     15, off_start_dead_centre, off_col_dead_centre, off_value_dead_centre,
-    570, 59, 5, kernels_dead_centre, NULL,
+    575, 59, 5, kernels_dead_centre, NULL,
 };
 
 const kinegen_model *const slider_crank_quaternion_cases[SLIDER_CRANK_QUATERNION_N_CASES] = {&slider_crank_quaternion_run, &slider_crank_quaternion_dead_centre};

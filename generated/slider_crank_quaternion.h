@@ -27,7 +27,7 @@ extern "C" {
 #define SLIDER_CRANK_QUATERNION_N_CASES 2
 #define SLIDER_CRANK_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
 /* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define SLIDER_CRANK_QUATERNION_WORK_DOUBLES 570
+#define SLIDER_CRANK_QUATERNION_WORK_DOUBLES 575
 #define SLIDER_CRANK_QUATERNION_WORK_INTS 65
 /* the force solve (kinegen_forces): loads, forces per configuration (elements, or the most drivers), work;
  * whether the model has masses (kinegen_forces' inertia) */

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_quaternion.h': '8c054173130260c81a00ee49fa7d3fbe5e1957284eae0cd7ffbe1adb782c31c7', 'slider_crank_quaternion.c': 'cac31c476188aca1d5bdda1b039d70193fcf78b6a335dda1710aa180537452f1'}
+C_FILES = {'slider_crank_quaternion.h': '0cc79929ab58bd9dddf9dbd6259a86d2407f645f759b6f28f2cfa7e337a9dc30', 'slider_crank_quaternion.c': 'e24723407020506b9116eaea4e21175576317c90f52799d8a6e67f281c5ff0fc'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

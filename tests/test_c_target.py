@@ -4,6 +4,7 @@ target built with nothing but a C99 compiler -- compiled for real with the machi
 
 from __future__ import annotations
 
+import os
 import re
 import shutil
 import subprocess
@@ -24,6 +25,11 @@ from tests.conftest import GENERATED, MODELS, ROOT, chain_yaml
 CC = shutil.which("cc") or shutil.which("gcc")
 pytestmark = pytest.mark.skipif(CC is None, reason="no C compiler")
 STRICT = ["-std=c99", "-Wall", "-Wextra", "-Werror", "-pedantic"]
+# no variable-length array, and every function's stack bounded: the solver's and the example's to 2 kB, the
+# generated kernels' (straight-line parts of at most config.PART_STATEMENTS statements, whose temporaries spill)
+# to 4 kB; gcc's -Wstack-usage also reports an unbounded frame, as a recursion's
+STACK = ["-Wvla", "-Wstack-usage=4096"]
+CORE_STACK = ["-Wvla", "-Wstack-usage=2048"]
 
 
 @pytest.fixture(autouse=True)
@@ -165,6 +171,8 @@ def test_near_the_toggle_the_c_loop_halves_its_own_steps_and_the_branch_is_kept(
     reference, compiled = Solver(python).solve(), solver.solve()
     assert compiled.converged.all() and calls == [(0, len(reference.times))]
     assert (compiled.iterations > 4).any()  # some steps were halved (their pieces' iterations add up)
+    # the C loop's halvings (iterative, kinegen_step) are the Python recursion's: the same pieces
+    assert (compiled.iterations == reference.iterations).all()
     assert np.abs(reference.q - compiled.q).max() < 1e-9
     unrefined = Solver(native, SolverOptions(max_refinements=0, on_failure="stop")).solve()
     assert not unrefined.converged.all()
@@ -252,7 +260,7 @@ def _standalone(tmp_path: Path, model: Path, param: str, *options: str) -> Path:
 def _compile(folder: Path, stem: str, flags: list[str]) -> Path:
     program = folder / f"{stem}_test"
     sources = [str(folder / name) for name in ("example_main.c", f"{stem}.c", "kinegen_solver.c")]
-    done = subprocess.run([CC, *STRICT, *flags, "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
+    done = subprocess.run([CC, *STRICT, *STACK, *flags, "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     return program
 
@@ -383,6 +391,51 @@ def test_standalone_runs_clean_under_address_and_undefined_behaviour_sanitizers(
     c = np.array([[float(x) for x in row.split(",")[-len(wanted) - len(pump_names) :]] for row in rows])
     _same_forces(c[:, : len(wanted)], table[:, [force_names.index(n) for n in wanted]], wanted)
     _same_supply(c[:, len(wanted) :], pumps, pump_names)
+
+
+def test_the_c_core_is_clean_under_the_static_analyzer_with_a_bounded_stack(tmp_path):
+    """The solver (kinegen_solver.c) and the example program: no variable-length array, no
+    recursion, at most 2 kB of stack a function, nothing gcc's static analyzer (-fanalyzer) finds."""
+    probe = subprocess.run([CC, "-fanalyzer", "-x", "c", "-c", "-o", os.devnull, "-"], input="int f(void);\n", capture_output=True, text=True)
+    if probe.returncode != 0:
+        pytest.skip(f"{CC} has no -fanalyzer (gcc >= 10 has)")
+    folder = _standalone(tmp_path, MODELS / "four_bar.yaml", "quaternion")
+    for name in ("kinegen_solver.c", "example_main.c"):
+        flags = [*STRICT, *CORE_STACK, "-O2", "-fanalyzer", "-fcallgraph-info=su", "-c"]
+        done = subprocess.run([CC, *flags, "-o", str(tmp_path / f"{name}.o"), str(folder / name)], capture_output=True, text=True, cwd=tmp_path)
+        assert done.returncode == 0, done.stderr
+    # the solver's call graph as gcc compiled it (the kernels, called through pointers, are straight-line
+    # leaves): no cycle, so no recursion, and the deepest chain of frames from any entry point is bounded
+    graph, frames = {}, {}
+    for line in (tmp_path / "kinegen_solver.c.ci").read_text().splitlines():
+        if node := re.match(r'node: \{ title: "([^"]+)" label: "[^"]*\\n(\d+) bytes', line):
+            frames[node.group(1)] = int(node.group(2))
+        elif edge := re.match(r'edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"', line):
+            graph.setdefault(edge.group(1), set()).add(edge.group(2))
+    depth: dict[str, int] = {}
+
+    def deepest(name: str, path: tuple[str, ...]) -> int:
+        assert name not in path, f"recursion: {' -> '.join((*path, name))}"
+        if name not in depth:
+            depth[name] = frames.get(name, 0) + max((deepest(c, (*path, name)) for c in graph.get(name, ())), default=0)
+        return depth[name]
+
+    entries = [name for name in frames if name.split(":")[-1].startswith("kinegen_")]
+    assert "kinegen_step" in entries and len(frames) > 20
+    assert max(deepest(name, ()) for name in entries) <= 4096
+
+
+def test_a_step_is_halved_at_most_as_often_as_both_solvers_allow():
+    """max_refinements is bounded alike in Python and C (KINEGEN_MAX_REFINEMENTS), and a larger
+    setting is refused with what the bound is."""
+    from kinegen.runtime.solver import MAX_REFINEMENTS
+
+    header = (config.SOLVER / "kinegen_solver.h").read_text()
+    assert int(re.search(r"#define KINEGEN_MAX_REFINEMENTS (\d+)", header).group(1)) == MAX_REFINEMENTS
+    SolverOptions(max_refinements=MAX_REFINEMENTS)
+    for wrong in (-1, MAX_REFINEMENTS + 1):
+        with pytest.raises(ValueError, match=f"max_refinements = {wrong}: a step is halved 0 to {MAX_REFINEMENTS} times"):
+            SolverOptions(max_refinements=wrong)
 
 
 def test_standalone_reads_driver_inputs_from_stdin_and_reports_failures(tmp_path):

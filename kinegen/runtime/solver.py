@@ -75,6 +75,10 @@ class Factors:
     block_signs: np.ndarray | None = None  #: sign of det of every diagonal block (Solver._block_signs)
 
 
+#: The most halvings of one step, as the C solver's KINEGEN_MAX_REFINEMENTS (kinegen_solver.h).
+MAX_REFINEMENTS = 52
+
+
 @dataclass(frozen=True)
 class SolverOptions:
     """Tolerances and limits of the solver."""
@@ -92,7 +96,7 @@ class SolverOptions:
     #: certify every step (see :meth:`Solver._certify`): the diagonal blocks of Phi_q keep the
     #: signs of their determinants (their assembly modes) and the Newton-Kantorovich bound
     #: alpha * omega <= 1/2 holds with omega measured over the step times ``safety``; otherwise
-    #: halve the step, up to ``max_refinements`` times, then raise BranchError
+    #: halve the step, up to ``max_refinements`` times (at most MAX_REFINEMENTS), then raise BranchError
     keep_branch: bool = True
     safety: float = 2.0
     max_refinements: int = 12
@@ -115,6 +119,11 @@ class SolverOptions:
     #: use the system's compiled C (kernels and the C step loop) when it has it; False: the
     #: Python functions and loop only
     compiled: bool = True
+
+    def __post_init__(self) -> None:
+        if not 0 <= self.max_refinements <= MAX_REFINEMENTS:
+            raise ValueError(f"max_refinements = {self.max_refinements}: a step is halved 0 to {MAX_REFINEMENTS} times "
+                             f"(2^-{MAX_REFINEMENTS} of a step is below a double's resolution of its time)")  # fmt: skip
 
 
 def describe_combination(vector: np.ndarray, names: tuple[str, ...] | list[str], threshold: float = 1e-6) -> str:

@@ -132,8 +132,9 @@ def work_sizes(description: ModuleDescription, case: CaseDescription, arrays: _P
     """(doubles, ints) one solver of ``case`` needs (see kinegen_init)."""
     nq, nv = len(description.stored_names), len(description.velocity_names)
     # q, trial; v, a, phi, rhs, step, y, x, moved, w1, w2; the Phi_q values at the trial and at q; the blocks'
-    # factors and the entries below them; the inputs and their rates at q; the certificate's work (10 n_v + 7 n_inputs)
-    doubles = 2 * nq + 20 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 9 * len(case.drivers)
+    # factors and the entries below them; the inputs and their rates at q; the certificate's work (10 n_v + 7 n_inputs);
+    # kinegen_step's (5 n_inputs: the step's start inputs and a halved piece's)
+    doubles = 2 * nq + 20 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 14 * len(case.drivers)
     # pivots, the condition estimate's signs; the sign of det of every diagonal block at q and in the factors; the
     # certificate's moving inputs
     return doubles, 2 * nv + 2 * (len(arrays.block_start) - 1) + len(case.drivers)

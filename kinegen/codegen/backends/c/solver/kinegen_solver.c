@@ -100,6 +100,7 @@ void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_optio
     s->u = s->jac_q + m->n_jac;
     s->ud = s->u + m->n_inputs;
     s->cert = s->ud + m->n_inputs;
+    s->path = s->cert + 10 * nv + 7 * m->n_inputs;
     s->pivots = ints;
     s->block_sign = ints + 2 * nv;
     s->factor_block_sign = s->block_sign + m->n_blocks;
@@ -699,48 +700,73 @@ static int attempt(kinegen_solver *s, double t, const double *u, const double *u
     return status;
 }
 
-/* The inputs at tm between the state's time (inputs s->u, s->ud) and t (u1, ud1): the case's own
- * time functions, or the cubic Hermite interpolant of the values and rates at both ends. out: u,
- * du/dt, d2u/dt2 (3 n_inputs). */
-static void inputs_at(const kinegen_solver *s, double tm, double t, const double *u1, const double *ud1, double *out) {
+/* The inputs at tm within the step from t0 (inputs u0, ud0) to t1 (u1, ud1): the case's own time
+ * functions, or the cubic Hermite interpolant of the values and rates at both ends. out: u, du/dt,
+ * d2u/dt2 (3 n_inputs). */
+static void inputs_at(const kinegen_solver *s, double tm, double t0, const double *u0, const double *ud0, double t1,
+                      const double *u1, const double *ud1, double *out) {
     const kinegen_model *m = s->model;
     int ni = m->n_inputs;
     if (s->options.case_inputs && m->inputs != NULL) {
         m->inputs(tm, out);
         return;
     }
-    double d = t - s->t, r = (tm - s->t) / d;
+    double d = t1 - t0, r = (tm - t0) / d;
     for (int i = 0; i < ni; ++i) {
-        double u0 = s->u[i], m0 = d * s->ud[i], m1 = d * ud1[i], u1i = u1[i];
-        out[i] = (2 * r * r * r - 3 * r * r + 1) * u0 + (r * r * r - 2 * r * r + r) * m0 + (3 * r * r - 2 * r * r * r) * u1i +
+        double a = u0[i], m0 = d * ud0[i], m1 = d * ud1[i], b = u1[i];
+        out[i] = (2 * r * r * r - 3 * r * r + 1) * a + (r * r * r - 2 * r * r + r) * m0 + (3 * r * r - 2 * r * r * r) * b +
                  (r * r * r - r * r) * m1;
-        out[ni + i] = ((6 * r * r - 6 * r) * (u0 - u1i) + (3 * r * r - 4 * r + 1) * m0 + (3 * r * r - 2 * r) * m1) / d;
-        out[2 * ni + i] = ((12 * r - 6) * (u0 - u1i) + (6 * r - 4) * m0 + (6 * r - 2) * m1) / (d * d);
+        out[ni + i] = ((6 * r * r - 6 * r) * (a - b) + (3 * r * r - 4 * r + 1) * m0 + (3 * r * r - 2 * r) * m1) / d;
+        out[2 * ni + i] = ((12 * r - 6) * (a - b) + (6 * r - 4) * m0 + (6 * r - 2) * m1) / (d * d);
     }
 }
 
-/* The step to t, halved while it cannot be certified (depth: halvings so far). */
-static int advance(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int depth,
-                   int *iterations) {
-    int status = attempt(s, t, u, ud, udd, iterations);
-    if (status == KINEGEN_OK || !s->options.keep_branch || depth >= s->options.max_refinements) {
-        if (status != KINEGEN_OK) s->branch_time = s->t;
-        return status;
-    }
-    int ni = s->model->n_inputs;
-    double middle[3 * ni + 1]; /* C99 variable-length array: the solver allocates no heap */
-    double tm = 0.5 * (s->t + t);
-    inputs_at(s, tm, t, u, ud, middle);
-    for (int i = 0; i < 3 * ni; ++i) {
-        if (!isfinite(middle[i])) {
-            s->branch_time = tm;
-            return KINEGEN_INPUTS;
+/* The step to t: tried whole, then halved while it cannot be certified, up to options.max_refinements
+ * times (at most KINEGEN_MAX_REFINEMENTS), the halves taken in time order -- piece `piece` of 2^level
+ * equal pieces of the step, its inputs from the case's time functions or from the cubic Hermite path of
+ * the step's ends (inputs_at). A loop over the pieces, not a recursion: the solver's stack use is
+ * bounded, its memory the workspace's (s->path: the step's start inputs, then a piece's inputs). */
+static int advance(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd, int *iterations) {
+    const int ni = s->model->n_inputs;
+    const int limit = s->options.max_refinements < 0                         ? 0
+                      : s->options.max_refinements > KINEGEN_MAX_REFINEMENTS ? KINEGEN_MAX_REFINEMENTS
+                                                                             : s->options.max_refinements;
+    const double t0 = s->t;
+    double *u0 = s->path, *ud0 = u0 + ni, *inputs = ud0 + ni;
+    unsigned long long piece = 0;
+    int level = 0;
+    memcpy(u0, s->u, sizeof(double) * (size_t)ni);
+    memcpy(ud0, s->ud, sizeof(double) * (size_t)ni);
+    for (;;) {
+        const unsigned long long pieces = 1ULL << level;
+        const int last = piece + 1 == pieces;
+        double end = t;
+        const double *pu = u, *pud = ud, *pudd = udd;
+        if (!last) { /* (the last piece ends at t with the caller's inputs, exactly) */
+            end = t0 + (t - t0) * ((double)(piece + 1) / (double)pieces);
+            inputs_at(s, end, t0, u0, ud0, t, u, ud, inputs);
+            for (int i = 0; i < 3 * ni; ++i) {
+                if (!isfinite(inputs[i])) {
+                    s->branch_time = end;
+                    return KINEGEN_INPUTS;
+                }
+            }
+            pu = inputs, pud = inputs + ni, pudd = inputs + 2 * ni;
         }
+        int status = attempt(s, end, pu, pud, pudd, iterations);
+        if (status == KINEGEN_OK) {
+            if (last) return KINEGEN_OK;
+            for (++piece; level > 0 && piece % 2 == 0; --level) piece /= 2; /* a second half done: its whole is */
+            continue;
+        }
+        if (!s->options.keep_branch || level >= limit) {
+            s->branch_time = s->t;
+            return status;
+        }
+        ++s->refinements;
+        ++level;
+        piece *= 2;
     }
-    ++s->refinements;
-    status = advance(s, tm, middle, middle + ni, middle + 2 * ni, depth + 1, iterations);
-    if (status != KINEGEN_OK) return status;
-    return advance(s, t, u, ud, udd, depth + 1, iterations);
 }
 
 int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd) {
@@ -748,7 +774,7 @@ int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud,
     if (!s->started) return KINEGEN_NOT_STARTED;
     s->refinements = 0;
     s->branch_block = -1;
-    return advance(s, t, u, ud, udd, 0, &iterations);
+    return advance(s, t, u, ud, udd, &iterations);
 }
 
 double kinegen_table_mismatch(int n, double h, const double *u0, const double *ud0, const double *udd0, const double *u1,
@@ -1008,13 +1034,17 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
     return solved;
 }
 
-/* Solves a^T x = b for x, a an n x n row-major matrix (n <= 8, overwritten with the factors): read
- * column-major, a is a^T, which lu_block factorizes in place; then the substitutions of solve(). 1 if
- * it is singular (a zero or non-finite pivot). */
+/* The largest square map of one body in kinegen_reactions: its velocity coordinates (6 for Euler angles,
+ * 7 with a normalization row, 8 for a dual quaternion's). */
+#define KINEGEN_MAX_BODY_COORDINATES 8
+
+/* Solves a^T x = b for x, a an n x n row-major matrix (n <= KINEGEN_MAX_BODY_COORDINATES, overwritten
+ * with the factors): read column-major, a is a^T, which lu_block factorizes in place; then the
+ * substitutions of solve(). 1 if it is singular (a zero or non-finite pivot) or too large. */
 static int small_solve_transposed(int n, double *a, const double *b, double *x) {
-    int piv[8], odd = 0;
+    int piv[KINEGEN_MAX_BODY_COORDINATES], odd = 0;
     double low = INFINITY, high = 0.0;
-    if (lu_block(a, piv, n, &low, &high, &odd)) return 1;
+    if (n < 1 || n > KINEGEN_MAX_BODY_COORDINATES || lu_block(a, piv, n, &low, &high, &odd)) return 1;
     for (int i = 0; i < n; ++i) x[i] = b[i];
     for (int k = 0; k < n; ++k) {
         if (piv[k] != k) {
@@ -1038,6 +1068,7 @@ int kinegen_reactions(kinegen_solver *s, const double *q, const double *u, const
     const kinegen_statics *st = l->statics;
     if (st == NULL || l->n_bodies == 0) return -1;
     int nv = m->n_v, nb = l->n_bodies, nvb = nv / nb, n;
+    if (nv % nb != 0 || nvb > KINEGEN_MAX_BODY_COORDINATES) return -1; /* (every parametrization's bodies fit) */
     double *frames = work, *unit = frames + KINEGEN_FRAME_VALUES * nb, *zero = unit + nv, *tangent = zero + nv;
     double *g = tangent + (size_t)6 * nvb * nb, *square = g + nvb, *w = square + nvb * nvb, *values = w + nvb, *phi = values;
     const int *rows, *cols;
@@ -1234,7 +1265,7 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_solver, block_sign, "int*"), FIELD(kinegen_solver, factor_block_sign, "int*"),
     FIELD(kinegen_solver, refinements, "int"), FIELD(kinegen_solver, branch_block, "int"), FIELD(kinegen_solver, bound, "double"),
     FIELD(kinegen_solver, branch_time, "double"), FIELD(kinegen_solver, cert, "double*"), FIELD(kinegen_solver, branch_input, "int"),
-    FIELD(kinegen_solver, moving, "int*"),
+    FIELD(kinegen_solver, moving, "int*"), FIELD(kinegen_solver, path, "double*"),
     {NULL, NULL, NULL, 0, 0},
 };
 

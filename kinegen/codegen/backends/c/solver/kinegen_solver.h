@@ -62,6 +62,9 @@ enum kinegen_status {
 /* ... and the least over which omega is measured: Phi_q's change over a smaller motion is rounding (a step
  * that moves less is as certain as x0 itself; below 1e-154, |d|^2 underflows) */
 #define KINEGEN_MIN_MOTION 1e-12
+/* The most halvings of one step (a larger options.max_refinements counts as this): 2^-52 of a step is
+ * below a double's resolution of its time. */
+#define KINEGEN_MAX_REFINEMENTS 52
 typedef struct kinegen_options {
     double tolerance;          /* max |Phi_i| at convergence (1e-10) */
     double singular_tolerance; /* see KINEGEN_SINGULAR (1e-10) */
@@ -74,7 +77,7 @@ typedef struct kinegen_options {
     int polish;                /* 1: one more correction with the factors at the solution (1) */
     int keep_branch;           /* 1: certify every step (above), halving it when needed (1) */
     int condition;             /* 1: estimate the 1-norm condition number of Phi_q at every step (1) */
-    int max_refinements;       /* halvings of a step before KINEGEN_BRANCH (12) */
+    int max_refinements;       /* halvings of a step before KINEGEN_BRANCH (12; at most KINEGEN_MAX_REFINEMENTS) */
     int case_inputs;           /* inputs at a midpoint: 1, the case's own time functions (model->inputs);
                                   0, the cubic Hermite interpolant of the values and rates given at the
                                   step's ends (0) */
@@ -299,6 +302,7 @@ typedef struct kinegen_solver {
     double *cert;           /* the certificate's work: 10 n_v + 7 n_inputs doubles */
     int branch_input;       /* after KINEGEN_BRANCH: the input that contributed most to the refused bound, or -1 */
     int *moving;            /* the certificate's work: the inputs that move over the step (n_inputs ints) */
+    double *path;           /* kinegen_step's work: the step's start inputs and a halved piece's (5 n_inputs) */
 } kinegen_solver;
 
 void kinegen_default_options(kinegen_options *options);
@@ -389,7 +393,8 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
  * [T_v; T_w; N]^T w = that force restricted to the body's coordinates (T_v, T_w: the body's tangent
  * maps, from the frames kernel at unit velocities; N: its normalization rows). work, iwork: the
  * statics' reaction_doubles and reaction_ints. Returns the number of joints, or -1 for a model without
- * a force solve; a joint whose square map is singular gets NaN. The solver's state stays as it was. */
+ * a force solve (or whose bodies have more than 8 velocity coordinates each, which no parametrization
+ * has); a joint whose square map is singular gets NaN. The solver's state stays as it was. */
 int kinegen_reactions(kinegen_solver *s, const double *q, const double *u, const double *lambda, double *out, double *work, int *iwork);
 
 const char *kinegen_status_text(int status);
