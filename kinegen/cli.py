@@ -112,7 +112,7 @@ def _image_file(ctx: click.Context, param: click.Parameter, value: str | None) -
     """A --plot file name checked before any work: matplotlib can write its type (its suffix), and it can be written."""
     if value is None:
         return None
-    from kinegen.analysis.plots import image_format
+    from kinegen.figures import image_format
 
     try:
         image_format(value)

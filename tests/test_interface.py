@@ -225,9 +225,9 @@ def test_the_update_of_a_step_is_defined_once_and_both_runtimes_follow_it(param)
         assert np.abs(moved - numpy_moved[:, j]).max() <= 1e-14, (param, j)
 
 
-def test_no_import_cycle_among_kinegens_modules():
+def _import_graph() -> dict[str, set[str]]:
     """Every import of one kinegen module by another, module-level or inside a function (type-only
-    imports under TYPE_CHECKING aside), and no module reaches itself through them."""
+    imports under TYPE_CHECKING aside): module -> the modules it imports."""
     import ast
 
     package = Path(__file__).resolve().parents[1] / "kinegen"
@@ -250,6 +250,12 @@ def test_no_import_cycle_among_kinegens_modules():
             else:
                 continue
             graph[name] |= {t for t in targets if t in modules and t != name}
+    return graph
+
+
+def test_no_import_cycle_among_kinegens_modules():
+    """No module reaches itself through its imports."""
+    graph = _import_graph()
     # a cycle is a module reachable from one of its own imports
     for start in graph:
         seen, frontier = set(), list(graph[start])
@@ -259,6 +265,24 @@ def test_no_import_cycle_among_kinegens_modules():
             if module not in seen:
                 seen.add(module)
                 frontier += graph[module]
+
+
+def test_the_layers_import_only_downwards():
+    """The runtime below the force analyses, both below the analyses, all of them below the
+    command line and the main job: no import points up (the working range's continuation and the
+    figure helpers live below forces and analysis, which both use them)."""
+    above = {
+        "kinegen.runtime": ("kinegen.forces", "kinegen.analysis", "kinegen.explore"),
+        "kinegen.forces": ("kinegen.analysis", "kinegen.explore"),
+        "kinegen.figures": ("kinegen.forces", "kinegen.analysis", "kinegen.runtime"),
+    }
+    top = ("kinegen.cli", "kinegen.demo")
+    for module, imports in _import_graph().items():
+        for target in imports:
+            assert not target.startswith(top) or module.startswith(top), f"{module} imports {target}"
+            for layer, forbidden in above.items():
+                if module == layer or module.startswith(layer + "."):
+                    assert not target.startswith(forbidden), f"{module} imports {target}, a layer above it"
 
 
 def test_kinds_are_listed_once_and_every_listed_kind_has_its_equations():

@@ -11,8 +11,9 @@ from scipy.spatial.transform import Rotation
 
 from kinegen.analysis.animation import animation_figure
 from kinegen.analysis.chart import outlines, transport_q, working_range_figure
-from kinegen.analysis.plots import _in_frame, pyplot
+from kinegen.analysis.plots import _in_frame
 from kinegen.analysis.view import _BARREL, _OUT, _ROD, cylinder
+from kinegen.figures import pyplot
 from kinegen.runtime import solve
 from tests.conftest import WORKING_RANGE_GROUP, excavator_working_range, generated_system, model
 

@@ -12,8 +12,9 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegen.analysis.plots import _in_frame, pyplot
+from kinegen.analysis.plots import _in_frame
 from kinegen.analysis.view import _BARREL, _BODY, _OUT, _ROD, TRACKED, _outline, cylinder, frames
+from kinegen.figures import pyplot
 from kinegen.files import atomic_path
 from kinegen.model.schema import GROUND
 from kinegen.runtime.results import Results

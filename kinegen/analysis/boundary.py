@@ -37,10 +37,10 @@ from dataclasses import dataclass, field
 
 import numpy as np
 
-from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.errors import KinegenError
 from kinegen.runtime import NumericSystem
 from kinegen.runtime.batch import solve_batch, sweep_grid
+from kinegen.runtime.continuation import RangeEvaluator
 
 #: samples per free input of a face's det grid (the fold curves' vertices lie on its lines)
 FACE_GRID = 61

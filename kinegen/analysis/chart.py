@@ -16,8 +16,8 @@ import numpy as np
 
 from kinegen.analysis.boundary import Boundary
 from kinegen.analysis.envelope import Envelope
-from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.runtime import NumericSystem
+from kinegen.runtime.continuation import RangeEvaluator
 
 #: letter, figure, how it is drawn: "h" a horizontal dimension from the swing axis, "v" a vertical one from the ground
 DIMENSIONS = (
@@ -169,7 +169,7 @@ def working_range_figure(envelope: Envelope, boundary: Boundary, system: Numeric
     its content, and beside it the figures' table, the legend and the notes (axes 1). Artists carry
     gids: ``boundary``, ``machine:<body or actuator>``, ``dimension:<letter>`` (the line, its data
     end points the figure's), ``label:<letter>``."""
-    from kinegen.analysis.plots import pyplot
+    from kinegen.figures import pyplot
 
     plt = pyplot()
     direction = np.array([1.0, 0.0]) if direction is None else direction
@@ -237,7 +237,7 @@ def working_range_figure(envelope: Envelope, boundary: Boundary, system: Numeric
 def plot_working_range(envelope: Envelope, boundary: Boundary, system: NumericSystem, path: str | Path, direction: np.ndarray | None = None,
                        drawn: dict[str, np.ndarray] | None = None) -> Path:  # fmt: skip
     """The chart (:func:`working_range_figure`) as a PNG."""
-    from kinegen.analysis.plots import save
+    from kinegen.figures import save
 
     return save(working_range_figure(envelope, boundary, system, direction, drawn), path)
 

@@ -8,7 +8,7 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegen.analysis.plots import pyplot, save
+from kinegen.figures import pyplot, save
 
 
 def plot_cycle(cycle, path: str | Path, flows=None) -> Path:

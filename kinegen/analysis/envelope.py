@@ -32,10 +32,10 @@ from dataclasses import dataclass, field
 import numpy as np
 from scipy.optimize import minimize
 
-from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.model.schema import WORKING_RANGE_FIGURES, WorkingRange, design_gradient
 from kinegen.runtime import NumericSystem
 from kinegen.runtime.batch import sweep_grid
+from kinegen.runtime.continuation import RangeEvaluator
 
 POLISH_STEPS = 8  # Newton steps on the optimality conditions after SLSQP, at most
 FIGURES = WORKING_RANGE_FIGURES  # (the schema's list: the loader checks published figures against the same)

@@ -199,7 +199,7 @@ def warning_lines(result: ScanResult) -> list[tuple[float, str]]:
 
 def plot_scan(result: ScanResult, path: str | Path, title: str = "") -> Path:
     """sigma_min/sigma_max and condition number against time, one line per parametrization."""
-    from kinegen.analysis.plots import pyplot, save
+    from kinegen.figures import pyplot, save
 
     plt = pyplot()
     fig, (top, bottom) = plt.subplots(2, 1, figsize=(9, 7), sharex=True)

@@ -99,7 +99,7 @@ def plot_exploration(
     path: str | Path,
 ) -> Path:
     """:func:`exploration_figure` written to ``path`` (PNG)."""
-    from kinegen.analysis.plots import save
+    from kinegen.figures import save
 
     return save(exploration_figure(table, provenance, pareto, maximize), path, dpi=110)
 
@@ -110,7 +110,7 @@ def exploration_figure(table, provenance: dict, pareto: tuple[str, str], maximiz
     measured, where they lie among the ok ones in the two parameters that tell them apart best
     (greyed); beside them the parameters' SRC ranking for every quantity, with its colour bar.
     Legend entries only for what is drawn. Axes carry gids: ``pareto``, ``failed``, ``ranking``."""
-    from kinegen.analysis.plots import legend_beside, pyplot
+    from kinegen.figures import legend_beside, pyplot
 
     plt = pyplot()
     data = {name: table.column(name).to_numpy(zero_copy_only=False) for name in table.column_names}
@@ -180,7 +180,7 @@ def _failed_variants(axes, data: dict, parameters: list[str], ok: np.ndarray, pa
     """The variants that could not be measured (grey crosses) among the ok ones (blue dots), in
     the two parameters whose values tell the two groups apart best (difference of means over
     the spread)."""
-    from kinegen.analysis.plots import legend_beside
+    from kinegen.figures import legend_beside
 
     values = np.column_stack([np.asarray(data[p], dtype=float) for p in parameters])
     spread = values.std(axis=0)

@@ -356,7 +356,7 @@ def lift_chart_figure(chart: LiftChart, boundary=None):
     tipping does -- and the largest reach at each height as a dashed line; on the right, the table in
     the layout manufacturers print (heights as rows, radii as columns, front and side, the largest
     reach with its radius), coloured the same."""
-    from kinegen.analysis.plots import pyplot
+    from kinegen.figures import pyplot
 
     plt = pyplot()
     fig, (ax, side) = plt.subplots(1, 2, figsize=(16.5, 8.0), gridspec_kw={"width_ratios": [1.0, 1.25]})
@@ -428,6 +428,6 @@ def _table_panel(side, chart: LiftChart, colours: dict[str, str]) -> None:
 
 def plot_lift_chart(chart: LiftChart, path, boundary=None):
     """PNG of :func:`lift_chart_figure`."""
-    from kinegen.analysis.plots import save
+    from kinegen.figures import save
 
     return save(lift_chart_figure(chart, boundary), path)

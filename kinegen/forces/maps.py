@@ -19,12 +19,12 @@ from pathlib import Path
 
 import numpy as np
 
-from kinegen.analysis.evaluator import RangeEvaluator
 from kinegen.errors import KinegenError
 from kinegen.forces.statics import Statics, pose_results, unit_rate_velocities
 from kinegen.model import Model
 from kinegen.runtime import NumericSystem
 from kinegen.runtime.batch import sweep_grid
+from kinegen.runtime.continuation import RangeEvaluator
 
 #: global directions of the fixed maps (the boom plane at zero swing is x-z)
 DIRECTIONS = {"pull": (-1.0, 0.0, 0.0), "push": (1.0, 0.0, 0.0), "up": (0.0, 0.0, 1.0), "down": (0.0, 0.0, -1.0), "tangent": None}
@@ -251,7 +251,7 @@ def reach_map(system: NumericSystem, model: Model, direction: str = "tangent", a
 
 def plot_force_map(found: ReachMap, path: str | Path, boundary=None, silhouette: dict[str, np.ndarray] | None = None) -> Path:
     """PNG of :func:`force_map_figure`."""
-    from kinegen.analysis.plots import save
+    from kinegen.figures import save
 
     return save(force_map_figure(found, boundary, silhouette), path)
 
@@ -269,7 +269,7 @@ def force_map_figure(found: ReachMap, boundary=None, silhouette: dict[str, np.nd
     from matplotlib.colors import ListedColormap
     from matplotlib.patches import Patch, Polygon
 
-    from kinegen.analysis.plots import pyplot
+    from kinegen.figures import pyplot
 
     plt = pyplot()
     fig, axes = plt.subplots(1, 2, figsize=(13.5, 8.6), sharey=True)

@@ -1,7 +1,7 @@
 """The working range's evaluator: the tracked points (the working-range point, the dump and arm
 pivots) at given swept inputs, by Newton continuation from the last solve -- what the sampled
 range (:mod:`kinegen.analysis.envelope`), its exact boundary (:mod:`kinegen.analysis.boundary`)
-and the chart (:mod:`kinegen.analysis.chart`) all evaluate."""
+and the chart (:mod:`kinegen.analysis.chart`), and the force maps (:mod:`kinegen.forces.maps`) all evaluate."""
 
 from __future__ import annotations
 
