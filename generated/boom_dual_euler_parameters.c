@@ -397,35 +397,37 @@ static const int sizes_inputs_swing[] = {3};
 static const char *const outputs_input_ranges_swing[] = {"input_ranges"};
 static const int sizes_input_ranges_swing[] = {6};
 static const kinegen_kernel kernels_swing[] = {
-    {"phi_jac", "q,u", 2, outputs_phi_jac_swing, sizes_phi_jac_swing, call_phi_jac_swing},
-    {"nu", "q,u,ud", 1, outputs_nu_swing, sizes_nu_swing, call_nu_swing},
-    {"gamma", "q,v,u,ud,udd", 1, outputs_gamma_swing, sizes_gamma_swing, call_gamma_swing},
-    {"inputs", "t", 1, outputs_inputs_swing, sizes_inputs_swing, call_inputs_swing},
-    {"input_ranges", "span", 1, outputs_input_ranges_swing, sizes_input_ranges_swing, call_input_ranges_swing},
+    {.name = "phi_jac", .slots = "q,u", .n_outputs = 2, .output_names = outputs_phi_jac_swing, .output_sizes = sizes_phi_jac_swing, .call = call_phi_jac_swing},
+    {.name = "nu", .slots = "q,u,ud", .n_outputs = 1, .output_names = outputs_nu_swing, .output_sizes = sizes_nu_swing, .call = call_nu_swing},
+    {.name = "gamma", .slots = "q,v,u,ud,udd", .n_outputs = 1, .output_names = outputs_gamma_swing, .output_sizes = sizes_gamma_swing, .call = call_gamma_swing},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_swing, .output_sizes = sizes_inputs_swing, .call = call_inputs_swing},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_swing, .output_sizes = sizes_input_ranges_swing, .call = call_input_ranges_swing},
 };
 static const char *const outputs_boom_dual_euler_parameters_frames[] = {"frames"};
 static const int sizes_boom_dual_euler_parameters_frames[] = {24};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_boom_dual_euler_parameters_frames, sizes_boom_dual_euler_parameters_frames, call_boom_dual_euler_parameters_frames},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_boom_dual_euler_parameters_frames, .output_sizes = sizes_boom_dual_euler_parameters_frames, .call = call_boom_dual_euler_parameters_frames},
 };
 
 static const char *const body_names[] = {"boom"};
 static const char *const stored_names[] = {"boom.rw", "boom.rx", "boom.ry", "boom.rz", "boom.dw", "boom.dx", "boom.dy", "boom.dz"};
 static const char *const velocity_names[] = {"boom.rw", "boom.rx", "boom.ry", "boom.rz", "boom.dw", "boom.dx", "boom.dy", "boom.dz"};
 static const kinegen_point points[] = {
-    {0, "boom.O", {-1.78, 0.0, 0.0}},
-    {0, "boom.tip", {1.78, 0.0, 0.0}},
-    {-1, "ground.O", {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "boom.O", .local = {-1.78, 0.0, 0.0}},
+    {.body = 0, .name = "boom.tip", .local = {1.78, 0.0, 0.0}},
+    {.body = -1, .name = "ground.O", .local = {0.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {NULL, 0, 0, 0, 0.0, 0.0},
+    {.name = NULL},
 };
 
 const kinegen_layout boom_dual_euler_parameters_layout = {
-    "boom", "dual-euler-parameters", "boom.yaml", "9ca606fa182152ec864781897d3f0cd9fd3e57339b37499de2af8b920a6f73b4", "0.2.0",
-    BOOM_DUAL_EULER_PARAMETERS_N_Q, BOOM_DUAL_EULER_PARAMETERS_N_V, BOOM_DUAL_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
-    3, points, 0, actuators, boom_dual_euler_parameters_frames,
-    1, kernels, NULL,
+    .model = "boom", .parametrization = "dual-euler-parameters", .source = "boom.yaml",
+    .source_sha256 = "9ca606fa182152ec864781897d3f0cd9fd3e57339b37499de2af8b920a6f73b4", .kinegen_version = "0.2.0",
+    .n_q = BOOM_DUAL_EULER_PARAMETERS_N_Q, .n_v = BOOM_DUAL_EULER_PARAMETERS_N_V, .n_bodies = BOOM_DUAL_EULER_PARAMETERS_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 3, .points = points, .n_actuators = 0, .actuators = actuators,
+    .frames = boom_dual_euler_parameters_frames, .n_kernels = 1, .kernels = kernels, .statics = NULL,
 };
 
 static const double initial_q[] = {0.7071067811865475, 0.0, 0.0, 0.7071067811865475, 0.0, 0.6293250352560272, 0.6293250352560272, 0.0};
@@ -447,15 +449,19 @@ static const int off_col_swing[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2,
 static const int off_value_swing[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 39, 38, 37, 36};
 
 const kinegen_model boom_dual_euler_parameters_swing = {
-    &boom_dual_euler_parameters_layout, "swing",
-    BOOM_DUAL_EULER_PARAMETERS_N_Q, BOOM_DUAL_EULER_PARAMETERS_N_V, 1, 46,
-    0.0, 2.0, 201,
-    initial_q, constraints_swing, drivers_swing, jac_rows_swing, jac_cols_swing,
-    phi_jac_swing, nu_swing, gamma_swing, inputs_swing, input_ranges_swing, retract,
-    2, block_start_swing, block_store_swing, row_order_swing, col_order_swing,
-    32, 30, diag_value_swing, diag_slot_swing,
-    16, off_start_swing, off_col_swing, off_value_swing,
-    330, 21, 5, kernels_swing, NULL,
+    .layout = &boom_dual_euler_parameters_layout, .case_name = "swing",
+    .n_q = BOOM_DUAL_EULER_PARAMETERS_N_Q, .n_v = BOOM_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 46,
+    .t0 = 0.0, .t1 = 2.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_swing, .driver_names = drivers_swing,
+    .jac_rows = jac_rows_swing, .jac_cols = jac_cols_swing,
+    .phi_jac = phi_jac_swing, .nu = nu_swing, .gamma = gamma_swing,
+    .inputs = inputs_swing, .input_ranges = input_ranges_swing, .retract = retract,
+    .n_blocks = 2, .block_start = block_start_swing, .block_store = block_store_swing,
+    .row_order = row_order_swing, .col_order = col_order_swing,
+    .n_store = 32, .n_diag = 30, .diag_value = diag_value_swing, .diag_slot = diag_slot_swing,
+    .n_off = 16, .off_start = off_start_swing, .off_col = off_col_swing, .off_value = off_value_swing,
+    .work_doubles = BOOM_DUAL_EULER_PARAMETERS_WORK_DOUBLES_SWING, .work_ints = BOOM_DUAL_EULER_PARAMETERS_WORK_INTS_SWING,
+    .n_kernels = 5, .kernels = kernels_swing, .design = NULL,
 };
 
 const kinegen_model *const boom_dual_euler_parameters_cases[BOOM_DUAL_EULER_PARAMETERS_N_CASES] = {&boom_dual_euler_parameters_swing};

@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_euler_parameters.h': 'b488367b64cd011051792f0495520942c4be05c7246c002d4814465cc915e360', 'boom_dual_euler_parameters.c': '3a3a92eab04e17760cbfca557b6e733c1cdf37c0ca848adb09121988fc49c313'}
+C_FILES = {'boom_dual_euler_parameters.h': 'bf778c7b9d27cda61dd40f848c94c68ce659ff93bfc516012dc7a3ad4e6cf5c0', 'boom_dual_euler_parameters.c': '0b9e3bd580711734d96b61b4d8a85e83ff2a1f1ae44e44c16fb2a1b49c1ee28c'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_quaternion.h': 'c9e11a7e33b14b9f2146bd2c3d040c364d6fb68b3f92fcf7527a1e7c0ff3082c', 'boom_dual_quaternion.c': 'd83733d83b3a063a731f879ac6d2d4c057969f6ef36ff51e7d5e2dbf913872a8'}
+C_FILES = {'boom_dual_quaternion.h': 'a9a143b5eada10a0b4088031bbedc1ed5146a6c0eab059e6a0e0242a9d221be5', 'boom_dual_quaternion.c': '4603a1d253f8966726774f1843d23043d6486ea1e9dc8054df4dd0e7b997110f'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_parameters.h': '0a1e7f03d29a716ca3a983f99f21aa54c11e11d487532c4c72f292aee56e80d7', 'boom_euler_parameters.c': '3d2050d97d454623727dee2d23a4e4494f9f9d54d719d7c1afb2e198b56d960f'}
+C_FILES = {'boom_euler_parameters.h': 'd2bc79901b9375a138e7886bd4a682f3c8fff0da4ac1dd3b2179d9e13083ba39', 'boom_euler_parameters.c': 'aef7b19d6b536eeb021d43539c1a69b5905cb2a0b01f50a2bbfb1bd29a241ef4'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

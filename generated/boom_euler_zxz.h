@@ -26,9 +26,13 @@ extern "C" {
 #define BOOM_EULER_ZXZ_N_ACTUATORS 0
 #define BOOM_EULER_ZXZ_N_CASES 1
 #define BOOM_EULER_ZXZ_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
-/* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define BOOM_EULER_ZXZ_WORK_DOUBLES 200
-#define BOOM_EULER_ZXZ_WORK_INTS 23
+/* memory of one solver of each case (kinegen_solver.h's KINEGEN_WORK_DOUBLES and KINEGEN_WORK_INTS of its
+ * n_q, n_v, Phi_q's values, its factors' and the values below them, blocks, drivers), and of any case:
+ * kinegen_init(&s, model, options, w.doubles, w.ints) */
+#define BOOM_EULER_ZXZ_WORK_DOUBLES_SWING KINEGEN_WORK_DOUBLES(BOOM_EULER_ZXZ_N_Q, BOOM_EULER_ZXZ_N_V, 18, 8, 10, 1)
+#define BOOM_EULER_ZXZ_WORK_INTS_SWING KINEGEN_WORK_INTS(BOOM_EULER_ZXZ_N_V, 5, 1)
+#define BOOM_EULER_ZXZ_WORK_DOUBLES BOOM_EULER_ZXZ_WORK_DOUBLES_SWING
+#define BOOM_EULER_ZXZ_WORK_INTS BOOM_EULER_ZXZ_WORK_INTS_SWING
 
 typedef struct boom_euler_zxz_workspace {
     double doubles[BOOM_EULER_ZXZ_WORK_DOUBLES];

@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_zxz.h': '6c490981694256109c1ae0e0fbc745d2f8d708cd17441bf9ca9e9f95681412ec', 'boom_euler_zxz.c': '006358f5201aff73a3b3485c31586806c7fc66573d50fbf0ecd689d5a6e95505'}
+C_FILES = {'boom_euler_zxz.h': '5852bf4f7ff266ec7cd3183720e1a61b77b7b1d13242ae753807335515d533eb', 'boom_euler_zxz.c': 'e4c304fa6ab9b0323699dd4df4dcee85e97f865ce379c841e94f2802a8b6f1ae'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

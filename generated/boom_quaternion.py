@@ -46,7 +46,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_quaternion.h': '117ffadc169219e3361a46d968fa9805a74dccc540f83a51658c6789f779544e', 'boom_quaternion.c': '20ce4221e3021100d1123a9dccc096de40bc076a620c224cc60b55c4c9fc3e40'}
+C_FILES = {'boom_quaternion.h': 'add677d38d458b0142561ac3aebc3cdbefb8576a5521d4dc8be38db6c8f49312', 'boom_quaternion.c': 'abd16e1276d1f3ac2f896f4b6df450f6685465faf9e9ace7e4df7e08c4abe8f8'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

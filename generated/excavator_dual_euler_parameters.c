@@ -14868,11 +14868,11 @@ static const int sizes_inputs_digging[] = {12};
 static const char *const outputs_input_ranges_digging[] = {"input_ranges"};
 static const int sizes_input_ranges_digging[] = {24};
 static const kinegen_kernel kernels_digging[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging, sizes_phi_jac_digging, call_phi_jac_digging},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging, sizes_nu_digging, call_nu_digging},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging, sizes_gamma_digging, call_gamma_digging},
-    {"inputs", "t", 1, outputs_inputs_digging, sizes_inputs_digging, call_inputs_digging},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging, sizes_input_ranges_digging, call_input_ranges_digging},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging, .output_sizes = sizes_phi_jac_digging, .call = call_phi_jac_digging},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging, .output_sizes = sizes_nu_digging, .call = call_nu_digging},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging, .output_sizes = sizes_gamma_digging, .call = call_gamma_digging},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging, .output_sizes = sizes_inputs_digging, .call = call_inputs_digging},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging, .output_sizes = sizes_input_ranges_digging, .call = call_input_ranges_digging},
 };
 static const char *const outputs_phi_jac_level_cut[] = {"phi", "jac"};
 static const int sizes_phi_jac_level_cut[] = {112, 1222};
@@ -14885,11 +14885,11 @@ static const int sizes_inputs_level_cut[] = {12};
 static const char *const outputs_input_ranges_level_cut[] = {"input_ranges"};
 static const int sizes_input_ranges_level_cut[] = {24};
 static const kinegen_kernel kernels_level_cut[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_level_cut, sizes_phi_jac_level_cut, call_phi_jac_level_cut},
-    {"nu", "q,u,ud,p", 1, outputs_nu_level_cut, sizes_nu_level_cut, call_nu_level_cut},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_level_cut, sizes_gamma_level_cut, call_gamma_level_cut},
-    {"inputs", "t", 1, outputs_inputs_level_cut, sizes_inputs_level_cut, call_inputs_level_cut},
-    {"input_ranges", "span", 1, outputs_input_ranges_level_cut, sizes_input_ranges_level_cut, call_input_ranges_level_cut},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_level_cut, .output_sizes = sizes_phi_jac_level_cut, .call = call_phi_jac_level_cut},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_level_cut, .output_sizes = sizes_nu_level_cut, .call = call_nu_level_cut},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_level_cut, .output_sizes = sizes_gamma_level_cut, .call = call_gamma_level_cut},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_level_cut, .output_sizes = sizes_inputs_level_cut, .call = call_inputs_level_cut},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_level_cut, .output_sizes = sizes_input_ranges_level_cut, .call = call_input_ranges_level_cut},
 };
 static const char *const outputs_phi_jac_trench_wall[] = {"phi", "jac"};
 static const int sizes_phi_jac_trench_wall[] = {112, 1222};
@@ -14902,11 +14902,11 @@ static const int sizes_inputs_trench_wall[] = {12};
 static const char *const outputs_input_ranges_trench_wall[] = {"input_ranges"};
 static const int sizes_input_ranges_trench_wall[] = {24};
 static const kinegen_kernel kernels_trench_wall[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_trench_wall, sizes_phi_jac_trench_wall, call_phi_jac_trench_wall},
-    {"nu", "q,u,ud,p", 1, outputs_nu_trench_wall, sizes_nu_trench_wall, call_nu_trench_wall},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_trench_wall, sizes_gamma_trench_wall, call_gamma_trench_wall},
-    {"inputs", "t", 1, outputs_inputs_trench_wall, sizes_inputs_trench_wall, call_inputs_trench_wall},
-    {"input_ranges", "span", 1, outputs_input_ranges_trench_wall, sizes_input_ranges_trench_wall, call_input_ranges_trench_wall},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_trench_wall, .output_sizes = sizes_phi_jac_trench_wall, .call = call_phi_jac_trench_wall},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_trench_wall, .output_sizes = sizes_nu_trench_wall, .call = call_nu_trench_wall},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_trench_wall, .output_sizes = sizes_gamma_trench_wall, .call = call_gamma_trench_wall},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_trench_wall, .output_sizes = sizes_inputs_trench_wall, .call = call_inputs_trench_wall},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_trench_wall, .output_sizes = sizes_input_ranges_trench_wall, .call = call_input_ranges_trench_wall},
 };
 static const char *const outputs_phi_jac_bucket_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_toggle[] = {112, 1250};
@@ -14919,11 +14919,11 @@ static const int sizes_inputs_bucket_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_toggle, sizes_phi_jac_bucket_toggle, call_phi_jac_bucket_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_toggle, sizes_nu_bucket_toggle, call_nu_bucket_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_toggle, sizes_gamma_bucket_toggle, call_gamma_bucket_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_toggle, sizes_inputs_bucket_toggle, call_inputs_bucket_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_toggle, sizes_input_ranges_bucket_toggle, call_input_ranges_bucket_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_toggle, .output_sizes = sizes_phi_jac_bucket_toggle, .call = call_phi_jac_bucket_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_toggle, .output_sizes = sizes_nu_bucket_toggle, .call = call_nu_bucket_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_toggle, .output_sizes = sizes_gamma_bucket_toggle, .call = call_gamma_bucket_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_toggle, .output_sizes = sizes_inputs_bucket_toggle, .call = call_inputs_bucket_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_toggle, .output_sizes = sizes_input_ranges_bucket_toggle, .call = call_input_ranges_bucket_toggle},
 };
 static const char *const outputs_phi_jac_bucket_stroke[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_stroke[] = {112, 1250};
@@ -14936,11 +14936,11 @@ static const int sizes_inputs_bucket_stroke[] = {12};
 static const char *const outputs_input_ranges_bucket_stroke[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_stroke[] = {24};
 static const kinegen_kernel kernels_bucket_stroke[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_stroke, sizes_phi_jac_bucket_stroke, call_phi_jac_bucket_stroke},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_stroke, sizes_nu_bucket_stroke, call_nu_bucket_stroke},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_stroke, sizes_gamma_bucket_stroke, call_gamma_bucket_stroke},
-    {"inputs", "t", 1, outputs_inputs_bucket_stroke, sizes_inputs_bucket_stroke, call_inputs_bucket_stroke},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_stroke, sizes_input_ranges_bucket_stroke, call_input_ranges_bucket_stroke},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_stroke, .output_sizes = sizes_phi_jac_bucket_stroke, .call = call_phi_jac_bucket_stroke},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_stroke, .output_sizes = sizes_nu_bucket_stroke, .call = call_nu_bucket_stroke},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_stroke, .output_sizes = sizes_gamma_bucket_stroke, .call = call_gamma_bucket_stroke},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_stroke, .output_sizes = sizes_inputs_bucket_stroke, .call = call_inputs_bucket_stroke},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_stroke, .output_sizes = sizes_input_ranges_bucket_stroke, .call = call_input_ranges_bucket_stroke},
 };
 static const char *const outputs_phi_jac_bucket_near_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_near_toggle[] = {112, 1250};
@@ -14953,11 +14953,11 @@ static const int sizes_inputs_bucket_near_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_near_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_near_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_near_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_near_toggle, sizes_phi_jac_bucket_near_toggle, call_phi_jac_bucket_near_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_near_toggle, sizes_nu_bucket_near_toggle, call_nu_bucket_near_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_near_toggle, sizes_gamma_bucket_near_toggle, call_gamma_bucket_near_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_near_toggle, sizes_inputs_bucket_near_toggle, call_inputs_bucket_near_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_near_toggle, sizes_input_ranges_bucket_near_toggle, call_input_ranges_bucket_near_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_near_toggle, .output_sizes = sizes_phi_jac_bucket_near_toggle, .call = call_phi_jac_bucket_near_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_near_toggle, .output_sizes = sizes_nu_bucket_near_toggle, .call = call_nu_bucket_near_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_near_toggle, .output_sizes = sizes_gamma_bucket_near_toggle, .call = call_gamma_bucket_near_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_near_toggle, .output_sizes = sizes_inputs_bucket_near_toggle, .call = call_inputs_bucket_near_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_near_toggle, .output_sizes = sizes_input_ranges_bucket_near_toggle, .call = call_input_ranges_bucket_near_toggle},
 };
 static const char *const outputs_phi_jac_digging_fast[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_fast[] = {112, 1250};
@@ -14970,11 +14970,11 @@ static const int sizes_inputs_digging_fast[] = {12};
 static const char *const outputs_input_ranges_digging_fast[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_fast[] = {24};
 static const kinegen_kernel kernels_digging_fast[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_fast, sizes_phi_jac_digging_fast, call_phi_jac_digging_fast},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_fast, sizes_nu_digging_fast, call_nu_digging_fast},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_fast, sizes_gamma_digging_fast, call_gamma_digging_fast},
-    {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_fast, .output_sizes = sizes_phi_jac_digging_fast, .call = call_phi_jac_digging_fast},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_fast, .output_sizes = sizes_nu_digging_fast, .call = call_nu_digging_fast},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_fast, .output_sizes = sizes_gamma_digging_fast, .call = call_gamma_digging_fast},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_fast, .output_sizes = sizes_inputs_digging_fast, .call = call_inputs_digging_fast},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_fast, .output_sizes = sizes_input_ranges_digging_fast, .call = call_input_ranges_digging_fast},
 };
 static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_paced[] = {112, 1250};
@@ -14987,11 +14987,11 @@ static const int sizes_inputs_digging_paced[] = {12};
 static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_paced[] = {24};
 static const kinegen_kernel kernels_digging_paced[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
-    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_paced, .output_sizes = sizes_phi_jac_digging_paced, .call = call_phi_jac_digging_paced},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_paced, .output_sizes = sizes_nu_digging_paced, .call = call_nu_digging_paced},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_paced, .output_sizes = sizes_gamma_digging_paced, .call = call_gamma_digging_paced},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_paced, .output_sizes = sizes_inputs_digging_paced, .call = call_inputs_digging_paced},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_paced, .output_sizes = sizes_input_ranges_digging_paced, .call = call_input_ranges_digging_paced},
 };
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {112, 1250};
@@ -15004,11 +15004,11 @@ static const int sizes_inputs_oscillation[] = {12};
 static const char *const outputs_input_ranges_oscillation[] = {"input_ranges"};
 static const int sizes_input_ranges_oscillation[] = {24};
 static const kinegen_kernel kernels_oscillation[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_oscillation, sizes_phi_jac_oscillation, call_phi_jac_oscillation},
-    {"nu", "q,u,ud,p", 1, outputs_nu_oscillation, sizes_nu_oscillation, call_nu_oscillation},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_oscillation, sizes_gamma_oscillation, call_gamma_oscillation},
-    {"inputs", "t", 1, outputs_inputs_oscillation, sizes_inputs_oscillation, call_inputs_oscillation},
-    {"input_ranges", "span", 1, outputs_input_ranges_oscillation, sizes_input_ranges_oscillation, call_input_ranges_oscillation},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_oscillation, .output_sizes = sizes_phi_jac_oscillation, .call = call_phi_jac_oscillation},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_oscillation, .output_sizes = sizes_nu_oscillation, .call = call_nu_oscillation},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_oscillation, .output_sizes = sizes_gamma_oscillation, .call = call_gamma_oscillation},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_oscillation, .output_sizes = sizes_inputs_oscillation, .call = call_inputs_oscillation},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_oscillation, .output_sizes = sizes_input_ranges_oscillation, .call = call_input_ranges_oscillation},
 };
 static const char *const outputs_excavator_dual_euler_parameters_frames[] = {"frames"};
 static const int sizes_excavator_dual_euler_parameters_frames[] = {336};
@@ -15027,56 +15027,56 @@ static const int sizes_shared_points[] = {90};
 static const char *const outputs_shared_actuator_ranges[] = {"actuator_ranges"};
 static const int sizes_shared_actuator_ranges[] = {8};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_excavator_dual_euler_parameters_frames, sizes_excavator_dual_euler_parameters_frames, call_excavator_dual_euler_parameters_frames},
-    {"lengths", "q,p", 1, outputs_shared_lengths, sizes_shared_lengths, call_shared_lengths},
-    {"actuation", "q,p", 1, outputs_shared_actuation, sizes_shared_actuation, call_shared_actuation},
-    {"loads", "q,t,p", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
-    {"inertia", "q,v,a,p", 1, outputs_shared_inertia, sizes_shared_inertia, call_shared_inertia},
-    {"supply", "q,v,f,p", 4, outputs_shared_supply, sizes_shared_supply, call_shared_supply},
-    {"points", "p", 1, outputs_shared_points, sizes_shared_points, call_shared_points},
-    {"actuator_ranges", "p", 1, outputs_shared_actuator_ranges, sizes_shared_actuator_ranges, call_shared_actuator_ranges},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_excavator_dual_euler_parameters_frames, .output_sizes = sizes_excavator_dual_euler_parameters_frames, .call = call_excavator_dual_euler_parameters_frames},
+    {.name = "lengths", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_lengths, .output_sizes = sizes_shared_lengths, .call = call_shared_lengths},
+    {.name = "actuation", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_actuation, .output_sizes = sizes_shared_actuation, .call = call_shared_actuation},
+    {.name = "loads", .slots = "q,t,p", .n_outputs = 1, .output_names = outputs_shared_loads, .output_sizes = sizes_shared_loads, .call = call_shared_loads},
+    {.name = "inertia", .slots = "q,v,a,p", .n_outputs = 1, .output_names = outputs_shared_inertia, .output_sizes = sizes_shared_inertia, .call = call_shared_inertia},
+    {.name = "supply", .slots = "q,v,f,p", .n_outputs = 4, .output_names = outputs_shared_supply, .output_sizes = sizes_shared_supply, .call = call_shared_supply},
+    {.name = "points", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_points, .output_sizes = sizes_shared_points, .call = call_shared_points},
+    {.name = "actuator_ranges", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_actuator_ranges, .output_sizes = sizes_shared_actuator_ranges, .call = call_shared_actuator_ranges},
 };
 
 static const char *const body_names[] = {"upper", "boom", "boom_cyl_l_barrel", "boom_cyl_l_rod", "boom_cyl_r_barrel", "boom_cyl_r_rod", "arm", "arm_cyl_barrel", "arm_cyl_rod", "bucket_cyl_barrel", "bucket_cyl_rod", "side_link", "bucket_link", "bucket"};
 static const char *const stored_names[] = {"upper.rw", "upper.rx", "upper.ry", "upper.rz", "upper.dw", "upper.dx", "upper.dy", "upper.dz", "boom.rw", "boom.rx", "boom.ry", "boom.rz", "boom.dw", "boom.dx", "boom.dy", "boom.dz", "boom_cyl_l_barrel.rw", "boom_cyl_l_barrel.rx", "boom_cyl_l_barrel.ry", "boom_cyl_l_barrel.rz", "boom_cyl_l_barrel.dw", "boom_cyl_l_barrel.dx", "boom_cyl_l_barrel.dy", "boom_cyl_l_barrel.dz", "boom_cyl_l_rod.rw", "boom_cyl_l_rod.rx", "boom_cyl_l_rod.ry", "boom_cyl_l_rod.rz", "boom_cyl_l_rod.dw", "boom_cyl_l_rod.dx", "boom_cyl_l_rod.dy", "boom_cyl_l_rod.dz", "boom_cyl_r_barrel.rw", "boom_cyl_r_barrel.rx", "boom_cyl_r_barrel.ry", "boom_cyl_r_barrel.rz", "boom_cyl_r_barrel.dw", "boom_cyl_r_barrel.dx", "boom_cyl_r_barrel.dy", "boom_cyl_r_barrel.dz", "boom_cyl_r_rod.rw", "boom_cyl_r_rod.rx", "boom_cyl_r_rod.ry", "boom_cyl_r_rod.rz", "boom_cyl_r_rod.dw", "boom_cyl_r_rod.dx", "boom_cyl_r_rod.dy", "boom_cyl_r_rod.dz", "arm.rw", "arm.rx", "arm.ry", "arm.rz", "arm.dw", "arm.dx", "arm.dy", "arm.dz", "arm_cyl_barrel.rw", "arm_cyl_barrel.rx", "arm_cyl_barrel.ry", "arm_cyl_barrel.rz", "arm_cyl_barrel.dw", "arm_cyl_barrel.dx", "arm_cyl_barrel.dy", "arm_cyl_barrel.dz", "arm_cyl_rod.rw", "arm_cyl_rod.rx", "arm_cyl_rod.ry", "arm_cyl_rod.rz", "arm_cyl_rod.dw", "arm_cyl_rod.dx", "arm_cyl_rod.dy", "arm_cyl_rod.dz", "bucket_cyl_barrel.rw", "bucket_cyl_barrel.rx", "bucket_cyl_barrel.ry", "bucket_cyl_barrel.rz", "bucket_cyl_barrel.dw", "bucket_cyl_barrel.dx", "bucket_cyl_barrel.dy", "bucket_cyl_barrel.dz", "bucket_cyl_rod.rw", "bucket_cyl_rod.rx", "bucket_cyl_rod.ry", "bucket_cyl_rod.rz", "bucket_cyl_rod.dw", "bucket_cyl_rod.dx", "bucket_cyl_rod.dy", "bucket_cyl_rod.dz", "side_link.rw", "side_link.rx", "side_link.ry", "side_link.rz", "side_link.dw", "side_link.dx", "side_link.dy", "side_link.dz", "bucket_link.rw", "bucket_link.rx", "bucket_link.ry", "bucket_link.rz", "bucket_link.dw", "bucket_link.dx", "bucket_link.dy", "bucket_link.dz", "bucket.rw", "bucket.rx", "bucket.ry", "bucket.rz", "bucket.dw", "bucket.dx", "bucket.dy", "bucket.dz"};
 static const char *const velocity_names[] = {"upper.rw", "upper.rx", "upper.ry", "upper.rz", "upper.dw", "upper.dx", "upper.dy", "upper.dz", "boom.rw", "boom.rx", "boom.ry", "boom.rz", "boom.dw", "boom.dx", "boom.dy", "boom.dz", "boom_cyl_l_barrel.rw", "boom_cyl_l_barrel.rx", "boom_cyl_l_barrel.ry", "boom_cyl_l_barrel.rz", "boom_cyl_l_barrel.dw", "boom_cyl_l_barrel.dx", "boom_cyl_l_barrel.dy", "boom_cyl_l_barrel.dz", "boom_cyl_l_rod.rw", "boom_cyl_l_rod.rx", "boom_cyl_l_rod.ry", "boom_cyl_l_rod.rz", "boom_cyl_l_rod.dw", "boom_cyl_l_rod.dx", "boom_cyl_l_rod.dy", "boom_cyl_l_rod.dz", "boom_cyl_r_barrel.rw", "boom_cyl_r_barrel.rx", "boom_cyl_r_barrel.ry", "boom_cyl_r_barrel.rz", "boom_cyl_r_barrel.dw", "boom_cyl_r_barrel.dx", "boom_cyl_r_barrel.dy", "boom_cyl_r_barrel.dz", "boom_cyl_r_rod.rw", "boom_cyl_r_rod.rx", "boom_cyl_r_rod.ry", "boom_cyl_r_rod.rz", "boom_cyl_r_rod.dw", "boom_cyl_r_rod.dx", "boom_cyl_r_rod.dy", "boom_cyl_r_rod.dz", "arm.rw", "arm.rx", "arm.ry", "arm.rz", "arm.dw", "arm.dx", "arm.dy", "arm.dz", "arm_cyl_barrel.rw", "arm_cyl_barrel.rx", "arm_cyl_barrel.ry", "arm_cyl_barrel.rz", "arm_cyl_barrel.dw", "arm_cyl_barrel.dx", "arm_cyl_barrel.dy", "arm_cyl_barrel.dz", "arm_cyl_rod.rw", "arm_cyl_rod.rx", "arm_cyl_rod.ry", "arm_cyl_rod.rz", "arm_cyl_rod.dw", "arm_cyl_rod.dx", "arm_cyl_rod.dy", "arm_cyl_rod.dz", "bucket_cyl_barrel.rw", "bucket_cyl_barrel.rx", "bucket_cyl_barrel.ry", "bucket_cyl_barrel.rz", "bucket_cyl_barrel.dw", "bucket_cyl_barrel.dx", "bucket_cyl_barrel.dy", "bucket_cyl_barrel.dz", "bucket_cyl_rod.rw", "bucket_cyl_rod.rx", "bucket_cyl_rod.ry", "bucket_cyl_rod.rz", "bucket_cyl_rod.dw", "bucket_cyl_rod.dx", "bucket_cyl_rod.dy", "bucket_cyl_rod.dz", "side_link.rw", "side_link.rx", "side_link.ry", "side_link.rz", "side_link.dw", "side_link.dx", "side_link.dy", "side_link.dz", "bucket_link.rw", "bucket_link.rx", "bucket_link.ry", "bucket_link.rz", "bucket_link.dw", "bucket_link.dx", "bucket_link.dy", "bucket_link.dz", "bucket.rw", "bucket.rx", "bucket.ry", "bucket.rz", "bucket.dw", "bucket.dx", "bucket.dy", "bucket.dz"};
 static const kinegen_point points[] = {
-    {0, "upper.O", {0.0, 0.0, 0.0}},
-    {0, "upper.A", {0.22767, 0.0, 1.95729}},
-    {0, "upper.B_left", {0.68912, 0.32, 1.35478}},
-    {0, "upper.B_right", {0.68912, -0.32, 1.35478}},
-    {1, "boom.A", {0.0, 0.0, 0.0}},
-    {1, "boom.C_left", {1.39283, 0.32, 2.001922}},
-    {1, "boom.C_right", {1.39283, -0.32, 2.001922}},
-    {1, "boom.D", {2.2875, 0.0, 2.785}},
-    {1, "boom.E", {4.7878, 0.0, 2.9959}},
-    {2, "boom_cyl_l_barrel.base", {0.0, 0.0, 0.0}},
-    {3, "boom_cyl_l_rod.eye", {0.0, 0.0, 0.0}},
-    {4, "boom_cyl_r_barrel.base", {0.0, 0.0, 0.0}},
-    {5, "boom_cyl_r_rod.eye", {0.0, 0.0, 0.0}},
-    {6, "arm.E", {0.0, 0.0, 0.0}},
-    {6, "arm.F", {-0.786562, 0.0, -0.369691}},
-    {6, "arm.G", {-0.24687, 0.0, 0.73594}},
-    {6, "arm.H", {1.5754, 0.0, 1.8799}},
-    {6, "arm.Q", {1.8954, 0.0, 2.1809}},
-    {7, "arm_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {8, "arm_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {9, "bucket_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {10, "bucket_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {11, "side_link.H", {0.0, 0.0, 0.0}},
-    {11, "side_link.J", {-0.332658, 0.0, 0.481235}},
-    {12, "bucket_link.K", {0.0, 0.0, 0.0}},
-    {12, "bucket_link.J", {-0.342428, 0.0, -0.450737}},
-    {13, "bucket.Q", {0.0, 0.0, 0.0}},
-    {13, "bucket.K", {-0.32404, 0.0, 0.33854}},
-    {13, "bucket.T", {1.28, 0.0, 0.806}},
-    {-1, "ground.O", {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.O", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.A", .local = {0.22767, 0.0, 1.95729}},
+    {.body = 0, .name = "upper.B_left", .local = {0.68912, 0.32, 1.35478}},
+    {.body = 0, .name = "upper.B_right", .local = {0.68912, -0.32, 1.35478}},
+    {.body = 1, .name = "boom.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "boom.C_left", .local = {1.39283, 0.32, 2.001922}},
+    {.body = 1, .name = "boom.C_right", .local = {1.39283, -0.32, 2.001922}},
+    {.body = 1, .name = "boom.D", .local = {2.2875, 0.0, 2.785}},
+    {.body = 1, .name = "boom.E", .local = {4.7878, 0.0, 2.9959}},
+    {.body = 2, .name = "boom_cyl_l_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 3, .name = "boom_cyl_l_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 4, .name = "boom_cyl_r_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 5, .name = "boom_cyl_r_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.E", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.F", .local = {-0.786562, 0.0, -0.369691}},
+    {.body = 6, .name = "arm.G", .local = {-0.24687, 0.0, 0.73594}},
+    {.body = 6, .name = "arm.H", .local = {1.5754, 0.0, 1.8799}},
+    {.body = 6, .name = "arm.Q", .local = {1.8954, 0.0, 2.1809}},
+    {.body = 7, .name = "arm_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 8, .name = "arm_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 9, .name = "bucket_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 10, .name = "bucket_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.H", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.J", .local = {-0.332658, 0.0, 0.481235}},
+    {.body = 12, .name = "bucket_link.K", .local = {0.0, 0.0, 0.0}},
+    {.body = 12, .name = "bucket_link.J", .local = {-0.342428, 0.0, -0.450737}},
+    {.body = 13, .name = "bucket.Q", .local = {0.0, 0.0, 0.0}},
+    {.body = 13, .name = "bucket.K", .local = {-0.32404, 0.0, 0.33854}},
+    {.body = 13, .name = "bucket.T", .local = {1.28, 0.0, 0.806}},
+    {.body = -1, .name = "ground.O", .local = {0.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {"boom_cylinder_left", 9, 10, 1, 1.7352, 3.0649},
-    {"boom_cylinder_right", 11, 12, 1, 1.7352, 3.0649},
-    {"arm_cylinder", 18, 19, 1, 1.8164, 3.2939},
-    {"bucket_cylinder", 20, 21, 1, 1.6529, 2.6613},
+    {.name = "boom_cylinder_left", .point1 = 9, .point2 = 10, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "boom_cylinder_right", .point1 = 11, .point2 = 12, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "arm_cylinder", .point1 = 18, .point2 = 19, .has_range = 1, .min = 1.8164, .max = 3.2939},
+    {.name = "bucket_cylinder", .point1 = 20, .point2 = 21, .has_range = 1, .min = 1.6529, .max = 2.6613},
 };
 
 /* the force solve (kinegen_forces): 4 actuation element(s), 2 load(s) */
@@ -15111,23 +15111,31 @@ static const int statics_off_col[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 
 static const int statics_off_value[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 
 static const kinegen_statics statics = {
-    4, element_names, element_kinds, 108,
-    {1268, matrix_rows, matrix_cols}, &kernels[2],
-    2, load_names, {16, load_rows, load_cols}, &kernels[3],
-    112, inertia_cols, &kernels[4],
-    6, statics_block_start, statics_block_store, statics_row_order, statics_col_order,
-    3040, 988, statics_diag_value, statics_diag_slot,
-    280, statics_off_start, statics_off_col, statics_off_value,
-    4940, 112,
-    19, joint_names, joint_body, joint_sign, joint_point_body, joint_local, joint_row_start, joint_rows,
-    body_norm_start, body_norm_rows, element_hydraulics, 2674, 108,
+    .n_elements = 4, .element_names = element_names, .element_kinds = element_kinds,
+    .n_joint_rows = 108,
+    .pattern = {.n = 1268, .rows = matrix_rows, .cols = matrix_cols}, .actuation = &kernels[2],
+    .n_loads = 2, .load_names = load_names,
+    .load_pattern = {.n = 16, .rows = load_rows, .cols = load_cols}, .loads = &kernels[3],
+    .n_inertia = 112, .inertia_cols = inertia_cols, .inertia = &kernels[4],
+    .n_blocks = 6, .block_start = statics_block_start, .block_store = statics_block_store,
+    .row_order = statics_row_order, .col_order = statics_col_order,
+    .n_store = 3040, .n_diag = 988, .diag_value = statics_diag_value,
+    .diag_slot = statics_diag_slot,
+    .n_off = 280, .off_start = statics_off_start, .off_col = statics_off_col, .off_value = statics_off_value,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_FORCE_WORK_DOUBLES, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_FORCE_WORK_INTS,
+    .n_joints = 19, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
+    .joint_point_body = joint_point_body, .joint_local = joint_local, .joint_row_start = joint_row_start, .joint_rows = joint_rows,
+    .body_norm_start = body_norm_start, .body_norm_rows = body_norm_rows, .element_hydraulics = element_hydraulics,
+    .reaction_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_REACTION_WORK_DOUBLES, .reaction_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_REACTION_WORK_INTS,
 };
 
 const kinegen_layout excavator_dual_euler_parameters_layout = {
-    "excavator", "dual-euler-parameters", "excavator.yaml", "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", "0.2.0",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, EXCAVATOR_DUAL_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
-    30, points, 4, actuators, excavator_dual_euler_parameters_frames,
-    8, kernels, &statics,
+    .model = "excavator", .parametrization = "dual-euler-parameters", .source = "excavator.yaml",
+    .source_sha256 = "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", .kinegen_version = "0.2.0",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_bodies = EXCAVATOR_DUAL_EULER_PARAMETERS_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 30, .points = points, .n_actuators = 4, .actuators = actuators,
+    .frames = excavator_dual_euler_parameters_frames, .n_kernels = 8, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.9826937028898046, 0.0, 0.18523791809649656, 0.0, 0.0, -0.06941722468708496, 0.0, 0.9827948372711075, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 0.604231304353096, 0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 1.7341333740493532, 0.1441723416885284, 1.004743925176123, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 0.604231304353096, -0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 1.7341333740493532, -0.1441723416885284, 1.004743925176123, 0.7487823326004931, 0.0, 0.6628159762599, 0.0, 0.0, 1.1673591676421733, 0.0, 3.0396113433154897, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 1.6965717474027266, 0.0, 1.8495911036498867, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 2.6681621172680057, 0.0, 1.855102189922746, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 2.5562304402872105, 0.0, 2.5969797733967255, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 3.4387759320385776, 0.0, 2.30704926454922, 0.912012841994652, 0.0, 0.4101616462284567, 0.0, 0.0, 3.2304534311614317, 0.0, 2.3677903790988526, 0.640244241850993, 0.0, 0.7681714071590059, 0.0, 0.0, 1.9761889826861672, 0.0, 3.7916431136090383, 0.8349444950888361, 0.0, 0.5503341622331369, 0.0, 0.0, 3.029873627157362, 0.0, 2.828134945093185};
@@ -15150,20 +15158,23 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 40,
 static const int off_col_digging[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_digging[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 static const kinegen_design design_digging = {
-    12, design_nominal, phi_jac_digging, nu_digging, gamma_digging,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging, .nu = nu_digging, .gamma = gamma_digging,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_digging = {
-    &excavator_dual_euler_parameters_layout, "digging",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
-    0.0, 17.0, 341,
-    initial_q, constraints_digging, drivers_digging, jac_rows_digging, jac_cols_digging,
-    NULL, NULL, NULL, inputs_digging, input_ranges_digging, retract,
-    7, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
-    2272, 946, diag_value_digging, diag_slot_digging,
-    304, off_start_digging, off_col_digging, off_value_digging,
-    7596, 242, 5, kernels_digging, &design_digging,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "digging",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1250,
+    .t0 = 0.0, .t1 = 17.0, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging, .driver_names = drivers_digging,
+    .jac_rows = jac_rows_digging, .jac_cols = jac_cols_digging,
+    .inputs = inputs_digging, .input_ranges = input_ranges_digging, .retract = retract,
+    .n_blocks = 7, .block_start = block_start_digging, .block_store = block_store_digging,
+    .row_order = row_order_digging, .col_order = col_order_digging,
+    .n_store = 2272, .n_diag = 946, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
+    .n_off = 304, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_DIGGING,
+    .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -15182,20 +15193,23 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32, 4
 static const int off_col_level_cut[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 11, 12, 17, 23, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 13, 14, 16, 25, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 21, 22, 27, 31, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93};
 static const int off_value_level_cut[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 212, 213, 214, 208, 209, 211, 210, 215, 228, 229, 230, 224, 225, 227, 226, 231, 244, 245, 246, 240, 241, 243, 242, 247, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 372, 373, 374, 368, 369, 371, 370, 375, 388, 389, 390, 384, 385, 387, 386, 391, 404, 405, 406, 400, 401, 403, 402, 407, 484, 485, 486, 480, 481, 483, 482, 487, 500, 501, 502, 496, 497, 499, 498, 503, 516, 517, 518, 512, 513, 515, 514, 519, 528, 529, 531, 530, 592, 593, 598, 595, 596, 597, 594, 599, 608, 609, 614, 611, 612, 613, 610, 615, 624, 625, 630, 627, 628, 629, 626, 631, 704, 705, 710, 707, 708, 709, 706, 711, 720, 721, 726, 723, 724, 725, 722, 727, 736, 737, 742, 739, 740, 741, 738, 743, 752, 753, 755, 754, 760, 761, 763, 762, 831, 826, 827, 825, 828, 829, 830, 824, 847, 842, 843, 841, 844, 845, 846, 840, 863, 858, 859, 857, 860, 861, 862, 856, 870, 871, 869, 868, 872, 873, 878, 875, 876, 877, 874, 879, 888, 889, 894, 891, 892, 893, 890, 895, 904, 905, 910, 907, 908, 909, 906, 911, 920, 921, 923, 922, 992, 997, 998, 995, 994, 996, 993, 999, 1008, 1013, 1014, 1011, 1010, 1012, 1009, 1015, 1024, 1029, 1030, 1027, 1026, 1028, 1025, 1031};
 static const kinegen_design design_level_cut = {
-    12, design_nominal, phi_jac_level_cut, nu_level_cut, gamma_level_cut,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_level_cut, .nu = nu_level_cut, .gamma = gamma_level_cut,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_level_cut = {
-    &excavator_dual_euler_parameters_layout, "level_cut",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1222,
-    0.0, 4.0, 201,
-    initial_q, constraints_level_cut, drivers_level_cut, jac_rows_level_cut, jac_cols_level_cut,
-    NULL, NULL, NULL, inputs_level_cut, input_ranges_level_cut, retract,
-    8, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
-    1888, 906, diag_value_level_cut, diag_slot_level_cut,
-    316, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    7168, 244, 5, kernels_level_cut, &design_level_cut,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "level_cut",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1222,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_level_cut, .driver_names = drivers_level_cut,
+    .jac_rows = jac_rows_level_cut, .jac_cols = jac_cols_level_cut,
+    .inputs = inputs_level_cut, .input_ranges = input_ranges_level_cut, .retract = retract,
+    .n_blocks = 8, .block_start = block_start_level_cut, .block_store = block_store_level_cut,
+    .row_order = row_order_level_cut, .col_order = col_order_level_cut,
+    .n_store = 1888, .n_diag = 906, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
+    .n_off = 316, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_LEVEL_CUT,
+    .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -15214,20 +15228,23 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32,
 static const int off_col_trench_wall[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 8, 9, 10, 11, 12, 17, 23, 24, 11, 12, 17, 23, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 13, 14, 16, 25, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 18, 21, 22, 27, 28, 29, 30, 31, 21, 22, 27, 31, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 15, 16, 19, 20, 25, 26, 13, 14, 16, 25, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93, 80, 81, 82, 83, 84, 85, 92, 93};
 static const int off_value_trench_wall[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 212, 213, 214, 208, 209, 211, 210, 215, 228, 229, 230, 224, 225, 227, 226, 231, 244, 245, 246, 240, 241, 243, 242, 247, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 372, 373, 374, 368, 369, 371, 370, 375, 388, 389, 390, 384, 385, 387, 386, 391, 404, 405, 406, 400, 401, 403, 402, 407, 484, 485, 486, 480, 481, 483, 482, 487, 500, 501, 502, 496, 497, 499, 498, 503, 516, 517, 518, 512, 513, 515, 514, 519, 528, 529, 531, 530, 592, 593, 598, 595, 596, 597, 594, 599, 608, 609, 614, 611, 612, 613, 610, 615, 624, 625, 630, 627, 628, 629, 626, 631, 704, 705, 710, 707, 708, 709, 706, 711, 720, 721, 726, 723, 724, 725, 722, 727, 736, 737, 742, 739, 740, 741, 738, 743, 752, 753, 755, 754, 760, 761, 763, 762, 831, 826, 827, 825, 828, 829, 830, 824, 847, 842, 843, 841, 844, 845, 846, 840, 863, 858, 859, 857, 860, 861, 862, 856, 870, 871, 869, 868, 872, 873, 878, 875, 876, 877, 874, 879, 888, 889, 894, 891, 892, 893, 890, 895, 904, 905, 910, 907, 908, 909, 906, 911, 920, 921, 923, 922, 992, 997, 998, 995, 994, 996, 993, 999, 1008, 1013, 1014, 1011, 1010, 1012, 1009, 1015, 1024, 1029, 1030, 1027, 1026, 1028, 1025, 1031};
 static const kinegen_design design_trench_wall = {
-    12, design_nominal, phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_trench_wall, .nu = nu_trench_wall, .gamma = gamma_trench_wall,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_trench_wall = {
-    &excavator_dual_euler_parameters_layout, "trench_wall",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1222,
-    0.0, 4.0, 201,
-    initial_q, constraints_trench_wall, drivers_trench_wall, jac_rows_trench_wall, jac_cols_trench_wall,
-    NULL, NULL, NULL, inputs_trench_wall, input_ranges_trench_wall, retract,
-    8, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
-    1888, 906, diag_value_trench_wall, diag_slot_trench_wall,
-    316, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    7168, 244, 5, kernels_trench_wall, &design_trench_wall,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "trench_wall",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1222,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_trench_wall, .driver_names = drivers_trench_wall,
+    .jac_rows = jac_rows_trench_wall, .jac_cols = jac_cols_trench_wall,
+    .inputs = inputs_trench_wall, .input_ranges = input_ranges_trench_wall, .retract = retract,
+    .n_blocks = 8, .block_start = block_start_trench_wall, .block_store = block_store_trench_wall,
+    .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
+    .n_store = 1888, .n_diag = 906, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
+    .n_off = 316, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_TRENCH_WALL,
+    .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -15246,20 +15263,23 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 3
 static const int off_col_bucket_toggle[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_bucket_toggle[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 static const kinegen_design design_bucket_toggle = {
-    12, design_nominal, phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_toggle, .nu = nu_bucket_toggle, .gamma = gamma_bucket_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_bucket_toggle = {
-    &excavator_dual_euler_parameters_layout, "bucket_toggle",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
-    0.0, 3.0, 301,
-    initial_q, constraints_bucket_toggle, drivers_bucket_toggle, jac_rows_bucket_toggle, jac_cols_bucket_toggle,
-    NULL, NULL, NULL, inputs_bucket_toggle, input_ranges_bucket_toggle, retract,
-    7, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
-    2272, 946, diag_value_bucket_toggle, diag_slot_bucket_toggle,
-    304, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    7596, 242, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "bucket_toggle",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1250,
+    .t0 = 0.0, .t1 = 3.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_toggle, .driver_names = drivers_bucket_toggle,
+    .jac_rows = jac_rows_bucket_toggle, .jac_cols = jac_cols_bucket_toggle,
+    .inputs = inputs_bucket_toggle, .input_ranges = input_ranges_bucket_toggle, .retract = retract,
+    .n_blocks = 7, .block_start = block_start_bucket_toggle, .block_store = block_store_bucket_toggle,
+    .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
+    .n_store = 2272, .n_diag = 946, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
+    .n_off = 304, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_BUCKET_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -15278,20 +15298,23 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 3
 static const int off_col_bucket_stroke[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_bucket_stroke[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 static const kinegen_design design_bucket_stroke = {
-    12, design_nominal, phi_jac_bucket_stroke, nu_bucket_stroke, gamma_bucket_stroke,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_stroke, .nu = nu_bucket_stroke, .gamma = gamma_bucket_stroke,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_bucket_stroke = {
-    &excavator_dual_euler_parameters_layout, "bucket_stroke",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
-    0.0, 1.0, 101,
-    initial_q, constraints_bucket_stroke, drivers_bucket_stroke, jac_rows_bucket_stroke, jac_cols_bucket_stroke,
-    NULL, NULL, NULL, inputs_bucket_stroke, input_ranges_bucket_stroke, retract,
-    7, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
-    2272, 946, diag_value_bucket_stroke, diag_slot_bucket_stroke,
-    304, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    7596, 242, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "bucket_stroke",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1250,
+    .t0 = 0.0, .t1 = 1.0, .steps = 101,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_stroke, .driver_names = drivers_bucket_stroke,
+    .jac_rows = jac_rows_bucket_stroke, .jac_cols = jac_cols_bucket_stroke,
+    .inputs = inputs_bucket_stroke, .input_ranges = input_ranges_bucket_stroke, .retract = retract,
+    .n_blocks = 7, .block_start = block_start_bucket_stroke, .block_store = block_store_bucket_stroke,
+    .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
+    .n_store = 2272, .n_diag = 946, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
+    .n_off = 304, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_BUCKET_STROKE,
+    .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -15310,20 +15333,23 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 
 static const int off_col_bucket_near_toggle[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_bucket_near_toggle[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 static const kinegen_design design_bucket_near_toggle = {
-    12, design_nominal, phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_near_toggle, .nu = nu_bucket_near_toggle, .gamma = gamma_bucket_near_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_bucket_near_toggle = {
-    &excavator_dual_euler_parameters_layout, "bucket_near_toggle",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
-    0.0, 2.0, 9,
-    initial_q, constraints_bucket_near_toggle, drivers_bucket_near_toggle, jac_rows_bucket_near_toggle, jac_cols_bucket_near_toggle,
-    NULL, NULL, NULL, inputs_bucket_near_toggle, input_ranges_bucket_near_toggle, retract,
-    7, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
-    2272, 946, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
-    304, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    7596, 242, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "bucket_near_toggle",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1250,
+    .t0 = 0.0, .t1 = 2.0, .steps = 9,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_near_toggle, .driver_names = drivers_bucket_near_toggle,
+    .jac_rows = jac_rows_bucket_near_toggle, .jac_cols = jac_cols_bucket_near_toggle,
+    .inputs = inputs_bucket_near_toggle, .input_ranges = input_ranges_bucket_near_toggle, .retract = retract,
+    .n_blocks = 7, .block_start = block_start_bucket_near_toggle, .block_store = block_store_bucket_near_toggle,
+    .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
+    .n_store = 2272, .n_diag = 946, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
+    .n_off = 304, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_BUCKET_NEAR_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -15342,20 +15368,23 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32
 static const int off_col_digging_fast[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_digging_fast[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 static const kinegen_design design_digging_fast = {
-    12, design_nominal, phi_jac_digging_fast, nu_digging_fast, gamma_digging_fast,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_fast, .nu = nu_digging_fast, .gamma = gamma_digging_fast,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_digging_fast = {
-    &excavator_dual_euler_parameters_layout, "digging_fast",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
-    0.0, 13.6, 341,
-    initial_q, constraints_digging_fast, drivers_digging_fast, jac_rows_digging_fast, jac_cols_digging_fast,
-    NULL, NULL, NULL, inputs_digging_fast, input_ranges_digging_fast, retract,
-    7, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
-    2272, 946, diag_value_digging_fast, diag_slot_digging_fast,
-    304, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    7596, 242, 5, kernels_digging_fast, &design_digging_fast,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "digging_fast",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1250,
+    .t0 = 0.0, .t1 = 13.6, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_fast, .driver_names = drivers_digging_fast,
+    .jac_rows = jac_rows_digging_fast, .jac_cols = jac_cols_digging_fast,
+    .inputs = inputs_digging_fast, .input_ranges = input_ranges_digging_fast, .retract = retract,
+    .n_blocks = 7, .block_start = block_start_digging_fast, .block_store = block_store_digging_fast,
+    .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
+    .n_store = 2272, .n_diag = 946, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
+    .n_off = 304, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_DIGGING_FAST,
+    .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -15374,20 +15403,23 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 3
 static const int off_col_digging_paced[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_digging_paced[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 static const kinegen_design design_digging_paced = {
-    12, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_paced, .nu = nu_digging_paced, .gamma = gamma_digging_paced,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_digging_paced = {
-    &excavator_dual_euler_parameters_layout, "digging_paced",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
-    0.0, 59.5, 341,
-    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
-    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
-    7, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
-    2272, 946, diag_value_digging_paced, diag_slot_digging_paced,
-    304, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    7596, 242, 5, kernels_digging_paced, &design_digging_paced,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "digging_paced",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1250,
+    .t0 = 0.0, .t1 = 59.5, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_paced, .driver_names = drivers_digging_paced,
+    .jac_rows = jac_rows_digging_paced, .jac_cols = jac_cols_digging_paced,
+    .inputs = inputs_digging_paced, .input_ranges = input_ranges_digging_paced, .retract = retract,
+    .n_blocks = 7, .block_start = block_start_digging_paced, .block_store = block_store_digging_paced,
+    .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
+    .n_store = 2272, .n_diag = 946, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
+    .n_off = 304, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_DIGGING_PACED,
+    .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -15406,20 +15438,23 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 4, 8, 12, 16, 24, 32,
 static const int off_col_oscillation[] = {0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 4, 5, 6, 7, 0, 1, 2, 3, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 8, 11, 12, 25, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 9, 10, 11, 12, 24, 25, 26, 8, 11, 12, 25, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 49, 50, 51, 52, 62, 65, 66, 48, 51, 52, 65, 48, 51, 52, 65, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94, 72, 73, 74, 75, 76, 86, 93, 94};
 static const int off_value_oscillation[] = {3, 2, 1, 0, 11, 10, 9, 8, 19, 18, 17, 16, 1039, 1038, 1037, 1036, 35, 34, 33, 32, 36, 37, 38, 39, 51, 50, 49, 48, 52, 53, 54, 55, 67, 66, 65, 64, 68, 69, 70, 71, 83, 82, 81, 80, 91, 90, 89, 88, 99, 98, 97, 96, 100, 101, 102, 103, 115, 114, 113, 112, 116, 117, 118, 119, 131, 130, 129, 128, 132, 133, 134, 135, 147, 146, 145, 144, 259, 258, 257, 256, 260, 261, 262, 263, 275, 274, 273, 272, 276, 277, 278, 279, 291, 290, 289, 288, 292, 293, 294, 295, 307, 306, 305, 304, 371, 373, 374, 368, 369, 372, 370, 375, 387, 389, 390, 384, 385, 388, 386, 391, 403, 405, 406, 400, 401, 404, 402, 407, 419, 421, 422, 416, 417, 420, 418, 423, 435, 437, 438, 432, 433, 436, 434, 439, 451, 453, 454, 448, 449, 452, 450, 455, 467, 464, 465, 466, 475, 472, 473, 474, 483, 485, 486, 480, 481, 484, 482, 487, 499, 501, 502, 496, 497, 500, 498, 503, 515, 517, 518, 512, 513, 516, 514, 519, 531, 528, 529, 530, 704, 709, 710, 707, 705, 708, 706, 711, 720, 725, 726, 723, 721, 724, 722, 727, 736, 741, 742, 739, 737, 740, 738, 743, 752, 755, 753, 754, 760, 763, 761, 762, 872, 877, 878, 875, 873, 876, 874, 879, 888, 893, 894, 891, 889, 892, 890, 895, 904, 909, 910, 907, 905, 908, 906, 911, 920, 923, 921, 922, 640, 645, 646, 643, 641, 644, 642, 647, 656, 661, 662, 659, 657, 660, 658, 663, 672, 677, 678, 675, 673, 676, 674, 679, 688, 691, 689, 690, 696, 699, 697, 698, 768, 773, 774, 771, 770, 772, 769, 775, 784, 789, 790, 787, 786, 788, 785, 791, 800, 805, 806, 803, 802, 804, 801, 807};
 static const kinegen_design design_oscillation = {
-    12, design_nominal, phi_jac_oscillation, nu_oscillation, gamma_oscillation,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_oscillation, .nu = nu_oscillation, .gamma = gamma_oscillation,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_euler_parameters_oscillation = {
-    &excavator_dual_euler_parameters_layout, "oscillation",
-    EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, 4, 1250,
-    0.0, 2.0, 301,
-    initial_q, constraints_oscillation, drivers_oscillation, jac_rows_oscillation, jac_cols_oscillation,
-    NULL, NULL, NULL, inputs_oscillation, input_ranges_oscillation, retract,
-    7, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
-    2272, 946, diag_value_oscillation, diag_slot_oscillation,
-    304, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    7596, 242, 5, kernels_oscillation, &design_oscillation,
+    .layout = &excavator_dual_euler_parameters_layout, .case_name = "oscillation",
+    .n_q = EXCAVATOR_DUAL_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_DUAL_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 1250,
+    .t0 = 0.0, .t1 = 2.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_oscillation, .driver_names = drivers_oscillation,
+    .jac_rows = jac_rows_oscillation, .jac_cols = jac_cols_oscillation,
+    .inputs = inputs_oscillation, .input_ranges = input_ranges_oscillation, .retract = retract,
+    .n_blocks = 7, .block_start = block_start_oscillation, .block_store = block_store_oscillation,
+    .row_order = row_order_oscillation, .col_order = col_order_oscillation,
+    .n_store = 2272, .n_diag = 946, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
+    .n_off = 304, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
+    .work_doubles = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_DUAL_EULER_PARAMETERS_WORK_INTS_OSCILLATION,
+    .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };
 
 const kinegen_model *const excavator_dual_euler_parameters_cases[EXCAVATOR_DUAL_EULER_PARAMETERS_N_CASES] = {&excavator_dual_euler_parameters_digging, &excavator_dual_euler_parameters_level_cut, &excavator_dual_euler_parameters_trench_wall, &excavator_dual_euler_parameters_bucket_toggle, &excavator_dual_euler_parameters_bucket_stroke, &excavator_dual_euler_parameters_bucket_near_toggle, &excavator_dual_euler_parameters_digging_fast, &excavator_dual_euler_parameters_digging_paced, &excavator_dual_euler_parameters_oscillation};

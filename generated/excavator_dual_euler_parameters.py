@@ -87,7 +87,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_euler_parameters.h': 'd794f716dcf914f0ae83356eff90c60ce6f10005d2c496f3817372af15ca225e', 'excavator_dual_euler_parameters.c': 'c859b8be2129183ad3aa7f6dc1282d5724df477a860d3b93031fa42deaa98c7b'}
+C_FILES = {'excavator_dual_euler_parameters.h': '8d854f77b074211e69e9e50b7e3a68c531b3f79b9f24c65b5851745c8d9f3666', 'excavator_dual_euler_parameters.c': 'eafe3089a3b66e73733a6dc6a50373daa7ff62d742130b148446aeb82e2c9bd6'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

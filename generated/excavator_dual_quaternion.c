@@ -9723,11 +9723,11 @@ static const int sizes_inputs_digging[] = {12};
 static const char *const outputs_input_ranges_digging[] = {"input_ranges"};
 static const int sizes_input_ranges_digging[] = {24};
 static const kinegen_kernel kernels_digging[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging, sizes_phi_jac_digging, call_phi_jac_digging},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging, sizes_nu_digging, call_nu_digging},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging, sizes_gamma_digging, call_gamma_digging},
-    {"inputs", "t", 1, outputs_inputs_digging, sizes_inputs_digging, call_inputs_digging},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging, sizes_input_ranges_digging, call_input_ranges_digging},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging, .output_sizes = sizes_phi_jac_digging, .call = call_phi_jac_digging},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging, .output_sizes = sizes_nu_digging, .call = call_nu_digging},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging, .output_sizes = sizes_gamma_digging, .call = call_gamma_digging},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging, .output_sizes = sizes_inputs_digging, .call = call_inputs_digging},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging, .output_sizes = sizes_input_ranges_digging, .call = call_input_ranges_digging},
 };
 static const char *const outputs_phi_jac_level_cut[] = {"phi", "jac"};
 static const int sizes_phi_jac_level_cut[] = {84, 439};
@@ -9740,11 +9740,11 @@ static const int sizes_inputs_level_cut[] = {12};
 static const char *const outputs_input_ranges_level_cut[] = {"input_ranges"};
 static const int sizes_input_ranges_level_cut[] = {24};
 static const kinegen_kernel kernels_level_cut[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_level_cut, sizes_phi_jac_level_cut, call_phi_jac_level_cut},
-    {"nu", "q,u,ud,p", 1, outputs_nu_level_cut, sizes_nu_level_cut, call_nu_level_cut},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_level_cut, sizes_gamma_level_cut, call_gamma_level_cut},
-    {"inputs", "t", 1, outputs_inputs_level_cut, sizes_inputs_level_cut, call_inputs_level_cut},
-    {"input_ranges", "span", 1, outputs_input_ranges_level_cut, sizes_input_ranges_level_cut, call_input_ranges_level_cut},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_level_cut, .output_sizes = sizes_phi_jac_level_cut, .call = call_phi_jac_level_cut},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_level_cut, .output_sizes = sizes_nu_level_cut, .call = call_nu_level_cut},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_level_cut, .output_sizes = sizes_gamma_level_cut, .call = call_gamma_level_cut},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_level_cut, .output_sizes = sizes_inputs_level_cut, .call = call_inputs_level_cut},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_level_cut, .output_sizes = sizes_input_ranges_level_cut, .call = call_input_ranges_level_cut},
 };
 static const char *const outputs_phi_jac_trench_wall[] = {"phi", "jac"};
 static const int sizes_phi_jac_trench_wall[] = {84, 439};
@@ -9757,11 +9757,11 @@ static const int sizes_inputs_trench_wall[] = {12};
 static const char *const outputs_input_ranges_trench_wall[] = {"input_ranges"};
 static const int sizes_input_ranges_trench_wall[] = {24};
 static const kinegen_kernel kernels_trench_wall[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_trench_wall, sizes_phi_jac_trench_wall, call_phi_jac_trench_wall},
-    {"nu", "q,u,ud,p", 1, outputs_nu_trench_wall, sizes_nu_trench_wall, call_nu_trench_wall},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_trench_wall, sizes_gamma_trench_wall, call_gamma_trench_wall},
-    {"inputs", "t", 1, outputs_inputs_trench_wall, sizes_inputs_trench_wall, call_inputs_trench_wall},
-    {"input_ranges", "span", 1, outputs_input_ranges_trench_wall, sizes_input_ranges_trench_wall, call_input_ranges_trench_wall},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_trench_wall, .output_sizes = sizes_phi_jac_trench_wall, .call = call_phi_jac_trench_wall},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_trench_wall, .output_sizes = sizes_nu_trench_wall, .call = call_nu_trench_wall},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_trench_wall, .output_sizes = sizes_gamma_trench_wall, .call = call_gamma_trench_wall},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_trench_wall, .output_sizes = sizes_inputs_trench_wall, .call = call_inputs_trench_wall},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_trench_wall, .output_sizes = sizes_input_ranges_trench_wall, .call = call_input_ranges_trench_wall},
 };
 static const char *const outputs_phi_jac_bucket_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_toggle[] = {84, 457};
@@ -9774,11 +9774,11 @@ static const int sizes_inputs_bucket_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_toggle, sizes_phi_jac_bucket_toggle, call_phi_jac_bucket_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_toggle, sizes_nu_bucket_toggle, call_nu_bucket_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_toggle, sizes_gamma_bucket_toggle, call_gamma_bucket_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_toggle, sizes_inputs_bucket_toggle, call_inputs_bucket_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_toggle, sizes_input_ranges_bucket_toggle, call_input_ranges_bucket_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_toggle, .output_sizes = sizes_phi_jac_bucket_toggle, .call = call_phi_jac_bucket_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_toggle, .output_sizes = sizes_nu_bucket_toggle, .call = call_nu_bucket_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_toggle, .output_sizes = sizes_gamma_bucket_toggle, .call = call_gamma_bucket_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_toggle, .output_sizes = sizes_inputs_bucket_toggle, .call = call_inputs_bucket_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_toggle, .output_sizes = sizes_input_ranges_bucket_toggle, .call = call_input_ranges_bucket_toggle},
 };
 static const char *const outputs_phi_jac_bucket_stroke[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_stroke[] = {84, 457};
@@ -9791,11 +9791,11 @@ static const int sizes_inputs_bucket_stroke[] = {12};
 static const char *const outputs_input_ranges_bucket_stroke[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_stroke[] = {24};
 static const kinegen_kernel kernels_bucket_stroke[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_stroke, sizes_phi_jac_bucket_stroke, call_phi_jac_bucket_stroke},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_stroke, sizes_nu_bucket_stroke, call_nu_bucket_stroke},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_stroke, sizes_gamma_bucket_stroke, call_gamma_bucket_stroke},
-    {"inputs", "t", 1, outputs_inputs_bucket_stroke, sizes_inputs_bucket_stroke, call_inputs_bucket_stroke},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_stroke, sizes_input_ranges_bucket_stroke, call_input_ranges_bucket_stroke},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_stroke, .output_sizes = sizes_phi_jac_bucket_stroke, .call = call_phi_jac_bucket_stroke},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_stroke, .output_sizes = sizes_nu_bucket_stroke, .call = call_nu_bucket_stroke},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_stroke, .output_sizes = sizes_gamma_bucket_stroke, .call = call_gamma_bucket_stroke},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_stroke, .output_sizes = sizes_inputs_bucket_stroke, .call = call_inputs_bucket_stroke},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_stroke, .output_sizes = sizes_input_ranges_bucket_stroke, .call = call_input_ranges_bucket_stroke},
 };
 static const char *const outputs_phi_jac_bucket_near_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_near_toggle[] = {84, 457};
@@ -9808,11 +9808,11 @@ static const int sizes_inputs_bucket_near_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_near_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_near_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_near_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_near_toggle, sizes_phi_jac_bucket_near_toggle, call_phi_jac_bucket_near_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_near_toggle, sizes_nu_bucket_near_toggle, call_nu_bucket_near_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_near_toggle, sizes_gamma_bucket_near_toggle, call_gamma_bucket_near_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_near_toggle, sizes_inputs_bucket_near_toggle, call_inputs_bucket_near_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_near_toggle, sizes_input_ranges_bucket_near_toggle, call_input_ranges_bucket_near_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_near_toggle, .output_sizes = sizes_phi_jac_bucket_near_toggle, .call = call_phi_jac_bucket_near_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_near_toggle, .output_sizes = sizes_nu_bucket_near_toggle, .call = call_nu_bucket_near_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_near_toggle, .output_sizes = sizes_gamma_bucket_near_toggle, .call = call_gamma_bucket_near_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_near_toggle, .output_sizes = sizes_inputs_bucket_near_toggle, .call = call_inputs_bucket_near_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_near_toggle, .output_sizes = sizes_input_ranges_bucket_near_toggle, .call = call_input_ranges_bucket_near_toggle},
 };
 static const char *const outputs_phi_jac_digging_fast[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_fast[] = {84, 457};
@@ -9825,11 +9825,11 @@ static const int sizes_inputs_digging_fast[] = {12};
 static const char *const outputs_input_ranges_digging_fast[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_fast[] = {24};
 static const kinegen_kernel kernels_digging_fast[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_fast, sizes_phi_jac_digging_fast, call_phi_jac_digging_fast},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_fast, sizes_nu_digging_fast, call_nu_digging_fast},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_fast, sizes_gamma_digging_fast, call_gamma_digging_fast},
-    {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_fast, .output_sizes = sizes_phi_jac_digging_fast, .call = call_phi_jac_digging_fast},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_fast, .output_sizes = sizes_nu_digging_fast, .call = call_nu_digging_fast},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_fast, .output_sizes = sizes_gamma_digging_fast, .call = call_gamma_digging_fast},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_fast, .output_sizes = sizes_inputs_digging_fast, .call = call_inputs_digging_fast},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_fast, .output_sizes = sizes_input_ranges_digging_fast, .call = call_input_ranges_digging_fast},
 };
 static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_paced[] = {84, 457};
@@ -9842,11 +9842,11 @@ static const int sizes_inputs_digging_paced[] = {12};
 static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_paced[] = {24};
 static const kinegen_kernel kernels_digging_paced[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
-    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_paced, .output_sizes = sizes_phi_jac_digging_paced, .call = call_phi_jac_digging_paced},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_paced, .output_sizes = sizes_nu_digging_paced, .call = call_nu_digging_paced},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_paced, .output_sizes = sizes_gamma_digging_paced, .call = call_gamma_digging_paced},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_paced, .output_sizes = sizes_inputs_digging_paced, .call = call_inputs_digging_paced},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_paced, .output_sizes = sizes_input_ranges_digging_paced, .call = call_input_ranges_digging_paced},
 };
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {84, 457};
@@ -9859,11 +9859,11 @@ static const int sizes_inputs_oscillation[] = {12};
 static const char *const outputs_input_ranges_oscillation[] = {"input_ranges"};
 static const int sizes_input_ranges_oscillation[] = {24};
 static const kinegen_kernel kernels_oscillation[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_oscillation, sizes_phi_jac_oscillation, call_phi_jac_oscillation},
-    {"nu", "q,u,ud,p", 1, outputs_nu_oscillation, sizes_nu_oscillation, call_nu_oscillation},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_oscillation, sizes_gamma_oscillation, call_gamma_oscillation},
-    {"inputs", "t", 1, outputs_inputs_oscillation, sizes_inputs_oscillation, call_inputs_oscillation},
-    {"input_ranges", "span", 1, outputs_input_ranges_oscillation, sizes_input_ranges_oscillation, call_input_ranges_oscillation},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_oscillation, .output_sizes = sizes_phi_jac_oscillation, .call = call_phi_jac_oscillation},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_oscillation, .output_sizes = sizes_nu_oscillation, .call = call_nu_oscillation},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_oscillation, .output_sizes = sizes_gamma_oscillation, .call = call_gamma_oscillation},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_oscillation, .output_sizes = sizes_inputs_oscillation, .call = call_inputs_oscillation},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_oscillation, .output_sizes = sizes_input_ranges_oscillation, .call = call_input_ranges_oscillation},
 };
 static const char *const outputs_excavator_dual_quaternion_frames[] = {"frames"};
 static const int sizes_excavator_dual_quaternion_frames[] = {336};
@@ -9882,56 +9882,56 @@ static const int sizes_shared_points[] = {90};
 static const char *const outputs_shared_actuator_ranges[] = {"actuator_ranges"};
 static const int sizes_shared_actuator_ranges[] = {8};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_excavator_dual_quaternion_frames, sizes_excavator_dual_quaternion_frames, call_excavator_dual_quaternion_frames},
-    {"lengths", "q,p", 1, outputs_shared_lengths, sizes_shared_lengths, call_shared_lengths},
-    {"actuation", "q,p", 1, outputs_shared_actuation, sizes_shared_actuation, call_shared_actuation},
-    {"loads", "q,t,p", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
-    {"inertia", "q,v,a,p", 1, outputs_shared_inertia, sizes_shared_inertia, call_shared_inertia},
-    {"supply", "q,v,f,p", 4, outputs_shared_supply, sizes_shared_supply, call_shared_supply},
-    {"points", "p", 1, outputs_shared_points, sizes_shared_points, call_shared_points},
-    {"actuator_ranges", "p", 1, outputs_shared_actuator_ranges, sizes_shared_actuator_ranges, call_shared_actuator_ranges},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_excavator_dual_quaternion_frames, .output_sizes = sizes_excavator_dual_quaternion_frames, .call = call_excavator_dual_quaternion_frames},
+    {.name = "lengths", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_lengths, .output_sizes = sizes_shared_lengths, .call = call_shared_lengths},
+    {.name = "actuation", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_actuation, .output_sizes = sizes_shared_actuation, .call = call_shared_actuation},
+    {.name = "loads", .slots = "q,t,p", .n_outputs = 1, .output_names = outputs_shared_loads, .output_sizes = sizes_shared_loads, .call = call_shared_loads},
+    {.name = "inertia", .slots = "q,v,a,p", .n_outputs = 1, .output_names = outputs_shared_inertia, .output_sizes = sizes_shared_inertia, .call = call_shared_inertia},
+    {.name = "supply", .slots = "q,v,f,p", .n_outputs = 4, .output_names = outputs_shared_supply, .output_sizes = sizes_shared_supply, .call = call_shared_supply},
+    {.name = "points", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_points, .output_sizes = sizes_shared_points, .call = call_shared_points},
+    {.name = "actuator_ranges", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_actuator_ranges, .output_sizes = sizes_shared_actuator_ranges, .call = call_shared_actuator_ranges},
 };
 
 static const char *const body_names[] = {"upper", "boom", "boom_cyl_l_barrel", "boom_cyl_l_rod", "boom_cyl_r_barrel", "boom_cyl_r_rod", "arm", "arm_cyl_barrel", "arm_cyl_rod", "bucket_cyl_barrel", "bucket_cyl_rod", "side_link", "bucket_link", "bucket"};
 static const char *const stored_names[] = {"upper.rw", "upper.rx", "upper.ry", "upper.rz", "upper.dw", "upper.dx", "upper.dy", "upper.dz", "boom.rw", "boom.rx", "boom.ry", "boom.rz", "boom.dw", "boom.dx", "boom.dy", "boom.dz", "boom_cyl_l_barrel.rw", "boom_cyl_l_barrel.rx", "boom_cyl_l_barrel.ry", "boom_cyl_l_barrel.rz", "boom_cyl_l_barrel.dw", "boom_cyl_l_barrel.dx", "boom_cyl_l_barrel.dy", "boom_cyl_l_barrel.dz", "boom_cyl_l_rod.rw", "boom_cyl_l_rod.rx", "boom_cyl_l_rod.ry", "boom_cyl_l_rod.rz", "boom_cyl_l_rod.dw", "boom_cyl_l_rod.dx", "boom_cyl_l_rod.dy", "boom_cyl_l_rod.dz", "boom_cyl_r_barrel.rw", "boom_cyl_r_barrel.rx", "boom_cyl_r_barrel.ry", "boom_cyl_r_barrel.rz", "boom_cyl_r_barrel.dw", "boom_cyl_r_barrel.dx", "boom_cyl_r_barrel.dy", "boom_cyl_r_barrel.dz", "boom_cyl_r_rod.rw", "boom_cyl_r_rod.rx", "boom_cyl_r_rod.ry", "boom_cyl_r_rod.rz", "boom_cyl_r_rod.dw", "boom_cyl_r_rod.dx", "boom_cyl_r_rod.dy", "boom_cyl_r_rod.dz", "arm.rw", "arm.rx", "arm.ry", "arm.rz", "arm.dw", "arm.dx", "arm.dy", "arm.dz", "arm_cyl_barrel.rw", "arm_cyl_barrel.rx", "arm_cyl_barrel.ry", "arm_cyl_barrel.rz", "arm_cyl_barrel.dw", "arm_cyl_barrel.dx", "arm_cyl_barrel.dy", "arm_cyl_barrel.dz", "arm_cyl_rod.rw", "arm_cyl_rod.rx", "arm_cyl_rod.ry", "arm_cyl_rod.rz", "arm_cyl_rod.dw", "arm_cyl_rod.dx", "arm_cyl_rod.dy", "arm_cyl_rod.dz", "bucket_cyl_barrel.rw", "bucket_cyl_barrel.rx", "bucket_cyl_barrel.ry", "bucket_cyl_barrel.rz", "bucket_cyl_barrel.dw", "bucket_cyl_barrel.dx", "bucket_cyl_barrel.dy", "bucket_cyl_barrel.dz", "bucket_cyl_rod.rw", "bucket_cyl_rod.rx", "bucket_cyl_rod.ry", "bucket_cyl_rod.rz", "bucket_cyl_rod.dw", "bucket_cyl_rod.dx", "bucket_cyl_rod.dy", "bucket_cyl_rod.dz", "side_link.rw", "side_link.rx", "side_link.ry", "side_link.rz", "side_link.dw", "side_link.dx", "side_link.dy", "side_link.dz", "bucket_link.rw", "bucket_link.rx", "bucket_link.ry", "bucket_link.rz", "bucket_link.dw", "bucket_link.dx", "bucket_link.dy", "bucket_link.dz", "bucket.rw", "bucket.rx", "bucket.ry", "bucket.rz", "bucket.dw", "bucket.dx", "bucket.dy", "bucket.dz"};
 static const char *const velocity_names[] = {"upper.wx", "upper.wy", "upper.wz", "upper.vx", "upper.vy", "upper.vz", "boom.wx", "boom.wy", "boom.wz", "boom.vx", "boom.vy", "boom.vz", "boom_cyl_l_barrel.wx", "boom_cyl_l_barrel.wy", "boom_cyl_l_barrel.wz", "boom_cyl_l_barrel.vx", "boom_cyl_l_barrel.vy", "boom_cyl_l_barrel.vz", "boom_cyl_l_rod.wx", "boom_cyl_l_rod.wy", "boom_cyl_l_rod.wz", "boom_cyl_l_rod.vx", "boom_cyl_l_rod.vy", "boom_cyl_l_rod.vz", "boom_cyl_r_barrel.wx", "boom_cyl_r_barrel.wy", "boom_cyl_r_barrel.wz", "boom_cyl_r_barrel.vx", "boom_cyl_r_barrel.vy", "boom_cyl_r_barrel.vz", "boom_cyl_r_rod.wx", "boom_cyl_r_rod.wy", "boom_cyl_r_rod.wz", "boom_cyl_r_rod.vx", "boom_cyl_r_rod.vy", "boom_cyl_r_rod.vz", "arm.wx", "arm.wy", "arm.wz", "arm.vx", "arm.vy", "arm.vz", "arm_cyl_barrel.wx", "arm_cyl_barrel.wy", "arm_cyl_barrel.wz", "arm_cyl_barrel.vx", "arm_cyl_barrel.vy", "arm_cyl_barrel.vz", "arm_cyl_rod.wx", "arm_cyl_rod.wy", "arm_cyl_rod.wz", "arm_cyl_rod.vx", "arm_cyl_rod.vy", "arm_cyl_rod.vz", "bucket_cyl_barrel.wx", "bucket_cyl_barrel.wy", "bucket_cyl_barrel.wz", "bucket_cyl_barrel.vx", "bucket_cyl_barrel.vy", "bucket_cyl_barrel.vz", "bucket_cyl_rod.wx", "bucket_cyl_rod.wy", "bucket_cyl_rod.wz", "bucket_cyl_rod.vx", "bucket_cyl_rod.vy", "bucket_cyl_rod.vz", "side_link.wx", "side_link.wy", "side_link.wz", "side_link.vx", "side_link.vy", "side_link.vz", "bucket_link.wx", "bucket_link.wy", "bucket_link.wz", "bucket_link.vx", "bucket_link.vy", "bucket_link.vz", "bucket.wx", "bucket.wy", "bucket.wz", "bucket.vx", "bucket.vy", "bucket.vz"};
 static const kinegen_point points[] = {
-    {0, "upper.O", {0.0, 0.0, 0.0}},
-    {0, "upper.A", {0.22767, 0.0, 1.95729}},
-    {0, "upper.B_left", {0.68912, 0.32, 1.35478}},
-    {0, "upper.B_right", {0.68912, -0.32, 1.35478}},
-    {1, "boom.A", {0.0, 0.0, 0.0}},
-    {1, "boom.C_left", {1.39283, 0.32, 2.001922}},
-    {1, "boom.C_right", {1.39283, -0.32, 2.001922}},
-    {1, "boom.D", {2.2875, 0.0, 2.785}},
-    {1, "boom.E", {4.7878, 0.0, 2.9959}},
-    {2, "boom_cyl_l_barrel.base", {0.0, 0.0, 0.0}},
-    {3, "boom_cyl_l_rod.eye", {0.0, 0.0, 0.0}},
-    {4, "boom_cyl_r_barrel.base", {0.0, 0.0, 0.0}},
-    {5, "boom_cyl_r_rod.eye", {0.0, 0.0, 0.0}},
-    {6, "arm.E", {0.0, 0.0, 0.0}},
-    {6, "arm.F", {-0.786562, 0.0, -0.369691}},
-    {6, "arm.G", {-0.24687, 0.0, 0.73594}},
-    {6, "arm.H", {1.5754, 0.0, 1.8799}},
-    {6, "arm.Q", {1.8954, 0.0, 2.1809}},
-    {7, "arm_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {8, "arm_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {9, "bucket_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {10, "bucket_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {11, "side_link.H", {0.0, 0.0, 0.0}},
-    {11, "side_link.J", {-0.332658, 0.0, 0.481235}},
-    {12, "bucket_link.K", {0.0, 0.0, 0.0}},
-    {12, "bucket_link.J", {-0.342428, 0.0, -0.450737}},
-    {13, "bucket.Q", {0.0, 0.0, 0.0}},
-    {13, "bucket.K", {-0.32404, 0.0, 0.33854}},
-    {13, "bucket.T", {1.28, 0.0, 0.806}},
-    {-1, "ground.O", {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.O", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.A", .local = {0.22767, 0.0, 1.95729}},
+    {.body = 0, .name = "upper.B_left", .local = {0.68912, 0.32, 1.35478}},
+    {.body = 0, .name = "upper.B_right", .local = {0.68912, -0.32, 1.35478}},
+    {.body = 1, .name = "boom.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "boom.C_left", .local = {1.39283, 0.32, 2.001922}},
+    {.body = 1, .name = "boom.C_right", .local = {1.39283, -0.32, 2.001922}},
+    {.body = 1, .name = "boom.D", .local = {2.2875, 0.0, 2.785}},
+    {.body = 1, .name = "boom.E", .local = {4.7878, 0.0, 2.9959}},
+    {.body = 2, .name = "boom_cyl_l_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 3, .name = "boom_cyl_l_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 4, .name = "boom_cyl_r_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 5, .name = "boom_cyl_r_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.E", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.F", .local = {-0.786562, 0.0, -0.369691}},
+    {.body = 6, .name = "arm.G", .local = {-0.24687, 0.0, 0.73594}},
+    {.body = 6, .name = "arm.H", .local = {1.5754, 0.0, 1.8799}},
+    {.body = 6, .name = "arm.Q", .local = {1.8954, 0.0, 2.1809}},
+    {.body = 7, .name = "arm_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 8, .name = "arm_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 9, .name = "bucket_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 10, .name = "bucket_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.H", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.J", .local = {-0.332658, 0.0, 0.481235}},
+    {.body = 12, .name = "bucket_link.K", .local = {0.0, 0.0, 0.0}},
+    {.body = 12, .name = "bucket_link.J", .local = {-0.342428, 0.0, -0.450737}},
+    {.body = 13, .name = "bucket.Q", .local = {0.0, 0.0, 0.0}},
+    {.body = 13, .name = "bucket.K", .local = {-0.32404, 0.0, 0.33854}},
+    {.body = 13, .name = "bucket.T", .local = {1.28, 0.0, 0.806}},
+    {.body = -1, .name = "ground.O", .local = {0.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {"boom_cylinder_left", 9, 10, 1, 1.7352, 3.0649},
-    {"boom_cylinder_right", 11, 12, 1, 1.7352, 3.0649},
-    {"arm_cylinder", 18, 19, 1, 1.8164, 3.2939},
-    {"bucket_cylinder", 20, 21, 1, 1.6529, 2.6613},
+    {.name = "boom_cylinder_left", .point1 = 9, .point2 = 10, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "boom_cylinder_right", .point1 = 11, .point2 = 12, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "arm_cylinder", .point1 = 18, .point2 = 19, .has_range = 1, .min = 1.8164, .max = 3.2939},
+    {.name = "bucket_cylinder", .point1 = 20, .point2 = 21, .has_range = 1, .min = 1.6529, .max = 2.6613},
 };
 
 /* the force solve (kinegen_forces): 4 actuation element(s), 2 load(s) */
@@ -9966,23 +9966,31 @@ static const int statics_off_col[] = {0, 4, 5, 1, 3, 5, 2, 3, 4, 2, 3, 4, 1, 3, 
 static const int statics_off_value[] = {9, 7, 8, 13, 11, 12, 17, 15, 16, 113, 111, 112, 109, 107, 108, 105, 103, 104, 41, 39, 40, 37, 35, 36, 33, 31, 32, 19, 20, 21, 25, 26, 27, 93, 97, 101, 165, 169, 173, 436, 435, 434, 430, 429, 428, 43, 44, 45, 66, 65, 64, 71, 72, 70, 78, 77, 76, 83, 84, 82, 115, 116, 117, 138, 137, 136, 142, 143, 144, 150, 149, 148, 154, 155, 156, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 187, 188, 189, 193, 194, 195, 261, 265, 269, 442, 441, 440, 211, 212, 213, 234, 233, 232, 239, 240, 238, 246, 245, 244, 251, 252, 250, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 418, 422, 426, 448, 447, 446, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348, 367, 368, 369, 390, 389, 388, 394, 396, 395, 402, 401, 400, 406, 408, 407};
 
 static const kinegen_statics statics = {
-    4, element_names, element_kinds, 80,
-    {452, matrix_rows, matrix_cols}, &kernels[2],
-    2, load_names, {6, load_rows, load_cols}, &kernels[3],
-    84, inertia_cols, &kernels[4],
-    37, statics_block_start, statics_block_store, statics_row_order, statics_col_order,
-    410, 260, statics_diag_value, statics_diag_slot,
-    192, statics_off_start, statics_off_col, statics_off_value,
-    1312, 84,
-    19, joint_names, joint_body, joint_sign, joint_point_body, joint_local, joint_row_start, joint_rows,
-    body_norm_start, body_norm_rows, element_hydraulics, 1597, 80,
+    .n_elements = 4, .element_names = element_names, .element_kinds = element_kinds,
+    .n_joint_rows = 80,
+    .pattern = {.n = 452, .rows = matrix_rows, .cols = matrix_cols}, .actuation = &kernels[2],
+    .n_loads = 2, .load_names = load_names,
+    .load_pattern = {.n = 6, .rows = load_rows, .cols = load_cols}, .loads = &kernels[3],
+    .n_inertia = 84, .inertia_cols = inertia_cols, .inertia = &kernels[4],
+    .n_blocks = 37, .block_start = statics_block_start, .block_store = statics_block_store,
+    .row_order = statics_row_order, .col_order = statics_col_order,
+    .n_store = 410, .n_diag = 260, .diag_value = statics_diag_value,
+    .diag_slot = statics_diag_slot,
+    .n_off = 192, .off_start = statics_off_start, .off_col = statics_off_col, .off_value = statics_off_value,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_FORCE_WORK_DOUBLES, .work_ints = EXCAVATOR_DUAL_QUATERNION_FORCE_WORK_INTS,
+    .n_joints = 19, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
+    .joint_point_body = joint_point_body, .joint_local = joint_local, .joint_row_start = joint_row_start, .joint_rows = joint_rows,
+    .body_norm_start = body_norm_start, .body_norm_rows = body_norm_rows, .element_hydraulics = element_hydraulics,
+    .reaction_doubles = EXCAVATOR_DUAL_QUATERNION_REACTION_WORK_DOUBLES, .reaction_ints = EXCAVATOR_DUAL_QUATERNION_REACTION_WORK_INTS,
 };
 
 const kinegen_layout excavator_dual_quaternion_layout = {
-    "excavator", "dual-quaternion", "excavator.yaml", "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", "0.2.0",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, EXCAVATOR_DUAL_QUATERNION_N_BODIES, body_names, stored_names, velocity_names,
-    30, points, 4, actuators, excavator_dual_quaternion_frames,
-    8, kernels, &statics,
+    .model = "excavator", .parametrization = "dual-quaternion", .source = "excavator.yaml",
+    .source_sha256 = "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", .kinegen_version = "0.2.0",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_bodies = EXCAVATOR_DUAL_QUATERNION_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 30, .points = points, .n_actuators = 4, .actuators = actuators,
+    .frames = excavator_dual_quaternion_frames, .n_kernels = 8, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.9826937028898046, 0.0, 0.18523791809649656, 0.0, 0.0, -0.06941722468708496, 0.0, 0.9827948372711075, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 0.604231304353096, 0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 1.7341333740493532, 0.1441723416885284, 1.004743925176123, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 0.604231304353096, -0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 1.7341333740493532, -0.1441723416885284, 1.004743925176123, 0.7487823326004931, 0.0, 0.6628159762599, 0.0, 0.0, 1.1673591676421733, 0.0, 3.0396113433154897, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 1.6965717474027266, 0.0, 1.8495911036498867, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 2.6681621172680057, 0.0, 1.855102189922746, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 2.5562304402872105, 0.0, 2.5969797733967255, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 3.4387759320385776, 0.0, 2.30704926454922, 0.912012841994652, 0.0, 0.4101616462284567, 0.0, 0.0, 3.2304534311614317, 0.0, 2.3677903790988526, 0.640244241850993, 0.0, 0.7681714071590059, 0.0, 0.0, 1.9761889826861672, 0.0, 3.7916431136090383, 0.8349444950888361, 0.0, 0.5503341622331369, 0.0, 0.0, 3.029873627157362, 0.0, 2.828134945093185};
@@ -10005,20 +10013,23 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 2
 static const int off_col_digging[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_digging = {
-    12, design_nominal, phi_jac_digging, nu_digging, gamma_digging,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging, .nu = nu_digging, .gamma = gamma_digging,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_digging = {
-    &excavator_dual_quaternion_layout, "digging",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
-    0.0, 17.0, 341,
-    initial_q, constraints_digging, drivers_digging, jac_rows_digging, jac_cols_digging,
-    NULL, NULL, NULL, inputs_digging, input_ranges_digging, retract,
-    37, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
-    584, 278, diag_value_digging, diag_slot_digging,
-    179, off_start_digging, off_col_digging, off_value_digging,
-    3637, 246, 5, kernels_digging, &design_digging,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "digging",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 457,
+    .t0 = 0.0, .t1 = 17.0, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging, .driver_names = drivers_digging,
+    .jac_rows = jac_rows_digging, .jac_cols = jac_cols_digging,
+    .inputs = inputs_digging, .input_ranges = input_ranges_digging, .retract = retract,
+    .n_blocks = 37, .block_start = block_start_digging, .block_store = block_store_digging,
+    .row_order = row_order_digging, .col_order = col_order_digging,
+    .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
+    .n_off = 179, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING,
+    .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -10037,20 +10048,23 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17,
 static const int off_col_level_cut[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_level_cut[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
 static const kinegen_design design_level_cut = {
-    12, design_nominal, phi_jac_level_cut, nu_level_cut, gamma_level_cut,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_level_cut, .nu = nu_level_cut, .gamma = gamma_level_cut,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_level_cut = {
-    &excavator_dual_quaternion_layout, "level_cut",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 439,
-    0.0, 4.0, 201,
-    initial_q, constraints_level_cut, drivers_level_cut, jac_rows_level_cut, jac_cols_level_cut,
-    NULL, NULL, NULL, inputs_level_cut, input_ranges_level_cut, retract,
-    46, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
-    392, 249, diag_value_level_cut, diag_slot_level_cut,
-    190, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    3420, 264, 5, kernels_level_cut, &design_level_cut,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "level_cut",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 439,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_level_cut, .driver_names = drivers_level_cut,
+    .jac_rows = jac_rows_level_cut, .jac_cols = jac_cols_level_cut,
+    .inputs = inputs_level_cut, .input_ranges = input_ranges_level_cut, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_level_cut, .block_store = block_store_level_cut,
+    .row_order = row_order_level_cut, .col_order = col_order_level_cut,
+    .n_store = 392, .n_diag = 249, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
+    .n_off = 190, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_LEVEL_CUT,
+    .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -10069,20 +10083,23 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 1
 static const int off_col_trench_wall[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_trench_wall[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
 static const kinegen_design design_trench_wall = {
-    12, design_nominal, phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_trench_wall, .nu = nu_trench_wall, .gamma = gamma_trench_wall,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_trench_wall = {
-    &excavator_dual_quaternion_layout, "trench_wall",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 439,
-    0.0, 4.0, 201,
-    initial_q, constraints_trench_wall, drivers_trench_wall, jac_rows_trench_wall, jac_cols_trench_wall,
-    NULL, NULL, NULL, inputs_trench_wall, input_ranges_trench_wall, retract,
-    46, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
-    392, 249, diag_value_trench_wall, diag_slot_trench_wall,
-    190, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    3420, 264, 5, kernels_trench_wall, &design_trench_wall,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "trench_wall",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 439,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_trench_wall, .driver_names = drivers_trench_wall,
+    .jac_rows = jac_rows_trench_wall, .jac_cols = jac_cols_trench_wall,
+    .inputs = inputs_trench_wall, .input_ranges = input_ranges_trench_wall, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_trench_wall, .block_store = block_store_trench_wall,
+    .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
+    .n_store = 392, .n_diag = 249, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
+    .n_off = 190, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_TRENCH_WALL,
+    .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -10101,20 +10118,23 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_bucket_toggle = {
-    12, design_nominal, phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_toggle, .nu = nu_bucket_toggle, .gamma = gamma_bucket_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_bucket_toggle = {
-    &excavator_dual_quaternion_layout, "bucket_toggle",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
-    0.0, 3.0, 301,
-    initial_q, constraints_bucket_toggle, drivers_bucket_toggle, jac_rows_bucket_toggle, jac_cols_bucket_toggle,
-    NULL, NULL, NULL, inputs_bucket_toggle, input_ranges_bucket_toggle, retract,
-    37, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
-    584, 278, diag_value_bucket_toggle, diag_slot_bucket_toggle,
-    179, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    3637, 246, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "bucket_toggle",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 457,
+    .t0 = 0.0, .t1 = 3.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_toggle, .driver_names = drivers_bucket_toggle,
+    .jac_rows = jac_rows_bucket_toggle, .jac_cols = jac_cols_bucket_toggle,
+    .inputs = inputs_bucket_toggle, .input_ranges = input_ranges_bucket_toggle, .retract = retract,
+    .n_blocks = 37, .block_start = block_start_bucket_toggle, .block_store = block_store_bucket_toggle,
+    .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
+    .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
+    .n_off = 179, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -10133,20 +10153,23 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_stroke[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_bucket_stroke = {
-    12, design_nominal, phi_jac_bucket_stroke, nu_bucket_stroke, gamma_bucket_stroke,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_stroke, .nu = nu_bucket_stroke, .gamma = gamma_bucket_stroke,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_bucket_stroke = {
-    &excavator_dual_quaternion_layout, "bucket_stroke",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
-    0.0, 1.0, 101,
-    initial_q, constraints_bucket_stroke, drivers_bucket_stroke, jac_rows_bucket_stroke, jac_cols_bucket_stroke,
-    NULL, NULL, NULL, inputs_bucket_stroke, input_ranges_bucket_stroke, retract,
-    37, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
-    584, 278, diag_value_bucket_stroke, diag_slot_bucket_stroke,
-    179, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    3637, 246, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "bucket_stroke",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 457,
+    .t0 = 0.0, .t1 = 1.0, .steps = 101,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_stroke, .driver_names = drivers_bucket_stroke,
+    .jac_rows = jac_rows_bucket_stroke, .jac_cols = jac_cols_bucket_stroke,
+    .inputs = inputs_bucket_stroke, .input_ranges = input_ranges_bucket_stroke, .retract = retract,
+    .n_blocks = 37, .block_start = block_start_bucket_stroke, .block_store = block_store_bucket_stroke,
+    .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
+    .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
+    .n_off = 179, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_STROKE,
+    .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -10165,20 +10188,23 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_near_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_bucket_near_toggle = {
-    12, design_nominal, phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_near_toggle, .nu = nu_bucket_near_toggle, .gamma = gamma_bucket_near_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_bucket_near_toggle = {
-    &excavator_dual_quaternion_layout, "bucket_near_toggle",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
-    0.0, 2.0, 9,
-    initial_q, constraints_bucket_near_toggle, drivers_bucket_near_toggle, jac_rows_bucket_near_toggle, jac_cols_bucket_near_toggle,
-    NULL, NULL, NULL, inputs_bucket_near_toggle, input_ranges_bucket_near_toggle, retract,
-    37, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
-    584, 278, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
-    179, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    3637, 246, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "bucket_near_toggle",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 457,
+    .t0 = 0.0, .t1 = 2.0, .steps = 9,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_near_toggle, .driver_names = drivers_bucket_near_toggle,
+    .jac_rows = jac_rows_bucket_near_toggle, .jac_cols = jac_cols_bucket_near_toggle,
+    .inputs = inputs_bucket_near_toggle, .input_ranges = input_ranges_bucket_near_toggle, .retract = retract,
+    .n_blocks = 37, .block_start = block_start_bucket_near_toggle, .block_store = block_store_bucket_near_toggle,
+    .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
+    .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
+    .n_off = 179, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_BUCKET_NEAR_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -10197,20 +10223,23 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_fast[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_digging_fast = {
-    12, design_nominal, phi_jac_digging_fast, nu_digging_fast, gamma_digging_fast,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_fast, .nu = nu_digging_fast, .gamma = gamma_digging_fast,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_digging_fast = {
-    &excavator_dual_quaternion_layout, "digging_fast",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
-    0.0, 13.6, 341,
-    initial_q, constraints_digging_fast, drivers_digging_fast, jac_rows_digging_fast, jac_cols_digging_fast,
-    NULL, NULL, NULL, inputs_digging_fast, input_ranges_digging_fast, retract,
-    37, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
-    584, 278, diag_value_digging_fast, diag_slot_digging_fast,
-    179, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    3637, 246, 5, kernels_digging_fast, &design_digging_fast,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "digging_fast",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 457,
+    .t0 = 0.0, .t1 = 13.6, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_fast, .driver_names = drivers_digging_fast,
+    .jac_rows = jac_rows_digging_fast, .jac_cols = jac_cols_digging_fast,
+    .inputs = inputs_digging_fast, .input_ranges = input_ranges_digging_fast, .retract = retract,
+    .n_blocks = 37, .block_start = block_start_digging_fast, .block_store = block_store_digging_fast,
+    .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
+    .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
+    .n_off = 179, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING_FAST,
+    .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -10229,20 +10258,23 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_paced[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_digging_paced = {
-    12, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_paced, .nu = nu_digging_paced, .gamma = gamma_digging_paced,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_digging_paced = {
-    &excavator_dual_quaternion_layout, "digging_paced",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
-    0.0, 59.5, 341,
-    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
-    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
-    37, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
-    584, 278, diag_value_digging_paced, diag_slot_digging_paced,
-    179, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    3637, 246, 5, kernels_digging_paced, &design_digging_paced,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "digging_paced",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 457,
+    .t0 = 0.0, .t1 = 59.5, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_paced, .driver_names = drivers_digging_paced,
+    .jac_rows = jac_rows_digging_paced, .jac_cols = jac_cols_digging_paced,
+    .inputs = inputs_digging_paced, .input_ranges = input_ranges_digging_paced, .retract = retract,
+    .n_blocks = 37, .block_start = block_start_digging_paced, .block_store = block_store_digging_paced,
+    .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
+    .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
+    .n_off = 179, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_DIGGING_PACED,
+    .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -10261,20 +10293,23 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 1
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_oscillation[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_oscillation = {
-    12, design_nominal, phi_jac_oscillation, nu_oscillation, gamma_oscillation,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_oscillation, .nu = nu_oscillation, .gamma = gamma_oscillation,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_dual_quaternion_oscillation = {
-    &excavator_dual_quaternion_layout, "oscillation",
-    EXCAVATOR_DUAL_QUATERNION_N_Q, EXCAVATOR_DUAL_QUATERNION_N_V, 4, 457,
-    0.0, 2.0, 301,
-    initial_q, constraints_oscillation, drivers_oscillation, jac_rows_oscillation, jac_cols_oscillation,
-    NULL, NULL, NULL, inputs_oscillation, input_ranges_oscillation, retract,
-    37, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
-    584, 278, diag_value_oscillation, diag_slot_oscillation,
-    179, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    3637, 246, 5, kernels_oscillation, &design_oscillation,
+    .layout = &excavator_dual_quaternion_layout, .case_name = "oscillation",
+    .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_inputs = 4, .n_jac = 457,
+    .t0 = 0.0, .t1 = 2.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_oscillation, .driver_names = drivers_oscillation,
+    .jac_rows = jac_rows_oscillation, .jac_cols = jac_cols_oscillation,
+    .inputs = inputs_oscillation, .input_ranges = input_ranges_oscillation, .retract = retract,
+    .n_blocks = 37, .block_start = block_start_oscillation, .block_store = block_store_oscillation,
+    .row_order = row_order_oscillation, .col_order = col_order_oscillation,
+    .n_store = 584, .n_diag = 278, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
+    .n_off = 179, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
+    .work_doubles = EXCAVATOR_DUAL_QUATERNION_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_DUAL_QUATERNION_WORK_INTS_OSCILLATION,
+    .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };
 
 const kinegen_model *const excavator_dual_quaternion_cases[EXCAVATOR_DUAL_QUATERNION_N_CASES] = {&excavator_dual_quaternion_digging, &excavator_dual_quaternion_level_cut, &excavator_dual_quaternion_trench_wall, &excavator_dual_quaternion_bucket_toggle, &excavator_dual_quaternion_bucket_stroke, &excavator_dual_quaternion_bucket_near_toggle, &excavator_dual_quaternion_digging_fast, &excavator_dual_quaternion_digging_paced, &excavator_dual_quaternion_oscillation};

@@ -87,7 +87,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_quaternion.h': '0dc55d70a4f89e7b4263fd0d4eea1a53f9771172d9316e04958c1ade58d46aea', 'excavator_dual_quaternion.c': 'db6325cdceb866f0f97e0f0d3a27a8f7e0570291851d7300e0bbedd7d310abf6'}
+C_FILES = {'excavator_dual_quaternion.h': '11a7b41a35a3bab397c0d4fd94ae47dda9a1068ffedb644b27bbd6c46d263f9e', 'excavator_dual_quaternion.c': 'd1c088ae2fe8784825dec11dddab490c1fd9798f2b063bc4b464aa54881dd782'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -9289,11 +9289,11 @@ static const int sizes_inputs_digging[] = {12};
 static const char *const outputs_input_ranges_digging[] = {"input_ranges"};
 static const int sizes_input_ranges_digging[] = {24};
 static const kinegen_kernel kernels_digging[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging, sizes_phi_jac_digging, call_phi_jac_digging},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging, sizes_nu_digging, call_nu_digging},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging, sizes_gamma_digging, call_gamma_digging},
-    {"inputs", "t", 1, outputs_inputs_digging, sizes_inputs_digging, call_inputs_digging},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging, sizes_input_ranges_digging, call_input_ranges_digging},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging, .output_sizes = sizes_phi_jac_digging, .call = call_phi_jac_digging},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging, .output_sizes = sizes_nu_digging, .call = call_nu_digging},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging, .output_sizes = sizes_gamma_digging, .call = call_gamma_digging},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging, .output_sizes = sizes_inputs_digging, .call = call_inputs_digging},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging, .output_sizes = sizes_input_ranges_digging, .call = call_input_ranges_digging},
 };
 static const char *const outputs_phi_jac_level_cut[] = {"phi", "jac"};
 static const int sizes_phi_jac_level_cut[] = {98, 627};
@@ -9306,11 +9306,11 @@ static const int sizes_inputs_level_cut[] = {12};
 static const char *const outputs_input_ranges_level_cut[] = {"input_ranges"};
 static const int sizes_input_ranges_level_cut[] = {24};
 static const kinegen_kernel kernels_level_cut[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_level_cut, sizes_phi_jac_level_cut, call_phi_jac_level_cut},
-    {"nu", "q,u,ud,p", 1, outputs_nu_level_cut, sizes_nu_level_cut, call_nu_level_cut},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_level_cut, sizes_gamma_level_cut, call_gamma_level_cut},
-    {"inputs", "t", 1, outputs_inputs_level_cut, sizes_inputs_level_cut, call_inputs_level_cut},
-    {"input_ranges", "span", 1, outputs_input_ranges_level_cut, sizes_input_ranges_level_cut, call_input_ranges_level_cut},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_level_cut, .output_sizes = sizes_phi_jac_level_cut, .call = call_phi_jac_level_cut},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_level_cut, .output_sizes = sizes_nu_level_cut, .call = call_nu_level_cut},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_level_cut, .output_sizes = sizes_gamma_level_cut, .call = call_gamma_level_cut},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_level_cut, .output_sizes = sizes_inputs_level_cut, .call = call_inputs_level_cut},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_level_cut, .output_sizes = sizes_input_ranges_level_cut, .call = call_input_ranges_level_cut},
 };
 static const char *const outputs_phi_jac_trench_wall[] = {"phi", "jac"};
 static const int sizes_phi_jac_trench_wall[] = {98, 627};
@@ -9323,11 +9323,11 @@ static const int sizes_inputs_trench_wall[] = {12};
 static const char *const outputs_input_ranges_trench_wall[] = {"input_ranges"};
 static const int sizes_input_ranges_trench_wall[] = {24};
 static const kinegen_kernel kernels_trench_wall[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_trench_wall, sizes_phi_jac_trench_wall, call_phi_jac_trench_wall},
-    {"nu", "q,u,ud,p", 1, outputs_nu_trench_wall, sizes_nu_trench_wall, call_nu_trench_wall},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_trench_wall, sizes_gamma_trench_wall, call_gamma_trench_wall},
-    {"inputs", "t", 1, outputs_inputs_trench_wall, sizes_inputs_trench_wall, call_inputs_trench_wall},
-    {"input_ranges", "span", 1, outputs_input_ranges_trench_wall, sizes_input_ranges_trench_wall, call_input_ranges_trench_wall},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_trench_wall, .output_sizes = sizes_phi_jac_trench_wall, .call = call_phi_jac_trench_wall},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_trench_wall, .output_sizes = sizes_nu_trench_wall, .call = call_nu_trench_wall},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_trench_wall, .output_sizes = sizes_gamma_trench_wall, .call = call_gamma_trench_wall},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_trench_wall, .output_sizes = sizes_inputs_trench_wall, .call = call_inputs_trench_wall},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_trench_wall, .output_sizes = sizes_input_ranges_trench_wall, .call = call_input_ranges_trench_wall},
 };
 static const char *const outputs_phi_jac_bucket_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_toggle[] = {98, 643};
@@ -9340,11 +9340,11 @@ static const int sizes_inputs_bucket_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_toggle, sizes_phi_jac_bucket_toggle, call_phi_jac_bucket_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_toggle, sizes_nu_bucket_toggle, call_nu_bucket_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_toggle, sizes_gamma_bucket_toggle, call_gamma_bucket_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_toggle, sizes_inputs_bucket_toggle, call_inputs_bucket_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_toggle, sizes_input_ranges_bucket_toggle, call_input_ranges_bucket_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_toggle, .output_sizes = sizes_phi_jac_bucket_toggle, .call = call_phi_jac_bucket_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_toggle, .output_sizes = sizes_nu_bucket_toggle, .call = call_nu_bucket_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_toggle, .output_sizes = sizes_gamma_bucket_toggle, .call = call_gamma_bucket_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_toggle, .output_sizes = sizes_inputs_bucket_toggle, .call = call_inputs_bucket_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_toggle, .output_sizes = sizes_input_ranges_bucket_toggle, .call = call_input_ranges_bucket_toggle},
 };
 static const char *const outputs_phi_jac_bucket_stroke[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_stroke[] = {98, 643};
@@ -9357,11 +9357,11 @@ static const int sizes_inputs_bucket_stroke[] = {12};
 static const char *const outputs_input_ranges_bucket_stroke[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_stroke[] = {24};
 static const kinegen_kernel kernels_bucket_stroke[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_stroke, sizes_phi_jac_bucket_stroke, call_phi_jac_bucket_stroke},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_stroke, sizes_nu_bucket_stroke, call_nu_bucket_stroke},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_stroke, sizes_gamma_bucket_stroke, call_gamma_bucket_stroke},
-    {"inputs", "t", 1, outputs_inputs_bucket_stroke, sizes_inputs_bucket_stroke, call_inputs_bucket_stroke},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_stroke, sizes_input_ranges_bucket_stroke, call_input_ranges_bucket_stroke},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_stroke, .output_sizes = sizes_phi_jac_bucket_stroke, .call = call_phi_jac_bucket_stroke},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_stroke, .output_sizes = sizes_nu_bucket_stroke, .call = call_nu_bucket_stroke},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_stroke, .output_sizes = sizes_gamma_bucket_stroke, .call = call_gamma_bucket_stroke},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_stroke, .output_sizes = sizes_inputs_bucket_stroke, .call = call_inputs_bucket_stroke},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_stroke, .output_sizes = sizes_input_ranges_bucket_stroke, .call = call_input_ranges_bucket_stroke},
 };
 static const char *const outputs_phi_jac_bucket_near_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_near_toggle[] = {98, 643};
@@ -9374,11 +9374,11 @@ static const int sizes_inputs_bucket_near_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_near_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_near_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_near_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_near_toggle, sizes_phi_jac_bucket_near_toggle, call_phi_jac_bucket_near_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_near_toggle, sizes_nu_bucket_near_toggle, call_nu_bucket_near_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_near_toggle, sizes_gamma_bucket_near_toggle, call_gamma_bucket_near_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_near_toggle, sizes_inputs_bucket_near_toggle, call_inputs_bucket_near_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_near_toggle, sizes_input_ranges_bucket_near_toggle, call_input_ranges_bucket_near_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_near_toggle, .output_sizes = sizes_phi_jac_bucket_near_toggle, .call = call_phi_jac_bucket_near_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_near_toggle, .output_sizes = sizes_nu_bucket_near_toggle, .call = call_nu_bucket_near_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_near_toggle, .output_sizes = sizes_gamma_bucket_near_toggle, .call = call_gamma_bucket_near_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_near_toggle, .output_sizes = sizes_inputs_bucket_near_toggle, .call = call_inputs_bucket_near_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_near_toggle, .output_sizes = sizes_input_ranges_bucket_near_toggle, .call = call_input_ranges_bucket_near_toggle},
 };
 static const char *const outputs_phi_jac_digging_fast[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_fast[] = {98, 643};
@@ -9391,11 +9391,11 @@ static const int sizes_inputs_digging_fast[] = {12};
 static const char *const outputs_input_ranges_digging_fast[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_fast[] = {24};
 static const kinegen_kernel kernels_digging_fast[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_fast, sizes_phi_jac_digging_fast, call_phi_jac_digging_fast},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_fast, sizes_nu_digging_fast, call_nu_digging_fast},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_fast, sizes_gamma_digging_fast, call_gamma_digging_fast},
-    {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_fast, .output_sizes = sizes_phi_jac_digging_fast, .call = call_phi_jac_digging_fast},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_fast, .output_sizes = sizes_nu_digging_fast, .call = call_nu_digging_fast},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_fast, .output_sizes = sizes_gamma_digging_fast, .call = call_gamma_digging_fast},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_fast, .output_sizes = sizes_inputs_digging_fast, .call = call_inputs_digging_fast},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_fast, .output_sizes = sizes_input_ranges_digging_fast, .call = call_input_ranges_digging_fast},
 };
 static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_paced[] = {98, 643};
@@ -9408,11 +9408,11 @@ static const int sizes_inputs_digging_paced[] = {12};
 static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_paced[] = {24};
 static const kinegen_kernel kernels_digging_paced[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
-    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_paced, .output_sizes = sizes_phi_jac_digging_paced, .call = call_phi_jac_digging_paced},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_paced, .output_sizes = sizes_nu_digging_paced, .call = call_nu_digging_paced},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_paced, .output_sizes = sizes_gamma_digging_paced, .call = call_gamma_digging_paced},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_paced, .output_sizes = sizes_inputs_digging_paced, .call = call_inputs_digging_paced},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_paced, .output_sizes = sizes_input_ranges_digging_paced, .call = call_input_ranges_digging_paced},
 };
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {98, 643};
@@ -9425,11 +9425,11 @@ static const int sizes_inputs_oscillation[] = {12};
 static const char *const outputs_input_ranges_oscillation[] = {"input_ranges"};
 static const int sizes_input_ranges_oscillation[] = {24};
 static const kinegen_kernel kernels_oscillation[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_oscillation, sizes_phi_jac_oscillation, call_phi_jac_oscillation},
-    {"nu", "q,u,ud,p", 1, outputs_nu_oscillation, sizes_nu_oscillation, call_nu_oscillation},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_oscillation, sizes_gamma_oscillation, call_gamma_oscillation},
-    {"inputs", "t", 1, outputs_inputs_oscillation, sizes_inputs_oscillation, call_inputs_oscillation},
-    {"input_ranges", "span", 1, outputs_input_ranges_oscillation, sizes_input_ranges_oscillation, call_input_ranges_oscillation},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_oscillation, .output_sizes = sizes_phi_jac_oscillation, .call = call_phi_jac_oscillation},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_oscillation, .output_sizes = sizes_nu_oscillation, .call = call_nu_oscillation},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_oscillation, .output_sizes = sizes_gamma_oscillation, .call = call_gamma_oscillation},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_oscillation, .output_sizes = sizes_inputs_oscillation, .call = call_inputs_oscillation},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_oscillation, .output_sizes = sizes_input_ranges_oscillation, .call = call_input_ranges_oscillation},
 };
 static const char *const outputs_excavator_euler_parameters_frames[] = {"frames"};
 static const int sizes_excavator_euler_parameters_frames[] = {336};
@@ -9448,56 +9448,56 @@ static const int sizes_shared_points[] = {90};
 static const char *const outputs_shared_actuator_ranges[] = {"actuator_ranges"};
 static const int sizes_shared_actuator_ranges[] = {8};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_excavator_euler_parameters_frames, sizes_excavator_euler_parameters_frames, call_excavator_euler_parameters_frames},
-    {"lengths", "q,p", 1, outputs_shared_lengths, sizes_shared_lengths, call_shared_lengths},
-    {"actuation", "q,p", 1, outputs_shared_actuation, sizes_shared_actuation, call_shared_actuation},
-    {"loads", "q,t,p", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
-    {"inertia", "q,v,a,p", 1, outputs_shared_inertia, sizes_shared_inertia, call_shared_inertia},
-    {"supply", "q,v,f,p", 4, outputs_shared_supply, sizes_shared_supply, call_shared_supply},
-    {"points", "p", 1, outputs_shared_points, sizes_shared_points, call_shared_points},
-    {"actuator_ranges", "p", 1, outputs_shared_actuator_ranges, sizes_shared_actuator_ranges, call_shared_actuator_ranges},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_excavator_euler_parameters_frames, .output_sizes = sizes_excavator_euler_parameters_frames, .call = call_excavator_euler_parameters_frames},
+    {.name = "lengths", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_lengths, .output_sizes = sizes_shared_lengths, .call = call_shared_lengths},
+    {.name = "actuation", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_actuation, .output_sizes = sizes_shared_actuation, .call = call_shared_actuation},
+    {.name = "loads", .slots = "q,t,p", .n_outputs = 1, .output_names = outputs_shared_loads, .output_sizes = sizes_shared_loads, .call = call_shared_loads},
+    {.name = "inertia", .slots = "q,v,a,p", .n_outputs = 1, .output_names = outputs_shared_inertia, .output_sizes = sizes_shared_inertia, .call = call_shared_inertia},
+    {.name = "supply", .slots = "q,v,f,p", .n_outputs = 4, .output_names = outputs_shared_supply, .output_sizes = sizes_shared_supply, .call = call_shared_supply},
+    {.name = "points", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_points, .output_sizes = sizes_shared_points, .call = call_shared_points},
+    {.name = "actuator_ranges", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_actuator_ranges, .output_sizes = sizes_shared_actuator_ranges, .call = call_shared_actuator_ranges},
 };
 
 static const char *const body_names[] = {"upper", "boom", "boom_cyl_l_barrel", "boom_cyl_l_rod", "boom_cyl_r_barrel", "boom_cyl_r_rod", "arm", "arm_cyl_barrel", "arm_cyl_rod", "bucket_cyl_barrel", "bucket_cyl_rod", "side_link", "bucket_link", "bucket"};
 static const char *const stored_names[] = {"upper.x", "upper.y", "upper.z", "upper.e0", "upper.e1", "upper.e2", "upper.e3", "boom.x", "boom.y", "boom.z", "boom.e0", "boom.e1", "boom.e2", "boom.e3", "boom_cyl_l_barrel.x", "boom_cyl_l_barrel.y", "boom_cyl_l_barrel.z", "boom_cyl_l_barrel.e0", "boom_cyl_l_barrel.e1", "boom_cyl_l_barrel.e2", "boom_cyl_l_barrel.e3", "boom_cyl_l_rod.x", "boom_cyl_l_rod.y", "boom_cyl_l_rod.z", "boom_cyl_l_rod.e0", "boom_cyl_l_rod.e1", "boom_cyl_l_rod.e2", "boom_cyl_l_rod.e3", "boom_cyl_r_barrel.x", "boom_cyl_r_barrel.y", "boom_cyl_r_barrel.z", "boom_cyl_r_barrel.e0", "boom_cyl_r_barrel.e1", "boom_cyl_r_barrel.e2", "boom_cyl_r_barrel.e3", "boom_cyl_r_rod.x", "boom_cyl_r_rod.y", "boom_cyl_r_rod.z", "boom_cyl_r_rod.e0", "boom_cyl_r_rod.e1", "boom_cyl_r_rod.e2", "boom_cyl_r_rod.e3", "arm.x", "arm.y", "arm.z", "arm.e0", "arm.e1", "arm.e2", "arm.e3", "arm_cyl_barrel.x", "arm_cyl_barrel.y", "arm_cyl_barrel.z", "arm_cyl_barrel.e0", "arm_cyl_barrel.e1", "arm_cyl_barrel.e2", "arm_cyl_barrel.e3", "arm_cyl_rod.x", "arm_cyl_rod.y", "arm_cyl_rod.z", "arm_cyl_rod.e0", "arm_cyl_rod.e1", "arm_cyl_rod.e2", "arm_cyl_rod.e3", "bucket_cyl_barrel.x", "bucket_cyl_barrel.y", "bucket_cyl_barrel.z", "bucket_cyl_barrel.e0", "bucket_cyl_barrel.e1", "bucket_cyl_barrel.e2", "bucket_cyl_barrel.e3", "bucket_cyl_rod.x", "bucket_cyl_rod.y", "bucket_cyl_rod.z", "bucket_cyl_rod.e0", "bucket_cyl_rod.e1", "bucket_cyl_rod.e2", "bucket_cyl_rod.e3", "side_link.x", "side_link.y", "side_link.z", "side_link.e0", "side_link.e1", "side_link.e2", "side_link.e3", "bucket_link.x", "bucket_link.y", "bucket_link.z", "bucket_link.e0", "bucket_link.e1", "bucket_link.e2", "bucket_link.e3", "bucket.x", "bucket.y", "bucket.z", "bucket.e0", "bucket.e1", "bucket.e2", "bucket.e3"};
 static const char *const velocity_names[] = {"upper.x", "upper.y", "upper.z", "upper.e0", "upper.e1", "upper.e2", "upper.e3", "boom.x", "boom.y", "boom.z", "boom.e0", "boom.e1", "boom.e2", "boom.e3", "boom_cyl_l_barrel.x", "boom_cyl_l_barrel.y", "boom_cyl_l_barrel.z", "boom_cyl_l_barrel.e0", "boom_cyl_l_barrel.e1", "boom_cyl_l_barrel.e2", "boom_cyl_l_barrel.e3", "boom_cyl_l_rod.x", "boom_cyl_l_rod.y", "boom_cyl_l_rod.z", "boom_cyl_l_rod.e0", "boom_cyl_l_rod.e1", "boom_cyl_l_rod.e2", "boom_cyl_l_rod.e3", "boom_cyl_r_barrel.x", "boom_cyl_r_barrel.y", "boom_cyl_r_barrel.z", "boom_cyl_r_barrel.e0", "boom_cyl_r_barrel.e1", "boom_cyl_r_barrel.e2", "boom_cyl_r_barrel.e3", "boom_cyl_r_rod.x", "boom_cyl_r_rod.y", "boom_cyl_r_rod.z", "boom_cyl_r_rod.e0", "boom_cyl_r_rod.e1", "boom_cyl_r_rod.e2", "boom_cyl_r_rod.e3", "arm.x", "arm.y", "arm.z", "arm.e0", "arm.e1", "arm.e2", "arm.e3", "arm_cyl_barrel.x", "arm_cyl_barrel.y", "arm_cyl_barrel.z", "arm_cyl_barrel.e0", "arm_cyl_barrel.e1", "arm_cyl_barrel.e2", "arm_cyl_barrel.e3", "arm_cyl_rod.x", "arm_cyl_rod.y", "arm_cyl_rod.z", "arm_cyl_rod.e0", "arm_cyl_rod.e1", "arm_cyl_rod.e2", "arm_cyl_rod.e3", "bucket_cyl_barrel.x", "bucket_cyl_barrel.y", "bucket_cyl_barrel.z", "bucket_cyl_barrel.e0", "bucket_cyl_barrel.e1", "bucket_cyl_barrel.e2", "bucket_cyl_barrel.e3", "bucket_cyl_rod.x", "bucket_cyl_rod.y", "bucket_cyl_rod.z", "bucket_cyl_rod.e0", "bucket_cyl_rod.e1", "bucket_cyl_rod.e2", "bucket_cyl_rod.e3", "side_link.x", "side_link.y", "side_link.z", "side_link.e0", "side_link.e1", "side_link.e2", "side_link.e3", "bucket_link.x", "bucket_link.y", "bucket_link.z", "bucket_link.e0", "bucket_link.e1", "bucket_link.e2", "bucket_link.e3", "bucket.x", "bucket.y", "bucket.z", "bucket.e0", "bucket.e1", "bucket.e2", "bucket.e3"};
 static const kinegen_point points[] = {
-    {0, "upper.O", {0.0, 0.0, 0.0}},
-    {0, "upper.A", {0.22767, 0.0, 1.95729}},
-    {0, "upper.B_left", {0.68912, 0.32, 1.35478}},
-    {0, "upper.B_right", {0.68912, -0.32, 1.35478}},
-    {1, "boom.A", {0.0, 0.0, 0.0}},
-    {1, "boom.C_left", {1.39283, 0.32, 2.001922}},
-    {1, "boom.C_right", {1.39283, -0.32, 2.001922}},
-    {1, "boom.D", {2.2875, 0.0, 2.785}},
-    {1, "boom.E", {4.7878, 0.0, 2.9959}},
-    {2, "boom_cyl_l_barrel.base", {0.0, 0.0, 0.0}},
-    {3, "boom_cyl_l_rod.eye", {0.0, 0.0, 0.0}},
-    {4, "boom_cyl_r_barrel.base", {0.0, 0.0, 0.0}},
-    {5, "boom_cyl_r_rod.eye", {0.0, 0.0, 0.0}},
-    {6, "arm.E", {0.0, 0.0, 0.0}},
-    {6, "arm.F", {-0.786562, 0.0, -0.369691}},
-    {6, "arm.G", {-0.24687, 0.0, 0.73594}},
-    {6, "arm.H", {1.5754, 0.0, 1.8799}},
-    {6, "arm.Q", {1.8954, 0.0, 2.1809}},
-    {7, "arm_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {8, "arm_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {9, "bucket_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {10, "bucket_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {11, "side_link.H", {0.0, 0.0, 0.0}},
-    {11, "side_link.J", {-0.332658, 0.0, 0.481235}},
-    {12, "bucket_link.K", {0.0, 0.0, 0.0}},
-    {12, "bucket_link.J", {-0.342428, 0.0, -0.450737}},
-    {13, "bucket.Q", {0.0, 0.0, 0.0}},
-    {13, "bucket.K", {-0.32404, 0.0, 0.33854}},
-    {13, "bucket.T", {1.28, 0.0, 0.806}},
-    {-1, "ground.O", {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.O", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.A", .local = {0.22767, 0.0, 1.95729}},
+    {.body = 0, .name = "upper.B_left", .local = {0.68912, 0.32, 1.35478}},
+    {.body = 0, .name = "upper.B_right", .local = {0.68912, -0.32, 1.35478}},
+    {.body = 1, .name = "boom.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "boom.C_left", .local = {1.39283, 0.32, 2.001922}},
+    {.body = 1, .name = "boom.C_right", .local = {1.39283, -0.32, 2.001922}},
+    {.body = 1, .name = "boom.D", .local = {2.2875, 0.0, 2.785}},
+    {.body = 1, .name = "boom.E", .local = {4.7878, 0.0, 2.9959}},
+    {.body = 2, .name = "boom_cyl_l_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 3, .name = "boom_cyl_l_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 4, .name = "boom_cyl_r_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 5, .name = "boom_cyl_r_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.E", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.F", .local = {-0.786562, 0.0, -0.369691}},
+    {.body = 6, .name = "arm.G", .local = {-0.24687, 0.0, 0.73594}},
+    {.body = 6, .name = "arm.H", .local = {1.5754, 0.0, 1.8799}},
+    {.body = 6, .name = "arm.Q", .local = {1.8954, 0.0, 2.1809}},
+    {.body = 7, .name = "arm_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 8, .name = "arm_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 9, .name = "bucket_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 10, .name = "bucket_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.H", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.J", .local = {-0.332658, 0.0, 0.481235}},
+    {.body = 12, .name = "bucket_link.K", .local = {0.0, 0.0, 0.0}},
+    {.body = 12, .name = "bucket_link.J", .local = {-0.342428, 0.0, -0.450737}},
+    {.body = 13, .name = "bucket.Q", .local = {0.0, 0.0, 0.0}},
+    {.body = 13, .name = "bucket.K", .local = {-0.32404, 0.0, 0.33854}},
+    {.body = 13, .name = "bucket.T", .local = {1.28, 0.0, 0.806}},
+    {.body = -1, .name = "ground.O", .local = {0.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {"boom_cylinder_left", 9, 10, 1, 1.7352, 3.0649},
-    {"boom_cylinder_right", 11, 12, 1, 1.7352, 3.0649},
-    {"arm_cylinder", 18, 19, 1, 1.8164, 3.2939},
-    {"bucket_cylinder", 20, 21, 1, 1.6529, 2.6613},
+    {.name = "boom_cylinder_left", .point1 = 9, .point2 = 10, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "boom_cylinder_right", .point1 = 11, .point2 = 12, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "arm_cylinder", .point1 = 18, .point2 = 19, .has_range = 1, .min = 1.8164, .max = 3.2939},
+    {.name = "bucket_cylinder", .point1 = 20, .point2 = 21, .has_range = 1, .min = 1.6529, .max = 2.6613},
 };
 
 /* the force solve (kinegen_forces): 4 actuation element(s), 2 load(s) */
@@ -9532,23 +9532,31 @@ static const int statics_off_col[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 
 static const int statics_off_value[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 145, 146, 147, 148, 149, 139, 140, 141, 142, 143, 133, 134, 135, 136, 137, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 29, 30, 31, 32, 37, 38, 39, 40, 115, 121, 127, 203, 209, 215, 623, 622, 621, 617, 616, 615, 63, 64, 65, 66, 89, 88, 87, 94, 95, 96, 99, 98, 97, 104, 105, 106, 151, 152, 153, 154, 177, 176, 175, 183, 184, 182, 187, 186, 185, 193, 194, 192, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 71, 74, 72, 73, 79, 82, 80, 81, 107, 110, 108, 109, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 239, 240, 242, 241, 247, 248, 250, 249, 325, 331, 337, 629, 628, 627, 273, 274, 276, 275, 299, 298, 297, 304, 306, 305, 309, 308, 307, 314, 316, 315, 343, 344, 345, 347, 346, 349, 350, 351, 353, 352, 355, 356, 357, 359, 358, 389, 390, 391, 393, 392, 383, 384, 385, 387, 386, 479, 480, 481, 483, 482, 473, 474, 475, 477, 476, 467, 468, 469, 471, 470, 377, 378, 379, 381, 380, 281, 284, 282, 283, 289, 292, 290, 291, 317, 320, 318, 319, 395, 396, 398, 397, 403, 404, 406, 405, 538, 544, 550, 635, 634, 633, 361, 362, 364, 363, 369, 370, 372, 371, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 485, 486, 488, 487, 511, 510, 509, 517, 518, 516, 521, 520, 519, 527, 528, 526, 493, 496, 494, 495, 501, 504, 502, 503, 529, 532, 530, 531};
 
 static const kinegen_statics statics = {
-    4, element_names, element_kinds, 94,
-    {639, matrix_rows, matrix_cols}, &kernels[2],
-    2, load_names, {7, load_rows, load_cols}, &kernels[3],
-    98, inertia_cols, &kernels[4],
-    40, statics_block_start, statics_block_store, statics_row_order, statics_col_order,
-    490, 333, statics_diag_value, statics_diag_slot,
-    306, statics_off_start, statics_off_col, statics_off_value,
-    1736, 98,
-    19, joint_names, joint_body, joint_sign, joint_point_body, joint_local, joint_row_start, joint_rows,
-    body_norm_start, body_norm_rows, element_hydraulics, 1924, 94,
+    .n_elements = 4, .element_names = element_names, .element_kinds = element_kinds,
+    .n_joint_rows = 94,
+    .pattern = {.n = 639, .rows = matrix_rows, .cols = matrix_cols}, .actuation = &kernels[2],
+    .n_loads = 2, .load_names = load_names,
+    .load_pattern = {.n = 7, .rows = load_rows, .cols = load_cols}, .loads = &kernels[3],
+    .n_inertia = 98, .inertia_cols = inertia_cols, .inertia = &kernels[4],
+    .n_blocks = 40, .block_start = statics_block_start, .block_store = statics_block_store,
+    .row_order = statics_row_order, .col_order = statics_col_order,
+    .n_store = 490, .n_diag = 333, .diag_value = statics_diag_value,
+    .diag_slot = statics_diag_slot,
+    .n_off = 306, .off_start = statics_off_start, .off_col = statics_off_col, .off_value = statics_off_value,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_FORCE_WORK_DOUBLES, .work_ints = EXCAVATOR_EULER_PARAMETERS_FORCE_WORK_INTS,
+    .n_joints = 19, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
+    .joint_point_body = joint_point_body, .joint_local = joint_local, .joint_row_start = joint_row_start, .joint_rows = joint_rows,
+    .body_norm_start = body_norm_start, .body_norm_rows = body_norm_rows, .element_hydraulics = element_hydraulics,
+    .reaction_doubles = EXCAVATOR_EULER_PARAMETERS_REACTION_WORK_DOUBLES, .reaction_ints = EXCAVATOR_EULER_PARAMETERS_REACTION_WORK_INTS,
 };
 
 const kinegen_layout excavator_euler_parameters_layout = {
-    "excavator", "euler-parameters", "excavator.yaml", "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", "0.2.0",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, EXCAVATOR_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
-    30, points, 4, actuators, excavator_euler_parameters_frames,
-    8, kernels, &statics,
+    .model = "excavator", .parametrization = "euler-parameters", .source = "excavator.yaml",
+    .source_sha256 = "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", .kinegen_version = "0.2.0",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_bodies = EXCAVATOR_EULER_PARAMETERS_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 30, .points = points, .n_actuators = 4, .actuators = actuators,
+    .frames = excavator_euler_parameters_frames, .n_kernels = 8, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.22767, 0.0, 1.95729, 0.9826937028898046, 0.0, 0.18523791809649656, 0.0, 0.68912, 0.32, 1.35478, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 2.253743682, 0.32, 3.314748116, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.68912, -0.32, 1.35478, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 2.253743682, -0.32, 3.314748116, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 5.777601761, 0.0, 3.004525931, 0.7487823326004931, 0.0, 0.6628159762599, 0.0, 3.372106626, 0.0, 3.718369089, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 5.315193587, 0.0, 3.74041308, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 6.478145341, 0.0, 3.338877801, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 7.974087195, 0.0, 2.237087009, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 7.834783629, 0.0, 1.668894271, 0.912012841994652, 0.0, 0.4101616462284567, 0.0, 8.355750886, 0.0, 1.819051598, 0.640244241850993, 0.0, 0.7681714071590059, 0.0, 8.172391163, 0.0, 1.387785479, 0.8349444950888361, 0.0, 0.5503341622331369, 0.0};
@@ -9571,20 +9579,23 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20, 2
 static const int off_col_digging[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_digging[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 static const kinegen_design design_digging = {
-    12, design_nominal, phi_jac_digging, nu_digging, gamma_digging,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging, .nu = nu_digging, .gamma = gamma_digging,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_digging = {
-    &excavator_euler_parameters_layout, "digging",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
-    0.0, 17.0, 341,
-    initial_q, constraints_digging, drivers_digging, jac_rows_digging, jac_cols_digging,
-    NULL, NULL, NULL, inputs_digging, input_ranges_digging, retract,
-    40, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
-    610, 346, diag_value_digging, diag_slot_digging,
-    297, off_start_digging, off_col_digging, off_value_digging,
-    4405, 280, 5, kernels_digging, &design_digging,
+    .layout = &excavator_euler_parameters_layout, .case_name = "digging",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 643,
+    .t0 = 0.0, .t1 = 17.0, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging, .driver_names = drivers_digging,
+    .jac_rows = jac_rows_digging, .jac_cols = jac_cols_digging,
+    .inputs = inputs_digging, .input_ranges = input_ranges_digging, .retract = retract,
+    .n_blocks = 40, .block_start = block_start_digging, .block_store = block_store_digging,
+    .row_order = row_order_digging, .col_order = col_order_digging,
+    .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
+    .n_off = 297, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING,
+    .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -9603,20 +9614,23 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 20,
 static const int off_col_level_cut[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 7, 9, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 9, 16, 17, 21, 26, 19, 20, 24, 25, 27, 18, 20, 24, 25, 27, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 22, 28, 29, 30, 31, 23, 28, 29, 30, 31, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 3, 4, 5, 6, 10, 11, 12, 32, 33, 34, 10, 11, 12, 32, 33, 34, 3, 4, 5, 6, 13, 14, 15, 35, 36, 37, 13, 14, 15, 35, 36, 37, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 50, 51, 52, 53, 50, 51, 52, 53, 50, 51, 52, 53, 54, 55, 56, 57, 54, 55, 56, 57, 54, 55, 56, 57, 16, 17, 21, 26, 39, 40, 41, 42, 43, 58, 39, 40, 41, 42, 43, 58, 28, 29, 30, 31, 59, 70, 71, 72, 73, 70, 71, 72, 73, 70, 71, 72, 73, 20, 24, 25, 27, 20, 24, 25, 27, 44, 46, 60, 74, 45, 47, 28, 29, 30, 31, 45, 79, 80, 83, 85, 60, 79, 80, 83, 85, 44, 79, 80, 83, 85, 20, 24, 25, 27, 48, 49, 61, 87, 88, 89, 48, 49, 61, 87, 88, 89, 90, 91, 92, 93, 90, 91, 92, 93, 90, 91, 92, 93};
 static const int off_value_level_cut[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 45, 46, 47, 48, 49, 51, 52, 53, 54, 55, 57, 58, 59, 60, 61, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 221, 233, 127, 128, 129, 131, 130, 121, 122, 123, 125, 124, 115, 116, 117, 119, 118, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 227, 228, 229, 231, 230, 255, 256, 257, 259, 258, 261, 262, 263, 265, 264, 267, 268, 269, 271, 270, 337, 338, 339, 340, 341, 325, 326, 327, 328, 329, 377, 378, 379, 380, 381, 389, 390, 391, 392, 393, 442, 446, 444, 445, 443, 454, 458, 456, 457, 455, 467, 468, 469, 470, 471, 479, 480, 481, 482, 483, 63, 64, 65, 66, 87, 88, 89, 96, 95, 94, 97, 98, 99, 106, 105, 104, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 332, 333, 334, 335, 331, 350, 351, 352, 353, 349, 384, 385, 386, 387, 383, 474, 475, 476, 477, 473, 71, 73, 72, 74, 79, 81, 80, 82, 107, 109, 108, 110, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 273, 274, 276, 275, 297, 298, 299, 306, 304, 305, 307, 308, 309, 316, 314, 315, 452, 450, 451, 449, 448, 281, 284, 282, 283, 289, 292, 290, 291, 317, 320, 318, 319, 395, 396, 397, 398, 403, 404, 405, 406, 411, 416, 421, 426, 431, 436, 466, 464, 465, 463, 550, 551, 552, 554, 553, 544, 545, 546, 548, 547, 538, 539, 540, 542, 541, 485, 486, 487, 488, 509, 511, 510, 518, 517, 516, 519, 521, 520, 528, 527, 526, 493, 496, 494, 495, 501, 504, 502, 503, 529, 532, 530, 531};
 static const kinegen_design design_level_cut = {
-    12, design_nominal, phi_jac_level_cut, nu_level_cut, gamma_level_cut,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_level_cut, .nu = nu_level_cut, .gamma = gamma_level_cut,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_level_cut = {
-    &excavator_euler_parameters_layout, "level_cut",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 627,
-    0.0, 4.0, 201,
-    initial_q, constraints_level_cut, drivers_level_cut, jac_rows_level_cut, jac_cols_level_cut,
-    NULL, NULL, NULL, inputs_level_cut, input_ranges_level_cut, retract,
-    49, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
-    502, 312, diag_value_level_cut, diag_slot_level_cut,
-    315, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    4283, 298, 5, kernels_level_cut, &design_level_cut,
+    .layout = &excavator_euler_parameters_layout, .case_name = "level_cut",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 627,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_level_cut, .driver_names = drivers_level_cut,
+    .jac_rows = jac_rows_level_cut, .jac_cols = jac_cols_level_cut,
+    .inputs = inputs_level_cut, .input_ranges = input_ranges_level_cut, .retract = retract,
+    .n_blocks = 49, .block_start = block_start_level_cut, .block_store = block_store_level_cut,
+    .row_order = row_order_level_cut, .col_order = col_order_level_cut,
+    .n_store = 502, .n_diag = 312, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
+    .n_off = 315, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_LEVEL_CUT,
+    .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -9635,20 +9649,23 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 2
 static const int off_col_trench_wall[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 7, 9, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 9, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 7, 16, 17, 21, 26, 8, 16, 17, 21, 26, 9, 16, 17, 21, 26, 19, 20, 24, 25, 27, 18, 20, 24, 25, 27, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 22, 28, 29, 30, 31, 23, 28, 29, 30, 31, 18, 20, 24, 25, 27, 19, 20, 24, 25, 27, 3, 4, 5, 6, 10, 11, 12, 32, 33, 34, 10, 11, 12, 32, 33, 34, 3, 4, 5, 6, 13, 14, 15, 35, 36, 37, 13, 14, 15, 35, 36, 37, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 20, 24, 25, 27, 38, 50, 51, 52, 53, 50, 51, 52, 53, 50, 51, 52, 53, 54, 55, 56, 57, 54, 55, 56, 57, 54, 55, 56, 57, 16, 17, 21, 26, 39, 40, 41, 42, 43, 58, 39, 40, 41, 42, 43, 58, 28, 29, 30, 31, 59, 70, 71, 72, 73, 70, 71, 72, 73, 70, 71, 72, 73, 20, 24, 25, 27, 20, 24, 25, 27, 44, 46, 60, 74, 45, 47, 28, 29, 30, 31, 45, 79, 80, 83, 85, 60, 79, 80, 83, 85, 44, 79, 80, 83, 85, 20, 24, 25, 27, 48, 49, 61, 87, 88, 89, 48, 49, 61, 87, 88, 89, 90, 91, 92, 93, 90, 91, 92, 93, 90, 91, 92, 93};
 static const int off_value_trench_wall[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 45, 46, 47, 48, 49, 51, 52, 53, 54, 55, 57, 58, 59, 60, 61, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 221, 233, 127, 128, 129, 131, 130, 121, 122, 123, 125, 124, 115, 116, 117, 119, 118, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 227, 228, 229, 231, 230, 255, 256, 257, 259, 258, 261, 262, 263, 265, 264, 267, 268, 269, 271, 270, 337, 338, 339, 340, 341, 325, 326, 327, 328, 329, 377, 378, 379, 380, 381, 389, 390, 391, 392, 393, 442, 446, 444, 445, 443, 454, 458, 456, 457, 455, 467, 468, 469, 470, 471, 479, 480, 481, 482, 483, 63, 64, 65, 66, 87, 88, 89, 96, 95, 94, 97, 98, 99, 106, 105, 104, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 332, 333, 334, 335, 331, 350, 351, 352, 353, 349, 384, 385, 386, 387, 383, 474, 475, 476, 477, 473, 71, 73, 72, 74, 79, 81, 80, 82, 107, 109, 108, 110, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 273, 274, 276, 275, 297, 298, 299, 306, 304, 305, 307, 308, 309, 316, 314, 315, 452, 450, 451, 449, 448, 281, 284, 282, 283, 289, 292, 290, 291, 317, 320, 318, 319, 395, 396, 397, 398, 403, 404, 405, 406, 411, 416, 421, 426, 431, 436, 466, 464, 465, 463, 550, 551, 552, 554, 553, 544, 545, 546, 548, 547, 538, 539, 540, 542, 541, 485, 486, 487, 488, 509, 511, 510, 518, 517, 516, 519, 521, 520, 528, 527, 526, 493, 496, 494, 495, 501, 504, 502, 503, 529, 532, 530, 531};
 static const kinegen_design design_trench_wall = {
-    12, design_nominal, phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_trench_wall, .nu = nu_trench_wall, .gamma = gamma_trench_wall,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_trench_wall = {
-    &excavator_euler_parameters_layout, "trench_wall",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 627,
-    0.0, 4.0, 201,
-    initial_q, constraints_trench_wall, drivers_trench_wall, jac_rows_trench_wall, jac_cols_trench_wall,
-    NULL, NULL, NULL, inputs_trench_wall, input_ranges_trench_wall, retract,
-    49, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
-    502, 312, diag_value_trench_wall, diag_slot_trench_wall,
-    315, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    4283, 298, 5, kernels_trench_wall, &design_trench_wall,
+    .layout = &excavator_euler_parameters_layout, .case_name = "trench_wall",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 627,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_trench_wall, .driver_names = drivers_trench_wall,
+    .jac_rows = jac_rows_trench_wall, .jac_cols = jac_cols_trench_wall,
+    .inputs = inputs_trench_wall, .input_ranges = input_ranges_trench_wall, .retract = retract,
+    .n_blocks = 49, .block_start = block_start_trench_wall, .block_store = block_store_trench_wall,
+    .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
+    .n_store = 502, .n_diag = 312, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
+    .n_off = 315, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_TRENCH_WALL,
+    .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -9667,20 +9684,23 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15,
 static const int off_col_bucket_toggle[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_toggle[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 static const kinegen_design design_bucket_toggle = {
-    12, design_nominal, phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_toggle, .nu = nu_bucket_toggle, .gamma = gamma_bucket_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_bucket_toggle = {
-    &excavator_euler_parameters_layout, "bucket_toggle",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
-    0.0, 3.0, 301,
-    initial_q, constraints_bucket_toggle, drivers_bucket_toggle, jac_rows_bucket_toggle, jac_cols_bucket_toggle,
-    NULL, NULL, NULL, inputs_bucket_toggle, input_ranges_bucket_toggle, retract,
-    40, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
-    610, 346, diag_value_bucket_toggle, diag_slot_bucket_toggle,
-    297, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    4405, 280, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    .layout = &excavator_euler_parameters_layout, .case_name = "bucket_toggle",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 643,
+    .t0 = 0.0, .t1 = 3.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_toggle, .driver_names = drivers_bucket_toggle,
+    .jac_rows = jac_rows_bucket_toggle, .jac_cols = jac_cols_bucket_toggle,
+    .inputs = inputs_bucket_toggle, .input_ranges = input_ranges_bucket_toggle, .retract = retract,
+    .n_blocks = 40, .block_start = block_start_bucket_toggle, .block_store = block_store_bucket_toggle,
+    .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
+    .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
+    .n_off = 297, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -9699,20 +9719,23 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15,
 static const int off_col_bucket_stroke[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_stroke[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 static const kinegen_design design_bucket_stroke = {
-    12, design_nominal, phi_jac_bucket_stroke, nu_bucket_stroke, gamma_bucket_stroke,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_stroke, .nu = nu_bucket_stroke, .gamma = gamma_bucket_stroke,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_bucket_stroke = {
-    &excavator_euler_parameters_layout, "bucket_stroke",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
-    0.0, 1.0, 101,
-    initial_q, constraints_bucket_stroke, drivers_bucket_stroke, jac_rows_bucket_stroke, jac_cols_bucket_stroke,
-    NULL, NULL, NULL, inputs_bucket_stroke, input_ranges_bucket_stroke, retract,
-    40, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
-    610, 346, diag_value_bucket_stroke, diag_slot_bucket_stroke,
-    297, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    4405, 280, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    .layout = &excavator_euler_parameters_layout, .case_name = "bucket_stroke",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 643,
+    .t0 = 0.0, .t1 = 1.0, .steps = 101,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_stroke, .driver_names = drivers_bucket_stroke,
+    .jac_rows = jac_rows_bucket_stroke, .jac_cols = jac_cols_bucket_stroke,
+    .inputs = inputs_bucket_stroke, .input_ranges = input_ranges_bucket_stroke, .retract = retract,
+    .n_blocks = 40, .block_start = block_start_bucket_stroke, .block_store = block_store_bucket_stroke,
+    .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
+    .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
+    .n_off = 297, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_STROKE,
+    .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -9731,20 +9754,23 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10
 static const int off_col_bucket_near_toggle[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_bucket_near_toggle[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 static const kinegen_design design_bucket_near_toggle = {
-    12, design_nominal, phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_near_toggle, .nu = nu_bucket_near_toggle, .gamma = gamma_bucket_near_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_bucket_near_toggle = {
-    &excavator_euler_parameters_layout, "bucket_near_toggle",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
-    0.0, 2.0, 9,
-    initial_q, constraints_bucket_near_toggle, drivers_bucket_near_toggle, jac_rows_bucket_near_toggle, jac_cols_bucket_near_toggle,
-    NULL, NULL, NULL, inputs_bucket_near_toggle, input_ranges_bucket_near_toggle, retract,
-    40, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
-    610, 346, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
-    297, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    4405, 280, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    .layout = &excavator_euler_parameters_layout, .case_name = "bucket_near_toggle",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 643,
+    .t0 = 0.0, .t1 = 2.0, .steps = 9,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_near_toggle, .driver_names = drivers_bucket_near_toggle,
+    .jac_rows = jac_rows_bucket_near_toggle, .jac_cols = jac_cols_bucket_near_toggle,
+    .inputs = inputs_bucket_near_toggle, .input_ranges = input_ranges_bucket_near_toggle, .retract = retract,
+    .n_blocks = 40, .block_start = block_start_bucket_near_toggle, .block_store = block_store_bucket_near_toggle,
+    .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
+    .n_store = 610, .n_diag = 346, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
+    .n_off = 297, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_BUCKET_NEAR_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -9763,20 +9789,23 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 
 static const int off_col_digging_fast[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_digging_fast[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 static const kinegen_design design_digging_fast = {
-    12, design_nominal, phi_jac_digging_fast, nu_digging_fast, gamma_digging_fast,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_fast, .nu = nu_digging_fast, .gamma = gamma_digging_fast,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_digging_fast = {
-    &excavator_euler_parameters_layout, "digging_fast",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
-    0.0, 13.6, 341,
-    initial_q, constraints_digging_fast, drivers_digging_fast, jac_rows_digging_fast, jac_cols_digging_fast,
-    NULL, NULL, NULL, inputs_digging_fast, input_ranges_digging_fast, retract,
-    40, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
-    610, 346, diag_value_digging_fast, diag_slot_digging_fast,
-    297, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    4405, 280, 5, kernels_digging_fast, &design_digging_fast,
+    .layout = &excavator_euler_parameters_layout, .case_name = "digging_fast",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 643,
+    .t0 = 0.0, .t1 = 13.6, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_fast, .driver_names = drivers_digging_fast,
+    .jac_rows = jac_rows_digging_fast, .jac_cols = jac_cols_digging_fast,
+    .inputs = inputs_digging_fast, .input_ranges = input_ranges_digging_fast, .retract = retract,
+    .n_blocks = 40, .block_start = block_start_digging_fast, .block_store = block_store_digging_fast,
+    .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
+    .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
+    .n_off = 297, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING_FAST,
+    .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -9795,20 +9824,23 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15,
 static const int off_col_digging_paced[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_digging_paced[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 static const kinegen_design design_digging_paced = {
-    12, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_paced, .nu = nu_digging_paced, .gamma = gamma_digging_paced,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_digging_paced = {
-    &excavator_euler_parameters_layout, "digging_paced",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
-    0.0, 59.5, 341,
-    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
-    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
-    40, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
-    610, 346, diag_value_digging_paced, diag_slot_digging_paced,
-    297, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    4405, 280, 5, kernels_digging_paced, &design_digging_paced,
+    .layout = &excavator_euler_parameters_layout, .case_name = "digging_paced",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 643,
+    .t0 = 0.0, .t1 = 59.5, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_paced, .driver_names = drivers_digging_paced,
+    .jac_rows = jac_rows_digging_paced, .jac_cols = jac_cols_digging_paced,
+    .inputs = inputs_digging_paced, .input_ranges = input_ranges_digging_paced, .retract = retract,
+    .n_blocks = 40, .block_start = block_start_digging_paced, .block_store = block_store_digging_paced,
+    .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
+    .n_store = 610, .n_diag = 346, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
+    .n_off = 297, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_DIGGING_PACED,
+    .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -9827,20 +9859,23 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 0, 0, 5, 10, 15, 2
 static const int off_col_oscillation[] = {0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 2, 3, 4, 5, 6, 1, 3, 4, 5, 6, 0, 3, 4, 5, 6, 0, 3, 4, 5, 6, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 3, 4, 5, 6, 10, 11, 12, 10, 11, 12, 7, 8, 9, 10, 11, 12, 18, 19, 25, 26, 18, 19, 25, 26, 18, 19, 25, 26, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 7, 16, 17, 21, 24, 8, 16, 17, 21, 24, 9, 16, 17, 21, 24, 9, 16, 17, 21, 24, 8, 16, 17, 21, 24, 7, 16, 17, 21, 24, 3, 4, 5, 6, 13, 14, 15, 31, 32, 33, 13, 14, 15, 31, 32, 33, 16, 17, 21, 24, 16, 17, 21, 24, 16, 17, 21, 24, 37, 38, 39, 37, 38, 39, 34, 35, 36, 37, 38, 39, 40, 41, 42, 43, 40, 41, 42, 43, 40, 41, 42, 43, 46, 47, 53, 54, 46, 47, 53, 54, 46, 47, 53, 54, 34, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 36, 44, 45, 49, 52, 35, 44, 45, 49, 52, 34, 44, 45, 49, 52, 34, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 44, 45, 49, 52, 68, 69, 70, 68, 69, 70, 71, 67, 66, 68, 69, 70, 44, 45, 49, 52, 44, 45, 49, 52, 71, 72, 73, 77, 81, 67, 72, 73, 77, 81, 66, 72, 73, 77, 81, 63, 64, 65, 74, 75, 80, 82, 74, 75, 80, 82, 74, 75, 80, 82};
 static const int off_value_oscillation[] = {11, 12, 13, 14, 15, 17, 18, 19, 20, 21, 23, 24, 25, 26, 27, 57, 58, 59, 60, 61, 51, 52, 53, 54, 55, 45, 46, 47, 48, 49, 133, 134, 135, 136, 137, 139, 140, 141, 142, 143, 145, 146, 147, 148, 149, 29, 30, 31, 32, 37, 38, 39, 40, 63, 64, 65, 66, 89, 88, 87, 99, 98, 97, 115, 121, 127, 615, 614, 613, 71, 74, 73, 72, 79, 82, 81, 80, 107, 110, 109, 108, 215, 216, 217, 219, 218, 209, 210, 211, 213, 212, 203, 204, 205, 207, 206, 221, 222, 223, 225, 224, 227, 228, 229, 231, 230, 233, 234, 235, 237, 236, 267, 268, 269, 271, 270, 261, 262, 263, 265, 264, 255, 256, 257, 259, 258, 151, 152, 153, 154, 175, 176, 177, 184, 183, 182, 185, 186, 187, 194, 193, 192, 239, 240, 242, 241, 247, 248, 250, 249, 273, 274, 276, 275, 299, 298, 297, 309, 308, 307, 325, 331, 337, 625, 624, 623, 159, 162, 160, 161, 167, 170, 168, 169, 195, 198, 196, 197, 281, 284, 283, 282, 289, 292, 291, 290, 317, 320, 319, 318, 343, 344, 345, 346, 347, 349, 350, 351, 352, 353, 355, 356, 357, 358, 359, 389, 390, 391, 392, 393, 383, 384, 385, 386, 387, 479, 480, 481, 482, 483, 473, 474, 475, 476, 477, 467, 468, 469, 470, 471, 377, 378, 379, 380, 381, 395, 396, 397, 398, 403, 404, 405, 406, 485, 486, 487, 488, 511, 510, 509, 521, 520, 519, 538, 544, 550, 635, 634, 633, 361, 362, 363, 364, 369, 370, 371, 372, 411, 412, 413, 415, 414, 421, 422, 423, 425, 424, 431, 432, 433, 435, 434, 442, 448, 454, 493, 496, 495, 494, 501, 504, 503, 502, 529, 532, 531, 530};
 static const kinegen_design design_oscillation = {
-    12, design_nominal, phi_jac_oscillation, nu_oscillation, gamma_oscillation,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_oscillation, .nu = nu_oscillation, .gamma = gamma_oscillation,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_parameters_oscillation = {
-    &excavator_euler_parameters_layout, "oscillation",
-    EXCAVATOR_EULER_PARAMETERS_N_Q, EXCAVATOR_EULER_PARAMETERS_N_V, 4, 643,
-    0.0, 2.0, 301,
-    initial_q, constraints_oscillation, drivers_oscillation, jac_rows_oscillation, jac_cols_oscillation,
-    NULL, NULL, NULL, inputs_oscillation, input_ranges_oscillation, retract,
-    40, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
-    610, 346, diag_value_oscillation, diag_slot_oscillation,
-    297, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    4405, 280, 5, kernels_oscillation, &design_oscillation,
+    .layout = &excavator_euler_parameters_layout, .case_name = "oscillation",
+    .n_q = EXCAVATOR_EULER_PARAMETERS_N_Q, .n_v = EXCAVATOR_EULER_PARAMETERS_N_V, .n_inputs = 4, .n_jac = 643,
+    .t0 = 0.0, .t1 = 2.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_oscillation, .driver_names = drivers_oscillation,
+    .jac_rows = jac_rows_oscillation, .jac_cols = jac_cols_oscillation,
+    .inputs = inputs_oscillation, .input_ranges = input_ranges_oscillation, .retract = retract,
+    .n_blocks = 40, .block_start = block_start_oscillation, .block_store = block_store_oscillation,
+    .row_order = row_order_oscillation, .col_order = col_order_oscillation,
+    .n_store = 610, .n_diag = 346, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
+    .n_off = 297, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
+    .work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_PARAMETERS_WORK_INTS_OSCILLATION,
+    .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };
 
 const kinegen_model *const excavator_euler_parameters_cases[EXCAVATOR_EULER_PARAMETERS_N_CASES] = {&excavator_euler_parameters_digging, &excavator_euler_parameters_level_cut, &excavator_euler_parameters_trench_wall, &excavator_euler_parameters_bucket_toggle, &excavator_euler_parameters_bucket_stroke, &excavator_euler_parameters_bucket_near_toggle, &excavator_euler_parameters_digging_fast, &excavator_euler_parameters_digging_paced, &excavator_euler_parameters_oscillation};

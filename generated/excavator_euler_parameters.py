@@ -87,7 +87,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_parameters.h': '4ca4b761ceed531639cd18e8dcd24fc9fe77a82e3ba995b633b83dca3a4ee218', 'excavator_euler_parameters.c': '21af8766f3162b31f13da8d873657c2bcc97c3a42f776952b70153cc7434b69c'}
+C_FILES = {'excavator_euler_parameters.h': '6fee14cffe73f836fdd59e25fcc8c5fb1b1566f13cadc341fba81c904e4b2852', 'excavator_euler_parameters.c': 'fcea69186396d7af0a5e07297bb3e459b91b3cd82a64f28d7072111c73638315'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -87,7 +87,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxy.h': '1d22151826fb76d2b6e9642302b8d0dd7363daba15412e981607a42c79ba8b26', 'excavator_euler_zxy.c': '3a18ef42e3f4521edcdac0eae4fede7ea0b980e61838bf165989d09e68d67d74'}
+C_FILES = {'excavator_euler_zxy.h': '400228a2d2e415b6e3cdd5278758baa2bb24860533c08b9803564ecc43e14d2b', 'excavator_euler_zxy.c': '4b12d4238beb163de7d8daa7f5d57be0ca7b023cc00ad71a57624bfb58a54fa3'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

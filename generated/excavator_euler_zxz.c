@@ -10733,11 +10733,11 @@ static const int sizes_inputs_digging[] = {12};
 static const char *const outputs_input_ranges_digging[] = {"input_ranges"};
 static const int sizes_input_ranges_digging[] = {24};
 static const kinegen_kernel kernels_digging[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging, sizes_phi_jac_digging, call_phi_jac_digging},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging, sizes_nu_digging, call_nu_digging},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging, sizes_gamma_digging, call_gamma_digging},
-    {"inputs", "t", 1, outputs_inputs_digging, sizes_inputs_digging, call_inputs_digging},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging, sizes_input_ranges_digging, call_input_ranges_digging},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging, .output_sizes = sizes_phi_jac_digging, .call = call_phi_jac_digging},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging, .output_sizes = sizes_nu_digging, .call = call_nu_digging},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging, .output_sizes = sizes_gamma_digging, .call = call_gamma_digging},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging, .output_sizes = sizes_inputs_digging, .call = call_inputs_digging},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging, .output_sizes = sizes_input_ranges_digging, .call = call_input_ranges_digging},
 };
 static const char *const outputs_phi_jac_level_cut[] = {"phi", "jac"};
 static const int sizes_phi_jac_level_cut[] = {84, 425};
@@ -10750,11 +10750,11 @@ static const int sizes_inputs_level_cut[] = {12};
 static const char *const outputs_input_ranges_level_cut[] = {"input_ranges"};
 static const int sizes_input_ranges_level_cut[] = {24};
 static const kinegen_kernel kernels_level_cut[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_level_cut, sizes_phi_jac_level_cut, call_phi_jac_level_cut},
-    {"nu", "q,u,ud,p", 1, outputs_nu_level_cut, sizes_nu_level_cut, call_nu_level_cut},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_level_cut, sizes_gamma_level_cut, call_gamma_level_cut},
-    {"inputs", "t", 1, outputs_inputs_level_cut, sizes_inputs_level_cut, call_inputs_level_cut},
-    {"input_ranges", "span", 1, outputs_input_ranges_level_cut, sizes_input_ranges_level_cut, call_input_ranges_level_cut},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_level_cut, .output_sizes = sizes_phi_jac_level_cut, .call = call_phi_jac_level_cut},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_level_cut, .output_sizes = sizes_nu_level_cut, .call = call_nu_level_cut},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_level_cut, .output_sizes = sizes_gamma_level_cut, .call = call_gamma_level_cut},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_level_cut, .output_sizes = sizes_inputs_level_cut, .call = call_inputs_level_cut},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_level_cut, .output_sizes = sizes_input_ranges_level_cut, .call = call_input_ranges_level_cut},
 };
 static const char *const outputs_phi_jac_trench_wall[] = {"phi", "jac"};
 static const int sizes_phi_jac_trench_wall[] = {84, 425};
@@ -10767,11 +10767,11 @@ static const int sizes_inputs_trench_wall[] = {12};
 static const char *const outputs_input_ranges_trench_wall[] = {"input_ranges"};
 static const int sizes_input_ranges_trench_wall[] = {24};
 static const kinegen_kernel kernels_trench_wall[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_trench_wall, sizes_phi_jac_trench_wall, call_phi_jac_trench_wall},
-    {"nu", "q,u,ud,p", 1, outputs_nu_trench_wall, sizes_nu_trench_wall, call_nu_trench_wall},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_trench_wall, sizes_gamma_trench_wall, call_gamma_trench_wall},
-    {"inputs", "t", 1, outputs_inputs_trench_wall, sizes_inputs_trench_wall, call_inputs_trench_wall},
-    {"input_ranges", "span", 1, outputs_input_ranges_trench_wall, sizes_input_ranges_trench_wall, call_input_ranges_trench_wall},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_trench_wall, .output_sizes = sizes_phi_jac_trench_wall, .call = call_phi_jac_trench_wall},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_trench_wall, .output_sizes = sizes_nu_trench_wall, .call = call_nu_trench_wall},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_trench_wall, .output_sizes = sizes_gamma_trench_wall, .call = call_gamma_trench_wall},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_trench_wall, .output_sizes = sizes_inputs_trench_wall, .call = call_inputs_trench_wall},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_trench_wall, .output_sizes = sizes_input_ranges_trench_wall, .call = call_input_ranges_trench_wall},
 };
 static const char *const outputs_phi_jac_bucket_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_toggle[] = {84, 443};
@@ -10784,11 +10784,11 @@ static const int sizes_inputs_bucket_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_toggle, sizes_phi_jac_bucket_toggle, call_phi_jac_bucket_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_toggle, sizes_nu_bucket_toggle, call_nu_bucket_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_toggle, sizes_gamma_bucket_toggle, call_gamma_bucket_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_toggle, sizes_inputs_bucket_toggle, call_inputs_bucket_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_toggle, sizes_input_ranges_bucket_toggle, call_input_ranges_bucket_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_toggle, .output_sizes = sizes_phi_jac_bucket_toggle, .call = call_phi_jac_bucket_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_toggle, .output_sizes = sizes_nu_bucket_toggle, .call = call_nu_bucket_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_toggle, .output_sizes = sizes_gamma_bucket_toggle, .call = call_gamma_bucket_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_toggle, .output_sizes = sizes_inputs_bucket_toggle, .call = call_inputs_bucket_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_toggle, .output_sizes = sizes_input_ranges_bucket_toggle, .call = call_input_ranges_bucket_toggle},
 };
 static const char *const outputs_phi_jac_bucket_stroke[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_stroke[] = {84, 443};
@@ -10801,11 +10801,11 @@ static const int sizes_inputs_bucket_stroke[] = {12};
 static const char *const outputs_input_ranges_bucket_stroke[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_stroke[] = {24};
 static const kinegen_kernel kernels_bucket_stroke[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_stroke, sizes_phi_jac_bucket_stroke, call_phi_jac_bucket_stroke},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_stroke, sizes_nu_bucket_stroke, call_nu_bucket_stroke},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_stroke, sizes_gamma_bucket_stroke, call_gamma_bucket_stroke},
-    {"inputs", "t", 1, outputs_inputs_bucket_stroke, sizes_inputs_bucket_stroke, call_inputs_bucket_stroke},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_stroke, sizes_input_ranges_bucket_stroke, call_input_ranges_bucket_stroke},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_stroke, .output_sizes = sizes_phi_jac_bucket_stroke, .call = call_phi_jac_bucket_stroke},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_stroke, .output_sizes = sizes_nu_bucket_stroke, .call = call_nu_bucket_stroke},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_stroke, .output_sizes = sizes_gamma_bucket_stroke, .call = call_gamma_bucket_stroke},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_stroke, .output_sizes = sizes_inputs_bucket_stroke, .call = call_inputs_bucket_stroke},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_stroke, .output_sizes = sizes_input_ranges_bucket_stroke, .call = call_input_ranges_bucket_stroke},
 };
 static const char *const outputs_phi_jac_bucket_near_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_near_toggle[] = {84, 443};
@@ -10818,11 +10818,11 @@ static const int sizes_inputs_bucket_near_toggle[] = {12};
 static const char *const outputs_input_ranges_bucket_near_toggle[] = {"input_ranges"};
 static const int sizes_input_ranges_bucket_near_toggle[] = {24};
 static const kinegen_kernel kernels_bucket_near_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_near_toggle, sizes_phi_jac_bucket_near_toggle, call_phi_jac_bucket_near_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_near_toggle, sizes_nu_bucket_near_toggle, call_nu_bucket_near_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_near_toggle, sizes_gamma_bucket_near_toggle, call_gamma_bucket_near_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_near_toggle, sizes_inputs_bucket_near_toggle, call_inputs_bucket_near_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_near_toggle, sizes_input_ranges_bucket_near_toggle, call_input_ranges_bucket_near_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_near_toggle, .output_sizes = sizes_phi_jac_bucket_near_toggle, .call = call_phi_jac_bucket_near_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_near_toggle, .output_sizes = sizes_nu_bucket_near_toggle, .call = call_nu_bucket_near_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_near_toggle, .output_sizes = sizes_gamma_bucket_near_toggle, .call = call_gamma_bucket_near_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_near_toggle, .output_sizes = sizes_inputs_bucket_near_toggle, .call = call_inputs_bucket_near_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_near_toggle, .output_sizes = sizes_input_ranges_bucket_near_toggle, .call = call_input_ranges_bucket_near_toggle},
 };
 static const char *const outputs_phi_jac_digging_fast[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_fast[] = {84, 443};
@@ -10835,11 +10835,11 @@ static const int sizes_inputs_digging_fast[] = {12};
 static const char *const outputs_input_ranges_digging_fast[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_fast[] = {24};
 static const kinegen_kernel kernels_digging_fast[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_fast, sizes_phi_jac_digging_fast, call_phi_jac_digging_fast},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_fast, sizes_nu_digging_fast, call_nu_digging_fast},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_fast, sizes_gamma_digging_fast, call_gamma_digging_fast},
-    {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_fast, .output_sizes = sizes_phi_jac_digging_fast, .call = call_phi_jac_digging_fast},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_fast, .output_sizes = sizes_nu_digging_fast, .call = call_nu_digging_fast},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_fast, .output_sizes = sizes_gamma_digging_fast, .call = call_gamma_digging_fast},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_fast, .output_sizes = sizes_inputs_digging_fast, .call = call_inputs_digging_fast},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_fast, .output_sizes = sizes_input_ranges_digging_fast, .call = call_input_ranges_digging_fast},
 };
 static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_paced[] = {84, 443};
@@ -10852,11 +10852,11 @@ static const int sizes_inputs_digging_paced[] = {12};
 static const char *const outputs_input_ranges_digging_paced[] = {"input_ranges"};
 static const int sizes_input_ranges_digging_paced[] = {24};
 static const kinegen_kernel kernels_digging_paced[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
-    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_paced, .output_sizes = sizes_phi_jac_digging_paced, .call = call_phi_jac_digging_paced},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_paced, .output_sizes = sizes_nu_digging_paced, .call = call_nu_digging_paced},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_paced, .output_sizes = sizes_gamma_digging_paced, .call = call_gamma_digging_paced},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_paced, .output_sizes = sizes_inputs_digging_paced, .call = call_inputs_digging_paced},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_paced, .output_sizes = sizes_input_ranges_digging_paced, .call = call_input_ranges_digging_paced},
 };
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {84, 443};
@@ -10869,11 +10869,11 @@ static const int sizes_inputs_oscillation[] = {12};
 static const char *const outputs_input_ranges_oscillation[] = {"input_ranges"};
 static const int sizes_input_ranges_oscillation[] = {24};
 static const kinegen_kernel kernels_oscillation[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_oscillation, sizes_phi_jac_oscillation, call_phi_jac_oscillation},
-    {"nu", "q,u,ud,p", 1, outputs_nu_oscillation, sizes_nu_oscillation, call_nu_oscillation},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_oscillation, sizes_gamma_oscillation, call_gamma_oscillation},
-    {"inputs", "t", 1, outputs_inputs_oscillation, sizes_inputs_oscillation, call_inputs_oscillation},
-    {"input_ranges", "span", 1, outputs_input_ranges_oscillation, sizes_input_ranges_oscillation, call_input_ranges_oscillation},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_oscillation, .output_sizes = sizes_phi_jac_oscillation, .call = call_phi_jac_oscillation},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_oscillation, .output_sizes = sizes_nu_oscillation, .call = call_nu_oscillation},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_oscillation, .output_sizes = sizes_gamma_oscillation, .call = call_gamma_oscillation},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_oscillation, .output_sizes = sizes_inputs_oscillation, .call = call_inputs_oscillation},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_oscillation, .output_sizes = sizes_input_ranges_oscillation, .call = call_input_ranges_oscillation},
 };
 static const char *const outputs_excavator_euler_zxz_frames[] = {"frames"};
 static const int sizes_excavator_euler_zxz_frames[] = {336};
@@ -10892,56 +10892,56 @@ static const int sizes_shared_points[] = {90};
 static const char *const outputs_shared_actuator_ranges[] = {"actuator_ranges"};
 static const int sizes_shared_actuator_ranges[] = {8};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_excavator_euler_zxz_frames, sizes_excavator_euler_zxz_frames, call_excavator_euler_zxz_frames},
-    {"lengths", "q,p", 1, outputs_shared_lengths, sizes_shared_lengths, call_shared_lengths},
-    {"actuation", "q,p", 1, outputs_shared_actuation, sizes_shared_actuation, call_shared_actuation},
-    {"loads", "q,t,p", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
-    {"inertia", "q,v,a,p", 1, outputs_shared_inertia, sizes_shared_inertia, call_shared_inertia},
-    {"supply", "q,v,f,p", 4, outputs_shared_supply, sizes_shared_supply, call_shared_supply},
-    {"points", "p", 1, outputs_shared_points, sizes_shared_points, call_shared_points},
-    {"actuator_ranges", "p", 1, outputs_shared_actuator_ranges, sizes_shared_actuator_ranges, call_shared_actuator_ranges},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_excavator_euler_zxz_frames, .output_sizes = sizes_excavator_euler_zxz_frames, .call = call_excavator_euler_zxz_frames},
+    {.name = "lengths", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_lengths, .output_sizes = sizes_shared_lengths, .call = call_shared_lengths},
+    {.name = "actuation", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_actuation, .output_sizes = sizes_shared_actuation, .call = call_shared_actuation},
+    {.name = "loads", .slots = "q,t,p", .n_outputs = 1, .output_names = outputs_shared_loads, .output_sizes = sizes_shared_loads, .call = call_shared_loads},
+    {.name = "inertia", .slots = "q,v,a,p", .n_outputs = 1, .output_names = outputs_shared_inertia, .output_sizes = sizes_shared_inertia, .call = call_shared_inertia},
+    {.name = "supply", .slots = "q,v,f,p", .n_outputs = 4, .output_names = outputs_shared_supply, .output_sizes = sizes_shared_supply, .call = call_shared_supply},
+    {.name = "points", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_points, .output_sizes = sizes_shared_points, .call = call_shared_points},
+    {.name = "actuator_ranges", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_actuator_ranges, .output_sizes = sizes_shared_actuator_ranges, .call = call_shared_actuator_ranges},
 };
 
 static const char *const body_names[] = {"upper", "boom", "boom_cyl_l_barrel", "boom_cyl_l_rod", "boom_cyl_r_barrel", "boom_cyl_r_rod", "arm", "arm_cyl_barrel", "arm_cyl_rod", "bucket_cyl_barrel", "bucket_cyl_rod", "side_link", "bucket_link", "bucket"};
 static const char *const stored_names[] = {"upper.x", "upper.y", "upper.z", "upper.alpha", "upper.beta", "upper.gamma", "boom.x", "boom.y", "boom.z", "boom.alpha", "boom.beta", "boom.gamma", "boom_cyl_l_barrel.x", "boom_cyl_l_barrel.y", "boom_cyl_l_barrel.z", "boom_cyl_l_barrel.alpha", "boom_cyl_l_barrel.beta", "boom_cyl_l_barrel.gamma", "boom_cyl_l_rod.x", "boom_cyl_l_rod.y", "boom_cyl_l_rod.z", "boom_cyl_l_rod.alpha", "boom_cyl_l_rod.beta", "boom_cyl_l_rod.gamma", "boom_cyl_r_barrel.x", "boom_cyl_r_barrel.y", "boom_cyl_r_barrel.z", "boom_cyl_r_barrel.alpha", "boom_cyl_r_barrel.beta", "boom_cyl_r_barrel.gamma", "boom_cyl_r_rod.x", "boom_cyl_r_rod.y", "boom_cyl_r_rod.z", "boom_cyl_r_rod.alpha", "boom_cyl_r_rod.beta", "boom_cyl_r_rod.gamma", "arm.x", "arm.y", "arm.z", "arm.alpha", "arm.beta", "arm.gamma", "arm_cyl_barrel.x", "arm_cyl_barrel.y", "arm_cyl_barrel.z", "arm_cyl_barrel.alpha", "arm_cyl_barrel.beta", "arm_cyl_barrel.gamma", "arm_cyl_rod.x", "arm_cyl_rod.y", "arm_cyl_rod.z", "arm_cyl_rod.alpha", "arm_cyl_rod.beta", "arm_cyl_rod.gamma", "bucket_cyl_barrel.x", "bucket_cyl_barrel.y", "bucket_cyl_barrel.z", "bucket_cyl_barrel.alpha", "bucket_cyl_barrel.beta", "bucket_cyl_barrel.gamma", "bucket_cyl_rod.x", "bucket_cyl_rod.y", "bucket_cyl_rod.z", "bucket_cyl_rod.alpha", "bucket_cyl_rod.beta", "bucket_cyl_rod.gamma", "side_link.x", "side_link.y", "side_link.z", "side_link.alpha", "side_link.beta", "side_link.gamma", "bucket_link.x", "bucket_link.y", "bucket_link.z", "bucket_link.alpha", "bucket_link.beta", "bucket_link.gamma", "bucket.x", "bucket.y", "bucket.z", "bucket.alpha", "bucket.beta", "bucket.gamma"};
 static const char *const velocity_names[] = {"upper.x", "upper.y", "upper.z", "upper.alpha", "upper.beta", "upper.gamma", "boom.x", "boom.y", "boom.z", "boom.alpha", "boom.beta", "boom.gamma", "boom_cyl_l_barrel.x", "boom_cyl_l_barrel.y", "boom_cyl_l_barrel.z", "boom_cyl_l_barrel.alpha", "boom_cyl_l_barrel.beta", "boom_cyl_l_barrel.gamma", "boom_cyl_l_rod.x", "boom_cyl_l_rod.y", "boom_cyl_l_rod.z", "boom_cyl_l_rod.alpha", "boom_cyl_l_rod.beta", "boom_cyl_l_rod.gamma", "boom_cyl_r_barrel.x", "boom_cyl_r_barrel.y", "boom_cyl_r_barrel.z", "boom_cyl_r_barrel.alpha", "boom_cyl_r_barrel.beta", "boom_cyl_r_barrel.gamma", "boom_cyl_r_rod.x", "boom_cyl_r_rod.y", "boom_cyl_r_rod.z", "boom_cyl_r_rod.alpha", "boom_cyl_r_rod.beta", "boom_cyl_r_rod.gamma", "arm.x", "arm.y", "arm.z", "arm.alpha", "arm.beta", "arm.gamma", "arm_cyl_barrel.x", "arm_cyl_barrel.y", "arm_cyl_barrel.z", "arm_cyl_barrel.alpha", "arm_cyl_barrel.beta", "arm_cyl_barrel.gamma", "arm_cyl_rod.x", "arm_cyl_rod.y", "arm_cyl_rod.z", "arm_cyl_rod.alpha", "arm_cyl_rod.beta", "arm_cyl_rod.gamma", "bucket_cyl_barrel.x", "bucket_cyl_barrel.y", "bucket_cyl_barrel.z", "bucket_cyl_barrel.alpha", "bucket_cyl_barrel.beta", "bucket_cyl_barrel.gamma", "bucket_cyl_rod.x", "bucket_cyl_rod.y", "bucket_cyl_rod.z", "bucket_cyl_rod.alpha", "bucket_cyl_rod.beta", "bucket_cyl_rod.gamma", "side_link.x", "side_link.y", "side_link.z", "side_link.alpha", "side_link.beta", "side_link.gamma", "bucket_link.x", "bucket_link.y", "bucket_link.z", "bucket_link.alpha", "bucket_link.beta", "bucket_link.gamma", "bucket.x", "bucket.y", "bucket.z", "bucket.alpha", "bucket.beta", "bucket.gamma"};
 static const kinegen_point points[] = {
-    {0, "upper.O", {0.0, 0.0, 0.0}},
-    {0, "upper.A", {0.22767, 0.0, 1.95729}},
-    {0, "upper.B_left", {0.68912, 0.32, 1.35478}},
-    {0, "upper.B_right", {0.68912, -0.32, 1.35478}},
-    {1, "boom.A", {0.0, 0.0, 0.0}},
-    {1, "boom.C_left", {1.39283, 0.32, 2.001922}},
-    {1, "boom.C_right", {1.39283, -0.32, 2.001922}},
-    {1, "boom.D", {2.2875, 0.0, 2.785}},
-    {1, "boom.E", {4.7878, 0.0, 2.9959}},
-    {2, "boom_cyl_l_barrel.base", {0.0, 0.0, 0.0}},
-    {3, "boom_cyl_l_rod.eye", {0.0, 0.0, 0.0}},
-    {4, "boom_cyl_r_barrel.base", {0.0, 0.0, 0.0}},
-    {5, "boom_cyl_r_rod.eye", {0.0, 0.0, 0.0}},
-    {6, "arm.E", {0.0, 0.0, 0.0}},
-    {6, "arm.F", {-0.786562, 0.0, -0.369691}},
-    {6, "arm.G", {-0.24687, 0.0, 0.73594}},
-    {6, "arm.H", {1.5754, 0.0, 1.8799}},
-    {6, "arm.Q", {1.8954, 0.0, 2.1809}},
-    {7, "arm_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {8, "arm_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {9, "bucket_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {10, "bucket_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {11, "side_link.H", {0.0, 0.0, 0.0}},
-    {11, "side_link.J", {-0.332658, 0.0, 0.481235}},
-    {12, "bucket_link.K", {0.0, 0.0, 0.0}},
-    {12, "bucket_link.J", {-0.342428, 0.0, -0.450737}},
-    {13, "bucket.Q", {0.0, 0.0, 0.0}},
-    {13, "bucket.K", {-0.32404, 0.0, 0.33854}},
-    {13, "bucket.T", {1.28, 0.0, 0.806}},
-    {-1, "ground.O", {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.O", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.A", .local = {0.22767, 0.0, 1.95729}},
+    {.body = 0, .name = "upper.B_left", .local = {0.68912, 0.32, 1.35478}},
+    {.body = 0, .name = "upper.B_right", .local = {0.68912, -0.32, 1.35478}},
+    {.body = 1, .name = "boom.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "boom.C_left", .local = {1.39283, 0.32, 2.001922}},
+    {.body = 1, .name = "boom.C_right", .local = {1.39283, -0.32, 2.001922}},
+    {.body = 1, .name = "boom.D", .local = {2.2875, 0.0, 2.785}},
+    {.body = 1, .name = "boom.E", .local = {4.7878, 0.0, 2.9959}},
+    {.body = 2, .name = "boom_cyl_l_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 3, .name = "boom_cyl_l_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 4, .name = "boom_cyl_r_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 5, .name = "boom_cyl_r_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.E", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.F", .local = {-0.786562, 0.0, -0.369691}},
+    {.body = 6, .name = "arm.G", .local = {-0.24687, 0.0, 0.73594}},
+    {.body = 6, .name = "arm.H", .local = {1.5754, 0.0, 1.8799}},
+    {.body = 6, .name = "arm.Q", .local = {1.8954, 0.0, 2.1809}},
+    {.body = 7, .name = "arm_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 8, .name = "arm_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 9, .name = "bucket_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 10, .name = "bucket_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.H", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.J", .local = {-0.332658, 0.0, 0.481235}},
+    {.body = 12, .name = "bucket_link.K", .local = {0.0, 0.0, 0.0}},
+    {.body = 12, .name = "bucket_link.J", .local = {-0.342428, 0.0, -0.450737}},
+    {.body = 13, .name = "bucket.Q", .local = {0.0, 0.0, 0.0}},
+    {.body = 13, .name = "bucket.K", .local = {-0.32404, 0.0, 0.33854}},
+    {.body = 13, .name = "bucket.T", .local = {1.28, 0.0, 0.806}},
+    {.body = -1, .name = "ground.O", .local = {0.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {"boom_cylinder_left", 9, 10, 1, 1.7352, 3.0649},
-    {"boom_cylinder_right", 11, 12, 1, 1.7352, 3.0649},
-    {"arm_cylinder", 18, 19, 1, 1.8164, 3.2939},
-    {"bucket_cylinder", 20, 21, 1, 1.6529, 2.6613},
+    {.name = "boom_cylinder_left", .point1 = 9, .point2 = 10, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "boom_cylinder_right", .point1 = 11, .point2 = 12, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "arm_cylinder", .point1 = 18, .point2 = 19, .has_range = 1, .min = 1.8164, .max = 3.2939},
+    {.name = "bucket_cylinder", .point1 = 20, .point2 = 21, .has_range = 1, .min = 1.6529, .max = 2.6613},
 };
 
 /* the force solve (kinegen_forces): 4 actuation element(s), 2 load(s) */
@@ -10976,23 +10976,31 @@ static const int statics_off_col[] = {4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 
 static const int statics_off_value[] = {414, 17, 18, 19, 108, 109, 110, 42, 43, 44, 7, 9, 10, 8, 12, 14, 15, 13, 103, 105, 106, 104, 98, 100, 101, 99, 37, 39, 40, 38, 32, 34, 35, 33, 22, 23, 21, 27, 28, 26, 84, 89, 94, 150, 155, 160, 423, 417, 422, 421, 416, 415, 47, 48, 46, 73, 72, 71, 76, 78, 77, 113, 114, 112, 139, 138, 137, 142, 143, 144, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 64, 63, 62, 68, 70, 69, 65, 66, 130, 129, 128, 134, 135, 136, 131, 132, 178, 179, 180, 183, 184, 185, 241, 246, 251, 429, 428, 427, 57, 58, 59, 79, 80, 81, 123, 124, 125, 145, 146, 147, 203, 204, 205, 230, 229, 228, 234, 235, 233, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 51, 52, 53, 55, 54, 117, 118, 119, 121, 120, 221, 220, 219, 226, 227, 225, 222, 223, 294, 295, 296, 299, 300, 301, 400, 405, 410, 435, 434, 433, 214, 215, 216, 236, 237, 238, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 361, 362, 363, 388, 387, 386, 392, 393, 391, 208, 209, 210, 212, 211, 379, 378, 377, 384, 385, 383, 380, 381, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 
 static const kinegen_statics statics = {
-    4, element_names, element_kinds, 80,
-    {439, matrix_rows, matrix_cols}, &kernels[2],
-    2, load_names, {6, load_rows, load_cols}, &kernels[3],
-    84, inertia_cols, &kernels[4],
-    49, statics_block_start, statics_block_store, statics_row_order, statics_col_order,
-    306, 176, statics_diag_value, statics_diag_slot,
-    263, statics_off_start, statics_off_col, statics_off_value,
-    1266, 84,
-    19, joint_names, joint_body, joint_sign, joint_point_body, joint_local, joint_row_start, joint_rows,
-    body_norm_start, body_norm_rows, element_hydraulics, 1583, 80,
+    .n_elements = 4, .element_names = element_names, .element_kinds = element_kinds,
+    .n_joint_rows = 80,
+    .pattern = {.n = 439, .rows = matrix_rows, .cols = matrix_cols}, .actuation = &kernels[2],
+    .n_loads = 2, .load_names = load_names,
+    .load_pattern = {.n = 6, .rows = load_rows, .cols = load_cols}, .loads = &kernels[3],
+    .n_inertia = 84, .inertia_cols = inertia_cols, .inertia = &kernels[4],
+    .n_blocks = 49, .block_start = statics_block_start, .block_store = statics_block_store,
+    .row_order = statics_row_order, .col_order = statics_col_order,
+    .n_store = 306, .n_diag = 176, .diag_value = statics_diag_value,
+    .diag_slot = statics_diag_slot,
+    .n_off = 263, .off_start = statics_off_start, .off_col = statics_off_col, .off_value = statics_off_value,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_FORCE_WORK_DOUBLES, .work_ints = EXCAVATOR_EULER_ZXZ_FORCE_WORK_INTS,
+    .n_joints = 19, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
+    .joint_point_body = joint_point_body, .joint_local = joint_local, .joint_row_start = joint_row_start, .joint_rows = joint_rows,
+    .body_norm_start = body_norm_start, .body_norm_rows = body_norm_rows, .element_hydraulics = element_hydraulics,
+    .reaction_doubles = EXCAVATOR_EULER_ZXZ_REACTION_WORK_DOUBLES, .reaction_ints = EXCAVATOR_EULER_ZXZ_REACTION_WORK_INTS,
 };
 
 const kinegen_layout excavator_euler_zxz_layout = {
-    "excavator", "euler:zxz", "excavator.yaml", "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", "0.2.0",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, EXCAVATOR_EULER_ZXZ_N_BODIES, body_names, stored_names, velocity_names,
-    30, points, 4, actuators, excavator_euler_zxz_frames,
-    8, kernels, &statics,
+    .model = "excavator", .parametrization = "euler:zxz", .source = "excavator.yaml",
+    .source_sha256 = "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", .kinegen_version = "0.2.0",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_bodies = EXCAVATOR_EULER_ZXZ_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 30, .points = points, .n_actuators = 4, .actuators = actuators,
+    .frames = excavator_euler_zxz_frames, .n_kernels = 8, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.22767, 0.0, 1.95729, 1.5707963267948966, 0.37262792980000004, -1.5707963267948966, 0.68912, 0.32, 1.35478, -1.5707963267948966, 0.8970987087, 1.5707963267948966, 2.253743682, 0.32, 3.314748116, -1.5707963267948966, 0.8970987087, 1.5707963267948966, 0.68912, -0.32, 1.35478, -1.5707963267948966, 0.8970987087, 1.5707963267948966, 2.253743682, -0.32, 3.314748116, -1.5707963267948966, 0.8970987087, 1.5707963267948966, 5.777601761, 0.0, 3.004525931, 1.5707963267948966, 1.4491465430000001, -1.5707963267948966, 3.372106626, 0.0, 3.718369089, -1.5707963267948966, 0.01134434347, 1.5707963267948966, 5.315193587, 0.0, 3.74041308, -1.5707963267948966, 0.01134434347, 1.5707963267948966, 6.478145341, 0.0, 3.338877801, 1.5707963267948966, 0.6348178114999999, -1.5707963267948966, 7.974087195, 0.0, 2.237087009, 1.5707963267948966, 0.6348178114999999, -1.5707963267948966, 7.834783629, 0.0, 1.668894271, 1.5707963267948966, 0.8452625926000001, -1.5707963267948966, 8.355750886, 0.0, 1.819051598, 1.5707963267948966, 1.7519603019999999, -1.5707963267948966, 8.172391163, 0.0, 1.387785479, 1.5707963267948966, 1.165528812, -1.5707963267948966};
@@ -11015,20 +11023,23 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19, 2
 static const int off_col_digging[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_digging = {
-    12, design_nominal, phi_jac_digging, nu_digging, gamma_digging,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging, .nu = nu_digging, .gamma = gamma_digging,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_digging = {
-    &excavator_euler_zxz_layout, "digging",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 443,
-    0.0, 17.0, 341,
-    initial_q, constraints_digging, drivers_digging, jac_rows_digging, jac_cols_digging,
-    NULL, NULL, NULL, inputs_digging, input_ranges_digging, retract,
-    46, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
-    384, 198, diag_value_digging, diag_slot_digging,
-    245, off_start_digging, off_col_digging, off_value_digging,
-    3419, 264, 5, kernels_digging, &design_digging,
+    .layout = &excavator_euler_zxz_layout, .case_name = "digging",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 443,
+    .t0 = 0.0, .t1 = 17.0, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging, .driver_names = drivers_digging,
+    .jac_rows = jac_rows_digging, .jac_cols = jac_cols_digging,
+    .inputs = inputs_digging, .input_ranges = input_ranges_digging, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_digging, .block_store = block_store_digging,
+    .row_order = row_order_digging, .col_order = col_order_digging,
+    .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
+    .n_off = 245, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING,
+    .n_kernels = 5, .kernels = kernels_digging, .design = &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -11047,20 +11058,23 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 19,
 static const int off_col_level_cut[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 6, 16, 20, 18, 22, 24, 17, 19, 22, 24, 17, 19, 22, 24, 18, 22, 24, 25, 26, 27, 21, 23, 25, 27, 17, 19, 22, 24, 18, 22, 24, 3, 4, 5, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 7, 11, 12, 28, 29, 30, 46, 47, 8, 13, 14, 31, 32, 33, 48, 49, 15, 16, 20, 35, 36, 37, 38, 39, 50, 23, 25, 27, 51, 46, 47, 54, 46, 47, 54, 48, 49, 55, 48, 49, 55, 35, 36, 37, 38, 39, 50, 56, 57, 19, 22, 24, 19, 22, 24, 40, 43, 52, 58, 41, 42, 23, 25, 27, 46, 47, 54, 59, 60, 48, 49, 55, 61, 62, 56, 57, 63, 56, 57, 63, 41, 65, 67, 52, 64, 65, 67, 40, 64, 65, 67, 56, 57, 63, 72, 73, 19, 22, 24, 44, 45, 53, 74, 75, 76, 44, 45, 53, 74, 75, 76, 78, 79, 78, 79, 80, 78, 79, 80, 78, 79, 80, 81, 82};
 static const int off_value_level_cut[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 32, 34, 35, 33, 37, 39, 40, 38, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 164, 174, 94, 95, 96, 89, 90, 91, 92, 84, 85, 86, 87, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 169, 170, 171, 172, 189, 190, 191, 192, 194, 195, 196, 197, 199, 200, 201, 251, 252, 253, 241, 242, 243, 244, 280, 281, 282, 283, 290, 291, 292, 340, 338, 339, 328, 329, 331, 330, 347, 348, 349, 350, 357, 358, 359, 47, 48, 46, 73, 71, 72, 78, 77, 76, 113, 114, 112, 139, 137, 138, 144, 143, 142, 247, 248, 249, 246, 261, 262, 263, 260, 286, 287, 288, 285, 353, 354, 355, 352, 64, 62, 63, 70, 69, 68, 65, 66, 130, 128, 129, 136, 135, 134, 131, 132, 203, 204, 205, 228, 229, 230, 235, 233, 234, 334, 336, 335, 333, 57, 58, 59, 79, 80, 81, 123, 124, 125, 145, 146, 147, 219, 220, 221, 227, 225, 226, 222, 223, 294, 295, 296, 299, 300, 301, 305, 309, 313, 317, 321, 324, 344, 346, 345, 51, 52, 53, 55, 54, 117, 118, 119, 121, 120, 214, 215, 216, 236, 237, 238, 410, 411, 412, 405, 406, 407, 408, 400, 401, 402, 403, 208, 209, 210, 212, 211, 361, 362, 363, 386, 388, 387, 393, 392, 391, 377, 379, 378, 385, 384, 383, 380, 381, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_level_cut = {
-    12, design_nominal, phi_jac_level_cut, nu_level_cut, gamma_level_cut,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_level_cut, .nu = nu_level_cut, .gamma = gamma_level_cut,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_level_cut = {
-    &excavator_euler_zxz_layout, "level_cut",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 425,
-    0.0, 4.0, 201,
-    initial_q, constraints_level_cut, drivers_level_cut, jac_rows_level_cut, jac_cols_level_cut,
-    NULL, NULL, NULL, inputs_level_cut, input_ranges_level_cut, retract,
-    58, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
-    288, 159, diag_value_level_cut, diag_slot_level_cut,
-    266, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    3308, 288, 5, kernels_level_cut, &design_level_cut,
+    .layout = &excavator_euler_zxz_layout, .case_name = "level_cut",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 425,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_level_cut, .driver_names = drivers_level_cut,
+    .jac_rows = jac_rows_level_cut, .jac_cols = jac_cols_level_cut,
+    .inputs = inputs_level_cut, .input_ranges = input_ranges_level_cut, .retract = retract,
+    .n_blocks = 58, .block_start = block_start_level_cut, .block_store = block_store_level_cut,
+    .row_order = row_order_level_cut, .col_order = col_order_level_cut,
+    .n_store = 288, .n_diag = 159, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
+    .n_off = 266, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_LEVEL_CUT,
+    .n_kernels = 5, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -11079,20 +11093,23 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 1
 static const int off_col_trench_wall[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 6, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 9, 15, 16, 20, 10, 15, 16, 20, 6, 16, 20, 18, 22, 24, 17, 19, 22, 24, 17, 19, 22, 24, 18, 22, 24, 25, 26, 27, 21, 23, 25, 27, 17, 19, 22, 24, 18, 22, 24, 3, 4, 5, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 19, 22, 24, 34, 7, 11, 12, 28, 29, 30, 46, 47, 8, 13, 14, 31, 32, 33, 48, 49, 15, 16, 20, 35, 36, 37, 38, 39, 50, 23, 25, 27, 51, 46, 47, 54, 46, 47, 54, 48, 49, 55, 48, 49, 55, 35, 36, 37, 38, 39, 50, 56, 57, 19, 22, 24, 19, 22, 24, 40, 43, 52, 58, 41, 42, 23, 25, 27, 46, 47, 54, 59, 60, 48, 49, 55, 61, 62, 56, 57, 63, 56, 57, 63, 41, 65, 67, 52, 64, 65, 67, 40, 64, 65, 67, 56, 57, 63, 72, 73, 19, 22, 24, 44, 45, 53, 74, 75, 76, 44, 45, 53, 74, 75, 76, 78, 79, 78, 79, 80, 78, 79, 80, 78, 79, 80, 81, 82};
 static const int off_value_trench_wall[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 32, 34, 35, 33, 37, 39, 40, 38, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 164, 174, 94, 95, 96, 89, 90, 91, 92, 84, 85, 86, 87, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 169, 170, 171, 172, 189, 190, 191, 192, 194, 195, 196, 197, 199, 200, 201, 251, 252, 253, 241, 242, 243, 244, 280, 281, 282, 283, 290, 291, 292, 340, 338, 339, 328, 329, 331, 330, 347, 348, 349, 350, 357, 358, 359, 47, 48, 46, 73, 71, 72, 78, 77, 76, 113, 114, 112, 139, 137, 138, 144, 143, 142, 247, 248, 249, 246, 261, 262, 263, 260, 286, 287, 288, 285, 353, 354, 355, 352, 64, 62, 63, 70, 69, 68, 65, 66, 130, 128, 129, 136, 135, 134, 131, 132, 203, 204, 205, 228, 229, 230, 235, 233, 234, 334, 336, 335, 333, 57, 58, 59, 79, 80, 81, 123, 124, 125, 145, 146, 147, 219, 220, 221, 227, 225, 226, 222, 223, 294, 295, 296, 299, 300, 301, 305, 309, 313, 317, 321, 324, 344, 346, 345, 51, 52, 53, 55, 54, 117, 118, 119, 121, 120, 214, 215, 216, 236, 237, 238, 410, 411, 412, 405, 406, 407, 408, 400, 401, 402, 403, 208, 209, 210, 212, 211, 361, 362, 363, 386, 388, 387, 393, 392, 391, 377, 379, 378, 385, 384, 383, 380, 381, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_trench_wall = {
-    12, design_nominal, phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_trench_wall, .nu = nu_trench_wall, .gamma = gamma_trench_wall,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_trench_wall = {
-    &excavator_euler_zxz_layout, "trench_wall",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 425,
-    0.0, 4.0, 201,
-    initial_q, constraints_trench_wall, drivers_trench_wall, jac_rows_trench_wall, jac_cols_trench_wall,
-    NULL, NULL, NULL, inputs_trench_wall, input_ranges_trench_wall, retract,
-    58, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
-    288, 159, diag_value_trench_wall, diag_slot_trench_wall,
-    266, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    3308, 288, 5, kernels_trench_wall, &design_trench_wall,
+    .layout = &excavator_euler_zxz_layout, .case_name = "trench_wall",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 425,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_trench_wall, .driver_names = drivers_trench_wall,
+    .jac_rows = jac_rows_trench_wall, .jac_cols = jac_cols_trench_wall,
+    .inputs = inputs_trench_wall, .input_ranges = input_ranges_trench_wall, .retract = retract,
+    .n_blocks = 58, .block_start = block_start_trench_wall, .block_store = block_store_trench_wall,
+    .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
+    .n_store = 288, .n_diag = 159, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
+    .n_off = 266, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_TRENCH_WALL,
+    .n_kernels = 5, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -11111,20 +11128,23 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15,
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_toggle[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_bucket_toggle = {
-    12, design_nominal, phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_toggle, .nu = nu_bucket_toggle, .gamma = gamma_bucket_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_bucket_toggle = {
-    &excavator_euler_zxz_layout, "bucket_toggle",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 443,
-    0.0, 3.0, 301,
-    initial_q, constraints_bucket_toggle, drivers_bucket_toggle, jac_rows_bucket_toggle, jac_cols_bucket_toggle,
-    NULL, NULL, NULL, inputs_bucket_toggle, input_ranges_bucket_toggle, retract,
-    46, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
-    384, 198, diag_value_bucket_toggle, diag_slot_bucket_toggle,
-    245, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    3419, 264, 5, kernels_bucket_toggle, &design_bucket_toggle,
+    .layout = &excavator_euler_zxz_layout, .case_name = "bucket_toggle",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 443,
+    .t0 = 0.0, .t1 = 3.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_toggle, .driver_names = drivers_bucket_toggle,
+    .jac_rows = jac_rows_bucket_toggle, .jac_cols = jac_cols_bucket_toggle,
+    .inputs = inputs_bucket_toggle, .input_ranges = input_ranges_bucket_toggle, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_bucket_toggle, .block_store = block_store_bucket_toggle,
+    .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
+    .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
+    .n_off = 245, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -11143,20 +11163,23 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15,
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_stroke[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_bucket_stroke = {
-    12, design_nominal, phi_jac_bucket_stroke, nu_bucket_stroke, gamma_bucket_stroke,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_stroke, .nu = nu_bucket_stroke, .gamma = gamma_bucket_stroke,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_bucket_stroke = {
-    &excavator_euler_zxz_layout, "bucket_stroke",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 443,
-    0.0, 1.0, 101,
-    initial_q, constraints_bucket_stroke, drivers_bucket_stroke, jac_rows_bucket_stroke, jac_cols_bucket_stroke,
-    NULL, NULL, NULL, inputs_bucket_stroke, input_ranges_bucket_stroke, retract,
-    46, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
-    384, 198, diag_value_bucket_stroke, diag_slot_bucket_stroke,
-    245, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    3419, 264, 5, kernels_bucket_stroke, &design_bucket_stroke,
+    .layout = &excavator_euler_zxz_layout, .case_name = "bucket_stroke",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 443,
+    .t0 = 0.0, .t1 = 1.0, .steps = 101,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_stroke, .driver_names = drivers_bucket_stroke,
+    .jac_rows = jac_rows_bucket_stroke, .jac_cols = jac_cols_bucket_stroke,
+    .inputs = inputs_bucket_stroke, .input_ranges = input_ranges_bucket_stroke, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_bucket_stroke, .block_store = block_store_bucket_stroke,
+    .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
+    .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
+    .n_off = 245, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_STROKE,
+    .n_kernels = 5, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -11175,20 +11198,23 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_bucket_near_toggle[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_bucket_near_toggle = {
-    12, design_nominal, phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_near_toggle, .nu = nu_bucket_near_toggle, .gamma = gamma_bucket_near_toggle,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_bucket_near_toggle = {
-    &excavator_euler_zxz_layout, "bucket_near_toggle",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 443,
-    0.0, 2.0, 9,
-    initial_q, constraints_bucket_near_toggle, drivers_bucket_near_toggle, jac_rows_bucket_near_toggle, jac_cols_bucket_near_toggle,
-    NULL, NULL, NULL, inputs_bucket_near_toggle, input_ranges_bucket_near_toggle, retract,
-    46, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
-    384, 198, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
-    245, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    3419, 264, 5, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    .layout = &excavator_euler_zxz_layout, .case_name = "bucket_near_toggle",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 443,
+    .t0 = 0.0, .t1 = 2.0, .steps = 9,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_near_toggle, .driver_names = drivers_bucket_near_toggle,
+    .jac_rows = jac_rows_bucket_near_toggle, .jac_cols = jac_cols_bucket_near_toggle,
+    .inputs = inputs_bucket_near_toggle, .input_ranges = input_ranges_bucket_near_toggle, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_bucket_near_toggle, .block_store = block_store_bucket_near_toggle,
+    .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
+    .n_store = 384, .n_diag = 198, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
+    .n_off = 245, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_BUCKET_NEAR_TOGGLE,
+    .n_kernels = 5, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -11207,20 +11233,23 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging_fast[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_digging_fast = {
-    12, design_nominal, phi_jac_digging_fast, nu_digging_fast, gamma_digging_fast,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_fast, .nu = nu_digging_fast, .gamma = gamma_digging_fast,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_digging_fast = {
-    &excavator_euler_zxz_layout, "digging_fast",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 443,
-    0.0, 13.6, 341,
-    initial_q, constraints_digging_fast, drivers_digging_fast, jac_rows_digging_fast, jac_cols_digging_fast,
-    NULL, NULL, NULL, inputs_digging_fast, input_ranges_digging_fast, retract,
-    46, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
-    384, 198, diag_value_digging_fast, diag_slot_digging_fast,
-    245, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    3419, 264, 5, kernels_digging_fast, &design_digging_fast,
+    .layout = &excavator_euler_zxz_layout, .case_name = "digging_fast",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 443,
+    .t0 = 0.0, .t1 = 13.6, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_fast, .driver_names = drivers_digging_fast,
+    .jac_rows = jac_rows_digging_fast, .jac_cols = jac_cols_digging_fast,
+    .inputs = inputs_digging_fast, .input_ranges = input_ranges_digging_fast, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_digging_fast, .block_store = block_store_digging_fast,
+    .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
+    .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
+    .n_off = 245, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING_FAST,
+    .n_kernels = 5, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -11239,20 +11268,23 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15,
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_digging_paced[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_digging_paced = {
-    12, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_paced, .nu = nu_digging_paced, .gamma = gamma_digging_paced,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_digging_paced = {
-    &excavator_euler_zxz_layout, "digging_paced",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 443,
-    0.0, 59.5, 341,
-    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
-    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
-    46, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
-    384, 198, diag_value_digging_paced, diag_slot_digging_paced,
-    245, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    3419, 264, 5, kernels_digging_paced, &design_digging_paced,
+    .layout = &excavator_euler_zxz_layout, .case_name = "digging_paced",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 443,
+    .t0 = 0.0, .t1 = 59.5, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_paced, .driver_names = drivers_digging_paced,
+    .jac_rows = jac_rows_digging_paced, .jac_cols = jac_cols_digging_paced,
+    .inputs = inputs_digging_paced, .input_ranges = input_ranges_digging_paced, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_digging_paced, .block_store = block_store_digging_paced,
+    .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
+    .n_store = 384, .n_diag = 198, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
+    .n_off = 245, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_DIGGING_PACED,
+    .n_kernels = 5, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -11271,20 +11303,23 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 15, 1
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 23, 17, 18, 23, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 9, 15, 16, 21, 10, 15, 16, 21, 6, 16, 21, 6, 16, 21, 10, 15, 16, 21, 9, 15, 16, 21, 17, 18, 23, 24, 25, 3, 4, 5, 8, 13, 14, 26, 27, 28, 15, 16, 21, 15, 16, 21, 15, 16, 21, 32, 33, 34, 32, 33, 34, 29, 30, 31, 32, 33, 34, 8, 13, 14, 26, 27, 28, 36, 37, 40, 42, 46, 40, 42, 46, 29, 38, 39, 43, 30, 38, 39, 43, 31, 39, 43, 31, 39, 43, 30, 38, 39, 43, 31, 39, 43, 30, 38, 39, 43, 29, 38, 39, 43, 29, 38, 39, 43, 36, 37, 47, 36, 37, 47, 40, 42, 46, 48, 49, 38, 39, 43, 38, 39, 43, 38, 39, 43, 55, 56, 57, 55, 56, 57, 58, 54, 53, 55, 56, 57, 36, 37, 47, 59, 60, 38, 39, 43, 38, 39, 43, 58, 62, 63, 67, 54, 62, 63, 67, 53, 63, 67, 50, 51, 52, 64, 66, 70, 64, 66, 70, 64, 66, 70, 81, 82};
 static const int off_value_oscillation[] = {414, 415, 17, 18, 19, 42, 43, 44, 108, 109, 110, 7, 9, 10, 8, 12, 14, 15, 13, 37, 39, 40, 38, 32, 34, 35, 33, 98, 100, 101, 99, 103, 105, 106, 104, 22, 23, 21, 27, 28, 26, 47, 48, 46, 64, 63, 62, 73, 72, 71, 84, 89, 94, 418, 417, 416, 57, 58, 59, 79, 80, 81, 160, 161, 162, 155, 156, 157, 158, 150, 151, 152, 153, 164, 165, 166, 167, 169, 170, 171, 172, 174, 175, 176, 199, 200, 201, 194, 195, 196, 197, 189, 190, 191, 192, 51, 52, 53, 55, 54, 113, 114, 112, 139, 137, 138, 144, 143, 142, 178, 179, 180, 183, 184, 185, 203, 204, 205, 221, 220, 219, 230, 229, 228, 241, 246, 251, 427, 426, 425, 130, 128, 129, 136, 135, 134, 131, 132, 214, 215, 216, 236, 237, 238, 255, 256, 257, 258, 260, 261, 262, 263, 265, 266, 267, 290, 291, 292, 285, 286, 287, 288, 357, 358, 359, 352, 353, 354, 355, 347, 348, 349, 350, 280, 281, 282, 283, 123, 124, 125, 145, 146, 147, 208, 209, 210, 212, 211, 294, 295, 296, 299, 300, 301, 361, 362, 363, 379, 378, 377, 388, 387, 386, 400, 405, 410, 436, 435, 434, 117, 118, 119, 121, 120, 269, 270, 271, 274, 275, 276, 305, 306, 307, 308, 313, 314, 315, 316, 321, 322, 323, 328, 333, 338, 372, 373, 374, 394, 395, 396, 366, 367, 368, 370, 369};
 static const kinegen_design design_oscillation = {
-    12, design_nominal, phi_jac_oscillation, nu_oscillation, gamma_oscillation,
-    {0, NULL, NULL}, {0, NULL, NULL}, {0, NULL, NULL}, NULL, NULL, NULL, 0, /* built without sensitivity kernels */
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_oscillation, .nu = nu_oscillation, .gamma = gamma_oscillation,
+    /* built without sensitivity kernels */
 };
 
 const kinegen_model excavator_euler_zxz_oscillation = {
-    &excavator_euler_zxz_layout, "oscillation",
-    EXCAVATOR_EULER_ZXZ_N_Q, EXCAVATOR_EULER_ZXZ_N_V, 4, 443,
-    0.0, 2.0, 301,
-    initial_q, constraints_oscillation, drivers_oscillation, jac_rows_oscillation, jac_cols_oscillation,
-    NULL, NULL, NULL, inputs_oscillation, input_ranges_oscillation, retract,
-    46, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
-    384, 198, diag_value_oscillation, diag_slot_oscillation,
-    245, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    3419, 264, 5, kernels_oscillation, &design_oscillation,
+    .layout = &excavator_euler_zxz_layout, .case_name = "oscillation",
+    .n_q = EXCAVATOR_EULER_ZXZ_N_Q, .n_v = EXCAVATOR_EULER_ZXZ_N_V, .n_inputs = 4, .n_jac = 443,
+    .t0 = 0.0, .t1 = 2.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_oscillation, .driver_names = drivers_oscillation,
+    .jac_rows = jac_rows_oscillation, .jac_cols = jac_cols_oscillation,
+    .inputs = inputs_oscillation, .input_ranges = input_ranges_oscillation, .retract = retract,
+    .n_blocks = 46, .block_start = block_start_oscillation, .block_store = block_store_oscillation,
+    .row_order = row_order_oscillation, .col_order = col_order_oscillation,
+    .n_store = 384, .n_diag = 198, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
+    .n_off = 245, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
+    .work_doubles = EXCAVATOR_EULER_ZXZ_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_EULER_ZXZ_WORK_INTS_OSCILLATION,
+    .n_kernels = 5, .kernels = kernels_oscillation, .design = &design_oscillation,
 };
 
 const kinegen_model *const excavator_euler_zxz_cases[EXCAVATOR_EULER_ZXZ_N_CASES] = {&excavator_euler_zxz_digging, &excavator_euler_zxz_level_cut, &excavator_euler_zxz_trench_wall, &excavator_euler_zxz_bucket_toggle, &excavator_euler_zxz_bucket_stroke, &excavator_euler_zxz_bucket_near_toggle, &excavator_euler_zxz_digging_fast, &excavator_euler_zxz_digging_paced, &excavator_euler_zxz_oscillation};

@@ -87,7 +87,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_euler_zxz.h': '5788cad81e67cd7827e74d32974522e938ebe3a3396d2027f154c0b130db475a', 'excavator_euler_zxz.c': '32b358ad456919ecfc449afd1cd665a264bcacd618adac509051a853ec2f6e5b'}
+C_FILES = {'excavator_euler_zxz.h': 'ebec7fa787ddd619108a1d89066274f006b1bd7f7b5f651f62c0c21ee33cc13e', 'excavator_euler_zxz.c': 'f7f2288f2cce50738922960b68a6c1fdaf042abd5a8ce2d8e3537e12f73813f4'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -19296,14 +19296,14 @@ static const int sizes_dvel_digging[] = {426};
 static const char *const outputs_dacc_digging[] = {"dacc"};
 static const int sizes_dacc_digging[] = {819};
 static const kinegen_kernel kernels_digging[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging, sizes_phi_jac_digging, call_phi_jac_digging},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging, sizes_nu_digging, call_nu_digging},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging, sizes_gamma_digging, call_gamma_digging},
-    {"inputs", "t", 1, outputs_inputs_digging, sizes_inputs_digging, call_inputs_digging},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging, sizes_input_ranges_digging, call_input_ranges_digging},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_digging, sizes_phi_p_digging, call_phi_p_digging},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_digging, sizes_dvel_digging, call_dvel_digging},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_digging, sizes_dacc_digging, call_dacc_digging},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging, .output_sizes = sizes_phi_jac_digging, .call = call_phi_jac_digging},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging, .output_sizes = sizes_nu_digging, .call = call_nu_digging},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging, .output_sizes = sizes_gamma_digging, .call = call_gamma_digging},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging, .output_sizes = sizes_inputs_digging, .call = call_inputs_digging},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging, .output_sizes = sizes_input_ranges_digging, .call = call_input_ranges_digging},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_digging, .output_sizes = sizes_phi_p_digging, .call = call_phi_p_digging},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_digging, .output_sizes = sizes_dvel_digging, .call = call_dvel_digging},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_digging, .output_sizes = sizes_dacc_digging, .call = call_dacc_digging},
 };
 static const char *const outputs_phi_jac_level_cut[] = {"phi", "jac"};
 static const int sizes_phi_jac_level_cut[] = {84, 415};
@@ -19322,14 +19322,14 @@ static const int sizes_dvel_level_cut[] = {408};
 static const char *const outputs_dacc_level_cut[] = {"dacc"};
 static const int sizes_dacc_level_cut[] = {783};
 static const kinegen_kernel kernels_level_cut[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_level_cut, sizes_phi_jac_level_cut, call_phi_jac_level_cut},
-    {"nu", "q,u,ud,p", 1, outputs_nu_level_cut, sizes_nu_level_cut, call_nu_level_cut},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_level_cut, sizes_gamma_level_cut, call_gamma_level_cut},
-    {"inputs", "t", 1, outputs_inputs_level_cut, sizes_inputs_level_cut, call_inputs_level_cut},
-    {"input_ranges", "span", 1, outputs_input_ranges_level_cut, sizes_input_ranges_level_cut, call_input_ranges_level_cut},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_level_cut, sizes_phi_p_level_cut, call_phi_p_level_cut},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_level_cut, sizes_dvel_level_cut, call_dvel_level_cut},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_level_cut, sizes_dacc_level_cut, call_dacc_level_cut},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_level_cut, .output_sizes = sizes_phi_jac_level_cut, .call = call_phi_jac_level_cut},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_level_cut, .output_sizes = sizes_nu_level_cut, .call = call_nu_level_cut},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_level_cut, .output_sizes = sizes_gamma_level_cut, .call = call_gamma_level_cut},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_level_cut, .output_sizes = sizes_inputs_level_cut, .call = call_inputs_level_cut},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_level_cut, .output_sizes = sizes_input_ranges_level_cut, .call = call_input_ranges_level_cut},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_level_cut, .output_sizes = sizes_phi_p_level_cut, .call = call_phi_p_level_cut},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_level_cut, .output_sizes = sizes_dvel_level_cut, .call = call_dvel_level_cut},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_level_cut, .output_sizes = sizes_dacc_level_cut, .call = call_dacc_level_cut},
 };
 static const char *const outputs_phi_jac_trench_wall[] = {"phi", "jac"};
 static const int sizes_phi_jac_trench_wall[] = {84, 415};
@@ -19348,14 +19348,14 @@ static const int sizes_dvel_trench_wall[] = {408};
 static const char *const outputs_dacc_trench_wall[] = {"dacc"};
 static const int sizes_dacc_trench_wall[] = {783};
 static const kinegen_kernel kernels_trench_wall[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_trench_wall, sizes_phi_jac_trench_wall, call_phi_jac_trench_wall},
-    {"nu", "q,u,ud,p", 1, outputs_nu_trench_wall, sizes_nu_trench_wall, call_nu_trench_wall},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_trench_wall, sizes_gamma_trench_wall, call_gamma_trench_wall},
-    {"inputs", "t", 1, outputs_inputs_trench_wall, sizes_inputs_trench_wall, call_inputs_trench_wall},
-    {"input_ranges", "span", 1, outputs_input_ranges_trench_wall, sizes_input_ranges_trench_wall, call_input_ranges_trench_wall},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_trench_wall, sizes_phi_p_trench_wall, call_phi_p_trench_wall},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_trench_wall, sizes_dvel_trench_wall, call_dvel_trench_wall},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_trench_wall, sizes_dacc_trench_wall, call_dacc_trench_wall},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_trench_wall, .output_sizes = sizes_phi_jac_trench_wall, .call = call_phi_jac_trench_wall},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_trench_wall, .output_sizes = sizes_nu_trench_wall, .call = call_nu_trench_wall},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_trench_wall, .output_sizes = sizes_gamma_trench_wall, .call = call_gamma_trench_wall},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_trench_wall, .output_sizes = sizes_inputs_trench_wall, .call = call_inputs_trench_wall},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_trench_wall, .output_sizes = sizes_input_ranges_trench_wall, .call = call_input_ranges_trench_wall},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_trench_wall, .output_sizes = sizes_phi_p_trench_wall, .call = call_phi_p_trench_wall},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_trench_wall, .output_sizes = sizes_dvel_trench_wall, .call = call_dvel_trench_wall},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_trench_wall, .output_sizes = sizes_dacc_trench_wall, .call = call_dacc_trench_wall},
 };
 static const char *const outputs_phi_jac_bucket_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_toggle[] = {84, 433};
@@ -19374,14 +19374,14 @@ static const int sizes_dvel_bucket_toggle[] = {426};
 static const char *const outputs_dacc_bucket_toggle[] = {"dacc"};
 static const int sizes_dacc_bucket_toggle[] = {819};
 static const kinegen_kernel kernels_bucket_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_toggle, sizes_phi_jac_bucket_toggle, call_phi_jac_bucket_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_toggle, sizes_nu_bucket_toggle, call_nu_bucket_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_toggle, sizes_gamma_bucket_toggle, call_gamma_bucket_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_toggle, sizes_inputs_bucket_toggle, call_inputs_bucket_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_toggle, sizes_input_ranges_bucket_toggle, call_input_ranges_bucket_toggle},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_bucket_toggle, sizes_phi_p_bucket_toggle, call_phi_p_bucket_toggle},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_bucket_toggle, sizes_dvel_bucket_toggle, call_dvel_bucket_toggle},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_bucket_toggle, sizes_dacc_bucket_toggle, call_dacc_bucket_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_toggle, .output_sizes = sizes_phi_jac_bucket_toggle, .call = call_phi_jac_bucket_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_toggle, .output_sizes = sizes_nu_bucket_toggle, .call = call_nu_bucket_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_toggle, .output_sizes = sizes_gamma_bucket_toggle, .call = call_gamma_bucket_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_toggle, .output_sizes = sizes_inputs_bucket_toggle, .call = call_inputs_bucket_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_toggle, .output_sizes = sizes_input_ranges_bucket_toggle, .call = call_input_ranges_bucket_toggle},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_bucket_toggle, .output_sizes = sizes_phi_p_bucket_toggle, .call = call_phi_p_bucket_toggle},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_bucket_toggle, .output_sizes = sizes_dvel_bucket_toggle, .call = call_dvel_bucket_toggle},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_bucket_toggle, .output_sizes = sizes_dacc_bucket_toggle, .call = call_dacc_bucket_toggle},
 };
 static const char *const outputs_phi_jac_bucket_stroke[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_stroke[] = {84, 433};
@@ -19400,14 +19400,14 @@ static const int sizes_dvel_bucket_stroke[] = {426};
 static const char *const outputs_dacc_bucket_stroke[] = {"dacc"};
 static const int sizes_dacc_bucket_stroke[] = {819};
 static const kinegen_kernel kernels_bucket_stroke[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_stroke, sizes_phi_jac_bucket_stroke, call_phi_jac_bucket_stroke},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_stroke, sizes_nu_bucket_stroke, call_nu_bucket_stroke},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_stroke, sizes_gamma_bucket_stroke, call_gamma_bucket_stroke},
-    {"inputs", "t", 1, outputs_inputs_bucket_stroke, sizes_inputs_bucket_stroke, call_inputs_bucket_stroke},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_stroke, sizes_input_ranges_bucket_stroke, call_input_ranges_bucket_stroke},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_bucket_stroke, sizes_phi_p_bucket_stroke, call_phi_p_bucket_stroke},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_bucket_stroke, sizes_dvel_bucket_stroke, call_dvel_bucket_stroke},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_bucket_stroke, sizes_dacc_bucket_stroke, call_dacc_bucket_stroke},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_stroke, .output_sizes = sizes_phi_jac_bucket_stroke, .call = call_phi_jac_bucket_stroke},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_stroke, .output_sizes = sizes_nu_bucket_stroke, .call = call_nu_bucket_stroke},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_stroke, .output_sizes = sizes_gamma_bucket_stroke, .call = call_gamma_bucket_stroke},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_stroke, .output_sizes = sizes_inputs_bucket_stroke, .call = call_inputs_bucket_stroke},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_stroke, .output_sizes = sizes_input_ranges_bucket_stroke, .call = call_input_ranges_bucket_stroke},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_bucket_stroke, .output_sizes = sizes_phi_p_bucket_stroke, .call = call_phi_p_bucket_stroke},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_bucket_stroke, .output_sizes = sizes_dvel_bucket_stroke, .call = call_dvel_bucket_stroke},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_bucket_stroke, .output_sizes = sizes_dacc_bucket_stroke, .call = call_dacc_bucket_stroke},
 };
 static const char *const outputs_phi_jac_bucket_near_toggle[] = {"phi", "jac"};
 static const int sizes_phi_jac_bucket_near_toggle[] = {84, 433};
@@ -19426,14 +19426,14 @@ static const int sizes_dvel_bucket_near_toggle[] = {426};
 static const char *const outputs_dacc_bucket_near_toggle[] = {"dacc"};
 static const int sizes_dacc_bucket_near_toggle[] = {819};
 static const kinegen_kernel kernels_bucket_near_toggle[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_bucket_near_toggle, sizes_phi_jac_bucket_near_toggle, call_phi_jac_bucket_near_toggle},
-    {"nu", "q,u,ud,p", 1, outputs_nu_bucket_near_toggle, sizes_nu_bucket_near_toggle, call_nu_bucket_near_toggle},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_bucket_near_toggle, sizes_gamma_bucket_near_toggle, call_gamma_bucket_near_toggle},
-    {"inputs", "t", 1, outputs_inputs_bucket_near_toggle, sizes_inputs_bucket_near_toggle, call_inputs_bucket_near_toggle},
-    {"input_ranges", "span", 1, outputs_input_ranges_bucket_near_toggle, sizes_input_ranges_bucket_near_toggle, call_input_ranges_bucket_near_toggle},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_bucket_near_toggle, sizes_phi_p_bucket_near_toggle, call_phi_p_bucket_near_toggle},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_bucket_near_toggle, sizes_dvel_bucket_near_toggle, call_dvel_bucket_near_toggle},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_bucket_near_toggle, sizes_dacc_bucket_near_toggle, call_dacc_bucket_near_toggle},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_bucket_near_toggle, .output_sizes = sizes_phi_jac_bucket_near_toggle, .call = call_phi_jac_bucket_near_toggle},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_bucket_near_toggle, .output_sizes = sizes_nu_bucket_near_toggle, .call = call_nu_bucket_near_toggle},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_bucket_near_toggle, .output_sizes = sizes_gamma_bucket_near_toggle, .call = call_gamma_bucket_near_toggle},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_bucket_near_toggle, .output_sizes = sizes_inputs_bucket_near_toggle, .call = call_inputs_bucket_near_toggle},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_bucket_near_toggle, .output_sizes = sizes_input_ranges_bucket_near_toggle, .call = call_input_ranges_bucket_near_toggle},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_bucket_near_toggle, .output_sizes = sizes_phi_p_bucket_near_toggle, .call = call_phi_p_bucket_near_toggle},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_bucket_near_toggle, .output_sizes = sizes_dvel_bucket_near_toggle, .call = call_dvel_bucket_near_toggle},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_bucket_near_toggle, .output_sizes = sizes_dacc_bucket_near_toggle, .call = call_dacc_bucket_near_toggle},
 };
 static const char *const outputs_phi_jac_digging_fast[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_fast[] = {84, 433};
@@ -19452,14 +19452,14 @@ static const int sizes_dvel_digging_fast[] = {426};
 static const char *const outputs_dacc_digging_fast[] = {"dacc"};
 static const int sizes_dacc_digging_fast[] = {819};
 static const kinegen_kernel kernels_digging_fast[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_fast, sizes_phi_jac_digging_fast, call_phi_jac_digging_fast},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_fast, sizes_nu_digging_fast, call_nu_digging_fast},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_fast, sizes_gamma_digging_fast, call_gamma_digging_fast},
-    {"inputs", "t", 1, outputs_inputs_digging_fast, sizes_inputs_digging_fast, call_inputs_digging_fast},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_fast, sizes_input_ranges_digging_fast, call_input_ranges_digging_fast},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_digging_fast, sizes_phi_p_digging_fast, call_phi_p_digging_fast},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_digging_fast, sizes_dvel_digging_fast, call_dvel_digging_fast},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_digging_fast, sizes_dacc_digging_fast, call_dacc_digging_fast},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_fast, .output_sizes = sizes_phi_jac_digging_fast, .call = call_phi_jac_digging_fast},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_fast, .output_sizes = sizes_nu_digging_fast, .call = call_nu_digging_fast},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_fast, .output_sizes = sizes_gamma_digging_fast, .call = call_gamma_digging_fast},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_fast, .output_sizes = sizes_inputs_digging_fast, .call = call_inputs_digging_fast},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_fast, .output_sizes = sizes_input_ranges_digging_fast, .call = call_input_ranges_digging_fast},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_digging_fast, .output_sizes = sizes_phi_p_digging_fast, .call = call_phi_p_digging_fast},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_digging_fast, .output_sizes = sizes_dvel_digging_fast, .call = call_dvel_digging_fast},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_digging_fast, .output_sizes = sizes_dacc_digging_fast, .call = call_dacc_digging_fast},
 };
 static const char *const outputs_phi_jac_digging_paced[] = {"phi", "jac"};
 static const int sizes_phi_jac_digging_paced[] = {84, 433};
@@ -19478,14 +19478,14 @@ static const int sizes_dvel_digging_paced[] = {426};
 static const char *const outputs_dacc_digging_paced[] = {"dacc"};
 static const int sizes_dacc_digging_paced[] = {819};
 static const kinegen_kernel kernels_digging_paced[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_digging_paced, sizes_phi_jac_digging_paced, call_phi_jac_digging_paced},
-    {"nu", "q,u,ud,p", 1, outputs_nu_digging_paced, sizes_nu_digging_paced, call_nu_digging_paced},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_digging_paced, sizes_gamma_digging_paced, call_gamma_digging_paced},
-    {"inputs", "t", 1, outputs_inputs_digging_paced, sizes_inputs_digging_paced, call_inputs_digging_paced},
-    {"input_ranges", "span", 1, outputs_input_ranges_digging_paced, sizes_input_ranges_digging_paced, call_input_ranges_digging_paced},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_digging_paced, sizes_phi_p_digging_paced, call_phi_p_digging_paced},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_digging_paced, sizes_dvel_digging_paced, call_dvel_digging_paced},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_digging_paced, sizes_dacc_digging_paced, call_dacc_digging_paced},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_digging_paced, .output_sizes = sizes_phi_jac_digging_paced, .call = call_phi_jac_digging_paced},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_digging_paced, .output_sizes = sizes_nu_digging_paced, .call = call_nu_digging_paced},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_digging_paced, .output_sizes = sizes_gamma_digging_paced, .call = call_gamma_digging_paced},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_digging_paced, .output_sizes = sizes_inputs_digging_paced, .call = call_inputs_digging_paced},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_digging_paced, .output_sizes = sizes_input_ranges_digging_paced, .call = call_input_ranges_digging_paced},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_digging_paced, .output_sizes = sizes_phi_p_digging_paced, .call = call_phi_p_digging_paced},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_digging_paced, .output_sizes = sizes_dvel_digging_paced, .call = call_dvel_digging_paced},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_digging_paced, .output_sizes = sizes_dacc_digging_paced, .call = call_dacc_digging_paced},
 };
 static const char *const outputs_phi_jac_oscillation[] = {"phi", "jac"};
 static const int sizes_phi_jac_oscillation[] = {84, 433};
@@ -19504,14 +19504,14 @@ static const int sizes_dvel_oscillation[] = {426};
 static const char *const outputs_dacc_oscillation[] = {"dacc"};
 static const int sizes_dacc_oscillation[] = {819};
 static const kinegen_kernel kernels_oscillation[] = {
-    {"phi_jac", "q,u,p", 2, outputs_phi_jac_oscillation, sizes_phi_jac_oscillation, call_phi_jac_oscillation},
-    {"nu", "q,u,ud,p", 1, outputs_nu_oscillation, sizes_nu_oscillation, call_nu_oscillation},
-    {"gamma", "q,v,u,ud,udd,p", 1, outputs_gamma_oscillation, sizes_gamma_oscillation, call_gamma_oscillation},
-    {"inputs", "t", 1, outputs_inputs_oscillation, sizes_inputs_oscillation, call_inputs_oscillation},
-    {"input_ranges", "span", 1, outputs_input_ranges_oscillation, sizes_input_ranges_oscillation, call_input_ranges_oscillation},
-    {"phi_p", "q,u,p", 1, outputs_phi_p_oscillation, sizes_phi_p_oscillation, call_phi_p_oscillation},
-    {"dvel", "q,v,u,ud,p", 1, outputs_dvel_oscillation, sizes_dvel_oscillation, call_dvel_oscillation},
-    {"dacc", "q,v,a,u,ud,udd,p", 1, outputs_dacc_oscillation, sizes_dacc_oscillation, call_dacc_oscillation},
+    {.name = "phi_jac", .slots = "q,u,p", .n_outputs = 2, .output_names = outputs_phi_jac_oscillation, .output_sizes = sizes_phi_jac_oscillation, .call = call_phi_jac_oscillation},
+    {.name = "nu", .slots = "q,u,ud,p", .n_outputs = 1, .output_names = outputs_nu_oscillation, .output_sizes = sizes_nu_oscillation, .call = call_nu_oscillation},
+    {.name = "gamma", .slots = "q,v,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_gamma_oscillation, .output_sizes = sizes_gamma_oscillation, .call = call_gamma_oscillation},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_oscillation, .output_sizes = sizes_inputs_oscillation, .call = call_inputs_oscillation},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_oscillation, .output_sizes = sizes_input_ranges_oscillation, .call = call_input_ranges_oscillation},
+    {.name = "phi_p", .slots = "q,u,p", .n_outputs = 1, .output_names = outputs_phi_p_oscillation, .output_sizes = sizes_phi_p_oscillation, .call = call_phi_p_oscillation},
+    {.name = "dvel", .slots = "q,v,u,ud,p", .n_outputs = 1, .output_names = outputs_dvel_oscillation, .output_sizes = sizes_dvel_oscillation, .call = call_dvel_oscillation},
+    {.name = "dacc", .slots = "q,v,a,u,ud,udd,p", .n_outputs = 1, .output_names = outputs_dacc_oscillation, .output_sizes = sizes_dacc_oscillation, .call = call_dacc_oscillation},
 };
 static const char *const outputs_excavator_quaternion_frames[] = {"frames"};
 static const int sizes_excavator_quaternion_frames[] = {336};
@@ -19534,58 +19534,58 @@ static const int sizes_shared_points_p[] = {1080};
 static const char *const outputs_shared_frames_d[] = {"frames_d"};
 static const int sizes_shared_frames_d[] = {336};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_excavator_quaternion_frames, sizes_excavator_quaternion_frames, call_excavator_quaternion_frames},
-    {"lengths", "q,p", 1, outputs_shared_lengths, sizes_shared_lengths, call_shared_lengths},
-    {"actuation", "q,p", 1, outputs_shared_actuation, sizes_shared_actuation, call_shared_actuation},
-    {"loads", "q,t,p", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
-    {"inertia", "q,v,a,p", 1, outputs_shared_inertia, sizes_shared_inertia, call_shared_inertia},
-    {"supply", "q,v,f,p", 4, outputs_shared_supply, sizes_shared_supply, call_shared_supply},
-    {"points", "p", 1, outputs_shared_points, sizes_shared_points, call_shared_points},
-    {"actuator_ranges", "p", 1, outputs_shared_actuator_ranges, sizes_shared_actuator_ranges, call_shared_actuator_ranges},
-    {"points_p", "p", 1, outputs_shared_points_p, sizes_shared_points_p, call_shared_points_p},
-    {"frames_d", "q,v,a,w,y,z", 1, outputs_shared_frames_d, sizes_shared_frames_d, call_shared_frames_d},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_excavator_quaternion_frames, .output_sizes = sizes_excavator_quaternion_frames, .call = call_excavator_quaternion_frames},
+    {.name = "lengths", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_lengths, .output_sizes = sizes_shared_lengths, .call = call_shared_lengths},
+    {.name = "actuation", .slots = "q,p", .n_outputs = 1, .output_names = outputs_shared_actuation, .output_sizes = sizes_shared_actuation, .call = call_shared_actuation},
+    {.name = "loads", .slots = "q,t,p", .n_outputs = 1, .output_names = outputs_shared_loads, .output_sizes = sizes_shared_loads, .call = call_shared_loads},
+    {.name = "inertia", .slots = "q,v,a,p", .n_outputs = 1, .output_names = outputs_shared_inertia, .output_sizes = sizes_shared_inertia, .call = call_shared_inertia},
+    {.name = "supply", .slots = "q,v,f,p", .n_outputs = 4, .output_names = outputs_shared_supply, .output_sizes = sizes_shared_supply, .call = call_shared_supply},
+    {.name = "points", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_points, .output_sizes = sizes_shared_points, .call = call_shared_points},
+    {.name = "actuator_ranges", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_actuator_ranges, .output_sizes = sizes_shared_actuator_ranges, .call = call_shared_actuator_ranges},
+    {.name = "points_p", .slots = "p", .n_outputs = 1, .output_names = outputs_shared_points_p, .output_sizes = sizes_shared_points_p, .call = call_shared_points_p},
+    {.name = "frames_d", .slots = "q,v,a,w,y,z", .n_outputs = 1, .output_names = outputs_shared_frames_d, .output_sizes = sizes_shared_frames_d, .call = call_shared_frames_d},
 };
 
 static const char *const body_names[] = {"upper", "boom", "boom_cyl_l_barrel", "boom_cyl_l_rod", "boom_cyl_r_barrel", "boom_cyl_r_rod", "arm", "arm_cyl_barrel", "arm_cyl_rod", "bucket_cyl_barrel", "bucket_cyl_rod", "side_link", "bucket_link", "bucket"};
 static const char *const stored_names[] = {"upper.x", "upper.y", "upper.z", "upper.qw", "upper.qx", "upper.qy", "upper.qz", "boom.x", "boom.y", "boom.z", "boom.qw", "boom.qx", "boom.qy", "boom.qz", "boom_cyl_l_barrel.x", "boom_cyl_l_barrel.y", "boom_cyl_l_barrel.z", "boom_cyl_l_barrel.qw", "boom_cyl_l_barrel.qx", "boom_cyl_l_barrel.qy", "boom_cyl_l_barrel.qz", "boom_cyl_l_rod.x", "boom_cyl_l_rod.y", "boom_cyl_l_rod.z", "boom_cyl_l_rod.qw", "boom_cyl_l_rod.qx", "boom_cyl_l_rod.qy", "boom_cyl_l_rod.qz", "boom_cyl_r_barrel.x", "boom_cyl_r_barrel.y", "boom_cyl_r_barrel.z", "boom_cyl_r_barrel.qw", "boom_cyl_r_barrel.qx", "boom_cyl_r_barrel.qy", "boom_cyl_r_barrel.qz", "boom_cyl_r_rod.x", "boom_cyl_r_rod.y", "boom_cyl_r_rod.z", "boom_cyl_r_rod.qw", "boom_cyl_r_rod.qx", "boom_cyl_r_rod.qy", "boom_cyl_r_rod.qz", "arm.x", "arm.y", "arm.z", "arm.qw", "arm.qx", "arm.qy", "arm.qz", "arm_cyl_barrel.x", "arm_cyl_barrel.y", "arm_cyl_barrel.z", "arm_cyl_barrel.qw", "arm_cyl_barrel.qx", "arm_cyl_barrel.qy", "arm_cyl_barrel.qz", "arm_cyl_rod.x", "arm_cyl_rod.y", "arm_cyl_rod.z", "arm_cyl_rod.qw", "arm_cyl_rod.qx", "arm_cyl_rod.qy", "arm_cyl_rod.qz", "bucket_cyl_barrel.x", "bucket_cyl_barrel.y", "bucket_cyl_barrel.z", "bucket_cyl_barrel.qw", "bucket_cyl_barrel.qx", "bucket_cyl_barrel.qy", "bucket_cyl_barrel.qz", "bucket_cyl_rod.x", "bucket_cyl_rod.y", "bucket_cyl_rod.z", "bucket_cyl_rod.qw", "bucket_cyl_rod.qx", "bucket_cyl_rod.qy", "bucket_cyl_rod.qz", "side_link.x", "side_link.y", "side_link.z", "side_link.qw", "side_link.qx", "side_link.qy", "side_link.qz", "bucket_link.x", "bucket_link.y", "bucket_link.z", "bucket_link.qw", "bucket_link.qx", "bucket_link.qy", "bucket_link.qz", "bucket.x", "bucket.y", "bucket.z", "bucket.qw", "bucket.qx", "bucket.qy", "bucket.qz"};
 static const char *const velocity_names[] = {"upper.x", "upper.y", "upper.z", "upper.theta_x", "upper.theta_y", "upper.theta_z", "boom.x", "boom.y", "boom.z", "boom.theta_x", "boom.theta_y", "boom.theta_z", "boom_cyl_l_barrel.x", "boom_cyl_l_barrel.y", "boom_cyl_l_barrel.z", "boom_cyl_l_barrel.theta_x", "boom_cyl_l_barrel.theta_y", "boom_cyl_l_barrel.theta_z", "boom_cyl_l_rod.x", "boom_cyl_l_rod.y", "boom_cyl_l_rod.z", "boom_cyl_l_rod.theta_x", "boom_cyl_l_rod.theta_y", "boom_cyl_l_rod.theta_z", "boom_cyl_r_barrel.x", "boom_cyl_r_barrel.y", "boom_cyl_r_barrel.z", "boom_cyl_r_barrel.theta_x", "boom_cyl_r_barrel.theta_y", "boom_cyl_r_barrel.theta_z", "boom_cyl_r_rod.x", "boom_cyl_r_rod.y", "boom_cyl_r_rod.z", "boom_cyl_r_rod.theta_x", "boom_cyl_r_rod.theta_y", "boom_cyl_r_rod.theta_z", "arm.x", "arm.y", "arm.z", "arm.theta_x", "arm.theta_y", "arm.theta_z", "arm_cyl_barrel.x", "arm_cyl_barrel.y", "arm_cyl_barrel.z", "arm_cyl_barrel.theta_x", "arm_cyl_barrel.theta_y", "arm_cyl_barrel.theta_z", "arm_cyl_rod.x", "arm_cyl_rod.y", "arm_cyl_rod.z", "arm_cyl_rod.theta_x", "arm_cyl_rod.theta_y", "arm_cyl_rod.theta_z", "bucket_cyl_barrel.x", "bucket_cyl_barrel.y", "bucket_cyl_barrel.z", "bucket_cyl_barrel.theta_x", "bucket_cyl_barrel.theta_y", "bucket_cyl_barrel.theta_z", "bucket_cyl_rod.x", "bucket_cyl_rod.y", "bucket_cyl_rod.z", "bucket_cyl_rod.theta_x", "bucket_cyl_rod.theta_y", "bucket_cyl_rod.theta_z", "side_link.x", "side_link.y", "side_link.z", "side_link.theta_x", "side_link.theta_y", "side_link.theta_z", "bucket_link.x", "bucket_link.y", "bucket_link.z", "bucket_link.theta_x", "bucket_link.theta_y", "bucket_link.theta_z", "bucket.x", "bucket.y", "bucket.z", "bucket.theta_x", "bucket.theta_y", "bucket.theta_z"};
 static const kinegen_point points[] = {
-    {0, "upper.O", {0.0, 0.0, 0.0}},
-    {0, "upper.A", {0.22767, 0.0, 1.95729}},
-    {0, "upper.B_left", {0.68912, 0.32, 1.35478}},
-    {0, "upper.B_right", {0.68912, -0.32, 1.35478}},
-    {1, "boom.A", {0.0, 0.0, 0.0}},
-    {1, "boom.C_left", {1.39283, 0.32, 2.001922}},
-    {1, "boom.C_right", {1.39283, -0.32, 2.001922}},
-    {1, "boom.D", {2.2875, 0.0, 2.785}},
-    {1, "boom.E", {4.7878, 0.0, 2.9959}},
-    {2, "boom_cyl_l_barrel.base", {0.0, 0.0, 0.0}},
-    {3, "boom_cyl_l_rod.eye", {0.0, 0.0, 0.0}},
-    {4, "boom_cyl_r_barrel.base", {0.0, 0.0, 0.0}},
-    {5, "boom_cyl_r_rod.eye", {0.0, 0.0, 0.0}},
-    {6, "arm.E", {0.0, 0.0, 0.0}},
-    {6, "arm.F", {-0.786562, 0.0, -0.369691}},
-    {6, "arm.G", {-0.24687, 0.0, 0.73594}},
-    {6, "arm.H", {1.5754, 0.0, 1.8799}},
-    {6, "arm.Q", {1.8954, 0.0, 2.1809}},
-    {7, "arm_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {8, "arm_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {9, "bucket_cyl_barrel.base", {0.0, 0.0, 0.0}},
-    {10, "bucket_cyl_rod.eye", {0.0, 0.0, 0.0}},
-    {11, "side_link.H", {0.0, 0.0, 0.0}},
-    {11, "side_link.J", {-0.332658, 0.0, 0.481235}},
-    {12, "bucket_link.K", {0.0, 0.0, 0.0}},
-    {12, "bucket_link.J", {-0.342428, 0.0, -0.450737}},
-    {13, "bucket.Q", {0.0, 0.0, 0.0}},
-    {13, "bucket.K", {-0.32404, 0.0, 0.33854}},
-    {13, "bucket.T", {1.28, 0.0, 0.806}},
-    {-1, "ground.O", {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.O", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "upper.A", .local = {0.22767, 0.0, 1.95729}},
+    {.body = 0, .name = "upper.B_left", .local = {0.68912, 0.32, 1.35478}},
+    {.body = 0, .name = "upper.B_right", .local = {0.68912, -0.32, 1.35478}},
+    {.body = 1, .name = "boom.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "boom.C_left", .local = {1.39283, 0.32, 2.001922}},
+    {.body = 1, .name = "boom.C_right", .local = {1.39283, -0.32, 2.001922}},
+    {.body = 1, .name = "boom.D", .local = {2.2875, 0.0, 2.785}},
+    {.body = 1, .name = "boom.E", .local = {4.7878, 0.0, 2.9959}},
+    {.body = 2, .name = "boom_cyl_l_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 3, .name = "boom_cyl_l_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 4, .name = "boom_cyl_r_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 5, .name = "boom_cyl_r_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.E", .local = {0.0, 0.0, 0.0}},
+    {.body = 6, .name = "arm.F", .local = {-0.786562, 0.0, -0.369691}},
+    {.body = 6, .name = "arm.G", .local = {-0.24687, 0.0, 0.73594}},
+    {.body = 6, .name = "arm.H", .local = {1.5754, 0.0, 1.8799}},
+    {.body = 6, .name = "arm.Q", .local = {1.8954, 0.0, 2.1809}},
+    {.body = 7, .name = "arm_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 8, .name = "arm_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 9, .name = "bucket_cyl_barrel.base", .local = {0.0, 0.0, 0.0}},
+    {.body = 10, .name = "bucket_cyl_rod.eye", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.H", .local = {0.0, 0.0, 0.0}},
+    {.body = 11, .name = "side_link.J", .local = {-0.332658, 0.0, 0.481235}},
+    {.body = 12, .name = "bucket_link.K", .local = {0.0, 0.0, 0.0}},
+    {.body = 12, .name = "bucket_link.J", .local = {-0.342428, 0.0, -0.450737}},
+    {.body = 13, .name = "bucket.Q", .local = {0.0, 0.0, 0.0}},
+    {.body = 13, .name = "bucket.K", .local = {-0.32404, 0.0, 0.33854}},
+    {.body = 13, .name = "bucket.T", .local = {1.28, 0.0, 0.806}},
+    {.body = -1, .name = "ground.O", .local = {0.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {"boom_cylinder_left", 9, 10, 1, 1.7352, 3.0649},
-    {"boom_cylinder_right", 11, 12, 1, 1.7352, 3.0649},
-    {"arm_cylinder", 18, 19, 1, 1.8164, 3.2939},
-    {"bucket_cylinder", 20, 21, 1, 1.6529, 2.6613},
+    {.name = "boom_cylinder_left", .point1 = 9, .point2 = 10, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "boom_cylinder_right", .point1 = 11, .point2 = 12, .has_range = 1, .min = 1.7352, .max = 3.0649},
+    {.name = "arm_cylinder", .point1 = 18, .point2 = 19, .has_range = 1, .min = 1.8164, .max = 3.2939},
+    {.name = "bucket_cylinder", .point1 = 20, .point2 = 21, .has_range = 1, .min = 1.6529, .max = 2.6613},
 };
 
 /* the force solve (kinegen_forces): 4 actuation element(s), 2 load(s) */
@@ -19620,23 +19620,31 @@ static const int statics_off_col[] = {0, 4, 5, 1, 3, 5, 2, 3, 4, 2, 3, 4, 1, 3, 
 static const int statics_off_value[] = {7, 8, 9, 11, 12, 13, 15, 16, 17, 105, 106, 107, 101, 102, 103, 97, 98, 99, 39, 40, 41, 35, 36, 37, 31, 32, 33, 19, 20, 21, 25, 26, 27, 85, 89, 93, 151, 155, 159, 412, 411, 410, 406, 405, 404, 43, 44, 45, 63, 62, 61, 67, 69, 68, 72, 71, 70, 76, 78, 77, 109, 110, 111, 129, 128, 127, 133, 134, 135, 138, 137, 136, 142, 143, 144, 163, 164, 165, 167, 168, 169, 171, 172, 173, 195, 196, 197, 191, 192, 193, 187, 188, 189, 49, 50, 51, 55, 56, 57, 79, 80, 81, 115, 117, 116, 121, 123, 122, 145, 147, 146, 175, 176, 177, 181, 182, 183, 241, 245, 249, 418, 417, 416, 199, 200, 201, 219, 218, 217, 224, 225, 223, 228, 227, 226, 233, 234, 232, 253, 254, 255, 257, 258, 259, 261, 262, 263, 285, 286, 287, 281, 282, 283, 345, 346, 347, 341, 342, 343, 337, 338, 339, 277, 278, 279, 205, 206, 207, 211, 212, 213, 235, 236, 237, 289, 290, 291, 295, 296, 297, 392, 396, 400, 424, 423, 422, 265, 266, 267, 271, 272, 273, 301, 302, 303, 307, 308, 309, 313, 314, 315, 320, 324, 328, 349, 350, 351, 369, 368, 367, 374, 375, 373, 378, 377, 376, 383, 384, 382, 355, 356, 357, 361, 362, 363, 385, 386, 387};
 
 static const kinegen_statics statics = {
-    4, element_names, element_kinds, 80,
-    {428, matrix_rows, matrix_cols}, &kernels[2],
-    2, load_names, {6, load_rows, load_cols}, &kernels[3],
-    84, inertia_cols, &kernels[4],
-    41, statics_block_start, statics_block_store, statics_row_order, statics_col_order,
-    338, 200, statics_diag_value, statics_diag_slot,
-    228, statics_off_start, statics_off_col, statics_off_value,
-    1252, 84,
-    19, joint_names, joint_body, joint_sign, joint_point_body, joint_local, joint_row_start, joint_rows,
-    body_norm_start, body_norm_rows, element_hydraulics, 1573, 80,
+    .n_elements = 4, .element_names = element_names, .element_kinds = element_kinds,
+    .n_joint_rows = 80,
+    .pattern = {.n = 428, .rows = matrix_rows, .cols = matrix_cols}, .actuation = &kernels[2],
+    .n_loads = 2, .load_names = load_names,
+    .load_pattern = {.n = 6, .rows = load_rows, .cols = load_cols}, .loads = &kernels[3],
+    .n_inertia = 84, .inertia_cols = inertia_cols, .inertia = &kernels[4],
+    .n_blocks = 41, .block_start = statics_block_start, .block_store = statics_block_store,
+    .row_order = statics_row_order, .col_order = statics_col_order,
+    .n_store = 338, .n_diag = 200, .diag_value = statics_diag_value,
+    .diag_slot = statics_diag_slot,
+    .n_off = 228, .off_start = statics_off_start, .off_col = statics_off_col, .off_value = statics_off_value,
+    .work_doubles = EXCAVATOR_QUATERNION_FORCE_WORK_DOUBLES, .work_ints = EXCAVATOR_QUATERNION_FORCE_WORK_INTS,
+    .n_joints = 19, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
+    .joint_point_body = joint_point_body, .joint_local = joint_local, .joint_row_start = joint_row_start, .joint_rows = joint_rows,
+    .body_norm_start = body_norm_start, .body_norm_rows = body_norm_rows, .element_hydraulics = element_hydraulics,
+    .reaction_doubles = EXCAVATOR_QUATERNION_REACTION_WORK_DOUBLES, .reaction_ints = EXCAVATOR_QUATERNION_REACTION_WORK_INTS,
 };
 
 const kinegen_layout excavator_quaternion_layout = {
-    "excavator", "quaternion", "excavator.yaml", "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", "0.2.0",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, EXCAVATOR_QUATERNION_N_BODIES, body_names, stored_names, velocity_names,
-    30, points, 4, actuators, excavator_quaternion_frames,
-    10, kernels, &statics,
+    .model = "excavator", .parametrization = "quaternion", .source = "excavator.yaml",
+    .source_sha256 = "224566ac62c7b964f30fc9eb62a59d98b10c4331864b72392fe2cc56174a2583", .kinegen_version = "0.2.0",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_bodies = EXCAVATOR_QUATERNION_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 30, .points = points, .n_actuators = 4, .actuators = actuators,
+    .frames = excavator_quaternion_frames, .n_kernels = 10, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.22767, 0.0, 1.95729, 0.9826937028898046, 0.0, 0.18523791809649656, 0.0, 0.68912, 0.32, 1.35478, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 2.253743682, 0.32, 3.314748116, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.68912, -0.32, 1.35478, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 2.253743682, -0.32, 3.314748116, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 5.777601761, 0.0, 3.004525931, 0.7487823326004931, 0.0, 0.6628159762599, 0.0, 3.372106626, 0.0, 3.718369089, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 5.315193587, 0.0, 3.74041308, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 6.478145341, 0.0, 3.338877801, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 7.974087195, 0.0, 2.237087009, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 7.834783629, 0.0, 1.668894271, 0.912012841994652, 0.0, 0.4101616462284567, 0.0, 8.355750886, 0.0, 1.819051598, 0.640244241850993, 0.0, 0.7681714071590059, 0.0, 8.172391163, 0.0, 1.387785479, 0.8349444950888361, 0.0, 0.5503341622331369, 0.0};
@@ -19665,19 +19673,26 @@ static const int dvel_cols_digging[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4
 static const int dacc_rows_digging[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_digging[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
 static const kinegen_design design_digging = {
-    12, design_nominal, phi_jac_digging, nu_digging, gamma_digging, {33, phi_p_rows_digging, phi_p_cols_digging}, {426, dvel_rows_digging, dvel_cols_digging}, {819, dacc_rows_digging, dacc_cols_digging}, phi_p_digging, dvel_digging, dacc_digging, 2835,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging, .nu = nu_digging, .gamma = gamma_digging,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_digging, .cols = phi_p_cols_digging}, .phi_p = phi_p_digging,
+    .dvel_pattern = {.n = 426, .rows = dvel_rows_digging, .cols = dvel_cols_digging}, .dvel = dvel_digging,
+    .dacc_pattern = {.n = 819, .rows = dacc_rows_digging, .cols = dacc_cols_digging}, .dacc = dacc_digging,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 819),
 };
 
 const kinegen_model excavator_quaternion_digging = {
-    &excavator_quaternion_layout, "digging",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
-    0.0, 17.0, 341,
-    initial_q, constraints_digging, drivers_digging, jac_rows_digging, jac_cols_digging,
-    NULL, NULL, NULL, inputs_digging, input_ranges_digging, retract,
-    41, block_start_digging, block_store_digging, row_order_digging, col_order_digging,
-    404, 218, diag_value_digging, diag_slot_digging,
-    215, off_start_digging, off_col_digging, off_value_digging,
-    3417, 254, 8, kernels_digging, &design_digging,
+    .layout = &excavator_quaternion_layout, .case_name = "digging",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 433,
+    .t0 = 0.0, .t1 = 17.0, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging, .driver_names = drivers_digging,
+    .jac_rows = jac_rows_digging, .jac_cols = jac_cols_digging,
+    .inputs = inputs_digging, .input_ranges = input_ranges_digging, .retract = retract,
+    .n_blocks = 41, .block_start = block_start_digging, .block_store = block_store_digging,
+    .row_order = row_order_digging, .col_order = col_order_digging,
+    .n_store = 404, .n_diag = 218, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
+    .n_off = 215, .off_start = off_start_digging, .off_col = off_col_digging, .off_value = off_value_digging,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_DIGGING, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_DIGGING,
+    .n_kernels = 8, .kernels = kernels_digging, .design = &design_digging,
 };
 
 /* ---- case level_cut ---- */
@@ -19702,19 +19717,26 @@ static const int dvel_cols_level_cut[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 3,
 static const int dacc_rows_level_cut[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_level_cut[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167};
 static const kinegen_design design_level_cut = {
-    12, design_nominal, phi_jac_level_cut, nu_level_cut, gamma_level_cut, {33, phi_p_rows_level_cut, phi_p_cols_level_cut}, {408, dvel_rows_level_cut, dvel_cols_level_cut}, {783, dacc_rows_level_cut, dacc_cols_level_cut}, phi_p_level_cut, dvel_level_cut, dacc_level_cut, 2799,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_level_cut, .nu = nu_level_cut, .gamma = gamma_level_cut,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_level_cut, .cols = phi_p_cols_level_cut}, .phi_p = phi_p_level_cut,
+    .dvel_pattern = {.n = 408, .rows = dvel_rows_level_cut, .cols = dvel_cols_level_cut}, .dvel = dvel_level_cut,
+    .dacc_pattern = {.n = 783, .rows = dacc_rows_level_cut, .cols = dacc_cols_level_cut}, .dacc = dacc_level_cut,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 783),
 };
 
 const kinegen_model excavator_quaternion_level_cut = {
-    &excavator_quaternion_layout, "level_cut",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 415,
-    0.0, 4.0, 201,
-    initial_q, constraints_level_cut, drivers_level_cut, jac_rows_level_cut, jac_cols_level_cut,
-    NULL, NULL, NULL, inputs_level_cut, input_ranges_level_cut, retract,
-    50, block_start_level_cut, block_store_level_cut, row_order_level_cut, col_order_level_cut,
-    320, 189, diag_value_level_cut, diag_slot_level_cut,
-    226, off_start_level_cut, off_col_level_cut, off_value_level_cut,
-    3308, 272, 8, kernels_level_cut, &design_level_cut,
+    .layout = &excavator_quaternion_layout, .case_name = "level_cut",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 415,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_level_cut, .driver_names = drivers_level_cut,
+    .jac_rows = jac_rows_level_cut, .jac_cols = jac_cols_level_cut,
+    .inputs = inputs_level_cut, .input_ranges = input_ranges_level_cut, .retract = retract,
+    .n_blocks = 50, .block_start = block_start_level_cut, .block_store = block_store_level_cut,
+    .row_order = row_order_level_cut, .col_order = col_order_level_cut,
+    .n_store = 320, .n_diag = 189, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
+    .n_off = 226, .off_start = off_start_level_cut, .off_col = off_col_level_cut, .off_value = off_value_level_cut,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_LEVEL_CUT, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_LEVEL_CUT,
+    .n_kernels = 8, .kernels = kernels_level_cut, .design = &design_level_cut,
 };
 
 /* ---- case trench_wall ---- */
@@ -19739,19 +19761,26 @@ static const int dvel_cols_trench_wall[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 
 static const int dacc_rows_trench_wall[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_trench_wall[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167, 81, 82, 83, 165, 166, 167};
 static const kinegen_design design_trench_wall = {
-    12, design_nominal, phi_jac_trench_wall, nu_trench_wall, gamma_trench_wall, {33, phi_p_rows_trench_wall, phi_p_cols_trench_wall}, {408, dvel_rows_trench_wall, dvel_cols_trench_wall}, {783, dacc_rows_trench_wall, dacc_cols_trench_wall}, phi_p_trench_wall, dvel_trench_wall, dacc_trench_wall, 2799,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_trench_wall, .nu = nu_trench_wall, .gamma = gamma_trench_wall,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_trench_wall, .cols = phi_p_cols_trench_wall}, .phi_p = phi_p_trench_wall,
+    .dvel_pattern = {.n = 408, .rows = dvel_rows_trench_wall, .cols = dvel_cols_trench_wall}, .dvel = dvel_trench_wall,
+    .dacc_pattern = {.n = 783, .rows = dacc_rows_trench_wall, .cols = dacc_cols_trench_wall}, .dacc = dacc_trench_wall,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 783),
 };
 
 const kinegen_model excavator_quaternion_trench_wall = {
-    &excavator_quaternion_layout, "trench_wall",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 415,
-    0.0, 4.0, 201,
-    initial_q, constraints_trench_wall, drivers_trench_wall, jac_rows_trench_wall, jac_cols_trench_wall,
-    NULL, NULL, NULL, inputs_trench_wall, input_ranges_trench_wall, retract,
-    50, block_start_trench_wall, block_store_trench_wall, row_order_trench_wall, col_order_trench_wall,
-    320, 189, diag_value_trench_wall, diag_slot_trench_wall,
-    226, off_start_trench_wall, off_col_trench_wall, off_value_trench_wall,
-    3308, 272, 8, kernels_trench_wall, &design_trench_wall,
+    .layout = &excavator_quaternion_layout, .case_name = "trench_wall",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 415,
+    .t0 = 0.0, .t1 = 4.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_trench_wall, .driver_names = drivers_trench_wall,
+    .jac_rows = jac_rows_trench_wall, .jac_cols = jac_cols_trench_wall,
+    .inputs = inputs_trench_wall, .input_ranges = input_ranges_trench_wall, .retract = retract,
+    .n_blocks = 50, .block_start = block_start_trench_wall, .block_store = block_store_trench_wall,
+    .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
+    .n_store = 320, .n_diag = 189, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
+    .n_off = 226, .off_start = off_start_trench_wall, .off_col = off_col_trench_wall, .off_value = off_value_trench_wall,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_TRENCH_WALL, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_TRENCH_WALL,
+    .n_kernels = 8, .kernels = kernels_trench_wall, .design = &design_trench_wall,
 };
 
 /* ---- case bucket_toggle ---- */
@@ -19776,19 +19805,26 @@ static const int dvel_cols_bucket_toggle[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5
 static const int dacc_rows_bucket_toggle[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_bucket_toggle[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
 static const kinegen_design design_bucket_toggle = {
-    12, design_nominal, phi_jac_bucket_toggle, nu_bucket_toggle, gamma_bucket_toggle, {33, phi_p_rows_bucket_toggle, phi_p_cols_bucket_toggle}, {426, dvel_rows_bucket_toggle, dvel_cols_bucket_toggle}, {819, dacc_rows_bucket_toggle, dacc_cols_bucket_toggle}, phi_p_bucket_toggle, dvel_bucket_toggle, dacc_bucket_toggle, 2835,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_toggle, .nu = nu_bucket_toggle, .gamma = gamma_bucket_toggle,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_bucket_toggle, .cols = phi_p_cols_bucket_toggle}, .phi_p = phi_p_bucket_toggle,
+    .dvel_pattern = {.n = 426, .rows = dvel_rows_bucket_toggle, .cols = dvel_cols_bucket_toggle}, .dvel = dvel_bucket_toggle,
+    .dacc_pattern = {.n = 819, .rows = dacc_rows_bucket_toggle, .cols = dacc_cols_bucket_toggle}, .dacc = dacc_bucket_toggle,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 819),
 };
 
 const kinegen_model excavator_quaternion_bucket_toggle = {
-    &excavator_quaternion_layout, "bucket_toggle",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
-    0.0, 3.0, 301,
-    initial_q, constraints_bucket_toggle, drivers_bucket_toggle, jac_rows_bucket_toggle, jac_cols_bucket_toggle,
-    NULL, NULL, NULL, inputs_bucket_toggle, input_ranges_bucket_toggle, retract,
-    41, block_start_bucket_toggle, block_store_bucket_toggle, row_order_bucket_toggle, col_order_bucket_toggle,
-    404, 218, diag_value_bucket_toggle, diag_slot_bucket_toggle,
-    215, off_start_bucket_toggle, off_col_bucket_toggle, off_value_bucket_toggle,
-    3417, 254, 8, kernels_bucket_toggle, &design_bucket_toggle,
+    .layout = &excavator_quaternion_layout, .case_name = "bucket_toggle",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 433,
+    .t0 = 0.0, .t1 = 3.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_toggle, .driver_names = drivers_bucket_toggle,
+    .jac_rows = jac_rows_bucket_toggle, .jac_cols = jac_cols_bucket_toggle,
+    .inputs = inputs_bucket_toggle, .input_ranges = input_ranges_bucket_toggle, .retract = retract,
+    .n_blocks = 41, .block_start = block_start_bucket_toggle, .block_store = block_store_bucket_toggle,
+    .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
+    .n_store = 404, .n_diag = 218, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
+    .n_off = 215, .off_start = off_start_bucket_toggle, .off_col = off_col_bucket_toggle, .off_value = off_value_bucket_toggle,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_BUCKET_TOGGLE, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_BUCKET_TOGGLE,
+    .n_kernels = 8, .kernels = kernels_bucket_toggle, .design = &design_bucket_toggle,
 };
 
 /* ---- case bucket_stroke ---- */
@@ -19813,19 +19849,26 @@ static const int dvel_cols_bucket_stroke[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5
 static const int dacc_rows_bucket_stroke[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_bucket_stroke[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
 static const kinegen_design design_bucket_stroke = {
-    12, design_nominal, phi_jac_bucket_stroke, nu_bucket_stroke, gamma_bucket_stroke, {33, phi_p_rows_bucket_stroke, phi_p_cols_bucket_stroke}, {426, dvel_rows_bucket_stroke, dvel_cols_bucket_stroke}, {819, dacc_rows_bucket_stroke, dacc_cols_bucket_stroke}, phi_p_bucket_stroke, dvel_bucket_stroke, dacc_bucket_stroke, 2835,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_stroke, .nu = nu_bucket_stroke, .gamma = gamma_bucket_stroke,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_bucket_stroke, .cols = phi_p_cols_bucket_stroke}, .phi_p = phi_p_bucket_stroke,
+    .dvel_pattern = {.n = 426, .rows = dvel_rows_bucket_stroke, .cols = dvel_cols_bucket_stroke}, .dvel = dvel_bucket_stroke,
+    .dacc_pattern = {.n = 819, .rows = dacc_rows_bucket_stroke, .cols = dacc_cols_bucket_stroke}, .dacc = dacc_bucket_stroke,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 819),
 };
 
 const kinegen_model excavator_quaternion_bucket_stroke = {
-    &excavator_quaternion_layout, "bucket_stroke",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
-    0.0, 1.0, 101,
-    initial_q, constraints_bucket_stroke, drivers_bucket_stroke, jac_rows_bucket_stroke, jac_cols_bucket_stroke,
-    NULL, NULL, NULL, inputs_bucket_stroke, input_ranges_bucket_stroke, retract,
-    41, block_start_bucket_stroke, block_store_bucket_stroke, row_order_bucket_stroke, col_order_bucket_stroke,
-    404, 218, diag_value_bucket_stroke, diag_slot_bucket_stroke,
-    215, off_start_bucket_stroke, off_col_bucket_stroke, off_value_bucket_stroke,
-    3417, 254, 8, kernels_bucket_stroke, &design_bucket_stroke,
+    .layout = &excavator_quaternion_layout, .case_name = "bucket_stroke",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 433,
+    .t0 = 0.0, .t1 = 1.0, .steps = 101,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_stroke, .driver_names = drivers_bucket_stroke,
+    .jac_rows = jac_rows_bucket_stroke, .jac_cols = jac_cols_bucket_stroke,
+    .inputs = inputs_bucket_stroke, .input_ranges = input_ranges_bucket_stroke, .retract = retract,
+    .n_blocks = 41, .block_start = block_start_bucket_stroke, .block_store = block_store_bucket_stroke,
+    .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
+    .n_store = 404, .n_diag = 218, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
+    .n_off = 215, .off_start = off_start_bucket_stroke, .off_col = off_col_bucket_stroke, .off_value = off_value_bucket_stroke,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_BUCKET_STROKE, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_BUCKET_STROKE,
+    .n_kernels = 8, .kernels = kernels_bucket_stroke, .design = &design_bucket_stroke,
 };
 
 /* ---- case bucket_near_toggle ---- */
@@ -19850,19 +19893,26 @@ static const int dvel_cols_bucket_near_toggle[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3,
 static const int dacc_rows_bucket_near_toggle[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_bucket_near_toggle[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
 static const kinegen_design design_bucket_near_toggle = {
-    12, design_nominal, phi_jac_bucket_near_toggle, nu_bucket_near_toggle, gamma_bucket_near_toggle, {33, phi_p_rows_bucket_near_toggle, phi_p_cols_bucket_near_toggle}, {426, dvel_rows_bucket_near_toggle, dvel_cols_bucket_near_toggle}, {819, dacc_rows_bucket_near_toggle, dacc_cols_bucket_near_toggle}, phi_p_bucket_near_toggle, dvel_bucket_near_toggle, dacc_bucket_near_toggle, 2835,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_near_toggle, .nu = nu_bucket_near_toggle, .gamma = gamma_bucket_near_toggle,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_bucket_near_toggle, .cols = phi_p_cols_bucket_near_toggle}, .phi_p = phi_p_bucket_near_toggle,
+    .dvel_pattern = {.n = 426, .rows = dvel_rows_bucket_near_toggle, .cols = dvel_cols_bucket_near_toggle}, .dvel = dvel_bucket_near_toggle,
+    .dacc_pattern = {.n = 819, .rows = dacc_rows_bucket_near_toggle, .cols = dacc_cols_bucket_near_toggle}, .dacc = dacc_bucket_near_toggle,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 819),
 };
 
 const kinegen_model excavator_quaternion_bucket_near_toggle = {
-    &excavator_quaternion_layout, "bucket_near_toggle",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
-    0.0, 2.0, 9,
-    initial_q, constraints_bucket_near_toggle, drivers_bucket_near_toggle, jac_rows_bucket_near_toggle, jac_cols_bucket_near_toggle,
-    NULL, NULL, NULL, inputs_bucket_near_toggle, input_ranges_bucket_near_toggle, retract,
-    41, block_start_bucket_near_toggle, block_store_bucket_near_toggle, row_order_bucket_near_toggle, col_order_bucket_near_toggle,
-    404, 218, diag_value_bucket_near_toggle, diag_slot_bucket_near_toggle,
-    215, off_start_bucket_near_toggle, off_col_bucket_near_toggle, off_value_bucket_near_toggle,
-    3417, 254, 8, kernels_bucket_near_toggle, &design_bucket_near_toggle,
+    .layout = &excavator_quaternion_layout, .case_name = "bucket_near_toggle",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 433,
+    .t0 = 0.0, .t1 = 2.0, .steps = 9,
+    .initial_q = initial_q, .constraint_names = constraints_bucket_near_toggle, .driver_names = drivers_bucket_near_toggle,
+    .jac_rows = jac_rows_bucket_near_toggle, .jac_cols = jac_cols_bucket_near_toggle,
+    .inputs = inputs_bucket_near_toggle, .input_ranges = input_ranges_bucket_near_toggle, .retract = retract,
+    .n_blocks = 41, .block_start = block_start_bucket_near_toggle, .block_store = block_store_bucket_near_toggle,
+    .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
+    .n_store = 404, .n_diag = 218, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
+    .n_off = 215, .off_start = off_start_bucket_near_toggle, .off_col = off_col_bucket_near_toggle, .off_value = off_value_bucket_near_toggle,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_BUCKET_NEAR_TOGGLE, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_BUCKET_NEAR_TOGGLE,
+    .n_kernels = 8, .kernels = kernels_bucket_near_toggle, .design = &design_bucket_near_toggle,
 };
 
 /* ---- case digging_fast ---- */
@@ -19887,19 +19937,26 @@ static const int dvel_cols_digging_fast[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5,
 static const int dacc_rows_digging_fast[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_digging_fast[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
 static const kinegen_design design_digging_fast = {
-    12, design_nominal, phi_jac_digging_fast, nu_digging_fast, gamma_digging_fast, {33, phi_p_rows_digging_fast, phi_p_cols_digging_fast}, {426, dvel_rows_digging_fast, dvel_cols_digging_fast}, {819, dacc_rows_digging_fast, dacc_cols_digging_fast}, phi_p_digging_fast, dvel_digging_fast, dacc_digging_fast, 2835,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_fast, .nu = nu_digging_fast, .gamma = gamma_digging_fast,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_digging_fast, .cols = phi_p_cols_digging_fast}, .phi_p = phi_p_digging_fast,
+    .dvel_pattern = {.n = 426, .rows = dvel_rows_digging_fast, .cols = dvel_cols_digging_fast}, .dvel = dvel_digging_fast,
+    .dacc_pattern = {.n = 819, .rows = dacc_rows_digging_fast, .cols = dacc_cols_digging_fast}, .dacc = dacc_digging_fast,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 819),
 };
 
 const kinegen_model excavator_quaternion_digging_fast = {
-    &excavator_quaternion_layout, "digging_fast",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
-    0.0, 13.6, 341,
-    initial_q, constraints_digging_fast, drivers_digging_fast, jac_rows_digging_fast, jac_cols_digging_fast,
-    NULL, NULL, NULL, inputs_digging_fast, input_ranges_digging_fast, retract,
-    41, block_start_digging_fast, block_store_digging_fast, row_order_digging_fast, col_order_digging_fast,
-    404, 218, diag_value_digging_fast, diag_slot_digging_fast,
-    215, off_start_digging_fast, off_col_digging_fast, off_value_digging_fast,
-    3417, 254, 8, kernels_digging_fast, &design_digging_fast,
+    .layout = &excavator_quaternion_layout, .case_name = "digging_fast",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 433,
+    .t0 = 0.0, .t1 = 13.6, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_fast, .driver_names = drivers_digging_fast,
+    .jac_rows = jac_rows_digging_fast, .jac_cols = jac_cols_digging_fast,
+    .inputs = inputs_digging_fast, .input_ranges = input_ranges_digging_fast, .retract = retract,
+    .n_blocks = 41, .block_start = block_start_digging_fast, .block_store = block_store_digging_fast,
+    .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
+    .n_store = 404, .n_diag = 218, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
+    .n_off = 215, .off_start = off_start_digging_fast, .off_col = off_col_digging_fast, .off_value = off_value_digging_fast,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_DIGGING_FAST, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_DIGGING_FAST,
+    .n_kernels = 8, .kernels = kernels_digging_fast, .design = &design_digging_fast,
 };
 
 /* ---- case digging_paced ---- */
@@ -19924,19 +19981,26 @@ static const int dvel_cols_digging_paced[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5
 static const int dacc_rows_digging_paced[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_digging_paced[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
 static const kinegen_design design_digging_paced = {
-    12, design_nominal, phi_jac_digging_paced, nu_digging_paced, gamma_digging_paced, {33, phi_p_rows_digging_paced, phi_p_cols_digging_paced}, {426, dvel_rows_digging_paced, dvel_cols_digging_paced}, {819, dacc_rows_digging_paced, dacc_cols_digging_paced}, phi_p_digging_paced, dvel_digging_paced, dacc_digging_paced, 2835,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_paced, .nu = nu_digging_paced, .gamma = gamma_digging_paced,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_digging_paced, .cols = phi_p_cols_digging_paced}, .phi_p = phi_p_digging_paced,
+    .dvel_pattern = {.n = 426, .rows = dvel_rows_digging_paced, .cols = dvel_cols_digging_paced}, .dvel = dvel_digging_paced,
+    .dacc_pattern = {.n = 819, .rows = dacc_rows_digging_paced, .cols = dacc_cols_digging_paced}, .dacc = dacc_digging_paced,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 819),
 };
 
 const kinegen_model excavator_quaternion_digging_paced = {
-    &excavator_quaternion_layout, "digging_paced",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
-    0.0, 59.5, 341,
-    initial_q, constraints_digging_paced, drivers_digging_paced, jac_rows_digging_paced, jac_cols_digging_paced,
-    NULL, NULL, NULL, inputs_digging_paced, input_ranges_digging_paced, retract,
-    41, block_start_digging_paced, block_store_digging_paced, row_order_digging_paced, col_order_digging_paced,
-    404, 218, diag_value_digging_paced, diag_slot_digging_paced,
-    215, off_start_digging_paced, off_col_digging_paced, off_value_digging_paced,
-    3417, 254, 8, kernels_digging_paced, &design_digging_paced,
+    .layout = &excavator_quaternion_layout, .case_name = "digging_paced",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 433,
+    .t0 = 0.0, .t1 = 59.5, .steps = 341,
+    .initial_q = initial_q, .constraint_names = constraints_digging_paced, .driver_names = drivers_digging_paced,
+    .jac_rows = jac_rows_digging_paced, .jac_cols = jac_cols_digging_paced,
+    .inputs = inputs_digging_paced, .input_ranges = input_ranges_digging_paced, .retract = retract,
+    .n_blocks = 41, .block_start = block_start_digging_paced, .block_store = block_store_digging_paced,
+    .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
+    .n_store = 404, .n_diag = 218, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
+    .n_off = 215, .off_start = off_start_digging_paced, .off_col = off_col_digging_paced, .off_value = off_value_digging_paced,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_DIGGING_PACED, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_DIGGING_PACED,
+    .n_kernels = 8, .kernels = kernels_digging_paced, .design = &design_digging_paced,
 };
 
 /* ---- case oscillation ---- */
@@ -19961,19 +20025,26 @@ static const int dvel_cols_oscillation[] = {3, 4, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 
 static const int dacc_rows_oscillation[] = {3, 3, 3, 3, 3, 3, 4, 4, 4, 4, 4, 4, 5, 5, 5, 5, 5, 5, 6, 6, 6, 6, 6, 6, 7, 7, 7, 7, 7, 7, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 8, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 9, 10, 10, 10, 10, 10, 10, 11, 11, 11, 11, 11, 11, 12, 12, 12, 12, 12, 12, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 13, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 14, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 15, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 16, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 17, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 18, 19, 19, 19, 19, 19, 19, 19, 19, 20, 20, 20, 20, 20, 20, 20, 20, 21, 21, 21, 21, 21, 21, 21, 21, 22, 22, 22, 22, 22, 22, 23, 23, 23, 23, 23, 23, 24, 24, 24, 24, 24, 24, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 25, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 26, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 27, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 28, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 29, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 30, 31, 31, 31, 31, 31, 31, 31, 31, 32, 32, 32, 32, 32, 32, 32, 32, 33, 33, 33, 33, 33, 33, 33, 33, 34, 34, 34, 34, 34, 34, 35, 35, 35, 35, 35, 35, 36, 36, 36, 36, 36, 36, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 37, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 38, 39, 39, 39, 39, 39, 39, 40, 40, 40, 40, 40, 40, 41, 41, 41, 41, 41, 41, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 42, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 43, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 44, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 45, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 46, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 47, 48, 48, 48, 48, 48, 48, 48, 48, 49, 49, 49, 49, 49, 49, 49, 49, 50, 50, 50, 50, 50, 50, 50, 50, 51, 51, 51, 51, 51, 51, 52, 52, 52, 52, 52, 52, 53, 53, 53, 53, 53, 53, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 54, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 55, 56, 56, 56, 56, 56, 56, 57, 57, 57, 57, 57, 57, 58, 58, 58, 58, 58, 58, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 59, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 60, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 61, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 62, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 63, 64, 64, 64, 64, 64, 64, 64, 64, 65, 65, 65, 65, 65, 65, 65, 65, 66, 66, 66, 66, 66, 66, 66, 66, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 67, 68, 68, 68, 68, 68, 68, 69, 69, 69, 69, 69, 69, 70, 70, 70, 70, 70, 70, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 71, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 72, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 73, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 74, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 75, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 76, 77, 77, 77, 77, 77, 77, 77, 78, 78, 78, 78, 78, 78, 78, 79, 79, 79, 79, 79, 79, 79, 80, 80, 80, 80, 80, 80, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 81, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 82, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83, 83};
 static const int dacc_cols_oscillation[] = {3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 9, 10, 11, 87, 88, 89, 93, 94, 95, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 15, 16, 17, 87, 88, 89, 99, 100, 101, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 15, 16, 17, 21, 22, 23, 99, 100, 101, 105, 106, 107, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 87, 88, 89, 3, 4, 5, 27, 28, 29, 87, 88, 89, 111, 112, 113, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 24, 25, 26, 27, 28, 29, 30, 31, 32, 108, 109, 110, 111, 112, 113, 114, 115, 116, 27, 28, 29, 33, 34, 35, 111, 112, 113, 117, 118, 119, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 168, 169, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 39, 40, 41, 93, 94, 95, 123, 124, 125, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 93, 94, 95, 9, 10, 11, 45, 46, 47, 93, 94, 95, 129, 130, 131, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 45, 46, 47, 51, 52, 53, 129, 130, 131, 135, 136, 137, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 170, 171, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 81, 82, 83, 123, 124, 125, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 39, 40, 41, 69, 70, 71, 123, 124, 125, 153, 154, 155, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 69, 70, 71, 75, 76, 77, 153, 154, 155, 159, 160, 161, 173, 174, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 81, 82, 83, 165, 166, 167, 175, 176, 75, 76, 77, 81, 82, 83, 159, 160, 161, 165, 166, 167, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 123, 124, 125, 39, 40, 41, 57, 58, 59, 123, 124, 125, 141, 142, 143, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146, 57, 58, 59, 63, 64, 65, 141, 142, 143, 147, 148, 149, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 69, 70, 71, 153, 154, 155, 173, 3, 4, 5, 87, 88, 89, 12, 13, 14, 15, 16, 17, 18, 19, 20, 96, 97, 98, 99, 100, 101, 102, 103, 104, 42, 43, 44, 45, 46, 47, 48, 49, 50, 126, 127, 128, 129, 130, 131, 132, 133, 134, 54, 55, 56, 57, 58, 59, 60, 61, 62, 138, 139, 140, 141, 142, 143, 144, 145, 146};
 static const kinegen_design design_oscillation = {
-    12, design_nominal, phi_jac_oscillation, nu_oscillation, gamma_oscillation, {33, phi_p_rows_oscillation, phi_p_cols_oscillation}, {426, dvel_rows_oscillation, dvel_cols_oscillation}, {819, dacc_rows_oscillation, dacc_cols_oscillation}, phi_p_oscillation, dvel_oscillation, dacc_oscillation, 2835,
+    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_oscillation, .nu = nu_oscillation, .gamma = gamma_oscillation,
+    .phi_p_pattern = {.n = 33, .rows = phi_p_rows_oscillation, .cols = phi_p_cols_oscillation}, .phi_p = phi_p_oscillation,
+    .dvel_pattern = {.n = 426, .rows = dvel_rows_oscillation, .cols = dvel_cols_oscillation}, .dvel = dvel_oscillation,
+    .dacc_pattern = {.n = 819, .rows = dacc_rows_oscillation, .cols = dacc_cols_oscillation}, .dacc = dacc_oscillation,
+    .sensitivity_doubles = KINEGEN_SENSITIVITY_DOUBLES(EXCAVATOR_QUATERNION_N_V, 12, 819),
 };
 
 const kinegen_model excavator_quaternion_oscillation = {
-    &excavator_quaternion_layout, "oscillation",
-    EXCAVATOR_QUATERNION_N_Q, EXCAVATOR_QUATERNION_N_V, 4, 433,
-    0.0, 2.0, 301,
-    initial_q, constraints_oscillation, drivers_oscillation, jac_rows_oscillation, jac_cols_oscillation,
-    NULL, NULL, NULL, inputs_oscillation, input_ranges_oscillation, retract,
-    41, block_start_oscillation, block_store_oscillation, row_order_oscillation, col_order_oscillation,
-    404, 218, diag_value_oscillation, diag_slot_oscillation,
-    215, off_start_oscillation, off_col_oscillation, off_value_oscillation,
-    3417, 254, 8, kernels_oscillation, &design_oscillation,
+    .layout = &excavator_quaternion_layout, .case_name = "oscillation",
+    .n_q = EXCAVATOR_QUATERNION_N_Q, .n_v = EXCAVATOR_QUATERNION_N_V, .n_inputs = 4, .n_jac = 433,
+    .t0 = 0.0, .t1 = 2.0, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_oscillation, .driver_names = drivers_oscillation,
+    .jac_rows = jac_rows_oscillation, .jac_cols = jac_cols_oscillation,
+    .inputs = inputs_oscillation, .input_ranges = input_ranges_oscillation, .retract = retract,
+    .n_blocks = 41, .block_start = block_start_oscillation, .block_store = block_store_oscillation,
+    .row_order = row_order_oscillation, .col_order = col_order_oscillation,
+    .n_store = 404, .n_diag = 218, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,
+    .n_off = 215, .off_start = off_start_oscillation, .off_col = off_col_oscillation, .off_value = off_value_oscillation,
+    .work_doubles = EXCAVATOR_QUATERNION_WORK_DOUBLES_OSCILLATION, .work_ints = EXCAVATOR_QUATERNION_WORK_INTS_OSCILLATION,
+    .n_kernels = 8, .kernels = kernels_oscillation, .design = &design_oscillation,
 };
 
 const kinegen_model *const excavator_quaternion_cases[EXCAVATOR_QUATERNION_N_CASES] = {&excavator_quaternion_digging, &excavator_quaternion_level_cut, &excavator_quaternion_trench_wall, &excavator_quaternion_bucket_toggle, &excavator_quaternion_bucket_stroke, &excavator_quaternion_bucket_near_toggle, &excavator_quaternion_digging_fast, &excavator_quaternion_digging_paced, &excavator_quaternion_oscillation};

@@ -92,7 +92,7 @@ KERNELS = {
     'frames_d': (('q', 'v', 'a', 'w', 'y', 'z'), ('frames_d',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_quaternion.h': '7245f1aadc64e296fadc552c3718433aa5e6eb73a4f1c88ce5ffad915e3495fd', 'excavator_quaternion.c': '1125b808c078584dc82c4aaa4e4237715d13829f64bf7c4a95682fb0be225c6c'}
+C_FILES = {'excavator_quaternion.h': '07c3ff4edaac857ea3f4a5a0cac6200e9e942ca3bfd5bd3f4b578389ea01114d', 'excavator_quaternion.c': '1d698df378e66722859d6f9fa3eb1a12048a94fd52df6ce4f839f2413d08351e'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_dual_euler_parameters.h': 'b7d38e03a98257c5e403367b688791b1af338393d6ba144cd8a9e06343eba961', 'four_bar_dual_euler_parameters.c': '49a5664be71d8296013b9f310b30038e3601f236e826b7a28bd5ee0fa5d0df5d'}
+C_FILES = {'four_bar_dual_euler_parameters.h': '40592adcd3328d5e85501f465cbdccc301669129412d1fc14307bdf078ff408e', 'four_bar_dual_euler_parameters.c': 'b7ece611b4a5baaa8263e0e9390c6bd456716d8f439a5cc7cbe8788704500653'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_dual_quaternion.h': '178d22bd1def3ab54df37b5b605ad8b4b0b89c25b87ed1978312cc182a4f7a80', 'four_bar_dual_quaternion.c': '0a06cb10f404dfbe5ed6fdfa046bb0bed3f15233a42096d1af2a869722c64e06'}
+C_FILES = {'four_bar_dual_quaternion.h': '6195ec2f81cf571e4a3601f0b045dcf91634b3b59669205763c644b42c8d24c9', 'four_bar_dual_quaternion.c': '98df6087eebc94e16ccfca673dffa1882870d6f798d2aff44a9c3aefaf718f23'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_euler_parameters.h': 'a762619991c3dbb5574f5f919d1cb0c7510788ad3aa906f2fc8bcd34c34b1c3f', 'four_bar_euler_parameters.c': '05d12b275ea1f6bc8ce346351c4e4eb9e980db10538b126dec2f94c49f43d9fc'}
+C_FILES = {'four_bar_euler_parameters.h': '564a29bc736e2108039d507bf8836c440d79034d044af69c1671ff4cfbe87c59', 'four_bar_euler_parameters.c': '62a2ba9a23fc8a21037a4430dd9a062cbef2dd54c3dd2958d55394dad9f285c2'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -643,37 +643,37 @@ static const int sizes_inputs_crank_turn[] = {3};
 static const char *const outputs_input_ranges_crank_turn[] = {"input_ranges"};
 static const int sizes_input_ranges_crank_turn[] = {6};
 static const kinegen_kernel kernels_crank_turn[] = {
-    {"phi_jac", "q,u", 2, outputs_phi_jac_crank_turn, sizes_phi_jac_crank_turn, call_phi_jac_crank_turn},
-    {"nu", "q,u,ud", 1, outputs_nu_crank_turn, sizes_nu_crank_turn, call_nu_crank_turn},
-    {"gamma", "q,v,u,ud,udd", 1, outputs_gamma_crank_turn, sizes_gamma_crank_turn, call_gamma_crank_turn},
-    {"inputs", "t", 1, outputs_inputs_crank_turn, sizes_inputs_crank_turn, call_inputs_crank_turn},
-    {"input_ranges", "span", 1, outputs_input_ranges_crank_turn, sizes_input_ranges_crank_turn, call_input_ranges_crank_turn},
+    {.name = "phi_jac", .slots = "q,u", .n_outputs = 2, .output_names = outputs_phi_jac_crank_turn, .output_sizes = sizes_phi_jac_crank_turn, .call = call_phi_jac_crank_turn},
+    {.name = "nu", .slots = "q,u,ud", .n_outputs = 1, .output_names = outputs_nu_crank_turn, .output_sizes = sizes_nu_crank_turn, .call = call_nu_crank_turn},
+    {.name = "gamma", .slots = "q,v,u,ud,udd", .n_outputs = 1, .output_names = outputs_gamma_crank_turn, .output_sizes = sizes_gamma_crank_turn, .call = call_gamma_crank_turn},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_crank_turn, .output_sizes = sizes_inputs_crank_turn, .call = call_inputs_crank_turn},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_crank_turn, .output_sizes = sizes_input_ranges_crank_turn, .call = call_input_ranges_crank_turn},
 };
 static const char *const outputs_four_bar_quaternion_frames[] = {"frames"};
 static const int sizes_four_bar_quaternion_frames[] = {72};
 static const char *const outputs_shared_loads[] = {"loads"};
 static const int sizes_shared_loads[] = {1};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_four_bar_quaternion_frames, sizes_four_bar_quaternion_frames, call_four_bar_quaternion_frames},
-    {"loads", "q,t", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_four_bar_quaternion_frames, .output_sizes = sizes_four_bar_quaternion_frames, .call = call_four_bar_quaternion_frames},
+    {.name = "loads", .slots = "q,t", .n_outputs = 1, .output_names = outputs_shared_loads, .output_sizes = sizes_shared_loads, .call = call_shared_loads},
 };
 
 static const char *const body_names[] = {"crank", "coupler", "rocker"};
 static const char *const stored_names[] = {"crank.x", "crank.y", "crank.z", "crank.qw", "crank.qx", "crank.qy", "crank.qz", "coupler.x", "coupler.y", "coupler.z", "coupler.qw", "coupler.qx", "coupler.qy", "coupler.qz", "rocker.x", "rocker.y", "rocker.z", "rocker.qw", "rocker.qx", "rocker.qy", "rocker.qz"};
 static const char *const velocity_names[] = {"crank.x", "crank.y", "crank.z", "crank.theta_x", "crank.theta_y", "crank.theta_z", "coupler.x", "coupler.y", "coupler.z", "coupler.theta_x", "coupler.theta_y", "coupler.theta_z", "rocker.x", "rocker.y", "rocker.z", "rocker.theta_x", "rocker.theta_y", "rocker.theta_z"};
 static const kinegen_point points[] = {
-    {0, "crank.A", {0.0, 0.0, 0.0}},
-    {0, "crank.B", {0.3, 0.0, 0.0}},
-    {1, "coupler.B", {0.0, 0.0, 0.0}},
-    {1, "coupler.C", {0.9, 0.0, 0.0}},
-    {1, "coupler.M", {0.45, 0.2, 0.0}},
-    {2, "rocker.D", {0.0, 0.0, 0.0}},
-    {2, "rocker.C", {0.7, 0.0, 0.0}},
-    {-1, "ground.A", {0.0, 0.0, 0.0}},
-    {-1, "ground.D", {1.0, 0.0, 0.0}},
+    {.body = 0, .name = "crank.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "crank.B", .local = {0.3, 0.0, 0.0}},
+    {.body = 1, .name = "coupler.B", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "coupler.C", .local = {0.9, 0.0, 0.0}},
+    {.body = 1, .name = "coupler.M", .local = {0.45, 0.2, 0.0}},
+    {.body = 2, .name = "rocker.D", .local = {0.0, 0.0, 0.0}},
+    {.body = 2, .name = "rocker.C", .local = {0.7, 0.0, 0.0}},
+    {.body = -1, .name = "ground.A", .local = {0.0, 0.0, 0.0}},
+    {.body = -1, .name = "ground.D", .local = {1.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {NULL, 0, 0, 0, 0.0, 0.0},
+    {.name = NULL},
 };
 
 /* the force solve (kinegen_forces): 0 actuation element(s), 1 load(s) */
@@ -698,21 +698,27 @@ static const int body_norm_rows[] = {0};
 static const double element_hydraulics[] = {0.0};
 
 static const kinegen_statics statics = {
-    0, element_names, element_kinds, 17,
-    {0, matrix_rows, matrix_cols}, NULL,
-    1, load_names, {1, load_rows, load_cols}, &kernels[1],
-    0, inertia_cols, NULL,
-    0, NULL, NULL, NULL, NULL, 0, 0, NULL, NULL, 0, NULL, NULL, NULL, /* each case's drivers carry the load: its own plan */
-    56, 18,
-    4, joint_names, joint_body, joint_sign, joint_point_body, joint_local, joint_row_start, joint_rows,
-    body_norm_start, body_norm_rows, element_hydraulics, 335, 17,
+    .n_elements = 0, .element_names = element_names, .element_kinds = element_kinds,
+    .n_joint_rows = 17,
+    .pattern = {.n = 0, .rows = matrix_rows, .cols = matrix_cols}, .actuation = NULL,
+    .n_loads = 1, .load_names = load_names,
+    .load_pattern = {.n = 1, .rows = load_rows, .cols = load_cols}, .loads = &kernels[1],
+    .n_inertia = 0, .inertia_cols = inertia_cols, .inertia = NULL,
+    /* no plan: each case's drivers carry the load, with the case's own */
+    .work_doubles = FOUR_BAR_QUATERNION_FORCE_WORK_DOUBLES, .work_ints = FOUR_BAR_QUATERNION_FORCE_WORK_INTS,
+    .n_joints = 4, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
+    .joint_point_body = joint_point_body, .joint_local = joint_local, .joint_row_start = joint_row_start, .joint_rows = joint_rows,
+    .body_norm_start = body_norm_start, .body_norm_rows = body_norm_rows, .element_hydraulics = element_hydraulics,
+    .reaction_doubles = FOUR_BAR_QUATERNION_REACTION_WORK_DOUBLES, .reaction_ints = FOUR_BAR_QUATERNION_REACTION_WORK_INTS,
 };
 
 const kinegen_layout four_bar_quaternion_layout = {
-    "four_bar", "quaternion", "four_bar.yaml", "4c66517595d777fe6904e4cce1b8182bfb0fff8ed209ec77655e967975d0af5b", "0.2.0",
-    FOUR_BAR_QUATERNION_N_Q, FOUR_BAR_QUATERNION_N_V, FOUR_BAR_QUATERNION_N_BODIES, body_names, stored_names, velocity_names,
-    9, points, 0, actuators, four_bar_quaternion_frames,
-    2, kernels, &statics,
+    .model = "four_bar", .parametrization = "quaternion", .source = "four_bar.yaml",
+    .source_sha256 = "4c66517595d777fe6904e4cce1b8182bfb0fff8ed209ec77655e967975d0af5b", .kinegen_version = "0.2.0",
+    .n_q = FOUR_BAR_QUATERNION_N_Q, .n_v = FOUR_BAR_QUATERNION_N_V, .n_bodies = FOUR_BAR_QUATERNION_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 9, .points = points, .n_actuators = 0, .actuators = actuators,
+    .frames = four_bar_quaternion_frames, .n_kernels = 2, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 0.9689124217106447, 0.0, 0.0, 0.2474039592545229, 0.263275, 0.143828, 0.0, 0.9451759002226809, 0.0, 0.0, 0.32656165977996365, 1.0, 0.0, 0.0, 0.6924690606038826, 0.0, 0.0, 0.7214475726664942};
@@ -734,15 +740,19 @@ static const int off_col_crank_turn[] = {3, 4, 2, 3, 4, 0, 4, 10, 1, 3, 10, 6, 7
 static const int off_value_crank_turn[] = {50, 51, 15, 16, 17, 7, 8, 9, 11, 12, 13, 23, 22, 19, 29, 28, 25, 35, 36, 34, 31, 40, 41};
 
 const kinegen_model four_bar_quaternion_crank_turn = {
-    &four_bar_quaternion_layout, "crank_turn",
-    FOUR_BAR_QUATERNION_N_Q, FOUR_BAR_QUATERNION_N_V, 1, 53,
-    0.0, 1.0, 201,
-    initial_q, constraints_crank_turn, drivers_crank_turn, jac_rows_crank_turn, jac_cols_crank_turn,
-    phi_jac_crank_turn, nu_crank_turn, gamma_crank_turn, inputs_crank_turn, input_ranges_crank_turn, retract,
-    13, block_start_crank_turn, block_store_crank_turn, row_order_crank_turn, col_order_crank_turn,
-    34, 30, diag_value_crank_turn, diag_slot_crank_turn,
-    23, off_start_crank_turn, off_col_crank_turn, off_value_crank_turn,
-    579, 63, 5, kernels_crank_turn, NULL,
+    .layout = &four_bar_quaternion_layout, .case_name = "crank_turn",
+    .n_q = FOUR_BAR_QUATERNION_N_Q, .n_v = FOUR_BAR_QUATERNION_N_V, .n_inputs = 1, .n_jac = 53,
+    .t0 = 0.0, .t1 = 1.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_crank_turn, .driver_names = drivers_crank_turn,
+    .jac_rows = jac_rows_crank_turn, .jac_cols = jac_cols_crank_turn,
+    .phi_jac = phi_jac_crank_turn, .nu = nu_crank_turn, .gamma = gamma_crank_turn,
+    .inputs = inputs_crank_turn, .input_ranges = input_ranges_crank_turn, .retract = retract,
+    .n_blocks = 13, .block_start = block_start_crank_turn, .block_store = block_store_crank_turn,
+    .row_order = row_order_crank_turn, .col_order = col_order_crank_turn,
+    .n_store = 34, .n_diag = 30, .diag_value = diag_value_crank_turn, .diag_slot = diag_slot_crank_turn,
+    .n_off = 23, .off_start = off_start_crank_turn, .off_col = off_col_crank_turn, .off_value = off_value_crank_turn,
+    .work_doubles = FOUR_BAR_QUATERNION_WORK_DOUBLES_CRANK_TURN, .work_ints = FOUR_BAR_QUATERNION_WORK_INTS_CRANK_TURN,
+    .n_kernels = 5, .kernels = kernels_crank_turn, .design = NULL,
 };
 
 const kinegen_model *const four_bar_quaternion_cases[FOUR_BAR_QUATERNION_N_CASES] = {&four_bar_quaternion_crank_turn};

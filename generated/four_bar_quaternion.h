@@ -26,20 +26,24 @@ extern "C" {
 #define FOUR_BAR_QUATERNION_N_ACTUATORS 0
 #define FOUR_BAR_QUATERNION_N_CASES 1
 #define FOUR_BAR_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
-/* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define FOUR_BAR_QUATERNION_WORK_DOUBLES 579
-#define FOUR_BAR_QUATERNION_WORK_INTS 63
+/* memory of one solver of each case (kinegen_solver.h's KINEGEN_WORK_DOUBLES and KINEGEN_WORK_INTS of its
+ * n_q, n_v, Phi_q's values, its factors' and the values below them, blocks, drivers), and of any case:
+ * kinegen_init(&s, model, options, w.doubles, w.ints) */
+#define FOUR_BAR_QUATERNION_WORK_DOUBLES_CRANK_TURN KINEGEN_WORK_DOUBLES(FOUR_BAR_QUATERNION_N_Q, FOUR_BAR_QUATERNION_N_V, 53, 34, 23, 1)
+#define FOUR_BAR_QUATERNION_WORK_INTS_CRANK_TURN KINEGEN_WORK_INTS(FOUR_BAR_QUATERNION_N_V, 13, 1)
+#define FOUR_BAR_QUATERNION_WORK_DOUBLES FOUR_BAR_QUATERNION_WORK_DOUBLES_CRANK_TURN
+#define FOUR_BAR_QUATERNION_WORK_INTS FOUR_BAR_QUATERNION_WORK_INTS_CRANK_TURN
 /* the force solve (kinegen_forces): loads, forces per configuration (elements, or the most drivers), work;
  * whether the model has masses (kinegen_forces' inertia) */
 #define FOUR_BAR_QUATERNION_N_LOADS 1
 #define FOUR_BAR_QUATERNION_N_FORCES 1
-#define FOUR_BAR_QUATERNION_FORCE_WORK_DOUBLES 56
-#define FOUR_BAR_QUATERNION_FORCE_WORK_INTS 18
+#define FOUR_BAR_QUATERNION_FORCE_WORK_DOUBLES KINEGEN_FORCE_WORK_DOUBLES(0, 1, FOUR_BAR_QUATERNION_N_V, FOUR_BAR_QUATERNION_MAX_INPUTS, 0, 0, 0)
+#define FOUR_BAR_QUATERNION_FORCE_WORK_INTS KINEGEN_FORCE_WORK_INTS(FOUR_BAR_QUATERNION_N_V)
 #define FOUR_BAR_QUATERNION_HAS_MASSES 0
 /* the pin reactions (kinegen_reactions): joints, work */
 #define FOUR_BAR_QUATERNION_N_JOINTS 4
-#define FOUR_BAR_QUATERNION_REACTION_WORK_DOUBLES 335
-#define FOUR_BAR_QUATERNION_REACTION_WORK_INTS 17
+#define FOUR_BAR_QUATERNION_REACTION_WORK_DOUBLES KINEGEN_REACTION_WORK_DOUBLES(FOUR_BAR_QUATERNION_N_BODIES, FOUR_BAR_QUATERNION_N_V, 0, 53)
+#define FOUR_BAR_QUATERNION_REACTION_WORK_INTS KINEGEN_REACTION_WORK_INTS(17)
 
 typedef struct four_bar_quaternion_workspace {
     double doubles[FOUR_BAR_QUATERNION_WORK_DOUBLES];

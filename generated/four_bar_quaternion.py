@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_quaternion.h': 'a2c42a8d4a5c20d4919c002a9ceab6bce77b15c117aee83721659aac4475ab18', 'four_bar_quaternion.c': 'f641e837ed1b0e957815d5301e98cb065ee3b3a2aebde53325490972bbc16a1b'}
+C_FILES = {'four_bar_quaternion.h': '5e3964f5cdb9a3e721d9c4dd5c538ab96e7df447acb8c6fa0ce1c0d9e568d10a', 'four_bar_quaternion.c': '530e68e9c8003fb47dbdade11248c784a1903f0717f0854029b9bf1c9f370e00'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_euler_parameters.h': '7d16d55020c4268fb3f82b464b5ddd36b396685e9321b31bbf84a16da5d07c5e', 'rssr_dual_euler_parameters.c': 'b727f84ef8a28e8e0aca800723fa528b346b7b696debf1ad4eb40cd8347140e1'}
+C_FILES = {'rssr_dual_euler_parameters.h': '7be3d58b1730f0bf209069ef77c7205cdaf921c778b4faa1288142cbf8f1ca32', 'rssr_dual_euler_parameters.c': '48c7bf5cf46c62b3d182bd7668d5a22d128ddabef86af614926f7869ce566bf9'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -26,9 +26,13 @@ extern "C" {
 #define RSSR_DUAL_QUATERNION_N_ACTUATORS 0
 #define RSSR_DUAL_QUATERNION_N_CASES 1
 #define RSSR_DUAL_QUATERNION_MAX_INPUTS 1  /* drivers of the case with the most (at least 1) */
-/* memory of one solver of any case: kinegen_init(&s, model, options, w.doubles, w.ints) */
-#define RSSR_DUAL_QUATERNION_WORK_DOUBLES 373
-#define RSSR_DUAL_QUATERNION_WORK_INTS 45
+/* memory of one solver of each case (kinegen_solver.h's KINEGEN_WORK_DOUBLES and KINEGEN_WORK_INTS of its
+ * n_q, n_v, Phi_q's values, its factors' and the values below them, blocks, drivers), and of any case:
+ * kinegen_init(&s, model, options, w.doubles, w.ints) */
+#define RSSR_DUAL_QUATERNION_WORK_DOUBLES_TURN KINEGEN_WORK_DOUBLES(RSSR_DUAL_QUATERNION_N_Q, RSSR_DUAL_QUATERNION_N_V, 29, 16, 13, 1)
+#define RSSR_DUAL_QUATERNION_WORK_INTS_TURN KINEGEN_WORK_INTS(RSSR_DUAL_QUATERNION_N_V, 10, 1)
+#define RSSR_DUAL_QUATERNION_WORK_DOUBLES RSSR_DUAL_QUATERNION_WORK_DOUBLES_TURN
+#define RSSR_DUAL_QUATERNION_WORK_INTS RSSR_DUAL_QUATERNION_WORK_INTS_TURN
 
 typedef struct rssr_dual_quaternion_workspace {
     double doubles[RSSR_DUAL_QUATERNION_WORK_DOUBLES];

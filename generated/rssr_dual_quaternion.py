@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_quaternion.h': '64726565a0d0b51ed957601f1daa9a6d994f1afca56d025ceaf686687d399e07', 'rssr_dual_quaternion.c': '41abd24b7c16cf81115f12dd856e092284b97ee67ccc4006a4e528650372ce32'}
+C_FILES = {'rssr_dual_quaternion.h': 'd4f2c60284ce780eaa6834260de6b9e12a88e70da7d6ac080857c3d50ab38ebf', 'rssr_dual_quaternion.c': '27a157457ee7919f93946b3133ca7162d239c045d6d8175c70b9a780bd202514'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

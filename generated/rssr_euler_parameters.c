@@ -655,38 +655,40 @@ static const int sizes_inputs_turn[] = {3};
 static const char *const outputs_input_ranges_turn[] = {"input_ranges"};
 static const int sizes_input_ranges_turn[] = {6};
 static const kinegen_kernel kernels_turn[] = {
-    {"phi_jac", "q,u", 2, outputs_phi_jac_turn, sizes_phi_jac_turn, call_phi_jac_turn},
-    {"nu", "q,u,ud", 1, outputs_nu_turn, sizes_nu_turn, call_nu_turn},
-    {"gamma", "q,v,u,ud,udd", 1, outputs_gamma_turn, sizes_gamma_turn, call_gamma_turn},
-    {"inputs", "t", 1, outputs_inputs_turn, sizes_inputs_turn, call_inputs_turn},
-    {"input_ranges", "span", 1, outputs_input_ranges_turn, sizes_input_ranges_turn, call_input_ranges_turn},
+    {.name = "phi_jac", .slots = "q,u", .n_outputs = 2, .output_names = outputs_phi_jac_turn, .output_sizes = sizes_phi_jac_turn, .call = call_phi_jac_turn},
+    {.name = "nu", .slots = "q,u,ud", .n_outputs = 1, .output_names = outputs_nu_turn, .output_sizes = sizes_nu_turn, .call = call_nu_turn},
+    {.name = "gamma", .slots = "q,v,u,ud,udd", .n_outputs = 1, .output_names = outputs_gamma_turn, .output_sizes = sizes_gamma_turn, .call = call_gamma_turn},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_turn, .output_sizes = sizes_inputs_turn, .call = call_inputs_turn},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_turn, .output_sizes = sizes_input_ranges_turn, .call = call_input_ranges_turn},
 };
 static const char *const outputs_rssr_euler_parameters_frames[] = {"frames"};
 static const int sizes_rssr_euler_parameters_frames[] = {48};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_rssr_euler_parameters_frames, sizes_rssr_euler_parameters_frames, call_rssr_euler_parameters_frames},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_rssr_euler_parameters_frames, .output_sizes = sizes_rssr_euler_parameters_frames, .call = call_rssr_euler_parameters_frames},
 };
 
 static const char *const body_names[] = {"crank", "rocker"};
 static const char *const stored_names[] = {"crank.x", "crank.y", "crank.z", "crank.e0", "crank.e1", "crank.e2", "crank.e3", "rocker.x", "rocker.y", "rocker.z", "rocker.e0", "rocker.e1", "rocker.e2", "rocker.e3"};
 static const char *const velocity_names[] = {"crank.x", "crank.y", "crank.z", "crank.e0", "crank.e1", "crank.e2", "crank.e3", "rocker.x", "rocker.y", "rocker.z", "rocker.e0", "rocker.e1", "rocker.e2", "rocker.e3"};
 static const kinegen_point points[] = {
-    {0, "crank.A", {0.0, 0.0, 0.0}},
-    {0, "crank.B", {0.15, 0.0, 0.0}},
-    {1, "rocker.D", {0.0, 0.0, 0.0}},
-    {1, "rocker.C", {0.0, -0.2201366, 0.20381334}},
-    {-1, "ground.A", {0.0, 0.0, 0.0}},
-    {-1, "ground.D", {0.1, 0.35, 0.3}},
+    {.body = 0, .name = "crank.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "crank.B", .local = {0.15, 0.0, 0.0}},
+    {.body = 1, .name = "rocker.D", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "rocker.C", .local = {0.0, -0.2201366, 0.20381334}},
+    {.body = -1, .name = "ground.A", .local = {0.0, 0.0, 0.0}},
+    {.body = -1, .name = "ground.D", .local = {0.1, 0.35, 0.3}},
 };
 static const kinegen_actuator actuators[] = {
-    {NULL, 0, 0, 0, 0.0, 0.0},
+    {.name = NULL},
 };
 
 const kinegen_layout rssr_euler_parameters_layout = {
-    "rssr", "euler-parameters", "rssr.yaml", "38922bfebe6d76485a80f5526a7adef5d7ca22dc3386066bf21d22467abd1d2d", "0.2.0",
-    RSSR_EULER_PARAMETERS_N_Q, RSSR_EULER_PARAMETERS_N_V, RSSR_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
-    6, points, 0, actuators, rssr_euler_parameters_frames,
-    1, kernels, NULL,
+    .model = "rssr", .parametrization = "euler-parameters", .source = "rssr.yaml",
+    .source_sha256 = "38922bfebe6d76485a80f5526a7adef5d7ca22dc3386066bf21d22467abd1d2d", .kinegen_version = "0.2.0",
+    .n_q = RSSR_EULER_PARAMETERS_N_Q, .n_v = RSSR_EULER_PARAMETERS_N_V, .n_bodies = RSSR_EULER_PARAMETERS_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 6, .points = points, .n_actuators = 0, .actuators = actuators,
+    .frames = rssr_euler_parameters_frames, .n_kernels = 1, .kernels = kernels, .statics = NULL,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1, 0.35, 0.3, 1.0, 0.0, 0.0, 0.0};
@@ -708,15 +710,19 @@ static const int off_col_turn[] = {0, 1, 2, 3, 4, 5, 6, 7, 8, 9};
 static const int off_value_turn[] = {22, 23, 24, 25, 26, 27, 28, 29, 30, 31};
 
 const kinegen_model rssr_euler_parameters_turn = {
-    &rssr_euler_parameters_layout, "turn",
-    RSSR_EULER_PARAMETERS_N_Q, RSSR_EULER_PARAMETERS_N_V, 1, 46,
-    0.0, 1.0, 201,
-    initial_q, constraints_turn, drivers_turn, jac_rows_turn, jac_cols_turn,
-    phi_jac_turn, nu_turn, gamma_turn, inputs_turn, input_ranges_turn, retract,
-    8, block_start_turn, block_store_turn, row_order_turn, col_order_turn,
-    38, 36, diag_value_turn, diag_slot_turn,
-    10, off_start_turn, off_col_turn, off_value_turn,
-    462, 45, 5, kernels_turn, NULL,
+    .layout = &rssr_euler_parameters_layout, .case_name = "turn",
+    .n_q = RSSR_EULER_PARAMETERS_N_Q, .n_v = RSSR_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 46,
+    .t0 = 0.0, .t1 = 1.0, .steps = 201,
+    .initial_q = initial_q, .constraint_names = constraints_turn, .driver_names = drivers_turn,
+    .jac_rows = jac_rows_turn, .jac_cols = jac_cols_turn,
+    .phi_jac = phi_jac_turn, .nu = nu_turn, .gamma = gamma_turn,
+    .inputs = inputs_turn, .input_ranges = input_ranges_turn, .retract = retract,
+    .n_blocks = 8, .block_start = block_start_turn, .block_store = block_store_turn,
+    .row_order = row_order_turn, .col_order = col_order_turn,
+    .n_store = 38, .n_diag = 36, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,
+    .n_off = 10, .off_start = off_start_turn, .off_col = off_col_turn, .off_value = off_value_turn,
+    .work_doubles = RSSR_EULER_PARAMETERS_WORK_DOUBLES_TURN, .work_ints = RSSR_EULER_PARAMETERS_WORK_INTS_TURN,
+    .n_kernels = 5, .kernels = kernels_turn, .design = NULL,
 };
 
 const kinegen_model *const rssr_euler_parameters_cases[RSSR_EULER_PARAMETERS_N_CASES] = {&rssr_euler_parameters_turn};

@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_euler_parameters.h': '851ce9df8d78eb2e91ef4ead6080627206afff8ca98090cb4f878e314b109d48', 'rssr_euler_parameters.c': 'be4f9831b3bded42a1e7198fd8f83049fb136197802c054753c772d8e692e334'}
+C_FILES = {'rssr_euler_parameters.h': '0b3529fa8388c82b3d45f672c046395b3ae440564f762c124f0f863890f9afcd', 'rssr_euler_parameters.c': '5ff206f3fa6acb268efda3ddc583e9a8361046aa6d921155ad7a53ec502d61a3'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

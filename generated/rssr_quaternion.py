@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_quaternion.h': '15f4cefcd6874075900786f7d85ade883c7c9fb3798d4f5b55e5528ffb6f7e9e', 'rssr_quaternion.c': 'ddaa63d55da65859f292df8705719920cc8a848d17cc4d75e0f3c122bec71933'}
+C_FILES = {'rssr_quaternion.h': 'b9b1b7e71da5cd823f0e34ca8a65d4a91765d59e52026c87c1e496c84a6d2b03', 'rssr_quaternion.c': '3362f6e5e691f8fe0eb451c9a32e89f2fafc44a51593a7eca2d24bd8a343334e'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

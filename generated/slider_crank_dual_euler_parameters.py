@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_euler_parameters.h': '327c42a336eb3fe69a72ff8a0657d19bbf1876a205741911694701435acbbb45', 'slider_crank_dual_euler_parameters.c': 'f2e6f156e2d80a5e84cee14b7f4a988045c569711cb1e63135647e1c36f4e131'}
+C_FILES = {'slider_crank_dual_euler_parameters.h': '5c2354a96512b78700d4fccb10b20ee615112e0a076422fd1b8399090a22840a', 'slider_crank_dual_euler_parameters.c': 'dac945a5693b4de51d35e6c72bab48d8134623655d7392025b474d3f033fb1d9'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_quaternion.h': 'bf8f00bd1c82315f2d1faf24558a026cf0d85ff5baba3b0c8b2cfb83e5acab37', 'slider_crank_dual_quaternion.c': 'fc95cc57cbc8562a0cba76a82cfcac63b9399ccdcf66ce2c5ddfc858c23fc757'}
+C_FILES = {'slider_crank_dual_quaternion.h': '4ed7b8e99db51469a2cfef3de9bb49d649bea4492bf7b2479dce8b8e87931e49', 'slider_crank_dual_quaternion.c': 'd2e0cc7ddf11d36a6d179c90518ed4c5beafc68725309519b332fa4cfff76fa5'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

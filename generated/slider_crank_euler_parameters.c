@@ -762,11 +762,11 @@ static const int sizes_inputs_run[] = {3};
 static const char *const outputs_input_ranges_run[] = {"input_ranges"};
 static const int sizes_input_ranges_run[] = {6};
 static const kinegen_kernel kernels_run[] = {
-    {"phi_jac", "q,u", 2, outputs_phi_jac_run, sizes_phi_jac_run, call_phi_jac_run},
-    {"nu", "q,u,ud", 1, outputs_nu_run, sizes_nu_run, call_nu_run},
-    {"gamma", "q,v,u,ud,udd", 1, outputs_gamma_run, sizes_gamma_run, call_gamma_run},
-    {"inputs", "t", 1, outputs_inputs_run, sizes_inputs_run, call_inputs_run},
-    {"input_ranges", "span", 1, outputs_input_ranges_run, sizes_input_ranges_run, call_input_ranges_run},
+    {.name = "phi_jac", .slots = "q,u", .n_outputs = 2, .output_names = outputs_phi_jac_run, .output_sizes = sizes_phi_jac_run, .call = call_phi_jac_run},
+    {.name = "nu", .slots = "q,u,ud", .n_outputs = 1, .output_names = outputs_nu_run, .output_sizes = sizes_nu_run, .call = call_nu_run},
+    {.name = "gamma", .slots = "q,v,u,ud,udd", .n_outputs = 1, .output_names = outputs_gamma_run, .output_sizes = sizes_gamma_run, .call = call_gamma_run},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_run, .output_sizes = sizes_inputs_run, .call = call_inputs_run},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_run, .output_sizes = sizes_input_ranges_run, .call = call_input_ranges_run},
 };
 static const char *const outputs_phi_jac_dead_centre[] = {"phi", "jac"};
 static const int sizes_phi_jac_dead_centre[] = {21, 78};
@@ -779,34 +779,34 @@ static const int sizes_inputs_dead_centre[] = {3};
 static const char *const outputs_input_ranges_dead_centre[] = {"input_ranges"};
 static const int sizes_input_ranges_dead_centre[] = {6};
 static const kinegen_kernel kernels_dead_centre[] = {
-    {"phi_jac", "q,u", 2, outputs_phi_jac_dead_centre, sizes_phi_jac_dead_centre, call_phi_jac_dead_centre},
-    {"nu", "q,u,ud", 1, outputs_nu_dead_centre, sizes_nu_dead_centre, call_nu_dead_centre},
-    {"gamma", "q,v,u,ud,udd", 1, outputs_gamma_dead_centre, sizes_gamma_dead_centre, call_gamma_dead_centre},
-    {"inputs", "t", 1, outputs_inputs_dead_centre, sizes_inputs_dead_centre, call_inputs_dead_centre},
-    {"input_ranges", "span", 1, outputs_input_ranges_dead_centre, sizes_input_ranges_dead_centre, call_input_ranges_dead_centre},
+    {.name = "phi_jac", .slots = "q,u", .n_outputs = 2, .output_names = outputs_phi_jac_dead_centre, .output_sizes = sizes_phi_jac_dead_centre, .call = call_phi_jac_dead_centre},
+    {.name = "nu", .slots = "q,u,ud", .n_outputs = 1, .output_names = outputs_nu_dead_centre, .output_sizes = sizes_nu_dead_centre, .call = call_nu_dead_centre},
+    {.name = "gamma", .slots = "q,v,u,ud,udd", .n_outputs = 1, .output_names = outputs_gamma_dead_centre, .output_sizes = sizes_gamma_dead_centre, .call = call_gamma_dead_centre},
+    {.name = "inputs", .slots = "t", .n_outputs = 1, .output_names = outputs_inputs_dead_centre, .output_sizes = sizes_inputs_dead_centre, .call = call_inputs_dead_centre},
+    {.name = "input_ranges", .slots = "span", .n_outputs = 1, .output_names = outputs_input_ranges_dead_centre, .output_sizes = sizes_input_ranges_dead_centre, .call = call_input_ranges_dead_centre},
 };
 static const char *const outputs_slider_crank_euler_parameters_frames[] = {"frames"};
 static const int sizes_slider_crank_euler_parameters_frames[] = {72};
 static const char *const outputs_shared_loads[] = {"loads"};
 static const int sizes_shared_loads[] = {1};
 static const kinegen_kernel kernels[] = {
-    {"frames", "q,v,a", 1, outputs_slider_crank_euler_parameters_frames, sizes_slider_crank_euler_parameters_frames, call_slider_crank_euler_parameters_frames},
-    {"loads", "q,t", 1, outputs_shared_loads, sizes_shared_loads, call_shared_loads},
+    {.name = "frames", .slots = "q,v,a", .n_outputs = 1, .output_names = outputs_slider_crank_euler_parameters_frames, .output_sizes = sizes_slider_crank_euler_parameters_frames, .call = call_slider_crank_euler_parameters_frames},
+    {.name = "loads", .slots = "q,t", .n_outputs = 1, .output_names = outputs_shared_loads, .output_sizes = sizes_shared_loads, .call = call_shared_loads},
 };
 
 static const char *const body_names[] = {"crank", "rod", "slider"};
 static const char *const stored_names[] = {"crank.x", "crank.y", "crank.z", "crank.e0", "crank.e1", "crank.e2", "crank.e3", "rod.x", "rod.y", "rod.z", "rod.e0", "rod.e1", "rod.e2", "rod.e3", "slider.x", "slider.y", "slider.z", "slider.e0", "slider.e1", "slider.e2", "slider.e3"};
 static const char *const velocity_names[] = {"crank.x", "crank.y", "crank.z", "crank.e0", "crank.e1", "crank.e2", "crank.e3", "rod.x", "rod.y", "rod.z", "rod.e0", "rod.e1", "rod.e2", "rod.e3", "slider.x", "slider.y", "slider.z", "slider.e0", "slider.e1", "slider.e2", "slider.e3"};
 static const kinegen_point points[] = {
-    {0, "crank.A", {0.0, 0.0, 0.0}},
-    {0, "crank.B", {0.2, 0.0, 0.0}},
-    {1, "rod.B", {0.0, 0.0, 0.0}},
-    {1, "rod.C", {0.6, 0.0, 0.0}},
-    {2, "slider.C", {0.0, 0.0, 0.0}},
-    {-1, "ground.A", {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "crank.A", .local = {0.0, 0.0, 0.0}},
+    {.body = 0, .name = "crank.B", .local = {0.2, 0.0, 0.0}},
+    {.body = 1, .name = "rod.B", .local = {0.0, 0.0, 0.0}},
+    {.body = 1, .name = "rod.C", .local = {0.6, 0.0, 0.0}},
+    {.body = 2, .name = "slider.C", .local = {0.0, 0.0, 0.0}},
+    {.body = -1, .name = "ground.A", .local = {0.0, 0.0, 0.0}},
 };
 static const kinegen_actuator actuators[] = {
-    {NULL, 0, 0, 0, 0.0, 0.0},
+    {.name = NULL},
 };
 
 /* the force solve (kinegen_forces): 0 actuation element(s), 1 load(s) */
@@ -831,21 +831,27 @@ static const int body_norm_rows[] = {17, 18, 19};
 static const double element_hydraulics[] = {0.0};
 
 static const kinegen_statics statics = {
-    0, element_names, element_kinds, 20,
-    {0, matrix_rows, matrix_cols}, NULL,
-    1, load_names, {1, load_rows, load_cols}, &kernels[1],
-    0, inertia_cols, NULL,
-    0, NULL, NULL, NULL, NULL, 0, 0, NULL, NULL, 0, NULL, NULL, NULL, /* each case's drivers carry the load: its own plan */
-    65, 21,
-    4, joint_names, joint_body, joint_sign, joint_point_body, joint_local, joint_row_start, joint_rows,
-    body_norm_start, body_norm_rows, element_hydraulics, 403, 20,
+    .n_elements = 0, .element_names = element_names, .element_kinds = element_kinds,
+    .n_joint_rows = 20,
+    .pattern = {.n = 0, .rows = matrix_rows, .cols = matrix_cols}, .actuation = NULL,
+    .n_loads = 1, .load_names = load_names,
+    .load_pattern = {.n = 1, .rows = load_rows, .cols = load_cols}, .loads = &kernels[1],
+    .n_inertia = 0, .inertia_cols = inertia_cols, .inertia = NULL,
+    /* no plan: each case's drivers carry the load, with the case's own */
+    .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_FORCE_WORK_DOUBLES, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_FORCE_WORK_INTS,
+    .n_joints = 4, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
+    .joint_point_body = joint_point_body, .joint_local = joint_local, .joint_row_start = joint_row_start, .joint_rows = joint_rows,
+    .body_norm_start = body_norm_start, .body_norm_rows = body_norm_rows, .element_hydraulics = element_hydraulics,
+    .reaction_doubles = SLIDER_CRANK_EULER_PARAMETERS_REACTION_WORK_DOUBLES, .reaction_ints = SLIDER_CRANK_EULER_PARAMETERS_REACTION_WORK_INTS,
 };
 
 const kinegen_layout slider_crank_euler_parameters_layout = {
-    "slider_crank", "euler-parameters", "slider_crank.yaml", "60be577912c1de5d6cb08914f5dcec030f80d42df4541fca4ab6085ed6bd59b0", "0.2.0",
-    SLIDER_CRANK_EULER_PARAMETERS_N_Q, SLIDER_CRANK_EULER_PARAMETERS_N_V, SLIDER_CRANK_EULER_PARAMETERS_N_BODIES, body_names, stored_names, velocity_names,
-    6, points, 0, actuators, slider_crank_euler_parameters_frames,
-    2, kernels, &statics,
+    .model = "slider_crank", .parametrization = "euler-parameters", .source = "slider_crank.yaml",
+    .source_sha256 = "60be577912c1de5d6cb08914f5dcec030f80d42df4541fca4ab6085ed6bd59b0", .kinegen_version = "0.2.0",
+    .n_q = SLIDER_CRANK_EULER_PARAMETERS_N_Q, .n_v = SLIDER_CRANK_EULER_PARAMETERS_N_V, .n_bodies = SLIDER_CRANK_EULER_PARAMETERS_N_BODIES,
+    .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
+    .n_points = 6, .points = points, .n_actuators = 0, .actuators = actuators,
+    .frames = slider_crank_euler_parameters_frames, .n_kernels = 2, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 0.9887710779360424, 0.0, 0.0, 0.14943813247359924, 0.191067, 0.059104, 0.0, 0.9987833496752833, 0.0, 0.0, -0.04931349117048, 0.788149, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0};
@@ -867,15 +873,19 @@ static const int off_col_run[] = {0, 3, 4, 1, 3, 4, 5, 6, 2, 3, 4, 5, 6, 12, 14,
 static const int off_value_run[] = {11, 12, 13, 15, 16, 17, 18, 19, 21, 22, 23, 24, 25, 36, 31, 42, 37, 47, 48, 49, 50, 27, 28, 29};
 
 const kinegen_model slider_crank_euler_parameters_run = {
-    &slider_crank_euler_parameters_layout, "run",
-    SLIDER_CRANK_EULER_PARAMETERS_N_Q, SLIDER_CRANK_EULER_PARAMETERS_N_V, 1, 79,
-    0.0, 1.5, 301,
-    initial_q, constraints_run, drivers_run, jac_rows_run, jac_cols_run,
-    phi_jac_run, nu_run, gamma_run, inputs_run, input_ranges_run, retract,
-    12, block_start_run, block_store_run, row_order_run, col_order_run,
-    57, 55, diag_value_run, diag_slot_run,
-    24, off_start_run, off_col_run, off_value_run,
-    715, 67, 5, kernels_run, NULL,
+    .layout = &slider_crank_euler_parameters_layout, .case_name = "run",
+    .n_q = SLIDER_CRANK_EULER_PARAMETERS_N_Q, .n_v = SLIDER_CRANK_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 79,
+    .t0 = 0.0, .t1 = 1.5, .steps = 301,
+    .initial_q = initial_q, .constraint_names = constraints_run, .driver_names = drivers_run,
+    .jac_rows = jac_rows_run, .jac_cols = jac_cols_run,
+    .phi_jac = phi_jac_run, .nu = nu_run, .gamma = gamma_run,
+    .inputs = inputs_run, .input_ranges = input_ranges_run, .retract = retract,
+    .n_blocks = 12, .block_start = block_start_run, .block_store = block_store_run,
+    .row_order = row_order_run, .col_order = col_order_run,
+    .n_store = 57, .n_diag = 55, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
+    .n_off = 24, .off_start = off_start_run, .off_col = off_col_run, .off_value = off_value_run,
+    .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_RUN, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_RUN,
+    .n_kernels = 5, .kernels = kernels_run, .design = NULL,
 };
 
 /* ---- case dead_centre ---- */
@@ -895,15 +905,19 @@ static const int off_col_dead_centre[] = {0, 1, 2, 8, 9, 7, 3, 4, 5, 6};
 static const int off_value_dead_centre[] = {11, 15, 21, 30, 36, 42, 47, 48, 49, 50};
 
 const kinegen_model slider_crank_euler_parameters_dead_centre = {
-    &slider_crank_euler_parameters_layout, "dead_centre",
-    SLIDER_CRANK_EULER_PARAMETERS_N_Q, SLIDER_CRANK_EULER_PARAMETERS_N_V, 1, 78,
-    -1.0, 0.0, 101,
-    initial_q, constraints_dead_centre, drivers_dead_centre, jac_rows_dead_centre, jac_cols_dead_centre,
-    phi_jac_dead_centre, nu_dead_centre, gamma_dead_centre, inputs_dead_centre, input_ranges_dead_centre, retract,
-    8, block_start_dead_centre, block_store_dead_centre, row_order_dead_centre, col_order_dead_centre,
-    143, 68, diag_value_dead_centre, diag_slot_dead_centre,
-    10, off_start_dead_centre, off_col_dead_centre, off_value_dead_centre,
-    785, 59, 5, kernels_dead_centre, NULL,
+    .layout = &slider_crank_euler_parameters_layout, .case_name = "dead_centre",
+    .n_q = SLIDER_CRANK_EULER_PARAMETERS_N_Q, .n_v = SLIDER_CRANK_EULER_PARAMETERS_N_V, .n_inputs = 1, .n_jac = 78,
+    .t0 = -1.0, .t1 = 0.0, .steps = 101,
+    .initial_q = initial_q, .constraint_names = constraints_dead_centre, .driver_names = drivers_dead_centre,
+    .jac_rows = jac_rows_dead_centre, .jac_cols = jac_cols_dead_centre,
+    .phi_jac = phi_jac_dead_centre, .nu = nu_dead_centre, .gamma = gamma_dead_centre,
+    .inputs = inputs_dead_centre, .input_ranges = input_ranges_dead_centre, .retract = retract,
+    .n_blocks = 8, .block_start = block_start_dead_centre, .block_store = block_store_dead_centre,
+    .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
+    .n_store = 143, .n_diag = 68, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,
+    .n_off = 10, .off_start = off_start_dead_centre, .off_col = off_col_dead_centre, .off_value = off_value_dead_centre,
+    .work_doubles = SLIDER_CRANK_EULER_PARAMETERS_WORK_DOUBLES_DEAD_CENTRE, .work_ints = SLIDER_CRANK_EULER_PARAMETERS_WORK_INTS_DEAD_CENTRE,
+    .n_kernels = 5, .kernels = kernels_dead_centre, .design = NULL,
 };
 
 const kinegen_model *const slider_crank_euler_parameters_cases[SLIDER_CRANK_EULER_PARAMETERS_N_CASES] = {&slider_crank_euler_parameters_run, &slider_crank_euler_parameters_dead_centre};

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_euler_parameters.h': 'b73c94bdce842ce1e154ca50e4850a165e3f4b8b8acfd2ac469b02ca7356e885', 'slider_crank_euler_parameters.c': 'a7bd95f7ebec68b2983fb47021d0d014b07aa916f3ac90f6eda092a4b77b18b4'}
+C_FILES = {'slider_crank_euler_parameters.h': 'ba153c93bc8d240c17b8e938d39ef4c209f887e0549a869b856f859080b23fb9', 'slider_crank_euler_parameters.c': '96809df1f8440e13934a713f4ea2e33f83fbb1474ddfa609a6ea6828a48db788'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -49,7 +49,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_quaternion.h': '0cc79929ab58bd9dddf9dbd6259a86d2407f645f759b6f28f2cfa7e337a9dc30', 'slider_crank_quaternion.c': 'e24723407020506b9116eaea4e21175576317c90f52799d8a6e67f281c5ff0fc'}
+C_FILES = {'slider_crank_quaternion.h': 'fe71584d67343baf183183ec95f9818ddfceae9f5d563eb1cd408e65aca4744e', 'slider_crank_quaternion.c': 'fea3a50afd5bb06edc9772d9a83494528ae51e9d116d353e3faf3e0b4262b626'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

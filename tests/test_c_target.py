@@ -218,6 +218,17 @@ def test_the_c_is_straight_line_in_short_functions_with_no_heap():
     # compiled whole by the standalone Makefile (test_standalone_*), in parallel parts by the runtime
     parts = config.source_parts(source)
     assert len(parts) >= 2 and parts == list(range(len(parts)))  # split in consecutive parts
+    # every table of kinegen_solver.h's structs names its fields (designated initializers: two fields of one
+    # type swapped cannot compile silently), and states its work sizes with kinegen_solver.h's macros
+    tables = re.findall(r"^(?:static )?const kinegen_(?:model|layout|statics|design|kernel|point|actuator) \w+(?:\[\])? = \{\n(.*?)\n\};",
+                        source, re.DOTALL | re.MULTILINE)  # fmt: skip
+    assert len(tables) >= 4 + len(module.CASES)
+    for table in tables:
+        for line in table.splitlines():
+            assert re.match(r"\s*(\{?\.\w+ = |/\*)", line), line
+    assert re.search(r"\.work_doubles = EXCAVATOR_EULER_PARAMETERS_WORK_DOUBLES_DIGGING,", source)
+    header = (GENERATED / "excavator_euler_parameters.h").read_text()
+    assert "KINEGEN_WORK_DOUBLES(EXCAVATOR_EULER_PARAMETERS_N_Q" in header and "KINEGEN_FORCE_WORK_DOUBLES(" in header
     solver = (config.SOLVER / "kinegen_solver.c").read_text()
     assert not re.search(r"\b(malloc|calloc|realloc|free)\s*\(", solver)
     assert not re.search(r"^static [^(]*;", solver, re.MULTILINE)  # no global state
@@ -464,17 +475,15 @@ def test_the_readmes_controller_snippet_compiles_strictly_and_solves_its_case(tm
     readme = (ROOT / "docs" / "controller.md").read_text()
     section = readme[readme.index("## Using kinegen in a controller") :]
     snippet = section[section.index("```c\n") + 5 : section.index("```", section.index("```c\n") + 5)]
-    header = (GENERATED / "excavator_quaternion.h").read_text()
-    doubles, ints = (int(re.search(rf"_WORK_{kind} (\d+)", header).group(1)) for kind in ("DOUBLES", "INTS"))
     stated = int(re.search(r"all memory of one solver: ([\d,]+) B", snippet).group(1).replace(",", ""))
-    assert stated == 8 * doubles + 4 * ints  # the workspace's size as the snippet states it
     folder = _standalone(tmp_path, MODELS / "excavator.yaml", "quaternion")
     (folder / "controller.c").write_text(snippet)
-    (folder / "main.c").write_text('#include <stdio.h>\nint control_loop(void);\nint main(void) {\n'
-                                   '    int status = control_loop();\n    printf("%d\\n", status);\n    return status;\n}\n')  # fmt: skip
+    (folder / "main.c").write_text('#include <stdio.h>\n#include "excavator_quaternion.h"\nint control_loop(void);\nint main(void) {\n'
+                                   '    int status = control_loop();\n'
+                                   '    printf("%d %zu\\n", status, sizeof(excavator_quaternion_workspace));\n    return status;\n}\n')  # fmt: skip
     program = folder / "controller"
     sources = [str(folder / n) for n in ("main.c", "controller.c", "excavator_quaternion.c", "kinegen_solver.c")]
     done = subprocess.run([CC, *STRICT, "-O1", "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
     assert done.returncode == 0, done.stderr
     ran = subprocess.run([str(program)], capture_output=True, text=True, timeout=120)
-    assert (ran.returncode, ran.stdout.strip()) == (0, "0"), ran.stderr
+    assert (ran.returncode, ran.stdout.split()) == (0, ["0", str(stated)]), ran.stderr  # the workspace as the snippet states it

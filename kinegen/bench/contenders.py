@@ -157,7 +157,7 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
 
 def c_target_memory(name: str, parametrization: str = PARAMETRIZATION) -> dict[str, Any]:
     """Memory of one solver instance of the standalone C target: its workspace (the generated
-    header's ``*_WORK_DOUBLES``/``*_WORK_INTS``), the ``kinegen_solver`` struct, and the stack
+    header's ``<stem>_workspace``: ``*_WORK_DOUBLES`` doubles and ``*_WORK_INTS`` ints), the ``kinegen_solver`` struct, and the stack
     of a step (GCC's ``-fstack-usage``: the frames of kinegen_step, finish and newton, the largest
     of the solver's helpers and of the kernels with their largest section function). Static
     data (the model's tables) is shared by every instance and reported apart."""
@@ -173,20 +173,18 @@ def c_target_memory(name: str, parametrization: str = PARAMETRIZATION) -> dict[s
     param = rotations.get(parametrization)
     stem = module_name(w.model, param)
     files = generate(w.model, param, ("c",))["c"]
-    header = files[f"{stem}.h"]
-    doubles = int(re.search(r"_WORK_DOUBLES (\d+)", header).group(1))
-    ints = int(re.search(r"_WORK_INTS (\d+)", header).group(1))
     with tempfile.TemporaryDirectory() as folder:
         for file, text in files.items():
             (Path(folder) / file).write_text(text)
         (Path(folder) / "size.c").write_text(
-            '#include <stdio.h>\n#include "kinegen_solver.h"\nint main(void) { printf("%zu", sizeof(kinegen_solver)); return 0; }\n'
+            f'#include <stdio.h>\n#include "{stem}.h"\n'
+            f'int main(void) {{ printf("%zu %zu", sizeof(kinegen_solver), sizeof({stem}_workspace)); return 0; }}\n'
         )
         compiler = c_compiler()
         for source in (f"{stem}.c", "kinegen_solver.c"):
             subprocess.run([compiler, "-std=c99", "-O2", "-fstack-usage", "-c", source], cwd=folder, check=True)
         subprocess.run([compiler, "-std=c99", "-o", "size", "size.c"], cwd=folder, check=True)
-        struct = int(subprocess.run([str(Path(folder) / "size")], capture_output=True, text=True, check=True).stdout)
+        struct, workspace = map(int, subprocess.run([str(Path(folder) / "size")], capture_output=True, text=True, check=True).stdout.split())
         frames: dict[str, int] = {}
         for su in Path(folder).glob("*.su"):
             for line in su.read_text().splitlines():
@@ -199,7 +197,7 @@ def c_target_memory(name: str, parametrization: str = PARAMETRIZATION) -> dict[s
     sections = max(v for k, v in frames.items() if "compute_" in k)
     helpers = max(frames.get(k, 0) for k in ("factor", "lu_block", "solve", "solve_transposed", "condition_estimate"))
     stack = sum(frames.get(k, 0) for k in ("kinegen_step", "finish", "newton")) + max(helpers, kernels + sections)
-    return {"workspace": 8 * doubles + 4 * ints, "struct": struct, "stack": stack, "static": static}
+    return {"workspace": workspace, "struct": struct, "stack": stack, "static": static}
 
 
 # ---- the same Phi for the other contenders ---------------------------------------------

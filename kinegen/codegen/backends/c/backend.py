@@ -22,11 +22,10 @@ import sympy as sp
 
 import kinegen.codegen.backends.c.config as config
 from kinegen.codegen.backends.c.printer import CPrinter
-from kinegen.codegen.kernels import CaseDescription, Enclosure, Kernel, ModuleDescription, Plan, Zeros
+from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Plan, Zeros
 from kinegen.codegen.shapes import Block, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
-from kinegen.interface import FRAME_VALUES
 from kinegen.model.expressions import T
 
 TEXT = 1  # position of the printed text in a Block's temporaries (after the name)
@@ -128,18 +127,6 @@ def plan_arrays(rows: tuple[int, ...], cols: tuple[int, ...], plan: Plan, name: 
                        diag_value, diag_slot, off_start, off_col, off_value)  # fmt: skip
 
 
-def work_sizes(description: ModuleDescription, case: CaseDescription, arrays: _PlanArrays) -> tuple[int, int]:
-    """(doubles, ints) one solver of ``case`` needs (see kinegen_init)."""
-    nq, nv = len(description.stored_names), len(description.velocity_names)
-    # q, trial; v, a, phi, rhs, step, y, x, moved, w1, w2; the Phi_q values at the trial and at q; the blocks'
-    # factors and the entries below them; the inputs and their rates at q; the certificate's work (10 n_v + 7 n_inputs);
-    # kinegen_step's (5 n_inputs: the step's start inputs and a halved piece's)
-    doubles = 2 * nq + 20 * nv + 2 * len(case.jac_rows) + arrays.n_store + len(arrays.off_col) + 14 * len(case.drivers)
-    # pivots, the condition estimate's signs; the sign of det of every diagonal block at q and in the factors; the
-    # certificate's moving inputs
-    return doubles, 2 * nv + 2 * (len(arrays.block_start) - 1) + len(case.drivers)
-
-
 class _Model:
     """The C functions and tables of one model."""
 
@@ -239,8 +226,8 @@ class _Model:
                 f"static const char *const outputs_{function}[] = {_string_array(o.name for o in kernel.outputs)};",
                 f"static const int sizes_{function}[] = {_int_array(o.size for o in kernel.outputs)};",
             ]
-            entries.append(f"    {{{c_string(kernel.name)}, {c_string(','.join(kernel.slots))}, {len(kernel.outputs)}, "
-                           f"outputs_{function}, sizes_{function}, call_{function}}},")  # fmt: skip
+            entries.append(f"    {{.name = {c_string(kernel.name)}, .slots = {c_string(','.join(kernel.slots))}, .n_outputs = {len(kernel.outputs)}, "
+                           f".output_names = outputs_{function}, .output_sizes = sizes_{function}, .call = call_{function}}},")  # fmt: skip
         self.tables += [f"static const kinegen_kernel {table}[] = {{", *entries, "};"]
 
     def kernel(self, name: str, kernel, case: str | None, static: bool = True) -> None:
@@ -301,16 +288,15 @@ class _Model:
         if statics is None:
             return None
         nv = len(d.velocity_names)
-        n_loads = max(1, len(statics.load_rows))
-        n_loads += len(statics.inertia_cols)  # the inertia kernel's output before the loads'
-        doubles = n_loads + 3 * nv + max(1, *(len(c.case.drivers) for c in cases))  # without elements: the case's Phi_q
         arrays = None
         if statics.elements:
             if statics.plan is None:
                 raise ValueError(f"{d.model}: the C target needs a square, structurally regular force matrix "
                                  f"(joint rows and {len(statics.elements)} actuation elements for {nv} velocity coordinates)")  # fmt: skip
             arrays = plan_arrays(statics.matrix_rows, statics.matrix_cols, statics.plan, f"{d.model}: the force matrix")
-            doubles = max(doubles, n_loads + 2 * nv + len(statics.matrix_rows) + arrays.n_store + len(arrays.off_col))
+        # kinegen_forces' work: KINEGEN_FORCE_WORK_DOUBLES's arguments after n_v and n_inputs
+        work = (len(statics.inertia_cols), len(statics.load_rows), len(statics.matrix_rows),
+                arrays.n_store if arrays else 0, len(arrays.off_col) if arrays else 0)  # fmt: skip
         nb = len(d.bodies)
         nvb = nv // max(nb, 1)
         if nb and (any(offset != b * nvb for b, (_, _, offset) in enumerate(d.bodies)) or nvb > 8):
@@ -321,15 +307,14 @@ class _Model:
         for rows in statics.norm_rows:
             norm_starts.append(norm_starts[-1] + len(rows))
         largest_jac = max(len(c.case.jac_rows) for c in cases)
-        reaction_doubles = FRAME_VALUES * nb + 2 * nv + 6 * nvb * nb + 2 * nvb + nvb * nvb + max(len(statics.matrix_rows), nv + largest_jac)
         reactions = SimpleNamespace(
             names=[j[0] for j in statics.joints], body=[j[1] for j in statics.joints], sign=[j[2] for j in statics.joints],
             point_body=[j[3] for j in statics.joints], local=[x for j in statics.joints for x in j[4]], row_start=starts,
             rows=[r for j in statics.joints for r in j[5]], norm_start=norm_starts, norm_rows=[r for rows in statics.norm_rows for r in rows],
-            hydraulics=[x for h in statics.hydraulics for x in h], doubles=reaction_doubles, ints=max(1, d.joint_rows),
+            hydraulics=[x for h in statics.hydraulics for x in h], n_matrix=len(statics.matrix_rows), largest_jac=largest_jac,
         )  # fmt: skip
         return SimpleNamespace(
-            s=statics, plan=arrays, doubles=doubles, ints=nv, reactions=reactions,
+            s=statics, plan=arrays, work=work, reactions=reactions,
             actuation=f"&kernels[{shared.index('actuation')}]" if "actuation" in shared else "NULL",
             loads=f"&kernels[{shared.index('loads')}]" if "loads" in shared else "NULL",
             inertia=f"&kernels[{shared.index('inertia')}]" if "inertia" in shared else "NULL",
@@ -349,9 +334,8 @@ class _Model:
                 self.kernel(f"{kernel.name}_{name}", kernel, name)
             self.kernel_table(f"kernels_{name}", [(f"{kernel.name}_{name}", kernel) for kernel in case.kernels.values()])
             arrays = plan_arrays(case.jac_rows, case.jac_cols, case.plan, f"{d.model}/{name}: Phi_q")
-            doubles, ints = work_sizes(d, case, arrays)
-            sensitivity = 2 * len(d.velocity_names) * len(d.design) + max((len(rows) for rows, _ in case.patterns.values()), default=0)
-            cases.append(SimpleNamespace(case=case, plan=arrays, doubles=doubles, ints=ints, sensitivity_doubles=sensitivity))
+            values = max((len(rows) for rows, _ in case.patterns.values()), default=0)  # the largest sensitivity kernel's
+            cases.append(SimpleNamespace(case=case, plan=arrays, sensitivity_values=values))
         shared = []
         for kernel in d.kernels.values():
             function = f"{stem}_frames" if kernel.name == "frames" else f"shared_{kernel.name}"
@@ -377,8 +361,7 @@ class _Model:
             "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__, "tables": self.tables,
             "groups": [[macros.function(f) for f in group] for group in groups],
             "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
-            "work_doubles": max(c.doubles for c in cases), "work_ints": max(c.ints for c in cases),
-            "sensitivity_doubles": max(c.sensitivity_doubles for c in cases),
+            "sensitivity_values": max(c.sensitivity_values for c in cases),
             "max_inputs": max(1, *(len(c.case.drivers) for c in cases)), "statics": statics,
         }  # fmt: skip
         return {
@@ -429,4 +412,14 @@ def render(description: ModuleDescription, stem: str, standalone: bool = True) -
     return files
 
 
-FILTERS = {"c_string": c_string, "int_array": _int_array, "string_array": _string_array, "double": _double, "double_array": _double_array}
+def _largest(names: list[str], prefix: str) -> str:
+    """The largest of the macros ``prefix + name``, as KINEGEN_MAX nested in halves (an integer constant
+    expression; each level doubles the preprocessor's copies of its arguments, so balanced: ~2n of n)."""
+    if len(names) == 1:
+        return f"{prefix}{names[0]}"
+    half = (len(names) + 1) // 2
+    return f"KINEGEN_MAX({_largest(names[:half], prefix)}, {_largest(names[half:], prefix)})"
+
+
+FILTERS = {"c_string": c_string, "int_array": _int_array, "string_array": _string_array, "double": _double, "double_array": _double_array,
+           "largest": _largest}  # fmt: skip

@@ -305,11 +305,38 @@ typedef struct kinegen_solver {
     double *path;           /* kinegen_step's work: the step's start inputs and a halved piece's (5 n_inputs) */
 } kinegen_solver;
 
+/* The memory each call below carves from what its caller passes -- the one statement of these sizes:
+ * the generated models state theirs with them (kinegen_model.work_doubles and .work_ints,
+ * kinegen_statics' work and reaction sizes, kinegen_design.sensitivity_doubles, and the generated
+ * header's *_WORK_* macros for static memory). All are integer constant expressions. */
+#define KINEGEN_MAX(a, b) ((a) > (b) ? (a) : (b))
+/* kinegen_init, one case: n_q stored and n_v velocity coordinates, n_jac values of Phi_q, n_store values of
+ * its blocks' factors and n_off below them, n_blocks diagonal blocks, n_inputs drivers */
+#define KINEGEN_WORK_DOUBLES(n_q, n_v, n_jac, n_store, n_off, n_inputs) \
+    (2 * (n_q) + 20 * (n_v) + 2 * (n_jac) + (n_store) + (n_off) + 14 * (n_inputs))
+#define KINEGEN_WORK_INTS(n_v, n_blocks, n_inputs) (2 * (n_v) + 2 * (n_blocks) + (n_inputs))
+/* kinegen_sensitivities: n_p design parameters, n_values the largest sensitivity kernel's output */
+#define KINEGEN_SENSITIVITY_DOUBLES(n_v, n_p, n_values) (2 * (n_v) * (n_p) + (n_values))
+/* kinegen_forces, any case: n_inertia and n_load_values the inertia and loads kernels' outputs, n_inputs
+ * the most drivers of a case; with elements the force matrix's n_matrix values, n_store of its factors,
+ * n_off below them (0 without) */
+#define KINEGEN_FORCE_WORK_DOUBLES(n_inertia, n_load_values, n_v, n_inputs, n_matrix, n_store, n_off) \
+    ((n_inertia) + KINEGEN_MAX(1, n_load_values) + 2 * (n_v) +                                       \
+     KINEGEN_MAX((n_v) + KINEGEN_MAX(1, n_inputs), (n_matrix) + (n_store) + (n_off)))
+#define KINEGEN_FORCE_WORK_INTS(n_v) (n_v)
+/* kinegen_reactions: n_bodies bodies of n_v / n_bodies velocity coordinates each, n_matrix as above, n_jac
+ * the most values of a case's Phi_q, n_joint_rows the joints' rows */
+#define KINEGEN_BODY_COORDINATES(n_v, n_bodies) ((n_v) / KINEGEN_MAX(1, n_bodies))
+#define KINEGEN_REACTION_WORK_DOUBLES(n_bodies, n_v, n_matrix, n_jac)                                          \
+    (KINEGEN_FRAME_VALUES * (n_bodies) + 8 * (n_v) + 2 * KINEGEN_BODY_COORDINATES(n_v, n_bodies) +             \
+     KINEGEN_BODY_COORDINATES(n_v, n_bodies) * KINEGEN_BODY_COORDINATES(n_v, n_bodies) + KINEGEN_MAX(n_matrix, (n_v) + (n_jac)))
+#define KINEGEN_REACTION_WORK_INTS(n_joint_rows) KINEGEN_MAX(1, n_joint_rows)
+
 void kinegen_default_options(kinegen_options *options);
 
 /* Set up a solver for one case in caller-provided memory: at least model->work_doubles
- * doubles and model->work_ints ints (the generated header's *_WORK_DOUBLES / *_WORK_INTS
- * cover every case of the model). options NULL: kinegen_default_options. */
+ * doubles and model->work_ints ints (KINEGEN_WORK_DOUBLES and KINEGEN_WORK_INTS of its sizes;
+ * the generated header's *_WORK_DOUBLES / *_WORK_INTS cover every case of the model). options NULL: kinegen_default_options. */
 void kinegen_init(kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles,
                   int *ints);
 
