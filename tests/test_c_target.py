@@ -234,6 +234,30 @@ def test_the_c_is_straight_line_in_short_functions_with_no_heap():
     assert not re.search(r"^static [^(]*;", solver, re.MULTILINE)  # no global state
 
 
+def test_the_runtime_binds_every_c_function_from_the_librarys_own_table():
+    """kinegen_functions lists every function kinegen_solver.h declares, with its result and parameter
+    types as declared (the C compiler holds the list to the prototypes); the runtime's ctypes
+    signatures are made from it alone."""
+    import ctypes
+
+    from kinegen.runtime.abi import bind_functions
+
+    header = re.sub(r"/\*.*?\*/", "", (config.SOLVER / "kinegen_solver.h").read_text(), flags=re.DOTALL)
+    declared = {m.group(2): " ".join(m.group(3).split()).split(", ")
+                for m in re.finditer(r"^([a-z][\w ]*?[\w*]+)\s*\*?\s*(kinegen_\w+)\(([^)]*)\);", header, re.MULTILINE)}  # fmt: skip
+    library = systems("boom_quaternion")[1].native.abi.library
+    bound = bind_functions(library)
+    assert set(bound) == set(declared) and len(bound) >= 16
+    for name, (_, argtypes) in bound.items():
+        assert len(argtypes) == len(declared[name]), name
+        for parameter, kind in zip(declared[name], argtypes):
+            expected = ctypes.c_void_p if "*" in parameter else {"double": ctypes.c_double, "int": ctypes.c_int}[parameter.split()[0]]
+            assert kind is expected, (name, parameter)
+    assert bound["kinegen_step"][0] is ctypes.c_int and bound["kinegen_status_text"][0] is ctypes.c_char_p
+    assert bound["kinegen_init"][0] is None and bound["kinegen_table_mismatch"][0] is ctypes.c_double
+    assert library.kinegen_status_text(2) == b"singular Jacobian"  # called through the bound signature
+
+
 def test_the_library_cache_key_covers_the_compiler(tmp_path, monkeypatch):
     wrapper = tmp_path / "wrapped-cc"
     wrapper.write_text(f'#!/bin/sh\nexec {CC} "$@"\n')

@@ -32,6 +32,12 @@ class _Struct(ctypes.Structure):
     _fields_ = [("name", ctypes.c_char_p), ("size", ctypes.c_int)]
 
 
+class _Function(ctypes.Structure):
+    """One entry of ``kinegen_functions``."""
+
+    _fields_ = [("name", ctypes.c_char_p), ("result", ctypes.c_char_p), ("parameters", ctypes.c_char_p)]
+
+
 class _FrameField(ctypes.Structure):
     """One entry of ``kinegen_frame_fields``."""
 
@@ -51,6 +57,35 @@ class AbiError(RuntimeError):
     """A library whose self-description does not describe what the runtime needs."""
 
 
+def c_type(declaration: str) -> Any:
+    """The ctypes type of a C type as declared (a parameter's name, if any, dropped): a pointer
+    (any ``*``) ``c_void_p`` -- ``const char *`` ``c_char_p`` --, ``double``, ``int``, ``void`` None."""
+    text = " ".join(declaration.replace("*", " * ").split())
+    if "*" in text:
+        return ctypes.c_char_p if text.startswith("const char *") and text.count("*") == 1 and text.endswith("*") else ctypes.c_void_p
+    base = text.split()[0] if text.split()[0] != "const" else text.split()[1]
+    if base not in ("void", "double", "int"):
+        raise AbiError(f"a C type the runtime does not bind: {declaration!r}")
+    return {"void": None, "double": ctypes.c_double, "int": ctypes.c_int}[base]
+
+
+def bind_functions(library: ctypes.CDLL) -> dict[str, tuple[Any, list[Any]]]:
+    """Set every function's ctypes signature (restype, argtypes) from the library's own table,
+    ``kinegen_functions`` (name, result type, parameter list as kinegen_solver.h declares them):
+    no signature is written on the Python side. Returns name -> (restype, argtypes)."""
+    bound = {}
+    for entry in _entries(library.kinegen_functions, _Function):
+        name, parameters = entry.name.decode(), entry.parameters.decode().strip()
+        if not (parameters.startswith("(") and parameters.endswith(")")):
+            raise AbiError(f"{name}: a parameter list {parameters!r}")
+        inner = parameters[1:-1].strip()
+        argtypes = [] if inner in ("", "void") else [c_type(p) for p in inner.split(",")]
+        function = getattr(library, name)
+        function.restype, function.argtypes = c_type(entry.result.decode()), argtypes
+        bound[name] = (function.restype, argtypes)
+    return bound
+
+
 class Abi:
     """The structs (``struct(name)``) and status codes (``status[name]``) of one loaded library."""
 
@@ -62,9 +97,14 @@ class Abi:
         self._sizes = {e.name.decode(): e.size for e in _entries(library.kinegen_structs, _Struct)}
         #: status name -> code (``kinegen_status``)
         self.status = {name.decode(): code for code, name in enumerate(_entries(library.kinegen_status_names, ctypes.c_char_p))}
+        self._status_names = {code: name for name, code in self.status.items()}
         #: the frames kernel's layout as the C runtime reads it: (name, offset, count)
         self.frame_fields = tuple((e.name.decode(), e.offset, e.count) for e in _entries(library.kinegen_frame_fields, _FrameField))
         self._structs: dict[str, type[ctypes.Structure]] = {}
+
+    def status_name(self, code: int) -> str:
+        """A status code's name in the library's table (``status <code>`` for one it does not list)."""
+        return self._status_names.get(code, f"status {code}")
 
     def check_frames(self, declared: tuple[tuple[str, int], ...]) -> None:
         """:class:`AbiError` unless the C runtime reads a body's frame values where a module

@@ -40,7 +40,7 @@ from kinegen.codegen.backends.c.config import RUNTIME, source_parts
 from kinegen.errors import ExitCode, KinegenError
 from kinegen.files import cache_folder
 from kinegen.integrity import remember, trusted
-from kinegen.runtime.abi import Abi
+from kinegen.runtime.abi import Abi, bind_functions
 
 SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
 #: flags of the runtime's library (the standalone target's Makefile has its own). The library
@@ -274,20 +274,7 @@ def _model_sources(module: ModuleType) -> dict[str, str] | None:
 def _library(path: str) -> ctypes.CDLL:
     """The cached library at ``path``, loaded after its bytes were checked against their record."""
     library = _load(Path(path))
-    for name, restype, argtypes in (
-        ("kinegen_default_options", None, [ctypes.c_void_p]),
-        ("kinegen_init", None, [ctypes.c_void_p] * 5),
-        ("kinegen_start", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 4]),
-        ("kinegen_resume", ctypes.c_int, [ctypes.c_void_p, ctypes.c_double, *[ctypes.c_void_p] * 5]),
-        ("kinegen_trajectory", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 11]),
-        ("kinegen_solve_batch", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 5]),
-        ("kinegen_newton", ctypes.c_int, [ctypes.c_void_p] * 6),
-        ("kinegen_set_design", None, [ctypes.c_void_p] * 2),
-        ("kinegen_sensitivities", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 10]),
-        ("kinegen_forces", ctypes.c_int, [ctypes.c_void_p, ctypes.c_int, *[ctypes.c_void_p] * 6, ctypes.c_double, *[ctypes.c_void_p] * 4]),
-    ):
-        function = getattr(library, name)
-        function.restype, function.argtypes = restype, argtypes
+    bind_functions(library)  # every signature from the library's own table (kinegen_functions)
     return library
 
 
@@ -455,7 +442,7 @@ class Newton:
 
     def __init__(self, case: NativeCase, options: Options) -> None:
         self.solver = case.solver(options)
-        self._names = {code: name for name, code in case.abi.status.items()}  # the library's own table
+        self._abi = case.abi  # status names from the library's own table
         self._q = np.zeros(case.n_q)
         self._u = np.zeros(case.n_inputs)
         self._out = (ctypes.c_int(0), ctypes.c_double(0.0), ctypes.c_double(0.0))
@@ -467,7 +454,7 @@ class Newton:
         self._q[:], self._u[:] = q0, u
         code = self.solver.library.kinegen_newton(*self._args)
         iterations, residual, _ = (x.value for x in self._out)
-        return self._names.get(code, f"status {code}"), self._q.copy(), iterations, residual
+        return self._abi.status_name(code), self._q.copy(), iterations, residual
 
 
 class NativeSolver:
@@ -488,9 +475,11 @@ class NativeSolver:
         if case.design is not None:  # the case's array, alive as long as the case
             self.library.kinegen_set_design(self.pointer, case.design.ctypes.data)
 
-    def start(self, t: float, q0: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> int:
+    def start(self, t: float, q0: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> str:
+        """kinegen_start; its status by name (the library's kinegen_status_names: "ok", "singular", ...)."""
         arrays = [np.ascontiguousarray(x, dtype=float) for x in (q0, u, ud, udd)]
-        return self.library.kinegen_start(self.pointer, t, *(x.ctypes.data for x in arrays))
+        code = self.library.kinegen_start(self.pointer, t, *(x.ctypes.data for x in arrays))
+        return self.case.abi.status_name(code)
 
     def resume(self, t: float, q: np.ndarray, v: np.ndarray, a: np.ndarray, u: np.ndarray, ud: np.ndarray) -> int:
         arrays = [np.ascontiguousarray(x, dtype=float) for x in (q, v, a, u, ud)]

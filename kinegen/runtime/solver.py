@@ -918,7 +918,7 @@ class _NativeSteps:
         last state; step 0 from ``q0``. Returns the first step not solved (``end``: all were)."""
         if first == 0:
             u, ud, udd = (x[0] for x in inputs)
-            if self.solver.start(times[0], q0, u, ud, udd) != 0:
+            if self.solver.start(times[0], q0, u, ud, udd) != "ok":
                 return 0
             self._store(0, out)
             first = 1

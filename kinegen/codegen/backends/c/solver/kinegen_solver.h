@@ -447,6 +447,12 @@ typedef struct kinegen_frame_field {
     int offset, count;
 } kinegen_frame_field;
 extern const kinegen_frame_field kinegen_frame_fields[];
+/* Every function declared here: its name, its result type and its parameter list as declared (a
+ * binding's argument types; kinegen's runtime sets its ctypes signatures from it). */
+typedef struct kinegen_function {
+    const char *name, *result, *parameters;
+} kinegen_function;
+extern const kinegen_function kinegen_functions[];
 
 /* Reporting helpers: unit quaternion (w >= 0) of a rotation matrix (row by row; Shepperd's
  * method), and position, velocity, acceleration of a body point from a body's 24 frame values. */
