@@ -333,3 +333,22 @@ def test_a_case_named_jac_gets_distinct_temporaries_and_the_same_values(tmp_path
     assert np.abs(np.array(phi_s) - system.phi(q, u)).max() <= 1e-15 and np.abs(np.array(jac_s) - system.jac(q, u)).max() <= 1e-15
     phi_c, jac_c = system.native.evaluate(q, u)
     assert np.abs(phi_c - system.phi(q, u)).max() <= 1e-14 and np.abs(jac_c - system.jac(q, u)).max() <= 1e-14
+
+
+def test_the_runtime_binds_every_shared_kernel_from_the_declaration_alone():
+    """NumericSystem.kernels holds every kernel a module declares for all its cases, bound from
+    KERNELS alone (slots, outputs; p bound): the declared set, and each output equal to the
+    module's own function at a batch of configurations -- the supply kernel among them, which
+    kinegen.forces.supply calls."""
+    module = load_module(GENERATED / "excavator_quaternion.py")
+    system = from_module(module, "digging", compiled=False)
+    shared = {name for name, (_, outputs) in module.KERNELS.items() if all(hasattr(module, o) for o in outputs)}
+    assert set(system.kernels) == shared and {"frames", "inertia", "supply", "loads", "actuation"} <= shared
+    results = solve(system)
+    q, v = results.q.T[:, ::40], results.v.T[:, ::40]
+    p = [system.design[name] for name in module.DESIGN]
+    force = np.random.default_rng(5).normal(scale=1e5, size=(len(system.statics.elements), q.shape[1]))
+    outputs = system.kernels["supply"](q, v, force)
+    assert len(outputs) == len(module.KERNELS["supply"][1])
+    for name, values in zip(module.KERNELS["supply"][1], outputs):
+        assert np.array_equal(np.broadcast_arrays(*values), np.broadcast_arrays(*getattr(module, name)(q, v, force, p))), name

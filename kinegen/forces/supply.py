@@ -106,44 +106,40 @@ def turn_rate(results: Results, model: Model, joint_name: str) -> np.ndarray:
 def flows(results: Results, model: Model, held=None) -> Flows:
     """The flows the motion ``results`` asks of ``model``'s pumps (see the module docstring); with
     ``held`` (:class:`kinegen.forces.statics.Forces` of the same motion), also the pumps' pressures and
-    power."""
+    power. The pumps' flows, pressures and powers are the generated module's ``supply`` kernel (q, v,
+    f[, p]), the one the standalone C program calls; each element's flow (:attr:`Flows.elements`) is
+    computed here from its areas and rates."""
     supply = model.supply
     if supply is None:
         raise ValueError(f"{model.name} has no pumps: section")
-    design = results.system.design
+    system = results.system
+    kernel = system.kernels.get("supply")
+    if kernel is None or system.statics is None:
+        raise ValueError(f"{system.model}/{system.case}: the module has no supply kernel (built before kinegen declared it); "
+                         f"rebuild it with `kinegen build <model>.yaml --param {system.parametrization.name}`")  # fmt: skip
+    design = system.design
     actuators = {a.name: a for a in model.actuators}
     motors = {m.name: m for m in model.motors}
     element_flow: dict[str, np.ndarray] = {}
-    filling: dict[str, np.ndarray] = {}
     for name in supply.circuits:
         if name in actuators:
             cap, annulus = actuators[name].hydraulics.areas(design)
-            total, pressure = np.zeros(len(results.times)), np.zeros(len(results.times))
-            force = held.element_force(name) if held is not None else None
-            for member in model.members(name):
-                rate = results.actuator_rate(member.name)
-                total += np.where(rate > 0, cap * rate, -annulus * rate)
-                if force is not None:  # the side the pump fills: cap while extending, rod while retracting
-                    pressure = np.maximum(pressure, np.where(rate > 0, np.maximum(force, 0.0) / cap, np.maximum(-force, 0.0) / annulus))
-            element_flow[name], filling[name] = total, pressure
+            rates = [results.actuator_rate(member.name) for member in model.members(name)]
+            element_flow[name] = sum(np.where(rate > 0, cap * rate, -annulus * rate) for rate in rates)
         else:
             motor = motors[name]
-            displacement = design_value(motor.displacement, design)
-            rate = turn_rate(results, model, motor.joint)
-            element_flow[name] = displacement * np.abs(rate)
-            if held is not None:
-                torque = held.element_force(name)
-                filling[name] = np.where(torque * rate > 0, np.abs(torque) / displacement, 0.0)
-    names = tuple(p.name for p in supply.pumps)
-    flow = np.zeros((len(names), len(results.times)))
-    pressure = np.zeros_like(flow) if held is not None else None
-    for name, fed in supply.circuits.items():
-        for pump in fed:
-            p = names.index(pump)
-            flow[p] += element_flow[name] / len(fed)
-            if pressure is not None:
-                pressure[p] = np.maximum(pressure[p], np.where(element_flow[name] > 0, filling[name], 0.0))
-    return Flows(results.times, element_flow, names, flow,
+            element_flow[name] = design_value(motor.displacement, design) * np.abs(turn_rate(results, model, motor.joint))
+    count = len(results.times)
+    force = np.zeros((len(system.statics.elements), count))
+    if held is not None:
+        force = np.array([held.element_force(name) for name, _ in system.statics.elements])
+    flow, pressure, power, _ = (_rows(values, count) for values in kernel(results.q.T, results.v.T, force))
+    return Flows(results.times, element_flow, tuple(p.name for p in supply.pumps), flow,
                  np.array([design_value(p.max_flow, design) for p in supply.pumps]),
                  np.array([design_value(p.max_pressure, design) for p in supply.pumps]), float(design_value(supply.engine_power, design)),
-                 pressure, None if pressure is None else pressure * flow)  # fmt: skip
+                 None if held is None else pressure, None if held is None else power)  # fmt: skip
+
+
+def _rows(values, count: int) -> np.ndarray:
+    """A kernel's output on a batch of ``count`` columns as rows (a row it found constant, broadcast)."""
+    return np.array([np.broadcast_to(np.asarray(row, dtype=float), (count,)) for row in values])

@@ -129,6 +129,11 @@ class NumericSystem:
     #: span = (t0, t1) (floats or arrays) -> enclosures of the case's inputs over that time interval:
     #: rows of the lower bounds of u, du/dt, d2u/dt2, then of their upper bounds; None: a module without them
     input_ranges: Callable[[Any], np.ndarray] | None = None
+    #: every kernel the module declares for all its cases (``KERNELS``; frames, lengths, actuation, loads,
+    #: inertia, supply, ...), by name: a function of its argument slots but p (bound), each a value or a
+    #: batch (columns), returning its outputs as a tuple in their declared order -- bound from the
+    #: declaration alone (:func:`declared_kernels`), so a new kernel needs no code here
+    kernels: dict[str, Callable[..., tuple]] = field(default_factory=dict)
 
     @property
     def n_stored(self) -> int:
@@ -363,8 +368,34 @@ def from_module(
         native=_native(module, case, compiled, p),
         statics=_statics(module, p),
         input_ranges=outputs.get("input_ranges"),
+        kernels=declared_kernels(module, p),
         **design_fields,
     )
+
+
+def declared_kernels(module: ModuleType | Any, p: np.ndarray | None) -> dict[str, Callable[..., tuple]]:
+    """The kernels a module declares for all its cases (``KERNELS``: name -> (argument slots, output
+    names), each output a module function of the slots), by name: a function of the slots but ``p``
+    (bound to ``p``) returning the outputs as a tuple. The per-case kernels (their functions suffixed
+    with the case) are the case's, not listed here."""
+    bound = {}
+    for name, (slots, outputs) in getattr(module, "KERNELS", {}).items():
+        functions = [getattr(module, output, None) for output in outputs]
+        if any(f is None for f in functions):
+            continue  # a per-case kernel
+        if "p" in slots:
+            if p is None or slots[-1] != "p":  # pragma: no cover -- the declaration puts p last, with a design
+                raise ValueError(f"{module.MODEL}: kernel {name} takes p {slots} without design parameters to bind")
+            functions = [_with_design(f, p) for f in functions]
+        bound[name] = _outputs_of(tuple(functions))
+    return bound
+
+
+def _outputs_of(functions: tuple[Callable[..., Any], ...]) -> Callable[..., tuple]:
+    def kernel(*arguments: Any) -> tuple:
+        return tuple(f(*arguments) for f in functions)
+
+    return kernel
 
 
 def _design_values(module: ModuleType | Any, design: Mapping[str, float] | None) -> np.ndarray | None:
