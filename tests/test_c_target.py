@@ -15,6 +15,7 @@ import numpy as np
 import pytest
 from click.testing import CliRunner
 
+from kinegen.bench.callgraph import CallGraph
 from kinegen.cli import main
 from kinegen.codegen.backends.c import config
 from kinegen.errors import KinegenError
@@ -441,23 +442,10 @@ def test_the_c_core_is_clean_under_the_static_analyzer_with_a_bounded_stack(tmp_
         assert done.returncode == 0, done.stderr
     # the solver's call graph as gcc compiled it (the kernels, called through pointers, are straight-line
     # leaves): no cycle, so no recursion, and the deepest chain of frames from any entry point is bounded
-    graph, frames = {}, {}
-    for line in (tmp_path / "kinegen_solver.c.ci").read_text().splitlines():
-        if node := re.match(r'node: \{ title: "([^"]+)" label: "[^"]*\\n(\d+) bytes', line):
-            frames[node.group(1)] = int(node.group(2))
-        elif edge := re.match(r'edge: \{ sourcename: "([^"]+)" targetname: "([^"]+)"', line):
-            graph.setdefault(edge.group(1), set()).add(edge.group(2))
-    depth: dict[str, int] = {}
-
-    def deepest(name: str, path: tuple[str, ...]) -> int:
-        assert name not in path, f"recursion: {' -> '.join((*path, name))}"
-        if name not in depth:
-            depth[name] = frames.get(name, 0) + max((deepest(c, (*path, name)) for c in graph.get(name, ())), default=0)
-        return depth[name]
-
-    entries = [name for name in frames if name.split(":")[-1].startswith("kinegen_")]
-    assert "kinegen_step" in entries and len(frames) > 20
-    assert max(deepest(name, ()) for name in entries) <= 4096
+    graph = CallGraph(tmp_path / "kinegen_solver.c.ci")
+    entries = graph.functions("kinegen_")
+    assert "kinegen_step" in entries and len(graph.frames) > 20
+    assert max(graph.deepest(name) for name in entries) <= 4096  # (a recursion raises ValueError)
 
 
 def test_a_step_is_halved_at_most_as_often_as_both_solvers_allow():

@@ -157,15 +157,17 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
 
 def c_target_memory(name: str, parametrization: str = PARAMETRIZATION) -> dict[str, Any]:
     """Memory of one solver instance of the standalone C target: its workspace (the generated
-    header's ``<stem>_workspace``: ``*_WORK_DOUBLES`` doubles and ``*_WORK_INTS`` ints), the ``kinegen_solver`` struct, and the stack
-    of a step (GCC's ``-fstack-usage``: the frames of kinegen_step, finish and newton, the largest
-    of the solver's helpers and of the kernels with their largest section function). Static
-    data (the model's tables) is shared by every instance and reported apart."""
+    header's ``<stem>_workspace``: ``*_WORK_DOUBLES`` doubles and ``*_WORK_INTS`` ints), the
+    ``kinegen_solver`` struct, and the stack of a step (gcc's call graph,
+    :class:`kinegen.bench.callgraph.CallGraph`: the deepest chain of frames from kinegen_step, plus the
+    deepest kernel's with its section functions, which it calls through a pointer). Static data (the
+    model's tables) is shared by every instance and reported apart."""
     import re
     import subprocess
     import tempfile
 
     from kinegen import rotations
+    from kinegen.bench.callgraph import CallGraph
     from kinegen.codegen import generate, module_name
     from kinegen.runtime.native import c_compiler
 
@@ -182,21 +184,16 @@ def c_target_memory(name: str, parametrization: str = PARAMETRIZATION) -> dict[s
         )
         compiler = c_compiler()
         for source in (f"{stem}.c", "kinegen_solver.c"):
-            subprocess.run([compiler, "-std=c99", "-O2", "-fstack-usage", "-c", source], cwd=folder, check=True)
+            subprocess.run([compiler, "-std=c99", "-O2", "-fcallgraph-info=su", "-c", source], cwd=folder, check=True)
         subprocess.run([compiler, "-std=c99", "-o", "size", "size.c"], cwd=folder, check=True)
         struct, workspace = map(int, subprocess.run([str(Path(folder) / "size")], capture_output=True, text=True, check=True).stdout.split())
-        frames: dict[str, int] = {}
-        for su in Path(folder).glob("*.su"):
-            for line in su.read_text().splitlines():
-                where, size, _ = line.split("\t")
-                frames[where.rsplit(":", 1)[-1]] = int(size)
+        graph = CallGraph(*Path(folder).glob("*.ci"))
         subprocess.run([compiler, "-std=c99", "-O2", "-c", f"{stem}.c", "-o", "model.o"], cwd=folder, check=True)
         sizes = subprocess.run(["size", "-A", "model.o"], cwd=folder, capture_output=True, text=True).stdout
     static = sum(int(m.group(1)) for m in re.finditer(r"^\.(?:rodata|data)\S*\s+(\d+)", sizes, re.MULTILINE))
-    kernels = max(v for k, v in frames.items() if k.startswith(("phi_jac_", "gamma_", "nu_")))
-    sections = max(v for k, v in frames.items() if "compute_" in k)
-    helpers = max(frames.get(k, 0) for k in ("factor", "lu_block", "solve", "solve_transposed", "condition_estimate"))
-    stack = sum(frames.get(k, 0) for k in ("kinegen_step", "finish", "newton")) + max(helpers, kernels + sections)
+    # the step's deepest chain of the solver's frames, plus the deepest kernel called through a pointer from it
+    kernels = max(graph.deepest(k) for k in graph.frames if k.split(":")[-1].startswith(("phi_jac_", "gamma_", "nu_")))
+    stack = graph.deepest("kinegen_step") + kernels
     return {"workspace": workspace, "struct": struct, "stack": stack, "static": static}
 
 
