@@ -57,16 +57,19 @@ class AbiError(RuntimeError):
     """A library whose self-description does not describe what the runtime needs."""
 
 
+#: the ctypes types of the C types kinegen_solver.h's functions take and return, pointers aside
+_C_TYPES = {"void": None, "double": ctypes.c_double, "int": ctypes.c_int}
+
+
 def c_type(declaration: str) -> Any:
-    """The ctypes type of a C type as declared (a parameter's name, if any, dropped): a pointer
-    (any ``*``) ``c_void_p`` -- ``const char *`` ``c_char_p`` --, ``double``, ``int``, ``void`` None."""
-    text = " ".join(declaration.replace("*", " * ").split())
-    if "*" in text:
-        return ctypes.c_char_p if text.startswith("const char *") and text.count("*") == 1 and text.endswith("*") else ctypes.c_void_p
-    base = text.split()[0] if text.split()[0] != "const" else text.split()[1]
-    if base not in ("void", "double", "int"):
+    """The ctypes type of a C type as declared (a parameter's name, if any, ignored): a pointer
+    ``c_void_p`` (``const char *``: ``c_char_p``), else ``double``, ``int`` or ``void`` (None)."""
+    words = [w for w in declaration.replace("*", " * ").split() if w != "const"]
+    if "*" in words:
+        return ctypes.c_char_p if words[:2] == ["char", "*"] and words.count("*") == 1 else ctypes.c_void_p
+    if not words or words[0] not in _C_TYPES:
         raise AbiError(f"a C type the runtime does not bind: {declaration!r}")
-    return {"void": None, "double": ctypes.c_double, "int": ctypes.c_int}[base]
+    return _C_TYPES[words[0]]
 
 
 def bind_functions(library: ctypes.CDLL) -> dict[str, tuple[Any, list[Any]]]:
