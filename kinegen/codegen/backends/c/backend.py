@@ -294,9 +294,6 @@ class _Model:
                 raise ValueError(f"{d.model}: the C target needs a square, structurally regular force matrix "
                                  f"(joint rows and {len(statics.elements)} actuation elements for {nv} velocity coordinates)")  # fmt: skip
             arrays = plan_arrays(statics.matrix_rows, statics.matrix_cols, statics.plan, f"{d.model}: the force matrix")
-        # kinegen_forces' work: KINEGEN_FORCE_WORK_DOUBLES's arguments after n_v and n_inputs
-        work = (len(statics.inertia_cols), len(statics.load_rows), len(statics.matrix_rows),
-                arrays.n_store if arrays else 0, len(arrays.off_col) if arrays else 0)  # fmt: skip
         nb = len(d.bodies)
         nvb = nv // max(nb, 1)
         if nb and (any(offset != b * nvb for b, (_, _, offset) in enumerate(d.bodies)) or nvb > 8):
@@ -311,10 +308,10 @@ class _Model:
             names=[j[0] for j in statics.joints], body=[j[1] for j in statics.joints], sign=[j[2] for j in statics.joints],
             point_body=[j[3] for j in statics.joints], local=[x for j in statics.joints for x in j[4]], row_start=starts,
             rows=[r for j in statics.joints for r in j[5]], norm_start=norm_starts, norm_rows=[r for rows in statics.norm_rows for r in rows],
-            hydraulics=[x for h in statics.hydraulics for x in h], n_matrix=len(statics.matrix_rows), largest_jac=largest_jac,
+            hydraulics=[x for h in statics.hydraulics for x in h], largest_jac=largest_jac,
         )  # fmt: skip
         return SimpleNamespace(
-            s=statics, plan=arrays, work=work, reactions=reactions,
+            s=statics, plan=arrays, reactions=reactions,
             actuation=f"&kernels[{shared.index('actuation')}]" if "actuation" in shared else "NULL",
             loads=f"&kernels[{shared.index('loads')}]" if "loads" in shared else "NULL",
             inertia=f"&kernels[{shared.index('inertia')}]" if "inertia" in shared else "NULL",
