@@ -6,6 +6,7 @@
  * parametrization: dual-euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -33,13 +34,13 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_a10 = 2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
     const double boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz;
     const double boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz;
-    out[0] = -boom_ox + (89.0/50.0)*boom_a00;
-    out[1] = -boom_oy + (89.0/50.0)*boom_a10;
-    out[2] = -boom_oz + (89.0/50.0)*boom_a20;
+    out[0] = (89.0/50.0)*boom_a00 - boom_ox;
+    out[1] = (89.0/50.0)*boom_a10 - boom_oy;
+    out[2] = (89.0/50.0)*boom_a20 - boom_oz;
     out[3] = boom_a20;
     out[4] = boom_a21;
-    out[5] = -1.0 + (boom_rw*boom_rw) + (boom_rx*boom_rx) + (boom_ry*boom_ry) + (boom_rz*boom_rz);
-    out[6] = boom_dw*boom_rw + boom_dx*boom_rx + boom_dy*boom_ry + boom_dz*boom_rz;
+    out[5] = -1.0 + (boom_rz*boom_rz) + (boom_rx*boom_rx) + (boom_ry*boom_ry) + (boom_rw*boom_rw);
+    out[6] = boom_rz*boom_dz + boom_ry*boom_dy + boom_rx*boom_dx + boom_rw*boom_dw;
 }
 
 /* Phi of the driver rows of case 'swing'. */
@@ -48,7 +49,7 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double boom_rz = q[3];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*boom_rz*cos(c0) + 2.0*boom_rw*sin(c0);
+    out[0] = 2.0*sin(c0)*boom_rw - 2.0*cos(c0)*boom_rz;
 }
 
 /* Phi_q values of the joint rows (44 entries). */
@@ -62,51 +63,53 @@ static void compute_joints_jac(const double *q, double *out) {
     const double boom_dy = q[6];
     const double boom_dz = q[7];
     const double c0 = 2.0*boom_dx;
-    const double c1 = 2.0*boom_dw;
-    const double c2 = 2.0*boom_dz;
-    const double c3 = 2.0*boom_dy;
-    const double c4 = 2.0*boom_rx;
-    const double c5 = 2.0*boom_rw;
-    const double c6 = -c5;
-    const double c7 = 2.0*boom_rz;
-    const double c8 = 2.0*boom_ry;
-    const double c9 = -c8;
-    const double c10 = -c3 + (89.0/25.0)*boom_rz;
-    const double c11 = c2 + (89.0/25.0)*boom_ry;
-    const double c12 = c1 + (89.0/25.0)*boom_rx;
-    const double c13 = c0 - 89.0/25.0*boom_rw;
-    out[0] = -c0 + (178.0/25.0)*boom_rw;
-    out[1] = c1 + (178.0/25.0)*boom_rx;
-    out[2] = -c2;
-    out[3] = c3;
-    out[4] = c4;
-    out[5] = c6;
-    out[6] = c7;
-    out[7] = c9;
-    out[8] = c10;
-    out[9] = c11;
-    out[10] = c12;
-    out[11] = -c13;
-    out[12] = c8;
-    out[13] = -c7;
-    out[14] = c6;
-    out[15] = c4;
-    out[16] = -c11;
-    out[17] = c10;
-    out[18] = c13;
-    out[19] = c12;
-    out[20] = c7;
-    out[21] = c8;
-    out[22] = -c4;
-    out[23] = c6;
-    out[24] = c9;
-    out[25] = c7;
-    out[26] = c6;
-    out[27] = c4;
-    out[28] = c4;
-    out[29] = c5;
-    out[30] = c7;
-    out[31] = c8;
+    const double c1 = -c0;
+    const double c2 = 2.0*boom_dw;
+    const double c3 = 2.0*boom_dz;
+    const double c4 = -c3;
+    const double c5 = 2.0*boom_dy;
+    const double c6 = 2.0*boom_rx;
+    const double c7 = 2.0*boom_rw;
+    const double c8 = -c7;
+    const double c9 = 2.0*boom_rz;
+    const double c10 = 2.0*boom_ry;
+    const double c11 = -c10;
+    const double c12 = (89.0/25.0)*boom_rz - c5;
+    const double c13 = (89.0/25.0)*boom_ry;
+    const double c14 = (89.0/25.0)*boom_rx + c2;
+    const double c15 = (89.0/25.0)*boom_rw;
+    out[0] = (178.0/25.0)*boom_rw + c1;
+    out[1] = (178.0/25.0)*boom_rx + c2;
+    out[2] = c4;
+    out[3] = c5;
+    out[4] = c6;
+    out[5] = c8;
+    out[6] = c9;
+    out[7] = c11;
+    out[8] = c12;
+    out[9] = c13 + c3;
+    out[10] = c14;
+    out[11] = c15 + c1;
+    out[12] = c10;
+    out[13] = -c9;
+    out[14] = c8;
+    out[15] = c6;
+    out[16] = -c13 + c4;
+    out[17] = c12;
+    out[18] = -c15 + c0;
+    out[19] = c14;
+    out[20] = c9;
+    out[21] = c10;
+    out[22] = -c6;
+    out[23] = c8;
+    out[24] = c11;
+    out[25] = c9;
+    out[26] = c8;
+    out[27] = c6;
+    out[28] = c6;
+    out[29] = c7;
+    out[30] = c9;
+    out[31] = c10;
     out[32] = 2.0*boom_rw;
     out[33] = 2.0*boom_rx;
     out[34] = 2.0*boom_ry;
@@ -137,7 +140,7 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(boom_rw*cos(c0) + boom_rz*sin(c0));
+    out[0] = -(sin(c0)*boom_rz + cos(c0)*boom_rw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -151,21 +154,24 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_boom_dx = v[5];
     const double v_boom_dy = v[6];
     const double v_boom_dz = v[7];
-    const double c0 = 2.0*v_boom_dw;
-    const double c1 = 4.0*v_boom_rz;
-    const double c2 = 2.0*v_boom_dx;
-    const double c3 = 2.0*v_boom_dz;
-    const double c4 = -2.0*v_boom_dy + (89.0/25.0)*v_boom_rz;
-    const double c5 = c3 + (89.0/25.0)*v_boom_ry;
-    const double c6 = c0 + (89.0/25.0)*v_boom_rx;
-    const double c7 = c2 - 89.0/25.0*v_boom_rw;
-    out[0] = -c0*v_boom_rx - c1*v_boom_dy - v_boom_rw*(-c2 + (178.0/25.0)*v_boom_rw) - v_boom_rx*(c0 + (178.0/25.0)*v_boom_rx) + 2.0*v_boom_dx*v_boom_rw + 4.0*v_boom_dz*v_boom_ry;
-    out[1] = c7*v_boom_rz - c0*v_boom_ry - c3*v_boom_rx - c4*v_boom_rw - c5*v_boom_rx - c6*v_boom_ry + 2.0*v_boom_dx*v_boom_rz + 2.0*v_boom_dy*v_boom_rw;
-    out[2] = c5*v_boom_rw - c0*v_boom_rz - c2*v_boom_ry - c4*v_boom_rx - c6*v_boom_rz - c7*v_boom_ry + 2.0*v_boom_dy*v_boom_rx + 2.0*v_boom_dz*v_boom_rw;
-    out[3] = -c1*v_boom_rx + 4.0*v_boom_rw*v_boom_ry;
-    out[4] = -c1*v_boom_ry - 4.0*v_boom_rw*v_boom_rx;
-    out[5] = -2.0*(v_boom_rw*v_boom_rw) - 2.0*(v_boom_rx*v_boom_rx) - 2.0*(v_boom_ry*v_boom_ry) - 2.0*(v_boom_rz*v_boom_rz);
-    out[6] = -2.0*v_boom_dw*v_boom_rw - 2.0*v_boom_dx*v_boom_rx - 2.0*v_boom_dy*v_boom_ry - 2.0*v_boom_dz*v_boom_rz;
+    const double c0 = 2.0*v_boom_dx;
+    const double c1 = -c0;
+    const double c2 = 2.0*v_boom_dw;
+    const double c3 = 4.0*v_boom_ry;
+    const double c4 = 2.0*v_boom_dy;
+    const double c5 = -c4 + (89.0/25.0)*v_boom_rz;
+    const double c6 = (89.0/25.0)*v_boom_ry;
+    const double c7 = 2.0*v_boom_dz;
+    const double c8 = c2 + (89.0/25.0)*v_boom_rx;
+    const double c9 = (89.0/25.0)*v_boom_rw;
+    const double c10 = 4.0*v_boom_rx;
+    out[0] = c3*v_boom_dz + c0*v_boom_rw - 4.0*v_boom_rz*v_boom_dy - c2*v_boom_rx - (c2 + (178.0/25.0)*v_boom_rx)*v_boom_rx - (c1 + (178.0/25.0)*v_boom_rw)*v_boom_rw;
+    out[1] = c0*v_boom_rz - c7*v_boom_rx + c4*v_boom_rw - c2*v_boom_ry - (c1 + c9)*v_boom_rz - c8*v_boom_ry - (c7 + c6)*v_boom_rx - c5*v_boom_rw;
+    out[2] = c7*v_boom_rw + c4*v_boom_rx - c0*v_boom_ry - c2*v_boom_rz - c8*v_boom_rz - (c0 - c9)*v_boom_ry - c5*v_boom_rx - (-c7 - c6)*v_boom_rw;
+    out[3] = c3*v_boom_rw - c10*v_boom_rz;
+    out[4] = -c3*v_boom_rz - c10*v_boom_rw;
+    out[5] = -2.0*(v_boom_ry*v_boom_ry) - 2.0*(v_boom_rz*v_boom_rz) - 2.0*(v_boom_rx*v_boom_rx) - 2.0*(v_boom_rw*v_boom_rw);
+    out[6] = -2.0*v_boom_rz*v_boom_dz - 2.0*v_boom_ry*v_boom_dy - 2.0*v_boom_rx*v_boom_dx - 2.0*v_boom_rw*v_boom_dw;
 }
 
 /* gamma of the driver rows of case 'swing'. */
@@ -180,7 +186,7 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    out[0] = -udd0*(c1*boom_rw + c2*boom_rz) - (ud0*ud0)*((1.0/2.0)*c1*boom_rz - 1.0/2.0*c2*boom_rw) - 2.0*ud0*(c1*v_boom_rw + c2*v_boom_rz);
+    out[0] = -2.0*(c2*v_boom_rz + c1*v_boom_rw)*ud0 - (-1.0/2.0*c2*boom_rw + (1.0/2.0)*c1*boom_rz)*(ud0*ud0) - (c2*boom_rz + c1*boom_rw)*udd0;
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -245,15 +251,19 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz;
     const double boom_a22 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_rz*boom_rz);
     const double c0 = 2.0*boom_dw;
-    const double c1 = 2.0*v_boom_rz;
+    const double c1 = 2.0*boom_dy;
     const double c2 = 2.0*boom_rx;
-    const double c3 = 2.0*boom_dz;
-    const double c4 = 2.0*boom_ry;
-    const double c5 = 2.0*v_boom_ry;
-    const double c6 = 2.0*boom_rz;
-    const double c7 = 2.0*v_boom_rw;
+    const double c3 = 2.0*boom_rw;
+    const double c4 = 2.0*boom_rz;
+    const double c5 = 2.0*boom_dx;
+    const double c6 = 2.0*boom_dz;
+    const double c7 = 2.0*boom_ry;
     const double c8 = 4.0*v_boom_dw;
-    const double c9 = 2.0*boom_rw;
+    const double c9 = 4.0*v_boom_dy;
+    const double c10 = 2.0*dv_boom_rw;
+    const double c11 = 4.0*v_boom_ry;
+    const double c12 = 4.0*v_boom_dx;
+    const double c13 = 4.0*v_boom_dz;
     out[0] = boom_ox;
     out[1] = boom_oy;
     out[2] = boom_oz;
@@ -266,18 +276,18 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[9] = boom_a20;
     out[10] = boom_a21;
     out[11] = boom_a22;
-    out[12] = -c0*v_boom_rx - c1*boom_dy - c2*v_boom_dw - 2.0*boom_rz*v_boom_dy + 2.0*boom_dx*v_boom_rw + 2.0*boom_dz*v_boom_ry + 2.0*boom_rw*v_boom_dx + 2.0*boom_ry*v_boom_dz;
-    out[13] = -c0*v_boom_ry - c2*v_boom_dz - c3*v_boom_rx - c4*v_boom_dw + 2.0*boom_dx*v_boom_rz + 2.0*boom_dy*v_boom_rw + 2.0*boom_rw*v_boom_dy + 2.0*boom_rz*v_boom_dx;
-    out[14] = -c0*v_boom_rz - c5*boom_dx - c6*v_boom_dw - 2.0*boom_ry*v_boom_dx + 2.0*boom_dy*v_boom_rx + 2.0*boom_dz*v_boom_rw + 2.0*boom_rw*v_boom_dz + 2.0*boom_rx*v_boom_dy;
-    out[15] = c1*boom_ry - c2*v_boom_rw - c5*boom_rz + 2.0*boom_rw*v_boom_rx;
-    out[16] = c5*boom_rw + c6*v_boom_rx - c1*boom_rx - c7*boom_ry;
-    out[17] = c1*boom_rw + c2*v_boom_ry - c4*v_boom_rx - c7*boom_rz;
-    out[18] = -c0*dv_boom_rx - c2*dv_boom_dw - c6*dv_boom_dy - c8*v_boom_rx - 4.0*v_boom_dy*v_boom_rz - 2.0*boom_dy*dv_boom_rz + 2.0*boom_dx*dv_boom_rw + 2.0*boom_dz*dv_boom_ry + 2.0*boom_rw*dv_boom_dx + 2.0*boom_ry*dv_boom_dz + 4.0*v_boom_dx*v_boom_rw + 4.0*v_boom_dz*v_boom_ry;
-    out[19] = -c0*dv_boom_ry - c2*dv_boom_dz - c3*dv_boom_rx - c4*dv_boom_dw - c8*v_boom_ry - 4.0*v_boom_dz*v_boom_rx + 2.0*boom_dx*dv_boom_rz + 2.0*boom_dy*dv_boom_rw + 2.0*boom_rw*dv_boom_dy + 2.0*boom_rz*dv_boom_dx + 4.0*v_boom_dx*v_boom_rz + 4.0*v_boom_dy*v_boom_rw;
-    out[20] = -c0*dv_boom_rz - c4*dv_boom_dx - c6*dv_boom_dw - c8*v_boom_rz - 4.0*v_boom_dx*v_boom_ry - 2.0*boom_dx*dv_boom_ry + 2.0*boom_dy*dv_boom_rx + 2.0*boom_dz*dv_boom_rw + 2.0*boom_rw*dv_boom_dz + 2.0*boom_rx*dv_boom_dy + 4.0*v_boom_dy*v_boom_rx + 4.0*v_boom_dz*v_boom_rw;
-    out[21] = c4*dv_boom_rz + c9*dv_boom_rx - c2*dv_boom_rw - c6*dv_boom_ry;
-    out[22] = c6*dv_boom_rx + c9*dv_boom_ry - c2*dv_boom_rz - c4*dv_boom_rw;
-    out[23] = c2*dv_boom_ry + c9*dv_boom_rz - c4*dv_boom_rx - c6*dv_boom_rw;
+    out[12] = c7*v_boom_dz + c6*v_boom_ry + c5*v_boom_rw - c4*v_boom_dy + c3*v_boom_dx - c2*v_boom_dw - c1*v_boom_rz - c0*v_boom_rx;
+    out[13] = c4*v_boom_dx + c3*v_boom_dy + c5*v_boom_rz - c7*v_boom_dw + c1*v_boom_rw - c2*v_boom_dz - c6*v_boom_rx - c0*v_boom_ry;
+    out[14] = c2*v_boom_dy + c1*v_boom_rx - c4*v_boom_dw + c3*v_boom_dz - c7*v_boom_dx + c6*v_boom_rw - c5*v_boom_ry - c0*v_boom_rz;
+    out[15] = c7*v_boom_rz + c3*v_boom_rx - c4*v_boom_ry - c2*v_boom_rw;
+    out[16] = c4*v_boom_rx + c3*v_boom_ry - c7*v_boom_rw - c2*v_boom_rz;
+    out[17] = c2*v_boom_ry + c3*v_boom_rz - c4*v_boom_rw - c7*v_boom_rx;
+    out[18] = c12*v_boom_rw + c3*dv_boom_dx + c6*dv_boom_ry - c2*dv_boom_dw - c4*dv_boom_dy - c0*dv_boom_rx + c10*boom_dx + c11*v_boom_dz - c9*v_boom_rz + c7*dv_boom_dz - c1*dv_boom_rz - c8*v_boom_rx;
+    out[19] = c9*v_boom_rw + c4*dv_boom_dx - c7*dv_boom_dw + c5*dv_boom_rz - c2*dv_boom_dz - c6*dv_boom_rx - c0*dv_boom_ry + c3*dv_boom_dy - c13*v_boom_rx + c10*boom_dy + c12*v_boom_rz - c11*v_boom_dw;
+    out[20] = c13*v_boom_rw + c9*v_boom_rx + c3*dv_boom_dz + c2*dv_boom_dy - c4*dv_boom_dw + c1*dv_boom_rx - c7*dv_boom_dx + c10*boom_dz - c5*dv_boom_ry - c0*dv_boom_rz - c11*v_boom_dx - c8*v_boom_rz;
+    out[21] = c7*dv_boom_rz + c3*dv_boom_rx - c4*dv_boom_ry - c10*boom_rx;
+    out[22] = c4*dv_boom_rx + c3*dv_boom_ry - c10*boom_ry - c2*dv_boom_rz;
+    out[23] = c2*dv_boom_ry + c3*dv_boom_rz - c10*boom_rz - c7*dv_boom_rx;
 }
 
 /* one body's coordinates moved by a step in velocity coordinates (dual-euler-parameters) */
@@ -298,14 +308,14 @@ static void retract_body(double *q, const double *step) {
     const double step5 = step[5];
     const double step6 = step[6];
     const double step7 = step[7];
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = q3 + step3;
-    const double moved4 = q4 + step4;
-    const double moved5 = q5 + step5;
-    const double moved6 = q6 + step6;
-    const double moved7 = q7 + step7;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = step3 + q3;
+    const double moved4 = step4 + q4;
+    const double moved5 = step5 + q5;
+    const double moved6 = step6 + q6;
+    const double moved7 = step7 + q7;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

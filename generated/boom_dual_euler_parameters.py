@@ -6,6 +6,7 @@ source sha256:   9ca606fa182152ec864781897d3f0cd9fd3e57339b37499de2af8b920a6f73b
 parametrization: dual-euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 8) and v (velocity, 8) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -46,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_euler_parameters.h': 'bf778c7b9d27cda61dd40f848c94c68ce659ff93bfc516012dc7a3ad4e6cf5c0', 'boom_dual_euler_parameters.c': '0b9e3bd580711734d96b61b4d8a85e83ff2a1f1ae44e44c16fb2a1b49c1ee28c'}
+C_FILES = {'boom_dual_euler_parameters.h': 'ce489b3f87321e89e4603ef36bae73ea28b5921221b82400321868b5145d2011', 'boom_dual_euler_parameters.c': '3ef8fe9236c7adc81dbf5695f5a2223ba9eba0c22074e0e7a3c37efc884c6ccc'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 
@@ -234,15 +235,19 @@ def frames(q, v, a):
     boom_a21 = 2*boom_rw*boom_rx + 2*boom_ry*boom_rz
     boom_a22 = -1 + 2*boom_rw**2 + 2*boom_rz**2
     c0 = 2*boom_dw
-    c1 = 2*v_boom_rz
+    c1 = 2*boom_dy
     c2 = 2*boom_rx
-    c3 = 2*boom_dz
-    c4 = 2*boom_ry
-    c5 = 2*v_boom_ry
-    c6 = 2*boom_rz
-    c7 = 2*v_boom_rw
+    c3 = 2*boom_rw
+    c4 = 2*boom_rz
+    c5 = 2*boom_dx
+    c6 = 2*boom_dz
+    c7 = 2*boom_ry
     c8 = 4*v_boom_dw
-    c9 = 2*boom_rw
+    c9 = 4*v_boom_dy
+    c10 = 2*dv_boom_rw
+    c11 = 4*v_boom_ry
+    c12 = 4*v_boom_dx
+    c13 = 4*v_boom_dz
     out = _zeros(24, q, ())
     out[0] = boom_ox
     out[1] = boom_oy
@@ -256,18 +261,18 @@ def frames(q, v, a):
     out[9] = boom_a20
     out[10] = boom_a21
     out[11] = boom_a22
-    out[12] = -c0*v_boom_rx - c1*boom_dy - c2*v_boom_dw - 2*boom_rz*v_boom_dy + 2*boom_dx*v_boom_rw + 2*boom_dz*v_boom_ry + 2*boom_rw*v_boom_dx + 2*boom_ry*v_boom_dz
-    out[13] = -c0*v_boom_ry - c2*v_boom_dz - c3*v_boom_rx - c4*v_boom_dw + 2*boom_dx*v_boom_rz + 2*boom_dy*v_boom_rw + 2*boom_rw*v_boom_dy + 2*boom_rz*v_boom_dx
-    out[14] = -c0*v_boom_rz - c5*boom_dx - c6*v_boom_dw - 2*boom_ry*v_boom_dx + 2*boom_dy*v_boom_rx + 2*boom_dz*v_boom_rw + 2*boom_rw*v_boom_dz + 2*boom_rx*v_boom_dy
-    out[15] = c1*boom_ry - c2*v_boom_rw - c5*boom_rz + 2*boom_rw*v_boom_rx
-    out[16] = c5*boom_rw + c6*v_boom_rx - c1*boom_rx - c7*boom_ry
-    out[17] = c1*boom_rw + c2*v_boom_ry - c4*v_boom_rx - c7*boom_rz
-    out[18] = -c0*dv_boom_rx - c2*dv_boom_dw - c6*dv_boom_dy - c8*v_boom_rx - 4*v_boom_dy*v_boom_rz - 2*boom_dy*dv_boom_rz + 2*boom_dx*dv_boom_rw + 2*boom_dz*dv_boom_ry + 2*boom_rw*dv_boom_dx + 2*boom_ry*dv_boom_dz + 4*v_boom_dx*v_boom_rw + 4*v_boom_dz*v_boom_ry
-    out[19] = -c0*dv_boom_ry - c2*dv_boom_dz - c3*dv_boom_rx - c4*dv_boom_dw - c8*v_boom_ry - 4*v_boom_dz*v_boom_rx + 2*boom_dx*dv_boom_rz + 2*boom_dy*dv_boom_rw + 2*boom_rw*dv_boom_dy + 2*boom_rz*dv_boom_dx + 4*v_boom_dx*v_boom_rz + 4*v_boom_dy*v_boom_rw
-    out[20] = -c0*dv_boom_rz - c4*dv_boom_dx - c6*dv_boom_dw - c8*v_boom_rz - 4*v_boom_dx*v_boom_ry - 2*boom_dx*dv_boom_ry + 2*boom_dy*dv_boom_rx + 2*boom_dz*dv_boom_rw + 2*boom_rw*dv_boom_dz + 2*boom_rx*dv_boom_dy + 4*v_boom_dy*v_boom_rx + 4*v_boom_dz*v_boom_rw
-    out[21] = c4*dv_boom_rz + c9*dv_boom_rx - c2*dv_boom_rw - c6*dv_boom_ry
-    out[22] = c6*dv_boom_rx + c9*dv_boom_ry - c2*dv_boom_rz - c4*dv_boom_rw
-    out[23] = c2*dv_boom_ry + c9*dv_boom_rz - c4*dv_boom_rx - c6*dv_boom_rw
+    out[12] = c7*v_boom_dz + c6*v_boom_ry + c5*v_boom_rw - c4*v_boom_dy + c3*v_boom_dx - c2*v_boom_dw - c1*v_boom_rz - c0*v_boom_rx
+    out[13] = c4*v_boom_dx + c3*v_boom_dy + c5*v_boom_rz - c7*v_boom_dw + c1*v_boom_rw - c2*v_boom_dz - c6*v_boom_rx - c0*v_boom_ry
+    out[14] = c2*v_boom_dy + c1*v_boom_rx - c4*v_boom_dw + c3*v_boom_dz - c7*v_boom_dx + c6*v_boom_rw - c5*v_boom_ry - c0*v_boom_rz
+    out[15] = c7*v_boom_rz + c3*v_boom_rx - c4*v_boom_ry - c2*v_boom_rw
+    out[16] = c4*v_boom_rx + c3*v_boom_ry - c7*v_boom_rw - c2*v_boom_rz
+    out[17] = c2*v_boom_ry + c3*v_boom_rz - c4*v_boom_rw - c7*v_boom_rx
+    out[18] = c12*v_boom_rw + c3*dv_boom_dx + c6*dv_boom_ry - c2*dv_boom_dw - c4*dv_boom_dy - c0*dv_boom_rx + c10*boom_dx + c11*v_boom_dz - c9*v_boom_rz + c7*dv_boom_dz - c1*dv_boom_rz - c8*v_boom_rx
+    out[19] = c9*v_boom_rw + c4*dv_boom_dx - c7*dv_boom_dw + c5*dv_boom_rz - c2*dv_boom_dz - c6*dv_boom_rx - c0*dv_boom_ry + c3*dv_boom_dy - c13*v_boom_rx + c10*boom_dy + c12*v_boom_rz - c11*v_boom_dw
+    out[20] = c13*v_boom_rw + c9*v_boom_rx + c3*dv_boom_dz + c2*dv_boom_dy - c4*dv_boom_dw + c1*dv_boom_rx - c7*dv_boom_dx + c10*boom_dz - c5*dv_boom_ry - c0*dv_boom_rz - c11*v_boom_dx - c8*v_boom_rz
+    out[21] = c7*dv_boom_rz + c3*dv_boom_rx - c4*dv_boom_ry - c10*boom_rx
+    out[22] = c4*dv_boom_rx + c3*dv_boom_ry - c10*boom_ry - c2*dv_boom_rz
+    out[23] = c2*dv_boom_ry + c3*dv_boom_rz - c10*boom_rz - c7*dv_boom_rx
     return out
 
 
@@ -282,13 +287,13 @@ def _joints_phi(q):
     boom_a20 = -2*boom_rw*boom_ry + 2*boom_rx*boom_rz
     boom_a21 = 2*boom_rw*boom_rx + 2*boom_ry*boom_rz
     out = _zeros(7, q, ())
-    out[0] = -boom_ox + (89/50)*boom_a00
-    out[1] = -boom_oy + (89/50)*boom_a10
-    out[2] = -boom_oz + (89/50)*boom_a20
+    out[0] = (89/50)*boom_a00 - boom_ox
+    out[1] = (89/50)*boom_a10 - boom_oy
+    out[2] = (89/50)*boom_a20 - boom_oz
     out[3] = boom_a20
     out[4] = boom_a21
-    out[5] = -1 + boom_rw**2 + boom_rx**2 + boom_ry**2 + boom_rz**2
-    out[6] = boom_dw*boom_rw + boom_dx*boom_rx + boom_dy*boom_ry + boom_dz*boom_rz
+    out[5] = -1 + boom_rz**2 + boom_rx**2 + boom_ry**2 + boom_rw**2
+    out[6] = boom_rz*boom_dz + boom_ry*boom_dy + boom_rx*boom_dx + boom_rw*boom_dw
     return out
 
 
@@ -298,7 +303,7 @@ def _drivers_phi_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*boom_rz*cos(c0) + 2*boom_rw*sin(c0)
+    out[0] = 2*sin(c0)*boom_rw - 2*cos(c0)*boom_rz
     return out
 
 
@@ -311,52 +316,54 @@ def _joints_jac(q):
     """Phi_q values of the joint rows (44 entries)."""
     boom_rw, boom_rx, boom_ry, boom_rz, boom_dw, boom_dx, boom_dy, boom_dz = q
     c0 = 2*boom_dx
-    c1 = 2*boom_dw
-    c2 = 2*boom_dz
-    c3 = 2*boom_dy
-    c4 = 2*boom_rx
-    c5 = 2*boom_rw
-    c6 = -c5
-    c7 = 2*boom_rz
-    c8 = 2*boom_ry
-    c9 = -c8
-    c10 = -c3 + (89/25)*boom_rz
-    c11 = c2 + (89/25)*boom_ry
-    c12 = c1 + (89/25)*boom_rx
-    c13 = c0 - 89/25*boom_rw
+    c1 = -c0
+    c2 = 2*boom_dw
+    c3 = 2*boom_dz
+    c4 = -c3
+    c5 = 2*boom_dy
+    c6 = 2*boom_rx
+    c7 = 2*boom_rw
+    c8 = -c7
+    c9 = 2*boom_rz
+    c10 = 2*boom_ry
+    c11 = -c10
+    c12 = (89/25)*boom_rz - c5
+    c13 = (89/25)*boom_ry
+    c14 = (89/25)*boom_rx + c2
+    c15 = (89/25)*boom_rw
     out = _zeros(44, q, ())
-    out[0] = -c0 + (178/25)*boom_rw
-    out[1] = c1 + (178/25)*boom_rx
-    out[2] = -c2
-    out[3] = c3
-    out[4] = c4
-    out[5] = c6
-    out[6] = c7
-    out[7] = c9
-    out[8] = c10
-    out[9] = c11
-    out[10] = c12
-    out[11] = -c13
-    out[12] = c8
-    out[13] = -c7
-    out[14] = c6
-    out[15] = c4
-    out[16] = -c11
-    out[17] = c10
-    out[18] = c13
-    out[19] = c12
-    out[20] = c7
-    out[21] = c8
-    out[22] = -c4
-    out[23] = c6
-    out[24] = c9
-    out[25] = c7
-    out[26] = c6
-    out[27] = c4
-    out[28] = c4
-    out[29] = c5
-    out[30] = c7
-    out[31] = c8
+    out[0] = (178/25)*boom_rw + c1
+    out[1] = (178/25)*boom_rx + c2
+    out[2] = c4
+    out[3] = c5
+    out[4] = c6
+    out[5] = c8
+    out[6] = c9
+    out[7] = c11
+    out[8] = c12
+    out[9] = c13 + c3
+    out[10] = c14
+    out[11] = c15 + c1
+    out[12] = c10
+    out[13] = -c9
+    out[14] = c8
+    out[15] = c6
+    out[16] = -c13 + c4
+    out[17] = c12
+    out[18] = -c15 + c0
+    out[19] = c14
+    out[20] = c9
+    out[21] = c10
+    out[22] = -c6
+    out[23] = c8
+    out[24] = c11
+    out[25] = c9
+    out[26] = c8
+    out[27] = c6
+    out[28] = c6
+    out[29] = c7
+    out[30] = c9
+    out[31] = c10
     out[32] = 2*boom_rw
     out[33] = 2*boom_rx
     out[34] = 2*boom_ry
@@ -398,20 +405,22 @@ def _joints_phi_joints_jac_s(q):
     boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz
     boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz
     d0 = 2.0*boom_dx
-    d1 = 2.0*boom_dw
-    d2 = 2.0*boom_dz
-    d3 = 2.0*boom_dy
-    d4 = 2.0*boom_rx
-    d5 = 2.0*boom_rw
-    d6 = -d5
-    d7 = 2.0*boom_rz
-    d8 = 2.0*boom_ry
-    d9 = -d8
-    d10 = -d3 + (89/25)*boom_rz
-    d11 = d2 + (89/25)*boom_ry
-    d12 = d1 + (89/25)*boom_rx
-    d13 = d0 - 89/25*boom_rw
-    return [-boom_ox + (89/50)*boom_a00, -boom_oy + (89/50)*boom_a10, -boom_oz + (89/50)*boom_a20, boom_a20, boom_a21, -1.0 + (boom_rw*boom_rw) + (boom_rx*boom_rx) + (boom_ry*boom_ry) + (boom_rz*boom_rz), boom_dw*boom_rw + boom_dx*boom_rx + boom_dy*boom_ry + boom_dz*boom_rz], [-d0 + (178/25)*boom_rw, d1 + (178/25)*boom_rx, -d2, d3, d4, d6, d7, d9, d10, d11, d12, -d13, d8, -d7, d6, d4, -d11, d10, d13, d12, d7, d8, -d4, d6, d9, d7, d6, d4, d4, d5, d7, d8, 2.0*boom_rw, 2.0*boom_rx, 2.0*boom_ry, 2.0*boom_rz, boom_dw, boom_dx, boom_dy, boom_dz, boom_rw, boom_rx, boom_ry, boom_rz]
+    d1 = -d0
+    d2 = 2.0*boom_dw
+    d3 = 2.0*boom_dz
+    d4 = -d3
+    d5 = 2.0*boom_dy
+    d6 = 2.0*boom_rx
+    d7 = 2.0*boom_rw
+    d8 = -d7
+    d9 = 2.0*boom_rz
+    d10 = 2.0*boom_ry
+    d11 = -d10
+    d12 = (89/25)*boom_rz - d5
+    d13 = (89/25)*boom_ry
+    d14 = (89/25)*boom_rx + d2
+    d15 = (89/25)*boom_rw
+    return [(89/50)*boom_a00 - boom_ox, (89/50)*boom_a10 - boom_oy, (89/50)*boom_a20 - boom_oz, boom_a20, boom_a21, -1.0 + (boom_rz*boom_rz) + (boom_rx*boom_rx) + (boom_ry*boom_ry) + (boom_rw*boom_rw), boom_rz*boom_dz + boom_ry*boom_dy + boom_rx*boom_dx + boom_rw*boom_dw], [(178/25)*boom_rw + d1, (178/25)*boom_rx + d2, d4, d5, d6, d8, d9, d11, d12, d13 + d3, d14, d15 + d1, d10, -d9, d8, d6, -d13 + d4, d12, -d15 + d0, d14, d9, d10, -d6, d8, d11, d9, d8, d6, d6, d7, d9, d10, 2.0*boom_rw, 2.0*boom_rx, 2.0*boom_ry, 2.0*boom_rz, boom_dw, boom_dx, boom_dy, boom_dz, boom_rw, boom_rx, boom_ry, boom_rz]
 
 
 def _drivers_phi_swing_drivers_jac_swing_s(q, u):
@@ -420,7 +429,7 @@ def _drivers_phi_swing_drivers_jac_swing_s(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [-2.0*boom_rz*math.cos(c0) + 2.0*boom_rw*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [2.0*math.sin(c0)*boom_rw - 2.0*math.cos(c0)*boom_rz], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def phi_jac_s_swing(q, u):
@@ -437,7 +446,7 @@ def _drivers_nu_swing(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(boom_rw*cos(c0) + boom_rz*sin(c0))
+    out[0] = -(sin(c0)*boom_rz + cos(c0)*boom_rw)*ud0
     return out
 
 
@@ -452,7 +461,7 @@ def _drivers_nu_swing_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(boom_rw*math.cos(c0) + boom_rz*math.sin(c0))]
+    return [-(math.sin(c0)*boom_rz + math.cos(c0)*boom_rw)*ud0]
 
 
 def nu_s_swing(q, u, ud):
@@ -464,22 +473,25 @@ def nu_s_swing(q, u, ud):
 def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     v_boom_rw, v_boom_rx, v_boom_ry, v_boom_rz, v_boom_dw, v_boom_dx, v_boom_dy, v_boom_dz = v
-    c0 = 2*v_boom_dw
-    c1 = 4*v_boom_rz
-    c2 = 2*v_boom_dx
-    c3 = 2*v_boom_dz
-    c4 = -2*v_boom_dy + (89/25)*v_boom_rz
-    c5 = c3 + (89/25)*v_boom_ry
-    c6 = c0 + (89/25)*v_boom_rx
-    c7 = c2 - 89/25*v_boom_rw
+    c0 = 2*v_boom_dx
+    c1 = -c0
+    c2 = 2*v_boom_dw
+    c3 = 4*v_boom_ry
+    c4 = 2*v_boom_dy
+    c5 = -c4 + (89/25)*v_boom_rz
+    c6 = (89/25)*v_boom_ry
+    c7 = 2*v_boom_dz
+    c8 = c2 + (89/25)*v_boom_rx
+    c9 = (89/25)*v_boom_rw
+    c10 = 4*v_boom_rx
     out = _zeros(7, q, ())
-    out[0] = -c0*v_boom_rx - c1*v_boom_dy - v_boom_rw*(-c2 + (178/25)*v_boom_rw) - v_boom_rx*(c0 + (178/25)*v_boom_rx) + 2*v_boom_dx*v_boom_rw + 4*v_boom_dz*v_boom_ry
-    out[1] = c7*v_boom_rz - c0*v_boom_ry - c3*v_boom_rx - c4*v_boom_rw - c5*v_boom_rx - c6*v_boom_ry + 2*v_boom_dx*v_boom_rz + 2*v_boom_dy*v_boom_rw
-    out[2] = c5*v_boom_rw - c0*v_boom_rz - c2*v_boom_ry - c4*v_boom_rx - c6*v_boom_rz - c7*v_boom_ry + 2*v_boom_dy*v_boom_rx + 2*v_boom_dz*v_boom_rw
-    out[3] = -c1*v_boom_rx + 4*v_boom_rw*v_boom_ry
-    out[4] = -c1*v_boom_ry - 4*v_boom_rw*v_boom_rx
-    out[5] = -2*v_boom_rw**2 - 2*v_boom_rx**2 - 2*v_boom_ry**2 - 2*v_boom_rz**2
-    out[6] = -2*v_boom_dw*v_boom_rw - 2*v_boom_dx*v_boom_rx - 2*v_boom_dy*v_boom_ry - 2*v_boom_dz*v_boom_rz
+    out[0] = c3*v_boom_dz + c0*v_boom_rw - 4*v_boom_rz*v_boom_dy - c2*v_boom_rx - (c2 + (178/25)*v_boom_rx)*v_boom_rx - (c1 + (178/25)*v_boom_rw)*v_boom_rw
+    out[1] = c0*v_boom_rz - c7*v_boom_rx + c4*v_boom_rw - c2*v_boom_ry - (c1 + c9)*v_boom_rz - c8*v_boom_ry - (c7 + c6)*v_boom_rx - c5*v_boom_rw
+    out[2] = c7*v_boom_rw + c4*v_boom_rx - c0*v_boom_ry - c2*v_boom_rz - c8*v_boom_rz - (c0 - c9)*v_boom_ry - c5*v_boom_rx - (-c7 - c6)*v_boom_rw
+    out[3] = c3*v_boom_rw - c10*v_boom_rz
+    out[4] = -c3*v_boom_rz - c10*v_boom_rw
+    out[5] = -2*v_boom_ry**2 - 2*v_boom_rz**2 - 2*v_boom_rx**2 - 2*v_boom_rw**2
+    out[6] = -2*v_boom_rz*v_boom_dz - 2*v_boom_ry*v_boom_dy - 2*v_boom_rx*v_boom_dx - 2*v_boom_rw*v_boom_dw
     return out
 
 
@@ -494,7 +506,7 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -udd0*(c1*boom_rw + c2*boom_rz) - ud0**2*((1/2)*c1*boom_rz - 1/2*c2*boom_rw) - 2*ud0*(c1*v_boom_rw + c2*v_boom_rz)
+    out[0] = -2*(c2*v_boom_rz + c1*v_boom_rw)*ud0 - (-1/2*c2*boom_rw + (1/2)*c1*boom_rz)*ud0**2 - (c2*boom_rz + c1*boom_rw)*udd0
     return out
 
 
@@ -506,15 +518,18 @@ def gamma_swing(q, v, u, ud, udd):
 def _joints_gamma_s(q, v):
     """gamma of the joint rows (they do not depend on time). (one configuration, lists of floats)"""
     v_boom_rw, v_boom_rx, v_boom_ry, v_boom_rz, v_boom_dw, v_boom_dx, v_boom_dy, v_boom_dz = v
-    c0 = 2.0*v_boom_dw
-    c1 = 4.0*v_boom_rz
-    c2 = 2.0*v_boom_dx
-    c3 = 2.0*v_boom_dz
-    c4 = -2.0*v_boom_dy + (89/25)*v_boom_rz
-    c5 = c3 + (89/25)*v_boom_ry
-    c6 = c0 + (89/25)*v_boom_rx
-    c7 = c2 - 89/25*v_boom_rw
-    return [-c0*v_boom_rx - c1*v_boom_dy - v_boom_rw*(-c2 + (178/25)*v_boom_rw) - v_boom_rx*(c0 + (178/25)*v_boom_rx) + 2.0*v_boom_dx*v_boom_rw + 4.0*v_boom_dz*v_boom_ry, c7*v_boom_rz - c0*v_boom_ry - c3*v_boom_rx - c4*v_boom_rw - c5*v_boom_rx - c6*v_boom_ry + 2.0*v_boom_dx*v_boom_rz + 2.0*v_boom_dy*v_boom_rw, c5*v_boom_rw - c0*v_boom_rz - c2*v_boom_ry - c4*v_boom_rx - c6*v_boom_rz - c7*v_boom_ry + 2.0*v_boom_dy*v_boom_rx + 2.0*v_boom_dz*v_boom_rw, -c1*v_boom_rx + 4.0*v_boom_rw*v_boom_ry, -c1*v_boom_ry - 4.0*v_boom_rw*v_boom_rx, -2.0*(v_boom_rw*v_boom_rw) - 2.0*(v_boom_rx*v_boom_rx) - 2.0*(v_boom_ry*v_boom_ry) - 2.0*(v_boom_rz*v_boom_rz), -2.0*v_boom_dw*v_boom_rw - 2.0*v_boom_dx*v_boom_rx - 2.0*v_boom_dy*v_boom_ry - 2.0*v_boom_dz*v_boom_rz]
+    c0 = 2.0*v_boom_dx
+    c1 = -c0
+    c2 = 2.0*v_boom_dw
+    c3 = 4.0*v_boom_ry
+    c4 = 2.0*v_boom_dy
+    c5 = -c4 + (89/25)*v_boom_rz
+    c6 = (89/25)*v_boom_ry
+    c7 = 2.0*v_boom_dz
+    c8 = c2 + (89/25)*v_boom_rx
+    c9 = (89/25)*v_boom_rw
+    c10 = 4.0*v_boom_rx
+    return [c3*v_boom_dz + c0*v_boom_rw - 4.0*v_boom_rz*v_boom_dy - c2*v_boom_rx - (c2 + (178/25)*v_boom_rx)*v_boom_rx - (c1 + (178/25)*v_boom_rw)*v_boom_rw, c0*v_boom_rz - c7*v_boom_rx + c4*v_boom_rw - c2*v_boom_ry - (c1 + c9)*v_boom_rz - c8*v_boom_ry - (c7 + c6)*v_boom_rx - c5*v_boom_rw, c7*v_boom_rw + c4*v_boom_rx - c0*v_boom_ry - c2*v_boom_rz - c8*v_boom_rz - (c0 - c9)*v_boom_ry - c5*v_boom_rx - (-c7 - c6)*v_boom_rw, c3*v_boom_rw - c10*v_boom_rz, -c3*v_boom_rz - c10*v_boom_rw, -2.0*(v_boom_ry*v_boom_ry) - 2.0*(v_boom_rz*v_boom_rz) - 2.0*(v_boom_rx*v_boom_rx) - 2.0*(v_boom_rw*v_boom_rw), -2.0*v_boom_rz*v_boom_dz - 2.0*v_boom_ry*v_boom_dy - 2.0*v_boom_rx*v_boom_dx - 2.0*v_boom_rw*v_boom_dw]
 
 
 def _drivers_gamma_swing_s(q, v, u, ud, udd):
@@ -527,7 +542,7 @@ def _drivers_gamma_swing_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-udd0*(c1*boom_rw + c2*boom_rz) - (ud0*ud0)*((1/2)*c1*boom_rz - 1/2*c2*boom_rw) - 2.0*ud0*(c1*v_boom_rw + c2*v_boom_rz)]
+    return [-2.0*(c2*v_boom_rz + c1*v_boom_rw)*ud0 - (-1/2*c2*boom_rw + (1/2)*c1*boom_rz)*(ud0*ud0) - (c2*boom_rz + c1*boom_rw)*udd0]
 
 
 def gamma_s_swing(q, v, u, ud, udd):

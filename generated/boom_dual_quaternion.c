@@ -6,6 +6,7 @@
  * parametrization: dual-quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -33,9 +34,9 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_a10 = 2.0*boom_rw*boom_rz + 2.0*boom_rx*boom_ry;
     const double boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz;
     const double boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz;
-    out[0] = -boom_ox + (89.0/50.0)*boom_a00;
-    out[1] = -boom_oy + (89.0/50.0)*boom_a10;
-    out[2] = -boom_oz + (89.0/50.0)*boom_a20;
+    out[0] = (89.0/50.0)*boom_a00 - boom_ox;
+    out[1] = (89.0/50.0)*boom_a10 - boom_oy;
+    out[2] = (89.0/50.0)*boom_a20 - boom_oz;
     out[3] = boom_a20;
     out[4] = boom_a21;
 }
@@ -46,7 +47,7 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double boom_rz = q[3];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*boom_rz*cos(c0) + 2.0*boom_rw*sin(c0);
+    out[0] = 2.0*sin(c0)*boom_rw - 2.0*cos(c0)*boom_rz;
 }
 
 /* Phi_q values of the joint rows (13 entries). */
@@ -88,8 +89,8 @@ static void compute_drivers_jac_swing(const double *q, const double *u, double *
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*boom_rx - c2*boom_ry;
-    out[1] = c2*boom_rx - c1*boom_ry;
+    out[0] = -c2*boom_ry - c1*boom_rx;
+    out[1] = -c1*boom_ry + c2*boom_rx;
     out[2] = -c1*boom_rz - c2*boom_rw;
 }
 
@@ -100,7 +101,7 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(boom_rw*cos(c0) + boom_rz*sin(c0));
+    out[0] = -(sin(c0)*boom_rz + cos(c0)*boom_rw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -118,15 +119,17 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double boom_a11 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_ry*boom_ry);
     const double boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz;
     const double boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz;
-    const double c0 = -89.0/50.0*boom_a00*v_boom_wy + (89.0/50.0)*boom_a10*v_boom_wx;
-    const double c1 = boom_a00*v_boom_wz - boom_a20*v_boom_wx;
-    const double c2 = boom_a20*v_boom_wy - boom_a10*v_boom_wz;
-    const double c3 = c1*v_boom_wx;
-    out[0] = -c0*v_boom_wy + (89.0/50.0)*c1*v_boom_wz;
-    out[1] = c0*v_boom_wx - 89.0/50.0*c2*v_boom_wz;
-    out[2] = -89.0/50.0*c3 + (89.0/50.0)*c2*v_boom_wy;
-    out[3] = -c3 + c2*v_boom_wy;
-    out[4] = v_boom_wy*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - v_boom_wx*(boom_a01*v_boom_wz - boom_a21*v_boom_wx);
+    const double c0 = (89.0/50.0)*(-boom_a00*v_boom_wy + boom_a10*v_boom_wx);
+    const double c1 = -boom_a20*v_boom_wx + boom_a00*v_boom_wz;
+    const double c2 = (89.0/50.0)*v_boom_wz;
+    const double c3 = -boom_a10*v_boom_wz + boom_a20*v_boom_wy;
+    const double c4 = c1*v_boom_wx;
+    const double c5 = c3*v_boom_wy;
+    out[0] = c2*c1 - c0*v_boom_wy;
+    out[1] = c0*v_boom_wx - c2*c3;
+    out[2] = (89.0/50.0)*c5 - 89.0/50.0*c4;
+    out[3] = -c4 + c5;
+    out[4] = -(-boom_a21*v_boom_wx + boom_a01*v_boom_wz)*v_boom_wx + (-boom_a11*v_boom_wz + boom_a21*v_boom_wy)*v_boom_wy;
 }
 
 /* gamma of the driver rows of case 'swing'. */
@@ -144,14 +147,15 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*boom_rw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*boom_rz;
-    const double c5 = (1.0/2.0)*v_boom_wy;
-    const double c6 = (1.0/2.0)*v_boom_wx;
-    const double c7 = (1.0/2.0)*boom_rz;
-    const double c8 = (1.0/2.0)*v_boom_wz;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*boom_rw + c2*boom_rz) - (c1*v_boom_wy - c2*v_boom_wx)*(c3*v_boom_wx + c7*v_boom_wy - c8*boom_ry) - (-c1*v_boom_wx - c2*v_boom_wy)*(c3*v_boom_wy + c8*boom_rx - c7*v_boom_wx) - 2.0*ud0*(c4*v_boom_wz + v_boom_wx*((1.0/2.0)*c2*boom_ry - c9*boom_rx) + v_boom_wy*(-c9*boom_ry - 1.0/2.0*c2*boom_rx)) + c1*v_boom_wz*(-c5*boom_ry - c6*boom_rx - c7*v_boom_wz) + c2*v_boom_wz*(c3*v_boom_wz + c6*boom_ry - c5*boom_rx);
+    const double c3 = (1.0/2.0)*c2;
+    const double c4 = (1.0/2.0)*boom_rx;
+    const double c5 = c3*boom_rw;
+    const double c6 = (1.0/2.0)*c1;
+    const double c7 = c6*boom_rz;
+    const double c8 = (1.0/2.0)*boom_ry;
+    const double c9 = (1.0/2.0)*boom_rz;
+    const double c10 = (1.0/2.0)*boom_rw;
+    out[0] = c2*(-c4*v_boom_wy + c8*v_boom_wx + c10*v_boom_wz)*v_boom_wz - (-c2*v_boom_wy - c1*v_boom_wx)*(-c9*v_boom_wx + c4*v_boom_wz + c10*v_boom_wy) - (c1*v_boom_wy - c2*v_boom_wx)*(-c8*v_boom_wz + c9*v_boom_wy + c10*v_boom_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_boom_wy - c9*v_boom_wz - c4*v_boom_wx)*v_boom_wz - 2.0*ud0*((-c6*boom_ry - c3*boom_rx)*v_boom_wy + (-c7 + c5)*v_boom_wz + (-c1*c4 + c3*boom_ry)*v_boom_wx) - (c2*boom_rz + c1*boom_rw)*udd0;
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -256,46 +260,47 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step0*step0);
     const double _t1 = (step1*step1);
     const double _t2 = (step2*step2);
-    const double _t3 = (1.0/4.0)*_t0 + (1.0/4.0)*_t1 + (1.0/4.0)*_t2;
+    const double _t3 = (1.0/4.0)*_t2 + (1.0/4.0)*_t1 + (1.0/4.0)*_t0;
     const double _t4 = sqrt(_t3);
     const double _t5 = cos(_t4);
     const double _t6 = (_t3*_t3);
-    const double _t7 = _t4 < 0.0001;
-    const double _t8 = sin(_t4)/_t4;
-    const double _t9 = ((_t7) ? ( 1.0 - 1.0/24.0*_t0 - 1.0/24.0*_t1 - 1.0/24.0*_t2 + (1.0/120.0)*_t6 ) : ( _t8 ));
-    const double _t10 = (1.0/2.0)*step0;
-    const double _t11 = _t10*_t9;
-    const double _t12 = (1.0/2.0)*step1;
-    const double _t13 = _t12*_t9;
-    const double _t14 = (1.0/2.0)*step2;
-    const double _t15 = _t14*_t9;
-    const double _t16 = (1.0/2.0)*step3;
-    const double _t17 = (1.0/2.0)*step5;
-    const double _t18 = 2.0*q7;
-    const double _t19 = 2.0*q6;
-    const double _t20 = 2.0*q2;
-    const double _t21 = 2.0*q3;
-    const double _t22 = (1.0/2.0)*_t17 + (1.0/2.0)*_t18*q0 + (1.0/2.0)*_t19*q1 - 1.0/2.0*_t20*q5 - 1.0/2.0*_t21*q4;
-    const double _t23 = (1.0/2.0)*step4;
-    const double _t24 = _t23 + _t19*q0 + _t21*q5 - _t18*q1 - _t20*q4;
-    const double _t25 = _t16 + _t14*_t24 - _t22*step1;
-    const double _t26 = _t16 + _t18*q2 - _t19*q3 - 2.0*q1*q4 + 2.0*q0*q5;
-    const double _t27 = _t23 + _t22*step0 - _t14*_t26;
-    const double _t28 = _t17 + _t12*_t26 - _t10*_t24;
-    const double _t29 = _t10*_t25 + _t12*_t27 + _t14*_t28;
-    const double _t30 = _t29*_t9;
-    const double _t31 = _t29*((_t7) ? ( -1.0/3.0 - 1.0/840.0*_t6 + (1.0/120.0)*_t0 + (1.0/120.0)*_t1 + (1.0/120.0)*_t2 ) : ( (_t5 - _t8)/_t3 ));
-    const double _t32 = _t10*_t31 + _t25*_t9;
-    const double _t33 = _t12*_t31 + _t27*_t9;
-    const double _t34 = _t14*_t31 + _t28*_t9;
-    const double moved0 = _t5*q0 - _t11*q1 - _t13*q2 - _t15*q3;
-    const double moved1 = _t11*q0 + _t13*q3 + _t5*q1 - _t15*q2;
-    const double moved2 = _t13*q0 + _t15*q1 + _t5*q2 - _t11*q3;
-    const double moved3 = _t11*q2 + _t15*q0 + _t5*q3 - _t13*q1;
-    const double moved4 = _t5*q4 - _t11*q5 - _t13*q6 - _t15*q7 - _t30*q0 - _t32*q1 - _t33*q2 - _t34*q3;
-    const double moved5 = _t11*q4 + _t13*q7 + _t32*q0 + _t33*q3 + _t5*q5 - _t15*q6 - _t30*q1 - _t34*q2;
-    const double moved6 = _t13*q4 + _t15*q5 + _t33*q0 + _t34*q1 + _t5*q6 - _t11*q7 - _t30*q2 - _t32*q3;
-    const double moved7 = _t11*q6 + _t15*q4 + _t32*q2 + _t34*q0 + _t5*q7 - _t13*q5 - _t30*q3 - _t33*q1;
+    const double _t7 = sin(_t4)/_t4;
+    const double _t8 = ((_t4 < 0.0001) ? ( 1.0 + (1.0/120.0)*_t6 - 1.0/24.0*_t2 - 1.0/24.0*_t1 - 1.0/24.0*_t0 ) : ( _t7 ));
+    const double _t9 = (1.0/2.0)*step0;
+    const double _t10 = _t8*_t9;
+    const double _t11 = (1.0/2.0)*step1;
+    const double _t12 = _t8*_t11;
+    const double _t13 = (1.0/2.0)*step2;
+    const double _t14 = _t8*_t13;
+    const double _t15 = (1.0/2.0)*step3;
+    const double _t16 = (1.0/2.0)*step4;
+    const double _t17 = 2.0*q1;
+    const double _t18 = 2.0*q3;
+    const double _t19 = 2.0*q2;
+    const double _t20 = 2.0*q0;
+    const double _t21 = q6*_t20 + q5*_t18 - q7*_t17 - q4*_t19 + _t16;
+    const double _t22 = (1.0/2.0)*step5;
+    const double _t23 = 2.0*q5;
+    const double _t24 = q7*_t20 - q4*_t18 - q2*_t23 + q6*_t17 + _t22;
+    const double _t25 = -_t24*_t11 + _t21*_t13 + _t15;
+    const double _t26 = q7*_t19 + q0*_t23 - q6*_t18 - q4*_t17 + _t15;
+    const double _t27 = -_t21*_t9 + _t26*_t11 + _t22;
+    const double _t28 = -_t26*_t13 + _t24*_t9 + _t16;
+    const double _t29 = _t28*_t11 + _t27*_t13 + _t25*_t9;
+    const double _t30 = _t29*((_t4 < 0.0001) ? ( -1.0/3.0 + (1.0/120.0)*_t2 + (1.0/120.0)*_t1 + (1.0/120.0)*_t0 - 1.0/840.0*_t6 ) : ( (_t5 - _t7)/_t3 ));
+    const double _t31 = _t30*_t9 + _t8*_t25;
+    const double _t32 = _t30*_t11 + _t8*_t28;
+    const double _t33 = _t8*_t29;
+    const double _t34 = _t30*_t13 + _t8*_t27;
+    const double _t35 = q7*_t8;
+    const double moved0 = -q3*_t14 - q2*_t12 - q1*_t10 + q0*_t5;
+    const double moved1 = -q2*_t14 + q3*_t12 + q0*_t10 + q1*_t5;
+    const double moved2 = -q3*_t10 + q1*_t14 + q0*_t12 + q2*_t5;
+    const double moved3 = -q1*_t12 + q0*_t14 + q2*_t10 + q3*_t5;
+    const double moved4 = -q5*_t10 - _t35*_t13 - q3*_t34 - q6*_t12 - q0*_t33 - q2*_t32 - q1*_t31 + q4*_t5;
+    const double moved5 = -q6*_t14 - q1*_t33 - q2*_t34 + q3*_t32 + q4*_t10 + _t35*_t11 + q5*_t5 + q0*_t31;
+    const double moved6 = -q7*_t10 - q2*_t33 + q5*_t14 + q4*_t12 - q3*_t31 + q6*_t5 + q1*_t34 + q0*_t32;
+    const double moved7 = q6*_t10 - q5*_t12 - q3*_t33 + q7*_t5 + q2*_t31 + q4*_t14 - q1*_t32 + q0*_t34;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

@@ -6,6 +6,7 @@ source sha256:   9ca606fa182152ec864781897d3f0cd9fd3e57339b37499de2af8b920a6f73b
 parametrization: dual-quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 8) and v (velocity, 6) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -46,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_quaternion.h': 'a9a143b5eada10a0b4088031bbedc1ed5146a6c0eab059e6a0e0242a9d221be5', 'boom_dual_quaternion.c': '4603a1d253f8966726774f1843d23043d6486ea1e9dc8054df4dd0e7b997110f'}
+C_FILES = {'boom_dual_quaternion.h': '3aca163a854e35472b0b0eed7c32382b4518717b636d82a33f38fbc6c5550064', 'boom_dual_quaternion.c': '010e7975e5297a649ecf4087b48108f40644c9e44b6c9ebbe5cd4cfdbfcdcbdc'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 
@@ -272,9 +273,9 @@ def _joints_phi(q):
     boom_a20 = -2*boom_rw*boom_ry + 2*boom_rx*boom_rz
     boom_a21 = 2*boom_rw*boom_rx + 2*boom_ry*boom_rz
     out = _zeros(5, q, ())
-    out[0] = -boom_ox + (89/50)*boom_a00
-    out[1] = -boom_oy + (89/50)*boom_a10
-    out[2] = -boom_oz + (89/50)*boom_a20
+    out[0] = (89/50)*boom_a00 - boom_ox
+    out[1] = (89/50)*boom_a10 - boom_oy
+    out[2] = (89/50)*boom_a20 - boom_oz
     out[3] = boom_a20
     out[4] = boom_a21
     return out
@@ -286,7 +287,7 @@ def _drivers_phi_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*boom_rz*cos(c0) + 2*boom_rw*sin(c0)
+    out[0] = 2*sin(c0)*boom_rw - 2*cos(c0)*boom_rz
     return out
 
 
@@ -331,8 +332,8 @@ def _drivers_jac_swing(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*boom_rx - c2*boom_ry
-    out[1] = c2*boom_rx - c1*boom_ry
+    out[0] = -c2*boom_ry - c1*boom_rx
+    out[1] = -c1*boom_ry + c2*boom_rx
     out[2] = -c1*boom_rz - c2*boom_rw
     return out
 
@@ -357,7 +358,7 @@ def _joints_phi_joints_jac_s(q):
     d0 = (89/50)*boom_a20
     d1 = (89/50)*boom_a10
     d2 = (89/50)*boom_a00
-    return [-boom_ox + (89/50)*boom_a00, -boom_oy + (89/50)*boom_a10, -boom_oz + (89/50)*boom_a20, boom_a20, boom_a21], [d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, -1.0, boom_a10, -boom_a00, boom_a11, -boom_a01]
+    return [(89/50)*boom_a00 - boom_ox, (89/50)*boom_a10 - boom_oy, (89/50)*boom_a20 - boom_oz, boom_a20, boom_a21], [d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, -1.0, boom_a10, -boom_a00, boom_a11, -boom_a01]
 
 
 def _drivers_phi_swing_drivers_jac_swing_s(q, u):
@@ -368,7 +369,7 @@ def _drivers_phi_swing_drivers_jac_swing_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*boom_rz*math.cos(c0) + 2.0*boom_rw*math.sin(c0)], [-d1*boom_rx - d2*boom_ry, d2*boom_rx - d1*boom_ry, -d1*boom_rz - d2*boom_rw]
+    return [2.0*math.sin(c0)*boom_rw - 2.0*math.cos(c0)*boom_rz], [-d2*boom_ry - d1*boom_rx, -d1*boom_ry + d2*boom_rx, -d1*boom_rz - d2*boom_rw]
 
 
 def phi_jac_s_swing(q, u):
@@ -385,7 +386,7 @@ def _drivers_nu_swing(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(boom_rw*cos(c0) + boom_rz*sin(c0))
+    out[0] = -(sin(c0)*boom_rz + cos(c0)*boom_rw)*ud0
     return out
 
 
@@ -400,7 +401,7 @@ def _drivers_nu_swing_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(boom_rw*math.cos(c0) + boom_rz*math.sin(c0))]
+    return [-(math.sin(c0)*boom_rz + math.cos(c0)*boom_rw)*ud0]
 
 
 def nu_s_swing(q, u, ud):
@@ -419,16 +420,18 @@ def _joints_gamma(q, v):
     boom_a11 = -1 + 2*boom_rw**2 + 2*boom_ry**2
     boom_a20 = -2*boom_rw*boom_ry + 2*boom_rx*boom_rz
     boom_a21 = 2*boom_rw*boom_rx + 2*boom_ry*boom_rz
-    c0 = -89/50*boom_a00*v_boom_wy + (89/50)*boom_a10*v_boom_wx
-    c1 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c2 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c3 = c1*v_boom_wx
+    c0 = (89/50)*(-boom_a00*v_boom_wy + boom_a10*v_boom_wx)
+    c1 = -boom_a20*v_boom_wx + boom_a00*v_boom_wz
+    c2 = (89/50)*v_boom_wz
+    c3 = -boom_a10*v_boom_wz + boom_a20*v_boom_wy
+    c4 = c1*v_boom_wx
+    c5 = c3*v_boom_wy
     out = _zeros(5, q, ())
-    out[0] = -c0*v_boom_wy + (89/50)*c1*v_boom_wz
-    out[1] = c0*v_boom_wx - 89/50*c2*v_boom_wz
-    out[2] = -89/50*c3 + (89/50)*c2*v_boom_wy
-    out[3] = -c3 + c2*v_boom_wy
-    out[4] = v_boom_wy*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - v_boom_wx*(boom_a01*v_boom_wz - boom_a21*v_boom_wx)
+    out[0] = c2*c1 - c0*v_boom_wy
+    out[1] = c0*v_boom_wx - c2*c3
+    out[2] = (89/50)*c5 - 89/50*c4
+    out[3] = -c4 + c5
+    out[4] = -(-boom_a21*v_boom_wx + boom_a01*v_boom_wz)*v_boom_wx + (-boom_a11*v_boom_wz + boom_a21*v_boom_wy)*v_boom_wy
     return out
 
 
@@ -442,15 +445,16 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*boom_rw
-    c4 = c2*c3 - 1/2*c1*boom_rz
-    c5 = (1/2)*v_boom_wy
-    c6 = (1/2)*v_boom_wx
-    c7 = (1/2)*boom_rz
-    c8 = (1/2)*v_boom_wz
-    c9 = (1/2)*c1
+    c3 = (1/2)*c2
+    c4 = (1/2)*boom_rx
+    c5 = c3*boom_rw
+    c6 = (1/2)*c1
+    c7 = c6*boom_rz
+    c8 = (1/2)*boom_ry
+    c9 = (1/2)*boom_rz
+    c10 = (1/2)*boom_rw
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*boom_rw + c2*boom_rz) - (c1*v_boom_wy - c2*v_boom_wx)*(c3*v_boom_wx + c7*v_boom_wy - c8*boom_ry) - (-c1*v_boom_wx - c2*v_boom_wy)*(c3*v_boom_wy + c8*boom_rx - c7*v_boom_wx) - 2*ud0*(c4*v_boom_wz + v_boom_wx*((1/2)*c2*boom_ry - c9*boom_rx) + v_boom_wy*(-c9*boom_ry - 1/2*c2*boom_rx)) + c1*v_boom_wz*(-c5*boom_ry - c6*boom_rx - c7*v_boom_wz) + c2*v_boom_wz*(c3*v_boom_wz + c6*boom_ry - c5*boom_rx)
+    out[0] = c2*(-c4*v_boom_wy + c8*v_boom_wx + c10*v_boom_wz)*v_boom_wz - (-c2*v_boom_wy - c1*v_boom_wx)*(-c9*v_boom_wx + c4*v_boom_wz + c10*v_boom_wy) - (c1*v_boom_wy - c2*v_boom_wx)*(-c8*v_boom_wz + c9*v_boom_wy + c10*v_boom_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_boom_wy - c9*v_boom_wz - c4*v_boom_wx)*v_boom_wz - 2*ud0*((-c6*boom_ry - c3*boom_rx)*v_boom_wy + (-c7 + c5)*v_boom_wz + (-c1*c4 + c3*boom_ry)*v_boom_wx) - (c2*boom_rz + c1*boom_rw)*udd0
     return out
 
 
@@ -469,11 +473,13 @@ def _joints_gamma_s(q, v):
     boom_a11 = -1.0 + 2.0*(boom_rw*boom_rw) + 2.0*(boom_ry*boom_ry)
     boom_a20 = -2.0*boom_rw*boom_ry + 2.0*boom_rx*boom_rz
     boom_a21 = 2.0*boom_rw*boom_rx + 2.0*boom_ry*boom_rz
-    c0 = -89/50*boom_a00*v_boom_wy + (89/50)*boom_a10*v_boom_wx
-    c1 = boom_a00*v_boom_wz - boom_a20*v_boom_wx
-    c2 = boom_a20*v_boom_wy - boom_a10*v_boom_wz
-    c3 = c1*v_boom_wx
-    return [-c0*v_boom_wy + (89/50)*c1*v_boom_wz, c0*v_boom_wx - 89/50*c2*v_boom_wz, -89/50*c3 + (89/50)*c2*v_boom_wy, -c3 + c2*v_boom_wy, v_boom_wy*(boom_a21*v_boom_wy - boom_a11*v_boom_wz) - v_boom_wx*(boom_a01*v_boom_wz - boom_a21*v_boom_wx)]
+    c0 = (89/50)*(-boom_a00*v_boom_wy + boom_a10*v_boom_wx)
+    c1 = -boom_a20*v_boom_wx + boom_a00*v_boom_wz
+    c2 = (89/50)*v_boom_wz
+    c3 = -boom_a10*v_boom_wz + boom_a20*v_boom_wy
+    c4 = c1*v_boom_wx
+    c5 = c3*v_boom_wy
+    return [c2*c1 - c0*v_boom_wy, c0*v_boom_wx - c2*c3, (89/50)*c5 - 89/50*c4, -c4 + c5, -(-boom_a21*v_boom_wx + boom_a01*v_boom_wz)*v_boom_wx + (-boom_a11*v_boom_wz + boom_a21*v_boom_wy)*v_boom_wy]
 
 
 def _drivers_gamma_swing_s(q, v, u, ud, udd):
@@ -486,14 +492,15 @@ def _drivers_gamma_swing_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*boom_rw
-    c4 = c2*c3 - 1/2*c1*boom_rz
-    c5 = (1/2)*v_boom_wy
-    c6 = (1/2)*v_boom_wx
-    c7 = (1/2)*boom_rz
-    c8 = (1/2)*v_boom_wz
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*boom_rw + c2*boom_rz) - (c1*v_boom_wy - c2*v_boom_wx)*(c3*v_boom_wx + c7*v_boom_wy - c8*boom_ry) - (-c1*v_boom_wx - c2*v_boom_wy)*(c3*v_boom_wy + c8*boom_rx - c7*v_boom_wx) - 2.0*ud0*(c4*v_boom_wz + v_boom_wx*((1/2)*c2*boom_ry - c9*boom_rx) + v_boom_wy*(-c9*boom_ry - 1/2*c2*boom_rx)) + c1*v_boom_wz*(-c5*boom_ry - c6*boom_rx - c7*v_boom_wz) + c2*v_boom_wz*(c3*v_boom_wz + c6*boom_ry - c5*boom_rx)]
+    c3 = (1/2)*c2
+    c4 = (1/2)*boom_rx
+    c5 = c3*boom_rw
+    c6 = (1/2)*c1
+    c7 = c6*boom_rz
+    c8 = (1/2)*boom_ry
+    c9 = (1/2)*boom_rz
+    c10 = (1/2)*boom_rw
+    return [c2*(-c4*v_boom_wy + c8*v_boom_wx + c10*v_boom_wz)*v_boom_wz - (-c2*v_boom_wy - c1*v_boom_wx)*(-c9*v_boom_wx + c4*v_boom_wz + c10*v_boom_wy) - (c1*v_boom_wy - c2*v_boom_wx)*(-c8*v_boom_wz + c9*v_boom_wy + c10*v_boom_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_boom_wy - c9*v_boom_wz - c4*v_boom_wx)*v_boom_wz - 2.0*ud0*((-c6*boom_ry - c3*boom_rx)*v_boom_wy + (-c7 + c5)*v_boom_wz + (-c1*c4 + c3*boom_ry)*v_boom_wx) - (c2*boom_rz + c1*boom_rw)*udd0]
 
 
 def gamma_s_swing(q, v, u, ud, udd):

@@ -6,6 +6,7 @@
  * parametrization: euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -29,12 +30,12 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_a10 = 2.0*boom_e0*boom_e3 + 2.0*boom_e1*boom_e2;
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
-    out[0] = -boom_x + (89.0/50.0)*boom_a00;
-    out[1] = -boom_y + (89.0/50.0)*boom_a10;
-    out[2] = -boom_z + (89.0/50.0)*boom_a20;
+    out[0] = (89.0/50.0)*boom_a00 - boom_x;
+    out[1] = (89.0/50.0)*boom_a10 - boom_y;
+    out[2] = (89.0/50.0)*boom_a20 - boom_z;
     out[3] = boom_a20;
     out[4] = boom_a21;
-    out[5] = -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3);
+    out[5] = -1.0 + (boom_e3*boom_e3) + (boom_e2*boom_e2) + (boom_e1*boom_e1) + (boom_e0*boom_e0);
 }
 
 /* Phi of the driver rows of case 'swing'. */
@@ -43,7 +44,7 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double boom_e3 = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*boom_e3*cos(c0) + 2.0*boom_e0*sin(c0);
+    out[0] = 2.0*sin(c0)*boom_e0 - 2.0*cos(c0)*boom_e3;
 }
 
 /* Phi_q values of the joint rows (25 entries). */
@@ -103,7 +104,7 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(boom_e0*cos(c0) + boom_e3*sin(c0));
+    out[0] = -(sin(c0)*boom_e3 + cos(c0)*boom_e0)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -113,16 +114,16 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_boom_e1 = v[4];
     const double v_boom_e2 = v[5];
     const double v_boom_e3 = v[6];
-    const double c0 = (178.0/25.0)*v_boom_e3;
-    const double c1 = (178.0/25.0)*v_boom_e2;
-    const double c2 = 4.0*v_boom_e2;
-    const double c3 = 4.0*v_boom_e1;
-    out[0] = -178.0/25.0*(v_boom_e0*v_boom_e0) - 178.0/25.0*(v_boom_e1*v_boom_e1);
-    out[1] = -c0*v_boom_e0 - c1*v_boom_e1;
-    out[2] = c1*v_boom_e0 - c0*v_boom_e1;
-    out[3] = c2*v_boom_e0 - c3*v_boom_e3;
-    out[4] = -c2*v_boom_e3 - c3*v_boom_e0;
-    out[5] = -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3);
+    const double c0 = (178.0/25.0)*v_boom_e0;
+    const double c1 = (178.0/25.0)*v_boom_e1;
+    const double c2 = 4.0*v_boom_e1;
+    const double c3 = 4.0*v_boom_e2;
+    out[0] = -178.0/25.0*(v_boom_e1*v_boom_e1) - 178.0/25.0*(v_boom_e0*v_boom_e0);
+    out[1] = -c1*v_boom_e2 - c0*v_boom_e3;
+    out[2] = c0*v_boom_e2 - c1*v_boom_e3;
+    out[3] = c3*v_boom_e0 - c2*v_boom_e3;
+    out[4] = -c3*v_boom_e3 - c2*v_boom_e0;
+    out[5] = -2.0*(v_boom_e3*v_boom_e3) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e0*v_boom_e0);
 }
 
 /* gamma of the driver rows of case 'swing'. */
@@ -137,7 +138,7 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    out[0] = -udd0*(c1*boom_e0 + c2*boom_e3) - (ud0*ud0)*((1.0/2.0)*c1*boom_e3 - 1.0/2.0*c2*boom_e0) - 2.0*ud0*(c1*v_boom_e0 + c2*v_boom_e3);
+    out[0] = -2.0*(c2*v_boom_e3 + c1*v_boom_e0)*ud0 - (-1.0/2.0*c2*boom_e0 + (1.0/2.0)*c1*boom_e3)*(ud0*ud0) - (c2*boom_e3 + c1*boom_e0)*udd0;
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -195,12 +196,11 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double boom_a20 = -2.0*boom_e0*boom_e2 + 2.0*boom_e1*boom_e3;
     const double boom_a21 = 2.0*boom_e0*boom_e1 + 2.0*boom_e2*boom_e3;
     const double boom_a22 = -1.0 + 2.0*(boom_e0*boom_e0) + 2.0*(boom_e3*boom_e3);
-    const double c0 = 2.0*v_boom_e1;
-    const double c1 = 2.0*boom_e1;
-    const double c2 = 2.0*boom_e2;
-    const double c3 = 2.0*v_boom_e2;
-    const double c4 = 2.0*boom_e0;
-    const double c5 = 2.0*boom_e3;
+    const double c0 = 2.0*boom_e1;
+    const double c1 = 2.0*boom_e0;
+    const double c2 = 2.0*boom_e3;
+    const double c3 = 2.0*boom_e2;
+    const double c4 = 2.0*dv_boom_e0;
     out[0] = boom_x;
     out[1] = boom_y;
     out[2] = boom_z;
@@ -216,15 +216,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[12] = v_boom_x;
     out[13] = v_boom_y;
     out[14] = v_boom_z;
-    out[15] = c0*boom_e0 + c2*v_boom_e3 - c1*v_boom_e0 - c3*boom_e3;
-    out[16] = c0*boom_e3 + c3*boom_e0 - c1*v_boom_e3 - c2*v_boom_e0;
-    out[17] = c1*v_boom_e2 + c4*v_boom_e3 - c0*boom_e2 - c5*v_boom_e0;
+    out[15] = -c2*v_boom_e2 + c3*v_boom_e3 + c1*v_boom_e1 - c0*v_boom_e0;
+    out[16] = c2*v_boom_e1 + c1*v_boom_e2 - c3*v_boom_e0 - c0*v_boom_e3;
+    out[17] = c0*v_boom_e2 + c1*v_boom_e3 - c2*v_boom_e0 - c3*v_boom_e1;
     out[18] = dv_boom_x;
     out[19] = dv_boom_y;
     out[20] = dv_boom_z;
-    out[21] = c2*dv_boom_e3 + c4*dv_boom_e1 - c1*dv_boom_e0 - c5*dv_boom_e2;
-    out[22] = c4*dv_boom_e2 + c5*dv_boom_e1 - c1*dv_boom_e3 - c2*dv_boom_e0;
-    out[23] = c1*dv_boom_e2 + c4*dv_boom_e3 - c2*dv_boom_e1 - c5*dv_boom_e0;
+    out[21] = c3*dv_boom_e3 + c1*dv_boom_e1 - c2*dv_boom_e2 - c4*boom_e1;
+    out[22] = c1*dv_boom_e2 + c2*dv_boom_e1 - c4*boom_e2 - c0*dv_boom_e3;
+    out[23] = c0*dv_boom_e2 + c1*dv_boom_e3 - c4*boom_e3 - c3*dv_boom_e1;
 }
 
 /* one body's coordinates moved by a step in velocity coordinates (euler-parameters) */
@@ -243,13 +243,13 @@ static void retract_body(double *q, const double *step) {
     const double step4 = step[4];
     const double step5 = step[5];
     const double step6 = step[6];
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = q3 + step3;
-    const double moved4 = q4 + step4;
-    const double moved5 = q5 + step5;
-    const double moved6 = q6 + step6;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = step3 + q3;
+    const double moved4 = step4 + q4;
+    const double moved5 = step5 + q5;
+    const double moved6 = step6 + q6;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

@@ -6,6 +6,7 @@ source sha256:   9ca606fa182152ec864781897d3f0cd9fd3e57339b37499de2af8b920a6f73b
 parametrization: euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 7) and v (velocity, 7) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -46,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_parameters.h': 'd2bc79901b9375a138e7886bd4a682f3c8fff0da4ac1dd3b2179d9e13083ba39', 'boom_euler_parameters.c': 'aef7b19d6b536eeb021d43539c1a69b5905cb2a0b01f50a2bbfb1bd29a241ef4'}
+C_FILES = {'boom_euler_parameters.h': '6050a3639df61a7808738fd85997fae7ff454a963d6a1e64d78a07326590e990', 'boom_euler_parameters.c': 'b5c3ed3a67333c6937d481e2dcead6b2b5e82647914a075372a459782cc23e7f'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 
@@ -230,12 +231,11 @@ def frames(q, v, a):
     boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
     boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
     boom_a22 = -1 + 2*boom_e0**2 + 2*boom_e3**2
-    c0 = 2*v_boom_e1
-    c1 = 2*boom_e1
-    c2 = 2*boom_e2
-    c3 = 2*v_boom_e2
-    c4 = 2*boom_e0
-    c5 = 2*boom_e3
+    c0 = 2*boom_e1
+    c1 = 2*boom_e0
+    c2 = 2*boom_e3
+    c3 = 2*boom_e2
+    c4 = 2*dv_boom_e0
     out = _zeros(24, q, ())
     out[0] = boom_x
     out[1] = boom_y
@@ -252,15 +252,15 @@ def frames(q, v, a):
     out[12] = v_boom_x
     out[13] = v_boom_y
     out[14] = v_boom_z
-    out[15] = c0*boom_e0 + c2*v_boom_e3 - c1*v_boom_e0 - c3*boom_e3
-    out[16] = c0*boom_e3 + c3*boom_e0 - c1*v_boom_e3 - c2*v_boom_e0
-    out[17] = c1*v_boom_e2 + c4*v_boom_e3 - c0*boom_e2 - c5*v_boom_e0
+    out[15] = -c2*v_boom_e2 + c3*v_boom_e3 + c1*v_boom_e1 - c0*v_boom_e0
+    out[16] = c2*v_boom_e1 + c1*v_boom_e2 - c3*v_boom_e0 - c0*v_boom_e3
+    out[17] = c0*v_boom_e2 + c1*v_boom_e3 - c2*v_boom_e0 - c3*v_boom_e1
     out[18] = dv_boom_x
     out[19] = dv_boom_y
     out[20] = dv_boom_z
-    out[21] = c2*dv_boom_e3 + c4*dv_boom_e1 - c1*dv_boom_e0 - c5*dv_boom_e2
-    out[22] = c4*dv_boom_e2 + c5*dv_boom_e1 - c1*dv_boom_e3 - c2*dv_boom_e0
-    out[23] = c1*dv_boom_e2 + c4*dv_boom_e3 - c2*dv_boom_e1 - c5*dv_boom_e0
+    out[21] = c3*dv_boom_e3 + c1*dv_boom_e1 - c2*dv_boom_e2 - c4*boom_e1
+    out[22] = c1*dv_boom_e2 + c2*dv_boom_e1 - c4*boom_e2 - c0*dv_boom_e3
+    out[23] = c0*dv_boom_e2 + c1*dv_boom_e3 - c4*boom_e3 - c3*dv_boom_e1
     return out
 
 
@@ -272,12 +272,12 @@ def _joints_phi(q):
     boom_a20 = -2*boom_e0*boom_e2 + 2*boom_e1*boom_e3
     boom_a21 = 2*boom_e0*boom_e1 + 2*boom_e2*boom_e3
     out = _zeros(6, q, ())
-    out[0] = -boom_x + (89/50)*boom_a00
-    out[1] = -boom_y + (89/50)*boom_a10
-    out[2] = -boom_z + (89/50)*boom_a20
+    out[0] = (89/50)*boom_a00 - boom_x
+    out[1] = (89/50)*boom_a10 - boom_y
+    out[2] = (89/50)*boom_a20 - boom_z
     out[3] = boom_a20
     out[4] = boom_a21
-    out[5] = -1 + boom_e0**2 + boom_e1**2 + boom_e2**2 + boom_e3**2
+    out[5] = -1 + boom_e3**2 + boom_e2**2 + boom_e1**2 + boom_e0**2
     return out
 
 
@@ -287,7 +287,7 @@ def _drivers_phi_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*boom_e3*cos(c0) + 2*boom_e0*sin(c0)
+    out[0] = 2*sin(c0)*boom_e0 - 2*cos(c0)*boom_e3
     return out
 
 
@@ -366,7 +366,7 @@ def _joints_phi_joints_jac_s(q):
     d5 = 2.0*boom_e3
     d6 = 2.0*boom_e0
     d7 = 2.0*boom_e1
-    return [-boom_x + (89/50)*boom_a00, -boom_y + (89/50)*boom_a10, -boom_z + (89/50)*boom_a20, boom_a20, boom_a21, -1.0 + (boom_e0*boom_e0) + (boom_e1*boom_e1) + (boom_e2*boom_e2) + (boom_e3*boom_e3)], [-1.0, (178/25)*boom_e0, (178/25)*boom_e1, -1.0, d0, d1, d2, d3, -1.0, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, 2.0*boom_e0, 2.0*boom_e1, 2.0*boom_e2, 2.0*boom_e3]
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21, -1.0 + (boom_e3*boom_e3) + (boom_e2*boom_e2) + (boom_e1*boom_e1) + (boom_e0*boom_e0)], [-1.0, (178/25)*boom_e0, (178/25)*boom_e1, -1.0, d0, d1, d2, d3, -1.0, -d1, d0, -d3, d2, -d4, d5, -d6, d7, d7, d6, d5, d4, 2.0*boom_e0, 2.0*boom_e1, 2.0*boom_e2, 2.0*boom_e3]
 
 
 def _drivers_phi_swing_drivers_jac_swing_s(q, u):
@@ -375,7 +375,7 @@ def _drivers_phi_swing_drivers_jac_swing_s(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [-2.0*boom_e3*math.cos(c0) + 2.0*boom_e0*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [2.0*math.sin(c0)*boom_e0 - 2.0*math.cos(c0)*boom_e3], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def phi_jac_s_swing(q, u):
@@ -392,7 +392,7 @@ def _drivers_nu_swing(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(boom_e0*cos(c0) + boom_e3*sin(c0))
+    out[0] = -(sin(c0)*boom_e3 + cos(c0)*boom_e0)*ud0
     return out
 
 
@@ -407,7 +407,7 @@ def _drivers_nu_swing_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(boom_e0*math.cos(c0) + boom_e3*math.sin(c0))]
+    return [-(math.sin(c0)*boom_e3 + math.cos(c0)*boom_e0)*ud0]
 
 
 def nu_s_swing(q, u, ud):
@@ -419,17 +419,17 @@ def nu_s_swing(q, u, ud):
 def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
-    c0 = (178/25)*v_boom_e3
-    c1 = (178/25)*v_boom_e2
-    c2 = 4*v_boom_e2
-    c3 = 4*v_boom_e1
+    c0 = (178/25)*v_boom_e0
+    c1 = (178/25)*v_boom_e1
+    c2 = 4*v_boom_e1
+    c3 = 4*v_boom_e2
     out = _zeros(6, q, ())
-    out[0] = -178/25*v_boom_e0**2 - 178/25*v_boom_e1**2
-    out[1] = -c0*v_boom_e0 - c1*v_boom_e1
-    out[2] = c1*v_boom_e0 - c0*v_boom_e1
-    out[3] = c2*v_boom_e0 - c3*v_boom_e3
-    out[4] = -c2*v_boom_e3 - c3*v_boom_e0
-    out[5] = -2*v_boom_e0**2 - 2*v_boom_e1**2 - 2*v_boom_e2**2 - 2*v_boom_e3**2
+    out[0] = -178/25*v_boom_e1**2 - 178/25*v_boom_e0**2
+    out[1] = -c1*v_boom_e2 - c0*v_boom_e3
+    out[2] = c0*v_boom_e2 - c1*v_boom_e3
+    out[3] = c3*v_boom_e0 - c2*v_boom_e3
+    out[4] = -c3*v_boom_e3 - c2*v_boom_e0
+    out[5] = -2*v_boom_e3**2 - 2*v_boom_e2**2 - 2*v_boom_e1**2 - 2*v_boom_e0**2
     return out
 
 
@@ -444,7 +444,7 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -udd0*(c1*boom_e0 + c2*boom_e3) - ud0**2*((1/2)*c1*boom_e3 - 1/2*c2*boom_e0) - 2*ud0*(c1*v_boom_e0 + c2*v_boom_e3)
+    out[0] = -2*(c2*v_boom_e3 + c1*v_boom_e0)*ud0 - (-1/2*c2*boom_e0 + (1/2)*c1*boom_e3)*ud0**2 - (c2*boom_e3 + c1*boom_e0)*udd0
     return out
 
 
@@ -456,11 +456,11 @@ def gamma_swing(q, v, u, ud, udd):
 def _joints_gamma_s(q, v):
     """gamma of the joint rows (they do not depend on time). (one configuration, lists of floats)"""
     _, _, _, v_boom_e0, v_boom_e1, v_boom_e2, v_boom_e3 = v
-    c0 = (178/25)*v_boom_e3
-    c1 = (178/25)*v_boom_e2
-    c2 = 4.0*v_boom_e2
-    c3 = 4.0*v_boom_e1
-    return [-178/25*(v_boom_e0*v_boom_e0) - 178/25*(v_boom_e1*v_boom_e1), -c0*v_boom_e0 - c1*v_boom_e1, c1*v_boom_e0 - c0*v_boom_e1, c2*v_boom_e0 - c3*v_boom_e3, -c2*v_boom_e3 - c3*v_boom_e0, -2.0*(v_boom_e0*v_boom_e0) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e3*v_boom_e3)]
+    c0 = (178/25)*v_boom_e0
+    c1 = (178/25)*v_boom_e1
+    c2 = 4.0*v_boom_e1
+    c3 = 4.0*v_boom_e2
+    return [-178/25*(v_boom_e1*v_boom_e1) - 178/25*(v_boom_e0*v_boom_e0), -c1*v_boom_e2 - c0*v_boom_e3, c0*v_boom_e2 - c1*v_boom_e3, c3*v_boom_e0 - c2*v_boom_e3, -c3*v_boom_e3 - c2*v_boom_e0, -2.0*(v_boom_e3*v_boom_e3) - 2.0*(v_boom_e2*v_boom_e2) - 2.0*(v_boom_e1*v_boom_e1) - 2.0*(v_boom_e0*v_boom_e0)]
 
 
 def _drivers_gamma_swing_s(q, v, u, ud, udd):
@@ -473,7 +473,7 @@ def _drivers_gamma_swing_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-udd0*(c1*boom_e0 + c2*boom_e3) - (ud0*ud0)*((1/2)*c1*boom_e3 - 1/2*c2*boom_e0) - 2.0*ud0*(c1*v_boom_e0 + c2*v_boom_e3)]
+    return [-2.0*(c2*v_boom_e3 + c1*v_boom_e0)*ud0 - (-1/2*c2*boom_e0 + (1/2)*c1*boom_e3)*(ud0*ud0) - (c2*boom_e3 + c1*boom_e0)*udd0]
 
 
 def gamma_s_swing(q, v, u, ud, udd):

@@ -6,6 +6,7 @@
  * parametrization: euler:zxz
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -28,9 +29,9 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
     const double boom_a20 = sin(boom_beta)*sin(boom_gamma);
     const double boom_a21 = cos(boom_gamma)*sin(boom_beta);
-    out[0] = -boom_x + (89.0/50.0)*boom_a00;
-    out[1] = -boom_y + (89.0/50.0)*boom_a10;
-    out[2] = -boom_z + (89.0/50.0)*boom_a20;
+    out[0] = (89.0/50.0)*boom_a00 - boom_x;
+    out[1] = (89.0/50.0)*boom_a10 - boom_y;
+    out[2] = (89.0/50.0)*boom_a20 - boom_z;
     out[3] = boom_a20;
     out[4] = boom_a21;
 }
@@ -43,7 +44,7 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double u0 = u[0];
     const double boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma);
     const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
-    out[0] = boom_a00*sin(u0) - boom_a10*cos(u0);
+    out[0] = -cos(u0)*boom_a10 + sin(u0)*boom_a00;
 }
 
 /* Phi_q values of the joint rows (15 entries). */
@@ -51,34 +52,34 @@ static void compute_joints_jac(const double *q, double *out) {
     const double boom_alpha = q[3];
     const double boom_beta = q[4];
     const double boom_gamma = q[5];
-    const double c0 = sin(boom_alpha);
-    const double c1 = cos(boom_gamma);
-    const double c2 = cos(boom_alpha);
-    const double c3 = sin(boom_gamma);
-    const double c4 = cos(boom_beta);
-    const double c5 = c3*c4;
-    const double c6 = (89.0/50.0)*c5;
-    const double c7 = sin(boom_beta);
-    const double c8 = c3*c7;
-    const double c9 = (89.0/50.0)*c0;
+    const double c0 = cos(boom_gamma);
+    const double c1 = sin(boom_alpha);
+    const double c2 = (89.0/50.0)*c1;
+    const double c3 = cos(boom_alpha);
+    const double c4 = sin(boom_gamma);
+    const double c5 = cos(boom_beta);
+    const double c6 = c4*c5;
+    const double c7 = (89.0/50.0)*c6;
+    const double c8 = sin(boom_beta);
+    const double c9 = c4*c8;
     const double c10 = (89.0/50.0)*c3;
-    const double c11 = c1*c4;
-    const double c12 = c1*c7;
+    const double c11 = c0*c5;
+    const double c12 = c0*c8;
     out[0] = -1.0;
-    out[1] = -c2*c6 - 89.0/50.0*c0*c1;
-    out[2] = c8*c9;
-    out[3] = -c10*c2 - c11*c9;
+    out[1] = -c3*c7 - c0*c2;
+    out[2] = c2*c9;
+    out[3] = -c2*c11 - c4*c10;
     out[4] = -1.0;
-    out[5] = -c0*c6 + (89.0/50.0)*c1*c2;
-    out[6] = -89.0/50.0*c2*c8;
-    out[7] = -c0*c10 + (89.0/50.0)*c1*c2*c4;
+    out[5] = -c1*c7 + c0*c10;
+    out[6] = -c9*c10;
+    out[7] = c11*c10 - c2*c4;
     out[8] = -1.0;
-    out[9] = c6;
+    out[9] = c7;
     out[10] = (89.0/50.0)*c12;
-    out[11] = c5;
+    out[11] = c6;
     out[12] = c12;
     out[13] = c11;
-    out[14] = -c8;
+    out[14] = -c9;
 }
 
 /* Phi_q values of the driver rows of case 'swing'. */
@@ -90,17 +91,18 @@ static void compute_drivers_jac_swing(const double *q, const double *u, double *
     const double c0 = sin(u0);
     const double c1 = sin(boom_alpha);
     const double c2 = cos(boom_gamma);
-    const double c3 = c1*c2;
+    const double c3 = c2*c1;
     const double c4 = cos(boom_beta);
-    const double c5 = sin(boom_gamma);
-    const double c6 = cos(boom_alpha);
-    const double c7 = c5*c6;
+    const double c5 = cos(boom_alpha);
+    const double c6 = sin(boom_gamma);
+    const double c7 = c6*c5;
     const double c8 = cos(u0);
-    const double c9 = c1*c5;
-    const double c10 = sin(boom_beta);
-    out[0] = c0*(-c3 - c4*c7) - c8*(c2*c6 - c4*c9);
-    out[1] = c0*c10*c9 + c10*c7*c8;
-    out[2] = c0*(-c7 - c3*c4) - c8*(-c9 + c2*c4*c6);
+    const double c9 = c2*c5;
+    const double c10 = c1*c6;
+    const double c11 = sin(boom_beta);
+    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3);
+    out[1] = c0*c11*c10 + c8*c7*c11;
+    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7);
 }
 
 /* nu of the driver rows of case 'swing'. */
@@ -112,7 +114,7 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     const double ud0 = ud[0];
     const double boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma);
     const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
-    out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0));
+    out[0] = -(sin(u0)*boom_a10 + cos(u0)*boom_a00)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -123,36 +125,40 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double v_boom_alpha = v[3];
     const double v_boom_beta = v[4];
     const double v_boom_gamma = v[5];
-    const double c0 = sin(boom_beta);
-    const double c1 = cos(boom_alpha);
-    const double c2 = sin(boom_gamma);
-    const double c3 = (89.0/50.0)*c2;
-    const double c4 = c1*c3;
-    const double c5 = c0*c4;
-    const double c6 = cos(boom_beta);
-    const double c7 = sin(boom_alpha);
-    const double c8 = c3*c7;
-    const double c9 = c6*c8;
-    const double c10 = cos(boom_gamma);
-    const double c11 = (89.0/50.0)*c10;
-    const double c12 = c11*c7;
-    const double c13 = c0*c12;
-    const double c14 = c1*c11;
-    const double c15 = c9 - c14;
-    const double c16 = c8 - c14*c6;
-    const double c17 = c4*c6;
-    const double c18 = c0*c14;
-    const double c19 = -c12 - c17;
-    const double c20 = -c4 - c12*c6;
-    const double c21 = c0*c3;
-    const double c22 = c0*c2;
-    const double c23 = c0*c10;
-    const double c24 = c2*c6;
-    out[0] = -v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha);
-    out[1] = -v_boom_alpha*(c19*v_boom_alpha + c20*v_boom_gamma + c0*c8*v_boom_beta) - v_boom_beta*(-c17*v_boom_beta - c18*v_boom_gamma + (89.0/50.0)*c0*c2*c7*v_boom_alpha) - v_boom_gamma*(c19*v_boom_gamma + c20*v_boom_alpha - c18*v_boom_beta);
-    out[2] = -v_boom_beta*(-c21*v_boom_beta + (89.0/50.0)*c10*c6*v_boom_gamma) - v_boom_gamma*(-c21*v_boom_gamma + c11*c6*v_boom_beta);
-    out[3] = -v_boom_beta*(-c22*v_boom_beta + c10*c6*v_boom_gamma) - v_boom_gamma*(-c22*v_boom_gamma + c10*c6*v_boom_beta);
-    out[4] = -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta);
+    const double c0 = cos(boom_alpha);
+    const double c1 = cos(boom_gamma);
+    const double c2 = (89.0/50.0)*c1;
+    const double c3 = c0*c2;
+    const double c4 = cos(boom_beta);
+    const double c5 = sin(boom_alpha);
+    const double c6 = sin(boom_gamma);
+    const double c7 = (89.0/50.0)*c6;
+    const double c8 = c5*c7;
+    const double c9 = c4*c8 - c3;
+    const double c10 = -c4*c3 + c8;
+    const double c11 = sin(boom_beta);
+    const double c12 = c6*c11;
+    const double c13 = c12*v_boom_beta;
+    const double c14 = (89.0/50.0)*c13;
+    const double c15 = (89.0/50.0)*c0;
+    const double c16 = c12*v_boom_alpha;
+    const double c17 = c1*c11;
+    const double c18 = c17*v_boom_gamma;
+    const double c19 = (89.0/50.0)*c5;
+    const double c20 = c4*v_boom_beta;
+    const double c21 = c6*c20;
+    const double c22 = c17*v_boom_beta;
+    const double c23 = c2*c5;
+    const double c24 = c0*c7;
+    const double c25 = -c4*c24 - c23;
+    const double c26 = -c4*c23 - c24;
+    const double c27 = c4*v_boom_gamma;
+    const double c28 = c12*v_boom_gamma;
+    out[0] = -(c22*c19 + c9*v_boom_gamma + c10*v_boom_alpha)*v_boom_gamma - v_boom_beta*(c21*c19 + c19*c18 + c15*c16) - (c0*c14 + c10*v_boom_gamma + c9*v_boom_alpha)*v_boom_alpha;
+    out[1] = -v_boom_beta*(-c21*c15 - c15*c18 + c19*c16) - (-c22*c15 + c25*v_boom_gamma + c26*v_boom_alpha)*v_boom_gamma - (c5*c14 + c26*v_boom_gamma + c25*v_boom_alpha)*v_boom_alpha;
+    out[2] = -(-89.0/50.0*c28 + c2*c20)*v_boom_gamma - v_boom_beta*(c2*c27 - c14);
+    out[3] = -(-c28 + c1*c20)*v_boom_gamma - v_boom_beta*(c1*c27 - c13);
+    out[4] = -(-c18 - c21)*v_boom_gamma - v_boom_beta*(-c6*c27 - c22);
 }
 
 /* gamma of the driver rows of case 'swing'. */
@@ -170,29 +176,30 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma);
     const double c0 = cos(u0);
     const double c1 = sin(u0);
-    const double c2 = cos(boom_beta);
-    const double c3 = sin(boom_alpha);
-    const double c4 = sin(boom_gamma);
-    const double c5 = c3*c4;
-    const double c6 = c2*c5;
-    const double c7 = cos(boom_alpha);
-    const double c8 = c4*c7;
-    const double c9 = c2*c8;
-    const double c10 = cos(boom_gamma);
-    const double c11 = c10*c3;
-    const double c12 = sin(boom_beta);
-    const double c13 = c10*c7;
-    const double c14 = c0*c12;
-    const double c15 = c13*c14 + c1*c11*c12;
-    const double c16 = c14*c5 - c1*c12*c4*c7;
-    const double c17 = -c16;
-    const double c18 = c6 - c13;
-    const double c19 = c0*(-c11 - c9);
-    const double c20 = c5 - c13*c2;
-    const double c21 = c0*(-c8 - c11*c2);
-    const double c22 = -c21 + c1*c20;
-    const double c23 = -c19 + c1*c18;
-    out[0] = -udd0*(c0*boom_a00 + c1*boom_a10) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma) - (ud0*ud0)*(c0*boom_a10 - c1*boom_a00) - 2.0*ud0*(c16*v_boom_beta + v_boom_alpha*(c19 - c1*c18) + v_boom_gamma*(c21 - c1*c20));
+    const double c2 = cos(boom_alpha);
+    const double c3 = cos(boom_gamma);
+    const double c4 = c2*c3;
+    const double c5 = cos(boom_beta);
+    const double c6 = sin(boom_alpha);
+    const double c7 = sin(boom_gamma);
+    const double c8 = c6*c7;
+    const double c9 = c5*c8;
+    const double c10 = c3*c6;
+    const double c11 = c2*c7;
+    const double c12 = c5*c11;
+    const double c13 = (-c12 - c10)*c0;
+    const double c14 = -c13 + (c9 - c4)*c1;
+    const double c15 = sin(boom_beta);
+    const double c16 = c0*c15;
+    const double c17 = c8*c16;
+    const double c18 = c1*c15;
+    const double c19 = c11*c18;
+    const double c20 = c19 - c17;
+    const double c21 = c4*c5;
+    const double c22 = c0*(-c5*c10 - c11);
+    const double c23 = -c22 + c1*(-c21 + c8);
+    const double c24 = c4*c16 + c10*c18;
+    out[0] = -2.0*ud0*((c1*(c21 - c8) + c22)*v_boom_gamma + (-c19 + c17)*v_boom_beta + (c13 + (-c9 + c4)*c1)*v_boom_alpha) - (-c1*boom_a00 + c0*boom_a10)*(ud0*ud0) - (c14*v_boom_gamma + c24*v_boom_beta + c23*v_boom_alpha)*v_boom_gamma - (c23*v_boom_gamma + c20*v_boom_beta + c14*v_boom_alpha)*v_boom_alpha - v_boom_beta*(c24*v_boom_gamma + (c1*c9 + c0*c12)*v_boom_beta + c20*v_boom_alpha) - (c1*boom_a10 + c0*boom_a00)*udd0;
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -253,8 +260,9 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double c3 = sin(boom_beta);
     const double c4 = c3*v_boom_gamma;
     const double c5 = c2*v_boom_beta;
-    const double c6 = c3*dv_boom_gamma;
-    const double c7 = c3*v_boom_beta;
+    const double c6 = c3*v_boom_alpha;
+    const double c7 = c3*dv_boom_gamma;
+    const double c8 = c3*v_boom_beta;
     out[0] = boom_x;
     out[1] = boom_y;
     out[2] = boom_z;
@@ -270,15 +278,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[12] = v_boom_x;
     out[13] = v_boom_y;
     out[14] = v_boom_z;
-    out[15] = c1 + c2*c4;
-    out[16] = c5 - c0*c4;
-    out[17] = v_boom_alpha + boom_a22*v_boom_gamma;
+    out[15] = c2*c4 + c1;
+    out[16] = -c0*c4 + c5;
+    out[17] = v_boom_gamma*boom_a22 + v_boom_alpha;
     out[18] = dv_boom_x;
     out[19] = dv_boom_y;
     out[20] = dv_boom_z;
-    out[21] = c0*dv_boom_beta + c2*c6 + v_boom_gamma*(c5*boom_a22 + c0*c3*v_boom_alpha) - c5*v_boom_alpha;
-    out[22] = c1*v_boom_alpha + c2*dv_boom_beta + v_boom_gamma*(-c1*boom_a22 + c2*c3*v_boom_alpha) - c0*c6;
-    out[23] = dv_boom_alpha + boom_a22*dv_boom_gamma + v_boom_gamma*(-c7*(c0*c0) - c7*(c2*c2));
+    out[21] = c2*c7 + (c0*c6 + c5*boom_a22)*v_boom_gamma - c5*v_boom_alpha + c0*dv_boom_beta;
+    out[22] = -c0*c7 + c1*v_boom_alpha + (-c1*boom_a22 + c2*c6)*v_boom_gamma + c2*dv_boom_beta;
+    out[23] = (-(c2*c2)*c8 - (c0*c0)*c8)*v_boom_gamma + dv_boom_gamma*boom_a22 + dv_boom_alpha;
 }
 
 /* one body's coordinates moved by a step in velocity coordinates (euler:zxz) */
@@ -295,12 +303,12 @@ static void retract_body(double *q, const double *step) {
     const double step3 = step[3];
     const double step4 = step[4];
     const double step5 = step[5];
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = q3 + step3;
-    const double moved4 = q4 + step4;
-    const double moved5 = q5 + step5;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = step3 + q3;
+    const double moved4 = step4 + q4;
+    const double moved5 = step5 + q5;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

@@ -6,6 +6,7 @@ source sha256:   9ca606fa182152ec864781897d3f0cd9fd3e57339b37499de2af8b920a6f73b
 parametrization: euler:zxz
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 6) and v (velocity, 6) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -46,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_euler_zxz.h': '5852bf4f7ff266ec7cd3183720e1a61b77b7b1d13242ae753807335515d533eb', 'boom_euler_zxz.c': 'e4c304fa6ab9b0323699dd4df4dcee85e97f865ce379c841e94f2802a8b6f1ae'}
+C_FILES = {'boom_euler_zxz.h': 'e51acb4e3a94909963289418105c1eeeb83d581b53a1a24a2c21d6d428b0ed73', 'boom_euler_zxz.c': '183986b35a3b1776ac15d39dde28fd454524c6c91b9d84f316576b278154b538'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 
@@ -236,8 +237,9 @@ def frames(q, v, a):
     c3 = sin(boom_beta)
     c4 = c3*v_boom_gamma
     c5 = c2*v_boom_beta
-    c6 = c3*dv_boom_gamma
-    c7 = c3*v_boom_beta
+    c6 = c3*v_boom_alpha
+    c7 = c3*dv_boom_gamma
+    c8 = c3*v_boom_beta
     out = _zeros(24, q, ())
     out[0] = boom_x
     out[1] = boom_y
@@ -254,15 +256,15 @@ def frames(q, v, a):
     out[12] = v_boom_x
     out[13] = v_boom_y
     out[14] = v_boom_z
-    out[15] = c1 + c2*c4
-    out[16] = c5 - c0*c4
-    out[17] = v_boom_alpha + boom_a22*v_boom_gamma
+    out[15] = c2*c4 + c1
+    out[16] = -c0*c4 + c5
+    out[17] = v_boom_gamma*boom_a22 + v_boom_alpha
     out[18] = dv_boom_x
     out[19] = dv_boom_y
     out[20] = dv_boom_z
-    out[21] = c0*dv_boom_beta + c2*c6 + v_boom_gamma*(c5*boom_a22 + c0*c3*v_boom_alpha) - c5*v_boom_alpha
-    out[22] = c1*v_boom_alpha + c2*dv_boom_beta + v_boom_gamma*(-c1*boom_a22 + c2*c3*v_boom_alpha) - c0*c6
-    out[23] = dv_boom_alpha + boom_a22*dv_boom_gamma + v_boom_gamma*(-c7*c0**2 - c7*c2**2)
+    out[21] = c2*c7 + (c0*c6 + c5*boom_a22)*v_boom_gamma - c5*v_boom_alpha + c0*dv_boom_beta
+    out[22] = -c0*c7 + c1*v_boom_alpha + (-c1*boom_a22 + c2*c6)*v_boom_gamma + c2*dv_boom_beta
+    out[23] = (-c2**2*c8 - c0**2*c8)*v_boom_gamma + dv_boom_gamma*boom_a22 + dv_boom_alpha
     return out
 
 
@@ -274,9 +276,9 @@ def _joints_phi(q):
     boom_a20 = sin(boom_beta)*sin(boom_gamma)
     boom_a21 = cos(boom_gamma)*sin(boom_beta)
     out = _zeros(5, q, ())
-    out[0] = -boom_x + (89/50)*boom_a00
-    out[1] = -boom_y + (89/50)*boom_a10
-    out[2] = -boom_z + (89/50)*boom_a20
+    out[0] = (89/50)*boom_a00 - boom_x
+    out[1] = (89/50)*boom_a10 - boom_y
+    out[2] = (89/50)*boom_a20 - boom_z
     out[3] = boom_a20
     out[4] = boom_a21
     return out
@@ -289,7 +291,7 @@ def _drivers_phi_swing(q, u):
     boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma)
     boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     out = _zeros(1, q, u)
-    out[0] = boom_a00*sin(u0) - boom_a10*cos(u0)
+    out[0] = -cos(u0)*boom_a10 + sin(u0)*boom_a00
     return out
 
 
@@ -301,35 +303,35 @@ def phi_swing(q, u):
 def _joints_jac(q):
     """Phi_q values of the joint rows (15 entries)."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
-    c0 = sin(boom_alpha)
-    c1 = cos(boom_gamma)
-    c2 = cos(boom_alpha)
-    c3 = sin(boom_gamma)
-    c4 = cos(boom_beta)
-    c5 = c3*c4
-    c6 = (89/50)*c5
-    c7 = sin(boom_beta)
-    c8 = c3*c7
-    c9 = (89/50)*c0
+    c0 = cos(boom_gamma)
+    c1 = sin(boom_alpha)
+    c2 = (89/50)*c1
+    c3 = cos(boom_alpha)
+    c4 = sin(boom_gamma)
+    c5 = cos(boom_beta)
+    c6 = c4*c5
+    c7 = (89/50)*c6
+    c8 = sin(boom_beta)
+    c9 = c4*c8
     c10 = (89/50)*c3
-    c11 = c1*c4
-    c12 = c1*c7
+    c11 = c0*c5
+    c12 = c0*c8
     out = _zeros(15, q, ())
     out[0] = -1
-    out[1] = -c2*c6 - 89/50*c0*c1
-    out[2] = c8*c9
-    out[3] = -c10*c2 - c11*c9
+    out[1] = -c3*c7 - c0*c2
+    out[2] = c2*c9
+    out[3] = -c2*c11 - c4*c10
     out[4] = -1
-    out[5] = -c0*c6 + (89/50)*c1*c2
-    out[6] = -89/50*c2*c8
-    out[7] = -c0*c10 + (89/50)*c1*c2*c4
+    out[5] = -c1*c7 + c0*c10
+    out[6] = -c9*c10
+    out[7] = c11*c10 - c2*c4
     out[8] = -1
-    out[9] = c6
+    out[9] = c7
     out[10] = (89/50)*c12
-    out[11] = c5
+    out[11] = c6
     out[12] = c12
     out[13] = c11
-    out[14] = -c8
+    out[14] = -c9
     return out
 
 
@@ -340,18 +342,19 @@ def _drivers_jac_swing(q, u):
     c0 = sin(u0)
     c1 = sin(boom_alpha)
     c2 = cos(boom_gamma)
-    c3 = c1*c2
+    c3 = c2*c1
     c4 = cos(boom_beta)
-    c5 = sin(boom_gamma)
-    c6 = cos(boom_alpha)
-    c7 = c5*c6
+    c5 = cos(boom_alpha)
+    c6 = sin(boom_gamma)
+    c7 = c6*c5
     c8 = cos(u0)
-    c9 = c1*c5
-    c10 = sin(boom_beta)
+    c9 = c2*c5
+    c10 = c1*c6
+    c11 = sin(boom_beta)
     out = _zeros(3, q, u)
-    out[0] = c0*(-c3 - c4*c7) - c8*(c2*c6 - c4*c9)
-    out[1] = c0*c10*c9 + c10*c7*c8
-    out[2] = c0*(-c7 - c3*c4) - c8*(-c9 + c2*c4*c6)
+    out[0] = -c8*(-c4*c10 + c9) + c0*(-c4*c7 - c3)
+    out[1] = c0*c11*c10 + c8*c7*c11
+    out[2] = -c8*(c4*c9 - c10) + c0*(-c4*c3 - c7)
     return out
 
 
@@ -367,20 +370,20 @@ def _joints_phi_joints_jac_s(q):
     boom_a10 = math.cos(boom_gamma)*math.sin(boom_alpha) + math.cos(boom_alpha)*math.cos(boom_beta)*math.sin(boom_gamma)
     boom_a20 = math.sin(boom_beta)*math.sin(boom_gamma)
     boom_a21 = math.cos(boom_gamma)*math.sin(boom_beta)
-    d0 = math.sin(boom_alpha)
-    d1 = math.cos(boom_gamma)
-    d2 = math.cos(boom_alpha)
-    d3 = math.sin(boom_gamma)
-    d4 = math.cos(boom_beta)
-    d5 = d3*d4
-    d6 = (89/50)*d5
-    d7 = math.sin(boom_beta)
-    d8 = d3*d7
-    d9 = (89/50)*d0
+    d0 = math.cos(boom_gamma)
+    d1 = math.sin(boom_alpha)
+    d2 = (89/50)*d1
+    d3 = math.cos(boom_alpha)
+    d4 = math.sin(boom_gamma)
+    d5 = math.cos(boom_beta)
+    d6 = d4*d5
+    d7 = (89/50)*d6
+    d8 = math.sin(boom_beta)
+    d9 = d4*d8
     d10 = (89/50)*d3
-    d11 = d1*d4
-    d12 = d1*d7
-    return [-boom_x + (89/50)*boom_a00, -boom_y + (89/50)*boom_a10, -boom_z + (89/50)*boom_a20, boom_a20, boom_a21], [-1.0, -d2*d6 - 89/50*d0*d1, d8*d9, -d10*d2 - d11*d9, -1.0, -d0*d6 + (89/50)*d1*d2, -89/50*d2*d8, -d0*d10 + (89/50)*d1*d2*d4, -1.0, d6, (89/50)*d12, d5, d12, d11, -d8]
+    d11 = d0*d5
+    d12 = d0*d8
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1.0, -d3*d7 - d0*d2, d2*d9, -d2*d11 - d4*d10, -1.0, -d1*d7 + d0*d10, -d9*d10, d11*d10 - d2*d4, -1.0, d7, (89/50)*d12, d6, d12, d11, -d9]
 
 
 def _drivers_phi_swing_drivers_jac_swing_s(q, u):
@@ -392,15 +395,16 @@ def _drivers_phi_swing_drivers_jac_swing_s(q, u):
     d0 = math.sin(u0)
     d1 = math.sin(boom_alpha)
     d2 = math.cos(boom_gamma)
-    d3 = d1*d2
+    d3 = d2*d1
     d4 = math.cos(boom_beta)
-    d5 = math.sin(boom_gamma)
-    d6 = math.cos(boom_alpha)
-    d7 = d5*d6
+    d5 = math.cos(boom_alpha)
+    d6 = math.sin(boom_gamma)
+    d7 = d6*d5
     d8 = math.cos(u0)
-    d9 = d1*d5
-    d10 = math.sin(boom_beta)
-    return [boom_a00*math.sin(u0) - boom_a10*math.cos(u0)], [d0*(-d3 - d4*d7) - d8*(d2*d6 - d4*d9), d0*d10*d9 + d10*d7*d8, d0*(-d7 - d3*d4) - d8*(-d9 + d2*d4*d6)]
+    d9 = d2*d5
+    d10 = d1*d6
+    d11 = math.sin(boom_beta)
+    return [-math.cos(u0)*boom_a10 + math.sin(u0)*boom_a00], [-d8*(-d4*d10 + d9) + d0*(-d4*d7 - d3), d0*d11*d10 + d8*d7*d11, -d8*(d4*d9 - d10) + d0*(-d4*d3 - d7)]
 
 
 def phi_jac_s_swing(q, u):
@@ -418,7 +422,7 @@ def _drivers_nu_swing(q, u, ud):
     boom_a00 = cos(boom_alpha)*cos(boom_gamma) - cos(boom_beta)*sin(boom_alpha)*sin(boom_gamma)
     boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     out = _zeros(1, q, u)
-    out[0] = -ud0*(boom_a00*cos(u0) + boom_a10*sin(u0))
+    out[0] = -(sin(u0)*boom_a10 + cos(u0)*boom_a00)*ud0
     return out
 
 
@@ -434,7 +438,7 @@ def _drivers_nu_swing_s(q, u, ud):
     ud0, = ud
     boom_a00 = math.cos(boom_alpha)*math.cos(boom_gamma) - math.cos(boom_beta)*math.sin(boom_alpha)*math.sin(boom_gamma)
     boom_a10 = math.cos(boom_gamma)*math.sin(boom_alpha) + math.cos(boom_alpha)*math.cos(boom_beta)*math.sin(boom_gamma)
-    return [-ud0*(boom_a00*math.cos(u0) + boom_a10*math.sin(u0))]
+    return [-(math.sin(u0)*boom_a10 + math.cos(u0)*boom_a00)*ud0]
 
 
 def nu_s_swing(q, u, ud):
@@ -447,37 +451,41 @@ def _joints_gamma(q, v):
     """gamma of the joint rows (they do not depend on time)."""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma = v
-    c0 = sin(boom_beta)
-    c1 = cos(boom_alpha)
-    c2 = sin(boom_gamma)
-    c3 = (89/50)*c2
-    c4 = c1*c3
-    c5 = c0*c4
-    c6 = cos(boom_beta)
-    c7 = sin(boom_alpha)
-    c8 = c3*c7
-    c9 = c6*c8
-    c10 = cos(boom_gamma)
-    c11 = (89/50)*c10
-    c12 = c11*c7
-    c13 = c0*c12
-    c14 = c1*c11
-    c15 = c9 - c14
-    c16 = c8 - c14*c6
-    c17 = c4*c6
-    c18 = c0*c14
-    c19 = -c12 - c17
-    c20 = -c4 - c12*c6
-    c21 = c0*c3
-    c22 = c0*c2
-    c23 = c0*c10
-    c24 = c2*c6
+    c0 = cos(boom_alpha)
+    c1 = cos(boom_gamma)
+    c2 = (89/50)*c1
+    c3 = c0*c2
+    c4 = cos(boom_beta)
+    c5 = sin(boom_alpha)
+    c6 = sin(boom_gamma)
+    c7 = (89/50)*c6
+    c8 = c5*c7
+    c9 = c4*c8 - c3
+    c10 = -c4*c3 + c8
+    c11 = sin(boom_beta)
+    c12 = c6*c11
+    c13 = c12*v_boom_beta
+    c14 = (89/50)*c13
+    c15 = (89/50)*c0
+    c16 = c12*v_boom_alpha
+    c17 = c1*c11
+    c18 = c17*v_boom_gamma
+    c19 = (89/50)*c5
+    c20 = c4*v_boom_beta
+    c21 = c6*c20
+    c22 = c17*v_boom_beta
+    c23 = c2*c5
+    c24 = c0*c7
+    c25 = -c4*c24 - c23
+    c26 = -c4*c23 - c24
+    c27 = c4*v_boom_gamma
+    c28 = c12*v_boom_gamma
     out = _zeros(5, q, ())
-    out[0] = -v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha)
-    out[1] = -v_boom_alpha*(c19*v_boom_alpha + c20*v_boom_gamma + c0*c8*v_boom_beta) - v_boom_beta*(-c17*v_boom_beta - c18*v_boom_gamma + (89/50)*c0*c2*c7*v_boom_alpha) - v_boom_gamma*(c19*v_boom_gamma + c20*v_boom_alpha - c18*v_boom_beta)
-    out[2] = -v_boom_beta*(-c21*v_boom_beta + (89/50)*c10*c6*v_boom_gamma) - v_boom_gamma*(-c21*v_boom_gamma + c11*c6*v_boom_beta)
-    out[3] = -v_boom_beta*(-c22*v_boom_beta + c10*c6*v_boom_gamma) - v_boom_gamma*(-c22*v_boom_gamma + c10*c6*v_boom_beta)
-    out[4] = -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)
+    out[0] = -(c22*c19 + c9*v_boom_gamma + c10*v_boom_alpha)*v_boom_gamma - v_boom_beta*(c21*c19 + c19*c18 + c15*c16) - (c0*c14 + c10*v_boom_gamma + c9*v_boom_alpha)*v_boom_alpha
+    out[1] = -v_boom_beta*(-c21*c15 - c15*c18 + c19*c16) - (-c22*c15 + c25*v_boom_gamma + c26*v_boom_alpha)*v_boom_gamma - (c5*c14 + c26*v_boom_gamma + c25*v_boom_alpha)*v_boom_alpha
+    out[2] = -(-89/50*c28 + c2*c20)*v_boom_gamma - v_boom_beta*(c2*c27 - c14)
+    out[3] = -(-c28 + c1*c20)*v_boom_gamma - v_boom_beta*(c1*c27 - c13)
+    out[4] = -(-c18 - c21)*v_boom_gamma - v_boom_beta*(-c6*c27 - c22)
     return out
 
 
@@ -492,30 +500,31 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     boom_a10 = cos(boom_gamma)*sin(boom_alpha) + cos(boom_alpha)*cos(boom_beta)*sin(boom_gamma)
     c0 = cos(u0)
     c1 = sin(u0)
-    c2 = cos(boom_beta)
-    c3 = sin(boom_alpha)
-    c4 = sin(boom_gamma)
-    c5 = c3*c4
-    c6 = c2*c5
-    c7 = cos(boom_alpha)
-    c8 = c4*c7
-    c9 = c2*c8
-    c10 = cos(boom_gamma)
-    c11 = c10*c3
-    c12 = sin(boom_beta)
-    c13 = c10*c7
-    c14 = c0*c12
-    c15 = c13*c14 + c1*c11*c12
-    c16 = c14*c5 - c1*c12*c4*c7
-    c17 = -c16
-    c18 = c6 - c13
-    c19 = c0*(-c11 - c9)
-    c20 = c5 - c13*c2
-    c21 = c0*(-c8 - c11*c2)
-    c22 = -c21 + c1*c20
-    c23 = -c19 + c1*c18
+    c2 = cos(boom_alpha)
+    c3 = cos(boom_gamma)
+    c4 = c2*c3
+    c5 = cos(boom_beta)
+    c6 = sin(boom_alpha)
+    c7 = sin(boom_gamma)
+    c8 = c6*c7
+    c9 = c5*c8
+    c10 = c3*c6
+    c11 = c2*c7
+    c12 = c5*c11
+    c13 = (-c12 - c10)*c0
+    c14 = -c13 + (c9 - c4)*c1
+    c15 = sin(boom_beta)
+    c16 = c0*c15
+    c17 = c8*c16
+    c18 = c1*c15
+    c19 = c11*c18
+    c20 = c19 - c17
+    c21 = c4*c5
+    c22 = c0*(-c5*c10 - c11)
+    c23 = -c22 + c1*(-c21 + c8)
+    c24 = c4*c16 + c10*c18
     out = _zeros(1, q, u)
-    out[0] = -udd0*(c0*boom_a00 + c1*boom_a10) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma) - ud0**2*(c0*boom_a10 - c1*boom_a00) - 2*ud0*(c16*v_boom_beta + v_boom_alpha*(c19 - c1*c18) + v_boom_gamma*(c21 - c1*c20))
+    out[0] = -2*ud0*((c1*(c21 - c8) + c22)*v_boom_gamma + (-c19 + c17)*v_boom_beta + (c13 + (-c9 + c4)*c1)*v_boom_alpha) - (-c1*boom_a00 + c0*boom_a10)*ud0**2 - (c14*v_boom_gamma + c24*v_boom_beta + c23*v_boom_alpha)*v_boom_gamma - (c23*v_boom_gamma + c20*v_boom_beta + c14*v_boom_alpha)*v_boom_alpha - v_boom_beta*(c24*v_boom_gamma + (c1*c9 + c0*c12)*v_boom_beta + c20*v_boom_alpha) - (c1*boom_a10 + c0*boom_a00)*udd0
     return out
 
 
@@ -528,32 +537,36 @@ def _joints_gamma_s(q, v):
     """gamma of the joint rows (they do not depend on time). (one configuration, lists of floats)"""
     _, _, _, boom_alpha, boom_beta, boom_gamma = q
     _, _, _, v_boom_alpha, v_boom_beta, v_boom_gamma = v
-    c0 = math.sin(boom_beta)
-    c1 = math.cos(boom_alpha)
-    c2 = math.sin(boom_gamma)
-    c3 = (89/50)*c2
-    c4 = c1*c3
-    c5 = c0*c4
-    c6 = math.cos(boom_beta)
-    c7 = math.sin(boom_alpha)
-    c8 = c3*c7
-    c9 = c6*c8
-    c10 = math.cos(boom_gamma)
-    c11 = (89/50)*c10
-    c12 = c11*c7
-    c13 = c0*c12
-    c14 = c1*c11
-    c15 = c9 - c14
-    c16 = c8 - c14*c6
-    c17 = c4*c6
-    c18 = c0*c14
-    c19 = -c12 - c17
-    c20 = -c4 - c12*c6
-    c21 = c0*c3
-    c22 = c0*c2
-    c23 = c0*c10
-    c24 = c2*c6
-    return [-v_boom_alpha*(c15*v_boom_alpha + c16*v_boom_gamma + c5*v_boom_beta) - v_boom_beta*(c13*v_boom_gamma + c5*v_boom_alpha + c9*v_boom_beta) - v_boom_gamma*(c13*v_boom_beta + c15*v_boom_gamma + c16*v_boom_alpha), -v_boom_alpha*(c19*v_boom_alpha + c20*v_boom_gamma + c0*c8*v_boom_beta) - v_boom_beta*(-c17*v_boom_beta - c18*v_boom_gamma + (89/50)*c0*c2*c7*v_boom_alpha) - v_boom_gamma*(c19*v_boom_gamma + c20*v_boom_alpha - c18*v_boom_beta), -v_boom_beta*(-c21*v_boom_beta + (89/50)*c10*c6*v_boom_gamma) - v_boom_gamma*(-c21*v_boom_gamma + c11*c6*v_boom_beta), -v_boom_beta*(-c22*v_boom_beta + c10*c6*v_boom_gamma) - v_boom_gamma*(-c22*v_boom_gamma + c10*c6*v_boom_beta), -v_boom_beta*(-c23*v_boom_beta - c24*v_boom_gamma) - v_boom_gamma*(-c23*v_boom_gamma - c24*v_boom_beta)]
+    c0 = math.cos(boom_alpha)
+    c1 = math.cos(boom_gamma)
+    c2 = (89/50)*c1
+    c3 = c0*c2
+    c4 = math.cos(boom_beta)
+    c5 = math.sin(boom_alpha)
+    c6 = math.sin(boom_gamma)
+    c7 = (89/50)*c6
+    c8 = c5*c7
+    c9 = c4*c8 - c3
+    c10 = -c4*c3 + c8
+    c11 = math.sin(boom_beta)
+    c12 = c6*c11
+    c13 = c12*v_boom_beta
+    c14 = (89/50)*c13
+    c15 = (89/50)*c0
+    c16 = c12*v_boom_alpha
+    c17 = c1*c11
+    c18 = c17*v_boom_gamma
+    c19 = (89/50)*c5
+    c20 = c4*v_boom_beta
+    c21 = c6*c20
+    c22 = c17*v_boom_beta
+    c23 = c2*c5
+    c24 = c0*c7
+    c25 = -c4*c24 - c23
+    c26 = -c4*c23 - c24
+    c27 = c4*v_boom_gamma
+    c28 = c12*v_boom_gamma
+    return [-(c22*c19 + c9*v_boom_gamma + c10*v_boom_alpha)*v_boom_gamma - v_boom_beta*(c21*c19 + c19*c18 + c15*c16) - (c0*c14 + c10*v_boom_gamma + c9*v_boom_alpha)*v_boom_alpha, -v_boom_beta*(-c21*c15 - c15*c18 + c19*c16) - (-c22*c15 + c25*v_boom_gamma + c26*v_boom_alpha)*v_boom_gamma - (c5*c14 + c26*v_boom_gamma + c25*v_boom_alpha)*v_boom_alpha, -(-89/50*c28 + c2*c20)*v_boom_gamma - v_boom_beta*(c2*c27 - c14), -(-c28 + c1*c20)*v_boom_gamma - v_boom_beta*(c1*c27 - c13), -(-c18 - c21)*v_boom_gamma - v_boom_beta*(-c6*c27 - c22)]
 
 
 def _drivers_gamma_swing_s(q, v, u, ud, udd):
@@ -567,29 +580,30 @@ def _drivers_gamma_swing_s(q, v, u, ud, udd):
     boom_a10 = math.cos(boom_gamma)*math.sin(boom_alpha) + math.cos(boom_alpha)*math.cos(boom_beta)*math.sin(boom_gamma)
     c0 = math.cos(u0)
     c1 = math.sin(u0)
-    c2 = math.cos(boom_beta)
-    c3 = math.sin(boom_alpha)
-    c4 = math.sin(boom_gamma)
-    c5 = c3*c4
-    c6 = c2*c5
-    c7 = math.cos(boom_alpha)
-    c8 = c4*c7
-    c9 = c2*c8
-    c10 = math.cos(boom_gamma)
-    c11 = c10*c3
-    c12 = math.sin(boom_beta)
-    c13 = c10*c7
-    c14 = c0*c12
-    c15 = c13*c14 + c1*c11*c12
-    c16 = c14*c5 - c1*c12*c4*c7
-    c17 = -c16
-    c18 = c6 - c13
-    c19 = c0*(-c11 - c9)
-    c20 = c5 - c13*c2
-    c21 = c0*(-c8 - c11*c2)
-    c22 = -c21 + c1*c20
-    c23 = -c19 + c1*c18
-    return [-udd0*(c0*boom_a00 + c1*boom_a10) - v_boom_alpha*(c17*v_boom_beta + c22*v_boom_gamma + c23*v_boom_alpha) - v_boom_beta*(c15*v_boom_gamma + c17*v_boom_alpha + v_boom_beta*(c0*c9 + c1*c6)) - v_boom_gamma*(c15*v_boom_beta + c22*v_boom_alpha + c23*v_boom_gamma) - (ud0*ud0)*(c0*boom_a10 - c1*boom_a00) - 2.0*ud0*(c16*v_boom_beta + v_boom_alpha*(c19 - c1*c18) + v_boom_gamma*(c21 - c1*c20))]
+    c2 = math.cos(boom_alpha)
+    c3 = math.cos(boom_gamma)
+    c4 = c2*c3
+    c5 = math.cos(boom_beta)
+    c6 = math.sin(boom_alpha)
+    c7 = math.sin(boom_gamma)
+    c8 = c6*c7
+    c9 = c5*c8
+    c10 = c3*c6
+    c11 = c2*c7
+    c12 = c5*c11
+    c13 = (-c12 - c10)*c0
+    c14 = -c13 + (c9 - c4)*c1
+    c15 = math.sin(boom_beta)
+    c16 = c0*c15
+    c17 = c8*c16
+    c18 = c1*c15
+    c19 = c11*c18
+    c20 = c19 - c17
+    c21 = c4*c5
+    c22 = c0*(-c5*c10 - c11)
+    c23 = -c22 + c1*(-c21 + c8)
+    c24 = c4*c16 + c10*c18
+    return [-2.0*ud0*((c1*(c21 - c8) + c22)*v_boom_gamma + (-c19 + c17)*v_boom_beta + (c13 + (-c9 + c4)*c1)*v_boom_alpha) - (-c1*boom_a00 + c0*boom_a10)*(ud0*ud0) - (c14*v_boom_gamma + c24*v_boom_beta + c23*v_boom_alpha)*v_boom_gamma - (c23*v_boom_gamma + c20*v_boom_beta + c14*v_boom_alpha)*v_boom_alpha - v_boom_beta*(c24*v_boom_gamma + (c1*c9 + c0*c12)*v_boom_beta + c20*v_boom_alpha) - (c1*boom_a10 + c0*boom_a00)*udd0]
 
 
 def gamma_s_swing(q, v, u, ud, udd):

@@ -6,6 +6,7 @@
  * parametrization: quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -29,9 +30,9 @@ static void compute_joints_phi(const double *q, double *out) {
     const double boom_a10 = 2.0*boom_qw*boom_qz + 2.0*boom_qx*boom_qy;
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    out[0] = -boom_x + (89.0/50.0)*boom_a00;
-    out[1] = -boom_y + (89.0/50.0)*boom_a10;
-    out[2] = -boom_z + (89.0/50.0)*boom_a20;
+    out[0] = (89.0/50.0)*boom_a00 - boom_x;
+    out[1] = (89.0/50.0)*boom_a10 - boom_y;
+    out[2] = (89.0/50.0)*boom_a20 - boom_z;
     out[3] = boom_a20;
     out[4] = boom_a21;
 }
@@ -42,7 +43,7 @@ static void compute_drivers_phi_swing(const double *q, const double *u, double *
     const double boom_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*boom_qz*cos(c0) + 2.0*boom_qw*sin(c0);
+    out[0] = 2.0*sin(c0)*boom_qw - 2.0*cos(c0)*boom_qz;
 }
 
 /* Phi_q values of the joint rows (13 entries). */
@@ -84,8 +85,8 @@ static void compute_drivers_jac_swing(const double *q, const double *u, double *
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*boom_qx - c2*boom_qy;
-    out[1] = c2*boom_qx - c1*boom_qy;
+    out[0] = -c2*boom_qy - c1*boom_qx;
+    out[1] = -c1*boom_qy + c2*boom_qx;
     out[2] = -c1*boom_qz - c2*boom_qw;
 }
 
@@ -96,7 +97,7 @@ static void compute_drivers_nu_swing(const double *q, const double *u, const dou
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(boom_qw*cos(c0) + boom_qz*sin(c0));
+    out[0] = -(sin(c0)*boom_qz + cos(c0)*boom_qw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -114,15 +115,17 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy);
     const double boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz;
     const double boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz;
-    const double c0 = -89.0/50.0*boom_a00*v_boom_theta_y + (89.0/50.0)*boom_a10*v_boom_theta_x;
-    const double c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x;
-    const double c2 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z;
-    const double c3 = c1*v_boom_theta_x;
-    out[0] = -c0*v_boom_theta_y + (89.0/50.0)*c1*v_boom_theta_z;
-    out[1] = c0*v_boom_theta_x - 89.0/50.0*c2*v_boom_theta_z;
-    out[2] = -89.0/50.0*c3 + (89.0/50.0)*c2*v_boom_theta_y;
-    out[3] = -c3 + c2*v_boom_theta_y;
-    out[4] = v_boom_theta_y*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x);
+    const double c0 = (89.0/50.0)*(-boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x);
+    const double c1 = -boom_a20*v_boom_theta_x + boom_a00*v_boom_theta_z;
+    const double c2 = (89.0/50.0)*v_boom_theta_z;
+    const double c3 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y;
+    const double c4 = c1*v_boom_theta_x;
+    const double c5 = c3*v_boom_theta_y;
+    out[0] = c2*c1 - c0*v_boom_theta_y;
+    out[1] = c0*v_boom_theta_x - c2*c3;
+    out[2] = (89.0/50.0)*c5 - 89.0/50.0*c4;
+    out[3] = -c4 + c5;
+    out[4] = -(-boom_a21*v_boom_theta_x + boom_a01*v_boom_theta_z)*v_boom_theta_x + (-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)*v_boom_theta_y;
 }
 
 /* gamma of the driver rows of case 'swing'. */
@@ -140,14 +143,14 @@ static void compute_drivers_gamma_swing(const double *q, const double *v, const 
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*boom_qw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*boom_qz;
-    const double c5 = (1.0/2.0)*v_boom_theta_y;
-    const double c6 = (1.0/2.0)*v_boom_theta_x;
-    const double c7 = (1.0/2.0)*boom_qz;
-    const double c8 = (1.0/2.0)*v_boom_theta_z;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*boom_qw + c2*boom_qz) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(c3*v_boom_theta_x + c7*v_boom_theta_y - c8*boom_qy) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(c3*v_boom_theta_y + c8*boom_qx - c7*v_boom_theta_x) - 2.0*ud0*(c4*v_boom_theta_z + v_boom_theta_x*((1.0/2.0)*c2*boom_qy - c9*boom_qx) + v_boom_theta_y*(-c9*boom_qy - 1.0/2.0*c2*boom_qx)) + c1*v_boom_theta_z*(-c5*boom_qy - c6*boom_qx - c7*v_boom_theta_z) + c2*v_boom_theta_z*(c3*v_boom_theta_z + c6*boom_qy - c5*boom_qx);
+    const double c3 = (1.0/2.0)*boom_qz;
+    const double c4 = c1*c3;
+    const double c5 = (1.0/2.0)*c2;
+    const double c6 = c5*boom_qw;
+    const double c7 = (1.0/2.0)*boom_qw;
+    const double c8 = (1.0/2.0)*boom_qx;
+    const double c9 = (1.0/2.0)*boom_qy;
+    out[0] = -2.0*ud0*((-c4 + c6)*v_boom_theta_z + (-c1*c9 - c2*c8)*v_boom_theta_y + (-c1*c8 + c5*boom_qy)*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-c9*v_boom_theta_z + c3*v_boom_theta_y + c7*v_boom_theta_x) + c1*v_boom_theta_z*(-c3*v_boom_theta_z - c9*v_boom_theta_y - c8*v_boom_theta_x) + c2*v_boom_theta_z*(-c8*v_boom_theta_y + c9*v_boom_theta_x + c7*v_boom_theta_z) - (-c2*v_boom_theta_y - c1*v_boom_theta_x)*(-c3*v_boom_theta_x + c8*v_boom_theta_z + c7*v_boom_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*boom_qz + c1*boom_qw)*udd0;
 }
 
 /* Driver inputs of case 'swing' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -247,20 +250,22 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step3*step3);
     const double _t1 = (step4*step4);
     const double _t2 = (step5*step5);
-    const double _t3 = sqrt(_t0 + _t1 + _t2);
+    const double _t3 = sqrt(_t2 + _t1 + _t0);
     const double _t4 = (1.0/2.0)*_t3;
     const double _t5 = cos(_t4);
-    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t0 - 1.0/48.0*_t1 - 1.0/48.0*_t2 ) : ( sin(_t4)/_t3 ));
-    const double _t7 = _t6*step3;
+    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t2 - 1.0/48.0*_t1 - 1.0/48.0*_t0 ) : ( sin(_t4)/_t3 ));
+    const double _t7 = q4*_t6;
     const double _t8 = _t6*step4;
-    const double _t9 = _t6*step5;
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = _t5*q3 - _t7*q4 - _t8*q5 - _t9*q6;
-    const double moved4 = _t5*q4 + _t7*q3 + _t8*q6 - _t9*q5;
-    const double moved5 = _t5*q5 + _t8*q3 + _t9*q4 - _t7*q6;
-    const double moved6 = _t5*q6 + _t7*q5 + _t9*q3 - _t8*q4;
+    const double _t9 = q6*_t6;
+    const double _t10 = q3*_t6;
+    const double _t11 = q5*_t6;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = -_t9*step5 - q5*_t8 - _t7*step3 + q3*_t5;
+    const double moved4 = -_t11*step5 + _t10*step3 + q6*_t8 + q4*_t5;
+    const double moved5 = -_t9*step3 + _t7*step5 + q3*_t8 + q5*_t5;
+    const double moved6 = -q4*_t8 + _t11*step3 + _t10*step5 + q6*_t5;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

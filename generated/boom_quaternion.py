@@ -6,6 +6,7 @@ source sha256:   9ca606fa182152ec864781897d3f0cd9fd3e57339b37499de2af8b920a6f73b
 parametrization: quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 7) and v (velocity, 6) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -46,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_quaternion.h': 'add677d38d458b0142561ac3aebc3cdbefb8576a5521d4dc8be38db6c8f49312', 'boom_quaternion.c': 'abd16e1276d1f3ac2f896f4b6df450f6685465faf9e9ace7e4df7e08c4abe8f8'}
+C_FILES = {'boom_quaternion.h': '4eb07c2971cf2c4bcb08513f02d429a1e2c8486acaf573ff11152cba049cd5b0', 'boom_quaternion.c': 'f95122433f65f5bf23e4585464335ceff4fb0ed1a731ccb3c74b199e59c14c2a'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 
@@ -266,9 +267,9 @@ def _joints_phi(q):
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
     out = _zeros(5, q, ())
-    out[0] = -boom_x + (89/50)*boom_a00
-    out[1] = -boom_y + (89/50)*boom_a10
-    out[2] = -boom_z + (89/50)*boom_a20
+    out[0] = (89/50)*boom_a00 - boom_x
+    out[1] = (89/50)*boom_a10 - boom_y
+    out[2] = (89/50)*boom_a20 - boom_z
     out[3] = boom_a20
     out[4] = boom_a21
     return out
@@ -280,7 +281,7 @@ def _drivers_phi_swing(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*boom_qz*cos(c0) + 2*boom_qw*sin(c0)
+    out[0] = 2*sin(c0)*boom_qw - 2*cos(c0)*boom_qz
     return out
 
 
@@ -325,8 +326,8 @@ def _drivers_jac_swing(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*boom_qx - c2*boom_qy
-    out[1] = c2*boom_qx - c1*boom_qy
+    out[0] = -c2*boom_qy - c1*boom_qx
+    out[1] = -c1*boom_qy + c2*boom_qx
     out[2] = -c1*boom_qz - c2*boom_qw
     return out
 
@@ -348,7 +349,7 @@ def _joints_phi_joints_jac_s(q):
     d0 = (89/50)*boom_a20
     d1 = (89/50)*boom_a10
     d2 = (89/50)*boom_a00
-    return [-boom_x + (89/50)*boom_a00, -boom_y + (89/50)*boom_a10, -boom_z + (89/50)*boom_a20, boom_a20, boom_a21], [-1.0, d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, boom_a10, -boom_a00, boom_a11, -boom_a01]
+    return [(89/50)*boom_a00 - boom_x, (89/50)*boom_a10 - boom_y, (89/50)*boom_a20 - boom_z, boom_a20, boom_a21], [-1.0, d0, -d1, -1.0, -d0, d2, -1.0, d1, -d2, boom_a10, -boom_a00, boom_a11, -boom_a01]
 
 
 def _drivers_phi_swing_drivers_jac_swing_s(q, u):
@@ -359,7 +360,7 @@ def _drivers_phi_swing_drivers_jac_swing_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*boom_qz*math.cos(c0) + 2.0*boom_qw*math.sin(c0)], [-d1*boom_qx - d2*boom_qy, d2*boom_qx - d1*boom_qy, -d1*boom_qz - d2*boom_qw]
+    return [2.0*math.sin(c0)*boom_qw - 2.0*math.cos(c0)*boom_qz], [-d2*boom_qy - d1*boom_qx, -d1*boom_qy + d2*boom_qx, -d1*boom_qz - d2*boom_qw]
 
 
 def phi_jac_s_swing(q, u):
@@ -376,7 +377,7 @@ def _drivers_nu_swing(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(boom_qw*cos(c0) + boom_qz*sin(c0))
+    out[0] = -(sin(c0)*boom_qz + cos(c0)*boom_qw)*ud0
     return out
 
 
@@ -391,7 +392,7 @@ def _drivers_nu_swing_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(boom_qw*math.cos(c0) + boom_qz*math.sin(c0))]
+    return [-(math.sin(c0)*boom_qz + math.cos(c0)*boom_qw)*ud0]
 
 
 def nu_s_swing(q, u, ud):
@@ -410,16 +411,18 @@ def _joints_gamma(q, v):
     boom_a11 = -1 + 2*boom_qw**2 + 2*boom_qy**2
     boom_a20 = -2*boom_qw*boom_qy + 2*boom_qx*boom_qz
     boom_a21 = 2*boom_qw*boom_qx + 2*boom_qy*boom_qz
-    c0 = -89/50*boom_a00*v_boom_theta_y + (89/50)*boom_a10*v_boom_theta_x
-    c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c2 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
-    c3 = c1*v_boom_theta_x
+    c0 = (89/50)*(-boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x)
+    c1 = -boom_a20*v_boom_theta_x + boom_a00*v_boom_theta_z
+    c2 = (89/50)*v_boom_theta_z
+    c3 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
+    c4 = c1*v_boom_theta_x
+    c5 = c3*v_boom_theta_y
     out = _zeros(5, q, ())
-    out[0] = -c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z
-    out[1] = c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z
-    out[2] = -89/50*c3 + (89/50)*c2*v_boom_theta_y
-    out[3] = -c3 + c2*v_boom_theta_y
-    out[4] = v_boom_theta_y*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x)
+    out[0] = c2*c1 - c0*v_boom_theta_y
+    out[1] = c0*v_boom_theta_x - c2*c3
+    out[2] = (89/50)*c5 - 89/50*c4
+    out[3] = -c4 + c5
+    out[4] = -(-boom_a21*v_boom_theta_x + boom_a01*v_boom_theta_z)*v_boom_theta_x + (-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)*v_boom_theta_y
     return out
 
 
@@ -433,15 +436,15 @@ def _drivers_gamma_swing(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*boom_qw
-    c4 = c2*c3 - 1/2*c1*boom_qz
-    c5 = (1/2)*v_boom_theta_y
-    c6 = (1/2)*v_boom_theta_x
-    c7 = (1/2)*boom_qz
-    c8 = (1/2)*v_boom_theta_z
-    c9 = (1/2)*c1
+    c3 = (1/2)*boom_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*boom_qw
+    c7 = (1/2)*boom_qw
+    c8 = (1/2)*boom_qx
+    c9 = (1/2)*boom_qy
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*boom_qw + c2*boom_qz) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(c3*v_boom_theta_x + c7*v_boom_theta_y - c8*boom_qy) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(c3*v_boom_theta_y + c8*boom_qx - c7*v_boom_theta_x) - 2*ud0*(c4*v_boom_theta_z + v_boom_theta_x*((1/2)*c2*boom_qy - c9*boom_qx) + v_boom_theta_y*(-c9*boom_qy - 1/2*c2*boom_qx)) + c1*v_boom_theta_z*(-c5*boom_qy - c6*boom_qx - c7*v_boom_theta_z) + c2*v_boom_theta_z*(c3*v_boom_theta_z + c6*boom_qy - c5*boom_qx)
+    out[0] = -2*ud0*((-c4 + c6)*v_boom_theta_z + (-c1*c9 - c2*c8)*v_boom_theta_y + (-c1*c8 + c5*boom_qy)*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-c9*v_boom_theta_z + c3*v_boom_theta_y + c7*v_boom_theta_x) + c1*v_boom_theta_z*(-c3*v_boom_theta_z - c9*v_boom_theta_y - c8*v_boom_theta_x) + c2*v_boom_theta_z*(-c8*v_boom_theta_y + c9*v_boom_theta_x + c7*v_boom_theta_z) - (-c2*v_boom_theta_y - c1*v_boom_theta_x)*(-c3*v_boom_theta_x + c8*v_boom_theta_z + c7*v_boom_theta_y) - (-c6 + c4)*ud0**2 - (c2*boom_qz + c1*boom_qw)*udd0
     return out
 
 
@@ -460,11 +463,13 @@ def _joints_gamma_s(q, v):
     boom_a11 = -1.0 + 2.0*(boom_qw*boom_qw) + 2.0*(boom_qy*boom_qy)
     boom_a20 = -2.0*boom_qw*boom_qy + 2.0*boom_qx*boom_qz
     boom_a21 = 2.0*boom_qw*boom_qx + 2.0*boom_qy*boom_qz
-    c0 = -89/50*boom_a00*v_boom_theta_y + (89/50)*boom_a10*v_boom_theta_x
-    c1 = boom_a00*v_boom_theta_z - boom_a20*v_boom_theta_x
-    c2 = boom_a20*v_boom_theta_y - boom_a10*v_boom_theta_z
-    c3 = c1*v_boom_theta_x
-    return [-c0*v_boom_theta_y + (89/50)*c1*v_boom_theta_z, c0*v_boom_theta_x - 89/50*c2*v_boom_theta_z, -89/50*c3 + (89/50)*c2*v_boom_theta_y, -c3 + c2*v_boom_theta_y, v_boom_theta_y*(boom_a21*v_boom_theta_y - boom_a11*v_boom_theta_z) - v_boom_theta_x*(boom_a01*v_boom_theta_z - boom_a21*v_boom_theta_x)]
+    c0 = (89/50)*(-boom_a00*v_boom_theta_y + boom_a10*v_boom_theta_x)
+    c1 = -boom_a20*v_boom_theta_x + boom_a00*v_boom_theta_z
+    c2 = (89/50)*v_boom_theta_z
+    c3 = -boom_a10*v_boom_theta_z + boom_a20*v_boom_theta_y
+    c4 = c1*v_boom_theta_x
+    c5 = c3*v_boom_theta_y
+    return [c2*c1 - c0*v_boom_theta_y, c0*v_boom_theta_x - c2*c3, (89/50)*c5 - 89/50*c4, -c4 + c5, -(-boom_a21*v_boom_theta_x + boom_a01*v_boom_theta_z)*v_boom_theta_x + (-boom_a11*v_boom_theta_z + boom_a21*v_boom_theta_y)*v_boom_theta_y]
 
 
 def _drivers_gamma_swing_s(q, v, u, ud, udd):
@@ -477,14 +482,14 @@ def _drivers_gamma_swing_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*boom_qw
-    c4 = c2*c3 - 1/2*c1*boom_qz
-    c5 = (1/2)*v_boom_theta_y
-    c6 = (1/2)*v_boom_theta_x
-    c7 = (1/2)*boom_qz
-    c8 = (1/2)*v_boom_theta_z
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*boom_qw + c2*boom_qz) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(c3*v_boom_theta_x + c7*v_boom_theta_y - c8*boom_qy) - (-c1*v_boom_theta_x - c2*v_boom_theta_y)*(c3*v_boom_theta_y + c8*boom_qx - c7*v_boom_theta_x) - 2.0*ud0*(c4*v_boom_theta_z + v_boom_theta_x*((1/2)*c2*boom_qy - c9*boom_qx) + v_boom_theta_y*(-c9*boom_qy - 1/2*c2*boom_qx)) + c1*v_boom_theta_z*(-c5*boom_qy - c6*boom_qx - c7*v_boom_theta_z) + c2*v_boom_theta_z*(c3*v_boom_theta_z + c6*boom_qy - c5*boom_qx)]
+    c3 = (1/2)*boom_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*boom_qw
+    c7 = (1/2)*boom_qw
+    c8 = (1/2)*boom_qx
+    c9 = (1/2)*boom_qy
+    return [-2.0*ud0*((-c4 + c6)*v_boom_theta_z + (-c1*c9 - c2*c8)*v_boom_theta_y + (-c1*c8 + c5*boom_qy)*v_boom_theta_x) - (c1*v_boom_theta_y - c2*v_boom_theta_x)*(-c9*v_boom_theta_z + c3*v_boom_theta_y + c7*v_boom_theta_x) + c1*v_boom_theta_z*(-c3*v_boom_theta_z - c9*v_boom_theta_y - c8*v_boom_theta_x) + c2*v_boom_theta_z*(-c8*v_boom_theta_y + c9*v_boom_theta_x + c7*v_boom_theta_z) - (-c2*v_boom_theta_y - c1*v_boom_theta_x)*(-c3*v_boom_theta_x + c8*v_boom_theta_z + c7*v_boom_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*boom_qz + c1*boom_qw)*udd0]
 
 
 def gamma_s_swing(q, v, u, ud, udd):

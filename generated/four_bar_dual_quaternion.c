@@ -6,6 +6,7 @@
  * parametrization: dual-quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -73,13 +74,13 @@ static void compute_joints_phi(const double *q, double *out) {
     out[2] = -crank_oz;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = crank_ox - coupler_ox + (3.0/10.0)*crank_a00;
-    out[6] = crank_oy - coupler_oy + (3.0/10.0)*crank_a10;
-    out[7] = crank_oz - coupler_oz + (3.0/10.0)*crank_a20;
-    out[8] = coupler_ox - rocker_ox - 7.0/10.0*rocker_a00 + (9.0/10.0)*coupler_a00;
-    out[9] = coupler_oy - rocker_oy - 7.0/10.0*rocker_a10 + (9.0/10.0)*coupler_a10;
-    out[10] = coupler_oz - rocker_oz - 7.0/10.0*rocker_a20 + (9.0/10.0)*coupler_a20;
-    out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22;
+    out[5] = (3.0/10.0)*crank_a00 - coupler_ox + crank_ox;
+    out[6] = (3.0/10.0)*crank_a10 - coupler_oy + crank_oy;
+    out[7] = (3.0/10.0)*crank_a20 - coupler_oz + crank_oz;
+    out[8] = (9.0/10.0)*coupler_a00 - 7.0/10.0*rocker_a00 - rocker_ox + coupler_ox;
+    out[9] = (9.0/10.0)*coupler_a10 - 7.0/10.0*rocker_a10 - rocker_oy + coupler_oy;
+    out[10] = (9.0/10.0)*coupler_a20 - rocker_oz - 7.0/10.0*rocker_a20 + coupler_oz;
+    out[11] = rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01;
     out[12] = 1.0 - rocker_ox;
     out[13] = -rocker_oy;
     out[14] = -rocker_oz;
@@ -93,7 +94,7 @@ static void compute_drivers_phi_crank_turn(const double *q, const double *u, dou
     const double crank_rz = q[3];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_rz*cos(c0) + 2.0*crank_rw*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_rw - 2.0*cos(c0)*crank_rz;
 }
 
 /* Phi_q values of the joint rows (50 entries). */
@@ -138,9 +139,12 @@ static void compute_joints_jac(const double *q, double *out) {
     const double c6 = (7.0/10.0)*rocker_a10;
     const double c7 = (9.0/10.0)*coupler_a00;
     const double c8 = (7.0/10.0)*rocker_a00;
-    const double c9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12;
-    const double c10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02;
-    const double c11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02;
+    const double c9 = rocker_a22*coupler_a11;
+    const double c10 = rocker_a12*coupler_a21;
+    const double c11 = rocker_a02*coupler_a21;
+    const double c12 = rocker_a22*coupler_a01;
+    const double c13 = rocker_a12*coupler_a01;
+    const double c14 = rocker_a02*coupler_a11;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -178,12 +182,12 @@ static void compute_joints_jac(const double *q, double *out) {
     out[34] = -c6;
     out[35] = c8;
     out[36] = -1.0;
-    out[37] = c9;
-    out[38] = -c10;
-    out[39] = c11;
-    out[40] = -c9;
-    out[41] = c10;
-    out[42] = -c11;
+    out[37] = -c10 + c9;
+    out[38] = -c12 + c11;
+    out[39] = -c14 + c13;
+    out[40] = -c9 + c10;
+    out[41] = -c11 + c12;
+    out[42] = -c13 + c14;
     out[43] = -1.0;
     out[44] = -1.0;
     out[45] = -1.0;
@@ -203,8 +207,8 @@ static void compute_drivers_jac_crank_turn(const double *q, const double *u, dou
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*crank_rx - c2*crank_ry;
-    out[1] = c2*crank_rx - c1*crank_ry;
+    out[0] = -c2*crank_ry - c1*crank_rx;
+    out[1] = -c1*crank_ry + c2*crank_rx;
     out[2] = -c1*crank_rz - c2*crank_rw;
 }
 
@@ -215,7 +219,7 @@ static void compute_drivers_nu_crank_turn(const double *q, const double *u, cons
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_rw*cos(c0) + crank_rz*sin(c0));
+    out[0] = -(sin(c0)*crank_rz + cos(c0)*crank_rw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -262,39 +266,38 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double rocker_a20 = -2.0*rocker_rw*rocker_ry + 2.0*rocker_rx*rocker_rz;
     const double rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz);
-    const double c0 = -3.0/10.0*crank_a00*v_crank_wy + (3.0/10.0)*crank_a10*v_crank_wx;
-    const double c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx;
-    const double c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz;
-    const double c3 = -9.0/10.0*coupler_a00*v_coupler_wy + (9.0/10.0)*coupler_a10*v_coupler_wx;
-    const double c4 = coupler_a00*v_coupler_wz - coupler_a20*v_coupler_wx;
-    const double c5 = rocker_a10*v_rocker_wx - rocker_a00*v_rocker_wy;
-    const double c6 = rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx;
-    const double c7 = (7.0/10.0)*v_rocker_wz;
-    const double c8 = coupler_a20*v_coupler_wy - coupler_a10*v_coupler_wz;
-    const double c9 = rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz;
-    const double c10 = v_coupler_wy - v_rocker_wy;
-    const double c11 = v_coupler_wx - v_rocker_wx;
-    const double c12 = -c11;
-    const double c13 = v_coupler_wz - v_rocker_wz;
-    const double c14 = -c13;
-    const double c15 = -c10;
+    const double c0 = (3.0/10.0)*(-crank_a00*v_crank_wy + crank_a10*v_crank_wx);
+    const double c1 = (3.0/10.0)*(-crank_a20*v_crank_wx + crank_a00*v_crank_wz);
+    const double c2 = (3.0/10.0)*(-crank_a10*v_crank_wz + crank_a20*v_crank_wy);
+    const double c3 = (9.0/10.0)*(-coupler_a00*v_coupler_wy + coupler_a10*v_coupler_wx);
+    const double c4 = (7.0/10.0)*(-rocker_a20*v_rocker_wx + rocker_a00*v_rocker_wz);
+    const double c5 = (7.0/10.0)*(-rocker_a00*v_rocker_wy + rocker_a10*v_rocker_wx);
+    const double c6 = (9.0/10.0)*(-coupler_a20*v_coupler_wx + coupler_a00*v_coupler_wz);
+    const double c7 = (9.0/10.0)*(-coupler_a10*v_coupler_wz + coupler_a20*v_coupler_wy);
+    const double c8 = (7.0/10.0)*(-rocker_a10*v_rocker_wz + rocker_a20*v_rocker_wy);
+    const double c9 = -coupler_a21*v_coupler_wx + coupler_a01*v_coupler_wz;
+    const double c10 = -rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz;
+    const double c11 = -coupler_a01*v_coupler_wy + coupler_a11*v_coupler_wx;
+    const double c12 = -rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx;
+    const double c13 = -coupler_a11*v_coupler_wz + coupler_a21*v_coupler_wy;
+    const double c14 = -rocker_a12*v_rocker_wz + rocker_a22*v_rocker_wy;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx);
-    out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx);
-    out[5] = -c0*v_crank_wy + (3.0/10.0)*c1*v_crank_wz;
-    out[6] = c0*v_crank_wx - 3.0/10.0*c2*v_crank_wz;
-    out[7] = -3.0/10.0*c1*v_crank_wx + (3.0/10.0)*c2*v_crank_wy;
-    out[8] = -c3*v_coupler_wy - c6*c7 + (7.0/10.0)*c5*v_rocker_wy + (9.0/10.0)*c4*v_coupler_wz;
-    out[9] = c3*v_coupler_wx + c7*c9 - 9.0/10.0*c8*v_coupler_wz - 7.0/10.0*c5*v_rocker_wx;
-    out[10] = -9.0/10.0*c4*v_coupler_wx - 7.0/10.0*c9*v_rocker_wy + (7.0/10.0)*c6*v_rocker_wx + (9.0/10.0)*c8*v_coupler_wy;
-    out[11] = -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_wy - coupler_a11*v_coupler_wz) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_wz - coupler_a21*v_coupler_wx) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_wx - coupler_a01*v_coupler_wy);
+    out[3] = -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy;
+    out[4] = -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy;
+    out[5] = c1*v_crank_wz - c0*v_crank_wy;
+    out[6] = c0*v_crank_wx - c2*v_crank_wz;
+    out[7] = c2*v_crank_wy - c1*v_crank_wx;
+    out[8] = c5*v_rocker_wy - c4*v_rocker_wz + c6*v_coupler_wz - c3*v_coupler_wy;
+    out[9] = -c5*v_rocker_wx + c3*v_coupler_wx + c8*v_rocker_wz - c7*v_coupler_wz;
+    out[10] = c7*v_coupler_wy + c4*v_rocker_wx - c8*v_rocker_wy - c6*v_coupler_wx;
+    out[11] = -c12*(c11 + coupler_a01*v_rocker_wy - coupler_a11*v_rocker_wx) - c14*(-coupler_a21*v_rocker_wy + c13 + coupler_a11*v_rocker_wz) - c11*(c12 + rocker_a02*v_coupler_wy - rocker_a12*v_coupler_wx) - c10*(-coupler_a01*v_rocker_wz + c9 + coupler_a21*v_rocker_wx) - c13*(c14 + rocker_a12*v_coupler_wz - rocker_a22*v_coupler_wy) - c9*(c10 - rocker_a02*v_coupler_wz + rocker_a22*v_coupler_wx);
     out[12] = 0.0;
     out[13] = 0.0;
     out[14] = 0.0;
-    out[15] = v_rocker_wy*(rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz) - v_rocker_wx*(rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx);
-    out[16] = v_rocker_wy*(rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz) - v_rocker_wx*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx);
+    out[15] = -(-rocker_a20*v_rocker_wx + rocker_a00*v_rocker_wz)*v_rocker_wx + (-rocker_a10*v_rocker_wz + rocker_a20*v_rocker_wy)*v_rocker_wy;
+    out[16] = -(-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*v_rocker_wx + (-rocker_a11*v_rocker_wz + rocker_a21*v_rocker_wy)*v_rocker_wy;
 }
 
 /* gamma of the driver rows of case 'crank_turn'. */
@@ -312,14 +315,15 @@ static void compute_drivers_gamma_crank_turn(const double *q, const double *v, c
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*crank_rw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*crank_rz;
-    const double c5 = (1.0/2.0)*v_crank_wy;
-    const double c6 = (1.0/2.0)*v_crank_wx;
-    const double c7 = (1.0/2.0)*crank_rz;
-    const double c8 = (1.0/2.0)*v_crank_wz;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2.0*ud0*(c4*v_crank_wz + v_crank_wx*((1.0/2.0)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1.0/2.0*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx);
+    const double c3 = (1.0/2.0)*c2;
+    const double c4 = (1.0/2.0)*crank_rx;
+    const double c5 = c3*crank_rw;
+    const double c6 = (1.0/2.0)*c1;
+    const double c7 = c6*crank_rz;
+    const double c8 = (1.0/2.0)*crank_ry;
+    const double c9 = (1.0/2.0)*crank_rz;
+    const double c10 = (1.0/2.0)*crank_rw;
+    out[0] = c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2.0*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0;
 }
 
 /* Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -554,46 +558,47 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step0*step0);
     const double _t1 = (step1*step1);
     const double _t2 = (step2*step2);
-    const double _t3 = (1.0/4.0)*_t0 + (1.0/4.0)*_t1 + (1.0/4.0)*_t2;
+    const double _t3 = (1.0/4.0)*_t2 + (1.0/4.0)*_t1 + (1.0/4.0)*_t0;
     const double _t4 = sqrt(_t3);
     const double _t5 = cos(_t4);
     const double _t6 = (_t3*_t3);
-    const double _t7 = _t4 < 0.0001;
-    const double _t8 = sin(_t4)/_t4;
-    const double _t9 = ((_t7) ? ( 1.0 - 1.0/24.0*_t0 - 1.0/24.0*_t1 - 1.0/24.0*_t2 + (1.0/120.0)*_t6 ) : ( _t8 ));
-    const double _t10 = (1.0/2.0)*step0;
-    const double _t11 = _t10*_t9;
-    const double _t12 = (1.0/2.0)*step1;
-    const double _t13 = _t12*_t9;
-    const double _t14 = (1.0/2.0)*step2;
-    const double _t15 = _t14*_t9;
-    const double _t16 = (1.0/2.0)*step3;
-    const double _t17 = (1.0/2.0)*step5;
-    const double _t18 = 2.0*q7;
-    const double _t19 = 2.0*q6;
-    const double _t20 = 2.0*q2;
-    const double _t21 = 2.0*q3;
-    const double _t22 = (1.0/2.0)*_t17 + (1.0/2.0)*_t18*q0 + (1.0/2.0)*_t19*q1 - 1.0/2.0*_t20*q5 - 1.0/2.0*_t21*q4;
-    const double _t23 = (1.0/2.0)*step4;
-    const double _t24 = _t23 + _t19*q0 + _t21*q5 - _t18*q1 - _t20*q4;
-    const double _t25 = _t16 + _t14*_t24 - _t22*step1;
-    const double _t26 = _t16 + _t18*q2 - _t19*q3 - 2.0*q1*q4 + 2.0*q0*q5;
-    const double _t27 = _t23 + _t22*step0 - _t14*_t26;
-    const double _t28 = _t17 + _t12*_t26 - _t10*_t24;
-    const double _t29 = _t10*_t25 + _t12*_t27 + _t14*_t28;
-    const double _t30 = _t29*_t9;
-    const double _t31 = _t29*((_t7) ? ( -1.0/3.0 - 1.0/840.0*_t6 + (1.0/120.0)*_t0 + (1.0/120.0)*_t1 + (1.0/120.0)*_t2 ) : ( (_t5 - _t8)/_t3 ));
-    const double _t32 = _t10*_t31 + _t25*_t9;
-    const double _t33 = _t12*_t31 + _t27*_t9;
-    const double _t34 = _t14*_t31 + _t28*_t9;
-    const double moved0 = _t5*q0 - _t11*q1 - _t13*q2 - _t15*q3;
-    const double moved1 = _t11*q0 + _t13*q3 + _t5*q1 - _t15*q2;
-    const double moved2 = _t13*q0 + _t15*q1 + _t5*q2 - _t11*q3;
-    const double moved3 = _t11*q2 + _t15*q0 + _t5*q3 - _t13*q1;
-    const double moved4 = _t5*q4 - _t11*q5 - _t13*q6 - _t15*q7 - _t30*q0 - _t32*q1 - _t33*q2 - _t34*q3;
-    const double moved5 = _t11*q4 + _t13*q7 + _t32*q0 + _t33*q3 + _t5*q5 - _t15*q6 - _t30*q1 - _t34*q2;
-    const double moved6 = _t13*q4 + _t15*q5 + _t33*q0 + _t34*q1 + _t5*q6 - _t11*q7 - _t30*q2 - _t32*q3;
-    const double moved7 = _t11*q6 + _t15*q4 + _t32*q2 + _t34*q0 + _t5*q7 - _t13*q5 - _t30*q3 - _t33*q1;
+    const double _t7 = sin(_t4)/_t4;
+    const double _t8 = ((_t4 < 0.0001) ? ( 1.0 + (1.0/120.0)*_t6 - 1.0/24.0*_t2 - 1.0/24.0*_t1 - 1.0/24.0*_t0 ) : ( _t7 ));
+    const double _t9 = (1.0/2.0)*step0;
+    const double _t10 = _t8*_t9;
+    const double _t11 = (1.0/2.0)*step1;
+    const double _t12 = _t8*_t11;
+    const double _t13 = (1.0/2.0)*step2;
+    const double _t14 = _t8*_t13;
+    const double _t15 = (1.0/2.0)*step3;
+    const double _t16 = (1.0/2.0)*step4;
+    const double _t17 = 2.0*q1;
+    const double _t18 = 2.0*q3;
+    const double _t19 = 2.0*q2;
+    const double _t20 = 2.0*q0;
+    const double _t21 = q6*_t20 + q5*_t18 - q7*_t17 - q4*_t19 + _t16;
+    const double _t22 = (1.0/2.0)*step5;
+    const double _t23 = 2.0*q5;
+    const double _t24 = q7*_t20 - q4*_t18 - q2*_t23 + q6*_t17 + _t22;
+    const double _t25 = -_t24*_t11 + _t21*_t13 + _t15;
+    const double _t26 = q7*_t19 + q0*_t23 - q6*_t18 - q4*_t17 + _t15;
+    const double _t27 = -_t21*_t9 + _t26*_t11 + _t22;
+    const double _t28 = -_t26*_t13 + _t24*_t9 + _t16;
+    const double _t29 = _t28*_t11 + _t27*_t13 + _t25*_t9;
+    const double _t30 = _t29*((_t4 < 0.0001) ? ( -1.0/3.0 + (1.0/120.0)*_t2 + (1.0/120.0)*_t1 + (1.0/120.0)*_t0 - 1.0/840.0*_t6 ) : ( (_t5 - _t7)/_t3 ));
+    const double _t31 = _t30*_t9 + _t8*_t25;
+    const double _t32 = _t30*_t11 + _t8*_t28;
+    const double _t33 = _t8*_t29;
+    const double _t34 = _t30*_t13 + _t8*_t27;
+    const double _t35 = q7*_t8;
+    const double moved0 = -q3*_t14 - q2*_t12 - q1*_t10 + q0*_t5;
+    const double moved1 = -q2*_t14 + q3*_t12 + q0*_t10 + q1*_t5;
+    const double moved2 = -q3*_t10 + q1*_t14 + q0*_t12 + q2*_t5;
+    const double moved3 = -q1*_t12 + q0*_t14 + q2*_t10 + q3*_t5;
+    const double moved4 = -q5*_t10 - _t35*_t13 - q3*_t34 - q6*_t12 - q0*_t33 - q2*_t32 - q1*_t31 + q4*_t5;
+    const double moved5 = -q6*_t14 - q1*_t33 - q2*_t34 + q3*_t32 + q4*_t10 + _t35*_t11 + q5*_t5 + q0*_t31;
+    const double moved6 = -q7*_t10 - q2*_t33 + q5*_t14 + q4*_t12 - q3*_t31 + q6*_t5 + q1*_t34 + q0*_t32;
+    const double moved7 = q6*_t10 - q5*_t12 - q3*_t33 + q7*_t5 + q2*_t31 + q4*_t14 - q1*_t32 + q0*_t34;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

@@ -6,6 +6,7 @@ source sha256:   4c66517595d777fe6904e4cce1b8182bfb0fff8ed209ec77655e967975d0af5
 parametrization: dual-quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 24) and v (velocity, 18) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -49,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_dual_quaternion.h': '6195ec2f81cf571e4a3601f0b045dcf91634b3b59669205763c644b42c8d24c9', 'four_bar_dual_quaternion.c': '98df6087eebc94e16ccfca673dffa1882870d6f798d2aff44a9c3aefaf718f23'}
+C_FILES = {'four_bar_dual_quaternion.h': '481e683d0c2e0bac88c7c91533948311993b9b85aece03539d6a62edf794f9c3', 'four_bar_dual_quaternion.c': '3e77b6c4aa3d2183d414b70221878bbd010c0d333dc823a9bed98775257ba523'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -391,13 +392,13 @@ def _joints_phi(q):
     out[2] = -crank_oz
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = crank_ox - coupler_ox + (3/10)*crank_a00
-    out[6] = crank_oy - coupler_oy + (3/10)*crank_a10
-    out[7] = crank_oz - coupler_oz + (3/10)*crank_a20
-    out[8] = coupler_ox - rocker_ox - 7/10*rocker_a00 + (9/10)*coupler_a00
-    out[9] = coupler_oy - rocker_oy - 7/10*rocker_a10 + (9/10)*coupler_a10
-    out[10] = coupler_oz - rocker_oz - 7/10*rocker_a20 + (9/10)*coupler_a20
-    out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22
+    out[5] = (3/10)*crank_a00 - coupler_ox + crank_ox
+    out[6] = (3/10)*crank_a10 - coupler_oy + crank_oy
+    out[7] = (3/10)*crank_a20 - coupler_oz + crank_oz
+    out[8] = (9/10)*coupler_a00 - 7/10*rocker_a00 - rocker_ox + coupler_ox
+    out[9] = (9/10)*coupler_a10 - 7/10*rocker_a10 - rocker_oy + coupler_oy
+    out[10] = (9/10)*coupler_a20 - rocker_oz - 7/10*rocker_a20 + coupler_oz
+    out[11] = rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01
     out[12] = 1 - rocker_ox
     out[13] = -rocker_oy
     out[14] = -rocker_oz
@@ -412,7 +413,7 @@ def _drivers_phi_crank_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_rz*cos(c0) + 2*crank_rw*sin(c0)
+    out[0] = 2*sin(c0)*crank_rw - 2*cos(c0)*crank_rz
     return out
 
 
@@ -452,9 +453,12 @@ def _joints_jac(q):
     c6 = (7/10)*rocker_a10
     c7 = (9/10)*coupler_a00
     c8 = (7/10)*rocker_a00
-    c9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
-    c10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
-    c11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
+    c9 = rocker_a22*coupler_a11
+    c10 = rocker_a12*coupler_a21
+    c11 = rocker_a02*coupler_a21
+    c12 = rocker_a22*coupler_a01
+    c13 = rocker_a12*coupler_a01
+    c14 = rocker_a02*coupler_a11
     out = _zeros(50, q, ())
     out[0] = -1
     out[1] = -1
@@ -493,12 +497,12 @@ def _joints_jac(q):
     out[34] = -c6
     out[35] = c8
     out[36] = -1
-    out[37] = c9
-    out[38] = -c10
-    out[39] = c11
-    out[40] = -c9
-    out[41] = c10
-    out[42] = -c11
+    out[37] = -c10 + c9
+    out[38] = -c12 + c11
+    out[39] = -c14 + c13
+    out[40] = -c9 + c10
+    out[41] = -c11 + c12
+    out[42] = -c13 + c14
     out[43] = -1
     out[44] = -1
     out[45] = -1
@@ -517,8 +521,8 @@ def _drivers_jac_crank_turn(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*crank_rx - c2*crank_ry
-    out[1] = c2*crank_rx - c1*crank_ry
+    out[0] = -c2*crank_ry - c1*crank_rx
+    out[1] = -c1*crank_ry + c2*crank_rx
     out[2] = -c1*crank_rz - c2*crank_rw
     return out
 
@@ -570,10 +574,13 @@ def _joints_phi_joints_jac_s(q):
     d6 = (7/10)*rocker_a10
     d7 = (9/10)*coupler_a00
     d8 = (7/10)*rocker_a00
-    d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
-    d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
-    d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, crank_ox - coupler_ox + (3/10)*crank_a00, crank_oy - coupler_oy + (3/10)*crank_a10, crank_oz - coupler_oz + (3/10)*crank_a20, coupler_ox - rocker_ox - 7/10*rocker_a00 + (9/10)*coupler_a00, coupler_oy - rocker_oy - 7/10*rocker_a10 + (9/10)*coupler_a10, coupler_oz - rocker_oz - 7/10*rocker_a20 + (9/10)*coupler_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_ox, -rocker_oy, -rocker_oz, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, 1.0, -d5, d6, -1.0, -d3, d7, 1.0, d5, -d8, -1.0, d4, -d7, 1.0, -d6, d8, -1.0, d9, -d10, d11, -d9, d10, -d11, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
+    d9 = rocker_a22*coupler_a11
+    d10 = rocker_a12*coupler_a21
+    d11 = rocker_a02*coupler_a21
+    d12 = rocker_a22*coupler_a01
+    d13 = rocker_a12*coupler_a01
+    d14 = rocker_a02*coupler_a11
+    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, (3/10)*crank_a00 - coupler_ox + crank_ox, (3/10)*crank_a10 - coupler_oy + crank_oy, (3/10)*crank_a20 - coupler_oz + crank_oz, (9/10)*coupler_a00 - 7/10*rocker_a00 - rocker_ox + coupler_ox, (9/10)*coupler_a10 - 7/10*rocker_a10 - rocker_oy + coupler_oy, (9/10)*coupler_a20 - rocker_oz - 7/10*rocker_a20 + coupler_oz, rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01, 1.0 - rocker_ox, -rocker_oy, -rocker_oz, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, 1.0, -d5, d6, -1.0, -d3, d7, 1.0, d5, -d8, -1.0, d4, -d7, 1.0, -d6, d8, -1.0, -d10 + d9, -d12 + d11, -d14 + d13, -d9 + d10, -d11 + d12, -d13 + d14, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
 
 
 def _drivers_phi_crank_turn_drivers_jac_crank_turn_s(q, u):
@@ -584,7 +591,7 @@ def _drivers_phi_crank_turn_drivers_jac_crank_turn_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*crank_rz*math.cos(c0) + 2.0*crank_rw*math.sin(c0)], [-d1*crank_rx - d2*crank_ry, d2*crank_rx - d1*crank_ry, -d1*crank_rz - d2*crank_rw]
+    return [2.0*math.sin(c0)*crank_rw - 2.0*math.cos(c0)*crank_rz], [-d2*crank_ry - d1*crank_rx, -d1*crank_ry + d2*crank_rx, -d1*crank_rz - d2*crank_rw]
 
 
 def phi_jac_s_crank_turn(q, u):
@@ -601,7 +608,7 @@ def _drivers_nu_crank_turn(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_rw*cos(c0) + crank_rz*sin(c0))
+    out[0] = -(sin(c0)*crank_rz + cos(c0)*crank_rw)*ud0
     return out
 
 
@@ -616,7 +623,7 @@ def _drivers_nu_crank_turn_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_rw*math.cos(c0) + crank_rz*math.sin(c0))]
+    return [-(math.sin(c0)*crank_rz + math.cos(c0)*crank_rw)*ud0]
 
 
 def nu_s_crank_turn(q, u, ud):
@@ -650,34 +657,33 @@ def _joints_gamma(q, v):
     rocker_a20 = -2*rocker_rw*rocker_ry + 2*rocker_rx*rocker_rz
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    c0 = -3/10*crank_a00*v_crank_wy + (3/10)*crank_a10*v_crank_wx
-    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c3 = -9/10*coupler_a00*v_coupler_wy + (9/10)*coupler_a10*v_coupler_wx
-    c4 = coupler_a00*v_coupler_wz - coupler_a20*v_coupler_wx
-    c5 = rocker_a10*v_rocker_wx - rocker_a00*v_rocker_wy
-    c6 = rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx
-    c7 = (7/10)*v_rocker_wz
-    c8 = coupler_a20*v_coupler_wy - coupler_a10*v_coupler_wz
-    c9 = rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz
-    c10 = v_coupler_wy - v_rocker_wy
-    c11 = v_coupler_wx - v_rocker_wx
-    c12 = -c11
-    c13 = v_coupler_wz - v_rocker_wz
-    c14 = -c13
-    c15 = -c10
+    c0 = (3/10)*(-crank_a00*v_crank_wy + crank_a10*v_crank_wx)
+    c1 = (3/10)*(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)
+    c2 = (3/10)*(-crank_a10*v_crank_wz + crank_a20*v_crank_wy)
+    c3 = (9/10)*(-coupler_a00*v_coupler_wy + coupler_a10*v_coupler_wx)
+    c4 = (7/10)*(-rocker_a20*v_rocker_wx + rocker_a00*v_rocker_wz)
+    c5 = (7/10)*(-rocker_a00*v_rocker_wy + rocker_a10*v_rocker_wx)
+    c6 = (9/10)*(-coupler_a20*v_coupler_wx + coupler_a00*v_coupler_wz)
+    c7 = (9/10)*(-coupler_a10*v_coupler_wz + coupler_a20*v_coupler_wy)
+    c8 = (7/10)*(-rocker_a10*v_rocker_wz + rocker_a20*v_rocker_wy)
+    c9 = -coupler_a21*v_coupler_wx + coupler_a01*v_coupler_wz
+    c10 = -rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz
+    c11 = -coupler_a01*v_coupler_wy + coupler_a11*v_coupler_wx
+    c12 = -rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx
+    c13 = -coupler_a11*v_coupler_wz + coupler_a21*v_coupler_wy
+    c14 = -rocker_a12*v_rocker_wz + rocker_a22*v_rocker_wy
     out = _zeros(17, q, ())
-    out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx)
-    out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx)
-    out[5] = -c0*v_crank_wy + (3/10)*c1*v_crank_wz
-    out[6] = c0*v_crank_wx - 3/10*c2*v_crank_wz
-    out[7] = -3/10*c1*v_crank_wx + (3/10)*c2*v_crank_wy
-    out[8] = -c3*v_coupler_wy - c6*c7 + (7/10)*c5*v_rocker_wy + (9/10)*c4*v_coupler_wz
-    out[9] = c3*v_coupler_wx + c7*c9 - 9/10*c8*v_coupler_wz - 7/10*c5*v_rocker_wx
-    out[10] = -9/10*c4*v_coupler_wx - 7/10*c9*v_rocker_wy + (7/10)*c6*v_rocker_wx + (9/10)*c8*v_coupler_wy
-    out[11] = -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_wy - coupler_a11*v_coupler_wz) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_wz - coupler_a21*v_coupler_wx) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_wx - coupler_a01*v_coupler_wy)
-    out[15] = v_rocker_wy*(rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz) - v_rocker_wx*(rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx)
-    out[16] = v_rocker_wy*(rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz) - v_rocker_wx*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)
+    out[3] = -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy
+    out[4] = -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy
+    out[5] = c1*v_crank_wz - c0*v_crank_wy
+    out[6] = c0*v_crank_wx - c2*v_crank_wz
+    out[7] = c2*v_crank_wy - c1*v_crank_wx
+    out[8] = c5*v_rocker_wy - c4*v_rocker_wz + c6*v_coupler_wz - c3*v_coupler_wy
+    out[9] = -c5*v_rocker_wx + c3*v_coupler_wx + c8*v_rocker_wz - c7*v_coupler_wz
+    out[10] = c7*v_coupler_wy + c4*v_rocker_wx - c8*v_rocker_wy - c6*v_coupler_wx
+    out[11] = -c12*(c11 + coupler_a01*v_rocker_wy - coupler_a11*v_rocker_wx) - c14*(-coupler_a21*v_rocker_wy + c13 + coupler_a11*v_rocker_wz) - c11*(c12 + rocker_a02*v_coupler_wy - rocker_a12*v_coupler_wx) - c10*(-coupler_a01*v_rocker_wz + c9 + coupler_a21*v_rocker_wx) - c13*(c14 + rocker_a12*v_coupler_wz - rocker_a22*v_coupler_wy) - c9*(c10 - rocker_a02*v_coupler_wz + rocker_a22*v_coupler_wx)
+    out[15] = -(-rocker_a20*v_rocker_wx + rocker_a00*v_rocker_wz)*v_rocker_wx + (-rocker_a10*v_rocker_wz + rocker_a20*v_rocker_wy)*v_rocker_wy
+    out[16] = -(-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*v_rocker_wx + (-rocker_a11*v_rocker_wz + rocker_a21*v_rocker_wy)*v_rocker_wy
     return out
 
 
@@ -691,15 +697,16 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*crank_rw
-    c4 = c2*c3 - 1/2*c1*crank_rz
-    c5 = (1/2)*v_crank_wy
-    c6 = (1/2)*v_crank_wx
-    c7 = (1/2)*crank_rz
-    c8 = (1/2)*v_crank_wz
-    c9 = (1/2)*c1
+    c3 = (1/2)*c2
+    c4 = (1/2)*crank_rx
+    c5 = c3*crank_rw
+    c6 = (1/2)*c1
+    c7 = c6*crank_rz
+    c8 = (1/2)*crank_ry
+    c9 = (1/2)*crank_rz
+    c10 = (1/2)*crank_rw
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2*ud0*(c4*v_crank_wz + v_crank_wx*((1/2)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1/2*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx)
+    out[0] = c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0
     return out
 
 
@@ -733,23 +740,22 @@ def _joints_gamma_s(q, v):
     rocker_a20 = -2.0*rocker_rw*rocker_ry + 2.0*rocker_rx*rocker_rz
     rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz)
-    c0 = -3/10*crank_a00*v_crank_wy + (3/10)*crank_a10*v_crank_wx
-    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c3 = -9/10*coupler_a00*v_coupler_wy + (9/10)*coupler_a10*v_coupler_wx
-    c4 = coupler_a00*v_coupler_wz - coupler_a20*v_coupler_wx
-    c5 = rocker_a10*v_rocker_wx - rocker_a00*v_rocker_wy
-    c6 = rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx
-    c7 = (7/10)*v_rocker_wz
-    c8 = coupler_a20*v_coupler_wy - coupler_a10*v_coupler_wz
-    c9 = rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz
-    c10 = v_coupler_wy - v_rocker_wy
-    c11 = v_coupler_wx - v_rocker_wx
-    c12 = -c11
-    c13 = v_coupler_wz - v_rocker_wz
-    c14 = -c13
-    c15 = -c10
-    return [0.0, 0.0, 0.0, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), -c0*v_crank_wy + (3/10)*c1*v_crank_wz, c0*v_crank_wx - 3/10*c2*v_crank_wz, -3/10*c1*v_crank_wx + (3/10)*c2*v_crank_wy, -c3*v_coupler_wy - c6*c7 + (7/10)*c5*v_rocker_wy + (9/10)*c4*v_coupler_wz, c3*v_coupler_wx + c7*c9 - 9/10*c8*v_coupler_wz - 7/10*c5*v_rocker_wx, -9/10*c4*v_coupler_wx - 7/10*c9*v_rocker_wy + (7/10)*c6*v_rocker_wx + (9/10)*c8*v_coupler_wy, -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_wy - coupler_a11*v_coupler_wz) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_wz - coupler_a21*v_coupler_wx) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_wx - coupler_a01*v_coupler_wy), 0.0, 0.0, 0.0, v_rocker_wy*(rocker_a20*v_rocker_wy - rocker_a10*v_rocker_wz) - v_rocker_wx*(rocker_a00*v_rocker_wz - rocker_a20*v_rocker_wx), v_rocker_wy*(rocker_a21*v_rocker_wy - rocker_a11*v_rocker_wz) - v_rocker_wx*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx)]
+    c0 = (3/10)*(-crank_a00*v_crank_wy + crank_a10*v_crank_wx)
+    c1 = (3/10)*(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)
+    c2 = (3/10)*(-crank_a10*v_crank_wz + crank_a20*v_crank_wy)
+    c3 = (9/10)*(-coupler_a00*v_coupler_wy + coupler_a10*v_coupler_wx)
+    c4 = (7/10)*(-rocker_a20*v_rocker_wx + rocker_a00*v_rocker_wz)
+    c5 = (7/10)*(-rocker_a00*v_rocker_wy + rocker_a10*v_rocker_wx)
+    c6 = (9/10)*(-coupler_a20*v_coupler_wx + coupler_a00*v_coupler_wz)
+    c7 = (9/10)*(-coupler_a10*v_coupler_wz + coupler_a20*v_coupler_wy)
+    c8 = (7/10)*(-rocker_a10*v_rocker_wz + rocker_a20*v_rocker_wy)
+    c9 = -coupler_a21*v_coupler_wx + coupler_a01*v_coupler_wz
+    c10 = -rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz
+    c11 = -coupler_a01*v_coupler_wy + coupler_a11*v_coupler_wx
+    c12 = -rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx
+    c13 = -coupler_a11*v_coupler_wz + coupler_a21*v_coupler_wy
+    c14 = -rocker_a12*v_rocker_wz + rocker_a22*v_rocker_wy
+    return [0.0, 0.0, 0.0, -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy, -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy, c1*v_crank_wz - c0*v_crank_wy, c0*v_crank_wx - c2*v_crank_wz, c2*v_crank_wy - c1*v_crank_wx, c5*v_rocker_wy - c4*v_rocker_wz + c6*v_coupler_wz - c3*v_coupler_wy, -c5*v_rocker_wx + c3*v_coupler_wx + c8*v_rocker_wz - c7*v_coupler_wz, c7*v_coupler_wy + c4*v_rocker_wx - c8*v_rocker_wy - c6*v_coupler_wx, -c12*(c11 + coupler_a01*v_rocker_wy - coupler_a11*v_rocker_wx) - c14*(-coupler_a21*v_rocker_wy + c13 + coupler_a11*v_rocker_wz) - c11*(c12 + rocker_a02*v_coupler_wy - rocker_a12*v_coupler_wx) - c10*(-coupler_a01*v_rocker_wz + c9 + coupler_a21*v_rocker_wx) - c13*(c14 + rocker_a12*v_coupler_wz - rocker_a22*v_coupler_wy) - c9*(c10 - rocker_a02*v_coupler_wz + rocker_a22*v_coupler_wx), 0.0, 0.0, 0.0, -(-rocker_a20*v_rocker_wx + rocker_a00*v_rocker_wz)*v_rocker_wx + (-rocker_a10*v_rocker_wz + rocker_a20*v_rocker_wy)*v_rocker_wy, -(-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*v_rocker_wx + (-rocker_a11*v_rocker_wz + rocker_a21*v_rocker_wy)*v_rocker_wy]
 
 
 def _drivers_gamma_crank_turn_s(q, v, u, ud, udd):
@@ -762,14 +768,15 @@ def _drivers_gamma_crank_turn_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*crank_rw
-    c4 = c2*c3 - 1/2*c1*crank_rz
-    c5 = (1/2)*v_crank_wy
-    c6 = (1/2)*v_crank_wx
-    c7 = (1/2)*crank_rz
-    c8 = (1/2)*v_crank_wz
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2.0*ud0*(c4*v_crank_wz + v_crank_wx*((1/2)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1/2*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx)]
+    c3 = (1/2)*c2
+    c4 = (1/2)*crank_rx
+    c5 = c3*crank_rw
+    c6 = (1/2)*c1
+    c7 = c6*crank_rz
+    c8 = (1/2)*crank_ry
+    c9 = (1/2)*crank_rz
+    c10 = (1/2)*crank_rw
+    return [c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2.0*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0]
 
 
 def gamma_s_crank_turn(q, v, u, ud, udd):

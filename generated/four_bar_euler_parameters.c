@@ -6,6 +6,7 @@
  * parametrization: euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -61,21 +62,21 @@ static void compute_joints_phi(const double *q, double *out) {
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = crank_x - coupler_x + (3.0/10.0)*crank_a00;
-    out[6] = crank_y - coupler_y + (3.0/10.0)*crank_a10;
-    out[7] = crank_z - coupler_z + (3.0/10.0)*crank_a20;
-    out[8] = coupler_x - rocker_x - 7.0/10.0*rocker_a00 + (9.0/10.0)*coupler_a00;
-    out[9] = coupler_y - rocker_y - 7.0/10.0*rocker_a10 + (9.0/10.0)*coupler_a10;
-    out[10] = coupler_z - rocker_z - 7.0/10.0*rocker_a20 + (9.0/10.0)*coupler_a20;
-    out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22;
+    out[5] = (3.0/10.0)*crank_a00 - coupler_x + crank_x;
+    out[6] = (3.0/10.0)*crank_a10 - coupler_y + crank_y;
+    out[7] = (3.0/10.0)*crank_a20 - coupler_z + crank_z;
+    out[8] = (9.0/10.0)*coupler_a00 - 7.0/10.0*rocker_a00 - rocker_x + coupler_x;
+    out[9] = (9.0/10.0)*coupler_a10 - rocker_y - 7.0/10.0*rocker_a10 + coupler_y;
+    out[10] = -7.0/10.0*rocker_a20 + (9.0/10.0)*coupler_a20 - rocker_z + coupler_z;
+    out[11] = rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01;
     out[12] = 1.0 - rocker_x;
     out[13] = -rocker_y;
     out[14] = -rocker_z;
     out[15] = rocker_a20;
     out[16] = rocker_a21;
-    out[17] = -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3);
-    out[18] = -1.0 + (coupler_e0*coupler_e0) + (coupler_e1*coupler_e1) + (coupler_e2*coupler_e2) + (coupler_e3*coupler_e3);
-    out[19] = -1.0 + (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3);
+    out[17] = -1.0 + (crank_e3*crank_e3) + (crank_e2*crank_e2) + (crank_e1*crank_e1) + (crank_e0*crank_e0);
+    out[18] = -1.0 + (coupler_e3*coupler_e3) + (coupler_e2*coupler_e2) + (coupler_e1*coupler_e1) + (coupler_e0*coupler_e0);
+    out[19] = -1.0 + (rocker_e3*rocker_e3) + (rocker_e2*rocker_e2) + (rocker_e1*rocker_e1) + (rocker_e0*rocker_e0);
 }
 
 /* Phi of the driver rows of case 'crank_turn'. */
@@ -84,7 +85,7 @@ static void compute_drivers_phi_crank_turn(const double *q, const double *u, dou
     const double crank_e3 = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_e3*cos(c0) + 2.0*crank_e0*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_e0 - 2.0*cos(c0)*crank_e3;
 }
 
 /* Phi_q values of the joint rows (84 entries). */
@@ -123,16 +124,18 @@ static void compute_joints_jac(const double *q, double *out) {
     const double c13 = (7.0/5.0)*rocker_e2;
     const double c14 = -7.0/5.0*rocker_e1;
     const double c15 = (7.0/5.0)*rocker_e0;
-    const double c16 = 4.0*rocker_a12;
-    const double c17 = 2.0*rocker_a22;
-    const double c18 = 2.0*rocker_a02;
-    const double c19 = 2.0*coupler_a01;
-    const double c20 = 2.0*coupler_a11;
-    const double c21 = 4.0*coupler_a21;
-    const double c22 = 2.0*rocker_e2;
-    const double c23 = 2.0*rocker_e3;
-    const double c24 = 2.0*rocker_e0;
-    const double c25 = 2.0*rocker_e1;
+    const double c16 = 2.0*rocker_a02;
+    const double c17 = 2.0*coupler_e1;
+    const double c18 = 4.0*rocker_a12;
+    const double c19 = 2.0*rocker_a22;
+    const double c20 = 2.0*coupler_e2;
+    const double c21 = 2.0*coupler_a11;
+    const double c22 = 2.0*coupler_a01;
+    const double c23 = 4.0*coupler_a21;
+    const double c24 = 2.0*rocker_e2;
+    const double c25 = 2.0*rocker_e3;
+    const double c26 = 2.0*rocker_e0;
+    const double c27 = 2.0*rocker_e1;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -186,25 +189,25 @@ static void compute_joints_jac(const double *q, double *out) {
     out[50] = c12;
     out[51] = c15;
     out[52] = c14;
-    out[53] = c16*coupler_e0 + c17*coupler_e1 - c18*coupler_e3;
-    out[54] = c18*coupler_e2 + c17*coupler_e0;
-    out[55] = c18*coupler_e1 + c16*coupler_e2 + c17*coupler_e3;
-    out[56] = -c18*coupler_e0 + 2.0*coupler_e2*rocker_a22;
-    out[57] = c19*rocker_e2 + c21*rocker_e0 - c20*rocker_e1;
-    out[58] = c19*rocker_e3 - c20*rocker_e0;
-    out[59] = c19*rocker_e0 + c20*rocker_e3;
-    out[60] = c19*rocker_e1 + c20*rocker_e2 + c21*rocker_e3;
+    out[53] = c18*coupler_e0 + c17*rocker_a22 - c16*coupler_e3;
+    out[54] = c20*rocker_a02 + c19*coupler_e0;
+    out[55] = c19*coupler_e3 + c18*coupler_e2 + c17*rocker_a02;
+    out[56] = c20*rocker_a22 - c16*coupler_e0;
+    out[57] = c23*rocker_e0 + c22*rocker_e2 - c21*rocker_e1;
+    out[58] = c22*rocker_e3 - c21*rocker_e0;
+    out[59] = c21*rocker_e3 + c22*rocker_e0;
+    out[60] = c23*rocker_e3 + c21*rocker_e2 + c22*rocker_e1;
     out[61] = -1.0;
     out[62] = -1.0;
     out[63] = -1.0;
-    out[64] = -c22;
-    out[65] = c23;
-    out[66] = -c24;
-    out[67] = c25;
-    out[68] = c25;
-    out[69] = c24;
-    out[70] = c23;
-    out[71] = c22;
+    out[64] = -c24;
+    out[65] = c25;
+    out[66] = -c26;
+    out[67] = c27;
+    out[68] = c27;
+    out[69] = c26;
+    out[70] = c25;
+    out[71] = c24;
     out[72] = 2.0*crank_e0;
     out[73] = 2.0*crank_e1;
     out[74] = 2.0*crank_e2;
@@ -235,7 +238,7 @@ static void compute_drivers_nu_crank_turn(const double *q, const double *u, cons
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0));
+    out[0] = -(sin(c0)*crank_e3 + cos(c0)*crank_e0)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -266,44 +269,50 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
     const double rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3);
-    const double c0 = 4.0*v_crank_e2;
-    const double c1 = 4.0*v_crank_e1;
+    const double c0 = 4.0*v_crank_e1;
+    const double c1 = 4.0*v_crank_e2;
     const double c2 = (6.0/5.0)*v_crank_e3;
     const double c3 = (6.0/5.0)*v_crank_e2;
     const double c4 = (18.0/5.0)*v_coupler_e3;
     const double c5 = (18.0/5.0)*v_coupler_e2;
-    const double c6 = 2.0*rocker_a02;
-    const double c7 = 2.0*rocker_a22;
-    const double c8 = 2.0*coupler_a01;
-    const double c9 = 2.0*coupler_a11;
-    const double c10 = 4.0*rocker_a12;
-    const double c11 = 4.0*coupler_a21;
-    const double c12 = 2.0*rocker_e0;
-    const double c13 = 2.0*rocker_e1;
-    const double c14 = 2.0*coupler_e0;
-    const double c15 = 2.0*v_coupler_e0;
-    const double c16 = 4.0*v_rocker_e2;
-    const double c17 = 4.0*v_rocker_e1;
+    const double c6 = (14.0/5.0)*v_rocker_e3;
+    const double c7 = (14.0/5.0)*v_rocker_e2;
+    const double c8 = 4.0*rocker_a12;
+    const double c9 = 2.0*rocker_a22;
+    const double c10 = 2.0*rocker_a02;
+    const double c11 = 4.0*v_rocker_e0;
+    const double c12 = 2.0*v_rocker_e2;
+    const double c13 = 2.0*coupler_a11;
+    const double c14 = 2.0*v_coupler_e0;
+    const double c15 = 2.0*coupler_e0;
+    const double c16 = 2.0*coupler_e2;
+    const double c17 = 2.0*v_coupler_e2;
+    const double c18 = 2.0*v_rocker_e0;
+    const double c19 = 2.0*v_rocker_e1;
+    const double c20 = 2.0*v_rocker_e3;
+    const double c21 = 4.0*v_rocker_e3;
+    const double c22 = 4.0*v_rocker_e1;
+    const double c23 = 4.0*v_rocker_e2;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = c0*v_crank_e0 - c1*v_crank_e3;
-    out[4] = -c0*v_crank_e3 - c1*v_crank_e0;
-    out[5] = -6.0/5.0*(v_crank_e0*v_crank_e0) - 6.0/5.0*(v_crank_e1*v_crank_e1);
-    out[6] = -c2*v_crank_e0 - c3*v_crank_e1;
+    out[3] = c1*v_crank_e0 - c0*v_crank_e3;
+    out[4] = -c1*v_crank_e3 - c0*v_crank_e0;
+    out[5] = -6.0/5.0*(v_crank_e1*v_crank_e1) - 6.0/5.0*(v_crank_e0*v_crank_e0);
+    out[6] = -c3*v_crank_e1 - c2*v_crank_e0;
     out[7] = c3*v_crank_e0 - c2*v_crank_e1;
-    out[8] = -18.0/5.0*(v_coupler_e0*v_coupler_e0) - 18.0/5.0*(v_coupler_e1*v_coupler_e1) + (14.0/5.0)*(v_rocker_e0*v_rocker_e0) + (14.0/5.0)*(v_rocker_e1*v_rocker_e1);
-    out[9] = -c4*v_coupler_e0 - c5*v_coupler_e1 + (14.0/5.0)*v_rocker_e0*v_rocker_e3 + (14.0/5.0)*v_rocker_e1*v_rocker_e2;
-    out[10] = c5*v_coupler_e0 - c4*v_coupler_e1 - 14.0/5.0*v_rocker_e0*v_rocker_e2 + (14.0/5.0)*v_rocker_e1*v_rocker_e3;
-    out[11] = -v_coupler_e0*(c7*v_coupler_e1 + c10*v_coupler_e0 - c6*v_coupler_e3) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(-c6*v_coupler_e0 + 2.0*rocker_a22*v_coupler_e2) - v_rocker_e0*(c8*v_rocker_e2 + c11*v_rocker_e0 - c9*v_rocker_e1) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(-c12*v_rocker_e1 - c13*v_rocker_e0 + 2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(c14*v_coupler_e1 + c15*coupler_e1 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2) - 2.0*(c12*v_rocker_e2 + c13*v_rocker_e3 + 2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1)*(-c14*v_coupler_e3 - c15*coupler_e3 + 2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1);
+    out[8] = (14.0/5.0)*(v_rocker_e1*v_rocker_e1) + (14.0/5.0)*(v_rocker_e0*v_rocker_e0) - 18.0/5.0*(v_coupler_e1*v_coupler_e1) - 18.0/5.0*(v_coupler_e0*v_coupler_e0);
+    out[9] = c7*v_rocker_e1 + c6*v_rocker_e0 - c5*v_coupler_e1 - c4*v_coupler_e0;
+    out[10] = c5*v_coupler_e0 + c6*v_rocker_e1 - c7*v_rocker_e0 - c4*v_coupler_e1;
+    out[11] = -(c13*v_rocker_e3 + c18*coupler_a01)*v_rocker_e2 - 2.0*(4.0*coupler_e2*v_coupler_e2 + 4.0*coupler_e0*v_coupler_e0)*(c20*rocker_e2 - c18*rocker_e1 + c12*rocker_e3 - c19*rocker_e0) - (c21*coupler_a21 + c19*coupler_a01 + c13*v_rocker_e2)*v_rocker_e3 - (c9*v_coupler_e2 - c14*rocker_a02)*v_coupler_e3 - (c9*v_coupler_e3 + c8*v_coupler_e2 + c10*v_coupler_e1)*v_coupler_e2 - 2.0*(c17*coupler_e1 + c16*v_coupler_e1 - c14*coupler_e3 - c15*v_coupler_e3)*(c20*rocker_e1 + c19*rocker_e3 + c12*rocker_e0 + c18*rocker_e2) - 2.0*(c17*coupler_e3 + c16*v_coupler_e3 + c14*coupler_e1 + c15*v_coupler_e1)*(c21*rocker_e3 + c11*rocker_e0) - (c10*v_coupler_e2 + c14*rocker_a22)*v_coupler_e1 - (-c13*v_rocker_e1 + c12*coupler_a01 + c11*coupler_a21)*v_rocker_e0 - (c20*coupler_a01 - c18*coupler_a11)*v_rocker_e1 - (-c10*v_coupler_e3 + c9*v_coupler_e1 + c8*v_coupler_e0)*v_coupler_e0;
     out[12] = 0.0;
     out[13] = 0.0;
     out[14] = 0.0;
-    out[15] = c16*v_rocker_e0 - c17*v_rocker_e3;
-    out[16] = -c16*v_rocker_e3 - c17*v_rocker_e0;
-    out[17] = -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3);
-    out[18] = -2.0*(v_coupler_e0*v_coupler_e0) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e3*v_coupler_e3);
-    out[19] = -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3);
+    out[15] = c23*v_rocker_e0 - c22*v_rocker_e3;
+    out[16] = -c23*v_rocker_e3 - c22*v_rocker_e0;
+    out[17] = -2.0*(v_crank_e3*v_crank_e3) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e0*v_crank_e0);
+    out[18] = -2.0*(v_coupler_e3*v_coupler_e3) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e0*v_coupler_e0);
+    out[19] = -2.0*(v_rocker_e3*v_rocker_e3) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e0*v_rocker_e0);
 }
 
 /* gamma of the driver rows of case 'crank_turn'. */
@@ -318,7 +327,7 @@ static void compute_drivers_gamma_crank_turn(const double *q, const double *v, c
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1.0/2.0)*c1*crank_e3 - 1.0/2.0*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3);
+    out[0] = -2.0*(c2*v_crank_e3 + c1*v_crank_e0)*ud0 - (-1.0/2.0*c2*crank_e0 + (1.0/2.0)*c1*crank_e3)*(ud0*ud0) - (c2*crank_e3 + c1*crank_e0)*udd0;
 }
 
 /* Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -447,24 +456,21 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double rocker_a20 = -2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3;
     const double rocker_a21 = 2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3;
     const double rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3);
-    const double c0 = 2.0*v_crank_e1;
-    const double c1 = 2.0*crank_e1;
-    const double c2 = 2.0*crank_e2;
-    const double c3 = 2.0*v_crank_e2;
-    const double c4 = 2.0*crank_e0;
-    const double c5 = 2.0*crank_e3;
-    const double c6 = 2.0*v_coupler_e1;
-    const double c7 = 2.0*coupler_e1;
+    const double c0 = 2.0*crank_e1;
+    const double c1 = 2.0*crank_e0;
+    const double c2 = 2.0*crank_e3;
+    const double c3 = 2.0*crank_e2;
+    const double c4 = 2.0*dv_crank_e0;
+    const double c5 = 2.0*coupler_e1;
+    const double c6 = 2.0*coupler_e0;
+    const double c7 = 2.0*coupler_e3;
     const double c8 = 2.0*coupler_e2;
-    const double c9 = 2.0*v_coupler_e2;
-    const double c10 = 2.0*coupler_e0;
-    const double c11 = 2.0*coupler_e3;
-    const double c12 = 2.0*v_rocker_e1;
-    const double c13 = 2.0*rocker_e1;
-    const double c14 = 2.0*rocker_e2;
-    const double c15 = 2.0*v_rocker_e2;
-    const double c16 = 2.0*rocker_e0;
-    const double c17 = 2.0*rocker_e3;
+    const double c9 = 2.0*dv_coupler_e0;
+    const double c10 = 2.0*rocker_e1;
+    const double c11 = 2.0*rocker_e0;
+    const double c12 = 2.0*rocker_e3;
+    const double c13 = 2.0*rocker_e2;
+    const double c14 = 2.0*dv_rocker_e0;
     out[0] = crank_x;
     out[1] = crank_y;
     out[2] = crank_z;
@@ -480,15 +486,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[12] = v_crank_x;
     out[13] = v_crank_y;
     out[14] = v_crank_z;
-    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3;
-    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0;
-    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0;
+    out[15] = -c2*v_crank_e2 + c3*v_crank_e3 + c1*v_crank_e1 - c0*v_crank_e0;
+    out[16] = c2*v_crank_e1 + c1*v_crank_e2 - c3*v_crank_e0 - c0*v_crank_e3;
+    out[17] = c0*v_crank_e2 + c1*v_crank_e3 - c2*v_crank_e0 - c3*v_crank_e1;
     out[18] = dv_crank_x;
     out[19] = dv_crank_y;
     out[20] = dv_crank_z;
-    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2;
-    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0;
-    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0;
+    out[21] = c3*dv_crank_e3 + c1*dv_crank_e1 - c2*dv_crank_e2 - c4*crank_e1;
+    out[22] = c1*dv_crank_e2 + c2*dv_crank_e1 - c4*crank_e2 - c0*dv_crank_e3;
+    out[23] = c0*dv_crank_e2 + c1*dv_crank_e3 - c4*crank_e3 - c3*dv_crank_e1;
     out[24] = coupler_x;
     out[25] = coupler_y;
     out[26] = coupler_z;
@@ -504,15 +510,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[36] = v_coupler_x;
     out[37] = v_coupler_y;
     out[38] = v_coupler_z;
-    out[39] = c6*coupler_e0 + c8*v_coupler_e3 - c7*v_coupler_e0 - c9*coupler_e3;
-    out[40] = c6*coupler_e3 + c9*coupler_e0 - c7*v_coupler_e3 - c8*v_coupler_e0;
-    out[41] = c7*v_coupler_e2 + c10*v_coupler_e3 - c6*coupler_e2 - c11*v_coupler_e0;
+    out[39] = -c7*v_coupler_e2 + c8*v_coupler_e3 + c6*v_coupler_e1 - c5*v_coupler_e0;
+    out[40] = c7*v_coupler_e1 + c6*v_coupler_e2 - c8*v_coupler_e0 - c5*v_coupler_e3;
+    out[41] = c5*v_coupler_e2 + c6*v_coupler_e3 - c7*v_coupler_e0 - c8*v_coupler_e1;
     out[42] = dv_coupler_x;
     out[43] = dv_coupler_y;
     out[44] = dv_coupler_z;
-    out[45] = c8*dv_coupler_e3 + c10*dv_coupler_e1 - c7*dv_coupler_e0 - c11*dv_coupler_e2;
-    out[46] = c10*dv_coupler_e2 + c11*dv_coupler_e1 - c7*dv_coupler_e3 - c8*dv_coupler_e0;
-    out[47] = c7*dv_coupler_e2 + c10*dv_coupler_e3 - c8*dv_coupler_e1 - c11*dv_coupler_e0;
+    out[45] = c8*dv_coupler_e3 + c6*dv_coupler_e1 - c7*dv_coupler_e2 - c9*coupler_e1;
+    out[46] = c6*dv_coupler_e2 + c7*dv_coupler_e1 - c9*coupler_e2 - c5*dv_coupler_e3;
+    out[47] = c5*dv_coupler_e2 + c6*dv_coupler_e3 - c9*coupler_e3 - c8*dv_coupler_e1;
     out[48] = rocker_x;
     out[49] = rocker_y;
     out[50] = rocker_z;
@@ -528,15 +534,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[60] = v_rocker_x;
     out[61] = v_rocker_y;
     out[62] = v_rocker_z;
-    out[63] = c12*rocker_e0 + c14*v_rocker_e3 - c13*v_rocker_e0 - c15*rocker_e3;
-    out[64] = c12*rocker_e3 + c15*rocker_e0 - c13*v_rocker_e3 - c14*v_rocker_e0;
-    out[65] = c13*v_rocker_e2 + c16*v_rocker_e3 - c12*rocker_e2 - c17*v_rocker_e0;
+    out[63] = -c12*v_rocker_e2 + c13*v_rocker_e3 + c11*v_rocker_e1 - c10*v_rocker_e0;
+    out[64] = c12*v_rocker_e1 + c11*v_rocker_e2 - c13*v_rocker_e0 - c10*v_rocker_e3;
+    out[65] = c10*v_rocker_e2 + c11*v_rocker_e3 - c12*v_rocker_e0 - c13*v_rocker_e1;
     out[66] = dv_rocker_x;
     out[67] = dv_rocker_y;
     out[68] = dv_rocker_z;
-    out[69] = c14*dv_rocker_e3 + c16*dv_rocker_e1 - c13*dv_rocker_e0 - c17*dv_rocker_e2;
-    out[70] = c16*dv_rocker_e2 + c17*dv_rocker_e1 - c13*dv_rocker_e3 - c14*dv_rocker_e0;
-    out[71] = c13*dv_rocker_e2 + c16*dv_rocker_e3 - c14*dv_rocker_e1 - c17*dv_rocker_e0;
+    out[69] = c13*dv_rocker_e3 + c11*dv_rocker_e1 - c12*dv_rocker_e2 - c14*rocker_e1;
+    out[70] = c11*dv_rocker_e2 + c12*dv_rocker_e1 - c14*rocker_e2 - c10*dv_rocker_e3;
+    out[71] = c10*dv_rocker_e2 + c11*dv_rocker_e3 - c14*rocker_e3 - c13*dv_rocker_e1;
 }
 
 /* Every load's generalized force Q (F.J_P + M.T_w), 4 values at LOAD_ROWS, LOAD_COLS. */
@@ -568,13 +574,13 @@ static void retract_body(double *q, const double *step) {
     const double step4 = step[4];
     const double step5 = step[5];
     const double step6 = step[6];
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = q3 + step3;
-    const double moved4 = q4 + step4;
-    const double moved5 = q5 + step5;
-    const double moved6 = q6 + step6;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = step3 + q3;
+    const double moved4 = step4 + q4;
+    const double moved5 = step5 + q5;
+    const double moved6 = step6 + q6;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

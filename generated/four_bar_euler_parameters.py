@@ -6,6 +6,7 @@ source sha256:   4c66517595d777fe6904e4cce1b8182bfb0fff8ed209ec77655e967975d0af5
 parametrization: euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 21) and v (velocity, 21) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -49,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_euler_parameters.h': '564a29bc736e2108039d507bf8836c440d79034d044af69c1671ff4cfbe87c59', 'four_bar_euler_parameters.c': '62a2ba9a23fc8a21037a4430dd9a062cbef2dd54c3dd2958d55394dad9f285c2'}
+C_FILES = {'four_bar_euler_parameters.h': 'be185641fd04fd5545b1d72583129673779e38fc50d5daed290dfdc84b534a6a', 'four_bar_euler_parameters.c': 'ca33a82bf828f71c88d3d1b34cf201dd99a153d850e000c1232edd05ecd5479f'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -264,24 +265,21 @@ def frames(q, v, a):
     rocker_a20 = -2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a21 = 2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
-    c0 = 2*v_crank_e1
-    c1 = 2*crank_e1
-    c2 = 2*crank_e2
-    c3 = 2*v_crank_e2
-    c4 = 2*crank_e0
-    c5 = 2*crank_e3
-    c6 = 2*v_coupler_e1
-    c7 = 2*coupler_e1
+    c0 = 2*crank_e1
+    c1 = 2*crank_e0
+    c2 = 2*crank_e3
+    c3 = 2*crank_e2
+    c4 = 2*dv_crank_e0
+    c5 = 2*coupler_e1
+    c6 = 2*coupler_e0
+    c7 = 2*coupler_e3
     c8 = 2*coupler_e2
-    c9 = 2*v_coupler_e2
-    c10 = 2*coupler_e0
-    c11 = 2*coupler_e3
-    c12 = 2*v_rocker_e1
-    c13 = 2*rocker_e1
-    c14 = 2*rocker_e2
-    c15 = 2*v_rocker_e2
-    c16 = 2*rocker_e0
-    c17 = 2*rocker_e3
+    c9 = 2*dv_coupler_e0
+    c10 = 2*rocker_e1
+    c11 = 2*rocker_e0
+    c12 = 2*rocker_e3
+    c13 = 2*rocker_e2
+    c14 = 2*dv_rocker_e0
     out = _zeros(72, q, ())
     out[0] = crank_x
     out[1] = crank_y
@@ -298,15 +296,15 @@ def frames(q, v, a):
     out[12] = v_crank_x
     out[13] = v_crank_y
     out[14] = v_crank_z
-    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3
-    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0
-    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0
+    out[15] = -c2*v_crank_e2 + c3*v_crank_e3 + c1*v_crank_e1 - c0*v_crank_e0
+    out[16] = c2*v_crank_e1 + c1*v_crank_e2 - c3*v_crank_e0 - c0*v_crank_e3
+    out[17] = c0*v_crank_e2 + c1*v_crank_e3 - c2*v_crank_e0 - c3*v_crank_e1
     out[18] = dv_crank_x
     out[19] = dv_crank_y
     out[20] = dv_crank_z
-    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2
-    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0
-    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0
+    out[21] = c3*dv_crank_e3 + c1*dv_crank_e1 - c2*dv_crank_e2 - c4*crank_e1
+    out[22] = c1*dv_crank_e2 + c2*dv_crank_e1 - c4*crank_e2 - c0*dv_crank_e3
+    out[23] = c0*dv_crank_e2 + c1*dv_crank_e3 - c4*crank_e3 - c3*dv_crank_e1
     out[24] = coupler_x
     out[25] = coupler_y
     out[26] = coupler_z
@@ -322,15 +320,15 @@ def frames(q, v, a):
     out[36] = v_coupler_x
     out[37] = v_coupler_y
     out[38] = v_coupler_z
-    out[39] = c6*coupler_e0 + c8*v_coupler_e3 - c7*v_coupler_e0 - c9*coupler_e3
-    out[40] = c6*coupler_e3 + c9*coupler_e0 - c7*v_coupler_e3 - c8*v_coupler_e0
-    out[41] = c7*v_coupler_e2 + c10*v_coupler_e3 - c6*coupler_e2 - c11*v_coupler_e0
+    out[39] = -c7*v_coupler_e2 + c8*v_coupler_e3 + c6*v_coupler_e1 - c5*v_coupler_e0
+    out[40] = c7*v_coupler_e1 + c6*v_coupler_e2 - c8*v_coupler_e0 - c5*v_coupler_e3
+    out[41] = c5*v_coupler_e2 + c6*v_coupler_e3 - c7*v_coupler_e0 - c8*v_coupler_e1
     out[42] = dv_coupler_x
     out[43] = dv_coupler_y
     out[44] = dv_coupler_z
-    out[45] = c8*dv_coupler_e3 + c10*dv_coupler_e1 - c7*dv_coupler_e0 - c11*dv_coupler_e2
-    out[46] = c10*dv_coupler_e2 + c11*dv_coupler_e1 - c7*dv_coupler_e3 - c8*dv_coupler_e0
-    out[47] = c7*dv_coupler_e2 + c10*dv_coupler_e3 - c8*dv_coupler_e1 - c11*dv_coupler_e0
+    out[45] = c8*dv_coupler_e3 + c6*dv_coupler_e1 - c7*dv_coupler_e2 - c9*coupler_e1
+    out[46] = c6*dv_coupler_e2 + c7*dv_coupler_e1 - c9*coupler_e2 - c5*dv_coupler_e3
+    out[47] = c5*dv_coupler_e2 + c6*dv_coupler_e3 - c9*coupler_e3 - c8*dv_coupler_e1
     out[48] = rocker_x
     out[49] = rocker_y
     out[50] = rocker_z
@@ -346,15 +344,15 @@ def frames(q, v, a):
     out[60] = v_rocker_x
     out[61] = v_rocker_y
     out[62] = v_rocker_z
-    out[63] = c12*rocker_e0 + c14*v_rocker_e3 - c13*v_rocker_e0 - c15*rocker_e3
-    out[64] = c12*rocker_e3 + c15*rocker_e0 - c13*v_rocker_e3 - c14*v_rocker_e0
-    out[65] = c13*v_rocker_e2 + c16*v_rocker_e3 - c12*rocker_e2 - c17*v_rocker_e0
+    out[63] = -c12*v_rocker_e2 + c13*v_rocker_e3 + c11*v_rocker_e1 - c10*v_rocker_e0
+    out[64] = c12*v_rocker_e1 + c11*v_rocker_e2 - c13*v_rocker_e0 - c10*v_rocker_e3
+    out[65] = c10*v_rocker_e2 + c11*v_rocker_e3 - c12*v_rocker_e0 - c13*v_rocker_e1
     out[66] = dv_rocker_x
     out[67] = dv_rocker_y
     out[68] = dv_rocker_z
-    out[69] = c14*dv_rocker_e3 + c16*dv_rocker_e1 - c13*dv_rocker_e0 - c17*dv_rocker_e2
-    out[70] = c16*dv_rocker_e2 + c17*dv_rocker_e1 - c13*dv_rocker_e3 - c14*dv_rocker_e0
-    out[71] = c13*dv_rocker_e2 + c16*dv_rocker_e3 - c14*dv_rocker_e1 - c17*dv_rocker_e0
+    out[69] = c13*dv_rocker_e3 + c11*dv_rocker_e1 - c12*dv_rocker_e2 - c14*rocker_e1
+    out[70] = c11*dv_rocker_e2 + c12*dv_rocker_e1 - c14*rocker_e2 - c10*dv_rocker_e3
+    out[71] = c10*dv_rocker_e2 + c11*dv_rocker_e3 - c14*rocker_e3 - c13*dv_rocker_e1
     return out
 
 
@@ -395,21 +393,21 @@ def _joints_phi(q):
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = crank_x - coupler_x + (3/10)*crank_a00
-    out[6] = crank_y - coupler_y + (3/10)*crank_a10
-    out[7] = crank_z - coupler_z + (3/10)*crank_a20
-    out[8] = coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00
-    out[9] = coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10
-    out[10] = coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20
-    out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22
+    out[5] = (3/10)*crank_a00 - coupler_x + crank_x
+    out[6] = (3/10)*crank_a10 - coupler_y + crank_y
+    out[7] = (3/10)*crank_a20 - coupler_z + crank_z
+    out[8] = (9/10)*coupler_a00 - 7/10*rocker_a00 - rocker_x + coupler_x
+    out[9] = (9/10)*coupler_a10 - rocker_y - 7/10*rocker_a10 + coupler_y
+    out[10] = -7/10*rocker_a20 + (9/10)*coupler_a20 - rocker_z + coupler_z
+    out[11] = rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01
     out[12] = 1 - rocker_x
     out[13] = -rocker_y
     out[14] = -rocker_z
     out[15] = rocker_a20
     out[16] = rocker_a21
-    out[17] = -1 + crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2
-    out[18] = -1 + coupler_e0**2 + coupler_e1**2 + coupler_e2**2 + coupler_e3**2
-    out[19] = -1 + rocker_e0**2 + rocker_e1**2 + rocker_e2**2 + rocker_e3**2
+    out[17] = -1 + crank_e3**2 + crank_e2**2 + crank_e1**2 + crank_e0**2
+    out[18] = -1 + coupler_e3**2 + coupler_e2**2 + coupler_e1**2 + coupler_e0**2
+    out[19] = -1 + rocker_e3**2 + rocker_e2**2 + rocker_e1**2 + rocker_e0**2
     return out
 
 
@@ -419,7 +417,7 @@ def _drivers_phi_crank_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_e3*cos(c0) + 2*crank_e0*sin(c0)
+    out[0] = 2*sin(c0)*crank_e0 - 2*cos(c0)*crank_e3
     return out
 
 
@@ -453,16 +451,18 @@ def _joints_jac(q):
     c13 = (7/5)*rocker_e2
     c14 = -7/5*rocker_e1
     c15 = (7/5)*rocker_e0
-    c16 = 4*rocker_a12
-    c17 = 2*rocker_a22
-    c18 = 2*rocker_a02
-    c19 = 2*coupler_a01
-    c20 = 2*coupler_a11
-    c21 = 4*coupler_a21
-    c22 = 2*rocker_e2
-    c23 = 2*rocker_e3
-    c24 = 2*rocker_e0
-    c25 = 2*rocker_e1
+    c16 = 2*rocker_a02
+    c17 = 2*coupler_e1
+    c18 = 4*rocker_a12
+    c19 = 2*rocker_a22
+    c20 = 2*coupler_e2
+    c21 = 2*coupler_a11
+    c22 = 2*coupler_a01
+    c23 = 4*coupler_a21
+    c24 = 2*rocker_e2
+    c25 = 2*rocker_e3
+    c26 = 2*rocker_e0
+    c27 = 2*rocker_e1
     out = _zeros(84, q, ())
     out[0] = -1
     out[1] = -1
@@ -517,25 +517,25 @@ def _joints_jac(q):
     out[50] = c12
     out[51] = c15
     out[52] = c14
-    out[53] = c16*coupler_e0 + c17*coupler_e1 - c18*coupler_e3
-    out[54] = c18*coupler_e2 + c17*coupler_e0
-    out[55] = c18*coupler_e1 + c16*coupler_e2 + c17*coupler_e3
-    out[56] = -c18*coupler_e0 + 2*coupler_e2*rocker_a22
-    out[57] = c19*rocker_e2 + c21*rocker_e0 - c20*rocker_e1
-    out[58] = c19*rocker_e3 - c20*rocker_e0
-    out[59] = c19*rocker_e0 + c20*rocker_e3
-    out[60] = c19*rocker_e1 + c20*rocker_e2 + c21*rocker_e3
+    out[53] = c18*coupler_e0 + c17*rocker_a22 - c16*coupler_e3
+    out[54] = c20*rocker_a02 + c19*coupler_e0
+    out[55] = c19*coupler_e3 + c18*coupler_e2 + c17*rocker_a02
+    out[56] = c20*rocker_a22 - c16*coupler_e0
+    out[57] = c23*rocker_e0 + c22*rocker_e2 - c21*rocker_e1
+    out[58] = c22*rocker_e3 - c21*rocker_e0
+    out[59] = c21*rocker_e3 + c22*rocker_e0
+    out[60] = c23*rocker_e3 + c21*rocker_e2 + c22*rocker_e1
     out[61] = -1
     out[62] = -1
     out[63] = -1
-    out[64] = -c22
-    out[65] = c23
-    out[66] = -c24
-    out[67] = c25
-    out[68] = c25
-    out[69] = c24
-    out[70] = c23
-    out[71] = c22
+    out[64] = -c24
+    out[65] = c25
+    out[66] = -c26
+    out[67] = c27
+    out[68] = c27
+    out[69] = c26
+    out[70] = c25
+    out[71] = c24
     out[72] = 2*crank_e0
     out[73] = 2*crank_e1
     out[74] = 2*crank_e2
@@ -602,17 +602,19 @@ def _joints_phi_joints_jac_s(q):
     d13 = (7/5)*rocker_e2
     d14 = -7/5*rocker_e1
     d15 = (7/5)*rocker_e0
-    d16 = 4.0*rocker_a12
-    d17 = 2.0*rocker_a22
-    d18 = 2.0*rocker_a02
-    d19 = 2.0*coupler_a01
-    d20 = 2.0*coupler_a11
-    d21 = 4.0*coupler_a21
-    d22 = 2.0*rocker_e2
-    d23 = 2.0*rocker_e3
-    d24 = 2.0*rocker_e0
-    d25 = 2.0*rocker_e1
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - coupler_x + (3/10)*crank_a00, crank_y - coupler_y + (3/10)*crank_a10, crank_z - coupler_z + (3/10)*crank_a20, coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00, coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10, coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21, -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3), -1.0 + (coupler_e0*coupler_e0) + (coupler_e1*coupler_e1) + (coupler_e2*coupler_e2) + (coupler_e3*coupler_e3), -1.0 + (rocker_e0*rocker_e0) + (rocker_e1*rocker_e1) + (rocker_e2*rocker_e2) + (rocker_e3*rocker_e3)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (6/5)*crank_e0, (6/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (18/5)*coupler_e0, (18/5)*coupler_e1, -1.0, -14/5*rocker_e0, -14/5*rocker_e1, 1.0, d8, d9, d10, d11, -1.0, d12, -d13, d14, -d15, 1.0, -d9, d8, -d11, d10, -1.0, d13, d12, d15, d14, d16*coupler_e0 + d17*coupler_e1 - d18*coupler_e3, d18*coupler_e2 + d17*coupler_e0, d18*coupler_e1 + d16*coupler_e2 + d17*coupler_e3, -d18*coupler_e0 + 2.0*coupler_e2*rocker_a22, d19*rocker_e2 + d21*rocker_e0 - d20*rocker_e1, d19*rocker_e3 - d20*rocker_e0, d19*rocker_e0 + d20*rocker_e3, d19*rocker_e1 + d20*rocker_e2 + d21*rocker_e3, -1.0, -1.0, -1.0, -d22, d23, -d24, d25, d25, d24, d23, d22, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*coupler_e0, 2.0*coupler_e1, 2.0*coupler_e2, 2.0*coupler_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
+    d16 = 2.0*rocker_a02
+    d17 = 2.0*coupler_e1
+    d18 = 4.0*rocker_a12
+    d19 = 2.0*rocker_a22
+    d20 = 2.0*coupler_e2
+    d21 = 2.0*coupler_a11
+    d22 = 2.0*coupler_a01
+    d23 = 4.0*coupler_a21
+    d24 = 2.0*rocker_e2
+    d25 = 2.0*rocker_e3
+    d26 = 2.0*rocker_e0
+    d27 = 2.0*rocker_e1
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 - coupler_x + crank_x, (3/10)*crank_a10 - coupler_y + crank_y, (3/10)*crank_a20 - coupler_z + crank_z, (9/10)*coupler_a00 - 7/10*rocker_a00 - rocker_x + coupler_x, (9/10)*coupler_a10 - rocker_y - 7/10*rocker_a10 + coupler_y, -7/10*rocker_a20 + (9/10)*coupler_a20 - rocker_z + coupler_z, rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21, -1.0 + (crank_e3*crank_e3) + (crank_e2*crank_e2) + (crank_e1*crank_e1) + (crank_e0*crank_e0), -1.0 + (coupler_e3*coupler_e3) + (coupler_e2*coupler_e2) + (coupler_e1*coupler_e1) + (coupler_e0*coupler_e0), -1.0 + (rocker_e3*rocker_e3) + (rocker_e2*rocker_e2) + (rocker_e1*rocker_e1) + (rocker_e0*rocker_e0)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (6/5)*crank_e0, (6/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (18/5)*coupler_e0, (18/5)*coupler_e1, -1.0, -14/5*rocker_e0, -14/5*rocker_e1, 1.0, d8, d9, d10, d11, -1.0, d12, -d13, d14, -d15, 1.0, -d9, d8, -d11, d10, -1.0, d13, d12, d15, d14, d18*coupler_e0 + d17*rocker_a22 - d16*coupler_e3, d20*rocker_a02 + d19*coupler_e0, d19*coupler_e3 + d18*coupler_e2 + d17*rocker_a02, d20*rocker_a22 - d16*coupler_e0, d23*rocker_e0 + d22*rocker_e2 - d21*rocker_e1, d22*rocker_e3 - d21*rocker_e0, d21*rocker_e3 + d22*rocker_e0, d23*rocker_e3 + d21*rocker_e2 + d22*rocker_e1, -1.0, -1.0, -1.0, -d24, d25, -d26, d27, d27, d26, d25, d24, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*coupler_e0, 2.0*coupler_e1, 2.0*coupler_e2, 2.0*coupler_e3, 2.0*rocker_e0, 2.0*rocker_e1, 2.0*rocker_e2, 2.0*rocker_e3]
 
 
 def _drivers_phi_crank_turn_drivers_jac_crank_turn_s(q, u):
@@ -621,7 +623,7 @@ def _drivers_phi_crank_turn_drivers_jac_crank_turn_s(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [-2.0*crank_e3*math.cos(c0) + 2.0*crank_e0*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [2.0*math.sin(c0)*crank_e0 - 2.0*math.cos(c0)*crank_e3], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def phi_jac_s_crank_turn(q, u):
@@ -638,7 +640,7 @@ def _drivers_nu_crank_turn(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0))
+    out[0] = -(sin(c0)*crank_e3 + cos(c0)*crank_e0)*ud0
     return out
 
 
@@ -653,7 +655,7 @@ def _drivers_nu_crank_turn_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_e0*math.cos(c0) + crank_e3*math.sin(c0))]
+    return [-(math.sin(c0)*crank_e3 + math.cos(c0)*crank_e0)*ud0]
 
 
 def nu_s_crank_turn(q, u, ud):
@@ -672,39 +674,45 @@ def _joints_gamma(q, v):
     rocker_a02 = 2*rocker_e0*rocker_e2 + 2*rocker_e1*rocker_e3
     rocker_a12 = -2*rocker_e0*rocker_e1 + 2*rocker_e2*rocker_e3
     rocker_a22 = -1 + 2*rocker_e0**2 + 2*rocker_e3**2
-    c0 = 4*v_crank_e2
-    c1 = 4*v_crank_e1
+    c0 = 4*v_crank_e1
+    c1 = 4*v_crank_e2
     c2 = (6/5)*v_crank_e3
     c3 = (6/5)*v_crank_e2
     c4 = (18/5)*v_coupler_e3
     c5 = (18/5)*v_coupler_e2
-    c6 = 2*rocker_a02
-    c7 = 2*rocker_a22
-    c8 = 2*coupler_a01
-    c9 = 2*coupler_a11
-    c10 = 4*rocker_a12
-    c11 = 4*coupler_a21
-    c12 = 2*rocker_e0
-    c13 = 2*rocker_e1
-    c14 = 2*coupler_e0
-    c15 = 2*v_coupler_e0
-    c16 = 4*v_rocker_e2
-    c17 = 4*v_rocker_e1
+    c6 = (14/5)*v_rocker_e3
+    c7 = (14/5)*v_rocker_e2
+    c8 = 4*rocker_a12
+    c9 = 2*rocker_a22
+    c10 = 2*rocker_a02
+    c11 = 4*v_rocker_e0
+    c12 = 2*v_rocker_e2
+    c13 = 2*coupler_a11
+    c14 = 2*v_coupler_e0
+    c15 = 2*coupler_e0
+    c16 = 2*coupler_e2
+    c17 = 2*v_coupler_e2
+    c18 = 2*v_rocker_e0
+    c19 = 2*v_rocker_e1
+    c20 = 2*v_rocker_e3
+    c21 = 4*v_rocker_e3
+    c22 = 4*v_rocker_e1
+    c23 = 4*v_rocker_e2
     out = _zeros(20, q, ())
-    out[3] = c0*v_crank_e0 - c1*v_crank_e3
-    out[4] = -c0*v_crank_e3 - c1*v_crank_e0
-    out[5] = -6/5*v_crank_e0**2 - 6/5*v_crank_e1**2
-    out[6] = -c2*v_crank_e0 - c3*v_crank_e1
+    out[3] = c1*v_crank_e0 - c0*v_crank_e3
+    out[4] = -c1*v_crank_e3 - c0*v_crank_e0
+    out[5] = -6/5*v_crank_e1**2 - 6/5*v_crank_e0**2
+    out[6] = -c3*v_crank_e1 - c2*v_crank_e0
     out[7] = c3*v_crank_e0 - c2*v_crank_e1
-    out[8] = -18/5*v_coupler_e0**2 - 18/5*v_coupler_e1**2 + (14/5)*v_rocker_e0**2 + (14/5)*v_rocker_e1**2
-    out[9] = -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2
-    out[10] = c5*v_coupler_e0 - c4*v_coupler_e1 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3
-    out[11] = -v_coupler_e0*(c7*v_coupler_e1 + c10*v_coupler_e0 - c6*v_coupler_e3) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(-c6*v_coupler_e0 + 2*rocker_a22*v_coupler_e2) - v_rocker_e0*(c8*v_rocker_e2 + c11*v_rocker_e0 - c9*v_rocker_e1) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2*(4*coupler_e0*v_coupler_e0 + 4*coupler_e2*v_coupler_e2)*(-c12*v_rocker_e1 - c13*v_rocker_e0 + 2*rocker_e2*v_rocker_e3 + 2*rocker_e3*v_rocker_e2) - 2*(4*rocker_e0*v_rocker_e0 + 4*rocker_e3*v_rocker_e3)*(c14*v_coupler_e1 + c15*coupler_e1 + 2*coupler_e2*v_coupler_e3 + 2*coupler_e3*v_coupler_e2) - 2*(c12*v_rocker_e2 + c13*v_rocker_e3 + 2*rocker_e2*v_rocker_e0 + 2*rocker_e3*v_rocker_e1)*(-c14*v_coupler_e3 - c15*coupler_e3 + 2*coupler_e1*v_coupler_e2 + 2*coupler_e2*v_coupler_e1)
-    out[15] = c16*v_rocker_e0 - c17*v_rocker_e3
-    out[16] = -c16*v_rocker_e3 - c17*v_rocker_e0
-    out[17] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
-    out[18] = -2*v_coupler_e0**2 - 2*v_coupler_e1**2 - 2*v_coupler_e2**2 - 2*v_coupler_e3**2
-    out[19] = -2*v_rocker_e0**2 - 2*v_rocker_e1**2 - 2*v_rocker_e2**2 - 2*v_rocker_e3**2
+    out[8] = (14/5)*v_rocker_e1**2 + (14/5)*v_rocker_e0**2 - 18/5*v_coupler_e1**2 - 18/5*v_coupler_e0**2
+    out[9] = c7*v_rocker_e1 + c6*v_rocker_e0 - c5*v_coupler_e1 - c4*v_coupler_e0
+    out[10] = c5*v_coupler_e0 + c6*v_rocker_e1 - c7*v_rocker_e0 - c4*v_coupler_e1
+    out[11] = -(c13*v_rocker_e3 + c18*coupler_a01)*v_rocker_e2 - 2*(4*coupler_e2*v_coupler_e2 + 4*coupler_e0*v_coupler_e0)*(c20*rocker_e2 - c18*rocker_e1 + c12*rocker_e3 - c19*rocker_e0) - (c21*coupler_a21 + c19*coupler_a01 + c13*v_rocker_e2)*v_rocker_e3 - (c9*v_coupler_e2 - c14*rocker_a02)*v_coupler_e3 - (c9*v_coupler_e3 + c8*v_coupler_e2 + c10*v_coupler_e1)*v_coupler_e2 - 2*(c17*coupler_e1 + c16*v_coupler_e1 - c14*coupler_e3 - c15*v_coupler_e3)*(c20*rocker_e1 + c19*rocker_e3 + c12*rocker_e0 + c18*rocker_e2) - 2*(c17*coupler_e3 + c16*v_coupler_e3 + c14*coupler_e1 + c15*v_coupler_e1)*(c21*rocker_e3 + c11*rocker_e0) - (c10*v_coupler_e2 + c14*rocker_a22)*v_coupler_e1 - (-c13*v_rocker_e1 + c12*coupler_a01 + c11*coupler_a21)*v_rocker_e0 - (c20*coupler_a01 - c18*coupler_a11)*v_rocker_e1 - (-c10*v_coupler_e3 + c9*v_coupler_e1 + c8*v_coupler_e0)*v_coupler_e0
+    out[15] = c23*v_rocker_e0 - c22*v_rocker_e3
+    out[16] = -c23*v_rocker_e3 - c22*v_rocker_e0
+    out[17] = -2*v_crank_e3**2 - 2*v_crank_e2**2 - 2*v_crank_e1**2 - 2*v_crank_e0**2
+    out[18] = -2*v_coupler_e3**2 - 2*v_coupler_e2**2 - 2*v_coupler_e1**2 - 2*v_coupler_e0**2
+    out[19] = -2*v_rocker_e3**2 - 2*v_rocker_e2**2 - 2*v_rocker_e1**2 - 2*v_rocker_e0**2
     return out
 
 
@@ -719,7 +727,7 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3)
+    out[0] = -2*(c2*v_crank_e3 + c1*v_crank_e0)*ud0 - (-1/2*c2*crank_e0 + (1/2)*c1*crank_e3)*ud0**2 - (c2*crank_e3 + c1*crank_e0)*udd0
     return out
 
 
@@ -738,25 +746,31 @@ def _joints_gamma_s(q, v):
     rocker_a02 = 2.0*rocker_e0*rocker_e2 + 2.0*rocker_e1*rocker_e3
     rocker_a12 = -2.0*rocker_e0*rocker_e1 + 2.0*rocker_e2*rocker_e3
     rocker_a22 = -1.0 + 2.0*(rocker_e0*rocker_e0) + 2.0*(rocker_e3*rocker_e3)
-    c0 = 4.0*v_crank_e2
-    c1 = 4.0*v_crank_e1
+    c0 = 4.0*v_crank_e1
+    c1 = 4.0*v_crank_e2
     c2 = (6/5)*v_crank_e3
     c3 = (6/5)*v_crank_e2
     c4 = (18/5)*v_coupler_e3
     c5 = (18/5)*v_coupler_e2
-    c6 = 2.0*rocker_a02
-    c7 = 2.0*rocker_a22
-    c8 = 2.0*coupler_a01
-    c9 = 2.0*coupler_a11
-    c10 = 4.0*rocker_a12
-    c11 = 4.0*coupler_a21
-    c12 = 2.0*rocker_e0
-    c13 = 2.0*rocker_e1
-    c14 = 2.0*coupler_e0
-    c15 = 2.0*v_coupler_e0
-    c16 = 4.0*v_rocker_e2
-    c17 = 4.0*v_rocker_e1
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -6/5*(v_crank_e0*v_crank_e0) - 6/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, c3*v_crank_e0 - c2*v_crank_e1, -18/5*(v_coupler_e0*v_coupler_e0) - 18/5*(v_coupler_e1*v_coupler_e1) + (14/5)*(v_rocker_e0*v_rocker_e0) + (14/5)*(v_rocker_e1*v_rocker_e1), -c4*v_coupler_e0 - c5*v_coupler_e1 + (14/5)*v_rocker_e0*v_rocker_e3 + (14/5)*v_rocker_e1*v_rocker_e2, c5*v_coupler_e0 - c4*v_coupler_e1 - 14/5*v_rocker_e0*v_rocker_e2 + (14/5)*v_rocker_e1*v_rocker_e3, -v_coupler_e0*(c7*v_coupler_e1 + c10*v_coupler_e0 - c6*v_coupler_e3) - v_coupler_e1*(c6*v_coupler_e2 + c7*v_coupler_e0) - v_coupler_e2*(c6*v_coupler_e1 + c7*v_coupler_e3 + c10*v_coupler_e2) - v_coupler_e3*(-c6*v_coupler_e0 + 2.0*rocker_a22*v_coupler_e2) - v_rocker_e0*(c8*v_rocker_e2 + c11*v_rocker_e0 - c9*v_rocker_e1) - v_rocker_e1*(c8*v_rocker_e3 - c9*v_rocker_e0) - v_rocker_e2*(c8*v_rocker_e0 + c9*v_rocker_e3) - v_rocker_e3*(c8*v_rocker_e1 + c9*v_rocker_e2 + c11*v_rocker_e3) - 2.0*(4.0*coupler_e0*v_coupler_e0 + 4.0*coupler_e2*v_coupler_e2)*(-c12*v_rocker_e1 - c13*v_rocker_e0 + 2.0*rocker_e2*v_rocker_e3 + 2.0*rocker_e3*v_rocker_e2) - 2.0*(4.0*rocker_e0*v_rocker_e0 + 4.0*rocker_e3*v_rocker_e3)*(c14*v_coupler_e1 + c15*coupler_e1 + 2.0*coupler_e2*v_coupler_e3 + 2.0*coupler_e3*v_coupler_e2) - 2.0*(c12*v_rocker_e2 + c13*v_rocker_e3 + 2.0*rocker_e2*v_rocker_e0 + 2.0*rocker_e3*v_rocker_e1)*(-c14*v_coupler_e3 - c15*coupler_e3 + 2.0*coupler_e1*v_coupler_e2 + 2.0*coupler_e2*v_coupler_e1), 0.0, 0.0, 0.0, c16*v_rocker_e0 - c17*v_rocker_e3, -c16*v_rocker_e3 - c17*v_rocker_e0, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_coupler_e0*v_coupler_e0) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e3*v_coupler_e3), -2.0*(v_rocker_e0*v_rocker_e0) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e3*v_rocker_e3)]
+    c6 = (14/5)*v_rocker_e3
+    c7 = (14/5)*v_rocker_e2
+    c8 = 4.0*rocker_a12
+    c9 = 2.0*rocker_a22
+    c10 = 2.0*rocker_a02
+    c11 = 4.0*v_rocker_e0
+    c12 = 2.0*v_rocker_e2
+    c13 = 2.0*coupler_a11
+    c14 = 2.0*v_coupler_e0
+    c15 = 2.0*coupler_e0
+    c16 = 2.0*coupler_e2
+    c17 = 2.0*v_coupler_e2
+    c18 = 2.0*v_rocker_e0
+    c19 = 2.0*v_rocker_e1
+    c20 = 2.0*v_rocker_e3
+    c21 = 4.0*v_rocker_e3
+    c22 = 4.0*v_rocker_e1
+    c23 = 4.0*v_rocker_e2
+    return [0.0, 0.0, 0.0, c1*v_crank_e0 - c0*v_crank_e3, -c1*v_crank_e3 - c0*v_crank_e0, -6/5*(v_crank_e1*v_crank_e1) - 6/5*(v_crank_e0*v_crank_e0), -c3*v_crank_e1 - c2*v_crank_e0, c3*v_crank_e0 - c2*v_crank_e1, (14/5)*(v_rocker_e1*v_rocker_e1) + (14/5)*(v_rocker_e0*v_rocker_e0) - 18/5*(v_coupler_e1*v_coupler_e1) - 18/5*(v_coupler_e0*v_coupler_e0), c7*v_rocker_e1 + c6*v_rocker_e0 - c5*v_coupler_e1 - c4*v_coupler_e0, c5*v_coupler_e0 + c6*v_rocker_e1 - c7*v_rocker_e0 - c4*v_coupler_e1, -(c13*v_rocker_e3 + c18*coupler_a01)*v_rocker_e2 - 2.0*(4.0*coupler_e2*v_coupler_e2 + 4.0*coupler_e0*v_coupler_e0)*(c20*rocker_e2 - c18*rocker_e1 + c12*rocker_e3 - c19*rocker_e0) - (c21*coupler_a21 + c19*coupler_a01 + c13*v_rocker_e2)*v_rocker_e3 - (c9*v_coupler_e2 - c14*rocker_a02)*v_coupler_e3 - (c9*v_coupler_e3 + c8*v_coupler_e2 + c10*v_coupler_e1)*v_coupler_e2 - 2.0*(c17*coupler_e1 + c16*v_coupler_e1 - c14*coupler_e3 - c15*v_coupler_e3)*(c20*rocker_e1 + c19*rocker_e3 + c12*rocker_e0 + c18*rocker_e2) - 2.0*(c17*coupler_e3 + c16*v_coupler_e3 + c14*coupler_e1 + c15*v_coupler_e1)*(c21*rocker_e3 + c11*rocker_e0) - (c10*v_coupler_e2 + c14*rocker_a22)*v_coupler_e1 - (-c13*v_rocker_e1 + c12*coupler_a01 + c11*coupler_a21)*v_rocker_e0 - (c20*coupler_a01 - c18*coupler_a11)*v_rocker_e1 - (-c10*v_coupler_e3 + c9*v_coupler_e1 + c8*v_coupler_e0)*v_coupler_e0, 0.0, 0.0, 0.0, c23*v_rocker_e0 - c22*v_rocker_e3, -c23*v_rocker_e3 - c22*v_rocker_e0, -2.0*(v_crank_e3*v_crank_e3) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e0*v_crank_e0), -2.0*(v_coupler_e3*v_coupler_e3) - 2.0*(v_coupler_e2*v_coupler_e2) - 2.0*(v_coupler_e1*v_coupler_e1) - 2.0*(v_coupler_e0*v_coupler_e0), -2.0*(v_rocker_e3*v_rocker_e3) - 2.0*(v_rocker_e2*v_rocker_e2) - 2.0*(v_rocker_e1*v_rocker_e1) - 2.0*(v_rocker_e0*v_rocker_e0)]
 
 
 def _drivers_gamma_crank_turn_s(q, v, u, ud, udd):
@@ -769,7 +783,7 @@ def _drivers_gamma_crank_turn_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3)]
+    return [-2.0*(c2*v_crank_e3 + c1*v_crank_e0)*ud0 - (-1/2*c2*crank_e0 + (1/2)*c1*crank_e3)*(ud0*ud0) - (c2*crank_e3 + c1*crank_e0)*udd0]
 
 
 def gamma_s_crank_turn(q, v, u, ud, udd):

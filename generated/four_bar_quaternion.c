@@ -6,6 +6,7 @@
  * parametrization: quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -61,13 +62,13 @@ static void compute_joints_phi(const double *q, double *out) {
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = crank_x - coupler_x + (3.0/10.0)*crank_a00;
-    out[6] = crank_y - coupler_y + (3.0/10.0)*crank_a10;
-    out[7] = crank_z - coupler_z + (3.0/10.0)*crank_a20;
-    out[8] = coupler_x - rocker_x - 7.0/10.0*rocker_a00 + (9.0/10.0)*coupler_a00;
-    out[9] = coupler_y - rocker_y - 7.0/10.0*rocker_a10 + (9.0/10.0)*coupler_a10;
-    out[10] = coupler_z - rocker_z - 7.0/10.0*rocker_a20 + (9.0/10.0)*coupler_a20;
-    out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22;
+    out[5] = (3.0/10.0)*crank_a00 - coupler_x + crank_x;
+    out[6] = (3.0/10.0)*crank_a10 - coupler_y + crank_y;
+    out[7] = (3.0/10.0)*crank_a20 - coupler_z + crank_z;
+    out[8] = (9.0/10.0)*coupler_a00 - 7.0/10.0*rocker_a00 - rocker_x + coupler_x;
+    out[9] = (9.0/10.0)*coupler_a10 - rocker_y - 7.0/10.0*rocker_a10 + coupler_y;
+    out[10] = -7.0/10.0*rocker_a20 + (9.0/10.0)*coupler_a20 - rocker_z + coupler_z;
+    out[11] = rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01;
     out[12] = 1.0 - rocker_x;
     out[13] = -rocker_y;
     out[14] = -rocker_z;
@@ -81,7 +82,7 @@ static void compute_drivers_phi_crank_turn(const double *q, const double *u, dou
     const double crank_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_qz*cos(c0) + 2.0*crank_qw*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_qw - 2.0*cos(c0)*crank_qz;
 }
 
 /* Phi_q values of the joint rows (50 entries). */
@@ -126,9 +127,12 @@ static void compute_joints_jac(const double *q, double *out) {
     const double c6 = (7.0/10.0)*rocker_a10;
     const double c7 = (9.0/10.0)*coupler_a00;
     const double c8 = (7.0/10.0)*rocker_a00;
-    const double c9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12;
-    const double c10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02;
-    const double c11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02;
+    const double c9 = rocker_a22*coupler_a11;
+    const double c10 = rocker_a12*coupler_a21;
+    const double c11 = rocker_a02*coupler_a21;
+    const double c12 = rocker_a22*coupler_a01;
+    const double c13 = rocker_a12*coupler_a01;
+    const double c14 = rocker_a02*coupler_a11;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -166,12 +170,12 @@ static void compute_joints_jac(const double *q, double *out) {
     out[34] = -1.0;
     out[35] = -c6;
     out[36] = c8;
-    out[37] = c9;
-    out[38] = -c10;
-    out[39] = c11;
-    out[40] = -c9;
-    out[41] = c10;
-    out[42] = -c11;
+    out[37] = -c10 + c9;
+    out[38] = -c12 + c11;
+    out[39] = -c14 + c13;
+    out[40] = -c9 + c10;
+    out[41] = -c11 + c12;
+    out[42] = -c13 + c14;
     out[43] = -1.0;
     out[44] = -1.0;
     out[45] = -1.0;
@@ -191,8 +195,8 @@ static void compute_drivers_jac_crank_turn(const double *q, const double *u, dou
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*crank_qx - c2*crank_qy;
-    out[1] = c2*crank_qx - c1*crank_qy;
+    out[0] = -c2*crank_qy - c1*crank_qx;
+    out[1] = -c1*crank_qy + c2*crank_qx;
     out[2] = -c1*crank_qz - c2*crank_qw;
 }
 
@@ -203,7 +207,7 @@ static void compute_drivers_nu_crank_turn(const double *q, const double *u, cons
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0));
+    out[0] = -(sin(c0)*crank_qz + cos(c0)*crank_qw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -250,39 +254,38 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
-    const double c0 = -3.0/10.0*crank_a00*v_crank_theta_y + (3.0/10.0)*crank_a10*v_crank_theta_x;
-    const double c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x;
-    const double c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z;
-    const double c3 = -9.0/10.0*coupler_a00*v_coupler_theta_y + (9.0/10.0)*coupler_a10*v_coupler_theta_x;
-    const double c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x;
-    const double c5 = rocker_a10*v_rocker_theta_x - rocker_a00*v_rocker_theta_y;
-    const double c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x;
-    const double c7 = (7.0/10.0)*v_rocker_theta_z;
-    const double c8 = coupler_a20*v_coupler_theta_y - coupler_a10*v_coupler_theta_z;
-    const double c9 = rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z;
-    const double c10 = v_coupler_theta_y - v_rocker_theta_y;
-    const double c11 = v_coupler_theta_x - v_rocker_theta_x;
-    const double c12 = -c11;
-    const double c13 = v_coupler_theta_z - v_rocker_theta_z;
-    const double c14 = -c13;
-    const double c15 = -c10;
+    const double c0 = (3.0/10.0)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x);
+    const double c1 = (3.0/10.0)*(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z);
+    const double c2 = (3.0/10.0)*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y);
+    const double c3 = (9.0/10.0)*(-coupler_a00*v_coupler_theta_y + coupler_a10*v_coupler_theta_x);
+    const double c4 = (7.0/10.0)*(-rocker_a20*v_rocker_theta_x + rocker_a00*v_rocker_theta_z);
+    const double c5 = (7.0/10.0)*(-rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x);
+    const double c6 = (9.0/10.0)*(-coupler_a20*v_coupler_theta_x + coupler_a00*v_coupler_theta_z);
+    const double c7 = (9.0/10.0)*(-coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y);
+    const double c8 = (7.0/10.0)*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y);
+    const double c9 = -coupler_a21*v_coupler_theta_x + coupler_a01*v_coupler_theta_z;
+    const double c10 = -rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z;
+    const double c11 = -coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x;
+    const double c12 = -rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x;
+    const double c13 = -coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y;
+    const double c14 = -rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x);
-    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x);
-    out[5] = -c0*v_crank_theta_y + (3.0/10.0)*c1*v_crank_theta_z;
-    out[6] = c0*v_crank_theta_x - 3.0/10.0*c2*v_crank_theta_z;
-    out[7] = -3.0/10.0*c1*v_crank_theta_x + (3.0/10.0)*c2*v_crank_theta_y;
-    out[8] = -c3*v_coupler_theta_y - c6*c7 + (7.0/10.0)*c5*v_rocker_theta_y + (9.0/10.0)*c4*v_coupler_theta_z;
-    out[9] = c3*v_coupler_theta_x + c7*c9 - 9.0/10.0*c8*v_coupler_theta_z - 7.0/10.0*c5*v_rocker_theta_x;
-    out[10] = -9.0/10.0*c4*v_coupler_theta_x - 7.0/10.0*c9*v_rocker_theta_y + (7.0/10.0)*c6*v_rocker_theta_x + (9.0/10.0)*c8*v_coupler_theta_y;
-    out[11] = -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_theta_y - coupler_a11*v_coupler_theta_z) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_theta_x - coupler_a01*v_coupler_theta_y);
+    out[3] = -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y;
+    out[4] = -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y;
+    out[5] = c1*v_crank_theta_z - c0*v_crank_theta_y;
+    out[6] = c0*v_crank_theta_x - c2*v_crank_theta_z;
+    out[7] = c2*v_crank_theta_y - c1*v_crank_theta_x;
+    out[8] = c6*v_coupler_theta_z + c5*v_rocker_theta_y - c4*v_rocker_theta_z - c3*v_coupler_theta_y;
+    out[9] = c3*v_coupler_theta_x - c5*v_rocker_theta_x + c8*v_rocker_theta_z - c7*v_coupler_theta_z;
+    out[10] = c7*v_coupler_theta_y + c4*v_rocker_theta_x - c8*v_rocker_theta_y - c6*v_coupler_theta_x;
+    out[11] = -c14*(c13 - coupler_a21*v_rocker_theta_y + coupler_a11*v_rocker_theta_z) - c12*(c11 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - c13*(rocker_a12*v_coupler_theta_z + c14 - rocker_a22*v_coupler_theta_y) - c10*(c9 + coupler_a21*v_rocker_theta_x - coupler_a01*v_rocker_theta_z) - c11*(c12 - rocker_a12*v_coupler_theta_x + rocker_a02*v_coupler_theta_y) - c9*(c10 + rocker_a22*v_coupler_theta_x - rocker_a02*v_coupler_theta_z);
     out[12] = 0.0;
     out[13] = 0.0;
     out[14] = 0.0;
-    out[15] = v_rocker_theta_y*(rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x);
-    out[16] = v_rocker_theta_y*(rocker_a21*v_rocker_theta_y - rocker_a11*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x);
+    out[15] = -(-rocker_a20*v_rocker_theta_x + rocker_a00*v_rocker_theta_z)*v_rocker_theta_x + (-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)*v_rocker_theta_y;
+    out[16] = -(-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*v_rocker_theta_x + (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*v_rocker_theta_y;
 }
 
 /* gamma of the driver rows of case 'crank_turn'. */
@@ -300,14 +303,14 @@ static void compute_drivers_gamma_crank_turn(const double *q, const double *v, c
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*crank_qw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*crank_qz;
-    const double c5 = (1.0/2.0)*v_crank_theta_y;
-    const double c6 = (1.0/2.0)*v_crank_theta_x;
-    const double c7 = (1.0/2.0)*crank_qz;
-    const double c8 = (1.0/2.0)*v_crank_theta_z;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1.0/2.0)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1.0/2.0*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx);
+    const double c3 = (1.0/2.0)*crank_qz;
+    const double c4 = c1*c3;
+    const double c5 = (1.0/2.0)*c2;
+    const double c6 = c5*crank_qw;
+    const double c7 = (1.0/2.0)*crank_qw;
+    const double c8 = (1.0/2.0)*crank_qx;
+    const double c9 = (1.0/2.0)*crank_qy;
+    out[0] = -2.0*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*crank_qz + c1*crank_qw)*udd0;
 }
 
 /* Driver inputs of case 'crank_turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
@@ -529,20 +532,22 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step3*step3);
     const double _t1 = (step4*step4);
     const double _t2 = (step5*step5);
-    const double _t3 = sqrt(_t0 + _t1 + _t2);
+    const double _t3 = sqrt(_t2 + _t1 + _t0);
     const double _t4 = (1.0/2.0)*_t3;
     const double _t5 = cos(_t4);
-    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t0 - 1.0/48.0*_t1 - 1.0/48.0*_t2 ) : ( sin(_t4)/_t3 ));
-    const double _t7 = _t6*step3;
+    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t2 - 1.0/48.0*_t1 - 1.0/48.0*_t0 ) : ( sin(_t4)/_t3 ));
+    const double _t7 = q4*_t6;
     const double _t8 = _t6*step4;
-    const double _t9 = _t6*step5;
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = _t5*q3 - _t7*q4 - _t8*q5 - _t9*q6;
-    const double moved4 = _t5*q4 + _t7*q3 + _t8*q6 - _t9*q5;
-    const double moved5 = _t5*q5 + _t8*q3 + _t9*q4 - _t7*q6;
-    const double moved6 = _t5*q6 + _t7*q5 + _t9*q3 - _t8*q4;
+    const double _t9 = q6*_t6;
+    const double _t10 = q3*_t6;
+    const double _t11 = q5*_t6;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = -_t9*step5 - q5*_t8 - _t7*step3 + q3*_t5;
+    const double moved4 = -_t11*step5 + _t10*step3 + q6*_t8 + q4*_t5;
+    const double moved5 = -_t9*step3 + _t7*step5 + q3*_t8 + q5*_t5;
+    const double moved6 = -q4*_t8 + _t11*step3 + _t10*step5 + q6*_t5;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

@@ -6,6 +6,7 @@ source sha256:   4c66517595d777fe6904e4cce1b8182bfb0fff8ed209ec77655e967975d0af5
 parametrization: quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 21) and v (velocity, 18) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -49,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'four_bar_quaternion.h': '5e3964f5cdb9a3e721d9c4dd5c538ab96e7df447acb8c6fa0ce1c0d9e568d10a', 'four_bar_quaternion.c': '530e68e9c8003fb47dbdade11248c784a1903f0717f0854029b9bf1c9f370e00'}
+C_FILES = {'four_bar_quaternion.h': '7046dffbf25ed7169657b01284691b5dfd8bfe564b616f8e225eedf0282cfe8d', 'four_bar_quaternion.c': '0f88691dee759fea050844fb1435b89b6949c060393b5c218095dee17530af0b'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -373,13 +374,13 @@ def _joints_phi(q):
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = crank_x - coupler_x + (3/10)*crank_a00
-    out[6] = crank_y - coupler_y + (3/10)*crank_a10
-    out[7] = crank_z - coupler_z + (3/10)*crank_a20
-    out[8] = coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00
-    out[9] = coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10
-    out[10] = coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20
-    out[11] = coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22
+    out[5] = (3/10)*crank_a00 - coupler_x + crank_x
+    out[6] = (3/10)*crank_a10 - coupler_y + crank_y
+    out[7] = (3/10)*crank_a20 - coupler_z + crank_z
+    out[8] = (9/10)*coupler_a00 - 7/10*rocker_a00 - rocker_x + coupler_x
+    out[9] = (9/10)*coupler_a10 - rocker_y - 7/10*rocker_a10 + coupler_y
+    out[10] = -7/10*rocker_a20 + (9/10)*coupler_a20 - rocker_z + coupler_z
+    out[11] = rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01
     out[12] = 1 - rocker_x
     out[13] = -rocker_y
     out[14] = -rocker_z
@@ -394,7 +395,7 @@ def _drivers_phi_crank_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_qz*cos(c0) + 2*crank_qw*sin(c0)
+    out[0] = 2*sin(c0)*crank_qw - 2*cos(c0)*crank_qz
     return out
 
 
@@ -434,9 +435,12 @@ def _joints_jac(q):
     c6 = (7/10)*rocker_a10
     c7 = (9/10)*coupler_a00
     c8 = (7/10)*rocker_a00
-    c9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
-    c10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
-    c11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
+    c9 = rocker_a22*coupler_a11
+    c10 = rocker_a12*coupler_a21
+    c11 = rocker_a02*coupler_a21
+    c12 = rocker_a22*coupler_a01
+    c13 = rocker_a12*coupler_a01
+    c14 = rocker_a02*coupler_a11
     out = _zeros(50, q, ())
     out[0] = -1
     out[1] = -1
@@ -475,12 +479,12 @@ def _joints_jac(q):
     out[34] = -1
     out[35] = -c6
     out[36] = c8
-    out[37] = c9
-    out[38] = -c10
-    out[39] = c11
-    out[40] = -c9
-    out[41] = c10
-    out[42] = -c11
+    out[37] = -c10 + c9
+    out[38] = -c12 + c11
+    out[39] = -c14 + c13
+    out[40] = -c9 + c10
+    out[41] = -c11 + c12
+    out[42] = -c13 + c14
     out[43] = -1
     out[44] = -1
     out[45] = -1
@@ -499,8 +503,8 @@ def _drivers_jac_crank_turn(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*crank_qx - c2*crank_qy
-    out[1] = c2*crank_qx - c1*crank_qy
+    out[0] = -c2*crank_qy - c1*crank_qx
+    out[1] = -c1*crank_qy + c2*crank_qx
     out[2] = -c1*crank_qz - c2*crank_qw
     return out
 
@@ -543,10 +547,13 @@ def _joints_phi_joints_jac_s(q):
     d6 = (7/10)*rocker_a10
     d7 = (9/10)*coupler_a00
     d8 = (7/10)*rocker_a00
-    d9 = coupler_a11*rocker_a22 - coupler_a21*rocker_a12
-    d10 = coupler_a01*rocker_a22 - coupler_a21*rocker_a02
-    d11 = coupler_a01*rocker_a12 - coupler_a11*rocker_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - coupler_x + (3/10)*crank_a00, crank_y - coupler_y + (3/10)*crank_a10, crank_z - coupler_z + (3/10)*crank_a20, coupler_x - rocker_x - 7/10*rocker_a00 + (9/10)*coupler_a00, coupler_y - rocker_y - 7/10*rocker_a10 + (9/10)*coupler_a10, coupler_z - rocker_z - 7/10*rocker_a20 + (9/10)*coupler_a20, coupler_a01*rocker_a02 + coupler_a11*rocker_a12 + coupler_a21*rocker_a22, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, -d5, d6, 1.0, -d3, d7, -1.0, d5, -d8, 1.0, d4, -d7, -1.0, -d6, d8, d9, -d10, d11, -d9, d10, -d11, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
+    d9 = rocker_a22*coupler_a11
+    d10 = rocker_a12*coupler_a21
+    d11 = rocker_a02*coupler_a21
+    d12 = rocker_a22*coupler_a01
+    d13 = rocker_a12*coupler_a01
+    d14 = rocker_a02*coupler_a11
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (3/10)*crank_a00 - coupler_x + crank_x, (3/10)*crank_a10 - coupler_y + crank_y, (3/10)*crank_a20 - coupler_z + crank_z, (9/10)*coupler_a00 - 7/10*rocker_a00 - rocker_x + coupler_x, (9/10)*coupler_a10 - rocker_y - 7/10*rocker_a10 + coupler_y, -7/10*rocker_a20 + (9/10)*coupler_a20 - rocker_z + coupler_z, rocker_a22*coupler_a21 + rocker_a12*coupler_a11 + rocker_a02*coupler_a01, 1.0 - rocker_x, -rocker_y, -rocker_z, rocker_a20, rocker_a21], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, -d5, d6, 1.0, -d3, d7, -1.0, d5, -d8, 1.0, d4, -d7, -1.0, -d6, d8, -d10 + d9, -d12 + d11, -d14 + d13, -d9 + d10, -d11 + d12, -d13 + d14, -1.0, -1.0, -1.0, rocker_a10, -rocker_a00, rocker_a11, -rocker_a01]
 
 
 def _drivers_phi_crank_turn_drivers_jac_crank_turn_s(q, u):
@@ -557,7 +564,7 @@ def _drivers_phi_crank_turn_drivers_jac_crank_turn_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*crank_qz*math.cos(c0) + 2.0*crank_qw*math.sin(c0)], [-d1*crank_qx - d2*crank_qy, d2*crank_qx - d1*crank_qy, -d1*crank_qz - d2*crank_qw]
+    return [2.0*math.sin(c0)*crank_qw - 2.0*math.cos(c0)*crank_qz], [-d2*crank_qy - d1*crank_qx, -d1*crank_qy + d2*crank_qx, -d1*crank_qz - d2*crank_qw]
 
 
 def phi_jac_s_crank_turn(q, u):
@@ -574,7 +581,7 @@ def _drivers_nu_crank_turn(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0))
+    out[0] = -(sin(c0)*crank_qz + cos(c0)*crank_qw)*ud0
     return out
 
 
@@ -589,7 +596,7 @@ def _drivers_nu_crank_turn_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_qw*math.cos(c0) + crank_qz*math.sin(c0))]
+    return [-(math.sin(c0)*crank_qz + math.cos(c0)*crank_qw)*ud0]
 
 
 def nu_s_crank_turn(q, u, ud):
@@ -623,34 +630,33 @@ def _joints_gamma(q, v):
     rocker_a20 = -2*rocker_qw*rocker_qy + 2*rocker_qx*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
-    c0 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
-    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
-    c3 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
-    c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
-    c5 = rocker_a10*v_rocker_theta_x - rocker_a00*v_rocker_theta_y
-    c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
-    c7 = (7/10)*v_rocker_theta_z
-    c8 = coupler_a20*v_coupler_theta_y - coupler_a10*v_coupler_theta_z
-    c9 = rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z
-    c10 = v_coupler_theta_y - v_rocker_theta_y
-    c11 = v_coupler_theta_x - v_rocker_theta_x
-    c12 = -c11
-    c13 = v_coupler_theta_z - v_rocker_theta_z
-    c14 = -c13
-    c15 = -c10
+    c0 = (3/10)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    c1 = (3/10)*(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)
+    c2 = (3/10)*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
+    c3 = (9/10)*(-coupler_a00*v_coupler_theta_y + coupler_a10*v_coupler_theta_x)
+    c4 = (7/10)*(-rocker_a20*v_rocker_theta_x + rocker_a00*v_rocker_theta_z)
+    c5 = (7/10)*(-rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x)
+    c6 = (9/10)*(-coupler_a20*v_coupler_theta_x + coupler_a00*v_coupler_theta_z)
+    c7 = (9/10)*(-coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y)
+    c8 = (7/10)*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)
+    c9 = -coupler_a21*v_coupler_theta_x + coupler_a01*v_coupler_theta_z
+    c10 = -rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z
+    c11 = -coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x
+    c12 = -rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x
+    c13 = -coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y
+    c14 = -rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y
     out = _zeros(17, q, ())
-    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x)
-    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x)
-    out[5] = -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z
-    out[6] = c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z
-    out[7] = -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y
-    out[8] = -c3*v_coupler_theta_y - c6*c7 + (7/10)*c5*v_rocker_theta_y + (9/10)*c4*v_coupler_theta_z
-    out[9] = c3*v_coupler_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z - 7/10*c5*v_rocker_theta_x
-    out[10] = -9/10*c4*v_coupler_theta_x - 7/10*c9*v_rocker_theta_y + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y
-    out[11] = -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_theta_y - coupler_a11*v_coupler_theta_z) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_theta_x - coupler_a01*v_coupler_theta_y)
-    out[15] = v_rocker_theta_y*(rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x)
-    out[16] = v_rocker_theta_y*(rocker_a21*v_rocker_theta_y - rocker_a11*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)
+    out[3] = -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y
+    out[4] = -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y
+    out[5] = c1*v_crank_theta_z - c0*v_crank_theta_y
+    out[6] = c0*v_crank_theta_x - c2*v_crank_theta_z
+    out[7] = c2*v_crank_theta_y - c1*v_crank_theta_x
+    out[8] = c6*v_coupler_theta_z + c5*v_rocker_theta_y - c4*v_rocker_theta_z - c3*v_coupler_theta_y
+    out[9] = c3*v_coupler_theta_x - c5*v_rocker_theta_x + c8*v_rocker_theta_z - c7*v_coupler_theta_z
+    out[10] = c7*v_coupler_theta_y + c4*v_rocker_theta_x - c8*v_rocker_theta_y - c6*v_coupler_theta_x
+    out[11] = -c14*(c13 - coupler_a21*v_rocker_theta_y + coupler_a11*v_rocker_theta_z) - c12*(c11 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - c13*(rocker_a12*v_coupler_theta_z + c14 - rocker_a22*v_coupler_theta_y) - c10*(c9 + coupler_a21*v_rocker_theta_x - coupler_a01*v_rocker_theta_z) - c11*(c12 - rocker_a12*v_coupler_theta_x + rocker_a02*v_coupler_theta_y) - c9*(c10 + rocker_a22*v_coupler_theta_x - rocker_a02*v_coupler_theta_z)
+    out[15] = -(-rocker_a20*v_rocker_theta_x + rocker_a00*v_rocker_theta_z)*v_rocker_theta_x + (-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)*v_rocker_theta_y
+    out[16] = -(-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*v_rocker_theta_x + (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*v_rocker_theta_y
     return out
 
 
@@ -664,15 +670,15 @@ def _drivers_gamma_crank_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*crank_qw
-    c4 = c2*c3 - 1/2*c1*crank_qz
-    c5 = (1/2)*v_crank_theta_y
-    c6 = (1/2)*v_crank_theta_x
-    c7 = (1/2)*crank_qz
-    c8 = (1/2)*v_crank_theta_z
-    c9 = (1/2)*c1
+    c3 = (1/2)*crank_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*crank_qw
+    c7 = (1/2)*crank_qw
+    c8 = (1/2)*crank_qx
+    c9 = (1/2)*crank_qy
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)
+    out[0] = -2*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*ud0**2 - (c2*crank_qz + c1*crank_qw)*udd0
     return out
 
 
@@ -706,23 +712,22 @@ def _joints_gamma_s(q, v):
     rocker_a20 = -2.0*rocker_qw*rocker_qy + 2.0*rocker_qx*rocker_qz
     rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz)
-    c0 = -3/10*crank_a00*v_crank_theta_y + (3/10)*crank_a10*v_crank_theta_x
-    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
-    c3 = -9/10*coupler_a00*v_coupler_theta_y + (9/10)*coupler_a10*v_coupler_theta_x
-    c4 = coupler_a00*v_coupler_theta_z - coupler_a20*v_coupler_theta_x
-    c5 = rocker_a10*v_rocker_theta_x - rocker_a00*v_rocker_theta_y
-    c6 = rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x
-    c7 = (7/10)*v_rocker_theta_z
-    c8 = coupler_a20*v_coupler_theta_y - coupler_a10*v_coupler_theta_z
-    c9 = rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z
-    c10 = v_coupler_theta_y - v_rocker_theta_y
-    c11 = v_coupler_theta_x - v_rocker_theta_x
-    c12 = -c11
-    c13 = v_coupler_theta_z - v_rocker_theta_z
-    c14 = -c13
-    c15 = -c10
-    return [0.0, 0.0, 0.0, v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x), v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x), -c0*v_crank_theta_y + (3/10)*c1*v_crank_theta_z, c0*v_crank_theta_x - 3/10*c2*v_crank_theta_z, -3/10*c1*v_crank_theta_x + (3/10)*c2*v_crank_theta_y, -c3*v_coupler_theta_y - c6*c7 + (7/10)*c5*v_rocker_theta_y + (9/10)*c4*v_coupler_theta_z, c3*v_coupler_theta_x + c7*c9 - 9/10*c8*v_coupler_theta_z - 7/10*c5*v_rocker_theta_x, -9/10*c4*v_coupler_theta_x - 7/10*c9*v_rocker_theta_y + (7/10)*c6*v_rocker_theta_x + (9/10)*c8*v_coupler_theta_y, -(c13*coupler_a01 + c12*coupler_a21)*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - (c13*rocker_a12 + c15*rocker_a22)*(coupler_a21*v_coupler_theta_y - coupler_a11*v_coupler_theta_z) - (c14*coupler_a11 + c10*coupler_a21)*(rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z) - (c14*rocker_a02 + c11*rocker_a22)*(coupler_a01*v_coupler_theta_z - coupler_a21*v_coupler_theta_x) - (c15*coupler_a01 + c11*coupler_a11)*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y) - (c10*rocker_a02 + c12*rocker_a12)*(coupler_a11*v_coupler_theta_x - coupler_a01*v_coupler_theta_y), 0.0, 0.0, 0.0, v_rocker_theta_y*(rocker_a20*v_rocker_theta_y - rocker_a10*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a00*v_rocker_theta_z - rocker_a20*v_rocker_theta_x), v_rocker_theta_y*(rocker_a21*v_rocker_theta_y - rocker_a11*v_rocker_theta_z) - v_rocker_theta_x*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x)]
+    c0 = (3/10)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    c1 = (3/10)*(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)
+    c2 = (3/10)*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
+    c3 = (9/10)*(-coupler_a00*v_coupler_theta_y + coupler_a10*v_coupler_theta_x)
+    c4 = (7/10)*(-rocker_a20*v_rocker_theta_x + rocker_a00*v_rocker_theta_z)
+    c5 = (7/10)*(-rocker_a00*v_rocker_theta_y + rocker_a10*v_rocker_theta_x)
+    c6 = (9/10)*(-coupler_a20*v_coupler_theta_x + coupler_a00*v_coupler_theta_z)
+    c7 = (9/10)*(-coupler_a10*v_coupler_theta_z + coupler_a20*v_coupler_theta_y)
+    c8 = (7/10)*(-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)
+    c9 = -coupler_a21*v_coupler_theta_x + coupler_a01*v_coupler_theta_z
+    c10 = -rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z
+    c11 = -coupler_a01*v_coupler_theta_y + coupler_a11*v_coupler_theta_x
+    c12 = -rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x
+    c13 = -coupler_a11*v_coupler_theta_z + coupler_a21*v_coupler_theta_y
+    c14 = -rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y
+    return [0.0, 0.0, 0.0, -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y, -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y, c1*v_crank_theta_z - c0*v_crank_theta_y, c0*v_crank_theta_x - c2*v_crank_theta_z, c2*v_crank_theta_y - c1*v_crank_theta_x, c6*v_coupler_theta_z + c5*v_rocker_theta_y - c4*v_rocker_theta_z - c3*v_coupler_theta_y, c3*v_coupler_theta_x - c5*v_rocker_theta_x + c8*v_rocker_theta_z - c7*v_coupler_theta_z, c7*v_coupler_theta_y + c4*v_rocker_theta_x - c8*v_rocker_theta_y - c6*v_coupler_theta_x, -c14*(c13 - coupler_a21*v_rocker_theta_y + coupler_a11*v_rocker_theta_z) - c12*(c11 + coupler_a01*v_rocker_theta_y - coupler_a11*v_rocker_theta_x) - c13*(rocker_a12*v_coupler_theta_z + c14 - rocker_a22*v_coupler_theta_y) - c10*(c9 + coupler_a21*v_rocker_theta_x - coupler_a01*v_rocker_theta_z) - c11*(c12 - rocker_a12*v_coupler_theta_x + rocker_a02*v_coupler_theta_y) - c9*(c10 + rocker_a22*v_coupler_theta_x - rocker_a02*v_coupler_theta_z), 0.0, 0.0, 0.0, -(-rocker_a20*v_rocker_theta_x + rocker_a00*v_rocker_theta_z)*v_rocker_theta_x + (-rocker_a10*v_rocker_theta_z + rocker_a20*v_rocker_theta_y)*v_rocker_theta_y, -(-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*v_rocker_theta_x + (-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y)*v_rocker_theta_y]
 
 
 def _drivers_gamma_crank_turn_s(q, v, u, ud, udd):
@@ -735,14 +740,14 @@ def _drivers_gamma_crank_turn_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*crank_qw
-    c4 = c2*c3 - 1/2*c1*crank_qz
-    c5 = (1/2)*v_crank_theta_y
-    c6 = (1/2)*v_crank_theta_x
-    c7 = (1/2)*crank_qz
-    c8 = (1/2)*v_crank_theta_z
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)]
+    c3 = (1/2)*crank_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*crank_qw
+    c7 = (1/2)*crank_qw
+    c8 = (1/2)*crank_qx
+    c9 = (1/2)*crank_qy
+    return [-2.0*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*crank_qz + c1*crank_qw)*udd0]
 
 
 def gamma_s_crank_turn(q, v, u, ud, udd):

@@ -6,6 +6,7 @@
  * parametrization: dual-quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -60,7 +61,7 @@ static void compute_joints_phi(const double *q, double *out) {
     out[7] = 3.0/10.0 - rocker_oz;
     out[8] = rocker_a01;
     out[9] = rocker_a02;
-    out[10] = -169.0/625.0 + pow(crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3.0/20.0)*crank_a00 + (0.2201366)*rocker_a01, 2.0) + pow(crank_oy - rocker_oy - 0.20381334*rocker_a12 + (3.0/20.0)*crank_a10 + (0.2201366)*rocker_a11, 2.0) + pow(crank_oz - rocker_oz - 0.20381334*rocker_a22 + (3.0/20.0)*crank_a20 + (0.2201366)*rocker_a21, 2.0);
+    out[10] = -169.0/625.0 + pow((0.2201366)*rocker_a21 - 0.20381334*rocker_a22 + (3.0/20.0)*crank_a20 - rocker_oz + crank_oz, 2.0) + pow((3.0/20.0)*crank_a10 - 0.20381334*rocker_a12 - rocker_oy + (0.2201366)*rocker_a11 + crank_oy, 2.0) + pow((0.2201366)*rocker_a01 + (3.0/20.0)*crank_a00 - 0.20381334*rocker_a02 - rocker_ox + crank_ox, 2.0);
 }
 
 /* Phi of the driver rows of case 'turn'. */
@@ -69,7 +70,7 @@ static void compute_drivers_phi_turn(const double *q, const double *u, double *o
     const double crank_rz = q[3];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_rz*cos(c0) + 2.0*crank_rw*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_rw - 2.0*cos(c0)*crank_rz;
 }
 
 /* Phi_q values of the joint rows (26 entries). */
@@ -107,18 +108,21 @@ static void compute_joints_jac(const double *q, double *out) {
     const double rocker_a12 = -2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz);
-    const double c0 = -0.061144002*rocker_a22 - 3.0/10.0*rocker_oz + (3.0/10.0)*crank_oz + (9.0/200.0)*crank_a20 + (0.06604098)*rocker_a21;
-    const double c1 = -0.061144002*rocker_a12 - 3.0/10.0*rocker_oy + (3.0/10.0)*crank_oy + (9.0/200.0)*crank_a10 + (0.06604098)*rocker_a11;
-    const double c2 = -0.061144002*rocker_a02 - 3.0/10.0*rocker_ox + (3.0/10.0)*crank_ox + (9.0/200.0)*crank_a00 + (0.06604098)*rocker_a01;
-    const double c3 = -2.0*rocker_ox + 2.0*crank_ox - 0.40762668*rocker_a02 + (3.0/10.0)*crank_a00 + (0.4402732)*rocker_a01;
-    const double c4 = -2.0*rocker_oy + 2.0*crank_oy - 0.40762668*rocker_a12 + (3.0/10.0)*crank_a10 + (0.4402732)*rocker_a11;
-    const double c5 = -2.0*rocker_oz + 2.0*crank_oz - 0.40762668*rocker_a22 + (3.0/10.0)*crank_a20 + (0.4402732)*rocker_a21;
-    const double c6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_oz + (0.4402732)*crank_oz + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21;
-    const double c7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_oz + (0.40762668)*rocker_oz + (0.0830797551239112)*rocker_a22;
-    const double c8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11;
-    const double c9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12;
-    const double c10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01;
-    const double c11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02;
+    const double c0 = crank_oy + (0.2201366)*rocker_a11 - rocker_oy - 0.20381334*rocker_a12 + (3.0/20.0)*crank_a10;
+    const double c1 = (3.0/10.0)*crank_a20;
+    const double c2 = crank_oz - rocker_oz + (3.0/20.0)*crank_a20 - 0.20381334*rocker_a22 + (0.2201366)*rocker_a21;
+    const double c3 = (3.0/10.0)*crank_a10;
+    const double c4 = (3.0/10.0)*crank_a00;
+    const double c5 = crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3.0/20.0)*crank_a00 + (0.2201366)*rocker_a01;
+    const double c6 = 2.0*c5;
+    const double c7 = 2.0*c0;
+    const double c8 = 2.0*c2;
+    const double c9 = (0.40762668)*rocker_a12;
+    const double c10 = (0.4402732)*rocker_a21;
+    const double c11 = (0.4402732)*rocker_a11;
+    const double c12 = (0.40762668)*rocker_a22;
+    const double c13 = (0.4402732)*rocker_a01;
+    const double c14 = (0.40762668)*rocker_a02;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -133,18 +137,18 @@ static void compute_joints_jac(const double *q, double *out) {
     out[11] = -rocker_a11;
     out[12] = rocker_a22;
     out[13] = -rocker_a12;
-    out[14] = c0*crank_a10 - c1*crank_a20;
-    out[15] = c2*crank_a20 - c0*crank_a00;
-    out[16] = c1*crank_a00 - c2*crank_a10;
-    out[17] = c3;
-    out[18] = c4;
-    out[19] = c5;
-    out[20] = c6*rocker_a11 + c7*rocker_a12 - c8*rocker_a21 - c9*rocker_a22;
-    out[21] = c10*rocker_a21 + c11*rocker_a22 - c6*rocker_a01 - c7*rocker_a02;
-    out[22] = c8*rocker_a01 + c9*rocker_a02 - c10*rocker_a11 - c11*rocker_a12;
-    out[23] = -c3;
-    out[24] = -c4;
-    out[25] = -c5;
+    out[14] = c2*c3 - c0*c1;
+    out[15] = c1*c5 - c2*c4;
+    out[16] = c0*c4 - c3*c5;
+    out[17] = c6;
+    out[18] = c7;
+    out[19] = c8;
+    out[20] = c0*c12 + c2*c11 - c0*c10 - c2*c9;
+    out[21] = c2*c14 + c5*c10 - c2*c13 - c5*c12;
+    out[22] = c0*c13 + c5*c9 - c5*c11 - c0*c14;
+    out[23] = -c6;
+    out[24] = -c7;
+    out[25] = -c8;
 }
 
 /* Phi_q values of the driver rows of case 'turn'. */
@@ -157,8 +161,8 @@ static void compute_drivers_jac_turn(const double *q, const double *u, double *o
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*crank_rx - c2*crank_ry;
-    out[1] = c2*crank_rx - c1*crank_ry;
+    out[0] = -c2*crank_ry - c1*crank_rx;
+    out[1] = -c1*crank_ry + c2*crank_rx;
     out[2] = -c1*crank_rz - c2*crank_rw;
 }
 
@@ -169,7 +173,7 @@ static void compute_drivers_nu_turn(const double *q, const double *u, const doub
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_rw*cos(c0) + crank_rz*sin(c0));
+    out[0] = -(sin(c0)*crank_rz + cos(c0)*crank_rw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -220,51 +224,83 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double rocker_a12 = -2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz);
-    const double c0 = crank_a10*v_crank_wz;
-    const double c1 = rocker_a11*v_rocker_wz;
-    const double c2 = -2.0*v_crank_vx + 2.0*v_rocker_vx + (3.0/10.0)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_wz - 0.4402732*rocker_a21*v_rocker_wy - 3.0/10.0*crank_a20*v_crank_wy + (0.40762668)*rocker_a22*v_rocker_wy;
-    const double c3 = crank_a00*v_crank_wz;
-    const double c4 = crank_a20*v_crank_wx;
-    const double c5 = rocker_a01*v_rocker_wz;
-    const double c6 = rocker_a02*v_rocker_wz;
-    const double c7 = rocker_a21*v_rocker_wx;
-    const double c8 = rocker_a22*v_rocker_wx;
-    const double c9 = -2.0*v_rocker_vy + 2.0*v_crank_vy - 0.40762668*c6 - 0.4402732*c7 - 3.0/10.0*c4 + (3.0/10.0)*c3 + (0.4402732)*c5 + (0.40762668)*c8;
-    const double c10 = crank_a00*v_crank_wy;
-    const double c11 = rocker_a01*v_rocker_wy;
-    const double c12 = -2.0*v_crank_vz + 2.0*v_rocker_vz + (3.0/10.0)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_wy - 0.4402732*rocker_a11*v_rocker_wx - 3.0/10.0*crank_a10*v_crank_wx + (0.40762668)*rocker_a12*v_rocker_wx;
-    const double c13 = (0.4402732)*v_rocker_wy;
-    const double c14 = (0.4402732)*v_rocker_wx;
-    const double c15 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy;
-    const double c16 = -c15;
-    const double c17 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx;
-    const double c18 = (0.4402732)*v_rocker_wz;
-    const double c19 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz;
-    const double c20 = -c17;
-    const double c21 = (0.40762668)*v_rocker_wy;
-    const double c22 = (0.40762668)*v_rocker_wx;
-    const double c23 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy;
-    const double c24 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx;
-    const double c25 = -c24;
-    const double c26 = (0.40762668)*v_rocker_wz;
-    const double c27 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz;
-    const double c28 = -c27;
-    const double c29 = -c19;
-    const double c30 = -c23;
-    const double c31 = (3.0/10.0)*v_crank_wy;
-    const double c32 = (3.0/10.0)*v_crank_wx;
-    const double c33 = (3.0/10.0)*v_crank_wz;
+    const double c0 = crank_a10*v_crank_wx;
+    const double c1 = (0.40762668)*crank_oy;
+    const double c2 = (0.40762668)*rocker_oy;
+    const double c3 = (0.061144002)*crank_a10;
+    const double c4 = crank_a00*v_crank_wy;
+    const double c5 = (0.40762668)*crank_ox;
+    const double c6 = (0.40762668)*rocker_ox;
+    const double c7 = (0.061144002)*crank_a00;
+    const double c8 = crank_a20*v_crank_wx;
+    const double c9 = crank_a00*v_crank_wz;
+    const double c10 = (0.40762668)*crank_oz;
+    const double c11 = (0.40762668)*rocker_oz;
+    const double c12 = (0.061144002)*crank_a20;
+    const double c13 = crank_a10*v_crank_wz;
+    const double c14 = crank_a20*v_crank_wy;
+    const double c15 = (0.4402732)*crank_oz;
+    const double c16 = (0.4402732)*rocker_oz;
+    const double c17 = (0.06604098)*crank_a20;
+    const double c18 = (0.4402732)*crank_oy;
+    const double c19 = (0.4402732)*rocker_oy;
+    const double c20 = (0.06604098)*crank_a10;
+    const double c21 = (3.0/10.0)*crank_oy;
+    const double c22 = (3.0/10.0)*rocker_oy;
+    const double c23 = (0.061144002)*rocker_a12;
+    const double c24 = (0.06604098)*rocker_a11;
+    const double c25 = -c24 + c23;
+    const double c26 = (3.0/10.0)*crank_ox;
+    const double c27 = (3.0/10.0)*rocker_ox;
+    const double c28 = (0.061144002)*rocker_a02;
+    const double c29 = (0.06604098)*rocker_a01;
+    const double c30 = c29 - c28;
+    const double c31 = c24 - c23;
+    const double c32 = c28 - c29;
+    const double c33 = (0.4402732)*crank_ox;
+    const double c34 = (0.4402732)*rocker_ox;
+    const double c35 = (0.06604098)*crank_a00;
+    const double c36 = (3.0/10.0)*c0;
+    const double c37 = (3.0/10.0)*c4;
+    const double c38 = (0.40762668)*rocker_a12;
+    const double c39 = (0.4402732)*rocker_a11;
+    const double c40 = -c39 + c38;
+    const double c41 = (0.40762668)*rocker_a02;
+    const double c42 = (0.4402732)*rocker_a01;
+    const double c43 = c42 - c41;
+    const double c44 = 2.0*v_rocker_vz;
+    const double c45 = 2.0*v_crank_vz;
+    const double c46 = (3.0/10.0)*crank_oz;
+    const double c47 = (3.0/10.0)*rocker_oz;
+    const double c48 = (0.061144002)*rocker_a22;
+    const double c49 = (0.06604098)*rocker_a21;
+    const double c50 = c49 - c48;
+    const double c51 = c48 - c49;
+    const double c52 = (3.0/10.0)*c13;
+    const double c53 = (3.0/10.0)*c14;
+    const double c54 = (0.40762668)*rocker_a22;
+    const double c55 = (0.4402732)*rocker_a21;
+    const double c56 = c55 - c54;
+    const double c57 = 2.0*v_rocker_vx;
+    const double c58 = 2.0*v_crank_vx;
+    const double c59 = (3.0/10.0)*c8;
+    const double c60 = (3.0/10.0)*c9;
+    const double c61 = c54 - c55;
+    const double c62 = 2.0*v_rocker_vy;
+    const double c63 = 2.0*v_crank_vy;
+    const double c64 = c39 - c38;
+    const double c65 = c41 - c42;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx);
-    out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx);
+    out[3] = -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy;
+    out[4] = -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy;
     out[5] = 0.0;
     out[6] = 0.0;
     out[7] = 0.0;
-    out[8] = v_rocker_wz*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx) - v_rocker_wy*(rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy);
-    out[9] = v_rocker_wz*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - v_rocker_wy*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy);
-    out[10] = c12*v_crank_vz + c2*v_crank_vx + c9*v_rocker_vy - c12*v_rocker_vz - c2*v_rocker_vx - c9*v_crank_vy - (c3 - c4)*(-3.0/10.0*v_rocker_vy + (3.0/10.0)*v_crank_vy + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_oz + c33*rocker_ox - c32*rocker_oz - c33*crank_ox) - (c5 - c7)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c14*crank_oz + c18*rocker_ox + c19*crank_a00 + c20*crank_a20 - c14*rocker_oz - c18*crank_ox) - (c6 - c8)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c22*rocker_oz + c24*crank_a20 + c26*crank_ox + c28*crank_a00 - c22*crank_oz - c26*rocker_ox) - (-c0 + crank_a20*v_crank_wy)*(-3.0/10.0*v_rocker_vx + (3.0/10.0)*v_crank_vx + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_oz + c33*crank_oy - c31*crank_oz - c33*rocker_oy) - (-c1 + rocker_a21*v_rocker_wy)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c13*rocker_oz + c15*crank_a20 + c18*crank_oy + c29*crank_a10 - c13*crank_oz - c18*rocker_oy) - (-c10 + crank_a10*v_crank_wx)*(-3.0/10.0*v_rocker_vz + (3.0/10.0)*v_crank_vz + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_ox + c32*rocker_oy - c31*rocker_ox - c32*crank_oy) - (-c11 + rocker_a11*v_rocker_wx)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c13*crank_ox + c14*rocker_oy + c16*crank_a00 + c17*crank_a10 - c13*rocker_ox - c14*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c21*rocker_ox + c22*crank_oy + c23*crank_a00 + c25*crank_a10 - c21*crank_ox - c22*rocker_oy) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c21*crank_oz + c26*rocker_oy + c27*crank_a10 + c30*crank_a20 - c21*rocker_oz - c26*crank_oy);
+    out[8] = -(-rocker_a01*v_rocker_wy + rocker_a11*v_rocker_wx)*v_rocker_wy + (-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*v_rocker_wz;
+    out[9] = -(-rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx)*v_rocker_wy + (-rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz)*v_rocker_wz;
+    out[10] = -(-rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + (-c7 + c6 - c5)*v_rocker_wy + (0.061144002)*c4 + (c3 - c2 + c1)*v_rocker_wx - 0.061144002*c0) - (-rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz)*(-0.40762668*v_crank_vy + (-c12 + c11 - c10)*v_rocker_wx + (0.40762668)*v_rocker_vy + (c7 - c6 + c5)*v_rocker_wz - 0.061144002*c9 + (0.061144002)*c8) - (-c13 + c14)*((3.0/10.0)*v_crank_vx + (c51 + c47 - c46)*v_crank_wy + c25*v_rocker_wz - 3.0/10.0*v_rocker_vx + (c31 - c22 + c21)*v_crank_wz + c50*v_rocker_wy) - (-rocker_a11*v_rocker_wz + rocker_a21*v_rocker_wy)*((0.4402732)*v_crank_vx - 0.4402732*v_rocker_vx + (c20 - c19 + c18)*v_rocker_wz + (-c17 + c16 - c15)*v_rocker_wy + (0.06604098)*c14 - 0.06604098*c13) - (-c4 + c0)*(-3.0/10.0*v_rocker_vz + (3.0/10.0)*v_crank_vz + c31*v_rocker_wx + c32*v_rocker_wy + (c30 - c27 + c26)*v_crank_wy + (c25 + c22 - c21)*v_crank_wx) - (-c8 + c9)*((3.0/10.0)*v_crank_vy + c30*v_rocker_wz + c51*v_rocker_wx - 3.0/10.0*v_rocker_vy + (c50 - c47 + c46)*v_crank_wx + (c32 + c27 - c26)*v_crank_wz) - (-rocker_a01*v_rocker_wy + rocker_a11*v_rocker_wx)*((0.4402732)*v_crank_vz - 0.4402732*v_rocker_vz + (c35 - c34 + c33)*v_rocker_wy + (-c20 + c19 - c18)*v_rocker_wx - 0.06604098*c4 + (0.06604098)*c0) - (-c58 + c57 + c64*v_rocker_wz + c61*v_rocker_wy - c53 + c52)*v_rocker_vx - (-c45 + c44 + c43*v_rocker_wy + c40*v_rocker_wx + c37 - c36)*v_rocker_vz - (c62 + c56*v_rocker_wx - c60 - c63 + c65*v_rocker_wz + c59)*v_rocker_vy - (c58 - c57 + c40*v_rocker_wz + c56*v_rocker_wy + c53 - c52)*v_crank_vx - (-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + (-c35 + c34 - c33)*v_rocker_wz + (c17 - c16 + c15)*v_rocker_wx + (0.06604098)*c9 - 0.06604098*c8) - (-rocker_a12*v_rocker_wz + rocker_a22*v_rocker_wy)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + (0.061144002)*c13 + (-c3 + c2 - c1)*v_rocker_wz + (c12 - c11 + c10)*v_rocker_wy - 0.061144002*c14) - (-c62 + c43*v_rocker_wz + c61*v_rocker_wx + c60 + c63 - c59)*v_crank_vy - (c45 - c44 + c65*v_rocker_wy + c64*v_rocker_wx - c37 + c36)*v_crank_vz;
 }
 
 /* gamma of the driver rows of case 'turn'. */
@@ -282,24 +318,26 @@ static void compute_drivers_gamma_turn(const double *q, const double *v, const d
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*crank_rw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*crank_rz;
-    const double c5 = (1.0/2.0)*v_crank_wy;
-    const double c6 = (1.0/2.0)*v_crank_wx;
-    const double c7 = (1.0/2.0)*crank_rz;
-    const double c8 = (1.0/2.0)*v_crank_wz;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2.0*ud0*(c4*v_crank_wz + v_crank_wx*((1.0/2.0)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1.0/2.0*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx);
+    const double c3 = (1.0/2.0)*c2;
+    const double c4 = (1.0/2.0)*crank_rx;
+    const double c5 = c3*crank_rw;
+    const double c6 = (1.0/2.0)*c1;
+    const double c7 = c6*crank_rz;
+    const double c8 = (1.0/2.0)*crank_ry;
+    const double c9 = (1.0/2.0)*crank_rz;
+    const double c10 = (1.0/2.0)*crank_rw;
+    out[0] = c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2.0*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0;
 }
 
 /* Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_turn(double t, double *out) {
     const double c0 = 3.141592653589793*t;
     const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    out[0] = 6.283185307179586*t*(1.0 - 1.0/5.0*c1);
-    out[1] = 6.283185307179586 - 1.2566370614359172*c1 + 3.947841760435743*c2*t;
-    out[2] = 7.895683520871486*c2 + 12.402510672119927*c1*t;
+    const double c2 = 6.283185307179586*(1.0 - 1.0/5.0*c1);
+    const double c3 = sin(c0);
+    out[0] = t*c2;
+    out[1] = 3.947841760435743*t*c3 + c2;
+    out[2] = 12.402510672119929*t*c1 + 7.895683520871486*c3;
 }
 
 /* Enclosures of the driver inputs of case 'turn' over the time interval span = (t0, t1): the lower bounds of u (1), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
@@ -470,46 +508,47 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step0*step0);
     const double _t1 = (step1*step1);
     const double _t2 = (step2*step2);
-    const double _t3 = (1.0/4.0)*_t0 + (1.0/4.0)*_t1 + (1.0/4.0)*_t2;
+    const double _t3 = (1.0/4.0)*_t2 + (1.0/4.0)*_t1 + (1.0/4.0)*_t0;
     const double _t4 = sqrt(_t3);
     const double _t5 = cos(_t4);
     const double _t6 = (_t3*_t3);
-    const double _t7 = _t4 < 0.0001;
-    const double _t8 = sin(_t4)/_t4;
-    const double _t9 = ((_t7) ? ( 1.0 - 1.0/24.0*_t0 - 1.0/24.0*_t1 - 1.0/24.0*_t2 + (1.0/120.0)*_t6 ) : ( _t8 ));
-    const double _t10 = (1.0/2.0)*step0;
-    const double _t11 = _t10*_t9;
-    const double _t12 = (1.0/2.0)*step1;
-    const double _t13 = _t12*_t9;
-    const double _t14 = (1.0/2.0)*step2;
-    const double _t15 = _t14*_t9;
-    const double _t16 = (1.0/2.0)*step3;
-    const double _t17 = (1.0/2.0)*step5;
-    const double _t18 = 2.0*q7;
-    const double _t19 = 2.0*q6;
-    const double _t20 = 2.0*q2;
-    const double _t21 = 2.0*q3;
-    const double _t22 = (1.0/2.0)*_t17 + (1.0/2.0)*_t18*q0 + (1.0/2.0)*_t19*q1 - 1.0/2.0*_t20*q5 - 1.0/2.0*_t21*q4;
-    const double _t23 = (1.0/2.0)*step4;
-    const double _t24 = _t23 + _t19*q0 + _t21*q5 - _t18*q1 - _t20*q4;
-    const double _t25 = _t16 + _t14*_t24 - _t22*step1;
-    const double _t26 = _t16 + _t18*q2 - _t19*q3 - 2.0*q1*q4 + 2.0*q0*q5;
-    const double _t27 = _t23 + _t22*step0 - _t14*_t26;
-    const double _t28 = _t17 + _t12*_t26 - _t10*_t24;
-    const double _t29 = _t10*_t25 + _t12*_t27 + _t14*_t28;
-    const double _t30 = _t29*_t9;
-    const double _t31 = _t29*((_t7) ? ( -1.0/3.0 - 1.0/840.0*_t6 + (1.0/120.0)*_t0 + (1.0/120.0)*_t1 + (1.0/120.0)*_t2 ) : ( (_t5 - _t8)/_t3 ));
-    const double _t32 = _t10*_t31 + _t25*_t9;
-    const double _t33 = _t12*_t31 + _t27*_t9;
-    const double _t34 = _t14*_t31 + _t28*_t9;
-    const double moved0 = _t5*q0 - _t11*q1 - _t13*q2 - _t15*q3;
-    const double moved1 = _t11*q0 + _t13*q3 + _t5*q1 - _t15*q2;
-    const double moved2 = _t13*q0 + _t15*q1 + _t5*q2 - _t11*q3;
-    const double moved3 = _t11*q2 + _t15*q0 + _t5*q3 - _t13*q1;
-    const double moved4 = _t5*q4 - _t11*q5 - _t13*q6 - _t15*q7 - _t30*q0 - _t32*q1 - _t33*q2 - _t34*q3;
-    const double moved5 = _t11*q4 + _t13*q7 + _t32*q0 + _t33*q3 + _t5*q5 - _t15*q6 - _t30*q1 - _t34*q2;
-    const double moved6 = _t13*q4 + _t15*q5 + _t33*q0 + _t34*q1 + _t5*q6 - _t11*q7 - _t30*q2 - _t32*q3;
-    const double moved7 = _t11*q6 + _t15*q4 + _t32*q2 + _t34*q0 + _t5*q7 - _t13*q5 - _t30*q3 - _t33*q1;
+    const double _t7 = sin(_t4)/_t4;
+    const double _t8 = ((_t4 < 0.0001) ? ( 1.0 + (1.0/120.0)*_t6 - 1.0/24.0*_t2 - 1.0/24.0*_t1 - 1.0/24.0*_t0 ) : ( _t7 ));
+    const double _t9 = (1.0/2.0)*step0;
+    const double _t10 = _t8*_t9;
+    const double _t11 = (1.0/2.0)*step1;
+    const double _t12 = _t8*_t11;
+    const double _t13 = (1.0/2.0)*step2;
+    const double _t14 = _t8*_t13;
+    const double _t15 = (1.0/2.0)*step3;
+    const double _t16 = (1.0/2.0)*step4;
+    const double _t17 = 2.0*q1;
+    const double _t18 = 2.0*q3;
+    const double _t19 = 2.0*q2;
+    const double _t20 = 2.0*q0;
+    const double _t21 = q6*_t20 + q5*_t18 - q7*_t17 - q4*_t19 + _t16;
+    const double _t22 = (1.0/2.0)*step5;
+    const double _t23 = 2.0*q5;
+    const double _t24 = q7*_t20 - q4*_t18 - q2*_t23 + q6*_t17 + _t22;
+    const double _t25 = -_t24*_t11 + _t21*_t13 + _t15;
+    const double _t26 = q7*_t19 + q0*_t23 - q6*_t18 - q4*_t17 + _t15;
+    const double _t27 = -_t21*_t9 + _t26*_t11 + _t22;
+    const double _t28 = -_t26*_t13 + _t24*_t9 + _t16;
+    const double _t29 = _t28*_t11 + _t27*_t13 + _t25*_t9;
+    const double _t30 = _t29*((_t4 < 0.0001) ? ( -1.0/3.0 + (1.0/120.0)*_t2 + (1.0/120.0)*_t1 + (1.0/120.0)*_t0 - 1.0/840.0*_t6 ) : ( (_t5 - _t7)/_t3 ));
+    const double _t31 = _t30*_t9 + _t8*_t25;
+    const double _t32 = _t30*_t11 + _t8*_t28;
+    const double _t33 = _t8*_t29;
+    const double _t34 = _t30*_t13 + _t8*_t27;
+    const double _t35 = q7*_t8;
+    const double moved0 = -q3*_t14 - q2*_t12 - q1*_t10 + q0*_t5;
+    const double moved1 = -q2*_t14 + q3*_t12 + q0*_t10 + q1*_t5;
+    const double moved2 = -q3*_t10 + q1*_t14 + q0*_t12 + q2*_t5;
+    const double moved3 = -q1*_t12 + q0*_t14 + q2*_t10 + q3*_t5;
+    const double moved4 = -q5*_t10 - _t35*_t13 - q3*_t34 - q6*_t12 - q0*_t33 - q2*_t32 - q1*_t31 + q4*_t5;
+    const double moved5 = -q6*_t14 - q1*_t33 - q2*_t34 + q3*_t32 + q4*_t10 + _t35*_t11 + q5*_t5 + q0*_t31;
+    const double moved6 = -q7*_t10 - q2*_t33 + q5*_t14 + q4*_t12 - q3*_t31 + q6*_t5 + q1*_t34 + q0*_t32;
+    const double moved7 = q6*_t10 - q5*_t12 - q3*_t33 + q7*_t5 + q2*_t31 + q4*_t14 - q1*_t32 + q0*_t34;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

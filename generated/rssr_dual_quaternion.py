@@ -6,6 +6,7 @@ source sha256:   38922bfebe6d76485a80f5526a7adef5d7ca22dc3386066bf21d22467abd1d2
 parametrization: dual-quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 16) and v (velocity, 12) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -47,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_quaternion.h': 'd4f2c60284ce780eaa6834260de6b9e12a88e70da7d6ac080857c3d50ab38ebf', 'rssr_dual_quaternion.c': '27a157457ee7919f93946b3133ca7162d239c045d6d8175c70b9a780bd202514'}
+C_FILES = {'rssr_dual_quaternion.h': '4bef38395473cef74fff4e12df20dcd4200e6ab94c10e7983e8ee25be3e875cc', 'rssr_dual_quaternion.c': 'c5e8bef7a1b4b610eae978716f68a82eb32322c5073278f6a84b53f59f1d39a0'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 
@@ -328,7 +329,7 @@ def _joints_phi(q):
     out[7] = 3/10 - rocker_oz
     out[8] = rocker_a01
     out[9] = rocker_a02
-    out[10] = -169/625 + (crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2 + (crank_oy - rocker_oy - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2 + (crank_oz - rocker_oz - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2
+    out[10] = -169/625 + ((0.2201366)*rocker_a21 - 0.20381334*rocker_a22 + (3/20)*crank_a20 - rocker_oz + crank_oz)**2 + ((3/20)*crank_a10 - 0.20381334*rocker_a12 - rocker_oy + (0.2201366)*rocker_a11 + crank_oy)**2 + ((0.2201366)*rocker_a01 + (3/20)*crank_a00 - 0.20381334*rocker_a02 - rocker_ox + crank_ox)**2
     return out
 
 
@@ -338,7 +339,7 @@ def _drivers_phi_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_rz*cos(c0) + 2*crank_rw*sin(c0)
+    out[0] = 2*sin(c0)*crank_rw - 2*cos(c0)*crank_rz
     return out
 
 
@@ -367,18 +368,21 @@ def _joints_jac(q):
     rocker_a12 = -2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    c0 = -0.061144002*rocker_a22 - 3/10*rocker_oz + (3/10)*crank_oz + (9/200)*crank_a20 + (0.06604098)*rocker_a21
-    c1 = -0.061144002*rocker_a12 - 3/10*rocker_oy + (3/10)*crank_oy + (9/200)*crank_a10 + (0.06604098)*rocker_a11
-    c2 = -0.061144002*rocker_a02 - 3/10*rocker_ox + (3/10)*crank_ox + (9/200)*crank_a00 + (0.06604098)*rocker_a01
-    c3 = -2*rocker_ox + 2*crank_ox - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
-    c4 = -2*rocker_oy + 2*crank_oy - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
-    c5 = -2*rocker_oz + 2*crank_oz - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
-    c6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_oz + (0.4402732)*crank_oz + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
-    c7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_oz + (0.40762668)*rocker_oz + (0.0830797551239112)*rocker_a22
-    c8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
-    c9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12
-    c10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
-    c11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02
+    c0 = crank_oy + (0.2201366)*rocker_a11 - rocker_oy - 0.20381334*rocker_a12 + (3/20)*crank_a10
+    c1 = (3/10)*crank_a20
+    c2 = crank_oz - rocker_oz + (3/20)*crank_a20 - 0.20381334*rocker_a22 + (0.2201366)*rocker_a21
+    c3 = (3/10)*crank_a10
+    c4 = (3/10)*crank_a00
+    c5 = crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01
+    c6 = 2*c5
+    c7 = 2*c0
+    c8 = 2*c2
+    c9 = (0.40762668)*rocker_a12
+    c10 = (0.4402732)*rocker_a21
+    c11 = (0.4402732)*rocker_a11
+    c12 = (0.40762668)*rocker_a22
+    c13 = (0.4402732)*rocker_a01
+    c14 = (0.40762668)*rocker_a02
     out = _zeros(26, q, ())
     out[0] = -1
     out[1] = -1
@@ -394,18 +398,18 @@ def _joints_jac(q):
     out[11] = -rocker_a11
     out[12] = rocker_a22
     out[13] = -rocker_a12
-    out[14] = c0*crank_a10 - c1*crank_a20
-    out[15] = c2*crank_a20 - c0*crank_a00
-    out[16] = c1*crank_a00 - c2*crank_a10
-    out[17] = c3
-    out[18] = c4
-    out[19] = c5
-    out[20] = c6*rocker_a11 + c7*rocker_a12 - c8*rocker_a21 - c9*rocker_a22
-    out[21] = c10*rocker_a21 + c11*rocker_a22 - c6*rocker_a01 - c7*rocker_a02
-    out[22] = c8*rocker_a01 + c9*rocker_a02 - c10*rocker_a11 - c11*rocker_a12
-    out[23] = -c3
-    out[24] = -c4
-    out[25] = -c5
+    out[14] = c2*c3 - c0*c1
+    out[15] = c1*c5 - c2*c4
+    out[16] = c0*c4 - c3*c5
+    out[17] = c6
+    out[18] = c7
+    out[19] = c8
+    out[20] = c0*c12 + c2*c11 - c0*c10 - c2*c9
+    out[21] = c2*c14 + c5*c10 - c2*c13 - c5*c12
+    out[22] = c0*c13 + c5*c9 - c5*c11 - c0*c14
+    out[23] = -c6
+    out[24] = -c7
+    out[25] = -c8
     return out
 
 
@@ -417,8 +421,8 @@ def _drivers_jac_turn(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*crank_rx - c2*crank_ry
-    out[1] = c2*crank_rx - c1*crank_ry
+    out[0] = -c2*crank_ry - c1*crank_rx
+    out[1] = -c1*crank_ry + c2*crank_rx
     out[2] = -c1*crank_rz - c2*crank_rw
     return out
 
@@ -449,19 +453,22 @@ def _joints_phi_joints_jac_s(q):
     rocker_a12 = -2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz)
-    d0 = -0.061144002*rocker_a22 - 3/10*rocker_oz + (3/10)*crank_oz + (9/200)*crank_a20 + (0.06604098)*rocker_a21
-    d1 = -0.061144002*rocker_a12 - 3/10*rocker_oy + (3/10)*crank_oy + (9/200)*crank_a10 + (0.06604098)*rocker_a11
-    d2 = -0.061144002*rocker_a02 - 3/10*rocker_ox + (3/10)*crank_ox + (9/200)*crank_a00 + (0.06604098)*rocker_a01
-    d3 = -2.0*rocker_ox + 2.0*crank_ox - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
-    d4 = -2.0*rocker_oy + 2.0*crank_oy - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
-    d5 = -2.0*rocker_oz + 2.0*crank_oz - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
-    d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_oz + (0.4402732)*crank_oz + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
-    d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_oz + (0.40762668)*rocker_oz + (0.0830797551239112)*rocker_a22
-    d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_oy + (0.4402732)*crank_oy + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
-    d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_oy + (0.40762668)*rocker_oy + (0.0830797551239112)*rocker_a12
-    d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_ox + (0.4402732)*crank_ox + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
-    d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_ox + (0.40762668)*rocker_ox + (0.0830797551239112)*rocker_a02
-    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, 1/10 - rocker_ox, 7/20 - rocker_oy, 3/10 - rocker_oz, rocker_a01, rocker_a02, -169/625 + (crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2.0 + (crank_oy - rocker_oy - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2.0 + (crank_oz - rocker_oz - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2.0], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0*crank_a10 - d1*crank_a20, d2*crank_a20 - d0*crank_a00, d1*crank_a00 - d2*crank_a10, d3, d4, d5, d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22, d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02, d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12, -d3, -d4, -d5]
+    d0 = crank_oy + (0.2201366)*rocker_a11 - rocker_oy - 0.20381334*rocker_a12 + (3/20)*crank_a10
+    d1 = (3/10)*crank_a20
+    d2 = crank_oz - rocker_oz + (3/20)*crank_a20 - 0.20381334*rocker_a22 + (0.2201366)*rocker_a21
+    d3 = (3/10)*crank_a10
+    d4 = (3/10)*crank_a00
+    d5 = crank_ox - rocker_ox - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01
+    d6 = 2.0*d5
+    d7 = 2.0*d0
+    d8 = 2.0*d2
+    d9 = (0.40762668)*rocker_a12
+    d10 = (0.4402732)*rocker_a21
+    d11 = (0.4402732)*rocker_a11
+    d12 = (0.40762668)*rocker_a22
+    d13 = (0.4402732)*rocker_a01
+    d14 = (0.40762668)*rocker_a02
+    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, 1/10 - rocker_ox, 7/20 - rocker_oy, 3/10 - rocker_oz, rocker_a01, rocker_a02, -169/625 + ((0.2201366)*rocker_a21 - 0.20381334*rocker_a22 + (3/20)*crank_a20 - rocker_oz + crank_oz)**2.0 + ((3/20)*crank_a10 - 0.20381334*rocker_a12 - rocker_oy + (0.2201366)*rocker_a11 + crank_oy)**2.0 + ((0.2201366)*rocker_a01 + (3/20)*crank_a00 - 0.20381334*rocker_a02 - rocker_ox + crank_ox)**2.0], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d2*d3 - d0*d1, d1*d5 - d2*d4, d0*d4 - d3*d5, d6, d7, d8, d0*d12 + d2*d11 - d0*d10 - d2*d9, d2*d14 + d5*d10 - d2*d13 - d5*d12, d0*d13 + d5*d9 - d5*d11 - d0*d14, -d6, -d7, -d8]
 
 
 def _drivers_phi_turn_drivers_jac_turn_s(q, u):
@@ -472,7 +479,7 @@ def _drivers_phi_turn_drivers_jac_turn_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*crank_rz*math.cos(c0) + 2.0*crank_rw*math.sin(c0)], [-d1*crank_rx - d2*crank_ry, d2*crank_rx - d1*crank_ry, -d1*crank_rz - d2*crank_rw]
+    return [2.0*math.sin(c0)*crank_rw - 2.0*math.cos(c0)*crank_rz], [-d2*crank_ry - d1*crank_rx, -d1*crank_ry + d2*crank_rx, -d1*crank_rz - d2*crank_rw]
 
 
 def phi_jac_s_turn(q, u):
@@ -489,7 +496,7 @@ def _drivers_nu_turn(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_rw*cos(c0) + crank_rz*sin(c0))
+    out[0] = -(sin(c0)*crank_rz + cos(c0)*crank_rw)*ud0
     return out
 
 
@@ -504,7 +511,7 @@ def _drivers_nu_turn_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_rw*math.cos(c0) + crank_rz*math.sin(c0))]
+    return [-(math.sin(c0)*crank_rz + math.cos(c0)*crank_rw)*ud0]
 
 
 def nu_s_turn(q, u, ud):
@@ -535,46 +542,78 @@ def _joints_gamma(q, v):
     rocker_a12 = -2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a21 = 2*rocker_rw*rocker_rx + 2*rocker_ry*rocker_rz
     rocker_a22 = -1 + 2*rocker_rw**2 + 2*rocker_rz**2
-    c0 = crank_a10*v_crank_wz
-    c1 = rocker_a11*v_rocker_wz
-    c2 = -2*v_crank_vx + 2*v_rocker_vx + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_wz - 0.4402732*rocker_a21*v_rocker_wy - 3/10*crank_a20*v_crank_wy + (0.40762668)*rocker_a22*v_rocker_wy
-    c3 = crank_a00*v_crank_wz
-    c4 = crank_a20*v_crank_wx
-    c5 = rocker_a01*v_rocker_wz
-    c6 = rocker_a02*v_rocker_wz
-    c7 = rocker_a21*v_rocker_wx
-    c8 = rocker_a22*v_rocker_wx
-    c9 = -2*v_rocker_vy + 2*v_crank_vy - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
-    c10 = crank_a00*v_crank_wy
-    c11 = rocker_a01*v_rocker_wy
-    c12 = -2*v_crank_vz + 2*v_rocker_vz + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_wy - 0.4402732*rocker_a11*v_rocker_wx - 3/10*crank_a10*v_crank_wx + (0.40762668)*rocker_a12*v_rocker_wx
-    c13 = (0.4402732)*v_rocker_wy
-    c14 = (0.4402732)*v_rocker_wx
-    c15 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy
-    c16 = -c15
-    c17 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx
-    c18 = (0.4402732)*v_rocker_wz
-    c19 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz
-    c20 = -c17
-    c21 = (0.40762668)*v_rocker_wy
-    c22 = (0.40762668)*v_rocker_wx
-    c23 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy
-    c24 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx
-    c25 = -c24
-    c26 = (0.40762668)*v_rocker_wz
-    c27 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz
-    c28 = -c27
-    c29 = -c19
-    c30 = -c23
-    c31 = (3/10)*v_crank_wy
-    c32 = (3/10)*v_crank_wx
-    c33 = (3/10)*v_crank_wz
+    c0 = crank_a10*v_crank_wx
+    c1 = (0.40762668)*crank_oy
+    c2 = (0.40762668)*rocker_oy
+    c3 = (0.061144002)*crank_a10
+    c4 = crank_a00*v_crank_wy
+    c5 = (0.40762668)*crank_ox
+    c6 = (0.40762668)*rocker_ox
+    c7 = (0.061144002)*crank_a00
+    c8 = crank_a20*v_crank_wx
+    c9 = crank_a00*v_crank_wz
+    c10 = (0.40762668)*crank_oz
+    c11 = (0.40762668)*rocker_oz
+    c12 = (0.061144002)*crank_a20
+    c13 = crank_a10*v_crank_wz
+    c14 = crank_a20*v_crank_wy
+    c15 = (0.4402732)*crank_oz
+    c16 = (0.4402732)*rocker_oz
+    c17 = (0.06604098)*crank_a20
+    c18 = (0.4402732)*crank_oy
+    c19 = (0.4402732)*rocker_oy
+    c20 = (0.06604098)*crank_a10
+    c21 = (3/10)*crank_oy
+    c22 = (3/10)*rocker_oy
+    c23 = (0.061144002)*rocker_a12
+    c24 = (0.06604098)*rocker_a11
+    c25 = -c24 + c23
+    c26 = (3/10)*crank_ox
+    c27 = (3/10)*rocker_ox
+    c28 = (0.061144002)*rocker_a02
+    c29 = (0.06604098)*rocker_a01
+    c30 = c29 - c28
+    c31 = c24 - c23
+    c32 = c28 - c29
+    c33 = (0.4402732)*crank_ox
+    c34 = (0.4402732)*rocker_ox
+    c35 = (0.06604098)*crank_a00
+    c36 = (3/10)*c0
+    c37 = (3/10)*c4
+    c38 = (0.40762668)*rocker_a12
+    c39 = (0.4402732)*rocker_a11
+    c40 = -c39 + c38
+    c41 = (0.40762668)*rocker_a02
+    c42 = (0.4402732)*rocker_a01
+    c43 = c42 - c41
+    c44 = 2*v_rocker_vz
+    c45 = 2*v_crank_vz
+    c46 = (3/10)*crank_oz
+    c47 = (3/10)*rocker_oz
+    c48 = (0.061144002)*rocker_a22
+    c49 = (0.06604098)*rocker_a21
+    c50 = c49 - c48
+    c51 = c48 - c49
+    c52 = (3/10)*c13
+    c53 = (3/10)*c14
+    c54 = (0.40762668)*rocker_a22
+    c55 = (0.4402732)*rocker_a21
+    c56 = c55 - c54
+    c57 = 2*v_rocker_vx
+    c58 = 2*v_crank_vx
+    c59 = (3/10)*c8
+    c60 = (3/10)*c9
+    c61 = c54 - c55
+    c62 = 2*v_rocker_vy
+    c63 = 2*v_crank_vy
+    c64 = c39 - c38
+    c65 = c41 - c42
     out = _zeros(11, q, ())
-    out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx)
-    out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx)
-    out[8] = v_rocker_wz*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx) - v_rocker_wy*(rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy)
-    out[9] = v_rocker_wz*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - v_rocker_wy*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)
-    out[10] = c12*v_crank_vz + c2*v_crank_vx + c9*v_rocker_vy - c12*v_rocker_vz - c2*v_rocker_vx - c9*v_crank_vy - (c3 - c4)*(-3/10*v_rocker_vy + (3/10)*v_crank_vy + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_oz + c33*rocker_ox - c32*rocker_oz - c33*crank_ox) - (c5 - c7)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c14*crank_oz + c18*rocker_ox + c19*crank_a00 + c20*crank_a20 - c14*rocker_oz - c18*crank_ox) - (c6 - c8)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c22*rocker_oz + c24*crank_a20 + c26*crank_ox + c28*crank_a00 - c22*crank_oz - c26*rocker_ox) - (-c0 + crank_a20*v_crank_wy)*(-3/10*v_rocker_vx + (3/10)*v_crank_vx + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_oz + c33*crank_oy - c31*crank_oz - c33*rocker_oy) - (-c1 + rocker_a21*v_rocker_wy)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c13*rocker_oz + c15*crank_a20 + c18*crank_oy + c29*crank_a10 - c13*crank_oz - c18*rocker_oy) - (-c10 + crank_a10*v_crank_wx)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_ox + c32*rocker_oy - c31*rocker_ox - c32*crank_oy) - (-c11 + rocker_a11*v_rocker_wx)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c13*crank_ox + c14*rocker_oy + c16*crank_a00 + c17*crank_a10 - c13*rocker_ox - c14*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c21*rocker_ox + c22*crank_oy + c23*crank_a00 + c25*crank_a10 - c21*crank_ox - c22*rocker_oy) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c21*crank_oz + c26*rocker_oy + c27*crank_a10 + c30*crank_a20 - c21*rocker_oz - c26*crank_oy)
+    out[3] = -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy
+    out[4] = -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy
+    out[8] = -(-rocker_a01*v_rocker_wy + rocker_a11*v_rocker_wx)*v_rocker_wy + (-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*v_rocker_wz
+    out[9] = -(-rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx)*v_rocker_wy + (-rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz)*v_rocker_wz
+    out[10] = -(-rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + (-c7 + c6 - c5)*v_rocker_wy + (0.061144002)*c4 + (c3 - c2 + c1)*v_rocker_wx - 0.061144002*c0) - (-rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz)*(-0.40762668*v_crank_vy + (-c12 + c11 - c10)*v_rocker_wx + (0.40762668)*v_rocker_vy + (c7 - c6 + c5)*v_rocker_wz - 0.061144002*c9 + (0.061144002)*c8) - (-c13 + c14)*((3/10)*v_crank_vx + (c51 + c47 - c46)*v_crank_wy + c25*v_rocker_wz - 3/10*v_rocker_vx + (c31 - c22 + c21)*v_crank_wz + c50*v_rocker_wy) - (-rocker_a11*v_rocker_wz + rocker_a21*v_rocker_wy)*((0.4402732)*v_crank_vx - 0.4402732*v_rocker_vx + (c20 - c19 + c18)*v_rocker_wz + (-c17 + c16 - c15)*v_rocker_wy + (0.06604098)*c14 - 0.06604098*c13) - (-c4 + c0)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c31*v_rocker_wx + c32*v_rocker_wy + (c30 - c27 + c26)*v_crank_wy + (c25 + c22 - c21)*v_crank_wx) - (-c8 + c9)*((3/10)*v_crank_vy + c30*v_rocker_wz + c51*v_rocker_wx - 3/10*v_rocker_vy + (c50 - c47 + c46)*v_crank_wx + (c32 + c27 - c26)*v_crank_wz) - (-rocker_a01*v_rocker_wy + rocker_a11*v_rocker_wx)*((0.4402732)*v_crank_vz - 0.4402732*v_rocker_vz + (c35 - c34 + c33)*v_rocker_wy + (-c20 + c19 - c18)*v_rocker_wx - 0.06604098*c4 + (0.06604098)*c0) - (-c58 + c57 + c64*v_rocker_wz + c61*v_rocker_wy - c53 + c52)*v_rocker_vx - (-c45 + c44 + c43*v_rocker_wy + c40*v_rocker_wx + c37 - c36)*v_rocker_vz - (c62 + c56*v_rocker_wx - c60 - c63 + c65*v_rocker_wz + c59)*v_rocker_vy - (c58 - c57 + c40*v_rocker_wz + c56*v_rocker_wy + c53 - c52)*v_crank_vx - (-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + (-c35 + c34 - c33)*v_rocker_wz + (c17 - c16 + c15)*v_rocker_wx + (0.06604098)*c9 - 0.06604098*c8) - (-rocker_a12*v_rocker_wz + rocker_a22*v_rocker_wy)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + (0.061144002)*c13 + (-c3 + c2 - c1)*v_rocker_wz + (c12 - c11 + c10)*v_rocker_wy - 0.061144002*c14) - (-c62 + c43*v_rocker_wz + c61*v_rocker_wx + c60 + c63 - c59)*v_crank_vy - (c45 - c44 + c65*v_rocker_wy + c64*v_rocker_wx - c37 + c36)*v_crank_vz
     return out
 
 
@@ -588,15 +627,16 @@ def _drivers_gamma_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*crank_rw
-    c4 = c2*c3 - 1/2*c1*crank_rz
-    c5 = (1/2)*v_crank_wy
-    c6 = (1/2)*v_crank_wx
-    c7 = (1/2)*crank_rz
-    c8 = (1/2)*v_crank_wz
-    c9 = (1/2)*c1
+    c3 = (1/2)*c2
+    c4 = (1/2)*crank_rx
+    c5 = c3*crank_rw
+    c6 = (1/2)*c1
+    c7 = c6*crank_rz
+    c8 = (1/2)*crank_ry
+    c9 = (1/2)*crank_rz
+    c10 = (1/2)*crank_rw
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2*ud0*(c4*v_crank_wz + v_crank_wx*((1/2)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1/2*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx)
+    out[0] = c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0
     return out
 
 
@@ -627,41 +667,73 @@ def _joints_gamma_s(q, v):
     rocker_a12 = -2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a21 = 2.0*rocker_rw*rocker_rx + 2.0*rocker_ry*rocker_rz
     rocker_a22 = -1.0 + 2.0*(rocker_rw*rocker_rw) + 2.0*(rocker_rz*rocker_rz)
-    c0 = crank_a10*v_crank_wz
-    c1 = rocker_a11*v_rocker_wz
-    c2 = -2.0*v_crank_vx + 2.0*v_rocker_vx + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_wz - 0.4402732*rocker_a21*v_rocker_wy - 3/10*crank_a20*v_crank_wy + (0.40762668)*rocker_a22*v_rocker_wy
-    c3 = crank_a00*v_crank_wz
-    c4 = crank_a20*v_crank_wx
-    c5 = rocker_a01*v_rocker_wz
-    c6 = rocker_a02*v_rocker_wz
-    c7 = rocker_a21*v_rocker_wx
-    c8 = rocker_a22*v_rocker_wx
-    c9 = -2.0*v_rocker_vy + 2.0*v_crank_vy - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
-    c10 = crank_a00*v_crank_wy
-    c11 = rocker_a01*v_rocker_wy
-    c12 = -2.0*v_crank_vz + 2.0*v_rocker_vz + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_wy - 0.4402732*rocker_a11*v_rocker_wx - 3/10*crank_a10*v_crank_wx + (0.40762668)*rocker_a12*v_rocker_wx
-    c13 = (0.4402732)*v_rocker_wy
-    c14 = (0.4402732)*v_rocker_wx
-    c15 = -0.06604098*v_rocker_wy + (0.06604098)*v_crank_wy
-    c16 = -c15
-    c17 = -0.06604098*v_rocker_wx + (0.06604098)*v_crank_wx
-    c18 = (0.4402732)*v_rocker_wz
-    c19 = -0.06604098*v_rocker_wz + (0.06604098)*v_crank_wz
-    c20 = -c17
-    c21 = (0.40762668)*v_rocker_wy
-    c22 = (0.40762668)*v_rocker_wx
-    c23 = -0.061144002*v_rocker_wy + (0.061144002)*v_crank_wy
-    c24 = -0.061144002*v_rocker_wx + (0.061144002)*v_crank_wx
-    c25 = -c24
-    c26 = (0.40762668)*v_rocker_wz
-    c27 = -0.061144002*v_rocker_wz + (0.061144002)*v_crank_wz
-    c28 = -c27
-    c29 = -c19
-    c30 = -c23
-    c31 = (3/10)*v_crank_wy
-    c32 = (3/10)*v_crank_wx
-    c33 = (3/10)*v_crank_wz
-    return [0.0, 0.0, 0.0, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), 0.0, 0.0, 0.0, v_rocker_wz*(rocker_a01*v_rocker_wz - rocker_a21*v_rocker_wx) - v_rocker_wy*(rocker_a11*v_rocker_wx - rocker_a01*v_rocker_wy), v_rocker_wz*(rocker_a02*v_rocker_wz - rocker_a22*v_rocker_wx) - v_rocker_wy*(rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy), c12*v_crank_vz + c2*v_crank_vx + c9*v_rocker_vy - c12*v_rocker_vz - c2*v_rocker_vx - c9*v_crank_vy - (c3 - c4)*(-3/10*v_rocker_vy + (3/10)*v_crank_vy + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_oz + c33*rocker_ox - c32*rocker_oz - c33*crank_ox) - (c5 - c7)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + c14*crank_oz + c18*rocker_ox + c19*crank_a00 + c20*crank_a20 - c14*rocker_oz - c18*crank_ox) - (c6 - c8)*(-0.40762668*v_crank_vy + (0.40762668)*v_rocker_vy + c22*rocker_oz + c24*crank_a20 + c26*crank_ox + c28*crank_a00 - c22*crank_oz - c26*rocker_ox) - (-c0 + crank_a20*v_crank_wy)*(-3/10*v_rocker_vx + (3/10)*v_crank_vx + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_oz + c33*crank_oy - c31*crank_oz - c33*rocker_oy) - (-c1 + rocker_a21*v_rocker_wy)*(-0.4402732*v_rocker_vx + (0.4402732)*v_crank_vx + c13*rocker_oz + c15*crank_a20 + c18*crank_oy + c29*crank_a10 - c13*crank_oz - c18*rocker_oy) - (-c10 + crank_a10*v_crank_wx)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_ox + c32*rocker_oy - c31*rocker_ox - c32*crank_oy) - (-c11 + rocker_a11*v_rocker_wx)*(-0.4402732*v_rocker_vz + (0.4402732)*v_crank_vz + c13*crank_ox + c14*rocker_oy + c16*crank_a00 + c17*crank_a10 - c13*rocker_ox - c14*crank_oy) - (rocker_a12*v_rocker_wx - rocker_a02*v_rocker_wy)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + c21*rocker_ox + c22*crank_oy + c23*crank_a00 + c25*crank_a10 - c21*crank_ox - c22*rocker_oy) - (rocker_a22*v_rocker_wy - rocker_a12*v_rocker_wz)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + c21*crank_oz + c26*rocker_oy + c27*crank_a10 + c30*crank_a20 - c21*rocker_oz - c26*crank_oy)]
+    c0 = crank_a10*v_crank_wx
+    c1 = (0.40762668)*crank_oy
+    c2 = (0.40762668)*rocker_oy
+    c3 = (0.061144002)*crank_a10
+    c4 = crank_a00*v_crank_wy
+    c5 = (0.40762668)*crank_ox
+    c6 = (0.40762668)*rocker_ox
+    c7 = (0.061144002)*crank_a00
+    c8 = crank_a20*v_crank_wx
+    c9 = crank_a00*v_crank_wz
+    c10 = (0.40762668)*crank_oz
+    c11 = (0.40762668)*rocker_oz
+    c12 = (0.061144002)*crank_a20
+    c13 = crank_a10*v_crank_wz
+    c14 = crank_a20*v_crank_wy
+    c15 = (0.4402732)*crank_oz
+    c16 = (0.4402732)*rocker_oz
+    c17 = (0.06604098)*crank_a20
+    c18 = (0.4402732)*crank_oy
+    c19 = (0.4402732)*rocker_oy
+    c20 = (0.06604098)*crank_a10
+    c21 = (3/10)*crank_oy
+    c22 = (3/10)*rocker_oy
+    c23 = (0.061144002)*rocker_a12
+    c24 = (0.06604098)*rocker_a11
+    c25 = -c24 + c23
+    c26 = (3/10)*crank_ox
+    c27 = (3/10)*rocker_ox
+    c28 = (0.061144002)*rocker_a02
+    c29 = (0.06604098)*rocker_a01
+    c30 = c29 - c28
+    c31 = c24 - c23
+    c32 = c28 - c29
+    c33 = (0.4402732)*crank_ox
+    c34 = (0.4402732)*rocker_ox
+    c35 = (0.06604098)*crank_a00
+    c36 = (3/10)*c0
+    c37 = (3/10)*c4
+    c38 = (0.40762668)*rocker_a12
+    c39 = (0.4402732)*rocker_a11
+    c40 = -c39 + c38
+    c41 = (0.40762668)*rocker_a02
+    c42 = (0.4402732)*rocker_a01
+    c43 = c42 - c41
+    c44 = 2.0*v_rocker_vz
+    c45 = 2.0*v_crank_vz
+    c46 = (3/10)*crank_oz
+    c47 = (3/10)*rocker_oz
+    c48 = (0.061144002)*rocker_a22
+    c49 = (0.06604098)*rocker_a21
+    c50 = c49 - c48
+    c51 = c48 - c49
+    c52 = (3/10)*c13
+    c53 = (3/10)*c14
+    c54 = (0.40762668)*rocker_a22
+    c55 = (0.4402732)*rocker_a21
+    c56 = c55 - c54
+    c57 = 2.0*v_rocker_vx
+    c58 = 2.0*v_crank_vx
+    c59 = (3/10)*c8
+    c60 = (3/10)*c9
+    c61 = c54 - c55
+    c62 = 2.0*v_rocker_vy
+    c63 = 2.0*v_crank_vy
+    c64 = c39 - c38
+    c65 = c41 - c42
+    return [0.0, 0.0, 0.0, -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy, -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy, 0.0, 0.0, 0.0, -(-rocker_a01*v_rocker_wy + rocker_a11*v_rocker_wx)*v_rocker_wy + (-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*v_rocker_wz, -(-rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx)*v_rocker_wy + (-rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz)*v_rocker_wz, -(-rocker_a02*v_rocker_wy + rocker_a12*v_rocker_wx)*(-0.40762668*v_crank_vz + (0.40762668)*v_rocker_vz + (-c7 + c6 - c5)*v_rocker_wy + (0.061144002)*c4 + (c3 - c2 + c1)*v_rocker_wx - 0.061144002*c0) - (-rocker_a22*v_rocker_wx + rocker_a02*v_rocker_wz)*(-0.40762668*v_crank_vy + (-c12 + c11 - c10)*v_rocker_wx + (0.40762668)*v_rocker_vy + (c7 - c6 + c5)*v_rocker_wz - 0.061144002*c9 + (0.061144002)*c8) - (-c13 + c14)*((3/10)*v_crank_vx + (c51 + c47 - c46)*v_crank_wy + c25*v_rocker_wz - 3/10*v_rocker_vx + (c31 - c22 + c21)*v_crank_wz + c50*v_rocker_wy) - (-rocker_a11*v_rocker_wz + rocker_a21*v_rocker_wy)*((0.4402732)*v_crank_vx - 0.4402732*v_rocker_vx + (c20 - c19 + c18)*v_rocker_wz + (-c17 + c16 - c15)*v_rocker_wy + (0.06604098)*c14 - 0.06604098*c13) - (-c4 + c0)*(-3/10*v_rocker_vz + (3/10)*v_crank_vz + c31*v_rocker_wx + c32*v_rocker_wy + (c30 - c27 + c26)*v_crank_wy + (c25 + c22 - c21)*v_crank_wx) - (-c8 + c9)*((3/10)*v_crank_vy + c30*v_rocker_wz + c51*v_rocker_wx - 3/10*v_rocker_vy + (c50 - c47 + c46)*v_crank_wx + (c32 + c27 - c26)*v_crank_wz) - (-rocker_a01*v_rocker_wy + rocker_a11*v_rocker_wx)*((0.4402732)*v_crank_vz - 0.4402732*v_rocker_vz + (c35 - c34 + c33)*v_rocker_wy + (-c20 + c19 - c18)*v_rocker_wx - 0.06604098*c4 + (0.06604098)*c0) - (-c58 + c57 + c64*v_rocker_wz + c61*v_rocker_wy - c53 + c52)*v_rocker_vx - (-c45 + c44 + c43*v_rocker_wy + c40*v_rocker_wx + c37 - c36)*v_rocker_vz - (c62 + c56*v_rocker_wx - c60 - c63 + c65*v_rocker_wz + c59)*v_rocker_vy - (c58 - c57 + c40*v_rocker_wz + c56*v_rocker_wy + c53 - c52)*v_crank_vx - (-rocker_a21*v_rocker_wx + rocker_a01*v_rocker_wz)*(-0.4402732*v_rocker_vy + (0.4402732)*v_crank_vy + (-c35 + c34 - c33)*v_rocker_wz + (c17 - c16 + c15)*v_rocker_wx + (0.06604098)*c9 - 0.06604098*c8) - (-rocker_a12*v_rocker_wz + rocker_a22*v_rocker_wy)*(-0.40762668*v_crank_vx + (0.40762668)*v_rocker_vx + (0.061144002)*c13 + (-c3 + c2 - c1)*v_rocker_wz + (c12 - c11 + c10)*v_rocker_wy - 0.061144002*c14) - (-c62 + c43*v_rocker_wz + c61*v_rocker_wx + c60 + c63 - c59)*v_crank_vy - (c45 - c44 + c65*v_rocker_wy + c64*v_rocker_wx - c37 + c36)*v_crank_vz]
 
 
 def _drivers_gamma_turn_s(q, v, u, ud, udd):
@@ -674,14 +746,15 @@ def _drivers_gamma_turn_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*crank_rw
-    c4 = c2*c3 - 1/2*c1*crank_rz
-    c5 = (1/2)*v_crank_wy
-    c6 = (1/2)*v_crank_wx
-    c7 = (1/2)*crank_rz
-    c8 = (1/2)*v_crank_wz
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2.0*ud0*(c4*v_crank_wz + v_crank_wx*((1/2)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1/2*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx)]
+    c3 = (1/2)*c2
+    c4 = (1/2)*crank_rx
+    c5 = c3*crank_rw
+    c6 = (1/2)*c1
+    c7 = c6*crank_rz
+    c8 = (1/2)*crank_ry
+    c9 = (1/2)*crank_rz
+    c10 = (1/2)*crank_rw
+    return [c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2.0*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0]
 
 
 def gamma_s_turn(q, v, u, ud, udd):
@@ -695,11 +768,12 @@ def inputs_turn(t):
     """Driver inputs of case 'turn' at time t: u, then du/dt, then d2u/dt2."""
     c0 = 3.141592653589793*t
     c1 = cos(c0)
-    c2 = sin(c0)
+    c2 = 6.283185307179586*(1 - 1/5*c1)
+    c3 = sin(c0)
     out = np.zeros((3,) + np.shape(t))
-    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
-    out[1] = 6.283185307179586 - 1.2566370614359172*c1 + 3.947841760435743*c2*t
-    out[2] = 7.895683520871486*c2 + 12.402510672119927*c1*t
+    out[0] = t*c2
+    out[1] = 3.947841760435743*t*c3 + c2
+    out[2] = 12.402510672119929*t*c1 + 7.895683520871486*c3
     return out
 
 

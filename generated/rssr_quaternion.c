@@ -6,6 +6,7 @@
  * parametrization: quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -52,7 +53,7 @@ static void compute_joints_phi(const double *q, double *out) {
     out[7] = 3.0/10.0 - rocker_z;
     out[8] = rocker_a01;
     out[9] = rocker_a02;
-    out[10] = -169.0/625.0 + pow(crank_x - rocker_x - 0.20381334*rocker_a02 + (3.0/20.0)*crank_a00 + (0.2201366)*rocker_a01, 2.0) + pow(crank_y - rocker_y - 0.20381334*rocker_a12 + (3.0/20.0)*crank_a10 + (0.2201366)*rocker_a11, 2.0) + pow(crank_z - rocker_z - 0.20381334*rocker_a22 + (3.0/20.0)*crank_a20 + (0.2201366)*rocker_a21, 2.0);
+    out[10] = -169.0/625.0 + pow((0.2201366)*rocker_a21 + (3.0/20.0)*crank_a20 - rocker_z - 0.20381334*rocker_a22 + crank_z, 2.0) + pow((0.2201366)*rocker_a11 + (3.0/20.0)*crank_a10 - 0.20381334*rocker_a12 - rocker_y + crank_y, 2.0) + pow((3.0/20.0)*crank_a00 - 0.20381334*rocker_a02 + (0.2201366)*rocker_a01 - rocker_x + crank_x, 2.0);
 }
 
 /* Phi of the driver rows of case 'turn'. */
@@ -61,7 +62,7 @@ static void compute_drivers_phi_turn(const double *q, const double *u, double *o
     const double crank_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_qz*cos(c0) + 2.0*crank_qw*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_qw - 2.0*cos(c0)*crank_qz;
 }
 
 /* Phi_q values of the joint rows (26 entries). */
@@ -91,18 +92,21 @@ static void compute_joints_jac(const double *q, double *out) {
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
-    const double c0 = -2.0*rocker_x + 2.0*crank_x - 0.40762668*rocker_a02 + (3.0/10.0)*crank_a00 + (0.4402732)*rocker_a01;
-    const double c1 = -2.0*rocker_y + 2.0*crank_y - 0.40762668*rocker_a12 + (3.0/10.0)*crank_a10 + (0.4402732)*rocker_a11;
-    const double c2 = -2.0*rocker_z + 2.0*crank_z - 0.40762668*rocker_a22 + (3.0/10.0)*crank_a20 + (0.4402732)*rocker_a21;
-    const double c3 = -0.061144002*rocker_a22 - 3.0/10.0*rocker_z + (3.0/10.0)*crank_z + (9.0/200.0)*crank_a20 + (0.06604098)*rocker_a21;
-    const double c4 = -0.061144002*rocker_a12 - 3.0/10.0*rocker_y + (3.0/10.0)*crank_y + (9.0/200.0)*crank_a10 + (0.06604098)*rocker_a11;
-    const double c5 = -0.061144002*rocker_a02 - 3.0/10.0*rocker_x + (3.0/10.0)*crank_x + (9.0/200.0)*crank_a00 + (0.06604098)*rocker_a01;
-    const double c6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21;
-    const double c7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22;
-    const double c8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11;
-    const double c9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12;
-    const double c10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01;
-    const double c11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02;
+    const double c0 = crank_x - rocker_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 + (3.0/20.0)*crank_a00;
+    const double c1 = 2.0*c0;
+    const double c2 = crank_y - rocker_y - 0.20381334*rocker_a12 + (3.0/20.0)*crank_a10 + (0.2201366)*rocker_a11;
+    const double c3 = 2.0*c2;
+    const double c4 = crank_z - 0.20381334*rocker_a22 - rocker_z + (3.0/20.0)*crank_a20 + (0.2201366)*rocker_a21;
+    const double c5 = 2.0*c4;
+    const double c6 = (3.0/10.0)*crank_a20;
+    const double c7 = (3.0/10.0)*crank_a10;
+    const double c8 = (3.0/10.0)*crank_a00;
+    const double c9 = (0.40762668)*rocker_a12;
+    const double c10 = (0.4402732)*rocker_a21;
+    const double c11 = (0.4402732)*rocker_a11;
+    const double c12 = (0.40762668)*rocker_a22;
+    const double c13 = (0.4402732)*rocker_a01;
+    const double c14 = (0.40762668)*rocker_a02;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -117,18 +121,18 @@ static void compute_joints_jac(const double *q, double *out) {
     out[11] = -rocker_a11;
     out[12] = rocker_a22;
     out[13] = -rocker_a12;
-    out[14] = c0;
-    out[15] = c1;
-    out[16] = c2;
-    out[17] = c3*crank_a10 - c4*crank_a20;
-    out[18] = c5*crank_a20 - c3*crank_a00;
-    out[19] = c4*crank_a00 - c5*crank_a10;
-    out[20] = -c0;
-    out[21] = -c1;
-    out[22] = -c2;
-    out[23] = c6*rocker_a11 + c7*rocker_a12 - c8*rocker_a21 - c9*rocker_a22;
-    out[24] = c10*rocker_a21 + c11*rocker_a22 - c6*rocker_a01 - c7*rocker_a02;
-    out[25] = c8*rocker_a01 + c9*rocker_a02 - c10*rocker_a11 - c11*rocker_a12;
+    out[14] = c1;
+    out[15] = c3;
+    out[16] = c5;
+    out[17] = c4*c7 - c2*c6;
+    out[18] = c0*c6 - c4*c8;
+    out[19] = c2*c8 - c0*c7;
+    out[20] = -c1;
+    out[21] = -c3;
+    out[22] = -c5;
+    out[23] = c2*c12 + c4*c11 - c2*c10 - c4*c9;
+    out[24] = c0*c10 + c4*c14 - c4*c13 - c0*c12;
+    out[25] = c0*c9 + c2*c13 - c0*c11 - c2*c14;
 }
 
 /* Phi_q values of the driver rows of case 'turn'. */
@@ -141,8 +145,8 @@ static void compute_drivers_jac_turn(const double *q, const double *u, double *o
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*crank_qx - c2*crank_qy;
-    out[1] = c2*crank_qx - c1*crank_qy;
+    out[0] = -c2*crank_qy - c1*crank_qx;
+    out[1] = -c1*crank_qy + c2*crank_qx;
     out[2] = -c1*crank_qz - c2*crank_qw;
 }
 
@@ -153,7 +157,7 @@ static void compute_drivers_nu_turn(const double *q, const double *u, const doub
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0));
+    out[0] = -(sin(c0)*crank_qz + cos(c0)*crank_qw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -196,51 +200,83 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz;
     const double rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz);
-    const double c0 = crank_a10*v_crank_theta_z;
-    const double c1 = rocker_a11*v_rocker_theta_z;
-    const double c2 = -2.0*v_crank_x + 2.0*v_rocker_x + (3.0/10.0)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y - 3.0/10.0*crank_a20*v_crank_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y;
-    const double c3 = crank_a00*v_crank_theta_z;
-    const double c4 = crank_a20*v_crank_theta_x;
-    const double c5 = rocker_a01*v_rocker_theta_z;
-    const double c6 = rocker_a02*v_rocker_theta_z;
-    const double c7 = rocker_a21*v_rocker_theta_x;
-    const double c8 = rocker_a22*v_rocker_theta_x;
-    const double c9 = -2.0*v_rocker_y + 2.0*v_crank_y - 0.40762668*c6 - 0.4402732*c7 - 3.0/10.0*c4 + (3.0/10.0)*c3 + (0.4402732)*c5 + (0.40762668)*c8;
-    const double c10 = crank_a00*v_crank_theta_y;
-    const double c11 = rocker_a01*v_rocker_theta_y;
-    const double c12 = -2.0*v_crank_z + 2.0*v_rocker_z + (3.0/10.0)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x - 3.0/10.0*crank_a10*v_crank_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x;
-    const double c13 = (0.4402732)*v_rocker_theta_y;
-    const double c14 = (0.4402732)*v_rocker_theta_x;
-    const double c15 = -0.06604098*v_rocker_theta_y + (0.06604098)*v_crank_theta_y;
-    const double c16 = -c15;
-    const double c17 = -0.06604098*v_rocker_theta_x + (0.06604098)*v_crank_theta_x;
-    const double c18 = (0.4402732)*v_rocker_theta_z;
-    const double c19 = -0.06604098*v_rocker_theta_z + (0.06604098)*v_crank_theta_z;
-    const double c20 = -c17;
-    const double c21 = (0.40762668)*v_rocker_theta_y;
-    const double c22 = (0.40762668)*v_rocker_theta_x;
-    const double c23 = -0.061144002*v_rocker_theta_y + (0.061144002)*v_crank_theta_y;
-    const double c24 = -0.061144002*v_rocker_theta_x + (0.061144002)*v_crank_theta_x;
-    const double c25 = -c24;
-    const double c26 = (0.40762668)*v_rocker_theta_z;
-    const double c27 = -0.061144002*v_rocker_theta_z + (0.061144002)*v_crank_theta_z;
-    const double c28 = -c27;
-    const double c29 = -c19;
-    const double c30 = -c23;
-    const double c31 = (3.0/10.0)*v_crank_theta_y;
-    const double c32 = (3.0/10.0)*v_crank_theta_x;
-    const double c33 = (3.0/10.0)*v_crank_theta_z;
+    const double c0 = (0.061144002)*crank_a10;
+    const double c1 = (0.40762668)*crank_y;
+    const double c2 = (0.40762668)*rocker_y;
+    const double c3 = crank_a00*v_crank_theta_y;
+    const double c4 = (0.40762668)*crank_x;
+    const double c5 = (0.40762668)*rocker_x;
+    const double c6 = (0.061144002)*crank_a00;
+    const double c7 = crank_a10*v_crank_theta_x;
+    const double c8 = (3.0/10.0)*c7;
+    const double c9 = (0.40762668)*rocker_a12;
+    const double c10 = (0.4402732)*rocker_a11;
+    const double c11 = c10 - c9;
+    const double c12 = (3.0/10.0)*c3;
+    const double c13 = (0.4402732)*rocker_a01;
+    const double c14 = (0.40762668)*rocker_a02;
+    const double c15 = c14 - c13;
+    const double c16 = 2.0*v_rocker_z;
+    const double c17 = 2.0*v_crank_z;
+    const double c18 = crank_a20*v_crank_theta_y;
+    const double c19 = crank_a10*v_crank_theta_z;
+    const double c20 = (0.40762668)*crank_z;
+    const double c21 = (0.40762668)*rocker_z;
+    const double c22 = (0.061144002)*crank_a20;
+    const double c23 = (3.0/10.0)*c18;
+    const double c24 = (3.0/10.0)*c19;
+    const double c25 = (0.4402732)*rocker_a21;
+    const double c26 = (0.40762668)*rocker_a22;
+    const double c27 = c26 - c25;
+    const double c28 = 2.0*v_crank_x;
+    const double c29 = 2.0*v_rocker_x;
+    const double c30 = c25 - c26;
+    const double c31 = c9 - c10;
+    const double c32 = crank_a20*v_crank_theta_x;
+    const double c33 = (3.0/10.0)*c32;
+    const double c34 = 2.0*v_rocker_y;
+    const double c35 = crank_a00*v_crank_theta_z;
+    const double c36 = (3.0/10.0)*c35;
+    const double c37 = c13 - c14;
+    const double c38 = 2.0*v_crank_y;
+    const double c39 = (0.4402732)*crank_z;
+    const double c40 = (0.4402732)*rocker_z;
+    const double c41 = (0.06604098)*crank_a20;
+    const double c42 = (0.4402732)*crank_y;
+    const double c43 = (0.4402732)*rocker_y;
+    const double c44 = (0.06604098)*crank_a10;
+    const double c45 = (3.0/10.0)*crank_z;
+    const double c46 = (3.0/10.0)*rocker_z;
+    const double c47 = (0.061144002)*rocker_a22;
+    const double c48 = (0.06604098)*rocker_a21;
+    const double c49 = c48 - c47;
+    const double c50 = c47 - c48;
+    const double c51 = (3.0/10.0)*crank_x;
+    const double c52 = (3.0/10.0)*rocker_x;
+    const double c53 = (0.06604098)*rocker_a01;
+    const double c54 = (0.061144002)*rocker_a02;
+    const double c55 = c54 - c53;
+    const double c56 = c53 - c54;
+    const double c57 = (3.0/10.0)*crank_y;
+    const double c58 = (3.0/10.0)*rocker_y;
+    const double c59 = (0.06604098)*rocker_a11;
+    const double c60 = (0.061144002)*rocker_a12;
+    const double c61 = c60 - c59;
+    const double c62 = c59 - c60;
+    const double c63 = (0.4402732)*crank_x;
+    const double c64 = (0.4402732)*rocker_x;
+    const double c65 = (0.06604098)*crank_a00;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x);
-    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x);
+    out[3] = -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y;
+    out[4] = -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y;
     out[5] = 0.0;
     out[6] = 0.0;
     out[7] = 0.0;
-    out[8] = v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a11*v_rocker_theta_x - rocker_a01*v_rocker_theta_y);
-    out[9] = v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y);
-    out[10] = c12*v_crank_z + c2*v_crank_x + c9*v_rocker_y - c12*v_rocker_z - c2*v_rocker_x - c9*v_crank_y - (c3 - c4)*(-3.0/10.0*v_rocker_y + (3.0/10.0)*v_crank_y + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_z + c33*rocker_x - c32*rocker_z - c33*crank_x) - (c5 - c7)*(-0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c14*crank_z + c18*rocker_x + c19*crank_a00 + c20*crank_a20 - c14*rocker_z - c18*crank_x) - (c6 - c8)*(-0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c22*rocker_z + c24*crank_a20 + c26*crank_x + c28*crank_a00 - c22*crank_z - c26*rocker_x) - (-c0 + crank_a20*v_crank_theta_y)*(-3.0/10.0*v_rocker_x + (3.0/10.0)*v_crank_x + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_z + c33*crank_y - c31*crank_z - c33*rocker_y) - (-c1 + rocker_a21*v_rocker_theta_y)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + c13*rocker_z + c15*crank_a20 + c18*crank_y + c29*crank_a10 - c13*crank_z - c18*rocker_y) - (-c10 + crank_a10*v_crank_theta_x)*(-3.0/10.0*v_rocker_z + (3.0/10.0)*v_crank_z + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_x + c32*rocker_y - c31*rocker_x - c32*crank_y) - (-c11 + rocker_a11*v_rocker_theta_x)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c13*crank_x + c14*rocker_y + c16*crank_a00 + c17*crank_a10 - c13*rocker_x - c14*crank_y) - (rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + c21*rocker_x + c22*crank_y + c23*crank_a00 + c25*crank_a10 - c21*crank_x - c22*rocker_y) - (rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z)*(-0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c21*crank_z + c26*rocker_y + c27*crank_a10 + c30*crank_a20 - c21*rocker_z - c26*crank_y);
+    out[8] = -(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*v_rocker_theta_y + (-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*v_rocker_theta_z;
+    out[9] = -(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*v_rocker_theta_y + (-rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z)*v_rocker_theta_z;
+    out[10] = -(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*((0.4402732)*v_crank_z - 0.4402732*v_rocker_z + (c65 - c64 + c63)*v_rocker_theta_y - 0.06604098*c3 + (-c44 + c43 - c42)*v_rocker_theta_x + c44*v_crank_theta_x) - (-c19 + c18)*(-3.0/10.0*v_rocker_x + c61*v_rocker_theta_z + (3.0/10.0)*v_crank_x + c49*v_rocker_theta_y + (c62 - c58 + c57)*v_crank_theta_z + (c50 + c46 - c45)*v_crank_theta_y) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + (-c6 + c5 - c4)*v_rocker_theta_y + (0.061144002)*c3 + (c0 - c2 + c1)*v_rocker_theta_x - c0*v_crank_theta_x) - (-c16 + c15*v_rocker_theta_y - c12 + c11*v_rocker_theta_x + c17 + c8)*v_crank_z - (-c28 + c27*v_rocker_theta_y + c29 + c24 + c11*v_rocker_theta_z - c23)*v_rocker_x - (c28 - c29 + c31*v_rocker_theta_z - c24 + c30*v_rocker_theta_y + c23)*v_crank_x - (-0.4402732*v_rocker_x + (c44 - c43 + c42)*v_rocker_theta_z + (0.4402732)*v_crank_x + (-c41 + c40 - c39)*v_rocker_theta_y - 0.06604098*c19 + (0.06604098)*c18)*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y) - (c38 + c37*v_rocker_theta_z + c36 - c34 + c27*v_rocker_theta_x - c33)*v_crank_y - (-c38 + c15*v_rocker_theta_z - c36 + c34 + c30*v_rocker_theta_x + c33)*v_rocker_y - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*((0.40762668)*v_rocker_x + (-c0 + c2 - c1)*v_rocker_theta_z - 0.40762668*v_crank_x + (c22 - c21 + c20)*v_rocker_theta_y + (0.061144002)*c19 - 0.061144002*c18) - (c16 + c37*v_rocker_theta_y + c31*v_rocker_theta_x + c12 - c17 - c8)*v_rocker_z - (-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*((0.4402732)*v_crank_y + (-c65 + c64 - c63)*v_rocker_theta_z + (0.06604098)*c35 - 0.4402732*v_rocker_y + (c41 - c40 + c39)*v_rocker_theta_x - 0.06604098*c32) - (-c32 + c35)*(c56*v_rocker_theta_z + (c55 + c52 - c51)*v_crank_theta_z + (3.0/10.0)*v_crank_y + c50*v_rocker_theta_x - 3.0/10.0*v_rocker_y + (c49 - c46 + c45)*v_crank_theta_x) - (-rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z)*(-0.40762668*v_crank_y + (c6 - c5 + c4)*v_rocker_theta_z - 0.061144002*c35 + (-c22 + c21 - c20)*v_rocker_theta_x + (0.40762668)*v_rocker_y + (0.061144002)*c32) - (-c3 + c7)*((3.0/10.0)*v_crank_z + c62*v_rocker_theta_x - 3.0/10.0*v_rocker_z + c55*v_rocker_theta_y + (c56 - c52 + c51)*v_crank_theta_y + (c61 + c58 - c57)*v_crank_theta_x);
 }
 
 /* gamma of the driver rows of case 'turn'. */
@@ -258,24 +294,25 @@ static void compute_drivers_gamma_turn(const double *q, const double *v, const d
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*crank_qw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*crank_qz;
-    const double c5 = (1.0/2.0)*v_crank_theta_y;
-    const double c6 = (1.0/2.0)*v_crank_theta_x;
-    const double c7 = (1.0/2.0)*crank_qz;
-    const double c8 = (1.0/2.0)*v_crank_theta_z;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1.0/2.0)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1.0/2.0*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx);
+    const double c3 = (1.0/2.0)*crank_qz;
+    const double c4 = c1*c3;
+    const double c5 = (1.0/2.0)*c2;
+    const double c6 = c5*crank_qw;
+    const double c7 = (1.0/2.0)*crank_qw;
+    const double c8 = (1.0/2.0)*crank_qx;
+    const double c9 = (1.0/2.0)*crank_qy;
+    out[0] = -2.0*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*crank_qz + c1*crank_qw)*udd0;
 }
 
 /* Driver inputs of case 'turn' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_turn(double t, double *out) {
     const double c0 = 3.141592653589793*t;
     const double c1 = cos(c0);
-    const double c2 = sin(c0);
-    out[0] = 6.283185307179586*t*(1.0 - 1.0/5.0*c1);
-    out[1] = 6.283185307179586 - 1.2566370614359172*c1 + 3.947841760435743*c2*t;
-    out[2] = 7.895683520871486*c2 + 12.402510672119927*c1*t;
+    const double c2 = 6.283185307179586*(1.0 - 1.0/5.0*c1);
+    const double c3 = sin(c0);
+    out[0] = t*c2;
+    out[1] = 3.947841760435743*t*c3 + c2;
+    out[2] = 12.402510672119929*t*c1 + 7.895683520871486*c3;
 }
 
 /* Enclosures of the driver inputs of case 'turn' over the time interval span = (t0, t1): the lower bounds of u (1), du/dt and d2u/dt2, then their upper bounds (interval arithmetic, rounded outward). */
@@ -437,20 +474,22 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step3*step3);
     const double _t1 = (step4*step4);
     const double _t2 = (step5*step5);
-    const double _t3 = sqrt(_t0 + _t1 + _t2);
+    const double _t3 = sqrt(_t2 + _t1 + _t0);
     const double _t4 = (1.0/2.0)*_t3;
     const double _t5 = cos(_t4);
-    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t0 - 1.0/48.0*_t1 - 1.0/48.0*_t2 ) : ( sin(_t4)/_t3 ));
-    const double _t7 = _t6*step3;
+    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t2 - 1.0/48.0*_t1 - 1.0/48.0*_t0 ) : ( sin(_t4)/_t3 ));
+    const double _t7 = q4*_t6;
     const double _t8 = _t6*step4;
-    const double _t9 = _t6*step5;
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = _t5*q3 - _t7*q4 - _t8*q5 - _t9*q6;
-    const double moved4 = _t5*q4 + _t7*q3 + _t8*q6 - _t9*q5;
-    const double moved5 = _t5*q5 + _t8*q3 + _t9*q4 - _t7*q6;
-    const double moved6 = _t5*q6 + _t7*q5 + _t9*q3 - _t8*q4;
+    const double _t9 = q6*_t6;
+    const double _t10 = q3*_t6;
+    const double _t11 = q5*_t6;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = -_t9*step5 - q5*_t8 - _t7*step3 + q3*_t5;
+    const double moved4 = -_t11*step5 + _t10*step3 + q6*_t8 + q4*_t5;
+    const double moved5 = -_t9*step3 + _t7*step5 + q3*_t8 + q5*_t5;
+    const double moved6 = -q4*_t8 + _t11*step3 + _t10*step5 + q6*_t5;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

@@ -6,6 +6,7 @@ source sha256:   38922bfebe6d76485a80f5526a7adef5d7ca22dc3386066bf21d22467abd1d2
 parametrization: quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 14) and v (velocity, 12) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -47,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_quaternion.h': 'b9b1b7e71da5cd823f0e34ca8a65d4a91765d59e52026c87c1e496c84a6d2b03', 'rssr_quaternion.c': '3362f6e5e691f8fe0eb451c9a32e89f2fafc44a51593a7eca2d24bd8a343334e'}
+C_FILES = {'rssr_quaternion.h': 'c51813853e6613745c8d5bed2a741f7171edd95e34ab40af719e3f0bd8f4dbe5', 'rssr_quaternion.c': 'b8d47a285ca20a9528cab005ee669525b7f798d29b5242108e1b0b7dd35a3f3a'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 
@@ -316,7 +317,7 @@ def _joints_phi(q):
     out[7] = 3/10 - rocker_z
     out[8] = rocker_a01
     out[9] = rocker_a02
-    out[10] = -169/625 + (crank_x - rocker_x - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2 + (crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2 + (crank_z - rocker_z - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2
+    out[10] = -169/625 + ((0.2201366)*rocker_a21 + (3/20)*crank_a20 - rocker_z - 0.20381334*rocker_a22 + crank_z)**2 + ((0.2201366)*rocker_a11 + (3/20)*crank_a10 - 0.20381334*rocker_a12 - rocker_y + crank_y)**2 + ((3/20)*crank_a00 - 0.20381334*rocker_a02 + (0.2201366)*rocker_a01 - rocker_x + crank_x)**2
     return out
 
 
@@ -326,7 +327,7 @@ def _drivers_phi_turn(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_qz*cos(c0) + 2*crank_qw*sin(c0)
+    out[0] = 2*sin(c0)*crank_qw - 2*cos(c0)*crank_qz
     return out
 
 
@@ -349,18 +350,21 @@ def _joints_jac(q):
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
-    c0 = -2*rocker_x + 2*crank_x - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
-    c1 = -2*rocker_y + 2*crank_y - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
-    c2 = -2*rocker_z + 2*crank_z - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
-    c3 = -0.061144002*rocker_a22 - 3/10*rocker_z + (3/10)*crank_z + (9/200)*crank_a20 + (0.06604098)*rocker_a21
-    c4 = -0.061144002*rocker_a12 - 3/10*rocker_y + (3/10)*crank_y + (9/200)*crank_a10 + (0.06604098)*rocker_a11
-    c5 = -0.061144002*rocker_a02 - 3/10*rocker_x + (3/10)*crank_x + (9/200)*crank_a00 + (0.06604098)*rocker_a01
-    c6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
-    c7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22
-    c8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
-    c9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12
-    c10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
-    c11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02
+    c0 = crank_x - rocker_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 + (3/20)*crank_a00
+    c1 = 2*c0
+    c2 = crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11
+    c3 = 2*c2
+    c4 = crank_z - 0.20381334*rocker_a22 - rocker_z + (3/20)*crank_a20 + (0.2201366)*rocker_a21
+    c5 = 2*c4
+    c6 = (3/10)*crank_a20
+    c7 = (3/10)*crank_a10
+    c8 = (3/10)*crank_a00
+    c9 = (0.40762668)*rocker_a12
+    c10 = (0.4402732)*rocker_a21
+    c11 = (0.4402732)*rocker_a11
+    c12 = (0.40762668)*rocker_a22
+    c13 = (0.4402732)*rocker_a01
+    c14 = (0.40762668)*rocker_a02
     out = _zeros(26, q, ())
     out[0] = -1
     out[1] = -1
@@ -376,18 +380,18 @@ def _joints_jac(q):
     out[11] = -rocker_a11
     out[12] = rocker_a22
     out[13] = -rocker_a12
-    out[14] = c0
-    out[15] = c1
-    out[16] = c2
-    out[17] = c3*crank_a10 - c4*crank_a20
-    out[18] = c5*crank_a20 - c3*crank_a00
-    out[19] = c4*crank_a00 - c5*crank_a10
-    out[20] = -c0
-    out[21] = -c1
-    out[22] = -c2
-    out[23] = c6*rocker_a11 + c7*rocker_a12 - c8*rocker_a21 - c9*rocker_a22
-    out[24] = c10*rocker_a21 + c11*rocker_a22 - c6*rocker_a01 - c7*rocker_a02
-    out[25] = c8*rocker_a01 + c9*rocker_a02 - c10*rocker_a11 - c11*rocker_a12
+    out[14] = c1
+    out[15] = c3
+    out[16] = c5
+    out[17] = c4*c7 - c2*c6
+    out[18] = c0*c6 - c4*c8
+    out[19] = c2*c8 - c0*c7
+    out[20] = -c1
+    out[21] = -c3
+    out[22] = -c5
+    out[23] = c2*c12 + c4*c11 - c2*c10 - c4*c9
+    out[24] = c0*c10 + c4*c14 - c4*c13 - c0*c12
+    out[25] = c0*c9 + c2*c13 - c0*c11 - c2*c14
     return out
 
 
@@ -399,8 +403,8 @@ def _drivers_jac_turn(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*crank_qx - c2*crank_qy
-    out[1] = c2*crank_qx - c1*crank_qy
+    out[0] = -c2*crank_qy - c1*crank_qx
+    out[1] = -c1*crank_qy + c2*crank_qx
     out[2] = -c1*crank_qz - c2*crank_qw
     return out
 
@@ -425,19 +429,22 @@ def _joints_phi_joints_jac_s(q):
     rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz)
-    d0 = -2.0*rocker_x + 2.0*crank_x - 0.40762668*rocker_a02 + (3/10)*crank_a00 + (0.4402732)*rocker_a01
-    d1 = -2.0*rocker_y + 2.0*crank_y - 0.40762668*rocker_a12 + (3/10)*crank_a10 + (0.4402732)*rocker_a11
-    d2 = -2.0*rocker_z + 2.0*crank_z - 0.40762668*rocker_a22 + (3/10)*crank_a20 + (0.4402732)*rocker_a21
-    d3 = -0.061144002*rocker_a22 - 3/10*rocker_z + (3/10)*crank_z + (9/200)*crank_a20 + (0.06604098)*rocker_a21
-    d4 = -0.061144002*rocker_a12 - 3/10*rocker_y + (3/10)*crank_y + (9/200)*crank_a10 + (0.06604098)*rocker_a11
-    d5 = -0.061144002*rocker_a02 - 3/10*rocker_x + (3/10)*crank_x + (9/200)*crank_a00 + (0.06604098)*rocker_a01
-    d6 = -0.089733551404488*rocker_a22 - 0.4402732*rocker_z + (0.4402732)*crank_z + (0.06604098)*crank_a20 + (0.09692024531912)*rocker_a21
-    d7 = -0.089733551404488*rocker_a21 - 0.061144002*crank_a20 - 0.40762668*crank_z + (0.40762668)*rocker_z + (0.0830797551239112)*rocker_a22
-    d8 = -0.089733551404488*rocker_a12 - 0.4402732*rocker_y + (0.4402732)*crank_y + (0.06604098)*crank_a10 + (0.09692024531912)*rocker_a11
-    d9 = -0.089733551404488*rocker_a11 - 0.061144002*crank_a10 - 0.40762668*crank_y + (0.40762668)*rocker_y + (0.0830797551239112)*rocker_a12
-    d10 = -0.089733551404488*rocker_a02 - 0.4402732*rocker_x + (0.4402732)*crank_x + (0.06604098)*crank_a00 + (0.09692024531912)*rocker_a01
-    d11 = -0.089733551404488*rocker_a01 - 0.061144002*crank_a00 - 0.40762668*crank_x + (0.40762668)*rocker_x + (0.0830797551239112)*rocker_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, -169/625 + (crank_x - rocker_x - 0.20381334*rocker_a02 + (3/20)*crank_a00 + (0.2201366)*rocker_a01)**2.0 + (crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11)**2.0 + (crank_z - rocker_z - 0.20381334*rocker_a22 + (3/20)*crank_a20 + (0.2201366)*rocker_a21)**2.0], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d0, d1, d2, d3*crank_a10 - d4*crank_a20, d5*crank_a20 - d3*crank_a00, d4*crank_a00 - d5*crank_a10, -d0, -d1, -d2, d6*rocker_a11 + d7*rocker_a12 - d8*rocker_a21 - d9*rocker_a22, d10*rocker_a21 + d11*rocker_a22 - d6*rocker_a01 - d7*rocker_a02, d8*rocker_a01 + d9*rocker_a02 - d10*rocker_a11 - d11*rocker_a12]
+    d0 = crank_x - rocker_x + (0.2201366)*rocker_a01 - 0.20381334*rocker_a02 + (3/20)*crank_a00
+    d1 = 2.0*d0
+    d2 = crank_y - rocker_y - 0.20381334*rocker_a12 + (3/20)*crank_a10 + (0.2201366)*rocker_a11
+    d3 = 2.0*d2
+    d4 = crank_z - 0.20381334*rocker_a22 - rocker_z + (3/20)*crank_a20 + (0.2201366)*rocker_a21
+    d5 = 2.0*d4
+    d6 = (3/10)*crank_a20
+    d7 = (3/10)*crank_a10
+    d8 = (3/10)*crank_a00
+    d9 = (0.40762668)*rocker_a12
+    d10 = (0.4402732)*rocker_a21
+    d11 = (0.4402732)*rocker_a11
+    d12 = (0.40762668)*rocker_a22
+    d13 = (0.4402732)*rocker_a01
+    d14 = (0.40762668)*rocker_a02
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, 1/10 - rocker_x, 7/20 - rocker_y, 3/10 - rocker_z, rocker_a01, rocker_a02, -169/625 + ((0.2201366)*rocker_a21 + (3/20)*crank_a20 - rocker_z - 0.20381334*rocker_a22 + crank_z)**2.0 + ((0.2201366)*rocker_a11 + (3/20)*crank_a10 - 0.20381334*rocker_a12 - rocker_y + crank_y)**2.0 + ((3/20)*crank_a00 - 0.20381334*rocker_a02 + (0.2201366)*rocker_a01 - rocker_x + crank_x)**2.0], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, -1.0, -1.0, -1.0, rocker_a21, -rocker_a11, rocker_a22, -rocker_a12, d1, d3, d5, d4*d7 - d2*d6, d0*d6 - d4*d8, d2*d8 - d0*d7, -d1, -d3, -d5, d2*d12 + d4*d11 - d2*d10 - d4*d9, d0*d10 + d4*d14 - d4*d13 - d0*d12, d0*d9 + d2*d13 - d0*d11 - d2*d14]
 
 
 def _drivers_phi_turn_drivers_jac_turn_s(q, u):
@@ -448,7 +455,7 @@ def _drivers_phi_turn_drivers_jac_turn_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*crank_qz*math.cos(c0) + 2.0*crank_qw*math.sin(c0)], [-d1*crank_qx - d2*crank_qy, d2*crank_qx - d1*crank_qy, -d1*crank_qz - d2*crank_qw]
+    return [2.0*math.sin(c0)*crank_qw - 2.0*math.cos(c0)*crank_qz], [-d2*crank_qy - d1*crank_qx, -d1*crank_qy + d2*crank_qx, -d1*crank_qz - d2*crank_qw]
 
 
 def phi_jac_s_turn(q, u):
@@ -465,7 +472,7 @@ def _drivers_nu_turn(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0))
+    out[0] = -(sin(c0)*crank_qz + cos(c0)*crank_qw)*ud0
     return out
 
 
@@ -480,7 +487,7 @@ def _drivers_nu_turn_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_qw*math.cos(c0) + crank_qz*math.sin(c0))]
+    return [-(math.sin(c0)*crank_qz + math.cos(c0)*crank_qw)*ud0]
 
 
 def nu_s_turn(q, u, ud):
@@ -505,46 +512,78 @@ def _joints_gamma(q, v):
     rocker_a12 = -2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a21 = 2*rocker_qw*rocker_qx + 2*rocker_qy*rocker_qz
     rocker_a22 = -1 + 2*rocker_qw**2 + 2*rocker_qz**2
-    c0 = crank_a10*v_crank_theta_z
-    c1 = rocker_a11*v_rocker_theta_z
-    c2 = -2*v_crank_x + 2*v_rocker_x + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y - 3/10*crank_a20*v_crank_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y
-    c3 = crank_a00*v_crank_theta_z
-    c4 = crank_a20*v_crank_theta_x
-    c5 = rocker_a01*v_rocker_theta_z
-    c6 = rocker_a02*v_rocker_theta_z
-    c7 = rocker_a21*v_rocker_theta_x
-    c8 = rocker_a22*v_rocker_theta_x
-    c9 = -2*v_rocker_y + 2*v_crank_y - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
-    c10 = crank_a00*v_crank_theta_y
-    c11 = rocker_a01*v_rocker_theta_y
-    c12 = -2*v_crank_z + 2*v_rocker_z + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x - 3/10*crank_a10*v_crank_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x
-    c13 = (0.4402732)*v_rocker_theta_y
-    c14 = (0.4402732)*v_rocker_theta_x
-    c15 = -0.06604098*v_rocker_theta_y + (0.06604098)*v_crank_theta_y
-    c16 = -c15
-    c17 = -0.06604098*v_rocker_theta_x + (0.06604098)*v_crank_theta_x
-    c18 = (0.4402732)*v_rocker_theta_z
-    c19 = -0.06604098*v_rocker_theta_z + (0.06604098)*v_crank_theta_z
-    c20 = -c17
-    c21 = (0.40762668)*v_rocker_theta_y
-    c22 = (0.40762668)*v_rocker_theta_x
-    c23 = -0.061144002*v_rocker_theta_y + (0.061144002)*v_crank_theta_y
-    c24 = -0.061144002*v_rocker_theta_x + (0.061144002)*v_crank_theta_x
-    c25 = -c24
-    c26 = (0.40762668)*v_rocker_theta_z
-    c27 = -0.061144002*v_rocker_theta_z + (0.061144002)*v_crank_theta_z
-    c28 = -c27
-    c29 = -c19
-    c30 = -c23
-    c31 = (3/10)*v_crank_theta_y
-    c32 = (3/10)*v_crank_theta_x
-    c33 = (3/10)*v_crank_theta_z
+    c0 = (0.061144002)*crank_a10
+    c1 = (0.40762668)*crank_y
+    c2 = (0.40762668)*rocker_y
+    c3 = crank_a00*v_crank_theta_y
+    c4 = (0.40762668)*crank_x
+    c5 = (0.40762668)*rocker_x
+    c6 = (0.061144002)*crank_a00
+    c7 = crank_a10*v_crank_theta_x
+    c8 = (3/10)*c7
+    c9 = (0.40762668)*rocker_a12
+    c10 = (0.4402732)*rocker_a11
+    c11 = c10 - c9
+    c12 = (3/10)*c3
+    c13 = (0.4402732)*rocker_a01
+    c14 = (0.40762668)*rocker_a02
+    c15 = c14 - c13
+    c16 = 2*v_rocker_z
+    c17 = 2*v_crank_z
+    c18 = crank_a20*v_crank_theta_y
+    c19 = crank_a10*v_crank_theta_z
+    c20 = (0.40762668)*crank_z
+    c21 = (0.40762668)*rocker_z
+    c22 = (0.061144002)*crank_a20
+    c23 = (3/10)*c18
+    c24 = (3/10)*c19
+    c25 = (0.4402732)*rocker_a21
+    c26 = (0.40762668)*rocker_a22
+    c27 = c26 - c25
+    c28 = 2*v_crank_x
+    c29 = 2*v_rocker_x
+    c30 = c25 - c26
+    c31 = c9 - c10
+    c32 = crank_a20*v_crank_theta_x
+    c33 = (3/10)*c32
+    c34 = 2*v_rocker_y
+    c35 = crank_a00*v_crank_theta_z
+    c36 = (3/10)*c35
+    c37 = c13 - c14
+    c38 = 2*v_crank_y
+    c39 = (0.4402732)*crank_z
+    c40 = (0.4402732)*rocker_z
+    c41 = (0.06604098)*crank_a20
+    c42 = (0.4402732)*crank_y
+    c43 = (0.4402732)*rocker_y
+    c44 = (0.06604098)*crank_a10
+    c45 = (3/10)*crank_z
+    c46 = (3/10)*rocker_z
+    c47 = (0.061144002)*rocker_a22
+    c48 = (0.06604098)*rocker_a21
+    c49 = c48 - c47
+    c50 = c47 - c48
+    c51 = (3/10)*crank_x
+    c52 = (3/10)*rocker_x
+    c53 = (0.06604098)*rocker_a01
+    c54 = (0.061144002)*rocker_a02
+    c55 = c54 - c53
+    c56 = c53 - c54
+    c57 = (3/10)*crank_y
+    c58 = (3/10)*rocker_y
+    c59 = (0.06604098)*rocker_a11
+    c60 = (0.061144002)*rocker_a12
+    c61 = c60 - c59
+    c62 = c59 - c60
+    c63 = (0.4402732)*crank_x
+    c64 = (0.4402732)*rocker_x
+    c65 = (0.06604098)*crank_a00
     out = _zeros(11, q, ())
-    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x)
-    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x)
-    out[8] = v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a11*v_rocker_theta_x - rocker_a01*v_rocker_theta_y)
-    out[9] = v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)
-    out[10] = c12*v_crank_z + c2*v_crank_x + c9*v_rocker_y - c12*v_rocker_z - c2*v_rocker_x - c9*v_crank_y - (c3 - c4)*(-3/10*v_rocker_y + (3/10)*v_crank_y + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_z + c33*rocker_x - c32*rocker_z - c33*crank_x) - (c5 - c7)*(-0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c14*crank_z + c18*rocker_x + c19*crank_a00 + c20*crank_a20 - c14*rocker_z - c18*crank_x) - (c6 - c8)*(-0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c22*rocker_z + c24*crank_a20 + c26*crank_x + c28*crank_a00 - c22*crank_z - c26*rocker_x) - (-c0 + crank_a20*v_crank_theta_y)*(-3/10*v_rocker_x + (3/10)*v_crank_x + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_z + c33*crank_y - c31*crank_z - c33*rocker_y) - (-c1 + rocker_a21*v_rocker_theta_y)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + c13*rocker_z + c15*crank_a20 + c18*crank_y + c29*crank_a10 - c13*crank_z - c18*rocker_y) - (-c10 + crank_a10*v_crank_theta_x)*(-3/10*v_rocker_z + (3/10)*v_crank_z + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_x + c32*rocker_y - c31*rocker_x - c32*crank_y) - (-c11 + rocker_a11*v_rocker_theta_x)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c13*crank_x + c14*rocker_y + c16*crank_a00 + c17*crank_a10 - c13*rocker_x - c14*crank_y) - (rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + c21*rocker_x + c22*crank_y + c23*crank_a00 + c25*crank_a10 - c21*crank_x - c22*rocker_y) - (rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z)*(-0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c21*crank_z + c26*rocker_y + c27*crank_a10 + c30*crank_a20 - c21*rocker_z - c26*crank_y)
+    out[3] = -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y
+    out[4] = -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y
+    out[8] = -(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*v_rocker_theta_y + (-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*v_rocker_theta_z
+    out[9] = -(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*v_rocker_theta_y + (-rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z)*v_rocker_theta_z
+    out[10] = -(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*((0.4402732)*v_crank_z - 0.4402732*v_rocker_z + (c65 - c64 + c63)*v_rocker_theta_y - 0.06604098*c3 + (-c44 + c43 - c42)*v_rocker_theta_x + c44*v_crank_theta_x) - (-c19 + c18)*(-3/10*v_rocker_x + c61*v_rocker_theta_z + (3/10)*v_crank_x + c49*v_rocker_theta_y + (c62 - c58 + c57)*v_crank_theta_z + (c50 + c46 - c45)*v_crank_theta_y) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + (-c6 + c5 - c4)*v_rocker_theta_y + (0.061144002)*c3 + (c0 - c2 + c1)*v_rocker_theta_x - c0*v_crank_theta_x) - (-c16 + c15*v_rocker_theta_y - c12 + c11*v_rocker_theta_x + c17 + c8)*v_crank_z - (-c28 + c27*v_rocker_theta_y + c29 + c24 + c11*v_rocker_theta_z - c23)*v_rocker_x - (c28 - c29 + c31*v_rocker_theta_z - c24 + c30*v_rocker_theta_y + c23)*v_crank_x - (-0.4402732*v_rocker_x + (c44 - c43 + c42)*v_rocker_theta_z + (0.4402732)*v_crank_x + (-c41 + c40 - c39)*v_rocker_theta_y - 0.06604098*c19 + (0.06604098)*c18)*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y) - (c38 + c37*v_rocker_theta_z + c36 - c34 + c27*v_rocker_theta_x - c33)*v_crank_y - (-c38 + c15*v_rocker_theta_z - c36 + c34 + c30*v_rocker_theta_x + c33)*v_rocker_y - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*((0.40762668)*v_rocker_x + (-c0 + c2 - c1)*v_rocker_theta_z - 0.40762668*v_crank_x + (c22 - c21 + c20)*v_rocker_theta_y + (0.061144002)*c19 - 0.061144002*c18) - (c16 + c37*v_rocker_theta_y + c31*v_rocker_theta_x + c12 - c17 - c8)*v_rocker_z - (-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*((0.4402732)*v_crank_y + (-c65 + c64 - c63)*v_rocker_theta_z + (0.06604098)*c35 - 0.4402732*v_rocker_y + (c41 - c40 + c39)*v_rocker_theta_x - 0.06604098*c32) - (-c32 + c35)*(c56*v_rocker_theta_z + (c55 + c52 - c51)*v_crank_theta_z + (3/10)*v_crank_y + c50*v_rocker_theta_x - 3/10*v_rocker_y + (c49 - c46 + c45)*v_crank_theta_x) - (-rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z)*(-0.40762668*v_crank_y + (c6 - c5 + c4)*v_rocker_theta_z - 0.061144002*c35 + (-c22 + c21 - c20)*v_rocker_theta_x + (0.40762668)*v_rocker_y + (0.061144002)*c32) - (-c3 + c7)*((3/10)*v_crank_z + c62*v_rocker_theta_x - 3/10*v_rocker_z + c55*v_rocker_theta_y + (c56 - c52 + c51)*v_crank_theta_y + (c61 + c58 - c57)*v_crank_theta_x)
     return out
 
 
@@ -558,15 +597,15 @@ def _drivers_gamma_turn(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*crank_qw
-    c4 = c2*c3 - 1/2*c1*crank_qz
-    c5 = (1/2)*v_crank_theta_y
-    c6 = (1/2)*v_crank_theta_x
-    c7 = (1/2)*crank_qz
-    c8 = (1/2)*v_crank_theta_z
-    c9 = (1/2)*c1
+    c3 = (1/2)*crank_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*crank_qw
+    c7 = (1/2)*crank_qw
+    c8 = (1/2)*crank_qx
+    c9 = (1/2)*crank_qy
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)
+    out[0] = -2*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*ud0**2 - (c2*crank_qz + c1*crank_qw)*udd0
     return out
 
 
@@ -591,41 +630,73 @@ def _joints_gamma_s(q, v):
     rocker_a12 = -2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a21 = 2.0*rocker_qw*rocker_qx + 2.0*rocker_qy*rocker_qz
     rocker_a22 = -1.0 + 2.0*(rocker_qw*rocker_qw) + 2.0*(rocker_qz*rocker_qz)
-    c0 = crank_a10*v_crank_theta_z
-    c1 = rocker_a11*v_rocker_theta_z
-    c2 = -2.0*v_crank_x + 2.0*v_rocker_x + (3/10)*c0 + (0.4402732)*c1 - 0.40762668*rocker_a12*v_rocker_theta_z - 0.4402732*rocker_a21*v_rocker_theta_y - 3/10*crank_a20*v_crank_theta_y + (0.40762668)*rocker_a22*v_rocker_theta_y
-    c3 = crank_a00*v_crank_theta_z
-    c4 = crank_a20*v_crank_theta_x
-    c5 = rocker_a01*v_rocker_theta_z
-    c6 = rocker_a02*v_rocker_theta_z
-    c7 = rocker_a21*v_rocker_theta_x
-    c8 = rocker_a22*v_rocker_theta_x
-    c9 = -2.0*v_rocker_y + 2.0*v_crank_y - 0.40762668*c6 - 0.4402732*c7 - 3/10*c4 + (3/10)*c3 + (0.4402732)*c5 + (0.40762668)*c8
-    c10 = crank_a00*v_crank_theta_y
-    c11 = rocker_a01*v_rocker_theta_y
-    c12 = -2.0*v_crank_z + 2.0*v_rocker_z + (3/10)*c10 + (0.4402732)*c11 - 0.40762668*rocker_a02*v_rocker_theta_y - 0.4402732*rocker_a11*v_rocker_theta_x - 3/10*crank_a10*v_crank_theta_x + (0.40762668)*rocker_a12*v_rocker_theta_x
-    c13 = (0.4402732)*v_rocker_theta_y
-    c14 = (0.4402732)*v_rocker_theta_x
-    c15 = -0.06604098*v_rocker_theta_y + (0.06604098)*v_crank_theta_y
-    c16 = -c15
-    c17 = -0.06604098*v_rocker_theta_x + (0.06604098)*v_crank_theta_x
-    c18 = (0.4402732)*v_rocker_theta_z
-    c19 = -0.06604098*v_rocker_theta_z + (0.06604098)*v_crank_theta_z
-    c20 = -c17
-    c21 = (0.40762668)*v_rocker_theta_y
-    c22 = (0.40762668)*v_rocker_theta_x
-    c23 = -0.061144002*v_rocker_theta_y + (0.061144002)*v_crank_theta_y
-    c24 = -0.061144002*v_rocker_theta_x + (0.061144002)*v_crank_theta_x
-    c25 = -c24
-    c26 = (0.40762668)*v_rocker_theta_z
-    c27 = -0.061144002*v_rocker_theta_z + (0.061144002)*v_crank_theta_z
-    c28 = -c27
-    c29 = -c19
-    c30 = -c23
-    c31 = (3/10)*v_crank_theta_y
-    c32 = (3/10)*v_crank_theta_x
-    c33 = (3/10)*v_crank_theta_z
-    return [0.0, 0.0, 0.0, v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x), v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x), 0.0, 0.0, 0.0, v_rocker_theta_z*(rocker_a01*v_rocker_theta_z - rocker_a21*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a11*v_rocker_theta_x - rocker_a01*v_rocker_theta_y), v_rocker_theta_z*(rocker_a02*v_rocker_theta_z - rocker_a22*v_rocker_theta_x) - v_rocker_theta_y*(rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y), c12*v_crank_z + c2*v_crank_x + c9*v_rocker_y - c12*v_rocker_z - c2*v_rocker_x - c9*v_crank_y - (c3 - c4)*(-3/10*v_rocker_y + (3/10)*v_crank_y + c17*rocker_a21 + c25*rocker_a22 + c27*rocker_a02 + c29*rocker_a01 + c32*crank_z + c33*rocker_x - c32*rocker_z - c33*crank_x) - (c5 - c7)*(-0.4402732*v_rocker_y + (0.4402732)*v_crank_y + c14*crank_z + c18*rocker_x + c19*crank_a00 + c20*crank_a20 - c14*rocker_z - c18*crank_x) - (c6 - c8)*(-0.40762668*v_crank_y + (0.40762668)*v_rocker_y + c22*rocker_z + c24*crank_a20 + c26*crank_x + c28*crank_a00 - c22*crank_z - c26*rocker_x) - (-c0 + crank_a20*v_crank_theta_y)*(-3/10*v_rocker_x + (3/10)*v_crank_x + c16*rocker_a21 + c19*rocker_a11 + c23*rocker_a22 + c28*rocker_a12 + c31*rocker_z + c33*crank_y - c31*crank_z - c33*rocker_y) - (-c1 + rocker_a21*v_rocker_theta_y)*(-0.4402732*v_rocker_x + (0.4402732)*v_crank_x + c13*rocker_z + c15*crank_a20 + c18*crank_y + c29*crank_a10 - c13*crank_z - c18*rocker_y) - (-c10 + crank_a10*v_crank_theta_x)*(-3/10*v_rocker_z + (3/10)*v_crank_z + c15*rocker_a01 + c20*rocker_a11 + c24*rocker_a12 + c30*rocker_a02 + c31*crank_x + c32*rocker_y - c31*rocker_x - c32*crank_y) - (-c11 + rocker_a11*v_rocker_theta_x)*(-0.4402732*v_rocker_z + (0.4402732)*v_crank_z + c13*crank_x + c14*rocker_y + c16*crank_a00 + c17*crank_a10 - c13*rocker_x - c14*crank_y) - (rocker_a12*v_rocker_theta_x - rocker_a02*v_rocker_theta_y)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + c21*rocker_x + c22*crank_y + c23*crank_a00 + c25*crank_a10 - c21*crank_x - c22*rocker_y) - (rocker_a22*v_rocker_theta_y - rocker_a12*v_rocker_theta_z)*(-0.40762668*v_crank_x + (0.40762668)*v_rocker_x + c21*crank_z + c26*rocker_y + c27*crank_a10 + c30*crank_a20 - c21*rocker_z - c26*crank_y)]
+    c0 = (0.061144002)*crank_a10
+    c1 = (0.40762668)*crank_y
+    c2 = (0.40762668)*rocker_y
+    c3 = crank_a00*v_crank_theta_y
+    c4 = (0.40762668)*crank_x
+    c5 = (0.40762668)*rocker_x
+    c6 = (0.061144002)*crank_a00
+    c7 = crank_a10*v_crank_theta_x
+    c8 = (3/10)*c7
+    c9 = (0.40762668)*rocker_a12
+    c10 = (0.4402732)*rocker_a11
+    c11 = c10 - c9
+    c12 = (3/10)*c3
+    c13 = (0.4402732)*rocker_a01
+    c14 = (0.40762668)*rocker_a02
+    c15 = c14 - c13
+    c16 = 2.0*v_rocker_z
+    c17 = 2.0*v_crank_z
+    c18 = crank_a20*v_crank_theta_y
+    c19 = crank_a10*v_crank_theta_z
+    c20 = (0.40762668)*crank_z
+    c21 = (0.40762668)*rocker_z
+    c22 = (0.061144002)*crank_a20
+    c23 = (3/10)*c18
+    c24 = (3/10)*c19
+    c25 = (0.4402732)*rocker_a21
+    c26 = (0.40762668)*rocker_a22
+    c27 = c26 - c25
+    c28 = 2.0*v_crank_x
+    c29 = 2.0*v_rocker_x
+    c30 = c25 - c26
+    c31 = c9 - c10
+    c32 = crank_a20*v_crank_theta_x
+    c33 = (3/10)*c32
+    c34 = 2.0*v_rocker_y
+    c35 = crank_a00*v_crank_theta_z
+    c36 = (3/10)*c35
+    c37 = c13 - c14
+    c38 = 2.0*v_crank_y
+    c39 = (0.4402732)*crank_z
+    c40 = (0.4402732)*rocker_z
+    c41 = (0.06604098)*crank_a20
+    c42 = (0.4402732)*crank_y
+    c43 = (0.4402732)*rocker_y
+    c44 = (0.06604098)*crank_a10
+    c45 = (3/10)*crank_z
+    c46 = (3/10)*rocker_z
+    c47 = (0.061144002)*rocker_a22
+    c48 = (0.06604098)*rocker_a21
+    c49 = c48 - c47
+    c50 = c47 - c48
+    c51 = (3/10)*crank_x
+    c52 = (3/10)*rocker_x
+    c53 = (0.06604098)*rocker_a01
+    c54 = (0.061144002)*rocker_a02
+    c55 = c54 - c53
+    c56 = c53 - c54
+    c57 = (3/10)*crank_y
+    c58 = (3/10)*rocker_y
+    c59 = (0.06604098)*rocker_a11
+    c60 = (0.061144002)*rocker_a12
+    c61 = c60 - c59
+    c62 = c59 - c60
+    c63 = (0.4402732)*crank_x
+    c64 = (0.4402732)*rocker_x
+    c65 = (0.06604098)*crank_a00
+    return [0.0, 0.0, 0.0, -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y, -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y, 0.0, 0.0, 0.0, -(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*v_rocker_theta_y + (-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*v_rocker_theta_z, -(-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*v_rocker_theta_y + (-rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z)*v_rocker_theta_z, -(-rocker_a01*v_rocker_theta_y + rocker_a11*v_rocker_theta_x)*((0.4402732)*v_crank_z - 0.4402732*v_rocker_z + (c65 - c64 + c63)*v_rocker_theta_y - 0.06604098*c3 + (-c44 + c43 - c42)*v_rocker_theta_x + c44*v_crank_theta_x) - (-c19 + c18)*(-3/10*v_rocker_x + c61*v_rocker_theta_z + (3/10)*v_crank_x + c49*v_rocker_theta_y + (c62 - c58 + c57)*v_crank_theta_z + (c50 + c46 - c45)*v_crank_theta_y) - (-rocker_a02*v_rocker_theta_y + rocker_a12*v_rocker_theta_x)*(-0.40762668*v_crank_z + (0.40762668)*v_rocker_z + (-c6 + c5 - c4)*v_rocker_theta_y + (0.061144002)*c3 + (c0 - c2 + c1)*v_rocker_theta_x - c0*v_crank_theta_x) - (-c16 + c15*v_rocker_theta_y - c12 + c11*v_rocker_theta_x + c17 + c8)*v_crank_z - (-c28 + c27*v_rocker_theta_y + c29 + c24 + c11*v_rocker_theta_z - c23)*v_rocker_x - (c28 - c29 + c31*v_rocker_theta_z - c24 + c30*v_rocker_theta_y + c23)*v_crank_x - (-0.4402732*v_rocker_x + (c44 - c43 + c42)*v_rocker_theta_z + (0.4402732)*v_crank_x + (-c41 + c40 - c39)*v_rocker_theta_y - 0.06604098*c19 + (0.06604098)*c18)*(-rocker_a11*v_rocker_theta_z + rocker_a21*v_rocker_theta_y) - (c38 + c37*v_rocker_theta_z + c36 - c34 + c27*v_rocker_theta_x - c33)*v_crank_y - (-c38 + c15*v_rocker_theta_z - c36 + c34 + c30*v_rocker_theta_x + c33)*v_rocker_y - (-rocker_a12*v_rocker_theta_z + rocker_a22*v_rocker_theta_y)*((0.40762668)*v_rocker_x + (-c0 + c2 - c1)*v_rocker_theta_z - 0.40762668*v_crank_x + (c22 - c21 + c20)*v_rocker_theta_y + (0.061144002)*c19 - 0.061144002*c18) - (c16 + c37*v_rocker_theta_y + c31*v_rocker_theta_x + c12 - c17 - c8)*v_rocker_z - (-rocker_a21*v_rocker_theta_x + rocker_a01*v_rocker_theta_z)*((0.4402732)*v_crank_y + (-c65 + c64 - c63)*v_rocker_theta_z + (0.06604098)*c35 - 0.4402732*v_rocker_y + (c41 - c40 + c39)*v_rocker_theta_x - 0.06604098*c32) - (-c32 + c35)*(c56*v_rocker_theta_z + (c55 + c52 - c51)*v_crank_theta_z + (3/10)*v_crank_y + c50*v_rocker_theta_x - 3/10*v_rocker_y + (c49 - c46 + c45)*v_crank_theta_x) - (-rocker_a22*v_rocker_theta_x + rocker_a02*v_rocker_theta_z)*(-0.40762668*v_crank_y + (c6 - c5 + c4)*v_rocker_theta_z - 0.061144002*c35 + (-c22 + c21 - c20)*v_rocker_theta_x + (0.40762668)*v_rocker_y + (0.061144002)*c32) - (-c3 + c7)*((3/10)*v_crank_z + c62*v_rocker_theta_x - 3/10*v_rocker_z + c55*v_rocker_theta_y + (c56 - c52 + c51)*v_crank_theta_y + (c61 + c58 - c57)*v_crank_theta_x)]
 
 
 def _drivers_gamma_turn_s(q, v, u, ud, udd):
@@ -638,14 +709,14 @@ def _drivers_gamma_turn_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*crank_qw
-    c4 = c2*c3 - 1/2*c1*crank_qz
-    c5 = (1/2)*v_crank_theta_y
-    c6 = (1/2)*v_crank_theta_x
-    c7 = (1/2)*crank_qz
-    c8 = (1/2)*v_crank_theta_z
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)]
+    c3 = (1/2)*crank_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*crank_qw
+    c7 = (1/2)*crank_qw
+    c8 = (1/2)*crank_qx
+    c9 = (1/2)*crank_qy
+    return [-2.0*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*crank_qz + c1*crank_qw)*udd0]
 
 
 def gamma_s_turn(q, v, u, ud, udd):
@@ -659,11 +730,12 @@ def inputs_turn(t):
     """Driver inputs of case 'turn' at time t: u, then du/dt, then d2u/dt2."""
     c0 = 3.141592653589793*t
     c1 = cos(c0)
-    c2 = sin(c0)
+    c2 = 6.283185307179586*(1 - 1/5*c1)
+    c3 = sin(c0)
     out = np.zeros((3,) + np.shape(t))
-    out[0] = 6.283185307179586*t*(1 - 1/5*c1)
-    out[1] = 6.283185307179586 - 1.2566370614359172*c1 + 3.947841760435743*c2*t
-    out[2] = 7.895683520871486*c2 + 12.402510672119927*c1*t
+    out[0] = t*c2
+    out[1] = 3.947841760435743*t*c3 + c2
+    out[2] = 12.402510672119929*t*c1 + 7.895683520871486*c3
     return out
 
 

@@ -6,6 +6,7 @@
  * parametrization: dual-euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * The cases of the model as kinegen_model structs for kinegen_solver.h, and the model's
  * layout (names, bodies, points, actuators, the frames kernel). Units SI, angles in radians,

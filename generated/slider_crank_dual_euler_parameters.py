@@ -6,6 +6,7 @@ source sha256:   60be577912c1de5d6cb08914f5dcec030f80d42df4541fca4ab6085ed6bd59b
 parametrization: dual-euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 24) and v (velocity, 24) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -49,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_euler_parameters.h': '5c2354a96512b78700d4fccb10b20ee615112e0a076422fd1b8399090a22840a', 'slider_crank_dual_euler_parameters.c': 'dac945a5693b4de51d35e6c72bab48d8134623655d7392025b474d3f033fb1d9'}
+C_FILES = {'slider_crank_dual_euler_parameters.h': 'd98976895b058b7ce2a22b1a7a3db75d5588992a58cab47808768ed9d44c8ca5', 'slider_crank_dual_euler_parameters.c': '074a2c68444f362e4e617578681890c89c621593b6bd531e08c6ae1dbd5f8488'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -274,35 +275,47 @@ def frames(q, v, a):
     slider_a21 = 2*slider_rw*slider_rx + 2*slider_ry*slider_rz
     slider_a22 = -1 + 2*slider_rw**2 + 2*slider_rz**2
     c0 = 2*crank_dw
-    c1 = 2*v_crank_rz
+    c1 = 2*crank_dy
     c2 = 2*crank_rx
-    c3 = 2*crank_dz
-    c4 = 2*crank_ry
-    c5 = 2*v_crank_ry
-    c6 = 2*crank_rz
-    c7 = 2*v_crank_rw
+    c3 = 2*crank_rw
+    c4 = 2*crank_rz
+    c5 = 2*crank_dx
+    c6 = 2*crank_dz
+    c7 = 2*crank_ry
     c8 = 4*v_crank_dw
-    c9 = 2*crank_rw
-    c10 = 2*rod_dw
-    c11 = 2*v_rod_rz
-    c12 = 2*rod_rx
-    c13 = 2*rod_dz
-    c14 = 2*rod_ry
-    c15 = 2*v_rod_ry
-    c16 = 2*rod_rz
-    c17 = 2*v_rod_rw
-    c18 = 4*v_rod_dw
-    c19 = 2*rod_rw
-    c20 = 2*slider_dw
-    c21 = 2*v_slider_rz
-    c22 = 2*slider_rx
-    c23 = 2*slider_dz
-    c24 = 2*slider_ry
-    c25 = 2*v_slider_ry
-    c26 = 2*slider_rz
-    c27 = 2*v_slider_rw
-    c28 = 4*v_slider_dw
-    c29 = 2*slider_rw
+    c9 = 4*v_crank_dy
+    c10 = 2*dv_crank_rw
+    c11 = 4*v_crank_ry
+    c12 = 4*v_crank_dx
+    c13 = 4*v_crank_dz
+    c14 = 2*rod_dw
+    c15 = 2*rod_dy
+    c16 = 2*rod_rx
+    c17 = 2*rod_rw
+    c18 = 2*rod_rz
+    c19 = 2*rod_dx
+    c20 = 2*rod_dz
+    c21 = 2*rod_ry
+    c22 = 4*v_rod_dw
+    c23 = 4*v_rod_dy
+    c24 = 2*dv_rod_rw
+    c25 = 4*v_rod_ry
+    c26 = 4*v_rod_dx
+    c27 = 4*v_rod_dz
+    c28 = 2*slider_dw
+    c29 = 2*slider_dy
+    c30 = 2*slider_rx
+    c31 = 2*slider_rw
+    c32 = 2*slider_rz
+    c33 = 2*slider_dx
+    c34 = 2*slider_dz
+    c35 = 2*slider_ry
+    c36 = 4*v_slider_dw
+    c37 = 4*v_slider_dy
+    c38 = 2*dv_slider_rw
+    c39 = 4*v_slider_ry
+    c40 = 4*v_slider_dx
+    c41 = 4*v_slider_dz
     out = _zeros(72, q, ())
     out[0] = crank_ox
     out[1] = crank_oy
@@ -316,18 +329,18 @@ def frames(q, v, a):
     out[9] = crank_a20
     out[10] = crank_a21
     out[11] = crank_a22
-    out[12] = -c0*v_crank_rx - c1*crank_dy - c2*v_crank_dw - 2*crank_rz*v_crank_dy + 2*crank_dx*v_crank_rw + 2*crank_dz*v_crank_ry + 2*crank_rw*v_crank_dx + 2*crank_ry*v_crank_dz
-    out[13] = -c0*v_crank_ry - c2*v_crank_dz - c3*v_crank_rx - c4*v_crank_dw + 2*crank_dx*v_crank_rz + 2*crank_dy*v_crank_rw + 2*crank_rw*v_crank_dy + 2*crank_rz*v_crank_dx
-    out[14] = -c0*v_crank_rz - c5*crank_dx - c6*v_crank_dw - 2*crank_ry*v_crank_dx + 2*crank_dy*v_crank_rx + 2*crank_dz*v_crank_rw + 2*crank_rw*v_crank_dz + 2*crank_rx*v_crank_dy
-    out[15] = c1*crank_ry - c2*v_crank_rw - c5*crank_rz + 2*crank_rw*v_crank_rx
-    out[16] = c5*crank_rw + c6*v_crank_rx - c1*crank_rx - c7*crank_ry
-    out[17] = c1*crank_rw + c2*v_crank_ry - c4*v_crank_rx - c7*crank_rz
-    out[18] = -c0*dv_crank_rx - c2*dv_crank_dw - c6*dv_crank_dy - c8*v_crank_rx - 4*v_crank_dy*v_crank_rz - 2*crank_dy*dv_crank_rz + 2*crank_dx*dv_crank_rw + 2*crank_dz*dv_crank_ry + 2*crank_rw*dv_crank_dx + 2*crank_ry*dv_crank_dz + 4*v_crank_dx*v_crank_rw + 4*v_crank_dz*v_crank_ry
-    out[19] = -c0*dv_crank_ry - c2*dv_crank_dz - c3*dv_crank_rx - c4*dv_crank_dw - c8*v_crank_ry - 4*v_crank_dz*v_crank_rx + 2*crank_dx*dv_crank_rz + 2*crank_dy*dv_crank_rw + 2*crank_rw*dv_crank_dy + 2*crank_rz*dv_crank_dx + 4*v_crank_dx*v_crank_rz + 4*v_crank_dy*v_crank_rw
-    out[20] = -c0*dv_crank_rz - c4*dv_crank_dx - c6*dv_crank_dw - c8*v_crank_rz - 4*v_crank_dx*v_crank_ry - 2*crank_dx*dv_crank_ry + 2*crank_dy*dv_crank_rx + 2*crank_dz*dv_crank_rw + 2*crank_rw*dv_crank_dz + 2*crank_rx*dv_crank_dy + 4*v_crank_dy*v_crank_rx + 4*v_crank_dz*v_crank_rw
-    out[21] = c4*dv_crank_rz + c9*dv_crank_rx - c2*dv_crank_rw - c6*dv_crank_ry
-    out[22] = c6*dv_crank_rx + c9*dv_crank_ry - c2*dv_crank_rz - c4*dv_crank_rw
-    out[23] = c2*dv_crank_ry + c9*dv_crank_rz - c4*dv_crank_rx - c6*dv_crank_rw
+    out[12] = c7*v_crank_dz + c6*v_crank_ry + c5*v_crank_rw - c4*v_crank_dy + c3*v_crank_dx - c2*v_crank_dw - c1*v_crank_rz - c0*v_crank_rx
+    out[13] = c4*v_crank_dx + c3*v_crank_dy + c5*v_crank_rz - c7*v_crank_dw + c1*v_crank_rw - c2*v_crank_dz - c6*v_crank_rx - c0*v_crank_ry
+    out[14] = c2*v_crank_dy + c1*v_crank_rx - c4*v_crank_dw + c3*v_crank_dz - c7*v_crank_dx + c6*v_crank_rw - c5*v_crank_ry - c0*v_crank_rz
+    out[15] = c7*v_crank_rz + c3*v_crank_rx - c4*v_crank_ry - c2*v_crank_rw
+    out[16] = c4*v_crank_rx + c3*v_crank_ry - c7*v_crank_rw - c2*v_crank_rz
+    out[17] = c2*v_crank_ry + c3*v_crank_rz - c4*v_crank_rw - c7*v_crank_rx
+    out[18] = c12*v_crank_rw + c3*dv_crank_dx + c6*dv_crank_ry - c2*dv_crank_dw - c4*dv_crank_dy - c0*dv_crank_rx + c10*crank_dx + c11*v_crank_dz - c9*v_crank_rz + c7*dv_crank_dz - c1*dv_crank_rz - c8*v_crank_rx
+    out[19] = c9*v_crank_rw + c4*dv_crank_dx - c7*dv_crank_dw + c5*dv_crank_rz - c2*dv_crank_dz - c6*dv_crank_rx - c0*dv_crank_ry + c3*dv_crank_dy - c13*v_crank_rx + c10*crank_dy + c12*v_crank_rz - c11*v_crank_dw
+    out[20] = c13*v_crank_rw + c9*v_crank_rx + c3*dv_crank_dz + c2*dv_crank_dy - c4*dv_crank_dw + c1*dv_crank_rx - c7*dv_crank_dx + c10*crank_dz - c5*dv_crank_ry - c0*dv_crank_rz - c11*v_crank_dx - c8*v_crank_rz
+    out[21] = c7*dv_crank_rz + c3*dv_crank_rx - c4*dv_crank_ry - c10*crank_rx
+    out[22] = c4*dv_crank_rx + c3*dv_crank_ry - c10*crank_ry - c2*dv_crank_rz
+    out[23] = c2*dv_crank_ry + c3*dv_crank_rz - c10*crank_rz - c7*dv_crank_rx
     out[24] = rod_ox
     out[25] = rod_oy
     out[26] = rod_oz
@@ -340,18 +353,18 @@ def frames(q, v, a):
     out[33] = rod_a20
     out[34] = rod_a21
     out[35] = rod_a22
-    out[36] = -c10*v_rod_rx - c11*rod_dy - c12*v_rod_dw - 2*rod_rz*v_rod_dy + 2*rod_dx*v_rod_rw + 2*rod_dz*v_rod_ry + 2*rod_rw*v_rod_dx + 2*rod_ry*v_rod_dz
-    out[37] = -c10*v_rod_ry - c12*v_rod_dz - c13*v_rod_rx - c14*v_rod_dw + 2*rod_dx*v_rod_rz + 2*rod_dy*v_rod_rw + 2*rod_rw*v_rod_dy + 2*rod_rz*v_rod_dx
-    out[38] = -c10*v_rod_rz - c15*rod_dx - c16*v_rod_dw - 2*rod_ry*v_rod_dx + 2*rod_dy*v_rod_rx + 2*rod_dz*v_rod_rw + 2*rod_rw*v_rod_dz + 2*rod_rx*v_rod_dy
-    out[39] = c11*rod_ry - c12*v_rod_rw - c15*rod_rz + 2*rod_rw*v_rod_rx
-    out[40] = c15*rod_rw + c16*v_rod_rx - c11*rod_rx - c17*rod_ry
-    out[41] = c11*rod_rw + c12*v_rod_ry - c14*v_rod_rx - c17*rod_rz
-    out[42] = -c10*dv_rod_rx - c12*dv_rod_dw - c16*dv_rod_dy - c18*v_rod_rx - 4*v_rod_dy*v_rod_rz - 2*rod_dy*dv_rod_rz + 2*rod_dx*dv_rod_rw + 2*rod_dz*dv_rod_ry + 2*rod_rw*dv_rod_dx + 2*rod_ry*dv_rod_dz + 4*v_rod_dx*v_rod_rw + 4*v_rod_dz*v_rod_ry
-    out[43] = -c10*dv_rod_ry - c12*dv_rod_dz - c13*dv_rod_rx - c14*dv_rod_dw - c18*v_rod_ry - 4*v_rod_dz*v_rod_rx + 2*rod_dx*dv_rod_rz + 2*rod_dy*dv_rod_rw + 2*rod_rw*dv_rod_dy + 2*rod_rz*dv_rod_dx + 4*v_rod_dx*v_rod_rz + 4*v_rod_dy*v_rod_rw
-    out[44] = -c10*dv_rod_rz - c14*dv_rod_dx - c16*dv_rod_dw - c18*v_rod_rz - 4*v_rod_dx*v_rod_ry - 2*rod_dx*dv_rod_ry + 2*rod_dy*dv_rod_rx + 2*rod_dz*dv_rod_rw + 2*rod_rw*dv_rod_dz + 2*rod_rx*dv_rod_dy + 4*v_rod_dy*v_rod_rx + 4*v_rod_dz*v_rod_rw
-    out[45] = c14*dv_rod_rz + c19*dv_rod_rx - c12*dv_rod_rw - c16*dv_rod_ry
-    out[46] = c16*dv_rod_rx + c19*dv_rod_ry - c12*dv_rod_rz - c14*dv_rod_rw
-    out[47] = c12*dv_rod_ry + c19*dv_rod_rz - c14*dv_rod_rx - c16*dv_rod_rw
+    out[36] = c21*v_rod_dz + c20*v_rod_ry + c19*v_rod_rw - c18*v_rod_dy + c17*v_rod_dx - c16*v_rod_dw - c15*v_rod_rz - c14*v_rod_rx
+    out[37] = c18*v_rod_dx + c17*v_rod_dy + c19*v_rod_rz - c21*v_rod_dw + c15*v_rod_rw - c16*v_rod_dz - c20*v_rod_rx - c14*v_rod_ry
+    out[38] = c16*v_rod_dy + c15*v_rod_rx - c18*v_rod_dw + c17*v_rod_dz - c21*v_rod_dx + c20*v_rod_rw - c19*v_rod_ry - c14*v_rod_rz
+    out[39] = c21*v_rod_rz + c17*v_rod_rx - c18*v_rod_ry - c16*v_rod_rw
+    out[40] = c18*v_rod_rx + c17*v_rod_ry - c21*v_rod_rw - c16*v_rod_rz
+    out[41] = c16*v_rod_ry + c17*v_rod_rz - c18*v_rod_rw - c21*v_rod_rx
+    out[42] = c26*v_rod_rw + c17*dv_rod_dx + c20*dv_rod_ry - c16*dv_rod_dw - c18*dv_rod_dy - c14*dv_rod_rx + c24*rod_dx + c25*v_rod_dz - c23*v_rod_rz + c21*dv_rod_dz - c15*dv_rod_rz - c22*v_rod_rx
+    out[43] = c23*v_rod_rw + c18*dv_rod_dx - c21*dv_rod_dw + c19*dv_rod_rz - c16*dv_rod_dz - c20*dv_rod_rx - c14*dv_rod_ry + c17*dv_rod_dy - c27*v_rod_rx + c24*rod_dy + c26*v_rod_rz - c25*v_rod_dw
+    out[44] = c27*v_rod_rw + c23*v_rod_rx + c17*dv_rod_dz + c16*dv_rod_dy - c18*dv_rod_dw + c15*dv_rod_rx - c21*dv_rod_dx + c24*rod_dz - c19*dv_rod_ry - c14*dv_rod_rz - c25*v_rod_dx - c22*v_rod_rz
+    out[45] = c21*dv_rod_rz + c17*dv_rod_rx - c18*dv_rod_ry - c24*rod_rx
+    out[46] = c18*dv_rod_rx + c17*dv_rod_ry - c24*rod_ry - c16*dv_rod_rz
+    out[47] = c16*dv_rod_ry + c17*dv_rod_rz - c24*rod_rz - c21*dv_rod_rx
     out[48] = slider_ox
     out[49] = slider_oy
     out[50] = slider_oz
@@ -364,18 +377,18 @@ def frames(q, v, a):
     out[57] = slider_a20
     out[58] = slider_a21
     out[59] = slider_a22
-    out[60] = -c20*v_slider_rx - c21*slider_dy - c22*v_slider_dw - 2*slider_rz*v_slider_dy + 2*slider_dx*v_slider_rw + 2*slider_dz*v_slider_ry + 2*slider_rw*v_slider_dx + 2*slider_ry*v_slider_dz
-    out[61] = -c20*v_slider_ry - c22*v_slider_dz - c23*v_slider_rx - c24*v_slider_dw + 2*slider_dx*v_slider_rz + 2*slider_dy*v_slider_rw + 2*slider_rw*v_slider_dy + 2*slider_rz*v_slider_dx
-    out[62] = -c20*v_slider_rz - c25*slider_dx - c26*v_slider_dw - 2*slider_ry*v_slider_dx + 2*slider_dy*v_slider_rx + 2*slider_dz*v_slider_rw + 2*slider_rw*v_slider_dz + 2*slider_rx*v_slider_dy
-    out[63] = c21*slider_ry - c22*v_slider_rw - c25*slider_rz + 2*slider_rw*v_slider_rx
-    out[64] = c25*slider_rw + c26*v_slider_rx - c21*slider_rx - c27*slider_ry
-    out[65] = c21*slider_rw + c22*v_slider_ry - c24*v_slider_rx - c27*slider_rz
-    out[66] = -c20*dv_slider_rx - c22*dv_slider_dw - c26*dv_slider_dy - c28*v_slider_rx - 4*v_slider_dy*v_slider_rz - 2*slider_dy*dv_slider_rz + 2*slider_dx*dv_slider_rw + 2*slider_dz*dv_slider_ry + 2*slider_rw*dv_slider_dx + 2*slider_ry*dv_slider_dz + 4*v_slider_dx*v_slider_rw + 4*v_slider_dz*v_slider_ry
-    out[67] = -c20*dv_slider_ry - c22*dv_slider_dz - c23*dv_slider_rx - c24*dv_slider_dw - c28*v_slider_ry - 4*v_slider_dz*v_slider_rx + 2*slider_dx*dv_slider_rz + 2*slider_dy*dv_slider_rw + 2*slider_rw*dv_slider_dy + 2*slider_rz*dv_slider_dx + 4*v_slider_dx*v_slider_rz + 4*v_slider_dy*v_slider_rw
-    out[68] = -c20*dv_slider_rz - c24*dv_slider_dx - c26*dv_slider_dw - c28*v_slider_rz - 4*v_slider_dx*v_slider_ry - 2*slider_dx*dv_slider_ry + 2*slider_dy*dv_slider_rx + 2*slider_dz*dv_slider_rw + 2*slider_rw*dv_slider_dz + 2*slider_rx*dv_slider_dy + 4*v_slider_dy*v_slider_rx + 4*v_slider_dz*v_slider_rw
-    out[69] = c24*dv_slider_rz + c29*dv_slider_rx - c22*dv_slider_rw - c26*dv_slider_ry
-    out[70] = c26*dv_slider_rx + c29*dv_slider_ry - c22*dv_slider_rz - c24*dv_slider_rw
-    out[71] = c22*dv_slider_ry + c29*dv_slider_rz - c24*dv_slider_rx - c26*dv_slider_rw
+    out[60] = c35*v_slider_dz + c34*v_slider_ry + c33*v_slider_rw - c32*v_slider_dy + c31*v_slider_dx - c30*v_slider_dw - c29*v_slider_rz - c28*v_slider_rx
+    out[61] = c32*v_slider_dx + c31*v_slider_dy + c33*v_slider_rz - c35*v_slider_dw + c29*v_slider_rw - c30*v_slider_dz - c34*v_slider_rx - c28*v_slider_ry
+    out[62] = c30*v_slider_dy + c29*v_slider_rx - c32*v_slider_dw + c31*v_slider_dz - c35*v_slider_dx + c34*v_slider_rw - c33*v_slider_ry - c28*v_slider_rz
+    out[63] = c35*v_slider_rz + c31*v_slider_rx - c32*v_slider_ry - c30*v_slider_rw
+    out[64] = c32*v_slider_rx + c31*v_slider_ry - c35*v_slider_rw - c30*v_slider_rz
+    out[65] = c30*v_slider_ry + c31*v_slider_rz - c32*v_slider_rw - c35*v_slider_rx
+    out[66] = c40*v_slider_rw + c31*dv_slider_dx + c34*dv_slider_ry - c30*dv_slider_dw - c32*dv_slider_dy - c28*dv_slider_rx + c38*slider_dx + c39*v_slider_dz - c37*v_slider_rz + c35*dv_slider_dz - c29*dv_slider_rz - c36*v_slider_rx
+    out[67] = c37*v_slider_rw + c32*dv_slider_dx - c35*dv_slider_dw + c33*dv_slider_rz - c30*dv_slider_dz - c34*dv_slider_rx - c28*dv_slider_ry + c31*dv_slider_dy - c41*v_slider_rx + c38*slider_dy + c40*v_slider_rz - c39*v_slider_dw
+    out[68] = c41*v_slider_rw + c37*v_slider_rx + c31*dv_slider_dz + c30*dv_slider_dy - c32*dv_slider_dw + c29*dv_slider_rx - c35*dv_slider_dx + c38*slider_dz - c33*dv_slider_ry - c28*dv_slider_rz - c39*v_slider_dx - c36*v_slider_rz
+    out[69] = c35*dv_slider_rz + c31*dv_slider_rx - c32*dv_slider_ry - c38*slider_rx
+    out[70] = c32*dv_slider_rx + c31*dv_slider_ry - c38*slider_ry - c30*dv_slider_rz
+    out[71] = c30*dv_slider_ry + c31*dv_slider_rz - c38*slider_rz - c35*dv_slider_rx
     return out
 
 
@@ -428,24 +441,24 @@ def _joints_phi(q):
     out[2] = -crank_oz
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = crank_ox - rod_ox + (1/5)*crank_a00
-    out[6] = crank_oy - rod_oy + (1/5)*crank_a10
-    out[7] = crank_oz - rod_oz + (1/5)*crank_a20
-    out[8] = rod_ox - slider_ox + (3/5)*rod_a00
-    out[9] = rod_oy - slider_oy + (3/5)*rod_a10
-    out[10] = rod_oz - slider_oz + (3/5)*rod_a20
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
+    out[5] = (1/5)*crank_a00 - rod_ox + crank_ox
+    out[6] = (1/5)*crank_a10 - rod_oy + crank_oy
+    out[7] = (1/5)*crank_a20 - rod_oz + crank_oz
+    out[8] = (3/5)*rod_a00 - slider_ox + rod_ox
+    out[9] = (3/5)*rod_a10 - slider_oy + rod_oy
+    out[10] = (3/5)*rod_a20 - slider_oz + rod_oz
+    out[11] = slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01
     out[12] = slider_a10
     out[13] = slider_a20
-    out[14] = slider_a00*slider_oz - slider_a20*slider_ox
-    out[15] = slider_a10*slider_ox - slider_a00*slider_oy
+    out[14] = -slider_ox*slider_a20 + slider_oz*slider_a00
+    out[15] = -slider_oy*slider_a00 + slider_ox*slider_a10
     out[16] = slider_a12
-    out[17] = -1 + crank_rw**2 + crank_rx**2 + crank_ry**2 + crank_rz**2
-    out[18] = crank_dw*crank_rw + crank_dx*crank_rx + crank_dy*crank_ry + crank_dz*crank_rz
-    out[19] = -1 + rod_rw**2 + rod_rx**2 + rod_ry**2 + rod_rz**2
-    out[20] = rod_dw*rod_rw + rod_dx*rod_rx + rod_dy*rod_ry + rod_dz*rod_rz
-    out[21] = -1 + slider_rw**2 + slider_rx**2 + slider_ry**2 + slider_rz**2
-    out[22] = slider_dw*slider_rw + slider_dx*slider_rx + slider_dy*slider_ry + slider_dz*slider_rz
+    out[17] = -1 + crank_rz**2 + crank_rx**2 + crank_ry**2 + crank_rw**2
+    out[18] = crank_rz*crank_dz + crank_ry*crank_dy + crank_rx*crank_dx + crank_rw*crank_dw
+    out[19] = -1 + rod_rz**2 + rod_rx**2 + rod_ry**2 + rod_rw**2
+    out[20] = rod_rz*rod_dz + rod_ry*rod_dy + rod_rx*rod_dx + rod_rw*rod_dw
+    out[21] = -1 + slider_rz**2 + slider_rx**2 + slider_ry**2 + slider_rw**2
+    out[22] = slider_rz*slider_dz + slider_ry*slider_dy + slider_rx*slider_dx + slider_rw*slider_dw
     return out
 
 
@@ -455,7 +468,7 @@ def _drivers_phi_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_rz*cos(c0) + 2*crank_rw*sin(c0)
+    out[0] = 2*sin(c0)*crank_rw - 2*cos(c0)*crank_rz
     return out
 
 
@@ -493,7 +506,7 @@ def _joints_jac(q):
     c11 = -c10
     c12 = -c5
     c13 = 2*crank_dx
-    c14 = 2*crank_dw
+    c14 = -2*crank_dw
     c15 = 2*crank_dz
     c16 = 2*crank_dy
     c17 = 2*crank_rx
@@ -512,14 +525,14 @@ def _joints_jac(q):
     c30 = -2*rod_rw
     c31 = 2*rod_rz
     c32 = 2*rod_ry
-    c33 = c16 + (2/5)*crank_rz
-    c34 = c15 - 2/5*crank_ry
-    c35 = -c14 + (2/5)*crank_rx
-    c36 = c13 + (2/5)*crank_rw
+    c33 = (2/5)*crank_rz + c16
+    c34 = (2/5)*crank_ry
+    c35 = (2/5)*crank_rx + c14
+    c36 = (2/5)*crank_rw
     c37 = -c22
     c38 = -c28
     c39 = 2*rod_dx
-    c40 = 2*rod_dw
+    c40 = -2*rod_dw
     c41 = 2*rod_dz
     c42 = 2*rod_dy
     c43 = 2*rod_rx
@@ -539,10 +552,10 @@ def _joints_jac(q):
     c57 = -c56
     c58 = 2*slider_rz
     c59 = 2*slider_ry
-    c60 = c42 + (6/5)*rod_rz
-    c61 = c41 - 6/5*rod_ry
-    c62 = -c40 + (6/5)*rod_rx
-    c63 = c39 + (6/5)*rod_rw
+    c60 = (6/5)*rod_rz + c42
+    c61 = (6/5)*rod_ry
+    c62 = (6/5)*rod_rx + c40
+    c63 = (6/5)*rod_rw
     c64 = -c48
     c65 = -c54
     c66 = 4*slider_a12
@@ -552,19 +565,23 @@ def _joints_jac(q):
     c70 = 2*slider_rx
     c71 = 2*slider_rw
     c72 = -c71
-    c73 = 2*slider_a20
-    c74 = 4*slider_oz
-    c75 = 2*slider_a00
-    c76 = c69*slider_ox + c75*slider_dz
-    c77 = c75*slider_dy - c68*slider_ox
-    c78 = c75*slider_dx - 2*slider_ox*slider_rw
-    c79 = c70*slider_ox + c75*slider_dw
-    c80 = c68*slider_a00
-    c81 = c69*slider_a00
-    c82 = c70*slider_a00
-    c83 = c71*slider_a00
-    c84 = 4*slider_oy
-    c85 = 2*slider_a10
+    c73 = 2*slider_dx
+    c74 = 4*slider_rw
+    c75 = 2*slider_dz
+    c76 = c69*slider_ox + c75*slider_a00
+    c77 = c68*slider_ox
+    c78 = 2*slider_dy
+    c79 = c78*slider_a00
+    c80 = 2*slider_dw
+    c81 = 4*slider_rx
+    c82 = c71*slider_ox - c73*slider_a00
+    c83 = c80*slider_a00
+    c84 = c70*slider_ox
+    c85 = -c68*slider_a00
+    c86 = c69*slider_a00
+    c87 = c70*slider_a00
+    c88 = c71*slider_a00
+    c89 = 2*slider_a10
     out = _zeros(200, q, ())
     out[0] = c1
     out[1] = c2
@@ -598,8 +615,8 @@ def _joints_jac(q):
     out[29] = c7
     out[30] = c9
     out[31] = c10
-    out[32] = c13 + (4/5)*crank_rw
-    out[33] = -c14 + (4/5)*crank_rx
+    out[32] = (4/5)*crank_rw + c13
+    out[33] = (4/5)*crank_rx + c14
     out[34] = c15
     out[35] = -c16
     out[36] = c18
@@ -615,9 +632,9 @@ def _joints_jac(q):
     out[46] = c31
     out[47] = -c32
     out[48] = c33
-    out[49] = -c34
+    out[49] = c34 - c15
     out[50] = c35
-    out[51] = c36
+    out[51] = c36 + c13
     out[52] = c37
     out[53] = c20
     out[54] = c19
@@ -630,9 +647,9 @@ def _joints_jac(q):
     out[61] = -c31
     out[62] = c30
     out[63] = c29
-    out[64] = c34
+    out[64] = -c34 + c15
     out[65] = c33
-    out[66] = -c36
+    out[66] = -c36 - c13
     out[67] = c35
     out[68] = c21
     out[69] = c37
@@ -646,8 +663,8 @@ def _joints_jac(q):
     out[77] = c32
     out[78] = -c29
     out[79] = c30
-    out[80] = c39 + (12/5)*rod_rw
-    out[81] = -c40 + (12/5)*rod_rx
+    out[80] = (12/5)*rod_rw + c39
+    out[81] = (12/5)*rod_rx + c40
     out[82] = c41
     out[83] = -c42
     out[84] = c44
@@ -663,9 +680,9 @@ def _joints_jac(q):
     out[94] = c58
     out[95] = -c59
     out[96] = c60
-    out[97] = -c61
+    out[97] = c61 - c41
     out[98] = c62
-    out[99] = c63
+    out[99] = c63 + c39
     out[100] = c64
     out[101] = c46
     out[102] = c45
@@ -678,9 +695,9 @@ def _joints_jac(q):
     out[109] = -c58
     out[110] = c57
     out[111] = c55
-    out[112] = c61
+    out[112] = -c61 + c41
     out[113] = c60
-    out[114] = -c63
+    out[114] = -c63 - c39
     out[115] = c62
     out[116] = c47
     out[117] = c64
@@ -695,13 +712,13 @@ def _joints_jac(q):
     out[126] = -c55
     out[127] = c57
     out[128] = c66*rod_rw + c43*slider_a22 - c46*slider_a02
-    out[129] = c45*slider_a22 + c48*slider_a02
-    out[130] = c66*rod_ry + c43*slider_a02 + c46*slider_a22
-    out[131] = -c45*slider_a02 + 2*rod_ry*slider_a22
-    out[132] = c59*rod_a01 + c67*slider_rw - c55*rod_a11
+    out[129] = c48*slider_a02 + c45*slider_a22
+    out[130] = c66*rod_ry + c46*slider_a22 + c43*slider_a02
+    out[131] = c48*slider_a22 - c45*slider_a02
+    out[132] = c67*slider_rw + c59*rod_a01 - c55*rod_a11
     out[133] = c58*rod_a01 - c56*rod_a11
-    out[134] = c56*rod_a01 + c58*rod_a11
-    out[135] = c55*rod_a01 + c59*rod_a11 + c67*slider_rz
+    out[134] = c58*rod_a11 + c56*rod_a01
+    out[135] = c59*rod_a11 + c67*slider_rz + c55*rod_a01
     out[136] = c68
     out[137] = c69
     out[138] = c70
@@ -710,22 +727,22 @@ def _joints_jac(q):
     out[141] = c68
     out[142] = c72
     out[143] = c70
-    out[144] = c76 + c74*slider_rw - c73*slider_dx
-    out[145] = c77 + c73*slider_dw + c74*slider_rx
-    out[146] = -c78 - c73*slider_dz
-    out[147] = -c79 + 2*slider_a20*slider_dy
-    out[148] = -c80 + 2*slider_a20*slider_rx
-    out[149] = -c81 - c71*slider_a20
-    out[150] = c82 + c68*slider_a20
-    out[151] = c83 - c69*slider_a20
-    out[152] = -c77 - c84*slider_rw + 2*slider_a10*slider_dx
-    out[153] = c76 - c84*slider_rx - c85*slider_dw
-    out[154] = c79 + c85*slider_dz
-    out[155] = -c78 - c85*slider_dy
-    out[156] = c81 - c70*slider_a10
-    out[157] = -c80 + 2*slider_a10*slider_rw
-    out[158] = -c83 - c68*slider_a10
-    out[159] = c82 + c69*slider_a10
+    out[144] = c76 + c74*slider_oz - c73*slider_a20
+    out[145] = c81*slider_oz + c80*slider_a20 + c79 - c77
+    out[146] = c82 - c75*slider_a20
+    out[147] = -c84 + c78*slider_a20 - c83
+    out[148] = c70*slider_a20 + c85
+    out[149] = -c71*slider_a20 - c86
+    out[150] = c68*slider_a20 + c87
+    out[151] = c88 - c69*slider_a20
+    out[152] = c89*slider_dx + c77 - c79 - c74*slider_oy
+    out[153] = c76 - c89*slider_dw - c81*slider_oy
+    out[154] = c84 + c89*slider_dz + c83
+    out[155] = c82 - c89*slider_dy
+    out[156] = c86 - c70*slider_a10
+    out[157] = c71*slider_a10 + c85
+    out[158] = -c68*slider_a10 - c88
+    out[159] = c69*slider_a10 + c87
     out[160] = -c70
     out[161] = c72
     out[162] = c68
@@ -826,7 +843,7 @@ def _joints_phi_joints_jac_s(q):
     d11 = -d10
     d12 = -d5
     d13 = 2.0*crank_dx
-    d14 = 2.0*crank_dw
+    d14 = -2.0*crank_dw
     d15 = 2.0*crank_dz
     d16 = 2.0*crank_dy
     d17 = 2.0*crank_rx
@@ -845,14 +862,14 @@ def _joints_phi_joints_jac_s(q):
     d30 = -2.0*rod_rw
     d31 = 2.0*rod_rz
     d32 = 2.0*rod_ry
-    d33 = d16 + (2/5)*crank_rz
-    d34 = d15 - 2/5*crank_ry
-    d35 = -d14 + (2/5)*crank_rx
-    d36 = d13 + (2/5)*crank_rw
+    d33 = (2/5)*crank_rz + d16
+    d34 = (2/5)*crank_ry
+    d35 = (2/5)*crank_rx + d14
+    d36 = (2/5)*crank_rw
     d37 = -d22
     d38 = -d28
     d39 = 2.0*rod_dx
-    d40 = 2.0*rod_dw
+    d40 = -2.0*rod_dw
     d41 = 2.0*rod_dz
     d42 = 2.0*rod_dy
     d43 = 2.0*rod_rx
@@ -872,10 +889,10 @@ def _joints_phi_joints_jac_s(q):
     d57 = -d56
     d58 = 2.0*slider_rz
     d59 = 2.0*slider_ry
-    d60 = d42 + (6/5)*rod_rz
-    d61 = d41 - 6/5*rod_ry
-    d62 = -d40 + (6/5)*rod_rx
-    d63 = d39 + (6/5)*rod_rw
+    d60 = (6/5)*rod_rz + d42
+    d61 = (6/5)*rod_ry
+    d62 = (6/5)*rod_rx + d40
+    d63 = (6/5)*rod_rw
     d64 = -d48
     d65 = -d54
     d66 = 4.0*slider_a12
@@ -885,20 +902,24 @@ def _joints_phi_joints_jac_s(q):
     d70 = 2.0*slider_rx
     d71 = 2.0*slider_rw
     d72 = -d71
-    d73 = 2.0*slider_a20
-    d74 = 4.0*slider_oz
-    d75 = 2.0*slider_a00
-    d76 = d69*slider_ox + d75*slider_dz
-    d77 = d75*slider_dy - d68*slider_ox
-    d78 = d75*slider_dx - 2.0*slider_ox*slider_rw
-    d79 = d70*slider_ox + d75*slider_dw
-    d80 = d68*slider_a00
-    d81 = d69*slider_a00
-    d82 = d70*slider_a00
-    d83 = d71*slider_a00
-    d84 = 4.0*slider_oy
-    d85 = 2.0*slider_a10
-    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, crank_ox - rod_ox + (1/5)*crank_a00, crank_oy - rod_oy + (1/5)*crank_a10, crank_oz - rod_oz + (1/5)*crank_a20, rod_ox - slider_ox + (3/5)*rod_a00, rod_oy - slider_oy + (3/5)*rod_a10, rod_oz - slider_oz + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a10, slider_a20, slider_a00*slider_oz - slider_a20*slider_ox, slider_a10*slider_ox - slider_a00*slider_oy, slider_a12, -1.0 + (crank_rw*crank_rw) + (crank_rx*crank_rx) + (crank_ry*crank_ry) + (crank_rz*crank_rz), crank_dw*crank_rw + crank_dx*crank_rx + crank_dy*crank_ry + crank_dz*crank_rz, -1.0 + (rod_rw*rod_rw) + (rod_rx*rod_rx) + (rod_ry*rod_ry) + (rod_rz*rod_rz), rod_dw*rod_rw + rod_dx*rod_rx + rod_dy*rod_ry + rod_dz*rod_rz, -1.0 + (slider_rw*slider_rw) + (slider_rx*slider_rx) + (slider_ry*slider_ry) + (slider_rz*slider_rz), slider_dw*slider_rw + slider_dx*slider_rx + slider_dy*slider_ry + slider_dz*slider_rz], [d1, d2, d4, d5, d6, d8, d9, d11, d12, d3, d2, d1, d10, -d9, d8, d6, d4, d12, d0, d2, d9, d10, -d6, d8, d11, d9, d8, d6, d6, d7, d9, d10, d13 + (4/5)*crank_rw, -d14 + (4/5)*crank_rx, d15, -d16, d18, d19, d21, d22, d24, d25, d27, d28, d29, d30, d31, -d32, d33, -d34, d35, d36, d37, d20, d19, d18, d38, d26, d25, d24, d32, -d31, d30, d29, d34, d33, -d36, d35, d21, d37, d17, d19, d27, d38, d23, d25, d31, d32, -d29, d30, d39 + (12/5)*rod_rw, -d40 + (12/5)*rod_rx, d41, -d42, d44, d45, d47, d48, d50, d51, d53, d54, d55, d57, d58, -d59, d60, -d61, d62, d63, d64, d46, d45, d44, d65, d52, d51, d50, d59, -d58, d57, d55, d61, d60, -d63, d62, d47, d64, d43, d45, d53, d65, d49, d51, d58, d59, -d55, d57, d66*rod_rw + d43*slider_a22 - d46*slider_a02, d45*slider_a22 + d48*slider_a02, d66*rod_ry + d43*slider_a02 + d46*slider_a22, -d45*slider_a02 + 2.0*rod_ry*slider_a22, d59*rod_a01 + d67*slider_rw - d55*rod_a11, d58*rod_a01 - d56*rod_a11, d56*rod_a01 + d58*rod_a11, d55*rod_a01 + d59*rod_a11 + d67*slider_rz, d68, d69, d70, d71, -d69, d68, d72, d70, d76 + d74*slider_rw - d73*slider_dx, d77 + d73*slider_dw + d74*slider_rx, -d78 - d73*slider_dz, -d79 + 2.0*slider_a20*slider_dy, -d80 + 2.0*slider_a20*slider_rx, -d81 - d71*slider_a20, d82 + d68*slider_a20, d83 - d69*slider_a20, -d77 - d84*slider_rw + 2.0*slider_a10*slider_dx, d76 - d84*slider_rx - d85*slider_dw, d79 + d85*slider_dz, -d78 - d85*slider_dy, d81 - d70*slider_a10, -d80 + 2.0*slider_a10*slider_rw, -d83 - d68*slider_a10, d82 + d69*slider_a10, -d70, d72, d68, d69, 2.0*crank_rw, 2.0*crank_rx, 2.0*crank_ry, 2.0*crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, crank_rw, crank_rx, crank_ry, crank_rz, 2.0*rod_rw, 2.0*rod_rx, 2.0*rod_ry, 2.0*rod_rz, rod_dw, rod_dx, rod_dy, rod_dz, rod_rw, rod_rx, rod_ry, rod_rz, 2.0*slider_rw, 2.0*slider_rx, 2.0*slider_ry, 2.0*slider_rz, slider_dw, slider_dx, slider_dy, slider_dz, slider_rw, slider_rx, slider_ry, slider_rz]
+    d73 = 2.0*slider_dx
+    d74 = 4.0*slider_rw
+    d75 = 2.0*slider_dz
+    d76 = d69*slider_ox + d75*slider_a00
+    d77 = d68*slider_ox
+    d78 = 2.0*slider_dy
+    d79 = d78*slider_a00
+    d80 = 2.0*slider_dw
+    d81 = 4.0*slider_rx
+    d82 = d71*slider_ox - d73*slider_a00
+    d83 = d80*slider_a00
+    d84 = d70*slider_ox
+    d85 = -d68*slider_a00
+    d86 = d69*slider_a00
+    d87 = d70*slider_a00
+    d88 = d71*slider_a00
+    d89 = 2.0*slider_a10
+    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, (1/5)*crank_a00 - rod_ox + crank_ox, (1/5)*crank_a10 - rod_oy + crank_oy, (1/5)*crank_a20 - rod_oz + crank_oz, (3/5)*rod_a00 - slider_ox + rod_ox, (3/5)*rod_a10 - slider_oy + rod_oy, (3/5)*rod_a20 - slider_oz + rod_oz, slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01, slider_a10, slider_a20, -slider_ox*slider_a20 + slider_oz*slider_a00, -slider_oy*slider_a00 + slider_ox*slider_a10, slider_a12, -1.0 + (crank_rz*crank_rz) + (crank_rx*crank_rx) + (crank_ry*crank_ry) + (crank_rw*crank_rw), crank_rz*crank_dz + crank_ry*crank_dy + crank_rx*crank_dx + crank_rw*crank_dw, -1.0 + (rod_rz*rod_rz) + (rod_rx*rod_rx) + (rod_ry*rod_ry) + (rod_rw*rod_rw), rod_rz*rod_dz + rod_ry*rod_dy + rod_rx*rod_dx + rod_rw*rod_dw, -1.0 + (slider_rz*slider_rz) + (slider_rx*slider_rx) + (slider_ry*slider_ry) + (slider_rw*slider_rw), slider_rz*slider_dz + slider_ry*slider_dy + slider_rx*slider_dx + slider_rw*slider_dw], [d1, d2, d4, d5, d6, d8, d9, d11, d12, d3, d2, d1, d10, -d9, d8, d6, d4, d12, d0, d2, d9, d10, -d6, d8, d11, d9, d8, d6, d6, d7, d9, d10, (4/5)*crank_rw + d13, (4/5)*crank_rx + d14, d15, -d16, d18, d19, d21, d22, d24, d25, d27, d28, d29, d30, d31, -d32, d33, d34 - d15, d35, d36 + d13, d37, d20, d19, d18, d38, d26, d25, d24, d32, -d31, d30, d29, -d34 + d15, d33, -d36 - d13, d35, d21, d37, d17, d19, d27, d38, d23, d25, d31, d32, -d29, d30, (12/5)*rod_rw + d39, (12/5)*rod_rx + d40, d41, -d42, d44, d45, d47, d48, d50, d51, d53, d54, d55, d57, d58, -d59, d60, d61 - d41, d62, d63 + d39, d64, d46, d45, d44, d65, d52, d51, d50, d59, -d58, d57, d55, -d61 + d41, d60, -d63 - d39, d62, d47, d64, d43, d45, d53, d65, d49, d51, d58, d59, -d55, d57, d66*rod_rw + d43*slider_a22 - d46*slider_a02, d48*slider_a02 + d45*slider_a22, d66*rod_ry + d46*slider_a22 + d43*slider_a02, d48*slider_a22 - d45*slider_a02, d67*slider_rw + d59*rod_a01 - d55*rod_a11, d58*rod_a01 - d56*rod_a11, d58*rod_a11 + d56*rod_a01, d59*rod_a11 + d67*slider_rz + d55*rod_a01, d68, d69, d70, d71, -d69, d68, d72, d70, d76 + d74*slider_oz - d73*slider_a20, d81*slider_oz + d80*slider_a20 + d79 - d77, d82 - d75*slider_a20, -d84 + d78*slider_a20 - d83, d70*slider_a20 + d85, -d71*slider_a20 - d86, d68*slider_a20 + d87, d88 - d69*slider_a20, d89*slider_dx + d77 - d79 - d74*slider_oy, d76 - d89*slider_dw - d81*slider_oy, d84 + d89*slider_dz + d83, d82 - d89*slider_dy, d86 - d70*slider_a10, d71*slider_a10 + d85, -d68*slider_a10 - d88, d69*slider_a10 + d87, -d70, d72, d68, d69, 2.0*crank_rw, 2.0*crank_rx, 2.0*crank_ry, 2.0*crank_rz, crank_dw, crank_dx, crank_dy, crank_dz, crank_rw, crank_rx, crank_ry, crank_rz, 2.0*rod_rw, 2.0*rod_rx, 2.0*rod_ry, 2.0*rod_rz, rod_dw, rod_dx, rod_dy, rod_dz, rod_rw, rod_rx, rod_ry, rod_rz, 2.0*slider_rw, 2.0*slider_rx, 2.0*slider_ry, 2.0*slider_rz, slider_dw, slider_dx, slider_dy, slider_dz, slider_rw, slider_rx, slider_ry, slider_rz]
 
 
 def _drivers_phi_run_drivers_jac_run_s(q, u):
@@ -907,7 +928,7 @@ def _drivers_phi_run_drivers_jac_run_s(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [-2.0*crank_rz*math.cos(c0) + 2.0*crank_rw*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [2.0*math.sin(c0)*crank_rw - 2.0*math.cos(c0)*crank_rz], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def phi_jac_s_run(q, u):
@@ -924,7 +945,7 @@ def _drivers_nu_run(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_rw*cos(c0) + crank_rz*sin(c0))
+    out[0] = -(sin(c0)*crank_rz + cos(c0)*crank_rw)*ud0
     return out
 
 
@@ -939,7 +960,7 @@ def _drivers_nu_run_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_rw*math.cos(c0) + crank_rz*math.sin(c0))]
+    return [-(math.sin(c0)*crank_rz + math.cos(c0)*crank_rw)*ud0]
 
 
 def nu_s_run(q, u, ud):
@@ -964,92 +985,128 @@ def _joints_gamma(q, v):
     slider_a12 = -2*slider_rw*slider_rx + 2*slider_ry*slider_rz
     slider_a20 = -2*slider_rw*slider_ry + 2*slider_rx*slider_rz
     slider_a22 = -1 + 2*slider_rw**2 + 2*slider_rz**2
-    c0 = 4*v_crank_dw
+    c0 = 4*v_crank_rx
     c1 = 4*v_crank_rz
     c2 = 4*v_crank_rw
-    c3 = 2*v_crank_dx
-    c4 = 4*v_rod_dw
-    c5 = 2*v_crank_dw
-    c6 = 2*v_crank_dy
-    c7 = c6 + (2/5)*v_crank_rz
-    c8 = 2*v_crank_dz
-    c9 = c8 - 2/5*v_crank_ry
-    c10 = -c5 + (2/5)*v_crank_rx
-    c11 = c3 + (2/5)*v_crank_rw
-    c12 = 2*v_rod_dx
-    c13 = 4*v_rod_ry
-    c14 = 4*v_slider_dw
-    c15 = 4*v_slider_rz
-    c16 = 2*v_rod_dw
-    c17 = 2*v_rod_dy
-    c18 = c17 + (6/5)*v_rod_rz
-    c19 = 2*v_rod_dz
-    c20 = c19 - 6/5*v_rod_ry
-    c21 = -c16 + (6/5)*v_rod_rx
-    c22 = c12 + (6/5)*v_rod_rw
-    c23 = 2*slider_a02
-    c24 = 2*slider_a22
-    c25 = 2*rod_a01
-    c26 = 2*rod_a11
-    c27 = 4*v_rod_rw
-    c28 = 4*v_slider_rw
-    c29 = 2*slider_rw
-    c30 = 2*slider_rx
-    c31 = 2*rod_rw
-    c32 = 2*v_rod_rw
-    c33 = 4*v_slider_rz
-    c34 = 4*v_slider_ry
-    c35 = 2*slider_a00
-    c36 = c35*v_slider_rz
-    c37 = c35*v_slider_ry
-    c38 = 2*slider_a20
-    c39 = c35*v_slider_rx
-    c40 = c35*v_slider_rw
-    c41 = c35*v_slider_dx - 2*slider_ox*v_slider_rw
-    c42 = 2*slider_ox
-    c43 = c35*v_slider_dw + c42*v_slider_rx
-    c44 = 4*slider_oz
-    c45 = c35*v_slider_dz + c42*v_slider_ry
-    c46 = c35*v_slider_dy - c42*v_slider_rz
-    c47 = 4*v_slider_rw
-    c48 = 4*v_slider_rx
-    c49 = c47*slider_rw + c48*slider_rx
-    c50 = 2*v_slider_rz
-    c51 = 2*v_slider_ry
-    c52 = 2*v_slider_dx
-    c53 = 2*v_slider_dw
-    c54 = 2*v_slider_rw
-    c55 = c51*slider_rw + c54*slider_ry - 2*slider_rx*v_slider_rz - 2*slider_rz*v_slider_rx
-    c56 = 2*v_slider_rx
-    c57 = 2*v_slider_dz
-    c58 = 2*v_slider_dy
-    c59 = c50*slider_dy + c53*slider_rx + c56*slider_dw + c58*slider_rz - c51*slider_dz - c52*slider_rw - c54*slider_dx - c57*slider_ry
-    c60 = -c59
-    c61 = c51*slider_dw + c53*slider_ry + c56*slider_dz + c57*slider_rx - 2*slider_dx*v_slider_rz - 2*slider_dy*v_slider_rw - 2*slider_rw*v_slider_dy - 2*slider_rz*v_slider_dx
+    c3 = 4*v_crank_ry
+    c4 = 2*v_crank_dx
+    c5 = 4*v_rod_dx
+    c6 = 2*v_crank_dw
+    c7 = -c6
+    c8 = 4*v_rod_dw
+    c9 = 4*v_rod_dy
+    c10 = 4*v_rod_dz
+    c11 = 2*v_crank_dy
+    c12 = c11 + (2/5)*v_crank_rz
+    c13 = (2/5)*v_crank_ry
+    c14 = 2*v_crank_dz
+    c15 = c7 + (2/5)*v_crank_rx
+    c16 = (2/5)*v_crank_rw
+    c17 = 2*v_rod_dx
+    c18 = 2*v_rod_dw
+    c19 = -c18
+    c20 = 4*v_rod_ry
+    c21 = 4*v_slider_rx
+    c22 = 4*v_slider_rz
+    c23 = 4*v_slider_ry
+    c24 = 4*v_slider_rw
+    c25 = 2*v_rod_dy
+    c26 = (6/5)*v_rod_rz + c25
+    c27 = (6/5)*v_rod_ry
+    c28 = 2*v_rod_dz
+    c29 = 4*v_slider_dz
+    c30 = (6/5)*v_rod_rx + c19
+    c31 = (6/5)*v_rod_rw
+    c32 = 4*slider_a12
+    c33 = 2*slider_a22
+    c34 = 2*v_rod_rz
+    c35 = 2*slider_a02
+    c36 = 4*rod_a21
+    c37 = 2*rod_a11
+    c38 = 2*rod_a01
+    c39 = 2*v_rod_rx
+    c40 = 2*slider_rw
+    c41 = 2*v_slider_rw
+    c42 = 2*slider_rz
+    c43 = 2*v_slider_rz
+    c44 = 2*rod_rx
+    c45 = 2*rod_rz
+    c46 = 4*v_slider_rz
+    c47 = 4*v_slider_rx
+    c48 = 4*v_slider_rw
+    c49 = 2*v_slider_rx
+    c50 = 2*slider_a00
+    c51 = -c50*v_slider_rz
+    c52 = 2*slider_a20
+    c53 = c50*v_slider_ry
+    c54 = c49*slider_a00
+    c55 = c50*v_slider_dw
+    c56 = c49*slider_ox
+    c57 = c50*v_slider_rw
+    c58 = 2*slider_rz
+    c59 = 2*slider_ry
+    c60 = 2*slider_rx
+    c61 = 2*v_slider_dz
+    c62 = 2*slider_dz
+    c63 = 2*slider_dx
+    c64 = 2*slider_dw
+    c65 = c48*slider_rw
+    c66 = c47*slider_rx
+    c67 = c66 + c65
+    c68 = c60*v_slider_dw
+    c69 = 2*slider_rw
+    c70 = c69*v_slider_dx
+    c71 = c58*v_slider_dy
+    c72 = c49*slider_dw
+    c73 = c61*slider_ry
+    c74 = c62*v_slider_ry
+    c75 = c63*v_slider_rw
+    c76 = 2*slider_dy
+    c77 = c76*v_slider_rz
+    c78 = c69*v_slider_ry
+    c79 = 2*v_slider_rw
+    c80 = c79*slider_ry
+    c81 = c60*v_slider_rz
+    c82 = c49*slider_rz
+    c83 = 2*slider_ox
+    c84 = c61*slider_a00 + c83*v_slider_ry
+    c85 = c50*v_slider_dy
+    c86 = c83*v_slider_rz
+    c87 = c83*v_slider_rw - c50*v_slider_dx
+    c88 = c74 + c73 - c68 + c70 + c75 - c77 - c71 - c72
+    c89 = 2*slider_a10
+    c90 = c64*v_slider_ry
+    c91 = c69*v_slider_dy
+    c92 = c49*slider_dz
+    c93 = c61*slider_rx
+    c94 = c59*v_slider_dw
+    c95 = c63*v_slider_rz
+    c96 = c76*v_slider_rw
+    c97 = c58*v_slider_dx
     out = _zeros(23, q, ())
-    out[0] = -c0*v_crank_rx - c1*v_crank_dy + 4*v_crank_dx*v_crank_rw + 4*v_crank_dz*v_crank_ry
-    out[1] = -c0*v_crank_ry - 4*v_crank_dz*v_crank_rx + 4*v_crank_dx*v_crank_rz + 4*v_crank_dy*v_crank_rw
-    out[2] = -c0*v_crank_rz - 4*v_crank_dx*v_crank_ry + 4*v_crank_dy*v_crank_rx + 4*v_crank_dz*v_crank_rw
-    out[3] = c2*v_crank_ry - c1*v_crank_rx
-    out[4] = -c1*v_crank_ry - c2*v_crank_rx
-    out[5] = -c3*v_crank_rw - c4*v_rod_rx - v_crank_rw*(c3 + (4/5)*v_crank_rw) - v_crank_rx*(-c5 + (4/5)*v_crank_rx) - 4*v_crank_dz*v_crank_ry - 4*v_rod_dy*v_rod_rz + 2*v_crank_dw*v_crank_rx + 4*v_crank_dy*v_crank_rz + 4*v_rod_dx*v_rod_rw + 4*v_rod_dz*v_rod_ry
-    out[6] = c9*v_crank_rx - c3*v_crank_rz - c4*v_rod_ry - c6*v_crank_rw - c7*v_crank_rw - c10*v_crank_ry - c11*v_crank_rz - 4*v_rod_dz*v_rod_rx + 2*v_crank_dw*v_crank_ry + 2*v_crank_dz*v_crank_rx + 4*v_rod_dx*v_rod_rz + 4*v_rod_dy*v_rod_rw
-    out[7] = c11*v_crank_ry - c4*v_rod_rz - c6*v_crank_rx - c7*v_crank_rx - c8*v_crank_rw - c9*v_crank_rw - c10*v_crank_rz - 4*v_rod_dx*v_rod_ry + 2*v_crank_dw*v_crank_rz + 2*v_crank_dx*v_crank_ry + 4*v_rod_dy*v_rod_rx + 4*v_rod_dz*v_rod_rw
-    out[8] = -c12*v_rod_rw - c13*v_rod_dz - c14*v_slider_rx - c15*v_slider_dy - v_rod_rw*(c12 + (12/5)*v_rod_rw) - v_rod_rx*(-c16 + (12/5)*v_rod_rx) + 2*v_rod_dw*v_rod_rx + 4*v_rod_dy*v_rod_rz + 4*v_slider_dx*v_slider_rw + 4*v_slider_dz*v_slider_ry
-    out[9] = c20*v_rod_rx - c12*v_rod_rz - c22*v_rod_rz - c14*v_slider_ry - c17*v_rod_rw - c18*v_rod_rw - c21*v_rod_ry - 4*v_slider_dz*v_slider_rx + 2*v_rod_dw*v_rod_ry + 2*v_rod_dz*v_rod_rx + 4*v_slider_dx*v_slider_rz + 4*v_slider_dy*v_slider_rw
-    out[10] = c22*v_rod_ry - c14*v_slider_rz - c17*v_rod_rx - c18*v_rod_rx - c19*v_rod_rw - c20*v_rod_rw - c21*v_rod_rz - 4*v_slider_dx*v_slider_ry + 2*v_rod_dw*v_rod_rz + 2*v_rod_dx*v_rod_ry + 4*v_slider_dy*v_slider_rx + 4*v_slider_dz*v_slider_rw
-    out[11] = -v_rod_rw*(c24*v_rod_rx + c27*slider_a12 - c23*v_rod_rz) - v_rod_rx*(c23*v_rod_ry + c24*v_rod_rw) - v_rod_ry*(c13*slider_a12 + c23*v_rod_rx + c24*v_rod_rz) - v_rod_rz*(-c23*v_rod_rw + 2*slider_a22*v_rod_ry) - v_slider_rw*(c25*v_slider_ry + c28*rod_a21 - c26*v_slider_rx) - v_slider_rx*(c25*v_slider_rz - c26*v_slider_rw) - v_slider_ry*(c25*v_slider_rw + c26*v_slider_rz) - v_slider_rz*(c25*v_slider_rx + c26*v_slider_ry + c15*rod_a21) - 2*(c13*rod_ry + c27*rod_rw)*(-c29*v_slider_rx - c30*v_slider_rw + 2*slider_ry*v_slider_rz + 2*slider_rz*v_slider_ry) - 2*(c28*slider_rw + c15*slider_rz)*(c31*v_rod_rx + c32*rod_rx + 2*rod_ry*v_rod_rz + 2*rod_rz*v_rod_ry) - 2*(c29*v_slider_ry + c30*v_slider_rz + 2*slider_ry*v_slider_rw + 2*slider_rz*v_slider_rx)*(-c31*v_rod_rz - c32*rod_rz + 2*rod_rx*v_rod_ry + 2*rod_ry*v_rod_rx)
-    out[12] = -c33*v_slider_rw - c34*v_slider_rx
-    out[13] = c34*v_slider_rw - c33*v_slider_rx
-    out[14] = c55*c59 - c55*c60 - v_slider_dw*(-c36 + 2*slider_a20*v_slider_rx) - v_slider_dx*(-c37 - c38*v_slider_rw) - v_slider_dy*(c39 + c38*v_slider_rz) - v_slider_dz*(c40 - c38*v_slider_ry) - v_slider_rw*(c45 + c44*v_slider_rw - c38*v_slider_dx) - v_slider_rx*(c46 + c44*v_slider_rx + c38*v_slider_dw) - v_slider_ry*(-c41 - c38*v_slider_dz) - v_slider_rz*(-c43 + 2*slider_a20*v_slider_dy) - 2*c49*(-c50*slider_dw - c51*slider_dx - c52*slider_ry - c53*slider_rz + 2*slider_dy*v_slider_rx + 2*slider_dz*v_slider_rw + 2*slider_rw*v_slider_dz + 2*slider_rx*v_slider_dy)
-    out[15] = -v_slider_dw*(c37 - c56*slider_a10) - v_slider_dx*(-c36 + 2*slider_a10*v_slider_rw) - v_slider_dy*(-c40 - c50*slider_a10) - v_slider_dz*(c39 + c51*slider_a10) - v_slider_rw*(-c46 - c47*slider_oy + 2*slider_a10*v_slider_dx) - v_slider_rx*(c45 - c48*slider_oy - c53*slider_a10) - v_slider_ry*(c43 + c57*slider_a10) - v_slider_rz*(-c41 - c58*slider_a10) - 2*c49*c61 - 2*c60*(c50*slider_rw + c51*slider_rx + c54*slider_rz + c56*slider_ry)
-    out[16] = c47*v_slider_rx - c33*v_slider_ry
-    out[17] = -2*v_crank_rw**2 - 2*v_crank_rx**2 - 2*v_crank_ry**2 - 2*v_crank_rz**2
-    out[18] = -2*v_crank_dw*v_crank_rw - 2*v_crank_dx*v_crank_rx - 2*v_crank_dy*v_crank_ry - 2*v_crank_dz*v_crank_rz
-    out[19] = -2*v_rod_rw**2 - 2*v_rod_rx**2 - 2*v_rod_ry**2 - 2*v_rod_rz**2
-    out[20] = -2*v_rod_dw*v_rod_rw - 2*v_rod_dx*v_rod_rx - 2*v_rod_dy*v_rod_ry - 2*v_rod_dz*v_rod_rz
-    out[21] = -2*v_slider_rw**2 - 2*v_slider_rx**2 - 2*v_slider_ry**2 - 2*v_slider_rz**2
-    out[22] = -2*v_slider_dw*v_slider_rw - 2*v_slider_dx*v_slider_rx - 2*v_slider_dy*v_slider_ry - 2*v_slider_dz*v_slider_rz
+    out[0] = c3*v_crank_dz + c2*v_crank_dx - c1*v_crank_dy - c0*v_crank_dw
+    out[1] = c1*v_crank_dx + c2*v_crank_dy - c0*v_crank_dz - c3*v_crank_dw
+    out[2] = c2*v_crank_dz + c0*v_crank_dy - c3*v_crank_dx - c1*v_crank_dw
+    out[3] = c3*v_crank_rw - c0*v_crank_rz
+    out[4] = -c3*v_crank_rz - c0*v_crank_rw
+    out[5] = 4*v_crank_rz*v_crank_dy + c6*v_crank_rx - c4*v_crank_rw - c9*v_rod_rz + c10*v_rod_ry - c8*v_rod_rx - 4*v_crank_ry*v_crank_dz - ((4/5)*v_crank_rx + c7)*v_crank_rx + c5*v_rod_rw - ((4/5)*v_crank_rw + c4)*v_crank_rw
+    out[6] = c14*v_crank_rx - c11*v_crank_rw - c4*v_crank_rz - c8*v_rod_ry + c9*v_rod_rw - c15*v_crank_ry + c5*v_rod_rz + c6*v_crank_ry - (-c14 + c13)*v_crank_rx - c10*v_rod_rx - (c16 + c4)*v_crank_rz - c12*v_crank_rw
+    out[7] = c9*v_rod_rx + c10*v_rod_rw + c4*v_crank_ry - c5*v_rod_ry + c6*v_crank_rz - c8*v_rod_rz - c11*v_crank_rx - c15*v_crank_rz - (-c16 - c4)*v_crank_ry - c12*v_crank_rx - c14*v_crank_rw - (-c13 + c14)*v_crank_rw
+    out[8] = 4*v_rod_rz*v_rod_dy + c18*v_rod_rx - c17*v_rod_rw + c23*v_slider_dz - c22*v_slider_dy - c21*v_slider_dw - c20*v_rod_dz - ((12/5)*v_rod_rx + c19)*v_rod_rx + c24*v_slider_dx - ((12/5)*v_rod_rw + c17)*v_rod_rw
+    out[9] = c28*v_rod_rx - c25*v_rod_rw + c22*v_slider_dx - c23*v_slider_dw + c24*v_slider_dy - (c31 + c17)*v_rod_rz - c30*v_rod_ry - (-c28 + c27)*v_rod_rx - c17*v_rod_rz - c29*v_slider_rx + c18*v_rod_ry - c26*v_rod_rw
+    out[10] = c21*v_slider_dy - c25*v_rod_rx - c30*v_rod_rz - c22*v_slider_dw - (-c31 - c17)*v_rod_ry - c28*v_rod_rw - c26*v_rod_rx + c29*v_slider_rw + c17*v_rod_ry + c18*v_rod_rz - c23*v_slider_dx - (-c27 + c28)*v_rod_rw
+    out[11] = -2*(c39*rod_ry + c44*v_rod_ry - c45*v_rod_rw - c34*rod_rw)*(c43*slider_rx + c41*slider_ry + c40*v_slider_ry + c42*v_slider_rx) - (c36*v_slider_rz + c37*v_slider_ry + c38*v_slider_rx)*v_slider_rz - (c38*v_slider_rz - c37*v_slider_rw)*v_slider_rx - 2*(c22*slider_rz + c24*slider_rw)*(c34*rod_ry + c45*v_rod_ry + c44*v_rod_rw + c39*rod_rw) - (c33*v_rod_ry - c35*v_rod_rw)*v_rod_rz - 2*(c43*slider_ry + c42*v_slider_ry - c41*slider_rx - c40*v_slider_rx)*(c20*rod_ry + 4*rod_rw*v_rod_rw) - (c34*slider_a22 + c32*v_rod_ry + c39*slider_a02)*v_rod_ry - (c37*v_slider_rz + c38*v_slider_rw)*v_slider_ry - (c38*v_slider_ry - c37*v_slider_rx + c36*v_slider_rw)*v_slider_rw - (c35*v_rod_ry + c33*v_rod_rw)*v_rod_rx - (-c34*slider_a02 + c33*v_rod_rx + c32*v_rod_rw)*v_rod_rw
+    out[12] = -c47*v_slider_ry - c46*v_slider_rw
+    out[13] = c48*v_slider_ry - c46*v_slider_rx
+    out[14] = -(-c81 + c78 + c80 - c82)*c88 - (c84 + c48*slider_oz - c52*v_slider_dx)*v_slider_rw - (c77 - c74 + c72 + c71 - c75 - c70 - c73 + c68)*(c82 + c81 - c80 - c78) - (c87 - c61*slider_a20)*v_slider_ry - 2*c67*(-c64*v_slider_rz + c49*slider_dy + c61*slider_rw + c60*v_slider_dy - c59*v_slider_dx - c63*v_slider_ry + c62*v_slider_rw - c58*v_slider_dw) - (-c86 + c47*slider_oz + c85 + c52*v_slider_dw)*v_slider_rx - (-c52*v_slider_ry + c57)*v_slider_dz - (c52*v_slider_rz + c54)*v_slider_dy - (-c53 - c52*v_slider_rw)*v_slider_dx - (-c56 + c52*v_slider_dy - c55)*v_slider_rz - (c51 + c49*slider_a20)*v_slider_dw
+    out[15] = -(c87 - c89*v_slider_dy)*v_slider_rz - (c84 - c47*slider_oy - c89*v_slider_dw)*v_slider_rx - (-c48*slider_oy + c89*v_slider_dx + c86 - c85)*v_slider_rw - (c92 - c96 + c93 - c97 - c95 + c90 - c91 + c94)*c67 - 2*c88*(c49*slider_ry + c79*slider_rz + c60*v_slider_ry + c69*v_slider_rz) - (c89*v_slider_rw + c51)*v_slider_dx - (c56 + c61*slider_a10 + c55)*v_slider_ry - (c54 + c89*v_slider_ry)*v_slider_dz - (-c57 - c89*v_slider_rz)*v_slider_dy - (-c66 - c65)*(c97 + c96 + c95 - c94 - c93 - c92 + c91 - c90) - (-c49*slider_a10 + c53)*v_slider_dw
+    out[16] = c47*v_slider_rw - c46*v_slider_ry
+    out[17] = -2*v_crank_ry**2 - 2*v_crank_rz**2 - 2*v_crank_rx**2 - 2*v_crank_rw**2
+    out[18] = -2*v_crank_rz*v_crank_dz - 2*v_crank_ry*v_crank_dy - 2*v_crank_rx*v_crank_dx - 2*v_crank_rw*v_crank_dw
+    out[19] = -2*v_rod_ry**2 - 2*v_rod_rz**2 - 2*v_rod_rx**2 - 2*v_rod_rw**2
+    out[20] = -2*v_rod_rz*v_rod_dz - 2*v_rod_ry*v_rod_dy - 2*v_rod_rx*v_rod_dx - 2*v_rod_rw*v_rod_dw
+    out[21] = -2*v_slider_ry**2 - 2*v_slider_rz**2 - 2*v_slider_rx**2 - 2*v_slider_rw**2
+    out[22] = -2*v_slider_rz*v_slider_dz - 2*v_slider_ry*v_slider_dy - 2*v_slider_rx*v_slider_dx - 2*v_slider_rw*v_slider_dw
     return out
 
 
@@ -1064,7 +1121,7 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -udd0*(c1*crank_rw + c2*crank_rz) - ud0**2*((1/2)*c1*crank_rz - 1/2*c2*crank_rw) - 2*ud0*(c1*v_crank_rw + c2*v_crank_rz)
+    out[0] = -2*(c2*v_crank_rz + c1*v_crank_rw)*ud0 - (-1/2*c2*crank_rw + (1/2)*c1*crank_rz)*ud0**2 - (c2*crank_rz + c1*crank_rw)*udd0
     return out
 
 
@@ -1089,69 +1146,105 @@ def _joints_gamma_s(q, v):
     slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz
     slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz
     slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz)
-    c0 = 4.0*v_crank_dw
+    c0 = 4.0*v_crank_rx
     c1 = 4.0*v_crank_rz
     c2 = 4.0*v_crank_rw
-    c3 = 2.0*v_crank_dx
-    c4 = 4.0*v_rod_dw
-    c5 = 2.0*v_crank_dw
-    c6 = 2.0*v_crank_dy
-    c7 = c6 + (2/5)*v_crank_rz
-    c8 = 2.0*v_crank_dz
-    c9 = c8 - 2/5*v_crank_ry
-    c10 = -c5 + (2/5)*v_crank_rx
-    c11 = c3 + (2/5)*v_crank_rw
-    c12 = 2.0*v_rod_dx
-    c13 = 4.0*v_rod_ry
-    c14 = 4.0*v_slider_dw
-    c15 = 4.0*v_slider_rz
-    c16 = 2.0*v_rod_dw
-    c17 = 2.0*v_rod_dy
-    c18 = c17 + (6/5)*v_rod_rz
-    c19 = 2.0*v_rod_dz
-    c20 = c19 - 6/5*v_rod_ry
-    c21 = -c16 + (6/5)*v_rod_rx
-    c22 = c12 + (6/5)*v_rod_rw
-    c23 = 2.0*slider_a02
-    c24 = 2.0*slider_a22
-    c25 = 2.0*rod_a01
-    c26 = 2.0*rod_a11
-    c27 = 4.0*v_rod_rw
-    c28 = 4.0*v_slider_rw
-    c29 = 2.0*slider_rw
-    c30 = 2.0*slider_rx
-    c31 = 2.0*rod_rw
-    c32 = 2.0*v_rod_rw
-    c33 = 4.0*v_slider_rz
-    c34 = 4.0*v_slider_ry
-    c35 = 2.0*slider_a00
-    c36 = c35*v_slider_rz
-    c37 = c35*v_slider_ry
-    c38 = 2.0*slider_a20
-    c39 = c35*v_slider_rx
-    c40 = c35*v_slider_rw
-    c41 = c35*v_slider_dx - 2.0*slider_ox*v_slider_rw
-    c42 = 2.0*slider_ox
-    c43 = c35*v_slider_dw + c42*v_slider_rx
-    c44 = 4.0*slider_oz
-    c45 = c35*v_slider_dz + c42*v_slider_ry
-    c46 = c35*v_slider_dy - c42*v_slider_rz
-    c47 = 4.0*v_slider_rw
-    c48 = 4.0*v_slider_rx
-    c49 = c47*slider_rw + c48*slider_rx
-    c50 = 2.0*v_slider_rz
-    c51 = 2.0*v_slider_ry
-    c52 = 2.0*v_slider_dx
-    c53 = 2.0*v_slider_dw
-    c54 = 2.0*v_slider_rw
-    c55 = c51*slider_rw + c54*slider_ry - 2.0*slider_rx*v_slider_rz - 2.0*slider_rz*v_slider_rx
-    c56 = 2.0*v_slider_rx
-    c57 = 2.0*v_slider_dz
-    c58 = 2.0*v_slider_dy
-    c59 = c50*slider_dy + c53*slider_rx + c56*slider_dw + c58*slider_rz - c51*slider_dz - c52*slider_rw - c54*slider_dx - c57*slider_ry
-    c60 = -c59
-    c61 = c51*slider_dw + c53*slider_ry + c56*slider_dz + c57*slider_rx - 2.0*slider_dx*v_slider_rz - 2.0*slider_dy*v_slider_rw - 2.0*slider_rw*v_slider_dy - 2.0*slider_rz*v_slider_dx
-    return [-c0*v_crank_rx - c1*v_crank_dy + 4.0*v_crank_dx*v_crank_rw + 4.0*v_crank_dz*v_crank_ry, -c0*v_crank_ry - 4.0*v_crank_dz*v_crank_rx + 4.0*v_crank_dx*v_crank_rz + 4.0*v_crank_dy*v_crank_rw, -c0*v_crank_rz - 4.0*v_crank_dx*v_crank_ry + 4.0*v_crank_dy*v_crank_rx + 4.0*v_crank_dz*v_crank_rw, c2*v_crank_ry - c1*v_crank_rx, -c1*v_crank_ry - c2*v_crank_rx, -c3*v_crank_rw - c4*v_rod_rx - v_crank_rw*(c3 + (4/5)*v_crank_rw) - v_crank_rx*(-c5 + (4/5)*v_crank_rx) - 4.0*v_crank_dz*v_crank_ry - 4.0*v_rod_dy*v_rod_rz + 2.0*v_crank_dw*v_crank_rx + 4.0*v_crank_dy*v_crank_rz + 4.0*v_rod_dx*v_rod_rw + 4.0*v_rod_dz*v_rod_ry, c9*v_crank_rx - c3*v_crank_rz - c4*v_rod_ry - c6*v_crank_rw - c7*v_crank_rw - c10*v_crank_ry - c11*v_crank_rz - 4.0*v_rod_dz*v_rod_rx + 2.0*v_crank_dw*v_crank_ry + 2.0*v_crank_dz*v_crank_rx + 4.0*v_rod_dx*v_rod_rz + 4.0*v_rod_dy*v_rod_rw, c11*v_crank_ry - c4*v_rod_rz - c6*v_crank_rx - c7*v_crank_rx - c8*v_crank_rw - c9*v_crank_rw - c10*v_crank_rz - 4.0*v_rod_dx*v_rod_ry + 2.0*v_crank_dw*v_crank_rz + 2.0*v_crank_dx*v_crank_ry + 4.0*v_rod_dy*v_rod_rx + 4.0*v_rod_dz*v_rod_rw, -c12*v_rod_rw - c13*v_rod_dz - c14*v_slider_rx - c15*v_slider_dy - v_rod_rw*(c12 + (12/5)*v_rod_rw) - v_rod_rx*(-c16 + (12/5)*v_rod_rx) + 2.0*v_rod_dw*v_rod_rx + 4.0*v_rod_dy*v_rod_rz + 4.0*v_slider_dx*v_slider_rw + 4.0*v_slider_dz*v_slider_ry, c20*v_rod_rx - c12*v_rod_rz - c22*v_rod_rz - c14*v_slider_ry - c17*v_rod_rw - c18*v_rod_rw - c21*v_rod_ry - 4.0*v_slider_dz*v_slider_rx + 2.0*v_rod_dw*v_rod_ry + 2.0*v_rod_dz*v_rod_rx + 4.0*v_slider_dx*v_slider_rz + 4.0*v_slider_dy*v_slider_rw, c22*v_rod_ry - c14*v_slider_rz - c17*v_rod_rx - c18*v_rod_rx - c19*v_rod_rw - c20*v_rod_rw - c21*v_rod_rz - 4.0*v_slider_dx*v_slider_ry + 2.0*v_rod_dw*v_rod_rz + 2.0*v_rod_dx*v_rod_ry + 4.0*v_slider_dy*v_slider_rx + 4.0*v_slider_dz*v_slider_rw, -v_rod_rw*(c24*v_rod_rx + c27*slider_a12 - c23*v_rod_rz) - v_rod_rx*(c23*v_rod_ry + c24*v_rod_rw) - v_rod_ry*(c13*slider_a12 + c23*v_rod_rx + c24*v_rod_rz) - v_rod_rz*(-c23*v_rod_rw + 2.0*slider_a22*v_rod_ry) - v_slider_rw*(c25*v_slider_ry + c28*rod_a21 - c26*v_slider_rx) - v_slider_rx*(c25*v_slider_rz - c26*v_slider_rw) - v_slider_ry*(c25*v_slider_rw + c26*v_slider_rz) - v_slider_rz*(c25*v_slider_rx + c26*v_slider_ry + c15*rod_a21) - 2.0*(c13*rod_ry + c27*rod_rw)*(-c29*v_slider_rx - c30*v_slider_rw + 2.0*slider_ry*v_slider_rz + 2.0*slider_rz*v_slider_ry) - 2.0*(c28*slider_rw + c15*slider_rz)*(c31*v_rod_rx + c32*rod_rx + 2.0*rod_ry*v_rod_rz + 2.0*rod_rz*v_rod_ry) - 2.0*(c29*v_slider_ry + c30*v_slider_rz + 2.0*slider_ry*v_slider_rw + 2.0*slider_rz*v_slider_rx)*(-c31*v_rod_rz - c32*rod_rz + 2.0*rod_rx*v_rod_ry + 2.0*rod_ry*v_rod_rx), -c33*v_slider_rw - c34*v_slider_rx, c34*v_slider_rw - c33*v_slider_rx, c55*c59 - c55*c60 - v_slider_dw*(-c36 + 2.0*slider_a20*v_slider_rx) - v_slider_dx*(-c37 - c38*v_slider_rw) - v_slider_dy*(c39 + c38*v_slider_rz) - v_slider_dz*(c40 - c38*v_slider_ry) - v_slider_rw*(c45 + c44*v_slider_rw - c38*v_slider_dx) - v_slider_rx*(c46 + c44*v_slider_rx + c38*v_slider_dw) - v_slider_ry*(-c41 - c38*v_slider_dz) - v_slider_rz*(-c43 + 2.0*slider_a20*v_slider_dy) - 2.0*c49*(-c50*slider_dw - c51*slider_dx - c52*slider_ry - c53*slider_rz + 2.0*slider_dy*v_slider_rx + 2.0*slider_dz*v_slider_rw + 2.0*slider_rw*v_slider_dz + 2.0*slider_rx*v_slider_dy), -v_slider_dw*(c37 - c56*slider_a10) - v_slider_dx*(-c36 + 2.0*slider_a10*v_slider_rw) - v_slider_dy*(-c40 - c50*slider_a10) - v_slider_dz*(c39 + c51*slider_a10) - v_slider_rw*(-c46 - c47*slider_oy + 2.0*slider_a10*v_slider_dx) - v_slider_rx*(c45 - c48*slider_oy - c53*slider_a10) - v_slider_ry*(c43 + c57*slider_a10) - v_slider_rz*(-c41 - c58*slider_a10) - 2.0*c49*c61 - 2.0*c60*(c50*slider_rw + c51*slider_rx + c54*slider_rz + c56*slider_ry), c47*v_slider_rx - c33*v_slider_ry, -2.0*(v_crank_rw*v_crank_rw) - 2.0*(v_crank_rx*v_crank_rx) - 2.0*(v_crank_ry*v_crank_ry) - 2.0*(v_crank_rz*v_crank_rz), -2.0*v_crank_dw*v_crank_rw - 2.0*v_crank_dx*v_crank_rx - 2.0*v_crank_dy*v_crank_ry - 2.0*v_crank_dz*v_crank_rz, -2.0*(v_rod_rw*v_rod_rw) - 2.0*(v_rod_rx*v_rod_rx) - 2.0*(v_rod_ry*v_rod_ry) - 2.0*(v_rod_rz*v_rod_rz), -2.0*v_rod_dw*v_rod_rw - 2.0*v_rod_dx*v_rod_rx - 2.0*v_rod_dy*v_rod_ry - 2.0*v_rod_dz*v_rod_rz, -2.0*(v_slider_rw*v_slider_rw) - 2.0*(v_slider_rx*v_slider_rx) - 2.0*(v_slider_ry*v_slider_ry) - 2.0*(v_slider_rz*v_slider_rz), -2.0*v_slider_dw*v_slider_rw - 2.0*v_slider_dx*v_slider_rx - 2.0*v_slider_dy*v_slider_ry - 2.0*v_slider_dz*v_slider_rz]
+    c3 = 4.0*v_crank_ry
+    c4 = 2.0*v_crank_dx
+    c5 = 4.0*v_rod_dx
+    c6 = 2.0*v_crank_dw
+    c7 = -c6
+    c8 = 4.0*v_rod_dw
+    c9 = 4.0*v_rod_dy
+    c10 = 4.0*v_rod_dz
+    c11 = 2.0*v_crank_dy
+    c12 = c11 + (2/5)*v_crank_rz
+    c13 = (2/5)*v_crank_ry
+    c14 = 2.0*v_crank_dz
+    c15 = c7 + (2/5)*v_crank_rx
+    c16 = (2/5)*v_crank_rw
+    c17 = 2.0*v_rod_dx
+    c18 = 2.0*v_rod_dw
+    c19 = -c18
+    c20 = 4.0*v_rod_ry
+    c21 = 4.0*v_slider_rx
+    c22 = 4.0*v_slider_rz
+    c23 = 4.0*v_slider_ry
+    c24 = 4.0*v_slider_rw
+    c25 = 2.0*v_rod_dy
+    c26 = (6/5)*v_rod_rz + c25
+    c27 = (6/5)*v_rod_ry
+    c28 = 2.0*v_rod_dz
+    c29 = 4.0*v_slider_dz
+    c30 = (6/5)*v_rod_rx + c19
+    c31 = (6/5)*v_rod_rw
+    c32 = 4.0*slider_a12
+    c33 = 2.0*slider_a22
+    c34 = 2.0*v_rod_rz
+    c35 = 2.0*slider_a02
+    c36 = 4.0*rod_a21
+    c37 = 2.0*rod_a11
+    c38 = 2.0*rod_a01
+    c39 = 2.0*v_rod_rx
+    c40 = 2.0*slider_rw
+    c41 = 2.0*v_slider_rw
+    c42 = 2.0*slider_rz
+    c43 = 2.0*v_slider_rz
+    c44 = 2.0*rod_rx
+    c45 = 2.0*rod_rz
+    c46 = 4.0*v_slider_rz
+    c47 = 4.0*v_slider_rx
+    c48 = 4.0*v_slider_rw
+    c49 = 2.0*v_slider_rx
+    c50 = 2.0*slider_a00
+    c51 = -c50*v_slider_rz
+    c52 = 2.0*slider_a20
+    c53 = c50*v_slider_ry
+    c54 = c49*slider_a00
+    c55 = c50*v_slider_dw
+    c56 = c49*slider_ox
+    c57 = c50*v_slider_rw
+    c58 = 2.0*slider_rz
+    c59 = 2.0*slider_ry
+    c60 = 2.0*slider_rx
+    c61 = 2.0*v_slider_dz
+    c62 = 2.0*slider_dz
+    c63 = 2.0*slider_dx
+    c64 = 2.0*slider_dw
+    c65 = c48*slider_rw
+    c66 = c47*slider_rx
+    c67 = c66 + c65
+    c68 = c60*v_slider_dw
+    c69 = 2.0*slider_rw
+    c70 = c69*v_slider_dx
+    c71 = c58*v_slider_dy
+    c72 = c49*slider_dw
+    c73 = c61*slider_ry
+    c74 = c62*v_slider_ry
+    c75 = c63*v_slider_rw
+    c76 = 2.0*slider_dy
+    c77 = c76*v_slider_rz
+    c78 = c69*v_slider_ry
+    c79 = 2.0*v_slider_rw
+    c80 = c79*slider_ry
+    c81 = c60*v_slider_rz
+    c82 = c49*slider_rz
+    c83 = 2.0*slider_ox
+    c84 = c61*slider_a00 + c83*v_slider_ry
+    c85 = c50*v_slider_dy
+    c86 = c83*v_slider_rz
+    c87 = c83*v_slider_rw - c50*v_slider_dx
+    c88 = c74 + c73 - c68 + c70 + c75 - c77 - c71 - c72
+    c89 = 2.0*slider_a10
+    c90 = c64*v_slider_ry
+    c91 = c69*v_slider_dy
+    c92 = c49*slider_dz
+    c93 = c61*slider_rx
+    c94 = c59*v_slider_dw
+    c95 = c63*v_slider_rz
+    c96 = c76*v_slider_rw
+    c97 = c58*v_slider_dx
+    return [c3*v_crank_dz + c2*v_crank_dx - c1*v_crank_dy - c0*v_crank_dw, c1*v_crank_dx + c2*v_crank_dy - c0*v_crank_dz - c3*v_crank_dw, c2*v_crank_dz + c0*v_crank_dy - c3*v_crank_dx - c1*v_crank_dw, c3*v_crank_rw - c0*v_crank_rz, -c3*v_crank_rz - c0*v_crank_rw, 4.0*v_crank_rz*v_crank_dy + c6*v_crank_rx - c4*v_crank_rw - c9*v_rod_rz + c10*v_rod_ry - c8*v_rod_rx - 4.0*v_crank_ry*v_crank_dz - ((4/5)*v_crank_rx + c7)*v_crank_rx + c5*v_rod_rw - ((4/5)*v_crank_rw + c4)*v_crank_rw, c14*v_crank_rx - c11*v_crank_rw - c4*v_crank_rz - c8*v_rod_ry + c9*v_rod_rw - c15*v_crank_ry + c5*v_rod_rz + c6*v_crank_ry - (-c14 + c13)*v_crank_rx - c10*v_rod_rx - (c16 + c4)*v_crank_rz - c12*v_crank_rw, c9*v_rod_rx + c10*v_rod_rw + c4*v_crank_ry - c5*v_rod_ry + c6*v_crank_rz - c8*v_rod_rz - c11*v_crank_rx - c15*v_crank_rz - (-c16 - c4)*v_crank_ry - c12*v_crank_rx - c14*v_crank_rw - (-c13 + c14)*v_crank_rw, 4.0*v_rod_rz*v_rod_dy + c18*v_rod_rx - c17*v_rod_rw + c23*v_slider_dz - c22*v_slider_dy - c21*v_slider_dw - c20*v_rod_dz - ((12/5)*v_rod_rx + c19)*v_rod_rx + c24*v_slider_dx - ((12/5)*v_rod_rw + c17)*v_rod_rw, c28*v_rod_rx - c25*v_rod_rw + c22*v_slider_dx - c23*v_slider_dw + c24*v_slider_dy - (c31 + c17)*v_rod_rz - c30*v_rod_ry - (-c28 + c27)*v_rod_rx - c17*v_rod_rz - c29*v_slider_rx + c18*v_rod_ry - c26*v_rod_rw, c21*v_slider_dy - c25*v_rod_rx - c30*v_rod_rz - c22*v_slider_dw - (-c31 - c17)*v_rod_ry - c28*v_rod_rw - c26*v_rod_rx + c29*v_slider_rw + c17*v_rod_ry + c18*v_rod_rz - c23*v_slider_dx - (-c27 + c28)*v_rod_rw, -2.0*(c39*rod_ry + c44*v_rod_ry - c45*v_rod_rw - c34*rod_rw)*(c43*slider_rx + c41*slider_ry + c40*v_slider_ry + c42*v_slider_rx) - (c36*v_slider_rz + c37*v_slider_ry + c38*v_slider_rx)*v_slider_rz - (c38*v_slider_rz - c37*v_slider_rw)*v_slider_rx - 2.0*(c22*slider_rz + c24*slider_rw)*(c34*rod_ry + c45*v_rod_ry + c44*v_rod_rw + c39*rod_rw) - (c33*v_rod_ry - c35*v_rod_rw)*v_rod_rz - 2.0*(c43*slider_ry + c42*v_slider_ry - c41*slider_rx - c40*v_slider_rx)*(c20*rod_ry + 4.0*rod_rw*v_rod_rw) - (c34*slider_a22 + c32*v_rod_ry + c39*slider_a02)*v_rod_ry - (c37*v_slider_rz + c38*v_slider_rw)*v_slider_ry - (c38*v_slider_ry - c37*v_slider_rx + c36*v_slider_rw)*v_slider_rw - (c35*v_rod_ry + c33*v_rod_rw)*v_rod_rx - (-c34*slider_a02 + c33*v_rod_rx + c32*v_rod_rw)*v_rod_rw, -c47*v_slider_ry - c46*v_slider_rw, c48*v_slider_ry - c46*v_slider_rx, -(-c81 + c78 + c80 - c82)*c88 - (c84 + c48*slider_oz - c52*v_slider_dx)*v_slider_rw - (c77 - c74 + c72 + c71 - c75 - c70 - c73 + c68)*(c82 + c81 - c80 - c78) - (c87 - c61*slider_a20)*v_slider_ry - 2.0*c67*(-c64*v_slider_rz + c49*slider_dy + c61*slider_rw + c60*v_slider_dy - c59*v_slider_dx - c63*v_slider_ry + c62*v_slider_rw - c58*v_slider_dw) - (-c86 + c47*slider_oz + c85 + c52*v_slider_dw)*v_slider_rx - (-c52*v_slider_ry + c57)*v_slider_dz - (c52*v_slider_rz + c54)*v_slider_dy - (-c53 - c52*v_slider_rw)*v_slider_dx - (-c56 + c52*v_slider_dy - c55)*v_slider_rz - (c51 + c49*slider_a20)*v_slider_dw, -(c87 - c89*v_slider_dy)*v_slider_rz - (c84 - c47*slider_oy - c89*v_slider_dw)*v_slider_rx - (-c48*slider_oy + c89*v_slider_dx + c86 - c85)*v_slider_rw - (c92 - c96 + c93 - c97 - c95 + c90 - c91 + c94)*c67 - 2.0*c88*(c49*slider_ry + c79*slider_rz + c60*v_slider_ry + c69*v_slider_rz) - (c89*v_slider_rw + c51)*v_slider_dx - (c56 + c61*slider_a10 + c55)*v_slider_ry - (c54 + c89*v_slider_ry)*v_slider_dz - (-c57 - c89*v_slider_rz)*v_slider_dy - (-c66 - c65)*(c97 + c96 + c95 - c94 - c93 - c92 + c91 - c90) - (-c49*slider_a10 + c53)*v_slider_dw, c47*v_slider_rw - c46*v_slider_ry, -2.0*(v_crank_ry*v_crank_ry) - 2.0*(v_crank_rz*v_crank_rz) - 2.0*(v_crank_rx*v_crank_rx) - 2.0*(v_crank_rw*v_crank_rw), -2.0*v_crank_rz*v_crank_dz - 2.0*v_crank_ry*v_crank_dy - 2.0*v_crank_rx*v_crank_dx - 2.0*v_crank_rw*v_crank_dw, -2.0*(v_rod_ry*v_rod_ry) - 2.0*(v_rod_rz*v_rod_rz) - 2.0*(v_rod_rx*v_rod_rx) - 2.0*(v_rod_rw*v_rod_rw), -2.0*v_rod_rz*v_rod_dz - 2.0*v_rod_ry*v_rod_dy - 2.0*v_rod_rx*v_rod_dx - 2.0*v_rod_rw*v_rod_dw, -2.0*(v_slider_ry*v_slider_ry) - 2.0*(v_slider_rz*v_slider_rz) - 2.0*(v_slider_rx*v_slider_rx) - 2.0*(v_slider_rw*v_slider_rw), -2.0*v_slider_rz*v_slider_dz - 2.0*v_slider_ry*v_slider_dy - 2.0*v_slider_rx*v_slider_dx - 2.0*v_slider_rw*v_slider_dw]
 
 
 def _drivers_gamma_run_s(q, v, u, ud, udd):
@@ -1164,7 +1257,7 @@ def _drivers_gamma_run_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-udd0*(c1*crank_rw + c2*crank_rz) - (ud0*ud0)*((1/2)*c1*crank_rz - 1/2*c2*crank_rw) - 2.0*ud0*(c1*v_crank_rw + c2*v_crank_rz)]
+    return [-2.0*(c2*v_crank_rz + c1*v_crank_rw)*ud0 - (-1/2*c2*crank_rw + (1/2)*c1*crank_rz)*(ud0*ud0) - (c2*crank_rz + c1*crank_rw)*udd0]
 
 
 def gamma_s_run(q, v, u, ud, udd):
@@ -1177,7 +1270,7 @@ def gamma_s_run(q, v, u, ud, udd):
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = 3/10 + (1/2)*t**2 + 6.283185307179586*t
+    out[0] = 3/10 + 6.283185307179586*t + (1/2)*t**2
     out[1] = 6.283185307179586 + t
     out[2] = 1
     return out
@@ -1212,7 +1305,7 @@ def _drivers_phi_dead_centre(q, u):
     u0, = u
     slider_ox = -2*slider_dw*slider_rx - 2*slider_dy*slider_rz + 2*slider_dx*slider_rw + 2*slider_dz*slider_ry
     out = _zeros(1, q, u)
-    out[0] = slider_ox - u0
+    out[0] = -u0 + slider_ox
     return out
 
 
@@ -1246,7 +1339,7 @@ def _drivers_phi_dead_centre_drivers_jac_dead_centre_s(q, u):
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
     u0, = u
     slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry
-    return [slider_ox - u0], [2.0*slider_dx, -2.0*slider_dw, 2.0*slider_dz, -2.0*slider_dy, -2.0*slider_rx, 2.0*slider_rw, -2.0*slider_rz, 2.0*slider_ry]
+    return [-u0 + slider_ox], [2.0*slider_dx, -2.0*slider_dw, 2.0*slider_dz, -2.0*slider_dy, -2.0*slider_rx, 2.0*slider_rw, -2.0*slider_rz, 2.0*slider_ry]
 
 
 def phi_jac_s_dead_centre(q, u):
@@ -1286,7 +1379,7 @@ def _drivers_gamma_dead_centre(q, v, u, ud, udd):
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_slider_rw, v_slider_rx, v_slider_ry, v_slider_rz, v_slider_dw, v_slider_dx, v_slider_dy, v_slider_dz = v
     udd0, = udd
     out = _zeros(1, q, u)
-    out[0] = udd0 - 4*v_slider_dx*v_slider_rw - 4*v_slider_dz*v_slider_ry + 4*v_slider_dw*v_slider_rx + 4*v_slider_dy*v_slider_rz
+    out[0] = 4*v_slider_rz*v_slider_dy + 4*v_slider_rx*v_slider_dw - 4*v_slider_ry*v_slider_dz - 4*v_slider_rw*v_slider_dx + udd0
     return out
 
 
@@ -1299,7 +1392,7 @@ def _drivers_gamma_dead_centre_s(q, v, u, ud, udd):
     """gamma of the driver rows of case 'dead_centre'. (one configuration, lists of floats)"""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, v_slider_rw, v_slider_rx, v_slider_ry, v_slider_rz, v_slider_dw, v_slider_dx, v_slider_dy, v_slider_dz = v
     udd0, = udd
-    return [udd0 - 4.0*v_slider_dx*v_slider_rw - 4.0*v_slider_dz*v_slider_ry + 4.0*v_slider_dw*v_slider_rx + 4.0*v_slider_dy*v_slider_rz]
+    return [4.0*v_slider_rz*v_slider_dy + 4.0*v_slider_rx*v_slider_dw - 4.0*v_slider_ry*v_slider_dz - 4.0*v_slider_rw*v_slider_dx + udd0]
 
 
 def gamma_s_dead_centre(q, v, u, ud, udd):

@@ -6,6 +6,7 @@
  * parametrization: dual-quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -72,17 +73,17 @@ static void compute_joints_phi(const double *q, double *out) {
     out[2] = -crank_oz;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = crank_ox - rod_ox + (1.0/5.0)*crank_a00;
-    out[6] = crank_oy - rod_oy + (1.0/5.0)*crank_a10;
-    out[7] = crank_oz - rod_oz + (1.0/5.0)*crank_a20;
-    out[8] = rod_ox - slider_ox + (3.0/5.0)*rod_a00;
-    out[9] = rod_oy - slider_oy + (3.0/5.0)*rod_a10;
-    out[10] = rod_oz - slider_oz + (3.0/5.0)*rod_a20;
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22;
+    out[5] = (1.0/5.0)*crank_a00 - rod_ox + crank_ox;
+    out[6] = (1.0/5.0)*crank_a10 - rod_oy + crank_oy;
+    out[7] = (1.0/5.0)*crank_a20 - rod_oz + crank_oz;
+    out[8] = (3.0/5.0)*rod_a00 - slider_ox + rod_ox;
+    out[9] = (3.0/5.0)*rod_a10 - slider_oy + rod_oy;
+    out[10] = (3.0/5.0)*rod_a20 - slider_oz + rod_oz;
+    out[11] = slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01;
     out[12] = slider_a10;
     out[13] = slider_a20;
-    out[14] = slider_a00*slider_oz - slider_a20*slider_ox;
-    out[15] = slider_a10*slider_ox - slider_a00*slider_oy;
+    out[14] = -slider_ox*slider_a20 + slider_oz*slider_a00;
+    out[15] = -slider_oy*slider_a00 + slider_ox*slider_a10;
     out[16] = slider_a12;
 }
 
@@ -92,7 +93,7 @@ static void compute_drivers_phi_run(const double *q, const double *u, double *ou
     const double crank_rz = q[3];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_rz*cos(c0) + 2.0*crank_rw*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_rw - 2.0*cos(c0)*crank_rz;
 }
 
 /* Phi_q values of the joint rows (53 entries). */
@@ -139,12 +140,15 @@ static void compute_joints_jac(const double *q, double *out) {
     const double c3 = (3.0/5.0)*rod_a20;
     const double c4 = (3.0/5.0)*rod_a10;
     const double c5 = (3.0/5.0)*rod_a00;
-    const double c6 = rod_a11*slider_a22 - rod_a21*slider_a12;
-    const double c7 = rod_a01*slider_a22 - rod_a21*slider_a02;
-    const double c8 = rod_a01*slider_a12 - rod_a11*slider_a02;
-    const double c9 = -slider_a20;
-    const double c10 = -slider_a00;
-    const double c11 = slider_a00*slider_ox;
+    const double c6 = slider_a22*rod_a11;
+    const double c7 = slider_a12*rod_a21;
+    const double c8 = slider_a02*rod_a21;
+    const double c9 = slider_a22*rod_a01;
+    const double c10 = slider_a12*rod_a01;
+    const double c11 = slider_a02*rod_a11;
+    const double c12 = -slider_a20;
+    const double c13 = -slider_a00;
+    const double c14 = slider_ox*slider_a00;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -176,26 +180,26 @@ static void compute_joints_jac(const double *q, double *out) {
     out[28] = -c5;
     out[29] = 1.0;
     out[30] = -1.0;
-    out[31] = c6;
-    out[32] = -c7;
-    out[33] = c8;
-    out[34] = -c6;
-    out[35] = c7;
-    out[36] = -c8;
-    out[37] = c9;
+    out[31] = -c7 + c6;
+    out[32] = -c9 + c8;
+    out[33] = -c11 + c10;
+    out[34] = -c6 + c7;
+    out[35] = -c8 + c9;
+    out[36] = -c10 + c11;
+    out[37] = c12;
     out[38] = slider_a00;
     out[39] = slider_a10;
-    out[40] = c10;
-    out[41] = -slider_a10*slider_ox;
-    out[42] = c11 + slider_a20*slider_oz;
-    out[43] = -slider_a10*slider_oz;
-    out[44] = c9;
+    out[40] = c13;
+    out[41] = -slider_ox*slider_a10;
+    out[42] = slider_oz*slider_a20 + c14;
+    out[43] = -slider_oz*slider_a10;
+    out[44] = c12;
     out[45] = slider_a00;
-    out[46] = -slider_a20*slider_ox;
-    out[47] = -slider_a20*slider_oy;
-    out[48] = c11 + slider_a10*slider_oy;
+    out[46] = -slider_ox*slider_a20;
+    out[47] = -slider_oy*slider_a20;
+    out[48] = slider_oy*slider_a10 + c14;
     out[49] = slider_a10;
-    out[50] = c10;
+    out[50] = c13;
     out[51] = -slider_a22;
     out[52] = slider_a02;
 }
@@ -210,8 +214,8 @@ static void compute_drivers_jac_run(const double *q, const double *u, double *ou
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*crank_rx - c2*crank_ry;
-    out[1] = c2*crank_rx - c1*crank_ry;
+    out[0] = -c2*crank_ry - c1*crank_rx;
+    out[1] = -c1*crank_ry + c2*crank_rx;
     out[2] = -c1*crank_rz - c2*crank_rw;
 }
 
@@ -222,7 +226,7 @@ static void compute_drivers_nu_run(const double *q, const double *u, const doubl
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_rw*cos(c0) + crank_rz*sin(c0));
+    out[0] = -(sin(c0)*crank_rz + cos(c0)*crank_rw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -276,41 +280,43 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz;
     const double slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz;
     const double slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz);
-    const double c0 = -1.0/5.0*crank_a00*v_crank_wy + (1.0/5.0)*crank_a10*v_crank_wx;
-    const double c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx;
-    const double c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz;
-    const double c3 = -3.0/5.0*rod_a00*v_rod_wy + (3.0/5.0)*rod_a10*v_rod_wx;
-    const double c4 = rod_a00*v_rod_wz - rod_a20*v_rod_wx;
-    const double c5 = rod_a20*v_rod_wy - rod_a10*v_rod_wz;
-    const double c6 = v_rod_wy - v_slider_wy;
-    const double c7 = v_rod_wx - v_slider_wx;
-    const double c8 = -c7;
-    const double c9 = v_rod_wz - v_slider_wz;
-    const double c10 = -c9;
-    const double c11 = -c6;
-    const double c12 = slider_a00*v_slider_wy - slider_a10*v_slider_wx;
-    const double c13 = -c12;
-    const double c14 = slider_a10*v_slider_wz - slider_a20*v_slider_wy;
-    const double c15 = -c14;
-    const double c16 = slider_a00*v_slider_wz - slider_a20*v_slider_wx;
-    const double c17 = slider_ox*v_slider_wx;
+    const double c0 = (1.0/5.0)*(-crank_a00*v_crank_wy + crank_a10*v_crank_wx);
+    const double c1 = (1.0/5.0)*(-crank_a20*v_crank_wx + crank_a00*v_crank_wz);
+    const double c2 = (1.0/5.0)*(-crank_a10*v_crank_wz + crank_a20*v_crank_wy);
+    const double c3 = (3.0/5.0)*(-rod_a00*v_rod_wy + rod_a10*v_rod_wx);
+    const double c4 = (3.0/5.0)*(-rod_a20*v_rod_wx + rod_a00*v_rod_wz);
+    const double c5 = (3.0/5.0)*(-rod_a10*v_rod_wz + rod_a20*v_rod_wy);
+    const double c6 = -rod_a21*v_rod_wx + rod_a01*v_rod_wz;
+    const double c7 = -slider_a22*v_slider_wx + slider_a02*v_slider_wz;
+    const double c8 = -rod_a01*v_rod_wy + rod_a11*v_rod_wx;
+    const double c9 = -slider_a02*v_slider_wy + slider_a12*v_slider_wx;
+    const double c10 = -rod_a11*v_rod_wz + rod_a21*v_rod_wy;
+    const double c11 = -slider_a12*v_slider_wz + slider_a22*v_slider_wy;
+    const double c12 = slider_a10*v_slider_wx;
+    const double c13 = slider_a00*v_slider_wy;
+    const double c14 = -c13 + c12;
+    const double c15 = slider_a20*v_slider_wy;
+    const double c16 = slider_a10*v_slider_wz;
+    const double c17 = -c16 + c15;
+    const double c18 = -slider_a20*v_slider_wx + slider_a00*v_slider_wz;
+    const double c19 = -slider_ox*v_slider_wx;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx);
-    out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx);
-    out[5] = -c0*v_crank_wy + (1.0/5.0)*c1*v_crank_wz;
-    out[6] = c0*v_crank_wx - 1.0/5.0*c2*v_crank_wz;
-    out[7] = -1.0/5.0*c1*v_crank_wx + (1.0/5.0)*c2*v_crank_wy;
-    out[8] = -c3*v_rod_wy + (3.0/5.0)*c4*v_rod_wz;
-    out[9] = c3*v_rod_wx - 3.0/5.0*c5*v_rod_wz;
-    out[10] = -3.0/5.0*c4*v_rod_wx + (3.0/5.0)*c5*v_rod_wy;
-    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz);
-    out[12] = c13*v_slider_wx - c15*v_slider_wz;
-    out[13] = c15*v_slider_wy - c16*v_slider_wx;
-    out[14] = -c12*v_slider_vx - c13*(-v_slider_vx + slider_oz*v_slider_wy) - c15*v_slider_vz - c15*(v_slider_vz + slider_ox*v_slider_wy) - c16*(-c17 - slider_oz*v_slider_wz);
-    out[15] = -c13*(-c17 - slider_oy*v_slider_wy) - c14*v_slider_vy - c15*(-v_slider_vy + slider_ox*v_slider_wz) - c16*v_slider_vx - c16*(v_slider_vx + slider_oy*v_slider_wz);
-    out[16] = v_slider_wx*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz);
+    out[3] = -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy;
+    out[4] = -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy;
+    out[5] = c1*v_crank_wz - c0*v_crank_wy;
+    out[6] = c0*v_crank_wx - c2*v_crank_wz;
+    out[7] = c2*v_crank_wy - c1*v_crank_wx;
+    out[8] = c4*v_rod_wz - c3*v_rod_wy;
+    out[9] = c3*v_rod_wx - c5*v_rod_wz;
+    out[10] = c5*v_rod_wy - c4*v_rod_wx;
+    out[11] = -c11*(c10 - rod_a21*v_slider_wy + rod_a11*v_slider_wz) - c10*(c11 + slider_a12*v_rod_wz - slider_a22*v_rod_wy) - c8*(c9 + slider_a02*v_rod_wy - slider_a12*v_rod_wx) - c9*(c8 + rod_a01*v_slider_wy - rod_a11*v_slider_wx) - c7*(c6 - rod_a01*v_slider_wz + rod_a21*v_slider_wx) - c6*(c7 - slider_a02*v_rod_wz + slider_a22*v_rod_wx);
+    out[12] = -c17*v_slider_wz + c14*v_slider_wx;
+    out[13] = -c18*v_slider_wx + c17*v_slider_wy;
+    out[14] = -c14*(-v_slider_vx + slider_oz*v_slider_wy) - c17*(slider_ox*v_slider_wy + v_slider_vz) - c17*v_slider_vz - c18*(-slider_oz*v_slider_wz + c19) - (-c12 + c13)*v_slider_vx;
+    out[15] = -c17*(-v_slider_vy + slider_ox*v_slider_wz) - c14*(-slider_oy*v_slider_wy + c19) - c18*(slider_oy*v_slider_wz + v_slider_vx) - (-c15 + c16)*v_slider_vy - c18*v_slider_vx;
+    out[16] = -(-slider_a12*v_slider_wz + slider_a22*v_slider_wy)*v_slider_wz + (-slider_a02*v_slider_wy + slider_a12*v_slider_wx)*v_slider_wx;
 }
 
 /* gamma of the driver rows of case 'run'. */
@@ -328,19 +334,20 @@ static void compute_drivers_gamma_run(const double *q, const double *v, const do
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*crank_rw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*crank_rz;
-    const double c5 = (1.0/2.0)*v_crank_wy;
-    const double c6 = (1.0/2.0)*v_crank_wx;
-    const double c7 = (1.0/2.0)*crank_rz;
-    const double c8 = (1.0/2.0)*v_crank_wz;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2.0*ud0*(c4*v_crank_wz + v_crank_wx*((1.0/2.0)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1.0/2.0*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx);
+    const double c3 = (1.0/2.0)*c2;
+    const double c4 = (1.0/2.0)*crank_rx;
+    const double c5 = c3*crank_rw;
+    const double c6 = (1.0/2.0)*c1;
+    const double c7 = c6*crank_rz;
+    const double c8 = (1.0/2.0)*crank_ry;
+    const double c9 = (1.0/2.0)*crank_rz;
+    const double c10 = (1.0/2.0)*crank_rw;
+    out[0] = c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2.0*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0;
 }
 
 /* Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_run(double t, double *out) {
-    out[0] = 3.0/10.0 + (1.0/2.0)*(t*t) + 6.283185307179586*t;
+    out[0] = 3.0/10.0 + 6.283185307179586*t + (1.0/2.0)*(t*t);
     out[1] = 6.283185307179586 + t;
     out[2] = 1.0;
 }
@@ -378,7 +385,7 @@ static void compute_drivers_phi_dead_centre(const double *q, const double *u, do
     const double slider_dz = q[23];
     const double u0 = u[0];
     const double slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry;
-    out[0] = slider_ox - u0;
+    out[0] = -u0 + slider_ox;
 }
 
 /* Phi_q values of the driver rows of case 'dead_centre'. */
@@ -629,46 +636,47 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step0*step0);
     const double _t1 = (step1*step1);
     const double _t2 = (step2*step2);
-    const double _t3 = (1.0/4.0)*_t0 + (1.0/4.0)*_t1 + (1.0/4.0)*_t2;
+    const double _t3 = (1.0/4.0)*_t2 + (1.0/4.0)*_t1 + (1.0/4.0)*_t0;
     const double _t4 = sqrt(_t3);
     const double _t5 = cos(_t4);
     const double _t6 = (_t3*_t3);
-    const double _t7 = _t4 < 0.0001;
-    const double _t8 = sin(_t4)/_t4;
-    const double _t9 = ((_t7) ? ( 1.0 - 1.0/24.0*_t0 - 1.0/24.0*_t1 - 1.0/24.0*_t2 + (1.0/120.0)*_t6 ) : ( _t8 ));
-    const double _t10 = (1.0/2.0)*step0;
-    const double _t11 = _t10*_t9;
-    const double _t12 = (1.0/2.0)*step1;
-    const double _t13 = _t12*_t9;
-    const double _t14 = (1.0/2.0)*step2;
-    const double _t15 = _t14*_t9;
-    const double _t16 = (1.0/2.0)*step3;
-    const double _t17 = (1.0/2.0)*step5;
-    const double _t18 = 2.0*q7;
-    const double _t19 = 2.0*q6;
-    const double _t20 = 2.0*q2;
-    const double _t21 = 2.0*q3;
-    const double _t22 = (1.0/2.0)*_t17 + (1.0/2.0)*_t18*q0 + (1.0/2.0)*_t19*q1 - 1.0/2.0*_t20*q5 - 1.0/2.0*_t21*q4;
-    const double _t23 = (1.0/2.0)*step4;
-    const double _t24 = _t23 + _t19*q0 + _t21*q5 - _t18*q1 - _t20*q4;
-    const double _t25 = _t16 + _t14*_t24 - _t22*step1;
-    const double _t26 = _t16 + _t18*q2 - _t19*q3 - 2.0*q1*q4 + 2.0*q0*q5;
-    const double _t27 = _t23 + _t22*step0 - _t14*_t26;
-    const double _t28 = _t17 + _t12*_t26 - _t10*_t24;
-    const double _t29 = _t10*_t25 + _t12*_t27 + _t14*_t28;
-    const double _t30 = _t29*_t9;
-    const double _t31 = _t29*((_t7) ? ( -1.0/3.0 - 1.0/840.0*_t6 + (1.0/120.0)*_t0 + (1.0/120.0)*_t1 + (1.0/120.0)*_t2 ) : ( (_t5 - _t8)/_t3 ));
-    const double _t32 = _t10*_t31 + _t25*_t9;
-    const double _t33 = _t12*_t31 + _t27*_t9;
-    const double _t34 = _t14*_t31 + _t28*_t9;
-    const double moved0 = _t5*q0 - _t11*q1 - _t13*q2 - _t15*q3;
-    const double moved1 = _t11*q0 + _t13*q3 + _t5*q1 - _t15*q2;
-    const double moved2 = _t13*q0 + _t15*q1 + _t5*q2 - _t11*q3;
-    const double moved3 = _t11*q2 + _t15*q0 + _t5*q3 - _t13*q1;
-    const double moved4 = _t5*q4 - _t11*q5 - _t13*q6 - _t15*q7 - _t30*q0 - _t32*q1 - _t33*q2 - _t34*q3;
-    const double moved5 = _t11*q4 + _t13*q7 + _t32*q0 + _t33*q3 + _t5*q5 - _t15*q6 - _t30*q1 - _t34*q2;
-    const double moved6 = _t13*q4 + _t15*q5 + _t33*q0 + _t34*q1 + _t5*q6 - _t11*q7 - _t30*q2 - _t32*q3;
-    const double moved7 = _t11*q6 + _t15*q4 + _t32*q2 + _t34*q0 + _t5*q7 - _t13*q5 - _t30*q3 - _t33*q1;
+    const double _t7 = sin(_t4)/_t4;
+    const double _t8 = ((_t4 < 0.0001) ? ( 1.0 + (1.0/120.0)*_t6 - 1.0/24.0*_t2 - 1.0/24.0*_t1 - 1.0/24.0*_t0 ) : ( _t7 ));
+    const double _t9 = (1.0/2.0)*step0;
+    const double _t10 = _t8*_t9;
+    const double _t11 = (1.0/2.0)*step1;
+    const double _t12 = _t8*_t11;
+    const double _t13 = (1.0/2.0)*step2;
+    const double _t14 = _t8*_t13;
+    const double _t15 = (1.0/2.0)*step3;
+    const double _t16 = (1.0/2.0)*step4;
+    const double _t17 = 2.0*q1;
+    const double _t18 = 2.0*q3;
+    const double _t19 = 2.0*q2;
+    const double _t20 = 2.0*q0;
+    const double _t21 = q6*_t20 + q5*_t18 - q7*_t17 - q4*_t19 + _t16;
+    const double _t22 = (1.0/2.0)*step5;
+    const double _t23 = 2.0*q5;
+    const double _t24 = q7*_t20 - q4*_t18 - q2*_t23 + q6*_t17 + _t22;
+    const double _t25 = -_t24*_t11 + _t21*_t13 + _t15;
+    const double _t26 = q7*_t19 + q0*_t23 - q6*_t18 - q4*_t17 + _t15;
+    const double _t27 = -_t21*_t9 + _t26*_t11 + _t22;
+    const double _t28 = -_t26*_t13 + _t24*_t9 + _t16;
+    const double _t29 = _t28*_t11 + _t27*_t13 + _t25*_t9;
+    const double _t30 = _t29*((_t4 < 0.0001) ? ( -1.0/3.0 + (1.0/120.0)*_t2 + (1.0/120.0)*_t1 + (1.0/120.0)*_t0 - 1.0/840.0*_t6 ) : ( (_t5 - _t7)/_t3 ));
+    const double _t31 = _t30*_t9 + _t8*_t25;
+    const double _t32 = _t30*_t11 + _t8*_t28;
+    const double _t33 = _t8*_t29;
+    const double _t34 = _t30*_t13 + _t8*_t27;
+    const double _t35 = q7*_t8;
+    const double moved0 = -q3*_t14 - q2*_t12 - q1*_t10 + q0*_t5;
+    const double moved1 = -q2*_t14 + q3*_t12 + q0*_t10 + q1*_t5;
+    const double moved2 = -q3*_t10 + q1*_t14 + q0*_t12 + q2*_t5;
+    const double moved3 = -q1*_t12 + q0*_t14 + q2*_t10 + q3*_t5;
+    const double moved4 = -q5*_t10 - _t35*_t13 - q3*_t34 - q6*_t12 - q0*_t33 - q2*_t32 - q1*_t31 + q4*_t5;
+    const double moved5 = -q6*_t14 - q1*_t33 - q2*_t34 + q3*_t32 + q4*_t10 + _t35*_t11 + q5*_t5 + q0*_t31;
+    const double moved6 = -q7*_t10 - q2*_t33 + q5*_t14 + q4*_t12 - q3*_t31 + q6*_t5 + q1*_t34 + q0*_t32;
+    const double moved7 = q6*_t10 - q5*_t12 - q3*_t33 + q7*_t5 + q2*_t31 + q4*_t14 - q1*_t32 + q0*_t34;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

@@ -6,6 +6,7 @@ source sha256:   60be577912c1de5d6cb08914f5dcec030f80d42df4541fca4ab6085ed6bd59b
 parametrization: dual-quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 24) and v (velocity, 18) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -49,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_dual_quaternion.h': '4ed7b8e99db51469a2cfef3de9bb49d649bea4492bf7b2479dce8b8e87931e49', 'slider_crank_dual_quaternion.c': 'd2e0cc7ddf11d36a6d179c90518ed4c5beafc68725309519b332fa4cfff76fa5'}
+C_FILES = {'slider_crank_dual_quaternion.h': '3c5886074a0f8b1df5e37581ca60b82c80f1a25788cd4d549f1e8b1f3ddbd80a', 'slider_crank_dual_quaternion.c': 'f55fb958ab73b906d280bbc4698f96f96fd14ea20af3bda382307db8cfca973a'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -390,17 +391,17 @@ def _joints_phi(q):
     out[2] = -crank_oz
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = crank_ox - rod_ox + (1/5)*crank_a00
-    out[6] = crank_oy - rod_oy + (1/5)*crank_a10
-    out[7] = crank_oz - rod_oz + (1/5)*crank_a20
-    out[8] = rod_ox - slider_ox + (3/5)*rod_a00
-    out[9] = rod_oy - slider_oy + (3/5)*rod_a10
-    out[10] = rod_oz - slider_oz + (3/5)*rod_a20
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
+    out[5] = (1/5)*crank_a00 - rod_ox + crank_ox
+    out[6] = (1/5)*crank_a10 - rod_oy + crank_oy
+    out[7] = (1/5)*crank_a20 - rod_oz + crank_oz
+    out[8] = (3/5)*rod_a00 - slider_ox + rod_ox
+    out[9] = (3/5)*rod_a10 - slider_oy + rod_oy
+    out[10] = (3/5)*rod_a20 - slider_oz + rod_oz
+    out[11] = slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01
     out[12] = slider_a10
     out[13] = slider_a20
-    out[14] = slider_a00*slider_oz - slider_a20*slider_ox
-    out[15] = slider_a10*slider_ox - slider_a00*slider_oy
+    out[14] = -slider_ox*slider_a20 + slider_oz*slider_a00
+    out[15] = -slider_oy*slider_a00 + slider_ox*slider_a10
     out[16] = slider_a12
     return out
 
@@ -411,7 +412,7 @@ def _drivers_phi_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_rz*cos(c0) + 2*crank_rw*sin(c0)
+    out[0] = 2*sin(c0)*crank_rw - 2*cos(c0)*crank_rz
     return out
 
 
@@ -449,12 +450,15 @@ def _joints_jac(q):
     c3 = (3/5)*rod_a20
     c4 = (3/5)*rod_a10
     c5 = (3/5)*rod_a00
-    c6 = rod_a11*slider_a22 - rod_a21*slider_a12
-    c7 = rod_a01*slider_a22 - rod_a21*slider_a02
-    c8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    c9 = -slider_a20
-    c10 = -slider_a00
-    c11 = slider_a00*slider_ox
+    c6 = slider_a22*rod_a11
+    c7 = slider_a12*rod_a21
+    c8 = slider_a02*rod_a21
+    c9 = slider_a22*rod_a01
+    c10 = slider_a12*rod_a01
+    c11 = slider_a02*rod_a11
+    c12 = -slider_a20
+    c13 = -slider_a00
+    c14 = slider_ox*slider_a00
     out = _zeros(53, q, ())
     out[0] = -1
     out[1] = -1
@@ -487,26 +491,26 @@ def _joints_jac(q):
     out[28] = -c5
     out[29] = 1
     out[30] = -1
-    out[31] = c6
-    out[32] = -c7
-    out[33] = c8
-    out[34] = -c6
-    out[35] = c7
-    out[36] = -c8
-    out[37] = c9
+    out[31] = -c7 + c6
+    out[32] = -c9 + c8
+    out[33] = -c11 + c10
+    out[34] = -c6 + c7
+    out[35] = -c8 + c9
+    out[36] = -c10 + c11
+    out[37] = c12
     out[38] = slider_a00
     out[39] = slider_a10
-    out[40] = c10
-    out[41] = -slider_a10*slider_ox
-    out[42] = c11 + slider_a20*slider_oz
-    out[43] = -slider_a10*slider_oz
-    out[44] = c9
+    out[40] = c13
+    out[41] = -slider_ox*slider_a10
+    out[42] = slider_oz*slider_a20 + c14
+    out[43] = -slider_oz*slider_a10
+    out[44] = c12
     out[45] = slider_a00
-    out[46] = -slider_a20*slider_ox
-    out[47] = -slider_a20*slider_oy
-    out[48] = c11 + slider_a10*slider_oy
+    out[46] = -slider_ox*slider_a20
+    out[47] = -slider_oy*slider_a20
+    out[48] = slider_oy*slider_a10 + c14
     out[49] = slider_a10
-    out[50] = c10
+    out[50] = c13
     out[51] = -slider_a22
     out[52] = slider_a02
     return out
@@ -520,8 +524,8 @@ def _drivers_jac_run(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*crank_rx - c2*crank_ry
-    out[1] = c2*crank_rx - c1*crank_ry
+    out[0] = -c2*crank_ry - c1*crank_rx
+    out[1] = -c1*crank_ry + c2*crank_rx
     out[2] = -c1*crank_rz - c2*crank_rw
     return out
 
@@ -567,13 +571,16 @@ def _joints_phi_joints_jac_s(q):
     d3 = (3/5)*rod_a20
     d4 = (3/5)*rod_a10
     d5 = (3/5)*rod_a00
-    d6 = rod_a11*slider_a22 - rod_a21*slider_a12
-    d7 = rod_a01*slider_a22 - rod_a21*slider_a02
-    d8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    d9 = -slider_a20
-    d10 = -slider_a00
-    d11 = slider_a00*slider_ox
-    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, crank_ox - rod_ox + (1/5)*crank_a00, crank_oy - rod_oy + (1/5)*crank_a10, crank_oz - rod_oz + (1/5)*crank_a20, rod_ox - slider_ox + (3/5)*rod_a00, rod_oy - slider_oy + (3/5)*rod_a10, rod_oz - slider_oz + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a10, slider_a20, slider_a00*slider_oz - slider_a20*slider_ox, slider_a10*slider_ox - slider_a00*slider_oy, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, 1.0, -1.0, -d3, d5, 1.0, -1.0, d4, -d5, 1.0, -1.0, d6, -d7, d8, -d6, d7, -d8, d9, slider_a00, slider_a10, d10, -slider_a10*slider_ox, d11 + slider_a20*slider_oz, -slider_a10*slider_oz, d9, slider_a00, -slider_a20*slider_ox, -slider_a20*slider_oy, d11 + slider_a10*slider_oy, slider_a10, d10, -slider_a22, slider_a02]
+    d6 = slider_a22*rod_a11
+    d7 = slider_a12*rod_a21
+    d8 = slider_a02*rod_a21
+    d9 = slider_a22*rod_a01
+    d10 = slider_a12*rod_a01
+    d11 = slider_a02*rod_a11
+    d12 = -slider_a20
+    d13 = -slider_a00
+    d14 = slider_ox*slider_a00
+    return [-crank_ox, -crank_oy, -crank_oz, crank_a20, crank_a21, (1/5)*crank_a00 - rod_ox + crank_ox, (1/5)*crank_a10 - rod_oy + crank_oy, (1/5)*crank_a20 - rod_oz + crank_oz, (3/5)*rod_a00 - slider_ox + rod_ox, (3/5)*rod_a10 - slider_oy + rod_oy, (3/5)*rod_a20 - slider_oz + rod_oz, slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01, slider_a10, slider_a20, -slider_ox*slider_a20 + slider_oz*slider_a00, -slider_oy*slider_a00 + slider_ox*slider_a10, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, d0, -d1, 1.0, -1.0, -d0, d2, 1.0, -1.0, d1, -d2, 1.0, -1.0, d3, -d4, 1.0, -1.0, -d3, d5, 1.0, -1.0, d4, -d5, 1.0, -1.0, -d7 + d6, -d9 + d8, -d11 + d10, -d6 + d7, -d8 + d9, -d10 + d11, d12, slider_a00, slider_a10, d13, -slider_ox*slider_a10, slider_oz*slider_a20 + d14, -slider_oz*slider_a10, d12, slider_a00, -slider_ox*slider_a20, -slider_oy*slider_a20, slider_oy*slider_a10 + d14, slider_a10, d13, -slider_a22, slider_a02]
 
 
 def _drivers_phi_run_drivers_jac_run_s(q, u):
@@ -584,7 +591,7 @@ def _drivers_phi_run_drivers_jac_run_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*crank_rz*math.cos(c0) + 2.0*crank_rw*math.sin(c0)], [-d1*crank_rx - d2*crank_ry, d2*crank_rx - d1*crank_ry, -d1*crank_rz - d2*crank_rw]
+    return [2.0*math.sin(c0)*crank_rw - 2.0*math.cos(c0)*crank_rz], [-d2*crank_ry - d1*crank_rx, -d1*crank_ry + d2*crank_rx, -d1*crank_rz - d2*crank_rw]
 
 
 def phi_jac_s_run(q, u):
@@ -601,7 +608,7 @@ def _drivers_nu_run(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_rw*cos(c0) + crank_rz*sin(c0))
+    out[0] = -(sin(c0)*crank_rz + cos(c0)*crank_rw)*ud0
     return out
 
 
@@ -616,7 +623,7 @@ def _drivers_nu_run_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_rw*math.cos(c0) + crank_rz*math.sin(c0))]
+    return [-(math.sin(c0)*crank_rz + math.cos(c0)*crank_rw)*ud0]
 
 
 def nu_s_run(q, u, ud):
@@ -650,39 +657,41 @@ def _joints_gamma(q, v):
     slider_a12 = -2*slider_rw*slider_rx + 2*slider_ry*slider_rz
     slider_a20 = -2*slider_rw*slider_ry + 2*slider_rx*slider_rz
     slider_a22 = -1 + 2*slider_rw**2 + 2*slider_rz**2
-    c0 = -1/5*crank_a00*v_crank_wy + (1/5)*crank_a10*v_crank_wx
-    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c3 = -3/5*rod_a00*v_rod_wy + (3/5)*rod_a10*v_rod_wx
-    c4 = rod_a00*v_rod_wz - rod_a20*v_rod_wx
-    c5 = rod_a20*v_rod_wy - rod_a10*v_rod_wz
-    c6 = v_rod_wy - v_slider_wy
-    c7 = v_rod_wx - v_slider_wx
-    c8 = -c7
-    c9 = v_rod_wz - v_slider_wz
-    c10 = -c9
-    c11 = -c6
-    c12 = slider_a00*v_slider_wy - slider_a10*v_slider_wx
-    c13 = -c12
-    c14 = slider_a10*v_slider_wz - slider_a20*v_slider_wy
-    c15 = -c14
-    c16 = slider_a00*v_slider_wz - slider_a20*v_slider_wx
-    c17 = slider_ox*v_slider_wx
+    c0 = (1/5)*(-crank_a00*v_crank_wy + crank_a10*v_crank_wx)
+    c1 = (1/5)*(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)
+    c2 = (1/5)*(-crank_a10*v_crank_wz + crank_a20*v_crank_wy)
+    c3 = (3/5)*(-rod_a00*v_rod_wy + rod_a10*v_rod_wx)
+    c4 = (3/5)*(-rod_a20*v_rod_wx + rod_a00*v_rod_wz)
+    c5 = (3/5)*(-rod_a10*v_rod_wz + rod_a20*v_rod_wy)
+    c6 = -rod_a21*v_rod_wx + rod_a01*v_rod_wz
+    c7 = -slider_a22*v_slider_wx + slider_a02*v_slider_wz
+    c8 = -rod_a01*v_rod_wy + rod_a11*v_rod_wx
+    c9 = -slider_a02*v_slider_wy + slider_a12*v_slider_wx
+    c10 = -rod_a11*v_rod_wz + rod_a21*v_rod_wy
+    c11 = -slider_a12*v_slider_wz + slider_a22*v_slider_wy
+    c12 = slider_a10*v_slider_wx
+    c13 = slider_a00*v_slider_wy
+    c14 = -c13 + c12
+    c15 = slider_a20*v_slider_wy
+    c16 = slider_a10*v_slider_wz
+    c17 = -c16 + c15
+    c18 = -slider_a20*v_slider_wx + slider_a00*v_slider_wz
+    c19 = -slider_ox*v_slider_wx
     out = _zeros(17, q, ())
-    out[3] = v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx)
-    out[4] = v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx)
-    out[5] = -c0*v_crank_wy + (1/5)*c1*v_crank_wz
-    out[6] = c0*v_crank_wx - 1/5*c2*v_crank_wz
-    out[7] = -1/5*c1*v_crank_wx + (1/5)*c2*v_crank_wy
-    out[8] = -c3*v_rod_wy + (3/5)*c4*v_rod_wz
-    out[9] = c3*v_rod_wx - 3/5*c5*v_rod_wz
-    out[10] = -3/5*c4*v_rod_wx + (3/5)*c5*v_rod_wy
-    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz)
-    out[12] = c13*v_slider_wx - c15*v_slider_wz
-    out[13] = c15*v_slider_wy - c16*v_slider_wx
-    out[14] = -c12*v_slider_vx - c13*(-v_slider_vx + slider_oz*v_slider_wy) - c15*v_slider_vz - c15*(v_slider_vz + slider_ox*v_slider_wy) - c16*(-c17 - slider_oz*v_slider_wz)
-    out[15] = -c13*(-c17 - slider_oy*v_slider_wy) - c14*v_slider_vy - c15*(-v_slider_vy + slider_ox*v_slider_wz) - c16*v_slider_vx - c16*(v_slider_vx + slider_oy*v_slider_wz)
-    out[16] = v_slider_wx*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz)
+    out[3] = -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy
+    out[4] = -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy
+    out[5] = c1*v_crank_wz - c0*v_crank_wy
+    out[6] = c0*v_crank_wx - c2*v_crank_wz
+    out[7] = c2*v_crank_wy - c1*v_crank_wx
+    out[8] = c4*v_rod_wz - c3*v_rod_wy
+    out[9] = c3*v_rod_wx - c5*v_rod_wz
+    out[10] = c5*v_rod_wy - c4*v_rod_wx
+    out[11] = -c11*(c10 - rod_a21*v_slider_wy + rod_a11*v_slider_wz) - c10*(c11 + slider_a12*v_rod_wz - slider_a22*v_rod_wy) - c8*(c9 + slider_a02*v_rod_wy - slider_a12*v_rod_wx) - c9*(c8 + rod_a01*v_slider_wy - rod_a11*v_slider_wx) - c7*(c6 - rod_a01*v_slider_wz + rod_a21*v_slider_wx) - c6*(c7 - slider_a02*v_rod_wz + slider_a22*v_rod_wx)
+    out[12] = -c17*v_slider_wz + c14*v_slider_wx
+    out[13] = -c18*v_slider_wx + c17*v_slider_wy
+    out[14] = -c14*(-v_slider_vx + slider_oz*v_slider_wy) - c17*(slider_ox*v_slider_wy + v_slider_vz) - c17*v_slider_vz - c18*(-slider_oz*v_slider_wz + c19) - (-c12 + c13)*v_slider_vx
+    out[15] = -c17*(-v_slider_vy + slider_ox*v_slider_wz) - c14*(-slider_oy*v_slider_wy + c19) - c18*(slider_oy*v_slider_wz + v_slider_vx) - (-c15 + c16)*v_slider_vy - c18*v_slider_vx
+    out[16] = -(-slider_a12*v_slider_wz + slider_a22*v_slider_wy)*v_slider_wz + (-slider_a02*v_slider_wy + slider_a12*v_slider_wx)*v_slider_wx
     return out
 
 
@@ -696,15 +705,16 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*crank_rw
-    c4 = c2*c3 - 1/2*c1*crank_rz
-    c5 = (1/2)*v_crank_wy
-    c6 = (1/2)*v_crank_wx
-    c7 = (1/2)*crank_rz
-    c8 = (1/2)*v_crank_wz
-    c9 = (1/2)*c1
+    c3 = (1/2)*c2
+    c4 = (1/2)*crank_rx
+    c5 = c3*crank_rw
+    c6 = (1/2)*c1
+    c7 = c6*crank_rz
+    c8 = (1/2)*crank_ry
+    c9 = (1/2)*crank_rz
+    c10 = (1/2)*crank_rw
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2*ud0*(c4*v_crank_wz + v_crank_wx*((1/2)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1/2*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx)
+    out[0] = c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*ud0**2 + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0
     return out
 
 
@@ -738,25 +748,27 @@ def _joints_gamma_s(q, v):
     slider_a12 = -2.0*slider_rw*slider_rx + 2.0*slider_ry*slider_rz
     slider_a20 = -2.0*slider_rw*slider_ry + 2.0*slider_rx*slider_rz
     slider_a22 = -1.0 + 2.0*(slider_rw*slider_rw) + 2.0*(slider_rz*slider_rz)
-    c0 = -1/5*crank_a00*v_crank_wy + (1/5)*crank_a10*v_crank_wx
-    c1 = crank_a00*v_crank_wz - crank_a20*v_crank_wx
-    c2 = crank_a20*v_crank_wy - crank_a10*v_crank_wz
-    c3 = -3/5*rod_a00*v_rod_wy + (3/5)*rod_a10*v_rod_wx
-    c4 = rod_a00*v_rod_wz - rod_a20*v_rod_wx
-    c5 = rod_a20*v_rod_wy - rod_a10*v_rod_wz
-    c6 = v_rod_wy - v_slider_wy
-    c7 = v_rod_wx - v_slider_wx
-    c8 = -c7
-    c9 = v_rod_wz - v_slider_wz
-    c10 = -c9
-    c11 = -c6
-    c12 = slider_a00*v_slider_wy - slider_a10*v_slider_wx
-    c13 = -c12
-    c14 = slider_a10*v_slider_wz - slider_a20*v_slider_wy
-    c15 = -c14
-    c16 = slider_a00*v_slider_wz - slider_a20*v_slider_wx
-    c17 = slider_ox*v_slider_wx
-    return [0.0, 0.0, 0.0, v_crank_wy*(crank_a20*v_crank_wy - crank_a10*v_crank_wz) - v_crank_wx*(crank_a00*v_crank_wz - crank_a20*v_crank_wx), v_crank_wy*(crank_a21*v_crank_wy - crank_a11*v_crank_wz) - v_crank_wx*(crank_a01*v_crank_wz - crank_a21*v_crank_wx), -c0*v_crank_wy + (1/5)*c1*v_crank_wz, c0*v_crank_wx - 1/5*c2*v_crank_wz, -1/5*c1*v_crank_wx + (1/5)*c2*v_crank_wy, -c3*v_rod_wy + (3/5)*c4*v_rod_wz, c3*v_rod_wx - 3/5*c5*v_rod_wz, -3/5*c4*v_rod_wx + (3/5)*c5*v_rod_wy, -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_wy - slider_a12*v_slider_wz) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_wx - rod_a01*v_rod_wy) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_wz - rod_a21*v_rod_wx) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_wz - slider_a22*v_slider_wx) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_wy - rod_a11*v_rod_wz), c13*v_slider_wx - c15*v_slider_wz, c15*v_slider_wy - c16*v_slider_wx, -c12*v_slider_vx - c13*(-v_slider_vx + slider_oz*v_slider_wy) - c15*v_slider_vz - c15*(v_slider_vz + slider_ox*v_slider_wy) - c16*(-c17 - slider_oz*v_slider_wz), -c13*(-c17 - slider_oy*v_slider_wy) - c14*v_slider_vy - c15*(-v_slider_vy + slider_ox*v_slider_wz) - c16*v_slider_vx - c16*(v_slider_vx + slider_oy*v_slider_wz), v_slider_wx*(slider_a12*v_slider_wx - slider_a02*v_slider_wy) - v_slider_wz*(slider_a22*v_slider_wy - slider_a12*v_slider_wz)]
+    c0 = (1/5)*(-crank_a00*v_crank_wy + crank_a10*v_crank_wx)
+    c1 = (1/5)*(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)
+    c2 = (1/5)*(-crank_a10*v_crank_wz + crank_a20*v_crank_wy)
+    c3 = (3/5)*(-rod_a00*v_rod_wy + rod_a10*v_rod_wx)
+    c4 = (3/5)*(-rod_a20*v_rod_wx + rod_a00*v_rod_wz)
+    c5 = (3/5)*(-rod_a10*v_rod_wz + rod_a20*v_rod_wy)
+    c6 = -rod_a21*v_rod_wx + rod_a01*v_rod_wz
+    c7 = -slider_a22*v_slider_wx + slider_a02*v_slider_wz
+    c8 = -rod_a01*v_rod_wy + rod_a11*v_rod_wx
+    c9 = -slider_a02*v_slider_wy + slider_a12*v_slider_wx
+    c10 = -rod_a11*v_rod_wz + rod_a21*v_rod_wy
+    c11 = -slider_a12*v_slider_wz + slider_a22*v_slider_wy
+    c12 = slider_a10*v_slider_wx
+    c13 = slider_a00*v_slider_wy
+    c14 = -c13 + c12
+    c15 = slider_a20*v_slider_wy
+    c16 = slider_a10*v_slider_wz
+    c17 = -c16 + c15
+    c18 = -slider_a20*v_slider_wx + slider_a00*v_slider_wz
+    c19 = -slider_ox*v_slider_wx
+    return [0.0, 0.0, 0.0, -(-crank_a20*v_crank_wx + crank_a00*v_crank_wz)*v_crank_wx + (-crank_a10*v_crank_wz + crank_a20*v_crank_wy)*v_crank_wy, -(-crank_a21*v_crank_wx + crank_a01*v_crank_wz)*v_crank_wx + (-crank_a11*v_crank_wz + crank_a21*v_crank_wy)*v_crank_wy, c1*v_crank_wz - c0*v_crank_wy, c0*v_crank_wx - c2*v_crank_wz, c2*v_crank_wy - c1*v_crank_wx, c4*v_rod_wz - c3*v_rod_wy, c3*v_rod_wx - c5*v_rod_wz, c5*v_rod_wy - c4*v_rod_wx, -c11*(c10 - rod_a21*v_slider_wy + rod_a11*v_slider_wz) - c10*(c11 + slider_a12*v_rod_wz - slider_a22*v_rod_wy) - c8*(c9 + slider_a02*v_rod_wy - slider_a12*v_rod_wx) - c9*(c8 + rod_a01*v_slider_wy - rod_a11*v_slider_wx) - c7*(c6 - rod_a01*v_slider_wz + rod_a21*v_slider_wx) - c6*(c7 - slider_a02*v_rod_wz + slider_a22*v_rod_wx), -c17*v_slider_wz + c14*v_slider_wx, -c18*v_slider_wx + c17*v_slider_wy, -c14*(-v_slider_vx + slider_oz*v_slider_wy) - c17*(slider_ox*v_slider_wy + v_slider_vz) - c17*v_slider_vz - c18*(-slider_oz*v_slider_wz + c19) - (-c12 + c13)*v_slider_vx, -c17*(-v_slider_vy + slider_ox*v_slider_wz) - c14*(-slider_oy*v_slider_wy + c19) - c18*(slider_oy*v_slider_wz + v_slider_vx) - (-c15 + c16)*v_slider_vy - c18*v_slider_vx, -(-slider_a12*v_slider_wz + slider_a22*v_slider_wy)*v_slider_wz + (-slider_a02*v_slider_wy + slider_a12*v_slider_wx)*v_slider_wx]
 
 
 def _drivers_gamma_run_s(q, v, u, ud, udd):
@@ -769,14 +781,15 @@ def _drivers_gamma_run_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*crank_rw
-    c4 = c2*c3 - 1/2*c1*crank_rz
-    c5 = (1/2)*v_crank_wy
-    c6 = (1/2)*v_crank_wx
-    c7 = (1/2)*crank_rz
-    c8 = (1/2)*v_crank_wz
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*crank_rw + c2*crank_rz) - (c1*v_crank_wy - c2*v_crank_wx)*(c3*v_crank_wx + c7*v_crank_wy - c8*crank_ry) - (-c1*v_crank_wx - c2*v_crank_wy)*(c3*v_crank_wy + c8*crank_rx - c7*v_crank_wx) - 2.0*ud0*(c4*v_crank_wz + v_crank_wx*((1/2)*c2*crank_ry - c9*crank_rx) + v_crank_wy*(-c9*crank_ry - 1/2*c2*crank_rx)) + c1*v_crank_wz*(-c5*crank_ry - c6*crank_rx - c7*v_crank_wz) + c2*v_crank_wz*(c3*v_crank_wz + c6*crank_ry - c5*crank_rx)]
+    c3 = (1/2)*c2
+    c4 = (1/2)*crank_rx
+    c5 = c3*crank_rw
+    c6 = (1/2)*c1
+    c7 = c6*crank_rz
+    c8 = (1/2)*crank_ry
+    c9 = (1/2)*crank_rz
+    c10 = (1/2)*crank_rw
+    return [c2*(-c4*v_crank_wy + c8*v_crank_wx + c10*v_crank_wz)*v_crank_wz - (-c2*v_crank_wy - c1*v_crank_wx)*(-c9*v_crank_wx + c4*v_crank_wz + c10*v_crank_wy) - (c1*v_crank_wy - c2*v_crank_wx)*(-c8*v_crank_wz + c9*v_crank_wy + c10*v_crank_wx) - (-c5 + c7)*(ud0*ud0) + c1*(-c8*v_crank_wy - c9*v_crank_wz - c4*v_crank_wx)*v_crank_wz - 2.0*ud0*((-c6*crank_ry - c3*crank_rx)*v_crank_wy + (-c7 + c5)*v_crank_wz + (-c1*c4 + c3*crank_ry)*v_crank_wx) - (c2*crank_rz + c1*crank_rw)*udd0]
 
 
 def gamma_s_run(q, v, u, ud, udd):
@@ -789,7 +802,7 @@ def gamma_s_run(q, v, u, ud, udd):
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = 3/10 + (1/2)*t**2 + 6.283185307179586*t
+    out[0] = 3/10 + 6.283185307179586*t + (1/2)*t**2
     out[1] = 6.283185307179586 + t
     out[2] = 1
     return out
@@ -824,7 +837,7 @@ def _drivers_phi_dead_centre(q, u):
     u0, = u
     slider_ox = -2*slider_dw*slider_rx - 2*slider_dy*slider_rz + 2*slider_dx*slider_rw + 2*slider_dz*slider_ry
     out = _zeros(1, q, u)
-    out[0] = slider_ox - u0
+    out[0] = -u0 + slider_ox
     return out
 
 
@@ -850,7 +863,7 @@ def _drivers_phi_dead_centre_drivers_jac_dead_centre_s(q, u):
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_rw, slider_rx, slider_ry, slider_rz, slider_dw, slider_dx, slider_dy, slider_dz = q
     u0, = u
     slider_ox = -2.0*slider_dw*slider_rx - 2.0*slider_dy*slider_rz + 2.0*slider_dx*slider_rw + 2.0*slider_dz*slider_ry
-    return [slider_ox - u0], [1.0]
+    return [-u0 + slider_ox], [1.0]
 
 
 def phi_jac_s_dead_centre(q, u):

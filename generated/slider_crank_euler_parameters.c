@@ -6,6 +6,7 @@
  * parametrization: euler-parameters
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -58,21 +59,21 @@ static void compute_joints_phi(const double *q, double *out) {
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = crank_x - rod_x + (1.0/5.0)*crank_a00;
-    out[6] = crank_y - rod_y + (1.0/5.0)*crank_a10;
-    out[7] = crank_z - rod_z + (1.0/5.0)*crank_a20;
-    out[8] = rod_x - slider_x + (3.0/5.0)*rod_a00;
-    out[9] = rod_y - slider_y + (3.0/5.0)*rod_a10;
-    out[10] = rod_z - slider_z + (3.0/5.0)*rod_a20;
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22;
+    out[5] = (1.0/5.0)*crank_a00 - rod_x + crank_x;
+    out[6] = (1.0/5.0)*crank_a10 - rod_y + crank_y;
+    out[7] = (1.0/5.0)*crank_a20 - rod_z + crank_z;
+    out[8] = (3.0/5.0)*rod_a00 - slider_x + rod_x;
+    out[9] = (3.0/5.0)*rod_a10 - slider_y + rod_y;
+    out[10] = (3.0/5.0)*rod_a20 - slider_z + rod_z;
+    out[11] = slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01;
     out[12] = slider_a01;
     out[13] = slider_a02;
     out[14] = slider_y;
     out[15] = slider_z;
     out[16] = slider_a12;
-    out[17] = -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3);
-    out[18] = -1.0 + (rod_e0*rod_e0) + (rod_e1*rod_e1) + (rod_e2*rod_e2) + (rod_e3*rod_e3);
-    out[19] = -1.0 + (slider_e0*slider_e0) + (slider_e1*slider_e1) + (slider_e2*slider_e2) + (slider_e3*slider_e3);
+    out[17] = -1.0 + (crank_e3*crank_e3) + (crank_e2*crank_e2) + (crank_e1*crank_e1) + (crank_e0*crank_e0);
+    out[18] = -1.0 + (rod_e3*rod_e3) + (rod_e2*rod_e2) + (rod_e1*rod_e1) + (rod_e0*rod_e0);
+    out[19] = -1.0 + (slider_e3*slider_e3) + (slider_e2*slider_e2) + (slider_e1*slider_e1) + (slider_e0*slider_e0);
 }
 
 /* Phi of the driver rows of case 'run'. */
@@ -81,7 +82,7 @@ static void compute_drivers_phi_run(const double *q, const double *u, double *ou
     const double crank_e3 = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_e3*cos(c0) + 2.0*crank_e0*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_e0 - 2.0*cos(c0)*crank_e3;
 }
 
 /* Phi_q values of the joint rows (77 entries). */
@@ -116,17 +117,19 @@ static void compute_joints_jac(const double *q, double *out) {
     const double c9 = (6.0/5.0)*rod_e2;
     const double c10 = (6.0/5.0)*rod_e1;
     const double c11 = (6.0/5.0)*rod_e0;
-    const double c12 = 4.0*slider_a12;
-    const double c13 = 2.0*slider_a22;
-    const double c14 = 2.0*slider_a02;
-    const double c15 = 2.0*rod_a01;
-    const double c16 = 2.0*rod_a11;
-    const double c17 = 4.0*rod_a21;
-    const double c18 = 2.0*slider_e3;
-    const double c19 = 2.0*slider_e2;
-    const double c20 = 2.0*slider_e1;
-    const double c21 = 2.0*slider_e0;
-    const double c22 = -c21;
+    const double c12 = 2.0*slider_a02;
+    const double c13 = 2.0*rod_e1;
+    const double c14 = 4.0*slider_a12;
+    const double c15 = 2.0*slider_a22;
+    const double c16 = 2.0*rod_e2;
+    const double c17 = 2.0*rod_a11;
+    const double c18 = 2.0*rod_a01;
+    const double c19 = 4.0*rod_a21;
+    const double c20 = 2.0*slider_e3;
+    const double c21 = 2.0*slider_e2;
+    const double c22 = 2.0*slider_e1;
+    const double c23 = 2.0*slider_e0;
+    const double c24 = -c23;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -170,28 +173,28 @@ static void compute_joints_jac(const double *q, double *out) {
     out[40] = -c11;
     out[41] = c10;
     out[42] = -1.0;
-    out[43] = c12*rod_e0 + c13*rod_e1 - c14*rod_e3;
-    out[44] = c13*rod_e0 + c14*rod_e2;
-    out[45] = c12*rod_e2 + c13*rod_e3 + c14*rod_e1;
-    out[46] = -c14*rod_e0 + 2.0*rod_e2*slider_a22;
-    out[47] = c15*slider_e2 + c17*slider_e0 - c16*slider_e1;
-    out[48] = c15*slider_e3 - c16*slider_e0;
-    out[49] = c15*slider_e0 + c16*slider_e3;
-    out[50] = c15*slider_e1 + c16*slider_e2 + c17*slider_e3;
-    out[51] = -c18;
-    out[52] = c19;
-    out[53] = c20;
-    out[54] = c22;
-    out[55] = c19;
-    out[56] = c18;
-    out[57] = c21;
-    out[58] = c20;
+    out[43] = c14*rod_e0 + c13*slider_a22 - c12*rod_e3;
+    out[44] = c16*slider_a02 + c15*rod_e0;
+    out[45] = c14*rod_e2 + c15*rod_e3 + c13*slider_a02;
+    out[46] = c16*slider_a22 - c12*rod_e0;
+    out[47] = c19*slider_e0 + c18*slider_e2 - c17*slider_e1;
+    out[48] = c18*slider_e3 - c17*slider_e0;
+    out[49] = c17*slider_e3 + c18*slider_e0;
+    out[50] = c19*slider_e3 + c17*slider_e2 + c18*slider_e1;
+    out[51] = -c20;
+    out[52] = c21;
+    out[53] = c22;
+    out[54] = c24;
+    out[55] = c21;
+    out[56] = c20;
+    out[57] = c23;
+    out[58] = c22;
     out[59] = 1.0;
     out[60] = 1.0;
-    out[61] = -c20;
-    out[62] = c22;
-    out[63] = c18;
-    out[64] = c19;
+    out[61] = -c22;
+    out[62] = c24;
+    out[63] = c20;
+    out[64] = c21;
     out[65] = 2.0*crank_e0;
     out[66] = 2.0*crank_e1;
     out[67] = 2.0*crank_e2;
@@ -222,7 +225,7 @@ static void compute_drivers_nu_run(const double *q, const double *u, const doubl
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0));
+    out[0] = -(sin(c0)*crank_e3 + cos(c0)*crank_e0)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -253,44 +256,49 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3;
     const double slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3;
     const double slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3);
-    const double c0 = 4.0*v_crank_e2;
-    const double c1 = 4.0*v_crank_e1;
-    const double c2 = (4.0/5.0)*v_crank_e3;
-    const double c3 = (4.0/5.0)*v_crank_e2;
+    const double c0 = 4.0*v_crank_e1;
+    const double c1 = 4.0*v_crank_e2;
+    const double c2 = (4.0/5.0)*v_crank_e0;
+    const double c3 = (4.0/5.0)*v_crank_e1;
     const double c4 = (12.0/5.0)*v_rod_e3;
     const double c5 = (12.0/5.0)*v_rod_e2;
-    const double c6 = 2.0*slider_a02;
+    const double c6 = 4.0*slider_a12;
     const double c7 = 2.0*slider_a22;
-    const double c8 = 2.0*rod_a01;
-    const double c9 = 2.0*rod_a11;
-    const double c10 = 4.0*slider_a12;
-    const double c11 = 4.0*rod_a21;
-    const double c12 = 2.0*slider_e0;
-    const double c13 = 2.0*slider_e1;
-    const double c14 = 2.0*rod_e0;
-    const double c15 = 2.0*v_rod_e0;
-    const double c16 = 4.0*v_slider_e3;
-    const double c17 = 4.0*v_slider_e2;
+    const double c8 = 2.0*v_rod_e3;
+    const double c9 = 4.0*v_slider_e0;
+    const double c10 = 2.0*rod_a01;
+    const double c11 = 2.0*rod_a11;
+    const double c12 = 2.0*slider_a02;
+    const double c13 = 2.0*rod_e3;
+    const double c14 = 2.0*v_rod_e1;
+    const double c15 = 2.0*rod_e1;
+    const double c16 = 2.0*v_slider_e0;
+    const double c17 = 2.0*v_slider_e2;
+    const double c18 = 2.0*v_slider_e1;
+    const double c19 = 2.0*v_slider_e3;
+    const double c20 = 4.0*v_slider_e3;
+    const double c21 = 4.0*v_slider_e1;
+    const double c22 = 4.0*v_slider_e3;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = c0*v_crank_e0 - c1*v_crank_e3;
-    out[4] = -c0*v_crank_e3 - c1*v_crank_e0;
-    out[5] = -4.0/5.0*(v_crank_e0*v_crank_e0) - 4.0/5.0*(v_crank_e1*v_crank_e1);
-    out[6] = -c2*v_crank_e0 - c3*v_crank_e1;
-    out[7] = c3*v_crank_e0 - c2*v_crank_e1;
-    out[8] = -12.0/5.0*(v_rod_e0*v_rod_e0) - 12.0/5.0*(v_rod_e1*v_rod_e1);
-    out[9] = -c4*v_rod_e0 - c5*v_rod_e1;
+    out[3] = c1*v_crank_e0 - c0*v_crank_e3;
+    out[4] = -c1*v_crank_e3 - c0*v_crank_e0;
+    out[5] = -4.0/5.0*(v_crank_e1*v_crank_e1) - 4.0/5.0*(v_crank_e0*v_crank_e0);
+    out[6] = -c3*v_crank_e2 - c2*v_crank_e3;
+    out[7] = c2*v_crank_e2 - c3*v_crank_e3;
+    out[8] = -12.0/5.0*(v_rod_e1*v_rod_e1) - 12.0/5.0*(v_rod_e0*v_rod_e0);
+    out[9] = -c5*v_rod_e1 - c4*v_rod_e0;
     out[10] = c5*v_rod_e0 - c4*v_rod_e1;
-    out[11] = -v_rod_e0*(c7*v_rod_e1 + c10*v_rod_e0 - c6*v_rod_e3) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(-c6*v_rod_e0 + 2.0*slider_a22*v_rod_e2) - v_slider_e0*(c8*v_slider_e2 + c11*v_slider_e0 - c9*v_slider_e1) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(-c12*v_slider_e1 - c13*v_slider_e0 + 2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(c14*v_rod_e1 + c15*rod_e1 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2) - 2.0*(c12*v_slider_e2 + c13*v_slider_e3 + 2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1)*(-c14*v_rod_e3 - c15*rod_e3 + 2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1);
-    out[12] = c16*v_slider_e0 - c17*v_slider_e1;
-    out[13] = -c16*v_slider_e1 - c17*v_slider_e0;
+    out[11] = -2.0*(c13*v_rod_e2 + c15*v_rod_e0 + c8*rod_e2 + c14*rod_e0)*(c20*slider_e3 + c9*slider_e0) - (c8*slider_a22 + c6*v_rod_e2 + c12*v_rod_e1)*v_rod_e2 - (c11*v_slider_e3 + c10*v_slider_e0)*v_slider_e2 - (c20*rod_a21 + c10*v_slider_e1 + c11*v_slider_e2)*v_slider_e3 - 2.0*(c19*slider_e1 + c18*slider_e3 + c17*slider_e0 + c16*slider_e2)*(c15*v_rod_e2 + c14*rod_e2 - c13*v_rod_e0 - c8*rod_e0) - (c10*v_slider_e3 - c11*v_slider_e0)*v_slider_e1 - (c7*v_rod_e2 - c12*v_rod_e0)*v_rod_e3 - (c12*v_rod_e2 + c7*v_rod_e0)*v_rod_e1 - (-c11*v_slider_e1 + c10*v_slider_e2 + c9*rod_a21)*v_slider_e0 - 2.0*(4.0*rod_e2*v_rod_e2 + 4.0*rod_e0*v_rod_e0)*(-c16*slider_e1 + c17*slider_e3 + c19*slider_e2 - c18*slider_e0) - (-c8*slider_a02 + c7*v_rod_e1 + c6*v_rod_e0)*v_rod_e0;
+    out[12] = c22*v_slider_e0 - c21*v_slider_e2;
+    out[13] = -c21*v_slider_e3 - 4.0*v_slider_e2*v_slider_e0;
     out[14] = 0.0;
     out[15] = 0.0;
-    out[16] = -c17*v_slider_e3 + 4.0*v_slider_e0*v_slider_e1;
-    out[17] = -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3);
-    out[18] = -2.0*(v_rod_e0*v_rod_e0) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e3*v_rod_e3);
-    out[19] = -2.0*(v_slider_e0*v_slider_e0) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e3*v_slider_e3);
+    out[16] = c21*v_slider_e0 - c22*v_slider_e2;
+    out[17] = -2.0*(v_crank_e3*v_crank_e3) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e0*v_crank_e0);
+    out[18] = -2.0*(v_rod_e3*v_rod_e3) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e0*v_rod_e0);
+    out[19] = -2.0*(v_slider_e3*v_slider_e3) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e0*v_slider_e0);
 }
 
 /* gamma of the driver rows of case 'run'. */
@@ -305,12 +313,12 @@ static void compute_drivers_gamma_run(const double *q, const double *v, const do
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1.0/2.0)*c1*crank_e3 - 1.0/2.0*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3);
+    out[0] = -2.0*(c2*v_crank_e3 + c1*v_crank_e0)*ud0 - (-1.0/2.0*c2*crank_e0 + (1.0/2.0)*c1*crank_e3)*(ud0*ud0) - (c2*crank_e3 + c1*crank_e0)*udd0;
 }
 
 /* Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_run(double t, double *out) {
-    out[0] = 3.0/10.0 + (1.0/2.0)*(t*t) + 6.283185307179586*t;
+    out[0] = 3.0/10.0 + 6.283185307179586*t + (1.0/2.0)*(t*t);
     out[1] = 6.283185307179586 + t;
     out[2] = 1.0;
 }
@@ -340,7 +348,7 @@ static void compute_input_ranges_run(const double *span, double *out) {
 static void compute_drivers_phi_dead_centre(const double *q, const double *u, double *out) {
     const double slider_x = q[14];
     const double u0 = u[0];
-    out[0] = slider_x - u0;
+    out[0] = -u0 + slider_x;
 }
 
 /* Phi_q values of the driver rows of case 'dead_centre'. */
@@ -485,24 +493,21 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     const double slider_a20 = -2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3;
     const double slider_a21 = 2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3;
     const double slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3);
-    const double c0 = 2.0*v_crank_e1;
-    const double c1 = 2.0*crank_e1;
-    const double c2 = 2.0*crank_e2;
-    const double c3 = 2.0*v_crank_e2;
-    const double c4 = 2.0*crank_e0;
-    const double c5 = 2.0*crank_e3;
-    const double c6 = 2.0*v_rod_e1;
-    const double c7 = 2.0*rod_e1;
+    const double c0 = 2.0*crank_e1;
+    const double c1 = 2.0*crank_e0;
+    const double c2 = 2.0*crank_e3;
+    const double c3 = 2.0*crank_e2;
+    const double c4 = 2.0*dv_crank_e0;
+    const double c5 = 2.0*rod_e1;
+    const double c6 = 2.0*rod_e0;
+    const double c7 = 2.0*rod_e3;
     const double c8 = 2.0*rod_e2;
-    const double c9 = 2.0*v_rod_e2;
-    const double c10 = 2.0*rod_e0;
-    const double c11 = 2.0*rod_e3;
-    const double c12 = 2.0*v_slider_e1;
-    const double c13 = 2.0*slider_e1;
-    const double c14 = 2.0*slider_e2;
-    const double c15 = 2.0*v_slider_e2;
-    const double c16 = 2.0*slider_e0;
-    const double c17 = 2.0*slider_e3;
+    const double c9 = 2.0*dv_rod_e0;
+    const double c10 = 2.0*slider_e1;
+    const double c11 = 2.0*slider_e0;
+    const double c12 = 2.0*slider_e3;
+    const double c13 = 2.0*slider_e2;
+    const double c14 = 2.0*dv_slider_e0;
     out[0] = crank_x;
     out[1] = crank_y;
     out[2] = crank_z;
@@ -518,15 +523,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[12] = v_crank_x;
     out[13] = v_crank_y;
     out[14] = v_crank_z;
-    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3;
-    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0;
-    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0;
+    out[15] = -c2*v_crank_e2 + c3*v_crank_e3 + c1*v_crank_e1 - c0*v_crank_e0;
+    out[16] = c2*v_crank_e1 + c1*v_crank_e2 - c3*v_crank_e0 - c0*v_crank_e3;
+    out[17] = c0*v_crank_e2 + c1*v_crank_e3 - c2*v_crank_e0 - c3*v_crank_e1;
     out[18] = dv_crank_x;
     out[19] = dv_crank_y;
     out[20] = dv_crank_z;
-    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2;
-    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0;
-    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0;
+    out[21] = c3*dv_crank_e3 + c1*dv_crank_e1 - c2*dv_crank_e2 - c4*crank_e1;
+    out[22] = c1*dv_crank_e2 + c2*dv_crank_e1 - c4*crank_e2 - c0*dv_crank_e3;
+    out[23] = c0*dv_crank_e2 + c1*dv_crank_e3 - c4*crank_e3 - c3*dv_crank_e1;
     out[24] = rod_x;
     out[25] = rod_y;
     out[26] = rod_z;
@@ -542,15 +547,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[36] = v_rod_x;
     out[37] = v_rod_y;
     out[38] = v_rod_z;
-    out[39] = c6*rod_e0 + c8*v_rod_e3 - c7*v_rod_e0 - c9*rod_e3;
-    out[40] = c6*rod_e3 + c9*rod_e0 - c7*v_rod_e3 - c8*v_rod_e0;
-    out[41] = c7*v_rod_e2 + c10*v_rod_e3 - c6*rod_e2 - c11*v_rod_e0;
+    out[39] = -c7*v_rod_e2 + c8*v_rod_e3 + c6*v_rod_e1 - c5*v_rod_e0;
+    out[40] = c7*v_rod_e1 + c6*v_rod_e2 - c8*v_rod_e0 - c5*v_rod_e3;
+    out[41] = c5*v_rod_e2 + c6*v_rod_e3 - c7*v_rod_e0 - c8*v_rod_e1;
     out[42] = dv_rod_x;
     out[43] = dv_rod_y;
     out[44] = dv_rod_z;
-    out[45] = c8*dv_rod_e3 + c10*dv_rod_e1 - c7*dv_rod_e0 - c11*dv_rod_e2;
-    out[46] = c10*dv_rod_e2 + c11*dv_rod_e1 - c7*dv_rod_e3 - c8*dv_rod_e0;
-    out[47] = c7*dv_rod_e2 + c10*dv_rod_e3 - c8*dv_rod_e1 - c11*dv_rod_e0;
+    out[45] = c8*dv_rod_e3 + c6*dv_rod_e1 - c7*dv_rod_e2 - c9*rod_e1;
+    out[46] = c6*dv_rod_e2 + c7*dv_rod_e1 - c9*rod_e2 - c5*dv_rod_e3;
+    out[47] = c5*dv_rod_e2 + c6*dv_rod_e3 - c9*rod_e3 - c8*dv_rod_e1;
     out[48] = slider_x;
     out[49] = slider_y;
     out[50] = slider_z;
@@ -566,15 +571,15 @@ static void compute_frames(const double *q, const double *v, const double *a, do
     out[60] = v_slider_x;
     out[61] = v_slider_y;
     out[62] = v_slider_z;
-    out[63] = c12*slider_e0 + c14*v_slider_e3 - c13*v_slider_e0 - c15*slider_e3;
-    out[64] = c12*slider_e3 + c15*slider_e0 - c13*v_slider_e3 - c14*v_slider_e0;
-    out[65] = c13*v_slider_e2 + c16*v_slider_e3 - c12*slider_e2 - c17*v_slider_e0;
+    out[63] = -c12*v_slider_e2 + c13*v_slider_e3 + c11*v_slider_e1 - c10*v_slider_e0;
+    out[64] = c12*v_slider_e1 + c11*v_slider_e2 - c13*v_slider_e0 - c10*v_slider_e3;
+    out[65] = c10*v_slider_e2 + c11*v_slider_e3 - c12*v_slider_e0 - c13*v_slider_e1;
     out[66] = dv_slider_x;
     out[67] = dv_slider_y;
     out[68] = dv_slider_z;
-    out[69] = c14*dv_slider_e3 + c16*dv_slider_e1 - c13*dv_slider_e0 - c17*dv_slider_e2;
-    out[70] = c16*dv_slider_e2 + c17*dv_slider_e1 - c13*dv_slider_e3 - c14*dv_slider_e0;
-    out[71] = c13*dv_slider_e2 + c16*dv_slider_e3 - c14*dv_slider_e1 - c17*dv_slider_e0;
+    out[69] = c13*dv_slider_e3 + c11*dv_slider_e1 - c12*dv_slider_e2 - c14*slider_e1;
+    out[70] = c11*dv_slider_e2 + c12*dv_slider_e1 - c14*slider_e2 - c10*dv_slider_e3;
+    out[71] = c10*dv_slider_e2 + c11*dv_slider_e3 - c14*slider_e3 - c13*dv_slider_e1;
 }
 
 /* Every load's generalized force Q (F.J_P + M.T_w), 1 values at LOAD_ROWS, LOAD_COLS. */
@@ -600,13 +605,13 @@ static void retract_body(double *q, const double *step) {
     const double step4 = step[4];
     const double step5 = step[5];
     const double step6 = step[6];
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = q3 + step3;
-    const double moved4 = q4 + step4;
-    const double moved5 = q5 + step5;
-    const double moved6 = q6 + step6;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = step3 + q3;
+    const double moved4 = step4 + q4;
+    const double moved5 = step5 + q5;
+    const double moved6 = step6 + q6;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

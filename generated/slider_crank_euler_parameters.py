@@ -6,6 +6,7 @@ source sha256:   60be577912c1de5d6cb08914f5dcec030f80d42df4541fca4ab6085ed6bd59b
 parametrization: euler-parameters
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 21) and v (velocity, 21) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -49,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_euler_parameters.h': 'ba153c93bc8d240c17b8e938d39ef4c209f887e0549a869b856f859080b23fb9', 'slider_crank_euler_parameters.c': '96809df1f8440e13934a713f4ea2e33f83fbb1474ddfa609a6ea6828a48db788'}
+C_FILES = {'slider_crank_euler_parameters.h': '1109466c54a5aac0e4819ae848f4e31dec53e4adf1b417fa54ed1702914c5219', 'slider_crank_euler_parameters.c': '557657f9898dcb8801ed6255e7d649ba340d44c59483bf3c6eb5ca97de87a5e7'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -264,24 +265,21 @@ def frames(q, v, a):
     slider_a20 = -2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a21 = 2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
     slider_a22 = -1 + 2*slider_e0**2 + 2*slider_e3**2
-    c0 = 2*v_crank_e1
-    c1 = 2*crank_e1
-    c2 = 2*crank_e2
-    c3 = 2*v_crank_e2
-    c4 = 2*crank_e0
-    c5 = 2*crank_e3
-    c6 = 2*v_rod_e1
-    c7 = 2*rod_e1
+    c0 = 2*crank_e1
+    c1 = 2*crank_e0
+    c2 = 2*crank_e3
+    c3 = 2*crank_e2
+    c4 = 2*dv_crank_e0
+    c5 = 2*rod_e1
+    c6 = 2*rod_e0
+    c7 = 2*rod_e3
     c8 = 2*rod_e2
-    c9 = 2*v_rod_e2
-    c10 = 2*rod_e0
-    c11 = 2*rod_e3
-    c12 = 2*v_slider_e1
-    c13 = 2*slider_e1
-    c14 = 2*slider_e2
-    c15 = 2*v_slider_e2
-    c16 = 2*slider_e0
-    c17 = 2*slider_e3
+    c9 = 2*dv_rod_e0
+    c10 = 2*slider_e1
+    c11 = 2*slider_e0
+    c12 = 2*slider_e3
+    c13 = 2*slider_e2
+    c14 = 2*dv_slider_e0
     out = _zeros(72, q, ())
     out[0] = crank_x
     out[1] = crank_y
@@ -298,15 +296,15 @@ def frames(q, v, a):
     out[12] = v_crank_x
     out[13] = v_crank_y
     out[14] = v_crank_z
-    out[15] = c0*crank_e0 + c2*v_crank_e3 - c1*v_crank_e0 - c3*crank_e3
-    out[16] = c0*crank_e3 + c3*crank_e0 - c1*v_crank_e3 - c2*v_crank_e0
-    out[17] = c1*v_crank_e2 + c4*v_crank_e3 - c0*crank_e2 - c5*v_crank_e0
+    out[15] = -c2*v_crank_e2 + c3*v_crank_e3 + c1*v_crank_e1 - c0*v_crank_e0
+    out[16] = c2*v_crank_e1 + c1*v_crank_e2 - c3*v_crank_e0 - c0*v_crank_e3
+    out[17] = c0*v_crank_e2 + c1*v_crank_e3 - c2*v_crank_e0 - c3*v_crank_e1
     out[18] = dv_crank_x
     out[19] = dv_crank_y
     out[20] = dv_crank_z
-    out[21] = c2*dv_crank_e3 + c4*dv_crank_e1 - c1*dv_crank_e0 - c5*dv_crank_e2
-    out[22] = c4*dv_crank_e2 + c5*dv_crank_e1 - c1*dv_crank_e3 - c2*dv_crank_e0
-    out[23] = c1*dv_crank_e2 + c4*dv_crank_e3 - c2*dv_crank_e1 - c5*dv_crank_e0
+    out[21] = c3*dv_crank_e3 + c1*dv_crank_e1 - c2*dv_crank_e2 - c4*crank_e1
+    out[22] = c1*dv_crank_e2 + c2*dv_crank_e1 - c4*crank_e2 - c0*dv_crank_e3
+    out[23] = c0*dv_crank_e2 + c1*dv_crank_e3 - c4*crank_e3 - c3*dv_crank_e1
     out[24] = rod_x
     out[25] = rod_y
     out[26] = rod_z
@@ -322,15 +320,15 @@ def frames(q, v, a):
     out[36] = v_rod_x
     out[37] = v_rod_y
     out[38] = v_rod_z
-    out[39] = c6*rod_e0 + c8*v_rod_e3 - c7*v_rod_e0 - c9*rod_e3
-    out[40] = c6*rod_e3 + c9*rod_e0 - c7*v_rod_e3 - c8*v_rod_e0
-    out[41] = c7*v_rod_e2 + c10*v_rod_e3 - c6*rod_e2 - c11*v_rod_e0
+    out[39] = -c7*v_rod_e2 + c8*v_rod_e3 + c6*v_rod_e1 - c5*v_rod_e0
+    out[40] = c7*v_rod_e1 + c6*v_rod_e2 - c8*v_rod_e0 - c5*v_rod_e3
+    out[41] = c5*v_rod_e2 + c6*v_rod_e3 - c7*v_rod_e0 - c8*v_rod_e1
     out[42] = dv_rod_x
     out[43] = dv_rod_y
     out[44] = dv_rod_z
-    out[45] = c8*dv_rod_e3 + c10*dv_rod_e1 - c7*dv_rod_e0 - c11*dv_rod_e2
-    out[46] = c10*dv_rod_e2 + c11*dv_rod_e1 - c7*dv_rod_e3 - c8*dv_rod_e0
-    out[47] = c7*dv_rod_e2 + c10*dv_rod_e3 - c8*dv_rod_e1 - c11*dv_rod_e0
+    out[45] = c8*dv_rod_e3 + c6*dv_rod_e1 - c7*dv_rod_e2 - c9*rod_e1
+    out[46] = c6*dv_rod_e2 + c7*dv_rod_e1 - c9*rod_e2 - c5*dv_rod_e3
+    out[47] = c5*dv_rod_e2 + c6*dv_rod_e3 - c9*rod_e3 - c8*dv_rod_e1
     out[48] = slider_x
     out[49] = slider_y
     out[50] = slider_z
@@ -346,15 +344,15 @@ def frames(q, v, a):
     out[60] = v_slider_x
     out[61] = v_slider_y
     out[62] = v_slider_z
-    out[63] = c12*slider_e0 + c14*v_slider_e3 - c13*v_slider_e0 - c15*slider_e3
-    out[64] = c12*slider_e3 + c15*slider_e0 - c13*v_slider_e3 - c14*v_slider_e0
-    out[65] = c13*v_slider_e2 + c16*v_slider_e3 - c12*slider_e2 - c17*v_slider_e0
+    out[63] = -c12*v_slider_e2 + c13*v_slider_e3 + c11*v_slider_e1 - c10*v_slider_e0
+    out[64] = c12*v_slider_e1 + c11*v_slider_e2 - c13*v_slider_e0 - c10*v_slider_e3
+    out[65] = c10*v_slider_e2 + c11*v_slider_e3 - c12*v_slider_e0 - c13*v_slider_e1
     out[66] = dv_slider_x
     out[67] = dv_slider_y
     out[68] = dv_slider_z
-    out[69] = c14*dv_slider_e3 + c16*dv_slider_e1 - c13*dv_slider_e0 - c17*dv_slider_e2
-    out[70] = c16*dv_slider_e2 + c17*dv_slider_e1 - c13*dv_slider_e3 - c14*dv_slider_e0
-    out[71] = c13*dv_slider_e2 + c16*dv_slider_e3 - c14*dv_slider_e1 - c17*dv_slider_e0
+    out[69] = c13*dv_slider_e3 + c11*dv_slider_e1 - c12*dv_slider_e2 - c14*slider_e1
+    out[70] = c11*dv_slider_e2 + c12*dv_slider_e1 - c14*slider_e2 - c10*dv_slider_e3
+    out[71] = c10*dv_slider_e2 + c11*dv_slider_e3 - c14*slider_e3 - c13*dv_slider_e1
     return out
 
 
@@ -388,21 +386,21 @@ def _joints_phi(q):
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = crank_x - rod_x + (1/5)*crank_a00
-    out[6] = crank_y - rod_y + (1/5)*crank_a10
-    out[7] = crank_z - rod_z + (1/5)*crank_a20
-    out[8] = rod_x - slider_x + (3/5)*rod_a00
-    out[9] = rod_y - slider_y + (3/5)*rod_a10
-    out[10] = rod_z - slider_z + (3/5)*rod_a20
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
+    out[5] = (1/5)*crank_a00 - rod_x + crank_x
+    out[6] = (1/5)*crank_a10 - rod_y + crank_y
+    out[7] = (1/5)*crank_a20 - rod_z + crank_z
+    out[8] = (3/5)*rod_a00 - slider_x + rod_x
+    out[9] = (3/5)*rod_a10 - slider_y + rod_y
+    out[10] = (3/5)*rod_a20 - slider_z + rod_z
+    out[11] = slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01
     out[12] = slider_a01
     out[13] = slider_a02
     out[14] = slider_y
     out[15] = slider_z
     out[16] = slider_a12
-    out[17] = -1 + crank_e0**2 + crank_e1**2 + crank_e2**2 + crank_e3**2
-    out[18] = -1 + rod_e0**2 + rod_e1**2 + rod_e2**2 + rod_e3**2
-    out[19] = -1 + slider_e0**2 + slider_e1**2 + slider_e2**2 + slider_e3**2
+    out[17] = -1 + crank_e3**2 + crank_e2**2 + crank_e1**2 + crank_e0**2
+    out[18] = -1 + rod_e3**2 + rod_e2**2 + rod_e1**2 + rod_e0**2
+    out[19] = -1 + slider_e3**2 + slider_e2**2 + slider_e1**2 + slider_e0**2
     return out
 
 
@@ -412,7 +410,7 @@ def _drivers_phi_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_e3*cos(c0) + 2*crank_e0*sin(c0)
+    out[0] = 2*sin(c0)*crank_e0 - 2*cos(c0)*crank_e3
     return out
 
 
@@ -442,17 +440,19 @@ def _joints_jac(q):
     c9 = (6/5)*rod_e2
     c10 = (6/5)*rod_e1
     c11 = (6/5)*rod_e0
-    c12 = 4*slider_a12
-    c13 = 2*slider_a22
-    c14 = 2*slider_a02
-    c15 = 2*rod_a01
-    c16 = 2*rod_a11
-    c17 = 4*rod_a21
-    c18 = 2*slider_e3
-    c19 = 2*slider_e2
-    c20 = 2*slider_e1
-    c21 = 2*slider_e0
-    c22 = -c21
+    c12 = 2*slider_a02
+    c13 = 2*rod_e1
+    c14 = 4*slider_a12
+    c15 = 2*slider_a22
+    c16 = 2*rod_e2
+    c17 = 2*rod_a11
+    c18 = 2*rod_a01
+    c19 = 4*rod_a21
+    c20 = 2*slider_e3
+    c21 = 2*slider_e2
+    c22 = 2*slider_e1
+    c23 = 2*slider_e0
+    c24 = -c23
     out = _zeros(77, q, ())
     out[0] = -1
     out[1] = -1
@@ -497,28 +497,28 @@ def _joints_jac(q):
     out[40] = -c11
     out[41] = c10
     out[42] = -1
-    out[43] = c12*rod_e0 + c13*rod_e1 - c14*rod_e3
-    out[44] = c13*rod_e0 + c14*rod_e2
-    out[45] = c12*rod_e2 + c13*rod_e3 + c14*rod_e1
-    out[46] = -c14*rod_e0 + 2*rod_e2*slider_a22
-    out[47] = c15*slider_e2 + c17*slider_e0 - c16*slider_e1
-    out[48] = c15*slider_e3 - c16*slider_e0
-    out[49] = c15*slider_e0 + c16*slider_e3
-    out[50] = c15*slider_e1 + c16*slider_e2 + c17*slider_e3
-    out[51] = -c18
-    out[52] = c19
-    out[53] = c20
-    out[54] = c22
-    out[55] = c19
-    out[56] = c18
-    out[57] = c21
-    out[58] = c20
+    out[43] = c14*rod_e0 + c13*slider_a22 - c12*rod_e3
+    out[44] = c16*slider_a02 + c15*rod_e0
+    out[45] = c14*rod_e2 + c15*rod_e3 + c13*slider_a02
+    out[46] = c16*slider_a22 - c12*rod_e0
+    out[47] = c19*slider_e0 + c18*slider_e2 - c17*slider_e1
+    out[48] = c18*slider_e3 - c17*slider_e0
+    out[49] = c17*slider_e3 + c18*slider_e0
+    out[50] = c19*slider_e3 + c17*slider_e2 + c18*slider_e1
+    out[51] = -c20
+    out[52] = c21
+    out[53] = c22
+    out[54] = c24
+    out[55] = c21
+    out[56] = c20
+    out[57] = c23
+    out[58] = c22
     out[59] = 1
     out[60] = 1
-    out[61] = -c20
-    out[62] = c22
-    out[63] = c18
-    out[64] = c19
+    out[61] = -c22
+    out[62] = c24
+    out[63] = c20
+    out[64] = c21
     out[65] = 2*crank_e0
     out[66] = 2*crank_e1
     out[67] = 2*crank_e2
@@ -578,18 +578,20 @@ def _joints_phi_joints_jac_s(q):
     d9 = (6/5)*rod_e2
     d10 = (6/5)*rod_e1
     d11 = (6/5)*rod_e0
-    d12 = 4.0*slider_a12
-    d13 = 2.0*slider_a22
-    d14 = 2.0*slider_a02
-    d15 = 2.0*rod_a01
-    d16 = 2.0*rod_a11
-    d17 = 4.0*rod_a21
-    d18 = 2.0*slider_e3
-    d19 = 2.0*slider_e2
-    d20 = 2.0*slider_e1
-    d21 = 2.0*slider_e0
-    d22 = -d21
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - rod_x + (1/5)*crank_a00, crank_y - rod_y + (1/5)*crank_a10, crank_z - rod_z + (1/5)*crank_a20, rod_x - slider_x + (3/5)*rod_a00, rod_y - slider_y + (3/5)*rod_a10, rod_z - slider_z + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12, -1.0 + (crank_e0*crank_e0) + (crank_e1*crank_e1) + (crank_e2*crank_e2) + (crank_e3*crank_e3), -1.0 + (rod_e0*rod_e0) + (rod_e1*rod_e1) + (rod_e2*rod_e2) + (rod_e3*rod_e3), -1.0 + (slider_e0*slider_e0) + (slider_e1*slider_e1) + (slider_e2*slider_e2) + (slider_e3*slider_e3)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (4/5)*crank_e0, (4/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (12/5)*rod_e0, (12/5)*rod_e1, -1.0, 1.0, d8, d9, d10, d11, -1.0, 1.0, -d9, d8, -d11, d10, -1.0, d12*rod_e0 + d13*rod_e1 - d14*rod_e3, d13*rod_e0 + d14*rod_e2, d12*rod_e2 + d13*rod_e3 + d14*rod_e1, -d14*rod_e0 + 2.0*rod_e2*slider_a22, d15*slider_e2 + d17*slider_e0 - d16*slider_e1, d15*slider_e3 - d16*slider_e0, d15*slider_e0 + d16*slider_e3, d15*slider_e1 + d16*slider_e2 + d17*slider_e3, -d18, d19, d20, d22, d19, d18, d21, d20, 1.0, 1.0, -d20, d22, d18, d19, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rod_e0, 2.0*rod_e1, 2.0*rod_e2, 2.0*rod_e3, 2.0*slider_e0, 2.0*slider_e1, 2.0*slider_e2, 2.0*slider_e3]
+    d12 = 2.0*slider_a02
+    d13 = 2.0*rod_e1
+    d14 = 4.0*slider_a12
+    d15 = 2.0*slider_a22
+    d16 = 2.0*rod_e2
+    d17 = 2.0*rod_a11
+    d18 = 2.0*rod_a01
+    d19 = 4.0*rod_a21
+    d20 = 2.0*slider_e3
+    d21 = 2.0*slider_e2
+    d22 = 2.0*slider_e1
+    d23 = 2.0*slider_e0
+    d24 = -d23
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 - rod_x + crank_x, (1/5)*crank_a10 - rod_y + crank_y, (1/5)*crank_a20 - rod_z + crank_z, (3/5)*rod_a00 - slider_x + rod_x, (3/5)*rod_a10 - slider_y + rod_y, (3/5)*rod_a20 - slider_z + rod_z, slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01, slider_a01, slider_a02, slider_y, slider_z, slider_a12, -1.0 + (crank_e3*crank_e3) + (crank_e2*crank_e2) + (crank_e1*crank_e1) + (crank_e0*crank_e0), -1.0 + (rod_e3*rod_e3) + (rod_e2*rod_e2) + (rod_e1*rod_e1) + (rod_e0*rod_e0), -1.0 + (slider_e3*slider_e3) + (slider_e2*slider_e2) + (slider_e1*slider_e1) + (slider_e0*slider_e0)], [-1.0, -1.0, -1.0, -d0, d1, -d2, d3, d3, d2, d1, d0, 1.0, (4/5)*crank_e0, (4/5)*crank_e1, -1.0, 1.0, d4, d5, d6, d7, -1.0, 1.0, -d5, d4, -d7, d6, -1.0, 1.0, (12/5)*rod_e0, (12/5)*rod_e1, -1.0, 1.0, d8, d9, d10, d11, -1.0, 1.0, -d9, d8, -d11, d10, -1.0, d14*rod_e0 + d13*slider_a22 - d12*rod_e3, d16*slider_a02 + d15*rod_e0, d14*rod_e2 + d15*rod_e3 + d13*slider_a02, d16*slider_a22 - d12*rod_e0, d19*slider_e0 + d18*slider_e2 - d17*slider_e1, d18*slider_e3 - d17*slider_e0, d17*slider_e3 + d18*slider_e0, d19*slider_e3 + d17*slider_e2 + d18*slider_e1, -d20, d21, d22, d24, d21, d20, d23, d22, 1.0, 1.0, -d22, d24, d20, d21, 2.0*crank_e0, 2.0*crank_e1, 2.0*crank_e2, 2.0*crank_e3, 2.0*rod_e0, 2.0*rod_e1, 2.0*rod_e2, 2.0*rod_e3, 2.0*slider_e0, 2.0*slider_e1, 2.0*slider_e2, 2.0*slider_e3]
 
 
 def _drivers_phi_run_drivers_jac_run_s(q, u):
@@ -598,7 +600,7 @@ def _drivers_phi_run_drivers_jac_run_s(q, u):
     u0, = u
     c0 = (1/2)*u0
     d0 = (1/2)*u0
-    return [-2.0*crank_e3*math.cos(c0) + 2.0*crank_e0*math.sin(c0)], [2.0*math.sin(d0), -2.0*math.cos(d0)]
+    return [2.0*math.sin(c0)*crank_e0 - 2.0*math.cos(c0)*crank_e3], [2.0*math.sin(d0), -2.0*math.cos(d0)]
 
 
 def phi_jac_s_run(q, u):
@@ -615,7 +617,7 @@ def _drivers_nu_run(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_e0*cos(c0) + crank_e3*sin(c0))
+    out[0] = -(sin(c0)*crank_e3 + cos(c0)*crank_e0)*ud0
     return out
 
 
@@ -630,7 +632,7 @@ def _drivers_nu_run_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_e0*math.cos(c0) + crank_e3*math.sin(c0))]
+    return [-(math.sin(c0)*crank_e3 + math.cos(c0)*crank_e0)*ud0]
 
 
 def nu_s_run(q, u, ud):
@@ -649,40 +651,45 @@ def _joints_gamma(q, v):
     slider_a02 = 2*slider_e0*slider_e2 + 2*slider_e1*slider_e3
     slider_a12 = -2*slider_e0*slider_e1 + 2*slider_e2*slider_e3
     slider_a22 = -1 + 2*slider_e0**2 + 2*slider_e3**2
-    c0 = 4*v_crank_e2
-    c1 = 4*v_crank_e1
-    c2 = (4/5)*v_crank_e3
-    c3 = (4/5)*v_crank_e2
+    c0 = 4*v_crank_e1
+    c1 = 4*v_crank_e2
+    c2 = (4/5)*v_crank_e0
+    c3 = (4/5)*v_crank_e1
     c4 = (12/5)*v_rod_e3
     c5 = (12/5)*v_rod_e2
-    c6 = 2*slider_a02
+    c6 = 4*slider_a12
     c7 = 2*slider_a22
-    c8 = 2*rod_a01
-    c9 = 2*rod_a11
-    c10 = 4*slider_a12
-    c11 = 4*rod_a21
-    c12 = 2*slider_e0
-    c13 = 2*slider_e1
-    c14 = 2*rod_e0
-    c15 = 2*v_rod_e0
-    c16 = 4*v_slider_e3
-    c17 = 4*v_slider_e2
+    c8 = 2*v_rod_e3
+    c9 = 4*v_slider_e0
+    c10 = 2*rod_a01
+    c11 = 2*rod_a11
+    c12 = 2*slider_a02
+    c13 = 2*rod_e3
+    c14 = 2*v_rod_e1
+    c15 = 2*rod_e1
+    c16 = 2*v_slider_e0
+    c17 = 2*v_slider_e2
+    c18 = 2*v_slider_e1
+    c19 = 2*v_slider_e3
+    c20 = 4*v_slider_e3
+    c21 = 4*v_slider_e1
+    c22 = 4*v_slider_e3
     out = _zeros(20, q, ())
-    out[3] = c0*v_crank_e0 - c1*v_crank_e3
-    out[4] = -c0*v_crank_e3 - c1*v_crank_e0
-    out[5] = -4/5*v_crank_e0**2 - 4/5*v_crank_e1**2
-    out[6] = -c2*v_crank_e0 - c3*v_crank_e1
-    out[7] = c3*v_crank_e0 - c2*v_crank_e1
-    out[8] = -12/5*v_rod_e0**2 - 12/5*v_rod_e1**2
-    out[9] = -c4*v_rod_e0 - c5*v_rod_e1
+    out[3] = c1*v_crank_e0 - c0*v_crank_e3
+    out[4] = -c1*v_crank_e3 - c0*v_crank_e0
+    out[5] = -4/5*v_crank_e1**2 - 4/5*v_crank_e0**2
+    out[6] = -c3*v_crank_e2 - c2*v_crank_e3
+    out[7] = c2*v_crank_e2 - c3*v_crank_e3
+    out[8] = -12/5*v_rod_e1**2 - 12/5*v_rod_e0**2
+    out[9] = -c5*v_rod_e1 - c4*v_rod_e0
     out[10] = c5*v_rod_e0 - c4*v_rod_e1
-    out[11] = -v_rod_e0*(c7*v_rod_e1 + c10*v_rod_e0 - c6*v_rod_e3) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(-c6*v_rod_e0 + 2*slider_a22*v_rod_e2) - v_slider_e0*(c8*v_slider_e2 + c11*v_slider_e0 - c9*v_slider_e1) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2*(4*rod_e0*v_rod_e0 + 4*rod_e2*v_rod_e2)*(-c12*v_slider_e1 - c13*v_slider_e0 + 2*slider_e2*v_slider_e3 + 2*slider_e3*v_slider_e2) - 2*(4*slider_e0*v_slider_e0 + 4*slider_e3*v_slider_e3)*(c14*v_rod_e1 + c15*rod_e1 + 2*rod_e2*v_rod_e3 + 2*rod_e3*v_rod_e2) - 2*(c12*v_slider_e2 + c13*v_slider_e3 + 2*slider_e2*v_slider_e0 + 2*slider_e3*v_slider_e1)*(-c14*v_rod_e3 - c15*rod_e3 + 2*rod_e1*v_rod_e2 + 2*rod_e2*v_rod_e1)
-    out[12] = c16*v_slider_e0 - c17*v_slider_e1
-    out[13] = -c16*v_slider_e1 - c17*v_slider_e0
-    out[16] = -c17*v_slider_e3 + 4*v_slider_e0*v_slider_e1
-    out[17] = -2*v_crank_e0**2 - 2*v_crank_e1**2 - 2*v_crank_e2**2 - 2*v_crank_e3**2
-    out[18] = -2*v_rod_e0**2 - 2*v_rod_e1**2 - 2*v_rod_e2**2 - 2*v_rod_e3**2
-    out[19] = -2*v_slider_e0**2 - 2*v_slider_e1**2 - 2*v_slider_e2**2 - 2*v_slider_e3**2
+    out[11] = -2*(c13*v_rod_e2 + c15*v_rod_e0 + c8*rod_e2 + c14*rod_e0)*(c20*slider_e3 + c9*slider_e0) - (c8*slider_a22 + c6*v_rod_e2 + c12*v_rod_e1)*v_rod_e2 - (c11*v_slider_e3 + c10*v_slider_e0)*v_slider_e2 - (c20*rod_a21 + c10*v_slider_e1 + c11*v_slider_e2)*v_slider_e3 - 2*(c19*slider_e1 + c18*slider_e3 + c17*slider_e0 + c16*slider_e2)*(c15*v_rod_e2 + c14*rod_e2 - c13*v_rod_e0 - c8*rod_e0) - (c10*v_slider_e3 - c11*v_slider_e0)*v_slider_e1 - (c7*v_rod_e2 - c12*v_rod_e0)*v_rod_e3 - (c12*v_rod_e2 + c7*v_rod_e0)*v_rod_e1 - (-c11*v_slider_e1 + c10*v_slider_e2 + c9*rod_a21)*v_slider_e0 - 2*(4*rod_e2*v_rod_e2 + 4*rod_e0*v_rod_e0)*(-c16*slider_e1 + c17*slider_e3 + c19*slider_e2 - c18*slider_e0) - (-c8*slider_a02 + c7*v_rod_e1 + c6*v_rod_e0)*v_rod_e0
+    out[12] = c22*v_slider_e0 - c21*v_slider_e2
+    out[13] = -c21*v_slider_e3 - 4*v_slider_e2*v_slider_e0
+    out[16] = c21*v_slider_e0 - c22*v_slider_e2
+    out[17] = -2*v_crank_e3**2 - 2*v_crank_e2**2 - 2*v_crank_e1**2 - 2*v_crank_e0**2
+    out[18] = -2*v_rod_e3**2 - 2*v_rod_e2**2 - 2*v_rod_e1**2 - 2*v_rod_e0**2
+    out[19] = -2*v_slider_e3**2 - 2*v_slider_e2**2 - 2*v_slider_e1**2 - 2*v_slider_e0**2
     return out
 
 
@@ -697,7 +704,7 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c1 = cos(c0)
     c2 = sin(c0)
     out = _zeros(1, q, u)
-    out[0] = -udd0*(c1*crank_e0 + c2*crank_e3) - ud0**2*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2*ud0*(c1*v_crank_e0 + c2*v_crank_e3)
+    out[0] = -2*(c2*v_crank_e3 + c1*v_crank_e0)*ud0 - (-1/2*c2*crank_e0 + (1/2)*c1*crank_e3)*ud0**2 - (c2*crank_e3 + c1*crank_e0)*udd0
     return out
 
 
@@ -716,25 +723,30 @@ def _joints_gamma_s(q, v):
     slider_a02 = 2.0*slider_e0*slider_e2 + 2.0*slider_e1*slider_e3
     slider_a12 = -2.0*slider_e0*slider_e1 + 2.0*slider_e2*slider_e3
     slider_a22 = -1.0 + 2.0*(slider_e0*slider_e0) + 2.0*(slider_e3*slider_e3)
-    c0 = 4.0*v_crank_e2
-    c1 = 4.0*v_crank_e1
-    c2 = (4/5)*v_crank_e3
-    c3 = (4/5)*v_crank_e2
+    c0 = 4.0*v_crank_e1
+    c1 = 4.0*v_crank_e2
+    c2 = (4/5)*v_crank_e0
+    c3 = (4/5)*v_crank_e1
     c4 = (12/5)*v_rod_e3
     c5 = (12/5)*v_rod_e2
-    c6 = 2.0*slider_a02
+    c6 = 4.0*slider_a12
     c7 = 2.0*slider_a22
-    c8 = 2.0*rod_a01
-    c9 = 2.0*rod_a11
-    c10 = 4.0*slider_a12
-    c11 = 4.0*rod_a21
-    c12 = 2.0*slider_e0
-    c13 = 2.0*slider_e1
-    c14 = 2.0*rod_e0
-    c15 = 2.0*v_rod_e0
-    c16 = 4.0*v_slider_e3
-    c17 = 4.0*v_slider_e2
-    return [0.0, 0.0, 0.0, c0*v_crank_e0 - c1*v_crank_e3, -c0*v_crank_e3 - c1*v_crank_e0, -4/5*(v_crank_e0*v_crank_e0) - 4/5*(v_crank_e1*v_crank_e1), -c2*v_crank_e0 - c3*v_crank_e1, c3*v_crank_e0 - c2*v_crank_e1, -12/5*(v_rod_e0*v_rod_e0) - 12/5*(v_rod_e1*v_rod_e1), -c4*v_rod_e0 - c5*v_rod_e1, c5*v_rod_e0 - c4*v_rod_e1, -v_rod_e0*(c7*v_rod_e1 + c10*v_rod_e0 - c6*v_rod_e3) - v_rod_e1*(c6*v_rod_e2 + c7*v_rod_e0) - v_rod_e2*(c6*v_rod_e1 + c7*v_rod_e3 + c10*v_rod_e2) - v_rod_e3*(-c6*v_rod_e0 + 2.0*slider_a22*v_rod_e2) - v_slider_e0*(c8*v_slider_e2 + c11*v_slider_e0 - c9*v_slider_e1) - v_slider_e1*(c8*v_slider_e3 - c9*v_slider_e0) - v_slider_e2*(c8*v_slider_e0 + c9*v_slider_e3) - v_slider_e3*(c8*v_slider_e1 + c9*v_slider_e2 + c11*v_slider_e3) - 2.0*(4.0*rod_e0*v_rod_e0 + 4.0*rod_e2*v_rod_e2)*(-c12*v_slider_e1 - c13*v_slider_e0 + 2.0*slider_e2*v_slider_e3 + 2.0*slider_e3*v_slider_e2) - 2.0*(4.0*slider_e0*v_slider_e0 + 4.0*slider_e3*v_slider_e3)*(c14*v_rod_e1 + c15*rod_e1 + 2.0*rod_e2*v_rod_e3 + 2.0*rod_e3*v_rod_e2) - 2.0*(c12*v_slider_e2 + c13*v_slider_e3 + 2.0*slider_e2*v_slider_e0 + 2.0*slider_e3*v_slider_e1)*(-c14*v_rod_e3 - c15*rod_e3 + 2.0*rod_e1*v_rod_e2 + 2.0*rod_e2*v_rod_e1), c16*v_slider_e0 - c17*v_slider_e1, -c16*v_slider_e1 - c17*v_slider_e0, 0.0, 0.0, -c17*v_slider_e3 + 4.0*v_slider_e0*v_slider_e1, -2.0*(v_crank_e0*v_crank_e0) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e3*v_crank_e3), -2.0*(v_rod_e0*v_rod_e0) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e3*v_rod_e3), -2.0*(v_slider_e0*v_slider_e0) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e3*v_slider_e3)]
+    c8 = 2.0*v_rod_e3
+    c9 = 4.0*v_slider_e0
+    c10 = 2.0*rod_a01
+    c11 = 2.0*rod_a11
+    c12 = 2.0*slider_a02
+    c13 = 2.0*rod_e3
+    c14 = 2.0*v_rod_e1
+    c15 = 2.0*rod_e1
+    c16 = 2.0*v_slider_e0
+    c17 = 2.0*v_slider_e2
+    c18 = 2.0*v_slider_e1
+    c19 = 2.0*v_slider_e3
+    c20 = 4.0*v_slider_e3
+    c21 = 4.0*v_slider_e1
+    c22 = 4.0*v_slider_e3
+    return [0.0, 0.0, 0.0, c1*v_crank_e0 - c0*v_crank_e3, -c1*v_crank_e3 - c0*v_crank_e0, -4/5*(v_crank_e1*v_crank_e1) - 4/5*(v_crank_e0*v_crank_e0), -c3*v_crank_e2 - c2*v_crank_e3, c2*v_crank_e2 - c3*v_crank_e3, -12/5*(v_rod_e1*v_rod_e1) - 12/5*(v_rod_e0*v_rod_e0), -c5*v_rod_e1 - c4*v_rod_e0, c5*v_rod_e0 - c4*v_rod_e1, -2.0*(c13*v_rod_e2 + c15*v_rod_e0 + c8*rod_e2 + c14*rod_e0)*(c20*slider_e3 + c9*slider_e0) - (c8*slider_a22 + c6*v_rod_e2 + c12*v_rod_e1)*v_rod_e2 - (c11*v_slider_e3 + c10*v_slider_e0)*v_slider_e2 - (c20*rod_a21 + c10*v_slider_e1 + c11*v_slider_e2)*v_slider_e3 - 2.0*(c19*slider_e1 + c18*slider_e3 + c17*slider_e0 + c16*slider_e2)*(c15*v_rod_e2 + c14*rod_e2 - c13*v_rod_e0 - c8*rod_e0) - (c10*v_slider_e3 - c11*v_slider_e0)*v_slider_e1 - (c7*v_rod_e2 - c12*v_rod_e0)*v_rod_e3 - (c12*v_rod_e2 + c7*v_rod_e0)*v_rod_e1 - (-c11*v_slider_e1 + c10*v_slider_e2 + c9*rod_a21)*v_slider_e0 - 2.0*(4.0*rod_e2*v_rod_e2 + 4.0*rod_e0*v_rod_e0)*(-c16*slider_e1 + c17*slider_e3 + c19*slider_e2 - c18*slider_e0) - (-c8*slider_a02 + c7*v_rod_e1 + c6*v_rod_e0)*v_rod_e0, c22*v_slider_e0 - c21*v_slider_e2, -c21*v_slider_e3 - 4.0*v_slider_e2*v_slider_e0, 0.0, 0.0, c21*v_slider_e0 - c22*v_slider_e2, -2.0*(v_crank_e3*v_crank_e3) - 2.0*(v_crank_e2*v_crank_e2) - 2.0*(v_crank_e1*v_crank_e1) - 2.0*(v_crank_e0*v_crank_e0), -2.0*(v_rod_e3*v_rod_e3) - 2.0*(v_rod_e2*v_rod_e2) - 2.0*(v_rod_e1*v_rod_e1) - 2.0*(v_rod_e0*v_rod_e0), -2.0*(v_slider_e3*v_slider_e3) - 2.0*(v_slider_e2*v_slider_e2) - 2.0*(v_slider_e1*v_slider_e1) - 2.0*(v_slider_e0*v_slider_e0)]
 
 
 def _drivers_gamma_run_s(q, v, u, ud, udd):
@@ -747,7 +759,7 @@ def _drivers_gamma_run_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    return [-udd0*(c1*crank_e0 + c2*crank_e3) - (ud0*ud0)*((1/2)*c1*crank_e3 - 1/2*c2*crank_e0) - 2.0*ud0*(c1*v_crank_e0 + c2*v_crank_e3)]
+    return [-2.0*(c2*v_crank_e3 + c1*v_crank_e0)*ud0 - (-1/2*c2*crank_e0 + (1/2)*c1*crank_e3)*(ud0*ud0) - (c2*crank_e3 + c1*crank_e0)*udd0]
 
 
 def gamma_s_run(q, v, u, ud, udd):
@@ -760,7 +772,7 @@ def gamma_s_run(q, v, u, ud, udd):
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = 3/10 + (1/2)*t**2 + 6.283185307179586*t
+    out[0] = 3/10 + 6.283185307179586*t + (1/2)*t**2
     out[1] = 6.283185307179586 + t
     out[2] = 1
     return out
@@ -794,7 +806,7 @@ def _drivers_phi_dead_centre(q, u):
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
     u0, = u
     out = _zeros(1, q, u)
-    out[0] = slider_x - u0
+    out[0] = -u0 + slider_x
     return out
 
 
@@ -819,7 +831,7 @@ def _drivers_phi_dead_centre_drivers_jac_dead_centre_s(q, u):
     """Phi of the driver rows of case 'dead_centre'.; Phi_q values of the driver rows of case 'dead_centre'. (one configuration, lists of floats)"""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
     u0, = u
-    return [slider_x - u0], [1.0]
+    return [-u0 + slider_x], [1.0]
 
 
 def phi_jac_s_dead_centre(q, u):

@@ -6,6 +6,7 @@
  * parametrization: quaternion
  * kinegen version: 0.2.0
  * sympy version:   1.14.0
+ * symengine:       0.15.0
  *
  * Straight-line kernels with common subexpressions hoisted (C99, math.h), the factorization
  * plan of every case's Phi_q, and the tables of kinegen_solver.h's structs.
@@ -58,13 +59,13 @@ static void compute_joints_phi(const double *q, double *out) {
     out[2] = -crank_z;
     out[3] = crank_a20;
     out[4] = crank_a21;
-    out[5] = crank_x - rod_x + (1.0/5.0)*crank_a00;
-    out[6] = crank_y - rod_y + (1.0/5.0)*crank_a10;
-    out[7] = crank_z - rod_z + (1.0/5.0)*crank_a20;
-    out[8] = rod_x - slider_x + (3.0/5.0)*rod_a00;
-    out[9] = rod_y - slider_y + (3.0/5.0)*rod_a10;
-    out[10] = rod_z - slider_z + (3.0/5.0)*rod_a20;
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22;
+    out[5] = (1.0/5.0)*crank_a00 - rod_x + crank_x;
+    out[6] = (1.0/5.0)*crank_a10 - rod_y + crank_y;
+    out[7] = (1.0/5.0)*crank_a20 - rod_z + crank_z;
+    out[8] = (3.0/5.0)*rod_a00 - slider_x + rod_x;
+    out[9] = (3.0/5.0)*rod_a10 - slider_y + rod_y;
+    out[10] = (3.0/5.0)*rod_a20 - slider_z + rod_z;
+    out[11] = slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01;
     out[12] = slider_a01;
     out[13] = slider_a02;
     out[14] = slider_y;
@@ -78,7 +79,7 @@ static void compute_drivers_phi_run(const double *q, const double *u, double *ou
     const double crank_qz = q[6];
     const double u0 = u[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -2.0*crank_qz*cos(c0) + 2.0*crank_qw*sin(c0);
+    out[0] = 2.0*sin(c0)*crank_qw - 2.0*cos(c0)*crank_qz;
 }
 
 /* Phi_q values of the joint rows (45 entries). */
@@ -117,9 +118,12 @@ static void compute_joints_jac(const double *q, double *out) {
     const double c3 = (3.0/5.0)*rod_a20;
     const double c4 = (3.0/5.0)*rod_a10;
     const double c5 = (3.0/5.0)*rod_a00;
-    const double c6 = rod_a11*slider_a22 - rod_a21*slider_a12;
-    const double c7 = rod_a01*slider_a22 - rod_a21*slider_a02;
-    const double c8 = rod_a01*slider_a12 - rod_a11*slider_a02;
+    const double c6 = slider_a22*rod_a11;
+    const double c7 = slider_a12*rod_a21;
+    const double c8 = slider_a02*rod_a21;
+    const double c9 = slider_a22*rod_a01;
+    const double c10 = slider_a12*rod_a01;
+    const double c11 = slider_a02*rod_a11;
     out[0] = -1.0;
     out[1] = -1.0;
     out[2] = -1.0;
@@ -151,12 +155,12 @@ static void compute_joints_jac(const double *q, double *out) {
     out[28] = c4;
     out[29] = -c5;
     out[30] = -1.0;
-    out[31] = c6;
-    out[32] = -c7;
-    out[33] = c8;
-    out[34] = -c6;
-    out[35] = c7;
-    out[36] = -c8;
+    out[31] = -c7 + c6;
+    out[32] = -c9 + c8;
+    out[33] = -c11 + c10;
+    out[34] = -c6 + c7;
+    out[35] = -c8 + c9;
+    out[36] = -c10 + c11;
     out[37] = slider_a21;
     out[38] = -slider_a11;
     out[39] = slider_a22;
@@ -177,8 +181,8 @@ static void compute_drivers_jac_run(const double *q, const double *u, double *ou
     const double c0 = (1.0/2.0)*u0;
     const double c1 = sin(c0);
     const double c2 = cos(c0);
-    out[0] = -c1*crank_qx - c2*crank_qy;
-    out[1] = c2*crank_qx - c1*crank_qy;
+    out[0] = -c2*crank_qy - c1*crank_qx;
+    out[1] = -c1*crank_qy + c2*crank_qx;
     out[2] = -c1*crank_qz - c2*crank_qw;
 }
 
@@ -189,7 +193,7 @@ static void compute_drivers_nu_run(const double *q, const double *u, const doubl
     const double u0 = u[0];
     const double ud0 = ud[0];
     const double c0 = (1.0/2.0)*u0;
-    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0));
+    out[0] = -(sin(c0)*crank_qz + cos(c0)*crank_qw)*ud0;
 }
 
 /* gamma of the joint rows (they do not depend on time). */
@@ -233,36 +237,36 @@ static void compute_joints_gamma(const double *q, const double *v, double *out) 
     const double slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
     const double slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz;
     const double slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz);
-    const double c0 = -1.0/5.0*crank_a00*v_crank_theta_y + (1.0/5.0)*crank_a10*v_crank_theta_x;
-    const double c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x;
-    const double c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z;
-    const double c3 = -3.0/5.0*rod_a00*v_rod_theta_y + (3.0/5.0)*rod_a10*v_rod_theta_x;
-    const double c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x;
-    const double c5 = rod_a20*v_rod_theta_y - rod_a10*v_rod_theta_z;
-    const double c6 = v_rod_theta_y - v_slider_theta_y;
-    const double c7 = v_rod_theta_x - v_slider_theta_x;
-    const double c8 = -c7;
-    const double c9 = v_rod_theta_z - v_slider_theta_z;
-    const double c10 = -c9;
-    const double c11 = -c6;
-    const double c12 = slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y;
+    const double c0 = (1.0/5.0)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x);
+    const double c1 = (1.0/5.0)*(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z);
+    const double c2 = (1.0/5.0)*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y);
+    const double c3 = (3.0/5.0)*(-rod_a00*v_rod_theta_y + rod_a10*v_rod_theta_x);
+    const double c4 = (3.0/5.0)*(-rod_a20*v_rod_theta_x + rod_a00*v_rod_theta_z);
+    const double c5 = (3.0/5.0)*(-rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y);
+    const double c6 = -rod_a21*v_rod_theta_x + rod_a01*v_rod_theta_z;
+    const double c7 = -slider_a22*v_slider_theta_x + slider_a02*v_slider_theta_z;
+    const double c8 = -rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x;
+    const double c9 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x;
+    const double c10 = -rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y;
+    const double c11 = -slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y;
+    const double c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x;
     out[0] = 0.0;
     out[1] = 0.0;
     out[2] = 0.0;
-    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x);
-    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x);
-    out[5] = -c0*v_crank_theta_y + (1.0/5.0)*c1*v_crank_theta_z;
-    out[6] = c0*v_crank_theta_x - 1.0/5.0*c2*v_crank_theta_z;
-    out[7] = -1.0/5.0*c1*v_crank_theta_x + (1.0/5.0)*c2*v_crank_theta_y;
-    out[8] = -c3*v_rod_theta_y + (3.0/5.0)*c4*v_rod_theta_z;
-    out[9] = c3*v_rod_theta_x - 3.0/5.0*c5*v_rod_theta_z;
-    out[10] = -3.0/5.0*c4*v_rod_theta_x + (3.0/5.0)*c5*v_rod_theta_y;
-    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_theta_x - rod_a01*v_rod_theta_y) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_theta_y - rod_a11*v_rod_theta_z);
-    out[12] = v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x) - v_slider_theta_y*(slider_a11*v_slider_theta_x - slider_a01*v_slider_theta_y);
-    out[13] = v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - c12*v_slider_theta_y;
+    out[3] = -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y;
+    out[4] = -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y;
+    out[5] = c1*v_crank_theta_z - c0*v_crank_theta_y;
+    out[6] = c0*v_crank_theta_x - c2*v_crank_theta_z;
+    out[7] = c2*v_crank_theta_y - c1*v_crank_theta_x;
+    out[8] = c4*v_rod_theta_z - c3*v_rod_theta_y;
+    out[9] = c3*v_rod_theta_x - c5*v_rod_theta_z;
+    out[10] = c5*v_rod_theta_y - c4*v_rod_theta_x;
+    out[11] = -c11*(c10 - rod_a21*v_slider_theta_y + rod_a11*v_slider_theta_z) - c9*(c8 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c10*(c11 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y) - c7*(c6 + rod_a21*v_slider_theta_x - rod_a01*v_slider_theta_z) - c8*(c9 - slider_a12*v_rod_theta_x + slider_a02*v_rod_theta_y) - c6*(c7 + slider_a22*v_rod_theta_x - slider_a02*v_rod_theta_z);
+    out[12] = -(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x)*v_slider_theta_y + (-slider_a21*v_slider_theta_x + slider_a01*v_slider_theta_z)*v_slider_theta_z;
+    out[13] = -c12*v_slider_theta_y + (-slider_a22*v_slider_theta_x + slider_a02*v_slider_theta_z)*v_slider_theta_z;
     out[14] = 0.0;
     out[15] = 0.0;
-    out[16] = c12*v_slider_theta_x - v_slider_theta_z*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z);
+    out[16] = -(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)*v_slider_theta_z + c12*v_slider_theta_x;
 }
 
 /* gamma of the driver rows of case 'run'. */
@@ -280,19 +284,19 @@ static void compute_drivers_gamma_run(const double *q, const double *v, const do
     const double c0 = (1.0/2.0)*u0;
     const double c1 = cos(c0);
     const double c2 = sin(c0);
-    const double c3 = (1.0/2.0)*crank_qw;
-    const double c4 = c2*c3 - 1.0/2.0*c1*crank_qz;
-    const double c5 = (1.0/2.0)*v_crank_theta_y;
-    const double c6 = (1.0/2.0)*v_crank_theta_x;
-    const double c7 = (1.0/2.0)*crank_qz;
-    const double c8 = (1.0/2.0)*v_crank_theta_z;
-    const double c9 = (1.0/2.0)*c1;
-    out[0] = c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1.0/2.0)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1.0/2.0*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx);
+    const double c3 = (1.0/2.0)*crank_qz;
+    const double c4 = c1*c3;
+    const double c5 = (1.0/2.0)*c2;
+    const double c6 = c5*crank_qw;
+    const double c7 = (1.0/2.0)*crank_qw;
+    const double c8 = (1.0/2.0)*crank_qx;
+    const double c9 = (1.0/2.0)*crank_qy;
+    out[0] = -2.0*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*crank_qz + c1*crank_qw)*udd0;
 }
 
 /* Driver inputs of case 'run' at time t: rows u (1), then du/dt, then d2u/dt2. */
 static void compute_inputs_run(double t, double *out) {
-    out[0] = 3.0/10.0 + (1.0/2.0)*(t*t) + 6.283185307179586*t;
+    out[0] = 3.0/10.0 + 6.283185307179586*t + (1.0/2.0)*(t*t);
     out[1] = 6.283185307179586 + t;
     out[2] = 1.0;
 }
@@ -322,7 +326,7 @@ static void compute_input_ranges_run(const double *span, double *out) {
 static void compute_drivers_phi_dead_centre(const double *q, const double *u, double *out) {
     const double slider_x = q[14];
     const double u0 = u[0];
-    out[0] = slider_x - u0;
+    out[0] = -u0 + slider_x;
 }
 
 /* Phi_q values of the driver rows of case 'dead_centre'. */
@@ -560,20 +564,22 @@ static void retract_body(double *q, const double *step) {
     const double _t0 = (step3*step3);
     const double _t1 = (step4*step4);
     const double _t2 = (step5*step5);
-    const double _t3 = sqrt(_t0 + _t1 + _t2);
+    const double _t3 = sqrt(_t2 + _t1 + _t0);
     const double _t4 = (1.0/2.0)*_t3;
     const double _t5 = cos(_t4);
-    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t0 - 1.0/48.0*_t1 - 1.0/48.0*_t2 ) : ( sin(_t4)/_t3 ));
-    const double _t7 = _t6*step3;
+    const double _t6 = ((_t3 <= 1e-08) ? ( 1.0/2.0 - 1.0/48.0*_t2 - 1.0/48.0*_t1 - 1.0/48.0*_t0 ) : ( sin(_t4)/_t3 ));
+    const double _t7 = q4*_t6;
     const double _t8 = _t6*step4;
-    const double _t9 = _t6*step5;
-    const double moved0 = q0 + step0;
-    const double moved1 = q1 + step1;
-    const double moved2 = q2 + step2;
-    const double moved3 = _t5*q3 - _t7*q4 - _t8*q5 - _t9*q6;
-    const double moved4 = _t5*q4 + _t7*q3 + _t8*q6 - _t9*q5;
-    const double moved5 = _t5*q5 + _t8*q3 + _t9*q4 - _t7*q6;
-    const double moved6 = _t5*q6 + _t7*q5 + _t9*q3 - _t8*q4;
+    const double _t9 = q6*_t6;
+    const double _t10 = q3*_t6;
+    const double _t11 = q5*_t6;
+    const double moved0 = step0 + q0;
+    const double moved1 = step1 + q1;
+    const double moved2 = step2 + q2;
+    const double moved3 = -_t9*step5 - q5*_t8 - _t7*step3 + q3*_t5;
+    const double moved4 = -_t11*step5 + _t10*step3 + q6*_t8 + q4*_t5;
+    const double moved5 = -_t9*step3 + _t7*step5 + q3*_t8 + q5*_t5;
+    const double moved6 = -q4*_t8 + _t11*step3 + _t10*step5 + q6*_t5;
     q[0] = moved0;
     q[1] = moved1;
     q[2] = moved2;

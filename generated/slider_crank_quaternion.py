@@ -6,6 +6,7 @@ source sha256:   60be577912c1de5d6cb08914f5dcec030f80d42df4541fca4ab6085ed6bd59b
 parametrization: quaternion
 kinegen version: 0.2.0
 sympy version:   1.14.0
+symengine:       0.15.0
 
 Coordinates q (stored, 21) and v (velocity, 18) are listed in
 STORED_NAMES and VELOCITY_NAMES. Units SI, angles in radians, quaternions (w, x, y, z).
@@ -49,7 +50,7 @@ KERNELS = {
     'loads': (('q', 't'), ('loads',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'slider_crank_quaternion.h': 'fe71584d67343baf183183ec95f9818ddfceae9f5d563eb1cd408e65aca4744e', 'slider_crank_quaternion.c': 'fea3a50afd5bb06edc9772d9a83494528ae51e9d116d353e3faf3e0b4262b626'}
+C_FILES = {'slider_crank_quaternion.h': '3313ea9d478ed5043437becbf31aca06ef659ddc4729b34cff05c83ab33825af', 'slider_crank_quaternion.c': 'ee353d3b335150d09fd2ab2f5e1722a3f63357a1461cb05ab4e32da12140aa33'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation
@@ -370,13 +371,13 @@ def _joints_phi(q):
     out[2] = -crank_z
     out[3] = crank_a20
     out[4] = crank_a21
-    out[5] = crank_x - rod_x + (1/5)*crank_a00
-    out[6] = crank_y - rod_y + (1/5)*crank_a10
-    out[7] = crank_z - rod_z + (1/5)*crank_a20
-    out[8] = rod_x - slider_x + (3/5)*rod_a00
-    out[9] = rod_y - slider_y + (3/5)*rod_a10
-    out[10] = rod_z - slider_z + (3/5)*rod_a20
-    out[11] = rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22
+    out[5] = (1/5)*crank_a00 - rod_x + crank_x
+    out[6] = (1/5)*crank_a10 - rod_y + crank_y
+    out[7] = (1/5)*crank_a20 - rod_z + crank_z
+    out[8] = (3/5)*rod_a00 - slider_x + rod_x
+    out[9] = (3/5)*rod_a10 - slider_y + rod_y
+    out[10] = (3/5)*rod_a20 - slider_z + rod_z
+    out[11] = slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01
     out[12] = slider_a01
     out[13] = slider_a02
     out[14] = slider_y
@@ -391,7 +392,7 @@ def _drivers_phi_run(q, u):
     u0, = u
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -2*crank_qz*cos(c0) + 2*crank_qw*sin(c0)
+    out[0] = 2*sin(c0)*crank_qw - 2*cos(c0)*crank_qz
     return out
 
 
@@ -425,9 +426,12 @@ def _joints_jac(q):
     c3 = (3/5)*rod_a20
     c4 = (3/5)*rod_a10
     c5 = (3/5)*rod_a00
-    c6 = rod_a11*slider_a22 - rod_a21*slider_a12
-    c7 = rod_a01*slider_a22 - rod_a21*slider_a02
-    c8 = rod_a01*slider_a12 - rod_a11*slider_a02
+    c6 = slider_a22*rod_a11
+    c7 = slider_a12*rod_a21
+    c8 = slider_a02*rod_a21
+    c9 = slider_a22*rod_a01
+    c10 = slider_a12*rod_a01
+    c11 = slider_a02*rod_a11
     out = _zeros(45, q, ())
     out[0] = -1
     out[1] = -1
@@ -460,12 +464,12 @@ def _joints_jac(q):
     out[28] = c4
     out[29] = -c5
     out[30] = -1
-    out[31] = c6
-    out[32] = -c7
-    out[33] = c8
-    out[34] = -c6
-    out[35] = c7
-    out[36] = -c8
+    out[31] = -c7 + c6
+    out[32] = -c9 + c8
+    out[33] = -c11 + c10
+    out[34] = -c6 + c7
+    out[35] = -c8 + c9
+    out[36] = -c10 + c11
     out[37] = slider_a21
     out[38] = -slider_a11
     out[39] = slider_a22
@@ -485,8 +489,8 @@ def _drivers_jac_run(q, u):
     c1 = sin(c0)
     c2 = cos(c0)
     out = _zeros(3, q, u)
-    out[0] = -c1*crank_qx - c2*crank_qy
-    out[1] = c2*crank_qx - c1*crank_qy
+    out[0] = -c2*crank_qy - c1*crank_qx
+    out[1] = -c1*crank_qy + c2*crank_qx
     out[2] = -c1*crank_qz - c2*crank_qw
     return out
 
@@ -523,10 +527,13 @@ def _joints_phi_joints_jac_s(q):
     d3 = (3/5)*rod_a20
     d4 = (3/5)*rod_a10
     d5 = (3/5)*rod_a00
-    d6 = rod_a11*slider_a22 - rod_a21*slider_a12
-    d7 = rod_a01*slider_a22 - rod_a21*slider_a02
-    d8 = rod_a01*slider_a12 - rod_a11*slider_a02
-    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, crank_x - rod_x + (1/5)*crank_a00, crank_y - rod_y + (1/5)*crank_a10, crank_z - rod_z + (1/5)*crank_a20, rod_x - slider_x + (3/5)*rod_a00, rod_y - slider_y + (3/5)*rod_a10, rod_z - slider_z + (3/5)*rod_a20, rod_a01*slider_a02 + rod_a11*slider_a12 + rod_a21*slider_a22, slider_a01, slider_a02, slider_y, slider_z, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, 1.0, -d3, d5, -1.0, 1.0, d4, -d5, -1.0, d6, -d7, d8, -d6, d7, -d8, slider_a21, -slider_a11, slider_a22, -slider_a12, 1.0, 1.0, -slider_a22, slider_a02]
+    d6 = slider_a22*rod_a11
+    d7 = slider_a12*rod_a21
+    d8 = slider_a02*rod_a21
+    d9 = slider_a22*rod_a01
+    d10 = slider_a12*rod_a01
+    d11 = slider_a02*rod_a11
+    return [-crank_x, -crank_y, -crank_z, crank_a20, crank_a21, (1/5)*crank_a00 - rod_x + crank_x, (1/5)*crank_a10 - rod_y + crank_y, (1/5)*crank_a20 - rod_z + crank_z, (3/5)*rod_a00 - slider_x + rod_x, (3/5)*rod_a10 - slider_y + rod_y, (3/5)*rod_a20 - slider_z + rod_z, slider_a22*rod_a21 + slider_a12*rod_a11 + slider_a02*rod_a01, slider_a01, slider_a02, slider_y, slider_z, slider_a12], [-1.0, -1.0, -1.0, crank_a10, -crank_a00, crank_a11, -crank_a01, 1.0, d0, -d1, -1.0, 1.0, -d0, d2, -1.0, 1.0, d1, -d2, -1.0, 1.0, d3, -d4, -1.0, 1.0, -d3, d5, -1.0, 1.0, d4, -d5, -1.0, -d7 + d6, -d9 + d8, -d11 + d10, -d6 + d7, -d8 + d9, -d10 + d11, slider_a21, -slider_a11, slider_a22, -slider_a12, 1.0, 1.0, -slider_a22, slider_a02]
 
 
 def _drivers_phi_run_drivers_jac_run_s(q, u):
@@ -537,7 +544,7 @@ def _drivers_phi_run_drivers_jac_run_s(q, u):
     d0 = (1/2)*u0
     d1 = math.sin(d0)
     d2 = math.cos(d0)
-    return [-2.0*crank_qz*math.cos(c0) + 2.0*crank_qw*math.sin(c0)], [-d1*crank_qx - d2*crank_qy, d2*crank_qx - d1*crank_qy, -d1*crank_qz - d2*crank_qw]
+    return [2.0*math.sin(c0)*crank_qw - 2.0*math.cos(c0)*crank_qz], [-d2*crank_qy - d1*crank_qx, -d1*crank_qy + d2*crank_qx, -d1*crank_qz - d2*crank_qw]
 
 
 def phi_jac_s_run(q, u):
@@ -554,7 +561,7 @@ def _drivers_nu_run(q, u, ud):
     ud0, = ud
     c0 = (1/2)*u0
     out = _zeros(1, q, u)
-    out[0] = -ud0*(crank_qw*cos(c0) + crank_qz*sin(c0))
+    out[0] = -(sin(c0)*crank_qz + cos(c0)*crank_qw)*ud0
     return out
 
 
@@ -569,7 +576,7 @@ def _drivers_nu_run_s(q, u, ud):
     u0, = u
     ud0, = ud
     c0 = (1/2)*u0
-    return [-ud0*(crank_qw*math.cos(c0) + crank_qz*math.sin(c0))]
+    return [-(math.sin(c0)*crank_qz + math.cos(c0)*crank_qw)*ud0]
 
 
 def nu_s_run(q, u, ud):
@@ -600,32 +607,32 @@ def _joints_gamma(q, v):
     slider_a12 = -2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a21 = 2*slider_qw*slider_qx + 2*slider_qy*slider_qz
     slider_a22 = -1 + 2*slider_qw**2 + 2*slider_qz**2
-    c0 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
-    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
-    c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
-    c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
-    c5 = rod_a20*v_rod_theta_y - rod_a10*v_rod_theta_z
-    c6 = v_rod_theta_y - v_slider_theta_y
-    c7 = v_rod_theta_x - v_slider_theta_x
-    c8 = -c7
-    c9 = v_rod_theta_z - v_slider_theta_z
-    c10 = -c9
-    c11 = -c6
-    c12 = slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y
+    c0 = (1/5)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    c1 = (1/5)*(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)
+    c2 = (1/5)*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
+    c3 = (3/5)*(-rod_a00*v_rod_theta_y + rod_a10*v_rod_theta_x)
+    c4 = (3/5)*(-rod_a20*v_rod_theta_x + rod_a00*v_rod_theta_z)
+    c5 = (3/5)*(-rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y)
+    c6 = -rod_a21*v_rod_theta_x + rod_a01*v_rod_theta_z
+    c7 = -slider_a22*v_slider_theta_x + slider_a02*v_slider_theta_z
+    c8 = -rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x
+    c9 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
+    c10 = -rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y
+    c11 = -slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y
+    c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
     out = _zeros(17, q, ())
-    out[3] = v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x)
-    out[4] = v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x)
-    out[5] = -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z
-    out[6] = c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z
-    out[7] = -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y
-    out[8] = -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z
-    out[9] = c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z
-    out[10] = -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y
-    out[11] = -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_theta_x - rod_a01*v_rod_theta_y) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_theta_y - rod_a11*v_rod_theta_z)
-    out[12] = v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x) - v_slider_theta_y*(slider_a11*v_slider_theta_x - slider_a01*v_slider_theta_y)
-    out[13] = v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - c12*v_slider_theta_y
-    out[16] = c12*v_slider_theta_x - v_slider_theta_z*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z)
+    out[3] = -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y
+    out[4] = -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y
+    out[5] = c1*v_crank_theta_z - c0*v_crank_theta_y
+    out[6] = c0*v_crank_theta_x - c2*v_crank_theta_z
+    out[7] = c2*v_crank_theta_y - c1*v_crank_theta_x
+    out[8] = c4*v_rod_theta_z - c3*v_rod_theta_y
+    out[9] = c3*v_rod_theta_x - c5*v_rod_theta_z
+    out[10] = c5*v_rod_theta_y - c4*v_rod_theta_x
+    out[11] = -c11*(c10 - rod_a21*v_slider_theta_y + rod_a11*v_slider_theta_z) - c9*(c8 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c10*(c11 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y) - c7*(c6 + rod_a21*v_slider_theta_x - rod_a01*v_slider_theta_z) - c8*(c9 - slider_a12*v_rod_theta_x + slider_a02*v_rod_theta_y) - c6*(c7 + slider_a22*v_rod_theta_x - slider_a02*v_rod_theta_z)
+    out[12] = -(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x)*v_slider_theta_y + (-slider_a21*v_slider_theta_x + slider_a01*v_slider_theta_z)*v_slider_theta_z
+    out[13] = -c12*v_slider_theta_y + (-slider_a22*v_slider_theta_x + slider_a02*v_slider_theta_z)*v_slider_theta_z
+    out[16] = -(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)*v_slider_theta_z + c12*v_slider_theta_x
     return out
 
 
@@ -639,15 +646,15 @@ def _drivers_gamma_run(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = cos(c0)
     c2 = sin(c0)
-    c3 = (1/2)*crank_qw
-    c4 = c2*c3 - 1/2*c1*crank_qz
-    c5 = (1/2)*v_crank_theta_y
-    c6 = (1/2)*v_crank_theta_x
-    c7 = (1/2)*crank_qz
-    c8 = (1/2)*v_crank_theta_z
-    c9 = (1/2)*c1
+    c3 = (1/2)*crank_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*crank_qw
+    c7 = (1/2)*crank_qw
+    c8 = (1/2)*crank_qx
+    c9 = (1/2)*crank_qy
     out = _zeros(1, q, u)
-    out[0] = c4*ud0**2 - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)
+    out[0] = -2*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*ud0**2 - (c2*crank_qz + c1*crank_qw)*udd0
     return out
 
 
@@ -678,20 +685,20 @@ def _joints_gamma_s(q, v):
     slider_a12 = -2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
     slider_a21 = 2.0*slider_qw*slider_qx + 2.0*slider_qy*slider_qz
     slider_a22 = -1.0 + 2.0*(slider_qw*slider_qw) + 2.0*(slider_qz*slider_qz)
-    c0 = -1/5*crank_a00*v_crank_theta_y + (1/5)*crank_a10*v_crank_theta_x
-    c1 = crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x
-    c2 = crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z
-    c3 = -3/5*rod_a00*v_rod_theta_y + (3/5)*rod_a10*v_rod_theta_x
-    c4 = rod_a00*v_rod_theta_z - rod_a20*v_rod_theta_x
-    c5 = rod_a20*v_rod_theta_y - rod_a10*v_rod_theta_z
-    c6 = v_rod_theta_y - v_slider_theta_y
-    c7 = v_rod_theta_x - v_slider_theta_x
-    c8 = -c7
-    c9 = v_rod_theta_z - v_slider_theta_z
-    c10 = -c9
-    c11 = -c6
-    c12 = slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y
-    return [0.0, 0.0, 0.0, v_crank_theta_y*(crank_a20*v_crank_theta_y - crank_a10*v_crank_theta_z) - v_crank_theta_x*(crank_a00*v_crank_theta_z - crank_a20*v_crank_theta_x), v_crank_theta_y*(crank_a21*v_crank_theta_y - crank_a11*v_crank_theta_z) - v_crank_theta_x*(crank_a01*v_crank_theta_z - crank_a21*v_crank_theta_x), -c0*v_crank_theta_y + (1/5)*c1*v_crank_theta_z, c0*v_crank_theta_x - 1/5*c2*v_crank_theta_z, -1/5*c1*v_crank_theta_x + (1/5)*c2*v_crank_theta_y, -c3*v_rod_theta_y + (3/5)*c4*v_rod_theta_z, c3*v_rod_theta_x - 3/5*c5*v_rod_theta_z, -3/5*c4*v_rod_theta_x + (3/5)*c5*v_rod_theta_y, -(c6*rod_a21 + c10*rod_a11)*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z) - (c6*slider_a02 + c8*slider_a12)*(rod_a11*v_rod_theta_x - rod_a01*v_rod_theta_y) - (c7*rod_a11 + c11*rod_a01)*(slider_a12*v_slider_theta_x - slider_a02*v_slider_theta_y) - (c7*slider_a22 + c10*slider_a02)*(rod_a01*v_rod_theta_z - rod_a21*v_rod_theta_x) - (c8*rod_a21 + c9*rod_a01)*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - (c9*slider_a12 + c11*slider_a22)*(rod_a21*v_rod_theta_y - rod_a11*v_rod_theta_z), v_slider_theta_z*(slider_a01*v_slider_theta_z - slider_a21*v_slider_theta_x) - v_slider_theta_y*(slider_a11*v_slider_theta_x - slider_a01*v_slider_theta_y), v_slider_theta_z*(slider_a02*v_slider_theta_z - slider_a22*v_slider_theta_x) - c12*v_slider_theta_y, 0.0, 0.0, c12*v_slider_theta_x - v_slider_theta_z*(slider_a22*v_slider_theta_y - slider_a12*v_slider_theta_z)]
+    c0 = (1/5)*(-crank_a00*v_crank_theta_y + crank_a10*v_crank_theta_x)
+    c1 = (1/5)*(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)
+    c2 = (1/5)*(-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)
+    c3 = (3/5)*(-rod_a00*v_rod_theta_y + rod_a10*v_rod_theta_x)
+    c4 = (3/5)*(-rod_a20*v_rod_theta_x + rod_a00*v_rod_theta_z)
+    c5 = (3/5)*(-rod_a10*v_rod_theta_z + rod_a20*v_rod_theta_y)
+    c6 = -rod_a21*v_rod_theta_x + rod_a01*v_rod_theta_z
+    c7 = -slider_a22*v_slider_theta_x + slider_a02*v_slider_theta_z
+    c8 = -rod_a01*v_rod_theta_y + rod_a11*v_rod_theta_x
+    c9 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
+    c10 = -rod_a11*v_rod_theta_z + rod_a21*v_rod_theta_y
+    c11 = -slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y
+    c12 = -slider_a02*v_slider_theta_y + slider_a12*v_slider_theta_x
+    return [0.0, 0.0, 0.0, -(-crank_a20*v_crank_theta_x + crank_a00*v_crank_theta_z)*v_crank_theta_x + (-crank_a10*v_crank_theta_z + crank_a20*v_crank_theta_y)*v_crank_theta_y, -(-crank_a21*v_crank_theta_x + crank_a01*v_crank_theta_z)*v_crank_theta_x + (-crank_a11*v_crank_theta_z + crank_a21*v_crank_theta_y)*v_crank_theta_y, c1*v_crank_theta_z - c0*v_crank_theta_y, c0*v_crank_theta_x - c2*v_crank_theta_z, c2*v_crank_theta_y - c1*v_crank_theta_x, c4*v_rod_theta_z - c3*v_rod_theta_y, c3*v_rod_theta_x - c5*v_rod_theta_z, c5*v_rod_theta_y - c4*v_rod_theta_x, -c11*(c10 - rod_a21*v_slider_theta_y + rod_a11*v_slider_theta_z) - c9*(c8 + rod_a01*v_slider_theta_y - rod_a11*v_slider_theta_x) - c10*(c11 + slider_a12*v_rod_theta_z - slider_a22*v_rod_theta_y) - c7*(c6 + rod_a21*v_slider_theta_x - rod_a01*v_slider_theta_z) - c8*(c9 - slider_a12*v_rod_theta_x + slider_a02*v_rod_theta_y) - c6*(c7 + slider_a22*v_rod_theta_x - slider_a02*v_rod_theta_z), -(-slider_a01*v_slider_theta_y + slider_a11*v_slider_theta_x)*v_slider_theta_y + (-slider_a21*v_slider_theta_x + slider_a01*v_slider_theta_z)*v_slider_theta_z, -c12*v_slider_theta_y + (-slider_a22*v_slider_theta_x + slider_a02*v_slider_theta_z)*v_slider_theta_z, 0.0, 0.0, -(-slider_a12*v_slider_theta_z + slider_a22*v_slider_theta_y)*v_slider_theta_z + c12*v_slider_theta_x]
 
 
 def _drivers_gamma_run_s(q, v, u, ud, udd):
@@ -704,14 +711,14 @@ def _drivers_gamma_run_s(q, v, u, ud, udd):
     c0 = (1/2)*u0
     c1 = math.cos(c0)
     c2 = math.sin(c0)
-    c3 = (1/2)*crank_qw
-    c4 = c2*c3 - 1/2*c1*crank_qz
-    c5 = (1/2)*v_crank_theta_y
-    c6 = (1/2)*v_crank_theta_x
-    c7 = (1/2)*crank_qz
-    c8 = (1/2)*v_crank_theta_z
-    c9 = (1/2)*c1
-    return [c4*(ud0*ud0) - udd0*(c1*crank_qw + c2*crank_qz) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(c3*v_crank_theta_x + c7*v_crank_theta_y - c8*crank_qy) - (-c1*v_crank_theta_x - c2*v_crank_theta_y)*(c3*v_crank_theta_y + c8*crank_qx - c7*v_crank_theta_x) - 2.0*ud0*(c4*v_crank_theta_z + v_crank_theta_x*((1/2)*c2*crank_qy - c9*crank_qx) + v_crank_theta_y*(-c9*crank_qy - 1/2*c2*crank_qx)) + c1*v_crank_theta_z*(-c5*crank_qy - c6*crank_qx - c7*v_crank_theta_z) + c2*v_crank_theta_z*(c3*v_crank_theta_z + c6*crank_qy - c5*crank_qx)]
+    c3 = (1/2)*crank_qz
+    c4 = c1*c3
+    c5 = (1/2)*c2
+    c6 = c5*crank_qw
+    c7 = (1/2)*crank_qw
+    c8 = (1/2)*crank_qx
+    c9 = (1/2)*crank_qy
+    return [-2.0*ud0*((-c4 + c6)*v_crank_theta_z + (-c1*c9 - c2*c8)*v_crank_theta_y + (-c1*c8 + c5*crank_qy)*v_crank_theta_x) - (c1*v_crank_theta_y - c2*v_crank_theta_x)*(-c9*v_crank_theta_z + c3*v_crank_theta_y + c7*v_crank_theta_x) + c1*v_crank_theta_z*(-c3*v_crank_theta_z - c9*v_crank_theta_y - c8*v_crank_theta_x) + c2*v_crank_theta_z*(-c8*v_crank_theta_y + c9*v_crank_theta_x + c7*v_crank_theta_z) - (-c2*v_crank_theta_y - c1*v_crank_theta_x)*(-c3*v_crank_theta_x + c8*v_crank_theta_z + c7*v_crank_theta_y) - (-c6 + c4)*(ud0*ud0) - (c2*crank_qz + c1*crank_qw)*udd0]
 
 
 def gamma_s_run(q, v, u, ud, udd):
@@ -724,7 +731,7 @@ def gamma_s_run(q, v, u, ud, udd):
 def inputs_run(t):
     """Driver inputs of case 'run' at time t: u, then du/dt, then d2u/dt2."""
     out = np.zeros((3,) + np.shape(t))
-    out[0] = 3/10 + (1/2)*t**2 + 6.283185307179586*t
+    out[0] = 3/10 + 6.283185307179586*t + (1/2)*t**2
     out[1] = 6.283185307179586 + t
     out[2] = 1
     return out
@@ -758,7 +765,7 @@ def _drivers_phi_dead_centre(q, u):
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
     u0, = u
     out = _zeros(1, q, u)
-    out[0] = slider_x - u0
+    out[0] = -u0 + slider_x
     return out
 
 
@@ -783,7 +790,7 @@ def _drivers_phi_dead_centre_drivers_jac_dead_centre_s(q, u):
     """Phi of the driver rows of case 'dead_centre'.; Phi_q values of the driver rows of case 'dead_centre'. (one configuration, lists of floats)"""
     _, _, _, _, _, _, _, _, _, _, _, _, _, _, slider_x, _, _, _, _, _, _ = q
     u0, = u
-    return [slider_x - u0], [1.0]
+    return [-u0 + slider_x], [1.0]
 
 
 def phi_jac_s_dead_centre(q, u):

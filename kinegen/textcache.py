@@ -23,14 +23,16 @@ from kinegen.files import cache_folder, write_atomic
 
 @functools.cache
 def code_fingerprint(suffixes: tuple[str, ...] = (".py",)) -> str:
-    """SHA-256 over kinegen's version, SymPy's installed version and the package's files ending in
+    """SHA-256 over kinegen's version, SymPy's and SymEngine's installed versions and the package's files ending in
     ``suffixes`` (the code generator's fingerprint adds its templates and C: ``.jinja``, ``.c``, ``.h``)."""
     root = Path(kinegen.__file__).resolve().parent
-    try:
-        sympy_version = metadata.version("sympy")
-    except metadata.PackageNotFoundError:
-        sympy_version = "?"
-    key = hashlib.sha256(f"{kinegen.__version__}\n{sympy_version}".encode())
+    versions = []
+    for package in ("sympy", "symengine"):
+        try:
+            versions.append(metadata.version(package))
+        except metadata.PackageNotFoundError:
+            versions.append("?")
+    key = hashlib.sha256("\n".join([kinegen.__version__, *versions]).encode())
     for file in sorted(p for p in root.rglob("*") if p.suffix in suffixes and "__pycache__" not in p.parts):
         key.update(f"\n{file.relative_to(root).as_posix()}\n".encode() + file.read_bytes())
     return key.hexdigest()

@@ -37,6 +37,7 @@ from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, design_value
 from kinegen.rotations import Parametrization
+from kinegen.symbolic import engine
 from kinegen.symbolic.assembly import (
     Coordinates,
     Row,
@@ -343,8 +344,8 @@ def _by_design(expr: sp.Expr, symbols: tuple[sp.Symbol, ...]) -> list[tuple[int,
     """(parameter, d expr/dp) for every design parameter ``expr`` depends on, derivative not
     identically zero. Rows hold the design parameters explicitly (the frame symbols do not
     depend on them), so this is one derivative per parameter a row uses."""
-    free = expr.free_symbols
-    return [(k, d) for k, p in enumerate(symbols) if p in free for d in [expr.diff(p)] if d != 0]
+    derivatives = engine.gradient(expr, symbols)
+    return [(k, d) for k, p in enumerate(symbols) if p in derivatives for d in [derivatives[p]] if d != 0]
 
 
 def _design_derivatives(rows: list[Row], symbols: tuple[sp.Symbol, ...]) -> list[list[tuple[int, sp.Expr]]]:
@@ -398,7 +399,8 @@ def _sensitivity_rows(rows: list[Row], coords: Coordinates, symbols: tuple[sp.Sy
         velocities = [c for b in bodies for c in range(b.velocity_offset, b.velocity_offset + len(b.velocity))]
         if row.is_driver:
             m_v = tangent_jacobian(velocity, bodies)
-            n_a = {c: d for c in velocities if v[c] in acceleration.free_symbols for d in [acceleration.diff(v[c])] if d != 0}
+            by_velocity = engine.gradient(acceleration, [v[c] for c in velocities])
+            n_a = {c: d for c in velocities if v[c] in by_velocity for d in [by_velocity[v[c]]] if d != 0}
         else:
             m_v, n_a = _joint_rates(jacobian, columns, velocities, bodies, v)
         dvel.append([*sorted(m_v.items()), *((n + k, d) for k, d in _by_design(velocity, symbols))])
@@ -556,8 +558,18 @@ def _max(values: list[sp.Expr]) -> sp.Expr:
     """The largest of ``values`` (none: 0) in the functions the printers know: max(a, b) = (a + b + |a - b|)/2."""
     out = values[0] if values else sp.Integer(0)
     for value in values[1:]:
-        out = (out + value + sp.Abs(out - value)) / 2
+        out = (out + value + _abs(out - value)) / 2
     return out
+
+
+def _abs(x: sp.Expr) -> sp.Abs:
+    """|x|, not evaluated: SymPy's sign analysis of a large expression costs more than the rest of the row."""
+    return sp.Abs(x, evaluate=False)
+
+
+def _sign(x: sp.Expr) -> sp.sign:
+    """sign(x), not evaluated (as :func:`_abs`)."""
+    return sp.sign(x, evaluate=False)
 
 
 def supply_expressions(model: Model, coords: Coordinates, forces: tuple[sp.Symbol, ...]) -> dict[str, list[sp.Expr]]:
@@ -602,10 +614,10 @@ def supply_expressions(model: Model, coords: Coordinates, forces: tuple[sp.Symbo
                 gap = ends[0] - ends[1]
                 length = sp.sqrt(sum((x * x for x in gap), sp.Integer(0)))
                 rate += along(length, moving([ref.body for ref in member.points]))
-            flows[name] = (cap + annulus) / 2 * sp.Abs(rate) + (cap - annulus) / 2 * rate
-            sign = sp.sign(rate)
-            filling[name] = ((sign + sp.Abs(sign)) / 2 * (force + sp.Abs(force)) / (2 * cap)
-                             + (sp.Abs(sign) - sign) / 2 * (sp.Abs(force) - force) / (2 * annulus))  # fmt: skip
+            flows[name] = (cap + annulus) / 2 * _abs(rate) + (cap - annulus) / 2 * rate
+            sign = _sign(rate)
+            filling[name] = ((sign + _abs(sign)) / 2 * (force + _abs(force)) / (2 * cap)
+                             + (_abs(sign) - sign) / 2 * (_abs(force) - force) / (2 * annulus))  # fmt: skip
         else:
             motor = motors[name]
             joint = next(j for j in model.joints if j.name == motor.joint)
@@ -613,9 +625,9 @@ def supply_expressions(model: Model, coords: Coordinates, forces: tuple[sp.Symbo
             axis = axis / sp.sqrt(sum((x * x for x in axis), sp.Integer(0)))
             carried = axis if joint.body1 == GROUND else frames[joint.body1].A * axis
             rate = (carried.T * (omega(joint.body2) - omega(joint.body1)))[0]
-            flows[name] = motor.displacement * sp.Abs(rate)
-            sign = sp.sign(rate)
-            filling[name] = (force * sign + sp.Abs(force) * sp.Abs(sign)) / (2 * motor.displacement)
+            flows[name] = motor.displacement * _abs(rate)
+            sign = _sign(rate)
+            filling[name] = (force * sign + _abs(force) * _abs(sign)) / (2 * motor.displacement)
     pump_flows, pressures = [], []
     for pump in supply.pumps:
         fed = [name for name, pumps in supply.circuits.items() if pump.name in pumps]

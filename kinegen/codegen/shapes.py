@@ -24,6 +24,7 @@ import sympy as sp
 from sympy.printing.codeprinter import CodePrinter
 
 from kinegen.codegen.expressions import freeze_numbers
+from kinegen.symbolic import engine
 from kinegen.symbolic.assembly import GENERIC_NAME
 
 #: Statements per generated function part: Python's compiler needs ~60 bytes of memory per
@@ -49,10 +50,10 @@ class Statements:
 
 
 def eliminate(expressions: Sequence[sp.Expr]) -> Statements:
-    """CSE of ``expressions`` (irrational constants frozen to doubles first), canonical order."""
-    frozen = [freeze_numbers(e) for e in expressions]
-    replacements, reduced = sp.cse(frozen, symbols=sp.numbered_symbols("_t"), order="canonical")
-    return Statements(tuple(replacements), tuple(reduced))
+    """CSE of ``expressions`` (irrational constants frozen to doubles first) by SymEngine
+    (:func:`kinegen.symbolic.engine.eliminate`)."""
+    temporaries, reduced = engine.eliminate(expressions)
+    return Statements(tuple(temporaries), tuple(reduced))
 
 
 @dataclass(frozen=True)

@@ -33,6 +33,7 @@ from kinegen.interface import normalization_row
 from kinegen.model.expressions import T, time_derivative
 from kinegen.model.schema import GROUND, Case, Model
 from kinegen.rotations import Parametrization
+from kinegen.symbolic.engine import gradient
 
 
 @dataclass(frozen=True)
@@ -456,11 +457,11 @@ def tangent_jacobian(expr: sp.Expr, bodies: list[BodyCoordinates]) -> dict[int, 
     velocity offset + k), entries identically zero left out. With the chain rule, for velocity
     coordinate k, d/dv_k = sum_ij d/da_ij (dA/dv_k)_ij + d/ds B(s)[:, k]; velocity and other
     symbols in ``expr`` are held."""
-    gradient = _gradient(expr, [s for body in bodies for s in (*body.stored, *body.frame_symbols)])
+    derivatives = gradient(expr, [s for body in bodies for s in (*body.stored, *body.frame_symbols)])
     out: dict[int, sp.Expr] = {}
     for body in bodies:
         for k, pairs in enumerate(body.tangents):
-            total = sp.Add(*(gradient[s] * d for s, d in pairs if s in gradient))
+            total = sp.Add(*(derivatives[s] * d for s, d in pairs if s in derivatives))
             if total != 0:
                 out[body.velocity_offset + k] = total
     return out
@@ -472,7 +473,7 @@ def along(expr: sp.Expr, bodies: list[BodyCoordinates], directions: list[tuple[s
     default its velocity (the configuration part of d/dt), else ``directions`` (one tuple of
     symbols per body). Velocity and other symbols in ``expr`` are held."""
     configuration = [s for body in bodies for s in (*body.stored, *body.frame_symbols)]
-    derivatives = _gradient(expr, configuration)
+    derivatives = gradient(expr, configuration)
     zero = sp.Integer(0)
     total = zero
     for k, body in enumerate(bodies):
@@ -485,20 +486,6 @@ def along(expr: sp.Expr, bodies: list[BodyCoordinates], directions: list[tuple[s
             if rate != 0:
                 total += derivatives.get(s, zero) * rate
     return total
-
-
-def _gradient(expr: sp.Expr, symbols: list[sp.Symbol]) -> dict[sp.Symbol, sp.Expr]:
-    """The derivatives of ``expr`` with respect to those of ``symbols`` it contains. A polynomial
-    in them (the rows of quaternion parametrizations, written in positions and rotation-matrix
-    entries) is differentiated as one (``Poly``: its terms at once); anything else by ``diff``."""
-    free = expr.free_symbols
-    present = [s for s in symbols if s in free]
-    if not present:
-        return {}
-    if expr.is_polynomial(*present):
-        poly = sp.Poly(expr, *present)
-        return {s: poly.diff(s).as_expr() for s in present}
-    return {s: sp.diff(expr, s) for s in present}
 
 
 def _moving(names: tuple[str, ...]) -> tuple[str, ...]:

@@ -27,6 +27,7 @@ from kinegen.codegen.shapes import Block, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
 from kinegen.model.expressions import T
+from kinegen.symbolic import engine
 
 TEXT = 1  # position of the printed text in a Block's temporaries (after the name)
 
@@ -355,7 +356,7 @@ class _Model:
         context = {
             "d": d, "stem": stem, "prefix": stem.upper(), "cases": cases, "points": points, "actuators": actuators,
             "param": d.parametrization, "retract": retract_lines(d.parametrization),
-            "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__, "tables": self.tables,
+            "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__, "symengine_version": engine.VERSION, "tables": self.tables,
             "groups": [[macros.function(f) for f in group] for group in groups],
             "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
             "sensitivity_values": max(c.sensitivity_values for c in cases),

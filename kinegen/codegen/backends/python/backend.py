@@ -22,6 +22,7 @@ from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Output
 from kinegen.codegen.shapes import Block, Printing
 from kinegen.codegen.templates import environment
 from kinegen.interface import FRAME_FIELDS
+from kinegen.symbolic import engine
 
 ARRAY, SCALAR = 1, 2  # text positions in a Block's temporaries / outputs (after the name)
 
@@ -233,6 +234,7 @@ class _Module:
         return templates.get_template("module.py.jinja").render(
             d=d,
             sympy_version=sp.__version__,
+            symengine_version=engine.VERSION,
             numpy_names=used_numpy_names("\n".join(code)),
             kernels=kernels,
             functions=code,
