@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import ast
 import hashlib
 import os
 import re
@@ -105,6 +106,34 @@ def test_failed_build_leaves_generated_folder_untouched(tmp_path):
     with pytest.raises(ModelError):
         build(bad, "quaternion", out)
     assert [p.name for p in out.iterdir()] == ["keep.py"]
+
+
+def test_the_c_printed_in_a_forked_process_is_the_c_printed_here(monkeypatch):
+    """The C printed in a child process while this one prints the Python (writer.generate where it
+    may fork) gives the bytes one process gives, and ``ready`` still sees the C before the Python."""
+    made, seen = {}, {}
+    for fork in (False, True):
+        monkeypatch.setattr(writer, "_may_fork", lambda fork=fork: fork)
+        seen[fork] = []
+        made[fork] = writer.generate(model("four_bar"), rotations.get("quaternion"), ready=lambda target, files, fork=fork: seen[fork].append(target))
+    assert made[True] == made[False]
+    assert seen[True] == seen[False] == ["c-model", "python"]
+    text = made[True]["python"]["four_bar_quaternion.py"]
+    named = ast.literal_eval(re.search(r"^C_FILES = (.*)$", text, re.MULTILINE).group(1))
+    assert named == {name: hashlib.sha256(text.encode()).hexdigest() for name, text in made[True]["c-model"].items()}
+
+
+def test_a_failure_printing_the_c_in_the_forked_process_is_raised_here_and_nothing_is_written(tmp_path, monkeypatch):
+    import kinegen.codegen.backends.c as c_backend
+
+    def broken(*args, **kwargs):
+        raise ModelError("four_bar.yaml", "joints", "the C printer failed on purpose")
+
+    monkeypatch.setattr(c_backend, "render", broken)  # in the child too: it is forked from here
+    monkeypatch.setattr(writer, "_may_fork", lambda: True)
+    with pytest.raises(ModelError, match="failed on purpose"):
+        build(MODELS / "four_bar.yaml", "quaternion", tmp_path)
+    assert list(tmp_path.iterdir()) == []
 
 
 def test_stale_module_is_refused_with_rebuild_hint(tmp_path):

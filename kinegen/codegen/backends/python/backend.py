@@ -10,6 +10,7 @@ joined with each case's driver sections. Functions of more than
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
@@ -209,7 +210,7 @@ class _Module:
         doc = f"{kernel.doc} At one configuration (lists of floats)."
         self.functions.append(_Function("returns", function, list(kernel.slots), doc, lines, result=result))
 
-    def render(self, templates) -> str:
+    def render(self, templates, before_template: Callable[[], None] | None = None) -> str:
         d = self.d
         for kernel in d.kernels.values():  # shared by the cases: a function per output, named as it
             for output in kernel.outputs:
@@ -231,6 +232,8 @@ class _Module:
             SimpleNamespace(name=k.name, slots=k.slots, outputs=tuple(o.name for o in k.outputs))
             for k in [*next(iter(d.cases.values())).kernels.values(), *d.kernels.values()]
         ]
+        if before_template is not None:  # e.g. the C's digests (d.c_files), printed meanwhile in another process
+            before_template()
         return templates.get_template("module.py.jinja").render(
             d=d,
             sympy_version=sp.__version__,
@@ -261,6 +264,7 @@ def interval_helpers() -> str:
     return text.split("# ---- helpers ----\n", 1)[1].split("# ---- end of helpers ----", 1)[0].strip()
 
 
-def render(description: ModuleDescription, stem: str) -> dict[str, str]:
-    """The module's file name and text: ``{stem}.py``."""
-    return {f"{stem}{config.SUFFIX}": _Module(description).render(environment(config.TEMPLATES))}
+def render(description: ModuleDescription, stem: str, before_template: Callable[[], None] | None = None) -> dict[str, str]:
+    """The module's file name and text: ``{stem}.py``. ``before_template`` is called after every
+    function is printed, before the module's text is put together (which reads ``description.c_files``)."""
+    return {f"{stem}{config.SUFFIX}": _Module(description).render(environment(config.TEMPLATES), before_template)}
