@@ -37,6 +37,28 @@ def gradient(expr: sp.Expr, symbols: Sequence[sp.Symbol]) -> dict[sp.Symbol, sp.
     return {s: to_sympy(converted.diff(se.Symbol(s.name)), names, memo) for s in present}
 
 
+class Bridge:
+    """Arithmetic in SymEngine on SymPy expressions: :meth:`to` converts (remembering each symbol),
+    :meth:`back` gives a result back to SymPy with the remembered symbols (assumptions kept),
+    unevaluated as :func:`to_sympy`."""
+
+    def __init__(self) -> None:
+        self.names: dict[str, sp.Symbol] = {}
+        self._memo: dict[se.Basic, sp.Expr] = {}
+
+    def to(self, value):
+        """A SymPy expression (a number, a matrix: SymEngine's DenseMatrix) in SymEngine."""
+        if isinstance(value, sp.MatrixBase):
+            return se.Matrix(value.rows, value.cols, [self.to(x) for x in value])
+        value = sp.sympify(value)
+        self.names.update(_names(value.free_symbols))
+        return se.sympify(value)
+
+    def back(self, value: se.Basic) -> sp.Expr:
+        """A SymEngine result in SymPy."""
+        return to_sympy(value, self.names, self._memo)
+
+
 def eliminate(expressions: Sequence[sp.Expr]) -> tuple[list[tuple[sp.Symbol, sp.Expr]], list[sp.Expr]]:
     """SymEngine's CSE of ``expressions``, irrational constants frozen to doubles first
     (:func:`freeze_numbers`): the temporaries as (``_t<k>``, value) in SymEngine's order (each

@@ -18,6 +18,7 @@ Conventions (velocity coordinates v as the parametrization defines them; global 
 
 from __future__ import annotations
 
+import symengine as se
 import sympy as sp
 
 from kinegen.constraints import GROUND_FRAME
@@ -26,6 +27,7 @@ from kinegen.interface import frame_slices
 from kinegen.model import Model
 from kinegen.model.schema import GROUND, Load, Motor
 from kinegen.symbolic.assembly import BodyCoordinates, Coordinates, generic_body, tangent_jacobian
+from kinegen.symbolic.engine import Bridge
 
 #: an element's (name, kind) and row: column -> expression
 ElementRow = tuple[str, str, dict[int, sp.Expr]]
@@ -122,27 +124,38 @@ def inertia_row(model: Model, coords: Coordinates) -> list[dict[int, sp.Expr]]:
     dict per massive body (its own columns), in the stored, frame, velocity and acceleration
     symbols: per body with a mass m, centre of mass C (c = A c_local from the origin) and inertia
     J = A J_b Aᵀ about C, Q_k = m (g − a_C)·J_C[:, k] − (J ω̇ + ω × J ω)·T_ω[:, k],
-    a_C = a_O + ω̇ × c + ω × (ω × c)."""
-    gravity = sp.Matrix(model.gravity)
+    a_C = a_O + ω̇ × c + ω × (ω × c). The products are SymEngine's (:class:`kinegen.symbolic.engine.Bridge`)."""
+    bridge = Bridge()
+    gravity = bridge.to(sp.Matrix(model.gravity))
     rows = []
     for body in model.massive:
-        row: dict[int, sp.Expr] = {}
+        row: dict[int, se.Basic] = {}
         inertia = body.inertia
         symbols = coords.body(body.name)
-        rates = frame_rates(coords, symbols)
-        rotation = symbols.frame.A
-        arm = rotation * sp.Matrix(inertia.center)
+        rates = {name: bridge.to(value) for name, value in frame_rates(coords, symbols).items()}
+        rotation = bridge.to(symbols.frame.A)
+        arm = rotation * bridge.to(sp.Matrix(inertia.center))
         omega, omega_dot = rates["angular_velocity"], rates["angular_acceleration"]
-        center_acceleration = rates["acceleration"] + omega_dot.cross(arm) + omega.cross(omega.cross(arm))
-        force = inertia.mass * (gravity - center_acceleration)
-        tensor = rotation * sp.Matrix(inertia.tensor) * rotation.T
-        moment = -(tensor * omega_dot + omega.cross(tensor * omega))
+        center_acceleration = rates["acceleration"] + _cross(omega_dot, arm) + _cross(omega, _cross(omega, arm))
+        force = (gravity - center_acceleration) * bridge.to(inertia.mass)
+        tensor = rotation * bridge.to(sp.Matrix(inertia.tensor)) * rotation.T
+        moment = -(tensor * omega_dot + _cross(omega, tensor * omega))
         for c, column in point_columns(coords, symbols, inertia.center).items():
-            row[c] = row.get(c, sp.Integer(0)) + dot(force, column)
+            row[c] = row.get(c, se.Integer(0)) + _dot(force, bridge.to(column))
         for c, column in angular_velocity_columns(coords, symbols).items():
-            row[c] = row.get(c, sp.Integer(0)) + dot(moment, column)
-        rows.append({c: e for c, e in sorted(row.items()) if e != 0})
+            row[c] = row.get(c, se.Integer(0)) + _dot(moment, bridge.to(column))
+        rows.append({c: bridge.back(e) for c, e in sorted(row.items()) if e != 0})
     return rows
+
+
+def _cross(a, b):
+    """a × b of two 3 x 1 SymEngine matrices."""
+    return se.Matrix([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
+
+
+def _dot(a, b) -> se.Basic:
+    """a · b of two 3 x 1 SymEngine matrices."""
+    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 __all__ = ["angular_velocity_columns", "element_rows", "frame_rates", "inertia_row", "load_row", "point_columns"]
