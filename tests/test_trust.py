@@ -348,7 +348,9 @@ def test_an_edited_module_is_refused_before_it_runs(built, tmp_path):
     text = path.read_text()
     edited = text.replace("INITIAL_Q = (", "INITIAL_Q = (1.0 + ", 1) + f"\nopen({str(tmp_path / 'RAN')!r}, 'w')\n"
     forged = f"# kinegen: sha256 of the rest of this file: {hashlib.sha256(edited.encode()).hexdigest()}\n{edited}"
-    for changed in (edited, forged, text[: len(text) // 2]):
+    unknown = text.replace("parametrization: quaternion", "parametrization: !quaternion", 1)  # (found by the fuzzer)
+    other = text.replace("parametrization: quaternion", "parametrization: euler-parameters", 1)
+    for changed in (edited, forged, text[: len(text) // 2], unknown, other):
         path.write_text(changed)
         with pytest.raises(ChangedFileError, match="changed since kinegen wrote it") as caught:
             load_module(path, model)

@@ -555,6 +555,14 @@ def _verify_by_regeneration(path: Path, data: bytes, text: str | None, model_fil
         )
     from kinegen.codegen.writer import regenerates
 
+    try:
+        rotations.get(header["parametrization"])
+    except ValueError:
+        raise ChangedFileError(
+            f"{path} was changed since kinegen wrote it: its header names no parametrization kinegen knows "
+            f"({header['parametrization']!r}); nothing in it ran. Rebuild it with `kinegen build {model} --param <parametrization>` "
+            "(which replaces it)"
+        ) from None
     sensitivities = None if header["sensitivities"] is None else header["sensitivities"] == "yes"
     with_c = text is not None and "\nC_FILES = {}\n" not in text
     if not regenerates(data, model, header["parametrization"], sensitivities, with_c):
