@@ -739,12 +739,15 @@ def optimize(
         iterations, jacobians = int(getattr(result, "nit", len(history))), int(getattr(result, "njev", 0) or jacobian_calls)
         if method == "SLSQP" and not success and getattr(result, "status", None) == 8 and len(history) >= 2:
             # the line search stalls where a quantity is only piecewise smooth (a cycle time's active set changes from one
-            # grid point to the next): converged when the last iterations agree to 1e-6 and the constraints hold to 1e-5
-            change, worst = abs(history[-1][1] - history[-2][1]), history[-1][2]
+            # grid point to the next), or after a trial step outside the constraints brought it back to a point it had
+            # reached: converged when the last iterate agrees to 1e-6 with one of the three before it that met the
+            # constraints, and the constraints hold to 1e-5
+            earlier = [h[1] for h in history[-4:-1] if h[2] <= STALL_VIOLATION] or [history[-2][1]]
+            change, worst = min(abs(history[-1][1] - value) for value in earlier), history[-1][2]
             if change <= 1e-6 * max(1.0, abs(history[-1][1])) and worst <= STALL_VIOLATION:
                 success = True
-                message = (f"converged: SLSQP's line search stalled with the objective changing {change:.1e} over its last "
-                           f"iteration and the constraints met to {worst:.1e} (a piecewise-smooth quantity)")  # fmt: skip
+                message = (f"converged: SLSQP's line search stalled with the objective within {change:.1e} of an iterate "
+                           f"just before and the constraints met to {worst:.1e}")  # fmt: skip
     except DesignFailure as exc:  # the optimizer stepped to a design that cannot be assembled: keep the best one measured
         x, success, iterations, jacobians = best[0], False, len(history), jacobian_calls
         message = f"stopped: {exc}; reported: the best feasible design measured"
