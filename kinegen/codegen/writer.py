@@ -79,14 +79,14 @@ def generate(
 def _render_c(description: ModuleDescription, stem: str, target: str) -> dict[str, str]:
     """A C target's files; the model's C (``c-model``) also sets ``description.c_files``: the
     Python module names the C beside it by its bytes' hash (runtime.native)."""
-    made = backends.get("c")(description, stem, standalone=target == "c")
+    return _named_c(description, target, backends.get("c")(description, stem, standalone=target == "c"))
+
+
+def _named_c(description: ModuleDescription, target: str, files: dict[str, str]) -> dict[str, str]:
+    """``files`` of a C target; for the model's C, its bytes' hashes set in ``description.c_files``."""
     if target == "c-model":
-        description.c_files = _digests(made)
-    return made
-
-
-def _digests(files: dict[str, str]) -> dict[str, str]:
-    return {name: hashlib.sha256(text.encode("utf-8")).hexdigest() for name, text in files.items()}
+        description.c_files = {name: hashlib.sha256(text.encode("utf-8")).hexdigest() for name, text in files.items()}
+    return files
 
 
 def _may_fork() -> bool:
@@ -123,9 +123,7 @@ class _CInAnotherProcess:
                 if outcome == "error":
                     raise _exception(*value)
                 for target in targets:
-                    self._files[target] = value[target]
-                    if target == "c-model":
-                        description.c_files = _digests(value[target])
+                    self._files[target] = _named_c(description, target, value[target])
                     if ready is not None:
                         ready(target, value[target])
             except BaseException as exc:  # handed to wait()
@@ -146,7 +144,7 @@ class _CInAnotherProcess:
 def _print_c(description: ModuleDescription, stem: str, targets: list[str], sending) -> None:
     """In the forked child: print the C targets, send ("files", {target: files}) or ("error", exception)."""
     try:
-        made = {target: backends.get("c")(description, stem, standalone=target == "c") for target in targets}
+        made = {target: _render_c(description, stem, target) for target in targets}
         sending.send(("files", made))
     except BaseException as exc:  # every failure goes back to the parent, as its class, args and attributes
         try:

@@ -4,7 +4,8 @@ kinegen derives and prints in SymPy; SymEngine (C++, pinned exactly as SymPy is)
 steps that dominate a build, and its results come back as SymPy expressions:
 
 - :func:`gradient`: the derivatives of an expression with respect to some of its symbols;
-- :func:`eliminate`: CSE of a group of expressions, temporaries ``_t0, _t1, ...`` in order.
+- :func:`eliminate`: CSE of a group of expressions, temporaries ``_t0, _t1, ...`` in order;
+- :class:`Bridge`: other arithmetic in SymEngine on SymPy inputs (the inertia rows).
 
 Back in SymPy, sums, products and powers are built unevaluated from SymEngine's arguments,
 which are already canonical (SymPy evaluating them again would cost more than SymEngine's
@@ -31,10 +32,9 @@ def gradient(expr: sp.Expr, symbols: Sequence[sp.Symbol]) -> dict[sp.Symbol, sp.
     present = [s for s in symbols if s in free]
     if not present:
         return {}
-    converted = se.sympify(expr)
-    names = _names(free)
-    memo: dict[se.Basic, sp.Expr] = {}
-    return {s: to_sympy(converted.diff(se.Symbol(s.name)), names, memo) for s in present}
+    bridge = Bridge()
+    converted = bridge.to(expr)
+    return {s: bridge.back(converted.diff(se.Symbol(s.name))) for s in present}
 
 
 class Bridge:
@@ -126,7 +126,7 @@ def to_sympy(
             out = sp.Pow(*args, evaluate=False)
         elif isinstance(expr, se.Piecewise):
             out = sp.Piecewise(*zip(args[::2], args[1::2]))
-        else:  # a function, a Piecewise, a relation: SymPy's own conversion, then the caller's symbols
+        else:  # a function, a relation: SymPy's own conversion, then the caller's symbols
             converted = expr._sympy_()
             out = converted.xreplace({s: symbols[s.name] for s in converted.free_symbols if s.name in symbols})
     memo[expr] = out

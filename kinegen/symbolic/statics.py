@@ -136,26 +136,16 @@ def inertia_row(model: Model, coords: Coordinates) -> list[dict[int, sp.Expr]]:
         rotation = bridge.to(symbols.frame.A)
         arm = rotation * bridge.to(sp.Matrix(inertia.center))
         omega, omega_dot = rates["angular_velocity"], rates["angular_acceleration"]
-        center_acceleration = rates["acceleration"] + _cross(omega_dot, arm) + _cross(omega, _cross(omega, arm))
+        center_acceleration = rates["acceleration"] + omega_dot.cross(arm) + omega.cross(omega.cross(arm))
         force = (gravity - center_acceleration) * bridge.to(inertia.mass)
         tensor = rotation * bridge.to(sp.Matrix(inertia.tensor)) * rotation.T
-        moment = -(tensor * omega_dot + _cross(omega, tensor * omega))
+        moment = -(tensor * omega_dot + omega.cross(tensor * omega))
         for c, column in point_columns(coords, symbols, inertia.center).items():
-            row[c] = row.get(c, se.Integer(0)) + _dot(force, bridge.to(column))
+            row[c] = row.get(c, se.Integer(0)) + force.dot(bridge.to(column))
         for c, column in angular_velocity_columns(coords, symbols).items():
-            row[c] = row.get(c, se.Integer(0)) + _dot(moment, bridge.to(column))
+            row[c] = row.get(c, se.Integer(0)) + moment.dot(bridge.to(column))
         rows.append({c: bridge.back(e) for c, e in sorted(row.items()) if e != 0})
     return rows
-
-
-def _cross(a, b):
-    """a × b of two 3 x 1 SymEngine matrices."""
-    return se.Matrix([a[1] * b[2] - a[2] * b[1], a[2] * b[0] - a[0] * b[2], a[0] * b[1] - a[1] * b[0]])
-
-
-def _dot(a, b) -> se.Basic:
-    """a · b of two 3 x 1 SymEngine matrices."""
-    return a[0] * b[0] + a[1] * b[1] + a[2] * b[2]
 
 
 __all__ = ["angular_velocity_columns", "element_rows", "frame_rates", "inertia_row", "load_row", "point_columns"]
