@@ -1,5 +1,5 @@
 """``--animate``: a solved motion as a GIF (or MP4) for slides -- the mechanism's stick figures
-in one plane, frame by frame (matplotlib's ``FuncAnimation``).
+in one plane, frame by frame (matplotlib's animation writers, one drawing of the figure a frame).
 
 The plane: the x-z plane of ``frame_body``'s frame when one is named (the excavator's upper
 structure: its front then stays in the picture while it swings), else the plane through the
@@ -27,16 +27,18 @@ def animate(
     results: Results, path: str | Path, frame_body: str | None = None, track: tuple[str, str] | None = None, fps: int = 20, model=None
 ) -> Path:
     """Write the animation to ``path`` (.gif with Pillow; .mp4 needs ffmpeg)."""
-    from matplotlib.animation import FFMpegWriter, FuncAnimation, PillowWriter
+    from matplotlib.animation import FFMpegWriter, PillowWriter
 
     target = Path(path)
     if target.suffix.lower() not in (".gif", ".mp4"):
         raise ValueError(f"{path}: an animation is written as .gif or .mp4")
     fig, draw, keep = animation_figure(results, frame_body, track, model)
-    movie = FuncAnimation(fig, draw, frames=[int(k) for k in keep], blit=False)
     writer = PillowWriter(fps=fps) if target.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
-    with atomic_path(target) as partial:  # a failed or interrupted write keeps the previous file
-        movie.save(str(partial), writer=writer, dpi=80)
+    # the frames grabbed in a loop of our own: FuncAnimation.save drew the whole figure three times a frame
+    with atomic_path(target) as partial, writer.saving(fig, str(partial), dpi=80):  # a failed write keeps the previous file
+        for k in keep:
+            draw(int(k))
+            writer.grab_frame()
     pyplot().close(fig)
     return target
 

@@ -1,12 +1,15 @@
 """The in-memory path: ``sympy.lambdify`` of the symbolic system, no file written.
 
 It returns an object with the same attributes as a generated module, so the runtime
-treats both alike. Building is quicker (no printing); evaluation is slower.
+treats both alike. Building is quicker (no printing); evaluation is slower. A case's
+functions are made when the case is first read (``CASES[name]``), their common
+subexpressions eliminated by SymEngine (:func:`kinegen.symbolic.engine.eliminate`).
 """
 
 from __future__ import annotations
 
 import functools
+from collections.abc import Callable, Iterator, Mapping
 from pathlib import Path
 from types import SimpleNamespace
 
@@ -21,6 +24,7 @@ from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.rotations import Parametrization
 from kinegen.symbolic import build_systems
+from kinegen.symbolic.engine import eliminate
 
 
 def _stacked(function, m: int, batch_args: tuple[int, ...] = (0,)):
@@ -49,6 +53,26 @@ def _inputs(functions, t_symbol, m: int):
     return evaluate
 
 
+class _Cases(Mapping):
+    """A generated module's CASES, each case's functions made on first reading."""
+
+    def __init__(self, names: tuple[str, ...], make: Callable[[str], dict]) -> None:
+        self._names, self._make, self._made = names, make, {}
+
+    def __getitem__(self, name: str) -> dict:
+        if name not in self._names:
+            raise KeyError(name)
+        if name not in self._made:
+            self._made[name] = self._make(name)
+        return self._made[name]
+
+    def __iter__(self) -> Iterator[str]:
+        return iter(self._names)
+
+    def __len__(self) -> int:
+        return len(self._names)
+
+
 def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleNamespace:
     """A module-like namespace with every case of ``model`` compiled by ``lambdify`` (a model
     with design parameters: ``model.at(values)`` fixes them; generated modules take them)."""
@@ -58,21 +82,20 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
     first = next(iter(systems.values()))
     coords = first.coordinates
     q, v = coords.stored_symbols, coords.velocity_symbols
-    cases = {}
-    for name, system in systems.items():
+    definitions = coords.frame_definitions
+
+    def compile_(args, exprs, size):
+        exprs = [e.xreplace(definitions) for e in exprs]
+        return _stacked(sp.lambdify(args, exprs, modules="numpy", cse=eliminate), size, (0, 1))
+
+    def case(name: str) -> dict:
+        system = systems[name]
         rows, entries = system.rows, system.jacobian_entries
         m = len(rows)
         inputs = system.inputs
         u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
         functions = inputs.stacked()
-
-        definitions = coords.frame_definitions
-
-        def compile_(args, exprs, size, definitions=definitions):
-            exprs = [e.xreplace(definitions) for e in exprs]
-            return _stacked(sp.lambdify(args, exprs, modules="numpy", cse=True), size, (0, 1))
-
-        cases[name] = {
+        return {
             "constraints": tuple(r.name for r in rows),
             "drivers": inputs.names,
             "jac_rows": tuple(i for i, _, _ in entries),
@@ -92,6 +115,7 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
             "scalar": {},
             "patterns": {},
         }
+
     return SimpleNamespace(
         MODEL=model.name,
         PARAMETRIZATION=parametrization.name,
@@ -106,5 +130,5 @@ def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleName
         ACTUATORS={
             a.name: ((a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.limits()) for a in model.actuators
         },
-        CASES=cases,
+        CASES=_Cases(tuple(systems), case),
     )
