@@ -8,6 +8,7 @@ proof, not a floating-point guess.
 
 from __future__ import annotations
 
+import functools
 import json
 import signal
 import threading
@@ -111,6 +112,7 @@ def summary(expr: sp.Expr) -> str:
     )
 
 
+@functools.lru_cache(maxsize=4096)  # ~0.1 s a value (PSLQ); the parametrizations of one pose share most values
 def exact_number(value: float) -> sp.Expr:
     """The simple exact number (rational, surd, multiple of pi) equal to ``value`` to 1e-13, else
     the nearest rational with a denominator of at most 1e13 (within 1e-13 too: the configuration

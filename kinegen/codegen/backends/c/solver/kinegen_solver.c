@@ -116,19 +116,47 @@ void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_optio
     s->sign = 1;
 }
 
+/* max |x_i|, NaN if any x_i is NaN (as NumPy's max). Without a branch per value (four running
+ * maxima and a NaN flag): the branch of `if (!(a <= m)) m = a` cost ~9 % of a step. */
 static double max_abs(const double *x, int n) {
-    double m = 0.0;
-    for (int i = 0; i < n; ++i) {
-        double a = fabs(x[i]);
-        if (!(a <= m)) m = a; /* NaN wins, as in NumPy's max */
+    double m0 = 0.0, m1 = 0.0, m2 = 0.0, m3 = 0.0;
+    int nan = 0, i = 0;
+    for (; i + 4 <= n; i += 4) {
+        double a0 = fabs(x[i]), a1 = fabs(x[i + 1]), a2 = fabs(x[i + 2]), a3 = fabs(x[i + 3]);
+        nan |= (a0 != a0) | (a1 != a1) | (a2 != a2) | (a3 != a3);
+        m0 = a0 > m0 ? a0 : m0;
+        m1 = a1 > m1 ? a1 : m1;
+        m2 = a2 > m2 ? a2 : m2;
+        m3 = a3 > m3 ? a3 : m3;
     }
-    return m;
+    for (; i < n; ++i) {
+        double a = fabs(x[i]);
+        nan |= a != a;
+        m0 = a > m0 ? a : m0;
+    }
+    m0 = m1 > m0 ? m1 : m0;
+    m2 = m3 > m2 ? m3 : m2;
+    return nan ? NAN : (m2 > m0 ? m2 : m0);
 }
+
+/* CALL(N) with N a literal for the block sizes the mechanisms have (a joint's or body's 1-9 rows), else
+ * with n itself: the block routines below are static inline, so that the compiler unrolls their loops
+ * for each literal size (the block solves were ~40 % of a step with the loops over a variable n). */
+#define BY_BLOCK_SIZE(n, CALL)                                                                                         \
+    switch (n) {                                                                                                       \
+    case 1: CALL(1); break;                                                                                            \
+    case 2: CALL(2); break;                                                                                            \
+    case 3: CALL(3); break;                                                                                            \
+    case 4: CALL(4); break;                                                                                            \
+    case 6: CALL(6); break;                                                                                            \
+    case 7: CALL(7); break;                                                                                            \
+    case 9: CALL(9); break;                                                                                            \
+    default: CALL(n);                                                                                                  \
+    }
 
 /* LU with partial pivoting of one n x n block (column-major, in place); pivots in piv.
  * Updates the smallest and largest |pivot| and the parity of interchanges and negative
- * pivots; returns 1 at a zero or non-finite pivot. Called with literal sizes (below), so
- * that the compiler unrolls the loops of the common small blocks. */
+ * pivots; returns 1 at a zero or non-finite pivot. Called through BY_BLOCK_SIZE. */
 static inline int lu_block(double *A, int *piv, const int n, double *low, double *high, int *odd) {
     for (int k = 0; k < n; ++k) {
         int p = k;
@@ -196,31 +224,9 @@ static int factor_blocks(const plan_view *m, const double *values, double *store
         int first = m->block_start[b], n = m->block_start[b + 1] - first, block_odd = 0;
         double *A = store + m->block_store[b];
         int *piv = pivots + first;
-        switch (n) {
-        case 1:
-            failed = lu_block(A, piv, 1, low, high, &block_odd);
-            break;
-        case 2:
-            failed = lu_block(A, piv, 2, low, high, &block_odd);
-            break;
-        case 3:
-            failed = lu_block(A, piv, 3, low, high, &block_odd);
-            break;
-        case 4:
-            failed = lu_block(A, piv, 4, low, high, &block_odd);
-            break;
-        case 6:
-            failed = lu_block(A, piv, 6, low, high, &block_odd);
-            break;
-        case 7:
-            failed = lu_block(A, piv, 7, low, high, &block_odd);
-            break;
-        case 9:
-            failed = lu_block(A, piv, 9, low, high, &block_odd);
-            break;
-        default:
-            failed = lu_block(A, piv, n, low, high, &block_odd);
-        }
+#define LU_BLOCK(N) failed = lu_block(A, piv, N, low, high, &block_odd)
+        BY_BLOCK_SIZE(n, LU_BLOCK)
+#undef LU_BLOCK
         if (block_sign != NULL) block_sign[b] = block_odd ? -1 : 1; /* the block's assembly mode */
         *odd ^= block_odd;
     }
@@ -241,6 +247,23 @@ static int factor(kinegen_solver *s, const double *jac) {
     return !(low > s->options.singular_tolerance * fmax(high, 1e-300));
 }
 
+/* r = A^-1 r for one n x n block's LU factors A (column-major) and pivots piv (through BY_BLOCK_SIZE). */
+static inline void solve_block(const double *A, const int *piv, double *r, const int n) {
+    for (int k = 0; k < n; ++k) {
+        if (piv[k] != k) {
+            double tmp = r[k];
+            r[k] = r[piv[k]];
+            r[piv[k]] = tmp;
+        }
+    }
+    for (int k = 0; k < n; ++k)
+        for (int i = k + 1; i < n; ++i) r[i] -= A[i + k * n] * r[k];
+    for (int k = n - 1; k >= 0; --k) {
+        r[k] *= 1.0 / A[k + k * n]; /* the reciprocals off the chain of dependent operations: no division on it */
+        for (int i = 0; i < k; ++i) r[i] -= A[i + k * n] * r[k];
+    }
+}
+
 /* x = Phi_q^-1 b with the current factors (x and b may alias). */
 static void solve(kinegen_solver *s, const double *b, double *x) {
     const kinegen_model *m = s->model;
@@ -256,23 +279,9 @@ static void solve(kinegen_solver *s, const double *b, double *x) {
             for (int e = m->off_start[row]; e < m->off_start[row + 1]; ++e) acc -= s->off[e] * y[m->off_col[e]];
             r[i] = acc;
         }
-        if (n == 1) {
-            r[0] /= A[0];
-            continue;
-        }
-        for (int k = 0; k < n; ++k) {
-            if (piv[k] != k) {
-                double tmp = r[k];
-                r[k] = r[piv[k]];
-                r[piv[k]] = tmp;
-            }
-        }
-        for (int k = 0; k < n; ++k)
-            for (int i = k + 1; i < n; ++i) r[i] -= A[i + k * n] * r[k];
-        for (int k = n - 1; k >= 0; --k) {
-            r[k] /= A[k + k * n];
-            for (int i = 0; i < k; ++i) r[i] -= A[i + k * n] * r[k];
-        }
+#define SOLVE_BLOCK(N) solve_block(A, piv, r, N)
+        BY_BLOCK_SIZE(n, SOLVE_BLOCK)
+#undef SOLVE_BLOCK
     }
     for (int j = 0; j < m->n_v; ++j) x[m->col_order[j]] = y[j];
 }
@@ -284,6 +293,35 @@ static void solve(kinegen_solver *s, const double *b, double *x) {
  * same factors in one pass over them (the input effects of a step's certificate); y: CERTIFY_COLUMNS n_v
  * scratch values (the solution in the permuted order, position by position). Blocks above the columns'
  * first non-zero value are skipped (their solution is zero). The arithmetic of each column is that of solve(). */
+/* solve_block for CERTIFY_COLUMNS columns at once, r holding position i's columns at r[i CERTIFY_COLUMNS + c]:
+ * each column's arithmetic that of solve_block (through BY_BLOCK_SIZE). */
+static inline void solve_block_columns(const double *A, const int *piv, double *r, const int n) {
+    enum { count = CERTIFY_COLUMNS };
+    for (int k = 0; k < n; ++k) {
+        if (piv[k] != k) {
+            double *rk = r + (size_t)k * count, *rp = r + (size_t)piv[k] * count;
+            for (int c = 0; c < count; ++c) {
+                double tmp = rk[c];
+                rk[c] = rp[c];
+                rp[c] = tmp;
+            }
+        }
+    }
+    for (int k = 0; k < n; ++k)
+        for (int i = k + 1; i < n; ++i) {
+            double f = A[i + k * n];
+            for (int c = 0; c < count; ++c) r[(size_t)i * count + c] -= f * r[(size_t)k * count + c];
+        }
+    for (int k = n - 1; k >= 0; --k) {
+        double inverse = 1.0 / A[k + k * n];
+        for (int c = 0; c < count; ++c) r[(size_t)k * count + c] *= inverse;
+        for (int i = 0; i < k; ++i) {
+            double f = A[i + k * n];
+            for (int c = 0; c < count; ++c) r[(size_t)i * count + c] -= f * r[(size_t)k * count + c];
+        }
+    }
+}
+
 static int zero_block(const kinegen_model *m, int count, const double *b, int blk) {
     for (int row = m->block_start[blk]; row < m->block_start[blk + 1]; ++row)
         for (int c = 0; c < count; ++c)
@@ -312,36 +350,33 @@ static void solve_columns(kinegen_solver *s, double *b, double *y) {
                 for (int c = 0; c < count; ++c) ri[c] -= f * yc[c];
             }
         }
-        if (n == 1) {
-            for (int c = 0; c < count; ++c) r[c] /= A[0];
-            continue;
-        }
-        for (int k = 0; k < n; ++k) {
-            if (piv[k] != k) {
-                double *rk = r + (size_t)k * count, *rp = r + (size_t)piv[k] * count;
-                for (int c = 0; c < count; ++c) {
-                    double tmp = rk[c];
-                    rk[c] = rp[c];
-                    rp[c] = tmp;
-                }
-            }
-        }
-        for (int k = 0; k < n; ++k)
-            for (int i = k + 1; i < n; ++i) {
-                double f = A[i + k * n];
-                for (int c = 0; c < count; ++c) r[(size_t)i * count + c] -= f * r[(size_t)k * count + c];
-            }
-        for (int k = n - 1; k >= 0; --k) {
-            double d = A[k + k * n];
-            for (int c = 0; c < count; ++c) r[(size_t)k * count + c] /= d;
-            for (int i = 0; i < k; ++i) {
-                double f = A[i + k * n];
-                for (int c = 0; c < count; ++c) r[(size_t)i * count + c] -= f * r[(size_t)k * count + c];
-            }
-        }
+#define SOLVE_BLOCK_COLUMNS(N) solve_block_columns(A, piv, r, N)
+        BY_BLOCK_SIZE(n, SOLVE_BLOCK_COLUMNS)
+#undef SOLVE_BLOCK_COLUMNS
     }
     for (int j = 0; j < nv; ++j)
         for (int c = 0; c < count; ++c) b[(size_t)c * nv + m->col_order[j]] = y[(size_t)j * count + c];
+}
+
+/* r = A^-T r for one block's LU factors A and pivots piv (through BY_BLOCK_SIZE). */
+static inline void solve_block_transposed(const double *A, const int *piv, double *r, const int n) {
+    for (int k = 0; k < n; ++k) { /* U^T */
+        double acc = r[k];
+        for (int i = 0; i < k; ++i) acc -= A[i + k * n] * r[i];
+        r[k] = acc * (1.0 / A[k + k * n]);
+    }
+    for (int k = n - 1; k >= 0; --k) { /* L^T */
+        double acc = r[k];
+        for (int i = k + 1; i < n; ++i) acc -= A[i + k * n] * r[i];
+        r[k] = acc;
+    }
+    for (int k = n - 1; k >= 0; --k) {
+        if (piv[k] != k) {
+            double tmp = r[k];
+            r[k] = r[piv[k]];
+            r[piv[k]] = tmp;
+        }
+    }
 }
 
 /* x = M^-T c with the factors of the plan's matrix M (store, off, pivots); w: n values of work (x and c may
@@ -354,23 +389,9 @@ static void solve_transposed_blocks(const plan_view *m, const double *store, con
         const double *A = store + m->block_store[blk];
         const int *piv = pivots + first;
         double *r = w + first;
-        for (int k = 0; k < n; ++k) { /* U^T */
-            double acc = r[k];
-            for (int i = 0; i < k; ++i) acc -= A[i + k * n] * r[i];
-            r[k] = acc / A[k + k * n];
-        }
-        for (int k = n - 1; k >= 0; --k) { /* L^T */
-            double acc = r[k];
-            for (int i = k + 1; i < n; ++i) acc -= A[i + k * n] * r[i];
-            r[k] = acc;
-        }
-        for (int k = n - 1; k >= 0; --k) {
-            if (piv[k] != k) {
-                double tmp = r[k];
-                r[k] = r[piv[k]];
-                r[piv[k]] = tmp;
-            }
-        }
+#define SOLVE_BLOCK_TRANSPOSED(N) solve_block_transposed(A, piv, r, N)
+        BY_BLOCK_SIZE(n, SOLVE_BLOCK_TRANSPOSED)
+#undef SOLVE_BLOCK_TRANSPOSED
         /* the entries below the blocks couple this block's rows to earlier blocks' columns */
         for (int i = 0; i < n; ++i) {
             int row = first + i;
@@ -380,11 +401,13 @@ static void solve_transposed_blocks(const plan_view *m, const double *store, con
     for (int i = 0; i < m->n; ++i) x[m->row_order[i]] = w[i];
 }
 
-/* x = Phi_q^-T c (for the condition estimate; x and c may alias). The same loops as solve_transposed_blocks,
- * written on the solver's own fields: the condition estimate calls it at every step, and through the shared
- * function (static or static inline, with or without restrict) the excavator's digging step took 29.6-31.6 us
- * instead of 22.5-24.2 us (measured 2026-11-27: gcc 12 -O2 -march=native, 1000 steps, best of 30, 4 alternating
- * pairs on a loaded machine) -- far above the 2 % sharing may cost. */
+/* x = Phi_q^-T c (for the condition estimate; x and c may alias). The blocks' arithmetic is shared with
+ * solve_transposed_blocks (solve_block_transposed); the loop over the blocks is written again on the
+ * solver's own fields: the condition estimate calls it at every step, and through the shared function
+ * (static or static inline, with or without restrict) the excavator's digging step took 29.6-31.6 us
+ * instead of 22.5-24.2 us (2026-11-27: gcc 12 -O2 -march=native, 1000 steps, best of 30, 4 alternating
+ * pairs, loaded machine), and again 25.7-26.8 us instead of 19.8-20.6 us after the block routines
+ * (4 pairs, quiet) -- far above the 2 % sharing may cost. */
 static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
     const kinegen_model *m = s->model;
     double *w = s->y;
@@ -394,23 +417,9 @@ static void solve_transposed(kinegen_solver *s, const double *c, double *x) {
         const double *A = s->store + m->block_store[blk];
         const int *piv = s->pivots + first;
         double *r = w + first;
-        for (int k = 0; k < n; ++k) { /* U^T */
-            double acc = r[k];
-            for (int i = 0; i < k; ++i) acc -= A[i + k * n] * r[i];
-            r[k] = acc / A[k + k * n];
-        }
-        for (int k = n - 1; k >= 0; --k) { /* L^T */
-            double acc = r[k];
-            for (int i = k + 1; i < n; ++i) acc -= A[i + k * n] * r[i];
-            r[k] = acc;
-        }
-        for (int k = n - 1; k >= 0; --k) {
-            if (piv[k] != k) {
-                double tmp = r[k];
-                r[k] = r[piv[k]];
-                r[piv[k]] = tmp;
-            }
-        }
+#define SOLVE_BLOCK_TRANSPOSED(N) solve_block_transposed(A, piv, r, N)
+        BY_BLOCK_SIZE(n, SOLVE_BLOCK_TRANSPOSED)
+#undef SOLVE_BLOCK_TRANSPOSED
         /* the entries below the blocks couple this block's rows to earlier blocks' columns */
         for (int i = 0; i < n; ++i) {
             int row = first + i;
