@@ -297,8 +297,9 @@ class _Model:
             arrays = plan_arrays(statics.matrix_rows, statics.matrix_cols, statics.plan, f"{d.model}: the force matrix")
         nb = len(d.bodies)
         nvb = nv // max(nb, 1)
-        if nb and (any(offset != b * nvb for b, (_, _, offset) in enumerate(d.bodies)) or nvb > 8):
-            raise ValueError(f"{d.model}: the C target's pin reactions need every body's {nvb} velocity coordinates in body order (at most 8)")
+        if nb and (any(offset != b * nvb for b, (_, _, offset) in enumerate(d.bodies)) or nvb > config.MAX_BODY_COORDINATES):
+            raise ValueError(f"{d.model}: the C target's pin reactions need every body's {nvb} velocity coordinates in body order "
+                             f"(at most {config.MAX_BODY_COORDINATES})")  # fmt: skip
         starts, norm_starts = [0], [0]
         for joint in statics.joints:
             starts.append(starts[-1] + len(joint[5]))

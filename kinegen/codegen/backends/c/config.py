@@ -8,6 +8,9 @@ TEMPLATES = Path(__file__).with_name("templates")
 #: Folder of the runtime's sources, copied verbatim into a standalone directory.
 SOLVER = Path(__file__).with_name("solver")
 RUNTIME = ("kinegen_solver.h", "kinegen_solver.c", "kinegen_interval.h")
+#: A body's velocity coordinates at most for the C solver's pin reactions (its KINEGEN_MAX_BODY_COORDINATES, read
+#: from its source: one statement of the bound).
+MAX_BODY_COORDINATES = int(re.search(r"^#define KINEGEN_MAX_BODY_COORDINATES (\d+)$", (SOLVER / "kinegen_solver.c").read_text(), re.MULTILINE).group(1))
 #: Statements per C function before it is split into parts (compile time grows faster than linearly with a function's length).
 PART_STATEMENTS = 250
 #: Statements of section functions per part of a model's C compiled apart (in parallel) by the runtime.
