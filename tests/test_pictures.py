@@ -277,8 +277,8 @@ def test_a_distance_joints_coupler_is_drawn_in_the_plot_the_animation_and_the_pa
     assert 0 < np.linalg.norm(xy[1] - xy[0]) <= 0.52 + 1e-9  # drawn: its projection on the animation's plane
     pyplot().close(fig)
     scene = _Scene(results, rssr, None, 1e6)
-    (trace,) = [t for t in scene.traces(k) if t.name == "couplers (distance joints)"]
-    np.testing.assert_allclose(np.column_stack([trace.x, trace.y, trace.z])[:2], np.array([ends[0][k], ends[1][k]]), atol=1e-12)
+    (trace,) = [t for t in scene.traces(k) if t["name"] == "couplers (distance joints)"]
+    np.testing.assert_allclose(np.column_stack([trace["x"], trace["y"], trace["z"]])[:2], np.array([ends[0][k], ends[1][k]]), atol=1e-12)
 
 
 def test_the_exploration_plot_has_units_a_colour_bar_readable_cells_full_labels_and_shows_the_variants_not_measured():

@@ -1,5 +1,5 @@
 """``--animate``: a solved motion as a GIF (or MP4) for slides -- the mechanism's stick figures
-in one plane, frame by frame (matplotlib's animation writers, one drawing of the figure a frame).
+in one plane, frame by frame (a GIF: the still parts drawn once, each frame's moving artists over them).
 
 The plane: the x-z plane of ``frame_body``'s frame when one is named (the excavator's upper
 structure: its front then stays in the picture while it swings), else the plane through the
@@ -27,20 +27,48 @@ def animate(
     results: Results, path: str | Path, frame_body: str | None = None, track: tuple[str, str] | None = None, fps: int = 20, model=None
 ) -> Path:
     """Write the animation to ``path`` (.gif with Pillow; .mp4 needs ffmpeg)."""
-    from matplotlib.animation import FFMpegWriter, PillowWriter
-
     target = Path(path)
     if target.suffix.lower() not in (".gif", ".mp4"):
         raise ValueError(f"{path}: an animation is written as .gif or .mp4")
     fig, draw, keep = animation_figure(results, frame_body, track, model)
-    writer = PillowWriter(fps=fps) if target.suffix.lower() == ".gif" else FFMpegWriter(fps=fps)
-    # the frames grabbed in a loop of our own: FuncAnimation.save drew the whole figure three times a frame
-    with atomic_path(target) as partial, writer.saving(fig, str(partial), dpi=80):  # a failed write keeps the previous file
-        for k in keep:
-            draw(int(k))
-            writer.grab_frame()
+    with atomic_path(target) as partial:  # a failed or interrupted write keeps the previous file
+        if target.suffix.lower() == ".gif":
+            _write_gif(fig, draw, keep, partial, fps)
+        else:
+            from matplotlib.animation import FFMpegWriter
+
+            writer = FFMpegWriter(fps=fps)
+            with writer.saving(fig, str(partial), dpi=DPI):
+                for k in keep:
+                    draw(int(k))
+                    writer.grab_frame()
     pyplot().close(fig)
     return target
+
+
+#: the animation's resolution (dots per inch of the figure's size)
+DPI = 80
+
+
+def _write_gif(fig, draw, keep, path: Path, fps: int) -> None:
+    """The frames as a GIF (Pillow), the still parts (axes, grid, labels, legend) drawn once and
+    each frame's moving artists drawn over them: matplotlib's own writers draw the whole figure
+    for every frame (FuncAnimation.save three times)."""
+    from PIL import Image
+
+    fig.set_dpi(DPI)
+    canvas = fig.canvas
+    for artist in draw(int(keep[0])):
+        artist.set_animated(True)  # left out of the still picture
+    canvas.draw()
+    still = canvas.copy_from_bbox(fig.bbox)
+    frames = []
+    for k in keep:
+        canvas.restore_region(still)
+        for artist in draw(int(k)):
+            fig.draw_artist(artist)
+        frames.append(Image.fromarray(np.asarray(canvas.buffer_rgba())).convert("RGB"))
+    frames[0].save(path, format="GIF", save_all=True, append_images=frames[1:], duration=int(1000 / fps), loop=0)
 
 
 def animation_figure(results: Results, frame_body: str | None = None, track: tuple[str, str] | None = None, model=None):
@@ -111,6 +139,7 @@ def animation_figure(results: Results, frame_body: str | None = None, track: tup
         if path_2d is not None:
             marker.set_data([path_2d[k, 0]], [path_2d[k, 1]])
         title.set_text(f"{system.model} / {system.case}   t = {results.times[k]:.2f} s")
-        return [*lines.values(), *barrels.values(), *rods.values(), *drawn_links.values(), title]
+        moved = [*lines.values(), *barrels.values(), *rods.values(), *drawn_links.values(), title]
+        return moved if path_2d is None else [*moved, marker]
 
     return fig, draw, keep

@@ -113,34 +113,33 @@ class _Scene:
         return limits is not None and not limits[0] - 1e-9 <= self.lengths[name][k] <= limits[1] + 1e-9
 
     def traces(self, k: int) -> list:
-        """The frame's moving traces, in a fixed order: bodies, joints, the couplers of distance joints (if any), each
-        actuator's barrel and rod, the tracked point."""
-        import plotly.graph_objects as go
-
+        """The frame's moving traces (plotly's scatter3d traces as plain dicts: a page's ~100 frames of them
+        are written unvalidated), in a fixed order: bodies, joints, the couplers of distance joints (if any),
+        each actuator's barrel and rod, the tracked point."""
         out = []
         lines = [np.array([self.positions[b, names[i]][k] for i in self.outlines[b]]) for b, names in self.bodies.items()]
         xyz = _segments(lines)
         colour = _WARN if self.warn[k] else _BODY
-        out.append(go.Scatter3d(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2], mode="lines+markers", line={"color": colour, "width": 5},
+        out.append(_scatter3d(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2], mode="lines+markers", line={"color": colour, "width": 5},
                                 marker={"size": 2.5, "color": colour}, name="bodies", hoverinfo="skip"))  # fmt: skip
         joints = np.array([j[k] for j in self.joints]).reshape(-1, 3)
-        out.append(go.Scatter3d(x=joints[:, 0], y=joints[:, 1], z=joints[:, 2], mode="markers", name="joints",
+        out.append(_scatter3d(x=joints[:, 0], y=joints[:, 1], z=joints[:, 2], mode="markers", name="joints",
                                 marker={"symbol": "diamond", "size": 4, "color": "black"}, hoverinfo="skip"))  # fmt: skip
         if self.couplers:  # the distance joints' couplers: lines no body carries
             xyz = _segments([np.array([one[k], other[k]]) for one, other in self.couplers])
-            out.append(go.Scatter3d(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2], mode="lines", name="couplers (distance joints)",
+            out.append(_scatter3d(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2], mode="lines", name="couplers (distance joints)",
                                     line={"color": _BODY, "width": 3}, hoverinfo="skip"))  # fmt: skip
         for name, ((b1, p1), (b2, p2)), in ((n, refs) for n, (refs, _) in self.actuators.items()):
             base, eye = self.results.point_position(b1, p1)[k], self.results.point_position(b2, p2)[k]
             barrel, rod = self._cylinder(name, base, eye)
             out_of_range = self.out_of_range(name, k)
             for part, colour, width, label in ((barrel, _BARREL, 10, "barrel"), (rod, _ROD, 5, "rod")):
-                out.append(go.Scatter3d(x=part[:, 0], y=part[:, 1], z=part[:, 2], mode="lines", name=f"{name} {label}",
+                out.append(_scatter3d(x=part[:, 0], y=part[:, 1], z=part[:, 2], mode="lines", name=f"{name} {label}",
                                         line={"color": _OUT if out_of_range else colour, "width": width}, showlegend=False,
                                         hovertext=f"{name}: {self.lengths[name][k]:.4f} m", hoverinfo="text"))  # fmt: skip
         if self.path is not None:
             here = self.path[k]
-            out.append(go.Scatter3d(x=[here[0]], y=[here[1]], z=[here[2]], mode="markers", name=f"{self.track[0]}.{self.track[1]}",
+            out.append(_scatter3d(x=[here[0]], y=[here[1]], z=[here[2]], mode="markers", name=f"{self.track[0]}.{self.track[1]}",
                                     marker={"size": 6, "color": TRACKED}))  # fmt: skip
         return out
 
@@ -155,6 +154,11 @@ class _Scene:
         return f"t = {self.times[k]:.3f} s   {condition}<br><sub>{lengths}</sub>"
 
 
+def _scatter3d(**trace) -> dict:
+    """A plotly scatter3d trace as a plain dict (its arrays as lists of floats)."""
+    return {"type": "scatter3d", **{k: v.tolist() if isinstance(v, np.ndarray) else v for k, v in trace.items()}}
+
+
 def motion_view(
     results: Results,
     model: Model,
@@ -166,6 +170,7 @@ def motion_view(
     """Write the solved motion as a self-contained HTML page (see the module docstring).
     ``track``: (body, point) whose path is drawn (default: :func:`kinegen.analysis.plots.tracked_point`)."""
     import plotly.graph_objects as go
+    import plotly.io as pio
 
     if track is None:
         from kinegen.analysis.plots import tracked_point
@@ -183,7 +188,7 @@ def motion_view(
                                    line={"color": "#2ca02c", "width": 2, "dash": "dot"}))  # fmt: skip
     first = scene.traces(int(keep[0]))
     moving = list(range(len(static), len(static) + len(first)))
-    animation = [go.Frame(data=scene.traces(int(k)), traces=moving, name=str(i), layout={"title": {"text": f"{title}   {scene.title(int(k))}"}})
+    animation = [{"data": scene.traces(int(k)), "traces": moving, "name": str(i), "layout": {"title": {"text": f"{title}   {scene.title(int(k))}"}}}
               for i, k in enumerate(keep)]  # fmt: skip
     everything = np.vstack([*(scene.positions.values()), scene.ground] + ([scene.path] if scene.path is not None else []))
     everything = everything[np.isfinite(everything).all(axis=1)]
@@ -218,7 +223,6 @@ def motion_view(
     }  # fmt: skip
     figure = go.Figure(
         data=static + first,
-        frames=animation,
         layout=go.Layout(
             title={"text": f"{title}   {scene.title(int(keep[0]))}"},
             scene={
@@ -236,7 +240,9 @@ def motion_view(
     )
     target = Path(path)
     target.parent.mkdir(parents=True, exist_ok=True)
-    html = figure.to_html(include_plotlyjs=True, full_html=True, auto_play=False, div_id="kinegen-view", post_script=_POST_SCRIPT)
+    # the frames as they are: plotly validating them took about half the page's time (5,669 traces for the excavator)
+    html = pio.to_html({**figure.to_dict(), "frames": animation}, validate=False, include_plotlyjs=True, full_html=True,
+                       auto_play=False, div_id="kinegen-view", post_script=_POST_SCRIPT)  # fmt: skip
     from kinegen.files import write_atomic
 
     write_atomic(target, html)
