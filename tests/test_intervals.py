@@ -19,7 +19,7 @@ import mpmath
 import numpy as np
 import pytest
 import sympy as sp
-from hypothesis import HealthCheck, given, settings
+from hypothesis import HealthCheck, example, given, settings
 from hypothesis import strategies as st
 
 from kinegen.codegen.backends.c import config
@@ -123,8 +123,15 @@ def _contains(bounds: np.ndarray, values: np.ndarray) -> bool:
     return bool(np.all(bounds[0] <= real + slack) and np.all(real - slack <= bounds[1]))
 
 
+#: found by Hypothesis: a constant on atan2's jump (tan(pi) is exactly 0, so this is pi), which its value to 40 digits
+#: put on the other side (-pi); and the same constant inside a function of t
+ON_THE_JUMP = sp.atan2(sp.tan(sp.pi, evaluate=False), sp.Mul(-1, sp.Rational(1, 2), evaluate=False), evaluate=False)
+
+
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(expr=expressions, span=spans)
+@example(expr=ON_THE_JUMP, span=(0.0, 0.0))
+@example(expr=T + 2 * ON_THE_JUMP, span=(0.0, 1.0))
 def test_python_enclosures_hold_every_value(expr, span):
     program = interval_program([expr])
     bounds = evaluate(program, (np.array([span[0]]), np.array([span[1]])))[:, 0]
@@ -224,6 +231,8 @@ int main(void) {
 
 @settings(max_examples=120, deadline=None, suppress_health_check=[HealthCheck.too_slow, HealthCheck.function_scoped_fixture])
 @given(expr=expressions, span=spans)
+@example(expr=ON_THE_JUMP, span=(0.0, 0.0))
+@example(expr=T + 2 * ON_THE_JUMP, span=(0.0, 1.0))
 def test_c_enclosures_hold_every_value(c_evaluator, expr, span):
     bounds = c_evaluator(expr, span)
     assert _contains(bounds, _values(expr, *span)), (expr, span, bounds)

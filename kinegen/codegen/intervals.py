@@ -117,7 +117,7 @@ def interval_program(expressions: list[sp.Expr]) -> IntervalProgram:
             return registers[e]
         if e.is_Symbol:
             raise _Unsupported(f"symbol {e}")
-        if e.is_number and not e.free_symbols:
+        if _constant(e):
             if e.is_real is False or e.has(sp.zoo, sp.nan, sp.oo, -sp.oo, sp.I):
                 raise _Unsupported(f"constant {e}")
             try:
@@ -126,8 +126,8 @@ def interval_program(expressions: list[sp.Expr]) -> IntervalProgram:
                 raise _Unsupported(f"constant {e}") from None
             result = emit(Operation("const", value=bounds))
         elif e.is_Add or e.is_Mul:  # the constant terms or factors as one exact constant, first
-            constant = [a for a in e.args if a.is_number and not a.free_symbols]
-            rest = sorted((a for a in e.args if not (a.is_number and not a.free_symbols)), key=sp.default_sort_key)
+            constant = [a for a in e.args if _constant(a)]
+            rest = sorted((a for a in e.args if not _constant(a)), key=sp.default_sort_key)
             op, unit = ("add", sp.Integer(0)) if e.is_Add else ("mul", sp.Integer(1))
             value = e.func(*constant) if constant else unit
             result = fold(op, [register(a) for a in rest])
@@ -153,6 +153,15 @@ def interval_program(expressions: list[sp.Expr]) -> IntervalProgram:
         except _Unsupported:
             outputs.append(None)
     return IntervalProgram(tuple(operations), tuple(outputs))
+
+
+def _constant(e: sp.Expr) -> bool:
+    """Whether ``e`` is enclosed as one constant (its value to 40 digits, :func:`constant_bounds`): a
+    number without ``t`` -- unless atan2 is in it. atan2 jumps by 2 pi across the negative x axis, and
+    a constant on that axis (``atan2(tan(pi), -1/2)``, exactly pi) evaluates to either side of the
+    jump (-pi there, found by Hypothesis): its arguments are enclosed instead, and the interval atan2
+    gives [-pi, pi] where they touch the axis."""
+    return e.is_number and not e.free_symbols and not e.has(sp.atan2)
 
 
 def _power(e: sp.Pow, register, emit) -> int:
