@@ -74,8 +74,9 @@ class _Cases(Mapping):
 
 
 def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleNamespace:
-    """A module-like namespace with every case of ``model`` compiled by ``lambdify`` (a model
-    with design parameters: ``model.at(values)`` fixes them; generated modules take them)."""
+    """A module-like namespace with every case of ``model``, each compiled by ``lambdify`` when it
+    is first read (a model with design parameters: ``model.at(values)`` fixes them; generated
+    modules take them)."""
     if model.design:
         raise ModelError(model.file, "design", "lambdify_model takes numbers: use model.at(values), or a generated module")
     systems = build_systems(model, parametrization)
