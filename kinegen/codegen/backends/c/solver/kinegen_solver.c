@@ -289,10 +289,6 @@ static void solve(kinegen_solver *s, const double *b, double *x) {
 /* W's columns solved together by the certificate (the Hermite bound's three changes fit) */
 #define CERTIFY_COLUMNS 4
 
-/* The CERTIFY_COLUMNS columns of b (column c at b + c n_v) each replaced by Phi_q^-1 times it, with the
- * same factors in one pass over them (the input effects of a step's certificate); y: CERTIFY_COLUMNS n_v
- * scratch values (the solution in the permuted order, position by position). Blocks above the columns'
- * first non-zero value are skipped (their solution is zero). The arithmetic of each column is that of solve(). */
 /* solve_block for CERTIFY_COLUMNS columns at once, r holding position i's columns at r[i CERTIFY_COLUMNS + c]:
  * each column's arithmetic that of solve_block (through BY_BLOCK_SIZE). */
 static inline void solve_block_columns(const double *A, const int *piv, double *r, const int n) {
@@ -322,6 +318,10 @@ static inline void solve_block_columns(const double *A, const int *piv, double *
     }
 }
 
+/* The CERTIFY_COLUMNS columns of b (column c at b + c n_v) each replaced by Phi_q^-1 times it, with the
+ * same factors in one pass over them (the input effects of a step's certificate); y: CERTIFY_COLUMNS n_v
+ * scratch values (the solution in the permuted order, position by position). Blocks above the columns'
+ * first non-zero value are skipped (their solution is zero). The arithmetic of each column is that of solve(). */
 static int zero_block(const kinegen_model *m, int count, const double *b, int blk) {
     for (int row = m->block_start[blk]; row < m->block_start[blk + 1]; ++row)
         for (int c = 0; c < count; ++c)
