@@ -241,6 +241,41 @@ def test_an_excursion_between_two_time_points_is_not_certified(tmp_path, compile
     assert caught.value.exit_code in (3, 4) and caught.value.t < 0.1
 
 
+#: a module of every parametrization family, the excavator's with every driver kind (joint angle, distance)
+NU_MODULES = ["excavator_quaternion", "excavator_euler_zxz", "slider_crank_dual_quaternion", "rssr_euler_parameters"]
+
+
+@pytest.mark.parametrize("stem", NU_MODULES)
+def test_one_nu_call_holds_every_column_of_phi_u(stem):
+    """The certificates read Phi_u off one nu(q, u, 1): in every case the drivers' rows come last
+    in the inputs' order, and nu(q, u, e_k) -- what the certificate took before, one call per
+    input -- is zero off driver k's row and there equal to the bit to nu(q, u, 1)'s (away from a
+    solution: q and u perturbed)."""
+    module = load_module(GENERATED / f"{stem}.py")
+    rng = np.random.default_rng(7)
+    for case in module.CASES:
+        system = from_module(module, case, compiled=False)
+        n, first = system.n_inputs, len(system.constraint_names) - system.n_inputs
+        q = system.initial_q + 0.05 * rng.standard_normal(system.n_stored)
+        u = system.driver_inputs(np.array([system.t0]))[0][:, 0] + 0.1 * rng.standard_normal(n)
+        together = system.velocity_rhs(q, u, np.ones(n))
+        for k in range(n):
+            alone = system.velocity_rhs(q, u, np.eye(n)[k])
+            expected = np.zeros_like(alone)
+            expected[first + k] = together[first + k]
+            assert np.array_equal(alone, expected), (stem, case, system.driver_names[k])
+        assert not together[:first].any()
+
+
+def test_a_system_whose_drivers_are_not_last_is_refused(excavator):
+    import dataclasses
+
+    system = from_module(excavator, compiled=False)
+    names = system.constraint_names
+    with pytest.raises(ValueError, match="drivers' rows must come last"):
+        dataclasses.replace(system, constraint_names=names[-1:] + names[:-1])
+
+
 @needs_cc
 def test_the_shipped_cases_are_never_subdivided(excavator):
     """The certificate holds for every whole step of the smooth shipped cases: no step is halved."""

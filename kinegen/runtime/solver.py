@@ -718,12 +718,22 @@ class Solver:
         x1, u1 = solution.q, inputs[0]
 
         def columns(which: np.ndarray) -> np.ndarray:
-            """W's columns ``which`` (n_v, len(which)): J1^-1 Phi_u e_k, up to one sign for all."""
+            """W's columns ``which`` (n_v, len(which)): J1^-1 Phi_u e_k, up to one sign for all.
+
+            Driver k's equation is the row n_v - n_inputs + k and depends on u_k alone
+            (NumericSystem checks the order), so one nu(q, u, 1) holds every column of Phi_u: its
+            one value, in that row (the value nu(q, u, e_k) gives there)."""
             if not which.size:
                 return np.zeros((system.n_velocity, 0))
-            unit = np.eye(system.n_inputs)
-            # one solve per column: LAPACK's multi-column solve runs threaded, 50x slower on a busy machine
-            return np.column_stack([self._solve(factors, system.velocity_rhs(x1, u1, unit[k])) for k in which])
+            rates = system.velocity_rhs(x1, u1, np.ones(system.n_inputs))
+            first = len(system.constraint_names) - system.n_inputs
+            out = np.zeros((len(system.constraint_names), which.size))
+            for j, k in enumerate(which):
+                unit = np.zeros(len(system.constraint_names))
+                unit[first + k] = rates[first + k]
+                # one solve per column: LAPACK's multi-column solve runs threaded, 50x slower on a busy machine
+                out[:, j] = self._solve(factors, unit)
+            return out
 
         effect, worst = input_effect(columns, h, start_inputs[:2], inputs[:2], ranges)
         alpha = float(abs(self._solve(factors, solution.phi)).max()) + effect

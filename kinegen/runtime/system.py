@@ -135,6 +135,15 @@ class NumericSystem:
     #: declaration alone (:func:`declared_kernels`), so a new kernel needs no code here
     kernels: dict[str, Callable[..., tuple]] = field(default_factory=dict)
 
+    def __post_init__(self) -> None:
+        # the certificates read Phi_u off one nu call by this order (kinegen_model in kinegen_solver.h)
+        tail = self.constraint_names[len(self.constraint_names) - len(self.driver_names) :]
+        if tail != self.driver_names:
+            raise ValueError(
+                f"{self.model}, case {self.case}: the drivers' rows must come last, in the inputs' order "
+                f"(drivers {', '.join(self.driver_names)}; last rows {', '.join(tail)})"
+            )
+
     @property
     def n_stored(self) -> int:
         return len(self.stored_names)

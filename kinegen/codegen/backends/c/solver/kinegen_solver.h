@@ -242,8 +242,8 @@ typedef struct kinegen_model {
     double t0, t1;
     int steps;
     const double *initial_q;
-    const char *const *constraint_names;
-    const char *const *driver_names;
+    const char *const *constraint_names; /* the joints' rows, the normalizations', then the drivers': */
+    const char *const *driver_names;     /*   driver k's is row n_v - n_inputs + k and depends on input k alone */
     const int *jac_rows, *jac_cols;
     void (*phi_jac)(const double *q, const double *u, double *phi, double *jac);
     void (*nu)(const double *q, const double *u, const double *ud, double *nu);
