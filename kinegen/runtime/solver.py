@@ -726,10 +726,10 @@ class Solver:
             if not which.size:
                 return np.zeros((system.n_velocity, 0))
             rates = system.velocity_rhs(x1, u1, np.ones(system.n_inputs))
-            first = len(system.constraint_names) - system.n_inputs
-            out = np.zeros((len(system.constraint_names), which.size))
+            first = len(rates) - system.n_inputs
+            out = np.zeros((system.n_velocity, which.size))
             for j, k in enumerate(which):
-                unit = np.zeros(len(system.constraint_names))
+                unit = np.zeros_like(rates)
                 unit[first + k] = rates[first + k]
                 # one solve per column: LAPACK's multi-column solve runs threaded, 50x slower on a busy machine
                 out[:, j] = self._solve(factors, unit)
