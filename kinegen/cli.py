@@ -17,9 +17,8 @@ from pathlib import Path
 import click
 
 from kinegen import __version__, rotations
-from kinegen.errors import ExitCode, KinegenError, OverConstrainedError, printable
+from kinegen.errors import ExitCode, KinegenError, OverConstrainedError, RequestError, printable
 from kinegen.files import MAX_MODEL_BYTES, STDIN, STDOUT, read_bounded
-from kinegen.interface import FRAME_VALUES
 from kinegen.lazy import lazy_import
 
 np = lazy_import("numpy")  # imported at its first use: `kinegen --help` and `kinegen models` do not need it
@@ -42,6 +41,8 @@ class _Group(click.Group):
             return super().invoke(ctx)
         except click.UsageError as exc:  # a subcommand's argument (click's own code, 2, is a model error's here)
             self._usage(exc)
+        except RequestError as exc:  # the service layer refused an option: the same usage error as click's own
+            self._usage(click.BadParameter(exc.problem, param_hint=exc.option), f"{ctx.command_path} {ctx.invoked_subcommand}")
         except KinegenError as exc:
             if isinstance(exc, OverConstrainedError):  # which joints' equations repeat: the rank at the initial pose
                 from kinegen.symbolic.rank import explain
@@ -56,12 +57,13 @@ class _Group(click.Group):
             self._fail(ctx, f"error: {exc}", ExitCode.IO)
 
     @staticmethod
-    def _usage(exc: click.UsageError) -> None:
-        """A usage error as one line, like every other error (exit 64); kinegen alone shows the help."""
+    def _usage(exc: click.UsageError, command: str | None = None) -> None:
+        """A usage error as one line, like every other error (exit 64); kinegen alone shows the help.
+        ``command``: the command's path, where the error carries no context."""
         exc.exit_code = ExitCode.USAGE
         if isinstance(exc, click.exceptions.NoArgsIsHelpError):
             raise exc
-        command = exc.ctx.command_path if exc.ctx is not None else "kinegen"
+        command = command or (exc.ctx.command_path if exc.ctx is not None else "kinegen")
         click.echo(printable(f"error: {exc.format_message()} ('{command} --help' lists the options)"), err=True)
         sys.exit(ExitCode.USAGE)
 
@@ -337,53 +339,20 @@ def solve(
     actuator leaves its range is reported. With --load, also the forces that hold the loads (and the
     machine's own weight, where the model declares masses); with --dynamics, the forces that move the
     machine (its weight and inertia) and its energies."""
-    from kinegen.runtime import SolverOptions
-    from kinegen.runtime import solve as run
+    from kinegen import solving
 
     parametrization = _parametrization(param)
-    model, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None, _design_values(design))
-    _check_memory(system, steps or system.steps, force)
+    plan = solving.plan(
+        _session(generated_dir), model_file, case, parametrization.name, t0=t0, t1=t1, steps=steps, loads=loads,
+        dynamics=dynamics, weight=not no_weight, timing=timing, keep_going=keep_going, compiled=False if no_compile else None,
+        design=_design_values(design), force=force,
+    )  # fmt: skip
+    model, system, times = plan.model, plan.system, plan.times
     point = _named_point(system, track)
-    unknown = [name for name in loads if name not in model.loads]
-    if unknown:
-        raise click.BadParameter(f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})", param_hint="--load")
-    twice = sorted({name for name in loads if loads.count(name) > 1})
-    if twice:
-        raise click.BadParameter(f"{', '.join(twice)} named more than once (each load is held once)", param_hint="--load")
-    if dynamics and not model.massive:
-        raise click.BadParameter("the model has no masses (a body's mass:, center_of_mass:, inertia:)", param_hint="--dynamics")
-    if no_weight and (dynamics or not loads):
-        raise click.BadParameter("leaves the weight out of --load's statics; --dynamics holds the weight with the inertia"
-                                 if dynamics else "goes with --load (the statics it leaves the weight out of)", param_hint="--no-weight")  # fmt: skip
     if plot:
         _check_frame(system, frame_body)
-    retimed = None
-    if timing is not None:
-        from kinegen.forces.cycle import read_timing, retimed_motion
-
-        if t0 is not None or t1 is not None or steps is not None:
-            raise click.BadParameter(
-                "the timing file gives the time points: no --t0, --t1 or --steps with it", param_hint="--timing"
-            )
-        retimed = read_timing(timing)
-        if (retimed.model, retimed.case) != (system.model, system.case):
-            raise click.BadParameter(f"{timing} re-times {retimed.model}/{retimed.case}, not {system.model}/{system.case} (--case)",
-                                     param_hint="--timing")  # fmt: skip
-        times = retimed.times
-    else:
-        times = np.linspace(system.t0 if t0 is None else t0, system.t1 if t1 is None else t1, steps or system.steps)
-    if loads:
-        from kinegen.forces.statics import check_load_functions
-
-        for name in dict.fromkeys(loads):
-            check_load_functions(model, model.loads[name], times)  # before the solve: a load's function outside its domain
-    start = time.perf_counter()
-    options = SolverOptions(on_failure="stop" if keep_going else "raise", compiled=not no_compile)
-    if retimed is not None:
-        results = retimed_motion(system, retimed.s, retimed.speed, retimed.acceleration, times, options)
-    else:
-        results = run(system, times, options)
-    elapsed = time.perf_counter() - start
+    report = solving.run(plan)
+    results, elapsed, held, supplied = report.results, report.elapsed, report.held, report.supplied
     done = results.converged
     piped = out == STDOUT  # the CSV on standard output: everything else on standard error
     if design:
@@ -394,20 +363,12 @@ def solve(
         f"max {results.iterations[done].max()}, max |Phi| {results.residuals[done].max():.1e}, {elapsed:.3f} s",
         err=piped,
     )
-    held = None
-    if (loads or dynamics) and results.complete:
-        from kinegen.forces import forces
-
-        held = forces(results, model, loads, inertia=dynamics, weight=bool(model.massive) and not no_weight)
+    if held is not None:
         _report_forces(held, model, piped)
-    elif loads or dynamics:
+    elif report.forces_missed:
         click.echo(f"forces: not computed -- the solve stopped at t = {results.times[-1]:g} s and forces need every time point; "
                    "the CSV has no force columns", err=True)  # fmt: skip
-    supplied = None
-    if model.supply is not None and results.complete:  # the oil the motion asks of the pumps (and, with forces, their power)
-        from kinegen.forces.supply import flows
-
-        supplied = flows(results, model, held)
+    if supplied is not None:
         _report_supply(supplied, piped)
     if out:
         extra = [t for t in (held.table() if held is not None else None, supplied.table() if supplied is not None else None) if t]
@@ -440,27 +401,6 @@ def _finite(param: click.Parameter, value: float | None) -> float | None:
     if value is not None and not np.isfinite(value):
         raise click.BadParameter(f"expected a finite number of seconds, got {value}", param_hint=f"--{param.name}")
     return value
-
-
-#: bytes a solved time point keeps per stored coordinate, velocity and input (q, v, a, the inputs
-#: and their rates, frames of every body) -- measured on the excavator, rounded up
-_BYTES_PER_VALUE = 8 * 6
-
-
-def _check_memory(system, steps: int, force: bool) -> None:
-    """Refuse (unless ``force``) a solve whose results would not fit in half the available memory."""
-    need = steps * _BYTES_PER_VALUE * (system.n_stored + 2 * system.n_velocity + 3 * len(system.driver_names)
-                                        + FRAME_VALUES * len(system.bodies))
-    try:
-        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):  # not on this system: no estimate
-        return
-    if need > available / 2 and not force:
-        raise click.BadParameter(
-            f"{steps:,} time points would keep about {need / 2**30:.1f} GiB of results; {available / 2**30:.1f} GiB of memory is "
-            "available: fewer --steps, or --force",
-            param_hint="--steps",
-        )
 
 
 def _check_frame(system, frame_body: str | None) -> None:

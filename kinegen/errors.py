@@ -39,6 +39,19 @@ class KinegenError(Exception):
     exit_code = ExitCode.ERROR
 
 
+class RequestError(KinegenError, ValueError):
+    """A request the model cannot answer as asked; ``option`` is the command line's option it
+    concerns (``--load``, ``--case``, ...), ``problem`` what is wrong. The command line reports it
+    as a usage error (exit 64)."""
+
+    exit_code = ExitCode.USAGE
+
+    def __init__(self, option: str, problem: str) -> None:
+        self.option = option
+        self.problem = problem
+        super().__init__(f"{option}: {problem}")
+
+
 class ModelError(KinegenError):
     """A model file is malformed: the message names the file, the line (where known), the
     entry (a dotted path such as ``joints.pivot.axis``) and the problem:

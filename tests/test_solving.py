@@ -1,0 +1,59 @@
+"""The service behind ``kinegen solve`` (:mod:`kinegen.solving`) used as a library: a request the
+model cannot answer is refused before anything is solved, naming the command line's option; a
+report holds the same motion, forces and flows as the library's own calls on the same case."""
+
+from __future__ import annotations
+
+import numpy as np
+import pytest
+
+from kinegen import solving
+from kinegen.api import Session
+from kinegen.errors import RequestError
+from kinegen.forces import forces
+from kinegen.forces.supply import flows
+from kinegen.runtime import SolverOptions
+from tests.conftest import GENERATED, MODELS
+
+EXCAVATOR = MODELS / "excavator.yaml"
+
+
+@pytest.fixture(scope="module")
+def session():
+    return Session(GENERATED)
+
+
+@pytest.mark.parametrize(
+    ("request_", "option", "says"),
+    [
+        ({"loads": ("gravel",)}, "--load", "no load 'gravel' (loads: payload, cutting)"),
+        ({"loads": ("payload", "payload")}, "--load", "payload named more than once"),
+        ({"weight": False}, "--no-weight", "goes with --load"),
+        ({"weight": False, "dynamics": True}, "--no-weight", "--dynamics holds the weight with the inertia"),
+        ({"case": "nowhere"}, "--case", "has no case 'nowhere'"),
+        ({"design": {"counterweight": 1e9}}, "--design", "outside its bounds"),
+        ({"steps": 10**12}, "--steps", "GiB of results"),
+    ],
+)
+def test_a_request_the_model_cannot_answer_is_refused_naming_its_option(session, request_, option, says):
+    request = {"compiled": False, **request_}
+    case = request.pop("case", "digging")
+    with pytest.raises(RequestError) as refused:
+        solving.plan(session, EXCAVATOR, case, "quaternion", **request)
+    assert refused.value.option == option and says in refused.value.problem
+    assert refused.value.exit_code == 64
+
+
+def test_a_report_holds_what_the_library_computes_on_the_same_case(session):
+    plan = solving.plan(session, EXCAVATOR, "digging", "quaternion", steps=101, loads=("payload",), compiled=False)
+    assert plan.times.tolist() == np.linspace(plan.system.t0, plan.system.t1, 101).tolist()
+    report = solving.run(plan)
+    direct = session.solve(EXCAVATOR, "digging", "quaternion", plan.times, SolverOptions(compiled=False))
+    assert np.array_equal(report.results.q, direct.q) and np.array_equal(report.results.a, direct.a)
+    model = session.model(EXCAVATOR)
+    held = forces(direct, model, ("payload",), inertia=False, weight=bool(model.massive))
+    names, values = held.table()
+    assert report.held.table()[0] == names and np.array_equal(report.held.table()[1], values)
+    supplied = flows(direct, model, held)
+    assert np.array_equal(report.supplied.table()[1], supplied.table()[1])
+    assert not report.forces_missed and report.elapsed > 0
