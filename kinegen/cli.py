@@ -339,10 +339,10 @@ def solve(
     actuator leaves its range is reported. With --load, also the forces that hold the loads (and the
     machine's own weight, where the model declares masses); with --dynamics, the forces that move the
     machine (its weight and inertia) and its energies."""
-    from kinegen import solving
+    from kinegen.service import solve as service
 
     parametrization = _parametrization(param)
-    plan = solving.plan(
+    plan = service.plan(
         _session(generated_dir), model_file, case, parametrization.name, t0=t0, t1=t1, steps=steps, loads=loads,
         dynamics=dynamics, weight=not no_weight, timing=timing, keep_going=keep_going, compiled=False if no_compile else None,
         design=_design_values(design), force=force,
@@ -351,7 +351,7 @@ def solve(
     point = _named_point(system, track)
     if plot:
         _check_frame(system, frame_body)
-    report = solving.run(plan)
+    report = service.run(plan)
     results, elapsed, held, supplied = report.results, report.elapsed, report.held, report.supplied
     done = results.converged
     piped = out == STDOUT  # the CSV on standard output: everything else on standard error
@@ -932,50 +932,33 @@ def cycle(model_file: str, case: str | None, param: str, loads: tuple[str, ...],
     engine's power, every cylinder's pressure within its relief or holding setting and the motors'
     torque within their pumps' pressure (with the machine's weight and inertia and the --load), the
     tipping margin >= 0, and --max-speed -- met at every point of the path (docs/cycle.md)."""
-    from kinegen.forces.cycle import check_retimed, fastest, phase_summary, shares, write_timing
-    from kinegen.runtime import SolverOptions
-    from kinegen.runtime import solve as run
+    from kinegen.forces.cycle import write_timing
+    from kinegen.service import cycle as service
 
     parametrization = _parametrization(param)
-    model, system = _system(model_file, parametrization, case, generated_dir, False if no_compile else None)
-    unknown = [name for name in loads if name not in model.loads]
-    if unknown:
-        raise click.BadParameter(
-            f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})", param_hint="--load"
-        )
     limits = {}
-    movers = [a.name for a in model.actuators] + [m.name for m in model.motors]
     for pair in speed_limits:
         name, _, value = pair.partition("=")
         try:
             limits[name] = float(value)
         except ValueError:
             raise click.BadParameter(f"expected ACTUATOR=VALUE, got {pair!r}", param_hint="--max-speed") from None
-        if name not in movers or not limits[name] > 0:
-            raise click.BadParameter(
-                f"{pair!r}: name an actuator or motor ({', '.join(movers)}) and a speed > 0", param_hint="--max-speed"
-            )
-    if not model.massive and model.supply is None and not limits:
-        raise click.BadParameter("the model has no masses, no pumps: section and no --max-speed: nothing limits how fast the path "
-                                 "can be followed", param_hint="MODEL_FILE")  # fmt: skip
-    times = np.linspace(system.t0, system.t1, steps or system.steps)
-    start = time.perf_counter()
-    path = run(system, times, SolverOptions(compiled=not no_compile))
-    found = fastest(path, model, tuple(dict.fromkeys(loads)), tipping=not no_tipping, speed_limits=limits)
-    elapsed = time.perf_counter() - start
-    checked = check_retimed(system, model, found)
+    plan = service.plan(_session(generated_dir), model_file, case, parametrization.name, loads=loads, steps=steps,
+                        tipping=not no_tipping, speed_limits=limits, compiled=False if no_compile else None)  # fmt: skip
+    report = service.run(plan)
+    model, system, times, found, checked, elapsed = plan.model, plan.system, plan.times, report.found, report.checked, report.elapsed
     say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
-    held = [*found.loads, "the machine's weight and inertia"] if model.massive else list(found.loads)
+    held = report.held
     say(f"{system.model}/{system.case} [{parametrization.name}]: fastest timing {found.duration:.2f} s, the case's own "
         f"{found.own_duration:.2f} s ({found.duration / found.own_duration:.2f} times){'; holding ' + ', '.join(held) if held else ''}; "
         f"{len(times)} points, {elapsed:.2f} s")  # fmt: skip
-    share = shares(found)
+    share = report.share
     say(
         "  limits (share of the cycle time): "
         + ", ".join(f"{name} {100 * value:.0f} %" for name, value in share.items() if value >= 0.005)
     )
     say("  phases (re-timed t, the case's own s):")
-    for name, s0, s1, t0, t1 in phase_summary(found):
+    for name, s0, s1, t0, t1 in report.phases:
         say(f"    t {t0:6.2f} .. {t1:6.2f} s   s {s0:6.2f} .. {s1:6.2f} s   {name}")
     for line in checked.lines():
         say("  " + line)
@@ -989,7 +972,7 @@ def cycle(model_file: str, case: str | None, param: str, loads: tuple[str, ...],
 
         say(f"wrote {plot_cycle(found, plot, checked.flows)}")
     if as_json:
-        click.echo(json.dumps(checked.document(found, parametrization.name, share, phase_summary(found)), indent=2))
+        click.echo(json.dumps(checked.document(found, parametrization.name, share, report.phases), indent=2))
 
 
 @main.command()

@@ -1,4 +1,4 @@
-"""A case solved as a user asks for it: the service behind ``kinegen solve``.
+"""A case solved as a user asks for it: the work behind ``kinegen solve``.
 
 Two steps, so that a caller can check its own options against the case before the solve runs:
 
@@ -29,6 +29,7 @@ from kinegen import rotations
 from kinegen.api import Session
 from kinegen.errors import RequestError
 from kinegen.interface import FRAME_VALUES
+from kinegen.service.requests import case_system, check_loads
 
 #: bytes a solved time point keeps per stored coordinate, velocity and input (q, v, a, the inputs
 #: and their rates, frames of every body) -- measured on the excavator, rounded up
@@ -94,19 +95,9 @@ def plan(
     --timing``). ``weight`` False leaves the machine's own weight out of the loads' statics;
     ``force`` solves even when the results would take more than half the available memory.
     Raises :class:`RequestError` for what the model cannot answer as asked."""
-    session.module(model_file, parametrization)  # a rebuild's errors before the system's
-    try:
-        model = session.model(model_file)
-        system = session.system(model_file, case, parametrization, compiled, dict(design) if design else None)
-    except (KeyError, ValueError) as exc:
-        raise RequestError("--design" if design else "--case", str(exc.args[0])) from None
+    model, system = case_system(session, model_file, case, parametrization, compiled, dict(design) if design else None)
     check_memory(system, steps or system.steps, force)
-    unknown = [name for name in loads if name not in model.loads]
-    if unknown:
-        raise RequestError("--load", f"no load {', '.join(map(repr, unknown))} (loads: {', '.join(model.loads) or 'none'})")
-    twice = sorted({name for name in loads if loads.count(name) > 1})
-    if twice:
-        raise RequestError("--load", f"{', '.join(twice)} named more than once (each load is held once)")
+    loads = check_loads(model, loads)
     if dynamics and not model.massive:
         raise RequestError("--dynamics", "the model has no masses (a body's mass:, center_of_mass:, inertia:)")
     if not weight and (dynamics or not loads):
@@ -129,7 +120,7 @@ def plan(
 
         for name in dict.fromkeys(loads):
             check_load_functions(model, model.loads[name], times)  # before the solve: a load's function outside its domain
-    return SolvePlan(model, system, times, tuple(loads), dynamics, weight, keep_going, compiled, retimed)
+    return SolvePlan(model, system, times, loads, dynamics, weight, keep_going, compiled, retimed)
 
 
 def run(plan: SolvePlan) -> SolveReport:

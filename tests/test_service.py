@@ -1,18 +1,19 @@
-"""The service behind ``kinegen solve`` (:mod:`kinegen.solving`) used as a library: a request the
-model cannot answer is refused before anything is solved, naming the command line's option; a
-report holds the same motion, forces and flows as the library's own calls on the same case."""
+"""The work behind ``kinegen solve`` and ``kinegen cycle`` (:mod:`kinegen.service`) used as a
+library: a request the model cannot answer is refused before anything is solved, naming the
+command line's option; a report holds the same motion, forces and flows as the library's own
+calls on the same case."""
 
 from __future__ import annotations
 
 import numpy as np
 import pytest
 
-from kinegen import solving
 from kinegen.api import Session
 from kinegen.errors import RequestError
 from kinegen.forces import forces
 from kinegen.forces.supply import flows
 from kinegen.runtime import SolverOptions
+from kinegen.service import solve as solving
 from tests.conftest import GENERATED, MODELS
 
 EXCAVATOR = MODELS / "excavator.yaml"
@@ -57,3 +58,20 @@ def test_a_report_holds_what_the_library_computes_on_the_same_case(session):
     supplied = flows(direct, model, held)
     assert np.array_equal(report.supplied.table()[1], supplied.table()[1])
     assert not report.forces_missed and report.elapsed > 0
+
+
+def test_a_cycle_request_is_checked_and_its_report_is_the_library_s_own_retiming(session):
+    from kinegen.forces.cycle import fastest, shares
+    from kinegen.service import cycle
+
+    with pytest.raises(RequestError) as refused:
+        cycle.plan(session, EXCAVATOR, "digging", "quaternion", speed_limits={"boom_cylinder_left": 0.0}, compiled=False)
+    assert refused.value.option == "--max-speed" and "a speed > 0" in refused.value.problem
+    with pytest.raises(RequestError, match="payload named more than once"):
+        cycle.plan(session, EXCAVATOR, "digging", "quaternion", loads=("payload", "payload"), compiled=False)
+    plan = cycle.plan(session, EXCAVATOR, "digging", "quaternion", steps=201, compiled=False)
+    report = cycle.run(plan)
+    path = session.solve(EXCAVATOR, "digging", "quaternion", plan.times, SolverOptions(compiled=False))
+    found = fastest(path, plan.model, ())
+    assert np.array_equal(report.found.times, found.times) and report.share == shares(found)
+    assert report.held == ["the machine's weight and inertia"]

@@ -1,0 +1,11 @@
+"""The work behind kinegen's commands, as functions that return reports.
+
+Each command's work comes in two steps: ``plan`` reads the model and its generated module through
+a :class:`kinegen.api.Session` and checks the request against the model; ``run`` computes and
+returns a report. A request the model cannot answer raises :class:`kinegen.errors.RequestError`
+naming the command line's option it concerns. Nothing here prints or writes a file: the command
+line (:mod:`kinegen.cli`) formats the reports.
+
+* :mod:`kinegen.service.solve` -- ``kinegen solve``: the motion, the forces, the pumps' flows;
+* :mod:`kinegen.service.cycle` -- ``kinegen cycle``: the fastest timing of a case's path.
+"""
