@@ -775,7 +775,7 @@ def forces(model_file: str, param: str, as_json: bool, lift: bool, direction: st
     holding setting) and the published figures beside them; --lift: the hydraulic lift capacity
     table (docs/forces.md)."""
     from kinegen.errors import ModelError
-    from kinegen.forces.iso6015 import report, tool_forces
+    from kinegen.forces.iso6015 import document, report, tool_forces
 
     if lift and direction is not None:
         raise click.BadParameter("--lift and --map are two different charts: give one", param_hint="--map")
@@ -799,16 +799,7 @@ def forces(model_file: str, param: str, as_json: bool, lift: bool, direction: st
     found = tool_forces(system, model)
     elapsed = time.perf_counter() - start
     if as_json:
-        document = {
-            "model": model.name, "lip": f"{model.tool_forces.lip.body}.{model.tool_forces.lip.name}", "seconds": elapsed,
-            "forces": {name: {
-                "force": r.force, "published": r.published, "limiting": {"actuator": r.limiting, "setting": r.setting, "pressure": r.pressure, "side": r.side},
-                "also": [{"actuator": a, "setting": s, "pressure": p, "side": d} for a, s, p, d in r.also],
-                "ceiling": r.ceiling, "ceiling_at": r.ceiling_at, "inputs": r.inputs, "lip": r.lip.tolist(), "radius": r.radius,
-                "stroke": r.stroke.tolist(), "curve": r.curve.tolist(),
-            } for name, r in found.items()},
-        }  # fmt: skip
-        click.echo(json.dumps(document, indent=2))
+        click.echo(json.dumps(document(found, model, elapsed), indent=2))
         return
     click.echo(report(found, model, elapsed))
 
@@ -857,28 +848,8 @@ def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: 
     start = time.perf_counter()
     chart = lift_chart(system, model)
     elapsed = time.perf_counter() - start
-
-    def entry(p):
-        if p is None:
-            return None
-        (front, front_limit), (side, side_limit) = p.rated(False), p.rated(True)
-        finite = {"tipping_front_kg": p.tipping_front, "tipping_side_kg": p.tipping_side}
-        return {"radius": p.radius, "height": p.height, "capacity_n": p.capacity, "hydraulic_kg": p.hydraulic_kg,
-                **{k: (None if not np.isfinite(v) else v) for k, v in finite.items()},
-                "rated_front_kg": front, "front_limit": front_limit, "rated_side_kg": side, "side_limit": side_limit,
-                "limiting": p.limiting, "setting": p.setting, "inputs": p.inputs}  # fmt: skip
-
     if out:
-        rows = ["height_m,radius_m,at_max_reach,hydraulic_capacity_n,tipping_front_kg,tipping_side_kg,rated_front_kg,front_limit,"
-                "rated_side_kg,side_limit,limiting_cylinder"]  # fmt: skip
-        for row, reach in zip(chart.grid, chart.max_reach):
-            for p, at_reach in [*((p, 0) for p in row), (reach, 1)]:
-                if p is not None and np.isfinite(p.capacity):
-                    e = entry(p)
-                    rows.append(",".join(str(x) for x in (p.height, f"{p.radius:.6g}", at_reach, f"{p.capacity:.6g}",
-                                                          f"{p.tipping_front:.6g}", f"{p.tipping_side:.6g}", f"{e['rated_front_kg']:.6g}",
-                                                          e["front_limit"], f"{e['rated_side_kg']:.6g}", e["side_limit"], p.limiting)))  # fmt: skip
-        write_atomic(Path(out), "\n".join(rows) + "\n")
+        write_atomic(Path(out), chart.csv_text())
     if plot:
         from kinegen.analysis.boundary import working_range_boundary
         from kinegen.forces.lift import plot_lift_chart
@@ -893,11 +864,7 @@ def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: 
         wrote = ", ".join(x for x in (out, plot) if x)
         click.echo(f"[{elapsed:.2f} s]" + (f"; wrote {wrote}" if wrote else ""))
         return
-    click.echo(json.dumps({
-        "model": model.name, "point": chart.point, "lifting": chart.lifting, "without": chart.without, "heights": chart.heights,
-        "radii": chart.radii, "tipping": chart.tipping,
-        "grid": [[entry(p) for p in row] for row in chart.grid], "max_reach": [entry(p) for p in chart.max_reach],
-    }, indent=2))  # fmt: skip
+    click.echo(json.dumps({"model": model.name, **chart.document()}, indent=2))
 
 
 @main.command()

@@ -227,6 +227,21 @@ def _serpentine(axes: list[np.ndarray]) -> np.ndarray:
 TITLES = {"bucket": "bucket digging force (bucket cylinder tool force)", "arm": "arm crowd force (arm cylinder tool force)"}
 
 
+def document(found: dict[str, ToolForceResult], model: Model, seconds: float) -> dict:
+    """The tool forces as JSON data (``kinegen forces --json``): per force its figure, the
+    published one, the limiting circuit and the others at their settings, the working cylinder's
+    ceiling, the pose and the curve over the stroke; SI units."""
+    return {
+        "model": model.name, "lip": f"{model.tool_forces.lip.body}.{model.tool_forces.lip.name}", "seconds": seconds,
+        "forces": {name: {
+            "force": r.force, "published": r.published, "limiting": {"actuator": r.limiting, "setting": r.setting, "pressure": r.pressure, "side": r.side},
+            "also": [{"actuator": a, "setting": s, "pressure": p, "side": d} for a, s, p, d in r.also],
+            "ceiling": r.ceiling, "ceiling_at": r.ceiling_at, "inputs": r.inputs, "lip": r.lip.tolist(), "radius": r.radius,
+            "stroke": r.stroke.tolist(), "curve": r.curve.tolist(),
+        } for name, r in found.items()},
+    }  # fmt: skip
+
+
 def report(found: dict[str, ToolForceResult], model: Model, seconds: float | None = None) -> str:
     """The tool forces as text: each figure beside its published value, the circuits that limit it,
     the working cylinder's ceiling, and the pose where it is reached."""

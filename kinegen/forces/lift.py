@@ -73,6 +73,16 @@ class LiftPoint:
             return self.hydraulic_kg, "hydraulic"
         return tipping, "tipping"
 
+    def document(self) -> dict:
+        """The point as JSON data (``kinegen lift --json``): SI units and kg; an unknown or infinite
+        tipping load is null."""
+        (front, front_limit), (side, side_limit) = self.rated(False), self.rated(True)
+        finite = {"tipping_front_kg": self.tipping_front, "tipping_side_kg": self.tipping_side}
+        return {"radius": self.radius, "height": self.height, "capacity_n": self.capacity, "hydraulic_kg": self.hydraulic_kg,
+                **{k: (None if not np.isfinite(v) else v) for k, v in finite.items()},
+                "rated_front_kg": front, "front_limit": front_limit, "rated_side_kg": side, "side_limit": side_limit,
+                "limiting": self.limiting, "setting": self.setting, "inputs": self.inputs}  # fmt: skip
+
 
 class Held(NamedTuple):
     """A lift pose and its solves (:meth:`Placer.held`)."""
@@ -129,6 +139,32 @@ class LiftChart:
         if any("tips" in _cell(p) for p in points):
             lines.append(TIPS)
         return "\n".join(lines)
+
+    def document(self) -> dict:
+        """The chart as JSON data (``kinegen lift --json``): every grid point's and the largest
+        radius's :meth:`LiftPoint.document` (null where the point cannot be placed)."""
+        def entry(p: LiftPoint | None) -> dict | None:
+            return None if p is None else p.document()
+
+        return {
+            "point": self.point, "lifting": self.lifting, "without": self.without, "heights": self.heights,
+            "radii": self.radii, "tipping": self.tipping,
+            "grid": [[entry(p) for p in row] for row in self.grid], "max_reach": [entry(p) for p in self.max_reach],
+        }  # fmt: skip
+
+    def csv_text(self) -> str:
+        """Every placed point as CSV (``kinegen lift --out``): a row per grid point, then per height
+        the largest radius's (at_max_reach 1); SI units and kg."""
+        rows = ["height_m,radius_m,at_max_reach,hydraulic_capacity_n,tipping_front_kg,tipping_side_kg,rated_front_kg,front_limit,"
+                "rated_side_kg,side_limit,limiting_cylinder"]  # fmt: skip
+        for row, reach in zip(self.grid, self.max_reach):
+            for p, at_reach in [*((p, 0) for p in row), (reach, 1)]:
+                if p is not None and np.isfinite(p.capacity):
+                    (front, front_limit), (side, side_limit) = p.rated(False), p.rated(True)
+                    rows.append(",".join(str(x) for x in (p.height, f"{p.radius:.6g}", at_reach, f"{p.capacity:.6g}",
+                                                          f"{p.tipping_front:.6g}", f"{p.tipping_side:.6g}", f"{front:.6g}",
+                                                          front_limit, f"{side:.6g}", side_limit, p.limiting)))  # fmt: skip
+        return "\n".join(rows) + "\n"
 
 
 #: what the chart's marks mean (the table's and the picture's notes)
