@@ -23,10 +23,6 @@ from kinegen.lazy import lazy_import
 
 np = lazy_import("numpy")  # imported at its first use: `kinegen --help` and `kinegen models` do not need it
 
-#: Most samples `kinegen envelope --grid` takes (the default grid has 4,851)
-MAX_GRID = 1_000_000
-
-
 class _Group(click.Group):
     """Turns kinegen errors into one or two readable lines and a distinct exit code."""
 
@@ -1028,59 +1024,23 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
     model with design parameters, their exact sensitivities), its exact boundary (--boundary, --json,
     --plot)."""
     from kinegen.analysis.chart import outlines, plot_envelope
-    from kinegen.analysis.envelope import working_range
-    from kinegen.errors import ModelError
     from kinegen.files import write_atomic
+    from kinegen.service import envelope as service
 
-    parametrization = _parametrization(param)
-    model, _ = _system(model_file, parametrization, None, generated_dir)
-    if model.working_range is None:
-        raise ModelError(model_file, "working_range", "the model has no working_range section")
-    _, system = _system(model_file, parametrization, model.working_range.case, generated_dir)
     counts = None
     if grid:
         try:
             counts = tuple(int(x) for x in grid.split(","))
         except ValueError:
             raise click.BadParameter("expected whole numbers separated by commas", param_hint="--grid") from None
-        if any(c < 2 for c in counts):
-            raise click.BadParameter("at least 2 samples per input", param_hint="--grid")
-        swept = [name for name, value in model.working_range.inputs.items() if isinstance(value, tuple)]
-        if len(counts) != len(swept):
-            raise click.BadParameter(
-                f"{len(counts)} count(s) for the {len(swept)} swept input(s) ({', '.join(swept)}): give one per input, in this order",
-                param_hint="--grid",
-            )
-        if int(np.prod(counts, dtype=float)) > MAX_GRID:
-            raise click.BadParameter(f"{grid} is {int(np.prod(counts, dtype=float)):,} samples; at most {MAX_GRID:,}", param_hint="--grid")
     if boundary_file and Path(boundary_file).suffix.lower() not in (".csv", ".json"):
         raise click.BadParameter("expected a .csv or .json file name", param_hint="--boundary")
-    result = working_range(system, model.working_range, counts)
-    boundary = None
-    if plot or boundary_file or as_json:
-        from kinegen.analysis.boundary import working_range_boundary
-
-        boundary = working_range_boundary(system, model.working_range)
-    sensitivities = {}
-    if system.design and system.sensitivity_kernels:  # d(figure)/d(design parameter), by the envelope theorem
-        from kinegen.analysis.envelope import figure_sensitivities
-
-        exact = figure_sensitivities(result, system)
-        sensitivities = {figure: dict(zip(system.design, (float(x) for x in values))) for figure, values in exact.items()}
+    plan = service.plan(_session(generated_dir), model_file, _parametrization(param).name, counts,
+                        boundary=bool(plot or boundary_file or as_json))  # fmt: skip
+    report = service.run(plan)
+    model, system, result, boundary, sensitivities = plan.model, plan.system, report.result, report.boundary, report.sensitivities
     if as_json:
-        document = {
-            "figures": result.figures,
-            "inputs": result.arguments,
-            "published_unverified": model.working_range.published,
-            "samples": len(result.samples),
-            "seconds": result.seconds,
-        }
-        if result.front is not None:
-            document["min_front_swing_radius"] = {"radius": result.front.radius, "inputs": result.front.arguments, "farthest": result.front.farthest}
-        if sensitivities:
-            document["sensitivities"] = sensitivities
-        document["boundary"] = _boundary_document(boundary)
-        click.echo(json.dumps(document, indent=2))
+        click.echo(json.dumps(report.document(), indent=2))
     else:
         click.echo(result.table())
         click.echo(
@@ -1103,7 +1063,7 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
                 f"{len(boundary.switching)} switching points, chord error {1e3 * boundary.chord_error:.3f} mm, {boundary.seconds:.1f} s"
             )
     if boundary_file:
-        text = boundary.to_csv() if Path(boundary_file).suffix.lower() == ".csv" else json.dumps(_boundary_document(boundary), indent=1)
+        text = boundary.to_csv() if Path(boundary_file).suffix.lower() == ".csv" else json.dumps(boundary.document(), indent=1)
         write_atomic(Path(boundary_file), text)
         click.echo(f"wrote {boundary_file}", err=as_json)
     if plot:
@@ -1113,17 +1073,6 @@ def envelope(model_file: str, param: str, grid: str | None, plot: str | None, bo
 def _table_number(value: float, scale: float) -> str:
     """A table entry: what is zero to rounding against the table's largest entry (1e-10 of it) as 0."""
     return "0" if abs(value) <= 1e-10 * scale else f"{value:.6g}"
-
-
-def _boundary_document(boundary) -> dict:
-    """The exact boundary as JSON-ready data (chart plane: reach along ``direction``, height; m)."""
-    return {
-        "plane": {"reach_direction": boundary.direction.tolist(), "units": "m"},
-        "points": boundary.rows(),
-        "switching": boundary.switching.tolist(),
-        "chord_error_m": boundary.chord_error,
-        "notes": boundary.notes,
-    }
 
 
 @main.command()

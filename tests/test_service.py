@@ -75,3 +75,19 @@ def test_a_cycle_request_is_checked_and_its_report_is_the_library_s_own_retiming
     found = fastest(path, plan.model, ())
     assert np.array_equal(report.found.times, found.times) and report.share == shares(found)
     assert report.held == ["the machine's weight and inertia"]
+
+
+def test_an_envelope_request_is_checked_and_its_report_is_the_library_s_own_range(session):
+    from kinegen.analysis.envelope import working_range
+    from kinegen.service import envelope
+
+    for counts, says in (((5, 5), "2 count(s) for the 3 swept input(s)"), ((5, 1, 5), "at least 2 samples"),
+                         ((100, 100, 101), "100,100,101 is 1,010,000 samples; at most 1,000,000")):  # fmt: skip
+        with pytest.raises(RequestError) as refused:
+            envelope.plan(session, EXCAVATOR, "quaternion", counts)
+        assert refused.value.option == "--grid" and says in refused.value.problem
+    plan = envelope.plan(session, EXCAVATOR, "quaternion", (5, 4, 5))
+    report = envelope.run(plan)
+    direct = working_range(plan.system, plan.model.working_range, (5, 4, 5))
+    assert report.result.figures == direct.figures and report.boundary is None
+    assert report.document()["figures"] == direct.figures and len(report.sensitivities) == len(direct.figures)

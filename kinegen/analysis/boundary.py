@@ -109,6 +109,18 @@ class Boundary:
             out.append(row)
         return out
 
+    def document(self) -> dict:
+        """The boundary as JSON data (``kinegen envelope --json``, ``--boundary *.json``): the chart
+        plane (reach along ``direction``, height; m), :meth:`rows`, the switching points' indices,
+        the chord error [m] and the notes."""
+        return {
+            "plane": {"reach_direction": self.direction.tolist(), "units": "m"},
+            "points": self.rows(),
+            "switching": self.switching.tolist(),
+            "chord_error_m": self.chord_error,
+            "notes": self.notes,
+        }
+
     def to_csv(self) -> str:
         """:meth:`rows` as CSV text (header first)."""
         rows = self.rows()

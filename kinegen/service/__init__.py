@@ -7,5 +7,7 @@ naming the command line's option it concerns. Nothing here prints or writes a fi
 line (:mod:`kinegen.cli`) formats the reports.
 
 * :mod:`kinegen.service.solve` -- ``kinegen solve``: the motion, the forces, the pumps' flows;
-* :mod:`kinegen.service.cycle` -- ``kinegen cycle``: the fastest timing of a case's path.
+* :mod:`kinegen.service.cycle` -- ``kinegen cycle``: the fastest timing of a case's path;
+* :mod:`kinegen.service.envelope` -- ``kinegen envelope``: the working range, its boundary and
+  its figures' sensitivities.
 """
