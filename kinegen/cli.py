@@ -575,43 +575,20 @@ def inspect(
     generated_dir: str,
 ) -> None:
     """Exact rank, null spaces and symbolic determinant of Phi_q at one configuration."""
-    from kinegen.analysis import inspect as run
-    from kinegen.model import load
+    from kinegen.service import inspection as service
 
-    model = _nominal(load(model_file))
-    parametrization = _parametrization(param)
-    if case is not None and case not in model.cases:
-        raise click.BadParameter(f"no case {case!r} (cases: {', '.join(model.cases)})", param_hint="--case")
-    chosen = case or next(iter(model.cases))
-    when = _inspection_time(at, model.cases[chosen])
-    q = None
-    if q_file:
-        from kinegen.symbolic import coordinates
-
-        q = _configuration(q_file, coordinates(model, parametrization).stored_names)
-    numeric = None
-    if q is None:  # the configuration is solved with the quaternion module of the case
-        _, numeric = _system(model_file, _parametrization(rotations.REFERENCE), chosen, generated_dir)
-    report = run(model, parametrization, chosen, when, q, numeric, budget=budget)
+    session = _session(generated_dir)
+    _nominal(session.model(model_file))  # said once
+    q, where = _configuration(q_file) if q_file else (None, "")
+    plan = service.plan(session, model_file, _parametrization(param).name, case, at, q, where, budget)
+    found = service.run(plan)
+    report, verdict = found.inspection, found.verdict
     if det_file:
         from kinegen.files import write_atomic
 
         write_atomic(Path(det_file), report.determinants())
-    verdict = None
-    if report.singular:
-        from kinegen.analysis.classify import classify
-        from kinegen.analysis.inspect import convert
-
-        quaternion = _parametrization(rotations.REFERENCE)
-        if numeric is None:
-            _, numeric = _system(model_file, quaternion, chosen, generated_dir)
-        physical = None if q is None else convert(q, parametrization, quaternion, len(model.bodies))
-        verdict = classify(model, parametrization, chosen, float(report.t), report, numeric, physical=physical)
     if as_json:
-        data = report.to_json()
-        if verdict:
-            data["classification"] = {"kind": verdict.kind, "evidence": verdict.evidence}
-        click.echo(json.dumps(data, indent=2))
+        click.echo(json.dumps(found.document(), indent=2))
         return
     click.echo(report.text(full=full))
     if verdict:
@@ -622,30 +599,9 @@ def inspect(
         click.echo(f"wrote {det_file}")
 
 
-def _inspection_time(at: str | None, case) -> str:
-    """``--at`` checked: an exact real constant within the case's time range (the configuration
-    there is solved from the case's start), as text for the inspection."""
-    from kinegen.errors import ExpressionError
-    from kinegen.model.expressions import float_value, parse
-
-    if at is None:
-        return str(case.t0)
-    try:
-        value = float_value(parse(at, allow_time=False))
-    except ExpressionError as exc:
-        raise click.BadParameter(f"{at!r} is not a time: {exc}", param_hint="--at") from None
-    span = case.t1 - case.t0
-    if not case.t0 - 1e-9 * span <= value <= case.t1 + 1e-9 * span:
-        raise click.BadParameter(
-            f"t = {value:g} is outside the time range [{case.t0:g}, {case.t1:g}] s of case {case.name!r}, over which its motion is solved",
-            param_hint="--at",
-        )
-    return at
-
-
-def _configuration(q: str, names: list[str]) -> np.ndarray:
+def _configuration(q: str) -> tuple[object, str]:
     """``--q``: inline JSON (an object {name: value} or a list in stored order) or a JSON file of
-    the object; every stored coordinate a finite number."""
+    the object, parsed; and how errors name it (kinegen.service.inspection checks the values)."""
     text = q.strip()
     inline = text.startswith(("{", "["))
     if not inline:
@@ -655,23 +611,9 @@ def _configuration(q: str, names: list[str]) -> np.ndarray:
             raise click.BadParameter(f"cannot read {q!r}: {exc.strerror or exc} (give a JSON file, or the JSON itself)", param_hint="--q") from None
     where = "the inline JSON" if inline else q
     try:
-        data = json.loads(text)
+        return json.loads(text), where
     except (ValueError, RecursionError) as exc:
         raise click.BadParameter(f"{where} is not valid JSON: {exc}", param_hint="--q") from None
-    if isinstance(data, list):
-        if len(data) != len(names):
-            raise click.BadParameter(f"{where}: a list needs {len(names)} values ({', '.join(names)}), got {len(data)}", param_hint="--q")
-        data = dict(zip(names, data))
-    if not isinstance(data, dict):
-        raise click.BadParameter(f"{where}: expected an object {{coordinate name: value}}", param_hint="--q")
-    missing = [n for n in names if n not in data]
-    if missing:
-        raise click.BadParameter(f"{where} lacks {', '.join(missing)}", param_hint="--q")
-    values = [data[n] for n in names]
-    bad = [n for n, v in zip(names, values) if isinstance(v, bool) or not isinstance(v, (int, float)) or not np.isfinite(v)]
-    if bad:
-        raise click.BadParameter(f"{where}: {', '.join(bad)} not a finite number", param_hint="--q")
-    return np.array(values, dtype=float)
 
 
 @main.command()

@@ -91,3 +91,17 @@ def test_an_envelope_request_is_checked_and_its_report_is_the_library_s_own_rang
     direct = working_range(plan.system, plan.model.working_range, (5, 4, 5))
     assert report.result.figures == direct.figures and report.boundary is None
     assert report.document()["figures"] == direct.figures and len(report.sensitivities) == len(direct.figures)
+
+
+def test_an_inspection_request_is_checked_before_any_exact_work(session):
+    from kinegen.service import inspection
+
+    four_bar = MODELS / "four_bar.yaml"
+    for request, option, says in (({"at": "99"}, "--at", "outside the time range"), ({"case": "nope"}, "--case", "no case 'nope'"),
+                                  ({"q": [1, 2]}, "--q", "a list needs 21 values"),
+                                  ({"q": {"crank.x": float("nan")}}, "--q", "lacks crank.y")):  # fmt: skip
+        with pytest.raises(RequestError) as refused:
+            inspection.plan(session, four_bar, "quaternion", **request)
+        assert refused.value.option == option and says in refused.value.problem
+    found = inspection.run(inspection.plan(Session(GENERATED), MODELS / "boom.yaml", "euler:zxz"))
+    assert found.inspection.singular and found.document()["classification"]["kind"] == found.verdict.kind

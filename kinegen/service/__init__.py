@@ -9,5 +9,7 @@ line (:mod:`kinegen.cli`) formats the reports.
 * :mod:`kinegen.service.solve` -- ``kinegen solve``: the motion, the forces, the pumps' flows;
 * :mod:`kinegen.service.cycle` -- ``kinegen cycle``: the fastest timing of a case's path;
 * :mod:`kinegen.service.envelope` -- ``kinegen envelope``: the working range, its boundary and
-  its figures' sensitivities.
+  its figures' sensitivities;
+* :mod:`kinegen.service.inspection` -- ``kinegen inspect``: Phi_q's exact rank, null spaces and
+  determinant at one configuration, and what kind of singularity it has.
 """
