@@ -1101,41 +1101,19 @@ def optimize(
     """Run a design study declared in MODEL_FILE (studies:) with SciPy on exact gradients: prints
     the iterations, the optimum beside the nominal design, the active constraints; writes the
     optimized model as a new YAML file."""
-    from kinegen.analysis.studies import StudyProblem, write_optimized
-    from kinegen.analysis.studies import optimize as run
+    from kinegen.analysis.studies import write_optimized
+    from kinegen.service import study as service
 
-    model, module = _module(model_file, _parametrization(param), generated_dir, sensitivities=True if gradients == "exact" else None)
-    if not model.studies:
-        raise click.BadParameter(f"{model_file} declares no studies (a studies: section)", param_hint="--study")
-    if study_name not in model.studies:
-        raise click.BadParameter(f"no study {study_name!r} (studies: {', '.join(model.studies)})", param_hint="--study")
-    target = Path(out) if out else Path("out") / f"{model.name}_{study_name}.yaml"
-    if target.resolve() == Path(model_file).resolve():
-        raise click.BadParameter(f"{out} is the model file itself: the optimized model is written to a new file", param_hint="--out")
-    if gradients == "exact" and "dvel" not in next(iter(module.CASES.values()))["outputs"]:
-        raise click.BadParameter(
-            f"the generated module of {model.name} ({param}) has no sensitivity kernels: rebuild it without --no-sensitivities "
-            "(or use --gradients fd)", param_hint="--gradients",
-        )  # fmt: skip
-    study = model.studies[study_name]
+    plan = service.plan(_session(generated_dir), model_file, study_name, _parametrization(param).name, method=method,
+                        gradients=gradients, compare_fd=compare_fd, max_iterations=max_iterations, out=out)  # fmt: skip
+    model = plan.model
     say = (lambda line: click.echo(line, err=True)) if as_json else click.echo
     published = model.working_range.published if model.working_range else {}
-    runs = []
-    for kind in (gradients, "fd") if compare_fd and gradients == "exact" else (gradients,):
-        say(f"{model.name}: study {study_name} ({method}, {'exact' if kind == 'exact' else 'finite-difference'} gradients)")
-        result = run(StudyProblem(model, module, study), method, kind, max_iterations, progress=say)
-        runs.append(result)
-        if not as_json:
-            click.echo(result.table(published))
-    best = runs[0]
-    if len(runs) == 2:
-        exact, fd = runs
-        difference = max(abs(exact.optimum[n] - fd.optimum[n]) for n in exact.optimum)
-        say(
-            f"exact vs finite-difference gradients: {exact.iterations} vs {fd.iterations} iterations, {exact.evaluations} vs "
-            f"{fd.evaluations} designs measured, {exact.seconds:.1f} vs {fd.seconds:.1f} s; optima differ by {difference:.1e} at most"
-        )
-    written = write_optimized(model_file, model, best, target)
+    report = service.run(plan, progress=say, finished=None if as_json else lambda result: click.echo(result.table(published)))
+    runs, best = report.runs, report.best
+    if report.comparison():
+        say(report.comparison())
+    written = write_optimized(model_file, model, best, plan.target)
     say(f"wrote {written} (the optimum as the design parameters' nominal values; model {model.name}_{study_name})")
     if as_json:
         click.echo(json.dumps({"model": model.name, "runs": [r.to_json() for r in runs], "written": str(written)}, indent=2))

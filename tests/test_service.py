@@ -105,3 +105,16 @@ def test_an_inspection_request_is_checked_before_any_exact_work(session):
         assert refused.value.option == option and says in refused.value.problem
     found = inspection.run(inspection.plan(Session(GENERATED), MODELS / "boom.yaml", "euler:zxz"))
     assert found.inspection.singular and found.document()["classification"]["kind"] == found.verdict.kind
+
+
+def test_a_study_request_is_checked_before_any_optimization(session):
+    from kinegen.service import study
+
+    for request, option, says in (({"study": "nope"}, "--study", "no study 'nope' (studies: "),
+                                  ({"study": "bucket_linkage", "out": EXCAVATOR}, "--out", "is the model file itself")):  # fmt: skip
+        name = request.pop("study")
+        with pytest.raises(RequestError) as refused:
+            study.plan(session, EXCAVATOR, name, "quaternion", **request)
+        assert refused.value.option == option and says in refused.value.problem
+    plan = study.plan(session, EXCAVATOR, "bucket_linkage", "quaternion", compare_fd=True, out="elsewhere.yaml")
+    assert plan.gradients == ("exact", "fd") and plan.target.name == "elsewhere.yaml"

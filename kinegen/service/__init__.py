@@ -11,5 +11,7 @@ line (:mod:`kinegen.cli`) formats the reports.
 * :mod:`kinegen.service.envelope` -- ``kinegen envelope``: the working range, its boundary and
   its figures' sensitivities;
 * :mod:`kinegen.service.inspection` -- ``kinegen inspect``: Phi_q's exact rank, null spaces and
-  determinant at one configuration, and what kind of singularity it has.
+  determinant at one configuration, and what kind of singularity it has;
+* :mod:`kinegen.service.study` -- ``kinegen optimize``: a design study optimized on exact (or
+  finite-difference) gradients.
 """
