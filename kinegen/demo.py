@@ -273,15 +273,15 @@ def main(argv: list[str] | None = None) -> int:
             print(line)
         if excavator_model.supply is not None:  # the fastest timing of each working path (docs/cycle.md)
             from kinegen.analysis.cycleplot import plot_cycle
-            from kinegen.forces.cycle import check_retimed, fastest, window_limits
+            from kinegen.forces.cycle import window_limits
+            from kinegen.service import cycle
 
             print(
                 "\nkinegen cycle models/excavator.yaml --load payload (the fastest timing of each path; ESTIMATED pumps and engine):"
             )
             for case in (c for c in ("digging", "level_cut", "trench_wall", "digging_paced") if c in excavator_model.cases):
-                system = from_module(excavator_module, case)
-                found = fastest(solve(system), excavator_model, ("payload",))
-                checked = check_retimed(system, excavator_model, found)
+                timed = cycle.run(cycle.plan(session, excavator_file, case, "quaternion", loads=("payload",)))
+                found, checked = timed.found, timed.checked
                 failures += bool(checked.exceeded())
                 picture = plot_cycle(found, args.out / f"excavator_cycle_{case}.png", checked.flows)
                 print(f"  {case:<14} {found.duration:6.2f} s (its own {found.own_duration:g} s), the re-timed case solved again: "
@@ -316,22 +316,24 @@ def main(argv: list[str] | None = None) -> int:
     rows = compare(excavator_model, "digging")
     failures += sum(r.failure is not None for r in rows if not r.parametrization.startswith("euler:zx"))
     print(table(rows, excavator_model.name, "digging"))
-    failures += _studies(excavator_file, excavator_model, excavator_module, args.out)
+    failures += _studies(session, excavator_file, excavator_model, args.out)
     failures += _exploration(excavator_file, session.module_path(excavator_file, "quaternion"), args.out)
     print(f"\noutputs (CSV + PNG per case, optimized models, the exploration's Parquet) in {args.out.resolve()}")
     return 1 if failures else 0
 
 
-def _studies(model_file: Path, model, module, out: Path) -> int:
+def _studies(session: Session, model_file: Path, model, out: Path) -> int:
     """The excavator's design studies (kinegen optimize), exact gradients; the optimized models into ``out``."""
-    from kinegen.analysis.studies import StudyProblem, optimize, write_optimized
+    from kinegen.analysis.studies import write_optimized
+    from kinegen.service import study
 
     failures = 0
     for name in model.studies:
         print(f"\nkinegen optimize {model_file.name} --study {name} (SLSQP on the exact gradients):\n")
-        result = optimize(StudyProblem(model, module, model.studies[name]))
+        plan = study.plan(session, model_file, name, "quaternion", out=out / f"{model.name}_{name}.yaml")
+        result = study.run(plan).best
         print(result.table(model.working_range.published if model.working_range else None))
-        print(f"  wrote {write_optimized(model_file, model, result, out / f'{model.name}_{name}.yaml')}")
+        print(f"  wrote {write_optimized(model_file, model, result, plan.target)}")
         failures += not result.success
     return failures
 
