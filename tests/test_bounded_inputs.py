@@ -218,13 +218,20 @@ def test_a_write_killed_midway_leaves_no_temporary_file_after_the_next_run(tmp_p
     out = tmp_path / "long.csv"
     command = [sys.executable, "-m", "kinegen.cli", "solve", FOUR_BAR, "--steps", "60000", "--out", str(out),
                "--generated-dir", str(tmp_path)]  # fmt: skip
-    process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
-    deadline = time.monotonic() + 240
-    while not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")] and time.monotonic() < deadline:
-        time.sleep(0.01)
-    process.kill()
-    process.wait()
-    assert [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")], "the write finished before it could be killed"
+    for _attempt in range(3):  # on a loaded machine the write can end between seeing its file and the kill: again
+        process = subprocess.Popen(command, stdout=subprocess.DEVNULL, stderr=subprocess.DEVNULL)
+        deadline = time.monotonic() + 240
+        while not [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")] and time.monotonic() < deadline:
+            if process.poll() is not None:  # it ended by itself: it must have written the whole file
+                assert process.returncode == 0 and out.exists(), f"the solve failed: exit {process.returncode}"
+                break
+            time.sleep(0.01)
+        process.kill()
+        process.wait()
+        if [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")]:
+            break
+        out.unlink(missing_ok=True)
+    assert [p for p in tmp_path.iterdir() if p.name.endswith(".tmp")], "the write finished before it could be killed, 3 times"
     assert not out.exists()
     again = kinegen("solve", FOUR_BAR, "--steps", "11", "--out", str(out), "--generated-dir", str(tmp_path))
     assert again.returncode == 0, again.stderr
