@@ -23,6 +23,7 @@ from kinegen.lazy import lazy_import
 
 np = lazy_import("numpy")  # imported at its first use: `kinegen --help` and `kinegen models` do not need it
 
+
 class _Group(click.Group):
     """Turns kinegen errors into one or two readable lines and a distinct exit code."""
 
