@@ -74,7 +74,8 @@ def test_the_compiled_path_is_the_default_and_matches_python():
     module = load_module(GENERATED / "excavator_quaternion.py")
     assert from_module(module, "digging").native is not None  # compiled unless told otherwise
     python, native = systems("excavator_quaternion", "digging")
-    a, b = Solver(python).solve(), Solver(native).solve()
+    estimate = SolverOptions(condition="estimate")  # (not by default: nothing the user sees reads it)
+    a, b = Solver(python, estimate).solve(), Solver(native, estimate).solve()
     assert np.abs(a.q - b.q).max() < 1e-12
     for x, y in ((a.v, b.v), (a.a, b.a)):
         assert (np.abs(x - y).max(axis=0) <= 1e-12 * np.maximum(1.0, np.abs(x).max(axis=0))).all()
@@ -188,11 +189,12 @@ def test_a_long_trajectory_runs_in_pieces_with_the_same_result(monkeypatch):
     for case in ("digging", "bucket_near_toggle"):
         python, native = systems("excavator_quaternion", case)
         times = np.linspace(native.t0, native.t1, 1001 if case == "digging" else native.steps)
-        whole = Solver(native).solve(times)
+        estimate = SolverOptions(condition="estimate")  # its values handed on too
+        whole = Solver(native, estimate).solve(times)
         with monkeypatch.context() as patch:
             patch.setattr(solver_module, "PROGRESS_STEPS", 2)
             patch.setattr(solver_module, "NATIVE_CHUNK", 3)
-            pieces = Solver(native).solve(times)
+            pieces = Solver(native, estimate).solve(times)
         for name in ("q", "v", "a", "iterations", "residuals", "conditions"):
             assert np.array_equal(getattr(whole, name), getattr(pieces, name)), (case, name)
         assert pieces.converged.all()
@@ -307,7 +309,7 @@ def _compare(program: Path, python_system, case: str) -> None:
     assert done.returncode == 0, done.stderr
     header, *rows = done.stdout.splitlines()
     c = np.array([[float(x) for x in row.split(",")] for row in rows])
-    results = Solver(python_system).solve()
+    results = Solver(python_system, SolverOptions(condition="estimate")).solve()  # the C program's column
     names, table = results.table()
     supplied = _supply_table(python_system, results)
     if supplied is not None:  # a model with pumps: the flows follow (the declared supply kernel's outputs)

@@ -179,7 +179,7 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
     system = results.system
     basis, labels, plane = drawing_plane(results, frame_body)
     panels = ["lengths", "rates"] if system.actuators else ["omega"]
-    if np.isfinite(results.conditions).any():
+    if results.converged.any():  # Results.condition_numbers(): the exact 2-norm's, computed here
         panels.append("condition")
     fig = plt.figure(figsize=(15, 9))
     grid = fig.add_gridspec(len(panels), 2, width_ratios=[1.35, 1])

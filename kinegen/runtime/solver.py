@@ -88,9 +88,12 @@ class SolverOptions:
     singular_tolerance: float = 1e-10  #: sigma_min / sigma_max below which Phi_q is singular
     line_search: bool = True  #: fallbacks (line search, homotopy) when full Newton steps fail
     divergence_limit: float = 1e8  #: max |Phi| beyond which Newton is stopped at once
-    #: condition number recorded per step: "estimate" (1-norm, LAPACK gecon on the LU
-    #: already computed), "exact" (2-norm, sigma_max/sigma_min by SVD) or "none"
-    condition: str = "estimate"
+    #: condition number recorded per step (``Results.conditions``): "none" (NaN), "estimate"
+    #: (1-norm, LAPACK gecon on the LU already computed; a quarter of a compiled step) or "exact"
+    #: (2-norm, sigma_max/sigma_min by SVD). The CSV, the plots, the 3-D view and ``kinegen compare``
+    #: take Results.condition_numbers() -- the exact 2-norm's, computed when first asked for -- so by
+    #: default no step pays for an estimate nothing reads
+    condition: str = "none"
     #: predict each step from the previous q, v, a (else: start from the previous q)
     predictor: bool = True
     #: certify every step (see :meth:`Solver._certify`): the diagonal blocks of Phi_q keep the

@@ -31,7 +31,7 @@ void kinegen_default_options(kinegen_options *o) {
     o->chord = 0;
     o->polish = 1;
     o->keep_branch = 1;
-    o->condition = 1;
+    o->condition = 0; /* asked for where its value is used (the example program's column) */
     o->max_refinements = 12;
     o->case_inputs = 0;
 }

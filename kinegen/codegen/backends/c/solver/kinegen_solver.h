@@ -76,7 +76,7 @@ typedef struct kinegen_options {
     int chord;                 /* 1: reuse the last factorization while Newton converges fast (0) */
     int polish;                /* 1: one more correction with the factors at the solution (1) */
     int keep_branch;           /* 1: certify every step (above), halving it when needed (1) */
-    int condition;             /* 1: estimate the 1-norm condition number of Phi_q at every step (1) */
+    int condition;             /* 1: estimate the 1-norm condition number of Phi_q at every step (0) */
     int max_refinements;       /* halvings of a step before KINEGEN_BRANCH (12; at most KINEGEN_MAX_REFINEMENTS) */
     int case_inputs;           /* inputs at a midpoint: 1, the case's own time functions (model->inputs);
                                   0, the cubic Hermite interpolant of the values and rates given at the
