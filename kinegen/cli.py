@@ -713,47 +713,36 @@ def forces(model_file: str, param: str, as_json: bool, lift: bool, direction: st
     largest, with the circuit that limits it (the working cylinder's relief setting or another's
     holding setting) and the published figures beside them; --lift: the hydraulic lift capacity
     table (docs/forces.md)."""
-    from kinegen.errors import ModelError
-    from kinegen.forces.iso6015 import document, report, tool_forces
+    from kinegen.forces.iso6015 import document, report
+    from kinegen.service import charts
 
     if lift and direction is not None:
         raise click.BadParameter("--lift and --map are two different charts: give one", param_hint="--map")
     if lift and (plot or out):
         raise click.BadParameter("--plot and --out go with --map here (the lift chart's: `kinegen lift --plot/--out`)",
                                  param_hint="--plot" if plot else "--out")  # fmt: skip
-    parametrization = _parametrization(param)
-    model, _ = _system(model_file, parametrization, None, generated_dir, False)
+    if direction is None and (plot or out):
+        raise click.BadParameter("--plot and --out go with --map", param_hint="--plot" if plot else "--out")
+    session, name, compiled = _session(generated_dir), _parametrization(param).name, False if no_compile else None
     if lift:
-        _lift(model_file, model, parametrization, generated_dir, as_json, no_compile)
+        _lift(charts.lift(session, model_file, name, compiled), as_json)
         return
     if direction is not None:
-        _force_map(model_file, model, parametrization, generated_dir, direction, plot, out, no_compile)
+        _force_map(charts.force_map(session, model_file, direction, name, compiled, picture=bool(plot)), plot, out)
         return
-    if plot or out:
-        raise click.BadParameter("--plot and --out go with --map", param_hint="--plot" if plot else "--out")
-    if model.tool_forces is None:
-        raise ModelError(model_file, "tool_forces", "the model has no tool_forces section (what kinegen forces computes)")
-    _, system = _system(model_file, parametrization, model.tool_forces.case, generated_dir, False if no_compile else None)
-    start = time.perf_counter()
-    found = tool_forces(system, model)
-    elapsed = time.perf_counter() - start
+    found = charts.tool_forces(session, model_file, name, compiled)
     if as_json:
-        click.echo(json.dumps(document(found, model, elapsed), indent=2))
+        click.echo(json.dumps(document(found.found, found.model, found.seconds), indent=2))
         return
-    click.echo(report(found, model, elapsed))
+    click.echo(report(found.found, found.model, found.seconds))
 
 
-def _force_map(model_file: str, model, parametrization, generated_dir: str, direction: str, plot: str | None, out: str | None,
-               no_compile: bool) -> None:  # fmt: skip
-    """kinegen forces --map: the map's summary, its CSV and its picture."""
-    from kinegen.errors import ModelError
+def _force_map(report, plot: str | None, out: str | None) -> None:
+    """kinegen forces --map: the map's summary, its CSV and its picture (a ForceMapReport)."""
     from kinegen.files import write_atomic
-    from kinegen.forces.maps import MEANING, force_map, plot_force_map
+    from kinegen.forces.maps import MEANING, plot_force_map
 
-    if model.working_range is None:
-        raise ModelError(model_file, "working_range", "the model has no working_range section (a force map covers it)")
-    _, system = _system(model_file, parametrization, model.working_range.case, generated_dir, False if no_compile else None)
-    found = force_map(system, model, direction)
+    found, model, direction = report.found, report.model, report.direction
     best = int(np.argmax(found.force))
     shares = ", ".join(f"{name} {np.mean(found.limiting == name):.0%}" for name in sorted(set(found.limiting)))
     click.echo(f"{model.name}: the largest force at {found.point} {MEANING[direction]}, every cylinder at most at its relief setting: "
@@ -764,46 +753,31 @@ def _force_map(model_file: str, model, parametrization, generated_dir: str, dire
         write_atomic(Path(out), found.to_csv())
         click.echo(f"wrote {out}")
     if plot:  # the picture: the largest force at each place over the tool's attitude, a smooth function of the place
-        from kinegen.analysis.boundary import working_range_boundary
-        from kinegen.forces.maps import reach_map
-
-        smooth = reach_map(system, model, direction)
+        smooth = report.smooth
         i, j = np.unravel_index(np.nanargmax(smooth.force), smooth.force.shape)
         click.echo(f"  over the tool's attitude ({smooth.attitude_input}; {smooth.poses:,} poses in {smooth.seconds:.1f} s): up to "
                    f"{smooth.force[i, j] / 1e3:.1f} kN, at x {smooth.radius[j]:.2f}, z {smooth.height[i]:.2f} m")  # fmt: skip
-        click.echo(f"wrote {plot_force_map(smooth, plot, working_range_boundary(system, model.working_range))}")
+        click.echo(f"wrote {plot_force_map(smooth, plot, report.boundary)}")
 
 
-def _lift(model_file: str, model, parametrization, generated_dir: str, as_json: bool, no_compile: bool, out: str | None = None,
-          plot: str | None = None) -> None:  # fmt: skip
-    """kinegen lift (and kinegen forces --lift): the lift chart's table, or its JSON; its CSV to ``out``."""
-    from kinegen.errors import ModelError
+def _lift(report, as_json: bool, out: str | None = None, plot: str | None = None) -> None:
+    """kinegen lift (and kinegen forces --lift): the lift chart's table, or its JSON; its CSV to
+    ``out``, its picture to ``plot`` (a LiftReport)."""
     from kinegen.files import write_atomic
-    from kinegen.forces.lift import lift_chart
 
-    if model.lift_chart is None:
-        raise ModelError(model_file, "lift_chart", "the model has no lift_chart section (what kinegen lift computes)")
-    _, system = _system(model_file, parametrization, model.lift_chart.case, generated_dir, False if no_compile else None)
-    start = time.perf_counter()
-    chart = lift_chart(system, model)
-    elapsed = time.perf_counter() - start
+    chart = report.chart
     if out:
         write_atomic(Path(out), chart.csv_text())
     if plot:
-        from kinegen.analysis.boundary import working_range_boundary
         from kinegen.forces.lift import plot_lift_chart
 
-        boundary = None
-        if model.working_range is not None:
-            _, envelope_system = _system(model_file, parametrization, model.working_range.case, generated_dir, False if no_compile else None)
-            boundary = working_range_boundary(envelope_system, model.working_range)
-        plot_lift_chart(chart, plot, boundary)
+        plot_lift_chart(chart, plot, report.boundary)
     if not as_json:
         click.echo(chart.table())
         wrote = ", ".join(x for x in (out, plot) if x)
-        click.echo(f"[{elapsed:.2f} s]" + (f"; wrote {wrote}" if wrote else ""))
+        click.echo(f"[{report.seconds:.2f} s]" + (f"; wrote {wrote}" if wrote else ""))
         return
-    click.echo(json.dumps({"model": model.name, **chart.document()}, indent=2))
+    click.echo(json.dumps({"model": report.model.name, **chart.document()}, indent=2))
 
 
 @main.command()
@@ -896,9 +870,10 @@ def lift(model_file: str, param: str, as_json: bool, out: str | None, plot: str 
     87 % of the hydraulic lift capacity (the lifting cylinder at its relief setting, the others
     holding, the front's own weight held) and 75 % of the tipping load (a model with masses and a
     machine: section) -- with the limit that applies (docs/dynamics.md)."""
-    parametrization = _parametrization(param)
-    model, _ = _system(model_file, parametrization, None, generated_dir, False)
-    _lift(model_file, model, parametrization, generated_dir, as_json, no_compile, out, plot)
+    from kinegen.service import charts
+
+    found = charts.lift(_session(generated_dir), model_file, _parametrization(param).name, False if no_compile else None, bool(plot))
+    _lift(found, as_json, out, plot)
 
 
 @main.command()

@@ -118,3 +118,18 @@ def test_a_study_request_is_checked_before_any_optimization(session):
         assert refused.value.option == option and says in refused.value.problem
     plan = study.plan(session, EXCAVATOR, "bucket_linkage", "quaternion", compare_fd=True, out="elsewhere.yaml")
     assert plan.gradients == ("exact", "fd") and plan.target.name == "elsewhere.yaml"
+
+
+def test_the_charts_need_their_sections_and_equal_the_library_s_own(session):
+    from kinegen.errors import ModelError
+    from kinegen.forces.lift import lift_chart
+    from kinegen.service import charts
+
+    boom = MODELS / "boom.yaml"
+    for call, section in ((charts.tool_forces, "tool_forces"), (charts.lift, "lift_chart")):
+        with pytest.raises(ModelError, match=f"{section}: the model has no {section} section"):
+            call(session, boom, "quaternion", False)
+    found = charts.lift(session, EXCAVATOR, "quaternion", False)
+    model = session.model(EXCAVATOR)
+    direct = lift_chart(session.system(EXCAVATOR, model.lift_chart.case, "quaternion", False), model)
+    assert found.chart.document() == direct.document() and found.boundary is None

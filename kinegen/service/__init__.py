@@ -13,5 +13,7 @@ line (:mod:`kinegen.cli`) formats the reports.
 * :mod:`kinegen.service.inspection` -- ``kinegen inspect``: Phi_q's exact rank, null spaces and
   determinant at one configuration, and what kind of singularity it has;
 * :mod:`kinegen.service.study` -- ``kinegen optimize``: a design study optimized on exact (or
-  finite-difference) gradients.
+  finite-difference) gradients;
+* :mod:`kinegen.service.charts` -- ``kinegen forces`` and ``kinegen lift``: the ISO 6015 tool
+  forces, force maps and the ISO 10567 lift chart.
 """
