@@ -242,15 +242,12 @@ def _system(
     compiled: bool | None = None,
     design: dict[str, float] | None = None,
 ):
-    """The model and the numeric system of a case (:meth:`kinegen.api.Session.system`): its
+    """The model and the numeric system of a case (:func:`kinegen.service.requests.case_system`): its
     compiled C when there is a compiler (``compiled`` None), or not (False); a model's design
     parameters at ``design`` (nominal for those not given)."""
-    session = _session(generated_dir)
-    session.module(model_file, param.name)  # a rebuild's errors before the system's
-    try:
-        return session.model(model_file), session.system(model_file, case, param.name, compiled, design)
-    except (KeyError, ValueError) as exc:
-        raise click.BadParameter(str(exc.args[0]), param_hint="--design" if design else "--case") from None
+    from kinegen.service.requests import case_system
+
+    return case_system(_session(generated_dir), model_file, case, param.name, compiled, design)
 
 
 @main.command()

@@ -35,7 +35,7 @@ class Results:
     residuals: np.ndarray  #: max |Phi| at convergence per time point
     conditions: np.ndarray  #: the solver's condition number of Phi_q per time point (``condition_kind``)
     inputs: np.ndarray  #: driver inputs u per time point, (K, n_inputs)
-    condition_kind: str = "estimate"  #: "estimate" (1-norm), "exact" (2-norm) or "none"
+    condition_kind: str = "none"  #: "none" (NaN, the solver's default), "estimate" (1-norm) or "exact" (2-norm)
     #: per time point: True where Newton reached the tolerance (False only for the last
     #: point of a run stopped with ``on_failure="stop"``; its q, v, a are NaN)
     converged: np.ndarray | None = None
