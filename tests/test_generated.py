@@ -11,6 +11,7 @@ import sys
 
 import numpy as np
 import pytest
+import sympy as sp
 
 from kinegen import rotations
 from kinegen.codegen import build, built_with_sensitivities, write_atomic, writer
@@ -121,6 +122,38 @@ def test_the_c_printed_in_a_forked_process_is_the_c_printed_here(monkeypatch):
     text = made[True]["python"]["four_bar_quaternion.py"]
     named = ast.literal_eval(re.search(r"^C_FILES = (.*)$", text, re.MULTILINE).group(1))
     assert named == {name: hashlib.sha256(text.encode()).hexdigest() for name, text in made[True]["c-model"].items()}
+
+
+def test_the_printers_own_methods_give_doprints_text_for_every_statement():
+    """shapes.code prints with the printer's methods, not through doprint: each of the three printers
+    gives doprint's text for every statement of the four-bar (the excavator's, sensitivity kernels
+    too, are compared byte for byte with generated/ by the freshness tests above); an expression
+    doprint would change (``re(...)``) is printed by doprint itself, and one doprint refuses is refused."""
+    from sympy.printing.codeprinter import PrintMethodNotImplementedError
+
+    from kinegen.codegen.backends.c.printer import CPrinter
+    from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter
+    from kinegen.codegen.kernels import describe
+    from kinegen.codegen.shapes import code
+
+    description = describe(model("four_bar"), rotations.get("euler-parameters"))
+    expressions = []
+    for section in description.sections.values():
+        for group in section.groups:
+            statements = description.shapes.statements(group)
+            expressions += [v for _, v in statements.temporaries] + [e for e in statements.outputs if e != 0]
+    assert len(expressions) > 100
+    x, y = sp.symbols("x y", real=True)
+    odd = [sp.re(sp.Symbol("z")) * x, sp.Piecewise((x, y < 0), (x * y, True)), sp.sign(x) * sp.pi]
+    for printer in (CPrinter(), ModulePrinter(), ScalarPrinter()):
+        for expr in expressions + odd:
+            try:
+                expected = printer.doprint(expr)
+            except PrintMethodNotImplementedError:  # the strict C printer has no re(): nor has code
+                with pytest.raises(PrintMethodNotImplementedError):
+                    code(printer, expr)
+                continue
+            assert code(printer, expr) == expected, (type(printer).__name__, expr)
 
 
 def test_a_failure_printing_the_c_in_the_forked_process_is_raised_here_and_nothing_is_written(tmp_path, monkeypatch):
