@@ -109,12 +109,12 @@ def test_failed_build_leaves_generated_folder_untouched(tmp_path):
     assert [p.name for p in out.iterdir()] == ["keep.py"]
 
 
-def test_the_c_printed_in_a_forked_process_is_the_c_printed_here(monkeypatch):
-    """The C printed in a child process while this one prints the Python (writer.generate where it
-    may fork) gives the bytes one process gives, and ``ready`` still sees the C before the Python."""
+def test_half_the_statements_printed_in_a_forked_process_give_the_bytes_one_process_gives(monkeypatch):
+    """writer.generate where it may fork eliminates and prints every other group in a child process:
+    the same bytes as one process gives, and ``ready`` still sees the C before the Python."""
     made, seen = {}, {}
     for fork in (False, True):
-        monkeypatch.setattr(writer, "_may_fork", lambda fork=fork: fork)
+        monkeypatch.setattr(writer, "may_fork", lambda fork=fork: fork)
         seen[fork] = []
         made[fork] = writer.generate(model("four_bar"), rotations.get("quaternion"), ready=lambda target, files, fork=fork: seen[fork].append(target))
     assert made[True] == made[False]
@@ -156,15 +156,27 @@ def test_the_printers_own_methods_give_doprints_text_for_every_statement():
             assert code(printer, expr) == expected, (type(printer).__name__, expr)
 
 
-def test_a_failure_printing_the_c_in_the_forked_process_is_raised_here_and_nothing_is_written(tmp_path, monkeypatch):
-    import kinegen.codegen.backends.c as c_backend
+def test_a_failure_printing_in_the_forked_process_is_raised_here_and_nothing_is_written(tmp_path, monkeypatch):
+    import os
 
-    def broken(*args, **kwargs):
-        raise ModelError("four_bar.yaml", "joints", "the C printer failed on purpose")
+    from kinegen.codegen import shapes
 
-    monkeypatch.setattr(c_backend, "render", broken)  # in the child too: it is forked from here
-    monkeypatch.setattr(writer, "_may_fork", lambda: True)
-    with pytest.raises(ModelError, match="failed on purpose"):
+    parent = os.getpid()
+    printed = shapes.Shapes._printed_texts
+
+    def broken(self, work):
+        if os.getpid() != parent:  # the forked child's share only
+            raise ModelError("four_bar.yaml", "joints", "the printing failed on purpose")
+        return printed(self, work)
+
+    monkeypatch.setattr(shapes.Shapes, "_printed_texts", broken)  # in the child too: it is forked from here
+    monkeypatch.setattr(writer, "may_fork", lambda: True)
+    with pytest.raises(ModelError, match="failed on purpose") as raised:
+        build(MODELS / "four_bar.yaml", "quaternion", tmp_path)
+    assert raised.value.file == "four_bar.yaml" and raised.value.entry == "joints"
+    assert list(tmp_path.iterdir()) == []
+    monkeypatch.setattr(shapes.Shapes, "_printed_texts", lambda self, work: os._exit(3))  # a child that dies
+    with pytest.raises(RuntimeError, match="exit code 3"):
         build(MODELS / "four_bar.yaml", "quaternion", tmp_path)
     assert list(tmp_path.iterdir()) == []
 

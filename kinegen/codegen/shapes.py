@@ -17,7 +17,7 @@ backend's printed text of them.
 from __future__ import annotations
 
 import re
-from collections.abc import Callable, Sequence
+from collections.abc import Callable, Hashable, Sequence
 from dataclasses import dataclass, field
 
 import sympy as sp
@@ -143,12 +143,36 @@ class _Printed:
     pattern: re.Pattern | None  # every placeholder or temporary name in the texts
 
 
+@dataclass(frozen=True)
+class _Naming:
+    """What renaming a group's printed text needs: the placeholder symbols its statements use and
+    a pattern matching every placeholder or temporary name in the texts."""
+
+    used: frozenset[sp.Symbol]
+    pattern: re.Pattern | None
+
+
+#: One printer's text of a group's statements: its temporaries' (named _t0, _t1, ...) and its
+#: outputs' (None for an exact zero).
+Texts = tuple[list[str], list[str | None]]
+
+
+def _kind(printer: CodePrinter) -> str:
+    """A printer's class: printers of one class print alike (kinegen's take no settings)."""
+    return f"{type(printer).__module__}.{type(printer).__qualname__}"
+
+
 class Shapes:
-    """Cache of eliminated statements (shared by every backend) and of their printed text
-    (one per backend: its printers)."""
+    """Cache of eliminated statements (shared by every backend) and of their text per printer.
+
+    A group with a key is eliminated once per shape; one without (its expressions its own) each
+    time its text is asked for by another set of printers (its statements are not kept). Texts
+    are kept by printer class and group (its key, or the group itself)."""
 
     def __init__(self) -> None:
         self._statements: dict[tuple, Statements] = {}
+        self._texts: dict[tuple[str, Hashable], Texts] = {}
+        self._naming: dict[Hashable, _Naming] = {}
 
     def statements(self, group: Group) -> Statements:
         """The group's statements, eliminated once per shape."""
@@ -162,25 +186,87 @@ class Shapes:
         """A printing of these statements by ``printers`` (one text per printer: the styles)."""
         return Printing(self, tuple(printers))
 
+    def texts(self, printers: Sequence[CodePrinter], group: Group) -> tuple[list[Texts], _Naming]:
+        """Each printer's text of the group's statements, and their naming; printed when first asked for."""
+        identity = _identity(group)
+        missing = [p for p in printers if (_kind(p), identity) not in self._texts]
+        if missing:
+            self._print(group, missing)
+        return [self._texts[_kind(p), identity] for p in printers], self._naming[identity]
+
+    def _print(self, group: Group, printers: Sequence[CodePrinter]) -> None:
+        statements = self.statements(group)
+        identity = _identity(group)
+        for printer in printers:
+            temporaries = [code(printer, v) for _, v in statements.temporaries]
+            outputs = [None if e == 0 else code(printer, e) for e in statements.outputs]
+            self._texts[_kind(printer), identity] = (temporaries, outputs)
+        if identity not in self._naming:
+            used = statements.used
+            names = {_text(t) for t, _ in statements.temporaries}
+            words = sorted({_text(s) for s in used} | names, key=len, reverse=True)
+            pattern = re.compile(r"\b(" + "|".join(map(re.escape, words)) + r")\b") if words else None
+            self._naming[identity] = _Naming(used, pattern)
+
+    def prepare(self, jobs: Sequence[tuple[CodePrinter, Group]], fork: bool = False) -> None:
+        """Eliminate and print ``jobs`` (printer, group) now, each group's statements once for all its
+        printers; with ``fork``, every other group in a forked process (its texts come back through a
+        pipe): the two cores' share of a build. What is printed already is not printed again."""
+        todo: dict[Hashable, tuple[Group, list[CodePrinter]]] = {}
+        for printer, group in jobs:
+            identity = _identity(group)
+            if (_kind(printer), identity) in self._texts:
+                continue
+            _, printers = todo.setdefault(identity, (group, []))
+            if all(_kind(p) != _kind(printer) for p in printers):
+                printers.append(printer)
+        work = list(todo.values())
+        if not fork or len(work) < 2:
+            for group, printers in work:
+                self._print(group, printers)
+            return
+        from kinegen.codegen.forked import in_child
+
+        child = in_child(self._printed_texts, work[1::2])
+        for group, printers in work[0::2]:
+            self._print(group, printers)
+        texts, naming = child.result()
+        self._texts.update(texts)
+        for identity, value in naming.items():
+            self._naming.setdefault(identity, value)
+
+    def _printed_texts(self, work: list[tuple[Group, list[CodePrinter]]]) -> tuple[dict, dict]:
+        """``work`` printed here: the texts and namings made for it (what a forked process sends back)."""
+        before = set(self._texts)
+        for group, printers in work:
+            self._print(group, printers)
+        identities = {_identity(group) for group, _ in work}
+        return {k: v for k, v in self._texts.items() if k not in before}, {k: self._naming[k] for k in identities}
+
+
+def _text(symbol: sp.Symbol) -> str:
+    """``str(symbol)``: a plain symbol's name without SymPy's printer (made anew for every ``str``)."""
+    return symbol.name if type(symbol) is sp.Symbol else str(symbol)
+
+
+def _identity(group: Group) -> Hashable:
+    """What a group's texts are kept under: its key, or (a group without one) the group itself."""
+    return group.key if group.key is not None else ("group", id(group))
+
 
 class Printing:
-    """Printed blocks for one backend: each shape printed once per printer."""
+    """Printed blocks for one backend: each group's statements as every printer prints them."""
 
     def __init__(self, shapes: Shapes, printers: tuple[CodePrinter, ...]) -> None:
         self.shapes = shapes
         self.printers = printers
-        self._printed: dict[tuple, _Printed] = {}
         self._generic_definitions: list[tuple[str, ...]] | None = None
 
-    def _print(self, statements: Statements) -> _Printed:
-        temporaries = [tuple(code(p, v) for p in self.printers) for _, v in statements.temporaries]
-        outputs = [None if e == 0 else tuple(code(p, e) for p in self.printers) for e in statements.outputs]
-        used = statements.used
-        names = {str(t) for t, _ in statements.temporaries}
-        words = sorted({str(s) for s in used} | names, key=len, reverse=True)
-        pattern = re.compile(r"\b(" + "|".join(map(re.escape, words)) + r")\b") if words else None
-        return _Printed(temporaries, outputs, used, pattern)
-
+    def _printed(self, group: Group) -> _Printed:
+        texts, naming = self.shapes.texts(self.printers, group)
+        temporaries = list(zip(*(t for t, _ in texts)))
+        outputs = [None if out[0] is None else tuple(out) for out in zip(*(o for _, o in texts))]
+        return _Printed(temporaries, outputs, naming.used, naming.pattern)
     def definitions(self, definitions: Definitions, used: set[sp.Symbol]) -> tuple[list[tuple[str, ...]], set[sp.Symbol]]:
         """(name, text per style) of the rotation-matrix entries among ``used``, body by body,
         and the argument symbols they need. Each text is the generic body's, printed once and renamed."""
@@ -190,7 +276,7 @@ class Printing:
         for body, symbols, values in definitions.bodies:
             for k, (symbol, value) in enumerate(zip(symbols, values)):
                 if symbol in used:
-                    lines.append((str(symbol), *(t.replace(definitions.generic_name, body) for t in self._generic_definitions[k])))
+                    lines.append((_text(symbol), *(t.replace(definitions.generic_name, body) for t in self._generic_definitions[k])))
                     needs |= value.free_symbols
         return lines, needs
 
@@ -198,12 +284,8 @@ class Printing:
         """The groups' expressions in order, temporaries ``{prefix}0, ...`` numbered through the block."""
         out = Block()
         for group in groups:
-            printed = self._printed.get(group.key) if group.key is not None else None
-            if printed is None:
-                printed = self._print(self.shapes.statements(group))
-                if group.key is not None:
-                    self._printed[group.key] = printed
-            names = {str(g): str(group.rename.get(g, g)) for g in printed.used}
+            printed = self._printed(group)
+            names = {_text(g): _text(group.rename.get(g, g)) for g in printed.used}
             start = len(out.temporaries)
             names.update({f"_t{k}": f"{prefix}{start + k}" for k in range(len(printed.temporaries))})
 

@@ -3,12 +3,11 @@
 from __future__ import annotations
 
 import hashlib
-import multiprocessing
-import threading
 from collections.abc import Callable
 from pathlib import Path
 
 import kinegen.codegen.backends as backends
+from kinegen.codegen.forked import may_fork
 from kinegen.codegen.kernels import ModuleDescription, describe
 from kinegen.errors import ModelError
 from kinegen.files import write_atomic
@@ -42,9 +41,9 @@ def generate(
     design parameters gets the kernels of its exact sensitivities (see
     :func:`kinegen.codegen.kernels.describe`).
 
-    With the Python module and C to print, and a process that may fork (no other thread running),
-    the C is printed in a forked process while this one prints the Python (each eliminates the
-    common subexpressions it needs: the same statements, so the same bytes as one process prints)."""
+    Every statement the targets print is eliminated and printed first, every other group in a
+    forked process when this process may fork (:func:`kinegen.codegen.forked.may_fork`): the
+    same texts, so the same bytes, as one process prints."""
     description = describe(model, parametrization, sensitivities=sensitivities)
     stem = module_name(model, parametrization)
     files: dict[str, dict[str, str]] = {}
@@ -60,13 +59,10 @@ def generate(
             )  # fmt: skip
         files.update({target: {} for target in c_targets})  # generated/ holds no C for it: the runtime solves it in Python
         c_targets = []
-    if "python" in targets and c_targets and _may_fork():
-        printing = _CInAnotherProcess(description, stem, c_targets, ready)
-        files["python"] = backends.get("python")(description, stem, before_template=lambda: files.update(printing.wait()))
-        if ready is not None:
-            ready("python", files["python"])
-        return {target: files[target] for target in targets}
-    for target in [*c_targets, *(t for t in targets if not t.startswith("c"))]:
+    others = [t for t in targets if not t.startswith("c")]
+    backends_used = dict.fromkeys(["c"] * bool(c_targets) + others)
+    description.shapes.prepare([job for backend in backends_used for job in backends.jobs(backend, description)], fork=may_fork())
+    for target in [*c_targets, *others]:
         if target in c_targets:
             files[target] = _render_c(description, stem, target)
         else:
@@ -79,89 +75,10 @@ def generate(
 def _render_c(description: ModuleDescription, stem: str, target: str) -> dict[str, str]:
     """A C target's files; the model's C (``c-model``) also sets ``description.c_files``: the
     Python module names the C beside it by its bytes' hash (runtime.native)."""
-    return _named_c(description, target, backends.get("c")(description, stem, standalone=target == "c"))
-
-
-def _named_c(description: ModuleDescription, target: str, files: dict[str, str]) -> dict[str, str]:
-    """``files`` of a C target; for the model's C, its bytes' hashes set in ``description.c_files``."""
+    files = backends.get("c")(description, stem, standalone=target == "c")
     if target == "c-model":
         description.c_files = {name: hashlib.sha256(text.encode("utf-8")).hexdigest() for name, text in files.items()}
     return files
-
-
-def _may_fork() -> bool:
-    """Whether this process may print in a forked child: fork exists, no other thread runs (a
-    fork copies only the calling thread: a lock another one holds would stay held), and it is
-    not a daemonic process (which may not have children)."""
-    return ("fork" in multiprocessing.get_all_start_methods() and threading.active_count() == 1
-            and not multiprocessing.current_process().daemon)  # fmt: skip
-
-
-class _CInAnotherProcess:
-    """The C targets printed in a forked child process; their files come back through a pipe,
-    received by a thread here that also sets ``description.c_files`` and calls ``ready`` for each
-    (so the C compiles while the Python is still printed)."""
-
-    def __init__(self, description: ModuleDescription, stem: str, targets: list[str], ready) -> None:
-        context = multiprocessing.get_context("fork")
-        receiving, sending = context.Pipe(duplex=False)
-        self._child = context.Process(target=_print_c, args=(description, stem, targets, sending), name="kinegen-print-c", daemon=True)
-        self._child.start()
-        sending.close()
-        self._files: dict[str, dict[str, str]] = {}
-        self._error: BaseException | None = None
-
-        def receive() -> None:
-            try:
-                try:
-                    outcome, value = receiving.recv()
-                except EOFError:
-                    ended = f"the process printing the C ended without its files (exit code {self._child.exitcode})"
-                    outcome, value = "error", (RuntimeError, (ended,), {})
-                finally:
-                    receiving.close()
-                if outcome == "error":
-                    raise _exception(*value)
-                for target in targets:
-                    self._files[target] = _named_c(description, target, value[target])
-                    if ready is not None:
-                        ready(target, value[target])
-            except BaseException as exc:  # handed to wait()
-                self._error = exc
-
-        self._receiver = threading.Thread(target=receive, name="kinegen-receive-c", daemon=True)
-        self._receiver.start()
-
-    def wait(self) -> dict[str, dict[str, str]]:
-        """The C targets' files, once printed (and ``ready`` called for them); the child's error raised here."""
-        self._receiver.join()
-        self._child.join()
-        if self._error is not None:
-            raise self._error
-        return self._files
-
-
-def _print_c(description: ModuleDescription, stem: str, targets: list[str], sending) -> None:
-    """In the forked child: print the C targets, send ("files", {target: files}) or ("error", exception)."""
-    try:
-        made = {target: _render_c(description, stem, target) for target in targets}
-        sending.send(("files", made))
-    except BaseException as exc:  # every failure goes back to the parent, as its class, args and attributes
-        try:
-            sending.send(("error", (type(exc), exc.args, dict(vars(exc)))))
-        except Exception:  # one that does not pickle: its text
-            sending.send(("error", (RuntimeError, (f"{type(exc).__name__}: {exc}",), {})))
-    finally:
-        sending.close()
-
-
-def _exception(kind: type[BaseException], args: tuple, attributes: dict) -> BaseException:
-    """An exception of ``kind`` with these ``args`` and attributes, its ``__init__`` not called
-    again (kinegen's errors take other arguments than the message they keep in ``args``)."""
-    exc = kind.__new__(kind)
-    exc.args = args
-    exc.__dict__.update(attributes)
-    return exc
 
 
 def module_key(model: Model, parametrization: str, sensitivities: bool, with_c: bool) -> str:

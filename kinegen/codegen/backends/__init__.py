@@ -1,6 +1,7 @@
 """Code-generation backends, one folder each (``python/``, ``c/``): a printer, file skeletons
 as Jinja templates and a small config. Each exposes ``render(description, stem)`` returning
-``{file name: text}`` for a :class:`kinegen.codegen.kernels.ModuleDescription`; adding a
+``{file name: text}`` for a :class:`kinegen.codegen.kernels.ModuleDescription`, and ``jobs(description)``:
+what it prints, as (printer, group) pairs (printed ahead, shared between processes: ``Shapes.prepare``); adding a
 target means adding a folder and naming it here."""
 
 from __future__ import annotations
@@ -19,3 +20,10 @@ def get(target: str) -> Callable[[ModuleDescription, str], dict[str, str]]:
     if target not in TARGETS:
         raise ValueError(f"unknown target {target!r} (targets: {', '.join(TARGETS)})")
     return import_module(TARGETS[target]).render
+
+
+def jobs(target: str, description: ModuleDescription) -> list:
+    """The (printer, group) pairs the backend called ``target`` prints for ``description``."""
+    if target not in TARGETS:
+        raise ValueError(f"unknown target {target!r} (targets: {', '.join(TARGETS)})")
+    return import_module(TARGETS[target]).jobs(description)

@@ -19,11 +19,12 @@ from types import SimpleNamespace
 
 import numpy as np
 import sympy as sp
+from sympy.printing.codeprinter import CodePrinter
 
 import kinegen.codegen.backends.c.config as config
 from kinegen.codegen.backends.c.printer import CPrinter
 from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Plan, Zeros
-from kinegen.codegen.shapes import Block, Printing, eliminate
+from kinegen.codegen.shapes import Block, Group, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
 from kinegen.model.expressions import T
@@ -393,6 +394,12 @@ def _renamed_call(line: str, renamed: dict[str, str]) -> str:
     """``line`` with the function it calls (a statement ``name(args);``) renamed."""
     name, paren, rest = line.partition("(")
     return f"{renamed[name]}{paren}{rest}" if paren and name in renamed else line
+
+
+def jobs(description: ModuleDescription) -> list[tuple[CodePrinter, Group]]:
+    """What the model's C prints, as (printer, group): every section."""
+    printer = CPrinter()
+    return [(printer, group) for section in description.sections.values() for group in section.groups]
 
 
 def render(description: ModuleDescription, stem: str, standalone: bool = True) -> dict[str, str]:

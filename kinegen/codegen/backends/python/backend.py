@@ -10,22 +10,39 @@ joined with each case's driver sections. Functions of more than
 
 from __future__ import annotations
 
-from collections.abc import Callable
 from dataclasses import dataclass, field
 from pathlib import Path
 from types import SimpleNamespace
 
 import sympy as sp
+from sympy.printing.codeprinter import CodePrinter
 
 import kinegen.codegen.backends.python.config as config
 from kinegen.codegen.backends.python.printer import ModulePrinter, ScalarPrinter, used_numpy_names
 from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Output, Section, Zeros
-from kinegen.codegen.shapes import Block, Printing
+from kinegen.codegen.shapes import Block, Group, Printing
 from kinegen.codegen.templates import environment
 from kinegen.interface import FRAME_FIELDS
 from kinegen.symbolic import engine
 
 ARRAY, SCALAR = 1, 2  # text positions in a Block's temporaries / outputs (after the name)
+
+
+#: The module's printers: NumPy (every section), plain ``math`` (the sections of SCALAR_KERNELS).
+PRINTERS = (ModulePrinter(), ScalarPrinter())
+
+
+def scalar_sections(description: ModuleDescription) -> set[str]:
+    """The sections the plain-float functions compute (those of config.SCALAR_KERNELS' kernels)."""
+    return {part for case in description.cases.values() for name in config.SCALAR_KERNELS if name in case.kernels
+            for output in case.kernels[name].outputs for part in output.parts if isinstance(part, str)}  # fmt: skip
+
+
+def jobs(description: ModuleDescription) -> list[tuple[CodePrinter, Group]]:
+    """What the module prints, as (printer, group): every section in NumPy, the scalar ones also in ``math``."""
+    scalar = scalar_sections(description)
+    return [(printer, group) for name, section in description.sections.items() for group in section.groups
+            for printer in (PRINTERS if name in scalar else PRINTERS[:1])]  # fmt: skip
 
 
 @dataclass
@@ -49,11 +66,10 @@ class _Module:
 
     def __init__(self, description: ModuleDescription) -> None:
         self.d = description
-        self.printing: Printing = description.shapes.printing((ModulePrinter(), ScalarPrinter()))
+        self.printing: Printing = description.shapes.printing(PRINTERS)
         #: sections only NumPy functions compute (not those of SCALAR_KERNELS): printed in that style alone
-        self.array_printing: Printing = description.shapes.printing((ModulePrinter(),))
-        self.scalar_sections = {part for case in description.cases.values() for name in config.SCALAR_KERNELS if name in case.kernels
-                                for output in case.kernels[name].outputs for part in output.parts if isinstance(part, str)}  # fmt: skip
+        self.array_printing: Printing = description.shapes.printing(PRINTERS[:1])
+        self.scalar_sections = scalar_sections(description)
         self.functions: list[_Function] = []
         self.blocks: dict[tuple[str, str], Block] = {}
         self.made: set[str] = set()  # functions made once for every case (section and scalar functions)
@@ -210,7 +226,7 @@ class _Module:
         doc = f"{kernel.doc} At one configuration (lists of floats)."
         self.functions.append(_Function("returns", function, list(kernel.slots), doc, lines, result=result))
 
-    def render(self, templates, before_template: Callable[[], None] | None = None) -> str:
+    def render(self, templates) -> str:
         d = self.d
         for kernel in d.kernels.values():  # shared by the cases: a function per output, named as it
             for output in kernel.outputs:
@@ -232,8 +248,6 @@ class _Module:
             SimpleNamespace(name=k.name, slots=k.slots, outputs=tuple(o.name for o in k.outputs))
             for k in [*next(iter(d.cases.values())).kernels.values(), *d.kernels.values()]
         ]
-        if before_template is not None:  # e.g. the C's digests (d.c_files), printed meanwhile in another process
-            before_template()
         return templates.get_template("module.py.jinja").render(
             d=d,
             sympy_version=sp.__version__,
@@ -264,7 +278,7 @@ def interval_helpers() -> str:
     return text.split("# ---- helpers ----\n", 1)[1].split("# ---- end of helpers ----", 1)[0].strip()
 
 
-def render(description: ModuleDescription, stem: str, before_template: Callable[[], None] | None = None) -> dict[str, str]:
-    """The module's file name and text: ``{stem}.py``. ``before_template`` is called after every
-    function is printed, before the module's text is put together (which reads ``description.c_files``)."""
-    return {f"{stem}{config.SUFFIX}": _Module(description).render(environment(config.TEMPLATES), before_template)}
+def render(description: ModuleDescription, stem: str) -> dict[str, str]:
+    """The module's file name and text: ``{stem}.py`` (naming the model's C by ``description.c_files``:
+    render the C first)."""
+    return {f"{stem}{config.SUFFIX}": _Module(description).render(environment(config.TEMPLATES))}
