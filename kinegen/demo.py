@@ -209,19 +209,15 @@ def main(argv: list[str] | None = None) -> int:
         print(f"FAILED: {exc}")
         return 1
     from kinegen.analysis.chart import outlines, plot_envelope
-    from kinegen.analysis.envelope import working_range
+    from kinegen.files import write_atomic
+    from kinegen.service import charts, envelope
 
-    spec = excavator_model.working_range
-    excavator = from_module(excavator_module, spec.case)
-    result = working_range(excavator, spec)
+    ranged = envelope.run(envelope.plan(session, excavator_file, "quaternion", boundary=True, sensitivities=False))
+    result, boundary, excavator = ranged.result, ranged.boundary, ranged.plan.system
     print(
         f"\nworking range (kinegen envelope models/excavator.yaml): {len(result.samples)} configurations, {result.seconds:.1f} s"
     )
     print(result.table())
-    from kinegen.analysis.boundary import working_range_boundary
-    from kinegen.files import write_atomic
-
-    boundary = working_range_boundary(excavator, spec)
     print(
         f"exact boundary: {len(boundary.points) - 1} points on {len(set(boundary.curve.tolist()))} curves (inputs at limits, folds), "
         f"{len(boundary.switching)} switching points, chord error {1e3 * boundary.chord_error:.3f} mm, {boundary.seconds:.1f} s "
@@ -230,26 +226,24 @@ def main(argv: list[str] | None = None) -> int:
     write_atomic(args.out / "excavator_envelope_boundary.csv", boundary.to_csv())
     plot_envelope(result, excavator, args.out / "excavator_envelope.png", boundary, outlines(excavator_model))
     if excavator_model.tool_forces is not None:
-        from kinegen.forces.iso6015 import report, tool_forces
+        from kinegen.forces.iso6015 import report
 
         print("\nkinegen forces models/excavator.yaml (ESTIMATED hydraulic data; docs/forces.md):")
-        print(report(tool_forces(from_module(excavator_module, excavator_model.tool_forces.case), excavator_model), excavator_model))
+        print(report(charts.tool_forces(session, excavator_file, "quaternion").found, excavator_model))
         from kinegen.forces.maps import plot_force_map, reach_map
 
-        found = reach_map(excavator, excavator_model, "tangent")
+        found = reach_map(excavator, excavator_model, "tangent")  # the picture only: the envelope's boundary is drawn
         i, j = np.unravel_index(np.nanargmax(found.force), found.force.shape)
         picture = plot_force_map(found, args.out / "excavator_force_map.png", boundary)
         print(f"force map (kinegen forces --map tangent --plot): {found.poses:,} poses in {found.seconds:.1f} s, up to "
               f"{found.force[i, j] / 1e3:.1f} kN along the lip's tangent over the bucket's attitude, at x {found.radius[j]:.2f}, "
               f"z {found.height[i]:.2f} m (limited by {found.regions[found.limiting[i, j]]}) -> {picture.name}")  # fmt: skip
     if excavator_model.lift_chart is not None:
-        from kinegen.forces.lift import lift_chart
-
-        print("\nkinegen lift models/excavator.yaml (ESTIMATED masses and hydraulic data; docs/dynamics.md):")
-        chart = lift_chart(from_module(excavator_module, excavator_model.lift_chart.case), excavator_model)
-        print(chart.table())
         from kinegen.forces.lift import plot_lift_chart
 
+        print("\nkinegen lift models/excavator.yaml (ESTIMATED masses and hydraulic data; docs/dynamics.md):")
+        chart = charts.lift(session, excavator_file, "quaternion").chart
+        print(chart.table())
         print(f"-> {plot_lift_chart(chart, args.out / 'excavator_lift_chart.png', boundary).name}")
     if excavator_model.massive and "payload" in excavator_model.loads:
         from kinegen.forces import forces

@@ -91,6 +91,8 @@ def test_an_envelope_request_is_checked_and_its_report_is_the_library_s_own_rang
     direct = working_range(plan.system, plan.model.working_range, (5, 4, 5))
     assert report.result.figures == direct.figures and report.boundary is None
     assert report.document()["figures"] == direct.figures and len(report.sensitivities) == len(direct.figures)
+    quiet = envelope.run(envelope.plan(session, EXCAVATOR, "quaternion", (5, 4, 5), sensitivities=False))  # the main job's
+    assert quiet.result.figures == direct.figures and quiet.sensitivities == {} and "sensitivities" not in quiet.document()
 
 
 def test_an_inspection_request_is_checked_before_any_exact_work(session):

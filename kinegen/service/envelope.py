@@ -27,12 +27,14 @@ MAX_GRID = 1_000_000
 @dataclass(frozen=True)
 class EnvelopePlan:
     """A checked request (:func:`plan`): the model, the working range's case system, the samples
-    per swept input (None: the default grid) and whether the exact boundary is traced."""
+    per swept input (None: the default grid), whether the exact boundary is traced and whether the
+    figures' sensitivities are computed (where the model has design parameters and their kernels)."""
 
     model: Any  #: kinegen.model.Model
     system: Any  #: kinegen.runtime.NumericSystem
     counts: tuple[int, ...] | None
     boundary: bool
+    sensitivities: bool = True
 
 
 @dataclass(frozen=True)
@@ -67,10 +69,10 @@ class EnvelopeReport:
 
 
 def plan(session: Session, model_file: str | Path, parametrization: str = rotations.REFERENCE,
-         counts: tuple[int, ...] | None = None, boundary: bool = False) -> EnvelopePlan:  # fmt: skip
+         counts: tuple[int, ...] | None = None, boundary: bool = False, sensitivities: bool = True) -> EnvelopePlan:  # fmt: skip
     """The checked request to sample the working range of ``model_file`` (``counts`` samples per
     swept input, in the section's order; None: its default grid), tracing the exact boundary when
-    ``boundary``. A model without a ``working_range:`` section is a ModelError; a grid that does
+    ``boundary``, the figures' sensitivities unless ``sensitivities`` is False. A model without a ``working_range:`` section is a ModelError; a grid that does
     not fit it a :class:`RequestError` of ``--grid``."""
     model = session.model(model_file)
     if model.working_range is None:
@@ -86,7 +88,7 @@ def plan(session: Session, model_file: str | Path, parametrization: str = rotati
         total = int(np.prod(counts, dtype=float))
         if total > MAX_GRID:
             raise RequestError("--grid", f"{','.join(map(str, counts))} is {total:,} samples; at most {MAX_GRID:,}")
-    return EnvelopePlan(model, system, counts, boundary)
+    return EnvelopePlan(model, system, counts, boundary, sensitivities)
 
 
 def run(plan: EnvelopePlan) -> EnvelopeReport:
@@ -101,7 +103,7 @@ def run(plan: EnvelopePlan) -> EnvelopeReport:
 
         boundary = working_range_boundary(system, model.working_range)
     sensitivities = {}
-    if system.design and system.sensitivity_kernels:  # d(figure)/d(design parameter), by the envelope theorem
+    if plan.sensitivities and system.design and system.sensitivity_kernels:  # d(figure)/d(design parameter), by the envelope theorem
         exact = figure_sensitivities(result, system)
         sensitivities = {figure: dict(zip(system.design, (float(x) for x in values))) for figure, values in exact.items()}
     return EnvelopeReport(plan, result, boundary, sensitivities)
