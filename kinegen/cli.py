@@ -9,7 +9,6 @@ from __future__ import annotations
 import json
 import os
 import sys
-import time
 import traceback
 import warnings
 from pathlib import Path
@@ -159,40 +158,15 @@ def build(model_file: str, params: tuple[str, ...], target: str, out_dir: str | 
     Before anything is written, every case's time functions are checked on its time grid
     and its initial pose is checked (assembled if needed): a build that fails either check
     writes nothing."""
-    from kinegen.codegen import build as build_module
-    from kinegen.codegen import module_name
-    from kinegen.model import load
-    from kinegen.runtime import check_source
+    from kinegen.service.build import build as run
 
     for name in params:
-        param = _parametrization(name)
-        start = time.perf_counter()
-        reports: list[str] = []
-
-        def check(source: str, model: str, reports: list[str] = reports) -> None:
-            reports.extend(check_source(source, model))
-
-        if target == "c":
-            folder = out_dir or f"{module_name(load(model_file), param)}_c"
-            path = build_module(model_file, param.name, folder, check=check, targets=("c",), sensitivities=not no_sensitivities)
-        else:  # the model's C compiles for the runtime (cached) while the Python is printed and checked
-            compiling: list = []
-
-            def ready(target: str, files: dict[str, str], compiling: list = compiling) -> None:
-                if target == "c-model":
-                    from kinegen.runtime.native import compile_in_background
-
-                    compiling.append(compile_in_background(files))
-
-            path = build_module(model_file, param.name, out_dir or "generated", check=check, ready=ready, sensitivities=not no_sensitivities)
-            for thread in compiling:
-                thread.join()
-        elapsed = time.perf_counter() - start
-        click.echo(f"wrote {path} ({param.name}, {elapsed:.2f} s)")
-        for line in reports:
+        report = run(model_file, _parametrization(name).name, target, out_dir, sensitivities=not no_sensitivities)
+        click.echo(f"wrote {report.path} ({report.parametrization}, {report.seconds:.2f} s)")
+        for line in report.checks:
             click.echo("  " + line)
-        if target == "c":
-            click.echo(f"  build and run it: make -C {path} && {path}/{module_name(load(model_file), param)}_example > out.csv")
+        if report.program is not None:
+            click.echo(f"  build and run it: make -C {report.path} && {report.path}/{report.program} > out.csv")
 
 
 def _nominal(model):
@@ -226,12 +200,6 @@ def _session(generated_dir: str):
     if generated_dir not in sessions:
         sessions[generated_dir] = Session(generated_dir, announce=lambda line: click.echo(line, err=True))
     return sessions[generated_dir]
-
-
-def _module(model_file: str, param: rotations.Parametrization, generated_dir: str, sensitivities: bool | None = None):
-    """The model and its generated module (rebuilt when missing or stale, by the session's one rule)."""
-    session = _session(generated_dir)
-    return session.model(model_file), session.module(model_file, param.name, sensitivities)
 
 
 def _system(
@@ -334,6 +302,7 @@ def solve(
     machine's own weight, where the model declares masses); with --dynamics, the forces that move the
     machine (its weight and inertia) and its energies."""
     from kinegen.service import solve as service
+    from kinegen.service.requests import check_frame, named_point
 
     parametrization = _parametrization(param)
     plan = service.plan(
@@ -342,9 +311,9 @@ def solve(
         design=_design_values(design), force=force,
     )  # fmt: skip
     model, system, times = plan.model, plan.system, plan.times
-    point = _named_point(system, track)
+    point = named_point(system, track)
     if plot:
-        _check_frame(system, frame_body)
+        check_frame(system, frame_body)
     report = service.run(plan)
     results, elapsed, held, supplied = report.results, report.elapsed, report.held, report.supplied
     done = results.converged
@@ -395,23 +364,6 @@ def _finite(param: click.Parameter, value: float | None) -> float | None:
     if value is not None and not np.isfinite(value):
         raise click.BadParameter(f"expected a finite number of seconds, got {value}", param_hint=f"--{param.name}")
     return value
-
-
-def _check_frame(system, frame_body: str | None) -> None:
-    """--frame names a body of the model (checked before solving)."""
-    if frame_body is not None and frame_body not in system.bodies:
-        raise click.BadParameter(f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})", param_hint="--frame")
-
-
-def _named_point(system, text: str | None) -> tuple[str, str] | None:
-    """--track/--point BODY.POINT: a named point of the model (None when not given)."""
-    if text is None:
-        return None
-    body, _, name = text.partition(".")
-    if body not in system.points or name not in system.points[body]:
-        known = ", ".join(f"{b}.{p}" for b, points in system.points.items() for p in points)
-        raise click.BadParameter(f"{text!r} is not a named point BODY.POINT of the model (known: {known})", param_hint="--point")
-    return body, name
 
 
 def _picture_plane(results, model, frame_body: str | None, point: tuple[str, str] | None = None) -> tuple[tuple[str, str] | None, str | None]:
@@ -628,19 +580,13 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
     """Build and solve one case in every parametrization; one table of sizes, build and solve
     costs, Newton iterations, scaled condition numbers, the largest converging step, and where
     each parametrization is singular."""
-    from kinegen.analysis import compare as comparison
-    from kinegen.model import load
+    from kinegen.service import parametrizations
 
-    model = _nominal(load(model_file))
-    if case is not None and case not in model.cases:
-        raise click.BadParameter(f"no case {case!r} (cases: {', '.join(model.cases)})", param_hint="--case")
-    chosen = case or next(iter(model.cases))
-    names = tuple(_parametrization(p).name for p in params) if params else comparison.DEFAULT
-    rows = comparison.compare(model, chosen, names, compiled=not no_compile)
-    if as_json:
-        click.echo(json.dumps({"model": model.name, "case": chosen, "rows": comparison.to_json(rows)}, indent=2))
-        return
-    click.echo(comparison.table(rows, model.name, chosen))
+    session = _session("generated")  # (each parametrization is built in a folder of its own)
+    _nominal(session.model(model_file))  # said first: the design parameters are held at their nominal values
+    names = tuple(_parametrization(p).name for p in params) or None
+    report = parametrizations.compare(session, model_file, case, names, compiled=not no_compile)
+    click.echo(json.dumps(report.document(), indent=2) if as_json else report.text())
 
 
 @main.command()
@@ -669,12 +615,10 @@ def view(
     """Solve a case and write its motion in 3-D as one self-contained HTML page (orbit and zoom
     with the mouse, a time slider, play/pause; no network needed to open it)."""
     from kinegen.analysis.view import motion_view
-    from kinegen.runtime import Solver, SolverOptions
+    from kinegen.service import view as service
 
-    model, system = _system(model_file, _parametrization(param), case, generated_dir, None, _design_values(design))
-    point = _named_point(system, track)
-    _check_frame(system, frame_body)
-    results = Solver(system, SolverOptions(on_failure="stop")).solve()  # kinegen's condition number: the CSV's and the plot's
+    plan = service.plan(_session(generated_dir), model_file, _parametrization(param).name, case, track, frame_body, _design_values(design))
+    model, system, point, results = plan.model, plan.system, plan.point, service.run(plan).results
     page = Path(out) if out else Path("out") / f"{system.model}_{system.case}.html"
     click.echo(f"wrote {motion_view(results, model, page, f'{system.model} / {system.case}', point, condition_warning)}")
     if animate:
@@ -1024,17 +968,13 @@ def scan(
 ) -> None:
     """Smallest singular value and condition of Phi_q along a case, per parametrization."""
     from kinegen.analysis.scan import plot_scan
-    from kinegen.analysis.scan import scan as run
+    from kinegen.service import parametrizations
 
-    _, physical = _system(model_file, _parametrization(rotations.REFERENCE), case, generated_dir)
-    systems = {}
-    for name in params:
-        parametrization = _parametrization(name)
-        systems[parametrization.name] = _system(model_file, parametrization, physical.case, generated_dir)[1]
-    result = run(physical, systems, warn_ratio=warn_ratio, horizon=horizon)
-    click.echo(f"{physical.model}/{physical.case}: " + result.text())
+    names = tuple(_parametrization(name).name for name in params)
+    report = parametrizations.scan(_session(generated_dir), model_file, case, names, warn_ratio, horizon)
+    click.echo(report.text())
     if plot:
-        click.echo(f"wrote {plot_scan(result, plot, f'{physical.model} / {physical.case}')}")
+        click.echo(f"wrote {plot_scan(report.result, plot, report.title)}")
 
 
 @main.command()
@@ -1133,35 +1073,22 @@ def explore(
     """Sample a study's design parameters in their bounds and measure every variant's quantities
     on Dask, written to Parquet partition by partition (resumable); optionally plot the Pareto front
     of two quantities and the parameters' sensitivity ranking."""
-    from kinegen.explore.plots import plot_exploration, ranking_of
-    from kinegen.explore.run import PARTITION_SIZE, Exploration
-    from kinegen.explore.run import explore as run
-    from kinegen.explore.store import Store
+    from kinegen.explore.plots import plot_exploration
+    from kinegen.service import exploration
 
-    model, module = _module(model_file, _parametrization(param), generated_dir)
-    if study_name not in model.studies:
-        known = ", ".join(model.studies) or "none declared"
-        raise click.BadParameter(f"no study {study_name!r} (studies: {known})", param_hint="--study")
-    target = Path(out) if out else Path("out") / f"{model.name}_{study_name}.parquet"
-    settings = {"samples": samples, "sampler": sampler, "seed": seed, "partition_size": partition_size}
-    defaults = {"samples": 1024, "sampler": "sobol", "seed": 0, "partition_size": PARTITION_SIZE}
-    if resume and Store(target).exists():
-        held = Store(target).provenance()
-        defaults = {key: held.get(key, value) for key, value in defaults.items()}
-    chosen = {key: defaults[key] if value is None else value for key, value in settings.items()}
-    exploration = Exploration(Path(model_file).resolve(), Path(module.__file__).resolve(), study_name, compiled=not no_compile, **chosen)
-    report = run(exploration, target, resume=resume, scheduler=scheduler, workers=workers, say=lambda line: click.echo(line, err=True))
-    click.echo(report.summary())
-    store = Store(target)
-    table, provenance = store.read(), store.provenance()
-    result = ranking_of(table, provenance)
-    if result is not None:
+    plan = exploration.plan(_session(generated_dir), model_file, study_name, _parametrization(param).name, samples=samples,
+                            sampler=sampler, seed=seed, partition_size=partition_size, out=out, resume=resume,
+                            compiled=not no_compile)  # fmt: skip
+    report = exploration.run(plan, scheduler, workers, say=lambda line: click.echo(line, err=True))
+    click.echo(report.done.summary())
+    if report.ranking is not None:
         click.echo("sensitivity ranking over the ok variants:")
-        click.echo(result.table())
+        click.echo(report.ranking.table())
     if plot:
-        pair = _pareto_pair(pareto, provenance["quantities"])
-        maximize = tuple(label not in {_column(m, provenance["quantities"], "--minimize") for m in minimize} for label in pair)
-        click.echo(f"wrote {plot_exploration(table, provenance, pair, maximize, plot)}")
+        columns = report.provenance["quantities"]
+        pair = _pareto_pair(pareto, columns)
+        maximize = tuple(label not in {_column(m, columns, "--minimize") for m in minimize} for label in pair)
+        click.echo(f"wrote {plot_exploration(report.table, report.provenance, pair, maximize, plot)}")
 
 
 def _column(name: str, columns: list[str], option: str) -> str:

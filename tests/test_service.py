@@ -135,3 +135,70 @@ def test_the_charts_need_their_sections_and_equal_the_library_s_own(session):
     model = session.model(EXCAVATOR)
     direct = lift_chart(session.system(EXCAVATOR, model.lift_chart.case, "quaternion", False), model)
     assert found.chart.document() == direct.document() and found.boundary is None
+
+
+def test_the_scan_and_compare_services_refuse_an_unknown_case_and_report_the_library_s_own_work(session):
+    from kinegen import rotations
+    from kinegen.analysis.compare import table
+    from kinegen.analysis.scan import scan as library_scan
+    from kinegen.service import parametrizations
+
+    four_bar = MODELS / "four_bar.yaml"
+    for service in (parametrizations.scan, parametrizations.compare):
+        with pytest.raises(RequestError) as refused:
+            service(session, four_bar, "nope", ("quaternion",))
+        assert refused.value.option == "--case" and "no case 'nope'" in refused.value.problem
+    names = ("quaternion", "dual-quaternion")  # committed modules: nothing is built into generated/
+    report = parametrizations.scan(session, four_bar, None, names)
+    physical = session.system(four_bar, None, rotations.REFERENCE)
+    direct = library_scan(physical, {name: session.system(four_bar, None, name) for name in names})
+    assert report.title == f"four_bar / {physical.case}" and report.text() == f"four_bar/{physical.case}: {direct.text()}"
+    compared = parametrizations.compare(session, four_bar, None, ("quaternion",), compiled=False)
+    assert compared.case == physical.case and [row.parametrization for row in compared.rows] == ["quaternion"]
+    assert compared.rows[0].coordinates == 7 * 3 and compared.rows[0].failure is None  # three moving links, 7 stored coordinates each
+    assert compared.text() == table(compared.rows, "four_bar", physical.case)
+    assert compared.document()["rows"][0]["coordinates"] == 21
+
+
+def test_a_view_request_is_checked_before_solving_and_its_motion_is_the_solver_s_own(session):
+    from kinegen.runtime import Solver
+    from kinegen.service import view
+
+    four_bar = MODELS / "four_bar.yaml"
+    for request, option, says in (({"point": "crank.Q"}, "--point", "'crank.Q' is not a named point"),
+                                  ({"frame_body": "wheel"}, "--frame", "no body 'wheel' (bodies: crank, coupler, rocker)"),
+                                  ({"case": "nope"}, "--case", "no case 'nope'")):  # fmt: skip
+        with pytest.raises(RequestError) as refused:
+            view.plan(session, four_bar, "quaternion", **request)
+        assert refused.value.option == option and says in refused.value.problem
+    plan = view.plan(session, four_bar, "quaternion", point="coupler.M", frame_body="rocker")
+    assert plan.point == ("coupler", "M") and plan.frame_body == "rocker"
+    report = view.run(plan)
+    direct = Solver(plan.system, SolverOptions(on_failure="stop")).solve()
+    assert report.results.failure is None and np.array_equal(report.results.q, direct.q)
+
+
+def test_the_build_service_writes_the_committed_bytes_and_reports_each_cases_check(tmp_path):
+    from kinegen.service.build import build
+
+    report = build(MODELS / "four_bar.yaml", "quaternion", out_dir=tmp_path / "py")
+    assert report.path == tmp_path / "py" / "four_bar_quaternion.py" and report.program is None and report.seconds > 0
+    assert report.path.read_bytes() == (GENERATED / "four_bar_quaternion.py").read_bytes()
+    assert [line.split(":")[0] for line in report.checks] == ["case crank_turn"]
+    standalone = build(MODELS / "four_bar.yaml", "quaternion", target="c", out_dir=tmp_path / "c")
+    assert standalone.program == "four_bar_quaternion_example" and (tmp_path / "c" / "Makefile").is_file()
+    assert standalone.checks == report.checks
+
+
+def test_an_exploration_request_names_an_unknown_study_and_settles_its_settings(session):
+    from kinegen.explore.run import PARTITION_SIZE
+    from kinegen.service import exploration
+
+    with pytest.raises(RequestError) as refused:
+        exploration.plan(session, EXCAVATOR, "nope")
+    assert refused.value.option == "--study" and "no study 'nope' (studies: calibration," in refused.value.problem
+    plan = exploration.plan(session, EXCAVATOR, "calibration", seed=7)
+    explored = plan.exploration
+    assert (explored.samples, explored.sampler, explored.seed, explored.partition_size) == (1024, "sobol", 7, PARTITION_SIZE)
+    assert plan.target.as_posix() == "out/excavator_calibration.parquet" and explored.study == "calibration"
+    assert explored.module_file == (GENERATED / "excavator_quaternion.py").resolve() and not plan.resume

@@ -32,3 +32,22 @@ def check_loads(model: Any, loads: Iterable[str]) -> tuple[str, ...]:
     if twice:
         raise RequestError("--load", f"{', '.join(twice)} named more than once (each load is held once)")
     return loads
+
+
+def named_point(system: Any, text: str | None) -> tuple[str, str] | None:
+    """``BODY.POINT`` as (body, point) of a named point of the system's model (None for None); any
+    other text is a :class:`RequestError` of ``--point`` listing the known points."""
+    if text is None:
+        return None
+    body, _, name = text.partition(".")
+    if body not in system.points or name not in system.points[body]:
+        known = ", ".join(f"{b}.{p}" for b, points in system.points.items() for p in points)
+        raise RequestError("--point", f"{text!r} is not a named point BODY.POINT of the model (known: {known})")
+    return body, name
+
+
+def check_frame(system: Any, frame_body: str | None) -> None:
+    """A picture's frame names a body of the model (None: chosen later); another name is a
+    :class:`RequestError` of ``--frame``."""
+    if frame_body is not None and frame_body not in system.bodies:
+        raise RequestError("--frame", f"no body {frame_body!r} (bodies: {', '.join(system.bodies)})")

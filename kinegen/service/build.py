@@ -1,0 +1,66 @@
+"""Building a model into generated code: the work behind ``kinegen build``.
+
+One call builds one parametrization: the importable Python module and the model's C (the
+runtime's library compiled from it meanwhile, into the cache), or a standalone C directory.
+Before anything is written, every case's time functions are checked on its time grid and its
+initial pose is checked (assembled if needed): a build that fails either check writes nothing.
+"""
+
+from __future__ import annotations
+
+import time
+from dataclasses import dataclass
+from pathlib import Path
+
+
+@dataclass(frozen=True)
+class BuildReport:
+    """What a build wrote (``path``: the Python module, or the standalone C directory), in which
+    parametrization, its wall time [s] (with the library's compilation it waited for), one line per
+    case from the pre-write check, and for a standalone C directory the name of its example program."""
+
+    path: Path
+    parametrization: str
+    seconds: float
+    checks: list[str]
+    program: str | None = None
+
+
+def build(model_file: str | Path, parametrization: str, target: str = "python", out_dir: str | Path | None = None,
+          sensitivities: bool = True) -> BuildReport:  # fmt: skip
+    """Build ``model_file`` in ``parametrization`` (a canonical name): ``target`` "python" into
+    ``out_dir`` (default generated/), waiting for the runtime's library of its C; "c" a standalone C
+    directory (default ``<model>_<param>_c``). ``sensitivities``: as ``kinegen build --no-sensitivities`` says."""
+    from kinegen.codegen import build as build_module
+    from kinegen.codegen import module_name
+    from kinegen.model import load
+    from kinegen.rotations import get
+    from kinegen.runtime import check_source
+
+    start = time.perf_counter()
+    checks: list[str] = []
+
+    def check(source: str, model: str) -> None:
+        checks.extend(check_source(source, model))
+
+    model = load(model_file)
+    stem = module_name(model, get(parametrization))
+    if target == "c":
+        path = build_module(model_file, parametrization, out_dir or f"{stem}_c", check=check, targets=("c",),
+                            sensitivities=sensitivities, model=model)  # fmt: skip
+        return BuildReport(path, parametrization, time.perf_counter() - start, checks, f"{stem}_example")
+    compiling: list = []  # the model's C compiles for the runtime (cached) while the Python is printed and checked
+
+    def ready(made: str, files: dict[str, str]) -> None:
+        if made == "c-model":
+            from kinegen.runtime.native import compile_in_background
+
+            compiling.append(compile_in_background(files))
+
+    path = build_module(model_file, parametrization, out_dir or "generated", check=check, ready=ready, sensitivities=sensitivities, model=model)
+    for thread in compiling:
+        thread.join()
+    return BuildReport(path, parametrization, time.perf_counter() - start, checks)
+
+
+__all__ = ["BuildReport", "build"]
