@@ -69,3 +69,16 @@ def test_a_long_solve_counts_its_steps_on_a_terminal(tmp_path):
     code, text = on_a_terminal(command)
     assert code == 0, text[-2000:]
     assert re.search(r"solve slider_crank/run: +\d+%", text) and f"{steps} of {steps} time points" in text
+
+
+def test_a_bar_shown_starts_no_thread_so_a_build_on_a_terminal_still_shares_its_printing():
+    """tqdm's monitor thread would keep kinegen.codegen.forked.may_fork() False while a bar is shown
+    (a fork copies only the calling thread): kinegen's bars run without it."""
+    import threading
+
+    from kinegen.progress import counter
+
+    before = threading.active_count()
+    with counter("shown", 3, show=True) as bar:
+        bar.update(1)
+        assert threading.active_count() == before
