@@ -342,8 +342,10 @@ def solve(
     if sensitivities:
         if not system.design:
             raise click.BadParameter("the model has no design parameters (a design: section)", param_hint="--sensitivities")
-        write = results.sensitivities_to_json if sensitivities.endswith(".json") else results.sensitivities_to_csv
-        click.echo(f"wrote {write(sensitivities)}", err=piped)
+        from kinegen.runtime.sensitivity import sensitivities_to_csv, sensitivities_to_json
+
+        write = sensitivities_to_json if sensitivities.endswith(".json") else sensitivities_to_csv
+        click.echo(f"wrote {write(results, sensitivities)}", err=piped)
     if plot:
         from kinegen.analysis.plots import plot_case
 

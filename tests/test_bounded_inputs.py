@@ -127,6 +127,7 @@ def test_a_model_from_standard_input_solves_as_the_same_file(tmp_path):
         (["inspect", FOUR_BAR, "--q", "[1, 2]"], "--q"),
         (["inspect", FOUR_BAR, "--q", '{"crank.x": "a"}'], "--q"),
         (["inspect", FOUR_BAR, "--budget", "9223372063"], "--budget"),
+        (["inspect", FOUR_BAR, "--budget", "nan"], "--budget"),  # (click's range check lets NaN through)
         (["envelope", str(MODELS / "excavator.yaml"), "--grid", "2,2"], "--grid"),
         (["envelope", str(MODELS / "excavator.yaml"), "--grid", "1000,1000,1000"], "--grid"),
         (["solve", FOUR_BAR, "--plot", "x.xyz"], "--plot"),
@@ -285,3 +286,12 @@ def test_a_long_determinant_is_summarised_and_written_whole_on_request(tmp_path,
     assert expression not in short.output
     full = run("inspect", boom, "--param", "euler:zxz", "--at", "0", "--full")
     assert expression in full.output
+
+
+def test_an_inspection_budget_is_a_positive_finite_number_of_seconds():
+    from kinegen.analysis.inspect import Budget
+
+    for seconds in (float("nan"), float("inf"), 0.0, -1.0):
+        with pytest.raises(ValueError, match="positive, finite number of seconds"):
+            Budget(seconds)
+    assert Budget(None).remaining() is None and 0 < Budget(5.0).remaining() <= 5.0

@@ -18,6 +18,7 @@ from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import ExitCode, ModelError
 from kinegen.model import load, loads
 from kinegen.runtime import from_module, solve
+from kinegen.runtime.sensitivity import point_sensitivity, relative_angle_sensitivity, smallest_singular_value_sensitivity
 from tests.conftest import GENERATED, MODELS
 
 PLAIN = (MODELS / "slider_crank.yaml").read_text()
@@ -197,7 +198,7 @@ def test_a_module_built_without_sensitivity_kernels_solves_designs_and_says_what
     a, b = (solve(from_module(m, "run", compiled=compiled, design=design)) for m in (full, lean))
     assert np.abs(a.q - b.q).max() == 0.0
     with pytest.raises(ValueError, match=r"has no sensitivity kernels .*--no-sensitivities.*rebuild it"):
-        b.sensitivity("slider", "C", "r")
+        point_sensitivity(b, "slider", "C", parameter="r")
     assert built_with_sensitivities(MODELS / "slider_crank.yaml") is None
 
 
@@ -235,13 +236,13 @@ def test_slider_sensitivities_are_the_closed_form_derivatives(tmp_path, param, c
     t = results.times
     theta = 0.3 + 2 * np.pi * t + 0.5 * t**2
     w = np.sqrt(0.65**2 - 0.21**2 * np.sin(theta) ** 2)
-    by_r, by_l = results.sensitivity("slider", "C", "r"), results.sensitivity("slider", "C", "l")
+    by_r, by_l = point_sensitivity(results, "slider", "C", parameter="r"), point_sensitivity(results, "slider", "C", parameter="l")
     assert np.abs(by_r[:, 0] - (np.cos(theta) - 0.21 * np.sin(theta) ** 2 / w)).max() < 1e-10
     assert np.abs(by_l[:, 0] - 0.65 / w).max() < 1e-10
     assert np.abs(by_r[:, 1:]).max() < 1e-12 and np.abs(by_l[:, 1:]).max() < 1e-12
     # the crank pin B = r (cos θ, sin θ): d/dr = (cos θ, sin θ) whatever the rod
-    assert np.abs(results.sensitivity("crank", "B", "r")[:, :2] - np.c_[np.cos(theta), np.sin(theta)]).max() < 1e-10
-    assert np.abs(results.sensitivity("crank", "B", "l")).max() < 1e-12
+    assert np.abs(point_sensitivity(results, "crank", "B", parameter="r")[:, :2] - np.c_[np.cos(theta), np.sin(theta)]).max() < 1e-10
+    assert np.abs(point_sensitivity(results, "crank", "B", parameter="l")).max() < 1e-12
 
 
 FOUR_BAR_PARAMETERS = "parameters:\n  a: 0.3    # crank A-B\n  b: 0.9    # coupler B-C\n  c: 0.7    # rocker D-C\n  d: 1.0    # ground A-D\n"
@@ -283,7 +284,7 @@ def test_four_bar_sensitivities_match_central_differences_of_rebuilt_models(tmp_
                 for b, p in (("coupler", "M"), ("rocker", "C")) for kind in ("position", "velocity", "acceleration")
             })  # fmt: skip
         for body, point, kind in shifted[0]:
-            exact = results.sensitivity(body, point, name, kind)
+            exact = point_sensitivity(results, body, point, parameter=name, kind=kind)
             central = (shifted[0][body, point, kind] - shifted[1][body, point, kind]) / (2 * h)
             assert np.abs(exact - central).max() < 1e-7 * np.abs(exact).max(), (name, body, point, kind)
 
@@ -332,7 +333,7 @@ def test_slider_velocity_and_acceleration_sensitivities_are_the_closed_form_deri
     for kind, order, tolerance in (("position", 0, 1e-10), ("velocity", 1, 1e-9), ("acceleration", 2, 1e-8)):
         for name, symbol in (("r", r), ("l", rod)):
             exact = sp.lambdify(t, sp.diff(x, t, order).diff(symbol).subs({r: 0.21, rod: 0.65}))(results.times)
-            computed = results.sensitivity("slider", "C", name, kind)
+            computed = point_sensitivity(results, "slider", "C", parameter=name, kind=kind)
             assert np.abs(computed[:, 0] - exact).max() < tolerance * max(1.0, np.abs(exact).max()), (kind, name)
             assert np.abs(computed[:, 1:]).max() < tolerance, (kind, name)
 
@@ -361,7 +362,7 @@ def test_excavator_sensitivities_match_central_differences_of_rebuilt_models():
             rebuilt = solve(from_module(module_from_source(source), "digging", compiled=False), times)
             shifted.append({kind: getattr(rebuilt, f"point_{kind}")("bucket", "T") for kind in ("position", "velocity", "acceleration")})
         for kind in shifted[0]:
-            exact = results.sensitivity("bucket", "T", name, kind)
+            exact = point_sensitivity(results, "bucket", "T", parameter=name, kind=kind)
             central = (shifted[0][kind] - shifted[1][kind]) / (2 * h)
             assert np.abs(exact - central).max() < 1e-7 * np.abs(exact).max(), (name, kind)
 
@@ -380,7 +381,7 @@ def test_global_points_stay_expressions_of_the_design_parameters(tmp_path):
     results = solve(from_module(module, "run", design={"r": 0.21, "l": 0.65}))
     theta = 0.3 + 2 * np.pi * results.times + 0.5 * results.times**2
     w = np.sqrt(0.65**2 - 0.21**2 * np.sin(theta) ** 2)
-    assert np.abs(results.sensitivity("slider", "C", "r")[:, 0] - (np.cos(theta) - 0.21 * np.sin(theta) ** 2 / w)).max() < 1e-10
+    assert np.abs(point_sensitivity(results, "slider", "C", parameter="r")[:, 0] - (np.cos(theta) - 0.21 * np.sin(theta) ** 2 / w)).max() < 1e-10
 
 
 def test_joint_angle_sensitivities_match_central_differences(tmp_path):
@@ -401,8 +402,8 @@ def test_joint_angle_sensitivities_match_central_differences(tmp_path):
             angles(solve(from_module(lambdify_model(model.at(dict(at, **{name: at[name] + sign * h})), rotations.get("quaternion")), "crank_turn")))
             for sign in (1, -1)
         )
-        exact = (results.relative_angle_sensitivity("ground", "rocker", (0, 0, 1), name),
-                 results.relative_angle_sensitivity("crank", "coupler", (0, 0, 1), name))  # fmt: skip
+        exact = (relative_angle_sensitivity(results, "ground", "rocker", (0, 0, 1), parameter=name),
+                 relative_angle_sensitivity(results, "crank", "coupler", (0, 0, 1), parameter=name))  # fmt: skip
         for e, p_, m_ in zip(exact, plus, minus):
             central = (p_ - m_) / (2 * h)
             assert np.abs(e - central).max() < 1e-7 * np.abs(e).max(), name
@@ -413,7 +414,7 @@ def test_the_distance_to_a_singular_pose_has_exact_sensitivities(tmp_path):
     central differences of σ_min of models rebuilt at p ± 1e-5 (to 1e-6 of the largest)."""
     model, results = _four_bar_design(tmp_path, "quaternion")
     at = FOUR_BAR_AT
-    sigma, _ = results.smallest_singular_value_sensitivity()
+    sigma, _ = smallest_singular_value_sensitivity(results)
     assert 0 < np.nanmin(sigma) and np.isfinite(sigma).all()
 
     def smallest(r):
@@ -428,7 +429,7 @@ def test_the_distance_to_a_singular_pose_has_exact_sensitivities(tmp_path):
             smallest(solve(from_module(lambdify_model(model.at(dict(at, **{name: at[name] + sign * h})), rotations.get("quaternion")), "crank_turn")))
             for sign in (1, -1)
         )
-        _, exact = results.smallest_singular_value_sensitivity(name)
+        _, exact = smallest_singular_value_sensitivity(results, parameter=name)
         central = (plus - minus) / (2 * h)
         assert np.abs(exact - central).max() < 1e-6 * np.abs(exact).max(), (name, np.abs(exact - central).max() / np.abs(exact).max())
 
@@ -507,7 +508,7 @@ def test_the_critical_blocks_distance_to_the_toggle_has_exact_sensitivities():
     at = {"side_link": 0.575, "K_x": -0.31}
     times = np.linspace(0, 1, 21)
     results = solve(from_module(module, "bucket_stroke", compiled=True, design=at), times)
-    sigma, derivative = results.smallest_singular_value_sensitivity(bodies=bodies)
+    sigma, derivative = smallest_singular_value_sensitivity(results, bodies=bodies)
 
     def critical(values: dict[str, float]) -> np.ndarray:
         rebuilt = model.at(values)

@@ -14,6 +14,7 @@ import sympy as sp
 
 from kinegen.forces.dynamics import inertial_load, tipping_margin
 from kinegen.runtime import SolverOptions, from_module, load_module
+from kinegen.runtime.sensitivity import state_sensitivities
 from kinegen.runtime.solver import solve
 from tests.conftest import GENERATED, model
 from tests.test_force_design import assert_gradients_equal_central_differences, study_problem
@@ -157,9 +158,9 @@ def test_inertial_load_changes_equal_central_differences():
     np.testing.assert_allclose(inertial_load(results), reference, rtol=0, atol=1e-11 * np.abs(reference).max())
     changed = _massive_design(excavator)
     statics = Statics(results, changed)
-    exact = inertial_load_changes(statics, TangentChanges(statics, results.state_sensitivities()[0]))
+    exact = inertial_load_changes(statics, TangentChanges(statics, state_sensitivities(results)[0]))
     nominal_masses = Statics(results, excavator)
-    pose_only = inertial_load_changes(nominal_masses, TangentChanges(nominal_masses, results.state_sensitivities()[0]))
+    pose_only = inertial_load_changes(nominal_masses, TangentChanges(nominal_masses, state_sensitivities(results)[0]))
     assert np.abs(exact - pose_only).max() > 1e5  # the masses' share (N per m)
     for name in ("C_x", "F_z"):
         moved = [_numeric_inertial_load(_solved({**nominal, name: nominal[name] + sign * H}, points=21), changed) for sign in (1, -1)]

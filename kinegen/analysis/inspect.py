@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import functools
 import json
+import math
 import signal
 import threading
 import time
@@ -58,6 +59,8 @@ class Budget:
     Python code, interrupted between bytecodes when the alarm fires."""
 
     def __init__(self, seconds: float | None) -> None:
+        if seconds is not None and not (math.isfinite(seconds) and seconds > 0):
+            raise ValueError(f"a budget is a positive, finite number of seconds (or None: unbounded), not {seconds!r}")
         self.seconds = seconds
         self.start = time.monotonic()
 

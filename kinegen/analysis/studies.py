@@ -34,6 +34,12 @@ from kinegen.model.kinds import check_registered
 from kinegen.model.schema import GROUND, MACHINE, QUANTITY_KINDS, Model, Quantity, Study, design_gradient, design_value
 from kinegen.runtime import Solver, from_module
 from kinegen.runtime.results import Results
+from kinegen.runtime.sensitivity import (
+    actuator_length_sensitivity,
+    point_sensitivity,
+    relative_angle_sensitivity,
+    state_sensitivities,
+)
 
 #: SLSQP's step of finite differences in the scaled parameters (issue 13's comparison): 1e-6 of a
 #: parameter's range -- 4e-8 m for +-2 cm -- well above the quantities' own noise (~1e-12)
@@ -281,12 +287,12 @@ def relative_angle(results: Results, body: str, relative_to: str, axis: np.ndarr
 def _rotation_range(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
     axis = np.asarray(q.axis, dtype=float)
     angle = relative_angle(results, str(q.body), q.relative_to, axis)
-    return _extremes(angle, (lambda: results.relative_angle_sensitivity(q.relative_to, str(q.body), tuple(axis))) if gradients else None)
+    return _extremes(angle, (lambda: relative_angle_sensitivity(results, q.relative_to, str(q.body), tuple(axis))) if gradients else None)
 
 
 def _stroke(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
     name = str(q.actuator)
-    return _extremes(results.actuator_length(name), (lambda: results.actuator_length_sensitivity(name)) if gradients else None)
+    return _extremes(results.actuator_length(name), (lambda: actuator_length_sensitivity(results, name)) if gradients else None)
 
 
 def _actuator_margin(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
@@ -299,7 +305,7 @@ def _actuator_margin(problem: StudyProblem, results: Results, q: Quantity, gradi
     k = int(np.nanargmin(points))
     if not gradients:
         return float(points[k]), None, (points, None)
-    d_length = results.actuator_length_sensitivity(actuator.name)
+    d_length = actuator_length_sensitivity(results, actuator.name)
     order = list(design)
     d_points = np.concatenate([d_length - design_gradient(actuator.range[0], order, design),
                                design_gradient(actuator.range[1], order, design) - d_length])  # fmt: skip
@@ -339,8 +345,8 @@ def _transmission_angle(problem: StudyProblem | None, results: Results, q: Quant
     k = int(np.nanargmin(points))
     if not gradients:
         return float(points[k]), None, (points, None)
-    d_middle = results.sensitivity(*b)
-    du, dw = results.sensitivity(*a) - d_middle, results.sensitivity(*c) - d_middle  # (K, 3, n_design)
+    d_middle = point_sensitivity(results, *b)
+    du, dw = point_sensitivity(results, *a) - d_middle, point_sensitivity(results, *c) - d_middle  # (K, 3, n_design)
     d_cosine = (np.einsum("kin,ki->kn", du, w) + np.einsum("ki,kin->kn", u, dw)) / (length_u * length_w)[:, None] - cosine[:, None] * (
         np.einsum("ki,kin->kn", u, du) / length_u[:, None] ** 2 + np.einsum("ki,kin->kn", w, dw) / length_w[:, None] ** 2
     )
@@ -373,11 +379,11 @@ def _relief_tool_force(problem: StudyProblem, results: Results, q: Quantity, gra
     k = int(np.nanargmax(values))
     if not gradients:
         return float(values[k]), None
-    d_gap = results.sensitivity(b2, p2)[k] - results.sensitivity(b1, p1)[k]  # (3, n_design)
-    d_relative = results.sensitivity(b2, p2, kind="velocity")[k] - results.sensitivity(b1, p1, kind="velocity")[k]
+    d_gap = point_sensitivity(results, b2, p2)[k] - point_sensitivity(results, b1, p1)[k]  # (3, n_design)
+    d_relative = point_sensitivity(results, b2, p2, kind="velocity")[k] - point_sensitivity(results, b1, p1, kind="velocity")[k]
     d_e = (d_gap - np.outer(e[k], e[k] @ d_gap)) / length[k]
     d_rate = relative[k] @ d_e + e[k] @ d_relative
-    d_speed = motion[k] @ results.sensitivity(lip.body, lip.name, kind="velocity")[k] / speed[k]
+    d_speed = motion[k] @ point_sensitivity(results, lip.body, lip.name, kind="velocity")[k] / speed[k]
     d_cap = hydraulics.area_gradients(order, design)[0]
     d_pressure = design_gradient(hydraulics.relief[0], order, design)
     magnitude = abs(rate[k])
@@ -603,7 +609,7 @@ def _peak_pressure(problem: StudyProblem, results: Results, q: Quantity, gradien
     matrix = statics.matrix()
     multipliers = statics.solve(matrix, held.generalized_load[k : k + 1])
     body, point, force = _constant_load(problem, q) if q.load else (None, None, None)
-    changes = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=at.state_sensitivities()[0], inertia=True)
+    changes = MultiplierChanges(statics, matrix, multipliers, body, point, force, s=state_sensitivities(at)[0], inertia=True)
     names = [e.name for e in statics.elements]
     d_force = -changes.d_multipliers[0, statics.joint_rows + names.index(name)]
     f = held.element_force(name)[k]

@@ -44,6 +44,7 @@ def sensitivity_cost(case: str = "digging", points: int = 1000, repeats: int = 3
     from kinegen.codegen import generate, write_files
     from kinegen.model import loads
     from kinegen.runtime import from_module, load_module, solve
+    from kinegen.runtime.sensitivity import state_sensitivities
 
     model = loads(excavator_design_yaml(), "excavator_design.yaml")
     with tempfile.TemporaryDirectory() as folder:
@@ -63,7 +64,7 @@ def sensitivity_cost(case: str = "digging", points: int = 1000, repeats: int = 3
                 results = solve(system, times)
                 best_solve = min(best_solve, time.perf_counter() - start)
                 start = time.perf_counter()
-                results.state_sensitivities()
+                state_sensitivities(results)
                 best_sensitivities = min(best_sensitivities, time.perf_counter() - start)
             row[f"{label}_solve"], row[f"{label}_sensitivities"] = best_solve, best_sensitivities
     return row

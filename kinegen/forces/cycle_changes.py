@@ -27,6 +27,7 @@ from kinegen.errors import KinegenError
 from kinegen.model import Model
 from kinegen.model.schema import GROUND, design_gradient, design_value
 from kinegen.runtime.results import Results
+from kinegen.runtime.sensitivity import STATE, frame_sensitivities, point_sensitivity, state_sensitivities
 
 
 def stacked_motions(results: Results, changes: bool) -> Results:
@@ -40,9 +41,10 @@ def stacked_motions(results: Results, changes: bool) -> Results:
         conditions=triple(results.conditions), inputs=triple(results.inputs), converged=triple(results.converged),
     )  # fmt: skip
     if changes:
-        s, v, a = results.state_sensitivities()
+        s, v, a = state_sensitivities(results)
         none = np.zeros_like(s)
-        stacked.__dict__["_sensitivity_cache"] = {"state": (triple(s), np.concatenate([none, none, v]), np.concatenate([none, v, a]))}
+        seeded = (triple(s), np.concatenate([none, none, v]), np.concatenate([none, v, a]))
+        stacked.once(STATE, lambda _: seeded)  # what state_sensitivities(stacked) then gives
     return stacked
 
 
@@ -82,7 +84,7 @@ def element_force_changes(stacked: Results, model: Model, loads: tuple[str, ...]
     matrix = statics.matrix()
     load = sum((statics.generalized_load(model.loads[name]) for name in loads), np.zeros((len(stacked.times), statics.n_v)))
     multipliers = statics.solve(matrix, load + inertial_load(stacked))
-    changes = MultiplierChanges(statics, matrix, multipliers, None, None, None, s=stacked.state_sensitivities()[0],
+    changes = MultiplierChanges(statics, matrix, multipliers, None, None, None, s=state_sensitivities(stacked)[0],
                                 weights=load_weights(stacked, model, loads), inertia=True)  # fmt: skip
     gains = statics.input_gains()
     forces = statics.element_forces(multipliers)
@@ -92,13 +94,12 @@ def element_force_changes(stacked: Results, model: Model, loads: tuple[str, ...]
 
 def actuator_rate_changes(results: Results, name: str) -> tuple[np.ndarray, np.ndarray]:
     """A cylinder's rate L' = e·(v1 - v2) (K,) at the case's own pace and its exact derivative (K, P)."""
-    from kinegen.runtime.sensitivity import point_sensitivity
 
     ends = results.system.actuators[name][:2]
     r = [results.point_position(b, p) for b, p in ends]
     v = [results.point_velocity(b, p) for b, p in ends]
-    dr = [point_sensitivity(results, b, p, "position") for b, p in ends]
-    dv = [point_sensitivity(results, b, p, "velocity") for b, p in ends]
+    dr = [point_sensitivity(results, b, p, kind="position") for b, p in ends]
+    dv = [point_sensitivity(results, b, p, kind="velocity") for b, p in ends]
     gap, d_gap = r[0] - r[1], dr[0] - dr[1]
     motion, d_motion = v[0] - v[1], dv[0] - dv[1]
     length = np.linalg.norm(gap, axis=1)
@@ -121,7 +122,7 @@ def turn_rate_changes(results: Results, model: Model, joint_name: str) -> tuple[
     d_axis_raw = np.array([design_gradient(x, list(design), design) for x in joint.axis1])  # (3, P)
     unit = axis / norm
     d_unit = (d_axis_raw - np.outer(unit, unit @ d_axis_raw)) / norm
-    frames = results.frame_sensitivities()
+    frames = frame_sensitivities(results)
     slices, bodies = system.frame_slices, list(system.bodies)
     count, n_design = len(results.times), len(design)
 

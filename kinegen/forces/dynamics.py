@@ -24,6 +24,7 @@ from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, design_value
 from kinegen.runtime.results import Results
+from kinegen.runtime.sensitivity import frame_sensitivities, point_sensitivity
 
 
 @dataclass(frozen=True)
@@ -165,7 +166,7 @@ class MachineWrenches:
         self.gradient = lambda x: np.asarray(design_gradient(x, self.order, design), dtype=float).reshape(self.n_design)
         self.gravity = np.array([self.number(x) for x in model.gravity])
         self.d_gravity = np.array([self.gradient(x) for x in model.gravity])  # (3, P)
-        self.frames = results.frame_sensitivities() if changes else None
+        self.frames = frame_sensitivities(results) if changes else None
         self.items: list[tuple[np.ndarray, ...]] = []
 
     def _zeros(self) -> np.ndarray:
@@ -239,7 +240,6 @@ class MachineWrenches:
         self.items.append((center, force, moment, d_center, np.broadcast_to(d_force, (self.count, 3, self.n_design)), d_moment))
 
     def add_load(self, load) -> None:
-        from kinegen.runtime.sensitivity import point_sensitivity
 
         results = self.results
         body, point = load.point.body, load.point.name

@@ -11,13 +11,14 @@ import csv
 import dataclasses
 import io
 import sys
+from collections.abc import Callable
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TextIO
+from typing import Any, TextIO
 
 import numpy as np
 
-from kinegen.files import STDOUT, atomic_writer, write_atomic
+from kinegen.files import STDOUT, atomic_writer
 from kinegen.model.schema import GROUND
 from kinegen.runtime.system import NumericSystem
 
@@ -126,84 +127,12 @@ class Results:
         w = self.omega(body)
         return self.acceleration(body) + np.cross(self.omega_dot(body), arm) + np.cross(w, np.cross(w, arm))
 
-    def sensitivity(self, body: str, point: str, parameter: str | None = None, kind: str = "position") -> np.ndarray:
-        """Exact derivative of a named point's global ``kind`` (position, velocity or
-        acceleration) by a design parameter, (K, 3), or by all of them, (K, 3, n_design)
-        (implicit differentiation: :mod:`kinegen.runtime.sensitivity`)."""
-        from kinegen.runtime.sensitivity import point_sensitivity
-
-        out = point_sensitivity(self, body, point, kind)
-        return self._by_parameter(out, parameter)
-
-    def rotation_sensitivity(self, body: str, parameter: str | None = None) -> np.ndarray:
-        """Exact change of a body's orientation by a design parameter as a global rotation vector
-        (dA/dp = [dθ/dp]× A), (K, 3), or by all of them, (K, 3, n_design)."""
-        from kinegen.runtime.sensitivity import rotation_sensitivity
-
-        out = rotation_sensitivity(self, body)
-        return self._by_parameter(out, parameter)
-
-    def relative_angle_sensitivity(self, body1: str, body2: str, axis: tuple[float, float, float], parameter: str | None = None) -> np.ndarray:
-        """Exact derivative of the rotation angle of ``body2`` relative to ``body1`` about ``axis``
-        (a unit vector in body-1 coordinates, e.g. a revolute joint's axis; ``body1`` may be
-        ``ground``) by a design parameter, (K,), or by all of them, (K, n_design)."""
-        from kinegen.runtime.sensitivity import rotation_sensitivity
-
-        axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
-        turn = rotation_sensitivity(self, body2)
-        if body1 == GROUND:
-            direction = np.broadcast_to(axis, (len(self.times), 3))
-        else:
-            turn = turn - rotation_sensitivity(self, body1)
-            direction = self.rotation_matrix(body1) @ axis
-        out = np.einsum("ki,kij->kj", direction, turn)
-        return self._by_parameter(out, parameter)
-
-    def smallest_singular_value_sensitivity(
-        self, parameter: str | None = None, bodies: tuple[str, ...] | None = None
-    ) -> tuple[np.ndarray, np.ndarray]:
-        """σ_min of Φ_q at every time point (the distance to a singular pose) and its exact
-        derivative by a design parameter, (K,), or by all of them, (K, n_design). With ``bodies``
-        (a linkage), of the critical block instead: at each time point the diagonal block of Φ_q's
-        block-triangular form holding their coordinates with the smallest σ_min, where a toggle
-        shows undiluted by the rest of the mechanism."""
-        from kinegen.runtime.sensitivity import critical_block_sensitivity, singular_value_sensitivity
-
-        if bodies is None:
-            sigma, derivative = singular_value_sensitivity(self)
-        else:
-            sigma, derivative, _ = critical_block_sensitivity(self, tuple(bodies))
-        return sigma, self._by_parameter(derivative, parameter)
-
-    def actuator_length_sensitivity(self, name: str, parameter: str | None = None) -> np.ndarray:
-        """Exact derivative of an actuator's length by a design parameter, (K,), or all, (K, n_design)."""
-        from kinegen.runtime.sensitivity import point_sensitivity
-
-        d, *_ = self._actuator(name)
-        (b1, p1), (b2, p2), _ = self.system.actuators[name]
-        change = point_sensitivity(self, b2, p2) - point_sensitivity(self, b1, p1)
-        out = np.einsum("ki,kij->kj", d / np.linalg.norm(d, axis=1)[:, None], change)
-        return self._by_parameter(out, parameter)
-
     def time_points(self, which: slice | np.ndarray) -> Results:
         """These results at some of their time points (a slice or indices): what a quantity measured
         at one time point (its maximum over a motion) differentiates there. Sensitivities are
         recomputed for them, not sliced."""
         fields = ("times", "q", "v", "a", "iterations", "residuals", "conditions", "inputs", "converged")
         return dataclasses.replace(self, **{name: getattr(self, name)[which] for name in fields})
-
-    def state_sensitivities(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-        """(dq/dp, dv/dp, da/dp), each (K, n_v, n_design), in velocity coordinates (computed once)."""
-        from kinegen.runtime.sensitivity import state_sensitivities
-
-        return self._computed("state", state_sensitivities)
-
-    def frame_sensitivities(self) -> np.ndarray:
-        """The change of every body's frame values per unit of each design parameter, (K, n_bodies,
-        FRAME_VALUES, n_design) (:func:`kinegen.runtime.sensitivity.frame_sensitivities`, computed once)."""
-        from kinegen.runtime.sensitivity import frame_sensitivities
-
-        return self._computed("frames", frame_sensitivities)
 
     def condition_numbers(self) -> np.ndarray:
         """kinegen's condition number of Phi_q at each time point -- one definition everywhere (the
@@ -223,23 +152,15 @@ class Results:
                     out[solved] = np.where(s[:, -1] > 0, s[:, 0] / s[:, -1], np.inf)
             return out
 
-        return self._computed("condition_numbers", compute)
+        return self.once("condition_numbers", compute)
 
-    def _computed(self, name: str, compute):
-        """``compute(self)``, computed once per results (the sensitivities of one solve)."""
-        cache = self.__dict__.setdefault("_sensitivity_cache", {})
+    def once(self, name: str, compute: Callable[[Results], Any]) -> Any:
+        """``compute(self)``, computed once for these results and kept with them under ``name``
+        (what is derived from one solve: its condition numbers, its state's sensitivities)."""
+        cache = self.__dict__.setdefault("_once", {})
         if name not in cache:
             cache[name] = compute(self)
         return cache[name]
-
-    def _by_parameter(self, values: np.ndarray, parameter: str | None) -> np.ndarray:
-        """``values`` with the design parameters on the last axis: all of them (None), or one."""
-        if parameter is None:
-            return values
-        names = list(self.system.design)
-        if parameter not in names:
-            raise KeyError(f"no design parameter {parameter!r} (design parameters: {', '.join(names) or 'none'})")
-        return values[..., names.index(parameter)]
 
     def _actuator(self, name: str) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
         if name not in self.system.actuators:
@@ -310,65 +231,29 @@ class Results:
             columns.append(np.c_[self.actuator_length(name), self.actuator_rate(name), self.actuator_acceleration(name)])
         return names, np.hstack(columns)
 
-    def sensitivity_table(self) -> tuple[list[str], np.ndarray]:
-        """Column names and values of the sensitivity CSV export: per time point, the derivative
-        of every named point's position, velocity and acceleration (``d(body.point_x)/d(p)``,
-        ``d(body.point_vx)/d(p)``, ``d(body.point_ax)/d(p)``) and of every actuator's length by
-        every design parameter."""
-        names, columns = ["t"], [self.times[:, None]]
-        for body, points in self.system.points.items():
-            for point in points:
-                for kind, label in (("position", ""), ("velocity", "v"), ("acceleration", "a")):
-                    values = self.sensitivity(body, point, kind=kind)  # (K, 3, n_design)
-                    for k, parameter in enumerate(self.system.design):
-                        names += [f"d({body}.{point}_{label}{c})/d({parameter})" for c in "xyz"]
-                        columns.append(values[:, :, k])
-        for actuator in self.system.actuators:
-            values = self.actuator_length_sensitivity(actuator)
-            names += [f"d({actuator}.length)/d({parameter})" for parameter in self.system.design]
-            columns.append(values)
-        return names, np.hstack(columns)
-
-    def sensitivities_to_csv(self, path: str | Path) -> Path:
-        """Write :meth:`sensitivity_table` to a CSV file (one row per time point)."""
-        return self._write_csv(path, *self.sensitivity_table())
-
-    def sensitivities_to_json(self, path: str | Path) -> Path:
-        """Write :meth:`sensitivity_table` as JSON: model, case, the design values, and per column
-        name its values over time."""
-        import json
-
-        names, values = self.sensitivity_table()
-        path = Path(path)
-        document = {
-            "model": self.system.model, "case": self.system.case, "design": self.system.design,
-            "columns": {name: values[:, i].tolist() for i, name in enumerate(names)},
-        }  # fmt: skip
-        write_atomic(path, json.dumps(document))
-        return path
-
     def to_csv(self, path: str | Path, extra: tuple[list[str], np.ndarray] | None = None) -> Path:
         """Write every time history to a CSV file (one row per time point); ``extra``: more
         columns (names, values (K, n)) after them, e.g. the forces of :mod:`kinegen.forces`."""
         names, values = self.table()
         if extra is not None:
             names, values = names + list(extra[0]), np.hstack([values, extra[1]])
-        return self._write_csv(path, names, values)
+        return write_csv(path, names, values)
 
-    def _write_csv(self, path: str | Path, names: list[str], values: np.ndarray) -> Path:
-        """The table as CSV into ``path`` (``-``: standard output), all or nothing: a full disk
-        or an interrupted write keeps the previous file."""
-        if str(path) == STDOUT:
-            _csv_rows(sys.stdout, names, values)
-            sys.stdout.flush()
-            return Path(path)
-        path = Path(path)
-        with atomic_writer(path) as binary:
-            handle = io.TextIOWrapper(binary, encoding="utf-8", newline="")
-            _csv_rows(handle, names, values)
-            handle.flush()
-            handle.detach()
-        return path
+
+def write_csv(path: str | Path, names: list[str], values: np.ndarray) -> Path:
+    """A table (column ``names``, ``values`` (K, n)) as CSV into ``path`` (``-``: standard output),
+    all or nothing: a full disk or an interrupted write keeps the previous file."""
+    if str(path) == STDOUT:
+        _csv_rows(sys.stdout, names, values)
+        sys.stdout.flush()
+        return Path(path)
+    path = Path(path)
+    with atomic_writer(path) as binary:
+        handle = io.TextIOWrapper(binary, encoding="utf-8", newline="")
+        _csv_rows(handle, names, values)
+        handle.flush()
+        handle.detach()
+    return path
 
 
 #: columns that hold counts and flags: written as integers (as the C target's example writes them)

@@ -13,11 +13,18 @@ all parameters; Φ_q is factored once per time point for the three solves -- in 
 and a named point's position, velocity and acceleration then change as the generated
 ``frames_d`` kernel says (the frames' 24 values moved along (S, V, W)) plus what the point's
 own body coordinates do (ds/dp).
+
+These are functions of a :class:`kinegen.runtime.Results` (the data of one solve): a point's, a
+body's, a relative angle's, an actuator length's and σ_min's derivatives, by one design parameter
+(``parameter``) or by all of them (the last axis); the state's and the frames' sensitivities are
+computed once per results (:meth:`~kinegen.runtime.Results.once`). Units: those of the quantity
+per unit of the parameter.
 """
 
 from __future__ import annotations
 
 from collections.abc import Callable
+from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -31,6 +38,9 @@ if TYPE_CHECKING:
     from kinegen.runtime.results import Results
     from kinegen.runtime.system import NumericSystem
 
+#: the name :func:`state_sensitivities` keeps its value under (:meth:`kinegen.runtime.Results.once`):
+#: a caller that knows them otherwise (motions stacked from one solve) may seed them
+STATE = "state_sensitivities"
 #: what a point sensitivity can be of
 KINDS = ("position", "velocity", "acceleration")
 #: time points per NumPy batch of the Python path (bounds its memory: entries x batch x n_design)
@@ -73,10 +83,14 @@ def _check(system: NumericSystem) -> None:
 
 
 def state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """(dq/dp, dv/dp, da/dp) at every time point, each (K, n_v, n_design); NaN where the solve
-    did not converge (or Φ_q is singular). On the compiled path one C call does every time
-    point; else Φ_q is factored once per time point by the solver's own LU
-    (:func:`kinegen.runtime.linear.choose`: dense, or band for long chains)."""
+    """(dq/dp, dv/dp, da/dp) at every time point, each (K, n_v, n_design), in velocity coordinates;
+    NaN where the solve did not converge (or Φ_q is singular). Computed once per results. On the
+    compiled path one C call does every time point; else Φ_q is factored once per time point by
+    the solver's own LU (:func:`kinegen.runtime.linear.choose`: dense, or band for long chains)."""
+    return results.once(STATE, _state_sensitivities)
+
+
+def _state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     system = results.system
     _check(system)
     n, n_design = system.n_velocity, len(system.design)
@@ -169,8 +183,9 @@ def _sparse_times(pattern: tuple[np.ndarray, np.ndarray], values, shape: tuple[i
 def frame_sensitivities(results: Results) -> np.ndarray:
     """The change of every body's frame values (FRAME_VALUES of them, as the module's
     FRAME_FIELDS lists: origin, rotation matrix row by row, origin velocity, ω, origin
-    acceleration, ω̇) per unit of each design parameter, (K, n_bodies, FRAME_VALUES, n_design): the generated ``frames_d`` kernel along (dq/dp, dv/dp, da/dp), one call."""
-    return frame_changes(results.system, results.q.T, results.v.T, results.a.T, *results.state_sensitivities())
+    acceleration, ω̇) per unit of each design parameter, (K, n_bodies, FRAME_VALUES, n_design): the
+    generated ``frames_d`` kernel along (dq/dp, dv/dp, da/dp), one call; computed once per results."""
+    return results.once("frame_sensitivities", lambda r: frame_changes(r.system, r.q.T, r.v.T, r.a.T, *state_sensitivities(r)))
 
 
 def frame_changes(system: NumericSystem, q, v, a, s: np.ndarray, velocity: np.ndarray, acceleration: np.ndarray) -> np.ndarray:
@@ -279,7 +294,7 @@ def singular_value_sensitivity(results: Results, block: tuple[np.ndarray, np.nda
     where a singularity shows undiluted by the rest of the mechanism. NaN where the solve did
     not converge."""
     system = results.system
-    s, _, _ = results.state_sensitivities()
+    s, _, _ = state_sensitivities(results)
     m, n_design = system.n_velocity, len(system.design)
     done, q, _, _, u, _, _ = _trajectory(results)
     rows, cols = (np.arange(m), np.arange(m)) if block is None else (np.asarray(block[0]), np.asarray(block[1]))
@@ -297,8 +312,13 @@ def singular_value_sensitivity(results: Results, block: tuple[np.ndarray, np.nda
     return sigma, derivative
 
 
-def point_sensitivity(results: Results, body: str, point: str, kind: str = "position") -> np.ndarray:
-    """d(global position, velocity or acceleration of a named point)/dp, (K, 3, n_design)."""
+def point_sensitivity(results: Results, body: str, point: str, *, kind: str = "position", parameter: str | None = None) -> np.ndarray:
+    """d(global position, velocity or acceleration of a named point)/dp: by every design
+    parameter, (K, 3, n_design), or by ``parameter``, (K, 3)."""
+    return by_parameter(results, _point_sensitivity(results, body, point, kind), parameter)
+
+
+def _point_sensitivity(results: Results, body: str, point: str, kind: str) -> np.ndarray:
     if kind not in KINDS:
         raise ValueError(f"kind must be one of {', '.join(KINDS)}, got {kind!r}")
     system = results.system
@@ -310,7 +330,7 @@ def point_sensitivity(results: Results, body: str, point: str, kind: str = "posi
     if body == GROUND:
         change = derivatives[point] if kind == "position" else np.zeros((3, n_design))
         return np.broadcast_to(change, (count, 3, n_design)).copy()
-    frame = results.frame_sensitivities()[:, list(system.bodies).index(body)]  # (K, FRAME_VALUES, n_design)
+    frame = frame_sensitivities(results)[:, list(system.bodies).index(body)]  # (K, FRAME_VALUES, n_design)
     at = system.frame_slices
     rotation, arm = results.rotation_matrix(body), results.arm(body, point)
     omega, omega_dot = results.omega(body), results.omega_dot(body)
@@ -332,13 +352,17 @@ def point_sensitivity(results: Results, body: str, point: str, kind: str = "posi
     return out
 
 
-def rotation_sensitivity(results: Results, body: str) -> np.ndarray:
+def rotation_sensitivity(results: Results, body: str, *, parameter: str | None = None) -> np.ndarray:
     """The change of a body's orientation per unit of each design parameter, as a global rotation
-    vector (dA/dp = [dθ/dp]× A), (K, 3, n_design)."""
+    vector (dA/dp = [dθ/dp]× A), (K, 3, n_design), or of ``parameter``, (K, 3)."""
+    return by_parameter(results, _rotation_sensitivity(results, body), parameter)
+
+
+def _rotation_sensitivity(results: Results, body: str) -> np.ndarray:
     system = results.system
     if body not in system.bodies:
         raise KeyError(f"no body {body!r} (bodies: {', '.join(system.bodies)})")
-    d_rotation = results.frame_sensitivities()[:, list(system.bodies).index(body), system.frame_slices["rotation"]]  # (K, 9, n_design)
+    d_rotation = frame_sensitivities(results)[:, list(system.bodies).index(body), system.frame_slices["rotation"]]  # (K, 9, n_design)
     count = len(results.times)
     rotation = results.rotation_matrix(body)
     out = np.empty((count, 3, len(system.design)))
@@ -346,3 +370,102 @@ def rotation_sensitivity(results: Results, body: str) -> np.ndarray:
         spin = d_rotation[:, :, k].reshape(count, 3, 3) @ np.swapaxes(rotation, 1, 2)  # [dθ]x
         out[:, :, k] = np.stack([spin[:, 2, 1] - spin[:, 1, 2], spin[:, 0, 2] - spin[:, 2, 0], spin[:, 1, 0] - spin[:, 0, 1]], axis=1) / 2
     return out
+
+
+def relative_angle_sensitivity(results: Results, body1: str, body2: str, axis: tuple[float, float, float], *,
+                               parameter: str | None = None) -> np.ndarray:  # fmt: skip
+    """Exact derivative of the rotation angle of ``body2`` relative to ``body1`` about ``axis``
+    (a unit vector in body-1 coordinates, e.g. a revolute joint's axis; ``body1`` may be
+    ``ground``) by every design parameter, (K, n_design), or by ``parameter``, (K,)."""
+    axis = np.asarray(axis, dtype=float) / np.linalg.norm(axis)
+    turn = _rotation_sensitivity(results, body2)
+    if body1 == GROUND:
+        direction = np.broadcast_to(axis, (len(results.times), 3))
+    else:
+        turn = turn - _rotation_sensitivity(results, body1)
+        direction = results.rotation_matrix(body1) @ axis
+    return by_parameter(results, np.einsum("ki,kij->kj", direction, turn), parameter)
+
+
+def smallest_singular_value_sensitivity(results: Results, *, parameter: str | None = None,
+                                        bodies: tuple[str, ...] | None = None) -> tuple[np.ndarray, np.ndarray]:  # fmt: skip
+    """σ_min of Φ_q at every time point (the distance to a singular pose) and its exact
+    derivative by every design parameter, (K, n_design), or by ``parameter``, (K,). With ``bodies``
+    (a linkage), of the critical block instead: at each time point the diagonal block of Φ_q's
+    block-triangular form holding their coordinates with the smallest σ_min, where a toggle
+    shows undiluted by the rest of the mechanism (:func:`critical_block_sensitivity`)."""
+    if bodies is None:
+        sigma, derivative = singular_value_sensitivity(results)
+    else:
+        sigma, derivative, _ = critical_block_sensitivity(results, tuple(bodies))
+    return sigma, by_parameter(results, derivative, parameter)
+
+
+def actuator_length_sensitivity(results: Results, name: str, *, parameter: str | None = None) -> np.ndarray:
+    """Exact derivative of an actuator's length by every design parameter, (K, n_design), or by
+    ``parameter``, (K,)."""
+    system = results.system
+    if name not in system.actuators:
+        raise KeyError(f"no actuator {name!r} (actuators: {', '.join(system.actuators) or 'none'})")
+    (b1, p1), (b2, p2), _ = system.actuators[name]
+    d = results.point_position(b2, p2) - results.point_position(b1, p1)
+    change = _point_sensitivity(results, b2, p2, "position") - _point_sensitivity(results, b1, p1, "position")
+    out = np.einsum("ki,kij->kj", d / np.linalg.norm(d, axis=1)[:, None], change)
+    return by_parameter(results, out, parameter)
+
+
+def by_parameter(results: Results, values: np.ndarray, parameter: str | None) -> np.ndarray:
+    """``values`` with the design parameters on the last axis: all of them (None), or one
+    (a KeyError naming the model's design parameters for an unknown name)."""
+    if parameter is None:
+        return values
+    names = list(results.system.design)
+    if parameter not in names:
+        raise KeyError(f"no design parameter {parameter!r} (design parameters: {', '.join(names) or 'none'})")
+    return values[..., names.index(parameter)]
+
+
+def sensitivity_table(results: Results) -> tuple[list[str], np.ndarray]:
+    """Column names and values of the sensitivity CSV export: per time point, the derivative
+    of every named point's position, velocity and acceleration (``d(body.point_x)/d(p)``,
+    ``d(body.point_vx)/d(p)``, ``d(body.point_ax)/d(p)``) and of every actuator's length by
+    every design parameter."""
+    system = results.system
+    names, columns = ["t"], [results.times[:, None]]
+    for body, points in system.points.items():
+        for point in points:
+            for kind, label in (("position", ""), ("velocity", "v"), ("acceleration", "a")):
+                values = point_sensitivity(results, body, point, kind=kind)  # (K, 3, n_design)
+                for k, parameter in enumerate(system.design):
+                    names += [f"d({body}.{point}_{label}{c})/d({parameter})" for c in "xyz"]
+                    columns.append(values[:, :, k])
+    for actuator in system.actuators:
+        values = actuator_length_sensitivity(results, actuator)
+        names += [f"d({actuator}.length)/d({parameter})" for parameter in system.design]
+        columns.append(values)
+    return names, np.hstack(columns)
+
+
+def sensitivities_to_csv(results: Results, path: str | Path) -> Path:
+    """Write :func:`sensitivity_table` to a CSV file (one row per time point; ``-``: standard output)."""
+    from kinegen.runtime.results import write_csv
+
+    return write_csv(path, *sensitivity_table(results))
+
+
+def sensitivities_to_json(results: Results, path: str | Path) -> Path:
+    """Write :func:`sensitivity_table` as JSON: model, case, the design values, and per column
+    name its values over time."""
+    import json
+
+    from kinegen.files import write_atomic
+
+    names, values = sensitivity_table(results)
+    path = Path(path)
+    system = results.system
+    document = {
+        "model": system.model, "case": system.case, "design": system.design,
+        "columns": {name: values[:, i].tolist() for i, name in enumerate(names)},
+    }  # fmt: skip
+    write_atomic(path, json.dumps(document))
+    return path

@@ -10,6 +10,7 @@ singularity it is (:func:`kinegen.analysis.classify.classify`), into an
 
 from __future__ import annotations
 
+import math
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -61,6 +62,8 @@ def plan(session: Session, model_file: str | Path, parametrization: str = rotati
     ``parametrization`` at time ``at`` (exact text; default the case's start) or at the
     configuration ``q`` (an object {stored coordinate: value} or a list in stored order, read from
     ``q_source``, as named in errors). Raises :class:`RequestError` for what does not fit."""
+    if not (math.isfinite(budget) and budget > 0):  # (click's range lets NaN through: it compares false)
+        raise RequestError("--budget", f"expected a positive, finite number of seconds, got {budget}")
     model = session.model(model_file)
     model = model.at() if model.design else model
     chosen_parametrization = rotations.get(parametrization)
