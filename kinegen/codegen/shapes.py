@@ -173,6 +173,7 @@ class Shapes:
         self._statements: dict[tuple, Statements] = {}
         self._texts: dict[tuple[str, Hashable], Texts] = {}
         self._naming: dict[Hashable, _Naming] = {}
+        self._held: dict[int, Group] = {}  # the groups without a key whose texts are kept: their ids stay theirs
 
     def statements(self, group: Group) -> Statements:
         """The group's statements, eliminated once per shape."""
@@ -188,7 +189,7 @@ class Shapes:
 
     def texts(self, printers: Sequence[CodePrinter], group: Group) -> tuple[list[Texts], _Naming]:
         """Each printer's text of the group's statements, and their naming; printed when first asked for."""
-        identity = _identity(group)
+        identity = self._identity(group)
         missing = [p for p in printers if (_kind(p), identity) not in self._texts]
         if missing:
             self._print(group, missing)
@@ -196,7 +197,7 @@ class Shapes:
 
     def _print(self, group: Group, printers: Sequence[CodePrinter]) -> None:
         statements = self.statements(group)
-        identity = _identity(group)
+        identity = self._identity(group)
         for printer in printers:
             temporaries = [code(printer, v) for _, v in statements.temporaries]
             outputs = [None if e == 0 else code(printer, e) for e in statements.outputs]
@@ -214,7 +215,7 @@ class Shapes:
         pipe): the two cores' share of a build. What is printed already is not printed again."""
         todo: dict[Hashable, tuple[Group, list[CodePrinter]]] = {}
         for printer, group in jobs:
-            identity = _identity(group)
+            identity = self._identity(group)
             if (_kind(printer), identity) in self._texts:
                 continue
             _, printers = todo.setdefault(identity, (group, []))
@@ -235,12 +236,20 @@ class Shapes:
         for identity, value in naming.items():
             self._naming.setdefault(identity, value)
 
+    def _identity(self, group: Group) -> Hashable:
+        """What a group's texts are kept under: its key, or (a group without one) the group itself,
+        held here so that its id is not another's later."""
+        if group.key is not None:
+            return group.key
+        self._held[id(group)] = group
+        return ("group", id(group))
+
     def _printed_texts(self, work: list[tuple[Group, list[CodePrinter]]]) -> tuple[dict, dict]:
         """``work`` printed here: the texts and namings made for it (what a forked process sends back)."""
         before = set(self._texts)
         for group, printers in work:
             self._print(group, printers)
-        identities = {_identity(group) for group, _ in work}
+        identities = {self._identity(group) for group, _ in work}
         return {k: v for k, v in self._texts.items() if k not in before}, {k: self._naming[k] for k in identities}
 
 
@@ -249,9 +258,6 @@ def _text(symbol: sp.Symbol) -> str:
     return symbol.name if type(symbol) is sp.Symbol else str(symbol)
 
 
-def _identity(group: Group) -> Hashable:
-    """What a group's texts are kept under: its key, or (a group without one) the group itself."""
-    return group.key if group.key is not None else ("group", id(group))
 
 
 class Printing:
