@@ -361,6 +361,14 @@ def solve(
         raise results.failure
 
 
+def _not_negative(_ctx: click.Context, param: click.Parameter, value: float) -> float:
+    """A threshold option's value: a number not below 0 (infinity allowed); NaN, which every
+    comparison would pass, is a usage error."""
+    if np.isnan(value) or value < 0:
+        raise click.BadParameter(f"expected a number not below 0, got {value}", param_hint=param.opts[0])
+    return value
+
+
 def _finite(param: click.Parameter, value: float | None) -> float | None:
     """A time option's value: a finite number (click reads 'nan' and 'inf' as floats)."""
     if value is not None and not np.isfinite(value):
@@ -597,7 +605,8 @@ def compare(model_file: str, case: str | None, params: tuple[str, ...], no_compi
 @PARAM
 @click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_output_file, help="The HTML page (default: out/<model>_<case>.html).")
 @click.option("--track", "--point", "track", default=None, metavar="BODY.POINT", help="The point whose path is drawn (default: the working range's point).")
-@click.option("--condition-warning", type=float, default=1e6, show_default=True, help="Bodies turn orange where cond(Phi_q) exceeds this.")
+@click.option("--condition-warning", type=float, default=1e6, show_default=True, callback=_not_negative,
+              help="Bodies turn orange where cond(Phi_q) exceeds this.")
 @click.option("--animate", type=click.Path(dir_okay=False), default=None, help="Also a .gif (or .mp4, with ffmpeg) of the motion in one plane.")
 @click.option("--frame", "frame_body", default=None, help="--animate: draw in the x-z plane of this body's frame (default: as solve --plot chooses).")
 @click.option("--design", "design", multiple=True, metavar="NAME=VALUE", help="A design parameter's value (repeatable).")
@@ -946,6 +955,7 @@ def _table_number(value: float, scale: float) -> str:
     type=float,
     default=1e-3,
     show_default=True,
+    callback=_not_negative,
     help="Warn when a diagonal block's sigma_min/sigma_max falls below this.",
 )
 @click.option(

@@ -132,6 +132,8 @@ def test_a_model_from_standard_input_solves_as_the_same_file(tmp_path):
         (["envelope", str(MODELS / "excavator.yaml"), "--grid", "1000,1000,1000"], "--grid"),
         (["solve", FOUR_BAR, "--plot", "x.xyz"], "--plot"),
         (["scan", FOUR_BAR, "--plot", "x.xyz"], "--plot"),
+        (["scan", FOUR_BAR, "--warn", "nan"], "--warn"),
+        (["view", FOUR_BAR, "--condition-warning", "-1"], "--condition-warning"),
     ],
 )
 def test_a_bad_argument_is_one_usage_error_naming_the_option(args, option):
