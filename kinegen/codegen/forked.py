@@ -21,7 +21,8 @@ def may_fork() -> bool:
 
 
 class Child:
-    """``function(*args)`` running in a forked process; :meth:`result` waits for it."""
+    """``function(*args)`` started in a forked child process (see :func:`may_fork`); :meth:`result`
+    waits for it."""
 
     def __init__(self, function: Callable[..., Any], *args: Any) -> None:
         context = multiprocessing.get_context("fork")
@@ -44,11 +45,6 @@ class Child:
         if outcome == "error":
             raise _exception(*value)
         return value
-
-
-def in_child(function: Callable[..., Any], *args: Any) -> Child:
-    """Start ``function(*args)`` in a forked child process (see :func:`may_fork`)."""
-    return Child(function, *args)
 
 
 def _run(function: Callable[..., Any], args: tuple, sending) -> None:

@@ -226,9 +226,9 @@ class Shapes:
             for group, printers in work:
                 self._print(group, printers)
             return
-        from kinegen.codegen.forked import in_child
+        from kinegen.codegen.forked import Child
 
-        child = in_child(self._printed_texts, work[1::2])
+        child = Child(self._printed_texts, work[1::2])
         for group, printers in work[0::2]:
             self._print(group, printers)
         texts, naming = child.result()
