@@ -153,13 +153,32 @@ def run(plan: SolvePlan) -> SolveReport:
     return SolveReport(plan, results, elapsed, held, supplied)
 
 
+def available_memory() -> int | None:
+    """Bytes a new allocation can take without swapping, or None where the system does not say.
+
+    Linux's ``MemAvailable`` (/proc/meminfo): free memory plus the page cache and slabs the
+    kernel would reclaim. Free pages alone (``SC_AVPHYS_PAGES``) leave the cache out, and on a
+    machine whose files fill its cache they read a fraction of what a solve may take.
+    """
+    try:
+        with open("/proc/meminfo", encoding="ascii") as meminfo:
+            for line in meminfo:
+                if line.startswith("MemAvailable:"):
+                    return int(line.split()[1]) * 1024
+    except (OSError, ValueError, IndexError):
+        pass
+    try:
+        return os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
+    except (ValueError, OSError, AttributeError):
+        return None
+
+
 def check_memory(system: Any, steps: int, force: bool = False) -> None:
     """Refuse (unless ``force``) a solve whose results would not fit in half the available memory."""
     need = steps * BYTES_PER_VALUE * (system.n_stored + 2 * system.n_velocity + 3 * len(system.driver_names)
                                       + FRAME_VALUES * len(system.bodies))  # fmt: skip
-    try:
-        available = os.sysconf("SC_AVPHYS_PAGES") * os.sysconf("SC_PAGE_SIZE")
-    except (ValueError, OSError, AttributeError):  # not on this system: no estimate
+    available = available_memory()
+    if available is None:  # not on this system: no estimate
         return
     if need > available / 2 and not force:
         raise RequestError(
@@ -169,4 +188,4 @@ def check_memory(system: Any, steps: int, force: bool = False) -> None:
         )
 
 
-__all__ = ["RequestError", "SolvePlan", "SolveReport", "check_memory", "plan", "run"]
+__all__ = ["RequestError", "SolvePlan", "SolveReport", "available_memory", "check_memory", "plan", "run"]
