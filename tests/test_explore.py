@@ -210,7 +210,9 @@ def test_a_worker_killed_mid_run_is_survived(one_worker_run: Path, tmp_path: Pat
 def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(one_worker_run: Path, tmp_path: Path) -> None:
     out = tmp_path / "resumed.parquet"
     command = [sys.executable, "-m", "kinegen.cli", "explore", str(MODEL), "--study", "calibration", "--samples", "40",
-               "--partition-size", "4", "--workers", "1", "--out", str(out)]  # fmt: skip
+               "--partition-size", "1", "--workers", "1", "--out", str(out)]  # fmt: skip
+    # 40 partitions of one variant: after the third, 37 are left to outrun the Ctrl-C below (with 10
+    # of 4, a loaded machine wrote the last 7 before the interrupt took effect, 3 times in a row)
     environment = {**os.environ, "OPENBLAS_NUM_THREADS": "1"}
     for _attempt in range(3):  # on a loaded machine this test may sleep until the run wrote every partition: again
         shutil.rmtree(out, ignore_errors=True)
@@ -221,12 +223,12 @@ def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(on
         if run.poll() is None:
             run.send_signal(signal.SIGINT)  # as Ctrl-C
         run.communicate(timeout=60)
-        if len(Store(out).done()) < 10:
+        if len(Store(out).done()) < 40:
             break
-    assert len(Store(out).done()) < 10, "every partition was written before the run could be interrupted, 3 times"
+    assert len(Store(out).done()) < 40, "every partition was written before the run could be interrupted, 3 times"
     assert run.returncode != 0
     written = {i: (out / f"part-{i:06d}.parquet").stat() for i in Store(out).done()}
-    assert 3 <= len(written) < 10
+    assert 3 <= len(written) < 40
     # a new run into the same folder without --resume loses nothing: it is refused
     refused = subprocess.run(command, cwd=ROOT, env=environment, capture_output=True, text=True)
     assert refused.returncode == ExitCode.EXPLORATION and "--resume" in refused.stderr
@@ -237,8 +239,8 @@ def test_resume_after_an_interrupted_run_computes_only_the_missing_partitions(on
         cwd=ROOT, env=environment, capture_output=True, text=True, timeout=300,
     )  # fmt: skip
     assert resumed.returncode == 0, resumed.stderr
-    assert f"{len(written)} of 10 partitions already written" in resumed.stderr
-    assert f"{40 - 4 * len(written)} variants in {10 - len(written)} partitions" in resumed.stdout
+    assert f"{len(written)} of 40 partitions already written" in resumed.stderr
+    assert f"{40 - len(written)} variants in {40 - len(written)} partitions" in resumed.stdout
     for i, stat in written.items():  # the partitions written before were not computed again
         now = (out / f"part-{i:06d}.parquet").stat()
         assert (now.st_ino, now.st_mtime_ns) == (stat.st_ino, stat.st_mtime_ns)
