@@ -20,7 +20,7 @@ Example::
 
     session = Session("generated")
     results = session.solve("models/excavator.yaml", case="digging")
-    print(results.point_position("bucket", "tip")[-1])
+    print(kinematics.point_position(results, "bucket", "tip")[-1])
 """
 
 from __future__ import annotations

@@ -7,10 +7,12 @@ model error's).
 from __future__ import annotations
 
 import json
+import math
 import os
 import sys
 import traceback
 import warnings
+from collections.abc import Callable
 from pathlib import Path
 
 import click
@@ -21,6 +23,24 @@ from kinegen.files import MAX_MODEL_BYTES, STDIN, STDOUT, read_bounded
 from kinegen.lazy import lazy_import
 
 np = lazy_import("numpy")  # imported at its first use: `kinegen --help` and `kinegen models` do not need it
+
+
+def _number_check(accepts: Callable[[float], bool], expected: str) -> Callable[[click.Context, click.Parameter, float | None], float | None]:
+    """An option callback refusing, as a usage error of that option, a number ``accepts`` rejects
+    (click reads 'nan' and 'inf' as floats; NaN, which passes no comparison, is rejected by each)."""
+
+    def check(_ctx: click.Context, param: click.Parameter, value: float | None) -> float | None:
+        if value is not None and not accepts(value):
+            raise click.BadParameter(f"expected {expected}, got {value}", param_hint=param.opts[0])
+        return value
+
+    return check
+
+
+#: a threshold: a number not below 0 (infinity allowed)
+_not_negative = _number_check(lambda value: value >= 0, "a number not below 0")
+#: a time: a finite number
+_finite = _number_check(math.isfinite, "a finite number of seconds")
 
 
 class _Group(click.Group):
@@ -222,8 +242,8 @@ def _system(
 @click.argument("model_file", type=click.Path(dir_okay=False))
 @click.option("--case", default=None, help="Case to solve (default: the first).")
 @PARAM
-@click.option("--t0", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="Start time [s] (default: the case's).")
-@click.option("--t1", type=float, default=None, callback=lambda _c, p, v: _finite(p, v), help="End time [s] (default: the case's).")
+@click.option("--t0", type=float, default=None, callback=_finite, help="Start time [s] (default: the case's).")
+@click.option("--t1", type=float, default=None, callback=_finite, help="End time [s] (default: the case's).")
 @click.option("--steps", type=click.IntRange(min=2), default=None, help="Number of time points (default: the case's).")
 @click.option("--out", type=click.Path(dir_okay=False), default=None, callback=_output_file, help="CSV file for all time histories (- for standard output; the summary then goes to standard error).")
 @click.option("--plot", type=click.Path(dir_okay=False), default=None, callback=_image_file,
@@ -336,7 +356,9 @@ def solve(
     if out:
         extra = [t for t in (held.table() if held is not None else None, supplied.table() if supplied is not None else None) if t]
         joined = ([n for names, _ in extra for n in names], np.hstack([values for _, values in extra])) if extra else None
-        written = results.to_csv(out, joined)
+        from kinegen.runtime.export import to_csv
+
+        written = to_csv(results, out, joined)
         if not piped:
             click.echo(f"wrote {written}")
     if sensitivities:
@@ -359,21 +381,6 @@ def solve(
         click.echo(f"wrote {motion_view(results, model, page, title=f'{system.model} / {system.case}')}", err=piped)
     if results.failure is not None:
         raise results.failure
-
-
-def _not_negative(_ctx: click.Context, param: click.Parameter, value: float) -> float:
-    """A threshold option's value: a number not below 0 (infinity allowed); NaN, which every
-    comparison would pass, is a usage error."""
-    if np.isnan(value) or value < 0:
-        raise click.BadParameter(f"expected a number not below 0, got {value}", param_hint=param.opts[0])
-    return value
-
-
-def _finite(param: click.Parameter, value: float | None) -> float | None:
-    """A time option's value: a finite number (click reads 'nan' and 'inf' as floats)."""
-    if value is not None and not np.isfinite(value):
-        raise click.BadParameter(f"expected a finite number of seconds, got {value}", param_hint=f"--{param.name}")
-    return value
 
 
 def _picture_plane(results, model, frame_body: str | None, point: tuple[str, str] | None = None) -> tuple[tuple[str, str] | None, str | None]:
@@ -490,8 +497,10 @@ def _report_supply(supplied, piped: bool) -> None:
 
 def _report_ranges(results) -> None:
     """Each actuator that leaves its range: how often, when, and how far."""
+    from kinegen.runtime.kinematics import range_violations
+
     by_actuator: dict[str, list] = {}
-    for t, name, value, limits in results.range_violations():
+    for t, name, value, limits in range_violations(results):
         by_actuator.setdefault(name, []).append((t, value, limits))
     for name, hits in by_actuator.items():
         limits = hits[0][2]

@@ -17,7 +17,7 @@ import numpy as np
 
 from kinegen.api import Session
 from kinegen.errors import KinegenError, SingularJacobianError
-from kinegen.runtime import Solver, SolverOptions, from_module, solve
+from kinegen.runtime import Solver, SolverOptions, export, from_module, kinematics, solve
 
 #: The excavator's operating cases (``bucket_toggle`` is for `kinegen scan`).
 OPERATING_CASES = ("digging", "level_cut", "trench_wall")
@@ -75,7 +75,7 @@ def _excavator(session: Session, models: Path, module, excavator_model, out: Pat
         elapsed = time.perf_counter() - start
         runs[case] = results
         for i, (name, (_, _, limits)) in enumerate(system.actuators.items()):
-            length, rate = results.actuator_length(name), results.actuator_rate(name)
+            length, rate = kinematics.actuator_length(results, name), kinematics.actuator_rate(results, name)
             lead = (
                 f"{case:<12} {len(results.times):>5} {results.iterations.mean():>6.2f} {results.residuals.max():>8.1e} {elapsed:>7.2f}"
                 if i == 0
@@ -85,15 +85,15 @@ def _excavator(session: Session, models: Path, module, excavator_model, out: Pat
                 f"{lead}  {name:<20} {length.min():>6.3f}-{length.max():<6.3f} {limits[0]:>7.4f}-{limits[1]:<7.4f} "
                 f"{np.abs(rate).max():>6.3f} m/s"
             )
-        for t, name, value, limits in results.range_violations():
+        for t, name, value, limits in kinematics.range_violations(results):
             failures += 1
             print(f"  RANGE: t = {t:.3f} s, {name} = {value:.4f} m outside [{limits[0]}, {limits[1]}]")
-        tip = results.point_position("bucket", "T")
+        tip = kinematics.point_position(results, "bucket", "T")
         print(
             f"{'':<12} tip T from ({tip[0, 0]:.3f}, {tip[0, 1]:.3f}, {tip[0, 2]:.3f}) to ({tip[-1, 0]:.3f}, {tip[-1, 1]:.3f}, {tip[-1, 2]:.3f}) m, cond(Phi_q) <= {results.conditions.max():.0f}"
         )
         stem = f"excavator_{case}"
-        results.to_csv(out / f"{stem}.csv")
+        export.to_csv(results, out / f"{stem}.csv")
         from kinegen.analysis.plots import plot_case
 
         plot_case(results, out / f"{stem}.png", frame_body="upper", trace=("bucket", "T"), model=excavator_model)
@@ -110,7 +110,7 @@ def _excavator(session: Session, models: Path, module, excavator_model, out: Pat
                     for point in points:
                         worst = max(
                             worst,
-                            float(np.abs(results.point_position(body, point) - reference.point_position(body, point)).max()),
+                            float(np.abs(kinematics.point_position(results, body, point) - kinematics.point_position(reference, body, point)).max()),
                         )
             verdict = "agrees" if worst < 1e-9 else "DISAGREES"
             failures += worst >= 1e-9
@@ -134,7 +134,7 @@ def _branch_keeping(module) -> int:
 
     def deviation(results) -> float:
         def angle(r):
-            rotation = r.rotation_matrix("bucket")
+            rotation = kinematics.rotation_matrix(r, "bucket")
             return np.arctan2(rotation[:, 2, 0], rotation[:, 0, 0])
 
         difference = angle(results) - np.interp(results.times, fine, angle(reference))

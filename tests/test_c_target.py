@@ -19,7 +19,7 @@ from kinegen.bench.callgraph import CallGraph
 from kinegen.cli import main
 from kinegen.codegen.backends.c import config
 from kinegen.errors import KinegenError
-from kinegen.runtime import Solver, SolverOptions, from_module, load_module
+from kinegen.runtime import Solver, SolverOptions, export, from_module, load_module
 from kinegen.runtime.native import build_library, with_solver
 from tests.conftest import GENERATED, MODELS, ROOT, chain_yaml
 
@@ -310,7 +310,7 @@ def _compare(program: Path, python_system, case: str) -> None:
     header, *rows = done.stdout.splitlines()
     c = np.array([[float(x) for x in row.split(",")] for row in rows])
     results = Solver(python_system, SolverOptions(condition="estimate")).solve()  # the C program's column
-    names, table = results.table()
+    names, table = export.table(results)
     supplied = _supply_table(python_system, results)
     if supplied is not None:  # a model with pumps: the flows follow (the declared supply kernel's outputs)
         names, table = [*names, *supplied[0]], np.hstack([table, supplied[1]])
@@ -321,7 +321,7 @@ def _compare(program: Path, python_system, case: str) -> None:
     _same_rows(c, table, names)
     # one format: the counts and flags as integers in both (C: %d; Python's CSV the same)
     with tempfile.TemporaryDirectory() as folder:
-        python_rows = results.to_csv(Path(folder) / "python.csv").read_text().splitlines()[1:]
+        python_rows = export.to_csv(results, Path(folder) / "python.csv").read_text().splitlines()[1:]
     for column in ("converged", "newton_iterations"):
         k = names.index(column)
         assert all(re.fullmatch(r"\d+", row.split(",")[k]) for row in (*rows, *python_rows)), column

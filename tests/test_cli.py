@@ -13,6 +13,7 @@ from click.testing import CliRunner
 
 from kinegen.cli import main
 from kinegen.errors import ExitCode
+from kinegen.runtime import kinematics
 from tests.conftest import MODELS
 
 BOOM = str(MODELS / "boom.yaml")
@@ -165,7 +166,7 @@ def test_the_solve_plot_draws_each_mechanism_in_the_plane_that_shows_it(tmp_path
     assert tracked_point(boom) == ("boom", "tip") and best_frame(boom, ("boom", "tip")) is None
     basis, labels, _ = drawing_plane(boom, None)
     assert labels == ("x, global [m]", "y, global [m]") and np.array_equal(basis, np.eye(3)[:2])
-    tip = boom.point_position("boom", "tip")
+    tip = kinematics.point_position(boom, "boom", "tip")
     assert np.abs(tip[:, 2]).max() < 1e-12  # the motion is in that plane: nothing is lost drawing it there
     excavator = solve(generated_system("excavator_quaternion", "digging"))
     assert best_frame(excavator, ("bucket", "T")) == "upper"

@@ -17,7 +17,7 @@ from kinegen import rotations
 from kinegen.codegen.inmemory import lambdify_model
 from kinegen.errors import ExitCode, ModelError
 from kinegen.model import load, loads
-from kinegen.runtime import from_module, solve
+from kinegen.runtime import from_module, kinematics, solve
 from kinegen.runtime.sensitivity import point_sensitivity, relative_angle_sensitivity, smallest_singular_value_sensitivity
 from tests.conftest import GENERATED, MODELS
 
@@ -68,7 +68,7 @@ def test_a_model_at_other_values_solves_to_the_closed_form():
     t = results.times
     theta = 0.3 + 2 * np.pi * t + 0.5 * t**2
     x = 0.21 * np.cos(theta) + np.sqrt(0.65**2 - 0.21**2 * np.sin(theta) ** 2)
-    assert np.abs(results.point_position("slider", "C")[:, 0] - x).max() < 1e-10
+    assert np.abs(kinematics.point_position(results, "slider", "C")[:, 0] - x).max() < 1e-10
 
 
 @pytest.mark.parametrize(
@@ -123,10 +123,10 @@ def test_one_generated_module_solves_any_design_without_a_rebuild(tmp_path, para
         results = solve(system)
         crank, rod = values.get("r", 0.2), values.get("l", 0.6)
         assert system.design == {"r": crank, "l": rod}
-        assert np.abs(results.point_position("slider", "C")[:, 0] - _slider_x(crank, rod, results.times)).max() < 1e-10
+        assert np.abs(kinematics.point_position(results, "slider", "C")[:, 0] - _slider_x(crank, rod, results.times)).max() < 1e-10
         rebuilt = solve(from_module(lambdify_model(model.at(values), rotations.get(param)), "run"))
         for body, point in (("crank", "B"), ("rod", "C"), ("slider", "C")):
-            assert np.abs(results.point_position(body, point) - rebuilt.point_position(body, point)).max() < 1e-12
+            assert np.abs(kinematics.point_position(results, body, point) - kinematics.point_position(rebuilt, body, point)).max() < 1e-12
 
 
 def test_design_values_are_checked_against_the_module():
@@ -280,7 +280,7 @@ def test_four_bar_sensitivities_match_central_differences_of_rebuilt_models(tmp_
             values = dict(at, **{name: at[name] + sign * h})
             rebuilt = solve(from_module(lambdify_model(model.at(values), rotations.get("quaternion")), "crank_turn"))
             shifted.append({
-                (b, p, kind): getattr(rebuilt, f"point_{kind}")(b, p)
+                (b, p, kind): getattr(kinematics, f"point_{kind}")(rebuilt, b, p)
                 for b, p in (("coupler", "M"), ("rocker", "C")) for kind in ("position", "velocity", "acceleration")
             })  # fmt: skip
         for body, point, kind in shifted[0]:
@@ -360,7 +360,7 @@ def test_excavator_sensitivities_match_central_differences_of_rebuilt_models():
             rebuilt_model = model.at(dict(at, **{name: at[name] + sign * h}))
             source = generate(rebuilt_model, rotations.get("quaternion"), ("python",))["python"]["excavator_quaternion.py"]
             rebuilt = solve(from_module(module_from_source(source), "digging", compiled=False), times)
-            shifted.append({kind: getattr(rebuilt, f"point_{kind}")("bucket", "T") for kind in ("position", "velocity", "acceleration")})
+            shifted.append({kind: getattr(kinematics, f"point_{kind}")(rebuilt, "bucket", "T") for kind in ("position", "velocity", "acceleration")})
         for kind in shifted[0]:
             exact = point_sensitivity(results, "bucket", "T", parameter=name, kind=kind)
             central = (shifted[0][kind] - shifted[1][kind]) / (2 * h)
@@ -392,7 +392,7 @@ def test_joint_angle_sensitivities_match_central_differences(tmp_path):
     at = FOUR_BAR_AT
 
     def angles(r):
-        rocker, crank, coupler = (r.rotation_matrix(b) for b in ("rocker", "crank", "coupler"))
+        rocker, crank, coupler = (kinematics.rotation_matrix(r, b) for b in ("rocker", "crank", "coupler"))
         relative = np.swapaxes(crank, 1, 2) @ coupler
         return np.unwrap(np.arctan2(rocker[:, 1, 0], rocker[:, 0, 0])), np.unwrap(np.arctan2(relative[:, 1, 0], relative[:, 0, 0]))
 
@@ -456,9 +456,9 @@ def test_actuator_ranges_and_working_range_inputs_may_use_design_parameters(tmp_
     for value in (0.45, 0.48):
         results = solve(from_module(module, "run", design={"s_min": value}))
         assert results.system.actuators["stroke"][2] == pytest.approx((value, 0.79), abs=1e-15)
-        length = results.actuator_length("stroke")  # x = r cos θ + sqrt(l² − r² sin² θ): 0.4 .. 0.8
+        length = kinematics.actuator_length(results, "stroke")  # x = r cos θ + sqrt(l² − r² sin² θ): 0.4 .. 0.8
         expected = sorted({(float(t), "stroke", float(x)) for t, x in zip(results.times, length) if not value <= x <= 0.79})
-        assert [(t, n, x) for t, n, x, _ in results.range_violations()] == expected and expected
+        assert [(t, n, x) for t, n, x, _ in kinematics.range_violations(results)] == expected and expected
     with pytest.raises(ModelError) as error:
         loads(text.replace("range: [s_min, 0.79]", "range: [s_min, 0.3]"), "bad.yaml")
     assert error.value.entry == "actuators.stroke.range" and "min < max" in error.value.problem

@@ -15,7 +15,7 @@ from kinegen.api import Session
 from kinegen.forces import forces
 from kinegen.forces.dynamics import energies
 from kinegen.model.schema import GROUND, design_value
-from kinegen.runtime import solve
+from kinegen.runtime import kinematics, solve
 from tests.conftest import ROOT, chain_yaml, generated_system, model, nominal_inertia
 
 ARM = ROOT / "tests" / "models" / "arm3.yaml"
@@ -81,12 +81,12 @@ def joint_motion(model, results, order, initial: dict | None = None) -> tuple[np
     initial[GROUND] = np.eye(3)
 
     def rotation(body):
-        return np.broadcast_to(np.eye(3), (k, 3, 3)) if body == GROUND else results.rotation_matrix(body)
+        return np.broadcast_to(np.eye(3), (k, 3, 3)) if body == GROUND else kinematics.rotation_matrix(results, body)
 
     def omega(body, derivative=False):
         if body == GROUND:
             return np.zeros((k, 3))
-        return results.omega_dot(body) if derivative else results.omega(body)
+        return kinematics.omega_dot(results, body) if derivative else kinematics.omega(results, body)
 
     q, v, a = [], [], []
     for _, parent, child, axis in order:
@@ -173,11 +173,11 @@ def test_every_body_is_in_equilibrium_with_its_dalembert_forces(tmp_path_factory
     gravity = _floats(model.gravity)
     for body in model.bodies:
         inertia = body.inertia
-        rotation = results.rotation_matrix(body.name)
-        center = results.position(body.name) + rotation @ _floats(inertia.center)
-        omega, omega_dot = results.omega(body.name), results.omega_dot(body.name)
-        arm = center - results.position(body.name)
-        acceleration = results.acceleration(body.name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
+        rotation = kinematics.rotation_matrix(results, body.name)
+        center = kinematics.position(results, body.name) + rotation @ _floats(inertia.center)
+        omega, omega_dot = kinematics.omega(results, body.name), kinematics.omega_dot(results, body.name)
+        arm = center - kinematics.position(results, body.name)
+        acceleration = kinematics.acceleration(results, body.name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
         tensor = rotation @ np.array(inertia.tensor.evalf(), dtype=float) @ rotation.swapaxes(1, 2)
         force = float(inertia.mass) * (gravity - acceleration)
         moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
@@ -185,7 +185,7 @@ def test_every_body_is_in_equilibrium_with_its_dalembert_forces(tmp_path_factory
         for driver in model.cases[results.system.case].drivers:  # a joint-angle driver's torque f a: on body2, and -f a on body1
             joint = next(j for j in model.joints if j.name == driver.joint)
             carried = np.broadcast_to(_floats(joint.axis1), (len(force), 3)) if joint.body1 == GROUND else \
-                results.rotation_matrix(joint.body1) @ _floats(joint.axis1)
+                kinematics.rotation_matrix(results, joint.body1) @ _floats(joint.axis1)
             torque = held.element_force(driver.name)[:, None] * carried
             moment = moment + (torque if joint.body2 == body.name else -torque if joint.body1 == body.name else 0.0)
         for reaction in held.reactions.values():
@@ -265,7 +265,7 @@ def test_the_tipping_margin_is_the_moment_the_ground_sees(tmp_path_factory):
     lever = 7300 * 9.80665 * 3.37 / 2
     for b in excavator.massive:
         mass, center, _ = nominal_inertia("excavator", b)
-        lever = lever + mass * 9.80665 * (3.37 / 2 - (results.position(b.name) + results.rotation_matrix(b.name) @ center)[:, 0])
+        lever = lever + mass * 9.80665 * (3.37 / 2 - (kinematics.position(results, b.name) + kinematics.rotation_matrix(results, b.name) @ center)[:, 0])
     np.testing.assert_allclose(still.margins["front"], lever, rtol=1e-12)
 
 
@@ -384,10 +384,10 @@ def test_the_four_bars_crank_torque_drives_pinocchios_closed_loop(tmp_path_facto
                                        joints["D"], pin.SE3(np.eye(3), np.array([0.7, 0.0, 0.0])), pin.ReferenceFrame.LOCAL)  # fmt: skip
 
     def angle(body: str) -> np.ndarray:
-        rotation = results.rotation_matrix(body)
+        rotation = kinematics.rotation_matrix(results, body)
         return np.unwrap(np.arctan2(rotation[:, 1, 0], rotation[:, 0, 0]))
 
-    crank, coupler, rocker = (np.column_stack([angle(b), results.omega(b)[:, 2], results.omega_dot(b)[:, 2]]) for b in FOUR_BAR_MASSES)
+    crank, coupler, rocker = (np.column_stack([angle(b), kinematics.omega(results, b)[:, 2], kinematics.omega_dot(results, b)[:, 2]]) for b in FOUR_BAR_MASSES)
     relative = coupler - crank  # joint B turns the coupler relative to the crank
     q, v, a = (np.column_stack([crank[:, i], relative[:, i], rocker[:, i]]) for i in range(3))
     found = closed_loop_accelerations(chain, closure, q, v, np.column_stack([torque, np.zeros((len(q), 2))]))
@@ -469,10 +469,10 @@ def test_a_cylinders_force_drives_pinocchios_closed_loop(tmp_path_factory, param
                                        pin.SE3(np.eye(3), np.array([1.2, 0.0, -0.15])), pin.ReferenceFrame.LOCAL)  # fmt: skip
 
     def about_y(body: str) -> np.ndarray:  # angle, rate and its rate about +y (each body turns about y alone)
-        rotation = results.rotation_matrix(body)
-        return np.column_stack([np.unwrap(np.arctan2(rotation[:, 0, 2], rotation[:, 0, 0])), results.omega(body)[:, 1], results.omega_dot(body)[:, 1]])
+        rotation = kinematics.rotation_matrix(results, body)
+        return np.column_stack([np.unwrap(np.arctan2(rotation[:, 0, 2], rotation[:, 0, 0])), kinematics.omega(results, body)[:, 1], kinematics.omega_dot(results, body)[:, 1]])
 
-    length = np.column_stack([results.actuator_length("lift"), results.actuator_rate("lift"), results.actuator_acceleration("lift")])
+    length = np.column_stack([kinematics.actuator_length(results, "lift"), kinematics.actuator_rate(results, "lift"), kinematics.actuator_acceleration(results, "lift")])
     boom, barrel = about_y("boom"), about_y("barrel")
     q, v, a = (np.column_stack([boom[:, i], barrel[:, i], length[:, i]]) for i in range(3))
     found = closed_loop_accelerations(chain, closure, q, v, np.column_stack([np.zeros((len(q), 2)), push]))
@@ -500,7 +500,7 @@ def test_the_excavators_cylinder_forces_equal_pinocchios_closed_loop_inverse_dyn
     def vector(values) -> np.ndarray:
         return np.array([design_value(x, nominal) for x in values])
 
-    start = {GROUND: np.eye(3), **{name: results.rotation_matrix(name)[0] for name in bodies}}  # Pinocchio's zero: the solved start
+    start = {GROUND: np.eye(3), **{name: kinematics.rotation_matrix(results, name)[0] for name in bodies}}  # Pinocchio's zero: the solved start
 
     edges = []  # (parent, child, revolute?, the joint's point on the parent, its axis, the body that axis is given on)
     for j in excavator.joints:
@@ -546,7 +546,7 @@ def test_the_excavators_cylinder_forces_equal_pinocchios_closed_loop_inverse_dyn
             q[:, i], v[:, i], a[:, i] = turned[child]
         else:  # the rod slides out of its barrel by the cylinder's length
             name = rods[child]
-            q[:, i], v[:, i], a[:, i] = results.actuator_length(name), results.actuator_rate(name), results.actuator_acceleration(name)
+            q[:, i], v[:, i], a[:, i] = kinematics.actuator_length(results, name), kinematics.actuator_rate(results, name), kinematics.actuator_acceleration(results, name)
         element = "swing_motor" if child == "upper" else excavator.lead(rods[child]) if child in rods else None
         if element in [e.name for e in held.elements]:  # the two boom cylinders: one element, one force, two joints
             actuated.setdefault(element, []).append(i)

@@ -13,7 +13,7 @@ import pytest
 import sympy as sp
 
 from kinegen.forces.dynamics import inertial_load, tipping_margin
-from kinegen.runtime import SolverOptions, from_module, load_module
+from kinegen.runtime import SolverOptions, from_module, kinematics, load_module
 from kinegen.runtime.sensitivity import state_sensitivities
 from kinegen.runtime.solver import solve
 from tests.conftest import GENERATED, model
@@ -133,13 +133,13 @@ def _numeric_inertial_load(results, excavator):
     for body in excavator.massive:
         mass, local, body_tensor = inertia_numbers(body.inertia, results.system.design)
         name = body.name
-        rotation = results.rotation_matrix(name)
+        rotation = kinematics.rotation_matrix(results, name)
         arm = rotation @ local
-        omega, omega_dot = results.omega(name), results.omega_dot(name)
-        acceleration = results.acceleration(name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
+        omega, omega_dot = kinematics.omega(results, name), kinematics.omega_dot(results, name)
+        acceleration = kinematics.acceleration(results, name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
         tensor = rotation @ body_tensor @ rotation.swapaxes(1, 2)
         moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
-        jacobian = statics.point_jacobian(name, results.position(name) + arm)
+        jacobian = statics.point_jacobian(name, kinematics.position(results, name) + arm)
         out[:, statics.columns(name)] += np.einsum("kic,ki->kc", jacobian, mass * (gravity - acceleration))
         out[:, statics.columns(name)] += np.einsum("kic,ki->kc", statics.tangents[name][1], moment)
     return out

@@ -16,7 +16,7 @@ from kinegen.errors import SingularJacobianError
 from kinegen.forces import forces
 from kinegen.forces.statics import Forces
 from kinegen.model.schema import GROUND, Load, Motor, PointRef
-from kinegen.runtime import SolverOptions, solve
+from kinegen.runtime import SolverOptions, kinematics, solve
 from tests.conftest import MODELS, generated_system, model
 
 PARAMETRIZATIONS = ("quaternion", "euler_parameters", "dual_quaternion", "dual_euler_parameters")
@@ -70,7 +70,7 @@ def _element_rates(held: Forces, m) -> np.ndarray:
     out = np.empty_like(held.force)
     for k, element in enumerate(held.elements):
         if element.kind == "actuator":  # its cylinders' rates together (those parallel to it push with its force)
-            out[:, k] = sum(results.actuator_rate(member.name) for member in m.members(element.name))
+            out[:, k] = sum(kinematics.actuator_rate(results, member.name) for member in m.members(element.name))
         elif element.kind == "motor":
             out[:, k] = _relative_rate(results, _motor_joint(m, element.name))
         else:
@@ -86,8 +86,8 @@ def _motor_joint(m, name: str):
 def _relative_rate(results, joint) -> np.ndarray:
     """axis . (omega2 - omega1), the axis carried by body 1."""
     axis = np.array([float(x) for x in joint.axis1])
-    omega = {b: (np.zeros((len(results.times), 3)) if b == GROUND else results.omega(b)) for b in (joint.body1, joint.body2)}
-    carried = axis[None, :] if joint.body1 == GROUND else results.rotation_matrix(joint.body1) @ axis
+    omega = {b: (np.zeros((len(results.times), 3)) if b == GROUND else kinematics.omega(results, b)) for b in (joint.body1, joint.body2)}
+    carried = axis[None, :] if joint.body1 == GROUND else kinematics.rotation_matrix(results, joint.body1) @ axis
     return np.einsum("ki,ki->k", carried, omega[joint.body2] - omega[joint.body1])
 
 
@@ -95,11 +95,11 @@ def _load_power(results, loads: list[Load]) -> np.ndarray:
     power = np.zeros(len(results.times))
     for load in loads:
         body, point = load.point.body, load.point.name
-        rotation = np.eye(3)[None] if load.axes == GROUND else results.rotation_matrix(body)
+        rotation = np.eye(3)[None] if load.axes == GROUND else kinematics.rotation_matrix(results, body)
         force = rotation @ np.array([float(x) for x in load.force])
         moment = rotation @ np.array([float(x) for x in load.moment])
-        power += np.einsum("ki,ki->k", force * np.ones((len(results.times), 3)), results.point_velocity(body, point))
-        power += np.einsum("ki,ki->k", moment * np.ones((len(results.times), 3)), results.omega(body))
+        power += np.einsum("ki,ki->k", force * np.ones((len(results.times), 3)), kinematics.point_velocity(results, body, point))
+        power += np.einsum("ki,ki->k", moment * np.ones((len(results.times), 3)), kinematics.omega(results, body))
     return power
 
 
@@ -143,7 +143,7 @@ def _assert_equilibrium(held: Forces, m, loads: list[Load]) -> None:
     results = held.results
     n = len(results.times)
     totals = {b.name: [np.zeros((n, 3)), np.zeros((n, 3))] for b in m.bodies}
-    origin = {b.name: results.position(b.name) for b in m.bodies}
+    origin = {b.name: kinematics.position(results, b.name) for b in m.bodies}
 
     def add(body: str, force: np.ndarray, moment: np.ndarray, at: np.ndarray) -> None:
         if body == GROUND:
@@ -152,10 +152,10 @@ def _assert_equilibrium(held: Forces, m, loads: list[Load]) -> None:
         totals[body][1] += moment + np.cross(at - origin[body], force)
 
     for load in loads:
-        rotation = np.eye(3)[None] if load.axes == GROUND else results.rotation_matrix(load.point.body)
+        rotation = np.eye(3)[None] if load.axes == GROUND else kinematics.rotation_matrix(results, load.point.body)
         f = np.broadcast_to(rotation @ np.array([float(x) for x in load.force]), (n, 3))
         mo = np.broadcast_to(rotation @ np.array([float(x) for x in load.moment]), (n, 3))
-        add(load.point.body, f, mo, results.point_position(load.point.body, load.point.name))
+        add(load.point.body, f, mo, kinematics.point_position(results, load.point.body, load.point.name))
     for reaction in held.reactions.values():
         add(reaction.body2, reaction.force, reaction.moment, reaction.point)
         add(reaction.body1, -reaction.force, -reaction.moment, reaction.point)
@@ -164,14 +164,14 @@ def _assert_equilibrium(held: Forces, m, loads: list[Load]) -> None:
         if element.kind == "actuator":  # each physical cylinder (the element and those parallel to it) pushes with f
             for member in m.members(element.name):
                 p1, p2 = member.points
-                r1, r2 = results.point_position(p1.body, p1.name), results.point_position(p2.body, p2.name)
+                r1, r2 = kinematics.point_position(results, p1.body, p1.name), kinematics.point_position(results, p2.body, p2.name)
                 e = (r1 - r2) / np.linalg.norm(r1 - r2, axis=1)[:, None]
                 add(p1.body, f[:, None] * e, np.zeros((n, 3)), r1)
                 add(p2.body, -f[:, None] * e, np.zeros((n, 3)), r2)
         else:
             joint = _motor_joint(m, element.name)
             axis = np.array([float(x) for x in joint.axis1])
-            carried = np.broadcast_to(axis, (n, 3)) if joint.body1 == GROUND else results.rotation_matrix(joint.body1) @ axis
+            carried = np.broadcast_to(axis, (n, 3)) if joint.body1 == GROUND else kinematics.rotation_matrix(results, joint.body1) @ axis
             add(joint.body2, np.zeros((n, 3)), f[:, None] * carried, origin.get(joint.body2, np.zeros((n, 3))))
             add(joint.body1, np.zeros((n, 3)), -f[:, None] * carried, origin.get(joint.body1, np.zeros((n, 3))))
     scale = max(np.abs(held.force).max(), 1.0) * 10  # N, and N m over the front's ~10 m
@@ -207,7 +207,7 @@ def test_cylinder_pressures_by_hand():
         cap, annulus = count * np.pi / 4 * bore**2, count * np.pi / 4 * (bore**2 - rod**2)
         expected = np.where(f >= 0, f / cap, -f / annulus)
         np.testing.assert_allclose(pressure.pressure, expected, rtol=1e-14)
-        rate = results.actuator_rate(name) + (results.actuator_rate("boom_cylinder_right") if name == "boom_cylinder_left" else 0)
+        rate = kinematics.actuator_rate(results, name) + (kinematics.actuator_rate(results, "boom_cylinder_right") if name == "boom_cylinder_left" else 0)
         moving_with = f * rate > 0
         np.testing.assert_array_equal(pressure.limit, np.where(moving_with, 34.3e6, 39.2e6))
         assert pressure.cap_side.any() and (~pressure.cap_side).any()  # the cycle pushes and pulls every cylinder
@@ -378,7 +378,7 @@ def test_power_balance_along_every_shipped_case(which, force, moment, pick, in_b
     rates = _element_rates(held, loaded)
     work = np.einsum("ki,ki->k", held.force, rates)
     power = _load_power(results, [load])
-    speed = max((np.linalg.norm(results.velocity(b), axis=1) + np.linalg.norm(results.omega(b), axis=1)).max() for b in results.system.bodies)
+    speed = max((np.linalg.norm(kinematics.velocity(results, b), axis=1) + np.linalg.norm(kinematics.omega(results, b), axis=1)).max() for b in results.system.bodies)
     size = functools.partial(np.hypot.reduce, axis=-1)  # |x| without the underflow of sum(x^2) (Hypothesis tries 1e-225 N)
     scale = size(held.force) * size(rates) + (size(force) + size(moment)) * speed
     assert np.all(np.abs(work + power) <= 1e-9 * scale + 1e-300)  # W, per time point
@@ -478,8 +478,8 @@ def test_solve_load_holds_the_machines_own_weight_by_default(tmp_path):
     for body in excavator.massive:
         mass = design_value(body.inertia.mass, design)
         center = np.array([design_value(x, design) for x in body.inertia.center])
-        arm = results.rotation_matrix(body.name) @ center
-        velocity = results.velocity(body.name) + np.cross(results.omega(body.name), arm)
+        arm = kinematics.rotation_matrix(results, body.name) @ center
+        velocity = kinematics.velocity(results, body.name) + np.cross(kinematics.omega(results, body.name), arm)
         gravity_power += mass * velocity @ gravity
     scale = np.abs(weight_forces * rates).max()
     assert scale > 1e3  # the weight does work along the cut

@@ -15,7 +15,7 @@ import sympy as sp
 
 from kinegen.bench.chain import tip_reference
 from kinegen.errors import SingularJacobianError
-from kinegen.runtime import Solver, SolverOptions, solve
+from kinegen.runtime import Solver, SolverOptions, kinematics, solve
 from tests.conftest import chain_system, generated_system
 
 PARAMS = ["quaternion", "euler_parameters", "dual_quaternion", "dual_euler_parameters"]
@@ -40,15 +40,15 @@ def test_slider_crank_matches_closed_form(param):
     rod_angle = sp.atan2(-r * sp.sin(theta), slider_x - r * sp.cos(theta))
     (x, _), (xd, rodd), (xdd, roddd) = (np.array(a).T for a in closed_form([slider_x, rod_angle], results.times))
     zero = np.zeros_like(x)
-    assert np.abs(results.point_position("slider", "C") - np.c_[x, zero, zero]).max() < 1e-10
-    assert np.abs(results.point_velocity("slider", "C") - np.c_[xd, zero, zero]).max() < 1e-9
-    assert np.abs(results.point_acceleration("slider", "C") - np.c_[xdd, zero, zero]).max() < 1e-8
-    assert np.abs(results.omega("rod") - np.c_[zero, zero, rodd]).max() < 1e-9
-    assert np.abs(results.omega_dot("rod") - np.c_[zero, zero, roddd]).max() < 1e-8
+    assert np.abs(kinematics.point_position(results, "slider", "C") - np.c_[x, zero, zero]).max() < 1e-10
+    assert np.abs(kinematics.point_velocity(results, "slider", "C") - np.c_[xd, zero, zero]).max() < 1e-9
+    assert np.abs(kinematics.point_acceleration(results, "slider", "C") - np.c_[xdd, zero, zero]).max() < 1e-8
+    assert np.abs(kinematics.omega(results, "rod") - np.c_[zero, zero, rodd]).max() < 1e-9
+    assert np.abs(kinematics.omega_dot(results, "rod") - np.c_[zero, zero, roddd]).max() < 1e-8
     crank_rate = 2 * np.pi + results.times
-    assert np.abs(results.omega("crank")[:, 2] - crank_rate).max() < 1e-9
+    assert np.abs(kinematics.omega(results, "crank")[:, 2] - crank_rate).max() < 1e-9
     # the crank turns more than once: the angle driver holds over the full circle
-    angle = np.unwrap(results.euler_angles("crank", "zyx")[:, 0])
+    angle = np.unwrap(kinematics.euler_angles(results, "crank", "zyx")[:, 0])
     assert angle[-1] - angle[0] > 2 * np.pi
     assert np.abs(angle - (0.3 + 2 * np.pi * results.times + 0.5 * results.times**2)).max() < 1e-10
 
@@ -68,11 +68,11 @@ def test_four_bar_matches_closed_form(param):
     rocker_angle = sp.atan2(cy, cx - d)
     (p, rate, acc) = closed_form([cx, cy, rocker_angle], results.times)
     zero = np.zeros(len(results.times))
-    assert np.abs(results.point_position("rocker", "C") - np.c_[p[:, 0], p[:, 1], zero]).max() < 1e-10
-    assert np.abs(results.point_velocity("coupler", "C") - np.c_[rate[:, 0], rate[:, 1], zero]).max() < 1e-9
-    assert np.abs(results.point_acceleration("coupler", "C") - np.c_[acc[:, 0], acc[:, 1], zero]).max() < 1e-8
-    assert np.abs(results.omega("rocker") - np.c_[zero, zero, rate[:, 2]]).max() < 1e-9
-    assert np.abs(results.omega_dot("rocker") - np.c_[zero, zero, acc[:, 2]]).max() < 1e-8
+    assert np.abs(kinematics.point_position(results, "rocker", "C") - np.c_[p[:, 0], p[:, 1], zero]).max() < 1e-10
+    assert np.abs(kinematics.point_velocity(results, "coupler", "C") - np.c_[rate[:, 0], rate[:, 1], zero]).max() < 1e-9
+    assert np.abs(kinematics.point_acceleration(results, "coupler", "C") - np.c_[acc[:, 0], acc[:, 1], zero]).max() < 1e-8
+    assert np.abs(kinematics.omega(results, "rocker") - np.c_[zero, zero, rate[:, 2]]).max() < 1e-9
+    assert np.abs(kinematics.omega_dot(results, "rocker") - np.c_[zero, zero, acc[:, 2]]).max() < 1e-8
 
 
 @pytest.mark.parametrize("param", PARAMS)
@@ -92,18 +92,18 @@ def test_rssr_velocity_and_acceleration_match_central_differences(param):
         nearest = full.q[np.argmin(np.abs(full.times - times[0]))]
         r = solver.solve(times, q0=solver.position(nearest, system.driver_inputs(times[0])[0])[0])
         for body, point in (("crank", "B"), ("rocker", "C")):
-            p = r.point_position(body, point)
+            p = kinematics.point_position(r, body, point)
             v1 = (p[3] - p[1]) / (2 * h)
             v2 = (p[4] - p[0]) / (4 * h)
             a1 = (p[3] - 2 * p[2] + p[1]) / h**2
             a2 = (p[4] - 2 * p[2] + p[0]) / (4 * h**2)
-            assert np.allclose(r.point_velocity(body, point)[2], (4 * v1 - v2) / 3, rtol=0, atol=1e-9)
-            assert np.allclose(r.point_acceleration(body, point)[2], (4 * a1 - a2) / 3, rtol=0, atol=1e-6)
+            assert np.allclose(kinematics.point_velocity(r, body, point)[2], (4 * v1 - v2) / 3, rtol=0, atol=1e-9)
+            assert np.allclose(kinematics.point_acceleration(r, body, point)[2], (4 * a1 - a2) / 3, rtol=0, atol=1e-6)
             checked += 1
-        rotation = r.rotation_matrix("rocker")
+        rotation = kinematics.rotation_matrix(r, "rocker")
         rate = (4 * (rotation[3] - rotation[1]) / (2 * h) - (rotation[4] - rotation[0]) / (4 * h)) / 3
         spin = rate @ rotation[2].T  # [omega]x = dA/dt A^T
-        assert np.allclose(r.omega("rocker")[2], [spin[2, 1], spin[0, 2], spin[1, 0]], rtol=0, atol=1e-9)
+        assert np.allclose(kinematics.omega(r, "rocker")[2], [spin[2, 1], spin[0, 2], spin[1, 0]], rtol=0, atol=1e-9)
         assert np.abs(r.residuals).max() < 1e-12
     assert checked == 6
 
@@ -113,9 +113,9 @@ def test_rssr_parametrizations_agree(other):
     a = solve(generated_system("rssr_quaternion"))
     b = solve(generated_system(other))
     for body, point in (("crank", "B"), ("rocker", "C")):
-        assert np.abs(a.point_position(body, point) - b.point_position(body, point)).max() < 1e-9
-    assert np.abs(a.omega("rocker") - b.omega("rocker")).max() < 1e-8
-    assert np.abs(a.omega_dot("rocker") - b.omega_dot("rocker")).max() < 1e-6
+        assert np.abs(kinematics.point_position(a, body, point) - kinematics.point_position(b, body, point)).max() < 1e-9
+    assert np.abs(kinematics.omega(a, "rocker") - kinematics.omega(b, "rocker")).max() < 1e-8
+    assert np.abs(kinematics.omega_dot(a, "rocker") - kinematics.omega_dot(b, "rocker")).max() < 1e-6
 
 
 REGULAR = ["quaternion", "euler-parameters", "euler:xyz", "euler:zyx", "dual-quaternion", "dual-euler-parameters"]
@@ -130,9 +130,9 @@ def test_chain_tip_matches_closed_form(param):
     n = 4
     results = solve(chain_system(n, param))
     position, velocity, acceleration = tip_reference(n, results.times)
-    assert np.abs(results.point_position(f"link{n}", "tip") - position).max() < 1e-9
-    assert np.abs(results.point_velocity(f"link{n}", "tip") - velocity).max() < 1e-9
-    assert np.abs(results.point_acceleration(f"link{n}", "tip") - acceleration).max() < 1e-8
+    assert np.abs(kinematics.point_position(results, f"link{n}", "tip") - position).max() < 1e-9
+    assert np.abs(kinematics.point_velocity(results, f"link{n}", "tip") - velocity).max() < 1e-9
+    assert np.abs(kinematics.point_acceleration(results, f"link{n}", "tip") - acceleration).max() < 1e-8
     assert results.iterations[0] >= 2  # the start was assembled from an off-solution pose
 
 
@@ -143,9 +143,9 @@ def test_chain_omega_identical_across_regular_parametrizations():
     reference = runs["quaternion"]
     for name, r in runs.items():
         for body in ("link1", "link4"):
-            assert np.abs(r.rotation_matrix(body) - reference.rotation_matrix(body)).max() < 1e-12, name
-            assert np.abs(r.omega(body) - reference.omega(body)).max() < 1e-12, name
-            assert np.abs(r.omega_dot(body) - reference.omega_dot(body)).max() < 1e-11, name
+            assert np.abs(kinematics.rotation_matrix(r, body) - kinematics.rotation_matrix(reference, body)).max() < 1e-12, name
+            assert np.abs(kinematics.omega(r, body) - kinematics.omega(reference, body)).max() < 1e-12, name
+            assert np.abs(kinematics.omega_dot(r, body) - kinematics.omega_dot(reference, body)).max() < 1e-11, name
 
 
 def test_chain_with_zxz_euler_angles_is_singular():

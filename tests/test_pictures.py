@@ -14,7 +14,7 @@ from kinegen.analysis.chart import outlines, transport_q, working_range_figure
 from kinegen.analysis.plots import _in_frame
 from kinegen.analysis.view import _BARREL, _OUT, _ROD, cylinder
 from kinegen.figures import pyplot
-from kinegen.runtime import solve
+from kinegen.runtime import export, kinematics, solve
 from tests.conftest import WORKING_RANGE_GROUP, excavator_working_range, generated_system, model
 
 
@@ -34,15 +34,15 @@ def test_the_animation_draws_each_cylinder_as_barrel_and_rod_red_out_of_range_wi
     names = list(system.actuators)
     bodies = len([b for b, p in system.points.items() if b != "ground" and p])
     basis = np.array([[1.0, 0, 0], [0, 0, 1.0]])
-    lengths = {n: results.actuator_length(n) for n in names}
+    lengths = {n: kinematics.actuator_length(results, n) for n in names}
     seen_out = seen_in = False
     for k in keep:
         artists = draw(int(k))
         barrels, rods = artists[bodies : bodies + len(names)], artists[bodies + len(names) : bodies + 2 * len(names)]
         for name, barrel, rod in zip(names, barrels, rods):
             (b1, p1), (b2, p2), limits = system.actuators[name]
-            base = _in_frame(results, "upper", results.point_position(b1, p1))[k] @ basis.T
-            eye = _in_frame(results, "upper", results.point_position(b2, p2))[k] @ basis.T
+            base = _in_frame(results, "upper", kinematics.point_position(results, b1, p1))[k] @ basis.T
+            eye = _in_frame(results, "upper", kinematics.point_position(results, b2, p2))[k] @ basis.T
             expected_barrel, expected_rod = cylinder(base, eye, limits)
             assert np.allclose(np.column_stack(barrel.get_data()), expected_barrel, atol=1e-12), (name, k)
             assert np.allclose(np.column_stack(rod.get_data()), expected_rod, atol=1e-12), (name, k)
@@ -151,13 +151,13 @@ def test_the_case_plot_of_a_four_bar_traces_the_chosen_point_and_plots_signed_an
     renderer = fig.canvas.get_renderer()
     panels = _panels(fig)
     (path,) = [line for line in panels["drawing"].lines if line.get_gid() == "path"]
-    expected = results.point_position("coupler", "C")[:, :2]  # the x-y plane: the four-bar's
+    expected = kinematics.point_position(results, "coupler", "C")[:, :2]  # the x-y plane: the four-bar's
     assert np.allclose(np.column_stack(path.get_data()), expected, atol=1e-12)
     assert panels["drawing"].get_xlabel() == "x, global [m]" and panels["drawing"].get_ylabel() == "y, global [m]"
     curves = {line.get_label().split(",")[0]: line for line in panels["omega"].lines}
     t = results.times
     for body, (a, b) in {"crank": ("A", "B"), "rocker": ("D", "C")}.items():
-        d = results.point_position(body, b) - results.point_position(body, a)
+        d = kinematics.point_position(results, body, b) - kinematics.point_position(results, body, a)
         angle = np.unwrap(np.arctan2(d[:, 1], d[:, 0]))
         rate = np.gradient(angle, t, edge_order=2)
         plotted = curves[body].get_ydata()
@@ -237,7 +237,7 @@ def test_the_case_plot_shows_both_twin_cylinders_labels_its_ranges_and_draws_the
     boxes = [t.get_window_extent(renderer) for t in panels["lengths"].texts]
     assert not any(boxes[i].overlaps(boxes[j]) for i in range(len(boxes)) for j in range(i))  # the range labels never collide
     assert any(line.get_gid() == "ground" for line in panels["drawing"].lines)
-    names, table = results.table()
+    names, table = export.table(results)
     condition = panels["condition"].lines[0].get_ydata()
     np.testing.assert_array_equal(condition, table[:, names.index("jacobian_condition")])
     for k in (0, len(condition) // 2, len(condition) - 1):
@@ -261,7 +261,7 @@ def test_a_distance_joints_coupler_is_drawn_in_the_plot_the_animation_and_the_pa
 
     rssr = model("rssr")
     results = solve(generated_system("rssr_quaternion"))
-    ends = [results.point_position("crank", "B"), results.point_position("rocker", "C")]
+    ends = [kinematics.point_position(results, "crank", "B"), kinematics.point_position(results, "rocker", "C")]
     fig = case_figure(results, None, None, model=rssr)
     drawn = [line for line in _panels(fig)["drawing"].lines if (line.get_gid() or "").startswith("coupler:")]
     assert len(drawn) == 6

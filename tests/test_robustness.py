@@ -7,13 +7,13 @@ import numpy as np
 import pytest
 
 from kinegen.errors import BranchError, ConvergenceError, KinegenError, SingularJacobianError, UnreachableError
-from kinegen.runtime import Solver, SolverOptions
+from kinegen.runtime import Solver, SolverOptions, kinematics
 from tests.conftest import generated_system
 
 
 def bucket_angle(results) -> np.ndarray:
     """Angle of the bucket about global y (the boom plane at zero swing)."""
-    rotation = results.rotation_matrix("bucket")
+    rotation = kinematics.rotation_matrix(results, "bucket")
     return np.arctan2(rotation[:, 2, 0], rotation[:, 0, 0])
 
 

@@ -13,7 +13,7 @@ from kinegen.errors import ModelError
 from kinegen.forces import forces
 from kinegen.forces.supply import flows
 from kinegen.model import loads as read
-from kinegen.runtime import from_module, load_module, solve
+from kinegen.runtime import from_module, kinematics, load_module, solve
 from tests.conftest import generated_system, model
 from tests.test_mistakes import CRANE
 
@@ -74,9 +74,9 @@ def test_the_pumps_power_is_the_work_the_cylinder_does_on_the_loads(crane):
     results = solve(from_module(load_module(folder / "crane_quaternion.py"), "raise"))
     held = forces(results, m, ["hook"], weight=True)
     supplied = flows(results, m, held)
-    velocity_tip = results.point_velocity("boom", "tip")
-    center = results.position("boom") + results.rotation_matrix("boom") @ np.array([2.0, 0.0, 0.0])
-    velocity_center = results.velocity("boom") + np.cross(results.omega("boom"), center - results.position("boom"))
+    velocity_tip = kinematics.point_velocity(results, "boom", "tip")
+    center = kinematics.position(results, "boom") + kinematics.rotation_matrix(results, "boom") @ np.array([2.0, 0.0, 0.0])
+    velocity_center = kinematics.velocity(results, "boom") + np.cross(kinematics.omega(results, "boom"), center - kinematics.position(results, "boom"))
     loads_power = velocity_tip @ np.array([0.0, 0.0, -5000.0]) + 300 * velocity_center @ np.array([0.0, 0.0, -9.80665])
     _, rate = _closed_form_length(results.times)
     force = held.element_force("lift")
@@ -101,14 +101,14 @@ def test_the_excavators_pumps_share_the_merged_circuits_and_the_digging_cycle_as
     def flow(bore: float, rod: float, members: tuple[str, ...]) -> np.ndarray:
         total = np.zeros(len(results.times))
         for member in members:
-            rate = results.actuator_rate(member)
+            rate = kinematics.actuator_rate(results, member)
             total += np.where(rate > 0, np.pi / 4 * bore**2 * rate, -np.pi / 4 * (bore**2 - rod**2) * rate)
         return total
 
     boom = flow(0.120, 0.085, ("boom_cylinder_left", "boom_cylinder_right"))
     arm = flow(0.135, 0.095, ("arm_cylinder",))
     bucket = flow(0.115, 0.080, ("bucket_cylinder",))
-    swing = 2.6e-3 * np.abs(results.omega("upper")[:, 2])  # the upper turns about the global z axis
+    swing = 2.6e-3 * np.abs(kinematics.omega(results, "upper")[:, 2])  # the upper turns about the global z axis
     front, rear = supplied.flow[supplied.pumps.index("front")], supplied.flow[supplied.pumps.index("rear")]
     scale = max(front.max(), rear.max())
     np.testing.assert_allclose(front, boom / 2 + arm / 2 + bucket, rtol=0, atol=1e-12 * scale)

@@ -17,6 +17,7 @@ from kinegen.analysis.view import _BARREL, _BODY, _OUT, _ROD, TRACKED, _outline,
 from kinegen.figures import pyplot
 from kinegen.files import atomic_path
 from kinegen.model.schema import GROUND
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 
 #: frames of an animation at most (Pillow writes ~7 a second)
@@ -83,16 +84,16 @@ def animation_figure(results: Results, frame_body: str | None = None, track: tup
     solved, keep = frames(results, MAX_GIF_FRAMES)
     bodies = {b: list(p) for b, p in system.points.items() if b != GROUND and p}
     outlines = {b: _outline(np.array([system.points[b][p] for p in names], dtype=float)) for b, names in bodies.items()}
-    world = {(b, p): _in_frame(results, frame_body, results.point_position(b, p)) for b, names in bodies.items() for p in names}
+    world = {(b, p): _in_frame(results, frame_body, kinematics.point_position(results, b, p)) for b, names in bodies.items() for p in names}
     from kinegen.analysis.plots import drawing_plane
 
     basis, labels, _ = drawing_plane(results, frame_body)  # the case plot's plane, its axes in words
     plane = {key: value @ basis.T for key, value in world.items()}
-    path_2d = _in_frame(results, frame_body, results.point_position(*track)) @ basis.T if track else None
+    path_2d = _in_frame(results, frame_body, kinematics.point_position(results, *track)) @ basis.T if track else None
     actuators = {name: (refs, limits) for name, (*refs, limits) in system.actuators.items()}
-    ends = {name: [_in_frame(results, frame_body, results.point_position(*ref)) @ basis.T for ref in refs] for name, (refs, _) in actuators.items()}
-    lengths = {name: results.actuator_length(name) for name in actuators}
-    links = {f"{b1}.{p1}-{b2}.{p2}": [_in_frame(results, frame_body, results.point_position(*ref)) @ basis.T for ref in ((b1, p1), (b2, p2))]
+    ends = {name: [_in_frame(results, frame_body, kinematics.point_position(results, *ref)) @ basis.T for ref in refs] for name, (refs, _) in actuators.items()}
+    lengths = {name: kinematics.actuator_length(results, name) for name in actuators}
+    links = {f"{b1}.{p1}-{b2}.{p2}": [_in_frame(results, frame_body, kinematics.point_position(results, *ref)) @ basis.T for ref in ((b1, p1), (b2, p2))]
              for (b1, p1), (b2, p2) in (couplers(model, system) if model is not None else [])}  # fmt: skip
     everything = np.vstack([*plane.values(), *(e for pair in [*ends.values(), *links.values()] for e in pair)])
     low, high = everything.min(axis=0), everything.max(axis=0)

@@ -24,6 +24,7 @@ import sympy as sp
 from kinegen import rotations
 from kinegen.errors import KinegenError
 from kinegen.model.schema import Model
+from kinegen.runtime import kinematics
 
 #: The parametrizations compared by default (Euler angles in the two sequences of the paper's discussion).
 DEFAULT = rotations.SHOWN
@@ -130,8 +131,8 @@ def _degree(system) -> str:
 
 def _condition_range(system, results) -> tuple[float, float]:
     """min and max over the solved steps of kinegen's condition number of Phi_q (one definition
-    everywhere: :meth:`kinegen.runtime.results.Results.condition_numbers`, the 2-norm's)."""
-    found = results.condition_numbers()
+    everywhere: :func:`kinegen.runtime.kinematics.condition_numbers`, the 2-norm's)."""
+    found = kinematics.condition_numbers(results)
     found = found[np.isfinite(found)]
     return float(np.min(found)), float(np.max(found))
 

@@ -7,6 +7,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegen.figures import legend_beside, pyplot, save
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 
 
@@ -14,8 +15,8 @@ def _in_frame(results: Results, frame_body: str | None, points: np.ndarray) -> n
     """Global points (K, 3) expressed in ``frame_body``'s frame (K, 3); global if None."""
     if frame_body is None:
         return points
-    rotation = results.rotation_matrix(frame_body)
-    return np.einsum("kji,kj->ki", rotation, points - results.position(frame_body))
+    rotation = kinematics.rotation_matrix(results, frame_body)
+    return np.einsum("kji,kj->ki", rotation, points - kinematics.position(results, frame_body))
 
 
 def tracked_point(results: Results, model=None) -> tuple[str, str] | None:
@@ -24,7 +25,7 @@ def tracked_point(results: Results, model=None) -> tuple[str, str] | None:
     if model is not None and model.working_range is not None:
         return model.working_range.point.body, model.working_range.point.name
     named = [(b, p) for b, points in results.system.points.items() for p in points]
-    return max(named, key=lambda ref: float(np.linalg.norm(results.point_position(*ref)[0]))) if named else None
+    return max(named, key=lambda ref: float(np.linalg.norm(kinematics.point_position(results, *ref)[0]))) if named else None
 
 
 def best_frame(results: Results, trace: tuple[str, str] | None) -> str | None:
@@ -37,13 +38,13 @@ def best_frame(results: Results, trace: tuple[str, str] | None) -> str | None:
         return None
 
     def flatness(frame: str | None) -> float:
-        points = np.vstack([_in_frame(results, frame, results.point_position(*ref)) for ref in names])
+        points = np.vstack([_in_frame(results, frame, kinematics.point_position(results, *ref)) for ref in names])
         points = points[np.isfinite(points).all(axis=1)]
         spread = np.linalg.svd(points - points.mean(axis=0), compute_uv=False)
         return float(spread[2] / spread[0]) if spread[0] > 0 else np.inf
 
     def moving(frame: str | None) -> float:
-        path = _in_frame(results, frame, results.point_position(*trace)) if trace else np.zeros((1, 3))
+        path = _in_frame(results, frame, kinematics.point_position(results, *trace)) if trace else np.zeros((1, 3))
         path = path[np.isfinite(path).all(axis=1)]
         return float(np.ptp(path, axis=0).max()) if len(path) else 0.0
 
@@ -61,7 +62,7 @@ def drawing_plane(results: Results, frame_body: str | None) -> tuple[np.ndarray,
     if frame_body is not None:
         return (np.array([[1.0, 0, 0], [0, 0, 1.0]]), (f"x along the {frame_body} frame [m]", f"z along the {frame_body} frame [m]"),
                 f"the x-z plane of the {frame_body} frame")  # fmt: skip
-    points = np.vstack([results.point_position(b, p) for b, names in results.system.points.items() for p in names])
+    points = np.vstack([kinematics.point_position(results, b, p) for b, names in results.system.points.items() for p in names])
     points = points[np.isfinite(points).all(axis=1)]
     _, _, axes = np.linalg.svd(points - points.mean(axis=0), full_matrices=False)
     basis, labels, name = plane_axes(axes[2])
@@ -152,9 +153,9 @@ def twins(results: Results) -> dict[str, str]:
     names = list(results.system.actuators)
     solved = results.converged
     for i, name in enumerate(names):
-        mine = results.actuator_length(name)[solved]
+        mine = kinematics.actuator_length(results, name)[solved]
         for other in names[:i]:
-            if other not in out and np.abs(results.actuator_length(other)[solved] - mine).max(initial=0.0) < 1e-9:
+            if other not in out and np.abs(kinematics.actuator_length(results, other)[solved] - mine).max(initial=0.0) < 1e-9:
                 out[name] = other
                 break
     return out
@@ -179,7 +180,7 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
     system = results.system
     basis, labels, plane = drawing_plane(results, frame_body)
     panels = ["lengths", "rates"] if system.actuators else ["omega"]
-    if results.converged.any():  # Results.condition_numbers(): the exact 2-norm's, computed here
+    if results.converged.any():  # kinematics.condition_numbers(results): the exact 2-norm's, computed here
         panels.append("condition")
     fig = plt.figure(figsize=(15, 9))
     grid = fig.add_gridspec(len(panels), 2, width_ratios=[1.35, 1])
@@ -192,7 +193,7 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
     colours = plt.cm.viridis(np.linspace(0, 0.9, len(instants)))
 
     def projected(body: str, point: str) -> np.ndarray:
-        return _in_frame(results, frame_body, results.point_position(body, point)) @ basis.T
+        return _in_frame(results, frame_body, kinematics.point_position(results, body, point)) @ basis.T
 
     for colour, k in zip(colours, instants):
         for body, points in system.points.items():
@@ -224,9 +225,9 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
     for name, (_, _, limits) in system.actuators.items():
         twin = following.get(name)
         style = {"ls": (0, (4, 3)), "lw": 1.6, "color": "black", "label": f"{name} (= {twin})"} if twin else {"label": name}
-        line = axes["lengths"].plot(results.times, results.actuator_length(name), **style)[0]
+        line = axes["lengths"].plot(results.times, kinematics.actuator_length(results, name), **style)[0]
         colour_of[name] = line.get_color()
-        axes["rates"].plot(results.times, results.actuator_rate(name), **style)
+        axes["rates"].plot(results.times, kinematics.actuator_rate(results, name), **style)
         if limits:
             ranges.setdefault(tuple(limits), []).append(name)
     for k, (limits, names) in enumerate(ranges.items()):  # each range once, labelled; nearby ranges' labels side by side
@@ -243,14 +244,14 @@ def case_figure(results: Results, frame_body: str | None = None, trace: tuple[st
             legend_beside(axes["lengths"], fontsize=7)
     if "omega" in axes:
         for body in system.bodies:
-            rate, axis = angular_rate(results.omega(body))
+            rate, axis = angular_rate(kinematics.omega(results, body))
             about = "|omega| (its axis moves)" if axis is None else "about (" + ", ".join(f"{c:.2g}" for c in axis) + ")"
             axes["omega"].plot(results.times, rate, label=f"{body}, {about}")
         axes["omega"].set(title="angular velocity of each body (signed about a fixed axis)", ylabel="angular velocity [rad/s]")
         if len(system.bodies) <= 12:
             legend_beside(axes["omega"], fontsize=7)
     if "condition" in axes:
-        axes["condition"].semilogy(results.times, results.condition_numbers(), "k-")
+        axes["condition"].semilogy(results.times, kinematics.condition_numbers(results), "k-")
         axes["condition"].set(title="condition number of Phi_q: sigma_max / sigma_min (the CSV's)", ylabel="condition number")
         _readable_log_ticks(axes["condition"])
     list(axes.values())[-1].set(xlabel="time t [s]")

@@ -32,7 +32,7 @@ from scipy.optimize import minimize
 from kinegen.errors import KinegenError
 from kinegen.model.kinds import check_registered
 from kinegen.model.schema import GROUND, MACHINE, QUANTITY_KINDS, Model, Quantity, Study, design_gradient, design_value
-from kinegen.runtime import Solver, from_module
+from kinegen.runtime import Solver, from_module, kinematics
 from kinegen.runtime.results import Results
 from kinegen.runtime.sensitivity import (
     actuator_length_sensitivity,
@@ -274,9 +274,9 @@ def _extremes(values: np.ndarray, derivatives: Callable[[], np.ndarray] | None) 
 def relative_angle(results: Results, body: str, relative_to: str, axis: np.ndarray) -> np.ndarray:
     """The rotation angle of ``body`` relative to ``relative_to`` about ``axis`` (unit, in
     ``relative_to``'s frame) at every time point, continuous over time (rad)."""
-    rotation = results.rotation_matrix(body)
+    rotation = kinematics.rotation_matrix(results, body)
     if relative_to != GROUND:
-        rotation = np.einsum("kji,kjl->kil", results.rotation_matrix(relative_to), rotation)
+        rotation = np.einsum("kji,kjl->kil", kinematics.rotation_matrix(results, relative_to), rotation)
     first = np.cross(axis, np.eye(3)[int(np.argmin(np.abs(axis)))])
     first /= np.linalg.norm(first)
     second = np.cross(axis, first)
@@ -292,7 +292,7 @@ def _rotation_range(problem: StudyProblem, results: Results, q: Quantity, gradie
 
 def _stroke(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
     name = str(q.actuator)
-    return _extremes(results.actuator_length(name), (lambda: actuator_length_sensitivity(results, name)) if gradients else None)
+    return _extremes(kinematics.actuator_length(results, name), (lambda: actuator_length_sensitivity(results, name)) if gradients else None)
 
 
 def _actuator_margin(problem: StudyProblem, results: Results, q: Quantity, gradients: bool):
@@ -300,7 +300,7 @@ def _actuator_margin(problem: StudyProblem, results: Results, q: Quantity, gradi
     actuator = problem.actuators[str(q.actuator)]
     design = results.system.design
     low, high = actuator.limits(design)
-    length = results.actuator_length(actuator.name)
+    length = kinematics.actuator_length(results, actuator.name)
     points = np.concatenate([length - low, high - length])
     k = int(np.nanargmin(points))
     if not gradients:
@@ -336,8 +336,8 @@ def _block_sigma(results: Results, block: tuple[np.ndarray, np.ndarray]) -> np.n
 def _transmission_angle(problem: StudyProblem | None, results: Results, q: Quantity, gradients: bool):
     """The angle θ at the middle point, per time point θ and π − θ (both kept from 0), and their derivatives."""
     (a, b, c) = q.points
-    middle = results.point_position(*b)
-    u, w = results.point_position(*a) - middle, results.point_position(*c) - middle
+    middle = kinematics.point_position(results, *b)
+    u, w = kinematics.point_position(results, *a) - middle, kinematics.point_position(results, *c) - middle
     length_u, length_w = np.linalg.norm(u, axis=1), np.linalg.norm(w, axis=1)
     cosine = np.einsum("ki,ki->k", u, w) / (length_u * length_w)
     theta = np.arctan2(np.linalg.norm(np.cross(u, w), axis=1), np.einsum("ki,ki->k", u, w))
@@ -365,12 +365,12 @@ def _relief_tool_force(problem: StudyProblem, results: Results, q: Quantity, gra
     design, order = system.design, list(system.design)
     lip = problem.model.tool_forces.lip
     (b1, p1), (b2, p2) = ((ref.body, ref.name) for ref in actuator.points)
-    gap = results.point_position(b2, p2) - results.point_position(b1, p1)
-    relative = results.point_velocity(b2, p2) - results.point_velocity(b1, p1)
+    gap = kinematics.point_position(results, b2, p2) - kinematics.point_position(results, b1, p1)
+    relative = kinematics.point_velocity(results, b2, p2) - kinematics.point_velocity(results, b1, p1)
     length = np.linalg.norm(gap, axis=1)
     e = gap / length[:, None]
     rate = np.einsum("ki,ki->k", e, relative)
-    motion = results.point_velocity(lip.body, lip.name)
+    motion = kinematics.point_velocity(results, lip.body, lip.name)
     speed = np.linalg.norm(motion, axis=1)
     cap = hydraulics.cylinders * np.pi / 4 * design_value(hydraulics.bore, design) ** 2
     pressure = design_value(hydraulics.relief[0], design)

@@ -27,6 +27,7 @@ from pathlib import Path
 import numpy as np
 
 from kinegen.model.schema import GROUND, Model, design_value
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 
 #: frames written at most (a 341-point case is thinned to every second point, ...)
@@ -86,7 +87,7 @@ class _Scene:
         system = results.system
         self.results, self.times = results, results.times
         self.bodies = {body: list(points) for body, points in system.points.items() if body != GROUND and points}
-        self.positions = {(b, p): results.point_position(b, p) for b, names in self.bodies.items() for p in names}
+        self.positions = {(b, p): kinematics.point_position(results, b, p) for b, names in self.bodies.items() for p in names}
         self.outlines = {b: _outline(np.array([system.points[b][p] for p in names], dtype=float)) for b, names in self.bodies.items()}
         self.ground = np.array(list(system.ground_points.values()), dtype=float).reshape(-1, 3)
         self.joints = [self._joint_point(results, j.body1, [design_value(x, system.design) for x in j.point1])
@@ -95,10 +96,10 @@ class _Scene:
                           self._joint_point(results, j.body2, [design_value(x, system.design) for x in j.point2]))
                          for j in model.joints if j.type == "distance"]  # fmt: skip
         self.actuators = {name: (refs, limits) for name, (*refs, limits) in system.actuators.items()}
-        self.lengths = {name: results.actuator_length(name) for name in self.actuators}
+        self.lengths = {name: kinematics.actuator_length(results, name) for name in self.actuators}
         self.track = track
-        self.path = results.point_position(*track) if track else None
-        self.conditions = results.condition_numbers()  # kinegen's condition number: the CSV's and the plot's
+        self.path = kinematics.point_position(results, *track) if track else None
+        self.conditions = kinematics.condition_numbers(results)  # kinegen's condition number: the CSV's and the plot's
         self.warn = np.isfinite(self.conditions) & (self.conditions > condition_warning)
 
     @staticmethod
@@ -106,7 +107,7 @@ class _Scene:
         local = np.array(local, dtype=float)
         if body == GROUND:
             return np.tile(local, (len(results.times), 1))
-        return results.position(body) + np.einsum("kij,j->ki", results.rotation_matrix(body), local)
+        return kinematics.position(results, body) + np.einsum("kij,j->ki", kinematics.rotation_matrix(results, body), local)
 
     def out_of_range(self, name: str, k: int) -> bool:
         limits = self.actuators[name][1]
@@ -130,7 +131,7 @@ class _Scene:
             out.append(_scatter3d(x=xyz[:, 0], y=xyz[:, 1], z=xyz[:, 2], mode="lines", name="couplers (distance joints)",
                                     line={"color": _BODY, "width": 3}, hoverinfo="skip"))  # fmt: skip
         for name, ((b1, p1), (b2, p2)), in ((n, refs) for n, (refs, _) in self.actuators.items()):
-            base, eye = self.results.point_position(b1, p1)[k], self.results.point_position(b2, p2)[k]
+            base, eye = kinematics.point_position(self.results, b1, p1)[k], kinematics.point_position(self.results, b2, p2)[k]
             barrel, rod = self._cylinder(name, base, eye)
             out_of_range = self.out_of_range(name, k)
             for part, colour, width, label in ((barrel, _BARREL, 10, "barrel"), (rod, _ROD, 5, "rod")):

@@ -22,6 +22,8 @@ from typing import Any
 
 import numpy as np
 
+from kinegen.runtime import kinematics
+
 PARAMETRIZATION = "euler-parameters"
 STEPS = 1000
 TOLERANCE = 1e-10
@@ -68,7 +70,7 @@ def workload(name: str) -> Workload:
 
             system = Session(ROOT / "generated").system(ROOT / "models" / "excavator.yaml", arg)
             solved = Solver(system, SolverOptions(condition="none", tolerance=1e-12)).solve(times)
-            return solved.point_position(body, point)
+            return kinematics.point_position(solved, body, point)
 
         return Workload(name, model, arg, times, body, point, reference)
     raise ValueError(f"unknown workload {name!r} (chain-N or excavator-<case>)")
@@ -150,7 +152,7 @@ def kinegen_run(name: str, predictor: bool, parametrization: str = PARAMETRIZATI
     start = time.perf_counter()
     results = solver.solve(w.times)
     trajectory = time.perf_counter() - start
-    path = results.point_position(w.body, w.point)
+    path = kinematics.point_position(results, w.body, w.point)
     error = float(np.abs(path - w.reference()).max())
     return {"build": build, "trajectory": trajectory, "iterations": float(results.iterations.mean()), "error": error}
 

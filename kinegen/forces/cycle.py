@@ -45,6 +45,7 @@ import numpy as np
 from kinegen.errors import KinegenError
 from kinegen.forces.reachability import PowerLimit
 from kinegen.model import Model
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 
 #: every limit is met with this relative room (the re-timed solve's checks allow no excess at all)
@@ -204,7 +205,7 @@ def path_constraints(results: Results, model: Model, loads: tuple[str, ...] = ()
         relief = [cc.number(x, design) for x in hydraulics.relief]
         holding = [cc.number(x, design) for x in hydraulics.holding]
         supplied = min((pump_pressure[p] for p in fed_by.get(actuator.name, ())), key=lambda item: item[0], default=(np.inf, zeros[0]))
-        rate = sum(results.actuator_rate(member.name) for member in model.members(actuator.name))
+        rate = sum(kinematics.actuator_rate(results, member.name) for member in model.members(actuator.name))
         working = [min(relief[side], supplied, key=lambda item: item[0]) for side in (0, 1)]  # relief, no higher than the pumps give
         setting = [np.where(rate > 0, working[0][0], holding[0][0]), np.where(rate < 0, working[1][0], holding[1][0])]
         d_setting = [np.where((rate > 0)[:, None], working[0][1], holding[0][1]), np.where((rate < 0)[:, None], working[1][1], holding[1][1])]
@@ -249,7 +250,7 @@ def path_constraints(results: Results, model: Model, loads: tuple[str, ...] = ()
                 joint = next(m.joint for m in model.motors if m.name == name)
                 rates[name] = cc.turn_rate_changes(results, model, joint) if changes else (turn_rate(results, model, joint), None)
             else:
-                rates[name] = cc.actuator_rate_changes(results, name) if changes else (results.actuator_rate(name), None)
+                rates[name] = cc.actuator_rate_changes(results, name) if changes else (kinematics.actuator_rate(results, name), None)
         return rates[name]
 
     def add_speed(name: str, limit: float, d_limit: np.ndarray, per_speed: np.ndarray, d_per_speed) -> None:
@@ -330,7 +331,7 @@ def _power_limit(results: Results, model: Model, demand, elements: tuple[str, ..
         if name in actuators:
             cap, annulus = actuators[name].hydraulics.areas(design)
             d_cap, d_annulus = actuators[name].hydraulics.area_gradients(list(design), design)
-            rate = sum(results.actuator_rate(member.name) for member in model.members(name))
+            rate = sum(kinematics.actuator_rate(results, member.name) for member in model.members(name))
             scale = np.where(rate > 0, 1 / cap, np.where(rate < 0, -1 / annulus, 0.0))
             d_scale = np.where((rate > 0)[:, None], -d_cap / cap**2, np.where((rate < 0)[:, None], d_annulus / annulus**2, 0.0))
         else:
@@ -552,7 +553,7 @@ def check_retimed(system, model: Model, cycle: Cycle) -> Check:
             used["tipping"] = float(1 - held.tipping.margin.min() / scale)  # 1: the margin touches zero
     for name, limit in cycle.speed_limits.items():
         motor = next((m for m in model.motors if m.name == name), None)
-        rate = results.actuator_rate(name) if motor is None else turn_rate(results, model, motor.joint)
+        rate = kinematics.actuator_rate(results, name) if motor is None else turn_rate(results, model, motor.joint)
         used[f"{name} speed"] = float(np.abs(rate).max() / limit)
     return Check(results, used, supplied)
 

@@ -26,6 +26,7 @@ import numpy as np
 from kinegen.errors import KinegenError
 from kinegen.model import Model
 from kinegen.model.schema import GROUND, design_gradient, design_value
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 from kinegen.runtime.sensitivity import STATE, frame_sensitivities, point_sensitivity, state_sensitivities
 
@@ -96,8 +97,8 @@ def actuator_rate_changes(results: Results, name: str) -> tuple[np.ndarray, np.n
     """A cylinder's rate L' = e·(v1 - v2) (K,) at the case's own pace and its exact derivative (K, P)."""
 
     ends = results.system.actuators[name][:2]
-    r = [results.point_position(b, p) for b, p in ends]
-    v = [results.point_velocity(b, p) for b, p in ends]
+    r = [kinematics.point_position(results, b, p) for b, p in ends]
+    v = [kinematics.point_velocity(results, b, p) for b, p in ends]
     dr = [point_sensitivity(results, b, p, kind="position") for b, p in ends]
     dv = [point_sensitivity(results, b, p, kind="velocity") for b, p in ends]
     gap, d_gap = r[0] - r[1], dr[0] - dr[1]
@@ -129,13 +130,13 @@ def turn_rate_changes(results: Results, model: Model, joint_name: str) -> tuple[
     def omega(body: str) -> tuple[np.ndarray, np.ndarray]:
         if body == GROUND:
             return np.zeros((count, 3)), np.zeros((count, 3, n_design))
-        return results.omega(body), frames[:, bodies.index(body), slices["angular_velocity"]]
+        return kinematics.omega(results, body), frames[:, bodies.index(body), slices["angular_velocity"]]
 
     (w1, dw1), (w2, dw2) = omega(joint.body1), omega(joint.body2)
     if joint.body1 == GROUND:
         carried, d_carried = np.broadcast_to(unit, (count, 3)), np.broadcast_to(d_unit, (count, 3, n_design))
     else:
-        rotation = results.rotation_matrix(joint.body1)
+        rotation = kinematics.rotation_matrix(results, joint.body1)
         d_rotation = frames[:, bodies.index(joint.body1), slices["rotation"]].reshape(count, 3, 3, n_design)
         carried = rotation @ unit
         d_carried = np.einsum("kijp,j->kip", d_rotation, unit) + np.einsum("kij,jp->kip", rotation, d_unit)

@@ -23,6 +23,7 @@ from kinegen.errors import KinegenError
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, design_value
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 from kinegen.runtime.sensitivity import frame_sensitivities, point_sensitivity
 
@@ -65,7 +66,7 @@ def load_wrench(results: Results, load) -> tuple[np.ndarray, np.ndarray]:
     """A :class:`~kinegen.model.schema.Load`'s force and moment (each (K, 3), global) along
     ``results``: its exact functions of t at the times, turned from the body's axes if it is given in them."""
     count = len(results.times)
-    rotation = np.broadcast_to(np.eye(3), (count, 3, 3)) if load.axes == GROUND else results.rotation_matrix(load.axes)
+    rotation = np.broadcast_to(np.eye(3), (count, 3, 3)) if load.axes == GROUND else kinematics.rotation_matrix(results, load.axes)
     return (np.einsum("kij,kj->ki", rotation, time_vector(load.force, results.times)),
             np.einsum("kij,kj->ki", rotation, time_vector(load.moment, results.times)))  # fmt: skip
 
@@ -79,13 +80,13 @@ def energies(results: Results, model: Model) -> Energies:
     potential = np.zeros(len(results.times))
     for body in model.massive:
         mass, center, tensor = inertia_numbers(body.inertia, design)
-        rotation = results.rotation_matrix(body.name)
+        rotation = kinematics.rotation_matrix(results, body.name)
         arm = rotation @ center
-        omega = results.omega(body.name)
-        velocity = results.velocity(body.name) + np.cross(omega, arm)
+        omega = kinematics.omega(results, body.name)
+        velocity = kinematics.velocity(results, body.name) + np.cross(omega, arm)
         spin = np.einsum("kij,jl,kml,km->ki", rotation, tensor, rotation, omega)  # (R J Rᵀ) ω
         kinetic += 0.5 * mass * np.einsum("ki,ki->k", velocity, velocity) + 0.5 * np.einsum("ki,ki->k", omega, spin)
-        potential -= mass * (results.position(body.name) + arm) @ gravity
+        potential -= mass * (kinematics.position(results, body.name) + arm) @ gravity
     return Energies(kinetic, potential)
 
 
@@ -202,13 +203,13 @@ class MachineWrenches:
     def _add_body(self, body, inertia: bool) -> None:
         results, name = self.results, body.name
         mass, local, body_tensor = inertia_numbers(body.inertia, results.system.design)
-        rotation = results.rotation_matrix(name)
+        rotation = kinematics.rotation_matrix(results, name)
         arm = rotation @ local
-        center = results.position(name) + arm
+        center = kinematics.position(results, name) + arm
         force, moment = np.broadcast_to(mass * self.gravity, (self.count, 3)).copy(), np.zeros((self.count, 3))
         if inertia:  # d'Alembert: -m a_C at the centre, -(J w' + w x J w) on the body
-            omega, omega_dot = results.omega(name), results.omega_dot(name)
-            acceleration = results.acceleration(name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
+            omega, omega_dot = kinematics.omega(results, name), kinematics.omega_dot(results, name)
+            acceleration = kinematics.acceleration(results, name) + np.cross(omega_dot, arm) + np.cross(omega, np.cross(omega, arm))
             tensor = rotation @ body_tensor @ rotation.swapaxes(1, 2)
             force -= mass * acceleration
             moment = -(np.einsum("kij,kj->ki", tensor, omega_dot) + np.cross(omega, np.einsum("kij,kj->ki", tensor, omega)))
@@ -245,15 +246,15 @@ class MachineWrenches:
         body, point = load.point.body, load.point.name
         force, moment = load_wrench(results, load)
         if not self.changes:
-            self.items.append((results.point_position(body, point), force, moment, None, None, None))
+            self.items.append((kinematics.point_position(results, body, point), force, moment, None, None, None))
             return
         d_force, d_moment = self._zeros(), self._zeros()
         if load.axes != GROUND:  # turned with its body: F = R f, dF = dR f
             d_rotation = self._frame(load.axes, "rotation")
-            inverse = results.rotation_matrix(load.axes).swapaxes(1, 2)
+            inverse = kinematics.rotation_matrix(results, load.axes).swapaxes(1, 2)
             d_force = np.einsum("kijp,kjl,kl->kip", d_rotation, inverse, force)
             d_moment = np.einsum("kijp,kjl,kl->kip", d_rotation, inverse, moment)
-        self.items.append((results.point_position(body, point), force, moment, point_sensitivity(results, body, point), d_force, d_moment))
+        self.items.append((kinematics.point_position(results, body, point), force, moment, point_sensitivity(results, body, point), d_force, d_moment))
 
 
 def time_vector(vector: sp.ImmutableMatrix, times: np.ndarray) -> np.ndarray:

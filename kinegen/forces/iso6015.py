@@ -32,7 +32,7 @@ from kinegen.errors import KinegenError
 from kinegen.forces.statics import Statics, pose_results, unit_rate_velocities
 from kinegen.model import Model
 from kinegen.model.schema import ToolForce
-from kinegen.runtime import NumericSystem, Solver, SolverOptions
+from kinegen.runtime import NumericSystem, Solver, SolverOptions, kinematics
 
 #: poses on a stroke before the maximum is refined
 GRID = 41
@@ -195,7 +195,7 @@ class _Finder:
         system = self.system
         q = np.stack([self.pose(u) for u in inputs])
         results = pose_results(system, q, inputs, unit_rate_velocities(system, q, inputs, item.driver))
-        motion = results.point_velocity(self.lip.body, self.lip.name)  # the lip's velocity per unit rate of the working input
+        motion = kinematics.point_velocity(results, self.lip.body, self.lip.name)  # the lip's velocity per unit rate of the working input
         direction = motion / np.linalg.norm(motion, axis=1)[:, None]
         statics = Statics(results, self.model)
         _, multipliers = statics.hold(self.lip.body, self.lip.name, -direction)  # 1 N resisting the lip's motion

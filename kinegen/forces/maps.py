@@ -22,7 +22,7 @@ import numpy as np
 from kinegen.errors import KinegenError
 from kinegen.forces.statics import Statics, pose_results, unit_rate_velocities
 from kinegen.model import Model
-from kinegen.runtime import NumericSystem
+from kinegen.runtime import NumericSystem, kinematics
 from kinegen.runtime.batch import sweep_grid
 from kinegen.runtime.continuation import RangeEvaluator
 
@@ -109,7 +109,7 @@ def force_map(system: NumericSystem, model: Model, direction: str, grid: tuple[i
         v = unit_rate_velocities(system, q, inputs, bucket)
     results = pose_results(system, q, inputs, v)
     if v is not None:
-        motion = results.point_velocity(point.body, point.name)
+        motion = kinematics.point_velocity(results, point.body, point.name)
         along = motion / np.linalg.norm(motion, axis=1)[:, None]
     else:
         along = np.broadcast_to(np.array(DIRECTIONS[direction]), (len(q), 3))

@@ -51,6 +51,7 @@ from kinegen.interface import row_owner
 from kinegen.model import Model
 from kinegen.model.expressions import T
 from kinegen.model.schema import GROUND, Actuator, Joint, Load, Motor, design_value
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 
 #: a reciprocal 1-norm condition of Phi_q at or below this is singular: no force holds the load there
@@ -614,7 +615,7 @@ class Statics:
         cap, annulus = hydraulics.areas(design)
         pushing = force >= 0
         pressure = np.where(pushing, force / cap, -force / annulus)
-        rate = sum(self.results.actuator_rate(member.name) for member in self.model.members(actuator.name))
+        rate = sum(kinematics.actuator_rate(self.results, member.name) for member in self.model.members(actuator.name))
         working = force * rate > 0  # the pump does work on the element's cylinders
         relief = [design_value(x, design) for x in hydraulics.relief]
         holding = [design_value(x, design) for x in hydraulics.holding]

@@ -25,6 +25,7 @@ import numpy as np
 
 from kinegen.model import Model
 from kinegen.model.schema import GROUND, design_value
+from kinegen.runtime import kinematics
 from kinegen.runtime.results import Results
 
 #: m^3/s -> L/min
@@ -98,8 +99,8 @@ def turn_rate(results: Results, model: Model, joint_name: str) -> np.ndarray:
     axis = np.array([design_value(x, design) for x in joint.axis1], dtype=float)
     axis = axis / np.linalg.norm(axis)
     count = len(results.times)
-    omega = {b: np.zeros((count, 3)) if b == GROUND else results.omega(b) for b in (joint.body1, joint.body2)}
-    carried = np.broadcast_to(axis, (count, 3)) if joint.body1 == GROUND else results.rotation_matrix(joint.body1) @ axis
+    omega = {b: np.zeros((count, 3)) if b == GROUND else kinematics.omega(results, b) for b in (joint.body1, joint.body2)}
+    carried = np.broadcast_to(axis, (count, 3)) if joint.body1 == GROUND else kinematics.rotation_matrix(results, joint.body1) @ axis
     return np.einsum("ki,ki->k", carried, omega[joint.body2] - omega[joint.body1])
 
 
@@ -124,7 +125,7 @@ def flows(results: Results, model: Model, held=None) -> Flows:
     for name in supply.circuits:
         if name in actuators:
             cap, annulus = actuators[name].hydraulics.areas(design)
-            rates = [results.actuator_rate(member.name) for member in model.members(name)]
+            rates = [kinematics.actuator_rate(results, member.name) for member in model.members(name)]
             element_flow[name] = sum(np.where(rate > 0, cap * rate, -annulus * rate) for rate in rates)
         else:
             motor = motors[name]

@@ -32,6 +32,7 @@ import scipy.linalg
 
 import kinegen.runtime.linear as linear
 from kinegen.model.schema import GROUND
+from kinegen.runtime import kinematics
 from kinegen.runtime.blocksolve import BlockSolve
 
 if TYPE_CHECKING:
@@ -332,8 +333,8 @@ def _point_sensitivity(results: Results, body: str, point: str, kind: str) -> np
         return np.broadcast_to(change, (count, 3, n_design)).copy()
     frame = frame_sensitivities(results)[:, list(system.bodies).index(body)]  # (K, FRAME_VALUES, n_design)
     at = system.frame_slices
-    rotation, arm = results.rotation_matrix(body), results.arm(body, point)
-    omega, omega_dot = results.omega(body), results.omega_dot(body)
+    rotation, arm = kinematics.rotation_matrix(results, body), kinematics.arm(results, body, point)
+    omega, omega_dot = kinematics.omega(results, body), kinematics.omega_dot(results, body)
     local = np.asarray(system.points[body][point], dtype=float)
     out = np.empty((count, 3, n_design))
     for k in range(n_design):
@@ -364,7 +365,7 @@ def _rotation_sensitivity(results: Results, body: str) -> np.ndarray:
         raise KeyError(f"no body {body!r} (bodies: {', '.join(system.bodies)})")
     d_rotation = frame_sensitivities(results)[:, list(system.bodies).index(body), system.frame_slices["rotation"]]  # (K, 9, n_design)
     count = len(results.times)
-    rotation = results.rotation_matrix(body)
+    rotation = kinematics.rotation_matrix(results, body)
     out = np.empty((count, 3, len(system.design)))
     for k in range(len(system.design)):
         spin = d_rotation[:, :, k].reshape(count, 3, 3) @ np.swapaxes(rotation, 1, 2)  # [dθ]x
@@ -383,7 +384,7 @@ def relative_angle_sensitivity(results: Results, body1: str, body2: str, axis: t
         direction = np.broadcast_to(axis, (len(results.times), 3))
     else:
         turn = turn - _rotation_sensitivity(results, body1)
-        direction = results.rotation_matrix(body1) @ axis
+        direction = kinematics.rotation_matrix(results, body1) @ axis
     return by_parameter(results, np.einsum("ki,kij->kj", direction, turn), parameter)
 
 
@@ -408,7 +409,7 @@ def actuator_length_sensitivity(results: Results, name: str, *, parameter: str |
     if name not in system.actuators:
         raise KeyError(f"no actuator {name!r} (actuators: {', '.join(system.actuators) or 'none'})")
     (b1, p1), (b2, p2), _ = system.actuators[name]
-    d = results.point_position(b2, p2) - results.point_position(b1, p1)
+    d = kinematics.point_position(results, b2, p2) - kinematics.point_position(results, b1, p1)
     change = _point_sensitivity(results, b2, p2, "position") - _point_sensitivity(results, b1, p1, "position")
     out = np.einsum("ki,kij->kj", d / np.linalg.norm(d, axis=1)[:, None], change)
     return by_parameter(results, out, parameter)
@@ -448,7 +449,7 @@ def sensitivity_table(results: Results) -> tuple[list[str], np.ndarray]:
 
 def sensitivities_to_csv(results: Results, path: str | Path) -> Path:
     """Write :func:`sensitivity_table` to a CSV file (one row per time point; ``-``: standard output)."""
-    from kinegen.runtime.results import write_csv
+    from kinegen.runtime.export import write_csv
 
     return write_csv(path, *sensitivity_table(results))
 

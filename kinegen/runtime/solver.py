@@ -91,8 +91,8 @@ class SolverOptions:
     #: condition number recorded per step (``Results.conditions``): "none" (NaN), "estimate"
     #: (1-norm, LAPACK gecon on the LU already computed; a quarter of a compiled step) or "exact"
     #: (2-norm, sigma_max/sigma_min by SVD). The CSV, the plots, the 3-D view and ``kinegen compare``
-    #: take Results.condition_numbers() -- the exact 2-norm's, computed when first asked for -- so by
-    #: default no step pays for an estimate nothing reads
+    #: take kinegen.runtime.kinematics.condition_numbers -- the exact 2-norm's, computed when first
+    #: asked for -- so by default no step pays for an estimate nothing reads
     condition: str = "none"
     #: predict each step from the previous q, v, a (else: start from the previous q)
     predictor: bool = True
