@@ -157,3 +157,25 @@ def test_scan_flags_only_the_euler_singularity_in_the_digging_cycle():
     for name in ("quaternion", "euler-parameters", "dual-quaternion", "dual-euler-parameters"):
         assert traces[name].warning is None, name
     assert result.ahead is None and result.stopped is None
+
+
+def test_a_determinants_size_is_counted_as_sympy_counts_it_and_no_further_than_needed():
+    """``operations_up_to`` gives SymPy's ``count_ops`` up to its limit (sums of every sign pattern,
+    fractions, functions, all-negative sums), and above the limit some count above it -- what
+    decides whether a determinant is expanded, factored or left as it is."""
+    import importlib
+
+    operations_up_to = importlib.import_module("kinegen.analysis.inspect").operations_up_to
+    x, y, z = sp.symbols("x y z", real=True)
+    rng = np.random.default_rng(7)
+    coefficients = [-3, -1, 1, 2, sp.Rational(-1, 2), sp.Rational(5, 3)]
+    factors = [x, y, x * y, 1 / x, sp.sin(z), x**2, (x - y) / z, sp.exp(-x), sp.sqrt(y + 1)]
+    expressions = [-x - y, -x + y, x - y, -1 - x, -(x + y) / z - 1, sp.Rational(-1, 2) * x - sp.Rational(1, 3)]
+    for _ in range(200):
+        count = int(rng.integers(2, 8))
+        expressions.append(sp.Add(*(coefficients[rng.integers(6)] * factors[rng.integers(9)] for _ in range(count))))
+    for expression in expressions:
+        exact = sp.count_ops(expression)
+        assert operations_up_to(expression, 10**9) == exact, expression
+        for limit in (0, 3, exact - 1, exact):
+            assert (operations_up_to(expression, limit) > limit) == (exact > limit), (expression, limit)

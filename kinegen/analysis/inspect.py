@@ -210,14 +210,39 @@ def _factored_determinant(matrix: sp.Matrix, simplify: bool = True) -> sp.Expr |
     det = matrix.det(method="berkowitz")
     if det.has(sp.sin, sp.cos, sp.tan):
         det = sp.expand_trig(sp.simplify(det) if simplify and matrix.shape[0] <= 3 else det)
-    ops = sp.count_ops(det)
+    ops = operations_up_to(det, MAX_EXPAND_OPS)
     if ops > MAX_EXPAND_OPS:
         return None
     if ops > MAX_FACTOR_OPS:
         det = sp.expand(det)  # products of long sums often cancel when multiplied out
-        if sp.count_ops(det) > MAX_FACTOR_OPS:
+        if operations_up_to(det, MAX_FACTOR_OPS) > MAX_FACTOR_OPS:
             return det
     return _trig_simplified(sp.factor(det))
+
+
+def operations_up_to(expr: sp.Expr, limit: int) -> int:
+    """``sp.count_ops(expr)`` where it is at most ``limit``; above it, some count above ``limit``.
+
+    A sum is counted term by term as SymPy counts it -- each term with a negative coefficient
+    negated (its minus is the SUB between terms), one ADD or SUB between terms, one NEG when every
+    term is negative -- and the count stops once past ``limit``: the dual Euler parameters' 8 x 8
+    boom determinant (~10^6 operations) took 22 s to count in full, only to be found too large."""
+    if not expr.is_Add:
+        return sp.count_ops(expr)
+    total = negatives = 0
+    for i, term in enumerate(expr.args):
+        negative = _leading_coefficient_negative(term)
+        negatives += negative
+        total += sp.count_ops(-term if negative else term) + (i > 0)
+        if total > limit:
+            return total
+    return total + (negatives == len(expr.args))
+
+
+def _leading_coefficient_negative(term: sp.Expr) -> bool:
+    """True when a term's numeric leading factor is negative (how SymPy's ``count_ops`` tells a SUB)."""
+    first = term.args[0] if term.is_Mul else term
+    return bool(first.is_Number and first.is_extended_negative)
 
 
 #: factors of a determinant with at most this many operations are simplified with ``trigsimp``
