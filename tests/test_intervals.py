@@ -126,12 +126,16 @@ def _contains(bounds: np.ndarray, values: np.ndarray) -> bool:
 #: found by Hypothesis: a constant on atan2's jump (tan(pi) is exactly 0, so this is pi), which its value to 40 digits
 #: put on the other side (-pi); and the same constant inside a function of t
 ON_THE_JUMP = sp.atan2(sp.tan(sp.pi, evaluate=False), sp.Mul(-1, sp.Rational(1, 2), evaluate=False), evaluate=False)
+#: found by Hypothesis in CI: 0/0, which SymPy evaluated to 128 without the 40 digits asked for (enclosed as [128, 128])
+ZERO_BY_ZERO = sp.Mul(sp.sin(sp.pi, evaluate=False), sp.Pow(sp.sin(sp.pi, evaluate=False), -1, evaluate=False), evaluate=False)
 
 
 @settings(max_examples=300, deadline=None, suppress_health_check=[HealthCheck.too_slow])
 @given(expr=expressions, span=spans)
 @example(expr=ON_THE_JUMP, span=(0.0, 0.0))
 @example(expr=T + 2 * ON_THE_JUMP, span=(0.0, 1.0))
+@example(expr=ZERO_BY_ZERO, span=(0.0, 0.0))
+@example(expr=T * ZERO_BY_ZERO, span=(0.0, 1.0))
 def test_python_enclosures_hold_every_value(expr, span):
     program = interval_program([expr])
     bounds = evaluate(program, (np.array([span[0]]), np.array([span[1]])))[:, 0]
@@ -233,6 +237,8 @@ int main(void) {
 @given(expr=expressions, span=spans)
 @example(expr=ON_THE_JUMP, span=(0.0, 0.0))
 @example(expr=T + 2 * ON_THE_JUMP, span=(0.0, 1.0))
+@example(expr=ZERO_BY_ZERO, span=(0.0, 0.0))
+@example(expr=T * ZERO_BY_ZERO, span=(0.0, 1.0))
 def test_c_enclosures_hold_every_value(c_evaluator, expr, span):
     bounds = c_evaluator(expr, span)
     assert _contains(bounds, _values(expr, *span)), (expr, span, bounds)

@@ -20,6 +20,7 @@ dependency problem), which only makes the certificate more cautious.
 
 from __future__ import annotations
 
+import functools
 import math
 from dataclasses import dataclass
 from fractions import Fraction
@@ -130,11 +131,16 @@ def interval_program(expressions: list[sp.Expr]) -> IntervalProgram:
             rest = sorted((a for a in e.args if not _constant(a)), key=sp.default_sort_key)
             op, unit = ("add", sp.Integer(0)) if e.is_Add else ("mul", sp.Integer(1))
             value = e.func(*constant) if constant else unit
-            result = fold(op, [register(a) for a in rest])
-            if e.is_Mul and value == -1:
-                result = emit(Operation("neg", (result,)))
-            elif value != unit:
-                result = emit(Operation(op, (register(value), result)))
+            if not _constant(value):  # pinned constants whose sum or product is not (1 - 0.999...): one by one
+                rest, value = sorted(e.args, key=sp.default_sort_key), unit
+            if not rest:  # every term or factor pinned, and so their exact sum or product (e itself is not: -|2| + |2|)
+                result = register(value)
+            else:
+                result = fold(op, [register(a) for a in rest])
+                if e.is_Mul and value == -1:
+                    result = emit(Operation("neg", (result,)))
+                elif value != unit:
+                    result = emit(Operation(op, (register(value), result)))
         elif e.is_Pow:
             result = _power(e, register, emit)
         elif e.func == sp.atan2:
@@ -161,7 +167,24 @@ def _constant(e: sp.Expr) -> bool:
     a constant on that axis (``atan2(tan(pi), -1/2)``, exactly pi) evaluates to either side of the
     jump (-pi there, found by Hypothesis): its arguments are enclosed instead, and the interval atan2
     gives [-pi, pi] where they touch the axis."""
-    return e.is_number and not e.free_symbols and not e.has(sp.atan2)
+    return e.is_number and not e.free_symbols and not e.has(sp.atan2) and _pinned(e)
+
+
+@functools.lru_cache(maxsize=4096)
+def _pinned(e: sp.Expr) -> bool:
+    """Whether SymPy gives a constant's value to 40 significant digits. Not where it cancels to
+    zero or near it: ``sin(pi)/sin(pi)`` (0/0) evaluated to 128 without that precision and was
+    enclosed as [128, 128] (found by Hypothesis); such a constant is enclosed through its
+    arguments, so the interval division by an enclosure of sin(pi), which holds 0, is unbounded."""
+    if e.is_Rational:
+        return True
+    try:
+        e.evalf(40, strict=True)
+    except PrecisionExhausted:
+        return False
+    except (TypeError, ValueError):  # not a real number: refused where it is registered
+        return True
+    return True
 
 
 def _power(e: sp.Pow, register, emit) -> int:
