@@ -76,7 +76,8 @@ class _Unsupported(Exception):
 def constant_bounds(value: sp.Expr) -> tuple[float, float]:
     """The tightest doubles around an exact real constant: the same double twice where it is
     exactly representable (integers, binary fractions), else its neighbours. ValueError or
-    TypeError where it is not a finite real number."""
+    TypeError where it is not a finite real number; PrecisionExhausted where SymPy cannot give it
+    to 40 digits (the interval program encloses such a constant through its arguments: ``_pinned``)."""
     value = sp.sympify(value)  # (not doit(): SymPy 1.14 evaluates Abs(acos(tanh(10))) to 0; evalf does not)
     if value.has(sp.zoo, sp.nan, sp.oo, -sp.oo):
         raise ValueError(f"{value} is not a finite real number")
@@ -85,11 +86,7 @@ def constant_bounds(value: sp.Expr) -> tuple[float, float]:
         if Fraction(number) == Fraction(int(value.p), int(value.q)):
             return number, number
         return math.nextafter(number, -math.inf), math.nextafter(number, math.inf)
-    try:
-        number = float(value.evalf(40, strict=True))
-    except PrecisionExhausted:  # a value SymPy cannot pin down relatively (a cancellation near zero): near zero, say so
-        number = float(value.evalf(40))
-        return number - 1e-15, number + 1e-15
+    number = float(value.evalf(40, strict=True))
     if not math.isfinite(number):
         raise ValueError(f"{value} is not a finite real number")
     return math.nextafter(number, -math.inf), math.nextafter(number, math.inf)
