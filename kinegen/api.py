@@ -17,10 +17,11 @@ rebuilds a missing or stale module the same way:
 Example::
 
     from kinegen.api import Session
+    from kinegen.runtime import kinematics
 
     session = Session("generated")
     results = session.solve("models/excavator.yaml", case="digging")
-    print(kinematics.point_position(results, "bucket", "tip")[-1])
+    print(kinematics.point_position(results, "bucket", "T")[-1])
 """
 
 from __future__ import annotations
