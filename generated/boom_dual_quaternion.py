@@ -47,7 +47,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'boom_dual_quaternion.h': '3aca163a854e35472b0b0eed7c32382b4518717b636d82a33f38fbc6c5550064', 'boom_dual_quaternion.c': '010e7975e5297a649ecf4087b48108f40644c9e44b6c9ebbe5cd4cfdbfcdcbdc'}
+C_FILES = {'boom_dual_quaternion.h': '3aca163a854e35472b0b0eed7c32382b4518717b636d82a33f38fbc6c5550064', 'boom_dual_quaternion.c': '543f41e3465d52a722e1375e2d1018aded21240e92d5f48ea009557a9bcc1b07'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

@@ -428,7 +428,7 @@ const kinegen_layout boom_euler_zxz_layout = {
     .n_q = BOOM_EULER_ZXZ_N_Q, .n_v = BOOM_EULER_ZXZ_N_V, .n_bodies = BOOM_EULER_ZXZ_N_BODIES,
     .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
     .n_points = 3, .points = points, .n_actuators = 0, .actuators = actuators,
-    .frames = boom_euler_zxz_frames, .n_kernels = 1, .kernels = kernels, .statics = NULL,
+    .n_kernels = 1, .kernels = kernels, .statics = NULL,
 };
 
 static const double initial_q[] = {0.0, 1.78, 0.0, 1.5707963267948966, 0.0, 0.0};
@@ -455,8 +455,7 @@ const kinegen_model boom_euler_zxz_swing = {
     .t0 = 0.0, .t1 = 2.0, .steps = 201,
     .initial_q = initial_q, .constraint_names = constraints_swing, .driver_names = drivers_swing,
     .jac_rows = jac_rows_swing, .jac_cols = jac_cols_swing,
-    .phi_jac = phi_jac_swing, .nu = nu_swing, .gamma = gamma_swing,
-    .inputs = inputs_swing, .input_ranges = input_ranges_swing, .retract = retract,
+    .retract = retract,
     .n_blocks = 5, .block_start = block_start_swing, .block_store = block_store_swing,
     .row_order = row_order_swing, .col_order = col_order_swing,
     .n_store = 8, .n_diag = 8, .diag_value = diag_value_swing, .diag_slot = diag_slot_swing,

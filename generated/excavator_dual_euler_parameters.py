@@ -88,7 +88,7 @@ KERNELS = {
     'actuator_ranges': (('p',), ('actuator_ranges',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'excavator_dual_euler_parameters.h': '939aa29e11e9b05fdd4320ad9c94fefdc2cc91f26f765c21ccdd65b2257b703a', 'excavator_dual_euler_parameters.c': 'd57977128a544f5745923ec1c25db0d3a9fcc7207822e5026abc1b254469eaf9'}
+C_FILES = {'excavator_dual_euler_parameters.h': '939aa29e11e9b05fdd4320ad9c94fefdc2cc91f26f765c21ccdd65b2257b703a', 'excavator_dual_euler_parameters.c': '11fdff4393b7af9cb25bfcdda5d3c3b9763a408e60ee41a0d4e6c5bdcd2b521f'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 # the force solve (kinegen.forces.statics): the actuation elements, (name, kind); the actuation

@@ -10324,10 +10324,10 @@ static const int statics_off_value[] = {9, 7, 8, 13, 11, 12, 17, 15, 16, 113, 11
 static const kinegen_statics statics = {
     .n_elements = 4, .element_names = element_names, .element_kinds = element_kinds,
     .n_joint_rows = 80,
-    .pattern = {.n = 452, .rows = matrix_rows, .cols = matrix_cols}, .actuation = &kernels[2],
+    .pattern = {.n = 452, .rows = matrix_rows, .cols = matrix_cols},
     .n_loads = 2, .load_names = load_names,
-    .load_pattern = {.n = 6, .rows = load_rows, .cols = load_cols}, .loads = &kernels[3],
-    .n_inertia = 84, .inertia_cols = inertia_cols, .inertia = &kernels[4],
+    .load_pattern = {.n = 6, .rows = load_rows, .cols = load_cols},
+    .n_inertia = 84, .inertia_cols = inertia_cols,
     .n_blocks = 37, .block_start = statics_block_start, .block_store = statics_block_store,
     .row_order = statics_row_order, .col_order = statics_col_order,
     .n_store = 410, .n_diag = 260, .diag_value = statics_diag_value,
@@ -10346,7 +10346,7 @@ const kinegen_layout excavator_dual_quaternion_layout = {
     .n_q = EXCAVATOR_DUAL_QUATERNION_N_Q, .n_v = EXCAVATOR_DUAL_QUATERNION_N_V, .n_bodies = EXCAVATOR_DUAL_QUATERNION_N_BODIES,
     .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
     .n_points = 30, .points = points, .n_actuators = 4, .actuators = actuators,
-    .frames = excavator_dual_quaternion_frames, .n_kernels = 8, .kernels = kernels, .statics = &statics,
+    .n_kernels = 8, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {1.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.0, 0.9826937028898046, 0.0, 0.18523791809649656, 0.0, 0.0, -0.06941722468708496, 0.0, 0.9827948372711075, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 0.604231304353096, 0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, 0.06938541555720638, 1.7341333740493532, 0.1441723416885284, 1.004743925176123, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 0.604231304353096, -0.1441723416885284, 0.4609591484500076, 0.9010771355533025, 0.0, -0.4336588472325399, 0.0, -0.06938541555720638, 1.7341333740493532, -0.1441723416885284, 1.004743925176123, 0.7487823326004931, 0.0, 0.6628159762599, 0.0, 0.0, 1.1673591676421733, 0.0, 3.0396113433154897, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 1.6965717474027266, 0.0, 1.8495911036498867, 0.999983913277035, 0.0, -0.005672141319415611, 0.0, 0.0, 2.6681621172680057, 0.0, 1.855102189922746, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 2.5562304402872105, 0.0, 2.5969797733967255, 0.9500473023047873, 0.0, 0.3121059489714928, 0.0, 0.0, 3.4387759320385776, 0.0, 2.30704926454922, 0.912012841994652, 0.0, 0.4101616462284567, 0.0, 0.0, 3.2304534311614317, 0.0, 2.3677903790988526, 0.640244241850993, 0.0, 0.7681714071590059, 0.0, 0.0, 1.9761889826861672, 0.0, 3.7916431136090383, 0.8349444950888361, 0.0, 0.5503341622331369, 0.0, 0.0, 3.029873627157362, 0.0, 2.828134945093185};
@@ -10369,7 +10369,7 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17, 2
 static const int off_col_digging[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_digging = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging, .nu = nu_digging, .gamma = gamma_digging,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10379,7 +10379,7 @@ const kinegen_model excavator_dual_quaternion_digging = {
     .t0 = 0.0, .t1 = 17.0, .steps = 341,
     .initial_q = initial_q, .constraint_names = constraints_digging, .driver_names = drivers_digging,
     .jac_rows = jac_rows_digging, .jac_cols = jac_cols_digging,
-    .inputs = inputs_digging, .input_ranges = input_ranges_digging, .retract = retract,
+    .retract = retract,
     .n_blocks = 37, .block_start = block_start_digging, .block_store = block_store_digging,
     .row_order = row_order_digging, .col_order = col_order_digging,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
@@ -10404,7 +10404,7 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 17,
 static const int off_col_level_cut[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_level_cut[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
 static const kinegen_design design_level_cut = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_level_cut, .nu = nu_level_cut, .gamma = gamma_level_cut,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10414,7 +10414,7 @@ const kinegen_model excavator_dual_quaternion_level_cut = {
     .t0 = 0.0, .t1 = 4.0, .steps = 201,
     .initial_q = initial_q, .constraint_names = constraints_level_cut, .driver_names = drivers_level_cut,
     .jac_rows = jac_rows_level_cut, .jac_cols = jac_cols_level_cut,
-    .inputs = inputs_level_cut, .input_ranges = input_ranges_level_cut, .retract = retract,
+    .retract = retract,
     .n_blocks = 46, .block_start = block_start_level_cut, .block_store = block_store_level_cut,
     .row_order = row_order_level_cut, .col_order = col_order_level_cut,
     .n_store = 392, .n_diag = 249, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
@@ -10439,7 +10439,7 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 1
 static const int off_col_trench_wall[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 9, 6, 6, 15, 16, 10, 15, 20, 9, 16, 20, 6, 15, 16, 10, 15, 20, 9, 16, 20, 10, 15, 20, 9, 16, 20, 10, 15, 20, 6, 15, 16, 18, 19, 23, 17, 23, 24, 17, 23, 24, 18, 19, 23, 22, 26, 27, 21, 25, 26, 17, 23, 24, 18, 19, 23, 3, 4, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 4, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 24, 34, 19, 24, 34, 19, 24, 34, 19, 24, 34, 15, 16, 20, 35, 36, 37, 38, 39, 58, 35, 36, 37, 38, 39, 58, 25, 27, 59, 19, 23, 24, 19, 23, 24, 40, 43, 60, 68, 41, 42, 25, 26, 27, 41, 69, 70, 60, 69, 71, 40, 70, 71, 19, 23, 24, 44, 45, 61, 75, 76, 77, 44, 45, 61, 75, 76, 77};
 static const int off_value_trench_wall[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 33, 31, 32, 37, 35, 36, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 177, 185, 101, 99, 100, 97, 95, 96, 93, 91, 92, 173, 171, 172, 169, 167, 168, 165, 163, 164, 181, 179, 180, 201, 199, 200, 205, 203, 204, 209, 207, 208, 269, 267, 268, 261, 259, 260, 297, 295, 296, 305, 303, 304, 348, 347, 346, 340, 339, 338, 357, 355, 356, 365, 363, 364, 43, 44, 45, 66, 64, 65, 72, 71, 70, 78, 76, 77, 84, 83, 82, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 263, 264, 265, 275, 276, 277, 299, 300, 301, 359, 360, 361, 211, 212, 213, 232, 233, 234, 240, 238, 239, 244, 245, 246, 252, 250, 251, 343, 342, 344, 307, 308, 309, 313, 314, 315, 321, 324, 327, 330, 333, 336, 354, 353, 352, 426, 424, 425, 422, 420, 421, 418, 416, 417, 367, 368, 369, 388, 390, 389, 396, 395, 394, 400, 402, 401, 408, 407, 406};
 static const kinegen_design design_trench_wall = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_trench_wall, .nu = nu_trench_wall, .gamma = gamma_trench_wall,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10449,7 +10449,7 @@ const kinegen_model excavator_dual_quaternion_trench_wall = {
     .t0 = 0.0, .t1 = 4.0, .steps = 201,
     .initial_q = initial_q, .constraint_names = constraints_trench_wall, .driver_names = drivers_trench_wall,
     .jac_rows = jac_rows_trench_wall, .jac_cols = jac_cols_trench_wall,
-    .inputs = inputs_trench_wall, .input_ranges = input_ranges_trench_wall, .retract = retract,
+    .retract = retract,
     .n_blocks = 46, .block_start = block_start_trench_wall, .block_store = block_store_trench_wall,
     .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
     .n_store = 392, .n_diag = 249, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
@@ -10474,7 +10474,7 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_bucket_toggle = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_toggle, .nu = nu_bucket_toggle, .gamma = gamma_bucket_toggle,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10484,7 +10484,7 @@ const kinegen_model excavator_dual_quaternion_bucket_toggle = {
     .t0 = 0.0, .t1 = 3.0, .steps = 301,
     .initial_q = initial_q, .constraint_names = constraints_bucket_toggle, .driver_names = drivers_bucket_toggle,
     .jac_rows = jac_rows_bucket_toggle, .jac_cols = jac_cols_bucket_toggle,
-    .inputs = inputs_bucket_toggle, .input_ranges = input_ranges_bucket_toggle, .retract = retract,
+    .retract = retract,
     .n_blocks = 37, .block_start = block_start_bucket_toggle, .block_store = block_store_bucket_toggle,
     .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
@@ -10509,7 +10509,7 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_bucket_stroke[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_stroke[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_bucket_stroke = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_stroke, .nu = nu_bucket_stroke, .gamma = gamma_bucket_stroke,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10519,7 +10519,7 @@ const kinegen_model excavator_dual_quaternion_bucket_stroke = {
     .t0 = 0.0, .t1 = 1.0, .steps = 101,
     .initial_q = initial_q, .constraint_names = constraints_bucket_stroke, .driver_names = drivers_bucket_stroke,
     .jac_rows = jac_rows_bucket_stroke, .jac_cols = jac_cols_bucket_stroke,
-    .inputs = inputs_bucket_stroke, .input_ranges = input_ranges_bucket_stroke, .retract = retract,
+    .retract = retract,
     .n_blocks = 37, .block_start = block_start_bucket_stroke, .block_store = block_store_bucket_stroke,
     .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
@@ -10544,7 +10544,7 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11
 static const int off_col_bucket_near_toggle[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_bucket_near_toggle[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_bucket_near_toggle = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_near_toggle, .nu = nu_bucket_near_toggle, .gamma = gamma_bucket_near_toggle,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10554,7 +10554,7 @@ const kinegen_model excavator_dual_quaternion_bucket_near_toggle = {
     .t0 = 0.0, .t1 = 2.0, .steps = 9,
     .initial_q = initial_q, .constraint_names = constraints_bucket_near_toggle, .driver_names = drivers_bucket_near_toggle,
     .jac_rows = jac_rows_bucket_near_toggle, .jac_cols = jac_cols_bucket_near_toggle,
-    .inputs = inputs_bucket_near_toggle, .input_ranges = input_ranges_bucket_near_toggle, .retract = retract,
+    .retract = retract,
     .n_blocks = 37, .block_start = block_start_bucket_near_toggle, .block_store = block_store_bucket_near_toggle,
     .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
@@ -10579,7 +10579,7 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 
 static const int off_col_digging_fast[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_fast[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_digging_fast = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_fast, .nu = nu_digging_fast, .gamma = gamma_digging_fast,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10589,7 +10589,7 @@ const kinegen_model excavator_dual_quaternion_digging_fast = {
     .t0 = 0.0, .t1 = 13.6, .steps = 341,
     .initial_q = initial_q, .constraint_names = constraints_digging_fast, .driver_names = drivers_digging_fast,
     .jac_rows = jac_rows_digging_fast, .jac_cols = jac_cols_digging_fast,
-    .inputs = inputs_digging_fast, .input_ranges = input_ranges_digging_fast, .retract = retract,
+    .retract = retract,
     .n_blocks = 37, .block_start = block_start_digging_fast, .block_store = block_store_digging_fast,
     .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
@@ -10614,7 +10614,7 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14,
 static const int off_col_digging_paced[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_digging_paced[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_digging_paced = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_paced, .nu = nu_digging_paced, .gamma = gamma_digging_paced,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10624,7 +10624,7 @@ const kinegen_model excavator_dual_quaternion_digging_paced = {
     .t0 = 0.0, .t1 = 59.5, .steps = 341,
     .initial_q = initial_q, .constraint_names = constraints_digging_paced, .driver_names = drivers_digging_paced,
     .jac_rows = jac_rows_digging_paced, .jac_cols = jac_cols_digging_paced,
-    .inputs = inputs_digging_paced, .input_ranges = input_ranges_digging_paced, .retract = retract,
+    .retract = retract,
     .n_blocks = 37, .block_start = block_start_digging_paced, .block_store = block_store_digging_paced,
     .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
@@ -10649,7 +10649,7 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 0, 2, 5, 8, 11, 14, 1
 static const int off_col_oscillation[] = {3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 4, 5, 1, 3, 5, 1, 3, 5, 0, 4, 5, 0, 4, 5, 1, 3, 5, 3, 4, 5, 3, 4, 5, 3, 4, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 6, 15, 16, 10, 15, 23, 9, 16, 23, 9, 16, 23, 10, 15, 23, 6, 15, 16, 6, 15, 16, 10, 15, 23, 9, 16, 23, 3, 4, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 23, 15, 16, 23, 15, 16, 23, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 30, 43, 50, 31, 42, 50, 32, 42, 43, 32, 42, 43, 30, 43, 50, 32, 42, 43, 31, 42, 50, 30, 43, 50, 31, 42, 50, 42, 43, 50, 42, 43, 50, 42, 43, 50, 59, 60, 61, 59, 60, 61, 58, 62, 57, 59, 60, 61, 42, 43, 50, 42, 43, 50, 58, 64, 72, 62, 63, 72, 57, 63, 64, 54, 55, 56};
 static const int off_value_oscillation[] = {427, 428, 17, 15, 16, 41, 39, 40, 113, 111, 112, 9, 7, 8, 13, 11, 12, 37, 35, 36, 33, 31, 32, 105, 103, 104, 109, 107, 108, 19, 20, 21, 25, 26, 27, 43, 44, 45, 66, 65, 64, 78, 77, 76, 93, 97, 101, 435, 434, 433, 173, 171, 172, 169, 167, 168, 165, 163, 164, 177, 175, 176, 181, 179, 180, 185, 183, 184, 209, 207, 208, 205, 203, 204, 201, 199, 200, 115, 116, 117, 138, 136, 137, 144, 143, 142, 150, 148, 149, 156, 155, 154, 187, 188, 189, 193, 194, 195, 211, 212, 213, 234, 233, 232, 246, 245, 244, 261, 265, 269, 444, 443, 442, 273, 271, 272, 277, 275, 276, 281, 279, 280, 305, 303, 304, 297, 295, 296, 365, 363, 364, 361, 359, 360, 357, 355, 356, 301, 299, 300, 307, 308, 309, 313, 314, 315, 367, 368, 369, 390, 389, 388, 402, 401, 400, 418, 422, 426, 453, 452, 451, 283, 284, 285, 289, 290, 291, 321, 319, 320, 327, 325, 326, 333, 331, 332, 340, 344, 348};
 static const kinegen_design design_oscillation = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_oscillation, .nu = nu_oscillation, .gamma = gamma_oscillation,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -10659,7 +10659,7 @@ const kinegen_model excavator_dual_quaternion_oscillation = {
     .t0 = 0.0, .t1 = 2.0, .steps = 301,
     .initial_q = initial_q, .constraint_names = constraints_oscillation, .driver_names = drivers_oscillation,
     .jac_rows = jac_rows_oscillation, .jac_cols = jac_cols_oscillation,
-    .inputs = inputs_oscillation, .input_ranges = input_ranges_oscillation, .retract = retract,
+    .retract = retract,
     .n_blocks = 37, .block_start = block_start_oscillation, .block_store = block_store_oscillation,
     .row_order = row_order_oscillation, .col_order = col_order_oscillation,
     .n_store = 584, .n_diag = 278, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,

@@ -11487,10 +11487,10 @@ static const int statics_off_value[] = {3, 408, 16, 17, 18, 106, 107, 108, 40, 4
 static const kinegen_statics statics = {
     .n_elements = 4, .element_names = element_names, .element_kinds = element_kinds,
     .n_joint_rows = 80,
-    .pattern = {.n = 433, .rows = matrix_rows, .cols = matrix_cols}, .actuation = &kernels[2],
+    .pattern = {.n = 433, .rows = matrix_rows, .cols = matrix_cols},
     .n_loads = 2, .load_names = load_names,
-    .load_pattern = {.n = 6, .rows = load_rows, .cols = load_cols}, .loads = &kernels[3],
-    .n_inertia = 84, .inertia_cols = inertia_cols, .inertia = &kernels[4],
+    .load_pattern = {.n = 6, .rows = load_rows, .cols = load_cols},
+    .n_inertia = 84, .inertia_cols = inertia_cols,
     .n_blocks = 42, .block_start = statics_block_start, .block_store = statics_block_store,
     .row_order = statics_row_order, .col_order = statics_col_order,
     .n_store = 336, .n_diag = 201, .diag_value = statics_diag_value,
@@ -11509,7 +11509,7 @@ const kinegen_layout excavator_euler_zxy_layout = {
     .n_q = EXCAVATOR_EULER_ZXY_N_Q, .n_v = EXCAVATOR_EULER_ZXY_N_V, .n_bodies = EXCAVATOR_EULER_ZXY_N_BODIES,
     .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
     .n_points = 30, .points = points, .n_actuators = 4, .actuators = actuators,
-    .frames = excavator_euler_zxy_frames, .n_kernels = 8, .kernels = kernels, .statics = &statics,
+    .n_kernels = 8, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, -0.0, 0.0, 0.0, 0.22767, 0.0, 1.95729, -0.0, 0.0, 0.37262792980000004, 0.68912, 0.32, 1.35478, -0.0, 0.0, -0.8970987087, 2.253743682, 0.32, 3.314748116, -0.0, 0.0, -0.8970987087, 0.68912, -0.32, 1.35478, -0.0, 0.0, -0.8970987087, 2.253743682, -0.32, 3.314748116, -0.0, 0.0, -0.8970987087, 5.777601761, 0.0, 3.004525931, -0.0, 0.0, 1.4491465430000001, 3.372106626, 0.0, 3.718369089, -0.0, 0.0, -0.01134434347, 5.315193587, 0.0, 3.74041308, -0.0, 0.0, -0.01134434347, 6.478145341, 0.0, 3.338877801, -0.0, 0.0, 0.6348178114999999, 7.974087195, 0.0, 2.237087009, -0.0, 0.0, 0.6348178114999999, 7.834783629, 0.0, 1.668894271, -0.0, 0.0, 0.8452625926000001, 8.355750886, 0.0, 1.819051598, -0.0, 0.0, 1.7519603019999999, 8.172391163, 0.0, 1.387785479, -0.0, 0.0, 1.165528812};
@@ -11532,7 +11532,7 @@ static const int off_start_digging[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20, 2
 static const int off_col_digging[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_digging = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging, .nu = nu_digging, .gamma = gamma_digging,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11542,7 +11542,7 @@ const kinegen_model excavator_euler_zxy_digging = {
     .t0 = 0.0, .t1 = 17.0, .steps = 341,
     .initial_q = initial_q, .constraint_names = constraints_digging, .driver_names = drivers_digging,
     .jac_rows = jac_rows_digging, .jac_cols = jac_cols_digging,
-    .inputs = inputs_digging, .input_ranges = input_ranges_digging, .retract = retract,
+    .retract = retract,
     .n_blocks = 42, .block_start = block_start_digging, .block_store = block_store_digging,
     .row_order = row_order_digging, .col_order = col_order_digging,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging, .diag_slot = diag_slot_digging,
@@ -11567,7 +11567,7 @@ static const int off_start_level_cut[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 20,
 static const int off_col_level_cut[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 9, 6, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 6, 16, 18, 20, 21, 22, 17, 19, 20, 21, 17, 19, 20, 21, 20, 21, 22, 24, 26, 27, 23, 24, 25, 27, 17, 19, 20, 21, 20, 21, 22, 3, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 46, 47, 48, 46, 47, 48, 46, 47, 49, 50, 51, 49, 50, 51, 49, 50, 15, 16, 35, 36, 37, 38, 39, 52, 35, 36, 37, 38, 39, 52, 23, 24, 27, 53, 62, 63, 64, 62, 63, 64, 62, 63, 19, 20, 19, 20, 40, 43, 54, 65, 41, 42, 23, 24, 41, 70, 72, 54, 69, 70, 72, 40, 69, 70, 72, 19, 20, 44, 45, 55, 75, 76, 77, 44, 45, 55, 75, 76, 77, 78, 79, 80, 78, 79, 80, 78, 79};
 static const int off_value_level_cut[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 30, 32, 33, 31, 35, 37, 38, 36, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 162, 172, 92, 93, 94, 87, 88, 89, 90, 82, 83, 84, 85, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 167, 168, 169, 170, 186, 187, 188, 189, 191, 192, 193, 194, 196, 197, 198, 249, 250, 248, 238, 239, 240, 241, 276, 277, 278, 279, 287, 288, 286, 334, 333, 335, 324, 325, 323, 326, 341, 342, 343, 344, 352, 353, 351, 45, 44, 62, 60, 61, 67, 66, 65, 70, 68, 69, 76, 75, 74, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 244, 245, 246, 243, 258, 259, 260, 257, 282, 283, 284, 281, 347, 348, 349, 346, 49, 50, 51, 54, 55, 56, 77, 78, 115, 116, 117, 120, 121, 122, 143, 144, 200, 201, 216, 217, 218, 223, 221, 222, 224, 225, 226, 232, 230, 231, 329, 330, 331, 328, 205, 206, 207, 210, 211, 212, 233, 234, 290, 291, 295, 296, 300, 304, 308, 312, 316, 319, 339, 340, 404, 405, 406, 399, 400, 401, 402, 394, 395, 396, 397, 355, 356, 371, 373, 372, 378, 377, 376, 379, 381, 380, 387, 386, 385, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_level_cut = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_level_cut, .nu = nu_level_cut, .gamma = gamma_level_cut,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11577,7 +11577,7 @@ const kinegen_model excavator_euler_zxy_level_cut = {
     .t0 = 0.0, .t1 = 4.0, .steps = 201,
     .initial_q = initial_q, .constraint_names = constraints_level_cut, .driver_names = drivers_level_cut,
     .jac_rows = jac_rows_level_cut, .jac_cols = jac_cols_level_cut,
-    .inputs = inputs_level_cut, .input_ranges = input_ranges_level_cut, .retract = retract,
+    .retract = retract,
     .n_blocks = 51, .block_start = block_start_level_cut, .block_store = block_store_level_cut,
     .row_order = row_order_level_cut, .col_order = col_order_level_cut,
     .n_store = 318, .n_diag = 182, .diag_value = diag_value_level_cut, .diag_slot = diag_slot_level_cut,
@@ -11602,7 +11602,7 @@ static const int off_start_trench_wall[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 2
 static const int off_col_trench_wall[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 9, 6, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 6, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 9, 15, 16, 18, 10, 15, 16, 18, 6, 16, 18, 20, 21, 22, 17, 19, 20, 21, 17, 19, 20, 21, 20, 21, 22, 24, 26, 27, 23, 24, 25, 27, 17, 19, 20, 21, 20, 21, 22, 3, 5, 7, 11, 12, 28, 29, 30, 7, 11, 12, 28, 29, 30, 3, 5, 8, 13, 14, 31, 32, 33, 8, 13, 14, 31, 32, 33, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 19, 20, 21, 34, 46, 47, 48, 46, 47, 48, 46, 47, 49, 50, 51, 49, 50, 51, 49, 50, 15, 16, 35, 36, 37, 38, 39, 52, 35, 36, 37, 38, 39, 52, 23, 24, 27, 53, 62, 63, 64, 62, 63, 64, 62, 63, 19, 20, 19, 20, 40, 43, 54, 65, 41, 42, 23, 24, 41, 70, 72, 54, 69, 70, 72, 40, 69, 70, 72, 19, 20, 44, 45, 55, 75, 76, 77, 44, 45, 55, 75, 76, 77, 78, 79, 80, 78, 79, 80, 78, 79};
 static const int off_value_trench_wall[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 30, 32, 33, 31, 35, 37, 38, 36, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 162, 172, 92, 93, 94, 87, 88, 89, 90, 82, 83, 84, 85, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 167, 168, 169, 170, 186, 187, 188, 189, 191, 192, 193, 194, 196, 197, 198, 249, 250, 248, 238, 239, 240, 241, 276, 277, 278, 279, 287, 288, 286, 334, 333, 335, 324, 325, 323, 326, 341, 342, 343, 344, 352, 353, 351, 45, 44, 62, 60, 61, 67, 66, 65, 70, 68, 69, 76, 75, 74, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 244, 245, 246, 243, 258, 259, 260, 257, 282, 283, 284, 281, 347, 348, 349, 346, 49, 50, 51, 54, 55, 56, 77, 78, 115, 116, 117, 120, 121, 122, 143, 144, 200, 201, 216, 217, 218, 223, 221, 222, 224, 225, 226, 232, 230, 231, 329, 330, 331, 328, 205, 206, 207, 210, 211, 212, 233, 234, 290, 291, 295, 296, 300, 304, 308, 312, 316, 319, 339, 340, 404, 405, 406, 399, 400, 401, 402, 394, 395, 396, 397, 355, 356, 371, 373, 372, 378, 377, 376, 379, 381, 380, 387, 386, 385, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_trench_wall = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_trench_wall, .nu = nu_trench_wall, .gamma = gamma_trench_wall,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11612,7 +11612,7 @@ const kinegen_model excavator_euler_zxy_trench_wall = {
     .t0 = 0.0, .t1 = 4.0, .steps = 201,
     .initial_q = initial_q, .constraint_names = constraints_trench_wall, .driver_names = drivers_trench_wall,
     .jac_rows = jac_rows_trench_wall, .jac_cols = jac_cols_trench_wall,
-    .inputs = inputs_trench_wall, .input_ranges = input_ranges_trench_wall, .retract = retract,
+    .retract = retract,
     .n_blocks = 51, .block_start = block_start_trench_wall, .block_store = block_store_trench_wall,
     .row_order = row_order_trench_wall, .col_order = col_order_trench_wall,
     .n_store = 318, .n_diag = 182, .diag_value = diag_value_trench_wall, .diag_slot = diag_slot_trench_wall,
@@ -11637,7 +11637,7 @@ static const int off_start_bucket_toggle[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16,
 static const int off_col_bucket_toggle[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_toggle[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_bucket_toggle = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_toggle, .nu = nu_bucket_toggle, .gamma = gamma_bucket_toggle,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11647,7 +11647,7 @@ const kinegen_model excavator_euler_zxy_bucket_toggle = {
     .t0 = 0.0, .t1 = 3.0, .steps = 301,
     .initial_q = initial_q, .constraint_names = constraints_bucket_toggle, .driver_names = drivers_bucket_toggle,
     .jac_rows = jac_rows_bucket_toggle, .jac_cols = jac_cols_bucket_toggle,
-    .inputs = inputs_bucket_toggle, .input_ranges = input_ranges_bucket_toggle, .retract = retract,
+    .retract = retract,
     .n_blocks = 42, .block_start = block_start_bucket_toggle, .block_store = block_store_bucket_toggle,
     .row_order = row_order_bucket_toggle, .col_order = col_order_bucket_toggle,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_toggle, .diag_slot = diag_slot_bucket_toggle,
@@ -11672,7 +11672,7 @@ static const int off_start_bucket_stroke[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16,
 static const int off_col_bucket_stroke[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_stroke[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_bucket_stroke = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_stroke, .nu = nu_bucket_stroke, .gamma = gamma_bucket_stroke,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11682,7 +11682,7 @@ const kinegen_model excavator_euler_zxy_bucket_stroke = {
     .t0 = 0.0, .t1 = 1.0, .steps = 101,
     .initial_q = initial_q, .constraint_names = constraints_bucket_stroke, .driver_names = drivers_bucket_stroke,
     .jac_rows = jac_rows_bucket_stroke, .jac_cols = jac_cols_bucket_stroke,
-    .inputs = inputs_bucket_stroke, .input_ranges = input_ranges_bucket_stroke, .retract = retract,
+    .retract = retract,
     .n_blocks = 42, .block_start = block_start_bucket_stroke, .block_store = block_store_bucket_stroke,
     .row_order = row_order_bucket_stroke, .col_order = col_order_bucket_stroke,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_stroke, .diag_slot = diag_slot_bucket_stroke,
@@ -11707,7 +11707,7 @@ static const int off_start_bucket_near_toggle[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12
 static const int off_col_bucket_near_toggle[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_bucket_near_toggle[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_bucket_near_toggle = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_bucket_near_toggle, .nu = nu_bucket_near_toggle, .gamma = gamma_bucket_near_toggle,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11717,7 +11717,7 @@ const kinegen_model excavator_euler_zxy_bucket_near_toggle = {
     .t0 = 0.0, .t1 = 2.0, .steps = 9,
     .initial_q = initial_q, .constraint_names = constraints_bucket_near_toggle, .driver_names = drivers_bucket_near_toggle,
     .jac_rows = jac_rows_bucket_near_toggle, .jac_cols = jac_cols_bucket_near_toggle,
-    .inputs = inputs_bucket_near_toggle, .input_ranges = input_ranges_bucket_near_toggle, .retract = retract,
+    .retract = retract,
     .n_blocks = 42, .block_start = block_start_bucket_near_toggle, .block_store = block_store_bucket_near_toggle,
     .row_order = row_order_bucket_near_toggle, .col_order = col_order_bucket_near_toggle,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_bucket_near_toggle, .diag_slot = diag_slot_bucket_near_toggle,
@@ -11742,7 +11742,7 @@ static const int off_start_digging_fast[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 
 static const int off_col_digging_fast[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging_fast[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_digging_fast = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_fast, .nu = nu_digging_fast, .gamma = gamma_digging_fast,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11752,7 +11752,7 @@ const kinegen_model excavator_euler_zxy_digging_fast = {
     .t0 = 0.0, .t1 = 13.6, .steps = 341,
     .initial_q = initial_q, .constraint_names = constraints_digging_fast, .driver_names = drivers_digging_fast,
     .jac_rows = jac_rows_digging_fast, .jac_cols = jac_cols_digging_fast,
-    .inputs = inputs_digging_fast, .input_ranges = input_ranges_digging_fast, .retract = retract,
+    .retract = retract,
     .n_blocks = 42, .block_start = block_start_digging_fast, .block_store = block_store_digging_fast,
     .row_order = row_order_digging_fast, .col_order = col_order_digging_fast,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging_fast, .diag_slot = diag_slot_digging_fast,
@@ -11777,7 +11777,7 @@ static const int off_start_digging_paced[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16,
 static const int off_col_digging_paced[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_digging_paced[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_digging_paced = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_digging_paced, .nu = nu_digging_paced, .gamma = gamma_digging_paced,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11787,7 +11787,7 @@ const kinegen_model excavator_euler_zxy_digging_paced = {
     .t0 = 0.0, .t1 = 59.5, .steps = 341,
     .initial_q = initial_q, .constraint_names = constraints_digging_paced, .driver_names = drivers_digging_paced,
     .jac_rows = jac_rows_digging_paced, .jac_cols = jac_cols_digging_paced,
-    .inputs = inputs_digging_paced, .input_ranges = input_ranges_digging_paced, .retract = retract,
+    .retract = retract,
     .n_blocks = 42, .block_start = block_start_digging_paced, .block_store = block_store_digging_paced,
     .row_order = row_order_digging_paced, .col_order = col_order_digging_paced,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_digging_paced, .diag_slot = diag_slot_digging_paced,
@@ -11812,7 +11812,7 @@ static const int off_start_oscillation[] = {0, 0, 0, 0, 0, 1, 3, 6, 9, 12, 16, 2
 static const int off_col_oscillation[] = {3, 3, 4, 2, 3, 4, 2, 3, 4, 2, 3, 4, 0, 3, 4, 5, 1, 3, 4, 5, 1, 3, 4, 5, 0, 3, 4, 5, 0, 3, 4, 5, 1, 3, 4, 5, 3, 5, 3, 5, 3, 5, 7, 11, 12, 7, 11, 12, 9, 10, 6, 7, 11, 12, 17, 18, 19, 17, 18, 19, 17, 18, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 9, 15, 16, 22, 10, 15, 16, 22, 6, 16, 22, 6, 16, 22, 10, 15, 16, 22, 9, 15, 16, 22, 3, 5, 8, 13, 14, 27, 28, 29, 8, 13, 14, 27, 28, 29, 15, 16, 15, 16, 15, 16, 33, 34, 35, 33, 34, 35, 30, 31, 32, 33, 34, 35, 36, 37, 38, 36, 37, 38, 36, 37, 41, 43, 47, 41, 43, 47, 41, 43, 30, 39, 40, 44, 31, 39, 40, 44, 32, 40, 44, 32, 40, 44, 31, 39, 40, 44, 32, 40, 44, 31, 39, 40, 44, 30, 39, 40, 44, 30, 39, 40, 44, 39, 40, 39, 40, 39, 40, 59, 60, 61, 59, 60, 61, 62, 58, 57, 59, 60, 61, 39, 40, 39, 40, 62, 63, 64, 68, 58, 63, 64, 68, 57, 64, 68, 54, 55, 56, 65, 67, 71, 65, 67, 71, 65, 67};
 static const int off_value_oscillation[] = {3, 408, 409, 16, 17, 18, 40, 41, 42, 106, 107, 108, 6, 8, 9, 7, 11, 13, 14, 12, 35, 37, 38, 36, 30, 32, 33, 31, 96, 98, 99, 97, 101, 103, 104, 102, 21, 20, 26, 25, 45, 44, 62, 61, 60, 70, 69, 68, 82, 87, 92, 412, 411, 410, 49, 50, 51, 54, 55, 56, 77, 78, 158, 159, 160, 153, 154, 155, 156, 148, 149, 150, 151, 162, 163, 164, 165, 167, 168, 169, 170, 172, 173, 174, 196, 197, 198, 191, 192, 193, 194, 186, 187, 188, 189, 111, 110, 128, 126, 127, 133, 132, 131, 136, 134, 135, 142, 141, 140, 176, 177, 181, 182, 200, 201, 218, 217, 216, 226, 225, 224, 238, 243, 248, 421, 420, 419, 115, 116, 117, 120, 121, 122, 143, 144, 205, 206, 207, 210, 211, 212, 233, 234, 252, 253, 254, 255, 257, 258, 259, 260, 262, 263, 264, 286, 287, 288, 281, 282, 283, 284, 351, 352, 353, 346, 347, 348, 349, 341, 342, 343, 344, 276, 277, 278, 279, 290, 291, 295, 296, 355, 356, 373, 372, 371, 381, 380, 379, 394, 399, 404, 430, 429, 428, 266, 267, 271, 272, 300, 301, 302, 303, 308, 309, 310, 311, 316, 317, 318, 323, 328, 333, 360, 361, 362, 365, 366, 367, 388, 389};
 static const kinegen_design design_oscillation = {
-    .n_design = 12, .nominal = design_nominal, .phi_jac = phi_jac_oscillation, .nu = nu_oscillation, .gamma = gamma_oscillation,
+    .n_design = 12, .nominal = design_nominal,
     /* built without sensitivity kernels */
 };
 
@@ -11822,7 +11822,7 @@ const kinegen_model excavator_euler_zxy_oscillation = {
     .t0 = 0.0, .t1 = 2.0, .steps = 301,
     .initial_q = initial_q, .constraint_names = constraints_oscillation, .driver_names = drivers_oscillation,
     .jac_rows = jac_rows_oscillation, .jac_cols = jac_cols_oscillation,
-    .inputs = inputs_oscillation, .input_ranges = input_ranges_oscillation, .retract = retract,
+    .retract = retract,
     .n_blocks = 42, .block_start = block_start_oscillation, .block_store = block_store_oscillation,
     .row_order = row_order_oscillation, .col_order = col_order_oscillation,
     .n_store = 402, .n_diag = 217, .diag_value = diag_value_oscillation, .diag_slot = diag_slot_oscillation,

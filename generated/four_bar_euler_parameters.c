@@ -738,10 +738,10 @@ static const double element_hydraulics[] = {0.0};
 static const kinegen_statics statics = {
     .n_elements = 0, .element_names = element_names, .element_kinds = element_kinds,
     .n_joint_rows = 20,
-    .pattern = {.n = 0, .rows = matrix_rows, .cols = matrix_cols}, .actuation = NULL,
+    .pattern = {.n = 0, .rows = matrix_rows, .cols = matrix_cols},
     .n_loads = 1, .load_names = load_names,
-    .load_pattern = {.n = 4, .rows = load_rows, .cols = load_cols}, .loads = &kernels[1],
-    .n_inertia = 0, .inertia_cols = inertia_cols, .inertia = NULL,
+    .load_pattern = {.n = 4, .rows = load_rows, .cols = load_cols},
+    .n_inertia = 0, .inertia_cols = inertia_cols,
     /* no plan: each case's drivers carry the load, with the case's own */
     .work_doubles = FOUR_BAR_EULER_PARAMETERS_FORCE_WORK_DOUBLES, .work_ints = FOUR_BAR_EULER_PARAMETERS_FORCE_WORK_INTS,
     .n_joints = 4, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
@@ -756,7 +756,7 @@ const kinegen_layout four_bar_euler_parameters_layout = {
     .n_q = FOUR_BAR_EULER_PARAMETERS_N_Q, .n_v = FOUR_BAR_EULER_PARAMETERS_N_V, .n_bodies = FOUR_BAR_EULER_PARAMETERS_N_BODIES,
     .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
     .n_points = 9, .points = points, .n_actuators = 0, .actuators = actuators,
-    .frames = four_bar_euler_parameters_frames, .n_kernels = 2, .kernels = kernels, .statics = &statics,
+    .n_kernels = 2, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 0.9689124217106447, 0.0, 0.0, 0.2474039592545229, 0.263275, 0.143828, 0.0, 0.9451759002226809, 0.0, 0.0, 0.32656165977996365, 1.0, 0.0, 0.0, 0.6924690606038826, 0.0, 0.0, 0.7214475726664942};
@@ -783,8 +783,7 @@ const kinegen_model four_bar_euler_parameters_crank_turn = {
     .t0 = 0.0, .t1 = 1.0, .steps = 201,
     .initial_q = initial_q, .constraint_names = constraints_crank_turn, .driver_names = drivers_crank_turn,
     .jac_rows = jac_rows_crank_turn, .jac_cols = jac_cols_crank_turn,
-    .phi_jac = phi_jac_crank_turn, .nu = nu_crank_turn, .gamma = gamma_crank_turn,
-    .inputs = inputs_crank_turn, .input_ranges = input_ranges_crank_turn, .retract = retract,
+    .retract = retract,
     .n_blocks = 11, .block_start = block_start_crank_turn, .block_store = block_store_crank_turn,
     .row_order = row_order_crank_turn, .col_order = col_order_crank_turn,
     .n_store = 89, .n_diag = 67, .diag_value = diag_value_crank_turn, .diag_slot = diag_slot_crank_turn,

@@ -48,7 +48,7 @@ KERNELS = {
     'frames': (('q', 'v', 'a'), ('frames',)),
 }
 # the model's C beside this module (compiled by kinegen.runtime.native): file -> SHA-256 of its bytes
-C_FILES = {'rssr_dual_quaternion.h': '4bef38395473cef74fff4e12df20dcd4200e6ab94c10e7983e8ee25be3e875cc', 'rssr_dual_quaternion.c': 'c5e8bef7a1b4b610eae978716f68a82eb32322c5073278f6a84b53f59f1d39a0'}
+C_FILES = {'rssr_dual_quaternion.h': '4bef38395473cef74fff4e12df20dcd4200e6ab94c10e7983e8ee25be3e875cc', 'rssr_dual_quaternion.c': '65e77ac5ec5c2e63479c8abce2c459f73332e6d508e32b5d66189cc63f474fe2'}
 # per body, the frames kernel's values in order: (name, count); global, the rotation matrix row by row
 FRAME_FIELDS = (('origin', 3), ('rotation', 9), ('velocity', 3), ('angular_velocity', 3), ('acceleration', 3), ('angular_acceleration', 3))
 

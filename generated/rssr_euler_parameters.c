@@ -679,7 +679,7 @@ const kinegen_layout rssr_euler_parameters_layout = {
     .n_q = RSSR_EULER_PARAMETERS_N_Q, .n_v = RSSR_EULER_PARAMETERS_N_V, .n_bodies = RSSR_EULER_PARAMETERS_N_BODIES,
     .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
     .n_points = 6, .points = points, .n_actuators = 0, .actuators = actuators,
-    .frames = rssr_euler_parameters_frames, .n_kernels = 1, .kernels = kernels, .statics = NULL,
+    .n_kernels = 1, .kernels = kernels, .statics = NULL,
 };
 
 static const double initial_q[] = {0.0, 0.0, 0.0, 1.0, 0.0, 0.0, 0.0, 0.1, 0.35, 0.3, 1.0, 0.0, 0.0, 0.0};
@@ -706,8 +706,7 @@ const kinegen_model rssr_euler_parameters_turn = {
     .t0 = 0.0, .t1 = 1.0, .steps = 201,
     .initial_q = initial_q, .constraint_names = constraints_turn, .driver_names = drivers_turn,
     .jac_rows = jac_rows_turn, .jac_cols = jac_cols_turn,
-    .phi_jac = phi_jac_turn, .nu = nu_turn, .gamma = gamma_turn,
-    .inputs = inputs_turn, .input_ranges = input_ranges_turn, .retract = retract,
+    .retract = retract,
     .n_blocks = 8, .block_start = block_start_turn, .block_store = block_store_turn,
     .row_order = row_order_turn, .col_order = col_order_turn,
     .n_store = 38, .n_diag = 36, .diag_value = diag_value_turn, .diag_slot = diag_slot_turn,

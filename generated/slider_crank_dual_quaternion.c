@@ -904,10 +904,10 @@ static const double element_hydraulics[] = {0.0};
 static const kinegen_statics statics = {
     .n_elements = 0, .element_names = element_names, .element_kinds = element_kinds,
     .n_joint_rows = 17,
-    .pattern = {.n = 0, .rows = matrix_rows, .cols = matrix_cols}, .actuation = NULL,
+    .pattern = {.n = 0, .rows = matrix_rows, .cols = matrix_cols},
     .n_loads = 1, .load_names = load_names,
-    .load_pattern = {.n = 1, .rows = load_rows, .cols = load_cols}, .loads = &kernels[1],
-    .n_inertia = 0, .inertia_cols = inertia_cols, .inertia = NULL,
+    .load_pattern = {.n = 1, .rows = load_rows, .cols = load_cols},
+    .n_inertia = 0, .inertia_cols = inertia_cols,
     /* no plan: each case's drivers carry the load, with the case's own */
     .work_doubles = SLIDER_CRANK_DUAL_QUATERNION_FORCE_WORK_DOUBLES, .work_ints = SLIDER_CRANK_DUAL_QUATERNION_FORCE_WORK_INTS,
     .n_joints = 4, .joint_names = joint_names, .joint_body = joint_body, .joint_sign = joint_sign,
@@ -922,7 +922,7 @@ const kinegen_layout slider_crank_dual_quaternion_layout = {
     .n_q = SLIDER_CRANK_DUAL_QUATERNION_N_Q, .n_v = SLIDER_CRANK_DUAL_QUATERNION_N_V, .n_bodies = SLIDER_CRANK_DUAL_QUATERNION_N_BODIES,
     .body_names = body_names, .stored_names = stored_names, .velocity_names = velocity_names,
     .n_points = 6, .points = points, .n_actuators = 0, .actuators = actuators,
-    .frames = slider_crank_dual_quaternion_frames, .n_kernels = 2, .kernels = kernels, .statics = &statics,
+    .n_kernels = 2, .kernels = kernels, .statics = &statics,
 };
 
 static const double initial_q[] = {0.9887710779360424, 0.0, 0.0, 0.14943813247359924, 0.0, 0.0, 0.0, 0.0, 0.9987833496752833, 0.0, 0.0, -0.04931349117048, 0.0, 0.09395995684513364, 0.03422713595833902, 0.0, 1.0, 0.0, 0.0, 0.0, 0.0, 0.3940745, 0.0, 0.0};
@@ -949,8 +949,7 @@ const kinegen_model slider_crank_dual_quaternion_run = {
     .t0 = 0.0, .t1 = 1.5, .steps = 301,
     .initial_q = initial_q, .constraint_names = constraints_run, .driver_names = drivers_run,
     .jac_rows = jac_rows_run, .jac_cols = jac_cols_run,
-    .phi_jac = phi_jac_run, .nu = nu_run, .gamma = gamma_run,
-    .inputs = inputs_run, .input_ranges = input_ranges_run, .retract = retract,
+    .retract = retract,
     .n_blocks = 11, .block_start = block_start_run, .block_store = block_store_run,
     .row_order = row_order_run, .col_order = col_order_run,
     .n_store = 52, .n_diag = 32, .diag_value = diag_value_run, .diag_slot = diag_slot_run,
@@ -981,8 +980,7 @@ const kinegen_model slider_crank_dual_quaternion_dead_centre = {
     .t0 = -1.0, .t1 = 0.0, .steps = 101,
     .initial_q = initial_q, .constraint_names = constraints_dead_centre, .driver_names = drivers_dead_centre,
     .jac_rows = jac_rows_dead_centre, .jac_cols = jac_cols_dead_centre,
-    .phi_jac = phi_jac_dead_centre, .nu = nu_dead_centre, .gamma = gamma_dead_centre,
-    .inputs = inputs_dead_centre, .input_ranges = input_ranges_dead_centre, .retract = retract,
+    .retract = retract,
     .n_blocks = 11, .block_start = block_start_dead_centre, .block_store = block_store_dead_centre,
     .row_order = row_order_dead_centre, .col_order = col_order_dead_centre,
     .n_store = 52, .n_diag = 31, .diag_value = diag_value_dead_centre, .diag_slot = diag_slot_dead_centre,

@@ -237,6 +237,86 @@ def test_the_c_is_straight_line_in_short_functions_with_no_heap():
     assert not re.search(r"^static [^(]*;", solver, re.MULTILINE)  # no global state
 
 
+#: a program that sets up a solver on a copy of the four-bar's first case whose kernel table is changed
+#: as each scenario says, and prints kinegen_init's status and role, then kinegen_start's and kinegen_step's
+ROLES_PROGRAM = r"""
+#include "four_bar_quaternion.h"
+#include <stdio.h>
+#include <string.h>
+static four_bar_quaternion_workspace w;
+static kinegen_kernel table[64];
+static int sizes[8];
+static void report(const char *scenario, const kinegen_model *m) {
+    kinegen_solver s;
+    double in[3 * FOUR_BAR_QUATERNION_MAX_INPUTS], next[3 * FOUR_BAR_QUATERNION_MAX_INPUTS], t1 = m->t0 + 0.01;
+    int n = m->n_inputs, init = kinegen_init(&s, m, NULL, w.doubles, w.ints), inputs = kinegen_case_inputs(m, m->t0, in);
+    kinegen_case_inputs(four_bar_quaternion_cases[0], m->t0, in); /* the case's inputs, from its table as built */
+    kinegen_case_inputs(four_bar_quaternion_cases[0], t1, next);
+    int start = kinegen_start(&s, m->t0, m->initial_q, in, in + n, in + 2 * n);
+    int step = kinegen_step(&s, t1, next, next + n, next + 2 * n);
+    printf("%s %d %s %d %d %d\n", scenario, init, s.role ? s.role : "-", inputs, start, step);
+}
+static kinegen_kernel *entry(kinegen_model *m, const char *name) {
+    memcpy(table, four_bar_quaternion_cases[0]->kernels, sizeof(kinegen_kernel) * (size_t)m->n_kernels);
+    m->kernels = table;
+    for (int k = 0; k < m->n_kernels; ++k)
+        if (strcmp(table[k].name, name) == 0) return &table[k];
+    return NULL;
+}
+int main(void) {
+    kinegen_model m = *four_bar_quaternion_cases[0];
+    kinegen_kernel *k;
+    report("as_built", &m);
+    entry(&m, "phi_jac")->slots = "q,t";
+    report("phi_jac_slots", &m);
+    m = *four_bar_quaternion_cases[0];
+    entry(&m, "phi_jac")->slots = "q,u,p";  /* a design parameter slot in a model without them */
+    report("phi_jac_design", &m);
+    m = *four_bar_quaternion_cases[0];
+    k = entry(&m, "nu");
+    memcpy(sizes, k->output_sizes, sizeof(int));
+    sizes[0] += 1;
+    k->output_sizes = sizes;
+    report("nu_size", &m);
+    m = *four_bar_quaternion_cases[0];
+    entry(&m, "gamma")->name = "gamma_old";
+    report("gamma_missing", &m);
+    m = *four_bar_quaternion_cases[0];
+    entry(&m, "inputs")->name = "inputs_old";  /* optional: a case without its own time functions */
+    report("inputs_missing", &m);
+    return 0;
+}
+"""
+
+
+def test_the_c_solver_finds_its_kernels_by_role_and_refuses_a_table_that_declares_them_otherwise(tmp_path):
+    """kinegen_init binds the kernels it calls by name from the case's and the layout's tables (no typed
+    pointer of a kernel in any struct) and checks their slots and output sizes: a phi_jac declared with
+    other slots (or a design parameter the model does not have), a nu with another output size, a missing
+    gamma are KINEGEN_MODEL naming the role, and every later call refuses with it (no call through a
+    kernel it did not bind); a case without its own time functions (inputs, an optional role) is set up,
+    only kinegen_case_inputs says it has none. Real C, compiled with the machine's cc."""
+    for suffix in (".c", ".h"):
+        shutil.copy(GENERATED / f"four_bar_quaternion{suffix}", tmp_path)
+    for name in config.RUNTIME:
+        shutil.copy(config.SOLVER / name, tmp_path)
+    (tmp_path / "roles.c").write_text(ROLES_PROGRAM)
+    program = tmp_path / "roles"
+    sources = [str(tmp_path / n) for n in ("roles.c", "four_bar_quaternion.c", "kinegen_solver.c")]
+    done = subprocess.run([CC, *STRICT, *CORE_STACK, "-O1", "-o", str(program), *sources, "-lm"], capture_output=True, text=True)
+    assert done.returncode == 0, done.stderr
+    run = subprocess.run([str(program)], capture_output=True, text=True, timeout=60)
+    assert run.returncode == 0, run.stderr
+    rows = {line.split()[0]: line.split()[1:] for line in run.stdout.splitlines()}
+    ok, model = "0", "6"  # KINEGEN_OK, KINEGEN_MODEL
+    assert rows["as_built"] == [ok, "-", ok, ok, ok]
+    for scenario, role in (("phi_jac_slots", "phi_jac"), ("phi_jac_design", "phi_jac"), ("nu_size", "nu"), ("gamma_missing", "gamma")):
+        assert rows[scenario] == [model, role, ok, model, model], scenario
+    assert rows["inputs_missing"] == [ok, "-", model, ok, ok]
+    header = (config.SOLVER / "kinegen_solver.h").read_text()
+    assert "KINEGEN_MODEL = 6" in header and "(*phi_jac)" not in header and "(*frames)" not in header
+
+
 def test_the_runtime_binds_every_c_function_from_the_librarys_own_table():
     """kinegen_functions lists every function kinegen_solver.h declares, with its result and parameter
     types as declared (the C compiler holds the list to the prototypes); the runtime's ctypes
@@ -254,10 +334,12 @@ def test_the_runtime_binds_every_c_function_from_the_librarys_own_table():
     for name, (_, argtypes) in bound.items():
         assert len(argtypes) == len(declared[name]), name
         for parameter, kind in zip(declared[name], argtypes):
-            expected = ctypes.c_void_p if "*" in parameter else {"double": ctypes.c_double, "int": ctypes.c_int}[parameter.split()[0]]
+            text = parameter.startswith("const char *")  # a string: bytes in, bytes out
+            expected = ctypes.c_char_p if text else ctypes.c_void_p if "*" in parameter else {"double": ctypes.c_double, "int": ctypes.c_int}[parameter.split()[0]]
             assert kind is expected, (name, parameter)
     assert bound["kinegen_step"][0] is ctypes.c_int and bound["kinegen_status_text"][0] is ctypes.c_char_p
-    assert bound["kinegen_init"][0] is None and bound["kinegen_table_mismatch"][0] is ctypes.c_double
+    assert bound["kinegen_init"][0] is ctypes.c_int and bound["kinegen_table_mismatch"][0] is ctypes.c_double
+    assert bound["kinegen_find_kernel"][0] is ctypes.c_void_p
     assert library.kinegen_status_text(2) == b"singular Jacobian"  # called through the bound signature
 
 

@@ -41,7 +41,7 @@ def test_the_runtime_lays_out_every_struct_from_the_library_and_knows_no_status_
     abi = _solver_abi()
     header = (SOLVER_SOURCES / "kinegen_solver.h").read_text()
     declared = _header_fields(header)
-    assert {"kinegen_options", "kinegen_model", "kinegen_design", "kinegen_solver", "kinegen_layout", "kinegen_kernel"} <= set(declared)
+    assert {"kinegen_options", "kinegen_model", "kinegen_design", "kinegen_solver", "kinegen_layout", "kinegen_kernel", "kinegen_roles"} <= set(declared)
     for name, fields in declared.items():
         if name in ("kinegen_field", "kinegen_struct", "kinegen_frame_field", "kinegen_function"):  # the description's own entries
             continue
@@ -52,7 +52,7 @@ def test_the_runtime_lays_out_every_struct_from_the_library_and_knows_no_status_
     # the status names by code, as the header's enum numbers them
     for status, code in abi.status.items():
         assert f"KINEGEN_{status.upper()} = {code}" in header
-    assert abi.status["ok"] == 0 and len(set(abi.status.values())) == len(abi.status) == 6
+    assert abi.status["ok"] == 0 and len(set(abi.status.values())) == len(abi.status) == 7
 
 
 def _header_fields(header: str) -> dict[str, list[str]]:

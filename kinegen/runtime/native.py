@@ -40,7 +40,7 @@ from kinegen.codegen.backends.c.config import RUNTIME, source_parts
 from kinegen.errors import ExitCode, KinegenError
 from kinegen.files import cache_folder
 from kinegen.integrity import remember, trusted
-from kinegen.runtime.abi import Abi, bind_functions
+from kinegen.runtime.abi import Abi, AbiError, bind_functions
 
 SOLVER_SOURCES = Path(__file__).resolve().parents[1] / "codegen" / "backends" / "c" / "solver"
 #: flags of the runtime's library (the standalone target's Makefile has its own). The library
@@ -326,7 +326,7 @@ class NativeCase:
         #: the design parameters the kernels and solvers take (None without them)
         self.design = None
         self.sensitivity_doubles = 0  #: work of kinegen_sensitivities (0: the model has no sensitivity kernels)
-        if not m.phi_jac:  # a model with design parameters: its kernels take them last
+        if m.design:  # a model with design parameters: its kernels take them last
             owner = abi.struct("kinegen_design").from_address(m.design)
             self.sensitivity_doubles = owner.sensitivity_doubles
             nominal = np.ctypeslib.as_array(owner.nominal, (owner.n_design,))
@@ -403,7 +403,7 @@ class NativeCase:
         weights = np.ascontiguousarray(weights, dtype=float)
         if len(weights) != statics.n_loads:
             raise ValueError(f"{len(weights)} load weights for {statics.n_loads} loads")
-        if motion is not None and not statics.inertia:
+        if motion is not None and "inertia" not in self.kernels:
             raise ValueError("the model has no masses: no inertia to add")
         multipliers = np.empty((count, self.n_v))
         force = np.empty((count, statics.n_elements or self.n_inputs))
@@ -471,7 +471,11 @@ class NativeSolver:
         self._options = abi.struct("kinegen_options")()
         self.library.kinegen_default_options(ctypes.addressof(self._options))
         abi.assign(self._options, options)
-        self.library.kinegen_init(self.pointer, case.address, ctypes.addressof(self._options), self._doubles.ctypes.data, self._ints.ctypes.data)
+        code = self.library.kinegen_init(self.pointer, case.address, ctypes.addressof(self._options), self._doubles.ctypes.data,
+                                         self._ints.ctypes.data)  # fmt: skip
+        if code != abi.status["ok"]:  # the C solver found a kernel it calls by role missing or declared otherwise
+            role = self.state.role.decode() if self.state.role else "?"
+            raise AbiError(f"{case.model.case_name.decode()}: {self.library.kinegen_status_text(code).decode()} (role {role!r})")
         if case.design is not None:  # the case's array, alive as long as the case
             self.library.kinegen_set_design(self.pointer, case.design.ctypes.data)
 

@@ -282,9 +282,10 @@ class _Model:
             f.statements = [_renamed_call(line, renamed) for line in f.statements]
         return groups
 
-    def statics(self, shared: list[str], cases: list[SimpleNamespace]) -> SimpleNamespace | None:
-        """The force solve's table (``kinegen_statics``): names, patterns, kernels (by their place in
-        the layout's table ``shared``), the matrix's plan and kinegen_forces' work."""
+    def statics(self, cases: list[SimpleNamespace]) -> SimpleNamespace | None:
+        """The force solve's table (``kinegen_statics``): names, patterns, the matrix's plan and
+        kinegen_forces' work (its kernels are the layout table's actuation, loads and inertia: the
+        solver finds them by role)."""
         d = self.d
         statics = d.statics
         if statics is None:
@@ -314,11 +315,7 @@ class _Model:
             hydraulics=[x for h in statics.hydraulics for x in h], largest_jac=largest_jac,
         )  # fmt: skip
         return SimpleNamespace(
-            s=statics, plan=arrays, reactions=reactions,
-            actuation=f"&kernels[{shared.index('actuation')}]" if "actuation" in shared else "NULL",
-            loads=f"&kernels[{shared.index('loads')}]" if "loads" in shared else "NULL",
-            inertia=f"&kernels[{shared.index('inertia')}]" if "inertia" in shared else "NULL",
-            joint_rows=d.joint_rows,
+            s=statics, plan=arrays, reactions=reactions, joint_rows=d.joint_rows,
         )  # fmt: skip
 
     def render(self, templates) -> dict[str, str]:
@@ -342,7 +339,7 @@ class _Model:
             self.kernel(function, kernel, None, static=kernel.name != "frames")
             shared.append((function, kernel))
         self.kernel_table("kernels", shared)
-        statics = self.statics([kernel.name for _, kernel in shared], cases)
+        statics = self.statics(cases)
         points, index = [], {}
         bodies = [b for b, _, _ in d.bodies]
         for body, named in d.points.items():

@@ -41,37 +41,100 @@ void kinegen_set_design(kinegen_solver *s, const double *p) {
     if (d != NULL) s->design = p != NULL ? p : d->nominal;
 }
 
-/* The case's kernels, with the design parameters when the model has them. */
+/* The case's kernels by role, with the design parameters last when the model has them (s->design; a kernel
+ * without slot p does not read it). */
 static void phi_jac(const kinegen_solver *s, const double *q, const double *u, double *phi, double *jac) {
-    const kinegen_design *d = s->model->design;
-    if (d != NULL) {
-        d->phi_jac(q, u, s->design, phi, jac);
-    } else {
-        s->model->phi_jac(q, u, phi, jac);
-    }
+    const double *x[3] = {q, u, s->design};
+    double *y[2] = {phi, jac};
+    s->roles.phi_jac->call(x, y);
 }
 
 static void nu(const kinegen_solver *s, const double *q, const double *u, const double *ud, double *out) {
-    const kinegen_design *d = s->model->design;
-    if (d != NULL) {
-        d->nu(q, u, ud, s->design, out);
-    } else {
-        s->model->nu(q, u, ud, out);
-    }
+    const double *x[4] = {q, u, ud, s->design};
+    double *y[1] = {out};
+    s->roles.nu->call(x, y);
 }
 
 static void gamma_rhs(const kinegen_solver *s, const double *q, const double *v, const double *u, const double *ud,
                       const double *udd, double *out) {
-    const kinegen_design *d = s->model->design;
-    if (d != NULL) {
-        d->gamma(q, v, u, ud, udd, s->design, out);
-    } else {
-        s->model->gamma(q, v, u, ud, udd, out);
-    }
+    const double *x[6] = {q, v, u, ud, udd, s->design};
+    double *y[1] = {out};
+    s->roles.gamma->call(x, y);
 }
 
-void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_options *options, double *doubles,
-                  int *ints) {
+const kinegen_kernel *kinegen_find_kernel(const kinegen_model *m, const char *name) {
+    for (int k = 0; k < m->n_kernels; ++k)
+        if (strcmp(m->kernels[k].name, name) == 0) return &m->kernels[k];
+    for (int k = 0; k < m->layout->n_kernels; ++k)
+        if (strcmp(m->layout->kernels[k].name, name) == 0) return &m->layout->kernels[k];
+    return NULL;
+}
+
+int kinegen_case_inputs(const kinegen_model *m, double t, double *out) {
+    const kinegen_kernel *k = kinegen_find_kernel(m, "inputs");
+    if (k == NULL) return KINEGEN_MODEL;
+    const double *x[1] = {&t};
+    double *y[1] = {out};
+    k->call(x, y);
+    return KINEGEN_OK;
+}
+
+/* The kernel of role `name` into *found, if its slots are `slots` (with ",p" after them when `design`) and
+ * its outputs have the sizes given (n_outputs of them); a missing one is NULL. 0, or 1 (s->role = name) when
+ * it is declared otherwise, or missing though `required`. */
+static int bind(kinegen_solver *s, const kinegen_kernel **found, const char *name, const char *slots, int design, int required,
+                int n_outputs, int size0, int size1) {
+    const kinegen_kernel *k = kinegen_find_kernel(s->model, name);
+    size_t n = strlen(slots);
+    int sizes[2] = {size0, size1};
+    *found = NULL;
+    if (k == NULL) {
+        if (required) s->role = name;
+        return required;
+    }
+    int same = k->slots != NULL && strncmp(k->slots, slots, n) == 0 && strcmp(k->slots + n, design ? ",p" : "") == 0 &&
+               k->n_outputs == n_outputs && k->call != NULL;
+    for (int i = 0; i < n_outputs && same; ++i) same = k->output_sizes[i] == sizes[i];
+    if (!same) {
+        s->role = name;
+        return 1;
+    }
+    *found = k;
+    return 0;
+}
+
+/* Every role the solver calls (kinegen_roles) bound from the model's tables; 0, or 1 naming the first
+ * that is missing or declared otherwise in s->role. */
+static int bind_roles(kinegen_solver *s) {
+    const kinegen_model *m = s->model;
+    const kinegen_design *d = m->design;
+    const kinegen_statics *st = m->layout->statics;
+    kinegen_roles *r = &s->roles;
+    int p = d != NULL, nv = m->n_v, ni = m->n_inputs;
+    if (bind(s, &r->phi_jac, "phi_jac", "q,u", p, 1, 2, nv, m->n_jac) || bind(s, &r->nu, "nu", "q,u,ud", p, 1, 1, nv, 0) ||
+        bind(s, &r->gamma, "gamma", "q,v,u,ud,udd", p, 1, 1, nv, 0) || bind(s, &r->inputs, "inputs", "t", 0, 0, 1, 3 * ni, 0) ||
+        bind(s, &r->input_ranges, "input_ranges", "span", 0, 0, 1, 6 * ni, 0) ||
+        bind(s, &r->frames, "frames", "q,v,a", 0, 0, 1, KINEGEN_FRAME_VALUES * m->layout->n_bodies, 0))
+        return 1;
+    if (d != NULL) { /* the sensitivities': all three, or none (built without them) */
+        if (bind(s, &r->phi_p, "phi_p", "q,u", 1, 0, 1, d->phi_p_pattern.n, 0) ||
+            bind(s, &r->dvel, "dvel", "q,v,u,ud", 1, r->phi_p != NULL, 1, d->dvel_pattern.n, 0) ||
+            bind(s, &r->dacc, "dacc", "q,v,a,u,ud,udd", 1, r->phi_p != NULL, 1, d->dacc_pattern.n, 0))
+            return 1;
+        if (r->phi_p == NULL && r->dvel != NULL) {
+            s->role = "phi_p";
+            return 1;
+        }
+    }
+    if (st != NULL)
+        return bind(s, &r->actuation, "actuation", "q", p, st->n_elements > 0, 1, st->pattern.n, 0) ||
+               bind(s, &r->loads, "loads", "q,t", p, st->n_loads > 0, 1, st->load_pattern.n, 0) ||
+               bind(s, &r->inertia, "inertia", "q,v,a", p, st->n_inertia > 0, 1, st->n_inertia, 0) ||
+               (st->n_joints > 0 && r->frames == NULL && (s->role = "frames") != NULL);
+    return 0;
+}
+
+int kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_options *options, double *doubles, int *ints) {
     int nq = m->n_q, nv = m->n_v;
     memset(s, 0, sizeof(*s));
     s->model = m;
@@ -114,6 +177,7 @@ void kinegen_init(kinegen_solver *s, const kinegen_model *m, const kinegen_optio
     s->residual = NAN;
     s->condition = NAN;
     s->sign = 1;
+    return bind_roles(s) ? KINEGEN_MODEL : KINEGEN_OK;
 }
 
 /* max |x_i|, NaN if any x_i is NaN (as NumPy's max). Without a branch per value (four running
@@ -559,13 +623,15 @@ static double input_effect(kinegen_solver *s, double t, double h, const double *
     double *w = s->x; /* n_inputs <= n_v values */
     double *columns = s->cert, *scratch = s->cert + CERTIFY_COLUMNS * nv; /* CERTIFY_COLUMNS columns of W at a time */
     s->branch_input = -1;
-    if (s->options.case_inputs && m->input_ranges != NULL) {
+    if (s->options.case_inputs && s->roles.input_ranges != NULL) {
         double *sum = s->cert + 2 * CERTIFY_COLUMNS * nv, *spread = sum + nv, *ranges = spread + nv, *deviation = ranges + 6 * ni;
         int *moving = s->moving, count = 0;
         double span[2], worst = -1.0;
         span[0] = s->t;
         span[1] = t;
-        m->input_ranges(span, ranges);
+        const double *x[1] = {span};
+        double *y[1] = {ranges};
+        s->roles.input_ranges->call(x, y);
         memset(sum, 0, sizeof(double) * 2 * (size_t)nv);
         for (int k = 0; k < ni; ++k) {
             deviation[k] = chord_deviation(ranges, ni, k, h, u[k], u[k] - s->u[k]);
@@ -682,6 +748,7 @@ static int finish(kinegen_solver *s, double t, const double *u, const double *ud
 int kinegen_start(kinegen_solver *s, double t, const double *q0, const double *u, const double *ud, const double *udd) {
     int count, status;
     double travel, norm;
+    if (s->role != NULL) return KINEGEN_MODEL;
     memcpy(s->trial, q0, sizeof(double) * (size_t)s->model->n_q);
     status = newton(s, u, 0, &count, &travel, &norm);
     if (status != KINEGEN_OK) {
@@ -720,8 +787,10 @@ static void inputs_at(const kinegen_solver *s, double tm, double t0, const doubl
                       const double *u1, const double *ud1, double *out) {
     const kinegen_model *m = s->model;
     int ni = m->n_inputs;
-    if (s->options.case_inputs && m->inputs != NULL) {
-        m->inputs(tm, out);
+    if (s->options.case_inputs && s->roles.inputs != NULL) {
+        const double *x[1] = {&tm};
+        double *y[1] = {out};
+        s->roles.inputs->call(x, y);
         return;
     }
     double d = t1 - t0, r = (tm - t0) / d;
@@ -784,6 +853,7 @@ static int advance(kinegen_solver *s, double t, const double *u, const double *u
 
 int kinegen_step(kinegen_solver *s, double t, const double *u, const double *ud, const double *udd) {
     int iterations = 0;
+    if (s->role != NULL) return KINEGEN_MODEL;
     if (!s->started) return KINEGEN_NOT_STARTED;
     s->refinements = 0;
     s->branch_block = -1;
@@ -812,6 +882,7 @@ double kinegen_table_mismatch(int n, double h, const double *u0, const double *u
 int kinegen_resume(kinegen_solver *s, double t, const double *q, const double *v, const double *a, const double *u,
                    const double *ud) {
     const kinegen_model *m = s->model;
+    if (s->role != NULL) return KINEGEN_MODEL;
     memcpy(s->q, q, sizeof(double) * (size_t)m->n_q);
     memcpy(s->v, v, sizeof(double) * (size_t)m->n_v);
     memcpy(s->a, a, sizeof(double) * (size_t)m->n_v);
@@ -851,6 +922,7 @@ int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q
                         double *residuals) {
     const kinegen_model *m = s->model;
     int ni = m->n_inputs, nq = m->n_q, solved = 0;
+    if (s->role != NULL) return 0;
     s->have_factors = 0; /* with chord iterations, each configuration starts from the last one's factors */
     for (int k = 0; k < count; ++k) {
         int n_iterations;
@@ -868,6 +940,7 @@ int kinegen_solve_batch(kinegen_solver *s, int count, const double *U, double *Q
 }
 
 int kinegen_newton(kinegen_solver *s, double *q, const double *u, int *iterations, double *residual, double *travel) {
+    if (s->role != NULL) return KINEGEN_MODEL;
     memcpy(s->trial, q, sizeof(double) * (size_t)s->model->n_q);
     int status = newton(s, u, 0, iterations, travel, residual);
     memcpy(q, s->trial, sizeof(double) * (size_t)s->model->n_q);
@@ -948,7 +1021,8 @@ static void solve_negated(kinegen_solver *s, const double *rhs, int np, double *
 int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const double *V, const double *A, const double *U,
                           const double *UD, const double *UDD, double *S, double *DV, double *DA, double *work) {
     const kinegen_design *d = s->model->design;
-    if (d == NULL || d->dvel == NULL) return -1;
+    const kinegen_roles *r = &s->roles;
+    if (d == NULL || r->dvel == NULL || s->role != NULL) return -1;
     const kinegen_model *m = s->model;
     int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, np = d->n_design;
     size_t block = (size_t)nv * (size_t)np;
@@ -962,13 +1036,16 @@ int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const d
             for (size_t i = 0; i < block; ++i) sk[i] = vk[i] = ak[i] = NAN;
             continue;
         }
-        d->phi_p(q, u, s->design, values);
+        const double *x[7] = {q, v, a, u, ud, udd, s->design};
+        double *y1[1] = {values};
+        const double *phi_p_x[3] = {q, u, s->design}, *dvel_x[5] = {q, v, u, ud, s->design};
+        r->phi_p->call(phi_p_x, y1);
         sparse_times(&d->phi_p_pattern, values, NULL, NULL, nv, np, 0, rhs);
         solve_negated(s, rhs, np, y, sk);
-        d->dvel(q, v, u, ud, s->design, values);
+        r->dvel->call(dvel_x, y1);
         sparse_times(&d->dvel_pattern, values, sk, NULL, nv, np, nv, rhs);
         solve_negated(s, rhs, np, y, vk);
-        d->dacc(q, v, a, u, ud, udd, s->design, values);
+        r->dacc->call(x, y1);
         sparse_times(&d->dacc_pattern, values, sk, vk, nv, np, 2 * nv, rhs);
         solve_negated(s, rhs, np, y, ak);
     }
@@ -982,10 +1059,10 @@ int kinegen_sensitivities(kinegen_solver *s, int count, const double *Q, const d
 static void load_vector(const kinegen_solver *s, const kinegen_statics *st, const double *q, double t, const double *weights,
                         double *values, double *Q) {
     memset(Q, 0, sizeof(double) * (size_t)s->model->n_v);
-    if (st->loads == NULL) return;
+    if (s->roles.loads == NULL) return;
     const double *x[3] = {q, &t, s->design}; /* slots q, t[, p] */
     double *y[1] = {values};
-    st->loads->call(x, y);
+    s->roles.loads->call(x, y);
     for (int e = 0; e < st->load_pattern.n; ++e) {
         int load = st->load_pattern.rows[e];
         Q[st->load_pattern.cols[e]] += (weights != NULL ? weights[load] : 1.0) * values[e];
@@ -996,7 +1073,7 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
                    const double *U, const double *weights, double inertia, double *LAMBDA, double *F, double *work, int *iwork) {
     const kinegen_model *m = s->model;
     const kinegen_statics *st = m->layout->statics;
-    if (st == NULL || (inertia != 0.0 && (st->inertia == NULL || V == NULL || A == NULL))) return -1;
+    if (st == NULL || s->role != NULL || (inertia != 0.0 && (s->roles.inertia == NULL || V == NULL || A == NULL))) return -1;
     int nq = m->n_q, nv = m->n_v, ni = m->n_inputs, ne = st->n_elements, solved = 0;
     int nf = ne > 0 ? ne : ni, first = nv - nf; /* the rows of the elements (drivers) come last */
     double *inertia_values = work, *load_values = inertia_values + st->n_inertia;
@@ -1013,7 +1090,7 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
         if (inertia != 0.0) {
             const double *x[4] = {q, V + (size_t)k * nv, A + (size_t)k * nv, s->design}; /* slots q, v, a[, p] */
             double *y[1] = {inertia_values};
-            st->inertia->call(x, y);
+            s->roles.inertia->call(x, y);
             for (int e = 0; e < st->n_inertia; ++e) rhs[st->inertia_cols[e]] += inertia * inertia_values[e];
         }
         if (ne > 0) {
@@ -1021,7 +1098,7 @@ int kinegen_forces(kinegen_solver *s, int count, const double *times, const doub
             double *y[1] = {values};
             double low = INFINITY, high = 0.0;
             int odd = 0;
-            st->actuation->call(x, y);
+            s->roles.actuation->call(x, y);
             singular = factor_blocks(&plan, values, store, off, iwork, NULL, &low, &high, &odd) ||
                        !(low > s->options.singular_tolerance * fmax(high, 1e-300));
             if (!singular) solve_transposed_blocks(&plan, store, off, iwork, w, rhs, lambda);
@@ -1075,11 +1152,18 @@ static int small_solve_transposed(int n, double *a, const double *b, double *x) 
     return 0;
 }
 
+/* The frames kernel (by role) at q, v, a: KINEGEN_FRAME_VALUES per body into out. */
+static void frames_at(const kinegen_solver *s, const double *q, const double *v, const double *a, double *out) {
+    const double *x[3] = {q, v, a};
+    double *y[1] = {out};
+    s->roles.frames->call(x, y);
+}
+
 int kinegen_reactions(kinegen_solver *s, const double *q, const double *u, const double *lambda, double *out, double *work, int *iwork) {
     const kinegen_model *m = s->model;
     const kinegen_layout *l = m->layout;
     const kinegen_statics *st = l->statics;
-    if (st == NULL || l->n_bodies == 0) return -1;
+    if (st == NULL || l->n_bodies == 0 || s->role != NULL) return -1;
     int nv = m->n_v, nb = l->n_bodies, nvb = nv / nb, n;
     if (nv % nb != 0 || nvb > KINEGEN_MAX_BODY_COORDINATES) return -1; /* (every parametrization's bodies fit) */
     double *frames = work, *unit = frames + KINEGEN_FRAME_VALUES * nb, *zero = unit + nv, *tangent = zero + nv;
@@ -1088,7 +1172,7 @@ int kinegen_reactions(kinegen_solver *s, const double *q, const double *u, const
     if (st->n_elements > 0) { /* the joint rows' values lead the force matrix's */
         const double *x[2] = {q, s->design};
         double *y[1] = {values};
-        st->actuation->call(x, y);
+        s->roles.actuation->call(x, y);
         rows = st->pattern.rows, cols = st->pattern.cols, n = st->pattern.n;
     } else { /* the case's Phi_q (its joint rows are the first) */
         double *jac = phi + nv;
@@ -1101,14 +1185,14 @@ int kinegen_reactions(kinegen_solver *s, const double *q, const double *u, const
     memset(zero, 0, sizeof(double) * (size_t)nv);
     for (int k = 0; k < nvb; ++k) { /* the tangent maps: column k of every body's T_v and T_w at once */
         for (int i = 0; i < nv; ++i) unit[i] = i % nvb == k ? 1.0 : 0.0;
-        l->frames(q, unit, zero, frames);
+        frames_at(s, q, unit, zero, frames);
         for (int b = 0; b < nb; ++b)
             for (int i = 0; i < 3; ++i) {
                 tangent[((size_t)b * 6 + i) * nvb + k] = frames[KINEGEN_FRAME_VALUES * b + KINEGEN_FRAME_VELOCITY + i];
                 tangent[((size_t)b * 6 + 3 + i) * nvb + k] = frames[KINEGEN_FRAME_VALUES * b + KINEGEN_FRAME_ANGULAR_VELOCITY + i];
             }
     }
-    l->frames(q, zero, zero, frames); /* the poses */
+    frames_at(s, q, zero, zero, frames); /* the poses */
     for (int j = 0; j < st->n_joints; ++j) {
         int b = st->joint_body[j], first = b * nvb;
         double *r = out + (size_t)6 * j;
@@ -1157,6 +1241,9 @@ const char *kinegen_status_text(int status) {
         return "no initial pose solved yet (kinegen_start)";
     case KINEGEN_INPUTS:
         return "the driver inputs are not finite inside the step (a time function leaves its domain between two time points)";
+    case KINEGEN_MODEL:
+        return "the model's kernel tables lack a kernel the solver calls, or declare it with other slots or sizes "
+               "(kinegen_init: the solver's role names it)";
     default:
         return "unknown status";
     }
@@ -1221,15 +1308,15 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_layout, body_names, "pointer"), FIELD(kinegen_layout, stored_names, "pointer"),
     FIELD(kinegen_layout, velocity_names, "pointer"), FIELD(kinegen_layout, n_points, "int"),
     FIELD(kinegen_layout, points, "pointer"), FIELD(kinegen_layout, n_actuators, "int"), FIELD(kinegen_layout, actuators, "pointer"),
-    FIELD(kinegen_layout, frames, "function"), FIELD(kinegen_layout, n_kernels, "int"), FIELD(kinegen_layout, kernels, "pointer"),
+    FIELD(kinegen_layout, n_kernels, "int"), FIELD(kinegen_layout, kernels, "pointer"),
     FIELD(kinegen_layout, statics, "pointer"),
 
     FIELD(kinegen_statics, n_elements, "int"), FIELD(kinegen_statics, element_names, "pointer"),
     FIELD(kinegen_statics, element_kinds, "pointer"), FIELD(kinegen_statics, n_joint_rows, "int"),
-    FIELD(kinegen_statics, pattern, "kinegen_pattern"), FIELD(kinegen_statics, actuation, "pointer"),
+    FIELD(kinegen_statics, pattern, "kinegen_pattern"),
     FIELD(kinegen_statics, n_loads, "int"), FIELD(kinegen_statics, load_names, "pointer"),
-    FIELD(kinegen_statics, load_pattern, "kinegen_pattern"), FIELD(kinegen_statics, loads, "pointer"),
-    FIELD(kinegen_statics, n_inertia, "int"), FIELD(kinegen_statics, inertia_cols, "int*"), FIELD(kinegen_statics, inertia, "pointer"),
+    FIELD(kinegen_statics, load_pattern, "kinegen_pattern"),
+    FIELD(kinegen_statics, n_inertia, "int"), FIELD(kinegen_statics, inertia_cols, "int*"),
     FIELD(kinegen_statics, n_blocks, "int"), FIELD(kinegen_statics, block_start, "int*"), FIELD(kinegen_statics, block_store, "int*"),
     FIELD(kinegen_statics, row_order, "int*"), FIELD(kinegen_statics, col_order, "int*"), FIELD(kinegen_statics, n_store, "int"),
     FIELD(kinegen_statics, n_diag, "int"), FIELD(kinegen_statics, diag_value, "int*"), FIELD(kinegen_statics, diag_slot, "int*"),
@@ -1247,8 +1334,7 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_model, t0, "double"), FIELD(kinegen_model, t1, "double"), FIELD(kinegen_model, steps, "int"),
     FIELD(kinegen_model, initial_q, "double*"), FIELD(kinegen_model, constraint_names, "pointer"),
     FIELD(kinegen_model, driver_names, "pointer"), FIELD(kinegen_model, jac_rows, "int*"), FIELD(kinegen_model, jac_cols, "int*"),
-    FIELD(kinegen_model, phi_jac, "function"), FIELD(kinegen_model, nu, "function"), FIELD(kinegen_model, gamma, "function"),
-    FIELD(kinegen_model, inputs, "function"), FIELD(kinegen_model, input_ranges, "function"), FIELD(kinegen_model, retract, "function"), FIELD(kinegen_model, n_blocks, "int"),
+    FIELD(kinegen_model, retract, "function"), FIELD(kinegen_model, n_blocks, "int"),
     FIELD(kinegen_model, block_start, "int*"), FIELD(kinegen_model, block_store, "int*"), FIELD(kinegen_model, row_order, "int*"),
     FIELD(kinegen_model, col_order, "int*"), FIELD(kinegen_model, n_store, "int"), FIELD(kinegen_model, n_diag, "int"),
     FIELD(kinegen_model, diag_value, "int*"), FIELD(kinegen_model, diag_slot, "int*"), FIELD(kinegen_model, n_off, "int"),
@@ -1258,12 +1344,14 @@ const kinegen_field kinegen_fields[] = {
 
     FIELD(kinegen_pattern, n, "int"), FIELD(kinegen_pattern, rows, "int*"), FIELD(kinegen_pattern, cols, "int*"),
 
-    FIELD(kinegen_design, n_design, "int"), FIELD(kinegen_design, nominal, "double*"), FIELD(kinegen_design, phi_jac, "function"),
-    FIELD(kinegen_design, nu, "function"), FIELD(kinegen_design, gamma, "function"),
+    FIELD(kinegen_design, n_design, "int"), FIELD(kinegen_design, nominal, "double*"),
     FIELD(kinegen_design, phi_p_pattern, "kinegen_pattern"), FIELD(kinegen_design, dvel_pattern, "kinegen_pattern"),
-    FIELD(kinegen_design, dacc_pattern, "kinegen_pattern"), FIELD(kinegen_design, phi_p, "function"),
-    FIELD(kinegen_design, dvel, "function"), FIELD(kinegen_design, dacc, "function"),
-    FIELD(kinegen_design, sensitivity_doubles, "int"),
+    FIELD(kinegen_design, dacc_pattern, "kinegen_pattern"), FIELD(kinegen_design, sensitivity_doubles, "int"),
+
+    FIELD(kinegen_roles, phi_jac, "pointer"), FIELD(kinegen_roles, nu, "pointer"), FIELD(kinegen_roles, gamma, "pointer"),
+    FIELD(kinegen_roles, inputs, "pointer"), FIELD(kinegen_roles, input_ranges, "pointer"), FIELD(kinegen_roles, phi_p, "pointer"),
+    FIELD(kinegen_roles, dvel, "pointer"), FIELD(kinegen_roles, dacc, "pointer"), FIELD(kinegen_roles, frames, "pointer"),
+    FIELD(kinegen_roles, actuation, "pointer"), FIELD(kinegen_roles, loads, "pointer"), FIELD(kinegen_roles, inertia, "pointer"),
 
     FIELD(kinegen_solver, model, "pointer"), FIELD(kinegen_solver, options, "kinegen_options"), FIELD(kinegen_solver, t, "double"),
     FIELD(kinegen_solver, q, "double*"), FIELD(kinegen_solver, v, "double*"), FIELD(kinegen_solver, a, "double*"),
@@ -1278,7 +1366,8 @@ const kinegen_field kinegen_fields[] = {
     FIELD(kinegen_solver, block_sign, "int*"), FIELD(kinegen_solver, factor_block_sign, "int*"),
     FIELD(kinegen_solver, refinements, "int"), FIELD(kinegen_solver, branch_block, "int"), FIELD(kinegen_solver, bound, "double"),
     FIELD(kinegen_solver, branch_time, "double"), FIELD(kinegen_solver, cert, "double*"), FIELD(kinegen_solver, branch_input, "int"),
-    FIELD(kinegen_solver, moving, "int*"), FIELD(kinegen_solver, path, "double*"),
+    FIELD(kinegen_solver, moving, "int*"), FIELD(kinegen_solver, path, "double*"), FIELD(kinegen_solver, roles, "kinegen_roles"),
+    FIELD(kinegen_solver, role, "char*"),
     {NULL, NULL, NULL, 0, 0},
 };
 
@@ -1287,7 +1376,8 @@ const kinegen_field kinegen_fields[] = {
 
 const kinegen_struct kinegen_structs[] = {
     STRUCT(kinegen_options), STRUCT(kinegen_kernel), STRUCT(kinegen_point), STRUCT(kinegen_actuator), STRUCT(kinegen_layout),
-    STRUCT(kinegen_statics), STRUCT(kinegen_model), STRUCT(kinegen_pattern), STRUCT(kinegen_design), STRUCT(kinegen_solver), {NULL, 0},
+    STRUCT(kinegen_statics), STRUCT(kinegen_model), STRUCT(kinegen_pattern), STRUCT(kinegen_design), STRUCT(kinegen_roles), STRUCT(kinegen_solver),
+    {NULL, 0},
 };
 
 #undef STRUCT
@@ -1296,8 +1386,10 @@ const kinegen_struct kinegen_structs[] = {
  * table is made of: a list that disagreed with kinegen_solver.h's prototypes would not compile. */
 #define FUNCTIONS(X)                                                                                                   \
     X(void, kinegen_default_options, (kinegen_options *options))                                                      \
-    X(void, kinegen_init, (kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles, \
-                           int *ints))                                                                                  \
+    X(int, kinegen_init, (kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles, \
+                          int *ints))                                                                                   \
+    X(const kinegen_kernel *, kinegen_find_kernel, (const kinegen_model *model, const char *name))                    \
+    X(int, kinegen_case_inputs, (const kinegen_model *model, double t, double *out))                                  \
     X(void, kinegen_set_design, (kinegen_solver *s, const double *p))                                                 \
     X(int, kinegen_start, (kinegen_solver *s, double t, const double *q0, const double *u, const double *ud, const double *udd)) \
     X(int, kinegen_step, (kinegen_solver *s, double t, const double *u, const double *ud, const double *udd))        \
@@ -1337,7 +1429,8 @@ const kinegen_function kinegen_functions[] = {FUNCTIONS(ENTRY){NULL, NULL, NULL}
 /* by code: each name beside its enum kinegen_status constant */
 const char *const kinegen_status_names[] = {
     [KINEGEN_OK] = "ok", [KINEGEN_NOT_CONVERGED] = "not_converged", [KINEGEN_SINGULAR] = "singular",
-    [KINEGEN_BRANCH] = "branch", [KINEGEN_NOT_STARTED] = "not_started", [KINEGEN_INPUTS] = "inputs", [KINEGEN_INPUTS + 1] = NULL,
+    [KINEGEN_BRANCH] = "branch", [KINEGEN_NOT_STARTED] = "not_started", [KINEGEN_INPUTS] = "inputs", [KINEGEN_MODEL] = "model",
+    [KINEGEN_MODEL + 1] = NULL,
 };
 
 /* the frames kernel's layout (enum kinegen_frame), by name */

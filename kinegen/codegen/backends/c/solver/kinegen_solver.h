@@ -39,8 +39,11 @@ enum kinegen_status {
                                   in between), or the continuation bound failed (inputs too fast for the
                                   grid, or a singular pose near); see branch_block and bound */
     KINEGEN_NOT_STARTED = 4,   /* kinegen_step before a successful kinegen_start */
-    KINEGEN_INPUTS = 5         /* the case's time functions are not finite at a time inside the step
+    KINEGEN_INPUTS = 5,        /* the case's time functions are not finite at a time inside the step
                                   (branch_time): a function leaves its domain between two time points */
+    KINEGEN_MODEL = 6          /* kinegen_init: the model's kernel tables lack a kernel the solver calls, or
+                                  declare it with other argument slots or output sizes (role names it); the
+                                  solver then refuses every call with this status */
 };
 
 /* How a step is certified (kinegen_step). With x0 the last solution and x1 Newton's solution at the
@@ -49,7 +52,7 @@ enum kinegen_status {
  *   omega = safety * |J1^-1 (Phi_q(x0) - J1) d| / |d|^2   (affine-covariant Lipschitz constant, measured)
  *   alpha = |J1^-1 Phi(x1)| + max over the step of |J1^-1 Phi_u (u(s) - u(t1))| (first order in u), bounded
  *           with options.case_inputs for the case's own time functions over their enclosures on the step
- *           (model->input_ranges: interval arithmetic), however they move between its ends; otherwise
+ *           (its input_ranges kernel: interval arithmetic), however they move between its ends; otherwise
  *           for the cubic Hermite path of the inputs' values and rates at both ends
  * The step is accepted when every diagonal block keeps the sign of its determinant, |d| < KINEGEN_MAX_MOTION,
  * alpha omega <= 1/2 and omega |d| < 1: by the Newton-Kantorovich theorem every Phi(., u(s)) then has
@@ -78,16 +81,17 @@ typedef struct kinegen_options {
     int keep_branch;           /* 1: certify every step (above), halving it when needed (1) */
     int condition;             /* 1: estimate the 1-norm condition number of Phi_q at every step (0) */
     int max_refinements;       /* halvings of a step before KINEGEN_BRANCH (12; at most KINEGEN_MAX_REFINEMENTS) */
-    int case_inputs;           /* inputs at a midpoint: 1, the case's own time functions (model->inputs);
+    int case_inputs;           /* inputs at a midpoint: 1, the case's own time functions (its inputs kernel);
                                   0, the cubic Hermite interpolant of the values and rates given at the
                                   step's ends (0) */
 } kinegen_options;
 
-/* A kernel as data: what a binding in another language (kinegen's Python runtime) calls it by.
- * Every kernel a generated model declares is listed in its layout (shared by the cases: the
- * frames, and with design parameters the points and their derivatives) or in its case
- * (kinegen_model.kernels: phi_jac, nu, gamma, inputs, ...), with its argument slots and outputs, and
- * one entry point of a fixed signature. */
+/* A kernel as data: what the C solver and a binding in another language (kinegen's Python runtime)
+ * call it by. Every kernel a generated model declares is listed in its layout (shared by the cases:
+ * the frames, the force solve's, and with design parameters the points and their derivatives) or in
+ * its case (kinegen_model.kernels: phi_jac, nu, gamma, inputs, ...), with its argument slots and
+ * outputs, and one entry point of a fixed signature: no kernel is reached through a typed pointer of
+ * its own. The solver finds the ones it calls by name (their role: kinegen_roles) when it is set up. */
 typedef struct kinegen_kernel {
     const char *name;
     const char *slots;                   /* argument slots, comma-separated (q, v, a, u, ud, udd, t, p, w, y, z) */
@@ -152,15 +156,12 @@ typedef struct kinegen_statics {
     const char *const *element_names;
     const char *const *element_kinds; /* "actuator" or "motor" */
     int n_joint_rows;
-    kinegen_pattern pattern;          /* of the matrix (n_elements > 0) */
-    const kinegen_kernel *actuation;  /* (q[, p]) -> the matrix's values; NULL without elements */
+    kinegen_pattern pattern;          /* of the matrix (n_elements > 0): the kernel actuation's values */
     int n_loads;
     const char *const *load_names;
-    kinegen_pattern load_pattern;
-    const kinegen_kernel *loads;      /* (q, t[, p]) -> the loads' Q values; NULL without loads */
-    int n_inertia;
+    kinegen_pattern load_pattern;     /* of the kernel loads' values */
+    int n_inertia;                    /* the kernel inertia's values (0: the model has no masses) */
     const int *inertia_cols;
-    const kinegen_kernel *inertia;    /* (q, v, a[, p]) -> gravity's and inertia's Q values; NULL without masses */
     int n_blocks;                     /* the matrix's plan (n_elements > 0), as kinegen_model's */
     const int *block_start, *block_store, *row_order, *col_order;
     int n_store, n_diag;
@@ -202,18 +203,18 @@ typedef struct kinegen_layout {
     const kinegen_point *points;
     int n_actuators;
     const kinegen_actuator *actuators;
-    void (*frames)(const double *q, const double *v, const double *a, double *out);
     int n_kernels;                 /* every kernel shared by the cases (frames first) */
     const kinegen_kernel *kernels;
     const kinegen_statics *statics; /* NULL: the model declares no loads and no actuation elements */
 } kinegen_layout;
 
 /* The design parameters of a case of a model with a design: section (kinegen_model.design; the
- * model's own phi_jac, nu and gamma are then NULL): their n_design nominal values and the kernels
- * taking the parameters p last (kinegen_set_design; by default the nominal values).
+ * case's kernels then take the parameters p last, slot p): their n_design nominal values
+ * (kinegen_set_design; by default the nominal values).
  *
- * Then the kernels of the exact sensitivities (kinegen_sensitivities), each a sparse matrix
- * (n_v rows; n_v velocity coordinates, n_p = n_design parameters):
+ * Then the patterns of the exact sensitivities' kernels (kinegen_sensitivities; roles phi_p, dvel and
+ * dacc, absent from a model built without them), each a sparse matrix (n_v rows; n_v velocity
+ * coordinates, n_p = n_design parameters):
  *   phi_p: Phi_p = dPhi/dp (n_p columns);
  *   dvel:  [M_v | E_v], M_v = D_q(Phi_q v - nu), E_v = d(Phi_q v - nu)/dp (n_v + n_p columns);
  *   dacc:  [M_a | N_a | E_a], M_a = D_q(Phi_q a - gamma), N_a = d(Phi_q a - gamma)/dv,
@@ -222,19 +223,20 @@ typedef struct kinegen_layout {
 typedef struct kinegen_design {
     int n_design;
     const double *nominal;
-    void (*phi_jac)(const double *q, const double *u, const double *p, double *phi, double *jac);
-    void (*nu)(const double *q, const double *u, const double *ud, const double *p, double *nu);
-    void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, const double *p,
-                  double *gamma);
     kinegen_pattern phi_p_pattern, dvel_pattern, dacc_pattern;
-    void (*phi_p)(const double *q, const double *u, const double *p, double *out);
-    void (*dvel)(const double *q, const double *v, const double *u, const double *ud, const double *p, double *out);
-    void (*dacc)(const double *q, const double *v, const double *a, const double *u, const double *ud, const double *udd,
-                 const double *p, double *out);
     int sensitivity_doubles; /* what kinegen_sensitivities needs as work: 2 n_v n_p + the largest kernel output */
 } kinegen_design;
 
-/* One case of a model: its kernels and the factorization plan of its Phi_q. */
+/* One case of a model: its kernels (as data, in kernels) and the factorization plan of its Phi_q. The
+ * solver calls the case's kernels by these roles (slots; with design parameters each takes p last):
+ *   phi_jac (q, u) -> Phi (n_v), Phi_q's values (n_jac);  nu (q, u, ud) -> nu (n_v);
+ *   gamma (q, v, u, ud, udd) -> gamma (n_v);  inputs (t) -> u, du/dt, d2u/dt2 (3 n_inputs: the case's
+ *   own time functions);  input_ranges (span) -> their enclosures over the time interval span = (t0, t1):
+ *   the lower bounds of u, du/dt, d2u/dt2, then the upper bounds (6 n_inputs; interval arithmetic,
+ *   kinegen_interval.h);  with design parameters phi_p, dvel, dacc (kinegen_design);
+ * and the layout's: frames (q, v, a) -> KINEGEN_FRAME_VALUES per body; with a force solve (kinegen_statics)
+ *   actuation (q) -> the force matrix's values, loads (q, t) -> the loads' Q values, inertia (q, v, a) ->
+ *   gravity's and inertia's Q values. */
 typedef struct kinegen_model {
     const kinegen_layout *layout;
     const char *case_name;
@@ -245,13 +247,6 @@ typedef struct kinegen_model {
     const char *const *constraint_names; /* the joints' rows, the normalizations', then the drivers': */
     const char *const *driver_names;     /*   driver k's is row n_v - n_inputs + k and depends on input k alone */
     const int *jac_rows, *jac_cols;
-    void (*phi_jac)(const double *q, const double *u, double *phi, double *jac);
-    void (*nu)(const double *q, const double *u, const double *ud, double *nu);
-    void (*gamma)(const double *q, const double *v, const double *u, const double *ud, const double *udd, double *gamma);
-    void (*inputs)(double t, double *out); /* the case's own time functions: u, du/dt, d2u/dt2 (3 n_inputs) */
-    /* their enclosures over the time interval span = (t0, t1): the lower bounds of u, du/dt, d2u/dt2, then
-     * the upper bounds (6 n_inputs; interval arithmetic, kinegen_interval.h) */
-    void (*input_ranges)(const double *span, double *out);
     void (*retract)(double *q, const double *step);              /* q moved by a velocity-coordinate step */
     /* Phi_q permuted to block lower triangular form: position i holds constraint row_order[i]
      * and coordinate col_order[i]; block k spans positions block_start[k] .. block_start[k+1]-1
@@ -271,6 +266,14 @@ typedef struct kinegen_model {
 } kinegen_model;
 
 
+
+/* The kernels a solver calls, found by role (kinegen_model) in the case's and the layout's tables by
+ * kinegen_init, their slots and output sizes checked there; NULL: the model has none of that role. */
+typedef struct kinegen_roles {
+    const kinegen_kernel *phi_jac, *nu, *gamma, *inputs, *input_ranges; /* the case's */
+    const kinegen_kernel *phi_p, *dvel, *dacc;                          /* its sensitivities' */
+    const kinegen_kernel *frames, *actuation, *loads, *inertia;         /* the layout's */
+} kinegen_roles;
 
 /* One solver instance. After a call returning KINEGEN_OK: q, v, a at time t, and the step's
  * Newton iterations, final max |Phi| and condition estimate. All arrays point into the
@@ -303,6 +306,8 @@ typedef struct kinegen_solver {
     int branch_input;       /* after KINEGEN_BRANCH: the input that contributed most to the refused bound, or -1 */
     int *moving;            /* the certificate's work: the inputs that move over the step (n_inputs ints) */
     double *path;           /* kinegen_step's work: the step's start inputs and a halved piece's (5 n_inputs) */
+    kinegen_roles roles;    /* the kernels it calls */
+    const char *role;       /* after KINEGEN_MODEL from kinegen_init: the role it could not bind (else NULL) */
 } kinegen_solver;
 
 /* The memory each call below carves from what its caller passes -- the one statement of these sizes:
@@ -336,9 +341,17 @@ void kinegen_default_options(kinegen_options *options);
 
 /* Set up a solver for one case in caller-provided memory: at least model->work_doubles
  * doubles and model->work_ints ints (KINEGEN_WORK_DOUBLES and KINEGEN_WORK_INTS of its sizes;
- * the generated header's *_WORK_DOUBLES / *_WORK_INTS cover every case of the model). options NULL: kinegen_default_options. */
-void kinegen_init(kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles,
-                  int *ints);
+ * the generated header's *_WORK_DOUBLES / *_WORK_INTS cover every case of the model). options NULL: kinegen_default_options.
+ * Finds the kernels it calls by role (kinegen_roles) and checks their slots and sizes: KINEGEN_OK, or
+ * KINEGEN_MODEL naming the role in s->role (the solver then refuses every call). */
+int kinegen_init(kinegen_solver *s, const kinegen_model *model, const kinegen_options *options, double *doubles, int *ints);
+
+/* The kernel of that name in the case's table, else in its layout's; NULL: none. */
+const kinegen_kernel *kinegen_find_kernel(const kinegen_model *model, const char *name);
+
+/* The case's own time functions at t (its inputs kernel): u, du/dt, d2u/dt2 of every driver into out
+ * (3 n_inputs). Returns KINEGEN_OK, or KINEGEN_MODEL for a case without them. */
+int kinegen_case_inputs(const kinegen_model *model, double t, double *out);
 
 /* The design parameters (model->design->n_design values, kept by the caller)
  * the solver's kernels take from now on; NULL: the nominal values. Without design parameters
