@@ -367,6 +367,31 @@ def test_the_solver_object_is_compiled_once_for_every_model(tmp_path, monkeypatc
     assert len(list(objects.glob("*.o"))) == 2 + len(parts)  # the boom's one object; the solver's reused
 
 
+def test_the_sensitivity_kernels_compile_when_first_asked_for(tmp_path, monkeypatch):
+    """The excavator's C has parts that only its sensitivity kernels need (config.sensitivity_parts, about
+    half its lines): a solve loads a library compiled without them (part 0 with -DKINEGEN_NO_SENSITIVITIES:
+    no phi_p, dvel or dacc in its kernel tables), and the first sensitivities compile the complete one,
+    sharing the other parts' objects; its results equal the Python kernels' to 1e-12 of their scale."""
+    from kinegen.runtime import sensitivity
+
+    monkeypatch.setenv("KINEGEN_CACHE", str(tmp_path / "cache"))
+    objects = tmp_path / "cache" / "objects"
+    text = (GENERATED / "excavator_quaternion.c").read_text()
+    parts, deferred = config.source_parts(text), config.sensitivity_parts(text)
+    assert deferred and set(deferred) < set(parts) and 0 not in deferred
+    module = load_module(GENERATED / "excavator_quaternion.py")
+    system = from_module(module, "digging")
+    assert not {"phi_p", "dvel", "dacc"} & set(system.native.kernels)
+    assert len(list(objects.glob("*.o"))) == 1 + len(parts) - len(deferred)  # the solver, part 0 without them, the others
+    times = np.linspace(system.t0, system.t1, 21)
+    compiled = sensitivity.state_sensitivities(Solver(system).solve(times))
+    assert {"phi_p", "dvel", "dacc"} <= set(system.native._complete.kernels)
+    assert len(list(objects.glob("*.o"))) == 2 + len(parts)  # part 0 whole and the deferred parts: the rest shared
+    reference = sensitivity.state_sensitivities(Solver(from_module(module, "digging", compiled=False)).solve(times))
+    for c, p in zip(compiled, reference):
+        assert np.abs(c - p).max() <= 1e-12 * max(1.0, np.abs(p).max())
+
+
 def _model_files(stem: str) -> dict[str, str]:
     return {name: (GENERATED / name).read_text() for name in (f"{stem}.c", f"{stem}.h")}
 

@@ -28,7 +28,7 @@ import tempfile
 import threading
 import time
 import warnings
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from contextlib import contextmanager, suppress
 from functools import cache
 from pathlib import Path
@@ -36,7 +36,7 @@ from types import ModuleType
 
 import numpy as np
 
-from kinegen.codegen.backends.c.config import RUNTIME, source_parts
+from kinegen.codegen.backends.c.config import RUNTIME, sensitivity_parts, source_parts
 from kinegen.errors import ExitCode, KinegenError
 from kinegen.files import cache_folder
 from kinegen.integrity import remember, trusted
@@ -101,24 +101,27 @@ def _compiler_identity(compiler: str) -> str:
     return f"{compiler}\n{done.stdout}\n{platform.machine()}\n{cpu}"
 
 
-def build_library(sources: dict[str, str]) -> Path:
+def build_library(sources: dict[str, str], sensitivities: bool = True) -> Path:
     """The shared library of the C ``sources`` (file name -> text), compiled once: cached by a
     key over the sources, the compiler and the flags, its bytes recorded in the user's trust store
     (:mod:`kinegen.integrity`), which :func:`_load` checks before it loads it. Each object file is
     cached too (:func:`_objects`): the solver's object is built once per machine and shared by
     every model. Builds are atomic (a private folder, then ``os.replace``): a concurrent or
     interrupted build leaves a whole library or none, and a cached library whose bytes kinegen did
-    not write (tampered, truncated, planted) is built again, never loaded."""
+    not write (tampered, truncated, planted) is built again, never loaded. ``sensitivities`` False:
+    without the parts of a model's C that only its sensitivity kernels need
+    (:func:`~kinegen.backends.c.config.sensitivity_parts`; its part 0 with ``-DKINEGEN_NO_SENSITIVITIES``),
+    the library a solve loads first (:func:`case_library`)."""
     compiler = c_compiler()
     key = hashlib.sha256()
     for part in (_compiler_identity(compiler), " ".join((*COMMON_FLAGS, *SOLVER_FLAGS, *MODEL_FLAGS)),
-                 *(f"{n}\n{t}" for n, t in sorted(sources.items()))):  # fmt: skip
+                 *([] if sensitivities else [NO_SENSITIVITIES]), *(f"{n}\n{t}" for n, t in sorted(sources.items()))):  # fmt: skip
         key.update(part.encode())
     folder = cache_folder()
     library = folder / f"kinegen_{key.hexdigest()[:24]}.so"
     if _intact(library):
         return library
-    objects = _objects(compiler, sources, sorted(n for n in sources if n.endswith(".c")))
+    objects = _objects(compiler, sources, sorted(n for n in sources if n.endswith(".c")), sensitivities)
     with _work_folder(folder) as work:
         built = work / library.name
         _run_all(compiler, [[compiler, "-shared", "-o", str(built), *map(str, objects), "-lm"]])
@@ -163,18 +166,24 @@ def build_solver_object() -> Path:
     return _objects(c_compiler(), with_solver({}), ["kinegen_solver.c"])[0]
 
 
-def _objects(compiler: str, sources: dict[str, str], names: list[str]) -> list[Path]:
+def _objects(compiler: str, sources: dict[str, str], names: list[str], sensitivities: bool = True) -> list[Path]:
     """The object files of the C files ``names`` among ``sources``, from the cache
     (``objects/``, keyed by :func:`_object_key`); the missing ones compiled in parallel, a large
-    model's C in its ``KINEGEN_PART`` parts (see backends.c.backend), and moved in atomically."""
+    model's C in its ``KINEGEN_PART`` parts (see backends.c.backend), and moved in atomically.
+    Without ``sensitivities``, a model's parts that only its sensitivity kernels need are left out and
+    its part 0 is compiled with ``-DKINEGEN_NO_SENSITIVITIES`` (the other parts' objects are shared)."""
     identity = _compiler_identity(compiler)
     store = cache_folder() / "objects"
     store.mkdir(parents=True, exist_ok=True)
     objects, missing = [], []
     for name in names:
         flags = SOLVER_FLAGS if name == "kinegen_solver.c" else MODEL_FLAGS
+        left_out = set() if sensitivities or name == "kinegen_solver.c" else set(sensitivity_parts(sources[name]))
         for part in source_parts(sources[name]) or [None]:
-            command = [*COMMON_FLAGS, *flags, *([] if part is None else [f"-DKINEGEN_PART={part}"])]
+            if part in left_out:
+                continue
+            without = [f"-D{NO_SENSITIVITIES}"] if left_out and part == 0 else []
+            command = [*COMMON_FLAGS, *flags, *([] if part is None else [f"-DKINEGEN_PART={part}"]), *without]
             objects.append(store / f"{_object_key(identity, command, name, sources)}.o")
             if not _intact(objects[-1]):
                 missing.append((name, part, command, objects[-1]))
@@ -208,6 +217,23 @@ def _object_key(identity: str, command: list[str], name: str, sources: dict[str,
 _INCLUDE = re.compile(r'^#include "([^"]+)"', re.MULTILINE)
 
 
+#: the macro that leaves a model's sensitivity kernels out of its C (see backends.c.backend)
+NO_SENSITIVITIES = "KINEGEN_NO_SENSITIVITIES"
+
+
+def deferred_sensitivities(sources: dict[str, str]) -> bool:
+    """Whether a model's C has parts only its sensitivity kernels need: its first library is then
+    compiled without them, and the complete one when they are first asked for."""
+    return any(sensitivity_parts(text) for name, text in sources.items() if name.endswith(".c") and name not in RUNTIME)
+
+
+def case_library(sources: dict[str, str]) -> Path:
+    """The library a solve of the model loads (:func:`build_library`): without the parts only the
+    sensitivity kernels need when the model's C has them apart (:func:`deferred_sensitivities`), the
+    sensitivities' kernels then compiled when first asked for (:meth:`NativeCase.sensitivities`)."""
+    return build_library(sources, sensitivities=not deferred_sensitivities(sources))
+
+
 def with_solver(model_files: dict[str, str]) -> dict[str, str]:
     """A model's C files (``<stem>.c``, ``<stem>.h``) and kinegen's C solver: what a library is built from."""
     return {**model_files, **{name: (SOLVER_SOURCES / name).read_text() for name in RUNTIME}}
@@ -219,7 +245,7 @@ def compile_in_background(model_files: dict[str, str]) -> threading.Thread:
 
     def build() -> None:
         try:
-            build_library(with_solver(model_files))
+            case_library(with_solver(model_files))
         except (KinegenError, OSError):  # left for the first use to report
             pass
 
@@ -301,7 +327,7 @@ def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.n
     if sources is None:
         return None
     try:
-        library = build_library(sources)
+        library = case_library(sources)
     except CompileError as exc:
         reason = str(exc)
         if not quiet and reason not in _WARNED:
@@ -311,7 +337,10 @@ def native_case(module: ModuleType, case: str, quiet: bool = False, design: np.n
     stem = Path(module.__file__).stem
     abi = _abi(str(library))
     abi.check_frames(tuple(tuple(f) for f in module.FRAME_FIELDS))
-    return NativeCase(abi, f"{stem}_{case}", design)
+    native = NativeCase(abi, f"{stem}_{case}", design)
+    if deferred_sensitivities(sources):
+        native.complete = lambda: NativeCase(_abi(str(build_library(sources))), f"{stem}_{case}", native.design)
+    return native
 
 
 class NativeCase:
@@ -326,6 +355,10 @@ class NativeCase:
         #: the design parameters the kernels and solvers take (None without them)
         self.design = None
         self.sensitivity_doubles = 0  #: work of kinegen_sensitivities (0: the model has no sensitivity kernels)
+        #: the same case in the complete library, when this one was compiled without the sensitivity kernels
+        #: (called when they are first asked for: :meth:`sensitivities`)
+        self.complete: Callable[[], NativeCase] | None = None
+        self._complete: NativeCase | None = None
         if m.design:  # a model with design parameters: its kernels take them last
             owner = abi.struct("kinegen_design").from_address(m.design)
             self.sensitivity_doubles = owner.sensitivity_doubles
@@ -372,7 +405,12 @@ class NativeCase:
     def sensitivities(self, q, v, a, u, ud, udd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """dq/dp, dv/dp, da/dp (each (K, n_v, n_design)) at the K columns of q (n_q, K), v, a
         (n_v, K) and the inputs u, ud, udd (n_inputs, K), by ``kinegen_sensitivities`` (one LU of
-        Phi_q per time point); NaN where Phi_q is singular."""
+        Phi_q per time point); NaN where Phi_q is singular. A library compiled without the
+        sensitivity kernels has the complete one compiled (cached) and loaded on the first call."""
+        if "dvel" not in self.kernels and self.complete is not None:
+            if self._complete is None:
+                self._complete = self.complete()
+            return self._complete.sensitivities(q, v, a, u, ud, udd)
         rows = [np.ascontiguousarray(np.asarray(x, dtype=float).T) for x in (q, v, a, u, ud, udd)]
         count = rows[0].shape[0]
         out = tuple(np.empty((count, self.n_v, len(self.design))) for _ in range(3))

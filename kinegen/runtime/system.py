@@ -474,7 +474,7 @@ def _native(module: ModuleType | Any, case: str, compiled: bool | None, design: 
         sources = native._model_sources(module)
         if sources is None:
             raise native.CompileError(f"{getattr(module, '__file__', module)}: no fresh generated C beside the module")
-        native.build_library(sources)  # raises CompileError without a compiler
+        native.case_library(sources)  # raises CompileError without a compiler
     return native.native_case(module, case, design=design)
 
 

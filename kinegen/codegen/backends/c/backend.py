@@ -10,6 +10,10 @@ A large model's ``<stem>.c`` is still one file that compiles whole, but its sect
 are grouped under ``#if !defined(KINEGEN_PART) || KINEGEN_PART == k`` (k = 1, 2, ...; the
 tables and kernels under k = 0), so that the runtime compiles the parts in parallel
 (:func:`config.source_parts`); the grouped functions then have external linkage and the stem as prefix.
+The sections only the sensitivity kernels (phi_p, dvel, dacc) call come in groups of their own,
+last, which ``-DKINEGEN_NO_SENSITIVITIES`` leaves out with those kernels and their table entries
+(:func:`config.sensitivity_parts`): the runtime's first library compiles without them, and the
+sensitivities' library when they are first asked for.
 """
 
 from __future__ import annotations
@@ -27,6 +31,7 @@ from kinegen.codegen.kernels import Enclosure, Kernel, ModuleDescription, Plan, 
 from kinegen.codegen.shapes import Block, Group, Printing, eliminate
 from kinegen.codegen.templates import environment
 from kinegen.integrity import c_string
+from kinegen.interface import SENSITIVITY_KERNELS
 from kinegen.model.expressions import T
 from kinegen.symbolic import engine
 
@@ -43,6 +48,7 @@ class _Function:
     statements: list[str] = field(default_factory=list)
     doc: str = ""
     static: bool = True
+    sensitivity: bool = False  #: only the sensitivity kernels need it: left out under KINEGEN_NO_SENSITIVITIES
 
 
 def _parameter(slot: str) -> str:
@@ -140,6 +146,7 @@ class _Model:
         self.section_functions: list[_Function] = []
         self.sections: dict[str, list[str]] = {}
         self.tables: list[str] = []  # the kernel tables (kernel_table)
+        self.callers: dict[str, set[str]] = {}  # section function -> the kernels (by name) that call it
 
     def slot_symbols(self, slot: str, case: str | None) -> tuple[sp.Symbol, ...]:
         if case is not None and slot in self.d.cases[case].slots:
@@ -222,20 +229,25 @@ class _Model:
         for function, kernel in kernels:
             arguments = ", ".join([*(f"x[{k}][0]" if s == "t" else f"x[{k}]" for k, s in enumerate(kernel.slots)),
                                    *(f"y[{k}]" for k in range(len(kernel.outputs)))])  # fmt: skip
+            sensitivity = kernel.name in SENSITIVITY_KERNELS
             self.functions.append(_Function(f"call_{function}", ["const double *const *x", "double *const *y"],
-                                            statements=[f"{function}({arguments});"], doc=f"{kernel.name} as a kinegen_kernel entry point."))  # fmt: skip
-            self.tables += [
+                                            statements=[f"{function}({arguments});"], doc=f"{kernel.name} as a kinegen_kernel entry point.",
+                                            sensitivity=sensitivity))  # fmt: skip
+            lines = [
                 f"static const char *const outputs_{function}[] = {_string_array(o.name for o in kernel.outputs)};",
                 f"static const int sizes_{function}[] = {_int_array(o.size for o in kernel.outputs)};",
             ]
-            entries.append(f"    {{.name = {c_string(kernel.name)}, .slots = {c_string(','.join(kernel.slots))}, .n_outputs = {len(kernel.outputs)}, "
-                           f".output_names = outputs_{function}, .output_sizes = sizes_{function}, .call = call_{function}}},")  # fmt: skip
+            entry = [f"    {{.name = {c_string(kernel.name)}, .slots = {c_string(','.join(kernel.slots))}, .n_outputs = {len(kernel.outputs)}, "
+                     f".output_names = outputs_{function}, .output_sizes = sizes_{function}, .call = call_{function}}},"]  # fmt: skip
+            self.tables += _without_sensitivities(lines) if sensitivity else lines
+            entries += _without_sensitivities(entry) if sensitivity else entry
         self.tables += [f"static const kinegen_kernel {table}[] = {{", *entries, "};"]
 
     def kernel(self, name: str, kernel, case: str | None, static: bool = True) -> None:
         """A kernel: its outputs filled section by section (zeros where the description says so)."""
         params = [*(_parameter(s) for s in kernel.slots), *(f"double *{o.name}" for o in kernel.outputs)]
-        statements = []
+        statements: list[str] = []
+        start = len(statements)
         for output in kernel.outputs:
             offset = 0
             for part in output.parts:
@@ -257,18 +269,27 @@ class _Model:
                 statements.append(f"(void){output.name};")
         used = {s for o in kernel.outputs for p in o.parts if not isinstance(p, Zeros)
                 for s in (("span",) if p in self.d.enclosures else self.d.sections[p].slots)}  # fmt: skip
+        for line in statements[start:]:
+            called = line.partition("(")[0]
+            if called.startswith("compute_"):
+                self.callers.setdefault(called, set()).add(kernel.name)
         statements = [f"(void){s};" for s in kernel.slots if s not in used] + statements
-        self.functions.append(_Function(name, params, [], statements, kernel.doc, static))
+        self.functions.append(_Function(name, params, [], statements, kernel.doc, static, kernel.name in SENSITIVITY_KERNELS))
 
     def source_groups(self) -> list[list[_Function]]:
         """The section functions in groups of about :data:`config.FILE_STATEMENTS` statements
-        (one group: a small model, all ``static`` as they are); with more than one, the
-        functions are made external with the stem as prefix and the kernels' calls renamed."""
+        (one group: a small model, all ``static`` as they are), those that only the sensitivity
+        kernels call in groups of their own after the others (each function's ``sensitivity``
+        set); with more than one group, the functions are made external with the stem as prefix
+        and the kernels' calls renamed."""
+        for f in self.section_functions:
+            callers = self.callers.get(f.name, set())
+            f.sensitivity = bool(callers) and callers <= set(SENSITIVITY_KERNELS)
         groups: list[list[_Function]] = [[]]
         size = 0
-        for f in self.section_functions:
+        for f in sorted(self.section_functions, key=lambda f: f.sensitivity):  # (stable: the order within each kind)
             length = len(f.prologue) + len(f.statements)
-            if groups[-1] and size + length > config.FILE_STATEMENTS:
+            if groups[-1] and (size + length > config.FILE_STATEMENTS or f.sensitivity != groups[-1][0].sensitivity):
                 groups.append([])
                 size = 0
             groups[-1].append(f)
@@ -355,8 +376,9 @@ class _Model:
         context = {
             "d": d, "stem": stem, "prefix": stem.upper(), "cases": cases, "points": points, "actuators": actuators,
             "param": d.parametrization, "retract": retract_lines(d.parametrization),
-            "functions": [macros.function(f) for f in self.functions], "sympy_version": sp.__version__, "symengine_version": engine.VERSION, "tables": self.tables,
-            "groups": [[macros.function(f) for f in group] for group in groups],
+            "functions": [(macros.function(f), f.sensitivity) for f in self.functions], "sympy_version": sp.__version__,
+            "symengine_version": engine.VERSION, "tables": self.tables,
+            "groups": [([macros.function(f) for f in group], group[0].sensitivity if group else False) for group in groups],
             "prototypes": [macros.prototype(f) for group in groups for f in group] if len(groups) > 1 else [],
             "sensitivity_values": max(c.sensitivity_values for c in cases),
             "max_inputs": max(1, *(len(c.case.drivers) for c in cases)), "statics": statics,
@@ -385,6 +407,11 @@ def retract_lines(parametrization) -> list[str]:
     lines += [f"const double moved{i} = {' '.join(printer.doprint(e).split())};" for i, e in changed]
     lines += [f"q[{i}] = moved{i};" for i, _ in changed]
     return lines
+
+
+def _without_sensitivities(lines: list[str]) -> list[str]:
+    """``lines`` (of the sensitivity kernels) left out of a compile with ``-DKINEGEN_NO_SENSITIVITIES``."""
+    return ["#ifndef KINEGEN_NO_SENSITIVITIES", *lines, "#endif"]
 
 
 def _renamed_call(line: str, renamed: dict[str, str]) -> str:

@@ -21,7 +21,13 @@ CFLAGS = "-std=c99 -O2 -Wall -Wextra -pedantic"
 
 def source_parts(text: str) -> list[int]:
     """The values of ``KINEGEN_PART`` a generated ``<stem>.c`` is split by (empty: compile it whole)."""
-    return sorted({int(k) for k in _PART.findall(text)})
+    return sorted({int(k) for k, _ in _PART.findall(text)})
 
 
-_PART = re.compile(r"^#if !defined\(KINEGEN_PART\) \|\| KINEGEN_PART == (\d+)$", re.MULTILINE)
+def sensitivity_parts(text: str) -> list[int]:
+    """Those of :func:`source_parts` that only the sensitivity kernels need (``-DKINEGEN_NO_SENSITIVITIES``
+    leaves them out, with those kernels and their table entries in part 0)."""
+    return sorted({int(k) for k, without in _PART.findall(text) if without})
+
+
+_PART = re.compile(r"^#if \(?!defined\(KINEGEN_PART\) \|\| KINEGEN_PART == (\d+)(\) && !defined\(KINEGEN_NO_SENSITIVITIES\))?$", re.MULTILINE)
