@@ -110,7 +110,7 @@ def build_library(sources: dict[str, str], sensitivities: bool = True) -> Path:
     interrupted build leaves a whole library or none, and a cached library whose bytes kinegen did
     not write (tampered, truncated, planted) is built again, never loaded. ``sensitivities`` False:
     without the parts of a model's C that only its sensitivity kernels need
-    (:func:`~kinegen.backends.c.config.sensitivity_parts`; its part 0 with ``-DKINEGEN_NO_SENSITIVITIES``),
+    (:func:`~kinegen.codegen.backends.c.config.sensitivity_parts`; its part 0 with ``-DKINEGEN_NO_SENSITIVITIES``),
     the library a solve loads first (:func:`case_library`)."""
     compiler = c_compiler()
     key = hashlib.sha256()
@@ -402,14 +402,22 @@ class NativeCase:
     def gamma(self, q: np.ndarray, v: np.ndarray, u: np.ndarray, ud: np.ndarray, udd: np.ndarray) -> np.ndarray:
         return self.run("gamma", q=q, v=v, u=u, ud=ud, udd=udd)[0]
 
-    def sensitivities(self, q, v, a, u, ud, udd) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def sensitivities(self, q, v, a, u, ud, udd) -> tuple[np.ndarray, np.ndarray, np.ndarray] | None:
         """dq/dp, dv/dp, da/dp (each (K, n_v, n_design)) at the K columns of q (n_q, K), v, a
         (n_v, K) and the inputs u, ud, udd (n_inputs, K), by ``kinegen_sensitivities`` (one LU of
         Phi_q per time point); NaN where Phi_q is singular. A library compiled without the
-        sensitivity kernels has the complete one compiled (cached) and loaded on the first call."""
+        sensitivity kernels has the complete one compiled (cached) and loaded on the first call;
+        None when that cannot be compiled (said once as a warning: the caller computes them in Python)."""
         if "dvel" not in self.kernels and self.complete is not None:
             if self._complete is None:
-                self._complete = self.complete()
+                try:
+                    self._complete = self.complete()
+                except CompileError as exc:
+                    if str(exc) not in _WARNED:
+                        _WARNED.add(str(exc))
+                        warnings.warn(f"no compiled sensitivity kernels ({exc}); kinegen computes them with the Python functions",
+                                      RuntimeWarning, stacklevel=2)  # fmt: skip
+                    return None
             return self._complete.sensitivities(q, v, a, u, ud, udd)
         rows = [np.ascontiguousarray(np.asarray(x, dtype=float).T) for x in (q, v, a, u, ud, udd)]
         count = rows[0].shape[0]

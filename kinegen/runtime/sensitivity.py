@@ -96,9 +96,8 @@ def _state_sensitivities(results: Results) -> tuple[np.ndarray, np.ndarray, np.n
     _check(system)
     n, n_design = system.n_velocity, len(system.design)
     done, *state = _trajectory(results)
-    if system.native is not None and system.native.sensitivity_doubles:
-        parts = system.native.sensitivities(*state)
-    else:
+    parts = system.native.sensitivities(*state) if system.native is not None and system.native.sensitivity_doubles else None
+    if parts is None:  # no compiled sensitivity kernels (none in the module, or they would not compile)
         parts = _python_sensitivities(system, *state)
     out = tuple(np.full((len(results.times), n, n_design), np.nan) for _ in range(3))
     for full, part in zip(out, parts):
