@@ -36,7 +36,7 @@ from types import ModuleType
 
 import numpy as np
 
-from kinegen.codegen.backends.c.config import RUNTIME, sensitivity_parts, source_parts
+from kinegen.codegen.backends.c.config import RUNTIME, has_sensitivity_parts, sensitivity_parts, source_parts
 from kinegen.errors import ExitCode, KinegenError
 from kinegen.files import cache_folder
 from kinegen.integrity import remember, trusted
@@ -224,7 +224,7 @@ NO_SENSITIVITIES = "KINEGEN_NO_SENSITIVITIES"
 def deferred_sensitivities(sources: dict[str, str]) -> bool:
     """Whether a model's C has parts only its sensitivity kernels need: its first library is then
     compiled without them, and the complete one when they are first asked for."""
-    return any(sensitivity_parts(text) for name, text in sources.items() if name.endswith(".c") and name not in RUNTIME)
+    return any(has_sensitivity_parts(text) for name, text in sources.items() if name.endswith(".c") and name not in RUNTIME)
 
 
 def case_library(sources: dict[str, str]) -> Path:

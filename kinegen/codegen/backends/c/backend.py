@@ -247,7 +247,6 @@ class _Model:
         """A kernel: its outputs filled section by section (zeros where the description says so)."""
         params = [*(_parameter(s) for s in kernel.slots), *(f"double *{o.name}" for o in kernel.outputs)]
         statements: list[str] = []
-        start = len(statements)
         for output in kernel.outputs:
             offset = 0
             for part in output.parts:
@@ -269,7 +268,7 @@ class _Model:
                 statements.append(f"(void){output.name};")
         used = {s for o in kernel.outputs for p in o.parts if not isinstance(p, Zeros)
                 for s in (("span",) if p in self.d.enclosures else self.d.sections[p].slots)}  # fmt: skip
-        for line in statements[start:]:
+        for line in statements:
             called = line.partition("(")[0]
             if called.startswith("compute_"):
                 self.callers.setdefault(called, set()).add(kernel.name)
