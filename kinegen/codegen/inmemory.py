@@ -1,34 +1,35 @@
-"""The in-memory path: ``sympy.lambdify`` of the symbolic system, no file written.
+"""The in-memory path: ``sympy.lambdify`` of the kernel declaration, no file written.
 
 It returns an object with the same attributes as a generated module, so the runtime
-treats both alike. Building is quicker (no printing); evaluation is slower. A case's
-functions are made when the case is first read (``CASES[name]``), their common
-subexpressions eliminated by SymEngine (:func:`kinegen.symbolic.engine.eliminate`).
+treats both alike. Building is quicker (no printing); evaluation is slower. The functions are
+those the case's kernels declare (:func:`kinegen.codegen.kernels.describe`): each output the
+concatenation of its sections' groups (renamed from their shape's placeholders, as a backend
+prints them) or zeros, the input enclosures through the declared interval program -- the
+same source the Python and C backends print. A case's functions are made when the case is
+first read (``CASES[name]``), their common subexpressions eliminated by SymEngine
+(:func:`kinegen.symbolic.engine.eliminate`).
 """
 
 from __future__ import annotations
 
 import functools
 from collections.abc import Callable, Iterator, Mapping
-from pathlib import Path
 from types import SimpleNamespace
 
 import numpy as np
 import sympy as sp
 
 from kinegen.codegen.backends.python.intervals import evaluate
-from kinegen.codegen.intervals import interval_program
-from kinegen.codegen.kernels import initial_q
+from kinegen.codegen.kernels import CaseDescription, Kernel, ModuleDescription, Output, Zeros, describe
 from kinegen.errors import ModelError
 from kinegen.model import Model
-from kinegen.model.expressions import T
 from kinegen.rotations import Parametrization
-from kinegen.symbolic import build_systems
 from kinegen.symbolic.engine import eliminate
 
 
-def _stacked(function, m: int, batch_args: tuple[int, ...] = (0,)):
-    """Wrap a lambdified list-returning function into one returning an (m, ...) array."""
+def _stacked(function, m: int, batch_args: tuple[int, ...]):
+    """Wrap a lambdified list-returning function into one returning an (m, ...) array, the batch
+    shape broadcast from the first value of the arguments ``batch_args`` (none: one value)."""
 
     def evaluate(*args):
         values = function(*args)
@@ -41,16 +42,44 @@ def _stacked(function, m: int, batch_args: tuple[int, ...] = (0,)):
     return evaluate
 
 
-def _inputs(functions, t_symbol, m: int):
-    compiled = sp.lambdify([t_symbol], list(functions), modules="numpy")
+def _time_function(function, m: int):
+    """Wrap a lambdified function of the time t (a number or an array) into one returning (m, ...)."""
 
     def evaluate(t):
         out = np.zeros((m,) + np.shape(t))
-        for i, value in enumerate(compiled(t)):
+        for i, value in enumerate(function(t)):
             out[i] = value
         return out
 
     return evaluate
+
+
+def _expressions(description: ModuleDescription, output: Output) -> list[sp.Expr]:
+    """An output's values as expressions of the kernel's slots: each part's groups renamed from
+    their shape's placeholders to their own symbols (or the part's zeros), then every rotation-matrix
+    symbol replaced by its definition in the stored coordinates."""
+    definitions = {s: v for _, symbols, values in description.definitions.bodies for s, v in zip(symbols, values)}
+    values: list[sp.Expr] = []
+    for part in output.parts:
+        if isinstance(part, Zeros):
+            values += [sp.Integer(0)] * part.size
+            continue
+        for group in description.sections[part].groups:
+            values += [e.xreplace(group.rename) for e in group.expressions()]
+    return [e.xreplace(definitions) for e in values]
+
+
+def _output_function(description: ModuleDescription, case: CaseDescription, kernel: Kernel, output: Output) -> Callable:
+    """One output of a case's kernel as a NumPy function of the kernel's slots (``t``: a number or an
+    array of times; the others: sequences of values, each a number or an array of one batch shape)."""
+    if len(output.parts) == 1 and output.parts[0] in description.enclosures:
+        return functools.partial(evaluate, description.enclosures[output.parts[0]].program)
+    slots = {**description.slots, **case.slots}
+    arguments = [slots[s][0] if s == "t" else list(slots[s]) for s in kernel.slots]
+    function = sp.lambdify(arguments, _expressions(description, output), modules="numpy", cse=eliminate)
+    if kernel.slots == ("t",):
+        return _time_function(function, output.size)
+    return _stacked(function, output.size, tuple(i for i, s in enumerate(kernel.slots) if s != "t"))
 
 
 class _Cases(Mapping):
@@ -76,60 +105,42 @@ class _Cases(Mapping):
 def lambdify_model(model: Model, parametrization: Parametrization) -> SimpleNamespace:
     """A module-like namespace with every case of ``model``, each compiled by ``lambdify`` when it
     is first read (a model with design parameters: ``model.at(values)`` fixes them; generated
-    modules take them)."""
+    modules take them): the outputs of every kernel the case declares, the force and sensitivity
+    kernels aside (:func:`~kinegen.codegen.kernels.describe` with ``forces`` and ``sensitivities``
+    False)."""
     if model.design:
         raise ModelError(model.file, "design", "lambdify_model takes numbers: use model.at(values), or a generated module")
-    systems = build_systems(model, parametrization)
-    first = next(iter(systems.values()))
-    coords = first.coordinates
-    q, v = coords.stored_symbols, coords.velocity_symbols
-    definitions = coords.frame_definitions
-
-    def compile_(args, exprs, size):
-        exprs = [e.xreplace(definitions) for e in exprs]
-        return _stacked(sp.lambdify(args, exprs, modules="numpy", cse=eliminate), size, (0, 1))
+    d = describe(model, parametrization, sensitivities=False, forces=False)
 
     def case(name: str) -> dict:
-        system = systems[name]
-        rows, entries = system.rows, system.jacobian_entries
-        m = len(rows)
-        inputs = system.inputs
-        u, ud, udd = list(inputs.u), list(inputs.ud), list(inputs.udd)
-        functions = inputs.stacked()
+        c = d.cases[name]
         return {
-            "constraints": tuple(r.name for r in rows),
-            "drivers": inputs.names,
-            "jac_rows": tuple(i for i, _, _ in entries),
-            "jac_cols": tuple(j for _, j, _ in entries),
-            "t0": system.case.t0,
-            "t1": system.case.t1,
-            "steps": system.case.steps,
-            "driver_sources": inputs.sources,
-            "outputs": {  # the outputs of the kernels a generated module's case declares (no plain-float ones)
-                "inputs": _inputs(functions, T, len(functions)),
-                "input_ranges": functools.partial(evaluate, interval_program(functions)),
-                "phi": compile_([q, u], [r.phi for r in rows], m),
-                "jac": compile_([q, u], [e for _, _, e in entries], len(entries)),
-                "nu": compile_([q, u, ud], [r.nu for r in rows], m),
-                "gamma": compile_([q, v, u, ud, udd], [r.gamma for r in rows], m),
+            "constraints": c.constraints,
+            "drivers": c.drivers,
+            "jac_rows": c.jac_rows,
+            "jac_cols": c.jac_cols,
+            "t0": c.t0,
+            "t1": c.t1,
+            "steps": c.steps,
+            "driver_sources": c.driver_sources,
+            "outputs": {  # the outputs of the kernels the case declares (no plain-float ones)
+                output.name: _output_function(d, c, kernel, output) for kernel in c.kernels.values() for output in kernel.outputs
             },
             "scalar": {},
             "patterns": {},
         }
 
     return SimpleNamespace(
-        MODEL=model.name,
+        MODEL=d.model,
         PARAMETRIZATION=parametrization.name,
-        SOURCE=Path(model.file).name,
-        SOURCE_SHA256=model.source_sha256,
-        STORED_NAMES=tuple(coords.stored_names),
-        VELOCITY_NAMES=tuple(coords.velocity_names),
-        BODIES={b.name: (b.stored_offset, b.velocity_offset) for b in coords.bodies},
-        POINTS={b.name: {k: tuple(float(sp.N(x, 30)) for x in p) for k, p in b.points.items()} for b in model.bodies},
-        GROUND_POINTS={k: tuple(float(sp.N(x, 30)) for x in p) for k, p in model.ground_points.items()},
-        INITIAL_Q=tuple(initial_q(model, parametrization)),
-        ACTUATORS={
-            a.name: ((a.points[0].body, a.points[0].name), (a.points[1].body, a.points[1].name), a.limits()) for a in model.actuators
-        },
-        CASES=_Cases(tuple(systems), case),
+        SOURCE=d.source,
+        SOURCE_SHA256=d.sha256,
+        STORED_NAMES=d.stored_names,
+        VELOCITY_NAMES=d.velocity_names,
+        BODIES={name: (stored, velocity) for name, stored, velocity in d.bodies},
+        POINTS=d.points,
+        GROUND_POINTS=d.ground_points,
+        INITIAL_Q=d.initial_q,
+        ACTUATORS={name: (first, second, limits) for name, first, second, limits in d.actuators},
+        CASES=_Cases(tuple(d.cases), case),
     )
